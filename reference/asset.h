@@ -1,0 +1,27 @@
+// skintune: everything needed to skin a model at any time of any clip.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "reference/animation.h"
+#include "reference/mesh.h"
+#include "reference/skeleton.h"
+
+namespace skintune {
+
+struct SkinnedAsset {
+  std::string source;  // file name or dataset key: used in error messages
+  SkinnedMesh mesh;
+  Skeleton skeleton;
+  std::vector<AnimationClip> animations;
+
+  // Resolves an animation by exact name, or by index when `name_or_index` is a
+  // decimal number. Throws Error naming the source and listing what exists.
+  int FindAnimation(const std::string& name_or_index) const;
+  // Pose at time t of clip `animation` (-1: the rest pose).
+  Pose PoseAt(int animation, double t) const;
+  std::vector<glm::mat4> PaletteAt(int animation, double t) const;
+};
+
+}  // namespace skintune

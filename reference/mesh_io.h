@@ -1,0 +1,42 @@
+// skintune: writing (and reading back) skinned vertex output.
+//
+// Wavefront .obj: one "v x y z" line per vertex in the mesh's vertex order
+// (then "vn x y z" lines when normals are given), nothing else.
+//
+// skintune binary vertex file (.stv), little-endian, documented in docs/FORMATS.md:
+//   offset 0  char[4]  magic "STV1"
+//   offset 4  uint32   vertex count N
+//   offset 8  uint32   flags: bit 0 = normals present
+//   offset 12 uint32   reserved, 0
+//   offset 16 float32  positions, N x (x, y, z)
+//   then      float32  normals,   N x (x, y, z), when flag bit 0 is set
+//
+// Writes are atomic: data goes to a temporary file beside the target that is
+// renamed over it only when complete, so a failure never truncates an existing file.
+#pragma once
+
+#include <span>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace skintune {
+
+// Chooses the format by extension: ".obj" (case-insensitive) -> obj, else binary.
+// Throws Error("<path>: ...") when the file cannot be written.
+void WriteSkinnedVertices(const std::string& path, std::span<const glm::vec3> positions,
+                          std::span<const glm::vec3> normals = {});
+
+struct SkinnedVertices {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec3> normals;
+};
+
+// Reads either format back. Throws Error("<path>: ...") on malformed input.
+SkinnedVertices ReadSkinnedVertices(const std::string& path);
+
+// Writes `contents` to `path` atomically (temporary file + rename).
+void WriteFileAtomically(const std::string& path, const std::string& contents);
+
+}  // namespace skintune

@@ -1,0 +1,79 @@
+// The float64 gold: the reference every kernel variant is checked against.
+#include <algorithm>
+#include <cmath>
+
+#include "reference/error.h"
+#include "reference/skinning.h"
+
+namespace skintune {
+
+void CheckSkinningArguments(const SkinnedMesh& mesh, std::size_t palette_size, std::size_t out_positions,
+                            std::size_t out_normals, const char* who) {
+  if (palette_size != static_cast<std::size_t>(mesh.joint_count)) {
+    throw Error(std::string(who) + ": palette has " + std::to_string(palette_size) + " matrices, mesh has " +
+                std::to_string(mesh.joint_count) + " joints");
+  }
+  const std::size_t n = mesh.vertex_count();
+  if (out_positions != n || (out_normals != 0 && out_normals != n)) {
+    throw Error(std::string(who) + ": output spans must hold " + std::to_string(n) + " vertices");
+  }
+  const std::size_t slots = n * static_cast<std::size_t>(std::max(mesh.influences, 0));
+  if (mesh.influences < 1 || mesh.influences > kMaxInfluences || mesh.joints.size() != slots ||
+      mesh.weights.size() != slots || (mesh.has_normals() && mesh.normals.size() != n)) {
+    throw Error(std::string(who) + ": malformed mesh: " + Validate(mesh).Summary());
+  }
+}
+
+GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette, bool with_normals) {
+  ThrowIfInvalid(mesh, "SkinGold");
+  CheckSkinningArguments(mesh, palette.size(), mesh.vertex_count(), 0, "SkinGold");
+  with_normals = with_normals && mesh.has_normals();
+  const std::size_t n = mesh.vertex_count();
+  const int b = mesh.influences;
+  GoldResult result;
+  result.positions.resize(n);
+  if (with_normals) result.normals.resize(n);
+  for (std::size_t v = 0; v < n; ++v) {
+    glm::dmat4 blended(0.0);
+    for (int i = 0; i < b; ++i) {
+      const double w = mesh.weights[v * b + i];
+      if (w != 0.0) blended += w * glm::dmat4(palette[mesh.joints[v * b + i]]);
+    }
+    result.positions[v] = glm::dvec3(blended * glm::dvec4(glm::dvec3(mesh.positions[v]), 1.0));
+    if (with_normals) {
+      const glm::dvec3 n3 = glm::dmat3(blended) * glm::dvec3(mesh.normals[v]);
+      const double len = glm::length(n3);
+      result.normals[v] = len > 0.0 ? n3 / len : n3;
+    }
+  }
+  return result;
+}
+
+GoldComparison CompareToGold(std::span<const glm::dvec3> gold, std::span<const glm::vec3> actual) {
+  if (gold.size() != actual.size()) {
+    throw Error("CompareToGold: " + std::to_string(actual.size()) + " values against a gold of " +
+                std::to_string(gold.size()));
+  }
+  double largest = 0.0;
+  for (const glm::dvec3& g : gold) largest = std::max(largest, glm::length(g));
+  const double floor = std::max(1e-3 * largest, 1e-30);
+  GoldComparison c;
+  for (std::size_t v = 0; v < gold.size(); ++v) {
+    const glm::dvec3 a(actual[v]);
+    if (!std::isfinite(a.x) || !std::isfinite(a.y) || !std::isfinite(a.z)) {
+      if (c.non_finite++ == 0) c.worst_vertex = v;
+      continue;
+    }
+    const double abs_err = glm::length(a - gold[v]);
+    const double rel = abs_err / std::max(glm::length(gold[v]), floor);
+    if (rel > c.max_relative) {
+      c.max_relative = rel;
+      if (c.non_finite == 0) c.worst_vertex = v;
+    }
+    c.max_absolute = std::max(c.max_absolute, abs_err);
+  }
+  if (c.non_finite > 0) c.max_relative = std::numeric_limits<double>::infinity();
+  return c;
+}
+
+}  // namespace skintune

@@ -1,0 +1,25 @@
+// The paper's serial CPU baseline: float32, one thread, the straightforward
+// loop over array-of-structures data. Kept deliberately plain: it is the
+// denominator of every speedup skintune reports, as in the paper.
+#include "reference/skinning.h"
+
+namespace skintune {
+
+void CheckSkinningArguments(const SkinnedMesh& mesh, std::size_t palette_size, std::size_t out_positions,
+                            std::size_t out_normals, const char* who);
+
+void SkinSerial(const SkinnedMesh& mesh, std::span<const glm::mat4> palette, std::span<glm::vec3> out_positions,
+                std::span<glm::vec3> out_normals) {
+  CheckSkinningArguments(mesh, palette.size(), out_positions.size(), out_normals.size(), "SkinSerial");
+  const bool with_normals = mesh.has_normals() && !out_normals.empty();
+  const std::size_t n = mesh.vertex_count();
+  const int b = mesh.influences;
+  for (std::size_t v = 0; v < n; ++v) {
+    glm::mat4 blended(0.0f);
+    for (int i = 0; i < b; ++i) blended += mesh.weights[v * b + i] * palette[mesh.joints[v * b + i]];
+    out_positions[v] = glm::vec3(blended * glm::vec4(mesh.positions[v], 1.0f));
+    if (with_normals) out_normals[v] = glm::normalize(glm::mat3(blended) * mesh.normals[v]);
+  }
+}
+
+}  // namespace skintune

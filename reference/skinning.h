@@ -1,0 +1,80 @@
+// skintune: CPU linear blend skinning, three ways.
+//
+//   v' = sum_i w_i * M[d_i] * v            (positions)
+//   n' = normalize(upper3x3(sum_i w_i * M[d_i]) * n)   (normals)
+//
+// - SkinGold:   float64 throughout; the reference every correctness check uses.
+// - SkinSerial: the paper's serial baseline: float32, one thread, a plain loop
+//               over the mesh's array-of-structures data (blend the matrices,
+//               then transform). The denominator of every speedup.
+// - FastSkinner: the honest CPU competitor: structure-of-arrays copy of the
+//               mesh made once, a loop specialised per influence count that
+//               the compiler vectorises (AVX-512/AVX2 clones chosen at run
+//               time), all cores through a persistent thread pool.
+//
+// Preconditions: palette.size() == mesh.joint_count and output spans of
+// vertex_count() elements (violations throw Error). SkinGold and FastSkinner's
+// constructor also Validate() the mesh and throw on any problem; SkinSerial,
+// being the timed baseline, checks only array sizes: validate the mesh once
+// before calling it per frame. Normals are skinned only when the mesh has them
+// and an output span for them is given.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "reference/mesh.h"
+
+namespace skintune {
+
+struct GoldResult {
+  std::vector<glm::dvec3> positions;
+  std::vector<glm::dvec3> normals;  // empty unless requested and present
+};
+
+GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
+                    bool with_normals = false);
+
+void SkinSerial(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
+                std::span<glm::vec3> out_positions, std::span<glm::vec3> out_normals = {});
+
+class FastSkinner {
+ public:
+  // threads = 0: std::thread::hardware_concurrency().
+  explicit FastSkinner(const SkinnedMesh& mesh, unsigned threads = 0);
+  ~FastSkinner();
+  FastSkinner(const FastSkinner&) = delete;
+  FastSkinner& operator=(const FastSkinner&) = delete;
+
+  void Run(std::span<const glm::mat4> palette, std::span<glm::vec3> out_positions,
+           std::span<glm::vec3> out_normals = {});
+
+  unsigned threads() const;
+  std::size_t vertex_count() const;
+  int influences() const;
+  // Bytes one Run() must move through memory: SoA inputs read + outputs written
+  // (positions; normals too when `with_normals`), excluding the palette.
+  std::size_t BytesPerRun(bool with_normals) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Error of `actual` against the gold, per vertex: |a - g| / max(|g|, floor),
+// where floor = 1e-3 * (largest |g| of the mesh), so vertices near the origin
+// do not inflate it. Also the largest absolute error and its vertex.
+struct GoldComparison {
+  double max_relative = 0.0;
+  double max_absolute = 0.0;
+  std::size_t worst_vertex = 0;
+  std::size_t non_finite = 0;  // NaN/inf outputs (count as failures)
+};
+
+GoldComparison CompareToGold(std::span<const glm::dvec3> gold, std::span<const glm::vec3> actual);
+
+}  // namespace skintune

@@ -1,0 +1,140 @@
+#include "runtime/opencl_devices.h"
+
+#define CL_TARGET_OPENCL_VERSION 120
+#include <CL/cl.h>
+
+#include <nlohmann/json.hpp>
+
+namespace skintune {
+
+namespace {
+
+constexpr cl_int kPlatformNotFoundKhr = -1001;  // CL_PLATFORM_NOT_FOUND_KHR from cl_ext.h
+
+std::string PlatformString(cl_platform_id platform, cl_platform_info what) {
+  std::size_t size = 0;
+  if (clGetPlatformInfo(platform, what, 0, nullptr, &size) != CL_SUCCESS || size == 0) return {};
+  std::string value(size, '\0');
+  if (clGetPlatformInfo(platform, what, size, value.data(), nullptr) != CL_SUCCESS) return {};
+  value.resize(value.find('\0') == std::string::npos ? value.size() : value.find('\0'));
+  return value;
+}
+
+std::string DeviceString(cl_device_id device, cl_device_info what) {
+  std::size_t size = 0;
+  if (clGetDeviceInfo(device, what, 0, nullptr, &size) != CL_SUCCESS || size == 0) return {};
+  std::string value(size, '\0');
+  if (clGetDeviceInfo(device, what, size, value.data(), nullptr) != CL_SUCCESS) return {};
+  value.resize(value.find('\0') == std::string::npos ? value.size() : value.find('\0'));
+  return value;
+}
+
+template <typename T>
+T DeviceValue(cl_device_id device, cl_device_info what) {
+  T value{};
+  if (clGetDeviceInfo(device, what, sizeof(T), &value, nullptr) != CL_SUCCESS) return T{};
+  return value;
+}
+
+std::string TypeName(cl_device_type type) {
+  std::string name;
+  auto add = [&](cl_device_type bit, const char* text) {
+    if (type & bit) name += (name.empty() ? "" : "+") + std::string(text);
+  };
+  add(CL_DEVICE_TYPE_GPU, "gpu");
+  add(CL_DEVICE_TYPE_CPU, "cpu");
+  add(CL_DEVICE_TYPE_ACCELERATOR, "accelerator");
+  add(CL_DEVICE_TYPE_CUSTOM, "custom");
+  return name.empty() ? "default" : name;
+}
+
+OpenClDeviceInfo Describe(cl_device_id device) {
+  OpenClDeviceInfo d;
+  d.name = DeviceString(device, CL_DEVICE_NAME);
+  d.vendor = DeviceString(device, CL_DEVICE_VENDOR);
+  d.driver_version = DeviceString(device, CL_DRIVER_VERSION);
+  d.device_version = DeviceString(device, CL_DEVICE_VERSION);
+  d.opencl_c_version = DeviceString(device, CL_DEVICE_OPENCL_C_VERSION);
+  d.extensions = DeviceString(device, CL_DEVICE_EXTENSIONS);
+  d.type = TypeName(DeviceValue<cl_device_type>(device, CL_DEVICE_TYPE));
+  d.compute_units = DeviceValue<cl_uint>(device, CL_DEVICE_MAX_COMPUTE_UNITS);
+  d.max_clock_mhz = DeviceValue<cl_uint>(device, CL_DEVICE_MAX_CLOCK_FREQUENCY);
+  d.global_memory_bytes = DeviceValue<cl_ulong>(device, CL_DEVICE_GLOBAL_MEM_SIZE);
+  d.global_cache_bytes = DeviceValue<cl_ulong>(device, CL_DEVICE_GLOBAL_MEM_CACHE_SIZE);
+  d.local_memory_bytes = DeviceValue<cl_ulong>(device, CL_DEVICE_LOCAL_MEM_SIZE);
+  d.constant_buffer_bytes = DeviceValue<cl_ulong>(device, CL_DEVICE_MAX_CONSTANT_BUFFER_SIZE);
+  d.max_allocation_bytes = DeviceValue<cl_ulong>(device, CL_DEVICE_MAX_MEM_ALLOC_SIZE);
+  d.max_work_group_size = DeviceValue<std::size_t>(device, CL_DEVICE_MAX_WORK_GROUP_SIZE);
+  d.image_support = DeviceValue<cl_bool>(device, CL_DEVICE_IMAGE_SUPPORT) == CL_TRUE;
+  d.image_buffer_max_pixels = DeviceValue<std::size_t>(device, CL_DEVICE_IMAGE_MAX_BUFFER_SIZE);
+  return d;
+}
+
+}  // namespace
+
+OpenClInventory EnumerateOpenCl() {
+  OpenClInventory inventory;
+  cl_uint count = 0;
+  const cl_int err = clGetPlatformIDs(0, nullptr, &count);
+  if (err == kPlatformNotFoundKhr || (err == CL_SUCCESS && count == 0)) {
+    inventory.status = "no OpenCL platform found (no ICD registered in /etc/OpenCL/vendors)";
+    return inventory;
+  }
+  if (err != CL_SUCCESS) {
+    inventory.status = "clGetPlatformIDs failed with error " + std::to_string(err);
+    return inventory;
+  }
+  std::vector<cl_platform_id> platforms(count);
+  clGetPlatformIDs(count, platforms.data(), nullptr);
+  inventory.platform_count = static_cast<int>(count);
+  for (cl_uint p = 0; p < count; ++p) {
+    cl_uint device_count = 0;
+    const cl_int derr = clGetDeviceIDs(platforms[p], CL_DEVICE_TYPE_ALL, 0, nullptr, &device_count);
+    const std::string platform_name = PlatformString(platforms[p], CL_PLATFORM_NAME);
+    if (derr == CL_DEVICE_NOT_FOUND || device_count == 0) {
+      inventory.warnings.push_back("platform '" + platform_name + "' has no devices");
+      continue;
+    }
+    if (derr != CL_SUCCESS) {
+      inventory.warnings.push_back("platform '" + platform_name + "': clGetDeviceIDs failed with error " +
+                                   std::to_string(derr));
+      continue;
+    }
+    std::vector<cl_device_id> devices(device_count);
+    clGetDeviceIDs(platforms[p], CL_DEVICE_TYPE_ALL, device_count, devices.data(), nullptr);
+    for (cl_uint d = 0; d < device_count; ++d) {
+      OpenClDeviceInfo info = Describe(devices[d]);
+      info.platform_index = static_cast<int>(p);
+      info.device_index = static_cast<int>(d);
+      info.platform_name = platform_name;
+      info.platform_vendor = PlatformString(platforms[p], CL_PLATFORM_VENDOR);
+      info.platform_version = PlatformString(platforms[p], CL_PLATFORM_VERSION);
+      inventory.devices.push_back(std::move(info));
+    }
+  }
+  return inventory;
+}
+
+void to_json(nlohmann::json& out, const OpenClDeviceInfo& d) {
+  out = {{"platform_index", d.platform_index},
+         {"device_index", d.device_index},
+         {"platform", {{"name", d.platform_name}, {"vendor", d.platform_vendor}, {"version", d.platform_version}}},
+         {"name", d.name},
+         {"vendor", d.vendor},
+         {"driver_version", d.driver_version},
+         {"device_version", d.device_version},
+         {"opencl_c_version", d.opencl_c_version},
+         {"type", d.type},
+         {"compute_units", d.compute_units},
+         {"max_clock_mhz", d.max_clock_mhz},
+         {"global_memory_bytes", d.global_memory_bytes},
+         {"global_cache_bytes", d.global_cache_bytes},
+         {"local_memory_bytes", d.local_memory_bytes},
+         {"constant_buffer_bytes", d.constant_buffer_bytes},
+         {"max_allocation_bytes", d.max_allocation_bytes},
+         {"max_work_group_size", d.max_work_group_size},
+         {"image_support", d.image_support},
+         {"image_buffer_max_pixels", d.image_buffer_max_pixels}};
+}
+
+}  // namespace skintune

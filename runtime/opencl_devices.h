@@ -1,0 +1,47 @@
+// skintune: what OpenCL offers on this machine: every platform that
+// clGetPlatformIDs enumerates and every device of every type on each.
+//
+// A machine with no ICD loader configuration or no platform is not an error:
+// the result is empty and `status` says why, so callers report the backend
+// as skipped.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+namespace skintune {
+
+struct OpenClDeviceInfo {
+  int platform_index = 0;
+  int device_index = 0;
+  std::string platform_name, platform_vendor, platform_version;
+  std::string name, vendor, driver_version, device_version, opencl_c_version;
+  std::string type;  // "gpu", "cpu", "accelerator", "custom" or "default", joined with '+' if several
+  std::uint32_t compute_units = 0;
+  std::uint32_t max_clock_mhz = 0;
+  std::uint64_t global_memory_bytes = 0;
+  std::uint64_t global_cache_bytes = 0;
+  std::uint64_t local_memory_bytes = 0;
+  std::uint64_t constant_buffer_bytes = 0;
+  std::uint64_t max_allocation_bytes = 0;
+  std::size_t max_work_group_size = 0;
+  bool image_support = false;
+  std::uint64_t image_buffer_max_pixels = 0;
+  std::string extensions;
+};
+
+struct OpenClInventory {
+  std::vector<OpenClDeviceInfo> devices;
+  int platform_count = 0;
+  std::string status;  // empty when at least one platform answered; otherwise why none
+  std::vector<std::string> warnings;  // a platform or device that failed a query
+};
+
+OpenClInventory EnumerateOpenCl();
+
+void to_json(nlohmann::json& out, const OpenClDeviceInfo& device);
+
+}  // namespace skintune

@@ -1,0 +1,71 @@
+// skintune devices: every OpenCL platform and device on this machine.
+#include <iomanip>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "runtime/opencl_devices.h"
+#include "tools/commands.h"
+
+namespace skintune::tools {
+
+namespace {
+
+std::string Bytes(std::uint64_t bytes) {
+  std::ostringstream s;
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  double value = static_cast<double>(bytes);
+  int unit = 0;
+  while (value >= 1024.0 && unit < 4) {
+    value /= 1024.0;
+    ++unit;
+  }
+  s << std::setprecision(value < 10 ? 3 : 4) << value << " " << units[unit];
+  return s.str();
+}
+
+void PrintText(const OpenClInventory& inventory) {
+  if (inventory.devices.empty()) {
+    std::cout << "OpenCL: skipped: " << (inventory.status.empty() ? "no devices" : inventory.status) << "\n";
+  }
+  int last_platform = -1;
+  for (const OpenClDeviceInfo& d : inventory.devices) {
+    if (d.platform_index != last_platform) {
+      last_platform = d.platform_index;
+      std::cout << "OpenCL platform " << d.platform_index << ": " << d.platform_name << " (" << d.platform_vendor
+                << ", " << d.platform_version << ")\n";
+    }
+    std::cout << "  device " << d.platform_index << "." << d.device_index << ": " << d.name << "\n"
+              << "    vendor " << d.vendor << ", type " << d.type << ", driver " << d.driver_version << ", "
+              << d.device_version << "\n"
+              << "    " << d.compute_units << " compute units at " << d.max_clock_mhz << " MHz, global memory "
+              << Bytes(d.global_memory_bytes) << ", local memory " << Bytes(d.local_memory_bytes)
+              << ", constant buffer " << Bytes(d.constant_buffer_bytes) << ", max work-group "
+              << d.max_work_group_size << ", images " << (d.image_support ? "yes" : "no") << "\n";
+  }
+  for (const std::string& w : inventory.warnings) std::cout << "  warning: " << w << "\n";
+}
+
+}  // namespace
+
+Command RegisterDevices(CLI::App& app) {
+  auto* sub = app.add_subcommand("devices", "list every OpenCL platform and device");
+  auto json = std::make_shared<bool>(false);
+  sub->add_flag("--json", *json, "print JSON instead of text");
+  return {sub, [json] {
+            const OpenClInventory inventory = EnumerateOpenCl();
+            if (*json) {
+              nlohmann::json out = {{"opencl",
+                                     {{"platform_count", inventory.platform_count},
+                                      {"status", inventory.status.empty() ? "ok" : "skipped: " + inventory.status},
+                                      {"devices", inventory.devices},
+                                      {"warnings", inventory.warnings}}}};
+              std::cout << out.dump(2) << "\n";
+            } else {
+              PrintText(inventory);
+            }
+            return 0;
+          }};
+}
+
+}  // namespace skintune::tools

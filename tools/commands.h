@@ -1,0 +1,39 @@
+// skintune command-line tool: one file per subcommand. Each Register* adds
+// its subcommand and options to the CLI11 app and returns the action to run
+// when that subcommand was chosen. Actions throw skintune::Error for bad
+// input; main() prints it as one line and exits 1.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "reference/asset.h"
+
+namespace skintune::tools {
+
+struct Command {
+  CLI::App* subcommand;
+  std::function<int()> run;
+};
+
+Command RegisterRun(CLI::App& app);
+Command RegisterDevices(CLI::App& app);
+Command RegisterSkin(CLI::App& app);
+
+// How a command names its input mesh: a synthetic dataset key or a glTF file.
+struct MeshSource {
+  std::string dataset;    // key (see reference/synthetic.h), or empty
+  std::string mesh_file;  // .gltf / .glb, or empty
+  std::string mesh_name;  // node/mesh name inside the file, or empty
+  bool strict = false;    // reject glTF weights that do not sum to 1
+  bool normals = false;   // import/generate normals
+};
+
+// Adds --dataset / --mesh / --mesh-name / --strict to `sub`.
+void AddMeshSourceOptions(CLI::App& sub, MeshSource& source);
+// Loads the asset, printing import warnings on stderr ("skintune: warning: ...").
+SkinnedAsset LoadAsset(const MeshSource& source);
+
+}  // namespace skintune::tools

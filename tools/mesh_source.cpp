@@ -1,0 +1,37 @@
+#include <iostream>
+
+#include "reference/gltf_import.h"
+#include "reference/synthetic.h"
+#include "tools/commands.h"
+
+namespace skintune::tools {
+
+void AddMeshSourceOptions(CLI::App& sub, MeshSource& source) {
+  auto* dataset = sub.add_option("--dataset", source.dataset,
+                                 "synthetic dataset key: <vertices>-b<influences>[-bones<N>][-random][-seed<S>]"
+                                 "[-normals], e.g. 100k-b2, 1600k-b4-random; 'default' = 100k-b2");
+  auto* mesh = sub.add_option("--mesh", source.mesh_file, "glTF 2.0 file (.gltf or .glb) with a skinned mesh");
+  dataset->excludes(mesh);
+  mesh->excludes(dataset);
+  sub.add_option("--mesh-name", source.mesh_name, "node or mesh name in the glTF file (default: first skinned)")
+      ->needs(mesh);
+  sub.add_flag("--strict", source.strict,
+               "reject glTF weights that do not sum to 1 (default: renormalise them and warn)");
+}
+
+SkinnedAsset LoadAsset(const MeshSource& source) {
+  if (!source.mesh_file.empty()) {
+    GltfImportOptions options;
+    options.mesh = source.mesh_name;
+    options.strict = source.strict;
+    options.normals = source.normals;
+    GltfImportResult result = ImportGltf(source.mesh_file, options);
+    for (const std::string& warning : result.warnings) std::cerr << "skintune: warning: " << warning << "\n";
+    return std::move(result.asset);
+  }
+  DatasetSpec spec = ParseDatasetKey(source.dataset.empty() ? "default" : source.dataset);
+  spec.normals = spec.normals || source.normals;
+  return GenerateDataset(spec);
+}
+
+}  // namespace skintune::tools

@@ -1,0 +1,42 @@
+// skintune: generates, verifies and autotunes GPU skinning kernels.
+// Exit codes: 0 success, 1 bad input or failed operation (one line on
+// stderr), 2 bad command line.
+#include <iostream>
+#include <vector>
+
+#include "reference/error.h"
+#include "tools/commands.h"
+
+#ifndef SKINTUNE_VERSION
+#define SKINTUNE_VERSION "unknown"
+#endif
+
+int main(int argc, char** argv) {
+  namespace tools = skintune::tools;
+  CLI::App app{"skintune: generates, verifies and autotunes GPU skinning kernels (linear blend skinning)",
+               "skintune"};
+  app.set_version_flag("--version", std::string("skintune ") + SKINTUNE_VERSION);
+  app.require_subcommand(1);
+  const std::vector<tools::Command> commands = {tools::RegisterRun(app), tools::RegisterDevices(app),
+                                                tools::RegisterSkin(app)};
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::Success& e) {
+    return app.exit(e);  // --help, --version
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "skintune: " << e.what() << " (try --help)\n";
+    return 2;
+  }
+  try {
+    for (const tools::Command& command : commands) {
+      if (command.subcommand->parsed()) return command.run();
+    }
+  } catch (const skintune::Error& e) {
+    std::cerr << "skintune: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "skintune: internal error: " << e.what() << "\n";
+    return 1;
+  }
+  return 2;
+}
