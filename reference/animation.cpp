@@ -11,10 +11,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <glm/gtc/quaternion.hpp>
 #include <limits>
 #include <string>
-
-#include <glm/gtc/quaternion.hpp>
 
 #include "reference/error.h"
 
@@ -30,9 +29,7 @@ const char* PathName(ChannelPath path) {
   return "?";
 }
 
-std::size_t ValuesPerKey(const Channel& c) {
-  return c.interpolation == Interpolation::kCubicSpline ? 3 : 1;
-}
+std::size_t ValuesPerKey(const Channel& c) { return c.interpolation == Interpolation::kCubicSpline ? 3 : 1; }
 
 bool Finite(const glm::dvec4& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z) && std::isfinite(v.w);
@@ -67,12 +64,12 @@ glm::dvec4 Slerp(const glm::dvec4& a, glm::dvec4 b, double u) {
 
 glm::dvec4 Hermite(const Channel& c, std::size_t k, double u, double interval) {
   const glm::dvec4& p0 = c.values[3 * k + 1];
-  const glm::dvec4 m0 = interval * c.values[3 * k + 2];       // out-tangent of key k
+  const glm::dvec4 m0 = interval * c.values[3 * k + 2];  // out-tangent of key k
   const glm::dvec4& p1 = c.values[3 * (k + 1) + 1];
-  const glm::dvec4 m1 = interval * c.values[3 * (k + 1)];     // in-tangent of key k+1
+  const glm::dvec4 m1 = interval * c.values[3 * (k + 1)];  // in-tangent of key k+1
   double u2 = u * u, u3 = u2 * u;
-  return (2.0 * u3 - 3.0 * u2 + 1.0) * p0 + (u3 - 2.0 * u2 + u) * m0 +
-         (-2.0 * u3 + 3.0 * u2) * p1 + (u3 - u2) * m1;
+  return (2.0 * u3 - 3.0 * u2 + 1.0) * p0 + (u3 - 2.0 * u2 + u) * m0 + (-2.0 * u3 + 3.0 * u2) * p1 +
+         (u3 - u2) * m1;
 }
 
 // The channel's value at time t (quaternions not yet normalised for STEP).
@@ -102,8 +99,8 @@ void ValidateChannel(const Channel& c, std::size_t index, int node_count, const 
   const std::string where = context + ": channels[" + std::to_string(index) + "] (node " +
                             std::to_string(c.node) + " " + PathName(c.path) + ")";
   if (c.node < 0 || c.node >= node_count) {
-    throw Error(where + ": node " + std::to_string(c.node) + " out of range (" +
-                std::to_string(node_count) + " nodes)");
+    throw Error(where + ": node " + std::to_string(c.node) + " out of range (" + std::to_string(node_count) +
+                " nodes)");
   }
   if (c.times.empty()) throw Error(where + ": no keys");
   for (std::size_t k = 0; k < c.times.size(); ++k) {

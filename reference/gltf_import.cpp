@@ -12,6 +12,7 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -25,6 +26,9 @@
 namespace skintune {
 namespace {
 
+using std::size_t;
+using std::to_string;
+
 // ---------------------------------------------------------------- helpers
 
 // The model and the file name every message starts with.
@@ -34,6 +38,13 @@ struct Ctx {
   [[noreturn]] void Fail(const std::string& what) const { throw Error(path + ": " + what); }
 };
 
+size_t Z(long long i) { return static_cast<size_t>(i); }
+
+template <typename V>
+bool InRange(long long i, const V& v) {
+  return i >= 0 && Z(i) < v.size();
+}
+
 std::string Num(double x) {
   std::ostringstream s;
   s.precision(7);
@@ -41,42 +52,34 @@ std::string Num(double x) {
   return s.str();
 }
 
-std::string Idx(const char* array, long long i) {
-  return std::string(array) + "[" + std::to_string(i) + "]";
+std::string Idx(const char* array, long long i) { return std::string(array) + "[" + to_string(i) + "]"; }
+
+std::string NameOf(const std::map<int, const char*>& names, const char* what, int value) {
+  const auto it = names.find(value);
+  return it != names.end() ? it->second : what + to_string(value);
 }
 
 std::string ComponentTypeName(int t) {
-  switch (t) {
-    case TINYGLTF_COMPONENT_TYPE_BYTE: return "BYTE";
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return "UNSIGNED_BYTE";
-    case TINYGLTF_COMPONENT_TYPE_SHORT: return "SHORT";
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return "UNSIGNED_SHORT";
-    case TINYGLTF_COMPONENT_TYPE_INT: return "INT";
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return "UNSIGNED_INT";
-    case TINYGLTF_COMPONENT_TYPE_FLOAT: return "FLOAT";
-    case TINYGLTF_COMPONENT_TYPE_DOUBLE: return "DOUBLE";
-  }
-  return "componentType " + std::to_string(t);
+  static const std::map<int, const char*> names = {
+      {TINYGLTF_COMPONENT_TYPE_BYTE, "BYTE"},   {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, "UNSIGNED_BYTE"},
+      {TINYGLTF_COMPONENT_TYPE_SHORT, "SHORT"}, {TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, "UNSIGNED_SHORT"},
+      {TINYGLTF_COMPONENT_TYPE_INT, "INT"},     {TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, "UNSIGNED_INT"},
+      {TINYGLTF_COMPONENT_TYPE_FLOAT, "FLOAT"}, {TINYGLTF_COMPONENT_TYPE_DOUBLE, "DOUBLE"}};
+  return NameOf(names, "componentType ", t);
 }
 
 std::string TypeName(int t) {
-  switch (t) {
-    case TINYGLTF_TYPE_SCALAR: return "SCALAR";
-    case TINYGLTF_TYPE_VEC2: return "VEC2";
-    case TINYGLTF_TYPE_VEC3: return "VEC3";
-    case TINYGLTF_TYPE_VEC4: return "VEC4";
-    case TINYGLTF_TYPE_MAT2: return "MAT2";
-    case TINYGLTF_TYPE_MAT3: return "MAT3";
-    case TINYGLTF_TYPE_MAT4: return "MAT4";
-  }
-  return "type " + std::to_string(t);
+  static const std::map<int, const char*> names = {
+      {TINYGLTF_TYPE_SCALAR, "SCALAR"}, {TINYGLTF_TYPE_VEC2, "VEC2"}, {TINYGLTF_TYPE_VEC3, "VEC3"},
+      {TINYGLTF_TYPE_VEC4, "VEC4"},     {TINYGLTF_TYPE_MAT2, "MAT2"}, {TINYGLTF_TYPE_MAT3, "MAT3"},
+      {TINYGLTF_TYPE_MAT4, "MAT4"}};
+  return NameOf(names, "type ", t);
 }
 
 // "A", "A or B", "A, B or C".
-template <typename F>
-std::string OneOf(const std::vector<int>& values, F name) {
+std::string OneOf(const std::vector<int>& values, std::string (*name)(int)) {
   std::string s;
-  for (std::size_t i = 0; i < values.size(); ++i) {
+  for (size_t i = 0; i < values.size(); ++i) {
     if (i > 0) s += (i + 1 == values.size()) ? " or " : ", ";
     s += name(values[i]);
   }
@@ -87,13 +90,9 @@ bool Contains(const std::vector<int>& v, int x) { return std::find(v.begin(), v.
 
 // tinygltf's messages: one line, data URIs cut short.
 std::string Tidy(std::string message) {
-  for (char& ch : message) {
-    if (ch == '\n' || ch == '\r') ch = ' ';
-  }
-  for (std::size_t at = message.find("base64,"); at != std::string::npos;
-       at = message.find("base64,", at + 1)) {
-    std::size_t begin = at + 7, end = message.find(' ', begin);
-    if (end == std::string::npos) end = message.size();
+  std::replace_if(message.begin(), message.end(), [](char c) { return c == '\n' || c == '\r'; }, ' ');
+  for (size_t at = message.find("base64,"); at != std::string::npos; at = message.find("base64,", at + 1)) {
+    const size_t begin = at + 7, end = std::min(message.find(' ', begin), message.size());
     if (end - begin > 16) message.replace(begin + 16, end - begin - 16, "...");
   }
   while (!message.empty() && message.back() == ' ') message.pop_back();
@@ -105,44 +104,42 @@ std::string Tidy(std::string message) {
 
 std::vector<unsigned char> ReadFileBytes(const std::string& path) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw Error(path + ": cannot open file");
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open file");
+  if (!std::filesystem::is_regular_file(path, ec) || !in) throw Error(path + ": cannot open file");
   std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   if (in.bad()) throw Error(path + ": cannot read file");
   return bytes;
 }
 
 bool LooksLikeGltfJson(const std::vector<unsigned char>& bytes) {
-  nlohmann::json j = nlohmann::json::parse(bytes.begin(), bytes.end(), nullptr, false);
+  const nlohmann::json j = nlohmann::json::parse(bytes.begin(), bytes.end(), nullptr, false);
   return !j.is_discarded() && j.is_object() && j.contains("asset");
 }
 
 // Images are irrelevant to skinning: keep them undecoded.
-bool SkipImage(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*,
-               int, void*) {
+bool SkipImage(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int,
+               void*) {
   return true;
 }
 
+// Parses the file with tinygltf: GLB when it starts with the magic "glTF", JSON otherwise.
 tinygltf::Model LoadModel(const std::string& path, std::vector<std::string>& warnings) {
   const std::vector<unsigned char> bytes = ReadFileBytes(path);
   if (bytes.empty()) throw Error(path + ": not a glTF 2.0 file (empty file)");
-  if (bytes.size() > std::numeric_limits<unsigned int>::max()) throw Error(path + ": file too large (4 GiB or more)");
+  if (bytes.size() > std::numeric_limits<unsigned int>::max()) throw Error(path + ": file of 4 GiB or more");
   const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
   const std::string base_dir = std::filesystem::path(path).parent_path().string();
-
+  const auto size = static_cast<unsigned int>(bytes.size());
   tinygltf::TinyGLTF loader;
   loader.SetImageLoader(&SkipImage, nullptr);
   tinygltf::Model model;
   std::string err, warn;
-  const auto size = static_cast<unsigned int>(bytes.size());
-  const bool ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(), size, base_dir)
-                         : loader.LoadASCIIFromString(&model, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
-                                                      size, base_dir);
-  if (!ok) {
-    if (binary || LooksLikeGltfJson(bytes)) throw Error(path + ": invalid glTF file: " + Tidy(err));
-    throw Error(path + ": not a glTF 2.0 file (" + Tidy(err) + ")");
-  }
+  const bool ok =
+      binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(), size, base_dir)
+             : loader.LoadASCIIFromString(&model, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
+                                          size, base_dir);
+  if (!ok && (binary || LooksLikeGltfJson(bytes))) throw Error(path + ": invalid glTF file: " + Tidy(err));
+  if (!ok) throw Error(path + ": not a glTF 2.0 file (" + Tidy(err) + ")");
   if (!warn.empty()) warnings.push_back(path + ": tinygltf: " + Tidy(warn));
   return model;
 }
@@ -157,73 +154,80 @@ struct AccessorSpec {
   bool integers = false;             // raw integers (joint indices): `normalized` not allowed
 };
 
-// Decoded accessor: count * components values, row-major per element.
+// Decoded accessor: count * components values, element by element.
 struct AccessorData {
-  std::size_t count = 0;
-  int components = 0;
+  size_t count = 0;
+  size_t components = 0;
   std::vector<double> values;
-  double at(std::size_t element, int component) const {
-    return values[element * static_cast<std::size_t>(components) + static_cast<std::size_t>(component)];
-  }
+  double at(size_t element, int component) const { return values[element * components + Z(component)]; }
 };
 
-// The bytes of `count` elements of `element_size` bytes at `offset` in
-// bufferViews[view_index], every range checked; *stride: 0 = use the view's.
-const unsigned char* CheckedBytes(const Ctx& ctx, const std::string& who, int view_index, std::size_t offset,
-                                  std::size_t count, std::size_t element_size, std::size_t* stride) {
+const std::vector<int> kFloat = {TINYGLTF_COMPONENT_TYPE_FLOAT};
+const std::vector<int> kJointTypes = {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                                      TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT};
+const std::vector<int> kWeightTypes = {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                                       TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT};
+const std::vector<int> kRotationTypes = {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE,
+                                         TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_SHORT,
+                                         TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT};
+const std::vector<int> kIndexTypes = {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                                      TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+                                      TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT};
+
+size_t ComponentSize(int type) { return Z(tinygltf::GetComponentSizeInBytes(static_cast<std::uint32_t>(type))); }
+
+// Checks that bufferViews[view_index] lies inside its buffer, then that `count`
+// elements of `element_size` bytes from `offset` (every *stride bytes; 0 = the
+// view's byteStride, or tightly packed) lie inside the view. Returns the first.
+const unsigned char* CheckedBytes(const Ctx& ctx, const std::string& who, int view_index, size_t offset,
+                                  size_t count, size_t element_size, size_t* stride) {
   const auto& views = ctx.model.bufferViews;
-  if (view_index < 0 || static_cast<std::size_t>(view_index) >= views.size()) {
+  if (!InRange(view_index, views)) {
     ctx.Fail(who + ": " + Idx("bufferViews", view_index) + " does not exist (the file has " +
-             std::to_string(views.size()) + " buffer views)");
+             to_string(views.size()) + " buffer views)");
   }
-  const tinygltf::BufferView& view = views[static_cast<std::size_t>(view_index)];
-  const std::string view_name = Idx("bufferViews", static_cast<std::size_t>(view_index));
-  if (view.buffer < 0 || static_cast<std::size_t>(view.buffer) >= ctx.model.buffers.size()) {
+  const tinygltf::BufferView& view = views[Z(view_index)];
+  const std::string view_name = Idx("bufferViews", view_index);
+  if (!InRange(view.buffer, ctx.model.buffers)) {
     ctx.Fail(who + ": " + view_name + ": " + Idx("buffers", view.buffer) + " does not exist");
   }
-  const std::size_t buffer_size = ctx.model.buffers[static_cast<std::size_t>(view.buffer)].data.size();
-  if (view.byteOffset > buffer_size || view.byteLength > buffer_size - view.byteOffset) {
-    ctx.Fail(who + ": " + view_name + " (byteOffset " + std::to_string(view.byteOffset) + ", byteLength " +
-             std::to_string(view.byteLength) + ") does not fit in " + Idx("buffers", view.buffer) + " (" +
-             std::to_string(buffer_size) + " bytes): truncated buffer");
+  const std::vector<unsigned char>& buffer = ctx.model.buffers[Z(view.buffer)].data;
+  if (view.byteOffset > buffer.size() || view.byteLength > buffer.size() - view.byteOffset) {
+    ctx.Fail(who + ": " + view_name + " (byteOffset " + to_string(view.byteOffset) + ", byteLength " +
+             to_string(view.byteLength) + ") does not fit in " + Idx("buffers", view.buffer) + " (" +
+             to_string(buffer.size()) + " bytes): truncated buffer");
   }
   if (*stride == 0) *stride = view.byteStride != 0 ? view.byteStride : element_size;
   if (*stride < element_size) {
-    ctx.Fail(who + ": " + view_name + ": byteStride " + std::to_string(*stride) + " is smaller than the element (" +
-             std::to_string(element_size) + " bytes)");
+    ctx.Fail(who + ": " + view_name + ": byteStride " + to_string(*stride) + " is smaller than the element (" +
+             to_string(element_size) + " bytes)");
   }
   if (count > 0) {
-    const std::size_t max = std::numeric_limits<std::size_t>::max();
+    const size_t max = std::numeric_limits<size_t>::max();
     const bool overflow = offset > max - element_size || (count - 1) > (max - offset - element_size) / *stride;
-    const std::size_t needed = overflow ? max : offset + *stride * (count - 1) + element_size;
+    const size_t needed = overflow ? max : offset + *stride * (count - 1) + element_size;
     if (needed > view.byteLength) {
-      ctx.Fail(who + ": " + std::to_string(count) + " elements from byteOffset " + std::to_string(offset) +
-               " need " + (overflow ? std::string("more than 2^64") : std::to_string(needed)) + " bytes, but " +
-               view_name + " has byteLength " + std::to_string(view.byteLength) + ": truncated buffer");
+      ctx.Fail(who + ": " + to_string(count) + " elements from byteOffset " + to_string(offset) + " need " +
+               (overflow ? std::string("more than 2^64") : to_string(needed)) + " bytes, but " + view_name +
+               " has byteLength " + to_string(view.byteLength) + ": truncated buffer");
     }
   }
-  return ctx.model.buffers[static_cast<std::size_t>(view.buffer)].data.data() + view.byteOffset + offset;
+  return buffer.data() + view.byteOffset + offset;
 }
 
 template <typename T>
-T Load(const unsigned char* p) {
+double Load(const unsigned char* p) {
   T v;
   std::memcpy(&v, p, sizeof v);
-  return v;
+  return static_cast<double>(v);
 }
 
-// One component as double; normalized integers map to [0, 1] / [-1, 1].
+// One component as double; normalized integers map to [0, 1] or [-1, 1].
 double ReadComponent(const unsigned char* p, int type, bool normalized) {
   switch (type) {
-    case TINYGLTF_COMPONENT_TYPE_BYTE: {
-      double v = Load<std::int8_t>(p);
-      return normalized ? std::max(v / 127.0, -1.0) : v;
-    }
+    case TINYGLTF_COMPONENT_TYPE_BYTE: return normalized ? std::max(Load<std::int8_t>(p) / 127.0, -1.0) : Load<std::int8_t>(p);
     case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return Load<std::uint8_t>(p) / (normalized ? 255.0 : 1.0);
-    case TINYGLTF_COMPONENT_TYPE_SHORT: {
-      double v = Load<std::int16_t>(p);
-      return normalized ? std::max(v / 32767.0, -1.0) : v;
-    }
+    case TINYGLTF_COMPONENT_TYPE_SHORT: return normalized ? std::max(Load<std::int16_t>(p) / 32767.0, -1.0) : Load<std::int16_t>(p);
     case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return Load<std::uint16_t>(p) / (normalized ? 65535.0 : 1.0);
     case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return Load<std::uint32_t>(p);
     case TINYGLTF_COMPONENT_TYPE_FLOAT: return Load<float>(p);
@@ -231,58 +235,51 @@ double ReadComponent(const unsigned char* p, int type, bool normalized) {
   return std::numeric_limits<double>::quiet_NaN();
 }
 
+// Overwrites the elements listed in the accessor's `sparse` object.
 void ApplySparse(const Ctx& ctx, const std::string& who, const tinygltf::Accessor& acc, bool normalized,
                  AccessorData& out) {
   const auto& sparse = acc.sparse;
-  if (sparse.count < 1 || static_cast<std::size_t>(sparse.count) > acc.count) {
-    ctx.Fail(who + ": sparse.count " + std::to_string(sparse.count) + " is not in 1.." + std::to_string(acc.count));
+  if (sparse.count < 1 || Z(sparse.count) > acc.count) {
+    ctx.Fail(who + ": sparse.count " + to_string(sparse.count) + " is not in 1.." + to_string(acc.count));
   }
   const int index_type = sparse.indices.componentType;
-  if (!Contains({TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
-                 TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT}, index_type)) {
-    ctx.Fail(who + ": sparse.indices component type " + ComponentTypeName(index_type) +
-             " not allowed (expected UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT)");
+  if (!Contains(kIndexTypes, index_type)) {
+    ctx.Fail(who + ": sparse.indices component type " + ComponentTypeName(index_type) + " not allowed (expected " +
+             OneOf(kIndexTypes, ComponentTypeName) + ")");
   }
   if (sparse.indices.byteOffset < 0 || sparse.values.byteOffset < 0) ctx.Fail(who + ": negative sparse byteOffset");
-  const auto n = static_cast<std::size_t>(sparse.count);
-  const auto index_size = static_cast<std::size_t>(tinygltf::GetComponentSizeInBytes(index_type));
-  const auto comp_size = static_cast<std::size_t>(tinygltf::GetComponentSizeInBytes(acc.componentType));
-  const auto value_size = comp_size * static_cast<std::size_t>(out.components);
-  std::size_t index_stride = index_size, value_stride = value_size;
+  const size_t n = Z(sparse.count), index_size = ComponentSize(index_type);
+  const size_t comp_size = ComponentSize(acc.componentType), value_size = comp_size * out.components;
+  size_t index_stride = index_size, value_stride = value_size;  // sparse arrays are tightly packed
   const unsigned char* indices = CheckedBytes(ctx, who + " sparse.indices", sparse.indices.bufferView,
-                                              static_cast<std::size_t>(sparse.indices.byteOffset), n, index_size,
-                                              &index_stride);
+                                              Z(sparse.indices.byteOffset), n, index_size, &index_stride);
   const unsigned char* values = CheckedBytes(ctx, who + " sparse.values", sparse.values.bufferView,
-                                             static_cast<std::size_t>(sparse.values.byteOffset), n, value_size,
-                                             &value_stride);
-  for (std::size_t i = 0; i < n; ++i) {
+                                             Z(sparse.values.byteOffset), n, value_size, &value_stride);
+  for (size_t i = 0; i < n; ++i) {
     const double target = ReadComponent(indices + i * index_size, index_type, false);
     if (target >= static_cast<double>(acc.count)) {
-      ctx.Fail(who + ": sparse.indices[" + std::to_string(i) + "] = " + Num(target) + " is outside the accessor (" +
-               std::to_string(acc.count) + " elements)");
+      ctx.Fail(who + ": sparse.indices[" + to_string(i) + "] = " + Num(target) + " is outside the accessor (" +
+               to_string(acc.count) + " elements)");
     }
-    for (int c = 0; c < out.components; ++c) {
-      out.values[static_cast<std::size_t>(target) * static_cast<std::size_t>(out.components) +
-                 static_cast<std::size_t>(c)] =
-          ReadComponent(values + i * value_size + static_cast<std::size_t>(c) * comp_size, acc.componentType,
-                        normalized);
+    for (size_t c = 0; c < out.components; ++c) {
+      out.values[static_cast<size_t>(target) * out.components + c] =
+          ReadComponent(values + i * value_size + c * comp_size, acc.componentType, normalized);
     }
   }
 }
 
-std::string AccessorName(int index, const std::string& role) {
-  return Idx("accessors", index) + " (" + role + ")";
-}
+std::string AccessorName(int index, const std::string& role) { return Idx("accessors", index) + " (" + role + ")"; }
 
 // Checks that accessors[index] exists and matches `spec`.
 const tinygltf::Accessor& CheckedAccessor(const Ctx& ctx, int index, const AccessorSpec& spec) {
   const std::string who = AccessorName(index, spec.role);
-  if (index < 0 || static_cast<std::size_t>(index) >= ctx.model.accessors.size()) {
-    ctx.Fail(who + ": does not exist (the file has " + std::to_string(ctx.model.accessors.size()) + " accessors)");
+  if (!InRange(index, ctx.model.accessors)) {
+    ctx.Fail(who + ": does not exist (the file has " + to_string(ctx.model.accessors.size()) + " accessors)");
   }
-  const tinygltf::Accessor& acc = ctx.model.accessors[static_cast<std::size_t>(index)];
+  const tinygltf::Accessor& acc = ctx.model.accessors[Z(index)];
+  const std::string component = ComponentTypeName(acc.componentType);
   if (!Contains(spec.component_types, acc.componentType)) {
-    ctx.Fail(who + ": component type " + ComponentTypeName(acc.componentType) + " not allowed (expected " +
+    ctx.Fail(who + ": component type " + component + " not allowed (expected " +
              OneOf(spec.component_types, ComponentTypeName) + ")");
   }
   if (!Contains(spec.types, acc.type)) {
@@ -290,28 +287,28 @@ const tinygltf::Accessor& CheckedAccessor(const Ctx& ctx, int index, const Acces
   }
   if (spec.integers && acc.normalized) ctx.Fail(who + ": must not be normalized");
   if (!spec.integers && acc.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT && !acc.normalized) {
-    ctx.Fail(who + ": component type " + ComponentTypeName(acc.componentType) + " must be normalized");
+    ctx.Fail(who + ": component type " + component + " must be normalized");
   }
+  if (acc.count > (size_t{1} << 31)) ctx.Fail(who + ": count " + to_string(acc.count) + " is too large");
   return acc;
 }
 
 AccessorData ReadAccessor(const Ctx& ctx, int index, const AccessorSpec& spec) {
   const tinygltf::Accessor& acc = CheckedAccessor(ctx, index, spec);
   const std::string who = AccessorName(index, spec.role);
+  const bool normalized = acc.normalized && !spec.integers;
+  const size_t comp_size = ComponentSize(acc.componentType);
   AccessorData out;
   out.count = acc.count;
-  out.components = tinygltf::GetNumComponentsInType(static_cast<std::uint32_t>(acc.type));
-  const auto comps = static_cast<std::size_t>(out.components);
-  const auto comp_size = static_cast<std::size_t>(tinygltf::GetComponentSizeInBytes(acc.componentType));
-  const bool normalized = acc.normalized && !spec.integers;
-  if (acc.count > (std::size_t{1} << 31)) ctx.Fail(who + ": count " + std::to_string(acc.count) + " is too large");
-  out.values.assign(acc.count * comps, 0.0);  // no bufferView: zeros (then sparse values)
-  if (acc.bufferView != -1) {  // -1: no bufferView: zeros, as glTF 2.0 specifies
-    std::size_t stride = 0;
-    const unsigned char* p = CheckedBytes(ctx, who, acc.bufferView, acc.byteOffset, acc.count, comp_size * comps, &stride);
-    for (std::size_t e = 0; e < acc.count; ++e) {
-      for (std::size_t c = 0; c < comps; ++c) {
-        out.values[e * comps + c] = ReadComponent(p + e * stride + c * comp_size, acc.componentType, normalized);
+  out.components = Z(tinygltf::GetNumComponentsInType(static_cast<std::uint32_t>(acc.type)));
+  out.values.assign(acc.count * out.components, 0.0);  // without a bufferView: zeros, as glTF specifies
+  if (acc.bufferView != -1) {
+    size_t stride = 0;
+    const unsigned char* p =
+        CheckedBytes(ctx, who, acc.bufferView, acc.byteOffset, acc.count, comp_size * out.components, &stride);
+    for (size_t e = 0; e < acc.count; ++e) {
+      for (size_t c = 0; c < out.components; ++c) {
+        out.values[e * out.components + c] = ReadComponent(p + e * stride + c * comp_size, acc.componentType, normalized);
       }
     }
   }
@@ -319,98 +316,93 @@ AccessorData ReadAccessor(const Ctx& ctx, int index, const AccessorSpec& spec) {
   return out;
 }
 
-const std::vector<int> kFloat = {TINYGLTF_COMPONENT_TYPE_FLOAT};
-const std::vector<int> kJointTypes = {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT};
-const std::vector<int> kWeightTypes = {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
-                                       TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT};
-const std::vector<int> kRotationTypes = {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE,
-                                         TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_SHORT,
-                                         TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT};
-
 // ---------------------------------------------------------------- mesh selection
 
-std::string NodeLabel(const tinygltf::Model& model, std::size_t n) {
-  const auto& node = model.nodes[n];
+std::string NodeLabel(const tinygltf::Model& model, size_t n) {
+  const tinygltf::Node& node = model.nodes[n];
   std::string s = Idx("nodes", n);
   if (!node.name.empty()) s += " '" + node.name + "'";
-  if (node.mesh >= 0 && static_cast<std::size_t>(node.mesh) < model.meshes.size()) {
-    s += " / mesh '" + model.meshes[static_cast<std::size_t>(node.mesh)].name + "'";
-  }
-  return s;
+  return s + " / mesh '" + model.meshes[Z(node.mesh)].name + "'";
 }
 
 // The node that carries the skinned mesh to import.
-std::size_t FindSkinnedNode(const Ctx& ctx, const std::string& wanted) {
-  const auto& model = ctx.model;
-  std::vector<std::size_t> skinned;
-  for (std::size_t n = 0; n < model.nodes.size(); ++n) {
-    const auto& node = model.nodes[n];
+size_t FindSkinnedNode(const Ctx& ctx, const std::string& wanted) {
+  const tinygltf::Model& model = ctx.model;
+  std::vector<size_t> skinned;
+  for (size_t n = 0; n < model.nodes.size(); ++n) {
+    const tinygltf::Node& node = model.nodes[n];
     if (node.mesh < 0 || node.skin < 0) continue;
-    if (static_cast<std::size_t>(node.mesh) >= model.meshes.size()) ctx.Fail(Idx("nodes", n) + ": " + Idx("meshes", node.mesh) + " does not exist");
-    if (static_cast<std::size_t>(node.skin) >= model.skins.size()) ctx.Fail(Idx("nodes", n) + ": " + Idx("skins", node.skin) + " does not exist");
+    if (!InRange(node.mesh, model.meshes)) ctx.Fail(Idx("nodes", n) + ": " + Idx("meshes", node.mesh) + " does not exist");
+    if (!InRange(node.skin, model.skins)) ctx.Fail(Idx("nodes", n) + ": " + Idx("skins", node.skin) + " does not exist");
     skinned.push_back(n);
   }
   if (skinned.empty()) ctx.Fail("no skinned mesh (no node has both a mesh and a skin)");
   if (wanted.empty()) return skinned.front();
-  for (std::size_t n : skinned) {
-    const auto& node = model.nodes[n];
-    if (node.name == wanted || model.meshes[static_cast<std::size_t>(node.mesh)].name == wanted) return n;
+  for (size_t n : skinned) {
+    if (model.nodes[n].name == wanted || model.meshes[Z(model.nodes[n].mesh)].name == wanted) return n;
   }
   std::string list;
-  for (std::size_t n : skinned) list += (list.empty() ? "" : ", ") + NodeLabel(model, n);
+  for (size_t n : skinned) list += (list.empty() ? "" : ", ") + NodeLabel(model, n);
   ctx.Fail("no skinned mesh named '" + wanted + "' (skinned meshes: " + list + ")");
 }
 
 // ---------------------------------------------------------------- mesh
 
 bool IsTriangles(int mode) {
-  return mode == TINYGLTF_MODE_TRIANGLES || mode == TINYGLTF_MODE_TRIANGLE_STRIP || mode == TINYGLTF_MODE_TRIANGLE_FAN;
+  return mode == TINYGLTF_MODE_TRIANGLES || mode == TINYGLTF_MODE_TRIANGLE_STRIP ||
+         mode == TINYGLTF_MODE_TRIANGLE_FAN;
 }
 
 // Number of JOINTS_n/WEIGHTS_n sets; every set must have both.
-std::size_t InfluenceSets(const Ctx& ctx, const tinygltf::Primitive& prim, const std::string& where) {
-  std::size_t sets = 0;
-  while (prim.attributes.count("JOINTS_" + std::to_string(sets)) || prim.attributes.count("WEIGHTS_" + std::to_string(sets))) {
-    const std::string n = std::to_string(sets);
-    if (!prim.attributes.count("JOINTS_" + n)) ctx.Fail(where + ": WEIGHTS_" + n + " without JOINTS_" + n);
-    if (!prim.attributes.count("WEIGHTS_" + n)) ctx.Fail(where + ": JOINTS_" + n + " without WEIGHTS_" + n);
-    ++sets;
+size_t InfluenceSets(const Ctx& ctx, const tinygltf::Primitive& prim, const std::string& where) {
+  size_t sets = 0;
+  for (;; ++sets) {
+    const std::string n = to_string(sets);
+    const bool joints = prim.attributes.count("JOINTS_" + n) > 0, weights = prim.attributes.count("WEIGHTS_" + n) > 0;
+    if (!joints && !weights) break;
+    if (!joints) ctx.Fail(where + ": WEIGHTS_" + n + " without JOINTS_" + n);
+    if (!weights) ctx.Fail(where + ": JOINTS_" + n + " without WEIGHTS_" + n);
   }
   if (sets == 0) ctx.Fail(where + ": no JOINTS_0/WEIGHTS_0 (every primitive of a skinned mesh needs them)");
   return sets;
 }
 
-void CheckCount(const Ctx& ctx, const AccessorData& data, int index, const std::string& role, std::size_t expected) {
-  if (data.count != expected) {
-    ctx.Fail(AccessorName(index, role) + ": count " + std::to_string(data.count) + " differs from POSITION's count " +
-             std::to_string(expected));
+// Reads attribute `name` of a primitive, which must have `count` elements (POSITION's count).
+AccessorData ReadAttribute(const Ctx& ctx, const tinygltf::Primitive& prim, const std::string& name,
+                           const std::string& where, AccessorSpec spec, size_t count) {
+  const int index = prim.attributes.at(name);
+  spec.role = name + " of " + where;
+  AccessorData data = ReadAccessor(ctx, index, spec);
+  if (data.count != count) {
+    ctx.Fail(AccessorName(index, spec.role) + ": count " + to_string(data.count) + " differs from POSITION's count " +
+             to_string(count));
   }
+  return data;
 }
 
 // Reads influence set `set` of a primitive into the mesh slots [4*set, 4*set+4) of
 // vertices [first, first+count), checking every weight and joint.
-void ReadInfluenceSet(const Ctx& ctx, const tinygltf::Primitive& prim, const std::string& where, std::size_t set,
-                      std::size_t first, std::size_t count, SkinnedMesh& mesh) {
-  const std::string n = std::to_string(set);
-  const int ji = prim.attributes.at("JOINTS_" + n), wi = prim.attributes.at("WEIGHTS_" + n);
-  const std::string jrole = "JOINTS_" + n + " of " + where, wrole = "WEIGHTS_" + n + " of " + where;
-  const AccessorData joints = ReadAccessor(ctx, ji, {jrole, kJointTypes, {TINYGLTF_TYPE_VEC4}, true});
-  const AccessorData weights = ReadAccessor(ctx, wi, {wrole, kWeightTypes, {TINYGLTF_TYPE_VEC4}, false});
-  CheckCount(ctx, joints, ji, jrole, count);
-  CheckCount(ctx, weights, wi, wrole, count);
-  const auto slots = static_cast<std::size_t>(mesh.influences);
-  for (std::size_t v = 0; v < count; ++v) {
+void ReadInfluenceSet(const Ctx& ctx, const tinygltf::Primitive& prim, const std::string& where, size_t set,
+                      size_t first, size_t count, SkinnedMesh& mesh) {
+  const std::string n = to_string(set);
+  const AccessorData joints = ReadAttribute(ctx, prim, "JOINTS_" + n, where, {"", kJointTypes, {TINYGLTF_TYPE_VEC4}, true}, count);
+  const AccessorData weights = ReadAttribute(ctx, prim, "WEIGHTS_" + n, where, {"", kWeightTypes, {TINYGLTF_TYPE_VEC4}}, count);
+  const auto slots = static_cast<size_t>(mesh.influences);
+  for (size_t v = 0; v < count; ++v) {
     for (int k = 0; k < 4; ++k) {
       const double w = weights.at(v, k), j = joints.at(v, k);
-      const std::string vertex = "vertex " + std::to_string(v) + " slot " + std::to_string(k);
-      if (std::isnan(w)) ctx.Fail(AccessorName(wi, wrole) + ": " + vertex + ": weight is NaN");
-      if (!std::isfinite(w)) ctx.Fail(AccessorName(wi, wrole) + ": " + vertex + ": weight is infinite");
-      if (w < 0.0) ctx.Fail(AccessorName(wi, wrole) + ": " + vertex + ": weight " + Num(w) + " is negative");
+      auto fail = [&](const std::string& name, const std::string& problem) {
+        ctx.Fail(AccessorName(prim.attributes.at(name + n), name + n + " of " + where) + ": vertex " + to_string(v) +
+                 " slot " + to_string(k) + ": " + problem);
+      };
+      if (std::isnan(w)) fail("WEIGHTS_", "weight is NaN");
+      if (!std::isfinite(w)) fail("WEIGHTS_", "weight is infinite");
+      if (w < 0.0) fail("WEIGHTS_", "weight " + Num(w) + " is negative");
       if (w != 0.0 && j >= mesh.joint_count) {
-        ctx.Fail(AccessorName(ji, jrole) + ": " + vertex + ": joint " + Num(j) + " is outside the skin (" +
-                 std::to_string(mesh.joint_count) + " joints) with weight " + Num(w));
+        fail("JOINTS_", "joint " + Num(j) + " is outside the skin (" + to_string(mesh.joint_count) +
+                            " joints) with weight " + Num(w));
       }
-      const std::size_t at = (first + v) * slots + set * 4 + static_cast<std::size_t>(k);
+      const size_t at = (first + v) * slots + set * 4 + Z(k);
       mesh.weights[at] = static_cast<float>(w);
       mesh.joints[at] = w != 0.0 ? static_cast<std::uint16_t>(j) : 0;  // unused slots: joint 0
     }
@@ -420,25 +412,22 @@ void ReadInfluenceSet(const Ctx& ctx, const tinygltf::Primitive& prim, const std
 void AppendPrimitive(const Ctx& ctx, const tinygltf::Primitive& prim, const std::string& where, bool with_normals,
                      SkinnedMesh& mesh) {
   if (!prim.attributes.count("POSITION")) ctx.Fail(where + ": no POSITION attribute");
-  const int pi = prim.attributes.at("POSITION");
-  const AccessorData pos = ReadAccessor(ctx, pi, {"POSITION of " + where, kFloat, {TINYGLTF_TYPE_VEC3}});
-  const std::size_t first = mesh.positions.size(), count = pos.count;
-  for (std::size_t v = 0; v < count; ++v) mesh.positions.emplace_back(pos.at(v, 0), pos.at(v, 1), pos.at(v, 2));
+  const AccessorData pos = ReadAccessor(ctx, prim.attributes.at("POSITION"), {"POSITION of " + where, kFloat, {TINYGLTF_TYPE_VEC3}});
+  const size_t first = mesh.positions.size(), count = pos.count;
+  for (size_t v = 0; v < count; ++v) mesh.positions.emplace_back(pos.at(v, 0), pos.at(v, 1), pos.at(v, 2));
   if (with_normals) {
-    const int ni = prim.attributes.at("NORMAL");
-    const AccessorData nrm = ReadAccessor(ctx, ni, {"NORMAL of " + where, kFloat, {TINYGLTF_TYPE_VEC3}});
-    CheckCount(ctx, nrm, ni, "NORMAL of " + where, count);
-    for (std::size_t v = 0; v < count; ++v) mesh.normals.emplace_back(nrm.at(v, 0), nrm.at(v, 1), nrm.at(v, 2));
+    const AccessorData nrm = ReadAttribute(ctx, prim, "NORMAL", where, {"", kFloat, {TINYGLTF_TYPE_VEC3}}, count);
+    for (size_t v = 0; v < count; ++v) mesh.normals.emplace_back(nrm.at(v, 0), nrm.at(v, 1), nrm.at(v, 2));
   }
-  const auto slots = static_cast<std::size_t>(mesh.influences);
+  const auto slots = static_cast<size_t>(mesh.influences);
   mesh.joints.resize(mesh.positions.size() * slots, 0);
   mesh.weights.resize(mesh.positions.size() * slots, 0.0f);
-  const std::size_t sets = InfluenceSets(ctx, prim, where);
-  for (std::size_t s = 0; s < sets; ++s) ReadInfluenceSet(ctx, prim, where, s, first, count, mesh);
-  for (std::size_t v = 0; v < count; ++v) {
+  const size_t sets = InfluenceSets(ctx, prim, where);
+  for (size_t s = 0; s < sets; ++s) ReadInfluenceSet(ctx, prim, where, s, first, count, mesh);
+  for (size_t v = 0; v < count; ++v) {
     const float* w = &mesh.weights[(first + v) * slots];
     if (std::all_of(w, w + slots, [](float x) { return x == 0.0f; })) {
-      ctx.Fail(where + ": vertex " + std::to_string(v) + ": all weights are zero (" +
+      ctx.Fail(where + ": vertex " + to_string(v) + ": all weights are zero (" +
                AccessorName(prim.attributes.at("WEIGHTS_0"), "WEIGHTS_0") + ")");
     }
   }
@@ -447,90 +436,82 @@ void AppendPrimitive(const Ctx& ctx, const tinygltf::Primitive& prim, const std:
 // Compacts the influences, then rejects (strict) or renormalises weights whose sum is not 1.
 void FinishWeights(const Ctx& ctx, const std::string& mesh_name, bool strict, SkinnedMesh& mesh,
                    std::vector<std::string>& warnings) {
-  if (const std::size_t cut = CompactInfluences(mesh); cut > 0) {
-    warnings.push_back(ctx.path + ": " + std::to_string(cut) + " vertices have more than " +
-                       std::to_string(kMaxInfluences) + " influences: kept the largest " +
-                       std::to_string(kMaxInfluences) + " and renormalised them");
+  if (const size_t cut = CompactInfluences(mesh); cut > 0) {
+    warnings.push_back(ctx.path + ": " + to_string(cut) + " vertices have more than " + to_string(kMaxInfluences) +
+                       " influences: kept the largest " + to_string(kMaxInfluences) + " and renormalised them");
   }
-  const auto slots = static_cast<std::size_t>(mesh.influences);
-  std::size_t bad = 0, first = 0;
+  const auto slots = static_cast<size_t>(mesh.influences);
+  size_t bad = 0, first = 0;
   double first_sum = 1.0;
-  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+  for (size_t v = 0; v < mesh.vertex_count(); ++v) {
     double sum = 0.0;
-    for (std::size_t k = 0; k < slots; ++k) sum += mesh.weights[v * slots + k];
-    if (std::abs(sum - 1.0) > kWeightSumTolerance) {
-      if (bad == 0) {
-        first = v;
-        first_sum = sum;
-      }
-      ++bad;
-    }
+    for (size_t k = 0; k < slots; ++k) sum += mesh.weights[v * slots + k];
+    if (std::abs(sum - 1.0) <= kWeightSumTolerance) continue;
+    if (bad++ == 0) first_sum = sum;
+    if (bad == 1) first = v;
   }
   if (bad == 0) return;
   if (strict) {
-    ctx.Fail(mesh_name + ": vertex " + std::to_string(first) + ": weights sum to " + Num(first_sum) + ", not 1 (" +
-             std::to_string(bad) + " such vertices; strict import does not renormalise)");
+    ctx.Fail(mesh_name + ": vertex " + to_string(first) + ": weights sum to " + Num(first_sum) + ", not 1 (" +
+             to_string(bad) + " such vertices; strict import does not renormalise)");
   }
   const RenormalizeReport r = Renormalize(mesh);
-  warnings.push_back(ctx.path + ": renormalised weights of " + std::to_string(r.changed_vertices) +
-                     " vertices (worst: vertex " + std::to_string(r.worst_vertex) + ", sum " + Num(r.worst_sum) + ")");
+  warnings.push_back(ctx.path + ": renormalised weights of " + to_string(r.changed_vertices) +
+                     " vertices (worst: vertex " + to_string(r.worst_vertex) + ", sum " + Num(r.worst_sum) + ")");
 }
 
-SkinnedMesh ReadMesh(const Ctx& ctx, std::size_t node_index, const GltfImportOptions& options,
+SkinnedMesh ReadMesh(const Ctx& ctx, size_t node_index, const GltfImportOptions& options,
                      std::vector<std::string>& warnings) {
-  const auto& node = ctx.model.nodes[node_index];
-  const auto mesh_index = static_cast<std::size_t>(node.mesh);
-  const tinygltf::Mesh& src = ctx.model.meshes[mesh_index];
+  const tinygltf::Node& node = ctx.model.nodes[node_index];
+  const tinygltf::Mesh& src = ctx.model.meshes[Z(node.mesh)];
+  const std::string mesh_ref = Idx("meshes", node.mesh);
   SkinnedMesh mesh;
-  mesh.name = !src.name.empty() ? src.name : !node.name.empty() ? node.name : Idx("meshes", mesh_index);
-  mesh.joint_count = static_cast<int>(ctx.model.skins[static_cast<std::size_t>(node.skin)].joints.size());
-  std::vector<std::size_t> used;
-  std::size_t sets = 0;
+  mesh.name = !src.name.empty() ? src.name : !node.name.empty() ? node.name : mesh_ref;
+  mesh.joint_count = static_cast<int>(ctx.model.skins[Z(node.skin)].joints.size());
+  std::vector<size_t> used;
+  size_t sets = 0;
   bool normals = options.normals;
-  for (std::size_t p = 0; p < src.primitives.size(); ++p) {
-    const auto& prim = src.primitives[p];
-    if (!IsTriangles(prim.mode)) continue;
+  for (size_t p = 0; p < src.primitives.size(); ++p) {
+    if (!IsTriangles(src.primitives[p].mode)) continue;
     used.push_back(p);
-    sets = std::max(sets, InfluenceSets(ctx, prim, Idx("meshes", mesh_index) + "." + Idx("primitives", p)));
-    normals = normals && prim.attributes.count("NORMAL") > 0;
+    sets = std::max(sets, InfluenceSets(ctx, src.primitives[p], mesh_ref + "." + Idx("primitives", p)));
+    normals = normals && src.primitives[p].attributes.count("NORMAL") > 0;
   }
-  if (used.empty()) ctx.Fail(Idx("meshes", mesh_index) + " '" + src.name + "': no triangle primitives");
+  if (used.empty()) ctx.Fail(mesh_ref + " '" + src.name + "': no triangle primitives");
   if (used.size() < src.primitives.size()) {
-    warnings.push_back(ctx.path + ": " + Idx("meshes", mesh_index) + ": skipped " +
-                       std::to_string(src.primitives.size() - used.size()) + " non-triangle primitives");
+    warnings.push_back(ctx.path + ": " + mesh_ref + ": skipped " + to_string(src.primitives.size() - used.size()) +
+                       " non-triangle primitives");
   }
   mesh.influences = static_cast<int>(4 * sets);
-  for (std::size_t p : used) {
-    AppendPrimitive(ctx, src.primitives[p], Idx("meshes", mesh_index) + "." + Idx("primitives", p), normals, mesh);
-  }
-  FinishWeights(ctx, Idx("meshes", mesh_index) + " '" + mesh.name + "'", options.strict, mesh, warnings);
+  for (size_t p : used) AppendPrimitive(ctx, src.primitives[p], mesh_ref + "." + Idx("primitives", p), normals, mesh);
+  FinishWeights(ctx, mesh_ref + " '" + mesh.name + "'", options.strict, mesh, warnings);
   ThrowIfInvalid(mesh, ctx.path);
   return mesh;
 }
 
 // ---------------------------------------------------------------- skeleton
 
-void CheckLength(const Ctx& ctx, std::size_t n, const char* field, const std::vector<double>& v, std::size_t want) {
+void CheckLength(const Ctx& ctx, size_t n, const char* field, const std::vector<double>& v, size_t want) {
   if (!v.empty() && v.size() != want) {
-    ctx.Fail(Idx("nodes", n) + ": " + field + " has " + std::to_string(v.size()) + " numbers (expected " +
-             std::to_string(want) + ")");
+    ctx.Fail(Idx("nodes", n) + ": " + field + " has " + to_string(v.size()) + " numbers (expected " +
+             to_string(want) + ")");
   }
 }
 
-Node ReadNode(const Ctx& ctx, std::size_t n) {
+Node ReadNode(const Ctx& ctx, size_t n) {
   const tinygltf::Node& src = ctx.model.nodes[n];
-  Node node;
-  node.name = src.name;
   CheckLength(ctx, n, "translation", src.translation, 3);
   CheckLength(ctx, n, "rotation", src.rotation, 4);
   CheckLength(ctx, n, "scale", src.scale, 3);
   CheckLength(ctx, n, "matrix", src.matrix, 16);
+  Node node;
+  node.name = src.name;
   if (!src.translation.empty()) node.rest.translation = glm::make_vec3(src.translation.data());
+  if (!src.scale.empty()) node.rest.scale = glm::make_vec3(src.scale.data());
   if (!src.rotation.empty()) {
-    const auto& r = src.rotation;  // glTF: x, y, z, w
+    const std::vector<double>& r = src.rotation;  // glTF: x, y, z, w; glm::dquat(w, x, y, z)
     node.rest.rotation = glm::dquat(r[3], r[0], r[1], r[2]);
   }
-  if (!src.scale.empty()) node.rest.scale = glm::make_vec3(src.scale.data());
   if (!src.matrix.empty()) {
     node.has_matrix = true;
     node.matrix = glm::make_mat4(src.matrix.data());  // column-major, like glTF
@@ -538,41 +519,39 @@ Node ReadNode(const Ctx& ctx, std::size_t n) {
   return node;
 }
 
+// Every node of the file (parents from `children`), the skin's joints and inverse bind matrices.
 Skeleton ReadSkeleton(const Ctx& ctx, int skin_index) {
-  const auto& model = ctx.model;
+  const tinygltf::Model& model = ctx.model;
   Skeleton skeleton;
-  for (std::size_t n = 0; n < model.nodes.size(); ++n) skeleton.nodes.push_back(ReadNode(ctx, n));
-  for (std::size_t n = 0; n < model.nodes.size(); ++n) {
+  for (size_t n = 0; n < model.nodes.size(); ++n) skeleton.nodes.push_back(ReadNode(ctx, n));
+  for (size_t n = 0; n < model.nodes.size(); ++n) {
     for (int child : model.nodes[n].children) {
-      if (child < 0 || static_cast<std::size_t>(child) >= model.nodes.size()) {
-        ctx.Fail(Idx("nodes", n) + ": child " + std::to_string(child) + " does not exist");
-      }
-      Node& c = skeleton.nodes[static_cast<std::size_t>(child)];
+      if (!InRange(child, model.nodes)) ctx.Fail(Idx("nodes", n) + ": child " + to_string(child) + " does not exist");
+      Node& c = skeleton.nodes[Z(child)];
       if (c.parent >= 0) {
-        ctx.Fail(Idx("nodes", static_cast<std::size_t>(child)) + " has two parents (" +
-                 Idx("nodes", static_cast<std::size_t>(c.parent)) + " and " + Idx("nodes", n) + ")");
+        ctx.Fail(Idx("nodes", child) + " has two parents (" + Idx("nodes", c.parent) + " and " + Idx("nodes", n) + ")");
       }
       c.parent = static_cast<int>(n);
     }
   }
-  const tinygltf::Skin& skin = model.skins[static_cast<std::size_t>(skin_index)];
-  const std::string skin_name = Idx("skins", static_cast<std::size_t>(skin_index));
-  if (skin.joints.empty()) ctx.Fail(skin_name + ": no joints");
-  for (std::size_t j = 0; j < skin.joints.size(); ++j) {
-    if (skin.joints[j] < 0 || static_cast<std::size_t>(skin.joints[j]) >= model.nodes.size()) {
-      ctx.Fail(skin_name + ".joints[" + std::to_string(j) + "]: node " + std::to_string(skin.joints[j]) + " does not exist");
+  const tinygltf::Skin& skin = model.skins[Z(skin_index)];
+  const std::string skin_ref = Idx("skins", skin_index);
+  if (skin.joints.empty()) ctx.Fail(skin_ref + ": no joints");
+  for (size_t j = 0; j < skin.joints.size(); ++j) {
+    if (!InRange(skin.joints[j], model.nodes)) {
+      ctx.Fail(skin_ref + "." + Idx("joints", j) + ": node " + to_string(skin.joints[j]) + " does not exist");
     }
   }
   skeleton.joints = skin.joints;
   skeleton.inverse_bind.assign(skin.joints.size(), glm::dmat4(1.0));
   if (skin.inverseBindMatrices >= 0) {
-    const std::string role = "inverseBindMatrices of " + skin_name;
+    const std::string role = "inverseBindMatrices of " + skin_ref;
     const AccessorData ibm = ReadAccessor(ctx, skin.inverseBindMatrices, {role, kFloat, {TINYGLTF_TYPE_MAT4}});
     if (ibm.count < skin.joints.size()) {
-      ctx.Fail(AccessorName(skin.inverseBindMatrices, role) + ": " + std::to_string(ibm.count) + " matrices for " +
-               std::to_string(skin.joints.size()) + " joints");
+      ctx.Fail(AccessorName(skin.inverseBindMatrices, role) + ": " + to_string(ibm.count) + " matrices for " +
+               to_string(skin.joints.size()) + " joints");
     }
-    for (std::size_t j = 0; j < skin.joints.size(); ++j) skeleton.inverse_bind[j] = glm::make_mat4(&ibm.values[j * 16]);
+    for (size_t j = 0; j < skin.joints.size(); ++j) skeleton.inverse_bind[j] = glm::make_mat4(&ibm.values[j * 16]);
   }
   skeleton.Validate(ctx.path);
   return skeleton;
@@ -581,11 +560,12 @@ Skeleton ReadSkeleton(const Ctx& ctx, int skin_index) {
 // ---------------------------------------------------------------- animations
 
 bool ParsePath(const std::string& s, ChannelPath* path) {
-  if (s == "translation") *path = ChannelPath::kTranslation;
-  else if (s == "rotation") *path = ChannelPath::kRotation;
-  else if (s == "scale") *path = ChannelPath::kScale;
-  else return false;
-  return true;
+  static const std::map<std::string, ChannelPath> paths = {{"translation", ChannelPath::kTranslation},
+                                                           {"rotation", ChannelPath::kRotation},
+                                                           {"scale", ChannelPath::kScale}};
+  const auto it = paths.find(s);
+  if (it != paths.end()) *path = it->second;
+  return it != paths.end();
 }
 
 Interpolation ParseInterpolation(const Ctx& ctx, const std::string& s, const std::string& where) {
@@ -595,52 +575,53 @@ Interpolation ParseInterpolation(const Ctx& ctx, const std::string& s, const std
   ctx.Fail(where + ": unknown interpolation '" + s + "' (expected LINEAR, STEP or CUBICSPLINE)");
 }
 
-Channel ReadChannel(const Ctx& ctx, const tinygltf::Animation& anim, const std::string& where, std::size_t c,
+Channel ReadChannel(const Ctx& ctx, const tinygltf::Animation& anim, const std::string& where, size_t c,
                     ChannelPath path) {
   const tinygltf::AnimationChannel& src = anim.channels[c];
-  const std::string channel_name = where + "." + Idx("channels", c);
-  if (src.target_node < 0 || static_cast<std::size_t>(src.target_node) >= ctx.model.nodes.size()) {
-    ctx.Fail(channel_name + ": target node " + std::to_string(src.target_node) + " does not exist");
+  const std::string channel_ref = where + "." + Idx("channels", c);
+  if (!InRange(src.target_node, ctx.model.nodes)) {
+    ctx.Fail(channel_ref + ": target node " + to_string(src.target_node) + " does not exist");
   }
-  if (src.sampler < 0 || static_cast<std::size_t>(src.sampler) >= anim.samplers.size()) {
-    ctx.Fail(channel_name + ": sampler " + std::to_string(src.sampler) + " does not exist");
+  if (!InRange(src.sampler, anim.samplers)) {
+    ctx.Fail(channel_ref + ": sampler " + to_string(src.sampler) + " does not exist");
   }
-  const tinygltf::AnimationSampler& sampler = anim.samplers[static_cast<std::size_t>(src.sampler)];
-  const std::string sampler_name = where + "." + Idx("samplers", static_cast<std::size_t>(src.sampler));
+  const tinygltf::AnimationSampler& sampler = anim.samplers[Z(src.sampler)];
+  const std::string sampler_ref = where + "." + Idx("samplers", src.sampler);
   Channel ch;
   ch.node = src.target_node;
   ch.path = path;
-  ch.interpolation = ParseInterpolation(ctx, sampler.interpolation, sampler_name);
-  const AccessorData in = ReadAccessor(ctx, sampler.input, {"input of " + sampler_name, kFloat, {TINYGLTF_TYPE_SCALAR}});
+  ch.interpolation = ParseInterpolation(ctx, sampler.interpolation, sampler_ref);
   const bool rotation = path == ChannelPath::kRotation;
-  const AccessorData out = ReadAccessor(ctx, sampler.output, {"output of " + sampler_name, rotation ? kRotationTypes : kFloat,
-                                                              {rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3}});
-  const std::size_t per_key = ch.interpolation == Interpolation::kCubicSpline ? 3 : 1;
+  const AccessorData in = ReadAccessor(ctx, sampler.input, {"input of " + sampler_ref, kFloat, {TINYGLTF_TYPE_SCALAR}});
+  const AccessorData out =
+      ReadAccessor(ctx, sampler.output,
+                   {"output of " + sampler_ref, rotation ? kRotationTypes : kFloat,
+                    {rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3}});
+  const size_t per_key = ch.interpolation == Interpolation::kCubicSpline ? 3 : 1;
   if (out.count != in.count * per_key) {
-    ctx.Fail(sampler_name + ": output " + Idx("accessors", sampler.output) + " has " + std::to_string(out.count) +
-             " values for " + std::to_string(in.count) + " keys (expected " + std::to_string(in.count * per_key) + ")");
+    ctx.Fail(sampler_ref + ": output " + Idx("accessors", sampler.output) + " has " + to_string(out.count) +
+             " values for " + to_string(in.count) + " keys (expected " + to_string(in.count * per_key) + ")");
   }
-  for (std::size_t k = 0; k < in.count; ++k) ch.times.push_back(static_cast<float>(in.values[k]));
-  for (std::size_t k = 0; k < out.count; ++k) {
+  for (size_t k = 0; k < in.count; ++k) ch.times.push_back(static_cast<float>(in.values[k]));
+  for (size_t k = 0; k < out.count; ++k) {
     ch.values.emplace_back(out.at(k, 0), out.at(k, 1), out.at(k, 2), rotation ? out.at(k, 3) : 0.0);
   }
   return ch;
 }
 
+// Every animation's translation/rotation/scale channels (morph `weights` channels are skipped).
 std::vector<AnimationClip> ReadAnimations(const Ctx& ctx) {
   std::vector<AnimationClip> clips;
-  for (std::size_t a = 0; a < ctx.model.animations.size(); ++a) {
+  for (size_t a = 0; a < ctx.model.animations.size(); ++a) {
     const tinygltf::Animation& anim = ctx.model.animations[a];
     const std::string where = Idx("animations", a);
     AnimationClip clip;
     clip.name = anim.name;
-    for (std::size_t c = 0; c < anim.channels.size(); ++c) {
+    for (size_t c = 0; c < anim.channels.size(); ++c) {
       const std::string& target = anim.channels[c].target_path;
-      if (target == "weights") continue;  // morph targets: not skinning
       ChannelPath path;
-      if (!ParsePath(target, &path)) {
-        ctx.Fail(where + "." + Idx("channels", c) + ": unknown target path '" + target + "'");
-      }
+      if (target == "weights") continue;
+      if (!ParsePath(target, &path)) ctx.Fail(where + "." + Idx("channels", c) + ": unknown target path '" + target + "'");
       clip.channels.push_back(ReadChannel(ctx, anim, where, c, path));
     }
     clip.UpdateRange();
@@ -657,7 +638,7 @@ GltfImportResult ImportGltf(const std::string& path, const GltfImportOptions& op
   GltfImportResult result;
   const tinygltf::Model model = LoadModel(path, result.warnings);
   const Ctx ctx{model, path};
-  const std::size_t node = FindSkinnedNode(ctx, options.mesh);
+  const size_t node = FindSkinnedNode(ctx, options.mesh);
   SkinnedAsset& asset = result.asset;
   asset.source = path;
   asset.skeleton = ReadSkeleton(ctx, model.nodes[node].skin);

@@ -1,9 +1,10 @@
 // The fast CPU path: structure-of-arrays data made once, a loop per influence
-// count written so the compiler vectorises it across vertices (gathers of the
-// palette rows), function clones for AVX-512 / AVX2 picked at run time by the
-// loader (target_clones), all cores through a persistent ThreadPool.
+// count over 16-float matrix vectors, function clones for AVX-512 / AVX2
+// picked at run time by the loader (target_clones), all cores through a
+// persistent ThreadPool.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "reference/error.h"
 #include "reference/skinning.h"
@@ -16,9 +17,13 @@ void CheckSkinningArguments(const SkinnedMesh& mesh, std::size_t palette_size, s
 
 namespace {
 
-// Palette rows of a 3x4 affine matrix, 12 floats per joint: rows 0..2 of the
-// 4x4 (the last row of an affine matrix is 0 0 0 1 and is not read).
-constexpr int kRowFloats = 12;
+// The whole 4x4 palette matrix fits one 16-float vector (a zmm register with
+// AVX-512; GCC splits it into narrower registers on other targets). Blending
+// B matrices is then B loads and B fused multiply-adds per vertex, with no
+// gathers (slow on many cores, e.g. AMD Zen 4).
+typedef float V16 __attribute__((vector_size(64)));
+typedef float V4 __attribute__((vector_size(16)));
+constexpr int kMatrixFloats = 16;
 
 struct FastArgs {
   const float* px;
@@ -27,54 +32,46 @@ struct FastArgs {
   const float* nx;
   const float* ny;
   const float* nz;
-  const std::uint16_t* joints;         // [slot * n + vertex]
-  const float* weights;                // [slot * n + vertex]
-  std::size_t n;                       // slot stride
-  const float* palette;                // joint * 12
-  float* out_positions;                // xyz interleaved, as glm::vec3
-  float* out_normals;                  // xyz interleaved, or null
+  const std::uint16_t* joints;  // [slot * n + vertex]
+  const float* weights;         // [slot * n + vertex]
+  std::size_t n;                // slot stride
+  const V16* palette;           // one column-major 4x4 per joint, 64-byte aligned
+  float* out_positions;         // xyz interleaved, as glm::vec3
+  float* out_normals;           // xyz interleaved, or null
 };
 
-// Restrict-qualified parameters: without them the compiler must assume the
-// outputs alias the inputs and does not vectorise across vertices.
-template <int B, bool kNormals>
-[[gnu::always_inline]] inline void SkinLoop(const float* __restrict px, const float* __restrict py,
-                                            const float* __restrict pz, const float* __restrict nx,
-                                            const float* __restrict ny, const float* __restrict nz,
-                                            const std::uint16_t* __restrict joints,
-                                            const float* __restrict weights, const float* __restrict palette,
-                                            float* __restrict out, float* __restrict out_n, std::size_t n,
-                                            std::size_t begin, std::size_t end) {
-  for (std::size_t v = begin; v < end; ++v) {
-    float m[kRowFloats] = {};
-#pragma GCC unroll 8
-    for (int i = 0; i < B; ++i) {
-      const float w = weights[i * n + v];
-      const float* row = palette + std::size_t(joints[i * n + v]) * kRowFloats;
-#pragma GCC unroll 12
-      for (int k = 0; k < kRowFloats; ++k) m[k] += w * row[k];
-    }
-    const float x = px[v], y = py[v], z = pz[v];
-    out[3 * v + 0] = m[0] * x + m[1] * y + m[2] * z + m[3];
-    out[3 * v + 1] = m[4] * x + m[5] * y + m[6] * z + m[7];
-    out[3 * v + 2] = m[8] * x + m[9] * y + m[10] * z + m[11];
-    if constexpr (kNormals) {
-      const float ox = m[0] * nx[v] + m[1] * ny[v] + m[2] * nz[v];
-      const float oy = m[4] * nx[v] + m[5] * ny[v] + m[6] * nz[v];
-      const float oz = m[8] * nx[v] + m[9] * ny[v] + m[10] * nz[v];
-      // Branch-free so the loop still vectorises; a zero normal stays zero.
-      const float inv = 1.0f / std::sqrt(std::max(ox * ox + oy * oy + oz * oz, 1e-30f));
-      out_n[3 * v + 0] = ox * inv;
-      out_n[3 * v + 1] = oy * inv;
-      out_n[3 * v + 2] = oz * inv;
-    }
+[[gnu::always_inline]] inline V4 Column(V16 m, int c) {
+  switch (c) {
+    case 0: return __builtin_shufflevector(m, m, 0, 1, 2, 3);
+    case 1: return __builtin_shufflevector(m, m, 4, 5, 6, 7);
+    case 2: return __builtin_shufflevector(m, m, 8, 9, 10, 11);
+    default: return __builtin_shufflevector(m, m, 12, 13, 14, 15);
   }
 }
 
 template <int B, bool kNormals>
 [[gnu::always_inline]] inline void SkinRange(const FastArgs& a, std::size_t begin, std::size_t end) {
-  SkinLoop<B, kNormals>(a.px, a.py, a.pz, a.nx, a.ny, a.nz, a.joints, a.weights, a.palette, a.out_positions,
-                        a.out_normals, a.n, begin, end);
+  const std::size_t n = a.n;
+  for (std::size_t v = begin; v < end; ++v) {
+    V16 m = a.weights[v] * a.palette[a.joints[v]];
+#pragma GCC unroll 8
+    for (int i = 1; i < B; ++i) m += a.weights[i * n + v] * a.palette[a.joints[i * n + v]];
+    const V4 c0 = Column(m, 0), c1 = Column(m, 1), c2 = Column(m, 2);
+    const V4 p = c0 * a.px[v] + c1 * a.py[v] + c2 * a.pz[v] + Column(m, 3);
+    float* out = a.out_positions + 3 * v;
+    out[0] = p[0];
+    out[1] = p[1];
+    out[2] = p[2];
+    if constexpr (kNormals) {
+      const V4 q = c0 * a.nx[v] + c1 * a.ny[v] + c2 * a.nz[v];
+      const float len2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
+      const float inv = len2 > 0.0f ? 1.0f / std::sqrt(len2) : 0.0f;
+      float* out_n = a.out_normals + 3 * v;
+      out_n[0] = q[0] * inv;
+      out_n[1] = q[1] * inv;
+      out_n[2] = q[2] * inv;
+    }
+  }
 }
 
 template <bool kNormals>
@@ -109,7 +106,7 @@ struct FastSkinner::Impl {
   std::vector<float> px, py, pz, nx, ny, nz;
   std::vector<std::uint16_t> joints;  // [slot * n + vertex]
   std::vector<float> weights;         // [slot * n + vertex]
-  std::vector<float> palette;
+  std::vector<V16> palette;  // std::vector honours the 64-byte alignment (C++17)
   ThreadPool pool;
   explicit Impl(unsigned threads) : pool(threads) {}
 };
@@ -146,7 +143,7 @@ FastSkinner::FastSkinner(const SkinnedMesh& mesh, unsigned threads) : impl_(std:
       s.weights[i * s.n + v] = mesh.weights[v * s.b + i];
     }
   }
-  s.palette.resize(std::size_t(s.joint_count) * kRowFloats);
+  s.palette.resize(s.joint_count);
 }
 
 FastSkinner::~FastSkinner() = default;
@@ -173,10 +170,8 @@ void FastSkinner::Run(std::span<const glm::mat4> palette, std::span<glm::vec3> o
   if (out_positions.size() != s.n || (!out_normals.empty() && out_normals.size() != s.n)) {
     throw Error("FastSkinner: output spans must hold " + std::to_string(s.n) + " vertices");
   }
-  for (std::size_t j = 0; j < palette.size(); ++j) {
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 4; ++c) s.palette[j * kRowFloats + r * 4 + c] = palette[j][c][r];
-  }
+  static_assert(sizeof(glm::mat4) == sizeof(V16));
+  for (std::size_t j = 0; j < palette.size(); ++j) std::memcpy(&s.palette[j], &palette[j], sizeof(V16));
   const bool normals = !out_normals.empty() && !s.nx.empty();
   const FastArgs args{s.px.data(),          s.py.data(),          s.pz.data(),
                       s.nx.data(),          s.ny.data(),          s.nz.data(),

@@ -1,13 +1,14 @@
 // AnimationClip: interpolation (STEP / LINEAR / CUBICSPLINE), clamping,
 // shortest-path slerp, range, and validation failures.
+#include "reference/animation.h"
+
+#include <gtest/gtest.h>
+
 #include <cmath>
+#include <glm/gtc/quaternion.hpp>
 #include <limits>
 #include <string>
 
-#include <gtest/gtest.h>
-#include <glm/gtc/quaternion.hpp>
-
-#include "reference/animation.h"
 #include "reference/error.h"
 
 namespace skintune {
@@ -74,8 +75,8 @@ TEST(AnimationSample, LinearInterpolatesTranslationBetweenKeys) {
 }
 
 TEST(AnimationSample, LinearInterpolatesScale) {
-  const AnimationClip clip =
-      OneChannel(MakeChannel(ChannelPath::kScale, Interpolation::kLinear, {0.0f, 1.0f}, {{1, 1, 1, 0}, {3, 2, 1, 0}}));
+  const AnimationClip clip = OneChannel(
+      MakeChannel(ChannelPath::kScale, Interpolation::kLinear, {0.0f, 1.0f}, {{1, 1, 1, 0}, {3, 2, 1, 0}}));
   const glm::dvec3 s = SampleAt(clip, 0.25)[0].scale;
   EXPECT_NEAR(s.x, 1.5, 1e-12);
   EXPECT_NEAR(s.y, 1.25, 1e-12);
@@ -83,8 +84,8 @@ TEST(AnimationSample, LinearInterpolatesScale) {
 }
 
 TEST(AnimationSample, LinearRotationIsSlerpNotLerp) {
-  const AnimationClip clip = OneChannel(
-      MakeChannel(ChannelPath::kRotation, Interpolation::kLinear, {0.0f, 1.0f}, {AboutZ(0.0), AboutZ(kPi / 2)}));
+  const AnimationClip clip = OneChannel(MakeChannel(ChannelPath::kRotation, Interpolation::kLinear,
+                                                    {0.0f, 1.0f}, {AboutZ(0.0), AboutZ(kPi / 2)}));
   // Slerp has constant angular speed: a quarter of the time is a quarter of the angle
   // (normalised lerp would give atan(...) != 22.5 degrees).
   const glm::dquat q = SampleAt(clip, 0.25)[0].rotation;
@@ -95,8 +96,8 @@ TEST(AnimationSample, LinearRotationIsSlerpNotLerp) {
 TEST(AnimationSample, SlerpTakesTheShortestPath) {
   // -q is the same rotation as q: interpolating 0 -> (-AboutZ(90 deg)) must still
   // pass through 45 degrees, not swing the long way round.
-  const AnimationClip clip = OneChannel(
-      MakeChannel(ChannelPath::kRotation, Interpolation::kLinear, {0.0f, 1.0f}, {AboutZ(0.0), -AboutZ(kPi / 2)}));
+  const AnimationClip clip = OneChannel(MakeChannel(ChannelPath::kRotation, Interpolation::kLinear,
+                                                    {0.0f, 1.0f}, {AboutZ(0.0), -AboutZ(kPi / 2)}));
   glm::dquat q = SampleAt(clip, 0.5)[0].rotation;
   if (q.w < 0) q = -q;
   EXPECT_NEAR(AngleAboutZ(q), kPi / 4, 1e-9);
@@ -123,8 +124,12 @@ TEST(AnimationSample, RotationsAreNormalised) {
 // CUBICSPLINE values: (in-tangent, value, out-tangent) per key.
 AnimationClip Cubic(double out_tangent0, double in_tangent1, float t1) {
   return OneChannel(MakeChannel(ChannelPath::kTranslation, Interpolation::kCubicSpline, {0.0f, t1},
-                                {{9, 9, 9, 0}, {0, 0, 0, 0}, {out_tangent0, 0, 0, 0},
-                                 {in_tangent1, 0, 0, 0}, {1, 0, 0, 0}, {9, 9, 9, 0}}));
+                                {{9, 9, 9, 0},
+                                 {0, 0, 0, 0},
+                                 {out_tangent0, 0, 0, 0},
+                                 {in_tangent1, 0, 0, 0},
+                                 {1, 0, 0, 0},
+                                 {9, 9, 9, 0}}));
 }
 
 TEST(AnimationSample, CubicSplineWithZeroTangentsIsTheHermiteBasis) {
@@ -143,7 +148,8 @@ TEST(AnimationSample, CubicSplineTangentsAreScaledByTheKeyInterval) {
   EXPECT_NEAR(SampleAt(clip, 1.0)[0].translation.x, expected, 1e-12);
   // In-tangent of key 1: h11(u) * interval * m1.
   const AnimationClip in = Cubic(0.0, 1.0, 2.0f);
-  EXPECT_NEAR(SampleAt(in, 1.0)[0].translation.x, (-2 * u * u * u + 3 * u * u) + (u * u * u - u * u) * 2.0, 1e-12);
+  EXPECT_NEAR(SampleAt(in, 1.0)[0].translation.x, (-2 * u * u * u + 3 * u * u) + (u * u * u - u * u) * 2.0,
+              1e-12);
 }
 
 TEST(AnimationSample, CubicSplineAtAndBeyondKeysReturnsTheValueNotATangent) {
@@ -155,9 +161,9 @@ TEST(AnimationSample, CubicSplineAtAndBeyondKeysReturnsTheValueNotATangent) {
 }
 
 TEST(AnimationSample, CubicSplineRotationIsNormalised) {
-  const AnimationClip clip = OneChannel(MakeChannel(
-      ChannelPath::kRotation, Interpolation::kCubicSpline, {0.0f, 1.0f},
-      {{0, 0, 0, 0}, AboutZ(0.0), {0, 0, 0, 0}, {0, 0, 0, 0}, AboutZ(kPi / 2), {0, 0, 0, 0}}));
+  const AnimationClip clip = OneChannel(
+      MakeChannel(ChannelPath::kRotation, Interpolation::kCubicSpline, {0.0f, 1.0f},
+                  {{0, 0, 0, 0}, AboutZ(0.0), {0, 0, 0, 0}, {0, 0, 0, 0}, AboutZ(kPi / 2), {0, 0, 0, 0}}));
   EXPECT_NEAR(glm::length(SampleAt(clip, 0.3)[0].rotation), 1.0, 1e-12);
 }
 
@@ -181,14 +187,14 @@ TEST(AnimationSample, SingleKeyChannelIsConstant) {
         OneChannel(MakeChannel(ChannelPath::kTranslation, interpolation, {0.5f}, {{1, 2, 3, 0}}));
     for (double t : {-1.0, 0.5, 9.0}) EXPECT_EQ(SampleAt(clip, t)[0].translation, glm::dvec3(1, 2, 3));
   }
-  const AnimationClip cubic = OneChannel(
-      MakeChannel(ChannelPath::kTranslation, Interpolation::kCubicSpline, {0.5f}, {{7, 7, 7, 0}, {1, 2, 3, 0}, {7, 7, 7, 0}}));
+  const AnimationClip cubic = OneChannel(MakeChannel(ChannelPath::kTranslation, Interpolation::kCubicSpline,
+                                                     {0.5f}, {{7, 7, 7, 0}, {1, 2, 3, 0}, {7, 7, 7, 0}}));
   EXPECT_EQ(SampleAt(cubic, 3.0)[0].translation, glm::dvec3(1, 2, 3));
 }
 
 TEST(AnimationSample, OnlyTheAnimatedComponentOfTheTargetNodeChanges) {
-  const AnimationClip clip = OneChannel(
-      MakeChannel(ChannelPath::kTranslation, Interpolation::kLinear, {0.0f, 1.0f}, {{0, 0, 0, 0}, {2, 2, 2, 0}}, 1));
+  const AnimationClip clip = OneChannel(MakeChannel(ChannelPath::kTranslation, Interpolation::kLinear,
+                                                    {0.0f, 1.0f}, {{0, 0, 0, 0}, {2, 2, 2, 0}}, 1));
   Pose pose(3);
   pose[1].rotation = glm::dquat(0.0, 1.0, 0.0, 0.0);
   pose[1].scale = glm::dvec3(2.0);
@@ -201,7 +207,8 @@ TEST(AnimationSample, OnlyTheAnimatedComponentOfTheTargetNodeChanges) {
 }
 
 TEST(AnimationSample, ChannelOutsideThePoseThrows) {
-  const AnimationClip clip = OneChannel(MakeChannel(ChannelPath::kScale, Interpolation::kStep, {0.0f}, {{1, 1, 1, 0}}, 5));
+  const AnimationClip clip =
+      OneChannel(MakeChannel(ChannelPath::kScale, Interpolation::kStep, {0.0f}, {{1, 1, 1, 0}}, 5));
   Pose pose(2);
   EXPECT_THROW(clip.Sample(0.0, pose), Error);
 }
@@ -210,9 +217,12 @@ TEST(AnimationSample, ChannelOutsideThePoseThrows) {
 
 TEST(AnimationRange, SpansTheKeysOfAllChannels) {
   AnimationClip clip;
-  clip.channels.push_back(MakeChannel(ChannelPath::kScale, Interpolation::kStep, {0.5f, 1.0f}, {{1, 1, 1, 0}, {1, 1, 1, 0}}));
-  clip.channels.push_back(MakeChannel(ChannelPath::kTranslation, Interpolation::kStep, {0.25f, 0.75f}, {glm::dvec4(0.0), glm::dvec4(0.0)}));
-  clip.channels.push_back(MakeChannel(ChannelPath::kTranslation, Interpolation::kStep, {2.0f}, {glm::dvec4(0.0)}));
+  clip.channels.push_back(
+      MakeChannel(ChannelPath::kScale, Interpolation::kStep, {0.5f, 1.0f}, {{1, 1, 1, 0}, {1, 1, 1, 0}}));
+  clip.channels.push_back(MakeChannel(ChannelPath::kTranslation, Interpolation::kStep, {0.25f, 0.75f},
+                                      {glm::dvec4(0.0), glm::dvec4(0.0)}));
+  clip.channels.push_back(
+      MakeChannel(ChannelPath::kTranslation, Interpolation::kStep, {2.0f}, {glm::dvec4(0.0)}));
   clip.UpdateRange();
   EXPECT_DOUBLE_EQ(clip.start, 0.25);
   EXPECT_DOUBLE_EQ(clip.end, 2.0);
@@ -252,8 +262,9 @@ TEST(AnimationValidate, RejectsNodeOutOfRange) {
 }
 
 TEST(AnimationValidate, RejectsNegativeNode) {
-  ExpectInvalid(OneChannel(MakeChannel(ChannelPath::kScale, Interpolation::kStep, {0.0f}, {{1, 1, 1, 0}}, -1)),
-                "node -1 out of range");
+  ExpectInvalid(
+      OneChannel(MakeChannel(ChannelPath::kScale, Interpolation::kStep, {0.0f}, {{1, 1, 1, 0}}, -1)),
+      "node -1 out of range");
 }
 
 TEST(AnimationValidate, RejectsChannelWithoutKeys) {
@@ -280,8 +291,9 @@ TEST(AnimationValidate, RejectsNonFiniteKeyTime) {
 }
 
 TEST(AnimationValidate, RejectsValueCountNotMatchingKeyCount) {
-  ExpectInvalid(OneChannel(MakeChannel(ChannelPath::kScale, Interpolation::kLinear, {0.0f, 1.0f}, {{1, 1, 1, 0}})),
-                "1 values for 2 keys (expected 2)");
+  ExpectInvalid(
+      OneChannel(MakeChannel(ChannelPath::kScale, Interpolation::kLinear, {0.0f, 1.0f}, {{1, 1, 1, 0}})),
+      "1 values for 2 keys (expected 2)");
 }
 
 TEST(AnimationValidate, RejectsCubicSplineWithoutThreeValuesPerKey) {

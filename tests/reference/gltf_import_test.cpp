@@ -1,6 +1,11 @@
 // ImportGltf: the three real models (counts, histograms, animations, rest pose
 // reproduces POSITION, animated frames are plausible), mesh selection, GLB, and
 // malformed variants of RiggedSimple.gltf generated into a temporary folder.
+#include "reference/gltf_import.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -9,15 +14,11 @@
 #include <fstream>
 #include <functional>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
-#include <unistd.h>
-
 #include "reference/error.h"
-#include "reference/gltf_import.h"
 #include "reference/skinning.h"
 
 namespace skintune {
@@ -27,7 +28,9 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 // The models live in tests/data (SKINTUNE_TEST_DATA_DIR is per test folder: tests/reference/data).
-std::string DataFile(const std::string& name) { return std::string(SKINTUNE_SOURCE_DIR) + "/tests/data/" + name; }
+std::string DataFile(const std::string& name) {
+  return std::string(SKINTUNE_SOURCE_DIR) + "/tests/data/" + name;
+}
 
 // ---------------------------------------------------------------- base64, files, GLB
 
@@ -115,8 +118,8 @@ class GltfFiles : public ::testing::Test {
  protected:
   void SetUp() override {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("skintune_gltf_" + std::to_string(::getpid()) + "_" + info->test_suite_name() + "_" + info->name());
+    dir_ = fs::temp_directory_path() / ("skintune_gltf_" + std::to_string(::getpid()) + "_" +
+                                        info->test_suite_name() + "_" + info->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     rigged_ = ReadJson(DataFile("RiggedSimple.gltf"));
@@ -148,7 +151,8 @@ class GltfFiles : public ::testing::Test {
     } catch (const Error& e) {
       const std::string message = e.what();
       EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << message;
-      for (const std::string& f : fragments) EXPECT_NE(message.find(f), std::string::npos) << "'" << f << "' not in: " << message;
+      for (const std::string& f : fragments)
+        EXPECT_NE(message.find(f), std::string::npos) << "'" << f << "' not in: " << message;
     }
   }
 
@@ -170,14 +174,23 @@ struct ModelFacts {
   bool normals;
   std::vector<std::string> animation_names;
   std::vector<double> starts, ends;
-  std::size_t channels;  // of animation 0
+  std::size_t channels;        // of animation 0
+  bool placement_is_identity;  // rest-pose palette (see RestPoseSkinningReproducesThePositionData)
 };
 
 const ModelFacts kModels[] = {
-    {"CesiumMan.gltf", 3273, 19, {0, 458, 1678, 717, 420}, true, {""}, {0.0}, {2.0}, 57},
-    {"RiggedSimple.gltf", 160, 2, {0, 128, 32}, true, {""}, {0.0417}, {2.083}, 3},
-    {"Fox.gltf", 1728, 24, {0, 772, 917, 33, 6}, false, {"Survey", "Walk", "Run"}, {0.0, 0.0, 0.0},
-     {3.417, 0.708, 1.158}, 21},
+    {"CesiumMan.gltf", 3273, 19, {0, 458, 1678, 717, 420}, true, {""}, {0.0}, {2.0}, 57, false},
+    {"RiggedSimple.gltf", 160, 2, {0, 128, 32}, true, {""}, {0.0417}, {2.083}, 3, false},
+    {"Fox.gltf",
+     1728,
+     24,
+     {0, 772, 917, 33, 6},
+     false,
+     {"Survey", "Walk", "Run"},
+     {0.0, 0.0, 0.0},
+     {3.417, 0.708, 1.158},
+     21,
+     true},
 };
 
 class RealModel : public ::testing::TestWithParam<ModelFacts> {
@@ -217,14 +230,34 @@ TEST_P(RealModel, HasTheDocumentedAnimations) {
   }
 }
 
+// glTF skins in model space: the joints' ancestors apply (CesiumMan and RiggedSimple
+// hang their skeleton under a Z-up root node). So in the rest pose every palette
+// entry is the same rigid placement M, and skinning gives M * POSITION; for Fox M = I.
 TEST_P(RealModel, RestPoseSkinningReproducesThePositionData) {
   const SkinnedAsset& asset = Load().asset;
-  const GoldResult gold = SkinGold(asset.mesh, asset.PaletteAt(-1, 0.0));
+  const std::vector<glm::mat4> palette = asset.PaletteAt(-1, 0.0);
+  const glm::dmat4 placement(palette.at(0));
+  for (std::size_t j = 0; j < palette.size(); ++j) {
+    for (int c = 0; c < 4; ++c) {
+      const double scale = c == 3 ? glm::length(placement[3]) : 1.0;
+      EXPECT_LT(glm::length(glm::dvec4(palette[j][c]) - placement[c]), 1e-5 * scale)
+          << "joint " << j << " column " << c;
+    }
+  }
+  const glm::dmat3 r(placement);
+  const glm::dmat3 rtr = glm::transpose(r) * r;
+  for (int c = 0; c < 3; ++c)
+    EXPECT_LT(glm::length(rtr[c] - glm::dmat3(1.0)[c]), 1e-5) << "placement is not rigid";
+  if (GetParam().placement_is_identity) {
+    for (int c = 0; c < 4; ++c)
+      EXPECT_LT(glm::length(placement[c] - glm::dmat4(1.0)[c]), 1e-5) << "column " << c;
+  }
+  const GoldResult gold = SkinGold(asset.mesh, palette);
   double size = 0.0, worst = 0.0;
   for (std::size_t v = 0; v < asset.mesh.vertex_count(); ++v) {
     const glm::dvec3 p(asset.mesh.positions[v]);
     size = std::max(size, glm::length(p));
-    worst = std::max(worst, glm::length(gold.positions[v] - p));
+    worst = std::max(worst, glm::length(gold.positions[v] - glm::dvec3(placement * glm::dvec4(p, 1.0))));
   }
   EXPECT_LT(worst, 1e-4 * size) << "size " << size;
 }
@@ -391,8 +424,9 @@ TEST_F(GltfFiles, JointsAsFloatIsRejected) {
 }
 
 TEST_F(GltfFiles, PositionAsVec2IsRejected) {
-  ExpectError([](json& g) { g["accessors"][3]["type"] = "VEC2"; },
-              {"accessors[3] (POSITION of meshes[0].primitives[0])", "type VEC2 not allowed (expected VEC3)"});
+  ExpectError(
+      [](json& g) { g["accessors"][3]["type"] = "VEC2"; },
+      {"accessors[3] (POSITION of meshes[0].primitives[0])", "type VEC2 not allowed (expected VEC3)"});
 }
 
 TEST_F(GltfFiles, UnnormalisedIntegerWeightsAreRejected) {
@@ -420,7 +454,7 @@ TEST_F(GltfFiles, SparseAccessorOverridesSelectedElements) {
   std::vector<std::uint8_t> bytes = BufferBytes(gltf);
   const std::size_t at = bytes.size();
   bytes.resize(at + 4 + 12);
-  Poke<std::uint16_t>(bytes, at, 10);  // vertex 10 ...
+  Poke<std::uint16_t>(bytes, at, 10);                                        // vertex 10 ...
   for (int c = 0; c < 3; ++c) Poke<float>(bytes, at + 4 + 4 * c, 7.0f + c);  // ... moves to (7, 8, 9)
   SetBufferBytes(gltf, bytes);
   gltf["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", at}, {"byteLength", 2}});
@@ -462,7 +496,8 @@ TEST_F(GltfFiles, JointOutsideTheSkinIsRejected) {
         Poke<std::uint16_t>(bytes, kJointsAt + 7 * kJointsStride, 5);  // vertex 7 slot 0 (weight > 0.7)
         SetBufferBytes(g, bytes);
       },
-      {"accessors[1] (JOINTS_0 of meshes[0].primitives[0])", "vertex 7 slot 0", "joint 5 is outside the skin (2 joints)"});
+      {"accessors[1] (JOINTS_0 of meshes[0].primitives[0])", "vertex 7 slot 0",
+       "joint 5 is outside the skin (2 joints)"});
 }
 
 TEST_F(GltfFiles, NegativeWeightIsRejected) {
@@ -519,7 +554,8 @@ TEST_F(GltfFiles, NonNormalisedWeightsAreRenormalisedWithOneWarning) {
 // ---------------------------------------------------------------- skeleton and animations
 
 TEST_F(GltfFiles, SkinJointNamingAMissingNodeIsRejected) {
-  ExpectError([](json& g) { g["skins"][0]["joints"][1] = 42; }, {"skins[0].joints[1]", "node 42 does not exist"});
+  ExpectError([](json& g) { g["skins"][0]["joints"][1] = 42; },
+              {"skins[0].joints[1]", "node 42 does not exist"});
 }
 
 TEST_F(GltfFiles, NodeWithTwoParentsIsRejected) {
@@ -548,7 +584,8 @@ TEST_F(GltfFiles, NonIncreasingKeyTimesAreRejected) {
 
 TEST_F(GltfFiles, MorphWeightChannelsAreIgnored) {
   json gltf = rigged_;
-  gltf["animations"][0]["channels"].push_back({{"sampler", 0}, {"target", {{"node", 2}, {"path", "weights"}}}});
+  gltf["animations"][0]["channels"].push_back(
+      {{"sampler", 0}, {"target", {{"node", 2}, {"path", "weights"}}}});
   EXPECT_EQ(ImportGltf(WriteJson("Morph.gltf", gltf)).asset.animations[0].channels.size(), 3u);
 }
 

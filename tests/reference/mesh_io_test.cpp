@@ -1,1 +1,80 @@
 #include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "reference/error.h"
+#include "reference/mesh_io.h"
+
+namespace skintune {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path TempDir() {
+  const fs::path dir = fs::temp_directory_path() / ("skintune_mesh_io_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string Slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+const std::vector<glm::vec3> kPositions = {{1.5f, -2.0f, 0.125f}, {3.0f, 4.0f, 5.0f}};
+const std::vector<glm::vec3> kNormals = {{0, 1, 0}, {1, 0, 0}};
+
+TEST(MeshIo, ObjHasOneVLinePerVertexInOrder) {
+  const fs::path file = TempDir() / "out.obj";
+  WriteSkinnedVertices(file.string(), kPositions);
+  EXPECT_EQ(Slurp(file), "v 1.5 -2 0.125\nv 3 4 5\n");
+}
+
+TEST(MeshIo, BinaryHasTheDocumentedHeaderAndRoundTrips) {
+  const fs::path file = TempDir() / "out.stv";
+  WriteSkinnedVertices(file.string(), kPositions, kNormals);
+  const std::string data = Slurp(file);
+  ASSERT_EQ(data.size(), 16u + 2 * 2 * 12);
+  EXPECT_EQ(data.substr(0, 4), "STV1");
+  EXPECT_EQ(data[4], 2);
+  EXPECT_EQ(data[8], 1);
+  const SkinnedVertices back = ReadSkinnedVertices(file.string());
+  EXPECT_EQ(back.positions, kPositions);
+  EXPECT_EQ(back.normals, kNormals);
+}
+
+TEST(MeshIo, ObjWithNormalsRoundTrips) {
+  const fs::path file = TempDir() / "out.OBJ";
+  WriteSkinnedVertices(file.string(), kPositions, kNormals);
+  const SkinnedVertices back = ReadSkinnedVertices(file.string());
+  EXPECT_EQ(back.positions, kPositions);
+  EXPECT_EQ(back.normals, kNormals);
+}
+
+TEST(MeshIo, FailedWriteLeavesTheExistingFileUntouched) {
+  const fs::path dir = TempDir();
+  const fs::path file = dir / "keep.obj";
+  WriteSkinnedVertices(file.string(), kPositions);
+  const std::string before = Slurp(file);
+  EXPECT_THROW(WriteSkinnedVertices(file.string(), kPositions, std::vector<glm::vec3>(1)), Error);
+  EXPECT_THROW(WriteSkinnedVertices((dir / "missing-dir" / "x.obj").string(), kPositions), Error);
+  EXPECT_EQ(Slurp(file), before);
+  for (const auto& entry : fs::directory_iterator(dir)) EXPECT_EQ(entry.path().filename(), "keep.obj");
+}
+
+TEST(MeshIo, ReadingATruncatedBinaryFileNamesTheFile) {
+  const fs::path file = TempDir() / "cut.stv";
+  WriteSkinnedVertices(file.string(), kPositions);
+  fs::resize_file(file, 20);
+  try {
+    ReadSkinnedVertices(file.string());
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(file.string() + ": size 20 bytes"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace skintune

@@ -1,1 +1,163 @@
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "reference/error.h"
+#include "reference/gltf_import.h"
+#include "reference/skinning.h"
+#include "reference/synthetic.h"
+#include "test_meshes.h"
+
+namespace skintune {
+namespace {
+
+using testing::RandomMesh;
+
+std::vector<glm::mat4> RandomPalette(int joints, unsigned seed) {
+  std::vector<glm::mat4> palette;
+  for (int j = 0; j < joints; ++j) {
+    const float a = 0.37f * float(j + seed), b = 0.11f * float(j * seed + 1);
+    glm::mat4 m = glm::translate(glm::mat4(1.0f), glm::vec3(std::sin(a), std::cos(b), 0.5f * a - 3.0f));
+    m = glm::rotate(m, a, glm::normalize(glm::vec3(1.0f, b, 0.3f)));
+    palette.push_back(glm::scale(m, glm::vec3(1.0f + 0.1f * std::sin(b))));
+  }
+  return palette;
+}
+
+// Runs serial and fast against the gold; returns the worst relative error.
+double WorstAgainstGold(const SkinnedMesh& mesh, const std::vector<glm::mat4>& palette, unsigned threads = 0) {
+  const std::size_t n = mesh.vertex_count();
+  const GoldResult gold = SkinGold(mesh, palette, mesh.has_normals());
+  std::vector<glm::vec3> serial(n), fast(n), serial_n(mesh.has_normals() ? n : 0), fast_n(serial_n.size());
+  SkinSerial(mesh, palette, serial, serial_n);
+  FastSkinner(mesh, threads).Run(palette, fast, fast_n);
+  double worst = std::max(CompareToGold(gold.positions, serial).max_relative,
+                          CompareToGold(gold.positions, fast).max_relative);
+  if (mesh.has_normals()) {
+    worst = std::max({worst, CompareToGold(gold.normals, serial_n).max_relative,
+                      CompareToGold(gold.normals, fast_n).max_relative});
+  }
+  return worst;
+}
+
+TEST(SkinGold, IdentityPaletteReturnsTheRestPose) {
+  const SkinnedMesh mesh = RandomMesh(50, 3, 4);
+  const std::vector<glm::mat4> identity(4, glm::mat4(1.0f));
+  const GoldResult r = SkinGold(mesh, identity);
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    EXPECT_NEAR(glm::length(r.positions[v] - glm::dvec3(mesh.positions[v])), 0.0, 1e-6);
+  }
+}
+
+TEST(SkinGold, BlendsTranslationsByWeight) {
+  SkinnedMesh mesh;
+  mesh.influences = 2;
+  mesh.joint_count = 2;
+  mesh.positions = {{1, 2, 3}};
+  mesh.joints = {0, 1};
+  mesh.weights = {0.25f, 0.75f};
+  const std::vector<glm::mat4> palette = {glm::translate(glm::mat4(1.0f), {4, 0, 0}),
+                                          glm::translate(glm::mat4(1.0f), {0, 8, 0})};
+  const GoldResult r = SkinGold(mesh, palette);
+  EXPECT_DOUBLE_EQ(r.positions[0].x, 2.0);
+  EXPECT_DOUBLE_EQ(r.positions[0].y, 8.0);
+  EXPECT_DOUBLE_EQ(r.positions[0].z, 3.0);
+}
+
+TEST(SkinGold, NormalsUseTheBlendedUpper3x3AndAreRenormalised) {
+  SkinnedMesh mesh;
+  mesh.influences = 1;
+  mesh.joint_count = 1;
+  mesh.positions = {{0, 0, 0}};
+  mesh.normals = {{1, 0, 0}};
+  mesh.joints = {0};
+  mesh.weights = {1.0f};
+  const std::vector<glm::mat4> palette = {
+      glm::translate(glm::scale(glm::mat4(1.0f), {3, 3, 3}), {5, 5, 5}) *
+      glm::rotate(glm::mat4(1.0f), glm::radians(90.0f), {0, 0, 1})};
+  const GoldResult r = SkinGold(mesh, palette, true);
+  ASSERT_EQ(r.normals.size(), 1u);
+  EXPECT_NEAR(r.normals[0].x, 0.0, 1e-7);
+  EXPECT_NEAR(r.normals[0].y, 1.0, 1e-7);
+}
+
+TEST(SkinGold, RejectsInvalidMeshAndWrongPaletteSize) {
+  SkinnedMesh mesh = RandomMesh(5, 2, 3);
+  EXPECT_THROW(SkinGold(mesh, RandomPalette(2, 1)), Error);
+  mesh.joints[0] = 7;
+  EXPECT_THROW(SkinGold(mesh, RandomPalette(3, 1)), Error);
+}
+
+TEST(SkinSerialAndFast, RejectWrongPaletteOrOutputSize) {
+  const SkinnedMesh mesh = RandomMesh(5, 2, 3);
+  std::vector<glm::vec3> out(5), short_out(4);
+  EXPECT_THROW(SkinSerial(mesh, RandomPalette(4, 1), out), Error);
+  EXPECT_THROW(SkinSerial(mesh, RandomPalette(3, 1), short_out), Error);
+  FastSkinner fast(mesh);
+  EXPECT_THROW(fast.Run(RandomPalette(4, 1), out), Error);
+  EXPECT_THROW(fast.Run(RandomPalette(3, 1), short_out), Error);
+}
+
+TEST(FastSkinner, RejectsAnInvalidMeshAtConstruction) {
+  SkinnedMesh mesh = RandomMesh(5, 2, 3);
+  mesh.weights[0] = -1.0f;
+  EXPECT_THROW(FastSkinner{mesh}, Error);
+}
+
+TEST(SkinAgreement, SerialAndFastMatchGoldOnRandomMeshesForEveryInfluenceCount) {
+  for (int b = 1; b <= kMaxInfluences; ++b) {
+    const SkinnedMesh mesh = RandomMesh(20000 + 17 * b, b, 77, 10 + b, true);
+    EXPECT_LT(WorstAgainstGold(mesh, RandomPalette(77, b)), 1e-5) << "B=" << b;
+  }
+}
+
+TEST(SkinAgreement, FastIsTheSameForOneThreadAndManyThreads) {
+  const SkinnedMesh mesh = RandomMesh(70001, 4, 30, 3);
+  const auto palette = RandomPalette(30, 3);
+  std::vector<glm::vec3> one(mesh.vertex_count()), many(mesh.vertex_count());
+  FastSkinner(mesh, 1).Run(palette, one);
+  FastSkinner(mesh, 7).Run(palette, many);
+  EXPECT_EQ(0, std::memcmp(one.data(), many.data(), one.size() * sizeof(glm::vec3)));
+}
+
+TEST(SkinAgreement, SerialAndFastMatchGoldOnSyntheticDatasetsLocalAndRandom) {
+  for (const char* key : {"30k-b4-normals", "30k-b2-random", "10k-b1", "5000-b8-bones12-seed3-normals"}) {
+    const SkinnedAsset asset = GenerateDataset(ParseDatasetKey(key));
+    const auto palette = asset.PaletteAt(0, 0.7);
+    EXPECT_LT(WorstAgainstGold(asset.mesh, palette), 1e-5) << key;
+  }
+}
+
+TEST(SkinAgreement, SerialAndFastMatchGoldOnRealGltfModelsMidAnimation) {
+  for (const char* file : {"CesiumMan.gltf", "Fox.gltf", "RiggedSimple.gltf"}) {
+    const SkinnedAsset asset = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/" + file).asset;
+    ASSERT_FALSE(asset.animations.empty()) << file;
+    const AnimationClip& clip = asset.animations[0];
+    const auto palette = asset.PaletteAt(0, clip.start + 0.37 * clip.duration());
+    EXPECT_LT(WorstAgainstGold(asset.mesh, palette), 1e-5) << file;
+  }
+}
+
+TEST(CompareToGold, ReportsNonFiniteOutputsAsFailures) {
+  const std::vector<glm::dvec3> gold = {{1, 0, 0}, {0, 1, 0}};
+  const std::vector<glm::vec3> bad = {{1, 0, 0}, {std::numeric_limits<float>::quiet_NaN(), 1, 0}};
+  const GoldComparison c = CompareToGold(gold, bad);
+  EXPECT_EQ(c.non_finite, 1u);
+  EXPECT_EQ(c.worst_vertex, 1u);
+  EXPECT_TRUE(std::isinf(c.max_relative));
+}
+
+TEST(CompareToGold, MeasuresErrorRelativeToTheVertexWithAFloorNearTheOrigin) {
+  const std::vector<glm::dvec3> gold = {{100, 0, 0}, {0, 0, 0}};
+  const std::vector<glm::vec3> actual = {{100.001f, 0, 0}, {0, 0.05f, 0}};
+  const GoldComparison c = CompareToGold(gold, actual);
+  EXPECT_NEAR(c.max_relative, 0.05 / 0.1, 1e-6);  // floor = 1e-3 * 100
+  EXPECT_EQ(c.worst_vertex, 1u);
+}
+
+}  // namespace
+}  // namespace skintune
