@@ -11,9 +11,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <glm/gtc/quaternion.hpp>
 #include <limits>
 #include <string>
+
+#include <glm/gtc/quaternion.hpp>
 
 #include "reference/error.h"
 

@@ -90,7 +90,8 @@ bool Contains(const std::vector<int>& v, int x) { return std::find(v.begin(), v.
 
 // tinygltf's messages: one line, data URIs cut short.
 std::string Tidy(std::string message) {
-  std::replace_if(message.begin(), message.end(), [](char c) { return c == '\n' || c == '\r'; }, ' ');
+  std::replace_if(
+      message.begin(), message.end(), [](char c) { return c == '\n' || c == '\r'; }, ' ');
   for (size_t at = message.find("base64,"); at != std::string::npos; at = message.find("base64,", at + 1)) {
     const size_t begin = at + 7, end = std::min(message.find(' ', begin), message.size());
     if (end - begin > 16) message.replace(begin + 16, end - begin - 16, "...");
@@ -134,10 +135,10 @@ tinygltf::Model LoadModel(const std::string& path, std::vector<std::string>& war
   loader.SetImageLoader(&SkipImage, nullptr);
   tinygltf::Model model;
   std::string err, warn;
-  const bool ok =
-      binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(), size, base_dir)
-             : loader.LoadASCIIFromString(&model, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
-                                          size, base_dir);
+  const bool ok = binary
+                      ? loader.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(), size, base_dir)
+                      : loader.LoadASCIIFromString(
+                            &model, &err, &warn, reinterpret_cast<const char*>(bytes.data()), size, base_dir);
   if (!ok && (binary || LooksLikeGltfJson(bytes))) throw Error(path + ": invalid glTF file: " + Tidy(err));
   if (!ok) throw Error(path + ": not a glTF 2.0 file (" + Tidy(err) + ")");
   if (!warn.empty()) warnings.push_back(path + ": tinygltf: " + Tidy(warn));
@@ -174,7 +175,9 @@ const std::vector<int> kIndexTypes = {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
                                       TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
                                       TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT};
 
-size_t ComponentSize(int type) { return Z(tinygltf::GetComponentSizeInBytes(static_cast<std::uint32_t>(type))); }
+size_t ComponentSize(int type) {
+  return Z(tinygltf::GetComponentSizeInBytes(static_cast<std::uint32_t>(type)));
+}
 
 // Checks that bufferViews[view_index] lies inside its buffer, then that `count`
 // elements of `element_size` bytes from `offset` (every *stride bytes; 0 = the
@@ -199,12 +202,13 @@ const unsigned char* CheckedBytes(const Ctx& ctx, const std::string& who, int vi
   }
   if (*stride == 0) *stride = view.byteStride != 0 ? view.byteStride : element_size;
   if (*stride < element_size) {
-    ctx.Fail(who + ": " + view_name + ": byteStride " + to_string(*stride) + " is smaller than the element (" +
-             to_string(element_size) + " bytes)");
+    ctx.Fail(who + ": " + view_name + ": byteStride " + to_string(*stride) +
+             " is smaller than the element (" + to_string(element_size) + " bytes)");
   }
   if (count > 0) {
     const size_t max = std::numeric_limits<size_t>::max();
-    const bool overflow = offset > max - element_size || (count - 1) > (max - offset - element_size) / *stride;
+    const bool overflow =
+        offset > max - element_size || (count - 1) > (max - offset - element_size) / *stride;
     const size_t needed = overflow ? max : offset + *stride * (count - 1) + element_size;
     if (needed > view.byteLength) {
       ctx.Fail(who + ": " + to_string(count) + " elements from byteOffset " + to_string(offset) + " need " +
@@ -225,9 +229,11 @@ double Load(const unsigned char* p) {
 // One component as double; normalized integers map to [0, 1] or [-1, 1].
 double ReadComponent(const unsigned char* p, int type, bool normalized) {
   switch (type) {
-    case TINYGLTF_COMPONENT_TYPE_BYTE: return normalized ? std::max(Load<std::int8_t>(p) / 127.0, -1.0) : Load<std::int8_t>(p);
+    case TINYGLTF_COMPONENT_TYPE_BYTE:
+      return normalized ? std::max(Load<std::int8_t>(p) / 127.0, -1.0) : Load<std::int8_t>(p);
     case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return Load<std::uint8_t>(p) / (normalized ? 255.0 : 1.0);
-    case TINYGLTF_COMPONENT_TYPE_SHORT: return normalized ? std::max(Load<std::int16_t>(p) / 32767.0, -1.0) : Load<std::int16_t>(p);
+    case TINYGLTF_COMPONENT_TYPE_SHORT:
+      return normalized ? std::max(Load<std::int16_t>(p) / 32767.0, -1.0) : Load<std::int16_t>(p);
     case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return Load<std::uint16_t>(p) / (normalized ? 65535.0 : 1.0);
     case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return Load<std::uint32_t>(p);
     case TINYGLTF_COMPONENT_TYPE_FLOAT: return Load<float>(p);
@@ -244,10 +250,11 @@ void ApplySparse(const Ctx& ctx, const std::string& who, const tinygltf::Accesso
   }
   const int index_type = sparse.indices.componentType;
   if (!Contains(kIndexTypes, index_type)) {
-    ctx.Fail(who + ": sparse.indices component type " + ComponentTypeName(index_type) + " not allowed (expected " +
-             OneOf(kIndexTypes, ComponentTypeName) + ")");
+    ctx.Fail(who + ": sparse.indices component type " + ComponentTypeName(index_type) +
+             " not allowed (expected " + OneOf(kIndexTypes, ComponentTypeName) + ")");
   }
-  if (sparse.indices.byteOffset < 0 || sparse.values.byteOffset < 0) ctx.Fail(who + ": negative sparse byteOffset");
+  if (sparse.indices.byteOffset < 0 || sparse.values.byteOffset < 0)
+    ctx.Fail(who + ": negative sparse byteOffset");
   const size_t n = Z(sparse.count), index_size = ComponentSize(index_type);
   const size_t comp_size = ComponentSize(acc.componentType), value_size = comp_size * out.components;
   size_t index_stride = index_size, value_stride = value_size;  // sparse arrays are tightly packed
@@ -258,8 +265,8 @@ void ApplySparse(const Ctx& ctx, const std::string& who, const tinygltf::Accesso
   for (size_t i = 0; i < n; ++i) {
     const double target = ReadComponent(indices + i * index_size, index_type, false);
     if (target >= static_cast<double>(acc.count)) {
-      ctx.Fail(who + ": sparse.indices[" + to_string(i) + "] = " + Num(target) + " is outside the accessor (" +
-               to_string(acc.count) + " elements)");
+      ctx.Fail(who + ": sparse.indices[" + to_string(i) + "] = " + Num(target) +
+               " is outside the accessor (" + to_string(acc.count) + " elements)");
     }
     for (size_t c = 0; c < out.components; ++c) {
       out.values[static_cast<size_t>(target) * out.components + c] =
@@ -268,7 +275,9 @@ void ApplySparse(const Ctx& ctx, const std::string& who, const tinygltf::Accesso
   }
 }
 
-std::string AccessorName(int index, const std::string& role) { return Idx("accessors", index) + " (" + role + ")"; }
+std::string AccessorName(int index, const std::string& role) {
+  return Idx("accessors", index) + " (" + role + ")";
+}
 
 // Checks that accessors[index] exists and matches `spec`.
 const tinygltf::Accessor& CheckedAccessor(const Ctx& ctx, int index, const AccessorSpec& spec) {
@@ -283,7 +292,8 @@ const tinygltf::Accessor& CheckedAccessor(const Ctx& ctx, int index, const Acces
              OneOf(spec.component_types, ComponentTypeName) + ")");
   }
   if (!Contains(spec.types, acc.type)) {
-    ctx.Fail(who + ": type " + TypeName(acc.type) + " not allowed (expected " + OneOf(spec.types, TypeName) + ")");
+    ctx.Fail(who + ": type " + TypeName(acc.type) + " not allowed (expected " + OneOf(spec.types, TypeName) +
+             ")");
   }
   if (spec.integers && acc.normalized) ctx.Fail(who + ": must not be normalized");
   if (!spec.integers && acc.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT && !acc.normalized) {
@@ -304,11 +314,12 @@ AccessorData ReadAccessor(const Ctx& ctx, int index, const AccessorSpec& spec) {
   out.values.assign(acc.count * out.components, 0.0);  // without a bufferView: zeros, as glTF specifies
   if (acc.bufferView != -1) {
     size_t stride = 0;
-    const unsigned char* p =
-        CheckedBytes(ctx, who, acc.bufferView, acc.byteOffset, acc.count, comp_size * out.components, &stride);
+    const unsigned char* p = CheckedBytes(ctx, who, acc.bufferView, acc.byteOffset, acc.count,
+                                          comp_size * out.components, &stride);
     for (size_t e = 0; e < acc.count; ++e) {
       for (size_t c = 0; c < out.components; ++c) {
-        out.values[e * out.components + c] = ReadComponent(p + e * stride + c * comp_size, acc.componentType, normalized);
+        out.values[e * out.components + c] =
+            ReadComponent(p + e * stride + c * comp_size, acc.componentType, normalized);
       }
     }
   }
@@ -332,8 +343,10 @@ size_t FindSkinnedNode(const Ctx& ctx, const std::string& wanted) {
   for (size_t n = 0; n < model.nodes.size(); ++n) {
     const tinygltf::Node& node = model.nodes[n];
     if (node.mesh < 0 || node.skin < 0) continue;
-    if (!InRange(node.mesh, model.meshes)) ctx.Fail(Idx("nodes", n) + ": " + Idx("meshes", node.mesh) + " does not exist");
-    if (!InRange(node.skin, model.skins)) ctx.Fail(Idx("nodes", n) + ": " + Idx("skins", node.skin) + " does not exist");
+    if (!InRange(node.mesh, model.meshes))
+      ctx.Fail(Idx("nodes", n) + ": " + Idx("meshes", node.mesh) + " does not exist");
+    if (!InRange(node.skin, model.skins))
+      ctx.Fail(Idx("nodes", n) + ": " + Idx("skins", node.skin) + " does not exist");
     skinned.push_back(n);
   }
   if (skinned.empty()) ctx.Fail("no skinned mesh (no node has both a mesh and a skin)");
@@ -358,7 +371,8 @@ size_t InfluenceSets(const Ctx& ctx, const tinygltf::Primitive& prim, const std:
   size_t sets = 0;
   for (;; ++sets) {
     const std::string n = to_string(sets);
-    const bool joints = prim.attributes.count("JOINTS_" + n) > 0, weights = prim.attributes.count("WEIGHTS_" + n) > 0;
+    const bool joints = prim.attributes.count("JOINTS_" + n) > 0,
+               weights = prim.attributes.count("WEIGHTS_" + n) > 0;
     if (!joints && !weights) break;
     if (!joints) ctx.Fail(where + ": WEIGHTS_" + n + " without JOINTS_" + n);
     if (!weights) ctx.Fail(where + ": JOINTS_" + n + " without WEIGHTS_" + n);
@@ -374,8 +388,8 @@ AccessorData ReadAttribute(const Ctx& ctx, const tinygltf::Primitive& prim, cons
   spec.role = name + " of " + where;
   AccessorData data = ReadAccessor(ctx, index, spec);
   if (data.count != count) {
-    ctx.Fail(AccessorName(index, spec.role) + ": count " + to_string(data.count) + " differs from POSITION's count " +
-             to_string(count));
+    ctx.Fail(AccessorName(index, spec.role) + ": count " + to_string(data.count) +
+             " differs from POSITION's count " + to_string(count));
   }
   return data;
 }
@@ -385,15 +399,17 @@ AccessorData ReadAttribute(const Ctx& ctx, const tinygltf::Primitive& prim, cons
 void ReadInfluenceSet(const Ctx& ctx, const tinygltf::Primitive& prim, const std::string& where, size_t set,
                       size_t first, size_t count, SkinnedMesh& mesh) {
   const std::string n = to_string(set);
-  const AccessorData joints = ReadAttribute(ctx, prim, "JOINTS_" + n, where, {"", kJointTypes, {TINYGLTF_TYPE_VEC4}, true}, count);
-  const AccessorData weights = ReadAttribute(ctx, prim, "WEIGHTS_" + n, where, {"", kWeightTypes, {TINYGLTF_TYPE_VEC4}}, count);
+  const AccessorData joints =
+      ReadAttribute(ctx, prim, "JOINTS_" + n, where, {"", kJointTypes, {TINYGLTF_TYPE_VEC4}, true}, count);
+  const AccessorData weights =
+      ReadAttribute(ctx, prim, "WEIGHTS_" + n, where, {"", kWeightTypes, {TINYGLTF_TYPE_VEC4}}, count);
   const auto slots = static_cast<size_t>(mesh.influences);
   for (size_t v = 0; v < count; ++v) {
     for (int k = 0; k < 4; ++k) {
       const double w = weights.at(v, k), j = joints.at(v, k);
       auto fail = [&](const std::string& name, const std::string& problem) {
-        ctx.Fail(AccessorName(prim.attributes.at(name + n), name + n + " of " + where) + ": vertex " + to_string(v) +
-                 " slot " + to_string(k) + ": " + problem);
+        ctx.Fail(AccessorName(prim.attributes.at(name + n), name + n + " of " + where) + ": vertex " +
+                 to_string(v) + " slot " + to_string(k) + ": " + problem);
       };
       if (std::isnan(w)) fail("WEIGHTS_", "weight is NaN");
       if (!std::isfinite(w)) fail("WEIGHTS_", "weight is infinite");
@@ -409,14 +425,16 @@ void ReadInfluenceSet(const Ctx& ctx, const tinygltf::Primitive& prim, const std
   }
 }
 
-void AppendPrimitive(const Ctx& ctx, const tinygltf::Primitive& prim, const std::string& where, bool with_normals,
-                     SkinnedMesh& mesh) {
+void AppendPrimitive(const Ctx& ctx, const tinygltf::Primitive& prim, const std::string& where,
+                     bool with_normals, SkinnedMesh& mesh) {
   if (!prim.attributes.count("POSITION")) ctx.Fail(where + ": no POSITION attribute");
-  const AccessorData pos = ReadAccessor(ctx, prim.attributes.at("POSITION"), {"POSITION of " + where, kFloat, {TINYGLTF_TYPE_VEC3}});
+  const AccessorData pos = ReadAccessor(ctx, prim.attributes.at("POSITION"),
+                                        {"POSITION of " + where, kFloat, {TINYGLTF_TYPE_VEC3}});
   const size_t first = mesh.positions.size(), count = pos.count;
   for (size_t v = 0; v < count; ++v) mesh.positions.emplace_back(pos.at(v, 0), pos.at(v, 1), pos.at(v, 2));
   if (with_normals) {
-    const AccessorData nrm = ReadAttribute(ctx, prim, "NORMAL", where, {"", kFloat, {TINYGLTF_TYPE_VEC3}}, count);
+    const AccessorData nrm =
+        ReadAttribute(ctx, prim, "NORMAL", where, {"", kFloat, {TINYGLTF_TYPE_VEC3}}, count);
     for (size_t v = 0; v < count; ++v) mesh.normals.emplace_back(nrm.at(v, 0), nrm.at(v, 1), nrm.at(v, 2));
   }
   const auto slots = static_cast<size_t>(mesh.influences);
@@ -437,8 +455,9 @@ void AppendPrimitive(const Ctx& ctx, const tinygltf::Primitive& prim, const std:
 void FinishWeights(const Ctx& ctx, const std::string& mesh_name, bool strict, SkinnedMesh& mesh,
                    std::vector<std::string>& warnings) {
   if (const size_t cut = CompactInfluences(mesh); cut > 0) {
-    warnings.push_back(ctx.path + ": " + to_string(cut) + " vertices have more than " + to_string(kMaxInfluences) +
-                       " influences: kept the largest " + to_string(kMaxInfluences) + " and renormalised them");
+    warnings.push_back(ctx.path + ": " + to_string(cut) + " vertices have more than " +
+                       to_string(kMaxInfluences) + " influences: kept the largest " +
+                       to_string(kMaxInfluences) + " and renormalised them");
   }
   const auto slots = static_cast<size_t>(mesh.influences);
   size_t bad = 0, first = 0;
@@ -447,8 +466,9 @@ void FinishWeights(const Ctx& ctx, const std::string& mesh_name, bool strict, Sk
     double sum = 0.0;
     for (size_t k = 0; k < slots; ++k) sum += mesh.weights[v * slots + k];
     if (std::abs(sum - 1.0) <= kWeightSumTolerance) continue;
-    if (bad++ == 0) first_sum = sum;
-    if (bad == 1) first = v;
+    if (bad++ > 0) continue;
+    first = v;
+    first_sum = sum;
   }
   if (bad == 0) return;
   if (strict) {
@@ -457,7 +477,8 @@ void FinishWeights(const Ctx& ctx, const std::string& mesh_name, bool strict, Sk
   }
   const RenormalizeReport r = Renormalize(mesh);
   warnings.push_back(ctx.path + ": renormalised weights of " + to_string(r.changed_vertices) +
-                     " vertices (worst: vertex " + to_string(r.worst_vertex) + ", sum " + Num(r.worst_sum) + ")");
+                     " vertices (worst: vertex " + to_string(r.worst_vertex) + ", sum " + Num(r.worst_sum) +
+                     ")");
 }
 
 SkinnedMesh ReadMesh(const Ctx& ctx, size_t node_index, const GltfImportOptions& options,
@@ -479,11 +500,12 @@ SkinnedMesh ReadMesh(const Ctx& ctx, size_t node_index, const GltfImportOptions&
   }
   if (used.empty()) ctx.Fail(mesh_ref + " '" + src.name + "': no triangle primitives");
   if (used.size() < src.primitives.size()) {
-    warnings.push_back(ctx.path + ": " + mesh_ref + ": skipped " + to_string(src.primitives.size() - used.size()) +
-                       " non-triangle primitives");
+    warnings.push_back(ctx.path + ": " + mesh_ref + ": skipped " +
+                       to_string(src.primitives.size() - used.size()) + " non-triangle primitives");
   }
   mesh.influences = static_cast<int>(4 * sets);
-  for (size_t p : used) AppendPrimitive(ctx, src.primitives[p], mesh_ref + "." + Idx("primitives", p), normals, mesh);
+  for (size_t p : used)
+    AppendPrimitive(ctx, src.primitives[p], mesh_ref + "." + Idx("primitives", p), normals, mesh);
   FinishWeights(ctx, mesh_ref + " '" + mesh.name + "'", options.strict, mesh, warnings);
   ThrowIfInvalid(mesh, ctx.path);
   return mesh;
@@ -526,10 +548,12 @@ Skeleton ReadSkeleton(const Ctx& ctx, int skin_index) {
   for (size_t n = 0; n < model.nodes.size(); ++n) skeleton.nodes.push_back(ReadNode(ctx, n));
   for (size_t n = 0; n < model.nodes.size(); ++n) {
     for (int child : model.nodes[n].children) {
-      if (!InRange(child, model.nodes)) ctx.Fail(Idx("nodes", n) + ": child " + to_string(child) + " does not exist");
+      if (!InRange(child, model.nodes))
+        ctx.Fail(Idx("nodes", n) + ": child " + to_string(child) + " does not exist");
       Node& c = skeleton.nodes[Z(child)];
       if (c.parent >= 0) {
-        ctx.Fail(Idx("nodes", child) + " has two parents (" + Idx("nodes", c.parent) + " and " + Idx("nodes", n) + ")");
+        ctx.Fail(Idx("nodes", child) + " has two parents (" + Idx("nodes", c.parent) + " and " +
+                 Idx("nodes", n) + ")");
       }
       c.parent = static_cast<int>(n);
     }
@@ -546,12 +570,14 @@ Skeleton ReadSkeleton(const Ctx& ctx, int skin_index) {
   skeleton.inverse_bind.assign(skin.joints.size(), glm::dmat4(1.0));
   if (skin.inverseBindMatrices >= 0) {
     const std::string role = "inverseBindMatrices of " + skin_ref;
-    const AccessorData ibm = ReadAccessor(ctx, skin.inverseBindMatrices, {role, kFloat, {TINYGLTF_TYPE_MAT4}});
+    const AccessorData ibm =
+        ReadAccessor(ctx, skin.inverseBindMatrices, {role, kFloat, {TINYGLTF_TYPE_MAT4}});
     if (ibm.count < skin.joints.size()) {
       ctx.Fail(AccessorName(skin.inverseBindMatrices, role) + ": " + to_string(ibm.count) + " matrices for " +
                to_string(skin.joints.size()) + " joints");
     }
-    for (size_t j = 0; j < skin.joints.size(); ++j) skeleton.inverse_bind[j] = glm::make_mat4(&ibm.values[j * 16]);
+    for (size_t j = 0; j < skin.joints.size(); ++j)
+      skeleton.inverse_bind[j] = glm::make_mat4(&ibm.values[j * 16]);
   }
   skeleton.Validate(ctx.path);
   return skeleton;
@@ -592,11 +618,12 @@ Channel ReadChannel(const Ctx& ctx, const tinygltf::Animation& anim, const std::
   ch.path = path;
   ch.interpolation = ParseInterpolation(ctx, sampler.interpolation, sampler_ref);
   const bool rotation = path == ChannelPath::kRotation;
-  const AccessorData in = ReadAccessor(ctx, sampler.input, {"input of " + sampler_ref, kFloat, {TINYGLTF_TYPE_SCALAR}});
-  const AccessorData out =
-      ReadAccessor(ctx, sampler.output,
-                   {"output of " + sampler_ref, rotation ? kRotationTypes : kFloat,
-                    {rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3}});
+  const AccessorData in =
+      ReadAccessor(ctx, sampler.input, {"input of " + sampler_ref, kFloat, {TINYGLTF_TYPE_SCALAR}});
+  const AccessorData out = ReadAccessor(ctx, sampler.output,
+                                        {"output of " + sampler_ref,
+                                         rotation ? kRotationTypes : kFloat,
+                                         {rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3}});
   const size_t per_key = ch.interpolation == Interpolation::kCubicSpline ? 3 : 1;
   if (out.count != in.count * per_key) {
     ctx.Fail(sampler_ref + ": output " + Idx("accessors", sampler.output) + " has " + to_string(out.count) +
@@ -621,7 +648,8 @@ std::vector<AnimationClip> ReadAnimations(const Ctx& ctx) {
       const std::string& target = anim.channels[c].target_path;
       ChannelPath path;
       if (target == "weights") continue;
-      if (!ParsePath(target, &path)) ctx.Fail(where + "." + Idx("channels", c) + ": unknown target path '" + target + "'");
+      if (!ParsePath(target, &path))
+        ctx.Fail(where + "." + Idx("channels", c) + ": unknown target path '" + target + "'");
       clip.channels.push_back(ReadChannel(ctx, anim, where, c, path));
     }
     clip.UpdateRange();

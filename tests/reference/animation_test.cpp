@@ -1,14 +1,13 @@
 // AnimationClip: interpolation (STEP / LINEAR / CUBICSPLINE), clamping,
 // shortest-path slerp, range, and validation failures.
-#include "reference/animation.h"
-
-#include <gtest/gtest.h>
-
 #include <cmath>
-#include <glm/gtc/quaternion.hpp>
 #include <limits>
 #include <string>
 
+#include <glm/gtc/quaternion.hpp>
+#include <gtest/gtest.h>
+
+#include "reference/animation.h"
 #include "reference/error.h"
 
 namespace skintune {

@@ -1,9 +1,6 @@
 // ImportGltf: the three real models (counts, histograms, animations, rest pose
 // reproduces POSITION, animated frames are plausible), mesh selection, GLB, and
 // malformed variants of RiggedSimple.gltf generated into a temporary folder.
-#include "reference/gltf_import.h"
-
-#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -14,11 +11,14 @@
 #include <fstream>
 #include <functional>
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
 #include "reference/error.h"
+#include "reference/gltf_import.h"
 #include "reference/skinning.h"
 
 namespace skintune {
