@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <sstream>
 #include <string>
 
 #include <glm/gtc/quaternion.hpp>
@@ -31,6 +32,13 @@ const char* PathName(ChannelPath path) {
 }
 
 std::size_t ValuesPerKey(const Channel& c) { return c.interpolation == Interpolation::kCubicSpline ? 3 : 1; }
+
+std::string Seconds(float t) {
+  std::ostringstream s;
+  s.precision(7);
+  s << t << " s";
+  return s.str();
+}
 
 bool Finite(const glm::dvec4& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z) && std::isfinite(v.w);
@@ -110,8 +118,8 @@ void ValidateChannel(const Channel& c, std::size_t index, int node_count, const 
     }
     if (k > 0 && !(c.times[k] > c.times[k - 1])) {
       throw Error(where + ": times not strictly increasing: key " + std::to_string(k) + " at " +
-                  std::to_string(c.times[k]) + " s follows key " + std::to_string(k - 1) + " at " +
-                  std::to_string(c.times[k - 1]) + " s");
+                  Seconds(c.times[k]) + " follows key " + std::to_string(k - 1) + " at " +
+                  Seconds(c.times[k - 1]));
     }
   }
   const std::size_t expected = c.times.size() * ValuesPerKey(c);

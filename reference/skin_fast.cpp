@@ -40,13 +40,9 @@ struct FastArgs {
   float* out_normals;           // xyz interleaved, or null
 };
 
-[[gnu::always_inline]] inline V4 Column(V16 m, int c) {
-  switch (c) {
-    case 0: return __builtin_shufflevector(m, m, 0, 1, 2, 3);
-    case 1: return __builtin_shufflevector(m, m, 4, 5, 6, 7);
-    case 2: return __builtin_shufflevector(m, m, 8, 9, 10, 11);
-    default: return __builtin_shufflevector(m, m, 12, 13, 14, 15);
-  }
+template <int C>
+[[gnu::always_inline]] inline V4 Column(const V16& m) {
+  return __builtin_shufflevector(m, m, 4 * C, 4 * C + 1, 4 * C + 2, 4 * C + 3);
 }
 
 template <int B, bool kNormals>
@@ -56,8 +52,8 @@ template <int B, bool kNormals>
     V16 m = a.weights[v] * a.palette[a.joints[v]];
 #pragma GCC unroll 8
     for (int i = 1; i < B; ++i) m += a.weights[i * n + v] * a.palette[a.joints[i * n + v]];
-    const V4 c0 = Column(m, 0), c1 = Column(m, 1), c2 = Column(m, 2);
-    const V4 p = c0 * a.px[v] + c1 * a.py[v] + c2 * a.pz[v] + Column(m, 3);
+    const V4 c0 = Column<0>(m), c1 = Column<1>(m), c2 = Column<2>(m);
+    const V4 p = c0 * a.px[v] + c1 * a.py[v] + c2 * a.pz[v] + Column<3>(m);
     float* out = a.out_positions + 3 * v;
     out[0] = p[0];
     out[1] = p[1];

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <functional>
 #include <memory>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -177,6 +178,9 @@ struct ModelFacts {
   std::size_t channels;        // of animation 0
   bool placement_is_identity;  // rest-pose palette (see RestPoseSkinningReproducesThePositionData)
 };
+
+// How gtest (and so ctest) names a parameter.
+void PrintTo(const ModelFacts& facts, std::ostream* out) { *out << facts.file; }
 
 const ModelFacts kModels[] = {
     {"CesiumMan.gltf", 3273, 19, {0, 458, 1678, 717, 420}, true, {""}, {0.0}, {2.0}, 57, false},
