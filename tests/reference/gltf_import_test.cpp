@@ -28,10 +28,7 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// The models live in tests/data (SKINTUNE_TEST_DATA_DIR is per test folder: tests/reference/data).
-std::string DataFile(const std::string& name) {
-  return std::string(SKINTUNE_SOURCE_DIR) + "/tests/data/" + name;
-}
+std::string DataFile(const std::string& name) { return std::string(SKINTUNE_TEST_DATA_DIR) + "/" + name; }
 
 // ---------------------------------------------------------------- base64, files, GLB
 
