@@ -3,6 +3,9 @@
 #define CL_TARGET_OPENCL_VERSION 120
 #include <CL/cl.h>
 
+#include <algorithm>
+#include <cctype>
+
 #include <nlohmann/json.hpp>
 
 namespace skintune {
@@ -113,6 +116,29 @@ OpenClInventory EnumerateOpenCl() {
     }
   }
   return inventory;
+}
+
+DeviceLimits LimitsOf(const OpenClDeviceInfo& d) {
+  DeviceLimits limits;
+  limits.max_wg_size = d.max_work_group_size;
+  limits.local_memory_bytes = d.local_memory_bytes;
+  limits.constant_memory_bytes = d.constant_buffer_bytes;
+  limits.image_support = d.image_support;
+  limits.image_buffer_max_texels = d.image_support ? d.image_buffer_max_pixels : 0;
+  return limits;
+}
+
+std::vector<OpenClDeviceInfo> MatchDevices(const OpenClInventory& inventory, const std::string& pattern) {
+  auto lower = [](std::string s) {
+    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+    return s;
+  };
+  const std::string wanted = lower(pattern);
+  std::vector<OpenClDeviceInfo> matches;
+  for (const OpenClDeviceInfo& d : inventory.devices) {
+    if (lower(d.platform_vendor + " " + d.platform_name + " / " + d.name).find(wanted) != std::string::npos) matches.push_back(d);
+  }
+  return matches;
 }
 
 void to_json(nlohmann::json& out, const OpenClDeviceInfo& d) {

@@ -12,6 +12,8 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include "generator/constraints.h"
+
 namespace skintune {
 
 struct OpenClDeviceInfo {
@@ -41,6 +43,13 @@ struct OpenClInventory {
 };
 
 OpenClInventory EnumerateOpenCl();
+
+// The limits the generator's constraints need, from the device's own answers.
+DeviceLimits LimitsOf(const OpenClDeviceInfo& device);
+
+// Devices whose "platform-vendor platform / name" contains `pattern` (case-insensitive); an
+// empty pattern matches every device.
+std::vector<OpenClDeviceInfo> MatchDevices(const OpenClInventory& inventory, const std::string& pattern);
 
 void to_json(nlohmann::json& out, const OpenClDeviceInfo& device);
 

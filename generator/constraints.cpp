@@ -1,0 +1,134 @@
+#include "generator/constraints.h"
+
+#include <string>
+
+namespace skintune {
+
+namespace {
+
+std::string B(std::uint64_t bytes) { return std::to_string(bytes) + " B"; }
+
+void CheckShape(const Variant& v, const ProblemShape& shape, std::vector<Violation>& out) {
+  if (v.influences < 1 || v.influences > 8) {
+    out.push_back({Constraint::kInfluencesRange, "influences " + std::to_string(v.influences) + " outside 1..8"});
+  } else if (v.influences < shape.max_influences) {
+    out.push_back({Constraint::kInfluencesTooFew, "influences " + std::to_string(v.influences) +
+                                                      " below the mesh's largest per-vertex count " +
+                                                      std::to_string(shape.max_influences)});
+  }
+  const std::uint64_t index_limit = v.index == IndexFormat::kU8 ? 256u : v.index == IndexFormat::kU16 ? 65536u : 0u;
+  if (index_limit != 0 && static_cast<std::uint64_t>(shape.joints) > index_limit) {
+    out.push_back({Constraint::kIndexRange, std::string("index ") + Name(v.index) + ": " +
+                                                std::to_string(shape.joints) + " joints do not fit (at most " +
+                                                std::to_string(index_limit) + ")"});
+  }
+  if (v.normals && !shape.has_normals) {
+    out.push_back({Constraint::kNormalsMissing, "normals requested but the mesh has none"});
+  }
+}
+
+void CheckGeometry(const Variant& v, const DeviceLimits& device, std::vector<Violation>& out) {
+  const bool valid_vpi = v.vertices_per_item == 1 || v.vertices_per_item == 2 || v.vertices_per_item == 4 ||
+                         v.vertices_per_item == 8;
+  if (!valid_vpi) {
+    out.push_back({Constraint::kVerticesPerItem,
+                   "vertices_per_item " + std::to_string(v.vertices_per_item) + " not 1, 2, 4 or 8"});
+  }
+  if (v.vertices_per_item == 1 && v.assignment == Assignment::kStrided) {
+    out.push_back({Constraint::kAssignmentRedundant,
+                   "strided assignment with 1 vertex per item is the contiguous kernel (use v1c)"});
+  }
+  if (v.lang == Lang::kGlslVertex) {
+    if (v.wg_size != 0 || v.vertices_per_item != 1) {
+      out.push_back({Constraint::kNoWorkGroups,
+                     "glsl-vertex runs one vertex per invocation without work-groups: needs v1c and wg0"});
+    }
+    return;
+  }
+  if (v.wg_size < 32 || v.wg_size > 1024 || v.wg_size % 32 != 0) {
+    out.push_back({Constraint::kWgSizeRange, "wg_size " + std::to_string(v.wg_size) +
+                                                 " not a multiple of 32 in 32..1024"});
+  } else if (static_cast<std::size_t>(v.wg_size) > device.max_wg_size) {
+    out.push_back({Constraint::kWgSizeDevice, "wg_size " + std::to_string(v.wg_size) +
+                                                  " above the device's limit " + std::to_string(device.max_wg_size)});
+  }
+}
+
+void CheckStorage(const Variant& v, const DeviceLimits& device, const ProblemShape& shape,
+                  std::vector<Violation>& out) {
+  const std::uint64_t bytes = PaletteBytes(v, shape.joints);
+  const std::string palette = "palette " + std::to_string(shape.joints) + " x " +
+                              std::to_string(BytesOf(v.palette)) + " B = " + B(bytes);
+  const bool glsl = v.lang == Lang::kGlslCompute || v.lang == Lang::kGlslVertex;
+  switch (v.storage) {
+    case PaletteStorage::kConstant: {
+      const std::uint64_t limit = glsl ? device.uniform_block_bytes : device.constant_memory_bytes;
+      if (bytes > limit) {
+        out.push_back({Constraint::kConstantMemory, "storage constant: " + palette + " exceeds the " +
+                                                        (glsl ? "uniform block limit " : "constant buffer ") +
+                                                        B(limit)});
+      }
+      break;
+    }
+    case PaletteStorage::kLocal:
+      if (v.lang == Lang::kGlslVertex) {
+        out.push_back({Constraint::kLocalMemory, "storage local: vertex shaders have no shared memory"});
+      } else if (bytes > device.local_memory_bytes) {
+        out.push_back({Constraint::kLocalMemory,
+                       "storage local: " + palette + " exceeds local memory " + B(device.local_memory_bytes)});
+      }
+      break;
+    case PaletteStorage::kImage: {
+      const std::uint64_t texels = bytes / 16;
+      if (!device.image_support) {
+        out.push_back({Constraint::kImageSupport, "storage image: the device has no image support"});
+      } else if (texels > device.image_buffer_max_texels) {
+        out.push_back({Constraint::kImageSize, "storage image: " + std::to_string(texels) +
+                                                   " texels exceed the image buffer limit " +
+                                                   std::to_string(device.image_buffer_max_texels)});
+      }
+      break;
+    }
+    case PaletteStorage::kGlobal:
+      break;
+  }
+  if (v.lang == Lang::kGlslVertex && !device.vertex_shader_storage_blocks) {
+    out.push_back({Constraint::kStorageBlocks, "glsl-vertex: the GL context allows no storage blocks in vertex shaders"});
+  }
+}
+
+}  // namespace
+
+const char* Name(Constraint c) {
+  switch (c) {
+    case Constraint::kInfluencesRange: return "influences_range";
+    case Constraint::kInfluencesTooFew: return "influences_too_few";
+    case Constraint::kVerticesPerItem: return "vertices_per_item";
+    case Constraint::kAssignmentRedundant: return "assignment_redundant";
+    case Constraint::kWgSizeRange: return "wg_size_range";
+    case Constraint::kWgSizeDevice: return "wg_size_device";
+    case Constraint::kNoWorkGroups: return "no_work_groups";
+    case Constraint::kLocalMemory: return "local_memory";
+    case Constraint::kConstantMemory: return "constant_memory";
+    case Constraint::kImageSupport: return "image_support";
+    case Constraint::kImageSize: return "image_size";
+    case Constraint::kStorageBlocks: return "storage_blocks";
+    case Constraint::kIndexRange: return "index_range";
+    case Constraint::kNormalsMissing: return "normals_missing";
+  }
+  return "unknown";
+}
+
+std::uint64_t PaletteBytes(const Variant& v, int joints) {
+  return static_cast<std::uint64_t>(joints) * BytesOf(v.palette);
+}
+
+std::vector<Violation> CheckVariant(const Variant& v, const DeviceLimits& device, const ProblemShape& shape) {
+  std::vector<Violation> out;
+  CheckShape(v, shape, out);
+  CheckGeometry(v, device, out);
+  CheckStorage(v, device, shape, out);
+  return out;
+}
+
+}  // namespace skintune

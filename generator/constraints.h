@@ -1,0 +1,63 @@
+// skintune: which variants a device can run on a given mesh, and why not.
+//
+// Every constraint is expressed once, here, from the device's queried limits
+// (DeviceLimits, filled by the backend that queried them) and the problem's
+// shape. An invalid variant is reported with each constraint it breaks.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "generator/variant.h"
+
+namespace skintune {
+
+struct DeviceLimits {
+  std::size_t max_wg_size = 256;                   // CL_DEVICE_MAX_WORK_GROUP_SIZE, CUDA max threads/block,
+                                                   // GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS
+  std::uint64_t local_memory_bytes = 32768;        // __local / __shared__ / shared per work-group
+  std::uint64_t constant_memory_bytes = 65536;     // __constant / __constant__ buffer
+  std::uint64_t uniform_block_bytes = 16384;       // GL_MAX_UNIFORM_BLOCK_SIZE (GLSL "constant")
+  bool image_support = true;                       // image1d_buffer / texture object / samplerBuffer
+  std::uint64_t image_buffer_max_texels = 65536;   // CL_DEVICE_IMAGE_MAX_BUFFER_SIZE, GL_MAX_TEXTURE_BUFFER_SIZE
+  bool vertex_shader_storage_blocks = true;        // GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS > 0
+};
+
+struct ProblemShape {
+  int joints = 77;            // palette entries
+  int max_influences = 4;     // the largest per-vertex influence count of the mesh
+  bool has_normals = false;
+};
+
+enum class Constraint {
+  kInfluencesRange,       // B outside 1..8
+  kInfluencesTooFew,      // B < the mesh's largest per-vertex count
+  kVerticesPerItem,       // not 1, 2, 4 or 8
+  kAssignmentRedundant,   // strided with 1 vertex per item is the same kernel as contiguous
+  kWgSizeRange,           // not a multiple of 32 in 32..1024
+  kWgSizeDevice,          // above the device's work-group limit
+  kNoWorkGroups,          // glsl-vertex: one vertex per invocation, no work-groups (wg0, v1c required)
+  kLocalMemory,           // palette larger than local memory, or local storage in a vertex shader
+  kConstantMemory,        // palette larger than the constant buffer / uniform block
+  kImageSupport,          // device without image support
+  kImageSize,             // palette texels above the image buffer limit
+  kStorageBlocks,         // vertex shader without storage blocks
+  kIndexRange,            // joint count does not fit the index format
+  kNormalsMissing,        // normals requested, mesh has none
+};
+
+const char* Name(Constraint);
+
+struct Violation {
+  Constraint constraint;
+  std::string message;  // e.g. "storage local: palette 77 x 64 B = 4928 B exceeds local memory 4096 B"
+};
+
+// Every constraint the variant breaks; empty when it can run.
+std::vector<Violation> CheckVariant(const Variant& v, const DeviceLimits& device, const ProblemShape& shape);
+
+// Bytes the palette occupies in the variant's storage.
+std::uint64_t PaletteBytes(const Variant& v, int joints);
+
+}  // namespace skintune

@@ -1,0 +1,63 @@
+// skintune: a tuning space (the values to try on each axis) and its enumeration.
+//
+// Configs (configs/*.json) give a space as an object of axis -> list of values
+// (names as in variant keys; numbers for influences, vertices_per_item and
+// wg_size; booleans for normals); an axis left out takes every value
+// (TuningSpace::Full). glsl-vertex has no work-groups: for it the wg_size and
+// vertices_per_item/assignment axes collapse to wg0 / v1c.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "generator/constraints.h"
+#include "generator/variant.h"
+
+namespace skintune {
+
+struct TuningSpace {
+  std::vector<Lang> langs;
+  std::vector<int> influences;
+  std::vector<MixedCounts> mixed;
+  std::vector<Layout> layouts;
+  std::vector<PositionFormat> positions;
+  std::vector<IndexFormat> indices;
+  std::vector<WeightFormat> weights;
+  std::vector<PaletteFormat> palettes;
+  std::vector<PaletteStorage> storages;
+  std::vector<Blend> blends;
+  std::vector<int> vertices_per_item;
+  std::vector<Assignment> assignments;
+  std::vector<int> wg_sizes;
+  std::vector<bool> normals;
+
+  // Every value of every axis: wg sizes 32, 64, 128, 256, 512, 1024.
+  static TuningSpace Full();
+  // Throws Error("<context>: ...") naming the empty axis.
+  void Validate(const std::string& context) const;
+  // Number of points before constraints.
+  std::uint64_t Size() const;
+  // Calls `visit` for every point (before constraints), in a fixed order.
+  void ForEach(const std::function<void(const Variant&)>& visit) const;
+};
+
+// Reads a space from JSON; unknown axes and values throw Error("<context>: space.<axis>[i]: ...").
+TuningSpace SpaceFromJson(const nlohmann::json& in, const std::string& context);
+void to_json(nlohmann::json& out, const TuningSpace& space);
+
+struct SpaceCount {
+  std::uint64_t total = 0;
+  std::uint64_t valid = 0;
+  std::map<Constraint, std::uint64_t> invalid_by;  // first broken constraint of each invalid point
+};
+
+// Enumerates `space` against a device and problem; `valid` (optional) receives each runnable variant.
+SpaceCount Enumerate(const TuningSpace& space, const DeviceLimits& device, const ProblemShape& shape,
+                     const std::function<void(const Variant&)>& valid = {});
+
+}  // namespace skintune

@@ -1,0 +1,139 @@
+#include <gtest/gtest.h>
+
+#include "generator/constraints.h"
+
+namespace skintune {
+namespace {
+
+const DeviceLimits kDevice{};                  // generic: 256 wg, 32 KiB local, 64 KiB constant
+const ProblemShape kShape{77, 4, true};
+
+// The variant breaks exactly `expected`, with a message containing `text`.
+void ExpectOnly(const Variant& v, Constraint expected, const std::string& text, const DeviceLimits& device = kDevice,
+                const ProblemShape& shape = kShape) {
+  const std::vector<Violation> broken = CheckVariant(v, device, shape);
+  ASSERT_EQ(broken.size(), 1u) << v.Key();
+  EXPECT_EQ(broken[0].constraint, expected) << v.Key();
+  EXPECT_NE(broken[0].message.find(text), std::string::npos) << broken[0].message;
+}
+
+TEST(Constraints, TheDefaultVariantIsValidOnGenericLimits) {
+  EXPECT_TRUE(CheckVariant(Variant{}, kDevice, kShape).empty());
+}
+
+TEST(Constraints, RejectsInfluencesOutsideOneToEight) {
+  Variant v;
+  v.influences = 9;
+  ExpectOnly(v, Constraint::kInfluencesRange, "influences 9 outside 1..8");
+}
+
+TEST(Constraints, RejectsFewerInfluencesThanTheMeshNeeds) {
+  Variant v;
+  v.influences = 2;
+  ExpectOnly(v, Constraint::kInfluencesTooFew, "below the mesh's largest per-vertex count 4");
+}
+
+TEST(Constraints, RejectsVerticesPerItemOtherThanPowersOfTwoUpToEight) {
+  Variant v;
+  v.vertices_per_item = 3;
+  ExpectOnly(v, Constraint::kVerticesPerItem, "vertices_per_item 3");
+}
+
+TEST(Constraints, RejectsStridedAssignmentWithOneVertexPerItem) {
+  Variant v;
+  v.assignment = Assignment::kStrided;
+  ExpectOnly(v, Constraint::kAssignmentRedundant, "use v1c");
+}
+
+TEST(Constraints, RejectsWorkGroupSizesThatAreNotMultiplesOf32) {
+  Variant v;
+  v.wg_size = 100;
+  ExpectOnly(v, Constraint::kWgSizeRange, "wg_size 100");
+}
+
+TEST(Constraints, RejectsWorkGroupsAboveTheDeviceLimit) {
+  Variant v;
+  v.wg_size = 512;
+  ExpectOnly(v, Constraint::kWgSizeDevice, "above the device's limit 256");
+}
+
+TEST(Constraints, GlslVertexNeedsNoWorkGroupsAndOneVertexPerInvocation) {
+  Variant v;
+  v.lang = Lang::kGlslVertex;
+  ExpectOnly(v, Constraint::kNoWorkGroups, "needs v1c and wg0");
+  v.wg_size = 0;
+  EXPECT_TRUE(CheckVariant(v, kDevice, kShape).empty());
+}
+
+TEST(Constraints, RejectsLocalStorageLargerThanLocalMemory) {
+  Variant v;
+  v.storage = PaletteStorage::kLocal;
+  DeviceLimits small = kDevice;
+  small.local_memory_bytes = 4096;
+  ExpectOnly(v, Constraint::kLocalMemory, "palette 1000 x 48 B = 48000 B exceeds local memory 32768 B", kDevice,
+             {1000, 4, true});
+  EXPECT_TRUE(CheckVariant(v, small, kShape).empty());  // 3696 B fits 4096
+  v.palette = PaletteFormat::kMat4;
+  ExpectOnly(v, Constraint::kLocalMemory, "4928 B exceeds local memory 4096 B", small);
+}
+
+TEST(Constraints, RejectsLocalStorageInAVertexShader) {
+  Variant v;
+  v.lang = Lang::kGlslVertex;
+  v.wg_size = 0;
+  v.storage = PaletteStorage::kLocal;
+  ExpectOnly(v, Constraint::kLocalMemory, "vertex shaders have no shared memory");
+}
+
+TEST(Constraints, RejectsConstantStorageLargerThanTheConstantBufferOrUniformBlock) {
+  Variant v;
+  v.storage = PaletteStorage::kConstant;
+  ExpectOnly(v, Constraint::kConstantMemory, "exceeds the constant buffer 65536 B", kDevice, {2000, 4, true});
+  v.lang = Lang::kGlslCompute;
+  ExpectOnly(v, Constraint::kConstantMemory, "exceeds the uniform block limit 16384 B", kDevice, {400, 4, true});
+}
+
+TEST(Constraints, RejectsImageStorageWithoutImagesOrBeyondTheTexelLimit) {
+  Variant v;
+  v.storage = PaletteStorage::kImage;
+  DeviceLimits no_images = kDevice;
+  no_images.image_support = false;
+  ExpectOnly(v, Constraint::kImageSupport, "no image support", no_images);
+  DeviceLimits tiny = kDevice;
+  tiny.image_buffer_max_texels = 100;
+  ExpectOnly(v, Constraint::kImageSize, "231 texels exceed the image buffer limit 100", tiny);
+}
+
+TEST(Constraints, RejectsVertexShadersWithoutStorageBlocks) {
+  Variant v;
+  v.lang = Lang::kGlslVertex;
+  v.wg_size = 0;
+  DeviceLimits gl = kDevice;
+  gl.vertex_shader_storage_blocks = false;
+  ExpectOnly(v, Constraint::kStorageBlocks, "no storage blocks in vertex shaders", gl);
+}
+
+TEST(Constraints, RejectsIndexFormatsTooSmallForTheJointCount) {
+  Variant v;
+  v.index = IndexFormat::kU8;
+  ExpectOnly(v, Constraint::kIndexRange, "300 joints do not fit (at most 256)", kDevice, {300, 4, true});
+  v.index = IndexFormat::kU16;
+  EXPECT_TRUE(CheckVariant(v, kDevice, {300, 4, true}).empty());
+}
+
+TEST(Constraints, RejectsNormalsWhenTheMeshHasNone) {
+  Variant v;
+  v.normals = true;
+  ExpectOnly(v, Constraint::kNormalsMissing, "mesh has none", kDevice, {77, 4, false});
+}
+
+TEST(Constraints, ReportsEveryBrokenConstraint) {
+  Variant v;
+  v.influences = 1;
+  v.wg_size = 2048;
+  v.normals = true;
+  EXPECT_EQ(CheckVariant(v, kDevice, {77, 4, false}).size(), 3u);
+}
+
+}  // namespace
+}  // namespace skintune

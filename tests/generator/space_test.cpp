@@ -1,0 +1,76 @@
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "generator/space.h"
+#include "reference/error.h"
+
+namespace skintune {
+namespace {
+
+TEST(TuningSpace, SizeMatchesTheNumberOfPointsVisited) {
+  TuningSpace s = TuningSpace::Full();
+  s.influences = {2};
+  std::uint64_t visited = 0;
+  s.ForEach([&](const Variant&) { ++visited; });
+  EXPECT_EQ(visited, s.Size());
+}
+
+TEST(TuningSpace, GlslVertexCollapsesWorkGroupAxes) {
+  TuningSpace s = TuningSpace::Full();
+  s.langs = {Lang::kGlslVertex};
+  s.ForEach([](const Variant& v) {
+    ASSERT_EQ(v.wg_size, 0);
+    ASSERT_EQ(v.vertices_per_item, 1);
+  });
+  EXPECT_EQ(s.Size(), 8u * 2 * 3 * 2 * 3 * 3 * 2 * 4 * 2 * 2);
+}
+
+TEST(TuningSpace, FromJsonRestrictsNamedAxesAndKeepsTheRestFull) {
+  const TuningSpace s = SpaceFromJson(nlohmann::json::parse(R"({"lang": ["opencl"], "wg_size": [64, 256]})"), "c.json");
+  EXPECT_EQ(s.langs, std::vector<Lang>{Lang::kOpenCl});
+  EXPECT_EQ(s.wg_sizes, (std::vector<int>{64, 256}));
+  EXPECT_EQ(s.layouts.size(), 3u);
+  EXPECT_EQ(nlohmann::json(s)["wg_size"], nlohmann::json::parse("[64, 256]"));
+}
+
+TEST(TuningSpace, FromJsonNamesTheBadAxisOrValue) {
+  auto error = [](const char* text) {
+    try {
+      SpaceFromJson(nlohmann::json::parse(text), "c.json");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  EXPECT_EQ(error(R"({"storage": ["constant", "texture"]})"),
+            "c.json: space.storage[1]: unknown value 'texture' (expected one of constant, local, global, image)");
+  EXPECT_EQ(error(R"({"colour": ["red"]})").rfind("c.json: space.colour: unknown axis", 0), 0u);
+  EXPECT_EQ(error(R"({"layout": []})"), "c.json: space.layout is empty");
+  EXPECT_EQ(error(R"({"wg_size": [64, "big"]})"), "c.json: space.wg_size[1]: expected an integer");
+  EXPECT_EQ(error(R"({"normals": "yes"})"), "c.json: space.normals: expected a list of values");
+  EXPECT_EQ(error(R"([1, 2])"), "c.json: space must be an object of axis -> list of values");
+}
+
+TEST(Enumerate, CountsValidAndInvalidByConstraint) {
+  TuningSpace s = TuningSpace::Full();
+  s.langs = {Lang::kOpenCl};
+  s.influences = {4};
+  DeviceLimits device;
+  device.max_wg_size = 256;
+  std::uint64_t seen = 0;
+  const SpaceCount c = Enumerate(s, device, {77, 4, true}, [&](const Variant& v) {
+    ++seen;
+    EXPECT_TRUE(CheckVariant(v, device, {77, 4, true}).empty());
+  });
+  EXPECT_EQ(c.total, s.Size());
+  EXPECT_EQ(c.valid, seen);
+  std::uint64_t invalid = 0;
+  for (const auto& [constraint, n] : c.invalid_by) invalid += n;
+  EXPECT_EQ(c.valid + invalid, c.total);
+  EXPECT_GT(c.invalid_by.at(Constraint::kWgSizeDevice), 0u);
+  EXPECT_GT(c.invalid_by.at(Constraint::kAssignmentRedundant), 0u);
+}
+
+}  // namespace
+}  // namespace skintune

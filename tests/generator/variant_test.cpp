@@ -1,0 +1,82 @@
+#include <gtest/gtest.h>
+
+#include <unordered_set>
+
+#include <nlohmann/json.hpp>
+
+#include "generator/space.h"
+#include "generator/variant.h"
+#include "reference/error.h"
+
+namespace skintune {
+namespace {
+
+std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(VariantKey, DefaultKeyListsEveryAxisInCanonicalOrder) {
+  EXPECT_EQ(Variant{}.Key(), "opencl.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals");
+}
+
+TEST(VariantKey, EveryPointOfTheFullSpaceRoundTripsThroughItsKeyAndJson) {
+  std::size_t checked = 0;
+  TuningSpace space = TuningSpace::Full();
+  space.influences = {1, 8};  // keep the test fast; every other axis complete
+  space.wg_sizes = {32, 1024};
+  space.ForEach([&](const Variant& v) {
+    ASSERT_EQ(ParseVariantKey(v.Key()), v) << v.Key();
+    const nlohmann::json j = v;
+    ASSERT_EQ(j.get<Variant>(), v) << j.dump();
+    ++checked;
+  });
+  EXPECT_EQ(checked, space.Size());
+}
+
+TEST(VariantKey, TokensMayComeInAnyOrderAndOmittedAxesTakeDefaults) {
+  const Variant v = ParseVariantKey("wg256.cuda.b2.u8.soa-split");
+  EXPECT_EQ(v.lang, Lang::kCuda);
+  EXPECT_EQ(v.influences, 2);
+  EXPECT_EQ(v.index, IndexFormat::kU8);
+  EXPECT_EQ(v.layout, Layout::kSoaSplit);
+  EXPECT_EQ(v.wg_size, 256);
+  EXPECT_EQ(v.weight, Variant{}.weight);
+}
+
+TEST(VariantKey, GlslVertexDefaultsToNoWorkGroups) {
+  EXPECT_EQ(ParseVariantKey("glsl-vertex.b1").wg_size, 0);
+}
+
+TEST(VariantKey, MalformedKeysNameTheBadToken) {
+  EXPECT_EQ(ErrorOf([] { ParseVariantKey("opencl.b4.fast"); }).rfind("variant 'opencl.b4.fast': unknown token 'fast' (expected <lang>", 0), 0u);
+  EXPECT_NE(ErrorOf([] { ParseVariantKey("opencl..b4"); }).find("unknown token ''"), std::string::npos);
+  EXPECT_NE(ErrorOf([] { ParseVariantKey(""); }).find("empty key"), std::string::npos);
+  EXPECT_NE(ErrorOf([] { ParseVariantKey("opencl.cuda"); }).find("axis 'lang' given twice"), std::string::npos);
+  EXPECT_NE(ErrorOf([] { ParseVariantKey("b4.bx"); }).find("unknown token 'bx'"), std::string::npos);
+  EXPECT_NE(ErrorOf([] { ParseVariantKey("v2x"); }).find("unknown token 'v2x'"), std::string::npos);
+}
+
+TEST(VariantJson, RejectsUnknownValuesAndMismatchedKeys) {
+  EXPECT_NE(ErrorOf([] { nlohmann::json{{"layout", "zigzag"}}.get<Variant>(); }).find("'layout' has unknown value 'zigzag'"), std::string::npos);
+  EXPECT_NE(ErrorOf([] { nlohmann::json{{"influences", "four"}}.get<Variant>(); }).find("'influences' must be an integer"), std::string::npos);
+  EXPECT_NE(ErrorOf([] { nlohmann::json{{"key", "cuda.b1"}, {"lang", "opencl"}}.get<Variant>(); }).find("does not match"), std::string::npos);
+}
+
+TEST(VariantHash, IsStableAndDistinguishesVariants) {
+  EXPECT_EQ(Variant{}.Hash(), ParseVariantKey(Variant{}.Key()).Hash());
+  std::unordered_set<std::size_t> hashes;
+  TuningSpace space = TuningSpace::Full();
+  space.langs = {Lang::kOpenCl};
+  space.influences = {4};
+  std::size_t n = 0;
+  space.ForEach([&](const Variant& v) { hashes.insert(v.Hash()); ++n; });
+  EXPECT_EQ(hashes.size(), n);
+}
+
+}  // namespace
+}  // namespace skintune

@@ -1,0 +1,98 @@
+// skintune variants: the kernel variant space, its size, and what a device
+// and mesh allow of it (each invalid point counted under the constraint it breaks).
+#include <fstream>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "generator/space.h"
+#include "reference/error.h"
+#include "runtime/opencl_devices.h"
+#include "tools/commands.h"
+
+namespace skintune::tools {
+
+namespace {
+
+struct VariantsOptions {
+  std::string device;
+  std::string config;
+  std::vector<std::string> langs;
+  MeshSource source;
+  bool list = false;
+  bool json = false;
+};
+
+TuningSpace LoadSpace(const VariantsOptions& o) {
+  nlohmann::json space = nlohmann::json::object();
+  if (!o.config.empty()) {
+    std::ifstream in(o.config);
+    if (!in) throw Error(o.config + ": cannot open file");
+    nlohmann::json config;
+    try {
+      config = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::parse_error& e) {
+      throw Error(o.config + ": not valid JSON (" + e.what() + ")");
+    }
+    if (config.contains("space")) space = config["space"];
+  }
+  if (!o.langs.empty()) space["lang"] = o.langs;
+  return SpaceFromJson(space, o.config.empty() ? "--lang" : o.config);
+}
+
+int RunVariants(const VariantsOptions& o) {
+  const TuningSpace space = LoadSpace(o);
+  DeviceLimits limits;
+  std::string device_name = "generic limits (no --device)";
+  if (!o.device.empty()) {
+    const std::vector<OpenClDeviceInfo> matches = MatchDevices(EnumerateOpenCl(), o.device);
+    if (matches.empty()) throw Error("--device '" + o.device + "': no OpenCL device matches (see skintune devices)");
+    limits = LimitsOf(matches.front());
+    device_name = matches.front().platform_name + " / " + matches.front().name;
+  }
+  ProblemShape shape{77, 1, true};
+  std::string mesh_name = "the paper's rig (77 joints, any influence count, normals available)";
+  if (!o.source.dataset.empty() || !o.source.mesh_file.empty()) {
+    const SkinnedAsset asset = LoadAsset(o.source);
+    int widest = 1;
+    for (std::size_t v = 0; v < asset.mesh.vertex_count(); ++v) widest = std::max(widest, asset.mesh.InfluencesOf(v));
+    shape = {asset.mesh.joint_count, widest, asset.mesh.has_normals()};
+    mesh_name = asset.source;
+  }
+  std::vector<std::string> keys;
+  const SpaceCount count = Enumerate(space, limits, shape, [&](const Variant& v) {
+    if (o.list) keys.push_back(v.Key());
+  });
+  if (o.json) {
+    nlohmann::json out = {{"space", space}, {"device", device_name}, {"mesh", mesh_name},
+                          {"total", count.total}, {"valid", count.valid}};
+    for (const auto& [constraint, n] : count.invalid_by) out["invalid_by"][Name(constraint)] = n;
+    if (o.list) out["variants"] = keys;
+    std::cout << out.dump(2) << "\n";
+    return 0;
+  }
+  std::cout << "space: " << count.total << " variants\n"
+            << "device: " << device_name << "\nmesh: " << mesh_name << "\n"
+            << "valid: " << count.valid << "\n";
+  for (const auto& [constraint, n] : count.invalid_by) {
+    std::cout << "invalid (" << Name(constraint) << "): " << n << "\n";
+  }
+  for (const std::string& key : keys) std::cout << key << "\n";
+  return 0;
+}
+
+}  // namespace
+
+Command RegisterVariants(CLI::App& app) {
+  auto o = std::make_shared<VariantsOptions>();
+  auto* sub = app.add_subcommand("variants", "list the kernel variant space, its size and what a device allows");
+  sub->add_option("--device", o->device, "OpenCL device whose limits apply (case-insensitive substring of 'platform-vendor platform / device-name')");
+  sub->add_option("--config", o->config, "JSON config whose \"space\" restricts the axes (default: every value)");
+  sub->add_option("--lang", o->langs, "restrict to these languages: opencl, cuda, glsl-compute, glsl-vertex");
+  AddMeshSourceOptions(*sub, o->source);
+  sub->add_flag("--list", o->list, "print the key of every valid variant");
+  sub->add_flag("--json", o->json, "print JSON");
+  return {sub, [o] { return RunVariants(*o); }};
+}
+
+}  // namespace skintune::tools
