@@ -109,16 +109,15 @@ const unsigned char* CheckedBytes(const Ctx& ctx, const std::string& who, int vi
     ctx.Fail(who + ": " + view_name + ": byteStride " + to_string(*stride) +
              " is smaller than the element (" + to_string(element_size) + " bytes)");
   }
-  if (count > 0) {
-    const size_t max = std::numeric_limits<size_t>::max();
-    const bool overflow =
-        offset > max - element_size || (count - 1) > (max - offset - element_size) / *stride;
-    const size_t needed = overflow ? max : offset + *stride * (count - 1) + element_size;
-    if (needed > view.byteLength) {
-      ctx.Fail(who + ": " + to_string(count) + " elements from byteOffset " + to_string(offset) + " need " +
-               (overflow ? std::string("more than 2^64") : to_string(needed)) + " bytes, but " + view_name +
-               " has byteLength " + to_string(view.byteLength) + ": truncated buffer");
-    }
+  // Nothing to read: `offset` (unchecked, maybe past the end of the buffer) is not applied.
+  if (count == 0) return buffer.data() + view.byteOffset;
+  const size_t max = std::numeric_limits<size_t>::max();
+  const bool overflow = offset > max - element_size || (count - 1) > (max - offset - element_size) / *stride;
+  const size_t needed = overflow ? max : offset + *stride * (count - 1) + element_size;
+  if (needed > view.byteLength) {
+    ctx.Fail(who + ": " + to_string(count) + " elements from byteOffset " + to_string(offset) + " need " +
+             (overflow ? std::string("more than 2^64") : to_string(needed)) + " bytes, but " + view_name +
+             " has byteLength " + to_string(view.byteLength) + ": truncated buffer");
   }
   return buffer.data() + view.byteOffset + offset;
 }
@@ -213,11 +212,17 @@ AccessorData ReadAccessor(const Ctx& ctx, int index, const AccessorSpec& spec) {
   AccessorData out;
   out.count = acc.count;
   out.components = Z(tinygltf::GetNumComponentsInType(static_cast<std::uint32_t>(acc.type)));
-  out.values.assign(acc.count * out.components, 0.0);  // without a bufferView: zeros, as glTF specifies
+  // Check before allocating, so memory stays proportional to the data the file holds.
+  const unsigned char* p = nullptr;
+  size_t stride = 0;
   if (acc.bufferView != -1) {
-    size_t stride = 0;
-    const unsigned char* p = CheckedBytes(ctx, who, acc.bufferView, acc.byteOffset, acc.count,
-                                          comp_size * out.components, &stride);
+    p = CheckedBytes(ctx, who, acc.bufferView, acc.byteOffset, acc.count, comp_size * out.components, &stride);
+  } else if (acc.count * out.components > kMaxZeroFilledValues) {
+    ctx.Fail(who + ": count " + to_string(acc.count) + " without a bufferView is too large (at most " +
+             to_string(kMaxZeroFilledValues) + " zero-filled values)");
+  }
+  out.values.assign(acc.count * out.components, 0.0);  // without a bufferView: zeros, as glTF specifies
+  if (p != nullptr) {
     for (size_t e = 0; e < acc.count; ++e) {
       for (size_t c = 0; c < out.components; ++c) {
         out.values[e * out.components + c] =

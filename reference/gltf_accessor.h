@@ -14,7 +14,10 @@
 //    smaller than the element is rejected, and count is capped at 2^31;
 //  - the accessor exists, and its componentType, type and `normalized` flag
 //    are among those the caller allows (AccessorSpec);
-//  - an accessor without a bufferView reads as zeros (as glTF specifies);
+//  - an accessor cannot make the reader allocate more than its data warrants:
+//    the data is checked against its bufferView before anything is allocated,
+//    and an accessor without a bufferView (zeros, as glTF specifies, plus its
+//    sparse values) holds at most kMaxZeroFilledValues values;
 //  - sparse accessors are applied: sparse.count in 1..count, indices of an
 //    unsigned integer type, every index inside the accessor, indices and
 //    values each bounds-checked like the main data (tightly packed);
@@ -84,6 +87,10 @@ extern const std::vector<int> kJointTypes;     // UNSIGNED_BYTE, UNSIGNED_SHORT
 extern const std::vector<int> kWeightTypes;    // FLOAT, UNSIGNED_BYTE, UNSIGNED_SHORT
 extern const std::vector<int> kRotationTypes;  // FLOAT, BYTE, UNSIGNED_BYTE, SHORT, UNSIGNED_SHORT
 extern const std::vector<int> kIndexTypes;     // UNSIGNED_BYTE, UNSIGNED_SHORT, UNSIGNED_INT
+
+// The most values (count * components) of an accessor without a bufferView:
+// 2^24, 128 MiB decoded, so a few bytes of JSON cannot ask for gigabytes.
+constexpr std::size_t kMaxZeroFilledValues = std::size_t{1} << 24;
 
 // "accessors[index] (role)": how messages name an accessor.
 std::string AccessorName(int index, const std::string& role);

@@ -9,12 +9,14 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <limits>
 #include <map>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include <glm/gtc/type_ptr.hpp>
@@ -68,22 +70,117 @@ bool SkipImage(tinygltf::Image*, const int, std::string*, std::string*, int, int
   return true;
 }
 
+// External files (buffer and image URIs) are read through these, not tinygltf's
+// defaults, which open anything: for a directory they allocate the size lseek
+// reports (2^63 - 1 bytes on ext4: std::bad_alloc), a FIFO blocks forever.
+// Regular files only.
+bool RegularFileExists(const std::string& path, void*) {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(path, ec);
+}
+
+bool ReadRegularFile(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
+  auto fail = [&](const char* what) {
+    if (err) *err += what + path + "\n";
+    return false;
+  };
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return fail("File open error : ");
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  std::ifstream in(path, std::ios::binary);
+  if (ec || !in) return fail("File open error : ");
+  if (size == 0) return fail("File is empty : ");
+  if (size > static_cast<std::uintmax_t>(std::numeric_limits<std::streamsize>::max()))
+    return fail("File too large : ");
+  out->resize(static_cast<size_t>(size));
+  in.read(reinterpret_cast<char*>(out->data()), static_cast<std::streamsize>(size));
+  if (in.gcount() != static_cast<std::streamsize>(size)) return fail("File read error : ");
+  return true;
+}
+
+// tinygltf recurses once per nesting level of `extras` / `extensions` values;
+// some 20000 levels overflow the stack. Real files nest a handful of levels.
+constexpr size_t kMaxJsonDepth = 512;
+
+// The deepest nesting of [ and { in JSON text, strings skipped (exact for valid JSON).
+size_t JsonDepth(const unsigned char* text, size_t size) {
+  size_t depth = 0, deepest = 0;
+  bool in_string = false;
+  for (size_t i = 0; i < size; ++i) {
+    const unsigned char c = text[i];
+    if (in_string) {
+      if (c == '\\') {
+        ++i;  // the escaped character
+      } else if (c == '"') {
+        in_string = false;
+      }
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      deepest = std::max(deepest, ++depth);
+    } else if ((c == ']' || c == '}') && depth > 0) {
+      --depth;
+    }
+  }
+  return deepest;
+}
+
+std::uint32_t LoadU32(const std::vector<unsigned char>& bytes, size_t at) {
+  return static_cast<std::uint32_t>(bytes[at]) | static_cast<std::uint32_t>(bytes[at + 1]) << 8 |
+         static_cast<std::uint32_t>(bytes[at + 2]) << 16 | static_cast<std::uint32_t>(bytes[at + 3]) << 24;
+}
+
+// What tinygltf must not be given: JSON nested too deeply, and (GLB) a BIN chunk
+// that runs past the end of the file. tinygltf 2.7.0 checks the BIN chunk's
+// length without its 8-byte header, so it would read up to 8 bytes past the end.
+void PrecheckForTinygltf(const std::string& path, const std::vector<unsigned char>& bytes, bool binary) {
+  const unsigned char* json = bytes.data();
+  size_t json_size = bytes.size();
+  if (binary && bytes.size() >= 20) {
+    const std::uint64_t length = LoadU32(bytes, 8), json_end = 20 + std::uint64_t{LoadU32(bytes, 12)};
+    json = bytes.data() + 20;
+    json_size = static_cast<size_t>(std::min<std::uint64_t>(json_end, bytes.size()) - 20);
+    if (length <= bytes.size() && json_end + 12 <= length) {  // a BIN chunk: tinygltf reads it
+      const std::uint64_t bin_length = LoadU32(bytes, static_cast<size_t>(json_end));
+      if (json_end + 8 + bin_length > length) {
+        throw Error(path + ": invalid glTF file: BIN chunk of " + to_string(bin_length) + " bytes at byte " +
+                    to_string(json_end + 8) + " runs past the end of the GLB (" + to_string(length) +
+                    " bytes)");
+      }
+    }
+  }
+  // Text that is not JSON at all fails tinygltf's parser first: leave its message to tinygltf.
+  if (JsonDepth(json, json_size) > kMaxJsonDepth && nlohmann::json::accept(json, json + json_size)) {
+    throw Error(path + ": invalid glTF file: JSON nested more than " + to_string(kMaxJsonDepth) +
+                " levels deep");
+  }
+}
+
 // Parses the file with tinygltf: GLB when it starts with the magic "glTF", JSON otherwise.
 tinygltf::Model LoadModel(const std::string& path, std::vector<std::string>& warnings) {
   const std::vector<unsigned char> bytes = ReadFileBytes(path);
   if (bytes.empty()) throw Error(path + ": not a glTF 2.0 file (empty file)");
   if (bytes.size() > std::numeric_limits<unsigned int>::max()) throw Error(path + ": file of 4 GiB or more");
   const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+  PrecheckForTinygltf(path, bytes, binary);
   const std::string base_dir = std::filesystem::path(path).parent_path().string();
   const auto size = static_cast<unsigned int>(bytes.size());
   tinygltf::TinyGLTF loader;
   loader.SetImageLoader(&SkipImage, nullptr);
+  loader.SetFsCallbacks({&RegularFileExists, &tinygltf::ExpandFilePath, &ReadRegularFile,
+                         &tinygltf::WriteWholeFile, nullptr});
   tinygltf::Model model;
   std::string err, warn;
-  const bool ok = binary
-                      ? loader.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(), size, base_dir)
-                      : loader.LoadASCIIFromString(
-                            &model, &err, &warn, reinterpret_cast<const char*>(bytes.data()), size, base_dir);
+  bool ok = false;
+  try {
+    ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(), size, base_dir)
+                : loader.LoadASCIIFromString(&model, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
+                                             size, base_dir);
+  } catch (const std::exception& e) {
+    // tinygltf 2.7.0 throws on some malformed files, e.g. std::out_of_range
+    // for a GLB buffer whose byteLength is 0.
+    throw Error(path + ": invalid glTF file: tinygltf failed (" + Tidy(e.what()) + ")");
+  }
   if (!ok && (binary || LooksLikeGltfJson(bytes))) throw Error(path + ": invalid glTF file: " + Tidy(err));
   if (!ok) throw Error(path + ": not a glTF 2.0 file (" + Tidy(err) + ")");
   if (!warn.empty()) warnings.push_back(path + ": tinygltf: " + Tidy(warn));
@@ -238,6 +335,11 @@ void FinishWeights(const Ctx& ctx, const std::string& mesh_name, bool strict, Sk
     ctx.Fail(mesh_name + ": vertex " + to_string(first) + ": weights sum to " + Num(first_sum) + ", not 1 (" +
              to_string(bad) + " such vertices; strict import does not renormalise)");
   }
+  // Problems renormalising cannot fix (a non-finite position, say) first, named
+  // with the file: Renormalize's own message for them has no file name.
+  ValidateOptions any_sum;
+  any_sum.weight_sum_tolerance = std::numeric_limits<double>::infinity();
+  ThrowIfInvalid(mesh, ctx.path, any_sum);
   const RenormalizeReport r = Renormalize(mesh);
   warnings.push_back(ctx.path + ": renormalised weights of " + to_string(r.changed_vertices) +
                      " vertices (worst: vertex " + to_string(r.worst_vertex) + ", sum " + Num(r.worst_sum) +

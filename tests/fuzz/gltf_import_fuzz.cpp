@@ -1,7 +1,8 @@
 // Fuzz target for the glTF importer: ImportGltf reads untrusted files, so for
-// any input bytes it must either return or throw skintune::Error. Anything else
-// (another exception, a crash, a sanitizer report, a hang, runaway memory) is a
-// bug. Built two ways (tests/fuzz/CMakeLists.txt): as a libFuzzer target
+// any input bytes it must either return or throw skintune::Error whose message
+// starts with the file name. Anything else (another exception, a crash, a
+// sanitizer report, a hang, runaway memory, an anonymous message) is a bug.
+// Built two ways (tests/fuzz/CMakeLists.txt): as a libFuzzer target
 // (gltf_import_fuzz, clang, -DSKINTUNE_FUZZ=ON) and, with any compiler, into
 // gltf_import_fuzz_replay, which runs a corpus through it (replay_main.cpp).
 //
@@ -17,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <string_view>
 #include <system_error>
 
 #include "reference/error.h"
@@ -76,8 +78,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const skintune::GltfImportResult result = skintune::ImportGltf(path, options);
       // A successful import is a validated asset: touch it so nothing is optimised away.
       if (result.asset.mesh.vertex_count() == 0) Die("imported a mesh without vertices");
-    } catch (const skintune::Error&) {
-      // Malformed input, reported as it should be.
+    } catch (const skintune::Error& e) {
+      // Malformed input, reported as gltf_import.h promises: the message starts with the file name.
+      if (std::string_view(e.what()).substr(0, path.size() + 2) != path + ": ")
+        Die("error message without the file name: " + std::string(e.what()));
     }
   }
   return 0;

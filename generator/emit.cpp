@@ -1,0 +1,229 @@
+#include "generator/emit.h"
+
+#include <algorithm>
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+
+#include "generator/packer.h"
+#include "reference/error.h"
+#include "reference/mesh.h"
+
+namespace skintune {
+
+// templates/, embedded by cmake/embed_templates.cmake (generated embedded_templates.cpp).
+struct EmbeddedTemplate {
+  const char* name;
+  const unsigned char* data;
+  std::size_t size;
+};
+extern const EmbeddedTemplate kEmbeddedTemplates[];
+extern const std::size_t kEmbeddedTemplateCount;
+
+namespace {
+
+int Code(Layout l) { return static_cast<int>(l); }                    // 0 aos, 1 soa, 2 soa-split
+int Code(IndexFormat f) { return static_cast<int>(f); }               // 0 i32, 1 u16, 2 u8
+int Code(WeightFormat f) { return static_cast<int>(f); }              // 0 f32, 1 unorm16, 2 unorm8
+int Code(PaletteStorage s) { return static_cast<int>(s); }            // 0 constant, 1 local, 2 global, 3 image
+int PaletteRows(PaletteFormat f) { return f == PaletteFormat::kMat4 ? 4 : 3; }
+
+std::vector<std::pair<std::string, long long>> OpenClDefines(const Variant& v, int b, int joints) {
+  std::vector<std::pair<std::string, long long>> d = {
+      {"INFLUENCES", b},
+      {"LAYOUT", Code(v.layout)},
+      {"POSITION_FLOAT4", v.position == PositionFormat::kFloat4 ? 1 : 0},
+      {"INDEX_FORMAT", Code(v.index)},
+      {"WEIGHT_FORMAT", Code(v.weight)},
+      {"PALETTE_ROWS", PaletteRows(v.palette)},
+      {"STORAGE", Code(v.storage)},
+  };
+  if (joints > 0) d.emplace_back("JOINTS", joints);
+  d.emplace_back("BLEND_POINT", v.blend == Blend::kPoint ? 1 : 0);
+  d.emplace_back("VERTICES_PER_ITEM", v.vertices_per_item);
+  d.emplace_back("STRIDED", v.assignment == Assignment::kStrided ? 1 : 0);
+  d.emplace_back("WG_SIZE", v.wg_size);
+  d.emplace_back("NORMALS", v.normals ? 1 : 0);
+  if (v.layout == Layout::kSoaSplit) d.emplace_back("SLOT_STRIDE_MULTIPLE", SoaSplitSlotStride(1, v));
+  if (v.layout == Layout::kAos) {
+    const RecordLayout r = AosRecordLayout(v, b);
+    d.emplace_back("AOS_POSITION_OFFSET", static_cast<long long>(r.position));
+    d.emplace_back("AOS_INDICES_OFFSET", static_cast<long long>(r.indices));
+    d.emplace_back("AOS_WEIGHTS_OFFSET", static_cast<long long>(r.weights));
+    if (v.normals) d.emplace_back("AOS_NORMAL_OFFSET", static_cast<long long>(r.normal));
+    d.emplace_back("AOS_RECORD_WORDS", static_cast<long long>(r.size / 4));
+  }
+  return d;
+}
+
+KernelArgument Scalar(const char* name) {
+  return {name, "u32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar};
+}
+
+KernelArgument Vector(const std::string& name, const Variant& v, ArgumentDirection direction) {
+  const std::size_t bytes = BytesOf(v.position);
+  return {name, Name(v.position), bytes, bytes, direction == ArgumentDirection::kOut ? "first+v" : "v",
+          direction, ArgumentKind::kBuffer};
+}
+
+std::vector<KernelArgument> OpenClArguments(const Variant& v, int b) {
+  const auto bb = static_cast<std::size_t>(b);
+  std::vector<KernelArgument> args = {Scalar("n"), Scalar("first")};
+  if (v.layout == Layout::kAos) {
+    const std::size_t size = AosRecordLayout(v, b).size;
+    args.push_back({"records", "record", size, size, "v", ArgumentDirection::kIn, ArgumentKind::kBuffer});
+  } else {
+    const bool split = v.layout == Layout::kSoaSplit;
+    const std::size_t ib = BytesOf(v.index), wb = BytesOf(v.weight);
+    args.push_back(Vector("positions", v, ArgumentDirection::kIn));
+    args.push_back({"indices", Name(v.index), ib, split ? ib : bb * ib, split ? "i*S+v" : "v*B+i",
+                    ArgumentDirection::kIn, ArgumentKind::kBuffer});
+    args.push_back({"weights", Name(v.weight), wb, split ? wb : bb * wb, split ? "i*S+v" : "v*B+i",
+                    ArgumentDirection::kIn, ArgumentKind::kBuffer});
+    if (v.normals) args.push_back(Vector("normals", v, ArgumentDirection::kIn));
+  }
+  const auto rows = static_cast<std::size_t>(PaletteRows(v.palette));
+  args.push_back({"palette", "float4 rows", 16, rows * 16, "j*R+r", ArgumentDirection::kIn,
+                  v.storage == PaletteStorage::kImage ? ArgumentKind::kImage : ArgumentKind::kBuffer});
+  args.push_back(Vector("out_positions", v, ArgumentDirection::kOut));
+  if (v.normals) args.push_back(Vector("out_normals", v, ArgumentDirection::kOut));
+  return args;
+}
+
+LaunchGeometry Geometry(const Variant& v) {
+  LaunchGeometry g;
+  g.vertices_per_item = v.vertices_per_item;
+  g.strided = v.assignment == Assignment::kStrided;
+  g.wg_size = v.wg_size;
+  const std::string n = std::to_string(v.vertices_per_item);
+  g.rule = "work items = ceil(n / " + n + ") rounded up to a multiple of " + std::to_string(v.wg_size) +
+           " (the work-group size); item g skins vertices " +
+           (g.strided ? "g, g+G, .., g+" + std::to_string(v.vertices_per_item - 1) + "G (G = work items)"
+                      : "g*" + n + " .. g*" + n + "+" + std::to_string(v.vertices_per_item - 1)) +
+           " below n";
+  return g;
+}
+
+std::string Hex64(std::uint64_t value) {
+  char text[17];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(value));
+  return text;
+}
+
+}  // namespace
+
+const char* Name(ArgumentKind k) {
+  switch (k) {
+    case ArgumentKind::kScalar: return "scalar";
+    case ArgumentKind::kBuffer: return "buffer";
+    case ArgumentKind::kImage: return "image";
+  }
+  return "?";
+}
+
+const char* Name(ArgumentDirection d) { return d == ArgumentDirection::kIn ? "in" : "out"; }
+
+std::size_t LaunchGeometry::GlobalItems(std::size_t count) const {
+  const auto n = static_cast<std::size_t>(std::max(vertices_per_item, 1));
+  const auto wg = static_cast<std::size_t>(std::max(wg_size, 1));
+  const std::size_t items = (count + n - 1) / n;
+  return (items + wg - 1) / wg * wg;
+}
+
+std::string SourceHash(const std::string& text) {
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (const char c : text) {
+    h ^= static_cast<unsigned char>(c);
+    h *= 0x100000001b3ull;
+  }
+  return Hex64(h);
+}
+
+std::vector<std::string> TemplateNames() {
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < kEmbeddedTemplateCount; ++i) names.emplace_back(kEmbeddedTemplates[i].name);
+  return names;
+}
+
+std::string TemplateText(const std::string& name) {
+  for (std::size_t i = 0; i < kEmbeddedTemplateCount; ++i) {
+    const EmbeddedTemplate& t = kEmbeddedTemplates[i];
+    if (name == t.name) return std::string(reinterpret_cast<const char*>(t.data), t.size);
+  }
+  std::string known;
+  for (const std::string& n : TemplateNames()) known += (known.empty() ? "" : ", ") + n;
+  throw Error("no embedded template '" + name + "' (embedded: " + known + ")");
+}
+
+KernelSource Emit(const Variant& variant, int influences_override, int joints) {
+  if (variant.lang != Lang::kOpenCl)
+    throw Error(std::string("emit: language ") + Name(variant.lang) + " not implemented yet");
+  const int b = influences_override > 0 ? influences_override : variant.influences;
+  if (b < 1 || b > kMaxInfluences)
+    throw Error("emit " + variant.Key() + ": influences " + std::to_string(b) + " outside 1.." +
+                std::to_string(kMaxInfluences));
+  if (joints < 0) throw Error("emit " + variant.Key() + ": negative joint count " + std::to_string(joints));
+  if (variant.storage == PaletteStorage::kLocal && joints == 0)
+    throw Error("emit " + variant.Key() + ": storage local needs the joint count (it sizes the local palette copy)");
+
+  KernelSource source;
+  source.lang = variant.lang;
+  source.influences = b;
+  source.joints = joints;
+  source.defines = OpenClDefines(variant, b, joints);
+  source.arguments = OpenClArguments(variant, b);
+  source.launch = Geometry(variant);
+
+  std::string text = "// Generated by skintune " + std::string(kGeneratorVersion) + ": " + variant.Key();
+  if (b != variant.influences) text += " (bucket of " + std::to_string(b) + " influences)";
+  text += "\n";
+  for (const auto& [name, value] : source.defines) text += "#define " + name + " " + std::to_string(value) + "\n";
+  text += "#line 1 \"skin.cl\"\n";
+  text += TemplateText("skin.cl");
+  source.text = std::move(text);
+  source.source_hash = SourceHash(source.text);
+  return source;
+}
+
+nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
+  nlohmann::json j;
+  j["generator"] = "skintune";
+  j["generator_version"] = source.generator_version;
+  j["source_hash"] = source.source_hash;
+  j["lang"] = Name(source.lang);
+  j["variant"] = variant.Key();
+  j["variant_axes"] = variant;
+  j["entry_point"] = source.entry_point;
+  j["influences"] = source.influences;
+  j["joints"] = source.joints;
+  nlohmann::json defines = nlohmann::json::object();
+  for (const auto& [name, value] : source.defines) defines[name] = value;
+  j["defines"] = defines;
+  nlohmann::json args = nlohmann::json::array();
+  for (const KernelArgument& a : source.arguments) {
+    args.push_back({{"name", a.name},
+                    {"format", a.format},
+                    {"element_bytes", a.element_bytes},
+                    {"stride_bytes", a.stride_bytes},
+                    {"indexing", a.indexing},
+                    {"direction", Name(a.direction)},
+                    {"kind", Name(a.kind)}});
+  }
+  j["arguments"] = args;
+  j["launch"] = {{"vertices_per_item", source.launch.vertices_per_item},
+                 {"assignment", source.launch.strided ? "strided" : "contiguous"},
+                 {"wg_size", source.launch.wg_size},
+                 {"rule", source.launch.rule}};
+  if (variant.layout == Layout::kAos) {
+    const RecordLayout r = AosRecordLayout(variant, source.influences);
+    j["aos_record"] = {{"position", r.position}, {"indices", r.indices}, {"weights", r.weights},
+                       {"normal", r.normal}, {"size", r.size}};
+  }
+  if (variant.layout == Layout::kSoaSplit) {
+    j["slot_stride"] = "S = n rounded up to a multiple of " + std::to_string(SoaSplitSlotStride(1, variant)) +
+                       " (every slot array starts on a 256-byte boundary)";
+  }
+  return j;
+}
+
+}  // namespace skintune

@@ -1,0 +1,305 @@
+#include "generator/packer.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "reference/error.h"
+
+namespace skintune {
+namespace {
+
+std::size_t RoundUp(std::size_t x, std::size_t multiple) { return (x + multiple - 1) / multiple * multiple; }
+
+std::string Context(const Variant& variant) { return "pack " + variant.Key(); }
+
+[[noreturn]] void Fail(const Variant& variant, const std::string& message) {
+  throw Error(Context(variant) + ": " + message);
+}
+
+// ------------------------------------------------------------ little-endian words
+
+void PutUint(std::uint8_t* at, std::uint32_t value, std::size_t bytes) {
+  for (std::size_t b = 0; b < bytes; ++b) at[b] = static_cast<std::uint8_t>(value >> (8 * b));
+}
+
+void PutFloat(std::uint8_t* at, float value) { PutUint(at, std::bit_cast<std::uint32_t>(value), 4); }
+
+float GetFloat(const std::uint8_t* at) {
+  std::uint32_t bits = 0;
+  for (int b = 0; b < 4; ++b) bits |= static_cast<std::uint32_t>(at[b]) << (8 * b);
+  return std::bit_cast<float>(bits);
+}
+
+// xyz, then w for float4 (1 for positions, 0 for normals).
+void PutVector(std::uint8_t* at, const glm::vec3& v, PositionFormat format, float w) {
+  PutFloat(at, v.x);
+  PutFloat(at + 4, v.y);
+  PutFloat(at + 8, v.z);
+  if (format == PositionFormat::kFloat4) PutFloat(at + 12, w);
+}
+
+// ------------------------------------------------------------ weights
+
+std::uint32_t UnormMax(WeightFormat format) { return format == WeightFormat::kUnorm16 ? 65535u : 255u; }
+
+// Largest-remainder quantisation of one vertex's weights to integers summing
+// to exactly `max`: round to nearest, then hand out (or take back) the
+// difference one quantum at a time to the slot with the largest (smallest)
+// residue; on a tie the earlier slot gets (or keeps) the quantum. The weights
+// are normalised by their sum first (in double), so a mesh within
+// kWeightSumTolerance still gets the nearest apportionment. Zero weights stay
+// zero; no weight goes negative.
+void QuantiseVertex(const float* w, int slots, std::uint32_t max, std::uint32_t* q) {
+  double sum = 0.0;
+  for (int i = 0; i < slots; ++i) sum += w[i] > 0.0f ? static_cast<double>(w[i]) : 0.0;
+  double target[kMaxInfluences] = {};
+  long total = 0;
+  for (int i = 0; i < slots; ++i) {
+    target[i] = w[i] > 0.0f && sum > 0.0 ? static_cast<double>(w[i]) / sum * max : 0.0;
+    q[i] = static_cast<std::uint32_t>(std::floor(target[i] + 0.5));
+    total += q[i];
+  }
+  if (sum <= 0.0) return;  // all-zero vertex: invalid mesh, rejected before packing
+  for (long diff = static_cast<long>(max) - total; diff != 0;) {
+    int best = -1;
+    for (int i = 0; i < slots; ++i) {
+      if (diff > 0 ? !(w[i] > 0.0f) : q[i] == 0) continue;
+      const double residue = target[i] - q[i];
+      if (best < 0 || (diff > 0 ? residue > target[best] - q[best] : residue <= target[best] - q[best])) best = i;
+    }
+    if (diff > 0) {
+      ++q[best];
+      --diff;
+    } else {
+      --q[best];
+      ++diff;
+    }
+  }
+}
+
+// The 32-bit value stored for every weight slot of the mesh: the float's bits
+// for f32, the quantised integer for unorm16 / unorm8.
+std::vector<std::uint32_t> WeightWords(const SkinnedMesh& mesh, WeightFormat format) {
+  std::vector<std::uint32_t> words(mesh.weights.size());
+  if (format == WeightFormat::kF32) {
+    std::transform(mesh.weights.begin(), mesh.weights.end(), words.begin(),
+                   [](float w) { return std::bit_cast<std::uint32_t>(w); });
+    return words;
+  }
+  const auto b = static_cast<std::size_t>(mesh.influences);
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v)
+    QuantiseVertex(&mesh.weights[v * b], mesh.influences, UnormMax(format), &words[v * b]);
+  return words;
+}
+
+// ------------------------------------------------------------ checks
+
+void CheckFit(const SkinnedMesh& mesh, const Variant& variant) {
+  ThrowIfInvalid(mesh, Context(variant));
+  const int b = variant.influences;
+  if (b < 1 || b > kMaxInfluences)
+    Fail(variant, "influences " + std::to_string(b) + " outside 1.." + std::to_string(kMaxInfluences));
+  if (mesh.vertex_count() > std::numeric_limits<std::uint32_t>::max())
+    Fail(variant, std::to_string(mesh.vertex_count()) + " vertices do not fit 32-bit vertex indices");
+  const std::size_t joint_limit =
+      variant.index == IndexFormat::kU8 ? 256 : variant.index == IndexFormat::kU16 ? 65536 : 0x80000000u;
+  if (static_cast<std::size_t>(mesh.joint_count) > joint_limit)
+    Fail(variant, std::to_string(mesh.joint_count) + " joints do not fit " + Name(variant.index) +
+                      " indices (at most " + std::to_string(joint_limit) + ")");
+  if (variant.normals && !mesh.has_normals()) Fail(variant, "normals requested but the mesh '" + mesh.name + "' has none");
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    const int count = mesh.InfluencesOf(v);
+    if (count == 0) Fail(variant, "vertex " + std::to_string(v) + " has no non-zero weight");
+    if (count > b)
+      Fail(variant, "influences " + std::to_string(b) + " below the mesh's per-vertex count " +
+                        std::to_string(count) + " (vertex " + std::to_string(v) + ")");
+    if (variant.mixed != MixedCounts::kPadded) continue;
+    for (int i = b; i < mesh.influences; ++i) {
+      if (mesh.weights[v * mesh.influences + i] != 0.0f)
+        Fail(variant, "vertex " + std::to_string(v) + " has a non-zero weight in slot " + std::to_string(i) +
+                          ", beyond the variant's " + std::to_string(b) + " influences (padded keeps slots in place)");
+    }
+  }
+}
+
+// ------------------------------------------------------------ one launch
+
+struct Slot {
+  std::uint32_t joint = 0;
+  std::uint32_t weight = 0;  // word as stored (float bits or quantised integer)
+};
+
+// The k slots of mesh vertex v as a launch with `k` influences reads them:
+// padded keeps slot i in place (zeros beyond the mesh's slots); bucketed
+// compacts the slots whose weight is non-zero in the mesh.
+void GatherSlots(const SkinnedMesh& mesh, const std::vector<std::uint32_t>& words, MixedCounts mixed,
+                 std::size_t v, int k, Slot* out) {
+  const auto mb = static_cast<std::size_t>(mesh.influences);
+  for (int i = 0; i < k; ++i) out[i] = Slot{};
+  int next = 0;
+  for (int i = 0; i < mesh.influences && next < k; ++i) {
+    const std::size_t s = v * mb + static_cast<std::size_t>(i);
+    if (mixed == MixedCounts::kBucketed && mesh.weights[s] == 0.0f) continue;
+    out[next++] = Slot{mesh.joints[s], words[s]};
+  }
+}
+
+Launch PackLaunch(const SkinnedMesh& mesh, const Variant& variant, const std::vector<std::uint32_t>& words,
+                  const std::vector<std::uint32_t>& order, std::uint32_t first, std::uint32_t count, int k) {
+  Launch launch;
+  launch.first = first;
+  launch.count = count;
+  launch.influences = k;
+  const std::size_t n = count;
+  const std::size_t pb = BytesOf(variant.position);
+  const std::size_t ib = BytesOf(variant.index);
+  const std::size_t wb = BytesOf(variant.weight);
+  const auto kk = static_cast<std::size_t>(k);
+  Slot slots[kMaxInfluences];
+
+  if (variant.layout == Layout::kAos) {
+    const RecordLayout r = AosRecordLayout(variant, k);
+    PackedBuffer records{"records", std::vector<std::uint8_t>(n * r.size, 0)};
+    for (std::size_t p = 0; p < n; ++p) {
+      const std::uint32_t v = order[first + p];
+      std::uint8_t* rec = records.bytes.data() + p * r.size;
+      PutVector(rec + r.position, mesh.positions[v], variant.position, 1.0f);
+      GatherSlots(mesh, words, variant.mixed, v, k, slots);
+      for (std::size_t i = 0; i < kk; ++i) {
+        PutUint(rec + r.indices + i * ib, slots[i].joint, ib);
+        PutUint(rec + r.weights + i * wb, slots[i].weight, wb);
+      }
+      if (variant.normals) PutVector(rec + r.normal, mesh.normals[v], variant.position, 0.0f);
+    }
+    launch.inputs.push_back(std::move(records));
+    return launch;
+  }
+
+  const bool split = variant.layout == Layout::kSoaSplit;
+  const std::size_t stride = split ? SoaSplitSlotStride(count, variant) : 0;
+  launch.slot_stride = static_cast<std::uint32_t>(stride);
+  const std::size_t elements = split ? kk * stride : kk * n;
+  PackedBuffer positions{"positions", std::vector<std::uint8_t>(n * pb, 0)};
+  PackedBuffer indices{"indices", std::vector<std::uint8_t>(RoundUp(elements * ib, 4), 0)};
+  PackedBuffer weights{"weights", std::vector<std::uint8_t>(RoundUp(elements * wb, 4), 0)};
+  PackedBuffer normals{"normals", std::vector<std::uint8_t>(variant.normals ? n * pb : 0, 0)};
+  for (std::size_t p = 0; p < n; ++p) {
+    const std::uint32_t v = order[first + p];
+    PutVector(positions.bytes.data() + p * pb, mesh.positions[v], variant.position, 1.0f);
+    if (variant.normals) PutVector(normals.bytes.data() + p * pb, mesh.normals[v], variant.position, 0.0f);
+    GatherSlots(mesh, words, variant.mixed, v, k, slots);
+    for (std::size_t i = 0; i < kk; ++i) {
+      const std::size_t e = split ? i * stride + p : p * kk + i;
+      PutUint(indices.bytes.data() + e * ib, slots[i].joint, ib);
+      PutUint(weights.bytes.data() + e * wb, slots[i].weight, wb);
+    }
+  }
+  launch.inputs.push_back(std::move(positions));
+  launch.inputs.push_back(std::move(indices));
+  launch.inputs.push_back(std::move(weights));
+  if (variant.normals) launch.inputs.push_back(std::move(normals));
+  return launch;
+}
+
+}  // namespace
+
+RecordLayout AosRecordLayout(const Variant& variant, int influences) {
+  const std::size_t b = static_cast<std::size_t>(std::max(influences, 0));
+  const std::size_t align = variant.position == PositionFormat::kFloat4 ? 16 : 4;
+  RecordLayout r;
+  r.position = 0;
+  r.indices = BytesOf(variant.position);
+  const std::size_t wb = BytesOf(variant.weight);
+  r.weights = RoundUp(r.indices + b * BytesOf(variant.index), wb);
+  std::size_t end = r.weights + b * wb;
+  if (variant.normals) {
+    r.normal = RoundUp(end, align);
+    end = r.normal + BytesOf(variant.position);
+  }
+  r.size = RoundUp(end, align);
+  return r;
+}
+
+std::uint32_t SoaSplitSlotStride(std::uint32_t count, const Variant& variant) {
+  const std::size_t narrowest = std::min(BytesOf(variant.index), BytesOf(variant.weight));
+  const std::size_t multiple = std::max<std::size_t>(64, 256 / narrowest);
+  return static_cast<std::uint32_t>(RoundUp(std::max<std::size_t>(count, 1), multiple));
+}
+
+PackedMesh Pack(const SkinnedMesh& mesh, const Variant& variant) {
+  CheckFit(mesh, variant);
+  const std::vector<std::uint32_t> words = WeightWords(mesh, variant.weight);
+  const auto n = static_cast<std::uint32_t>(mesh.vertex_count());
+
+  PackedMesh packed;
+  packed.variant = variant;
+  packed.vertex_count = n;
+  packed.output_stride_bytes = BytesOf(variant.position);
+  packed.palette_joints = static_cast<std::size_t>(mesh.joint_count);
+  packed.order.resize(n);
+  for (std::uint32_t v = 0; v < n; ++v) packed.order[v] = v;
+
+  if (variant.mixed == MixedCounts::kPadded) {
+    packed.launches.push_back(PackLaunch(mesh, variant, words, packed.order, 0, n, variant.influences));
+  } else {
+    std::vector<int> counts(n);
+    for (std::uint32_t v = 0; v < n; ++v) counts[v] = mesh.InfluencesOf(v);
+    std::stable_sort(packed.order.begin(), packed.order.end(),
+                     [&counts](std::uint32_t a, std::uint32_t b) { return counts[a] < counts[b]; });
+    for (std::uint32_t first = 0; first < n;) {
+      const int k = counts[packed.order[first]];
+      std::uint32_t end = first;
+      while (end < n && counts[packed.order[end]] == k) ++end;
+      packed.launches.push_back(PackLaunch(mesh, variant, words, packed.order, first, end - first, k));
+      first = end;
+    }
+  }
+  // The rest pose (identity for every joint): a palette of the right size to
+  // bind until the first PackPalette of a frame replaces it.
+  packed.palette = PackPalette(std::vector<glm::mat4>(packed.palette_joints, glm::mat4(1.0f)), variant);
+  return packed;
+}
+
+std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const Variant& variant) {
+  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
+  std::vector<std::uint8_t> bytes(palette.size() * rows * 16);
+  std::uint8_t* at = bytes.data();
+  for (const glm::mat4& m : palette) {
+    for (std::size_t r = 0; r < rows; ++r) {
+      for (int c = 0; c < 4; ++c, at += 4) PutFloat(at, m[c][static_cast<int>(r)]);
+    }
+  }
+  return bytes;
+}
+
+std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uint8_t> output) {
+  const std::size_t stride = packed.output_stride_bytes;
+  const std::size_t expected = packed.vertex_count * stride;
+  if (output.size() != expected || packed.order.size() != packed.vertex_count) {
+    std::ostringstream s;
+    s << "unpack " << packed.variant.Key() << ": output has " << output.size() << " bytes, expected "
+      << packed.vertex_count << " vertices x " << stride << " bytes = " << expected;
+    throw Error(s.str());
+  }
+  std::vector<glm::vec3> out(packed.vertex_count);
+  for (std::size_t p = 0; p < packed.vertex_count; ++p) {
+    const std::uint8_t* at = output.data() + p * stride;
+    out[packed.order[p]] = glm::vec3(GetFloat(at), GetFloat(at + 4), GetFloat(at + 8));
+  }
+  return out;
+}
+
+SkinnedMesh QuantisedMesh(const SkinnedMesh& mesh, const Variant& variant) {
+  ThrowIfInvalid(mesh, "quantise " + variant.Key());
+  SkinnedMesh out = mesh;
+  if (variant.weight == WeightFormat::kF32) return out;
+  const std::vector<std::uint32_t> words = WeightWords(mesh, variant.weight);
+  const auto max = static_cast<float>(UnormMax(variant.weight));
+  for (std::size_t s = 0; s < words.size(); ++s) out.weights[s] = static_cast<float>(words[s]) / max;
+  return out;
+}
+
+}  // namespace skintune

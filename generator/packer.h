@@ -1,0 +1,92 @@
+// skintune: the packer turns a SkinnedMesh into exactly the buffers a variant
+// reads (docs/VARIANTS.md, "Kernel interface"), and the kernel's outputs back
+// into the mesh's vertex order.
+//
+// - Formats: positions/normals float4 (w = 1 / 0) or float3; indices i32/u16/u8;
+//   weights f32, or unorm16/unorm8 quantised with round-to-nearest and then
+//   renormalised so that each vertex's quantised weights sum to exactly
+//   65535 / 255 (the largest rounding residues absorb the difference).
+// - Mixed counts: `padded` keeps every vertex with B slots (zero weights,
+//   index 0, in unused slots); `bucketed` orders vertices by their non-zero
+//   influence count (stable, so vertex order is kept inside a bucket) and
+//   packs each bucket with its own count k as B; one launch per bucket.
+// - Every buffer is a byte vector whose size is a multiple of 4 (32-bit words).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "generator/variant.h"
+#include "reference/mesh.h"
+
+namespace skintune {
+
+struct PackedBuffer {
+  std::string name;                // "positions", "indices", "weights", "normals", "records"
+  std::vector<std::uint8_t> bytes;
+};
+
+// One launch: `count` vertices starting at `first` in the packed order, with a
+// kernel specialised for `influences` (== variant.influences unless bucketed).
+struct Launch {
+  std::uint32_t first = 0;
+  std::uint32_t count = 0;
+  int influences = 0;
+  std::uint32_t slot_stride = 0;   // S for soa-split (docs/VARIANTS.md: slot arrays 256-byte aligned), else 0
+  std::vector<PackedBuffer> inputs;  // in argument order (docs/VARIANTS.md)
+};
+
+struct PackedMesh {
+  Variant variant;
+  std::size_t vertex_count = 0;
+  std::vector<Launch> launches;         // one for padded, one per non-empty bucket for bucketed
+  std::vector<std::uint32_t> order;     // packed position p holds mesh vertex order[p]
+  std::vector<std::uint8_t> palette;    // float4 rows, R = 4 (mat4) or 3 (mat3x4) per joint
+  std::size_t palette_joints = 0;
+  std::size_t output_stride_bytes = 0;  // bytes per output vertex (16 for float4, 12 for float3)
+};
+
+// Byte offsets of the fields of one `aos` record: the position at 0, the
+// `influences` indices, the weights, then the normal (variant.normals), each
+// field at its natural alignment (weights: their element size; a float4 normal:
+// 16 bytes; a float3 normal: 4), as in the equivalent C struct; the record size
+// is rounded up to 16 bytes (float4) or 4 bytes (float3).
+// E.g. float4 + b4 u16 + unorm8 = 16 + 8 + 4 -> 32; float3 + b1 u8 + unorm8 ->
+// 12 + 1 + 1 -> 16; float3 + b3 u8 + f32 -> 12 + 3 (+1) + 12 -> 28.
+struct RecordLayout {
+  std::size_t position = 0;  // always 0
+  std::size_t indices = 0;
+  std::size_t weights = 0;
+  std::size_t normal = 0;    // 0 when the variant has no normals
+  std::size_t size = 0;      // bytes per record (the record stride)
+};
+RecordLayout AosRecordLayout(const Variant& variant, int influences);
+
+// Slot stride S of `soa-split` for a launch of `count` vertices: `count`
+// rounded up so that every slot array of both the index and the weight format
+// starts on a 256-byte boundary and S is a multiple of 64: a multiple of 64
+// when both formats are 4 bytes, of 128 when the narrower is 2 bytes, of 256
+// when it is 1 byte. Kernels compute the same S from n.
+std::uint32_t SoaSplitSlotStride(std::uint32_t count, const Variant& variant);
+
+// Throws Error when the variant cannot hold the mesh (influences below the
+// mesh's largest count, joints beyond the index format, normals missing).
+PackedMesh Pack(const SkinnedMesh& mesh, const Variant& variant);
+
+// Palette rows in the variant's palette format (call per frame).
+std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const Variant& variant);
+
+// Output bytes in packed order (vertex_count x output_stride_bytes) -> one
+// glm::vec3 per mesh vertex, in the mesh's order.
+std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uint8_t> output);
+
+// The mesh the kernel really skins: weights after quantisation, as floats, in
+// the mesh's vertex order (so the gold can be computed on exactly these values).
+SkinnedMesh QuantisedMesh(const SkinnedMesh& mesh, const Variant& variant);
+
+}  // namespace skintune

@@ -1,0 +1,305 @@
+#include "runtime/opencl_runner.h"
+
+#define CL_TARGET_OPENCL_VERSION 120
+#include <CL/cl.h>
+
+#include <algorithm>
+#include <cstring>
+#include <map>
+#include <sstream>
+
+#include "reference/error.h"
+
+namespace skintune {
+
+namespace {
+
+// Owns one OpenCL object; released with its clRelease* function.
+template <typename T, cl_int (*Release)(T)>
+class Handle {
+ public:
+  Handle() = default;
+  explicit Handle(T value) : value_(value) {}
+  ~Handle() { reset(); }
+  Handle(Handle&& other) noexcept : value_(other.value_) { other.value_ = nullptr; }
+  Handle& operator=(Handle&& other) noexcept {
+    if (this != &other) {
+      reset();
+      value_ = other.value_;
+      other.value_ = nullptr;
+    }
+    return *this;
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  T get() const { return value_; }
+  void reset() {
+    if (value_) Release(value_);
+    value_ = nullptr;
+  }
+
+ private:
+  T value_ = nullptr;
+};
+
+using Context = Handle<cl_context, clReleaseContext>;
+using Queue = Handle<cl_command_queue, clReleaseCommandQueue>;
+using Program = Handle<cl_program, clReleaseProgram>;
+using Kernel = Handle<cl_kernel, clReleaseKernel>;
+using Memory = Handle<cl_mem, clReleaseMemObject>;
+using Event = Handle<cl_event, clReleaseEvent>;
+
+[[noreturn]] void Fail(const std::string& stage, const std::string& message) {
+  throw Error("OpenCL " + stage + ": " + message);
+}
+
+void Check(cl_int err, const std::string& stage, const std::string& what) {
+  if (err != CL_SUCCESS) Fail(stage, what + " failed with error " + std::to_string(err));
+}
+
+std::string FirstLines(const std::string& text, int lines) {
+  std::istringstream in(text);
+  std::string line, out;
+  int count = 0, total = 0;
+  while (std::getline(in, line)) {
+    if (count < lines) {
+      out += "\n  " + line;
+      ++count;
+    }
+    ++total;
+  }
+  if (total > count) out += "\n  ... (" + std::to_string(total - count) + " more lines)";
+  return out;
+}
+
+struct BuiltKernel {
+  Program program;
+  Kernel kernel;
+};
+
+}  // namespace
+
+struct OpenClRunner::Impl {
+  cl_platform_id platform = nullptr;
+  cl_device_id device = nullptr;
+  std::string name;
+  Context context;
+  Queue queue;
+  std::map<std::string, BuiltKernel> built;  // by source hash
+
+  cl_kernel KernelFor(const KernelSource& source);
+  Memory Buffer(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what);
+};
+
+OpenClRunner::OpenClRunner(int platform_index, int device_index) : impl_(std::make_unique<Impl>()) {
+  cl_uint platform_count = 0;
+  if (clGetPlatformIDs(0, nullptr, &platform_count) != CL_SUCCESS || platform_index < 0 ||
+      static_cast<cl_uint>(platform_index) >= platform_count) {
+    Fail("setup", "no platform " + std::to_string(platform_index) + " (" + std::to_string(platform_count) +
+                      " platforms)");
+  }
+  std::vector<cl_platform_id> platforms(platform_count);
+  clGetPlatformIDs(platform_count, platforms.data(), nullptr);
+  impl_->platform = platforms[static_cast<std::size_t>(platform_index)];
+  cl_uint device_count = 0;
+  if (clGetDeviceIDs(impl_->platform, CL_DEVICE_TYPE_ALL, 0, nullptr, &device_count) != CL_SUCCESS ||
+      device_index < 0 || static_cast<cl_uint>(device_index) >= device_count) {
+    Fail("setup", "platform " + std::to_string(platform_index) + " has no device " + std::to_string(device_index) +
+                      " (" + std::to_string(device_count) + " devices)");
+  }
+  std::vector<cl_device_id> devices(device_count);
+  clGetDeviceIDs(impl_->platform, CL_DEVICE_TYPE_ALL, device_count, devices.data(), nullptr);
+  impl_->device = devices[static_cast<std::size_t>(device_index)];
+
+  std::size_t size = 0;
+  clGetDeviceInfo(impl_->device, CL_DEVICE_NAME, 0, nullptr, &size);
+  impl_->name.assign(size, '\0');
+  clGetDeviceInfo(impl_->device, CL_DEVICE_NAME, size, impl_->name.data(), nullptr);
+  impl_->name.resize(std::strlen(impl_->name.c_str()));
+
+  cl_int err = CL_SUCCESS;
+  const cl_context_properties properties[] = {CL_CONTEXT_PLATFORM,
+                                              reinterpret_cast<cl_context_properties>(impl_->platform), 0};
+  impl_->context = Context(clCreateContext(properties, 1, &impl_->device, nullptr, nullptr, &err));
+  Check(err, "setup", "clCreateContext on " + impl_->name);
+  impl_->queue = Queue(clCreateCommandQueue(impl_->context.get(), impl_->device, CL_QUEUE_PROFILING_ENABLE, &err));
+  Check(err, "setup", "clCreateCommandQueue on " + impl_->name);
+}
+
+OpenClRunner::~OpenClRunner() = default;
+
+const std::string& OpenClRunner::device_name() const { return impl_->name; }
+
+cl_kernel OpenClRunner::Impl::KernelFor(const KernelSource& source) {
+  if (source.lang != Lang::kOpenCl) Fail("build", std::string("kernel language is ") + Name(source.lang));
+  const std::string key = source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;
+  if (auto found = built.find(key); found != built.end()) return found->second.kernel.get();
+
+  cl_int err = CL_SUCCESS;
+  const char* text = source.text.c_str();
+  const std::size_t length = source.text.size();
+  BuiltKernel b;
+  b.program = Program(clCreateProgramWithSource(context.get(), 1, &text, &length, &err));
+  Check(err, "build", "clCreateProgramWithSource");
+  err = clBuildProgram(b.program.get(), 1, &device, "-cl-std=CL1.2", nullptr, nullptr);
+  if (err != CL_SUCCESS) {
+    std::size_t log_size = 0;
+    clGetProgramBuildInfo(b.program.get(), device, CL_PROGRAM_BUILD_LOG, 0, nullptr, &log_size);
+    std::string log(log_size, '\0');
+    clGetProgramBuildInfo(b.program.get(), device, CL_PROGRAM_BUILD_LOG, log_size, log.data(), nullptr);
+    log.resize(std::strlen(log.c_str()));
+    Fail("build", "kernel " + key + " (" + source.text.substr(0, source.text.find('\n')) +
+                      ") failed with error " + std::to_string(err) + " on " + name + "; build log:" +
+                      FirstLines(log, 20));
+  }
+  b.kernel = Kernel(clCreateKernel(b.program.get(), source.entry_point.c_str(), &err));
+  Check(err, "build", "clCreateKernel '" + source.entry_point + "' of kernel " + key);
+  return built.emplace(key, std::move(b)).first->second.kernel.get();
+}
+
+Memory OpenClRunner::Impl::Buffer(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what) {
+  cl_int err = CL_SUCCESS;
+  if (bytes == 0) Fail("launch", "buffer '" + what + "' is empty");
+  Memory m(clCreateBuffer(context.get(), flags | (data ? CL_MEM_COPY_HOST_PTR : 0), bytes, const_cast<void*>(data),
+                          &err));
+  Check(err, "launch", "clCreateBuffer '" + what + "' (" + std::to_string(bytes) + " bytes)");
+  return m;
+}
+
+void OpenClRunner::Build(const KernelSource& source) { impl_->KernelFor(source); }
+
+OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette) {
+  std::vector<KernelSource> kernels;
+  for (const Launch& launch : mesh.launches)
+    kernels.push_back(Emit(mesh.variant, launch.influences, static_cast<int>(mesh.palette_joints)));
+  return Run(mesh, kernels, palette);
+}
+
+OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                  std::span<const std::uint8_t> palette) {
+  Impl& im = *impl_;
+  const Variant& variant = mesh.variant;
+  if (kernels.size() != mesh.launches.size())
+    Fail("launch", std::to_string(kernels.size()) + " kernels for " + std::to_string(mesh.launches.size()) +
+                       " launches of " + variant.Key());
+  if (palette.empty()) palette = mesh.palette;
+  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
+  if (palette.size() != mesh.palette_joints * rows * 16)
+    Fail("launch", "palette has " + std::to_string(palette.size()) + " bytes, expected " +
+                       std::to_string(mesh.palette_joints) + " joints x " + std::to_string(rows) + " rows x 16");
+
+  // Palette (and its image view for `image` storage).
+  Memory palette_buffer = im.Buffer(CL_MEM_READ_ONLY, palette.size(), palette.data(), "palette");
+  Memory palette_image;
+  if (variant.storage == PaletteStorage::kImage) {
+    cl_image_format format{CL_RGBA, CL_FLOAT};
+    cl_image_desc desc{};
+    desc.image_type = CL_MEM_OBJECT_IMAGE1D_BUFFER;
+    desc.image_width = palette.size() / 16;
+    desc.buffer = palette_buffer.get();
+    cl_int err = CL_SUCCESS;
+    palette_image = Memory(clCreateImage(im.context.get(), CL_MEM_READ_ONLY, &format, &desc, nullptr, &err));
+    Check(err, "launch", "clCreateImage (image1d_buffer of " + std::to_string(desc.image_width) + " texels)");
+  }
+
+  // Outputs: poisoned, each followed by its guard.
+  const std::size_t out_bytes = mesh.vertex_count * mesh.output_stride_bytes;
+  std::vector<std::uint32_t> fill((out_bytes + kGuardBytes) / 4, kPoisonWord);
+  std::fill(fill.begin() + static_cast<std::ptrdiff_t>(out_bytes / 4), fill.end(), kGuardWord);
+  Memory out_positions = im.Buffer(CL_MEM_READ_WRITE, out_bytes + kGuardBytes, fill.data(), "out_positions");
+  Memory out_normals;
+  if (variant.normals)
+    out_normals = im.Buffer(CL_MEM_READ_WRITE, out_bytes + kGuardBytes, fill.data(), "out_normals");
+
+  std::vector<Memory> inputs;  // kept alive until the queue is finished
+  std::vector<Event> events;
+  for (std::size_t l = 0; l < mesh.launches.size(); ++l) {
+    const Launch& launch = mesh.launches[l];
+    const KernelSource& source = kernels[l];
+    if (launch.count == 0) continue;
+    const cl_kernel kernel = im.KernelFor(source);
+    const std::string where = "launch " + std::to_string(l) + " of " + variant.Key();
+    for (std::size_t a = 0; a < source.arguments.size(); ++a) {
+      const KernelArgument& arg = source.arguments[a];
+      const auto index = static_cast<cl_uint>(a);
+      cl_int err = CL_SUCCESS;
+      cl_mem mem = nullptr;
+      if (arg.name == "n") {
+        err = clSetKernelArg(kernel, index, sizeof(cl_uint), &launch.count);
+      } else if (arg.name == "first") {
+        err = clSetKernelArg(kernel, index, sizeof(cl_uint), &launch.first);
+      } else {
+        if (arg.name == "palette") {
+          mem = palette_image.get() ? palette_image.get() : palette_buffer.get();
+        } else if (arg.name == "out_positions") {
+          mem = out_positions.get();
+        } else if (arg.name == "out_normals") {
+          mem = out_normals.get();
+        } else {
+          auto input = std::find_if(launch.inputs.begin(), launch.inputs.end(),
+                                    [&](const PackedBuffer& b) { return b.name == arg.name; });
+          if (input == launch.inputs.end()) Fail("launch", where + ": no packed buffer for argument '" + arg.name + "'");
+          inputs.push_back(im.Buffer(CL_MEM_READ_ONLY, input->bytes.size(), input->bytes.data(), arg.name));
+          mem = inputs.back().get();
+        }
+        if (!mem) Fail("launch", where + ": nothing to bind to argument '" + arg.name + "'");
+        err = clSetKernelArg(kernel, index, sizeof(cl_mem), &mem);
+      }
+      Check(err, "launch", where + ": clSetKernelArg " + std::to_string(a) + " '" + arg.name + "'");
+    }
+    const std::size_t global = source.launch.GlobalItems(launch.count);
+    const auto local = static_cast<std::size_t>(source.launch.wg_size);
+    cl_event event = nullptr;
+    Check(clEnqueueNDRangeKernel(im.queue.get(), kernel, 1, nullptr, &global, &local, 0, nullptr, &event), "launch",
+          where + ": clEnqueueNDRangeKernel (" + std::to_string(global) + " items, groups of " +
+              std::to_string(local) + ")");
+    events.emplace_back(event);
+  }
+  Check(clFinish(im.queue.get()), "launch", "clFinish after " + variant.Key());
+
+  OpenClRunResult result;
+  for (const Event& e : events) {
+    cl_ulong start = 0, end = 0;
+    clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr);
+    clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr);
+    result.launch_ms.push_back(static_cast<double>(end - start) * 1e-6);
+  }
+
+  // Read back, check the guards, count vertices never written.
+  auto read_back = [&](const Memory& buffer, const char* what, std::vector<std::uint8_t>& out) {
+    std::vector<std::uint8_t> bytes(out_bytes + kGuardBytes);
+    Check(clEnqueueReadBuffer(im.queue.get(), buffer.get(), CL_TRUE, 0, bytes.size(), bytes.data(), 0, nullptr, nullptr),
+          "launch", std::string("clEnqueueReadBuffer '") + what + "'");
+    std::size_t first_bad = kGuardBytes, bad = 0;
+    for (std::size_t w = 0; w < kGuardBytes / 4; ++w) {
+      std::uint32_t word = 0;
+      std::memcpy(&word, bytes.data() + out_bytes + w * 4, 4);
+      if (word != kGuardWord) {
+        first_bad = std::min(first_bad, w * 4);
+        ++bad;
+      }
+    }
+    if (bad > 0)
+      Fail("guard", variant.Key() + ": " + what + ": the kernel wrote past the end of its " +
+                        std::to_string(out_bytes) + "-byte output (" + std::to_string(bad) +
+                        " guard words changed, the first at +" + std::to_string(first_bad) + " bytes)");
+    bytes.resize(out_bytes);
+    const std::size_t stride = mesh.output_stride_bytes;
+    for (std::size_t v = 0; v < mesh.vertex_count; ++v) {
+      for (std::size_t w = 0; w < stride / 4; ++w) {
+        std::uint32_t word = 0;
+        std::memcpy(&word, bytes.data() + v * stride + w * 4, 4);
+        if (word == kPoisonWord) {
+          ++result.poisoned_vertices;
+          break;
+        }
+      }
+    }
+    out = std::move(bytes);
+  };
+  read_back(out_positions, "out_positions", result.positions);
+  if (variant.normals) read_back(out_normals, "out_normals", result.normals);
+  return result;
+}
+
+}  // namespace skintune

@@ -1,0 +1,389 @@
+// skintune: linear blend skinning, every OpenCL variant in one kernel file.
+//
+//   v' = sum_i w_i * M[d_i] * (v, 1)                    (positions)
+//   n' = normalize(upper3x3(sum_i w_i * M[d_i]) * n)     (normals)
+//
+// The generator (generator/emit.cpp) prepends one #define per parameter below;
+// every parameter has a default (the default Variant: b4 soa float4 u16 f32
+// mat3x4 global matrix v1c wg128 nonormals), so this file compiles alone, e.g.
+//   clang -x cl -cl-std=CL1.2 -Xclang -finclude-default-header -fsyntax-only templates/skin.cl
+// docs/VARIANTS.md is the interface this kernel implements: buffers per
+// layout, formats, argument order and launch geometry.
+//
+// Kernel `skin(uint n, uint first, <inputs>, palette, <outputs>)`:
+//   aos:            records
+//   soa, soa-split: positions, indices, weights[, normals]
+//   outputs:        out_positions[, out_normals], written at first + v.
+// Inputs belong to the launch (vertex v of the launch is element v); item g
+// handles vertices g*N .. g*N+N-1 (contiguous) or g, g+G, .., g+(N-1)G with G
+// the number of items (strided). Items past n do nothing but still take part
+// in the work-group's palette copy (STORAGE local).
+
+// ---------------------------------------------------------------- parameters
+
+#ifndef INFLUENCES            // B: bone slots per vertex, 1..8
+#define INFLUENCES 4
+#endif
+#ifndef LAYOUT                // 0 aos, 1 soa, 2 soa-split
+#define LAYOUT 1
+#endif
+#ifndef POSITION_FLOAT4       // 1: float4 positions/normals/outputs; 0: packed float3
+#define POSITION_FLOAT4 1
+#endif
+#ifndef INDEX_FORMAT          // 0 i32, 1 u16, 2 u8
+#define INDEX_FORMAT 1
+#endif
+#ifndef WEIGHT_FORMAT         // 0 f32, 1 unorm16, 2 unorm8
+#define WEIGHT_FORMAT 0
+#endif
+#ifndef PALETTE_ROWS          // float4 rows per joint: 4 mat4, 3 mat3x4
+#define PALETTE_ROWS 3
+#endif
+#ifndef STORAGE               // palette in 0 __constant, 1 __local copy, 2 __global, 3 image1d_buffer_t
+#define STORAGE 2
+#endif
+#ifndef JOINTS                // palette entries (sizes the __local copy)
+#define JOINTS 77
+#endif
+#ifndef BLEND_POINT           // 0: blend matrices then transform; 1: transform per bone, blend points
+#define BLEND_POINT 0
+#endif
+#ifndef VERTICES_PER_ITEM     // N: 1, 2, 4, 8
+#define VERTICES_PER_ITEM 1
+#endif
+#ifndef STRIDED               // 0: contiguous vertices per item; 1: strided by the item count
+#define STRIDED 0
+#endif
+#ifndef WG_SIZE               // work-group size (reqd_work_group_size)
+#define WG_SIZE 128
+#endif
+#ifndef NORMALS               // 1: also skin normals
+#define NORMALS 0
+#endif
+
+#if INDEX_FORMAT == 0
+#define INDEX_BYTES 4
+#define INDEX_T int
+#elif INDEX_FORMAT == 1
+#define INDEX_BYTES 2
+#define INDEX_T ushort
+#else
+#define INDEX_BYTES 1
+#define INDEX_T uchar
+#endif
+
+#if WEIGHT_FORMAT == 0
+#define WEIGHT_BYTES 4
+#define WEIGHT_T float
+#elif WEIGHT_FORMAT == 1
+#define WEIGHT_BYTES 2
+#define WEIGHT_T ushort
+#else
+#define WEIGHT_BYTES 1
+#define WEIGHT_T uchar
+#endif
+
+#if POSITION_FLOAT4
+#define POSITION_BYTES 16
+#define POSITION_T float4
+#else
+#define POSITION_BYTES 12
+#define POSITION_T float
+#endif
+
+// soa-split: slot i of vertex v at element i*S + v, S = n rounded up to this
+// multiple (every slot array of both formats starts on a 256-byte boundary).
+#ifndef SLOT_STRIDE_MULTIPLE
+#define NARROWEST_BYTES (INDEX_BYTES < WEIGHT_BYTES ? INDEX_BYTES : WEIGHT_BYTES)
+#define SLOT_STRIDE_MULTIPLE (256 / NARROWEST_BYTES > 64 ? 256 / NARROWEST_BYTES : 64)
+#endif
+
+// aos record: byte offsets of its fields and its size, as the packer lays them
+// out (generator/packer.h AosRecordLayout: natural alignment, size rounded up
+// to 16 bytes for float4 and 4 for float3). The defaults follow that rule.
+#define ROUND_UP(x, m) (((x) + (m) - 1) / (m) * (m))
+#define RECORD_ALIGN (POSITION_FLOAT4 ? 16 : 4)
+#ifndef AOS_POSITION_OFFSET
+#define AOS_POSITION_OFFSET 0
+#endif
+#ifndef AOS_INDICES_OFFSET
+#define AOS_INDICES_OFFSET POSITION_BYTES
+#endif
+#ifndef AOS_WEIGHTS_OFFSET
+#define AOS_WEIGHTS_OFFSET ROUND_UP(AOS_INDICES_OFFSET + INFLUENCES * INDEX_BYTES, WEIGHT_BYTES)
+#endif
+#ifndef AOS_NORMAL_OFFSET
+#define AOS_NORMAL_OFFSET ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN)
+#endif
+#ifndef AOS_RECORD_WORDS
+#if NORMALS
+#define AOS_RECORD_WORDS (ROUND_UP(AOS_NORMAL_OFFSET + POSITION_BYTES, RECORD_ALIGN) / 4)
+#else
+#define AOS_RECORD_WORDS (ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN) / 4)
+#endif
+#endif
+#define AOS_RECORD_BYTES (AOS_RECORD_WORDS * 4)
+
+#if INFLUENCES < 1 || INFLUENCES > 8
+#error "INFLUENCES must be 1..8"
+#endif
+#if VERTICES_PER_ITEM != 1 && VERTICES_PER_ITEM != 2 && VERTICES_PER_ITEM != 4 && VERTICES_PER_ITEM != 8
+#error "VERTICES_PER_ITEM must be 1, 2, 4 or 8"
+#endif
+
+// ---------------------------------------------------------------- loads
+//
+// Alignment (in bytes, up to 16) that every address p0 + k*stride has, for
+// buffers whose base is at least 16-byte aligned: the lowest set bit of
+// (stride | offset). All arguments are compile-time constants, so after
+// inlining the compiler keeps exactly one branch of each loader.
+#define LOWEST_BIT(x) ((x) & (~(x) + 1u))
+#define ALIGNMENT(stride_or_offset) \
+  (LOWEST_BIT((uint)(stride_or_offset) | 16u))
+
+// xyz of a float4 or float3 at p (w, when stored, is not read: positions are
+// transformed as (x, y, z, 1) and normals as directions).
+static inline float3 load_xyz(const __global uchar* p, const uint align) {
+#if POSITION_FLOAT4
+  if (align >= 16) return (*(const __global float4*)p).xyz;
+#endif
+  if (align >= 4) return vload3(0, (const __global float*)p);
+  return (float3)(as_float(vload4(0, p)), as_float(vload4(1, p)), as_float(vload4(2, p)));
+}
+
+#if LAYOUT != 2
+// The INFLUENCES little-endian unsigned values of `bytes` bytes each that
+// start at p, zero-extended to 32 bits. A run that starts on a 32-bit word is
+// read as whole words (uint4 / uint2 / uint loads), then split, when it ends
+// on a word too or when `in_record`: an aos record starts on a word and its
+// size is a multiple of 4, so the word holding the run's last byte is inside
+// the record.
+static inline void load_run(const __global uchar* p, const uint bytes, const uint align, const bool in_record,
+                            uint out[INFLUENCES]) {
+  const uint run = INFLUENCES * bytes;
+  if (align >= 4 && (run % 4 == 0 || in_record)) {
+    uint words[INFLUENCES];  // ceil(run / 4) <= INFLUENCES words
+    const uint count = (run + 3) / 4;
+    if (align >= 16 && count % 4 == 0) {
+#pragma unroll
+      for (uint k = 0; k < count; k += 4) {
+        const uint4 w = ((const __global uint4*)p)[k / 4];
+        words[k] = w.x, words[k + 1] = w.y, words[k + 2] = w.z, words[k + 3] = w.w;
+      }
+    } else if (align >= 8 && count % 2 == 0) {
+#pragma unroll
+      for (uint k = 0; k < count; k += 2) {
+        const uint2 w = ((const __global uint2*)p)[k / 2];
+        words[k] = w.x, words[k + 1] = w.y;
+      }
+    } else {
+#pragma unroll
+      for (uint k = 0; k < count; ++k) words[k] = ((const __global uint*)p)[k];
+    }
+    const uint mask = bytes == 4 ? 0xffffffffu : (1u << (8u * bytes)) - 1u;
+#pragma unroll
+    for (uint i = 0; i < INFLUENCES; ++i) out[i] = (words[i * bytes / 4] >> (8u * (i * bytes % 4))) & mask;
+  } else if (bytes == 1) {
+#pragma unroll
+    for (uint i = 0; i < INFLUENCES; ++i) out[i] = p[i];
+  } else if (bytes == 2 && align >= 2) {
+#pragma unroll
+    for (uint i = 0; i < INFLUENCES; ++i) out[i] = ((const __global ushort*)p)[i];
+  } else if (bytes == 4 && align >= 4) {
+#pragma unroll
+    for (uint i = 0; i < INFLUENCES; ++i) out[i] = ((const __global uint*)p)[i];
+  } else {
+#pragma unroll
+    for (uint i = 0; i < INFLUENCES; ++i) {
+      uint value = 0;
+      for (uint b = 0; b < bytes; ++b) value |= (uint)p[i * bytes + b] << (8u * b);
+      out[i] = value;
+    }
+  }
+}
+#endif
+
+#if LAYOUT == 2
+// One element of `bytes` bytes at p (naturally aligned: soa-split slots).
+static inline uint load_element(const __global uchar* p, const uint bytes) {
+  if (bytes == 1) return *p;
+  if (bytes == 2) return *(const __global ushort*)p;
+  return *(const __global uint*)p;
+}
+#endif
+
+static inline float weight_of(const uint raw) {
+#if WEIGHT_FORMAT == 0
+  return as_float(raw);
+#elif WEIGHT_FORMAT == 1
+  return (float)raw * (1.0f / 65535.0f);
+#else
+  return (float)raw * (1.0f / 255.0f);
+#endif
+}
+
+// ---------------------------------------------------------------- palette
+//
+// Joint j's row r is float4 number j*PALETTE_ROWS + r. Row 3 of mat4 (0 0 0 1
+// for the affine palettes skinning uses) is never read: outputs are xyz.
+
+#define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
+
+#if STORAGE == 0
+#define PALETTE_PARAM __constant float4* restrict palette
+#define PALETTE_REF_PARAM __constant float4* pal
+#define ROW(pal, k) (pal)[k]
+#elif STORAGE == 1
+#define PALETTE_PARAM const __global float4* restrict palette
+#define PALETTE_REF_PARAM __local const float4* pal
+#define ROW(pal, k) (pal)[k]
+#elif STORAGE == 2
+#define PALETTE_PARAM const __global float4* restrict palette
+#define PALETTE_REF_PARAM const __global float4* pal
+#define ROW(pal, k) (pal)[k]
+#else
+#define PALETTE_PARAM __read_only image1d_buffer_t palette
+#define PALETTE_REF_PARAM __read_only image1d_buffer_t pal
+#define ROW(pal, k) read_imagef(pal, (int)(k))
+#endif
+
+// (x, y, z, 1) by the three rows.
+static inline float3 transform_point(const float4 r0, const float4 r1, const float4 r2, const float3 p) {
+  const float4 h = (float4)(p, 1.0f);
+  return (float3)(dot(r0, h), dot(r1, h), dot(r2, h));
+}
+
+static inline float3 transform_direction(const float4 r0, const float4 r1, const float4 r2, const float3 d) {
+  return (float3)(dot(r0.xyz, d), dot(r1.xyz, d), dot(r2.xyz, d));
+}
+
+// Skins one vertex given its joints and weights; writes position (and normal).
+static inline void blend(PALETTE_REF_PARAM, const uint joint[INFLUENCES], const float weight[INFLUENCES],
+                         const float3 position, const float3 normal, float3* out_position, float3* out_normal) {
+#if BLEND_POINT
+  uint k = joint[0] * PALETTE_ROWS;
+  float4 r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
+  float3 p = weight[0] * transform_point(r0, r1, r2, position);
+  float3 nrm = weight[0] * transform_direction(r0, r1, r2, normal);  // dead code without NORMALS
+#pragma unroll
+  for (uint i = 1; i < INFLUENCES; ++i) {
+    k = joint[i] * PALETTE_ROWS;
+    r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
+    p += weight[i] * transform_point(r0, r1, r2, position);
+    nrm += weight[i] * transform_direction(r0, r1, r2, normal);
+  }
+  *out_position = p;
+  *out_normal = nrm;
+#else
+  const uint k0 = joint[0] * PALETTE_ROWS;
+  float4 m0 = weight[0] * ROW(pal, k0), m1 = weight[0] * ROW(pal, k0 + 1), m2 = weight[0] * ROW(pal, k0 + 2);
+#pragma unroll
+  for (uint i = 1; i < INFLUENCES; ++i) {
+    const uint k = joint[i] * PALETTE_ROWS;
+    m0 += weight[i] * ROW(pal, k);
+    m1 += weight[i] * ROW(pal, k + 1);
+    m2 += weight[i] * ROW(pal, k + 2);
+  }
+  *out_position = transform_point(m0, m1, m2, position);
+  *out_normal = transform_direction(m0, m1, m2, normal);  // dead code without NORMALS
+#endif
+}
+
+// Outputs: float4 with w = 1 (positions) / 0 (normals), or packed float3.
+#if POSITION_FLOAT4
+#define STORE_XYZ(out, at, value, w) ((out)[at] = (float4)((value), (w)))
+#else
+#define STORE_XYZ(out, at, value, w) vstore3((value), (at), (out))
+#endif
+
+// ---------------------------------------------------------------- kernel
+
+__kernel __attribute__((reqd_work_group_size(WG_SIZE, 1, 1)))
+void skin(const uint n, const uint first,
+#if LAYOUT == 0
+          const __global uint* restrict records,
+#else
+          const __global POSITION_T* restrict positions,
+          const __global INDEX_T* restrict indices,
+          const __global WEIGHT_T* restrict weights,
+#if NORMALS
+          const __global POSITION_T* restrict normals,
+#endif
+#endif
+          PALETTE_PARAM,
+#if NORMALS
+          __global POSITION_T* restrict out_positions,
+          __global POSITION_T* restrict out_normals) {
+#else
+          __global POSITION_T* restrict out_positions) {
+#endif
+#if STORAGE == 1
+  // Every item of the group copies, including those past n: no return before the barrier.
+  __local float4 palette_local[PALETTE_FLOAT4S];
+  for (uint k = get_local_id(0); k < PALETTE_FLOAT4S; k += WG_SIZE) palette_local[k] = palette[k];
+  barrier(CLK_LOCAL_MEM_FENCE);
+#define PAL palette_local
+#else
+#define PAL palette
+#endif
+
+#if LAYOUT == 2
+  const uint slot_stride = ROUND_UP(max(n, 1u), (uint)SLOT_STRIDE_MULTIPLE);
+#endif
+  const uint item = get_global_id(0);
+#if STRIDED
+  const uint items = get_global_size(0);
+#endif
+
+#pragma unroll
+  for (uint k = 0; k < VERTICES_PER_ITEM; ++k) {
+#if STRIDED
+    const uint v = item + k * items;
+#else
+    const uint v = item * VERTICES_PER_ITEM + k;
+#endif
+    if (v >= n) break;
+
+    float3 position, normal = (float3)(0.0f);
+    uint joint[INFLUENCES], raw_weight[INFLUENCES];
+#if LAYOUT == 0
+    const __global uchar* record = (const __global uchar*)records + (size_t)v * AOS_RECORD_BYTES;
+    position = load_xyz(record + AOS_POSITION_OFFSET, ALIGNMENT(AOS_RECORD_BYTES | AOS_POSITION_OFFSET));
+    load_run(record + AOS_INDICES_OFFSET, INDEX_BYTES, ALIGNMENT(AOS_RECORD_BYTES | AOS_INDICES_OFFSET), true, joint);
+    load_run(record + AOS_WEIGHTS_OFFSET, WEIGHT_BYTES, ALIGNMENT(AOS_RECORD_BYTES | AOS_WEIGHTS_OFFSET), true,
+             raw_weight);
+#if NORMALS
+    normal = load_xyz(record + AOS_NORMAL_OFFSET, ALIGNMENT(AOS_RECORD_BYTES | AOS_NORMAL_OFFSET));
+#endif
+#else
+    position = load_xyz((const __global uchar*)positions + (size_t)v * POSITION_BYTES, ALIGNMENT(POSITION_BYTES));
+#if NORMALS
+    normal = load_xyz((const __global uchar*)normals + (size_t)v * POSITION_BYTES, ALIGNMENT(POSITION_BYTES));
+#endif
+#if LAYOUT == 1
+    load_run((const __global uchar*)indices + (size_t)v * (INFLUENCES * INDEX_BYTES), INDEX_BYTES,
+             ALIGNMENT(INFLUENCES * INDEX_BYTES), false, joint);
+    load_run((const __global uchar*)weights + (size_t)v * (INFLUENCES * WEIGHT_BYTES), WEIGHT_BYTES,
+             ALIGNMENT(INFLUENCES * WEIGHT_BYTES), false, raw_weight);
+#else
+#pragma unroll
+    for (uint i = 0; i < INFLUENCES; ++i) {
+      const size_t e = (size_t)i * slot_stride + v;
+      joint[i] = load_element((const __global uchar*)indices + e * INDEX_BYTES, INDEX_BYTES);
+      raw_weight[i] = load_element((const __global uchar*)weights + e * WEIGHT_BYTES, WEIGHT_BYTES);
+    }
+#endif
+#endif
+
+    float weight[INFLUENCES];
+#pragma unroll
+    for (uint i = 0; i < INFLUENCES; ++i) weight[i] = weight_of(raw_weight[i]);
+
+    float3 skinned_position, skinned_normal;
+    blend(PAL, joint, weight, position, normal, &skinned_position, &skinned_normal);
+    STORE_XYZ(out_positions, first + v, skinned_position, 1.0f);
+#if NORMALS
+    STORE_XYZ(out_normals, first + v, normalize(skinned_normal), 0.0f);
+#endif
+  }
+}

@@ -1,0 +1,221 @@
+#include <gtest/gtest.h>
+
+#define CL_TARGET_OPENCL_VERSION 120
+#include <CL/cl.h>
+
+#include <fstream>
+#include <functional>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "reference/error.h"
+
+namespace skintune {
+namespace {
+
+std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+std::vector<std::string> ArgumentNames(const nlohmann::json& sidecar) {
+  std::vector<std::string> names;
+  for (const auto& a : sidecar.at("arguments")) names.push_back(a.at("name"));
+  return names;
+}
+
+long long DefineOf(const KernelSource& s, const std::string& name) {
+  for (const auto& [n, value] : s.defines)
+    if (n == name) return value;
+  return -1;
+}
+
+// Builds `text` for the first OpenCL device; "" on a clean build, else the reason (or the warnings).
+// Sets `skipped` when there is no device.
+std::string BuildOnFirstDevice(const std::string& text, bool& skipped) {
+  skipped = false;
+  cl_uint platforms = 0;
+  if (clGetPlatformIDs(0, nullptr, &platforms) != CL_SUCCESS || platforms == 0) {
+    skipped = true;
+    return "no OpenCL platform";
+  }
+  std::vector<cl_platform_id> ids(platforms);
+  clGetPlatformIDs(platforms, ids.data(), nullptr);
+  for (cl_platform_id platform : ids) {
+    cl_device_id device = nullptr;
+    if (clGetDeviceIDs(platform, CL_DEVICE_TYPE_ALL, 1, &device, nullptr) != CL_SUCCESS) continue;
+    cl_int err = CL_SUCCESS;
+    cl_context context = clCreateContext(nullptr, 1, &device, nullptr, nullptr, &err);
+    if (err != CL_SUCCESS) return "clCreateContext failed: " + std::to_string(err);
+    const char* source = text.c_str();
+    const std::size_t length = text.size();
+    cl_program program = clCreateProgramWithSource(context, 1, &source, &length, &err);
+    std::string result;
+    const cl_int built = clBuildProgram(program, 1, &device, "-cl-std=CL1.2", nullptr, nullptr);
+    std::size_t size = 0;
+    clGetProgramBuildInfo(program, device, CL_PROGRAM_BUILD_LOG, 0, nullptr, &size);
+    std::string log(size, '\0');
+    clGetProgramBuildInfo(program, device, CL_PROGRAM_BUILD_LOG, size, log.data(), nullptr);
+    if (built != CL_SUCCESS) {
+      result = "build failed: " + log;
+    } else if (log.find("warning") != std::string::npos) {
+      result = "built with warnings: " + log;  // our kernels build cleanly
+    } else {
+      cl_kernel kernel = clCreateKernel(program, "skin", &err);
+      if (err != CL_SUCCESS) result = "no kernel 'skin': " + std::to_string(err);
+      else clReleaseKernel(kernel);
+    }
+    clReleaseProgram(program);
+    clReleaseContext(context);
+    return result;
+  }
+  skipped = true;
+  return "no OpenCL device";
+}
+
+TEST(EmitTemplate, EmbeddedTemplateIsTheFileInTheSourceTree) {
+  std::ifstream in(std::string(SKINTUNE_SOURCE_DIR) + "/templates/skin.cl", std::ios::binary);
+  ASSERT_TRUE(in) << "templates/skin.cl not found";
+  std::stringstream file;
+  file << in.rdbuf();
+  EXPECT_EQ(TemplateText("skin.cl"), file.str());
+  EXPECT_NE(ErrorOf([] { TemplateText("nope.cl"); }).find("skin.cl"), std::string::npos);
+}
+
+TEST(EmitTemplate, TemplateCompilesAloneWithNoDefines) {
+  bool skipped = false;
+  const std::string result = BuildOnFirstDevice(TemplateText("skin.cl"), skipped);
+  if (skipped) GTEST_SKIP() << result;
+  EXPECT_EQ(result, "");
+}
+
+TEST(EmitTemplate, EmittedKernelsOfEveryLayoutAndStorageCompile) {
+  std::string text;
+  for (const char* key : {"opencl.aos.float3.u8.unorm8.b3.normals.constant", "opencl.soa.local.point.v4s",
+                          "opencl.soa-split.image.mat4.i32.unorm16.v8c.wg32.normals"}) {
+    bool skipped = false;
+    const std::string result = BuildOnFirstDevice(Emit(ParseVariantKey(key), 0, 77).text, skipped);
+    if (skipped) GTEST_SKIP() << result;
+    EXPECT_EQ(result, "") << key;
+  }
+}
+
+TEST(Emit, SidecarListsArgumentsInTheDocumentedOrderForEachLayout) {
+  using Names = std::vector<std::string>;
+  const auto names = [](const char* key) {
+    const Variant v = ParseVariantKey(key);
+    return ArgumentNames(SidecarJson(Emit(v, 0, 77), v));
+  };
+  EXPECT_EQ(names("opencl.aos"), (Names{"n", "first", "records", "palette", "out_positions"}));
+  EXPECT_EQ(names("opencl.aos.normals"), (Names{"n", "first", "records", "palette", "out_positions", "out_normals"}));
+  for (const char* key : {"opencl.soa", "opencl.soa-split"}) {
+    EXPECT_EQ(names(key), (Names{"n", "first", "positions", "indices", "weights", "palette", "out_positions"})) << key;
+  }
+  for (const char* key : {"opencl.soa.normals", "opencl.soa-split.normals"}) {
+    EXPECT_EQ(names(key), (Names{"n", "first", "positions", "indices", "weights", "normals", "palette",
+                                 "out_positions", "out_normals"}))
+        << key;
+  }
+}
+
+TEST(Emit, SidecarDescribesFormatsStridesAndKinds) {
+  const Variant v = ParseVariantKey("opencl.b3.soa-split.float3.u8.unorm16.mat4.image.v2s.wg64");
+  const KernelSource s = Emit(v, 0, 20);
+  const nlohmann::json j = SidecarJson(s, v);
+  EXPECT_EQ(j.at("generator_version"), kGeneratorVersion);
+  EXPECT_EQ(j.at("source_hash"), s.source_hash);
+  EXPECT_EQ(j.at("entry_point"), "skin");
+  EXPECT_EQ(j.at("variant"), v.Key());
+  const auto& args = j.at("arguments");
+  EXPECT_EQ(args[0].at("kind"), "scalar");
+  EXPECT_EQ(args[0].at("format"), "u32");
+  EXPECT_EQ(args[2].at("format"), "float3");
+  EXPECT_EQ(args[2].at("stride_bytes"), 12);
+  EXPECT_EQ(args[3].at("format"), "u8");
+  EXPECT_EQ(args[3].at("indexing"), "i*S+v");
+  EXPECT_EQ(args[4].at("format"), "unorm16");
+  EXPECT_EQ(args[5].at("name"), "palette");
+  EXPECT_EQ(args[5].at("kind"), "image");
+  EXPECT_EQ(args[5].at("stride_bytes"), 64);
+  EXPECT_EQ(args[6].at("direction"), "out");
+  EXPECT_EQ(args[6].at("indexing"), "first+v");
+  EXPECT_EQ(j.at("launch").at("assignment"), "strided");
+  EXPECT_EQ(j.at("launch").at("wg_size"), 64);
+  EXPECT_EQ(DefineOf(s, "SLOT_STRIDE_MULTIPLE"), static_cast<long long>(SoaSplitSlotStride(1, v)));
+  EXPECT_EQ(s.launch.GlobalItems(1000), 512u);  // ceil(1000 / 2) = 500 -> 512
+  EXPECT_EQ(s.launch.GlobalItems(0), 0u);
+
+  const Variant soa = ParseVariantKey("opencl.b4.soa.u16.f32");
+  const nlohmann::json js = SidecarJson(Emit(soa), soa);
+  EXPECT_EQ(js.at("arguments")[3].at("stride_bytes"), 8);  // 4 x u16 per vertex
+  EXPECT_EQ(js.at("arguments")[3].at("indexing"), "v*B+i");
+}
+
+TEST(Emit, AosOffsetsAreThePackersRecordLayout) {
+  for (const char* key : {"opencl.aos.b3.float3.u8.f32.normals", "opencl.aos.b4.float4.u16.unorm8",
+                          "opencl.aos.b1.float3.u8.unorm8", "opencl.aos.b7.float4.i32.unorm16.normals"}) {
+    const Variant v = ParseVariantKey(key);
+    const KernelSource s = Emit(v);
+    const RecordLayout r = AosRecordLayout(v, v.influences);
+    EXPECT_EQ(DefineOf(s, "AOS_INDICES_OFFSET"), static_cast<long long>(r.indices)) << key;
+    EXPECT_EQ(DefineOf(s, "AOS_WEIGHTS_OFFSET"), static_cast<long long>(r.weights)) << key;
+    EXPECT_EQ(DefineOf(s, "AOS_RECORD_WORDS") * 4, static_cast<long long>(r.size)) << key;
+    if (v.normals) {
+      EXPECT_EQ(DefineOf(s, "AOS_NORMAL_OFFSET"), static_cast<long long>(r.normal)) << key;
+    }
+    EXPECT_EQ(SidecarJson(s, v).at("aos_record").at("size"), r.size) << key;
+  }
+}
+
+TEST(Emit, SourceHashFollowsTheTextAndChangesWithAnyDefine) {
+  const Variant v = ParseVariantKey("opencl.b4.soa.wg128");
+  const KernelSource a = Emit(v);
+  EXPECT_EQ(a.source_hash, Emit(v).source_hash);
+  EXPECT_EQ(a.source_hash, SourceHash(a.text));
+  EXPECT_EQ(a.source_hash.size(), 16u);
+  EXPECT_EQ(SourceHash(""), "cbf29ce484222325");  // FNV-1a 64 offset basis
+  EXPECT_EQ(SourceHash("a"), "af63dc4c8601ec8c");
+  Variant w = v;
+  w.wg_size = 256;
+  EXPECT_NE(Emit(w).source_hash, a.source_hash);
+  EXPECT_NE(Emit(v, 2).source_hash, a.source_hash);
+  EXPECT_NE(Emit(v, 0, 77).source_hash, a.source_hash);
+  EXPECT_NE(a.text.find("#define WG_SIZE 128\n"), std::string::npos);
+  EXPECT_NE(Emit(w).text.find("#define WG_SIZE 256\n"), std::string::npos);
+}
+
+TEST(Emit, InfluencesOverrideSpecialisesOneBucket) {
+  const Variant v = ParseVariantKey("opencl.b4.bucketed");
+  const KernelSource s = Emit(v, 2);
+  EXPECT_EQ(s.influences, 2);
+  EXPECT_EQ(DefineOf(s, "INFLUENCES"), 2);
+  EXPECT_EQ(SidecarJson(s, v).at("influences"), 2);
+}
+
+TEST(Emit, UnimplementedLanguagesThrow) {
+  for (const char* lang : {"cuda", "glsl-compute"}) {
+    EXPECT_EQ(ErrorOf([&] { Emit(ParseVariantKey(lang)); }),
+              std::string("emit: language ") + lang + " not implemented yet");
+  }
+}
+
+TEST(Emit, LocalStorageNeedsTheJointCount) {
+  EXPECT_NE(ErrorOf([] { Emit(ParseVariantKey("opencl.local")); }).find("storage local needs the joint count"),
+            std::string::npos);
+  EXPECT_EQ(DefineOf(Emit(ParseVariantKey("opencl.local"), 0, 40), "JOINTS"), 40);
+}
+
+TEST(Emit, InfluencesOutsideTheRangeThrow) {
+  EXPECT_NE(ErrorOf([] { Emit(ParseVariantKey("opencl.b4"), 9); }).find("influences 9 outside 1..8"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace skintune
