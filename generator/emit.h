@@ -7,7 +7,8 @@
 // docs/VARIANTS.md, element formats, strides, launch geometry) is data, so a
 // program can bind the kernel from the sidecar JSON without reading skintune.
 //
-// Only OpenCL is implemented; other languages throw.
+// A language whose template is not embedded yet throws "not implemented yet".
+// GLSL templates start with #version; the defines go after it.
 #pragma once
 
 #include <cstddef>
