@@ -22,6 +22,7 @@ Command RegisterRun(CLI::App& app);
 Command RegisterDevices(CLI::App& app);
 Command RegisterSkin(CLI::App& app);
 Command RegisterVariants(CLI::App& app);
+Command RegisterEmit(CLI::App& app);
 
 // How a command names its input mesh: a synthetic dataset key or a glTF file.
 struct MeshSource {

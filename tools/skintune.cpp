@@ -18,7 +18,8 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("skintune ") + SKINTUNE_VERSION);
   app.require_subcommand(1);
   const std::vector<tools::Command> commands = {tools::RegisterRun(app), tools::RegisterDevices(app),
-                                                tools::RegisterSkin(app), tools::RegisterVariants(app)};
+                                                tools::RegisterSkin(app), tools::RegisterVariants(app),
+                                                tools::RegisterEmit(app)};
   try {
     app.parse(argc, argv);
   } catch (const CLI::Success& e) {

@@ -177,5 +177,59 @@ TEST(SkintuneCli, RunChecksTheCpuImplementationsAgainstTheGold) {
   EXPECT_NE(r.out.find("ok: serial and fast agree with the float64 gold within 1e-5"), std::string::npos) << r.out;
 }
 
+TEST(SkintuneCli, EmitWritesTheKernelAndASidecarDescribingItsInterface) {
+  const fs::path dir = Scratch() / "kernels";
+  const std::string key = "opencl.b3.padded.soa-split.float4.u16.unorm16.mat3x4.local.matrix.v2c.wg64.nonormals";
+  const auto r = RunSkintune({"emit", "--variant", key, "--out", dir});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(ReadAll(dir / (key + ".cl")).find("#define INFLUENCES 3"), std::string::npos);
+  const nlohmann::json sidecar = nlohmann::json::parse(ReadAll(dir / (key + ".json")));
+  EXPECT_EQ(sidecar.at("variant"), key);
+  EXPECT_EQ(sidecar.at("entry_point"), "skin");
+  EXPECT_EQ(sidecar.at("source_file"), key + ".cl");
+  std::vector<std::string> names;
+  for (const auto& a : sidecar.at("arguments")) names.push_back(a.at("name"));
+  EXPECT_EQ(names, (std::vector<std::string>{"n", "first", "positions", "indices", "weights", "palette", "out_positions"}));
+}
+
+TEST(SkintuneCli, EmitWithAMalformedKeyIsOneClearLine) {
+  const auto r = RunSkintune({"emit", "--variant", "opencl.b4.turbo", "--out", Scratch()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(CountLines(r.err), 1) << r.err;
+  EXPECT_EQ(r.err.rfind("skintune: error: variant 'opencl.b4.turbo': unknown token 'turbo' (expected ", 0), 0u) << r.err;
+}
+
+TEST(SkintuneCli, EmitRefusesAnInvalidVariantNamingTheConstraint) {
+  const fs::path dir = Scratch();
+  const auto r = RunSkintune({"emit", "--variant", "opencl.v1s", "--out", dir});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("(constraint assignment_redundant)"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::is_empty(dir));
+}
+
+TEST(SkintuneCli, EmitIntoAnUnwritableFolderIsAnError) {
+  const fs::path file = Scratch() / "a-file";
+  std::ofstream(file) << "x";
+  const auto r = RunSkintune({"emit", "--variant", "opencl.b1", "--out", file / "sub"});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("cannot create output folder"), std::string::npos) << r.err;
+}
+
+TEST(SkintuneCli, VariantsCountsTheSpaceAndTheInvalidPointsPerConstraint) {
+  const auto r = RunSkintune({"variants", "--lang", "opencl", "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  std::uint64_t invalid = 0;
+  for (const auto& [name, n] : j.at("invalid_by").items()) invalid += n.get<std::uint64_t>();
+  EXPECT_EQ(j.at("valid").get<std::uint64_t>() + invalid, j.at("total").get<std::uint64_t>());
+  EXPECT_GT(j.at("invalid_by").at("assignment_redundant").get<std::uint64_t>(), 0u);
+}
+
+TEST(SkintuneCli, VariantsWithAnUnknownDeviceIsAnError) {
+  const auto r = RunSkintune({"variants", "--device", "no-such-device-xyz"});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "skintune: error: --device 'no-such-device-xyz': no OpenCL device matches (see skintune devices)\n");
+}
+
 }  // namespace
 }  // namespace skintune
