@@ -8,10 +8,12 @@
 
 #include <cctype>
 #include <cstdlib>
+#include <iostream>
 #include <map>
 #include <ostream>
 #include <random>
 
+#include "generator/covering.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "reference/error.h"
@@ -161,6 +163,30 @@ std::string CaseName(const ::testing::TestParamInfo<Case>& info) {
 }
 
 INSTANTIATE_TEST_SUITE_P(EveryAxis, OpenClVariant, ::testing::ValuesIn(kCases), CaseName);
+
+// The generated covering set for this device (generator/covering.h): every
+// value of every axis and every pair of layout x index x weight x palette x
+// storage x blend, each variant on a fresh mesh with its own influence count.
+TEST(OpenClCoveringSet, EveryVariantMatchesTheGold) {
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  const OpenClInventory inventory = EnumerateOpenCl();
+  const DeviceLimits limits = LimitsOf(inventory.devices.front());
+  const CoveringSet set = BuildCoveringSet(Lang::kOpenCl, limits, {77, 1, true});
+  ASSERT_TRUE(set.uncoverable.empty());
+  for (std::size_t i = 0; i < set.variants.size(); ++i) {
+    const Variant& variant = set.variants[i];
+    const std::string mesh = "b" + std::to_string(variant.influences) + (i % 2 ? "-random" : "");
+    SCOPED_TRACE(variant.Key() + " on " + mesh + ", seed " + std::to_string(Seed()));
+    const SkinnedAsset& asset = Asset(mesh);
+    const PackedMesh packed = Pack(asset.mesh, variant);
+    const std::vector<glm::mat4> palette = Palette(asset);
+    ExpectMatchesGold(packed, runner->Run(packed, PackPalette(palette, variant)), asset.mesh, palette);
+  }
+  std::cout << "[ covering ] " << set.variants.size() << " OpenCL variants verified on " << runner->device_name()
+            << "\n";
+}
 
 // One padded soa launch with an edit of the emitted text; `from` must occur once.
 struct Faulty {

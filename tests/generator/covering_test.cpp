@@ -1,0 +1,75 @@
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "generator/covering.h"
+#include "generator/space.h"
+
+namespace skintune {
+namespace {
+
+DeviceLimits Roomy() {
+  DeviceLimits d;
+  d.max_wg_size = 1024;
+  d.local_memory_bytes = 48 * 1024;
+  return d;
+}
+
+const ProblemShape kShape{77, 1, true};
+
+TEST(CoveringSet, EveryValueOfEveryAxisAppearsForEachLanguage) {
+  for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex}) {
+    const CoveringSet set = BuildCoveringSet(lang, Roomy(), kShape);
+    std::set<std::string> seen;
+    for (const Variant& v : set.variants) {
+      EXPECT_TRUE(CheckVariant(v, Roomy(), kShape).empty()) << v.Key();
+      seen.insert({"b" + std::to_string(v.influences), Name(v.mixed), Name(v.layout), Name(v.position),
+                   Name(v.index), Name(v.weight), Name(v.palette), Name(v.storage), Name(v.blend),
+                   "v" + std::to_string(v.vertices_per_item), Name(v.assignment), "wg" + std::to_string(v.wg_size),
+                   v.normals ? "normals" : "nonormals"});
+    }
+    std::vector<std::string> expected = {"b1", "b2", "b3", "b4", "b5", "b6", "b7", "b8", "padded", "bucketed", "aos",
+                                         "soa", "soa-split", "float4", "float3", "i32", "u16", "u8", "f32", "unorm16",
+                                         "unorm8", "mat4", "mat3x4", "constant", "global", "image", "matrix", "point",
+                                         "normals", "nonormals"};
+    if (lang == Lang::kGlslVertex) {
+      expected.insert(expected.end(), {"v1", "contiguous", "wg0"});
+    } else {
+      expected.insert(expected.end(), {"local", "v1", "v2", "v4", "v8", "contiguous", "strided", "wg32", "wg64",
+                                       "wg128", "wg256", "wg512", "wg1024"});
+    }
+    for (const std::string& value : expected) EXPECT_TRUE(seen.count(value)) << Name(lang) << " misses " << value;
+  }
+}
+
+TEST(CoveringSet, EveryPairOfThePairedAxesAppears) {
+  for (Lang lang : {Lang::kOpenCl, Lang::kGlslCompute}) {
+    const CoveringSet set = BuildCoveringSet(lang, Roomy(), kShape);
+    EXPECT_TRUE(set.uncoverable.empty());
+    std::set<std::string> pairs;
+    for (const Variant& v : set.variants) {
+      const std::vector<std::string> values = {Name(v.layout), Name(v.index), Name(v.weight),
+                                               Name(v.palette), Name(v.storage), Name(v.blend)};
+      for (std::size_t a = 0; a < values.size(); ++a)
+        for (std::size_t b = a + 1; b < values.size(); ++b) pairs.insert(values[a] + "&" + values[b]);
+    }
+    // 15 axis pairs: 9+9+6+12+6 + 9+6+12+6 + 6+12+6 + 8+4 + 8 value pairs.
+    EXPECT_EQ(pairs.size(), 119u) << Name(lang);
+    EXPECT_LE(set.variants.size(), 24u) << "a covering set should stay small";
+  }
+}
+
+TEST(CoveringSet, ReportsPairsNoValidVariantCanHold) {
+  const CoveringSet set = BuildCoveringSet(Lang::kGlslVertex, Roomy(), kShape);
+  ASSERT_FALSE(set.uncoverable.empty());
+  for (const std::string& pair : set.uncoverable) EXPECT_NE(pair.find("storage=local"), std::string::npos) << pair;
+}
+
+TEST(CoveringSet, SkipsWorkGroupSizesAboveTheDeviceLimit) {
+  DeviceLimits small = Roomy();
+  small.max_wg_size = 256;
+  for (const Variant& v : BuildCoveringSet(Lang::kOpenCl, small, kShape).variants) EXPECT_LE(v.wg_size, 256);
+}
+
+}  // namespace
+}  // namespace skintune
