@@ -193,6 +193,9 @@ KernelSource Emit(const Variant& variant, int influences_override, int joints) {
   if (joints < 0) throw Error("emit " + variant.Key() + ": negative joint count " + std::to_string(joints));
   if (variant.storage == PaletteStorage::kLocal && joints == 0)
     throw Error("emit " + variant.Key() + ": storage local needs the joint count (it sizes the local palette copy)");
+  if (variant.storage == PaletteStorage::kConstant && variant.lang == Lang::kCuda && joints == 0)
+    throw Error("emit " + variant.Key() + ": CUDA constant storage needs the joint count (it sizes the __constant__ "
+                "palette symbol)");
 
   KernelSource source;
   source.lang = variant.lang;
@@ -243,11 +246,28 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
                           {"kind", Name(a.kind)}};
     // GLSL: buffers and the palette take consecutive bindings in argument
     // order; scalars are uniforms of the same name.
+    // glsl-vertex outputs are captured by transform feedback (separate
+    // attributes, one buffer each), not written to storage buffers.
     if (IsGlsl(source.lang)) {
       if (a.kind == ArgumentKind::kScalar) {
         arg["uniform"] = a.name;
+      } else if (source.lang == Lang::kGlslVertex && a.direction == ArgumentDirection::kOut) {
+        const bool normal = a.name == "out_normals";
+        arg["transform_feedback_buffer"] = normal ? 1 : 0;
+        arg["varying"] = normal ? "out_normal" : "out_position";
       } else {
         arg["binding"] = binding++;
+      }
+    }
+    // CUDA binds two palette storages outside the argument list.
+    if (source.lang == Lang::kCuda && a.name == "palette") {
+      if (variant.storage == PaletteStorage::kConstant) {
+        arg["symbol"] = "skintune_palette";
+        arg["note"] = "copy the palette into the module's __constant__ symbol skintune_palette (cuModuleGetGlobal); "
+                      "the argument is passed but not read";
+      } else if (variant.storage == PaletteStorage::kImage) {
+        arg["texture"] = {{"type", "cudaTextureObject_t"}, {"resource", "linear"}, {"format", "CU_AD_FORMAT_FLOAT"},
+                          {"channels", 4}, {"filter", "point"}, {"read", "tex1Dfetch<float4>"}};
       }
     }
     args.push_back(arg);

@@ -199,10 +199,26 @@ TEST(Emit, InfluencesOverrideSpecialisesOneBucket) {
   EXPECT_EQ(SidecarJson(s, v).at("influences"), 2);
 }
 
-TEST(Emit, UnimplementedLanguagesThrow) {
-  for (const char* lang : {"cuda", "glsl-compute"}) {
-    EXPECT_EQ(ErrorOf([&] { Emit(ParseVariantKey(lang)); }),
-              std::string("emit: language ") + lang + " not implemented yet");
+TEST(Emit, EveryLanguageEmitsFromItsOwnTemplateWithTheSameParameters) {
+  const std::pair<const char*, const char*> languages[] = {
+      {"opencl", "skin.cl"}, {"cuda", "skin.cu"}, {"glsl-compute", "skin.comp"}, {"glsl-vertex", "skin.vert"}};
+  const KernelSource reference = Emit(ParseVariantKey("opencl.b3.u8.unorm8.constant"), 0, 77);
+  for (const auto& [lang, file] : languages) {
+    const KernelSource k = Emit(ParseVariantKey(std::string(lang) + ".b3.u8.unorm8.constant"), 0, 77);
+    EXPECT_FALSE(TemplateText(file).empty()) << file;
+    EXPECT_EQ(k.defines.size(), reference.defines.size()) << lang;
+    for (const auto& [name, value] : reference.defines) {
+      if (name != "WG_SIZE" && name != "VERTICES_PER_ITEM") {
+        EXPECT_EQ(DefineOf(k, name), value) << lang << " " << name;
+      }
+    }
+    const bool glsl = std::string(lang).rfind("glsl", 0) == 0;
+    if (glsl) {
+      EXPECT_EQ(k.text.rfind("#version", 0), 0u) << lang << ": #version must stay the first line";
+      EXPECT_EQ(k.entry_point, "main");
+    } else {
+      EXPECT_EQ(k.entry_point, "skin");
+    }
   }
 }
 
@@ -210,6 +226,13 @@ TEST(Emit, LocalStorageNeedsTheJointCount) {
   EXPECT_NE(ErrorOf([] { Emit(ParseVariantKey("opencl.local")); }).find("storage local needs the joint count"),
             std::string::npos);
   EXPECT_EQ(DefineOf(Emit(ParseVariantKey("opencl.local"), 0, 40), "JOINTS"), 40);
+  EXPECT_NE(ErrorOf([] { Emit(ParseVariantKey("cuda.constant")); }).find("sizes the __constant__ palette symbol"),
+            std::string::npos);
+  const nlohmann::json sidecar = SidecarJson(Emit(ParseVariantKey("cuda.constant"), 0, 40), ParseVariantKey("cuda.constant"));
+  for (const auto& a : sidecar.at("arguments"))
+    if (a.at("name") == "palette") {
+      EXPECT_EQ(a.at("symbol"), "skintune_palette");
+    }
 }
 
 TEST(Emit, InfluencesOutsideTheRangeThrow) {

@@ -1,0 +1,176 @@
+// skintune (internal): CUDA, loaded at run time.
+//
+// skintune builds without any CUDA toolkit: NVRTC (libnvrtc) and the driver
+// API (libcuda) are opened with dlopen when first needed, and the few types
+// and functions used are declared here, checked against CUDA 13's cuda.h and
+// nvrtc.h (the driver ABI they follow has been stable since CUDA 4). A
+// machine without CUDA still builds and runs everything else; these functions
+// then say what is missing.
+//
+// - NVRTC: SKINTUNE_NVRTC_LIBRARY (a path or soname) when set, and then only
+//   it; otherwise libnvrtc.so, libnvrtc.so.13, .12, .11.2, then
+//   $CUDA_HOME/lib64/libnvrtc.so and /usr/local/cuda/lib64/libnvrtc.so.
+//   NvrtcCandidates() lists them in that order.
+// - Driver: libcuda.so.1, then libcuda.so (never the toolkit's stubs/, which
+//   only link). cuInit(0) must succeed.
+// Both are loaded once per process, thread-safely, and never unloaded.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+namespace skintune {
+
+struct CudaAvailability {
+  bool nvrtc = false;                // NVRTC loaded and answered nvrtcVersion
+  std::string nvrtc_library;         // the candidate that loaded
+  int nvrtc_major = 0, nvrtc_minor = 0;
+  std::string nvrtc_missing;         // why not: each candidate tried with dlopen's answer
+  bool driver = false;               // libcuda loaded and cuInit(0) succeeded
+  std::string driver_library;
+  int driver_version = 0;            // cuDriverGetVersion: 13000 = CUDA 13.0
+  int device_count = 0;
+  std::string driver_missing;        // why no driver (or why cuInit failed)
+
+  bool CanRun() const { return nvrtc && driver && device_count > 0; }
+  // One line: what was found, or what is missing and why.
+  std::string Describe() const;
+};
+
+// Loads (once) and reports. Never throws.
+CudaAvailability Probe();
+
+// The NVRTC libraries tried, in order (see the top of this file).
+std::vector<std::string> NvrtcCandidates();
+
+struct CompileResult {
+  bool ok = false;
+  std::string ptx;    // NUL-free PTX text when ok
+  std::string log;    // NVRTC's whole log (warnings appear here even when ok)
+  std::string error;  // when !ok: "NVRTC compile of NAME for ARCH failed (RESULT); log:" + the log's
+                      // first 20 lines, or why NVRTC could not be loaded
+  double seconds = 0.0;  // wall time of nvrtcCompileProgram
+};
+
+// Compiles CUDA C++ `source` (program name `name`, used in the log's
+// locations) to PTX for `arch`, a virtual architecture such as "compute_90".
+// Extra NVRTC `options` follow -arch. Never throws: errors are in the result.
+CompileResult CompileWithNvrtc(const std::string& source, const std::string& arch,
+                               const std::string& name = "skin.cu", const std::vector<std::string>& options = {});
+
+// The virtual architecture NVRTC should compile for on a device of compute
+// capability major.minor: "compute_<major><minor>" when NVRTC supports it,
+// else the newest one it supports below that (the driver JIT-compiles PTX
+// forward), else "" (the device is older than anything NVRTC supports).
+// Without NVRTC's list (NVRTC < 11.2) the device's own.
+std::string NvrtcArchFor(int major, int minor);
+
+// ---------------------------------------------------------------- driver API
+//
+// The part of CUDA's driver API (cuda.h) that CudaRunner uses, declared here.
+namespace cuda {
+
+using Result = int;  // CUresult; 0 = CUDA_SUCCESS
+using Device = int;
+using Context = struct CUctx_st*;
+using Module = struct CUmod_st*;
+using Function = struct CUfunc_st*;
+using Stream = struct CUstream_st*;
+using Event = struct CUevent_st*;
+using DevicePtr = unsigned long long;  // CUdeviceptr (64-bit)
+using TexObject = unsigned long long;  // CUtexObject = cudaTextureObject_t
+
+inline constexpr Result kSuccess = 0;
+inline constexpr int kAttributeMaxThreadsPerBlock = 1;
+inline constexpr int kAttributeMaxSharedMemoryPerBlock = 8;   // static __shared__ (48 KiB)
+inline constexpr int kAttributeTotalConstantMemory = 9;
+inline constexpr int kAttributeMaxTexture1dLinearWidth = 69;  // texels of a linear texture object
+inline constexpr int kAttributeComputeCapabilityMajor = 75;
+inline constexpr int kAttributeComputeCapabilityMinor = 76;
+inline constexpr int kJitInfoLogBuffer = 3;            // CU_JIT_INFO_LOG_BUFFER
+inline constexpr int kJitInfoLogBufferSizeBytes = 4;
+inline constexpr int kJitErrorLogBuffer = 5;           // CU_JIT_ERROR_LOG_BUFFER
+inline constexpr int kJitErrorLogBufferSizeBytes = 6;
+inline constexpr int kResourceTypeLinear = 2;          // CU_RESOURCE_TYPE_LINEAR
+inline constexpr int kArrayFormatFloat = 0x20;         // CU_AD_FORMAT_FLOAT
+inline constexpr int kFilterModePoint = 0;             // CU_TR_FILTER_MODE_POINT
+inline constexpr int kAddressModeClamp = 1;            // CU_TR_ADDRESS_MODE_CLAMP
+
+// CUDA_RESOURCE_DESC with its `linear` member (the only one used).
+struct ResourceDesc {
+  int resType = 0;
+  struct Linear {
+    DevicePtr devPtr;
+    int format;
+    unsigned int numChannels;
+    std::size_t sizeInBytes;
+  };
+  union {
+    Linear linear;
+    int reserved[32];
+  } res{};
+  unsigned int flags = 0;
+};
+static_assert(sizeof(ResourceDesc) == 144, "CUDA_RESOURCE_DESC is 144 bytes");
+
+// CUDA_TEXTURE_DESC.
+struct TextureDesc {
+  int addressMode[3] = {0, 0, 0};
+  int filterMode = 0;
+  unsigned int flags = 0;
+  unsigned int maxAnisotropy = 0;
+  int mipmapFilterMode = 0;
+  float mipmapLevelBias = 0.0f;
+  float minMipmapLevelClamp = 0.0f;
+  float maxMipmapLevelClamp = 0.0f;
+  float borderColor[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+  int reserved[12] = {};
+};
+static_assert(sizeof(TextureDesc) == 104, "CUDA_TEXTURE_DESC is 104 bytes");
+
+// Function pointers by their driver symbol (the _v2 names cuda.h maps to).
+struct DriverApi {
+  Result (*cuInit)(unsigned int flags);
+  Result (*cuDriverGetVersion)(int* version);
+  Result (*cuGetErrorName)(Result error, const char** name);
+  Result (*cuGetErrorString)(Result error, const char** text);
+  Result (*cuDeviceGetCount)(int* count);
+  Result (*cuDeviceGet)(Device* device, int ordinal);
+  Result (*cuDeviceGetName)(char* name, int length, Device device);
+  Result (*cuDeviceGetAttribute)(int* value, int attribute, Device device);
+  Result (*cuDevicePrimaryCtxRetain)(Context* context, Device device);
+  Result (*cuDevicePrimaryCtxRelease)(Device device);                  // _v2
+  Result (*cuCtxSetCurrent)(Context context);
+  Result (*cuCtxSynchronize)();
+  Result (*cuModuleLoadDataEx)(Module* module, const void* image, unsigned int option_count, int* options,
+                               void** option_values);
+  Result (*cuModuleUnload)(Module module);
+  Result (*cuModuleGetFunction)(Function* function, Module module, const char* name);
+  Result (*cuModuleGetGlobal)(DevicePtr* pointer, std::size_t* bytes, Module module, const char* name);  // _v2
+  Result (*cuMemAlloc)(DevicePtr* pointer, std::size_t bytes);                                          // _v2
+  Result (*cuMemFree)(DevicePtr pointer);                                                               // _v2
+  Result (*cuMemcpyHtoD)(DevicePtr to, const void* from, std::size_t bytes);                            // _v2
+  Result (*cuMemcpyDtoH)(void* to, DevicePtr from, std::size_t bytes);                                  // _v2
+  Result (*cuLaunchKernel)(Function function, unsigned int grid_x, unsigned int grid_y, unsigned int grid_z,
+                           unsigned int block_x, unsigned int block_y, unsigned int block_z,
+                           unsigned int shared_bytes, Stream stream, void** parameters, void** extra);
+  Result (*cuEventCreate)(Event* event, unsigned int flags);
+  Result (*cuEventRecord)(Event event, Stream stream);
+  Result (*cuEventSynchronize)(Event event);
+  Result (*cuEventElapsedTime)(float* ms, Event start, Event end);  // _v2 where the driver has it
+  Result (*cuEventDestroy)(Event event);                            // _v2
+  Result (*cuTexObjectCreate)(TexObject* object, const ResourceDesc* resource, const TextureDesc* texture,
+                              const void* view);
+  Result (*cuTexObjectDestroy)(TexObject object);
+};
+
+// The driver, loaded and initialised once; null, with the reason in `why`
+// (when given), where there is none or cuInit fails.
+const DriverApi* Driver(std::string* why = nullptr);
+
+// "CUDA_ERROR_NAME (code): description" for a driver result.
+std::string ErrorText(Result result);
+
+}  // namespace cuda
+}  // namespace skintune

@@ -1,0 +1,85 @@
+// skintune (internal): runs emitted CUDA kernels on a packed mesh, with the
+// checks a tuner needs to trust a result; the CUDA twin of OpenClRunner.
+//
+// - CUDA is loaded at run time (runtime/cuda_api.h): this builds everywhere
+//   and the constructor throws Error("CUDA setup: ...") where there is no
+//   driver or device.
+// - Build: each distinct KernelSource is compiled once per runner with NVRTC
+//   to PTX for the device's architecture (NvrtcArchFor) and loaded with
+//   cuModuleLoadDataEx; a failure throws Error("CUDA build ...") with the
+//   first lines of the NVRTC log, or of the driver's JIT log.
+// - Outputs are POISONED before every run (every 32-bit word 0x7fc00000, a
+//   quiet NaN), so a vertex a kernel forgets to write reads back as NaN.
+// - Each output buffer is followed by a GUARD of kGuardBytes filled with a
+//   known pattern; a kernel that writes past the end throws Error("CUDA
+//   guard ...") after the run.
+// - Every Launch of the PackedMesh runs with its own kernel, blocks of the
+//   kernel's wg_size, arguments bound by name from the kernel's argument list
+//   (docs/VARIANTS.md order). The palette: a device buffer (local, global);
+//   for `constant` storage the rows are also copied into the module's
+//   __constant__ symbol `skintune_palette` (cuModuleGetGlobal; the kernel's
+//   `palette` argument gets the buffer but is not read); for `image` storage
+//   the argument is a texture object over the buffer (linear, float4 texels).
+// - Per-launch times from CUDA events recorded around each cuLaunchKernel.
+// Errors name the stage: "CUDA setup", "build", "launch" or "guard". A kernel
+// that faults (an illegal address) leaves the CUDA context unusable: later
+// runs of the same runner fail too.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "generator/constraints.h"
+#include "generator/emit.h"
+#include "generator/packer.h"
+
+namespace skintune {
+
+struct CudaRunResult {
+  std::vector<std::uint8_t> positions;  // vertex_count x output_stride_bytes, packed order (Unpack it)
+  std::vector<std::uint8_t> normals;    // likewise; empty without normals
+  std::vector<double> launch_ms;        // per launch, CUDA event elapsed time
+  std::size_t poisoned_vertices = 0;    // output vectors (positions, normals) still holding the poison
+};
+
+class CudaRunner {
+ public:
+  static constexpr std::size_t kGuardBytes = 4096;
+  static constexpr std::uint32_t kPoisonWord = 0x7fc00000u;  // quiet NaN
+  static constexpr std::uint32_t kGuardWord = 0xa5c3e1f0u;
+
+  // CUDA device `device_index` (0 .. Probe().device_count - 1), through its
+  // primary context. Throws Error("CUDA setup: ...") when there is no NVRTC,
+  // no driver, or no such device.
+  explicit CudaRunner(int device_index = 0);
+  ~CudaRunner();
+  CudaRunner(const CudaRunner&) = delete;
+  CudaRunner& operator=(const CudaRunner&) = delete;
+
+  const std::string& device_name() const;
+  const std::string& arch() const;  // what NVRTC compiles for, e.g. "compute_90"
+  // The device's limits for CheckVariant: threads per block, static __shared__
+  // and __constant__ bytes, linear texture width in texels.
+  const DeviceLimits& limits() const;
+
+  // Builds (or finds already built) `source`; throws Error("CUDA build ...").
+  void Build(const KernelSource& source);
+
+  // Emits the variant's kernel for every launch (Emit(variant, launch.influences,
+  // palette_joints)) and runs them. `palette`: PackPalette bytes; empty = mesh.palette.
+  CudaRunResult Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette = {});
+
+  // Runs with the given kernels, one per launch, in launch order.
+  CudaRunResult Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                    std::span<const std::uint8_t> palette = {});
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace skintune

@@ -1,0 +1,86 @@
+// skintune (internal): runs emitted GLSL kernels (glsl-compute and
+// glsl-vertex) on a packed mesh through a headless GL 4.3 context
+// (runtime/gl_context.h), with the same checks as the OpenCL runner.
+//
+// - Build: each distinct KernelSource is compiled and linked once per runner;
+//   a failure throws Error("GL build ...") with the first lines of the log.
+//   glsl-vertex programs are linked with glTransformFeedbackVaryings
+//   {"out_position"[, "out_normal"]} in GL_SEPARATE_ATTRIBS mode, and the
+//   captured types are checked against the output format.
+// - Inputs: one storage buffer per packed input of each launch, bound at the
+//   argument's binding (buffers and the palette take consecutive bindings in
+//   argument order, scalars excluded: the sidecar's "binding"). Palette:
+//   STORAGE constant -> uniform buffer at that binding; local/global ->
+//   storage buffer; image -> a GL_RGBA32F texture buffer on texture unit =
+//   that binding. Uniforms n and first are set per launch.
+// - Outputs are POISONED before every run (every 32-bit word 0x7fc00000) and
+//   followed in the same buffer by a GUARD of kGuardBytes of a known pattern:
+//   glsl-compute binds the whole buffer (the shader could write into the
+//   guard); glsl-vertex captures each launch into its range
+//   [first, first + n) of the buffer with transform feedback, and the guard
+//   after the captured range is checked the same way. A guard word changed
+//   throws Error("GL guard ...").
+// - glsl-compute: glDispatchCompute(GlobalItems(n) / wg) per launch.
+//   glsl-vertex: glDrawArrays(GL_POINTS, 0, n) with GL_RASTERIZER_DISCARD,
+//   capture range first*stride .. (first+n)*stride (gl_VertexID = v), and a
+//   GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN query must count n points.
+// - Each launch is timed with a GL_TIME_ELAPSED query.
+// Errors name the stage: "GL setup", "build", "launch" or "guard".
+//
+// GL calls need the runner's context current: every public method makes it
+// current on the calling thread.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "runtime/gl_context.h"
+
+namespace skintune {
+
+struct GlRunResult {
+  std::vector<std::uint8_t> positions;  // vertex_count x output_stride_bytes, packed order (Unpack it)
+  std::vector<std::uint8_t> normals;    // likewise; empty without normals
+  std::vector<double> launch_ms;        // per launch, GL_TIME_ELAPSED
+  std::size_t poisoned_vertices = 0;    // output vectors (positions, normals) still holding the poison
+};
+
+class GlRunner {
+ public:
+  static constexpr std::size_t kGuardBytes = 4096;
+  static constexpr std::uint32_t kPoisonWord = 0x7fc00000u;  // quiet NaN
+  static constexpr std::uint32_t kGuardWord = 0xa5c3e1f0u;
+
+  // Creates its own context (GlContext(device_index)); throws
+  // Error("GL setup: <why>") when none can be made.
+  explicit GlRunner(int device_index = -1);
+  ~GlRunner();
+  GlRunner(const GlRunner&) = delete;
+  GlRunner& operator=(const GlRunner&) = delete;
+
+  const std::string& device_name() const;  // GL_RENDERER
+  const GlContextInfo& info() const;
+
+  // Compiles and links (or finds already built) `source`; throws Error("GL build ...").
+  void Build(const KernelSource& source);
+
+  // Emits the variant's kernel for every launch (Emit(variant, launch.influences,
+  // palette_joints)) and runs them. `palette`: PackPalette bytes; empty = mesh.palette.
+  GlRunResult Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette = {});
+
+  // Runs with the given kernels, one per launch, in launch order.
+  GlRunResult Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                  std::span<const std::uint8_t> palette = {});
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace skintune

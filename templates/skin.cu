@@ -1,0 +1,463 @@
+// skintune: linear blend skinning, every CUDA variant in one kernel file.
+//
+//   v' = sum_i w_i * M[d_i] * (v, 1)                    (positions)
+//   n' = normalize(upper3x3(sum_i w_i * M[d_i]) * n)     (normals)
+//
+// The CUDA twin of templates/skin.cl: the same #define parameters (the
+// generator, generator/emit.cpp, prepends one per parameter), the same
+// buffers, argument order and launch geometry (docs/VARIANTS.md), the same
+// loads. Every parameter has a default (b4 soa float4 u16 f32 mat3x4 global
+// matrix v1c wg128 nonormals), so this file compiles alone, with NVRTC and no
+// options or with `nvcc -c templates/skin.cu`. It includes no header: NVRTC
+// provides float4, uint4, __ldg and tex1Dfetch itself.
+//
+// Kernel `extern "C" skin(unsigned n, unsigned first, <inputs>, palette, <outputs>)`:
+//   aos:            records
+//   soa, soa-split: positions, indices, weights[, normals]
+//   outputs:        out_positions[, out_normals], written at first + v.
+// Launch blocks of exactly WG_SIZE threads (the work-group size); item g =
+// blockIdx.x * WG_SIZE + threadIdx.x handles vertices g*N .. g*N+N-1
+// (contiguous) or g, g+G, .., g+(N-1)G with G the number of items (strided).
+// Items past n do nothing but still take part in the block's palette copy
+// (STORAGE local).
+//
+// Where the palette is (STORAGE):
+//   0 constant: the module symbol `skintune_palette`, a __constant__ array of
+//     JOINTS*PALETTE_ROWS float4 rows. The host copies the palette rows into it
+//     (cuModuleGetGlobal("skintune_palette") + cuMemcpyHtoD) before launching;
+//     the `palette` argument stays in the argument list, so every storage binds
+//     the same arguments, but is not read (pass the palette buffer or 0).
+//   1 local:    `palette` (device buffer) copied once per block into __shared__.
+//   2 global:   `palette` read through the read-only data cache (__ldg).
+//   3 image:    `palette` is a cudaTextureObject_t over the palette buffer as
+//     linear memory of float4 texels (cuTexObjectCreate: CU_RESOURCE_TYPE_LINEAR,
+//     CU_AD_FORMAT_FLOAT, 4 channels), read with tex1Dfetch<float4>.
+// Buffers are device allocations (cuMemAlloc: 256-byte aligned), so the
+// alignments the loads below assume hold.
+
+// ---------------------------------------------------------------- parameters
+
+#ifndef INFLUENCES            // B: bone slots per vertex, 1..8
+#define INFLUENCES 4
+#endif
+#ifndef LAYOUT                // 0 aos, 1 soa, 2 soa-split
+#define LAYOUT 1
+#endif
+#ifndef POSITION_FLOAT4       // 1: float4 positions/normals/outputs; 0: packed float3
+#define POSITION_FLOAT4 1
+#endif
+#ifndef INDEX_FORMAT          // 0 i32, 1 u16, 2 u8
+#define INDEX_FORMAT 1
+#endif
+#ifndef WEIGHT_FORMAT         // 0 f32, 1 unorm16, 2 unorm8
+#define WEIGHT_FORMAT 0
+#endif
+#ifndef PALETTE_ROWS          // float4 rows per joint: 4 mat4, 3 mat3x4
+#define PALETTE_ROWS 3
+#endif
+#ifndef STORAGE               // palette in 0 __constant__, 1 __shared__ copy, 2 global (__ldg), 3 texture object
+#define STORAGE 2
+#endif
+#ifndef JOINTS                // palette entries (sizes the __shared__ copy and the __constant__ symbol)
+#define JOINTS 77
+#endif
+#ifndef BLEND_POINT           // 0: blend matrices then transform; 1: transform per bone, blend points
+#define BLEND_POINT 0
+#endif
+#ifndef VERTICES_PER_ITEM     // N: 1, 2, 4, 8
+#define VERTICES_PER_ITEM 1
+#endif
+#ifndef STRIDED               // 0: contiguous vertices per item; 1: strided by the item count
+#define STRIDED 0
+#endif
+#ifndef WG_SIZE               // threads per block (__launch_bounds__)
+#define WG_SIZE 128
+#endif
+#ifndef NORMALS               // 1: also skin normals
+#define NORMALS 0
+#endif
+
+// NVRTC has no <cstdint>.
+typedef unsigned int u32;
+typedef unsigned short u16;
+typedef unsigned char u8;
+typedef unsigned long long u64;
+
+#if INDEX_FORMAT == 0
+#define INDEX_BYTES 4
+#define INDEX_T int
+#elif INDEX_FORMAT == 1
+#define INDEX_BYTES 2
+#define INDEX_T u16
+#else
+#define INDEX_BYTES 1
+#define INDEX_T u8
+#endif
+
+#if WEIGHT_FORMAT == 0
+#define WEIGHT_BYTES 4
+#define WEIGHT_T float
+#elif WEIGHT_FORMAT == 1
+#define WEIGHT_BYTES 2
+#define WEIGHT_T u16
+#else
+#define WEIGHT_BYTES 1
+#define WEIGHT_T u8
+#endif
+
+#if POSITION_FLOAT4
+#define POSITION_BYTES 16
+#define POSITION_T float4
+#else
+#define POSITION_BYTES 12
+#define POSITION_T float
+#endif
+
+// soa-split: slot i of vertex v at element i*S + v, S = n rounded up to this
+// multiple (every slot array of both formats starts on a 256-byte boundary).
+#ifndef SLOT_STRIDE_MULTIPLE
+#define NARROWEST_BYTES (INDEX_BYTES < WEIGHT_BYTES ? INDEX_BYTES : WEIGHT_BYTES)
+#define SLOT_STRIDE_MULTIPLE (256 / NARROWEST_BYTES > 64 ? 256 / NARROWEST_BYTES : 64)
+#endif
+
+// aos record: byte offsets of its fields and its size, as the packer lays them
+// out (generator/packer.h AosRecordLayout: natural alignment, size rounded up
+// to 16 bytes for float4 and 4 for float3). The defaults follow that rule.
+#define ROUND_UP(x, m) (((x) + (m) - 1) / (m) * (m))
+#define RECORD_ALIGN (POSITION_FLOAT4 ? 16 : 4)
+#ifndef AOS_POSITION_OFFSET
+#define AOS_POSITION_OFFSET 0
+#endif
+#ifndef AOS_INDICES_OFFSET
+#define AOS_INDICES_OFFSET POSITION_BYTES
+#endif
+#ifndef AOS_WEIGHTS_OFFSET
+#define AOS_WEIGHTS_OFFSET ROUND_UP(AOS_INDICES_OFFSET + INFLUENCES * INDEX_BYTES, WEIGHT_BYTES)
+#endif
+#ifndef AOS_NORMAL_OFFSET
+#define AOS_NORMAL_OFFSET ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN)
+#endif
+#ifndef AOS_RECORD_WORDS
+#if NORMALS
+#define AOS_RECORD_WORDS (ROUND_UP(AOS_NORMAL_OFFSET + POSITION_BYTES, RECORD_ALIGN) / 4)
+#else
+#define AOS_RECORD_WORDS (ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN) / 4)
+#endif
+#endif
+#define AOS_RECORD_BYTES (AOS_RECORD_WORDS * 4)
+
+#if INFLUENCES < 1 || INFLUENCES > 8
+#error "INFLUENCES must be 1..8"
+#endif
+#if VERTICES_PER_ITEM != 1 && VERTICES_PER_ITEM != 2 && VERTICES_PER_ITEM != 4 && VERTICES_PER_ITEM != 8
+#error "VERTICES_PER_ITEM must be 1, 2, 4 or 8"
+#endif
+#if STORAGE < 0 || STORAGE > 3
+#error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
+#endif
+
+#define DEVICE static __device__ __forceinline__
+
+// ---------------------------------------------------------------- vectors
+//
+// CUDA defines no arithmetic on its vector types; these few helpers are the
+// OpenCL built-ins the OpenCL template uses. Each is defined only where it is
+// used (NVRTC warns about unreferenced static functions).
+
+#if BLEND_POINT || NORMALS
+DEVICE float3 scale3(const float s, const float3 a) { return make_float3(s * a.x, s * a.y, s * a.z); }
+#endif
+#if BLEND_POINT
+DEVICE float3 add3(const float3 a, const float3 b) { return make_float3(a.x + b.x, a.y + b.y, a.z + b.z); }
+#else
+DEVICE float4 scale4(const float s, const float4 a) { return make_float4(s * a.x, s * a.y, s * a.z, s * a.w); }
+// acc + s * a
+DEVICE float4 madd4(const float s, const float4 a, const float4 acc) {
+  return make_float4(acc.x + s * a.x, acc.y + s * a.y, acc.z + s * a.z, acc.w + s * a.w);
+}
+#endif
+
+// ---------------------------------------------------------------- loads
+//
+// Alignment (in bytes, up to 16) that every address p0 + k*stride has, for
+// buffers whose base is at least 16-byte aligned: the lowest set bit of
+// (stride | offset). All arguments are compile-time constants, so after
+// inlining the compiler keeps exactly one branch of each loader.
+#define LOWEST_BIT(x) ((x) & (~(x) + 1u))
+#define ALIGNMENT(stride_or_offset) (LOWEST_BIT((u32)(stride_or_offset) | 16u))
+
+// The little-endian 32-bit word at any byte address.
+DEVICE u32 load_unaligned_word(const u8* p) {
+  return (u32)p[0] | ((u32)p[1] << 8) | ((u32)p[2] << 16) | ((u32)p[3] << 24);
+}
+
+// xyz of a float4 or float3 at p (w, when stored, is not read: positions are
+// transformed as (x, y, z, 1) and normals as directions).
+DEVICE float3 load_xyz(const u8* p, const u32 align) {
+#if POSITION_FLOAT4
+  if (align >= 16) {
+    const float4 v = *reinterpret_cast<const float4*>(p);
+    return make_float3(v.x, v.y, v.z);
+  }
+#endif
+  if (align >= 4) {
+    const float* f = reinterpret_cast<const float*>(p);
+    return make_float3(f[0], f[1], f[2]);
+  }
+  return make_float3(__uint_as_float(load_unaligned_word(p)), __uint_as_float(load_unaligned_word(p + 4)),
+                     __uint_as_float(load_unaligned_word(p + 8)));
+}
+
+#if LAYOUT != 2
+// The INFLUENCES little-endian unsigned values of `bytes` bytes each that
+// start at p, zero-extended to 32 bits. A run that starts on a 32-bit word is
+// read as whole words (uint4 / uint2 / u32 loads), then split, when it ends
+// on a word too or when `in_record`: an aos record starts on a word and its
+// size is a multiple of 4, so the word holding the run's last byte is inside
+// the record.
+DEVICE void load_run(const u8* p, const u32 bytes, const u32 align, const bool in_record, u32 out[INFLUENCES]) {
+  const u32 run = INFLUENCES * bytes;
+  if (align >= 4 && (run % 4 == 0 || in_record)) {
+    u32 words[INFLUENCES];  // ceil(run / 4) <= INFLUENCES words
+    const u32 count = (run + 3) / 4;
+    if (align >= 16 && count % 4 == 0) {
+#pragma unroll
+      for (u32 k = 0; k < count; k += 4) {
+        const uint4 w = reinterpret_cast<const uint4*>(p)[k / 4];
+        words[k] = w.x, words[k + 1] = w.y, words[k + 2] = w.z, words[k + 3] = w.w;
+      }
+    } else if (align >= 8 && count % 2 == 0) {
+#pragma unroll
+      for (u32 k = 0; k < count; k += 2) {
+        const uint2 w = reinterpret_cast<const uint2*>(p)[k / 2];
+        words[k] = w.x, words[k + 1] = w.y;
+      }
+    } else {
+#pragma unroll
+      for (u32 k = 0; k < count; ++k) words[k] = reinterpret_cast<const u32*>(p)[k];
+    }
+    const u32 mask = bytes == 4 ? 0xffffffffu : (1u << (8u * bytes)) - 1u;
+#pragma unroll
+    for (u32 i = 0; i < INFLUENCES; ++i) out[i] = (words[i * bytes / 4] >> (8u * (i * bytes % 4))) & mask;
+  } else if (bytes == 1) {
+#pragma unroll
+    for (u32 i = 0; i < INFLUENCES; ++i) out[i] = p[i];
+  } else if (bytes == 2 && align >= 2) {
+#pragma unroll
+    for (u32 i = 0; i < INFLUENCES; ++i) out[i] = reinterpret_cast<const u16*>(p)[i];
+  } else if (bytes == 4 && align >= 4) {
+#pragma unroll
+    for (u32 i = 0; i < INFLUENCES; ++i) out[i] = reinterpret_cast<const u32*>(p)[i];
+  } else {
+#pragma unroll
+    for (u32 i = 0; i < INFLUENCES; ++i) {
+      u32 value = 0;
+      for (u32 b = 0; b < bytes; ++b) value |= (u32)p[i * bytes + b] << (8u * b);
+      out[i] = value;
+    }
+  }
+}
+#endif
+
+#if LAYOUT == 2
+// One element of `bytes` bytes at p (naturally aligned: soa-split slots).
+DEVICE u32 load_element(const u8* p, const u32 bytes) {
+  if (bytes == 1) return *p;
+  if (bytes == 2) return *reinterpret_cast<const u16*>(p);
+  return *reinterpret_cast<const u32*>(p);
+}
+#endif
+
+DEVICE float weight_of(const u32 raw) {
+#if WEIGHT_FORMAT == 0
+  return __uint_as_float(raw);
+#elif WEIGHT_FORMAT == 1
+  return (float)raw * (1.0f / 65535.0f);
+#else
+  return (float)raw * (1.0f / 255.0f);
+#endif
+}
+
+// ---------------------------------------------------------------- palette
+//
+// Joint j's row r is float4 number j*PALETTE_ROWS + r. Row 3 of mat4 (0 0 0 1
+// for the affine palettes skinning uses) is never read: outputs are xyz.
+
+#define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
+
+#if STORAGE == 0
+__constant__ float4 skintune_palette[PALETTE_FLOAT4S];
+#define PALETTE_PARAM const float4* __restrict__ palette  // not read: the rows are in skintune_palette
+#define PALETTE_REF_PARAM int
+#define PALETTE_REF 0
+#define ROW(pal, k) skintune_palette[k]
+#elif STORAGE == 1
+#define PALETTE_PARAM const float4* __restrict__ palette
+#define PALETTE_REF_PARAM const float4* pal
+#define PALETTE_REF palette_shared
+#define ROW(pal, k) (pal)[k]
+#elif STORAGE == 2
+#define PALETTE_PARAM const float4* __restrict__ palette
+#define PALETTE_REF_PARAM const float4* __restrict__ pal
+#define PALETTE_REF palette
+#define ROW(pal, k) __ldg((pal) + (k))
+#else
+#define PALETTE_PARAM const cudaTextureObject_t palette
+#define PALETTE_REF_PARAM const cudaTextureObject_t pal
+#define PALETTE_REF palette
+#define ROW(pal, k) tex1Dfetch<float4>((pal), (int)(k))
+#endif
+
+// (x, y, z, 1) by the three rows.
+DEVICE float3 transform_point(const float4 r0, const float4 r1, const float4 r2, const float3 p) {
+  return make_float3(r0.x * p.x + r0.y * p.y + r0.z * p.z + r0.w, r1.x * p.x + r1.y * p.y + r1.z * p.z + r1.w,
+                     r2.x * p.x + r2.y * p.y + r2.z * p.z + r2.w);
+}
+
+DEVICE float3 transform_direction(const float4 r0, const float4 r1, const float4 r2, const float3 d) {
+  return make_float3(r0.x * d.x + r0.y * d.y + r0.z * d.z, r1.x * d.x + r1.y * d.y + r1.z * d.z,
+                     r2.x * d.x + r2.y * d.y + r2.z * d.z);
+}
+
+#if NORMALS
+// d / |d|, and d itself when it is zero (as OpenCL's normalize and the gold).
+DEVICE float3 normalize3(const float3 d) {
+  const float length2 = d.x * d.x + d.y * d.y + d.z * d.z;
+  return length2 > 0.0f ? scale3(rsqrtf(length2), d) : d;
+}
+#endif
+
+// Skins one vertex given its joints and weights; writes position (and normal).
+DEVICE void blend(PALETTE_REF_PARAM, const u32 joint[INFLUENCES], const float weight[INFLUENCES],
+                  const float3 position, const float3 normal, float3* out_position, float3* out_normal) {
+#if BLEND_POINT
+  u32 k = joint[0] * PALETTE_ROWS;
+  float4 r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
+  float3 p = scale3(weight[0], transform_point(r0, r1, r2, position));
+  float3 nrm = scale3(weight[0], transform_direction(r0, r1, r2, normal));  // dead code without NORMALS
+#pragma unroll
+  for (u32 i = 1; i < INFLUENCES; ++i) {
+    k = joint[i] * PALETTE_ROWS;
+    r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
+    p = add3(p, scale3(weight[i], transform_point(r0, r1, r2, position)));
+    nrm = add3(nrm, scale3(weight[i], transform_direction(r0, r1, r2, normal)));
+  }
+  *out_position = p;
+  *out_normal = nrm;
+#else
+  const u32 k0 = joint[0] * PALETTE_ROWS;
+  float4 m0 = scale4(weight[0], ROW(pal, k0)), m1 = scale4(weight[0], ROW(pal, k0 + 1)),
+         m2 = scale4(weight[0], ROW(pal, k0 + 2));
+#pragma unroll
+  for (u32 i = 1; i < INFLUENCES; ++i) {
+    const u32 k = joint[i] * PALETTE_ROWS;
+    m0 = madd4(weight[i], ROW(pal, k), m0);
+    m1 = madd4(weight[i], ROW(pal, k + 1), m1);
+    m2 = madd4(weight[i], ROW(pal, k + 2), m2);
+  }
+  *out_position = transform_point(m0, m1, m2, position);
+  *out_normal = transform_direction(m0, m1, m2, normal);  // dead code without NORMALS
+#endif
+}
+
+// Outputs: float4 with w = 1 (positions) / 0 (normals), or packed float3.
+#if POSITION_FLOAT4
+#define STORE_XYZ(out, at, value, w) ((out)[at] = make_float4((value).x, (value).y, (value).z, (w)))
+#else
+#define STORE_XYZ(out, at, value, w) store_xyz3((out), (at), (value))
+DEVICE void store_xyz3(float* out, const u32 at, const float3 value) {
+  float* p = out + (u64)at * 3;
+  p[0] = value.x, p[1] = value.y, p[2] = value.z;
+}
+#endif
+
+// ---------------------------------------------------------------- kernel
+
+extern "C" __global__ void __launch_bounds__(WG_SIZE)
+skin(const u32 n, const u32 first,
+#if LAYOUT == 0
+     const u32* __restrict__ records,
+#else
+     const POSITION_T* __restrict__ positions,
+     const INDEX_T* __restrict__ indices,
+     const WEIGHT_T* __restrict__ weights,
+#if NORMALS
+     const POSITION_T* __restrict__ normals,
+#endif
+#endif
+     PALETTE_PARAM,
+#if NORMALS
+     POSITION_T* __restrict__ out_positions,
+     POSITION_T* __restrict__ out_normals) {
+#else
+     POSITION_T* __restrict__ out_positions) {
+#endif
+#if STORAGE == 1
+  // Every thread of the block copies, including those past n: no return before the barrier.
+  __shared__ float4 palette_shared[PALETTE_FLOAT4S];
+  for (u32 k = threadIdx.x; k < PALETTE_FLOAT4S; k += WG_SIZE) palette_shared[k] = __ldg(palette + k);
+  __syncthreads();
+#elif STORAGE == 0
+  (void)palette;
+#endif
+
+#if LAYOUT == 2
+  const u32 slot_stride = ROUND_UP(max(n, 1u), (u32)SLOT_STRIDE_MULTIPLE);
+#endif
+  const u32 item = blockIdx.x * WG_SIZE + threadIdx.x;
+#if STRIDED
+  const u32 items = gridDim.x * WG_SIZE;
+#endif
+
+#pragma unroll
+  for (u32 k = 0; k < VERTICES_PER_ITEM; ++k) {
+#if STRIDED
+    const u32 v = item + k * items;
+#else
+    const u32 v = item * VERTICES_PER_ITEM + k;
+#endif
+    if (v >= n) break;
+
+    float3 position, normal = make_float3(0.0f, 0.0f, 0.0f);
+    u32 joint[INFLUENCES], raw_weight[INFLUENCES];
+#if LAYOUT == 0
+    const u8* record = reinterpret_cast<const u8*>(records) + (u64)v * AOS_RECORD_BYTES;
+    position = load_xyz(record + AOS_POSITION_OFFSET, ALIGNMENT(AOS_RECORD_BYTES | AOS_POSITION_OFFSET));
+    load_run(record + AOS_INDICES_OFFSET, INDEX_BYTES, ALIGNMENT(AOS_RECORD_BYTES | AOS_INDICES_OFFSET), true, joint);
+    load_run(record + AOS_WEIGHTS_OFFSET, WEIGHT_BYTES, ALIGNMENT(AOS_RECORD_BYTES | AOS_WEIGHTS_OFFSET), true,
+             raw_weight);
+#if NORMALS
+    normal = load_xyz(record + AOS_NORMAL_OFFSET, ALIGNMENT(AOS_RECORD_BYTES | AOS_NORMAL_OFFSET));
+#endif
+#else
+    position = load_xyz(reinterpret_cast<const u8*>(positions) + (u64)v * POSITION_BYTES, ALIGNMENT(POSITION_BYTES));
+#if NORMALS
+    normal = load_xyz(reinterpret_cast<const u8*>(normals) + (u64)v * POSITION_BYTES, ALIGNMENT(POSITION_BYTES));
+#endif
+#if LAYOUT == 1
+    load_run(reinterpret_cast<const u8*>(indices) + (u64)v * (INFLUENCES * INDEX_BYTES), INDEX_BYTES,
+             ALIGNMENT(INFLUENCES * INDEX_BYTES), false, joint);
+    load_run(reinterpret_cast<const u8*>(weights) + (u64)v * (INFLUENCES * WEIGHT_BYTES), WEIGHT_BYTES,
+             ALIGNMENT(INFLUENCES * WEIGHT_BYTES), false, raw_weight);
+#else
+#pragma unroll
+    for (u32 i = 0; i < INFLUENCES; ++i) {
+      const u64 e = (u64)i * slot_stride + v;
+      joint[i] = load_element(reinterpret_cast<const u8*>(indices) + e * INDEX_BYTES, INDEX_BYTES);
+      raw_weight[i] = load_element(reinterpret_cast<const u8*>(weights) + e * WEIGHT_BYTES, WEIGHT_BYTES);
+    }
+#endif
+#endif
+
+    float weight[INFLUENCES];
+#pragma unroll
+    for (u32 i = 0; i < INFLUENCES; ++i) weight[i] = weight_of(raw_weight[i]);
+
+    float3 skinned_position, skinned_normal;
+    blend(PALETTE_REF, joint, weight, position, normal, &skinned_position, &skinned_normal);
+    STORE_XYZ(out_positions, first + v, skinned_position, 1.0f);
+#if NORMALS
+    STORE_XYZ(out_normals, first + v, normalize3(skinned_normal), 0.0f);
+#endif
+  }
+}

@@ -1,0 +1,610 @@
+// CUDA: templates/skin.cu through NVRTC, and the CUDA runner against the gold.
+//
+// - Compile-only (needs NVRTC, no GPU): a pairwise covering array of the
+//   CUDA variant space, built by a small greedy generator below, every row
+//   compiled with NVRTC; any error, any warning, or a stack frame in the PTX
+//   (an array the template expects in registers) fails. Plus the template
+//   alone with no defines, and the NVRTC error path.
+// - Runs (need a CUDA driver and GPU): ~30 variants against the float64 gold
+//   on a fresh random synthetic mesh each run (the seed is printed;
+//   SKINTUNE_TEST_SEED=<n> reproduces a run) and on CesiumMan for the
+//   bucketed launches; the poisoned output, the guard and build errors.
+// Every test that cannot run here skips with what is missing (the NVRTC
+// libraries tried, or why there is no driver or device).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cstdint>
+#include <cstdlib>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <ostream>
+#include <random>
+#include <set>
+
+#include "generator/constraints.h"
+#include "generator/covering.h"
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "reference/error.h"
+#include "reference/gltf_import.h"
+#include "reference/skinning.h"
+#include "reference/synthetic.h"
+#include "runtime/cuda_api.h"
+#include "runtime/cuda_runner.h"
+
+namespace skintune {
+namespace {
+
+constexpr double kTolerance = 1e-5;
+constexpr const char* kCompileArch = "compute_90";  // any architecture NVRTC 12/13 supports
+constexpr int kJoints = 77;                          // the synthetic rig's; sizes local/constant palettes
+
+const CudaAvailability& Available() {
+  static const CudaAvailability a = Probe();
+  return a;
+}
+
+#define SKIP_WITHOUT_NVRTC()                                                          \
+  if (!Available().nvrtc) GTEST_SKIP() << "NVRTC cannot be loaded: " << Available().nvrtc_missing
+
+// ---------------------------------------------------------------- covering array
+
+// One axis of the CUDA variant space as the key tokens of its values. The
+// work axis joins vertices per item and assignment (v1s does not exist).
+struct Axis {
+  const char* name;
+  std::vector<const char*> tokens;
+};
+
+const std::vector<Axis>& Axes() {
+  static const std::vector<Axis> axes = {
+      {"influences", {"b1", "b2", "b3", "b4", "b5", "b6", "b7", "b8"}},
+      {"mixed", {"padded", "bucketed"}},
+      {"layout", {"aos", "soa", "soa-split"}},
+      {"position", {"float4", "float3"}},
+      {"index", {"i32", "u16", "u8"}},
+      {"weight", {"f32", "unorm16", "unorm8"}},
+      {"palette", {"mat4", "mat3x4"}},
+      {"storage", {"constant", "local", "global", "image"}},
+      {"blend", {"matrix", "point"}},
+      {"work", {"v1c", "v2c", "v2s", "v4c", "v4s", "v8c", "v8s"}},
+      {"wg", {"wg32", "wg64", "wg128", "wg256", "wg512", "wg1024"}},
+      {"normals", {"nonormals", "normals"}},
+  };
+  return axes;
+}
+
+using Row = std::vector<std::size_t>;  // a value index per axis
+
+// Pairs of (axis a, value i) x (axis b, value j), a < b, not yet in any row.
+class PairSet {
+ public:
+  explicit PairSet(const std::vector<std::size_t>& sizes) : sizes_(sizes) {
+    for (std::size_t a = 0; a < sizes.size(); ++a)
+      for (std::size_t b = a + 1; b < sizes.size(); ++b)
+        for (std::size_t i = 0; i < sizes[a]; ++i)
+          for (std::size_t j = 0; j < sizes[b]; ++j) open_.insert(Key(a, i, b, j));
+  }
+  bool Open(std::size_t a, std::size_t i, std::size_t b, std::size_t j) const {
+    return a < b ? open_.count(Key(a, i, b, j)) > 0 : open_.count(Key(b, j, a, i)) > 0;
+  }
+  void Cover(const Row& row) {
+    for (std::size_t a = 0; a < row.size(); ++a)
+      for (std::size_t b = a + 1; b < row.size(); ++b) open_.erase(Key(a, row[a], b, row[b]));
+  }
+  bool Empty() const { return open_.empty(); }
+  std::size_t Size() const { return open_.size(); }
+  // The first open pair, as (a, i, b, j).
+  std::array<std::size_t, 4> First() const {
+    const std::uint64_t k = *open_.begin();
+    return {static_cast<std::size_t>(k >> 48), static_cast<std::size_t>(k >> 32 & 0xffff),
+            static_cast<std::size_t>(k >> 16 & 0xffff), static_cast<std::size_t>(k & 0xffff)};
+  }
+
+ private:
+  static std::uint64_t Key(std::size_t a, std::size_t i, std::size_t b, std::size_t j) {
+    return static_cast<std::uint64_t>(a) << 48 | static_cast<std::uint64_t>(i) << 32 |
+           static_cast<std::uint64_t>(b) << 16 | static_cast<std::uint64_t>(j);
+  }
+  std::vector<std::size_t> sizes_;
+  std::set<std::uint64_t> open_;
+};
+
+// Greedy pairwise covering array (AETG-style): each new row starts from the
+// first uncovered pair, then fixes the other axes in a random order, each to
+// the value that covers most open pairs with the axes fixed so far; the best
+// of several such candidates is kept. std::mt19937's sequence is fixed by the
+// standard, so the rows are the same on every machine.
+std::vector<Row> CoveringArray(const std::vector<std::size_t>& sizes, std::uint32_t seed, int candidates = 24) {
+  std::mt19937 rng(seed);
+  PairSet open(sizes);
+  std::vector<Row> rows;
+  const std::size_t axes = sizes.size();
+  while (!open.Empty()) {
+    Row best;
+    std::size_t best_gain = 0;
+    for (int c = 0; c < candidates; ++c) {
+      const auto [a0, i0, b0, j0] = open.First();
+      Row row(axes, 0);
+      std::vector<bool> fixed(axes, false);
+      row[a0] = i0, row[b0] = j0;
+      fixed[a0] = fixed[b0] = true;
+      std::vector<std::size_t> order;
+      for (std::size_t a = 0; a < axes; ++a)
+        if (!fixed[a]) order.push_back(a);
+      for (std::size_t k = order.size(); k > 1; --k) std::swap(order[k - 1], order[rng() % k]);
+      for (const std::size_t a : order) {
+        std::size_t chosen = rng() % sizes[a], chosen_gain = 0;
+        for (std::size_t v = 0; v < sizes[a]; ++v) {
+          std::size_t gain = 0;
+          for (std::size_t b = 0; b < axes; ++b)
+            if (fixed[b] && open.Open(a, v, b, row[b])) ++gain;
+          if (gain > chosen_gain) chosen = v, chosen_gain = gain;
+        }
+        row[a] = chosen;
+        fixed[a] = true;
+      }
+      std::size_t gain = 0;
+      for (std::size_t a = 0; a < axes; ++a)
+        for (std::size_t b = a + 1; b < axes; ++b) gain += open.Open(a, row[a], b, row[b]) ? 1 : 0;
+      if (gain > best_gain) best = row, best_gain = gain;
+    }
+    open.Cover(best);
+    rows.push_back(best);
+  }
+  return rows;
+}
+
+std::vector<std::size_t> AxisSizes() {
+  std::vector<std::size_t> sizes;
+  for (const Axis& axis : Axes()) sizes.push_back(axis.tokens.size());
+  return sizes;
+}
+
+std::string KeyOf(const Row& row) {
+  std::string key = "cuda";
+  for (std::size_t a = 0; a < row.size(); ++a) key += std::string(".") + Axes()[a].tokens[row[a]];
+  return key;
+}
+
+const std::vector<std::string>& CoveringKeys() {
+  static const std::vector<std::string> keys = [] {
+    std::vector<std::string> k;
+    for (const Row& row : CoveringArray(AxisSizes(), 20240611)) k.push_back(KeyOf(row));
+    return k;
+  }();
+  return keys;
+}
+
+TEST(CudaCoveringArray, CoversEveryPairOfAxisValues) {
+  const std::vector<std::size_t> sizes = AxisSizes();
+  PairSet open(sizes);
+  std::size_t largest_product = 0;
+  for (std::size_t a = 0; a < sizes.size(); ++a)
+    for (std::size_t b = a + 1; b < sizes.size(); ++b) largest_product = std::max(largest_product, sizes[a] * sizes[b]);
+  std::set<std::string> distinct;
+  for (const std::string& key : CoveringKeys()) {
+    const Variant v = ParseVariantKey(key);  // every row is a valid key
+    EXPECT_EQ(v.lang, Lang::kCuda);
+    distinct.insert(v.Key());
+    Row row;
+    for (const Axis& axis : Axes()) {
+      std::size_t value = 0;
+      while (key.find(std::string(".") + axis.tokens[value] + ".") == std::string::npos &&
+             !key.ends_with(std::string(".") + axis.tokens[value]))
+        ++value;
+      row.push_back(value);
+    }
+    open.Cover(row);
+  }
+  EXPECT_TRUE(open.Empty()) << open.Size() << " pairs of axis values never compiled together";
+  EXPECT_EQ(distinct.size(), CoveringKeys().size()) << "a row repeats another";
+  EXPECT_GE(CoveringKeys().size(), largest_product);
+  EXPECT_LE(CoveringKeys().size(), largest_product + largest_product / 3) << "the greedy generator got worse";
+  std::cout << "[ covering ] " << CoveringKeys().size() << " CUDA variants cover every pair of values of "
+            << sizes.size() << " axes (at least " << largest_product << " needed)\n";
+}
+
+// ---------------------------------------------------------------- compile only
+
+// "" when `source` compiles cleanly; else the reason.
+std::string CompileProblem(const std::string& source, std::string* ptx = nullptr) {
+  const CompileResult r = CompileWithNvrtc(source, kCompileArch);
+  if (!r.ok) return r.error;
+  if (r.log.find("warning") != std::string::npos) return "compiled with warnings:\n" + r.log;
+  // A local depot is an array (joints, weights, words) spilled to the stack:
+  // the template's loops are meant to unroll into registers.
+  if (r.ptx.find("__local_depot") != std::string::npos) return "the PTX uses a stack frame (local memory)";
+  if (r.ptx.find(".entry skin(") == std::string::npos) return "no extern \"C\" entry 'skin' in the PTX";
+  if (ptx) *ptx = r.ptx;
+  return "";
+}
+
+class CudaCompile : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(CudaCompile, NvrtcCompilesCleanly) {
+  SKIP_WITHOUT_NVRTC();
+  const Variant variant = ParseVariantKey(GetParam());
+  const KernelSource source = Emit(variant, 0, kJoints);
+  EXPECT_EQ(CompileProblem(source.text), "") << source.text.substr(0, source.text.find("#line"));
+}
+
+std::string KeyName(const ::testing::TestParamInfo<std::string>& info) {
+  std::string name = std::to_string(info.index) + "_" + info.param;
+  for (char& ch : name)
+    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+  return name;
+}
+
+INSTANTIATE_TEST_SUITE_P(Pairwise, CudaCompile, ::testing::ValuesIn(CoveringKeys()), KeyName);
+
+// CUDA's limits on every device CUDA 12+ runs on (the runner queries the real ones).
+DeviceLimits CudaLimits() {
+  DeviceLimits d;
+  d.max_wg_size = 1024;
+  d.local_memory_bytes = 48 * 1024;  // static __shared__
+  d.constant_memory_bytes = 64 * 1024;
+  d.image_support = true;
+  d.image_buffer_max_texels = std::uint64_t{1} << 27;
+  return d;
+}
+
+const ProblemShape kCoveringShape{kJoints, 1, true};
+
+// The project's covering set (generator/covering.h), which the tools use.
+TEST(CudaCoveringSet, EveryVariantCompilesCleanly) {
+  SKIP_WITHOUT_NVRTC();
+  const CoveringSet set = BuildCoveringSet(Lang::kCuda, CudaLimits(), kCoveringShape);
+  ASSERT_TRUE(set.uncoverable.empty());
+  for (const Variant& v : set.variants) EXPECT_EQ(CompileProblem(Emit(v, 0, kJoints).text), "") << v.Key();
+  std::cout << "[ covering ] " << set.variants.size() << " variants of generator/covering.h compiled\n";
+}
+
+TEST(CudaTemplate, CompilesAloneWithNvrtcAndNoDefines) {
+  SKIP_WITHOUT_NVRTC();
+  std::string ptx;
+  EXPECT_EQ(CompileProblem(TemplateText("skin.cu"), &ptx), "");
+  // The default variant reads the palette through the read-only cache with 16-byte loads.
+  EXPECT_NE(ptx.find("ld.global.nc.v4.f32"), std::string::npos);
+}
+
+TEST(CudaTemplate, EachStorageReadsThePaletteFromItsMemory) {
+  SKIP_WITHOUT_NVRTC();
+  const std::pair<const char*, const char*> expected[] = {
+      {"cuda.constant", "ld.const.v4.f32"},
+      {"cuda.local", "ld.shared.v4.f32"},
+      {"cuda.global", "ld.global.nc.v4.f32"},
+      {"cuda.image", "tex.1d.v4.f32.s32"},
+  };
+  for (const auto& [key, instruction] : expected) {
+    std::string ptx;
+    ASSERT_EQ(CompileProblem(Emit(ParseVariantKey(key), 0, kJoints).text, &ptx), "") << key;
+    EXPECT_NE(ptx.find(instruction), std::string::npos) << key << " has no " << instruction;
+  }
+  std::string ptx;
+  ASSERT_EQ(CompileProblem(Emit(ParseVariantKey("cuda.constant"), 0, kJoints).text, &ptx), "");
+  EXPECT_NE(ptx.find(".const .align 16 .b8 skintune_palette[" + std::to_string(kJoints * 3 * 16) + "]"),
+            std::string::npos)
+      << "the __constant__ palette is sized by JOINTS";
+}
+
+TEST(CudaCompile, AnErrorCarriesTheNvrtcLog) {
+  SKIP_WITHOUT_NVRTC();
+  std::string text = Emit(ParseVariantKey("cuda.b2"), 0, kJoints).text;
+  const std::string from = "if (v >= n) break;";
+  ASSERT_NE(text.find(from), std::string::npos) << "update the test: the template changed";
+  text.replace(text.find(from), from.size(), from + " undeclared_name_xyz = 1;");
+  const CompileResult r = CompileWithNvrtc(text, kCompileArch);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("NVRTC compile of skin.cu for compute_90 failed"), std::string::npos) << r.error;
+  EXPECT_NE(r.error.find("undeclared_name_xyz"), std::string::npos) << r.error;
+  EXPECT_TRUE(r.ptx.empty());
+}
+
+TEST(CudaApi, ProbeSaysWhatIsMissing) {
+  const CudaAvailability& a = Available();
+  std::cout << "[ cuda ] " << a.Describe() << "\n";
+  if (a.nvrtc) {
+    EXPECT_FALSE(a.nvrtc_library.empty());
+    EXPECT_GE(a.nvrtc_major, 11);
+  } else if (a.nvrtc_missing.starts_with("NVRTC not found")) {
+    for (const std::string& candidate : NvrtcCandidates())
+      EXPECT_NE(a.nvrtc_missing.find(candidate), std::string::npos) << "the reason names every path tried";
+  }
+  if (!a.driver) {
+    EXPECT_FALSE(a.driver_missing.empty());
+  }
+}
+
+TEST(CudaApi, ChoosesTheNewestArchitectureNvrtcSupports) {
+  SKIP_WITHOUT_NVRTC();
+  EXPECT_EQ(NvrtcArchFor(9, 0), "compute_90");
+  EXPECT_EQ(NvrtcArchFor(1, 0), "") << "no NVRTC compiles for compute capability 1.0";
+  const std::string future = NvrtcArchFor(99, 9);
+  EXPECT_TRUE(future.starts_with("compute_")) << future;
+  EXPECT_EQ(CompileWithNvrtc(TemplateText("skin.cu"), future).error, "");
+}
+
+// ---------------------------------------------------------------- runs on a GPU
+
+std::uint64_t Seed() {
+  static const std::uint64_t seed = []() -> std::uint64_t {
+    if (const char* env = std::getenv("SKINTUNE_TEST_SEED")) return static_cast<std::uint64_t>(std::strtoull(env, nullptr, 10));
+    return static_cast<std::uint64_t>(std::random_device{}()) % 1000000 + 1;
+  }();
+  return seed;
+}
+
+// The first CUDA device, or null (with the reason) when the machine has none.
+CudaRunner* Runner(std::string& why) {
+  static std::string reason;
+  static std::unique_ptr<CudaRunner> runner = []() -> std::unique_ptr<CudaRunner> {
+    if (!Available().CanRun()) {
+      reason = "no CUDA device to run on: " + Available().Describe();
+      return nullptr;
+    }
+    return std::make_unique<CudaRunner>(0);
+  }();
+  why = reason;
+  return runner.get();
+}
+
+#define RUNNER_OR_SKIP(runner)      \
+  std::string why;                  \
+  CudaRunner* runner = Runner(why); \
+  if (!runner) GTEST_SKIP() << why
+
+struct Case {
+  const char* key;
+  const char* mesh;  // "cesium", or a synthetic dataset key suffix such as "b3" / "b3-random"
+};
+
+void PrintTo(const Case& c, std::ostream* os) { *os << c.key << " on " << c.mesh; }
+
+const SkinnedAsset& Asset(const std::string& mesh) {
+  static std::map<std::string, SkinnedAsset> cache;
+  if (auto found = cache.find(mesh); found != cache.end()) return found->second;
+  if (mesh == "cesium") {
+    return cache[mesh] = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf").asset;
+  }
+  // 5000 vertices plus a seed-dependent tail, so launches end mid-block.
+  const std::string key = std::to_string(5000 + Seed() % 97) + "-" + mesh + "-seed" + std::to_string(Seed()) +
+                          "-normals";
+  return cache[mesh] = GenerateDataset(ParseDatasetKey(key));
+}
+
+std::vector<glm::mat4> Palette(const SkinnedAsset& asset) {
+  if (asset.animations.empty()) return asset.PaletteAt(-1, 0.0);
+  const AnimationClip& clip = asset.animations.front();
+  const double t = clip.start + (clip.end - clip.start) * static_cast<double>(Seed() % 1000) / 1000.0;
+  return asset.PaletteAt(0, t);
+}
+
+void ExpectMatchesGold(const PackedMesh& packed, const CudaRunResult& result, const SkinnedMesh& mesh,
+                       std::span<const glm::mat4> palette) {
+  const SkinnedMesh quantised = QuantisedMesh(mesh, packed.variant);
+  const GoldResult gold = SkinGold(quantised, palette, packed.variant.normals);
+  EXPECT_EQ(result.poisoned_vertices, 0u);
+  const GoldComparison p = CompareToGold(gold.positions, Unpack(packed, result.positions));
+  EXPECT_EQ(p.non_finite, 0u) << "first at vertex " << p.worst_vertex;
+  EXPECT_LT(p.max_relative, kTolerance) << "positions, worst vertex " << p.worst_vertex;
+  if (packed.variant.normals) {
+    const GoldComparison n = CompareToGold(gold.normals, Unpack(packed, result.normals));
+    EXPECT_EQ(n.non_finite, 0u) << "first at vertex " << n.worst_vertex;
+    EXPECT_LT(n.max_relative, kTolerance) << "normals, worst vertex " << n.worst_vertex;
+  }
+  EXPECT_EQ(result.launch_ms.size(), packed.launches.size());
+  for (const double ms : result.launch_ms) EXPECT_GT(ms, 0.0);
+}
+
+class CudaVariant : public ::testing::TestWithParam<Case> {};
+
+TEST_P(CudaVariant, MatchesTheGold) {
+  RUNNER_OR_SKIP(runner);
+  const Case& c = GetParam();
+  SCOPED_TRACE(std::string(c.key) + " on " + c.mesh + ", seed " + std::to_string(Seed()) +
+               " (SKINTUNE_TEST_SEED reproduces), device " + runner->device_name() + " (" + runner->arch() + ")");
+  const SkinnedAsset& asset = Asset(c.mesh);
+  const Variant variant = ParseVariantKey(c.key);
+  const PackedMesh packed = Pack(asset.mesh, variant);
+  const std::vector<glm::mat4> palette = Palette(asset);
+  const CudaRunResult result = runner->Run(packed, PackPalette(palette, variant));
+  ExpectMatchesGold(packed, result, asset.mesh, palette);
+  if (variant.mixed == MixedCounts::kBucketed && std::string(c.mesh) == "cesium") {
+    EXPECT_EQ(packed.launches.size(), 4u);  // CesiumMan: vertices with 1, 2, 3 and 4 bones
+  }
+}
+
+// The cases of tests/runtime/opencl_runner_test.cpp, in CUDA: every value of
+// every axis; every layout with every index format, every weight format and
+// every storage; bucketed launches on CesiumMan.
+const Case kCases[] = {
+    // layout x index x weight
+    {"cuda.b4.padded.aos.float4.i32.f32.mat4.constant.matrix.v1c.wg64.nonormals", "b4"},
+    {"cuda.b3.padded.aos.float3.u16.unorm16.mat3x4.local.point.v2c.wg32.normals", "b3"},
+    {"cuda.b1.padded.aos.float4.u8.unorm8.mat3x4.image.matrix.v4s.wg256.normals", "b1"},
+    {"cuda.b2.padded.soa.float3.i32.unorm16.mat3x4.global.point.v8c.wg128.nonormals", "b2"},
+    {"cuda.b5.padded.soa.float4.u16.unorm8.mat4.image.matrix.v2s.wg64.normals", "b5-random"},
+    {"cuda.b8.padded.soa.float3.u8.f32.mat4.local.matrix.v1c.wg1024.nonormals", "b8"},
+    {"cuda.b6.padded.soa-split.float4.i32.unorm8.mat3x4.constant.point.v4c.wg32.normals", "b6-random"},
+    {"cuda.b7.padded.soa-split.float3.u16.f32.mat4.global.matrix.v8s.wg512.nonormals", "b7"},
+    {"cuda.b4.padded.soa-split.float4.u8.unorm16.mat3x4.local.matrix.v2c.wg256.normals", "b4"},
+    // the storage each layout has not seen yet
+    {"cuda.b4.padded.aos.float3.u16.unorm8.mat4.global.point.v1c.wg128.normals", "b4"},
+    {"cuda.b4.padded.soa.float4.u16.f32.mat3x4.constant.matrix.v1c.wg128.normals", "b4-random"},
+    {"cuda.b3.padded.soa-split.float3.u8.unorm8.mat4.image.point.v4s.wg64.normals", "b3"},
+    // padding: more slots than the mesh uses
+    {"cuda.b8.padded.aos.float4.i32.f32.mat3x4.global.matrix.v1c.wg128.nonormals", "b3"},
+    {"cuda.b4.padded.soa-split.float3.u8.f32.mat3x4.constant.matrix.v2c.wg64.normals", "cesium"},
+    // bucketed: one launch per influence count, each with its own kernel
+    {"cuda.b4.bucketed.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.normals", "cesium"},
+    {"cuda.b4.bucketed.aos.float3.u8.unorm8.mat4.local.point.v2s.wg64.normals", "cesium"},
+    {"cuda.b4.bucketed.soa-split.float4.u16.unorm16.mat3x4.image.matrix.v4c.wg32.nonormals", "cesium"},
+    {"cuda.b2.bucketed.soa.float4.u16.f32.mat3x4.global.matrix.v8s.wg256.nonormals", "b2"},
+    {"cuda.b4.bucketed.soa.float3.i32.unorm16.mat4.constant.point.v8s.wg512.normals", "cesium"},
+    {"cuda.b6.bucketed.soa-split.float3.u8.unorm8.mat4.local.point.v2c.wg64.normals", "cesium"},
+    {"cuda.b8.padded.soa.float4.u16.unorm16.mat4.global.matrix.v1c.wg128.normals", "cesium"},
+    // more crossings: point blend with every storage and layout, local copies with large groups
+    {"cuda.b4.padded.aos.float4.u8.f32.mat3x4.constant.point.v8s.wg256.normals", "b4"},
+    {"cuda.b2.padded.aos.float3.i32.unorm16.mat4.image.point.v2c.wg512.nonormals", "b2"},
+    {"cuda.b6.padded.aos.float4.u16.unorm8.mat4.local.matrix.v4c.wg1024.normals", "b6"},
+    {"cuda.b1.padded.soa.float4.u8.unorm16.mat4.constant.point.v4s.wg32.normals", "b1"},
+    {"cuda.b3.padded.soa.float3.u16.f32.mat3x4.local.point.v8s.wg256.normals", "b3-random"},
+    {"cuda.b7.padded.soa.float4.i32.unorm8.mat3x4.image.point.v1c.wg64.normals", "b7"},
+    {"cuda.b8.padded.soa-split.float4.u16.f32.mat4.local.point.v8c.wg128.normals", "b8-random"},
+    {"cuda.b5.padded.soa-split.float3.i32.unorm16.mat3x4.constant.matrix.v2s.wg1024.normals", "b5"},
+    {"cuda.b1.padded.soa-split.float4.u8.unorm8.mat3x4.global.point.v1c.wg32.normals", "b1"},
+};
+
+std::string CaseName(const ::testing::TestParamInfo<Case>& info) {
+  std::string name = std::to_string(info.index) + "_" + info.param.key + "_" + info.param.mesh;
+  for (char& ch : name)
+    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+  return name;
+}
+
+INSTANTIATE_TEST_SUITE_P(EveryAxis, CudaVariant, ::testing::ValuesIn(kCases), CaseName);
+
+TEST(CudaVariantCases, CompileCleanlyHere) {
+  // The run cases compile cleanly here as well, so a GPU machine only finds run-time problems.
+  SKIP_WITHOUT_NVRTC();
+  for (const Case& c : kCases) {
+    const Variant v = ParseVariantKey(c.key);
+    const int b = v.mixed == MixedCounts::kBucketed ? 1 : v.influences;  // a bucket's smallest count
+    EXPECT_EQ(CompileProblem(Emit(v, b, kJoints).text), "") << c.key;
+  }
+}
+
+// The generated covering set for this device (generator/covering.h), each
+// variant on a fresh mesh with its own influence count.
+TEST(CudaCoveringSet, EveryVariantMatchesTheGold) {
+  RUNNER_OR_SKIP(runner);
+  const CoveringSet set = BuildCoveringSet(Lang::kCuda, runner->limits(), {kJoints, 1, true});
+  ASSERT_TRUE(set.uncoverable.empty());
+  for (std::size_t i = 0; i < set.variants.size(); ++i) {
+    const Variant& variant = set.variants[i];
+    const std::string mesh = "b" + std::to_string(variant.influences) + (i % 2 ? "-random" : "");
+    SCOPED_TRACE(variant.Key() + " on " + mesh + ", seed " + std::to_string(Seed()));
+    const SkinnedAsset& asset = Asset(mesh);
+    const PackedMesh packed = Pack(asset.mesh, variant);
+    const std::vector<glm::mat4> palette = Palette(asset);
+    ExpectMatchesGold(packed, runner->Run(packed, PackPalette(palette, variant)), asset.mesh, palette);
+  }
+  std::cout << "[ covering ] " << set.variants.size() << " CUDA variants verified on " << runner->device_name()
+            << "\n";
+}
+
+// One padded soa launch with an edit of the emitted text; `from` must occur once.
+struct Faulty {
+  PackedMesh packed;
+  std::vector<glm::mat4> palette;
+  std::vector<KernelSource> kernels;
+};
+
+Faulty WithFault(const std::string& key, const std::string& from, const std::string& to, int joints = 0) {
+  Faulty f;
+  const SkinnedAsset& asset = Asset("b2");
+  f.packed = Pack(asset.mesh, ParseVariantKey(key));
+  f.palette = Palette(asset);
+  KernelSource s = Emit(f.packed.variant, 0, joints > 0 ? joints : static_cast<int>(f.packed.palette_joints));
+  const std::size_t at = s.text.find(from);
+  EXPECT_NE(at, std::string::npos) << "'" << from << "' not in the template any more: update the test";
+  EXPECT_EQ(s.text.find(from, at + 1), std::string::npos) << "'" << from << "' occurs twice";
+  if (at != std::string::npos) s.text.replace(at, from.size(), to);
+  s.source_hash = SourceHash(s.text);
+  f.kernels.push_back(std::move(s));
+  return f;
+}
+
+constexpr const char* kFaultKey = "cuda.b2.soa.float4.u16.f32.wg64";
+
+TEST(CudaRunner, PoisonedOutputCatchesAKernelThatSkipsVertices) {
+  RUNNER_OR_SKIP(runner);
+  Faulty f = WithFault(kFaultKey, "if (v >= n) break;", "if (v >= n / 2) break;");
+  const CudaRunResult result = runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
+  const std::size_t n = f.packed.vertex_count;
+  EXPECT_EQ(result.poisoned_vertices, n - n / 2);
+  const GoldResult gold = SkinGold(Asset("b2").mesh, f.palette);
+  const GoldComparison c = CompareToGold(gold.positions, Unpack(f.packed, result.positions));
+  EXPECT_EQ(c.non_finite, n - n / 2);
+  EXPECT_FALSE(c.max_relative < kTolerance);
+}
+
+TEST(CudaRunner, GuardCatchesAKernelThatWritesPastTheEnd) {
+  RUNNER_OR_SKIP(runner);
+  Faulty f = WithFault(kFaultKey, "STORE_XYZ(out_positions, first + v,", "STORE_XYZ(out_positions, first + v + 64,");
+  try {
+    runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
+    ADD_FAILURE() << "a kernel writing 64 vertices past its output was not caught";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("CUDA guard"), std::string::npos) << message;
+    EXPECT_NE(message.find("out_positions"), std::string::npos) << message;
+    EXPECT_NE(message.find("wrote past the end"), std::string::npos) << message;
+  }
+}
+
+TEST(CudaRunner, BuildFailureCarriesTheNvrtcLog) {
+  RUNNER_OR_SKIP(runner);
+  Faulty f = WithFault(kFaultKey, "if (v >= n) break;", "if (v >= n) break; undeclared_name_xyz = 1;");
+  try {
+    runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
+    ADD_FAILURE() << "a kernel with an undeclared name built";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("CUDA build"), std::string::npos) << message;
+    EXPECT_NE(message.find("undeclared_name_xyz"), std::string::npos) << message;
+  }
+}
+
+TEST(CudaRunner, RejectsAConstantPaletteLargerThanTheKernelsSymbol) {
+  RUNNER_OR_SKIP(runner);
+  // Emitted for 2 joints: its __constant__ skintune_palette cannot hold the mesh's.
+  Faulty f = WithFault("cuda.b2.soa.constant", "if (v >= n) break;", "if (v >= n) break;", 2);
+  try {
+    runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
+    ADD_FAILURE() << "a palette larger than the kernel's __constant__ symbol was copied";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("skintune_palette holds 96 bytes"), std::string::npos) << e.what();
+  }
+}
+
+TEST(CudaRunner, RejectsAPaletteOfTheWrongSizeAndAMissingDevice) {
+  RUNNER_OR_SKIP(runner);
+  const PackedMesh packed = Pack(Asset("b2").mesh, ParseVariantKey("cuda.b2.soa"));
+  const std::vector<std::uint8_t> short_palette(16);
+  try {
+    runner->Run(packed, short_palette);
+    ADD_FAILURE() << "a 16-byte palette was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("palette has 16 bytes"), std::string::npos) << e.what();
+  }
+  try {
+    CudaRunner missing(1000);
+    ADD_FAILURE() << "device 1000 exists";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("CUDA setup"), std::string::npos) << e.what();
+  }
+}
+
+TEST(CudaRunner, SetupFailsWithTheReasonWhereThereIsNoGpu) {
+  if (Available().CanRun()) GTEST_SKIP() << "this machine has a CUDA device";
+  try {
+    CudaRunner runner(0);
+    ADD_FAILURE() << "a runner was made without a CUDA device";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("CUDA setup: "), std::string::npos) << message;
+    const std::string& reason = Available().nvrtc ? Available().driver_missing : Available().nvrtc_missing;
+    if (!reason.empty()) {
+      EXPECT_NE(message.find(reason), std::string::npos) << message;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace skintune

@@ -1,0 +1,439 @@
+// Every glsl-compute and glsl-vertex variant axis value, run through EGL on
+// the machine's GL driver (Mesa llvmpipe in CI) against the float64 gold, on a
+// fresh random synthetic mesh each run (the seed is printed;
+// SKINTUNE_TEST_SEED=<n> reproduces a run) and on CesiumMan for the bucketed
+// launches. Each language's 27 padded cases cross every layout with every
+// index and every weight format, and between them reach every value of the
+// other axes (every storage, both blends, both palettes, both position
+// formats, normals on and off, every N/assignment and several work-group
+// sizes for compute). Plus: both templates compile alone, their shared part
+// is identical, the poisoned output catches vertices never written, the guard
+// catches writes past the end, a build error carries its log, and a failed
+// context gives a reason instead of crashing. Every test skips, with the
+// reason, only when no EGL / GL 4.3 core context can be made.
+#include <gtest/gtest.h>
+
+#include <cctype>
+#include <cstdlib>
+#include <iostream>
+#include <map>
+#include <ostream>
+#include <random>
+
+#include "generator/constraints.h"
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "reference/error.h"
+#include "reference/gltf_import.h"
+#include "reference/skinning.h"
+#include "reference/synthetic.h"
+#include "runtime/gl_context.h"
+#include "runtime/gl_runner.h"
+
+namespace skintune {
+namespace {
+
+constexpr double kTolerance = 1e-5;
+
+std::uint64_t Seed() {
+  static const std::uint64_t seed = []() -> std::uint64_t {
+    if (const char* env = std::getenv("SKINTUNE_TEST_SEED")) return static_cast<std::uint64_t>(std::strtoull(env, nullptr, 10));
+    return static_cast<std::uint64_t>(std::random_device{}()) % 1000000 + 1;
+  }();
+  return seed;
+}
+
+// One runner (one GL context) for the whole test program, or null with the
+// reason when no EGL / GL 4.3 core context can be made on this machine.
+GlRunner* Runner(std::string& why) {
+  static std::string reason;
+  static std::unique_ptr<GlRunner> runner = []() -> std::unique_ptr<GlRunner> {
+    try {
+      auto r = std::make_unique<GlRunner>();
+      const GlContextInfo& i = r->info();
+      std::cout << "[ GL       ] " << i.renderer << " (" << i.vendor << "), " << i.version << ", EGL platform "
+                << i.egl_platform << (i.egl_device.empty() ? "" : ", " + i.egl_device) << "\n";
+      return r;
+    } catch (const Error& e) {
+      reason = e.what();
+      return nullptr;
+    }
+  }();
+  why = reason;
+  return runner.get();
+}
+
+#define REQUIRE_GL(runner)        \
+  std::string why;                \
+  GlRunner* runner = Runner(why); \
+  if (!runner) GTEST_SKIP() << why
+
+// "cesium", or a synthetic dataset key suffix such as "b3" / "b3-random".
+struct Case {
+  const char* key;
+  const char* mesh;
+};
+
+void PrintTo(const Case& c, std::ostream* os) { *os << c.key << " on " << c.mesh; }
+
+const SkinnedAsset& Asset(const std::string& mesh) {
+  static std::map<std::string, SkinnedAsset> cache;
+  if (auto found = cache.find(mesh); found != cache.end()) return found->second;
+  if (mesh == "cesium") {
+    return cache[mesh] = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf").asset;
+  }
+  // 5000 vertices plus a seed-dependent tail, so launches end mid-work-group.
+  const std::string key = std::to_string(5000 + Seed() % 97) + "-" + mesh + "-seed" + std::to_string(Seed()) +
+                          "-normals";
+  return cache[mesh] = GenerateDataset(ParseDatasetKey(key));
+}
+
+std::vector<glm::mat4> Palette(const SkinnedAsset& asset) {
+  if (asset.animations.empty()) return asset.PaletteAt(-1, 0.0);
+  const AnimationClip& clip = asset.animations.front();
+  const double t = clip.start + (clip.end - clip.start) * static_cast<double>(Seed() % 1000) / 1000.0;
+  return asset.PaletteAt(0, t);
+}
+
+int MaxInfluences(const SkinnedMesh& mesh) {
+  int most = 0;
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) most = std::max(most, mesh.InfluencesOf(v));
+  return most;
+}
+
+void ExpectMatchesGold(const PackedMesh& packed, const GlRunResult& result, const SkinnedMesh& mesh,
+                       std::span<const glm::mat4> palette) {
+  const SkinnedMesh quantised = QuantisedMesh(mesh, packed.variant);
+  const GoldResult gold = SkinGold(quantised, palette, packed.variant.normals);
+  EXPECT_EQ(result.poisoned_vertices, 0u);
+  const GoldComparison p = CompareToGold(gold.positions, Unpack(packed, result.positions));
+  EXPECT_EQ(p.non_finite, 0u) << "first at vertex " << p.worst_vertex;
+  EXPECT_LT(p.max_relative, kTolerance) << "positions, worst vertex " << p.worst_vertex;
+  if (packed.variant.normals) {
+    const GoldComparison n = CompareToGold(gold.normals, Unpack(packed, result.normals));
+    EXPECT_EQ(n.non_finite, 0u) << "first at vertex " << n.worst_vertex;
+    EXPECT_LT(n.max_relative, kTolerance) << "normals, worst vertex " << n.worst_vertex;
+  }
+  EXPECT_EQ(result.launch_ms.size(), packed.launches.size());
+  for (const double ms : result.launch_ms) EXPECT_GE(ms, 0.0);
+}
+
+void RunCase(const Case& c) {
+  REQUIRE_GL(runner);
+  SCOPED_TRACE(std::string(c.key) + " on " + c.mesh + ", seed " + std::to_string(Seed()) +
+               " (SKINTUNE_TEST_SEED reproduces), device " + runner->device_name());
+  const SkinnedAsset& asset = Asset(c.mesh);
+  const Variant variant = ParseVariantKey(c.key);
+  const ProblemShape shape{asset.mesh.joint_count, MaxInfluences(asset.mesh), asset.mesh.has_normals()};
+  const std::vector<Violation> violations = CheckVariant(variant, LimitsOf(runner->info()), shape);
+  for (const Violation& v : violations) {
+    // Only a device limit may rule a case out; the shape-related ones are mistakes in the table.
+    ASSERT_TRUE(v.constraint == Constraint::kWgSizeDevice || v.constraint == Constraint::kLocalMemory ||
+                v.constraint == Constraint::kConstantMemory || v.constraint == Constraint::kImageSize ||
+                v.constraint == Constraint::kStorageBlocks)
+        << v.message;
+  }
+  if (!violations.empty()) GTEST_SKIP() << "this device cannot run it: " << violations.front().message;
+  const PackedMesh packed = Pack(asset.mesh, variant);
+  const std::vector<glm::mat4> palette = Palette(asset);
+  const GlRunResult result = runner->Run(packed, PackPalette(palette, variant));
+  ExpectMatchesGold(packed, result, asset.mesh, palette);
+  if (variant.mixed == MixedCounts::kBucketed && std::string(c.mesh) == "cesium") {
+    EXPECT_EQ(packed.launches.size(), 4u);  // CesiumMan: vertices with 1, 2, 3 and 4 bones
+  }
+}
+
+std::string CaseName(const ::testing::TestParamInfo<Case>& info) {
+  std::string name = std::to_string(info.index) + "_" + info.param.key + "_" + info.param.mesh;
+  for (char& ch : name)
+    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+  return name;
+}
+
+class GlslComputeVariant : public ::testing::TestWithParam<Case> {};
+TEST_P(GlslComputeVariant, MatchesTheGold) { RunCase(GetParam()); }
+
+class GlslVertexVariant : public ::testing::TestWithParam<Case> {};
+TEST_P(GlslVertexVariant, MatchesTheGold) { RunCase(GetParam()); }
+
+// layout x index x weight (27), every storage, blend, palette, position format,
+// N and assignment, work-group sizes 32..1024, normals on and off, padding
+// (more slots than the mesh uses: b8 on b7, b4 on b3), then bucketed launches.
+const Case kComputeCases[] = {
+    {"glsl-compute.b1.padded.aos.float4.i32.f32.mat3x4.constant.matrix.v1c.wg32.normals", "b1"},
+    {"glsl-compute.b4.padded.aos.float4.i32.unorm16.mat3x4.local.matrix.v2c.wg32.nonormals", "b4-random"},
+    {"glsl-compute.b7.padded.aos.float4.i32.unorm8.mat3x4.global.point.v4s.wg64.nonormals", "b7"},
+    {"glsl-compute.b2.padded.aos.float3.u16.f32.mat4.image.matrix.v8c.wg64.nonormals", "b2"},
+    {"glsl-compute.b5.padded.aos.float3.u16.unorm16.mat4.constant.point.v2s.wg256.nonormals", "b5"},
+    {"glsl-compute.b8.padded.aos.float3.u16.unorm8.mat4.local.point.v4c.wg256.normals", "b7"},
+    {"glsl-compute.b3.padded.aos.float4.u8.f32.mat3x4.global.point.v8s.wg128.nonormals", "b3"},
+    {"glsl-compute.b6.padded.aos.float4.u8.unorm16.mat3x4.image.point.v1c.wg128.normals", "b6"},
+    {"glsl-compute.b1.padded.aos.float4.u8.unorm8.mat3x4.constant.matrix.v2c.wg512.normals", "b1"},
+    {"glsl-compute.b5.padded.soa.float3.i32.f32.mat3x4.global.matrix.v4s.wg1024.nonormals", "b5-random"},
+    {"glsl-compute.b8.padded.soa.float3.i32.unorm16.mat3x4.image.point.v8c.wg32.nonormals", "b8"},
+    {"glsl-compute.b3.padded.soa.float3.i32.unorm8.mat3x4.constant.point.v2s.wg32.normals", "b3"},
+    {"glsl-compute.b6.padded.soa.float4.u16.f32.mat4.local.point.v4c.wg64.nonormals", "b6"},
+    {"glsl-compute.b1.padded.soa.float4.u16.unorm16.mat4.global.point.v8s.wg64.normals", "b1-random"},
+    {"glsl-compute.b4.padded.soa.float4.u16.unorm8.mat4.image.matrix.v1c.wg256.normals", "b3"},
+    {"glsl-compute.b7.padded.soa.float3.u8.f32.mat3x4.constant.point.v2c.wg256.normals", "b7"},
+    {"glsl-compute.b2.padded.soa.float3.u8.unorm16.mat3x4.local.matrix.v4s.wg128.normals", "b2"},
+    {"glsl-compute.b5.padded.soa.float3.u8.unorm8.mat3x4.global.matrix.v8c.wg128.nonormals", "b5-random"},
+    {"glsl-compute.b1.padded.soa-split.float4.i32.f32.mat3x4.constant.point.v2s.wg1024.nonormals", "b1"},
+    {"glsl-compute.b4.padded.soa-split.float4.i32.unorm16.mat3x4.local.point.v4c.wg1024.normals", "b4"},
+    {"glsl-compute.b7.padded.soa-split.float4.i32.unorm8.mat3x4.global.matrix.v8s.wg32.normals", "b7"},
+    {"glsl-compute.b2.padded.soa-split.float3.u16.f32.mat4.image.point.v1c.wg32.normals", "b2-random"},
+    {"glsl-compute.b5.padded.soa-split.float3.u16.unorm16.mat4.constant.matrix.v2c.wg64.normals", "b5"},
+    {"glsl-compute.b8.padded.soa-split.float3.u16.unorm8.mat4.local.matrix.v4s.wg64.nonormals", "b7"},
+    {"glsl-compute.b3.padded.soa-split.float4.u8.f32.mat3x4.global.matrix.v8c.wg256.normals", "b3"},
+    {"glsl-compute.b6.padded.soa-split.float4.u8.unorm16.mat3x4.image.matrix.v2s.wg256.nonormals", "b6-random"},
+    {"glsl-compute.b1.padded.soa-split.float4.u8.unorm8.mat3x4.constant.point.v4c.wg128.nonormals", "b1"},
+    // bucketed: one launch (own kernel, own inputs, first > 0) per influence count
+    {"glsl-compute.b4.bucketed.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.normals", "cesium"},
+    {"glsl-compute.b4.bucketed.aos.float3.u8.unorm8.mat4.local.point.v2s.wg64.normals", "cesium"},
+    {"glsl-compute.b4.bucketed.soa-split.float4.u16.unorm16.mat3x4.image.matrix.v4c.wg32.nonormals", "cesium"},
+};
+INSTANTIATE_TEST_SUITE_P(EveryAxis, GlslComputeVariant, ::testing::ValuesIn(kComputeCases), CaseName);
+
+// The same crossing for the vertex shader (v1c.wg0; storage local does not exist there).
+const Case kVertexCases[] = {
+    {"glsl-vertex.b1.padded.aos.float4.i32.f32.mat3x4.constant.matrix.v1c.wg0.normals", "b1"},
+    {"glsl-vertex.b4.padded.aos.float4.i32.unorm16.mat3x4.global.matrix.v1c.wg0.nonormals", "b4-random"},
+    {"glsl-vertex.b7.padded.aos.float4.i32.unorm8.mat3x4.image.point.v1c.wg0.nonormals", "b7"},
+    {"glsl-vertex.b2.padded.aos.float3.u16.f32.mat4.constant.matrix.v1c.wg0.nonormals", "b2"},
+    {"glsl-vertex.b5.padded.aos.float3.u16.unorm16.mat4.global.point.v1c.wg0.nonormals", "b5"},
+    {"glsl-vertex.b8.padded.aos.float3.u16.unorm8.mat4.image.point.v1c.wg0.normals", "b7"},
+    {"glsl-vertex.b3.padded.aos.float4.u8.f32.mat3x4.constant.point.v1c.wg0.nonormals", "b3"},
+    {"glsl-vertex.b6.padded.aos.float4.u8.unorm16.mat3x4.global.point.v1c.wg0.normals", "b6"},
+    {"glsl-vertex.b1.padded.aos.float4.u8.unorm8.mat3x4.image.matrix.v1c.wg0.normals", "b1"},
+    {"glsl-vertex.b5.padded.soa.float3.i32.f32.mat3x4.global.matrix.v1c.wg0.nonormals", "b5-random"},
+    {"glsl-vertex.b8.padded.soa.float3.i32.unorm16.mat3x4.image.point.v1c.wg0.nonormals", "b8"},
+    {"glsl-vertex.b3.padded.soa.float3.i32.unorm8.mat3x4.constant.point.v1c.wg0.normals", "b3"},
+    {"glsl-vertex.b6.padded.soa.float4.u16.f32.mat4.global.point.v1c.wg0.nonormals", "b6"},
+    {"glsl-vertex.b1.padded.soa.float4.u16.unorm16.mat4.image.point.v1c.wg0.normals", "b1-random"},
+    {"glsl-vertex.b4.padded.soa.float4.u16.unorm8.mat4.constant.matrix.v1c.wg0.normals", "b3"},
+    {"glsl-vertex.b7.padded.soa.float3.u8.f32.mat3x4.global.point.v1c.wg0.normals", "b7"},
+    {"glsl-vertex.b2.padded.soa.float3.u8.unorm16.mat3x4.image.matrix.v1c.wg0.normals", "b2"},
+    {"glsl-vertex.b5.padded.soa.float3.u8.unorm8.mat3x4.constant.matrix.v1c.wg0.nonormals", "b5-random"},
+    {"glsl-vertex.b1.padded.soa-split.float4.i32.f32.mat3x4.image.point.v1c.wg0.nonormals", "b1"},
+    {"glsl-vertex.b4.padded.soa-split.float4.i32.unorm16.mat3x4.constant.point.v1c.wg0.normals", "b4"},
+    {"glsl-vertex.b7.padded.soa-split.float4.i32.unorm8.mat3x4.global.matrix.v1c.wg0.normals", "b7"},
+    {"glsl-vertex.b2.padded.soa-split.float3.u16.f32.mat4.image.point.v1c.wg0.normals", "b2-random"},
+    {"glsl-vertex.b5.padded.soa-split.float3.u16.unorm16.mat4.constant.matrix.v1c.wg0.normals", "b5"},
+    {"glsl-vertex.b8.padded.soa-split.float3.u16.unorm8.mat4.global.matrix.v1c.wg0.nonormals", "b7"},
+    {"glsl-vertex.b3.padded.soa-split.float4.u8.f32.mat3x4.image.matrix.v1c.wg0.normals", "b3"},
+    {"glsl-vertex.b6.padded.soa-split.float4.u8.unorm16.mat3x4.constant.matrix.v1c.wg0.nonormals", "b6-random"},
+    {"glsl-vertex.b1.padded.soa-split.float4.u8.unorm8.mat3x4.global.point.v1c.wg0.nonormals", "b1"},
+    // bucketed: one draw per influence count, each captured at its own range
+    {"glsl-vertex.b4.bucketed.soa.float4.u16.f32.mat3x4.constant.matrix.v1c.wg0.normals", "cesium"},
+    {"glsl-vertex.b4.bucketed.aos.float3.u8.unorm8.mat4.image.point.v1c.wg0.normals", "cesium"},
+    {"glsl-vertex.b4.bucketed.soa-split.float4.u16.unorm16.mat3x4.global.matrix.v1c.wg0.nonormals", "cesium"},
+};
+INSTANTIATE_TEST_SUITE_P(EveryAxis, GlslVertexVariant, ::testing::ValuesIn(kVertexCases), CaseName);
+
+// ------------------------------------------------------------------ templates
+
+// A template as it is embedded, with no defines at all.
+KernelSource Bare(const char* file, Lang lang) {
+  KernelSource s;
+  s.lang = lang;
+  s.entry_point = "main";
+  s.text = TemplateText(file);
+  s.source_hash = SourceHash(s.text);
+  return s;
+}
+
+TEST(GlslTemplates, ComputeTemplateCompilesAlone) {
+  REQUIRE_GL(runner);
+  EXPECT_NO_THROW(runner->Build(Bare("skin.comp", Lang::kGlslCompute)));
+}
+
+TEST(GlslTemplates, VertexTemplateCompilesAlone) {
+  REQUIRE_GL(runner);
+  EXPECT_NO_THROW(runner->Build(Bare("skin.vert", Lang::kGlslVertex)));
+}
+
+TEST(GlslTemplates, StartWithTheirVersionLineAndShareOneSkinningSection) {
+  auto shared = [](const std::string& text) {
+    const std::size_t begin = text.find("// ================================ SHARED");
+    const std::size_t end = text.find("// ================================ END SHARED");
+    EXPECT_NE(begin, std::string::npos);
+    EXPECT_NE(end, std::string::npos);
+    return begin == std::string::npos || end == std::string::npos ? std::string() : text.substr(begin, end - begin);
+  };
+  const std::string comp = TemplateText("skin.comp"), vert = TemplateText("skin.vert");
+  EXPECT_EQ(comp.rfind("#version 430 core\n", 0), 0u);
+  EXPECT_EQ(vert.rfind("#version 430 core\n", 0), 0u);
+  EXPECT_FALSE(shared(comp).empty());
+  EXPECT_EQ(shared(comp), shared(vert)) << "the SHARED sections of skin.comp and skin.vert differ: edit both";
+}
+
+TEST(GlslTemplates, EmittedVertexKernelRejectsLocalStorage) {
+  REQUIRE_GL(runner);
+  const KernelSource s = Emit(ParseVariantKey("glsl-vertex.b2.soa.local.v1c.wg0"), 0, 20);
+  try {
+    runner->Build(s);
+    ADD_FAILURE() << "a vertex shader with a shared-memory palette built";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("GL build"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no shared memory"), std::string::npos) << e.what();
+  }
+}
+
+// ------------------------------------------------------------------ faults
+
+// One padded soa launch with an edit of the emitted text (none when `from` is
+// empty); `from` must occur once.
+struct Faulty {
+  PackedMesh packed;
+  std::vector<glm::mat4> palette;
+  std::vector<KernelSource> kernels;
+};
+
+Faulty WithFault(const char* key, const std::string& from, const std::string& to) {
+  Faulty f;
+  const SkinnedAsset& asset = Asset("b2");
+  f.packed = Pack(asset.mesh, ParseVariantKey(key));
+  f.palette = Palette(asset);
+  KernelSource s = Emit(f.packed.variant, 0, static_cast<int>(f.packed.palette_joints));
+  if (from.empty()) {
+    f.kernels.push_back(std::move(s));
+    return f;
+  }
+  const std::size_t at = s.text.find(from);
+  EXPECT_NE(at, std::string::npos) << "'" << from << "' not in the template any more: update the test";
+  EXPECT_EQ(s.text.find(from, at + 1), std::string::npos) << "'" << from << "' occurs twice";
+  if (at != std::string::npos) s.text.replace(at, from.size(), to);
+  s.source_hash = SourceHash(s.text);
+  f.kernels.push_back(std::move(s));
+  return f;
+}
+
+constexpr const char* kComputeKey = "glsl-compute.b2.soa.float4.u16.f32.wg64";
+constexpr const char* kVertexKey = "glsl-vertex.b2.soa.float4.u16.f32";
+
+void ExpectHalfPoisoned(const Faulty& f, const GlRunResult& result) {
+  const std::size_t n = f.packed.vertex_count;
+  EXPECT_EQ(result.poisoned_vertices, n - n / 2);
+  const GoldResult gold = SkinGold(Asset("b2").mesh, f.palette);
+  const GoldComparison c = CompareToGold(gold.positions, Unpack(f.packed, result.positions));
+  EXPECT_EQ(c.non_finite, n - n / 2);
+  EXPECT_FALSE(c.max_relative < kTolerance);
+}
+
+TEST(GlRunner, PoisonedOutputCatchesAComputeKernelThatSkipsVertices) {
+  REQUIRE_GL(runner);
+  Faulty f = WithFault(kComputeKey, "if (v >= n) break;", "if (v >= n / 2u) break;");
+  ExpectHalfPoisoned(f, runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant)));
+}
+
+// A vertex shader writes every vertex it is drawn for, so what poison catches
+// there is a draw that covers too few vertices: here a launch of half the count.
+TEST(GlRunner, PoisonedOutputCatchesADrawThatSkipsVertices) {
+  REQUIRE_GL(runner);
+  Faulty f = WithFault(kVertexKey, "", "");
+  f.packed.launches.front().count = static_cast<std::uint32_t>(f.packed.vertex_count / 2);
+  ExpectHalfPoisoned(f, runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant)));
+}
+
+void ExpectGuardError(GlRunner* runner, const Faulty& f) {
+  try {
+    runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
+    ADD_FAILURE() << "writing 64 vertices past the output was not caught";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("GL guard"), std::string::npos) << message;
+    EXPECT_NE(message.find("out_positions"), std::string::npos) << message;
+    EXPECT_NE(message.find("wrote past the end"), std::string::npos) << message;
+  }
+}
+
+TEST(GlRunner, GuardCatchesAComputeKernelThatWritesPastTheEnd) {
+  REQUIRE_GL(runner);
+  ExpectGuardError(runner, WithFault(kComputeKey, "STORE_POSITION(first + v, skinned_position);",
+                                     "STORE_POSITION(first + v + 64u, skinned_position);"));
+}
+
+// Transform feedback cannot write outside its bound range, so the guard after
+// the captured range catches a capture range placed past the end: here the
+// launch's first vertex moved by 64.
+TEST(GlRunner, GuardCatchesACaptureThatWritesPastTheEnd) {
+  REQUIRE_GL(runner);
+  Faulty f = WithFault(kVertexKey, "", "");
+  f.packed.launches.front().first += 64;
+  ExpectGuardError(runner, f);
+}
+
+TEST(GlRunner, BuildFailureCarriesTheLog) {
+  REQUIRE_GL(runner);
+  for (const char* key : {kComputeKey, kVertexKey}) {
+    Faulty f = WithFault(key, "float weight_of(uint raw) {", "float weight_of(uint raw) {\n  undeclared_name_xyz = 1;");
+    try {
+      runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
+      ADD_FAILURE() << key << ": a kernel with an undeclared name built";
+    } catch (const Error& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find("GL build"), std::string::npos) << message;
+      EXPECT_NE(message.find("undeclared_name_xyz"), std::string::npos) << message;
+    }
+  }
+}
+
+TEST(GlRunner, RejectsAPaletteOfTheWrongSize) {
+  REQUIRE_GL(runner);
+  const PackedMesh packed = Pack(Asset("b2").mesh, ParseVariantKey(kComputeKey));
+  const std::vector<std::uint8_t> short_palette(16);
+  try {
+    runner->Run(packed, short_palette);
+    ADD_FAILURE() << "a 16-byte palette was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("palette has 16 bytes"), std::string::npos) << e.what();
+  }
+}
+
+// ------------------------------------------------------------------ context
+
+TEST(GlContext, ReportsAtLeastGl43AndTheLimitsTheConstraintsUse) {
+  REQUIRE_GL(runner);
+  const GlContextInfo& i = runner->info();
+  std::cout << "[ GL       ] limits: compute invocations " << i.max_compute_work_group_invocations
+            << ", size x " << i.max_compute_work_group_size_x << ", count x " << i.max_compute_work_group_count_x
+            << ", shared " << i.max_compute_shared_memory_bytes << " B, uniform block " << i.max_uniform_block_bytes
+            << " B, texture buffer " << i.max_texture_buffer_texels << " texels, vertex storage blocks "
+            << i.max_vertex_shader_storage_blocks << "\n";
+  EXPECT_TRUE(i.major > 4 || (i.major == 4 && i.minor >= 3)) << i.version;
+  EXPECT_FALSE(i.renderer.empty());
+  // GL 4.3's minimum maxima.
+  EXPECT_GE(i.max_compute_work_group_invocations, 1024u);
+  EXPECT_GE(i.max_compute_shared_memory_bytes, 32768u);
+  EXPECT_GE(i.max_uniform_block_bytes, 16384u);
+  EXPECT_GE(i.max_texture_buffer_texels, 65536u);
+  EXPECT_GE(i.max_compute_work_group_count_x, 65535u);
+  const DeviceLimits limits = LimitsOf(i);
+  EXPECT_EQ(limits.uniform_block_bytes, i.max_uniform_block_bytes);
+  EXPECT_EQ(limits.local_memory_bytes, i.max_compute_shared_memory_bytes);
+  EXPECT_EQ(limits.image_buffer_max_texels, i.max_texture_buffer_texels);
+  EXPECT_EQ(limits.vertex_shader_storage_blocks, i.max_vertex_shader_storage_blocks > 0);
+  EXPECT_EQ(limits.max_wg_size, std::min(i.max_compute_work_group_invocations, i.max_compute_work_group_size_x));
+}
+
+TEST(GlContext, AMissingDeviceGivesAReasonInsteadOfAContext) {
+  std::string why;
+  GlRunner* runner = Runner(why);
+  GlContext missing(1000);  // never crashes, whatever the machine has
+  EXPECT_FALSE(missing.ok());
+  EXPECT_NE(missing.reason().find("no OpenGL"), std::string::npos) << missing.reason();
+  try {
+    GlRunner no_runner(1000);
+    ADD_FAILURE() << "EGL device 1000 exists";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("GL setup"), std::string::npos) << e.what();
+  }
+  if (runner) {  // the shared runner still works: it makes its context current again
+    const PackedMesh packed = Pack(Asset("b2").mesh, ParseVariantKey(kComputeKey));
+    const std::vector<glm::mat4> palette = Palette(Asset("b2"));
+    ExpectMatchesGold(packed, runner->Run(packed, PackPalette(palette, packed.variant)), Asset("b2").mesh, palette);
+  }
+}
+
+}  // namespace
+}  // namespace skintune
