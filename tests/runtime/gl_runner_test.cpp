@@ -21,6 +21,7 @@
 #include <random>
 
 #include "generator/constraints.h"
+#include "generator/covering.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "reference/error.h"
@@ -241,6 +242,32 @@ KernelSource Bare(const char* file, Lang lang) {
   s.source_hash = SourceHash(s.text);
   return s;
 }
+
+// The generated covering sets (generator/covering.h) for this context's
+// limits: every value of every axis and every pair of layout x index x weight
+// x palette x storage x blend that the language can hold, each variant on a
+// fresh mesh with its own influence count.
+void RunCoveringSet(Lang lang) {
+  REQUIRE_GL(runner);
+  const CoveringSet set = BuildCoveringSet(lang, LimitsOf(runner->info()), {77, 1, true});
+  for (const std::string& pair : set.uncoverable) {
+    EXPECT_NE(pair.find("storage=local"), std::string::npos) << "only local storage may be uncoverable: " << pair;
+  }
+  for (std::size_t i = 0; i < set.variants.size(); ++i) {
+    const Variant& variant = set.variants[i];
+    const std::string mesh = "b" + std::to_string(variant.influences) + (i % 2 ? "-random" : "");
+    SCOPED_TRACE(variant.Key() + " on " + mesh + ", seed " + std::to_string(Seed()));
+    const SkinnedAsset& asset = Asset(mesh);
+    const PackedMesh packed = Pack(asset.mesh, variant);
+    const std::vector<glm::mat4> palette = Palette(asset);
+    ExpectMatchesGold(packed, runner->Run(packed, PackPalette(palette, variant)), asset.mesh, palette);
+  }
+  std::cout << "[ covering ] " << set.variants.size() << " " << Name(lang) << " variants verified on "
+            << runner->device_name() << "\n";
+}
+
+TEST(GlslCoveringSet, EveryComputeVariantMatchesTheGold) { RunCoveringSet(Lang::kGlslCompute); }
+TEST(GlslCoveringSet, EveryVertexVariantMatchesTheGold) { RunCoveringSet(Lang::kGlslVertex); }
 
 TEST(GlslTemplates, ComputeTemplateCompilesAlone) {
   REQUIRE_GL(runner);
