@@ -36,19 +36,35 @@ std::uint64_t Seed() {
   return seed;
 }
 
-// The first OpenCL device, or null (with the reason) when the machine has none.
-OpenClRunner* Runner(std::string& why) {
+// The device these tests run on: the first OpenCL device, or the first whose
+// "platform-vendor platform / name" contains $SKINTUNE_TEST_OPENCL_DEVICE.
+// Null (with the reason) when the machine has none.
+const OpenClDeviceInfo* TestDevice(std::string& why) {
   static std::string reason;
-  static std::unique_ptr<OpenClRunner> runner = []() -> std::unique_ptr<OpenClRunner> {
+  static const std::vector<OpenClDeviceInfo> devices = [] {
+    const char* pattern = std::getenv("SKINTUNE_TEST_OPENCL_DEVICE");
     const OpenClInventory inventory = EnumerateOpenCl();
-    if (inventory.devices.empty()) {
-      reason = "no OpenCL device on this machine: " + inventory.status;
-      return nullptr;
+    std::vector<OpenClDeviceInfo> found = MatchDevices(inventory, pattern ? pattern : "");
+    if (found.empty()) {
+      reason = pattern ? "no OpenCL device matches SKINTUNE_TEST_OPENCL_DEVICE='" + std::string(pattern) + "'"
+                       : "no OpenCL device on this machine: " + inventory.status;
     }
-    const OpenClDeviceInfo& d = inventory.devices.front();
-    return std::make_unique<OpenClRunner>(d.platform_index, d.device_index);
+    return found;
   }();
   why = reason;
+  return devices.empty() ? nullptr : &devices.front();
+}
+
+OpenClRunner* Runner(std::string& why) {
+  static std::unique_ptr<OpenClRunner> runner = [&why]() -> std::unique_ptr<OpenClRunner> {
+    const OpenClDeviceInfo* d = TestDevice(why);
+    return d ? std::make_unique<OpenClRunner>(d->platform_index, d->device_index) : nullptr;
+  }();
+  if (!runner) {
+    TestDevice(why);
+    // An explicitly requested device that is missing is a failure, not a skip.
+    if (std::getenv("SKINTUNE_TEST_OPENCL_DEVICE")) ADD_FAILURE() << why;
+  }
   return runner.get();
 }
 
@@ -171,8 +187,7 @@ TEST(OpenClCoveringSet, EveryVariantMatchesTheGold) {
   std::string why;
   OpenClRunner* runner = Runner(why);
   if (!runner) GTEST_SKIP() << why;
-  const OpenClInventory inventory = EnumerateOpenCl();
-  const DeviceLimits limits = LimitsOf(inventory.devices.front());
+  const DeviceLimits limits = LimitsOf(*TestDevice(why));
   const CoveringSet set = BuildCoveringSet(Lang::kOpenCl, limits, {77, 1, true});
   ASSERT_TRUE(set.uncoverable.empty());
   for (std::size_t i = 0; i < set.variants.size(); ++i) {
