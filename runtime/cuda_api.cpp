@@ -5,7 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
-#include <sstream>
+
+#include "runtime/output_check.h"
 
 namespace skintune {
 
@@ -183,21 +184,6 @@ const LoadedDriver& DriverLibrary() {
     return d;
   }();
   return loaded;
-}
-
-std::string FirstLines(const std::string& text, int lines) {
-  std::istringstream in(text);
-  std::string line, out;
-  int count = 0, total = 0;
-  while (std::getline(in, line)) {
-    if (count < lines) {
-      out += "\n  " + line;
-      ++count;
-    }
-    ++total;
-  }
-  if (total > count) out += "\n  ... (" + std::to_string(total - count) + " more lines)";
-  return out;
 }
 
 }  // namespace

@@ -12,7 +12,7 @@
 //   quiet NaN), so a vertex a kernel forgets to write reads back as NaN.
 // - Each output buffer is followed by a GUARD of kGuardBytes filled with a
 //   known pattern; a kernel that writes past the end throws Error("CUDA
-//   guard ...") after the run.
+//   guard ...") after the run. (Poison and guard: runtime/output_check.h.)
 // - Every Launch of the PackedMesh runs with its own kernel, blocks of the
 //   kernel's wg_size, arguments bound by name from the kernel's argument list
 //   (docs/VARIANTS.md order). The palette: a device buffer (local, global);
@@ -48,10 +48,6 @@ struct CudaRunResult {
 
 class CudaRunner {
  public:
-  static constexpr std::size_t kGuardBytes = 4096;
-  static constexpr std::uint32_t kPoisonWord = 0x7fc00000u;  // quiet NaN
-  static constexpr std::uint32_t kGuardWord = 0xa5c3e1f0u;
-
   // CUDA device `device_index` (0 .. Probe().device_count - 1), through its
   // primary context. Throws Error("CUDA setup: ...") when there is no NVRTC,
   // no driver, or no such device.

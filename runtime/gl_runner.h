@@ -19,7 +19,7 @@
 //   guard); glsl-vertex captures each launch into its range
 //   [first, first + n) of the buffer with transform feedback, and the guard
 //   after the captured range is checked the same way. A guard word changed
-//   throws Error("GL guard ...").
+//   throws Error("GL guard ..."). (Poison and guard: runtime/output_check.h.)
 // - glsl-compute: glDispatchCompute(GlobalItems(n) / wg) per launch.
 //   glsl-vertex: glDrawArrays(GL_POINTS, 0, n) with GL_RASTERIZER_DISCARD,
 //   capture range first*stride .. (first+n)*stride (gl_VertexID = v), and a
@@ -53,10 +53,6 @@ struct GlRunResult {
 
 class GlRunner {
  public:
-  static constexpr std::size_t kGuardBytes = 4096;
-  static constexpr std::uint32_t kPoisonWord = 0x7fc00000u;  // quiet NaN
-  static constexpr std::uint32_t kGuardWord = 0xa5c3e1f0u;
-
   // Creates its own context (GlContext(device_index)); throws
   // Error("GL setup: <why>") when none can be made.
   explicit GlRunner(int device_index = -1);

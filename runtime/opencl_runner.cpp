@@ -6,9 +6,9 @@
 #include <algorithm>
 #include <cstring>
 #include <map>
-#include <sstream>
 
 #include "reference/error.h"
+#include "runtime/output_check.h"
 
 namespace skintune {
 
@@ -55,21 +55,6 @@ using Event = Handle<cl_event, clReleaseEvent>;
 
 void Check(cl_int err, const std::string& stage, const std::string& what) {
   if (err != CL_SUCCESS) Fail(stage, what + " failed with error " + std::to_string(err));
-}
-
-std::string FirstLines(const std::string& text, int lines) {
-  std::istringstream in(text);
-  std::string line, out;
-  int count = 0, total = 0;
-  while (std::getline(in, line)) {
-    if (count < lines) {
-      out += "\n  " + line;
-      ++count;
-    }
-    ++total;
-  }
-  if (total > count) out += "\n  ... (" + std::to_string(total - count) + " more lines)";
-  return out;
 }
 
 struct BuiltKernel {
@@ -204,12 +189,11 @@ OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const Kernel
 
   // Outputs: poisoned, each followed by its guard.
   const std::size_t out_bytes = mesh.vertex_count * mesh.output_stride_bytes;
-  std::vector<std::uint32_t> fill((out_bytes + kGuardBytes) / 4, kPoisonWord);
-  std::fill(fill.begin() + static_cast<std::ptrdiff_t>(out_bytes / 4), fill.end(), kGuardWord);
-  Memory out_positions = im.Buffer(CL_MEM_READ_WRITE, out_bytes + kGuardBytes, fill.data(), "out_positions");
+  const std::vector<std::uint8_t> fill = PoisonedOutput(out_bytes);
+  Memory out_positions = im.Buffer(CL_MEM_READ_WRITE, fill.size(), fill.data(), "out_positions");
   Memory out_normals;
   if (variant.normals)
-    out_normals = im.Buffer(CL_MEM_READ_WRITE, out_bytes + kGuardBytes, fill.data(), "out_normals");
+    out_normals = im.Buffer(CL_MEM_READ_WRITE, fill.size(), fill.data(), "out_normals");
 
   std::vector<Memory> inputs;  // kept alive until the queue is finished
   std::vector<Event> events;
@@ -270,31 +254,10 @@ OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const Kernel
     std::vector<std::uint8_t> bytes(out_bytes + kGuardBytes);
     Check(clEnqueueReadBuffer(im.queue.get(), buffer.get(), CL_TRUE, 0, bytes.size(), bytes.data(), 0, nullptr, nullptr),
           "launch", std::string("clEnqueueReadBuffer '") + what + "'");
-    std::size_t first_bad = kGuardBytes, bad = 0;
-    for (std::size_t w = 0; w < kGuardBytes / 4; ++w) {
-      std::uint32_t word = 0;
-      std::memcpy(&word, bytes.data() + out_bytes + w * 4, 4);
-      if (word != kGuardWord) {
-        first_bad = std::min(first_bad, w * 4);
-        ++bad;
-      }
-    }
-    if (bad > 0)
-      Fail("guard", variant.Key() + ": " + what + ": the kernel wrote past the end of its " +
-                        std::to_string(out_bytes) + "-byte output (" + std::to_string(bad) +
-                        " guard words changed, the first at +" + std::to_string(first_bad) + " bytes)");
-    bytes.resize(out_bytes);
-    const std::size_t stride = mesh.output_stride_bytes;
-    for (std::size_t v = 0; v < mesh.vertex_count; ++v) {
-      for (std::size_t w = 0; w < stride / 4; ++w) {
-        std::uint32_t word = 0;
-        std::memcpy(&word, bytes.data() + v * stride + w * 4, 4);
-        if (word == kPoisonWord) {
-          ++result.poisoned_vertices;
-          break;
-        }
-      }
-    }
+    const OutputCheck check = CheckGuardAndCountPoisoned(bytes, out_bytes, mesh.output_stride_bytes, mesh.vertex_count);
+    if (!check.guard_ok)
+      Fail("guard", variant.Key() + ": " + what + ": the kernel " + GuardFailure(check, out_bytes));
+    result.poisoned_vertices += check.poisoned_vertices;
     out = std::move(bytes);
   };
   read_back(out_positions, "out_positions", result.positions);

@@ -8,7 +8,7 @@
 //   fails the comparison with the gold instead of passing on stale data.
 // - Each output buffer is followed by a GUARD of kGuardBytes filled with a
 //   known pattern; a kernel that writes past the end throws Error("OpenCL
-//   guard ...") after the run.
+//   guard ...") after the run. (Poison and guard: runtime/output_check.h.)
 // - Every Launch of the PackedMesh runs with its own kernel (bucketed: one
 //   specialised per influence count), arguments bound by name from the
 //   kernel's argument list (docs/VARIANTS.md order), palette as a buffer or,
@@ -37,10 +37,6 @@ struct OpenClRunResult {
 
 class OpenClRunner {
  public:
-  static constexpr std::size_t kGuardBytes = 4096;
-  static constexpr std::uint32_t kPoisonWord = 0x7fc00000u;  // quiet NaN
-  static constexpr std::uint32_t kGuardWord = 0xa5c3e1f0u;
-
   // The device `device_index` of platform `platform_index` (as enumerated by
   // EnumerateOpenCl). Throws Error("OpenCL setup: ...") when it does not exist.
   OpenClRunner(int platform_index, int device_index);

@@ -17,11 +17,8 @@
 #include <array>
 #include <cctype>
 #include <cstdint>
-#include <cstdlib>
 #include <iostream>
-#include <map>
 #include <memory>
-#include <ostream>
 #include <random>
 #include <set>
 
@@ -30,16 +27,25 @@
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "reference/error.h"
-#include "reference/gltf_import.h"
-#include "reference/skinning.h"
-#include "reference/synthetic.h"
+#include "runner_test_support.h"
 #include "runtime/cuda_api.h"
 #include "runtime/cuda_runner.h"
 
 namespace skintune {
 namespace {
 
-constexpr double kTolerance = 1e-5;
+using testing::Asset;
+using testing::Case;
+using testing::CaseName;
+using testing::ExpectCaseMatchesGold;
+using testing::ExpectCoveringSetMatchesGold;
+using testing::ExpectHalfPoisoned;
+using testing::ExpectRunFails;
+using testing::Faulty;
+using testing::LaunchTimes;
+using testing::Seed;
+using testing::WithFault;
+
 constexpr const char* kCompileArch = "compute_90";  // any architecture NVRTC 12/13 supports
 constexpr int kJoints = 77;                          // the synthetic rig's; sizes local/constant palettes
 
@@ -331,14 +337,6 @@ TEST(CudaApi, ChoosesTheNewestArchitectureNvrtcSupports) {
 
 // ---------------------------------------------------------------- runs on a GPU
 
-std::uint64_t Seed() {
-  static const std::uint64_t seed = []() -> std::uint64_t {
-    if (const char* env = std::getenv("SKINTUNE_TEST_SEED")) return static_cast<std::uint64_t>(std::strtoull(env, nullptr, 10));
-    return static_cast<std::uint64_t>(std::random_device{}()) % 1000000 + 1;
-  }();
-  return seed;
-}
-
 // The first CUDA device, or null (with the reason) when the machine has none.
 CudaRunner* Runner(std::string& why) {
   static std::string reason;
@@ -358,49 +356,6 @@ CudaRunner* Runner(std::string& why) {
   CudaRunner* runner = Runner(why); \
   if (!runner) GTEST_SKIP() << why
 
-struct Case {
-  const char* key;
-  const char* mesh;  // "cesium", or a synthetic dataset key suffix such as "b3" / "b3-random"
-};
-
-void PrintTo(const Case& c, std::ostream* os) { *os << c.key << " on " << c.mesh; }
-
-const SkinnedAsset& Asset(const std::string& mesh) {
-  static std::map<std::string, SkinnedAsset> cache;
-  if (auto found = cache.find(mesh); found != cache.end()) return found->second;
-  if (mesh == "cesium") {
-    return cache[mesh] = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf").asset;
-  }
-  // 5000 vertices plus a seed-dependent tail, so launches end mid-block.
-  const std::string key = std::to_string(5000 + Seed() % 97) + "-" + mesh + "-seed" + std::to_string(Seed()) +
-                          "-normals";
-  return cache[mesh] = GenerateDataset(ParseDatasetKey(key));
-}
-
-std::vector<glm::mat4> Palette(const SkinnedAsset& asset) {
-  if (asset.animations.empty()) return asset.PaletteAt(-1, 0.0);
-  const AnimationClip& clip = asset.animations.front();
-  const double t = clip.start + (clip.end - clip.start) * static_cast<double>(Seed() % 1000) / 1000.0;
-  return asset.PaletteAt(0, t);
-}
-
-void ExpectMatchesGold(const PackedMesh& packed, const CudaRunResult& result, const SkinnedMesh& mesh,
-                       std::span<const glm::mat4> palette) {
-  const SkinnedMesh quantised = QuantisedMesh(mesh, packed.variant);
-  const GoldResult gold = SkinGold(quantised, palette, packed.variant.normals);
-  EXPECT_EQ(result.poisoned_vertices, 0u);
-  const GoldComparison p = CompareToGold(gold.positions, Unpack(packed, result.positions));
-  EXPECT_EQ(p.non_finite, 0u) << "first at vertex " << p.worst_vertex;
-  EXPECT_LT(p.max_relative, kTolerance) << "positions, worst vertex " << p.worst_vertex;
-  if (packed.variant.normals) {
-    const GoldComparison n = CompareToGold(gold.normals, Unpack(packed, result.normals));
-    EXPECT_EQ(n.non_finite, 0u) << "first at vertex " << n.worst_vertex;
-    EXPECT_LT(n.max_relative, kTolerance) << "normals, worst vertex " << n.worst_vertex;
-  }
-  EXPECT_EQ(result.launch_ms.size(), packed.launches.size());
-  for (const double ms : result.launch_ms) EXPECT_GT(ms, 0.0);
-}
-
 class CudaVariant : public ::testing::TestWithParam<Case> {};
 
 TEST_P(CudaVariant, MatchesTheGold) {
@@ -408,15 +363,7 @@ TEST_P(CudaVariant, MatchesTheGold) {
   const Case& c = GetParam();
   SCOPED_TRACE(std::string(c.key) + " on " + c.mesh + ", seed " + std::to_string(Seed()) +
                " (SKINTUNE_TEST_SEED reproduces), device " + runner->device_name() + " (" + runner->arch() + ")");
-  const SkinnedAsset& asset = Asset(c.mesh);
-  const Variant variant = ParseVariantKey(c.key);
-  const PackedMesh packed = Pack(asset.mesh, variant);
-  const std::vector<glm::mat4> palette = Palette(asset);
-  const CudaRunResult result = runner->Run(packed, PackPalette(palette, variant));
-  ExpectMatchesGold(packed, result, asset.mesh, palette);
-  if (variant.mixed == MixedCounts::kBucketed && std::string(c.mesh) == "cesium") {
-    EXPECT_EQ(packed.launches.size(), 4u);  // CesiumMan: vertices with 1, 2, 3 and 4 bones
-  }
+  ExpectCaseMatchesGold(*runner, c, ParseVariantKey(c.key), LaunchTimes::kPositive);
 }
 
 // The cases of tests/runtime/opencl_runner_test.cpp, in CUDA: every value of
@@ -460,13 +407,6 @@ const Case kCases[] = {
     {"cuda.b1.padded.soa-split.float4.u8.unorm8.mat3x4.global.point.v1c.wg32.normals", "b1"},
 };
 
-std::string CaseName(const ::testing::TestParamInfo<Case>& info) {
-  std::string name = std::to_string(info.index) + "_" + info.param.key + "_" + info.param.mesh;
-  for (char& ch : name)
-    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
-  return name;
-}
-
 INSTANTIATE_TEST_SUITE_P(EveryAxis, CudaVariant, ::testing::ValuesIn(kCases), CaseName);
 
 TEST(CudaVariantCases, CompileCleanlyHere) {
@@ -485,92 +425,39 @@ TEST(CudaCoveringSet, EveryVariantMatchesTheGold) {
   RUNNER_OR_SKIP(runner);
   const CoveringSet set = BuildCoveringSet(Lang::kCuda, runner->limits(), {kJoints, 1, true});
   ASSERT_TRUE(set.uncoverable.empty());
-  for (std::size_t i = 0; i < set.variants.size(); ++i) {
-    const Variant& variant = set.variants[i];
-    const std::string mesh = "b" + std::to_string(variant.influences) + (i % 2 ? "-random" : "");
-    SCOPED_TRACE(variant.Key() + " on " + mesh + ", seed " + std::to_string(Seed()));
-    const SkinnedAsset& asset = Asset(mesh);
-    const PackedMesh packed = Pack(asset.mesh, variant);
-    const std::vector<glm::mat4> palette = Palette(asset);
-    ExpectMatchesGold(packed, runner->Run(packed, PackPalette(palette, variant)), asset.mesh, palette);
-  }
+  ExpectCoveringSetMatchesGold(*runner, set, LaunchTimes::kPositive);
   std::cout << "[ covering ] " << set.variants.size() << " CUDA variants verified on " << runner->device_name()
             << "\n";
 }
 
-// One padded soa launch with an edit of the emitted text; `from` must occur once.
-struct Faulty {
-  PackedMesh packed;
-  std::vector<glm::mat4> palette;
-  std::vector<KernelSource> kernels;
-};
-
-Faulty WithFault(const std::string& key, const std::string& from, const std::string& to, int joints = 0) {
-  Faulty f;
-  const SkinnedAsset& asset = Asset("b2");
-  f.packed = Pack(asset.mesh, ParseVariantKey(key));
-  f.palette = Palette(asset);
-  KernelSource s = Emit(f.packed.variant, 0, joints > 0 ? joints : static_cast<int>(f.packed.palette_joints));
-  const std::size_t at = s.text.find(from);
-  EXPECT_NE(at, std::string::npos) << "'" << from << "' not in the template any more: update the test";
-  EXPECT_EQ(s.text.find(from, at + 1), std::string::npos) << "'" << from << "' occurs twice";
-  if (at != std::string::npos) s.text.replace(at, from.size(), to);
-  s.source_hash = SourceHash(s.text);
-  f.kernels.push_back(std::move(s));
-  return f;
-}
-
+// The faulty kernels: one padded soa launch (WithFault).
 constexpr const char* kFaultKey = "cuda.b2.soa.float4.u16.f32.wg64";
 
 TEST(CudaRunner, PoisonedOutputCatchesAKernelThatSkipsVertices) {
   RUNNER_OR_SKIP(runner);
   Faulty f = WithFault(kFaultKey, "if (v >= n) break;", "if (v >= n / 2) break;");
-  const CudaRunResult result = runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
-  const std::size_t n = f.packed.vertex_count;
-  EXPECT_EQ(result.poisoned_vertices, n - n / 2);
-  const GoldResult gold = SkinGold(Asset("b2").mesh, f.palette);
-  const GoldComparison c = CompareToGold(gold.positions, Unpack(f.packed, result.positions));
-  EXPECT_EQ(c.non_finite, n - n / 2);
-  EXPECT_FALSE(c.max_relative < kTolerance);
+  ExpectHalfPoisoned(f, runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant)));
 }
 
 TEST(CudaRunner, GuardCatchesAKernelThatWritesPastTheEnd) {
   RUNNER_OR_SKIP(runner);
   Faulty f = WithFault(kFaultKey, "STORE_XYZ(out_positions, first + v,", "STORE_XYZ(out_positions, first + v + 64,");
-  try {
-    runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
-    ADD_FAILURE() << "a kernel writing 64 vertices past its output was not caught";
-  } catch (const Error& e) {
-    const std::string message = e.what();
-    EXPECT_NE(message.find("CUDA guard"), std::string::npos) << message;
-    EXPECT_NE(message.find("out_positions"), std::string::npos) << message;
-    EXPECT_NE(message.find("wrote past the end"), std::string::npos) << message;
-  }
+  ExpectRunFails(*runner, f, "a kernel writing 64 vertices past its output was not caught",
+                 {"CUDA guard", "out_positions", "wrote past the end"});
 }
 
 TEST(CudaRunner, BuildFailureCarriesTheNvrtcLog) {
   RUNNER_OR_SKIP(runner);
   Faulty f = WithFault(kFaultKey, "if (v >= n) break;", "if (v >= n) break; undeclared_name_xyz = 1;");
-  try {
-    runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
-    ADD_FAILURE() << "a kernel with an undeclared name built";
-  } catch (const Error& e) {
-    const std::string message = e.what();
-    EXPECT_NE(message.find("CUDA build"), std::string::npos) << message;
-    EXPECT_NE(message.find("undeclared_name_xyz"), std::string::npos) << message;
-  }
+  ExpectRunFails(*runner, f, "a kernel with an undeclared name built", {"CUDA build", "undeclared_name_xyz"});
 }
 
 TEST(CudaRunner, RejectsAConstantPaletteLargerThanTheKernelsSymbol) {
   RUNNER_OR_SKIP(runner);
   // Emitted for 2 joints: its __constant__ skintune_palette cannot hold the mesh's.
   Faulty f = WithFault("cuda.b2.soa.constant", "if (v >= n) break;", "if (v >= n) break;", 2);
-  try {
-    runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
-    ADD_FAILURE() << "a palette larger than the kernel's __constant__ symbol was copied";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("skintune_palette holds 96 bytes"), std::string::npos) << e.what();
-  }
+  ExpectRunFails(*runner, f, "a palette larger than the kernel's __constant__ symbol was copied",
+                 {"skintune_palette holds 96 bytes"});
 }
 
 TEST(CudaRunner, RejectsAPaletteOfTheWrongSizeAndAMissingDevice) {

@@ -13,36 +13,34 @@
 // reason, only when no EGL / GL 4.3 core context can be made.
 #include <gtest/gtest.h>
 
-#include <cctype>
-#include <cstdlib>
+#include <algorithm>
 #include <iostream>
-#include <map>
-#include <ostream>
-#include <random>
 
 #include "generator/constraints.h"
 #include "generator/covering.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "reference/error.h"
-#include "reference/gltf_import.h"
-#include "reference/skinning.h"
-#include "reference/synthetic.h"
+#include "runner_test_support.h"
 #include "runtime/gl_context.h"
 #include "runtime/gl_runner.h"
 
 namespace skintune {
 namespace {
 
-constexpr double kTolerance = 1e-5;
-
-std::uint64_t Seed() {
-  static const std::uint64_t seed = []() -> std::uint64_t {
-    if (const char* env = std::getenv("SKINTUNE_TEST_SEED")) return static_cast<std::uint64_t>(std::strtoull(env, nullptr, 10));
-    return static_cast<std::uint64_t>(std::random_device{}()) % 1000000 + 1;
-  }();
-  return seed;
-}
+using testing::Asset;
+using testing::Case;
+using testing::CaseName;
+using testing::ExpectCaseMatchesGold;
+using testing::ExpectCoveringSetMatchesGold;
+using testing::ExpectHalfPoisoned;
+using testing::ExpectMatchesGold;
+using testing::ExpectRunFails;
+using testing::Faulty;
+using testing::LaunchTimes;
+using testing::Palette;
+using testing::Seed;
+using testing::WithFault;
 
 // One runner (one GL context) for the whole test program, or null with the
 // reason when no EGL / GL 4.3 core context can be made on this machine.
@@ -69,63 +67,19 @@ GlRunner* Runner(std::string& why) {
   GlRunner* runner = Runner(why); \
   if (!runner) GTEST_SKIP() << why
 
-// "cesium", or a synthetic dataset key suffix such as "b3" / "b3-random".
-struct Case {
-  const char* key;
-  const char* mesh;
-};
-
-void PrintTo(const Case& c, std::ostream* os) { *os << c.key << " on " << c.mesh; }
-
-const SkinnedAsset& Asset(const std::string& mesh) {
-  static std::map<std::string, SkinnedAsset> cache;
-  if (auto found = cache.find(mesh); found != cache.end()) return found->second;
-  if (mesh == "cesium") {
-    return cache[mesh] = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf").asset;
-  }
-  // 5000 vertices plus a seed-dependent tail, so launches end mid-work-group.
-  const std::string key = std::to_string(5000 + Seed() % 97) + "-" + mesh + "-seed" + std::to_string(Seed()) +
-                          "-normals";
-  return cache[mesh] = GenerateDataset(ParseDatasetKey(key));
-}
-
-std::vector<glm::mat4> Palette(const SkinnedAsset& asset) {
-  if (asset.animations.empty()) return asset.PaletteAt(-1, 0.0);
-  const AnimationClip& clip = asset.animations.front();
-  const double t = clip.start + (clip.end - clip.start) * static_cast<double>(Seed() % 1000) / 1000.0;
-  return asset.PaletteAt(0, t);
-}
-
 int MaxInfluences(const SkinnedMesh& mesh) {
   int most = 0;
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) most = std::max(most, mesh.InfluencesOf(v));
   return most;
 }
 
-void ExpectMatchesGold(const PackedMesh& packed, const GlRunResult& result, const SkinnedMesh& mesh,
-                       std::span<const glm::mat4> palette) {
-  const SkinnedMesh quantised = QuantisedMesh(mesh, packed.variant);
-  const GoldResult gold = SkinGold(quantised, palette, packed.variant.normals);
-  EXPECT_EQ(result.poisoned_vertices, 0u);
-  const GoldComparison p = CompareToGold(gold.positions, Unpack(packed, result.positions));
-  EXPECT_EQ(p.non_finite, 0u) << "first at vertex " << p.worst_vertex;
-  EXPECT_LT(p.max_relative, kTolerance) << "positions, worst vertex " << p.worst_vertex;
-  if (packed.variant.normals) {
-    const GoldComparison n = CompareToGold(gold.normals, Unpack(packed, result.normals));
-    EXPECT_EQ(n.non_finite, 0u) << "first at vertex " << n.worst_vertex;
-    EXPECT_LT(n.max_relative, kTolerance) << "normals, worst vertex " << n.worst_vertex;
-  }
-  EXPECT_EQ(result.launch_ms.size(), packed.launches.size());
-  for (const double ms : result.launch_ms) EXPECT_GE(ms, 0.0);
-}
-
 void RunCase(const Case& c) {
   REQUIRE_GL(runner);
   SCOPED_TRACE(std::string(c.key) + " on " + c.mesh + ", seed " + std::to_string(Seed()) +
                " (SKINTUNE_TEST_SEED reproduces), device " + runner->device_name());
-  const SkinnedAsset& asset = Asset(c.mesh);
+  const SkinnedMesh& mesh = Asset(c.mesh).mesh;
   const Variant variant = ParseVariantKey(c.key);
-  const ProblemShape shape{asset.mesh.joint_count, MaxInfluences(asset.mesh), asset.mesh.has_normals()};
+  const ProblemShape shape{mesh.joint_count, MaxInfluences(mesh), mesh.has_normals()};
   const std::vector<Violation> violations = CheckVariant(variant, LimitsOf(runner->info()), shape);
   for (const Violation& v : violations) {
     // Only a device limit may rule a case out; the shape-related ones are mistakes in the table.
@@ -135,20 +89,7 @@ void RunCase(const Case& c) {
         << v.message;
   }
   if (!violations.empty()) GTEST_SKIP() << "this device cannot run it: " << violations.front().message;
-  const PackedMesh packed = Pack(asset.mesh, variant);
-  const std::vector<glm::mat4> palette = Palette(asset);
-  const GlRunResult result = runner->Run(packed, PackPalette(palette, variant));
-  ExpectMatchesGold(packed, result, asset.mesh, palette);
-  if (variant.mixed == MixedCounts::kBucketed && std::string(c.mesh) == "cesium") {
-    EXPECT_EQ(packed.launches.size(), 4u);  // CesiumMan: vertices with 1, 2, 3 and 4 bones
-  }
-}
-
-std::string CaseName(const ::testing::TestParamInfo<Case>& info) {
-  std::string name = std::to_string(info.index) + "_" + info.param.key + "_" + info.param.mesh;
-  for (char& ch : name)
-    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
-  return name;
+  ExpectCaseMatchesGold(*runner, c, variant, LaunchTimes::kNonNegative);
 }
 
 class GlslComputeVariant : public ::testing::TestWithParam<Case> {};
@@ -253,15 +194,7 @@ void RunCoveringSet(Lang lang) {
   for (const std::string& pair : set.uncoverable) {
     EXPECT_NE(pair.find("storage=local"), std::string::npos) << "only local storage may be uncoverable: " << pair;
   }
-  for (std::size_t i = 0; i < set.variants.size(); ++i) {
-    const Variant& variant = set.variants[i];
-    const std::string mesh = "b" + std::to_string(variant.influences) + (i % 2 ? "-random" : "");
-    SCOPED_TRACE(variant.Key() + " on " + mesh + ", seed " + std::to_string(Seed()));
-    const SkinnedAsset& asset = Asset(mesh);
-    const PackedMesh packed = Pack(asset.mesh, variant);
-    const std::vector<glm::mat4> palette = Palette(asset);
-    ExpectMatchesGold(packed, runner->Run(packed, PackPalette(palette, variant)), asset.mesh, palette);
-  }
+  ExpectCoveringSetMatchesGold(*runner, set, LaunchTimes::kNonNegative);
   std::cout << "[ covering ] " << set.variants.size() << " " << Name(lang) << " variants verified on "
             << runner->device_name() << "\n";
 }
@@ -308,44 +241,9 @@ TEST(GlslTemplates, EmittedVertexKernelRejectsLocalStorage) {
 
 // ------------------------------------------------------------------ faults
 
-// One padded soa launch with an edit of the emitted text (none when `from` is
-// empty); `from` must occur once.
-struct Faulty {
-  PackedMesh packed;
-  std::vector<glm::mat4> palette;
-  std::vector<KernelSource> kernels;
-};
-
-Faulty WithFault(const char* key, const std::string& from, const std::string& to) {
-  Faulty f;
-  const SkinnedAsset& asset = Asset("b2");
-  f.packed = Pack(asset.mesh, ParseVariantKey(key));
-  f.palette = Palette(asset);
-  KernelSource s = Emit(f.packed.variant, 0, static_cast<int>(f.packed.palette_joints));
-  if (from.empty()) {
-    f.kernels.push_back(std::move(s));
-    return f;
-  }
-  const std::size_t at = s.text.find(from);
-  EXPECT_NE(at, std::string::npos) << "'" << from << "' not in the template any more: update the test";
-  EXPECT_EQ(s.text.find(from, at + 1), std::string::npos) << "'" << from << "' occurs twice";
-  if (at != std::string::npos) s.text.replace(at, from.size(), to);
-  s.source_hash = SourceHash(s.text);
-  f.kernels.push_back(std::move(s));
-  return f;
-}
-
+// The faulty kernels (WithFault): one padded soa launch, compute or vertex.
 constexpr const char* kComputeKey = "glsl-compute.b2.soa.float4.u16.f32.wg64";
 constexpr const char* kVertexKey = "glsl-vertex.b2.soa.float4.u16.f32";
-
-void ExpectHalfPoisoned(const Faulty& f, const GlRunResult& result) {
-  const std::size_t n = f.packed.vertex_count;
-  EXPECT_EQ(result.poisoned_vertices, n - n / 2);
-  const GoldResult gold = SkinGold(Asset("b2").mesh, f.palette);
-  const GoldComparison c = CompareToGold(gold.positions, Unpack(f.packed, result.positions));
-  EXPECT_EQ(c.non_finite, n - n / 2);
-  EXPECT_FALSE(c.max_relative < kTolerance);
-}
 
 TEST(GlRunner, PoisonedOutputCatchesAComputeKernelThatSkipsVertices) {
   REQUIRE_GL(runner);
@@ -363,15 +261,8 @@ TEST(GlRunner, PoisonedOutputCatchesADrawThatSkipsVertices) {
 }
 
 void ExpectGuardError(GlRunner* runner, const Faulty& f) {
-  try {
-    runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
-    ADD_FAILURE() << "writing 64 vertices past the output was not caught";
-  } catch (const Error& e) {
-    const std::string message = e.what();
-    EXPECT_NE(message.find("GL guard"), std::string::npos) << message;
-    EXPECT_NE(message.find("out_positions"), std::string::npos) << message;
-    EXPECT_NE(message.find("wrote past the end"), std::string::npos) << message;
-  }
+  ExpectRunFails(*runner, f, "writing 64 vertices past the output was not caught",
+                 {"GL guard", "out_positions", "wrote past the end"});
 }
 
 TEST(GlRunner, GuardCatchesAComputeKernelThatWritesPastTheEnd) {
@@ -394,14 +285,8 @@ TEST(GlRunner, BuildFailureCarriesTheLog) {
   REQUIRE_GL(runner);
   for (const char* key : {kComputeKey, kVertexKey}) {
     Faulty f = WithFault(key, "float weight_of(uint raw) {", "float weight_of(uint raw) {\n  undeclared_name_xyz = 1;");
-    try {
-      runner->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
-      ADD_FAILURE() << key << ": a kernel with an undeclared name built";
-    } catch (const Error& e) {
-      const std::string message = e.what();
-      EXPECT_NE(message.find("GL build"), std::string::npos) << message;
-      EXPECT_NE(message.find("undeclared_name_xyz"), std::string::npos) << message;
-    }
+    ExpectRunFails(*runner, f, std::string(key) + ": a kernel with an undeclared name built",
+                   {"GL build", "undeclared_name_xyz"});
   }
 }
 
@@ -458,7 +343,8 @@ TEST(GlContext, AMissingDeviceGivesAReasonInsteadOfAContext) {
   if (runner) {  // the shared runner still works: it makes its context current again
     const PackedMesh packed = Pack(Asset("b2").mesh, ParseVariantKey(kComputeKey));
     const std::vector<glm::mat4> palette = Palette(Asset("b2"));
-    ExpectMatchesGold(packed, runner->Run(packed, PackPalette(palette, packed.variant)), Asset("b2").mesh, palette);
+    ExpectMatchesGold(packed, runner->Run(packed, PackPalette(palette, packed.variant)), Asset("b2").mesh, palette,
+                      LaunchTimes::kNonNegative);
   }
 }
 

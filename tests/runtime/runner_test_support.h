@@ -1,0 +1,193 @@
+// What the kernel runner tests share (opencl_runner_test, cuda_test,
+// gl_runner_test): the run's seed, the meshes and poses, the comparison with
+// the float64 gold, the case tables' type, and kernels with a fault edited
+// in. Templates over the runner (OpenClRunner, CudaRunner, GlRunner) and its
+// result (OpenClRunResult, CudaRunResult, GlRunResult).
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cctype>
+#include <cstdint>
+#include <cstdlib>
+#include <initializer_list>
+#include <map>
+#include <ostream>
+#include <random>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "generator/covering.h"
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "reference/error.h"
+#include "reference/gltf_import.h"
+#include "reference/skinning.h"
+#include "reference/synthetic.h"
+
+namespace skintune::testing {
+
+inline constexpr double kTolerance = 1e-5;
+
+// $SKINTUNE_TEST_SEED, else a fresh one per test program (the traces print it).
+inline std::uint64_t Seed() {
+  static const std::uint64_t seed = []() -> std::uint64_t {
+    if (const char* env = std::getenv("SKINTUNE_TEST_SEED")) return static_cast<std::uint64_t>(std::strtoull(env, nullptr, 10));
+    return static_cast<std::uint64_t>(std::random_device{}()) % 1000000 + 1;
+  }();
+  return seed;
+}
+
+// A variant key and the mesh it runs on: "cesium", or a synthetic dataset key
+// suffix such as "b3" / "b3-random" (<influences> bone slots, optionally random bones).
+struct Case {
+  const char* key;
+  const char* mesh;
+};
+
+inline void PrintTo(const Case& c, std::ostream* os) { *os << c.key << " on " << c.mesh; }
+
+// "<index>_<key>_<mesh>", every other character than a letter or digit as '_'.
+inline std::string CaseName(const ::testing::TestParamInfo<Case>& info) {
+  std::string name = std::to_string(info.index) + "_" + info.param.key + "_" + info.param.mesh;
+  for (char& ch : name)
+    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+  return name;
+}
+
+// CesiumMan, or the synthetic dataset for `mesh` with this run's seed; made once.
+inline const SkinnedAsset& Asset(const std::string& mesh) {
+  static std::map<std::string, SkinnedAsset> cache;
+  if (auto found = cache.find(mesh); found != cache.end()) return found->second;
+  if (mesh == "cesium") {
+    return cache[mesh] = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf").asset;
+  }
+  // 5000 vertices plus a seed-dependent tail, so launches end mid-work-group (mid-block).
+  const std::string key = std::to_string(5000 + Seed() % 97) + "-" + mesh + "-seed" + std::to_string(Seed()) +
+                          "-normals";
+  return cache[mesh] = GenerateDataset(ParseDatasetKey(key));
+}
+
+// The bind pose, or the first clip at a seed-dependent time.
+inline std::vector<glm::mat4> Palette(const SkinnedAsset& asset) {
+  if (asset.animations.empty()) return asset.PaletteAt(-1, 0.0);
+  const AnimationClip& clip = asset.animations.front();
+  const double t = clip.start + (clip.end - clip.start) * static_cast<double>(Seed() % 1000) / 1000.0;
+  return asset.PaletteAt(0, t);
+}
+
+// What each launch's time must be: any value (OpenCL), >= 0 (GL), > 0 (CUDA).
+enum class LaunchTimes { kAny, kNonNegative, kPositive };
+
+// `result` against the gold of `mesh` quantised as the variant stores it:
+// nothing poisoned, positions (and normals) finite and within kTolerance,
+// one time per launch.
+template <typename RunResult>
+void ExpectMatchesGold(const PackedMesh& packed, const RunResult& result, const SkinnedMesh& mesh,
+                       std::span<const glm::mat4> palette, LaunchTimes times) {
+  const SkinnedMesh quantised = QuantisedMesh(mesh, packed.variant);
+  const GoldResult gold = SkinGold(quantised, palette, packed.variant.normals);
+  EXPECT_EQ(result.poisoned_vertices, 0u);
+  const GoldComparison p = CompareToGold(gold.positions, Unpack(packed, result.positions));
+  EXPECT_EQ(p.non_finite, 0u) << "first at vertex " << p.worst_vertex;
+  EXPECT_LT(p.max_relative, kTolerance) << "positions, worst vertex " << p.worst_vertex;
+  if (packed.variant.normals) {
+    const GoldComparison n = CompareToGold(gold.normals, Unpack(packed, result.normals));
+    EXPECT_EQ(n.non_finite, 0u) << "first at vertex " << n.worst_vertex;
+    EXPECT_LT(n.max_relative, kTolerance) << "normals, worst vertex " << n.worst_vertex;
+  }
+  EXPECT_EQ(result.launch_ms.size(), packed.launches.size());
+  if (times == LaunchTimes::kNonNegative) {
+    for (const double ms : result.launch_ms) EXPECT_GE(ms, 0.0);
+  } else if (times == LaunchTimes::kPositive) {
+    for (const double ms : result.launch_ms) EXPECT_GT(ms, 0.0);
+  }
+}
+
+// Packs Asset(mesh) for `variant`, runs it with Palette(asset) and expects the gold.
+template <typename Runner>
+PackedMesh ExpectRunMatchesGold(Runner& runner, const Variant& variant, const std::string& mesh, LaunchTimes times) {
+  const SkinnedAsset& asset = Asset(mesh);
+  const PackedMesh packed = Pack(asset.mesh, variant);
+  const std::vector<glm::mat4> palette = Palette(asset);
+  ExpectMatchesGold(packed, runner.Run(packed, PackPalette(palette, variant)), asset.mesh, palette, times);
+  return packed;
+}
+
+// One case of a table (`variant` parsed from c.key): the gold, and one launch
+// per influence count for a bucketed variant on CesiumMan.
+template <typename Runner>
+void ExpectCaseMatchesGold(Runner& runner, const Case& c, const Variant& variant, LaunchTimes times) {
+  const PackedMesh packed = ExpectRunMatchesGold(runner, variant, c.mesh, times);
+  if (variant.mixed == MixedCounts::kBucketed && std::string(c.mesh) == "cesium") {
+    EXPECT_EQ(packed.launches.size(), 4u);  // CesiumMan: vertices with 1, 2, 3 and 4 bones
+  }
+}
+
+// Every variant of a covering set against the gold, each on a fresh mesh
+// with its own influence count (every other one with random bones).
+template <typename Runner>
+void ExpectCoveringSetMatchesGold(Runner& runner, const CoveringSet& set, LaunchTimes times) {
+  for (std::size_t i = 0; i < set.variants.size(); ++i) {
+    const Variant& variant = set.variants[i];
+    const std::string mesh = "b" + std::to_string(variant.influences) + (i % 2 ? "-random" : "");
+    SCOPED_TRACE(variant.Key() + " on " + mesh + ", seed " + std::to_string(Seed()));
+    ExpectRunMatchesGold(runner, variant, mesh, times);
+  }
+}
+
+// One launch of `key` on the "b2" mesh, with an edit of the emitted text (none
+// when `from` is empty); `from` must occur once. `joints` > 0 emits the kernel
+// for that many joints instead of the mesh's.
+struct Faulty {
+  PackedMesh packed;
+  std::vector<glm::mat4> palette;
+  std::vector<KernelSource> kernels;
+};
+
+inline Faulty WithFault(const std::string& key, const std::string& from, const std::string& to, int joints = 0) {
+  Faulty f;
+  const SkinnedAsset& asset = Asset("b2");
+  f.packed = Pack(asset.mesh, ParseVariantKey(key));
+  f.palette = Palette(asset);
+  KernelSource s = Emit(f.packed.variant, 0, joints > 0 ? joints : static_cast<int>(f.packed.palette_joints));
+  if (from.empty()) {
+    f.kernels.push_back(std::move(s));
+    return f;
+  }
+  const std::size_t at = s.text.find(from);
+  EXPECT_NE(at, std::string::npos) << "'" << from << "' not in the template any more: update the test";
+  EXPECT_EQ(s.text.find(from, at + 1), std::string::npos) << "'" << from << "' occurs twice";
+  if (at != std::string::npos) s.text.replace(at, from.size(), to);
+  s.source_hash = SourceHash(s.text);
+  f.kernels.push_back(std::move(s));
+  return f;
+}
+
+// The second half of the vertices never written: poisoned, and non-finite against the gold.
+template <typename RunResult>
+void ExpectHalfPoisoned(const Faulty& f, const RunResult& result) {
+  const std::size_t n = f.packed.vertex_count;
+  EXPECT_EQ(result.poisoned_vertices, n - n / 2);
+  const GoldResult gold = SkinGold(Asset("b2").mesh, f.palette);
+  const GoldComparison c = CompareToGold(gold.positions, Unpack(f.packed, result.positions));
+  EXPECT_EQ(c.non_finite, n - n / 2);
+  EXPECT_FALSE(c.max_relative < kTolerance);
+}
+
+// Running `f` throws an Error whose message contains every one of `parts`;
+// `not_caught` is the failure when it runs instead.
+template <typename Runner>
+void ExpectRunFails(Runner& runner, const Faulty& f, const std::string& not_caught,
+                    std::initializer_list<const char*> parts) {
+  try {
+    runner.Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
+    ADD_FAILURE() << not_caught;
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    for (const char* part : parts) EXPECT_NE(message.find(part), std::string::npos) << message;
+  }
+}
+
+}  // namespace skintune::testing
