@@ -1,5 +1,7 @@
 #include "runtime/cuda_runner.h"
 
+#include <dlfcn.h>
+
 #include <algorithm>
 #include <cstring>
 #include <map>
@@ -65,7 +67,65 @@ struct BuiltKernel {
 // The __constant__ palette symbol of templates/skin.cu (STORAGE constant).
 constexpr const char* kConstantPaletteSymbol = "skintune_palette";
 
+// Device attributes beyond cuda_api.h's.
+constexpr int kAttributeClockRate = 13;          // CU_DEVICE_ATTRIBUTE_CLOCK_RATE (kHz)
+constexpr int kAttributeMultiprocessorCount = 16;  // CU_DEVICE_ATTRIBUTE_MULTIPROCESSOR_COUNT
+constexpr int kAttributeL2CacheSize = 38;        // CU_DEVICE_ATTRIBUTE_L2_CACHE_SIZE (bytes)
+
+// cuDeviceTotalMem_v2 from the driver library Probe() loaded (cuda_api.h
+// does not declare it); 0 when it cannot be found.
+std::uint64_t TotalMemory(const std::string& library, cuda::Device device) {
+  void* handle = dlopen(library.c_str(), RTLD_LAZY | RTLD_NOLOAD);
+  if (!handle) return 0;
+  using TotalMem = cuda::Result (*)(std::size_t*, cuda::Device);
+  const auto total_mem = reinterpret_cast<TotalMem>(dlsym(handle, "cuDeviceTotalMem_v2"));
+  std::size_t bytes = 0;
+  const bool ok = total_mem && total_mem(&bytes, device) == cuda::kSuccess;
+  dlclose(handle);  // drops the reference RTLD_NOLOAD added; the driver stays loaded
+  return ok ? bytes : 0;
+}
+
 }  // namespace
+
+CudaDeviceInfo QueryCudaDevice(int device_index) {
+  const CudaAvailability available = Probe();
+  if (!available.nvrtc) Fail("setup", available.nvrtc_missing);
+  if (!available.driver) Fail("setup", available.driver_missing);
+  const cuda::DriverApi* api = cuda::Driver();
+  if (!api) Fail("setup", available.driver_missing);
+  if (device_index < 0 || device_index >= available.device_count)
+    Fail("setup", "no device " + std::to_string(device_index) + " (" + std::to_string(available.device_count) +
+                      " devices" + (available.device_count == 0 ? ": " + available.driver_missing : "") + ")");
+  cuda::Device device = 0;
+  Check(api->cuDeviceGet(&device, device_index), "setup", "cuDeviceGet " + std::to_string(device_index));
+  CudaDeviceInfo info;
+  info.index = device_index;
+  char text[256] = {};
+  Check(api->cuDeviceGetName(text, sizeof text - 1, device), "setup", "cuDeviceGetName");
+  info.name = text;
+  auto attribute = [&](int which, const char* what) {
+    int value = 0;
+    Check(api->cuDeviceGetAttribute(&value, which, device), "setup", std::string("cuDeviceGetAttribute ") + what);
+    return value;
+  };
+  info.major = attribute(cuda::kAttributeComputeCapabilityMajor, "(compute capability)");
+  info.minor = attribute(cuda::kAttributeComputeCapabilityMinor, "(compute capability)");
+  info.multiprocessors = attribute(kAttributeMultiprocessorCount, "(multiprocessors)");
+  info.clock_khz = attribute(kAttributeClockRate, "(clock rate)");
+  info.l2_cache_bytes = static_cast<std::uint64_t>(attribute(kAttributeL2CacheSize, "(L2 cache size)"));
+  info.total_memory_bytes = TotalMemory(available.driver_library, device);
+  info.driver_version = available.driver_version;
+  info.limits.max_wg_size = static_cast<std::size_t>(attribute(cuda::kAttributeMaxThreadsPerBlock, "(threads per block)"));
+  info.limits.local_memory_bytes =
+      static_cast<std::uint64_t>(attribute(cuda::kAttributeMaxSharedMemoryPerBlock, "(shared memory per block)"));
+  info.limits.constant_memory_bytes =
+      static_cast<std::uint64_t>(attribute(cuda::kAttributeTotalConstantMemory, "(constant memory)"));
+  info.limits.image_support = true;  // texture objects: every device CUDA 11+ runs on
+  info.limits.image_buffer_max_texels =
+      static_cast<std::uint64_t>(attribute(cuda::kAttributeMaxTexture1dLinearWidth, "(1D linear texture width)"));
+  info.arch = NvrtcArchFor(info.major, info.minor);
+  return info;
+}
 
 struct CudaRunner::Impl {
   const cuda::DriverApi* api = nullptr;
@@ -73,6 +133,7 @@ struct CudaRunner::Impl {
   cuda::Context context = nullptr;  // the device's primary context, retained
   std::string name, arch;
   DeviceLimits limits;
+  CudaDeviceInfo info;
   std::map<std::string, BuiltKernel> built;  // by source hash
 
   ~Impl() {
@@ -88,36 +149,16 @@ struct CudaRunner::Impl {
 
 CudaRunner::CudaRunner(int device_index) : impl_(std::make_unique<Impl>()) {
   Impl& im = *impl_;
-  const CudaAvailability available = Probe();
-  if (!available.nvrtc) Fail("setup", available.nvrtc_missing);
-  if (!available.driver) Fail("setup", available.driver_missing);
+  im.info = QueryCudaDevice(device_index);
   im.api = cuda::Driver();
-  if (device_index < 0 || device_index >= available.device_count)
-    Fail("setup", "no device " + std::to_string(device_index) + " (" + std::to_string(available.device_count) +
-                      " devices" + (available.device_count == 0 ? ": " + available.driver_missing : "") + ")");
-  Check(im.api->cuDeviceGet(&im.device, device_index), "setup", "cuDeviceGet " + std::to_string(device_index));
-  char text[256] = {};
-  Check(im.api->cuDeviceGetName(text, sizeof text - 1, im.device), "setup", "cuDeviceGetName");
-  im.name = text;
-  auto attribute = [&](int which, const char* what) {
-    int value = 0;
-    Check(im.api->cuDeviceGetAttribute(&value, which, im.device), "setup", std::string("cuDeviceGetAttribute ") + what);
-    return value;
-  };
-  const int major = attribute(cuda::kAttributeComputeCapabilityMajor, "(compute capability)");
-  const int minor = attribute(cuda::kAttributeComputeCapabilityMinor, "(compute capability)");
-  im.limits.max_wg_size = static_cast<std::size_t>(attribute(cuda::kAttributeMaxThreadsPerBlock, "(threads per block)"));
-  im.limits.local_memory_bytes =
-      static_cast<std::uint64_t>(attribute(cuda::kAttributeMaxSharedMemoryPerBlock, "(shared memory per block)"));
-  im.limits.constant_memory_bytes =
-      static_cast<std::uint64_t>(attribute(cuda::kAttributeTotalConstantMemory, "(constant memory)"));
-  im.limits.image_support = true;  // texture objects: every device CUDA 11+ runs on
-  im.limits.image_buffer_max_texels =
-      static_cast<std::uint64_t>(attribute(cuda::kAttributeMaxTexture1dLinearWidth, "(1D linear texture width)"));
-  im.arch = NvrtcArchFor(major, minor);
+  im.name = im.info.name;
+  im.limits = im.info.limits;
+  im.arch = im.info.arch;
   if (im.arch.empty())
-    Fail("setup", im.name + " (compute capability " + std::to_string(major) + "." + std::to_string(minor) +
-                      ") is older than every architecture " + available.nvrtc_library + " supports");
+    Fail("setup", im.name + " (compute capability " + std::to_string(im.info.major) + "." +
+                      std::to_string(im.info.minor) + ") is older than every architecture " + Probe().nvrtc_library +
+                      " supports");
+  Check(im.api->cuDeviceGet(&im.device, device_index), "setup", "cuDeviceGet " + std::to_string(device_index));
   cuda::Context context = nullptr;
   Check(im.api->cuDevicePrimaryCtxRetain(&context, im.device), "setup", "cuDevicePrimaryCtxRetain on " + im.name);
   im.context = context;
@@ -129,6 +170,7 @@ CudaRunner::~CudaRunner() = default;
 const std::string& CudaRunner::device_name() const { return impl_->name; }
 const std::string& CudaRunner::arch() const { return impl_->arch; }
 const DeviceLimits& CudaRunner::limits() const { return impl_->limits; }
+const CudaDeviceInfo& CudaRunner::info() const { return impl_->info; }
 
 const BuiltKernel& CudaRunner::Impl::KernelFor(const KernelSource& source) {
   if (source.lang != Lang::kCuda) Fail("build", std::string("kernel language is ") + Name(source.lang));
@@ -310,6 +352,290 @@ CudaRunResult CudaRunner::Run(const PackedMesh& mesh, std::span<const KernelSour
   read_back(out_positions, "out_positions", result.positions);
   if (variant.normals) read_back(out_normals, "out_normals", result.normals);
   return result;
+}
+
+// ---------------------------------------------------------------- timing
+
+struct CudaPrepared::Impl {
+  const cuda::DriverApi* api = nullptr;
+  cuda::Context context = nullptr;
+  struct LaunchPlan {
+    cuda::Function function = nullptr;
+    cuda::DevicePtr constant_symbol = 0;  // STORAGE constant: the module's palette symbol
+    unsigned blocks = 0, threads = 0;
+  };
+  // One launch's argument values and the parameter array pointing at them.
+  struct Arguments {
+    std::uint32_t n = 0, first = 0;
+    std::vector<cuda::DevicePtr> pointers;  // reserved: never reallocated
+    cuda::TexObject texture = 0;
+    std::vector<void*> parameters;
+  };
+  struct Set {
+    std::vector<Memory> buffers;
+    Texture texture;
+    std::vector<std::uint8_t> palette;  // host copy, for the constant symbol
+    std::vector<std::unique_ptr<Arguments>> launches;
+  };
+  std::string key;
+  bool constant = false;
+  std::vector<LaunchPlan> launches;
+  std::vector<Set> sets;
+  std::size_t bytes_per_set = 0;
+
+  ~Impl() {
+    if (!context) return;
+    api->cuCtxSetCurrent(context);
+    sets.clear();  // frees the buffers and textures while their context is current
+  }
+};
+
+CudaPrepared::CudaPrepared() : impl_(std::make_unique<Impl>()) {}
+CudaPrepared::~CudaPrepared() = default;
+CudaPrepared::CudaPrepared(CudaPrepared&&) noexcept = default;
+CudaPrepared& CudaPrepared::operator=(CudaPrepared&&) noexcept = default;
+int CudaPrepared::input_sets() const { return impl_ ? static_cast<int>(impl_->sets.size()) : 0; }
+std::size_t CudaPrepared::bytes_per_set() const { return impl_ ? impl_->bytes_per_set : 0; }
+
+CudaPrepared CudaRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                 std::span<const std::vector<std::uint8_t>> palettes) {
+  Impl& im = *impl_;
+  const cuda::DriverApi& api = *im.api;
+  im.MakeCurrent();
+  const Variant& variant = mesh.variant;
+  if (kernels.size() != mesh.launches.size())
+    Fail("launch", std::to_string(kernels.size()) + " kernels for " + std::to_string(mesh.launches.size()) +
+                       " launches of " + variant.Key());
+  if (palettes.empty()) Fail("launch", "no palette (input set) to time " + variant.Key() + " with");
+  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
+  for (const std::vector<std::uint8_t>& palette : palettes) {
+    if (palette.size() != mesh.palette_joints * rows * 16)
+      Fail("launch", "palette has " + std::to_string(palette.size()) + " bytes, expected " +
+                         std::to_string(mesh.palette_joints) + " joints x " + std::to_string(rows) + " rows x 16");
+  }
+
+  CudaPrepared prepared;
+  CudaPrepared::Impl& p = *prepared.impl_;
+  p.api = im.api;
+  p.context = im.context;
+  p.key = variant.Key();
+  p.constant = variant.storage == PaletteStorage::kConstant;
+  std::vector<std::size_t> launch_of_plan;
+  for (std::size_t l = 0; l < mesh.launches.size(); ++l) {
+    const Launch& launch = mesh.launches[l];
+    if (launch.count == 0) continue;
+    const KernelSource& source = kernels[l];
+    const BuiltKernel& kernel = im.KernelFor(source);
+    const std::string where = "launch " + std::to_string(l) + " of " + variant.Key();
+    CudaPrepared::Impl::LaunchPlan plan;
+    plan.function = kernel.function;
+    const std::size_t wg = static_cast<std::size_t>(source.launch.wg_size);
+    plan.threads = static_cast<unsigned>(wg);
+    plan.blocks = static_cast<unsigned>(source.launch.GlobalItems(launch.count) / wg);
+    if (p.constant) {
+      std::size_t symbol_bytes = 0;
+      Check(api.cuModuleGetGlobal(&plan.constant_symbol, &symbol_bytes, kernel.module.get(), kConstantPaletteSymbol),
+            "launch", where + ": cuModuleGetGlobal '" + kConstantPaletteSymbol + "'");
+      if (symbol_bytes < palettes.front().size())
+        Fail("launch", where + ": __constant__ " + kConstantPaletteSymbol + " holds " + std::to_string(symbol_bytes) +
+                           " bytes, the palette " + std::to_string(palettes.front().size()) +
+                           " (the kernel was emitted for fewer joints)");
+    }
+    p.launches.push_back(plan);
+    launch_of_plan.push_back(l);
+  }
+
+  const std::size_t out_bytes = mesh.vertex_count * mesh.output_stride_bytes;
+  for (std::size_t k = 0; k < palettes.size(); ++k) {
+    p.sets.emplace_back();
+    CudaPrepared::Impl::Set& set = p.sets.back();
+    std::size_t bytes = 0;
+    const std::string suffix = " (input set " + std::to_string(k) + ")";
+    auto add = [&](std::size_t size, const void* data, const std::string& what) {
+      set.buffers.push_back(im.Buffer(size, data, what + suffix));
+      bytes += size;
+      return set.buffers.back().get();
+    };
+    const std::vector<std::uint8_t>& palette = palettes[k];
+    set.palette = palette;
+    const cuda::DevicePtr palette_buffer = add(palette.size(), palette.data(), "palette");
+    if (variant.storage == PaletteStorage::kImage) {
+      cuda::ResourceDesc resource;
+      resource.resType = cuda::kResourceTypeLinear;
+      resource.res.linear = {palette_buffer, cuda::kArrayFormatFloat, 4, palette.size()};
+      cuda::TextureDesc texture;
+      texture.addressMode[0] = texture.addressMode[1] = texture.addressMode[2] = cuda::kAddressModeClamp;
+      texture.filterMode = cuda::kFilterModePoint;
+      cuda::TexObject object = 0;
+      Check(api.cuTexObjectCreate(&object, &resource, &texture, nullptr), "launch",
+            "cuTexObjectCreate (linear, " + std::to_string(palette.size() / 16) + " float4 texels)" + suffix);
+      set.texture = Texture(object, api.cuTexObjectDestroy);
+    }
+    const cuda::DevicePtr out_positions = add(out_bytes, nullptr, "out_positions");
+    const cuda::DevicePtr out_normals = variant.normals ? add(out_bytes, nullptr, "out_normals") : 0;
+
+    for (std::size_t i = 0; i < p.launches.size(); ++i) {
+      const std::size_t l = launch_of_plan[i];
+      const Launch& launch = mesh.launches[l];
+      const KernelSource& source = kernels[l];
+      const std::string where = "launch " + std::to_string(l) + " of " + variant.Key();
+      auto arguments = std::make_unique<CudaPrepared::Impl::Arguments>();
+      CudaPrepared::Impl::Arguments& a = *arguments;
+      a.n = launch.count;
+      a.first = launch.first;
+      a.texture = set.texture.get();
+      a.pointers.reserve(source.arguments.size());
+      for (const KernelArgument& arg : source.arguments) {
+        if (arg.name == "n") {
+          a.parameters.push_back(&a.n);
+        } else if (arg.name == "first") {
+          a.parameters.push_back(&a.first);
+        } else if (arg.name == "palette" && arg.kind == ArgumentKind::kImage) {
+          if (!a.texture) Fail("launch", where + ": an image palette argument but the variant's storage is not image");
+          a.parameters.push_back(&a.texture);
+        } else {
+          cuda::DevicePtr pointer = 0;
+          if (arg.name == "palette") {
+            pointer = palette_buffer;
+          } else if (arg.name == "out_positions") {
+            pointer = out_positions;
+          } else if (arg.name == "out_normals") {
+            pointer = out_normals;
+          } else {
+            auto input = std::find_if(launch.inputs.begin(), launch.inputs.end(),
+                                      [&](const PackedBuffer& b) { return b.name == arg.name; });
+            if (input == launch.inputs.end())
+              Fail("launch", where + ": no packed buffer for argument '" + arg.name + "'");
+            pointer = add(input->bytes.size(), input->bytes.data(), arg.name);
+          }
+          if (!pointer) Fail("launch", where + ": nothing to bind to argument '" + arg.name + "'");
+          a.pointers.push_back(pointer);
+          a.parameters.push_back(&a.pointers.back());
+        }
+      }
+      set.launches.push_back(std::move(arguments));
+    }
+    p.bytes_per_set = bytes;
+  }
+  Check(api.cuCtxSynchronize(), "launch", "cuCtxSynchronize after uploading the input sets of " + variant.Key());
+  return prepared;
+}
+
+std::vector<double> CudaRunner::Time(const CudaPrepared& prepared, int warmup, int repetitions) {
+  Impl& im = *impl_;
+  const cuda::DriverApi& api = *im.api;
+  im.MakeCurrent();
+  CudaPrepared::Impl& p = *prepared.impl_;
+  if (p.sets.empty()) Fail("launch", "Time: nothing prepared");
+  warmup = std::max(warmup, 0);
+  repetitions = std::max(repetitions, 0);
+  std::vector<std::vector<std::pair<Event, Event>>> events(static_cast<std::size_t>(repetitions));
+  auto new_event = [&]() {
+    cuda::Event e = nullptr;
+    Check(api.cuEventCreate(&e, 0), "launch", "cuEventCreate for timing " + p.key);
+    return Event(e, api.cuEventDestroy);
+  };
+  for (int frame = 0; frame < warmup + repetitions; ++frame) {
+    CudaPrepared::Impl::Set& set = p.sets[static_cast<std::size_t>(frame) % p.sets.size()];
+    const bool timed = frame >= warmup;
+    for (std::size_t l = 0; l < p.launches.size(); ++l) {
+      const CudaPrepared::Impl::LaunchPlan& plan = p.launches[l];
+      const std::string where = "launch " + std::to_string(l) + " of " + p.key;
+      if (p.constant)
+        Check(api.cuMemcpyHtoD(plan.constant_symbol, set.palette.data(), set.palette.size()), "launch",
+              where + ": cuMemcpyHtoD to '" + kConstantPaletteSymbol + "'");
+      Event start, end;
+      if (timed) {
+        start = new_event();
+        end = new_event();
+        Check(api.cuEventRecord(start.get(), nullptr), "launch", where + ": cuEventRecord");
+      }
+      Check(api.cuLaunchKernel(plan.function, plan.blocks, 1, 1, plan.threads, 1, 1, 0, nullptr,
+                               set.launches[l]->parameters.data(), nullptr),
+            "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " blocks of " +
+                          std::to_string(plan.threads) + ")");
+      if (timed) {
+        Check(api.cuEventRecord(end.get(), nullptr), "launch", where + ": cuEventRecord");
+        events[static_cast<std::size_t>(frame - warmup)].emplace_back(std::move(start), std::move(end));
+      }
+    }
+  }
+  Check(api.cuCtxSynchronize(), "launch", "cuCtxSynchronize after timing " + p.key);
+  std::vector<double> ms;
+  for (const auto& frame : events) {
+    double total = 0.0;
+    for (const auto& [start, end] : frame) {
+      float elapsed = 0.0f;
+      Check(api.cuEventElapsedTime(&elapsed, start.get(), end.get()), "launch", "cuEventElapsedTime");
+      total += static_cast<double>(elapsed);
+    }
+    ms.push_back(total);
+  }
+  return ms;
+}
+
+namespace {
+
+constexpr const char* kCopyKernel = R"(// skintune copy bandwidth kernel
+extern "C" __global__ void skintune_copy(const uint4* __restrict__ in, uint4* __restrict__ out,
+                                         unsigned long long n) {
+  const unsigned long long i = blockIdx.x * (unsigned long long)blockDim.x + threadIdx.x;
+  if (i < n) out[i] = in[i];
+}
+)";
+
+// A non-zero pattern (an LCG), so nothing can be elided or compressed away.
+std::vector<std::uint32_t> CopyPattern(std::size_t words) {
+  std::vector<std::uint32_t> pattern(words);
+  std::uint32_t x = 0x9e3779b9u;
+  for (std::uint32_t& w : pattern) w = x = x * 1664525u + 1013904223u;
+  return pattern;
+}
+
+}  // namespace
+
+std::vector<double> CudaRunner::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
+  Impl& im = *impl_;
+  const cuda::DriverApi& api = *im.api;
+  im.MakeCurrent();
+  bytes -= bytes % 16;
+  if (bytes == 0) Fail("launch", "copy of less than 16 bytes");
+  KernelSource source;
+  source.lang = Lang::kCuda;
+  source.entry_point = "skintune_copy";
+  source.text = kCopyKernel;
+  source.source_hash = SourceHash(source.text);
+  const BuiltKernel& kernel = im.KernelFor(source);
+  const std::vector<std::uint32_t> pattern = CopyPattern(bytes / 4);
+  Memory in = im.Buffer(bytes, pattern.data(), "copy source");
+  Memory out = im.Buffer(bytes, nullptr, "copy destination");
+  cuda::DevicePtr in_pointer = in.get(), out_pointer = out.get();
+  unsigned long long n = bytes / 16;
+  void* parameters[] = {&in_pointer, &out_pointer, &n};
+  const auto blocks = static_cast<unsigned>((n + 255) / 256);
+  std::vector<std::pair<Event, Event>> events;
+  for (int r = 0; r < std::max(warmup, 0) + std::max(repetitions, 0); ++r) {
+    const bool timed = r >= warmup;
+    cuda::Event start = nullptr, end = nullptr;
+    if (timed) {
+      Check(api.cuEventCreate(&start, 0), "launch", "cuEventCreate");
+      events.emplace_back(Event(start, api.cuEventDestroy), Event());
+      Check(api.cuEventCreate(&end, 0), "launch", "cuEventCreate");
+      events.back().second = Event(end, api.cuEventDestroy);
+      Check(api.cuEventRecord(start, nullptr), "launch", "cuEventRecord");
+    }
+    Check(api.cuLaunchKernel(kernel.function, blocks, 1, 1, 256, 1, 1, 0, nullptr, parameters, nullptr), "launch",
+          "cuLaunchKernel of the copy kernel (" + std::to_string(blocks) + " blocks of 256)");
+    if (timed) Check(api.cuEventRecord(end, nullptr), "launch", "cuEventRecord");
+  }
+  Check(api.cuCtxSynchronize(), "launch", "cuCtxSynchronize after the copy kernel");
+  std::vector<double> ms;
+  for (const auto& [start, end] : events) {
+    float elapsed = 0.0f;
+    Check(api.cuEventElapsedTime(&elapsed, start.get(), end.get()), "launch", "cuEventElapsedTime");
+    ms.push_back(static_cast<double>(elapsed));
+  }
+  return ms;
 }
 
 }  // namespace skintune

@@ -21,6 +21,11 @@
 //   `palette` argument gets the buffer but is not read); for `image` storage
 //   the argument is a texture object over the buffer (linear, float4 texels).
 // - Per-launch times from CUDA events recorded around each cuLaunchKernel.
+// - Timing (the tuner's): Prepare uploads K input sets once (copies of every
+//   launch's inputs, one palette each, outputs of their own); Time runs frames
+//   rotating among them between CUDA events, uploading, poisoning and reading
+//   back nothing (`constant` storage: the set's palette is copied into the
+//   module's symbol before each frame, outside the events).
 // Errors name the stage: "CUDA setup", "build", "launch" or "guard". A kernel
 // that faults (an illegal address) leaves the CUDA context unusable: later
 // runs of the same runner fail too.
@@ -46,6 +51,41 @@ struct CudaRunResult {
   std::size_t poisoned_vertices = 0;    // output vectors (positions, normals) still holding the poison
 };
 
+// What the driver says about a device, without a context (QueryCudaDevice).
+struct CudaDeviceInfo {
+  int index = 0;
+  std::string name;
+  int major = 0, minor = 0;                  // compute capability
+  std::string arch;                          // NvrtcArchFor(major, minor); empty when NVRTC is older
+  int multiprocessors = 0;
+  int clock_khz = 0;
+  std::uint64_t total_memory_bytes = 0;      // cuDeviceTotalMem (0 when the driver lacks it)
+  std::uint64_t l2_cache_bytes = 0;
+  int driver_version = 0;                    // cuDriverGetVersion: 13000 = CUDA 13.0
+  DeviceLimits limits;                       // threads per block, static __shared__, __constant__, texture width
+};
+
+// Throws Error("CUDA setup: ...") when there is no NVRTC, no driver or no such device.
+CudaDeviceInfo QueryCudaDevice(int device_index);
+
+// The device buffers of one variant for timing (CudaRunner::Prepare):
+// input_sets() sets, each a copy of every launch's packed inputs, its own
+// palette and its own outputs. Move-only; must not outlive its runner.
+class CudaPrepared {
+ public:
+  CudaPrepared();
+  ~CudaPrepared();
+  CudaPrepared(CudaPrepared&&) noexcept;
+  CudaPrepared& operator=(CudaPrepared&&) noexcept;
+  int input_sets() const;
+  std::size_t bytes_per_set() const;  // device bytes of one set: inputs + palette + outputs
+
+ private:
+  friend class CudaRunner;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
 class CudaRunner {
  public:
   // CUDA device `device_index` (0 .. Probe().device_count - 1), through its
@@ -61,6 +101,7 @@ class CudaRunner {
   // The device's limits for CheckVariant: threads per block, static __shared__
   // and __constant__ bytes, linear texture width in texels.
   const DeviceLimits& limits() const;
+  const CudaDeviceInfo& info() const;
 
   // Builds (or finds already built) `source`; throws Error("CUDA build ...").
   void Build(const KernelSource& source);
@@ -72,6 +113,25 @@ class CudaRunner {
   // Runs with the given kernels, one per launch, in launch order.
   CudaRunResult Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                     std::span<const std::uint8_t> palette = {});
+
+  // Timing. Uploads one input set per palette (PackPalette bytes; one frame
+  // each): copies of every launch's packed inputs, that palette (and its
+  // texture object), and outputs of its own (not poisoned, never read back);
+  // builds `kernels` (one per launch, in launch order). Throws Error ("build",
+  // "launch") like Run.
+  CudaPrepared Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                       std::span<const std::vector<std::uint8_t>> palettes);
+
+  // Runs `warmup` untimed frames, then `repetitions` timed ones; frame f (warm-up
+  // frames counted) reads and writes set f % input_sets(). Returns one time per
+  // timed frame: the sum over its launches of the CUDA event time around each
+  // launch, ms.
+  std::vector<double> Time(const CudaPrepared& prepared, int warmup, int repetitions);
+
+  // A plain copy (one uint4 per thread) between two buffers of `bytes`
+  // (rounded down to a multiple of 16; the source holds a non-zero pattern):
+  // `warmup` untimed then `repetitions` timed runs, CUDA event time in ms each.
+  std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions);
 
  private:
   struct Impl;

@@ -3,6 +3,8 @@
 #include <epoxy/gl.h>
 
 #include <algorithm>
+#include <cctype>
+#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -82,6 +84,8 @@ class GlObject {
     if (id_ && deleter_) deleter_(id_);
     id_ = 0;
   }
+  // Gives the name up without deleting it (when no context can be made current).
+  void forget() { id_ = 0; }
 
  private:
   GLuint id_ = 0;
@@ -458,6 +462,404 @@ GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> 
   read_back(out_positions, "out_positions", result.positions);
   if (variant.normals) read_back(out_normals, "out_normals", result.normals);
   return result;
+}
+
+// ---------------------------------------------------------------- timing
+
+namespace {
+
+// Mesa's software renderers answer GL_TIME_ELAPSED from their rasteriser
+// threads, which neither compute dispatches nor vertex processing with
+// rasterisation discarded pass through: their queries read ~0. There each
+// launch is timed by the host clock between two glFinish calls instead.
+bool HostClockTimesLaunches(const GlContextInfo& info) {
+  std::string renderer = info.renderer;
+  std::transform(renderer.begin(), renderer.end(), renderer.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  for (const char* software : {"llvmpipe", "softpipe", "swrast"})
+    if (renderer.find(software) != std::string::npos) return true;
+  return false;
+}
+
+// Times `launch` on the host clock between glFinish calls, in ms.
+template <typename F>
+double HostMs(F&& launch) {
+  glFinish();
+  const auto start = std::chrono::steady_clock::now();
+  launch();
+  glFinish();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+bool GlRunner::host_timed() const { return HostClockTimesLaunches(impl_->context->info()); }
+
+struct GlPrepared::Impl {
+  GlContext* context = nullptr;  // the runner's
+  struct LaunchPlan {
+    KernelSource source;
+    GLuint program = 0;
+    GLint n_location = -1, first_location = -1;
+    std::uint32_t count = 0, first = 0;
+    std::size_t groups = 0;  // glsl-compute
+  };
+  enum class Target { kUniform, kStorage, kTexture, kFeedback };
+  struct Binding {
+    Target target = Target::kStorage;
+    GLuint index = 0;  // binding point, texture unit or feedback buffer
+    GLuint object = 0;
+    GLintptr offset = 0;
+    GLsizeiptr size = 0;  // kFeedback: the capture range
+  };
+  struct Set {
+    std::vector<GlObject> objects;
+    std::vector<std::vector<Binding>> launches;
+  };
+  std::string key;
+  bool vertex = false, normals = false;
+  std::vector<LaunchPlan> launches;
+  std::vector<Set> sets;
+  std::size_t bytes_per_set = 0;
+
+  ~Impl() {
+    if (!context) return;
+    bool current = false;
+    try {
+      context->MakeCurrent();
+      current = true;
+    } catch (const Error&) {
+    }
+    for (Set& set : sets)
+      for (GlObject& object : set.objects)
+        if (current) object.reset(); else object.forget();
+  }
+};
+
+GlPrepared::GlPrepared() : impl_(std::make_unique<Impl>()) {}
+GlPrepared::~GlPrepared() = default;
+GlPrepared::GlPrepared(GlPrepared&&) noexcept = default;
+GlPrepared& GlPrepared::operator=(GlPrepared&&) noexcept = default;
+int GlPrepared::input_sets() const { return impl_ ? static_cast<int>(impl_->sets.size()) : 0; }
+std::size_t GlPrepared::bytes_per_set() const { return impl_ ? impl_->bytes_per_set : 0; }
+
+GlPrepared GlRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                             std::span<const std::vector<std::uint8_t>> palettes) {
+  Impl& im = *impl_;
+  im.context->MakeCurrent();
+  const GlContextInfo& info = im.context->info();
+  const Variant& variant = mesh.variant;
+  if (!IsGlsl(variant.lang)) Fail("launch", variant.Key() + " is not a GLSL variant");
+  const bool vertex = variant.lang == Lang::kGlslVertex;
+  if (kernels.size() != mesh.launches.size())
+    Fail("launch", std::to_string(kernels.size()) + " kernels for " + std::to_string(mesh.launches.size()) +
+                       " launches of " + variant.Key());
+  if (palettes.empty()) Fail("launch", "no palette (input set) to time " + variant.Key() + " with");
+  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
+  for (const std::vector<std::uint8_t>& palette : palettes) {
+    if (palette.size() != mesh.palette_joints * rows * 16)
+      Fail("launch", "palette has " + std::to_string(palette.size()) + " bytes, expected " +
+                         std::to_string(mesh.palette_joints) + " joints x " + std::to_string(rows) + " rows x 16");
+  }
+  if (vertex && variant.storage == PaletteStorage::kLocal)
+    Fail("launch", variant.Key() + ": storage local needs a compute shader (a vertex shader has no shared memory)");
+  const std::size_t palette_bytes = palettes.front().size();
+  if (variant.storage == PaletteStorage::kConstant && palette_bytes > info.max_uniform_block_bytes)
+    Fail("launch", variant.Key() + ": palette of " + std::to_string(palette_bytes) +
+                       " bytes exceeds GL_MAX_UNIFORM_BLOCK_SIZE " + std::to_string(info.max_uniform_block_bytes));
+  if (variant.storage == PaletteStorage::kImage && palette_bytes / 16 > info.max_texture_buffer_texels)
+    Fail("launch", variant.Key() + ": palette of " + std::to_string(palette_bytes / 16) +
+                       " texels exceeds GL_MAX_TEXTURE_BUFFER_SIZE " + std::to_string(info.max_texture_buffer_texels));
+  ClearGlErrors();
+
+  GlPrepared prepared;
+  GlPrepared::Impl& p = *prepared.impl_;
+  p.context = im.context.get();
+  p.key = variant.Key();
+  p.vertex = vertex;
+  p.normals = variant.normals;
+  std::vector<std::size_t> launch_of_plan;
+  for (std::size_t l = 0; l < mesh.launches.size(); ++l) {
+    const Launch& launch = mesh.launches[l];
+    if (launch.count == 0) continue;
+    const KernelSource& source = kernels[l];
+    const std::string where = "launch " + std::to_string(l) + " of " + variant.Key();
+    if (source.lang != variant.lang)
+      Fail("launch", where + ": kernel language " + Name(source.lang) + " for a " + Name(variant.lang) + " variant");
+    if ((variant.storage == PaletteStorage::kConstant || variant.storage == PaletteStorage::kLocal) &&
+        source.joints != static_cast<int>(mesh.palette_joints))
+      Fail("launch", where + ": kernel sized for " + std::to_string(source.joints) + " joints, the palette has " +
+                         std::to_string(mesh.palette_joints));
+    const BuiltProgram& program = im.ProgramFor(source);
+    GlPrepared::Impl::LaunchPlan plan;
+    plan.source = source;
+    plan.program = program.program.get();
+    plan.n_location = program.n_location;
+    plan.first_location = program.first_location;
+    plan.count = launch.count;
+    plan.first = launch.first;
+    if (!vertex) {
+      plan.groups = source.launch.GlobalItems(launch.count) / static_cast<std::size_t>(source.launch.wg_size);
+      if (plan.groups > info.max_compute_work_group_count_x)
+        Fail("launch", where + ": " + std::to_string(plan.groups) + " work-groups exceed GL_MAX_COMPUTE_WORK_GROUP_COUNT " +
+                           std::to_string(info.max_compute_work_group_count_x));
+    }
+    p.launches.push_back(std::move(plan));
+    launch_of_plan.push_back(l);
+  }
+
+  const std::size_t stride = mesh.output_stride_bytes;
+  const std::size_t out_bytes = mesh.vertex_count * stride;
+  using Target = GlPrepared::Impl::Target;
+  for (std::size_t k = 0; k < palettes.size(); ++k) {
+    p.sets.emplace_back();
+    GlPrepared::Impl::Set& set = p.sets.back();
+    std::size_t bytes = 0;
+    const std::string suffix = " (input set " + std::to_string(k) + ")";
+    auto add = [&](std::size_t size, const void* data, const std::string& what) {
+      set.objects.push_back(NewBuffer(size, data, what + suffix));
+      bytes += size;
+      return set.objects.back().get();
+    };
+    const std::vector<std::uint8_t>& palette = palettes[k];
+    const GLuint palette_buffer = add(palette.size(), palette.data(), "palette");
+    GLuint palette_texture = 0;
+    if (variant.storage == PaletteStorage::kImage) {
+      GLuint id = 0;
+      glGenTextures(1, &id);
+      set.objects.emplace_back(id, [](GLuint name) { glDeleteTextures(1, &name); });
+      glBindTexture(GL_TEXTURE_BUFFER, id);
+      glTexBuffer(GL_TEXTURE_BUFFER, GL_RGBA32F, palette_buffer);
+      glBindTexture(GL_TEXTURE_BUFFER, 0);
+      CheckGl("launch", "texture buffer (GL_RGBA32F, " + std::to_string(palette.size() / 16) +
+                            " texels) over the palette" + suffix);
+      palette_texture = id;
+    }
+    const GLuint out_positions = add(out_bytes, nullptr, "out_positions");
+    const GLuint out_normals = variant.normals ? add(out_bytes, nullptr, "out_normals") : 0;
+
+    for (std::size_t i = 0; i < p.launches.size(); ++i) {
+      const std::size_t l = launch_of_plan[i];
+      const Launch& launch = mesh.launches[l];
+      const KernelSource& source = kernels[l];
+      const std::string where = "launch " + std::to_string(l) + " of " + variant.Key();
+      std::vector<GlPrepared::Impl::Binding> bindings;
+      GLuint binding = 0;
+      for (const KernelArgument& arg : source.arguments) {
+        if (arg.kind == ArgumentKind::kScalar) continue;
+        GlPrepared::Impl::Binding b;
+        b.index = binding++;
+        if (arg.name == "palette") {
+          switch (variant.storage) {
+            case PaletteStorage::kConstant:
+              b.target = Target::kUniform;
+              b.object = palette_buffer;
+              break;
+            case PaletteStorage::kImage:
+              b.target = Target::kTexture;
+              b.object = palette_texture;
+              break;
+            case PaletteStorage::kLocal:
+            case PaletteStorage::kGlobal:
+              b.target = Target::kStorage;
+              b.object = palette_buffer;
+              break;
+          }
+        } else if (arg.name == "out_positions" || arg.name == "out_normals") {
+          b.object = arg.name == "out_positions" ? out_positions : out_normals;
+          if (!b.object) Fail("launch", where + ": nothing to bind to argument '" + arg.name + "'");
+          if (vertex) {
+            b.target = Target::kFeedback;
+            b.index = arg.name == "out_positions" ? 0 : 1;
+            b.offset = static_cast<GLintptr>(static_cast<std::size_t>(launch.first) * stride);
+            b.size = static_cast<GLsizeiptr>(static_cast<std::size_t>(launch.count) * stride);
+            if (static_cast<std::size_t>(b.offset + b.size) > out_bytes)
+              Fail("launch", where + ": capture range [" + std::to_string(launch.first) + ", " +
+                                 std::to_string(launch.first + launch.count) + ") lies beyond the output buffer");
+          }
+        } else {
+          auto input = std::find_if(launch.inputs.begin(), launch.inputs.end(),
+                                    [&](const PackedBuffer& pb) { return pb.name == arg.name; });
+          if (input == launch.inputs.end()) Fail("launch", where + ": no packed buffer for argument '" + arg.name + "'");
+          b.object = add(input->bytes.size(), input->bytes.data(), arg.name);
+        }
+        bindings.push_back(b);
+      }
+      set.launches.push_back(std::move(bindings));
+    }
+    p.bytes_per_set = bytes;
+  }
+  glFinish();  // the uploads are done before anything is timed
+  CheckGl("launch", "uploading the input sets of " + variant.Key());
+  return prepared;
+}
+
+std::vector<double> GlRunner::Time(const GlPrepared& prepared, int warmup, int repetitions) {
+  Impl& im = *impl_;
+  im.context->MakeCurrent();
+  const GlPrepared::Impl& p = *prepared.impl_;
+  if (p.sets.empty()) Fail("launch", "Time: nothing prepared");
+  warmup = std::max(warmup, 0);
+  repetitions = std::max(repetitions, 0);
+  ClearGlErrors();
+  if (p.vertex) {
+    im.PrepareVertexState();
+    glBindVertexArray(im.vertex_array.get());
+    glBindFramebuffer(GL_FRAMEBUFFER, im.framebuffer.get());
+    glEnable(GL_RASTERIZER_DISCARD);
+    glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, im.transform_feedback.get());
+  }
+  using Target = GlPrepared::Impl::Target;
+  const bool host_clock = HostClockTimesLaunches(im.context->info());
+  std::vector<std::vector<GlObject>> timers(static_cast<std::size_t>(repetitions));
+  std::vector<double> host_ms(static_cast<std::size_t>(repetitions), 0.0);
+  for (int frame = 0; frame < warmup + repetitions; ++frame) {
+    const GlPrepared::Impl::Set& set = p.sets[static_cast<std::size_t>(frame) % p.sets.size()];
+    const bool timed = frame >= warmup;
+    for (std::size_t l = 0; l < p.launches.size(); ++l) {
+      const GlPrepared::Impl::LaunchPlan& plan = p.launches[l];
+      glUseProgram(plan.program);
+      if (plan.n_location >= 0) glUniform1ui(plan.n_location, plan.count);
+      if (plan.first_location >= 0) glUniform1ui(plan.first_location, plan.first);
+      for (const GlPrepared::Impl::Binding& b : set.launches[l]) {
+        switch (b.target) {
+          case Target::kUniform: glBindBufferBase(GL_UNIFORM_BUFFER, b.index, b.object); break;
+          case Target::kStorage: glBindBufferBase(GL_SHADER_STORAGE_BUFFER, b.index, b.object); break;
+          case Target::kTexture:
+            glActiveTexture(GL_TEXTURE0 + b.index);
+            glBindTexture(GL_TEXTURE_BUFFER, b.object);
+            glActiveTexture(GL_TEXTURE0);
+            break;
+          case Target::kFeedback:
+            glBindBufferRange(GL_TRANSFORM_FEEDBACK_BUFFER, b.index, b.object, b.offset, b.size);
+            break;
+        }
+      }
+      auto launch = [&] {
+        if (p.vertex) {
+          glBeginTransformFeedback(GL_POINTS);
+          glDrawArrays(GL_POINTS, 0, static_cast<GLsizei>(plan.count));
+          glEndTransformFeedback();
+        } else {
+          glDispatchCompute(static_cast<GLuint>(plan.groups), 1, 1);
+        }
+      };
+      if (!timed) {
+        launch();
+      } else if (host_clock) {
+        host_ms[static_cast<std::size_t>(frame - warmup)] += HostMs(launch);
+      } else {
+        timers[static_cast<std::size_t>(frame - warmup)].push_back(NewQuery());
+        glBeginQuery(GL_TIME_ELAPSED, timers[static_cast<std::size_t>(frame - warmup)].back().get());
+        launch();
+        glEndQuery(GL_TIME_ELAPSED);
+      }
+    }
+    if (frame == 0) CheckGl("launch", "the first frame of timing " + p.key);
+  }
+  if (p.vertex) {
+    glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
+    if (p.normals) glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 1, 0);
+    glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, 0);
+    glDisable(GL_RASTERIZER_DISCARD);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    glBindVertexArray(0);
+  }
+  glUseProgram(0);
+  glFinish();
+  CheckGl("launch", "timing " + p.key);
+  if (host_clock) return host_ms;
+  std::vector<double> ms;
+  for (const std::vector<GlObject>& frame : timers) {
+    double total = 0.0;
+    for (const GlObject& query : frame) {
+      GLuint64 elapsed = 0;
+      glGetQueryObjectui64v(query.get(), GL_QUERY_RESULT, &elapsed);
+      total += static_cast<double>(elapsed) * 1e-6;
+    }
+    ms.push_back(total);
+  }
+  CheckGl("launch", "reading the timer queries of " + p.key);
+  return ms;
+}
+
+namespace {
+
+constexpr const char* kCopyShader = R"(#version 430 core
+// skintune copy bandwidth shader
+layout(local_size_x = 256) in;
+layout(std430, binding = 0) readonly restrict buffer Source { uvec4 source[]; };
+layout(std430, binding = 1) writeonly restrict buffer Destination { uvec4 destination[]; };
+uniform uint n;
+void main() {
+  uint step = gl_NumWorkGroups.x * 256u;
+  for (uint i = gl_GlobalInvocationID.x; i < n; i += step) destination[i] = source[i];
+}
+)";
+
+// A non-zero pattern (an LCG), so nothing can be elided or compressed away.
+std::vector<std::uint32_t> CopyPattern(std::size_t words) {
+  std::vector<std::uint32_t> pattern(words);
+  std::uint32_t x = 0x9e3779b9u;
+  for (std::uint32_t& w : pattern) w = x = x * 1664525u + 1013904223u;
+  return pattern;
+}
+
+}  // namespace
+
+std::vector<double> GlRunner::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
+  Impl& im = *impl_;
+  im.context->MakeCurrent();
+  const GlContextInfo& info = im.context->info();
+  bytes -= bytes % 16;
+  if (bytes == 0) Fail("launch", "copy of less than 16 bytes");
+  if (bytes > info.max_shader_storage_block_bytes)
+    Fail("launch", "copy of " + std::to_string(bytes) + " bytes exceeds GL_MAX_SHADER_STORAGE_BLOCK_SIZE " +
+                       std::to_string(info.max_shader_storage_block_bytes));
+  ClearGlErrors();
+  KernelSource source;
+  source.lang = Lang::kGlslCompute;
+  source.entry_point = "main";
+  source.text = kCopyShader;
+  source.source_hash = SourceHash(source.text);
+  const BuiltProgram& program = im.ProgramFor(source);
+  const std::vector<std::uint32_t> pattern = CopyPattern(bytes / 4);
+  GlObject in = NewBuffer(bytes, pattern.data(), "copy source");
+  GlObject out = NewBuffer(bytes, nullptr, "copy destination");
+  const std::size_t n = bytes / 16;
+  const std::size_t groups =
+      std::max<std::size_t>(1, std::min<std::size_t>((n + 255) / 256, info.max_compute_work_group_count_x));
+  glUseProgram(program.program.get());
+  glUniform1ui(program.n_location, static_cast<GLuint>(n));
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, in.get());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, out.get());
+  const bool host_clock = HostClockTimesLaunches(info);
+  std::vector<GlObject> timers;
+  std::vector<double> host_ms;
+  auto launch = [&] { glDispatchCompute(static_cast<GLuint>(groups), 1, 1); };
+  for (int r = 0; r < std::max(warmup, 0) + std::max(repetitions, 0); ++r) {
+    if (r < warmup) {
+      launch();
+    } else if (host_clock) {
+      host_ms.push_back(HostMs(launch));
+    } else {
+      timers.push_back(NewQuery());
+      glBeginQuery(GL_TIME_ELAPSED, timers.back().get());
+      launch();
+      glEndQuery(GL_TIME_ELAPSED);
+    }
+  }
+  glUseProgram(0);
+  glFinish();
+  CheckGl("launch", "the copy shader (" + std::to_string(groups) + " groups of 256)");
+  if (host_clock) return host_ms;
+  std::vector<double> ms;
+  for (const GlObject& query : timers) {
+    GLuint64 elapsed = 0;
+    glGetQueryObjectui64v(query.get(), GL_QUERY_RESULT, &elapsed);
+    ms.push_back(static_cast<double>(elapsed) * 1e-6);
+  }
+  return ms;
 }
 
 }  // namespace skintune

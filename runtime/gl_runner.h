@@ -25,6 +25,14 @@
 //   capture range first*stride .. (first+n)*stride (gl_VertexID = v), and a
 //   GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN query must count n points.
 // - Each launch is timed with a GL_TIME_ELAPSED query.
+// - Timing (the tuner's): Prepare uploads K input sets once (copies of every
+//   launch's inputs, one palette each, outputs of their own); Time runs frames
+//   rotating among them, each launch inside a GL_TIME_ELAPSED query, uploading,
+//   poisoning and reading back nothing; verify with Run first. On Mesa's
+//   software renderers (llvmpipe, softpipe, swrast), whose GL_TIME_ELAPSED
+//   covers neither compute dispatches nor vertex processing (it times their
+//   rasteriser threads: ~0), each launch is timed by the host clock between
+//   two glFinish calls instead (host_timed()).
 // Errors name the stage: "GL setup", "build", "launch" or "guard".
 //
 // GL calls need the runner's context current: every public method makes it
@@ -51,6 +59,24 @@ struct GlRunResult {
   std::size_t poisoned_vertices = 0;    // output vectors (positions, normals) still holding the poison
 };
 
+// The GL buffers of one variant for timing (GlRunner::Prepare): input_sets()
+// sets, each a copy of every launch's packed inputs, its own palette and its
+// own outputs. Move-only; must not outlive its runner.
+class GlPrepared {
+ public:
+  GlPrepared();
+  ~GlPrepared();
+  GlPrepared(GlPrepared&&) noexcept;
+  GlPrepared& operator=(GlPrepared&&) noexcept;
+  int input_sets() const;
+  std::size_t bytes_per_set() const;  // buffer bytes of one set: inputs + palette + outputs
+
+ private:
+  friend class GlRunner;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
 class GlRunner {
  public:
   // Creates its own context (GlContext(device_index)); throws
@@ -62,6 +88,9 @@ class GlRunner {
 
   const std::string& device_name() const;  // GL_RENDERER
   const GlContextInfo& info() const;
+  // Whether Time and TimeCopy time launches with the host clock (software
+  // renderers) instead of GL_TIME_ELAPSED queries.
+  bool host_timed() const;
 
   // Compiles and links (or finds already built) `source`; throws Error("GL build ...").
   void Build(const KernelSource& source);
@@ -73,6 +102,27 @@ class GlRunner {
   // Runs with the given kernels, one per launch, in launch order.
   GlRunResult Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                   std::span<const std::uint8_t> palette = {});
+
+  // Timing. Uploads one input set per palette (PackPalette bytes; one frame
+  // each): copies of every launch's packed inputs, that palette (and its
+  // texture buffer), and outputs of its own (not poisoned, never read back);
+  // builds `kernels` (one per launch, in launch order). Throws Error ("build",
+  // "launch") like Run.
+  GlPrepared Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                     std::span<const std::vector<std::uint8_t>> palettes);
+
+  // Runs `warmup` untimed frames, then `repetitions` timed ones; frame f (warm-up
+  // frames counted) reads and writes set f % input_sets(). Returns one time per
+  // timed frame: the sum over its launches of their GL_TIME_ELAPSED (or host
+  // time, host_timed()), ms.
+  std::vector<double> Time(const GlPrepared& prepared, int warmup, int repetitions);
+
+  // A plain copy compute shader (one uvec4 per invocation and step, grid-stride)
+  // between two storage buffers of `bytes` (rounded down to a multiple of 16, at
+  // most GL_MAX_SHADER_STORAGE_BLOCK_SIZE; the source holds a non-zero pattern):
+  // `warmup` untimed then `repetitions` timed runs, GL_TIME_ELAPSED (or host
+  // time, host_timed()) in ms each.
+  std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions);
 
  private:
   struct Impl;

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstring>
 #include <map>
+#include <utility>
 
 #include "reference/error.h"
 #include "runtime/output_check.h"
@@ -263,6 +264,244 @@ OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const Kernel
   read_back(out_positions, "out_positions", result.positions);
   if (variant.normals) read_back(out_normals, "out_normals", result.normals);
   return result;
+}
+
+// ---------------------------------------------------------------- timing
+
+struct OpenClPrepared::Impl {
+  struct LaunchPlan {
+    KernelSource source;
+    std::uint32_t count = 0, first = 0;
+    std::size_t global = 0, local = 0;
+  };
+  // One set: its buffers, and per launch the memory object of each kernel
+  // argument (null for the scalars n and first).
+  struct Set {
+    std::vector<Memory> buffers;
+    std::vector<std::vector<cl_mem>> arguments;
+  };
+  std::string key;
+  std::vector<LaunchPlan> launches;
+  std::vector<Set> sets;
+  std::size_t bytes_per_set = 0;
+};
+
+OpenClPrepared::OpenClPrepared() : impl_(std::make_unique<Impl>()) {}
+OpenClPrepared::~OpenClPrepared() = default;
+OpenClPrepared::OpenClPrepared(OpenClPrepared&&) noexcept = default;
+OpenClPrepared& OpenClPrepared::operator=(OpenClPrepared&&) noexcept = default;
+int OpenClPrepared::input_sets() const { return impl_ ? static_cast<int>(impl_->sets.size()) : 0; }
+std::size_t OpenClPrepared::bytes_per_set() const { return impl_ ? impl_->bytes_per_set : 0; }
+
+OpenClPrepared OpenClRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                     std::span<const std::vector<std::uint8_t>> palettes) {
+  Impl& im = *impl_;
+  const Variant& variant = mesh.variant;
+  if (kernels.size() != mesh.launches.size())
+    Fail("launch", std::to_string(kernels.size()) + " kernels for " + std::to_string(mesh.launches.size()) +
+                       " launches of " + variant.Key());
+  if (palettes.empty()) Fail("launch", "no palette (input set) to time " + variant.Key() + " with");
+  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
+  for (const std::vector<std::uint8_t>& palette : palettes) {
+    if (palette.size() != mesh.palette_joints * rows * 16)
+      Fail("launch", "palette has " + std::to_string(palette.size()) + " bytes, expected " +
+                         std::to_string(mesh.palette_joints) + " joints x " + std::to_string(rows) + " rows x 16");
+  }
+
+  OpenClPrepared prepared;
+  OpenClPrepared::Impl& p = *prepared.impl_;
+  p.key = variant.Key();
+  for (std::size_t l = 0; l < mesh.launches.size(); ++l) {
+    const Launch& launch = mesh.launches[l];
+    if (launch.count == 0) continue;
+    im.KernelFor(kernels[l]);  // build errors before any upload
+    OpenClPrepared::Impl::LaunchPlan plan;
+    plan.source = kernels[l];
+    plan.count = launch.count;
+    plan.first = launch.first;
+    plan.global = kernels[l].launch.GlobalItems(launch.count);
+    plan.local = static_cast<std::size_t>(kernels[l].launch.wg_size);
+    p.launches.push_back(std::move(plan));
+  }
+
+  const std::size_t out_bytes = mesh.vertex_count * mesh.output_stride_bytes;
+  for (std::size_t k = 0; k < palettes.size(); ++k) {
+    OpenClPrepared::Impl::Set set;
+    std::size_t bytes = 0;
+    auto add = [&](Memory m, std::size_t size) {
+      bytes += size;
+      set.buffers.push_back(std::move(m));
+      return set.buffers.back().get();
+    };
+    const std::string suffix = " (input set " + std::to_string(k) + ")";
+    const std::vector<std::uint8_t>& palette = palettes[k];
+    const cl_mem palette_buffer =
+        add(im.Buffer(CL_MEM_READ_ONLY, palette.size(), palette.data(), "palette" + suffix), palette.size());
+    cl_mem palette_mem = palette_buffer;
+    if (variant.storage == PaletteStorage::kImage) {
+      cl_image_format format{CL_RGBA, CL_FLOAT};
+      cl_image_desc desc{};
+      desc.image_type = CL_MEM_OBJECT_IMAGE1D_BUFFER;
+      desc.image_width = palette.size() / 16;
+      desc.buffer = palette_buffer;
+      cl_int err = CL_SUCCESS;
+      Memory image(clCreateImage(im.context.get(), CL_MEM_READ_ONLY, &format, &desc, nullptr, &err));
+      Check(err, "launch", "clCreateImage (image1d_buffer of " + std::to_string(desc.image_width) + " texels)" + suffix);
+      palette_mem = add(std::move(image), 0);
+    }
+    const cl_mem out_positions = add(im.Buffer(CL_MEM_READ_WRITE, out_bytes, nullptr, "out_positions" + suffix), out_bytes);
+    cl_mem out_normals = nullptr;
+    if (variant.normals) out_normals = add(im.Buffer(CL_MEM_READ_WRITE, out_bytes, nullptr, "out_normals" + suffix), out_bytes);
+
+    std::size_t plan_index = 0;
+    for (std::size_t l = 0; l < mesh.launches.size(); ++l) {
+      const Launch& launch = mesh.launches[l];
+      if (launch.count == 0) continue;
+      const KernelSource& source = p.launches[plan_index++].source;
+      const std::string where = "launch " + std::to_string(l) + " of " + variant.Key();
+      std::vector<cl_mem> arguments;
+      for (const KernelArgument& arg : source.arguments) {
+        cl_mem mem = nullptr;
+        if (arg.name == "n" || arg.name == "first") {
+          arguments.push_back(nullptr);
+          continue;
+        } else if (arg.name == "palette") {
+          mem = palette_mem;
+        } else if (arg.name == "out_positions") {
+          mem = out_positions;
+        } else if (arg.name == "out_normals") {
+          mem = out_normals;
+        } else {
+          auto input = std::find_if(launch.inputs.begin(), launch.inputs.end(),
+                                    [&](const PackedBuffer& b) { return b.name == arg.name; });
+          if (input == launch.inputs.end()) Fail("launch", where + ": no packed buffer for argument '" + arg.name + "'");
+          mem = add(im.Buffer(CL_MEM_READ_ONLY, input->bytes.size(), input->bytes.data(), arg.name + suffix),
+                    input->bytes.size());
+        }
+        if (!mem) Fail("launch", where + ": nothing to bind to argument '" + arg.name + "'");
+        arguments.push_back(mem);
+      }
+      set.arguments.push_back(std::move(arguments));
+    }
+    p.bytes_per_set = bytes;
+    p.sets.push_back(std::move(set));
+  }
+  // The uploads are done before anything is timed.
+  Check(clFinish(im.queue.get()), "launch", "clFinish after uploading the input sets of " + variant.Key());
+  return prepared;
+}
+
+std::vector<double> OpenClRunner::Time(const OpenClPrepared& prepared, int warmup, int repetitions) {
+  Impl& im = *impl_;
+  const OpenClPrepared::Impl& p = *prepared.impl_;
+  if (p.sets.empty()) Fail("launch", "Time: nothing prepared");
+  warmup = std::max(warmup, 0);
+  repetitions = std::max(repetitions, 0);
+  std::vector<cl_kernel> kernels;
+  for (const OpenClPrepared::Impl::LaunchPlan& plan : p.launches) kernels.push_back(im.KernelFor(plan.source));
+  std::vector<std::vector<Event>> events(static_cast<std::size_t>(repetitions));
+  for (int frame = 0; frame < warmup + repetitions; ++frame) {
+    const auto& set = p.sets[static_cast<std::size_t>(frame) % p.sets.size()];
+    const bool timed = frame >= warmup;
+    for (std::size_t l = 0; l < p.launches.size(); ++l) {
+      const OpenClPrepared::Impl::LaunchPlan& plan = p.launches[l];
+      const cl_kernel kernel = kernels[l];
+      const std::string where = "launch " + std::to_string(l) + " of " + p.key;
+      const std::vector<cl_mem>& arguments = set.arguments[l];
+      for (std::size_t a = 0; a < plan.source.arguments.size(); ++a) {
+        const KernelArgument& arg = plan.source.arguments[a];
+        const auto index = static_cast<cl_uint>(a);
+        cl_int err = CL_SUCCESS;
+        if (arg.name == "n") {
+          err = clSetKernelArg(kernel, index, sizeof(cl_uint), &plan.count);
+        } else if (arg.name == "first") {
+          err = clSetKernelArg(kernel, index, sizeof(cl_uint), &plan.first);
+        } else {
+          err = clSetKernelArg(kernel, index, sizeof(cl_mem), &arguments[a]);
+        }
+        if (err != CL_SUCCESS) Check(err, "launch", where + ": clSetKernelArg " + std::to_string(a) + " '" + arg.name + "'");
+      }
+      cl_event event = nullptr;
+      Check(clEnqueueNDRangeKernel(im.queue.get(), kernel, 1, nullptr, &plan.global, &plan.local, 0, nullptr,
+                                   timed ? &event : nullptr),
+            "launch", where + ": clEnqueueNDRangeKernel (" + std::to_string(plan.global) + " items, groups of " +
+                          std::to_string(plan.local) + ")");
+      if (timed) events[static_cast<std::size_t>(frame - warmup)].emplace_back(event);
+    }
+  }
+  Check(clFinish(im.queue.get()), "launch", "clFinish after timing " + p.key);
+  std::vector<double> ms;
+  for (const std::vector<Event>& frame : events) {
+    double total = 0.0;
+    for (const Event& e : frame) {
+      cl_ulong start = 0, end = 0;
+      Check(clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr), "launch",
+            "clGetEventProfilingInfo (start) of " + p.key);
+      Check(clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr), "launch",
+            "clGetEventProfilingInfo (end) of " + p.key);
+      total += static_cast<double>(end - start) * 1e-6;
+    }
+    ms.push_back(total);
+  }
+  return ms;
+}
+
+namespace {
+
+constexpr const char* kCopyKernel = R"(// skintune copy bandwidth kernel
+__kernel void skintune_copy(__global const uint4* restrict in, __global uint4* restrict out, const ulong n) {
+  const size_t i = get_global_id(0);
+  if (i < n) out[i] = in[i];
+}
+)";
+
+// A non-zero pattern (an LCG), so nothing can be elided or compressed away.
+std::vector<std::uint32_t> CopyPattern(std::size_t words) {
+  std::vector<std::uint32_t> pattern(words);
+  std::uint32_t x = 0x9e3779b9u;
+  for (std::uint32_t& w : pattern) w = x = x * 1664525u + 1013904223u;
+  return pattern;
+}
+
+}  // namespace
+
+std::vector<double> OpenClRunner::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
+  Impl& im = *impl_;
+  bytes -= bytes % 16;
+  if (bytes == 0) Fail("launch", "copy of less than 16 bytes");
+  KernelSource source;
+  source.lang = Lang::kOpenCl;
+  source.entry_point = "skintune_copy";
+  source.text = kCopyKernel;
+  source.source_hash = SourceHash(source.text);
+  const cl_kernel kernel = im.KernelFor(source);
+  const std::vector<std::uint32_t> pattern = CopyPattern(bytes / 4);
+  Memory in = im.Buffer(CL_MEM_READ_ONLY, bytes, pattern.data(), "copy source");
+  Memory out = im.Buffer(CL_MEM_WRITE_ONLY, bytes, nullptr, "copy destination");
+  const cl_ulong n = bytes / 16;
+  const cl_mem in_mem = in.get(), out_mem = out.get();
+  Check(clSetKernelArg(kernel, 0, sizeof(cl_mem), &in_mem), "launch", "clSetKernelArg 0 of the copy kernel");
+  Check(clSetKernelArg(kernel, 1, sizeof(cl_mem), &out_mem), "launch", "clSetKernelArg 1 of the copy kernel");
+  Check(clSetKernelArg(kernel, 2, sizeof(cl_ulong), &n), "launch", "clSetKernelArg 2 of the copy kernel");
+  const std::size_t global = (n + 255) / 256 * 256;
+  std::vector<Event> events;
+  for (int r = 0; r < std::max(warmup, 0) + std::max(repetitions, 0); ++r) {
+    const bool timed = r >= warmup;
+    cl_event event = nullptr;
+    Check(clEnqueueNDRangeKernel(im.queue.get(), kernel, 1, nullptr, &global, nullptr, 0, nullptr,
+                                 timed ? &event : nullptr),
+          "launch", "clEnqueueNDRangeKernel of the copy kernel (" + std::to_string(global) + " items)");
+    if (timed) events.emplace_back(event);
+  }
+  Check(clFinish(im.queue.get()), "launch", "clFinish after the copy kernel");
+  std::vector<double> ms;
+  for (const Event& e : events) {
+    cl_ulong start = 0, end = 0;
+    clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr);
+    clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr);
+    ms.push_back(static_cast<double>(end - start) * 1e-6);
+  }
+  return ms;
 }
 
 }  // namespace skintune

@@ -13,6 +13,10 @@
 //   specialised per influence count), arguments bound by name from the
 //   kernel's argument list (docs/VARIANTS.md order), palette as a buffer or,
 //   for `image` storage, an image1d_buffer (CL_RGBA / CL_FLOAT) over it.
+// - Timing (the tuner's): Prepare uploads K input sets once (copies of every
+//   launch's inputs, one palette each, outputs of their own); Time runs frames
+//   rotating among them with profiling events, uploading, poisoning and
+//   reading back nothing; verify with Run first, Time checks nothing.
 // Errors name the stage: "OpenCL setup", "build", "launch" or "guard".
 #pragma once
 
@@ -33,6 +37,24 @@ struct OpenClRunResult {
   std::vector<std::uint8_t> normals;    // likewise; empty without normals
   std::vector<double> launch_ms;        // per launch, profiling end - start
   std::size_t poisoned_vertices = 0;    // output vectors (positions, normals) still holding the poison
+};
+
+// The device buffers of one variant for timing (OpenClRunner::Prepare):
+// input_sets() sets, each a copy of every launch's packed inputs, its own
+// palette and its own outputs. Move-only; must not outlive its runner.
+class OpenClPrepared {
+ public:
+  OpenClPrepared();
+  ~OpenClPrepared();
+  OpenClPrepared(OpenClPrepared&&) noexcept;
+  OpenClPrepared& operator=(OpenClPrepared&&) noexcept;
+  int input_sets() const;
+  std::size_t bytes_per_set() const;  // device bytes of one set: inputs + palette + outputs
+
+ private:
+  friend class OpenClRunner;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 class OpenClRunner {
@@ -56,6 +78,25 @@ class OpenClRunner {
   // Runs with the given kernels, one per launch, in launch order.
   OpenClRunResult Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                       std::span<const std::uint8_t> palette = {});
+
+  // Timing. Uploads one input set per palette (PackPalette bytes; one frame
+  // each): copies of every launch's packed inputs, that palette (and its
+  // image), and outputs of its own (not poisoned, never read back); builds
+  // `kernels` (one per launch, in launch order). Throws Error ("build",
+  // "launch") like Run.
+  OpenClPrepared Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                         std::span<const std::vector<std::uint8_t>> palettes);
+
+  // Runs `warmup` untimed frames, then `repetitions` timed ones; frame f (warm-up
+  // frames counted) reads and writes set f % input_sets(). Nothing is uploaded
+  // or read back. Returns one time per timed frame: the sum over its launches
+  // of the profiling time (end - start), ms.
+  std::vector<double> Time(const OpenClPrepared& prepared, int warmup, int repetitions);
+
+  // A plain copy (one uint4 per work-item) between two buffers of `bytes`
+  // (rounded down to a multiple of 16; the source holds a non-zero pattern):
+  // `warmup` untimed then `repetitions` timed runs, profiling time in ms each.
+  std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions);
 
  private:
   struct Impl;

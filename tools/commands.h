@@ -23,6 +23,9 @@ Command RegisterDevices(CLI::App& app);
 Command RegisterSkin(CLI::App& app);
 Command RegisterVariants(CLI::App& app);
 Command RegisterEmit(CLI::App& app);
+Command RegisterTune(CLI::App& app);
+Command RegisterTuneWorker(CLI::App& app);
+Command RegisterDb(CLI::App& app);
 
 // How a command names its input mesh: a synthetic dataset key or a glTF file.
 struct MeshSource {

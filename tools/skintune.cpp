@@ -19,7 +19,9 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   const std::vector<tools::Command> commands = {tools::RegisterRun(app), tools::RegisterDevices(app),
                                                 tools::RegisterSkin(app), tools::RegisterVariants(app),
-                                                tools::RegisterEmit(app)};
+                                                tools::RegisterEmit(app),
+                                                tools::RegisterTune(app), tools::RegisterTuneWorker(app),
+                                                tools::RegisterDb(app)};
   try {
     app.parse(argc, argv);
   } catch (const CLI::Success& e) {

@@ -1,0 +1,534 @@
+// The tuner's backends (tuner/backend.h) on this machine's devices: discovery
+// (PoCL and Mesa's llvmpipe in CI, CUDA skipped with its reason where there is
+// no driver), identities and their JSON, Measure of a few variants per API
+// (verified, then timed over rotating input sets), the injected faults that
+// must fail verification or the build ("hang" and "crash" are exercised by
+// the orchestrator's tests, which run Measure in a child process; here the
+// hang kernels are only built), the copy bandwidth, and the rotation rule.
+// A test that needs an API the machine lacks skips with the discovery's reason.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
+#include <iostream>
+#include <regex>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "reference/error.h"
+#include "reference/synthetic.h"
+#include "runtime/cuda_api.h"
+#include "runtime/gl_runner.h"
+#include "runtime/opencl_runner.h"
+#include "tuner/backend.h"
+#include "tuner/backends_internal.h"
+
+namespace skintune {
+namespace {
+
+using tuner_internal::InputSetsFor;
+
+constexpr const char* kDataset = "20k-b2";
+
+const char* StatusText(Status s) {
+  switch (s) {
+    case Status::kOk: return "ok";
+    case Status::kInvalid: return "invalid";
+    case Status::kCompileFailed: return "compile_failed";
+    case Status::kLaunchFailed: return "launch_failed";
+    case Status::kVerifyFailed: return "verify_failed";
+    case Status::kTimeout: return "timeout";
+  }
+  return "?";
+}
+
+std::string Lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+// Discovery, once per test program.
+const Discovery& Found() {
+  static const Discovery discovery = [] {
+    Discovery d = DiscoverBackends();
+    for (const auto& b : d.backends) std::cout << "[ backend  ] " << b->identity().index << ": " << b->identity().Id() << "\n";
+    for (const std::string& s : d.skipped) std::cout << "[ skipped  ] " << s << "\n";
+    return d;
+  }();
+  return discovery;
+}
+
+std::string SkippedLines(const std::string& prefix) {
+  std::string lines;
+  for (const std::string& s : Found().skipped)
+    if (s.rfind(prefix, 0) == 0) lines += (lines.empty() ? "" : "; ") + s;
+  return lines.empty() ? "no " + prefix + " backend and no skipped line" : lines;
+}
+
+// The first backend of `api`; for OpenCL the first whose "platform / name"
+// contains $SKINTUNE_TEST_OPENCL_DEVICE when set (as the runner tests do).
+Backend* Find(const std::string& api) {
+  const char* pattern = api == "opencl" ? std::getenv("SKINTUNE_TEST_OPENCL_DEVICE") : nullptr;
+  for (const auto& b : Found().backends) {
+    const DeviceIdentity& d = b->identity();
+    if (d.backend != api) continue;
+    if (pattern && Lower(d.platform + " / " + d.name).find(Lower(pattern)) == std::string::npos) continue;
+    return b.get();
+  }
+  return nullptr;
+}
+
+#define BACKEND_OR_SKIP(var, api)                                  \
+  Backend* var = Find(api);                                        \
+  if (!var) {                                                      \
+    if (std::string(api) == "opencl" && std::getenv("SKINTUNE_TEST_OPENCL_DEVICE")) \
+      FAIL() << "the requested OpenCL device is missing";          \
+    GTEST_SKIP() << SkippedLines(std::string(api) + ":");          \
+  }
+
+TimingOptions SmallTiming() {
+  TimingOptions o;
+  o.warmup = 1;
+  o.repetitions = 5;
+  o.max_input_sets = 3;
+  return o;
+}
+
+// A variant that passed: verified, timed, everything filled in.
+void ExpectOk(const Measurement& m, const Backend& backend, const std::string& dataset) {
+  ASSERT_EQ(m.status, Status::kOk) << StatusText(m.status) << ": " << m.detail;
+  EXPECT_EQ(m.detail, "");
+  EXPECT_EQ(m.device_id, backend.identity().Id());
+  EXPECT_EQ(m.dataset, dataset);
+  EXPECT_EQ(m.generator_version, kGeneratorVersion);
+  EXPECT_TRUE(std::regex_match(m.timestamp, std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)"))) << m.timestamp;
+  EXPECT_GT(m.timing.min_ms, 0.0);
+  EXPECT_LE(m.timing.min_ms, m.timing.median_ms);
+  EXPECT_LE(m.timing.median_ms, m.timing.max_ms);
+  EXPECT_EQ(m.timing.warmup, 1);
+  EXPECT_EQ(m.timing.repetitions, 5);
+  EXPECT_GE(m.timing.input_sets, 1);
+  EXPECT_LE(m.timing.input_sets, 3);
+  EXPECT_GT(m.bytes_per_frame, 0.0);
+  EXPECT_GT(m.gbps, 0.0);
+  EXPECT_NEAR(m.gbps, m.bytes_per_frame / m.timing.median_ms / 1e6, 1e-9 * m.gbps);
+  EXPECT_LT(m.max_relative_error, 1e-5);
+  std::cout << "[ measured ] " << m.variant.Key() << " on " << m.dataset << ": median " << m.timing.median_ms
+            << " ms (min " << m.timing.min_ms << ", max " << m.timing.max_ms << "), " << m.timing.input_sets
+            << " input sets, " << m.bytes_per_frame << " bytes/frame, " << m.gbps << " GB/s, max rel. error "
+            << m.max_relative_error << "\n";
+}
+
+// Sets $SKINTUNE_INJECT_FAULT for the scope.
+class ScopedFault {
+ public:
+  explicit ScopedFault(const std::string& value) { setenv("SKINTUNE_INJECT_FAULT", value.c_str(), 1); }
+  ~ScopedFault() { unsetenv("SKINTUNE_INJECT_FAULT"); }
+};
+
+// ---------------------------------------------------------------- discovery and identity
+
+TEST(Discovery, FindsEveryOpenClDeviceWithItsIdentity) {
+  const OpenClInventory inventory = EnumerateOpenCl();
+  std::size_t opencl = 0;
+  for (const auto& b : Found().backends) {
+    const DeviceIdentity& d = b->identity();
+    if (d.backend != "opencl") continue;
+    ++opencl;
+    EXPECT_FALSE(d.platform.empty());
+    EXPECT_FALSE(d.vendor.empty());
+    EXPECT_FALSE(d.name.empty());
+    EXPECT_FALSE(d.driver_version.empty());
+    EXPECT_FALSE(d.api_version.empty());
+    EXPECT_FALSE(d.type.empty());
+    EXPECT_GT(d.compute_units, 0u);
+    EXPECT_GT(d.global_memory_bytes, 0u);
+    EXPECT_GT(d.local_memory_bytes, 0u);
+    EXPECT_GT(d.constant_memory_bytes, 0u);
+    EXPECT_EQ(d.Id(), "opencl:" + d.platform + "/" + d.name + "/" + d.driver_version);
+    EXPECT_EQ(b->languages(), std::vector<Lang>{Lang::kOpenCl});
+    EXPECT_GT(b->limits().max_wg_size, 0u);
+  }
+  EXPECT_EQ(opencl, inventory.devices.size());
+  if (inventory.devices.empty()) {
+    EXPECT_NE(SkippedLines("opencl:").find("opencl: skipped: "), std::string::npos);
+  }
+  // PoCL, where CI has it: a CPU device with its cache size.
+  for (const auto& b : Found().backends) {
+    const DeviceIdentity& d = b->identity();
+    if (d.backend == "opencl" && d.platform.find("Portable Computing Language") != std::string::npos) {
+      EXPECT_EQ(d.type, "cpu");
+      EXPECT_GT(d.last_level_cache_bytes, 0u);
+    }
+  }
+}
+
+TEST(Discovery, CudaBackendsOrTheReasonThereAreNone) {
+  const CudaAvailability cuda = Probe();
+  std::size_t found = 0;
+  for (const auto& b : Found().backends) {
+    const DeviceIdentity& d = b->identity();
+    if (d.backend != "cuda") continue;
+    ++found;
+    EXPECT_EQ(d.platform, "CUDA");
+    EXPECT_FALSE(d.name.empty());
+    EXPECT_FALSE(d.driver_version.empty());
+    EXPECT_GT(d.compute_units, 0u);
+    EXPECT_GT(d.last_level_cache_bytes, 0u);  // the L2
+    EXPECT_EQ(b->languages(), std::vector<Lang>{Lang::kCuda});
+  }
+  if (cuda.CanRun()) {
+    EXPECT_EQ(found, static_cast<std::size_t>(cuda.device_count));
+  } else {
+    EXPECT_EQ(found, 0u);
+    const std::string skipped = SkippedLines("cuda:");
+    EXPECT_EQ(skipped.rfind("cuda: skipped: ", 0), 0u) << skipped;
+    EXPECT_GT(skipped.size(), std::string("cuda: skipped: ").size() + 10) << "a reason: " << skipped;
+  }
+}
+
+TEST(Discovery, OneGlBackendOrTheReasonThereIsNone) {
+  std::size_t found = 0;
+  for (const auto& b : Found().backends) {
+    const DeviceIdentity& d = b->identity();
+    if (d.backend != "gl") continue;
+    ++found;
+    EXPECT_FALSE(d.platform.empty());  // the EGL platform
+    EXPECT_FALSE(d.vendor.empty());
+    EXPECT_FALSE(d.name.empty());      // GL_RENDERER
+    EXPECT_FALSE(d.driver_version.empty());
+    EXPECT_FALSE(d.api_version.empty());
+    EXPECT_GT(d.local_memory_bytes, 0u);
+    EXPECT_GT(d.constant_memory_bytes, 0u);
+    EXPECT_EQ(d.last_level_cache_bytes, 0u);  // GL does not say
+    EXPECT_EQ(b->languages(), (std::vector<Lang>{Lang::kGlslCompute, Lang::kGlslVertex}));
+    if (d.name.find("llvmpipe") != std::string::npos) {
+      EXPECT_EQ(d.type, "cpu");
+    }
+  }
+  EXPECT_LE(found, 1u);
+  if (found == 0) {
+    EXPECT_EQ(SkippedLines("gl:").rfind("gl: skipped: ", 0), 0u) << SkippedLines("gl:");
+  }
+}
+
+TEST(Discovery, IndicesFollowTheDiscoveryOrder) {
+  for (std::size_t i = 0; i < Found().backends.size(); ++i)
+    EXPECT_EQ(Found().backends[i]->identity().index, static_cast<int>(i));
+}
+
+TEST(DeviceIdentity, JsonRoundTripsEveryField) {
+  DeviceIdentity d;
+  d.backend = "opencl";
+  d.index = 3;
+  d.platform = "Portable Computing Language";
+  d.vendor = "AuthenticAMD";
+  d.name = "pthread-skylake";
+  d.driver_version = "3.1+debian";
+  d.api_version = "OpenCL 3.0 PoCL";
+  d.type = "cpu";
+  d.compute_units = 2;
+  d.global_memory_bytes = 1ull << 33;
+  d.local_memory_bytes = 1 << 20;
+  d.constant_memory_bytes = 1 << 16;
+  d.last_level_cache_bytes = 32ull << 20;
+  const nlohmann::json j = d;
+  EXPECT_EQ(j.at("id"), "opencl:Portable Computing Language/pthread-skylake/3.1+debian");
+  const DeviceIdentity back = j.get<DeviceIdentity>();
+  EXPECT_EQ(nlohmann::json(back), j);
+  EXPECT_EQ(back.last_level_cache_bytes, d.last_level_cache_bytes);
+}
+
+TEST(DeviceIdentity, JsonWithoutARequiredFieldThrowsNamingIt) {
+  nlohmann::json j = DeviceIdentity{"gl", 0, "surfaceless", "Mesa", "llvmpipe", "4.5 Mesa 22"};
+  j.erase("driver_version");
+  try {
+    (void)j.get<DeviceIdentity>();
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("driver_version"), std::string::npos) << e.what();
+  }
+}
+
+// ---------------------------------------------------------------- rotation rule and helpers
+
+TEST(RotationRule, EnoughSetsToExceedTwiceTheLastLevelCache) {
+  // A tiny cache: 1 MiB, sets of 300 KiB -> ceil(2048 / 300) = 7.
+  EXPECT_EQ(InputSetsFor(1u << 20, 300u << 10, 8), 7);
+  // ... clamped to max_input_sets.
+  EXPECT_EQ(InputSetsFor(1u << 20, 300u << 10, 4), 4);
+  // Exactly 2 x LLC needs no rounding up.
+  EXPECT_EQ(InputSetsFor(1u << 20, 1u << 20, 8), 2);
+  // A large cache (50 MiB, an H100's L2) and a 1600k-b4 frame (~77 MB): 2 sets.
+  EXPECT_EQ(InputSetsFor(50ull << 20, 76'800'000, 8), 2);
+  // A large cache and a small frame: as many as allowed.
+  EXPECT_EQ(InputSetsFor(256ull << 20, 1u << 20, 8), 8);
+  // A set larger than twice the cache: one set.
+  EXPECT_EQ(InputSetsFor(1u << 20, 3u << 20, 8), 1);
+  // Unknown cache (0): 64 MiB assumed -> 128 MiB / 20 MiB = 6.4 -> 7.
+  EXPECT_EQ(InputSetsFor(0, 20u << 20, 8), 7);
+  EXPECT_EQ(InputSetsFor(0, 20u << 20, 8), InputSetsFor(tuner_internal::kUnknownLastLevelCacheBytes, 20u << 20, 8));
+  // Never fewer than one, whatever the options say.
+  EXPECT_EQ(InputSetsFor(1u << 20, 1u << 10, 0), 1);
+}
+
+TEST(Helpers, RunnerErrorsMapToStatusByStage) {
+  using tuner_internal::StatusOfRunnerError;
+  EXPECT_EQ(StatusOfRunnerError("OpenCL build: kernel x failed"), Status::kCompileFailed);
+  EXPECT_EQ(StatusOfRunnerError("CUDA build: NVRTC ..."), Status::kCompileFailed);
+  EXPECT_EQ(StatusOfRunnerError("GL guard: wrote past the end"), Status::kVerifyFailed);
+  EXPECT_EQ(StatusOfRunnerError("GL launch: glDispatchCompute raised GL_INVALID_VALUE"), Status::kLaunchFailed);
+  EXPECT_EQ(StatusOfRunnerError("CUDA setup: cuCtxSetCurrent"), Status::kLaunchFailed);
+  EXPECT_EQ(StatusOfRunnerError("something else"), Status::kLaunchFailed);
+}
+
+TEST(Helpers, MedianCopyBytesAndTimestamp) {
+  using namespace tuner_internal;
+  EXPECT_EQ(Median({3.0, 1.0, 2.0}), 2.0);
+  EXPECT_EQ(Median({4.0, 1.0, 2.0, 3.0}), 2.5);
+  EXPECT_EQ(CopyBytesCapped(256u << 20, 0), 256u << 20);
+  EXPECT_EQ(CopyBytesCapped(256u << 20, 512u << 20), 128u << 20);  // a quarter of the largest allocation
+  EXPECT_EQ(CopyBytesCapped(10000, 0), 8192u);
+  EXPECT_EQ(CopyBytesCapped(1, 0), 4096u);
+  EXPECT_NEAR(CopyGBps(1000000, {1.0, 2.0, 1.0}), 2.0, 1e-12);  // 2 MB moved in 1 ms
+  EXPECT_TRUE(std::regex_match(UtcTimestamp(), std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)")));
+}
+
+TEST(InjectedFault, ParsedFromTheEnvironmentWithTheCanonicalKey) {
+  {
+    ScopedFault f("wg64.b2.opencl=wrong");
+    const InjectedFault fault = InjectedFaultFromEnvironment();
+    EXPECT_EQ(fault.variant_key, ParseVariantKey("opencl.b2.wg64").Key());
+    EXPECT_EQ(fault.kind, "wrong");
+  }
+  EXPECT_EQ(InjectedFaultFromEnvironment().kind, "");
+  {
+    ScopedFault f("opencl.b2=explode");
+    EXPECT_THROW(InjectedFaultFromEnvironment(), Error);
+  }
+  {
+    ScopedFault f("no-equals-sign");
+    EXPECT_THROW(InjectedFaultFromEnvironment(), Error);
+  }
+}
+
+TEST(InjectedFault, EveryTemplateTakesEveryEdit) {
+  for (const char* key : {"opencl.b3.aos.float3.u8.unorm8.local.normals", "cuda.b2.soa-split.constant",
+                          "glsl-compute.b4.soa.image.v2s", "glsl-vertex.b1.aos.v1c.wg0.normals"}) {
+    const Variant v = ParseVariantKey(key);
+    for (const char* kind : {"compile", "wrong", "hang"}) {
+      SCOPED_TRACE(std::string(key) + " " + kind);
+      KernelSource s = Emit(v, 0, 77);
+      const std::string hash = s.source_hash;
+      ASSERT_NO_THROW(tuner_internal::InjectFault(s, v, kind));
+      EXPECT_NE(s.source_hash, hash);
+      EXPECT_EQ(s.source_hash, SourceHash(s.text));
+    }
+  }
+}
+
+// ---------------------------------------------------------------- OpenCL
+
+TEST(OpenClBackend, MeasuresVariantsVerifiedThenTimed) {
+  BACKEND_OR_SKIP(backend, "opencl");
+  for (const char* key : {"opencl.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
+                          "opencl.b2.bucketed.soa-split.float3.u8.unorm8.mat4.local.point.v2s.wg64.nonormals",
+                          "opencl.b2.padded.aos.float4.i32.unorm16.mat3x4.image.matrix.v4c.wg256.nonormals",
+                          "opencl.b2.padded.soa.float4.u16.f32.mat3x4.constant.matrix.v8s.wg32.nonormals"}) {
+    SCOPED_TRACE(key);
+    ExpectOk(backend->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *backend, kDataset);
+  }
+}
+
+TEST(OpenClBackend, MeasuresNormalsAndAGltfMesh) {
+  BACKEND_OR_SKIP(backend, "opencl");
+  ExpectOk(backend->Measure(ParseVariantKey("opencl.b2.soa.normals"), {"5000-b2-normals"}, SmallTiming()), *backend,
+           "5000-b2-normals");
+  // CesiumMan: 1..4 bones per vertex, so bucketed makes four launches, timed together.
+  const std::string cesium = std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf";
+  ExpectOk(backend->Measure(ParseVariantKey("opencl.b4.bucketed.soa.normals"), {cesium}, SmallTiming()), *backend,
+           "CesiumMan.gltf");
+}
+
+TEST(OpenClBackend, InvalidVariantsSayWhy) {
+  BACKEND_OR_SKIP(backend, "opencl");
+  // Normals on a mesh without them: a constraint.
+  Measurement m = backend->Measure(ParseVariantKey("opencl.b2.normals"), {kDataset}, SmallTiming());
+  EXPECT_EQ(m.status, Status::kInvalid) << m.detail;
+  EXPECT_NE(m.detail.find("normals"), std::string::npos) << m.detail;
+  // Another API's language.
+  m = backend->Measure(ParseVariantKey("cuda.b2"), {kDataset}, SmallTiming());
+  EXPECT_EQ(m.status, Status::kInvalid);
+  EXPECT_NE(m.detail.find("cuda"), std::string::npos) << m.detail;
+  // Fewer slots than the mesh needs.
+  m = backend->Measure(ParseVariantKey("opencl.b1"), {kDataset}, SmallTiming());
+  EXPECT_EQ(m.status, Status::kInvalid) << m.detail;
+}
+
+TEST(OpenClBackend, ABadDatasetIsASetUpError) {
+  BACKEND_OR_SKIP(backend, "opencl");
+  EXPECT_THROW(backend->Measure(ParseVariantKey("opencl.b2"), {"not-a-dataset"}, SmallTiming()), Error);
+}
+
+TEST(OpenClBackend, InjectedCompileFaultIsCompileFailed) {
+  BACKEND_OR_SKIP(backend, "opencl");
+  const Variant v = ParseVariantKey("opencl.b2.soa.v2c.wg64");
+  ScopedFault f(v.Key() + "=compile");
+  const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+  EXPECT_EQ(m.status, Status::kCompileFailed) << StatusText(m.status) << ": " << m.detail;
+  EXPECT_NE(m.detail.find("OpenCL build"), std::string::npos) << m.detail;
+  EXPECT_NE(m.detail.find("build log"), std::string::npos) << m.detail;
+  // Another variant is not affected.
+  ExpectOk(backend->Measure(ParseVariantKey("opencl.b2.soa.v2c.wg128"), {kDataset}, SmallTiming()), *backend, kDataset);
+}
+
+TEST(OpenClBackend, InjectedWrongResultIsVerifyFailed) {
+  BACKEND_OR_SKIP(backend, "opencl");
+  const Variant v = ParseVariantKey("opencl.b2.aos.float3.u8.unorm8");
+  ScopedFault f(v.Key() + "=wrong");
+  const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+  EXPECT_EQ(m.status, Status::kVerifyFailed) << StatusText(m.status) << ": " << m.detail;
+  EXPECT_NE(m.detail.find("max relative error"), std::string::npos) << m.detail;
+  EXPECT_NE(m.detail.find("at vertex"), std::string::npos) << m.detail;
+  EXPECT_GT(m.max_relative_error, 1e-5);
+  EXPECT_EQ(m.timing.repetitions, 0);  // never timed
+}
+
+TEST(OpenClBackend, InjectedHangKernelBuilds) {
+  BACKEND_OR_SKIP(backend, "opencl");
+  const OpenClInventory inventory = EnumerateOpenCl();
+  const auto device = std::find_if(inventory.devices.begin(), inventory.devices.end(), [&](const OpenClDeviceInfo& d) {
+    return d.platform_name == backend->identity().platform && d.name == backend->identity().name;
+  });
+  ASSERT_NE(device, inventory.devices.end());
+  OpenClRunner runner(device->platform_index, device->device_index);
+  for (const char* key : {"opencl.b2.soa", "opencl.b2.aos.float3"}) {
+    const Variant v = ParseVariantKey(key);
+    KernelSource s = Emit(v, 0, 77);
+    tuner_internal::InjectFault(s, v, "hang");
+    EXPECT_NO_THROW(runner.Build(s)) << key;
+  }
+}
+
+TEST(OpenClBackend, CopyBandwidthIsPositive) {
+  BACKEND_OR_SKIP(backend, "opencl");
+  const double gbps = backend->CopyBandwidthGBps(16u << 20);
+  std::cout << "[ copy     ] " << backend->identity().name << ": " << gbps << " GB/s\n";
+  EXPECT_GT(gbps, 0.0);
+}
+
+TEST(OpenClRunnerTiming, PreparesOneSetPerPaletteAndTimesEachRepetition) {
+  BACKEND_OR_SKIP(backend, "opencl");
+  const OpenClInventory inventory = EnumerateOpenCl();
+  const auto device = std::find_if(inventory.devices.begin(), inventory.devices.end(), [&](const OpenClDeviceInfo& d) {
+    return d.platform_name == backend->identity().platform && d.name == backend->identity().name;
+  });
+  ASSERT_NE(device, inventory.devices.end());
+  OpenClRunner runner(device->platform_index, device->device_index);
+  const SkinnedAsset asset = GenerateDataset(ParseDatasetKey("3000-b3"));
+  const Variant v = ParseVariantKey("opencl.b3.bucketed.soa.image");
+  const PackedMesh packed = Pack(asset.mesh, v);
+  std::vector<KernelSource> kernels;
+  for (const Launch& l : packed.launches) kernels.push_back(Emit(v, l.influences, asset.mesh.joint_count));
+  std::vector<std::vector<std::uint8_t>> palettes;
+  for (const auto& p : tuner_internal::FramePalettes(asset, 3)) palettes.push_back(PackPalette(p, v));
+  EXPECT_NE(palettes[0], palettes[1]);  // different frames
+  const OpenClPrepared prepared = runner.Prepare(packed, kernels, palettes);
+  EXPECT_EQ(prepared.input_sets(), 3);
+  std::size_t inputs = 0;
+  for (const Launch& l : packed.launches)
+    for (const PackedBuffer& b : l.inputs) inputs += b.bytes.size();
+  EXPECT_EQ(prepared.bytes_per_set(), inputs + palettes[0].size() + packed.vertex_count * packed.output_stride_bytes);
+  const std::vector<double> ms = runner.Time(prepared, 2, 7);
+  ASSERT_EQ(ms.size(), 7u);
+  for (const double t : ms) EXPECT_GT(t, 0.0);
+}
+
+// ---------------------------------------------------------------- GL
+
+TEST(GlBackend, MeasuresComputeAndVertexVariants) {
+  BACKEND_OR_SKIP(backend, "gl");
+  for (const char* key : {"glsl-compute.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
+                          "glsl-compute.b2.bucketed.soa-split.float3.u8.unorm8.mat4.local.point.v2s.wg64.nonormals",
+                          "glsl-vertex.b2.padded.aos.float4.u16.unorm16.mat3x4.constant.matrix.v1c.wg0.nonormals",
+                          "glsl-vertex.b2.bucketed.soa.float3.i32.f32.mat4.image.point.v1c.wg0.nonormals"}) {
+    SCOPED_TRACE(key);
+    ExpectOk(backend->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *backend, kDataset);
+  }
+}
+
+TEST(GlBackend, InjectedCompileFaultIsCompileFailed) {
+  BACKEND_OR_SKIP(backend, "gl");
+  for (const char* key : {"glsl-compute.b2.soa", "glsl-vertex.b2.soa.v1c.wg0"}) {
+    const Variant v = ParseVariantKey(key);
+    ScopedFault f(v.Key() + "=compile");
+    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    EXPECT_EQ(m.status, Status::kCompileFailed) << key << ": " << StatusText(m.status) << ": " << m.detail;
+    EXPECT_NE(m.detail.find("GL build"), std::string::npos) << m.detail;
+  }
+}
+
+TEST(GlBackend, InjectedWrongResultIsVerifyFailed) {
+  BACKEND_OR_SKIP(backend, "gl");
+  for (const char* key : {"glsl-compute.b2.aos.float3", "glsl-vertex.b2.soa-split.v1c.wg0"}) {
+    const Variant v = ParseVariantKey(key);
+    ScopedFault f(v.Key() + "=wrong");
+    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    EXPECT_EQ(m.status, Status::kVerifyFailed) << key << ": " << StatusText(m.status) << ": " << m.detail;
+    EXPECT_NE(m.detail.find("max relative error"), std::string::npos) << m.detail;
+    EXPECT_GT(m.max_relative_error, 1e-5);
+  }
+}
+
+TEST(GlBackend, InjectedHangKernelsBuild) {
+  BACKEND_OR_SKIP(backend, "gl");
+  GlRunner runner;
+  for (const char* key : {"glsl-compute.b2.soa", "glsl-compute.b2.aos", "glsl-vertex.b2.soa.v1c.wg0"}) {
+    const Variant v = ParseVariantKey(key);
+    KernelSource s = Emit(v, 0, 77);
+    tuner_internal::InjectFault(s, v, "hang");
+    EXPECT_NO_THROW(runner.Build(s)) << key;
+  }
+}
+
+TEST(GlBackend, CopyBandwidthIsPositive) {
+  BACKEND_OR_SKIP(backend, "gl");
+  const double gbps = backend->CopyBandwidthGBps(16u << 20);
+  std::cout << "[ copy     ] " << backend->identity().name << ": " << gbps << " GB/s\n";
+  EXPECT_GT(gbps, 0.0);
+}
+
+// ---------------------------------------------------------------- CUDA (where there is a GPU)
+
+TEST(CudaBackend, MeasuresVariantsAndInjectedFaults) {
+  BACKEND_OR_SKIP(backend, "cuda");
+  for (const char* key : {"cuda.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
+                          "cuda.b2.bucketed.soa-split.float3.u8.unorm8.mat4.constant.point.v2s.wg64.nonormals",
+                          "cuda.b2.padded.aos.float4.i32.unorm16.mat3x4.image.matrix.v4c.wg256.nonormals",
+                          "cuda.b2.padded.soa.float4.u16.f32.mat3x4.local.matrix.v8s.wg32.nonormals"}) {
+    SCOPED_TRACE(key);
+    ExpectOk(backend->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *backend, kDataset);
+  }
+  const Variant v = ParseVariantKey("cuda.b2.soa");
+  {
+    ScopedFault f(v.Key() + "=compile");
+    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    EXPECT_EQ(m.status, Status::kCompileFailed) << m.detail;
+  }
+  {
+    ScopedFault f(v.Key() + "=wrong");
+    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    EXPECT_EQ(m.status, Status::kVerifyFailed) << m.detail;
+  }
+  const double gbps = backend->CopyBandwidthGBps(256u << 20);
+  std::cout << "[ copy     ] " << backend->identity().name << ": " << gbps << " GB/s\n";
+  EXPECT_GT(gbps, 0.0);
+}
+
+}  // namespace
+}  // namespace skintune

@@ -1,0 +1,211 @@
+// Measurements, their JSON form and the append-only cache (tuner/measurement.h).
+#include "tuner/measurement.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+
+namespace skintune {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path Scratch() {
+  const fs::path dir = fs::temp_directory_path() / ("skintune_measurement_test_" + std::to_string(::getpid()) + "_" +
+                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string ReadAll(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+void WriteAll(const fs::path& p, const std::string& text) {
+  std::ofstream out(p, std::ios::binary | std::ios::trunc);
+  out << text;
+}
+
+Measurement Sample(const std::string& key, Status status) {
+  Measurement m;
+  m.device_id = "opencl:Portable Computing Language/cpu/3.1";
+  m.dataset = "5000-b2";
+  m.variant = ParseVariantKey(key);
+  m.status = status;
+  m.detail = status == Status::kOk ? "" : "line 1\nline 2";
+  if (status == Status::kOk) {
+    m.timing = {1.5, 1.25, 2.0, 3, 10, 4};
+    m.gbps = 12.5;
+  }
+  m.bytes_per_frame = 240000;
+  m.max_relative_error = status == Status::kVerifyFailed ? std::numeric_limits<double>::infinity() : 1e-7;
+  m.generator_version = "0.1.0";
+  m.timestamp = "2026-11-22T13:39:17Z";
+  return m;
+}
+
+void ExpectSame(const Measurement& a, const Measurement& b) {
+  EXPECT_EQ(a.device_id, b.device_id);
+  EXPECT_EQ(a.dataset, b.dataset);
+  EXPECT_EQ(a.variant, b.variant);
+  EXPECT_EQ(a.status, b.status);
+  EXPECT_EQ(a.detail, b.detail);
+  EXPECT_EQ(a.timing.median_ms, b.timing.median_ms);
+  EXPECT_EQ(a.timing.min_ms, b.timing.min_ms);
+  EXPECT_EQ(a.timing.max_ms, b.timing.max_ms);
+  EXPECT_EQ(a.timing.warmup, b.timing.warmup);
+  EXPECT_EQ(a.timing.repetitions, b.timing.repetitions);
+  EXPECT_EQ(a.timing.input_sets, b.timing.input_sets);
+  EXPECT_EQ(a.bytes_per_frame, b.bytes_per_frame);
+  EXPECT_EQ(a.gbps, b.gbps);
+  EXPECT_EQ(a.max_relative_error, b.max_relative_error);
+  EXPECT_EQ(a.generator_version, b.generator_version);
+  EXPECT_EQ(a.timestamp, b.timestamp);
+  EXPECT_EQ(a.CacheKey(), b.CacheKey());
+}
+
+std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(Status, NamesRoundTrip) {
+  for (Status s : {Status::kOk, Status::kInvalid, Status::kCompileFailed, Status::kLaunchFailed,
+                   Status::kVerifyFailed, Status::kTimeout}) {
+    EXPECT_EQ(StatusFromName(Name(s)), s) << Name(s);
+  }
+  EXPECT_STREQ(Name(Status::kCompileFailed), "compile_failed");
+  EXPECT_STREQ(Name(Status::kTimeout), "timeout");
+  EXPECT_EQ(ErrorOf([] { StatusFromName("slow"); }),
+            "unknown status 'slow' (expected one of ok, invalid, compile_failed, launch_failed, verify_failed, "
+            "timeout)");
+}
+
+TEST(Measurement, CacheKeyNamesDeviceGeneratorDatasetAndVariant) {
+  const Measurement m = Sample("opencl.b2.soa.global.wg64", Status::kOk);
+  EXPECT_EQ(m.CacheKey(), "opencl:Portable Computing Language/cpu/3.1|0.1.0|5000-b2|" + m.variant.Key());
+  Measurement other = m;
+  other.generator_version = "0.2.0";
+  EXPECT_NE(other.CacheKey(), m.CacheKey());
+  other = m;
+  other.dataset = "5000-b2-random";
+  EXPECT_NE(other.CacheKey(), m.CacheKey());
+}
+
+TEST(Measurement, JsonRoundTripKeepsEveryFieldIncludingInfinity) {
+  for (Status s : {Status::kOk, Status::kVerifyFailed, Status::kTimeout}) {
+    const Measurement m = Sample("cuda.b4.aos.local.v2s.wg256", s);
+    const nlohmann::json j = m;
+    EXPECT_EQ(j.at("status"), Name(s));
+    ExpectSame(nlohmann::json::parse(j.dump()).get<Measurement>(), m);
+  }
+}
+
+TEST(Measurement, FromJsonNamesTheBadField) {
+  nlohmann::json j = Sample("opencl.b2", Status::kOk);
+  j["status"] = "fast";
+  EXPECT_EQ(ErrorOf([&] { (void)j.get<Measurement>(); }).rfind("measurement: 'status': unknown status 'fast'", 0), 0u);
+  j = Sample("opencl.b2", Status::kOk);
+  j.erase("device_id");
+  EXPECT_EQ(ErrorOf([&] { (void)j.get<Measurement>(); }), "measurement: missing field 'device_id'");
+  j = Sample("opencl.b2", Status::kOk);
+  j["timing"]["median_ms"] = "quick";
+  EXPECT_EQ(ErrorOf([&] { (void)j.get<Measurement>(); }), "measurement: 'timing': 'median_ms' must be a number");
+}
+
+TEST(MeasurementCache, AppendedMeasurementsAreThereWhenReopened) {
+  const fs::path path = Scratch() / "cache.jsonl";
+  const std::vector<Measurement> written = {Sample("opencl.b2.soa.global.wg64", Status::kOk),
+                                            Sample("opencl.b2.soa.local.wg64", Status::kCompileFailed),
+                                            Sample("opencl.b2.soa.constant.wg64", Status::kVerifyFailed)};
+  {
+    MeasurementCache cache(path.string());
+    EXPECT_TRUE(cache.all().empty());
+    for (const Measurement& m : written) cache.Append(m);
+    ASSERT_NE(cache.Find(written[1].CacheKey()), nullptr);
+  }
+  const std::string text = ReadAll(path);
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 3);
+  MeasurementCache cache(path.string());
+  ASSERT_EQ(cache.all().size(), 3u);
+  for (std::size_t i = 0; i < written.size(); ++i) {
+    ExpectSame(cache.all()[i], written[i]);
+    const Measurement* found = cache.Find(written[i].CacheKey());
+    ASSERT_NE(found, nullptr);
+    ExpectSame(*found, written[i]);
+  }
+  EXPECT_EQ(cache.Find("nothing|0.1.0|5000-b2|opencl.b1"), nullptr);
+}
+
+TEST(MeasurementCache, TornLastLineIsCutOffAndIgnored) {
+  const fs::path path = Scratch() / "cache.jsonl";
+  const Measurement a = Sample("opencl.b2.soa.global.wg64", Status::kOk);
+  const Measurement b = Sample("opencl.b2.soa.local.wg64", Status::kOk);
+  const std::string good = nlohmann::json(a).dump() + "\n";
+  const std::string torn = nlohmann::json(b).dump().substr(0, 57);  // killed mid-write
+  WriteAll(path, good + torn);
+  {
+    MeasurementCache cache(path.string());
+    ASSERT_EQ(cache.all().size(), 1u);
+    ExpectSame(cache.all()[0], a);
+    EXPECT_EQ(cache.Find(b.CacheKey()), nullptr);
+    EXPECT_EQ(ReadAll(path), good);  // cut off, so the next record starts on its own line
+    cache.Append(b);
+  }
+  EXPECT_EQ(ReadAll(path), good + nlohmann::json(b).dump() + "\n");
+  MeasurementCache cache(path.string());
+  EXPECT_EQ(cache.all().size(), 2u);
+}
+
+TEST(MeasurementCache, MalformedCompleteLineIsAnErrorNamingFileAndLine) {
+  const fs::path path = Scratch() / "cache.jsonl";
+  const std::string good = nlohmann::json(Sample("opencl.b2", Status::kOk)).dump() + "\n";
+  WriteAll(path, good + "{\"device_id\": oops}\n" + good);
+  const std::string error = ErrorOf([&] { MeasurementCache cache(path.string()); });
+  EXPECT_EQ(error.rfind(path.string() + ":2: malformed measurement", 0), 0u) << error;
+
+  nlohmann::json bad = Sample("opencl.b2", Status::kOk);
+  bad["status"] = "fast";
+  WriteAll(path, bad.dump() + "\n");
+  const std::string status_error = ErrorOf([&] { MeasurementCache cache(path.string()); });
+  EXPECT_EQ(status_error.rfind(path.string() + ":1: malformed measurement: 'status': unknown status 'fast'", 0), 0u)
+      << status_error;
+  const std::string before = ReadAll(path);
+  EXPECT_EQ(before, bad.dump() + "\n");  // never modified
+}
+
+TEST(MeasurementCache, UnwritablePathIsAnErrorNamingTheFile) {
+  const fs::path dir = Scratch();
+  WriteAll(dir / "file", "not a directory");
+  const std::string path = (dir / "file" / "cache.jsonl").string();
+  const std::string error = ErrorOf([&] { MeasurementCache cache(path); });
+  EXPECT_EQ(error.rfind(path + ": cannot open the measurement cache for appending (", 0), 0u) << error;
+  const std::string dir_error = ErrorOf([&] { MeasurementCache cache(dir.string()); });
+  EXPECT_EQ(dir_error.rfind(dir.string() + ": ", 0), 0u) << dir_error;
+}
+
+TEST(MeasurementCache, OnlyOneWriterAtATime) {
+  const fs::path path = Scratch() / "cache.jsonl";
+  MeasurementCache first(path.string());
+  EXPECT_EQ(ErrorOf([&] { MeasurementCache second(path.string()); }),
+            path.string() + ": in use by another skintune tune (locked)");
+}
+
+}  // namespace
+}  // namespace skintune

@@ -1,0 +1,194 @@
+#include "tuner/replay.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+#include "tests/tuner/synthetic_model.h"
+
+namespace skintune {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kDevice = "opencl:Synthetic/Model GPU/1.0";
+constexpr const char* kDataset = "100k-b4";
+
+fs::path TempDir() {
+  const fs::path dir = fs::temp_directory_path() / ("skintune_replay_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return dir;
+}
+
+// The synthetic model recorded as a measurement cache (JSON lines), with a
+// few measurements of another device and dataset and a torn last line.
+const fs::path& SyntheticCache() {
+  static const fs::path path = [] {
+    const fs::path p = TempDir() / "synthetic.jsonl";
+    std::ofstream out(p, std::ios::binary);
+    const std::vector<Variant> candidates = testing::SyntheticCandidates();
+    for (std::size_t i = 0; i < 20; ++i) {
+      out << nlohmann::json(testing::SyntheticMeasurement(candidates[i], "cuda:CUDA/Other/2.0", kDataset)).dump()
+          << "\n";
+      out << nlohmann::json(testing::SyntheticMeasurement(candidates[i], kDevice, "25k-b4")).dump() << "\n";
+    }
+    for (const Variant& v : candidates) {
+      out << nlohmann::json(testing::SyntheticMeasurement(v, kDevice, kDataset)).dump() << "\n";
+    }
+    out << "{\"device_id\": \"" << kDevice << "\", \"data";  // killed mid-write
+    return p;
+  }();
+  return path;
+}
+
+// Removes this process's temporary files at the end.
+class CleanUp : public ::testing::Environment {
+ public:
+  void TearDown() override { fs::remove_all(TempDir()); }
+};
+const auto* const kCleanUp = ::testing::AddGlobalTestEnvironment(new CleanUp);
+
+TEST(Replay, ServesRecordedTimesAndCountsLookups) {
+  ReplayEvaluator replay = ReplayEvaluator::FromCacheFile(SyntheticCache().string(), kDevice, kDataset);
+  const std::vector<Variant> candidates = testing::SyntheticCandidates();
+  ASSERT_EQ(replay.variants().size(), candidates.size());
+  EXPECT_EQ(replay.variants().front(), candidates.front());
+  std::size_t ok = 0;
+  for (const Variant& v : candidates) ok += testing::SyntheticStatus(v) == Status::kOk ? 1 : 0;
+  EXPECT_EQ(replay.ok_count(), ok);
+  EXPECT_LT(ok, candidates.size());  // the model has failures
+
+  const Evaluator evaluate = replay.AsEvaluator();
+  for (std::size_t i = 0; i < 200; ++i) {
+    const Variant& v = candidates[i];
+    const std::optional<double> t = evaluate(v);
+    if (testing::SyntheticStatus(v) == Status::kOk) {
+      ASSERT_TRUE(t) << v.Key();
+      EXPECT_DOUBLE_EQ(*t, testing::SyntheticTimeMs(v));
+    } else {
+      EXPECT_FALSE(t) << v.Key();
+    }
+  }
+  EXPECT_EQ(replay.lookups(), 200u);
+  EXPECT_EQ(replay.missing(), 0u);
+
+  Variant unknown = candidates.front();
+  unknown.influences = 7;  // never recorded
+  EXPECT_FALSE(evaluate(unknown));
+  EXPECT_EQ(replay.lookups(), 201u);
+  EXPECT_EQ(replay.missing(), 1u);
+  replay.ResetCounters();
+  EXPECT_EQ(replay.lookups(), 0u);
+}
+
+TEST(Replay, ReadsWithoutModifyingTheCache) {
+  const auto size = fs::file_size(SyntheticCache());
+  ReplayEvaluator::FromCacheFile(SyntheticCache().string(), kDevice, kDataset);
+  EXPECT_EQ(fs::file_size(SyntheticCache()), size);  // the torn line is ignored, not cut off
+}
+
+TEST(Replay, ErrorsNameTheFileAndWhatWasRecorded) {
+  try {
+    ReplayEvaluator::FromCacheFile((TempDir() / "absent.jsonl").string(), kDevice, kDataset);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("absent.jsonl"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(TempDir() / "absent.jsonl"));
+  try {
+    ReplayEvaluator::FromCacheFile(SyntheticCache().string(), kDevice, "1600k-b4");
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("synthetic.jsonl"), std::string::npos) << message;
+    EXPECT_NE(message.find("'1600k-b4'"), std::string::npos) << message;
+    EXPECT_NE(message.find("'25k-b4'"), std::string::npos) << message;  // what was recorded
+  }
+  const fs::path bad = TempDir() / "bad.jsonl";
+  {
+    std::ofstream out(bad);
+    out << nlohmann::json(testing::SyntheticMeasurement(Variant{}, kDevice, kDataset)).dump() << "\n"
+        << "{\"device_id\": 3}\n";
+  }
+  try {
+    ReadMeasurementLines(bad.string());
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.jsonl:2:"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Replay, ReplaysAReport) {
+  TuningReport report;
+  report.datasets = {{kDataset, 100000, 4, 77}};
+  const std::vector<Variant> candidates = testing::SyntheticCandidates();
+  for (std::size_t i = 0; i < 100; ++i) {
+    report.measurements.push_back(testing::SyntheticMeasurement(candidates[i], kDevice, kDataset));
+  }
+  ReplayEvaluator replay = ReplayEvaluator::FromReport(report, kDevice, kDataset, "report.json");
+  EXPECT_EQ(replay.variants().size(), 100u);
+  EXPECT_THROW(ReplayEvaluator::FromReport(report, "cuda:x/y/z", kDataset, "report.json"), Error);
+}
+
+// The comparison on the synthetic model: the figures docs/TUNING.md quotes
+// (labelled synthetic) are printed here.
+TEST(Replay, StrategyComparisonOnTheSyntheticModel) {
+  ReplayEvaluator replay = ReplayEvaluator::FromCacheFile(SyntheticCache().string(), kDevice, kDataset);
+  const StrategyComparison c = CompareStrategies(replay.variants(), replay.AsEvaluator(), {0.05, 0.1, 0.25, 0.5}, 10);
+  std::cout << FormatComparison(c);
+  EXPECT_EQ(c.candidates, replay.variants().size());
+  EXPECT_EQ(c.ok, replay.ok_count());
+  EXPECT_EQ(c.rows.size(), 12u);
+  EXPECT_EQ(replay.missing(), 0u);  // every candidate was recorded
+  for (const StrategyComparisonRow& row : c.rows) {
+    EXPECT_GE(row.mean_ratio, 1.0) << row.strategy;
+    EXPECT_GE(row.worst_ratio, row.mean_ratio) << row.strategy;
+    EXPECT_LE(row.mean_evaluations, static_cast<double>(row.budget)) << row.strategy;
+  }
+  const nlohmann::json j = c;
+  EXPECT_EQ(j["rows"].size(), 12u);
+
+  // Coordinate descent at 10% of the evaluations: within 2% of the optimum on
+  // average over the seeds, and within 5% at worst.
+  bool checked = false;
+  for (const StrategyComparisonRow& row : c.rows) {
+    if (row.strategy == "coordinate" && row.budget_fraction == 0.1) {
+      EXPECT_LE(row.mean_ratio, 1.02);
+      EXPECT_LE(row.worst_ratio, 1.05);
+      checked = true;
+    }
+  }
+  EXPECT_TRUE(checked);
+}
+
+TEST(Replay, ExhaustiveAtTheFullBudgetIsExactlyOptimal) {
+  ReplayEvaluator replay = ReplayEvaluator::FromCacheFile(SyntheticCache().string(), kDevice, kDataset);
+  const StrategyComparison c = CompareStrategies(replay.variants(), replay.AsEvaluator(), {1.0}, 2);
+  ASSERT_EQ(c.rows.size(), 3u);
+  EXPECT_EQ(c.rows[0].strategy, "exhaustive");
+  EXPECT_EQ(c.rows[0].budget, c.candidates);
+  EXPECT_EQ(c.rows[0].mean_ratio, 1.0);
+  EXPECT_EQ(c.rows[0].worst_ratio, 1.0);
+  EXPECT_EQ(c.rows[0].found_optimum, 2);
+  EXPECT_EQ(c.rows[1].mean_ratio, 1.0);  // random with every candidate: also exact
+  ASSERT_TRUE(c.optimum);
+  EXPECT_DOUBLE_EQ(c.optimum_ms, testing::SyntheticTimeMs(*c.optimum));
+  EXPECT_EQ(testing::SyntheticStatus(*c.optimum), Status::kOk);
+}
+
+TEST(Replay, ComparisonNeedsAnOkCandidate) {
+  const Evaluator all_fail = [](const Variant&) -> std::optional<double> { return std::nullopt; };
+  EXPECT_THROW(CompareStrategies(testing::SyntheticCandidates(), all_fail, {0.1}, 1), Error);
+  EXPECT_THROW(CompareStrategies(testing::SyntheticCandidates(), testing::SyntheticEvaluate, {1.5}, 1), Error);
+}
+
+}  // namespace
+}  // namespace skintune

@@ -1,0 +1,234 @@
+#include "tuner/report.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+#include "tests/tuner/sample_report.h"
+
+namespace skintune {
+namespace {
+
+std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(Report, VertexBucketBoundaries) {
+  EXPECT_EQ(VertexBucket(0), "25k");
+  EXPECT_EQ(VertexBucket(25000), "25k");
+  EXPECT_EQ(VertexBucket(49999), "25k");
+  EXPECT_EQ(VertexBucket(50000), "100k");
+  EXPECT_EQ(VertexBucket(199999), "100k");
+  EXPECT_EQ(VertexBucket(200000), "400k");
+  EXPECT_EQ(VertexBucket(799999), "400k");
+  EXPECT_EQ(VertexBucket(800000), "1600k");
+  EXPECT_EQ(VertexBucket(1600000), "1600k");
+  EXPECT_EQ(VertexBucket(100000000), "1600k");
+}
+
+TEST(Report, JsonRoundTrip) {
+  const TuningReport r = testing::SampleReport();
+  const nlohmann::json j = ReportToJson(r);
+  EXPECT_EQ(j["schema_version"], kReportSchemaVersion);
+  EXPECT_EQ(j["kind"], "skintune-report");
+  EXPECT_EQ(j["devices"][0]["id"], r.devices[0].Id());
+  // Through text, as a file would.
+  const TuningReport back = ReportFromJson(nlohmann::json::parse(j.dump(2)), "report.json");
+  EXPECT_EQ(back.created, r.created);
+  EXPECT_EQ(back.config, r.config);
+  EXPECT_EQ(back.strategy, r.strategy);
+  EXPECT_EQ(back.machine, r.machine);
+  ASSERT_EQ(back.devices.size(), r.devices.size());
+  for (std::size_t i = 0; i < r.devices.size(); ++i) EXPECT_EQ(back.devices[i].Id(), r.devices[i].Id());
+  EXPECT_EQ(back.copy_bandwidth_gbps, r.copy_bandwidth_gbps);
+  EXPECT_EQ(back.skipped, r.skipped);
+  ASSERT_EQ(back.datasets.size(), r.datasets.size());
+  EXPECT_EQ(back.datasets[2].vertices, 1600000u);
+  ASSERT_EQ(back.measurements.size(), r.measurements.size());
+  for (std::size_t i = 0; i < r.measurements.size(); ++i) {
+    EXPECT_EQ(back.measurements[i].variant, r.measurements[i].variant);
+    EXPECT_EQ(back.measurements[i].status, r.measurements[i].status);
+    EXPECT_EQ(back.measurements[i].timing.median_ms, r.measurements[i].timing.median_ms);
+  }
+  EXPECT_EQ(ReportToJson(back), j);
+}
+
+TEST(Report, WinnersAreTheFastestOkPerDeviceLanguageInfluencesAndBucket) {
+  const TuningReport r = testing::SampleReport();
+  const std::vector<Winner> winners = ComputeWinners(r);
+  // opencl 100k b4, opencl 25k b4, cuda 100k b4, opencl 1600k b1 (1600k b2 only failed).
+  ASSERT_EQ(winners.size(), 4u);
+  std::map<std::string, const Winner*> by_key;
+  for (const Winner& w : winners) {
+    by_key[w.device_id + "|" + Name(w.lang) + "|" + std::to_string(w.influences) + "|" + w.vertex_bucket] = &w;
+  }
+  const std::string gpu = testing::SampleGpu().Id();
+  const std::string cuda = testing::SampleCuda().Id();
+  ASSERT_TRUE(by_key.count(gpu + "|opencl|4|100k"));
+  ASSERT_TRUE(by_key.count(gpu + "|opencl|4|25k"));
+  ASSERT_TRUE(by_key.count(cuda + "|cuda|4|100k"));
+  ASSERT_TRUE(by_key.count(gpu + "|opencl|1|1600k"));
+  for (const Winner& w : winners) {
+    double fastest = 1e300;
+    for (const Measurement& m : r.measurements) {
+      if (m.status != Status::kOk || m.device_id != w.device_id || m.variant.lang != w.lang ||
+          m.variant.influences != w.influences)
+        continue;
+      for (const DatasetInfo& d : r.datasets)
+        if (d.key == m.dataset && VertexBucket(d.vertices) == w.vertex_bucket) fastest = std::min(fastest, m.timing.median_ms);
+    }
+    EXPECT_EQ(w.median_ms, fastest) << w.variant.Key();
+  }
+  const Winner& g = *by_key[gpu + "|opencl|4|100k"];
+  EXPECT_EQ(g.backend, "opencl");
+  EXPECT_EQ(g.dataset, "100k-b4");
+  EXPECT_DOUBLE_EQ(g.copy_fraction, g.gbps / 2000.0);
+  EXPECT_EQ(by_key[cuda + "|cuda|4|100k"]->copy_fraction, 0.0);  // copy bandwidth unknown
+  EXPECT_EQ(by_key[cuda + "|cuda|4|100k"]->backend, "cuda");
+}
+
+TEST(Report, FailedVariantsAreNeverWinners) {
+  const TuningReport r = testing::SampleReport();
+  for (const Winner& w : ComputeWinners(r)) {
+    EXPECT_GT(w.median_ms, 1e-3) << w.variant.Key();  // the failed ones claim 1e-6 ms
+    for (const Measurement& m : r.measurements) {
+      if (m.device_id == w.device_id && m.dataset == w.dataset && m.variant == w.variant) {
+        EXPECT_EQ(m.status, Status::kOk) << w.variant.Key();
+      }
+    }
+  }
+  // Only failures: no winner at all.
+  TuningReport failed = r;
+  for (Measurement& m : failed.measurements) m.status = Status::kVerifyFailed;
+  EXPECT_TRUE(ComputeWinners(failed).empty());
+  EXPECT_TRUE(ReportToJson(failed)["winners"].empty());
+}
+
+TEST(Report, MalformedReportsNameTheElement) {
+  const nlohmann::json good = ReportToJson(testing::SampleReport());
+  nlohmann::json j = good;
+  j["measurements"][1]["status"] = "fast";
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("r.json: measurements[1]:"), std::string::npos)
+      << ErrorOf([&] { ReportFromJson(j, "r.json"); });
+  j = good;
+  j["measurements"][2]["dataset"] = "3k-b1";
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("measurements[2]: dataset '3k-b1'"),
+            std::string::npos);
+  j = good;
+  j["schema_version"] = "2.0.0";
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("schema_version '2.0.0'"), std::string::npos);
+  j = good;
+  j["kind"] = "something";
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("kind"), std::string::npos);
+  j = good;
+  j["created"] = "yesterday";
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("r.json: created:"), std::string::npos);
+  j = good;
+  j.erase("datasets");
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("r.json: datasets: missing"), std::string::npos);
+  j = good;
+  j["datasets"][0]["vertices"] = "many";
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("datasets[0]: 'vertices'"), std::string::npos);
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(nlohmann::json::array(), "r.json"); }).find("r.json:"), std::string::npos);
+}
+
+TEST(Report, T4ExportMapsStatusesAndAxes) {
+  const TuningReport r = testing::SampleReport();
+  const nlohmann::json t4 = ReportToT4(r);
+  EXPECT_EQ(t4["schema_version"], "1.0.0");
+  ASSERT_EQ(t4["results"].size(), r.measurements.size());
+  std::map<std::string, int> invalidity;
+  for (std::size_t i = 0; i < r.measurements.size(); ++i) {
+    const Measurement& m = r.measurements[i];
+    const nlohmann::json& res = t4["results"][i];
+    ++invalidity[res["invalidity"].get<std::string>()];
+    EXPECT_EQ(res["configuration"]["layout"], Name(m.variant.layout));
+    EXPECT_EQ(res["configuration"]["wg_size"], m.variant.wg_size);
+    EXPECT_EQ(res["configuration"].size(), 14u);  // the variant axes
+    EXPECT_EQ(res["correctness"], m.status == Status::kOk ? 1 : 0);
+    if (m.status == Status::kOk) {
+      EXPECT_EQ(res["times"]["runtimes"], nlohmann::json::array({m.timing.median_ms}));
+    } else {
+      EXPECT_TRUE(res["times"]["runtimes"].empty());
+    }
+    for (const nlohmann::json& x : res["measurements"]) EXPECT_TRUE(x["value"].is_number()) << x.dump();
+  }
+  EXPECT_GT(invalidity["correct"], 0);
+  EXPECT_GT(invalidity["constraints"], 0);
+  EXPECT_GT(invalidity["compile"], 0);
+  EXPECT_GT(invalidity["runtime"], 0);
+  EXPECT_GT(invalidity["correctness"], 0);
+  EXPECT_GT(invalidity["timeout"], 0);
+}
+
+TEST(Report, WinnersDatabaseHasOneEntryPerWinner) {
+  const TuningReport r = testing::SampleReport();
+  const nlohmann::json db = WinnersDatabase(r);
+  EXPECT_EQ(db["kind"], "skintune-winners-db");
+  EXPECT_EQ(db["schema_version"], kReportSchemaVersion);
+  ASSERT_EQ(db["entries"].size(), ComputeWinners(r).size());
+  for (const nlohmann::json& e : db["entries"]) EXPECT_EQ(e["created"], r.created);
+}
+
+TEST(Report, MergeNewestReportWinsPerDeviceLanguageInfluencesAndBucket) {
+  // Older: faster times. Newer: slower, but newest wins (a driver update, a fix).
+  TuningReport older = testing::SampleReport("2025-01-01T00:00:00Z", 1.0);
+  TuningReport newer = testing::SampleReport("2025-02-01T00:00:00Z", 2.0);
+  // The newer report did not measure 25k: the older 25k winner stays.
+  std::erase_if(newer.measurements, [](const Measurement& m) { return m.dataset == "25k-b4"; });
+  const nlohmann::json a = ReportToJson(older);
+  const nlohmann::json b = ReportToJson(newer);
+  for (const auto& inputs : {std::vector<nlohmann::json>{a, b}, std::vector<nlohmann::json>{b, a}}) {
+    const nlohmann::json db = MergeWinnersDatabases(inputs, {"x.json", "y.json"});
+    ASSERT_EQ(db["entries"].size(), 4u);
+    for (const nlohmann::json& e : db["entries"]) {
+      const bool small = e["vertex_bucket"] == "25k";
+      EXPECT_EQ(e["created"], small ? "2025-01-01T00:00:00Z" : "2025-02-01T00:00:00Z") << e.dump();
+    }
+  }
+  // Databases merge like reports, and a merged database merges again unchanged.
+  const nlohmann::json merged = MergeWinnersDatabases({WinnersDatabase(older), b}, {"old-db.json", "new.json"});
+  EXPECT_EQ(MergeWinnersDatabases({merged}, {"merged.json"}), merged);
+  EXPECT_EQ(merged, MergeWinnersDatabases({a, b}, {"x.json", "y.json"}));
+  // Another driver is another device id: both kept.
+  const nlohmann::json other_driver = ReportToJson(testing::SampleReport("2025-03-01T00:00:00Z", 1.0, "2.0"));
+  EXPECT_EQ(MergeWinnersDatabases({a, other_driver}, {"a", "b"})["entries"].size(), 4u + 3u);
+  // Fractional seconds order correctly.
+  const nlohmann::json early = ReportToJson(testing::SampleReport("2025-01-01T00:00:00.5Z", 3.0));
+  const nlohmann::json late = ReportToJson(testing::SampleReport("2025-01-01T00:00:00.25Z", 1.0));
+  EXPECT_EQ(MergeWinnersDatabases({late, early}, {"a", "b"})["entries"][0]["created"], "2025-01-01T00:00:00.5Z");
+}
+
+TEST(Report, MergeErrorsNameTheInputFile) {
+  const nlohmann::json good = ReportToJson(testing::SampleReport());
+  EXPECT_EQ(ErrorOf([&] { MergeWinnersDatabases({good, nlohmann::json::array()}, {"good.json", "bad.json"}); })
+                .rfind("bad.json: ", 0),
+            0u);
+  nlohmann::json wrong_kind = good;
+  wrong_kind["kind"] = "kernel-tuner-cache";
+  const std::string kind_error = ErrorOf([&] { MergeWinnersDatabases({wrong_kind}, {"kt.json"}); });
+  EXPECT_EQ(kind_error.rfind("kt.json: ", 0), 0u) << kind_error;
+  EXPECT_NE(kind_error.find("kernel-tuner-cache"), std::string::npos) << kind_error;
+  nlohmann::json broken_report = good;
+  broken_report["measurements"][0].erase("device_id");
+  EXPECT_EQ(ErrorOf([&] { MergeWinnersDatabases({broken_report}, {"r.json"}); }).rfind("r.json: measurements[0]: ", 0),
+            0u);
+  nlohmann::json broken_db = WinnersDatabase(testing::SampleReport());
+  broken_db["entries"][1]["vertex_bucket"] = "3k";
+  const std::string db_error = ErrorOf([&] { MergeWinnersDatabases({good, broken_db}, {"a.json", "db.json"}); });
+  EXPECT_EQ(db_error.rfind("db.json: entries[1]: ", 0), 0u) << db_error;
+  EXPECT_THROW(MergeWinnersDatabases({good}, {}), Error);
+}
+
+}  // namespace
+}  // namespace skintune

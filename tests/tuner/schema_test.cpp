@@ -1,0 +1,110 @@
+// Reports, winners databases and T4 exports validate against configs/*.schema.json
+// with Python's jsonschema (scripts/bootstrap installs python3-jsonschema: a
+// missing module fails these tests, it never skips them).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "tests/tuner/sample_report.h"
+#include "tuner/report.h"
+
+#ifndef SKINTUNE_PYTHON3
+#define SKINTUNE_PYTHON3 "python3"
+#endif
+
+namespace skintune {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path TempDir() {
+  const fs::path dir = fs::temp_directory_path() / ("skintune_schema_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return dir;
+}
+
+class CleanUp : public ::testing::Environment {
+ public:
+  void TearDown() override { fs::remove_all(TempDir()); }
+};
+const auto* const kCleanUp = ::testing::AddGlobalTestEnvironment(new CleanUp);
+
+// The exit code of validate_json.py: 0 valid, 3 invalid, anything else a broken set-up.
+int Validate(const nlohmann::json& instance, const std::string& schema, const std::string& name) {
+  const fs::path file = TempDir() / (name + ".json");
+  std::ofstream(file) << instance.dump(2);
+  const std::string command = std::string("'") + SKINTUNE_PYTHON3 + "' '" + SKINTUNE_SOURCE_DIR +
+                              "/tests/tuner/validate_json.py' '" + file.string() + "' '" + SKINTUNE_SOURCE_DIR +
+                              "/configs/" + schema + "'";
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+TEST(Schema, JsonschemaIsInstalled) {
+  const std::string command = std::string("'") + SKINTUNE_PYTHON3 + "' -c 'import jsonschema'";
+  ASSERT_EQ(std::system(command.c_str()), 0)
+      << SKINTUNE_PYTHON3 << " has no jsonschema module: run scripts/bootstrap (it installs python3-jsonschema)";
+}
+
+TEST(Schema, ReportsValidate) {
+  EXPECT_EQ(Validate(ReportToJson(testing::SampleReport()), "report.schema.json", "report"), 0);
+  TuningReport empty;
+  empty.created = "2025-01-31T12:00:00Z";
+  empty.config = "default";
+  empty.strategy = "coordinate";
+  EXPECT_EQ(Validate(ReportToJson(empty), "report.schema.json", "empty"), 0);
+}
+
+TEST(Schema, BrokenReportsFailValidation) {
+  const nlohmann::json good = ReportToJson(testing::SampleReport());
+  nlohmann::json j = good;
+  j.erase("created");
+  EXPECT_EQ(Validate(j, "report.schema.json", "no-created"), 3);
+  j = good;
+  j["measurements"][0]["status"] = "fast";
+  EXPECT_EQ(Validate(j, "report.schema.json", "bad-status"), 3);
+  j = good;
+  j["measurements"][0]["variant"]["layout"] = "aosoa";
+  EXPECT_EQ(Validate(j, "report.schema.json", "bad-axis"), 3);
+  j = good;
+  j["schema_version"] = "0.9.0";
+  EXPECT_EQ(Validate(j, "report.schema.json", "bad-version"), 3);
+  j = good;
+  j["winners"][0]["vertex_bucket"] = "3k";
+  EXPECT_EQ(Validate(j, "report.schema.json", "bad-bucket"), 3);
+}
+
+TEST(Schema, WinnersDatabasesValidate) {
+  const nlohmann::json db = WinnersDatabase(testing::SampleReport());
+  EXPECT_EQ(Validate(db, "winners-db.schema.json", "db"), 0);
+  const nlohmann::json merged = MergeWinnersDatabases(
+      {ReportToJson(testing::SampleReport("2025-01-01T00:00:00Z")), db,
+       ReportToJson(testing::SampleReport("2025-03-01T00:00:00Z", 2.0, "2.0"))},
+      {"a", "b", "c"});
+  EXPECT_EQ(Validate(merged, "winners-db.schema.json", "merged"), 0);
+  nlohmann::json broken = db;
+  broken["entries"][0].erase("created");
+  EXPECT_EQ(Validate(broken, "winners-db.schema.json", "db-broken"), 3);
+  EXPECT_EQ(Validate(ReportToJson(testing::SampleReport()), "winners-db.schema.json", "report-as-db"), 3);
+}
+
+TEST(Schema, T4ExportsValidate) {
+  const nlohmann::json t4 = ReportToT4(testing::SampleReport());
+  EXPECT_EQ(Validate(t4, "t4-results.schema.json", "t4"), 0);
+  nlohmann::json broken = t4;
+  broken["results"][0]["invalidity"] = "slow";
+  EXPECT_EQ(Validate(broken, "t4-results.schema.json", "t4-broken"), 3);
+  broken = t4;
+  broken["results"][0].erase("correctness");
+  EXPECT_EQ(Validate(broken, "t4-results.schema.json", "t4-no-correctness"), 3);
+}
+
+}  // namespace
+}  // namespace skintune

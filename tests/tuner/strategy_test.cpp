@@ -1,0 +1,223 @@
+#include "tuner/strategy.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "generator/space.h"
+#include "reference/error.h"
+#include "tests/tuner/synthetic_model.h"
+
+namespace skintune {
+namespace {
+
+// Every point (constraints ignored) of the OpenCL space at B = 4 without normals: a full product,
+// so every axis value is a neighbour of every point.
+std::vector<Variant> ProductSpace() {
+  TuningSpace space = TuningSpace::Full();
+  space.langs = {Lang::kOpenCl};
+  space.influences = {4};
+  space.normals = {false};
+  std::vector<Variant> out;
+  space.ForEach([&](const Variant& v) { out.push_back(v); });
+  return out;
+}
+
+// Separable: a sum of one term per axis, minimal (exactly 1.0) at bucketed, soa-split, float3, u8,
+// unorm8, mat3x4, local, point, v4s, wg64.
+double SeparableCost(const Variant& v) {
+  double t = 1.0;
+  t += v.mixed == MixedCounts::kBucketed ? 0.0 : 0.05;
+  t += v.layout == Layout::kSoaSplit ? 0.0 : v.layout == Layout::kSoa ? 0.2 : 0.5;
+  t += v.position == PositionFormat::kFloat3 ? 0.0 : 0.1;
+  t += 0.07 * static_cast<int>(2 - static_cast<int>(v.index));
+  t += 0.09 * static_cast<int>(2 - static_cast<int>(v.weight));
+  t += v.palette == PaletteFormat::kMat3x4 ? 0.0 : 0.03;
+  t += v.storage == PaletteStorage::kLocal ? 0.0 : v.storage == PaletteStorage::kImage ? 0.01 : 0.2;
+  t += v.blend == Blend::kPoint ? 0.0 : 0.02;
+  t += v.vertices_per_item == 4 ? 0.0 : 0.04 * std::abs(v.vertices_per_item - 4);
+  t += v.assignment == Assignment::kStrided ? 0.0 : 0.06;
+  t += 0.001 * std::abs(v.wg_size - 64);
+  return t;
+}
+
+struct Counted {
+  std::map<std::string, int> calls;
+  std::function<std::optional<double>(const Variant&)> model;
+  Evaluator evaluator() {
+    return [this](const Variant& v) {
+      ++calls[v.Key()];
+      return model(v);
+    };
+  }
+};
+
+std::optional<Variant> TrueOptimum(const std::vector<Variant>& candidates,
+                                   const std::function<std::optional<double>(const Variant&)>& model) {
+  std::optional<Variant> best;
+  double best_ms = 0.0;
+  for (const Variant& v : candidates) {
+    const std::optional<double> t = model(v);
+    if (t && (!best || *t < best_ms)) {
+      best = v;
+      best_ms = *t;
+    }
+  }
+  return best;
+}
+
+TEST(Strategy, ExhaustiveFindsTheOptimumEvaluatingEveryDistinctCandidateOnce) {
+  std::vector<Variant> candidates = testing::SyntheticCandidates();
+  candidates.resize(3000);
+  candidates.push_back(candidates[5]);  // a duplicate costs nothing
+  Counted counted{{}, testing::SyntheticEvaluate};
+  const SearchResult r = Search(candidates, counted.evaluator(), {"exhaustive", 0, 1});
+  ASSERT_TRUE(r.best);
+  EXPECT_EQ(*r.best, *TrueOptimum(candidates, testing::SyntheticEvaluate));
+  EXPECT_EQ(r.best_ms, *testing::SyntheticEvaluate(*r.best));
+  EXPECT_EQ(r.evaluations, 3000u);
+  EXPECT_EQ(counted.calls.size(), 3000u);
+  for (const auto& [key, n] : counted.calls) EXPECT_EQ(n, 1) << key;
+}
+
+TEST(Strategy, ExhaustiveWithABudgetEvaluatesTheFirstCandidatesInOrder) {
+  const std::vector<Variant> candidates = testing::SyntheticCandidates();
+  Counted counted{{}, testing::SyntheticEvaluate};
+  const SearchResult r = Search(candidates, counted.evaluator(), {"exhaustive", 100, 1});
+  EXPECT_EQ(r.evaluations, 100u);
+  for (std::size_t i = 0; i < 100; ++i) EXPECT_EQ(counted.calls.count(candidates[i].Key()), 1u);
+  EXPECT_EQ(*r.best, *TrueOptimum({candidates.begin(), candidates.begin() + 100}, testing::SyntheticEvaluate));
+}
+
+TEST(Strategy, RandomRespectsTheBudgetAndIsDeterministicPerSeed) {
+  const std::vector<Variant> candidates = testing::SyntheticCandidates();
+  Counted a{{}, testing::SyntheticEvaluate};
+  Counted b{{}, testing::SyntheticEvaluate};
+  Counted c{{}, testing::SyntheticEvaluate};
+  const SearchResult ra = Search(candidates, a.evaluator(), {"random", 250, 7});
+  const SearchResult rb = Search(candidates, b.evaluator(), {"random", 250, 7});
+  Search(candidates, c.evaluator(), {"random", 250, 8});
+  EXPECT_EQ(ra.evaluations, 250u);
+  EXPECT_EQ(a.calls.size(), 250u);  // distinct variants
+  for (const auto& [key, n] : a.calls) EXPECT_EQ(n, 1) << key;
+  EXPECT_EQ(a.calls, b.calls);
+  EXPECT_EQ(*ra.best, *rb.best);
+  EXPECT_EQ(ra.best_ms, rb.best_ms);
+  EXPECT_NE(a.calls, c.calls);
+}
+
+TEST(Strategy, RandomSequenceIsFixedAcrossPlatforms) {
+  // The PRNG is skintune's own (SplitMix64), not a standard distribution, so
+  // the sample is the same with every compiler and standard library: pinned.
+  const std::vector<Variant> candidates = testing::SyntheticCandidates();
+  std::vector<std::string> order;
+  const Evaluator record = [&](const Variant& v) -> std::optional<double> {
+    order.push_back(v.Key());
+    return 1.0;
+  };
+  Search(candidates, record, {"random", 3, 1});
+  EXPECT_EQ(order, (std::vector<std::string>{
+                       "opencl.b4.padded.soa.float3.u16.f32.mat4.local.matrix.v2s.wg64.nonormals",
+                       "opencl.b4.bucketed.soa-split.float4.i32.unorm8.mat4.constant.point.v8c.wg128.nonormals",
+                       "opencl.b4.padded.aos.float3.u8.unorm8.mat4.global.matrix.v8s.wg128.nonormals"}));
+}
+
+TEST(Strategy, RandomWithABudgetAboveTheCandidatesEvaluatesEachOnce) {
+  std::vector<Variant> candidates = testing::SyntheticCandidates();
+  candidates.resize(40);
+  Counted counted{{}, testing::SyntheticEvaluate};
+  const SearchResult r = Search(candidates, counted.evaluator(), {"random", 1000, 3});
+  EXPECT_EQ(r.evaluations, 40u);
+  EXPECT_EQ(*r.best, *TrueOptimum(candidates, testing::SyntheticEvaluate));
+}
+
+TEST(Strategy, BadOptionsThrow) {
+  const std::vector<Variant> candidates = testing::SyntheticCandidates();
+  EXPECT_THROW(Search(candidates, testing::SyntheticEvaluate, {"random", 0, 1}), Error);
+  try {
+    Search(candidates, testing::SyntheticEvaluate, {"annealing", 10, 1});
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("annealing"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(Search({}, testing::SyntheticEvaluate, {"coordinate", 10, 1}).best);
+}
+
+TEST(Strategy, CoordinateFindsTheOptimumOfASeparableCostWithFarFewerEvaluations) {
+  const std::vector<Variant> candidates = ProductSpace();
+  ASSERT_GT(candidates.size(), 50000u);
+  const std::function<std::optional<double>(const Variant&)> model = [](const Variant& v) {
+    return std::optional<double>(SeparableCost(v));
+  };
+  Counted counted{{}, model};
+  const SearchResult r = Search(candidates, counted.evaluator(), {"coordinate", 0, 1});
+  ASSERT_TRUE(r.best);
+  const Variant optimum = *TrueOptimum(candidates, model);
+  EXPECT_EQ(*r.best, optimum) << r.best->Key() << " vs " << optimum.Key();
+  EXPECT_LT(r.evaluations, candidates.size() / 500) << r.evaluations << " of " << candidates.size();
+  for (const auto& [key, n] : counted.calls) EXPECT_EQ(n, 1) << key;
+}
+
+TEST(Strategy, CoordinateRestartsWhileTheBudgetLastsAndIsDeterministic) {
+  const std::vector<Variant> candidates = testing::SyntheticCandidates();
+  Counted a{{}, testing::SyntheticEvaluate};
+  Counted b{{}, testing::SyntheticEvaluate};
+  const SearchResult ra = Search(candidates, a.evaluator(), {"coordinate", 2000, 5});
+  const SearchResult rb = Search(candidates, b.evaluator(), {"coordinate", 2000, 5});
+  EXPECT_EQ(ra.evaluations, 2000u);  // the first descent ends long before: restarts used the rest
+  EXPECT_EQ(a.calls.size(), 2000u);
+  EXPECT_EQ(a.calls, b.calls);
+  EXPECT_EQ(*ra.best, *rb.best);
+}
+
+TEST(Strategy, FailedVariantsNeverWin) {
+  // The fastest variants of the model fail; no strategy may return them.
+  std::vector<Variant> candidates = testing::SyntheticCandidates();
+  std::vector<Variant> sorted = candidates;
+  std::sort(sorted.begin(), sorted.end(), [](const Variant& x, const Variant& y) {
+    return testing::SyntheticTimeMs(x) < testing::SyntheticTimeMs(y);
+  });
+  std::map<std::string, bool> failing;
+  for (std::size_t i = 0; i < 50; ++i) failing[sorted[i].Key()] = true;
+  const Evaluator evaluate = [&](const Variant& v) -> std::optional<double> {
+    if (failing.count(v.Key())) return std::nullopt;
+    return testing::SyntheticEvaluate(v);
+  };
+  for (const char* name : {"exhaustive", "random", "coordinate"}) {
+    const SearchResult r = Search(candidates, evaluate, {name, name == std::string("exhaustive") ? 0u : 5000u, 2});
+    ASSERT_TRUE(r.best) << name;
+    EXPECT_FALSE(failing.count(r.best->Key())) << name << " returned failed " << r.best->Key();
+    EXPECT_TRUE(evaluate(*r.best)) << name;
+  }
+  // Nothing ok: no best, whatever the strategy.
+  const Evaluator all_fail = [](const Variant&) -> std::optional<double> { return std::nullopt; };
+  for (const char* name : {"exhaustive", "random", "coordinate"}) {
+    const SearchResult r = Search(candidates, all_fail, {name, 300, 1});
+    EXPECT_FALSE(r.best) << name;
+    EXPECT_EQ(r.evaluations, 300u) << name;
+  }
+}
+
+TEST(Strategy, CoordinateLeavesAFailedStartingPoint) {
+  const std::vector<Variant> candidates = ProductSpace();
+  // The default start (soa, float4, u16, f32, mat3x4, global, matrix, v1c, wg128, padded) fails.
+  Variant start;
+  start.influences = 4;
+  const Evaluator evaluate = [&](const Variant& v) -> std::optional<double> {
+    if (v == start) return std::nullopt;
+    return SeparableCost(v);
+  };
+  const SearchResult r = Search(candidates, evaluate, {"coordinate", 0, 1});
+  ASSERT_TRUE(r.best);
+  EXPECT_NE(*r.best, start);
+  EXPECT_DOUBLE_EQ(r.best_ms, 1.0);  // the separable optimum (every term 0)
+}
+
+}  // namespace
+}  // namespace skintune

@@ -1,0 +1,368 @@
+// `skintune tune` end to end on this machine's devices: resuming a killed run,
+// broken variants (SKINTUNE_INJECT_FAULT), bad input, and the default run.
+// The small runs use the OpenCL device (PoCL here) and the 5000-vertex dataset.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "tests/tools/run_command.h"
+#include "tuner/measurement.h"
+
+namespace skintune {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::CountLines;
+using testing::ReadAll;
+using testing::RunSkintune;
+
+fs::path Scratch() {
+  const fs::path dir = fs::temp_directory_path() / ("skintune_tune_cli_test_" + std::to_string(::getpid()) + "_" +
+                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// One OpenCL variant per storage x layout x wg of the lists, 5000 vertices, B = 2.
+nlohmann::json TinyConfig(const std::vector<std::string>& storages, const std::vector<std::string>& layouts,
+                          const std::vector<int>& wgs) {
+  return {{"description", "tune_cli_test"},
+          {"space",
+           {{"lang", {"opencl"}},
+            {"influences", {2}},
+            {"mixed", {"padded"}},
+            {"layout", layouts},
+            {"position", {"float4"}},
+            {"index", {"u16"}},
+            {"weight", {"f32"}},
+            {"palette", {"mat3x4"}},
+            {"storage", storages},
+            {"blend", {"matrix"}},
+            {"vertices_per_item", {1}},
+            {"assignment", {"contiguous"}},
+            {"wg_size", wgs},
+            {"normals", {false}}}},
+          {"datasets", {"5000-b2"}},
+          {"timing", {{"warmup", 1}, {"repetitions", 3}, {"max_input_sets", 2}}},
+          {"variant_timeout_s", 10}};
+}
+
+std::string WriteConfig(const fs::path& dir, const nlohmann::json& config, const std::string& name = "config.json") {
+  const fs::path path = dir / name;
+  std::ofstream(path) << config.dump(2);
+  return path.string();
+}
+
+std::vector<Measurement> CacheLines(const fs::path& path) {
+  std::vector<Measurement> out;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) out.push_back(nlohmann::json::parse(line).get<Measurement>());
+  return out;
+}
+
+std::vector<Measurement> ReportMeasurements(const nlohmann::json& report) {
+  std::vector<Measurement> out;
+  for (const nlohmann::json& m : report.at("measurements")) out.push_back(m.get<Measurement>());
+  return out;
+}
+
+int Count(const std::string& text, const std::string& what) {
+  int n = 0;
+  for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+// Starts skintune in the background (stdout, stderr to files).
+pid_t StartSkintune(const std::vector<std::string>& args, const fs::path& dir) {
+  const std::string out = (dir / "bg.out").string();
+  const std::string err = (dir / "bg.err").string();
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const std::string exe = std::string(SKINTUNE_BINARY_DIR) + "/bin/skintune";
+    std::vector<char*> argv{const_cast<char*>(exe.c_str())};
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    if (!std::freopen(out.c_str(), "w", stdout) || !std::freopen(err.c_str(), "w", stderr)) std::_Exit(127);
+    ::execv(exe.c_str(), argv.data());
+    std::_Exit(127);
+  }
+  return pid;
+}
+
+// ------------------------------------------------------------------ resume
+
+TEST(TuneCli, KilledRunResumesWithEveryVariantMeasuredExactlyOnce) {
+  const fs::path dir = Scratch();
+  const std::string config =
+      WriteConfig(dir, TinyConfig({"global", "local", "constant"}, {"soa", "soa-split"}, {64, 128}));
+  const fs::path out = dir / "out";
+  const fs::path cache = out / "cache.jsonl";
+  const std::vector<std::string> args = {"tune", "--config", config, "--out", out.string()};
+
+  const pid_t pid = StartSkintune(args, dir);
+  bool exited = false;
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (std::chrono::steady_clock::now() < give_up) {
+    if (CountLines(ReadAll(cache)) >= 2) break;
+    int status = 0;
+    if (::waitpid(pid, &status, WNOHANG) == pid) {
+      exited = true;
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_FALSE(exited) << "the run ended before it could be killed: " << ReadAll(dir / "bg.err");
+  ::kill(pid, SIGKILL);
+  ::waitpid(pid, nullptr, 0);
+  const int measured_before = CountLines(ReadAll(cache));
+  ASSERT_GE(measured_before, 2);
+  ASSERT_LT(measured_before, 12) << "killed too late to test resuming";
+  EXPECT_FALSE(fs::exists(out / "report.json"));  // written only at the end
+
+  const auto r = RunSkintune(args);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // Reused, not measured again.
+  EXPECT_EQ(Count(r.err, "(cached)"), measured_before) << r.err;
+
+  const std::vector<Measurement> lines = CacheLines(cache);
+  std::map<std::string, Measurement> by_key;
+  for (const Measurement& m : lines) {
+    EXPECT_TRUE(by_key.emplace(m.CacheKey(), m).second) << "measured twice: " << m.CacheKey();
+    EXPECT_EQ(m.status, Status::kOk) << m.variant.Key() << ": " << m.detail;
+  }
+  EXPECT_EQ(lines.size(), 12u);
+  EXPECT_EQ(by_key.size(), 12u);
+
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(out / "report.json"));
+  std::set<std::string> reported;
+  for (const Measurement& m : ReportMeasurements(report)) {
+    ASSERT_TRUE(by_key.count(m.CacheKey())) << m.CacheKey();
+    EXPECT_TRUE(reported.insert(m.CacheKey()).second);
+    EXPECT_EQ(m.timing.median_ms, by_key.at(m.CacheKey()).timing.median_ms);
+    EXPECT_EQ(m.status, by_key.at(m.CacheKey()).status);
+  }
+  EXPECT_EQ(reported.size(), 12u);
+  EXPECT_EQ(report.at("winners").size(), 1u);  // one device, language, B and bucket
+  EXPECT_TRUE(fs::exists(out / "report.t4.json"));
+  EXPECT_TRUE(fs::exists(out / "winners-db.json"));
+
+  // A third run measures nothing.
+  const auto again = RunSkintune(args);
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_EQ(Count(again.err, "(cached)"), 12) << again.err;
+  EXPECT_EQ(CacheLines(cache).size(), 12u);
+}
+
+// ------------------------------------------------------------------ broken variants
+
+// The fault kinds of SKINTUNE_INJECT_FAULT and the status each must give.
+class TuneCliFault : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(TuneCliFault, BrokenVariantIsRecordedAndNeverWins) {
+  const std::string kind = GetParam();
+  const std::map<std::string, Status> statuses = {{"compile", Status::kCompileFailed},
+                                                  {"wrong", Status::kVerifyFailed},
+                                                  {"hang", Status::kTimeout},
+                                                  {"crash", Status::kLaunchFailed}};
+  const Status expected = statuses.at(kind);
+  const fs::path dir = Scratch();
+  const std::string config = WriteConfig(dir, TinyConfig({"global", "local"}, {"soa"}, {64}));
+  const std::string broken = "opencl.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals";
+  const std::string good = "opencl.b2.padded.soa.float4.u16.f32.mat3x4.local.matrix.v1c.wg64.nonormals";
+  const fs::path out = dir / "out";
+  ::setenv("SKINTUNE_INJECT_FAULT", (broken + "=" + kind).c_str(), 1);
+  const auto start = std::chrono::steady_clock::now();
+  const auto r = RunSkintune({"tune", "--config", config, "--out", out.string()});
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ::unsetenv("SKINTUNE_INJECT_FAULT");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(out / "report.json"));
+  std::map<std::string, Measurement> by_variant;
+  for (const Measurement& m : ReportMeasurements(report)) by_variant[m.variant.Key()] = m;
+  ASSERT_EQ(by_variant.size(), 2u);
+  EXPECT_EQ(by_variant.at(broken).status, expected) << by_variant.at(broken).detail;
+  EXPECT_EQ(by_variant.at(good).status, Status::kOk) << by_variant.at(good).detail;
+  EXPECT_FALSE(by_variant.at(broken).detail.empty());
+  if (expected == Status::kTimeout) {
+    EXPECT_EQ(by_variant.at(broken).detail, "no result within 10 s");
+    EXPECT_LT(seconds, 60.0);
+  }
+  if (expected == Status::kLaunchFailed) {
+    EXPECT_EQ(by_variant.at(broken).detail.rfind("worker process died: signal ", 0), 0u)
+        << by_variant.at(broken).detail;
+  }
+  // Every failure is in the cache too, so a resumed run does not retry it.
+  const std::vector<Measurement> cached = CacheLines(out / "cache.jsonl");
+  EXPECT_EQ(cached.size(), 2u);
+
+  const std::string winners = report.at("winners").dump();
+  EXPECT_EQ(winners.find(broken), std::string::npos) << winners;
+  EXPECT_NE(winners.find(good), std::string::npos) << winners;
+  const std::string db = ReadAll(out / "winners-db.json");
+  EXPECT_EQ(db.find(broken), std::string::npos);
+  EXPECT_NE(db.find(good), std::string::npos);
+  EXPECT_NE(r.out.find(good), std::string::npos) << r.out;  // the winners table
+}
+
+INSTANTIATE_TEST_SUITE_P(Faults, TuneCliFault, ::testing::Values("compile", "wrong", "hang", "crash"),
+                         [](const auto& test) { return test.param; });
+
+// ------------------------------------------------------------------ bad input
+
+// Runs `skintune tune` into an --out that already holds a report: the command
+// must fail with one line on stderr and leave the report alone.
+struct BadRun {
+  testing::CommandResult result;
+  bool report_untouched = false;
+};
+
+BadRun RunIntoExistingOut(const fs::path& dir, std::vector<std::string> args) {
+  const fs::path out = dir / "out";
+  fs::create_directories(out);
+  const std::string previous = "{\"previous\": true}\n";
+  std::ofstream(out / "report.json") << previous;
+  args.insert(args.begin(), "tune");
+  args.insert(args.end(), {"--out", out.string()});
+  BadRun run;
+  run.result = RunSkintune(args);
+  run.report_untouched = ReadAll(out / "report.json") == previous;
+  return run;
+}
+
+TEST(TuneCli, UnknownAxisValueInTheConfigIsOneLineNamingIt) {
+  const fs::path dir = Scratch();
+  nlohmann::json c = TinyConfig({"global"}, {"soa"}, {64});
+  c["space"]["layout"] = {"soa", "zigzag"};
+  const std::string config = WriteConfig(dir, c);
+  const BadRun run = RunIntoExistingOut(dir, {"--config", config});
+  EXPECT_EQ(run.result.exit_code, 1);
+  EXPECT_EQ(run.result.err, "skintune: error: " + config +
+                                ": space.layout[1]: unknown value 'zigzag' (expected one of aos, soa, soa-split)\n");
+  EXPECT_TRUE(run.report_untouched);
+}
+
+TEST(TuneCli, EmptySpaceAfterConstraintsIsOneLineSayingWhy) {
+  const fs::path dir = Scratch();
+  nlohmann::json c = TinyConfig({"global"}, {"soa"}, {64});
+  c["space"]["index"] = {"u8"};
+  c["datasets"] = {"5000-b2-bones300"};  // 300 joints do not fit u8 indices
+  const BadRun run = RunIntoExistingOut(dir, {"--config", WriteConfig(dir, c)});
+  EXPECT_EQ(run.result.exit_code, 1);
+  EXPECT_EQ(CountLines(run.result.err), 1) << run.result.err;
+  EXPECT_EQ(run.result.err.rfind("skintune: error: no valid variant of the space on any device: ", 0), 0u)
+      << run.result.err;
+  EXPECT_NE(run.result.err.find("index_range"), std::string::npos) << run.result.err;
+  EXPECT_TRUE(run.report_untouched);
+}
+
+TEST(TuneCli, MissingConfigFileIsOneLine) {
+  const fs::path dir = Scratch();
+  const std::string missing = (dir / "nope.json").string();
+  const BadRun run = RunIntoExistingOut(dir, {"--config", missing});
+  EXPECT_EQ(run.result.exit_code, 1);
+  EXPECT_EQ(run.result.err, "skintune: error: " + missing + ": cannot open file\n");
+  EXPECT_TRUE(run.report_untouched);
+  const BadRun unknown = RunIntoExistingOut(dir, {"--config", "fastest"});
+  EXPECT_EQ(unknown.result.exit_code, 1);
+  EXPECT_EQ(unknown.result.err,
+            "skintune: error: --config 'fastest': not a file path (no '/' or .json) and no built-in config "
+            "'fastest' (built in: default, paper)\n");
+}
+
+TEST(TuneCli, MalformedJsonConfigIsOneLine) {
+  const fs::path dir = Scratch();
+  const fs::path config = dir / "broken.json";
+  std::ofstream(config) << "{\"space\": {\"lang\": [\"opencl\"],\n  \"datasets\": ";
+  const BadRun run = RunIntoExistingOut(dir, {"--config", config.string()});
+  EXPECT_EQ(run.result.exit_code, 1);
+  EXPECT_EQ(CountLines(run.result.err), 1) << run.result.err;
+  EXPECT_EQ(run.result.err.rfind("skintune: error: " + config.string() + ": not valid JSON (", 0), 0u)
+      << run.result.err;
+  EXPECT_TRUE(run.report_untouched);
+}
+
+TEST(TuneCli, UnwritableOutIsOneLineNamingIt) {
+  const fs::path dir = Scratch();
+  std::ofstream(dir / "file") << "a file, not a directory\n";
+  const std::string config = WriteConfig(dir, TinyConfig({"global"}, {"soa"}, {64}));
+  const std::string out = (dir / "file" / "out").string();
+  const auto r = RunSkintune({"tune", "--config", config, "--out", out});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(CountLines(r.err), 1) << r.err;
+  EXPECT_EQ(r.err.rfind("skintune: error: " + out + ": cannot create the output directory (", 0), 0u) << r.err;
+  const auto file = RunSkintune({"tune", "--config", config, "--out", (dir / "file").string()});
+  EXPECT_EQ(file.exit_code, 1);
+  EXPECT_EQ(file.err, "skintune: error: " + (dir / "file").string() + ": not a directory\n");
+  EXPECT_EQ(ReadAll(dir / "file"), "a file, not a directory\n");
+}
+
+TEST(TuneCli, BadLanguageAndDeviceAreOneLine) {
+  const fs::path dir = Scratch();
+  const std::string config = WriteConfig(dir, TinyConfig({"global"}, {"soa"}, {64}));
+  const BadRun lang = RunIntoExistingOut(dir, {"--config", config, "--lang", "metal"});
+  EXPECT_EQ(lang.result.exit_code, 1);
+  EXPECT_EQ(lang.result.err,
+            "skintune: error: --lang 'metal': unknown language (expected one of opencl, cuda, glsl-compute, "
+            "glsl-vertex)\n");
+  EXPECT_TRUE(lang.report_untouched);
+  const BadRun device = RunIntoExistingOut(dir, {"--config", config, "--device", "no-such-gpu"});
+  EXPECT_EQ(device.result.exit_code, 1);
+  EXPECT_EQ(CountLines(device.result.err), 1) << device.result.err;
+  EXPECT_EQ(device.result.err.rfind("skintune: error: --device 'no-such-gpu': no device matches (found: ", 0), 0u)
+      << device.result.err;
+  EXPECT_TRUE(device.report_untouched);
+}
+
+// ------------------------------------------------------------------ the default run
+
+TEST(TuneCli, DefaultRunWithNoArgumentsTunesPoclAndGlAndSkipsCuda) {
+  const fs::path dir = Scratch();
+  const fs::path cwd = fs::current_path();
+  fs::current_path(dir);  // `skintune tune` with no arguments writes ./results
+  const auto r = RunSkintune({"tune"});
+  fs::current_path(cwd);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(dir / "results" / "report.json"));
+  EXPECT_EQ(report.at("config"), "default");
+  bool pocl = false, gl = false;
+  for (const nlohmann::json& d : report.at("devices")) {
+    const std::string text = d.dump();
+    pocl = pocl || (d.at("backend") == "opencl" && (text.find("PoCL") != std::string::npos ||
+                                                    text.find("Portable Computing Language") != std::string::npos));
+    gl = gl || d.at("backend") == "gl";
+  }
+  EXPECT_TRUE(pocl) << report.at("devices").dump(2);
+  EXPECT_TRUE(gl) << report.at("devices").dump(2);
+  bool cuda_skipped = false;
+  for (const nlohmann::json& s : report.at("skipped")) {
+    cuda_skipped = cuda_skipped || s.get<std::string>().rfind("cuda", 0) == 0;
+  }
+  EXPECT_TRUE(cuda_skipped) << report.at("skipped").dump();
+  // Every language of both devices has a verified winner, and each is in the table.
+  std::set<std::string> languages;
+  for (const nlohmann::json& w : report.at("winners")) {
+    languages.insert(w.at("lang").get<std::string>());
+    EXPECT_NE(r.out.find(w.at("variant").at("key").get<std::string>()), std::string::npos) << r.out;
+  }
+  EXPECT_EQ(languages, (std::set<std::string>{"opencl", "glsl-compute", "glsl-vertex"}));
+  for (const char* file : {"cache.jsonl", "report.t4.json", "winners-db.json"}) {
+    EXPECT_TRUE(fs::exists(dir / "results" / file)) << file;
+  }
+}
+
+}  // namespace
+}  // namespace skintune

@@ -1,0 +1,116 @@
+// Tune configs (tuner/tune.h: ConfigFromJson, EmbeddedConfig): the embedded
+// default and paper configs, and errors that name the element.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <functional>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+#include "tuner/tune.h"
+
+namespace skintune {
+namespace {
+
+std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+std::string ErrorOf(const char* text) {
+  return ErrorOf([&] { ConfigFromJson(nlohmann::json::parse(text), "c.json"); });
+}
+
+TEST(TuneConfig, EmbeddedConfigsAreTheFilesOfConfigs) {
+  for (const char* name : {"default", "paper"}) {
+    std::ifstream in(std::string(SKINTUNE_SOURCE_DIR) + "/configs/" + name + ".json", std::ios::binary);
+    ASSERT_TRUE(in) << name;
+    const std::string file((std::istreambuf_iterator<char>(in)), {});
+    EXPECT_EQ(EmbeddedConfig(name), file) << name;
+  }
+  EXPECT_EQ(ErrorOf([] { EmbeddedConfig("fast"); }), "no built-in config 'fast' (built in: default, paper)");
+}
+
+TEST(TuneConfig, DefaultConfigIsValidAndSmall) {
+  const TuneConfig c = ConfigFromJson(nlohmann::json::parse(EmbeddedConfig("default")), "default");
+  EXPECT_EQ(c.name, "default");
+  EXPECT_FALSE(c.datasets.empty());
+  EXPECT_EQ(c.strategy.name, "exhaustive");
+  TuningSpace per_dataset = c.space;
+  per_dataset.influences = {4};
+  EXPECT_LE(per_dataset.Size(), 200u);  // a quick default, on a CPU device too
+  EXPECT_TRUE(nlohmann::json::parse(EmbeddedConfig("default")).at("description").is_string());
+}
+
+TEST(TuneConfig, PaperConfigHasTheSixteenDatasetsAndATuningSpace) {
+  const TuneConfig c = ConfigFromJson(nlohmann::json::parse(EmbeddedConfig("paper")), "paper");
+  ASSERT_EQ(c.datasets.size(), 16u);
+  EXPECT_EQ(c.datasets.front(), "25k-b1");
+  EXPECT_EQ(c.datasets.back(), "1600k-b4");
+  EXPECT_GT(c.space.Size(), 0u);
+}
+
+TEST(TuneConfig, ReadsEveryField) {
+  const TuneConfig c = ConfigFromJson(nlohmann::json::parse(R"({
+    "description": "x",
+    "space": {"lang": ["opencl"], "wg_size": [64]},
+    "datasets": ["5000-b2", {"key": "25k-b1", "name": "n", "vertices": 25000, "influences": 1, "bones": 77}],
+    "timing": {"warmup": 0, "repetitions": 3, "max_input_sets": 2, "tolerance": 1e-4},
+    "strategy": {"name": "random", "budget": 5, "seed": 7},
+    "variant_timeout_s": 2.5})"),
+                                      "c.json");
+  EXPECT_EQ(c.name, "c.json");
+  EXPECT_EQ(c.space.langs, std::vector<Lang>{Lang::kOpenCl});
+  EXPECT_EQ(c.datasets, (std::vector<std::string>{"5000-b2", "25k-b1"}));
+  EXPECT_EQ(c.timing.warmup, 0);
+  EXPECT_EQ(c.timing.repetitions, 3);
+  EXPECT_EQ(c.timing.max_input_sets, 2);
+  EXPECT_EQ(c.timing.tolerance, 1e-4);
+  EXPECT_EQ(c.strategy.name, "random");
+  EXPECT_EQ(c.strategy.budget, 5u);
+  EXPECT_EQ(c.strategy.seed, 7u);
+  EXPECT_EQ(c.variant_timeout_s, 2.5);
+}
+
+TEST(TuneConfig, ErrorsNameTheElement) {
+  EXPECT_EQ(ErrorOf(R"([1])"), "c.json: a tune config must be a JSON object");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "speed": 1})"),
+            "c.json: speed: unknown field (expected description, space, datasets, timing, strategy, "
+            "variant_timeout_s)");
+  EXPECT_EQ(ErrorOf(R"({"datasets": ["5000-b2"]})"), "c.json: space: missing (an object of axis -> list of values)");
+  EXPECT_EQ(ErrorOf(R"({"space": {}})"), "c.json: datasets: missing (a list of dataset keys)");
+  EXPECT_EQ(ErrorOf(R"({"space": {"layout": ["soa", "zigzag"]}, "datasets": ["5000-b2"]})"),
+            "c.json: space.layout[1]: unknown value 'zigzag' (expected one of aos, soa, soa-split)");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": []})"), "c.json: datasets: is empty");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2", 7]})"),
+            "c.json: datasets[1]: expected a dataset key (string) or an object with \"key\"");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-q2"]})").rfind("c.json: datasets[0]: dataset '5000-q2'", 0),
+            0u);
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": [{"key": "25k-b1", "influences": 2}]})"),
+            "c.json: datasets[0].influences: 2 does not match the key '25k-b1' (1)");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2", "5000-b2"]})"),
+            "c.json: datasets[1]: '5000-b2' is listed twice");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"repetitions": 0}})"),
+            "c.json: timing.repetitions: must be an integer >= 1 (got 0)");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"reps": 3}})"),
+            "c.json: timing.reps: unknown field (expected one of max_input_sets, repetitions, tolerance, warmup)");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"tolerance": -1}})"),
+            "c.json: timing.tolerance: must be a positive number (got -1)");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "strategy": {"name": "genetic"}})"),
+            "c.json: strategy.name: unknown strategy 'genetic' (expected one of exhaustive, random, coordinate)");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "strategy": {"name": "random"}})"),
+            "c.json: strategy.budget: the random strategy needs a budget (evaluations per device, language and "
+            "dataset)");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "strategy": {"budget": -3}})"),
+            "c.json: strategy.budget: must be an integer >= 0");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "variant_timeout_s": 0})"),
+            "c.json: variant_timeout_s: must be a positive number (got 0)");
+}
+
+}  // namespace
+}  // namespace skintune

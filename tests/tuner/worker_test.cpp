@@ -1,0 +1,193 @@
+// The parent side of the worker protocol (tuner/worker.h), against fake
+// workers (shell scripts): answers, hangs, crashes, exits, errors, restarts.
+// No device needed; the real worker is exercised by tune_cli_test.
+#include "tuner/worker.h"
+
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <functional>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+
+namespace skintune {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path Scratch() {
+  const fs::path dir = fs::temp_directory_path() / ("skintune_worker_test_" + std::to_string(::getpid()) + "_" +
+                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+DeviceIdentity FakeDevice() {
+  DeviceIdentity d;
+  d.backend = "opencl";
+  d.index = 3;
+  d.platform = "Fake";
+  d.name = "dev";
+  d.driver_version = "1";
+  return d;
+}
+
+const char* kAnswer =
+    R"({"device_id":"elsewhere","dataset":"x","variant":{"lang":"cuda"},"status":"ok","generator_version":"9",)"
+    R"("timing":{"median_ms":1.5,"min_ms":1.0,"max_ms":2.0,"warmup":1,"repetitions":3,"input_sets":2},"gbps":7.5})";
+
+// A fake `skintune`: greets as FakeDevice(), then runs `body` (sh) with the
+// arguments it was started with in "$@" and its directory in $DIR.
+std::string FakeWorker(const fs::path& dir, const std::string& body, const std::string& device_id = "") {
+  const fs::path script = dir / "fake-skintune";
+  std::ofstream out(script);
+  out << "#!/bin/sh\nDIR='" << dir.string() << "'\necho \"$@\" > \"$DIR/args\"\n"
+      << "echo '{\"ready\": true, \"device_id\": \"" << (device_id.empty() ? FakeDevice().Id() : device_id)
+      << "\"}'\n"
+      << body << "\n";
+  out.close();
+  ::chmod(script.c_str(), 0755);
+  return script.string();
+}
+
+const Variant kVariant = ParseVariantKey("opencl.b2.soa.global.wg64");
+const TuningDataset kDataset{"5000-b2"};
+
+std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const WorkerError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+std::string ReadAll(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+TEST(IsolatedBackend, SendsOneRequestPerLineAndReadsTheMeasurement) {
+  const fs::path dir = Scratch();
+  const std::string exe =
+      FakeWorker(dir, std::string("while read line; do echo \"$line\" >> \"$DIR/requests\"; echo '") + kAnswer +
+                          "'; done");
+  IsolatedBackend worker(exe, FakeDevice(), 30);
+  TimingOptions timing;
+  timing.repetitions = 3;
+  for (int i = 0; i < 2; ++i) {
+    const Measurement m = worker.Measure(kVariant, kDataset, timing);
+    EXPECT_EQ(m.status, Status::kOk);
+    EXPECT_EQ(m.timing.median_ms, 1.5);
+    EXPECT_EQ(m.gbps, 7.5);
+    // What identifies the measurement is the parent's.
+    EXPECT_EQ(m.device_id, FakeDevice().Id());
+    EXPECT_EQ(m.dataset, "5000-b2");
+    EXPECT_EQ(m.variant, kVariant);
+    EXPECT_EQ(m.generator_version, "0.1.0");
+  }
+  EXPECT_EQ(worker.starts(), 1);
+  EXPECT_EQ(ReadAll(dir / "args"), "tune-worker --backend-index 3\n");
+  std::ifstream requests(dir / "requests");
+  std::string line;
+  ASSERT_TRUE(std::getline(requests, line));
+  const nlohmann::json request = nlohmann::json::parse(line);
+  EXPECT_EQ(request.at("variant").get<Variant>(), kVariant);
+  EXPECT_EQ(request.at("dataset"), "5000-b2");
+  EXPECT_EQ(request.at("timing").at("repetitions"), 3);
+  EXPECT_EQ(request.at("timing").at("warmup"), timing.warmup);
+  EXPECT_EQ(request.at("timing").at("max_input_sets"), timing.max_input_sets);
+  EXPECT_EQ(request.at("timing").at("tolerance"), timing.tolerance);
+}
+
+TEST(IsolatedBackend, HangIsATimeoutAndAFreshWorkerServesTheNextVariant) {
+  const fs::path dir = Scratch();
+  // The first worker hangs on its request; the ones after it answer.
+  const std::string exe = FakeWorker(
+      dir, std::string("if [ ! -e \"$DIR/hung\" ]; then : > \"$DIR/hung\"; read line; exec sleep 600; fi\n") +
+               "while read line; do echo '" + kAnswer + "'; done");
+  IsolatedBackend worker(exe, FakeDevice(), 0.5);
+  const auto start = std::chrono::steady_clock::now();
+  const Measurement hung = worker.Measure(kVariant, kDataset, {});
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
+  EXPECT_EQ(hung.status, Status::kTimeout);
+  EXPECT_EQ(hung.detail, "no result within 0.5 s");
+  EXPECT_EQ(hung.variant, kVariant);
+  EXPECT_EQ(hung.device_id, FakeDevice().Id());
+  const Measurement next = worker.Measure(kVariant, kDataset, {});
+  EXPECT_EQ(next.status, Status::kOk);
+  EXPECT_EQ(worker.starts(), 2);
+}
+
+TEST(IsolatedBackend, CrashIsALaunchFailureNamingTheSignal) {
+  const fs::path dir = Scratch();
+  const std::string exe = FakeWorker(
+      dir, std::string("if [ ! -e \"$DIR/crashed\" ]; then : > \"$DIR/crashed\"; read line; ") +
+               "echo 'about to crash' >&2; kill -ABRT $$; fi\nwhile read line; do echo '" + kAnswer + "'; done");
+  IsolatedBackend worker(exe, FakeDevice(), 30);
+  const Measurement crashed = worker.Measure(kVariant, kDataset, {});
+  EXPECT_EQ(crashed.status, Status::kLaunchFailed);
+  EXPECT_EQ(crashed.detail, "worker process died: signal 6 (Aborted); its last stderr line: about to crash");
+  EXPECT_EQ(worker.Measure(kVariant, kDataset, {}).status, Status::kOk);
+  EXPECT_EQ(worker.starts(), 2);
+}
+
+TEST(IsolatedBackend, ExitIsALaunchFailureNamingTheExitCode) {
+  const fs::path dir = Scratch();
+  const std::string exe = FakeWorker(dir, "read line; exit 3");
+  IsolatedBackend worker(exe, FakeDevice(), 30);
+  const Measurement m = worker.Measure(kVariant, kDataset, {});
+  EXPECT_EQ(m.status, Status::kLaunchFailed);
+  EXPECT_EQ(m.detail, "worker process died: exit code 3");
+}
+
+TEST(IsolatedBackend, SetUpErrorOfTheDeviceIsAWorkerError) {
+  const fs::path dir = Scratch();
+  IsolatedBackend worker(FakeWorker(dir, "read line; echo '{\"error\": \"device lost\"}'"), FakeDevice(), 30);
+  EXPECT_EQ(ErrorOf([&] { worker.Measure(kVariant, kDataset, {}); }), "device lost");
+}
+
+TEST(IsolatedBackend, WorkerOfAnotherDeviceIsAWorkerError) {
+  const fs::path dir = Scratch();
+  IsolatedBackend worker(FakeWorker(dir, "cat > /dev/null", "gl:EGL/other/2"), FakeDevice(), 30);
+  EXPECT_EQ(ErrorOf([&] { worker.Measure(kVariant, kDataset, {}); }),
+            "worker process found 'gl:EGL/other/2' as backend 3, not '" + FakeDevice().Id() +
+                "' (the devices changed since discovery)");
+}
+
+TEST(IsolatedBackend, WorkerThatCannotStartIsAWorkerError) {
+  const fs::path dir = Scratch();
+  const fs::path script = dir / "broken";
+  std::ofstream(script) << "#!/bin/sh\necho 'no device here' >&2\nexit 1\n";
+  ::chmod(script.c_str(), 0755);
+  IsolatedBackend worker(script.string(), FakeDevice(), 30);
+  EXPECT_EQ(ErrorOf([&] { worker.Measure(kVariant, kDataset, {}); }),
+            "worker process failed to start: exit code 1; its last stderr line: no device here");
+  IsolatedBackend missing((dir / "does-not-exist").string(), FakeDevice(), 30);
+  EXPECT_EQ(ErrorOf([&] { missing.Measure(kVariant, kDataset, {}); }),
+            "worker process failed to start: exit code 127; its last stderr line: skintune: cannot execute the tune "
+            "worker");
+}
+
+TEST(IsolatedBackend, CopyBandwidthAnswerOrReason) {
+  const fs::path dir = Scratch();
+  IsolatedBackend worker(
+      FakeWorker(dir, "read line; echo '{\"copy_bandwidth_gbps\": 12.5}'; read line; "
+                      "echo '{\"copy_bandwidth_error\": \"no copy kernel\"}'; read line; exit 4"),
+      FakeDevice(), 30);
+  std::string why;
+  EXPECT_EQ(worker.CopyBandwidthGBps(1 << 20, &why), 12.5);
+  EXPECT_EQ(worker.CopyBandwidthGBps(1 << 20, &why), std::nullopt);
+  EXPECT_EQ(why, "no copy kernel");
+  EXPECT_EQ(worker.CopyBandwidthGBps(1 << 20, &why), std::nullopt);
+  EXPECT_EQ(why, "worker process died: exit code 4");
+}
+
+}  // namespace
+}  // namespace skintune

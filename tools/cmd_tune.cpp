@@ -1,0 +1,290 @@
+// skintune tune: times and verifies the variants of a tuning space on every
+// device found, each device in its own child process (skintune tune-worker),
+// with a resumable measurement cache; writes the report, its T4 export and the
+// winners database, and prints the winners.
+#include <sys/ioctl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+#include "reference/mesh_io.h"
+#include "tools/commands.h"
+#include "tuner/report.h"
+#include "tuner/tune.h"
+
+namespace skintune::tools {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TuneCliOptions {
+  std::string config;
+  std::string device;
+  std::vector<std::string> langs;
+  std::string strategy;
+  std::size_t budget = 0;
+  std::string out = "results";
+  bool quiet = false;
+};
+
+bool EndsWith(const std::string& text, const std::string& suffix) {
+  return text.size() >= suffix.size() && text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+// --config NAME (a built-in config: no '/' and no .json) or FILE.
+TuneConfig LoadConfig(const std::string& config) {
+  std::string name = config.empty() ? "default" : config;
+  std::string text;
+  if (name.find('/') == std::string::npos && !EndsWith(name, ".json")) {
+    try {
+      text = EmbeddedConfig(name);
+    } catch (const Error& e) {
+      throw Error("--config '" + name + "': not a file path (no '/' or .json) and " + e.what());
+    }
+  } else {
+    std::ifstream in(name, std::ios::binary);
+    if (!in) throw Error(name + ": cannot open file");
+    std::ostringstream buffer;
+    buffer << in.rdbuf();
+    if (!in && !in.eof()) throw Error(name + ": cannot read file");
+    text = buffer.str();
+  }
+  nlohmann::json json;
+  try {
+    json = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw Error(name + ": not valid JSON (" + e.what() + ")");
+  }
+  return ConfigFromJson(json, name);
+}
+
+Lang LangFromName(const std::string& name) {
+  for (Lang l : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex}) {
+    if (name == Name(l)) return l;
+  }
+  throw Error("--lang '" + name + "': unknown language (expected one of opencl, cuda, glsl-compute, glsl-vertex)");
+}
+
+std::string Duration(double seconds) {
+  const long s = static_cast<long>(seconds + 0.5);
+  char text[32];
+  if (s >= 3600) {
+    std::snprintf(text, sizeof text, "%ldh%02ldm", s / 3600, (s / 60) % 60);
+  } else if (s >= 60) {
+    std::snprintf(text, sizeof text, "%ldm%02lds", s / 60, s % 60);
+  } else {
+    std::snprintf(text, sizeof text, "%lds", s);
+  }
+  return text;
+}
+
+// Progress on stderr: a bar with ETA on a terminal, plain lines otherwise.
+class Progress {
+ public:
+  explicit Progress(bool terminal) : terminal_(terminal), start_(Clock::now()) {}
+
+  void Update(std::size_t done, std::size_t total, const std::string& what) {
+    const bool cached = EndsWith(what, "(cached)");
+    if (done > last_done_ && !cached) {
+      if (measured_ == 0) first_measured_ = last_time_;
+      ++measured_;
+    }
+    last_done_ = done;
+    last_time_ = Clock::now();
+    if (!terminal_) {
+      // Set-up steps (total 0) only on a terminal, where they are overwritten:
+      // a run that fails before measuring says so in one line.
+      if (total > 0) std::cerr << "skintune: tune: [" << done << "/" << total << "] " << what << "\n";
+      return;
+    }
+    int width = 100;
+    winsize size{};
+    if (::ioctl(2, TIOCGWINSZ, &size) == 0 && size.ws_col > 20) width = size.ws_col;
+    std::string line;
+    if (total > 0) {
+      const int bar = 24;
+      const int filled = static_cast<int>(bar * done / total);
+      line = "[" + std::string(filled, '#') + std::string(bar - filled, '.') + "] " + std::to_string(done) + "/" +
+             std::to_string(total);
+      std::string eta = "ETA --";
+      if (measured_ > 0 && done < total) {
+        const double elapsed = std::chrono::duration<double>(last_time_ - first_measured_).count();
+        eta = "ETA " + Duration(elapsed / measured_ * static_cast<double>(total - done));
+      } else if (done >= total) {
+        eta = "took " + Duration(std::chrono::duration<double>(last_time_ - start_).count());
+      }
+      line += " " + eta + "  ";
+    }
+    line += what;
+    if (static_cast<int>(line.size()) > width - 1) line = line.substr(0, width - 4) + "...";
+    std::cerr << "\r\033[K" << line << std::flush;
+    shown_ = true;
+  }
+
+  // Keeps the last progress line (success), or clears it (an error follows).
+  void Finish(bool keep) {
+    if (terminal_ && shown_) std::cerr << (keep ? "\n" : "\r\033[K") << std::flush;
+    shown_ = false;
+  }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  bool terminal_;
+  bool shown_ = false;
+  Clock::time_point start_;
+  Clock::time_point first_measured_;
+  Clock::time_point last_time_ = Clock::now();
+  std::size_t last_done_ = 0;
+  std::size_t measured_ = 0;
+};
+
+std::string SelfExecutable() {
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) throw Error("cannot find the skintune executable for the tune workers (/proc/self/exe: " + ec.message() + ")");
+  return self.string();
+}
+
+void PrintWinners(const TuningReport& report) {
+  const std::vector<Winner> winners = ComputeWinners(report);
+  std::map<std::string, std::string> names;
+  for (const DeviceIdentity& d : report.devices) names[d.Id()] = d.name;
+  std::vector<std::vector<std::string>> rows = {
+      {"device", "lang", "B", "bucket", "variant", "ms", "GB/s", "of copy"}};
+  for (const Winner& w : winners) {
+    char ms[32], gbps[32], fraction[32];
+    std::snprintf(ms, sizeof ms, "%.3f", w.median_ms);
+    std::snprintf(gbps, sizeof gbps, "%.1f", w.gbps);
+    if (w.copy_fraction > 0.0) {
+      std::snprintf(fraction, sizeof fraction, "%.0f%%", 100.0 * w.copy_fraction);
+    } else {
+      std::snprintf(fraction, sizeof fraction, "-");
+    }
+    const auto name = names.find(w.device_id);
+    rows.push_back({name != names.end() ? name->second : w.device_id, Name(w.lang), std::to_string(w.influences),
+                    w.vertex_bucket, w.variant.Key(), ms, gbps, fraction});
+  }
+  std::map<std::string, std::size_t> statuses;
+  for (const Measurement& m : report.measurements) ++statuses[Name(m.status)];
+  std::string counts;
+  for (const auto& [status, n] : statuses) counts += (counts.empty() ? "" : ", ") + std::to_string(n) + " " + status;
+  if (winners.empty()) {
+    std::cout << "no variant passed verification on any device\n";
+  } else {
+    std::vector<std::size_t> widths(rows.front().size(), 0);
+    for (const auto& row : rows) {
+      for (std::size_t c = 0; c < row.size(); ++c) widths[c] = std::max(widths[c], row[c].size());
+    }
+    const std::set<std::size_t> right = {2, 5, 6, 7};  // numbers
+    for (const auto& row : rows) {
+      std::string line;
+      for (std::size_t c = 0; c < row.size(); ++c) {
+        const std::string pad(widths[c] - row[c].size(), ' ');
+        line += right.count(c) ? pad + row[c] : row[c] + (c + 1 < row.size() ? pad : "");
+        if (c + 1 < row.size()) line += "  ";
+      }
+      std::cout << line << "\n";
+    }
+  }
+  std::cout << "measurements: " << (counts.empty() ? "none" : counts) << "\n";
+}
+
+int RunTune(const TuneCliOptions& o, bool budget_given) {
+  TuneConfig config = LoadConfig(o.config);
+  if (!o.strategy.empty()) config.strategy.name = o.strategy;
+  if (budget_given) config.strategy.budget = o.budget;
+  if (config.strategy.name == "random" && config.strategy.budget == 0) {
+    throw Error("the random strategy needs a budget: --budget N (evaluations per device, language and dataset)");
+  }
+
+  TuneOptions options;
+  options.device_pattern = o.device;
+  for (const std::string& l : o.langs) options.languages.push_back(LangFromName(l));
+  options.worker_executable = SelfExecutable();
+
+  // The output directory: checked (and the cache opened) before any device work.
+  std::error_code ec;
+  const fs::path out = o.out;
+  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) throw Error(o.out + ": not a directory");
+  fs::create_directories(out, ec);
+  if (ec || !fs::is_directory(out)) {
+    throw Error(o.out + ": cannot create the output directory (" + (ec ? ec.message() : "not a directory") + ")");
+  }
+  options.cache_path = (out / "cache.jsonl").string();
+
+  Progress progress(::isatty(2) != 0);
+  if (!o.quiet) {
+    options.progress = [&progress](std::size_t done, std::size_t total, const std::string& what) {
+      progress.Update(done, total, what);
+    };
+  }
+  TuningReport report;
+  try {
+    report = RunTuning(config, options);
+  } catch (...) {
+    progress.Finish(false);
+    throw;
+  }
+  progress.Finish(true);
+
+  // Everything is computed before anything is written; each file is replaced atomically.
+  const std::string report_text = ReportToJson(report).dump(2) + "\n";
+  const std::string t4_text = ReportToT4(report).dump(2) + "\n";
+  const std::string db_text = WinnersDatabase(report).dump(2) + "\n";
+  WriteFileAtomically((out / "report.json").string(), report_text);
+  WriteFileAtomically((out / "report.t4.json").string(), t4_text);
+  WriteFileAtomically((out / "winners-db.json").string(), db_text);
+
+  PrintWinners(report);
+  if (!o.quiet) {
+    std::cerr << "skintune: tune: wrote " << (out / "report.json").string() << ", "
+              << (out / "report.t4.json").string() << ", " << (out / "winners-db.json").string() << " (cache "
+              << options.cache_path << ")\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+Command RegisterTune(CLI::App& app) {
+  auto o = std::make_shared<TuneCliOptions>();
+  auto* sub = app.add_subcommand(
+      "tune", "time and verify the variants of a tuning space on every device found; write the report and winners");
+  sub->add_option("--config", o->config,
+                  "tuning config: a JSON file (configs/*.json), or a built-in name: default, paper (default: default)");
+  sub->add_option("--device", o->device,
+                  "only devices whose 'backend: platform / name' (or vendor, version) contains this "
+                  "(case-insensitive)");
+  sub->add_option("--lang", o->langs, "only these languages: opencl, cuda, glsl-compute, glsl-vertex");
+  sub->add_option("--strategy", o->strategy, "search strategy (overrides the config's)")
+      ->check(CLI::IsMember({"exhaustive", "random", "coordinate"}));
+  auto* budget = sub->add_option("--budget", o->budget,
+                                 "evaluations per device, language and dataset (overrides the config's)");
+  sub->add_option("--out", o->out,
+                  "output directory: cache.jsonl (resumable: reused by the next run), report.json, report.t4.json, "
+                  "winners-db.json (default: results)");
+  sub->add_flag("--quiet", o->quiet, "no progress on stderr");
+  return {sub, [o, budget] { return RunTune(*o, budget->count() > 0); }};
+}
+
+Command RegisterTuneWorker(CLI::App& app) {
+  auto index = std::make_shared<int>(-1);
+  auto* sub = app.add_subcommand("tune-worker", "measure variants for `skintune tune` (internal)");
+  sub->group("");  // hidden: started by `skintune tune` only
+  sub->add_option("--backend-index", *index, "the backend's position in discovery order")->required();
+  return {sub, [index] { return RunTuneWorker(*index); }};
+}
+
+}  // namespace skintune::tools

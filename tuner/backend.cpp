@@ -1,0 +1,423 @@
+// skintune: device identities, discovery of every backend, and the one
+// Measure procedure the three backends share (tuner/backends_internal.h).
+#include "tuner/backend.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <ctime>
+#include <filesystem>
+#include <limits>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+#include "reference/gltf_import.h"
+#include "reference/synthetic.h"
+#include "runtime/cuda_api.h"
+#include "tuner/backends_internal.h"
+
+namespace skintune {
+
+// ---------------------------------------------------------------- identity
+
+std::string DeviceIdentity::Id() const { return backend + ":" + platform + "/" + name + "/" + driver_version; }
+
+void to_json(nlohmann::json& out, const DeviceIdentity& d) {
+  out = {{"id", d.Id()},
+         {"backend", d.backend},
+         {"index", d.index},
+         {"platform", d.platform},
+         {"vendor", d.vendor},
+         {"name", d.name},
+         {"driver_version", d.driver_version},
+         {"api_version", d.api_version},
+         {"type", d.type},
+         {"compute_units", d.compute_units},
+         {"global_memory_bytes", d.global_memory_bytes},
+         {"local_memory_bytes", d.local_memory_bytes},
+         {"constant_memory_bytes", d.constant_memory_bytes},
+         {"last_level_cache_bytes", d.last_level_cache_bytes}};
+}
+
+namespace {
+
+template <typename T>
+void ReadField(const nlohmann::json& in, const char* name, T& value, bool required) {
+  const auto found = in.find(name);
+  if (found == in.end()) {
+    if (required) throw Error(std::string("device identity: missing '") + name + "'");
+    return;
+  }
+  try {
+    value = found->get<T>();
+  } catch (const nlohmann::json::exception&) {
+    throw Error(std::string("device identity: '") + name + "' has the wrong type (" + found->dump() + ")");
+  }
+}
+
+}  // namespace
+
+void from_json(const nlohmann::json& in, DeviceIdentity& d) {
+  if (!in.is_object()) throw Error("device identity: not a JSON object");
+  d = DeviceIdentity{};
+  ReadField(in, "backend", d.backend, true);
+  ReadField(in, "platform", d.platform, true);
+  ReadField(in, "name", d.name, true);
+  ReadField(in, "driver_version", d.driver_version, true);
+  ReadField(in, "index", d.index, false);
+  ReadField(in, "vendor", d.vendor, false);
+  ReadField(in, "api_version", d.api_version, false);
+  ReadField(in, "type", d.type, false);
+  ReadField(in, "compute_units", d.compute_units, false);
+  ReadField(in, "global_memory_bytes", d.global_memory_bytes, false);
+  ReadField(in, "local_memory_bytes", d.local_memory_bytes, false);
+  ReadField(in, "constant_memory_bytes", d.constant_memory_bytes, false);
+  ReadField(in, "last_level_cache_bytes", d.last_level_cache_bytes, false);
+}
+
+// ---------------------------------------------------------------- injected faults
+
+InjectedFault InjectedFaultFromEnvironment() {
+  const char* env = std::getenv("SKINTUNE_INJECT_FAULT");
+  if (!env || !*env) return {};
+  const std::string text = env;
+  const std::size_t at = text.rfind('=');
+  const std::string why = "SKINTUNE_INJECT_FAULT='" + text + "': ";
+  if (at == std::string::npos || at == 0) throw Error(why + "expected <variant key>=<compile|wrong|hang|crash>");
+  InjectedFault fault;
+  fault.kind = text.substr(at + 1);
+  if (fault.kind != "compile" && fault.kind != "wrong" && fault.kind != "hang" && fault.kind != "crash")
+    throw Error(why + "unknown fault '" + fault.kind + "' (compile, wrong, hang or crash)");
+  // The canonical key, so that the tokens may be given in any order.
+  fault.variant_key = ParseVariantKey(text.substr(0, at)).Key();
+  return fault;
+}
+
+// ---------------------------------------------------------------- discovery
+
+Discovery DiscoverBackends() {
+  using namespace tuner_internal;
+  Discovery discovery;
+  int index = 0;
+
+  try {
+    const OpenClInventory inventory = EnumerateOpenCl();
+    if (inventory.devices.empty()) discovery.skipped.push_back("opencl: skipped: " + inventory.status);
+    for (const std::string& warning : inventory.warnings) discovery.skipped.push_back("opencl: skipped: " + warning);
+    for (const OpenClDeviceInfo& device : inventory.devices) discovery.backends.push_back(MakeOpenClBackend(device, index++));
+  } catch (const std::exception& e) {
+    discovery.skipped.push_back(std::string("opencl: skipped: ") + e.what());
+  }
+
+  const CudaAvailability cuda = Probe();
+  if (!cuda.CanRun()) {
+    discovery.skipped.push_back("cuda: skipped: " + cuda.Describe());
+  } else {
+    for (int d = 0; d < cuda.device_count; ++d) {
+      try {
+        discovery.backends.push_back(MakeCudaBackend(d, index));
+        ++index;
+      } catch (const std::exception& e) {
+        discovery.skipped.push_back("cuda: device " + std::to_string(d) + ": skipped: " + e.what());
+      }
+    }
+  }
+
+  try {
+    std::string why;
+    if (std::unique_ptr<Backend> gl = MakeGlBackend(index, why)) {
+      discovery.backends.push_back(std::move(gl));
+      ++index;
+    } else {
+      discovery.skipped.push_back("gl: skipped: " + why);
+    }
+  } catch (const std::exception& e) {
+    discovery.skipped.push_back(std::string("gl: skipped: ") + e.what());
+  }
+  return discovery;
+}
+
+// ---------------------------------------------------------------- shared by the backends
+
+namespace tuner_internal {
+
+int InputSetsFor(std::uint64_t last_level_cache_bytes, std::uint64_t bytes_per_set, int max_input_sets) {
+  const std::uint64_t llc = last_level_cache_bytes ? last_level_cache_bytes : kUnknownLastLevelCacheBytes;
+  const int most = std::max(max_input_sets, 1);
+  if (bytes_per_set == 0) return most;
+  const std::uint64_t wanted = (2 * llc + bytes_per_set - 1) / bytes_per_set;
+  return static_cast<int>(std::clamp<std::uint64_t>(wanted, 1, static_cast<std::uint64_t>(most)));
+}
+
+bool IsGltfPath(const std::string& key) {
+  std::string extension = std::filesystem::path(key).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return extension == ".gltf" || extension == ".glb";
+}
+
+std::vector<std::vector<glm::mat4>> FramePalettes(const SkinnedAsset& asset, int count) {
+  count = std::max(count, 1);
+  std::vector<std::vector<glm::mat4>> palettes;
+  if (asset.animations.empty()) {
+    const std::vector<glm::mat4> rest = asset.PaletteAt(-1, 0.0);
+    palettes.assign(static_cast<std::size_t>(count), rest);
+    return palettes;
+  }
+  const AnimationClip& clip = asset.animations.front();
+  for (int k = 0; k < count; ++k) {
+    const double t = clip.start + clip.duration() * (k + 0.5) / count;
+    palettes.push_back(asset.PaletteAt(0, t));
+  }
+  return palettes;
+}
+
+DatasetCache::Entry& DatasetCache::Get(const std::string& key) {
+  if (auto found = entries_.find(key); found != entries_.end()) return *found->second;
+  auto entry = std::make_unique<Entry>();
+  if (IsGltfPath(key)) {
+    entry->asset = ImportGltf(key).asset;  // warnings (renormalised weights) are the importer's to report
+  } else {
+    entry->asset = GenerateDataset(ParseDatasetKey(key));
+  }
+  entry->verification_palette = FramePalettes(entry->asset, 1).front();
+  return *entries_.emplace(key, std::move(entry)).first->second;
+}
+
+const GoldResult& DatasetCache::Gold(Entry& entry, const Variant& variant) {
+  const std::pair<int, bool> key{static_cast<int>(variant.weight), variant.normals};
+  if (auto found = entry.gold.find(key); found != entry.gold.end()) return found->second;
+  GoldResult gold = SkinGold(QuantisedMesh(entry.asset.mesh, variant), entry.verification_palette, variant.normals);
+  return entry.gold.emplace(key, std::move(gold)).first->second;
+}
+
+Status StatusOfRunnerError(const std::string& message) {
+  // "<API> <stage>: ...": the API is one word ("OpenCL", "CUDA", "GL").
+  const std::size_t space = message.find(' ');
+  const std::size_t colon = message.find(':');
+  if (space != std::string::npos && colon != std::string::npos && space < colon) {
+    const std::string stage = message.substr(space + 1, colon - space - 1);
+    if (stage == "build") return Status::kCompileFailed;
+    if (stage == "guard") return Status::kVerifyFailed;
+  }
+  return Status::kLaunchFailed;
+}
+
+namespace {
+
+// Replaces the one occurrence of `marker` (the last one) in the kernel text
+// with `replacement`; throws when the template has none.
+void EditAt(KernelSource& source, const std::string& marker, const std::string& before, const std::string& after,
+            const std::string& kind) {
+  const std::size_t at = source.text.rfind(marker);
+  if (at == std::string::npos)
+    throw Error("injected fault '" + kind + "': the " + Name(source.lang) + " kernel has no '" + marker +
+                "' any more (update InjectFault in tuner/backend.cpp)");
+  const std::size_t line_start = source.text.rfind('\n', at) + 1;  // npos + 1 = 0
+  std::size_t line_end = source.text.find('\n', at);
+  if (line_end == std::string::npos) line_end = source.text.size();
+  source.text.insert(line_end, after);
+  source.text.insert(line_start, before);
+}
+
+}  // namespace
+
+void InjectFault(KernelSource& source, const Variant& variant, const std::string& kind) {
+  const bool glsl = source.lang == Lang::kGlslCompute || source.lang == Lang::kGlslVertex;
+  const std::string input = variant.layout == Layout::kAos ? "records" : "positions";
+  // Every template skins a vertex with one call whose last two arguments are
+  // the skinned position and normal, in the kernel's loop over its vertices
+  // (v in scope), after the shared helpers: the last such line is in the
+  // kernel body (GLSL: skin_vertex in main(); OpenCL/CUDA: blend).
+  const std::string marker = glsl ? " skinned_position, skinned_normal);" : "&skinned_position, &skinned_normal);";
+  if (kind == "compile") {
+    source.text += "\nskintune injected compile fault: this is not a kernel language (\n";
+  } else if (kind == "wrong") {
+    const std::string one = glsl ? "1.0" : "1.0f";
+    EditAt(source, marker, "", "\n    if (v == 0u) skinned_position.x += " + one + ";  // skintune injected fault: wrong",
+           kind);
+  } else if (kind == "hang") {
+    // A loop on a volatile read of the first input: the compiler must keep
+    // every read and cannot know the value, so the loop cannot be removed; no
+    // input word is ever 0xffffffff (a NaN position / impossible record word).
+    std::string loop;
+    if (source.lang == Lang::kOpenCl) {
+      loop = "    while (((volatile const __global uint*)" + input + ")[0] != 0xffffffffu) {}  // skintune injected fault: hang\n";
+    } else if (source.lang == Lang::kCuda) {
+      loop = "    while (reinterpret_cast<const volatile unsigned int*>(" + input +
+             ")[0] != 0xffffffffu) {}  // skintune injected fault: hang\n";
+    } else {
+      // GLSL: a volatile view of binding 0 (the first input in every layout).
+      loop = "    while (skintune_hang[0] != 0xffffffffu) {}  // skintune injected fault: hang\n";
+      const std::string block =
+          "layout(std430, binding = 0) volatile readonly buffer SkintuneHang { uint skintune_hang[]; };\n";
+      const std::size_t main_at = source.text.rfind("void main()");
+      if (main_at == std::string::npos)
+        throw Error("injected fault 'hang': the GLSL kernel has no 'void main()' any more (update InjectFault)");
+      source.text.insert(main_at, block);
+    }
+    EditAt(source, marker, loop, "", kind);
+  } else {
+    throw Error("injected fault: unknown kind '" + kind + "' (compile, wrong, hang or crash)");
+  }
+  source.source_hash = SourceHash(source.text);
+}
+
+double Median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const std::size_t n = values.size();
+  return n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+}
+
+double CopyGBps(std::size_t bytes, const std::vector<double>& ms) {
+  const double median = Median(ms);
+  if (!(median > 0.0)) throw Error("copy kernel: no positive time measured");
+  return 2.0 * static_cast<double>(bytes) / median / 1e6;
+}
+
+std::size_t CopyBytesCapped(std::size_t bytes, std::uint64_t max_allocation_bytes) {
+  constexpr std::size_t kGranule = 4096;
+  std::uint64_t capped = bytes;
+  if (max_allocation_bytes > 0) capped = std::min<std::uint64_t>(capped, max_allocation_bytes / 4);
+  capped -= capped % kGranule;
+  return static_cast<std::size_t>(std::max<std::uint64_t>(capped, kGranule));
+}
+
+std::string UtcTimestamp() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return text;
+}
+
+namespace {
+
+std::string Scientific(double value) {
+  std::ostringstream out;
+  out.precision(2);
+  out << std::scientific << value;
+  return out.str();
+}
+
+// "positions: max relative error 3.1e-02 at vertex 17" or the non-finite count;
+// empty when within tolerance.
+std::string Disagreement(const char* what, const GoldComparison& c, double tolerance) {
+  if (c.non_finite > 0)
+    return std::string(what) + ": " + std::to_string(c.non_finite) + " non-finite vertices, the first at vertex " +
+           std::to_string(c.worst_vertex);
+  if (c.max_relative > tolerance)
+    return std::string(what) + ": max relative error " + Scientific(c.max_relative) + " at vertex " +
+           std::to_string(c.worst_vertex) + " (tolerance " + Scientific(tolerance) + ")";
+  return "";
+}
+
+std::string DatasetName(const std::string& key) {
+  return IsGltfPath(key) ? std::filesystem::path(key).filename().string() : key;
+}
+
+}  // namespace
+
+Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const DeviceIdentity& identity,
+                        const DeviceLimits& limits, const std::vector<Lang>& languages, const Variant& variant,
+                        const TuningDataset& dataset, const TimingOptions& options) {
+  const InjectedFault fault = InjectedFaultFromEnvironment();
+  const bool faulty = !fault.kind.empty() && fault.variant_key == variant.Key();
+  if (faulty && fault.kind == "crash") std::abort();  // the test hook: the worker process must survive this
+
+  Measurement m;
+  m.device_id = identity.Id();
+  m.dataset = DatasetName(dataset.key);
+  m.variant = variant;
+  m.generator_version = kGeneratorVersion;
+  m.timestamp = UtcTimestamp();
+  auto finish = [&](Status status, std::string detail) {
+    m.status = status;
+    m.detail = std::move(detail);
+    return m;
+  };
+
+  DatasetCache::Entry& data = datasets.Get(dataset.key);
+  const SkinnedMesh& mesh = data.asset.mesh;
+
+  // Can it run here at all?
+  if (std::find(languages.begin(), languages.end(), variant.lang) == languages.end())
+    return finish(Status::kInvalid, std::string("language ") + Name(variant.lang) + " does not run on " +
+                                        identity.backend + " device " + identity.name);
+  const ProblemShape shape{mesh.joint_count, mesh.influences, mesh.has_normals()};
+  const std::vector<Violation> violations = CheckVariant(variant, limits, shape);
+  if (!violations.empty()) {
+    std::string detail;
+    for (const Violation& v : violations) detail += (detail.empty() ? "" : "; ") + std::string(Name(v.constraint)) + ": " + v.message;
+    return finish(Status::kInvalid, detail);
+  }
+  PackedMesh packed;
+  std::vector<KernelSource> kernels;
+  try {
+    packed = Pack(mesh, variant);
+    for (const Launch& launch : packed.launches)
+      kernels.push_back(Emit(variant, launch.influences, static_cast<int>(packed.palette_joints)));
+  } catch (const Error& e) {
+    return finish(Status::kInvalid, e.what());
+  }
+  if (faulty)
+    for (KernelSource& k : kernels) InjectFault(k, variant, fault.kind);
+
+  // Verify first: one run on poisoned outputs with guards, against the gold.
+  Executor::Output output;
+  try {
+    output = executor.Run(packed, kernels, PackPalette(data.verification_palette, variant));
+  } catch (const Error& e) {
+    return finish(StatusOfRunnerError(e.what()), e.what());
+  }
+  const GoldResult& gold = datasets.Gold(data, variant);
+  const GoldComparison positions = CompareToGold(gold.positions, Unpack(packed, output.positions));
+  m.max_relative_error = positions.max_relative;
+  std::string disagreement = Disagreement("positions", positions, options.tolerance);
+  if (variant.normals) {
+    const GoldComparison normals = CompareToGold(gold.normals, Unpack(packed, output.normals));
+    m.max_relative_error = std::max(m.max_relative_error, normals.max_relative);
+    const std::string n = Disagreement("normals", normals, options.tolerance);
+    if (!n.empty()) disagreement += (disagreement.empty() ? "" : "; ") + n;
+  }
+  if (output.poisoned_vertices > 0)
+    disagreement = std::to_string(output.poisoned_vertices) + " output vectors never written (still poisoned)" +
+                   (disagreement.empty() ? "" : "; " + disagreement);
+  if (!disagreement.empty()) return finish(Status::kVerifyFailed, "wrong results against the float64 gold: " + disagreement);
+
+  // Then time, rotating among K input sets (different frames), device timers.
+  std::uint64_t bytes_per_frame = 0;
+  for (const Launch& launch : packed.launches)
+    for (const PackedBuffer& b : launch.inputs) bytes_per_frame += b.bytes.size();
+  bytes_per_frame += packed.vertex_count * packed.output_stride_bytes * (variant.normals ? 2 : 1);
+  bytes_per_frame += packed.palette.size();
+  m.bytes_per_frame = static_cast<double>(bytes_per_frame);
+  const int sets = InputSetsFor(identity.last_level_cache_bytes, bytes_per_frame, options.max_input_sets);
+  std::vector<std::vector<std::uint8_t>> palettes;
+  for (const std::vector<glm::mat4>& palette : FramePalettes(data.asset, sets))
+    palettes.push_back(PackPalette(palette, variant));
+  const int warmup = std::max(options.warmup, 0);
+  const int repetitions = std::max(options.repetitions, 1);
+  std::vector<double> ms;
+  try {
+    ms = executor.Time(packed, kernels, palettes, warmup, repetitions);
+  } catch (const Error& e) {
+    return finish(StatusOfRunnerError(e.what()), std::string("timing: ") + e.what());
+  }
+  if (ms.empty()) return finish(Status::kLaunchFailed, "timing: no time measured");
+  m.timing.median_ms = Median(ms);
+  m.timing.min_ms = *std::min_element(ms.begin(), ms.end());
+  m.timing.max_ms = *std::max_element(ms.begin(), ms.end());
+  m.timing.warmup = warmup;
+  m.timing.repetitions = static_cast<int>(ms.size());
+  m.timing.input_sets = sets;
+  m.gbps = m.timing.median_ms > 0.0 ? m.bytes_per_frame / m.timing.median_ms / 1e6 : 0.0;
+  return finish(Status::kOk, "");
+}
+
+}  // namespace tuner_internal
+}  // namespace skintune

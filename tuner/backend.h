@@ -1,0 +1,93 @@
+// skintune: a device the tuner can measure variants on, whatever its API.
+//
+// One Backend per (API, device): every OpenCL device of every platform, every
+// CUDA device (driver API + NVRTC loaded at run time), and one OpenGL 4.3+
+// context through EGL (glsl-compute and glsl-vertex). Discovery never fails:
+// an absent API is reported as skipped with its reason.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "generator/constraints.h"
+#include "generator/variant.h"
+#include "tuner/measurement.h"
+
+namespace skintune {
+
+struct DeviceIdentity {
+  std::string backend;          // "opencl", "cuda", "gl"
+  int index = 0;                // position in discovery order (for --device and the worker)
+  std::string platform;         // OpenCL platform name; "CUDA"; EGL platform for GL
+  std::string vendor;
+  std::string name;             // device name / GL_RENDERER
+  std::string driver_version;
+  std::string api_version;      // OpenCL device version; CUDA compute capability; GL_VERSION
+  std::string type;             // "gpu", "cpu", ...
+  std::uint32_t compute_units = 0;
+  std::uint64_t global_memory_bytes = 0;
+  std::uint64_t local_memory_bytes = 0;
+  std::uint64_t constant_memory_bytes = 0;
+  std::uint64_t last_level_cache_bytes = 0;  // 0 = unknown (then the rotation rule assumes 64 MiB)
+
+  // Stable across runs and machines with the same device and driver:
+  // "<backend>:<platform>/<name>/<driver_version>".
+  std::string Id() const;
+};
+
+void to_json(nlohmann::json& out, const DeviceIdentity& d);
+void from_json(const nlohmann::json& in, DeviceIdentity& d);
+
+struct TimingOptions {
+  int warmup = 3;
+  int repetitions = 10;
+  // Rotate among enough copies of the inputs that they exceed twice the
+  // last-level cache (at most max_input_sets), so no repetition finds its
+  // inputs in cache.
+  int max_input_sets = 8;
+  double tolerance = 1e-5;  // max relative error against the gold
+};
+
+// What a variant is measured on: a dataset key and the mesh/palettes made from it.
+struct TuningDataset {
+  std::string key;  // reference/synthetic.h key, or a glTF path
+};
+
+class Backend {
+ public:
+  virtual ~Backend() = default;
+  virtual const DeviceIdentity& identity() const = 0;
+  virtual DeviceLimits limits() const = 0;
+  virtual std::vector<Lang> languages() const = 0;  // opencl | cuda | glsl-compute + glsl-vertex
+  // Verifies then times one (valid) variant. Never throws for a kernel's
+  // failure: returns a Measurement with the status (compile_failed,
+  // launch_failed, verify_failed). Throws Error only for set-up problems of
+  // the device itself.
+  virtual Measurement Measure(const Variant& variant, const TuningDataset& dataset,
+                              const TimingOptions& options) = 0;
+  // A plain copy kernel over `bytes` (read + written per second), GB/s.
+  virtual double CopyBandwidthGBps(std::size_t bytes) = 0;
+};
+
+struct Discovery {
+  std::vector<std::unique_ptr<Backend>> backends;
+  std::vector<std::string> skipped;  // "cuda: skipped: libcuda.so.1 not found (...)"
+};
+
+Discovery DiscoverBackends();
+
+// Test hook (for the tuner's failure tests, never set in normal use): when
+// $SKINTUNE_INJECT_FAULT is "<variant key>=<compile|wrong|hang|crash>", every
+// backend's Measure of that exact variant makes its kernel fail to compile,
+// write wrong results (one vertex off), loop forever, or abort the process.
+struct InjectedFault {
+  std::string variant_key;
+  std::string kind;  // "compile", "wrong", "hang", "crash", or empty
+};
+InjectedFault InjectedFaultFromEnvironment();
+
+}  // namespace skintune

@@ -1,0 +1,154 @@
+// skintune (internal to tuner/): what the three backends (opencl_backend.cpp,
+// cuda_backend.cpp, gl_backend.cpp) share: the dataset cache, the one
+// Measure procedure (verify, then time) written once over a small executor
+// interface each backend implements with its runner, the rotation rule, the
+// injected faults' kernel edits, and the factories DiscoverBackends calls.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "generator/constraints.h"
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "reference/asset.h"
+#include "reference/skinning.h"
+#include "runtime/opencl_devices.h"
+#include "tuner/backend.h"
+
+namespace skintune::tuner_internal {
+
+// ---------------------------------------------------------------- rotation rule
+
+// The last-level cache assumed when a device does not report one.
+inline constexpr std::uint64_t kUnknownLastLevelCacheBytes = 64ull << 20;
+
+// Input sets to rotate among while timing, so that no repetition finds its
+// inputs in cache: K = ceil(2 * LLC / bytes_per_set), clamped to
+// 1..max_input_sets (at least 1 whatever max_input_sets says), with LLC =
+// last_level_cache_bytes, or kUnknownLastLevelCacheBytes when that is 0.
+int InputSetsFor(std::uint64_t last_level_cache_bytes, std::uint64_t bytes_per_set, int max_input_sets);
+
+// ---------------------------------------------------------------- datasets
+
+// The assets a backend measures on, made once per key: a synthetic dataset
+// key (reference/synthetic.h) or a glTF path (.gltf / .glb), with the palettes
+// of its animation frames and, per weight format and normals, the float64 gold
+// of the verification frame.
+class DatasetCache {
+ public:
+  struct Entry {
+    SkinnedAsset asset;
+    std::vector<glm::mat4> verification_palette;  // FramePalettes(asset, 1)[0]
+    std::map<std::pair<int, bool>, GoldResult> gold;  // (weight format, normals)
+  };
+  // Throws Error for a malformed key or a glTF file that cannot be imported.
+  Entry& Get(const std::string& key);
+  // The gold of `variant`'s quantised mesh at the verification frame.
+  const GoldResult& Gold(Entry& entry, const Variant& variant);
+
+ private:
+  std::map<std::string, std::unique_ptr<Entry>> entries_;
+};
+
+bool IsGltfPath(const std::string& key);
+
+// `count` palettes of the asset's first animation at evenly spaced times
+// (frame k at start + duration * (k + 0.5) / count); the rest pose, repeated,
+// when the asset has no animation.
+std::vector<std::vector<glm::mat4>> FramePalettes(const SkinnedAsset& asset, int count);
+
+// ---------------------------------------------------------------- measuring
+
+// What Measure needs from a backend's runner.
+class Executor {
+ public:
+  struct Output {
+    std::vector<std::uint8_t> positions, normals;  // packed order
+    std::size_t poisoned_vertices = 0;
+  };
+  virtual ~Executor() = default;
+  // One verification run: poisoned outputs and guards (the runners' Run).
+  virtual Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                     std::span<const std::uint8_t> palette) = 0;
+  // Prepare (one input set per palette) + Time: per timed frame, ms.
+  virtual std::vector<double> Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                   std::span<const std::vector<std::uint8_t>> palettes, int warmup,
+                                   int repetitions) = 0;
+};
+
+// Executor over a runner (OpenClRunner, CudaRunner, GlRunner: the same
+// Run / Prepare / Time shape).
+template <typename Runner>
+class RunnerExecutor final : public Executor {
+ public:
+  explicit RunnerExecutor(Runner& runner) : runner_(runner) {}
+  Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+             std::span<const std::uint8_t> palette) override {
+    auto result = runner_.Run(mesh, kernels, palette);
+    return {std::move(result.positions), std::move(result.normals), result.poisoned_vertices};
+  }
+  std::vector<double> Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                           std::span<const std::vector<std::uint8_t>> palettes, int warmup, int repetitions) override {
+    const auto prepared = runner_.Prepare(mesh, kernels, palettes);
+    return runner_.Time(prepared, warmup, repetitions);
+  }
+
+ private:
+  Runner& runner_;
+};
+
+// The one Measure of every backend (tuner/backend.h): checks the variant
+// against the device's limits and the mesh (invalid), packs and emits it
+// (invalid when that throws), applies the injected fault, verifies one run
+// against the gold (compile_failed / launch_failed / verify_failed), then
+// times it rotating among InputSetsFor(...) input sets.
+Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const DeviceIdentity& identity,
+                        const DeviceLimits& limits, const std::vector<Lang>& languages, const Variant& variant,
+                        const TuningDataset& dataset, const TimingOptions& options);
+
+// The status a runner's Error stands for, from the stage its message names
+// ("<API> <stage>: ..."): build -> compile_failed, guard -> verify_failed,
+// anything else -> launch_failed.
+Status StatusOfRunnerError(const std::string& message);
+
+// Edits an emitted kernel so that it fails as `kind` says ("compile": a
+// syntax error; "wrong": vertex 0 of each launch gets x + 1; "hang": a loop
+// on a volatile read of the first input that never ends), and updates its
+// hash. Throws Error for another kind, or when the template no longer has
+// the line the edit hooks on.
+void InjectFault(KernelSource& source, const Variant& variant, const std::string& kind);
+
+// Median (the mean of the middle two for an even count), of a non-empty list.
+double Median(std::vector<double> values);
+
+// GB/s of a copy of `bytes` (read + written) from its per-run times in ms.
+double CopyGBps(std::size_t bytes, const std::vector<double>& ms);
+
+// The copy size CopyBandwidthGBps uses: `bytes` capped at a quarter of the
+// device's largest allocation (when known), rounded down to 4 KiB, at least 4 KiB.
+std::size_t CopyBytesCapped(std::size_t bytes, std::uint64_t max_allocation_bytes);
+
+// Now, UTC, ISO 8601: "2026-11-22T10:11:12Z".
+std::string UtcTimestamp();
+
+// ---------------------------------------------------------------- factories
+
+// Runners are made lazily (on the first Measure or copy), so discovery in a
+// worker that serves one device sets up only that one.
+std::unique_ptr<Backend> MakeOpenClBackend(const OpenClDeviceInfo& device, int index);
+// Throws Error("CUDA setup: ...") when the device cannot be queried.
+std::unique_ptr<Backend> MakeCudaBackend(int cuda_device, int index);
+// Makes the GL context now (its identity needs it); null with `why` set when
+// none can be made.
+std::unique_ptr<Backend> MakeGlBackend(int index, std::string& why);
+
+}  // namespace skintune::tuner_internal

@@ -1,0 +1,111 @@
+// skintune: the CUDA backend: one per CUDA device (driver API + NVRTC loaded
+// at run time), measuring `cuda` variants through CudaRunner.
+#include <dlfcn.h>
+
+#include <cctype>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "runtime/cuda_api.h"
+#include "runtime/cuda_runner.h"
+#include "tuner/backends_internal.h"
+
+namespace skintune::tuner_internal {
+
+namespace {
+
+// The kernel driver's version ("580.159.04"): from /proc/driver/nvidia/version,
+// else from NVML (libnvidia-ml, loaded at run time like the rest of CUDA;
+// containers often have no /proc entry), else empty (the CUDA version then
+// stands alone). Looked up once per process.
+std::string KernelDriverVersion() {
+  static const std::string version = []() -> std::string {
+    std::ifstream in("/proc/driver/nvidia/version");
+    std::string line;
+    if (std::getline(in, line)) {
+      // "NVRM version: NVIDIA UNIX x86_64 Kernel Module  580.159.04  Tue ..."
+      std::istringstream words(line);
+      std::string word, previous;
+      while (words >> word) {
+        if (previous == "Module" && std::isdigit(static_cast<unsigned char>(word[0]))) return word;
+        previous = word;
+      }
+    }
+    void* nvml = dlopen("libnvidia-ml.so.1", RTLD_LAZY | RTLD_LOCAL);
+    if (!nvml) return "";  // kept loaded when found: never unloaded, like libcuda
+    using Call = int (*)();
+    using DriverVersion = int (*)(char*, unsigned int);
+    const auto init = reinterpret_cast<Call>(dlsym(nvml, "nvmlInit_v2"));
+    const auto driver_version = reinterpret_cast<DriverVersion>(dlsym(nvml, "nvmlSystemGetDriverVersion"));
+    const auto shutdown = reinterpret_cast<Call>(dlsym(nvml, "nvmlShutdown"));
+    std::string found;
+    if (init && driver_version && init() == 0) {  // NVML_SUCCESS
+      char text[96] = {};
+      if (driver_version(text, sizeof text - 1) == 0) found = text;
+      if (shutdown) shutdown();
+    }
+    return found;
+  }();
+  return version;
+}
+
+std::string CudaVersion(int version) {
+  return "CUDA " + std::to_string(version / 1000) + "." + std::to_string(version % 1000 / 10);
+}
+
+class CudaBackend final : public Backend {
+ public:
+  CudaBackend(const CudaDeviceInfo& device, int index) : device_(device) {
+    identity_.backend = "cuda";
+    identity_.index = index;
+    identity_.platform = "CUDA";
+    identity_.vendor = "NVIDIA";
+    identity_.name = device.name;
+    const std::string kernel_driver = KernelDriverVersion();
+    identity_.driver_version = kernel_driver.empty() ? CudaVersion(device.driver_version)
+                                                     : kernel_driver + " (" + CudaVersion(device.driver_version) + ")";
+    identity_.api_version = std::to_string(device.major) + "." + std::to_string(device.minor);
+    identity_.type = "gpu";
+    identity_.compute_units = static_cast<std::uint32_t>(device.multiprocessors);
+    identity_.global_memory_bytes = device.total_memory_bytes;
+    identity_.local_memory_bytes = device.limits.local_memory_bytes;
+    identity_.constant_memory_bytes = device.limits.constant_memory_bytes;
+    identity_.last_level_cache_bytes = device.l2_cache_bytes;  // CU_DEVICE_ATTRIBUTE_L2_CACHE_SIZE
+  }
+
+  const DeviceIdentity& identity() const override { return identity_; }
+  // CudaRunner::limits() comes from the same query (QueryCudaDevice).
+  DeviceLimits limits() const override { return runner_ ? runner_->limits() : device_.limits; }
+  std::vector<Lang> languages() const override { return {Lang::kCuda}; }
+
+  Measurement Measure(const Variant& variant, const TuningDataset& dataset, const TimingOptions& options) override {
+    RunnerExecutor<CudaRunner> executor{Runner()};
+    return MeasureWith(executor, datasets_, identity_, limits(), languages(), variant, dataset, options);
+  }
+
+  double CopyBandwidthGBps(std::size_t bytes) override {
+    // No maximum allocation query in CUDA: the device's memory stands for it.
+    const std::size_t size = CopyBytesCapped(bytes, device_.total_memory_bytes);
+    return CopyGBps(size, Runner().TimeCopy(size, 2, 10));
+  }
+
+ private:
+  CudaRunner& Runner() {
+    if (!runner_) runner_ = std::make_unique<CudaRunner>(device_.index);
+    return *runner_;
+  }
+
+  CudaDeviceInfo device_;
+  DeviceIdentity identity_;
+  std::unique_ptr<CudaRunner> runner_;  // made on first use (retains the primary context)
+  DatasetCache datasets_;
+};
+
+}  // namespace
+
+std::unique_ptr<Backend> MakeCudaBackend(int cuda_device, int index) {
+  return std::make_unique<CudaBackend>(QueryCudaDevice(cuda_device), index);
+}
+
+}  // namespace skintune::tuner_internal

@@ -1,0 +1,249 @@
+#include "tuner/measurement.h"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+
+namespace skintune {
+
+namespace {
+
+constexpr Status kAllStatuses[] = {Status::kOk,           Status::kInvalid,      Status::kCompileFailed,
+                                   Status::kLaunchFailed, Status::kVerifyFailed, Status::kTimeout};
+
+std::string SystemError() { return std::strerror(errno); }
+
+// Non-finite numbers (an infinite relative error of a kernel that wrote NaN)
+// have no JSON form: they are written as the strings "inf", "-inf", "nan".
+nlohmann::json Number(double value) {
+  if (std::isnan(value)) return "nan";
+  if (std::isinf(value)) return value > 0 ? "inf" : "-inf";
+  return value;
+}
+
+const nlohmann::json* Field(const nlohmann::json& in, const char* name, bool required, const std::string& where) {
+  if (!in.contains(name)) {
+    if (required) throw Error(where + ": missing field '" + name + "'");
+    return nullptr;
+  }
+  return &in[name];
+}
+
+std::string ReadString(const nlohmann::json& in, const char* name, bool required, const std::string& where) {
+  const nlohmann::json* value = Field(in, name, required, where);
+  if (!value) return {};
+  if (!value->is_string()) throw Error(where + ": '" + name + "' must be a string");
+  return value->get<std::string>();
+}
+
+double ReadNumber(const nlohmann::json& in, const char* name, const std::string& where) {
+  const nlohmann::json* value = Field(in, name, false, where);
+  if (!value) return 0.0;
+  if (value->is_number()) return value->get<double>();
+  if (value->is_string()) {
+    const std::string text = value->get<std::string>();
+    if (text == "inf") return std::numeric_limits<double>::infinity();
+    if (text == "-inf") return -std::numeric_limits<double>::infinity();
+    if (text == "nan") return std::numeric_limits<double>::quiet_NaN();
+  }
+  throw Error(where + ": '" + name + "' must be a number");
+}
+
+int ReadInt(const nlohmann::json& in, const char* name, const std::string& where) {
+  const nlohmann::json* value = Field(in, name, false, where);
+  if (!value) return 0;
+  if (!value->is_number_integer()) throw Error(where + ": '" + name + "' must be an integer");
+  return value->get<int>();
+}
+
+}  // namespace
+
+const char* Name(Status status) {
+  switch (status) {
+    case Status::kOk: return "ok";
+    case Status::kInvalid: return "invalid";
+    case Status::kCompileFailed: return "compile_failed";
+    case Status::kLaunchFailed: return "launch_failed";
+    case Status::kVerifyFailed: return "verify_failed";
+    case Status::kTimeout: return "timeout";
+  }
+  return "unknown";
+}
+
+Status StatusFromName(const std::string& name) {
+  std::string choices;
+  for (Status s : kAllStatuses) {
+    if (name == Name(s)) return s;
+    choices += (choices.empty() ? "" : ", ") + std::string(Name(s));
+  }
+  throw Error("unknown status '" + name + "' (expected one of " + choices + ")");
+}
+
+std::string Measurement::CacheKey() const {
+  return device_id + "|" + generator_version + "|" + dataset + "|" + variant.Key();
+}
+
+void to_json(nlohmann::json& out, const Measurement& m) {
+  out = nlohmann::json::object();
+  out["device_id"] = m.device_id;
+  out["dataset"] = m.dataset;
+  out["variant"] = m.variant;
+  out["status"] = Name(m.status);
+  out["detail"] = m.detail;
+  out["timing"] = {{"median_ms", Number(m.timing.median_ms)}, {"min_ms", Number(m.timing.min_ms)},
+                   {"max_ms", Number(m.timing.max_ms)},       {"warmup", m.timing.warmup},
+                   {"repetitions", m.timing.repetitions},     {"input_sets", m.timing.input_sets}};
+  out["bytes_per_frame"] = Number(m.bytes_per_frame);
+  out["gbps"] = Number(m.gbps);
+  out["max_relative_error"] = Number(m.max_relative_error);
+  out["generator_version"] = m.generator_version;
+  out["timestamp"] = m.timestamp;
+}
+
+void from_json(const nlohmann::json& in, Measurement& m) {
+  const std::string where = "measurement";
+  if (!in.is_object()) throw Error(where + ": expected an object");
+  m = Measurement{};
+  m.device_id = ReadString(in, "device_id", true, where);
+  m.dataset = ReadString(in, "dataset", true, where);
+  try {
+    m.variant = Field(in, "variant", true, where)->get<Variant>();
+  } catch (const Error& e) {
+    throw Error(where + ": 'variant': " + e.what());
+  }
+  const std::string status = ReadString(in, "status", true, where);
+  try {
+    m.status = StatusFromName(status);
+  } catch (const Error& e) {
+    throw Error(where + ": 'status': " + e.what());
+  }
+  m.detail = ReadString(in, "detail", false, where);
+  if (const nlohmann::json* timing = Field(in, "timing", false, where)) {
+    const std::string t = where + ": 'timing'";
+    if (!timing->is_object()) throw Error(t + ": expected an object");
+    m.timing.median_ms = ReadNumber(*timing, "median_ms", t);
+    m.timing.min_ms = ReadNumber(*timing, "min_ms", t);
+    m.timing.max_ms = ReadNumber(*timing, "max_ms", t);
+    m.timing.warmup = ReadInt(*timing, "warmup", t);
+    m.timing.repetitions = ReadInt(*timing, "repetitions", t);
+    m.timing.input_sets = ReadInt(*timing, "input_sets", t);
+  }
+  m.bytes_per_frame = ReadNumber(in, "bytes_per_frame", where);
+  m.gbps = ReadNumber(in, "gbps", where);
+  m.max_relative_error = ReadNumber(in, "max_relative_error", where);
+  m.generator_version = ReadString(in, "generator_version", true, where);
+  m.timestamp = ReadString(in, "timestamp", false, where);
+}
+
+// ------------------------------------------------------------------ MeasurementCache
+
+MeasurementCache::MeasurementCache(const std::string& path) : path_(path) {
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw Error(path + ": cannot open the measurement cache for appending (" + SystemError() + ")");
+  try {
+    struct stat info {};
+    if (::fstat(fd_, &info) != 0) throw Error(path + ": cannot stat (" + SystemError() + ")");
+    if (!S_ISREG(info.st_mode)) throw Error(path + ": not a regular file");
+    // One writer at a time: a second `skintune tune` on the same cache would
+    // measure the same variants twice. The lock goes with the process.
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      if (errno == EWOULDBLOCK) throw Error(path + ": in use by another skintune tune (locked)");
+      throw Error(path + ": cannot lock (" + SystemError() + ")");
+    }
+    std::string data;
+    data.resize(static_cast<std::size_t>(info.st_size));
+    std::size_t got = 0;
+    while (got < data.size()) {
+      const ssize_t n = ::pread(fd_, data.data() + got, data.size() - got, static_cast<off_t>(got));
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) throw Error(path + ": cannot read (" + SystemError() + ")");
+      if (n == 0) break;
+      got += static_cast<std::size_t>(n);
+    }
+    data.resize(got);
+
+    std::size_t start = 0;
+    std::size_t line_number = 0;
+    while (start < data.size()) {
+      const std::size_t end = data.find('\n', start);
+      ++line_number;
+      if (end == std::string::npos) {
+        // A torn last line: the run was killed while writing it. Cut it off so
+        // the next append starts on a line of its own.
+        if (::ftruncate(fd_, static_cast<off_t>(start)) != 0) {
+          throw Error(path + ": cannot cut off the incomplete last line " + std::to_string(line_number) + " (" +
+                      SystemError() + ")");
+        }
+        break;
+      }
+      const std::string line = data.substr(start, end - start);
+      start = end + 1;
+      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      Measurement m;
+      try {
+        m = nlohmann::json::parse(line).get<Measurement>();
+      } catch (const nlohmann::json::exception& e) {
+        throw Error(path + ":" + std::to_string(line_number) + ": malformed measurement (" + e.what() + ")");
+      } catch (const Error& e) {
+        throw Error(path + ":" + std::to_string(line_number) + ": malformed " + e.what());
+      }
+      const std::string key = m.CacheKey();
+      const auto found = index_.find(key);
+      if (found != index_.end()) {
+        measurements_[found->second] = std::move(m);  // the later record wins
+      } else {
+        index_.emplace(key, measurements_.size());
+        measurements_.push_back(std::move(m));
+      }
+    }
+  } catch (...) {
+    ::close(fd_);
+    fd_ = -1;
+    throw;
+  }
+}
+
+MeasurementCache::~MeasurementCache() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+const Measurement* MeasurementCache::Find(const std::string& cache_key) const {
+  const auto found = index_.find(cache_key);
+  return found == index_.end() ? nullptr : &measurements_[found->second];
+}
+
+void MeasurementCache::Append(const Measurement& m) {
+  const std::string line = nlohmann::json(m).dump() + "\n";
+  // One write() on an O_APPEND descriptor: the record lands whole at the end
+  // of the file or (killed mid-way, disk full) as a torn line the next open cuts.
+  ssize_t n;
+  do {
+    n = ::write(fd_, line.data(), line.size());
+  } while (n < 0 && errno == EINTR);
+  if (n < 0) throw Error(path_ + ": cannot append a measurement (" + SystemError() + ")");
+  if (static_cast<std::size_t>(n) != line.size()) {
+    throw Error(path_ + ": short write appending a measurement (" + std::to_string(n) + " of " +
+                std::to_string(line.size()) + " bytes; disk full?)");
+  }
+  if (::fsync(fd_) != 0) throw Error(path_ + ": fsync failed (" + SystemError() + ")");
+  const std::string key = m.CacheKey();
+  const auto found = index_.find(key);
+  if (found != index_.end()) {
+    measurements_[found->second] = m;
+  } else {
+    index_.emplace(key, measurements_.size());
+    measurements_.push_back(m);
+  }
+}
+
+}  // namespace skintune

@@ -1,0 +1,80 @@
+// skintune: one tuning measurement (a variant on a device and dataset) and
+// the append-only cache that makes a tuning run resumable.
+//
+// Every variant ends with exactly one Status. A time counts only when the
+// variant's output passed verification against the float64 gold on that
+// device (status ok).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "generator/variant.h"
+
+namespace skintune {
+
+enum class Status { kOk, kInvalid, kCompileFailed, kLaunchFailed, kVerifyFailed, kTimeout };
+const char* Name(Status);
+Status StatusFromName(const std::string& name);  // throws Error for an unknown name
+
+struct Timing {
+  double median_ms = 0.0;
+  double min_ms = 0.0;
+  double max_ms = 0.0;
+  int warmup = 0;          // untimed runs before the repetitions
+  int repetitions = 0;     // timed runs (device-side timers)
+  int input_sets = 0;      // distinct input buffers rotated between runs (the rotation rule is in docs/TUNING.md)
+};
+
+struct Measurement {
+  std::string device_id;          // DeviceIdentity::Id() (includes the driver version)
+  std::string dataset;            // dataset key (reference/synthetic.h) or glTF file name
+  Variant variant;
+  Status status = Status::kOk;
+  std::string detail;             // invalid: the constraint and its message; compile_failed: the first
+                                  // lines of the build log; launch/verify failures: the error; timeout: the limit
+  Timing timing;                  // status ok only
+  double bytes_per_frame = 0.0;   // bytes the variant's format must move per frame (inputs + outputs)
+  double gbps = 0.0;              // bytes_per_frame / median time (status ok only)
+  double max_relative_error = 0.0;  // against the gold (ok and verify_failed)
+  std::string generator_version;
+  std::string timestamp;          // UTC, ISO 8601
+
+  // The cache key: device identity (with driver), generator version, dataset, variant.
+  std::string CacheKey() const;
+};
+
+void to_json(nlohmann::json& out, const Measurement& m);
+void from_json(const nlohmann::json& in, Measurement& m);
+
+// Append-only JSON-lines file of measurements. Each Append writes one complete
+// line with a single write() on an O_APPEND descriptor and fsyncs it, so a run
+// killed at any moment leaves every finished measurement on disk; a torn last
+// line (killed mid-write) is ignored and cut off when the file is reopened.
+class MeasurementCache {
+ public:
+  // Opens (creating) the file. Throws Error naming the file when it cannot
+  // be read, created or written, or when a complete line is malformed.
+  explicit MeasurementCache(const std::string& path);
+  ~MeasurementCache();
+  MeasurementCache(const MeasurementCache&) = delete;
+  MeasurementCache& operator=(const MeasurementCache&) = delete;
+
+  const Measurement* Find(const std::string& cache_key) const;
+  void Append(const Measurement& m);
+  const std::vector<Measurement>& all() const { return measurements_; }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+  std::vector<Measurement> measurements_;
+  std::map<std::string, std::size_t> index_;
+};
+
+}  // namespace skintune

@@ -1,0 +1,452 @@
+#include "tuner/report.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <optional>
+#include <regex>
+#include <tuple>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+
+namespace skintune {
+
+namespace {
+
+constexpr const char* kReportKind = "skintune-report";
+constexpr const char* kDatabaseKind = "skintune-winners-db";
+constexpr std::array<const char*, 4> kBuckets{"25k", "100k", "400k", "1600k"};
+constexpr std::array<Lang, 4> kLangs{Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex};
+
+std::size_t BucketIndex(const std::string& bucket) {
+  for (std::size_t i = 0; i < kBuckets.size(); ++i)
+    if (bucket == kBuckets[i]) return i;
+  return kBuckets.size();
+}
+
+std::optional<Lang> LangFromName(const std::string& name) {
+  for (Lang l : kLangs)
+    if (name == Name(l)) return l;
+  return std::nullopt;
+}
+
+// `created` is UTC ISO 8601: "YYYY-MM-DDTHH:MM:SS" with optional fractional
+// seconds, then "Z" or "+00:00".
+const std::regex& CreatedPattern() {
+  static const std::regex pattern(R"(^(\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2})(\.\d+)?(Z|\+00:00)$)");
+  return pattern;
+}
+
+std::string CheckedCreated(const std::string& created) {
+  if (!std::regex_match(created, CreatedPattern())) {
+    throw Error("'created' is '" + created + "', expected UTC ISO 8601 such as 2025-01-31T12:00:00Z");
+  }
+  return created;
+}
+
+// Whether `a` is earlier than `b` (both matching CreatedPattern).
+bool CreatedBefore(const std::string& a, const std::string& b) {
+  std::smatch ma;
+  std::smatch mb;
+  std::regex_match(a, ma, CreatedPattern());
+  std::regex_match(b, mb, CreatedPattern());
+  if (ma[1].str() != mb[1].str()) return ma[1].str() < mb[1].str();
+  // Fractional seconds: compare the digits padded to the same length.
+  std::string fa = ma[2].matched ? ma[2].str().substr(1) : "";
+  std::string fb = mb[2].matched ? mb[2].str().substr(1) : "";
+  const std::size_t n = std::max(fa.size(), fb.size());
+  fa.resize(n, '0');
+  fb.resize(n, '0');
+  return fa < fb;
+}
+
+// Runs `read`, prefixing any error with "<context>: <element>: ".
+template <typename F>
+auto At(const std::string& context, const std::string& element, F&& read) -> decltype(read()) {
+  try {
+    return read();
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(context + ": " + element + ": " + e.what());
+  } catch (const Error& e) {
+    throw Error(context + ": " + element + ": " + e.what());
+  }
+}
+
+const nlohmann::json& Field(const nlohmann::json& object, const char* name) {
+  if (!object.contains(name)) throw Error(std::string("missing '") + name + "'");
+  return object.at(name);
+}
+
+std::string String(const nlohmann::json& object, const char* name) {
+  const nlohmann::json& v = Field(object, name);
+  if (!v.is_string()) throw Error(std::string("'") + name + "' must be a string");
+  return v.get<std::string>();
+}
+
+double Number(const nlohmann::json& object, const char* name) {
+  const nlohmann::json& v = Field(object, name);
+  if (!v.is_number()) throw Error(std::string("'") + name + "' must be a number");
+  return v.get<double>();
+}
+
+std::int64_t Integer(const nlohmann::json& object, const char* name) {
+  const nlohmann::json& v = Field(object, name);
+  if (!v.is_number_integer()) throw Error(std::string("'") + name + "' must be an integer");
+  return v.get<std::int64_t>();
+}
+
+const nlohmann::json& Array(const nlohmann::json& object, const char* name) {
+  const nlohmann::json& v = Field(object, name);
+  if (!v.is_array()) throw Error(std::string("'") + name + "' must be an array");
+  return v;
+}
+
+void CheckHeader(const nlohmann::json& json, const std::string& context, const char* kind) {
+  if (!json.is_object()) throw Error(context + ": expected a JSON object");
+  const std::string version = At(context, "schema_version", [&] { return String(json, "schema_version"); });
+  if (version.substr(0, version.find('.')) != "1") {
+    throw Error(context + ": schema_version '" + version + "' is not supported (this skintune reads 1.x, writes " +
+                kReportSchemaVersion + ")");
+  }
+  const std::string actual = At(context, "kind", [&] { return String(json, "kind"); });
+  if (actual != kind) throw Error(context + ": kind is '" + actual + "', expected '" + kind + "'");
+}
+
+std::string BackendOf(const TuningReport& report, const std::string& device_id) {
+  for (const DeviceIdentity& d : report.devices)
+    if (d.Id() == device_id) return d.backend;
+  return device_id.substr(0, device_id.find(':'));  // "<backend>:<platform>/<name>/<driver>"
+}
+
+nlohmann::json WinnerJson(const Winner& w) {
+  return {{"device_id", w.device_id},   {"backend", w.backend},
+          {"lang", Name(w.lang)},       {"influences", w.influences},
+          {"vertex_bucket", w.vertex_bucket}, {"dataset", w.dataset},
+          {"variant", w.variant},       {"median_ms", w.median_ms},
+          {"gbps", w.gbps},             {"copy_fraction", w.copy_fraction}};
+}
+
+// The merge key of a winner / database entry.
+using EntryKey = std::tuple<std::string, int, int, std::size_t>;  // device id, lang, influences, bucket
+
+struct Entry {
+  Winner winner;
+  std::string created;  // of the report it came from
+  std::string source;   // that report's config and strategy, for provenance
+};
+
+nlohmann::json EntryJson(const Entry& e) {
+  nlohmann::json j = WinnerJson(e.winner);
+  j["created"] = e.created;
+  j["source"] = e.source;
+  return j;
+}
+
+Entry EntryFromJson(const nlohmann::json& j) {
+  if (!j.is_object()) throw Error("expected an object");
+  Entry e;
+  Winner& w = e.winner;
+  w.device_id = String(j, "device_id");
+  w.backend = String(j, "backend");
+  const std::string lang = String(j, "lang");
+  const std::optional<Lang> l = LangFromName(lang);
+  if (!l) throw Error("'lang' has unknown value '" + lang + "'");
+  w.lang = *l;
+  w.influences = static_cast<int>(Integer(j, "influences"));
+  w.vertex_bucket = String(j, "vertex_bucket");
+  if (BucketIndex(w.vertex_bucket) == kBuckets.size()) {
+    throw Error("'vertex_bucket' has unknown value '" + w.vertex_bucket + "' (expected 25k, 100k, 400k or 1600k)");
+  }
+  w.dataset = String(j, "dataset");
+  w.variant = Field(j, "variant").get<Variant>();
+  if (w.variant.lang != w.lang || w.variant.influences != w.influences) {
+    throw Error("'variant' " + w.variant.Key() + " does not match 'lang' and 'influences'");
+  }
+  w.median_ms = Number(j, "median_ms");
+  w.gbps = Number(j, "gbps");
+  w.copy_fraction = Number(j, "copy_fraction");
+  e.created = CheckedCreated(String(j, "created"));
+  e.source = String(j, "source");
+  return e;
+}
+
+EntryKey KeyOf(const Winner& w) {
+  return {w.device_id, static_cast<int>(w.lang), w.influences, BucketIndex(w.vertex_bucket)};
+}
+
+std::vector<Entry> EntriesOf(const TuningReport& report) {
+  std::vector<Entry> entries;
+  for (Winner& w : ComputeWinners(report)) {
+    entries.push_back({std::move(w), report.created, report.config + " (" + report.strategy + ")"});
+  }
+  return entries;
+}
+
+nlohmann::json DatabaseJson(const std::vector<Entry>& entries) {
+  nlohmann::json db = {{"schema_version", kReportSchemaVersion},
+                       {"kind", kDatabaseKind},
+                       {"entries", nlohmann::json::array()}};
+  for (const Entry& e : entries) db["entries"].push_back(EntryJson(e));
+  return db;
+}
+
+}  // namespace
+
+std::string VertexBucket(std::size_t vertices) {
+  if (vertices < 50000) return kBuckets[0];
+  if (vertices < 200000) return kBuckets[1];
+  if (vertices < 800000) return kBuckets[2];
+  return kBuckets[3];
+}
+
+std::vector<Winner> ComputeWinners(const TuningReport& report) {
+  std::map<std::string, const DatasetInfo*> datasets;
+  for (const DatasetInfo& d : report.datasets) datasets[d.key] = &d;
+  std::map<EntryKey, Winner> best;
+  for (const Measurement& m : report.measurements) {
+    if (m.status != Status::kOk) continue;  // a failed variant is never a winner
+    const auto dataset = datasets.find(m.dataset);
+    if (dataset == datasets.end()) {
+      throw Error("report: a measurement is of dataset '" + m.dataset + "', which is not in its datasets");
+    }
+    Winner w;
+    w.device_id = m.device_id;
+    w.lang = m.variant.lang;
+    w.influences = m.variant.influences;
+    w.vertex_bucket = VertexBucket(dataset->second->vertices);
+    const EntryKey key = KeyOf(w);
+    const auto it = best.find(key);
+    if (it != best.end() && it->second.median_ms <= m.timing.median_ms) continue;  // ties: the first one
+    w.backend = BackendOf(report, m.device_id);
+    w.dataset = m.dataset;
+    w.variant = m.variant;
+    w.median_ms = m.timing.median_ms;
+    w.gbps = m.gbps;
+    const auto copy = report.copy_bandwidth_gbps.find(m.device_id);
+    w.copy_fraction = copy != report.copy_bandwidth_gbps.end() && copy->second > 0.0 ? m.gbps / copy->second : 0.0;
+    best.insert_or_assign(key, std::move(w));
+  }
+  std::vector<Winner> out;
+  for (auto& [key, w] : best) out.push_back(std::move(w));
+  return out;
+}
+
+nlohmann::json ReportToJson(const TuningReport& report) {
+  nlohmann::json out;
+  out["schema_version"] = kReportSchemaVersion;
+  out["kind"] = kReportKind;
+  out["created"] = report.created;
+  out["config"] = report.config;
+  out["strategy"] = report.strategy;
+  out["machine"] = report.machine.is_null() ? nlohmann::json::object() : report.machine;
+  out["devices"] = nlohmann::json::array();
+  for (const DeviceIdentity& d : report.devices) {
+    nlohmann::json dj = d;
+    dj["id"] = d.Id();
+    out["devices"].push_back(std::move(dj));
+  }
+  out["copy_bandwidth_gbps"] = nlohmann::json::object();
+  for (const auto& [id, gbps] : report.copy_bandwidth_gbps) out["copy_bandwidth_gbps"][id] = gbps;
+  out["skipped"] = report.skipped;
+  out["datasets"] = nlohmann::json::array();
+  for (const DatasetInfo& d : report.datasets) {
+    out["datasets"].push_back(
+        {{"key", d.key}, {"vertices", d.vertices}, {"influences", d.influences}, {"joints", d.joints}});
+  }
+  out["measurements"] = nlohmann::json::array();
+  for (const Measurement& m : report.measurements) out["measurements"].push_back(m);
+  out["winners"] = nlohmann::json::array();
+  for (const Winner& w : ComputeWinners(report)) out["winners"].push_back(WinnerJson(w));
+  return out;
+}
+
+TuningReport ReportFromJson(const nlohmann::json& json, const std::string& context) {
+  CheckHeader(json, context, kReportKind);
+  TuningReport r;
+  r.created = At(context, "created", [&] { return CheckedCreated(String(json, "created")); });
+  r.config = At(context, "config", [&] { return String(json, "config"); });
+  r.strategy = At(context, "strategy", [&] { return String(json, "strategy"); });
+  r.machine = At(context, "machine", [&] {
+    const nlohmann::json& m = Field(json, "machine");
+    if (!m.is_object()) throw Error("must be an object");
+    return m;
+  });
+  const nlohmann::json& devices = At(context, "devices", [&]() -> const nlohmann::json& { return Array(json, "devices"); });
+  for (std::size_t i = 0; i < devices.size(); ++i) {
+    r.devices.push_back(At(context, "devices[" + std::to_string(i) + "]", [&] {
+      DeviceIdentity d = devices[i].get<DeviceIdentity>();
+      if (devices[i].contains("id") && devices[i]["id"] != d.Id()) {
+        throw Error("'id' " + devices[i]["id"].dump() + " does not match the identity (" + d.Id() + ")");
+      }
+      return d;
+    }));
+  }
+  const nlohmann::json& copy = At(context, "copy_bandwidth_gbps", [&]() -> const nlohmann::json& {
+    const nlohmann::json& c = Field(json, "copy_bandwidth_gbps");
+    if (!c.is_object()) throw Error("must be an object");
+    return c;
+  });
+  for (const auto& [id, gbps] : copy.items()) {
+    r.copy_bandwidth_gbps[id] = At(context, "copy_bandwidth_gbps[\"" + id + "\"]", [&] {
+      if (!gbps.is_number()) throw Error("must be a number");
+      return gbps.get<double>();
+    });
+  }
+  const nlohmann::json& skipped = At(context, "skipped", [&]() -> const nlohmann::json& { return Array(json, "skipped"); });
+  for (std::size_t i = 0; i < skipped.size(); ++i) {
+    r.skipped.push_back(At(context, "skipped[" + std::to_string(i) + "]", [&] {
+      if (!skipped[i].is_string()) throw Error("must be a string");
+      return skipped[i].get<std::string>();
+    }));
+  }
+  const nlohmann::json& datasets = At(context, "datasets", [&]() -> const nlohmann::json& { return Array(json, "datasets"); });
+  for (std::size_t i = 0; i < datasets.size(); ++i) {
+    r.datasets.push_back(At(context, "datasets[" + std::to_string(i) + "]", [&] {
+      const nlohmann::json& d = datasets[i];
+      if (!d.is_object()) throw Error("expected an object");
+      DatasetInfo info;
+      info.key = String(d, "key");
+      const std::int64_t vertices = Integer(d, "vertices");
+      if (vertices < 0) throw Error("'vertices' must not be negative");
+      info.vertices = static_cast<std::size_t>(vertices);
+      info.influences = static_cast<int>(Integer(d, "influences"));
+      info.joints = static_cast<int>(Integer(d, "joints"));
+      return info;
+    }));
+  }
+  const nlohmann::json& measurements =
+      At(context, "measurements", [&]() -> const nlohmann::json& { return Array(json, "measurements"); });
+  for (std::size_t i = 0; i < measurements.size(); ++i) {
+    r.measurements.push_back(At(context, "measurements[" + std::to_string(i) + "]", [&] {
+      Measurement m = measurements[i].get<Measurement>();
+      if (std::none_of(r.datasets.begin(), r.datasets.end(), [&](const DatasetInfo& d) { return d.key == m.dataset; })) {
+        throw Error("dataset '" + m.dataset + "' is not in 'datasets'");
+      }
+      return m;
+    }));
+  }
+  // "winners" is derived from the measurements: recomputed, never trusted.
+  return r;
+}
+
+nlohmann::json ReportToT4(const TuningReport& report) {
+  nlohmann::json metadata = {{"generator", "skintune"},
+                             {"skintune_report_schema_version", kReportSchemaVersion},
+                             {"created", report.created},
+                             {"config", report.config},
+                             {"strategy", report.strategy},
+                             {"machine", report.machine.is_null() ? nlohmann::json::object() : report.machine},
+                             {"devices", nlohmann::json::array()},
+                             {"copy_bandwidth_gbps", nlohmann::json::object()},
+                             {"datasets", nlohmann::json::array()}};
+  for (const DeviceIdentity& d : report.devices) {
+    nlohmann::json dj = d;
+    dj["id"] = d.Id();
+    metadata["devices"].push_back(std::move(dj));
+  }
+  for (const auto& [id, gbps] : report.copy_bandwidth_gbps) metadata["copy_bandwidth_gbps"][id] = gbps;
+  for (const DatasetInfo& d : report.datasets) {
+    metadata["datasets"].push_back(
+        {{"key", d.key}, {"vertices", d.vertices}, {"influences", d.influences}, {"joints", d.joints}});
+  }
+
+  nlohmann::json results = nlohmann::json::array();
+  for (const Measurement& m : report.measurements) {
+    nlohmann::json configuration = m.variant;  // the tuning parameters: one entry per variant axis
+    configuration.erase("key");
+    nlohmann::json r;
+    r["timestamp"] = m.timestamp;
+    r["configuration"] = std::move(configuration);
+    r["objectives"] = nlohmann::json::array({"time"});
+    // Only the summary of the timed repetitions is recorded, not each run:
+    // "runtimes" holds the median (the time skintune ranks variants by).
+    nlohmann::json times = {{"runtimes", nlohmann::json::array()}};
+    nlohmann::json measurements = nlohmann::json::array();
+    // T4 measurement values are numbers: a non-finite one (the relative error
+    // of a kernel that wrote NaN) is left out; the status says why it failed.
+    auto measure = [&](const char* name, double value, const char* unit) {
+      if (std::isfinite(value)) measurements.push_back({{"name", name}, {"value", value}, {"unit", unit}});
+    };
+    auto count = [&](const char* name, int value) {
+      measurements.push_back({{"name", name}, {"value", value}, {"unit", ""}});
+    };
+    if (m.status == Status::kOk) {
+      times["runtimes"].push_back(m.timing.median_ms);
+      measure("time", m.timing.median_ms, "ms");
+      measure("time_min", m.timing.min_ms, "ms");
+      measure("time_max", m.timing.max_ms, "ms");
+      count("repetitions", m.timing.repetitions);
+      count("warmup", m.timing.warmup);
+      count("input_sets", m.timing.input_sets);
+      measure("bandwidth", m.gbps, "GB/s");
+    }
+    measure("bytes_per_frame", m.bytes_per_frame, "B");
+    if (m.status == Status::kOk || m.status == Status::kVerifyFailed) {
+      measure("max_relative_error", m.max_relative_error, "");
+    }
+    r["times"] = std::move(times);
+    switch (m.status) {
+      case Status::kOk: r["invalidity"] = "correct"; break;
+      case Status::kInvalid: r["invalidity"] = "constraints"; break;
+      case Status::kCompileFailed: r["invalidity"] = "compile"; break;
+      case Status::kLaunchFailed: r["invalidity"] = "runtime"; break;
+      case Status::kVerifyFailed: r["invalidity"] = "correctness"; break;
+      case Status::kTimeout: r["invalidity"] = "timeout"; break;
+    }
+    // 1: the output matched the float64 gold within tolerance; 0: it did not, or was never checked.
+    r["correctness"] = m.status == Status::kOk ? 1 : 0;
+    r["measurements"] = std::move(measurements);
+    // skintune extensions (the T4 schema allows further properties): where it ran, on what, and why it failed.
+    r["device_id"] = m.device_id;
+    r["dataset"] = m.dataset;
+    r["status"] = Name(m.status);
+    if (!m.detail.empty()) r["detail"] = m.detail;
+    results.push_back(std::move(r));
+  }
+  return {{"schema_version", "1.0.0"}, {"metadata", std::move(metadata)}, {"results", std::move(results)}};
+}
+
+nlohmann::json WinnersDatabase(const TuningReport& report) { return DatabaseJson(EntriesOf(report)); }
+
+nlohmann::json MergeWinnersDatabases(const std::vector<nlohmann::json>& reports_or_databases,
+                                     const std::vector<std::string>& names_for_errors) {
+  if (names_for_errors.size() != reports_or_databases.size()) {
+    throw Error("winners database merge: " + std::to_string(reports_or_databases.size()) + " inputs but " +
+                std::to_string(names_for_errors.size()) + " names");
+  }
+  std::map<EntryKey, Entry> merged;
+  for (std::size_t i = 0; i < reports_or_databases.size(); ++i) {
+    const nlohmann::json& input = reports_or_databases[i];
+    const std::string& name = names_for_errors[i];
+    if (!input.is_object()) throw Error(name + ": expected a JSON object (a skintune report or winners database)");
+    const std::string kind = input.contains("kind") && input["kind"].is_string() ? input["kind"].get<std::string>() : "";
+    std::vector<Entry> entries;
+    if (kind == kReportKind) {
+      entries = EntriesOf(ReportFromJson(input, name));
+    } else if (kind == kDatabaseKind) {
+      CheckHeader(input, name, kDatabaseKind);
+      const nlohmann::json& list = At(name, "entries", [&]() -> const nlohmann::json& { return Array(input, "entries"); });
+      for (std::size_t e = 0; e < list.size(); ++e) {
+        entries.push_back(At(name, "entries[" + std::to_string(e) + "]", [&] { return EntryFromJson(list[e]); }));
+      }
+    } else {
+      throw Error(name + ": not a skintune report or winners database (\"kind\" is " +
+                  (kind.empty() ? std::string("missing") : "'" + kind + "'") + ", expected '" + kReportKind +
+                  "' or '" + kDatabaseKind + "')");
+    }
+    // Newest `created` wins per key; on equal `created`, the later input.
+    for (Entry& e : entries) {
+      const EntryKey key = KeyOf(e.winner);
+      const auto it = merged.find(key);
+      if (it == merged.end() || !CreatedBefore(e.created, it->second.created)) merged.insert_or_assign(key, std::move(e));
+    }
+  }
+  std::vector<Entry> out;
+  for (auto& [key, e] : merged) out.push_back(std::move(e));
+  return DatabaseJson(out);
+}
+
+}  // namespace skintune

@@ -1,0 +1,74 @@
+// skintune: the tuning report (versioned JSON, schema in
+// configs/report.schema.json), its winners, the T4 export, and the winners
+// database merged from many machines.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>  // TuningReport holds a json by value (json_fwd.hpp is not enough)
+
+#include "tuner/backend.h"
+#include "tuner/measurement.h"
+
+namespace skintune {
+
+inline constexpr const char* kReportSchemaVersion = "1.0.0";
+
+struct DatasetInfo {
+  std::string key;
+  std::size_t vertices = 0;
+  int influences = 0;   // the mesh's slots per vertex
+  int joints = 0;
+};
+
+struct TuningReport {
+  std::string created;                        // UTC ISO 8601
+  std::string config;                         // config file or "default"
+  std::string strategy;                       // "exhaustive", "random", "coordinate"
+  nlohmann::json machine;                     // hostname, os, cpu model, logical cpus, memory
+  std::vector<DeviceIdentity> devices;
+  std::map<std::string, double> copy_bandwidth_gbps;  // by DeviceIdentity::Id()
+  std::vector<std::string> skipped;           // backends not present, with the reason
+  std::vector<DatasetInfo> datasets;
+  std::vector<Measurement> measurements;
+};
+
+// The paper's vertex counts name the buckets: "25k" (< 50k), "100k" (< 200k),
+// "400k" (< 800k), "1600k" (the rest).
+std::string VertexBucket(std::size_t vertices);
+
+struct Winner {
+  std::string device_id;
+  std::string backend;       // "opencl", "cuda", "gl"
+  Lang lang = Lang::kOpenCl;
+  int influences = 0;
+  std::string vertex_bucket;
+  std::string dataset;
+  Variant variant;
+  double median_ms = 0.0;
+  double gbps = 0.0;
+  double copy_fraction = 0.0;  // gbps / the device's copy bandwidth (0 when unknown)
+};
+
+// The fastest status-ok measurement per (device, language, influences,
+// vertex bucket). A variant that failed verification is never a winner.
+std::vector<Winner> ComputeWinners(const TuningReport& report);
+
+nlohmann::json ReportToJson(const TuningReport& report);
+// Throws Error("<context>: ...") naming the element for a malformed report.
+TuningReport ReportFromJson(const nlohmann::json& json, const std::string& context);
+
+// The T4 autotuning results format (github.com/odgaard/TuningSchema, T4 branch):
+// schema_version, metadata, results[] with configuration, times, invalidity, correctness.
+nlohmann::json ReportToT4(const TuningReport& report);
+
+// Winners database: {"schema_version", "kind": "skintune-winners-db", "entries": [...]}, one
+// entry per (device id with driver, language, influences, vertex bucket). Merging takes reports
+// and/or databases; for the same device+driver the newest report wins (by `created`).
+nlohmann::json WinnersDatabase(const TuningReport& report);
+nlohmann::json MergeWinnersDatabases(const std::vector<nlohmann::json>& reports_or_databases,
+                                     const std::vector<std::string>& names_for_errors);
+
+}  // namespace skintune

@@ -1,0 +1,258 @@
+#include "tuner/strategy.h"
+
+#include <algorithm>
+#include <array>
+#include <limits>
+#include <unordered_map>
+#include <utility>
+
+#include "reference/error.h"
+
+namespace skintune {
+
+namespace {
+
+// SplitMix64 (Steele, Lea, Flood 2014): a tiny PRNG whose output depends only
+// on the seed, so a search is the same on every compiler and platform (the
+// standard library's distributions are implementation-defined).
+class Prng {
+ public:
+  explicit Prng(std::uint64_t seed) : state_(seed) {}
+  std::uint64_t Next() {
+    std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  // Uniform in [0, n), n > 0, without modulo bias (rejection).
+  std::size_t Below(std::size_t n) {
+    const std::uint64_t bound = static_cast<std::uint64_t>(n);
+    const std::uint64_t limit = std::numeric_limits<std::uint64_t>::max() - std::numeric_limits<std::uint64_t>::max() % bound;
+    std::uint64_t x = Next();
+    while (x >= limit) x = Next();
+    return static_cast<std::size_t>(x % bound);
+  }
+
+ private:
+  std::uint64_t state_;
+};
+
+// The axes of a Variant, in field order, as small integers (coordinate descent
+// moves along one of them at a time).
+constexpr std::size_t kAxes = 14;
+using Coords = std::array<int, kAxes>;
+
+Coords CoordsOf(const Variant& v) {
+  return {static_cast<int>(v.lang),     v.influences,
+          static_cast<int>(v.mixed),    static_cast<int>(v.layout),
+          static_cast<int>(v.position), static_cast<int>(v.index),
+          static_cast<int>(v.weight),   static_cast<int>(v.palette),
+          static_cast<int>(v.storage),  static_cast<int>(v.blend),
+          v.vertices_per_item,          static_cast<int>(v.assignment),
+          v.wg_size,                    v.normals ? 1 : 0};
+}
+
+struct CoordsHash {
+  std::size_t operator()(const Coords& c) const {
+    std::uint64_t h = 1469598103934665603ull;  // FNV-1a over the values
+    for (int x : c) {
+      h ^= static_cast<std::uint32_t>(x);
+      h *= 1099511628211ull;
+    }
+    return static_cast<std::size_t>(h);
+  }
+};
+
+// The distinct candidates (first occurrence kept, in order) and the memoised
+// evaluator: each distinct variant costs one evaluation, once.
+class Session {
+ public:
+  Session(const std::vector<Variant>& candidates, const Evaluator& evaluate, std::size_t budget)
+      : evaluate_(evaluate), budget_(budget) {
+    for (const Variant& v : candidates) {
+      const Coords c = CoordsOf(v);
+      if (index_.emplace(c, variants_.size()).second) {
+        variants_.push_back(v);
+        coords_.push_back(c);
+      }
+    }
+    results_.assign(variants_.size(), std::nullopt);
+    evaluated_.assign(variants_.size(), false);
+  }
+
+  std::size_t size() const { return variants_.size(); }
+  const Variant& variant(std::size_t i) const { return variants_[i]; }
+  const Coords& coords(std::size_t i) const { return coords_[i]; }
+  // The candidate at `c`, if there is one.
+  std::optional<std::size_t> Find(const Coords& c) const {
+    const auto it = index_.find(c);
+    if (it == index_.end()) return std::nullopt;
+    return it->second;
+  }
+  bool evaluated(std::size_t i) const { return evaluated_[i]; }
+  // Budget 0 means no limit.
+  bool exhausted() const { return budget_ != 0 && evaluations_ >= budget_; }
+
+  // The time of candidate i: recorded, or evaluated now when the budget allows.
+  // nullopt for a failed variant or when the budget is spent.
+  std::optional<double> Evaluate(std::size_t i) {
+    if (evaluated_[i]) return results_[i];
+    if (exhausted()) return std::nullopt;
+    evaluated_[i] = true;
+    ++evaluations_;
+    results_[i] = evaluate_(variants_[i]);
+    if (results_[i] && (!best_ || *results_[i] < best_ms_)) {
+      best_ = i;
+      best_ms_ = *results_[i];
+    }
+    return results_[i];
+  }
+
+  SearchResult Result() const {
+    SearchResult r;
+    if (best_) {
+      r.best = variants_[*best_];
+      r.best_ms = best_ms_;
+    }
+    r.evaluations = evaluations_;
+    return r;
+  }
+
+ private:
+  const Evaluator& evaluate_;
+  std::size_t budget_;
+  std::vector<Variant> variants_;
+  std::vector<Coords> coords_;
+  std::unordered_map<Coords, std::size_t, CoordsHash> index_;
+  std::vector<std::optional<double>> results_;
+  std::vector<bool> evaluated_;
+  std::size_t evaluations_ = 0;
+  std::optional<std::size_t> best_;
+  double best_ms_ = 0.0;
+};
+
+SearchResult Exhaustive(Session& s) {
+  for (std::size_t i = 0; i < s.size() && !s.exhausted(); ++i) s.Evaluate(i);
+  return s.Result();
+}
+
+SearchResult Random(Session& s, std::uint64_t seed) {
+  // Partial Fisher-Yates: the first `budget` positions of a seeded shuffle.
+  std::vector<std::size_t> order(s.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  Prng prng(seed);
+  for (std::size_t i = 0; i < order.size() && !s.exhausted(); ++i) {
+    std::swap(order[i], order[i + prng.Below(order.size() - i)]);
+    s.Evaluate(order[i]);
+  }
+  return s.Result();
+}
+
+// The candidate closest (fewest differing axes) to a sensible default: the
+// Variant{} defaults (soa, float4, u16 indices, f32 weights, mat3x4 in global
+// memory, matrix blend, one vertex per item, 128 items per group) in the first
+// candidate's language, influence count and normals (those are set by the
+// problem, not tuned). Ties go to the earlier candidate.
+std::size_t DefaultStart(const Session& s) {
+  Variant d;
+  d.lang = s.variant(0).lang;
+  d.influences = s.variant(0).influences;
+  d.normals = s.variant(0).normals;
+  if (d.lang == Lang::kGlslVertex) d.wg_size = 0;
+  const Coords target = CoordsOf(d);
+  std::size_t best = 0;
+  std::size_t best_distance = kAxes + 1;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    std::size_t distance = 0;
+    for (std::size_t a = 0; a < kAxes; ++a) distance += s.coords(i)[a] != target[a] ? 1 : 0;
+    if (distance < best_distance) {
+      best = i;
+      best_distance = distance;
+      if (distance == 0) break;
+    }
+  }
+  return best;
+}
+
+SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts) {
+  // The values each axis takes among the candidates (in increasing order).
+  std::array<std::vector<int>, kAxes> axis_values;
+  for (std::size_t a = 0; a < kAxes; ++a) {
+    std::vector<int>& values = axis_values[a];
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      const int x = s.coords(i)[a];
+      if (std::find(values.begin(), values.end(), x) == values.end()) values.push_back(x);
+    }
+    std::sort(values.begin(), values.end());
+  }
+  // The other candidates that differ from candidate i on axis a only.
+  auto line = [&](std::size_t i, std::size_t a) {
+    std::vector<std::size_t> out;
+    Coords c = s.coords(i);
+    for (int x : axis_values[a]) {
+      if (x == s.coords(i)[a]) continue;
+      c[a] = x;
+      if (const std::optional<std::size_t> j = s.Find(c)) out.push_back(*j);
+    }
+    return out;
+  };
+
+  // One descent from `start`: sweeps over the axes until a full sweep moves nowhere.
+  auto descend = [&](std::size_t start) {
+    std::size_t current = start;
+    std::optional<double> current_ms = s.Evaluate(current);
+    for (bool moved = true; moved && !s.exhausted();) {
+      moved = false;
+      for (std::size_t a = 0; a < kAxes && !s.exhausted(); ++a) {
+        std::size_t best = current;
+        std::optional<double> best_ms = current_ms;
+        for (std::size_t j : line(current, a)) {
+          const std::optional<double> t = s.Evaluate(j);
+          if (t && (!best_ms || *t < *best_ms)) {
+            best = j;
+            best_ms = t;
+          }
+        }
+        if (best != current) {
+          current = best;
+          current_ms = best_ms;
+          moved = true;
+        }
+      }
+    }
+  };
+
+  descend(DefaultStart(s));
+  if (!restarts) return s.Result();
+  // Restarts from random candidates not evaluated yet, while the budget lasts.
+  std::vector<std::size_t> order(s.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  Prng prng(seed);
+  for (std::size_t i = 0; i < order.size() && !s.exhausted(); ++i) {
+    std::swap(order[i], order[i + prng.Below(order.size() - i)]);
+    if (!s.evaluated(order[i])) descend(order[i]);
+  }
+  return s.Result();
+}
+
+}  // namespace
+
+SearchResult Search(const std::vector<Variant>& candidates, const Evaluator& evaluate,
+                    const StrategyOptions& options) {
+  const std::string& name = options.name;
+  if (name != "exhaustive" && name != "random" && name != "coordinate") {
+    throw Error("strategy '" + name + "': unknown (expected exhaustive, random or coordinate)");
+  }
+  if (name == "random" && options.budget == 0) {
+    throw Error("strategy 'random': a budget (number of evaluations, > 0) is required");
+  }
+  if (!evaluate) throw Error("strategy '" + name + "': no evaluator");
+  Session session(candidates, evaluate, options.budget);
+  if (session.size() == 0) return {};
+  if (name == "exhaustive") return Exhaustive(session);
+  if (name == "random") return Random(session, options.seed);
+  // Without a budget, coordinate descent stops at its first local optimum.
+  return Coordinate(session, options.seed, options.budget != 0);
+}
+
+}  // namespace skintune

@@ -1,0 +1,37 @@
+// skintune: search strategies over the valid variants of a tuning space.
+//
+// A strategy asks an Evaluator for the time of variants (a device run, or a
+// recorded cache in replay mode) and returns the best it found. Failed
+// variants (any status but ok) have no time and are never the best.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "generator/variant.h"
+
+namespace skintune {
+
+// Median time in ms, or nullopt when the variant failed (any status but ok).
+using Evaluator = std::function<std::optional<double>(const Variant&)>;
+
+struct StrategyOptions {
+  std::string name = "exhaustive";  // "exhaustive", "random", "coordinate"
+  std::size_t budget = 0;           // evaluations allowed (0: all for exhaustive; required for random)
+  std::uint64_t seed = 1;
+};
+
+struct SearchResult {
+  std::optional<Variant> best;
+  double best_ms = 0.0;
+  std::size_t evaluations = 0;  // distinct variants evaluated
+};
+
+// Throws Error for an unknown strategy name or a missing budget.
+SearchResult Search(const std::vector<Variant>& candidates, const Evaluator& evaluate,
+                    const StrategyOptions& options);
+
+}  // namespace skintune

@@ -1,0 +1,540 @@
+// skintune: a tuning run.
+//
+// The parent discovers the devices only for their identities, limits and
+// languages, then measures every device through its own child process
+// (worker.h), one device after another so that no two measurements share
+// the machine. For each device x language x dataset:
+//   - the space's points with B = the dataset's influences are checked
+//     against the device's limits and the dataset's shape; an invalid point is
+//     recorded (status invalid, with every constraint it breaks; at most
+//     kMaxInvalidRecords per device x language x dataset). Other B are not
+//     tried on that dataset: a larger B only pads with zero weights (the same
+//     output, more bytes), and winners are kept per B;
+//   - the strategy searches the valid points; each evaluation takes the cache's
+//     record when there is one, else measures in the child and appends the
+//     result to the cache before going on.
+#include "tuner/tune.h"
+
+#include <sys/utsname.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <fstream>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "generator/emit.h"
+#include "reference/error.h"
+#include "reference/gltf_import.h"
+#include "reference/synthetic.h"
+#include "tuner/measurement.h"
+#include "tuner/worker.h"
+
+namespace skintune {
+
+struct EmbeddedConfigFile {
+  const char* name;
+  const unsigned char* data;
+  std::size_t size;
+};
+extern const EmbeddedConfigFile kEmbeddedConfigs[];
+extern const std::size_t kEmbeddedConfigCount;
+
+namespace {
+
+constexpr std::size_t kMaxInvalidRecords = 10000;
+
+bool IsGltfPath(const std::string& key) {
+  std::string lower = key;
+  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
+  auto ends_with = [&](const std::string& suffix) {
+    return lower.size() >= suffix.size() && lower.compare(lower.size() - suffix.size(), suffix.size(), suffix) == 0;
+  };
+  return ends_with(".gltf") || ends_with(".glb");
+}
+
+std::string Lower(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
+  return text;
+}
+
+int IntField(const nlohmann::json& value, const std::string& where, int min) {
+  if (!value.is_number_integer()) throw Error(where + ": expected an integer");
+  const long long v = value.get<long long>();
+  if (v < min || v > std::numeric_limits<int>::max()) {
+    throw Error(where + ": must be an integer >= " + std::to_string(min) + " (got " + std::to_string(v) + ")");
+  }
+  return static_cast<int>(v);
+}
+
+double PositiveNumber(const nlohmann::json& value, const std::string& where) {
+  if (!value.is_number()) throw Error(where + ": expected a number");
+  const double v = value.get<double>();
+  if (!(v > 0.0) || v == std::numeric_limits<double>::infinity()) {
+    throw Error(where + ": must be a positive number (got " + value.dump() + ")");
+  }
+  return v;
+}
+
+void CheckFields(const nlohmann::json& object, const std::string& where, const std::set<std::string>& known) {
+  if (!object.is_object()) throw Error(where + ": expected an object");
+  for (const auto& [field, value] : object.items()) {
+    if (known.count(field)) continue;
+    std::string list;
+    for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+    throw Error(where + "." + field + ": unknown field (expected one of " + list + ")");
+  }
+}
+
+TimingOptions TimingFromConfig(const nlohmann::json& in, const std::string& context) {
+  const std::string where = context + ": timing";
+  CheckFields(in, where, {"warmup", "repetitions", "max_input_sets", "tolerance"});
+  TimingOptions t;
+  if (in.contains("warmup")) t.warmup = IntField(in["warmup"], where + ".warmup", 0);
+  if (in.contains("repetitions")) t.repetitions = IntField(in["repetitions"], where + ".repetitions", 1);
+  if (in.contains("max_input_sets")) t.max_input_sets = IntField(in["max_input_sets"], where + ".max_input_sets", 1);
+  if (in.contains("tolerance")) t.tolerance = PositiveNumber(in["tolerance"], where + ".tolerance");
+  return t;
+}
+
+void ValidateStrategy(const StrategyOptions& s, const std::string& where) {
+  if (s.name != "exhaustive" && s.name != "random" && s.name != "coordinate") {
+    throw Error(where + ".name: unknown strategy '" + s.name + "' (expected one of exhaustive, random, coordinate)");
+  }
+  if (s.name == "random" && s.budget == 0) {
+    throw Error(where + ".budget: the random strategy needs a budget (evaluations per device, language and dataset)");
+  }
+}
+
+StrategyOptions StrategyFromConfig(const nlohmann::json& in, const std::string& context) {
+  const std::string where = context + ": strategy";
+  CheckFields(in, where, {"name", "budget", "seed"});
+  StrategyOptions s;
+  if (in.contains("name")) {
+    if (!in["name"].is_string()) throw Error(where + ".name: expected a string");
+    s.name = in["name"].get<std::string>();
+  }
+  if (in.contains("budget")) {
+    if (!in["budget"].is_number_unsigned()) throw Error(where + ".budget: must be an integer >= 0");
+    s.budget = in["budget"].get<std::size_t>();
+  }
+  if (in.contains("seed")) {
+    if (!in["seed"].is_number_unsigned()) throw Error(where + ".seed: must be an integer >= 0");
+    s.seed = in["seed"].get<std::uint64_t>();
+  }
+  ValidateStrategy(s, where);
+  return s;
+}
+
+std::vector<std::string> DatasetsFromConfig(const nlohmann::json& in, const std::string& context) {
+  const std::string where = context + ": datasets";
+  if (!in.is_array()) throw Error(where + ": expected a list of dataset keys");
+  if (in.empty()) throw Error(where + ": is empty");
+  std::vector<std::string> keys;
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const std::string item = where + "[" + std::to_string(i) + "]";
+    const nlohmann::json& d = in[i];
+    std::string key;
+    if (d.is_string()) {
+      key = d.get<std::string>();
+    } else if (d.is_object()) {
+      // {"key": ..., "name", "vertices", "influences", "bones", "description"}: the
+      // numbers, when given, must agree with the key.
+      CheckFields(d, item, {"key", "name", "vertices", "influences", "bones", "description"});
+      if (!d.contains("key") || !d["key"].is_string()) throw Error(item + ".key: missing (a dataset key or glTF path)");
+      key = d["key"].get<std::string>();
+    } else {
+      throw Error(item + ": expected a dataset key (string) or an object with \"key\"");
+    }
+    if (!IsGltfPath(key)) {
+      DatasetSpec spec;
+      try {
+        spec = ParseDatasetKey(key);
+      } catch (const Error& e) {
+        throw Error(item + ": " + e.what());
+      }
+      if (d.is_object()) {
+        auto check = [&](const char* field, long long expected) {
+          if (!d.contains(field)) return;
+          if (!d[field].is_number_integer() || d[field].get<long long>() != expected) {
+            throw Error(item + "." + field + ": " + d[field].dump() + " does not match the key '" + key + "' (" +
+                        std::to_string(expected) + ")");
+          }
+        };
+        check("vertices", static_cast<long long>(spec.vertices));
+        check("influences", spec.influences);
+        check("bones", spec.bones);
+      }
+    }
+    if (std::find(keys.begin(), keys.end(), key) != keys.end()) throw Error(item + ": '" + key + "' is listed twice");
+    keys.push_back(key);
+  }
+  return keys;
+}
+
+// ------------------------------------------------------------------ run
+
+struct LoadedDataset {
+  DatasetInfo info;
+  ProblemShape shape;
+};
+
+LoadedDataset LoadDataset(const std::string& key) {
+  SkinnedAsset asset;
+  if (IsGltfPath(key)) {
+    asset = std::move(ImportGltf(key).asset);
+  } else {
+    asset = GenerateDataset(ParseDatasetKey(key));
+  }
+  const SkinnedMesh& mesh = asset.mesh;
+  int widest = 1;
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) widest = std::max(widest, mesh.InfluencesOf(v));
+  LoadedDataset d;
+  d.info.key = key;
+  d.info.vertices = mesh.vertex_count();
+  d.info.influences = mesh.influences;
+  d.info.joints = mesh.joint_count;
+  d.shape = ProblemShape{mesh.joint_count, widest, mesh.has_normals()};
+  return d;
+}
+
+std::string ReadFirstMatch(const std::string& path, const std::string& prefix) {
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind(prefix, 0) != 0) continue;
+    const std::size_t colon = line.find(':');
+    if (colon == std::string::npos) continue;
+    const std::size_t start = line.find_first_not_of(" \t", colon + 1);
+    return start == std::string::npos ? std::string() : line.substr(start);
+  }
+  return {};
+}
+
+nlohmann::json MachineInfo() {
+  nlohmann::json m = nlohmann::json::object();
+  char host[256] = {};
+  if (::gethostname(host, sizeof host - 1) == 0) m["hostname"] = host;
+  struct utsname u {};
+  if (::uname(&u) == 0) {
+    m["os"] = std::string(u.sysname) + " " + u.release + " " + u.version + " " + u.machine;
+  }
+  m["cpu_model"] = ReadFirstMatch("/proc/cpuinfo", "model name");
+  m["logical_cpus"] = ::sysconf(_SC_NPROCESSORS_ONLN);
+  const long pages = ::sysconf(_SC_PHYS_PAGES);
+  const long page_size = ::sysconf(_SC_PAGE_SIZE);
+  m["memory_bytes"] = pages > 0 && page_size > 0 ? static_cast<std::uint64_t>(pages) * page_size : 0;
+  return m;
+}
+
+struct Device {
+  DeviceIdentity identity;
+  DeviceLimits limits;
+  std::vector<Lang> languages;
+};
+
+// One device x language x dataset: its valid variants and its invalid points.
+struct Task {
+  std::size_t device = 0;
+  Lang lang = Lang::kOpenCl;
+  std::size_t dataset = 0;
+  std::vector<Variant> candidates;
+  std::vector<Measurement> invalid;
+  std::size_t planned = 0;  // evaluations expected (for progress)
+};
+
+std::string DeviceMatchText(const DeviceIdentity& d) {
+  return Lower(d.backend + ": " + d.platform + " / " + d.name + " " + d.vendor + " " + d.api_version + " " +
+               d.driver_version + " " + d.type);
+}
+
+std::string ShortStatus(const Measurement& m) {
+  std::string text = Name(m.status);
+  if (m.status == Status::kOk) {
+    char ms[64];
+    std::snprintf(ms, sizeof ms, " %.3f ms", m.timing.median_ms);
+    text += ms;
+  } else if (!m.detail.empty()) {
+    std::string detail = m.detail.substr(0, m.detail.find('\n'));
+    if (detail.size() > 120) detail = detail.substr(0, 120) + "...";
+    text += " (" + detail + ")";
+  }
+  return text;
+}
+
+std::size_t CopyBytes(const DeviceIdentity& d) {
+  std::uint64_t bytes = std::max<std::uint64_t>(64ull << 20, 4 * d.last_level_cache_bytes);
+  if (d.global_memory_bytes > 0) bytes = std::min<std::uint64_t>(bytes, d.global_memory_bytes / 4);
+  return static_cast<std::size_t>(bytes);
+}
+
+}  // namespace
+
+TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context) {
+  if (!json.is_object()) throw Error(context + ": a tune config must be a JSON object");
+  // "paper" and "figure1" are descriptive fields of configs/paper.json.
+  static const std::set<std::string> kKnown = {"description", "space",    "datasets", "timing",
+                                               "strategy",    "variant_timeout_s", "paper", "figure1"};
+  for (const auto& [field, value] : json.items()) {
+    if (kKnown.count(field)) continue;
+    throw Error(context + ": " + field +
+                ": unknown field (expected description, space, datasets, timing, strategy, variant_timeout_s)");
+  }
+  if (json.contains("description") && !json["description"].is_string()) {
+    throw Error(context + ": description: expected a string");
+  }
+  if (!json.contains("space")) throw Error(context + ": space: missing (an object of axis -> list of values)");
+  if (!json.contains("datasets")) throw Error(context + ": datasets: missing (a list of dataset keys)");
+  TuneConfig c;
+  c.name = context;
+  c.space = SpaceFromJson(json["space"], context);
+  c.space.Validate(context);
+  c.datasets = DatasetsFromConfig(json["datasets"], context);
+  if (json.contains("timing")) c.timing = TimingFromConfig(json["timing"], context);
+  if (json.contains("strategy")) c.strategy = StrategyFromConfig(json["strategy"], context);
+  if (json.contains("variant_timeout_s")) {
+    c.variant_timeout_s = PositiveNumber(json["variant_timeout_s"], context + ": variant_timeout_s");
+  }
+  return c;
+}
+
+std::string EmbeddedConfig(const std::string& name) {
+  std::string names;
+  for (std::size_t i = 0; i < kEmbeddedConfigCount; ++i) {
+    if (name == kEmbeddedConfigs[i].name) {
+      return std::string(reinterpret_cast<const char*>(kEmbeddedConfigs[i].data), kEmbeddedConfigs[i].size);
+    }
+    names += (names.empty() ? "" : ", ") + std::string(kEmbeddedConfigs[i].name);
+  }
+  throw Error("no built-in config '" + name + "' (built in: " + names + ")");
+}
+
+TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
+  ValidateStrategy(config.strategy, "strategy");
+  config.space.Validate(config.name);
+  if (!(config.variant_timeout_s > 0.0)) throw Error("variant_timeout_s: must be a positive number");
+  if (options.worker_executable.empty()) throw Error("RunTuning: no worker executable");
+
+  MeasurementCache cache(options.cache_path);
+  auto progress = [&](std::size_t done, std::size_t total, const std::string& what) {
+    if (options.progress) options.progress(done, total, what);
+  };
+
+  TuningReport report;
+  report.created = UtcTimestamp();
+  report.config = config.name;
+  report.strategy = config.strategy.name;
+  report.machine = MachineInfo();
+
+  // Datasets first: a bad key or glTF file is bad input, found before any device work.
+  std::vector<LoadedDataset> datasets;
+  for (const std::string& key : config.datasets) {
+    progress(0, 0, "loading dataset " + key);
+    datasets.push_back(LoadDataset(key));
+    report.datasets.push_back(datasets.back().info);
+  }
+
+  std::vector<Device> devices;
+  {
+    progress(0, 0, "discovering devices");
+    Discovery discovery = DiscoverBackends();
+    report.skipped = discovery.skipped;
+    for (const auto& backend : discovery.backends) {
+      devices.push_back({backend->identity(), backend->limits(), backend->languages()});
+    }
+  }  // the parent's own contexts go away: the children measure
+  if (devices.empty()) {
+    std::string why;
+    for (const std::string& s : report.skipped) why += (why.empty() ? "" : "; ") + s;
+    throw Error("no device to tune on" + (why.empty() ? std::string() : ": " + why));
+  }
+  if (!options.device_pattern.empty()) {
+    const std::string pattern = Lower(options.device_pattern);
+    std::vector<Device> matching;
+    std::string all;
+    for (Device& d : devices) {
+      all += (all.empty() ? "" : "; ") + d.identity.backend + ": " + d.identity.platform + " / " + d.identity.name;
+      if (DeviceMatchText(d.identity).find(pattern) != std::string::npos) matching.push_back(std::move(d));
+    }
+    if (matching.empty()) throw Error("--device '" + options.device_pattern + "': no device matches (found: " + all + ")");
+    devices = std::move(matching);
+  }
+
+  // The tasks: device x language x dataset.
+  std::vector<Task> tasks;
+  std::map<Constraint, std::uint64_t> invalid_by;
+  std::uint64_t points = 0;
+  std::set<Lang> languages_seen;
+  for (std::size_t di = 0; di < devices.size(); ++di) {
+    const Device& device = devices[di];
+    for (Lang lang : device.languages) {
+      if (std::find(config.space.langs.begin(), config.space.langs.end(), lang) == config.space.langs.end()) continue;
+      if (!options.languages.empty() &&
+          std::find(options.languages.begin(), options.languages.end(), lang) == options.languages.end()) {
+        continue;
+      }
+      languages_seen.insert(lang);
+      for (std::size_t k = 0; k < datasets.size(); ++k) {
+        const LoadedDataset& dataset = datasets[k];
+        TuningSpace space = config.space;
+        space.langs = {lang};
+        if (std::find(space.influences.begin(), space.influences.end(), dataset.info.influences) ==
+            space.influences.end()) {
+          continue;
+        }
+        space.influences = {dataset.info.influences};
+        Task task;
+        task.device = di;
+        task.lang = lang;
+        task.dataset = k;
+        space.ForEach([&](const Variant& v) {
+          ++points;
+          const std::vector<Violation> violations = CheckVariant(v, device.limits, dataset.shape);
+          if (violations.empty()) {
+            task.candidates.push_back(v);
+            return;
+          }
+          ++invalid_by[violations.front().constraint];
+          if (task.invalid.size() >= kMaxInvalidRecords) return;
+          Measurement m;
+          m.device_id = device.identity.Id();
+          m.dataset = dataset.info.key;
+          m.variant = v;
+          m.status = Status::kInvalid;
+          for (const Violation& violation : violations) {
+            m.detail += (m.detail.empty() ? "" : "; ") + std::string(Name(violation.constraint)) + ": " +
+                        violation.message;
+          }
+          m.generator_version = kGeneratorVersion;
+          m.timestamp = report.created;
+          task.invalid.push_back(std::move(m));
+        });
+        const std::size_t n = task.candidates.size();
+        task.planned = config.strategy.budget > 0 ? std::min(config.strategy.budget, n) : n;
+        tasks.push_back(std::move(task));
+      }
+    }
+  }
+  if (languages_seen.empty()) {
+    std::string offered;
+    for (const Device& d : devices) {
+      for (Lang l : d.languages) offered += (offered.empty() ? "" : ", ") + std::string(Name(l));
+    }
+    throw Error("no device offers a language of the space" +
+                std::string(options.languages.empty() ? "" : " and --lang") + " (the devices offer: " + offered + ")");
+  }
+  std::size_t total = 0;
+  for (const Task& t : tasks) total += t.planned;
+  if (total == 0) {
+    std::string message = "no valid variant of the space on any device";
+    if (points == 0) {
+      std::string bs;
+      for (const LoadedDataset& d : datasets) {
+        bs += (bs.empty() ? "" : ", ") + d.info.key + ": B=" + std::to_string(d.info.influences);
+      }
+      message += ": the space's influences include no dataset's B (" + bs + ")";
+    } else {
+      message += ": all " + std::to_string(points) + " points break a constraint (";
+      bool first = true;
+      for (const auto& [constraint, n] : invalid_by) {
+        message += (first ? "" : ", ") + std::string(Name(constraint)) + ": " + std::to_string(n);
+        first = false;
+      }
+      message += ")";
+      for (const Task& t : tasks) {
+        if (!t.invalid.empty()) {
+          message += "; e.g. " + t.invalid.front().variant.Key() + ": " + t.invalid.front().detail;
+          break;
+        }
+      }
+    }
+    throw Error(message);
+  }
+
+  std::size_t done = 0;
+  std::size_t devices_with_work = 0;
+  std::size_t devices_failed = 0;
+  for (std::size_t di = 0; di < devices.size(); ++di) {
+    const Device& device = devices[di];
+    const std::string id = device.identity.Id();
+    bool has_tasks = false;
+    for (const Task& t : tasks) has_tasks = has_tasks || t.device == di;
+    if (!has_tasks) continue;  // none of the space's languages: not measured, not reported
+    report.devices.push_back(device.identity);
+    std::size_t device_end = done;
+    for (const Task& t : tasks) {
+      if (t.device != di) continue;
+      device_end += t.planned;
+      for (const Measurement& m : t.invalid) report.measurements.push_back(m);
+    }
+    if (device_end == done) continue;  // only invalid points here: recorded, nothing to measure
+    ++devices_with_work;
+    IsolatedBackend worker(options.worker_executable, device.identity, config.variant_timeout_s);
+    const std::string device_name = device.identity.backend + " " + device.identity.name;
+    try {
+      progress(done, total, device_name + ": copy bandwidth");
+      std::string why_not;
+      if (const std::optional<double> gbps = worker.CopyBandwidthGBps(CopyBytes(device.identity), &why_not)) {
+        report.copy_bandwidth_gbps[id] = *gbps;
+      } else {
+        progress(done, total, device_name + ": copy bandwidth not measured: " + why_not);
+      }
+      for (Task& task : tasks) {
+        if (task.device != di || task.candidates.empty()) continue;
+        const std::string& key = datasets[task.dataset].info.key;
+        const std::size_t task_start = done;
+        std::set<std::string> seen;
+        const Evaluator evaluate = [&](const Variant& v) -> std::optional<double> {
+          Measurement probe;
+          probe.device_id = id;
+          probe.dataset = key;
+          probe.variant = v;
+          probe.generator_version = kGeneratorVersion;
+          const std::string cache_key = probe.CacheKey();
+          Measurement m;
+          bool cached = false;
+          if (const Measurement* found = cache.Find(cache_key)) {
+            m = *found;
+            cached = true;
+          } else {
+            m = worker.Measure(v, TuningDataset{key}, config.timing);
+            cache.Append(m);  // on disk before the next variant
+          }
+          if (seen.insert(cache_key).second) {
+            report.measurements.push_back(m);
+            done = std::min(done + 1, task_start + task.planned);
+            // The variant and its result first: a progress bar cuts the end of long lines.
+            progress(done, total,
+                     v.Key() + ": " + ShortStatus(m) + " [" + device_name + ", " + key + "]" +
+                         (cached ? " (cached)" : ""));
+          }
+          if (m.status != Status::kOk) return std::nullopt;
+          return m.timing.median_ms;
+        };
+        Search(task.candidates, evaluate, config.strategy);
+        done = task_start + task.planned;
+      }
+    } catch (const WorkerError& e) {
+      // This device cannot be used: the run goes on with the others.
+      ++devices_failed;
+      report.skipped.push_back(id + ": " + e.what());
+      progress(done, total, device_name + ": given up: " + e.what());
+    }
+    done = device_end;
+  }
+  if (devices_with_work > 0 && devices_failed == devices_with_work) {
+    std::string why;
+    for (const std::string& s : report.skipped) why += (why.empty() ? "" : "; ") + s;
+    throw Error("no device could be tuned: " + why);
+  }
+  report.created = UtcTimestamp();  // when the run finished
+  progress(total, total, "done");
+  return report;
+}
+
+}  // namespace skintune

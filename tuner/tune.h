@@ -1,0 +1,51 @@
+// skintune: a tuning run: a config (space, datasets, timing, strategy), every
+// device found, each device's work in a child process with a time limit per
+// variant, every measurement appended to the cache as it is taken.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "generator/space.h"
+#include "tuner/backend.h"
+#include "tuner/report.h"
+#include "tuner/strategy.h"
+
+namespace skintune {
+
+struct TuneConfig {
+  std::string name;                     // file name or "default"
+  TuningSpace space;
+  std::vector<std::string> datasets;    // dataset keys or glTF paths
+  TimingOptions timing;
+  StrategyOptions strategy;
+  double variant_timeout_s = 60.0;      // per variant, in the child process
+};
+
+// Parses a config (configs/*.json). Throws Error("<context>: <element>: ...").
+TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context);
+// The embedded configs/default.json and configs/paper.json ("default", "paper").
+std::string EmbeddedConfig(const std::string& name);
+
+struct TuneOptions {
+  std::string device_pattern;           // substring of DeviceIdentity "platform / name"; empty: all
+  std::vector<Lang> languages;          // empty: every language of every device
+  std::string cache_path;               // the resumable measurement cache (JSON lines)
+  std::string worker_executable;        // the skintune binary (runs `skintune tune-worker`)
+  std::function<void(std::size_t done, std::size_t total, const std::string& what)> progress;
+};
+
+// Runs the whole tuning; every measurement goes through the cache (a recorded
+// one is reused, never re-measured). Throws Error for bad set-up (empty space
+// after constraints on every device, unwritable cache).
+TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options);
+
+// The child process: `skintune tune-worker --backend-index N` reads one JSON
+// request per line on stdin ({"variant": ..., "dataset": ..., "timing": ...})
+// and writes one Measurement JSON per line on stdout.
+int RunTuneWorker(int backend_index);
+
+}  // namespace skintune

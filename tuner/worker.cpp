@@ -1,0 +1,456 @@
+#include "tuner/worker.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <climits>
+#include <cmath>
+#include <csignal>
+#include <cstring>
+#include <ctime>
+#include <iostream>
+#include <sstream>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "generator/emit.h"
+#include "tuner/tune.h"
+
+namespace skintune {
+
+namespace {
+
+constexpr std::size_t kStderrTailBytes = 8192;
+
+std::string Seconds(double s) {
+  std::ostringstream out;
+  out << s;
+  return out.str();
+}
+
+nlohmann::json TimingToJson(const TimingOptions& t) {
+  return {{"warmup", t.warmup},
+          {"repetitions", t.repetitions},
+          {"max_input_sets", t.max_input_sets},
+          {"tolerance", t.tolerance}};
+}
+
+TimingOptions TimingFromJson(const nlohmann::json& in) {
+  TimingOptions t;
+  t.warmup = in.at("warmup").get<int>();
+  t.repetitions = in.at("repetitions").get<int>();
+  t.max_input_sets = in.at("max_input_sets").get<int>();
+  t.tolerance = in.at("tolerance").get<double>();
+  return t;
+}
+
+void CloseFd(int& fd) {
+  if (fd >= 0) ::close(fd);
+  fd = -1;
+}
+
+std::string StatusText(int status) {
+  if (WIFSIGNALED(status)) {
+    const int sig = WTERMSIG(status);
+    const char* name = ::strsignal(sig);
+    return "signal " + std::to_string(sig) + (name ? " (" + std::string(name) + ")" : std::string());
+  }
+  if (WIFEXITED(status)) return "exit code " + std::to_string(WEXITSTATUS(status));
+  return "status " + std::to_string(status);
+}
+
+}  // namespace
+
+std::string UtcTimestamp() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  ::gmtime_r(&now, &utc);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return text;
+}
+
+// ------------------------------------------------------------------ parent side
+
+IsolatedBackend::IsolatedBackend(std::string executable, DeviceIdentity identity, double variant_timeout_s)
+    : executable_(std::move(executable)), identity_(std::move(identity)), variant_timeout_s_(variant_timeout_s) {}
+
+IsolatedBackend::~IsolatedBackend() { Stop(); }
+
+void IsolatedBackend::Start() {
+  // A child that died between two requests must not kill us when we write to it.
+  std::signal(SIGPIPE, SIG_IGN);
+  int in[2], out[2], err[2];
+  if (::pipe2(in, O_CLOEXEC) != 0) throw WorkerError("cannot create a pipe (" + std::string(std::strerror(errno)) + ")");
+  if (::pipe2(out, O_CLOEXEC) != 0) {
+    ::close(in[0]), ::close(in[1]);
+    throw WorkerError("cannot create a pipe (" + std::string(std::strerror(errno)) + ")");
+  }
+  if (::pipe2(err, O_CLOEXEC) != 0) {
+    ::close(in[0]), ::close(in[1]), ::close(out[0]), ::close(out[1]);
+    throw WorkerError("cannot create a pipe (" + std::string(std::strerror(errno)) + ")");
+  }
+  // Everything the child needs is prepared before fork: after it, only
+  // async-signal-safe calls until exec (the parent may have driver threads).
+  const std::string index = std::to_string(identity_.index);
+  std::vector<char*> argv = {const_cast<char*>(executable_.c_str()), const_cast<char*>("tune-worker"),
+                             const_cast<char*>("--backend-index"), const_cast<char*>(index.c_str()), nullptr};
+  static const char kExecFailed[] = "skintune: cannot execute the tune worker\n";
+  const pid_t parent = ::getpid();
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    for (int fd : {in[0], in[1], out[0], out[1], err[0], err[1]}) ::close(fd);
+    throw WorkerError("cannot start a worker process (" + std::string(std::strerror(errno)) + ")");
+  }
+  if (pid == 0) {
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (::getppid() != parent) ::_exit(1);
+    ::signal(SIGPIPE, SIG_DFL);
+    ::dup2(in[0], 0);
+    ::dup2(out[1], 1);
+    ::dup2(err[1], 2);
+    ::execv(argv[0], argv.data());
+    [[maybe_unused]] const ssize_t n = ::write(2, kExecFailed, sizeof kExecFailed - 1);
+    ::_exit(127);
+  }
+  ::close(in[0]);
+  ::close(out[1]);
+  ::close(err[1]);
+  pid_ = pid;
+  to_child_ = in[1];
+  from_child_ = out[0];
+  child_stderr_ = err[0];
+  ::fcntl(from_child_, F_SETFL, ::fcntl(from_child_, F_GETFL) | O_NONBLOCK);
+  ::fcntl(child_stderr_, F_SETFL, ::fcntl(child_stderr_, F_GETFL) | O_NONBLOCK);
+  out_buffer_.clear();
+  err_tail_.clear();
+  ++starts_;
+
+  // Discovery in the child (every API) comes before its greeting.
+  const double start_timeout_s = std::max(variant_timeout_s_, 60.0);
+  std::string line;
+  switch (ReadLine(start_timeout_s, line)) {
+    case ReadResult::kTimeout:
+      Kill();
+      throw WorkerError("worker process did not start within " + Seconds(start_timeout_s) + " s");
+    case ReadResult::kEnd:
+      throw WorkerError("worker process failed to start: " + DeathDetail());
+    case ReadResult::kLine: break;
+  }
+  nlohmann::json hello;
+  try {
+    hello = nlohmann::json::parse(line);
+  } catch (const nlohmann::json::exception&) {
+    Kill();
+    throw WorkerError("worker process sent '" + line.substr(0, 200) + "' instead of its greeting");
+  }
+  if (hello.is_object() && hello.contains("error") && hello["error"].is_string()) {
+    Stop();
+    throw WorkerError(hello["error"].get<std::string>());
+  }
+  if (!hello.is_object() || !hello.contains("device_id") || !hello["device_id"].is_string()) {
+    Kill();
+    throw WorkerError("worker process sent '" + line.substr(0, 200) + "' instead of its greeting");
+  }
+  if (hello["device_id"].get<std::string>() != identity_.Id()) {
+    Stop();
+    throw WorkerError("worker process found '" + hello["device_id"].get<std::string>() + "' as backend " + index +
+                      ", not '" + identity_.Id() + "' (the devices changed since discovery)");
+  }
+}
+
+std::string IsolatedBackend::Reap(bool block) {
+  if (pid_ < 0) return "not running";
+  int status = 0;
+  pid_t r = 0;
+  if (!block) {
+    // The child closed its output: it is exiting. Give it a moment, then make sure.
+    for (int i = 0; i < 500; ++i) {
+      do {
+        r = ::waitpid(pid_, &status, WNOHANG);
+      } while (r < 0 && errno == EINTR);
+      if (r != 0) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    if (r == 0) ::kill(pid_, SIGKILL);
+  }
+  if (block || r == 0) {
+    do {
+      r = ::waitpid(pid_, &status, 0);
+    } while (r < 0 && errno == EINTR);
+  }
+  pid_ = -1;
+  return r < 0 ? "unknown status (" + std::string(std::strerror(errno)) + ")" : StatusText(status);
+}
+
+void IsolatedBackend::Kill() {
+  if (pid_ >= 0) {
+    ::kill(pid_, SIGKILL);
+    Reap(true);
+  }
+  CloseFd(to_child_);
+  CloseFd(from_child_);
+  CloseFd(child_stderr_);
+}
+
+void IsolatedBackend::Stop() {
+  if (pid_ < 0) return;
+  CloseFd(to_child_);  // end of input: the worker returns
+  Reap(false);
+  CloseFd(from_child_);
+  CloseFd(child_stderr_);
+}
+
+std::string IsolatedBackend::DeathDetail() {
+  CloseFd(to_child_);
+  const std::string how = Reap(false);
+  // Whatever the child wrote on stderr before it died is in the pipe now.
+  char chunk[4096];
+  while (child_stderr_ >= 0) {
+    const ssize_t n = ::read(child_stderr_, chunk, sizeof chunk);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    err_tail_.append(chunk, static_cast<std::size_t>(n));
+    if (err_tail_.size() > kStderrTailBytes) err_tail_.erase(0, err_tail_.size() - kStderrTailBytes);
+  }
+  CloseFd(from_child_);
+  CloseFd(child_stderr_);
+  const std::string tail = StderrTail();
+  return how + (tail.empty() ? "" : "; its last stderr line: " + tail);
+}
+
+std::string IsolatedBackend::StderrTail() const {
+  std::size_t end = err_tail_.find_last_not_of(" \t\r\n");
+  if (end == std::string::npos) return {};
+  const std::size_t begin = err_tail_.rfind('\n', end);
+  std::string line = err_tail_.substr(begin == std::string::npos ? 0 : begin + 1, end + 1 - (begin == std::string::npos ? 0 : begin + 1));
+  if (line.size() > 300) line = line.substr(0, 300) + "...";
+  return line;
+}
+
+bool IsolatedBackend::Send(const std::string& line) {
+  const std::string text = line + "\n";
+  std::size_t sent = 0;
+  while (sent < text.size()) {
+    const ssize_t n = ::write(to_child_, text.data() + sent, text.size() - sent);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;  // EPIPE: the child is gone
+    sent += static_cast<std::size_t>(n);
+  }
+  return true;
+}
+
+IsolatedBackend::ReadResult IsolatedBackend::ReadLine(double timeout_s, std::string& line) {
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point deadline =
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
+  char chunk[65536];
+  for (;;) {
+    const std::size_t newline = out_buffer_.find('\n');
+    if (newline != std::string::npos) {
+      line = out_buffer_.substr(0, newline);
+      out_buffer_.erase(0, newline + 1);
+      return ReadResult::kLine;
+    }
+    const Clock::time_point now = Clock::now();
+    if (now >= deadline) return ReadResult::kTimeout;
+    const double left_ms = std::chrono::duration<double, std::milli>(deadline - now).count();
+    const int wait_ms = static_cast<int>(std::min(std::ceil(left_ms), static_cast<double>(INT_MAX)));
+    pollfd fds[2] = {{from_child_, POLLIN, 0}, {child_stderr_, POLLIN, 0}};
+    const int r = ::poll(fds, child_stderr_ >= 0 ? 2 : 1, wait_ms);
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0) throw Error(std::string("poll on the worker's pipes failed (") + std::strerror(errno) + ")");
+    if (child_stderr_ >= 0 && (fds[1].revents & (POLLIN | POLLHUP | POLLERR))) {
+      const ssize_t n = ::read(child_stderr_, chunk, sizeof chunk);
+      if (n == 0) {
+        CloseFd(child_stderr_);
+      } else if (n > 0) {
+        err_tail_.append(chunk, static_cast<std::size_t>(n));
+        if (err_tail_.size() > kStderrTailBytes) err_tail_.erase(0, err_tail_.size() - kStderrTailBytes);
+      }
+    }
+    if (fds[0].revents & (POLLIN | POLLHUP | POLLERR)) {
+      const ssize_t n = ::read(from_child_, chunk, sizeof chunk);
+      if (n == 0) return ReadResult::kEnd;
+      if (n < 0 && (errno == EAGAIN || errno == EINTR)) continue;
+      if (n < 0) return ReadResult::kEnd;
+      out_buffer_.append(chunk, static_cast<std::size_t>(n));
+    }
+  }
+}
+
+Measurement IsolatedBackend::Measure(const Variant& variant, const TuningDataset& dataset,
+                                     const TimingOptions& options) {
+  Measurement result;
+  result.device_id = identity_.Id();
+  result.dataset = dataset.key;
+  result.variant = variant;
+  result.generator_version = kGeneratorVersion;
+  result.timestamp = UtcTimestamp();
+
+  const std::string request =
+      nlohmann::json{{"variant", variant}, {"dataset", dataset.key}, {"timing", TimingToJson(options)}}.dump();
+  if (pid_ < 0) Start();
+  if (!Send(request)) {
+    // The previous child died after its last answer: a fresh one takes the request.
+    DeathDetail();
+    Start();
+    if (!Send(request)) {
+      result.status = Status::kLaunchFailed;
+      result.detail = "worker process died: " + DeathDetail();
+      return result;
+    }
+  }
+  std::string line;
+  switch (ReadLine(variant_timeout_s_, line)) {
+    case ReadResult::kTimeout:
+      Kill();
+      result.status = Status::kTimeout;
+      result.detail = "no result within " + Seconds(variant_timeout_s_) + " s";
+      return result;
+    case ReadResult::kEnd:
+      result.status = Status::kLaunchFailed;
+      result.detail = "worker process died: " + DeathDetail();
+      return result;
+    case ReadResult::kLine: break;
+  }
+  nlohmann::json answer;
+  try {
+    answer = nlohmann::json::parse(line);
+  } catch (const nlohmann::json::exception&) {
+    Kill();
+    throw WorkerError("worker process sent a malformed line: '" + line.substr(0, 200) + "'");
+  }
+  if (answer.is_object() && answer.contains("error")) {
+    Kill();
+    throw WorkerError(answer["error"].is_string() ? answer["error"].get<std::string>() : answer["error"].dump());
+  }
+  Measurement m;
+  try {
+    m = answer.get<Measurement>();
+  } catch (const Error& e) {
+    Kill();
+    throw WorkerError(std::string("worker process sent a malformed measurement: ") + e.what());
+  }
+  // What identifies the measurement is the parent's, so the cache key is
+  // exactly the one looked up.
+  m.device_id = result.device_id;
+  m.dataset = result.dataset;
+  m.variant = variant;
+  m.generator_version = result.generator_version;
+  if (m.timestamp.empty()) m.timestamp = result.timestamp;
+  return m;
+}
+
+std::optional<double> IsolatedBackend::CopyBandwidthGBps(std::size_t bytes, std::string* why_not) {
+  auto fail = [&](const std::string& why) -> std::optional<double> {
+    if (why_not) *why_not = why;
+    return std::nullopt;
+  };
+  const std::string request = nlohmann::json{{"copy_bandwidth", bytes}}.dump();
+  if (pid_ < 0) Start();
+  if (!Send(request)) {
+    DeathDetail();
+    Start();
+    if (!Send(request)) return fail("worker process died: " + DeathDetail());
+  }
+  std::string line;
+  switch (ReadLine(variant_timeout_s_, line)) {
+    case ReadResult::kTimeout:
+      Kill();
+      return fail("no result within " + Seconds(variant_timeout_s_) + " s");
+    case ReadResult::kEnd:
+      return fail("worker process died: " + DeathDetail());
+    case ReadResult::kLine: break;
+  }
+  nlohmann::json answer;
+  try {
+    answer = nlohmann::json::parse(line);
+  } catch (const nlohmann::json::exception&) {
+    Kill();
+    throw WorkerError("worker process sent a malformed line: '" + line.substr(0, 200) + "'");
+  }
+  if (answer.is_object() && answer.contains("copy_bandwidth_gbps") && answer["copy_bandwidth_gbps"].is_number()) {
+    return answer["copy_bandwidth_gbps"].get<double>();
+  }
+  if (answer.is_object() && answer.contains("copy_bandwidth_error") && answer["copy_bandwidth_error"].is_string()) {
+    return fail(answer["copy_bandwidth_error"].get<std::string>());
+  }
+  Kill();
+  if (answer.is_object() && answer.contains("error") && answer["error"].is_string()) {
+    throw WorkerError(answer["error"].get<std::string>());
+  }
+  throw WorkerError("worker process sent '" + line.substr(0, 200) + "' for a copy bandwidth request");
+}
+
+// ------------------------------------------------------------------ child side
+
+int RunTuneWorker(int backend_index) {
+  // Protocol lines go to the original stdout only; anything a library prints
+  // on stdout goes to stderr instead, where the parent keeps it for details.
+  const int protocol = ::fcntl(1, F_DUPFD_CLOEXEC, 3);
+  if (protocol < 0 || ::dup2(2, 1) < 0) {
+    std::cerr << "skintune: tune-worker: cannot set up its output (" << std::strerror(errno) << ")\n";
+    return 1;
+  }
+  auto write_line = [protocol](const nlohmann::json& answer) {
+    const std::string text = answer.dump() + "\n";
+    std::size_t sent = 0;
+    while (sent < text.size()) {
+      const ssize_t n = ::write(protocol, text.data() + sent, text.size() - sent);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) std::_Exit(1);  // the parent is gone
+      sent += static_cast<std::size_t>(n);
+    }
+  };
+
+  Discovery discovery;
+  try {
+    discovery = DiscoverBackends();
+  } catch (const std::exception& e) {
+    write_line({{"error", std::string("device discovery failed: ") + e.what()}});
+    return 1;
+  }
+  if (backend_index < 0 || static_cast<std::size_t>(backend_index) >= discovery.backends.size()) {
+    write_line({{"error", "no backend " + std::to_string(backend_index) + " (" +
+                              std::to_string(discovery.backends.size()) + " found)"}});
+    return 1;
+  }
+  Backend& backend = *discovery.backends[static_cast<std::size_t>(backend_index)];
+  write_line({{"ready", true}, {"device_id", backend.identity().Id()}});
+
+  std::string line;
+  while (std::getline(std::cin, line)) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    nlohmann::json answer;
+    try {
+      const nlohmann::json request = nlohmann::json::parse(line);
+      if (request.contains("copy_bandwidth")) {
+        try {
+          answer = {{"copy_bandwidth_gbps", backend.CopyBandwidthGBps(request.at("copy_bandwidth").get<std::size_t>())}};
+        } catch (const Error& e) {
+          answer = {{"copy_bandwidth_error", e.what()}};
+        }
+      } else {
+        const Variant variant = request.at("variant").get<Variant>();
+        const TuningDataset dataset{request.at("dataset").get<std::string>()};
+        const TimingOptions timing = TimingFromJson(request.at("timing"));
+        answer = backend.Measure(variant, dataset, timing);
+      }
+    } catch (const Error& e) {
+      answer = {{"error", e.what()}};
+    } catch (const std::exception& e) {
+      answer = {{"error", std::string("tune-worker: internal error: ") + e.what()}};
+    }
+    write_line(answer);
+  }
+  return 0;
+}
+
+}  // namespace skintune

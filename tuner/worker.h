@@ -1,0 +1,95 @@
+// skintune: a Backend measured in a child process, so that a kernel that
+// hangs or crashes the driver costs one variant, never the tuning run.
+//
+// The child is `<skintune> tune-worker --backend-index N` (RunTuneWorker in
+// tune.h). Protocol, one JSON object per line each way:
+//
+//   child -> parent, once at start:  {"ready": true, "device_id": "<DeviceIdentity::Id()>"}
+//                                    or {"error": "<why the device cannot be used>"}
+//   parent -> child, a variant:      {"variant": {...}, "dataset": "<key or glTF path>",
+//                                     "timing": {"warmup", "repetitions", "max_input_sets", "tolerance"}}
+//   child -> parent:                 the Measurement (to_json), or {"error": "<set-up problem>"}
+//   parent -> child, a copy kernel:  {"copy_bandwidth": <bytes>}
+//   child -> parent:                 {"copy_bandwidth_gbps": <GB/s>} or {"copy_bandwidth_error": "..."}
+//
+// The child writes its protocol lines on its original stdout and sends
+// anything libraries print on stdout to stderr; the parent keeps the last
+// lines of the child's stderr for failure details. The child exits at end of
+// input; it is killed (SIGKILL) when its parent dies (PR_SET_PDEATHSIG).
+//
+// Per request the parent waits at most the variant time limit (poll on the
+// pipe). No answer in time: the child is killed, the variant is recorded as
+// timeout ("no result within S s") and a fresh child serves the next request.
+// The child died (end of its output): the variant is recorded as
+// launch_failed ("worker process died: signal N (name)" or "... exit code N"),
+// and a fresh child serves the next request.
+#pragma once
+
+#include <sys/types.h>
+
+#include <optional>
+#include <string>
+
+#include "reference/error.h"
+#include "tuner/backend.h"
+#include "tuner/measurement.h"
+
+namespace skintune {
+
+// The device cannot be used: its worker does not start, names another device,
+// or reports a set-up problem of the device. The tuning run goes on without it.
+class WorkerError : public Error {
+ public:
+  using Error::Error;
+};
+
+// Now, UTC, ISO 8601 ("2026-11-22T13:39:17Z").
+std::string UtcTimestamp();
+
+class IsolatedBackend {
+ public:
+  // `executable`: the skintune binary. `identity`: the device as the parent
+  // discovered it (its index picks the backend in the child). The child is
+  // started on the first request.
+  IsolatedBackend(std::string executable, DeviceIdentity identity, double variant_timeout_s);
+  ~IsolatedBackend();
+  IsolatedBackend(const IsolatedBackend&) = delete;
+  IsolatedBackend& operator=(const IsolatedBackend&) = delete;
+
+  const DeviceIdentity& identity() const { return identity_; }
+
+  // Always returns a Measurement of the variant (device_id, dataset, variant,
+  // generator version and timestamp filled in), whatever the child did.
+  // Throws WorkerError when the device cannot be used at all.
+  Measurement Measure(const Variant& variant, const TuningDataset& dataset, const TimingOptions& options);
+
+  // The device's copy bandwidth, or nullopt with the reason in `why_not`.
+  // Throws WorkerError when the device cannot be used at all.
+  std::optional<double> CopyBandwidthGBps(std::size_t bytes, std::string* why_not = nullptr);
+
+  int starts() const { return starts_; }  // child processes started so far
+
+ private:
+  enum class ReadResult { kLine, kTimeout, kEnd };
+  void Start();
+  void Stop();                       // end of input, then SIGKILL if it lingers
+  void Kill();                       // SIGKILL and reap
+  std::string Reap(bool block);      // waits for the child; "signal N (name)" / "exit code N"
+  bool Send(const std::string& line);
+  ReadResult ReadLine(double timeout_s, std::string& line);
+  std::string StderrTail() const;    // the child's last stderr line, or empty
+  std::string DeathDetail();         // after the end of the child's output
+
+  std::string executable_;
+  DeviceIdentity identity_;
+  double variant_timeout_s_;
+  pid_t pid_ = -1;
+  int to_child_ = -1;
+  int from_child_ = -1;
+  int child_stderr_ = -1;
+  std::string out_buffer_;
+  std::string err_tail_;
+  int starts_ = 0;
+};
+
+}  // namespace skintune
