@@ -284,7 +284,9 @@ Command RegisterTuneWorker(CLI::App& app) {
   auto* sub = app.add_subcommand("tune-worker", "measure variants for `skintune tune` (internal)");
   sub->group("");  // hidden: started by `skintune tune` only
   sub->add_option("--backend-index", *index, "the backend's position in discovery order")->required();
-  return {sub, [index] { return RunTuneWorker(*index); }};
+  auto device_id = std::make_shared<std::string>();
+  sub->add_option("--device-id", *device_id, "the backend's identity (takes precedence over the index)");
+  return {sub, [index, device_id] { return RunTuneWorker(*index, *device_id); }};
 }
 
 }  // namespace skintune::tools

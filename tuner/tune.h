@@ -43,9 +43,10 @@ struct TuneOptions {
 // after constraints on every device, unwritable cache).
 TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options);
 
-// The child process: `skintune tune-worker --backend-index N` reads one JSON
+// The child process: `skintune tune-worker --backend-index N [--device-id ID]`
+// (ID, when given, selects the backend and N is ignored) reads one JSON
 // request per line on stdin ({"variant": ..., "dataset": ..., "timing": ...})
 // and writes one Measurement JSON per line on stdout.
-int RunTuneWorker(int backend_index);
+int RunTuneWorker(int backend_index, const std::string& device_id = "");
 
 }  // namespace skintune

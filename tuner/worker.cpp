@@ -98,9 +98,13 @@ void IsolatedBackend::Start() {
   }
   // Everything the child needs is prepared before fork: after it, only
   // async-signal-safe calls until exec (the parent may have driver threads).
+  // The worker finds its device by identity: the position is only a hint,
+  // since a child may enumerate a platform differently from its parent.
   const std::string index = std::to_string(identity_.index);
+  const std::string device_id = identity_.Id();
   std::vector<char*> argv = {const_cast<char*>(executable_.c_str()), const_cast<char*>("tune-worker"),
-                             const_cast<char*>("--backend-index"), const_cast<char*>(index.c_str()), nullptr};
+                             const_cast<char*>("--backend-index"), const_cast<char*>(index.c_str()),
+                             const_cast<char*>("--device-id"), const_cast<char*>(device_id.c_str()), nullptr};
   static const char kExecFailed[] = "skintune: cannot execute the tune worker\n";
   const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
@@ -391,7 +395,7 @@ std::optional<double> IsolatedBackend::CopyBandwidthGBps(std::size_t bytes, std:
 
 // ------------------------------------------------------------------ child side
 
-int RunTuneWorker(int backend_index) {
+int RunTuneWorker(int backend_index, const std::string& device_id) {
   // Protocol lines go to the original stdout only; anything a library prints
   // on stdout goes to stderr instead, where the parent keeps it for details.
   const int protocol = ::fcntl(1, F_DUPFD_CLOEXEC, 3);
@@ -416,6 +420,19 @@ int RunTuneWorker(int backend_index) {
   } catch (const std::exception& e) {
     write_line({{"error", std::string("device discovery failed: ") + e.what()}});
     return 1;
+  }
+  if (!device_id.empty()) {
+    backend_index = -1;
+    std::string found;
+    for (std::size_t i = 0; i < discovery.backends.size(); ++i) {
+      const std::string id = discovery.backends[i]->identity().Id();
+      if (id == device_id) backend_index = static_cast<int>(i);
+      found += (found.empty() ? "" : ", ") + id;
+    }
+    if (backend_index < 0) {
+      write_line({{"error", "device '" + device_id + "' not found by the worker (it found: " + found + ")"}});
+      return 1;
+    }
   }
   if (backend_index < 0 || static_cast<std::size_t>(backend_index) >= discovery.backends.size()) {
     write_line({{"error", "no backend " + std::to_string(backend_index) + " (" +

@@ -93,7 +93,8 @@ TEST(IsolatedBackend, SendsOneRequestPerLineAndReadsTheMeasurement) {
     EXPECT_EQ(m.generator_version, "0.1.0");
   }
   EXPECT_EQ(worker.starts(), 1);
-  EXPECT_EQ(ReadAll(dir / "args"), "tune-worker --backend-index 3\n");
+  // The worker selects its device by identity; the index is only a hint.
+  EXPECT_EQ(ReadAll(dir / "args"), "tune-worker --backend-index 3 --device-id " + FakeDevice().Id() + "\n");
   std::ifstream requests(dir / "requests");
   std::string line;
   ASSERT_TRUE(std::getline(requests, line));
