@@ -1,0 +1,298 @@
+// skintune runtime: run the tuned linear-blend-skinning kernel on your buffers.
+//
+//   v'[k] = sum_i w[k][i] * M[d[k][i]] * v[k]        (k: vertex, i < influences)
+//
+// The one public header of skintune. Tune offline once per device
+// (`skintune tune`, `skintune db merge`), then at run time:
+//
+//   skintune::Result<skintune::Device> device = skintune::Device::OpenBest();
+//   skintune::Result<skintune::WinnersDb> db = skintune::WinnersDb::Load("db.json");
+//   skintune::Result<skintune::Skinner> skinner =
+//       skintune::Skinner::Create(*device, *db, mesh_view, options);
+//   per frame: skinner->SetPalette(...); skinner->Skin(); skinner->ReadPositions(...);
+//
+// Errors are values: every function that can fail returns Status or Result<T>,
+// whose message names what was wrong (the argument, the vertex, the device).
+// No exception crosses this header: allocation failure inside the library is
+// reported as a Status like any other error. Objects are move-only handles;
+// a moved-from object reports "used after move" from every call.
+//
+// Threads: one Device and the Skinners created from it must be used from one
+// thread at a time (they share a queue / stream / GL context). Different
+// Devices may be used from different threads.
+//
+// This header needs only the C++17 standard library. Native handles
+// (cl_device_id, CUstream, GLuint...) pass as void* / integer so the header
+// includes no OpenCL, CUDA or GL headers.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace skintune {
+
+// ---------------------------------------------------------------- errors
+
+enum class ErrorCode {
+  kOk = 0,
+  kInvalidArgument,    // a precondition of the call was broken (sizes, ranges, null handles)
+  kNotFound,           // no device / file / database entry matches
+  kUnavailable,        // the backend is not present on this machine (no driver, no extension)
+  kBuildFailed,        // the kernel did not compile (message: first lines of the build log)
+  kDeviceError,        // an API call failed on the device (message: the call and its error)
+  kIoError,            // a file could not be read or written
+  kInvalidState,       // use after move, destroyed context, palette not set yet
+};
+
+class Status {
+ public:
+  Status() = default;  // ok
+  Status(ErrorCode code, std::string message) : code_(code), message_(std::move(message)) {}
+  bool ok() const { return code_ == ErrorCode::kOk; }
+  ErrorCode code() const { return code_; }
+  const std::string& message() const { return message_; }  // empty when ok
+  explicit operator bool() const { return ok(); }
+
+ private:
+  ErrorCode code_ = ErrorCode::kOk;
+  std::string message_;
+};
+
+// A value or the Status saying why there is none. Dereferencing a Result that
+// holds an error is a programming error (checked by assert in debug builds).
+template <class T>
+class Result {
+ public:
+  Result(T value) : value_(std::move(value)), has_value_(true) {}  // NOLINT: implicit by design
+  Result(Status status) : status_(std::move(status)) {}            // NOLINT: implicit by design
+  bool ok() const { return has_value_; }
+  explicit operator bool() const { return has_value_; }
+  const Status& status() const { return status_; }
+  T& value() { return value_; }
+  const T& value() const { return value_; }
+  T& operator*() { return value_; }
+  const T& operator*() const { return value_; }
+  T* operator->() { return &value_; }
+  const T* operator->() const { return &value_; }
+
+ private:
+  T value_{};
+  Status status_;
+  bool has_value_ = false;
+};
+
+// ---------------------------------------------------------------- devices
+
+enum class Backend { kOpenCl, kCuda, kGl };
+const char* BackendName(Backend backend);  // "opencl", "cuda", "gl"
+
+// A device's identity, as the tuner records it (tuner/backend.h DeviceIdentity).
+struct DeviceInfo {
+  Backend backend = Backend::kOpenCl;
+  std::string id;              // "<backend>:<platform>/<name>/<driver_version>": the database key
+  std::string platform;        // OpenCL platform name; "CUDA"; the EGL platform for GL
+  std::string vendor;
+  std::string name;            // device name / GL_RENDERER
+  std::string driver_version;
+  std::string type;            // "gpu", "cpu", "accelerator", "other"
+};
+
+struct DeviceOptions {
+  // Compiled programs are cached here, keyed by device, driver and source hash,
+  // so a second start compiles nothing. Empty: $SKINTUNE_CACHE_DIR, else
+  // $XDG_CACHE_HOME/skintune, else ~/.cache/skintune. "-": no disk cache.
+  std::string program_cache_dir;
+};
+
+// Counters for the program cache (tests and diagnostics).
+struct ProgramCacheStats {
+  int builds = 0;       // programs compiled from source this Device's lifetime
+  int disk_hits = 0;    // programs loaded from the disk cache
+  int memory_hits = 0;  // programs reused within this Device
+};
+
+class Device {
+ public:
+  // Every device skintune can run on here, in discovery order: OpenCL devices
+  // (all platforms), CUDA devices, and one GL device when an EGL context opens.
+  // Absent backends are simply missing from the list.
+  static std::vector<DeviceInfo> List();
+
+  // The best available device: a GPU before anything else, then CUDA before
+  // OpenCL before GL on the same GPU; a CPU OpenCL device when there is no GPU.
+  // kNotFound when there is no device at all.
+  static Result<Device> OpenBest(const DeviceOptions& options = {});
+
+  // The first device of List() whose id, name, vendor or platform contains
+  // `pattern` (case-insensitive) and, unless `backend` is null, is of that backend.
+  static Result<Device> Open(const std::string& pattern, const Backend* backend = nullptr,
+                             const DeviceOptions& options = {});
+
+  // An OpenCL device, context and queue the caller already has (cl_device_id,
+  // cl_context, cl_command_queue as void*). skintune retains them and releases
+  // them when the Device is destroyed; the queue must be in-order. Null handles
+  // or a device not in the context: kInvalidArgument.
+  static Result<Device> FromOpenCl(void* cl_device, void* cl_context, void* cl_queue,
+                                   const DeviceOptions& options = {});
+
+  // A CUDA context and stream the caller already has (CUcontext, CUstream as
+  // void*; a null stream is the legacy default stream). The context must
+  // outlive the Device. kUnavailable without a CUDA driver.
+  static Result<Device> FromCuda(void* cu_context, void* cu_stream, const DeviceOptions& options = {});
+
+  // The GL context current on the calling thread (4.3+ with compute shaders,
+  // or 3.0+ for the vertex-shader path). It must stay current on the thread
+  // that calls the Device and its Skinners. kUnavailable when no context is
+  // current or it is too old.
+  static Result<Device> FromCurrentGl(const DeviceOptions& options = {});
+
+  Device();
+  ~Device();
+  Device(Device&&) noexcept;
+  Device& operator=(Device&&) noexcept;
+
+  const DeviceInfo& info() const;
+  ProgramCacheStats cache_stats() const;
+  // Whether OpenCL here can write into GL buffer objects (cl_khr_gl_sharing with
+  // a context created for the current GL context).
+  bool has_gl_sharing() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+  friend class Skinner;
+};
+
+// ---------------------------------------------------------------- winners
+
+// How the database entry for a device was found (the fallback chain).
+enum class MatchLevel {
+  kExactDevice,      // same device id (backend, platform, name and driver version)
+  kSameDeviceName,   // same backend and device name, another driver
+  kSameVendorType,   // same backend, vendor and device type
+  kGenericDefault,   // no entry: the built-in default variant, correct everywhere
+};
+const char* MatchLevelName(MatchLevel level);  // "exact-device", "same-device-name", ...
+
+// A winners database, as written by `skintune tune` or `skintune db merge`.
+class WinnersDb {
+ public:
+  // kIoError when the file cannot be read; kInvalidArgument naming the file
+  // and element when it is not a winners database (or a tuning report).
+  static Result<WinnersDb> Load(const std::string& path);
+  static Result<WinnersDb> Parse(const std::string& json_text, const std::string& name_for_errors);
+  static WinnersDb Empty();  // every lookup ends at kGenericDefault
+
+  WinnersDb();
+  ~WinnersDb();
+  WinnersDb(const WinnersDb&);
+  WinnersDb& operator=(const WinnersDb&);
+  WinnersDb(WinnersDb&&) noexcept;
+  WinnersDb& operator=(WinnersDb&&) noexcept;
+
+  std::size_t size() const;  // entries
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+  friend class Skinner;
+  friend struct Selection;
+};
+
+// What a Skinner runs and why.
+struct Selection {
+  std::string variant;     // the variant key (docs/VARIANTS.md), e.g. "cl.b4.padded.soa..."
+  MatchLevel level = MatchLevel::kGenericDefault;
+  std::string entry;       // the database entry used: "<device id> <lang> b<B> <bucket>", or "built-in default"
+  std::string reason;      // e.g. "no entry for this device; same vendor and type: NVIDIA gpu"
+
+  // The lookup alone (what Skinner::Create would choose), for diagnostics.
+  static Result<Selection> Find(const WinnersDb& db, const DeviceInfo& device, int influences,
+                                std::size_t vertex_count);
+};
+
+// ---------------------------------------------------------------- skinning
+
+// The mesh, in the caller's memory, read during Skinner::Create only.
+// Every pointer holds vertex_count * its per-vertex count; strides are implied.
+struct MeshView {
+  std::size_t vertex_count = 0;
+  int influences = 0;                // B, 1..8: slots per vertex
+  int joint_count = 0;               // palette entries; every joint index < joint_count
+  const float* positions = nullptr;  // 3 per vertex (x, y, z)
+  const float* normals = nullptr;    // 3 per vertex, or null (then no normals are skinned)
+  const std::uint32_t* joints = nullptr;  // B per vertex
+  const float* weights = nullptr;         // B per vertex, each >= 0, summing to 1 within 1e-3
+};
+
+struct SkinnerOptions {
+  int instances = 1;        // K copies of the mesh skinned in one launch, each with its own palette
+  bool normals = false;     // also skin normals (MeshView::normals required)
+  // Force a variant key instead of the database's choice (must suit the device,
+  // language and influences; otherwise kInvalidArgument naming the constraint).
+  std::string variant;
+};
+
+class Skinner {
+ public:
+  // Picks the variant for (device, mesh.influences, mesh.vertex_count) from
+  // `db` (Selection::Find's fallback chain), packs the mesh into the variant's
+  // layout on the device, and builds (or loads from the program cache) its
+  // kernels. Validates the mesh: kInvalidArgument naming the first bad vertex
+  // and slot for a joint out of range, a negative or NaN weight, weights not
+  // summing to 1, a null array or zero sizes.
+  static Result<Skinner> Create(Device& device, const WinnersDb& db, const MeshView& mesh,
+                                const SkinnerOptions& options = {});
+
+  Skinner();
+  ~Skinner();
+  Skinner(Skinner&&) noexcept;
+  Skinner& operator=(Skinner&&) noexcept;
+
+  const Selection& selection() const;
+  std::size_t vertex_count() const;  // per instance
+  int instances() const;
+  int joint_count() const;
+
+  // Uploads the palettes: instances() * joint_count() column-major 4x4 float
+  // matrices (16 floats each; instance k's joints at [k * joint_count * 16]).
+  // `float_count` must equal instances() * joint_count() * 16, else kInvalidArgument.
+  Status SetPalette(const float* matrices, std::size_t float_count);
+
+  // Skins every instance on the device (asynchronous where the backend is:
+  // Read* waits). kInvalidState before the first SetPalette.
+  Status Skin();
+
+  // Skinned positions (and normals) in the mesh's vertex order: 3 floats per
+  // vertex, instance after instance; `float_count` must equal
+  // instances() * vertex_count() * 3. Waits for the last Skin().
+  Status ReadPositions(float* out, std::size_t float_count);
+  Status ReadNormals(float* out, std::size_t float_count);  // kInvalidState without normals
+
+  // Output left on the device (no read-back): the native buffer holding
+  // positions (cl_mem as void*, CUdeviceptr as uintptr_t, or GL buffer name),
+  // `output_stride_bytes()` per vertex (12: float3, 16: float4 with w = 1), in
+  // the mesh's vertex order, instance after instance.
+  void* device_positions() const;
+  std::size_t output_stride_bytes() const;
+
+  // OpenCL-OpenGL interop (cl_khr_gl_sharing, as in the paper): skin straight
+  // into GL buffer object `gl_buffer` (clCreateFromGLBuffer once per buffer,
+  // then acquire, skin, release each call). The buffer must hold
+  // instances() * vertex_count() * output_stride_bytes() bytes.
+  // kUnavailable when the Device has no GL sharing.
+  Status SkinIntoGlBuffer(unsigned int gl_buffer);
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace skintune
