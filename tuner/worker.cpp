@@ -28,6 +28,21 @@ namespace {
 
 constexpr std::size_t kStderrTailBytes = 8192;
 
+std::vector<std::string> CopyEnvironment() {
+  std::vector<std::string> copy;
+  for (char** entry = environ; entry != nullptr && *entry != nullptr; ++entry) copy.emplace_back(*entry);
+  return copy;
+}
+
+// Taken during static initialisation, before main() and before any driver is
+// loaded: some OpenCL ICD loaders tokenise OCL_ICD_FILENAMES in place
+// (strtok on getenv's pointer), so after the parent's own clGetPlatformIDs the
+// live environment may name only the first ICD, and a worker started with it
+// would not see the others (seen on the H100 machine: "libpocl.so.2:
+// libnvidia-opencl.so.1" became "libpocl.so.2", and the NVIDIA platform
+// vanished from the worker).
+const std::vector<std::string> kStartupEnvironment = CopyEnvironment();
+
 std::string Seconds(double s) {
   std::ostringstream out;
   out << s;
@@ -67,6 +82,8 @@ std::string StatusText(int status) {
 
 }  // namespace
 
+const std::vector<std::string>& StartupEnvironment() { return kStartupEnvironment; }
+
 std::string UtcTimestamp() {
   const std::time_t now = std::time(nullptr);
   std::tm utc{};
@@ -105,6 +122,9 @@ void IsolatedBackend::Start() {
   std::vector<char*> argv = {const_cast<char*>(executable_.c_str()), const_cast<char*>("tune-worker"),
                              const_cast<char*>("--backend-index"), const_cast<char*>(index.c_str()),
                              const_cast<char*>("--device-id"), const_cast<char*>(device_id.c_str()), nullptr};
+  std::vector<char*> envp;
+  for (const std::string& entry : kStartupEnvironment) envp.push_back(const_cast<char*>(entry.c_str()));
+  envp.push_back(nullptr);
   static const char kExecFailed[] = "skintune: cannot execute the tune worker\n";
   const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
@@ -119,7 +139,7 @@ void IsolatedBackend::Start() {
     ::dup2(in[0], 0);
     ::dup2(out[1], 1);
     ::dup2(err[1], 2);
-    ::execv(argv[0], argv.data());
+    ::execve(argv[0], argv.data(), envp.data());
     [[maybe_unused]] const ssize_t n = ::write(2, kExecFailed, sizeof kExecFailed - 1);
     ::_exit(127);
   }

@@ -29,6 +29,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "reference/error.h"
 #include "tuner/backend.h"
@@ -45,6 +46,10 @@ class WorkerError : public Error {
 
 // Now, UTC, ISO 8601 ("2026-11-22T13:39:17Z").
 std::string UtcTimestamp();
+
+// The process environment as it was at start-up, before any library could
+// change it; workers are started with it (see worker.cpp for why).
+const std::vector<std::string>& StartupEnvironment();
 
 class IsolatedBackend {
  public:

@@ -7,6 +7,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -188,6 +190,25 @@ TEST(IsolatedBackend, CopyBandwidthAnswerOrReason) {
   EXPECT_EQ(why, "no copy kernel");
   EXPECT_EQ(worker.CopyBandwidthGBps(1 << 20, &why), std::nullopt);
   EXPECT_EQ(why, "worker process died: exit code 4");
+}
+
+// Some OpenCL ICD loaders tokenise OCL_ICD_FILENAMES in place (strtok on
+// getenv's pointer) during the parent's own discovery; the worker must still
+// get the variable as the process started with it. ctest sets
+// SKINTUNE_TEST_ICD_LIST=first.so:second.so for this binary.
+TEST(IsolatedBackend, WorkerGetsTheStartupEnvironmentEvenAfterALibraryEditedItInPlace) {
+  char* live = std::getenv("SKINTUNE_TEST_ICD_LIST");
+  if (live == nullptr) GTEST_SKIP() << "SKINTUNE_TEST_ICD_LIST is not set (ctest sets it)";
+  ASSERT_STREQ(live, "first.so:second.so");
+  std::strtok(live, ":");  // what such a loader does
+  ASSERT_STREQ(std::getenv("SKINTUNE_TEST_ICD_LIST"), "first.so");
+  const fs::path dir = Scratch();
+  IsolatedBackend worker(
+      FakeWorker(dir, "read line; echo \"{\\\"copy_bandwidth_error\\\": \\\"$SKINTUNE_TEST_ICD_LIST\\\"}\""),
+      FakeDevice(), 30);
+  std::string why;
+  EXPECT_EQ(worker.CopyBandwidthGBps(1 << 20, &why), std::nullopt);
+  EXPECT_EQ(why, "first.so:second.so");
 }
 
 }  // namespace
