@@ -1,118 +1,26 @@
 #include "tuner/report.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <map>
-#include <optional>
-#include <regex>
 #include <tuple>
 
 #include <nlohmann/json.hpp>
 
 #include "reference/error.h"
+#include "runtime/json_fields.h"
+#include "runtime/winners_db.h"
 
 namespace skintune {
 
 namespace {
 
+using namespace json_fields;
+
 constexpr const char* kReportKind = "skintune-report";
-constexpr const char* kDatabaseKind = "skintune-winners-db";
-constexpr std::array<const char*, 4> kBuckets{"25k", "100k", "400k", "1600k"};
-constexpr std::array<Lang, 4> kLangs{Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex};
 
-std::size_t BucketIndex(const std::string& bucket) {
-  for (std::size_t i = 0; i < kBuckets.size(); ++i)
-    if (bucket == kBuckets[i]) return i;
-  return kBuckets.size();
-}
-
-std::optional<Lang> LangFromName(const std::string& name) {
-  for (Lang l : kLangs)
-    if (name == Name(l)) return l;
-  return std::nullopt;
-}
-
-// `created` is UTC ISO 8601: "YYYY-MM-DDTHH:MM:SS" with optional fractional
-// seconds, then "Z" or "+00:00".
-const std::regex& CreatedPattern() {
-  static const std::regex pattern(R"(^(\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2})(\.\d+)?(Z|\+00:00)$)");
-  return pattern;
-}
-
-std::string CheckedCreated(const std::string& created) {
-  if (!std::regex_match(created, CreatedPattern())) {
-    throw Error("'created' is '" + created + "', expected UTC ISO 8601 such as 2025-01-31T12:00:00Z");
-  }
-  return created;
-}
-
-// Whether `a` is earlier than `b` (both matching CreatedPattern).
-bool CreatedBefore(const std::string& a, const std::string& b) {
-  std::smatch ma;
-  std::smatch mb;
-  std::regex_match(a, ma, CreatedPattern());
-  std::regex_match(b, mb, CreatedPattern());
-  if (ma[1].str() != mb[1].str()) return ma[1].str() < mb[1].str();
-  // Fractional seconds: compare the digits padded to the same length.
-  std::string fa = ma[2].matched ? ma[2].str().substr(1) : "";
-  std::string fb = mb[2].matched ? mb[2].str().substr(1) : "";
-  const std::size_t n = std::max(fa.size(), fb.size());
-  fa.resize(n, '0');
-  fb.resize(n, '0');
-  return fa < fb;
-}
-
-// Runs `read`, prefixing any error with "<context>: <element>: ".
-template <typename F>
-auto At(const std::string& context, const std::string& element, F&& read) -> decltype(read()) {
-  try {
-    return read();
-  } catch (const nlohmann::json::exception& e) {
-    throw Error(context + ": " + element + ": " + e.what());
-  } catch (const Error& e) {
-    throw Error(context + ": " + element + ": " + e.what());
-  }
-}
-
-const nlohmann::json& Field(const nlohmann::json& object, const char* name) {
-  if (!object.contains(name)) throw Error(std::string("missing '") + name + "'");
-  return object.at(name);
-}
-
-std::string String(const nlohmann::json& object, const char* name) {
-  const nlohmann::json& v = Field(object, name);
-  if (!v.is_string()) throw Error(std::string("'") + name + "' must be a string");
-  return v.get<std::string>();
-}
-
-double Number(const nlohmann::json& object, const char* name) {
-  const nlohmann::json& v = Field(object, name);
-  if (!v.is_number()) throw Error(std::string("'") + name + "' must be a number");
-  return v.get<double>();
-}
-
-std::int64_t Integer(const nlohmann::json& object, const char* name) {
-  const nlohmann::json& v = Field(object, name);
-  if (!v.is_number_integer()) throw Error(std::string("'") + name + "' must be an integer");
-  return v.get<std::int64_t>();
-}
-
-const nlohmann::json& Array(const nlohmann::json& object, const char* name) {
-  const nlohmann::json& v = Field(object, name);
-  if (!v.is_array()) throw Error(std::string("'") + name + "' must be an array");
-  return v;
-}
-
-void CheckHeader(const nlohmann::json& json, const std::string& context, const char* kind) {
-  if (!json.is_object()) throw Error(context + ": expected a JSON object");
-  const std::string version = At(context, "schema_version", [&] { return String(json, "schema_version"); });
-  if (version.substr(0, version.find('.')) != "1") {
-    throw Error(context + ": schema_version '" + version + "' is not supported (this skintune reads 1.x, writes " +
-                kReportSchemaVersion + ")");
-  }
-  const std::string actual = At(context, "kind", [&] { return String(json, "kind"); });
-  if (actual != kind) throw Error(context + ": kind is '" + actual + "', expected '" + kind + "'");
+void CheckReportHeader(const nlohmann::json& json, const std::string& context) {
+  CheckHeader(json, context, kReportKind, kReportSchemaVersion);
 }
 
 std::string BackendOf(const TuningReport& report, const std::string& device_id) {
@@ -130,77 +38,45 @@ nlohmann::json WinnerJson(const Winner& w) {
 }
 
 // The merge key of a winner / database entry.
-using EntryKey = std::tuple<std::string, int, int, std::size_t>;  // device id, lang, influences, bucket
+using EntryKey = std::tuple<std::string, int, int, int>;  // device id, lang, influences, bucket
 
-struct Entry {
-  Winner winner;
-  std::string created;  // of the report it came from
-  std::string source;   // that report's config and strategy, for provenance
-};
-
-nlohmann::json EntryJson(const Entry& e) {
-  nlohmann::json j = WinnerJson(e.winner);
-  j["created"] = e.created;
-  j["source"] = e.source;
-  return j;
+EntryKey KeyOf(const std::string& device_id, Lang lang, int influences, const std::string& bucket) {
+  return {device_id, static_cast<int>(lang), influences, VertexBucketIndex(bucket)};
 }
 
-Entry EntryFromJson(const nlohmann::json& j) {
-  if (!j.is_object()) throw Error("expected an object");
-  Entry e;
-  Winner& w = e.winner;
-  w.device_id = String(j, "device_id");
-  w.backend = String(j, "backend");
-  const std::string lang = String(j, "lang");
-  const std::optional<Lang> l = LangFromName(lang);
-  if (!l) throw Error("'lang' has unknown value '" + lang + "'");
-  w.lang = *l;
-  w.influences = static_cast<int>(Integer(j, "influences"));
-  w.vertex_bucket = String(j, "vertex_bucket");
-  if (BucketIndex(w.vertex_bucket) == kBuckets.size()) {
-    throw Error("'vertex_bucket' has unknown value '" + w.vertex_bucket + "' (expected 25k, 100k, 400k or 1600k)");
-  }
-  w.dataset = String(j, "dataset");
-  w.variant = Field(j, "variant").get<Variant>();
-  if (w.variant.lang != w.lang || w.variant.influences != w.influences) {
-    throw Error("'variant' " + w.variant.Key() + " does not match 'lang' and 'influences'");
-  }
-  w.median_ms = Number(j, "median_ms");
-  w.gbps = Number(j, "gbps");
-  w.copy_fraction = Number(j, "copy_fraction");
-  e.created = CheckedCreated(String(j, "created"));
-  e.source = String(j, "source");
-  return e;
-}
-
-EntryKey KeyOf(const Winner& w) {
-  return {w.device_id, static_cast<int>(w.lang), w.influences, BucketIndex(w.vertex_bucket)};
-}
-
-std::vector<Entry> EntriesOf(const TuningReport& report) {
-  std::vector<Entry> entries;
+// The report's winners as database entries, with the device's identity (the
+// runtime's fallback chain matches on vendor and type).
+std::vector<WinnersEntry> EntriesOf(const TuningReport& report) {
+  std::vector<WinnersEntry> entries;
   for (Winner& w : ComputeWinners(report)) {
-    entries.push_back({std::move(w), report.created, report.config + " (" + report.strategy + ")"});
+    WinnersEntry e;
+    e.device_id = w.device_id;
+    const DeviceIdParts parts = SplitDeviceId(w.device_id);
+    e.backend = w.backend;
+    e.platform = parts.platform;
+    e.device_name = parts.name;
+    e.driver_version = parts.driver_version;
+    for (const DeviceIdentity& d : report.devices) {
+      if (d.Id() != w.device_id) continue;
+      e.vendor = d.vendor;
+      e.device_type = d.type;
+    }
+    e.lang = w.lang;
+    e.influences = w.influences;
+    e.vertex_bucket = w.vertex_bucket;
+    e.dataset = w.dataset;
+    e.variant = w.variant;
+    e.median_ms = w.median_ms;
+    e.gbps = w.gbps;
+    e.copy_fraction = w.copy_fraction;
+    e.created = report.created;
+    e.source = report.config + " (" + report.strategy + ")";
+    entries.push_back(std::move(e));
   }
   return entries;
 }
 
-nlohmann::json DatabaseJson(const std::vector<Entry>& entries) {
-  nlohmann::json db = {{"schema_version", kReportSchemaVersion},
-                       {"kind", kDatabaseKind},
-                       {"entries", nlohmann::json::array()}};
-  for (const Entry& e : entries) db["entries"].push_back(EntryJson(e));
-  return db;
-}
-
 }  // namespace
-
-std::string VertexBucket(std::size_t vertices) {
-  if (vertices < 50000) return kBuckets[0];
-  if (vertices < 200000) return kBuckets[1];
-  if (vertices < 800000) return kBuckets[2];
-  return kBuckets[3];
-}
 
 std::vector<Winner> ComputeWinners(const TuningReport& report) {
   std::map<std::string, const DatasetInfo*> datasets;
@@ -217,7 +93,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     w.lang = m.variant.lang;
     w.influences = m.variant.influences;
     w.vertex_bucket = VertexBucket(dataset->second->vertices);
-    const EntryKey key = KeyOf(w);
+    const EntryKey key = KeyOf(w.device_id, w.lang, w.influences, w.vertex_bucket);
     const auto it = best.find(key);
     if (it != best.end() && it->second.median_ms <= m.timing.median_ms) continue;  // ties: the first one
     w.backend = BackendOf(report, m.device_id);
@@ -264,7 +140,7 @@ nlohmann::json ReportToJson(const TuningReport& report) {
 }
 
 TuningReport ReportFromJson(const nlohmann::json& json, const std::string& context) {
-  CheckHeader(json, context, kReportKind);
+  CheckReportHeader(json, context);
   TuningReport r;
   r.created = At(context, "created", [&] { return CheckedCreated(String(json, "created")); });
   r.config = At(context, "config", [&] { return String(json, "config"); });
@@ -409,7 +285,7 @@ nlohmann::json ReportToT4(const TuningReport& report) {
   return {{"schema_version", "1.0.0"}, {"metadata", std::move(metadata)}, {"results", std::move(results)}};
 }
 
-nlohmann::json WinnersDatabase(const TuningReport& report) { return DatabaseJson(EntriesOf(report)); }
+nlohmann::json WinnersDatabase(const TuningReport& report) { return WinnersDbJson(EntriesOf(report)); }
 
 nlohmann::json MergeWinnersDatabases(const std::vector<nlohmann::json>& reports_or_databases,
                                      const std::vector<std::string>& names_for_errors) {
@@ -417,36 +293,32 @@ nlohmann::json MergeWinnersDatabases(const std::vector<nlohmann::json>& reports_
     throw Error("winners database merge: " + std::to_string(reports_or_databases.size()) + " inputs but " +
                 std::to_string(names_for_errors.size()) + " names");
   }
-  std::map<EntryKey, Entry> merged;
+  std::map<EntryKey, WinnersEntry> merged;
   for (std::size_t i = 0; i < reports_or_databases.size(); ++i) {
     const nlohmann::json& input = reports_or_databases[i];
     const std::string& name = names_for_errors[i];
     if (!input.is_object()) throw Error(name + ": expected a JSON object (a skintune report or winners database)");
     const std::string kind = input.contains("kind") && input["kind"].is_string() ? input["kind"].get<std::string>() : "";
-    std::vector<Entry> entries;
+    std::vector<WinnersEntry> entries;
     if (kind == kReportKind) {
       entries = EntriesOf(ReportFromJson(input, name));
-    } else if (kind == kDatabaseKind) {
-      CheckHeader(input, name, kDatabaseKind);
-      const nlohmann::json& list = At(name, "entries", [&]() -> const nlohmann::json& { return Array(input, "entries"); });
-      for (std::size_t e = 0; e < list.size(); ++e) {
-        entries.push_back(At(name, "entries[" + std::to_string(e) + "]", [&] { return EntryFromJson(list[e]); }));
-      }
+    } else if (kind == kWinnersDbKind) {
+      entries = WinnersDbFromJson(input, name);
     } else {
       throw Error(name + ": not a skintune report or winners database (\"kind\" is " +
                   (kind.empty() ? std::string("missing") : "'" + kind + "'") + ", expected '" + kReportKind +
-                  "' or '" + kDatabaseKind + "')");
+                  "' or '" + kWinnersDbKind + "')");
     }
     // Newest `created` wins per key; on equal `created`, the later input.
-    for (Entry& e : entries) {
-      const EntryKey key = KeyOf(e.winner);
+    for (WinnersEntry& e : entries) {
+      const EntryKey key = KeyOf(e.device_id, e.lang, e.influences, e.vertex_bucket);
       const auto it = merged.find(key);
       if (it == merged.end() || !CreatedBefore(e.created, it->second.created)) merged.insert_or_assign(key, std::move(e));
     }
   }
-  std::vector<Entry> out;
+  std::vector<WinnersEntry> out;
   for (auto& [key, e] : merged) out.push_back(std::move(e));
-  return DatabaseJson(out);
+  return WinnersDbJson(out);
 }
 
 }  // namespace skintune

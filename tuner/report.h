@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>  // TuningReport holds a json by value (json_fwd.hpp is not enough)
 
+#include "runtime/winners_db.h"
 #include "tuner/backend.h"
 #include "tuner/measurement.h"
 
@@ -35,9 +36,8 @@ struct TuningReport {
   std::vector<Measurement> measurements;
 };
 
-// The paper's vertex counts name the buckets: "25k" (< 50k), "100k" (< 200k),
-// "400k" (< 800k), "1600k" (the rest).
-std::string VertexBucket(std::size_t vertices);
+// VertexBucket (the paper's vertex counts as buckets) and the database format
+// itself live in runtime/winners_db.h: the runtime reads what this writes.
 
 struct Winner {
   std::string device_id;
@@ -64,9 +64,10 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
 // schema_version, metadata, results[] with configuration, times, invalidity, correctness.
 nlohmann::json ReportToT4(const TuningReport& report);
 
-// Winners database: {"schema_version", "kind": "skintune-winners-db", "entries": [...]}, one
-// entry per (device id with driver, language, influences, vertex bucket). Merging takes reports
-// and/or databases; for the same device+driver the newest report wins (by `created`).
+// Winners database (runtime/winners_db.h): {"schema_version", "kind": "skintune-winners-db",
+// "entries": [...]}, one entry per (device id with driver, language, influences, vertex bucket),
+// each naming the device's platform, vendor, name, driver and type. Merging takes reports and/or
+// databases; for the same device+driver the newest report wins (by `created`).
 nlohmann::json WinnersDatabase(const TuningReport& report);
 nlohmann::json MergeWinnersDatabases(const std::vector<nlohmann::json>& reports_or_databases,
                                      const std::vector<std::string>& names_for_errors);

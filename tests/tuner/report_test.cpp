@@ -175,9 +175,41 @@ TEST(Report, WinnersDatabaseHasOneEntryPerWinner) {
   const TuningReport r = testing::SampleReport();
   const nlohmann::json db = WinnersDatabase(r);
   EXPECT_EQ(db["kind"], "skintune-winners-db");
-  EXPECT_EQ(db["schema_version"], kReportSchemaVersion);
+  EXPECT_EQ(db["schema_version"], kWinnersDbSchemaVersion);
   ASSERT_EQ(db["entries"].size(), ComputeWinners(r).size());
   for (const nlohmann::json& e : db["entries"]) EXPECT_EQ(e["created"], r.created);
+}
+
+TEST(Report, WinnersDatabaseEntriesNameTheDevicesVendorTypeAndDriver) {
+  const TuningReport r = testing::SampleReport();
+  const nlohmann::json db = WinnersDatabase(r);
+  ASSERT_FALSE(db["entries"].empty());
+  for (const nlohmann::json& e : db["entries"]) {
+    const DeviceIdentity& d = e["backend"] == "cuda" ? testing::SampleCuda() : r.devices[0];
+    EXPECT_EQ(e["device_id"], d.Id()) << e.dump();
+    EXPECT_EQ(e["platform"], d.platform);
+    EXPECT_EQ(e["vendor"], d.vendor);
+    EXPECT_EQ(e["device_name"], d.name);
+    EXPECT_EQ(e["driver_version"], d.driver_version);
+    EXPECT_EQ(e["device_type"], d.type);
+  }
+}
+
+TEST(Report, MergeKeepsDatabaseEntriesWithoutVendorAndType) {
+  // A 1.0.0 database (written before entries named the device) merges; its
+  // entries keep what the id says and no vendor or type.
+  nlohmann::json old = WinnersDatabase(testing::SampleReport());
+  old["schema_version"] = "1.0.0";
+  for (nlohmann::json& e : old["entries"]) {
+    for (const char* field : {"platform", "vendor", "device_name", "driver_version", "device_type"}) e.erase(field);
+  }
+  const nlohmann::json merged = MergeWinnersDatabases({old}, {"old.json"});
+  ASSERT_EQ(merged["entries"].size(), old["entries"].size());
+  for (const nlohmann::json& e : merged["entries"]) {
+    EXPECT_FALSE(e.contains("vendor")) << e.dump();
+    EXPECT_FALSE(e.contains("device_type")) << e.dump();
+    EXPECT_EQ(e["device_name"], "Model GPU");
+  }
 }
 
 TEST(Report, MergeNewestReportWinsPerDeviceLanguageInfluencesAndBucket) {

@@ -1,0 +1,90 @@
+// The public winners database and lookup (skintune/skintune.h): WinnersDb,
+// Selection::Find, and the names of backends and match levels.
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "runtime/api_errors.h"
+#include "runtime/selection.h"
+#include "runtime/winners_db.h"
+#include "skintune/skintune.h"
+
+namespace skintune {
+
+const char* BackendName(Backend backend) {
+  switch (backend) {
+    case Backend::kOpenCl: return "opencl";
+    case Backend::kCuda: return "cuda";
+    case Backend::kGl: return "gl";
+  }
+  return "unknown";
+}
+
+const char* MatchLevelName(MatchLevel level) {
+  switch (level) {
+    case MatchLevel::kExactDevice: return "exact-device";
+    case MatchLevel::kSameDeviceName: return "same-device-name";
+    case MatchLevel::kSameVendorType: return "same-vendor-type";
+    case MatchLevel::kGenericDefault: return "generic-default";
+  }
+  return "unknown";
+}
+
+WinnersDb::WinnersDb() : impl_(std::make_unique<Impl>()) {}
+WinnersDb::~WinnersDb() = default;
+WinnersDb::WinnersDb(const WinnersDb& other)
+    : impl_(other.impl_ ? std::make_unique<Impl>(*other.impl_) : nullptr) {}
+WinnersDb& WinnersDb::operator=(const WinnersDb& other) {
+  if (this != &other) impl_ = other.impl_ ? std::make_unique<Impl>(*other.impl_) : nullptr;
+  return *this;
+}
+WinnersDb::WinnersDb(WinnersDb&&) noexcept = default;
+WinnersDb& WinnersDb::operator=(WinnersDb&&) noexcept = default;
+
+std::size_t WinnersDb::size() const { return impl_ ? impl_->entries.size() : 0; }
+
+WinnersDb WinnersDb::Empty() { return WinnersDb(); }
+
+Result<WinnersDb> WinnersDb::Parse(const std::string& json_text, const std::string& name_for_errors) {
+  return GuardedResult<WinnersDb>(ErrorCode::kInvalidArgument, [&] {
+    nlohmann::json json;
+    try {
+      json = nlohmann::json::parse(json_text);
+    } catch (const nlohmann::json::parse_error& e) {
+      FailWith(ErrorCode::kInvalidArgument, name_for_errors + ": not JSON: " + e.what());
+    }
+    WinnersDb db;
+    db.impl_->entries = WinnersDbFromJson(json, name_for_errors);
+    return db;
+  });
+}
+
+Result<WinnersDb> WinnersDb::Load(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status(ErrorCode::kIoError, "cannot read winners database '" + path + "': " + std::strerror(errno));
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) return Status(ErrorCode::kIoError, "cannot read winners database '" + path + "': read failed");
+  return Parse(text.str(), path);
+}
+
+Result<Selection> Selection::Find(const WinnersDb& db, const DeviceInfo& device, int influences,
+                                  std::size_t vertex_count) {
+  return GuardedResult<Selection>(ErrorCode::kInvalidArgument, [&] {
+    if (!db.impl_) FailWith(ErrorCode::kInvalidState, "Selection::Find: the WinnersDb was used after move");
+    if (influences < 1 || influences > 8)
+      FailWith(ErrorCode::kInvalidArgument,
+               "Selection::Find: influences " + std::to_string(influences) + " outside 1..8");
+    SelectionRequest request;
+    request.device = device;
+    request.langs = LanguagesOf(device.backend);
+    request.influences = influences;
+    request.vertex_count = vertex_count;
+    return Select(db.impl_->entries, request).selection;
+  });
+}
+
+}  // namespace skintune

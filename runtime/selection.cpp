@@ -1,0 +1,165 @@
+#include "runtime/selection.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <tuple>
+
+#include "runtime/api_errors.h"
+
+namespace skintune {
+
+namespace {
+
+bool Contains(const std::vector<Lang>& langs, Lang lang) {
+  return std::find(langs.begin(), langs.end(), lang) != langs.end();
+}
+
+const char* BackendKey(Backend backend) { return BackendName(backend); }
+
+// Whether `e` belongs to `level` for `device` (each level excludes the ones before it).
+bool AtLevel(const WinnersEntry& e, const DeviceInfo& device, MatchLevel level) {
+  const bool exact = e.device_id == device.id;
+  const bool same_backend = e.backend == BackendKey(device.backend);
+  const bool same_name = same_backend && e.device_name == device.name;
+  const bool same_vendor_type = same_backend && !e.vendor.empty() && !e.device_type.empty() &&
+                                e.vendor == device.vendor && e.device_type == device.type;
+  switch (level) {
+    case MatchLevel::kExactDevice: return exact;
+    case MatchLevel::kSameDeviceName: return !exact && same_name;
+    case MatchLevel::kSameVendorType: return !exact && !same_name && same_vendor_type;
+    case MatchLevel::kGenericDefault: return false;
+  }
+  return false;
+}
+
+// Smaller is better: B above the mesh's, bucket distance, smaller bucket, then
+// the newest `created` and the smallest time (compared separately).
+std::tuple<int, int, int> Rank(const WinnersEntry& e, int influences, int bucket) {
+  const int entry_bucket = VertexBucketIndex(e.vertex_bucket);
+  return {e.influences - influences, std::abs(entry_bucket - bucket), -entry_bucket};
+}
+
+bool Better(const WinnersEntry& a, const WinnersEntry& b, int influences, int bucket) {
+  const auto ra = Rank(a, influences, bucket);
+  const auto rb = Rank(b, influences, bucket);
+  if (ra != rb) return ra < rb;
+  if (a.created != b.created) return CreatedBefore(b.created, a.created);
+  return a.median_ms < b.median_ms;
+}
+
+std::string LevelReason(MatchLevel level, const WinnersEntry& e, const DeviceInfo& device) {
+  switch (level) {
+    case MatchLevel::kExactDevice:
+      return "tuned on this device and driver";
+    case MatchLevel::kSameDeviceName:
+      return "no entry for this driver (" + device.driver_version + "); same device name '" + device.name +
+             "', tuned with driver " + e.driver_version + (e.platform != device.platform ? " on " + e.platform : "");
+    case MatchLevel::kSameVendorType:
+      return "no entry for '" + device.name + "'; same vendor and type: " + device.vendor + " " + device.type +
+             " (tuned on '" + e.device_name + "')";
+    case MatchLevel::kGenericDefault:
+      break;
+  }
+  return "";
+}
+
+std::string Langs(const std::vector<Lang>& langs) {
+  std::string out;
+  for (Lang l : langs) out += (out.empty() ? "" : " or ") + std::string(Name(l));
+  return out;
+}
+
+}  // namespace
+
+std::vector<Lang> LanguagesOf(Backend backend) {
+  switch (backend) {
+    case Backend::kOpenCl: return {Lang::kOpenCl};
+    case Backend::kCuda: return {Lang::kCuda};
+    case Backend::kGl: return {Lang::kGlslCompute, Lang::kGlslVertex};
+  }
+  return {};
+}
+
+Variant GenericDefault(Lang lang, int influences, bool normals, const DeviceLimits& limits) {
+  Variant v;
+  v.lang = lang;
+  v.influences = influences;
+  v.mixed = MixedCounts::kPadded;
+  v.layout = Layout::kSoa;
+  v.position = PositionFormat::kFloat4;
+  v.index = IndexFormat::kI32;
+  v.weight = WeightFormat::kF32;
+  v.palette = PaletteFormat::kMat4;
+  v.storage = PaletteStorage::kGlobal;
+  v.blend = Blend::kMatrix;
+  v.vertices_per_item = 1;
+  v.assignment = Assignment::kContiguous;
+  v.wg_size = lang == Lang::kGlslVertex ? 0 : limits.max_wg_size >= 64 ? 64 : 32;
+  v.normals = normals;
+  return v;
+}
+
+Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& request) {
+  const DeviceInfo& device = request.device;
+  const int bucket = VertexBucketIndex(VertexBucket(request.vertex_count));
+  auto check = [&](const Variant& v) { return request.check ? request.check(v) : std::string(); };
+  std::vector<std::string> skipped;
+
+  for (MatchLevel level : {MatchLevel::kExactDevice, MatchLevel::kSameDeviceName, MatchLevel::kSameVendorType}) {
+    std::vector<const WinnersEntry*> candidates;
+    for (const WinnersEntry& e : entries) {
+      if (AtLevel(e, device, level) && Contains(request.langs, e.lang) && e.influences >= request.influences)
+        candidates.push_back(&e);
+    }
+    std::stable_sort(candidates.begin(), candidates.end(), [&](const WinnersEntry* a, const WinnersEntry* b) {
+      return Better(*a, *b, request.influences, bucket);
+    });
+    for (const WinnersEntry* e : candidates) {
+      Variant v = e->variant;
+      v.normals = request.normals;
+      const std::string why = check(v);
+      if (!why.empty()) {
+        skipped.push_back(Describe(*e) + ": " + why);
+        continue;
+      }
+      Chosen chosen;
+      chosen.variant = v;
+      chosen.selection.variant = v.Key();
+      chosen.selection.level = level;
+      chosen.selection.entry = Describe(*e);
+      std::string reason = LevelReason(level, *e, device);
+      if (e->influences != request.influences || VertexBucketIndex(e->vertex_bucket) != bucket) {
+        reason += "; tuned for b" + std::to_string(e->influences) + " at " + e->vertex_bucket + " vertices (the mesh: b" +
+                  std::to_string(request.influences) + ", " + std::to_string(request.vertex_count) + " vertices)";
+      }
+      for (const std::string& s : skipped) reason += "; skipped " + s;
+      chosen.selection.reason = reason;
+      return chosen;
+    }
+  }
+
+  std::string tried;
+  for (Lang lang : request.langs) {
+    const Variant v = GenericDefault(lang, request.influences, request.normals, request.limits);
+    const std::string why = check(v);
+    if (!why.empty()) {
+      tried += (tried.empty() ? "" : "; ") + v.Key() + ": " + why;
+      continue;
+    }
+    Chosen chosen;
+    chosen.variant = v;
+    chosen.selection.variant = v.Key();
+    chosen.selection.level = MatchLevel::kGenericDefault;
+    chosen.selection.entry = "built-in default";
+    std::string reason = "no " + Langs(request.langs) + " entry with b" + std::to_string(request.influences) +
+                         " or more for this device, its name '" + device.name + "' or its vendor and type (" +
+                         device.vendor + " " + device.type + "): the built-in default, correct on every device";
+    for (const std::string& s : skipped) reason += "; skipped " + s;
+    if (!tried.empty()) reason += "; also skipped " + tried;
+    chosen.selection.reason = reason;
+    return chosen;
+  }
+  FailWith(ErrorCode::kUnavailable, "no variant can run on " + device.id + ": " + tried);
+}
+
+}  // namespace skintune

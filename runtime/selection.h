@@ -1,0 +1,70 @@
+// skintune (internal): which variant runs on a device: the winners database's
+// fallback chain (Selection::Find, Skinner::Create) and the built-in default.
+//
+// The chain, first level with a usable entry wins:
+//   1. exact device: the entry's device id is the device's (backend, platform,
+//      name and driver version);
+//   2. same device name: same backend and device name, another driver (or
+//      platform);
+//   3. same vendor and type: same backend, vendor and device type (entries of
+//      1.0.0 databases, which do not name vendor and type, never match here);
+//   4. the built-in default (GenericDefault), correct on every device.
+// An entry is usable when its language is one of the device's and its
+// influences B hold the mesh's (B >= the largest per-vertex count), and the
+// caller's check accepts it (Skinner::Create: the constraints on the real
+// device and mesh); a rejected entry is named in the reason. Among the usable
+// entries of a level: the smallest B, then the nearest vertex bucket (on a tie
+// the larger one), then the newest `created` (the newest driver tuned), then
+// the smallest median time (which chooses between glsl-compute and
+// glsl-vertex on a GL device). The entry's variant is taken with its
+// `normals` set to what the caller needs.
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "generator/constraints.h"
+#include "generator/variant.h"
+#include "runtime/winners_db.h"
+#include "skintune/skintune.h"
+
+namespace skintune {
+
+struct WinnersDb::Impl {
+  std::vector<WinnersEntry> entries;
+};
+
+struct SelectionRequest {
+  DeviceInfo device;
+  std::vector<Lang> langs;       // the device's languages, preferred first
+  int influences = 1;            // the largest per-vertex count the variant must hold
+  std::size_t vertex_count = 0;
+  bool normals = false;
+  DeviceLimits limits;           // sizes the built-in default's work-group
+  // Why `variant` cannot run here, or "" when it can; unset: every variant can.
+  std::function<std::string(const Variant&)> check;
+};
+
+struct Chosen {
+  Selection selection;
+  Variant variant;
+};
+
+// Throws ApiError(kUnavailable) only when not even the built-in default of
+// any of the device's languages passes the check.
+Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& request);
+
+// The built-in default of `lang`: padded (mesh order kept), soa, float4, i32
+// indices (any joint count), f32 weights (no quantisation), mat4 palette (any
+// matrix, affine or not), global palette storage (no size limit), matrix
+// blend, one vertex per item, work-group 64 (32 on a device whose limit is
+// below 64; wg0 for glsl-vertex). Every constraint of generator/constraints.h
+// holds for it on every device except the vertex shader's storage blocks.
+Variant GenericDefault(Lang lang, int influences, bool normals, const DeviceLimits& limits);
+
+// A backend's languages, preferred first: opencl; cuda; glsl-compute, glsl-vertex.
+std::vector<Lang> LanguagesOf(Backend backend);
+
+}  // namespace skintune

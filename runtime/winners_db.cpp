@@ -1,0 +1,169 @@
+#include "runtime/winners_db.h"
+
+#include <algorithm>
+#include <array>
+#include <regex>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+#include "runtime/json_fields.h"
+
+namespace skintune {
+
+namespace {
+
+using namespace json_fields;
+
+constexpr std::array<const char*, 4> kBuckets{"25k", "100k", "400k", "1600k"};
+constexpr std::array<Lang, 4> kLangs{Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex};
+constexpr const char* kReportKind = "skintune-report";
+
+const std::regex& CreatedPattern() {
+  static const std::regex pattern(R"(^(\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2})(\.\d+)?(Z|\+00:00)$)");
+  return pattern;
+}
+
+// `value` of field `name` must equal `expected` (the part of the device id) when present.
+std::string Agreeing(const nlohmann::json& j, const char* name, const std::string& expected) {
+  if (!j.contains(name)) return expected;
+  const std::string value = String(j, name);
+  if (value != expected)
+    throw Error(std::string("'") + name + "' is '" + value + "' but 'device_id' says '" + expected + "'");
+  return value;
+}
+
+}  // namespace
+
+std::string JoinDeviceId(const DeviceIdParts& p) {
+  return p.backend + ":" + p.platform + "/" + p.name + "/" + p.driver_version;
+}
+
+DeviceIdParts SplitDeviceId(const std::string& id) {
+  const std::size_t colon = id.find(':');
+  const std::size_t first = colon == std::string::npos ? std::string::npos : id.find('/', colon + 1);
+  const std::size_t last = id.rfind('/');
+  if (colon == std::string::npos || colon == 0 || first == std::string::npos || last == first)
+    throw Error("device id '" + id + "' is not \"<backend>:<platform>/<name>/<driver_version>\"");
+  return {id.substr(0, colon), id.substr(colon + 1, first - colon - 1), id.substr(first + 1, last - first - 1),
+          id.substr(last + 1)};
+}
+
+std::string VertexBucket(std::size_t vertices) {
+  if (vertices < 50000) return kBuckets[0];
+  if (vertices < 200000) return kBuckets[1];
+  if (vertices < 800000) return kBuckets[2];
+  return kBuckets[3];
+}
+
+int VertexBucketIndex(const std::string& bucket) {
+  for (std::size_t i = 0; i < kBuckets.size(); ++i)
+    if (bucket == kBuckets[i]) return static_cast<int>(i);
+  return -1;
+}
+
+std::string CheckedCreated(const std::string& created) {
+  if (!std::regex_match(created, CreatedPattern())) {
+    throw Error("'created' is '" + created + "', expected UTC ISO 8601 such as 2025-01-31T12:00:00Z");
+  }
+  return created;
+}
+
+bool CreatedBefore(const std::string& a, const std::string& b) {
+  std::smatch ma;
+  std::smatch mb;
+  std::regex_match(a, ma, CreatedPattern());
+  std::regex_match(b, mb, CreatedPattern());
+  if (ma[1].str() != mb[1].str()) return ma[1].str() < mb[1].str();
+  // Fractional seconds: compare the digits padded to the same length.
+  std::string fa = ma[2].matched ? ma[2].str().substr(1) : "";
+  std::string fb = mb[2].matched ? mb[2].str().substr(1) : "";
+  const std::size_t n = std::max(fa.size(), fb.size());
+  fa.resize(n, '0');
+  fb.resize(n, '0');
+  return fa < fb;
+}
+
+std::string Describe(const WinnersEntry& e) {
+  return e.device_id + " " + Name(e.lang) + " b" + std::to_string(e.influences) + " " + e.vertex_bucket;
+}
+
+nlohmann::json WinnersEntryToJson(const WinnersEntry& e) {
+  nlohmann::json j = {{"device_id", e.device_id},
+                      {"backend", e.backend},
+                      {"platform", e.platform},
+                      {"device_name", e.device_name},
+                      {"driver_version", e.driver_version},
+                      {"lang", Name(e.lang)},
+                      {"influences", e.influences},
+                      {"vertex_bucket", e.vertex_bucket},
+                      {"dataset", e.dataset},
+                      {"variant", e.variant},
+                      {"median_ms", e.median_ms},
+                      {"gbps", e.gbps},
+                      {"copy_fraction", e.copy_fraction},
+                      {"created", e.created},
+                      {"source", e.source}};
+  if (!e.vendor.empty()) j["vendor"] = e.vendor;
+  if (!e.device_type.empty()) j["device_type"] = e.device_type;
+  return j;
+}
+
+WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
+  if (!j.is_object()) throw Error("expected an object");
+  WinnersEntry e;
+  e.device_id = String(j, "device_id");
+  const DeviceIdParts parts = SplitDeviceId(e.device_id);
+  e.backend = Agreeing(j, "backend", parts.backend);
+  if (e.backend != "opencl" && e.backend != "cuda" && e.backend != "gl")
+    throw Error("'backend' has unknown value '" + e.backend + "' (expected opencl, cuda or gl)");
+  e.platform = Agreeing(j, "platform", parts.platform);
+  e.device_name = Agreeing(j, "device_name", parts.name);
+  e.driver_version = Agreeing(j, "driver_version", parts.driver_version);
+  e.vendor = OptionalString(j, "vendor");
+  e.device_type = OptionalString(j, "device_type");
+  const std::string lang = String(j, "lang");
+  const auto l = std::find_if(kLangs.begin(), kLangs.end(), [&](Lang x) { return lang == Name(x); });
+  if (l == kLangs.end())
+    throw Error("'lang' has unknown value '" + lang + "' (expected opencl, cuda, glsl-compute or glsl-vertex)");
+  e.lang = *l;
+  e.influences = static_cast<int>(Integer(j, "influences"));
+  e.vertex_bucket = String(j, "vertex_bucket");
+  if (VertexBucketIndex(e.vertex_bucket) < 0) {
+    throw Error("'vertex_bucket' has unknown value '" + e.vertex_bucket + "' (expected 25k, 100k, 400k or 1600k)");
+  }
+  e.dataset = String(j, "dataset");
+  e.variant = Field(j, "variant").get<Variant>();
+  if (e.variant.lang != e.lang || e.variant.influences != e.influences) {
+    throw Error("'variant' " + e.variant.Key() + " does not match 'lang' and 'influences'");
+  }
+  e.median_ms = Number(j, "median_ms");
+  e.gbps = Number(j, "gbps");
+  e.copy_fraction = Number(j, "copy_fraction");
+  e.created = CheckedCreated(String(j, "created"));
+  e.source = String(j, "source");
+  return e;
+}
+
+nlohmann::json WinnersDbJson(const std::vector<WinnersEntry>& entries) {
+  nlohmann::json db = {{"schema_version", kWinnersDbSchemaVersion},
+                       {"kind", kWinnersDbKind},
+                       {"entries", nlohmann::json::array()}};
+  for (const WinnersEntry& e : entries) db["entries"].push_back(WinnersEntryToJson(e));
+  return db;
+}
+
+std::vector<WinnersEntry> WinnersDbFromJson(const nlohmann::json& json, const std::string& name) {
+  if (json.is_object() && json.contains("kind") && json["kind"] == kReportKind) {
+    throw Error(name + ": a tuning report, not a winners database: use the winners-db.json that `skintune tune` "
+                       "wrote next to it, or make one with `skintune db merge " + name + " -o winners-db.json`");
+  }
+  CheckHeader(json, name, kWinnersDbKind, kWinnersDbSchemaVersion);
+  const nlohmann::json& list = At(name, "entries", [&]() -> const nlohmann::json& { return Array(json, "entries"); });
+  std::vector<WinnersEntry> entries;
+  for (std::size_t i = 0; i < list.size(); ++i)
+    entries.push_back(At(name, "entries[" + std::to_string(i) + "]", [&] { return WinnersEntryFromJson(list[i]); }));
+  return entries;
+}
+
+}  // namespace skintune

@@ -1,0 +1,91 @@
+// skintune (internal): the winners database, as `skintune tune` and
+// `skintune db merge` write it and the runtime reads it
+// (configs/winners-db.schema.json, docs/TUNING.md "Winners database").
+//
+//   {"schema_version": "1.1.0", "kind": "skintune-winners-db", "entries": [...]}
+//
+// One entry per (device id, language, influences, vertex bucket): the fastest
+// verified variant the tuner found there. The device id
+// "<backend>:<platform>/<name>/<driver_version>" includes the driver, so a new
+// driver is a new device. Since 1.1.0 each entry also names the device's
+// platform, vendor, name, driver and type, which the runtime's fallback chain
+// matches on (Selection::Find); 1.0.0 entries load too: platform, name and
+// driver come from the id, vendor and type stay unknown ("").
+//
+// The tuner (tuner/report.cpp) writes and merges with these definitions; the
+// runtime reads with them: the format lives in one place.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "generator/variant.h"
+
+namespace skintune {
+
+inline constexpr const char* kWinnersDbKind = "skintune-winners-db";
+inline constexpr const char* kWinnersDbSchemaVersion = "1.1.0";
+
+// The parts of a device id "<backend>:<platform>/<name>/<driver_version>".
+struct DeviceIdParts {
+  std::string backend, platform, name, driver_version;
+};
+std::string JoinDeviceId(const DeviceIdParts& parts);
+// The backend ends at the first ':', the platform at the first '/' after it,
+// the driver starts after the last '/': a device name may contain '/', a
+// platform or driver version may not. Throws Error for an id without
+// "<backend>:" or without two '/'.
+DeviceIdParts SplitDeviceId(const std::string& id);
+
+// The paper's vertex counts name the buckets: "25k" (< 50k), "100k" (< 200k),
+// "400k" (< 800k), "1600k" (the rest).
+std::string VertexBucket(std::size_t vertices);
+// 0..3 in the order above; -1 for an unknown name.
+int VertexBucketIndex(const std::string& bucket);
+
+// `created` is UTC ISO 8601: "YYYY-MM-DDTHH:MM:SS", optional fractional
+// seconds, then "Z" or "+00:00". Returns it, or throws Error naming it.
+std::string CheckedCreated(const std::string& created);
+// Whether `a` is earlier than `b` (both valid), fractional seconds included.
+bool CreatedBefore(const std::string& a, const std::string& b);
+
+struct WinnersEntry {
+  std::string device_id;       // "<backend>:<platform>/<name>/<driver_version>"
+  std::string backend;         // "opencl", "cuda", "gl"
+  std::string platform;        // as in the id
+  std::string vendor;          // "" when the database does not say (1.0.0 entries)
+  std::string device_name;     // as in the id
+  std::string driver_version;  // as in the id
+  std::string device_type;     // "gpu", "cpu", ...; "" when the database does not say
+  Lang lang = Lang::kOpenCl;
+  int influences = 0;          // the variant's B
+  std::string vertex_bucket;   // VertexBucket() of the dataset
+  std::string dataset;         // what the winning time was measured on
+  Variant variant;
+  double median_ms = 0.0;
+  double gbps = 0.0;
+  double copy_fraction = 0.0;  // gbps / the device's copy bandwidth (0 when unknown)
+  std::string created;         // of the report it came from
+  std::string source;          // that report's config and strategy, e.g. "default (exhaustive)"
+};
+
+// "<device id> <lang> b<B> <bucket>": how messages name an entry.
+std::string Describe(const WinnersEntry& entry);
+
+// Writes every field; vendor and device_type only when known.
+nlohmann::json WinnersEntryToJson(const WinnersEntry& entry);
+// Throws Error("'field' ...") naming the first bad field. Platform, name and
+// driver default to the id's parts; an entry that states them must agree with
+// its id.
+WinnersEntry WinnersEntryFromJson(const nlohmann::json& json);
+
+// The whole database, entries in the given order.
+nlohmann::json WinnersDbJson(const std::vector<WinnersEntry>& entries);
+// Throws Error("<name>: <element>: ...") for anything but a 1.x winners
+// database; a tuning report is refused with a hint on how to get its database.
+std::vector<WinnersEntry> WinnersDbFromJson(const nlohmann::json& json, const std::string& name);
+
+}  // namespace skintune

@@ -1,0 +1,224 @@
+// The database lookup's fallback chain (Selection::Find, runtime/selection.h):
+// one test per level, then how entries are ranked and rejected, and the
+// built-in default.
+#include "runtime/selection.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "generator/constraints.h"
+#include "reference/error.h"
+#include "runtime/winners_db.h"
+#include "skintune/skintune.h"
+
+namespace skintune {
+namespace {
+
+DeviceInfo ThisDevice() {
+  DeviceInfo d;
+  d.backend = Backend::kOpenCl;
+  d.platform = "Synthetic";
+  d.vendor = "Example";
+  d.name = "Model GPU";
+  d.driver_version = "2.0";
+  d.type = "gpu";
+  d.id = "opencl:Synthetic/Model GPU/2.0";
+  return d;
+}
+
+WinnersEntry Entry(const std::string& device_id, const std::string& vendor, const std::string& type,
+                   const std::string& variant_key, const std::string& bucket = "100k", double ms = 1.0) {
+  WinnersEntry e;
+  e.device_id = device_id;
+  const DeviceIdParts p = SplitDeviceId(device_id);
+  e.backend = p.backend;
+  e.platform = p.platform;
+  e.device_name = p.name;
+  e.driver_version = p.driver_version;
+  e.vendor = vendor;
+  e.device_type = type;
+  e.variant = ParseVariantKey(variant_key);
+  e.lang = e.variant.lang;
+  e.influences = e.variant.influences;
+  e.vertex_bucket = bucket;
+  e.dataset = bucket + "-b" + std::to_string(e.influences);
+  e.median_ms = ms;
+  e.created = "2025-01-31T12:00:00Z";
+  e.source = "test";
+  return e;
+}
+
+// Entries that must never be chosen for ThisDevice(): another vendor, another
+// type, another backend with the same device name.
+std::vector<WinnersEntry> Decoys() {
+  return {Entry("opencl:Synthetic/Rival GPU/1.0", "Rival", "gpu", "opencl.b2.aos.wg32"),
+          Entry("opencl:Synthetic/Example CPU/1.0", "Example", "cpu", "opencl.b2.aos.wg64"),
+          Entry("cuda:CUDA/Model GPU/2.0", "Example", "gpu", "cuda.b2.aos.wg96")};
+}
+
+WinnersDb Db(std::vector<WinnersEntry> entries) {
+  const Result<WinnersDb> db = WinnersDb::Parse(WinnersDbJson(entries).dump(), "test.json");
+  EXPECT_TRUE(db.ok()) << db.status().message();
+  return db.ok() ? *db : WinnersDb::Empty();
+}
+
+Selection Find(const WinnersDb& db, int influences = 2, std::size_t vertices = 100000,
+               const DeviceInfo& device = ThisDevice()) {
+  const Result<Selection> s = Selection::Find(db, device, influences, vertices);
+  EXPECT_TRUE(s.ok()) << s.status().message();
+  return s.ok() ? *s : Selection{};
+}
+
+const WinnersEntry kExact = Entry("opencl:Synthetic/Model GPU/2.0", "Example", "gpu", "opencl.b2.soa-split.wg256");
+const WinnersEntry kOtherDriver = Entry("opencl:Synthetic/Model GPU/1.0", "Example", "gpu", "opencl.b2.soa.wg128");
+const WinnersEntry kSameVendorType = Entry("opencl:Synthetic/Model GPU Pro/1.0", "Example", "gpu", "opencl.b2.aos.wg512");
+
+TEST(Selection, ExactDeviceAndDriverIsTheFirstLevel) {
+  std::vector<WinnersEntry> entries = Decoys();
+  entries.insert(entries.end(), {kSameVendorType, kOtherDriver, kExact});
+  const Selection s = Find(Db(entries));
+  EXPECT_EQ(s.level, MatchLevel::kExactDevice);
+  EXPECT_EQ(s.variant, kExact.variant.Key());
+  EXPECT_EQ(s.entry, "opencl:Synthetic/Model GPU/2.0 opencl b2 100k");
+  EXPECT_STREQ(MatchLevelName(s.level), "exact-device");
+}
+
+TEST(Selection, SameDeviceNameWithAnotherDriverIsTheSecondLevel) {
+  std::vector<WinnersEntry> entries = Decoys();
+  entries.insert(entries.end(), {kSameVendorType, kOtherDriver});
+  const Selection s = Find(Db(entries));
+  EXPECT_EQ(s.level, MatchLevel::kSameDeviceName);
+  EXPECT_EQ(s.variant, kOtherDriver.variant.Key());
+  EXPECT_NE(s.reason.find("driver 1.0"), std::string::npos) << s.reason;
+  EXPECT_STREQ(MatchLevelName(s.level), "same-device-name");
+}
+
+TEST(Selection, SameVendorAndDeviceTypeIsTheThirdLevel) {
+  std::vector<WinnersEntry> entries = Decoys();
+  entries.push_back(kSameVendorType);
+  const Selection s = Find(Db(entries));
+  EXPECT_EQ(s.level, MatchLevel::kSameVendorType);
+  EXPECT_EQ(s.variant, kSameVendorType.variant.Key());
+  EXPECT_NE(s.reason.find("Example gpu"), std::string::npos) << s.reason;
+  EXPECT_NE(s.reason.find("Model GPU Pro"), std::string::npos) << s.reason;
+  EXPECT_STREQ(MatchLevelName(s.level), "same-vendor-type");
+}
+
+TEST(Selection, BuiltInDefaultWhenNoEntryMatches) {
+  const Selection s = Find(Db(Decoys()));
+  EXPECT_EQ(s.level, MatchLevel::kGenericDefault);
+  EXPECT_EQ(s.variant, GenericDefault(Lang::kOpenCl, 2, false, DeviceLimits{}).Key());
+  EXPECT_EQ(s.entry, "built-in default");
+  EXPECT_STREQ(MatchLevelName(s.level), "generic-default");
+  EXPECT_EQ(Find(WinnersDb::Empty()).level, MatchLevel::kGenericDefault);
+}
+
+TEST(Selection, EntriesWithoutVendorAndTypeNeverMatchTheVendorLevel) {
+  WinnersEntry old = kSameVendorType;
+  old.vendor.clear();
+  old.device_type.clear();
+  EXPECT_EQ(Find(Db({old})).level, MatchLevel::kGenericDefault);
+}
+
+TEST(Selection, SmallestSufficientInfluencesWinThenTheNearestBucket) {
+  const std::string id = ThisDevice().id;
+  const WinnersEntry b1 = Entry(id, "Example", "gpu", "opencl.b1.wg32");
+  const WinnersEntry b4 = Entry(id, "Example", "gpu", "opencl.b4.wg64");
+  const WinnersEntry b3 = Entry(id, "Example", "gpu", "opencl.b3.wg96");
+  // B below the mesh's count can never hold it; of the rest the smallest B.
+  Selection s = Find(Db({b1, b4, b3}), 2);
+  EXPECT_EQ(s.variant, b3.variant.Key());
+  EXPECT_NE(s.reason.find("tuned for b3"), std::string::npos) << s.reason;
+  EXPECT_EQ(Find(Db({b1}), 2).level, MatchLevel::kGenericDefault);
+  // Buckets: the nearest; between two as near, the larger.
+  const WinnersEntry small = Entry(id, "Example", "gpu", "opencl.b2.wg32", "25k");
+  const WinnersEntry mid = Entry(id, "Example", "gpu", "opencl.b2.wg64", "400k");
+  const WinnersEntry big = Entry(id, "Example", "gpu", "opencl.b2.wg96", "1600k");
+  EXPECT_EQ(Find(Db({small, mid, big}), 2, 1000).variant, small.variant.Key());
+  EXPECT_EQ(Find(Db({small, mid, big}), 2, 100000).variant, mid.variant.Key());
+  EXPECT_EQ(Find(Db({small, big}), 2, 300000).variant, big.variant.Key());
+}
+
+TEST(Selection, NewestDriverWinsAmongSameNameEntries) {
+  WinnersEntry older = kOtherDriver;
+  WinnersEntry newer = Entry("opencl:Synthetic/Model GPU/1.5", "Example", "gpu", "opencl.b2.soa.wg512");
+  newer.created = "2025-06-01T00:00:00Z";
+  EXPECT_EQ(Find(Db({older, newer})).variant, newer.variant.Key());
+  EXPECT_EQ(Find(Db({newer, older})).variant, newer.variant.Key());
+}
+
+TEST(Selection, GlDevicesTakeTheFasterOfComputeAndVertexShader) {
+  DeviceInfo gl = ThisDevice();
+  gl.backend = Backend::kGl;
+  gl.platform = "device";
+  gl.id = "gl:device/Model GPU/4.6";
+  const WinnersEntry compute = Entry(gl.id, "Example", "gpu", "glsl-compute.b2.wg64", "100k", 2.0);
+  const WinnersEntry vertex = Entry(gl.id, "Example", "gpu", "glsl-vertex.b2", "100k", 1.0);
+  EXPECT_EQ(Find(Db({compute, vertex}), 2, 100000, gl).variant, vertex.variant.Key());
+  EXPECT_EQ(Find(WinnersDb::Empty(), 2, 100000, gl).variant,
+            GenericDefault(Lang::kGlslCompute, 2, false, DeviceLimits{}).Key());
+}
+
+TEST(Selection, RejectedEntriesFallThroughAndAreNamedInTheReason) {
+  SelectionRequest request;
+  request.device = ThisDevice();
+  request.langs = {Lang::kOpenCl};
+  request.influences = 2;
+  request.vertex_count = 100000;
+  request.check = [](const Variant& v) { return v.wg_size > 128 ? "wg_size too large here" : ""; };
+  const Chosen chosen = Select({kExact, kOtherDriver}, request);
+  EXPECT_EQ(chosen.selection.level, MatchLevel::kSameDeviceName);
+  EXPECT_NE(chosen.selection.reason.find("skipped opencl:Synthetic/Model GPU/2.0 opencl b2 100k: wg_size too large here"),
+            std::string::npos)
+      << chosen.selection.reason;
+  // Normals follow the request, whatever the entry was tuned with.
+  request.normals = true;
+  EXPECT_TRUE(Select({kOtherDriver}, request).variant.normals);
+  // Nothing at all can run: kUnavailable.
+  request.check = [](const Variant&) { return "never"; };
+  EXPECT_THROW(Select({kExact}, request), Error);
+}
+
+TEST(Selection, BuiltInDefaultSatisfiesEveryConstraintOnEveryDevice) {
+  DeviceLimits tiny;
+  tiny.max_wg_size = 32;
+  tiny.local_memory_bytes = 0;
+  tiny.constant_memory_bytes = 0;
+  tiny.uniform_block_bytes = 0;
+  tiny.image_support = false;
+  tiny.image_buffer_max_texels = 0;
+  for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex}) {
+    for (int b = 1; b <= 8; ++b) {
+      for (const DeviceLimits& limits : {tiny, DeviceLimits{}}) {
+        for (bool normals : {false, true}) {
+          const Variant v = GenericDefault(lang, b, normals, limits);
+          EXPECT_EQ(v.mixed, MixedCounts::kPadded);
+          const ProblemShape shape{65536, b, normals};
+          for (const Violation& violation : CheckVariant(v, limits, shape))
+            ADD_FAILURE() << v.Key() << ": " << violation.message;
+        }
+      }
+    }
+  }
+}
+
+TEST(Selection, FindRejectsInfluencesOutsideOneToEightAndAMovedFromDatabase) {
+  const WinnersDb db = WinnersDb::Empty();
+  for (int b : {0, 9}) {
+    const Result<Selection> s = Selection::Find(db, ThisDevice(), b, 100);
+    ASSERT_FALSE(s.ok());
+    EXPECT_EQ(s.status().code(), ErrorCode::kInvalidArgument);
+  }
+  WinnersDb moved = WinnersDb::Empty();
+  WinnersDb taker = std::move(moved);
+  const Result<Selection> s = Selection::Find(moved, ThisDevice(), 2, 100);  // NOLINT(bugprone-use-after-move)
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.status().code(), ErrorCode::kInvalidState);
+}
+
+}  // namespace
+}  // namespace skintune

@@ -1,0 +1,166 @@
+// The winners database as the runtime reads it: WinnersDb::Load / Parse, and
+// the errors for files that are not one (naming the file and the element).
+#include "runtime/winners_db.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+#include "skintune/skintune.h"
+
+namespace skintune {
+namespace {
+
+WinnersEntry SampleEntry() {
+  WinnersEntry e;
+  e.device_id = "opencl:Synthetic/Model GPU/1.0";
+  e.backend = "opencl";
+  e.platform = "Synthetic";
+  e.vendor = "Example";
+  e.device_name = "Model GPU";
+  e.driver_version = "1.0";
+  e.device_type = "gpu";
+  e.lang = Lang::kOpenCl;
+  e.influences = 4;
+  e.vertex_bucket = "100k";
+  e.dataset = "100k-b4";
+  e.variant = ParseVariantKey("opencl.b4.soa-split.u8.unorm8.local.wg256");
+  e.median_ms = 0.25;
+  e.gbps = 400.0;
+  e.copy_fraction = 0.2;
+  e.created = "2025-01-31T12:00:00Z";
+  e.source = "default (exhaustive)";
+  return e;
+}
+
+std::string ParseError(const nlohmann::json& json, const std::string& name = "db.json") {
+  const Result<WinnersDb> db = WinnersDb::Parse(json.dump(), name);
+  EXPECT_FALSE(db.ok());
+  EXPECT_EQ(db.status().code(), ErrorCode::kInvalidArgument) << db.status().message();
+  return db.status().message();
+}
+
+TEST(WinnersDb, EntryRoundTripsThroughJson) {
+  const WinnersEntry e = SampleEntry();
+  const nlohmann::json j = WinnersEntryToJson(e);
+  EXPECT_EQ(j["vendor"], "Example");
+  EXPECT_EQ(j["device_type"], "gpu");
+  const WinnersEntry back = WinnersEntryFromJson(nlohmann::json::parse(j.dump()));
+  EXPECT_EQ(WinnersEntryToJson(back), j);
+  EXPECT_EQ(back.variant, e.variant);
+}
+
+TEST(WinnersDb, EntriesWithoutVendorAndTypeLoadWithTheIdsParts) {
+  nlohmann::json j = WinnersEntryToJson(SampleEntry());
+  for (const char* field : {"platform", "vendor", "device_name", "driver_version", "device_type"}) j.erase(field);
+  const WinnersEntry e = WinnersEntryFromJson(j);
+  EXPECT_EQ(e.platform, "Synthetic");
+  EXPECT_EQ(e.device_name, "Model GPU");
+  EXPECT_EQ(e.driver_version, "1.0");
+  EXPECT_EQ(e.vendor, "");
+  EXPECT_EQ(e.device_type, "");
+  nlohmann::json db = WinnersDbJson({});
+  db["schema_version"] = "1.0.0";
+  db["entries"].push_back(j);
+  const Result<WinnersDb> loaded = WinnersDb::Parse(db.dump(), "old.json");
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  EXPECT_EQ(loaded->size(), 1u);
+}
+
+TEST(WinnersDb, DeviceIdSplitsAtTheFirstAndLastSlash) {
+  const DeviceIdParts p = SplitDeviceId("gl:surfaceless/AMD Radeon RX 7900 XTX (radeonsi, navi31, LLVM 15)/4.6 Mesa");
+  EXPECT_EQ(p.backend, "gl");
+  EXPECT_EQ(p.platform, "surfaceless");
+  EXPECT_EQ(p.name, "AMD Radeon RX 7900 XTX (radeonsi, navi31, LLVM 15)");
+  EXPECT_EQ(p.driver_version, "4.6 Mesa");
+  EXPECT_EQ(SplitDeviceId("cuda:CUDA/a/b/c/580.1").name, "a/b/c");
+  EXPECT_EQ(JoinDeviceId(p), "gl:surfaceless/AMD Radeon RX 7900 XTX (radeonsi, navi31, LLVM 15)/4.6 Mesa");
+  EXPECT_THROW(SplitDeviceId("no-backend/a/b"), Error);
+  EXPECT_THROW(SplitDeviceId("opencl:only-one/slash"), Error);
+}
+
+TEST(WinnersDb, LoadsAFileAndCountsItsEntries) {
+  const std::filesystem::path path = std::filesystem::temp_directory_path() / "skintune_winners_db_test.json";
+  std::ofstream(path) << WinnersDbJson({SampleEntry(), SampleEntry()}).dump(2);
+  const Result<WinnersDb> db = WinnersDb::Load(path.string());
+  ASSERT_TRUE(db.ok()) << db.status().message();
+  EXPECT_EQ(db->size(), 2u);
+  std::filesystem::remove(path);
+  EXPECT_EQ(WinnersDb::Empty().size(), 0u);
+}
+
+TEST(WinnersDb, MissingFileIsAnIoErrorNamingThePath) {
+  const Result<WinnersDb> db = WinnersDb::Load("/nonexistent/skintune/db.json");
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().code(), ErrorCode::kIoError);
+  EXPECT_NE(db.status().message().find("/nonexistent/skintune/db.json"), std::string::npos) << db.status().message();
+}
+
+TEST(WinnersDb, NotJsonNamesTheFile) {
+  const Result<WinnersDb> db = WinnersDb::Parse("{\"schema_version\": ", "broken.json");
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().code(), ErrorCode::kInvalidArgument);
+  EXPECT_EQ(db.status().message().rfind("broken.json: not JSON: ", 0), 0u) << db.status().message();
+}
+
+TEST(WinnersDb, WrongKindOrVersionNamesTheFileAndTheField) {
+  nlohmann::json db = WinnersDbJson({SampleEntry()});
+  db["kind"] = "kernel-tuner-cache";
+  EXPECT_EQ(ParseError(db), "db.json: kind is 'kernel-tuner-cache', expected 'skintune-winners-db'");
+  db = WinnersDbJson({SampleEntry()});
+  db["schema_version"] = "2.0.0";
+  EXPECT_EQ(ParseError(db).rfind("db.json: schema_version '2.0.0' is not supported", 0), 0u);
+  db.erase("schema_version");
+  EXPECT_EQ(ParseError(db), "db.json: schema_version: missing 'schema_version'");
+  EXPECT_EQ(ParseError(nlohmann::json::array()), "db.json: expected a JSON object");
+}
+
+TEST(WinnersDb, ATuningReportIsRefusedWithTheWayToItsDatabase) {
+  const std::string message = ParseError({{"schema_version", "1.0.0"}, {"kind", "skintune-report"}}, "report.json");
+  EXPECT_EQ(message.rfind("report.json: a tuning report, not a winners database", 0), 0u) << message;
+  EXPECT_NE(message.find("skintune db merge report.json"), std::string::npos) << message;
+}
+
+TEST(WinnersDb, MalformedEntriesNameTheEntryAndTheField) {
+  auto with = [](const char* field, const nlohmann::json& value) {
+    nlohmann::json db = WinnersDbJson({SampleEntry(), SampleEntry()});
+    if (value.is_null()) {
+      db["entries"][1].erase(field);
+    } else {
+      db["entries"][1][field] = value;
+    }
+    return db;
+  };
+  EXPECT_EQ(ParseError(with("lang", nullptr)), "db.json: entries[1]: missing 'lang'");
+  EXPECT_EQ(ParseError(with("lang", 3)), "db.json: entries[1]: 'lang' must be a string");
+  EXPECT_EQ(ParseError(with("lang", "metal")).rfind("db.json: entries[1]: 'lang' has unknown value 'metal'", 0), 0u);
+  EXPECT_EQ(ParseError(with("vertex_bucket", "3k")).rfind("db.json: entries[1]: 'vertex_bucket' has unknown value '3k'", 0),
+            0u);
+  EXPECT_EQ(ParseError(with("influences", 2)).rfind("db.json: entries[1]: 'variant' ", 0), 0u);
+  EXPECT_EQ(ParseError(with("device_id", "Model GPU")).rfind("db.json: entries[1]: device id 'Model GPU' is not", 0), 0u);
+  EXPECT_EQ(ParseError(with("device_name", "Other GPU")),
+            "db.json: entries[1]: 'device_name' is 'Other GPU' but 'device_id' says 'Model GPU'");
+  EXPECT_EQ(ParseError(with("created", "yesterday")).rfind("db.json: entries[1]: 'created' is 'yesterday'", 0), 0u);
+  nlohmann::json bad_variant = with("variant", nlohmann::json{{"layout", "tiled"}});
+  EXPECT_EQ(ParseError(bad_variant).rfind("db.json: entries[1]: variant JSON: 'layout' has unknown value 'tiled'", 0), 0u);
+  nlohmann::json not_array = WinnersDbJson({});
+  not_array["entries"] = 7;
+  EXPECT_EQ(ParseError(not_array), "db.json: entries: 'entries' must be an array");
+}
+
+TEST(WinnersDb, VertexBucketsFollowThePapersCounts) {
+  EXPECT_EQ(VertexBucket(49999), "25k");
+  EXPECT_EQ(VertexBucket(50000), "100k");
+  EXPECT_EQ(VertexBucket(800000), "1600k");
+  EXPECT_EQ(VertexBucketIndex("400k"), 2);
+  EXPECT_EQ(VertexBucketIndex("3k"), -1);
+}
+
+}  // namespace
+}  // namespace skintune
