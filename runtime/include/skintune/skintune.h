@@ -183,12 +183,15 @@ const char* MatchLevelName(MatchLevel level);  // "exact-device", "same-device-n
 class WinnersDb {
  public:
   // kIoError when the file cannot be read; kInvalidArgument naming the file
-  // and element when it is not a winners database (or a tuning report).
+  // and element ("db.json: entries[3]: 'lang' must be a string") when it is
+  // not a 1.x winners database. A tuning report is refused with the command
+  // that makes its database (`skintune tune` also writes winners-db.json).
   static Result<WinnersDb> Load(const std::string& path);
+  // The same from the file's text; `name_for_errors` stands for the file.
   static Result<WinnersDb> Parse(const std::string& json_text, const std::string& name_for_errors);
   static WinnersDb Empty();  // every lookup ends at kGenericDefault
 
-  WinnersDb();
+  WinnersDb();  // empty, like Empty()
   ~WinnersDb();
   WinnersDb(const WinnersDb&);
   WinnersDb& operator=(const WinnersDb&);
@@ -212,7 +215,12 @@ struct Selection {
   std::string entry;       // the database entry used: "<device id> <lang> b<B> <bucket>", or "built-in default"
   std::string reason;      // e.g. "no entry for this device; same vendor and type: NVIDIA gpu"
 
-  // The lookup alone (what Skinner::Create would choose), for diagnostics.
+  // The lookup alone, for diagnostics: the fallback chain (docs/RUNTIME.md)
+  // over the entries of the device's languages whose influences are at least
+  // `influences`. Skinner::Create also checks each candidate against the real
+  // device's limits and the mesh and skips those that cannot run, so it may
+  // choose a later entry. kInvalidArgument for influences outside 1..8;
+  // kInvalidState for a moved-from `db`.
   static Result<Selection> Find(const WinnersDb& db, const DeviceInfo& device, int influences,
                                 std::size_t vertex_count);
 };
