@@ -1,5 +1,6 @@
 #include "generator/constraints.h"
 
+#include <algorithm>
 #include <string>
 
 namespace skintune {
@@ -54,17 +55,36 @@ void CheckGeometry(const Variant& v, const DeviceLimits& device, std::vector<Vio
   }
 }
 
+void CheckInstances(const Variant& v, const DeviceLimits& device, const ProblemShape& shape,
+                    std::vector<Violation>& out) {
+  const bool grid_limited = v.lang == Lang::kCuda || v.lang == Lang::kGlslCompute;
+  if (shape.instances < 1) {
+    out.push_back({Constraint::kInstanceCount, "instances " + std::to_string(shape.instances) + " below 1"});
+  } else if (grid_limited && static_cast<std::uint64_t>(shape.instances) > device.max_grid_y) {
+    out.push_back({Constraint::kInstanceCount,
+                   std::to_string(shape.instances) + " instances exceed the launch's instance dimension " +
+                       (v.lang == Lang::kCuda ? "(grid y) " : "(work-group count y) ") +
+                       std::to_string(device.max_grid_y)});
+  }
+}
+
 void CheckStorage(const Variant& v, const DeviceLimits& device, const ProblemShape& shape,
                   std::vector<Violation>& out) {
+  // Constant and image storage hold every instance's palette; a local copy one.
   const std::uint64_t bytes = PaletteBytes(v, shape.joints);
+  const std::uint64_t instances = static_cast<std::uint64_t>(std::max(shape.instances, 1));
   const std::string palette = "palette " + std::to_string(shape.joints) + " x " +
                               std::to_string(BytesOf(v.palette)) + " B = " + B(bytes);
+  const std::string palettes =
+      instances == 1 ? palette
+                     : std::to_string(instances) + " palettes of " + std::to_string(shape.joints) + " x " +
+                           std::to_string(BytesOf(v.palette)) + " B = " + B(instances * bytes);
   const bool glsl = v.lang == Lang::kGlslCompute || v.lang == Lang::kGlslVertex;
   switch (v.storage) {
     case PaletteStorage::kConstant: {
       const std::uint64_t limit = glsl ? device.uniform_block_bytes : device.constant_memory_bytes;
-      if (bytes > limit) {
-        out.push_back({Constraint::kConstantMemory, "storage constant: " + palette + " exceeds the " +
+      if (instances * bytes > limit) {
+        out.push_back({Constraint::kConstantMemory, "storage constant: " + palettes + " exceeds the " +
                                                         (glsl ? "uniform block limit " : "constant buffer ") +
                                                         B(limit)});
       }
@@ -79,7 +99,7 @@ void CheckStorage(const Variant& v, const DeviceLimits& device, const ProblemSha
       }
       break;
     case PaletteStorage::kImage: {
-      const std::uint64_t texels = bytes / 16;
+      const std::uint64_t texels = instances * bytes / 16;
       if (!device.image_support) {
         out.push_back({Constraint::kImageSupport, "storage image: the device has no image support"});
       } else if (texels > device.image_buffer_max_texels) {
@@ -115,6 +135,7 @@ const char* Name(Constraint c) {
     case Constraint::kStorageBlocks: return "storage_blocks";
     case Constraint::kIndexRange: return "index_range";
     case Constraint::kNormalsMissing: return "normals_missing";
+    case Constraint::kInstanceCount: return "instance_count";
   }
   return "unknown";
 }
@@ -128,6 +149,7 @@ std::vector<Violation> CheckVariant(const Variant& v, const DeviceLimits& device
   CheckShape(v, shape, out);
   CheckGeometry(v, device, out);
   CheckStorage(v, device, shape, out);
+  CheckInstances(v, device, shape, out);
   return out;
 }
 

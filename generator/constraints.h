@@ -22,12 +22,16 @@ struct DeviceLimits {
   bool image_support = true;                       // image1d_buffer / texture object / samplerBuffer
   std::uint64_t image_buffer_max_texels = 65536;   // CL_DEVICE_IMAGE_MAX_BUFFER_SIZE, GL_MAX_TEXTURE_BUFFER_SIZE
   bool vertex_shader_storage_blocks = true;        // GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS > 0
+  std::uint64_t max_grid_y = 65535;                // instances per launch: CUDA grid y, GL_MAX_COMPUTE_WORK_GROUP_COUNT[1]
+                                                   // (not checked for OpenCL and glsl-vertex: no small limit)
 };
 
 struct ProblemShape {
   int joints = 77;            // palette entries
   int max_influences = 4;     // the largest per-vertex influence count of the mesh
   bool has_normals = false;
+  int instances = 1;          // K instances skinned per launch, each with its own palette (docs/VARIANTS.md
+                              // "Instancing"): constant and image storage hold all K palettes
 };
 
 enum class Constraint {
@@ -45,6 +49,7 @@ enum class Constraint {
   kStorageBlocks,         // vertex shader without storage blocks
   kIndexRange,            // joint count does not fit the index format
   kNormalsMissing,        // normals requested, mesh has none
+  kInstanceCount,         // instances below 1, or more than one launch's grid can hold (CUDA, glsl-compute)
 };
 
 const char* Name(Constraint);
@@ -57,7 +62,8 @@ struct Violation {
 // Every constraint the variant breaks; empty when it can run.
 std::vector<Violation> CheckVariant(const Variant& v, const DeviceLimits& device, const ProblemShape& shape);
 
-// Bytes the palette occupies in the variant's storage.
+// Bytes one palette occupies in the variant's storage (an instanced launch
+// reads `instances` of them; a work-group's local copy holds one).
 std::uint64_t PaletteBytes(const Variant& v, int joints);
 
 }  // namespace skintune

@@ -28,7 +28,8 @@ int Code(WeightFormat f) { return static_cast<int>(f); }              // 0 f32, 
 int Code(PaletteStorage s) { return static_cast<int>(s); }            // 0 constant, 1 local, 2 global, 3 image
 int PaletteRows(PaletteFormat f) { return f == PaletteFormat::kMat4 ? 4 : 3; }
 
-std::vector<std::pair<std::string, long long>> ParameterDefines(const Variant& v, int b, int joints) {
+std::vector<std::pair<std::string, long long>> ParameterDefines(const Variant& v, int b, int joints,
+                                                                const EmitOptions& options) {
   std::vector<std::pair<std::string, long long>> d = {
       {"INFLUENCES", b},
       {"LAYOUT", Code(v.layout)},
@@ -53,6 +54,10 @@ std::vector<std::pair<std::string, long long>> ParameterDefines(const Variant& v
     if (v.normals) d.emplace_back("AOS_NORMAL_OFFSET", static_cast<long long>(r.normal));
     d.emplace_back("AOS_RECORD_WORDS", static_cast<long long>(r.size / 4));
   }
+  if (options.instanced) {
+    d.emplace_back("INSTANCED", 1);
+    if (InstancesBoundAtCompileTime(v)) d.emplace_back("PALETTE_INSTANCES", options.max_instances);
+  }
   return d;
 }
 
@@ -66,9 +71,11 @@ KernelArgument Vector(const std::string& name, const Variant& v, ArgumentDirecti
           direction, ArgumentKind::kBuffer};
 }
 
-std::vector<KernelArgument> KernelArguments(const Variant& v, int b) {
+std::vector<KernelArgument> KernelArguments(const Variant& v, int b, bool instanced) {
   const auto bb = static_cast<std::size_t>(b);
   std::vector<KernelArgument> args = {Scalar("n"), Scalar("first")};
+  // glsl-vertex places instances by the capture order: no vertex_count.
+  if (instanced && v.lang != Lang::kGlslVertex) args.push_back(Scalar("vertex_count"));
   if (v.layout == Layout::kAos) {
     const std::size_t size = AosRecordLayout(v, b).size;
     args.push_back({"records", "record", size, size, "v", ArgumentDirection::kIn, ArgumentKind::kBuffer});
@@ -83,24 +90,47 @@ std::vector<KernelArgument> KernelArguments(const Variant& v, int b) {
     if (v.normals) args.push_back(Vector("normals", v, ArgumentDirection::kIn));
   }
   const auto rows = static_cast<std::size_t>(PaletteRows(v.palette));
-  args.push_back({"palette", "float4 rows", 16, rows * 16, "j*R+r", ArgumentDirection::kIn,
+  args.push_back({"palette", "float4 rows", 16, rows * 16, instanced ? "(i*J+j)*R+r" : "j*R+r",
+                  ArgumentDirection::kIn,
                   v.storage == PaletteStorage::kImage ? ArgumentKind::kImage : ArgumentKind::kBuffer});
   args.push_back(Vector("out_positions", v, ArgumentDirection::kOut));
   if (v.normals) args.push_back(Vector("out_normals", v, ArgumentDirection::kOut));
+  if (instanced) {
+    for (KernelArgument& a : args) {
+      if (a.direction == ArgumentDirection::kOut)
+        a.indexing = v.lang == Lang::kGlslVertex ? "i*n+v" : "i*vertex_count+first+v";
+    }
+  }
   return args;
 }
 
-LaunchGeometry Geometry(const Variant& v) {
+// Where an instanced kernel finds its instance, in words.
+std::string InstanceRule(Lang lang) {
+  switch (lang) {
+    case Lang::kOpenCl: return "K instances: global size (items, K), instance i = get_global_id(1)";
+    case Lang::kCuda: return "K instances: grid (items / wg_size, K), instance i = blockIdx.y";
+    case Lang::kGlslCompute:
+      return "K instances: glDispatchCompute(items / wg_size, K, 1), instance i = gl_WorkGroupID.y";
+    case Lang::kGlslVertex:
+      return "K instances: glDrawArraysInstanced(GL_POINTS, 0, n, K), instance i = gl_InstanceID; the capture "
+             "holds the K instances' n vertices one instance after another";
+  }
+  return "";
+}
+
+LaunchGeometry Geometry(const Variant& v, bool instanced) {
   LaunchGeometry g;
   g.vertices_per_item = v.vertices_per_item;
   g.strided = v.assignment == Assignment::kStrided;
   g.wg_size = v.wg_size;
+  g.instanced = instanced;
   const std::string n = std::to_string(v.vertices_per_item);
   g.rule = "work items = ceil(n / " + n + ") rounded up to a multiple of " + std::to_string(v.wg_size) +
            " (the work-group size); item g skins vertices " +
            (g.strided ? "g, g+G, .., g+" + std::to_string(v.vertices_per_item - 1) + "G (G = work items)"
                       : "g*" + n + " .. g*" + n + "+" + std::to_string(v.vertices_per_item - 1)) +
            " below n";
+  if (instanced) g.rule += "; " + InstanceRule(v.lang);
   return g;
 }
 
@@ -181,7 +211,11 @@ std::pair<std::string, std::string> SplitVersion(const std::string& text) {
 
 }  // namespace
 
-KernelSource Emit(const Variant& variant, int influences_override, int joints) {
+bool InstancesBoundAtCompileTime(const Variant& variant) {
+  return variant.storage == PaletteStorage::kConstant && variant.lang != Lang::kOpenCl;
+}
+
+KernelSource Emit(const Variant& variant, int influences_override, int joints, const EmitOptions& options) {
   const char* file = TemplateFile(variant.lang);
   const std::vector<std::string> embedded = TemplateNames();
   if (std::find(embedded.begin(), embedded.end(), file) == embedded.end())
@@ -196,20 +230,30 @@ KernelSource Emit(const Variant& variant, int influences_override, int joints) {
   if (variant.storage == PaletteStorage::kConstant && variant.lang == Lang::kCuda && joints == 0)
     throw Error("emit " + variant.Key() + ": CUDA constant storage needs the joint count (it sizes the __constant__ "
                 "palette symbol)");
+  if (options.instanced && joints == 0)
+    throw Error("emit " + variant.Key() + ": an instanced kernel needs the joint count (instance i's palette starts "
+                "at joint i*J)");
+  if (options.instanced && InstancesBoundAtCompileTime(variant) && options.max_instances < 1)
+    throw Error("emit " + variant.Key() + ": instanced constant storage in " + Name(variant.lang) +
+                " needs max_instances >= 1 (it sizes the " +
+                (variant.lang == Lang::kCuda ? "__constant__ palette symbol" : "palette uniform block") + ")");
 
   KernelSource source;
   source.lang = variant.lang;
   source.entry_point = IsGlsl(variant.lang) ? "main" : "skin";
   source.influences = b;
   source.joints = joints;
-  source.defines = ParameterDefines(variant, b, joints);  // the same parameters in every language
-  source.arguments = KernelArguments(variant, b);
-  source.launch = Geometry(variant);
+  source.instanced = options.instanced;
+  source.max_instances = options.instanced && InstancesBoundAtCompileTime(variant) ? options.max_instances : 0;
+  source.defines = ParameterDefines(variant, b, joints, options);  // the same parameters in every language
+  source.arguments = KernelArguments(variant, b, options.instanced);
+  source.launch = Geometry(variant, options.instanced);
 
   const auto [version, body] = SplitVersion(TemplateText(file));
   std::string text = version;
   text += "// Generated by skintune " + std::string(kGeneratorVersion) + ": " + variant.Key();
   if (b != variant.influences) text += " (bucket of " + std::to_string(b) + " influences)";
+  if (options.instanced) text += " (instanced)";
   text += "\n";
   for (const auto& [name, value] : source.defines) text += "#define " + name + " " + std::to_string(value) + "\n";
   // GLSL's #line takes no file name; the template's own first line follows the #version we hoisted.
@@ -219,6 +263,36 @@ KernelSource Emit(const Variant& variant, int influences_override, int joints) {
   source.source_hash = SourceHash(source.text);
   return source;
 }
+
+namespace {
+
+// The sidecar's "instancing" object: where an instanced kernel finds its
+// instance, its palette and where its outputs go.
+nlohmann::json InstancingJson(const KernelSource& source) {
+  const bool vertex = source.lang == Lang::kGlslVertex;
+  const char* instance = "";
+  switch (source.lang) {
+    case Lang::kOpenCl: instance = "get_global_id(1)"; break;
+    case Lang::kCuda: instance = "blockIdx.y"; break;
+    case Lang::kGlslCompute: instance = "gl_WorkGroupID.y"; break;
+    case Lang::kGlslVertex: instance = "gl_InstanceID"; break;
+  }
+  nlohmann::json j = {
+      {"instance", instance},
+      {"palette", "the K palettes one after another: instance i's joint j row r at float4 (i*" +
+                      std::to_string(source.joints) + "+j)*R+r"},
+      {"outputs", vertex ? "one capture per draw holds its K instances one after another: instance i's vertex v at "
+                           "element i*n+v of the capture range (place it at i*vertex_count+first+v yourself when "
+                           "the mesh takes several draws)"
+                         : "instance i's vertex v at element i*vertex_count+first+v (vertex_count: the mesh's vertex "
+                           "count, every launch together)"},
+      {"rule", InstanceRule(source.lang)},
+  };
+  j["max_instances"] = source.max_instances;  // 0: any K
+  return j;
+}
+
+}  // namespace
 
 nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
   nlohmann::json j;
@@ -277,6 +351,7 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
                  {"assignment", source.launch.strided ? "strided" : "contiguous"},
                  {"wg_size", source.launch.wg_size},
                  {"rule", source.launch.rule}};
+  if (source.instanced) j["instancing"] = InstancingJson(source);
   if (variant.layout == Layout::kAos) {
     const RecordLayout r = AosRecordLayout(variant, source.influences);
     j["aos_record"] = {{"position", r.position}, {"indices", r.indices}, {"weights", r.weights},

@@ -31,13 +31,14 @@ const char* Name(ArgumentKind);
 const char* Name(ArgumentDirection);
 
 struct KernelArgument {
-  std::string name;          // "n", "first", "records", "positions", "indices", "weights", "normals",
-                             // "palette", "out_positions", "out_normals"
+  std::string name;          // "n", "first", "vertex_count" (instanced), "records", "positions", "indices",
+                             // "weights", "normals", "palette", "out_positions", "out_normals"
   std::string format;        // "u32", "float4", "float3", "i32", "u16", "u8", "f32", "unorm16",
                              // "unorm8", "record", "float4 rows"
   std::size_t element_bytes = 0;  // one element of `format` (a whole record for "record")
   std::size_t stride_bytes = 0;   // between consecutive vertices (palette: between joints; 0 for scalars)
-  std::string indexing;      // where vertex v's data is: "v", "v*B+i", "i*S+v", "first+v", "j*R+r"
+  std::string indexing;      // where vertex v's data is: "v", "v*B+i", "i*S+v", "first+v", "j*R+r";
+                             // instanced: "i*vertex_count+first+v" (outputs), "(i*J+j)*R+r" (palette)
   ArgumentDirection direction = ArgumentDirection::kIn;
   ArgumentKind kind = ArgumentKind::kBuffer;
 };
@@ -47,8 +48,25 @@ struct LaunchGeometry {
   int vertices_per_item = 1;
   bool strided = false;
   int wg_size = 128;
+  bool instanced = false;  // the grid's second dimension is the instance (EmitOptions::instanced)
   std::string rule;  // the rule above, in words, with the numbers filled in
   std::size_t GlobalItems(std::size_t count) const;
+};
+
+// How a kernel is emitted beyond its variant (docs/VARIANTS.md "Instancing").
+struct EmitOptions {
+  // One launch skins K instances of the mesh, each with its own palette: the
+  // grid's second dimension (glsl-vertex: gl_InstanceID of an instanced draw)
+  // is the instance; instance i reads palette joints i*J.. and writes its
+  // outputs at i*vertex_count + first + v (vertex_count: a new scalar
+  // argument after `first`; glsl-vertex: the capture order, no argument).
+  // Needs the joint count (the palette stride).
+  bool instanced = false;
+  // Instanced `constant` storage in CUDA and GLSL: the __constant__ symbol /
+  // uniform block is an array sized at compile time, so it holds this many
+  // palettes (required there: >= 1; a launch may skin fewer). Ignored
+  // elsewhere: OpenCL's __constant pointer and the other storages take any K.
+  int max_instances = 0;
 };
 
 struct KernelSource {
@@ -58,6 +76,8 @@ struct KernelSource {
   std::vector<std::pair<std::string, long long>> defines;  // in the order they are prepended
   int influences = 0;                                 // B the kernel is specialised for
   int joints = 0;                                     // palette entries (0: not specialised)
+  bool instanced = false;                             // EmitOptions::instanced
+  int max_instances = 0;                              // instances the kernel can skin per launch (0: any)
   std::vector<KernelArgument> arguments;              // in kernel argument order
   LaunchGeometry launch;
   std::string generator_version = kGeneratorVersion;
@@ -66,10 +86,17 @@ struct KernelSource {
 
 // The kernel of `variant`. `influences_override` (> 0) specialises it for
 // another B (one bucket of a `bucketed` variant); `joints` is the palette size,
-// required for `local` storage (it sizes the local copy) and recorded in the
-// kernel otherwise. Throws Error for an unimplemented language, influences
-// outside 1..8, or local storage without a joint count.
-KernelSource Emit(const Variant& variant, int influences_override = 0, int joints = 0);
+// required for `local` storage (it sizes the local copy) and for instanced
+// kernels (the palette stride), and recorded in the kernel otherwise.
+// Throws Error for an unimplemented language, influences outside 1..8, local
+// storage or an instanced kernel without a joint count, or instanced CUDA/GLSL
+// constant storage without max_instances.
+KernelSource Emit(const Variant& variant, int influences_override = 0, int joints = 0,
+                  const EmitOptions& options = {});
+
+// Whether an instanced kernel of `variant` takes K palettes only up to its
+// compile-time max_instances (CUDA and GLSL constant storage).
+bool InstancesBoundAtCompileTime(const Variant& variant);
 
 // Everything a program needs to bind and launch the kernel.
 nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant);

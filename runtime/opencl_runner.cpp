@@ -10,6 +10,7 @@
 
 #include "reference/error.h"
 #include "runtime/output_check.h"
+#include "runtime/run_shape.h"
 
 namespace skintune {
 
@@ -74,6 +75,7 @@ struct OpenClRunner::Impl {
   std::map<std::string, BuiltKernel> built;  // by source hash
 
   cl_kernel KernelFor(const KernelSource& source);
+  void CheckPaletteFits(const Variant& variant, std::size_t palette_bytes) const;
   Memory Buffer(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what);
 };
 
@@ -152,27 +154,43 @@ Memory OpenClRunner::Impl::Buffer(cl_mem_flags flags, std::size_t bytes, const v
   return m;
 }
 
+// The K palettes of an instanced run may exceed what the device allows a
+// __constant buffer or an image1d_buffer; say which limit, before launching.
+void OpenClRunner::Impl::CheckPaletteFits(const Variant& variant, std::size_t palette_bytes) const {
+  if (variant.storage == PaletteStorage::kConstant) {
+    cl_ulong limit = 0;
+    clGetDeviceInfo(device, CL_DEVICE_MAX_CONSTANT_BUFFER_SIZE, sizeof limit, &limit, nullptr);
+    if (limit != 0 && palette_bytes > limit)
+      Fail("launch", variant.Key() + ": the palettes (" + std::to_string(palette_bytes) +
+                         " bytes) exceed CL_DEVICE_MAX_CONSTANT_BUFFER_SIZE " + std::to_string(limit) + " of " + name);
+  } else if (variant.storage == PaletteStorage::kImage) {
+    std::size_t limit = 0;
+    clGetDeviceInfo(device, CL_DEVICE_IMAGE_MAX_BUFFER_SIZE, sizeof limit, &limit, nullptr);
+    if (limit != 0 && palette_bytes / 16 > limit)
+      Fail("launch", variant.Key() + ": the palettes (" + std::to_string(palette_bytes / 16) +
+                         " texels) exceed CL_DEVICE_IMAGE_MAX_BUFFER_SIZE " + std::to_string(limit) + " of " + name);
+  }
+}
+
 void OpenClRunner::Build(const KernelSource& source) { impl_->KernelFor(source); }
 
 OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette) {
-  std::vector<KernelSource> kernels;
-  for (const Launch& launch : mesh.launches)
-    kernels.push_back(Emit(mesh.variant, launch.influences, static_cast<int>(mesh.palette_joints)));
-  return Run(mesh, kernels, palette);
+  return Run(mesh, EmitLaunchKernels(mesh), palette);
+}
+
+OpenClRunResult OpenClRunner::RunInstanced(const PackedMesh& mesh, int instances,
+                                           std::span<const std::uint8_t> palettes) {
+  return Run(mesh, EmitLaunchKernels(mesh, instances), palettes, instances);
 }
 
 OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                                  std::span<const std::uint8_t> palette) {
+                                  std::span<const std::uint8_t> palettes, int instances) {
   Impl& im = *impl_;
   const Variant& variant = mesh.variant;
-  if (kernels.size() != mesh.launches.size())
-    Fail("launch", std::to_string(kernels.size()) + " kernels for " + std::to_string(mesh.launches.size()) +
-                       " launches of " + variant.Key());
-  if (palette.empty()) palette = mesh.palette;
-  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
-  if (palette.size() != mesh.palette_joints * rows * 16)
-    Fail("launch", "palette has " + std::to_string(palette.size()) + " bytes, expected " +
-                       std::to_string(mesh.palette_joints) + " joints x " + std::to_string(rows) + " rows x 16");
+  const std::vector<std::uint8_t> palette = PalettesOrMeshPalette(mesh, palettes, instances);
+  const RunShape shape = CheckRunShape(mesh, kernels, palette.size(), instances, "OpenCL");
+  im.CheckPaletteFits(variant, palette.size());
+  const cl_uint vertex_count = static_cast<cl_uint>(mesh.vertex_count);
 
   // Palette (and its image view for `image` storage).
   Memory palette_buffer = im.Buffer(CL_MEM_READ_ONLY, palette.size(), palette.data(), "palette");
@@ -188,8 +206,8 @@ OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const Kernel
     Check(err, "launch", "clCreateImage (image1d_buffer of " + std::to_string(desc.image_width) + " texels)");
   }
 
-  // Outputs: poisoned, each followed by its guard.
-  const std::size_t out_bytes = mesh.vertex_count * mesh.output_stride_bytes;
+  // Outputs (K instances, one after another): poisoned, each followed by its guard.
+  const std::size_t out_bytes = shape.out_bytes;
   const std::vector<std::uint8_t> fill = PoisonedOutput(out_bytes);
   Memory out_positions = im.Buffer(CL_MEM_READ_WRITE, fill.size(), fill.data(), "out_positions");
   Memory out_normals;
@@ -213,6 +231,8 @@ OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const Kernel
         err = clSetKernelArg(kernel, index, sizeof(cl_uint), &launch.count);
       } else if (arg.name == "first") {
         err = clSetKernelArg(kernel, index, sizeof(cl_uint), &launch.first);
+      } else if (arg.name == "vertex_count") {
+        err = clSetKernelArg(kernel, index, sizeof(cl_uint), &vertex_count);
       } else {
         if (arg.name == "palette") {
           mem = palette_image.get() ? palette_image.get() : palette_buffer.get();
@@ -232,12 +252,15 @@ OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const Kernel
       }
       Check(err, "launch", where + ": clSetKernelArg " + std::to_string(a) + " '" + arg.name + "'");
     }
-    const std::size_t global = source.launch.GlobalItems(launch.count);
-    const auto local = static_cast<std::size_t>(source.launch.wg_size);
+    // Instanced: the second dimension is the instance.
+    const std::size_t global[2] = {source.launch.GlobalItems(launch.count), static_cast<std::size_t>(shape.instances)};
+    const std::size_t local[2] = {static_cast<std::size_t>(source.launch.wg_size), 1};
+    const cl_uint dimensions = shape.instanced ? 2 : 1;
     cl_event event = nullptr;
-    Check(clEnqueueNDRangeKernel(im.queue.get(), kernel, 1, nullptr, &global, &local, 0, nullptr, &event), "launch",
-          where + ": clEnqueueNDRangeKernel (" + std::to_string(global) + " items, groups of " +
-              std::to_string(local) + ")");
+    Check(clEnqueueNDRangeKernel(im.queue.get(), kernel, dimensions, nullptr, global, local, 0, nullptr, &event),
+          "launch",
+          where + ": clEnqueueNDRangeKernel (" + std::to_string(global[0]) + " items x " + std::to_string(global[1]) +
+              " instances, groups of " + std::to_string(local[0]) + ")");
     events.emplace_back(event);
   }
   Check(clFinish(im.queue.get()), "launch", "clFinish after " + variant.Key());
@@ -255,7 +278,7 @@ OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const Kernel
     std::vector<std::uint8_t> bytes(out_bytes + kGuardBytes);
     Check(clEnqueueReadBuffer(im.queue.get(), buffer.get(), CL_TRUE, 0, bytes.size(), bytes.data(), 0, nullptr, nullptr),
           "launch", std::string("clEnqueueReadBuffer '") + what + "'");
-    const OutputCheck check = CheckGuardAndCountPoisoned(bytes, out_bytes, mesh.output_stride_bytes, mesh.vertex_count);
+    const OutputCheck check = CheckGuardAndCountPoisoned(bytes, out_bytes, mesh.output_stride_bytes, shape.out_vertices);
     if (!check.guard_ok)
       Fail("guard", variant.Key() + ": " + what + ": the kernel " + GuardFailure(check, out_bytes));
     result.poisoned_vertices += check.poisoned_vertices;
@@ -271,11 +294,12 @@ OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const Kernel
 struct OpenClPrepared::Impl {
   struct LaunchPlan {
     KernelSource source;
-    std::uint32_t count = 0, first = 0;
-    std::size_t global = 0, local = 0;
+    std::uint32_t count = 0, first = 0, vertex_count = 0;
+    cl_uint dimensions = 1;  // 2: instanced, the second dimension is the instance
+    std::size_t global[2] = {0, 1}, local[2] = {0, 1};
   };
   // One set: its buffers, and per launch the memory object of each kernel
-  // argument (null for the scalars n and first).
+  // argument (null for the scalars n, first and vertex_count).
   struct Set {
     std::vector<Memory> buffers;
     std::vector<std::vector<cl_mem>> arguments;
@@ -294,19 +318,14 @@ int OpenClPrepared::input_sets() const { return impl_ ? static_cast<int>(impl_->
 std::size_t OpenClPrepared::bytes_per_set() const { return impl_ ? impl_->bytes_per_set : 0; }
 
 OpenClPrepared OpenClRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                                     std::span<const std::vector<std::uint8_t>> palettes) {
+                                     std::span<const std::vector<std::uint8_t>> palettes, int instances) {
   Impl& im = *impl_;
   const Variant& variant = mesh.variant;
-  if (kernels.size() != mesh.launches.size())
-    Fail("launch", std::to_string(kernels.size()) + " kernels for " + std::to_string(mesh.launches.size()) +
-                       " launches of " + variant.Key());
   if (palettes.empty()) Fail("launch", "no palette (input set) to time " + variant.Key() + " with");
-  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
-  for (const std::vector<std::uint8_t>& palette : palettes) {
-    if (palette.size() != mesh.palette_joints * rows * 16)
-      Fail("launch", "palette has " + std::to_string(palette.size()) + " bytes, expected " +
-                         std::to_string(mesh.palette_joints) + " joints x " + std::to_string(rows) + " rows x 16");
-  }
+  RunShape shape;
+  for (const std::vector<std::uint8_t>& palette : palettes)
+    shape = CheckRunShape(mesh, kernels, palette.size(), instances, "OpenCL");
+  im.CheckPaletteFits(variant, palettes.front().size());
 
   OpenClPrepared prepared;
   OpenClPrepared::Impl& p = *prepared.impl_;
@@ -319,12 +338,15 @@ OpenClPrepared OpenClRunner::Prepare(const PackedMesh& mesh, std::span<const Ker
     plan.source = kernels[l];
     plan.count = launch.count;
     plan.first = launch.first;
-    plan.global = kernels[l].launch.GlobalItems(launch.count);
-    plan.local = static_cast<std::size_t>(kernels[l].launch.wg_size);
+    plan.vertex_count = static_cast<std::uint32_t>(mesh.vertex_count);
+    plan.dimensions = shape.instanced ? 2 : 1;
+    plan.global[0] = kernels[l].launch.GlobalItems(launch.count);
+    plan.global[1] = static_cast<std::size_t>(shape.instances);
+    plan.local[0] = static_cast<std::size_t>(kernels[l].launch.wg_size);
     p.launches.push_back(std::move(plan));
   }
 
-  const std::size_t out_bytes = mesh.vertex_count * mesh.output_stride_bytes;
+  const std::size_t out_bytes = shape.out_bytes;
   for (std::size_t k = 0; k < palettes.size(); ++k) {
     OpenClPrepared::Impl::Set set;
     std::size_t bytes = 0;
@@ -362,7 +384,7 @@ OpenClPrepared OpenClRunner::Prepare(const PackedMesh& mesh, std::span<const Ker
       std::vector<cl_mem> arguments;
       for (const KernelArgument& arg : source.arguments) {
         cl_mem mem = nullptr;
-        if (arg.name == "n" || arg.name == "first") {
+        if (arg.kind == ArgumentKind::kScalar) {
           arguments.push_back(nullptr);
           continue;
         } else if (arg.name == "palette") {
@@ -416,16 +438,19 @@ std::vector<double> OpenClRunner::Time(const OpenClPrepared& prepared, int warmu
           err = clSetKernelArg(kernel, index, sizeof(cl_uint), &plan.count);
         } else if (arg.name == "first") {
           err = clSetKernelArg(kernel, index, sizeof(cl_uint), &plan.first);
+        } else if (arg.name == "vertex_count") {
+          err = clSetKernelArg(kernel, index, sizeof(cl_uint), &plan.vertex_count);
         } else {
           err = clSetKernelArg(kernel, index, sizeof(cl_mem), &arguments[a]);
         }
         if (err != CL_SUCCESS) Check(err, "launch", where + ": clSetKernelArg " + std::to_string(a) + " '" + arg.name + "'");
       }
       cl_event event = nullptr;
-      Check(clEnqueueNDRangeKernel(im.queue.get(), kernel, 1, nullptr, &plan.global, &plan.local, 0, nullptr,
-                                   timed ? &event : nullptr),
-            "launch", where + ": clEnqueueNDRangeKernel (" + std::to_string(plan.global) + " items, groups of " +
-                          std::to_string(plan.local) + ")");
+      Check(clEnqueueNDRangeKernel(im.queue.get(), kernel, plan.dimensions, nullptr, plan.global, plan.local, 0,
+                                   nullptr, timed ? &event : nullptr),
+            "launch", where + ": clEnqueueNDRangeKernel (" + std::to_string(plan.global[0]) + " items x " +
+                          std::to_string(plan.global[1]) + " instances, groups of " + std::to_string(plan.local[0]) +
+                          ")");
       if (timed) events[static_cast<std::size_t>(frame - warmup)].emplace_back(event);
     }
   }

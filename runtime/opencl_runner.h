@@ -13,6 +13,12 @@
 //   specialised per influence count), arguments bound by name from the
 //   kernel's argument list (docs/VARIANTS.md order), palette as a buffer or,
 //   for `image` storage, an image1d_buffer (CL_RGBA / CL_FLOAT) over it.
+// - Instances (docs/VARIANTS.md "Instancing"): with instanced kernels one run
+//   skins K instances, each launch a 2-D NDRange (items, K) over the K
+//   palettes (one buffer, one after another); the outputs hold K x
+//   vertex_count vertices, instance after instance, the guard after them.
+//   K palettes larger than the device's __constant buffer or image buffer
+//   limit throw Error("OpenCL launch ...") naming the limit.
 // - Timing (the tuner's): Prepare uploads K input sets once (copies of every
 //   launch's inputs, one palette each, outputs of their own); Time runs frames
 //   rotating among them with profiling events, uploading, poisoning and
@@ -33,7 +39,8 @@
 namespace skintune {
 
 struct OpenClRunResult {
-  std::vector<std::uint8_t> positions;  // vertex_count x output_stride_bytes, packed order (Unpack it)
+  std::vector<std::uint8_t> positions;  // K x vertex_count x output_stride_bytes, packed order, instance after
+                                        // instance (Unpack each instance's part)
   std::vector<std::uint8_t> normals;    // likewise; empty without normals
   std::vector<double> launch_ms;        // per launch, profiling end - start
   std::size_t poisoned_vertices = 0;    // output vectors (positions, normals) still holding the poison
@@ -75,17 +82,26 @@ class OpenClRunner {
   // palette_joints)) and runs them. `palette`: PackPalette bytes; empty = mesh.palette.
   OpenClRunResult Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette = {});
 
-  // Runs with the given kernels, one per launch, in launch order.
+  // Emits the variant's instanced kernel for every launch and skins
+  // `instances` (K >= 1) instances in one launch per launch of the mesh.
+  // `palettes`: K PackPalette byte runs one after another (instance i's at
+  // i x palette size); empty = mesh.palette for every instance.
+  OpenClRunResult RunInstanced(const PackedMesh& mesh, int instances, std::span<const std::uint8_t> palettes = {});
+
+  // Runs with the given kernels, one per launch, in launch order; instanced
+  // kernels skin `instances` instances (`palette` holds K palettes), plain
+  // ones need instances == 1 (runtime/run_shape.h lists the errors).
   OpenClRunResult Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                      std::span<const std::uint8_t> palette = {});
+                      std::span<const std::uint8_t> palette = {}, int instances = 1);
 
   // Timing. Uploads one input set per palette (PackPalette bytes; one frame
   // each): copies of every launch's packed inputs, that palette (and its
   // image), and outputs of its own (not poisoned, never read back); builds
-  // `kernels` (one per launch, in launch order). Throws Error ("build",
-  // "launch") like Run.
+  // `kernels` (one per launch, in launch order). Instanced kernels: each
+  // entry of `palettes` holds `instances` palettes and each frame skins them
+  // all. Throws Error ("build", "launch") like Run.
   OpenClPrepared Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                         std::span<const std::vector<std::uint8_t>> palettes);
+                         std::span<const std::vector<std::uint8_t>> palettes, int instances = 1);
 
   // Runs `warmup` untimed frames, then `repetitions` timed ones; frame f (warm-up
   // frames counted) reads and writes set f % input_sets(). Nothing is uploaded

@@ -127,6 +127,51 @@ TEST(Constraints, RejectsNormalsWhenTheMeshHasNone) {
   ExpectOnly(v, Constraint::kNormalsMissing, "mesh has none", kDevice, {77, 4, false});
 }
 
+// Instanced launches (docs/VARIANTS.md "Instancing"): K palettes live in
+// constant or image storage together; a local copy holds one.
+TEST(Constraints, RejectsInstancedConstantStorageWhenKPalettesExceedTheLimit) {
+  Variant v;
+  v.storage = PaletteStorage::kConstant;  // 77 x 48 B = 3696 B per palette
+  ExpectOnly(v, Constraint::kConstantMemory, "18 palettes of 77 x 48 B = 66528 B exceeds the constant buffer 65536 B",
+             kDevice, {77, 4, true, 18});
+  EXPECT_TRUE(CheckVariant(v, kDevice, {77, 4, true, 17}).empty());  // 62832 B
+  v.lang = Lang::kGlslCompute;
+  ExpectOnly(v, Constraint::kConstantMemory, "5 palettes of 77 x 48 B = 18480 B exceeds the uniform block limit",
+             kDevice, {77, 4, true, 5});
+}
+
+TEST(Constraints, RejectsInstancedImageStorageBeyondTheTexelLimit) {
+  Variant v;
+  v.storage = PaletteStorage::kImage;
+  DeviceLimits small = kDevice;
+  small.image_buffer_max_texels = 1000;
+  EXPECT_TRUE(CheckVariant(v, small, {77, 4, true, 4}).empty());  // 924 texels
+  ExpectOnly(v, Constraint::kImageSize, "1155 texels exceed the image buffer limit 1000", small, {77, 4, true, 5});
+}
+
+TEST(Constraints, InstancedLocalStorageCopiesOnePalettePerWorkGroup) {
+  Variant v;
+  v.storage = PaletteStorage::kLocal;
+  DeviceLimits small = kDevice;
+  small.local_memory_bytes = 4096;
+  EXPECT_TRUE(CheckVariant(v, small, {77, 4, true, 1000}).empty());  // 3696 B, whatever K
+}
+
+TEST(Constraints, RejectsInstanceCountsALaunchCannotHold) {
+  Variant v;
+  ExpectOnly(v, Constraint::kInstanceCount, "instances 0 below 1", kDevice, {77, 4, true, 0});
+  EXPECT_TRUE(CheckVariant(v, kDevice, {77, 4, true, 100000}).empty());  // OpenCL: global size, no small limit
+  v.lang = Lang::kCuda;
+  ExpectOnly(v, Constraint::kInstanceCount, "100000 instances exceed the launch's instance dimension (grid y) 65535",
+             kDevice, {77, 4, true, 100000});
+  EXPECT_TRUE(CheckVariant(v, kDevice, {77, 4, true, 65535}).empty());
+  v.lang = Lang::kGlslCompute;
+  ExpectOnly(v, Constraint::kInstanceCount, "(work-group count y) 65535", kDevice, {77, 4, true, 65536});
+  v.lang = Lang::kGlslVertex;
+  v.wg_size = 0;
+  EXPECT_TRUE(CheckVariant(v, kDevice, {77, 4, true, 100000}).empty());  // instanced draws
+}
+
 TEST(Constraints, ReportsEveryBrokenConstraint) {
   Variant v;
   v.influences = 1;

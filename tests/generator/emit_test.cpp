@@ -235,6 +235,119 @@ TEST(Emit, LocalStorageNeedsTheJointCount) {
     }
 }
 
+// ---------------------------------------------------------------- instancing
+
+EmitOptions Instanced(int max_instances = 0) { return EmitOptions{true, max_instances}; }
+
+TEST(EmitInstanced, AddsTheInstancedDefineAndNothingWhenNotInstanced) {
+  const Variant v = ParseVariantKey("opencl.b4.soa.global");
+  const KernelSource plain = Emit(v, 0, 77);
+  const KernelSource instanced = Emit(v, 0, 77, Instanced());
+  EXPECT_EQ(DefineOf(plain, "INSTANCED"), -1);
+  EXPECT_EQ(plain.text.find("#define INSTANCED 1"), std::string::npos);
+  EXPECT_FALSE(plain.instanced);
+  EXPECT_EQ(SidecarJson(plain, v).count("instancing"), 0u);
+  EXPECT_EQ(DefineOf(instanced, "INSTANCED"), 1);
+  EXPECT_TRUE(instanced.instanced);
+  EXPECT_TRUE(instanced.launch.instanced);
+  EXPECT_NE(instanced.source_hash, plain.source_hash);
+  // Every parameter define of the plain kernel, with the same value.
+  for (const auto& [name, value] : plain.defines) EXPECT_EQ(DefineOf(instanced, name), value) << name;
+  EXPECT_EQ(instanced.defines.size(), plain.defines.size() + 1);
+  EXPECT_NE(instanced.launch.rule.find("get_global_id(1)"), std::string::npos) << instanced.launch.rule;
+}
+
+TEST(EmitInstanced, VertexCountFollowsFirstExceptInTheVertexShader) {
+  using Names = std::vector<std::string>;
+  const auto names = [](const char* key) {
+    const Variant v = ParseVariantKey(key);
+    return ArgumentNames(SidecarJson(Emit(v, 0, 77, Instanced(4)), v));
+  };
+  for (const char* key : {"opencl.aos", "cuda.aos", "glsl-compute.aos"}) {
+    EXPECT_EQ(names(key), (Names{"n", "first", "vertex_count", "records", "palette", "out_positions"})) << key;
+  }
+  EXPECT_EQ(names("opencl.soa.normals"), (Names{"n", "first", "vertex_count", "positions", "indices", "weights",
+                                                "normals", "palette", "out_positions", "out_normals"}));
+  // The vertex shader's capture places the instances: no vertex_count.
+  EXPECT_EQ(names("glsl-vertex.aos.v1c.wg0"), (Names{"n", "first", "records", "palette", "out_positions"}));
+}
+
+TEST(EmitInstanced, SidecarSaysWhereEachInstanceReadsAndWrites) {
+  const Variant v = ParseVariantKey("opencl.b2.soa.image.normals");
+  const nlohmann::json j = SidecarJson(Emit(v, 0, 30, Instanced()), v);
+  const auto& args = j.at("arguments");
+  EXPECT_EQ(args[2].at("name"), "vertex_count");
+  EXPECT_EQ(args[2].at("kind"), "scalar");
+  EXPECT_EQ(args[2].at("format"), "u32");
+  for (const auto& a : args) {
+    if (a.at("name") == "palette") {
+      EXPECT_EQ(a.at("indexing"), "(i*J+j)*R+r");
+    }
+    if (a.at("direction") == "out") {
+      EXPECT_EQ(a.at("indexing"), "i*vertex_count+first+v") << a.at("name");
+    }
+  }
+  const auto& inst = j.at("instancing");
+  EXPECT_EQ(inst.at("instance"), "get_global_id(1)");
+  EXPECT_NE(inst.at("palette").get<std::string>().find("(i*30+j)*R+r"), std::string::npos) << inst;
+  EXPECT_EQ(inst.at("max_instances"), 0);
+
+  const Variant vertex = ParseVariantKey("glsl-vertex.b2.soa.image.v1c.wg0.normals");
+  const nlohmann::json jv = SidecarJson(Emit(vertex, 0, 30, Instanced()), vertex);
+  EXPECT_EQ(jv.at("instancing").at("instance"), "gl_InstanceID");
+  for (const auto& a : jv.at("arguments"))
+    if (a.at("direction") == "out") {
+      EXPECT_EQ(a.at("indexing"), "i*n+v") << a.at("name");
+    }
+  EXPECT_EQ(SidecarJson(Emit(ParseVariantKey("cuda.b2"), 0, 30, Instanced()), ParseVariantKey("cuda.b2"))
+                .at("instancing").at("instance"),
+            "blockIdx.y");
+}
+
+TEST(EmitInstanced, NeedsTheJointCount) {
+  EXPECT_NE(ErrorOf([] { Emit(ParseVariantKey("opencl.global"), 0, 0, Instanced()); })
+                .find("an instanced kernel needs the joint count"),
+            std::string::npos);
+}
+
+TEST(EmitInstanced, ConstantStorageInCudaAndGlslIsSizedForMaxInstances) {
+  for (const char* key : {"cuda.constant", "glsl-compute.constant", "glsl-vertex.constant.v1c.wg0"}) {
+    const Variant v = ParseVariantKey(key);
+    EXPECT_NE(ErrorOf([&] { Emit(v, 0, 77, Instanced()); }).find("needs max_instances >= 1"), std::string::npos)
+        << key;
+    const KernelSource s = Emit(v, 0, 77, Instanced(9));
+    EXPECT_EQ(DefineOf(s, "PALETTE_INSTANCES"), 9) << key;
+    EXPECT_EQ(s.max_instances, 9) << key;
+    EXPECT_EQ(SidecarJson(s, v).at("instancing").at("max_instances"), 9) << key;
+    EXPECT_TRUE(InstancesBoundAtCompileTime(v)) << key;
+  }
+  // OpenCL's __constant pointer and every other storage take any K: no define, max_instances 0.
+  for (const char* key : {"opencl.constant", "cuda.global", "cuda.local", "glsl-compute.image"}) {
+    const Variant v = ParseVariantKey(key);
+    const KernelSource s = Emit(v, 0, 77, Instanced(9));
+    EXPECT_EQ(DefineOf(s, "PALETTE_INSTANCES"), -1) << key;
+    EXPECT_EQ(s.max_instances, 0) << key;
+    EXPECT_FALSE(InstancesBoundAtCompileTime(v)) << key;
+  }
+}
+
+TEST(EmitInstanced, TemplateCompilesAloneWithJustTheInstancedDefine) {
+  bool skipped = false;
+  const std::string result = BuildOnFirstDevice("#define INSTANCED 1\n" + TemplateText("skin.cl"), skipped);
+  if (skipped) GTEST_SKIP() << result;
+  EXPECT_EQ(result, "");
+}
+
+TEST(EmitInstanced, KernelsOfEveryLayoutAndStorageCompileCleanly) {
+  for (const char* key : {"opencl.aos.float3.u8.unorm8.b3.normals.constant", "opencl.soa.local.point.v4s",
+                          "opencl.soa-split.image.mat4.i32.unorm16.v8c.wg32.normals", "opencl.aos.global.v2s"}) {
+    bool skipped = false;
+    const std::string result = BuildOnFirstDevice(Emit(ParseVariantKey(key), 0, 77, Instanced()).text, skipped);
+    if (skipped) GTEST_SKIP() << result;
+    EXPECT_EQ(result, "") << key;
+  }
+}
+
 TEST(Emit, InfluencesOutsideTheRangeThrow) {
   EXPECT_NE(ErrorOf([] { Emit(ParseVariantKey("opencl.b4"), 9); }).find("influences 9 outside 1..8"),
             std::string::npos);

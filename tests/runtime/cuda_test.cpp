@@ -441,7 +441,7 @@ TEST(CudaRunner, PoisonedOutputCatchesAKernelThatSkipsVertices) {
 
 TEST(CudaRunner, GuardCatchesAKernelThatWritesPastTheEnd) {
   RUNNER_OR_SKIP(runner);
-  Faulty f = WithFault(kFaultKey, "STORE_XYZ(out_positions, first + v,", "STORE_XYZ(out_positions, first + v + 64,");
+  Faulty f = WithFault(kFaultKey, "STORE_XYZ(out_positions, out_first + v,", "STORE_XYZ(out_positions, out_first + v + 64,");
   ExpectRunFails(*runner, f, "a kernel writing 64 vertices past its output was not caught",
                  {"CUDA guard", "out_positions", "wrote past the end"});
 }

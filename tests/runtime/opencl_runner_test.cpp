@@ -7,11 +7,13 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <functional>
 #include <iostream>
 
 #include "runner_test_support.h"
 #include "runtime/opencl_devices.h"
 #include "runtime/opencl_runner.h"
+#include "runtime/run_shape.h"
 
 namespace skintune {
 namespace {
@@ -27,6 +29,11 @@ using testing::Faulty;
 using testing::LaunchTimes;
 using testing::Seed;
 using testing::WithFault;
+using testing::InstanceCase;
+using testing::InstanceCaseName;
+using testing::InstancedRun;
+using testing::WithInstanceCounts;
+using testing::WithInstancedFault;
 
 // The device these tests run on: the first OpenCL device, or the first whose
 // "platform-vendor platform / name" contains $SKINTUNE_TEST_OPENCL_DEVICE.
@@ -144,7 +151,7 @@ TEST(OpenClRunner, GuardCatchesAKernelThatWritesPastTheEnd) {
   std::string why;
   OpenClRunner* runner = Runner(why);
   if (!runner) GTEST_SKIP() << why;
-  Faulty f = WithFault(kFaultKey, "STORE_XYZ(out_positions, first + v,", "STORE_XYZ(out_positions, first + v + 64,");
+  Faulty f = WithFault(kFaultKey, "STORE_XYZ(out_positions, out_first + v,", "STORE_XYZ(out_positions, out_first + v + 64,");
   ExpectRunFails(*runner, f, "a kernel writing 64 vertices past its output was not caught",
                  {"OpenCL guard", "out_positions", "wrote past the end"});
 }
@@ -175,6 +182,137 @@ TEST(OpenClRunner, RejectsAPaletteOfTheWrongSizeAndAMissingDevice) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("OpenCL setup"), std::string::npos) << e.what();
   }
+}
+
+// ---------------------------------------------------------------- instances
+
+// K instances per launch (docs/VARIANTS.md "Instancing"), each with its own
+// random palette, each instance against the gold of that palette: every
+// layout and storage, padded and bucketed (CesiumMan: 4 launches), several
+// vertices per item contiguous and strided, float3 and float4, normals.
+class OpenClInstanced : public ::testing::TestWithParam<InstanceCase> {};
+
+TEST_P(OpenClInstanced, EveryInstanceMatchesTheGoldOfItsPalette) {
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  const InstanceCase& c = GetParam();
+  SCOPED_TRACE(std::string(c.key) + " on " + c.mesh + " x" + std::to_string(c.instances) + ", seed " +
+               std::to_string(Seed()) + " (SKINTUNE_TEST_SEED reproduces), device " + runner->device_name());
+  testing::ExpectInstanceCaseMatchesGold(*runner, c, LimitsOf(*TestDevice(why)));
+}
+
+const Case kInstancedCases[] = {
+    {"opencl.b4.padded.aos.float4.u16.f32.mat4.constant.matrix.v1c.wg64.normals", "b4"},
+    {"opencl.b3.padded.soa.float3.u8.unorm8.mat3x4.local.point.v2s.wg128.nonormals", "b3-random"},
+    {"opencl.b2.padded.soa-split.float4.i32.unorm16.mat3x4.image.matrix.v4c.wg32.normals", "b2"},
+    {"opencl.b5.padded.aos.float4.i32.unorm16.mat3x4.image.point.v1c.wg32.nonormals", "b5"},
+    {"opencl.b4.bucketed.soa.float4.u16.f32.mat3x4.global.matrix.v8s.wg256.normals", "cesium"},
+    {"opencl.b4.bucketed.aos.float3.u8.unorm8.mat4.local.matrix.v2c.wg64.nonormals", "cesium"},
+    {"opencl.b4.bucketed.soa-split.float3.u16.f32.mat3x4.constant.point.v4s.wg128.normals", "cesium"},
+};
+
+INSTANTIATE_TEST_SUITE_P(Spread, OpenClInstanced, ::testing::ValuesIn(WithInstanceCounts(kInstancedCases)),
+                         InstanceCaseName);
+
+constexpr const char* kInstancedFaultKey = "opencl.b2.soa.float4.u16.f32.wg64";
+
+TEST(OpenClInstancedRunner, GoldCatchesAKernelThatReadsOnePaletteForEveryInstance) {
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  std::vector<KernelSource> kernels;
+  const InstancedRun run = WithInstancedFault(kInstancedFaultKey, 3, "const uint joint_base = instance * JOINTS;",
+                                              "const uint joint_base = 0u;", kernels);
+  const OpenClRunResult result = runner->Run(run.packed, kernels, run.palette_bytes, 3);
+  const SkinnedMesh quantised = QuantisedMesh(testing::SmallAsset("b2").mesh, run.packed.variant);
+  for (int i = 0; i < 3; ++i) {
+    const GoldComparison c = CompareToGold(SkinGold(quantised, run.palettes[static_cast<std::size_t>(i)]).positions,
+                                           testing::UnpackInstance(run.packed, result.positions, i));
+    if (i == 0) {
+      EXPECT_LT(c.max_relative, testing::kTolerance);  // instance 0's palette is the one read
+    } else {
+      EXPECT_FALSE(c.max_relative < testing::kTolerance) << "instance " << i << " passed with instance 0's palette";
+    }
+  }
+}
+
+TEST(OpenClInstancedRunner, PoisonCatchesAKernelThatWritesEveryInstanceOverTheFirst) {
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  std::vector<KernelSource> kernels;
+  const InstancedRun run = WithInstancedFault(kInstancedFaultKey, 7, "const uint out_first = instance * vertex_count + first;",
+                                              "const uint out_first = first + 0u * vertex_count;", kernels);
+  EXPECT_EQ(runner->Run(run.packed, kernels, run.palette_bytes, 7).poisoned_vertices, 6 * run.packed.vertex_count);
+}
+
+TEST(OpenClInstancedRunner, GuardCatchesTheLastInstanceWritingPastTheEnd) {
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  std::vector<KernelSource> kernels;
+  const InstancedRun run = WithInstancedFault(kInstancedFaultKey, 7, "const uint out_first = instance * vertex_count + first;",
+                                              "const uint out_first = instance * vertex_count + first + instance * 8u;", kernels);
+  try {
+    runner->Run(run.packed, kernels, run.palette_bytes, 7);
+    ADD_FAILURE() << "the last instance writing 48 vertices past the end was not caught";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("OpenCL guard"), std::string::npos) << e.what();
+  }
+}
+
+// The message of the Error `f` throws, or "(no error)".
+std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(OpenClInstancedRunner, RejectsPalettesOfTheWrongCountAndPlainKernelsWithInstances) {
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  const PackedMesh packed = Pack(testing::SmallAsset("b2").mesh, ParseVariantKey("opencl.b2.soa"));
+  const std::vector<std::uint8_t> six(6 * packed.palette.size());
+  EXPECT_NE(ErrorOf([&] { runner->RunInstanced(packed, 7, six); }).find("expected 7 instances x 12 joints"),
+            std::string::npos);
+  const std::vector<KernelSource> plain = {Emit(packed.variant, 0, 12)};
+  EXPECT_NE(ErrorOf([&] { runner->Run(packed, plain, six, 6); }).find("6 instances with plain kernels"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf([&] { runner->RunInstanced(packed, 0); }).find("0 instances"), std::string::npos);
+}
+
+TEST(OpenClInstancedRunner, RejectsPalettesLargerThanTheConstantBufferNamingTheLimit) {
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  const PackedMesh packed = Pack(testing::SmallAsset("b2").mesh, ParseVariantKey("opencl.b2.soa.constant"));
+  const std::uint64_t limit = LimitsOf(*TestDevice(why)).constant_memory_bytes;
+  const std::size_t k = static_cast<std::size_t>(limit / packed.palette.size() + 1);
+  if (k > 100000) GTEST_SKIP() << "constant buffer of " << limit << " bytes: too many instances to exceed it";
+  const std::vector<std::uint8_t> palettes(k * packed.palette.size());
+  const std::string message = ErrorOf([&] { runner->RunInstanced(packed, static_cast<int>(k), palettes); });
+  EXPECT_NE(message.find("exceed CL_DEVICE_MAX_CONSTANT_BUFFER_SIZE " + std::to_string(limit)), std::string::npos)
+      << message;
+}
+
+TEST(OpenClInstancedRunner, TimesKInstancesPerFrame) {
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  const InstancedRun run = testing::InstancedInputs(ParseVariantKey("opencl.b2.soa.local"), "b2", 7);
+  const std::vector<KernelSource> kernels = EmitLaunchKernels(run.packed, 7);
+  const std::vector<std::vector<std::uint8_t>> sets = {run.palette_bytes, run.palette_bytes};
+  const OpenClPrepared prepared = runner->Prepare(run.packed, kernels, sets, 7);
+  EXPECT_EQ(prepared.input_sets(), 2);
+  EXPECT_GE(prepared.bytes_per_set(), 7 * run.packed.vertex_count * run.packed.output_stride_bytes);
+  EXPECT_EQ(runner->Time(prepared, 1, 3).size(), 3u);
+  const std::vector<std::vector<std::uint8_t>> one = {std::vector<std::uint8_t>(run.packed.palette)};
+  EXPECT_NE(ErrorOf([&] { runner->Prepare(run.packed, kernels, one, 7); }).find("palette has"), std::string::npos);
 }
 
 }  // namespace

@@ -18,6 +18,9 @@
 #include <string>
 #include <vector>
 
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "generator/constraints.h"
 #include "generator/covering.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
@@ -146,21 +149,22 @@ struct Faulty {
   std::vector<KernelSource> kernels;
 };
 
+// Replaces the one occurrence of `from` in the kernel's text by `to`.
+inline void EditKernel(KernelSource& s, const std::string& from, const std::string& to) {
+  const std::size_t at = s.text.find(from);
+  EXPECT_NE(at, std::string::npos) << "'" << from << "' not in the template any more: update the test";
+  EXPECT_EQ(s.text.find(from, at + 1), std::string::npos) << "'" << from << "' occurs twice";
+  if (at != std::string::npos) s.text.replace(at, from.size(), to);
+  s.source_hash = SourceHash(s.text);
+}
+
 inline Faulty WithFault(const std::string& key, const std::string& from, const std::string& to, int joints = 0) {
   Faulty f;
   const SkinnedAsset& asset = Asset("b2");
   f.packed = Pack(asset.mesh, ParseVariantKey(key));
   f.palette = Palette(asset);
   KernelSource s = Emit(f.packed.variant, 0, joints > 0 ? joints : static_cast<int>(f.packed.palette_joints));
-  if (from.empty()) {
-    f.kernels.push_back(std::move(s));
-    return f;
-  }
-  const std::size_t at = s.text.find(from);
-  EXPECT_NE(at, std::string::npos) << "'" << from << "' not in the template any more: update the test";
-  EXPECT_EQ(s.text.find(from, at + 1), std::string::npos) << "'" << from << "' occurs twice";
-  if (at != std::string::npos) s.text.replace(at, from.size(), to);
-  s.source_hash = SourceHash(s.text);
+  if (!from.empty()) EditKernel(s, from, to);
   f.kernels.push_back(std::move(s));
   return f;
 }
@@ -188,6 +192,151 @@ void ExpectRunFails(Runner& runner, const Faulty& f, const std::string& not_caug
     const std::string message = e.what();
     for (const char* part : parts) EXPECT_NE(message.find(part), std::string::npos) << message;
   }
+}
+
+// ---------------------------------------------------------------- instances
+
+// A case of an instanced table: a variant key, its mesh ("cesium" or a small
+// synthetic "b<B>[-random]" with 12 bones), and K.
+struct InstanceCase {
+  const char* key;
+  const char* mesh;
+  int instances;
+};
+
+inline void PrintTo(const InstanceCase& c, std::ostream* os) {
+  *os << c.key << " on " << c.mesh << " x" << c.instances;
+}
+
+// Each of `cases` with K = 1, 7 and 64.
+inline std::vector<InstanceCase> WithInstanceCounts(std::span<const Case> cases) {
+  std::vector<InstanceCase> out;
+  for (const Case& c : cases)
+    for (const int k : {1, 7, 64}) out.push_back({c.key, c.mesh, k});
+  return out;
+}
+
+inline std::string InstanceCaseName(const ::testing::TestParamInfo<InstanceCase>& info) {
+  std::string name = std::to_string(info.index) + "_" + info.param.key + "_" + info.param.mesh + "_x" +
+                     std::to_string(info.param.instances);
+  for (char& ch : name)
+    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+  return name;
+}
+
+// CesiumMan (3273 vertices, 19 joints), or a small synthetic mesh of this
+// run's seed: 700 vertices plus a seed-dependent tail, 12 bones (so 64
+// palettes fit a 64 KiB constant buffer / uniform block); made once.
+inline const SkinnedAsset& SmallAsset(const std::string& mesh) {
+  static std::map<std::string, SkinnedAsset> cache;
+  if (mesh == "cesium") return Asset(mesh);
+  if (auto found = cache.find(mesh); found != cache.end()) return found->second;
+  const std::size_t dash = mesh.find('-');
+  const std::string influences = mesh.substr(0, dash);
+  const std::string rest = dash == std::string::npos ? "" : mesh.substr(dash);  // "-random"
+  const std::string key = std::to_string(700 + Seed() % 97) + "-" + influences + "-bones12" + rest + "-seed" +
+                          std::to_string(Seed()) + "-normals";
+  return cache[mesh] = GenerateDataset(ParseDatasetKey(key));
+}
+
+// Instance i's palette: Palette(asset) with every joint moved by its own
+// random rotation and translation (seeded by the run's seed and i), so an
+// instance that reads another instance's palette fails the comparison.
+inline std::vector<glm::mat4> InstancePalette(const SkinnedAsset& asset, int instance) {
+  std::vector<glm::mat4> palette = Palette(asset);
+  std::mt19937 rng(static_cast<std::uint32_t>(Seed() * 1009 + static_cast<std::uint64_t>(instance)));
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (glm::mat4& m : palette) {
+    const glm::vec3 axis = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + glm::vec3(0.0f, 0.0f, 1e-3f));
+    const glm::vec3 move(u(rng), u(rng), u(rng));
+    m = glm::translate(glm::mat4(1.0f), move) * glm::rotate(glm::mat4(1.0f), 3.14159265f * u(rng), axis) * m;
+  }
+  return palette;
+}
+
+// One instanced run: the K palettes' PackPalette bytes one after another.
+struct InstancedRun {
+  PackedMesh packed;
+  std::vector<std::vector<glm::mat4>> palettes;  // per instance
+  std::vector<std::uint8_t> palette_bytes;        // all K, packed
+};
+
+inline InstancedRun InstancedInputs(const Variant& variant, const std::string& mesh, int instances) {
+  InstancedRun r;
+  const SkinnedAsset& asset = SmallAsset(mesh);
+  r.packed = Pack(asset.mesh, variant);
+  for (int i = 0; i < instances; ++i) {
+    r.palettes.push_back(InstancePalette(asset, i));
+    const std::vector<std::uint8_t> bytes = PackPalette(r.palettes.back(), variant);
+    r.palette_bytes.insert(r.palette_bytes.end(), bytes.begin(), bytes.end());
+  }
+  return r;
+}
+
+// Each instance's part of an instanced run's `output` (K x vertex_count
+// vertices, instance after instance), unpacked to the mesh's vertex order.
+inline std::vector<glm::vec3> UnpackInstance(const PackedMesh& packed, std::span<const std::uint8_t> output,
+                                             int instance) {
+  const std::size_t bytes = packed.vertex_count * packed.output_stride_bytes;
+  return Unpack(packed, output.subspan(static_cast<std::size_t>(instance) * bytes, bytes));
+}
+
+// Every instance of `result` against the gold of its own palette: nothing
+// poisoned, every position (and normal) within kTolerance, one time per launch.
+template <typename RunResult>
+void ExpectInstancesMatchGold(const InstancedRun& run, const RunResult& result, const SkinnedMesh& mesh) {
+  const Variant& variant = run.packed.variant;
+  const SkinnedMesh quantised = QuantisedMesh(mesh, variant);
+  const std::size_t k = run.palettes.size();
+  EXPECT_EQ(result.poisoned_vertices, 0u);
+  ASSERT_EQ(result.positions.size(), k * run.packed.vertex_count * run.packed.output_stride_bytes);
+  if (variant.normals) {
+    ASSERT_EQ(result.normals.size(), result.positions.size());
+  }
+  for (std::size_t i = 0; i < k; ++i) {
+    SCOPED_TRACE("instance " + std::to_string(i) + " of " + std::to_string(k));
+    const GoldResult gold = SkinGold(quantised, run.palettes[i], variant.normals);
+    const GoldComparison p = CompareToGold(gold.positions, UnpackInstance(run.packed, result.positions, static_cast<int>(i)));
+    EXPECT_EQ(p.non_finite, 0u) << "first at vertex " << p.worst_vertex;
+    EXPECT_LT(p.max_relative, kTolerance) << "positions, worst vertex " << p.worst_vertex;
+    if (variant.normals) {
+      const GoldComparison n = CompareToGold(gold.normals, UnpackInstance(run.packed, result.normals, static_cast<int>(i)));
+      EXPECT_EQ(n.non_finite, 0u) << "first at vertex " << n.worst_vertex;
+      EXPECT_LT(n.max_relative, kTolerance) << "normals, worst vertex " << n.worst_vertex;
+    }
+    if (::testing::Test::HasFailure()) return;  // one failing instance says enough
+  }
+  EXPECT_EQ(result.launch_ms.size(), run.packed.launches.size());  // one launch per bucket, whatever K
+}
+
+// Runs `c` instanced (RunInstanced) and expects every instance's gold; skips
+// when the device cannot hold K palettes in the variant's storage.
+template <typename Runner>
+void ExpectInstanceCaseMatchesGold(Runner& runner, const InstanceCase& c, const DeviceLimits& limits) {
+  const Variant variant = ParseVariantKey(c.key);
+  const SkinnedAsset& asset = SmallAsset(c.mesh);
+  const ProblemShape shape{asset.mesh.joint_count, 1, true, c.instances};
+  const std::vector<Violation> violations = CheckVariant(variant, limits, shape);
+  if (!violations.empty()) GTEST_SKIP() << "this device cannot run it: " << violations.front().message;
+  const InstancedRun run = InstancedInputs(variant, c.mesh, c.instances);
+  ExpectInstancesMatchGold(run, runner.RunInstanced(run.packed, c.instances, run.palette_bytes), asset.mesh);
+  if (variant.mixed == MixedCounts::kBucketed && std::string(c.mesh) == "cesium") {
+    EXPECT_EQ(run.packed.launches.size(), 4u);  // CesiumMan: vertices with 1, 2, 3 and 4 bones
+  }
+}
+
+// An instanced kernel of `key` on the small "b2" mesh for K instances, with an
+// edit of its text (as WithFault).
+inline InstancedRun WithInstancedFault(const std::string& key, int instances, const std::string& from,
+                                       const std::string& to, std::vector<KernelSource>& kernels) {
+  InstancedRun run = InstancedInputs(ParseVariantKey(key), "b2", instances);
+  EmitOptions options;
+  options.instanced = true;
+  options.max_instances = instances;
+  KernelSource s = Emit(run.packed.variant, 0, static_cast<int>(run.packed.palette_joints), options);
+  EditKernel(s, from, to);
+  kernels = {std::move(s)};
+  return run;
 }
 
 }  // namespace skintune::testing
