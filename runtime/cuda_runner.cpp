@@ -10,6 +10,7 @@
 #include "reference/error.h"
 #include "runtime/cuda_api.h"
 #include "runtime/output_check.h"
+#include "runtime/run_shape.h"
 
 namespace skintune {
 
@@ -71,6 +72,7 @@ constexpr const char* kConstantPaletteSymbol = "skintune_palette";
 constexpr int kAttributeClockRate = 13;          // CU_DEVICE_ATTRIBUTE_CLOCK_RATE (kHz)
 constexpr int kAttributeMultiprocessorCount = 16;  // CU_DEVICE_ATTRIBUTE_MULTIPROCESSOR_COUNT
 constexpr int kAttributeL2CacheSize = 38;        // CU_DEVICE_ATTRIBUTE_L2_CACHE_SIZE (bytes)
+constexpr int kAttributeMaxGridDimY = 6;         // CU_DEVICE_ATTRIBUTE_MAX_GRID_DIM_Y (instances per launch)
 
 // cuDeviceTotalMem_v2 from the driver library Probe() loaded (cuda_api.h
 // does not declare it); 0 when it cannot be found.
@@ -123,6 +125,7 @@ CudaDeviceInfo QueryCudaDevice(int device_index) {
   info.limits.image_support = true;  // texture objects: every device CUDA 11+ runs on
   info.limits.image_buffer_max_texels =
       static_cast<std::uint64_t>(attribute(cuda::kAttributeMaxTexture1dLinearWidth, "(1D linear texture width)"));
+  info.limits.max_grid_y = static_cast<std::uint64_t>(attribute(kAttributeMaxGridDimY, "(grid y)"));
   info.arch = NvrtcArchFor(info.major, info.minor);
   return info;
 }
@@ -145,7 +148,23 @@ struct CudaRunner::Impl {
   void MakeCurrent() const { Check(api->cuCtxSetCurrent(context), "launch", "cuCtxSetCurrent"); }
   const BuiltKernel& KernelFor(const KernelSource& source);
   Memory Buffer(std::size_t bytes, const void* data, const std::string& what) const;
+  void CheckInstancesFit(const RunShape& shape, const Variant& variant) const;
 };
+
+// K instances need K blocks in grid y and, for `image` storage, K palettes of
+// texels; say which limit a run exceeds before launching. (`constant` storage:
+// the kernel's symbol size, checked per launch.)
+void CudaRunner::Impl::CheckInstancesFit(const RunShape& shape, const Variant& variant) const {
+  if (static_cast<std::uint64_t>(shape.instances) > limits.max_grid_y)
+    Fail("launch", variant.Key() + ": " + std::to_string(shape.instances) +
+                       " instances exceed the grid's y dimension (CU_DEVICE_ATTRIBUTE_MAX_GRID_DIM_Y " +
+                       std::to_string(limits.max_grid_y) + ") of " + name);
+  const std::uint64_t texels = static_cast<std::uint64_t>(shape.instances) * shape.palette_bytes / 16;
+  if (variant.storage == PaletteStorage::kImage && texels > limits.image_buffer_max_texels)
+    Fail("launch", variant.Key() + ": the palettes (" + std::to_string(texels) +
+                       " texels) exceed CU_DEVICE_ATTRIBUTE_MAXIMUM_TEXTURE1D_LINEAR_WIDTH " +
+                       std::to_string(limits.image_buffer_max_texels) + " of " + name);
+}
 
 CudaRunner::CudaRunner(int device_index) : impl_(std::make_unique<Impl>()) {
   Impl& im = *impl_;
@@ -214,26 +233,22 @@ void CudaRunner::Build(const KernelSource& source) {
 }
 
 CudaRunResult CudaRunner::Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette) {
-  std::vector<KernelSource> kernels;
-  for (const Launch& launch : mesh.launches)
-    kernels.push_back(Emit(mesh.variant, launch.influences, static_cast<int>(mesh.palette_joints)));
-  return Run(mesh, kernels, palette);
+  return Run(mesh, EmitLaunchKernels(mesh), palette);
+}
+
+CudaRunResult CudaRunner::RunInstanced(const PackedMesh& mesh, int instances, std::span<const std::uint8_t> palettes) {
+  return Run(mesh, EmitLaunchKernels(mesh, instances), palettes, instances);
 }
 
 CudaRunResult CudaRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                              std::span<const std::uint8_t> palette) {
+                              std::span<const std::uint8_t> palettes, int instances) {
   Impl& im = *impl_;
   const cuda::DriverApi& api = *im.api;
   im.MakeCurrent();
   const Variant& variant = mesh.variant;
-  if (kernels.size() != mesh.launches.size())
-    Fail("launch", std::to_string(kernels.size()) + " kernels for " + std::to_string(mesh.launches.size()) +
-                       " launches of " + variant.Key());
-  if (palette.empty()) palette = mesh.palette;
-  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
-  if (palette.size() != mesh.palette_joints * rows * 16)
-    Fail("launch", "palette has " + std::to_string(palette.size()) + " bytes, expected " +
-                       std::to_string(mesh.palette_joints) + " joints x " + std::to_string(rows) + " rows x 16");
+  const std::vector<std::uint8_t> palette = PalettesOrMeshPalette(mesh, palettes, instances);
+  const RunShape shape = CheckRunShape(mesh, kernels, palette.size(), instances, "CUDA");
+  im.CheckInstancesFit(shape, variant);
 
   // Palette (and its texture object for `image` storage: float4 texels over the buffer).
   Memory palette_buffer = im.Buffer(palette.size(), palette.data(), "palette");
@@ -251,8 +266,8 @@ CudaRunResult CudaRunner::Run(const PackedMesh& mesh, std::span<const KernelSour
     palette_texture = Texture(object, api.cuTexObjectDestroy);
   }
 
-  // Outputs: poisoned, each followed by its guard.
-  const std::size_t out_bytes = mesh.vertex_count * mesh.output_stride_bytes;
+  // Outputs (K instances, one after another): poisoned, each followed by its guard.
+  const std::size_t out_bytes = shape.out_bytes;
   const std::vector<std::uint8_t> fill = PoisonedOutput(out_bytes);
   Memory out_positions = im.Buffer(fill.size(), fill.data(), "out_positions");
   Memory out_normals;
@@ -275,13 +290,13 @@ CudaRunResult CudaRunner::Run(const PackedMesh& mesh, std::span<const KernelSour
       if (symbol_bytes < palette.size())
         Fail("launch", where + ": __constant__ " + kConstantPaletteSymbol + " holds " + std::to_string(symbol_bytes) +
                            " bytes, the palette " + std::to_string(palette.size()) +
-                           " (the kernel was emitted for fewer joints)");
+                           " (the kernel was emitted for fewer joints or instances)");
       Check(api.cuMemcpyHtoD(symbol, palette.data(), palette.size()), "launch",
             where + ": cuMemcpyHtoD to '" + kConstantPaletteSymbol + "'");
     }
 
     // Argument values live in these arrays (reserved: no reallocation) while cuLaunchKernel reads them.
-    std::uint32_t n = launch.count, first = launch.first;
+    std::uint32_t n = launch.count, first = launch.first, vertex_count = static_cast<std::uint32_t>(mesh.vertex_count);
     std::vector<cuda::DevicePtr> pointers;
     pointers.reserve(source.arguments.size());
     cuda::TexObject texture = palette_texture.get();
@@ -291,6 +306,8 @@ CudaRunResult CudaRunner::Run(const PackedMesh& mesh, std::span<const KernelSour
         parameters.push_back(&n);
       } else if (arg.name == "first") {
         parameters.push_back(&first);
+      } else if (arg.name == "vertex_count") {
+        parameters.push_back(&vertex_count);
       } else if (arg.name == "palette" && arg.kind == ArgumentKind::kImage) {
         if (!texture) Fail("launch", where + ": an image palette argument but the variant's storage is not image");
         parameters.push_back(&texture);
@@ -323,9 +340,12 @@ CudaRunResult CudaRunner::Run(const PackedMesh& mesh, std::span<const KernelSour
     Check(api.cuEventCreate(&end, 0), "launch", where + ": cuEventCreate");
     Event end_event(end, api.cuEventDestroy);
     Check(api.cuEventRecord(start, nullptr), "launch", where + ": cuEventRecord");
-    Check(api.cuLaunchKernel(kernel.function, static_cast<unsigned>(blocks), 1, 1, static_cast<unsigned>(wg), 1, 1, 0,
-                             nullptr, parameters.data(), nullptr),
-          "launch", where + ": cuLaunchKernel (" + std::to_string(blocks) + " blocks of " + std::to_string(wg) + ")");
+    // Instanced: grid y is the instance.
+    const auto grid_y = static_cast<unsigned>(shape.instances);
+    Check(api.cuLaunchKernel(kernel.function, static_cast<unsigned>(blocks), grid_y, 1, static_cast<unsigned>(wg), 1, 1,
+                             0, nullptr, parameters.data(), nullptr),
+          "launch", where + ": cuLaunchKernel (" + std::to_string(blocks) + " x " + std::to_string(grid_y) +
+                        " blocks of " + std::to_string(wg) + ")");
     Check(api.cuEventRecord(end, nullptr), "launch", where + ": cuEventRecord");
     events.emplace_back(std::move(start_event), std::move(end_event));
   }
@@ -343,7 +363,7 @@ CudaRunResult CudaRunner::Run(const PackedMesh& mesh, std::span<const KernelSour
     std::vector<std::uint8_t> bytes(out_bytes + kGuardBytes);
     Check(api.cuMemcpyDtoH(bytes.data(), buffer.get(), bytes.size()), "launch",
           std::string("cuMemcpyDtoH '") + what + "'");
-    const OutputCheck check = CheckGuardAndCountPoisoned(bytes, out_bytes, mesh.output_stride_bytes, mesh.vertex_count);
+    const OutputCheck check = CheckGuardAndCountPoisoned(bytes, out_bytes, mesh.output_stride_bytes, shape.out_vertices);
     if (!check.guard_ok)
       Fail("guard", variant.Key() + ": " + what + ": the kernel " + GuardFailure(check, out_bytes));
     result.poisoned_vertices += check.poisoned_vertices;
@@ -362,11 +382,11 @@ struct CudaPrepared::Impl {
   struct LaunchPlan {
     cuda::Function function = nullptr;
     cuda::DevicePtr constant_symbol = 0;  // STORAGE constant: the module's palette symbol
-    unsigned blocks = 0, threads = 0;
+    unsigned blocks = 0, instances = 1, threads = 0;  // grid (blocks, instances)
   };
   // One launch's argument values and the parameter array pointing at them.
   struct Arguments {
-    std::uint32_t n = 0, first = 0;
+    std::uint32_t n = 0, first = 0, vertex_count = 0;
     std::vector<cuda::DevicePtr> pointers;  // reserved: never reallocated
     cuda::TexObject texture = 0;
     std::vector<void*> parameters;
@@ -398,21 +418,16 @@ int CudaPrepared::input_sets() const { return impl_ ? static_cast<int>(impl_->se
 std::size_t CudaPrepared::bytes_per_set() const { return impl_ ? impl_->bytes_per_set : 0; }
 
 CudaPrepared CudaRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                                 std::span<const std::vector<std::uint8_t>> palettes) {
+                                 std::span<const std::vector<std::uint8_t>> palettes, int instances) {
   Impl& im = *impl_;
   const cuda::DriverApi& api = *im.api;
   im.MakeCurrent();
   const Variant& variant = mesh.variant;
-  if (kernels.size() != mesh.launches.size())
-    Fail("launch", std::to_string(kernels.size()) + " kernels for " + std::to_string(mesh.launches.size()) +
-                       " launches of " + variant.Key());
   if (palettes.empty()) Fail("launch", "no palette (input set) to time " + variant.Key() + " with");
-  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
-  for (const std::vector<std::uint8_t>& palette : palettes) {
-    if (palette.size() != mesh.palette_joints * rows * 16)
-      Fail("launch", "palette has " + std::to_string(palette.size()) + " bytes, expected " +
-                         std::to_string(mesh.palette_joints) + " joints x " + std::to_string(rows) + " rows x 16");
-  }
+  RunShape shape;
+  for (const std::vector<std::uint8_t>& palette : palettes)
+    shape = CheckRunShape(mesh, kernels, palette.size(), instances, "CUDA");
+  im.CheckInstancesFit(shape, variant);
 
   CudaPrepared prepared;
   CudaPrepared::Impl& p = *prepared.impl_;
@@ -432,6 +447,7 @@ CudaPrepared CudaRunner::Prepare(const PackedMesh& mesh, std::span<const KernelS
     const std::size_t wg = static_cast<std::size_t>(source.launch.wg_size);
     plan.threads = static_cast<unsigned>(wg);
     plan.blocks = static_cast<unsigned>(source.launch.GlobalItems(launch.count) / wg);
+    plan.instances = static_cast<unsigned>(shape.instances);
     if (p.constant) {
       std::size_t symbol_bytes = 0;
       Check(api.cuModuleGetGlobal(&plan.constant_symbol, &symbol_bytes, kernel.module.get(), kConstantPaletteSymbol),
@@ -439,13 +455,13 @@ CudaPrepared CudaRunner::Prepare(const PackedMesh& mesh, std::span<const KernelS
       if (symbol_bytes < palettes.front().size())
         Fail("launch", where + ": __constant__ " + kConstantPaletteSymbol + " holds " + std::to_string(symbol_bytes) +
                            " bytes, the palette " + std::to_string(palettes.front().size()) +
-                           " (the kernel was emitted for fewer joints)");
+                           " (the kernel was emitted for fewer joints or instances)");
     }
     p.launches.push_back(plan);
     launch_of_plan.push_back(l);
   }
 
-  const std::size_t out_bytes = mesh.vertex_count * mesh.output_stride_bytes;
+  const std::size_t out_bytes = shape.out_bytes;
   for (std::size_t k = 0; k < palettes.size(); ++k) {
     p.sets.emplace_back();
     CudaPrepared::Impl::Set& set = p.sets.back();
@@ -483,6 +499,7 @@ CudaPrepared CudaRunner::Prepare(const PackedMesh& mesh, std::span<const KernelS
       CudaPrepared::Impl::Arguments& a = *arguments;
       a.n = launch.count;
       a.first = launch.first;
+      a.vertex_count = static_cast<std::uint32_t>(mesh.vertex_count);
       a.texture = set.texture.get();
       a.pointers.reserve(source.arguments.size());
       for (const KernelArgument& arg : source.arguments) {
@@ -490,6 +507,8 @@ CudaPrepared CudaRunner::Prepare(const PackedMesh& mesh, std::span<const KernelS
           a.parameters.push_back(&a.n);
         } else if (arg.name == "first") {
           a.parameters.push_back(&a.first);
+        } else if (arg.name == "vertex_count") {
+          a.parameters.push_back(&a.vertex_count);
         } else if (arg.name == "palette" && arg.kind == ArgumentKind::kImage) {
           if (!a.texture) Fail("launch", where + ": an image palette argument but the variant's storage is not image");
           a.parameters.push_back(&a.texture);
@@ -550,10 +569,10 @@ std::vector<double> CudaRunner::Time(const CudaPrepared& prepared, int warmup, i
         end = new_event();
         Check(api.cuEventRecord(start.get(), nullptr), "launch", where + ": cuEventRecord");
       }
-      Check(api.cuLaunchKernel(plan.function, plan.blocks, 1, 1, plan.threads, 1, 1, 0, nullptr,
+      Check(api.cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, nullptr,
                                set.launches[l]->parameters.data(), nullptr),
-            "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " blocks of " +
-                          std::to_string(plan.threads) + ")");
+            "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " x " +
+                          std::to_string(plan.instances) + " blocks of " + std::to_string(plan.threads) + ")");
       if (timed) {
         Check(api.cuEventRecord(end.get(), nullptr), "launch", where + ": cuEventRecord");
         events[static_cast<std::size_t>(frame - warmup)].emplace_back(std::move(start), std::move(end));

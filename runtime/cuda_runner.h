@@ -20,6 +20,12 @@
 //   __constant__ symbol `skintune_palette` (cuModuleGetGlobal; the kernel's
 //   `palette` argument gets the buffer but is not read); for `image` storage
 //   the argument is a texture object over the buffer (linear, float4 texels).
+// - Instances (docs/VARIANTS.md "Instancing"): with instanced kernels one run
+//   skins K instances, each launch a grid (blocks, K) over the K palettes
+//   (one buffer, one after another; `constant`: the symbol, sized for the
+//   kernel's max_instances); the outputs hold K x vertex_count vertices,
+//   instance after instance, the guard after them. K above the grid's y
+//   limit or the texture width throws Error("CUDA launch ...") naming it.
 // - Per-launch times from CUDA events recorded around each cuLaunchKernel.
 // - Timing (the tuner's): Prepare uploads K input sets once (copies of every
 //   launch's inputs, one palette each, outputs of their own); Time runs frames
@@ -45,7 +51,8 @@
 namespace skintune {
 
 struct CudaRunResult {
-  std::vector<std::uint8_t> positions;  // vertex_count x output_stride_bytes, packed order (Unpack it)
+  std::vector<std::uint8_t> positions;  // K x vertex_count x output_stride_bytes, packed order, instance after
+                                        // instance (Unpack each instance's part)
   std::vector<std::uint8_t> normals;    // likewise; empty without normals
   std::vector<double> launch_ms;        // per launch, CUDA event elapsed time
   std::size_t poisoned_vertices = 0;    // output vectors (positions, normals) still holding the poison
@@ -110,17 +117,26 @@ class CudaRunner {
   // palette_joints)) and runs them. `palette`: PackPalette bytes; empty = mesh.palette.
   CudaRunResult Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette = {});
 
-  // Runs with the given kernels, one per launch, in launch order.
+  // Emits the variant's instanced kernel for every launch and skins
+  // `instances` (K >= 1) instances in one launch per launch of the mesh.
+  // `palettes`: K PackPalette byte runs one after another; empty = mesh.palette
+  // for every instance.
+  CudaRunResult RunInstanced(const PackedMesh& mesh, int instances, std::span<const std::uint8_t> palettes = {});
+
+  // Runs with the given kernels, one per launch, in launch order; instanced
+  // kernels skin `instances` instances (`palette` holds K palettes), plain
+  // ones need instances == 1 (runtime/run_shape.h lists the errors).
   CudaRunResult Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                    std::span<const std::uint8_t> palette = {});
+                    std::span<const std::uint8_t> palette = {}, int instances = 1);
 
   // Timing. Uploads one input set per palette (PackPalette bytes; one frame
   // each): copies of every launch's packed inputs, that palette (and its
   // texture object), and outputs of its own (not poisoned, never read back);
-  // builds `kernels` (one per launch, in launch order). Throws Error ("build",
-  // "launch") like Run.
+  // builds `kernels` (one per launch, in launch order). Instanced kernels:
+  // each entry of `palettes` holds `instances` palettes and each frame skins
+  // them all. Throws Error ("build", "launch") like Run.
   CudaPrepared Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                       std::span<const std::vector<std::uint8_t>> palettes);
+                       std::span<const std::vector<std::uint8_t>> palettes, int instances = 1);
 
   // Runs `warmup` untimed frames, then `repetitions` timed ones; frame f (warm-up
   // frames counted) reads and writes set f % input_sets(). Returns one time per

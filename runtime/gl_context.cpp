@@ -199,6 +199,7 @@ void GlContext::Impl::Query() {
   info.max_compute_work_group_invocations = GlInteger(GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS);
   info.max_compute_work_group_size_x = GlIndexedInteger(GL_MAX_COMPUTE_WORK_GROUP_SIZE, 0);
   info.max_compute_work_group_count_x = GlIndexedInteger(GL_MAX_COMPUTE_WORK_GROUP_COUNT, 0);
+  info.max_compute_work_group_count_y = GlIndexedInteger(GL_MAX_COMPUTE_WORK_GROUP_COUNT, 1);
   info.max_compute_shared_memory_bytes = GlInteger(GL_MAX_COMPUTE_SHARED_MEMORY_SIZE);
   info.max_uniform_block_bytes = GlInteger(GL_MAX_UNIFORM_BLOCK_SIZE);
   info.max_texture_buffer_texels = GlInteger(GL_MAX_TEXTURE_BUFFER_SIZE);
@@ -325,6 +326,7 @@ DeviceLimits LimitsOf(const GlContextInfo& info) {
   limits.image_support = info.max_texture_buffer_texels > 0;
   limits.image_buffer_max_texels = info.max_texture_buffer_texels;
   limits.vertex_shader_storage_blocks = info.max_vertex_shader_storage_blocks > 0;
+  limits.max_grid_y = info.max_compute_work_group_count_y;
   return limits;
 }
 
@@ -342,6 +344,7 @@ void to_json(nlohmann::json& out, const GlContextInfo& i) {
          {"max_compute_work_group_invocations", i.max_compute_work_group_invocations},
          {"max_compute_work_group_size_x", i.max_compute_work_group_size_x},
          {"max_compute_work_group_count_x", i.max_compute_work_group_count_x},
+         {"max_compute_work_group_count_y", i.max_compute_work_group_count_y},
          {"max_compute_shared_memory_bytes", i.max_compute_shared_memory_bytes},
          {"max_uniform_block_bytes", i.max_uniform_block_bytes},
          {"max_texture_buffer_texels", i.max_texture_buffer_texels},

@@ -42,6 +42,7 @@ struct GlContextInfo {
   std::uint64_t max_compute_work_group_invocations = 0;  // GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS
   std::uint64_t max_compute_work_group_size_x = 0;       // GL_MAX_COMPUTE_WORK_GROUP_SIZE[0]
   std::uint64_t max_compute_work_group_count_x = 0;      // GL_MAX_COMPUTE_WORK_GROUP_COUNT[0]
+  std::uint64_t max_compute_work_group_count_y = 0;      // GL_MAX_COMPUTE_WORK_GROUP_COUNT[1] (instances per launch)
   std::uint64_t max_compute_shared_memory_bytes = 0;     // GL_MAX_COMPUTE_SHARED_MEMORY_SIZE
   std::uint64_t max_uniform_block_bytes = 0;             // GL_MAX_UNIFORM_BLOCK_SIZE
   std::uint64_t max_texture_buffer_texels = 0;           // GL_MAX_TEXTURE_BUFFER_SIZE

@@ -11,6 +11,7 @@
 
 #include "reference/error.h"
 #include "runtime/output_check.h"
+#include "runtime/run_shape.h"
 
 namespace skintune {
 
@@ -114,7 +115,58 @@ struct BuiltProgram {
   GlObject program;
   GLint n_location = -1;
   GLint first_location = -1;
+  GLint vertex_count_location = -1;  // instanced glsl-compute
 };
+
+// Where the transform feedback of one glsl-vertex launch goes. An instanced
+// draw captures its K instances one after another, n vertices each: straight
+// into the outputs at `first` when they lie that way there too (one instance,
+// or one draw for the whole mesh), else into a staging buffer whose K parts
+// are then copied to i * vertex_count + first (glCopyBufferSubData).
+struct CapturePlan {
+  bool staged = false;
+  std::size_t offset = 0, bytes = 0;  // the capture range: in the outputs, or the whole staging buffer
+  struct Copy {
+    std::size_t from = 0, to = 0, bytes = 0;
+  };
+  std::vector<Copy> copies;  // staging -> outputs, when staged
+};
+
+CapturePlan PlanCapture(const Launch& launch, std::size_t vertex_count, int instances, std::size_t stride) {
+  CapturePlan c;
+  const auto k = static_cast<std::size_t>(instances);
+  const std::size_t n = launch.count;
+  c.bytes = k * n * stride;
+  c.staged = k > 1 && n != vertex_count;
+  if (!c.staged) {
+    c.offset = static_cast<std::size_t>(launch.first) * stride;
+    return c;
+  }
+  for (std::size_t i = 0; i < k; ++i) c.copies.push_back({i * n * stride, (i * vertex_count + launch.first) * stride, n * stride});
+  return c;
+}
+
+void CopyStagedCapture(GLuint staging, GLuint out, const CapturePlan& c) {
+  glBindBuffer(GL_COPY_READ_BUFFER, staging);
+  glBindBuffer(GL_COPY_WRITE_BUFFER, out);
+  for (const CapturePlan::Copy& copy : c.copies)
+    glCopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, static_cast<GLintptr>(copy.from),
+                        static_cast<GLintptr>(copy.to), static_cast<GLsizeiptr>(copy.bytes));
+  glBindBuffer(GL_COPY_READ_BUFFER, 0);
+  glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
+}
+
+// The bytes of the palette buffer: the K palettes, or for instanced constant
+// storage the whole uniform block the kernel declares (max_instances palettes;
+// a bound block must be backed in full), zero-padded.
+std::vector<std::uint8_t> PaletteBufferBytes(std::span<const std::uint8_t> palettes, const RunShape& shape,
+                                             std::span<const KernelSource> kernels) {
+  std::vector<std::uint8_t> bytes(palettes.begin(), palettes.end());
+  int declared = 0;
+  for (const KernelSource& k : kernels) declared = std::max(declared, k.max_instances);
+  bytes.resize(std::max(bytes.size(), static_cast<std::size_t>(declared) * shape.palette_bytes), 0);
+  return bytes;
+}
 
 std::string GlTypeName(GLenum type) {
   if (type == GL_FLOAT_VEC4) return "vec4";
@@ -158,7 +210,39 @@ struct GlRunner::Impl {
 
   const BuiltProgram& ProgramFor(const KernelSource& source);
   void PrepareVertexState();
+  // The context's limits for a run: K work-groups in y (compute), the palette
+  // buffer in a uniform block or texture buffer. Throws Error naming the limit.
+  void CheckInstancesFit(const RunShape& shape, const Variant& variant, std::size_t palette_buffer_bytes) const;
+  // glsl-compute: work-groups in x for one launch, within the context's limit.
+  std::size_t ComputeGroups(const KernelSource& source, const Launch& launch, const std::string& where) const;
 };
+
+void GlRunner::Impl::CheckInstancesFit(const RunShape& shape, const Variant& variant,
+                                       std::size_t palette_buffer_bytes) const {
+  const GlContextInfo& info = context->info();
+  const std::size_t texels = palette_buffer_bytes / 16;
+  if (variant.storage == PaletteStorage::kConstant && palette_buffer_bytes > info.max_uniform_block_bytes)
+    Fail("launch", variant.Key() + ": palette of " + std::to_string(palette_buffer_bytes) +
+                       " bytes exceeds GL_MAX_UNIFORM_BLOCK_SIZE " + std::to_string(info.max_uniform_block_bytes));
+  if (variant.storage == PaletteStorage::kImage && texels > info.max_texture_buffer_texels)
+    Fail("launch", variant.Key() + ": palette of " + std::to_string(texels) +
+                       " texels exceeds GL_MAX_TEXTURE_BUFFER_SIZE " + std::to_string(info.max_texture_buffer_texels));
+  if (variant.lang == Lang::kGlslCompute &&
+      static_cast<std::uint64_t>(shape.instances) > info.max_compute_work_group_count_y)
+    Fail("launch", variant.Key() + ": " + std::to_string(shape.instances) +
+                       " instances exceed GL_MAX_COMPUTE_WORK_GROUP_COUNT[1] " +
+                       std::to_string(info.max_compute_work_group_count_y));
+}
+
+std::size_t GlRunner::Impl::ComputeGroups(const KernelSource& source, const Launch& launch,
+                                          const std::string& where) const {
+  const GlContextInfo& info = context->info();
+  const std::size_t groups = source.launch.GlobalItems(launch.count) / static_cast<std::size_t>(source.launch.wg_size);
+  if (groups > info.max_compute_work_group_count_x)
+    Fail("launch", where + ": " + std::to_string(groups) + " work-groups exceed GL_MAX_COMPUTE_WORK_GROUP_COUNT " +
+                       std::to_string(info.max_compute_work_group_count_x));
+  return groups;
+}
 
 const BuiltProgram& GlRunner::Impl::ProgramFor(const KernelSource& source) {
   if (!IsGlsl(source.lang)) Fail("build", std::string("kernel language is ") + Name(source.lang));
@@ -224,6 +308,7 @@ const BuiltProgram& GlRunner::Impl::ProgramFor(const KernelSource& source) {
   }
   b.n_location = glGetUniformLocation(program, "n");
   b.first_location = glGetUniformLocation(program, "first");
+  b.vertex_count_location = glGetUniformLocation(program, "vertex_count");
   CheckGl("build", what);
   return built.emplace(key, std::move(b)).first->second;
 }
@@ -266,41 +351,31 @@ void GlRunner::Build(const KernelSource& source) {
 }
 
 GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette) {
-  std::vector<KernelSource> kernels;
-  for (const Launch& launch : mesh.launches)
-    kernels.push_back(Emit(mesh.variant, launch.influences, static_cast<int>(mesh.palette_joints)));
-  return Run(mesh, kernels, palette);
+  return Run(mesh, EmitLaunchKernels(mesh), palette);
+}
+
+GlRunResult GlRunner::RunInstanced(const PackedMesh& mesh, int instances, std::span<const std::uint8_t> palettes) {
+  return Run(mesh, EmitLaunchKernels(mesh, instances), palettes, instances);
 }
 
 GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                          std::span<const std::uint8_t> palette) {
+                          std::span<const std::uint8_t> palettes, int instances) {
   Impl& im = *impl_;
   im.context->MakeCurrent();
-  const GlContextInfo& info = im.context->info();
   const Variant& variant = mesh.variant;
   if (!IsGlsl(variant.lang)) Fail("launch", variant.Key() + " is not a GLSL variant");
   const bool vertex = variant.lang == Lang::kGlslVertex;
-  if (kernels.size() != mesh.launches.size())
-    Fail("launch", std::to_string(kernels.size()) + " kernels for " + std::to_string(mesh.launches.size()) +
-                       " launches of " + variant.Key());
-  if (palette.empty()) palette = mesh.palette;
-  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
-  if (palette.size() != mesh.palette_joints * rows * 16)
-    Fail("launch", "palette has " + std::to_string(palette.size()) + " bytes, expected " +
-                       std::to_string(mesh.palette_joints) + " joints x " + std::to_string(rows) + " rows x 16");
+  const std::vector<std::uint8_t> palette = PalettesOrMeshPalette(mesh, palettes, instances);
+  const RunShape shape = CheckRunShape(mesh, kernels, palette.size(), instances, "GL");
   if (vertex && variant.storage == PaletteStorage::kLocal)
     Fail("launch", variant.Key() + ": storage local needs a compute shader (a vertex shader has no shared memory)");
+  const std::vector<std::uint8_t> palette_bytes = PaletteBufferBytes(palette, shape, kernels);
+  im.CheckInstancesFit(shape, variant, palette_bytes.size());
   ClearGlErrors();
 
   // Palette: uniform buffer, storage buffer, or a texture buffer over it.
-  const std::size_t texels = palette.size() / 16;
-  if (variant.storage == PaletteStorage::kConstant && palette.size() > info.max_uniform_block_bytes)
-    Fail("launch", variant.Key() + ": palette of " + std::to_string(palette.size()) +
-                       " bytes exceeds GL_MAX_UNIFORM_BLOCK_SIZE " + std::to_string(info.max_uniform_block_bytes));
-  if (variant.storage == PaletteStorage::kImage && texels > info.max_texture_buffer_texels)
-    Fail("launch", variant.Key() + ": palette of " + std::to_string(texels) +
-                       " texels exceeds GL_MAX_TEXTURE_BUFFER_SIZE " + std::to_string(info.max_texture_buffer_texels));
-  GlObject palette_buffer = NewBuffer(palette.size(), palette.data(), "palette");
+  const std::size_t texels = palette_bytes.size() / 16;
+  GlObject palette_buffer = NewBuffer(palette_bytes.size(), palette_bytes.data(), "palette");
   GlObject palette_texture;
   if (variant.storage == PaletteStorage::kImage) {
     GLuint id = 0;
@@ -312,9 +387,9 @@ GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> 
     CheckGl("launch", "texture buffer (GL_RGBA32F, " + std::to_string(texels) + " texels) over the palette");
   }
 
-  // Outputs: poisoned, each followed by its guard in the same buffer.
+  // Outputs (K instances, one after another): poisoned, each followed by its guard in the same buffer.
   const std::size_t stride = mesh.output_stride_bytes;
-  const std::size_t out_bytes = mesh.vertex_count * stride;
+  const std::size_t out_bytes = shape.out_bytes;
   const std::vector<std::uint8_t> fill = PoisonedOutput(out_bytes);
   GlObject out_positions = NewBuffer(fill.size(), fill.data(), "out_positions");
   GlObject out_normals;
@@ -328,7 +403,7 @@ GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> 
     glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, im.transform_feedback.get());
   }
 
-  std::vector<GlObject> inputs;  // kept alive until the launches are finished
+  std::vector<GlObject> inputs, staging;  // kept alive until the launches are finished
   std::vector<GlObject> timers, written;
   std::vector<std::size_t> timed_launches;
   for (std::size_t l = 0; l < mesh.launches.size(); ++l) {
@@ -346,12 +421,24 @@ GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> 
     glUseProgram(program.program.get());
     if (program.n_location >= 0) glUniform1ui(program.n_location, launch.count);
     if (program.first_location >= 0) glUniform1ui(program.first_location, launch.first);
+    if (program.vertex_count_location >= 0)
+      glUniform1ui(program.vertex_count_location, static_cast<GLuint>(mesh.vertex_count));
 
-    const std::size_t capture_offset = static_cast<std::size_t>(launch.first) * stride;
-    const std::size_t capture_bytes = static_cast<std::size_t>(launch.count) * stride;
-    if (vertex && capture_offset + capture_bytes > out_bytes + kGuardBytes)
+    const CapturePlan capture = PlanCapture(launch, mesh.vertex_count, shape.instances, stride);
+    if (vertex && !capture.staged && capture.offset + capture.bytes > out_bytes + kGuardBytes)
       Fail("launch", where + ": capture range [" + std::to_string(launch.first) + ", " +
                          std::to_string(launch.first + launch.count) + ") lies beyond the output buffer");
+    // Staged captures (instances of one bucket): poisoned like the outputs they are copied into.
+    GLuint staged_positions = 0, staged_normals = 0;
+    if (vertex && capture.staged) {
+      const std::vector<std::uint8_t> staged_fill = PoisonedOutput(capture.bytes);
+      staging.push_back(NewBuffer(capture.bytes, staged_fill.data(), "staged out_positions"));
+      staged_positions = staging.back().get();
+      if (variant.normals) {
+        staging.push_back(NewBuffer(capture.bytes, staged_fill.data(), "staged out_normals"));
+        staged_normals = staging.back().get();
+      }
+    }
     GLuint binding = 0;
     for (const KernelArgument& arg : source.arguments) {
       if (arg.kind == ArgumentKind::kScalar) continue;
@@ -374,8 +461,9 @@ GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> 
         const GLuint buffer = arg.name == "out_positions" ? out_positions.get() : out_normals.get();
         if (!buffer) Fail("launch", where + ": nothing to bind to argument '" + arg.name + "'");
         if (vertex) {
-          glBindBufferRange(GL_TRANSFORM_FEEDBACK_BUFFER, arg.name == "out_positions" ? 0 : 1, buffer,
-                            static_cast<GLintptr>(capture_offset), static_cast<GLsizeiptr>(capture_bytes));
+          const GLuint target = !capture.staged ? buffer : arg.name == "out_positions" ? staged_positions : staged_normals;
+          glBindBufferRange(GL_TRANSFORM_FEEDBACK_BUFFER, arg.name == "out_positions" ? 0 : 1, target,
+                            static_cast<GLintptr>(capture.offset), static_cast<GLsizeiptr>(capture.bytes));
         } else {
           glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, buffer);
         }
@@ -397,22 +485,29 @@ GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> 
       glBeginQuery(GL_TIME_ELAPSED, timers.back().get());
       glBeginQuery(GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN, written.back().get());
       glBeginTransformFeedback(GL_POINTS);
-      glDrawArrays(GL_POINTS, 0, static_cast<GLsizei>(launch.count));
+      if (shape.instanced) {
+        glDrawArraysInstanced(GL_POINTS, 0, static_cast<GLsizei>(launch.count), static_cast<GLsizei>(shape.instances));
+      } else {
+        glDrawArrays(GL_POINTS, 0, static_cast<GLsizei>(launch.count));
+      }
       glEndTransformFeedback();
+      if (capture.staged) {
+        CopyStagedCapture(staged_positions, out_positions.get(), capture);
+        if (variant.normals) CopyStagedCapture(staged_normals, out_normals.get(), capture);
+      }
       glEndQuery(GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN);
       glEndQuery(GL_TIME_ELAPSED);
-      CheckGl("launch", where + ": glDrawArrays(GL_POINTS, 0, " + std::to_string(launch.count) +
-                            ") captured at vertex " + std::to_string(launch.first));
+      CheckGl("launch", where + ": glDrawArrays" + (shape.instanced ? "Instanced" : "") + "(GL_POINTS, 0, " +
+                            std::to_string(launch.count) + (shape.instanced ? ", " + std::to_string(shape.instances) : "") +
+                            ") captured at vertex " + std::to_string(launch.first) +
+                            (capture.staged ? " through a staging buffer" : ""));
     } else {
-      const std::size_t groups = source.launch.GlobalItems(launch.count) / static_cast<std::size_t>(source.launch.wg_size);
-      if (groups > info.max_compute_work_group_count_x)
-        Fail("launch", where + ": " + std::to_string(groups) + " work-groups exceed GL_MAX_COMPUTE_WORK_GROUP_COUNT " +
-                           std::to_string(info.max_compute_work_group_count_x));
+      const std::size_t groups = im.ComputeGroups(source, launch, where);
       glBeginQuery(GL_TIME_ELAPSED, timers.back().get());
-      glDispatchCompute(static_cast<GLuint>(groups), 1, 1);
+      glDispatchCompute(static_cast<GLuint>(groups), static_cast<GLuint>(shape.instances), 1);
       glEndQuery(GL_TIME_ELAPSED);
-      CheckGl("launch", where + ": glDispatchCompute(" + std::to_string(groups) + ") of groups of " +
-                            std::to_string(source.launch.wg_size));
+      CheckGl("launch", where + ": glDispatchCompute(" + std::to_string(groups) + ", " +
+                            std::to_string(shape.instances) + ") of groups of " + std::to_string(source.launch.wg_size));
     }
   }
   if (vertex) {
@@ -438,9 +533,10 @@ GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> 
       GLuint64 points = 0;
       glGetQueryObjectui64v(written[t].get(), GL_QUERY_RESULT, &points);
       const Launch& launch = mesh.launches[timed_launches[t]];
-      if (points != launch.count)
+      const std::uint64_t expected = static_cast<std::uint64_t>(launch.count) * static_cast<std::uint64_t>(shape.instances);
+      if (points != expected)
         Fail("launch", "launch " + std::to_string(timed_launches[t]) + " of " + variant.Key() + ": transform feedback captured " +
-                           std::to_string(points) + " of " + std::to_string(launch.count) + " vertices");
+                           std::to_string(points) + " of " + std::to_string(expected) + " vertices");
     }
   }
   CheckGl("launch", "reading the timer queries of " + variant.Key());
@@ -452,7 +548,7 @@ GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> 
     glGetBufferSubData(GL_COPY_READ_BUFFER, 0, static_cast<GLsizeiptr>(bytes.size()), bytes.data());
     glBindBuffer(GL_COPY_READ_BUFFER, 0);
     CheckGl("launch", std::string("glGetBufferSubData '") + what + "'");
-    const OutputCheck check = CheckGuardAndCountPoisoned(bytes, out_bytes, stride, mesh.vertex_count);
+    const OutputCheck check = CheckGuardAndCountPoisoned(bytes, out_bytes, stride, shape.out_vertices);
     if (!check.guard_ok)
       Fail("guard", variant.Key() + ": " + what + ": the " + (vertex ? "capture" : "kernel") + " " +
                         GuardFailure(check, out_bytes));
@@ -500,9 +596,12 @@ struct GlPrepared::Impl {
   struct LaunchPlan {
     KernelSource source;
     GLuint program = 0;
-    GLint n_location = -1, first_location = -1;
-    std::uint32_t count = 0, first = 0;
+    GLint n_location = -1, first_location = -1, vertex_count_location = -1;
+    std::uint32_t count = 0, first = 0, vertex_count = 0;
+    GLsizei instances = 1;
+    bool instanced = false;
     std::size_t groups = 0;  // glsl-compute
+    CapturePlan capture;     // glsl-vertex
   };
   enum class Target { kUniform, kStorage, kTexture, kFeedback };
   struct Binding {
@@ -512,9 +611,14 @@ struct GlPrepared::Impl {
     GLintptr offset = 0;
     GLsizeiptr size = 0;  // kFeedback: the capture range
   };
+  // A staged capture's buffers: copied to the outputs after the draw.
+  struct Staged {
+    GLuint staging = 0, out = 0;
+  };
   struct Set {
     std::vector<GlObject> objects;
     std::vector<std::vector<Binding>> launches;
+    std::vector<std::vector<Staged>> staged;  // per launch: positions (and normals) when staged
   };
   std::string key;
   bool vertex = false, normals = false;
@@ -544,32 +648,19 @@ int GlPrepared::input_sets() const { return impl_ ? static_cast<int>(impl_->sets
 std::size_t GlPrepared::bytes_per_set() const { return impl_ ? impl_->bytes_per_set : 0; }
 
 GlPrepared GlRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                             std::span<const std::vector<std::uint8_t>> palettes) {
+                             std::span<const std::vector<std::uint8_t>> palettes, int instances) {
   Impl& im = *impl_;
   im.context->MakeCurrent();
-  const GlContextInfo& info = im.context->info();
   const Variant& variant = mesh.variant;
   if (!IsGlsl(variant.lang)) Fail("launch", variant.Key() + " is not a GLSL variant");
   const bool vertex = variant.lang == Lang::kGlslVertex;
-  if (kernels.size() != mesh.launches.size())
-    Fail("launch", std::to_string(kernels.size()) + " kernels for " + std::to_string(mesh.launches.size()) +
-                       " launches of " + variant.Key());
   if (palettes.empty()) Fail("launch", "no palette (input set) to time " + variant.Key() + " with");
-  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
-  for (const std::vector<std::uint8_t>& palette : palettes) {
-    if (palette.size() != mesh.palette_joints * rows * 16)
-      Fail("launch", "palette has " + std::to_string(palette.size()) + " bytes, expected " +
-                         std::to_string(mesh.palette_joints) + " joints x " + std::to_string(rows) + " rows x 16");
-  }
+  RunShape shape;
+  for (const std::vector<std::uint8_t>& palette : palettes)
+    shape = CheckRunShape(mesh, kernels, palette.size(), instances, "GL");
   if (vertex && variant.storage == PaletteStorage::kLocal)
     Fail("launch", variant.Key() + ": storage local needs a compute shader (a vertex shader has no shared memory)");
-  const std::size_t palette_bytes = palettes.front().size();
-  if (variant.storage == PaletteStorage::kConstant && palette_bytes > info.max_uniform_block_bytes)
-    Fail("launch", variant.Key() + ": palette of " + std::to_string(palette_bytes) +
-                       " bytes exceeds GL_MAX_UNIFORM_BLOCK_SIZE " + std::to_string(info.max_uniform_block_bytes));
-  if (variant.storage == PaletteStorage::kImage && palette_bytes / 16 > info.max_texture_buffer_texels)
-    Fail("launch", variant.Key() + ": palette of " + std::to_string(palette_bytes / 16) +
-                       " texels exceeds GL_MAX_TEXTURE_BUFFER_SIZE " + std::to_string(info.max_texture_buffer_texels));
+  im.CheckInstancesFit(shape, variant, PaletteBufferBytes(palettes.front(), shape, kernels).size());
   ClearGlErrors();
 
   GlPrepared prepared;
@@ -596,20 +687,22 @@ GlPrepared GlRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSourc
     plan.program = program.program.get();
     plan.n_location = program.n_location;
     plan.first_location = program.first_location;
+    plan.vertex_count_location = program.vertex_count_location;
     plan.count = launch.count;
     plan.first = launch.first;
-    if (!vertex) {
-      plan.groups = source.launch.GlobalItems(launch.count) / static_cast<std::size_t>(source.launch.wg_size);
-      if (plan.groups > info.max_compute_work_group_count_x)
-        Fail("launch", where + ": " + std::to_string(plan.groups) + " work-groups exceed GL_MAX_COMPUTE_WORK_GROUP_COUNT " +
-                           std::to_string(info.max_compute_work_group_count_x));
+    plan.vertex_count = static_cast<std::uint32_t>(mesh.vertex_count);
+    plan.instances = static_cast<GLsizei>(shape.instances);
+    plan.instanced = shape.instanced;
+    if (vertex) {
+      plan.capture = PlanCapture(launch, mesh.vertex_count, shape.instances, mesh.output_stride_bytes);
+    } else {
+      plan.groups = im.ComputeGroups(source, launch, where);
     }
     p.launches.push_back(std::move(plan));
     launch_of_plan.push_back(l);
   }
 
-  const std::size_t stride = mesh.output_stride_bytes;
-  const std::size_t out_bytes = mesh.vertex_count * stride;
+  const std::size_t out_bytes = shape.out_bytes;
   using Target = GlPrepared::Impl::Target;
   for (std::size_t k = 0; k < palettes.size(); ++k) {
     p.sets.emplace_back();
@@ -621,7 +714,7 @@ GlPrepared GlRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSourc
       bytes += size;
       return set.objects.back().get();
     };
-    const std::vector<std::uint8_t>& palette = palettes[k];
+    const std::vector<std::uint8_t> palette = PaletteBufferBytes(palettes[k], shape, kernels);
     const GLuint palette_buffer = add(palette.size(), palette.data(), "palette");
     GLuint palette_texture = 0;
     if (variant.storage == PaletteStorage::kImage) {
@@ -643,7 +736,9 @@ GlPrepared GlRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSourc
       const Launch& launch = mesh.launches[l];
       const KernelSource& source = kernels[l];
       const std::string where = "launch " + std::to_string(l) + " of " + variant.Key();
+      const CapturePlan& capture = p.launches[i].capture;
       std::vector<GlPrepared::Impl::Binding> bindings;
+      std::vector<GlPrepared::Impl::Staged> staged;
       GLuint binding = 0;
       for (const KernelArgument& arg : source.arguments) {
         if (arg.kind == ArgumentKind::kScalar) continue;
@@ -671,11 +766,15 @@ GlPrepared GlRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSourc
           if (vertex) {
             b.target = Target::kFeedback;
             b.index = arg.name == "out_positions" ? 0 : 1;
-            b.offset = static_cast<GLintptr>(static_cast<std::size_t>(launch.first) * stride);
-            b.size = static_cast<GLsizeiptr>(static_cast<std::size_t>(launch.count) * stride);
-            if (static_cast<std::size_t>(b.offset + b.size) > out_bytes)
+            b.offset = static_cast<GLintptr>(capture.offset);
+            b.size = static_cast<GLsizeiptr>(capture.bytes);
+            if (capture.staged) {
+              staged.push_back({add(capture.bytes, nullptr, "staged " + arg.name), b.object});
+              b.object = staged.back().staging;
+            } else if (capture.offset + capture.bytes > out_bytes) {
               Fail("launch", where + ": capture range [" + std::to_string(launch.first) + ", " +
                                  std::to_string(launch.first + launch.count) + ") lies beyond the output buffer");
+            }
           }
         } else {
           auto input = std::find_if(launch.inputs.begin(), launch.inputs.end(),
@@ -686,6 +785,7 @@ GlPrepared GlRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSourc
         bindings.push_back(b);
       }
       set.launches.push_back(std::move(bindings));
+      set.staged.push_back(std::move(staged));
     }
     p.bytes_per_set = bytes;
   }
@@ -721,6 +821,7 @@ std::vector<double> GlRunner::Time(const GlPrepared& prepared, int warmup, int r
       glUseProgram(plan.program);
       if (plan.n_location >= 0) glUniform1ui(plan.n_location, plan.count);
       if (plan.first_location >= 0) glUniform1ui(plan.first_location, plan.first);
+      if (plan.vertex_count_location >= 0) glUniform1ui(plan.vertex_count_location, plan.vertex_count);
       for (const GlPrepared::Impl::Binding& b : set.launches[l]) {
         switch (b.target) {
           case Target::kUniform: glBindBufferBase(GL_UNIFORM_BUFFER, b.index, b.object); break;
@@ -738,10 +839,15 @@ std::vector<double> GlRunner::Time(const GlPrepared& prepared, int warmup, int r
       auto launch = [&] {
         if (p.vertex) {
           glBeginTransformFeedback(GL_POINTS);
-          glDrawArrays(GL_POINTS, 0, static_cast<GLsizei>(plan.count));
+          if (plan.instanced) {
+            glDrawArraysInstanced(GL_POINTS, 0, static_cast<GLsizei>(plan.count), plan.instances);
+          } else {
+            glDrawArrays(GL_POINTS, 0, static_cast<GLsizei>(plan.count));
+          }
           glEndTransformFeedback();
+          for (const GlPrepared::Impl::Staged& st : set.staged[l]) CopyStagedCapture(st.staging, st.out, plan.capture);
         } else {
-          glDispatchCompute(static_cast<GLuint>(plan.groups), 1, 1);
+          glDispatchCompute(static_cast<GLuint>(plan.groups), static_cast<GLuint>(plan.instances), 1);
         }
       };
       if (!timed) {

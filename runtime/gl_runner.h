@@ -24,6 +24,16 @@
 //   glsl-vertex: glDrawArrays(GL_POINTS, 0, n) with GL_RASTERIZER_DISCARD,
 //   capture range first*stride .. (first+n)*stride (gl_VertexID = v), and a
 //   GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN query must count n points.
+// - Instances (docs/VARIANTS.md "Instancing"): with instanced kernels one run
+//   skins K instances; the outputs hold K x vertex_count vertices, instance
+//   after instance, the guard after them. glsl-compute dispatches (groups, K,
+//   1) with the uniform vertex_count; glsl-vertex draws
+//   glDrawArraysInstanced(GL_POINTS, 0, n, K), whose capture holds the K
+//   instances one after another: captured straight into the outputs when the
+//   mesh takes one draw, else (buckets) into a poisoned staging buffer copied
+//   to i * vertex_count + first (K glCopyBufferSubData, inside the launch's
+//   timing). Instanced constant storage binds a buffer as large as the
+//   kernel's uniform block (max_instances palettes).
 // - Each launch is timed with a GL_TIME_ELAPSED query.
 // - Timing (the tuner's): Prepare uploads K input sets once (copies of every
 //   launch's inputs, one palette each, outputs of their own); Time runs frames
@@ -53,7 +63,8 @@
 namespace skintune {
 
 struct GlRunResult {
-  std::vector<std::uint8_t> positions;  // vertex_count x output_stride_bytes, packed order (Unpack it)
+  std::vector<std::uint8_t> positions;  // K x vertex_count x output_stride_bytes, packed order, instance after
+                                        // instance (Unpack each instance's part)
   std::vector<std::uint8_t> normals;    // likewise; empty without normals
   std::vector<double> launch_ms;        // per launch, GL_TIME_ELAPSED
   std::size_t poisoned_vertices = 0;    // output vectors (positions, normals) still holding the poison
@@ -99,17 +110,26 @@ class GlRunner {
   // palette_joints)) and runs them. `palette`: PackPalette bytes; empty = mesh.palette.
   GlRunResult Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette = {});
 
-  // Runs with the given kernels, one per launch, in launch order.
+  // Emits the variant's instanced kernel for every launch and skins
+  // `instances` (K >= 1) instances in one launch per launch of the mesh.
+  // `palettes`: K PackPalette byte runs one after another; empty = mesh.palette
+  // for every instance.
+  GlRunResult RunInstanced(const PackedMesh& mesh, int instances, std::span<const std::uint8_t> palettes = {});
+
+  // Runs with the given kernels, one per launch, in launch order; instanced
+  // kernels skin `instances` instances (`palette` holds K palettes), plain
+  // ones need instances == 1 (runtime/run_shape.h lists the errors).
   GlRunResult Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                  std::span<const std::uint8_t> palette = {});
+                  std::span<const std::uint8_t> palette = {}, int instances = 1);
 
   // Timing. Uploads one input set per palette (PackPalette bytes; one frame
   // each): copies of every launch's packed inputs, that palette (and its
   // texture buffer), and outputs of its own (not poisoned, never read back);
-  // builds `kernels` (one per launch, in launch order). Throws Error ("build",
-  // "launch") like Run.
+  // builds `kernels` (one per launch, in launch order). Instanced kernels:
+  // each entry of `palettes` holds `instances` palettes and each frame skins
+  // them all. Throws Error ("build", "launch") like Run.
   GlPrepared Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                     std::span<const std::vector<std::uint8_t>> palettes);
+                     std::span<const std::vector<std::uint8_t>> palettes, int instances = 1);
 
   // Runs `warmup` untimed frames, then `repetitions` timed ones; frame f (warm-up
   // frames counted) reads and writes set f % input_sets(). Returns one time per

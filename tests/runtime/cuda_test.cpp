@@ -30,6 +30,7 @@
 #include "runner_test_support.h"
 #include "runtime/cuda_api.h"
 #include "runtime/cuda_runner.h"
+#include "runtime/run_shape.h"
 
 namespace skintune {
 namespace {
@@ -246,6 +247,14 @@ std::string KeyName(const ::testing::TestParamInfo<std::string>& info) {
   return name;
 }
 
+// The same rows instanced (docs/VARIANTS.md "Instancing": blockIdx.y, K palettes).
+TEST_P(CudaCompile, InstancedNvrtcCompilesCleanly) {
+  SKIP_WITHOUT_NVRTC();
+  const Variant variant = ParseVariantKey(GetParam());
+  const KernelSource source = Emit(variant, 0, kJoints, EmitOptions{true, 4});
+  EXPECT_EQ(CompileProblem(source.text), "") << source.text.substr(0, source.text.find("#line"));
+}
+
 INSTANTIATE_TEST_SUITE_P(Pairwise, CudaCompile, ::testing::ValuesIn(CoveringKeys()), KeyName);
 
 // CUDA's limits on every device CUDA 12+ runs on (the runner queries the real ones).
@@ -296,6 +305,22 @@ TEST(CudaTemplate, EachStorageReadsThePaletteFromItsMemory) {
   EXPECT_NE(ptx.find(".const .align 16 .b8 skintune_palette[" + std::to_string(kJoints * 3 * 16) + "]"),
             std::string::npos)
       << "the __constant__ palette is sized by JOINTS";
+}
+
+TEST(CudaTemplate, InstancedConstantSymbolHoldsMaxInstancesPalettes) {
+  SKIP_WITHOUT_NVRTC();
+  std::string ptx;
+  ASSERT_EQ(CompileProblem(Emit(ParseVariantKey("cuda.constant"), 0, kJoints, EmitOptions{true, 5}).text, &ptx), "");
+  EXPECT_NE(ptx.find(".const .align 16 .b8 skintune_palette[" + std::to_string(5 * kJoints * 3 * 16) + "]"),
+            std::string::npos)
+      << "the instanced __constant__ palette is sized by PALETTE_INSTANCES x JOINTS";
+  // The instance is the grid's y.
+  EXPECT_NE(ptx.find("%ctaid.y"), std::string::npos);
+}
+
+TEST(CudaTemplate, CompilesAloneWithJustTheInstancedDefine) {
+  SKIP_WITHOUT_NVRTC();
+  EXPECT_EQ(CompileProblem("#define INSTANCED 1\n" + TemplateText("skin.cu")), "");
 }
 
 TEST(CudaCompile, AnErrorCarriesTheNvrtcLog) {
@@ -490,6 +515,64 @@ TEST(CudaRunner, SetupFailsWithTheReasonWhereThereIsNoGpu) {
     if (!reason.empty()) {
       EXPECT_NE(message.find(reason), std::string::npos) << message;
     }
+  }
+}
+
+// ---------------------------------------------------------------- instances
+
+// K instances per launch against the gold of each instance's palette: the
+// cases of tests/runtime/opencl_runner_test.cpp (OpenClInstanced) in CUDA.
+const Case kInstancedCases[] = {
+    {"cuda.b4.padded.aos.float4.u16.f32.mat4.constant.matrix.v1c.wg64.normals", "b4"},
+    {"cuda.b3.padded.soa.float3.u8.unorm8.mat3x4.local.point.v2s.wg128.nonormals", "b3-random"},
+    {"cuda.b2.padded.soa-split.float4.i32.unorm16.mat3x4.image.matrix.v4c.wg32.normals", "b2"},
+    {"cuda.b5.padded.aos.float4.i32.unorm16.mat3x4.image.point.v1c.wg32.nonormals", "b5"},
+    {"cuda.b4.bucketed.soa.float4.u16.f32.mat3x4.global.matrix.v8s.wg256.normals", "cesium"},
+    {"cuda.b4.bucketed.aos.float3.u8.unorm8.mat4.local.matrix.v2c.wg64.nonormals", "cesium"},
+    {"cuda.b4.bucketed.soa-split.float3.u16.f32.mat3x4.constant.point.v4s.wg128.normals", "cesium"},
+};
+
+class CudaInstanced : public ::testing::TestWithParam<testing::InstanceCase> {};
+
+TEST_P(CudaInstanced, EveryInstanceMatchesTheGoldOfItsPalette) {
+  RUNNER_OR_SKIP(runner);
+  const testing::InstanceCase& c = GetParam();
+  SCOPED_TRACE(std::string(c.key) + " on " + c.mesh + " x" + std::to_string(c.instances) + ", seed " +
+               std::to_string(Seed()) + " (SKINTUNE_TEST_SEED reproduces), device " + runner->device_name());
+  testing::ExpectInstanceCaseMatchesGold(*runner, c, runner->limits());
+}
+
+INSTANTIATE_TEST_SUITE_P(Spread, CudaInstanced, ::testing::ValuesIn(testing::WithInstanceCounts(kInstancedCases)),
+                         testing::InstanceCaseName);
+
+TEST(CudaInstancedCases, CompileCleanlyHere) {
+  // Every bucket's instanced kernel, for the largest K the cases run.
+  SKIP_WITHOUT_NVRTC();
+  for (const Case& c : kInstancedCases) {
+    const Variant v = ParseVariantKey(c.key);
+    const PackedMesh packed = Pack(testing::SmallAsset(c.mesh).mesh, v);
+    for (const KernelSource& k : EmitLaunchKernels(packed, 64)) EXPECT_EQ(CompileProblem(k.text), "") << c.key;
+  }
+}
+
+TEST(CudaInstancedRunner, PoisonCatchesAKernelThatWritesEveryInstanceOverTheFirst) {
+  RUNNER_OR_SKIP(runner);
+  std::vector<KernelSource> kernels;
+  const testing::InstancedRun run =
+      testing::WithInstancedFault("cuda.b2.soa.float4.u16.f32.wg64", 7, "const u32 out_first = instance * vertex_count + first;",
+                                  "const u32 out_first = first + 0u * vertex_count;", kernels);
+  EXPECT_EQ(runner->Run(run.packed, kernels, run.palette_bytes, 7).poisoned_vertices, 6 * run.packed.vertex_count);
+}
+
+TEST(CudaInstancedRunner, RejectsMoreInstancesThanTheConstantSymbolHolds) {
+  RUNNER_OR_SKIP(runner);
+  const testing::InstancedRun run = testing::InstancedInputs(ParseVariantKey("cuda.b2.soa.constant"), "b2", 7);
+  const std::vector<KernelSource> kernels = EmitLaunchKernels(run.packed, 3);  // a symbol for 3 palettes
+  try {
+    runner->Run(run.packed, kernels, run.palette_bytes, 7);
+    ADD_FAILURE() << "7 palettes were copied into a symbol for 3";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("the kernel's constant palette holds 3"), std::string::npos) << e.what();
   }
 }
 

@@ -24,6 +24,7 @@
 #include "runner_test_support.h"
 #include "runtime/gl_context.h"
 #include "runtime/gl_runner.h"
+#include "runtime/run_shape.h"
 
 namespace skintune {
 namespace {
@@ -267,8 +268,8 @@ void ExpectGuardError(GlRunner* runner, const Faulty& f) {
 
 TEST(GlRunner, GuardCatchesAComputeKernelThatWritesPastTheEnd) {
   REQUIRE_GL(runner);
-  ExpectGuardError(runner, WithFault(kComputeKey, "STORE_POSITION(first + v, skinned_position);",
-                                     "STORE_POSITION(first + v + 64u, skinned_position);"));
+  ExpectGuardError(runner, WithFault(kComputeKey, "STORE_POSITION(out_first + v, skinned_position);",
+                                     "STORE_POSITION(out_first + v + 64u, skinned_position);"));
 }
 
 // Transform feedback cannot write outside its bound range, so the guard after
@@ -302,6 +303,120 @@ TEST(GlRunner, RejectsAPaletteOfTheWrongSize) {
   }
 }
 
+// ------------------------------------------------------------------ instances
+
+// K instances per launch (docs/VARIANTS.md "Instancing"), each with its own
+// random palette, each instance against the gold of that palette: every
+// layout and storage, padded and bucketed (CesiumMan: 4 launches; the vertex
+// shader's bucketed captures go through a staging buffer), several vertices
+// per invocation contiguous and strided, float3 and float4, normals.
+class GlslInstanced : public ::testing::TestWithParam<testing::InstanceCase> {};
+
+TEST_P(GlslInstanced, EveryInstanceMatchesTheGoldOfItsPalette) {
+  REQUIRE_GL(runner);
+  const testing::InstanceCase& c = GetParam();
+  SCOPED_TRACE(std::string(c.key) + " on " + c.mesh + " x" + std::to_string(c.instances) + ", seed " +
+               std::to_string(Seed()) + " (SKINTUNE_TEST_SEED reproduces), device " + runner->device_name());
+  testing::ExpectInstanceCaseMatchesGold(*runner, c, LimitsOf(runner->info()));
+}
+
+const Case kInstancedComputeCases[] = {
+    {"glsl-compute.b4.padded.aos.float4.u16.f32.mat4.constant.matrix.v1c.wg64.normals", "b4"},
+    {"glsl-compute.b3.padded.soa.float3.u8.unorm8.mat3x4.local.point.v2s.wg128.nonormals", "b3-random"},
+    {"glsl-compute.b2.padded.soa-split.float4.i32.unorm16.mat3x4.image.matrix.v4c.wg32.normals", "b2"},
+    {"glsl-compute.b4.bucketed.soa.float4.u16.f32.mat3x4.global.matrix.v8s.wg256.normals", "cesium"},
+    {"glsl-compute.b4.bucketed.aos.float3.u8.unorm8.mat4.local.matrix.v2c.wg64.nonormals", "cesium"},
+    {"glsl-compute.b4.bucketed.soa-split.float3.u16.f32.mat3x4.constant.point.v4s.wg128.normals", "cesium"},
+};
+const Case kInstancedVertexCases[] = {
+    {"glsl-vertex.b4.padded.aos.float4.u16.f32.mat4.constant.matrix.v1c.wg0.normals", "b4"},
+    {"glsl-vertex.b3.padded.soa.float3.u8.unorm8.mat3x4.global.point.v1c.wg0.nonormals", "b3-random"},
+    {"glsl-vertex.b2.padded.soa-split.float4.i32.unorm16.mat3x4.image.matrix.v1c.wg0.normals", "b2"},
+    {"glsl-vertex.b4.bucketed.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg0.normals", "cesium"},
+    {"glsl-vertex.b4.bucketed.aos.float3.u8.unorm8.mat4.image.point.v1c.wg0.nonormals", "cesium"},
+    {"glsl-vertex.b4.bucketed.soa-split.float3.u16.f32.mat3x4.constant.matrix.v1c.wg0.normals", "cesium"},
+};
+
+INSTANTIATE_TEST_SUITE_P(Compute, GlslInstanced,
+                         ::testing::ValuesIn(testing::WithInstanceCounts(kInstancedComputeCases)),
+                         testing::InstanceCaseName);
+INSTANTIATE_TEST_SUITE_P(Vertex, GlslInstanced, ::testing::ValuesIn(testing::WithInstanceCounts(kInstancedVertexCases)),
+                         testing::InstanceCaseName);
+
+TEST(GlslTemplates, BothTemplatesCompileAloneWithJustTheInstancedDefine) {
+  REQUIRE_GL(runner);
+  for (const auto& [file, lang] : {std::pair{"skin.comp", Lang::kGlslCompute}, std::pair{"skin.vert", Lang::kGlslVertex}}) {
+    KernelSource s = Bare(file, lang);
+    s.text.insert(s.text.find('\n') + 1, "#define INSTANCED 1\n");
+    s.source_hash = SourceHash(s.text);
+    EXPECT_NO_THROW(runner->Build(s)) << file;
+  }
+}
+
+TEST(GlInstancedRunner, GoldCatchesAVertexShaderThatReadsOnePaletteForEveryInstance) {
+  REQUIRE_GL(runner);
+  std::vector<KernelSource> kernels;
+  const testing::InstancedRun run = testing::WithInstancedFault(
+      kVertexKey, 3, "joint[i] += INSTANCE * uint(JOINTS);", "joint[i] += 0u * uint(JOINTS);", kernels);
+  const GlRunResult result = runner->Run(run.packed, kernels, run.palette_bytes, 3);
+  EXPECT_EQ(result.poisoned_vertices, 0u);
+  const SkinnedMesh quantised = QuantisedMesh(testing::SmallAsset("b2").mesh, run.packed.variant);
+  for (int i = 0; i < 3; ++i) {
+    const GoldComparison c = CompareToGold(SkinGold(quantised, run.palettes[static_cast<std::size_t>(i)]).positions,
+                                           testing::UnpackInstance(run.packed, result.positions, i));
+    if (i == 0) {
+      EXPECT_LT(c.max_relative, testing::kTolerance);  // instance 0's palette is the one read
+    } else {
+      EXPECT_FALSE(c.max_relative < testing::kTolerance) << "instance " << i << " passed with instance 0's palette";
+    }
+  }
+}
+
+TEST(GlInstancedRunner, PoisonCatchesAComputeKernelThatWritesEveryInstanceOverTheFirst) {
+  REQUIRE_GL(runner);
+  std::vector<KernelSource> kernels;
+  const testing::InstancedRun run =
+      testing::WithInstancedFault(kComputeKey, 7, "uint out_first = INSTANCE * vertex_count + first;",
+                                  "uint out_first = first + 0u * vertex_count;", kernels);
+  EXPECT_EQ(runner->Run(run.packed, kernels, run.palette_bytes, 7).poisoned_vertices, 6 * run.packed.vertex_count);
+}
+
+TEST(GlInstancedRunner, RejectsPalettesOfTheWrongCountAndMoreInstancesThanTheUniformBlockHolds) {
+  REQUIRE_GL(runner);
+  const testing::InstancedRun run = testing::InstancedInputs(ParseVariantKey(kComputeKey), "b2", 7);
+  try {
+    runner->RunInstanced(run.packed, 6, run.palette_bytes);
+    ADD_FAILURE() << "7 palettes were accepted for 6 instances";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("expected 6 instances x 12 joints"), std::string::npos) << e.what();
+  }
+  const testing::InstancedRun constant =
+      testing::InstancedInputs(ParseVariantKey("glsl-vertex.b2.soa.constant.v1c.wg0"), "b2", 7);
+  const std::vector<KernelSource> small = EmitLaunchKernels(constant.packed, 3);  // a uniform block for 3 palettes
+  try {
+    runner->Run(constant.packed, small, constant.palette_bytes, 7);
+    ADD_FAILURE() << "7 palettes were bound to a uniform block for 3";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("the kernel's constant palette holds 3"), std::string::npos) << e.what();
+  }
+}
+
+// Timing an instanced frame, compute and vertex (bucketed: staged captures).
+TEST(GlInstancedRunner, TimesKInstancesPerFrame) {
+  REQUIRE_GL(runner);
+  for (const auto& [key, mesh] : {std::pair{"glsl-compute.b2.soa.local.wg64", "b2"},
+                                  std::pair{"glsl-vertex.b4.bucketed.soa.global.v1c.wg0", "cesium"}}) {
+    const testing::InstancedRun run = testing::InstancedInputs(ParseVariantKey(key), mesh, 5);
+    const std::vector<KernelSource> kernels = EmitLaunchKernels(run.packed, 5);
+    const std::vector<std::vector<std::uint8_t>> sets = {run.palette_bytes, run.palette_bytes};
+    const GlPrepared prepared = runner->Prepare(run.packed, kernels, sets, 5);
+    EXPECT_EQ(prepared.input_sets(), 2) << key;
+    EXPECT_GE(prepared.bytes_per_set(), 5 * run.packed.vertex_count * run.packed.output_stride_bytes) << key;
+    const std::vector<double> ms = runner->Time(prepared, 1, 2);
+    EXPECT_EQ(ms.size(), 2u) << key;
+  }
+}
+
 // ------------------------------------------------------------------ context
 
 TEST(GlContext, ReportsAtLeastGl43AndTheLimitsTheConstraintsUse) {
@@ -320,11 +435,13 @@ TEST(GlContext, ReportsAtLeastGl43AndTheLimitsTheConstraintsUse) {
   EXPECT_GE(i.max_uniform_block_bytes, 16384u);
   EXPECT_GE(i.max_texture_buffer_texels, 65536u);
   EXPECT_GE(i.max_compute_work_group_count_x, 65535u);
+  EXPECT_GE(i.max_compute_work_group_count_y, 65535u);
   const DeviceLimits limits = LimitsOf(i);
   EXPECT_EQ(limits.uniform_block_bytes, i.max_uniform_block_bytes);
   EXPECT_EQ(limits.local_memory_bytes, i.max_compute_shared_memory_bytes);
   EXPECT_EQ(limits.image_buffer_max_texels, i.max_texture_buffer_texels);
   EXPECT_EQ(limits.vertex_shader_storage_blocks, i.max_vertex_shader_storage_blocks > 0);
+  EXPECT_EQ(limits.max_grid_y, i.max_compute_work_group_count_y);
   EXPECT_EQ(limits.max_wg_size, std::min(i.max_compute_work_group_invocations, i.max_compute_work_group_size_x));
 }
 

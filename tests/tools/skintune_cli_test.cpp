@@ -192,6 +192,21 @@ TEST(SkintuneCli, EmitWritesTheKernelAndASidecarDescribingItsInterface) {
   EXPECT_EQ(names, (std::vector<std::string>{"n", "first", "positions", "indices", "weights", "palette", "out_positions"}));
 }
 
+TEST(SkintuneCli, EmitInstancesWritesTheInstancedKernelBesideThePlainOne) {
+  const fs::path dir = Scratch() / "kernels";
+  const std::string key = "cuda.b2.padded.soa.float4.u16.f32.mat3x4.constant.matrix.v1c.wg128.nonormals";
+  ASSERT_EQ(RunSkintune({"emit", "--variant", key, "--out", dir}).exit_code, 0);
+  const auto r = RunSkintune({"emit", "--variant", key, "--out", dir, "--instances", "8", "--joints", "20"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(ReadAll(dir / (key + ".cu")).find("#define INSTANCED 1"), std::string::npos);
+  const std::string kernel = ReadAll(dir / (key + ".instanced.cu"));
+  EXPECT_NE(kernel.find("#define INSTANCED 1\n#define PALETTE_INSTANCES 8\n"), std::string::npos);
+  const nlohmann::json sidecar = nlohmann::json::parse(ReadAll(dir / (key + ".instanced.json")));
+  EXPECT_EQ(sidecar.at("source_file"), key + ".instanced.cu");
+  EXPECT_EQ(sidecar.at("arguments")[2].at("name"), "vertex_count");
+  EXPECT_EQ(sidecar.at("instancing").at("max_instances"), 8);
+}
+
 TEST(SkintuneCli, EmitWithAMalformedKeyIsOneClearLine) {
   const auto r = RunSkintune({"emit", "--variant", "opencl.b4.turbo", "--out", Scratch()});
   EXPECT_EQ(r.exit_code, 1);

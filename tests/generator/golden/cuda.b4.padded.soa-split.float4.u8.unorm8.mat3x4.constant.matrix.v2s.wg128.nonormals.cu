@@ -37,6 +37,15 @@
 // Items past n do nothing but still take part in the block's palette copy
 // (STORAGE local).
 //
+// INSTANCED (docs/VARIANTS.md "Instancing"): one launch skins K instances of
+// the mesh, each with its own palette. The kernel takes one more scalar,
+// `skin(unsigned n, unsigned first, unsigned vertex_count, ...)`; the grid's
+// y dimension is the instance i = blockIdx.y (grid (blocks, K)); instance i
+// reads palette rows i*JOINTS*PALETTE_ROWS.. (the K palettes one after
+// another) and writes vertex v at i*vertex_count + first + v (vertex_count:
+// the whole mesh, every launch together). For STORAGE constant the symbol
+// holds PALETTE_INSTANCES palettes (K <= PALETTE_INSTANCES).
+//
 // Where the palette is (STORAGE):
 //   0 constant: the module symbol `skintune_palette`, a __constant__ array of
 //     JOINTS*PALETTE_ROWS float4 rows. The host copies the palette rows into it
@@ -91,6 +100,12 @@
 #endif
 #ifndef NORMALS               // 1: also skin normals
 #define NORMALS 0
+#endif
+#ifndef INSTANCED             // 1: K instances per launch (blockIdx.y), K palettes
+#define INSTANCED 0
+#endif
+#ifndef PALETTE_INSTANCES     // INSTANCED constant storage: palettes the __constant__ symbol holds
+#define PALETTE_INSTANCES 1
 #endif
 
 // NVRTC has no <cstdint>.
@@ -302,7 +317,11 @@ DEVICE float weight_of(const u32 raw) {
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
 
 #if STORAGE == 0
+#if INSTANCED
+__constant__ float4 skintune_palette[PALETTE_INSTANCES * PALETTE_FLOAT4S];
+#else
 __constant__ float4 skintune_palette[PALETTE_FLOAT4S];
+#endif
 #define PALETTE_PARAM const float4* __restrict__ palette  // not read: the rows are in skintune_palette
 #define PALETTE_REF_PARAM int
 #define PALETTE_REF 0
@@ -391,6 +410,9 @@ DEVICE void store_xyz3(float* out, const u32 at, const float3 value) {
 
 extern "C" __global__ void __launch_bounds__(WG_SIZE)
 skin(const u32 n, const u32 first,
+#if INSTANCED
+     const u32 vertex_count,
+#endif
 #if LAYOUT == 0
      const u32* __restrict__ records,
 #else
@@ -408,9 +430,21 @@ skin(const u32 n, const u32 first,
 #else
      POSITION_T* __restrict__ out_positions) {
 #endif
+#if INSTANCED
+  // Instance i: its palette starts at joint i*JOINTS (added to the joint
+  // indices, or to where the shared copy reads), its outputs at i*vertex_count.
+  const u32 instance = blockIdx.y;
+  const u32 joint_base = instance * JOINTS;
+  const u32 out_first = instance * vertex_count + first;
+#else
+  const u32 out_first = first;
+#endif
 #if STORAGE == 1
   // Every thread of the block copies, including those past n: no return before the barrier.
   __shared__ float4 palette_shared[PALETTE_FLOAT4S];
+#if INSTANCED
+  palette += joint_base * PALETTE_ROWS;
+#endif
   for (u32 k = threadIdx.x; k < PALETTE_FLOAT4S; k += WG_SIZE) palette_shared[k] = __ldg(palette + k);
   __syncthreads();
 #elif STORAGE == 0
@@ -468,12 +502,16 @@ skin(const u32 n, const u32 first,
     float weight[INFLUENCES];
 #pragma unroll
     for (u32 i = 0; i < INFLUENCES; ++i) weight[i] = weight_of(raw_weight[i]);
+#if INSTANCED && STORAGE != 1
+#pragma unroll
+    for (u32 i = 0; i < INFLUENCES; ++i) joint[i] += joint_base;  // this instance's palette
+#endif
 
     float3 skinned_position, skinned_normal;
     blend(PALETTE_REF, joint, weight, position, normal, &skinned_position, &skinned_normal);
-    STORE_XYZ(out_positions, first + v, skinned_position, 1.0f);
+    STORE_XYZ(out_positions, out_first + v, skinned_position, 1.0f);
 #if NORMALS
-    STORE_XYZ(out_normals, first + v, normalize3(skinned_normal), 0.0f);
+    STORE_XYZ(out_normals, out_first + v, normalize3(skinned_normal), 0.0f);
 #endif
   }
 }

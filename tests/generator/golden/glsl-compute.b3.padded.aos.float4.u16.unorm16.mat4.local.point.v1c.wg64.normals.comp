@@ -39,6 +39,10 @@
 //   outputs:        out_positions[, out_normals]: the next bindings, written
 //                   at first + v;
 //   uniforms:       uint n (vertices of this launch), uint first.
+// INSTANCED (docs/VARIANTS.md "Instancing"): glDispatchCompute(groups, K, 1)
+// skins K instances; instance i = gl_WorkGroupID.y reads palette rows
+// i*JOINTS*PALETTE_ROWS.. and writes vertex v at i*vertex_count + first + v
+// (uniform uint vertex_count: the whole mesh, every launch together).
 // Invocation g handles vertices g*N .. g*N+N-1 (contiguous) or g, g+G, ..,
 // g+(N-1)G with G the number of invocations (strided). Invocations past n do
 // nothing but still take part in the work-group's palette copy.
@@ -90,6 +94,12 @@
 #endif
 #ifndef NORMALS               // 1: also skin normals
 #define NORMALS 0
+#endif
+#ifndef INSTANCED             // 1: K instances per launch (compute: gl_WorkGroupID.y; vertex: gl_InstanceID)
+#define INSTANCED 0
+#endif
+#ifndef PALETTE_INSTANCES     // INSTANCED constant storage: palettes the uniform block holds
+#define PALETTE_INSTANCES 1
 #endif
 
 #if INDEX_FORMAT == 0
@@ -190,6 +200,17 @@
 
 uniform uint n;      // vertices of this launch
 uniform uint first;  // index of its first vertex in the outputs (compute: written at first + v)
+
+#if INSTANCED
+// The instance this invocation skins (docs/VARIANTS.md "Instancing"): the
+// work-group's y (compute), the draw's instance (vertex). Its palette starts
+// at joint INSTANCE * JOINTS (the K palettes one after another).
+#if SKIN_COMPUTE_STAGE
+#define INSTANCE gl_WorkGroupID.y
+#else
+#define INSTANCE uint(gl_InstanceID)
+#endif
+#endif
 
 // ---------------------------------------------------------------- inputs
 //
@@ -316,7 +337,10 @@ float weight_of(uint raw) {
 // Joint j's row r is vec4 number j*PALETTE_ROWS + r. Row 3 of mat4 (0 0 0 1
 // for the affine palettes skinning uses) is never read: outputs are xyz.
 
-#if STORAGE == 0
+#if STORAGE == 0 && INSTANCED
+layout(std140, binding = BINDING_PALETTE) uniform Palette { vec4 palette_rows[PALETTE_INSTANCES * PALETTE_FLOAT4S]; };
+#define ROW(k) palette_rows[k]
+#elif STORAGE == 0
 layout(std140, binding = BINDING_PALETTE) uniform Palette { vec4 palette_rows[PALETTE_FLOAT4S]; };
 #define ROW(k) palette_rows[k]
 #elif STORAGE == 1
@@ -389,6 +413,9 @@ void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 s
     joint[i] = load_index(v, i, slot_stride);
     raw_weight[i] = load_raw_weight(v, i, slot_stride);
   }
+#if INSTANCED && STORAGE != 1
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) joint[i] += INSTANCE * uint(JOINTS);  // this instance's palette
+#endif
   float weight[INFLUENCES];
   for (uint i = 0u; i < uint(INFLUENCES); ++i) weight[i] = weight_of(raw_weight[i]);
   blend(joint, weight, position, normal, skinned_position, skinned_normal);
@@ -442,10 +469,25 @@ void store_normal(uint at, vec3 value) {
 
 // ---------------------------------------------------------------- kernel
 
+#if INSTANCED
+uniform uint vertex_count;  // vertices of one instance in the outputs (the whole mesh)
+#endif
+
 void main() {
+#if INSTANCED
+  uint out_first = INSTANCE * vertex_count + first;
+#else
+  uint out_first = first;
+#endif
 #if STORAGE == 1
+#if INSTANCED
+  uint palette_first = INSTANCE * uint(PALETTE_FLOAT4S);  // this instance's palette
+#else
+  uint palette_first = 0u;
+#endif
   // Every invocation of the group copies, including those past n: no return before the barrier.
-  for (uint k = gl_LocalInvocationID.x; k < uint(PALETTE_FLOAT4S); k += uint(WG_SIZE)) palette_local[k] = palette_rows[k];
+  for (uint k = gl_LocalInvocationID.x; k < uint(PALETTE_FLOAT4S); k += uint(WG_SIZE))
+    palette_local[k] = palette_rows[palette_first + k];
   memoryBarrierShared();
   barrier();
 #endif
@@ -466,9 +508,9 @@ void main() {
 
     vec3 skinned_position, skinned_normal;
     skin_vertex(v, slot_stride, skinned_position, skinned_normal);
-    STORE_POSITION(first + v, skinned_position);
+    STORE_POSITION(out_first + v, skinned_position);
 #if NORMALS
-    STORE_NORMAL(first + v, normalize(skinned_normal));
+    STORE_NORMAL(out_first + v, normalize(skinned_normal));
 #endif
   }
 }

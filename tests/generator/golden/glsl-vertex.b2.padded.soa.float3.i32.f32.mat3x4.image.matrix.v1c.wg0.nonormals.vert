@@ -46,6 +46,11 @@
 //     first * stride, n * stride), stride = 16 (float4) or 12 (float3) bytes,
 //     so vertex v lands at first + v. The uniform `first` is declared as in
 //     skin.comp but not read here; `n` gives soa-split's slot stride S.
+// INSTANCED (docs/VARIANTS.md "Instancing"): glDrawArraysInstanced(GL_POINTS,
+// 0, n, K) skins K instances; instance i = gl_InstanceID reads palette rows
+// i*JOINTS*PALETTE_ROWS.., and the capture holds the K instances' n vertices
+// one instance after another (range first*stride.. of K*n*stride when the
+// mesh takes one draw; the runner places each bucket's instances otherwise).
 // The sidecar says so: out_positions / out_normals carry
 // "transform_feedback_buffer" 0 / 1 and their "varying" name, not a binding.
 //
@@ -96,6 +101,12 @@
 #endif
 #ifndef NORMALS               // 1: also skin normals
 #define NORMALS 0
+#endif
+#ifndef INSTANCED             // 1: K instances per launch (compute: gl_WorkGroupID.y; vertex: gl_InstanceID)
+#define INSTANCED 0
+#endif
+#ifndef PALETTE_INSTANCES     // INSTANCED constant storage: palettes the uniform block holds
+#define PALETTE_INSTANCES 1
 #endif
 
 #if INDEX_FORMAT == 0
@@ -196,6 +207,17 @@
 
 uniform uint n;      // vertices of this launch
 uniform uint first;  // index of its first vertex in the outputs (compute: written at first + v)
+
+#if INSTANCED
+// The instance this invocation skins (docs/VARIANTS.md "Instancing"): the
+// work-group's y (compute), the draw's instance (vertex). Its palette starts
+// at joint INSTANCE * JOINTS (the K palettes one after another).
+#if SKIN_COMPUTE_STAGE
+#define INSTANCE gl_WorkGroupID.y
+#else
+#define INSTANCE uint(gl_InstanceID)
+#endif
+#endif
 
 // ---------------------------------------------------------------- inputs
 //
@@ -322,7 +344,10 @@ float weight_of(uint raw) {
 // Joint j's row r is vec4 number j*PALETTE_ROWS + r. Row 3 of mat4 (0 0 0 1
 // for the affine palettes skinning uses) is never read: outputs are xyz.
 
-#if STORAGE == 0
+#if STORAGE == 0 && INSTANCED
+layout(std140, binding = BINDING_PALETTE) uniform Palette { vec4 palette_rows[PALETTE_INSTANCES * PALETTE_FLOAT4S]; };
+#define ROW(k) palette_rows[k]
+#elif STORAGE == 0
 layout(std140, binding = BINDING_PALETTE) uniform Palette { vec4 palette_rows[PALETTE_FLOAT4S]; };
 #define ROW(k) palette_rows[k]
 #elif STORAGE == 1
@@ -395,6 +420,9 @@ void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 s
     joint[i] = load_index(v, i, slot_stride);
     raw_weight[i] = load_raw_weight(v, i, slot_stride);
   }
+#if INSTANCED && STORAGE != 1
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) joint[i] += INSTANCE * uint(JOINTS);  // this instance's palette
+#endif
   float weight[INFLUENCES];
   for (uint i = 0u; i < uint(INFLUENCES); ++i) weight[i] = weight_of(raw_weight[i]);
   blend(joint, weight, position, normal, skinned_position, skinned_normal);

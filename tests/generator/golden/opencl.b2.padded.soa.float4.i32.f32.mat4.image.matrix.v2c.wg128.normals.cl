@@ -33,6 +33,14 @@
 // handles vertices g*N .. g*N+N-1 (contiguous) or g, g+G, .., g+(N-1)G with G
 // the number of items (strided). Items past n do nothing but still take part
 // in the work-group's palette copy (STORAGE local).
+//
+// INSTANCED (docs/VARIANTS.md "Instancing"): one launch skins K instances of
+// the mesh, each with its own palette. The kernel takes one more scalar,
+// `skin(uint n, uint first, uint vertex_count, ...)`; the grid's second
+// dimension is the instance i = get_global_id(1) (global size (items, K));
+// instance i reads palette rows i*JOINTS*PALETTE_ROWS.. (the K palettes one
+// after another) and writes vertex v at i*vertex_count + first + v
+// (vertex_count: the whole mesh, every launch together).
 
 // ---------------------------------------------------------------- parameters
 
@@ -74,6 +82,9 @@
 #endif
 #ifndef NORMALS               // 1: also skin normals
 #define NORMALS 0
+#endif
+#ifndef INSTANCED             // 1: K instances per launch (grid dimension 1), K palettes
+#define INSTANCED 0
 #endif
 
 #if INDEX_FORMAT == 0
@@ -315,6 +326,9 @@ static inline void blend(PALETTE_REF_PARAM, const uint joint[INFLUENCES], const 
 
 __kernel __attribute__((reqd_work_group_size(WG_SIZE, 1, 1)))
 void skin(const uint n, const uint first,
+#if INSTANCED
+          const uint vertex_count,
+#endif
 #if LAYOUT == 0
           const __global uint* restrict records,
 #else
@@ -332,9 +346,21 @@ void skin(const uint n, const uint first,
 #else
           __global POSITION_T* restrict out_positions) {
 #endif
+#if INSTANCED
+  // Instance i: its palette starts at joint i*JOINTS (added to the joint
+  // indices, or to where the local copy reads), its outputs at i*vertex_count.
+  const uint instance = get_global_id(1);
+  const uint joint_base = instance * JOINTS;
+  const uint out_first = instance * vertex_count + first;
+#else
+  const uint out_first = first;
+#endif
 #if STORAGE == 1
   // Every item of the group copies, including those past n: no return before the barrier.
   __local float4 palette_local[PALETTE_FLOAT4S];
+#if INSTANCED
+  palette += joint_base * PALETTE_ROWS;
+#endif
   for (uint k = get_local_id(0); k < PALETTE_FLOAT4S; k += WG_SIZE) palette_local[k] = palette[k];
   barrier(CLK_LOCAL_MEM_FENCE);
 #define PAL palette_local
@@ -393,12 +419,16 @@ void skin(const uint n, const uint first,
     float weight[INFLUENCES];
 #pragma unroll
     for (uint i = 0; i < INFLUENCES; ++i) weight[i] = weight_of(raw_weight[i]);
+#if INSTANCED && STORAGE != 1
+#pragma unroll
+    for (uint i = 0; i < INFLUENCES; ++i) joint[i] += joint_base;  // this instance's palette
+#endif
 
     float3 skinned_position, skinned_normal;
     blend(PAL, joint, weight, position, normal, &skinned_position, &skinned_normal);
-    STORE_XYZ(out_positions, first + v, skinned_position, 1.0f);
+    STORE_XYZ(out_positions, out_first + v, skinned_position, 1.0f);
 #if NORMALS
-    STORE_XYZ(out_normals, first + v, normalize(skinned_normal), 0.0f);
+    STORE_XYZ(out_normals, out_first + v, normalize(skinned_normal), 0.0f);
 #endif
   }
 }
