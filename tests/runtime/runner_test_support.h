@@ -239,18 +239,19 @@ inline const SkinnedAsset& SmallAsset(const std::string& mesh) {
   return cache[mesh] = GenerateDataset(ParseDatasetKey(key));
 }
 
-// Instance i's palette: Palette(asset) with every joint moved by its own
-// random rotation and translation (seeded by the run's seed and i), so an
-// instance that reads another instance's palette fails the comparison.
+// Instance i's palette: Palette(asset) moved as a whole by its own random
+// rotation and translation (seeded by the run's seed and i), as a crowd places
+// its characters, so an instance that reads another instance's palette fails
+// the comparison. (A whole-instance move keeps the blend as well conditioned
+// as the pose itself; independent random moves per joint would not.)
 inline std::vector<glm::mat4> InstancePalette(const SkinnedAsset& asset, int instance) {
   std::vector<glm::mat4> palette = Palette(asset);
   std::mt19937 rng(static_cast<std::uint32_t>(Seed() * 1009 + static_cast<std::uint64_t>(instance)));
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  for (glm::mat4& m : palette) {
-    const glm::vec3 axis = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + glm::vec3(0.0f, 0.0f, 1e-3f));
-    const glm::vec3 move(u(rng), u(rng), u(rng));
-    m = glm::translate(glm::mat4(1.0f), move) * glm::rotate(glm::mat4(1.0f), 3.14159265f * u(rng), axis) * m;
-  }
+  const glm::vec3 axis = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + glm::vec3(0.0f, 0.0f, 1e-3f));
+  const glm::vec3 move(u(rng), u(rng), u(rng));
+  const glm::mat4 place = glm::translate(glm::mat4(1.0f), move) * glm::rotate(glm::mat4(1.0f), 3.14159265f * u(rng), axis);
+  for (glm::mat4& m : palette) m = place * m;
   return palette;
 }
 
