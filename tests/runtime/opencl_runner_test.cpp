@@ -7,7 +7,6 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
-#include <functional>
 #include <iostream>
 
 #include "runner_test_support.h"
@@ -25,6 +24,7 @@ using testing::ExpectCaseMatchesGold;
 using testing::ExpectCoveringSetMatchesGold;
 using testing::ExpectHalfPoisoned;
 using testing::ExpectRunFails;
+using testing::ErrorOf;
 using testing::Faulty;
 using testing::LaunchTimes;
 using testing::Seed;
@@ -224,17 +224,7 @@ TEST(OpenClInstancedRunner, GoldCatchesAKernelThatReadsOnePaletteForEveryInstanc
   std::vector<KernelSource> kernels;
   const InstancedRun run = WithInstancedFault(kInstancedFaultKey, 3, "const uint joint_base = instance * JOINTS;",
                                               "const uint joint_base = 0u;", kernels);
-  const OpenClRunResult result = runner->Run(run.packed, kernels, run.palette_bytes, 3);
-  const SkinnedMesh quantised = QuantisedMesh(testing::SmallAsset("b2").mesh, run.packed.variant);
-  for (int i = 0; i < 3; ++i) {
-    const GoldComparison c = CompareToGold(SkinGold(quantised, run.palettes[static_cast<std::size_t>(i)]).positions,
-                                           testing::UnpackInstance(run.packed, result.positions, i));
-    if (i == 0) {
-      EXPECT_LT(c.max_relative, testing::kTolerance);  // instance 0's palette is the one read
-    } else {
-      EXPECT_FALSE(c.max_relative < testing::kTolerance) << "instance " << i << " passed with instance 0's palette";
-    }
-  }
+  testing::ExpectOnlyInstanceZeroMatches(run, runner->Run(run.packed, kernels, run.palette_bytes, 3));
 }
 
 TEST(OpenClInstancedRunner, PoisonCatchesAKernelThatWritesEveryInstanceOverTheFirst) {
@@ -260,16 +250,6 @@ TEST(OpenClInstancedRunner, GuardCatchesTheLastInstanceWritingPastTheEnd) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("OpenCL guard"), std::string::npos) << e.what();
   }
-}
-
-// The message of the Error `f` throws, or "(no error)".
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
 }
 
 TEST(OpenClInstancedRunner, RejectsPalettesOfTheWrongCountAndPlainKernelsWithInstances) {

@@ -326,6 +326,33 @@ void ExpectInstanceCaseMatchesGold(Runner& runner, const InstanceCase& c, const 
   }
 }
 
+// `result` of a kernel that reads instance 0's palette for every instance:
+// instance 0 matches its gold, every other instance fails it.
+template <typename RunResult>
+void ExpectOnlyInstanceZeroMatches(const InstancedRun& run, const RunResult& result) {
+  const SkinnedMesh quantised = QuantisedMesh(SmallAsset("b2").mesh, run.packed.variant);
+  for (std::size_t i = 0; i < run.palettes.size(); ++i) {
+    const GoldComparison c = CompareToGold(SkinGold(quantised, run.palettes[i]).positions,
+                                           UnpackInstance(run.packed, result.positions, static_cast<int>(i)));
+    if (i == 0) {
+      EXPECT_LT(c.max_relative, kTolerance);  // instance 0's palette is the one read
+    } else {
+      EXPECT_FALSE(c.max_relative < kTolerance) << "instance " << i << " passed with instance 0's palette";
+    }
+  }
+}
+
+// The message of the Error `f` throws, or "(no error)".
+template <typename F>
+std::string ErrorOf(F&& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
 // An instanced kernel of `key` on the small "b2" mesh for K instances, with an
 // edit of its text (as WithFault).
 inline InstancedRun WithInstancedFault(const std::string& key, int instances, const std::string& from,
