@@ -29,6 +29,7 @@ const char* MatchLevelName(MatchLevel level) {
     case MatchLevel::kSameDeviceName: return "same-device-name";
     case MatchLevel::kSameVendorType: return "same-vendor-type";
     case MatchLevel::kGenericDefault: return "generic-default";
+    case MatchLevel::kForced: return "forced";
   }
   return "unknown";
 }

@@ -316,6 +316,26 @@ void GlContext::MakeCurrent() {
     throw Error("GL setup: eglMakeCurrent failed (" + LastEglError() + ")");
 }
 
+CurrentGlRestorer::CurrentGlRestorer() {
+  if (!MissingLibraries().empty()) return;
+  active_ = true;
+  display_ = eglGetCurrentDisplay();
+  context_ = eglGetCurrentContext();
+  draw_ = eglGetCurrentSurface(EGL_DRAW);
+  read_ = eglGetCurrentSurface(EGL_READ);
+}
+
+CurrentGlRestorer::~CurrentGlRestorer() {
+  if (!active_) return;
+  if (context_ == EGL_NO_CONTEXT) {
+    const EGLDisplay current = eglGetCurrentDisplay();
+    if (eglGetCurrentContext() != EGL_NO_CONTEXT)
+      eglMakeCurrent(current, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+    return;
+  }
+  if (eglGetCurrentContext() != context_) eglMakeCurrent(display_, draw_, read_, context_);
+}
+
 DeviceLimits LimitsOf(const GlContextInfo& info) {
   DeviceLimits limits;
   limits.max_wg_size = static_cast<std::size_t>(

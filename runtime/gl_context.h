@@ -75,6 +75,25 @@ class GlContext {
   std::unique_ptr<Impl> impl_;
 };
 
+// Saves the calling thread's current EGL display, surfaces and context, and
+// makes them current again when destroyed, so code that makes a GlContext
+// of its own (Device::List) leaves the caller's GL context as it found it.
+// Does nothing where libEGL cannot be loaded.
+class CurrentGlRestorer {
+ public:
+  CurrentGlRestorer();
+  ~CurrentGlRestorer();
+  CurrentGlRestorer(const CurrentGlRestorer&) = delete;
+  CurrentGlRestorer& operator=(const CurrentGlRestorer&) = delete;
+
+ private:
+  bool active_ = false;
+  void* display_ = nullptr;
+  void* draw_ = nullptr;
+  void* read_ = nullptr;
+  void* context_ = nullptr;
+};
+
 // The limits the generator's constraints need (GLSL: the work-group limit is
 // the smaller of GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS and
 // GL_MAX_COMPUTE_WORK_GROUP_SIZE[0]; "constant" storage is a uniform block;

@@ -8,6 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "reference/error.h"
+
 namespace skintune {
 
 namespace {
@@ -116,6 +118,39 @@ OpenClInventory EnumerateOpenCl() {
     }
   }
   return inventory;
+}
+
+OpenClDeviceInfo DescribeOpenClDevice(void* cl_device) {
+  const auto device = static_cast<cl_device_id>(cl_device);
+  if (!device) throw Error("OpenCL setup: a null cl_device_id");
+  cl_platform_id platform = nullptr;
+  const cl_int err = clGetDeviceInfo(device, CL_DEVICE_PLATFORM, sizeof platform, &platform, nullptr);
+  if (err != CL_SUCCESS)
+    throw Error("OpenCL setup: the cl_device_id is not a device (clGetDeviceInfo failed with error " +
+                std::to_string(err) + ")");
+  OpenClDeviceInfo info = Describe(device);
+  info.platform_index = -1;
+  info.device_index = -1;
+  info.platform_name = PlatformString(platform, CL_PLATFORM_NAME);
+  info.platform_vendor = PlatformString(platform, CL_PLATFORM_VENDOR);
+  info.platform_version = PlatformString(platform, CL_PLATFORM_VERSION);
+  return info;
+}
+
+bool OpenClContextSharesGl(void* context_handle) {
+  constexpr cl_context_properties kGlContextKhr = 0x2008;  // CL_GL_CONTEXT_KHR from cl_gl.h
+  const auto context = static_cast<cl_context>(context_handle);
+  std::size_t size = 0;
+  if (!context || clGetContextInfo(context, CL_CONTEXT_PROPERTIES, 0, nullptr, &size) != CL_SUCCESS) return false;
+  std::vector<cl_context_properties> properties(size / sizeof(cl_context_properties));
+  if (properties.empty() ||
+      clGetContextInfo(context, CL_CONTEXT_PROPERTIES, size, properties.data(), nullptr) != CL_SUCCESS)
+    return false;
+  for (std::size_t i = 0; i + 1 < properties.size(); i += 2) {
+    if (properties[i] == 0) break;
+    if (properties[i] == kGlContextKhr && properties[i + 1] != 0) return true;
+  }
+  return false;
 }
 
 DeviceLimits LimitsOf(const OpenClDeviceInfo& d) {

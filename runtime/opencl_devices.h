@@ -44,6 +44,15 @@ struct OpenClInventory {
 
 OpenClInventory EnumerateOpenCl();
 
+// One device the caller already has (a cl_device_id), with its platform's
+// name, vendor and version; platform_index and device_index are -1. Throws
+// Error when the handle is not a device OpenCL knows.
+OpenClDeviceInfo DescribeOpenClDevice(void* cl_device);
+
+// Whether the context (a cl_context) was created for a GL context: its
+// properties include CL_GL_CONTEXT_KHR (cl_khr_gl_sharing).
+bool OpenClContextSharesGl(void* cl_context);
+
 // The limits the generator's constraints need, from the device's own answers.
 DeviceLimits LimitsOf(const OpenClDeviceInfo& device);
 

@@ -73,9 +73,14 @@ struct OpenClRunner::Impl {
   Context context;
   Queue queue;
   std::map<std::string, BuiltKernel> built;  // by source hash
+  ProgramCache* cache = nullptr;             // UseProgramCache
+  std::string cache_device_id;
 
   cl_kernel KernelFor(const KernelSource& source);
   void CheckPaletteFits(const Variant& variant, std::size_t palette_bytes) const;
+  Program ProgramFromSource(const KernelSource& source, const std::string& key, const char* options);
+  Program ProgramFromBinary(const std::vector<std::uint8_t>& binary, const char* options);
+  std::vector<std::uint8_t> BinaryOf(cl_program program);
   Memory Buffer(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what);
 };
 
@@ -114,32 +119,122 @@ OpenClRunner::OpenClRunner(int platform_index, int device_index) : impl_(std::ma
   Check(err, "setup", "clCreateCommandQueue on " + impl_->name);
 }
 
+OpenClRunner::OpenClRunner(void* device_handle, void* context_handle, void* queue_handle) : impl_(std::make_unique<Impl>()) {
+  if (!device_handle || !context_handle || !queue_handle) Fail("setup", "a null cl_device_id, cl_context or cl_command_queue");
+  const auto device = static_cast<cl_device_id>(device_handle);
+  const auto context = static_cast<cl_context>(context_handle);
+  const auto queue = static_cast<cl_command_queue>(queue_handle);
+  cl_uint count = 0;
+  Check(clGetContextInfo(context, CL_CONTEXT_NUM_DEVICES, sizeof count, &count, nullptr), "setup",
+        "clGetContextInfo(CL_CONTEXT_NUM_DEVICES) of the given context");
+  std::vector<cl_device_id> devices(count);
+  Check(clGetContextInfo(context, CL_CONTEXT_DEVICES, count * sizeof(cl_device_id), devices.data(), nullptr), "setup",
+        "clGetContextInfo(CL_CONTEXT_DEVICES) of the given context");
+  if (std::find(devices.begin(), devices.end(), device) == devices.end())
+    Fail("setup", "the given device is not one of the given context's " + std::to_string(count) + " devices");
+  cl_context queue_context = nullptr;
+  cl_device_id queue_device = nullptr;
+  cl_command_queue_properties properties = 0;
+  Check(clGetCommandQueueInfo(queue, CL_QUEUE_CONTEXT, sizeof queue_context, &queue_context, nullptr), "setup",
+        "clGetCommandQueueInfo(CL_QUEUE_CONTEXT) of the given queue");
+  Check(clGetCommandQueueInfo(queue, CL_QUEUE_DEVICE, sizeof queue_device, &queue_device, nullptr), "setup",
+        "clGetCommandQueueInfo(CL_QUEUE_DEVICE) of the given queue");
+  Check(clGetCommandQueueInfo(queue, CL_QUEUE_PROPERTIES, sizeof properties, &properties, nullptr), "setup",
+        "clGetCommandQueueInfo(CL_QUEUE_PROPERTIES) of the given queue");
+  if (queue_context != context || queue_device != device)
+    Fail("setup", "the given queue belongs to another context or device");
+  if (properties & CL_QUEUE_OUT_OF_ORDER_EXEC_MODE_ENABLE) Fail("setup", "the given queue is out-of-order; an in-order queue is needed");
+  Check(clGetDeviceInfo(device, CL_DEVICE_PLATFORM, sizeof impl_->platform, &impl_->platform, nullptr), "setup",
+        "clGetDeviceInfo(CL_DEVICE_PLATFORM) of the given device");
+  Check(clRetainContext(context), "setup", "clRetainContext");
+  impl_->context = Context(context);
+  Check(clRetainCommandQueue(queue), "setup", "clRetainCommandQueue");
+  impl_->queue = Queue(queue);
+  impl_->device = device;
+  std::size_t size = 0;
+  clGetDeviceInfo(device, CL_DEVICE_NAME, 0, nullptr, &size);
+  impl_->name.assign(size, '\0');
+  clGetDeviceInfo(device, CL_DEVICE_NAME, size, impl_->name.data(), nullptr);
+  impl_->name.resize(std::strlen(impl_->name.c_str()));
+}
+
 OpenClRunner::~OpenClRunner() = default;
 
 const std::string& OpenClRunner::device_name() const { return impl_->name; }
+void* OpenClRunner::device() const { return impl_->device; }
+void* OpenClRunner::context() const { return impl_->context.get(); }
+void* OpenClRunner::queue() const { return impl_->queue.get(); }
 
-cl_kernel OpenClRunner::Impl::KernelFor(const KernelSource& source) {
-  if (source.lang != Lang::kOpenCl) Fail("build", std::string("kernel language is ") + Name(source.lang));
-  const std::string key = source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;
-  if (auto found = built.find(key); found != built.end()) return found->second.kernel.get();
+void OpenClRunner::UseProgramCache(ProgramCache* cache, const std::string& device_id) {
+  impl_->cache = cache;
+  impl_->cache_device_id = device_id;
+}
 
+Program OpenClRunner::Impl::ProgramFromBinary(const std::vector<std::uint8_t>& binary, const char* options) {
+  cl_int err = CL_SUCCESS, binary_status = CL_SUCCESS;
+  const std::size_t size = binary.size();
+  const unsigned char* bytes = binary.data();
+  Program program(clCreateProgramWithBinary(context.get(), 1, &device, &size, &bytes, &binary_status, &err));
+  if (err != CL_SUCCESS || binary_status != CL_SUCCESS) return Program();
+  if (clBuildProgram(program.get(), 1, &device, options, nullptr, nullptr) != CL_SUCCESS) return Program();
+  return program;
+}
+
+std::vector<std::uint8_t> OpenClRunner::Impl::BinaryOf(cl_program program) {
+  std::size_t size = 0;
+  if (clGetProgramInfo(program, CL_PROGRAM_BINARY_SIZES, sizeof size, &size, nullptr) != CL_SUCCESS || size == 0)
+    return {};
+  std::vector<std::uint8_t> binary(size);
+  unsigned char* at = binary.data();
+  if (clGetProgramInfo(program, CL_PROGRAM_BINARIES, sizeof at, &at, nullptr) != CL_SUCCESS) return {};
+  return binary;
+}
+
+Program OpenClRunner::Impl::ProgramFromSource(const KernelSource& source, const std::string& key,
+                                              const char* options) {
   cl_int err = CL_SUCCESS;
   const char* text = source.text.c_str();
   const std::size_t length = source.text.size();
-  BuiltKernel b;
-  b.program = Program(clCreateProgramWithSource(context.get(), 1, &text, &length, &err));
+  Program program(clCreateProgramWithSource(context.get(), 1, &text, &length, &err));
   Check(err, "build", "clCreateProgramWithSource");
-  err = clBuildProgram(b.program.get(), 1, &device, "-cl-std=CL1.2", nullptr, nullptr);
+  err = clBuildProgram(program.get(), 1, &device, options, nullptr, nullptr);
   if (err != CL_SUCCESS) {
     std::size_t log_size = 0;
-    clGetProgramBuildInfo(b.program.get(), device, CL_PROGRAM_BUILD_LOG, 0, nullptr, &log_size);
+    clGetProgramBuildInfo(program.get(), device, CL_PROGRAM_BUILD_LOG, 0, nullptr, &log_size);
     std::string log(log_size, '\0');
-    clGetProgramBuildInfo(b.program.get(), device, CL_PROGRAM_BUILD_LOG, log_size, log.data(), nullptr);
+    clGetProgramBuildInfo(program.get(), device, CL_PROGRAM_BUILD_LOG, log_size, log.data(), nullptr);
     log.resize(std::strlen(log.c_str()));
     Fail("build", "kernel " + key + " (" + source.text.substr(0, source.text.find('\n')) +
                       ") failed with error " + std::to_string(err) + " on " + name + "; build log:" +
                       FirstLines(log, 20));
   }
+  return program;
+}
+
+cl_kernel OpenClRunner::Impl::KernelFor(const KernelSource& source) {
+  if (source.lang != Lang::kOpenCl) Fail("build", std::string("kernel language is ") + Name(source.lang));
+  const std::string key = source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;
+  if (auto found = built.find(key); found != built.end()) {
+    if (cache) ++cache->counters().memory_hits;
+    return found->second.kernel.get();
+  }
+
+  constexpr const char* kOptions = "-cl-std=CL1.2";
+  BuiltKernel b;
+  const std::string cache_key = cache ? ProgramKey("opencl", cache_device_id, key, kOptions) : "";
+  if (cache) {
+    // A binary the driver refuses (another driver wrote it, it is corrupt) is built from source below.
+    if (const auto binary = cache->Load("opencl", cache_key)) b.program = ProgramFromBinary(*binary, kOptions);
+    if (b.program.get()) ++cache->counters().disk_hits;
+  }
+  if (!b.program.get()) {
+    b.program = ProgramFromSource(source, key, kOptions);
+    if (cache) {
+      ++cache->counters().builds;
+      cache->Store("opencl", cache_key, BinaryOf(b.program.get()));
+    }
+  }
+  cl_int err = CL_SUCCESS;
   b.kernel = Kernel(clCreateKernel(b.program.get(), source.entry_point.c_str(), &err));
   Check(err, "build", "clCreateKernel '" + source.entry_point + "' of kernel " + key);
   return built.emplace(key, std::move(b)).first->second.kernel.get();
@@ -294,6 +389,7 @@ OpenClRunResult OpenClRunner::Run(const PackedMesh& mesh, std::span<const Kernel
 struct OpenClPrepared::Impl {
   struct LaunchPlan {
     KernelSource source;
+    cl_kernel kernel = nullptr;  // owned by the runner
     std::uint32_t count = 0, first = 0, vertex_count = 0;
     cl_uint dimensions = 1;  // 2: instanced, the second dimension is the instance
     std::size_t global[2] = {0, 1}, local[2] = {0, 1};
@@ -303,12 +399,55 @@ struct OpenClPrepared::Impl {
   struct Set {
     std::vector<Memory> buffers;
     std::vector<std::vector<cl_mem>> arguments;
+    cl_mem palette = nullptr, out_positions = nullptr, out_normals = nullptr;
+    std::vector<std::uint8_t> staging;  // the palette being uploaded (WritePalette)
+    Event upload;                       // its write, while in flight
   };
   std::string key;
   std::vector<LaunchPlan> launches;
   std::vector<Set> sets;
   std::size_t bytes_per_set = 0;
+  std::size_t palette_bytes = 0, out_bytes = 0;
 };
+
+namespace {
+
+// Enqueues every launch of set `set` (positions into `out_positions` when not
+// null), each launch's event into `events` when given.
+void EnqueueFrame(cl_command_queue queue, const OpenClPrepared::Impl& p, std::size_t set, cl_mem out_positions,
+                  std::vector<Event>* events) {
+  const std::vector<std::vector<cl_mem>>& arguments = p.sets[set].arguments;
+  for (std::size_t l = 0; l < p.launches.size(); ++l) {
+    const OpenClPrepared::Impl::LaunchPlan& plan = p.launches[l];
+    const std::string where = "launch " + std::to_string(l) + " of " + p.key;
+    for (std::size_t a = 0; a < plan.source.arguments.size(); ++a) {
+      const KernelArgument& arg = plan.source.arguments[a];
+      const auto index = static_cast<cl_uint>(a);
+      cl_int err = CL_SUCCESS;
+      if (arg.name == "n") {
+        err = clSetKernelArg(plan.kernel, index, sizeof(cl_uint), &plan.count);
+      } else if (arg.name == "first") {
+        err = clSetKernelArg(plan.kernel, index, sizeof(cl_uint), &plan.first);
+      } else if (arg.name == "vertex_count") {
+        err = clSetKernelArg(plan.kernel, index, sizeof(cl_uint), &plan.vertex_count);
+      } else if (arg.name == "out_positions" && out_positions) {
+        err = clSetKernelArg(plan.kernel, index, sizeof(cl_mem), &out_positions);
+      } else {
+        err = clSetKernelArg(plan.kernel, index, sizeof(cl_mem), &arguments[l][a]);
+      }
+      if (err != CL_SUCCESS) Check(err, "launch", where + ": clSetKernelArg " + std::to_string(a) + " '" + arg.name + "'");
+    }
+    cl_event event = nullptr;
+    Check(clEnqueueNDRangeKernel(queue, plan.kernel, plan.dimensions, nullptr, plan.global, plan.local, 0, nullptr,
+                                 events ? &event : nullptr),
+          "launch", where + ": clEnqueueNDRangeKernel (" + std::to_string(plan.global[0]) + " items x " +
+                        std::to_string(plan.global[1]) + " instances, groups of " + std::to_string(plan.local[0]) +
+                        ")");
+    if (events) events->emplace_back(event);
+  }
+}
+
+}  // namespace
 
 OpenClPrepared::OpenClPrepared() : impl_(std::make_unique<Impl>()) {}
 OpenClPrepared::~OpenClPrepared() = default;
@@ -333,8 +472,8 @@ OpenClPrepared OpenClRunner::Prepare(const PackedMesh& mesh, std::span<const Ker
   for (std::size_t l = 0; l < mesh.launches.size(); ++l) {
     const Launch& launch = mesh.launches[l];
     if (launch.count == 0) continue;
-    im.KernelFor(kernels[l]);  // build errors before any upload
     OpenClPrepared::Impl::LaunchPlan plan;
+    plan.kernel = im.KernelFor(kernels[l]);  // build errors before any upload
     plan.source = kernels[l];
     plan.count = launch.count;
     plan.first = launch.first;
@@ -347,6 +486,9 @@ OpenClPrepared OpenClRunner::Prepare(const PackedMesh& mesh, std::span<const Ker
   }
 
   const std::size_t out_bytes = shape.out_bytes;
+  const std::vector<std::uint8_t> poison = PoisonedOutput(out_bytes);  // the first out_bytes are used
+  p.palette_bytes = palettes.front().size();
+  p.out_bytes = out_bytes;
   for (std::size_t k = 0; k < palettes.size(); ++k) {
     OpenClPrepared::Impl::Set set;
     std::size_t bytes = 0;
@@ -371,9 +513,14 @@ OpenClPrepared OpenClRunner::Prepare(const PackedMesh& mesh, std::span<const Ker
       Check(err, "launch", "clCreateImage (image1d_buffer of " + std::to_string(desc.image_width) + " texels)" + suffix);
       palette_mem = add(std::move(image), 0);
     }
-    const cl_mem out_positions = add(im.Buffer(CL_MEM_READ_WRITE, out_bytes, nullptr, "out_positions" + suffix), out_bytes);
+    const cl_mem out_positions =
+        add(im.Buffer(CL_MEM_READ_WRITE, out_bytes, poison.data(), "out_positions" + suffix), out_bytes);
     cl_mem out_normals = nullptr;
-    if (variant.normals) out_normals = add(im.Buffer(CL_MEM_READ_WRITE, out_bytes, nullptr, "out_normals" + suffix), out_bytes);
+    if (variant.normals)
+      out_normals = add(im.Buffer(CL_MEM_READ_WRITE, out_bytes, poison.data(), "out_normals" + suffix), out_bytes);
+    set.palette = palette_buffer;
+    set.out_positions = out_positions;
+    set.out_normals = out_normals;
 
     std::size_t plan_index = 0;
     for (std::size_t l = 0; l < mesh.launches.size(); ++l) {
@@ -419,40 +566,11 @@ std::vector<double> OpenClRunner::Time(const OpenClPrepared& prepared, int warmu
   if (p.sets.empty()) Fail("launch", "Time: nothing prepared");
   warmup = std::max(warmup, 0);
   repetitions = std::max(repetitions, 0);
-  std::vector<cl_kernel> kernels;
-  for (const OpenClPrepared::Impl::LaunchPlan& plan : p.launches) kernels.push_back(im.KernelFor(plan.source));
   std::vector<std::vector<Event>> events(static_cast<std::size_t>(repetitions));
   for (int frame = 0; frame < warmup + repetitions; ++frame) {
-    const auto& set = p.sets[static_cast<std::size_t>(frame) % p.sets.size()];
     const bool timed = frame >= warmup;
-    for (std::size_t l = 0; l < p.launches.size(); ++l) {
-      const OpenClPrepared::Impl::LaunchPlan& plan = p.launches[l];
-      const cl_kernel kernel = kernels[l];
-      const std::string where = "launch " + std::to_string(l) + " of " + p.key;
-      const std::vector<cl_mem>& arguments = set.arguments[l];
-      for (std::size_t a = 0; a < plan.source.arguments.size(); ++a) {
-        const KernelArgument& arg = plan.source.arguments[a];
-        const auto index = static_cast<cl_uint>(a);
-        cl_int err = CL_SUCCESS;
-        if (arg.name == "n") {
-          err = clSetKernelArg(kernel, index, sizeof(cl_uint), &plan.count);
-        } else if (arg.name == "first") {
-          err = clSetKernelArg(kernel, index, sizeof(cl_uint), &plan.first);
-        } else if (arg.name == "vertex_count") {
-          err = clSetKernelArg(kernel, index, sizeof(cl_uint), &plan.vertex_count);
-        } else {
-          err = clSetKernelArg(kernel, index, sizeof(cl_mem), &arguments[a]);
-        }
-        if (err != CL_SUCCESS) Check(err, "launch", where + ": clSetKernelArg " + std::to_string(a) + " '" + arg.name + "'");
-      }
-      cl_event event = nullptr;
-      Check(clEnqueueNDRangeKernel(im.queue.get(), kernel, plan.dimensions, nullptr, plan.global, plan.local, 0,
-                                   nullptr, timed ? &event : nullptr),
-            "launch", where + ": clEnqueueNDRangeKernel (" + std::to_string(plan.global[0]) + " items x " +
-                          std::to_string(plan.global[1]) + " instances, groups of " + std::to_string(plan.local[0]) +
-                          ")");
-      if (timed) events[static_cast<std::size_t>(frame - warmup)].emplace_back(event);
-    }
+    EnqueueFrame(im.queue.get(), p, static_cast<std::size_t>(frame) % p.sets.size(), nullptr,
+                 timed ? &events[static_cast<std::size_t>(frame - warmup)] : nullptr);
   }
   Check(clFinish(im.queue.get()), "launch", "clFinish after timing " + p.key);
   std::vector<double> ms;
@@ -470,6 +588,57 @@ std::vector<double> OpenClRunner::Time(const OpenClPrepared& prepared, int warmu
   }
   return ms;
 }
+
+namespace {
+
+OpenClPrepared::Impl::Set& SetOf(const OpenClPrepared& prepared, OpenClPrepared::Impl* impl, int set) {
+  if (!impl || set < 0 || static_cast<std::size_t>(set) >= impl->sets.size())
+    Fail("launch", "no input set " + std::to_string(set) + " (" + std::to_string(prepared.input_sets()) + " prepared)");
+  return impl->sets[static_cast<std::size_t>(set)];
+}
+
+}  // namespace
+
+void OpenClRunner::WritePalette(OpenClPrepared& prepared, int set, std::span<const std::uint8_t> palette) {
+  OpenClPrepared::Impl* p = prepared.impl_.get();
+  OpenClPrepared::Impl::Set& s = SetOf(prepared, p, set);
+  if (palette.size() != p->palette_bytes)
+    Fail("launch", "palette has " + std::to_string(palette.size()) + " bytes, expected " + std::to_string(p->palette_bytes));
+  if (s.upload.get()) {  // the staging copy is still being read by the previous upload
+    const cl_event previous = s.upload.get();
+    Check(clWaitForEvents(1, &previous), "launch", "waiting for the previous palette upload of " + p->key);
+  }
+  s.staging.assign(palette.begin(), palette.end());
+  cl_event event = nullptr;
+  Check(clEnqueueWriteBuffer(impl_->queue.get(), s.palette, CL_FALSE, 0, s.staging.size(), s.staging.data(), 0,
+                             nullptr, &event),
+        "launch", "clEnqueueWriteBuffer 'palette' of " + p->key);
+  s.upload = Event(event);
+}
+
+void OpenClRunner::LaunchSet(const OpenClPrepared& prepared, int set, void* out_positions) {
+  SetOf(prepared, prepared.impl_.get(), set);
+  EnqueueFrame(impl_->queue.get(), *prepared.impl_, static_cast<std::size_t>(set), static_cast<cl_mem>(out_positions),
+               nullptr);
+}
+
+void OpenClRunner::ReadOutput(const OpenClPrepared& prepared, int set, bool normals, std::span<std::uint8_t> out) {
+  const OpenClPrepared::Impl* p = prepared.impl_.get();
+  const OpenClPrepared::Impl::Set& s = SetOf(prepared, prepared.impl_.get(), set);
+  const cl_mem buffer = normals ? s.out_normals : s.out_positions;
+  if (!buffer) Fail("launch", std::string("no ") + (normals ? "normals" : "positions") + " output in " + p->key);
+  if (out.size() != p->out_bytes)
+    Fail("launch", "read-back of " + std::to_string(out.size()) + " bytes, the output has " + std::to_string(p->out_bytes));
+  Check(clEnqueueReadBuffer(impl_->queue.get(), buffer, CL_TRUE, 0, out.size(), out.data(), 0, nullptr, nullptr),
+        "launch", std::string("clEnqueueReadBuffer '") + (normals ? "out_normals" : "out_positions") + "' of " + p->key);
+}
+
+void* OpenClRunner::OutputBuffer(const OpenClPrepared& prepared, int set, bool normals) const {
+  const OpenClPrepared::Impl::Set& s = SetOf(prepared, prepared.impl_.get(), set);
+  return normals ? s.out_normals : s.out_positions;
+}
+
+void OpenClRunner::Finish() { Check(clFinish(impl_->queue.get()), "launch", "clFinish"); }
 
 namespace {
 

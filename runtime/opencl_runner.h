@@ -23,6 +23,14 @@
 //   launch's inputs, one palette each, outputs of their own); Time runs frames
 //   rotating among them with profiling events, uploading, poisoning and
 //   reading back nothing; verify with Run first, Time checks nothing.
+// - Skinning (the runtime's Skinner): a Prepared set is also a live set of
+//   device buffers: WritePalette replaces a set's palette, LaunchSet runs its
+//   launches once (no events), ReadOutput reads an output back, OutputBuffer
+//   gives the cl_mem. Prepared outputs start POISONED like Run's.
+// - Program cache (UseProgramCache): builds load the program binary stored
+//   for (device, source hash, options) instead of compiling, and store it
+//   after compiling (runtime/program_cache.h); the cache counts both, and
+//   the lookups that found the program already built in this runner.
 // Errors name the stage: "OpenCL setup", "build", "launch" or "guard".
 #pragma once
 
@@ -35,6 +43,7 @@
 
 #include "generator/emit.h"
 #include "generator/packer.h"
+#include "runtime/program_cache.h"
 
 namespace skintune {
 
@@ -58,9 +67,10 @@ class OpenClPrepared {
   int input_sets() const;
   std::size_t bytes_per_set() const;  // device bytes of one set: inputs + palette + outputs
 
+  struct Impl;
+
  private:
   friend class OpenClRunner;
-  struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
@@ -73,7 +83,20 @@ class OpenClRunner {
   OpenClRunner(const OpenClRunner&) = delete;
   OpenClRunner& operator=(const OpenClRunner&) = delete;
 
+  // A device, context and in-order queue the caller made (cl_device_id,
+  // cl_context, cl_command_queue): retained here, released by the
+  // destructor. Throws Error("OpenCL setup: ...") for a null handle or a
+  // device that is not in the context. Time needs a queue with profiling.
+  OpenClRunner(void* cl_device, void* cl_context, void* cl_queue);
+
   const std::string& device_name() const;
+  void* device() const;   // cl_device_id
+  void* context() const;  // cl_context
+  void* queue() const;    // cl_command_queue
+
+  // Builds load from and store to `cache` (null: none), keyed with `device_id`;
+  // the cache must outlive the runner.
+  void UseProgramCache(ProgramCache* cache, const std::string& device_id);
 
   // Builds (or finds already built) `source`; throws Error("OpenCL build ...").
   void Build(const KernelSource& source);
@@ -108,6 +131,18 @@ class OpenClRunner {
   // or read back. Returns one time per timed frame: the sum over its launches
   // of the profiling time (end - start), ms.
   std::vector<double> Time(const OpenClPrepared& prepared, int warmup, int repetitions);
+
+  // Skinning with a prepared set (see the top of this file). WritePalette
+  // copies `palette` (PackPalette bytes) and enqueues its upload; LaunchSet
+  // enqueues every launch of set `set`, writing positions into
+  // `out_positions` (a cl_mem of the set's output size) instead of the set's
+  // own when given; ReadOutput waits and copies the set's positions (or
+  // normals) into `out` (vertex_count x output_stride_bytes, packed order).
+  void WritePalette(OpenClPrepared& prepared, int set, std::span<const std::uint8_t> palette);
+  void LaunchSet(const OpenClPrepared& prepared, int set, void* out_positions = nullptr);
+  void ReadOutput(const OpenClPrepared& prepared, int set, bool normals, std::span<std::uint8_t> out);
+  void* OutputBuffer(const OpenClPrepared& prepared, int set, bool normals) const;  // cl_mem; null: none
+  void Finish();
 
   // A plain copy (one uint4 per work-item) between two buffers of `bytes`
   // (rounded down to a multiple of 16; the source holds a non-zero pattern):

@@ -27,7 +27,8 @@ bool AtLevel(const WinnersEntry& e, const DeviceInfo& device, MatchLevel level) 
     case MatchLevel::kExactDevice: return exact;
     case MatchLevel::kSameDeviceName: return !exact && same_name;
     case MatchLevel::kSameVendorType: return !exact && !same_name && same_vendor_type;
-    case MatchLevel::kGenericDefault: return false;
+    case MatchLevel::kGenericDefault:
+    case MatchLevel::kForced: return false;
   }
   return false;
 }
@@ -58,6 +59,7 @@ std::string LevelReason(MatchLevel level, const WinnersEntry& e, const DeviceInf
       return "no entry for '" + device.name + "'; same vendor and type: " + device.vendor + " " + device.type +
              " (tuned on '" + e.device_name + "')";
     case MatchLevel::kGenericDefault:
+    case MatchLevel::kForced:
       break;
   }
   return "";

@@ -1,58 +1,15 @@
 // skintune: the CUDA backend: one per CUDA device (driver API + NVRTC loaded
 // at run time), measuring `cuda` variants through CudaRunner.
-#include <dlfcn.h>
-
-#include <cctype>
-#include <fstream>
 #include <memory>
-#include <sstream>
 
 #include "runtime/cuda_api.h"
 #include "runtime/cuda_runner.h"
+#include "runtime/device_identity.h"
 #include "tuner/backends_internal.h"
 
 namespace skintune::tuner_internal {
 
 namespace {
-
-// The kernel driver's version ("580.159.04"): from /proc/driver/nvidia/version,
-// else from NVML (libnvidia-ml, loaded at run time like the rest of CUDA;
-// containers often have no /proc entry), else empty (the CUDA version then
-// stands alone). Looked up once per process.
-std::string KernelDriverVersion() {
-  static const std::string version = []() -> std::string {
-    std::ifstream in("/proc/driver/nvidia/version");
-    std::string line;
-    if (std::getline(in, line)) {
-      // "NVRM version: NVIDIA UNIX x86_64 Kernel Module  580.159.04  Tue ..."
-      std::istringstream words(line);
-      std::string word, previous;
-      while (words >> word) {
-        if (previous == "Module" && std::isdigit(static_cast<unsigned char>(word[0]))) return word;
-        previous = word;
-      }
-    }
-    void* nvml = dlopen("libnvidia-ml.so.1", RTLD_LAZY | RTLD_LOCAL);
-    if (!nvml) return "";  // kept loaded when found: never unloaded, like libcuda
-    using Call = int (*)();
-    using DriverVersion = int (*)(char*, unsigned int);
-    const auto init = reinterpret_cast<Call>(dlsym(nvml, "nvmlInit_v2"));
-    const auto driver_version = reinterpret_cast<DriverVersion>(dlsym(nvml, "nvmlSystemGetDriverVersion"));
-    const auto shutdown = reinterpret_cast<Call>(dlsym(nvml, "nvmlShutdown"));
-    std::string found;
-    if (init && driver_version && init() == 0) {  // NVML_SUCCESS
-      char text[96] = {};
-      if (driver_version(text, sizeof text - 1) == 0) found = text;
-      if (shutdown) shutdown();
-    }
-    return found;
-  }();
-  return version;
-}
-
-std::string CudaVersion(int version) {
-  return "CUDA " + std::to_string(version / 1000) + "." + std::to_string(version % 1000 / 10);
-}
 
 class CudaBackend final : public Backend {
  public:
@@ -62,9 +19,7 @@ class CudaBackend final : public Backend {
     identity_.platform = "CUDA";
     identity_.vendor = "NVIDIA";
     identity_.name = device.name;
-    const std::string kernel_driver = KernelDriverVersion();
-    identity_.driver_version = kernel_driver.empty() ? CudaVersion(device.driver_version)
-                                                     : kernel_driver + " (" + CudaVersion(device.driver_version) + ")";
+    identity_.driver_version = CudaDriverVersionText(device.driver_version);
     identity_.api_version = std::to_string(device.major) + "." + std::to_string(device.minor);
     identity_.type = "gpu";
     identity_.compute_units = static_cast<std::uint32_t>(device.multiprocessors);

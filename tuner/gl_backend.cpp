@@ -1,11 +1,10 @@
 // skintune: the OpenGL backend: one headless GL 4.3+ core context through EGL
 // (runtime/gl_context.h), measuring glsl-compute and glsl-vertex variants
 // through GlRunner.
-#include <algorithm>
-#include <cctype>
 #include <memory>
 
 #include "reference/error.h"
+#include "runtime/device_identity.h"
 #include "runtime/gl_context.h"
 #include "runtime/gl_runner.h"
 #include "tuner/backends_internal.h"
@@ -13,15 +12,6 @@
 namespace skintune::tuner_internal {
 
 namespace {
-
-// Mesa's software rasterisers run on the CPU.
-std::string DeviceType(const std::string& renderer) {
-  std::string lower = renderer;
-  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  for (const char* cpu : {"llvmpipe", "softpipe", "swrast", "software"})
-    if (lower.find(cpu) != std::string::npos) return "cpu";
-  return "gpu";
-}
 
 class GlBackend final : public Backend {
  public:
@@ -34,7 +24,7 @@ class GlBackend final : public Backend {
     identity_.name = info.renderer;
     identity_.driver_version = info.version;  // GL_VERSION names the driver: "4.5 (Core Profile) Mesa 22.3.6"
     identity_.api_version = info.version;
-    identity_.type = DeviceType(info.renderer);
+    identity_.type = GlDeviceType(info.renderer);
     identity_.compute_units = 0;              // GL does not say
     identity_.global_memory_bytes = 0;        // core GL does not say
     identity_.local_memory_bytes = info.max_compute_shared_memory_bytes;

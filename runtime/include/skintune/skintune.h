@@ -98,13 +98,17 @@ struct DeviceInfo {
   std::string vendor;
   std::string name;            // device name / GL_RENDERER
   std::string driver_version;
-  std::string type;            // "gpu", "cpu", "accelerator", "other"
+  std::string type;            // "gpu", "cpu", "accelerator" (OpenCL types joined with '+'); GL: "cpu" for
+                               // Mesa's software renderers, else "gpu"
 };
 
 struct DeviceOptions {
-  // Compiled programs are cached here, keyed by device, driver and source hash,
-  // so a second start compiles nothing. Empty: $SKINTUNE_CACHE_DIR, else
-  // $XDG_CACHE_HOME/skintune, else ~/.cache/skintune. "-": no disk cache.
+  // Compiled programs are cached here, keyed by device id (with its driver),
+  // source hash and build options, so a second start compiles nothing.
+  // Empty: $SKINTUNE_CACHE_DIR, else $XDG_CACHE_HOME/skintune, else
+  // ~/.cache/skintune. "-": no disk cache. Files are written atomically; a
+  // damaged or foreign file is rebuilt and rewritten, never an error, and a
+  // directory that cannot be written only costs the rebuild next start.
   std::string program_cache_dir;
 };
 
@@ -118,24 +122,34 @@ struct ProgramCacheStats {
 class Device {
  public:
   // Every device skintune can run on here, in discovery order: OpenCL devices
-  // (all platforms), CUDA devices, and one GL device when an EGL context opens.
-  // Absent backends are simply missing from the list.
+  // (all platforms), CUDA devices, and one GL device when a headless EGL
+  // context (GL 4.3 core) opens. Absent backends are simply missing from the
+  // list. Never fails; the calling thread's current GL context is left as it was.
   static std::vector<DeviceInfo> List();
 
   // The best available device: a GPU before anything else, then CUDA before
   // OpenCL before GL on the same GPU; a CPU OpenCL device when there is no GPU.
-  // kNotFound when there is no device at all.
+  // kNotFound when there is no device at all; kDeviceError (each device's
+  // reason) when none of them can be opened. A GL device opened here owns a
+  // headless EGL context and makes it current on the calling thread for
+  // every call.
   static Result<Device> OpenBest(const DeviceOptions& options = {});
 
   // The first device of List() whose id, name, vendor or platform contains
-  // `pattern` (case-insensitive) and, unless `backend` is null, is of that backend.
+  // `pattern` (case-insensitive; "" matches any) and, unless `backend` is
+  // null, is of that backend (the other backends are then not probed).
+  // kNotFound naming the pattern and listing the devices there are.
   static Result<Device> Open(const std::string& pattern, const Backend* backend = nullptr,
                              const DeviceOptions& options = {});
 
   // An OpenCL device, context and queue the caller already has (cl_device_id,
   // cl_context, cl_command_queue as void*). skintune retains them and releases
-  // them when the Device is destroyed; the queue must be in-order. Null handles
-  // or a device not in the context: kInvalidArgument.
+  // them when the Device (and every Skinner made from it) is gone; the queue
+  // must be in-order. Null handles, a device not in the context, a queue of
+  // another context or device, an out-of-order queue: kInvalidArgument.
+  // Handles that are not OpenCL objects at all are undefined behaviour (the
+  // OpenCL driver cannot tell them from live ones). has_gl_sharing() is true
+  // when the context was created with CL_GL_CONTEXT_KHR.
   static Result<Device> FromOpenCl(void* cl_device, void* cl_context, void* cl_queue,
                                    const DeviceOptions& options = {});
 
@@ -155,6 +169,8 @@ class Device {
   Device(Device&&) noexcept;
   Device& operator=(Device&&) noexcept;
 
+  // A moved-from (or default-constructed) Device reports an empty info and
+  // zero stats; Skinner::Create with it fails with kInvalidState.
   const DeviceInfo& info() const;
   ProgramCacheStats cache_stats() const;
   // Whether OpenCL here can write into GL buffer objects (cl_khr_gl_sharing with
@@ -166,6 +182,7 @@ class Device {
  private:
   std::unique_ptr<Impl> impl_;
   friend class Skinner;
+  friend struct DeviceAccess;  // the library's own (runtime/device.h)
 };
 
 // ---------------------------------------------------------------- winners
@@ -176,8 +193,10 @@ enum class MatchLevel {
   kSameDeviceName,   // same backend and device name, another driver
   kSameVendorType,   // same backend, vendor and device type
   kGenericDefault,   // no entry: the built-in default variant, correct everywhere
+  kForced,           // SkinnerOptions::variant named the variant; no lookup
 };
-const char* MatchLevelName(MatchLevel level);  // "exact-device", "same-device-name", ...
+// "exact-device", "same-device-name", "same-vendor-type", "generic-default", "forced".
+const char* MatchLevelName(MatchLevel level);
 
 // A winners database, as written by `skintune tune` or `skintune db merge`.
 class WinnersDb {
@@ -240,21 +259,38 @@ struct MeshView {
 };
 
 struct SkinnerOptions {
-  int instances = 1;        // K copies of the mesh skinned in one launch, each with its own palette
+  // K copies of the mesh skinned in one launch, each with its own palette.
+  // Only 1 for now: larger values give kInvalidArgument "not supported yet".
+  int instances = 1;
   bool normals = false;     // also skin normals (MeshView::normals required)
-  // Force a variant key instead of the database's choice (must suit the device,
-  // language and influences; otherwise kInvalidArgument naming the constraint).
+  // Force a variant key (docs/VARIANTS.md; omitted axes take their defaults)
+  // instead of the database's choice; Selection::level is then kForced. It
+  // must be of one of the device's languages, padded (a bucketed variant
+  // reorders the vertices on the device) and pass every constraint on this
+  // device and mesh (e.g. B at least the mesh's largest per-vertex count);
+  // otherwise kInvalidArgument naming the constraint ("influences_too_few:
+  // ..."). Its `normals` axis follows `normals` above.
   std::string variant;
 };
 
 class Skinner {
  public:
-  // Picks the variant for (device, mesh.influences, mesh.vertex_count) from
-  // `db` (Selection::Find's fallback chain), packs the mesh into the variant's
-  // layout on the device, and builds (or loads from the program cache) its
-  // kernels. Validates the mesh: kInvalidArgument naming the first bad vertex
-  // and slot for a joint out of range, a negative or NaN weight, weights not
-  // summing to 1, a null array or zero sizes.
+  // Picks the variant for (device, B, mesh.vertex_count) from `db`
+  // (Selection::Find's fallback chain, docs/RUNTIME.md), where B is the
+  // largest number of non-zero weights of any vertex; an entry that cannot run
+  // on this device and mesh (its constraints) is skipped and named in
+  // selection().reason. A bucketed winner runs as its padded twin, so the
+  // device output is always in the mesh's vertex order. Packs the mesh into
+  // the variant's layout on the device, and builds (or loads from the
+  // program cache) its kernels.
+  // Errors: kInvalidArgument naming the first bad vertex and slot for a joint
+  // out of range, a negative, NaN or infinite weight, weights not summing to
+  // 1 within 1e-3, a NaN position, a null array, zero sizes, influences
+  // outside 1..8, joint_count outside 1..65536, normals requested without
+  // MeshView::normals, a bad forced variant; kInvalidState for a moved-from
+  // Device or WinnersDb; kBuildFailed (the build log's first lines) or
+  // kDeviceError from the device; kUnavailable for a GL Device whose context
+  // is not current.
   static Result<Skinner> Create(Device& device, const WinnersDb& db, const MeshView& mesh,
                                 const SkinnerOptions& options = {});
 
@@ -268,33 +304,51 @@ class Skinner {
   int instances() const;
   int joint_count() const;
 
+  // Every call below on a moved-from Skinner returns kInvalidState "used
+  // after move" (the accessors return 0 / null / an empty Selection). A
+  // Skinner keeps its Device's context, queue and programs alive: it may
+  // outlive the Device object. A GL Skinner needs its GL context current on
+  // the calling thread (kInvalidState otherwise).
+
   // Uploads the palettes: instances() * joint_count() column-major 4x4 float
-  // matrices (16 floats each; instance k's joints at [k * joint_count * 16]).
-  // `float_count` must equal instances() * joint_count() * 16, else kInvalidArgument.
+  // matrices (16 floats each, as glm::mat4 stores them; instance k's joints
+  // at [k * joint_count * 16]). `float_count` must equal
+  // instances() * joint_count() * 16, else kInvalidArgument; null `matrices`:
+  // kInvalidArgument. The data is copied: the caller may reuse it at once.
   Status SetPalette(const float* matrices, std::size_t float_count);
 
-  // Skins every instance on the device (asynchronous where the backend is:
-  // Read* waits). kInvalidState before the first SetPalette.
+  // Skins every instance on the device with the last palette (asynchronous
+  // where the backend is: Read* waits). kInvalidState before the first
+  // SetPalette.
   Status Skin();
 
   // Skinned positions (and normals) in the mesh's vertex order: 3 floats per
   // vertex, instance after instance; `float_count` must equal
-  // instances() * vertex_count() * 3. Waits for the last Skin().
+  // instances() * vertex_count() * 3 (else kInvalidArgument), `out` not null.
+  // Waits for the last Skin(); kInvalidState before the first Skin().
   Status ReadPositions(float* out, std::size_t float_count);
-  Status ReadNormals(float* out, std::size_t float_count);  // kInvalidState without normals
+  // Likewise; kInvalidState when the Skinner skins no normals.
+  Status ReadNormals(float* out, std::size_t float_count);
 
-  // Output left on the device (no read-back): the native buffer holding
-  // positions (cl_mem as void*, CUdeviceptr as uintptr_t, or GL buffer name),
-  // `output_stride_bytes()` per vertex (12: float3, 16: float4 with w = 1), in
-  // the mesh's vertex order, instance after instance.
+  // Output left on the device (no read-back): the native buffer holding the
+  // positions of the last Skin(): a cl_mem (OpenCL), a CUdeviceptr
+  // (CUDA, as reinterpret_cast<void*>(uintptr_t)) or a GL buffer name (GL,
+  // likewise), `output_stride_bytes()` per vertex (12: float3, 16: float4
+  // with w = 1), in the mesh's vertex order, instance after instance. Owned by
+  // the Skinner; valid while it lives. Synchronise before reading it on
+  // another queue / stream (OpenCL: the Device's queue is in-order; GL:
+  // glMemoryBarrier is issued after each Skin()).
   void* device_positions() const;
   std::size_t output_stride_bytes() const;
 
   // OpenCL-OpenGL interop (cl_khr_gl_sharing, as in the paper): skin straight
   // into GL buffer object `gl_buffer` (clCreateFromGLBuffer once per buffer,
-  // then acquire, skin, release each call). The buffer must hold
-  // instances() * vertex_count() * output_stride_bytes() bytes.
-  // kUnavailable when the Device has no GL sharing.
+  // then acquire, skin, release each call). The buffer must hold at least
+  // instances() * vertex_count() * output_stride_bytes() bytes
+  // (kInvalidArgument otherwise); the GL context the Device shares must be
+  // current. kUnavailable when the Device has no GL sharing; kInvalidState
+  // before the first SetPalette. Read* still reads the Skinner's own output
+  // (of the last Skin()).
   Status SkinIntoGlBuffer(unsigned int gl_buffer);
 
   struct Impl;

@@ -1,0 +1,232 @@
+// The public Device (skintune/skintune.h): discovery, opening, and adopting
+// handles the caller already has.
+#include "runtime/device.h"
+
+#include <algorithm>
+#include <cctype>
+#include <functional>
+
+#include "runtime/api_errors.h"
+#include "runtime/cuda_api.h"
+#include "runtime/device_identity.h"
+#include "runtime/gl_context.h"
+#include "runtime/selection.h"
+#include "runtime/winners_db.h"
+
+namespace skintune {
+
+namespace {
+
+// A device of Device::List() and how to open it.
+struct Listed {
+  DeviceInfo info;
+  std::function<void(DeviceState&)> open;  // sets the runner and limits; throws Error
+};
+
+DeviceInfo CudaInfo(const CudaDeviceInfo& d) {
+  DeviceInfo i;
+  i.backend = Backend::kCuda;
+  i.platform = "CUDA";
+  i.vendor = "NVIDIA";
+  i.name = d.name;
+  i.driver_version = CudaDriverVersionText(d.driver_version);
+  i.type = "gpu";
+  i.id = JoinDeviceId({"cuda", i.platform, i.name, i.driver_version});
+  return i;
+}
+
+DeviceInfo GlInfo(const GlContextInfo& c) {
+  DeviceInfo i;
+  i.backend = Backend::kGl;
+  i.platform = c.egl_platform;
+  i.vendor = c.vendor;
+  i.name = c.renderer;
+  i.driver_version = c.version;  // GL_VERSION names the driver: "4.5 (Core Profile) Mesa 22.3.6"
+  i.type = GlDeviceType(c.renderer);
+  i.id = JoinDeviceId({"gl", i.platform, i.name, i.driver_version});
+  return i;
+}
+
+// Every device, or only those of `only` (the others are not even looked for).
+std::vector<Listed> Discover(const Backend* only = nullptr) {
+  auto wanted = [&](Backend b) { return !only || *only == b; };
+  std::vector<Listed> out;
+  for (const OpenClDeviceInfo& d : wanted(Backend::kOpenCl) ? EnumerateOpenCl().devices : std::vector<OpenClDeviceInfo>{}) {
+    out.push_back({PublicInfo(d), [d](DeviceState& s) {
+                     s.opencl = std::make_unique<OpenClRunner>(d.platform_index, d.device_index);
+                     s.limits = LimitsOf(d);
+                   }});
+  }
+  if (wanted(Backend::kCuda) && Probe().CanRun()) {
+    for (int c = 0; c < Probe().device_count; ++c) {
+      try {
+        const CudaDeviceInfo d = QueryCudaDevice(c);
+        out.push_back({CudaInfo(d), [c](DeviceState& s) {
+                         s.cuda = std::make_unique<CudaRunner>(c);
+                         s.limits = s.cuda->limits();
+                       }});
+      } catch (const Error&) {
+        // A device the driver cannot describe is not offered.
+      }
+    }
+  }
+  if (wanted(Backend::kGl)) {
+    CurrentGlRestorer keep_callers_context;
+    GlContext context;
+    if (context.ok()) {
+      out.push_back({GlInfo(context.info()), [](DeviceState& s) {
+                       s.gl = std::make_unique<GlRunner>();
+                       s.limits = LimitsOf(s.gl->info());
+                     }});
+    }
+  }
+  return out;
+}
+
+// OpenBest's order: GPUs first (CUDA, then OpenCL, then GL), then OpenCL CPUs,
+// then other OpenCL devices, then GL on a CPU.
+int Preference(const DeviceInfo& d) {
+  const bool gpu = d.type.find("gpu") != std::string::npos;
+  switch (d.backend) {
+    case Backend::kCuda: return 0;
+    case Backend::kOpenCl: return gpu ? 1 : d.type.find("cpu") != std::string::npos ? 3 : 4;
+    case Backend::kGl: return gpu ? 2 : 5;
+  }
+  return 6;
+}
+
+std::string Lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+Device Opened(const Listed& listed, const DeviceOptions& options) {
+  auto state = std::make_shared<DeviceState>(options);
+  state->info = listed.info;
+  state->langs = LanguagesOf(listed.info.backend);
+  listed.open(*state);
+  if (state->opencl) state->opencl->UseProgramCache(&state->cache, state->info.id);
+  return DeviceAccess::Make(std::move(state));
+}
+
+std::string Names(const std::vector<Listed>& devices) {
+  std::string out;
+  for (const Listed& d : devices) out += (out.empty() ? "" : ", ") + d.info.id;
+  return out.empty() ? "none found" : out;
+}
+
+}  // namespace
+
+DeviceInfo PublicInfo(const OpenClDeviceInfo& d) {
+  DeviceInfo i;
+  i.backend = Backend::kOpenCl;
+  i.platform = d.platform_name;
+  i.vendor = d.vendor;
+  i.name = d.name;
+  i.driver_version = d.driver_version;
+  i.type = d.type;
+  i.id = JoinDeviceId({"opencl", i.platform, i.name, i.driver_version});
+  return i;
+}
+
+Device::Device() = default;
+Device::~Device() = default;
+Device::Device(Device&&) noexcept = default;
+Device& Device::operator=(Device&&) noexcept = default;
+
+Device DeviceAccess::Make(std::shared_ptr<DeviceState> state) {
+  Device device;
+  device.impl_ = std::make_unique<Device::Impl>();
+  device.impl_->state = std::move(state);
+  return device;
+}
+
+const std::shared_ptr<DeviceState>* DeviceAccess::State(const Device& device) {
+  return device.impl_ ? &device.impl_->state : nullptr;
+}
+
+const DeviceInfo& Device::info() const {
+  static const DeviceInfo none;
+  return impl_ ? impl_->state->info : none;
+}
+
+ProgramCacheStats Device::cache_stats() const {
+  if (!impl_) return {};
+  const ProgramCacheCounters& c = impl_->state->cache.counters();
+  return {c.builds, c.disk_hits, c.memory_hits};
+}
+
+bool Device::has_gl_sharing() const { return impl_ && impl_->state->gl_sharing; }
+
+std::vector<DeviceInfo> Device::List() {
+  std::vector<DeviceInfo> out;
+  try {
+    for (const Listed& d : Discover()) out.push_back(d.info);
+  } catch (...) {
+    // Discovery reports absent backends by leaving them out; it never fails.
+  }
+  return out;
+}
+
+Result<Device> Device::OpenBest(const DeviceOptions& options) {
+  return GuardedResult<Device>(ErrorCode::kDeviceError, [&] {
+    std::vector<Listed> devices = Discover();
+    if (devices.empty())
+      FailWith(ErrorCode::kNotFound, "Device::OpenBest: no OpenCL, CUDA or GL device on this machine");
+    std::stable_sort(devices.begin(), devices.end(),
+                     [](const Listed& a, const Listed& b) { return Preference(a.info) < Preference(b.info); });
+    std::string failures;
+    for (const Listed& d : devices) {
+      try {
+        return Opened(d, options);
+      } catch (const Error& e) {
+        failures += std::string(failures.empty() ? "" : "; ") + d.info.id + ": " + e.what();
+      }
+    }
+    FailWith(ErrorCode::kDeviceError, "Device::OpenBest: no device could be opened: " + failures);
+  });
+}
+
+Result<Device> Device::Open(const std::string& pattern, const Backend* backend, const DeviceOptions& options) {
+  return GuardedResult<Device>(ErrorCode::kDeviceError, [&] {
+    const std::vector<Listed> devices = Discover(backend);
+    const std::string wanted = Lower(pattern);
+    for (const Listed& d : devices) {
+      if (backend && d.info.backend != *backend) continue;
+      const DeviceInfo& i = d.info;
+      for (const std::string& field : {i.id, i.name, i.vendor, i.platform}) {
+        if (Lower(field).find(wanted) != std::string::npos) return Opened(d, options);
+      }
+    }
+    FailWith(ErrorCode::kNotFound, "Device::Open: no " + (backend ? std::string(BackendName(*backend)) + " " : "") +
+                                       "device matches '" + pattern + "' (devices: " + Names(devices) + ")");
+  });
+}
+
+Result<Device> Device::FromOpenCl(void* cl_device, void* cl_context, void* cl_queue, const DeviceOptions& options) {
+  return GuardedResult<Device>(ErrorCode::kInvalidArgument, [&] {
+    auto state = std::make_shared<DeviceState>(options);
+    const OpenClDeviceInfo described = DescribeOpenClDevice(cl_device);
+    state->opencl = std::make_unique<OpenClRunner>(cl_device, cl_context, cl_queue);
+    state->info = PublicInfo(described);
+    state->limits = LimitsOf(described);
+    state->langs = LanguagesOf(Backend::kOpenCl);
+    state->gl_sharing = OpenClContextSharesGl(cl_context);
+    state->opencl->UseProgramCache(&state->cache, state->info.id);
+    return DeviceAccess::Make(std::move(state));
+  });
+}
+
+}  // namespace skintune
+
+namespace skintune {
+
+Result<Device> Device::FromCuda(void*, void*, const DeviceOptions&) {
+  return Status(ErrorCode::kUnavailable, "Device::FromCuda: not implemented yet");
+}
+
+Result<Device> Device::FromCurrentGl(const DeviceOptions&) {
+  return Status(ErrorCode::kUnavailable, "Device::FromCurrentGl: not implemented yet");
+}
+
+}  // namespace skintune

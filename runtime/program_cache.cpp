@@ -1,0 +1,107 @@
+#include "runtime/program_cache.h"
+
+#include <unistd.h>
+
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "generator/emit.h"
+
+namespace skintune {
+
+namespace {
+
+constexpr const char* kMagic = "skintune-program-cache 1";
+
+std::string Escaped(const std::string& key) {
+  std::string out;
+  for (char c : key) {
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+std::string PayloadHash(const std::vector<std::uint8_t>& payload) {
+  return SourceHash(std::string(payload.begin(), payload.end()));
+}
+
+std::string Env(const char* name) {
+  const char* value = std::getenv(name);
+  return value ? value : "";
+}
+
+}  // namespace
+
+std::string ProgramKey(const std::string& backend, const std::string& device_id, const std::string& source_hash,
+                       const std::string& options) {
+  return "backend " + backend + "\ndevice " + device_id + "\nsource " + source_hash + "\noptions " + options;
+}
+
+ProgramCache::ProgramCache(const std::string& dir) : dir_(dir.empty() ? DefaultDir() : dir == "-" ? "" : dir) {}
+
+std::string ProgramCache::DefaultDir() {
+  if (const std::string dir = Env("SKINTUNE_CACHE_DIR"); !dir.empty()) return dir;
+  if (const std::string xdg = Env("XDG_CACHE_HOME"); !xdg.empty()) return xdg + "/skintune";
+  if (const std::string home = Env("HOME"); !home.empty()) return home + "/.cache/skintune";
+  return "";
+}
+
+std::string ProgramCache::PathOf(const std::string& backend, const std::string& key) const {
+  return dir_ + "/" + backend + "-" + SourceHash(key) + ".bin";
+}
+
+std::optional<std::vector<std::uint8_t>> ProgramCache::Load(const std::string& backend, const std::string& key) const {
+  if (!enabled()) return std::nullopt;
+  std::ifstream in(PathOf(backend, key), std::ios::binary);
+  if (!in) return std::nullopt;
+  std::string magic, stored_key, sizes;
+  if (!std::getline(in, magic) || magic != kMagic) return std::nullopt;
+  if (!std::getline(in, stored_key) || stored_key != Escaped(key)) return std::nullopt;
+  if (!std::getline(in, sizes)) return std::nullopt;
+  std::istringstream fields(sizes);
+  std::size_t size = 0;
+  std::string hash;
+  if (!(fields >> size >> hash) || size == 0 || size > (std::size_t{1} << 30)) return std::nullopt;
+  std::vector<std::uint8_t> payload(size);
+  if (!in.read(reinterpret_cast<char*>(payload.data()), static_cast<std::streamsize>(size))) return std::nullopt;
+  if (in.peek() != std::char_traits<char>::eof()) return std::nullopt;  // trailing bytes
+  if (PayloadHash(payload) != hash) return std::nullopt;
+  return payload;
+}
+
+void ProgramCache::Store(const std::string& backend, const std::string& key,
+                         const std::vector<std::uint8_t>& payload) const {
+  if (!enabled() || payload.empty()) return;
+  static std::atomic<unsigned> counter{0};
+  std::error_code error;
+  std::filesystem::create_directories(dir_, error);
+  const std::string path = PathOf(backend, key);
+  const std::string temporary =
+      path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter.fetch_add(1));
+  {
+    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+    if (!out) return;
+    out << kMagic << '\n' << Escaped(key) << '\n' << payload.size() << ' ' << PayloadHash(payload) << '\n';
+    out.write(reinterpret_cast<const char*>(payload.data()), static_cast<std::streamsize>(payload.size()));
+    out.flush();
+    if (!out) {
+      out.close();
+      std::filesystem::remove(temporary, error);
+      return;
+    }
+  }
+  std::filesystem::rename(temporary, path, error);
+  if (error) std::filesystem::remove(temporary, error);
+}
+
+}  // namespace skintune

@@ -1,0 +1,274 @@
+// The public Skinner (skintune/skintune.h): what is the same on every backend.
+#include "runtime/skinner.h"
+
+#include <algorithm>
+#include <cstring>
+
+#include <glm/glm.hpp>
+
+#include "generator/constraints.h"
+#include "reference/mesh.h"
+#include "runtime/api_errors.h"
+#include "runtime/selection.h"
+#include "runtime/winners_db.h"
+
+namespace skintune {
+
+namespace {
+
+constexpr std::size_t kMaxVertices = std::size_t{1} << 31;  // launches address vertices with 32-bit counts
+constexpr int kMaxJoints = 65536;                          // SkinnedMesh stores joint indices in 16 bits
+
+[[noreturn]] void BadMesh(const std::string& message) {
+  FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: MeshView: " + message);
+}
+
+// The MeshView as a validated SkinnedMesh (normals only when wanted).
+SkinnedMesh ToSkinnedMesh(const MeshView& view, bool normals) {
+  if (view.vertex_count == 0) BadMesh("vertex_count is 0");
+  if (view.vertex_count > kMaxVertices)
+    BadMesh("vertex_count " + std::to_string(view.vertex_count) + " above " + std::to_string(kMaxVertices));
+  if (view.influences < 1 || view.influences > kMaxInfluences)
+    BadMesh("influences " + std::to_string(view.influences) + " outside 1..8");
+  if (view.joint_count < 1 || view.joint_count > kMaxJoints)
+    BadMesh("joint_count " + std::to_string(view.joint_count) + " outside 1..65536");
+  if (!view.positions) BadMesh("positions is null");
+  if (!view.joints) BadMesh("joints is null");
+  if (!view.weights) BadMesh("weights is null");
+  if (normals && !view.normals)
+    FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: SkinnerOptions::normals is set but MeshView::normals is null");
+
+  SkinnedMesh mesh;
+  mesh.name = "MeshView";
+  mesh.influences = view.influences;
+  mesh.joint_count = view.joint_count;
+  const std::size_t n = view.vertex_count;
+  const auto b = static_cast<std::size_t>(view.influences);
+  mesh.positions.resize(n);
+  std::memcpy(mesh.positions.data(), view.positions, n * sizeof(glm::vec3));
+  if (normals) {
+    mesh.normals.resize(n);
+    std::memcpy(mesh.normals.data(), view.normals, n * sizeof(glm::vec3));
+  }
+  mesh.joints.resize(n * b);
+  for (std::size_t i = 0; i < n * b; ++i) {
+    const std::uint32_t joint = view.joints[i];
+    if (joint >= static_cast<std::uint32_t>(view.joint_count))
+      BadMesh("vertex " + std::to_string(i / b) + " slot " + std::to_string(i % b) + ": joint " +
+              std::to_string(joint) + " out of range (" + std::to_string(view.joint_count) + " joints)");
+    mesh.joints[i] = static_cast<std::uint16_t>(joint);
+  }
+  mesh.weights.assign(view.weights, view.weights + n * b);
+  const ValidationReport report = Validate(mesh, ValidateOptions{kWeightSumTolerance, 1});
+  if (!report.ok()) BadMesh(report.Summary());
+  return mesh;
+}
+
+int LargestInfluenceCount(const SkinnedMesh& mesh) {
+  int largest = 1;
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) largest = std::max(largest, mesh.InfluencesOf(v));
+  return largest;
+}
+
+std::string Joined(const std::vector<Violation>& violations) {
+  std::string out;
+  for (const Violation& v : violations) out += (out.empty() ? "" : "; ") + std::string(Name(v.constraint)) + ": " + v.message;
+  return out;
+}
+
+Chosen Forced(const std::string& key, const DeviceState& device, const ProblemShape& shape) {
+  Variant v;
+  try {
+    v = ParseVariantKey(key);
+  } catch (const Error& e) {
+    FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::Create: SkinnerOptions::variant: ") + e.what());
+  }
+  v.normals = shape.has_normals;
+  const std::string where = "Skinner::Create: SkinnerOptions::variant " + v.Key() + ": ";
+  if (std::find(device.langs.begin(), device.langs.end(), v.lang) == device.langs.end())
+    FailWith(ErrorCode::kInvalidArgument,
+             where + "language " + Name(v.lang) + " does not run on " + BackendName(device.info.backend) + " devices");
+  if (v.mixed == MixedCounts::kBucketed)
+    FailWith(ErrorCode::kInvalidArgument,
+             where + "bucketed variants reorder the vertices, and a Skinner keeps the mesh's order on the device; "
+                     "use the padded twin");
+  const std::vector<Violation> violations = CheckVariant(v, device.limits, shape);
+  if (!violations.empty()) FailWith(ErrorCode::kInvalidArgument, where + Joined(violations));
+  Chosen chosen;
+  chosen.variant = v;
+  chosen.selection.variant = v.Key();
+  chosen.selection.level = MatchLevel::kForced;
+  chosen.selection.entry = "SkinnerOptions::variant";
+  chosen.selection.reason = "forced by SkinnerOptions::variant";
+  return chosen;
+}
+
+Skinner::Impl& Usable(const std::unique_ptr<Skinner::Impl>& impl, const char* call) {
+  if (!impl) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": the Skinner was used after move");
+  impl->backend->CheckUsable();
+  return *impl;
+}
+
+void CheckCount(const char* call, std::size_t given, std::size_t expected, const std::string& what) {
+  if (given != expected)
+    FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::") + call + ": float_count is " + std::to_string(given) +
+                                              ", expected " + what + " = " + std::to_string(expected));
+}
+
+}  // namespace
+
+void SkinnerBackend::SkinIntoGlBuffer(unsigned int) {
+  FailWith(ErrorCode::kUnavailable, "Skinner::SkinIntoGlBuffer: only OpenCL devices with GL sharing write into GL buffers");
+}
+
+ErrorCode CodeOfRunnerError(const std::string& message) {
+  const std::size_t space = message.find(' ');
+  return message.compare(space + 1, 6, "build:") == 0 ? ErrorCode::kBuildFailed : ErrorCode::kDeviceError;
+}
+
+Skinner::Skinner() = default;
+Skinner::~Skinner() = default;
+Skinner::Skinner(Skinner&&) noexcept = default;
+Skinner& Skinner::operator=(Skinner&&) noexcept = default;
+
+Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshView& mesh_view,
+                                const SkinnerOptions& options) {
+  return GuardedResult<Skinner>(ErrorCode::kInvalidArgument, [&] {
+    const std::shared_ptr<DeviceState>* state_ptr = DeviceAccess::State(device);
+    if (!state_ptr) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device was used after move");
+    if (!db.impl_) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the WinnersDb was used after move");
+    if (options.instances < 1)
+      FailWith(ErrorCode::kInvalidArgument,
+               "Skinner::Create: SkinnerOptions::instances is " + std::to_string(options.instances) + ", at least 1");
+    if (options.instances > 1)
+      FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: SkinnerOptions::instances > 1 is not supported yet");
+    DeviceState& state = **state_ptr;
+
+    const SkinnedMesh mesh = ToSkinnedMesh(mesh_view, options.normals);
+    const ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals};
+    Chosen chosen;
+    if (!options.variant.empty()) {
+      chosen = Forced(options.variant, state, shape);
+    } else {
+      SelectionRequest request;
+      request.device = state.info;
+      request.langs = state.langs;
+      request.influences = shape.max_influences;
+      request.vertex_count = mesh.vertex_count();
+      request.normals = options.normals;
+      request.limits = state.limits;
+      request.check = [&](const Variant& v) { return Joined(CheckVariant(v, state.limits, shape)); };
+      chosen = Select(db.impl_->entries, request);
+      if (chosen.variant.mixed == MixedCounts::kBucketed) {
+        // Bucketed kernels write vertices grouped by influence count; the padded twin keeps the mesh's order.
+        chosen.variant.mixed = MixedCounts::kPadded;
+        chosen.selection.variant = chosen.variant.Key();
+        chosen.selection.reason += "; the bucketed winner runs padded (mesh order kept on the device)";
+      }
+    }
+
+    PackedMesh packed;
+    std::vector<KernelSource> kernels;
+    try {
+      packed = Pack(mesh, chosen.variant);
+      for (const Launch& launch : packed.launches)
+        kernels.push_back(Emit(chosen.variant, launch.influences, mesh.joint_count));
+    } catch (const Error& e) {
+      FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: " + chosen.variant.Key() + ": " + e.what());
+    }
+
+    Skinner skinner;
+    skinner.impl_ = std::make_unique<Impl>();
+    Impl& im = *skinner.impl_;
+    im.device = *state_ptr;
+    im.selection = chosen.selection;
+    im.variant = chosen.variant;
+    im.vertex_count = mesh.vertex_count();
+    im.joint_count = mesh.joint_count;
+    im.instances = options.instances;
+    im.output_stride = packed.output_stride_bytes;
+    im.order = packed.order;
+    switch (state.info.backend) {
+      case Backend::kOpenCl: im.backend = MakeOpenClSkinner(state, packed, kernels); break;
+      case Backend::kCuda:
+      case Backend::kGl:
+        FailWith(ErrorCode::kUnavailable, std::string("Skinner::Create: ") + BackendName(state.info.backend) +
+                                              " skinning is not implemented yet");
+    }
+    return skinner;
+  });
+}
+
+const Selection& Skinner::selection() const {
+  static const Selection none;
+  return impl_ ? impl_->selection : none;
+}
+std::size_t Skinner::vertex_count() const { return impl_ ? impl_->vertex_count : 0; }
+int Skinner::instances() const { return impl_ ? impl_->instances : 0; }
+int Skinner::joint_count() const { return impl_ ? impl_->joint_count : 0; }
+std::size_t Skinner::output_stride_bytes() const { return impl_ ? impl_->output_stride : 0; }
+void* Skinner::device_positions() const { return impl_ ? impl_->backend->DevicePositions() : nullptr; }
+
+Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
+  return Guarded(ErrorCode::kDeviceError, [&] {
+    Impl& im = Usable(impl_, "SetPalette");
+    const std::size_t joints = static_cast<std::size_t>(im.instances) * static_cast<std::size_t>(im.joint_count);
+    CheckCount("SetPalette", float_count, joints * 16,
+               std::to_string(im.instances) + " instances x " + std::to_string(im.joint_count) + " joints x 16");
+    if (!matrices) FailWith(ErrorCode::kInvalidArgument, "Skinner::SetPalette: matrices is null");
+    std::vector<glm::mat4> palette(joints);
+    for (std::size_t j = 0; j < joints; ++j)
+      for (int c = 0; c < 4; ++c)  // column-major, as glm stores it
+        palette[j][c] = glm::vec4(matrices[j * 16 + c * 4], matrices[j * 16 + c * 4 + 1], matrices[j * 16 + c * 4 + 2],
+                                  matrices[j * 16 + c * 4 + 3]);
+    im.backend->WritePalette(PackPalette(palette, im.variant));
+    im.palette_set = true;
+  });
+}
+
+Status Skinner::Skin() {
+  return Guarded(ErrorCode::kDeviceError, [&] {
+    Impl& im = Usable(impl_, "Skin");
+    if (!im.palette_set) FailWith(ErrorCode::kInvalidState, "Skinner::Skin: no palette yet (call SetPalette first)");
+    im.backend->Skin();
+    im.skinned = true;
+  });
+}
+
+namespace {
+
+Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out, std::size_t float_count) {
+  const char* call = normals ? "ReadNormals" : "ReadPositions";
+  return Guarded(ErrorCode::kDeviceError, [&] {
+    Skinner::Impl& im = Usable(impl, call);
+    if (normals && !im.variant.normals)
+      FailWith(ErrorCode::kInvalidState,
+               "Skinner::ReadNormals: this Skinner skins no normals (SkinnerOptions::normals was not set)");
+    const std::size_t vertices = static_cast<std::size_t>(im.instances) * im.vertex_count;
+    CheckCount(call, float_count, vertices * 3,
+               std::to_string(im.instances) + " instances x " + std::to_string(im.vertex_count) + " vertices x 3");
+    if (!out) FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::") + call + ": out is null");
+    if (!im.skinned) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": nothing skinned yet (call Skin first)");
+    im.scratch.resize(vertices * im.output_stride);
+    im.backend->Read(normals, im.scratch);
+    for (std::size_t p = 0; p < im.vertex_count; ++p)
+      std::memcpy(out + static_cast<std::size_t>(im.order[p]) * 3, im.scratch.data() + p * im.output_stride,
+                  3 * sizeof(float));
+  });
+}
+
+}  // namespace
+
+Status Skinner::ReadPositions(float* out, std::size_t float_count) { return Read(impl_, false, out, float_count); }
+Status Skinner::ReadNormals(float* out, std::size_t float_count) { return Read(impl_, true, out, float_count); }
+
+Status Skinner::SkinIntoGlBuffer(unsigned int gl_buffer) {
+  return Guarded(ErrorCode::kDeviceError, [&] {
+    Impl& im = Usable(impl_, "SkinIntoGlBuffer");
+    if (!im.palette_set)
+      FailWith(ErrorCode::kInvalidState, "Skinner::SkinIntoGlBuffer: no palette yet (call SetPalette first)");
+    im.backend->SkinIntoGlBuffer(gl_buffer);
+  });
+}
+
+}  // namespace skintune

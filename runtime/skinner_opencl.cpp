@@ -1,0 +1,62 @@
+// The OpenCL Skinner: one prepared input set of the device's OpenClRunner
+// (runtime/opencl_runner.h), written, launched and read per frame.
+#include <memory>
+
+#include "runtime/api_errors.h"
+#include "runtime/opencl_runner.h"
+#include "runtime/skinner.h"
+
+namespace skintune {
+
+namespace {
+
+class OpenClSkinner final : public SkinnerBackend {
+ public:
+  OpenClSkinner(OpenClRunner& runner, OpenClPrepared prepared, bool normals)
+      : runner_(runner), prepared_(std::move(prepared)), normals_(normals) {}
+
+  void WritePalette(std::span<const std::uint8_t> palette) override {
+    Run([&] { runner_.WritePalette(prepared_, 0, palette); });
+  }
+  void Skin() override {
+    Run([&] { runner_.LaunchSet(prepared_, 0); });
+  }
+  void Read(bool normals, std::span<std::uint8_t> out) override {
+    Run([&] { runner_.ReadOutput(prepared_, 0, normals && normals_, out); });
+  }
+  void* DevicePositions() const override { return runner_.OutputBuffer(prepared_, 0, false); }
+
+ private:
+  template <typename F>
+  void Run(F&& call) {
+    try {
+      call();
+    } catch (const ApiError&) {
+      throw;
+    } catch (const Error& e) {
+      FailWith(CodeOfRunnerError(e.what()), e.what());
+    }
+  }
+
+  OpenClRunner& runner_;
+  OpenClPrepared prepared_;
+  bool normals_;
+};
+
+}  // namespace
+
+std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const PackedMesh& mesh,
+                                                  const std::vector<KernelSource>& kernels) {
+  if (!device.opencl) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no OpenCL queue");
+  try {
+    const std::vector<std::vector<std::uint8_t>> palettes{mesh.palette};
+    OpenClPrepared prepared = device.opencl->Prepare(mesh, kernels, palettes);
+    return std::make_unique<OpenClSkinner>(*device.opencl, std::move(prepared), mesh.variant.normals);
+  } catch (const ApiError&) {
+    throw;
+  } catch (const Error& e) {
+    FailWith(CodeOfRunnerError(e.what()), std::string("Skinner::Create: ") + e.what());
+  }
+}
+
+}  // namespace skintune

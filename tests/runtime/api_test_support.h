@@ -1,0 +1,106 @@
+// What the public-API tests share (skinner_opencl_test, skinner_gl_test,
+// skinner_cuda_test, device_test): a MeshView over a SkinnedMesh, a fresh
+// program-cache directory per test, and skinning through the API compared
+// with the float64 gold.
+#pragma once
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "generator/packer.h"
+#include "reference/skinning.h"
+#include "skintune/skintune.h"
+
+namespace skintune::testing {
+
+// A MeshView of `mesh` (joint indices widened to 32 bits, kept here).
+struct View {
+  explicit View(const SkinnedMesh& m) : joints(m.joints.begin(), m.joints.end()) {
+    mesh.vertex_count = m.vertex_count();
+    mesh.influences = m.influences;
+    mesh.joint_count = m.joint_count;
+    mesh.positions = &m.positions.front().x;
+    mesh.normals = m.has_normals() ? &m.normals.front().x : nullptr;
+    mesh.joints = joints.data();
+    mesh.weights = m.weights.data();
+  }
+  std::vector<std::uint32_t> joints;
+  MeshView mesh;
+};
+
+// A new empty directory under the system's temporary directory, removed at the end.
+class TempDir {
+ public:
+  TempDir() {
+    static std::atomic<int> counter{0};
+    path_ = std::filesystem::temp_directory_path() /
+            ("skintune-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
+    std::filesystem::remove_all(path_);
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path_, ignored);
+  }
+  std::string str() const { return path_.string(); }
+  std::vector<std::filesystem::path> Files() const {
+    std::vector<std::filesystem::path> out;
+    for (const auto& entry : std::filesystem::directory_iterator(path_)) out.push_back(entry.path());
+    return out;
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+inline DeviceOptions CacheIn(const TempDir& dir) {
+  DeviceOptions options;
+  options.program_cache_dir = dir.str();
+  return options;
+}
+
+inline std::vector<float> Floats(std::span<const glm::mat4> palette) {
+  std::vector<float> out;
+  for (const glm::mat4& m : palette)
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r) out.push_back(m[c][r]);
+  return out;
+}
+
+inline std::vector<glm::vec3> Vec3s(const std::vector<float>& floats) {
+  std::vector<glm::vec3> out(floats.size() / 3);
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = {floats[3 * i], floats[3 * i + 1], floats[3 * i + 2]};
+  return out;
+}
+
+// Skins `mesh` with `palette` through `skinner` (SetPalette, Skin, Read*) and
+// expects the gold of the mesh as the chosen variant quantises it, within 1e-5.
+inline void ExpectSkinsLikeTheGold(Skinner& skinner, const SkinnedMesh& mesh, std::span<const glm::mat4> palette) {
+  const Variant variant = ParseVariantKey(skinner.selection().variant);
+  const std::vector<float> matrices = Floats(palette);
+  ASSERT_TRUE(skinner.SetPalette(matrices.data(), matrices.size()).ok());
+  const Status skinned = skinner.Skin();
+  ASSERT_TRUE(skinned.ok()) << skinned.message();
+  const GoldResult gold = SkinGold(QuantisedMesh(mesh, variant), palette, variant.normals);
+  std::vector<float> positions(mesh.vertex_count() * 3);
+  const Status read = skinner.ReadPositions(positions.data(), positions.size());
+  ASSERT_TRUE(read.ok()) << read.message();
+  const GoldComparison p = CompareToGold(gold.positions, Vec3s(positions));
+  EXPECT_EQ(p.non_finite, 0u) << variant.Key() << ": first at vertex " << p.worst_vertex;
+  EXPECT_LT(p.max_relative, 1e-5) << variant.Key() << ": positions, worst vertex " << p.worst_vertex;
+  if (variant.normals) {
+    std::vector<float> normals(mesh.vertex_count() * 3);
+    ASSERT_TRUE(skinner.ReadNormals(normals.data(), normals.size()).ok());
+    const GoldComparison n = CompareToGold(gold.normals, Vec3s(normals));
+    EXPECT_EQ(n.non_finite, 0u) << variant.Key();
+    EXPECT_LT(n.max_relative, 1e-5) << variant.Key() << ": normals, worst vertex " << n.worst_vertex;
+  }
+}
+
+}  // namespace skintune::testing

@@ -1,0 +1,294 @@
+// The public API on OpenCL (PoCL here): Device, Skinner, the program cache on
+// disk and the misuse errors. Every result is compared with the float64 gold.
+// The device: the first OpenCL device, or the first whose id, name, vendor or
+// platform contains $SKINTUNE_TEST_OPENCL_DEVICE (then a missing device fails).
+#define CL_TARGET_OPENCL_VERSION 120
+#include <CL/cl.h>
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/gltf_import.h"
+#include "reference/synthetic.h"
+#include "runtime/winners_db.h"
+#include "skintune/skintune.h"
+#include "tests/runtime/api_test_support.h"
+
+namespace skintune {
+namespace {
+
+using testing::CacheIn;
+using testing::ExpectSkinsLikeTheGold;
+using testing::Floats;
+using testing::TempDir;
+using testing::View;
+
+constexpr Backend kOpenCl = Backend::kOpenCl;
+
+// The test device, or null with the reason.
+Result<Device> OpenTestDevice(const DeviceOptions& options) {
+  const char* pattern = std::getenv("SKINTUNE_TEST_OPENCL_DEVICE");
+  return Device::Open(pattern ? pattern : "", &kOpenCl, options);
+}
+
+#define OPEN_OR_SKIP(device, options)                                                    \
+  Result<Device> device = OpenTestDevice(options);                                       \
+  if (!device.ok()) {                                                                    \
+    if (std::getenv("SKINTUNE_TEST_OPENCL_DEVICE")) FAIL() << device.status().message(); \
+    GTEST_SKIP() << "no OpenCL device: " << device.status().message();                   \
+  }
+
+const SkinnedAsset& Cesium() {
+  static const SkinnedAsset asset = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf").asset;
+  return asset;
+}
+
+const SkinnedAsset& Synthetic(const std::string& key) {
+  static std::map<std::string, SkinnedAsset> cache;
+  auto found = cache.find(key);
+  if (found == cache.end()) found = cache.emplace(key, GenerateDataset(ParseDatasetKey(key))).first;
+  return found->second;
+}
+
+std::vector<glm::mat4> Animated(const SkinnedAsset& asset, double fraction = 0.37) {
+  const AnimationClip& clip = asset.animations.front();
+  return asset.PaletteAt(0, clip.start + (clip.end - clip.start) * fraction);
+}
+
+Skinner MustCreate(Device& device, const WinnersDb& db, const MeshView& mesh, const SkinnerOptions& options = {}) {
+  Result<Skinner> skinner = Skinner::Create(device, db, mesh, options);
+  EXPECT_TRUE(skinner.ok()) << skinner.status().message();
+  return skinner.ok() ? std::move(*skinner) : Skinner();
+}
+
+// ---------------------------------------------------------------- devices
+
+TEST(OpenClDevice, ListAndOpenAgreeOnTheDevicesIdentity) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  const DeviceInfo& info = device->info();
+  EXPECT_EQ(info.backend, Backend::kOpenCl);
+  EXPECT_EQ(info.id, "opencl:" + info.platform + "/" + info.name + "/" + info.driver_version);
+  EXPECT_FALSE(info.vendor.empty());
+  EXPECT_FALSE(info.type.empty());
+  bool listed = false;
+  for (const DeviceInfo& d : Device::List()) listed = listed || d.id == info.id;
+  EXPECT_TRUE(listed) << info.id << " not in Device::List()";
+  const Result<Device> best = Device::OpenBest(CacheIn(dir));
+  ASSERT_TRUE(best.ok()) << best.status().message();
+  EXPECT_FALSE(best->info().id.empty());
+}
+
+TEST(OpenClDevice, OpenOfAnUnknownDeviceIsNotFoundNamingThePattern) {
+  const Result<Device> device = Device::Open("no such device 7f3a", &kOpenCl);
+  ASSERT_FALSE(device.ok());
+  EXPECT_EQ(device.status().code(), ErrorCode::kNotFound);
+  EXPECT_NE(device.status().message().find("'no such device 7f3a'"), std::string::npos) << device.status().message();
+}
+
+TEST(OpenClDevice, FromOpenClAdoptsTheCallersContextAndQueue) {
+  cl_platform_id platform = nullptr;
+  cl_device_id cl_device = nullptr;
+  if (clGetPlatformIDs(1, &platform, nullptr) != CL_SUCCESS ||
+      clGetDeviceIDs(platform, CL_DEVICE_TYPE_ALL, 1, &cl_device, nullptr) != CL_SUCCESS)
+    GTEST_SKIP() << "no OpenCL device";
+  cl_int err = CL_SUCCESS;
+  cl_context context = clCreateContext(nullptr, 1, &cl_device, nullptr, nullptr, &err);
+  ASSERT_EQ(err, CL_SUCCESS);
+  cl_command_queue queue = clCreateCommandQueue(context, cl_device, 0, &err);
+  ASSERT_EQ(err, CL_SUCCESS);
+  TempDir dir;
+  {
+    Result<Device> device = Device::FromOpenCl(cl_device, context, queue, CacheIn(dir));
+    ASSERT_TRUE(device.ok()) << device.status().message();
+    EXPECT_FALSE(device->has_gl_sharing());
+    const SkinnedAsset& asset = Synthetic("700-b3-seed4-normals");
+    const View view(asset.mesh);
+    Skinner skinner = MustCreate(*device, WinnersDb::Empty(), view.mesh);
+    ExpectSkinsLikeTheGold(skinner, asset.mesh, Animated(asset));
+  }
+  // Retained and released: the caller's handles are still valid.
+  EXPECT_EQ(clReleaseCommandQueue(queue), CL_SUCCESS);
+  EXPECT_EQ(clReleaseContext(context), CL_SUCCESS);
+
+  const Result<Device> null_queue = Device::FromOpenCl(cl_device, context, nullptr);
+  ASSERT_FALSE(null_queue.ok());
+  EXPECT_EQ(null_queue.status().code(), ErrorCode::kInvalidArgument);
+  const Result<Device> null_device = Device::FromOpenCl(nullptr, context, queue);
+  EXPECT_EQ(null_device.status().code(), ErrorCode::kInvalidArgument);
+}
+
+// ---------------------------------------------------------------- skinning
+
+TEST(OpenClSkinner, SkinsCesiumManWithTheBuiltInDefaultLikeTheGold) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  const View view(Cesium().mesh);
+  SkinnerOptions options;
+  options.normals = true;
+  Skinner skinner = MustCreate(*device, WinnersDb::Empty(), view.mesh, options);
+  EXPECT_EQ(skinner.selection().level, MatchLevel::kGenericDefault);
+  EXPECT_EQ(skinner.vertex_count(), Cesium().mesh.vertex_count());
+  EXPECT_EQ(skinner.joint_count(), Cesium().mesh.joint_count);
+  EXPECT_EQ(skinner.instances(), 1);
+  EXPECT_EQ(skinner.output_stride_bytes(), 16u);
+  EXPECT_NE(skinner.device_positions(), nullptr);
+  ExpectSkinsLikeTheGold(skinner, Cesium().mesh, Animated(Cesium(), 0.2));
+  // Frame after frame, the same Skinner.
+  ExpectSkinsLikeTheGold(skinner, Cesium().mesh, Animated(Cesium(), 0.8));
+}
+
+TEST(OpenClSkinner, ForcedVariantsOfEveryLayoutAndFormatMatchTheGoldInMeshOrder) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  const std::vector<std::string> keys = {
+      "opencl.b4.padded.aos.float3.u8.unorm8.mat3x4.constant.point.v2c.wg64",
+      "opencl.b4.padded.soa-split.float4.u16.unorm16.mat3x4.local.matrix.v4s.wg128",
+      "opencl.b4.padded.soa.float3.i32.f32.mat4.image.matrix.v1c.wg32",
+      "opencl.b8.padded.aos.float4.u16.f32.mat4.global.point.v8c.wg256",
+  };
+  const SkinnedAsset& asset = Synthetic("3001-b4-random-seed5-normals");
+  const View view(asset.mesh);
+  for (const std::string& key : keys) {
+    for (bool normals : {false, true}) {
+      SCOPED_TRACE(key + (normals ? " with normals" : ""));
+      SkinnerOptions options;
+      options.variant = key;
+      options.normals = normals;
+      Skinner skinner = MustCreate(*device, WinnersDb::Empty(), view.mesh, options);
+      EXPECT_EQ(skinner.selection().level, MatchLevel::kForced);
+      EXPECT_STREQ(MatchLevelName(skinner.selection().level), "forced");
+      EXPECT_EQ(skinner.output_stride_bytes(), key.find("float3") != std::string::npos ? 12u : 16u);
+      ExpectSkinsLikeTheGold(skinner, asset.mesh, Animated(asset));
+    }
+  }
+}
+
+// A database whose entry for this very device is `key` (tuned on b4 at 25k vertices).
+WinnersDb DbFor(const DeviceInfo& device, const std::string& key) {
+  WinnersEntry e;
+  e.device_id = device.id;
+  e.backend = "opencl";
+  e.platform = device.platform;
+  e.vendor = device.vendor;
+  e.device_name = device.name;
+  e.driver_version = device.driver_version;
+  e.device_type = device.type;
+  e.variant = ParseVariantKey(key);
+  e.lang = e.variant.lang;
+  e.influences = e.variant.influences;
+  e.vertex_bucket = "25k";
+  e.dataset = "25k-b4";
+  e.median_ms = 0.5;
+  e.created = "2025-01-31T12:00:00Z";
+  e.source = "test";
+  const Result<WinnersDb> db = WinnersDb::Parse(WinnersDbJson({e}).dump(), "test-db.json");
+  EXPECT_TRUE(db.ok()) << db.status().message();
+  return db.ok() ? *db : WinnersDb::Empty();
+}
+
+TEST(OpenClSkinner, UsesThisDevicesDatabaseEntryAndRunsABucketedWinnerPadded) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  const View view(Cesium().mesh);
+  const WinnersDb db = DbFor(device->info(), "opencl.b4.padded.soa-split.float4.u16.unorm16.mat3x4.local.matrix.v2c.wg64");
+  Skinner skinner = MustCreate(*device, db, view.mesh);
+  EXPECT_EQ(skinner.selection().level, MatchLevel::kExactDevice);
+  EXPECT_EQ(skinner.selection().variant, "opencl.b4.padded.soa-split.float4.u16.unorm16.mat3x4.local.matrix.v2c.wg64.nonormals");
+  ExpectSkinsLikeTheGold(skinner, Cesium().mesh, Animated(Cesium()));
+
+  const WinnersDb bucketed = DbFor(device->info(), "opencl.b4.bucketed.aos.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64");
+  Skinner padded = MustCreate(*device, bucketed, view.mesh);
+  EXPECT_EQ(padded.selection().variant, "opencl.b4.padded.aos.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals");
+  EXPECT_NE(padded.selection().reason.find("runs padded"), std::string::npos) << padded.selection().reason;
+  ExpectSkinsLikeTheGold(padded, Cesium().mesh, Animated(Cesium()));
+}
+
+TEST(OpenClSkinner, SkipsADatabaseEntryThatCannotHoldTheMesh) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  // u8 indices cannot address 300 joints: the entry is skipped, the default runs.
+  const SkinnedAsset& asset = Synthetic("2000-b2-bones300-random-seed9");
+  const View view(asset.mesh);
+  const WinnersDb db = DbFor(device->info(), "opencl.b2.soa.u8.wg64");
+  Skinner skinner = MustCreate(*device, db, view.mesh);
+  EXPECT_EQ(skinner.selection().level, MatchLevel::kGenericDefault);
+  EXPECT_NE(skinner.selection().reason.find("index_range"), std::string::npos) << skinner.selection().reason;
+  ExpectSkinsLikeTheGold(skinner, asset.mesh, asset.PaletteAt(0, 0.5));
+}
+
+// ---------------------------------------------------------------- program cache
+
+TEST(OpenClProgramCache, SecondDeviceWithTheSameCacheDirectoryCompilesNothing) {
+  TempDir dir;
+  const SkinnedAsset& asset = Synthetic("1500-b2-seed3");
+  const View view(asset.mesh);
+  {
+    OPEN_OR_SKIP(first, CacheIn(dir));
+    Skinner a = MustCreate(*first, WinnersDb::Empty(), view.mesh);
+    EXPECT_EQ(first->cache_stats().builds, 1);
+    EXPECT_EQ(first->cache_stats().disk_hits, 0);
+    Skinner b = MustCreate(*first, WinnersDb::Empty(), view.mesh);  // same kernel, same Device
+    EXPECT_EQ(first->cache_stats().builds, 1);
+    EXPECT_EQ(first->cache_stats().memory_hits, 1);
+    EXPECT_EQ(dir.Files().size(), 1u);
+  }
+  OPEN_OR_SKIP(second, CacheIn(dir));
+  Skinner c = MustCreate(*second, WinnersDb::Empty(), view.mesh);
+  EXPECT_EQ(second->cache_stats().builds, 0);
+  EXPECT_EQ(second->cache_stats().disk_hits, 1);
+  ExpectSkinsLikeTheGold(c, asset.mesh, asset.PaletteAt(0, 0.25));
+}
+
+TEST(OpenClProgramCache, ACorruptCacheFileIsRebuiltNotAnError) {
+  TempDir dir;
+  const SkinnedAsset& asset = Synthetic("1500-b2-seed3");
+  const View view(asset.mesh);
+  {
+    OPEN_OR_SKIP(first, CacheIn(dir));
+    MustCreate(*first, WinnersDb::Empty(), view.mesh);
+  }
+  ASSERT_EQ(dir.Files().size(), 1u);
+  const std::filesystem::path file = dir.Files().front();
+  const auto size = std::filesystem::file_size(file);
+  for (const char* damage : {"flip", "truncate"}) {
+    SCOPED_TRACE(damage);
+    if (std::string(damage) == "flip") {
+      std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
+      f.seekp(static_cast<std::streamoff>(size - 7));
+      f.put('\x5a');
+    } else {
+      std::filesystem::resize_file(file, size / 2);
+    }
+    OPEN_OR_SKIP(device, CacheIn(dir));
+    Skinner skinner = MustCreate(*device, WinnersDb::Empty(), view.mesh);
+    EXPECT_EQ(device->cache_stats().builds, 1);
+    EXPECT_EQ(device->cache_stats().disk_hits, 0);
+    ExpectSkinsLikeTheGold(skinner, asset.mesh, asset.PaletteAt(0, 0.25));
+    OPEN_OR_SKIP(again, CacheIn(dir));  // rewritten: a hit again
+    MustCreate(*again, WinnersDb::Empty(), view.mesh);
+    EXPECT_EQ(again->cache_stats().disk_hits, 1);
+  }
+}
+
+TEST(OpenClProgramCache, DashMeansNoDiskCache) {
+  TempDir dir;
+  DeviceOptions options;
+  options.program_cache_dir = "-";
+  OPEN_OR_SKIP(device, options);
+  const View view(Synthetic("1500-b2-seed3").mesh);
+  MustCreate(*device, WinnersDb::Empty(), view.mesh);
+  OPEN_OR_SKIP(again, options);
+  MustCreate(*again, WinnersDb::Empty(), view.mesh);
+  EXPECT_EQ(again->cache_stats().builds, 1);
+  EXPECT_EQ(again->cache_stats().disk_hits, 0);
+}
+
+}  // namespace
+}  // namespace skintune
