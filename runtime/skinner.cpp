@@ -140,12 +140,15 @@ Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshV
     if (options.instances < 1)
       FailWith(ErrorCode::kInvalidArgument,
                "Skinner::Create: SkinnerOptions::instances is " + std::to_string(options.instances) + ", at least 1");
-    if (options.instances > 1)
-      FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: SkinnerOptions::instances > 1 is not supported yet");
     DeviceState& state = **state_ptr;
 
     const SkinnedMesh mesh = ToSkinnedMesh(mesh_view, options.normals);
-    const ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals};
+    const auto instances = static_cast<std::size_t>(options.instances);
+    if (instances * mesh.vertex_count() >= (std::size_t{1} << 32))
+      FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: " + std::to_string(instances) + " instances x " +
+                                                std::to_string(mesh.vertex_count()) +
+                                                " vertices exceed the kernels' 32-bit output indices");
+    const ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals, options.instances};
     Chosen chosen;
     if (!options.variant.empty()) {
       chosen = Forced(options.variant, state, shape);
@@ -171,8 +174,12 @@ Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshV
     std::vector<KernelSource> kernels;
     try {
       packed = Pack(mesh, chosen.variant);
+      // One instance: the plain kernel; K: the instanced one (docs/VARIANTS.md "Instancing").
+      EmitOptions emit;
+      emit.instanced = options.instances > 1;
+      emit.max_instances = emit.instanced ? options.instances : 0;
       for (const Launch& launch : packed.launches)
-        kernels.push_back(Emit(chosen.variant, launch.influences, mesh.joint_count));
+        kernels.push_back(Emit(chosen.variant, launch.influences, mesh.joint_count, emit));
     } catch (const Error& e) {
       FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: " + chosen.variant.Key() + ": " + e.what());
     }
@@ -189,7 +196,7 @@ Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshV
     im.output_stride = packed.output_stride_bytes;
     im.order = packed.order;
     switch (state.info.backend) {
-      case Backend::kOpenCl: im.backend = MakeOpenClSkinner(state, packed, kernels); break;
+      case Backend::kOpenCl: im.backend = MakeOpenClSkinner(state, packed, kernels, options.instances); break;
       case Backend::kCuda:
       case Backend::kGl:
         FailWith(ErrorCode::kUnavailable, std::string("Skinner::Create: ") + BackendName(state.info.backend) +
@@ -251,9 +258,12 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
     if (!im.skinned) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": nothing skinned yet (call Skin first)");
     im.scratch.resize(vertices * im.output_stride);
     im.backend->Read(normals, im.scratch);
-    for (std::size_t p = 0; p < im.vertex_count; ++p)
-      std::memcpy(out + static_cast<std::size_t>(im.order[p]) * 3, im.scratch.data() + p * im.output_stride,
-                  3 * sizeof(float));
+    for (std::size_t k = 0; k < static_cast<std::size_t>(im.instances); ++k) {
+      const std::size_t base = k * im.vertex_count;
+      for (std::size_t p = 0; p < im.vertex_count; ++p)
+        std::memcpy(out + (base + im.order[p]) * 3, im.scratch.data() + (base + p) * im.output_stride,
+                    3 * sizeof(float));
+    }
   });
 }
 

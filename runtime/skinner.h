@@ -29,9 +29,11 @@ class SkinnerBackend {
   // Throws ApiError(kInvalidState) when the backend cannot be used now (GL:
   // its context is not current on this thread).
   virtual void CheckUsable() const {}
-  virtual void WritePalette(std::span<const std::uint8_t> packed_palette) = 0;
+  // Every instance's palette, one after another (PackPalette of K x J matrices).
+  virtual void WritePalette(std::span<const std::uint8_t> packed_palettes) = 0;
   virtual void Skin() = 0;
-  // The positions (or normals) in packed order, vertex_count x output stride.
+  // The positions (or normals) in packed order, instance after instance:
+  // instances x vertex_count x output stride.
   virtual void Read(bool normals, std::span<std::uint8_t> out) = 0;
   virtual void* DevicePositions() const = 0;
   // Default: kUnavailable.
@@ -40,8 +42,9 @@ class SkinnerBackend {
 
 // Each throws ApiError: kBuildFailed when a kernel does not compile,
 // kDeviceError when the device refuses (allocation, launch set-up).
+// `kernels`: one per launch, instanced when `instances` > 1.
 std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const PackedMesh& mesh,
-                                                  const std::vector<KernelSource>& kernels);
+                                                  const std::vector<KernelSource>& kernels, int instances);
 
 // The code for a runner's Error: its message names the stage ("OpenCL
 // build: ...", "CUDA setup: ..."): build -> kBuildFailed, else kDeviceError.

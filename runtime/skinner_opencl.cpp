@@ -46,11 +46,12 @@ class OpenClSkinner final : public SkinnerBackend {
 }  // namespace
 
 std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const PackedMesh& mesh,
-                                                  const std::vector<KernelSource>& kernels) {
+                                                  const std::vector<KernelSource>& kernels, int instances) {
   if (!device.opencl) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no OpenCL queue");
   try {
-    const std::vector<std::vector<std::uint8_t>> palettes{mesh.palette};
-    OpenClPrepared prepared = device.opencl->Prepare(mesh, kernels, palettes);
+    std::vector<std::vector<std::uint8_t>> palettes(1);  // one input set of `instances` rest-pose palettes
+    for (int k = 0; k < instances; ++k) palettes[0].insert(palettes[0].end(), mesh.palette.begin(), mesh.palette.end());
+    OpenClPrepared prepared = device.opencl->Prepare(mesh, kernels, palettes, instances);
     return std::make_unique<OpenClSkinner>(*device.opencl, std::move(prepared), mesh.variant.normals);
   } catch (const ApiError&) {
     throw;

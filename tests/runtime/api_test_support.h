@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "generator/packer.h"
+#include "reference/asset.h"
 #include "reference/skinning.h"
 #include "skintune/skintune.h"
 
@@ -101,6 +102,55 @@ inline void ExpectSkinsLikeTheGold(Skinner& skinner, const SkinnedMesh& mesh, st
     EXPECT_EQ(n.non_finite, 0u) << variant.Key();
     EXPECT_LT(n.max_relative, 1e-5) << variant.Key() << ": normals, worst vertex " << n.worst_vertex;
   }
+}
+
+// Skins `mesh` as palettes.size() instances in one Skin() (instance k with
+// palettes[k]) and expects each instance's part of the read-back to be that
+// palette's gold.
+inline void ExpectInstancesLikeTheGold(Skinner& skinner, const SkinnedMesh& mesh,
+                                       const std::vector<std::vector<glm::mat4>>& palettes) {
+  const Variant variant = ParseVariantKey(skinner.selection().variant);
+  ASSERT_EQ(static_cast<std::size_t>(skinner.instances()), palettes.size());
+  std::vector<float> matrices;
+  for (const std::vector<glm::mat4>& p : palettes) {
+    const std::vector<float> f = Floats(p);
+    matrices.insert(matrices.end(), f.begin(), f.end());
+  }
+  const Status set = skinner.SetPalette(matrices.data(), matrices.size());
+  ASSERT_TRUE(set.ok()) << set.message();
+  const Status skinned = skinner.Skin();
+  ASSERT_TRUE(skinned.ok()) << skinned.message();
+  const std::size_t n = mesh.vertex_count();
+  std::vector<float> positions(palettes.size() * n * 3), normals(variant.normals ? positions.size() : 0);
+  ASSERT_TRUE(skinner.ReadPositions(positions.data(), positions.size()).ok());
+  if (variant.normals) {
+    ASSERT_TRUE(skinner.ReadNormals(normals.data(), normals.size()).ok());
+  }
+  const SkinnedMesh quantised = QuantisedMesh(mesh, variant);
+  for (std::size_t k = 0; k < palettes.size(); ++k) {
+    SCOPED_TRACE("instance " + std::to_string(k) + " of " + std::to_string(palettes.size()));
+    const GoldResult gold = SkinGold(quantised, palettes[k], variant.normals);
+    const std::vector<float> part(positions.begin() + static_cast<std::ptrdiff_t>(k * n * 3),
+                                  positions.begin() + static_cast<std::ptrdiff_t>((k + 1) * n * 3));
+    const GoldComparison p = CompareToGold(gold.positions, Vec3s(part));
+    EXPECT_EQ(p.non_finite, 0u) << variant.Key();
+    EXPECT_LT(p.max_relative, 1e-5) << variant.Key() << ": positions, worst vertex " << p.worst_vertex;
+    if (variant.normals) {
+      const std::vector<float> npart(normals.begin() + static_cast<std::ptrdiff_t>(k * n * 3),
+                                     normals.begin() + static_cast<std::ptrdiff_t>((k + 1) * n * 3));
+      const GoldComparison c = CompareToGold(gold.normals, Vec3s(npart));
+      EXPECT_LT(c.max_relative, 1e-5) << variant.Key() << ": normals, worst vertex " << c.worst_vertex;
+    }
+  }
+}
+
+// K palettes of `asset`'s first clip at K different times.
+inline std::vector<std::vector<glm::mat4>> Poses(const SkinnedAsset& asset, int instances) {
+  const AnimationClip& clip = asset.animations.front();
+  std::vector<std::vector<glm::mat4>> out;
+  for (int k = 0; k < instances; ++k)
+    out.push_back(asset.PaletteAt(0, clip.start + (clip.end - clip.start) * (k + 0.5) / instances));
+  return out;
 }
 
 }  // namespace skintune::testing

@@ -162,6 +162,25 @@ TEST_F(Misuse, InstancesOutOfRange) {
   ExpectError(CreateError(view_.mesh, options), ErrorCode::kInvalidArgument, "instances is 0");
 }
 
+TEST_F(Misuse, WrongPaletteSizeForKInstances) {
+  SkinnerOptions options;
+  options.instances = 3;
+  Skinner skinner = Made(options);
+  const std::vector<float> palette = Palette();  // one instance's
+  ExpectError(skinner.SetPalette(palette.data(), palette.size()), ErrorCode::kInvalidArgument,
+              "expected 3 instances x 77 joints x 16 = 3696");
+  std::vector<float> out(skinner.vertex_count() * 3);  // one instance's
+  ExpectError(skinner.ReadPositions(out.data(), out.size()), ErrorCode::kInvalidArgument,
+              "expected 3 instances x 900 vertices x 3 = 8100");
+}
+
+TEST_F(Misuse, ForcedConstantStorageThatCannotHoldKPalettes) {
+  SkinnerOptions options;
+  options.variant = "opencl.b4.mat4.constant";
+  options.instances = 4096;  // 4096 x 77 x 64 B = 20 MB of __constant
+  ExpectError(CreateError(view_.mesh, options), ErrorCode::kInvalidArgument, "constant_memory");
+}
+
 TEST_F(Misuse, MovedFromSkinner) {
   Skinner skinner = Made();
   Skinner taker = std::move(skinner);

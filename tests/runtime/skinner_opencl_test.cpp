@@ -24,7 +24,9 @@ namespace skintune {
 namespace {
 
 using testing::CacheIn;
+using testing::ExpectInstancesLikeTheGold;
 using testing::ExpectSkinsLikeTheGold;
+using testing::Poses;
 using testing::Floats;
 using testing::TempDir;
 using testing::View;
@@ -221,6 +223,35 @@ TEST(OpenClSkinner, SkipsADatabaseEntryThatCannotHoldTheMesh) {
   EXPECT_EQ(skinner.selection().level, MatchLevel::kGenericDefault);
   EXPECT_NE(skinner.selection().reason.find("index_range"), std::string::npos) << skinner.selection().reason;
   ExpectSkinsLikeTheGold(skinner, asset.mesh, asset.PaletteAt(0, 0.5));
+}
+
+TEST(OpenClSkinner, SkinsKInstancesInOneLaunchEachWithItsOwnPalette) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  struct Case {
+    int instances;
+    const SkinnedAsset* asset;
+    std::string variant;  // "" = the built-in default
+    bool normals;
+  };
+  const std::vector<Case> cases = {
+      {1, &Cesium(), "", true},
+      {7, &Cesium(), "", true},
+      {7, &Synthetic("600-b3-random-seed8-normals"), "opencl.b3.aos.float3.u8.unorm8.mat3x4.local.point.v2s.wg64", true},
+      {64, &Synthetic("600-b3-random-seed8-normals"), "", false},
+      {64, &Synthetic("600-b3-random-seed8-normals"), "opencl.b3.soa-split.u16.unorm16.image.v4c.wg128", false},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(std::to_string(c.instances) + " instances of " + c.variant);
+    const View view(c.asset->mesh);
+    SkinnerOptions options;
+    options.instances = c.instances;
+    options.variant = c.variant;
+    options.normals = c.normals;
+    Skinner skinner = MustCreate(*device, WinnersDb::Empty(), view.mesh, options);
+    EXPECT_EQ(skinner.instances(), c.instances);
+    ExpectInstancesLikeTheGold(skinner, c.asset->mesh, Poses(*c.asset, c.instances));
+  }
 }
 
 // ---------------------------------------------------------------- program cache

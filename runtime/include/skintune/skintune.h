@@ -259,8 +259,12 @@ struct MeshView {
 };
 
 struct SkinnerOptions {
-  // K copies of the mesh skinned in one launch, each with its own palette.
-  // Only 1 for now: larger values give kInvalidArgument "not supported yet".
+  // K >= 1 copies of the mesh (a crowd) skinned in one launch, each with its
+  // own palette (docs/VARIANTS.md "Instancing"). The variant must hold K
+  // palettes where it keeps them all (constant and image storage) and the
+  // device must launch K instances at once; database entries that cannot are
+  // skipped, a forced variant that cannot is kInvalidArgument. K x
+  // vertex_count must stay below 2^32.
   int instances = 1;
   bool normals = false;     // also skin normals (MeshView::normals required)
   // Force a variant key (docs/VARIANTS.md; omitted axes take their defaults)
