@@ -169,6 +169,10 @@ const LoadedDriver& DriverLibrary() {
     Resolve(handle, "cuEventDestroy_v2", a.cuEventDestroy, absent);
     Resolve(handle, "cuTexObjectCreate", a.cuTexObjectCreate, absent);
     Resolve(handle, "cuTexObjectDestroy", a.cuTexObjectDestroy, absent);
+    Resolve(handle, "cuCtxGetDevice", a.cuCtxGetDevice, absent);
+    Resolve(handle, "cuStreamSynchronize", a.cuStreamSynchronize, absent);
+    Resolve(handle, "cuMemcpyHtoDAsync_v2", a.cuMemcpyHtoDAsync, absent);
+    Resolve(handle, "cuMemcpyDtoDAsync_v2", a.cuMemcpyDtoDAsync, absent);
     if (!absent.empty()) {
       d.missing = d.library + " lacks " + absent;
       return d;

@@ -163,6 +163,11 @@ struct DriverApi {
   Result (*cuTexObjectCreate)(TexObject* object, const ResourceDesc* resource, const TextureDesc* texture,
                               const void* view);
   Result (*cuTexObjectDestroy)(TexObject object);
+  // For the runtime's Skinner on a caller's context and stream.
+  Result (*cuCtxGetDevice)(Device* device);
+  Result (*cuStreamSynchronize)(Stream stream);
+  Result (*cuMemcpyHtoDAsync)(DevicePtr to, const void* from, std::size_t bytes, Stream stream);  // _v2
+  Result (*cuMemcpyDtoDAsync)(DevicePtr to, DevicePtr from, std::size_t bytes, Stream stream);    // _v2
 };
 
 // The driver, loaded and initialised once; null, with the reason in `why`

@@ -133,17 +133,21 @@ CudaDeviceInfo QueryCudaDevice(int device_index) {
 struct CudaRunner::Impl {
   const cuda::DriverApi* api = nullptr;
   cuda::Device device = 0;
-  cuda::Context context = nullptr;  // the device's primary context, retained
+  cuda::Context context = nullptr;  // the device's primary context (retained), or the caller's
+  bool primary = true;              // the context is the retained primary context
+  cuda::Stream stream = nullptr;    // the caller's stream for skinning; null: the legacy default stream
   std::string name, arch;
   DeviceLimits limits;
   CudaDeviceInfo info;
   std::map<std::string, BuiltKernel> built;  // by source hash
+  ProgramCache* cache = nullptr;             // UseProgramCache
+  std::string cache_device_id;
 
   ~Impl() {
     if (!context) return;
     api->cuCtxSetCurrent(context);
     built.clear();  // unloads the modules while their context is current
-    api->cuDevicePrimaryCtxRelease(device);
+    if (primary) api->cuDevicePrimaryCtxRelease(device);
   }
   void MakeCurrent() const { Check(api->cuCtxSetCurrent(context), "launch", "cuCtxSetCurrent"); }
   const BuiltKernel& KernelFor(const KernelSource& source);
@@ -184,7 +188,56 @@ CudaRunner::CudaRunner(int device_index) : impl_(std::make_unique<Impl>()) {
   Check(im.api->cuCtxSetCurrent(im.context), "setup", "cuCtxSetCurrent on " + im.name);
 }
 
+CudaRunner::CudaRunner(void* cu_context, void* cu_stream) : impl_(std::make_unique<Impl>()) {
+  Impl& im = *impl_;
+  if (!cu_context) Fail("setup", "a null CUcontext");
+  const CudaAvailability available = Probe();
+  if (!available.nvrtc) Fail("setup", available.nvrtc_missing);
+  im.api = cuda::Driver();
+  if (!im.api) Fail("setup", available.driver_missing);
+  Check(im.api->cuCtxSetCurrent(static_cast<cuda::Context>(cu_context)), "setup", "cuCtxSetCurrent of the given context");
+  cuda::Device device = 0;
+  Check(im.api->cuCtxGetDevice(&device), "setup", "cuCtxGetDevice of the given context");
+  im.info = QueryCudaDevice(device);  // a CUdevice is its ordinal
+  im.name = im.info.name;
+  im.limits = im.info.limits;
+  im.arch = im.info.arch;
+  if (im.arch.empty())
+    Fail("setup", im.name + " (compute capability " + std::to_string(im.info.major) + "." +
+                      std::to_string(im.info.minor) + ") is older than every architecture " + available.nvrtc_library +
+                      " supports");
+  im.device = device;
+  im.context = static_cast<cuda::Context>(cu_context);
+  im.primary = false;
+  im.stream = static_cast<cuda::Stream>(cu_stream);
+}
+
 CudaRunner::~CudaRunner() = default;
+
+void CudaRunner::UseProgramCache(ProgramCache* cache, const std::string& device_id) {
+  impl_->cache = cache;
+  impl_->cache_device_id = device_id;
+}
+
+std::string CompilePtxCached(const KernelSource& source, const std::string& arch, ProgramCache* cache,
+                             const std::string& device_id) {
+  const std::string key = source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;
+  const std::string cache_key = cache ? ProgramKey("cuda", device_id, key, "-arch=" + arch) : "";
+  if (cache) {
+    if (const auto ptx = cache->Load("cuda", cache_key)) {
+      ++cache->counters().disk_hits;
+      return std::string(ptx->begin(), ptx->end());
+    }
+  }
+  const CompileResult compiled = CompileWithNvrtc(source.text, arch);
+  if (!compiled.ok)
+    Fail("build", "kernel " + key + " (" + source.text.substr(0, source.text.find('\n')) + "): " + compiled.error);
+  if (cache) {
+    ++cache->counters().builds;
+    cache->Store("cuda", cache_key, std::vector<std::uint8_t>(compiled.ptx.begin(), compiled.ptx.end()));
+  }
+  return compiled.ptx;
+}
 
 const std::string& CudaRunner::device_name() const { return impl_->name; }
 const std::string& CudaRunner::arch() const { return impl_->arch; }
@@ -194,18 +247,20 @@ const CudaDeviceInfo& CudaRunner::info() const { return impl_->info; }
 const BuiltKernel& CudaRunner::Impl::KernelFor(const KernelSource& source) {
   if (source.lang != Lang::kCuda) Fail("build", std::string("kernel language is ") + Name(source.lang));
   const std::string key = source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;
-  if (auto found = built.find(key); found != built.end()) return found->second;
+  if (auto found = built.find(key); found != built.end()) {
+    if (cache) ++cache->counters().memory_hits;
+    return found->second;
+  }
 
   const std::string what = "kernel " + key + " (" + source.text.substr(0, source.text.find('\n')) + ")";
-  const CompileResult compiled = CompileWithNvrtc(source.text, arch);
-  if (!compiled.ok) Fail("build", what + ": " + compiled.error);
+  const std::string ptx = CompilePtxCached(source, arch, cache, cache_device_id);
 
   // The driver JIT-compiles the PTX for the device; its error log says why it cannot.
   std::string log(8192, '\0');
   int options[] = {cuda::kJitErrorLogBuffer, cuda::kJitErrorLogBufferSizeBytes};
   void* values[] = {log.data(), reinterpret_cast<void*>(static_cast<std::uintptr_t>(log.size()))};
   cuda::Module module = nullptr;
-  const cuda::Result r = api->cuModuleLoadDataEx(&module, compiled.ptx.c_str(), 2, options, values);
+  const cuda::Result r = api->cuModuleLoadDataEx(&module, ptx.c_str(), 2, options, values);
   if (r != cuda::kSuccess) {
     log.resize(std::strlen(log.c_str()));
     Fail("build", what + ": cuModuleLoadDataEx (" + arch + " PTX on " + name + ") failed: " + cuda::ErrorText(r) +
@@ -394,14 +449,18 @@ struct CudaPrepared::Impl {
   struct Set {
     std::vector<Memory> buffers;
     Texture texture;
-    std::vector<std::uint8_t> palette;  // host copy, for the constant symbol
+    std::vector<std::uint8_t> palette;  // host copy, for the constant symbol (Time)
     std::vector<std::unique_ptr<Arguments>> launches;
+    cuda::DevicePtr palette_buffer = 0, out_positions = 0, out_normals = 0;
+    std::vector<std::uint8_t> staging;  // the palettes being uploaded (WritePalette)
+    Event upload;                       // recorded after that upload
   };
   std::string key;
   bool constant = false;
   std::vector<LaunchPlan> launches;
   std::vector<Set> sets;
   std::size_t bytes_per_set = 0;
+  std::size_t out_bytes = 0;
 
   ~Impl() {
     if (!context) return;
@@ -462,6 +521,8 @@ CudaPrepared CudaRunner::Prepare(const PackedMesh& mesh, std::span<const KernelS
   }
 
   const std::size_t out_bytes = shape.out_bytes;
+  const std::vector<std::uint8_t> poison = PoisonedOutput(out_bytes);  // the first out_bytes are used
+  p.out_bytes = out_bytes;
   for (std::size_t k = 0; k < palettes.size(); ++k) {
     p.sets.emplace_back();
     CudaPrepared::Impl::Set& set = p.sets.back();
@@ -487,8 +548,11 @@ CudaPrepared CudaRunner::Prepare(const PackedMesh& mesh, std::span<const KernelS
             "cuTexObjectCreate (linear, " + std::to_string(palette.size() / 16) + " float4 texels)" + suffix);
       set.texture = Texture(object, api.cuTexObjectDestroy);
     }
-    const cuda::DevicePtr out_positions = add(out_bytes, nullptr, "out_positions");
-    const cuda::DevicePtr out_normals = variant.normals ? add(out_bytes, nullptr, "out_normals") : 0;
+    const cuda::DevicePtr out_positions = add(out_bytes, poison.data(), "out_positions");
+    const cuda::DevicePtr out_normals = variant.normals ? add(out_bytes, poison.data(), "out_normals") : 0;
+    set.palette_buffer = palette_buffer;
+    set.out_positions = out_positions;
+    set.out_normals = out_normals;
 
     for (std::size_t i = 0; i < p.launches.size(); ++i) {
       const std::size_t l = launch_of_plan[i];
@@ -591,6 +655,79 @@ std::vector<double> CudaRunner::Time(const CudaPrepared& prepared, int warmup, i
     ms.push_back(total);
   }
   return ms;
+}
+
+namespace {
+
+CudaPrepared::Impl::Set& SetOf(const CudaPrepared& prepared, CudaPrepared::Impl* impl, int set) {
+  if (!impl || set < 0 || static_cast<std::size_t>(set) >= impl->sets.size())
+    Fail("launch", "no input set " + std::to_string(set) + " (" + std::to_string(prepared.input_sets()) + " prepared)");
+  return impl->sets[static_cast<std::size_t>(set)];
+}
+
+}  // namespace
+
+void CudaRunner::WritePalette(CudaPrepared& prepared, int set, std::span<const std::uint8_t> palettes) {
+  Impl& im = *impl_;
+  const cuda::DriverApi& api = *im.api;
+  im.MakeCurrent();
+  CudaPrepared::Impl* p = prepared.impl_.get();
+  CudaPrepared::Impl::Set& s = SetOf(prepared, p, set);
+  if (palettes.size() != s.palette.size())
+    Fail("launch", "palettes have " + std::to_string(palettes.size()) + " bytes, expected " +
+                       std::to_string(s.palette.size()));
+  if (s.upload.get())  // the staging copy may still be read by the previous upload
+    Check(api.cuEventSynchronize(s.upload.get()), "launch", "waiting for the previous palette upload of " + p->key);
+  s.staging.assign(palettes.begin(), palettes.end());
+  s.palette = s.staging;
+  Check(api.cuMemcpyHtoDAsync(s.palette_buffer, s.staging.data(), s.staging.size(), im.stream), "launch",
+        "cuMemcpyHtoDAsync 'palette' of " + p->key);
+  if (!s.upload.get()) {
+    cuda::Event event = nullptr;
+    Check(api.cuEventCreate(&event, 0), "launch", "cuEventCreate");
+    s.upload = Event(event, api.cuEventDestroy);
+  }
+  Check(api.cuEventRecord(s.upload.get(), im.stream), "launch", "cuEventRecord after the palette upload of " + p->key);
+}
+
+void CudaRunner::LaunchSet(const CudaPrepared& prepared, int set) {
+  Impl& im = *impl_;
+  const cuda::DriverApi& api = *im.api;
+  im.MakeCurrent();
+  const CudaPrepared::Impl& p = *prepared.impl_;
+  const CudaPrepared::Impl::Set& s = SetOf(prepared, prepared.impl_.get(), set);
+  for (std::size_t l = 0; l < p.launches.size(); ++l) {
+    const CudaPrepared::Impl::LaunchPlan& plan = p.launches[l];
+    const std::string where = "launch " + std::to_string(l) + " of " + p.key;
+    // The module's symbol is shared by every set and Skinner of this kernel: fill it for this launch.
+    if (p.constant)
+      Check(api.cuMemcpyDtoDAsync(plan.constant_symbol, s.palette_buffer, s.palette.size(), im.stream), "launch",
+            where + ": cuMemcpyDtoDAsync to '" + kConstantPaletteSymbol + "'");
+    Check(api.cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, im.stream,
+                             s.launches[l]->parameters.data(), nullptr),
+          "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " x " +
+                        std::to_string(plan.instances) + " blocks of " + std::to_string(plan.threads) + ")");
+  }
+}
+
+void CudaRunner::ReadOutput(const CudaPrepared& prepared, int set, bool normals, std::span<std::uint8_t> out) {
+  Impl& im = *impl_;
+  const cuda::DriverApi& api = *im.api;
+  im.MakeCurrent();
+  const CudaPrepared::Impl& p = *prepared.impl_;
+  const CudaPrepared::Impl::Set& s = SetOf(prepared, prepared.impl_.get(), set);
+  const cuda::DevicePtr buffer = normals ? s.out_normals : s.out_positions;
+  if (!buffer) Fail("launch", std::string("no ") + (normals ? "normals" : "positions") + " output in " + p.key);
+  if (out.size() != p.out_bytes)
+    Fail("launch", "read-back of " + std::to_string(out.size()) + " bytes, the output has " + std::to_string(p.out_bytes));
+  Check(api.cuStreamSynchronize(im.stream), "launch", "cuStreamSynchronize before reading back " + p.key);
+  Check(api.cuMemcpyDtoH(out.data(), buffer, out.size()), "launch",
+        std::string("cuMemcpyDtoH '") + (normals ? "out_normals" : "out_positions") + "' of " + p.key);
+}
+
+unsigned long long CudaRunner::OutputBuffer(const CudaPrepared& prepared, int set, bool normals) const {
+  const CudaPrepared::Impl::Set& s = SetOf(prepared, prepared.impl_.get(), set);
+  return normals ? s.out_normals : s.out_positions;
 }
 
 namespace {

@@ -32,6 +32,18 @@
 //   rotating among them between CUDA events, uploading, poisoning and reading
 //   back nothing (`constant` storage: the set's palette is copied into the
 //   module's symbol before each frame, outside the events).
+// - Skinning (the runtime's Skinner): a Prepared set is also a live set of
+//   device buffers: WritePalette replaces a set's palettes, LaunchSet runs its
+//   launches once on the runner's stream, ReadOutput waits for the stream and
+//   reads an output back, OutputBuffer gives the CUdeviceptr. Prepared
+//   outputs start POISONED like Run's. `constant` storage: LaunchSet copies
+//   the set's palette buffer into the module's symbol on the stream before
+//   each launch (the module, and its symbol, is shared by every set and
+//   Skinner of the same kernel).
+// - Program cache (UseProgramCache): NVRTC's PTX is loaded from / stored to
+//   the cache, keyed by device, source hash, architecture and options
+//   (CompilePtxCached); the driver still JIT-compiles PTX to the device's
+//   code at module load (it keeps its own cache of that).
 // Errors name the stage: "CUDA setup", "build", "launch" or "guard". A kernel
 // that faults (an illegal address) leaves the CUDA context unusable: later
 // runs of the same runner fail too.
@@ -47,6 +59,7 @@
 #include "generator/constraints.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
+#include "runtime/program_cache.h"
 
 namespace skintune {
 
@@ -75,6 +88,13 @@ struct CudaDeviceInfo {
 // Throws Error("CUDA setup: ...") when there is no NVRTC, no driver or no such device.
 CudaDeviceInfo QueryCudaDevice(int device_index);
 
+// NVRTC's PTX of `source` for `arch` ("compute_90"), from `cache` when it
+// holds it (key: device_id, source hash, arch), else compiled and stored
+// there; counts a build or a disk hit. Needs NVRTC only, not a driver.
+// Throws Error("CUDA build: ...") with the NVRTC log when it does not compile.
+std::string CompilePtxCached(const KernelSource& source, const std::string& arch, ProgramCache* cache,
+                             const std::string& device_id);
+
 // The device buffers of one variant for timing (CudaRunner::Prepare):
 // input_sets() sets, each a copy of every launch's packed inputs, its own
 // palette and its own outputs. Move-only; must not outlive its runner.
@@ -87,9 +107,10 @@ class CudaPrepared {
   int input_sets() const;
   std::size_t bytes_per_set() const;  // device bytes of one set: inputs + palette + outputs
 
+  struct Impl;
+
  private:
   friend class CudaRunner;
-  struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
@@ -99,6 +120,11 @@ class CudaRunner {
   // primary context. Throws Error("CUDA setup: ...") when there is no NVRTC,
   // no driver, or no such device.
   explicit CudaRunner(int device_index = 0);
+  // A context and stream the caller made (CUcontext, CUstream; a null stream
+  // is the legacy default stream), neither retained: they must outlive the
+  // runner. Its launches and copies go to that stream. Throws Error("CUDA
+  // setup: ...") without a driver or NVRTC, or for a null context.
+  CudaRunner(void* cu_context, void* cu_stream);
   ~CudaRunner();
   CudaRunner(const CudaRunner&) = delete;
   CudaRunner& operator=(const CudaRunner&) = delete;
@@ -109,6 +135,10 @@ class CudaRunner {
   // and __constant__ bytes, linear texture width in texels.
   const DeviceLimits& limits() const;
   const CudaDeviceInfo& info() const;
+
+  // NVRTC's PTX loads from and stores to `cache` (null: none), keyed with
+  // `device_id`; the cache must outlive the runner.
+  void UseProgramCache(ProgramCache* cache, const std::string& device_id);
 
   // Builds (or finds already built) `source`; throws Error("CUDA build ...").
   void Build(const KernelSource& source);
@@ -143,6 +173,16 @@ class CudaRunner {
   // timed frame: the sum over its launches of the CUDA event time around each
   // launch, ms.
   std::vector<double> Time(const CudaPrepared& prepared, int warmup, int repetitions);
+
+  // Skinning with a prepared set (see the top of this file): WritePalette
+  // copies `palettes` (the set's K palettes) and enqueues their upload;
+  // LaunchSet enqueues every launch of set `set`; ReadOutput waits for the
+  // stream and copies the set's positions (or normals) into `out`
+  // (K x vertex_count x output_stride_bytes, packed order).
+  void WritePalette(CudaPrepared& prepared, int set, std::span<const std::uint8_t> palettes);
+  void LaunchSet(const CudaPrepared& prepared, int set);
+  void ReadOutput(const CudaPrepared& prepared, int set, bool normals, std::span<std::uint8_t> out);
+  unsigned long long OutputBuffer(const CudaPrepared& prepared, int set, bool normals) const;  // 0: none
 
   // A plain copy (one uint4 per thread) between two buffers of `bytes`
   // (rounded down to a multiple of 16; the source holds a non-zero pattern):

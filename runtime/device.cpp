@@ -106,6 +106,7 @@ Device Opened(const Listed& listed, const DeviceOptions& options) {
   state->langs = LanguagesOf(listed.info.backend);
   listed.open(*state);
   if (state->opencl) state->opencl->UseProgramCache(&state->cache, state->info.id);
+  if (state->cuda) state->cuda->UseProgramCache(&state->cache, state->info.id);
   return DeviceAccess::Make(std::move(state));
 }
 
@@ -221,8 +222,20 @@ Result<Device> Device::FromOpenCl(void* cl_device, void* cl_context, void* cl_qu
 
 namespace skintune {
 
-Result<Device> Device::FromCuda(void*, void*, const DeviceOptions&) {
-  return Status(ErrorCode::kUnavailable, "Device::FromCuda: not implemented yet");
+Result<Device> Device::FromCuda(void* cu_context, void* cu_stream, const DeviceOptions& options) {
+  return GuardedResult<Device>(ErrorCode::kDeviceError, [&] {
+    const CudaAvailability available = Probe();
+    if (!available.driver) FailWith(ErrorCode::kUnavailable, "Device::FromCuda: " + available.driver_missing);
+    if (!available.nvrtc) FailWith(ErrorCode::kUnavailable, "Device::FromCuda: " + available.nvrtc_missing);
+    if (!cu_context) FailWith(ErrorCode::kInvalidArgument, "Device::FromCuda: a null CUcontext");
+    auto state = std::make_shared<DeviceState>(options);
+    state->cuda = std::make_unique<CudaRunner>(cu_context, cu_stream);
+    state->info = CudaInfo(state->cuda->info());
+    state->limits = state->cuda->limits();
+    state->langs = LanguagesOf(Backend::kCuda);
+    state->cuda->UseProgramCache(&state->cache, state->info.id);
+    return DeviceAccess::Make(std::move(state));
+  });
 }
 
 Result<Device> Device::FromCurrentGl(const DeviceOptions&) {
