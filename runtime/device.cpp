@@ -107,6 +107,7 @@ Device Opened(const Listed& listed, const DeviceOptions& options) {
   listed.open(*state);
   if (state->opencl) state->opencl->UseProgramCache(&state->cache, state->info.id);
   if (state->cuda) state->cuda->UseProgramCache(&state->cache, state->info.id);
+  if (state->gl) state->gl->UseProgramCache(&state->cache, state->info.id);
   return DeviceAccess::Make(std::move(state));
 }
 
@@ -238,8 +239,18 @@ Result<Device> Device::FromCuda(void* cu_context, void* cu_stream, const DeviceO
   });
 }
 
-Result<Device> Device::FromCurrentGl(const DeviceOptions&) {
-  return Status(ErrorCode::kUnavailable, "Device::FromCurrentGl: not implemented yet");
+Result<Device> Device::FromCurrentGl(const DeviceOptions& options) {
+  return GuardedResult<Device>(ErrorCode::kDeviceError, [&] {
+    std::unique_ptr<GlContext> context = GlContext::AdoptCurrent();
+    if (!context->ok()) FailWith(ErrorCode::kUnavailable, "Device::FromCurrentGl: " + context->reason());
+    auto state = std::make_shared<DeviceState>(options);
+    state->info = GlInfo(context->info());
+    state->limits = LimitsOf(context->info());
+    state->langs = LanguagesOf(Backend::kGl);
+    state->gl = std::make_unique<GlRunner>(std::move(context));
+    state->gl->UseProgramCache(&state->cache, state->info.id);
+    return DeviceAccess::Make(std::move(state));
+  });
 }
 
 }  // namespace skintune

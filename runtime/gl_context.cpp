@@ -107,6 +107,7 @@ void TerminateIfUnused(EGLDisplay display) {
 struct GlContext::Impl {
   EGLDisplay display = EGL_NO_DISPLAY;
   EGLContext context = EGL_NO_CONTEXT;
+  bool owned = true;  // false: AdoptCurrent
   std::string reason;
   GlContextInfo info;
 
@@ -291,9 +292,48 @@ GlContext::GlContext(int device_index) : impl_(std::make_unique<Impl>()) {
   im.Query();
 }
 
+GlContext::GlContext(AdoptTag) : impl_(std::make_unique<Impl>()) {
+  const std::string missing = MissingLibraries();
+  if (!missing.empty()) impl_->reason = "no OpenGL context: " + missing;
+}
+
+std::unique_ptr<GlContext> GlContext::AdoptCurrent() {
+  std::unique_ptr<GlContext> adopted(new GlContext(AdoptTag{}));
+  Impl& im = *adopted->impl_;
+  im.owned = false;
+  if (!im.reason.empty()) return adopted;
+  im.display = eglGetCurrentDisplay();
+  const EGLContext current = eglGetCurrentContext();
+  if (current == EGL_NO_CONTEXT) {
+    im.reason = "no EGL context is current on this thread";
+    return adopted;
+  }
+  GLint major = 0, minor = 0;
+  glGetIntegerv(GL_MAJOR_VERSION, &major);
+  glGetIntegerv(GL_MINOR_VERSION, &minor);
+  if (major < 4 || (major == 4 && minor < 3)) {
+    im.reason = "the current context is GL " + std::to_string(major) + "." + std::to_string(minor) + " (" +
+                GlString(GL_VERSION) + ", " + GlString(GL_RENDERER) +
+                "); skintune's shaders need GL 4.3 (compute shaders, storage buffers)";
+    return adopted;
+  }
+  im.context = current;
+  im.info.egl_platform = "current";
+  EGLint egl_major = 0, egl_minor = 0;
+  const char* version = eglQueryString(im.display, EGL_VERSION);
+  if (version && std::sscanf(version, "%d.%d", &egl_major, &egl_minor) == 2)
+    im.info.egl_version = std::to_string(egl_major) + "." + std::to_string(egl_minor);
+  const char* vendor = eglQueryString(im.display, EGL_VENDOR);
+  im.info.egl_vendor = vendor ? vendor : "";
+  im.info.major = major;
+  im.info.minor = minor;
+  im.Query();
+  return adopted;
+}
+
 GlContext::~GlContext() {
   Impl& im = *impl_;
-  if (im.context == EGL_NO_CONTEXT) return;
+  if (im.context == EGL_NO_CONTEXT || !im.owned) return;
   if (eglGetCurrentContext() == im.context) eglMakeCurrent(im.display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
   eglDestroyContext(im.display, im.context);
   {
@@ -312,6 +352,9 @@ bool GlContext::IsCurrent() const { return ok() && eglGetCurrentContext() == imp
 void GlContext::MakeCurrent() {
   if (!ok()) throw Error("GL setup: " + impl_->reason);
   if (IsCurrent()) return;
+  if (!impl_->owned)
+    throw Error("GL setup: the GL context skintune was given (the one current at Device::FromCurrentGl) is not "
+                "current on this thread, or no longer exists");
   if (!eglMakeCurrent(impl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, impl_->context))
     throw Error("GL setup: eglMakeCurrent failed (" + LastEglError() + ")");
 }

@@ -57,6 +57,12 @@ class GlContext {
   // device_index >= 0: only that EGL device (platform "device"); -1: the
   // first display of the order above that works.
   explicit GlContext(int device_index = -1);
+  // The context current on the calling thread, whoever made it (the
+  // runtime's Device::FromCurrentGl): not owned (never destroyed here) and
+  // never made current here: MakeCurrent throws unless it still is current.
+  // ok() is false, with the reason, when no EGL context is current or it is
+  // older than GL 4.3. info().egl_platform is "current".
+  static std::unique_ptr<GlContext> AdoptCurrent();
   ~GlContext();
   GlContext(const GlContext&) = delete;
   GlContext& operator=(const GlContext&) = delete;
@@ -71,6 +77,8 @@ class GlContext {
   bool IsCurrent() const;
 
  private:
+  struct AdoptTag {};
+  explicit GlContext(AdoptTag);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -193,6 +193,8 @@ struct GlRunner::Impl {
   // context has no complete default framebuffer, and draws need one even with
   // rasterisation discarded) and a transform feedback object.
   GlObject vertex_array, framebuffer, renderbuffer, transform_feedback;
+  ProgramCache* cache = nullptr;  // UseProgramCache
+  std::string cache_device_id;
 
   ~Impl() {
     if (!context || !context->ok()) return;
@@ -209,7 +211,16 @@ struct GlRunner::Impl {
   }
 
   const BuiltProgram& ProgramFor(const KernelSource& source);
+  GlObject ProgramFromSource(const KernelSource& source, const std::vector<const char*>& varyings,
+                             const std::string& what);
+  // A program from the cache's binary (0 when absent, unsupported or refused).
+  GLuint ProgramFromBinary(const std::string& cache_key);
+  void StoreBinary(GLuint program, const std::string& cache_key);
   void PrepareVertexState();
+  // The draw state of glsl-vertex launches (vertex array, framebuffer,
+  // rasteriser discard, transform feedback object), and back to none.
+  void BeginVertexDraws();
+  void EndVertexDraws(bool normals);
   // The context's limits for a run: K work-groups in y (compute), the palette
   // buffer in a uniform block or texture buffer. Throws Error naming the limit.
   void CheckInstancesFit(const RunShape& shape, const Variant& variant, std::size_t palette_buffer_bytes) const;
@@ -244,14 +255,9 @@ std::size_t GlRunner::Impl::ComputeGroups(const KernelSource& source, const Laun
   return groups;
 }
 
-const BuiltProgram& GlRunner::Impl::ProgramFor(const KernelSource& source) {
-  if (!IsGlsl(source.lang)) Fail("build", std::string("kernel language is ") + Name(source.lang));
-  const std::string key = source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;
-  if (auto found = built.find(key); found != built.end()) return found->second;
+GlObject GlRunner::Impl::ProgramFromSource(const KernelSource& source, const std::vector<const char*>& varyings,
+                                            const std::string& what) {
   const bool vertex = source.lang == Lang::kGlslVertex;
-  const std::string what = "kernel " + key + " (" + Headline(source.text) + ") on " + context->info().renderer;
-
-  ClearGlErrors();
   const GLuint shader = glCreateShader(vertex ? GL_VERTEX_SHADER : GL_COMPUTE_SHADER);
   GlObject shader_owner(shader, [](GLuint name) { glDeleteShader(name); });
   const char* text = source.text.c_str();
@@ -269,16 +275,12 @@ const BuiltProgram& GlRunner::Impl::ProgramFor(const KernelSource& source) {
     Fail("build", what + " failed to compile; log:" + FirstLines(log, 20));
   }
 
-  BuiltProgram b;
-  b.program = GlObject(glCreateProgram(), [](GLuint name) { glDeleteProgram(name); });
-  const GLuint program = b.program.get();
+  GlObject owner(glCreateProgram(), [](GLuint name) { glDeleteProgram(name); });
+  const GLuint program = owner.get();
   glAttachShader(program, shader);
-  std::vector<const char*> varyings;
-  if (vertex) {
-    varyings.push_back("out_position");
-    if (FindArgument(source, "out_normals")) varyings.push_back("out_normal");
+  if (vertex)
     glTransformFeedbackVaryings(program, static_cast<GLsizei>(varyings.size()), varyings.data(), GL_SEPARATE_ATTRIBS);
-  }
+  if (cache) glProgramParameteri(program, GL_PROGRAM_BINARY_RETRIEVABLE_HINT, GL_TRUE);
   glLinkProgram(program);
   glGetProgramiv(program, GL_LINK_STATUS, &status);
   if (status != GL_TRUE) {
@@ -290,6 +292,41 @@ const BuiltProgram& GlRunner::Impl::ProgramFor(const KernelSource& source) {
     Fail("build", what + " failed to link; log:" + FirstLines(log, 20));
   }
   glDetachShader(program, shader);
+  return owner;
+}
+
+const BuiltProgram& GlRunner::Impl::ProgramFor(const KernelSource& source) {
+  if (!IsGlsl(source.lang)) Fail("build", std::string("kernel language is ") + Name(source.lang));
+  const std::string key = source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;
+  if (auto found = built.find(key); found != built.end()) {
+    if (cache) ++cache->counters().memory_hits;
+    return found->second;
+  }
+  const bool vertex = source.lang == Lang::kGlslVertex;
+  const std::string what = "kernel " + key + " (" + Headline(source.text) + ") on " + context->info().renderer;
+  std::vector<const char*> varyings;
+  if (vertex) {
+    varyings.push_back("out_position");
+    if (FindArgument(source, "out_normals")) varyings.push_back("out_normal");
+  }
+
+  ClearGlErrors();
+  BuiltProgram b;
+  const std::string cache_key = cache ? ProgramKey("gl", cache_device_id, key, "") : "";
+  if (cache) {
+    if (const GLuint loaded = ProgramFromBinary(cache_key)) {
+      b.program = GlObject(loaded, [](GLuint name) { glDeleteProgram(name); });
+      ++cache->counters().disk_hits;
+    }
+  }
+  if (!b.program.get()) {
+    b.program = ProgramFromSource(source, varyings, what);
+    if (cache) {
+      ++cache->counters().builds;
+      StoreBinary(b.program.get(), cache_key);
+    }
+  }
+  const GLuint program = b.program.get();
 
   // The captured outputs must be exactly the output format (vec4 float4, vec3 float3).
   if (vertex) {
@@ -311,6 +348,61 @@ const BuiltProgram& GlRunner::Impl::ProgramFor(const KernelSource& source) {
   b.vertex_count_location = glGetUniformLocation(program, "vertex_count");
   CheckGl("build", what);
   return built.emplace(key, std::move(b)).first->second;
+}
+
+GLuint GlRunner::Impl::ProgramFromBinary(const std::string& cache_key) {
+  GLint formats = 0;
+  glGetIntegerv(GL_NUM_PROGRAM_BINARY_FORMATS, &formats);
+  if (formats <= 0) return 0;
+  const auto payload = cache->Load("gl", cache_key);
+  if (!payload || payload->size() <= sizeof(GLenum)) return 0;
+  GLenum format = 0;
+  std::memcpy(&format, payload->data(), sizeof format);
+  const GLuint program = glCreateProgram();
+  glProgramBinary(program, format, payload->data() + sizeof format,
+                  static_cast<GLsizei>(payload->size() - sizeof format));
+  GLint status = GL_FALSE;
+  glGetProgramiv(program, GL_LINK_STATUS, &status);
+  if (status != GL_TRUE) {
+    glDeleteProgram(program);
+    ClearGlErrors();  // a refused binary raises GL_INVALID_ENUM on some drivers
+    return 0;
+  }
+  return program;
+}
+
+// The payload: the binary format (a GLenum, native byte order) then the binary.
+void GlRunner::Impl::StoreBinary(GLuint program, const std::string& cache_key) {
+  GLint formats = 0;
+  glGetIntegerv(GL_NUM_PROGRAM_BINARY_FORMATS, &formats);
+  GLint length = 0;
+  glGetProgramiv(program, GL_PROGRAM_BINARY_LENGTH, &length);
+  if (formats <= 0 || length <= 0) return;
+  std::vector<std::uint8_t> payload(sizeof(GLenum) + static_cast<std::size_t>(length));
+  GLenum format = 0;
+  GLsizei written = 0;
+  glGetProgramBinary(program, length, &written, &format, payload.data() + sizeof format);
+  if (glGetError() != GL_NO_ERROR || written <= 0) return;
+  std::memcpy(payload.data(), &format, sizeof format);
+  payload.resize(sizeof format + static_cast<std::size_t>(written));
+  cache->Store("gl", cache_key, payload);
+}
+
+void GlRunner::Impl::BeginVertexDraws() {
+  PrepareVertexState();
+  glBindVertexArray(vertex_array.get());
+  glBindFramebuffer(GL_FRAMEBUFFER, framebuffer.get());
+  glEnable(GL_RASTERIZER_DISCARD);
+  glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, transform_feedback.get());
+}
+
+void GlRunner::Impl::EndVertexDraws(bool normals) {
+  glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
+  if (normals) glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 1, 0);
+  glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, 0);
+  glDisable(GL_RASTERIZER_DISCARD);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glBindVertexArray(0);
 }
 
 void GlRunner::Impl::PrepareVertexState() {
@@ -338,6 +430,19 @@ void GlRunner::Impl::PrepareVertexState() {
 GlRunner::GlRunner(int device_index) : impl_(std::make_unique<Impl>()) {
   impl_->context = std::make_unique<GlContext>(device_index);
   if (!impl_->context->ok()) Fail("setup", impl_->context->reason());
+}
+
+GlRunner::GlRunner(std::unique_ptr<GlContext> context) : impl_(std::make_unique<Impl>()) {
+  if (!context) Fail("setup", "no GL context given");
+  if (!context->ok()) Fail("setup", context->reason());
+  impl_->context = std::move(context);
+}
+
+void GlRunner::MakeCurrent() { impl_->context->MakeCurrent(); }
+
+void GlRunner::UseProgramCache(ProgramCache* cache, const std::string& device_id) {
+  impl_->cache = cache;
+  impl_->cache_device_id = device_id;
 }
 
 GlRunner::~GlRunner() = default;
@@ -395,13 +500,7 @@ GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> 
   GlObject out_normals;
   if (variant.normals) out_normals = NewBuffer(fill.size(), fill.data(), "out_normals");
 
-  if (vertex) {
-    im.PrepareVertexState();
-    glBindVertexArray(im.vertex_array.get());
-    glBindFramebuffer(GL_FRAMEBUFFER, im.framebuffer.get());
-    glEnable(GL_RASTERIZER_DISCARD);
-    glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, im.transform_feedback.get());
-  }
+  if (vertex) im.BeginVertexDraws();
 
   std::vector<GlObject> inputs, staging;  // kept alive until the launches are finished
   std::vector<GlObject> timers, written;
@@ -511,12 +610,7 @@ GlRunResult GlRunner::Run(const PackedMesh& mesh, std::span<const KernelSource> 
     }
   }
   if (vertex) {
-    glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
-    if (variant.normals) glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 1, 0);
-    glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, 0);
-    glDisable(GL_RASTERIZER_DISCARD);
-    glBindFramebuffer(GL_FRAMEBUFFER, 0);
-    glBindVertexArray(0);
+    im.EndVertexDraws(variant.normals);
   } else {
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
   }
@@ -619,12 +713,15 @@ struct GlPrepared::Impl {
     std::vector<GlObject> objects;
     std::vector<std::vector<Binding>> launches;
     std::vector<std::vector<Staged>> staged;  // per launch: positions (and normals) when staged
+    GLuint palette = 0, out_positions = 0, out_normals = 0;
   };
   std::string key;
   bool vertex = false, normals = false;
   std::vector<LaunchPlan> launches;
   std::vector<Set> sets;
   std::size_t bytes_per_set = 0;
+  std::size_t palettes_bytes = 0;  // the K palettes (the buffer may be larger: PaletteBufferBytes)
+  std::size_t out_bytes = 0;
 
   ~Impl() {
     if (!context) return;
@@ -703,6 +800,9 @@ GlPrepared GlRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSourc
   }
 
   const std::size_t out_bytes = shape.out_bytes;
+  const std::vector<std::uint8_t> poison = PoisonedOutput(out_bytes);  // the first out_bytes are used
+  p.palettes_bytes = palettes.front().size();
+  p.out_bytes = out_bytes;
   using Target = GlPrepared::Impl::Target;
   for (std::size_t k = 0; k < palettes.size(); ++k) {
     p.sets.emplace_back();
@@ -728,8 +828,11 @@ GlPrepared GlRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSourc
                             " texels) over the palette" + suffix);
       palette_texture = id;
     }
-    const GLuint out_positions = add(out_bytes, nullptr, "out_positions");
-    const GLuint out_normals = variant.normals ? add(out_bytes, nullptr, "out_normals") : 0;
+    const GLuint out_positions = add(out_bytes, poison.data(), "out_positions");
+    const GLuint out_normals = variant.normals ? add(out_bytes, poison.data(), "out_normals") : 0;
+    set.palette = palette_buffer;
+    set.out_positions = out_positions;
+    set.out_normals = out_normals;
 
     for (std::size_t i = 0; i < p.launches.size(); ++i) {
       const std::size_t l = launch_of_plan[i];
@@ -794,6 +897,137 @@ GlPrepared GlRunner::Prepare(const PackedMesh& mesh, std::span<const KernelSourc
   return prepared;
 }
 
+namespace {
+
+// Binds launch `l` of a prepared set and runs it (the vertex draw state must
+// be set for glsl-vertex: BeginVertexDraws).
+void RunLaunch(const GlPrepared::Impl& p, const GlPrepared::Impl::Set& set, std::size_t l) {
+  using Target = GlPrepared::Impl::Target;
+  const GlPrepared::Impl::LaunchPlan& plan = p.launches[l];
+  glUseProgram(plan.program);
+  if (plan.n_location >= 0) glUniform1ui(plan.n_location, plan.count);
+  if (plan.first_location >= 0) glUniform1ui(plan.first_location, plan.first);
+  if (plan.vertex_count_location >= 0) glUniform1ui(plan.vertex_count_location, plan.vertex_count);
+  for (const GlPrepared::Impl::Binding& b : set.launches[l]) {
+    switch (b.target) {
+      case Target::kUniform: glBindBufferBase(GL_UNIFORM_BUFFER, b.index, b.object); break;
+      case Target::kStorage: glBindBufferBase(GL_SHADER_STORAGE_BUFFER, b.index, b.object); break;
+      case Target::kTexture:
+        glActiveTexture(GL_TEXTURE0 + b.index);
+        glBindTexture(GL_TEXTURE_BUFFER, b.object);
+        glActiveTexture(GL_TEXTURE0);
+        break;
+      case Target::kFeedback:
+        glBindBufferRange(GL_TRANSFORM_FEEDBACK_BUFFER, b.index, b.object, b.offset, b.size);
+        break;
+    }
+  }
+  if (p.vertex) {
+    glBeginTransformFeedback(GL_POINTS);
+    if (plan.instanced) {
+      glDrawArraysInstanced(GL_POINTS, 0, static_cast<GLsizei>(plan.count), plan.instances);
+    } else {
+      glDrawArrays(GL_POINTS, 0, static_cast<GLsizei>(plan.count));
+    }
+    glEndTransformFeedback();
+    for (const GlPrepared::Impl::Staged& st : set.staged[l]) CopyStagedCapture(st.staging, st.out, plan.capture);
+  } else {
+    glDispatchCompute(static_cast<GLuint>(plan.groups), static_cast<GLuint>(plan.instances), 1);
+  }
+}
+
+const GlPrepared::Impl::Set& SetOf(const GlPrepared& prepared, const GlPrepared::Impl* impl, int set) {
+  if (!impl || set < 0 || static_cast<std::size_t>(set) >= impl->sets.size())
+    Fail("launch", "no input set " + std::to_string(set) + " (" + std::to_string(prepared.input_sets()) + " prepared)");
+  return impl->sets[static_cast<std::size_t>(set)];
+}
+
+// The state a LaunchSet changes on a context the caller also draws with, put back afterwards.
+class KeptGlState {
+ public:
+  KeptGlState() {
+    glGetIntegerv(GL_CURRENT_PROGRAM, &program_);
+    glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &vertex_array_);
+    glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &draw_framebuffer_);
+    glGetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &read_framebuffer_);
+    glGetIntegerv(GL_TRANSFORM_FEEDBACK_BINDING, &transform_feedback_);
+    glGetIntegerv(GL_ACTIVE_TEXTURE, &active_texture_);
+    discard_ = glIsEnabled(GL_RASTERIZER_DISCARD);
+  }
+  ~KeptGlState() {
+    glUseProgram(static_cast<GLuint>(program_));
+    glBindVertexArray(static_cast<GLuint>(vertex_array_));
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(draw_framebuffer_));
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, static_cast<GLuint>(read_framebuffer_));
+    glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, static_cast<GLuint>(transform_feedback_));
+    glActiveTexture(static_cast<GLenum>(active_texture_));
+    if (discard_) {
+      glEnable(GL_RASTERIZER_DISCARD);
+    } else {
+      glDisable(GL_RASTERIZER_DISCARD);
+    }
+  }
+  KeptGlState(const KeptGlState&) = delete;
+  KeptGlState& operator=(const KeptGlState&) = delete;
+
+ private:
+  GLint program_ = 0, vertex_array_ = 0, draw_framebuffer_ = 0, read_framebuffer_ = 0, transform_feedback_ = 0;
+  GLint active_texture_ = GL_TEXTURE0;
+  GLboolean discard_ = GL_FALSE;
+};
+
+}  // namespace
+
+void GlRunner::WritePalette(GlPrepared& prepared, int set, std::span<const std::uint8_t> palettes) {
+  impl_->context->MakeCurrent();
+  const GlPrepared::Impl* p = prepared.impl_.get();
+  const GlPrepared::Impl::Set& s = SetOf(prepared, p, set);
+  if (palettes.size() != p->palettes_bytes)
+    Fail("launch", "palettes have " + std::to_string(palettes.size()) + " bytes, expected " +
+                       std::to_string(p->palettes_bytes));
+  ClearGlErrors();
+  glBindBuffer(GL_COPY_WRITE_BUFFER, s.palette);
+  glBufferSubData(GL_COPY_WRITE_BUFFER, 0, static_cast<GLsizeiptr>(palettes.size()), palettes.data());
+  glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
+  CheckGl("launch", "glBufferSubData 'palette' of " + p->key);
+}
+
+void GlRunner::LaunchSet(const GlPrepared& prepared, int set) {
+  Impl& im = *impl_;
+  im.context->MakeCurrent();
+  const GlPrepared::Impl& p = *prepared.impl_;
+  const GlPrepared::Impl::Set& s = SetOf(prepared, prepared.impl_.get(), set);
+  ClearGlErrors();
+  {
+    KeptGlState kept;
+    if (p.vertex) im.BeginVertexDraws();
+    for (std::size_t l = 0; l < p.launches.size(); ++l) RunLaunch(p, s, l);
+    if (p.vertex) im.EndVertexDraws(p.normals);
+  }
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);  // the outputs are read next: as vertices, buffers, or by Read*
+  CheckGl("launch", "skinning with " + p.key);
+}
+
+void GlRunner::ReadOutput(const GlPrepared& prepared, int set, bool normals, std::span<std::uint8_t> out) {
+  impl_->context->MakeCurrent();
+  const GlPrepared::Impl& p = *prepared.impl_;
+  const GlPrepared::Impl::Set& s = SetOf(prepared, prepared.impl_.get(), set);
+  const GLuint buffer = normals ? s.out_normals : s.out_positions;
+  if (!buffer) Fail("launch", std::string("no ") + (normals ? "normals" : "positions") + " output in " + p.key);
+  if (out.size() != p.out_bytes)
+    Fail("launch", "read-back of " + std::to_string(out.size()) + " bytes, the output has " + std::to_string(p.out_bytes));
+  ClearGlErrors();
+  glBindBuffer(GL_COPY_READ_BUFFER, buffer);
+  glGetBufferSubData(GL_COPY_READ_BUFFER, 0, static_cast<GLsizeiptr>(out.size()), out.data());
+  glBindBuffer(GL_COPY_READ_BUFFER, 0);
+  CheckGl("launch", std::string("glGetBufferSubData '") + (normals ? "out_normals" : "out_positions") + "' of " + p.key);
+}
+
+unsigned int GlRunner::OutputBuffer(const GlPrepared& prepared, int set, bool normals) const {
+  const GlPrepared::Impl::Set& s = SetOf(prepared, prepared.impl_.get(), set);
+  return normals ? s.out_normals : s.out_positions;
+}
+
 std::vector<double> GlRunner::Time(const GlPrepared& prepared, int warmup, int repetitions) {
   Impl& im = *impl_;
   im.context->MakeCurrent();
@@ -802,14 +1036,7 @@ std::vector<double> GlRunner::Time(const GlPrepared& prepared, int warmup, int r
   warmup = std::max(warmup, 0);
   repetitions = std::max(repetitions, 0);
   ClearGlErrors();
-  if (p.vertex) {
-    im.PrepareVertexState();
-    glBindVertexArray(im.vertex_array.get());
-    glBindFramebuffer(GL_FRAMEBUFFER, im.framebuffer.get());
-    glEnable(GL_RASTERIZER_DISCARD);
-    glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, im.transform_feedback.get());
-  }
-  using Target = GlPrepared::Impl::Target;
+  if (p.vertex) im.BeginVertexDraws();
   const bool host_clock = HostClockTimesLaunches(im.context->info());
   std::vector<std::vector<GlObject>> timers(static_cast<std::size_t>(repetitions));
   std::vector<double> host_ms(static_cast<std::size_t>(repetitions), 0.0);
@@ -817,39 +1044,7 @@ std::vector<double> GlRunner::Time(const GlPrepared& prepared, int warmup, int r
     const GlPrepared::Impl::Set& set = p.sets[static_cast<std::size_t>(frame) % p.sets.size()];
     const bool timed = frame >= warmup;
     for (std::size_t l = 0; l < p.launches.size(); ++l) {
-      const GlPrepared::Impl::LaunchPlan& plan = p.launches[l];
-      glUseProgram(plan.program);
-      if (plan.n_location >= 0) glUniform1ui(plan.n_location, plan.count);
-      if (plan.first_location >= 0) glUniform1ui(plan.first_location, plan.first);
-      if (plan.vertex_count_location >= 0) glUniform1ui(plan.vertex_count_location, plan.vertex_count);
-      for (const GlPrepared::Impl::Binding& b : set.launches[l]) {
-        switch (b.target) {
-          case Target::kUniform: glBindBufferBase(GL_UNIFORM_BUFFER, b.index, b.object); break;
-          case Target::kStorage: glBindBufferBase(GL_SHADER_STORAGE_BUFFER, b.index, b.object); break;
-          case Target::kTexture:
-            glActiveTexture(GL_TEXTURE0 + b.index);
-            glBindTexture(GL_TEXTURE_BUFFER, b.object);
-            glActiveTexture(GL_TEXTURE0);
-            break;
-          case Target::kFeedback:
-            glBindBufferRange(GL_TRANSFORM_FEEDBACK_BUFFER, b.index, b.object, b.offset, b.size);
-            break;
-        }
-      }
-      auto launch = [&] {
-        if (p.vertex) {
-          glBeginTransformFeedback(GL_POINTS);
-          if (plan.instanced) {
-            glDrawArraysInstanced(GL_POINTS, 0, static_cast<GLsizei>(plan.count), plan.instances);
-          } else {
-            glDrawArrays(GL_POINTS, 0, static_cast<GLsizei>(plan.count));
-          }
-          glEndTransformFeedback();
-          for (const GlPrepared::Impl::Staged& st : set.staged[l]) CopyStagedCapture(st.staging, st.out, plan.capture);
-        } else {
-          glDispatchCompute(static_cast<GLuint>(plan.groups), static_cast<GLuint>(plan.instances), 1);
-        }
-      };
+      auto launch = [&] { RunLaunch(p, set, l); };
       if (!timed) {
         launch();
       } else if (host_clock) {
@@ -863,14 +1058,7 @@ std::vector<double> GlRunner::Time(const GlPrepared& prepared, int warmup, int r
     }
     if (frame == 0) CheckGl("launch", "the first frame of timing " + p.key);
   }
-  if (p.vertex) {
-    glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
-    if (p.normals) glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 1, 0);
-    glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, 0);
-    glDisable(GL_RASTERIZER_DISCARD);
-    glBindFramebuffer(GL_FRAMEBUFFER, 0);
-    glBindVertexArray(0);
-  }
+  if (p.vertex) im.EndVertexDraws(p.normals);
   glUseProgram(0);
   glFinish();
   CheckGl("launch", "timing " + p.key);

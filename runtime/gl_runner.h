@@ -45,6 +45,19 @@
 //   two glFinish calls instead (host_timed()).
 // Errors name the stage: "GL setup", "build", "launch" or "guard".
 //
+// - Skinning (the runtime's Skinner): a Prepared set is also a live set of
+//   buffers: WritePalette replaces a set's palettes (glBufferSubData),
+//   LaunchSet runs its launches once (then glMemoryBarrier(GL_ALL_BARRIER_BITS)),
+//   ReadOutput reads an output back, OutputBuffer gives the buffer name.
+//   Prepared outputs start POISONED like Run's. LaunchSet restores the
+//   program, vertex array, framebuffers, transform feedback object and
+//   rasteriser-discard state it found; the indexed buffer bindings (storage,
+//   uniform, transform feedback) and texture units it used stay bound.
+// - Program cache (UseProgramCache): where the driver offers program binary
+//   formats (GL_NUM_PROGRAM_BINARY_FORMATS > 0), linked programs are stored
+//   with glGetProgramBinary and loaded with glProgramBinary (a binary the
+//   driver refuses is rebuilt from source).
+//
 // GL calls need the runner's context current: every public method makes it
 // current on the calling thread.
 #pragma once
@@ -59,6 +72,7 @@
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "runtime/gl_context.h"
+#include "runtime/program_cache.h"
 
 namespace skintune {
 
@@ -82,9 +96,10 @@ class GlPrepared {
   int input_sets() const;
   std::size_t bytes_per_set() const;  // buffer bytes of one set: inputs + palette + outputs
 
+  struct Impl;
+
  private:
   friend class GlRunner;
-  struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
@@ -93,6 +108,9 @@ class GlRunner {
   // Creates its own context (GlContext(device_index)); throws
   // Error("GL setup: <why>") when none can be made.
   explicit GlRunner(int device_index = -1);
+  // On a context made elsewhere (GlContext::AdoptCurrent); throws
+  // Error("GL setup: <why>") when it is not ok().
+  explicit GlRunner(std::unique_ptr<GlContext> context);
   ~GlRunner();
   GlRunner(const GlRunner&) = delete;
   GlRunner& operator=(const GlRunner&) = delete;
@@ -102,6 +120,14 @@ class GlRunner {
   // Whether Time and TimeCopy time launches with the host clock (software
   // renderers) instead of GL_TIME_ELAPSED queries.
   bool host_timed() const;
+
+  // Makes the runner's context current; throws Error("GL setup: ...") when
+  // it cannot be (an adopted context that is not current any more).
+  void MakeCurrent();
+
+  // Linked programs load from and store to `cache` (null: none), keyed with
+  // `device_id`; the cache must outlive the runner.
+  void UseProgramCache(ProgramCache* cache, const std::string& device_id);
 
   // Compiles and links (or finds already built) `source`; throws Error("GL build ...").
   void Build(const KernelSource& source);
@@ -136,6 +162,14 @@ class GlRunner {
   // timed frame: the sum over its launches of their GL_TIME_ELAPSED (or host
   // time, host_timed()), ms.
   std::vector<double> Time(const GlPrepared& prepared, int warmup, int repetitions);
+
+  // Skinning with a prepared set (see the top of this file). `palettes`: the
+  // set's K palettes; `out` receives K x vertex_count x output_stride_bytes
+  // (packed order).
+  void WritePalette(GlPrepared& prepared, int set, std::span<const std::uint8_t> palettes);
+  void LaunchSet(const GlPrepared& prepared, int set);
+  void ReadOutput(const GlPrepared& prepared, int set, bool normals, std::span<std::uint8_t> out);
+  unsigned int OutputBuffer(const GlPrepared& prepared, int set, bool normals) const;  // 0: none
 
   // A plain copy compute shader (one uvec4 per invocation and step, grid-stride)
   // between two storage buffers of `bytes` (rounded down to a multiple of 16, at

@@ -198,9 +198,7 @@ Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshV
     switch (state.info.backend) {
       case Backend::kOpenCl: im.backend = MakeOpenClSkinner(state, packed, kernels, options.instances); break;
       case Backend::kCuda: im.backend = MakeCudaSkinner(state, packed, kernels, options.instances); break;
-      case Backend::kGl:
-        FailWith(ErrorCode::kUnavailable, std::string("Skinner::Create: ") + BackendName(state.info.backend) +
-                                              " skinning is not implemented yet");
+      case Backend::kGl: im.backend = MakeGlSkinner(state, packed, kernels, options.instances); break;
     }
     return skinner;
   });

@@ -49,6 +49,9 @@ std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const Pac
 std::unique_ptr<SkinnerBackend> MakeCudaSkinner(DeviceState& device, const PackedMesh& mesh,
                                                 const std::vector<KernelSource>& kernels, int instances);
 
+std::unique_ptr<SkinnerBackend> MakeGlSkinner(DeviceState& device, const PackedMesh& mesh,
+                                              const std::vector<KernelSource>& kernels, int instances);
+
 // The code for a runner's Error: its message names the stage ("OpenCL
 // build: ...", "CUDA setup: ..."): build -> kBuildFailed, else kDeviceError.
 ErrorCode CodeOfRunnerError(const std::string& message);

@@ -158,10 +158,17 @@ class Device {
   // outlive the Device. kUnavailable without a CUDA driver.
   static Result<Device> FromCuda(void* cu_context, void* cu_stream, const DeviceOptions& options = {});
 
-  // The GL context current on the calling thread (4.3+ with compute shaders,
-  // or 3.0+ for the vertex-shader path). It must stay current on the thread
-  // that calls the Device and its Skinners. kUnavailable when no context is
-  // current or it is too old.
+  // The GL context current on the calling thread (EGL; GL 4.3+, which both
+  // the compute-shader and the vertex-shader path need for storage
+  // buffers). skintune never makes it current itself: it must be current
+  // whenever the Device or its Skinners are called (kInvalidState
+  // otherwise, also once the context is destroyed), and is never destroyed
+  // here. Skin() restores the program, vertex array, framebuffers, transform
+  // feedback object and rasteriser-discard state it found; the indexed buffer
+  // bindings and texture units the kernel used stay bound. Its DeviceInfo's
+  // platform is "current", so its id never equals a tuned headless one: the
+  // database matches it from the same-device-name level down. kUnavailable
+  // when no EGL context is current or it is older than 4.3.
   static Result<Device> FromCurrentGl(const DeviceOptions& options = {});
 
   Device();
@@ -292,9 +299,9 @@ class Skinner {
   // 1 within 1e-3, a NaN position, a null array, zero sizes, influences
   // outside 1..8, joint_count outside 1..65536, normals requested without
   // MeshView::normals, a bad forced variant; kInvalidState for a moved-from
-  // Device or WinnersDb; kBuildFailed (the build log's first lines) or
-  // kDeviceError from the device; kUnavailable for a GL Device whose context
-  // is not current.
+  // Device or WinnersDb, and for a GL Device whose context is not current;
+  // kBuildFailed (the build log's first lines) or kDeviceError from the
+  // device.
   static Result<Skinner> Create(Device& device, const WinnersDb& db, const MeshView& mesh,
                                 const SkinnerOptions& options = {});
 

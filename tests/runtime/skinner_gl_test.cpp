@@ -1,0 +1,196 @@
+// The public API on GL (Mesa's llvmpipe through EGL here): a GL Device with a
+// headless context of its own, Device::FromCurrentGl on the caller's
+// context, compute and vertex-shader variants against the gold, K
+// instances, the program binary cache, and the misuse a GL context allows
+// (not current, gone). Every test skips with the reason where no GL 4.3
+// context can be made.
+#include <epoxy/gl.h>
+#include <gtest/gtest.h>
+
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "reference/gltf_import.h"
+#include "reference/synthetic.h"
+#include "runtime/gl_context.h"
+#include "skintune/skintune.h"
+#include "tests/runtime/api_test_support.h"
+
+namespace skintune {
+namespace {
+
+using testing::CacheIn;
+using testing::ExpectInstancesLikeTheGold;
+using testing::ExpectSkinsLikeTheGold;
+using testing::Floats;
+using testing::Poses;
+using testing::TempDir;
+using testing::View;
+
+constexpr Backend kGl = Backend::kGl;
+
+const SkinnedAsset& Cesium() {
+  static const SkinnedAsset asset = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf").asset;
+  return asset;
+}
+
+const SkinnedAsset& Small() {
+  static const SkinnedAsset asset = GenerateDataset(ParseDatasetKey("500-b3-random-seed6-normals"));
+  return asset;
+}
+
+std::vector<glm::mat4> Pose(const SkinnedAsset& asset, double fraction) {
+  const AnimationClip& clip = asset.animations.front();
+  return asset.PaletteAt(0, clip.start + fraction * (clip.end - clip.start));
+}
+
+#define CONTEXT_OR_SKIP(context)                            \
+  GlContext context;                                        \
+  if (!context.ok()) GTEST_SKIP() << context.reason()
+
+Skinner MustCreate(Device& device, const MeshView& mesh, const SkinnerOptions& options = {}) {
+  Result<Skinner> skinner = Skinner::Create(device, WinnersDb::Empty(), mesh, options);
+  EXPECT_TRUE(skinner.ok()) << skinner.status().message();
+  return skinner.ok() ? std::move(*skinner) : Skinner();
+}
+
+TEST(GlSkinner, AGlDeviceOfItsOwnSkinsWithComputeAndVertexShaders) {
+  TempDir dir;
+  Result<Device> device = Device::Open("", &kGl, CacheIn(dir));
+  if (!device.ok()) GTEST_SKIP() << "no GL device: " << device.status().message();
+  EXPECT_EQ(device->info().backend, Backend::kGl);
+  EXPECT_EQ(device->info().id, "gl:" + device->info().platform + "/" + device->info().name + "/" +
+                                   device->info().driver_version);
+  const View view(Cesium().mesh);
+  for (const std::string& key : {std::string(), std::string("glsl-vertex.b4.padded.aos.float3.u8.unorm8.mat3x4.constant"),
+                                 std::string("glsl-vertex.b4.soa.image.mat4"),
+                                 std::string("glsl-compute.b4.soa-split.u16.unorm16.local.point.v2s.wg128")}) {
+    SCOPED_TRACE(key.empty() ? "built-in default" : key);
+    SkinnerOptions options;
+    options.variant = key;
+    options.normals = true;
+    Skinner skinner = MustCreate(*device, view.mesh, options);
+    if (key.empty()) {
+      EXPECT_EQ(skinner.selection().variant.rfind("glsl-compute.", 0), 0u);
+    }
+    ExpectSkinsLikeTheGold(skinner, Cesium().mesh, Pose(Cesium(), 0.3));
+  }
+}
+
+TEST(GlSkinner, SkinsKInstancesWithComputeAndVertexShaders) {
+  TempDir dir;
+  Result<Device> device = Device::Open("", &kGl, CacheIn(dir));
+  if (!device.ok()) GTEST_SKIP() << "no GL device: " << device.status().message();
+  const View view(Small().mesh);
+  for (int k : {1, 7, 64}) {
+    for (const std::string& key : {std::string(), std::string("glsl-vertex.b3.soa.mat3x4.global")}) {
+      SCOPED_TRACE(std::to_string(k) + " instances of " + key);
+      SkinnerOptions options;
+      options.instances = k;
+      options.variant = key;
+      Skinner skinner = MustCreate(*device, view.mesh, options);
+      ExpectInstancesLikeTheGold(skinner, Small().mesh, Poses(Small(), k));
+    }
+  }
+}
+
+TEST(GlSkinner, FromCurrentGlSkinsIntoABufferOfTheCallersContextAndKeepsItsState) {
+  CONTEXT_OR_SKIP(context);
+  TempDir dir;
+  Result<Device> device = Device::FromCurrentGl(CacheIn(dir));
+  ASSERT_TRUE(device.ok()) << device.status().message();
+  EXPECT_EQ(device->info().platform, "current");
+  EXPECT_EQ(device->info().name, context.info().renderer);
+  const View view(Small().mesh);
+  SkinnerOptions options;
+  options.normals = true;
+  Skinner skinner = MustCreate(*device, view.mesh, options);
+
+  // The caller's bindings survive a Skin().
+  GLuint vertex_array = 0;
+  glGenVertexArrays(1, &vertex_array);
+  glBindVertexArray(vertex_array);
+  ExpectSkinsLikeTheGold(skinner, Small().mesh, Pose(Small(), 0.6));
+  GLint bound = 0;
+  glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &bound);
+  EXPECT_EQ(static_cast<GLuint>(bound), vertex_array);
+  glBindVertexArray(0);
+  glDeleteVertexArrays(1, &vertex_array);
+
+  // The output is a buffer object of this context, in the mesh's order.
+  const auto buffer = static_cast<GLuint>(reinterpret_cast<std::uintptr_t>(skinner.device_positions()));
+  ASSERT_TRUE(glIsBuffer(buffer));
+  const std::size_t n = skinner.vertex_count();
+  std::vector<float> on_device(n * skinner.output_stride_bytes() / 4);
+  glBindBuffer(GL_COPY_READ_BUFFER, buffer);
+  glGetBufferSubData(GL_COPY_READ_BUFFER, 0, static_cast<GLsizeiptr>(on_device.size() * 4), on_device.data());
+  glBindBuffer(GL_COPY_READ_BUFFER, 0);
+  std::vector<float> read(n * 3);
+  ASSERT_TRUE(skinner.ReadPositions(read.data(), read.size()).ok());
+  const std::size_t stride = skinner.output_stride_bytes() / 4;
+  for (std::size_t v = 0; v < n; v += 37)
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(on_device[v * stride + c], read[v * 3 + c]) << "vertex " << v;
+}
+
+TEST(GlProgramCache, SecondDeviceOnTheSameContextCompilesNothing) {
+  CONTEXT_OR_SKIP(context);
+  GLint formats = 0;
+  glGetIntegerv(GL_NUM_PROGRAM_BINARY_FORMATS, &formats);
+  if (formats <= 0) GTEST_SKIP() << context.info().renderer << " offers no program binary format";
+  TempDir dir;
+  const View view(Small().mesh);
+  for (const std::string& key : {std::string(), std::string("glsl-vertex.b3")}) {
+    SCOPED_TRACE(key.empty() ? "built-in default" : key);
+    SkinnerOptions options;
+    options.variant = key;
+    {
+      Result<Device> first = Device::FromCurrentGl(CacheIn(dir));
+      ASSERT_TRUE(first.ok()) << first.status().message();
+      MustCreate(*first, view.mesh, options);
+      EXPECT_EQ(first->cache_stats().builds, 1);
+    }
+    Result<Device> second = Device::FromCurrentGl(CacheIn(dir));
+    ASSERT_TRUE(second.ok()) << second.status().message();
+    Skinner skinner = MustCreate(*second, view.mesh, options);
+    EXPECT_EQ(second->cache_stats().builds, 0);
+    EXPECT_EQ(second->cache_stats().disk_hits, 1);
+    ExpectSkinsLikeTheGold(skinner, Small().mesh, Pose(Small(), 0.2));
+  }
+}
+
+TEST(GlMisuse, NoCurrentContextIsUnavailable) {
+  Status status;
+  std::thread([&] { status = Device::FromCurrentGl().status(); }).join();  // a new thread has none
+  EXPECT_EQ(status.code(), ErrorCode::kUnavailable) << status.message();
+  EXPECT_FALSE(status.message().empty());
+}
+
+TEST(GlMisuse, SkinningWithAnotherContextCurrentOrTheContextGone) {
+  auto context = std::make_unique<GlContext>();
+  if (!context->ok()) GTEST_SKIP() << context->reason();
+  TempDir dir;
+  Result<Device> device = Device::FromCurrentGl(CacheIn(dir));
+  ASSERT_TRUE(device.ok()) << device.status().message();
+  const View view(Small().mesh);
+  Skinner skinner = MustCreate(*device, view.mesh);
+  const std::vector<float> palette = Floats(Pose(Small(), 0.5));
+  ASSERT_TRUE(skinner.SetPalette(palette.data(), palette.size()).ok());
+  {
+    GlContext other;  // now current instead
+    ASSERT_TRUE(other.ok());
+    const Status status = skinner.Skin();
+    EXPECT_EQ(status.code(), ErrorCode::kInvalidState) << status.message();
+    EXPECT_NE(status.message().find("not current"), std::string::npos) << status.message();
+    const Result<Skinner> created = Skinner::Create(*device, WinnersDb::Empty(), view.mesh);
+    EXPECT_EQ(created.status().code(), ErrorCode::kInvalidState) << created.status().message();
+  }
+  context->MakeCurrent();
+  EXPECT_TRUE(skinner.Skin().ok());
+  context.reset();  // the caller destroys its context
+  const Status gone = skinner.Skin();
+  EXPECT_EQ(gone.code(), ErrorCode::kInvalidState) << gone.message();
+}
+
+}  // namespace
+}  // namespace skintune
