@@ -10,6 +10,7 @@
 #include "runtime/cuda_api.h"
 #include "runtime/device_identity.h"
 #include "runtime/gl_context.h"
+#include "runtime/opencl_gl_sharing.h"
 #include "runtime/selection.h"
 #include "runtime/winners_db.h"
 
@@ -237,6 +238,15 @@ Result<Device> Device::FromCuda(void* cu_context, void* cu_stream, const DeviceO
     state->cuda->UseProgramCache(&state->cache, state->info.id);
     return DeviceAccess::Make(std::move(state));
   });
+}
+
+Result<Device> Device::OpenClForCurrentGl(const DeviceOptions& options) {
+  std::string why;
+  const OpenClGlHandles handles = OpenClContextForCurrentGl(why);
+  if (!handles.context) return Status(ErrorCode::kUnavailable, "Device::OpenClForCurrentGl: " + why);
+  Result<Device> device = FromOpenCl(handles.device, handles.context, handles.queue, options);
+  Release(handles);  // the Device holds its own references
+  return device;
 }
 
 Result<Device> Device::FromCurrentGl(const DeviceOptions& options) {

@@ -159,6 +159,67 @@ TEST(GlProgramCache, SecondDeviceOnTheSameContextCompilesNothing) {
   }
 }
 
+// ---------------------------------------------------------------- OpenCL-GL interop
+
+TEST(OpenClGlInterop, SkinsStraightIntoAGlBufferWhereAPlatformSharesOne) {
+  CONTEXT_OR_SKIP(context);
+  TempDir dir;
+  Result<Device> device = Device::OpenClForCurrentGl(CacheIn(dir));
+  if (!device.ok()) {
+    EXPECT_EQ(device.status().code(), ErrorCode::kUnavailable) << device.status().message();
+    GTEST_SKIP() << "no OpenCL-GL sharing here: " << device.status().message();
+  }
+  EXPECT_TRUE(device->has_gl_sharing());
+  const View view(Small().mesh);
+  SkinnerOptions options;
+  options.instances = 3;
+  Skinner skinner = MustCreate(*device, view.mesh, options);
+  const std::vector<std::vector<glm::mat4>> poses = Poses(Small(), 3);
+  std::vector<float> palettes;
+  for (const auto& pose : poses) {
+    const std::vector<float> f = Floats(pose);
+    palettes.insert(palettes.end(), f.begin(), f.end());
+  }
+  ASSERT_TRUE(skinner.SetPalette(palettes.data(), palettes.size()).ok());
+  const std::size_t n = skinner.vertex_count();
+  const std::size_t bytes = 3 * n * skinner.output_stride_bytes();
+  GLuint buffers[2] = {0, 0};
+  glGenBuffers(2, buffers);
+  glBindBuffer(GL_ARRAY_BUFFER, buffers[0]);
+  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(bytes), nullptr, GL_DYNAMIC_DRAW);
+  glBindBuffer(GL_ARRAY_BUFFER, buffers[1]);
+  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(bytes / 2), nullptr, GL_DYNAMIC_DRAW);
+  glBindBuffer(GL_ARRAY_BUFFER, 0);
+  const Status written = skinner.SkinIntoGlBuffer(buffers[0]);
+  ASSERT_TRUE(written.ok()) << written.message();
+  std::vector<float> on_gl(bytes / 4);
+  glBindBuffer(GL_COPY_READ_BUFFER, buffers[0]);
+  glGetBufferSubData(GL_COPY_READ_BUFFER, 0, static_cast<GLsizeiptr>(bytes), on_gl.data());
+  glBindBuffer(GL_COPY_READ_BUFFER, 0);
+  const std::size_t stride = skinner.output_stride_bytes() / 4;
+  const Variant variant = ParseVariantKey(skinner.selection().variant);
+  for (std::size_t k = 0; k < 3; ++k) {
+    const GoldResult gold = SkinGold(QuantisedMesh(Small().mesh, variant), poses[k]);
+    std::vector<glm::vec3> part(n);
+    for (std::size_t v = 0; v < n; ++v) {
+      const float* at = &on_gl[(k * n + v) * stride];
+      part[v] = {at[0], at[1], at[2]};
+    }
+    const GoldComparison c = CompareToGold(gold.positions, part);
+    EXPECT_EQ(c.non_finite, 0u) << "instance " << k;
+    EXPECT_LT(c.max_relative, 1e-5) << "instance " << k << ", worst vertex " << c.worst_vertex;
+  }
+  const Status small = skinner.SkinIntoGlBuffer(buffers[1]);
+  EXPECT_EQ(small.code(), ErrorCode::kInvalidArgument) << small.message();
+  glDeleteBuffers(2, buffers);
+}
+
+TEST(OpenClGlInterop, WithoutACurrentContextThereIsNothingToShare) {
+  Status status;
+  std::thread([&] { status = Device::OpenClForCurrentGl().status(); }).join();
+  EXPECT_EQ(status.code(), ErrorCode::kUnavailable) << status.message();
+}
+
 TEST(GlMisuse, NoCurrentContextIsUnavailable) {
   Status status;
   std::thread([&] { status = Device::FromCurrentGl().status(); }).join();  // a new thread has none

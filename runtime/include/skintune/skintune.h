@@ -171,6 +171,16 @@ class Device {
   // when no EGL context is current or it is older than 4.3.
   static Result<Device> FromCurrentGl(const DeviceOptions& options = {});
 
+  // An OpenCL device that shares buffers with the GL context current on the
+  // calling thread (cl_khr_gl_sharing, as in the paper): a new OpenCL context
+  // created with CL_GL_CONTEXT_KHR and CL_EGL_DISPLAY_KHR for the current EGL
+  // context, on the device clGetGLContextInfoKHR names, with an in-order
+  // queue. has_gl_sharing() is true and Skinner::SkinIntoGlBuffer writes into
+  // that GL context's buffers. kUnavailable, saying why for each platform,
+  // when no EGL context is current or no OpenCL platform offers the
+  // extension for it (PoCL does not).
+  static Result<Device> OpenClForCurrentGl(const DeviceOptions& options = {});
+
   Device();
   ~Device();
   Device(Device&&) noexcept;
@@ -352,14 +362,17 @@ class Skinner {
   void* device_positions() const;
   std::size_t output_stride_bytes() const;
 
-  // OpenCL-OpenGL interop (cl_khr_gl_sharing, as in the paper): skin straight
-  // into GL buffer object `gl_buffer` (clCreateFromGLBuffer once per buffer,
-  // then acquire, skin, release each call). The buffer must hold at least
-  // instances() * vertex_count() * output_stride_bytes() bytes
-  // (kInvalidArgument otherwise); the GL context the Device shares must be
-  // current. kUnavailable when the Device has no GL sharing; kInvalidState
-  // before the first SetPalette. Read* still reads the Skinner's own output
-  // (of the last Skin()).
+  // OpenCL-OpenGL interop (cl_khr_gl_sharing, as in the paper): skin the
+  // positions straight into GL buffer object `gl_buffer` of the shared GL
+  // context, in the mesh's order, output_stride_bytes() per vertex
+  // (clCreateFromGLBuffer once per buffer, then each call: glFinish, acquire,
+  // skin, release, clFinish, so GL can draw from it on return). The buffer
+  // must hold at least instances() * vertex_count() * output_stride_bytes()
+  // bytes and belong to the shared context (kInvalidArgument otherwise); that
+  // context must be current. Normals, when skinned, go to the Skinner's own
+  // buffer, and Read* reads the Skinner's own output (of the last Skin()).
+  // kUnavailable when the Device has no GL sharing (see
+  // Device::OpenClForCurrentGl); kInvalidState before the first SetPalette.
   Status SkinIntoGlBuffer(unsigned int gl_buffer);
 
   struct Impl;
