@@ -87,6 +87,11 @@ class GlObject {
   }
   // Gives the name up without deleting it (when no context can be made current).
   void forget() { id_ = 0; }
+  // Deletes the name when its context is current, else gives it up: a GL call
+  // with no current context aborts inside libepoxy.
+  void release(bool context_current) {
+    if (context_current) reset(); else forget();
+  }
 
  private:
   GLuint id_ = 0;
@@ -197,17 +202,19 @@ struct GlRunner::Impl {
   std::string cache_device_id;
 
   ~Impl() {
-    if (!context || !context->ok()) return;
-    try {
-      context->MakeCurrent();
-    } catch (const Error&) {
-      return;  // nothing can be deleted without the context; it goes with it
+    bool current = false;
+    if (context && context->ok()) {
+      try {
+        context->MakeCurrent();
+        current = true;
+      } catch (const Error&) {
+        // The caller's context is gone or not current: nothing can be deleted
+        // without it (its objects go with it), and calling GL now would abort.
+      }
     }
-    built.clear();
-    vertex_array.reset();
-    framebuffer.reset();
-    renderbuffer.reset();
-    transform_feedback.reset();
+    for (auto& [hash, program] : built) program.program.release(current);
+    for (GlObject* object : {&vertex_array, &framebuffer, &renderbuffer, &transform_feedback})
+      object->release(current);
   }
 
   const BuiltProgram& ProgramFor(const KernelSource& source);
@@ -732,8 +739,7 @@ struct GlPrepared::Impl {
     } catch (const Error&) {
     }
     for (Set& set : sets)
-      for (GlObject& object : set.objects)
-        if (current) object.reset(); else object.forget();
+      for (GlObject& object : set.objects) object.release(current);
   }
 };
 
