@@ -381,4 +381,67 @@ class Skinner {
   std::unique_ptr<Impl> impl_;
 };
 
+// ---------------------------------------------------------------- models
+
+// A skinned model with its skeleton and animations, loaded by skintune so a
+// program can drive a Skinner without a glTF loader of its own: a glTF 2.0
+// file or a synthetic dataset (the paper's meshes, docs/DATA.md). Copyable.
+class Model {
+ public:
+  // A .gltf / .glb file: its first skinned mesh (every triangle primitive),
+  // skin and animations (reference/gltf_import.h says what is read). Weights
+  // that do not sum to 1 are renormalised with one line in warnings().
+  // kIoError when the file cannot be read; kInvalidArgument naming the file
+  // and the element for anything malformed (accessor out of its buffer, joint
+  // outside the skin, negative weights, not glTF at all...).
+  static Result<Model> Load(const std::string& path);
+  // A synthetic dataset by key: "100k-b4", "1600k-b2-random",
+  // "5000-b8-bones12-seed3-normals" (docs/DATA.md); kInvalidArgument naming
+  // the bad part of the key.
+  static Result<Model> Synthetic(const std::string& key);
+
+  Model();  // empty: vertex_count() 0, mesh() all null
+  ~Model();
+  Model(const Model&);
+  Model& operator=(const Model&);
+  Model(Model&&) noexcept;
+  Model& operator=(Model&&) noexcept;
+
+  const std::string& source() const;  // file name or dataset key
+  std::size_t vertex_count() const;
+  int influences() const;    // largest number of non-zero weights of any vertex
+  int joint_count() const;
+  bool has_normals() const;
+  // The mesh as a MeshView over this Model's arrays, for Skinner::Create
+  // (normals null when the model has none); valid while the Model lives
+  // unchanged.
+  MeshView mesh() const;
+  const std::vector<std::string>& warnings() const;  // import warnings, whole lines
+
+  int animation_count() const;
+  // Index of the animation named `name`, or of `name` as a decimal index;
+  // kNotFound listing the animations there are.
+  Result<int> FindAnimation(const std::string& name) const;
+  std::string animation_name(int animation) const;  // "" outside 0..animation_count()-1
+  double animation_start(int animation) const;      // seconds (0 outside the range)
+  double animation_duration(int animation) const;   // seconds (0 outside the range)
+
+  // The palette of animation `animation` at time `t` seconds (clip time,
+  // clamped to the keys as glTF does), or of the rest pose for animation -1:
+  // joint_count() column-major 4x4 matrices, 16 floats each, ready for
+  // Skinner::SetPalette. kInvalidArgument for an animation outside
+  // -1..animation_count()-1 or a t that is not finite.
+  Status Palette(int animation, double t, std::vector<float>* matrices) const;
+
+  // The float64 reference ("gold") skinning of this model's positions with
+  // `matrices` (joint_count() * 16 floats), rounded to float: 3 floats per
+  // vertex. What the tests check every kernel against; slow, for checks.
+  Status SkinReference(const float* matrices, std::size_t float_count, std::vector<float>* positions) const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
 }  // namespace skintune

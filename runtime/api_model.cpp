@@ -1,0 +1,158 @@
+// The public Model (skintune/skintune.h): a glTF model or synthetic dataset
+// with its skeleton and animations, over reference/ (import, palettes, gold).
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+
+#include "reference/asset.h"
+#include "reference/gltf_import.h"
+#include "reference/skinning.h"
+#include "reference/synthetic.h"
+#include "runtime/api_errors.h"
+#include "skintune/skintune.h"
+
+namespace skintune {
+
+struct Model::Impl {
+  SkinnedAsset asset;
+  std::vector<std::string> warnings;
+  int influences = 0;                 // largest non-zero count of any vertex
+  std::vector<float> positions;       // 3 per vertex
+  std::vector<float> normals;         // 3 per vertex, or empty
+  std::vector<std::uint32_t> joints;  // asset.mesh.influences per vertex
+
+  explicit Impl(SkinnedAsset a, std::vector<std::string> w) : asset(std::move(a)), warnings(std::move(w)) {
+    const SkinnedMesh& mesh = asset.mesh;
+    for (std::size_t v = 0; v < mesh.vertex_count(); ++v) influences = std::max(influences, mesh.InfluencesOf(v));
+    positions.reserve(mesh.vertex_count() * 3);
+    for (const glm::vec3& p : mesh.positions) positions.insert(positions.end(), {p.x, p.y, p.z});
+    for (const glm::vec3& n : mesh.normals) normals.insert(normals.end(), {n.x, n.y, n.z});
+    joints.assign(mesh.joints.begin(), mesh.joints.end());
+  }
+  bool HasAnimation(int a) const { return a >= 0 && a < static_cast<int>(asset.animations.size()); }
+};
+
+namespace {
+
+Model::Impl& Checked(const std::unique_ptr<Model::Impl>& impl, const char* call) {
+  if (!impl) FailWith(ErrorCode::kInvalidState, std::string("Model::") + call + ": the Model is empty (moved from)");
+  return *impl;
+}
+
+std::vector<glm::mat4> Matrices(const float* matrices, std::size_t float_count, int joints, const char* call) {
+  if (!matrices) FailWith(ErrorCode::kInvalidArgument, std::string(call) + ": matrices is null");
+  if (float_count != static_cast<std::size_t>(joints) * 16)
+    FailWith(ErrorCode::kInvalidArgument, std::string(call) + ": " + std::to_string(float_count) +
+                                              " floats given, the palette has " + std::to_string(joints) +
+                                              " joints x 16 = " + std::to_string(joints * 16));
+  std::vector<glm::mat4> palette(static_cast<std::size_t>(joints));
+  std::memcpy(palette.data(), matrices, float_count * sizeof(float));
+  return palette;
+}
+
+}  // namespace
+
+Result<Model> Model::Load(const std::string& path) {
+  {
+    std::ifstream probe(path, std::ios::binary);
+    if (!probe) return Status(ErrorCode::kIoError, path + ": cannot read: " + std::strerror(errno));
+  }
+  return GuardedResult<Model>(ErrorCode::kInvalidArgument, [&] {
+    GltfImportResult imported = ImportGltf(path);
+    Model model;
+    model.impl_ = std::make_unique<Impl>(std::move(imported.asset), std::move(imported.warnings));
+    return model;
+  });
+}
+
+Result<Model> Model::Synthetic(const std::string& key) {
+  return GuardedResult<Model>(ErrorCode::kInvalidArgument, [&] {
+    Model model;
+    model.impl_ = std::make_unique<Impl>(GenerateDataset(ParseDatasetKey(key)), std::vector<std::string>{});
+    return model;
+  });
+}
+
+Model::Model() = default;
+Model::~Model() = default;
+Model::Model(const Model& other) : impl_(other.impl_ ? std::make_unique<Impl>(*other.impl_) : nullptr) {}
+Model& Model::operator=(const Model& other) {
+  if (this != &other) impl_ = other.impl_ ? std::make_unique<Impl>(*other.impl_) : nullptr;
+  return *this;
+}
+Model::Model(Model&&) noexcept = default;
+Model& Model::operator=(Model&&) noexcept = default;
+
+const std::string& Model::source() const {
+  static const std::string kNone;
+  return impl_ ? impl_->asset.source : kNone;
+}
+std::size_t Model::vertex_count() const { return impl_ ? impl_->asset.mesh.vertex_count() : 0; }
+int Model::influences() const { return impl_ ? impl_->influences : 0; }
+int Model::joint_count() const { return impl_ ? impl_->asset.mesh.joint_count : 0; }
+bool Model::has_normals() const { return impl_ && !impl_->normals.empty(); }
+
+MeshView Model::mesh() const {
+  MeshView view;
+  if (!impl_) return view;
+  const SkinnedMesh& mesh = impl_->asset.mesh;
+  view.vertex_count = mesh.vertex_count();
+  view.influences = mesh.influences;
+  view.joint_count = mesh.joint_count;
+  view.positions = impl_->positions.data();
+  view.normals = impl_->normals.empty() ? nullptr : impl_->normals.data();
+  view.joints = impl_->joints.data();
+  view.weights = mesh.weights.data();
+  return view;
+}
+
+const std::vector<std::string>& Model::warnings() const {
+  static const std::vector<std::string> kNone;
+  return impl_ ? impl_->warnings : kNone;
+}
+
+int Model::animation_count() const { return impl_ ? static_cast<int>(impl_->asset.animations.size()) : 0; }
+
+Result<int> Model::FindAnimation(const std::string& name) const {
+  return GuardedResult<int>(ErrorCode::kNotFound, [&] { return Checked(impl_, "FindAnimation").asset.FindAnimation(name); });
+}
+
+std::string Model::animation_name(int animation) const {
+  return impl_ && impl_->HasAnimation(animation) ? impl_->asset.animations[animation].name : std::string();
+}
+double Model::animation_start(int animation) const {
+  return impl_ && impl_->HasAnimation(animation) ? impl_->asset.animations[animation].start : 0.0;
+}
+double Model::animation_duration(int animation) const {
+  return impl_ && impl_->HasAnimation(animation) ? impl_->asset.animations[animation].duration() : 0.0;
+}
+
+Status Model::Palette(int animation, double t, std::vector<float>* matrices) const {
+  return Guarded(ErrorCode::kInvalidArgument, [&] {
+    const Impl& im = Checked(impl_, "Palette");
+    if (!matrices) FailWith(ErrorCode::kInvalidArgument, "Model::Palette: matrices is null");
+    if (animation != -1 && !im.HasAnimation(animation))
+      FailWith(ErrorCode::kInvalidArgument, "Model::Palette: animation " + std::to_string(animation) + " outside -1.." +
+                                                std::to_string(animation_count() - 1) + " of " + im.asset.source);
+    if (!std::isfinite(t)) FailWith(ErrorCode::kInvalidArgument, "Model::Palette: t is not finite");
+    const std::vector<glm::mat4> palette = im.asset.PaletteAt(animation, t);
+    matrices->resize(palette.size() * 16);
+    std::memcpy(matrices->data(), palette.data(), matrices->size() * sizeof(float));
+  });
+}
+
+Status Model::SkinReference(const float* matrices, std::size_t float_count, std::vector<float>* positions) const {
+  return Guarded(ErrorCode::kInvalidArgument, [&] {
+    const Impl& im = Checked(impl_, "SkinReference");
+    if (!positions) FailWith(ErrorCode::kInvalidArgument, "Model::SkinReference: positions is null");
+    const std::vector<glm::mat4> palette =
+        Matrices(matrices, float_count, im.asset.mesh.joint_count, "Model::SkinReference");
+    const GoldResult gold = SkinGold(im.asset.mesh, palette);
+    positions->resize(gold.positions.size() * 3);
+    for (std::size_t v = 0; v < gold.positions.size(); ++v)
+      for (int c = 0; c < 3; ++c) (*positions)[v * 3 + c] = static_cast<float>(gold.positions[v][c]);
+  });
+}
+
+}  // namespace skintune
