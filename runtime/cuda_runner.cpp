@@ -725,6 +725,12 @@ void CudaRunner::ReadOutput(const CudaPrepared& prepared, int set, bool normals,
         std::string("cuMemcpyDtoH '") + (normals ? "out_normals" : "out_positions") + "' of " + p.key);
 }
 
+void CudaRunner::Finish() {
+  Impl& im = *impl_;
+  im.MakeCurrent();
+  Check(im.api->cuStreamSynchronize(im.stream), "launch", "cuStreamSynchronize");
+}
+
 unsigned long long CudaRunner::OutputBuffer(const CudaPrepared& prepared, int set, bool normals) const {
   const CudaPrepared::Impl::Set& s = SetOf(prepared, prepared.impl_.get(), set);
   return normals ? s.out_normals : s.out_positions;

@@ -182,6 +182,8 @@ class CudaRunner {
   void WritePalette(CudaPrepared& prepared, int set, std::span<const std::uint8_t> palettes);
   void LaunchSet(const CudaPrepared& prepared, int set);
   void ReadOutput(const CudaPrepared& prepared, int set, bool normals, std::span<std::uint8_t> out);
+  // Waits for everything queued on the runner's stream.
+  void Finish();
   unsigned long long OutputBuffer(const CudaPrepared& prepared, int set, bool normals) const;  // 0: none
 
   // A plain copy (one uint4 per thread) between two buffers of `bytes`

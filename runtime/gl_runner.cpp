@@ -447,6 +447,11 @@ GlRunner::GlRunner(std::unique_ptr<GlContext> context) : impl_(std::make_unique<
 
 void GlRunner::MakeCurrent() { impl_->context->MakeCurrent(); }
 
+void GlRunner::Finish() {
+  impl_->context->MakeCurrent();
+  glFinish();
+}
+
 void GlRunner::UseProgramCache(ProgramCache* cache, const std::string& device_id) {
   impl_->cache = cache;
   impl_->cache_device_id = device_id;

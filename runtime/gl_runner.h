@@ -169,6 +169,8 @@ class GlRunner {
   void WritePalette(GlPrepared& prepared, int set, std::span<const std::uint8_t> palettes);
   void LaunchSet(const GlPrepared& prepared, int set);
   void ReadOutput(const GlPrepared& prepared, int set, bool normals, std::span<std::uint8_t> out);
+  // glFinish on the runner's context (made current).
+  void Finish();
   unsigned int OutputBuffer(const GlPrepared& prepared, int set, bool normals) const;  // 0: none
 
   // A plain copy compute shader (one uvec4 per invocation and step, grid-stride)

@@ -240,6 +240,13 @@ Status Skinner::Skin() {
   });
 }
 
+Status Skinner::Finish() {
+  return Guarded(ErrorCode::kDeviceError, [&] {
+    Impl& im = Usable(impl_, "Finish");
+    if (im.skinned) im.backend->Finish();
+  });
+}
+
 namespace {
 
 Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out, std::size_t float_count) {

@@ -32,6 +32,8 @@ class SkinnerBackend {
   // Every instance's palette, one after another (PackPalette of K x J matrices).
   virtual void WritePalette(std::span<const std::uint8_t> packed_palettes) = 0;
   virtual void Skin() = 0;
+  // Waits until every Skin() so far has completed on the device.
+  virtual void Finish() = 0;
   // The positions (or normals) in packed order, instance after instance:
   // instances x vertex_count x output stride.
   virtual void Read(bool normals, std::span<std::uint8_t> out) = 0;

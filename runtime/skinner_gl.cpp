@@ -44,6 +44,9 @@ class GlSkinner final : public SkinnerBackend {
   void Skin() override {
     Run([&] { runner_.LaunchSet(prepared_, 0); });
   }
+  void Finish() override {
+    Run([&] { runner_.Finish(); });
+  }
   void Read(bool normals, std::span<std::uint8_t> out) override {
     Run([&] { runner_.ReadOutput(prepared_, 0, normals && normals_, out); });
   }

@@ -1,9 +1,15 @@
 // skintune skin: the CPU reference on a dataset or glTF model, rest pose or
-// an animation sampled at a time, written as .obj or skintune's binary format.
+// an animation sampled at a time, written as .obj or skintune's binary format;
+// optionally the palette it used (--palette-out) and a check of another
+// program's output against it (--check, --variant: the gold on the weights as
+// that variant quantises them).
 #include <chrono>
+#include <cstring>
 #include <cmath>
 #include <iostream>
 
+#include "generator/packer.h"
+#include "generator/variant.h"
 #include "reference/error.h"
 #include "reference/mesh_io.h"
 #include "reference/skinning.h"
@@ -20,7 +26,49 @@ struct SkinOptions {
   bool time_given = false;
   std::string out;
   std::string implementation = "gold";
+  std::string palette_out;   // raw float32 palette (joints x 16, column-major)
+  std::string check;         // a skinned-vertex file to compare with the result
+  std::string check_variant; // quantise the weights as this variant does first
+  double tolerance = 1e-5;   // largest relative error CompareToGold may report
 };
+
+void WritePalette(const std::string& path, const std::vector<glm::mat4>& palette) {
+  std::string bytes(palette.size() * sizeof(glm::mat4), '\0');
+  for (std::size_t j = 0; j < palette.size(); ++j)
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r) {
+        const float value = palette[j][c][r];
+        std::memcpy(&bytes[(j * 16 + c * 4 + r) * sizeof(float)], &value, sizeof value);
+      }
+  WriteFileAtomically(path, bytes);
+}
+
+// Exit 0 when `o.check`'s positions agree with the gold of `mesh` (its
+// weights quantised as `o.check_variant` does, when given) within tolerance.
+int Check(const SkinOptions& o, const SkinnedMesh& mesh, const std::vector<glm::mat4>& palette) {
+  const SkinnedVertices theirs = ReadSkinnedVertices(o.check);
+  if (theirs.positions.size() != mesh.vertex_count())
+    throw Error(o.check + ": " + std::to_string(theirs.positions.size()) + " vertices, the mesh has " +
+                std::to_string(mesh.vertex_count()));
+  std::string what = "the gold";
+  SkinnedMesh reference = mesh;
+  if (!o.check_variant.empty()) {
+    const Variant variant = ParseVariantKey(o.check_variant);
+    reference = QuantisedMesh(mesh, variant);
+    what += " with " + std::string(Name(variant.weight)) + " weights";
+  }
+  const GoldResult gold = SkinGold(reference, palette);
+  const GoldComparison c = CompareToGold(gold.positions, theirs.positions);
+  const bool ok = c.non_finite == 0 && c.max_relative <= o.tolerance;
+  std::cout << o.check << (ok ? " agrees with " : " DISAGREES with ") << what << ": largest relative error "
+            << c.max_relative << " at vertex " << c.worst_vertex << " (absolute " << c.max_absolute << ", "
+            << c.non_finite << " non-finite; tolerance " << o.tolerance << ")\n";
+  if (!ok)
+    throw Error(o.check + ": vertex " + std::to_string(c.worst_vertex) + " is off by " +
+                std::to_string(c.max_relative) + " relative (tolerance " + std::to_string(o.tolerance) + ")" +
+                (c.non_finite ? ", " + std::to_string(c.non_finite) + " non-finite vertices" : ""));
+  return 0;
+}
 
 std::vector<glm::vec3> ToFloat(const std::vector<glm::dvec3>& values) {
   return std::vector<glm::vec3>(values.begin(), values.end());
@@ -53,13 +101,14 @@ int RunSkin(const SkinOptions& o) {
     FastSkinner(mesh).Run(palette, positions, normals);
   }
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  WriteSkinnedVertices(o.out, positions, normals);
+  if (!o.out.empty()) WriteSkinnedVertices(o.out, positions, normals);
+  if (!o.palette_out.empty()) WritePalette(o.palette_out, palette);
   std::cout << "skinned " << n << " vertices (" << mesh.influences << " influences, " << mesh.joint_count
             << " joints) of " << asset.source << " at "
             << (clip < 0 ? std::string("rest pose") : "t=" + std::to_string(t) + " s of animation " +
                                                           std::to_string(clip))
-            << " with " << o.implementation << " in " << ms << " ms -> " << o.out << "\n";
-  return 0;
+            << " with " << o.implementation << " in " << ms << " ms" << (o.out.empty() ? "" : " -> " + o.out) << "\n";
+  return o.check.empty() ? 0 : Check(o, mesh, palette);
 }
 
 }  // namespace
@@ -72,14 +121,25 @@ Command RegisterSkin(CLI::App& app) {
   sub->add_option("--time", o->time, "time in seconds within the animation (default: its start)")
       ->check(CLI::NonNegativeNumber)
       ->each([o](const std::string&) { o->time_given = true; });
-  sub->add_option("--out", o->out, "output file: .obj (v x y z lines) or skintune binary (docs/FORMATS.md)")
-      ->required();
+  sub->add_option("--out", o->out, "output file: .obj (v x y z lines) or skintune binary (docs/FORMATS.md)");
+  sub->add_option("--palette-out", o->palette_out,
+                  "also write the palette used: joints x 16 float32, column-major 4x4 (docs/FORMATS.md)");
+  sub->add_option("--check", o->check,
+                  "compare this skinned-vertex file (.obj or binary, e.g. your kernel's output) with the gold; "
+                  "exit 1 naming the worst vertex when it is off by more than --tolerance");
+  sub->add_option("--variant", o->check_variant,
+                  "with --check: quantise the weights as this variant does (e.g. unorm8) before the gold");
+  sub->add_option("--tolerance", o->tolerance, "with --check: largest relative error (default 1e-5)")
+      ->check(CLI::PositiveNumber);
   sub->add_flag("--normals", o->source.normals, "also skin and write normals (when the mesh has them)");
   sub->add_option("--impl", o->implementation, "CPU implementation: gold (float64), serial (paper baseline), fast")
       ->check(CLI::IsMember({"gold", "serial", "fast"}));
   return {sub, [o] {
             if (o->source.dataset.empty() && o->source.mesh_file.empty())
               throw Error("skin: give --dataset NAME or --mesh FILE");
+            if (o->out.empty() && o->palette_out.empty() && o->check.empty())
+              throw Error("skin: give --out FILE, --palette-out FILE or --check FILE");
+            if (!o->check_variant.empty() && o->check.empty()) throw Error("skin: --variant needs --check FILE");
             return RunSkin(*o);
           }};
 }

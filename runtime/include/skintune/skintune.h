@@ -343,6 +343,12 @@ class Skinner {
   // SetPalette.
   Status Skin();
 
+  // Waits until the last Skin() has completed on the device, e.g. before
+  // timing a frame or using device_positions() from another queue or API
+  // (OpenCL clFinish, CUDA stream synchronise, GL glFinish). Nothing to wait
+  // for before the first Skin() (returns ok).
+  Status Finish();
+
   // Skinned positions (and normals) in the mesh's vertex order: 3 floats per
   // vertex, instance after instance; `float_count` must equal
   // instances() * vertex_count() * 3 (else kInvalidArgument), `out` not null.

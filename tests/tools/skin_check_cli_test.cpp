@@ -1,0 +1,100 @@
+// skintune skin --palette-out / --check / --variant: the palette a frame used,
+// and another program's output checked against the gold.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <vector>
+
+#include <glm/gtc/type_ptr.hpp>
+
+#include "generator/packer.h"
+#include "generator/variant.h"
+#include "reference/asset.h"
+#include "reference/gltf_import.h"
+#include "reference/mesh_io.h"
+#include "reference/skinning.h"
+#include "tests/tools/run_command.h"
+
+namespace skintune::testing {
+namespace {
+
+namespace fs = std::filesystem;
+const std::string kCesium = std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf";
+const std::string kUnorm8 = "opencl.b4.padded.soa.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals";
+
+fs::path Scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("skintune_skin_check_" + std::to_string(::getpid()) + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// The gold of CesiumMan at t = 0.5 on the weights `variant` quantises (or the mesh's).
+std::vector<glm::vec3> Gold(const std::string& variant) {
+  const SkinnedAsset asset = ImportGltf(kCesium).asset;
+  const SkinnedMesh mesh = variant.empty() ? asset.mesh : QuantisedMesh(asset.mesh, ParseVariantKey(variant));
+  const GoldResult gold = SkinGold(mesh, asset.PaletteAt(0, 0.5));
+  return std::vector<glm::vec3>(gold.positions.begin(), gold.positions.end());
+}
+
+TEST(SkinCheckCli, PaletteOutIsTheFramesPaletteColumnMajor) {
+  const fs::path dir = Scratch("palette");
+  const auto r = RunSkintune({"skin", "--mesh", kCesium, "--animation", "0", "--time", "0.5", "--palette-out",
+                              (dir / "palette.bin").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string bytes = ReadAll(dir / "palette.bin");
+  const std::vector<glm::mat4> expected = ImportGltf(kCesium).asset.PaletteAt(0, 0.5);
+  ASSERT_EQ(bytes.size(), expected.size() * 64);
+  for (std::size_t j = 0; j < expected.size(); ++j)
+    EXPECT_EQ(std::memcmp(bytes.data() + j * 64, glm::value_ptr(expected[j]), 64), 0) << "joint " << j;
+}
+
+TEST(SkinCheckCli, AcceptsOutputWithinToleranceOfTheQuantisedGold) {
+  const fs::path dir = Scratch("accept");
+  const std::string file = (dir / "theirs.stv").string();
+  WriteSkinnedVertices(file, Gold(kUnorm8), {});
+  const auto r = RunSkintune({"skin", "--mesh", kCesium, "--animation", "0", "--time", "0.5", "--check", file,
+                              "--variant", kUnorm8});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("agrees with the gold with unorm8 weights"), std::string::npos) << r.out;
+}
+
+TEST(SkinCheckCli, QuantisedOutputFailsAgainstTheUnquantisedGold) {
+  const fs::path dir = Scratch("quantised");
+  const std::string file = (dir / "theirs.stv").string();
+  WriteSkinnedVertices(file, Gold(kUnorm8), {});
+  const auto r = RunSkintune({"skin", "--mesh", kCesium, "--animation", "0", "--time", "0.5", "--check", file});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find(file + ": vertex "), std::string::npos) << r.err;
+}
+
+TEST(SkinCheckCli, OneWrongVertexIsNamed) {
+  const fs::path dir = Scratch("wrong");
+  const std::string file = (dir / "theirs.stv").string();
+  std::vector<glm::vec3> positions = Gold("");
+  positions[1234].y += 0.01f;
+  WriteSkinnedVertices(file, positions, {});
+  const auto r = RunSkintune({"skin", "--mesh", kCesium, "--animation", "0", "--time", "0.5", "--check", file});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("vertex 1234 is off by"), std::string::npos) << r.err;
+}
+
+TEST(SkinCheckCli, WrongVertexCountAndMissingOutputsAreErrors) {
+  const fs::path dir = Scratch("count");
+  const std::string file = (dir / "short.stv").string();
+  WriteSkinnedVertices(file, std::vector<glm::vec3>(10), {});
+  const auto count = RunSkintune({"skin", "--mesh", kCesium, "--check", file});
+  EXPECT_EQ(count.exit_code, 1);
+  EXPECT_NE(count.err.find(file + ": 10 vertices, the mesh has 3273"), std::string::npos) << count.err;
+  const auto nothing = RunSkintune({"skin", "--mesh", kCesium});
+  EXPECT_EQ(nothing.exit_code, 1);
+  EXPECT_NE(nothing.err.find("give --out FILE, --palette-out FILE or --check FILE"), std::string::npos) << nothing.err;
+  const auto variant_alone = RunSkintune({"skin", "--mesh", kCesium, "--out", file, "--variant", kUnorm8});
+  EXPECT_EQ(variant_alone.exit_code, 1);
+  EXPECT_NE(variant_alone.err.find("--variant needs --check"), std::string::npos) << variant_alone.err;
+}
+
+}  // namespace
+}  // namespace skintune::testing
