@@ -1,9 +1,24 @@
 // skintune emit: one variant's kernel file plus a sidecar JSON describing its
 // interface (arguments, formats, strides, launch geometry), so another program
 // can bind and launch it without reading skintune's code.
+//
+//   skintune emit --variant KEY --out DIR [--joints N] [--instances K]
+//   skintune emit --db DB.json --device PATTERN --out DIR [--lang L ...] [--joints N]
+//                 [--header NAME] [--namespace NS]
+//
+// The second form emits the winners of a winners database for the matching
+// devices (kernel file + sidecar per distinct variant) and one generated C++17
+// header holding all of them with packing helpers (runtime/embed_header.h,
+// docs/RUNTIME.md "Emitting kernels into other builds"). Every file is
+// generated in memory first and written (atomically) only when all of them
+// were generated.
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <map>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -11,6 +26,8 @@
 #include "generator/emit.h"
 #include "reference/error.h"
 #include "reference/mesh_io.h"
+#include "runtime/embed_header.h"
+#include "runtime/winners_db.h"
 #include "tools/commands.h"
 
 namespace skintune::tools {
@@ -22,6 +39,12 @@ struct EmitArgs {
   std::string out;
   int joints = 77;
   int instances = 0;  // 0: the plain kernel; K >= 1: instanced, for up to K instances per launch
+  // --db mode
+  std::string db;
+  std::string device;
+  std::vector<std::string> langs;
+  std::string header = "skintune_kernels.h";
+  std::string name_space = "skintune_kernels";
 };
 
 const char* Extension(Lang lang) {
@@ -34,15 +57,26 @@ const char* Extension(Lang lang) {
   return ".txt";
 }
 
-int RunEmit(const EmitArgs& o) {
-  const Variant variant = ParseVariantKey(o.variant);
-  // Only the variant's own constraints: device limits are the tuner's business.
-  const ProblemShape shape{o.joints, 1, true, std::max(o.instances, 1)};
+// Only a variant's own constraints: device limits are the tuner's business.
+DeviceLimits Unlimited() {
   DeviceLimits unlimited;
   unlimited.max_wg_size = 1024;
   unlimited.local_memory_bytes = unlimited.constant_memory_bytes = unlimited.uniform_block_bytes = 1u << 30;
   unlimited.image_buffer_max_texels = 1u << 30;
-  const std::vector<Violation> broken = CheckVariant(variant, unlimited, shape);
+  return unlimited;
+}
+
+void CreateOutputFolder(const std::string& out) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec || !fs::is_directory(out)) throw Error(out + ": cannot create output folder (" + ec.message() + ")");
+}
+
+int RunEmit(const EmitArgs& o) {
+  const Variant variant = ParseVariantKey(o.variant);
+  const ProblemShape shape{o.joints, 1, true, std::max(o.instances, 1)};
+  const std::vector<Violation> broken = CheckVariant(variant, Unlimited(), shape);
   if (!broken.empty()) {
     throw Error("variant '" + variant.Key() + "' is invalid: " + broken.front().message + " (constraint " +
                 Name(broken.front().constraint) + ")");
@@ -52,9 +86,7 @@ int RunEmit(const EmitArgs& o) {
   options.max_instances = o.instances;
   const KernelSource source = Emit(variant, 0, o.joints, options);
   namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::create_directories(o.out, ec);
-  if (ec || !fs::is_directory(o.out)) throw Error(o.out + ": cannot create output folder (" + ec.message() + ")");
+  CreateOutputFolder(o.out);
   const std::string base = (fs::path(o.out) / (variant.Key() + (options.instanced ? ".instanced" : ""))).string();
   const std::string kernel_file = base + Extension(variant.lang);
   nlohmann::json sidecar = SidecarJson(source, variant);
@@ -65,21 +97,200 @@ int RunEmit(const EmitArgs& o) {
   return 0;
 }
 
+// ------------------------------------------------------------------ --db
+
+nlohmann::json ReadJsonFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(path + ": cannot open file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw Error(path + ": read error");
+  try {
+    return nlohmann::json::parse(text.str());
+  } catch (const nlohmann::json::parse_error& e) {
+    throw Error(path + ": not valid JSON (" + e.what() + ")");
+  }
+}
+
+std::string Lower(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return text;
+}
+
+// Case-insensitive substring of the device id, name, vendor or platform ("" matches every entry).
+bool MatchesDevice(const WinnersEntry& e, const std::string& pattern) {
+  const std::string p = Lower(pattern);
+  for (const std::string* field : {&e.device_id, &e.device_name, &e.vendor, &e.platform}) {
+    if (Lower(*field).find(p) != std::string::npos) return true;
+  }
+  return false;
+}
+
+std::string Joined(const std::vector<std::string>& items, const char* separator) {
+  std::string out;
+  for (const std::string& item : items) out += (out.empty() ? "" : separator) + item;
+  return out;
+}
+
+// "'<id>' (opencl, cuda), '<id>' (glsl-compute)": what the database holds, for the no-match error.
+std::string DevicesOf(const std::vector<WinnersEntry>& entries) {
+  std::vector<std::string> ids;
+  std::map<std::string, std::vector<std::string>> langs;
+  for (const WinnersEntry& e : entries) {
+    std::vector<std::string>& l = langs[e.device_id];
+    if (l.empty()) ids.push_back(e.device_id);
+    if (std::find(l.begin(), l.end(), Name(e.lang)) == l.end()) l.emplace_back(Name(e.lang));
+  }
+  std::vector<std::string> items;
+  for (const std::string& id : ids) items.push_back("'" + id + "' (" + Joined(langs[id], ", ") + ")");
+  return items.empty() ? "the database has no entries" : "the database has: " + Joined(items, ", ");
+}
+
+nlohmann::json WinnerJson(const WinnersEntry& e) {
+  return {{"device_id", e.device_id},
+          {"backend", e.backend},
+          {"platform", e.platform},
+          {"vendor", e.vendor},
+          {"device_name", e.device_name},
+          {"driver_version", e.driver_version},
+          {"device_type", e.device_type},
+          {"lang", Name(e.lang)},
+          {"influences", e.influences},
+          {"vertex_bucket", e.vertex_bucket},
+          {"dataset", e.dataset},
+          {"tuned_variant", e.variant.Key()},
+          {"median_ms", e.median_ms},
+          {"gbps", e.gbps},
+          {"copy_fraction", e.copy_fraction},
+          {"created", e.created},
+          {"source", e.source}};
+}
+
+constexpr const char* kBucketedNote =
+    "tuned as 'bucketed' (vertices grouped by influence count, one launch per count); emitted as its 'padded' "
+    "twin: one launch, outputs in mesh order";
+
+int RunEmitDb(const EmitArgs& o) {
+  const std::vector<WinnersEntry> entries = WinnersDbFromJson(ReadJsonFile(o.db), o.db);
+  std::vector<const WinnersEntry*> matched;
+  for (const WinnersEntry& e : entries) {
+    const bool lang_ok = o.langs.empty() || std::find(o.langs.begin(), o.langs.end(), Name(e.lang)) != o.langs.end();
+    if (lang_ok && MatchesDevice(e, o.device)) matched.push_back(&e);
+  }
+  const std::string asked =
+      "--device '" + o.device + "'" + (o.langs.empty() ? "" : " and --lang " + Joined(o.langs, ", "));
+  if (matched.empty()) throw Error(o.db + ": no winner matches " + asked + " (" + DevicesOf(entries) + ")");
+
+  // Everything is generated before anything is written.
+  std::vector<EmbeddedKernel> kernels;
+  const ProblemShape shape{o.joints, 1, true, 1};
+  for (const WinnersEntry* e : matched) {
+    Variant variant = e->variant;
+    // Bucketed kernels write vertices grouped by count; the padded twin keeps mesh order in one launch.
+    variant.mixed = MixedCounts::kPadded;
+    const std::vector<Violation> broken = CheckVariant(variant, Unlimited(), shape);
+    if (!broken.empty()) {
+      std::cerr << "skintune: warning: skipping " << Describe(*e) << ": " << variant.Key() << " cannot be emitted for "
+                << o.joints << " joints: " << broken.front().message << " (constraint "
+                << Name(broken.front().constraint) << ")\n";
+      continue;
+    }
+    kernels.push_back({*e, variant, Emit(variant, 0, o.joints)});
+  }
+  if (kernels.empty()) {
+    throw Error(o.db + ": none of the " + std::to_string(matched.size()) + " winner(s) matching " + asked +
+                " can be emitted for " + std::to_string(o.joints) + " joints (see the warnings above)");
+  }
+
+  namespace fs = std::filesystem;
+  std::vector<std::pair<std::string, std::string>> files;  // file name in --out, contents
+  std::map<std::string, nlohmann::json> sidecars;          // by variant key
+  std::vector<std::string> keys;                           // in order of first appearance
+  for (const EmbeddedKernel& k : kernels) {
+    const std::string key = k.variant.Key();
+    auto [at, added] = sidecars.emplace(key, nlohmann::json());
+    if (added) {
+      keys.push_back(key);
+      at->second = SidecarJson(k.source, k.variant);
+      at->second["source_file"] = key + Extension(k.variant.lang);
+      at->second["winners"] = nlohmann::json::array();
+    }
+    at->second["winners"].push_back(WinnerJson(k.entry));
+    if (k.entry.variant.mixed == MixedCounts::kBucketed) at->second["note"] = kBucketedNote;
+  }
+  for (const std::string& key : keys) {
+    const auto k = std::find_if(kernels.begin(), kernels.end(),
+                                [&](const EmbeddedKernel& x) { return x.variant.Key() == key; });
+    files.emplace_back(key + Extension(k->variant.lang), k->source.text);
+    files.emplace_back(key + ".json", sidecars[key].dump(2) + "\n");
+  }
+  for (const auto& [name, text] : files) {
+    if (name == o.header) throw Error("--header '" + o.header + "' is also the name of a kernel file");
+  }
+  EmbedHeaderOptions options;
+  options.name_space = o.name_space;
+  options.database = fs::path(o.db).filename().string();
+  options.device_pattern = o.device;
+  options.langs = o.langs;
+  files.emplace_back(o.header, EmbedHeader(kernels, options));
+
+  CreateOutputFolder(o.out);
+  for (const auto& [name, text] : files) WriteFileAtomically((fs::path(o.out) / name).string(), text);
+  for (const auto& [name, text] : files) std::cout << (fs::path(o.out) / name).string() << "\n";
+  return 0;
+}
+
 }  // namespace
 
 Command RegisterEmit(CLI::App& app) {
   auto o = std::make_shared<EmitArgs>();
-  auto* sub = app.add_subcommand("emit", "write one variant's kernel source and its interface (sidecar JSON)");
-  sub->add_option("--variant", o->variant, "variant key (see skintune variants --list and docs/VARIANTS.md)")
-      ->required();
+  auto* sub = app.add_subcommand(
+      "emit", "write one variant's kernel source and its interface (sidecar JSON), or a winners database's kernels "
+              "with a generated C++ header (--db)");
+  auto* variant = sub->add_option("--variant", o->variant,
+                                  "variant key (see skintune variants --list and docs/VARIANTS.md)");
+  auto* db = sub->add_option("--db", o->db,
+                             "winners database (skintune tune / skintune db merge): emit the winners of the devices "
+                             "matching --device, and one C++17 header holding them (--header)");
+  variant->excludes(db);
   sub->add_option("--out", o->out, "output folder (created if missing)")->required();
   sub->add_option("--joints", o->joints, "palette size the kernel is specialised for (default 77)")
       ->check(CLI::Range(1, 65536));
-  sub->add_option("--instances", o->instances,
-                  "emit the instanced kernel for up to K instances per launch (docs/VARIANTS.md \"Instancing\"); "
-                  "files are named <key>.instanced.*")
-      ->check(CLI::Range(1, 1 << 20));
-  return {sub, [o] { return RunEmit(*o); }};
+  auto* instances =
+      sub->add_option("--instances", o->instances,
+                      "emit the instanced kernel for up to K instances per launch (docs/VARIANTS.md \"Instancing\"); "
+                      "files are named <key>.instanced.*")
+          ->check(CLI::Range(1, 1 << 20));
+  instances->excludes(db);
+  auto* device = sub->add_option("--device", o->device,
+                                 "with --db: entries whose device id, name, vendor or platform contains this "
+                                 "(case-insensitive; \"\" takes every device)");
+  auto* lang = sub->add_option("--lang", o->langs, "with --db: only these languages (repeatable)")
+                   ->check(CLI::IsMember({"opencl", "cuda", "glsl-compute", "glsl-vertex"}));
+  auto* header =
+      sub->add_option("--header", o->header, "with --db: the header's file name in --out (default skintune_kernels.h)")
+          ->check(CLI::Validator(
+              [](std::string& name) -> std::string {
+                if (name.empty() || name == "." || name == ".." || name.find_first_of("/\\") != std::string::npos)
+                  return "'" + name + "' is not a file name";
+                return "";
+              },
+              "NAME"));
+  auto* name_space =
+      sub->add_option("--namespace", o->name_space, "with --db: the header's C++ namespace (default skintune_kernels)")
+          ->check(CLI::Validator(
+              [](std::string& name) -> std::string {
+                return IsCppNamespaceName(name) ? "" : "'" + name + "' is not a C++ namespace name";
+              },
+              "NS"));
+  db->needs(device);
+  for (CLI::Option* option : {device, lang, header, name_space}) option->needs(db);
+  sub->callback([variant, db] {
+    if (variant->count() == 0 && db->count() == 0)
+      throw CLI::ValidationError("emit", "give --variant KEY or --db DB.json");
+  });
+  return {sub, [o, db] { return db->count() > 0 ? RunEmitDb(*o) : RunEmit(*o); }};
 }
 
 }  // namespace skintune::tools

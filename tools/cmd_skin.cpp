@@ -121,25 +121,28 @@ Command RegisterSkin(CLI::App& app) {
   sub->add_option("--time", o->time, "time in seconds within the animation (default: its start)")
       ->check(CLI::NonNegativeNumber)
       ->each([o](const std::string&) { o->time_given = true; });
-  sub->add_option("--out", o->out, "output file: .obj (v x y z lines) or skintune binary (docs/FORMATS.md)");
-  sub->add_option("--palette-out", o->palette_out,
-                  "also write the palette used: joints x 16 float32, column-major 4x4 (docs/FORMATS.md)");
-  sub->add_option("--check", o->check,
-                  "compare this skinned-vertex file (.obj or binary, e.g. your kernel's output) with the gold; "
-                  "exit 1 naming the worst vertex when it is off by more than --tolerance");
+  // At least one output: a usage error (exit 2) otherwise.
+  auto* outputs = sub->add_option_group("outputs", "what to write or check (at least one)");
+  outputs->add_option("--out", o->out, "output file: .obj (v x y z lines) or skintune binary (docs/FORMATS.md)");
+  outputs->add_option("--palette-out", o->palette_out,
+                      "also write the palette used: joints x 16 float32, column-major 4x4 (docs/FORMATS.md)");
+  CLI::Option* check =
+      outputs->add_option("--check", o->check,
+                          "compare this skinned-vertex file (.obj or binary, e.g. your kernel's output) with the gold; "
+                          "exit 1 naming the worst vertex when it is off by more than --tolerance");
+  outputs->require_option(1, 3);
   sub->add_option("--variant", o->check_variant,
-                  "with --check: quantise the weights as this variant does (e.g. unorm8) before the gold");
+                  "with --check: quantise the weights as this variant does (e.g. unorm8) before the gold")
+      ->needs(check);
   sub->add_option("--tolerance", o->tolerance, "with --check: largest relative error (default 1e-5)")
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::PositiveNumber)
+      ->needs(check);
   sub->add_flag("--normals", o->source.normals, "also skin and write normals (when the mesh has them)");
   sub->add_option("--impl", o->implementation, "CPU implementation: gold (float64), serial (paper baseline), fast")
       ->check(CLI::IsMember({"gold", "serial", "fast"}));
   return {sub, [o] {
             if (o->source.dataset.empty() && o->source.mesh_file.empty())
               throw Error("skin: give --dataset NAME or --mesh FILE");
-            if (o->out.empty() && o->palette_out.empty() && o->check.empty())
-              throw Error("skin: give --out FILE, --palette-out FILE or --check FILE");
-            if (!o->check_variant.empty() && o->check.empty()) throw Error("skin: --variant needs --check FILE");
             return RunSkin(*o);
           }};
 }

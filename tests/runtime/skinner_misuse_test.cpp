@@ -181,6 +181,15 @@ TEST_F(Misuse, ForcedConstantStorageThatCannotHoldKPalettes) {
   ExpectError(CreateError(view_.mesh, options), ErrorCode::kInvalidArgument, "constant_memory");
 }
 
+TEST_F(Misuse, FinishBeforeTheFirstSkinHasNothingToWaitFor) {
+  Skinner skinner = Made();
+  EXPECT_TRUE(skinner.Finish().ok());
+  const std::vector<float> palette = Palette();
+  ASSERT_TRUE(skinner.SetPalette(palette.data(), palette.size()).ok());
+  ASSERT_TRUE(skinner.Skin().ok());
+  EXPECT_TRUE(skinner.Finish().ok());
+}
+
 TEST_F(Misuse, MovedFromSkinner) {
   Skinner skinner = Made();
   Skinner taker = std::move(skinner);
@@ -188,6 +197,7 @@ TEST_F(Misuse, MovedFromSkinner) {
   // NOLINTBEGIN(bugprone-use-after-move): the point of the test
   ExpectError(skinner.SetPalette(palette.data(), palette.size()), ErrorCode::kInvalidState, "used after move");
   ExpectError(skinner.Skin(), ErrorCode::kInvalidState, "used after move");
+  ExpectError(skinner.Finish(), ErrorCode::kInvalidState, "used after move");
   std::vector<float> out(taker.vertex_count() * 3);
   ExpectError(skinner.ReadPositions(out.data(), out.size()), ErrorCode::kInvalidState, "used after move");
   EXPECT_EQ(skinner.device_positions(), nullptr);

@@ -1,8 +1,11 @@
 // The `skintune` command, tested on its exit codes and exact messages.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -244,6 +247,282 @@ TEST(SkintuneCli, VariantsWithAnUnknownDeviceIsAnError) {
   const auto r = RunSkintune({"variants", "--device", "no-such-device-xyz"});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.err, "skintune: error: --device 'no-such-device-xyz': no OpenCL device matches (see skintune devices)\n");
+}
+
+// ------------------------------------------------------------------ emit --db
+
+const std::string kEmbedDb = kData + "/embed-winners-db.json";
+// tests/data/embed-winners-db.json: 13 winners, 12 distinct variants (CUDA b3 wins 100k and 1600k).
+constexpr std::size_t kEmbedWinners = 13, kEmbedVariants = 12;
+const std::string kCudaB3 = "cuda.b3.padded.aos.float3.i32.unorm16.mat3x4.image.matrix.v2c.wg96.nonormals";
+const std::string kBucketedWinner = "opencl.b4.bucketed.soa.float4.i32.f32.mat3x4.image.matrix.v4s.wg256.nonormals";
+const std::string kBucketedTwin = "opencl.b4.padded.soa.float4.i32.f32.mat3x4.image.matrix.v4s.wg256.nonormals";
+
+std::vector<std::string> Lines(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+std::vector<std::string> FilesIn(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& entry : fs::directory_iterator(dir)) names.push_back(entry.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+nlohmann::json ReadJson(const fs::path& file) { return nlohmann::json::parse(ReadAll(file)); }
+
+// The fixture database with `edit` applied, written into `dir`.
+fs::path EditedDb(const fs::path& dir, const std::function<void(nlohmann::json&)>& edit) {
+  nlohmann::json db = ReadJson(kEmbedDb);
+  edit(db);
+  const fs::path file = dir / "edited-db.json";
+  std::ofstream(file) << db.dump(2);
+  return file;
+}
+
+std::string HeaderKernelCount(const fs::path& header) {
+  const std::string text = ReadAll(header);
+  const std::string marker = "inline constexpr int kKernelCount = ";
+  const std::size_t at = text.find(marker);
+  return at == std::string::npos ? "" : text.substr(at + marker.size(), text.find(';', at) - at - marker.size());
+}
+
+TEST(SkintuneCli, EmitDbWritesEachDistinctWinnersKernelAndSidecarThenTheHeader) {
+  const fs::path dir = Scratch() / "kernels";
+  const auto r = RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--out", dir});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  const std::vector<std::string> lines = Lines(r.out);
+  ASSERT_EQ(lines.size(), 2 * kEmbedVariants + 1) << r.out;
+  EXPECT_EQ(lines.back(), (dir / "skintune_kernels.h").string());
+  std::vector<std::string> printed;
+  for (const std::string& line : lines) {
+    EXPECT_TRUE(fs::is_regular_file(line)) << line;
+    printed.push_back(fs::path(line).filename().string());
+  }
+  std::sort(printed.begin(), printed.end());
+  EXPECT_EQ(FilesIn(dir), printed);  // nothing else, no temporary file left
+  for (std::size_t i = 0; i + 1 < lines.size(); i += 2) {
+    const nlohmann::json sidecar = ReadJson(lines[i + 1]);
+    EXPECT_EQ(fs::path(lines[i + 1]).stem().string(), sidecar.at("variant")) << lines[i + 1];
+    EXPECT_EQ(sidecar.at("source_file"), fs::path(lines[i]).filename().string());
+    EXPECT_EQ(sidecar.at("joints"), 77);
+    EXPECT_NE(ReadAll(lines[i]).find("#define JOINTS 77\n"), std::string::npos) << lines[i];
+  }
+  const std::string header = ReadAll(dir / "skintune_kernels.h");
+  EXPECT_NE(header.find("\nnamespace skintune_kernels {\n"), std::string::npos);
+  EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners));
+  EXPECT_EQ(header.find("#include <CL/"), std::string::npos);
+  EXPECT_EQ(header.find("#include \"generator/"), std::string::npos);
+}
+
+TEST(SkintuneCli, EmitDbKernelAndSidecarAreThoseOfEmitVariantPlusTheWinners) {
+  const fs::path dir = Scratch();
+  const std::string key = "opencl.b2.padded.soa-split.float4.u16.unorm16.mat4.local.point.v2c.wg128.normals";
+  ASSERT_EQ(RunSkintune({"emit", "--db", kEmbedDb, "--device", "AMD", "--out", dir / "db"}).exit_code, 0);
+  ASSERT_EQ(RunSkintune({"emit", "--variant", key, "--out", dir / "variant"}).exit_code, 0);
+  EXPECT_EQ(ReadAll(dir / "db" / (key + ".cl")), ReadAll(dir / "variant" / (key + ".cl")));
+  nlohmann::json sidecar = ReadJson(dir / "db" / (key + ".json"));
+  ASSERT_EQ(sidecar.at("winners").size(), 1u);
+  sidecar.erase("winners");
+  EXPECT_EQ(sidecar, ReadJson(dir / "variant" / (key + ".json")));
+}
+
+TEST(SkintuneCli, EmitDbSidecarNamesEveryWinnerOfItsVariant) {
+  const fs::path dir = Scratch();
+  ASSERT_EQ(RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--out", dir}).exit_code, 0);
+  const nlohmann::json winners = ReadJson(dir / (kCudaB3 + ".json")).at("winners");
+  ASSERT_EQ(winners.size(), 2u);
+  EXPECT_EQ(winners[0].at("vertex_bucket"), "100k");
+  EXPECT_EQ(winners[1].at("vertex_bucket"), "1600k");
+  EXPECT_EQ(winners[1].at("device_id"), "cuda:CUDA/NVIDIA GeForce RTX 4090/550.54.14 (CUDA 12.4)");
+  EXPECT_EQ(winners[1].at("device_name"), "NVIDIA GeForce RTX 4090");
+  EXPECT_EQ(winners[1].at("vendor"), "NVIDIA Corporation");
+  EXPECT_EQ(winners[1].at("platform"), "CUDA");
+  EXPECT_EQ(winners[1].at("driver_version"), "550.54.14 (CUDA 12.4)");
+  EXPECT_EQ(winners[1].at("device_type"), "gpu");
+  EXPECT_EQ(winners[1].at("lang"), "cuda");
+  EXPECT_EQ(winners[1].at("influences"), 3);
+  EXPECT_EQ(winners[1].at("dataset"), "1600k-b3");
+  EXPECT_EQ(winners[1].at("median_ms"), 0.75);
+  EXPECT_EQ(winners[1].at("gbps"), 700.0);
+  EXPECT_EQ(winners[1].at("copy_fraction"), 0.7);
+  EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners));  // both in the header
+}
+
+TEST(SkintuneCli, EmitDbWritesABucketedWinnerAsItsPaddedTwinAndSaysSo) {
+  const fs::path dir = Scratch();
+  ASSERT_EQ(RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--out", dir}).exit_code, 0);
+  EXPECT_FALSE(fs::exists(dir / (kBucketedWinner + ".cl")));
+  ASSERT_TRUE(fs::exists(dir / (kBucketedTwin + ".cl")));
+  EXPECT_NE(ReadAll(dir / (kBucketedTwin + ".cl")).find("// Generated by skintune 0.1.0: " + kBucketedTwin + "\n"),
+            std::string::npos);
+  const nlohmann::json sidecar = ReadJson(dir / (kBucketedTwin + ".json"));
+  EXPECT_EQ(sidecar.at("variant"), kBucketedTwin);
+  EXPECT_NE(sidecar.value("note", "").find("bucketed"), std::string::npos) << sidecar.dump(2);
+  EXPECT_EQ(sidecar.at("winners")[0].at("tuned_variant"), kBucketedWinner);
+  EXPECT_FALSE(ReadJson(dir / (kCudaB3 + ".json")).contains("note"));
+}
+
+TEST(SkintuneCli, EmitDbMatchesTheDeviceCaseInsensitivelyInIdNameVendorOrPlatform) {
+  const auto kernels = [](const std::string& pattern) {
+    const auto r = RunSkintune({"emit", "--db", kEmbedDb, "--device", pattern, "--out", Scratch()});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    std::vector<std::string> exts;
+    for (const std::string& line : Lines(r.out)) {
+      if (fs::path(line).extension() != ".json" && fs::path(line).extension() != ".h")
+        exts.push_back(fs::path(line).extension().string());
+    }
+    return exts;
+  };
+  EXPECT_EQ(kernels("GEFORCE rtx"), (std::vector<std::string>{".cu", ".cu", ".cu"}));          // name
+  EXPECT_EQ(kernels("advanced micro"), std::vector<std::string>(5, ".cl"));                   // vendor only
+  EXPECT_EQ(kernels("accelerated PARALLEL"), std::vector<std::string>(5, ".cl"));             // platform
+  EXPECT_EQ(kernels("mesa 23.2"), (std::vector<std::string>{".comp", ".comp", ".vert", ".vert"}));  // id (driver)
+}
+
+TEST(SkintuneCli, EmitDbLangKeepsOnlyThoseLanguagesInTheHeaderAndNamespaceAsked) {
+  const fs::path dir = Scratch();
+  const auto r = RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--lang", "glsl-compute", "--lang",
+                              "glsl-vertex", "--header", "gl_kernels.h", "--namespace", "game::gpu", "--out", dir});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(Lines(r.out).size(), 2 * 4 + 1u) << r.out;
+  for (const std::string& name : FilesIn(dir)) {
+    const std::string ext = fs::path(name).extension().string();
+    EXPECT_TRUE(ext == ".comp" || ext == ".vert" || ext == ".json" || name == "gl_kernels.h") << name;
+  }
+  EXPECT_FALSE(fs::exists(dir / "skintune_kernels.h"));
+  EXPECT_NE(ReadAll(dir / "gl_kernels.h").find("\nnamespace game::gpu {\n"), std::string::npos);
+  EXPECT_EQ(HeaderKernelCount(dir / "gl_kernels.h"), "4");
+}
+
+TEST(SkintuneCli, EmitDbWithNoMatchingDeviceListsTheDatabasesDevicesAndWritesNothing) {
+  const fs::path root = Scratch();
+  const fs::path dir = root / "kernels";
+  const std::string devices =
+      " (the database has: 'cuda:CUDA/NVIDIA GeForce RTX 4090/550.54.14 (CUDA 12.4)' (cuda), "
+      "'gl:device/Mesa Intel(R) UHD Graphics 630 (CFL GT2)/4.6 (Core Profile) Mesa 23.2.1' (glsl-compute, "
+      "glsl-vertex), 'opencl:AMD Accelerated Parallel Processing/gfx1100 \"Navi 31\" \\ ?\?=/3635.0 (HSA1.1,LC)' "
+      "(opencl))\n";
+  auto r = RunSkintune({"emit", "--db", kEmbedDb, "--device", "radeon", "--out", dir});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "skintune: error: " + kEmbedDb + ": no winner matches --device 'radeon'" + devices);
+  EXPECT_EQ(r.out, "");
+  r = RunSkintune({"emit", "--db", kEmbedDb, "--device", "geforce", "--lang", "opencl", "--out", dir});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "skintune: error: " + kEmbedDb + ": no winner matches --device 'geforce' and --lang opencl" +
+                       devices);
+  const fs::path empty = EditedDb(root, [](nlohmann::json& db) { db["entries"] = nlohmann::json::array(); });
+  r = RunSkintune({"emit", "--db", empty, "--device", "", "--out", dir});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "skintune: error: " + empty.string() + ": no winner matches --device '' (the database has no "
+                   "entries)\n");
+  EXPECT_FALSE(fs::exists(dir));
+}
+
+TEST(SkintuneCli, EmitDbSkipsWinnersThatCannotTakeTheJointCountWithOneWarningEach) {
+  const fs::path dir = Scratch();
+  const auto r = RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--joints", "300", "--out", dir});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::vector<std::string> warnings = Lines(r.err);
+  ASSERT_EQ(warnings.size(), 3u) << r.err;  // the three u8 winners
+  for (const std::string& w : warnings) {
+    EXPECT_EQ(w.rfind("skintune: warning: skipping ", 0), 0u) << w;
+    EXPECT_NE(w.find(".u8."), std::string::npos) << w;
+    EXPECT_NE(w.find("cannot be emitted for 300 joints"), std::string::npos) << w;
+    EXPECT_NE(w.find("(constraint index_range)"), std::string::npos) << w;
+  }
+  EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners - 3));
+  for (const std::string& name : FilesIn(dir)) EXPECT_EQ(name.find(".u8."), std::string::npos) << name;
+}
+
+TEST(SkintuneCli, EmitDbWhenEveryMatchIsSkippedIsAnErrorAndWritesNothing) {
+  const fs::path root = Scratch();
+  const fs::path u8_only = EditedDb(root, [](nlohmann::json& db) {
+    nlohmann::json kept = nlohmann::json::array();
+    for (const auto& e : db["entries"])
+      if (e["variant"]["index"] == "u8") kept.push_back(e);
+    db["entries"] = kept;
+  });
+  const fs::path dir = root / "kernels";
+  const auto r = RunSkintune({"emit", "--db", u8_only, "--device", "", "--joints", "257", "--out", dir});
+  EXPECT_EQ(r.exit_code, 1);
+  const std::vector<std::string> lines = Lines(r.err);
+  ASSERT_EQ(lines.size(), 4u) << r.err;
+  EXPECT_EQ(lines.back(), "skintune: error: " + u8_only.string() +
+                              ": none of the 3 winner(s) matching --device '' can be emitted for 257 joints (see the "
+                              "warnings above)");
+  EXPECT_FALSE(fs::exists(dir));
+}
+
+TEST(SkintuneCli, EmitDbMalformedDatabaseIsOneLineNamingTheFileAndTheElement) {
+  const fs::path root = Scratch();
+  const fs::path dir = root / "kernels";
+  const fs::path bad = EditedDb(root, [](nlohmann::json& db) { db["entries"][2]["vertex_bucket"] = "3k"; });
+  auto r = RunSkintune({"emit", "--db", bad, "--device", "", "--out", dir});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "skintune: error: " + bad.string() +
+                       ": entries[2]: 'vertex_bucket' has unknown value '3k' (expected 25k, 100k, 400k or 1600k)\n");
+  const fs::path not_json = root / "not.json";
+  std::ofstream(not_json) << "{\"entries\": [";
+  r = RunSkintune({"emit", "--db", not_json, "--device", "", "--out", dir});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(CountLines(r.err), 1) << r.err;
+  EXPECT_EQ(r.err.rfind("skintune: error: " + not_json.string() + ": not valid JSON (", 0), 0u) << r.err;
+  r = RunSkintune({"emit", "--db", root / "missing.json", "--device", "", "--out", dir});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("missing.json: cannot open file"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir));
+}
+
+TEST(SkintuneCli, EmitNeedsExactlyOneOfVariantAndDbAndDbOptionsOnlyWithDb) {
+  const fs::path dir = Scratch() / "kernels";
+  const std::string out = dir.string();
+  const std::vector<std::vector<std::string>> usage_errors = {
+      {"emit", "--variant", "opencl.b1", "--db", kEmbedDb, "--device", "", "--out", out},  // both
+      {"emit", "--out", out},                                                           // neither
+      {"emit", "--db", kEmbedDb, "--out", out},                                         // --db without --device
+      {"emit", "--variant", "opencl.b1", "--device", "amd", "--out", out},              // --device without --db
+      {"emit", "--variant", "opencl.b1", "--lang", "cuda", "--out", out},
+      {"emit", "--db", kEmbedDb, "--device", "", "--instances", "4", "--out", out},
+      {"emit", "--db", kEmbedDb, "--device", "", "--lang", "metal", "--out", out},
+      {"emit", "--db", kEmbedDb, "--device", "", "--namespace", "class", "--out", out},
+      {"emit", "--db", kEmbedDb, "--device", "", "--namespace", "a::", "--out", out},
+      {"emit", "--db", kEmbedDb, "--device", "", "--header", "sub/k.h", "--out", out},
+      {"emit", "--db", kEmbedDb, "--device", "", "--joints", "0", "--out", out},
+  };
+  for (const auto& args : usage_errors) {
+    const auto r = RunSkintune(args);
+    EXPECT_EQ(r.exit_code, 2) << args[1] << " " << args[args.size() - 3] << ": " << r.err;
+    EXPECT_EQ(CountLines(r.err), 1) << r.err;
+  }
+  EXPECT_EQ(RunSkintune({"emit", "--out", out}).err, "skintune: emit: give --variant KEY or --db DB.json (try --help)\n");
+  EXPECT_FALSE(fs::exists(dir));
+}
+
+TEST(SkintuneCli, EmitDbFailureLeavesExistingOutputsUntouched) {
+  const fs::path root = Scratch();
+  const fs::path dir = root / "kernels";
+  fs::create_directories(dir);
+  const std::string kernel = kCudaB3 + ".cu";
+  std::ofstream(dir / "skintune_kernels.h") << "old header";
+  std::ofstream(dir / kernel) << "old kernel";
+  const fs::path bad = EditedDb(root, [](nlohmann::json& db) { db["entries"][12]["created"] = "yesterday"; });
+  EXPECT_EQ(RunSkintune({"emit", "--db", bad, "--device", "", "--out", dir}).exit_code, 1);
+  EXPECT_EQ(RunSkintune({"emit", "--db", kEmbedDb, "--device", "nvidia", "--lang", "glsl-vertex", "--out", dir})
+                .exit_code,
+            1);
+  EXPECT_EQ(RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--header", kernel, "--out", dir}).exit_code, 1);
+  EXPECT_EQ(ReadAll(dir / "skintune_kernels.h"), "old header");
+  EXPECT_EQ(ReadAll(dir / kernel), "old kernel");
+  EXPECT_EQ(FilesIn(dir), (std::vector<std::string>{kernel, "skintune_kernels.h"}));
+  // The same folder is written when the run succeeds.
+  ASSERT_EQ(RunSkintune({"emit", "--db", kEmbedDb, "--device", "nvidia", "--out", dir}).exit_code, 0);
+  EXPECT_NE(ReadAll(dir / "skintune_kernels.h"), "old header");
+  EXPECT_NE(ReadAll(dir / kernel), "old kernel");
 }
 
 }  // namespace

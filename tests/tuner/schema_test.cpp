@@ -95,6 +95,17 @@ TEST(Schema, WinnersDatabasesValidate) {
   EXPECT_EQ(Validate(ReportToJson(testing::SampleReport()), "winners-db.schema.json", "report-as-db"), 3);
 }
 
+TEST(Schema, EmbedFixtureDatabaseValidates) {
+  // tests/data/embed-winners-db.json, written by hand for `skintune emit --db`'s tests.
+  std::ifstream in(std::string(SKINTUNE_TEST_DATA_DIR) + "/embed-winners-db.json");
+  ASSERT_TRUE(in) << "tests/data/embed-winners-db.json not found";
+  const nlohmann::json fixture = nlohmann::json::parse(in);
+  EXPECT_EQ(Validate(fixture, "winners-db.schema.json", "embed-fixture"), 0);
+  nlohmann::json broken = fixture;
+  broken["entries"][0]["variant"]["storage"] = "texture";
+  EXPECT_EQ(Validate(broken, "winners-db.schema.json", "embed-fixture-broken"), 3);
+}
+
 TEST(Schema, T4ExportsValidate) {
   const nlohmann::json t4 = ReportToT4(testing::SampleReport());
   EXPECT_EQ(Validate(t4, "t4-results.schema.json", "t4"), 0);
