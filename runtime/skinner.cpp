@@ -126,6 +126,12 @@ ErrorCode CodeOfRunnerError(const std::string& message) {
   return message.compare(space + 1, 6, "build:") == 0 ? ErrorCode::kBuildFailed : ErrorCode::kDeviceError;
 }
 
+std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int instances) {
+  std::vector<std::vector<std::uint8_t>> palettes(1);
+  for (int k = 0; k < instances; ++k) palettes[0].insert(palettes[0].end(), mesh.palette.begin(), mesh.palette.end());
+  return palettes;
+}
+
 Skinner::Skinner() = default;
 Skinner::~Skinner() = default;
 Skinner::Skinner(Skinner&&) noexcept = default;

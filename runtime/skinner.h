@@ -14,10 +14,12 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "generator/emit.h"
 #include "generator/packer.h"
+#include "runtime/api_errors.h"
 #include "runtime/device.h"
 #include "skintune/skintune.h"
 
@@ -42,6 +44,64 @@ class SkinnerBackend {
   virtual void SkinIntoGlBuffer(unsigned int gl_buffer);
 };
 
+// The code for a runner's Error: its message names the stage ("OpenCL
+// build: ...", "CUDA setup: ..."): build -> kBuildFailed, else kDeviceError.
+ErrorCode CodeOfRunnerError(const std::string& message);
+
+// Runs `call` (a runner's), turning its Error into the ApiError of its stage,
+// prefixed with `context` when given; ApiErrors pass through unchanged.
+template <typename F>
+void RunOnDevice(F&& call, const std::string& context = "") {
+  try {
+    call();
+  } catch (const ApiError&) {
+    throw;
+  } catch (const Error& e) {
+    FailWith(CodeOfRunnerError(e.what()), context + e.what());
+  }
+}
+
+// The one input set a Skinner prepares: `instances` copies of the mesh's
+// rest-pose palette (SetPalette overwrites it before the first Skin).
+std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int instances);
+
+// A SkinnerBackend over one prepared input set of a runner: OpenClRunner,
+// CudaRunner and GlRunner share the calls used here (WritePalette, LaunchSet,
+// Finish, ReadOutput, OutputBuffer); skinner_<backend>.cpp adds what differs.
+template <class Runner, class Prepared>
+class RunnerSkinner : public SkinnerBackend {
+ public:
+  RunnerSkinner(Runner& runner, Prepared prepared, bool normals)
+      : runner_(runner), prepared_(std::move(prepared)), normals_(normals) {}
+
+  void WritePalette(std::span<const std::uint8_t> palettes) override {
+    RunOnDevice([&] { runner_.WritePalette(prepared_, 0, palettes); });
+  }
+  void Skin() override {
+    RunOnDevice([&] { runner_.LaunchSet(prepared_, 0); });
+  }
+  void Finish() override {
+    RunOnDevice([&] { runner_.Finish(); });
+  }
+  void Read(bool normals, std::span<std::uint8_t> out) override {
+    RunOnDevice([&] { runner_.ReadOutput(prepared_, 0, normals && normals_, out); });
+  }
+  // A cl_mem, or a CUdeviceptr / GL buffer name as a pointer-sized integer.
+  void* DevicePositions() const override {
+    const auto buffer = runner_.OutputBuffer(prepared_, 0, false);
+    if constexpr (std::is_pointer_v<decltype(buffer)>) {
+      return buffer;
+    } else {
+      return reinterpret_cast<void*>(static_cast<std::uintptr_t>(buffer));
+    }
+  }
+
+ protected:
+  Runner& runner_;
+  Prepared prepared_;
+  bool normals_;
+};
+
 // Each throws ApiError: kBuildFailed when a kernel does not compile,
 // kDeviceError when the device refuses (allocation, launch set-up).
 // `kernels`: one per launch, instanced when `instances` > 1.
@@ -53,10 +113,6 @@ std::unique_ptr<SkinnerBackend> MakeCudaSkinner(DeviceState& device, const Packe
 
 std::unique_ptr<SkinnerBackend> MakeGlSkinner(DeviceState& device, const PackedMesh& mesh,
                                               const std::vector<KernelSource>& kernels, int instances);
-
-// The code for a runner's Error: its message names the stage ("OpenCL
-// build: ...", "CUDA setup: ..."): build -> kBuildFailed, else kDeviceError.
-ErrorCode CodeOfRunnerError(const std::string& message);
 
 struct Skinner::Impl {
   std::shared_ptr<DeviceState> device;  // keeps the runner (and its programs) alive

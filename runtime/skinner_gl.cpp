@@ -1,27 +1,14 @@
 // The GL Skinner: one prepared input set of the device's GlRunner
 // (runtime/gl_runner.h), written, launched and read per frame, with the
 // Device's GL context current.
-#include <cstdint>
 #include <memory>
 
-#include "runtime/api_errors.h"
 #include "runtime/gl_runner.h"
 #include "runtime/skinner.h"
 
 namespace skintune {
 
 namespace {
-
-template <typename F>
-void Run(F&& call) {
-  try {
-    call();
-  } catch (const ApiError&) {
-    throw;
-  } catch (const Error& e) {
-    FailWith(CodeOfRunnerError(e.what()), e.what());
-  }
-}
 
 // kInvalidState unless the runner's context is (or can be made) current here.
 void CheckCurrent(GlRunner& runner, const char* call) {
@@ -32,32 +19,10 @@ void CheckCurrent(GlRunner& runner, const char* call) {
   }
 }
 
-class GlSkinner final : public SkinnerBackend {
+class GlSkinner final : public RunnerSkinner<GlRunner, GlPrepared> {
  public:
-  GlSkinner(GlRunner& runner, GlPrepared prepared, bool normals)
-      : runner_(runner), prepared_(std::move(prepared)), normals_(normals) {}
-
+  using RunnerSkinner::RunnerSkinner;
   void CheckUsable() const override { CheckCurrent(runner_, "Skinner"); }
-  void WritePalette(std::span<const std::uint8_t> palettes) override {
-    Run([&] { runner_.WritePalette(prepared_, 0, palettes); });
-  }
-  void Skin() override {
-    Run([&] { runner_.LaunchSet(prepared_, 0); });
-  }
-  void Finish() override {
-    Run([&] { runner_.Finish(); });
-  }
-  void Read(bool normals, std::span<std::uint8_t> out) override {
-    Run([&] { runner_.ReadOutput(prepared_, 0, normals && normals_, out); });
-  }
-  void* DevicePositions() const override {
-    return reinterpret_cast<void*>(static_cast<std::uintptr_t>(runner_.OutputBuffer(prepared_, 0, false)));
-  }
-
- private:
-  GlRunner& runner_;
-  GlPrepared prepared_;
-  bool normals_;
 };
 
 }  // namespace
@@ -66,16 +31,15 @@ std::unique_ptr<SkinnerBackend> MakeGlSkinner(DeviceState& device, const PackedM
                                               const std::vector<KernelSource>& kernels, int instances) {
   if (!device.gl) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no GL context");
   CheckCurrent(*device.gl, "Skinner::Create");
-  try {
-    std::vector<std::vector<std::uint8_t>> palettes(1);  // one input set of `instances` rest-pose palettes
-    for (int k = 0; k < instances; ++k) palettes[0].insert(palettes[0].end(), mesh.palette.begin(), mesh.palette.end());
-    GlPrepared prepared = device.gl->Prepare(mesh, kernels, palettes, instances);
-    return std::make_unique<GlSkinner>(*device.gl, std::move(prepared), mesh.variant.normals);
-  } catch (const ApiError&) {
-    throw;
-  } catch (const Error& e) {
-    FailWith(CodeOfRunnerError(e.what()), std::string("Skinner::Create: ") + e.what());
-  }
+  std::unique_ptr<SkinnerBackend> skinner;
+  RunOnDevice(
+      [&] {
+        skinner = std::make_unique<GlSkinner>(
+            *device.gl, device.gl->Prepare(mesh, kernels, RestPalettes(mesh, instances), instances),
+            mesh.variant.normals);
+      },
+      "Skinner::Create: ");
+  return skinner;
 }
 
 }  // namespace skintune

@@ -44,19 +44,6 @@ struct DbOptions {
   CLI::App* merge = nullptr;
 };
 
-nlohmann::json ReadJsonFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw Error(path + ": read error");
-  try {
-    return nlohmann::json::parse(text.str());
-  } catch (const nlohmann::json::parse_error& e) {
-    throw Error(path + ": not valid JSON (" + e.what() + ")");
-  }
-}
-
 int RunDbMerge(const DbOptions& o) {
   std::vector<nlohmann::json> inputs;
   for (const std::string& path : o.inputs) inputs.push_back(ReadJsonFile(path));

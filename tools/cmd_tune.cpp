@@ -45,29 +45,17 @@ bool EndsWith(const std::string& text, const std::string& suffix) {
 
 // --config NAME (a built-in config: no '/' and no .json) or FILE.
 TuneConfig LoadConfig(const std::string& config) {
-  std::string name = config.empty() ? "default" : config;
-  std::string text;
+  const std::string name = config.empty() ? "default" : config;
   if (name.find('/') == std::string::npos && !EndsWith(name, ".json")) {
+    std::string text;
     try {
       text = EmbeddedConfig(name);
     } catch (const Error& e) {
       throw Error("--config '" + name + "': not a file path (no '/' or .json) and " + e.what());
     }
-  } else {
-    std::ifstream in(name, std::ios::binary);
-    if (!in) throw Error(name + ": cannot open file");
-    std::ostringstream buffer;
-    buffer << in.rdbuf();
-    if (!in && !in.eof()) throw Error(name + ": cannot read file");
-    text = buffer.str();
+    return ConfigFromJson(ParseJson(text, name), name);
   }
-  nlohmann::json json;
-  try {
-    json = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw Error(name + ": not valid JSON (" + e.what() + ")");
-  }
-  return ConfigFromJson(json, name);
+  return ConfigFromJson(ReadJsonFile(name), name);
 }
 
 Lang LangFromName(const std::string& name) {

@@ -26,14 +26,7 @@ struct VariantsOptions {
 TuningSpace LoadSpace(const VariantsOptions& o) {
   nlohmann::json space = nlohmann::json::object();
   if (!o.config.empty()) {
-    std::ifstream in(o.config);
-    if (!in) throw Error(o.config + ": cannot open file");
-    nlohmann::json config;
-    try {
-      config = nlohmann::json::parse(in);
-    } catch (const nlohmann::json::parse_error& e) {
-      throw Error(o.config + ": not valid JSON (" + e.what() + ")");
-    }
+    const nlohmann::json config = ReadJsonFile(o.config);
     if (config.contains("space")) space = config["space"];
   }
   if (!o.langs.empty()) space["lang"] = o.langs;

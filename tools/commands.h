@@ -8,6 +8,7 @@
 #include <string>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include "reference/asset.h"
 
@@ -35,6 +36,12 @@ struct MeshSource {
   bool strict = false;    // reject glTF weights that do not sum to 1
   bool normals = false;   // import/generate normals
 };
+
+// JSON from `text`, or Error("<name>: not valid JSON (...)").
+nlohmann::json ParseJson(const std::string& text, const std::string& name);
+// The JSON file at `path`; Error("<path>: cannot open file" / "cannot read
+// file" / "not valid JSON (...)").
+nlohmann::json ReadJsonFile(const std::string& path);
 
 // Adds --dataset / --mesh / --mesh-name / --strict to `sub`.
 void AddMeshSourceOptions(CLI::App& sub, MeshSource& source);
