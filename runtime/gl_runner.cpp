@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -1039,6 +1040,11 @@ unsigned int GlRunner::OutputBuffer(const GlPrepared& prepared, int set, bool no
   return normals ? s.out_normals : s.out_positions;
 }
 
+// Wall time of warm-up launches on a GPU before any timed frame (GlRunner::Time):
+// at least the first, at most the second.
+constexpr double kGpuWarmupMs = 200.0;
+constexpr double kGpuWarmupMaxMs = 1000.0;
+
 std::vector<double> GlRunner::Time(const GlPrepared& prepared, int warmup, int repetitions) {
   Impl& im = *impl_;
   im.context->MakeCurrent();
@@ -1049,6 +1055,33 @@ std::vector<double> GlRunner::Time(const GlPrepared& prepared, int warmup, int r
   ClearGlErrors();
   if (p.vertex) im.BeginVertexDraws();
   const bool host_clock = HostClockTimesLaunches(im.context->info());
+  // On a GPU, warm up besides the `warmup` frames: for at least
+  // kGpuWarmupMs and until two bursts of frames in a row take the same wall
+  // time within 3% (at most kGpuWarmupMaxMs). NVIDIA's GL driver drops the
+  // H100's SM clock from 1980 to 345 MHz a few seconds into a process whose
+  // GL work comes in short bursts, and a few warm-up frames (tens of
+  // microseconds) do not bring it back: kernels timed later ran 2-4x slower
+  // than the same kernels timed first (docs/PERFORMANCE.md). Software
+  // renderers (host-timed) need none.
+  if (!host_clock) {
+    using Clock = std::chrono::steady_clock;
+    const auto ms_since = [](Clock::time_point t) {
+      return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+    };
+    const auto start = Clock::now();
+    double previous = 0.0;
+    for (int frame = 0;;) {
+      const auto burst_start = Clock::now();
+      for (int i = 0; i < 16; ++i, ++frame)
+        for (std::size_t l = 0; l < p.launches.size(); ++l)
+          RunLaunch(p, p.sets[static_cast<std::size_t>(frame) % p.sets.size()], l);
+      glFinish();
+      const double burst = ms_since(burst_start), total = ms_since(start);
+      const bool steady = previous > 0.0 && std::abs(burst - previous) <= 0.03 * previous;
+      if ((total >= kGpuWarmupMs && steady) || total >= kGpuWarmupMaxMs) break;
+      previous = burst;
+    }
+  }
   std::vector<std::vector<GlObject>> timers(static_cast<std::size_t>(repetitions));
   std::vector<double> host_ms(static_cast<std::size_t>(repetitions), 0.0);
   for (int frame = 0; frame < warmup + repetitions; ++frame) {
