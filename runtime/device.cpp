@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cctype>
 #include <functional>
+#include <utility>
 
 #include "runtime/api_errors.h"
 #include "runtime/cuda_api.h"
@@ -24,28 +25,27 @@ struct Listed {
   std::function<void(DeviceState&)> open;  // sets the runner and limits; throws Error
 };
 
-DeviceInfo CudaInfo(const CudaDeviceInfo& d) {
+// A DeviceInfo with its id "<backend>:<platform>/<name>/<driver>" (the database key).
+DeviceInfo Info(Backend backend, std::string platform, std::string vendor, std::string name, std::string driver,
+                std::string type) {
   DeviceInfo i;
-  i.backend = Backend::kCuda;
-  i.platform = "CUDA";
-  i.vendor = "NVIDIA";
-  i.name = d.name;
-  i.driver_version = CudaDriverVersionText(d.driver_version);
-  i.type = "gpu";
-  i.id = JoinDeviceId({"cuda", i.platform, i.name, i.driver_version});
+  i.backend = backend;
+  i.platform = std::move(platform);
+  i.vendor = std::move(vendor);
+  i.name = std::move(name);
+  i.driver_version = std::move(driver);
+  i.type = std::move(type);
+  i.id = JoinDeviceId({BackendName(backend), i.platform, i.name, i.driver_version});
   return i;
 }
 
+DeviceInfo CudaInfo(const CudaDeviceInfo& d) {
+  return Info(Backend::kCuda, "CUDA", "NVIDIA", d.name, CudaDriverVersionText(d.driver_version), "gpu");
+}
+
 DeviceInfo GlInfo(const GlContextInfo& c) {
-  DeviceInfo i;
-  i.backend = Backend::kGl;
-  i.platform = c.egl_platform;
-  i.vendor = c.vendor;
-  i.name = c.renderer;
-  i.driver_version = c.version;  // GL_VERSION names the driver: "4.5 (Core Profile) Mesa 22.3.6"
-  i.type = GlDeviceType(c.renderer);
-  i.id = JoinDeviceId({"gl", i.platform, i.name, i.driver_version});
-  return i;
+  // GL_VERSION names the driver: "4.5 (Core Profile) Mesa 22.3.6"
+  return Info(Backend::kGl, c.egl_platform, c.vendor, c.renderer, c.version, GlDeviceType(c.renderer));
 }
 
 // Every device, or only those of `only` (the others are not even looked for).
@@ -121,15 +121,7 @@ std::string Names(const std::vector<Listed>& devices) {
 }  // namespace
 
 DeviceInfo PublicInfo(const OpenClDeviceInfo& d) {
-  DeviceInfo i;
-  i.backend = Backend::kOpenCl;
-  i.platform = d.platform_name;
-  i.vendor = d.vendor;
-  i.name = d.name;
-  i.driver_version = d.driver_version;
-  i.type = d.type;
-  i.id = JoinDeviceId({"opencl", i.platform, i.name, i.driver_version});
-  return i;
+  return Info(Backend::kOpenCl, d.platform_name, d.vendor, d.name, d.driver_version, d.type);
 }
 
 Device::Device() = default;
