@@ -11,6 +11,11 @@
 //       skintune::Skinner::Create(*device, *db, mesh_view, options);
 //   per frame: skinner->SetPalette(...); skinner->Skin(); skinner->ReadPositions(...);
 //
+// mesh_view is your arrays (MeshView), or Model::Load("model.gltf")->mesh(),
+// whose Palette(animation, t, &matrices) gives each frame's palette
+// (examples/skin_animation.cpp). Link skintune::runtime (find_package(skintune);
+// docs/RUNTIME.md); the library exports this header's API and nothing else.
+//
 // Errors are values: every function that can fail returns Status or Result<T>,
 // whose message names what was wrong (the argument, the vertex, the device).
 // No exception crosses this header: allocation failure inside the library is
