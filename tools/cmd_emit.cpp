@@ -134,24 +134,15 @@ std::string DevicesOf(const std::vector<WinnersEntry>& entries) {
   return items.empty() ? "the database has no entries" : "the database has: " + Joined(items, ", ");
 }
 
+// A winner as the sidecar lists it: the database entry (WinnersEntryToJson),
+// with the tuned variant as its key and the vendor and type always present.
 nlohmann::json WinnerJson(const WinnersEntry& e) {
-  return {{"device_id", e.device_id},
-          {"backend", e.backend},
-          {"platform", e.platform},
-          {"vendor", e.vendor},
-          {"device_name", e.device_name},
-          {"driver_version", e.driver_version},
-          {"device_type", e.device_type},
-          {"lang", Name(e.lang)},
-          {"influences", e.influences},
-          {"vertex_bucket", e.vertex_bucket},
-          {"dataset", e.dataset},
-          {"tuned_variant", e.variant.Key()},
-          {"median_ms", e.median_ms},
-          {"gbps", e.gbps},
-          {"copy_fraction", e.copy_fraction},
-          {"created", e.created},
-          {"source", e.source}};
+  nlohmann::json j = WinnersEntryToJson(e);
+  j.erase("variant");
+  j["tuned_variant"] = e.variant.Key();
+  j["vendor"] = e.vendor;
+  j["device_type"] = e.device_type;
+  return j;
 }
 
 constexpr const char* kBucketedNote =
