@@ -348,6 +348,7 @@ TEST(SkintuneCli, EmitDbSidecarNamesEveryWinnerOfItsVariant) {
   EXPECT_EQ(winners[1].at("influences"), 3);
   EXPECT_EQ(winners[1].at("dataset"), "1600k-b3");
   EXPECT_EQ(winners[1].at("median_ms"), 0.75);
+  EXPECT_FALSE(winners[1].contains("variant"));  // the sidecar's own "variant" is the emitted kernel
   EXPECT_EQ(winners[1].at("gbps"), 700.0);
   EXPECT_EQ(winners[1].at("copy_fraction"), 0.7);
   EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners));  // both in the header
