@@ -27,6 +27,7 @@
 #include "reference/error.h"
 #include "runtime/embed_header.h"
 #include "runtime/winners_db.h"
+#include "tests/common/scratch_dir.h"
 
 namespace skintune {
 namespace {
@@ -544,13 +545,7 @@ TEST(EmbedHeader, SecondTranslationUnitSeesTheSameKernelTable) {
   EXPECT_NE(SecondUnitFindKernel("cuda", 3, 400000, kJoints), nullptr);
 }
 
-fs::path Scratch() {
-  const fs::path dir = fs::temp_directory_path() / ("skintune_embed_test_" + std::to_string(::getpid()) + "_" +
-                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path Scratch() { return skintune::testing::ScratchDir("skintune_embed_test"); }
 
 // Runs a shell command; returns its exit code, its output in *log.
 int Shell(const std::string& command, const fs::path& log_file, std::string* log) {

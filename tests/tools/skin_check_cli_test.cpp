@@ -15,6 +15,7 @@
 #include "reference/gltf_import.h"
 #include "reference/mesh_io.h"
 #include "reference/skinning.h"
+#include "tests/common/scratch_dir.h"
 #include "tests/tools/run_command.h"
 
 namespace skintune::testing {
@@ -24,12 +25,7 @@ namespace fs = std::filesystem;
 const std::string kCesium = std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf";
 const std::string kUnorm8 = "opencl.b4.padded.soa.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals";
 
-fs::path Scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("skintune_skin_check_" + std::to_string(::getpid()) + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path Scratch() { return ScratchDir("skintune_skin_check"); }
 
 // The gold of CesiumMan at t = 0.5 on the weights `variant` quantises (or the mesh's).
 std::vector<glm::vec3> Gold(const std::string& variant) {
@@ -40,7 +36,7 @@ std::vector<glm::vec3> Gold(const std::string& variant) {
 }
 
 TEST(SkinCheckCli, PaletteOutIsTheFramesPaletteColumnMajor) {
-  const fs::path dir = Scratch("palette");
+  const fs::path dir = Scratch();
   const auto r = RunSkintune({"skin", "--mesh", kCesium, "--animation", "0", "--time", "0.5", "--palette-out",
                               (dir / "palette.bin").string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -52,7 +48,7 @@ TEST(SkinCheckCli, PaletteOutIsTheFramesPaletteColumnMajor) {
 }
 
 TEST(SkinCheckCli, AcceptsOutputWithinToleranceOfTheQuantisedGold) {
-  const fs::path dir = Scratch("accept");
+  const fs::path dir = Scratch();
   const std::string file = (dir / "theirs.stv").string();
   WriteSkinnedVertices(file, Gold(kUnorm8), {});
   const auto r = RunSkintune({"skin", "--mesh", kCesium, "--animation", "0", "--time", "0.5", "--check", file,
@@ -62,7 +58,7 @@ TEST(SkinCheckCli, AcceptsOutputWithinToleranceOfTheQuantisedGold) {
 }
 
 TEST(SkinCheckCli, QuantisedOutputFailsAgainstTheUnquantisedGold) {
-  const fs::path dir = Scratch("quantised");
+  const fs::path dir = Scratch();
   const std::string file = (dir / "theirs.stv").string();
   WriteSkinnedVertices(file, Gold(kUnorm8), {});
   const auto r = RunSkintune({"skin", "--mesh", kCesium, "--animation", "0", "--time", "0.5", "--check", file});
@@ -71,7 +67,7 @@ TEST(SkinCheckCli, QuantisedOutputFailsAgainstTheUnquantisedGold) {
 }
 
 TEST(SkinCheckCli, OneWrongVertexIsNamed) {
-  const fs::path dir = Scratch("wrong");
+  const fs::path dir = Scratch();
   const std::string file = (dir / "theirs.stv").string();
   std::vector<glm::vec3> positions = Gold("");
   positions[1234].y += 0.01f;
@@ -82,7 +78,7 @@ TEST(SkinCheckCli, OneWrongVertexIsNamed) {
 }
 
 TEST(SkinCheckCli, WrongVertexCountAndMissingOutputsAreErrors) {
-  const fs::path dir = Scratch("count");
+  const fs::path dir = Scratch();
   const std::string file = (dir / "short.stv").string();
   WriteSkinnedVertices(file, std::vector<glm::vec3>(10), {});
   const auto count = RunSkintune({"skin", "--mesh", kCesium, "--check", file});

@@ -13,6 +13,7 @@
 #include "reference/skinning.h"
 #include "reference/synthetic.h"
 #include "run_command.h"
+#include "tests/common/scratch_dir.h"
 
 namespace skintune {
 namespace {
@@ -24,13 +25,7 @@ using testing::RunSkintune;
 
 const std::string kData = SKINTUNE_TEST_DATA_DIR;
 
-fs::path Scratch() {
-  const fs::path dir = fs::temp_directory_path() / ("skintune_cli_test_" + std::to_string(::getpid()) + "_" +
-                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path Scratch() { return skintune::testing::ScratchDir("skintune_cli_test"); }
 
 TEST(SkintuneCli, VersionPrintsTheVersion) {
   const auto r = RunSkintune({"--version"});

@@ -14,19 +14,14 @@
 #include <nlohmann/json.hpp>
 
 #include "reference/error.h"
+#include "tests/common/scratch_dir.h"
 
 namespace skintune {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path Scratch() {
-  const fs::path dir = fs::temp_directory_path() / ("skintune_measurement_test_" + std::to_string(::getpid()) + "_" +
-                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path Scratch() { return skintune::testing::ScratchDir("skintune_measurement_test"); }
 
 std::string ReadAll(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);

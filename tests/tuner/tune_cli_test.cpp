@@ -18,6 +18,7 @@
 
 #include "tests/tools/run_command.h"
 #include "tuner/measurement.h"
+#include "tests/common/scratch_dir.h"
 
 namespace skintune {
 namespace {
@@ -27,13 +28,7 @@ using testing::CountLines;
 using testing::ReadAll;
 using testing::RunSkintune;
 
-fs::path Scratch() {
-  const fs::path dir = fs::temp_directory_path() / ("skintune_tune_cli_test_" + std::to_string(::getpid()) + "_" +
-                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path Scratch() { return skintune::testing::ScratchDir("skintune_tune_cli_test"); }
 
 // One OpenCL variant per storage x layout x wg of the lists, 5000 vertices, B = 2.
 nlohmann::json TinyConfig(const std::vector<std::string>& storages, const std::vector<std::string>& layouts,

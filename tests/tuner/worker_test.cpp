@@ -16,19 +16,14 @@
 #include <nlohmann/json.hpp>
 
 #include "reference/error.h"
+#include "tests/common/scratch_dir.h"
 
 namespace skintune {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path Scratch() {
-  const fs::path dir = fs::temp_directory_path() / ("skintune_worker_test_" + std::to_string(::getpid()) + "_" +
-                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path Scratch() { return skintune::testing::ScratchDir("skintune_worker_test"); }
 
 DeviceIdentity FakeDevice() {
   DeviceIdentity d;
