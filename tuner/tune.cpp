@@ -244,6 +244,7 @@ struct Task {
   Lang lang = Lang::kOpenCl;
   std::size_t dataset = 0;
   std::vector<Variant> candidates;
+  std::vector<Variant> baselines;     // measured before the search (TuneConfig::baselines)
   std::vector<Measurement> invalid;
   std::size_t planned = 0;  // evaluations expected (for progress)
 };
@@ -277,9 +278,11 @@ std::size_t CopyBytes(const DeviceIdentity& d) {
 
 TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context) {
   if (!json.is_object()) throw Error(context + ": a tune config must be a JSON object");
-  // "paper" and "figure1" are descriptive fields of configs/paper.json.
+  // "paper", "figure1", "paper_kernels" and "reported" are fields of configs/paper.json
+  // read by `skintune paper` (tuner/paper.h).
   static const std::set<std::string> kKnown = {"description", "space",    "datasets", "timing",
-                                               "strategy",    "variant_timeout_s", "paper", "figure1"};
+                                               "strategy",    "variant_timeout_s", "paper", "figure1",
+                                               "paper_kernels", "reported"};
   for (const auto& [field, value] : json.items()) {
     if (kKnown.count(field)) continue;
     throw Error(context + ": " + field +
@@ -392,15 +395,9 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
         task.device = di;
         task.lang = lang;
         task.dataset = k;
-        space.ForEach([&](const Variant& v) {
-          ++points;
-          const std::vector<Violation> violations = CheckVariant(v, device.limits, dataset.shape);
-          if (violations.empty()) {
-            task.candidates.push_back(v);
-            return;
-          }
-          ++invalid_by[violations.front().constraint];
-          if (task.invalid.size() >= kMaxInvalidRecords) return;
+        std::set<std::string> invalid_keys;
+        auto record_invalid = [&](const Variant& v, const std::vector<Violation>& violations) {
+          if (task.invalid.size() >= kMaxInvalidRecords || !invalid_keys.insert(v.Key()).second) return;
           Measurement m;
           m.device_id = device.identity.Id();
           m.dataset = dataset.info.key;
@@ -413,9 +410,31 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
           m.generator_version = kGeneratorVersion;
           m.timestamp = report.created;
           task.invalid.push_back(std::move(m));
+        };
+        for (Variant b : config.baselines) {
+          if (b.lang != lang) continue;
+          b.influences = dataset.info.influences;
+          const std::vector<Violation> violations = CheckVariant(b, device.limits, dataset.shape);
+          if (violations.empty()) {
+            if (std::find(task.baselines.begin(), task.baselines.end(), b) == task.baselines.end()) {
+              task.baselines.push_back(b);
+            }
+          } else {
+            record_invalid(b, violations);
+          }
+        }
+        space.ForEach([&](const Variant& v) {
+          ++points;
+          const std::vector<Violation> violations = CheckVariant(v, device.limits, dataset.shape);
+          if (violations.empty()) {
+            task.candidates.push_back(v);
+            return;
+          }
+          ++invalid_by[violations.front().constraint];
+          record_invalid(v, violations);
         });
         const std::size_t n = task.candidates.size();
-        task.planned = config.strategy.budget > 0 ? std::min(config.strategy.budget, n) : n;
+        task.planned = (config.strategy.budget > 0 ? std::min(config.strategy.budget, n) : n) + task.baselines.size();
         tasks.push_back(std::move(task));
       }
     }
@@ -485,7 +504,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
         progress(done, total, device_name + ": copy bandwidth not measured: " + why_not);
       }
       for (Task& task : tasks) {
-        if (task.device != di || task.candidates.empty()) continue;
+        if (task.device != di || (task.candidates.empty() && task.baselines.empty())) continue;
         const std::string& key = datasets[task.dataset].info.key;
         const std::size_t task_start = done;
         std::set<std::string> seen;
@@ -516,7 +535,8 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
           if (m.status != Status::kOk) return std::nullopt;
           return m.timing.median_ms;
         };
-        Search(task.candidates, evaluate, config.strategy);
+        for (const Variant& b : task.baselines) evaluate(b);
+        if (!task.candidates.empty()) Search(task.candidates, evaluate, config.strategy);
         done = task_start + task.planned;
       }
     } catch (const WorkerError& e) {

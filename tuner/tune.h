@@ -23,6 +23,12 @@ struct TuneConfig {
   TimingOptions timing;
   StrategyOptions strategy;
   double variant_timeout_s = 60.0;      // per variant, in the child process
+  // Variants measured on every device x language x dataset of their language
+  // before the search, with B set to the dataset's (the paper's own kernels):
+  // recorded like any measurement (invalid ones with their constraints), so a
+  // baseline can win and the search's best is compared with it. Need not be
+  // points of `space`.
+  std::vector<Variant> baselines;
 };
 
 // Parses a config (configs/*.json). Throws Error("<context>: <element>: ...").

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/tuner/sample_report.h"
+#include "tuner/paper.h"
 #include "tuner/report.h"
 
 #ifndef SKINTUNE_PYTHON3
@@ -104,6 +105,30 @@ TEST(Schema, EmbedFixtureDatabaseValidates) {
   nlohmann::json broken = fixture;
   broken["entries"][0]["variant"]["storage"] = "texture";
   EXPECT_EQ(Validate(broken, "winners-db.schema.json", "embed-fixture-broken"), 3);
+}
+
+// A paper result embeds a tuning report: its schema refers to report.schema.json by $id.
+TEST(Schema, PaperResultsValidateAndTheirBrokenCopiesDoNot) {
+  PaperResult r;
+  r.created = "2025-01-31T12:00:00Z";
+  r.command = "skintune paper";
+  r.host = {"Example CPU", 16, 80.5};
+  r.reported = BuiltInPaperReported();
+  r.reported.figure1 = {{"cuda", 40.0}};
+  r.paper_kernels = PaperKernels();
+  r.tuning = testing::SampleReport();
+  r.cpu = {{"25k-b4", {12.5, 12.0, 13.0, 9, 8, 1, 4.0e6, 0.32, 1e-7}, {1.5, 1.4, 1.9, 9, 8, 16, 3.0e6, 2.0, 2e-7}}};
+  const nlohmann::json good = PaperResultToJson(r);
+  EXPECT_EQ(Validate(good, "paper-result.schema.json", "paper"), 0);
+  nlohmann::json bad = good;
+  bad["cpu"][0]["serial"]["median_ms"] = 0;
+  EXPECT_EQ(Validate(bad, "paper-result.schema.json", "paper_bad_cpu"), 3);
+  bad = good;
+  bad["tuning"]["measurements"][0]["status"] = "fine";  // checked through the report schema
+  EXPECT_EQ(Validate(bad, "paper-result.schema.json", "paper_bad_tuning"), 3);
+  bad = good;
+  bad["reported"]["figure1"]["cuda"] = -1;
+  EXPECT_EQ(Validate(bad, "paper-result.schema.json", "paper_bad_reported"), 3);
 }
 
 TEST(Schema, T4ExportsValidate) {

@@ -1,0 +1,102 @@
+// skintune: the paper's experiment (tuner/paper.h): the CPU baselines, then
+// one tuning run over the paper's data sets with the paper's kernels measured
+// first on every device and language.
+#include <algorithm>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+#include "reference/synthetic.h"
+#include "tuner/cpu_timing.h"
+#include "tuner/measurement.h"
+#include "tuner/paper.h"
+
+namespace skintune {
+
+namespace {
+
+// --quick: a search of this many evaluations per device x language x data set
+// (the full run takes the paper config's budget).
+constexpr std::size_t kQuickBudget = 16;
+
+}  // namespace
+
+PaperResult RunPaper(const PaperOptions& options) {
+  auto progress = [&](const std::string& what) {
+    if (options.progress) options.progress(0, 0, what);
+  };
+  const nlohmann::json config_json = nlohmann::json::parse(EmbeddedConfig("paper"));
+  TuneConfig config = ConfigFromJson(config_json, "paper");
+
+  PaperResult result;
+  result.quick = options.quick;
+  result.command = options.command;
+  result.reported = BuiltInPaperReported();
+  result.paper_kernels = PaperKernels();
+  result.figure1_dataset = config_json.at("figure1").at("dataset").get<std::string>();
+
+  // The data sets: checked before anything is measured.
+  config.datasets = options.datasets.empty() ? PaperDatasets(options.quick) : options.datasets;
+  std::set<std::string> seen;
+  for (const std::string& key : config.datasets) {
+    try {
+      ParseDatasetKey(key).Validate();
+    } catch (const Error& e) {
+      throw Error(std::string("--dataset: ") + e.what());
+    }
+    if (!seen.insert(key).second) throw Error("--dataset: '" + key + "' is listed twice");
+  }
+  if (options.budget > 0) {
+    config.strategy.budget = options.budget;
+  } else if (options.quick) {
+    config.strategy.budget = kQuickBudget;
+  }
+  if (options.quick) {
+    config.timing.warmup = 2;
+    config.timing.repetitions = 7;
+    config.variant_timeout_s = 30.0;
+  }
+  for (const PaperKernel& k : result.paper_kernels) config.baselines.push_back(k.variant);
+
+  // The CPU first, while no device worker shares the machine.
+  CpuTimingOptions cpu_options;
+  if (options.quick) {
+    cpu_options.repetitions = 5;
+    cpu_options.min_seconds = 0.1;
+  }
+  if (!options.skip_cpu) {
+    progress("host: copy bandwidth");
+    result.host.copy_bandwidth_gbps = HostCopyBandwidthGBps();
+  }
+  for (const std::string& key : config.datasets) {
+    if (options.skip_cpu) break;
+    const SkinnedAsset asset = GenerateDataset(ParseDatasetKey(key));
+    CpuResult cpu;
+    cpu.dataset = key;
+    progress(key + ": serial CPU baseline");
+    cpu.serial = TimeSerial(asset, cpu_options);
+    progress(key + ": fast CPU path");
+    cpu.fast = TimeFast(asset, cpu_options);
+    result.host.threads = cpu.fast.threads;
+    result.cpu.push_back(cpu);
+  }
+
+  TuneOptions tune;
+  tune.device_pattern = options.device_pattern;
+  tune.languages = options.languages;
+  tune.cache_path = options.cache_path;
+  tune.worker_executable = options.worker_executable;
+  tune.progress = options.progress;
+  result.tuning = RunTuning(config, tune);
+  result.tuning.config = "paper" + std::string(options.quick ? " --quick" : "");
+  const nlohmann::json& machine = result.tuning.machine;
+  result.host.cpu_model = machine.contains("cpu_model") ? machine["cpu_model"].get<std::string>() : std::string();
+  if (result.host.threads == 0 && machine.contains("logical_cpus")) {
+    result.host.threads = machine["logical_cpus"].get<unsigned>();
+  }
+  result.created = result.tuning.created;
+  return result;
+}
+
+}  // namespace skintune
