@@ -27,6 +27,7 @@ Command RegisterEmit(CLI::App& app);
 Command RegisterTune(CLI::App& app);
 Command RegisterTuneWorker(CLI::App& app);
 Command RegisterDb(CLI::App& app);
+Command RegisterReport(CLI::App& app);
 
 // How a command names its input mesh: a synthetic dataset key or a glTF file.
 struct MeshSource {

@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
                                                 tools::RegisterSkin(app), tools::RegisterVariants(app),
                                                 tools::RegisterEmit(app),
                                                 tools::RegisterTune(app), tools::RegisterTuneWorker(app),
-                                                tools::RegisterDb(app)};
+                                                tools::RegisterDb(app), tools::RegisterReport(app)};
   try {
     app.parse(argc, argv);
   } catch (const CLI::Success& e) {
