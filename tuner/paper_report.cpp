@@ -333,10 +333,14 @@ class ResultSummariser {
       if (api == PaperApi::kOpenCl && kernel.name == "opencl-optimised") opencl_kernel = position;
       if (api == other && other_kernel < 0) other_kernel = position;
     }
+    // A device found but never measured (e.g. a run with --lang opencl) has
+    // nothing to compare: no grid of dashes for it.
     for (std::size_t o = first_device_; o < s_.devices.size(); ++o) {
-      if (s_.devices[o].api != PaperApi::kOpenCl) continue;
+      if (s_.devices[o].api != PaperApi::kOpenCl || s_.devices[o].langs.empty()) continue;
       for (std::size_t x = first_device_; x < s_.devices.size(); ++x) {
-        if (s_.devices[x].api != other || s_.devices[x].chip != s_.devices[o].chip) continue;
+        if (s_.devices[x].api != other || s_.devices[x].chip != s_.devices[o].chip || s_.devices[x].langs.empty()) {
+          continue;
+        }
         Table1Grid g;
         g.other = other;
         g.result = index_;
@@ -490,12 +494,26 @@ PaperSummary Summarise(const std::vector<PaperResult>& results) {
 PaperResult PaperResultFromReport(const TuningReport& report) {
   PaperResult r;
   r.created = report.created;
-  r.command = "skintune tune (config " + report.config + ", strategy " + report.strategy + ")";
+  // r.command stays empty: a tuning report does not record its command line.
   r.tuning = report;
   r.reported.source = "not a paper result: a plain tuning report, without the paper's kernels or CPU timings";
   const bool has_fig1 = std::any_of(report.datasets.begin(), report.datasets.end(),
                                     [&](const DatasetInfo& d) { return d.key == r.figure1_dataset; });
-  if (!has_fig1 && !report.datasets.empty()) r.figure1_dataset = report.datasets.front().key;
+  if (!has_fig1 && !report.datasets.empty()) {
+    // The data set the most devices were measured on, so Fig. 1 compares them.
+    std::size_t best = 0;
+    r.figure1_dataset = report.datasets.front().key;
+    for (const DatasetInfo& d : report.datasets) {
+      std::set<std::string> devices;
+      for (const Measurement& m : report.measurements) {
+        if (m.dataset == d.key) devices.insert(m.device_id);
+      }
+      if (devices.size() > best) {
+        best = devices.size();
+        r.figure1_dataset = d.key;
+      }
+    }
+  }
   if (report.machine.is_object()) {
     const nlohmann::json& cpu = report.machine.contains("cpu_model") ? report.machine["cpu_model"] : nlohmann::json();
     if (cpu.is_string()) r.host.cpu_model = cpu.get<std::string>();

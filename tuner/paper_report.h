@@ -196,7 +196,7 @@ struct PaperSummary {
   std::vector<SummaryDevice> devices;
   std::vector<KernelResults> kernels;      // per device x data set of its result
   std::vector<Figure1> figure1;            // one per result
-  std::vector<Table1Grid> opencl_vs_cuda;  // per chip with both APIs
+  std::vector<Table1Grid> opencl_vs_cuda;  // per chip with both APIs measured
   std::vector<Table1Grid> opencl_vs_glsl;
   std::vector<GbpsChart> gbps;             // one per device
   std::vector<AxisChart> axes;             // per device x language with a status-ok measurement
@@ -209,7 +209,8 @@ PaperSummary Summarise(const std::vector<PaperResult>& results);
 
 // A plain tuning report as a PaperResult with no CPU timings and no paper
 // kernels (the figures then say there is no serial baseline). The Fig. 1 data
-// set is 100k-b2 when the report has it, else its first data set.
+// set is 100k-b2 when the report has it, else the one measured on the most
+// devices (the first of those).
 PaperResult PaperResultFromReport(const TuningReport& report);
 
 // One self-contained HTML5 page: sections fig1, table1-opencl-vs-cuda,

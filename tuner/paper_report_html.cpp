@@ -255,8 +255,9 @@ class Renderer {
     for (const SummaryResult& r : s_.results) {
       out_ += "<p class=\"note\">" + (r.label.empty() ? std::string() : "<strong>" + Esc(r.label) + "</strong>: ") +
               "created " + Esc(r.created) + (r.quick ? " (quick: the reduced data-set list)" : "") + "; host " +
-              Esc(r.host.cpu_model.empty() ? "unknown" : r.host.cpu_model) + "; command <code>" + Esc(r.command) +
-              "</code></p>\n";
+              Esc(r.host.cpu_model.empty() ? "unknown" : r.host.cpu_model) + "; " +
+              (r.command.empty() ? std::string("command not recorded") : "command <code>" + Esc(r.command) + "</code>") +
+              "</p>\n";
     }
     if (s_.results.empty()) out_ += "<p class=\"warn\">No results were given.</p>\n";
     out_ += "<nav><a href=\"#fig1\">Fig. 1</a><a href=\"#table1-opencl-vs-cuda\">Table 1: OpenCL vs CUDA</a>"
@@ -672,7 +673,9 @@ class Renderer {
     for (std::size_t ri = 0; ri < s_.results.size(); ++ri) {
       const SummaryResult& r = s_.results[ri];
       if (!r.label.empty()) out_ += "<h3>" + Esc(r.label) + "</h3>\n";
-      out_ += "<p>Command <code>" + Esc(r.command.empty() ? "unknown" : r.command) + "</code>, finished " +
+      out_ += "<p>" +
+              (r.command.empty() ? std::string("Command not recorded") : "Command <code>" + Esc(r.command) + "</code>") +
+              ", finished " +
               Esc(r.created) + (r.quick ? " (quick)" : "") + "; tuning config " + Esc(r.config) + ", strategy " +
               Esc(r.strategy) + ".</p>\n";
       out_ += "<table><thead><tr><th>backend</th><th>platform</th><th>name</th><th>vendor</th><th>driver</th>"

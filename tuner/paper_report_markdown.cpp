@@ -129,7 +129,7 @@ std::string RenderMarkdown(const PaperSummary& s) {
   for (const SummaryResult& r : s.results) {
     out += "- " + (r.label.empty() ? std::string() : r.label + ": ") + Cell(r.created) +
            (r.quick ? " (quick)" : "") + ", host " + Cell(r.host.cpu_model.empty() ? "unknown" : r.host.cpu_model) +
-           ", `" + Cell(r.command) + "`\n";
+           (r.command.empty() ? std::string(", command not recorded") : ", `" + Cell(r.command) + "`") + "\n";
   }
   out += "\n## Fig. 1\n\n" + Figure1Markdown(s) + "## Table 1\n\n" + Table1Markdown(s);
   out += "## Tuned winners per device\n\n"

@@ -287,13 +287,23 @@ def main():
     args = parser.parse_args()
     deadline = Deadline(args.timeout)
 
+    def terminated(signum, frame):  # ctest's own timeout: still close chromium (finally below)
+        raise Timeout("terminated by signal %d" % signum)
+
+    signal.signal(signal.SIGTERM, terminated)
+    signal.signal(signal.SIGINT, terminated)
+
     shutil.rmtree(args.work, ignore_errors=True)
     os.makedirs(args.work)
     os.makedirs(os.path.dirname(os.path.abspath(args.screenshot)), exist_ok=True)
     report = os.path.join(args.work, "report.html")
     markdown = os.path.join(args.work, "report.md")
-    run = subprocess.run([args.skintune, "report", *args.fixture, "-o", report, "--markdown", markdown],
-                         capture_output=True, text=True, timeout=deadline.left())
+    try:
+        run = subprocess.run([args.skintune, "report", *args.fixture, "-o", report, "--markdown", markdown],
+                             capture_output=True, text=True, timeout=deadline.left())
+    except subprocess.TimeoutExpired:
+        print("FAIL: skintune report did not finish within %gs" % args.timeout)
+        return 1
     if run.returncode != 0:
         print("FAIL: skintune report exited %d: %s" % (run.returncode, run.stderr.strip()))
         return 1

@@ -399,12 +399,26 @@ TEST(PaperSummary, MissingBackendLeavesItsComparisonEmptyAndTheReportSaysSo) {
   EXPECT_NE(RenderMarkdown(s).find("skipped: cuda: skipped: libcuda.so.1 not found (sample)"), std::string::npos);
 }
 
+TEST(PaperSummary, DeviceFoundButNeverMeasuredIsNotCompared) {
+  PaperResult r = SamplePaperResult();
+  const std::string cuda = testing::SampleCudaGpu().Id();
+  auto& m = r.tuning.measurements;
+  m.erase(std::remove_if(m.begin(), m.end(), [&](const Measurement& x) { return x.device_id == cuda; }), m.end());
+  const PaperSummary s = Summarise({r});
+  EXPECT_TRUE(s.opencl_vs_cuda.empty());
+  const Figure1Row* row = Row(s.figure1[0], "paper", "cuda", DeviceIndex(s, testing::SampleCudaGpu()));
+  ASSERT_NE(row, nullptr);
+  EXPECT_EQ(row->note, "not measured");
+  EXPECT_EQ(Row(s.figure1[0], "tuned", "", DeviceIndex(s, testing::SampleCudaGpu()))->note, "not measured");
+}
+
 TEST(PaperSummary, PlainTuningReportHasNoSerialBaselineAndSaysSo) {
   const PaperResult r = PaperResultFromReport(testing::SampleReport());
   EXPECT_TRUE(r.cpu.empty());
   EXPECT_TRUE(r.paper_kernels.empty());
-  EXPECT_EQ(r.figure1_dataset, "25k-b4");  // no 100k-b2 in it: its first data set
+  EXPECT_EQ(r.figure1_dataset, "100k-b4");  // no 100k-b2 in it: the one both devices were measured on
   EXPECT_EQ(r.host.cpu_model, "");          // the sample's machine has "cpu", not "cpu_model"
+  EXPECT_EQ(r.command, "");                 // a tuning report does not record it
   const PaperSummary s = Summarise({r});
   EXPECT_FALSE(s.figure1[0].serial_ms);
   bool timed = false;
@@ -417,6 +431,7 @@ TEST(PaperSummary, PlainTuningReportHasNoSerialBaselineAndSaysSo) {
   ASSERT_EQ(s.opencl_vs_cuda.size(), 1u);  // "Model GPU" through OpenCL and CUDA
   const std::string html = RenderHtml(s);
   EXPECT_NE(Section(html, "fig1").find("No serial baseline"), std::string::npos);
+  EXPECT_NE(html.find("command not recorded"), std::string::npos);
   EXPECT_TRUE(HasId(html, "fig1-0"));
   EXPECT_NE(Figure1Markdown(s).find("No serial baseline"), std::string::npos);
   EXPECT_TRUE(ExternalReferences(html).empty());
@@ -490,6 +505,18 @@ TEST(PaperReportHtml, EveryChartIsAnSvgWithClassRoleTitleViewBoxAndSize) {
     EXPECT_EQ((*it)[2].str().substr(0, 6), "<title") << attributes;
   }
   EXPECT_EQ(charts, 1u + 5u + 7u);
+}
+
+TEST(PaperReportHtml, NoResultsStillGivesEverySectionSayingSo) {
+  const std::string html = RenderHtml(Summarise({}));
+  for (const char* id : {"fig1", "table1-opencl-vs-cuda", "table1-opencl-vs-glsl", "gbps", "axes", "devices"}) {
+    EXPECT_TRUE(HasId(html, id)) << id;
+  }
+  EXPECT_NE(html.find("No results were given."), std::string::npos);
+  EXPECT_NE(Section(html, "table1-opencl-vs-cuda").find("no chip with both APIs"), std::string::npos);
+  EXPECT_EQ(html.find("<svg"), std::string::npos);
+  EXPECT_TRUE(ExternalReferences(html).empty());
+  EXPECT_NE(RenderMarkdown(Summarise({})).find("No chip with both APIs"), std::string::npos);
 }
 
 TEST(PaperReportHtml, DevicesSectionListsIdentitiesHostKernelsAndCommand) {
