@@ -20,6 +20,7 @@
 #include "reference/error.h"
 #include "reference/mesh_io.h"
 #include "tools/commands.h"
+#include "tools/progress.h"
 #include "tuner/report.h"
 #include "tuner/tune.h"
 
@@ -56,93 +57,6 @@ TuneConfig LoadConfig(const std::string& config) {
     return ConfigFromJson(ParseJson(text, name), name);
   }
   return ConfigFromJson(ReadJsonFile(name), name);
-}
-
-Lang LangFromName(const std::string& name) {
-  for (Lang l : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex}) {
-    if (name == Name(l)) return l;
-  }
-  throw Error("--lang '" + name + "': unknown language (expected one of opencl, cuda, glsl-compute, glsl-vertex)");
-}
-
-std::string Duration(double seconds) {
-  const long s = static_cast<long>(seconds + 0.5);
-  char text[32];
-  if (s >= 3600) {
-    std::snprintf(text, sizeof text, "%ldh%02ldm", s / 3600, (s / 60) % 60);
-  } else if (s >= 60) {
-    std::snprintf(text, sizeof text, "%ldm%02lds", s / 60, s % 60);
-  } else {
-    std::snprintf(text, sizeof text, "%lds", s);
-  }
-  return text;
-}
-
-// Progress on stderr: a bar with ETA on a terminal, plain lines otherwise.
-class Progress {
- public:
-  explicit Progress(bool terminal) : terminal_(terminal), start_(Clock::now()) {}
-
-  void Update(std::size_t done, std::size_t total, const std::string& what) {
-    const bool cached = EndsWith(what, "(cached)");
-    if (done > last_done_ && !cached) {
-      if (measured_ == 0) first_measured_ = last_time_;
-      ++measured_;
-    }
-    last_done_ = done;
-    last_time_ = Clock::now();
-    if (!terminal_) {
-      // Set-up steps (total 0) only on a terminal, where they are overwritten:
-      // a run that fails before measuring says so in one line.
-      if (total > 0) std::cerr << "skintune: tune: [" << done << "/" << total << "] " << what << "\n";
-      return;
-    }
-    int width = 100;
-    winsize size{};
-    if (::ioctl(2, TIOCGWINSZ, &size) == 0 && size.ws_col > 20) width = size.ws_col;
-    std::string line;
-    if (total > 0) {
-      const int bar = 24;
-      const int filled = static_cast<int>(bar * done / total);
-      line = "[" + std::string(filled, '#') + std::string(bar - filled, '.') + "] " + std::to_string(done) + "/" +
-             std::to_string(total);
-      std::string eta = "ETA --";
-      if (measured_ > 0 && done < total) {
-        const double elapsed = std::chrono::duration<double>(last_time_ - first_measured_).count();
-        eta = "ETA " + Duration(elapsed / measured_ * static_cast<double>(total - done));
-      } else if (done >= total) {
-        eta = "took " + Duration(std::chrono::duration<double>(last_time_ - start_).count());
-      }
-      line += " " + eta + "  ";
-    }
-    line += what;
-    if (static_cast<int>(line.size()) > width - 1) line = line.substr(0, width - 4) + "...";
-    std::cerr << "\r\033[K" << line << std::flush;
-    shown_ = true;
-  }
-
-  // Keeps the last progress line (success), or clears it (an error follows).
-  void Finish(bool keep) {
-    if (terminal_ && shown_) std::cerr << (keep ? "\n" : "\r\033[K") << std::flush;
-    shown_ = false;
-  }
-
- private:
-  using Clock = std::chrono::steady_clock;
-  bool terminal_;
-  bool shown_ = false;
-  Clock::time_point start_;
-  Clock::time_point first_measured_;
-  Clock::time_point last_time_ = Clock::now();
-  std::size_t last_done_ = 0;
-  std::size_t measured_ = 0;
-};
-
-std::string SelfExecutable() {
-  std::error_code ec;
-  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  if (ec) throw Error("cannot find the skintune executable for the tune workers (/proc/self/exe: " + ec.message() + ")");
-  return self.string();
 }
 
 void PrintWinners(const TuningReport& report) {
@@ -212,7 +126,7 @@ int RunTune(const TuneCliOptions& o, bool budget_given) {
   }
   options.cache_path = (out / "cache.jsonl").string();
 
-  Progress progress(::isatty(2) != 0);
+  Progress progress(::isatty(2) != 0, "tune");
   if (!o.quiet) {
     options.progress = [&progress](std::size_t done, std::size_t total, const std::string& what) {
       progress.Update(done, total, what);

@@ -28,6 +28,8 @@ Command RegisterTune(CLI::App& app);
 Command RegisterTuneWorker(CLI::App& app);
 Command RegisterDb(CLI::App& app);
 Command RegisterReport(CLI::App& app);
+// `paper` records its own command line in the result it writes.
+Command RegisterPaper(CLI::App& app, int argc, char** argv);
 
 // How a command names its input mesh: a synthetic dataset key or a glTF file.
 struct MeshSource {

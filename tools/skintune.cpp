@@ -21,7 +21,8 @@ int main(int argc, char** argv) {
                                                 tools::RegisterSkin(app), tools::RegisterVariants(app),
                                                 tools::RegisterEmit(app),
                                                 tools::RegisterTune(app), tools::RegisterTuneWorker(app),
-                                                tools::RegisterDb(app), tools::RegisterReport(app)};
+                                                tools::RegisterDb(app), tools::RegisterReport(app),
+                                                tools::RegisterPaper(app, argc, argv)};
   try {
     app.parse(argc, argv);
   } catch (const CLI::Success& e) {

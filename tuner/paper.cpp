@@ -1,6 +1,6 @@
-// skintune: the paper's experiment (tuner/paper.h): the CPU baselines, then
-// one tuning run over the paper's data sets with the paper's kernels measured
-// first on every device and language.
+// skintune: the paper's experiment (tuner/paper.h): one tuning run over the
+// paper's data sets with the paper's kernels measured first on every device
+// and language, then the CPU baselines.
 #include <algorithm>
 #include <set>
 
@@ -11,6 +11,7 @@
 #include "tuner/cpu_timing.h"
 #include "tuner/measurement.h"
 #include "tuner/paper.h"
+#include "tuner/worker.h"
 
 namespace skintune {
 
@@ -59,7 +60,26 @@ PaperResult RunPaper(const PaperOptions& options) {
   }
   for (const PaperKernel& k : result.paper_kernels) config.baselines.push_back(k.variant);
 
-  // The CPU first, while no device worker shares the machine.
+  TuneOptions tune;
+  tune.device_pattern = options.device_pattern;
+  tune.languages = options.languages;
+  tune.cache_path = options.cache_path;
+  tune.worker_executable = options.worker_executable;
+  tune.progress = options.progress;
+  result.tuning = RunTuning(config, tune);
+  result.tuning.config = "paper" + std::string(options.quick ? " --quick" : "");
+  // The space's invalid points (tens of thousands per device: `skintune
+  // variants --device` counts them) are left out of the result; a paper
+  // kernel that is invalid on a device stays, with its constraint.
+  std::erase_if(result.tuning.measurements, [&](const Measurement& m) {
+    if (m.status != Status::kInvalid) return false;
+    return std::none_of(config.baselines.begin(), config.baselines.end(), [&](Variant b) {
+      b.influences = m.variant.influences;
+      return b == m.variant;
+    });
+  });
+  // The CPU after the devices (whose workers have exited by then): a bad
+  // --device pattern fails at once, before minutes of CPU timing.
   CpuTimingOptions cpu_options;
   if (options.quick) {
     cpu_options.repetitions = 5;
@@ -82,20 +102,12 @@ PaperResult RunPaper(const PaperOptions& options) {
     result.cpu.push_back(cpu);
   }
 
-  TuneOptions tune;
-  tune.device_pattern = options.device_pattern;
-  tune.languages = options.languages;
-  tune.cache_path = options.cache_path;
-  tune.worker_executable = options.worker_executable;
-  tune.progress = options.progress;
-  result.tuning = RunTuning(config, tune);
-  result.tuning.config = "paper" + std::string(options.quick ? " --quick" : "");
   const nlohmann::json& machine = result.tuning.machine;
   result.host.cpu_model = machine.contains("cpu_model") ? machine["cpu_model"].get<std::string>() : std::string();
   if (result.host.threads == 0 && machine.contains("logical_cpus")) {
     result.host.threads = machine["logical_cpus"].get<unsigned>();
   }
-  result.created = result.tuning.created;
+  result.created = UtcTimestamp();  // when the run finished
   return result;
 }
 

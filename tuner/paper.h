@@ -108,6 +108,7 @@ struct PaperResult {
   std::vector<PaperKernel> paper_kernels;
   std::vector<CpuResult> cpu;   // one per data set, in tuning.datasets order
   TuningReport tuning;          // devices, copy bandwidths, every measurement (paper kernels included)
+                                // but the invalid points of the space (an invalid paper kernel stays)
 };
 
 nlohmann::json PaperResultToJson(const PaperResult& result);

@@ -1,0 +1,129 @@
+// skintune paper: the seed paper's experiment on this machine (tuner/paper.h):
+// the serial and fast CPU paths, the paper's kernels and the tuned winners on
+// every device found, every device's copy bandwidth. Writes the result JSON,
+// its HTML report and a Markdown summary, and prints the Fig. 1- and
+// Table 1-shaped tables.
+#include <unistd.h>
+
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/error.h"
+#include "reference/mesh_io.h"
+#include "tools/commands.h"
+#include "tools/progress.h"
+#include "tuner/paper.h"
+#include "tuner/paper_report.h"
+
+namespace skintune::tools {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct PaperCliOptions {
+  std::string out = "paper";
+  bool quick = false;
+  std::vector<std::string> datasets;
+  std::string device;
+  std::vector<std::string> langs;
+  std::size_t budget = 0;
+  bool no_cpu = false;
+  bool quiet = false;
+};
+
+std::string CommandLine(int argc, char** argv) {
+  std::string line;
+  for (int i = 0; i < argc; ++i) line += (i ? " " : "") + std::string(argv[i]);
+  return line;
+}
+
+int RunPaperCommand(const PaperCliOptions& o, const std::string& command) {
+  PaperOptions options;
+  options.quick = o.quick;
+  options.datasets = o.datasets;
+  options.device_pattern = o.device;
+  for (const std::string& l : o.langs) options.languages.push_back(LangFromName(l));
+  options.budget = o.budget;
+  options.skip_cpu = o.no_cpu;
+  options.worker_executable = SelfExecutable();
+  options.command = command;
+
+  // The output directory and cache before any measurement.
+  std::error_code ec;
+  const fs::path out = o.out;
+  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) throw Error(o.out + ": not a directory");
+  fs::create_directories(out, ec);
+  if (ec || !fs::is_directory(out)) {
+    throw Error(o.out + ": cannot create the output directory (" + (ec ? ec.message() : "not a directory") + ")");
+  }
+  options.cache_path = (out / "cache.jsonl").string();
+
+  Progress progress(::isatty(2) != 0, "paper");
+  if (!o.quiet) {
+    options.progress = [&progress](std::size_t done, std::size_t total, const std::string& what) {
+      if (total == 0) {
+        progress.Note(what);
+      } else {
+        progress.Update(done, total, what);
+      }
+    };
+  }
+  PaperResult result;
+  try {
+    result = RunPaper(options);
+  } catch (...) {
+    progress.Finish(false);
+    throw;
+  }
+  progress.Finish(true);
+
+  const PaperSummary summary = Summarise({result});
+  const std::string json_text = PaperResultToJson(result).dump(2) + "\n";
+  const std::string html = RenderHtml(summary);
+  const std::string markdown = RenderMarkdown(summary);
+  WriteFileAtomically((out / "paper-result.json").string(), json_text);
+  WriteFileAtomically((out / "report.html").string(), html);
+  WriteFileAtomically((out / "summary.md").string(), markdown);
+
+  std::cout << Figure1Markdown(summary) << "\n" << Table1Markdown(summary);
+  if (!o.quiet) {
+    std::cerr << "skintune: paper: wrote " << (out / "paper-result.json").string() << ", "
+              << (out / "report.html").string() << ", " << (out / "summary.md").string() << " (cache "
+              << options.cache_path << ")\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+Command RegisterPaper(CLI::App& app, int argc, char** argv) {
+  auto o = std::make_shared<PaperCliOptions>();
+  auto* sub = app.add_subcommand(
+      "paper",
+      "reproduce the paper's experiment (its Fig. 1 and Table 1) on this machine: CPU baselines, the paper's kernels "
+      "and tuned winners on every device; write the result, an HTML report and a Markdown summary");
+  sub->add_option("--out", o->out,
+                  "output directory: paper-result.json, report.html, summary.md, cache.jsonl (resumable: a rerun "
+                  "reuses every measurement recorded) (default: paper)");
+  sub->add_flag("--quick", o->quick,
+                "the reduced set: 25k and 100k vertices x 1..4 influences, a 16-evaluation search, fewer repetitions");
+  sub->add_option("--dataset", o->datasets, "only these data-set keys (default: the paper's 16, or --quick's 8)");
+  sub->add_option("--device", o->device,
+                  "only devices whose 'backend: platform / name' (or vendor, version) contains this (case-insensitive)");
+  sub->add_option("--lang", o->langs, "only these languages: opencl, cuda, glsl-compute, glsl-vertex");
+  sub->add_option("--budget", o->budget,
+                  "search evaluations per device, language and data set (default: the paper config's 200, 16 with "
+                  "--quick)");
+  sub->add_flag("--no-cpu", o->no_cpu, "skip the CPU timings (the report then has no speedups)");
+  sub->add_flag("--quiet", o->quiet, "no progress on stderr");
+  const std::string command = CommandLine(argc, argv);
+  return {sub, [o, command] { return RunPaperCommand(*o, command); }};
+}
+
+}  // namespace skintune::tools

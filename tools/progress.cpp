@@ -1,0 +1,105 @@
+#include "tools/progress.h"
+
+#include <sys/ioctl.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "reference/error.h"
+
+namespace skintune::tools {
+
+namespace {
+
+bool EndsWith(const std::string& text, const std::string& suffix) {
+  return text.size() >= suffix.size() && text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+std::string Duration(double seconds) {
+  const long s = static_cast<long>(seconds + 0.5);
+  char text[32];
+  if (s >= 3600) {
+    std::snprintf(text, sizeof text, "%ldh%02ldm", s / 3600, (s / 60) % 60);
+  } else if (s >= 60) {
+    std::snprintf(text, sizeof text, "%ldm%02lds", s / 60, s % 60);
+  } else {
+    std::snprintf(text, sizeof text, "%lds", s);
+  }
+  return text;
+}
+
+}  // namespace
+
+Progress::Progress(bool terminal, std::string command)
+    : terminal_(terminal), command_(std::move(command)), start_(Clock::now()) {}
+
+void Progress::Update(std::size_t done, std::size_t total, const std::string& what) {
+  const bool cached = EndsWith(what, "(cached)");
+  if (done > last_done_ && !cached) {
+    if (measured_ == 0) first_measured_ = last_time_;
+    ++measured_;
+  }
+  last_done_ = done;
+  last_time_ = Clock::now();
+  if (!terminal_) {
+    // Set-up steps (total 0) only on a terminal, where they are overwritten:
+    // a run that fails before measuring says so in one line.
+    if (total > 0) std::cerr << "skintune: " << command_ << ": [" << done << "/" << total << "] " << what << "\n";
+    return;
+  }
+  std::string line;
+  if (total > 0) {
+    const int bar = 24;
+    const int filled = static_cast<int>(bar * done / total);
+    line = "[" + std::string(filled, '#') + std::string(bar - filled, '.') + "] " + std::to_string(done) + "/" +
+           std::to_string(total);
+    std::string eta = "ETA --";
+    if (measured_ > 0 && done < total) {
+      const double elapsed = std::chrono::duration<double>(last_time_ - first_measured_).count();
+      eta = "ETA " + Duration(elapsed / measured_ * static_cast<double>(total - done));
+    } else if (done >= total) {
+      eta = "took " + Duration(std::chrono::duration<double>(last_time_ - start_).count());
+    }
+    line += " " + eta + "  ";
+  }
+  Show(line + what);
+}
+
+void Progress::Note(const std::string& what) {
+  if (!terminal_) {
+    std::cerr << "skintune: " << command_ << ": " << what << "\n";
+    return;
+  }
+  Show(what);
+}
+
+void Progress::Show(std::string line) {
+  int width = 100;
+  winsize size{};
+  if (::ioctl(2, TIOCGWINSZ, &size) == 0 && size.ws_col > 20) width = size.ws_col;
+  if (static_cast<int>(line.size()) > width - 1) line = line.substr(0, width - 4) + "...";
+  std::cerr << "\r\033[K" << line << std::flush;
+  shown_ = true;
+}
+
+void Progress::Finish(bool keep) {
+  if (terminal_ && shown_) std::cerr << (keep ? "\n" : "\r\033[K") << std::flush;
+  shown_ = false;
+}
+
+std::string SelfExecutable() {
+  std::error_code ec;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec) throw Error("cannot find the skintune executable for the tune workers (/proc/self/exe: " + ec.message() + ")");
+  return self.string();
+}
+
+Lang LangFromName(const std::string& name) {
+  for (Lang l : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex}) {
+    if (name == Name(l)) return l;
+  }
+  throw Error("--lang '" + name + "': unknown language (expected one of opencl, cuda, glsl-compute, glsl-vertex)");
+}
+
+}  // namespace skintune::tools

@@ -1,0 +1,44 @@
+// skintune command-line tool: what the long-running commands (tune, paper)
+// share: progress on stderr, the worker executable, --lang names.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <string>
+
+#include "generator/variant.h"
+
+namespace skintune::tools {
+
+// Progress on stderr: a bar with ETA on a terminal, plain lines prefixed with
+// "skintune: <command>: " otherwise.
+class Progress {
+ public:
+  Progress(bool terminal, std::string command);
+
+  // `total` 0: a set-up step (shown on a terminal only, where it is overwritten).
+  void Update(std::size_t done, std::size_t total, const std::string& what);
+  // A step without a count (always shown).
+  void Note(const std::string& what);
+  // Keeps the last progress line (success), or clears it (an error follows).
+  void Finish(bool keep);
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  void Show(std::string line);
+  bool terminal_;
+  std::string command_;
+  bool shown_ = false;
+  Clock::time_point start_;
+  Clock::time_point first_measured_;
+  Clock::time_point last_time_ = Clock::now();
+  std::size_t last_done_ = 0;
+  std::size_t measured_ = 0;
+};
+
+// The running skintune binary (started again as `skintune tune-worker`).
+std::string SelfExecutable();
+// --lang NAME; Error naming the accepted names.
+Lang LangFromName(const std::string& name);
+
+}  // namespace skintune::tools
