@@ -463,10 +463,13 @@ class Renderer {
           const std::optional<double>& lead = cell->tuned ? cell->tuned : cell->paper;
           const char* cls = !lead ? "none" : *lead > 1.02 ? "faster" : *lead < 0.98 ? "slower" : "even";
           out_ += std::string("<td class=\"") + cls + "\">tuned " + RatioSpan(cell->tuned) + "<br>paper&#39;s kernels " +
-                  RatioSpan(cell->paper) + "<br>paper&#39;s figure " +
-                  (cell->reported ? FormatSignificant(*cell->reported)
-                                  : std::string("<span class=\"muted\">not on record</span>")) +
-                  "</td>";
+                  RatioSpan(cell->paper);
+          if (!reported.empty()) {  // none on record at all: said once above the grid
+            out_ += "<br>paper&#39;s figure " +
+                    (cell->reported ? FormatSignificant(*cell->reported)
+                                    : std::string("<span class=\"muted\">not on record</span>"));
+          }
+          out_ += "</td>";
         }
         out_ += "</tr>\n";
       }

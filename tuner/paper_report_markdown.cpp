@@ -55,7 +55,8 @@ std::string Grids(const PaperSummary& s, PaperApi other, const std::vector<Table
     const std::map<std::string, double>& reported =
         other == PaperApi::kCuda ? r.reported.opencl_vs_cuda : r.reported.opencl_vs_glsl;
     out += Cell(s.devices[g.opencl_device].label) + " vs " + Cell(s.devices[g.other_device].label) +
-           "; each cell: tuned winners / the paper's kernels / the paper's figure\n\n";
+           "; each cell: tuned winners / the paper's kernels" +
+           (reported.empty() ? std::string() : " / the paper's figure") + "\n\n";
     out += ReportedNote(r, !reported.empty());
     out += "| vertices |";
     for (int b : g.influences) out += " B=" + std::to_string(b) + " |";
@@ -69,8 +70,11 @@ std::string Grids(const PaperSummary& s, PaperApi other, const std::vector<Table
           out += " no such data set |";
           continue;
         }
-        out += " " + Ratio(cell->tuned) + " / " + Ratio(cell->paper) + " / " +
-               (cell->reported ? FormatSignificant(*cell->reported) : std::string("not on record")) + " |";
+        out += " " + Ratio(cell->tuned) + " / " + Ratio(cell->paper);
+        if (!reported.empty()) {
+          out += " / " + (cell->reported ? FormatSignificant(*cell->reported) : std::string("not on record"));
+        }
+        out += " |";
       }
       out += "\n";
     }

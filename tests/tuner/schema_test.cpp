@@ -131,6 +131,19 @@ TEST(Schema, PaperResultsValidateAndTheirBrokenCopiesDoNot) {
   EXPECT_EQ(Validate(bad, "paper-result.schema.json", "paper_bad_reported"), 3);
 }
 
+// The committed results (docs/results) and the report tests' fixture follow the schema and
+// read back: a format change must regenerate or migrate them.
+TEST(Schema, CommittedPaperResultsValidateAndReadBack) {
+  for (const char* file : {"docs/results/h100-paper/paper-result.json", "docs/results/cpu-quick-paper/paper-result.json",
+                           "tests/data/paper/sample-result.json"}) {
+    std::ifstream in(std::string(SKINTUNE_SOURCE_DIR) + "/" + file);
+    ASSERT_TRUE(in) << file;
+    const nlohmann::json json = nlohmann::json::parse(in);
+    EXPECT_EQ(Validate(json, "paper-result.schema.json", "committed"), 0) << file;
+    EXPECT_NO_THROW(PaperResultFromJson(json, file)) << file;
+  }
+}
+
 TEST(Schema, T4ExportsValidate) {
   const nlohmann::json t4 = ReportToT4(testing::SampleReport());
   EXPECT_EQ(Validate(t4, "t4-results.schema.json", "t4"), 0);
