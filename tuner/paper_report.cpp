@@ -412,21 +412,18 @@ class ResultSummariser {
   void AxisCharts(std::size_t d) {
     const SummaryDevice& device = s_.devices[d];
     for (Lang lang : device.langs) {
-      // The data set: the Fig. 1 one if this language has a time there, else
-      // the largest (ties: the one with most status-ok measurements).
+      // The data set: the largest measured (vertices x influences; ties: the
+      // one with most status-ok measurements). Small data sets are bound by
+      // launch overhead on a GPU, where no axis shows its cost.
       const DatasetInfo* chosen = nullptr;
       std::size_t chosen_ok = 0;
+      auto size = [](const DatasetInfo& d) { return d.vertices * static_cast<std::size_t>(std::max(d.influences, 1)); };
       for (const DatasetInfo& dataset : r_.tuning.datasets) {
         std::size_t ok = 0;
         for (const Measurement* m : Of(device.id, dataset.key)) ok += m->variant.lang == lang && m->status == Status::kOk;
         if (ok == 0) continue;
-        if (dataset.key == r_.figure1_dataset) {
-          chosen = &dataset;
-          chosen_ok = ok;
-          break;
-        }
-        if (chosen == nullptr || dataset.vertices > chosen->vertices ||
-            (dataset.vertices == chosen->vertices && ok > chosen_ok)) {
+        if (chosen == nullptr || size(dataset) > size(*chosen) ||
+            (size(dataset) == size(*chosen) && ok > chosen_ok)) {
           chosen = &dataset;
           chosen_ok = ok;
         }

@@ -185,7 +185,7 @@ struct AxisEffect {
 struct AxisChart {
   std::size_t device = 0;
   Lang lang = Lang::kOpenCl;
-  std::string dataset;             // the Fig. 1 data set if measured there, else the one with most vertices
+  std::string dataset;             // the largest measured (vertices x influences; ties: most ok measurements)
   double best_ms = 0.0;
   std::size_t measurements = 0;    // status-ok measurements on the data set
   std::vector<AxisEffect> axes;

@@ -600,8 +600,9 @@ class Renderer {
 
   void AxesSection() {
     out_ += "<section id=\"axes\">\n<h2>What each variant axis costs</h2>\n";
-    out_ += "<p>Per device and language, on one data set (the Fig. 1 data set where it was measured, else the "
-            "largest): for each value of each axis, the best median time among the verified variants with that "
+    out_ += "<p>Per device and language, on the largest data set measured (vertices \xC3\x97 influences: small "
+            "ones are bound by launch overhead on a GPU): for each value of each axis, the best median time among "
+            "the verified variants with that "
             "value, relative to the best of all (1\xC3\x97). A long bar is a value the device punishes; values "
             "never measured are absent.</p>\n";
     if (s_.axes.empty()) out_ += "<p class=\"warn\">No status-ok measurement on any device.</p>\n";
