@@ -55,13 +55,7 @@ int RunPaperCommand(const PaperCliOptions& o, const std::string& command) {
   options.command = command;
 
   // The output directory and cache before any measurement.
-  std::error_code ec;
-  const fs::path out = o.out;
-  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) throw Error(o.out + ": not a directory");
-  fs::create_directories(out, ec);
-  if (ec || !fs::is_directory(out)) {
-    throw Error(o.out + ": cannot create the output directory (" + (ec ? ec.message() : "not a directory") + ")");
-  }
+  const fs::path out = OutputDirectory(o.out);
   options.cache_path = (out / "cache.jsonl").string();
 
   Progress progress(::isatty(2) != 0, "paper");

@@ -117,13 +117,7 @@ int RunTune(const TuneCliOptions& o, bool budget_given) {
   options.worker_executable = SelfExecutable();
 
   // The output directory: checked (and the cache opened) before any device work.
-  std::error_code ec;
-  const fs::path out = o.out;
-  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) throw Error(o.out + ": not a directory");
-  fs::create_directories(out, ec);
-  if (ec || !fs::is_directory(out)) {
-    throw Error(o.out + ": cannot create the output directory (" + (ec ? ec.message() : "not a directory") + ")");
-  }
+  const fs::path out = OutputDirectory(o.out);
   options.cache_path = (out / "cache.jsonl").string();
 
   Progress progress(::isatty(2) != 0, "tune");

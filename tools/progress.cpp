@@ -88,6 +88,18 @@ void Progress::Finish(bool keep) {
   shown_ = false;
 }
 
+std::filesystem::path OutputDirectory(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path out = dir;
+  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) throw Error(dir + ": not a directory");
+  fs::create_directories(out, ec);
+  if (ec || !fs::is_directory(out)) {
+    throw Error(dir + ": cannot create the output directory (" + (ec ? ec.message() : "not a directory") + ")");
+  }
+  return out;
+}
+
 std::string SelfExecutable() {
   std::error_code ec;
   const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);

@@ -1,9 +1,11 @@
 // skintune command-line tool: what the long-running commands (tune, paper)
-// share: progress on stderr, the worker executable, --lang names.
+// share: progress on stderr, the output directory, the worker executable,
+// --lang names.
 #pragma once
 
 #include <chrono>
 #include <cstddef>
+#include <filesystem>
 #include <string>
 
 #include "generator/variant.h"
@@ -36,6 +38,9 @@ class Progress {
   std::size_t measured_ = 0;
 };
 
+// The output directory `dir`, created when missing; Error naming it when it
+// is a file or cannot be created.
+std::filesystem::path OutputDirectory(const std::string& dir);
 // The running skintune binary (started again as `skintune tune-worker`).
 std::string SelfExecutable();
 // --lang NAME; Error naming the accepted names.
