@@ -68,6 +68,37 @@ TEST(PaperCli, MeasuresThePapersKernelsAndTheCpuAndWritesResultReportAndSummary)
   EXPECT_EQ(CountLines(ReadAll(out / "cache.jsonl")), cached);
 }
 
+// The "runs on this CPU machine within a few minutes": the whole --quick set, every
+// device and language found here (PoCL, llvmpipe), a verified winner for each.
+TEST(PaperCli, QuickRunsThe8DataSetsOnEveryDeviceAndLanguageFound) {
+  const fs::path out = Scratch() / "quick";
+  const testing::CommandResult r = RunSkintune({"paper", "--quick", "--out", out.string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const PaperResult result =
+      PaperResultFromJson(nlohmann::json::parse(ReadAll(out / "paper-result.json")), "paper-result.json");
+  EXPECT_TRUE(result.quick);
+  ASSERT_EQ(result.cpu.size(), 8u);
+  ASSERT_EQ(result.tuning.datasets.size(), 8u);
+  ASSERT_FALSE(result.tuning.devices.empty());
+  for (const DeviceIdentity& d : result.tuning.devices) {
+    std::set<Lang> langs;
+    for (const Measurement& m : result.tuning.measurements)
+      if (m.device_id == d.Id()) langs.insert(m.variant.lang);
+    for (Lang lang : langs) {
+      for (const DatasetInfo& dataset : result.tuning.datasets) {
+        bool ok = false;
+        for (const Measurement& m : result.tuning.measurements) {
+          ok = ok || (m.device_id == d.Id() && m.variant.lang == lang && m.dataset == dataset.key &&
+                      m.status == Status::kOk);
+        }
+        EXPECT_TRUE(ok) << d.Id() << " " << Name(lang) << " " << dataset.key << ": no verified variant";
+      }
+    }
+  }
+  EXPECT_NE(r.out.find("Fig. 1"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("Table 1"), std::string::npos) << r.out;
+}
+
 TEST(PaperCli, ABadDataSetKeyIsNamedAndNothingIsWritten) {
   const fs::path out = Scratch() / "bad-key";
   fs::create_directories(out);
