@@ -227,7 +227,7 @@ class Renderer {
   std::string Render() {
     out_ += "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
             "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
-            "<title>skintune: the paper&#39;s experiment, Fig. 1 and Table 1 on this machine</title>\n<style>";
+            "<title>skintune: the paper&#39;s experiment, Fig. 1 and Table 1 reproduced</title>\n<style>";
     out_ += kCss;
     out_ += "</style>\n</head>\n<body>\n<main>\n";
     Header();
@@ -249,7 +249,7 @@ class Renderer {
     out_ += "<h1>GPGPU Acceleration for Skeletal Animation, reproduced</h1>\n";
     out_ += "<p class=\"lead\">The paper <em>GPGPU Acceleration for Skeletal Animation \xE2\x80\x94 Comparing OpenCL "
             "with CUDA and GLSL</em> measured hand-written skinning kernels against a serial CPU loop. skintune "
-            "repeats the experiment on this machine: the paper&#39;s kernels are points of its variant space, "
+            "repeats the experiment on the machines below: the paper&#39;s kernels are points of its variant space, "
             "measured beside the fastest variant its tuner found (every time verified against a float64 "
             "reference).</p>\n";
     for (const SummaryResult& r : s_.results) {

@@ -129,7 +129,9 @@ std::string Table1Markdown(const PaperSummary& s) {
 }
 
 std::string RenderMarkdown(const PaperSummary& s) {
-  std::string out = "# The paper's experiment (GPGPU Acceleration for Skeletal Animation) on this machine\n\n";
+  std::string out = "# The paper's experiment (GPGPU Acceleration for Skeletal Animation) " +
+                    std::string(s.results.size() > 1 ? "on " + std::to_string(s.results.size()) + " runs" : "on one machine") +
+                    "\n\n";
   for (const SummaryResult& r : s.results) {
     out += "- " + (r.label.empty() ? std::string() : r.label + ": ") + Cell(r.created) +
            (r.quick ? " (quick)" : "") + ", host " + Cell(r.host.cpu_model.empty() ? "unknown" : r.host.cpu_model) +
