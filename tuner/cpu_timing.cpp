@@ -84,54 +84,55 @@ int SetsFor(const CpuTimingOptions& options, double bytes) {
                                       options.max_input_sets);
 }
 
+// Times `run(set, palette, output)` over `sets` input sets and the frame
+// palettes, then checks the last output of every set that ran against the gold.
+template <typename Run>
+CpuTiming TimeAndCheck(const char* what, const SkinnedAsset& asset, const CpuTimingOptions& options, int sets,
+                       unsigned threads, double bytes, Run&& run) {
+  const auto palettes = tuner_internal::FramePalettes(asset, 8);
+  std::vector<std::vector<glm::vec3>> outputs(static_cast<std::size_t>(sets),
+                                              std::vector<glm::vec3>(asset.mesh.vertex_count()));
+  std::vector<long> last_palette(static_cast<std::size_t>(sets), -1);  // -1: not run
+  const std::vector<double> ms = TimeFrames(options, sets, palettes.size(), [&](int set, std::size_t p) {
+    run(set, palettes[p], outputs[set]);
+    last_palette[set] = static_cast<long>(p);
+  });
+  CpuTiming t = Summarise(ms, sets, threads, bytes);
+  for (int s = 0; s < sets; ++s) {
+    if (last_palette[s] < 0) continue;  // fewer frames than copies
+    t.max_relative_error =
+        std::max(t.max_relative_error, Check(what, asset, palettes[last_palette[s]], outputs[s], options.tolerance));
+  }
+  return t;
+}
+
 }  // namespace
 
 CpuTiming TimeSerial(const SkinnedAsset& asset, const CpuTimingOptions& options) {
   const SkinnedMesh& mesh = asset.mesh;
   ThrowIfInvalid(mesh, asset.source);
-  const std::size_t n = mesh.vertex_count();
   // The array-of-structures inputs the loop reads and the positions it writes.
-  const double bytes = static_cast<double>(n) * (sizeof(glm::vec3) * 2 +
-                                                 mesh.influences * (sizeof(std::uint16_t) + sizeof(float)));
+  const double bytes = static_cast<double>(mesh.vertex_count()) *
+                       (sizeof(glm::vec3) * 2 + mesh.influences * (sizeof(std::uint16_t) + sizeof(float)));
   const int sets = SetsFor(options, bytes);
-  std::vector<SkinnedMesh> copies(static_cast<std::size_t>(sets), mesh);
-  std::vector<std::vector<glm::vec3>> outputs(static_cast<std::size_t>(sets), std::vector<glm::vec3>(n));
-  const auto palettes = tuner_internal::FramePalettes(asset, 8);
-  std::vector<long> last_palette(static_cast<std::size_t>(sets), -1);  // -1: not run
-  const std::vector<double> ms = TimeFrames(options, sets, palettes.size(), [&](int set, std::size_t p) {
-    SkinSerial(copies[set], palettes[p], outputs[set]);
-    last_palette[set] = static_cast<long>(p);
-  });
-  CpuTiming t = Summarise(ms, sets, 1, bytes);
-  for (int s = 0; s < sets; ++s) {
-    if (last_palette[s] < 0) continue;  // fewer frames than copies
-    t.max_relative_error = std::max(
-        t.max_relative_error, Check("the serial CPU loop", asset, palettes[last_palette[s]], outputs[s], options.tolerance));
-  }
-  return t;
+  const std::vector<SkinnedMesh> copies(static_cast<std::size_t>(sets), mesh);
+  return TimeAndCheck("the serial CPU loop", asset, options, sets, 1, bytes,
+                      [&](int set, const std::vector<glm::mat4>& palette, std::vector<glm::vec3>& out) {
+                        SkinSerial(copies[set], palette, out);
+                      });
 }
 
 CpuTiming TimeFast(const SkinnedAsset& asset, const CpuTimingOptions& options, unsigned threads) {
-  const std::size_t n = asset.mesh.vertex_count();
-  FastSkinner probe(asset.mesh, 1);
-  const double bytes = static_cast<double>(probe.BytesPerRun(false));
-  const int sets = SetsFor(options, bytes);
+  // The first skinner tells the bytes, hence how many copies to rotate.
   std::vector<std::unique_ptr<FastSkinner>> skinners;
-  for (int s = 0; s < sets; ++s) skinners.push_back(std::make_unique<FastSkinner>(asset.mesh, threads));
-  std::vector<std::vector<glm::vec3>> outputs(static_cast<std::size_t>(sets), std::vector<glm::vec3>(n));
-  const auto palettes = tuner_internal::FramePalettes(asset, 8);
-  std::vector<long> last_palette(static_cast<std::size_t>(sets), -1);  // -1: not run
-  const std::vector<double> ms = TimeFrames(options, sets, palettes.size(), [&](int set, std::size_t p) {
-    skinners[set]->Run(palettes[p], outputs[set]);
-    last_palette[set] = static_cast<long>(p);
-  });
-  CpuTiming t = Summarise(ms, sets, skinners.front()->threads(), bytes);
-  for (int s = 0; s < sets; ++s) {
-    if (last_palette[s] < 0) continue;  // fewer frames than copies
-    t.max_relative_error = std::max(
-        t.max_relative_error, Check("the fast CPU path", asset, palettes[last_palette[s]], outputs[s], options.tolerance));
-  }
-  return t;
+  skinners.push_back(std::make_unique<FastSkinner>(asset.mesh, threads));
+  const double bytes = static_cast<double>(skinners.front()->BytesPerRun(false));
+  const int sets = SetsFor(options, bytes);
+  while (static_cast<int>(skinners.size()) < sets) skinners.push_back(std::make_unique<FastSkinner>(asset.mesh, threads));
+  return TimeAndCheck("the fast CPU path", asset, options, sets, skinners.front()->threads(), bytes,
+                      [&](int set, const std::vector<glm::mat4>& palette, std::vector<glm::vec3>& out) {
+                        skinners[set]->Run(palette, out);
+                      });
 }
 
 std::uint64_t HostLastLevelCacheBytes() {
