@@ -1,4 +1,4 @@
-// skintune paper: the seed paper's experiment on this machine (tuner/paper.h):
+// skintune paper: the seed paper's experiment on this machine (report/paper.h):
 // the serial and fast CPU paths, the paper's kernels and the tuned winners on
 // every device found, every device's copy bandwidth. Writes the result JSON,
 // its HTML report and a Markdown summary, and prints the Fig. 1- and
@@ -17,8 +17,8 @@
 #include "reference/mesh_io.h"
 #include "tools/commands.h"
 #include "tools/progress.h"
-#include "tuner/paper.h"
-#include "tuner/paper_report.h"
+#include "report/paper.h"
+#include "report/paper_report.h"
 
 namespace skintune::tools {
 

@@ -19,8 +19,8 @@
 #include "reference/error.h"
 #include "reference/mesh_io.h"
 #include "tools/commands.h"
-#include "tuner/paper.h"
-#include "tuner/paper_report.h"
+#include "report/paper.h"
+#include "report/paper_report.h"
 #include "tuner/report.h"
 
 namespace skintune::tools {

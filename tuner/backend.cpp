@@ -193,16 +193,16 @@ const GoldResult& DatasetCache::Gold(Entry& entry, const Variant& variant) {
   return entry.gold.emplace(key, std::move(gold)).first->second;
 }
 
-Status StatusOfRunnerError(const std::string& message) {
+MeasureStatus StatusOfRunnerError(const std::string& message) {
   // "<API> <stage>: ...": the API is one word ("OpenCL", "CUDA", "GL").
   const std::size_t space = message.find(' ');
   const std::size_t colon = message.find(':');
   if (space != std::string::npos && colon != std::string::npos && space < colon) {
     const std::string stage = message.substr(space + 1, colon - space - 1);
-    if (stage == "build") return Status::kCompileFailed;
-    if (stage == "guard") return Status::kVerifyFailed;
+    if (stage == "build") return MeasureStatus::kCompileFailed;
+    if (stage == "guard") return MeasureStatus::kVerifyFailed;
   }
-  return Status::kLaunchFailed;
+  return MeasureStatus::kLaunchFailed;
 }
 
 namespace {
@@ -335,7 +335,7 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   m.variant = variant;
   m.generator_version = kGeneratorVersion;
   m.timestamp = UtcTimestamp();
-  auto finish = [&](Status status, std::string detail) {
+  auto finish = [&](MeasureStatus status, std::string detail) {
     m.status = status;
     m.detail = std::move(detail);
     return m;
@@ -346,14 +346,14 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
 
   // Can it run here at all?
   if (std::find(languages.begin(), languages.end(), variant.lang) == languages.end())
-    return finish(Status::kInvalid, std::string("language ") + Name(variant.lang) + " does not run on " +
+    return finish(MeasureStatus::kInvalid, std::string("language ") + Name(variant.lang) + " does not run on " +
                                         identity.backend + " device " + identity.name);
   const ProblemShape shape{mesh.joint_count, mesh.influences, mesh.has_normals()};
   const std::vector<Violation> violations = CheckVariant(variant, limits, shape);
   if (!violations.empty()) {
     std::string detail;
     for (const Violation& v : violations) detail += (detail.empty() ? "" : "; ") + std::string(Name(v.constraint)) + ": " + v.message;
-    return finish(Status::kInvalid, detail);
+    return finish(MeasureStatus::kInvalid, detail);
   }
   PackedMesh packed;
   std::vector<KernelSource> kernels;
@@ -362,7 +362,7 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
     for (const Launch& launch : packed.launches)
       kernels.push_back(Emit(variant, launch.influences, static_cast<int>(packed.palette_joints)));
   } catch (const Error& e) {
-    return finish(Status::kInvalid, e.what());
+    return finish(MeasureStatus::kInvalid, e.what());
   }
   if (faulty)
     for (KernelSource& k : kernels) InjectFault(k, variant, fault.kind);
@@ -387,7 +387,7 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   if (output.poisoned_vertices > 0)
     disagreement = std::to_string(output.poisoned_vertices) + " output vectors never written (still poisoned)" +
                    (disagreement.empty() ? "" : "; " + disagreement);
-  if (!disagreement.empty()) return finish(Status::kVerifyFailed, "wrong results against the float64 gold: " + disagreement);
+  if (!disagreement.empty()) return finish(MeasureStatus::kVerifyFailed, "wrong results against the float64 gold: " + disagreement);
 
   // Then time, rotating among K input sets (different frames), device timers.
   std::uint64_t bytes_per_frame = 0;
@@ -408,7 +408,7 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   } catch (const Error& e) {
     return finish(StatusOfRunnerError(e.what()), std::string("timing: ") + e.what());
   }
-  if (ms.empty()) return finish(Status::kLaunchFailed, "timing: no time measured");
+  if (ms.empty()) return finish(MeasureStatus::kLaunchFailed, "timing: no time measured");
   m.timing.median_ms = Median(ms);
   m.timing.min_ms = *std::min_element(ms.begin(), ms.end());
   m.timing.max_ms = *std::max_element(ms.begin(), ms.end());
@@ -416,7 +416,7 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   m.timing.repetitions = static_cast<int>(ms.size());
   m.timing.input_sets = sets;
   m.gbps = m.timing.median_ms > 0.0 ? m.bytes_per_frame / m.timing.median_ms / 1e6 : 0.0;
-  return finish(Status::kOk, "");
+  return finish(MeasureStatus::kOk, "");
 }
 
 }  // namespace tuner_internal

@@ -118,7 +118,7 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
 // The status a runner's Error stands for, from the stage its message names
 // ("<API> <stage>: ..."): build -> compile_failed, guard -> verify_failed,
 // anything else -> launch_failed.
-Status StatusOfRunnerError(const std::string& message);
+MeasureStatus StatusOfRunnerError(const std::string& message);
 
 // Edits an emitted kernel so that it fails as `kind` says ("compile": a
 // syntax error; "wrong": vertex 0 of each launch gets x + 1; "hang": a loop

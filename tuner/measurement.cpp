@@ -18,8 +18,8 @@ namespace skintune {
 
 namespace {
 
-constexpr Status kAllStatuses[] = {Status::kOk,           Status::kInvalid,      Status::kCompileFailed,
-                                   Status::kLaunchFailed, Status::kVerifyFailed, Status::kTimeout};
+constexpr MeasureStatus kAllStatuses[] = {MeasureStatus::kOk,           MeasureStatus::kInvalid,      MeasureStatus::kCompileFailed,
+                                   MeasureStatus::kLaunchFailed, MeasureStatus::kVerifyFailed, MeasureStatus::kTimeout};
 
 std::string SystemError() { return std::strerror(errno); }
 
@@ -68,21 +68,21 @@ int ReadInt(const nlohmann::json& in, const char* name, const std::string& where
 
 }  // namespace
 
-const char* Name(Status status) {
+const char* Name(MeasureStatus status) {
   switch (status) {
-    case Status::kOk: return "ok";
-    case Status::kInvalid: return "invalid";
-    case Status::kCompileFailed: return "compile_failed";
-    case Status::kLaunchFailed: return "launch_failed";
-    case Status::kVerifyFailed: return "verify_failed";
-    case Status::kTimeout: return "timeout";
+    case MeasureStatus::kOk: return "ok";
+    case MeasureStatus::kInvalid: return "invalid";
+    case MeasureStatus::kCompileFailed: return "compile_failed";
+    case MeasureStatus::kLaunchFailed: return "launch_failed";
+    case MeasureStatus::kVerifyFailed: return "verify_failed";
+    case MeasureStatus::kTimeout: return "timeout";
   }
   return "unknown";
 }
 
-Status StatusFromName(const std::string& name) {
+MeasureStatus MeasureStatusFromName(const std::string& name) {
   std::string choices;
-  for (Status s : kAllStatuses) {
+  for (MeasureStatus s : kAllStatuses) {
     if (name == Name(s)) return s;
     choices += (choices.empty() ? "" : ", ") + std::string(Name(s));
   }
@@ -123,7 +123,7 @@ void from_json(const nlohmann::json& in, Measurement& m) {
   }
   const std::string status = ReadString(in, "status", true, where);
   try {
-    m.status = StatusFromName(status);
+    m.status = MeasureStatusFromName(status);
   } catch (const Error& e) {
     throw Error(where + ": 'status': " + e.what());
   }

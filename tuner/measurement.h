@@ -1,7 +1,7 @@
 // skintune: one tuning measurement (a variant on a device and dataset) and
 // the append-only cache that makes a tuning run resumable.
 //
-// Every variant ends with exactly one Status. A time counts only when the
+// Every variant ends with exactly one MeasureStatus. A time counts only when the
 // variant's output passed verification against the float64 gold on that
 // device (status ok).
 #pragma once
@@ -18,9 +18,9 @@
 
 namespace skintune {
 
-enum class Status { kOk, kInvalid, kCompileFailed, kLaunchFailed, kVerifyFailed, kTimeout };
-const char* Name(Status);
-Status StatusFromName(const std::string& name);  // throws Error for an unknown name
+enum class MeasureStatus { kOk, kInvalid, kCompileFailed, kLaunchFailed, kVerifyFailed, kTimeout };
+const char* Name(MeasureStatus);
+MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error for an unknown name
 
 struct Timing {
   double median_ms = 0.0;
@@ -35,7 +35,7 @@ struct Measurement {
   std::string device_id;          // DeviceIdentity::Id() (includes the driver version)
   std::string dataset;            // dataset key (reference/synthetic.h) or glTF file name
   Variant variant;
-  Status status = Status::kOk;
+  MeasureStatus status = MeasureStatus::kOk;
   std::string detail;             // invalid: the constraint and its message; compile_failed: the first
                                   // lines of the build log; launch/verify failures: the error; timeout: the limit
   Timing timing;                  // status ok only

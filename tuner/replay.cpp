@@ -66,7 +66,7 @@ ReplayEvaluator::ReplayEvaluator(const std::vector<Measurement>& measurements, c
       continue;
     }
     const std::optional<double> time =
-        m.status == Status::kOk ? std::optional<double>(m.timing.median_ms) : std::nullopt;
+        m.status == MeasureStatus::kOk ? std::optional<double>(m.timing.median_ms) : std::nullopt;
     const auto [it, inserted] = times_.insert_or_assign(m.variant, time);
     if (inserted) variants_.push_back(m.variant);
   }

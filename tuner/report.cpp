@@ -83,7 +83,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
   for (const DatasetInfo& d : report.datasets) datasets[d.key] = &d;
   std::map<EntryKey, Winner> best;
   for (const Measurement& m : report.measurements) {
-    if (m.status != Status::kOk) continue;  // a failed variant is never a winner
+    if (m.status != MeasureStatus::kOk) continue;  // a failed variant is never a winner
     const auto dataset = datasets.find(m.dataset);
     if (dataset == datasets.end()) {
       throw Error("report: a measurement is of dataset '" + m.dataset + "', which is not in its datasets");
@@ -249,7 +249,7 @@ nlohmann::json ReportToT4(const TuningReport& report) {
     auto count = [&](const char* name, int value) {
       measurements.push_back({{"name", name}, {"value", value}, {"unit", ""}});
     };
-    if (m.status == Status::kOk) {
+    if (m.status == MeasureStatus::kOk) {
       times["runtimes"].push_back(m.timing.median_ms);
       measure("time", m.timing.median_ms, "ms");
       measure("time_min", m.timing.min_ms, "ms");
@@ -260,20 +260,20 @@ nlohmann::json ReportToT4(const TuningReport& report) {
       measure("bandwidth", m.gbps, "GB/s");
     }
     measure("bytes_per_frame", m.bytes_per_frame, "B");
-    if (m.status == Status::kOk || m.status == Status::kVerifyFailed) {
+    if (m.status == MeasureStatus::kOk || m.status == MeasureStatus::kVerifyFailed) {
       measure("max_relative_error", m.max_relative_error, "");
     }
     r["times"] = std::move(times);
     switch (m.status) {
-      case Status::kOk: r["invalidity"] = "correct"; break;
-      case Status::kInvalid: r["invalidity"] = "constraints"; break;
-      case Status::kCompileFailed: r["invalidity"] = "compile"; break;
-      case Status::kLaunchFailed: r["invalidity"] = "runtime"; break;
-      case Status::kVerifyFailed: r["invalidity"] = "correctness"; break;
-      case Status::kTimeout: r["invalidity"] = "timeout"; break;
+      case MeasureStatus::kOk: r["invalidity"] = "correct"; break;
+      case MeasureStatus::kInvalid: r["invalidity"] = "constraints"; break;
+      case MeasureStatus::kCompileFailed: r["invalidity"] = "compile"; break;
+      case MeasureStatus::kLaunchFailed: r["invalidity"] = "runtime"; break;
+      case MeasureStatus::kVerifyFailed: r["invalidity"] = "correctness"; break;
+      case MeasureStatus::kTimeout: r["invalidity"] = "timeout"; break;
     }
     // 1: the output matched the float64 gold within tolerance; 0: it did not, or was never checked.
-    r["correctness"] = m.status == Status::kOk ? 1 : 0;
+    r["correctness"] = m.status == MeasureStatus::kOk ? 1 : 0;
     r["measurements"] = std::move(measurements);
     // skintune extensions (the T4 schema allows further properties): where it ran, on what, and why it failed.
     r["device_id"] = m.device_id;

@@ -256,7 +256,7 @@ std::string DeviceMatchText(const DeviceIdentity& d) {
 
 std::string ShortStatus(const Measurement& m) {
   std::string text = Name(m.status);
-  if (m.status == Status::kOk) {
+  if (m.status == MeasureStatus::kOk) {
     char ms[64];
     std::snprintf(ms, sizeof ms, " %.3f ms", m.timing.median_ms);
     text += ms;
@@ -279,7 +279,7 @@ std::size_t CopyBytes(const DeviceIdentity& d) {
 TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context) {
   if (!json.is_object()) throw Error(context + ": a tune config must be a JSON object");
   // "paper", "figure1", "paper_kernels" and "reported" are fields of configs/paper.json
-  // read by `skintune paper` (tuner/paper.h).
+  // read by `skintune paper` (report/paper.h).
   static const std::set<std::string> kKnown = {"description", "space",    "datasets", "timing",
                                                "strategy",    "variant_timeout_s", "paper", "figure1",
                                                "paper_kernels", "reported"};
@@ -402,7 +402,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
           m.device_id = device.identity.Id();
           m.dataset = dataset.info.key;
           m.variant = v;
-          m.status = Status::kInvalid;
+          m.status = MeasureStatus::kInvalid;
           for (const Violation& violation : violations) {
             m.detail += (m.detail.empty() ? "" : "; ") + std::string(Name(violation.constraint)) + ": " +
                         violation.message;
@@ -532,7 +532,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
                      v.Key() + ": " + ShortStatus(m) + " [" + device_name + ", " + key + "]" +
                          (cached ? " (cached)" : ""));
           }
-          if (m.status != Status::kOk) return std::nullopt;
+          if (m.status != MeasureStatus::kOk) return std::nullopt;
           return m.timing.median_ms;
         };
         for (const Variant& b : task.baselines) evaluate(b);

@@ -326,7 +326,7 @@ Measurement IsolatedBackend::Measure(const Variant& variant, const TuningDataset
     DeathDetail();
     Start();
     if (!Send(request)) {
-      result.status = Status::kLaunchFailed;
+      result.status = MeasureStatus::kLaunchFailed;
       result.detail = "worker process died: " + DeathDetail();
       return result;
     }
@@ -335,11 +335,11 @@ Measurement IsolatedBackend::Measure(const Variant& variant, const TuningDataset
   switch (ReadLine(variant_timeout_s_, line)) {
     case ReadResult::kTimeout:
       Kill();
-      result.status = Status::kTimeout;
+      result.status = MeasureStatus::kTimeout;
       result.detail = "no result within " + Seconds(variant_timeout_s_) + " s";
       return result;
     case ReadResult::kEnd:
-      result.status = Status::kLaunchFailed;
+      result.status = MeasureStatus::kLaunchFailed;
       result.detail = "worker process died: " + DeathDetail();
       return result;
     case ReadResult::kLine: break;

@@ -12,7 +12,7 @@
 
 #include "tests/common/scratch_dir.h"
 #include "tests/tools/run_command.h"
-#include "tuner/paper.h"
+#include "report/paper.h"
 
 namespace skintune {
 namespace {
@@ -48,7 +48,7 @@ TEST(PaperCli, MeasuresThePapersKernelsAndTheCpuAndWritesResultReportAndSummary)
     Variant want = k.variant;
     want.influences = 2;
     for (const Measurement& m : result.tuning.measurements) {
-      if (m.variant == want && m.dataset == "5000-b2" && m.status == Status::kOk) kernels_ok.insert(k.name);
+      if (m.variant == want && m.dataset == "5000-b2" && m.status == MeasureStatus::kOk) kernels_ok.insert(k.name);
     }
   }
   EXPECT_EQ(kernels_ok, (std::set<std::string>{"opencl-unoptimised", "opencl-optimised", "glsl-vertex"}));
@@ -89,7 +89,7 @@ TEST(PaperCli, QuickRunsThe8DataSetsOnEveryDeviceAndLanguageFound) {
         bool ok = false;
         for (const Measurement& m : result.tuning.measurements) {
           ok = ok || (m.device_id == d.Id() && m.variant.lang == lang && m.dataset == dataset.key &&
-                      m.status == Status::kOk);
+                      m.status == MeasureStatus::kOk);
         }
         EXPECT_TRUE(ok) << d.Id() << " " << Name(lang) << " " << dataset.key << ": no verified variant";
       }

@@ -13,9 +13,9 @@
 
 #include "tests/common/scratch_dir.h"
 #include "tests/tools/run_command.h"
-#include "tests/tuner/sample_paper_result.h"
+#include "tests/report/sample_paper_result.h"
 #include "tests/tuner/sample_report.h"
-#include "tuner/paper.h"
+#include "report/paper.h"
 #include "tuner/report.h"
 
 namespace skintune {

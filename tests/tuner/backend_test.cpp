@@ -35,14 +35,14 @@ using tuner_internal::InputSetsFor;
 
 constexpr const char* kDataset = "20k-b2";
 
-const char* StatusText(Status s) {
+const char* StatusText(MeasureStatus s) {
   switch (s) {
-    case Status::kOk: return "ok";
-    case Status::kInvalid: return "invalid";
-    case Status::kCompileFailed: return "compile_failed";
-    case Status::kLaunchFailed: return "launch_failed";
-    case Status::kVerifyFailed: return "verify_failed";
-    case Status::kTimeout: return "timeout";
+    case MeasureStatus::kOk: return "ok";
+    case MeasureStatus::kInvalid: return "invalid";
+    case MeasureStatus::kCompileFailed: return "compile_failed";
+    case MeasureStatus::kLaunchFailed: return "launch_failed";
+    case MeasureStatus::kVerifyFailed: return "verify_failed";
+    case MeasureStatus::kTimeout: return "timeout";
   }
   return "?";
 }
@@ -101,7 +101,7 @@ TimingOptions SmallTiming() {
 
 // A variant that passed: verified, timed, everything filled in.
 void ExpectOk(const Measurement& m, const Backend& backend, const std::string& dataset) {
-  ASSERT_EQ(m.status, Status::kOk) << StatusText(m.status) << ": " << m.detail;
+  ASSERT_EQ(m.status, MeasureStatus::kOk) << StatusText(m.status) << ": " << m.detail;
   EXPECT_EQ(m.detail, "");
   EXPECT_EQ(m.device_id, backend.identity().Id());
   EXPECT_EQ(m.dataset, dataset);
@@ -279,12 +279,12 @@ TEST(RotationRule, EnoughSetsToExceedTwiceTheLastLevelCache) {
 
 TEST(Helpers, RunnerErrorsMapToStatusByStage) {
   using tuner_internal::StatusOfRunnerError;
-  EXPECT_EQ(StatusOfRunnerError("OpenCL build: kernel x failed"), Status::kCompileFailed);
-  EXPECT_EQ(StatusOfRunnerError("CUDA build: NVRTC ..."), Status::kCompileFailed);
-  EXPECT_EQ(StatusOfRunnerError("GL guard: wrote past the end"), Status::kVerifyFailed);
-  EXPECT_EQ(StatusOfRunnerError("GL launch: glDispatchCompute raised GL_INVALID_VALUE"), Status::kLaunchFailed);
-  EXPECT_EQ(StatusOfRunnerError("CUDA setup: cuCtxSetCurrent"), Status::kLaunchFailed);
-  EXPECT_EQ(StatusOfRunnerError("something else"), Status::kLaunchFailed);
+  EXPECT_EQ(StatusOfRunnerError("OpenCL build: kernel x failed"), MeasureStatus::kCompileFailed);
+  EXPECT_EQ(StatusOfRunnerError("CUDA build: NVRTC ..."), MeasureStatus::kCompileFailed);
+  EXPECT_EQ(StatusOfRunnerError("GL guard: wrote past the end"), MeasureStatus::kVerifyFailed);
+  EXPECT_EQ(StatusOfRunnerError("GL launch: glDispatchCompute raised GL_INVALID_VALUE"), MeasureStatus::kLaunchFailed);
+  EXPECT_EQ(StatusOfRunnerError("CUDA setup: cuCtxSetCurrent"), MeasureStatus::kLaunchFailed);
+  EXPECT_EQ(StatusOfRunnerError("something else"), MeasureStatus::kLaunchFailed);
 }
 
 TEST(Helpers, MedianCopyBytesAndTimestamp) {
@@ -359,15 +359,15 @@ TEST(OpenClBackend, InvalidVariantsSayWhy) {
   BACKEND_OR_SKIP(backend, "opencl");
   // Normals on a mesh without them: a constraint.
   Measurement m = backend->Measure(ParseVariantKey("opencl.b2.normals"), {kDataset}, SmallTiming());
-  EXPECT_EQ(m.status, Status::kInvalid) << m.detail;
+  EXPECT_EQ(m.status, MeasureStatus::kInvalid) << m.detail;
   EXPECT_NE(m.detail.find("normals"), std::string::npos) << m.detail;
   // Another API's language.
   m = backend->Measure(ParseVariantKey("cuda.b2"), {kDataset}, SmallTiming());
-  EXPECT_EQ(m.status, Status::kInvalid);
+  EXPECT_EQ(m.status, MeasureStatus::kInvalid);
   EXPECT_NE(m.detail.find("cuda"), std::string::npos) << m.detail;
   // Fewer slots than the mesh needs.
   m = backend->Measure(ParseVariantKey("opencl.b1"), {kDataset}, SmallTiming());
-  EXPECT_EQ(m.status, Status::kInvalid) << m.detail;
+  EXPECT_EQ(m.status, MeasureStatus::kInvalid) << m.detail;
 }
 
 TEST(OpenClBackend, ABadDatasetIsASetUpError) {
@@ -380,7 +380,7 @@ TEST(OpenClBackend, InjectedCompileFaultIsCompileFailed) {
   const Variant v = ParseVariantKey("opencl.b2.soa.v2c.wg64");
   ScopedFault f(v.Key() + "=compile");
   const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-  EXPECT_EQ(m.status, Status::kCompileFailed) << StatusText(m.status) << ": " << m.detail;
+  EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << StatusText(m.status) << ": " << m.detail;
   EXPECT_NE(m.detail.find("OpenCL build"), std::string::npos) << m.detail;
   EXPECT_NE(m.detail.find("build log"), std::string::npos) << m.detail;
   // Another variant is not affected.
@@ -392,7 +392,7 @@ TEST(OpenClBackend, InjectedWrongResultIsVerifyFailed) {
   const Variant v = ParseVariantKey("opencl.b2.aos.float3.u8.unorm8");
   ScopedFault f(v.Key() + "=wrong");
   const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-  EXPECT_EQ(m.status, Status::kVerifyFailed) << StatusText(m.status) << ": " << m.detail;
+  EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << StatusText(m.status) << ": " << m.detail;
   EXPECT_NE(m.detail.find("max relative error"), std::string::npos) << m.detail;
   EXPECT_NE(m.detail.find("at vertex"), std::string::npos) << m.detail;
   EXPECT_GT(m.max_relative_error, 1e-5);
@@ -468,7 +468,7 @@ TEST(GlBackend, InjectedCompileFaultIsCompileFailed) {
     const Variant v = ParseVariantKey(key);
     ScopedFault f(v.Key() + "=compile");
     const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-    EXPECT_EQ(m.status, Status::kCompileFailed) << key << ": " << StatusText(m.status) << ": " << m.detail;
+    EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << key << ": " << StatusText(m.status) << ": " << m.detail;
     EXPECT_NE(m.detail.find("GL build"), std::string::npos) << m.detail;
   }
 }
@@ -479,7 +479,7 @@ TEST(GlBackend, InjectedWrongResultIsVerifyFailed) {
     const Variant v = ParseVariantKey(key);
     ScopedFault f(v.Key() + "=wrong");
     const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-    EXPECT_EQ(m.status, Status::kVerifyFailed) << key << ": " << StatusText(m.status) << ": " << m.detail;
+    EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << key << ": " << StatusText(m.status) << ": " << m.detail;
     EXPECT_NE(m.detail.find("max relative error"), std::string::npos) << m.detail;
     EXPECT_GT(m.max_relative_error, 1e-5);
   }
@@ -518,12 +518,12 @@ TEST(CudaBackend, MeasuresVariantsAndInjectedFaults) {
   {
     ScopedFault f(v.Key() + "=compile");
     const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-    EXPECT_EQ(m.status, Status::kCompileFailed) << m.detail;
+    EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << m.detail;
   }
   {
     ScopedFault f(v.Key() + "=wrong");
     const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-    EXPECT_EQ(m.status, Status::kVerifyFailed) << m.detail;
+    EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << m.detail;
   }
   const double gbps = backend->CopyBandwidthGBps(256u << 20);
   std::cout << "[ copy     ] " << backend->identity().name << ": " << gbps << " GB/s\n";

@@ -33,19 +33,19 @@ void WriteAll(const fs::path& p, const std::string& text) {
   out << text;
 }
 
-Measurement Sample(const std::string& key, Status status) {
+Measurement Sample(const std::string& key, MeasureStatus status) {
   Measurement m;
   m.device_id = "opencl:Portable Computing Language/cpu/3.1";
   m.dataset = "5000-b2";
   m.variant = ParseVariantKey(key);
   m.status = status;
-  m.detail = status == Status::kOk ? "" : "line 1\nline 2";
-  if (status == Status::kOk) {
+  m.detail = status == MeasureStatus::kOk ? "" : "line 1\nline 2";
+  if (status == MeasureStatus::kOk) {
     m.timing = {1.5, 1.25, 2.0, 3, 10, 4};
     m.gbps = 12.5;
   }
   m.bytes_per_frame = 240000;
-  m.max_relative_error = status == Status::kVerifyFailed ? std::numeric_limits<double>::infinity() : 1e-7;
+  m.max_relative_error = status == MeasureStatus::kVerifyFailed ? std::numeric_limits<double>::infinity() : 1e-7;
   m.generator_version = "0.1.0";
   m.timestamp = "2026-11-22T13:39:17Z";
   return m;
@@ -80,20 +80,20 @@ std::string ErrorOf(const std::function<void()>& f) {
   return "(no error)";
 }
 
-TEST(Status, NamesRoundTrip) {
-  for (Status s : {Status::kOk, Status::kInvalid, Status::kCompileFailed, Status::kLaunchFailed,
-                   Status::kVerifyFailed, Status::kTimeout}) {
-    EXPECT_EQ(StatusFromName(Name(s)), s) << Name(s);
+TEST(MeasureStatus, NamesRoundTrip) {
+  for (MeasureStatus s : {MeasureStatus::kOk, MeasureStatus::kInvalid, MeasureStatus::kCompileFailed, MeasureStatus::kLaunchFailed,
+                   MeasureStatus::kVerifyFailed, MeasureStatus::kTimeout}) {
+    EXPECT_EQ(MeasureStatusFromName(Name(s)), s) << Name(s);
   }
-  EXPECT_STREQ(Name(Status::kCompileFailed), "compile_failed");
-  EXPECT_STREQ(Name(Status::kTimeout), "timeout");
-  EXPECT_EQ(ErrorOf([] { StatusFromName("slow"); }),
+  EXPECT_STREQ(Name(MeasureStatus::kCompileFailed), "compile_failed");
+  EXPECT_STREQ(Name(MeasureStatus::kTimeout), "timeout");
+  EXPECT_EQ(ErrorOf([] { MeasureStatusFromName("slow"); }),
             "unknown status 'slow' (expected one of ok, invalid, compile_failed, launch_failed, verify_failed, "
             "timeout)");
 }
 
 TEST(Measurement, CacheKeyNamesDeviceGeneratorDatasetAndVariant) {
-  const Measurement m = Sample("opencl.b2.soa.global.wg64", Status::kOk);
+  const Measurement m = Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk);
   EXPECT_EQ(m.CacheKey(), "opencl:Portable Computing Language/cpu/3.1|0.1.0|5000-b2|" + m.variant.Key());
   Measurement other = m;
   other.generator_version = "0.2.0";
@@ -104,7 +104,7 @@ TEST(Measurement, CacheKeyNamesDeviceGeneratorDatasetAndVariant) {
 }
 
 TEST(Measurement, JsonRoundTripKeepsEveryFieldIncludingInfinity) {
-  for (Status s : {Status::kOk, Status::kVerifyFailed, Status::kTimeout}) {
+  for (MeasureStatus s : {MeasureStatus::kOk, MeasureStatus::kVerifyFailed, MeasureStatus::kTimeout}) {
     const Measurement m = Sample("cuda.b4.aos.local.v2s.wg256", s);
     const nlohmann::json j = m;
     EXPECT_EQ(j.at("status"), Name(s));
@@ -113,22 +113,22 @@ TEST(Measurement, JsonRoundTripKeepsEveryFieldIncludingInfinity) {
 }
 
 TEST(Measurement, FromJsonNamesTheBadField) {
-  nlohmann::json j = Sample("opencl.b2", Status::kOk);
+  nlohmann::json j = Sample("opencl.b2", MeasureStatus::kOk);
   j["status"] = "fast";
   EXPECT_EQ(ErrorOf([&] { (void)j.get<Measurement>(); }).rfind("measurement: 'status': unknown status 'fast'", 0), 0u);
-  j = Sample("opencl.b2", Status::kOk);
+  j = Sample("opencl.b2", MeasureStatus::kOk);
   j.erase("device_id");
   EXPECT_EQ(ErrorOf([&] { (void)j.get<Measurement>(); }), "measurement: missing field 'device_id'");
-  j = Sample("opencl.b2", Status::kOk);
+  j = Sample("opencl.b2", MeasureStatus::kOk);
   j["timing"]["median_ms"] = "quick";
   EXPECT_EQ(ErrorOf([&] { (void)j.get<Measurement>(); }), "measurement: 'timing': 'median_ms' must be a number");
 }
 
 TEST(MeasurementCache, AppendedMeasurementsAreThereWhenReopened) {
   const fs::path path = Scratch() / "cache.jsonl";
-  const std::vector<Measurement> written = {Sample("opencl.b2.soa.global.wg64", Status::kOk),
-                                            Sample("opencl.b2.soa.local.wg64", Status::kCompileFailed),
-                                            Sample("opencl.b2.soa.constant.wg64", Status::kVerifyFailed)};
+  const std::vector<Measurement> written = {Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk),
+                                            Sample("opencl.b2.soa.local.wg64", MeasureStatus::kCompileFailed),
+                                            Sample("opencl.b2.soa.constant.wg64", MeasureStatus::kVerifyFailed)};
   {
     MeasurementCache cache(path.string());
     EXPECT_TRUE(cache.all().empty());
@@ -150,8 +150,8 @@ TEST(MeasurementCache, AppendedMeasurementsAreThereWhenReopened) {
 
 TEST(MeasurementCache, TornLastLineIsCutOffAndIgnored) {
   const fs::path path = Scratch() / "cache.jsonl";
-  const Measurement a = Sample("opencl.b2.soa.global.wg64", Status::kOk);
-  const Measurement b = Sample("opencl.b2.soa.local.wg64", Status::kOk);
+  const Measurement a = Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk);
+  const Measurement b = Sample("opencl.b2.soa.local.wg64", MeasureStatus::kOk);
   const std::string good = nlohmann::json(a).dump() + "\n";
   const std::string torn = nlohmann::json(b).dump().substr(0, 57);  // killed mid-write
   WriteAll(path, good + torn);
@@ -170,12 +170,12 @@ TEST(MeasurementCache, TornLastLineIsCutOffAndIgnored) {
 
 TEST(MeasurementCache, MalformedCompleteLineIsAnErrorNamingFileAndLine) {
   const fs::path path = Scratch() / "cache.jsonl";
-  const std::string good = nlohmann::json(Sample("opencl.b2", Status::kOk)).dump() + "\n";
+  const std::string good = nlohmann::json(Sample("opencl.b2", MeasureStatus::kOk)).dump() + "\n";
   WriteAll(path, good + "{\"device_id\": oops}\n" + good);
   const std::string error = ErrorOf([&] { MeasurementCache cache(path.string()); });
   EXPECT_EQ(error.rfind(path.string() + ":2: malformed measurement", 0), 0u) << error;
 
-  nlohmann::json bad = Sample("opencl.b2", Status::kOk);
+  nlohmann::json bad = Sample("opencl.b2", MeasureStatus::kOk);
   bad["status"] = "fast";
   WriteAll(path, bad.dump() + "\n");
   const std::string status_error = ErrorOf([&] { MeasurementCache cache(path.string()); });

@@ -62,7 +62,7 @@ TEST(Replay, ServesRecordedTimesAndCountsLookups) {
   ASSERT_EQ(replay.variants().size(), candidates.size());
   EXPECT_EQ(replay.variants().front(), candidates.front());
   std::size_t ok = 0;
-  for (const Variant& v : candidates) ok += testing::SyntheticStatus(v) == Status::kOk ? 1 : 0;
+  for (const Variant& v : candidates) ok += testing::SyntheticStatus(v) == MeasureStatus::kOk ? 1 : 0;
   EXPECT_EQ(replay.ok_count(), ok);
   EXPECT_LT(ok, candidates.size());  // the model has failures
 
@@ -70,7 +70,7 @@ TEST(Replay, ServesRecordedTimesAndCountsLookups) {
   for (std::size_t i = 0; i < 200; ++i) {
     const Variant& v = candidates[i];
     const std::optional<double> t = evaluate(v);
-    if (testing::SyntheticStatus(v) == Status::kOk) {
+    if (testing::SyntheticStatus(v) == MeasureStatus::kOk) {
       ASSERT_TRUE(t) << v.Key();
       EXPECT_DOUBLE_EQ(*t, testing::SyntheticTimeMs(v));
     } else {
@@ -181,7 +181,7 @@ TEST(Replay, ExhaustiveAtTheFullBudgetIsExactlyOptimal) {
   EXPECT_EQ(c.rows[1].mean_ratio, 1.0);  // random with every candidate: also exact
   ASSERT_TRUE(c.optimum);
   EXPECT_DOUBLE_EQ(c.optimum_ms, testing::SyntheticTimeMs(*c.optimum));
-  EXPECT_EQ(testing::SyntheticStatus(*c.optimum), Status::kOk);
+  EXPECT_EQ(testing::SyntheticStatus(*c.optimum), MeasureStatus::kOk);
 }
 
 // The same comparison on real measurements: exhaustive runs of a 576-variant

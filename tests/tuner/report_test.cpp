@@ -81,7 +81,7 @@ TEST(Report, WinnersAreTheFastestOkPerDeviceLanguageInfluencesAndBucket) {
   for (const Winner& w : winners) {
     double fastest = 1e300;
     for (const Measurement& m : r.measurements) {
-      if (m.status != Status::kOk || m.device_id != w.device_id || m.variant.lang != w.lang ||
+      if (m.status != MeasureStatus::kOk || m.device_id != w.device_id || m.variant.lang != w.lang ||
           m.variant.influences != w.influences)
         continue;
       for (const DatasetInfo& d : r.datasets)
@@ -103,13 +103,13 @@ TEST(Report, FailedVariantsAreNeverWinners) {
     EXPECT_GT(w.median_ms, 1e-3) << w.variant.Key();  // the failed ones claim 1e-6 ms
     for (const Measurement& m : r.measurements) {
       if (m.device_id == w.device_id && m.dataset == w.dataset && m.variant == w.variant) {
-        EXPECT_EQ(m.status, Status::kOk) << w.variant.Key();
+        EXPECT_EQ(m.status, MeasureStatus::kOk) << w.variant.Key();
       }
     }
   }
   // Only failures: no winner at all.
   TuningReport failed = r;
-  for (Measurement& m : failed.measurements) m.status = Status::kVerifyFailed;
+  for (Measurement& m : failed.measurements) m.status = MeasureStatus::kVerifyFailed;
   EXPECT_TRUE(ComputeWinners(failed).empty());
   EXPECT_TRUE(ReportToJson(failed)["winners"].empty());
 }
@@ -155,8 +155,8 @@ TEST(Report, T4ExportMapsStatusesAndAxes) {
     EXPECT_EQ(res["configuration"]["layout"], Name(m.variant.layout));
     EXPECT_EQ(res["configuration"]["wg_size"], m.variant.wg_size);
     EXPECT_EQ(res["configuration"].size(), 14u);  // the variant axes
-    EXPECT_EQ(res["correctness"], m.status == Status::kOk ? 1 : 0);
-    if (m.status == Status::kOk) {
+    EXPECT_EQ(res["correctness"], m.status == MeasureStatus::kOk ? 1 : 0);
+    if (m.status == MeasureStatus::kOk) {
       EXPECT_EQ(res["times"]["runtimes"], nlohmann::json::array({m.timing.median_ms}));
     } else {
       EXPECT_TRUE(res["times"]["runtimes"].empty());

@@ -46,10 +46,10 @@ inline DeviceIdentity SampleCuda() {
   return d;
 }
 
-inline Measurement WithStatus(Measurement m, Status status, const std::string& detail) {
+inline Measurement WithStatus(Measurement m, MeasureStatus status, const std::string& detail) {
   m.status = status;
   m.detail = detail;
-  if (status != Status::kOk) {
+  if (status != MeasureStatus::kOk) {
     m.gbps = 0.0;
     m.timing = {};
   }
@@ -74,7 +74,7 @@ inline TuningReport SampleReport(const std::string& created = "2025-01-31T12:00:
   const std::vector<Variant> candidates = SyntheticCandidates();
   auto add = [&](const Variant& v, const DeviceIdentity& d, const std::string& dataset, std::size_t vertices) {
     Measurement m = SyntheticMeasurement(v, d.Id(), dataset, vertices);
-    if (m.status == Status::kOk) {
+    if (m.status == MeasureStatus::kOk) {
       m.timing.median_ms *= ms_scale;
       m.timing.min_ms *= ms_scale;
       m.timing.max_ms *= ms_scale;
@@ -100,13 +100,13 @@ inline TuningReport SampleReport(const std::string& created = "2025-01-31T12:00:
   fast.timing = {1e-6, 1e-6, 1e-6, 3, 10, 4};
   fast.gbps = 1e9;
   Variant v = candidates[5];
-  for (Status s : {Status::kInvalid, Status::kCompileFailed, Status::kLaunchFailed, Status::kVerifyFailed,
-                   Status::kTimeout}) {
+  for (MeasureStatus s : {MeasureStatus::kInvalid, MeasureStatus::kCompileFailed, MeasureStatus::kLaunchFailed, MeasureStatus::kVerifyFailed,
+                   MeasureStatus::kTimeout}) {
     Measurement f = fast;
     f.variant = v;
     f.status = s;
     f.detail = std::string("synthetic ") + Name(s);
-    if (s == Status::kVerifyFailed) f.max_relative_error = std::numeric_limits<double>::infinity();
+    if (s == MeasureStatus::kVerifyFailed) f.max_relative_error = std::numeric_limits<double>::infinity();
     r.measurements.push_back(f);
     v.wg_size = v.wg_size == 32 ? 64 : 32;
     v.blend = v.blend == Blend::kPoint ? Blend::kMatrix : Blend::kPoint;
@@ -116,7 +116,7 @@ inline TuningReport SampleReport(const std::string& created = "2025-01-31T12:00:
   b2.influences = 2;
   Measurement failed = SyntheticMeasurement(b2, gpu.Id(), "1600k-b1", 1600000);
   failed.timestamp = created;
-  r.measurements.push_back(WithStatus(failed, Status::kVerifyFailed, "vertex 0 off"));
+  r.measurements.push_back(WithStatus(failed, MeasureStatus::kVerifyFailed, "vertex 0 off"));
   return r;
 }
 

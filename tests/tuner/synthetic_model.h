@@ -86,13 +86,13 @@ inline double SyntheticTimeMs(const Variant& v, std::size_t vertices = 100000) {
   return ms * (1.0 + 0.03 * HashUnit(v, 1));
 }
 
-inline Status SyntheticStatus(const Variant& v) {
+inline MeasureStatus SyntheticStatus(const Variant& v) {
   const double u = HashUnit(v, 2);  // uniform in [-1, 1)
-  if (u < -0.985) return Status::kCompileFailed;
-  if (u < -0.975) return Status::kLaunchFailed;
-  if (u < -0.97) return Status::kVerifyFailed;
-  if (u < -0.968) return Status::kTimeout;
-  return Status::kOk;
+  if (u < -0.985) return MeasureStatus::kCompileFailed;
+  if (u < -0.975) return MeasureStatus::kLaunchFailed;
+  if (u < -0.97) return MeasureStatus::kVerifyFailed;
+  if (u < -0.968) return MeasureStatus::kTimeout;
+  return MeasureStatus::kOk;
 }
 
 inline Measurement SyntheticMeasurement(const Variant& v, const std::string& device_id, const std::string& dataset,
@@ -108,28 +108,28 @@ inline Measurement SyntheticMeasurement(const Variant& v, const std::string& dev
   m.bytes_per_frame = static_cast<double>(vertices) *
                       (2.0 * position + v.influences * static_cast<double>(BytesOf(v.index) + BytesOf(v.weight)));
   switch (m.status) {
-    case Status::kOk: {
+    case MeasureStatus::kOk: {
       const double t = SyntheticTimeMs(v, vertices);
       m.timing = {t, t * 0.98, t * 1.05, 3, 10, 4};
       m.gbps = m.bytes_per_frame / (t * 1e6);
       m.max_relative_error = 2e-7;
       break;
     }
-    case Status::kCompileFailed: m.detail = "error: synthetic build failure"; break;
-    case Status::kLaunchFailed: m.detail = "CL_OUT_OF_RESOURCES"; break;
-    case Status::kVerifyFailed:
+    case MeasureStatus::kCompileFailed: m.detail = "error: synthetic build failure"; break;
+    case MeasureStatus::kLaunchFailed: m.detail = "CL_OUT_OF_RESOURCES"; break;
+    case MeasureStatus::kVerifyFailed:
       m.detail = "vertex 17: position off by 0.5";
       m.max_relative_error = 0.5;
       break;
-    case Status::kTimeout: m.detail = "exceeded 60 s"; break;
-    case Status::kInvalid: break;
+    case MeasureStatus::kTimeout: m.detail = "exceeded 60 s"; break;
+    case MeasureStatus::kInvalid: break;
   }
   return m;
 }
 
 // The model as an evaluator: the median of status-ok variants, nullopt otherwise.
 inline std::optional<double> SyntheticEvaluate(const Variant& v) {
-  if (SyntheticStatus(v) != Status::kOk) return std::nullopt;
+  if (SyntheticStatus(v) != MeasureStatus::kOk) return std::nullopt;
   return SyntheticTimeMs(v);
 }
 

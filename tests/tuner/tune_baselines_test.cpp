@@ -55,16 +55,16 @@ TEST(TuneBaselines, AreMeasuredWithTheDatasetsBOutsideTheSpaceAndInvalidOnesAreR
   };
   const auto measured = find(outside_b2);
   ASSERT_NE(measured, report.measurements.end()) << "the baseline outside the space was not measured";
-  EXPECT_EQ(measured->status, Status::kOk) << measured->detail;
+  EXPECT_EQ(measured->status, MeasureStatus::kOk) << measured->detail;
   EXPECT_EQ(find(outside), report.measurements.end()) << "measured with the B it was given, not the dataset's";
   const auto rejected = find(invalid);
   ASSERT_NE(rejected, report.measurements.end());
-  EXPECT_EQ(rejected->status, Status::kInvalid);
+  EXPECT_EQ(rejected->status, MeasureStatus::kInvalid);
   EXPECT_NE(rejected->detail.find("index_range"), std::string::npos) << rejected->detail;
   for (const Measurement& m : report.measurements) EXPECT_NE(m.variant.lang, Lang::kCuda);
   // The space's one point and the valid baseline: two device measurements, no more.
   EXPECT_EQ(std::count_if(report.measurements.begin(), report.measurements.end(),
-                          [](const Measurement& m) { return m.status != Status::kInvalid; }),
+                          [](const Measurement& m) { return m.status != MeasureStatus::kInvalid; }),
             2);
 }
 

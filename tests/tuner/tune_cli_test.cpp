@@ -136,7 +136,7 @@ TEST(TuneCli, KilledRunResumesWithEveryVariantMeasuredExactlyOnce) {
   std::map<std::string, Measurement> by_key;
   for (const Measurement& m : lines) {
     EXPECT_TRUE(by_key.emplace(m.CacheKey(), m).second) << "measured twice: " << m.CacheKey();
-    EXPECT_EQ(m.status, Status::kOk) << m.variant.Key() << ": " << m.detail;
+    EXPECT_EQ(m.status, MeasureStatus::kOk) << m.variant.Key() << ": " << m.detail;
   }
   EXPECT_EQ(lines.size(), 12u);
   EXPECT_EQ(by_key.size(), 12u);
@@ -168,11 +168,11 @@ class TuneCliFault : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(TuneCliFault, BrokenVariantIsRecordedAndNeverWins) {
   const std::string kind = GetParam();
-  const std::map<std::string, Status> statuses = {{"compile", Status::kCompileFailed},
-                                                  {"wrong", Status::kVerifyFailed},
-                                                  {"hang", Status::kTimeout},
-                                                  {"crash", Status::kLaunchFailed}};
-  const Status expected = statuses.at(kind);
+  const std::map<std::string, MeasureStatus> statuses = {{"compile", MeasureStatus::kCompileFailed},
+                                                  {"wrong", MeasureStatus::kVerifyFailed},
+                                                  {"hang", MeasureStatus::kTimeout},
+                                                  {"crash", MeasureStatus::kLaunchFailed}};
+  const MeasureStatus expected = statuses.at(kind);
   const fs::path dir = Scratch();
   const std::string config = WriteConfig(dir, TinyConfig({"global", "local"}, {"soa"}, {64}));
   const std::string broken = "opencl.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals";
@@ -190,13 +190,13 @@ TEST_P(TuneCliFault, BrokenVariantIsRecordedAndNeverWins) {
   for (const Measurement& m : ReportMeasurements(report)) by_variant[m.variant.Key()] = m;
   ASSERT_EQ(by_variant.size(), 2u);
   EXPECT_EQ(by_variant.at(broken).status, expected) << by_variant.at(broken).detail;
-  EXPECT_EQ(by_variant.at(good).status, Status::kOk) << by_variant.at(good).detail;
+  EXPECT_EQ(by_variant.at(good).status, MeasureStatus::kOk) << by_variant.at(good).detail;
   EXPECT_FALSE(by_variant.at(broken).detail.empty());
-  if (expected == Status::kTimeout) {
+  if (expected == MeasureStatus::kTimeout) {
     EXPECT_EQ(by_variant.at(broken).detail, "no result within 10 s");
     EXPECT_LT(seconds, 60.0);
   }
-  if (expected == Status::kLaunchFailed) {
+  if (expected == MeasureStatus::kLaunchFailed) {
     EXPECT_EQ(by_variant.at(broken).detail.rfind("worker process died: signal ", 0), 0u)
         << by_variant.at(broken).detail;
   }

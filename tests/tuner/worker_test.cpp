@@ -80,7 +80,7 @@ TEST(IsolatedBackend, SendsOneRequestPerLineAndReadsTheMeasurement) {
   timing.repetitions = 3;
   for (int i = 0; i < 2; ++i) {
     const Measurement m = worker.Measure(kVariant, kDataset, timing);
-    EXPECT_EQ(m.status, Status::kOk);
+    EXPECT_EQ(m.status, MeasureStatus::kOk);
     EXPECT_EQ(m.timing.median_ms, 1.5);
     EXPECT_EQ(m.gbps, 7.5);
     // What identifies the measurement is the parent's.
@@ -114,12 +114,12 @@ TEST(IsolatedBackend, HangIsATimeoutAndAFreshWorkerServesTheNextVariant) {
   const auto start = std::chrono::steady_clock::now();
   const Measurement hung = worker.Measure(kVariant, kDataset, {});
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
-  EXPECT_EQ(hung.status, Status::kTimeout);
+  EXPECT_EQ(hung.status, MeasureStatus::kTimeout);
   EXPECT_EQ(hung.detail, "no result within 0.5 s");
   EXPECT_EQ(hung.variant, kVariant);
   EXPECT_EQ(hung.device_id, FakeDevice().Id());
   const Measurement next = worker.Measure(kVariant, kDataset, {});
-  EXPECT_EQ(next.status, Status::kOk);
+  EXPECT_EQ(next.status, MeasureStatus::kOk);
   EXPECT_EQ(worker.starts(), 2);
 }
 
@@ -130,9 +130,9 @@ TEST(IsolatedBackend, CrashIsALaunchFailureNamingTheSignal) {
                "echo 'about to crash' >&2; kill -ABRT $$; fi\nwhile read line; do echo '" + kAnswer + "'; done");
   IsolatedBackend worker(exe, FakeDevice(), 30);
   const Measurement crashed = worker.Measure(kVariant, kDataset, {});
-  EXPECT_EQ(crashed.status, Status::kLaunchFailed);
+  EXPECT_EQ(crashed.status, MeasureStatus::kLaunchFailed);
   EXPECT_EQ(crashed.detail, "worker process died: signal 6 (Aborted); its last stderr line: about to crash");
-  EXPECT_EQ(worker.Measure(kVariant, kDataset, {}).status, Status::kOk);
+  EXPECT_EQ(worker.Measure(kVariant, kDataset, {}).status, MeasureStatus::kOk);
   EXPECT_EQ(worker.starts(), 2);
 }
 
@@ -141,7 +141,7 @@ TEST(IsolatedBackend, ExitIsALaunchFailureNamingTheExitCode) {
   const std::string exe = FakeWorker(dir, "read line; exit 3");
   IsolatedBackend worker(exe, FakeDevice(), 30);
   const Measurement m = worker.Measure(kVariant, kDataset, {});
-  EXPECT_EQ(m.status, Status::kLaunchFailed);
+  EXPECT_EQ(m.status, MeasureStatus::kLaunchFailed);
   EXPECT_EQ(m.detail, "worker process died: exit code 3");
 }
 

@@ -6,7 +6,7 @@
 #include <optional>
 #include <string>
 
-#include "tuner/paper_report.h"
+#include "report/paper_report.h"
 
 namespace skintune {
 

@@ -6,7 +6,7 @@
 #include "reference/skinning.h"
 #include "reference/synthetic.h"
 #include "tuner/backends_internal.h"
-#include "tuner/cpu_timing.h"
+#include "report/cpu_timing.h"
 
 namespace skintune {
 namespace {

@@ -1,4 +1,4 @@
-// skintune: the paper experiment's results (tuner/paper.h) shaped like the
+// skintune: the paper experiment's results (report/paper.h) shaped like the
 // paper's own figures, and rendered for people.
 //
 // Summarise derives, from one or more PaperResults, plain tables of numbers:
@@ -28,7 +28,7 @@
 #include "generator/variant.h"
 #include "tuner/backend.h"
 #include "tuner/measurement.h"
-#include "tuner/paper.h"
+#include "report/paper.h"
 #include "tuner/report.h"
 
 namespace skintune {
@@ -74,13 +74,13 @@ struct KernelOutcome {
   std::string label;            // "OpenCL (optimised)", "OpenCL tuned (opencl)", ...
   bool measured = false;        // paper kernel: a measurement exists; tuned: a status-ok one exists
   Variant variant;              // paper kernel: with the data set's B; tuned: the winner's
-  Status status = Status::kOk;  // measured only; a time is shown for ok only
+  MeasureStatus status = MeasureStatus::kOk;  // measured only; a time is shown for ok only
   std::string detail;           // the measurement's detail (why it failed)
   double median_ms = 0.0;       // status ok only
   double gbps = 0.0;
   double copy_fraction = 0.0;   // gbps / the device's copy bandwidth; 0 when that is unknown
 
-  bool Ok() const { return measured && status == Status::kOk; }
+  bool Ok() const { return measured && status == MeasureStatus::kOk; }
 };
 
 // The paper kernels and the tuned winner of one device (one API) on one data set.

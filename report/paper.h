@@ -14,7 +14,7 @@
 //   - every device's copy bandwidth (a plain copy kernel) and the host's, so
 //     every GB/s figure can be read as a fraction of the physical limit.
 // The result (PaperResult) is versioned JSON (configs/paper-result.schema.json);
-// tuner/paper_report.h turns one or more results into the Fig. 1- and
+// report/paper_report.h turns one or more results into the Fig. 1- and
 // Table 1-shaped tables, an HTML report and a Markdown summary.
 #pragma once
 

@@ -1,4 +1,4 @@
-#include "tuner/cpu_timing.h"
+#include "report/cpu_timing.h"
 
 #include <algorithm>
 #include <chrono>

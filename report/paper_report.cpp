@@ -1,7 +1,7 @@
 // skintune: the paper experiment's results as the paper's figures (Summarise)
 // and the number formats of the reports. The renderers are in
 // paper_report_html.cpp and paper_report_markdown.cpp.
-#include "tuner/paper_report.h"
+#include "report/paper_report.h"
 
 #include <algorithm>
 #include <cctype>
@@ -62,7 +62,7 @@ KernelOutcome OutcomeOf(const Measurement& m, double copy) {
   o.variant = m.variant;
   o.status = m.status;
   o.detail = m.detail;
-  if (m.status == Status::kOk) {
+  if (m.status == MeasureStatus::kOk) {
     o.median_ms = m.timing.median_ms;
     o.gbps = m.gbps;
     o.copy_fraction = CopyFraction(m.gbps, copy);
@@ -211,7 +211,7 @@ class ResultSummariser {
           const Measurement* found = nullptr;
           for (const Measurement* m : measured) {
             if (m->variant != wanted) continue;
-            if (found == nullptr || (found->status != Status::kOk && m->status == Status::kOk)) found = m;
+            if (found == nullptr || (found->status != MeasureStatus::kOk && m->status == MeasureStatus::kOk)) found = m;
           }
           KernelOutcome o = found ? OutcomeOf(*found, device.copy_bandwidth_gbps) : KernelOutcome{};
           if (!found) o.variant = wanted;
@@ -223,7 +223,7 @@ class ResultSummariser {
         for (const Measurement* m : measured) {
           if (ApiOf(m->variant.lang) != device.api) continue;
           ++k.measurements;
-          if (m->status != Status::kOk) continue;
+          if (m->status != MeasureStatus::kOk) continue;
           ++k.ok;
           if (best == nullptr || m->timing.median_ms < best->timing.median_ms) best = m;
         }
@@ -384,7 +384,7 @@ class ResultSummariser {
     for (const DatasetInfo& dataset : r_.tuning.datasets) {
       std::map<Lang, const Measurement*> best;
       for (const Measurement* m : Of(device.id, dataset.key)) {
-        if (m->status != Status::kOk) continue;
+        if (m->status != MeasureStatus::kOk) continue;
         const Measurement*& b = best[m->variant.lang];
         if (b == nullptr || m->timing.median_ms < b->timing.median_ms) b = m;
       }
@@ -420,7 +420,7 @@ class ResultSummariser {
       auto size = [](const DatasetInfo& d) { return d.vertices * static_cast<std::size_t>(std::max(d.influences, 1)); };
       for (const DatasetInfo& dataset : r_.tuning.datasets) {
         std::size_t ok = 0;
-        for (const Measurement* m : Of(device.id, dataset.key)) ok += m->variant.lang == lang && m->status == Status::kOk;
+        for (const Measurement* m : Of(device.id, dataset.key)) ok += m->variant.lang == lang && m->status == MeasureStatus::kOk;
         if (ok == 0) continue;
         if (chosen == nullptr || size(dataset) > size(*chosen) ||
             (size(dataset) == size(*chosen) && ok > chosen_ok)) {
@@ -437,7 +437,7 @@ class ResultSummariser {
       chart.best_ms = std::numeric_limits<double>::infinity();
       std::vector<const Measurement*> ok;
       for (const Measurement* m : Of(device.id, chosen->key)) {
-        if (m->variant.lang != lang || m->status != Status::kOk) continue;
+        if (m->variant.lang != lang || m->status != MeasureStatus::kOk) continue;
         ok.push_back(m);
         chart.best_ms = std::min(chart.best_ms, m->timing.median_ms);
       }

@@ -15,7 +15,7 @@
 #include <string>
 #include <string_view>
 
-#include "tuner/paper_report.h"
+#include "report/paper_report.h"
 
 namespace skintune {
 

@@ -10,7 +10,7 @@
 #include "generator/constraints.h"
 #include "reference/error.h"
 #include "tests/tuner/sample_report.h"
-#include "tuner/paper.h"
+#include "report/paper.h"
 
 namespace skintune {
 namespace {

@@ -1,4 +1,4 @@
-// skintune: the paper's experiment (tuner/paper.h): one tuning run over the
+// skintune: the paper's experiment (report/paper.h): one tuning run over the
 // paper's data sets with the paper's kernels measured first on every device
 // and language, then the CPU baselines.
 #include <algorithm>
@@ -8,9 +8,9 @@
 
 #include "reference/error.h"
 #include "reference/synthetic.h"
-#include "tuner/cpu_timing.h"
+#include "report/cpu_timing.h"
 #include "tuner/measurement.h"
-#include "tuner/paper.h"
+#include "report/paper.h"
 #include "tuner/worker.h"
 
 namespace skintune {
@@ -72,7 +72,7 @@ PaperResult RunPaper(const PaperOptions& options) {
   // variants --device` counts them) are left out of the result; a paper
   // kernel that is invalid on a device stays, with its constraint.
   std::erase_if(result.tuning.measurements, [&](const Measurement& m) {
-    if (m.status != Status::kInvalid) return false;
+    if (m.status != MeasureStatus::kInvalid) return false;
     return std::none_of(config.baselines.begin(), config.baselines.end(), [&](Variant b) {
       b.influences = m.variant.influences;
       return b == m.variant;

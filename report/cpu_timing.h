@@ -12,7 +12,7 @@
 #include <cstdint>
 
 #include "reference/asset.h"
-#include "tuner/paper.h"
+#include "report/paper.h"
 
 namespace skintune {
 

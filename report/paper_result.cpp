@@ -6,7 +6,7 @@
 
 #include "reference/error.h"
 #include "runtime/json_fields.h"
-#include "tuner/paper.h"
+#include "report/paper.h"
 
 namespace skintune {
 

@@ -1,4 +1,4 @@
-// A small paper result (tuner/paper.h) for the paper report tests and the
+// A small paper result (report/paper.h) for the paper report tests and the
 // committed fixture tests/data/paper/sample-result.json: a GPU seen through
 // OpenCL, CUDA and GL, a CPU OpenCL device (PoCL) and llvmpipe GL (type cpu),
 // six data sets (25k/100k/400k x B = 1, 2), the paper's kernels measured on
@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "generator/variant.h"
-#include "tuner/paper.h"
+#include "report/paper.h"
 #include "tuner/report.h"
 
 namespace skintune::testing {
@@ -90,7 +90,7 @@ inline double SampleBytes(const Variant& v, std::size_t vertices) {
 
 // A measurement of `v` (B set to the data set's) taking `ms`, or failing with `status`.
 inline Measurement PaperMeasurement(const DeviceIdentity& device, const DatasetInfo& dataset, Variant v, double ms,
-                                    Status status = Status::kOk, const std::string& detail = "") {
+                                    MeasureStatus status = MeasureStatus::kOk, const std::string& detail = "") {
   v.influences = dataset.influences;
   Measurement m;
   m.device_id = device.Id();
@@ -101,7 +101,7 @@ inline Measurement PaperMeasurement(const DeviceIdentity& device, const DatasetI
   m.bytes_per_frame = SampleBytes(v, dataset.vertices);
   m.generator_version = "sample";
   m.timestamp = "2025-06-01T12:00:00Z";
-  if (status == Status::kOk) {
+  if (status == MeasureStatus::kOk) {
     m.timing = {ms, ms * 0.97, ms * 1.08, 5, 20, 8};
     m.gbps = m.bytes_per_frame / (ms * 1e6);
     m.max_relative_error = 3e-7;
@@ -135,7 +135,7 @@ inline PaperResult SamplePaperResult() {
   r.figure1_dataset = "100k-b2";
   r.host = {"Intel(R) Xeon(R) Processor (Sapphire Rapids)", 16, 83.0};
   r.reported.source =
-      "Made-up figures of the test sample (tests/tuner/sample_paper_result.h), not the paper's: they only show "
+      "Made-up figures of the test sample (tests/report/sample_paper_result.h), not the paper's: they only show "
       "where the report places the paper's figures.";
   r.reported.figure1 = {{"glsl", 15.0}, {"cuda", 20.0}, {"opencl-optimised", 18.0}, {"opencl-cpu", 3.0}};
   r.reported.opencl_vs_cuda = {{"25k-b1", 0.8}, {"100k-b2", 0.9}};
@@ -195,10 +195,10 @@ inline PaperResult SamplePaperResult() {
         if (device.type == "cpu" && paper_unoptimised && d.key == "100k-b2") {
           // The failed paper kernel: shown with its status in Fig. 1, never with a time.
           t.measurements.push_back(
-              PaperMeasurement(device, d, v, ms, Status::kVerifyFailed, "vertex 17: position off by 0.5"));
+              PaperMeasurement(device, d, v, ms, MeasureStatus::kVerifyFailed, "vertex 17: position off by 0.5"));
         } else if (device.type == "cpu" && image) {
           t.measurements.push_back(
-              PaperMeasurement(device, d, v, ms, Status::kCompileFailed, "error: images are not supported"));
+              PaperMeasurement(device, d, v, ms, MeasureStatus::kCompileFailed, "error: images are not supported"));
         } else if (device.type == "cpu" && v.lang == Lang::kGlslVertex && d.vertices == 400000) {
           // Never measured: the paper's GLSL kernel on llvmpipe at 400k is "not measured".
         } else {

@@ -14,9 +14,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "tests/tuner/sample_paper_result.h"
+#include "tests/report/sample_paper_result.h"
 #include "tests/tuner/sample_report.h"
-#include "tuner/paper_report.h"
+#include "report/paper_report.h"
 
 namespace skintune {
 namespace {
@@ -47,7 +47,7 @@ PaperResult Tiny() {
   m.push_back(PaperMeasurement(gpu, d, r.paper_kernels[0].variant, 2.0));
   m.push_back(PaperMeasurement(gpu, d, r.paper_kernels[1].variant, 0.5));
   m.push_back(PaperMeasurement(gpu, d, ParseVariantKey(kTunedOpenCl), 0.25));
-  Measurement failed = PaperMeasurement(gpu, d, ParseVariantKey("opencl.b2.soa.u16"), 0.01, Status::kVerifyFailed, "off");
+  Measurement failed = PaperMeasurement(gpu, d, ParseVariantKey("opencl.b2.soa.u16"), 0.01, MeasureStatus::kVerifyFailed, "off");
   failed.timing.median_ms = 0.01;  // a failure's time never counts, however small
   m.push_back(failed);
   m.push_back(PaperMeasurement(cuda, d, r.paper_kernels[2].variant, 0.6));
@@ -299,7 +299,7 @@ TEST(PaperSummary, AxisChartUsesTheLargestDataSetMeasuredOnThatDevice) {
     if (a.device == device && a.lang == Lang::kOpenCl) EXPECT_EQ(a.dataset, "400k-b1");
     // No data set with a verified time of this device and language is larger.
     for (const Measurement& x : m) {
-      if (x.device_id != s.devices[a.device].id || x.variant.lang != a.lang || x.status != Status::kOk) continue;
+      if (x.device_id != s.devices[a.device].id || x.variant.lang != a.lang || x.status != MeasureStatus::kOk) continue;
       EXPECT_LE(size(x.dataset), size(a.dataset)) << s.devices[a.device].label << " " << Name(a.lang) << ": " << x.dataset;
     }
   }
