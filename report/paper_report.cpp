@@ -417,7 +417,7 @@ class ResultSummariser {
       // launch overhead on a GPU, where no axis shows its cost.
       const DatasetInfo* chosen = nullptr;
       std::size_t chosen_ok = 0;
-      auto size = [](const DatasetInfo& d) { return d.vertices * static_cast<std::size_t>(std::max(d.influences, 1)); };
+      auto size = [](const DatasetInfo& info) { return info.vertices * static_cast<std::size_t>(std::max(info.influences, 1)); };
       for (const DatasetInfo& dataset : r_.tuning.datasets) {
         std::size_t ok = 0;
         for (const Measurement* m : Of(device.id, dataset.key)) ok += m->variant.lang == lang && m->status == MeasureStatus::kOk;

@@ -296,7 +296,9 @@ TEST(PaperSummary, AxisChartUsesTheLargestDataSetMeasuredOnThatDevice) {
     return std::size_t{0};
   };
   for (const AxisChart& a : s.axes) {
-    if (a.device == device && a.lang == Lang::kOpenCl) EXPECT_EQ(a.dataset, "400k-b1");
+    if (a.device == device && a.lang == Lang::kOpenCl) {
+      EXPECT_EQ(a.dataset, "400k-b1");
+    }
     // No data set with a verified time of this device and language is larger.
     for (const Measurement& x : m) {
       if (x.device_id != s.devices[a.device].id || x.variant.lang != a.lang || x.status != MeasureStatus::kOk) continue;
