@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "reference/error.h"
+#include "skintune/skintune.h"  // its Status beside the tuner's MeasureStatus: both in one file
 #include "tests/common/scratch_dir.h"
 
 namespace skintune {
@@ -78,6 +79,12 @@ std::string ErrorOf(const std::function<void()>& f) {
     return e.what();
   }
   return "(no error)";
+}
+
+TEST(MeasureStatus, LivesBesideThePublicStatusInOneFile) {
+  const Status public_status;  // skintune::Status, the public API's result
+  EXPECT_TRUE(public_status.ok());
+  EXPECT_STREQ(Name(MeasureStatus::kOk), "ok");
 }
 
 TEST(MeasureStatus, NamesRoundTrip) {
