@@ -129,12 +129,12 @@ std::string KernelRow(const EmbeddedKernel& k, std::size_t index, std::size_t so
   const KernelSource& s = k.source;
   const std::string n = std::to_string(source_index);
   std::string row = "    // [" + std::to_string(index) + "] " + Name(e.lang) + " b" + std::to_string(e.influences) +
-                    " " + e.vertex_bucket + " on " + Quoted(e.device_id);
+                    " " + VertexCountName(e.vertices) + " on " + Quoted(e.device_id);
   if (e.variant.mixed != v.mixed)
     row += " (tuned " + std::string(Name(e.variant.mixed)) + ", emitted " + Name(v.mixed) + ")";
   row += "\n    {" + Quoted(e.device_id) + ",\n     " + Quoted(e.platform) + ", " + Quoted(e.vendor) + ", " +
          Quoted(e.device_name) + ", " + Quoted(e.driver_version) + ", " + Quoted(e.device_type) + ",\n     " +
-         Quoted(Name(v.lang)) + ", " + std::to_string(s.influences) + ", " + Quoted(e.vertex_bucket) + ",\n     " +
+         Quoted(Name(v.lang)) + ", " + std::to_string(s.influences) + ", " + Quoted(e.vertex_bucket) + ", " + std::to_string(e.vertices) + "u,\n     " +
          Quoted(v.Key()) + ",\n     " + LayoutName(v.layout) + ", " + PositionName(v.position) + ", " +
          IndexName(v.index) + ", " + WeightName(v.weight) + ", " + PaletteName(v.palette) + ", " +
          StorageName(v.storage) + ",\n     " + Bool(v.blend == Blend::kPoint) + ", " + Bool(v.normals) + ", " +
@@ -251,7 +251,7 @@ std::string EmbedHeader(const std::vector<EmbeddedKernel>& kernels, const EmbedH
   for (std::size_t i = 0; i < kernels.size(); ++i) {
     const EmbeddedKernel& k = kernels[i];
     banner += "//   [" + std::to_string(i) + "] " + Quoted(k.entry.device_id) + " " + Name(k.entry.lang) + " b" +
-              std::to_string(k.entry.influences) + " " + k.entry.vertex_bucket + ": " + k.variant.Key() + ", " +
+              std::to_string(k.entry.influences) + " " + VertexCountName(k.entry.vertices) + ": " + k.variant.Key() + ", " +
               std::to_string(k.source.joints) + " joints\n";
   }
   banner += "// The API is documented below (skintune's templates/embedded_support.h).\n\n";

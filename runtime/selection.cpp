@@ -33,16 +33,16 @@ bool AtLevel(const WinnersEntry& e, const DeviceInfo& device, MatchLevel level) 
   return false;
 }
 
-// Smaller is better: B above the mesh's, bucket distance, smaller bucket, then
-// the newest `created` and the smallest time (compared separately).
-std::tuple<int, int, int> Rank(const WinnersEntry& e, int influences, int bucket) {
-  const int entry_bucket = VertexBucketIndex(e.vertex_bucket);
-  return {e.influences - influences, std::abs(entry_bucket - bucket), -entry_bucket};
+// Smaller is better: B above the mesh's, the distance (a factor) from the
+// measured vertex count to the mesh's, the larger count on a tie, then the
+// newest `created` and the smallest time (compared separately).
+std::tuple<int, double, long long> Rank(const WinnersEntry& e, int influences, std::size_t vertex_count) {
+  return {e.influences - influences, VertexCountDistance(e.vertices, vertex_count), -static_cast<long long>(e.vertices)};
 }
 
-bool Better(const WinnersEntry& a, const WinnersEntry& b, int influences, int bucket) {
-  const auto ra = Rank(a, influences, bucket);
-  const auto rb = Rank(b, influences, bucket);
+bool Better(const WinnersEntry& a, const WinnersEntry& b, int influences, std::size_t vertex_count) {
+  const auto ra = Rank(a, influences, vertex_count);
+  const auto rb = Rank(b, influences, vertex_count);
   if (ra != rb) return ra < rb;
   if (a.created != b.created) return CreatedBefore(b.created, a.created);
   return a.median_ms < b.median_ms;
@@ -103,7 +103,6 @@ Variant GenericDefault(Lang lang, int influences, bool normals, const DeviceLimi
 
 Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& request) {
   const DeviceInfo& device = request.device;
-  const int bucket = VertexBucketIndex(VertexBucket(request.vertex_count));
   auto check = [&](const Variant& v) { return request.check ? request.check(v) : std::string(); };
   std::vector<std::string> skipped;
 
@@ -114,7 +113,7 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
         candidates.push_back(&e);
     }
     std::stable_sort(candidates.begin(), candidates.end(), [&](const WinnersEntry* a, const WinnersEntry* b) {
-      return Better(*a, *b, request.influences, bucket);
+      return Better(*a, *b, request.influences, request.vertex_count);
     });
     for (const WinnersEntry* e : candidates) {
       Variant v = e->variant;
@@ -130,8 +129,9 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
       chosen.selection.level = level;
       chosen.selection.entry = Describe(*e);
       std::string reason = LevelReason(level, *e, device);
-      if (e->influences != request.influences || VertexBucketIndex(e->vertex_bucket) != bucket) {
-        reason += "; tuned for b" + std::to_string(e->influences) + " at " + e->vertex_bucket + " vertices (the mesh: b" +
+      if (e->influences != request.influences || e->vertices != request.vertex_count) {
+        reason += "; tuned for b" + std::to_string(e->influences) + " at " + VertexCountName(e->vertices) +
+                  " vertices (the mesh: b" +
                   std::to_string(request.influences) + ", " + std::to_string(request.vertex_count) + " vertices)";
       }
       for (const std::string& s : skipped) reason += "; skipped " + s;

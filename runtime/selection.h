@@ -13,8 +13,9 @@
 // influences B hold the mesh's (B >= the largest per-vertex count), and the
 // caller's check accepts it (Skinner::Create: the constraints on the real
 // device and mesh); a rejected entry is named in the reason. Among the usable
-// entries of a level: the smallest B, then the nearest vertex bucket (on a tie
-// the larger one), then the newest `created` (the newest driver tuned), then
+// entries of a level: the smallest B, then the nearest measured vertex count
+// (nearest as a factor: 25k is as near 50k as 100k is; on a tie the larger
+// count), then the newest `created` (the newest driver tuned), then
 // the smallest median time (which chooses between glsl-compute and
 // glsl-vertex on a GL device). The entry's variant is taken with its
 // `normals` set to what the caller needs.

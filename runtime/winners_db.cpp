@@ -62,6 +62,23 @@ int VertexBucketIndex(const std::string& bucket) {
   return -1;
 }
 
+std::size_t NominalVertices(const std::string& bucket) {
+  constexpr std::array<std::size_t, 4> kNominal{25000, 100000, 400000, 1600000};
+  const int i = VertexBucketIndex(bucket);
+  return i < 0 ? 0 : kNominal[static_cast<std::size_t>(i)];
+}
+
+std::string VertexCountName(std::size_t vertices) {
+  if (vertices >= 1000 && vertices % 1000 == 0) return std::to_string(vertices / 1000) + "k";
+  return std::to_string(vertices);
+}
+
+double VertexCountDistance(std::size_t measured, std::size_t mesh) {
+  const double a = static_cast<double>(std::max<std::size_t>(measured, 1));
+  const double b = static_cast<double>(std::max<std::size_t>(mesh, 1));
+  return std::max(a, b) / std::min(a, b);
+}
+
 std::string CheckedCreated(const std::string& created) {
   if (!std::regex_match(created, CreatedPattern())) {
     throw Error("'created' is '" + created + "', expected UTC ISO 8601 such as 2025-01-31T12:00:00Z");
@@ -85,7 +102,7 @@ bool CreatedBefore(const std::string& a, const std::string& b) {
 }
 
 std::string Describe(const WinnersEntry& e) {
-  return e.device_id + " " + Name(e.lang) + " b" + std::to_string(e.influences) + " " + e.vertex_bucket;
+  return e.device_id + " " + Name(e.lang) + " b" + std::to_string(e.influences) + " " + VertexCountName(e.vertices);
 }
 
 nlohmann::json WinnersEntryToJson(const WinnersEntry& e) {
@@ -96,6 +113,7 @@ nlohmann::json WinnersEntryToJson(const WinnersEntry& e) {
                       {"driver_version", e.driver_version},
                       {"lang", Name(e.lang)},
                       {"influences", e.influences},
+                      {"vertices", e.vertices},
                       {"vertex_bucket", e.vertex_bucket},
                       {"dataset", e.dataset},
                       {"variant", e.variant},
@@ -131,6 +149,16 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
   e.vertex_bucket = String(j, "vertex_bucket");
   if (VertexBucketIndex(e.vertex_bucket) < 0) {
     throw Error("'vertex_bucket' has unknown value '" + e.vertex_bucket + "' (expected 25k, 100k, 400k or 1600k)");
+  }
+  if (j.contains("vertices")) {
+    const std::int64_t vertices = Integer(j, "vertices");
+    if (vertices < 1) throw Error("'vertices' is " + std::to_string(vertices) + ", expected at least 1");
+    e.vertices = static_cast<std::size_t>(vertices);
+    if (VertexBucket(e.vertices) != e.vertex_bucket)
+      throw Error("'vertex_bucket' " + e.vertex_bucket + " does not match 'vertices' " + std::to_string(vertices) +
+                  " (bucket " + VertexBucket(e.vertices) + ")");
+  } else {
+    e.vertices = NominalVertices(e.vertex_bucket);  // 1.0.0 / 1.1.0: one entry per bucket
   }
   e.dataset = String(j, "dataset");
   e.variant = Field(j, "variant").get<Variant>();

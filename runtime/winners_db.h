@@ -2,10 +2,13 @@
 // `skintune db merge` write it and the runtime reads it
 // (configs/winners-db.schema.json, docs/TUNING.md "Winners database").
 //
-//   {"schema_version": "1.1.0", "kind": "skintune-winners-db", "entries": [...]}
+//   {"schema_version": "1.2.0", "kind": "skintune-winners-db", "entries": [...]}
 //
-// One entry per (device id, language, influences, vertex bucket): the fastest
-// verified variant the tuner found there. The device id
+// One entry per (device id, language, influences, measured vertex count): the
+// fastest verified variant the tuner found on a dataset of that many vertices
+// (since 1.2.0; 1.0.0 and 1.1.0 databases kept one per vertex bucket, so a run
+// over 1600k-b4 and 6400k-b4 kept only one of them, and their entries load
+// with the bucket's nominal count: 25000, 100000, 400000 or 1600000). The device id
 // "<backend>:<platform>/<name>/<driver_version>" includes the driver, so a new
 // driver is a new device. Since 1.1.0 each entry also names the device's
 // platform, vendor, name, driver and type, which the runtime's fallback chain
@@ -27,7 +30,7 @@
 namespace skintune {
 
 inline constexpr const char* kWinnersDbKind = "skintune-winners-db";
-inline constexpr const char* kWinnersDbSchemaVersion = "1.1.0";
+inline constexpr const char* kWinnersDbSchemaVersion = "1.2.0";
 
 // The parts of a device id "<backend>:<platform>/<name>/<driver_version>".
 struct DeviceIdParts {
@@ -45,6 +48,15 @@ DeviceIdParts SplitDeviceId(const std::string& id);
 std::string VertexBucket(std::size_t vertices);
 // 0..3 in the order above; -1 for an unknown name.
 int VertexBucketIndex(const std::string& bucket);
+// The vertex count a bucket is named after (25k -> 25000); 0 for an unknown name.
+std::size_t NominalVertices(const std::string& bucket);
+// How messages and tables name a vertex count: "1600k" for 1600000, "6400k",
+// "5003" for a count that is not a whole number of thousands.
+std::string VertexCountName(std::size_t vertices);
+// How far a winner measured on `measured` vertices is from a mesh of `mesh`
+// vertices: max/min of the two (1 = the same count; a factor, so 25k is as far
+// from 50k as 1600k from 3200k). Both must be > 0.
+double VertexCountDistance(std::size_t measured, std::size_t mesh);
 
 // `created` is UTC ISO 8601: "YYYY-MM-DDTHH:MM:SS", optional fractional
 // seconds, then "Z" or "+00:00". Returns it, or throws Error naming it.
@@ -62,7 +74,8 @@ struct WinnersEntry {
   std::string device_type;     // "gpu", "cpu", ...; "" when the database does not say
   Lang lang = Lang::kOpenCl;
   int influences = 0;          // the variant's B
-  std::string vertex_bucket;   // VertexBucket() of the dataset
+  std::size_t vertices = 0;    // the vertex count of the dataset the winner was measured on
+  std::string vertex_bucket;   // VertexBucket(vertices), kept for readers of 1.0/1.1
   std::string dataset;         // what the winning time was measured on
   Variant variant;
   double median_ms = 0.0;
@@ -72,7 +85,7 @@ struct WinnersEntry {
   std::string source;          // that report's config and strategy, e.g. "default (exhaustive)"
 };
 
-// "<device id> <lang> b<B> <bucket>": how messages name an entry.
+// "<device id> <lang> b<B> <vertices>": how messages name an entry.
 std::string Describe(const WinnersEntry& entry);
 
 // Writes every field; vendor and device_type only when known.

@@ -122,7 +122,8 @@ struct Kernel {
   const char* device_type;     // "gpu", "cpu", ...; "" when the database does not say
   const char* lang;            // "opencl", "cuda", "glsl-compute", "glsl-vertex"
   int influences;              // B the kernel is specialised for
-  const char* vertex_bucket;   // "25k" | "100k" | "400k" | "1600k": the mesh size it won on
+  const char* vertex_bucket;   // "25k" | "100k" | "400k" | "1600k": the bucket of `vertices`
+  std::size_t vertices;        // the vertex count of the mesh it won on (one kernel per measured count)
   const char* variant;         // variant key (always `padded`: a `bucketed` winner is emitted as its padded twin)
   Layout layout;
   PositionFormat position;
@@ -160,19 +161,12 @@ inline constexpr const Kernel* kKernels = nullptr;
 
 namespace detail {
 
-inline int BucketIndex(const char* bucket) {
-  static const char* const kBuckets[] = {"25k", "100k", "400k", "1600k"};
-  for (int i = 0; i < 4; ++i)
-    if (std::strcmp(bucket, kBuckets[i]) == 0) return i;
-  return -1;
-}
-
-// The paper's vertex counts name the buckets: 25k (< 50 000), 100k (< 200 000), 400k (< 800 000), 1600k.
-inline int BucketOf(std::size_t vertex_count) {
-  if (vertex_count < 50000) return 0;
-  if (vertex_count < 200000) return 1;
-  if (vertex_count < 800000) return 2;
-  return 3;
+// How far a kernel measured on `measured` vertices is from a mesh of `mesh`: a
+// factor, max/min (25k is as far from 50k as 1600k from 3200k).
+inline double VertexCountDistance(std::size_t measured, std::size_t mesh) {
+  const double a = static_cast<double>(measured > 0 ? measured : 1);
+  const double b = static_cast<double>(mesh > 0 ? mesh : 1);
+  return a > b ? a / b : b / a;
 }
 
 inline std::uint64_t IndexCapacity(IndexFormat f) {  // joints the format can address
@@ -250,27 +244,25 @@ inline void QuantiseVertex(const float* w, int slots, std::uint32_t max, std::ui
 // kernels of `lang` ("opencl", "cuda", "glsl-compute", "glsl-vertex") whose
 // `joints` >= joint_count and whose index format can address joint_count
 // joints (u8: 256, u16: 65536), the smallest B >= influences wins, then the
-// nearest vertex bucket (the larger on a tie), then the first in kKernels.
+// nearest measured vertex count (as a factor; the larger on a tie), then the
+// first in kKernels.
 // Kernels of every device of the header take part (check k->device_id, or
 // generate one header per device). nullptr if none fits, or for a null `lang`,
 // influences < 1 or joint_count < 1. Check k->normals yourself when you skin
 // normals.
 inline const Kernel* FindKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count) {
   if (lang == nullptr || influences < 1 || joint_count < 1) return nullptr;
-  const int want = detail::BucketOf(vertex_count);
   const Kernel* best = nullptr;
-  int best_distance = 0;
+  double best_distance = 0.0;
   for (int i = 0; i < kKernelCount; ++i) {
     const Kernel& k = kKernels[i];
     if (std::strcmp(k.lang, lang) != 0 || k.influences < influences || k.joints < joint_count ||
         static_cast<std::uint64_t>(joint_count) > detail::IndexCapacity(k.index))
       continue;
-    const int bucket = detail::BucketIndex(k.vertex_bucket);
-    const int distance = bucket > want ? bucket - want : want - bucket;
+    const double distance = detail::VertexCountDistance(k.vertices, vertex_count);
     if (best == nullptr || k.influences < best->influences ||
         (k.influences == best->influences &&
-         (distance < best_distance ||
-          (distance == best_distance && bucket > detail::BucketIndex(best->vertex_bucket))))) {
+         (distance < best_distance || (distance == best_distance && k.vertices > best->vertices)))) {
       best = &k;
       best_distance = distance;
     }

@@ -4,8 +4,8 @@
 //   skintune db merge A.json B.json ... -o db.json
 //
 // Each input is a tuning report or a winners database (told apart by "kind").
-// Per device id (which includes the driver), language, influences and vertex
-// bucket the entry of the newest report (by `created`) wins. A missing or
+// Per device id (which includes the driver), language, influences and measured
+// vertex count the entry of the newest report (by `created`) wins. A missing or
 // malformed input is one error line naming the file; the output is written
 // atomically, only when every input was read.
 //

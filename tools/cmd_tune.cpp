@@ -64,7 +64,7 @@ void PrintWinners(const TuningReport& report) {
   std::map<std::string, std::string> names;
   for (const DeviceIdentity& d : report.devices) names[d.Id()] = d.name;
   std::vector<std::vector<std::string>> rows = {
-      {"device", "lang", "B", "bucket", "variant", "ms", "GB/s", "of copy"}};
+      {"device", "lang", "B", "vertices", "variant", "ms", "GB/s", "of copy"}};
   for (const Winner& w : winners) {
     char ms[32], gbps[32], fraction[32];
     std::snprintf(ms, sizeof ms, "%.3f", w.median_ms);
@@ -76,7 +76,7 @@ void PrintWinners(const TuningReport& report) {
     }
     const auto name = names.find(w.device_id);
     rows.push_back({name != names.end() ? name->second : w.device_id, Name(w.lang), std::to_string(w.influences),
-                    w.vertex_bucket, w.variant.Key(), ms, gbps, fraction});
+                    VertexCountName(w.vertices), w.variant.Key(), ms, gbps, fraction});
   }
   std::map<std::string, std::size_t> statuses;
   for (const Measurement& m : report.measurements) ++statuses[Name(m.status)];

@@ -32,16 +32,16 @@ std::string BackendOf(const TuningReport& report, const std::string& device_id) 
 nlohmann::json WinnerJson(const Winner& w) {
   return {{"device_id", w.device_id},   {"backend", w.backend},
           {"lang", Name(w.lang)},       {"influences", w.influences},
-          {"vertex_bucket", w.vertex_bucket}, {"dataset", w.dataset},
+          {"vertices", w.vertices},     {"vertex_bucket", w.vertex_bucket}, {"dataset", w.dataset},
           {"variant", w.variant},       {"median_ms", w.median_ms},
           {"gbps", w.gbps},             {"copy_fraction", w.copy_fraction}};
 }
 
-// The merge key of a winner / database entry.
-using EntryKey = std::tuple<std::string, int, int, int>;  // device id, lang, influences, bucket
+// The merge key of a winner / database entry: every measured vertex count keeps its own.
+using EntryKey = std::tuple<std::string, int, int, std::size_t>;  // device id, lang, influences, vertices
 
-EntryKey KeyOf(const std::string& device_id, Lang lang, int influences, const std::string& bucket) {
-  return {device_id, static_cast<int>(lang), influences, VertexBucketIndex(bucket)};
+EntryKey KeyOf(const std::string& device_id, Lang lang, int influences, std::size_t vertices) {
+  return {device_id, static_cast<int>(lang), influences, vertices};
 }
 
 // The report's winners as database entries, with the device's identity (the
@@ -63,6 +63,7 @@ std::vector<WinnersEntry> EntriesOf(const TuningReport& report) {
     }
     e.lang = w.lang;
     e.influences = w.influences;
+    e.vertices = w.vertices;
     e.vertex_bucket = w.vertex_bucket;
     e.dataset = w.dataset;
     e.variant = w.variant;
@@ -92,8 +93,9 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     w.device_id = m.device_id;
     w.lang = m.variant.lang;
     w.influences = m.variant.influences;
-    w.vertex_bucket = VertexBucket(dataset->second->vertices);
-    const EntryKey key = KeyOf(w.device_id, w.lang, w.influences, w.vertex_bucket);
+    w.vertices = dataset->second->vertices;
+    w.vertex_bucket = VertexBucket(w.vertices);
+    const EntryKey key = KeyOf(w.device_id, w.lang, w.influences, w.vertices);
     const auto it = best.find(key);
     if (it != best.end() && it->second.median_ms <= m.timing.median_ms) continue;  // ties: the first one
     w.backend = BackendOf(report, m.device_id);
@@ -311,7 +313,7 @@ nlohmann::json MergeWinnersDatabases(const std::vector<nlohmann::json>& reports_
     }
     // Newest `created` wins per key; on equal `created`, the later input.
     for (WinnersEntry& e : entries) {
-      const EntryKey key = KeyOf(e.device_id, e.lang, e.influences, e.vertex_bucket);
+      const EntryKey key = KeyOf(e.device_id, e.lang, e.influences, e.vertices);
       const auto it = merged.find(key);
       if (it == merged.end() || !CreatedBefore(e.created, it->second.created)) merged.insert_or_assign(key, std::move(e));
     }

@@ -15,7 +15,7 @@
 
 namespace skintune {
 
-inline constexpr const char* kReportSchemaVersion = "1.0.0";
+inline constexpr const char* kReportSchemaVersion = "1.1.0";  // 1.1.0: winners name their measured vertex count
 
 struct DatasetInfo {
   std::string key;
@@ -44,7 +44,8 @@ struct Winner {
   std::string backend;       // "opencl", "cuda", "gl"
   Lang lang = Lang::kOpenCl;
   int influences = 0;
-  std::string vertex_bucket;
+  std::size_t vertices = 0;   // the dataset's vertex count: every measured count keeps its winner
+  std::string vertex_bucket;  // VertexBucket(vertices)
   std::string dataset;
   Variant variant;
   double median_ms = 0.0;
@@ -53,7 +54,7 @@ struct Winner {
 };
 
 // The fastest status-ok measurement per (device, language, influences,
-// vertex bucket). A variant that failed verification is never a winner.
+// measured vertex count). A variant that failed verification is never a winner.
 std::vector<Winner> ComputeWinners(const TuningReport& report);
 
 nlohmann::json ReportToJson(const TuningReport& report);
@@ -65,7 +66,7 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
 nlohmann::json ReportToT4(const TuningReport& report);
 
 // Winners database (runtime/winners_db.h): {"schema_version", "kind": "skintune-winners-db",
-// "entries": [...]}, one entry per (device id with driver, language, influences, vertex bucket),
+// "entries": [...]}, one entry per (device id with driver, language, influences, measured vertex count),
 // each naming the device's platform, vendor, name, driver and type. Merging takes reports and/or
 // databases; for the same device+driver the newest report wins (by `created`).
 nlohmann::json WinnersDatabase(const TuningReport& report);

@@ -89,6 +89,7 @@ TEST(EmbedHeader, ListsEveryWinnerOfTheDatabaseInItsOrderWithItsDeviceAndTimes) 
     EXPECT_EQ(k.lang, std::string(skintune::Name(e.lang))) << i;
     EXPECT_EQ(k.influences, e.influences) << i;
     EXPECT_EQ(k.vertex_bucket, e.vertex_bucket) << i;
+    EXPECT_EQ(k.vertices, e.vertices) << i;
     EXPECT_EQ(k.dataset, e.dataset) << i;
     EXPECT_EQ(k.median_ms, e.median_ms) << i;
     EXPECT_EQ(k.gbps, e.gbps) << i;
@@ -600,6 +601,7 @@ EmbeddedKernel Embedded(const std::string& key, const std::string& bucket, int j
   k.entry.lang = k.variant.lang;
   k.entry.influences = k.variant.influences;
   k.entry.vertex_bucket = bucket;
+  k.entry.vertices = NominalVertices(bucket);
   k.entry.dataset = "d";
   k.entry.variant = k.variant;
   k.source = Emit(k.variant, 0, joints);

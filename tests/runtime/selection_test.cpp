@@ -45,6 +45,7 @@ WinnersEntry Entry(const std::string& device_id, const std::string& vendor, cons
   e.lang = e.variant.lang;
   e.influences = e.variant.influences;
   e.vertex_bucket = bucket;
+  e.vertices = NominalVertices(bucket);
   e.dataset = bucket + "-b" + std::to_string(e.influences);
   e.median_ms = ms;
   e.created = "2025-01-31T12:00:00Z";
@@ -141,6 +142,24 @@ TEST(Selection, SmallestSufficientInfluencesWinThenTheNearestBucket) {
   EXPECT_EQ(Find(Db({small, mid, big}), 2, 1000).variant, small.variant.Key());
   EXPECT_EQ(Find(Db({small, mid, big}), 2, 100000).variant, mid.variant.Key());
   EXPECT_EQ(Find(Db({small, big}), 2, 300000).variant, big.variant.Key());
+}
+
+TEST(Selection, EveryMeasuredVertexCountKeepsItsWinnerAndTheNearestAsAFactorIsTaken) {
+  const std::string id = ThisDevice().id;
+  // 1600k and 6400k are one bucket; each keeps its own winner (database 1.2.0).
+  WinnersEntry at1600k = Entry(id, "Example", "gpu", "opencl.b4.wg64", "1600k");
+  WinnersEntry at6400k = Entry(id, "Example", "gpu", "opencl.b4.wg256", "1600k");
+  at6400k.vertices = 6400000;
+  at6400k.dataset = "6400k-b4";
+  const WinnersDb db = Db({at1600k, at6400k});
+  EXPECT_EQ(Find(db, 4, 1600000).variant, at1600k.variant.Key());
+  EXPECT_EQ(Find(db, 4, 3000000).variant, at1600k.variant.Key());  // 1.9x from 1600k, 2.1x from 6400k
+  EXPECT_EQ(Find(db, 4, 3300000).variant, at6400k.variant.Key());  // 2.06x from 1600k, 1.94x from 6400k
+  const Selection s = Find(db, 4, 9000000);
+  EXPECT_EQ(s.variant, at6400k.variant.Key());
+  EXPECT_NE(s.reason.find("tuned for b4 at 6400k vertices"), std::string::npos) << s.reason;
+  // The same count exactly: no "tuned for" note.
+  EXPECT_EQ(Find(db, 4, 6400000).reason.find("tuned for"), std::string::npos);
 }
 
 TEST(Selection, NewestDriverWinsAmongSameNameEntries) {

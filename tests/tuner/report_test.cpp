@@ -63,14 +63,15 @@ TEST(Report, JsonRoundTrip) {
   EXPECT_EQ(ReportToJson(back), j);
 }
 
-TEST(Report, WinnersAreTheFastestOkPerDeviceLanguageInfluencesAndBucket) {
+TEST(Report, WinnersAreTheFastestOkPerDeviceLanguageInfluencesAndVertexCount) {
   const TuningReport r = testing::SampleReport();
   const std::vector<Winner> winners = ComputeWinners(r);
   // opencl 100k b4, opencl 25k b4, cuda 100k b4, opencl 1600k b1 (1600k b2 only failed).
   ASSERT_EQ(winners.size(), 4u);
   std::map<std::string, const Winner*> by_key;
   for (const Winner& w : winners) {
-    by_key[w.device_id + "|" + Name(w.lang) + "|" + std::to_string(w.influences) + "|" + w.vertex_bucket] = &w;
+    by_key[w.device_id + "|" + Name(w.lang) + "|" + std::to_string(w.influences) + "|" + VertexCountName(w.vertices)] = &w;
+    EXPECT_EQ(w.vertex_bucket, VertexBucket(w.vertices));
   }
   const std::string gpu = testing::SampleGpu().Id();
   const std::string cuda = testing::SampleCuda().Id();
@@ -85,7 +86,7 @@ TEST(Report, WinnersAreTheFastestOkPerDeviceLanguageInfluencesAndBucket) {
           m.variant.influences != w.influences)
         continue;
       for (const DatasetInfo& d : r.datasets)
-        if (d.key == m.dataset && VertexBucket(d.vertices) == w.vertex_bucket) fastest = std::min(fastest, m.timing.median_ms);
+        if (d.key == m.dataset && d.vertices == w.vertices) fastest = std::min(fastest, m.timing.median_ms);
     }
     EXPECT_EQ(w.median_ms, fastest) << w.variant.Key();
   }
@@ -95,6 +96,44 @@ TEST(Report, WinnersAreTheFastestOkPerDeviceLanguageInfluencesAndBucket) {
   EXPECT_DOUBLE_EQ(g.copy_fraction, g.gbps / 2000.0);
   EXPECT_EQ(by_key[cuda + "|cuda|4|100k"]->copy_fraction, 0.0);  // copy bandwidth unknown
   EXPECT_EQ(by_key[cuda + "|cuda|4|100k"]->backend, "cuda");
+}
+
+TEST(Report, EveryMeasuredVertexCountKeepsItsWinnerInTheReportAndTheDatabase) {
+  // 1600k and 6400k share the 1600k bucket; until database 1.2.0 only one of them was kept.
+  TuningReport r = testing::SampleReport();
+  const Winner at1600k = [&] {
+    for (const Winner& w : ComputeWinners(r))
+      if (w.vertices == 1600000) return w;
+    ADD_FAILURE() << "the sample has no 1600k winner";
+    return Winner{};
+  }();
+  r.datasets.push_back({"6400k-b1", 6400000, 1, 77});
+  for (Measurement m : std::vector<Measurement>(r.measurements)) {
+    if (m.dataset != at1600k.dataset) continue;
+    m.dataset = "6400k-b1";
+    m.timing.median_ms *= 4.0;
+    m.timing.min_ms *= 4.0;
+    m.timing.max_ms *= 4.0;
+    m.bytes_per_frame *= 4.0;  // four times the vertices: the same GB/s
+    r.measurements.push_back(m);
+  }
+  std::map<std::size_t, int> per_count;
+  for (const Winner& w : ComputeWinners(r))
+    if (w.device_id == at1600k.device_id && w.lang == at1600k.lang && w.influences == at1600k.influences) ++per_count[w.vertices];
+  EXPECT_EQ(per_count[1600000], 1);
+  EXPECT_EQ(per_count[6400000], 1);
+  const std::vector<WinnersEntry> db = WinnersDbFromJson(WinnersDatabase(r), "db.json");
+  int entries = 0;
+  for (const WinnersEntry& e : db) {
+    if (e.device_id != at1600k.device_id || e.lang != at1600k.lang || e.influences != at1600k.influences) continue;
+    ++entries;
+    EXPECT_EQ(e.vertex_bucket, "1600k");
+    EXPECT_TRUE(e.vertices == 1600000 || e.vertices == 6400000) << e.vertices;
+  }
+  EXPECT_EQ(entries, 2);
+  // Merging the database with itself keeps both.
+  const nlohmann::json merged = MergeWinnersDatabases({WinnersDatabase(r), WinnersDatabase(r)}, {"a.json", "b.json"});
+  EXPECT_EQ(merged["entries"].size(), WinnersDatabase(r)["entries"].size());
 }
 
 TEST(Report, FailedVariantsAreNeverWinners) {
