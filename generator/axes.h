@@ -40,7 +40,7 @@ enum class AxisKind {
 struct AxisValueSpec {
   int code = 0;                // the field's value as an int: the enumerator, the number, 0 / 1
   const char* name = nullptr;  // in keys, JSON, configs and reports (numbers: none, written as digits)
-  const char* token = nullptr; // in keys, when not `name`
+  const char* token = nullptr;  // in keys, when not `name`
   int define = 0;              // the value of the axis's #define in kernels
 };
 
@@ -117,13 +117,13 @@ enum class Covering {
 enum class Chart {
   kUnset,
   kNo,   // not charted (fixed by the chart's language or data set, or not tuned there)
-  kYes,  // one row of bars per value in the report's "what each axis does" chart
+  kYes,  // a bar per value in the report's "what each variant axis costs" chart
 };
 
 struct Axis {
-  const char* name;    // Variant's field, the JSON field, the config axis, the report's label
-  AxisField field;     // FieldOf<&Variant::name>()
-  AxisValueList values;   // the full space (TuningSpace::Full)
+  const char* name;      // Variant's field, the JSON field, the config axis, the report's label
+  AxisField field;       // FieldOf<&Variant::name>()
+  AxisValueList values;  // the full space (TuningSpace::Full)
   // Key: enum and flag values by their token; numbers as key_prefix + digits.
   const char* key_prefix = "";
   // The token is glued to the previous axis's ("v2" + "c" = v2c), and the
