@@ -1,74 +1,84 @@
 #include "generator/covering.h"
 
+#include <algorithm>
 #include <array>
+#include <iterator>
 #include <set>
+
+#include "generator/axes.h"
 
 namespace skintune {
 
 namespace {
 
-// The six paired axes, as small integer codes per variant.
-constexpr int kAxes = 6;
-constexpr std::array<int, kAxes> kSizes = {3, 3, 3, 2, 4, 2};  // layout, index, weight, palette, storage, blend
-constexpr std::array<const char*, kAxes> kAxisNames = {"layout", "index", "weight", "palette", "storage", "blend"};
+// The paired axes (Covering::kPaired in generator/axes.h), in table order;
+// a row holds one value index per paired axis.
+constexpr std::size_t kPairedCount = static_cast<std::size_t>(
+    std::count_if(std::begin(kAxes), std::end(kAxes), [](const Axis& a) { return a.covering == Covering::kPaired; }));
+constexpr std::array<std::size_t, kPairedCount> kPaired = [] {
+  std::array<std::size_t, kPairedCount> paired{};
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < kAxisCount; ++i)
+    if (kAxes[i].covering == Covering::kPaired) paired[n++] = i;
+  return paired;
+}();
 
-using Row = std::array<int, kAxes>;
+using Row = std::array<int, kPairedCount>;
+
+const Axis& PairedAxis(std::size_t k) { return kAxes[kPaired[k]]; }
 
 Variant FromRow(Lang lang, const Row& r) {
   Variant v;
   v.lang = lang;
-  v.layout = static_cast<Layout>(r[0]);
-  v.index = static_cast<IndexFormat>(r[1]);
-  v.weight = static_cast<WeightFormat>(r[2]);
-  v.palette = static_cast<PaletteFormat>(r[3]);
-  v.storage = static_cast<PaletteStorage>(r[4]);
-  v.blend = static_cast<Blend>(r[5]);
-  if (lang == Lang::kGlslVertex) v.wg_size = 0;
-  return v;
+  for (std::size_t k = 0; k < kPairedCount; ++k) PairedAxis(k).Set(v, PairedAxis(k).values[r[k]].code);
+  return CollapseWorkGroups(v);
 }
 
-std::string ValueName(int axis, int value) {
-  switch (axis) {
-    case 0: return Name(static_cast<Layout>(value));
-    case 1: return Name(static_cast<IndexFormat>(value));
-    case 2: return Name(static_cast<WeightFormat>(value));
-    case 3: return Name(static_cast<PaletteFormat>(value));
-    case 4: return Name(static_cast<PaletteStorage>(value));
-    default: return Name(static_cast<Blend>(value));
-  }
-}
+std::string ValueName(std::size_t k, int value) { return PairedAxis(k).values[value].name; }
 
 // A pair key: (axis a, value x, axis b, value y) with a < b.
 using Pair = std::array<int, 4>;
 
 std::set<Pair> PairsOf(const Row& r) {
   std::set<Pair> pairs;
-  for (int a = 0; a < kAxes; ++a)
-    for (int b = a + 1; b < kAxes; ++b) pairs.insert({a, r[a], b, r[b]});
+  for (std::size_t a = 0; a < kPairedCount; ++a)
+    for (std::size_t b = a + 1; b < kPairedCount; ++b)
+      pairs.insert({static_cast<int>(a), r[a], static_cast<int>(b), r[b]});
   return pairs;
 }
 
+// Every row, the last paired axis fastest.
 std::vector<Row> AllRows() {
   std::vector<Row> rows;
   Row r{};
-  for (r[0] = 0; r[0] < kSizes[0]; ++r[0]) for (r[1] = 0; r[1] < kSizes[1]; ++r[1])
-  for (r[2] = 0; r[2] < kSizes[2]; ++r[2]) for (r[3] = 0; r[3] < kSizes[3]; ++r[3])
-  for (r[4] = 0; r[4] < kSizes[4]; ++r[4]) for (r[5] = 0; r[5] < kSizes[5]; ++r[5]) rows.push_back(r);
-  return rows;
+  for (;;) {
+    rows.push_back(r);
+    std::size_t k = kPairedCount;
+    do {
+      if (k == 0) return rows;
+      --k;
+      r[k] = (r[k] + 1) % static_cast<int>(PairedAxis(k).values.size());
+    } while (r[k] == 0);
+  }
 }
 
-// Fills the other axes round-robin (row number i), keeping the variant valid.
+// Fills the rotated axes round-robin (row number i), keeping the variant valid.
 Variant Complete(Variant v, std::size_t i, const DeviceLimits& device, const ProblemShape& shape,
                  const std::vector<int>& wgs) {
-  static constexpr int kVpi[] = {1, 2, 4, 8};
-  v.influences = std::max(shape.max_influences, static_cast<int>(i % 8) + 1);
-  v.mixed = i % 2 ? MixedCounts::kBucketed : MixedCounts::kPadded;
-  v.position = (i / 2) % 2 ? PositionFormat::kFloat3 : PositionFormat::kFloat4;
-  v.normals = shape.has_normals && (i / 3) % 2 == 1;
-  if (v.lang != Lang::kGlslVertex) {
-    v.vertices_per_item = kVpi[i % 4];
-    v.assignment = v.vertices_per_item > 1 && (i / 4) % 2 ? Assignment::kStrided : Assignment::kContiguous;
-    v.wg_size = wgs.empty() ? 128 : wgs[i % wgs.size()];
+  constexpr std::size_t kWg = AxisIndex<&Variant::wg_size>();
+  for (std::size_t a = 0; a < kAxisCount; ++a) {
+    const Axis& axis = kAxes[a];
+    if (axis.covering != Covering::kRotated || (axis.without_work_groups && !HasWorkGroups(v.lang))) continue;
+    std::vector<int> codes;
+    for (const AxisValueSpec& value : axis.values) codes.push_back(value.code);
+    if (a == kWg) codes = wgs.empty() ? std::vector<int>{128} : wgs;  // the caller's sizes
+    axis.Set(v, codes[(i / static_cast<std::size_t>(axis.covering_step)) % codes.size()]);
+  }
+  // What the problem and the other axes allow.
+  v.influences = std::max(shape.max_influences, v.influences);
+  v.normals = v.normals && shape.has_normals;
+  if (v.vertices_per_item == 1) v.assignment = Assignment::kContiguous;
+  if (HasWorkGroups(v.lang)) {
     for (std::size_t k = 0; k < wgs.size() && !CheckVariant(v, device, shape).empty(); ++k)
       v.wg_size = wgs[(i + k + 1) % wgs.size()];
   }
@@ -95,8 +105,9 @@ CoveringSet BuildCoveringSet(Lang lang, const DeviceLimits& device, const Proble
   CoveringSet result;
   for (const Pair& p : wanted) {
     if (!coverable.count(p)) {
-      result.uncoverable.push_back(std::string(kAxisNames[p[0]]) + "=" + ValueName(p[0], p[1]) + " & " +
-                                   kAxisNames[p[2]] + "=" + ValueName(p[2], p[3]));
+      const auto a = static_cast<std::size_t>(p[0]), b = static_cast<std::size_t>(p[2]);
+      result.uncoverable.push_back(std::string(PairedAxis(a).name) + "=" + ValueName(a, p[1]) + " & " +
+                                   PairedAxis(b).name + "=" + ValueName(b, p[3]));
     }
   }
   // Greedy: take the candidate covering the most still-uncovered pairs.

@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "generator/axes.h"
 #include "generator/packer.h"
 #include "reference/error.h"
 #include "reference/mesh.h"
@@ -22,29 +23,20 @@ extern const std::size_t kEmbeddedTemplateCount;
 
 namespace {
 
-int Code(Layout l) { return static_cast<int>(l); }                    // 0 aos, 1 soa, 2 soa-split
-int Code(IndexFormat f) { return static_cast<int>(f); }               // 0 i32, 1 u16, 2 u8
-int Code(WeightFormat f) { return static_cast<int>(f); }              // 0 f32, 1 unorm16, 2 unorm8
-int Code(PaletteStorage s) { return static_cast<int>(s); }            // 0 constant, 1 local, 2 global, 3 image
-int PaletteRows(PaletteFormat f) { return f == PaletteFormat::kMat4 ? 4 : 3; }
+// float4 rows per joint: the PALETTE_ROWS the table gives the kernels.
+int PaletteRows(PaletteFormat f) { return DefineValue(AxisOf<&Variant::palette>(), static_cast<int>(f)); }
 
 std::vector<std::pair<std::string, long long>> ParameterDefines(const Variant& v, int b, int joints,
                                                                 const EmitOptions& options) {
-  std::vector<std::pair<std::string, long long>> d = {
-      {"INFLUENCES", b},
-      {"LAYOUT", Code(v.layout)},
-      {"POSITION_FLOAT4", v.position == PositionFormat::kFloat4 ? 1 : 0},
-      {"INDEX_FORMAT", Code(v.index)},
-      {"WEIGHT_FORMAT", Code(v.weight)},
-      {"PALETTE_ROWS", PaletteRows(v.palette)},
-      {"STORAGE", Code(v.storage)},
-  };
-  if (joints > 0) d.emplace_back("JOINTS", joints);
-  d.emplace_back("BLEND_POINT", v.blend == Blend::kPoint ? 1 : 0);
-  d.emplace_back("VERTICES_PER_ITEM", v.vertices_per_item);
-  d.emplace_back("STRIDED", v.assignment == Assignment::kStrided ? 1 : 0);
-  d.emplace_back("WG_SIZE", v.wg_size);
-  d.emplace_back("NORMALS", v.normals ? 1 : 0);
+  std::vector<std::pair<std::string, long long>> d;
+  Variant kernel = v;
+  kernel.influences = b;  // a bucket's kernel is specialised for its count
+  for (std::size_t i = 0; i < kAxisCount; ++i) {
+    const Axis& a = kAxes[i];
+    if (*a.define != '\0') d.emplace_back(a.define, DefineValue(a, a.Get(kernel)));
+    // JOINTS has always followed the palette's STORAGE (the golden kernels keep that order).
+    if (i == AxisIndex<&Variant::storage>() && joints > 0) d.emplace_back("JOINTS", joints);
+  }
   if (v.layout == Layout::kSoaSplit) d.emplace_back("SLOT_STRIDE_MULTIPLE", SoaSplitSlotStride(1, v));
   if (v.layout == Layout::kAos) {
     const RecordLayout r = AosRecordLayout(v, b);

@@ -1,123 +1,145 @@
 #include "generator/space.h"
 
+#include <array>
+#include <optional>
+#include <utility>
+
 #include <nlohmann/json.hpp>
 
+#include "generator/axes.h"
 #include "reference/error.h"
 
 namespace skintune {
 
 namespace {
 
-template <typename E, std::size_t N>
-std::vector<E> All() {
-  std::vector<E> values;
-  for (std::size_t i = 0; i < N; ++i) values.push_back(static_cast<E>(i));
-  return values;
+// Each list as axis codes (generator/axes.h), in table order.
+using Codes = std::vector<int>;
+using SpaceCodes = std::array<Codes, kAxisCount>;
+
+using SpaceListRefs = decltype(SpaceLists(std::declval<TuningSpace&>()));
+static_assert(std::tuple_size_v<SpaceListRefs> == kAxisCount, "TuningSpace needs one list per axis");
+static_assert([]<std::size_t... I>(std::index_sequence<I...>) {
+  return (std::is_same_v<typename std::remove_reference_t<std::tuple_element_t<I, SpaceListRefs>>::value_type,
+                         std::remove_reference_t<std::tuple_element_t<I, VariantFieldRefs>>> && ...);
+}(std::make_index_sequence<kAxisCount>{}), "TuningSpace's list i holds values of Variant's field i");
+
+// Calls visit(i, list i) for every list.
+template <typename Space, typename Visit>
+void ForEachList(Space& s, Visit&& visit) {
+  std::apply([&](auto&... lists) {
+    std::size_t i = 0;
+    (visit(i++, lists), ...);
+  }, SpaceLists(s));
 }
 
-// Parses one enum axis: a list of value names.
-template <typename E, std::size_t N>
-std::vector<E> EnumAxis(const nlohmann::json& list, const std::string& where) {
-  std::vector<E> values;
+SpaceCodes CodesOf(const TuningSpace& s) {
+  SpaceCodes codes;
+  ForEachList(s, [&](std::size_t i, const auto& list) {
+    for (auto value : list) codes[i].push_back(static_cast<int>(value));
+  });
+  return codes;
+}
+
+void SetList(TuningSpace& s, std::size_t axis, const Codes& codes) {
+  ForEachList(s, [&](std::size_t i, auto& list) {
+    if (i != axis) return;
+    using T = typename std::remove_reference_t<decltype(list)>::value_type;
+    list.clear();
+    for (int code : codes) list.push_back(static_cast<T>(code));
+  });
+}
+
+// The lists one language enumerates: without work-groups, those axes take their one value.
+SpaceCodes ForLanguage(SpaceCodes codes, int lang) {
+  constexpr std::size_t kLang = AxisIndex<&Variant::lang>();
+  codes[kLang] = {lang};
+  if (HasWorkGroups(static_cast<Lang>(lang))) return codes;
+  for (std::size_t i = 0; i < kAxisCount; ++i)
+    if (kAxes[i].without_work_groups) codes[i] = {*kAxes[i].without_work_groups};
+  return codes;
+}
+
+// Every combination, the last axis fastest.
+void Odometer(const SpaceCodes& lists, const std::function<void(const Variant&)>& visit) {
+  for (const Codes& list : lists)
+    if (list.empty()) return;
+  std::array<std::size_t, kAxisCount> at{};
+  Variant v;
+  for (std::size_t i = 0; i < kAxisCount; ++i) kAxes[i].Set(v, lists[i][0]);
+  for (;;) {
+    visit(v);
+    std::size_t a = kAxisCount;
+    do {
+      if (a == 0) return;
+      --a;
+      at[a] = (at[a] + 1) % lists[a].size();
+      kAxes[a].Set(v, lists[a][at[a]]);
+    } while (at[a] == 0);
+  }
+}
+
+// One axis's list from a config: value names, integers, or true / false.
+Codes ReadList(const Axis& axis, const nlohmann::json& list, const std::string& where) {
+  Codes codes;
   for (std::size_t i = 0; i < list.size(); ++i) {
     const std::string item_where = where + "[" + std::to_string(i) + "]";
-    if (!list[i].is_string()) throw Error(item_where + ": expected a string");
-    bool found = false;
-    for (E e : All<E, N>()) {
-      if (list[i].get<std::string>() == Name(e)) {
-        values.push_back(e);
-        found = true;
+    const nlohmann::json& item = list[i];
+    if (axis.field.kind == AxisKind::kNumber) {
+      if (!item.is_number_integer()) throw Error(item_where + ": expected an integer");
+      codes.push_back(item.get<int>());
+    } else if (axis.field.kind == AxisKind::kFlag) {
+      if (!item.is_boolean()) throw Error(item_where + ": expected true or false");
+      codes.push_back(item.get<bool>() ? 1 : 0);
+    } else {
+      if (!item.is_string()) throw Error(item_where + ": expected a string");
+      const std::optional<int> code = CodeNamed(axis, item.get<std::string>());
+      if (!code) {
+        throw Error(item_where + ": unknown value '" + item.get<std::string>() + "' (expected one of " +
+                    Choices(axis) + ")");
       }
-    }
-    if (!found) {
-      std::string choices;
-      for (E e : All<E, N>()) choices += (choices.empty() ? "" : ", ") + std::string(Name(e));
-      throw Error(item_where + ": unknown value '" + list[i].get<std::string>() + "' (expected one of " + choices +
-                  ")");
+      codes.push_back(*code);
     }
   }
-  return values;
+  return codes;
 }
 
-std::vector<int> IntAxis(const nlohmann::json& list, const std::string& where) {
-  std::vector<int> values;
-  for (std::size_t i = 0; i < list.size(); ++i) {
-    if (!list[i].is_number_integer()) throw Error(where + "[" + std::to_string(i) + "]: expected an integer");
-    values.push_back(list[i].get<int>());
-  }
-  return values;
-}
-
-template <typename E>
-nlohmann::json Names(const std::vector<E>& values) {
-  nlohmann::json list = nlohmann::json::array();
-  for (E e : values) list.push_back(Name(e));
-  return list;
+std::string AxisNames() {
+  std::string names;
+  for (const Axis& a : kAxes) names += (names.empty() ? "" : ", ") + std::string(a.name);
+  return names;
 }
 
 }  // namespace
 
 TuningSpace TuningSpace::Full() {
   TuningSpace s;
-  s.langs = All<Lang, 4>();
-  s.influences = {1, 2, 3, 4, 5, 6, 7, 8};
-  s.mixed = All<MixedCounts, 2>();
-  s.layouts = All<Layout, 3>();
-  s.positions = All<PositionFormat, 2>();
-  s.indices = All<IndexFormat, 3>();
-  s.weights = All<WeightFormat, 3>();
-  s.palettes = All<PaletteFormat, 2>();
-  s.storages = All<PaletteStorage, 4>();
-  s.blends = All<Blend, 2>();
-  s.vertices_per_item = {1, 2, 4, 8};
-  s.assignments = All<Assignment, 2>();
-  s.wg_sizes = {32, 64, 128, 256, 512, 1024};
-  s.normals = {false, true};
+  for (std::size_t i = 0; i < kAxisCount; ++i) {
+    Codes codes;
+    for (const AxisValueSpec& value : kAxes[i].values) codes.push_back(value.code);
+    SetList(s, i, codes);
+  }
   return s;
 }
 
 void TuningSpace::Validate(const std::string& context) const {
-  const std::pair<const char*, std::size_t> axes[] = {
-      {"lang", langs.size()},         {"influences", influences.size()},
-      {"mixed", mixed.size()},        {"layout", layouts.size()},
-      {"position", positions.size()}, {"index", indices.size()},
-      {"weight", weights.size()},     {"palette", palettes.size()},
-      {"storage", storages.size()},   {"blend", blends.size()},
-      {"vertices_per_item", vertices_per_item.size()},
-      {"assignment", assignments.size()}, {"wg_size", wg_sizes.size()},
-      {"normals", normals.size()}};
-  for (const auto& [name, size] : axes) {
-    if (size == 0) throw Error(context + ": space." + name + " is empty");
-  }
+  ForEachList(*this, [&](std::size_t i, const auto& list) {
+    if (list.empty()) throw Error(context + ": space." + kAxes[i].name + " is empty");
+  });
 }
 
 void TuningSpace::ForEach(const std::function<void(const Variant&)>& visit) const {
-  Variant v;
-  for (Lang lang : langs) {
-    v.lang = lang;
-    const bool no_groups = lang == Lang::kGlslVertex;
-    const std::vector<int> wgs = no_groups ? std::vector<int>{0} : wg_sizes;
-    const std::vector<int> vpis = no_groups ? std::vector<int>{1} : vertices_per_item;
-    const std::vector<Assignment> assigns = no_groups ? std::vector<Assignment>{Assignment::kContiguous} : assignments;
-    for (int b : influences) for (MixedCounts m : mixed) for (Layout l : layouts) for (PositionFormat p : positions)
-    for (IndexFormat i : indices) for (WeightFormat w : weights) for (PaletteFormat pf : palettes)
-    for (PaletteStorage st : storages) for (Blend bl : blends) for (int vpi : vpis) for (Assignment a : assigns)
-    for (int wg : wgs) for (bool n : normals) {
-      v.influences = b; v.mixed = m; v.layout = l; v.position = p; v.index = i; v.weight = w; v.palette = pf;
-      v.storage = st; v.blend = bl; v.vertices_per_item = vpi; v.assignment = a; v.wg_size = wg; v.normals = n;
-      visit(v);
-    }
-  }
+  const SpaceCodes codes = CodesOf(*this);
+  for (int lang : codes[AxisIndex<&Variant::lang>()]) Odometer(ForLanguage(codes, lang), visit);
 }
 
 std::uint64_t TuningSpace::Size() const {
-  const std::uint64_t shared = influences.size() * mixed.size() * layouts.size() * positions.size() *
-                               indices.size() * weights.size() * palettes.size() * storages.size() *
-                               blends.size() * normals.size();
+  const SpaceCodes codes = CodesOf(*this);
   std::uint64_t total = 0;
-  for (Lang lang : langs) {
-    total += lang == Lang::kGlslVertex ? shared
-                                       : shared * vertices_per_item.size() * assignments.size() * wg_sizes.size();
+  for (int lang : codes[AxisIndex<&Variant::lang>()]) {
+    std::uint64_t points = 1;
+    for (const Codes& list : ForLanguage(codes, lang)) points *= list.size();
+    total += points;
   }
   return total;
 }
@@ -125,45 +147,25 @@ std::uint64_t TuningSpace::Size() const {
 TuningSpace SpaceFromJson(const nlohmann::json& in, const std::string& context) {
   if (!in.is_object()) throw Error(context + ": space must be an object of axis -> list of values");
   TuningSpace s = TuningSpace::Full();
-  for (const auto& [axis, list] : in.items()) {
-    const std::string where = context + ": space." + axis;
+  for (const auto& [name, list] : in.items()) {
+    const std::string where = context + ": space." + name;
     if (!list.is_array()) throw Error(where + ": expected a list of values");
-    if (axis == "lang") s.langs = EnumAxis<Lang, 4>(list, where);
-    else if (axis == "influences") s.influences = IntAxis(list, where);
-    else if (axis == "mixed") s.mixed = EnumAxis<MixedCounts, 2>(list, where);
-    else if (axis == "layout") s.layouts = EnumAxis<Layout, 3>(list, where);
-    else if (axis == "position") s.positions = EnumAxis<PositionFormat, 2>(list, where);
-    else if (axis == "index") s.indices = EnumAxis<IndexFormat, 3>(list, where);
-    else if (axis == "weight") s.weights = EnumAxis<WeightFormat, 3>(list, where);
-    else if (axis == "palette") s.palettes = EnumAxis<PaletteFormat, 2>(list, where);
-    else if (axis == "storage") s.storages = EnumAxis<PaletteStorage, 4>(list, where);
-    else if (axis == "blend") s.blends = EnumAxis<Blend, 2>(list, where);
-    else if (axis == "vertices_per_item") s.vertices_per_item = IntAxis(list, where);
-    else if (axis == "assignment") s.assignments = EnumAxis<Assignment, 2>(list, where);
-    else if (axis == "wg_size") s.wg_sizes = IntAxis(list, where);
-    else if (axis == "normals") {
-      s.normals.clear();
-      for (std::size_t i = 0; i < list.size(); ++i) {
-        if (!list[i].is_boolean()) throw Error(where + "[" + std::to_string(i) + "]: expected true or false");
-        s.normals.push_back(list[i].get<bool>());
-      }
-    } else {
-      throw Error(where + ": unknown axis (expected lang, influences, mixed, layout, position, index, weight, "
-                          "palette, storage, blend, vertices_per_item, assignment, wg_size, normals)");
-    }
+    const std::optional<std::size_t> axis = AxisNamed(name);
+    if (!axis) throw Error(where + ": unknown axis (expected " + AxisNames() + ")");
+    SetList(s, *axis, ReadList(kAxes[*axis], list, where));
   }
   s.Validate(context);
   return s;
 }
 
 void to_json(nlohmann::json& out, const TuningSpace& s) {
-  out = {{"lang", Names(s.langs)},           {"influences", s.influences},
-         {"mixed", Names(s.mixed)},          {"layout", Names(s.layouts)},
-         {"position", Names(s.positions)},   {"index", Names(s.indices)},
-         {"weight", Names(s.weights)},       {"palette", Names(s.palettes)},
-         {"storage", Names(s.storages)},     {"blend", Names(s.blends)},
-         {"vertices_per_item", s.vertices_per_item}, {"assignment", Names(s.assignments)},
-         {"wg_size", s.wg_sizes},            {"normals", s.normals}};
+  const SpaceCodes codes = CodesOf(s);
+  out = nlohmann::json::object();
+  for (std::size_t i = 0; i < kAxisCount; ++i) {
+    nlohmann::json list = nlohmann::json::array();
+    for (int code : codes[i]) list.push_back(ValueJson(kAxes[i], code));
+    out[kAxes[i].name] = list;
+  }
 }
 
 SpaceCount Enumerate(const TuningSpace& space, const DeviceLimits& device, const ProblemShape& shape,

@@ -7,10 +7,13 @@
 // vertices_per_item/assignment axes collapse to wg0 / v1c.
 #pragma once
 
+#include <concepts>
 #include <cstdint>
 #include <functional>
 #include <map>
 #include <string>
+#include <tuple>
+#include <type_traits>
 #include <vector>
 
 #include <nlohmann/json_fwd.hpp>
@@ -45,6 +48,18 @@ struct TuningSpace {
   // Calls `visit` for every point (before constraints), in a fixed order.
   void ForEach(const std::function<void(const Variant&)>& visit) const;
 };
+
+// The lists in field order: list i holds values of Variant's field i, so of
+// axis i (generator/axes.h). A list added without its axis, or an axis
+// without its list, fails the build in space.cpp.
+template <typename T>
+  requires std::same_as<std::remove_const_t<T>, TuningSpace>
+constexpr auto SpaceLists(T& s) {
+  auto& [langs, influences, mixed, layouts, positions, indices, weights, palettes, storages, blends,
+         vertices_per_item, assignments, wg_sizes, normals] = s;
+  return std::tie(langs, influences, mixed, layouts, positions, indices, weights, palettes, storages, blends,
+                  vertices_per_item, assignments, wg_sizes, normals);
+}
 
 // Reads a space from JSON; unknown axes and values throw Error("<context>: space.<axis>[i]: ...").
 TuningSpace SpaceFromJson(const nlohmann::json& in, const std::string& context);

@@ -11,12 +11,17 @@
 // e.g. "opencl.b4.padded.soa-split.float4.u16.unorm16.mat3x4.local.matrix.v2c.wg256.nonormals".
 // Every token is unique across axes, so ParseVariantKey accepts the tokens in
 // any order; omitted axes take their default (Variant{}), so "cuda.b2" is a key.
+// The axes, their values and tokens are the table in generator/axes.h.
 #pragma once
 
+#include <concepts>
 #include <cstddef>
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <tuple>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json_fwd.hpp>
@@ -62,17 +67,40 @@ void to_json(nlohmann::json& out, const Variant& v);
 // Throws Error naming the field for a missing/unknown value.
 void from_json(const nlohmann::json& in, Variant& v);
 
-// Names of axis values, as used in keys, JSON and configs.
-const char* Name(Lang);
-const char* Name(MixedCounts);
-const char* Name(Layout);
-const char* Name(PositionFormat);
-const char* Name(IndexFormat);
-const char* Name(WeightFormat);
-const char* Name(PaletteFormat);
-const char* Name(PaletteStorage);
-const char* Name(Blend);
-const char* Name(Assignment);
+// Variant's fields in declaration order: axis i of the table in
+// generator/axes.h reads field i. A field added to Variant stops this
+// compiling until it is named here, and then axes.cpp's static_asserts until
+// it has its axis.
+template <typename T>
+  requires std::same_as<std::remove_const_t<T>, Variant>
+constexpr auto VariantFields(T& v) {
+  auto& [lang, influences, mixed, layout, position, index, weight, palette, storage, blend, vertices_per_item,
+         assignment, wg_size, normals] = v;
+  return std::tie(lang, influences, mixed, layout, position, index, weight, palette, storage, blend,
+                  vertices_per_item, assignment, wg_size, normals);
+}
+using VariantFieldRefs = decltype(VariantFields(std::declval<Variant&>()));
+
+// The index of Variant's field of type E (each axis enum types one field), or the field count.
+template <typename E>
+constexpr std::size_t FieldIndexOf() {
+  return []<std::size_t... I>(std::index_sequence<I...>) {
+    std::size_t index = sizeof...(I);
+    ((std::is_same_v<std::tuple_element_t<I, VariantFieldRefs>, E&> ? (void)(index = I) : (void)0), ...);
+    return index;
+  }(std::make_index_sequence<std::tuple_size_v<VariantFieldRefs>>{});
+}
+template <typename E>
+concept AxisEnum = std::is_enum_v<E> && FieldIndexOf<E>() < std::tuple_size_v<VariantFieldRefs>;
+
+// The name of value `code` of axis `axis` (generator/axes.cpp).
+const char* AxisValueName(std::size_t axis, int code);
+
+// Names of axis values, as used in keys, JSON and configs: Name(Layout::kSoaSplit) is "soa-split".
+template <AxisEnum E>
+const char* Name(E value) {
+  return AxisValueName(FieldIndexOf<E>(), static_cast<int>(value));
+}
 
 // Byte sizes of the formats (as stored in device buffers).
 std::size_t BytesOf(PositionFormat);

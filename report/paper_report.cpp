@@ -7,13 +7,14 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
-#include <functional>
 #include <limits>
 #include <map>
 #include <set>
 #include <tuple>
 
 #include <nlohmann/json.hpp>
+
+#include "generator/axes.h"
 
 namespace skintune {
 
@@ -93,36 +94,26 @@ std::string Note(const KernelOutcome& o, std::size_t measurements) {
   return std::string(Name(o.status)) + (o.detail.empty() ? "" : ": " + o.detail);
 }
 
-// The axes of the variant space as (name, value label, order within the axis).
-struct AxisReading {
-  const char* axis;
-  std::function<std::pair<std::string, int>(const Variant&)> value;
-};
+// The charted axes of the table (generator/axes.h); an axis glued to the next
+// one (vertices_per_item + assignment) is charted with it, as "2 strided".
+std::vector<std::size_t> ChartedAxes() {
+  std::vector<std::size_t> charted;
+  for (std::size_t i = 0; i < kAxisCount; ++i)
+    if (kAxes[i].chart == Chart::kYes && !kAxes[i].joins_previous) charted.push_back(i);
+  return charted;
+}
 
-const std::vector<AxisReading>& Axes() {
-  static const std::vector<AxisReading> axes = {
-      {"layout", [](const Variant& v) { return std::pair{std::string(Name(v.layout)), static_cast<int>(v.layout)}; }},
-      {"position",
-       [](const Variant& v) { return std::pair{std::string(Name(v.position)), static_cast<int>(v.position)}; }},
-      {"index", [](const Variant& v) { return std::pair{std::string(Name(v.index)), static_cast<int>(v.index)}; }},
-      {"weight", [](const Variant& v) { return std::pair{std::string(Name(v.weight)), static_cast<int>(v.weight)}; }},
-      {"palette",
-       [](const Variant& v) { return std::pair{std::string(Name(v.palette)), static_cast<int>(v.palette)}; }},
-      {"storage",
-       [](const Variant& v) { return std::pair{std::string(Name(v.storage)), static_cast<int>(v.storage)}; }},
-      {"blend", [](const Variant& v) { return std::pair{std::string(Name(v.blend)), static_cast<int>(v.blend)}; }},
-      {"vertices_per_item+assignment",
-       [](const Variant& v) {
-         return std::pair{std::to_string(v.vertices_per_item) + " " + Name(v.assignment),
-                          v.vertices_per_item * 2 + static_cast<int>(v.assignment)};
-       }},
-      {"wg_size",
-       [](const Variant& v) {
-         // A vertex shader has no work-group (wg0).
-         return std::pair{v.wg_size == 0 ? std::string("none") : std::to_string(v.wg_size), v.wg_size};
-       }},
-  };
-  return axes;
+std::string ChartName(std::size_t i) {
+  return std::string(kAxes[i].name) + (JoinsNext(i) ? std::string("+") + kAxes[i + 1].name : "");
+}
+
+// A variant's value on chart axis i: its label, and its order within the axis.
+std::pair<std::string, int> ChartValue(std::size_t i, const Variant& v) {
+  const int code = kAxes[i].Get(v);
+  if (!JoinsNext(i)) return {ValueLabel(kAxes[i], code), code};
+  const Axis& next = kAxes[i + 1];
+  return {ValueLabel(kAxes[i], code) + " " + ValueLabel(next, next.Get(v)),
+          code * static_cast<int>(next.values.size()) + next.Get(v)};
 }
 
 // Everything Summarise derives from one result, appended to `s`.
@@ -441,10 +432,10 @@ class ResultSummariser {
         ok.push_back(m);
         chart.best_ms = std::min(chart.best_ms, m->timing.median_ms);
       }
-      for (const AxisReading& axis : Axes()) {
+      for (std::size_t axis : ChartedAxes()) {
         std::map<int, AxisValue> values;
         for (const Measurement* m : ok) {
-          const auto [label, order] = axis.value(m->variant);
+          const auto [label, order] = ChartValue(axis, m->variant);
           auto [it, fresh] = values.try_emplace(order);
           AxisValue& v = it->second;
           if (fresh) {
@@ -455,7 +446,7 @@ class ResultSummariser {
           ++v.measurements;
         }
         AxisEffect effect;
-        effect.axis = axis.axis;
+        effect.axis = ChartName(axis);
         for (auto& [order, v] : values) {
           v.ratio = chart.best_ms > 0.0 ? v.best_ms / chart.best_ms : 1.0;
           effect.values.push_back(std::move(v));

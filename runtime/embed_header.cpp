@@ -1,12 +1,14 @@
 #include "runtime/embed_header.h"
 
 #include <algorithm>
+#include <cctype>
 #include <iterator>
 #include <cstdio>
 #include <map>
 
 #include <nlohmann/json.hpp>
 
+#include "generator/axes.h"
 #include "reference/error.h"
 
 namespace skintune {
@@ -63,44 +65,14 @@ std::string Number(double value) { return nlohmann::json(value).dump(); }
 
 const char* Bool(bool value) { return value ? "true" : "false"; }
 
-const char* LayoutName(Layout v) {
-  switch (v) {
-    case Layout::kAos: return "Layout::kAos";
-    case Layout::kSoa: return "Layout::kSoa";
-    case Layout::kSoaSplit: return "Layout::kSoaSplit";
+// The Kernel's enum fields, one per axis with an embedded_enum (generator/axes.h), in table order:
+// "Layout::kAos, PositionFormat::kFloat4, ...".
+std::string EnumFields(const Variant& v) {
+  std::string fields;
+  for (const Axis& a : kAxes) {
+    if (a.embedded_enum != nullptr) fields += (fields.empty() ? "" : ", ") + EmbeddedEnumerator(a, a.Get(v));
   }
-  return "";
-}
-const char* PositionName(PositionFormat v) {
-  return v == PositionFormat::kFloat4 ? "PositionFormat::kFloat4" : "PositionFormat::kFloat3";
-}
-const char* IndexName(IndexFormat v) {
-  switch (v) {
-    case IndexFormat::kI32: return "IndexFormat::kI32";
-    case IndexFormat::kU16: return "IndexFormat::kU16";
-    case IndexFormat::kU8: return "IndexFormat::kU8";
-  }
-  return "";
-}
-const char* WeightName(WeightFormat v) {
-  switch (v) {
-    case WeightFormat::kF32: return "WeightFormat::kF32";
-    case WeightFormat::kUnorm16: return "WeightFormat::kUnorm16";
-    case WeightFormat::kUnorm8: return "WeightFormat::kUnorm8";
-  }
-  return "";
-}
-const char* PaletteName(PaletteFormat v) {
-  return v == PaletteFormat::kMat4 ? "PaletteFormat::kMat4" : "PaletteFormat::kMat3x4";
-}
-const char* StorageName(PaletteStorage v) {
-  switch (v) {
-    case PaletteStorage::kGlobal: return "PaletteStorage::kGlobal";
-    case PaletteStorage::kConstant: return "PaletteStorage::kConstant";
-    case PaletteStorage::kLocal: return "PaletteStorage::kLocal";
-    case PaletteStorage::kImage: return "PaletteStorage::kImage";
-  }
-  return "";
+  return fields;
 }
 
 // Replaces the one occurrence of `from` in `text`; throws when there is not exactly one.
@@ -134,11 +106,10 @@ std::string KernelRow(const EmbeddedKernel& k, std::size_t index, std::size_t so
     row += " (tuned " + std::string(Name(e.variant.mixed)) + ", emitted " + Name(v.mixed) + ")";
   row += "\n    {" + Quoted(e.device_id) + ",\n     " + Quoted(e.platform) + ", " + Quoted(e.vendor) + ", " +
          Quoted(e.device_name) + ", " + Quoted(e.driver_version) + ", " + Quoted(e.device_type) + ",\n     " +
-         Quoted(Name(v.lang)) + ", " + std::to_string(s.influences) + ", " + Quoted(e.vertex_bucket) + ", " + std::to_string(e.vertices) + "u,\n     " +
-         Quoted(v.Key()) + ",\n     " + LayoutName(v.layout) + ", " + PositionName(v.position) + ", " +
-         IndexName(v.index) + ", " + WeightName(v.weight) + ", " + PaletteName(v.palette) + ", " +
-         StorageName(v.storage) + ",\n     " + Bool(v.blend == Blend::kPoint) + ", " + Bool(v.normals) + ", " +
-         std::to_string(s.launch.vertices_per_item) + ", " + Bool(s.launch.strided) + ", " +
+         Quoted(Name(v.lang)) + ", " + std::to_string(s.influences) + ", " + Quoted(e.vertex_bucket) + ", " +
+         std::to_string(e.vertices) + "u,\n     " + Quoted(v.Key()) + ",\n     " + EnumFields(v) + ",\n     " +
+         Bool(v.blend == Blend::kPoint) + ", " + Bool(v.normals) + ", " + std::to_string(s.launch.vertices_per_item) +
+         ", " + Bool(s.launch.strided) + ", " +
          std::to_string(s.launch.wg_size) + ", " + std::to_string(s.joints) + ",\n     " + Quoted(s.entry_point) +
          ", generated::kSource" + n + ", " + Quoted(s.source_hash) + ", generated::kArguments" + n + ", " +
          std::to_string(s.arguments.size()) + ",\n     " + Quoted(s.launch.rule) + ",\n     " + Number(e.median_ms) +
@@ -157,6 +128,20 @@ bool IsCppNamespaceName(std::string_view name) {
     if (sep == std::string_view::npos) return true;
     start = sep + 2;
   }
+}
+
+std::string EmbeddedEnumerator(const Axis& axis, int code) {
+  std::string name = std::string(axis.embedded_enum) + "::k";
+  bool upper = true;  // "soa-split" -> kSoaSplit, like skintune's own enumerators
+  for (const char c : ValueLabel(axis, code)) {
+    if (c == '-') {
+      upper = true;
+      continue;
+    }
+    name += upper ? static_cast<char>(std::toupper(static_cast<unsigned char>(c))) : c;
+    upper = false;
+  }
+  return name;
 }
 
 std::string CppEscaped(std::string_view text) {

@@ -19,6 +19,8 @@
 
 namespace skintune {
 
+struct Axis;  // generator/axes.h
+
 // One entry of the header's kernel table.
 struct EmbeddedKernel {
   WinnersEntry entry;   // the winner as the database has it (its variant may be `bucketed`)
@@ -42,6 +44,10 @@ bool IsCppNamespaceName(std::string_view name);
 // bytes outside printable ASCII as 3-digit octal escapes, "??" as "?\?" (no
 // trigraphs); no quotes around it.
 std::string CppEscaped(std::string_view text);
+
+// How the header spells value `code` of an axis with an embedded_enum
+// (generator/axes.h): "Layout::kSoaSplit", "PaletteFormat::kMat3x4".
+std::string EmbeddedEnumerator(const Axis& axis, int code);
 
 // The whole header: the banner, templates/embedded_support.h with its
 // namespace set and its kernel table filled in. Kernels share one source

@@ -10,20 +10,14 @@
 
 #include <nlohmann/json.hpp>
 
+#include "generator/axes.h"
 #include "reference/error.h"
 
 namespace skintune {
 
 std::size_t VariantFieldHash::operator()(const Variant& v) const {
-  const int fields[] = {static_cast<int>(v.lang),     v.influences,
-                        static_cast<int>(v.mixed),    static_cast<int>(v.layout),
-                        static_cast<int>(v.position), static_cast<int>(v.index),
-                        static_cast<int>(v.weight),   static_cast<int>(v.palette),
-                        static_cast<int>(v.storage),  static_cast<int>(v.blend),
-                        v.vertices_per_item,          static_cast<int>(v.assignment),
-                        v.wg_size,                    v.normals ? 1 : 0};
-  std::uint64_t h = 1469598103934665603ull;  // FNV-1a over the field values
-  for (int x : fields) {
+  std::uint64_t h = 1469598103934665603ull;  // FNV-1a over every axis's value (generator/axes.h)
+  for (int x : AxisCodes(v)) {
     h ^= static_cast<std::uint32_t>(x);
     h *= 1099511628211ull;
   }

@@ -6,6 +6,7 @@
 #include <unordered_map>
 #include <utility>
 
+#include "generator/axes.h"
 #include "reference/error.h"
 
 namespace skintune {
@@ -37,20 +38,11 @@ class Prng {
   std::uint64_t state_;
 };
 
-// The axes of a Variant, in field order, as small integers (coordinate descent
-// moves along one of them at a time).
-constexpr std::size_t kAxes = 14;
-using Coords = std::array<int, kAxes>;
+// Every axis of a Variant (generator/axes.h), as small integers (coordinate
+// descent moves along one of them at a time).
+using Coords = std::array<int, kAxisCount>;
 
-Coords CoordsOf(const Variant& v) {
-  return {static_cast<int>(v.lang),     v.influences,
-          static_cast<int>(v.mixed),    static_cast<int>(v.layout),
-          static_cast<int>(v.position), static_cast<int>(v.index),
-          static_cast<int>(v.weight),   static_cast<int>(v.palette),
-          static_cast<int>(v.storage),  static_cast<int>(v.blend),
-          v.vertices_per_item,          static_cast<int>(v.assignment),
-          v.wg_size,                    v.normals ? 1 : 0};
-}
+Coords CoordsOf(const Variant& v) { return AxisCodes(v); }
 
 struct CoordsHash {
   std::size_t operator()(const Coords& c) const {
@@ -158,13 +150,12 @@ std::size_t DefaultStart(const Session& s) {
   d.lang = s.variant(0).lang;
   d.influences = s.variant(0).influences;
   d.normals = s.variant(0).normals;
-  if (d.lang == Lang::kGlslVertex) d.wg_size = 0;
-  const Coords target = CoordsOf(d);
+  const Coords target = CoordsOf(CollapseWorkGroups(d));
   std::size_t best = 0;
-  std::size_t best_distance = kAxes + 1;
+  std::size_t best_distance = kAxisCount + 1;
   for (std::size_t i = 0; i < s.size(); ++i) {
     std::size_t distance = 0;
-    for (std::size_t a = 0; a < kAxes; ++a) distance += s.coords(i)[a] != target[a] ? 1 : 0;
+    for (std::size_t a = 0; a < kAxisCount; ++a) distance += s.coords(i)[a] != target[a] ? 1 : 0;
     if (distance < best_distance) {
       best = i;
       best_distance = distance;
@@ -176,8 +167,8 @@ std::size_t DefaultStart(const Session& s) {
 
 SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts) {
   // The values each axis takes among the candidates (in increasing order).
-  std::array<std::vector<int>, kAxes> axis_values;
-  for (std::size_t a = 0; a < kAxes; ++a) {
+  std::array<std::vector<int>, kAxisCount> axis_values;
+  for (std::size_t a = 0; a < kAxisCount; ++a) {
     std::vector<int>& values = axis_values[a];
     for (std::size_t i = 0; i < s.size(); ++i) {
       const int x = s.coords(i)[a];
@@ -203,7 +194,7 @@ SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts) {
     std::optional<double> current_ms = s.Evaluate(current);
     for (bool moved = true; moved && !s.exhausted();) {
       moved = false;
-      for (std::size_t a = 0; a < kAxes && !s.exhausted(); ++a) {
+      for (std::size_t a = 0; a < kAxisCount && !s.exhausted(); ++a) {
         std::size_t best = current;
         std::optional<double> best_ms = current_ms;
         for (std::size_t j : line(current, a)) {

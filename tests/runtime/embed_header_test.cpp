@@ -22,6 +22,7 @@
 #include <nlohmann/json.hpp>
 
 #include "embed_header_second_tu.h"
+#include "generator/axes.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "reference/error.h"
@@ -136,6 +137,29 @@ TEST(EmbedHeader, FixtureCoversEveryAxisValueAndOneBucketedWinner) {
   int bucketed = 0;
   for (const WinnersEntry& e : Fixture()) bucketed += e.variant.mixed == MixedCounts::kBucketed;
   EXPECT_EQ(bucketed, 1);
+}
+
+// templates/embedded_support.h declares the header's enums by hand: each must
+// hold every value of its axis of the table, spelt as KernelRow writes it.
+TEST(EmbedHeader, SupportHeaderDeclaresEveryValueOfEveryEmbeddedAxis) {
+  std::ifstream in(std::string(SKINTUNE_SOURCE_DIR) + "/templates/embedded_support.h");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  int enums = 0;
+  for (const Axis& axis : kAxes) {
+    if (axis.embedded_enum == nullptr) continue;
+    ++enums;
+    const std::string head = "enum class " + std::string(axis.embedded_enum) + " {";
+    const std::size_t begin = text.find(head);
+    ASSERT_NE(begin, std::string::npos) << head;
+    std::istringstream body(text.substr(begin + head.size(), text.find('}', begin) - begin - head.size()));
+    std::set<std::string> declared, expected;
+    for (std::string name; std::getline(body >> std::ws, name, ',');) {
+      declared.insert(std::string(axis.embedded_enum) + "::" + name.substr(0, name.find_last_not_of(" ") + 1));
+    }
+    for (const AxisValueSpec& value : axis.values) expected.insert(EmbeddedEnumerator(axis, value.code));
+    EXPECT_EQ(declared, expected) << head;
+  }
+  EXPECT_GT(enums, 0);
 }
 
 TEST(EmbedHeader, KernelParametersAreTheVariantsAxes) {

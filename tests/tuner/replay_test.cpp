@@ -7,10 +7,12 @@
 #include <fstream>
 #include <iostream>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "generator/axes.h"
 #include "reference/error.h"
 #include "tests/tuner/synthetic_model.h"
 
@@ -55,6 +57,22 @@ class CleanUp : public ::testing::Environment {
   void TearDown() override { fs::remove_all(TempDir()); }
 };
 const auto* const kCleanUp = ::testing::AddGlobalTestEnvironment(new CleanUp);
+
+// For every value of every axis of the table: a variant differing from the
+// default in that axis only hashes apart from it (and from the others).
+TEST(Replay, FieldHashTellsApartVariantsDifferingInAnyOneAxis) {
+  const VariantFieldHash hash;
+  std::unordered_map<std::size_t, std::string> seen = {{hash(Variant{}), Variant{}.Key()}};
+  for (const Axis& axis : kAxes) {
+    for (const AxisValueSpec& value : axis.values) {
+      Variant v;
+      axis.Set(v, value.code);
+      if (v == Variant{}) continue;
+      const auto [it, fresh] = seen.emplace(hash(v), v.Key());
+      EXPECT_TRUE(fresh) << v.Key() << " hashes like " << it->second;
+    }
+  }
+}
 
 TEST(Replay, ServesRecordedTimesAndCountsLookups) {
   ReplayEvaluator replay = ReplayEvaluator::FromCacheFile(SyntheticCache().string(), kDevice, kDataset);

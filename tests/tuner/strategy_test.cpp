@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "generator/axes.h"
 #include "generator/space.h"
 #include "reference/error.h"
 #include "tests/tuner/synthetic_model.h"
@@ -84,6 +85,24 @@ TEST(Strategy, ExhaustiveFindsTheOptimumEvaluatingEveryDistinctCandidateOnce) {
   EXPECT_EQ(r.evaluations, 3000u);
   EXPECT_EQ(counted.calls.size(), 3000u);
   for (const auto& [key, n] : counted.calls) EXPECT_EQ(n, 1) << key;
+}
+
+// Two candidates differing in one axis only are two points: for every value of
+// every axis of the table, so a coordinate the search forgets fails here.
+TEST(Strategy, CoordinatesTellApartVariantsDifferingInAnyOneAxis) {
+  for (const Axis& axis : kAxes) {
+    for (const AxisValueSpec& value : axis.values) {
+      Variant other;
+      axis.Set(other, value.code);
+      if (other == Variant{}) continue;
+      for (const char* name : {"exhaustive", "coordinate"}) {
+        const SearchResult r = Search({Variant{}, other}, [&](const Variant& v) { return v == other ? 1.0 : 2.0; },
+                                      {name, 0, 1});
+        EXPECT_EQ(r.evaluations, 2u) << name << " " << other.Key();
+        EXPECT_EQ(r.best, other) << name << " " << other.Key();
+      }
+    }
+  }
 }
 
 TEST(Strategy, ExhaustiveWithABudgetEvaluatesTheFirstCandidatesInOrder) {
