@@ -91,7 +91,7 @@ TEST(EmitTemplate, EmbeddedTemplateIsTheFileInTheSourceTree) {
 
 TEST(EmitTemplate, TemplateCompilesAloneWithNoDefines) {
   bool skipped = false;
-  const std::string result = BuildOnFirstDevice(TemplateText("skin.cl"), skipped);
+  const std::string result = BuildOnFirstDevice(ExpandedTemplate("skin.cl"), skipped);
   if (skipped) GTEST_SKIP() << result;
   EXPECT_EQ(result, "");
 }
@@ -333,7 +333,7 @@ TEST(EmitInstanced, ConstantStorageInCudaAndGlslIsSizedForMaxInstances) {
 
 TEST(EmitInstanced, TemplateCompilesAloneWithJustTheInstancedDefine) {
   bool skipped = false;
-  const std::string result = BuildOnFirstDevice("#define INSTANCED 1\n" + TemplateText("skin.cl"), skipped);
+  const std::string result = BuildOnFirstDevice("#define INSTANCED 1\n" + ExpandedTemplate("skin.cl"), skipped);
   if (skipped) GTEST_SKIP() << result;
   EXPECT_EQ(result, "");
 }

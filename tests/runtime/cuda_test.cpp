@@ -282,7 +282,7 @@ TEST(CudaCoveringSet, EveryVariantCompilesCleanly) {
 TEST(CudaTemplate, CompilesAloneWithNvrtcAndNoDefines) {
   SKIP_WITHOUT_NVRTC();
   std::string ptx;
-  EXPECT_EQ(CompileProblem(TemplateText("skin.cu"), &ptx), "");
+  EXPECT_EQ(CompileProblem(ExpandedTemplate("skin.cu"), &ptx), "");
   // The default variant reads the palette through the read-only cache with 16-byte loads.
   EXPECT_NE(ptx.find("ld.global.nc.v4.f32"), std::string::npos);
 }
@@ -320,7 +320,7 @@ TEST(CudaTemplate, InstancedConstantSymbolHoldsMaxInstancesPalettes) {
 
 TEST(CudaTemplate, CompilesAloneWithJustTheInstancedDefine) {
   SKIP_WITHOUT_NVRTC();
-  EXPECT_EQ(CompileProblem("#define INSTANCED 1\n" + TemplateText("skin.cu")), "");
+  EXPECT_EQ(CompileProblem("#define INSTANCED 1\n" + ExpandedTemplate("skin.cu")), "");
 }
 
 TEST(CudaCompile, AnErrorCarriesTheNvrtcLog) {
@@ -357,7 +357,7 @@ TEST(CudaApi, ChoosesTheNewestArchitectureNvrtcSupports) {
   EXPECT_EQ(NvrtcArchFor(1, 0), "") << "no NVRTC compiles for compute capability 1.0";
   const std::string future = NvrtcArchFor(99, 9);
   EXPECT_TRUE(future.starts_with("compute_")) << future;
-  EXPECT_EQ(CompileWithNvrtc(TemplateText("skin.cu"), future).error, "");
+  EXPECT_EQ(CompileWithNvrtc(ExpandedTemplate("skin.cu"), future).error, "");
 }
 
 // ---------------------------------------------------------------- runs on a GPU

@@ -175,12 +175,12 @@ INSTANTIATE_TEST_SUITE_P(EveryAxis, GlslVertexVariant, ::testing::ValuesIn(kVert
 
 // ------------------------------------------------------------------ templates
 
-// A template as it is embedded, with no defines at all.
+// A template with its preludes expanded, with no defines at all.
 KernelSource Bare(const char* file, Lang lang) {
   KernelSource s;
   s.lang = lang;
   s.entry_point = "main";
-  s.text = TemplateText(file);
+  s.text = ExpandedTemplate(file);
   s.source_hash = SourceHash(s.text);
   return s;
 }
