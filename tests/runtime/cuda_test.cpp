@@ -336,6 +336,19 @@ TEST(CudaCompile, AnErrorCarriesTheNvrtcLog) {
   EXPECT_TRUE(r.ptx.empty());
 }
 
+TEST(CudaCompile, AnErrorInAPreludeNamesItsFileAndLine) {
+  SKIP_WITHOUT_NVRTC();
+  const std::string line = "#define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)";
+  const std::string params = TemplateText("skin_params.h");
+  ASSERT_NE(params.find(line), std::string::npos) << "update the test: skin_params.h changed";
+  const auto number = std::count(params.begin(), params.begin() + static_cast<long>(params.find(line)), '\n') + 1;
+  std::string text = Emit(ParseVariantKey("cuda.b2"), 0, kJoints).text;
+  text.replace(text.find(line), line.size(), "#error skintune injected fault");
+  const CompileResult r = CompileWithNvrtc(text, kCompileArch);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("skin_params.h(" + std::to_string(number) + ")"), std::string::npos) << r.error;
+}
+
 TEST(CudaApi, ProbeSaysWhatIsMissing) {
   const CudaAvailability& a = Available();
   std::cout << "[ cuda ] " << a.Describe() << "\n";
