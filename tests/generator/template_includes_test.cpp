@@ -156,10 +156,19 @@ TEST(Templates, EveryFileOfTheTemplatesFolderIsEmbeddedAsItIs) {
   const std::vector<std::string> names = TemplateNames();
   EXPECT_EQ(std::set<std::string>(names.begin(), names.end()), files);
   EXPECT_TRUE(files.contains("skin_params.h"));
+  EXPECT_TRUE(files.contains("skin_body.glsl"));
 }
 
-TEST(Templates, EveryKernelTemplateIncludesTheParameters) {
-  for (const std::string name : kKernelTemplates) EXPECT_EQ(IncludesOf(TemplateText(name), "skin_params.h"), 1) << name;
+TEST(Templates, EveryKernelTemplateIncludesTheParametersAndGlslOnesTheSkinningBody) {
+  for (const std::string name : kKernelTemplates) {
+    const std::string text = TemplateText(name);
+    EXPECT_EQ(IncludesOf(text, "skin_params.h"), 1) << name;
+    EXPECT_EQ(IncludesOf(text, "skin_body.glsl"), IsGlsl(name) ? 1 : 0) << name;
+    if (IsGlsl(name)) {
+      EXPECT_LT(text.find("#include \"skin_params.h\""), text.find("#include \"skin_body.glsl\"")) << name;
+      EXPECT_LT(text.find("#define SKIN_COMPUTE_STAGE"), text.find("#include \"skin_body.glsl\"")) << name;
+    }
+  }
 }
 
 // The NAMEs of `#ifndef NAME` blocks that `#define NAME`: parameter defaults.
@@ -220,7 +229,8 @@ std::vector<std::string> CodeLines(const std::string& text) {
 
 TEST(Templates, PreludesAreIncludedNotCopied) {
   const std::pair<const char*, std::vector<const char*>> preludes[] = {
-      {"skin_params.h", {"skin.cl", "skin.cu", "skin.comp", "skin.vert"}},
+      {"skin_params.h", {"skin.cl", "skin.cu", "skin.comp", "skin.vert", "skin_body.glsl"}},
+      {"skin_body.glsl", {"skin.comp", "skin.vert"}},
   };
   for (const auto& [prelude, includers] : preludes) {
     const std::vector<std::string> code = CodeLines(TemplateText(prelude));
@@ -241,7 +251,8 @@ TEST(Templates, ExpandedTemplatesAreSelfContainedWithVersionFirst) {
     EXPECT_EQ(text.find("#version"), IsGlsl(name) ? 0u : std::string::npos) << name;
     EXPECT_EQ(text.find("#ifndef INFLUENCES "), text.rfind("#ifndef INFLUENCES ")) << name << ": the defaults once";
   }
-  EXPECT_EQ(TemplateText("skin_params.h").find("#version"), std::string::npos) << "#version is the template's";
+  for (const char* prelude : {"skin_params.h", "skin_body.glsl"})
+    EXPECT_EQ(TemplateText(prelude).find("#version"), std::string::npos) << prelude << ": #version is the template's";
   for (const std::string name : kGlslTemplates) {
     const std::string text = ExpandedTemplate(name);
     EXPECT_NE(text.find("void skin_vertex("), std::string::npos) << name;
@@ -273,7 +284,7 @@ TEST(Templates, LineDirectivesPointAtTheLinesOfTheFilesTheyName) {
       ASSERT_LE(number, original.size()) << name << ": " << lines[i];
       EXPECT_EQ(lines[i + 1], original[number - 1]) << name << ": after " << lines[i];
     }
-    EXPECT_EQ(directives, 2) << name;  // into the prelude and back
+    EXPECT_EQ(directives, IsGlsl(name) ? 3 : 2) << name;  // in and back; GLSL: in, in and back
   }
 }
 

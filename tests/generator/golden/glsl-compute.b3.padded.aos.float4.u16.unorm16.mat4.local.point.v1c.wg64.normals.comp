@@ -48,14 +48,12 @@
 // g+(N-1)G with G the number of invocations (strided). Invocations past n do
 // nothing but still take part in the work-group's palette copy.
 //
-// The parameters come from skin_params.h, shared by every template (GLSL has
-// no #include: the generator replaces that line by the file's text).
-// Everything between the SHARED markers is identical in skin.vert (a test
-// checks it): loads, palette access and blending are written once.
+// The parameters (skin_params.h, shared by every template) and the skinning
+// itself (skin_body.glsl: bindings, loads, palette access, blending, shared
+// with skin.vert) are included below; GLSL has no #include, so the generator
+// replaces those lines by the files' text.
 
 #define SKIN_COMPUTE_STAGE 1
-
-// ================================ SHARED: identical in skin.comp and skin.vert
 
 #line 1 1  // skin_params.h
 // skintune: the kernel parameters, their defaults and the values derived from
@@ -191,7 +189,17 @@
 #endif
 
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
-#line 41 0  // skin.comp
+#line 1 2  // skin_body.glsl
+// skintune: the skinning both GLSL stages share, written once: bindings, the
+// uniforms n and first, input loads, palette access, blending and
+// skin_vertex() (loads one vertex and skins it). skin.comp and skin.vert
+// include it after skin_params.h, with SKIN_COMPUTE_STAGE defined
+// (templates/README.md, "Preludes"), and add how vertices are assigned to
+// invocations and where the outputs go.
+
+#ifndef SKIN_COMPUTE_STAGE
+#error "define SKIN_COMPUTE_STAGE (1 compute shader, 0 vertex shader) before including skin_body.glsl"
+#endif
 
 // ---------------------------------------------------------------- bindings
 //
@@ -449,8 +457,7 @@ uint slot_stride_of(uint count) {
   return 0u;
 #endif
 }
-
-// ================================ END SHARED
+#line 40 0  // skin.comp
 
 // ---------------------------------------------------------------- outputs
 

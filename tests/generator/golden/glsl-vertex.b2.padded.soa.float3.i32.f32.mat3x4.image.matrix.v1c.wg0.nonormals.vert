@@ -55,14 +55,12 @@
 // The sidecar says so: out_positions / out_normals carry
 // "transform_feedback_buffer" 0 / 1 and their "varying" name, not a binding.
 //
-// The parameters come from skin_params.h, shared by every template (GLSL has
-// no #include: the generator replaces that line by the file's text).
-// Everything between the SHARED markers is identical in skin.comp (a test
-// checks it): loads, palette access and blending are written once.
+// The parameters (skin_params.h, shared by every template) and the skinning
+// itself (skin_body.glsl: bindings, loads, palette access, blending, shared
+// with skin.comp) are included below; GLSL has no #include, so the generator
+// replaces those lines by the files' text.
 
 #define SKIN_COMPUTE_STAGE 0
-
-// ================================ SHARED: identical in skin.comp and skin.vert
 
 #line 1 1  // skin_params.h
 // skintune: the kernel parameters, their defaults and the values derived from
@@ -198,7 +196,17 @@
 #endif
 
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
-#line 53 0  // skin.vert
+#line 1 2  // skin_body.glsl
+// skintune: the skinning both GLSL stages share, written once: bindings, the
+// uniforms n and first, input loads, palette access, blending and
+// skin_vertex() (loads one vertex and skins it). skin.comp and skin.vert
+// include it after skin_params.h, with SKIN_COMPUTE_STAGE defined
+// (templates/README.md, "Preludes"), and add how vertices are assigned to
+// invocations and where the outputs go.
+
+#ifndef SKIN_COMPUTE_STAGE
+#error "define SKIN_COMPUTE_STAGE (1 compute shader, 0 vertex shader) before including skin_body.glsl"
+#endif
 
 // ---------------------------------------------------------------- bindings
 //
@@ -456,8 +464,7 @@ uint slot_stride_of(uint count) {
   return 0u;
 #endif
 }
-
-// ================================ END SHARED
+#line 52 0  // skin.vert
 
 // ---------------------------------------------------------------- outputs
 
