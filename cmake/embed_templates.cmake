@@ -1,5 +1,6 @@
-# Embeds every kernel template of templates/ (all files but *.md) into a C++
-# source file, so the installed tool needs no source tree:
+# Embeds every file of templates/ but *.md (the kernel templates, the preludes
+# they #include, embedded_support.h) into a C++ source file, so the installed
+# tool needs no source tree:
 #   cmake -DTEMPLATE_DIR=<dir> -DOUTPUT=<file.cpp> -P embed_templates.cmake
 # Each file becomes `const unsigned char kTemplate_<name>[]` (its bytes as hex,
 # one source line per template line, NUL-terminated) and an entry of

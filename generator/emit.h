@@ -1,11 +1,12 @@
 // skintune: a variant -> kernel source plus its machine-readable interface.
 //
 // The source is the language's template (templates/, embedded into the
-// binary at build time) with one `#define` per parameter prepended, as in
-// CLBlast: every template compiles alone with default parameters, and the
-// generator only specialises it. The interface (argument list in the order of
-// docs/VARIANTS.md, element formats, strides, launch geometry) is data, so a
-// program can bind the kernel from the sidecar JSON without reading skintune.
+// binary at build time) with the preludes it #includes expanded and one
+// `#define` per parameter prepended, as in CLBlast: every template compiles
+// alone with default parameters, and the generator only specialises it. The
+// interface (argument list in the order of docs/VARIANTS.md, element formats,
+// strides, launch geometry) is data, so a program can bind the kernel from the
+// sidecar JSON without reading skintune.
 //
 // A language whose template is not embedded yet throws "not implemented yet".
 // GLSL templates start with #version; the defines go after it.
@@ -101,10 +102,18 @@ bool InstancesBoundAtCompileTime(const Variant& variant);
 // Everything a program needs to bind and launch the kernel.
 nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant);
 
-// An embedded template by file name ("skin.cl"); throws Error listing the
-// embedded names when there is none.
+// An embedded file of templates/ by name ("skin.cl", "skin_params.h") as it
+// is in the source tree, its #include lines unresolved; throws Error listing
+// the embedded names when there is none.
 std::string TemplateText(const std::string& name);
 std::vector<std::string> TemplateNames();
+
+// An embedded kernel template with its `#include "FILE"` lines replaced by the
+// embedded files' text (ExpandIncludes, generator/template_includes.h) and no
+// defines: what Emit specialises, and what compiles alone with every parameter
+// at its default. Throws Error as TemplateText does, or naming the template
+// and line of an include that cannot be resolved.
+std::string ExpandedTemplate(const std::string& name);
 
 // FNV-1a 64 of `text` as 16 lower-case hex digits.
 std::string SourceHash(const std::string& text);

@@ -3,6 +3,7 @@
 #define CL_TARGET_OPENCL_VERSION 120
 #include <CL/cl.h>
 
+#include <algorithm>
 #include <fstream>
 #include <functional>
 #include <sstream>
@@ -91,7 +92,7 @@ TEST(EmitTemplate, EmbeddedTemplateIsTheFileInTheSourceTree) {
 
 TEST(EmitTemplate, TemplateCompilesAloneWithNoDefines) {
   bool skipped = false;
-  const std::string result = BuildOnFirstDevice(TemplateText("skin.cl"), skipped);
+  const std::string result = BuildOnFirstDevice(ExpandedTemplate("skin.cl"), skipped);
   if (skipped) GTEST_SKIP() << result;
   EXPECT_EQ(result, "");
 }
@@ -105,6 +106,21 @@ TEST(EmitTemplate, EmittedKernelsOfEveryLayoutAndStorageCompile) {
     if (skipped) GTEST_SKIP() << result;
     EXPECT_EQ(result, "") << key;
   }
+}
+
+// The preludes an emitted kernel includes keep their names and lines (#line),
+// so a build log points at the prelude's own line.
+TEST(EmitTemplate, BuildLogsNameThePreludeAndLineOfAnError) {
+  const std::string line = "#define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)";
+  const std::string params = TemplateText("skin_params.h");
+  ASSERT_NE(params.find(line), std::string::npos) << "update the test: skin_params.h changed";
+  const auto number = std::count(params.begin(), params.begin() + static_cast<long>(params.find(line)), '\n') + 1;
+  std::string text = Emit(ParseVariantKey("opencl.b2"), 0, 20).text;
+  text.replace(text.find(line), line.size(), "#error skintune injected fault");
+  bool skipped = false;
+  const std::string result = BuildOnFirstDevice(text, skipped);
+  if (skipped) GTEST_SKIP() << result;
+  EXPECT_NE(result.find("skin_params.h:" + std::to_string(number) + ":"), std::string::npos) << result;
 }
 
 TEST(Emit, SidecarListsArgumentsInTheDocumentedOrderForEachLayout) {
@@ -333,7 +349,7 @@ TEST(EmitInstanced, ConstantStorageInCudaAndGlslIsSizedForMaxInstances) {
 
 TEST(EmitInstanced, TemplateCompilesAloneWithJustTheInstancedDefine) {
   bool skipped = false;
-  const std::string result = BuildOnFirstDevice("#define INSTANCED 1\n" + TemplateText("skin.cl"), skipped);
+  const std::string result = BuildOnFirstDevice("#define INSTANCED 1\n" + ExpandedTemplate("skin.cl"), skipped);
   if (skipped) GTEST_SKIP() << result;
   EXPECT_EQ(result, "");
 }

@@ -282,7 +282,7 @@ TEST(CudaCoveringSet, EveryVariantCompilesCleanly) {
 TEST(CudaTemplate, CompilesAloneWithNvrtcAndNoDefines) {
   SKIP_WITHOUT_NVRTC();
   std::string ptx;
-  EXPECT_EQ(CompileProblem(TemplateText("skin.cu"), &ptx), "");
+  EXPECT_EQ(CompileProblem(ExpandedTemplate("skin.cu"), &ptx), "");
   // The default variant reads the palette through the read-only cache with 16-byte loads.
   EXPECT_NE(ptx.find("ld.global.nc.v4.f32"), std::string::npos);
 }
@@ -320,7 +320,7 @@ TEST(CudaTemplate, InstancedConstantSymbolHoldsMaxInstancesPalettes) {
 
 TEST(CudaTemplate, CompilesAloneWithJustTheInstancedDefine) {
   SKIP_WITHOUT_NVRTC();
-  EXPECT_EQ(CompileProblem("#define INSTANCED 1\n" + TemplateText("skin.cu")), "");
+  EXPECT_EQ(CompileProblem("#define INSTANCED 1\n" + ExpandedTemplate("skin.cu")), "");
 }
 
 TEST(CudaCompile, AnErrorCarriesTheNvrtcLog) {
@@ -334,6 +334,19 @@ TEST(CudaCompile, AnErrorCarriesTheNvrtcLog) {
   EXPECT_NE(r.error.find("NVRTC compile of skin.cu for compute_90 failed"), std::string::npos) << r.error;
   EXPECT_NE(r.error.find("undeclared_name_xyz"), std::string::npos) << r.error;
   EXPECT_TRUE(r.ptx.empty());
+}
+
+TEST(CudaCompile, AnErrorInAPreludeNamesItsFileAndLine) {
+  SKIP_WITHOUT_NVRTC();
+  const std::string line = "#define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)";
+  const std::string params = TemplateText("skin_params.h");
+  ASSERT_NE(params.find(line), std::string::npos) << "update the test: skin_params.h changed";
+  const auto number = std::count(params.begin(), params.begin() + static_cast<long>(params.find(line)), '\n') + 1;
+  std::string text = Emit(ParseVariantKey("cuda.b2"), 0, kJoints).text;
+  text.replace(text.find(line), line.size(), "#error skintune injected fault");
+  const CompileResult r = CompileWithNvrtc(text, kCompileArch);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("skin_params.h(" + std::to_string(number) + ")"), std::string::npos) << r.error;
 }
 
 TEST(CudaApi, ProbeSaysWhatIsMissing) {
@@ -357,7 +370,7 @@ TEST(CudaApi, ChoosesTheNewestArchitectureNvrtcSupports) {
   EXPECT_EQ(NvrtcArchFor(1, 0), "") << "no NVRTC compiles for compute capability 1.0";
   const std::string future = NvrtcArchFor(99, 9);
   EXPECT_TRUE(future.starts_with("compute_")) << future;
-  EXPECT_EQ(CompileWithNvrtc(TemplateText("skin.cu"), future).error, "");
+  EXPECT_EQ(CompileWithNvrtc(ExpandedTemplate("skin.cu"), future).error, "");
 }
 
 // ---------------------------------------------------------------- runs on a GPU

@@ -175,12 +175,12 @@ INSTANTIATE_TEST_SUITE_P(EveryAxis, GlslVertexVariant, ::testing::ValuesIn(kVert
 
 // ------------------------------------------------------------------ templates
 
-// A template as it is embedded, with no defines at all.
+// A template with its preludes expanded, with no defines at all.
 KernelSource Bare(const char* file, Lang lang) {
   KernelSource s;
   s.lang = lang;
   s.entry_point = "main";
-  s.text = TemplateText(file);
+  s.text = ExpandedTemplate(file);
   s.source_hash = SourceHash(s.text);
   return s;
 }
@@ -213,19 +213,36 @@ TEST(GlslTemplates, VertexTemplateCompilesAlone) {
   EXPECT_NO_THROW(runner->Build(Bare("skin.vert", Lang::kGlslVertex)));
 }
 
-TEST(GlslTemplates, StartWithTheirVersionLineAndShareOneSkinningSection) {
-  auto shared = [](const std::string& text) {
-    const std::size_t begin = text.find("// ================================ SHARED");
-    const std::size_t end = text.find("// ================================ END SHARED");
-    EXPECT_NE(begin, std::string::npos);
-    EXPECT_NE(end, std::string::npos);
-    return begin == std::string::npos || end == std::string::npos ? std::string() : text.substr(begin, end - begin);
-  };
-  const std::string comp = TemplateText("skin.comp"), vert = TemplateText("skin.vert");
-  EXPECT_EQ(comp.rfind("#version 430 core\n", 0), 0u);
-  EXPECT_EQ(vert.rfind("#version 430 core\n", 0), 0u);
-  EXPECT_FALSE(shared(comp).empty());
-  EXPECT_EQ(shared(comp), shared(vert)) << "the SHARED sections of skin.comp and skin.vert differ: edit both";
+TEST(GlslTemplates, StartWithTheirVersionLineAndIncludeOneSkinningBody) {
+  // The body is included, not copied: tests/generator/template_includes_test.cpp
+  // checks that neither stage repeats a line of it.
+  for (const char* file : {"skin.comp", "skin.vert"}) {
+    const std::string text = TemplateText(file);
+    EXPECT_EQ(text.rfind("#version 430 core\n", 0), 0u) << file;
+    EXPECT_NE(text.find("\n#include \"skin_body.glsl\"\n"), std::string::npos) << file;
+    EXPECT_EQ(ExpandedTemplate(file).rfind("#version 430 core\n", 0), 0u) << file;
+  }
+}
+
+// GLSL's #line takes no file name: an emitted shader numbers its files as
+// source strings (0 the template, 1 skin_params.h, 2 skin_body.glsl), so a
+// build log points at the prelude's own line.
+TEST(GlslTemplates, BuildLogsGiveThePreludeAndLineOfAnError) {
+  REQUIRE_GL(runner);
+  const std::string line = "uniform uint n;      // vertices of this launch";
+  const std::string body = TemplateText("skin_body.glsl");
+  ASSERT_NE(body.find(line), std::string::npos) << "update the test: the body changed";
+  const long number = std::count(body.begin(), body.begin() + static_cast<long>(body.find(line)), '\n') + 1;
+  for (const char* key : {"glsl-compute.b2", "glsl-vertex.b2.v1c.wg0"}) {
+    KernelSource s = Emit(ParseVariantKey(key), 0, 20);
+    testing::EditKernel(s, line, "#error skintune injected fault");
+    try {
+      runner->Build(s);
+      ADD_FAILURE() << key << ": a shader with #error built";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("2:" + std::to_string(number) + "("), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(GlslTemplates, EmittedVertexKernelRejectsLocalStorage) {

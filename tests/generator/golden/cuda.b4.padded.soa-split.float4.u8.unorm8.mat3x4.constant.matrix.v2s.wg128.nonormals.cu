@@ -19,13 +19,15 @@
 //   v' = sum_i w_i * M[d_i] * (v, 1)                    (positions)
 //   n' = normalize(upper3x3(sum_i w_i * M[d_i]) * n)     (normals)
 //
-// The CUDA twin of templates/skin.cl: the same #define parameters (the
-// generator, generator/emit.cpp, prepends one per parameter), the same
-// buffers, argument order and launch geometry (docs/VARIANTS.md), the same
-// loads. Every parameter has a default (b4 soa float4 u16 f32 mat3x4 global
-// matrix v1c wg128 nonormals), so this file compiles alone, with NVRTC and no
-// options or with `nvcc -c templates/skin.cu`. It includes no header: NVRTC
-// provides float4, uint4, __ldg and tex1Dfetch itself.
+// The CUDA twin of templates/skin.cl: the same #define parameters (from
+// skin_params.h, shared by every template; the generator, generator/emit.cpp,
+// prepends one #define per parameter and replaces the #include by the file's
+// text), the same buffers, argument order and launch geometry
+// (docs/VARIANTS.md), the same loads. Every parameter has a default, so this
+// file compiles alone: expanded by the generator (ExpandedTemplate in
+// generator/emit.h) with NVRTC and no options, or as `nvcc -c
+// templates/skin.cu`. It includes no system header: NVRTC provides float4,
+// uint4, __ldg and tex1Dfetch itself.
 //
 // Kernel `extern "C" skin(unsigned n, unsigned first, <inputs>, palette, <outputs>)`:
 //   aos:            records
@@ -60,6 +62,18 @@
 // Buffers are device allocations (cuMemAlloc: 256-byte aligned), so the
 // alignments the loads below assume hold.
 
+#line 1 "skin_params.h"
+// skintune: the kernel parameters, their defaults and the values derived from
+// them, written once for every kernel template (templates/README.md,
+// "Preludes"). The generator prepends one #define per parameter; each has a
+// default (the default Variant: b4 soa float4 u16 f32 mat3x4 global matrix v1c
+// wg128 nonormals), so every template compiles alone. docs/VARIANTS.md says
+// what each parameter means; a new one is added here, and only here.
+//
+// This text is OpenCL C, CUDA C++ and GLSL at once: preprocessor lines and
+// comments only. An "item" is a work-item (OpenCL), a thread (CUDA) or an
+// invocation (GLSL).
+
 // ---------------------------------------------------------------- parameters
 
 #ifndef INFLUENCES            // B: bone slots per vertex, 1..8
@@ -80,10 +94,10 @@
 #ifndef PALETTE_ROWS          // float4 rows per joint: 4 mat4, 3 mat3x4
 #define PALETTE_ROWS 3
 #endif
-#ifndef STORAGE               // palette in 0 __constant__, 1 __shared__ copy, 2 global (__ldg), 3 texture object
+#ifndef STORAGE               // palette in 0 constant memory, 1 a local copy, 2 global memory, 3 an image
 #define STORAGE 2
 #endif
-#ifndef JOINTS                // palette entries (sizes the __shared__ copy and the __constant__ symbol)
+#ifndef JOINTS                // palette entries (sizes the local copy and CUDA's / GLSL's constant palette)
 #define JOINTS 77
 #endif
 #ifndef BLEND_POINT           // 0: blend matrices then transform; 1: transform per bone, blend points
@@ -95,67 +109,61 @@
 #ifndef STRIDED               // 0: contiguous vertices per item; 1: strided by the item count
 #define STRIDED 0
 #endif
-#ifndef WG_SIZE               // threads per block (__launch_bounds__)
+#ifndef WG_SIZE               // work-group size (CUDA: threads per block); 0 for glsl-vertex
 #define WG_SIZE 128
 #endif
 #ifndef NORMALS               // 1: also skin normals
 #define NORMALS 0
 #endif
-#ifndef INSTANCED             // 1: K instances per launch (blockIdx.y), K palettes
+#ifndef INSTANCED             // 1: K instances per launch, K palettes (docs/VARIANTS.md "Instancing")
 #define INSTANCED 0
 #endif
-#ifndef PALETTE_INSTANCES     // INSTANCED constant storage: palettes the __constant__ symbol holds
+#ifndef PALETTE_INSTANCES     // INSTANCED constant storage in CUDA and GLSL: palettes the constant palette holds
 #define PALETTE_INSTANCES 1
 #endif
 
-// NVRTC has no <cstdint>.
-typedef unsigned int u32;
-typedef unsigned short u16;
-typedef unsigned char u8;
-typedef unsigned long long u64;
-
 #if INDEX_FORMAT == 0
 #define INDEX_BYTES 4
-#define INDEX_T int
 #elif INDEX_FORMAT == 1
 #define INDEX_BYTES 2
-#define INDEX_T u16
 #else
 #define INDEX_BYTES 1
-#define INDEX_T u8
 #endif
 
 #if WEIGHT_FORMAT == 0
 #define WEIGHT_BYTES 4
-#define WEIGHT_T float
 #elif WEIGHT_FORMAT == 1
 #define WEIGHT_BYTES 2
-#define WEIGHT_T u16
 #else
 #define WEIGHT_BYTES 1
-#define WEIGHT_T u8
 #endif
 
 #if POSITION_FLOAT4
 #define POSITION_BYTES 16
-#define POSITION_T float4
+#define RECORD_ALIGN 16
 #else
 #define POSITION_BYTES 12
-#define POSITION_T float
+#define RECORD_ALIGN 4
 #endif
+
+// (The GLSL preprocessor has no ?: operator: derived values use #if chains.)
 
 // soa-split: slot i of vertex v at element i*S + v, S = n rounded up to this
 // multiple (every slot array of both formats starts on a 256-byte boundary).
 #ifndef SLOT_STRIDE_MULTIPLE
-#define NARROWEST_BYTES (INDEX_BYTES < WEIGHT_BYTES ? INDEX_BYTES : WEIGHT_BYTES)
-#define SLOT_STRIDE_MULTIPLE (256 / NARROWEST_BYTES > 64 ? 256 / NARROWEST_BYTES : 64)
+#if INDEX_BYTES == 1 || WEIGHT_BYTES == 1
+#define SLOT_STRIDE_MULTIPLE 256
+#elif INDEX_BYTES == 2 || WEIGHT_BYTES == 2
+#define SLOT_STRIDE_MULTIPLE 128
+#else
+#define SLOT_STRIDE_MULTIPLE 64
+#endif
 #endif
 
 // aos record: byte offsets of its fields and its size, as the packer lays them
 // out (generator/packer.h AosRecordLayout: natural alignment, size rounded up
 // to 16 bytes for float4 and 4 for float3). The defaults follow that rule.
 #define ROUND_UP(x, m) (((x) + (m) - 1) / (m) * (m))
-#define RECORD_ALIGN (POSITION_FLOAT4 ? 16 : 4)
 #ifndef AOS_POSITION_OFFSET
 #define AOS_POSITION_OFFSET 0
 #endif
@@ -185,6 +193,38 @@ typedef unsigned long long u64;
 #endif
 #if STORAGE < 0 || STORAGE > 3
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
+#endif
+
+#define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
+#line 50 "skin.cu"
+
+// NVRTC has no <cstdint>.
+typedef unsigned int u32;
+typedef unsigned short u16;
+typedef unsigned char u8;
+typedef unsigned long long u64;
+
+// Element types of the soa arguments and the outputs.
+#if INDEX_FORMAT == 0
+#define INDEX_T int
+#elif INDEX_FORMAT == 1
+#define INDEX_T u16
+#else
+#define INDEX_T u8
+#endif
+
+#if WEIGHT_FORMAT == 0
+#define WEIGHT_T float
+#elif WEIGHT_FORMAT == 1
+#define WEIGHT_T u16
+#else
+#define WEIGHT_T u8
+#endif
+
+#if POSITION_FLOAT4
+#define POSITION_T float4
+#else
+#define POSITION_T float
 #endif
 
 #define DEVICE static __device__ __forceinline__
@@ -313,8 +353,6 @@ DEVICE float weight_of(const u32 raw) {
 //
 // Joint j's row r is float4 number j*PALETTE_ROWS + r. Row 3 of mat4 (0 0 0 1
 // for the affine palettes skinning uses) is never read: outputs are xyz.
-
-#define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
 
 #if STORAGE == 0
 #if INSTANCED

@@ -26,10 +26,11 @@
 //   n' = normalize(upper3x3(sum_i w_i * M[d_i]) * n)     (normals)
 //
 // The generator (generator/emit.cpp) puts one #define per parameter right
-// after the #version line; every parameter has the same default as in
-// skin.cl, so this file compiles alone. docs/VARIANTS.md is the interface:
-// every buffer is an array of 32-bit words (narrower formats packed
-// little-endian, unpacked here with shifts), bound in argument order:
+// after the #version line; every parameter has its default in skin_params.h,
+// so this file compiles alone once its includes are expanded (ExpandedTemplate
+// in generator/emit.h). docs/VARIANTS.md is the interface: every buffer is an
+// array of 32-bit words (narrower formats packed little-endian, unpacked here
+// with shifts), bound in argument order:
 //   aos:            records                                  binding 0
 //   soa, soa-split: positions, indices, weights[, normals]   bindings 0..
 //   palette:        the next binding: a std140 uniform block (STORAGE 0
@@ -47,12 +48,24 @@
 // g+(N-1)G with G the number of invocations (strided). Invocations past n do
 // nothing but still take part in the work-group's palette copy.
 //
-// Everything between the SHARED markers is identical in skin.vert (a test
-// checks it): loads, palette access and blending are written once.
+// The parameters (skin_params.h, shared by every template) and the skinning
+// itself (skin_body.glsl: bindings, loads, palette access, blending, shared
+// with skin.vert) are included below; GLSL has no #include, so the generator
+// replaces those lines by the files' text.
 
 #define SKIN_COMPUTE_STAGE 1
 
-// ================================ SHARED: identical in skin.comp and skin.vert
+#line 1 1  // skin_params.h
+// skintune: the kernel parameters, their defaults and the values derived from
+// them, written once for every kernel template (templates/README.md,
+// "Preludes"). The generator prepends one #define per parameter; each has a
+// default (the default Variant: b4 soa float4 u16 f32 mat3x4 global matrix v1c
+// wg128 nonormals), so every template compiles alone. docs/VARIANTS.md says
+// what each parameter means; a new one is added here, and only here.
+//
+// This text is OpenCL C, CUDA C++ and GLSL at once: preprocessor lines and
+// comments only. An "item" is a work-item (OpenCL), a thread (CUDA) or an
+// invocation (GLSL).
 
 // ---------------------------------------------------------------- parameters
 
@@ -71,13 +84,13 @@
 #ifndef WEIGHT_FORMAT         // 0 f32, 1 unorm16, 2 unorm8
 #define WEIGHT_FORMAT 0
 #endif
-#ifndef PALETTE_ROWS          // vec4 rows per joint: 4 mat4, 3 mat3x4
+#ifndef PALETTE_ROWS          // float4 rows per joint: 4 mat4, 3 mat3x4
 #define PALETTE_ROWS 3
 #endif
-#ifndef STORAGE               // palette in 0 uniform block, 1 shared copy, 2 storage buffer, 3 samplerBuffer
+#ifndef STORAGE               // palette in 0 constant memory, 1 a local copy, 2 global memory, 3 an image
 #define STORAGE 2
 #endif
-#ifndef JOINTS                // palette entries (sizes the uniform block and the shared copy)
+#ifndef JOINTS                // palette entries (sizes the local copy and CUDA's / GLSL's constant palette)
 #define JOINTS 77
 #endif
 #ifndef BLEND_POINT           // 0: blend matrices then transform; 1: transform per bone, blend points
@@ -86,19 +99,19 @@
 #ifndef VERTICES_PER_ITEM     // N: 1, 2, 4, 8
 #define VERTICES_PER_ITEM 1
 #endif
-#ifndef STRIDED               // 0: contiguous vertices per invocation; 1: strided by the invocation count
+#ifndef STRIDED               // 0: contiguous vertices per item; 1: strided by the item count
 #define STRIDED 0
 #endif
-#ifndef WG_SIZE               // work-group size (local_size_x); 0 for glsl-vertex
+#ifndef WG_SIZE               // work-group size (CUDA: threads per block); 0 for glsl-vertex
 #define WG_SIZE 128
 #endif
 #ifndef NORMALS               // 1: also skin normals
 #define NORMALS 0
 #endif
-#ifndef INSTANCED             // 1: K instances per launch (compute: gl_WorkGroupID.y; vertex: gl_InstanceID)
+#ifndef INSTANCED             // 1: K instances per launch, K palettes (docs/VARIANTS.md "Instancing")
 #define INSTANCED 0
 #endif
-#ifndef PALETTE_INSTANCES     // INSTANCED constant storage: palettes the uniform block holds
+#ifndef PALETTE_INSTANCES     // INSTANCED constant storage in CUDA and GLSL: palettes the constant palette holds
 #define PALETTE_INSTANCES 1
 #endif
 
@@ -163,6 +176,7 @@
 #define AOS_RECORD_WORDS (ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN) / 4)
 #endif
 #endif
+#define AOS_RECORD_BYTES (AOS_RECORD_WORDS * 4)
 
 #if INFLUENCES < 1 || INFLUENCES > 8
 #error "INFLUENCES must be 1..8"
@@ -170,8 +184,22 @@
 #if VERTICES_PER_ITEM != 1 && VERTICES_PER_ITEM != 2 && VERTICES_PER_ITEM != 4 && VERTICES_PER_ITEM != 8
 #error "VERTICES_PER_ITEM must be 1, 2, 4 or 8"
 #endif
+#if STORAGE < 0 || STORAGE > 3
+#error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
+#endif
 
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
+#line 1 2  // skin_body.glsl
+// skintune: the skinning both GLSL stages share, written once: bindings, the
+// uniforms n and first, input loads, palette access, blending and
+// skin_vertex() (loads one vertex and skins it). skin.comp and skin.vert
+// include it after skin_params.h, with SKIN_COMPUTE_STAGE defined
+// (templates/README.md, "Preludes"), and add how vertices are assigned to
+// invocations and where the outputs go.
+
+#ifndef SKIN_COMPUTE_STAGE
+#error "define SKIN_COMPUTE_STAGE (1 compute shader, 0 vertex shader) before including skin_body.glsl"
+#endif
 
 // ---------------------------------------------------------------- bindings
 //
@@ -429,8 +457,7 @@ uint slot_stride_of(uint count) {
   return 0u;
 #endif
 }
-
-// ================================ END SHARED
+#line 40 0  // skin.comp
 
 // ---------------------------------------------------------------- outputs
 

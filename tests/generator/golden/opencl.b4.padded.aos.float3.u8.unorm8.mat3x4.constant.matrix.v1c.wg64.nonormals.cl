@@ -22,9 +22,12 @@
 //   v' = sum_i w_i * M[d_i] * (v, 1)                    (positions)
 //   n' = normalize(upper3x3(sum_i w_i * M[d_i]) * n)     (normals)
 //
-// The generator (generator/emit.cpp) prepends one #define per parameter below;
-// every parameter has a default (the default Variant: b4 soa float4 u16 f32
-// mat3x4 global matrix v1c wg128 nonormals), so this file compiles alone, e.g.
+// The parameters, their defaults and the aos layout are in skin_params.h,
+// shared by every template; the generator (generator/emit.cpp) prepends one
+// #define per parameter and replaces the #include by the file's text, so the
+// emitted kernel is one file. Every parameter has a default, so this file
+// compiles alone: expanded by the generator (ExpandedTemplate in
+// generator/emit.h, what the tests build) or from templates/, e.g.
 //   clang -x cl -cl-std=CL1.2 -Xclang -finclude-default-header -fsyntax-only templates/skin.cl
 // docs/VARIANTS.md is the interface this kernel implements: buffers per
 // layout, formats, argument order and launch geometry.
@@ -46,6 +49,18 @@
 // after another) and writes vertex v at i*vertex_count + first + v
 // (vertex_count: the whole mesh, every launch together).
 
+#line 1 "skin_params.h"
+// skintune: the kernel parameters, their defaults and the values derived from
+// them, written once for every kernel template (templates/README.md,
+// "Preludes"). The generator prepends one #define per parameter; each has a
+// default (the default Variant: b4 soa float4 u16 f32 mat3x4 global matrix v1c
+// wg128 nonormals), so every template compiles alone. docs/VARIANTS.md says
+// what each parameter means; a new one is added here, and only here.
+//
+// This text is OpenCL C, CUDA C++ and GLSL at once: preprocessor lines and
+// comments only. An "item" is a work-item (OpenCL), a thread (CUDA) or an
+// invocation (GLSL).
+
 // ---------------------------------------------------------------- parameters
 
 #ifndef INFLUENCES            // B: bone slots per vertex, 1..8
@@ -66,10 +81,10 @@
 #ifndef PALETTE_ROWS          // float4 rows per joint: 4 mat4, 3 mat3x4
 #define PALETTE_ROWS 3
 #endif
-#ifndef STORAGE               // palette in 0 __constant, 1 __local copy, 2 __global, 3 image1d_buffer_t
+#ifndef STORAGE               // palette in 0 constant memory, 1 a local copy, 2 global memory, 3 an image
 #define STORAGE 2
 #endif
-#ifndef JOINTS                // palette entries (sizes the __local copy)
+#ifndef JOINTS                // palette entries (sizes the local copy and CUDA's / GLSL's constant palette)
 #define JOINTS 77
 #endif
 #ifndef BLEND_POINT           // 0: blend matrices then transform; 1: transform per bone, blend points
@@ -81,58 +96,61 @@
 #ifndef STRIDED               // 0: contiguous vertices per item; 1: strided by the item count
 #define STRIDED 0
 #endif
-#ifndef WG_SIZE               // work-group size (reqd_work_group_size)
+#ifndef WG_SIZE               // work-group size (CUDA: threads per block); 0 for glsl-vertex
 #define WG_SIZE 128
 #endif
 #ifndef NORMALS               // 1: also skin normals
 #define NORMALS 0
 #endif
-#ifndef INSTANCED             // 1: K instances per launch (grid dimension 1), K palettes
+#ifndef INSTANCED             // 1: K instances per launch, K palettes (docs/VARIANTS.md "Instancing")
 #define INSTANCED 0
+#endif
+#ifndef PALETTE_INSTANCES     // INSTANCED constant storage in CUDA and GLSL: palettes the constant palette holds
+#define PALETTE_INSTANCES 1
 #endif
 
 #if INDEX_FORMAT == 0
 #define INDEX_BYTES 4
-#define INDEX_T int
 #elif INDEX_FORMAT == 1
 #define INDEX_BYTES 2
-#define INDEX_T ushort
 #else
 #define INDEX_BYTES 1
-#define INDEX_T uchar
 #endif
 
 #if WEIGHT_FORMAT == 0
 #define WEIGHT_BYTES 4
-#define WEIGHT_T float
 #elif WEIGHT_FORMAT == 1
 #define WEIGHT_BYTES 2
-#define WEIGHT_T ushort
 #else
 #define WEIGHT_BYTES 1
-#define WEIGHT_T uchar
 #endif
 
 #if POSITION_FLOAT4
 #define POSITION_BYTES 16
-#define POSITION_T float4
+#define RECORD_ALIGN 16
 #else
 #define POSITION_BYTES 12
-#define POSITION_T float
+#define RECORD_ALIGN 4
 #endif
+
+// (The GLSL preprocessor has no ?: operator: derived values use #if chains.)
 
 // soa-split: slot i of vertex v at element i*S + v, S = n rounded up to this
 // multiple (every slot array of both formats starts on a 256-byte boundary).
 #ifndef SLOT_STRIDE_MULTIPLE
-#define NARROWEST_BYTES (INDEX_BYTES < WEIGHT_BYTES ? INDEX_BYTES : WEIGHT_BYTES)
-#define SLOT_STRIDE_MULTIPLE (256 / NARROWEST_BYTES > 64 ? 256 / NARROWEST_BYTES : 64)
+#if INDEX_BYTES == 1 || WEIGHT_BYTES == 1
+#define SLOT_STRIDE_MULTIPLE 256
+#elif INDEX_BYTES == 2 || WEIGHT_BYTES == 2
+#define SLOT_STRIDE_MULTIPLE 128
+#else
+#define SLOT_STRIDE_MULTIPLE 64
+#endif
 #endif
 
 // aos record: byte offsets of its fields and its size, as the packer lays them
 // out (generator/packer.h AosRecordLayout: natural alignment, size rounded up
 // to 16 bytes for float4 and 4 for float3). The defaults follow that rule.
 #define ROUND_UP(x, m) (((x) + (m) - 1) / (m) * (m))
-#define RECORD_ALIGN (POSITION_FLOAT4 ? 16 : 4)
 #ifndef AOS_POSITION_OFFSET
 #define AOS_POSITION_OFFSET 0
 #endif
@@ -159,6 +177,38 @@
 #endif
 #if VERTICES_PER_ITEM != 1 && VERTICES_PER_ITEM != 2 && VERTICES_PER_ITEM != 4 && VERTICES_PER_ITEM != 8
 #error "VERTICES_PER_ITEM must be 1, 2, 4 or 8"
+#endif
+#if STORAGE < 0 || STORAGE > 3
+#error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
+#endif
+
+#define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
+#line 34 "skin.cl"
+
+// ---------------------------------------------------------------- types
+//
+// Element types of the soa arguments and the outputs.
+
+#if INDEX_FORMAT == 0
+#define INDEX_T int
+#elif INDEX_FORMAT == 1
+#define INDEX_T ushort
+#else
+#define INDEX_T uchar
+#endif
+
+#if WEIGHT_FORMAT == 0
+#define WEIGHT_T float
+#elif WEIGHT_FORMAT == 1
+#define WEIGHT_T ushort
+#else
+#define WEIGHT_T uchar
+#endif
+
+#if POSITION_FLOAT4
+#define POSITION_T float4
+#else
+#define POSITION_T float
 #endif
 
 // ---------------------------------------------------------------- loads
@@ -256,8 +306,6 @@ static inline float weight_of(const uint raw) {
 //
 // Joint j's row r is float4 number j*PALETTE_ROWS + r. Row 3 of mat4 (0 0 0 1
 // for the affine palettes skinning uses) is never read: outputs are xyz.
-
-#define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
 
 #if STORAGE == 0
 #define PALETTE_PARAM __constant float4* restrict palette

@@ -1,0 +1,267 @@
+// skintune: the skinning both GLSL stages share, written once: bindings, the
+// uniforms n and first, input loads, palette access, blending and
+// skin_vertex() (loads one vertex and skins it). skin.comp and skin.vert
+// include it after skin_params.h, with SKIN_COMPUTE_STAGE defined
+// (templates/README.md, "Preludes"), and add how vertices are assigned to
+// invocations and where the outputs go.
+
+#ifndef SKIN_COMPUTE_STAGE
+#error "define SKIN_COMPUTE_STAGE (1 compute shader, 0 vertex shader) before including skin_body.glsl"
+#endif
+
+// ---------------------------------------------------------------- bindings
+//
+// Buffers and the palette take consecutive bindings in argument order
+// (scalars excluded): the sidecar's "binding" of each argument.
+#if LAYOUT == 0
+#define BINDING_RECORDS 0
+#define BINDING_PALETTE 1
+#define BINDING_OUT_POSITIONS 2
+#define BINDING_OUT_NORMALS 3
+#elif NORMALS
+#define BINDING_POSITIONS 0
+#define BINDING_INDICES 1
+#define BINDING_WEIGHTS 2
+#define BINDING_NORMALS 3
+#define BINDING_PALETTE 4
+#define BINDING_OUT_POSITIONS 5
+#define BINDING_OUT_NORMALS 6
+#else
+#define BINDING_POSITIONS 0
+#define BINDING_INDICES 1
+#define BINDING_WEIGHTS 2
+#define BINDING_PALETTE 3
+#define BINDING_OUT_POSITIONS 4
+#endif
+
+uniform uint n;      // vertices of this launch
+uniform uint first;  // index of its first vertex in the outputs (compute: written at first + v)
+
+#if INSTANCED
+// The instance this invocation skins (docs/VARIANTS.md "Instancing"): the
+// work-group's y (compute), the draw's instance (vertex). Its palette starts
+// at joint INSTANCE * JOINTS (the K palettes one after another).
+#if SKIN_COMPUTE_STAGE
+#define INSTANCE gl_WorkGroupID.y
+#else
+#define INSTANCE uint(gl_InstanceID)
+#endif
+#endif
+
+// ---------------------------------------------------------------- inputs
+//
+// float4 positions/normals are read as vec4 (one 16-byte load, like skin.cl's
+// float4), packed float3 as three floats; index and weight arrays, and aos
+// records, are 32-bit words. Records whose size is a multiple of 16 bytes are
+// read through a uvec4 view, so 16-byte aligned fields are single loads.
+
+#if LAYOUT == 0
+#if AOS_RECORD_WORDS % 4 == 0
+#define RECORD_VEC4S 1
+layout(std430, binding = BINDING_RECORDS) readonly restrict buffer Records { uvec4 records[]; };
+// Word w (a constant after unrolling) of vertex v's record.
+#define RECORD_WORD(v, w) records[(v) * uint(AOS_RECORD_WORDS / 4) + ((w) >> 2u)][(w) & 3u]
+#else
+#define RECORD_VEC4S 0
+layout(std430, binding = BINDING_RECORDS) readonly restrict buffer Records { uint records[]; };
+#define RECORD_WORD(v, w) records[(v) * uint(AOS_RECORD_WORDS) + (w)]
+#endif
+#else
+#if POSITION_FLOAT4
+layout(std430, binding = BINDING_POSITIONS) readonly restrict buffer Positions { vec4 positions[]; };
+#else
+layout(std430, binding = BINDING_POSITIONS) readonly restrict buffer Positions { float positions[]; };
+#endif
+layout(std430, binding = BINDING_INDICES) readonly restrict buffer Indices { uint indices[]; };
+layout(std430, binding = BINDING_WEIGHTS) readonly restrict buffer Weights { uint weights[]; };
+#if NORMALS
+#if POSITION_FLOAT4
+layout(std430, binding = BINDING_NORMALS) readonly restrict buffer Normals { vec4 normals[]; };
+#else
+layout(std430, binding = BINDING_NORMALS) readonly restrict buffer Normals { float normals[]; };
+#endif
+#endif
+#endif
+
+// The `bytes`-byte little-endian value at byte `byte_in_word` of `word`
+// (elements are naturally aligned, so none straddles two words).
+uint field(uint word, uint byte_in_word, uint bytes) {
+  if (bytes == 4u) return word;
+  return bitfieldExtract(word, int(byte_in_word * 8u), int(bytes * 8u));
+}
+
+#if LAYOUT == 0
+// xyz of the float4/float3 at byte `offset` of vertex v's record.
+vec3 record_xyz(uint v, uint offset) {
+#if RECORD_VEC4S
+  if (offset % 16u == 0u) return uintBitsToFloat(records[v * uint(AOS_RECORD_WORDS / 4) + offset / 16u].xyz);
+#endif
+  uint w = offset / 4u;
+  return uintBitsToFloat(uvec3(RECORD_WORD(v, w), RECORD_WORD(v, w + 1u), RECORD_WORD(v, w + 2u)));
+}
+vec3 load_position(uint v) { return record_xyz(v, uint(AOS_POSITION_OFFSET)); }
+#if NORMALS
+vec3 load_normal(uint v) { return record_xyz(v, uint(AOS_NORMAL_OFFSET)); }
+#endif
+uint load_index(uint v, uint i, uint slot_stride) {
+  uint byte = uint(AOS_INDICES_OFFSET) + i * uint(INDEX_BYTES);
+  return field(RECORD_WORD(v, byte >> 2u), byte & 3u, uint(INDEX_BYTES));
+}
+uint load_raw_weight(uint v, uint i, uint slot_stride) {
+  uint byte = uint(AOS_WEIGHTS_OFFSET) + i * uint(WEIGHT_BYTES);
+  return field(RECORD_WORD(v, byte >> 2u), byte & 3u, uint(WEIGHT_BYTES));
+}
+#else
+#if POSITION_FLOAT4
+vec3 load_position(uint v) { return positions[v].xyz; }
+#if NORMALS
+vec3 load_normal(uint v) { return normals[v].xyz; }
+#endif
+#else
+vec3 load_position(uint v) { return vec3(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]); }
+#if NORMALS
+vec3 load_normal(uint v) { return vec3(normals[3u * v], normals[3u * v + 1u], normals[3u * v + 2u]); }
+#endif
+#endif
+#if LAYOUT == 1
+// soa: vertex v's B values are adjacent, starting at element v*B. When a run
+// is a whole number of words, its first word is v * (run / 4) and the word and
+// shift of slot i are constants after unrolling.
+uint load_index(uint v, uint i, uint slot_stride) {
+#if (INFLUENCES * INDEX_BYTES) % 4 == 0
+  uint byte = i * uint(INDEX_BYTES);
+  return field(indices[v * uint(INFLUENCES * INDEX_BYTES / 4) + (byte >> 2u)], byte & 3u, uint(INDEX_BYTES));
+#else
+  uint byte = (v * uint(INFLUENCES) + i) * uint(INDEX_BYTES);
+  return field(indices[byte >> 2u], byte & 3u, uint(INDEX_BYTES));
+#endif
+}
+uint load_raw_weight(uint v, uint i, uint slot_stride) {
+#if (INFLUENCES * WEIGHT_BYTES) % 4 == 0
+  uint byte = i * uint(WEIGHT_BYTES);
+  return field(weights[v * uint(INFLUENCES * WEIGHT_BYTES / 4) + (byte >> 2u)], byte & 3u, uint(WEIGHT_BYTES));
+#else
+  uint byte = (v * uint(INFLUENCES) + i) * uint(WEIGHT_BYTES);
+  return field(weights[byte >> 2u], byte & 3u, uint(WEIGHT_BYTES));
+#endif
+}
+#else
+// soa-split: slot i of vertex v is element i*S + v.
+uint load_index(uint v, uint i, uint slot_stride) {
+  uint byte = (i * slot_stride + v) * uint(INDEX_BYTES);
+  return field(indices[byte >> 2u], byte & 3u, uint(INDEX_BYTES));
+}
+uint load_raw_weight(uint v, uint i, uint slot_stride) {
+  uint byte = (i * slot_stride + v) * uint(WEIGHT_BYTES);
+  return field(weights[byte >> 2u], byte & 3u, uint(WEIGHT_BYTES));
+}
+#endif
+#endif
+
+float weight_of(uint raw) {
+#if WEIGHT_FORMAT == 0
+  return uintBitsToFloat(raw);
+#elif WEIGHT_FORMAT == 1
+  return float(raw) * (1.0 / 65535.0);
+#else
+  return float(raw) * (1.0 / 255.0);
+#endif
+}
+
+// ---------------------------------------------------------------- palette
+//
+// Joint j's row r is vec4 number j*PALETTE_ROWS + r. Row 3 of mat4 (0 0 0 1
+// for the affine palettes skinning uses) is never read: outputs are xyz.
+
+#if STORAGE == 0 && INSTANCED
+layout(std140, binding = BINDING_PALETTE) uniform Palette { vec4 palette_rows[PALETTE_INSTANCES * PALETTE_FLOAT4S]; };
+#define ROW(k) palette_rows[k]
+#elif STORAGE == 0
+layout(std140, binding = BINDING_PALETTE) uniform Palette { vec4 palette_rows[PALETTE_FLOAT4S]; };
+#define ROW(k) palette_rows[k]
+#elif STORAGE == 1
+#if !SKIN_COMPUTE_STAGE
+#error "STORAGE 1 (local): a vertex shader has no shared memory"
+#endif
+layout(std430, binding = BINDING_PALETTE) readonly restrict buffer Palette { vec4 palette_rows[]; };
+shared vec4 palette_local[PALETTE_FLOAT4S];
+#define ROW(k) palette_local[k]
+#elif STORAGE == 2
+layout(std430, binding = BINDING_PALETTE) readonly restrict buffer Palette { vec4 palette_rows[]; };
+#define ROW(k) palette_rows[k]
+#else
+layout(binding = BINDING_PALETTE) uniform samplerBuffer palette_texels;
+#define ROW(k) texelFetch(palette_texels, int(k))
+#endif
+
+// (x, y, z, 1) by the three rows.
+vec3 transform_point(vec4 r0, vec4 r1, vec4 r2, vec3 p) {
+  vec4 h = vec4(p, 1.0);
+  return vec3(dot(r0, h), dot(r1, h), dot(r2, h));
+}
+
+vec3 transform_direction(vec4 r0, vec4 r1, vec4 r2, vec3 d) {
+  return vec3(dot(r0.xyz, d), dot(r1.xyz, d), dot(r2.xyz, d));
+}
+
+// Skins one vertex given its joints and weights.
+void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, vec3 normal,
+           out vec3 out_p, out vec3 out_n) {
+#if BLEND_POINT
+  uint k = joint[0] * uint(PALETTE_ROWS);
+  vec4 r0 = ROW(k), r1 = ROW(k + 1u), r2 = ROW(k + 2u);
+  vec3 p = weight[0] * transform_point(r0, r1, r2, position);
+  vec3 nrm = weight[0] * transform_direction(r0, r1, r2, normal);  // dead code without NORMALS
+  for (uint i = 1u; i < uint(INFLUENCES); ++i) {
+    k = joint[i] * uint(PALETTE_ROWS);
+    r0 = ROW(k);
+    r1 = ROW(k + 1u);
+    r2 = ROW(k + 2u);
+    p += weight[i] * transform_point(r0, r1, r2, position);
+    nrm += weight[i] * transform_direction(r0, r1, r2, normal);
+  }
+  out_p = p;
+  out_n = nrm;
+#else
+  uint k0 = joint[0] * uint(PALETTE_ROWS);
+  vec4 m0 = weight[0] * ROW(k0), m1 = weight[0] * ROW(k0 + 1u), m2 = weight[0] * ROW(k0 + 2u);
+  for (uint i = 1u; i < uint(INFLUENCES); ++i) {
+    uint k = joint[i] * uint(PALETTE_ROWS);
+    m0 += weight[i] * ROW(k);
+    m1 += weight[i] * ROW(k + 1u);
+    m2 += weight[i] * ROW(k + 2u);
+  }
+  out_p = transform_point(m0, m1, m2, position);
+  out_n = transform_direction(m0, m1, m2, normal);  // dead code without NORMALS
+#endif
+}
+
+// Loads vertex v of the launch and skins it (the normal is not normalised yet).
+void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 skinned_normal) {
+  vec3 position = load_position(v);
+  vec3 normal = vec3(0.0);
+#if NORMALS
+  normal = load_normal(v);
+#endif
+  uint joint[INFLUENCES];
+  uint raw_weight[INFLUENCES];
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) {
+    joint[i] = load_index(v, i, slot_stride);
+    raw_weight[i] = load_raw_weight(v, i, slot_stride);
+  }
+#if INSTANCED && STORAGE != 1
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) joint[i] += INSTANCE * uint(JOINTS);  // this instance's palette
+#endif
+  float weight[INFLUENCES];
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) weight[i] = weight_of(raw_weight[i]);
+  blend(joint, weight, position, normal, skinned_position, skinned_normal);
+}
+
+// The slot stride S of soa-split for a launch of n vertices (0 otherwise).
+uint slot_stride_of(uint count) {
+#if LAYOUT == 2
+  return ROUND_UP(max(count, 1u), uint(SLOT_STRIDE_MULTIPLE));
+#else
+  return 0u;
+#endif
+}

@@ -1,0 +1,133 @@
+// skintune: the kernel parameters, their defaults and the values derived from
+// them, written once for every kernel template (templates/README.md,
+// "Preludes"). The generator prepends one #define per parameter; each has a
+// default (the default Variant: b4 soa float4 u16 f32 mat3x4 global matrix v1c
+// wg128 nonormals), so every template compiles alone. docs/VARIANTS.md says
+// what each parameter means; a new one is added here, and only here.
+//
+// This text is OpenCL C, CUDA C++ and GLSL at once: preprocessor lines and
+// comments only. An "item" is a work-item (OpenCL), a thread (CUDA) or an
+// invocation (GLSL).
+
+// ---------------------------------------------------------------- parameters
+
+#ifndef INFLUENCES            // B: bone slots per vertex, 1..8
+#define INFLUENCES 4
+#endif
+#ifndef LAYOUT                // 0 aos, 1 soa, 2 soa-split
+#define LAYOUT 1
+#endif
+#ifndef POSITION_FLOAT4       // 1: float4 positions/normals/outputs; 0: packed float3
+#define POSITION_FLOAT4 1
+#endif
+#ifndef INDEX_FORMAT          // 0 i32, 1 u16, 2 u8
+#define INDEX_FORMAT 1
+#endif
+#ifndef WEIGHT_FORMAT         // 0 f32, 1 unorm16, 2 unorm8
+#define WEIGHT_FORMAT 0
+#endif
+#ifndef PALETTE_ROWS          // float4 rows per joint: 4 mat4, 3 mat3x4
+#define PALETTE_ROWS 3
+#endif
+#ifndef STORAGE               // palette in 0 constant memory, 1 a local copy, 2 global memory, 3 an image
+#define STORAGE 2
+#endif
+#ifndef JOINTS                // palette entries (sizes the local copy and CUDA's / GLSL's constant palette)
+#define JOINTS 77
+#endif
+#ifndef BLEND_POINT           // 0: blend matrices then transform; 1: transform per bone, blend points
+#define BLEND_POINT 0
+#endif
+#ifndef VERTICES_PER_ITEM     // N: 1, 2, 4, 8
+#define VERTICES_PER_ITEM 1
+#endif
+#ifndef STRIDED               // 0: contiguous vertices per item; 1: strided by the item count
+#define STRIDED 0
+#endif
+#ifndef WG_SIZE               // work-group size (CUDA: threads per block); 0 for glsl-vertex
+#define WG_SIZE 128
+#endif
+#ifndef NORMALS               // 1: also skin normals
+#define NORMALS 0
+#endif
+#ifndef INSTANCED             // 1: K instances per launch, K palettes (docs/VARIANTS.md "Instancing")
+#define INSTANCED 0
+#endif
+#ifndef PALETTE_INSTANCES     // INSTANCED constant storage in CUDA and GLSL: palettes the constant palette holds
+#define PALETTE_INSTANCES 1
+#endif
+
+#if INDEX_FORMAT == 0
+#define INDEX_BYTES 4
+#elif INDEX_FORMAT == 1
+#define INDEX_BYTES 2
+#else
+#define INDEX_BYTES 1
+#endif
+
+#if WEIGHT_FORMAT == 0
+#define WEIGHT_BYTES 4
+#elif WEIGHT_FORMAT == 1
+#define WEIGHT_BYTES 2
+#else
+#define WEIGHT_BYTES 1
+#endif
+
+#if POSITION_FLOAT4
+#define POSITION_BYTES 16
+#define RECORD_ALIGN 16
+#else
+#define POSITION_BYTES 12
+#define RECORD_ALIGN 4
+#endif
+
+// (The GLSL preprocessor has no ?: operator: derived values use #if chains.)
+
+// soa-split: slot i of vertex v at element i*S + v, S = n rounded up to this
+// multiple (every slot array of both formats starts on a 256-byte boundary).
+#ifndef SLOT_STRIDE_MULTIPLE
+#if INDEX_BYTES == 1 || WEIGHT_BYTES == 1
+#define SLOT_STRIDE_MULTIPLE 256
+#elif INDEX_BYTES == 2 || WEIGHT_BYTES == 2
+#define SLOT_STRIDE_MULTIPLE 128
+#else
+#define SLOT_STRIDE_MULTIPLE 64
+#endif
+#endif
+
+// aos record: byte offsets of its fields and its size, as the packer lays them
+// out (generator/packer.h AosRecordLayout: natural alignment, size rounded up
+// to 16 bytes for float4 and 4 for float3). The defaults follow that rule.
+#define ROUND_UP(x, m) (((x) + (m) - 1) / (m) * (m))
+#ifndef AOS_POSITION_OFFSET
+#define AOS_POSITION_OFFSET 0
+#endif
+#ifndef AOS_INDICES_OFFSET
+#define AOS_INDICES_OFFSET POSITION_BYTES
+#endif
+#ifndef AOS_WEIGHTS_OFFSET
+#define AOS_WEIGHTS_OFFSET ROUND_UP(AOS_INDICES_OFFSET + INFLUENCES * INDEX_BYTES, WEIGHT_BYTES)
+#endif
+#ifndef AOS_NORMAL_OFFSET
+#define AOS_NORMAL_OFFSET ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN)
+#endif
+#ifndef AOS_RECORD_WORDS
+#if NORMALS
+#define AOS_RECORD_WORDS (ROUND_UP(AOS_NORMAL_OFFSET + POSITION_BYTES, RECORD_ALIGN) / 4)
+#else
+#define AOS_RECORD_WORDS (ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN) / 4)
+#endif
+#endif
+#define AOS_RECORD_BYTES (AOS_RECORD_WORDS * 4)
+
+#if INFLUENCES < 1 || INFLUENCES > 8
+#error "INFLUENCES must be 1..8"
+#endif
+#if VERTICES_PER_ITEM != 1 && VERTICES_PER_ITEM != 2 && VERTICES_PER_ITEM != 4 && VERTICES_PER_ITEM != 8
+#error "VERTICES_PER_ITEM must be 1, 2, 4 or 8"
+#endif
+#if STORAGE < 0 || STORAGE > 3
+#error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
+#endif
+
+#define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
