@@ -8,10 +8,10 @@
 #include <utility>
 
 #include "runtime/api_errors.h"
-#include "runtime/cuda_api.h"
+#include "runtime/backends/cuda/cuda_api.h"
 #include "runtime/device_identity.h"
-#include "runtime/gl_context.h"
-#include "runtime/opencl_gl_sharing.h"
+#include "runtime/backends/gl/gl_context.h"
+#include "runtime/backends/opencl/opencl_gl_sharing.h"
 #include "runtime/selection.h"
 #include "runtime/winners_db.h"
 

@@ -14,10 +14,10 @@
 
 #include "generator/constraints.h"
 #include "generator/variant.h"
-#include "runtime/cuda_runner.h"
-#include "runtime/gl_runner.h"
-#include "runtime/opencl_devices.h"
-#include "runtime/opencl_runner.h"
+#include "runtime/backends/cuda/cuda_runner.h"
+#include "runtime/backends/gl/gl_runner.h"
+#include "runtime/backends/opencl/opencl_devices.h"
+#include "runtime/backends/opencl/opencl_runner.h"
 #include "runtime/program_cache.h"
 #include "skintune/skintune.h"
 

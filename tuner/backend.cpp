@@ -15,7 +15,7 @@
 #include "reference/error.h"
 #include "reference/gltf_import.h"
 #include "reference/synthetic.h"
-#include "runtime/cuda_api.h"
+#include "runtime/backends/cuda/cuda_api.h"
 #include "tuner/backends_internal.h"
 
 namespace skintune {

@@ -21,7 +21,7 @@
 #include "generator/packer.h"
 #include "reference/asset.h"
 #include "reference/skinning.h"
-#include "runtime/opencl_devices.h"
+#include "runtime/backends/opencl/opencl_devices.h"
 #include "tuner/backend.h"
 
 namespace skintune::tuner_internal {

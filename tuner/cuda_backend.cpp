@@ -2,8 +2,8 @@
 // at run time), measuring `cuda` variants through CudaRunner.
 #include <memory>
 
-#include "runtime/cuda_api.h"
-#include "runtime/cuda_runner.h"
+#include "runtime/backends/cuda/cuda_api.h"
+#include "runtime/backends/cuda/cuda_runner.h"
 #include "runtime/device_identity.h"
 #include "tuner/backends_internal.h"
 

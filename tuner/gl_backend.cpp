@@ -1,12 +1,12 @@
 // skintune: the OpenGL backend: one headless GL 4.3+ core context through EGL
-// (runtime/gl_context.h), measuring glsl-compute and glsl-vertex variants
+// (runtime/backends/gl/gl_context.h), measuring glsl-compute and glsl-vertex variants
 // through GlRunner.
 #include <memory>
 
 #include "reference/error.h"
 #include "runtime/device_identity.h"
-#include "runtime/gl_context.h"
-#include "runtime/gl_runner.h"
+#include "runtime/backends/gl/gl_context.h"
+#include "runtime/backends/gl/gl_runner.h"
 #include "tuner/backends_internal.h"
 
 namespace skintune::tuner_internal {

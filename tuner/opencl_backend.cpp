@@ -2,8 +2,8 @@
 // device type), measuring `opencl` variants through OpenClRunner.
 #include <memory>
 
-#include "runtime/opencl_devices.h"
-#include "runtime/opencl_runner.h"
+#include "runtime/backends/opencl/opencl_devices.h"
+#include "runtime/backends/opencl/opencl_runner.h"
 #include "tuner/backends_internal.h"
 
 namespace skintune::tuner_internal {

@@ -1,6 +1,6 @@
 // skintune (internal): runs emitted GLSL kernels (glsl-compute and
 // glsl-vertex) on a packed mesh through a headless GL 4.3 context
-// (runtime/gl_context.h), with the same checks as the OpenCL runner.
+// (runtime/backends/gl/gl_context.h), with the same checks as the OpenCL runner.
 //
 // - Build: each distinct KernelSource is compiled and linked once per runner;
 //   a failure throws Error("GL build ...") with the first lines of the log.
@@ -71,7 +71,7 @@
 
 #include "generator/emit.h"
 #include "generator/packer.h"
-#include "runtime/gl_context.h"
+#include "runtime/backends/gl/gl_context.h"
 #include "runtime/program_cache.h"
 
 namespace skintune {

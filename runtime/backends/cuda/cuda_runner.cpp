@@ -1,4 +1,4 @@
-#include "runtime/cuda_runner.h"
+#include "runtime/backends/cuda/cuda_runner.h"
 
 #include <dlfcn.h>
 
@@ -8,7 +8,7 @@
 #include <utility>
 
 #include "reference/error.h"
-#include "runtime/cuda_api.h"
+#include "runtime/backends/cuda/cuda_api.h"
 #include "runtime/output_check.h"
 #include "runtime/run_shape.h"
 

@@ -1,4 +1,4 @@
-#include "runtime/gl_context.h"
+#include "runtime/backends/gl/gl_context.h"
 
 #include <dlfcn.h>
 #include <epoxy/egl.h>

@@ -1,4 +1,4 @@
-#include "runtime/opencl_devices.h"
+#include "runtime/backends/opencl/opencl_devices.h"
 
 #define CL_TARGET_OPENCL_VERSION 120
 #include <CL/cl.h>

@@ -1,4 +1,4 @@
-#include "runtime/opencl_runner.h"
+#include "runtime/backends/opencl/opencl_runner.h"
 
 #define CL_TARGET_OPENCL_VERSION 120
 #include <CL/cl.h>

@@ -1,9 +1,9 @@
 // The GL Skinner: one prepared input set of the device's GlRunner
-// (runtime/gl_runner.h), written, launched and read per frame, with the
+// (runtime/backends/gl/gl_runner.h), written, launched and read per frame, with the
 // Device's GL context current.
 #include <memory>
 
-#include "runtime/gl_runner.h"
+#include "runtime/backends/gl/gl_runner.h"
 #include "runtime/skinner.h"
 
 namespace skintune {

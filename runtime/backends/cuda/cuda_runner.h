@@ -1,7 +1,7 @@
 // skintune (internal): runs emitted CUDA kernels on a packed mesh, with the
 // checks a tuner needs to trust a result; the CUDA twin of OpenClRunner.
 //
-// - CUDA is loaded at run time (runtime/cuda_api.h): this builds everywhere
+// - CUDA is loaded at run time (runtime/backends/cuda/cuda_api.h): this builds everywhere
 //   and the constructor throws Error("CUDA setup: ...") where there is no
 //   driver or device.
 // - Build: each distinct KernelSource is compiled once per runner with NVRTC

@@ -1,4 +1,4 @@
-#include "runtime/gl_runner.h"
+#include "runtime/backends/gl/gl_runner.h"
 
 #include <epoxy/gl.h>
 

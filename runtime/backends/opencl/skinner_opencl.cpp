@@ -1,10 +1,10 @@
 // The OpenCL Skinner: one prepared input set of the device's OpenClRunner
-// (runtime/opencl_runner.h), written, launched and read per frame; with a
+// (runtime/backends/opencl/opencl_runner.h), written, launched and read per frame; with a
 // GL-sharing Device, also skinned straight into GL buffers.
 #include <memory>
 
-#include "runtime/opencl_gl_sharing.h"
-#include "runtime/opencl_runner.h"
+#include "runtime/backends/opencl/opencl_gl_sharing.h"
+#include "runtime/backends/opencl/opencl_runner.h"
 #include "runtime/skinner.h"
 
 namespace skintune {

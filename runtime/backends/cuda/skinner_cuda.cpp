@@ -1,9 +1,9 @@
 // The CUDA Skinner: one prepared input set of the device's CudaRunner
-// (runtime/cuda_runner.h), written, launched and read per frame on the
+// (runtime/backends/cuda/cuda_runner.h), written, launched and read per frame on the
 // Device's stream.
 #include <memory>
 
-#include "runtime/cuda_runner.h"
+#include "runtime/backends/cuda/cuda_runner.h"
 #include "runtime/skinner.h"
 
 namespace skintune {
