@@ -23,6 +23,7 @@
 #include "reference/error.h"
 #include "reference/synthetic.h"
 #include "runtime/backends/cuda/cuda_api.h"
+#include "runtime/backends/opencl/opencl_devices.h"
 #include "runtime/backends/gl/gl_runner.h"
 #include "runtime/backends/opencl/opencl_runner.h"
 #include "tuner/backend.h"

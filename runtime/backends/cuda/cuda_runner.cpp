@@ -3,8 +3,6 @@
 // the __constant__ palette symbol, parameter arrays, and CUDA events.
 #include "runtime/backends/cuda/cuda_runner.h"
 
-#include <dlfcn.h>
-
 #include <algorithm>
 #include <cstring>
 #include <map>
@@ -70,67 +68,7 @@ struct BuiltKernel {
 // The __constant__ palette symbol of templates/skin.cu (STORAGE constant).
 constexpr const char* kConstantPaletteSymbol = "skintune_palette";
 
-// Device attributes beyond cuda_api.h's.
-constexpr int kAttributeClockRate = 13;          // CU_DEVICE_ATTRIBUTE_CLOCK_RATE (kHz)
-constexpr int kAttributeMultiprocessorCount = 16;  // CU_DEVICE_ATTRIBUTE_MULTIPROCESSOR_COUNT
-constexpr int kAttributeL2CacheSize = 38;        // CU_DEVICE_ATTRIBUTE_L2_CACHE_SIZE (bytes)
-constexpr int kAttributeMaxGridDimY = 6;         // CU_DEVICE_ATTRIBUTE_MAX_GRID_DIM_Y (instances per launch)
-
-// cuDeviceTotalMem_v2 from the driver library Probe() loaded (cuda_api.h
-// does not declare it); 0 when it cannot be found.
-std::uint64_t TotalMemory(const std::string& library, cuda::Device device) {
-  void* handle = dlopen(library.c_str(), RTLD_LAZY | RTLD_NOLOAD);
-  if (!handle) return 0;
-  using TotalMem = cuda::Result (*)(std::size_t*, cuda::Device);
-  const auto total_mem = reinterpret_cast<TotalMem>(dlsym(handle, "cuDeviceTotalMem_v2"));
-  std::size_t bytes = 0;
-  const bool ok = total_mem && total_mem(&bytes, device) == cuda::kSuccess;
-  dlclose(handle);  // drops the reference RTLD_NOLOAD added; the driver stays loaded
-  return ok ? bytes : 0;
-}
-
 }  // namespace
-
-CudaDeviceInfo QueryCudaDevice(int device_index) {
-  const CudaAvailability available = Probe();
-  if (!available.nvrtc) Fail("setup", available.nvrtc_missing);
-  if (!available.driver) Fail("setup", available.driver_missing);
-  const cuda::DriverApi* api = cuda::Driver();
-  if (!api) Fail("setup", available.driver_missing);
-  if (device_index < 0 || device_index >= available.device_count)
-    Fail("setup", "no device " + std::to_string(device_index) + " (" + std::to_string(available.device_count) +
-                      " devices" + (available.device_count == 0 ? ": " + available.driver_missing : "") + ")");
-  cuda::Device device = 0;
-  Check(api->cuDeviceGet(&device, device_index), "setup", "cuDeviceGet " + std::to_string(device_index));
-  CudaDeviceInfo info;
-  info.index = device_index;
-  char text[256] = {};
-  Check(api->cuDeviceGetName(text, sizeof text - 1, device), "setup", "cuDeviceGetName");
-  info.name = text;
-  auto attribute = [&](int which, const char* what) {
-    int value = 0;
-    Check(api->cuDeviceGetAttribute(&value, which, device), "setup", std::string("cuDeviceGetAttribute ") + what);
-    return value;
-  };
-  info.major = attribute(cuda::kAttributeComputeCapabilityMajor, "(compute capability)");
-  info.minor = attribute(cuda::kAttributeComputeCapabilityMinor, "(compute capability)");
-  info.multiprocessors = attribute(kAttributeMultiprocessorCount, "(multiprocessors)");
-  info.clock_khz = attribute(kAttributeClockRate, "(clock rate)");
-  info.l2_cache_bytes = static_cast<std::uint64_t>(attribute(kAttributeL2CacheSize, "(L2 cache size)"));
-  info.total_memory_bytes = TotalMemory(available.driver_library, device);
-  info.driver_version = available.driver_version;
-  info.limits.max_wg_size = static_cast<std::size_t>(attribute(cuda::kAttributeMaxThreadsPerBlock, "(threads per block)"));
-  info.limits.local_memory_bytes =
-      static_cast<std::uint64_t>(attribute(cuda::kAttributeMaxSharedMemoryPerBlock, "(shared memory per block)"));
-  info.limits.constant_memory_bytes =
-      static_cast<std::uint64_t>(attribute(cuda::kAttributeTotalConstantMemory, "(constant memory)"));
-  info.limits.image_support = true;  // texture objects: every device CUDA 11+ runs on
-  info.limits.image_buffer_max_texels =
-      static_cast<std::uint64_t>(attribute(cuda::kAttributeMaxTexture1dLinearWidth, "(1D linear texture width)"));
-  info.limits.max_grid_y = static_cast<std::uint64_t>(attribute(kAttributeMaxGridDimY, "(grid y)"));
-  info.arch = NvrtcArchFor(info.major, info.minor);
-  return info;
-}
 
 std::string CompilePtxCached(const KernelSource& source, const std::string& arch, ProgramCache* cache,
                              const std::string& device_id) {

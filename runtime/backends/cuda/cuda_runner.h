@@ -41,27 +41,11 @@
 #include "generator/constraints.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
+#include "runtime/backends/cuda/cuda_devices.h"
 #include "runtime/program_cache.h"
 #include "runtime/runner.h"
 
 namespace skintune {
-
-// What the driver says about a device, without a context (QueryCudaDevice).
-struct CudaDeviceInfo {
-  int index = 0;
-  std::string name;
-  int major = 0, minor = 0;                  // compute capability
-  std::string arch;                          // NvrtcArchFor(major, minor); empty when NVRTC is older
-  int multiprocessors = 0;
-  int clock_khz = 0;
-  std::uint64_t total_memory_bytes = 0;      // cuDeviceTotalMem (0 when the driver lacks it)
-  std::uint64_t l2_cache_bytes = 0;
-  int driver_version = 0;                    // cuDriverGetVersion: 13000 = CUDA 13.0
-  DeviceLimits limits;                       // threads per block, static __shared__, __constant__, texture width
-};
-
-// Throws Error("CUDA setup: ...") when there is no NVRTC, no driver or no such device.
-CudaDeviceInfo QueryCudaDevice(int device_index);
 
 // NVRTC's PTX of `source` for `arch` ("compute_90"), from `cache` when it
 // holds it (key: device_id, source hash, arch), else compiled and stored

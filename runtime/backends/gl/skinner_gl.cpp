@@ -1,6 +1,5 @@
 // The GL Skinner: one prepared input set of the device's GlRunner
-// (runtime/backends/gl/gl_runner.h), written, launched and read per frame, with the
-// Device's GL context current.
+// (RunnerSkinner), usable only with the Device's GL context current.
 #include <memory>
 
 #include "runtime/backends/gl/gl_runner.h"
@@ -19,27 +18,25 @@ void CheckCurrent(GlRunner& runner, const char* call) {
   }
 }
 
-class GlSkinner final : public RunnerSkinner<GlRunner, GlPrepared> {
+class GlSkinner final : public RunnerSkinner {
  public:
-  using RunnerSkinner::RunnerSkinner;
-  void CheckUsable() const override { CheckCurrent(runner_, "Skinner"); }
+  GlSkinner(GlRunner& runner, Prepared prepared, bool normals)
+      : RunnerSkinner(runner, std::move(prepared), normals), gl_runner_(runner) {}
+  void CheckUsable() const override { CheckCurrent(gl_runner_, "Skinner"); }
+
+ private:
+  GlRunner& gl_runner_;
 };
 
 }  // namespace
 
 std::unique_ptr<SkinnerBackend> MakeGlSkinner(DeviceState& device, const PackedMesh& mesh,
                                               const std::vector<KernelSource>& kernels, int instances) {
-  if (!device.gl) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no GL context");
-  CheckCurrent(*device.gl, "Skinner::Create");
-  std::unique_ptr<SkinnerBackend> skinner;
-  RunOnDevice(
-      [&] {
-        skinner = std::make_unique<GlSkinner>(
-            *device.gl, device.gl->Prepare(mesh, kernels, RestPalettes(mesh, instances), instances),
-            mesh.variant.normals);
-      },
-      "Skinner::Create: ");
-  return skinner;
+  auto* runner = dynamic_cast<GlRunner*>(device.runner.get());
+  if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no GL context");
+  CheckCurrent(*runner, "Skinner::Create");
+  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, instances);
+  return std::make_unique<GlSkinner>(*runner, std::move(prepared), mesh.variant.normals);
 }
 
 }  // namespace skintune

@@ -153,6 +153,23 @@ bool OpenClContextSharesGl(void* context_handle) {
   return false;
 }
 
+DeviceIdentity IdentityOf(const OpenClDeviceInfo& device) {
+  DeviceIdentity d;
+  d.backend = "opencl";
+  d.platform = device.platform_name;
+  d.vendor = device.vendor;
+  d.name = device.name;
+  d.driver_version = device.driver_version;
+  d.api_version = device.device_version;
+  d.type = device.type;
+  d.compute_units = device.compute_units;
+  d.global_memory_bytes = device.global_memory_bytes;
+  d.local_memory_bytes = device.local_memory_bytes;
+  d.constant_memory_bytes = device.constant_buffer_bytes;
+  d.last_level_cache_bytes = device.global_cache_bytes;  // CL_DEVICE_GLOBAL_MEM_CACHE_SIZE
+  return d;
+}
+
 DeviceLimits LimitsOf(const OpenClDeviceInfo& d) {
   DeviceLimits limits;
   limits.max_wg_size = d.max_work_group_size;
