@@ -8,19 +8,17 @@
 #include <nlohmann/json.hpp>
 
 #include "runtime/api_errors.h"
+#include "runtime/backend_table.h"
 #include "runtime/selection.h"
 #include "runtime/winners_db.h"
 #include "skintune/skintune.h"
 
 namespace skintune {
 
+// The backend table lists the APIs in Backend's order (runtime/backend_table.h).
 const char* BackendName(Backend backend) {
-  switch (backend) {
-    case Backend::kOpenCl: return "opencl";
-    case Backend::kCuda: return "cuda";
-    case Backend::kGl: return "gl";
-  }
-  return "unknown";
+  const auto index = static_cast<std::size_t>(backend);
+  return index < Backends().size() ? Backends()[index].name : "unknown";
 }
 
 const char* MatchLevelName(MatchLevel level) {

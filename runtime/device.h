@@ -2,10 +2,11 @@
 //
 // A Device holds a shared_ptr to its DeviceState and every Skinner holds
 // another, so a Skinner keeps its device's context, queue and compiled
-// programs alive even after the Device object is gone. Exactly one runner is
-// set, the one of info.backend; the runners own (or retain) the API objects
-// and hold the compiled programs, which is what makes a second Skinner of
-// the same variant on the same Device a memory hit of the program cache.
+// programs alive even after the Device object is gone. The runner (of the
+// API of `backend`, runtime/backend_table.h) owns (or retains) the API
+// objects and holds the compiled programs, which is what makes a second
+// Skinner of the same variant on the same Device a memory hit of the program
+// cache.
 #pragma once
 
 #include <memory>
@@ -14,11 +15,10 @@
 
 #include "generator/constraints.h"
 #include "generator/variant.h"
-#include "runtime/cuda_runner.h"
-#include "runtime/gl_runner.h"
-#include "runtime/opencl_devices.h"
-#include "runtime/opencl_runner.h"
+#include "runtime/backend_table.h"
+#include "runtime/device_identity.h"
 #include "runtime/program_cache.h"
+#include "runtime/runner.h"
 #include "skintune/skintune.h"
 
 namespace skintune {
@@ -28,11 +28,10 @@ struct DeviceState {
 
   DeviceInfo info;
   DeviceLimits limits;
-  std::vector<Lang> langs;  // preferred first
-  ProgramCache cache;       // declared before the runners, which point at it
-  std::unique_ptr<OpenClRunner> opencl;
-  std::unique_ptr<CudaRunner> cuda;
-  std::unique_ptr<GlRunner> gl;
+  std::vector<Lang> langs;               // preferred first
+  const BackendEntry* backend = nullptr;  // the API's entry
+  ProgramCache cache;                    // declared before the runner, which points at it
+  std::unique_ptr<Runner> runner;
   bool gl_sharing = false;  // OpenCL context created for the current GL context (cl_khr_gl_sharing)
 };
 
@@ -46,7 +45,13 @@ struct DeviceAccess {
   static const std::shared_ptr<DeviceState>* State(const Device& device);
 };
 
-// The public identity of an OpenCL device (its id as the tuner writes it).
-DeviceInfo PublicInfo(const OpenClDeviceInfo& device);
+// The public identity of a device (skintune::Backend is its entry's position
+// in the backend table).
+DeviceInfo PublicInfo(const DeviceIdentity& identity);
+
+// A Device on `runner` (made for the device `identity` names): its
+// languages, limits and program cache. The backends' Device::From* use it.
+Device MakeDevice(const DeviceOptions& options, const DeviceIdentity& identity, const DeviceLimits& limits,
+                  std::unique_ptr<Runner> runner, bool gl_sharing = false);
 
 }  // namespace skintune

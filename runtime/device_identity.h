@@ -1,21 +1,41 @@
-// skintune (internal): the parts of a device's identity that the tuner
-// records and the runtime matches on (winners database keys), computed in one
-// place so both agree: DeviceIdentity::Id() in the tuner and DeviceInfo::id in
-// the runtime are "<backend>:<platform>/<name>/<driver_version>" with these.
+// skintune (internal): who a device is, one type for the runtime and the
+// tuner. Discovery (runtime/backend_table.h) fills it once per device from
+// the API's own answers (each backend folder: IdentityOf); the tuner records
+// it in reports and the runtime matches winners databases on it, so both
+// agree on the id "<backend>:<platform>/<name>/<driver_version>". The public
+// skintune::DeviceInfo is made from it (runtime/device.h PublicInfo).
 #pragma once
 
+#include <cstdint>
 #include <string>
+
+#include <nlohmann/json_fwd.hpp>
 
 namespace skintune {
 
-// The CUDA device's driver version: "<kernel driver> (CUDA <major>.<minor>)",
-// e.g. "580.159.04 (CUDA 13.0)", or "CUDA 13.0" alone when the kernel driver's
-// version cannot be found (/proc/driver/nvidia/version, else NVML loaded at
-// run time). `cuda_driver_version` is cuDriverGetVersion's (13000 = 13.0).
-std::string CudaDriverVersionText(int cuda_driver_version);
+struct DeviceIdentity {
+  std::string backend;          // BackendEntry::name: "opencl", "cuda", "gl"
+  int index = 0;                // position in discovery order (for --device and the worker)
+  std::string platform;         // OpenCL platform name; "CUDA"; EGL platform for GL
+  std::string vendor;
+  std::string name;             // device name / GL_RENDERER
+  std::string driver_version;
+  std::string api_version;      // OpenCL device version; CUDA compute capability; GL_VERSION
+  std::string type;             // "gpu", "cpu", ...
+  std::uint32_t compute_units = 0;
+  std::uint64_t global_memory_bytes = 0;
+  std::uint64_t local_memory_bytes = 0;
+  std::uint64_t constant_memory_bytes = 0;
+  std::uint64_t last_level_cache_bytes = 0;  // 0 = unknown (then the rotation rule assumes 64 MiB)
 
-// "cpu" for Mesa's software rasterisers (llvmpipe, softpipe, swrast, any
-// renderer saying "software"), else "gpu".
-std::string GlDeviceType(const std::string& renderer);
+  // Stable across runs and machines with the same device and driver:
+  // "<backend>:<platform>/<name>/<driver_version>".
+  std::string Id() const;
+};
+
+// Every field, and "id". Reading needs backend, platform, name and
+// driver_version; throws Error naming a missing field or one of the wrong type.
+void to_json(nlohmann::json& out, const DeviceIdentity& d);
+void from_json(const nlohmann::json& in, DeviceIdentity& d);
 
 }  // namespace skintune

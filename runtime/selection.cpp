@@ -5,6 +5,7 @@
 #include <tuple>
 
 #include "runtime/api_errors.h"
+#include "runtime/backend_table.h"
 
 namespace skintune {
 
@@ -74,12 +75,8 @@ std::string Langs(const std::vector<Lang>& langs) {
 }  // namespace
 
 std::vector<Lang> LanguagesOf(Backend backend) {
-  switch (backend) {
-    case Backend::kOpenCl: return {Lang::kOpenCl};
-    case Backend::kCuda: return {Lang::kCuda};
-    case Backend::kGl: return {Lang::kGlslCompute, Lang::kGlslVertex};
-  }
-  return {};
+  const BackendEntry* entry = FindBackend(BackendName(backend));
+  return entry ? entry->languages : std::vector<Lang>{};
 }
 
 Variant GenericDefault(Lang lang, int influences, bool normals, const DeviceLimits& limits) {

@@ -65,7 +65,7 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
 // holds for it on every device except the vertex shader's storage blocks.
 Variant GenericDefault(Lang lang, int influences, bool normals, const DeviceLimits& limits);
 
-// A backend's languages, preferred first: opencl; cuda; glsl-compute, glsl-vertex.
+// A backend's languages, preferred first (its entry in runtime/backend_table.h).
 std::vector<Lang> LanguagesOf(Backend backend);
 
 }  // namespace skintune

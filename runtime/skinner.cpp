@@ -132,6 +132,21 @@ std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int 
   return palettes;
 }
 
+Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const std::vector<KernelSource>& kernels,
+                           int instances) {
+  if (!device.runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no runner");
+  Prepared prepared;
+  RunOnDevice([&] { prepared = device.runner->Prepare(mesh, kernels, RestPalettes(mesh, instances), instances); },
+              "Skinner::Create: ");
+  return prepared;
+}
+
+std::unique_ptr<SkinnerBackend> MakeRunnerSkinner(DeviceState& device, const PackedMesh& mesh,
+                                                  const std::vector<KernelSource>& kernels, int instances) {
+  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, instances);
+  return std::make_unique<RunnerSkinner>(*device.runner, std::move(prepared), mesh.variant.normals);
+}
+
 Skinner::Skinner() = default;
 Skinner::~Skinner() = default;
 Skinner::Skinner(Skinner&&) noexcept = default;
@@ -201,11 +216,7 @@ Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshV
     im.instances = options.instances;
     im.output_stride = packed.output_stride_bytes;
     im.order = packed.order;
-    switch (state.info.backend) {
-      case Backend::kOpenCl: im.backend = MakeOpenClSkinner(state, packed, kernels, options.instances); break;
-      case Backend::kCuda: im.backend = MakeCudaSkinner(state, packed, kernels, options.instances); break;
-      case Backend::kGl: im.backend = MakeGlSkinner(state, packed, kernels, options.instances); break;
-    }
+    im.backend = state.backend->make_skinner(state, packed, kernels, options.instances);
     return skinner;
   });
 }

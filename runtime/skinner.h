@@ -3,10 +3,11 @@
 // Skinner::Create (skinner.cpp) does everything that is the same on every
 // backend: it validates the MeshView into a SkinnedMesh, chooses the variant
 // (Select with the constraints of the real device and mesh), packs the mesh
-// and emits the kernels. A SkinnerBackend (skinner_opencl.cpp, ...) then owns
-// the device buffers: it uploads the packed inputs once through its runner's
-// Prepare, and per frame writes the palette, launches and reads back, all in
-// the packed vertex order; Skinner puts read-backs into the mesh's order.
+// and emits the kernels. A SkinnerBackend (RunnerSkinner, or an API's
+// runtime/backends/<api>/skinner_<api>.cpp) then owns the device buffers: it
+// uploads the packed inputs once through the runner's Prepare, and per frame
+// writes the palette, launches and reads back, all in the packed vertex
+// order; Skinner puts read-backs into the mesh's order.
 #pragma once
 
 #include <cstddef>
@@ -14,7 +15,6 @@
 #include <memory>
 #include <span>
 #include <string>
-#include <type_traits>
 #include <vector>
 
 #include "generator/emit.h"
@@ -65,10 +65,10 @@ void RunOnDevice(F&& call, const std::string& context = "") {
 // rest-pose palette (SetPalette overwrites it before the first Skin).
 std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int instances);
 
-// A SkinnerBackend over one prepared input set of a runner: OpenClRunner,
-// CudaRunner and GlRunner share the calls used here (WritePalette, LaunchSet,
-// Finish, ReadOutput, OutputBuffer); skinner_<backend>.cpp adds what differs.
-template <class Runner, class Prepared>
+// A SkinnerBackend over one prepared input set of the device's runner
+// (runtime/runner.h): WritePalette, LaunchSet, Finish, ReadOutput,
+// OutputBuffer. An API's Skinner glue (the make_skinner of its entry in
+// runtime/backend_table.h) derives from it to add what differs.
 class RunnerSkinner : public SkinnerBackend {
  public:
   RunnerSkinner(Runner& runner, Prepared prepared, bool normals)
@@ -87,14 +87,7 @@ class RunnerSkinner : public SkinnerBackend {
     RunOnDevice([&] { runner_.ReadOutput(prepared_, 0, normals && normals_, out); });
   }
   // A cl_mem, or a CUdeviceptr / GL buffer name as a pointer-sized integer.
-  void* DevicePositions() const override {
-    const auto buffer = runner_.OutputBuffer(prepared_, 0, false);
-    if constexpr (std::is_pointer_v<decltype(buffer)>) {
-      return buffer;
-    } else {
-      return reinterpret_cast<void*>(static_cast<std::uintptr_t>(buffer));
-    }
-  }
+  void* DevicePositions() const override { return runner_.OutputBuffer(prepared_, 0, false); }
 
  protected:
   Runner& runner_;
@@ -102,17 +95,17 @@ class RunnerSkinner : public SkinnerBackend {
   bool normals_;
 };
 
-// Each throws ApiError: kBuildFailed when a kernel does not compile,
-// kDeviceError when the device refuses (allocation, launch set-up).
-// `kernels`: one per launch, instanced when `instances` > 1.
-std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const PackedMesh& mesh,
+// The runner's Prepare of the one input set a Skinner uses (RestPalettes),
+// its Error turned into ApiError ("Skinner::Create: " + the runner's message):
+// kBuildFailed when a kernel does not compile, kDeviceError when the device
+// refuses (allocation, launch set-up). `kernels`: one per launch, instanced
+// when `instances` > 1.
+Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const std::vector<KernelSource>& kernels,
+                           int instances);
+
+// The Skinner of an API that needs nothing more than RunnerSkinner.
+std::unique_ptr<SkinnerBackend> MakeRunnerSkinner(DeviceState& device, const PackedMesh& mesh,
                                                   const std::vector<KernelSource>& kernels, int instances);
-
-std::unique_ptr<SkinnerBackend> MakeCudaSkinner(DeviceState& device, const PackedMesh& mesh,
-                                                const std::vector<KernelSource>& kernels, int instances);
-
-std::unique_ptr<SkinnerBackend> MakeGlSkinner(DeviceState& device, const PackedMesh& mesh,
-                                              const std::vector<KernelSource>& kernels, int instances);
 
 struct Skinner::Impl {
   std::shared_ptr<DeviceState> device;  // keeps the runner (and its programs) alive

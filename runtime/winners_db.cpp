@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "reference/error.h"
+#include "runtime/backend_table.h"
 #include "runtime/json_fields.h"
 
 namespace skintune {
@@ -16,7 +17,6 @@ namespace {
 using namespace json_fields;
 
 constexpr std::array<const char*, 4> kBuckets{"25k", "100k", "400k", "1600k"};
-constexpr std::array<Lang, 4> kLangs{Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex};
 constexpr const char* kReportKind = "skintune-report";
 
 const std::regex& CreatedPattern() {
@@ -133,17 +133,23 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
   e.device_id = String(j, "device_id");
   const DeviceIdParts parts = SplitDeviceId(e.device_id);
   e.backend = Agreeing(j, "backend", parts.backend);
-  if (e.backend != "opencl" && e.backend != "cuda" && e.backend != "gl")
-    throw Error("'backend' has unknown value '" + e.backend + "' (expected opencl, cuda or gl)");
+  if (!FindBackend(e.backend))
+    throw Error("'backend' has unknown value '" + e.backend + "' (expected " + JoinedBackendNames() + ")");
   e.platform = Agreeing(j, "platform", parts.platform);
   e.device_name = Agreeing(j, "device_name", parts.name);
   e.driver_version = Agreeing(j, "driver_version", parts.driver_version);
   e.vendor = OptionalString(j, "vendor");
   e.device_type = OptionalString(j, "device_type");
   const std::string lang = String(j, "lang");
-  const auto l = std::find_if(kLangs.begin(), kLangs.end(), [&](Lang x) { return lang == Name(x); });
-  if (l == kLangs.end())
-    throw Error("'lang' has unknown value '" + lang + "' (expected opencl, cuda, glsl-compute or glsl-vertex)");
+  std::vector<Lang> langs;  // every backend's
+  for (const BackendEntry& b : Backends()) langs.insert(langs.end(), b.languages.begin(), b.languages.end());
+  const auto l = std::find_if(langs.begin(), langs.end(), [&](Lang x) { return lang == Name(x); });
+  if (l == langs.end()) {
+    std::string expected;
+    for (std::size_t i = 0; i < langs.size(); ++i)
+      expected += std::string(i == 0 ? "" : i + 1 == langs.size() ? " or " : ", ") + Name(langs[i]);
+    throw Error("'lang' has unknown value '" + lang + "' (expected " + expected + ")");
+  }
   e.lang = *l;
   e.influences = static_cast<int>(Integer(j, "influences"));
   e.vertex_bucket = String(j, "vertex_bucket");

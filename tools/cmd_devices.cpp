@@ -1,10 +1,13 @@
-// skintune devices: every OpenCL platform and device on this machine.
+// skintune devices: every OpenCL platform and device on this machine, then
+// every device of every API skintune runs on (runtime/backend_table.h), by
+// the id the tuner and the runtime use, or why an API has none.
 #include <iomanip>
 #include <iostream>
 
 #include <nlohmann/json.hpp>
 
-#include "runtime/opencl_devices.h"
+#include "runtime/backend_table.h"
+#include "runtime/backends/opencl/opencl_devices.h"
 #include "tools/commands.h"
 
 namespace skintune::tools {
@@ -46,23 +49,45 @@ void PrintText(const OpenClInventory& inventory) {
   for (const std::string& w : inventory.warnings) std::cout << "  warning: " << w << "\n";
 }
 
+std::string Languages(const std::string& backend) {
+  std::string out;
+  for (const Lang lang : FindBackend(backend)->languages) out += (out.empty() ? "" : ", ") + std::string(Name(lang));
+  return out;
+}
+
+void PrintText(const Discovered& found) {
+  std::cout << "Devices (" << JoinedBackendNames(true) << "):\n";
+  for (const FoundDevice& d : found.devices)
+    std::cout << "  " << d.identity.Id() << " (" << d.identity.type << "): " << Languages(d.identity.backend) << "\n";
+  for (const std::string& s : found.skipped) std::cout << "  " << s << "\n";
+}
+
+nlohmann::json Json(const Discovered& found) {
+  nlohmann::json devices = nlohmann::json::array();
+  for (const FoundDevice& d : found.devices) devices.push_back(d.identity);
+  return {{"devices", devices}, {"skipped", found.skipped}};
+}
+
 }  // namespace
 
 Command RegisterDevices(CLI::App& app) {
-  auto* sub = app.add_subcommand("devices", "list every OpenCL platform and device");
+  auto* sub = app.add_subcommand("devices", "list every OpenCL platform and device, and every device skintune runs on");
   auto json = std::make_shared<bool>(false);
   sub->add_flag("--json", *json, "print JSON instead of text");
   return {sub, [json] {
             const OpenClInventory inventory = EnumerateOpenCl();
+            const Discovered found = DiscoverDevices();
             if (*json) {
               nlohmann::json out = {{"opencl",
                                      {{"platform_count", inventory.platform_count},
                                       {"status", inventory.status.empty() ? "ok" : "skipped: " + inventory.status},
                                       {"devices", inventory.devices},
-                                      {"warnings", inventory.warnings}}}};
+                                      {"warnings", inventory.warnings}}},
+                                    {"skintune", Json(found)}};
               std::cout << out.dump(2) << "\n";
             } else {
               PrintText(inventory);
+              PrintText(found);
             }
             return 0;
           }};

@@ -26,6 +26,7 @@
 #include "generator/emit.h"
 #include "reference/error.h"
 #include "reference/mesh_io.h"
+#include "runtime/backend_table.h"
 #include "runtime/embed_header.h"
 #include "runtime/winners_db.h"
 #include "tools/commands.h"
@@ -245,7 +246,7 @@ Command RegisterEmit(CLI::App& app) {
                                  "with --db: entries whose device id, name, vendor or platform contains this "
                                  "(case-insensitive; \"\" takes every device)");
   auto* lang = sub->add_option("--lang", o->langs, "with --db: only these languages (repeatable)")
-                   ->check(CLI::IsMember({"opencl", "cuda", "glsl-compute", "glsl-vertex"}));
+                   ->check(CLI::IsMember(LanguageNames()));
   auto* header =
       sub->add_option("--header", o->header, "with --db: the header's file name in --out (default skintune_kernels.h)")
           ->check(CLI::Validator(

@@ -10,7 +10,7 @@
 #include "reference/error.h"
 #include "reference/skinning.h"
 #include "reference/synthetic.h"
-#include "runtime/opencl_devices.h"
+#include "runtime/backends/opencl/opencl_devices.h"
 #include "tools/commands.h"
 
 namespace skintune::tools {

@@ -7,7 +7,7 @@
 
 #include "generator/space.h"
 #include "reference/error.h"
-#include "runtime/opencl_devices.h"
+#include "runtime/backends/opencl/opencl_devices.h"
 #include "tools/commands.h"
 
 namespace skintune::tools {

@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "reference/error.h"
+#include "runtime/backend_table.h"
 
 namespace skintune::tools {
 
@@ -108,10 +109,14 @@ std::string SelfExecutable() {
 }
 
 Lang LangFromName(const std::string& name) {
-  for (Lang l : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex}) {
-    if (name == Name(l)) return l;
+  std::string names;
+  for (const BackendEntry& b : Backends()) {
+    for (const Lang l : b.languages) {
+      if (name == Name(l)) return l;
+      names += (names.empty() ? "" : ", ") + std::string(Name(l));
+    }
   }
-  throw Error("--lang '" + name + "': unknown language (expected one of opencl, cuda, glsl-compute, glsl-vertex)");
+  throw Error("--lang '" + name + "': unknown language (expected one of " + names + ")");
 }
 
 }  // namespace skintune::tools

@@ -1,5 +1,5 @@
-// skintune: device identities, discovery of every backend, and the one
-// Measure procedure the three backends share (tuner/backends_internal.h).
+// skintune: discovery of every device (the runtime's, runtime/backend_table.h),
+// the injected faults, and the one Measure procedure (tuner/backends_internal.h).
 #include "tuner/backend.h"
 
 #include <algorithm>
@@ -15,67 +15,9 @@
 #include "reference/error.h"
 #include "reference/gltf_import.h"
 #include "reference/synthetic.h"
-#include "runtime/cuda_api.h"
 #include "tuner/backends_internal.h"
 
 namespace skintune {
-
-// ---------------------------------------------------------------- identity
-
-std::string DeviceIdentity::Id() const { return backend + ":" + platform + "/" + name + "/" + driver_version; }
-
-void to_json(nlohmann::json& out, const DeviceIdentity& d) {
-  out = {{"id", d.Id()},
-         {"backend", d.backend},
-         {"index", d.index},
-         {"platform", d.platform},
-         {"vendor", d.vendor},
-         {"name", d.name},
-         {"driver_version", d.driver_version},
-         {"api_version", d.api_version},
-         {"type", d.type},
-         {"compute_units", d.compute_units},
-         {"global_memory_bytes", d.global_memory_bytes},
-         {"local_memory_bytes", d.local_memory_bytes},
-         {"constant_memory_bytes", d.constant_memory_bytes},
-         {"last_level_cache_bytes", d.last_level_cache_bytes}};
-}
-
-namespace {
-
-template <typename T>
-void ReadField(const nlohmann::json& in, const char* name, T& value, bool required) {
-  const auto found = in.find(name);
-  if (found == in.end()) {
-    if (required) throw Error(std::string("device identity: missing '") + name + "'");
-    return;
-  }
-  try {
-    value = found->get<T>();
-  } catch (const nlohmann::json::exception&) {
-    throw Error(std::string("device identity: '") + name + "' has the wrong type (" + found->dump() + ")");
-  }
-}
-
-}  // namespace
-
-void from_json(const nlohmann::json& in, DeviceIdentity& d) {
-  if (!in.is_object()) throw Error("device identity: not a JSON object");
-  d = DeviceIdentity{};
-  ReadField(in, "backend", d.backend, true);
-  ReadField(in, "platform", d.platform, true);
-  ReadField(in, "name", d.name, true);
-  ReadField(in, "driver_version", d.driver_version, true);
-  ReadField(in, "index", d.index, false);
-  ReadField(in, "vendor", d.vendor, false);
-  ReadField(in, "api_version", d.api_version, false);
-  ReadField(in, "type", d.type, false);
-  ReadField(in, "compute_units", d.compute_units, false);
-  ReadField(in, "global_memory_bytes", d.global_memory_bytes, false);
-  ReadField(in, "local_memory_bytes", d.local_memory_bytes, false);
-  ReadField(in, "constant_memory_bytes", d.constant_memory_bytes, false);
-  ReadField(in, "last_level_cache_bytes", d.last_level_cache_bytes, false);
-}
 
 // ---------------------------------------------------------------- injected faults
 
@@ -99,42 +41,13 @@ InjectedFault InjectedFaultFromEnvironment() {
 
 Discovery DiscoverBackends() {
   using namespace tuner_internal;
+  Discovered found = DiscoverDevices();
   Discovery discovery;
+  discovery.skipped = std::move(found.skipped);
   int index = 0;
-
-  try {
-    const OpenClInventory inventory = EnumerateOpenCl();
-    if (inventory.devices.empty()) discovery.skipped.push_back("opencl: skipped: " + inventory.status);
-    for (const std::string& warning : inventory.warnings) discovery.skipped.push_back("opencl: skipped: " + warning);
-    for (const OpenClDeviceInfo& device : inventory.devices) discovery.backends.push_back(MakeOpenClBackend(device, index++));
-  } catch (const std::exception& e) {
-    discovery.skipped.push_back(std::string("opencl: skipped: ") + e.what());
-  }
-
-  const CudaAvailability cuda = Probe();
-  if (!cuda.CanRun()) {
-    discovery.skipped.push_back("cuda: skipped: " + cuda.Describe());
-  } else {
-    for (int d = 0; d < cuda.device_count; ++d) {
-      try {
-        discovery.backends.push_back(MakeCudaBackend(d, index));
-        ++index;
-      } catch (const std::exception& e) {
-        discovery.skipped.push_back("cuda: device " + std::to_string(d) + ": skipped: " + e.what());
-      }
-    }
-  }
-
-  try {
-    std::string why;
-    if (std::unique_ptr<Backend> gl = MakeGlBackend(index, why)) {
-      discovery.backends.push_back(std::move(gl));
-      ++index;
-    } else {
-      discovery.skipped.push_back("gl: skipped: " + why);
-    }
-  } catch (const std::exception& e) {
-    discovery.skipped.push_back(std::string("gl: skipped: ") + e.what());
+  for (FoundDevice& device : found.devices) {
+    const BackendEntry* entry = FindBackend(device.identity.backend);
+    discovery.backends.push_back(MakeDeviceBackend(std::move(device), entry->languages, index++));
   }
   return discovery;
 }

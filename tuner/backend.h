@@ -1,9 +1,11 @@
 // skintune: a device the tuner can measure variants on, whatever its API.
 //
-// One Backend per (API, device): every OpenCL device of every platform, every
-// CUDA device (driver API + NVRTC loaded at run time), and one OpenGL 4.3+
-// context through EGL (glsl-compute and glsl-vertex). Discovery never fails:
-// an absent API is reported as skipped with its reason.
+// One Backend per device the runtime's discovery finds (runtime/backend_table.h:
+// every OpenCL device of every platform, every CUDA device (driver API +
+// NVRTC loaded at run time), one OpenGL 4.3+ context through EGL
+// (glsl-compute and glsl-vertex)), measuring through the runner driver
+// (runtime/runner.h). Discovery never fails: an absent API is reported as
+// skipped with its reason.
 #pragma once
 
 #include <cstdint>
@@ -11,36 +13,12 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json_fwd.hpp>
-
 #include "generator/constraints.h"
 #include "generator/variant.h"
+#include "runtime/device_identity.h"  // DeviceIdentity, its JSON
 #include "tuner/measurement.h"
 
 namespace skintune {
-
-struct DeviceIdentity {
-  std::string backend;          // "opencl", "cuda", "gl"
-  int index = 0;                // position in discovery order (for --device and the worker)
-  std::string platform;         // OpenCL platform name; "CUDA"; EGL platform for GL
-  std::string vendor;
-  std::string name;             // device name / GL_RENDERER
-  std::string driver_version;
-  std::string api_version;      // OpenCL device version; CUDA compute capability; GL_VERSION
-  std::string type;             // "gpu", "cpu", ...
-  std::uint32_t compute_units = 0;
-  std::uint64_t global_memory_bytes = 0;
-  std::uint64_t local_memory_bytes = 0;
-  std::uint64_t constant_memory_bytes = 0;
-  std::uint64_t last_level_cache_bytes = 0;  // 0 = unknown (then the rotation rule assumes 64 MiB)
-
-  // Stable across runs and machines with the same device and driver:
-  // "<backend>:<platform>/<name>/<driver_version>".
-  std::string Id() const;
-};
-
-void to_json(nlohmann::json& out, const DeviceIdentity& d);
-void from_json(const nlohmann::json& in, DeviceIdentity& d);
 
 struct TimingOptions {
   int warmup = 3;

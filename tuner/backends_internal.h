@@ -1,8 +1,8 @@
-// skintune (internal to tuner/): what the three backends (opencl_backend.cpp,
-// cuda_backend.cpp, gl_backend.cpp) share: the dataset cache, the one
-// Measure procedure (verify, then time) written once over a small executor
-// interface each backend implements with its runner, the rotation rule, the
-// injected faults' kernel edits, and the factories DiscoverBackends calls.
+// skintune (internal to tuner/): what the tuner's one Backend
+// (device_backend.cpp, over the runtime's runner driver) is made of: the
+// dataset cache, the one Measure procedure (verify, then time) written over a
+// small executor interface, the rotation rule, the injected faults' kernel
+// edits, and the factory DiscoverBackends calls.
 #pragma once
 
 #include <cstddef>
@@ -21,7 +21,8 @@
 #include "generator/packer.h"
 #include "reference/asset.h"
 #include "reference/skinning.h"
-#include "runtime/opencl_devices.h"
+#include "runtime/backend_table.h"
+#include "runtime/runner.h"
 #include "tuner/backend.h"
 
 namespace skintune::tuner_internal {
@@ -85,20 +86,18 @@ class Executor {
                                    int repetitions) = 0;
 };
 
-// Executor over a runner (OpenClRunner, CudaRunner, GlRunner: the same
-// Run / Prepare / Time shape).
-template <typename Runner>
+// Executor over the runner driver (runtime/runner.h): Run, then Prepare + Time.
 class RunnerExecutor final : public Executor {
  public:
   explicit RunnerExecutor(Runner& runner) : runner_(runner) {}
   Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
              std::span<const std::uint8_t> palette) override {
-    auto result = runner_.Run(mesh, kernels, palette);
+    RunResult result = runner_.Run(mesh, kernels, palette);
     return {std::move(result.positions), std::move(result.normals), result.poisoned_vertices};
   }
   std::vector<double> Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                            std::span<const std::vector<std::uint8_t>> palettes, int warmup, int repetitions) override {
-    const auto prepared = runner_.Prepare(mesh, kernels, palettes);
+    const Prepared prepared = runner_.Prepare(mesh, kernels, palettes);
     return runner_.Time(prepared, warmup, repetitions);
   }
 
@@ -140,15 +139,11 @@ std::size_t CopyBytesCapped(std::size_t bytes, std::uint64_t max_allocation_byte
 // Now, UTC, ISO 8601: "2026-11-22T10:11:12Z".
 std::string UtcTimestamp();
 
-// ---------------------------------------------------------------- factories
+// ---------------------------------------------------------------- factory
 
-// Runners are made lazily (on the first Measure or copy), so discovery in a
-// worker that serves one device sets up only that one.
-std::unique_ptr<Backend> MakeOpenClBackend(const OpenClDeviceInfo& device, int index);
-// Throws Error("CUDA setup: ...") when the device cannot be queried.
-std::unique_ptr<Backend> MakeCudaBackend(int cuda_device, int index);
-// Makes the GL context now (its identity needs it); null with `why` set when
-// none can be made.
-std::unique_ptr<Backend> MakeGlBackend(int index, std::string& why);
+// The Backend of a device discovery found (runtime/backend_table.h), running
+// `languages`, numbered `index`. Its runner is opened on the first Measure or
+// copy, so discovery in a worker that serves one device sets up only that one.
+std::unique_ptr<Backend> MakeDeviceBackend(FoundDevice device, std::vector<Lang> languages, int index);
 
 }  // namespace skintune::tuner_internal

@@ -28,8 +28,8 @@
 #include "generator/packer.h"
 #include "reference/error.h"
 #include "runner_test_support.h"
-#include "runtime/cuda_api.h"
-#include "runtime/cuda_runner.h"
+#include "runtime/backends/cuda/cuda_api.h"
+#include "runtime/backends/cuda/cuda_runner.h"
 #include "runtime/run_shape.h"
 
 namespace skintune {

@@ -22,8 +22,8 @@
 #include "generator/packer.h"
 #include "reference/error.h"
 #include "runner_test_support.h"
-#include "runtime/gl_context.h"
-#include "runtime/gl_runner.h"
+#include "runtime/backends/gl/gl_context.h"
+#include "runtime/backends/gl/gl_runner.h"
 #include "runtime/run_shape.h"
 
 namespace skintune {

@@ -4,7 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "runtime/opencl_devices.h"
+#include "runtime/backends/opencl/opencl_devices.h"
 
 namespace skintune {
 namespace {

@@ -10,8 +10,8 @@
 #include <iostream>
 
 #include "runner_test_support.h"
-#include "runtime/opencl_devices.h"
-#include "runtime/opencl_runner.h"
+#include "runtime/backends/opencl/opencl_devices.h"
+#include "runtime/backends/opencl/opencl_runner.h"
 #include "runtime/run_shape.h"
 
 namespace skintune {

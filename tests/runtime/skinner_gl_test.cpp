@@ -13,7 +13,7 @@
 
 #include "reference/gltf_import.h"
 #include "reference/synthetic.h"
-#include "runtime/gl_context.h"
+#include "runtime/backends/gl/gl_context.h"
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"
 

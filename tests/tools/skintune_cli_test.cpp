@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <set>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -65,6 +66,23 @@ TEST(SkintuneCli, DevicesJsonIsValidJsonWithDeviceIdentities) {
       EXPECT_TRUE(d.contains(key)) << key;
     }
   }
+}
+
+// Every device of every API by its id, or why an API has none (runtime/backend_table.h).
+TEST(SkintuneCli, DevicesListsEveryApisDevicesByIdOrWhyNone) {
+  const auto r = RunSkintune({"devices", "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out).at("skintune");
+  std::set<std::string> apis;
+  for (const auto& d : j.at("devices")) {
+    apis.insert(d.at("backend").get<std::string>());
+    EXPECT_EQ(d.at("id"), d.at("backend").get<std::string>() + ":" + d.at("platform").get<std::string>() + "/" +
+                              d.at("name").get<std::string>() + "/" + d.at("driver_version").get<std::string>());
+  }
+  for (const auto& s : j.at("skipped")) apis.insert(s.get<std::string>().substr(0, s.get<std::string>().find(':')));
+  EXPECT_EQ(apis, (std::set<std::string>{"opencl", "cuda", "gl"})) << j.dump(2);
+  const auto text = RunSkintune({"devices"});
+  EXPECT_NE(text.out.find("Devices (OpenCL, CUDA or GL):"), std::string::npos) << text.out;
 }
 
 TEST(SkintuneCli, SkinDatasetWritesOneVLinePerVertexMatchingTheGold) {

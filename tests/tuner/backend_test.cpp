@@ -22,9 +22,10 @@
 #include "generator/packer.h"
 #include "reference/error.h"
 #include "reference/synthetic.h"
-#include "runtime/cuda_api.h"
-#include "runtime/gl_runner.h"
-#include "runtime/opencl_runner.h"
+#include "runtime/backends/cuda/cuda_api.h"
+#include "runtime/backends/opencl/opencl_devices.h"
+#include "runtime/backends/gl/gl_runner.h"
+#include "runtime/backends/opencl/opencl_runner.h"
 #include "tuner/backend.h"
 #include "tuner/backends_internal.h"
 

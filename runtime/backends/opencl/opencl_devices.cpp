@@ -1,4 +1,4 @@
-#include "runtime/opencl_devices.h"
+#include "runtime/backends/opencl/opencl_devices.h"
 
 #define CL_TARGET_OPENCL_VERSION 120
 #include <CL/cl.h>
@@ -151,6 +151,23 @@ bool OpenClContextSharesGl(void* context_handle) {
     if (properties[i] == kGlContextKhr && properties[i + 1] != 0) return true;
   }
   return false;
+}
+
+DeviceIdentity IdentityOf(const OpenClDeviceInfo& device) {
+  DeviceIdentity d;
+  d.backend = "opencl";
+  d.platform = device.platform_name;
+  d.vendor = device.vendor;
+  d.name = device.name;
+  d.driver_version = device.driver_version;
+  d.api_version = device.device_version;
+  d.type = device.type;
+  d.compute_units = device.compute_units;
+  d.global_memory_bytes = device.global_memory_bytes;
+  d.local_memory_bytes = device.local_memory_bytes;
+  d.constant_memory_bytes = device.constant_buffer_bytes;
+  d.last_level_cache_bytes = device.global_cache_bytes;  // CL_DEVICE_GLOBAL_MEM_CACHE_SIZE
+  return d;
 }
 
 DeviceLimits LimitsOf(const OpenClDeviceInfo& d) {

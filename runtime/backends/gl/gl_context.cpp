@@ -1,10 +1,11 @@
-#include "runtime/gl_context.h"
+#include "runtime/backends/gl/gl_context.h"
 
 #include <dlfcn.h>
 #include <epoxy/egl.h>
 #include <epoxy/gl.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <map>
 #include <mutex>
@@ -377,6 +378,28 @@ CurrentGlRestorer::~CurrentGlRestorer() {
     return;
   }
   if (eglGetCurrentContext() != context_) eglMakeCurrent(display_, draw_, read_, context_);
+}
+
+std::string GlDeviceType(const std::string& renderer) {
+  std::string lower = renderer;
+  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  for (const char* cpu : {"llvmpipe", "softpipe", "swrast", "software"})
+    if (lower.find(cpu) != std::string::npos) return "cpu";
+  return "gpu";
+}
+
+DeviceIdentity IdentityOf(const GlContextInfo& info) {
+  DeviceIdentity d;
+  d.backend = "gl";
+  d.platform = info.egl_platform;
+  d.vendor = info.vendor;
+  d.name = info.renderer;
+  d.driver_version = info.version;  // GL_VERSION names the driver: "4.5 (Core Profile) Mesa 22.3.6"
+  d.api_version = info.version;
+  d.type = GlDeviceType(info.renderer);
+  d.local_memory_bytes = info.max_compute_shared_memory_bytes;
+  d.constant_memory_bytes = info.max_uniform_block_bytes;
+  return d;  // compute units, global memory, last-level cache: GL does not say (0)
 }
 
 DeviceLimits LimitsOf(const GlContextInfo& info) {

@@ -1,21 +1,21 @@
 // The OpenCL Skinner: one prepared input set of the device's OpenClRunner
-// (runtime/opencl_runner.h), written, launched and read per frame; with a
-// GL-sharing Device, also skinned straight into GL buffers.
+// (RunnerSkinner); with a GL-sharing Device, also skinned straight into GL
+// buffers.
 #include <memory>
 
-#include "runtime/opencl_gl_sharing.h"
-#include "runtime/opencl_runner.h"
+#include "runtime/backends/opencl/opencl_gl_sharing.h"
+#include "runtime/backends/opencl/opencl_runner.h"
 #include "runtime/skinner.h"
 
 namespace skintune {
 
 namespace {
 
-class OpenClSkinner final : public RunnerSkinner<OpenClRunner, OpenClPrepared> {
+class OpenClSkinner final : public RunnerSkinner {
  public:
   // `out_bytes`: the positions of every instance; `gl_sharing`: the runner's
   // context shares buffers with a GL context (SkinIntoGlBuffer).
-  OpenClSkinner(OpenClRunner& runner, OpenClPrepared prepared, bool normals, std::size_t out_bytes, bool gl_sharing)
+  OpenClSkinner(OpenClRunner& runner, Prepared prepared, bool normals, std::size_t out_bytes, bool gl_sharing)
       : RunnerSkinner(runner, std::move(prepared), normals), out_bytes_(out_bytes) {
     if (gl_sharing) gl_writer_ = std::make_unique<GlBufferWriter>(runner.context(), runner.queue());
   }
@@ -36,17 +36,12 @@ class OpenClSkinner final : public RunnerSkinner<OpenClRunner, OpenClPrepared> {
 
 std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const PackedMesh& mesh,
                                                   const std::vector<KernelSource>& kernels, int instances) {
-  if (!device.opencl) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no OpenCL queue");
-  std::unique_ptr<SkinnerBackend> skinner;
-  RunOnDevice(
-      [&] {
-        const std::size_t out_bytes = static_cast<std::size_t>(instances) * mesh.vertex_count * mesh.output_stride_bytes;
-        skinner = std::make_unique<OpenClSkinner>(
-            *device.opencl, device.opencl->Prepare(mesh, kernels, RestPalettes(mesh, instances), instances),
-            mesh.variant.normals, out_bytes, device.gl_sharing);
-      },
-      "Skinner::Create: ");
-  return skinner;
+  auto* runner = dynamic_cast<OpenClRunner*>(device.runner.get());
+  if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no OpenCL queue");
+  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, instances);
+  const std::size_t out_bytes = static_cast<std::size_t>(instances) * mesh.vertex_count * mesh.output_stride_bytes;
+  return std::make_unique<OpenClSkinner>(*runner, std::move(prepared), mesh.variant.normals, out_bytes,
+                                         device.gl_sharing);
 }
 
 }  // namespace skintune

@@ -1,4 +1,4 @@
-#include "runtime/cuda_api.h"
+#include "runtime/backends/cuda/cuda_api.h"
 
 #include <dlfcn.h>
 

@@ -1,4 +1,4 @@
-#include "runtime/opencl_gl_sharing.h"
+#include "runtime/backends/opencl/opencl_gl_sharing.h"
 
 #define CL_TARGET_OPENCL_VERSION 120
 #include <CL/cl.h>

@@ -13,6 +13,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "generator/constraints.h"
+#include "runtime/device_identity.h"
 
 namespace skintune {
 
@@ -55,6 +56,11 @@ bool OpenClContextSharesGl(void* cl_context);
 
 // The limits the generator's constraints need, from the device's own answers.
 DeviceLimits LimitsOf(const OpenClDeviceInfo& device);
+
+// Backend "opencl": the platform's name, the device's vendor, name, driver
+// version, OpenCL version and type, CL_DEVICE_GLOBAL_MEM_CACHE_SIZE as the
+// last-level cache.
+DeviceIdentity IdentityOf(const OpenClDeviceInfo& device);
 
 // Devices whose "platform-vendor platform / name" contains `pattern` (case-insensitive); an
 // empty pattern matches every device.

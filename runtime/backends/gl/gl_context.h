@@ -30,6 +30,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "generator/constraints.h"
+#include "runtime/device_identity.h"
 
 namespace skintune {
 
@@ -107,6 +108,17 @@ class CurrentGlRestorer {
 // GL_MAX_COMPUTE_WORK_GROUP_SIZE[0]; "constant" storage is a uniform block;
 // images are texture buffers, always present in GL 4.3 core).
 DeviceLimits LimitsOf(const GlContextInfo& info);
+
+// "cpu" for Mesa's software rasterisers (llvmpipe, softpipe, swrast, any
+// renderer saying "software"), else "gpu".
+std::string GlDeviceType(const std::string& renderer);
+
+// Backend "gl": the EGL platform, GL_VENDOR, GL_RENDERER as the name,
+// GL_VERSION (which names the driver: "4.5 (Core Profile) Mesa 22.3.6") as
+// driver and API version, GlDeviceType; shared memory and the uniform block
+// as local and constant memory (GL says nothing of compute units, memory or
+// caches).
+DeviceIdentity IdentityOf(const GlContextInfo& info);
 
 void to_json(nlohmann::json& out, const GlContextInfo& info);
 

@@ -1,0 +1,514 @@
+// The CUDA DeviceApi (runtime/device_api.h) and CudaRunner: modules from
+// NVRTC's PTX (with the program cache), device buffers, texture objects and
+// the __constant__ palette symbol, parameter arrays, and CUDA events.
+#include "runtime/backends/cuda/cuda_runner.h"
+
+#include <algorithm>
+#include <cstring>
+#include <map>
+#include <utility>
+
+#include "reference/error.h"
+#include "runtime/backends/cuda/cuda_api.h"
+#include "runtime/output_check.h"
+
+namespace skintune {
+
+namespace {
+
+[[noreturn]] void Fail(const std::string& stage, const std::string& message) {
+  throw Error("CUDA " + stage + ": " + message);
+}
+
+void Check(cuda::Result r, const std::string& stage, const std::string& what) {
+  if (r != cuda::kSuccess) Fail(stage, what + " failed: " + cuda::ErrorText(r));
+}
+
+// Owns one driver object; released with the driver function given.
+template <typename T>
+class Handle {
+ public:
+  using Release = cuda::Result (*)(T);
+  Handle() = default;
+  Handle(T value, Release release) : value_(value), release_(release) {}
+  ~Handle() { reset(); }
+  Handle(Handle&& other) noexcept : value_(other.value_), release_(other.release_) { other.value_ = T{}; }
+  Handle& operator=(Handle&& other) noexcept {
+    if (this != &other) {
+      reset();
+      value_ = other.value_;
+      release_ = other.release_;
+      other.value_ = T{};
+    }
+    return *this;
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  T get() const { return value_; }
+  void reset() {
+    if (value_ && release_) release_(value_);
+    value_ = T{};
+  }
+
+ private:
+  T value_{};
+  Release release_ = nullptr;
+};
+
+using Memory = Handle<cuda::DevicePtr>;
+using Module = Handle<cuda::Module>;
+using Event = Handle<cuda::Event>;
+using Texture = Handle<cuda::TexObject>;
+
+struct BuiltKernel {
+  Module module;
+  cuda::Function function = nullptr;
+};
+
+// The __constant__ palette symbol of templates/skin.cu (STORAGE constant).
+constexpr const char* kConstantPaletteSymbol = "skintune_palette";
+
+}  // namespace
+
+std::string CompilePtxCached(const KernelSource& source, const std::string& arch, ProgramCache* cache,
+                             const std::string& device_id) {
+  const std::string key = source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;
+  const std::string cache_key = cache ? ProgramKey("cuda", device_id, key, "-arch=" + arch) : "";
+  if (cache) {
+    if (const auto ptx = cache->Load("cuda", cache_key)) {
+      ++cache->counters().disk_hits;
+      return std::string(ptx->begin(), ptx->end());
+    }
+  }
+  const CompileResult compiled = CompileWithNvrtc(source.text, arch);
+  if (!compiled.ok)
+    Fail("build", "kernel " + key + " (" + source.text.substr(0, source.text.find('\n')) + "): " + compiled.error);
+  if (cache) {
+    ++cache->counters().builds;
+    cache->Store("cuda", cache_key, std::vector<std::uint8_t>(compiled.ptx.begin(), compiled.ptx.end()));
+  }
+  return compiled.ptx;
+}
+
+namespace {
+
+// A device buffer; the palette also keeps its bytes on the host (Run and
+// Time copy them into the __constant__ symbol) and its upload in flight.
+class CudaMemory final : public DeviceBuffer {
+ public:
+  CudaMemory(Memory m, std::size_t bytes) : DeviceBuffer(bytes), memory(std::move(m)) {}
+  void* native() const override { return reinterpret_cast<void*>(static_cast<std::uintptr_t>(memory.get())); }
+  cuda::DevicePtr pointer() const { return memory.get(); }
+  Memory memory;
+  std::vector<std::uint8_t> host;     // kPalette: the palettes as last written
+  std::vector<std::uint8_t> staging;  // the palettes being uploaded (Write)
+  Event upload;                       // recorded after that upload
+};
+
+// A texture object over the palette (`image` storage).
+class CudaTexture final : public DeviceObject {
+ public:
+  explicit CudaTexture(Texture t) : texture(std::move(t)) {}
+  Texture texture;
+};
+
+class CudaPlanned final : public PlannedLaunch {
+ public:
+  using PlannedLaunch::PlannedLaunch;
+  cuda::Function function = nullptr;
+  cuda::DevicePtr constant_symbol = 0;              // STORAGE constant: the module's palette symbol
+  unsigned blocks = 0, instances = 1, threads = 0;  // grid (blocks, instances)
+};
+
+// One launch of one set: its argument values and the parameter array pointing at them.
+class CudaBound final : public DeviceObject {
+ public:
+  const CudaPlanned* plan = nullptr;
+  const CudaMemory* palette = nullptr;
+  std::uint32_t n = 0, first = 0, vertex_count = 0;
+  std::vector<cuda::DevicePtr> pointers;  // reserved: never reallocated
+  cuda::TexObject texture = 0;
+  std::vector<void*> parameters;
+};
+
+}  // namespace
+
+class CudaApi final : public DeviceApi {
+ public:
+  const cuda::DriverApi* api = nullptr;
+  cuda::Device device = 0;
+  cuda::Context context = nullptr;  // the device's primary context (retained), or the caller's
+  bool primary = true;              // the context is the retained primary context
+  cuda::Stream stream = nullptr;    // the caller's stream for skinning; null: the legacy default stream
+  CudaDeviceInfo info;
+
+  ~CudaApi() override {
+    if (!context) return;
+    api->cuCtxSetCurrent(context);
+    built_.clear();  // unloads the modules while their context is current
+    if (primary) api->cuDevicePrimaryCtxRelease(device);
+  }
+  const char* name() const override { return "CUDA"; }
+  const std::string& device_name() const override { return info.name; }
+  void MakeCurrent() override { Check(api->cuCtxSetCurrent(context), "launch", "cuCtxSetCurrent"); }
+  bool ReadyToRelease() override {
+    api->cuCtxSetCurrent(context);  // frees the buffers and textures while their context is current
+    return true;
+  }
+  void Build(const KernelSource& source) override { KernelFor(source); }
+  void CheckRun(const PackedMesh& mesh, std::span<const KernelSource> kernels, const RunShape& shape) const override;
+  std::unique_ptr<PlannedLaunch> Plan(const LaunchSpec& spec) override;
+  std::unique_ptr<DeviceBuffer> Allocate(BufferUse use, std::size_t bytes, const void* initial,
+                                         const std::string& what) override;
+  std::unique_ptr<DeviceObject> PaletteView(const Variant& variant, DeviceBuffer& palette,
+                                            const std::string& suffix) override;
+  std::unique_ptr<DeviceObject> Bind(const PlannedLaunch& launch, std::span<const ArgumentBinding> arguments,
+                                     const SetOptions& options, std::size_t& allocated) override;
+  void FinishUploads(const std::string& key) override {
+    Check(api->cuCtxSynchronize(), "launch", "cuCtxSynchronize after uploading the input sets of " + key);
+  }
+  std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
+  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
+  void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
+  void Finish() override { Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize"); }
+  std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions) override;
+
+ private:
+  const BuiltKernel& KernelFor(const KernelSource& source);
+  Memory NewMemory(std::size_t bytes, const void* data, const std::string& what) const;
+  Event NewEvent(const std::string& what) const;
+  void LaunchLive(const CudaBound& bound);
+  std::vector<std::vector<double>> RunTimed(const FrameRun& run);
+
+  std::map<std::string, BuiltKernel> built_;  // by source hash
+};
+
+// ---------------------------------------------------------------- kernels
+
+const BuiltKernel& CudaApi::KernelFor(const KernelSource& source) {
+  if (source.lang != Lang::kCuda) Fail("build", std::string("kernel language is ") + Name(source.lang));
+  const std::string key = HashOf(source);
+  if (auto found = built_.find(key); found != built_.end()) {
+    if (cache_) ++cache_->counters().memory_hits;
+    return found->second;
+  }
+  const std::string what = "kernel " + key + " (" + source.text.substr(0, source.text.find('\n')) + ")";
+  const std::string ptx = CompilePtxCached(source, info.arch, cache_, cache_device_id_);
+  // The driver JIT-compiles the PTX for the device; its error log says why it cannot.
+  std::string log(8192, '\0');
+  int options[] = {cuda::kJitErrorLogBuffer, cuda::kJitErrorLogBufferSizeBytes};
+  void* values[] = {log.data(), reinterpret_cast<void*>(static_cast<std::uintptr_t>(log.size()))};
+  cuda::Module module = nullptr;
+  const cuda::Result r = api->cuModuleLoadDataEx(&module, ptx.c_str(), 2, options, values);
+  if (r != cuda::kSuccess) {
+    log.resize(std::strlen(log.c_str()));
+    Fail("build", what + ": cuModuleLoadDataEx (" + info.arch + " PTX on " + info.name + ") failed: " +
+                      cuda::ErrorText(r) + "; JIT log:" + FirstLines(log, 20));
+  }
+  BuiltKernel b;
+  b.module = Module(module, api->cuModuleUnload);
+  Check(api->cuModuleGetFunction(&b.function, module, source.entry_point.c_str()), "build",
+        "cuModuleGetFunction '" + source.entry_point + "' of " + what);
+  return built_.emplace(key, std::move(b)).first->second;
+}
+
+// K instances need K blocks in grid y and, for `image` storage, K palettes of
+// texels; say which limit a run exceeds before launching. (`constant` storage:
+// the kernel's symbol size, checked per launch.)
+void CudaApi::CheckRun(const PackedMesh& mesh, std::span<const KernelSource>, const RunShape& shape) const {
+  const Variant& variant = mesh.variant;
+  const DeviceLimits& limits = info.limits;
+  if (static_cast<std::uint64_t>(shape.instances) > limits.max_grid_y)
+    Fail("launch", variant.Key() + ": " + std::to_string(shape.instances) +
+                       " instances exceed the grid's y dimension (CU_DEVICE_ATTRIBUTE_MAX_GRID_DIM_Y " +
+                       std::to_string(limits.max_grid_y) + ") of " + info.name);
+  const std::uint64_t texels = static_cast<std::uint64_t>(shape.instances) * shape.palette_bytes / 16;
+  if (variant.storage == PaletteStorage::kImage && texels > limits.image_buffer_max_texels)
+    Fail("launch", variant.Key() + ": the palettes (" + std::to_string(texels) +
+                       " texels) exceed CU_DEVICE_ATTRIBUTE_MAXIMUM_TEXTURE1D_LINEAR_WIDTH " +
+                       std::to_string(limits.image_buffer_max_texels) + " of " + info.name);
+}
+
+std::unique_ptr<PlannedLaunch> CudaApi::Plan(const LaunchSpec& spec) {
+  auto plan = std::make_unique<CudaPlanned>(spec);
+  const BuiltKernel& kernel = KernelFor(spec.source);
+  plan->function = kernel.function;
+  const std::size_t wg = static_cast<std::size_t>(spec.source.launch.wg_size);
+  plan->threads = static_cast<unsigned>(wg);
+  plan->blocks = static_cast<unsigned>(spec.source.launch.GlobalItems(spec.count) / wg);
+  plan->instances = static_cast<unsigned>(spec.instances);
+  if (spec.variant.storage == PaletteStorage::kConstant) {
+    std::size_t symbol_bytes = 0;
+    Check(api->cuModuleGetGlobal(&plan->constant_symbol, &symbol_bytes, kernel.module.get(), kConstantPaletteSymbol),
+          "launch", spec.where + ": cuModuleGetGlobal '" + kConstantPaletteSymbol + "'");
+    if (symbol_bytes < spec.palettes_bytes)
+      Fail("launch", spec.where + ": __constant__ " + kConstantPaletteSymbol + " holds " + std::to_string(symbol_bytes) +
+                         " bytes, the palette " + std::to_string(spec.palettes_bytes) +
+                         " (the kernel was emitted for fewer joints or instances)");
+  }
+  return plan;
+}
+
+// ---------------------------------------------------------------- memory
+
+Memory CudaApi::NewMemory(std::size_t bytes, const void* data, const std::string& what) const {
+  cuda::DevicePtr pointer = 0;
+  Check(api->cuMemAlloc(&pointer, bytes), "launch", "cuMemAlloc '" + what + "' (" + std::to_string(bytes) + " bytes)");
+  Memory m(pointer, api->cuMemFree);
+  if (data) Check(api->cuMemcpyHtoD(pointer, data, bytes), "launch", "cuMemcpyHtoD '" + what + "'");
+  return m;
+}
+
+std::unique_ptr<DeviceBuffer> CudaApi::Allocate(BufferUse use, std::size_t bytes, const void* initial,
+                                                const std::string& what) {
+  auto buffer = std::make_unique<CudaMemory>(NewMemory(bytes, initial, what), bytes);
+  if (use == BufferUse::kPalette && initial) {
+    const auto* first = static_cast<const std::uint8_t*>(initial);
+    buffer->host.assign(first, first + bytes);
+  }
+  return buffer;
+}
+
+// `image` storage: a texture object of float4 texels over the palette buffer.
+std::unique_ptr<DeviceObject> CudaApi::PaletteView(const Variant& variant, DeviceBuffer& palette,
+                                                   const std::string& suffix) {
+  if (variant.storage != PaletteStorage::kImage) return nullptr;
+  cuda::ResourceDesc resource;
+  resource.resType = cuda::kResourceTypeLinear;
+  resource.res.linear = {static_cast<CudaMemory&>(palette).pointer(), cuda::kArrayFormatFloat, 4, palette.bytes()};
+  cuda::TextureDesc texture;
+  texture.addressMode[0] = texture.addressMode[1] = texture.addressMode[2] = cuda::kAddressModeClamp;
+  texture.filterMode = cuda::kFilterModePoint;
+  cuda::TexObject object = 0;
+  Check(api->cuTexObjectCreate(&object, &resource, &texture, nullptr), "launch",
+        "cuTexObjectCreate (linear, " + std::to_string(palette.bytes() / 16) + " float4 texels)" + suffix);
+  return std::make_unique<CudaTexture>(Texture(object, api->cuTexObjectDestroy));
+}
+
+void CudaApi::Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) {
+  auto& m = static_cast<CudaMemory&>(buffer);
+  if (m.upload.get())  // the staging copy may still be read by the previous upload
+    Check(api->cuEventSynchronize(m.upload.get()), "launch", "waiting for the previous palette upload of " + key);
+  m.staging.assign(bytes.begin(), bytes.end());
+  m.host = m.staging;
+  Check(api->cuMemcpyHtoDAsync(m.pointer(), m.staging.data(), m.staging.size(), stream), "launch",
+        "cuMemcpyHtoDAsync 'palette' of " + key);
+  if (!m.upload.get()) m.upload = NewEvent("cuEventCreate");
+  Check(api->cuEventRecord(m.upload.get(), stream), "launch", "cuEventRecord after the palette upload of " + key);
+}
+
+void CudaApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) {
+  if (wait) Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize before reading back " + what);
+  Check(api->cuMemcpyDtoH(out.data(), static_cast<const CudaMemory&>(buffer).pointer(), out.size()), "launch",
+        "cuMemcpyDtoH " + what);
+}
+
+// ---------------------------------------------------------------- launches
+
+std::unique_ptr<DeviceObject> CudaApi::Bind(const PlannedLaunch& launch, std::span<const ArgumentBinding> arguments,
+                                            const SetOptions&, std::size_t&) {
+  auto bound = std::make_unique<CudaBound>();
+  CudaBound& a = *bound;
+  a.plan = static_cast<const CudaPlanned*>(&launch);
+  const LaunchSpec& spec = launch.spec;
+  a.n = spec.count;
+  a.first = spec.first;
+  a.vertex_count = spec.vertex_count;
+  a.pointers.reserve(arguments.size());
+  for (const ArgumentBinding& b : arguments) {
+    const std::string& name = b.argument->name;
+    if (b.role == ArgumentRole::kPalette) a.palette = static_cast<const CudaMemory*>(b.buffer);
+    if (b.role == ArgumentRole::kPalette && b.view) a.texture = static_cast<const CudaTexture*>(b.view)->texture.get();
+    if (name == "n") {
+      a.parameters.push_back(&a.n);
+    } else if (name == "first") {
+      a.parameters.push_back(&a.first);
+    } else if (name == "vertex_count") {
+      a.parameters.push_back(&a.vertex_count);
+    } else if (name == "palette" && b.argument->kind == ArgumentKind::kImage) {
+      if (!a.texture) Fail("launch", spec.where + ": an image palette argument but the variant's storage is not image");
+      a.parameters.push_back(&a.texture);
+    } else {
+      a.pointers.push_back(static_cast<const CudaMemory*>(b.buffer)->pointer());
+      a.parameters.push_back(&a.pointers.back());
+    }
+  }
+  return bound;
+}
+
+Event CudaApi::NewEvent(const std::string& what) const {
+  cuda::Event e = nullptr;
+  Check(api->cuEventCreate(&e, 0), "launch", what);
+  return Event(e, api->cuEventDestroy);
+}
+
+// The Skinner's launch, on the caller's stream. The module's symbol is shared
+// by every set and Skinner of this kernel: the set's palette is copied into it
+// on the stream before each launch.
+void CudaApi::LaunchLive(const CudaBound& bound) {
+  const CudaPlanned& plan = *bound.plan;
+  const std::string& where = plan.spec.where;
+  if (plan.constant_symbol)
+    Check(api->cuMemcpyDtoDAsync(plan.constant_symbol, bound.palette->pointer(), bound.palette->host.size(), stream),
+          "launch", where + ": cuMemcpyDtoDAsync to '" + kConstantPaletteSymbol + "'");
+  Check(api->cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, stream,
+                            const_cast<void**>(bound.parameters.data()), nullptr),
+        "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " x " + std::to_string(plan.instances) +
+                      " blocks of " + std::to_string(plan.threads) + ")");
+}
+
+// Run's and Time's frames, on the legacy default stream: `constant` storage
+// copies the set's palette into the symbol before each launch, outside the
+// CUDA events recorded around each timed launch.
+std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
+  const bool verify = run.use == FrameUse::kVerify;
+  std::vector<std::vector<std::pair<Event, Event>>> events;
+  for (std::size_t f = 0; f < run.frames.size(); ++f) {
+    const bool timed = static_cast<int>(f) >= run.untimed;
+    if (timed) events.emplace_back();
+    for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
+      const auto& bound = static_cast<const CudaBound&>(*launch);
+      const CudaPlanned& plan = *bound.plan;
+      const std::string& where = plan.spec.where;
+      if (plan.constant_symbol)
+        Check(api->cuMemcpyHtoD(plan.constant_symbol, bound.palette->host.data(), bound.palette->host.size()),
+              "launch", where + ": cuMemcpyHtoD to '" + kConstantPaletteSymbol + "'");
+      Event start, end;
+      if (timed) {
+        const std::string what = verify ? where + ": cuEventCreate" : "cuEventCreate for timing " + run.key;
+        start = NewEvent(what);
+        end = NewEvent(what);
+        Check(api->cuEventRecord(start.get(), nullptr), "launch", where + ": cuEventRecord");
+      }
+      Check(api->cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, nullptr,
+                                const_cast<void**>(bound.parameters.data()), nullptr),
+            "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " x " +
+                          std::to_string(plan.instances) + " blocks of " + std::to_string(plan.threads) + ")");
+      if (timed) {
+        Check(api->cuEventRecord(end.get(), nullptr), "launch", where + ": cuEventRecord");
+        events.back().emplace_back(std::move(start), std::move(end));
+      }
+    }
+  }
+  Check(api->cuCtxSynchronize(), "launch", std::string("cuCtxSynchronize after ") + (verify ? "" : "timing ") + run.key);
+  std::vector<std::vector<double>> ms;
+  for (const auto& frame : events) {
+    std::vector<double>& launches = ms.emplace_back();
+    for (const auto& [start, end] : frame) {
+      float elapsed = 0.0f;
+      Check(api->cuEventElapsedTime(&elapsed, start.get(), end.get()), "launch", "cuEventElapsedTime");
+      launches.push_back(static_cast<double>(elapsed));
+    }
+  }
+  return ms;
+}
+
+std::vector<std::vector<double>> CudaApi::RunFrames(const FrameRun& run) {
+  if (run.use != FrameUse::kLive) return RunTimed(run);
+  for (const auto& frame : run.frames)
+    for (const std::unique_ptr<DeviceObject>& launch : frame) LaunchLive(static_cast<const CudaBound&>(*launch));
+  return {};
+}
+
+// ---------------------------------------------------------------- copy bandwidth
+
+namespace {
+
+constexpr const char* kCopyKernel = R"(// skintune copy bandwidth kernel
+extern "C" __global__ void skintune_copy(const uint4* __restrict__ in, uint4* __restrict__ out,
+                                         unsigned long long n) {
+  const unsigned long long i = blockIdx.x * (unsigned long long)blockDim.x + threadIdx.x;
+  if (i < n) out[i] = in[i];
+}
+)";
+
+}  // namespace
+
+std::vector<double> CudaApi::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
+  KernelSource source;
+  source.lang = Lang::kCuda;
+  source.entry_point = "skintune_copy";
+  source.text = kCopyKernel;
+  source.source_hash = SourceHash(source.text);
+  const BuiltKernel& kernel = KernelFor(source);
+  const std::vector<std::uint32_t> pattern = CopyPattern(bytes / 4);
+  Memory in = NewMemory(bytes, pattern.data(), "copy source");
+  Memory out = NewMemory(bytes, nullptr, "copy destination");
+  cuda::DevicePtr in_pointer = in.get(), out_pointer = out.get();
+  unsigned long long n = bytes / 16;
+  void* parameters[] = {&in_pointer, &out_pointer, &n};
+  const auto blocks = static_cast<unsigned>((n + 255) / 256);
+  std::vector<std::pair<Event, Event>> events;
+  for (int r = 0; r < warmup + repetitions; ++r) {
+    const bool timed = r >= warmup;
+    if (timed) {
+      Event start = NewEvent("cuEventCreate");
+      events.emplace_back(std::move(start), NewEvent("cuEventCreate"));
+      Check(api->cuEventRecord(events.back().first.get(), nullptr), "launch", "cuEventRecord");
+    }
+    Check(api->cuLaunchKernel(kernel.function, blocks, 1, 1, 256, 1, 1, 0, nullptr, parameters, nullptr), "launch",
+          "cuLaunchKernel of the copy kernel (" + std::to_string(blocks) + " blocks of 256)");
+    if (timed) Check(api->cuEventRecord(events.back().second.get(), nullptr), "launch", "cuEventRecord");
+  }
+  Check(api->cuCtxSynchronize(), "launch", "cuCtxSynchronize after the copy kernel");
+  std::vector<double> ms;
+  for (const auto& [start, end] : events) {
+    float elapsed = 0.0f;
+    Check(api->cuEventElapsedTime(&elapsed, start.get(), end.get()), "launch", "cuEventElapsedTime");
+    ms.push_back(static_cast<double>(elapsed));
+  }
+  return ms;
+}
+
+// ---------------------------------------------------------------- CudaRunner
+
+namespace {
+
+[[noreturn]] void TooOld(const CudaDeviceInfo& info, const std::string& nvrtc_library) {
+  Fail("setup", info.name + " (compute capability " + std::to_string(info.major) + "." + std::to_string(info.minor) +
+                    ") is older than every architecture " + nvrtc_library + " supports");
+}
+
+std::unique_ptr<CudaApi> OpenDevice(int device_index) {
+  auto c = std::make_unique<CudaApi>();
+  c->info = QueryCudaDevice(device_index);
+  c->api = cuda::Driver();
+  if (c->info.arch.empty()) TooOld(c->info, Probe().nvrtc_library);
+  Check(c->api->cuDeviceGet(&c->device, device_index), "setup", "cuDeviceGet " + std::to_string(device_index));
+  cuda::Context context = nullptr;
+  Check(c->api->cuDevicePrimaryCtxRetain(&context, c->device), "setup", "cuDevicePrimaryCtxRetain on " + c->info.name);
+  c->context = context;
+  Check(c->api->cuCtxSetCurrent(c->context), "setup", "cuCtxSetCurrent on " + c->info.name);
+  return c;
+}
+
+std::unique_ptr<CudaApi> AdoptContext(void* cu_context, void* cu_stream) {
+  auto c = std::make_unique<CudaApi>();
+  if (!cu_context) Fail("setup", "a null CUcontext");
+  const CudaAvailability available = Probe();
+  if (!available.nvrtc) Fail("setup", available.nvrtc_missing);
+  c->api = cuda::Driver();
+  if (!c->api) Fail("setup", available.driver_missing);
+  Check(c->api->cuCtxSetCurrent(static_cast<cuda::Context>(cu_context)), "setup",
+        "cuCtxSetCurrent of the given context");
+  cuda::Device device = 0;
+  Check(c->api->cuCtxGetDevice(&device), "setup", "cuCtxGetDevice of the given context");
+  c->info = QueryCudaDevice(device);  // a CUdevice is its ordinal
+  if (c->info.arch.empty()) TooOld(c->info, available.nvrtc_library);
+  c->device = device;
+  c->context = static_cast<cuda::Context>(cu_context);
+  c->primary = false;
+  c->stream = static_cast<cuda::Stream>(cu_stream);
+  return c;
+}
+
+}  // namespace
+
+CudaRunner::CudaRunner(int device_index) : Runner(OpenDevice(device_index)) {}
+CudaRunner::CudaRunner(void* cu_context, void* cu_stream) : Runner(AdoptContext(cu_context, cu_stream)) {}
+
+const CudaDeviceInfo& CudaRunner::info() const { return static_cast<const CudaApi&>(api()).info; }
+const std::string& CudaRunner::arch() const { return info().arch; }
+const DeviceLimits& CudaRunner::limits() const { return info().limits; }
+
+}  // namespace skintune

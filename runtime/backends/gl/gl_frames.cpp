@@ -1,0 +1,345 @@
+// The GL DeviceApi (gl_api.h), part two: running frames. A launch binds its
+// program, uniforms and buffers, then draws (glsl-vertex: transform feedback
+// with rasterisation discarded, staged captures copied into place) or
+// dispatches (glsl-compute). Run's frame is checked call by call and counts
+// the captured points; Time's launches are timed by GL_TIME_ELAPSED queries,
+// or by the host clock on software renderers; the Skinner's frame puts back
+// the GL state it changed on the caller's context.
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+
+#include "reference/error.h"
+#include "runtime/backends/gl/gl_api.h"
+
+namespace skintune::gl {
+
+namespace {
+
+// Mesa's software renderers answer GL_TIME_ELAPSED from their rasteriser
+// threads, which neither compute dispatches nor vertex processing with
+// rasterisation discarded pass through: their queries read ~0. There each
+// launch is timed by the host clock between two glFinish calls instead.
+bool HostClockTimesLaunches(const GlContextInfo& info) {
+  std::string renderer = info.renderer;
+  std::transform(renderer.begin(), renderer.end(), renderer.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  for (const char* software : {"llvmpipe", "softpipe", "swrast"})
+    if (renderer.find(software) != std::string::npos) return true;
+  return false;
+}
+
+// Times `launch` on the host clock between glFinish calls, in ms.
+template <typename F>
+double HostMs(F&& launch) {
+  glFinish();
+  const auto start = std::chrono::steady_clock::now();
+  launch();
+  glFinish();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+double QueryMs(const GlObject& query) {
+  GLuint64 elapsed = 0;
+  glGetQueryObjectui64v(query.get(), GL_QUERY_RESULT, &elapsed);
+  return static_cast<double>(elapsed) * 1e-6;
+}
+
+void CopyStagedCapture(GLuint staging, GLuint out, const CapturePlan& c) {
+  glBindBuffer(GL_COPY_READ_BUFFER, staging);
+  glBindBuffer(GL_COPY_WRITE_BUFFER, out);
+  for (const CapturePlan::Copy& copy : c.copies)
+    glCopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, static_cast<GLintptr>(copy.from),
+                        static_cast<GLintptr>(copy.to), static_cast<GLsizeiptr>(copy.bytes));
+  glBindBuffer(GL_COPY_READ_BUFFER, 0);
+  glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
+}
+
+// Binds the launch's program, uniforms and buffers; `checked`: each binding
+// checked for GL errors (Run).
+void BindLaunch(const GlBound& bound, bool checked) {
+  using Target = GlBound::Target;
+  const GlPlanned& plan = *bound.plan;
+  glUseProgram(plan.program);
+  if (plan.n_location >= 0) glUniform1ui(plan.n_location, plan.spec.count);
+  if (plan.first_location >= 0) glUniform1ui(plan.first_location, plan.spec.first);
+  if (plan.vertex_count_location >= 0) glUniform1ui(plan.vertex_count_location, plan.spec.vertex_count);
+  for (const GlBound::Binding& b : bound.bindings) {
+    switch (b.target) {
+      case Target::kUniform: glBindBufferBase(GL_UNIFORM_BUFFER, b.index, b.object); break;
+      case Target::kStorage: glBindBufferBase(GL_SHADER_STORAGE_BUFFER, b.index, b.object); break;
+      case Target::kTexture:
+        glActiveTexture(GL_TEXTURE0 + b.index);
+        glBindTexture(GL_TEXTURE_BUFFER, b.object);
+        glActiveTexture(GL_TEXTURE0);
+        break;
+      case Target::kFeedback:
+        glBindBufferRange(GL_TRANSFORM_FEEDBACK_BUFFER, b.index, b.object, b.offset, b.size);
+        break;
+    }
+    if (checked) CheckGl("launch", plan.spec.where + ": binding argument '" + *b.name + "' at " + std::to_string(b.index));
+  }
+}
+
+// Draws or dispatches a bound launch (the vertex draw state must be set for glsl-vertex).
+void DrawLaunch(const GlBound& bound) {
+  const GlPlanned& plan = *bound.plan;
+  const auto instances = static_cast<GLsizei>(plan.spec.instances);
+  if (plan.vertex) {
+    glBeginTransformFeedback(GL_POINTS);
+    if (plan.spec.instanced) {
+      glDrawArraysInstanced(GL_POINTS, 0, static_cast<GLsizei>(plan.spec.count), instances);
+    } else {
+      glDrawArrays(GL_POINTS, 0, static_cast<GLsizei>(plan.spec.count));
+    }
+    glEndTransformFeedback();
+    for (const GlBound::Staged& st : bound.staged) CopyStagedCapture(st.staging, st.out, plan.capture);
+  } else {
+    glDispatchCompute(static_cast<GLuint>(plan.groups), static_cast<GLuint>(instances), 1);
+  }
+}
+
+// What Run names a launch by when it raised a GL error.
+std::string Described(const GlPlanned& plan) {
+  const LaunchSpec& s = plan.spec;
+  if (!plan.vertex)
+    return s.where + ": glDispatchCompute(" + std::to_string(plan.groups) + ", " + std::to_string(s.instances) +
+           ") of groups of " + std::to_string(s.source.launch.wg_size);
+  return s.where + ": glDrawArrays" + (s.instanced ? "Instanced" : "") + "(GL_POINTS, 0, " + std::to_string(s.count) +
+         (s.instanced ? ", " + std::to_string(s.instances) : "") + ") captured at vertex " + std::to_string(s.first) +
+         (plan.capture.staged ? " through a staging buffer" : "");
+}
+
+const GlPlanned* FirstPlan(const FrameRun& run) {
+  for (const auto& frame : run.frames)
+    if (!frame.empty()) return static_cast<const GlBound&>(*frame.front()).plan;
+  return nullptr;
+}
+
+// The state a Skinner's frame changes on a context the caller also draws with, put back afterwards.
+class KeptGlState {
+ public:
+  KeptGlState() {
+    glGetIntegerv(GL_CURRENT_PROGRAM, &program_);
+    glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &vertex_array_);
+    glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &draw_framebuffer_);
+    glGetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &read_framebuffer_);
+    glGetIntegerv(GL_TRANSFORM_FEEDBACK_BINDING, &transform_feedback_);
+    glGetIntegerv(GL_ACTIVE_TEXTURE, &active_texture_);
+    discard_ = glIsEnabled(GL_RASTERIZER_DISCARD);
+  }
+  ~KeptGlState() {
+    glUseProgram(static_cast<GLuint>(program_));
+    glBindVertexArray(static_cast<GLuint>(vertex_array_));
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(draw_framebuffer_));
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, static_cast<GLuint>(read_framebuffer_));
+    glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, static_cast<GLuint>(transform_feedback_));
+    glActiveTexture(static_cast<GLenum>(active_texture_));
+    if (discard_) {
+      glEnable(GL_RASTERIZER_DISCARD);
+    } else {
+      glDisable(GL_RASTERIZER_DISCARD);
+    }
+  }
+  KeptGlState(const KeptGlState&) = delete;
+  KeptGlState& operator=(const KeptGlState&) = delete;
+
+ private:
+  GLint program_ = 0, vertex_array_ = 0, draw_framebuffer_ = 0, read_framebuffer_ = 0, transform_feedback_ = 0;
+  GLint active_texture_ = GL_TEXTURE0;
+  GLboolean discard_ = GL_FALSE;
+};
+
+}  // namespace
+
+bool GlApi::host_timed() const { return HostClockTimesLaunches(info()); }
+
+std::vector<std::vector<double>> GlApi::RunFrames(const FrameRun& run) {
+  switch (run.use) {
+    case FrameUse::kVerify: return RunVerified(run);
+    case FrameUse::kTime: return RunTimed(run);
+    case FrameUse::kLive: RunLive(run); break;
+  }
+  return {};
+}
+
+// Run's frame: every call checked, each launch inside a GL_TIME_ELAPSED query
+// and (glsl-vertex) a GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN query that must
+// count every vertex of every instance.
+std::vector<std::vector<double>> GlApi::RunVerified(const FrameRun& run) {
+  const GlPlanned* first = FirstPlan(run);
+  const bool vertex = first && first->vertex;
+  if (vertex) BeginVertexDraws();
+  std::vector<GlObject> timers, written;
+  for (const std::unique_ptr<DeviceObject>& launch : run.frames.front()) {
+    const auto& bound = static_cast<const GlBound&>(*launch);
+    BindLaunch(bound, true);
+    timers.push_back(NewQuery());
+    glBeginQuery(GL_TIME_ELAPSED, timers.back().get());
+    if (vertex) {
+      written.push_back(NewQuery());
+      glBeginQuery(GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN, written.back().get());
+    }
+    DrawLaunch(bound);
+    if (vertex) glEndQuery(GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN);
+    glEndQuery(GL_TIME_ELAPSED);
+    CheckGl("launch", Described(*bound.plan));
+  }
+  if (vertex) {
+    EndVertexDraws(first->spec.variant.normals);
+  } else {
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  }
+  glUseProgram(0);
+  glFinish();
+  CheckGl("launch", "finishing " + run.key);
+  std::vector<double> ms;
+  for (std::size_t t = 0; t < timers.size(); ++t) {
+    ms.push_back(QueryMs(timers[t]));
+    if (!vertex) continue;
+    GLuint64 points = 0;
+    glGetQueryObjectui64v(written[t].get(), GL_QUERY_RESULT, &points);
+    const LaunchSpec& spec = static_cast<const GlBound&>(*run.frames.front()[t]).plan->spec;
+    const std::uint64_t expected = static_cast<std::uint64_t>(spec.count) * static_cast<std::uint64_t>(spec.instances);
+    if (points != expected)
+      Fail("launch", spec.where + ": transform feedback captured " + std::to_string(points) + " of " +
+                         std::to_string(expected) + " vertices");
+  }
+  CheckGl("launch", "reading the timer queries of " + run.key);
+  return {ms};
+}
+
+// Time's frames: after `untimed` frames, each launch inside a GL_TIME_ELAPSED
+// query, or between two glFinish calls on the host clock (host_timed()).
+std::vector<std::vector<double>> GlApi::RunTimed(const FrameRun& run) {
+  const GlPlanned* first = FirstPlan(run);
+  const bool vertex = first && first->vertex;
+  ClearGlErrors();
+  if (vertex) BeginVertexDraws();
+  const bool host_clock = host_timed();
+  const std::size_t timed_frames = run.frames.size() - std::min<std::size_t>(run.frames.size(), run.untimed);
+  std::vector<std::vector<GlObject>> timers(timed_frames);
+  std::vector<std::vector<double>> host_ms(timed_frames);
+  for (std::size_t f = 0; f < run.frames.size(); ++f) {
+    const bool timed = static_cast<int>(f) >= run.untimed;
+    for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
+      const auto& bound = static_cast<const GlBound&>(*launch);
+      auto go = [&] {
+        BindLaunch(bound, false);
+        DrawLaunch(bound);
+      };
+      if (!timed) {
+        go();
+      } else if (host_clock) {
+        host_ms[f - static_cast<std::size_t>(run.untimed)].push_back(HostMs(go));
+      } else {
+        std::vector<GlObject>& frame = timers[f - static_cast<std::size_t>(run.untimed)];
+        frame.push_back(NewQuery());
+        glBeginQuery(GL_TIME_ELAPSED, frame.back().get());
+        go();
+        glEndQuery(GL_TIME_ELAPSED);
+      }
+    }
+    if (f == 0) CheckGl("launch", "the first frame of timing " + run.key);
+  }
+  if (vertex) EndVertexDraws(first->spec.variant.normals);
+  glUseProgram(0);
+  glFinish();
+  CheckGl("launch", "timing " + run.key);
+  if (host_clock) return host_ms;
+  std::vector<std::vector<double>> ms;
+  for (const std::vector<GlObject>& frame : timers) {
+    std::vector<double>& launches = ms.emplace_back();
+    for (const GlObject& query : frame) launches.push_back(QueryMs(query));
+  }
+  CheckGl("launch", "reading the timer queries of " + run.key);
+  return ms;
+}
+
+// The Skinner's frame: puts back the program, vertex array, framebuffers,
+// transform feedback object and rasteriser-discard state it found; the
+// indexed buffer bindings and texture units it used stay bound.
+void GlApi::RunLive(const FrameRun& run) {
+  const GlPlanned* first = FirstPlan(run);
+  const bool vertex = first && first->vertex;
+  ClearGlErrors();
+  {
+    KeptGlState kept;
+    if (vertex) BeginVertexDraws();
+    for (const auto& frame : run.frames) {
+      for (const std::unique_ptr<DeviceObject>& launch : frame) {
+        BindLaunch(static_cast<const GlBound&>(*launch), false);
+        DrawLaunch(static_cast<const GlBound&>(*launch));
+      }
+    }
+    if (vertex) EndVertexDraws(first->spec.variant.normals);
+  }
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);  // the outputs are read next: as vertices, buffers, or by Read*
+  CheckGl("launch", "skinning with " + run.key);
+}
+
+// ---------------------------------------------------------------- copy bandwidth
+
+namespace {
+
+constexpr const char* kCopyShader = R"(#version 430 core
+// skintune copy bandwidth shader
+layout(local_size_x = 256) in;
+layout(std430, binding = 0) readonly restrict buffer Source { uvec4 source[]; };
+layout(std430, binding = 1) writeonly restrict buffer Destination { uvec4 destination[]; };
+uniform uint n;
+void main() {
+  uint step = gl_NumWorkGroups.x * 256u;
+  for (uint i = gl_GlobalInvocationID.x; i < n; i += step) destination[i] = source[i];
+}
+)";
+
+}  // namespace
+
+// One uvec4 per invocation and step, grid-stride, between two storage
+// buffers of at most GL_MAX_SHADER_STORAGE_BLOCK_SIZE.
+std::vector<double> GlApi::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
+  if (bytes > info().max_shader_storage_block_bytes)
+    Fail("launch", "copy of " + std::to_string(bytes) + " bytes exceeds GL_MAX_SHADER_STORAGE_BLOCK_SIZE " +
+                       std::to_string(info().max_shader_storage_block_bytes));
+  ClearGlErrors();
+  KernelSource source;
+  source.lang = Lang::kGlslCompute;
+  source.entry_point = "main";
+  source.text = kCopyShader;
+  source.source_hash = SourceHash(source.text);
+  const BuiltProgram& program = ProgramFor(source);
+  const std::vector<std::uint32_t> pattern = CopyPattern(bytes / 4);
+  GlObject in = NewBuffer(bytes, pattern.data(), "copy source");
+  GlObject out = NewBuffer(bytes, nullptr, "copy destination");
+  const std::size_t n = bytes / 16;
+  const std::size_t groups =
+      std::max<std::size_t>(1, std::min<std::size_t>((n + 255) / 256, info().max_compute_work_group_count_x));
+  glUseProgram(program.program.get());
+  glUniform1ui(program.n_location, static_cast<GLuint>(n));
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, in.get());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, out.get());
+  const bool host_clock = host_timed();
+  std::vector<GlObject> timers;
+  std::vector<double> ms;
+  auto launch = [&] { glDispatchCompute(static_cast<GLuint>(groups), 1, 1); };
+  for (int r = 0; r < warmup + repetitions; ++r) {
+    if (r < warmup) {
+      launch();
+    } else if (host_clock) {
+      ms.push_back(HostMs(launch));
+    } else {
+      timers.push_back(NewQuery());
+      glBeginQuery(GL_TIME_ELAPSED, timers.back().get());
+      launch();
+      glEndQuery(GL_TIME_ELAPSED);
+    }
+  }
+  glUseProgram(0);
+  glFinish();
+  CheckGl("launch", "the copy shader (" + std::to_string(groups) + " groups of 256)");
+  for (const GlObject& query : timers) ms.push_back(QueryMs(query));
+  return ms;
+}
+
+}  // namespace skintune::gl

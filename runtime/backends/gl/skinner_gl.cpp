@@ -1,0 +1,42 @@
+// The GL Skinner: one prepared input set of the device's GlRunner
+// (RunnerSkinner), usable only with the Device's GL context current.
+#include <memory>
+
+#include "runtime/backends/gl/gl_runner.h"
+#include "runtime/skinner.h"
+
+namespace skintune {
+
+namespace {
+
+// kInvalidState unless the runner's context is (or can be made) current here.
+void CheckCurrent(GlRunner& runner, const char* call) {
+  try {
+    runner.MakeCurrent();
+  } catch (const Error& e) {
+    FailWith(ErrorCode::kInvalidState, std::string(call) + ": " + e.what());
+  }
+}
+
+class GlSkinner final : public RunnerSkinner {
+ public:
+  GlSkinner(GlRunner& runner, Prepared prepared, bool normals)
+      : RunnerSkinner(runner, std::move(prepared), normals), gl_runner_(runner) {}
+  void CheckUsable() const override { CheckCurrent(gl_runner_, "Skinner"); }
+
+ private:
+  GlRunner& gl_runner_;
+};
+
+}  // namespace
+
+std::unique_ptr<SkinnerBackend> MakeGlSkinner(DeviceState& device, const PackedMesh& mesh,
+                                              const std::vector<KernelSource>& kernels, int instances) {
+  auto* runner = dynamic_cast<GlRunner*>(device.runner.get());
+  if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no GL context");
+  CheckCurrent(*runner, "Skinner::Create");
+  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, instances);
+  return std::make_unique<GlSkinner>(*runner, std::move(prepared), mesh.variant.normals);
+}
+
+}  // namespace skintune

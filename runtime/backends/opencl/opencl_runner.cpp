@@ -1,0 +1,507 @@
+// The OpenCL DeviceApi (runtime/device_api.h) and OpenClRunner: programs
+// (with the program cache), buffers, image1d_buffer palettes, kernel
+// arguments set per launch, and profiling events.
+#include "runtime/backends/opencl/opencl_runner.h"
+
+#define CL_TARGET_OPENCL_VERSION 120
+#include <CL/cl.h>
+
+#include <algorithm>
+#include <cstring>
+#include <map>
+#include <utility>
+
+#include "reference/error.h"
+#include "runtime/output_check.h"
+
+namespace skintune {
+
+namespace {
+
+// Owns one OpenCL object; released with its clRelease* function.
+template <typename T, cl_int (*Release)(T)>
+class Handle {
+ public:
+  Handle() = default;
+  explicit Handle(T value) : value_(value) {}
+  ~Handle() { reset(); }
+  Handle(Handle&& other) noexcept : value_(other.value_) { other.value_ = nullptr; }
+  Handle& operator=(Handle&& other) noexcept {
+    if (this != &other) {
+      reset();
+      value_ = other.value_;
+      other.value_ = nullptr;
+    }
+    return *this;
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  T get() const { return value_; }
+  void reset() {
+    if (value_) Release(value_);
+    value_ = nullptr;
+  }
+
+ private:
+  T value_ = nullptr;
+};
+
+using Context = Handle<cl_context, clReleaseContext>;
+using Queue = Handle<cl_command_queue, clReleaseCommandQueue>;
+using Program = Handle<cl_program, clReleaseProgram>;
+using Kernel = Handle<cl_kernel, clReleaseKernel>;
+using Memory = Handle<cl_mem, clReleaseMemObject>;
+using Event = Handle<cl_event, clReleaseEvent>;
+
+[[noreturn]] void Fail(const std::string& stage, const std::string& message) {
+  throw Error("OpenCL " + stage + ": " + message);
+}
+
+void Check(cl_int err, const std::string& stage, const std::string& what) {
+  if (err != CL_SUCCESS) Fail(stage, what + " failed with error " + std::to_string(err));
+}
+
+std::string DeviceName(cl_device_id device) {
+  std::size_t size = 0;
+  clGetDeviceInfo(device, CL_DEVICE_NAME, 0, nullptr, &size);
+  std::string name(size, '\0');
+  clGetDeviceInfo(device, CL_DEVICE_NAME, size, name.data(), nullptr);
+  name.resize(std::strlen(name.c_str()));
+  return name;
+}
+
+struct BuiltKernel {
+  Program program;
+  Kernel kernel;
+};
+
+// A buffer, or the image1d_buffer over the palette; the palette also keeps
+// the bytes of its upload in flight (Write).
+class ClMemory final : public DeviceBuffer {
+ public:
+  ClMemory(Memory m, std::size_t bytes) : DeviceBuffer(bytes), memory(std::move(m)) {}
+  void* native() const override { return memory.get(); }
+  Memory memory;
+  std::vector<std::uint8_t> staging;  // the bytes being uploaded
+  Event upload;                       // that upload, while in flight
+};
+
+class ClPlanned final : public PlannedLaunch {
+ public:
+  using PlannedLaunch::PlannedLaunch;
+  cl_kernel kernel = nullptr;  // owned by the API
+  cl_uint dimensions = 1;      // 2: instanced, the second dimension is the instance
+  std::size_t global[2] = {0, 1}, local[2] = {0, 1};
+};
+
+// A launch of one set: the memory object of each kernel argument (null for scalars).
+class ClBound final : public DeviceObject {
+ public:
+  const ClPlanned* plan = nullptr;
+  std::vector<cl_mem> arguments;
+};
+
+}  // namespace
+
+class OpenClApi final : public DeviceApi {
+ public:
+  cl_platform_id platform = nullptr;
+  cl_device_id device = nullptr;
+  std::string name_;
+  Context context;
+  Queue queue;
+
+  const char* name() const override { return "OpenCL"; }
+  const std::string& device_name() const override { return name_; }
+  void Build(const KernelSource& source) override { KernelFor(source); }
+  void CheckRun(const PackedMesh& mesh, std::span<const KernelSource> kernels, const RunShape& shape) const override;
+  std::unique_ptr<PlannedLaunch> Plan(const LaunchSpec& spec) override;
+  std::unique_ptr<DeviceBuffer> Allocate(BufferUse use, std::size_t bytes, const void* initial,
+                                         const std::string& what) override;
+  std::unique_ptr<DeviceObject> PaletteView(const Variant& variant, DeviceBuffer& palette,
+                                            const std::string& suffix) override;
+  std::unique_ptr<DeviceObject> Bind(const PlannedLaunch& launch, std::span<const ArgumentBinding> arguments,
+                                     const SetOptions& options, std::size_t& allocated) override;
+  void FinishUploads(const std::string& key) override {
+    Check(clFinish(queue.get()), "launch", "clFinish after uploading the input sets of " + key);
+  }
+  std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
+  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
+  void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
+  void Finish() override { Check(clFinish(queue.get()), "launch", "clFinish"); }
+  std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions) override;
+
+ private:
+  cl_kernel KernelFor(const KernelSource& source);
+  Program ProgramFromSource(const KernelSource& source, const std::string& key, const char* options);
+  Program ProgramFromBinary(const std::vector<std::uint8_t>& binary, const char* options);
+  std::vector<std::uint8_t> BinaryOf(cl_program program);
+  Memory NewMemory(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what);
+  void Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event);
+
+  std::map<std::string, BuiltKernel> built_;  // by source hash
+};
+
+// ---------------------------------------------------------------- programs
+
+Program OpenClApi::ProgramFromBinary(const std::vector<std::uint8_t>& binary, const char* options) {
+  cl_int err = CL_SUCCESS, binary_status = CL_SUCCESS;
+  const std::size_t size = binary.size();
+  const unsigned char* bytes = binary.data();
+  Program program(clCreateProgramWithBinary(context.get(), 1, &device, &size, &bytes, &binary_status, &err));
+  if (err != CL_SUCCESS || binary_status != CL_SUCCESS) return Program();
+  if (clBuildProgram(program.get(), 1, &device, options, nullptr, nullptr) != CL_SUCCESS) return Program();
+  return program;
+}
+
+std::vector<std::uint8_t> OpenClApi::BinaryOf(cl_program program) {
+  std::size_t size = 0;
+  if (clGetProgramInfo(program, CL_PROGRAM_BINARY_SIZES, sizeof size, &size, nullptr) != CL_SUCCESS || size == 0)
+    return {};
+  std::vector<std::uint8_t> binary(size);
+  unsigned char* at = binary.data();
+  if (clGetProgramInfo(program, CL_PROGRAM_BINARIES, sizeof at, &at, nullptr) != CL_SUCCESS) return {};
+  return binary;
+}
+
+Program OpenClApi::ProgramFromSource(const KernelSource& source, const std::string& key, const char* options) {
+  cl_int err = CL_SUCCESS;
+  const char* text = source.text.c_str();
+  const std::size_t length = source.text.size();
+  Program program(clCreateProgramWithSource(context.get(), 1, &text, &length, &err));
+  Check(err, "build", "clCreateProgramWithSource");
+  err = clBuildProgram(program.get(), 1, &device, options, nullptr, nullptr);
+  if (err != CL_SUCCESS) {
+    std::size_t log_size = 0;
+    clGetProgramBuildInfo(program.get(), device, CL_PROGRAM_BUILD_LOG, 0, nullptr, &log_size);
+    std::string log(log_size, '\0');
+    clGetProgramBuildInfo(program.get(), device, CL_PROGRAM_BUILD_LOG, log_size, log.data(), nullptr);
+    log.resize(std::strlen(log.c_str()));
+    Fail("build", "kernel " + key + " (" + source.text.substr(0, source.text.find('\n')) + ") failed with error " +
+                      std::to_string(err) + " on " + name_ + "; build log:" + FirstLines(log, 20));
+  }
+  return program;
+}
+
+cl_kernel OpenClApi::KernelFor(const KernelSource& source) {
+  if (source.lang != Lang::kOpenCl) Fail("build", std::string("kernel language is ") + Name(source.lang));
+  const std::string key = HashOf(source);
+  if (auto found = built_.find(key); found != built_.end()) {
+    if (cache_) ++cache_->counters().memory_hits;
+    return found->second.kernel.get();
+  }
+  constexpr const char* kOptions = "-cl-std=CL1.2";
+  BuiltKernel b;
+  const std::string cache_key = cache_ ? ProgramKey("opencl", cache_device_id_, key, kOptions) : "";
+  if (cache_) {
+    // A binary the driver refuses (another driver wrote it, it is corrupt) is built from source below.
+    if (const auto binary = cache_->Load("opencl", cache_key)) b.program = ProgramFromBinary(*binary, kOptions);
+    if (b.program.get()) ++cache_->counters().disk_hits;
+  }
+  if (!b.program.get()) {
+    b.program = ProgramFromSource(source, key, kOptions);
+    if (cache_) {
+      ++cache_->counters().builds;
+      cache_->Store("opencl", cache_key, BinaryOf(b.program.get()));
+    }
+  }
+  cl_int err = CL_SUCCESS;
+  b.kernel = Kernel(clCreateKernel(b.program.get(), source.entry_point.c_str(), &err));
+  Check(err, "build", "clCreateKernel '" + source.entry_point + "' of kernel " + key);
+  return built_.emplace(key, std::move(b)).first->second.kernel.get();
+}
+
+// ---------------------------------------------------------------- memory
+
+Memory OpenClApi::NewMemory(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what) {
+  cl_int err = CL_SUCCESS;
+  Memory m(clCreateBuffer(context.get(), flags | (data ? CL_MEM_COPY_HOST_PTR : 0), bytes, const_cast<void*>(data),
+                          &err));
+  Check(err, "launch", "clCreateBuffer '" + what + "' (" + std::to_string(bytes) + " bytes)");
+  return m;
+}
+
+std::unique_ptr<DeviceBuffer> OpenClApi::Allocate(BufferUse use, std::size_t bytes, const void* initial,
+                                                  const std::string& what) {
+  const cl_mem_flags flags = use == BufferUse::kOutput ? CL_MEM_READ_WRITE : CL_MEM_READ_ONLY;
+  return std::make_unique<ClMemory>(NewMemory(flags, bytes, initial, what), bytes);
+}
+
+std::unique_ptr<DeviceObject> OpenClApi::PaletteView(const Variant& variant, DeviceBuffer& palette,
+                                                     const std::string& suffix) {
+  if (variant.storage != PaletteStorage::kImage) return nullptr;
+  cl_image_format format{CL_RGBA, CL_FLOAT};
+  cl_image_desc desc{};
+  desc.image_type = CL_MEM_OBJECT_IMAGE1D_BUFFER;
+  desc.image_width = palette.bytes() / 16;
+  desc.buffer = static_cast<cl_mem>(palette.native());
+  cl_int err = CL_SUCCESS;
+  Memory image(clCreateImage(context.get(), CL_MEM_READ_ONLY, &format, &desc, nullptr, &err));
+  Check(err, "launch", "clCreateImage (image1d_buffer of " + std::to_string(desc.image_width) + " texels)" + suffix);
+  return std::make_unique<ClMemory>(std::move(image), 0);
+}
+
+void OpenClApi::Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) {
+  auto& memory = static_cast<ClMemory&>(buffer);
+  if (memory.upload.get()) {  // the staging copy is still being read by the previous upload
+    const cl_event previous = memory.upload.get();
+    Check(clWaitForEvents(1, &previous), "launch", "waiting for the previous palette upload of " + key);
+  }
+  memory.staging.assign(bytes.begin(), bytes.end());
+  cl_event event = nullptr;
+  Check(clEnqueueWriteBuffer(queue.get(), memory.memory.get(), CL_FALSE, 0, memory.staging.size(),
+                             memory.staging.data(), 0, nullptr, &event),
+        "launch", "clEnqueueWriteBuffer 'palette' of " + key);
+  memory.upload = Event(event);
+}
+
+void OpenClApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool) {
+  Check(clEnqueueReadBuffer(queue.get(), static_cast<cl_mem>(buffer.native()), CL_TRUE, 0, out.size(), out.data(), 0,
+                            nullptr, nullptr),
+        "launch", "clEnqueueReadBuffer " + what);
+}
+
+// ---------------------------------------------------------------- launches
+
+// The K palettes of an instanced run may exceed what the device allows a
+// __constant buffer or an image1d_buffer; say which limit, before launching.
+void OpenClApi::CheckRun(const PackedMesh& mesh, std::span<const KernelSource>, const RunShape& shape) const {
+  const Variant& variant = mesh.variant;
+  const std::size_t palette_bytes = static_cast<std::size_t>(shape.instances) * shape.palette_bytes;
+  if (variant.storage == PaletteStorage::kConstant) {
+    cl_ulong limit = 0;
+    clGetDeviceInfo(device, CL_DEVICE_MAX_CONSTANT_BUFFER_SIZE, sizeof limit, &limit, nullptr);
+    if (limit != 0 && palette_bytes > limit)
+      Fail("launch", variant.Key() + ": the palettes (" + std::to_string(palette_bytes) +
+                         " bytes) exceed CL_DEVICE_MAX_CONSTANT_BUFFER_SIZE " + std::to_string(limit) + " of " + name_);
+  } else if (variant.storage == PaletteStorage::kImage) {
+    std::size_t limit = 0;
+    clGetDeviceInfo(device, CL_DEVICE_IMAGE_MAX_BUFFER_SIZE, sizeof limit, &limit, nullptr);
+    if (limit != 0 && palette_bytes / 16 > limit)
+      Fail("launch", variant.Key() + ": the palettes (" + std::to_string(palette_bytes / 16) +
+                         " texels) exceed CL_DEVICE_IMAGE_MAX_BUFFER_SIZE " + std::to_string(limit) + " of " + name_);
+  }
+}
+
+std::unique_ptr<PlannedLaunch> OpenClApi::Plan(const LaunchSpec& spec) {
+  auto plan = std::make_unique<ClPlanned>(spec);
+  plan->kernel = KernelFor(spec.source);
+  plan->dimensions = spec.instanced ? 2 : 1;
+  plan->global[0] = spec.source.launch.GlobalItems(spec.count);
+  plan->global[1] = static_cast<std::size_t>(spec.instances);
+  plan->local[0] = static_cast<std::size_t>(spec.source.launch.wg_size);
+  return plan;
+}
+
+std::unique_ptr<DeviceObject> OpenClApi::Bind(const PlannedLaunch& launch, std::span<const ArgumentBinding> arguments,
+                                              const SetOptions&, std::size_t&) {
+  auto bound = std::make_unique<ClBound>();
+  bound->plan = static_cast<const ClPlanned*>(&launch);
+  for (const ArgumentBinding& a : arguments) {
+    const DeviceObject* object = a.view ? a.view : a.buffer;
+    bound->arguments.push_back(object ? static_cast<cl_mem>(static_cast<const ClMemory*>(object)->native()) : nullptr);
+  }
+  return bound;
+}
+
+// Sets the arguments of one launch (positions into `out_positions` when not
+// null) and enqueues it, its event into `event` when given.
+void OpenClApi::Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event) {
+  const ClPlanned& plan = *bound.plan;
+  const LaunchSpec& spec = plan.spec;
+  const cl_uint vertex_count = spec.vertex_count;
+  for (std::size_t a = 0; a < spec.source.arguments.size(); ++a) {
+    const KernelArgument& arg = spec.source.arguments[a];
+    const auto index = static_cast<cl_uint>(a);
+    cl_int err = CL_SUCCESS;
+    if (arg.name == "n") {
+      err = clSetKernelArg(plan.kernel, index, sizeof(cl_uint), &spec.count);
+    } else if (arg.name == "first") {
+      err = clSetKernelArg(plan.kernel, index, sizeof(cl_uint), &spec.first);
+    } else if (arg.name == "vertex_count") {
+      err = clSetKernelArg(plan.kernel, index, sizeof(cl_uint), &vertex_count);
+    } else if (arg.name == "out_positions" && out_positions) {
+      err = clSetKernelArg(plan.kernel, index, sizeof(cl_mem), &out_positions);
+    } else {
+      err = clSetKernelArg(plan.kernel, index, sizeof(cl_mem), &bound.arguments[a]);
+    }
+    Check(err, "launch", spec.where + ": clSetKernelArg " + std::to_string(a) + " '" + arg.name + "'");
+  }
+  Check(clEnqueueNDRangeKernel(queue.get(), plan.kernel, plan.dimensions, nullptr, plan.global, plan.local, 0, nullptr,
+                               event),
+        "launch", spec.where + ": clEnqueueNDRangeKernel (" + std::to_string(plan.global[0]) + " items x " +
+                      std::to_string(plan.global[1]) + " instances, groups of " + std::to_string(plan.local[0]) + ")");
+}
+
+namespace {
+
+// Profiling end - start of `event` in ms; a profiling query that fails reads as 0
+// in a verification run, and is an error when timing.
+double EventMs(cl_event event, bool checked, const std::string& key) {
+  cl_ulong start = 0, end = 0;
+  const cl_int s = clGetEventProfilingInfo(event, CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr);
+  const cl_int e = clGetEventProfilingInfo(event, CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr);
+  if (checked) {
+    Check(s, "launch", "clGetEventProfilingInfo (start) of " + key);
+    Check(e, "launch", "clGetEventProfilingInfo (end) of " + key);
+  }
+  return static_cast<double>(end - start) * 1e-6;
+}
+
+}  // namespace
+
+std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
+  const bool live = run.use == FrameUse::kLive;
+  std::vector<std::vector<Event>> events;
+  for (std::size_t f = 0; f < run.frames.size(); ++f) {
+    const bool timed = !live && static_cast<int>(f) >= run.untimed;
+    if (timed) events.emplace_back();
+    for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
+      cl_event event = nullptr;
+      Enqueue(static_cast<const ClBound&>(*launch), live ? static_cast<cl_mem>(run.out_positions) : nullptr,
+              timed ? &event : nullptr);
+      if (timed) events.back().emplace_back(event);
+    }
+  }
+  if (live) return {};
+  const bool verify = run.use == FrameUse::kVerify;
+  Check(clFinish(queue.get()), "launch", std::string("clFinish after ") + (verify ? "" : "timing ") + run.key);
+  std::vector<std::vector<double>> ms;
+  for (const std::vector<Event>& frame : events) {
+    std::vector<double>& launches = ms.emplace_back();
+    for (const Event& e : frame) launches.push_back(EventMs(e.get(), !verify, run.key));
+  }
+  return ms;
+}
+
+// ---------------------------------------------------------------- copy bandwidth
+
+namespace {
+
+constexpr const char* kCopyKernel = R"(// skintune copy bandwidth kernel
+__kernel void skintune_copy(__global const uint4* restrict in, __global uint4* restrict out, const ulong n) {
+  const size_t i = get_global_id(0);
+  if (i < n) out[i] = in[i];
+}
+)";
+
+}  // namespace
+
+std::vector<double> OpenClApi::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
+  KernelSource source;
+  source.lang = Lang::kOpenCl;
+  source.entry_point = "skintune_copy";
+  source.text = kCopyKernel;
+  source.source_hash = SourceHash(source.text);
+  const cl_kernel kernel = KernelFor(source);
+  const std::vector<std::uint32_t> pattern = CopyPattern(bytes / 4);
+  Memory in = NewMemory(CL_MEM_READ_ONLY, bytes, pattern.data(), "copy source");
+  Memory out = NewMemory(CL_MEM_WRITE_ONLY, bytes, nullptr, "copy destination");
+  const cl_ulong n = bytes / 16;
+  const cl_mem in_mem = in.get(), out_mem = out.get();
+  Check(clSetKernelArg(kernel, 0, sizeof(cl_mem), &in_mem), "launch", "clSetKernelArg 0 of the copy kernel");
+  Check(clSetKernelArg(kernel, 1, sizeof(cl_mem), &out_mem), "launch", "clSetKernelArg 1 of the copy kernel");
+  Check(clSetKernelArg(kernel, 2, sizeof(cl_ulong), &n), "launch", "clSetKernelArg 2 of the copy kernel");
+  const std::size_t global = (n + 255) / 256 * 256;
+  std::vector<Event> events;
+  for (int r = 0; r < warmup + repetitions; ++r) {
+    const bool timed = r >= warmup;
+    cl_event event = nullptr;
+    Check(clEnqueueNDRangeKernel(queue.get(), kernel, 1, nullptr, &global, nullptr, 0, nullptr, timed ? &event : nullptr),
+          "launch", "clEnqueueNDRangeKernel of the copy kernel (" + std::to_string(global) + " items)");
+    if (timed) events.emplace_back(event);
+  }
+  Check(clFinish(queue.get()), "launch", "clFinish after the copy kernel");
+  std::vector<double> ms;
+  for (const Event& e : events) ms.push_back(EventMs(e.get(), false, ""));
+  return ms;
+}
+
+// ---------------------------------------------------------------- OpenClRunner
+
+namespace {
+
+std::unique_ptr<OpenClApi> OpenDevice(int platform_index, int device_index) {
+  auto api = std::make_unique<OpenClApi>();
+  cl_uint platform_count = 0;
+  if (clGetPlatformIDs(0, nullptr, &platform_count) != CL_SUCCESS || platform_index < 0 ||
+      static_cast<cl_uint>(platform_index) >= platform_count) {
+    Fail("setup", "no platform " + std::to_string(platform_index) + " (" + std::to_string(platform_count) +
+                      " platforms)");
+  }
+  std::vector<cl_platform_id> platforms(platform_count);
+  clGetPlatformIDs(platform_count, platforms.data(), nullptr);
+  api->platform = platforms[static_cast<std::size_t>(platform_index)];
+  cl_uint device_count = 0;
+  if (clGetDeviceIDs(api->platform, CL_DEVICE_TYPE_ALL, 0, nullptr, &device_count) != CL_SUCCESS || device_index < 0 ||
+      static_cast<cl_uint>(device_index) >= device_count) {
+    Fail("setup", "platform " + std::to_string(platform_index) + " has no device " + std::to_string(device_index) +
+                      " (" + std::to_string(device_count) + " devices)");
+  }
+  std::vector<cl_device_id> devices(device_count);
+  clGetDeviceIDs(api->platform, CL_DEVICE_TYPE_ALL, device_count, devices.data(), nullptr);
+  api->device = devices[static_cast<std::size_t>(device_index)];
+  api->name_ = DeviceName(api->device);
+  cl_int err = CL_SUCCESS;
+  const cl_context_properties properties[] = {CL_CONTEXT_PLATFORM,
+                                              reinterpret_cast<cl_context_properties>(api->platform), 0};
+  api->context = Context(clCreateContext(properties, 1, &api->device, nullptr, nullptr, &err));
+  Check(err, "setup", "clCreateContext on " + api->name_);
+  api->queue = Queue(clCreateCommandQueue(api->context.get(), api->device, CL_QUEUE_PROFILING_ENABLE, &err));
+  Check(err, "setup", "clCreateCommandQueue on " + api->name_);
+  return api;
+}
+
+// The caller's handles, checked to belong together; retained.
+std::unique_ptr<OpenClApi> AdoptHandles(void* device_handle, void* context_handle, void* queue_handle) {
+  if (!device_handle || !context_handle || !queue_handle)
+    Fail("setup", "a null cl_device_id, cl_context or cl_command_queue");
+  const auto device = static_cast<cl_device_id>(device_handle);
+  const auto context = static_cast<cl_context>(context_handle);
+  const auto queue = static_cast<cl_command_queue>(queue_handle);
+  cl_uint count = 0;
+  Check(clGetContextInfo(context, CL_CONTEXT_NUM_DEVICES, sizeof count, &count, nullptr), "setup",
+        "clGetContextInfo(CL_CONTEXT_NUM_DEVICES) of the given context");
+  std::vector<cl_device_id> devices(count);
+  Check(clGetContextInfo(context, CL_CONTEXT_DEVICES, count * sizeof(cl_device_id), devices.data(), nullptr), "setup",
+        "clGetContextInfo(CL_CONTEXT_DEVICES) of the given context");
+  if (std::find(devices.begin(), devices.end(), device) == devices.end())
+    Fail("setup", "the given device is not one of the given context's " + std::to_string(count) + " devices");
+  cl_context queue_context = nullptr;
+  cl_device_id queue_device = nullptr;
+  cl_command_queue_properties properties = 0;
+  Check(clGetCommandQueueInfo(queue, CL_QUEUE_CONTEXT, sizeof queue_context, &queue_context, nullptr), "setup",
+        "clGetCommandQueueInfo(CL_QUEUE_CONTEXT) of the given queue");
+  Check(clGetCommandQueueInfo(queue, CL_QUEUE_DEVICE, sizeof queue_device, &queue_device, nullptr), "setup",
+        "clGetCommandQueueInfo(CL_QUEUE_DEVICE) of the given queue");
+  Check(clGetCommandQueueInfo(queue, CL_QUEUE_PROPERTIES, sizeof properties, &properties, nullptr), "setup",
+        "clGetCommandQueueInfo(CL_QUEUE_PROPERTIES) of the given queue");
+  if (queue_context != context || queue_device != device)
+    Fail("setup", "the given queue belongs to another context or device");
+  if (properties & CL_QUEUE_OUT_OF_ORDER_EXEC_MODE_ENABLE)
+    Fail("setup", "the given queue is out-of-order; an in-order queue is needed");
+  auto api = std::make_unique<OpenClApi>();
+  Check(clGetDeviceInfo(device, CL_DEVICE_PLATFORM, sizeof api->platform, &api->platform, nullptr), "setup",
+        "clGetDeviceInfo(CL_DEVICE_PLATFORM) of the given device");
+  Check(clRetainContext(context), "setup", "clRetainContext");
+  api->context = Context(context);
+  Check(clRetainCommandQueue(queue), "setup", "clRetainCommandQueue");
+  api->queue = Queue(queue);
+  api->device = device;
+  api->name_ = DeviceName(device);
+  return api;
+}
+
+}  // namespace
+
+OpenClRunner::OpenClRunner(int platform_index, int device_index) : Runner(OpenDevice(platform_index, device_index)) {}
+
+OpenClRunner::OpenClRunner(void* device_handle, void* context_handle, void* queue_handle)
+    : Runner(AdoptHandles(device_handle, context_handle, queue_handle)) {}
+
+const OpenClApi& OpenClRunner::cl() const { return static_cast<const OpenClApi&>(api()); }
+void* OpenClRunner::device() const { return cl().device; }
+void* OpenClRunner::context() const { return cl().context.get(); }
+void* OpenClRunner::queue() const { return cl().queue.get(); }
+
+}  // namespace skintune

@@ -1,0 +1,211 @@
+// skintune (internal): what one GPU API gives the runner driver.
+//
+// The driver (runtime/runner.h) writes the orchestration once: the shape
+// checks (run_shape.h), poisoned outputs and guards (output_check.h), the
+// input sets of timing, the Skinner's live set, the read-back. A DeviceApi
+// (one per API, in runtime/backends/<api>/) does what only its API knows:
+// building a kernel (with the program cache), buffers, the palette's view for
+// the variant's storage, binding a launch's arguments its own way, running
+// frames with the device's timers, and a copy kernel. Modelled on Kernel
+// Tuner's Backend (ready_argument_list, compile, start/stop_event,
+// run_kernel, memcpy) and CLBlast's "descriptors plus one driver".
+//
+// Errors are skintune::Error with the message "<name()> <stage>: ...", stage
+// one of setup, build, launch, guard: the tuner maps the stage to a status
+// (StatusOfRunnerError) and the runtime to an ErrorCode (CodeOfRunnerError).
+// The driver raises launch and guard errors with the same prefix.
+//
+// The driver calls MakeCurrent() at the start of each of its operations; the
+// objects a DeviceApi returns are owned by the driver and released by their
+// destructors, which need the API's context current (ReadyToRelease).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "runtime/program_cache.h"
+#include "runtime/run_shape.h"
+
+namespace skintune {
+
+// Something a DeviceApi made for the driver (a buffer, a palette view, a bound
+// launch); releases its native object when destroyed.
+class DeviceObject {
+ public:
+  virtual ~DeviceObject() = default;
+  // Gives the native object up without releasing it: the driver calls it on
+  // every object of a set when ReadyToRelease() is false (a GL context gone).
+  virtual void Forget() {}
+};
+
+class DeviceBuffer : public DeviceObject {
+ public:
+  explicit DeviceBuffer(std::size_t bytes) : bytes_(bytes) {}
+  std::size_t bytes() const { return bytes_; }
+  // The API's handle: a cl_mem, or a CUdeviceptr / GL buffer name as an integer.
+  virtual void* native() const = 0;
+
+ private:
+  std::size_t bytes_;
+};
+
+// One launch of a packed mesh, as the driver plans it (count > 0).
+struct LaunchSpec {
+  Variant variant;                       // the mesh's
+  KernelSource source;                   // the launch's kernel
+  std::size_t index = 0;                 // its position in PackedMesh::launches
+  std::uint32_t count = 0, first = 0;    // its vertices and the output index of the first
+  std::uint32_t vertex_count = 0;        // the mesh's (instanced output stride)
+  int instances = 1;                     // K
+  bool instanced = false;
+  std::size_t palettes_bytes = 0;        // the K palettes of one input set
+  std::size_t palette_joints = 0;        // joints of one palette
+  std::size_t output_stride = 0;         // bytes per output vertex
+  std::string where;                     // "launch <index> of <variant key>", for messages
+};
+
+// A launch planned by the API: its built kernel and geometry.
+class PlannedLaunch {
+ public:
+  explicit PlannedLaunch(LaunchSpec launch) : spec(std::move(launch)) {}
+  virtual ~PlannedLaunch() = default;
+  LaunchSpec spec;
+};
+
+// What a buffer holds: kernels read inputs and the palette, and write outputs.
+enum class BufferUse { kInput, kPalette, kOutput };
+
+// What one kernel argument of one launch of one input set is bound to.
+enum class ArgumentRole { kScalar, kInput, kPalette, kOutput };
+struct ArgumentBinding {
+  const KernelArgument* argument = nullptr;
+  ArgumentRole role = ArgumentRole::kScalar;
+  DeviceBuffer* buffer = nullptr;      // kInput, kPalette, kOutput
+  DeviceObject* view = nullptr;        // kPalette: the storage's view of the buffer (null: the buffer itself)
+};
+
+// How an input set is made: Run's one set has guarded outputs; timing and
+// the Skinner's sets do not, and name their buffers with a suffix.
+struct SetOptions {
+  bool verification = false;  // outputs followed by their guard (out_bytes + kGuardBytes)
+  std::string suffix;         // appended to buffer names in messages: " (input set 2)"
+};
+
+// What a frame run is for.
+enum class FrameUse {
+  kVerify,  // Run: one frame, each launch timed by the device and checked by the API
+  kTime,    // Time: frames after `untimed` timed per launch by the device, then wait
+  kLive,    // the Skinner's frame: no timers, no wait, on the caller's queue/stream
+};
+
+// A frame is every bound launch of one input set, in launch order; `frames`
+// lists the sets' launches frame after frame (a set may appear many times).
+struct FrameRun {
+  FrameUse use = FrameUse::kTime;
+  std::vector<std::span<const std::unique_ptr<DeviceObject>>> frames;
+  int untimed = 0;                 // kTime: leading frames run without timers (warm-up)
+  std::string key;                 // the variant key, for messages
+  void* out_positions = nullptr;   // kLive: write positions into this native buffer instead (OpenCL-GL sharing)
+};
+
+// What the driver does around an API's timed frames.
+struct TimingPolicy {
+  // Before timing, run bursts of untimed frames for at least 200 ms and until
+  // two bursts in a row take the same wall time within 3% (at most 1 s): a
+  // driver that lowers the clock between short bursts of work (NVIDIA's GL
+  // driver on the H100: 1980 -> 345 MHz) is back at speed before the first
+  // timed frame.
+  bool warm_until_stable = false;
+};
+
+class DeviceApi {
+ public:
+  virtual ~DeviceApi() = default;
+
+  // "OpenCL", "CUDA", "GL": the first word of every error message.
+  virtual const char* name() const = 0;
+  virtual const std::string& device_name() const = 0;
+  // Makes the API's context current on the calling thread (CUDA, GL); throws
+  // Error("<name> launch|setup: ...") when it cannot be.
+  virtual void MakeCurrent() {}
+  // Before the driver releases a set's objects: makes the context current.
+  // False when it cannot (then every object is Forgotten, not released).
+  virtual bool ReadyToRelease() { return true; }
+
+  // Programs are loaded from and stored to `cache` (null: none), keyed with `device_id`.
+  void UseProgramCache(ProgramCache* cache, const std::string& device_id) {
+    cache_ = cache;
+    cache_device_id_ = device_id;
+  }
+  // Builds (or finds already built) `source`; throws Error("<name> build: ...").
+  virtual void Build(const KernelSource& source) = 0;
+
+  // The API's limits for a run of `shape` (instances per launch, the palette
+  // in constant memory or an image): throws Error("<name> launch: ...") naming
+  // the limit. Called after CheckRunShape.
+  virtual void CheckRun(const PackedMesh& mesh, std::span<const KernelSource> kernels, const RunShape& shape) const = 0;
+  // Bytes of a set's palette buffer: the K palettes, or more (zero-filled)
+  // where the kernel declares a larger block (GL uniform blocks).
+  virtual std::size_t PaletteBufferBytes(const RunShape& shape, std::span<const KernelSource> kernels) const;
+  // What wrote past an output's end, for guard errors: "kernel" (GL vertex shaders: "capture").
+  virtual const char* OutputWriter(const Variant& variant) const;
+
+  // Builds the launch's kernel and plans its geometry; throws build and launch errors.
+  virtual std::unique_ptr<PlannedLaunch> Plan(const LaunchSpec& spec) = 0;
+  // A buffer of `bytes` (> 0) holding `initial` (null: undefined contents);
+  // `what` names it in messages.
+  virtual std::unique_ptr<DeviceBuffer> Allocate(BufferUse use, std::size_t bytes, const void* initial,
+                                                 const std::string& what) = 0;
+  // The view the variant's palette storage reads the palette through (an
+  // image1d_buffer, a texture object, a texture buffer), or null when the
+  // kernel reads the buffer itself.
+  virtual std::unique_ptr<DeviceObject> PaletteView(const Variant& variant, DeviceBuffer& palette,
+                                                    const std::string& suffix) = 0;
+  // Binds one launch of one input set: every kernel argument in order (the
+  // API decides how: argument slots, parameter arrays, binding points,
+  // transform feedback ranges). `allocated` grows by the bytes of any buffer
+  // the API adds for the launch (GL's staged captures).
+  virtual std::unique_ptr<DeviceObject> Bind(const PlannedLaunch& launch, std::span<const ArgumentBinding> arguments,
+                                             const SetOptions& options, std::size_t& allocated) = 0;
+  // Waits until the uploads of Prepare's input sets are done.
+  virtual void FinishUploads(const std::string& key) = 0;
+
+  // Runs `run.frames` (see FrameUse). Returns, per timed frame, the device
+  // time of each launch in ms (kLive: nothing).
+  virtual std::vector<std::vector<double>> RunFrames(const FrameRun& run) = 0;
+  virtual TimingPolicy timing_policy() const { return {}; }
+
+  // Copies `bytes` into `buffer` without waiting for the copy (the Skinner's
+  // palette upload); a second write waits for the first to have read its bytes.
+  virtual void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& what) = 0;
+  // Reads `buffer` back into `out` (its first out.size() bytes); `wait`:
+  // first wait for the work queued for the caller (the Skinner's read-back;
+  // Run's frames have already finished).
+  virtual void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) = 0;
+  // Waits for everything queued.
+  virtual void Finish() = 0;
+
+  // A plain copy kernel between two buffers of `bytes` (a multiple of 16;
+  // the source holds CopyPattern): `warmup` untimed then `repetitions` timed
+  // runs, ms each.
+  virtual std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions) = 0;
+
+ protected:
+  ProgramCache* cache_ = nullptr;
+  std::string cache_device_id_;
+};
+
+// A non-zero pattern of `words` 32-bit words (an LCG), so nothing of a copy
+// can be elided or compressed away.
+std::vector<std::uint32_t> CopyPattern(std::size_t words);
+
+// `source.source_hash`, or the hash of its text when it has none.
+std::string HashOf(const KernelSource& source);
+
+}  // namespace skintune

@@ -1,0 +1,365 @@
+// The runner driver (runtime/runner.h): the orchestration every API shares,
+// over its DeviceApi.
+#include "runtime/runner.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+#include "reference/error.h"
+#include "runtime/output_check.h"
+#include "runtime/run_shape.h"
+
+namespace skintune {
+
+struct Prepared::Impl {
+  // One input set: every object it owns (released last first), the buffers
+  // the driver reads and writes, and its launches bound by the API.
+  struct Set {
+    std::vector<std::unique_ptr<DeviceObject>> objects;
+    DeviceBuffer* palette = nullptr;
+    DeviceBuffer* out_positions = nullptr;
+    DeviceBuffer* out_normals = nullptr;
+    std::vector<std::unique_ptr<DeviceObject>> launches;
+  };
+  DeviceApi* api = nullptr;  // the runner's; null in a Prepared that holds nothing
+  std::string key;           // the variant's
+  std::vector<std::unique_ptr<PlannedLaunch>> launches;
+  std::vector<Set> sets;
+  std::size_t bytes_per_set = 0;
+  std::size_t palettes_bytes = 0;  // the K palettes of a set
+  std::size_t out_bytes = 0;       // K x vertex_count x stride (a verification set's guard follows)
+
+  Impl() = default;
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+  ~Impl() {
+    if (!api) return;
+    const bool ready = api->ReadyToRelease();
+    for (Set& set : sets) {
+      if (!ready) {
+        for (auto& o : set.launches) o->Forget();
+        for (auto& o : set.objects) o->Forget();
+      }
+      while (!set.launches.empty()) set.launches.pop_back();
+      while (!set.objects.empty()) set.objects.pop_back();
+    }
+  }
+
+  // The frame of set `s`: its bound launches.
+  std::span<const std::unique_ptr<DeviceObject>> Frame(std::size_t s) const { return sets[s].launches; }
+};
+
+Prepared::Prepared() : impl_(std::make_unique<Impl>()) {}
+Prepared::~Prepared() = default;
+Prepared::Prepared(Prepared&&) noexcept = default;
+Prepared& Prepared::operator=(Prepared&&) noexcept = default;
+int Prepared::input_sets() const { return impl_ ? static_cast<int>(impl_->sets.size()) : 0; }
+std::size_t Prepared::bytes_per_set() const { return impl_ ? impl_->bytes_per_set : 0; }
+
+namespace {
+
+// Prepared::Impl's set `set`, or Error("<API> launch: no input set ...").
+template <typename ImplT>
+auto& SetOf(ImplT* impl, int set, const DeviceApi& api) {
+  const std::size_t count = impl ? impl->sets.size() : 0;
+  if (!impl || set < 0 || static_cast<std::size_t>(set) >= count)
+    throw Error(std::string(api.name()) + " launch: no input set " + std::to_string(set) + " (" +
+                std::to_string(count) + " prepared)");
+  return impl->sets[static_cast<std::size_t>(set)];
+}
+
+const char* OutputName(bool normals) { return normals ? "out_normals" : "out_positions"; }
+
+}  // namespace
+
+Runner::Runner(std::unique_ptr<DeviceApi> api) : api_(std::move(api)) {}
+Runner::~Runner() = default;
+
+void Runner::Fail(const std::string& stage, const std::string& message) const {
+  throw Error(std::string(api_->name()) + " " + stage + ": " + message);
+}
+
+void Runner::UseProgramCache(ProgramCache* cache, const std::string& device_id) {
+  api_->UseProgramCache(cache, device_id);
+}
+
+void Runner::Build(const KernelSource& source) {
+  api_->MakeCurrent();
+  api_->Build(source);
+}
+
+// ---------------------------------------------------------------- input sets
+
+Prepared Runner::PrepareSets(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                             std::span<const std::vector<std::uint8_t>> palettes, const RunShape& shape,
+                             const SetOptions& options) {
+  Prepared prepared;
+  Prepared::Impl& p = *prepared.impl_;
+  p.api = api_.get();
+  p.key = mesh.variant.Key();
+  for (std::size_t l = 0; l < mesh.launches.size(); ++l) {
+    const Launch& launch = mesh.launches[l];
+    if (launch.count == 0) continue;
+    LaunchSpec spec;
+    spec.variant = mesh.variant;
+    spec.source = kernels[l];
+    spec.index = l;
+    spec.count = launch.count;
+    spec.first = launch.first;
+    spec.vertex_count = static_cast<std::uint32_t>(mesh.vertex_count);
+    spec.instances = shape.instances;
+    spec.instanced = shape.instanced;
+    spec.palettes_bytes = static_cast<std::size_t>(shape.instances) * shape.palette_bytes;
+    spec.palette_joints = mesh.palette_joints;
+    spec.output_stride = mesh.output_stride_bytes;
+    spec.where = "launch " + std::to_string(l) + " of " + p.key;
+    p.launches.push_back(api_->Plan(spec));  // build errors before any upload
+  }
+  p.palettes_bytes = static_cast<std::size_t>(shape.instances) * shape.palette_bytes;
+  p.out_bytes = shape.out_bytes;
+  for (std::size_t k = 0; k < palettes.size(); ++k) {
+    SetOptions set_options = options;
+    if (!options.verification) set_options.suffix = " (input set " + std::to_string(k) + ")";
+    AddSet(p, mesh, kernels, palettes[k], shape, set_options);
+  }
+  return prepared;
+}
+
+void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                    const std::vector<std::uint8_t>& palettes, const RunShape& shape, const SetOptions& options) {
+  Prepared::Impl::Set& set = p.sets.emplace_back();
+  std::size_t bytes = 0;
+  const auto add = [&](BufferUse use, std::size_t size, const void* data, const std::string& what, bool counted) {
+    if (size == 0) Fail("launch", "buffer '" + what + "' is empty");
+    set.objects.push_back(api_->Allocate(use, size, data, what));
+    bytes += counted ? size : 0;
+    return static_cast<DeviceBuffer*>(set.objects.back().get());
+  };
+  // The palette (padded where the API binds a larger block), and its view for the storage.
+  std::vector<std::uint8_t> palette(palettes.begin(), palettes.end());
+  palette.resize(std::max(palette.size(), api_->PaletteBufferBytes(shape, kernels)), 0);
+  set.palette = add(BufferUse::kPalette, palette.size(), palette.data(), "palette" + options.suffix, true);
+  std::unique_ptr<DeviceObject> view = api_->PaletteView(mesh.variant, *set.palette, options.suffix);
+  DeviceObject* palette_view = view.get();
+  if (view) set.objects.push_back(std::move(view));
+  // Outputs (K instances, one after another): poisoned; Run's followed by their guard.
+  const std::vector<std::uint8_t> poison = PoisonedOutput(p.out_bytes);
+  const std::size_t out_size = options.verification ? poison.size() : p.out_bytes;
+  const bool counted = !options.verification;
+  set.out_positions = add(BufferUse::kOutput, out_size, poison.data(), "out_positions" + options.suffix, counted);
+  if (mesh.variant.normals) set.out_normals = add(BufferUse::kOutput, out_size, poison.data(), "out_normals" + options.suffix, counted);
+
+  for (const std::unique_ptr<PlannedLaunch>& planned : p.launches) {
+    const LaunchSpec& spec = planned->spec;
+    const Launch& launch = mesh.launches[spec.index];
+    std::vector<ArgumentBinding> arguments;
+    for (const KernelArgument& arg : spec.source.arguments) {
+      ArgumentBinding b{&arg, ArgumentRole::kScalar, nullptr, nullptr};
+      if (arg.kind == ArgumentKind::kScalar) {
+        arguments.push_back(b);
+        continue;
+      }
+      if (arg.name == "palette") {
+        b = {&arg, ArgumentRole::kPalette, set.palette, palette_view};
+      } else if (arg.name == "out_positions" || arg.name == "out_normals") {
+        b = {&arg, ArgumentRole::kOutput, arg.name == "out_positions" ? set.out_positions : set.out_normals, nullptr};
+      } else {
+        const auto input = std::find_if(launch.inputs.begin(), launch.inputs.end(),
+                                        [&](const PackedBuffer& pb) { return pb.name == arg.name; });
+        if (input == launch.inputs.end()) Fail("launch", spec.where + ": no packed buffer for argument '" + arg.name + "'");
+        b = {&arg, ArgumentRole::kInput, add(BufferUse::kInput, input->bytes.size(), input->bytes.data(), arg.name + options.suffix, true),
+             nullptr};
+      }
+      if (!b.buffer) Fail("launch", spec.where + ": nothing to bind to argument '" + arg.name + "'");
+      arguments.push_back(b);
+    }
+    set.launches.push_back(api_->Bind(*planned, arguments, options, bytes));
+  }
+  p.bytes_per_set = bytes;
+}
+
+// ---------------------------------------------------------------- verification
+
+RunResult Runner::Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette) {
+  return Run(mesh, EmitLaunchKernels(mesh), palette);
+}
+
+RunResult Runner::RunInstanced(const PackedMesh& mesh, int instances, std::span<const std::uint8_t> palettes) {
+  return Run(mesh, EmitLaunchKernels(mesh, instances), palettes, instances);
+}
+
+RunResult Runner::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                      std::span<const std::uint8_t> palettes, int instances) {
+  api_->MakeCurrent();
+  const std::vector<std::vector<std::uint8_t>> palette = {PalettesOrMeshPalette(mesh, palettes, instances)};
+  const RunShape shape = CheckRunShape(mesh, kernels, palette.front().size(), instances, api_->name());
+  api_->CheckRun(mesh, kernels, shape);
+  const Prepared prepared = PrepareSets(mesh, kernels, palette, shape, SetOptions{true, ""});
+  const Prepared::Impl& p = *prepared.impl_;
+  FrameRun run;
+  run.use = FrameUse::kVerify;
+  run.frames = {p.Frame(0)};
+  run.key = p.key;
+  std::vector<std::vector<double>> times = api_->RunFrames(run);
+  RunResult result;
+  if (!times.empty()) result.launch_ms = std::move(times.front());
+  ReadChecked(p, mesh, shape, result);
+  return result;
+}
+
+// Reads the outputs of Run's set back, checks the guards, counts vertices never written.
+void Runner::ReadChecked(const Prepared::Impl& p, const PackedMesh& mesh, const RunShape& shape, RunResult& result) {
+  const Prepared::Impl::Set& set = p.sets.front();
+  const auto read_back = [&](const DeviceBuffer& buffer, const char* what, std::vector<std::uint8_t>& out) {
+    std::vector<std::uint8_t> bytes(p.out_bytes + kGuardBytes);
+    api_->Read(buffer, bytes, std::string("'") + what + "'", false);
+    const OutputCheck check = CheckGuardAndCountPoisoned(bytes, p.out_bytes, mesh.output_stride_bytes, shape.out_vertices);
+    if (!check.guard_ok)
+      Fail("guard", p.key + ": " + what + ": the " + api_->OutputWriter(mesh.variant) + " " +
+                        GuardFailure(check, p.out_bytes));
+    result.poisoned_vertices += check.poisoned_vertices;
+    out = std::move(bytes);
+  };
+  read_back(*set.out_positions, "out_positions", result.positions);
+  if (set.out_normals) read_back(*set.out_normals, "out_normals", result.normals);
+}
+
+// ---------------------------------------------------------------- timing
+
+Prepared Runner::Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                         std::span<const std::vector<std::uint8_t>> palettes, int instances) {
+  api_->MakeCurrent();
+  if (palettes.empty()) Fail("launch", "no palette (input set) to time " + mesh.variant.Key() + " with");
+  RunShape shape;
+  for (const std::vector<std::uint8_t>& palette : palettes)
+    shape = CheckRunShape(mesh, kernels, palette.size(), instances, api_->name());
+  api_->CheckRun(mesh, kernels, shape);
+  Prepared prepared = PrepareSets(mesh, kernels, palettes, shape, SetOptions{});
+  api_->FinishUploads(prepared.impl_->key);  // the uploads are done before anything is timed
+  return prepared;
+}
+
+// Wall time of warm-up bursts before any timed frame (TimingPolicy::warm_until_stable):
+// at least the first, at most the second.
+constexpr double kWarmupMs = 200.0;
+constexpr double kWarmupMaxMs = 1000.0;
+
+void Runner::WarmUntilStable(const Prepared::Impl& p) {
+  using Clock = std::chrono::steady_clock;
+  const auto ms_since = [](Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+  };
+  const auto start = Clock::now();
+  double previous = 0.0;
+  for (std::size_t frame = 0;;) {
+    FrameRun burst;
+    burst.use = FrameUse::kTime;
+    burst.key = p.key;
+    for (int i = 0; i < 16; ++i, ++frame) burst.frames.push_back(p.Frame(frame % p.sets.size()));
+    burst.untimed = static_cast<int>(burst.frames.size());
+    const auto burst_start = Clock::now();
+    api_->RunFrames(burst);  // waits for the burst
+    const double elapsed = ms_since(burst_start), total = ms_since(start);
+    const bool steady = previous > 0.0 && std::abs(elapsed - previous) <= 0.03 * previous;
+    if ((total >= kWarmupMs && steady) || total >= kWarmupMaxMs) break;
+    previous = elapsed;
+  }
+}
+
+std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int repetitions) {
+  api_->MakeCurrent();
+  const Prepared::Impl* p = prepared.impl_.get();
+  if (!p || p->sets.empty()) Fail("launch", "Time: nothing prepared");
+  warmup = std::max(warmup, 0);
+  repetitions = std::max(repetitions, 0);
+  if (api_->timing_policy().warm_until_stable) WarmUntilStable(*p);
+  FrameRun run;
+  run.use = FrameUse::kTime;
+  run.key = p->key;
+  run.untimed = warmup;
+  for (int frame = 0; frame < warmup + repetitions; ++frame)
+    run.frames.push_back(p->Frame(static_cast<std::size_t>(frame) % p->sets.size()));
+  std::vector<double> ms;
+  for (const std::vector<double>& launches : api_->RunFrames(run)) {
+    double total = 0.0;
+    for (const double launch : launches) total += launch;
+    ms.push_back(total);
+  }
+  return ms;
+}
+
+// ---------------------------------------------------------------- skinning
+
+void Runner::WritePalette(Prepared& prepared, int set, std::span<const std::uint8_t> palettes) {
+  api_->MakeCurrent();
+  Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
+  const Prepared::Impl& p = *prepared.impl_;
+  if (palettes.size() != p.palettes_bytes)
+    Fail("launch", "palettes have " + std::to_string(palettes.size()) + " bytes, expected " +
+                       std::to_string(p.palettes_bytes));
+  api_->Write(*s.palette, palettes, p.key);
+}
+
+void Runner::LaunchSet(const Prepared& prepared, int set, void* out_positions) {
+  api_->MakeCurrent();
+  SetOf(prepared.impl_.get(), set, *api_);
+  const Prepared::Impl& p = *prepared.impl_;
+  FrameRun run;
+  run.use = FrameUse::kLive;
+  run.frames = {p.Frame(static_cast<std::size_t>(set))};
+  run.key = p.key;
+  run.out_positions = out_positions;
+  api_->RunFrames(run);
+}
+
+void Runner::ReadOutput(const Prepared& prepared, int set, bool normals, std::span<std::uint8_t> out) {
+  api_->MakeCurrent();
+  const Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
+  const Prepared::Impl& p = *prepared.impl_;
+  const DeviceBuffer* buffer = normals ? s.out_normals : s.out_positions;
+  if (!buffer) Fail("launch", std::string("no ") + (normals ? "normals" : "positions") + " output in " + p.key);
+  if (out.size() != p.out_bytes)
+    Fail("launch", "read-back of " + std::to_string(out.size()) + " bytes, the output has " + std::to_string(p.out_bytes));
+  api_->Read(*buffer, out, std::string("'") + OutputName(normals) + "' of " + p.key, true);
+}
+
+void* Runner::OutputBuffer(const Prepared& prepared, int set, bool normals) const {
+  const Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
+  const DeviceBuffer* buffer = normals ? s.out_normals : s.out_positions;
+  return buffer ? buffer->native() : nullptr;
+}
+
+void Runner::Finish() {
+  api_->MakeCurrent();
+  api_->Finish();
+}
+
+std::vector<double> Runner::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
+  api_->MakeCurrent();
+  bytes -= bytes % 16;
+  if (bytes == 0) Fail("launch", "copy of less than 16 bytes");
+  return api_->TimeCopy(bytes, std::max(warmup, 0), std::max(repetitions, 0));
+}
+
+// ---------------------------------------------------------------- shared by the APIs
+
+std::size_t DeviceApi::PaletteBufferBytes(const RunShape& shape, std::span<const KernelSource>) const {
+  return static_cast<std::size_t>(shape.instances) * shape.palette_bytes;
+}
+
+const char* DeviceApi::OutputWriter(const Variant&) const { return "kernel"; }
+
+std::vector<std::uint32_t> CopyPattern(std::size_t words) {
+  std::vector<std::uint32_t> pattern(words);
+  std::uint32_t x = 0x9e3779b9u;
+  for (std::uint32_t& w : pattern) w = x = x * 1664525u + 1013904223u;
+  return pattern;
+}
+
+std::string HashOf(const KernelSource& source) {
+  return source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;
+}
+
+}  // namespace skintune

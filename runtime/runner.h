@@ -1,0 +1,155 @@
+// skintune (internal): the runner driver: runs emitted kernels on a packed
+// mesh with the checks a tuner needs to trust a result, written once over a
+// DeviceApi (runtime/device_api.h) that each API implements in
+// runtime/backends/<api>/ (OpenClRunner, CudaRunner and GlRunner are this
+// class on their API).
+//
+// - Build: each distinct KernelSource is built once per runner (the API's
+//   program cache: runtime/program_cache.h); a failure throws
+//   Error("<API> build: ...") with the first lines of the log.
+// - Run (verification): outputs are POISONED (every 32-bit word 0x7fc00000, a
+//   quiet NaN), so a vertex a kernel forgets to write reads back as NaN, and
+//   each is followed by a GUARD of kGuardBytes; a kernel (or a capture) that
+//   writes past the end throws Error("<API> guard: ..."). (runtime/output_check.h.)
+// - Every Launch of the PackedMesh runs with its own kernel (bucketed: one
+//   specialised per influence count), its arguments bound by name from the
+//   kernel's argument list (docs/VARIANTS.md order); the palette through the
+//   view the variant's storage needs.
+// - Instances (docs/VARIANTS.md "Instancing"): with instanced kernels one run
+//   skins K instances, each launch over the K palettes (one buffer, one
+//   after another); the outputs hold K x vertex_count vertices, instance
+//   after instance, the guard after them. runtime/run_shape.h lists the
+//   shape errors; the API names the device limit a run exceeds.
+// - Timing (the tuner's): Prepare uploads one input set per palette (copies
+//   of every launch's inputs, that palette, outputs of their own, poisoned
+//   but unguarded); Time runs frames rotating among them, uploading,
+//   poisoning and reading back nothing; verify with Run first. A frame's time
+//   is the sum of its launches' device times.
+// - Skinning (the runtime's Skinner): a Prepared set is also a live set of
+//   device buffers: WritePalette replaces a set's palettes (asynchronously),
+//   LaunchSet runs its launches once on the caller's queue, ReadOutput waits
+//   and reads an output back, OutputBuffer gives the native buffer.
+// Errors name the stage: "<API> setup", "build", "launch" or "guard".
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "runtime/device_api.h"
+#include "runtime/program_cache.h"
+
+namespace skintune {
+
+struct RunResult {
+  std::vector<std::uint8_t> positions;  // K x vertex_count x output_stride_bytes, packed order, instance after
+                                        // instance (Unpack each instance's part)
+  std::vector<std::uint8_t> normals;    // likewise; empty without normals
+  std::vector<double> launch_ms;        // per launch, the device's time
+  std::size_t poisoned_vertices = 0;    // output vectors (positions, normals) still holding the poison
+};
+
+// The device buffers of one variant (Runner::Prepare): input_sets() sets,
+// each a copy of every launch's packed inputs, its own palette and its own
+// outputs. Move-only; must not outlive its runner.
+class Prepared {
+ public:
+  Prepared();
+  ~Prepared();
+  Prepared(Prepared&&) noexcept;
+  Prepared& operator=(Prepared&&) noexcept;
+  int input_sets() const;
+  std::size_t bytes_per_set() const;  // device bytes of one set: inputs + palette + outputs (+ staging)
+
+  struct Impl;
+
+ private:
+  friend class Runner;
+  std::unique_ptr<Impl> impl_;
+};
+
+class Runner {
+ public:
+  explicit Runner(std::unique_ptr<DeviceApi> api);
+  virtual ~Runner();
+  Runner(const Runner&) = delete;
+  Runner& operator=(const Runner&) = delete;
+
+  DeviceApi& api() const { return *api_; }
+  const std::string& device_name() const { return api_->device_name(); }
+
+  // Builds load from and store to `cache` (null: none), keyed with `device_id`;
+  // the cache must outlive the runner.
+  void UseProgramCache(ProgramCache* cache, const std::string& device_id);
+
+  // Builds (or finds already built) `source`; throws Error("<API> build ...").
+  void Build(const KernelSource& source);
+
+  // Emits the variant's kernel for every launch (Emit(variant, launch.influences,
+  // palette_joints)) and runs them. `palette`: PackPalette bytes; empty = mesh.palette.
+  RunResult Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette = {});
+
+  // Emits the variant's instanced kernel for every launch and skins
+  // `instances` (K >= 1) instances in one launch per launch of the mesh.
+  // `palettes`: K PackPalette byte runs one after another (instance i's at
+  // i x palette size); empty = mesh.palette for every instance.
+  RunResult RunInstanced(const PackedMesh& mesh, int instances, std::span<const std::uint8_t> palettes = {});
+
+  // Runs with the given kernels, one per launch, in launch order; instanced
+  // kernels skin `instances` instances (`palette` holds K palettes), plain
+  // ones need instances == 1 (runtime/run_shape.h lists the errors).
+  RunResult Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                std::span<const std::uint8_t> palette = {}, int instances = 1);
+
+  // Timing. Uploads one input set per palette (PackPalette bytes; one frame
+  // each) and builds `kernels` (one per launch, in launch order). Instanced
+  // kernels: each entry of `palettes` holds `instances` palettes and each
+  // frame skins them all. Throws Error ("build", "launch") like Run.
+  Prepared Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                   std::span<const std::vector<std::uint8_t>> palettes, int instances = 1);
+
+  // Runs `warmup` untimed frames, then `repetitions` timed ones; frame f (warm-up
+  // frames counted) reads and writes set f % input_sets(). Nothing is uploaded
+  // or read back. Returns one time per timed frame: the sum over its launches
+  // of their device time, ms. (The API may warm up further: TimingPolicy.)
+  std::vector<double> Time(const Prepared& prepared, int warmup, int repetitions);
+
+  // Skinning with a prepared set (see the top of this file). WritePalette
+  // copies `palettes` (the set's K palettes) and enqueues their upload;
+  // LaunchSet enqueues every launch of set `set`, writing positions into
+  // `out_positions` (a native buffer of the set's output size; OpenCL-GL
+  // sharing) instead of the set's own when given; ReadOutput waits and copies
+  // the set's positions (or normals) into `out` (K x vertex_count x
+  // output_stride_bytes, packed order).
+  void WritePalette(Prepared& prepared, int set, std::span<const std::uint8_t> palettes);
+  void LaunchSet(const Prepared& prepared, int set, void* out_positions = nullptr);
+  void ReadOutput(const Prepared& prepared, int set, bool normals, std::span<std::uint8_t> out);
+  // The native output buffer (cl_mem; CUdeviceptr or GL buffer name as an integer); null: none.
+  void* OutputBuffer(const Prepared& prepared, int set, bool normals) const;
+  // Waits for everything queued.
+  void Finish();
+
+  // A plain copy kernel between two buffers of `bytes` (rounded down to a
+  // multiple of 16; the source holds a non-zero pattern): `warmup` untimed
+  // then `repetitions` timed runs, the device's time in ms each.
+  std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions);
+
+ private:
+  Prepared PrepareSets(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                       std::span<const std::vector<std::uint8_t>> palettes, const RunShape& shape,
+                       const SetOptions& options);
+  void AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const KernelSource> kernels,
+              const std::vector<std::uint8_t>& palettes, const RunShape& shape, const SetOptions& options);
+  void ReadChecked(const Prepared::Impl& p, const PackedMesh& mesh, const RunShape& shape, RunResult& result);
+  void WarmUntilStable(const Prepared::Impl& p);
+  [[noreturn]] void Fail(const std::string& stage, const std::string& message) const;
+
+  std::unique_ptr<DeviceApi> api_;
+};
+
+}  // namespace skintune

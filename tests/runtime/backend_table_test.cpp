@@ -1,0 +1,85 @@
+// The one list of APIs (runtime/backend_table.h): its order is the public
+// Backend enum's, its languages are the fallback chain's and the database's,
+// and discovery through it finds what each API's own enumeration finds, with a
+// skipped line for every API that has no device here. The device identity's
+// JSON (runtime/device_identity.h) round-trips through the public DeviceInfo.
+#include "runtime/backend_table.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+#include <string>
+
+#include "runtime/backends/opencl/opencl_devices.h"
+#include "runtime/device.h"
+#include "runtime/selection.h"
+#include "skintune/skintune.h"
+
+namespace skintune {
+namespace {
+
+TEST(BackendTable, ListsTheApisInTheOrderOfThePublicEnum) {
+  const std::vector<BackendEntry>& table = Backends();
+  ASSERT_EQ(table.size(), 3u);
+  EXPECT_STREQ(BackendName(Backend::kOpenCl), "opencl");
+  EXPECT_STREQ(BackendName(Backend::kCuda), "cuda");
+  EXPECT_STREQ(BackendName(Backend::kGl), "gl");
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    EXPECT_STREQ(BackendName(static_cast<Backend>(i)), table[i].name);
+    EXPECT_EQ(FindBackend(table[i].name), &table[i]);
+    EXPECT_EQ(LanguagesOf(static_cast<Backend>(i)), table[i].languages);
+  }
+  EXPECT_STREQ(BackendName(static_cast<Backend>(table.size())), "unknown");
+  EXPECT_EQ(FindBackend("vulkan"), nullptr);
+  EXPECT_EQ(JoinedBackendNames(), "opencl, cuda or gl");
+  EXPECT_EQ(JoinedBackendNames(true), "OpenCL, CUDA or GL");
+}
+
+TEST(BackendTable, EveryLanguageRunsOnExactlyOneBackend) {
+  std::multiset<Lang> seen;
+  for (const BackendEntry& b : Backends()) seen.insert(b.languages.begin(), b.languages.end());
+  for (const Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex})
+    EXPECT_EQ(seen.count(lang), 1u) << Name(lang);
+  EXPECT_EQ(seen.size(), 4u);
+  EXPECT_EQ(LanguagesOf(Backend::kGl), (std::vector<Lang>{Lang::kGlslCompute, Lang::kGlslVertex}));
+  EXPECT_EQ(LanguageNames(), (std::vector<std::string>{"opencl", "cuda", "glsl-compute", "glsl-vertex"}));
+}
+
+TEST(BackendTable, DiscoveryFindsEveryOpenClDeviceAndSaysWhyAnApiIsMissing) {
+  const Discovered all = DiscoverDevices();
+  std::set<std::string> with_devices;
+  for (const FoundDevice& d : all.devices) {
+    ASSERT_NE(FindBackend(d.identity.backend), nullptr) << d.identity.backend;
+    with_devices.insert(d.identity.backend);
+    EXPECT_EQ(d.identity.index, 0);
+    EXPECT_TRUE(d.open) << d.identity.Id();
+    EXPECT_GT(d.limits.max_wg_size, 0u) << d.identity.Id();
+    // The public identity is the same device id.
+    EXPECT_EQ(PublicInfo(d.identity).id, d.identity.Id());
+    EXPECT_STREQ(BackendName(PublicInfo(d.identity).backend), d.identity.backend.c_str());
+  }
+  for (const BackendEntry& b : Backends()) {
+    if (with_devices.count(b.name)) continue;
+    bool said_why = false;
+    for (const std::string& s : all.skipped) said_why = said_why || s.rfind(std::string(b.name) + ": ", 0) == 0;
+    EXPECT_TRUE(said_why) << b.name << " has no device and no skipped line";
+  }
+  // Only one API: the others are not looked for.
+  const Discovered opencl = DiscoverDevices("opencl");
+  EXPECT_EQ(opencl.devices.size(), EnumerateOpenCl().devices.size());
+  for (const FoundDevice& d : opencl.devices) EXPECT_EQ(d.identity.backend, "opencl");
+  for (const std::string& s : opencl.skipped) EXPECT_EQ(s.rfind("opencl: ", 0), 0u) << s;
+  EXPECT_TRUE(DiscoverDevices("vulkan").devices.empty());
+}
+
+TEST(BackendTable, AnOpenClDeviceOpensAsARunnerOfItsApi) {
+  const Discovered opencl = DiscoverDevices("opencl");
+  if (opencl.devices.empty()) GTEST_SKIP() << "no OpenCL device here";
+  const std::unique_ptr<Runner> runner = opencl.devices.front().open();
+  ASSERT_NE(runner, nullptr);
+  EXPECT_STREQ(runner->api().name(), "OpenCL");
+  EXPECT_EQ(runner->device_name(), opencl.devices.front().identity.name);
+}
+
+}  // namespace
+}  // namespace skintune
