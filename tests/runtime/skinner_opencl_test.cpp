@@ -186,6 +186,7 @@ WinnersDb DbFor(const DeviceInfo& device, const std::string& key) {
   e.lang = e.variant.lang;
   e.influences = e.variant.influences;
   e.vertex_bucket = "25k";
+  e.vertices = 25000;
   e.dataset = "25k-b4";
   e.median_ms = 0.5;
   e.created = "2025-01-31T12:00:00Z";

@@ -29,6 +29,7 @@ WinnersEntry SampleEntry() {
   e.lang = Lang::kOpenCl;
   e.influences = 4;
   e.vertex_bucket = "100k";
+  e.vertices = 100000;
   e.dataset = "100k-b4";
   e.variant = ParseVariantKey("opencl.b4.soa-split.u8.unorm8.local.wg256");
   e.median_ms = 0.25;
@@ -71,6 +72,25 @@ TEST(WinnersDb, EntriesWithoutVendorAndTypeLoadWithTheIdsParts) {
   const Result<WinnersDb> loaded = WinnersDb::Parse(db.dump(), "old.json");
   ASSERT_TRUE(loaded.ok()) << loaded.status().message();
   EXPECT_EQ(loaded->size(), 1u);
+}
+
+TEST(WinnersDb, EntriesBefore1_2_0CountAsTheirBucketsNominalVertices) {
+  nlohmann::json j = WinnersEntryToJson(SampleEntry());
+  EXPECT_EQ(j.at("vertices"), 100000);
+  j.erase("vertices");
+  j["vertex_bucket"] = "1600k";
+  EXPECT_EQ(WinnersEntryFromJson(j).vertices, 1600000u);
+  // A count must agree with its bucket and be at least one vertex.
+  j["vertices"] = 25000;
+  EXPECT_THROW(WinnersEntryFromJson(j), Error);
+  j["vertices"] = 0;
+  j["vertex_bucket"] = "25k";
+  EXPECT_THROW(WinnersEntryFromJson(j), Error);
+  j["vertices"] = 6400000;
+  j["vertex_bucket"] = "1600k";
+  EXPECT_EQ(WinnersEntryFromJson(j).vertices, 6400000u);
+  const std::string described = Describe(WinnersEntryFromJson(j));
+  EXPECT_EQ(described.substr(described.rfind(" b4 ")), " b4 6400k") << described;
 }
 
 TEST(WinnersDb, DeviceIdSplitsAtTheFirstAndLastSlash) {
