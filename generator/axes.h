@@ -12,7 +12,7 @@
 // in axes.cpp fail the build when a field has no axis, an axis reads another
 // field, or an entry leaves one of its decisions (define, covering, chart)
 // unset; tests/generator/axes_test.cpp checks configs/*.schema.json list the
-// same values. docs/ARCHITECTURE-axes.md says how to add an axis.
+// same values. docs/ARCHITECTURE.md says how to add an axis.
 #pragma once
 
 #include <array>

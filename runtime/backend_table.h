@@ -7,7 +7,7 @@
 // (runtime/device.cpp), the fallback chain's languages (selection.h), the
 // winners database's backend names, and the tuner's backends all iterate over
 // this table: a new API adds one entry (backend_table.cpp) and its folder
-// (docs/ARCHITECTURE-backends.md).
+// (docs/ARCHITECTURE.md).
 //
 // An entry's position in the table is also its skintune::Backend value
 // (skintune/skintune.h): the table lists the APIs in that enum's order,

@@ -15,6 +15,8 @@
 // whose Palette(animation, t, &matrices) gives each frame's palette
 // (examples/skin_animation.cpp). Link skintune::runtime (find_package(skintune);
 // docs/RUNTIME.md); the library exports this header's API and nothing else.
+// The docs/ pages and examples/ this header cites are installed with it, in
+// share/doc/skintune/.
 //
 // Errors are values: every function that can fail returns Status or Result<T>,
 // whose message names what was wrong (the argument, the vertex, the device).
@@ -95,7 +97,7 @@ class Result {
 enum class Backend { kOpenCl, kCuda, kGl };
 const char* BackendName(Backend backend);  // "opencl", "cuda", "gl"
 
-// A device's identity, as the tuner records it (tuner/backend.h DeviceIdentity).
+// A device's identity, as `skintune tune` records it in its reports and winners databases.
 struct DeviceInfo {
   Backend backend = Backend::kOpenCl;
   std::string id;              // "<backend>:<platform>/<name>/<driver_version>": the database key
@@ -204,7 +206,7 @@ class Device {
  private:
   std::unique_ptr<Impl> impl_;
   friend class Skinner;
-  friend struct DeviceAccess;  // the library's own (runtime/device.h)
+  friend struct DeviceAccess;  // the library's own, not part of the API
 };
 
 // ---------------------------------------------------------------- winners
@@ -251,7 +253,7 @@ class WinnersDb {
 
 // What a Skinner runs and why.
 struct Selection {
-  std::string variant;     // the variant key (docs/VARIANTS.md), e.g. "cl.b4.padded.soa..."
+  std::string variant;     // the variant key (docs/VARIANTS.md), e.g. "opencl.b4.padded.soa..."
   MatchLevel level = MatchLevel::kGenericDefault;
   std::string entry;       // the database entry used: "<device id> <lang> b<B> <bucket>", or "built-in default"
   std::string reason;      // e.g. "no entry for this device; same vendor and type: NVIDIA gpu"
@@ -400,7 +402,7 @@ class Skinner {
 class Model {
  public:
   // A .gltf / .glb file: its first skinned mesh (every triangle primitive),
-  // skin and animations (reference/gltf_import.h says what is read). Weights
+  // skin and animations (docs/DATA.md, "glTF import", says what is read). Weights
   // that do not sum to 1 are renormalised with one line in warnings().
   // kIoError when the file cannot be read; kInvalidArgument naming the file
   // and the element for anything malformed (accessor out of its buffer, joint
