@@ -84,6 +84,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
   std::map<EntryKey, Winner> best;
   for (const Measurement& m : report.measurements) {
     if (m.status != MeasureStatus::kOk) continue;  // a failed variant is never a winner
+    if (!ImpossibleFigures(m).empty()) continue;   // nor an impossible time (readers refuse one anyway)
     const auto dataset = datasets.find(m.dataset);
     if (dataset == datasets.end()) {
       throw Error("report: a measurement is of dataset '" + m.dataset + "', which is not in its datasets");
@@ -165,10 +166,14 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
     if (!c.is_object()) throw Error("must be an object");
     return c;
   });
-  for (const auto& [id, gbps] : copy.items()) {
+  for (const auto& item : copy.items()) {
+    const std::string& id = item.key();
+    const nlohmann::json& gbps = item.value();  // not a structured binding: clang 14 cannot capture one
     r.copy_bandwidth_gbps[id] = At(context, "copy_bandwidth_gbps[\"" + id + "\"]", [&] {
       if (!gbps.is_number()) throw Error("must be a number");
-      return gbps.get<double>();
+      const double value = gbps.get<double>();
+      if (!(std::isfinite(value) && value > 0.0)) throw Error("is " + gbps.dump() + ": must be a positive, finite GB/s");
+      return value;
     });
   }
   const nlohmann::json& skipped = At(context, "skipped", [&]() -> const nlohmann::json& { return Array(json, "skipped"); });
