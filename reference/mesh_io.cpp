@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "reference/error.h"
+#include "reference/skinning.h"
 
 namespace skintune {
 
@@ -128,6 +129,13 @@ void WriteSkinnedVertices(const std::string& path, std::span<const glm::vec3> po
   if (!normals.empty() && normals.size() != positions.size()) {
     throw Error(path + ": " + std::to_string(normals.size()) + " normals for " + std::to_string(positions.size()) +
                 " positions");
+  }
+  // The last line of defence (callers name the origin first, CheckSkinnedOutput):
+  // a NaN written as "-nan" is not even readable back.
+  for (const auto& [values, what] : {std::pair{positions, "position"}, std::pair{normals, "normal"}}) {
+    const std::size_t v = FirstNonFinite(values);
+    if (v < values.size())
+      throw Error(path + ": vertex " + std::to_string(v) + ": " + what + " is not finite; nothing written");
   }
   WriteFileAtomically(path, IsObj(path) ? EncodeObj(positions, normals) : EncodeBinary(positions, normals));
 }

@@ -24,7 +24,9 @@
 namespace skintune {
 
 // Chooses the format by extension: ".obj" (case-insensitive) -> obj, else binary.
-// Throws Error("<path>: ...") when the file cannot be written.
+// Throws Error("<path>: ...") when the file cannot be written, and without
+// writing anything for a NaN or infinite value ("<path>: vertex V: position
+// is not finite; nothing written").
 void WriteSkinnedVertices(const std::string& path, std::span<const glm::vec3> positions,
                           std::span<const glm::vec3> normals = {});
 

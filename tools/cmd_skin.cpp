@@ -33,6 +33,7 @@ struct SkinOptions {
 };
 
 void WritePalette(const std::string& path, const std::vector<glm::mat4>& palette) {
+  CheckPaletteFinite(palette, path);
   std::string bytes(palette.size() * sizeof(glm::mat4), '\0');
   for (std::size_t j = 0; j < palette.size(); ++j)
     for (int c = 0; c < 4; ++c)
@@ -101,6 +102,9 @@ int RunSkin(const SkinOptions& o) {
     FastSkinner(mesh).Run(palette, positions, normals);
   }
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  // A NaN or infinite output is an error naming its vertex, never a file.
+  CheckSkinnedOutput(mesh, positions, normals,
+                     asset.source + ": " + (clip < 0 ? std::string("rest pose") : "t=" + std::to_string(t) + " s of animation " + std::to_string(clip)));
   if (!o.out.empty()) WriteSkinnedVertices(o.out, positions, normals);
   if (!o.palette_out.empty()) WritePalette(o.palette_out, palette);
   std::cout << "skinned " << n << " vertices (" << mesh.influences << " influences, " << mesh.joint_count

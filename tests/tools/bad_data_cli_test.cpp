@@ -166,5 +166,32 @@ TEST(ImpossibleData, ZeroNegativeAndNanMediansNeverReachMergedWinners) {
   EXPECT_EQ(ReadAll(db), kEarlier);
 }
 
+// ------------------------------------------------------------------ item 3
+
+// RiggedSimple with 1e308 in its first joint's matrix: finite in double,
+// infinite in float: every vertex of the file skinned to -nan, exit 0.
+TEST(ImpossibleData, SkinOfAJointMatrixOf1e308IsOneErrorLineAndWritesNothing) {
+  const fs::path dir = testing::ScratchDir("skintune_bad_data");
+  nlohmann::json gltf = nlohmann::json::parse(ReadAll(fs::path(SKINTUNE_TEST_DATA_DIR) / "RiggedSimple.gltf"));
+  ASSERT_EQ(gltf["nodes"][3]["name"], "Bone");
+  gltf["nodes"][3]["matrix"][0] = 1e308;
+  std::string text = gltf.dump();
+  const std::string buffer_uri = gltf["buffers"][0].value("uri", "");
+  if (!buffer_uri.empty() && buffer_uri.rfind("data:", 0) != 0)
+    fs::copy_file(fs::path(SKINTUNE_TEST_DATA_DIR) / buffer_uri, dir / buffer_uri);
+  const std::string model = Write(dir / "huge-joint.gltf", text);
+  for (const char* name : {"out.obj", "out.stv"}) {
+    const std::string out = Write(dir / name, kEarlier);
+    const std::string palette = Write(dir / "palette.bin", kEarlier);
+    const testing::CommandResult r = RunSkintune({"skin", "--mesh", model, "--out", out, "--palette-out", palette});
+    ExpectOneErrorLine(r, model + ": rest pose: joint 0 (nodes[3] ('Bone')): palette entry [");
+    EXPECT_NE(r.err.find("e+30"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("beyond float32"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("nan"), std::string::npos) << r.err;
+    EXPECT_EQ(ReadAll(out), kEarlier);
+    EXPECT_EQ(ReadAll(palette), kEarlier);
+  }
+}
+
 }  // namespace
 }  // namespace skintune
