@@ -51,6 +51,20 @@ TEST(MeshIo, NonFiniteValuesAreRefusedAndNothingIsWritten) {
   EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);  // no temporary left
 }
 
+// Issue 11, item 5: whether an output can be written is known before the work.
+TEST(MeshIo, CheckWritableRefusesFoldersAndMissingFoldersAndTouchesNothing) {
+  const fs::path dir = TempDir();
+  fs::create_directories(dir / "folder");
+  EXPECT_THROW(CheckWritable((dir / "folder").string()), Error);
+  EXPECT_THROW(CheckWritable((dir / "missing" / "x.obj").string()), Error);
+  std::ofstream(dir / "existing.obj") << "kept";
+  EXPECT_NO_THROW(CheckWritable((dir / "existing.obj").string()));
+  EXPECT_NO_THROW(CheckWritable((dir / "new.obj").string()));
+  EXPECT_EQ(Slurp(dir / "existing.obj"), "kept");
+  EXPECT_FALSE(fs::exists(dir / "new.obj"));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);
+}
+
 TEST(MeshIo, ObjHasOneVLinePerVertexInOrder) {
   const fs::path file = TempDir() / "out.obj";
   WriteSkinnedVertices(file.string(), kPositions);

@@ -193,5 +193,77 @@ TEST(ImpossibleData, SkinOfAJointMatrixOf1e308IsOneErrorLineAndWritesNothing) {
   }
 }
 
+// ------------------------------------------------------------------ item 4
+
+TEST(ImpossibleData, BudgetOutsideItsRangeIsACommandLineErrorBeforeAnyWork) {
+  const fs::path dir = testing::ScratchDir("skintune_bad_data");
+  const fs::path out = dir / "out";
+  fs::create_directories(out);
+  const std::string report = Write(out / "report.json", kEarlier);
+  for (const char* budget : {"-3", "18446744073709551616", "1e3", "1000000001", ""}) {
+    for (const char* command : {"tune", "paper"}) {
+      const testing::CommandResult r =
+          RunSkintune({command, "--budget", budget, "--out", out.string(), "--quiet", "--device", "none"});
+      EXPECT_EQ(r.exit_code, 2) << command << " --budget '" << budget << "': " << r.err;
+      EXPECT_EQ(CountLines(r.err), 1) << r.err;
+      EXPECT_NE(r.err.find("--budget"), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find("0 to 1000000000"), std::string::npos) << r.err;
+      EXPECT_EQ(ReadAll(report), kEarlier);
+      EXPECT_FALSE(fs::exists(out / "cache.jsonl"));
+    }
+  }
+}
+
+// ------------------------------------------------------------------ item 5
+
+TEST(ImpossibleData, UnwritableOutputsAreFoundBeforeTheWork) {
+  const fs::path dir = testing::ScratchDir("skintune_bad_data");
+  // tune: report.json is a folder (root may write anywhere, so no permissions
+  // games): the run stops before measuring anything.
+  const fs::path out = dir / "out";
+  fs::create_directories(out / "report.json");
+  const auto start = std::chrono::steady_clock::now();
+  const std::string config = Write(dir / "config.json", TinyConfig().dump());
+  const testing::CommandResult tune = RunSkintune({"tune", "--config", config, "--out", out.string(), "--quiet"});
+  ExpectOneErrorLine(tune, (out / "report.json").string() + ": is a folder");
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 20.0);
+  EXPECT_EQ(ReadAll(out / "cache.jsonl"), "");  // nothing measured
+  // report, db merge, skin: likewise.
+  const std::string input = Write(dir / "report-in.json", ReportToJson(testing::SampleReport()).dump());
+  const std::string folder = (dir / "a-folder").string();
+  fs::create_directories(folder);
+  ExpectOneErrorLine(RunSkintune({"report", input, "-o", folder}), folder + ": is a folder");
+  ExpectOneErrorLine(RunSkintune({"db", "merge", input, "-o", folder}), folder + ": is a folder");
+  ExpectOneErrorLine(RunSkintune({"skin", "--dataset", "1000-b2", "--out", folder}), folder + ": is a folder");
+  const std::string missing = (dir / "no-such-folder" / "x.obj").string();
+  ExpectOneErrorLine(RunSkintune({"skin", "--dataset", "1000-b2", "--out", missing}), missing + ": cannot write (");
+}
+
+// ------------------------------------------------------------------ item 6
+
+TEST(ImpossibleData, HugeDatasetsAreRefusedBeforeAnyAllocationSayingWhatFits) {
+  const fs::path dir = testing::ScratchDir("skintune_bad_data");
+  const std::string out = Write(dir / "out.stv", kEarlier);
+  // Beyond 32-bit vertex indices.
+  ExpectOneErrorLine(RunSkintune({"skin", "--dataset", "100000m-b8", "--out", out}, kTwoGiB),
+                     "dataset '100000m-b8': 100000000000 vertices exceed the 2^32 - 1 = 4294967295");
+  // Within them but not within memory (2 GiB here): the message says what fits.
+  for (const char* key : {"4000m-b4", "300m-b8"}) {
+    const auto start = std::chrono::steady_clock::now();
+    const testing::CommandResult r = RunSkintune({"skin", "--dataset", key, "--out", out}, kTwoGiB);
+    ExpectOneErrorLine(r, std::string("dataset '") + key + "': needs about ");
+    EXPECT_NE(r.err.find("vertices fit"), std::string::npos) << r.err;
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
+  }
+  EXPECT_EQ(ReadAll(out), kEarlier);
+  // A tuning config with such a dataset stops before any device work.
+  const nlohmann::json config = TinyConfig("4000m-b4", 4);
+  const std::string config_path = Write(dir / "config.json", config.dump());
+  const testing::CommandResult tune =
+      RunSkintune({"tune", "--config", config_path, "--out", (dir / "tuned").string(), "--quiet"}, kTwoGiB);
+  ExpectOneErrorLine(tune, "dataset '4000m-b4': needs about ");
+  EXPECT_EQ(ReadAll(dir / "tuned" / "cache.jsonl"), "");
+}
+
 }  // namespace
 }  // namespace skintune
