@@ -203,6 +203,7 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
   for (std::size_t i = 0; i < measurements.size(); ++i) {
     r.measurements.push_back(At(context, "measurements[" + std::to_string(i) + "]", [&] {
       Measurement m = measurements[i].get<Measurement>();
+      (void)SplitDeviceId(m.device_id);  // winners and databases are keyed by its parts
       if (std::none_of(r.datasets.begin(), r.datasets.end(), [&](const DatasetInfo& d) { return d.key == m.dataset; })) {
         throw Error("dataset '" + m.dataset + "' is not in 'datasets'");
       }

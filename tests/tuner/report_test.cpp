@@ -128,6 +128,10 @@ TEST(Report, MalformedReportsNameTheElement) {
   j["schema_version"] = "2.0.0";
   EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("schema_version '2.0.0'"), std::string::npos);
   j = good;
+  j["measurements"][2]["device_id"] = "no backend or parts";  // found by report_fuzz: merges failed later, unnamed
+  EXPECT_EQ(ErrorOf([&] { ReportFromJson(j, "r.json"); }).rfind("r.json: measurements[2]: device id 'no backend", 0), 0u)
+      << ErrorOf([&] { ReportFromJson(j, "r.json"); });
+  j = good;
   j["kind"] = "something";
   EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("kind"), std::string::npos);
   j = good;
