@@ -40,6 +40,8 @@ std::string JoinDeviceId(const DeviceIdParts& p) {
   return p.backend + ":" + p.platform + "/" + p.name + "/" + p.driver_version;
 }
 
+bool KnownBackend(const std::string& backend) { return backend == "opencl" || backend == "cuda" || backend == "gl"; }
+
 DeviceIdParts SplitDeviceId(const std::string& id) {
   const std::size_t colon = id.find(':');
   const std::size_t first = colon == std::string::npos ? std::string::npos : id.find('/', colon + 1);
@@ -116,7 +118,7 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
   e.device_id = String(j, "device_id");
   const DeviceIdParts parts = SplitDeviceId(e.device_id);
   e.backend = Agreeing(j, "backend", parts.backend);
-  if (e.backend != "opencl" && e.backend != "cuda" && e.backend != "gl")
+  if (!KnownBackend(e.backend))
     throw Error("'backend' has unknown value '" + e.backend + "' (expected opencl, cuda or gl)");
   e.platform = Agreeing(j, "platform", parts.platform);
   e.device_name = Agreeing(j, "device_name", parts.name);

@@ -34,6 +34,8 @@ struct DeviceIdParts {
   std::string backend, platform, name, driver_version;
 };
 std::string JoinDeviceId(const DeviceIdParts& parts);
+// Whether `backend` is one a device id may start with: "opencl", "cuda", "gl".
+bool KnownBackend(const std::string& backend);
 // The backend ends at the first ':', the platform at the first '/' after it,
 // the driver starts after the last '/': a device name may contain '/', a
 // platform or driver version may not. Throws Error for an id without

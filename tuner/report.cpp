@@ -203,7 +203,10 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
   for (std::size_t i = 0; i < measurements.size(); ++i) {
     r.measurements.push_back(At(context, "measurements[" + std::to_string(i) + "]", [&] {
       Measurement m = measurements[i].get<Measurement>();
-      (void)SplitDeviceId(m.device_id);  // winners and databases are keyed by its parts
+      // Winners and databases are keyed by the id's parts and name its backend.
+      const std::string backend = SplitDeviceId(m.device_id).backend;
+      if (!KnownBackend(backend))
+        throw Error("device id '" + m.device_id + "' has unknown backend '" + backend + "' (expected opencl, cuda or gl)");
       if (std::none_of(r.datasets.begin(), r.datasets.end(), [&](const DatasetInfo& d) { return d.key == m.dataset; })) {
         throw Error("dataset '" + m.dataset + "' is not in 'datasets'");
       }
