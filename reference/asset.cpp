@@ -31,7 +31,16 @@ Pose SkinnedAsset::PoseAt(int animation, double t) const {
 }
 
 std::vector<glm::mat4> SkinnedAsset::PaletteAt(int animation, double t) const {
-  return skeleton.Palette(PoseAt(animation, t));
+  const Pose pose = PoseAt(animation, t);
+  try {
+    return skeleton.Palette(pose);
+  } catch (const Error& e) {
+    const std::string when = animation < 0 ? std::string("rest pose")
+                                           : "animation " + std::to_string(animation) +
+                                                 (animations[animation].name.empty() ? "" : " '" + animations[animation].name + "'") +
+                                                 " at t=" + std::to_string(t) + " s";
+    throw Error(source + ": " + when + ": " + e.what());
+  }
 }
 
 }  // namespace skintune

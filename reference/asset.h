@@ -21,6 +21,9 @@ struct SkinnedAsset {
   int FindAnimation(const std::string& name_or_index) const;
   // Pose at time t of clip `animation` (-1: the rest pose).
   Pose PoseAt(int animation, double t) const;
+  // Throws Error("<source>: rest pose: joint J ...") / ("<source>: animation A
+  // 'name' at t=T s: joint J ...") for a palette entry that is not finite in
+  // float32 (Skeleton::Palette).
   std::vector<glm::mat4> PaletteAt(int animation, double t) const;
 };
 

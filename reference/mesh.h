@@ -28,6 +28,9 @@ inline constexpr int kMaxInfluences = 8;
 // in float32 are within ~1e-6; glTF unorm8 weights that sum to 255 are exact;
 // 1e-3 leaves room for weights written with a few decimals in text formats.
 inline constexpr double kWeightSumTolerance = 1e-3;
+// The most vertices a mesh may have: kernels index vertices with uint32 (K
+// instances x vertices too) and a .stv file counts them in a uint32: 2^32 - 1.
+inline constexpr std::uint64_t kMaxVertexCount = 0xffffffffull;
 
 struct SkinnedMesh {
   std::string name;

@@ -8,9 +8,12 @@
 #include <fstream>
 #include <sstream>
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "reference/error.h"
+#include "reference/skinning.h"
 
 namespace skintune {
 
@@ -123,12 +126,36 @@ void WriteFileAtomically(const std::string& path, const std::string& contents) {
   }
 }
 
+void CheckWritable(const std::string& path) {
+  struct stat info {};
+  if (::stat(path.c_str(), &info) == 0 && S_ISDIR(info.st_mode))
+    throw Error(path + ": is a folder, cannot be written as a file");
+  const std::string temp = path + ".tmp." + std::to_string(::getpid());
+  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    const int err = errno;
+    throw Error(path + ": cannot write (" + std::strerror(err) + ")");
+  }
+  ::close(fd);
+  ::unlink(temp.c_str());
+}
+
 void WriteSkinnedVertices(const std::string& path, std::span<const glm::vec3> positions,
                           std::span<const glm::vec3> normals) {
   if (!normals.empty() && normals.size() != positions.size()) {
     throw Error(path + ": " + std::to_string(normals.size()) + " normals for " + std::to_string(positions.size()) +
                 " positions");
   }
+  // The last line of defence (callers name the origin first, CheckSkinnedOutput):
+  // a NaN written as "-nan" is not even readable back.
+  for (const auto& [values, what] : {std::pair{positions, "position"}, std::pair{normals, "normal"}}) {
+    const std::size_t v = FirstNonFinite(values);
+    if (v < values.size())
+      throw Error(path + ": vertex " + std::to_string(v) + ": " + what + " is not finite; nothing written");
+  }
+  if (positions.size() > kMaxVertexCount)
+    throw Error(path + ": " + std::to_string(positions.size()) + " vertices, more than the " +
+                std::to_string(kMaxVertexCount) + " a vertex file can hold");
   WriteFileAtomically(path, IsObj(path) ? EncodeObj(positions, normals) : EncodeBinary(positions, normals));
 }
 

@@ -15,16 +15,21 @@
 // renamed over it only when complete, so a failure never truncates an existing file.
 #pragma once
 
+#include <cstdint>
 #include <span>
 #include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
 
+#include "reference/mesh.h"  // kMaxVertexCount
+
 namespace skintune {
 
 // Chooses the format by extension: ".obj" (case-insensitive) -> obj, else binary.
-// Throws Error("<path>: ...") when the file cannot be written.
+// Throws Error("<path>: ...") when the file cannot be written, and without
+// writing anything for a NaN or infinite value ("<path>: vertex V: position
+// is not finite; nothing written") or more than kMaxVertexCount vertices.
 void WriteSkinnedVertices(const std::string& path, std::span<const glm::vec3> positions,
                           std::span<const glm::vec3> normals = {});
 
@@ -38,5 +43,12 @@ SkinnedVertices ReadSkinnedVertices(const std::string& path);
 
 // Writes `contents` to `path` atomically (temporary file + rename).
 void WriteFileAtomically(const std::string& path, const std::string& contents);
+
+// Throws Error("<path>: ...") unless WriteFileAtomically(path) can succeed as
+// far as can be told before the work: `path` is not a folder and its folder
+// takes a new file (the temporary file is created and removed; an existing
+// `path` is not touched). Commands check every output first, so that a long
+// run never ends in "cannot write".
+void CheckWritable(const std::string& path);
 
 }  // namespace skintune

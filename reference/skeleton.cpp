@@ -1,6 +1,8 @@
 #include "reference/skeleton.h"
 
+#include <cfloat>
 #include <cmath>
+#include <cstdio>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
@@ -96,15 +98,41 @@ std::vector<glm::dmat4> Skeleton::GlobalTransforms(const Pose& pose) const {
   return global;
 }
 
+namespace {
+
+// Every element of palette entry j finite and, when `float32`, within
+// float's range (what kernels read): else Error naming the joint, its node
+// and the element.
+void CheckPaletteEntry(const Skeleton& s, std::size_t j, const glm::dmat4& m, bool float32) {
+  for (int c = 0; c < 4; ++c) {
+    for (int r = 0; r < 4; ++r) {
+      const double v = m[c][r];
+      if (std::isfinite(v) && (!float32 || std::fabs(v) <= FLT_MAX)) continue;
+      char value[40];
+      std::snprintf(value, sizeof value, "%.17g", v);
+      throw Error("joint " + std::to_string(j) + " (" + NodeName(s, s.joints[j]) + "): palette entry [" +
+                  std::to_string(c) + "][" + std::to_string(r) + "] is " + value +
+                  (std::isfinite(v) ? ", beyond float32" : "") +
+                  " (the node's global transform times its inverse bind matrix)");
+    }
+  }
+}
+
+}  // namespace
+
 std::vector<glm::dmat4> Skeleton::PaletteD(const Pose& pose) const {
   const std::vector<glm::dmat4> global = GlobalTransforms(pose);
   std::vector<glm::dmat4> palette(joints.size());
-  for (std::size_t j = 0; j < joints.size(); ++j) palette[j] = global[joints[j]] * inverse_bind[j];
+  for (std::size_t j = 0; j < joints.size(); ++j) {
+    palette[j] = global[joints[j]] * inverse_bind[j];
+    CheckPaletteEntry(*this, j, palette[j], false);
+  }
   return palette;
 }
 
 std::vector<glm::mat4> Skeleton::Palette(const Pose& pose) const {
   const std::vector<glm::dmat4> d = PaletteD(pose);
+  for (std::size_t j = 0; j < d.size(); ++j) CheckPaletteEntry(*this, j, d[j], true);
   return std::vector<glm::mat4>(d.begin(), d.end());
 }
 

@@ -50,7 +50,11 @@ struct Skeleton {
   Pose RestPose() const;
   // Model-space transform of every node for `pose` (one entry per node).
   std::vector<glm::dmat4> GlobalTransforms(const Pose& pose) const;
-  // Palette in double (gold) and float (what kernels read).
+  // Palette in double (gold) and float (what kernels read). Throws
+  // Error("joint J (nodes[N] 'name'): palette entry [c][r] is inf ...") for an
+  // entry that is not finite (transforms that overflow when multiplied), and
+  // Palette also for one beyond float32's range (1e308 is finite in double,
+  // infinite in float): such a palette skins every vertex it moves to NaN.
   std::vector<glm::dmat4> PaletteD(const Pose& pose) const;
   std::vector<glm::mat4> Palette(const Pose& pose) const;
 };

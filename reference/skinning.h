@@ -23,6 +23,7 @@
 #include <cstddef>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -76,5 +77,20 @@ struct GoldComparison {
 };
 
 GoldComparison CompareToGold(std::span<const glm::dvec3> gold, std::span<const glm::vec3> actual);
+
+// Finiteness (reference/skinned_output.cpp): a NaN or infinite palette entry
+// or output is an error naming its origin, never a result.
+//
+// The first vector with a NaN or infinite component, or values.size().
+std::size_t FirstNonFinite(std::span<const glm::vec3> values);
+// Throws Error("<context>: palette matrix J element [c][r] is nan: ...") for
+// the first element that is not finite (a palette from outside: an engine's,
+// a file's; Skeleton::Palette checks its own with the joint's node).
+void CheckPaletteFinite(std::span<const glm::mat4> palette, const std::string& context);
+// Throws Error("<context>: skinned position of vertex V is (x, y, z), not
+// finite (joints ... with weights ...): ...") for the first non-finite
+// position, then normal. Every writer of skinned output calls it first.
+void CheckSkinnedOutput(const SkinnedMesh& mesh, std::span<const glm::vec3> positions,
+                        std::span<const glm::vec3> normals, const std::string& context);
 
 }  // namespace skintune

@@ -24,6 +24,7 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include "reference/error.h"
+#include "reference/memory_limit.h"
 
 namespace skintune {
 namespace {
@@ -448,6 +449,10 @@ std::string Problem(const DatasetSpec& s) {
            " (each vertex needs distinct bones)";
   }
   if (s.frames < 1) return "frames must be at least 1 (got " + std::to_string(s.frames) + ")";
+  if (s.vertices > kMaxVertexCount) {
+    return std::to_string(s.vertices) + " vertices exceed the 2^32 - 1 = " + std::to_string(kMaxVertexCount) +
+           " a mesh may have (vertex indices and counts are 32-bit): at most 4294m";
+  }
   return {};
 }
 
@@ -523,6 +528,10 @@ void DatasetSpec::Validate() const {
   if (!problem.empty()) throw Error("dataset '" + Key() + "': " + problem);
 }
 
+std::uint64_t DatasetBytesPerVertex(const DatasetSpec& spec) {
+  return MeshBytesPerVertex(spec.influences, spec.normals);
+}
+
 std::string DatasetSpec::Key() const {
   std::string key = VertexText(vertices) + "-b" + std::to_string(influences);
   if (bones != 77) key += "-bones" + std::to_string(bones);
@@ -555,6 +564,9 @@ DatasetSpec ParseDatasetKey(const std::string& key) {
 
 SkinnedAsset GenerateDataset(const DatasetSpec& spec) {
   spec.Validate();
+  // Before anything is allocated: the mesh is nearly all of it.
+  CheckMemoryFor("dataset '" + spec.Key() + "'", spec.vertices, DatasetBytesPerVertex(spec),
+                 "the generated mesh", HostMemoryAvailable());
   const std::vector<Bone> bones = BuildRig(spec.bones);
   const std::vector<dquat> frames = RestFrames(bones, spec.seed);
   SkinnedAsset asset;

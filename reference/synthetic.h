@@ -39,8 +39,8 @@ struct DatasetSpec {
   bool normals = false;
   int frames = 60;            // keys of the generated animation clip (30 fps)
 
-  // Throws Error naming the bad field (vertices 0, influences outside 1..8,
-  // bones 0 or > 65535, influences > bones, frames < 1).
+  // Throws Error naming the bad field (vertices 0 or above kMaxVertexCount,
+  // influences outside 1..8, bones 0 or > 65535, influences > bones, frames < 1).
   void Validate() const;
   std::string Key() const;    // inverse of ParseDatasetKey
 };
@@ -48,7 +48,13 @@ struct DatasetSpec {
 // Throws Error("dataset 'KEY': ...") for a malformed key.
 DatasetSpec ParseDatasetKey(const std::string& key);
 
+// The bytes GenerateDataset allocates per vertex (the mesh's arrays).
+std::uint64_t DatasetBytesPerVertex(const DatasetSpec& spec);
+
 // Deterministic: the same spec gives bit-identical output on every machine.
+// Throws Error("dataset 'KEY': needs about ... at most about N vertices fit")
+// before allocating anything when the mesh does not fit in the memory this
+// process may still take (reference/memory_limit.h).
 SkinnedAsset GenerateDataset(const DatasetSpec& spec);
 
 }  // namespace skintune

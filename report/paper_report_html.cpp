@@ -137,7 +137,13 @@ std::vector<double> LogTicks(double lo, double hi) {
 }
 
 // [lo, hi] widened to whole decades around every value.
-std::pair<double, double> Decades(const std::vector<double>& values) {
+// Only positive, finite values have a place on a log axis (the readers refuse
+// any other time; this keeps a chart bounded whatever it is given).
+std::pair<double, double> Decades(const std::vector<double>& all) {
+  std::vector<double> values;
+  for (double v : all)
+    if (std::isfinite(v) && v > 0.0) values.push_back(v);
+  if (values.empty()) values = {0.001, 1.0};
   double lo = *std::min_element(values.begin(), values.end());
   double hi = *std::max_element(values.begin(), values.end());
   lo = std::pow(10.0, std::floor(std::log10(lo)));

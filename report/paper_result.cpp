@@ -6,6 +6,7 @@
 
 #include "reference/error.h"
 #include "runtime/json_fields.h"
+#include "runtime/recorded_time.h"
 #include "report/paper.h"
 
 namespace skintune {
@@ -57,7 +58,17 @@ CpuTiming CpuTimingFromJson(const nlohmann::json& in) {
   t.bytes_per_frame = Number(in, "bytes_per_frame");
   t.gbps = Number(in, "gbps");
   t.max_relative_error = Number(in, "max_relative_error");
-  if (!(t.median_ms > 0.0)) throw Error("'median_ms' must be positive");
+  RecordedTime time;
+  time.median_ms = t.median_ms;
+  time.min_ms = t.min_ms;
+  time.max_ms = t.max_ms;
+  time.bytes_per_frame = t.bytes_per_frame;
+  time.gbps = t.gbps;
+  std::string problem = ImpossibleTime(time);
+  if (problem.empty() && t.repetitions < 1)
+    problem = "'repetitions' is " + std::to_string(t.repetitions) + ": a median needs at least one timed run";
+  if (problem.empty()) problem = NotFiniteNonNegative("max_relative_error", t.max_relative_error);
+  if (!problem.empty()) throw Error("impossible figures: " + problem);
   return t;
 }
 
@@ -198,7 +209,10 @@ PaperResult PaperResultFromJson(const nlohmann::json& json, const std::string& c
     const std::int64_t threads = Integer(h, "threads");
     if (threads < 0) throw Error("'threads' must not be negative");
     host.threads = static_cast<unsigned>(threads);
-    host.copy_bandwidth_gbps = Number(h, "copy_bandwidth_gbps");
+    host.copy_bandwidth_gbps = Number(h, "copy_bandwidth_gbps");  // 0: not measured (--no-cpu)
+    if (const std::string problem = NotFiniteNonNegative("copy_bandwidth_gbps", host.copy_bandwidth_gbps);
+        !problem.empty())
+      throw Error("impossible figures: " + problem);
     return host;
   });
   r.reported = PaperReportedFromJson(At(context, "reported", [&]() -> const nlohmann::json& { return Field(json, "reported"); }),

@@ -48,6 +48,7 @@ std::vector<glm::mat4> Matrices(const float* matrices, std::size_t float_count, 
                                               " joints x 16 = " + std::to_string(joints * 16));
   std::vector<glm::mat4> palette(static_cast<std::size_t>(joints));
   std::memcpy(palette.data(), matrices, float_count * sizeof(float));
+  CheckPaletteFinite(palette, call);
   return palette;
 }
 
@@ -149,6 +150,13 @@ Status Model::SkinReference(const float* matrices, std::size_t float_count, std:
     const std::vector<glm::mat4> palette =
         Matrices(matrices, float_count, im.asset.mesh.joint_count, "Model::SkinReference");
     const GoldResult gold = SkinGold(im.asset.mesh, palette);
+    for (std::size_t v = 0; v < gold.positions.size(); ++v) {
+      const glm::vec3 p(gold.positions[v]);
+      if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)))
+        FailWith(ErrorCode::kInvalidArgument, "Model::SkinReference: vertex " + std::to_string(v) +
+                                                  " is not finite in float32: the palette times its rest position "
+                                                  "overflows");
+    }
     positions->resize(gold.positions.size() * 3);
     for (std::size_t v = 0; v < gold.positions.size(); ++v)
       for (int c = 0; c < 3; ++c) (*positions)[v * 3 + c] = static_cast<float>(gold.positions[v][c]);

@@ -9,13 +9,19 @@
 #include <fstream>
 #include <sstream>
 
+#include <openssl/evp.h>
+
 #include "generator/emit.h"
 
 namespace skintune {
 
 namespace {
 
-constexpr const char* kMagic = "skintune-program-cache 1";
+// Version 2: the payload's checksum is SHA-256 (version 1 had FNV-1a 64, for
+// which an altered payload with the same checksum is easy to make; a driver
+// that loads such a binary may crash on every start). A version 1 file is
+// treated as absent: rebuilt and overwritten.
+constexpr const char* kMagic = "skintune-program-cache 2";
 
 std::string Escaped(const std::string& key) {
   std::string out;
@@ -31,8 +37,19 @@ std::string Escaped(const std::string& key) {
   return out;
 }
 
+// "sha256:" and 64 lowercase hex digits; "" when libcrypto fails (then
+// nothing is stored, and nothing loads).
 std::string PayloadHash(const std::vector<std::uint8_t>& payload) {
-  return SourceHash(std::string(payload.begin(), payload.end()));
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int size = 0;
+  if (EVP_Digest(payload.data(), payload.size(), digest, &size, EVP_sha256(), nullptr) != 1 || size != 32) return "";
+  static const char kHex[] = "0123456789abcdef";
+  std::string text = "sha256:";
+  for (unsigned int i = 0; i < size; ++i) {
+    text += kHex[digest[i] >> 4];
+    text += kHex[digest[i] & 15];
+  }
+  return text;
 }
 
 std::string Env(const char* name) {
@@ -75,13 +92,16 @@ std::optional<std::vector<std::uint8_t>> ProgramCache::Load(const std::string& b
   std::vector<std::uint8_t> payload(size);
   if (!in.read(reinterpret_cast<char*>(payload.data()), static_cast<std::streamsize>(size))) return std::nullopt;
   if (in.peek() != std::char_traits<char>::eof()) return std::nullopt;  // trailing bytes
-  if (PayloadHash(payload) != hash) return std::nullopt;
+  const std::string actual = PayloadHash(payload);
+  if (actual.empty() || actual != hash) return std::nullopt;
   return payload;
 }
 
 void ProgramCache::Store(const std::string& backend, const std::string& key,
                          const std::vector<std::uint8_t>& payload) const {
   if (!enabled() || payload.empty()) return;
+  const std::string hash = PayloadHash(payload);
+  if (hash.empty()) return;
   static std::atomic<unsigned> counter{0};
   std::error_code error;
   std::filesystem::create_directories(dir_, error);
@@ -91,7 +111,7 @@ void ProgramCache::Store(const std::string& backend, const std::string& key,
   {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
     if (!out) return;
-    out << kMagic << '\n' << Escaped(key) << '\n' << payload.size() << ' ' << PayloadHash(payload) << '\n';
+    out << kMagic << '\n' << Escaped(key) << '\n' << payload.size() << ' ' << hash << '\n';
     out.write(reinterpret_cast<const char*>(payload.data()), static_cast<std::streamsize>(payload.size()));
     out.flush();
     if (!out) {

@@ -9,13 +9,19 @@
 // options; the file is "<dir>/<backend>-<FNV-1a 64 of the key, 16 hex>.bin".
 //
 // File layout (all text lines but the payload):
-//   "skintune-program-cache 1\n"
+//   "skintune-program-cache 2\n"
 //   the key, newlines escaped as "\n", then "\n"
-//   "<payload bytes> <FNV-1a 64 of the payload, 16 hex>\n"
+//   "<payload bytes> sha256:<SHA-256 of the payload, 64 hex>\n"
 //   the payload
 // A file that does not follow this exactly (truncated, another key with the
-// same hash, a flipped bit) is treated as absent: the program is rebuilt from
-// source and the file rewritten. Writes are atomic (a temporary file in the
+// same file name, a flipped bit, an altered payload, a version 1 file with
+// its FNV-1a checksum) is treated as absent: the program is rebuilt from
+// source and the file rewritten. SHA-256 (OpenSSL's libcrypto) because a
+// driver handed a corrupt binary may crash the process (PoCL does, in
+// clCreateProgramWithBinary): a payload altered so that a 64-bit
+// non-cryptographic checksum still matches is easy to make, one that keeps
+// its SHA-256 is not. (It is a checksum, not a signature: whoever may write
+// the cache directory may also rewrite the header.) Writes are atomic (a temporary file in the
 // same directory, then rename), so a reader never sees half a file, and
 // concurrent writers of the same key leave one complete file. A cache that
 // cannot be written (read-only, full disk) only costs a rebuild next start:

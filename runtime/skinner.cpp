@@ -2,6 +2,7 @@
 #include "runtime/skinner.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include <glm/glm.hpp>
@@ -238,6 +239,16 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
     CheckCount("SetPalette", float_count, joints * 16,
                std::to_string(im.instances) + " instances x " + std::to_string(im.joint_count) + " joints x 16");
     if (!matrices) FailWith(ErrorCode::kInvalidArgument, "Skinner::SetPalette: matrices is null");
+    for (std::size_t i = 0; i < joints * 16; ++i) {
+      if (std::isfinite(matrices[i])) continue;
+      const std::size_t j = i / 16;
+      FailWith(ErrorCode::kInvalidArgument,
+               "Skinner::SetPalette: matrix " + std::to_string(j) + " (instance " +
+                   std::to_string(j / static_cast<std::size_t>(im.joint_count)) + ", joint " +
+                   std::to_string(j % static_cast<std::size_t>(im.joint_count)) + ") element [" +
+                   std::to_string(i % 16 / 4) + "][" + std::to_string(i % 4) + "] is " + std::to_string(matrices[i]) +
+                   ": a palette entry must be finite");
+    }
     std::vector<glm::mat4> palette(joints);
     for (std::size_t j = 0; j < joints; ++j)
       for (int c = 0; c < 4; ++c)  // column-major, as glm stores it
@@ -280,6 +291,19 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
     if (!im.skinned) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": nothing skinned yet (call Skin first)");
     im.scratch.resize(vertices * im.output_stride);
     im.backend->Read(normals, im.scratch);
+    // A NaN or infinite output never reaches the caller's buffer.
+    for (std::size_t p = 0; p < vertices; ++p) {
+      float xyz[3];
+      std::memcpy(xyz, im.scratch.data() + p * im.output_stride, sizeof xyz);
+      if (std::isfinite(xyz[0]) && std::isfinite(xyz[1]) && std::isfinite(xyz[2])) continue;
+      const std::size_t k = p / im.vertex_count;
+      FailWith(ErrorCode::kDeviceError,
+               std::string("Skinner::") + call + ": vertex " + std::to_string(im.order[p % im.vertex_count]) +
+                   " of instance " + std::to_string(k) + " is (" + std::to_string(xyz[0]) + ", " +
+                   std::to_string(xyz[1]) + ", " + std::to_string(xyz[2]) +
+                   "), not finite: the palette times the mesh overflows float32 (or the kernel is broken); out "
+                   "is not written");
+    }
     for (std::size_t k = 0; k < static_cast<std::size_t>(im.instances); ++k) {
       const std::size_t base = k * im.vertex_count;
       for (std::size_t p = 0; p < im.vertex_count; ++p)

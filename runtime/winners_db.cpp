@@ -9,6 +9,7 @@
 #include "reference/error.h"
 #include "runtime/backend_table.h"
 #include "runtime/json_fields.h"
+#include "runtime/recorded_time.h"
 
 namespace skintune {
 
@@ -38,6 +39,7 @@ std::string Agreeing(const nlohmann::json& j, const char* name, const std::strin
 std::string JoinDeviceId(const DeviceIdParts& p) {
   return p.backend + ":" + p.platform + "/" + p.name + "/" + p.driver_version;
 }
+
 
 DeviceIdParts SplitDeviceId(const std::string& id) {
   const std::size_t colon = id.find(':');
@@ -174,6 +176,14 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
   e.median_ms = Number(j, "median_ms");
   e.gbps = Number(j, "gbps");
   e.copy_fraction = Number(j, "copy_fraction");
+  // The time ranks entries (Selection, merges): it must be possible. The
+  // bandwidths are only shown: finite and not negative.
+  RecordedTime time;
+  time.median_ms = e.median_ms;
+  std::string problem = ImpossibleTime(time);
+  if (problem.empty()) problem = NotFiniteNonNegative("gbps", e.gbps);
+  if (problem.empty()) problem = NotFiniteNonNegative("copy_fraction", e.copy_fraction);
+  if (!problem.empty()) throw Error("impossible figures: " + problem);
   e.created = CheckedCreated(String(j, "created"));
   e.source = String(j, "source");
   return e;

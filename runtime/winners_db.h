@@ -90,9 +90,11 @@ std::string Describe(const WinnersEntry& entry);
 
 // Writes every field; vendor and device_type only when known.
 nlohmann::json WinnersEntryToJson(const WinnersEntry& entry);
-// Throws Error("'field' ...") naming the first bad field. Platform, name and
-// driver default to the id's parts; an entry that states them must agree with
-// its id.
+// Throws Error("'field' ...") naming the first bad field, or "impossible
+// figures: ..." for a time that cannot be (runtime/recorded_time.h: a
+// median_ms that is not positive and finite; a gbps or copy_fraction that is
+// negative or not finite). Platform, name and driver default to the id's parts; an
+// entry that states them must agree with its id.
 WinnersEntry WinnersEntryFromJson(const nlohmann::json& json);
 
 // The whole database, entries in the given order.

@@ -45,6 +45,7 @@ struct DbOptions {
 };
 
 int RunDbMerge(const DbOptions& o) {
+  CheckWritable(o.output);
   std::vector<nlohmann::json> inputs;
   for (const std::string& path : o.inputs) inputs.push_back(ReadJsonFile(path));
   const nlohmann::json db = MergeWinnersDatabases(inputs, o.inputs);

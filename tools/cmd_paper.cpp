@@ -32,7 +32,7 @@ struct PaperCliOptions {
   std::vector<std::string> datasets;
   std::string device;
   std::vector<std::string> langs;
-  std::size_t budget = 0;
+  std::string budget_text;  // checked by BudgetCheck; empty: the default
   bool no_cpu = false;
   bool quiet = false;
 };
@@ -49,14 +49,15 @@ int RunPaperCommand(const PaperCliOptions& o, const std::string& command) {
   options.datasets = o.datasets;
   options.device_pattern = o.device;
   for (const std::string& l : o.langs) options.languages.push_back(LangFromName(l));
-  options.budget = o.budget;
+  options.budget = o.budget_text.empty() ? 0 : *ParseWholeNumber(o.budget_text, kMaxBudget);
   options.skip_cpu = o.no_cpu;
   options.worker_executable = SelfExecutable();
   options.command = command;
 
-  // The output directory and cache before any measurement.
+  // The output directory, cache and outputs before any measurement.
   const fs::path out = OutputDirectory(o.out);
   options.cache_path = (out / "cache.jsonl").string();
+  for (const char* name : {"paper-result.json", "report.html", "summary.md"}) CheckWritable((out / name).string());
 
   Progress progress(::isatty(2) != 0, "paper");
   if (!o.quiet) {
@@ -111,9 +112,10 @@ Command RegisterPaper(CLI::App& app, int argc, char** argv) {
   sub->add_option("--device", o->device,
                   "only devices whose 'backend: platform / name' (or vendor, version) contains this (case-insensitive)");
   sub->add_option("--lang", o->langs, "only these languages: opencl, cuda, glsl-compute, glsl-vertex");
-  sub->add_option("--budget", o->budget,
-                  "search evaluations per device, language and data set (default: the paper config's 200, 16 with "
-                  "--quick)");
+  sub->add_option("--budget", o->budget_text,
+                  "search evaluations per device, language and data set, 0 to " + std::to_string(kMaxBudget) +
+                      " (default: the paper config's 200, 16 with --quick)")
+      ->check(BudgetCheck());
   sub->add_flag("--no-cpu", o->no_cpu, "skip the CPU timings (the report then has no speedups)");
   sub->add_flag("--quiet", o->quiet, "no progress on stderr");
   const std::string command = CommandLine(argc, argv);

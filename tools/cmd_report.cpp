@@ -49,6 +49,8 @@ PaperResult ReadResult(const std::string& path) {
 }
 
 int RunReport(const ReportOptions& o) {
+  CheckWritable(o.output);
+  if (!o.markdown.empty() && o.markdown != "-") CheckWritable(o.markdown);
   std::vector<PaperResult> results;
   for (const std::string& path : o.inputs) results.push_back(ReadResult(path));
   const PaperSummary summary = Summarise(results);

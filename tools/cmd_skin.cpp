@@ -33,6 +33,7 @@ struct SkinOptions {
 };
 
 void WritePalette(const std::string& path, const std::vector<glm::mat4>& palette) {
+  CheckPaletteFinite(palette, path);
   std::string bytes(palette.size() * sizeof(glm::mat4), '\0');
   for (std::size_t j = 0; j < palette.size(); ++j)
     for (int c = 0; c < 4; ++c)
@@ -74,9 +75,20 @@ std::vector<glm::vec3> ToFloat(const std::vector<glm::dvec3>& values) {
   return std::vector<glm::vec3>(values.begin(), values.end());
 }
 
+// Bytes per vertex skinning needs beyond the mesh: the float64 reference
+// (positions and normals), the float32 output, and for --impl fast its
+// structure-of-arrays copy of the mesh (at most as large as the mesh: 40 B).
+std::uint64_t SkinWorkBytesPerVertex(const SkinOptions& o) {
+  const std::uint64_t sides = o.source.normals ? 2 : 1;
+  return sides * (24 + 12) + (o.implementation == "fast" ? 40 + 12 * sides : 0) + (o.check.empty() ? 0 : 24 + 12);
+}
+
 int RunSkin(const SkinOptions& o) {
   if (!std::isfinite(o.time)) throw Error("--time must be a finite number of seconds");
-  const SkinnedAsset asset = LoadAsset(o.source);
+  // Every output can be written, before any work.
+  if (!o.out.empty()) CheckWritable(o.out);
+  if (!o.palette_out.empty()) CheckWritable(o.palette_out);
+  const SkinnedAsset asset = LoadAsset(o.source, SkinWorkBytesPerVertex(o), "skinning");
   int clip = -1;
   if (!o.animation.empty()) {
     clip = asset.FindAnimation(o.animation);
@@ -101,6 +113,9 @@ int RunSkin(const SkinOptions& o) {
     FastSkinner(mesh).Run(palette, positions, normals);
   }
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  // A NaN or infinite output is an error naming its vertex, never a file.
+  CheckSkinnedOutput(mesh, positions, normals,
+                     asset.source + ": " + (clip < 0 ? std::string("rest pose") : "t=" + std::to_string(t) + " s of animation " + std::to_string(clip)));
   if (!o.out.empty()) WriteSkinnedVertices(o.out, positions, normals);
   if (!o.palette_out.empty()) WritePalette(o.palette_out, palette);
   std::cout << "skinned " << n << " vertices (" << mesh.influences << " influences, " << mesh.joint_count

@@ -35,7 +35,7 @@ struct TuneCliOptions {
   std::string device;
   std::vector<std::string> langs;
   std::string strategy;
-  std::size_t budget = 0;
+  std::string budget_text;  // checked by BudgetCheck
   std::string out = "results";
   bool quiet = false;
 };
@@ -106,7 +106,7 @@ void PrintWinners(const TuningReport& report) {
 int RunTune(const TuneCliOptions& o, bool budget_given) {
   TuneConfig config = LoadConfig(o.config);
   if (!o.strategy.empty()) config.strategy.name = o.strategy;
-  if (budget_given) config.strategy.budget = o.budget;
+  if (budget_given) config.strategy.budget = *ParseWholeNumber(o.budget_text, kMaxBudget);
   if (config.strategy.name == "random" && config.strategy.budget == 0) {
     throw Error("the random strategy needs a budget: --budget N (evaluations per device, language and dataset)");
   }
@@ -116,9 +116,11 @@ int RunTune(const TuneCliOptions& o, bool budget_given) {
   for (const std::string& l : o.langs) options.languages.push_back(LangFromName(l));
   options.worker_executable = SelfExecutable();
 
-  // The output directory: checked (and the cache opened) before any device work.
+  // The output directory and every file written at the end: checked (and the
+  // cache opened) before any device work.
   const fs::path out = OutputDirectory(o.out);
   options.cache_path = (out / "cache.jsonl").string();
+  for (const char* name : {"report.json", "report.t4.json", "winners-db.json"}) CheckWritable((out / name).string());
 
   Progress progress(::isatty(2) != 0, "tune");
   if (!o.quiet) {
@@ -154,6 +156,15 @@ int RunTune(const TuneCliOptions& o, bool budget_given) {
 
 }  // namespace
 
+CLI::Validator BudgetCheck() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        if (ParseWholeNumber(text, kMaxBudget)) return "";
+        return "must be a whole number from 0 to " + std::to_string(kMaxBudget) + " (got '" + text + "')";
+      },
+      "0.." + std::to_string(kMaxBudget));
+}
+
 Command RegisterTune(CLI::App& app) {
   auto o = std::make_shared<TuneCliOptions>();
   auto* sub = app.add_subcommand(
@@ -166,8 +177,10 @@ Command RegisterTune(CLI::App& app) {
   sub->add_option("--lang", o->langs, "only these languages: opencl, cuda, glsl-compute, glsl-vertex");
   sub->add_option("--strategy", o->strategy, "search strategy (overrides the config's)")
       ->check(CLI::IsMember({"exhaustive", "random", "coordinate"}));
-  auto* budget = sub->add_option("--budget", o->budget,
-                                 "evaluations per device, language and dataset (overrides the config's)");
+  auto* budget = sub->add_option("--budget", o->budget_text,
+                                 "evaluations per device, language and dataset, 0 to " + std::to_string(kMaxBudget) +
+                                     " (overrides the config's)")
+                     ->check(BudgetCheck());
   sub->add_option("--out", o->out,
                   "output directory: cache.jsonl (resumable: reused by the next run), report.json, report.t4.json, "
                   "winners-db.json (default: results)");

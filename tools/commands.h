@@ -4,6 +4,7 @@
 // input; main() prints it as one line and exits 1.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <string>
 
@@ -46,9 +47,16 @@ nlohmann::json ParseJson(const std::string& text, const std::string& name);
 // file" / "not valid JSON (...)").
 nlohmann::json ReadJsonFile(const std::string& path);
 
+// --budget of tune and paper: a whole number 0..kMaxBudget (tuner/tune.h),
+// refused as a command-line error otherwise ("-3" is not wrapped around).
+CLI::Validator BudgetCheck();
+
 // Adds --dataset / --mesh / --mesh-name / --strict to `sub`.
 void AddMeshSourceOptions(CLI::App& sub, MeshSource& source);
 // Loads the asset, printing import warnings on stderr ("skintune: warning: ...").
-SkinnedAsset LoadAsset(const MeshSource& source);
+// A synthetic dataset is first checked to fit in memory with
+// `work_bytes_per_vertex` more per vertex for what the command does with it
+// (`work` names it in the error, e.g. "reference output").
+SkinnedAsset LoadAsset(const MeshSource& source, std::uint64_t work_bytes_per_vertex = 0, const std::string& work = "");
 
 }  // namespace skintune::tools

@@ -1,6 +1,7 @@
 #include <iostream>
 
 #include "reference/gltf_import.h"
+#include "reference/memory_limit.h"
 #include "reference/synthetic.h"
 #include "tools/commands.h"
 
@@ -19,7 +20,7 @@ void AddMeshSourceOptions(CLI::App& sub, MeshSource& source) {
                "reject glTF weights that do not sum to 1 (default: renormalise them and warn)");
 }
 
-SkinnedAsset LoadAsset(const MeshSource& source) {
+SkinnedAsset LoadAsset(const MeshSource& source, std::uint64_t work_bytes_per_vertex, const std::string& work) {
   if (!source.mesh_file.empty()) {
     GltfImportOptions options;
     options.mesh = source.mesh_name;
@@ -31,6 +32,14 @@ SkinnedAsset LoadAsset(const MeshSource& source) {
   }
   DatasetSpec spec = ParseDatasetKey(source.dataset.empty() ? "default" : source.dataset);
   spec.normals = spec.normals || source.normals;
+  if (work_bytes_per_vertex > 0) {
+    // The command's own needs on top of the mesh, before generating it.
+    const std::uint64_t mesh = DatasetBytesPerVertex(spec);
+    CheckMemoryFor("dataset '" + spec.Key() + "'", spec.vertices, mesh + work_bytes_per_vertex,
+                   "mesh " + std::to_string(mesh) + " B + " + work + " " + std::to_string(work_bytes_per_vertex) +
+                       " B per vertex",
+                   HostMemoryAvailable());
+  }
   return GenerateDataset(spec);
 }
 

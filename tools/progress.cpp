@@ -119,4 +119,16 @@ Lang LangFromName(const std::string& name) {
   throw Error("--lang '" + name + "': unknown language (expected one of " + names + ")");
 }
 
+std::optional<std::uint64_t> ParseWholeNumber(const std::string& text, std::uint64_t max) {
+  if (text.empty() || text.size() > 20) return std::nullopt;
+  std::uint64_t value = 0;
+  for (char c : text) {
+    if (c < '0' || c > '9') return std::nullopt;
+    const auto digit = static_cast<std::uint64_t>(c - '0');
+    if (value > (max - digit) / 10) return std::nullopt;
+    value = value * 10 + digit;
+  }
+  return value;
+}
+
 }  // namespace skintune::tools

@@ -5,6 +5,8 @@
 
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
+#include <optional>
 #include <filesystem>
 #include <string>
 
@@ -45,5 +47,11 @@ std::filesystem::path OutputDirectory(const std::string& dir);
 std::string SelfExecutable();
 // --lang NAME; Error naming the accepted names.
 Lang LangFromName(const std::string& name);
+
+// The decimal whole number `text` if it is one from 0 to `max` (digits only:
+// no sign, no exponent, no overflow), else nothing. CLI11's own conversion to
+// an unsigned type wraps "-3" and saturates 18446744073709551616, so numeric
+// limits on the command line go through this (WholeNumberOption).
+std::optional<std::uint64_t> ParseWholeNumber(const std::string& text, std::uint64_t max);
 
 }  // namespace skintune::tools

@@ -137,6 +137,45 @@ void EditAt(KernelSource& source, const std::string& marker, const std::string& 
 
 }  // namespace
 
+namespace {
+
+// The injected hang: a loop no compiler can bound, with a side effect in
+// every iteration. It spins while the first word of the first input is not
+// 0xffffffff, which no input word ever is (a NaN position, joint 65535 in
+// every slot...) and which the host never writes; the compiler cannot know
+// that word. OpenCL and CUDA read it volatile and store to a volatile counter
+// each iteration (C and C++ may assume that a loop without volatile access,
+// atomics or I/O terminates).
+//
+// GLSL: Mesa's llvmpipe caps every shader invocation at 65535 loop
+// iterations in all (gallivm's loop limiter, LP_MAX_TGSI_LOOP_ITERATIONS: a
+// counter in the generated code), so no GLSL loop can spin forever there, and
+// a spin on a volatile read alone finished in 0.6 s per run (5000 vertices)
+// and passed as ok. Each iteration therefore makes 256 atomic adds to the
+// input word after the one it tests, of 0, which the compiler cannot know:
+// an atomic is never removed, and it makes the test be read again. Measured
+// on 2 cores of llvmpipe: one atomic per iteration takes a run from 0.6 s to
+// 2 s; 256 of them put a capped run at minutes (over 60 s measured), far
+// beyond any variant time limit. Elsewhere the loop never ends.
+std::string HangLoop(const KernelSource& source, const std::string& input) {
+  const std::string mark = "  // skintune injected fault: hang\n";
+  if (source.lang == Lang::kOpenCl) {
+    return "    { volatile uint skintune_spins = 0u;\n"
+           "      while (((volatile const __global uint*)" + input + ")[0] != 0xffffffffu) skintune_spins = skintune_spins + 1u; }" + mark;
+  }
+  if (source.lang == Lang::kCuda) {
+    return "    { volatile unsigned int skintune_spins = 0u;\n"
+           "      while (reinterpret_cast<const volatile unsigned int*>(" + input +
+           ")[0] != 0xffffffffu) skintune_spins = skintune_spins + 1u; }" + mark;
+  }
+  std::string body;
+  for (int i = 0; i < 256; ++i) body += "        atomicAdd(skintune_hang[1], skintune_zero);\n";
+  return "    { const uint skintune_zero = skintune_hang[0] == 0xffffffffu ? 1u : 0u;\n"
+         "      while (skintune_hang[0] != 0xffffffffu) {\n" + body + "      } }" + mark;
+}
+
+}  // namespace
+
 void InjectFault(KernelSource& source, const Variant& variant, const std::string& kind) {
   const bool glsl = source.lang == Lang::kGlslCompute || source.lang == Lang::kGlslVertex;
   const std::string input = variant.layout == Layout::kAos ? "records" : "positions";
@@ -152,20 +191,12 @@ void InjectFault(KernelSource& source, const Variant& variant, const std::string
     EditAt(source, marker, "", "\n    if (v == 0u) skinned_position.x += " + one + ";  // skintune injected fault: wrong",
            kind);
   } else if (kind == "hang") {
-    // A loop on a volatile read of the first input: the compiler must keep
-    // every read and cannot know the value, so the loop cannot be removed; no
-    // input word is ever 0xffffffff (a NaN position / impossible record word).
-    std::string loop;
-    if (source.lang == Lang::kOpenCl) {
-      loop = "    while (((volatile const __global uint*)" + input + ")[0] != 0xffffffffu) {}  // skintune injected fault: hang\n";
-    } else if (source.lang == Lang::kCuda) {
-      loop = "    while (reinterpret_cast<const volatile unsigned int*>(" + input +
-             ")[0] != 0xffffffffu) {}  // skintune injected fault: hang\n";
-    } else {
-      // GLSL: a volatile view of binding 0 (the first input in every layout).
-      loop = "    while (skintune_hang[0] != 0xffffffffu) {}  // skintune injected fault: hang\n";
+    const std::string loop = HangLoop(source, input);
+    if (glsl) {
+      // A writable view of binding 0 (the first input in every layout, at
+      // least two words): its atomics add 0.
       const std::string block =
-          "layout(std430, binding = 0) volatile readonly buffer SkintuneHang { uint skintune_hang[]; };\n";
+          "layout(std430, binding = 0) volatile buffer SkintuneHang { uint skintune_hang[]; };\n";
       const std::size_t main_at = source.text.rfind("void main()");
       if (main_at == std::string::npos)
         throw Error("injected fault 'hang': the GLSL kernel has no 'void main()' any more (update InjectFault)");

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "reference/error.h"
+#include "runtime/recorded_time.h"
 
 namespace skintune {
 
@@ -89,6 +90,21 @@ MeasureStatus MeasureStatusFromName(const std::string& name) {
   throw Error("unknown status '" + name + "' (expected one of " + choices + ")");
 }
 
+std::string ImpossibleFigures(const Measurement& m) {
+  if (m.status != MeasureStatus::kOk) return "";
+  RecordedTime time;
+  time.median_ms = m.timing.median_ms;
+  time.min_ms = m.timing.min_ms;
+  time.max_ms = m.timing.max_ms;
+  time.bytes_per_frame = m.bytes_per_frame;
+  time.gbps = m.gbps;
+  std::string problem = ImpossibleTime(time);
+  if (problem.empty() && m.timing.repetitions < 1)
+    problem = "'repetitions' is " + std::to_string(m.timing.repetitions) + ": a median needs at least one timed run";
+  if (problem.empty()) problem = NotFiniteNonNegative("max_relative_error", m.max_relative_error);
+  return problem.empty() ? "" : "status ok with " + problem;
+}
+
 std::string Measurement::CacheKey() const {
   return device_id + "|" + generator_version + "|" + dataset + "|" + variant.Key();
 }
@@ -128,7 +144,9 @@ void from_json(const nlohmann::json& in, Measurement& m) {
     throw Error(where + ": 'status': " + e.what());
   }
   m.detail = ReadString(in, "detail", false, where);
-  if (const nlohmann::json* timing = Field(in, "timing", false, where)) {
+  const nlohmann::json* timing = Field(in, "timing", false, where);
+  if (!timing && m.status == MeasureStatus::kOk) throw Error(where + ": status ok without 'timing'");
+  if (timing) {
     const std::string t = where + ": 'timing'";
     if (!timing->is_object()) throw Error(t + ": expected an object");
     m.timing.median_ms = ReadNumber(*timing, "median_ms", t);
@@ -143,6 +161,8 @@ void from_json(const nlohmann::json& in, Measurement& m) {
   m.max_relative_error = ReadNumber(in, "max_relative_error", where);
   m.generator_version = ReadString(in, "generator_version", true, where);
   m.timestamp = ReadString(in, "timestamp", false, where);
+  if (const std::string problem = ImpossibleFigures(m); !problem.empty())
+    throw ImpossibleMeasurement(where + ": impossible figures: " + problem);
 }
 
 // ------------------------------------------------------------------ MeasurementCache
@@ -194,6 +214,9 @@ MeasurementCache::MeasurementCache(const std::string& path) : path_(path) {
         m = nlohmann::json::parse(line).get<Measurement>();
       } catch (const nlohmann::json::exception& e) {
         throw Error(path + ":" + std::to_string(line_number) + ": malformed measurement (" + e.what() + ")");
+      } catch (const ImpossibleMeasurement& e) {
+        throw Error(path + ":" + std::to_string(line_number) + ": " + e.what() +
+                    " (never used; delete the line to measure the variant again)");
       } catch (const Error& e) {
         throw Error(path + ":" + std::to_string(line_number) + ": malformed " + e.what());
       }

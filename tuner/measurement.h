@@ -15,6 +15,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "generator/variant.h"
+#include "reference/error.h"
 
 namespace skintune {
 
@@ -49,7 +50,25 @@ struct Measurement {
   std::string CacheKey() const;
 };
 
+// What makes a measurement impossible (runtime/recorded_time.h), or "" when
+// it is possible. Only a status-ok measurement's figures are ever used (a
+// failed one is never ranked), so only those are checked: a possible time
+// (median, min, max), bytes per frame, GB/s consistent with them, at least one
+// repetition and a finite relative error >= 0.
+std::string ImpossibleFigures(const Measurement& m);
+
+// Thrown by from_json for a well-formed measurement with impossible figures.
+class ImpossibleMeasurement : public Error {
+ public:
+  using Error::Error;
+};
+
 void to_json(nlohmann::json& out, const Measurement& m);
+// Throws Error("measurement: ...") naming the field for a malformed
+// measurement (a status-ok one without "timing" included), and
+// ImpossibleMeasurement("measurement: impossible figures: ...") for one that
+// ImpossibleFigures rejects: no reader (cache, report, replay, worker answer)
+// can take an impossible time.
 void from_json(const nlohmann::json& in, Measurement& m);
 
 // Append-only JSON-lines file of measurements. Each Append writes one complete
@@ -59,7 +78,8 @@ void from_json(const nlohmann::json& in, Measurement& m);
 class MeasurementCache {
  public:
   // Opens (creating) the file. Throws Error naming the file when it cannot
-  // be read, created or written, or when a complete line is malformed.
+  // be read, created or written, or when a complete line is malformed or
+  // impossible ("<path>:<line>: ..."); the file is then left as it was.
   explicit MeasurementCache(const std::string& path);
   ~MeasurementCache();
   MeasurementCache(const MeasurementCache&) = delete;

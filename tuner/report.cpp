@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "reference/error.h"
+#include "runtime/backend_table.h"
 #include "runtime/json_fields.h"
 #include "runtime/winners_db.h"
 
@@ -85,6 +86,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
   std::map<EntryKey, Winner> best;
   for (const Measurement& m : report.measurements) {
     if (m.status != MeasureStatus::kOk) continue;  // a failed variant is never a winner
+    if (!ImpossibleFigures(m).empty()) continue;   // nor an impossible time (readers refuse one anyway)
     const auto dataset = datasets.find(m.dataset);
     if (dataset == datasets.end()) {
       throw Error("report: a measurement is of dataset '" + m.dataset + "', which is not in its datasets");
@@ -167,10 +169,14 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
     if (!c.is_object()) throw Error("must be an object");
     return c;
   });
-  for (const auto& [id, gbps] : copy.items()) {
+  for (const auto& item : copy.items()) {
+    const std::string& id = item.key();
+    const nlohmann::json& gbps = item.value();  // not a structured binding: clang 14 cannot capture one
     r.copy_bandwidth_gbps[id] = At(context, "copy_bandwidth_gbps[\"" + id + "\"]", [&] {
       if (!gbps.is_number()) throw Error("must be a number");
-      return gbps.get<double>();
+      const double value = gbps.get<double>();
+      if (!(std::isfinite(value) && value > 0.0)) throw Error("is " + gbps.dump() + ": must be a positive, finite GB/s");
+      return value;
     });
   }
   const nlohmann::json& skipped = At(context, "skipped", [&]() -> const nlohmann::json& { return Array(json, "skipped"); });
@@ -200,6 +206,11 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
   for (std::size_t i = 0; i < measurements.size(); ++i) {
     r.measurements.push_back(At(context, "measurements[" + std::to_string(i) + "]", [&] {
       Measurement m = measurements[i].get<Measurement>();
+      // Winners and databases are keyed by the id's parts and name its backend.
+      const std::string backend = SplitDeviceId(m.device_id).backend;
+      if (!FindBackend(backend))
+        throw Error("device id '" + m.device_id + "' has unknown backend '" + backend + "' (expected " +
+                    JoinedBackendNames() + ")");
       if (std::none_of(r.datasets.begin(), r.datasets.end(), [&](const DatasetInfo& d) { return d.key == m.dataset; })) {
         throw Error("dataset '" + m.dataset + "' is not in 'datasets'");
       }

@@ -31,6 +31,7 @@
 #include "generator/emit.h"
 #include "reference/error.h"
 #include "reference/gltf_import.h"
+#include "reference/memory_limit.h"
 #include "reference/synthetic.h"
 #include "tuner/measurement.h"
 #include "tuner/worker.h"
@@ -120,7 +121,9 @@ StrategyOptions StrategyFromConfig(const nlohmann::json& in, const std::string& 
     s.name = in["name"].get<std::string>();
   }
   if (in.contains("budget")) {
-    if (!in["budget"].is_number_unsigned()) throw Error(where + ".budget: must be an integer >= 0");
+    if (!in["budget"].is_number_unsigned() || in["budget"].get<std::uint64_t>() > kMaxBudget)
+      throw Error(where + ".budget: must be a whole number from 0 to " + std::to_string(kMaxBudget) + " (got " +
+                  in["budget"].dump() + ")");
     s.budget = in["budget"].get<std::size_t>();
   }
   if (in.contains("seed")) {
@@ -184,12 +187,43 @@ struct LoadedDataset {
   ProblemShape shape;
 };
 
+// What measuring one variant takes per vertex, beyond the mesh: in the
+// worker, the float64 gold and the unpacked output (positions, normals), the
+// packed inputs in the widest formats (float4, u16 + f32 per slot) and the
+// read-back (float4); on the device, those inputs and the output.
+std::uint64_t PackedBytesPerVertex(int influences, bool normals) {
+  return 16 + 6 * static_cast<std::uint64_t>(influences) + (normals ? 16 : 0);
+}
+std::uint64_t WorkerBytesPerVertex(int influences, bool normals) {
+  const std::uint64_t sides = normals ? 2 : 1;
+  return sides * (24 + 12) + PackedBytesPerVertex(influences, normals) + sides * 16;
+}
+std::uint64_t DeviceBytesPerVertex(int influences, bool normals) {
+  return PackedBytesPerVertex(influences, normals) + (normals ? 2 : 1) * 16;
+}
+
 LoadedDataset LoadDataset(const std::string& key) {
   SkinnedAsset asset;
   if (IsGltfPath(key)) {
     asset = std::move(ImportGltf(key).asset);
   } else {
-    asset = GenerateDataset(ParseDatasetKey(key));
+    // Before anything is generated: the mesh and a worker's measurement of it
+    // in this machine's memory (the device is checked once it is known).
+    const DatasetSpec spec = ParseDatasetKey(key);
+    const std::uint64_t mesh = DatasetBytesPerVertex(spec);
+    const std::uint64_t work = WorkerBytesPerVertex(spec.influences, spec.normals);
+    CheckMemoryFor("dataset '" + key + "'", spec.vertices, mesh + work,
+                   "mesh " + std::to_string(mesh) + " B + measuring a variant " + std::to_string(work) +
+                       " B per vertex",
+                   HostMemoryAvailable());
+    asset = GenerateDataset(spec);
+  }
+  // Every palette the workers start from must be finite (Skeleton::Palette):
+  // bad input, found here rather than as a device failure.
+  (void)asset.PaletteAt(-1, 0.0);
+  if (!asset.animations.empty()) {
+    const AnimationClip& clip = asset.animations.front();
+    (void)asset.PaletteAt(0, clip.start + clip.duration() * 0.5);
   }
   const SkinnedMesh& mesh = asset.mesh;
   int widest = 1;
@@ -366,6 +400,17 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
     }
     if (matching.empty()) throw Error("--device '" + options.device_pattern + "': no device matches (found: " + all + ")");
     devices = std::move(matching);
+  }
+
+  // Every dataset fits every device's memory (one set of inputs and the output).
+  for (const Device& d : devices) {
+    for (const LoadedDataset& dataset : datasets) {
+      const std::uint64_t per_vertex = DeviceBytesPerVertex(dataset.info.influences, dataset.shape.has_normals);
+      CheckMemoryFor("dataset '" + dataset.info.key + "' on " + d.identity.backend + " device '" + d.identity.name + "'",
+                     dataset.info.vertices, per_vertex,
+                     "inputs and output of a variant (--device selects other devices)",
+                     {d.identity.global_memory_bytes, "the device's global memory"});
+    }
   }
 
   // The tasks: device x language x dataset.

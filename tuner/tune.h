@@ -16,6 +16,10 @@
 
 namespace skintune {
 
+// The largest search budget (evaluations per device, language and dataset)
+// a config or --budget may ask for; 0 means every candidate for exhaustive.
+inline constexpr std::size_t kMaxBudget = 1000000000;
+
 struct TuneConfig {
   std::string name;                     // file name or "default"
   TuningSpace space;

@@ -358,6 +358,12 @@ Measurement IsolatedBackend::Measure(const Variant& variant, const TuningDataset
   Measurement m;
   try {
     m = answer.get<Measurement>();
+  } catch (const ImpossibleMeasurement& e) {
+    // A timer or driver that reports an impossible time (0 ms, NaN, min above
+    // max...) fails this variant, never the run: it is recorded, never ranked.
+    result.status = MeasureStatus::kLaunchFailed;
+    result.detail = std::string("the device reported ") + e.what();
+    return result;
   } catch (const Error& e) {
     Kill();
     throw WorkerError(std::string("worker process sent a malformed measurement: ") + e.what());
@@ -401,7 +407,9 @@ std::optional<double> IsolatedBackend::CopyBandwidthGBps(std::size_t bytes, std:
     throw WorkerError("worker process sent a malformed line: '" + line.substr(0, 200) + "'");
   }
   if (answer.is_object() && answer.contains("copy_bandwidth_gbps") && answer["copy_bandwidth_gbps"].is_number()) {
-    return answer["copy_bandwidth_gbps"].get<double>();
+    const double gbps = answer["copy_bandwidth_gbps"].get<double>();
+    if (!(std::isfinite(gbps) && gbps > 0.0)) return fail("impossible copy bandwidth " + answer["copy_bandwidth_gbps"].dump() + " GB/s");
+    return gbps;
   }
   if (answer.is_object() && answer.contains("copy_bandwidth_error") && answer["copy_bandwidth_error"].is_string()) {
     return fail(answer["copy_bandwidth_error"].get<std::string>());

@@ -64,8 +64,10 @@ class IsolatedBackend {
   const DeviceIdentity& identity() const { return identity_; }
 
   // Always returns a Measurement of the variant (device_id, dataset, variant,
-  // generator version and timestamp filled in), whatever the child did.
-  // Throws WorkerError when the device cannot be used at all.
+  // generator version and timestamp filled in), whatever the child did; an
+  // answer with impossible figures (ImpossibleFigures: a time of 0, NaN...)
+  // is recorded as launch_failed. Throws WorkerError when the device cannot
+  // be used at all.
   Measurement Measure(const Variant& variant, const TuningDataset& dataset, const TimingOptions& options);
 
   // The device's copy bandwidth, or nullopt with the reason in `why_not`.

@@ -2,6 +2,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <limits>
 
 #include "reference/error.h"
 #include "reference/mesh_io.h"
@@ -25,6 +27,43 @@ std::string Slurp(const fs::path& p) {
 
 const std::vector<glm::vec3> kPositions = {{1.5f, -2.0f, 0.125f}, {3.0f, 4.0f, 5.0f}};
 const std::vector<glm::vec3> kNormals = {{0, 1, 0}, {1, 0, 0}};
+
+// Issue 11, item 3: a NaN or infinite value is never written ("-nan" was
+// not even readable back by --check); an existing file is kept.
+TEST(MeshIo, NonFiniteValuesAreRefusedAndNothingIsWritten) {
+  const fs::path dir = TempDir();
+  for (const char* name : {"out.obj", "out.stv"}) {
+    const fs::path file = dir / name;
+    std::ofstream(file) << "earlier";
+    std::vector<glm::vec3> positions = kPositions;
+    positions[1].y = std::numeric_limits<float>::quiet_NaN();
+    try {
+      WriteSkinnedVertices(file.string(), positions);
+      ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()), file.string() + ": vertex 1: position is not finite; nothing written");
+    }
+    std::vector<glm::vec3> normals = kNormals;
+    normals[0].z = std::numeric_limits<float>::infinity();
+    EXPECT_THROW(WriteSkinnedVertices(file.string(), kPositions, normals), Error);
+    EXPECT_EQ(Slurp(file), "earlier");
+  }
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);  // no temporary left
+}
+
+// Issue 11, item 5: whether an output can be written is known before the work.
+TEST(MeshIo, CheckWritableRefusesFoldersAndMissingFoldersAndTouchesNothing) {
+  const fs::path dir = TempDir();
+  fs::create_directories(dir / "folder");
+  EXPECT_THROW(CheckWritable((dir / "folder").string()), Error);
+  EXPECT_THROW(CheckWritable((dir / "missing" / "x.obj").string()), Error);
+  std::ofstream(dir / "existing.obj") << "kept";
+  EXPECT_NO_THROW(CheckWritable((dir / "existing.obj").string()));
+  EXPECT_NO_THROW(CheckWritable((dir / "new.obj").string()));
+  EXPECT_EQ(Slurp(dir / "existing.obj"), "kept");
+  EXPECT_FALSE(fs::exists(dir / "new.obj"));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);
+}
 
 TEST(MeshIo, ObjHasOneVLinePerVertexInOrder) {
   const fs::path file = TempDir() / "out.obj";

@@ -28,6 +28,38 @@ Skeleton ThreeNodes() {
   return s;
 }
 
+// Issue 11, item 3: an entry finite in double but not in float (or not at
+// all) is an error naming the joint, its node and the element, never a
+// palette that skins every vertex to NaN.
+TEST(Skeleton, PaletteEntriesBeyondFloatAreAnErrorNamingTheJoint) {
+  Skeleton s = ThreeNodes();
+  s.nodes[2].rest.scale = {1e300, 1, 1};
+  s.inverse_bind[1] = glm::dmat4(1.0);
+  std::string message;
+  try {
+    (void)s.Palette(s.RestPose());
+  } catch (const Error& e) {
+    message = e.what();
+  }
+  EXPECT_EQ(message.rfind("joint 1 (nodes[2] ('a')): palette entry [0][", 0), 0u) << message;
+  EXPECT_NE(message.find(", beyond float32 (the node's global transform times its inverse bind matrix)"), std::string::npos)
+      << message;
+  EXPECT_NO_THROW((void)s.PaletteD(s.RestPose()));  // finite in double: the gold may use it
+  s.nodes[2].rest.scale = {1e300, 1e300, 1};
+  s.nodes[1].rest.scale = {1e300, 1, 1};  // b's global transform overflows double
+  EXPECT_THROW((void)s.PaletteD(s.RestPose()), Error);
+  // Through the asset, with its source and the pose.
+  SkinnedAsset asset;
+  asset.source = "model.gltf";
+  asset.skeleton = s;
+  try {
+    (void)asset.PaletteAt(-1, 0.0);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("model.gltf: rest pose: joint ", 0), 0u) << e.what();
+  }
+}
+
 TEST(Transform, ComposesTranslationRotationScaleInThatOrder) {
   Transform t;
   t.translation = {1, 2, 3};

@@ -13,6 +13,7 @@
 
 #include "reference/error.h"
 #include "reference/skinning.h"
+#include "reference/memory_limit.h"
 #include "reference/synthetic.h"
 
 namespace skintune {
@@ -141,7 +142,42 @@ INSTANTIATE_TEST_SUITE_P(
                     BadKeyCase{"100k-b2-seedx", "seed must be"}, BadKeyCase{"0-b2", "vertices must be at least 1"},
                     BadKeyCase{"100k-b0", "influences 0 outside 1..8"},
                     BadKeyCase{"100k-b9", "influences 9 outside 1..8"}, BadKeyCase{"100k-b2-bones0", "bones 0"},
-                    BadKeyCase{"100k-b8-bones4", "influences 8 exceed bones 4"}));
+                    BadKeyCase{"100k-b8-bones4", "influences 8 exceed bones 4"},
+                    // Issue 11, item 6: beyond what 32-bit vertex indices address.
+                    BadKeyCase{"100000m-b8", "100000000000 vertices exceed the 2^32 - 1 = 4294967295"},
+                    BadKeyCase{"4294968k-b1", "exceed the 2^32 - 1"}));
+
+// Issue 11, item 6: the memory a size needs is checked before anything is
+// allocated, and the message says what fits.
+TEST(SyntheticMemory, TooBigForTheMemoryGivenIsRefusedSayingWhatFits) {
+  const DatasetSpec spec = ParseDatasetKey("300m-b8");
+  EXPECT_EQ(DatasetBytesPerVertex(spec), 12u + 8u * 6u);
+  std::string message;
+  try {
+    CheckMemoryFor("dataset '300m-b8'", spec.vertices, DatasetBytesPerVertex(spec), "the generated mesh",
+                   {1ull << 30, "a test's 1 GiB"});
+  } catch (const Error& e) {
+    message = e.what();
+  }
+  EXPECT_EQ(message,
+            "dataset '300m-b8': needs about 16.8 GiB of memory (300000000 vertices x 60 B: the generated mesh) but "
+            "1.0 GiB are available (a test's 1 GiB): at most about 17800k vertices fit");
+  EXPECT_NO_THROW(CheckMemoryFor("x", 1000, 60, "y", {60000, "z"}));
+  EXPECT_THROW(CheckMemoryFor("x", 1001, 60, "y", {60000, "z"}), Error);
+  EXPECT_NO_THROW(CheckMemoryFor("x", 1ull << 40, 60, "y", {0, "unknown"}));  // unknown: no check
+  // Far beyond 64 bits of bytes, said without overflowing.
+  try {
+    CheckMemoryFor("x", 1ull << 62, 1000, "y", {1ull << 30, "z"});
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("needs more than 16 EiB"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(FormatVertexCount(17895697), "17800k");  // a dataset key: no decimals
+  EXPECT_EQ(FormatVertexCount(123456), "123k");
+  EXPECT_EQ(FormatVertexCount(999), "999");
+  EXPECT_EQ(FormatVertexCount(2500000), "2500k");
+  EXPECT_EQ(FormatVertexCount(4294967295), "4290m");
+  EXPECT_GT(HostMemoryAvailable().bytes, 0u);
+}
 
 // ------------------------------------------------------------------ Validate
 

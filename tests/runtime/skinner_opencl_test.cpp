@@ -6,6 +6,8 @@
 #include <CL/cl.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cstdlib>
 #include <fstream>
 #include <limits>
@@ -144,6 +146,35 @@ TEST(OpenClSkinner, SkinsCesiumManWithTheBuiltInDefaultLikeTheGold) {
   ExpectSkinsLikeTheGold(skinner, Cesium().mesh, Animated(Cesium(), 0.2));
   // Frame after frame, the same Skinner.
   ExpectSkinsLikeTheGold(skinner, Cesium().mesh, Animated(Cesium(), 0.8));
+}
+
+// Issue 11, item 3: a NaN palette entry is refused where it enters, and an
+// output that overflows float32 (a finite palette of 3e38) never reaches the
+// caller's buffer.
+TEST(OpenClSkinner, NonFinitePaletteAndOutputAreErrorsNeverData) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  const View view(Cesium().mesh);
+  Skinner skinner = MustCreate(*device, WinnersDb::Empty(), view.mesh);
+  std::vector<float> palette(static_cast<std::size_t>(skinner.joint_count()) * 16, 0.0f);
+  for (std::size_t j = 0; j < palette.size() / 16; ++j)
+    for (int d = 0; d < 4; ++d) palette[j * 16 + d * 5] = 1.0f;
+  std::vector<float> bad = palette;
+  bad[3 * 16 + 2 * 4 + 1] = std::numeric_limits<float>::quiet_NaN();
+  const Status nan = skinner.SetPalette(bad.data(), bad.size());
+  EXPECT_EQ(nan.code(), ErrorCode::kInvalidArgument);
+  EXPECT_EQ(nan.message().rfind("Skinner::SetPalette: matrix 3 (instance 0, joint 3) element [2][1] is nan", 0), 0u)
+      << nan.message();
+  // Finite, but the product overflows: x' = 3e38 * (x + 1) in every matrix.
+  std::vector<float> huge = palette;
+  for (std::size_t j = 0; j < huge.size() / 16; ++j) huge[j * 16] = huge[j * 16 + 12] = 3e38f;
+  ASSERT_TRUE(skinner.SetPalette(huge.data(), huge.size()).ok());
+  ASSERT_TRUE(skinner.Skin().ok());
+  std::vector<float> out(skinner.vertex_count() * 3, 7.0f);
+  const Status read = skinner.ReadPositions(out.data(), out.size());
+  EXPECT_EQ(read.code(), ErrorCode::kDeviceError);
+  EXPECT_NE(read.message().find("not finite"), std::string::npos) << read.message();
+  EXPECT_TRUE(std::all_of(out.begin(), out.end(), [](float v) { return v == 7.0f; }));
 }
 
 TEST(OpenClSkinner, ForcedVariantsOfEveryLayoutAndFormatMatchTheGoldInMeshOrder) {

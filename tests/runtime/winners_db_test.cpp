@@ -174,6 +174,24 @@ TEST(WinnersDb, MalformedEntriesNameTheEntryAndTheField) {
   EXPECT_EQ(ParseError(not_array), "db.json: entries: 'entries' must be an array");
 }
 
+// Issue 11, item 2: an impossible time in a database never reaches a
+// Selection (the runtime) or a merge (the tuner): both read through here.
+TEST(WinnersDb, ImpossibleTimesAreRefusedNamingTheEntry) {
+  auto with = [](const char* field, const nlohmann::json& value) {
+    nlohmann::json db = WinnersDbJson({SampleEntry(), SampleEntry()});
+    db["entries"][1][field] = value;
+    return db;
+  };
+  EXPECT_EQ(ParseError(with("median_ms", 0)),
+            "db.json: entries[1]: impossible figures: 'median_ms' is 0: a time must be a positive, finite number");
+  EXPECT_EQ(ParseError(with("median_ms", -5)),
+            "db.json: entries[1]: impossible figures: 'median_ms' is -5: a time must be a positive, finite number");
+  EXPECT_EQ(ParseError(with("gbps", -1)),
+            "db.json: entries[1]: impossible figures: 'gbps' is -1: must be a finite number >= 0");
+  EXPECT_EQ(ParseError(with("copy_fraction", -1)),
+            "db.json: entries[1]: impossible figures: 'copy_fraction' is -1: must be a finite number >= 0");
+}
+
 TEST(WinnersDb, VertexBucketsFollowThePapersCounts) {
   EXPECT_EQ(VertexBucket(49999), "25k");
   EXPECT_EQ(VertexBucket(50000), "100k");

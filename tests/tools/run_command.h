@@ -2,8 +2,11 @@
 // stdout and stderr (through temporary files, no shell quoting games).
 #pragma once
 
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
+
+#include <cstdint>
 
 #include <cstdlib>
 #include <filesystem>
@@ -24,7 +27,9 @@ inline std::string ReadAll(const std::filesystem::path& p) {
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
-inline CommandResult RunSkintune(const std::vector<std::string>& args) {
+// `address_space_bytes` > 0: the child's RLIMIT_AS, so that a command that
+// would allocate without bound fails fast instead of exhausting the machine.
+inline CommandResult RunSkintune(const std::vector<std::string>& args, std::uint64_t address_space_bytes = 0) {
   namespace fs = std::filesystem;
   static int counter = 0;
   const fs::path dir = fs::temp_directory_path() / ("skintune_cli_" + std::to_string(::getpid()));
@@ -38,6 +43,10 @@ inline CommandResult RunSkintune(const std::vector<std::string>& args) {
     for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
     if (!std::freopen(out.c_str(), "w", stdout) || !std::freopen(err.c_str(), "w", stderr)) std::_Exit(127);
+    if (address_space_bytes > 0) {
+      const rlimit limit{address_space_bytes, address_space_bytes};
+      if (::setrlimit(RLIMIT_AS, &limit) != 0) std::_Exit(126);
+    }
     ::execv(exe.c_str(), argv.data());
     std::_Exit(127);
   }

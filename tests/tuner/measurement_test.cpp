@@ -10,6 +10,8 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -45,7 +47,7 @@ Measurement Sample(const std::string& key, MeasureStatus status) {
     m.timing = {1.5, 1.25, 2.0, 3, 10, 4};
     m.gbps = 12.5;
   }
-  m.bytes_per_frame = 240000;
+  m.bytes_per_frame = 18750000;  // 12.5 GB/s at 1.5 ms
   m.max_relative_error = status == MeasureStatus::kVerifyFailed ? std::numeric_limits<double>::infinity() : 1e-7;
   m.generator_version = "0.1.0";
   m.timestamp = "2026-11-22T13:39:17Z";
@@ -129,6 +131,71 @@ TEST(Measurement, FromJsonNamesTheBadField) {
   j = Sample("opencl.b2", MeasureStatus::kOk);
   j["timing"]["median_ms"] = "quick";
   EXPECT_EQ(ErrorOf([&] { (void)j.get<Measurement>(); }), "measurement: 'timing': 'median_ms' must be a number");
+}
+
+// Issue 11, items 1 and 2: a status-ok measurement's figures obey physics
+// wherever it is read; from_json (used by the cache, reports, replay and the
+// worker's answers) refuses anything else, naming the field.
+TEST(Measurement, OkWithoutTimingIsRefused) {
+  nlohmann::json j = Sample("opencl.b2", MeasureStatus::kOk);
+  j.erase("timing");
+  EXPECT_EQ(ErrorOf([&] { (void)j.get<Measurement>(); }), "measurement: status ok without 'timing'");
+  // A failure has no time to check: its timing may be absent.
+  j = Sample("opencl.b2", MeasureStatus::kTimeout);
+  j.erase("timing");
+  EXPECT_EQ(j.get<Measurement>().status, MeasureStatus::kTimeout);
+}
+
+TEST(Measurement, ImpossibleTimesAreRefusedNamingTheField) {
+  const std::vector<std::pair<std::function<void(nlohmann::json&)>, std::string>> cases = {
+      {[](nlohmann::json& j) { j["timing"]["median_ms"] = 0; },
+       "'median_ms' is 0: a time must be a positive, finite number"},
+      {[](nlohmann::json& j) { j["timing"]["median_ms"] = -5; },
+       "'median_ms' is -5: a time must be a positive, finite number"},
+      {[](nlohmann::json& j) { j["timing"]["median_ms"] = "nan"; },
+       "'median_ms' is nan: a time must be a positive, finite number"},
+      {[](nlohmann::json& j) { j["timing"]["median_ms"] = "inf"; },
+       "'median_ms' is inf: a time must be a positive, finite number"},
+      {[](nlohmann::json& j) { j["timing"]["min_ms"] = 0; }, "'min_ms' is 0: a time must be"},
+      {[](nlohmann::json& j) { j["timing"]["min_ms"] = 1.75; },
+       "'min_ms' 1.75, 'median_ms' 1.5, 'max_ms' 2: must be in order (min <= median <= max)"},
+      {[](nlohmann::json& j) { j["timing"]["max_ms"] = 1.25; }, "must be in order (min <= median <= max)"},
+      {[](nlohmann::json& j) { j["timing"]["repetitions"] = 0; }, "'repetitions' is 0"},
+      {[](nlohmann::json& j) { j["bytes_per_frame"] = 0; }, "'bytes_per_frame' is 0: a frame's bytes must be"},
+      {[](nlohmann::json& j) { j["gbps"] = 125.0; },
+       "'gbps' is 125 but 'bytes_per_frame' / 'median_ms' is 12.5 GB/s: they must agree"},
+      {[](nlohmann::json& j) { j["gbps"] = "nan"; }, "'gbps' is nan: a bandwidth must be"},
+      {[](nlohmann::json& j) { j["max_relative_error"] = "inf"; },
+       "'max_relative_error' is inf: must be a finite number >= 0"},
+  };
+  for (const auto& [edit, message] : cases) {
+    nlohmann::json j = Sample("opencl.b2", MeasureStatus::kOk);
+    edit(j);
+    const std::string error = ErrorOf([&] { (void)j.get<Measurement>(); });
+    EXPECT_EQ(error.rfind("measurement: impossible figures: status ok with ", 0), 0u) << error;
+    EXPECT_NE(error.find(message), std::string::npos) << error;
+    EXPECT_THROW((void)j.get<Measurement>(), ImpossibleMeasurement);
+  }
+  // The writer's own output always reads back.
+  EXPECT_NO_THROW((void)nlohmann::json(Sample("opencl.b2", MeasureStatus::kOk)).get<Measurement>());
+}
+
+TEST(MeasurementCache, ImpossibleLineIsAnErrorNamingFileAndLineAndTheFileIsKept) {
+  const fs::path path = Scratch() / "cache.jsonl";
+  const std::string good = nlohmann::json(Sample("opencl.b2.soa.global", MeasureStatus::kOk)).dump() + "\n";
+  nlohmann::json no_timing = Sample("opencl.b2.soa.local", MeasureStatus::kOk);
+  no_timing.erase("timing");
+  nlohmann::json zero = Sample("opencl.b2.soa.constant", MeasureStatus::kOk);
+  zero["timing"]["median_ms"] = 0.0;
+  for (const auto& [bad, message] : {std::pair{no_timing, std::string("status ok without 'timing'")},
+                                     std::pair{zero, std::string("'median_ms' is 0")}}) {
+    const std::string text = good + bad.dump() + "\n" + good;
+    WriteAll(path, text);
+    const std::string error = ErrorOf([&] { MeasurementCache cache(path.string()); });
+    EXPECT_EQ(error.rfind(path.string() + ":2: ", 0), 0u) << error;
+    EXPECT_NE(error.find(message), std::string::npos) << error;
+    EXPECT_EQ(ReadAll(path), text);
+  }
 }
 
 TEST(MeasurementCache, AppendedMeasurementsAreThereWhenReopened) {

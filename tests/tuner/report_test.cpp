@@ -167,6 +167,15 @@ TEST(Report, MalformedReportsNameTheElement) {
   j["schema_version"] = "2.0.0";
   EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("schema_version '2.0.0'"), std::string::npos);
   j = good;
+  j["measurements"][2]["device_id"] = "no backend or parts";  // found by report_fuzz: merges failed later, unnamed
+  EXPECT_EQ(ErrorOf([&] { ReportFromJson(j, "r.json"); }).rfind("r.json: measurements[2]: device id 'no backend", 0), 0u)
+      << ErrorOf([&] { ReportFromJson(j, "r.json"); });
+  j = good;
+  j["measurements"][2]["device_id"] = "metal:Apple/M3/1.0";  // found by winners_db_fuzz: merged into an unreadable database
+  EXPECT_EQ(ErrorOf([&] { ReportFromJson(j, "r.json"); }),
+            "r.json: measurements[2]: device id 'metal:Apple/M3/1.0' has unknown backend 'metal' (expected opencl, cuda "
+            "or gl)");
+  j = good;
   j["kind"] = "something";
   EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("kind"), std::string::npos);
   j = good;
@@ -179,6 +188,63 @@ TEST(Report, MalformedReportsNameTheElement) {
   j["datasets"][0]["vertices"] = "many";
   EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("datasets[0]: 'vertices'"), std::string::npos);
   EXPECT_NE(ErrorOf([&] { ReportFromJson(nlohmann::json::array(), "r.json"); }).find("r.json:"), std::string::npos);
+}
+
+// Issue 11, items 1 and 2: the first status-ok measurement of the report.
+std::size_t FirstOk(const nlohmann::json& report) {
+  const nlohmann::json& list = report.at("measurements");
+  for (std::size_t i = 0; i < list.size(); ++i)
+    if (list[i].at("status") == "ok") return i;
+  ADD_FAILURE() << "no ok measurement";
+  return 0;
+}
+
+TEST(Report, ImpossibleMeasurementsAreRefusedNamingTheElement) {
+  const nlohmann::json good = ReportToJson(testing::SampleReport());
+  const std::size_t i = FirstOk(good);
+  const std::string element = "r.json: measurements[" + std::to_string(i) + "]: measurement: ";
+  nlohmann::json j = good;
+  j["measurements"][i].erase("timing");
+  EXPECT_EQ(ErrorOf([&] { ReportFromJson(j, "r.json"); }), element + "status ok without 'timing'");
+  for (const nlohmann::json& median : {nlohmann::json(0), nlohmann::json(-5), nlohmann::json("nan")}) {
+    j = good;
+    j["measurements"][i]["timing"]["median_ms"] = median;
+    const std::string error = ErrorOf([&] { ReportFromJson(j, "r.json"); });
+    EXPECT_EQ(error.rfind(element + "impossible figures: status ok with 'median_ms' is ", 0), 0u) << error;
+  }
+  j = good;
+  j["copy_bandwidth_gbps"].begin().value() = 0;
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("must be a positive, finite GB/s"), std::string::npos);
+}
+
+TEST(Report, ImpossibleMeasurementsNeverWinOrMerge) {
+  TuningReport r = testing::SampleReport();
+  const std::vector<Winner> before = ComputeWinners(r);
+  ASSERT_FALSE(before.empty());
+  // A report built in memory with a 0 ms "winner": it is never one.
+  for (Measurement& m : r.measurements) {
+    if (m.device_id == before[0].device_id && m.dataset == before[0].dataset && m.variant != before[0].variant &&
+        m.status == MeasureStatus::kOk) {
+      m.timing.median_ms = 0.0;
+      break;
+    }
+  }
+  const std::vector<Winner> after = ComputeWinners(r);
+  ASSERT_EQ(after.size(), before.size());
+  for (std::size_t k = 0; k < after.size(); ++k) {
+    EXPECT_EQ(after[k].variant, before[k].variant);
+    EXPECT_GT(after[k].median_ms, 0.0);
+  }
+  // Merging a report or database with an impossible time fails naming the input and the element.
+  nlohmann::json report = ReportToJson(testing::SampleReport());
+  report["measurements"][FirstOk(report)]["timing"]["median_ms"] = -5;
+  EXPECT_EQ(ErrorOf([&] { MergeWinnersDatabases({report}, {"a.json"}); })
+                .rfind("a.json: measurements[" + std::to_string(FirstOk(report)) + "]: measurement: impossible figures", 0),
+            0u);
+  nlohmann::json db = WinnersDatabase(testing::SampleReport());
+  db["entries"][0]["median_ms"] = 0;
+  EXPECT_EQ(ErrorOf([&] { MergeWinnersDatabases({db}, {"db.json"}); }),
+            "db.json: entries[0]: impossible figures: 'median_ms' is 0: a time must be a positive, finite number");
 }
 
 TEST(Report, T4ExportMapsStatusesAndAxes) {

@@ -80,6 +80,22 @@ TEST(Schema, BrokenReportsFailValidation) {
   j = good;
   j["winners"][0]["vertex_bucket"] = "3k";
   EXPECT_EQ(Validate(j, "report.schema.json", "bad-bucket"), 3);
+  // Issue 11: what the readers refuse as impossible, the schema refuses too
+  // (all but the GB/s consistency, which a schema cannot state).
+  std::size_t ok = 0;
+  while (good["measurements"][ok]["status"] != "ok") ++ok;
+  j = good;
+  j["measurements"][ok].erase("timing");
+  EXPECT_EQ(Validate(j, "report.schema.json", "ok-without-timing"), 3);
+  j = good;
+  j["measurements"][ok]["timing"]["median_ms"] = 0;
+  EXPECT_EQ(Validate(j, "report.schema.json", "ok-median-0"), 3);
+  j = good;
+  j["measurements"][ok]["timing"]["median_ms"] = "nan";
+  EXPECT_EQ(Validate(j, "report.schema.json", "ok-median-nan"), 3);
+  j = good;
+  j["measurements"][ok]["bytes_per_frame"] = 0;
+  EXPECT_EQ(Validate(j, "report.schema.json", "ok-bytes-0"), 3);
 }
 
 TEST(Schema, WinnersDatabasesValidate) {

@@ -216,6 +216,35 @@ TEST_P(TuneCliFault, BrokenVariantIsRecordedAndNeverWins) {
 INSTANTIATE_TEST_SUITE_P(Faults, TuneCliFault, ::testing::Values("compile", "wrong", "hang", "crash"),
                          [](const auto& test) { return test.param; });
 
+// Issue 11, item 8: on llvmpipe a spinning GLSL kernel is cut off after 65535
+// loop iterations per invocation (Mesa's loop limiter), so a plain injected
+// hang finished in about 0.6 s per run and was recorded ok. The injected hang
+// must outlast any limit there too: recorded timeout, never a winner.
+TEST(TuneCli, InjectedHangOnGlslComputeIsRecordedTimeout) {
+  const fs::path dir = Scratch();
+  nlohmann::json c = TinyConfig({"global", "local"}, {"soa"}, {64});
+  c["space"]["lang"] = {"glsl-compute"};
+  c["timing"] = {{"warmup", 1}, {"repetitions", 3}, {"max_input_sets", 1}};
+  c["variant_timeout_s"] = 8;
+  const std::string config = WriteConfig(dir, c);
+  const std::string broken = "glsl-compute.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals";
+  const std::string good = "glsl-compute.b2.padded.soa.float4.u16.f32.mat3x4.local.matrix.v1c.wg64.nonormals";
+  const fs::path out = dir / "out";
+  ::setenv("SKINTUNE_INJECT_FAULT", (broken + "=hang").c_str(), 1);
+  const auto r = RunSkintune({"tune", "--config", config, "--out", out.string(), "--lang", "glsl-compute"});
+  ::unsetenv("SKINTUNE_INJECT_FAULT");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::map<std::string, Measurement> by_variant;
+  for (const Measurement& m : ReportMeasurements(nlohmann::json::parse(ReadAll(out / "report.json"))))
+    by_variant[m.variant.Key()] = m;
+  ASSERT_EQ(by_variant.count(broken), 1u) << r.err;
+  EXPECT_EQ(by_variant.at(broken).status, MeasureStatus::kTimeout) << Name(by_variant.at(broken).status) << ": "
+                                                                   << by_variant.at(broken).detail;
+  EXPECT_EQ(by_variant.at(broken).detail, "no result within 8 s");
+  EXPECT_EQ(by_variant.at(good).status, MeasureStatus::kOk) << by_variant.at(good).detail;
+  EXPECT_EQ(ReadAll(out / "winners-db.json").find(broken), std::string::npos);
+}
+
 // ------------------------------------------------------------------ bad input
 
 // Runs `skintune tune` into an --out that already holds a report: the command

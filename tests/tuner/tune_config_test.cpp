@@ -107,7 +107,11 @@ TEST(TuneConfig, ErrorsNameTheElement) {
             "c.json: strategy.budget: the random strategy needs a budget (evaluations per device, language and "
             "dataset)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "strategy": {"budget": -3}})"),
-            "c.json: strategy.budget: must be an integer >= 0");
+            "c.json: strategy.budget: must be a whole number from 0 to 1000000000 (got -3)");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "strategy": {"budget": 18446744073709551616}})"),
+            "c.json: strategy.budget: must be a whole number from 0 to 1000000000 (got 1.8446744073709552e+19)");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "strategy": {"budget": 1000000001}})"),
+            "c.json: strategy.budget: must be a whole number from 0 to 1000000000 (got 1000000001)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "variant_timeout_s": 0})"),
             "c.json: variant_timeout_s: must be a positive number (got 0)");
 }

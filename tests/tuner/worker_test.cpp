@@ -37,7 +37,8 @@ DeviceIdentity FakeDevice() {
 
 const char* kAnswer =
     R"({"device_id":"elsewhere","dataset":"x","variant":{"lang":"cuda"},"status":"ok","generator_version":"9",)"
-    R"("timing":{"median_ms":1.5,"min_ms":1.0,"max_ms":2.0,"warmup":1,"repetitions":3,"input_sets":2},"gbps":7.5})";
+    R"("timing":{"median_ms":1.5,"min_ms":1.0,"max_ms":2.0,"warmup":1,"repetitions":3,"input_sets":2},"gbps":7.5,)"
+    R"("bytes_per_frame":11250000})";
 
 // A fake `skintune`: greets as FakeDevice(), then runs `body` (sh) with the
 // arguments it was started with in "$@" and its directory in $DIR.
@@ -68,6 +69,25 @@ std::string ErrorOf(const std::function<void()>& f) {
 std::string ReadAll(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// Issue 11, item 2: a device (its timer, its driver) that reports an
+// impossible time fails that variant, never the run, and never ranks.
+TEST(IsolatedBackend, AnImpossibleTimeFromTheWorkerIsLaunchFailedAndTheWorkerStays) {
+  const fs::path dir = Scratch();
+  std::string zero = kAnswer;
+  zero.replace(zero.find("\"median_ms\":1.5"), 15, "\"median_ms\":0.0");
+  const std::string exe = FakeWorker(dir, "while read line; do echo '" + zero + "'; done");
+  IsolatedBackend worker(exe, FakeDevice(), 30);
+  for (int i = 0; i < 2; ++i) {
+    const Measurement m = worker.Measure(kVariant, kDataset, TimingOptions{});
+    EXPECT_EQ(m.status, MeasureStatus::kLaunchFailed);
+    EXPECT_EQ(m.detail.rfind("the device reported measurement: impossible figures: status ok with 'median_ms' is 0", 0),
+              0u)
+        << m.detail;
+    EXPECT_EQ(m.variant, kVariant);
+  }
+  EXPECT_EQ(worker.starts(), 1);
 }
 
 TEST(IsolatedBackend, SendsOneRequestPerLineAndReadsTheMeasurement) {

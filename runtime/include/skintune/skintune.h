@@ -342,7 +342,8 @@ class Skinner {
   // matrices (16 floats each, as glm::mat4 stores them; instance k's joints
   // at [k * joint_count * 16]). `float_count` must equal
   // instances() * joint_count() * 16, else kInvalidArgument; null `matrices`:
-  // kInvalidArgument. The data is copied: the caller may reuse it at once.
+  // kInvalidArgument; a NaN or infinite element: kInvalidArgument naming the
+  // matrix and element. The data is copied: the caller may reuse it at once.
   Status SetPalette(const float* matrices, std::size_t float_count);
 
   // Skins every instance on the device with the last palette (asynchronous
@@ -359,7 +360,10 @@ class Skinner {
   // Skinned positions (and normals) in the mesh's vertex order: 3 floats per
   // vertex, instance after instance; `float_count` must equal
   // instances() * vertex_count() * 3 (else kInvalidArgument), `out` not null.
-  // Waits for the last Skin(); kInvalidState before the first Skin().
+  // Waits for the last Skin(); kInvalidState before the first Skin(). A NaN
+  // or infinite output (a finite palette whose product with the mesh
+  // overflows float32) is kDeviceError naming the vertex and instance, and
+  // nothing is written to `out`.
   Status ReadPositions(float* out, std::size_t float_count);
   // Likewise; kInvalidState when the Skinner skins no normals.
   Status ReadNormals(float* out, std::size_t float_count);
@@ -443,7 +447,8 @@ class Model {
   // clamped to the keys as glTF does), or of the rest pose for animation -1:
   // joint_count() column-major 4x4 matrices, 16 floats each, ready for
   // Skinner::SetPalette. kInvalidArgument for an animation outside
-  // -1..animation_count()-1 or a t that is not finite.
+  // -1..animation_count()-1, a t that is not finite, or a palette entry that
+  // is not finite in float32 (naming the joint, its node and the element).
   Status Palette(int animation, double t, std::vector<float>* matrices) const;
 
   // The float64 reference ("gold") skinning of this model's positions with

@@ -1,0 +1,44 @@
+// Fuzz target for the report readers (ReportFromJson, PaperResultFromJson:
+// `skintune report`, `db merge`, `db replay`) and for what runs on what they
+// accept: the winners, the T4 export, the database, the summary and its HTML
+// and Markdown (where an impossible time once exhausted memory).
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "report/paper.h"
+#include "report/paper_report.h"
+#include "tests/fuzz/fuzz_support.h"
+#include "tuner/report.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const nlohmann::json json = nlohmann::json::parse(data, data + size, nullptr, /*allow_exceptions=*/false);
+  if (json.is_discarded()) return 0;
+  const bool paper = json.is_object() && json.contains("kind") && json["kind"] == skintune::kPaperResultKind;
+  const std::string name = paper ? "result.json" : "report.json";
+  skintune::PaperResult result;
+  try {
+    if (paper) {
+      result = skintune::PaperResultFromJson(json, name);
+    } else {
+      result = skintune::PaperResultFromReport(skintune::ReportFromJson(json, name));
+    }
+  } catch (const skintune::Error& e) {
+    skintune::fuzz::ExpectNamed("report_fuzz", e, name);
+    return 0;
+  }
+  // Accepted: everything made from it works, without an error of its own.
+  try {
+    (void)skintune::ReportToJson(result.tuning).dump();
+    (void)skintune::ReportToT4(result.tuning).dump();
+    (void)skintune::WinnersDatabase(result.tuning).dump();
+    const skintune::PaperSummary summary = skintune::Summarise({result});
+    (void)skintune::RenderHtml(summary);
+    (void)skintune::RenderMarkdown(summary);
+  } catch (const skintune::Error& e) {
+    skintune::fuzz::Die("report_fuzz", std::string("an accepted input failed later: ") + e.what());
+  }
+  return 0;
+}

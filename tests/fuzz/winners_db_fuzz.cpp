@@ -1,0 +1,36 @@
+// Fuzz target for the winners database readers: WinnersDbFromJson (behind
+// the runtime's WinnersDb::Load / Parse and `skintune emit --db`) and
+// MergeWinnersDatabases (`skintune db merge`, which takes reports too).
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "runtime/winners_db.h"
+#include "tests/fuzz/fuzz_support.h"
+#include "tuner/report.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const nlohmann::json json = nlohmann::json::parse(data, data + size, nullptr, /*allow_exceptions=*/false);
+  if (json.is_discarded()) return 0;
+  try {
+    for (const skintune::WinnersEntry& e : skintune::WinnersDbFromJson(json, "db.json")) {
+      if (!(e.median_ms > 0.0) || !std::isfinite(e.median_ms) || !(e.gbps >= 0.0) || !std::isfinite(e.gbps))
+        skintune::fuzz::Die("winners_db_fuzz", "accepted an impossible time in " + skintune::Describe(e));
+    }
+  } catch (const skintune::Error& e) {
+    skintune::fuzz::ExpectNamed("winners_db_fuzz", e, "db.json");
+  }
+  try {
+    const nlohmann::json merged = skintune::MergeWinnersDatabases({json, json}, {"a.json", "a.json"});
+    // A merged database reads back, and merges into itself unchanged.
+    (void)skintune::WinnersDbFromJson(merged, "merged");
+    if (skintune::MergeWinnersDatabases({merged}, {"merged"}) != merged)
+      skintune::fuzz::Die("winners_db_fuzz", "merging a merged database changed it");
+  } catch (const skintune::Error& e) {
+    skintune::fuzz::ExpectNamed("winners_db_fuzz", e, "a.json");
+  }
+  return 0;
+}

@@ -1,0 +1,101 @@
+// The on-disk program cache (runtime/program_cache.h): what it loads back and
+// what it treats as absent (then the program is rebuilt and the file
+// rewritten). Issue 11, item 7: a payload altered so that its old FNV-1a
+// checksum still matched was loaded, and PoCL crashed on it at every start.
+#include "runtime/program_cache.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "generator/emit.h"
+#include "tests/common/scratch_dir.h"
+
+namespace skintune {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Two 8-byte blocks with the same FNV-1a 64 from its offset basis
+// (0x069d3b25617ef03a), found with a distinguished-point rho search over
+// 8-byte blocks (about 4e9 evaluations): any two payloads that start with
+// them and continue alike have the same FNV-1a 64.
+const std::vector<std::uint8_t> kBlockA = {0x2e, 0xc7, 0xd7, 0xaa, 0xab, 0x52, 0x51, 0x5f};
+const std::vector<std::uint8_t> kBlockB = {0xc4, 0xa3, 0x2e, 0xc5, 0xa0, 0x4e, 0x78, 0xc7};
+
+std::vector<std::uint8_t> Payload(const std::vector<std::uint8_t>& block) {
+  std::vector<std::uint8_t> payload = block;
+  const std::string rest = "\x7f" "ELF... the rest of a program binary";
+  payload.insert(payload.end(), rest.begin(), rest.end());
+  return payload;
+}
+
+std::string ReadAll(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+const std::string kKey = ProgramKey("opencl", "opencl:Portable Computing Language/cpu/5.0", "0123456789abcdef", "-cl-std=CL1.2");
+
+TEST(ProgramCache, TheTestsPayloadsCollideUnderFnv1a) {
+  const std::vector<std::uint8_t> a = Payload(kBlockA), b = Payload(kBlockB);
+  ASSERT_NE(a, b);
+  EXPECT_EQ(SourceHash(std::string(a.begin(), a.end())), SourceHash(std::string(b.begin(), b.end())));
+}
+
+TEST(ProgramCache, StoredPayloadLoadsBackWithTheKeyAndASha256InTheHeader) {
+  const fs::path dir = testing::ScratchDir("skintune_program_cache");
+  const ProgramCache cache(dir.string());
+  const std::vector<std::uint8_t> payload = Payload(kBlockA);
+  cache.Store("opencl", kKey, payload);
+  EXPECT_EQ(cache.Load("opencl", kKey), payload);
+  const std::string file = ReadAll(cache.PathOf("opencl", kKey));
+  const std::string header = "skintune-program-cache 2\nbackend opencl\\ndevice opencl:Portable Computing Language/cpu/5.0"
+                             "\\nsource 0123456789abcdef\\noptions -cl-std=CL1.2\n" +
+                             std::to_string(payload.size()) + " sha256:";
+  ASSERT_EQ(file.rfind(header, 0), 0u) << file.substr(0, 200);
+  const std::size_t hex = header.size();
+  EXPECT_EQ(file.find('\n', hex), hex + 64);
+  EXPECT_EQ(cache.Load("opencl", kKey + "x"), std::nullopt);  // another key: absent
+}
+
+TEST(ProgramCache, AlteredPayloadWhoseFnvChecksumStillMatchesIsRebuilt) {
+  const fs::path dir = testing::ScratchDir("skintune_program_cache");
+  const ProgramCache cache(dir.string());
+  const std::vector<std::uint8_t> original = Payload(kBlockA);
+  cache.Store("opencl", kKey, original);
+  const std::string path = cache.PathOf("opencl", kKey);
+  std::string file = ReadAll(path);
+  const std::size_t at = file.size() - original.size();
+  ASSERT_EQ(file.substr(at), std::string(original.begin(), original.end()));
+  file.replace(at, kBlockB.size(), std::string(kBlockB.begin(), kBlockB.end()));
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << file;
+
+  EXPECT_EQ(cache.Load("opencl", kKey), std::nullopt) << "the altered payload was loaded";
+  // What a runner does next: rebuild, store over it, and load that.
+  cache.Store("opencl", kKey, original);
+  EXPECT_EQ(cache.Load("opencl", kKey), original);
+}
+
+TEST(ProgramCache, VersionOneFilesAreAbsent) {
+  const fs::path dir = testing::ScratchDir("skintune_program_cache");
+  const ProgramCache cache(dir.string());
+  const std::vector<std::uint8_t> payload = Payload(kBlockA);
+  cache.Store("opencl", kKey, payload);
+  const std::string path = cache.PathOf("opencl", kKey);
+  // The same payload as version 1 wrote it: FNV-1a 64 as its checksum.
+  std::string escaped;
+  for (char c : kKey) escaped += c == '\n' ? std::string("\\n") : std::string(1, c);
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      << "skintune-program-cache 1\n" << escaped << "\n" << payload.size() << " "
+      << SourceHash(std::string(payload.begin(), payload.end())) << "\n"
+      << std::string(payload.begin(), payload.end());
+  EXPECT_EQ(cache.Load("opencl", kKey), std::nullopt);
+}
+
+}  // namespace
+}  // namespace skintune
