@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdlib>
 
+#include "reference/error.h"
 #include "runtime/output_check.h"
 
 namespace skintune {
@@ -310,6 +311,12 @@ const DriverApi* Driver(std::string* why) {
 }
 
 std::string ErrorText(Result result) { return DriverErrorText(DriverLibrary().api, result); }
+
+void Fail(const std::string& stage, const std::string& message) { throw Error("CUDA " + stage + ": " + message); }
+
+void Check(Result r, const std::string& stage, const std::string& what) {
+  if (r != kSuccess) Fail(stage, what + " failed: " + ErrorText(r));
+}
 
 }  // namespace cuda
 }  // namespace skintune

@@ -177,5 +177,11 @@ const DriverApi* Driver(std::string* why = nullptr);
 // "CUDA_ERROR_NAME (code): description" for a driver result.
 std::string ErrorText(Result result);
 
+// Throws Error("CUDA <stage>: <message>"): the stages the tuner and the
+// runtime map to statuses and error codes ("setup", "build", "launch", "guard").
+[[noreturn]] void Fail(const std::string& stage, const std::string& message);
+// Fail(stage, "<what> failed: <ErrorText(r)>") unless `r` is success.
+void Check(Result r, const std::string& stage, const std::string& what);
+
 }  // namespace cuda
 }  // namespace skintune

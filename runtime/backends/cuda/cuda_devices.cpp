@@ -15,13 +15,8 @@ namespace skintune {
 
 namespace {
 
-[[noreturn]] void Fail(const std::string& stage, const std::string& message) {
-  throw Error("CUDA " + stage + ": " + message);
-}
-
-void Check(cuda::Result r, const std::string& stage, const std::string& what) {
-  if (r != cuda::kSuccess) Fail(stage, what + " failed: " + cuda::ErrorText(r));
-}
+using cuda::Check;
+using cuda::Fail;
 
 // Device attributes beyond cuda_api.h's.
 constexpr int kAttributeClockRate = 13;          // CU_DEVICE_ATTRIBUTE_CLOCK_RATE (kHz)

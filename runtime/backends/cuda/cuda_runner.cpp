@@ -16,13 +16,8 @@ namespace skintune {
 
 namespace {
 
-[[noreturn]] void Fail(const std::string& stage, const std::string& message) {
-  throw Error("CUDA " + stage + ": " + message);
-}
-
-void Check(cuda::Result r, const std::string& stage, const std::string& what) {
-  if (r != cuda::kSuccess) Fail(stage, what + " failed: " + cuda::ErrorText(r));
-}
+using cuda::Check;
+using cuda::Fail;
 
 // Owns one driver object; released with the driver function given.
 template <typename T>
