@@ -36,18 +36,6 @@ using tuner_internal::InputSetsFor;
 
 constexpr const char* kDataset = "20k-b2";
 
-const char* StatusText(MeasureStatus s) {
-  switch (s) {
-    case MeasureStatus::kOk: return "ok";
-    case MeasureStatus::kInvalid: return "invalid";
-    case MeasureStatus::kCompileFailed: return "compile_failed";
-    case MeasureStatus::kLaunchFailed: return "launch_failed";
-    case MeasureStatus::kVerifyFailed: return "verify_failed";
-    case MeasureStatus::kTimeout: return "timeout";
-  }
-  return "?";
-}
-
 std::string Lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return s;
@@ -102,7 +90,7 @@ TimingOptions SmallTiming() {
 
 // A variant that passed: verified, timed, everything filled in.
 void ExpectOk(const Measurement& m, const Backend& backend, const std::string& dataset) {
-  ASSERT_EQ(m.status, MeasureStatus::kOk) << StatusText(m.status) << ": " << m.detail;
+  ASSERT_EQ(m.status, MeasureStatus::kOk) << Name(m.status) << ": " << m.detail;
   EXPECT_EQ(m.detail, "");
   EXPECT_EQ(m.device_id, backend.identity().Id());
   EXPECT_EQ(m.dataset, dataset);
@@ -381,7 +369,7 @@ TEST(OpenClBackend, InjectedCompileFaultIsCompileFailed) {
   const Variant v = ParseVariantKey("opencl.b2.soa.v2c.wg64");
   ScopedFault f(v.Key() + "=compile");
   const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-  EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << StatusText(m.status) << ": " << m.detail;
+  EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << Name(m.status) << ": " << m.detail;
   EXPECT_NE(m.detail.find("OpenCL build"), std::string::npos) << m.detail;
   EXPECT_NE(m.detail.find("build log"), std::string::npos) << m.detail;
   // Another variant is not affected.
@@ -393,7 +381,7 @@ TEST(OpenClBackend, InjectedWrongResultIsVerifyFailed) {
   const Variant v = ParseVariantKey("opencl.b2.aos.float3.u8.unorm8");
   ScopedFault f(v.Key() + "=wrong");
   const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-  EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << StatusText(m.status) << ": " << m.detail;
+  EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << Name(m.status) << ": " << m.detail;
   EXPECT_NE(m.detail.find("max relative error"), std::string::npos) << m.detail;
   EXPECT_NE(m.detail.find("at vertex"), std::string::npos) << m.detail;
   EXPECT_GT(m.max_relative_error, 1e-5);
@@ -469,7 +457,7 @@ TEST(GlBackend, InjectedCompileFaultIsCompileFailed) {
     const Variant v = ParseVariantKey(key);
     ScopedFault f(v.Key() + "=compile");
     const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-    EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << key << ": " << StatusText(m.status) << ": " << m.detail;
+    EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << key << ": " << Name(m.status) << ": " << m.detail;
     EXPECT_NE(m.detail.find("GL build"), std::string::npos) << m.detail;
   }
 }
@@ -480,7 +468,7 @@ TEST(GlBackend, InjectedWrongResultIsVerifyFailed) {
     const Variant v = ParseVariantKey(key);
     ScopedFault f(v.Key() + "=wrong");
     const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-    EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << key << ": " << StatusText(m.status) << ": " << m.detail;
+    EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << key << ": " << Name(m.status) << ": " << m.detail;
     EXPECT_NE(m.detail.find("max relative error"), std::string::npos) << m.detail;
     EXPECT_GT(m.max_relative_error, 1e-5);
   }
