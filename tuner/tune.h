@@ -27,6 +27,10 @@ struct TuneConfig {
   TimingOptions timing;
   StrategyOptions strategy;
   double variant_timeout_s = 60.0;      // per variant, in the child process
+  // The error budget (config "max_error", `tune --max-error`): a variant whose
+  // weight format costs more than this, relative to the bounding-box diagonal
+  // (SourceError::quantisation_rel), is too_imprecise (docs/TUNING.md "Precision").
+  double max_error = kDefaultBudget;
   // Variants measured on every device x language x dataset of their language
   // before the search, with B set to the dataset's (the paper's own kernels):
   // recorded like any measurement (invalid ones with their constraints), so a
