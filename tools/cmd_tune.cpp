@@ -116,6 +116,7 @@ void PrintWinners(const TuningReport& report) {
       std::cout << line << "\n";
     }
   }
+  if (!winners.empty() && chosen.empty()) std::cout << "no verified variant is within the budget\n";
   std::cout << "measurements: " << (counts.empty() ? "none" : counts) << "\n";
   std::cout << "budget: max_error " << Sci(report.max_error)
             << " of the bounding-box diagonal (err/diag: the kernel against the unquantised source; quant/diag: what "
@@ -207,8 +208,9 @@ Command RegisterTune(CLI::App& app) {
   sub->add_option("--config", o->config,
                   "tuning config: a JSON file (configs/*.json), or a built-in name: default, paper (default: default)");
   sub->add_option("--device", o->device,
-                  "only devices whose 'backend: platform / name' (or vendor, version) contains this "
-                  "(case-insensitive)");
+                  "only the devices this matches: a case-insensitive substring of the id "
+                  "'<backend>:<platform>/<name>/<driver>', vendor, type or platform short name (pocl), as every "
+                  "--device");
   sub->add_option("--lang", o->langs, "only these languages: opencl, cuda, glsl-compute, glsl-vertex");
   sub->add_option("--strategy", o->strategy, "search strategy (overrides the config's)")
       ->check(CLI::IsMember({"exhaustive", "random", "coordinate"}));

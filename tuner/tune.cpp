@@ -59,11 +59,6 @@ bool IsGltfPath(const std::string& key) {
   return ends_with(".gltf") || ends_with(".glb");
 }
 
-std::string Lower(std::string text) {
-  std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
-  return text;
-}
-
 int IntField(const nlohmann::json& value, const std::string& where, int min) {
   if (!value.is_number_integer()) throw Error(where + ": expected an integer");
   const long long v = value.get<long long>();
@@ -283,11 +278,6 @@ struct Task {
   std::size_t planned = 0;  // evaluations expected (for progress)
 };
 
-std::string DeviceMatchText(const DeviceIdentity& d) {
-  return Lower(d.backend + ": " + d.platform + " / " + d.name + " " + d.vendor + " " + d.api_version + " " +
-               d.driver_version + " " + d.type);
-}
-
 std::string ShortStatus(const Measurement& m) {
   std::string text = Name(m.status);
   if (IsTimed(m.status)) {
@@ -401,12 +391,11 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
     throw Error("no device to tune on" + (why.empty() ? std::string() : ": " + why));
   }
   if (!options.device_pattern.empty()) {
-    const std::string pattern = Lower(options.device_pattern);
     std::vector<Device> matching;
     std::string all;
     for (Device& d : devices) {
       all += (all.empty() ? "" : "; ") + d.identity.backend + ": " + d.identity.platform + " / " + d.identity.name;
-      if (DeviceMatchText(d.identity).find(pattern) != std::string::npos) matching.push_back(std::move(d));
+      if (MatchesDevice(options.device_pattern, d.identity)) matching.push_back(std::move(d));
     }
     if (matching.empty()) throw Error("--device '" + options.device_pattern + "': no device matches (found: " + all + ")");
     devices = std::move(matching);

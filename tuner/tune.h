@@ -45,7 +45,7 @@ TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context
 std::string EmbeddedConfig(const std::string& name);
 
 struct TuneOptions {
-  std::string device_pattern;           // substring of DeviceIdentity "platform / name"; empty: all
+  std::string device_pattern;           // MatchesDevice (runtime/device_identity.h), the one --device rule; empty: all
   std::vector<Lang> languages;          // empty: every language of every device
   std::string cache_path;               // the resumable measurement cache (JSON lines)
   std::string worker_executable;        // the skintune binary (runs `skintune tune-worker`)

@@ -142,9 +142,13 @@ class Device {
   // every call.
   static Result<Device> OpenBest(const DeviceOptions& options = {});
 
-  // The first device of List() whose id, name, vendor or platform contains
-  // `pattern` (case-insensitive; "" matches any) and, unless `backend` is
-  // null, is of that backend (the other backends are then not probed).
+  // The first device of List() that `pattern` matches and, unless `backend`
+  // is null, is of that backend (the other backends are then not probed).
+  // The rule is the one of every `skintune --device` (docs/RUNTIME.md
+  // "Choosing a device"): `pattern`, case-insensitive, is a substring of the
+  // device's id "<backend>:<platform>/<name>/<driver_version>", its vendor or
+  // type, or its platform's short name ("pocl" matches PoCL's "Portable
+  // Computing Language"); "" matches any.
   // kNotFound naming the pattern and listing the devices there are.
   static Result<Device> Open(const std::string& pattern, const Backend* backend = nullptr,
                              const DeviceOptions& options = {});
