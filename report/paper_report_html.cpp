@@ -588,6 +588,9 @@ class Renderer {
       for (const GbpsPoint& p : s.points) by_dataset[p.dataset].emplace_back(s.lang, &p);
     }
     out_ += "<table><thead><tr><th>data set</th><th>language</th><th>time</th><th>GB/s</th><th>of copy</th>"
+            "<th title=\"largest relative error against the float64 gold of the variant's quantised weights\">vs "
+            "quantised</th><th title=\"largest error against the float64 gold of the unquantised source, of the "
+            "bounding-box diagonal, and what the weight format alone costs\">vs source</th>"
             "<th>tuned winner</th></tr></thead><tbody>\n";
     for (const DatasetInfo& d : s_.results[s_.devices[chart.device].result].datasets) {
       const auto it = by_dataset.find(d.key);
@@ -596,7 +599,9 @@ class Renderer {
         out_ += "<tr><td>" + Esc(d.key) + "</td><td>" + Esc(Name(lang)) + "</td><td class=\"num\">" +
                 FormatMs(p->median_ms) + "</td><td class=\"num\">" + FormatGbps(p->gbps) + "</td><td class=\"num\">" +
                 (p->copy_fraction > 0.0 ? Fraction(p->copy_fraction) : std::string("copy unknown")) +
-                "</td><td><code>" + Esc(p->variant.Key()) + "</code></td></tr>\n";
+                "</td><td class=\"num\">" + Esc(FormatError(p->max_relative_error)) +
+                "</td><td class=\"num\">" + Esc(FormatSourceError(p->source_error)) + "</td><td><code>" +
+                Esc(p->variant.Key()) + "</code></td></tr>\n";
       }
     }
     out_ += "</tbody></table>\n";

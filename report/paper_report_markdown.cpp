@@ -140,13 +140,16 @@ std::string RenderMarkdown(const PaperSummary& s) {
   out += "\n## Fig. 1\n\n" + Figure1Markdown(s) + "## Table 1\n\n" + Table1Markdown(s);
   out += "## Tuned winners per device\n\n"
          "The fastest verified variant per data set; GB/s = bytes the format moves / median time; \"of copy\" = "
-         "that over the device's copy kernel.\n\n";
+         "that over the device's copy kernel; \"vs quantised\" = the largest relative error against the float64 "
+         "gold of the variant's quantised weights (the correctness check); \"vs source\" = the largest error "
+         "against the gold of the unquantised source, of the bounding-box diagonal, and what the weight format "
+         "alone costs.\n\n";
   for (std::size_t d = 0; d < s.devices.size(); ++d) {
     const SummaryDevice& device = s.devices[d];
     out += "### " + Cell(device.label) + " (copy " +
            (device.copy_bandwidth_gbps > 0.0 ? FormatGbps(device.copy_bandwidth_gbps) : std::string("not measured")) +
-           ")\n\n| data set | tuned winner | time | GB/s | of copy | the paper's kernels |\n"
-           "| --- | --- | ---: | ---: | ---: | --- |\n";
+           ")\n\n| data set | tuned winner | time | GB/s | of copy | vs quantised | vs source | the paper's kernels |\n"
+           "| --- | --- | ---: | ---: | ---: | ---: | ---: | --- |\n";
     for (const KernelResults& k : s.kernels) {
       if (k.device != d) continue;
       std::string paper;
@@ -160,12 +163,14 @@ std::string RenderMarkdown(const PaperSummary& s) {
         out += "| " + Cell(k.dataset) + " | " + Cell(k.tuned.label) + " `" + Cell(k.tuned.variant.Key()) + "` | " +
                FormatMs(k.tuned.median_ms) + " | " + FormatGbps(k.tuned.gbps) + " | " +
                (k.tuned.copy_fraction > 0.0 ? FormatSignificant(k.tuned.copy_fraction, 2) : std::string(kDash)) +
-               " | " + Cell(paper) + " |\n";
+               " | " + FormatError(k.tuned.max_relative_error) + " | " +
+               Cell(FormatSourceError(k.tuned.source_error)) + " | " + Cell(paper) + " |\n";
       } else {
         out += "| " + Cell(k.dataset) + " | " +
                (k.measurements == 0 ? std::string("not measured")
                                     : "no variant passed (" + std::to_string(k.measurements) + " failed or invalid)") +
-               " | " + kDash + " | " + kDash + " | " + kDash + " | " + Cell(paper) + " |\n";
+               " | " + kDash + " | " + kDash + " | " + kDash + " | " + kDash + " | " + kDash + " | " + Cell(paper) +
+               " |\n";
       }
     }
     out += "\n";
