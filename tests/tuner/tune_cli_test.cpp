@@ -412,7 +412,9 @@ TEST(TuneCliPrecision, DefaultBudgetOnFloatWeightsNeverPicksUnorm8) {
     ASSERT_TRUE(m.source_error.known) << m.variant.Key();
     EXPECT_GT(m.source_error.diagonal, 0.0);
     EXPECT_NEAR(m.source_error.position_rel, m.source_error.position_abs / m.source_error.diagonal, 1e-12);
-    if (m.variant.weight == WeightFormat::kF32) EXPECT_EQ(m.source_error.quantisation_rel, 0.0);
+    if (m.variant.weight == WeightFormat::kF32) {
+      EXPECT_EQ(m.source_error.quantisation_rel, 0.0);
+    }
     if (m.variant.weight == WeightFormat::kUnorm8) {
       EXPECT_EQ(m.status, MeasureStatus::kTooImprecise) << m.detail;
       EXPECT_GT(m.source_error.quantisation_rel, kDefaultBudget);
