@@ -405,6 +405,7 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
                                       std::string(source.instanced ? ", K palettes" : "") + ")"},
                         {"buffer", "created with clCreateImage (CL_MEM_OBJECT_IMAGE1D_BUFFER) over the palette buffer"},
                         {"read", "read_imagef(palette, j*R + r)"}};
+        if (source.joints > 0 && !source.instanced) arg["image"]["width_texels"] = source.joints * rows;
       } else if (IsGlsl(source.lang) && variant.storage == PaletteStorage::kImage) {
         arg["texture"] = {{"type", "samplerBuffer"}, {"internal_format", "GL_RGBA32F"},
                           {"read", "texelFetch(palette_texels, j*R + r)"}};

@@ -150,7 +150,8 @@ nlohmann::json WinnerJson(const WinnersEntry& e) {
 // fastest within the budget (f32 always is; an entry whose error is not
 // recorded, from a database before 1.3.0, never is: warned and skipped, as
 // Selection::Find does).
-std::vector<const WinnersEntry*> WithinBudget(const std::vector<const WinnersEntry*>& entries, double max_error) {
+std::vector<const WinnersEntry*> FastestWithinBudget(const std::vector<const WinnersEntry*>& entries,
+                                                     double max_error) {
   std::map<std::tuple<std::string, int, int, std::size_t>, const WinnersEntry*> best;
   std::vector<std::tuple<std::string, int, int, std::size_t>> order;
   for (const WinnersEntry* e : entries) {
@@ -187,8 +188,8 @@ int RunEmitDb(const EmitArgs& o) {
   const std::string asked =
       "--device '" + o.device + "'" + (o.langs.empty() ? "" : " and --lang " + Joined(o.langs, ", "));
   if (matched.empty()) throw Error(o.db + ": no winner matches " + asked + " (" + DevicesOf(entries) + ")");
-  matched = WithinBudget(matched, o.max_error_text.empty() ? kDefaultBudget : ParseMaxError(o.max_error_text,
-                                                                                                "--max-error"));
+  const double max_error = o.max_error_text.empty() ? kDefaultBudget : ParseMaxError(o.max_error_text, "--max-error");
+  matched = FastestWithinBudget(matched, max_error);
   if (matched.empty())
     throw Error(o.db + ": no winner matching " + asked + " is within the error budget (see the warnings above; "
                        "--max-error sets a larger one)");

@@ -73,8 +73,9 @@ int Check(const SkinOptions& o, const SkinnedMesh& mesh, const std::vector<glm::
     const double quantisation = MaxDistance(gold.positions, source_gold.positions);
     std::cout << o.check << " against the unquantised source: largest error " << source.max_absolute
               << " (mesh units), " << (diagonal > 0.0 ? source.max_absolute / diagonal : 0.0)
-              << " of the bounding-box diagonal " << diagonal << "; the " << Name(ParseVariantKey(o.check_variant).weight)
-              << " weights alone cost " << (diagonal > 0.0 ? quantisation / diagonal : 0.0) << " of it\n";
+              << " of the bounding-box diagonal " << diagonal << "; the "
+              << Name(ParseVariantKey(o.check_variant).weight) << " weights alone cost "
+              << (diagonal > 0.0 ? quantisation / diagonal : 0.0) << " of it\n";
   }
   if (!ok)
     throw Error(o.check + ": vertex " + std::to_string(c.worst_vertex) + " is off by " +

@@ -248,7 +248,8 @@ Built BuildFromSidecar(const std::string& key) {
   // Contract item 8: stable ascending sort by count, one launch (and kernel) per count present.
   const json& bucketed = sidecar.at("bucketed");
   EXPECT_TRUE(bucketed.at("bucketed").get<bool>());
-  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t c) { return count_of(a) < count_of(c); });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::uint32_t a, std::uint32_t c) { return count_of(a) < count_of(c); });
   b.packed.order = order;
   for (std::size_t first = 0; first < order.size();) {
     const int k = count_of(order[first]);

@@ -262,7 +262,9 @@ TEST(OpenClSkinner, TheErrorBudgetChoosesThePrecisionClassAndExactWeightsCostNot
   TempDir dir;
   OPEN_OR_SKIP(device, CacheIn(dir));
   const std::string base = "opencl.b4.padded.soa.float4.u16.%.mat3x4.global.matrix.v1c.wg64";
-  auto key = [&](const char* weight) { return base.substr(0, base.find('%')) + weight + base.substr(base.find('%') + 1); };
+  auto key = [&](const char* weight) {
+    return base.substr(0, base.find('%')) + weight + base.substr(base.find('%') + 1);
+  };
   const WinnersDb db = DbOf({EntryFor(device->info(), key("f32"), 0.0, 3.0),
                              EntryFor(device->info(), key("unorm16"), 5e-6, 2.0),
                              EntryFor(device->info(), key("unorm8"), 1e-3, 1.0)});

@@ -502,9 +502,8 @@ TEST(TuneCliPrecision, BadMaxErrorIsOneLineNamingTheFlagOrField) {
   const std::string negative = WriteConfig(dir, c, "negative.json");
   const BadRun below = RunIntoExistingOut(dir, {"--config", negative});
   EXPECT_EQ(below.result.exit_code, 1);
-  EXPECT_EQ(below.result.err.rfind("skintune: error: " + negative + ": max_error: is -0.5: must be a finite number >= 0", 0),
-            0u)
-      << below.result.err;
+  const std::string expected = "skintune: error: " + negative + ": max_error: is -0.5: must be a finite number >= 0";
+  EXPECT_EQ(below.result.err.rfind(expected, 0), 0u) << below.result.err;
   EXPECT_TRUE(below.report_untouched);
 }
 
