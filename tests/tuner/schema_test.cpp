@@ -90,6 +90,16 @@ TEST(Schema, ReportsWithSourceErrorsTooImpreciseAndPrecisionClassesValidate) {
   const nlohmann::json j = ReportToJson(report);
   EXPECT_EQ(Validate(j, "report.schema.json", "precision"), 0);
   EXPECT_EQ(Validate(WinnersDatabase(report), "winners-db.schema.json", "precision-db"), 0);
+  const nlohmann::json t4 = ReportToT4(report);
+  EXPECT_EQ(Validate(t4, "t4-results.schema.json", "precision-t4"), 0);
+  int too_imprecise = 0;
+  for (const nlohmann::json& result : t4.at("results")) {
+    if (result.at("status") != "too_imprecise") continue;
+    ++too_imprecise;
+    EXPECT_EQ(result.at("correctness"), 1);  // right, only over the budget
+    EXPECT_EQ(result.at("times").at("runtimes").size(), 1u);
+  }
+  EXPECT_GT(too_imprecise, 0);
   nlohmann::json bad = j;
   for (nlohmann::json& m : bad["measurements"])
     if (m.contains("source_error")) m["source_error"].erase("quantisation_rel");
