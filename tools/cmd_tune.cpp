@@ -2,154 +2,31 @@
 // device found, each device in its own child process (skintune tune-worker),
 // with a resumable measurement cache; writes the report, its T4 export and the
 // winners database, and prints the winners.
-#include <sys/ioctl.h>
-#include <unistd.h>
-
-#include <algorithm>
-#include <chrono>
-#include <cstdio>
-#include <filesystem>
-#include <fstream>
 #include <iostream>
-#include <map>
-#include <set>
-#include <sstream>
+#include <memory>
+#include <string>
 
-#include <nlohmann/json.hpp>
-
-#include "reference/error.h"
-#include "reference/mesh_io.h"
 #include "tools/commands.h"
 #include "tools/progress.h"
-#include "tuner/report.h"
-#include "tuner/tune.h"
+#include "tools/tune_job.h"
 
 namespace skintune::tools {
 
 namespace {
 
-namespace fs = std::filesystem;
-
 struct TuneCliOptions {
-  std::string config;
-  std::string device;
-  std::vector<std::string> langs;
-  std::string strategy;
+  TuneJobOptions job;
   std::string budget_text;  // checked by BudgetCheck
-  std::string out = "results";
-  bool quiet = false;
 };
 
-bool EndsWith(const std::string& text, const std::string& suffix) {
-  return text.size() >= suffix.size() && text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
-// --config NAME (a built-in config: no '/' and no .json) or FILE.
-TuneConfig LoadConfig(const std::string& config) {
-  const std::string name = config.empty() ? "default" : config;
-  if (name.find('/') == std::string::npos && !EndsWith(name, ".json")) {
-    std::string text;
-    try {
-      text = EmbeddedConfig(name);
-    } catch (const Error& e) {
-      throw Error("--config '" + name + "': not a file path (no '/' or .json) and " + e.what());
-    }
-    return ConfigFromJson(ParseJson(text, name), name);
-  }
-  return ConfigFromJson(ReadJsonFile(name), name);
-}
-
-void PrintWinners(const TuningReport& report) {
-  const std::vector<Winner> winners = ComputeWinners(report);
-  std::map<std::string, std::string> names;
-  for (const DeviceIdentity& d : report.devices) names[d.Id()] = d.name;
-  std::vector<std::vector<std::string>> rows = {
-      {"device", "lang", "B", "vertices", "variant", "ms", "GB/s", "of copy"}};
-  for (const Winner& w : winners) {
-    char ms[32], gbps[32], fraction[32];
-    std::snprintf(ms, sizeof ms, "%.3f", w.median_ms);
-    std::snprintf(gbps, sizeof gbps, "%.1f", w.gbps);
-    if (w.copy_fraction > 0.0) {
-      std::snprintf(fraction, sizeof fraction, "%.0f%%", 100.0 * w.copy_fraction);
-    } else {
-      std::snprintf(fraction, sizeof fraction, "-");
-    }
-    const auto name = names.find(w.device_id);
-    rows.push_back({name != names.end() ? name->second : w.device_id, Name(w.lang), std::to_string(w.influences),
-                    VertexCountName(w.vertices), w.variant.Key(), ms, gbps, fraction});
-  }
-  std::map<std::string, std::size_t> statuses;
-  for (const Measurement& m : report.measurements) ++statuses[Name(m.status)];
-  std::string counts;
-  for (const auto& [status, n] : statuses) counts += (counts.empty() ? "" : ", ") + std::to_string(n) + " " + status;
-  if (winners.empty()) {
-    std::cout << "no variant passed verification on any device\n";
-  } else {
-    std::vector<std::size_t> widths(rows.front().size(), 0);
-    for (const auto& row : rows) {
-      for (std::size_t c = 0; c < row.size(); ++c) widths[c] = std::max(widths[c], row[c].size());
-    }
-    const std::set<std::size_t> right = {2, 5, 6, 7};  // numbers
-    for (const auto& row : rows) {
-      std::string line;
-      for (std::size_t c = 0; c < row.size(); ++c) {
-        const std::string pad(widths[c] - row[c].size(), ' ');
-        line += right.count(c) ? pad + row[c] : row[c] + (c + 1 < row.size() ? pad : "");
-        if (c + 1 < row.size()) line += "  ";
-      }
-      std::cout << line << "\n";
-    }
-  }
-  std::cout << "measurements: " << (counts.empty() ? "none" : counts) << "\n";
-}
-
-int RunTune(const TuneCliOptions& o, bool budget_given) {
-  TuneConfig config = LoadConfig(o.config);
-  if (!o.strategy.empty()) config.strategy.name = o.strategy;
-  if (budget_given) config.strategy.budget = *ParseWholeNumber(o.budget_text, kMaxBudget);
-  if (config.strategy.name == "random" && config.strategy.budget == 0) {
-    throw Error("the random strategy needs a budget: --budget N (evaluations per device, language and dataset)");
-  }
-
-  TuneOptions options;
-  options.device_pattern = o.device;
-  for (const std::string& l : o.langs) options.languages.push_back(LangFromName(l));
-  options.worker_executable = SelfExecutable();
-
-  // The output directory and every file written at the end: checked (and the
-  // cache opened) before any device work.
-  const fs::path out = OutputDirectory(o.out);
-  options.cache_path = (out / "cache.jsonl").string();
-  for (const char* name : {"report.json", "report.t4.json", "winners-db.json"}) CheckWritable((out / name).string());
-
-  Progress progress(::isatty(2) != 0, "tune");
-  if (!o.quiet) {
-    options.progress = [&progress](std::size_t done, std::size_t total, const std::string& what) {
-      progress.Update(done, total, what);
-    };
-  }
-  TuningReport report;
-  try {
-    report = RunTuning(config, options);
-  } catch (...) {
-    progress.Finish(false);
-    throw;
-  }
-  progress.Finish(true);
-
-  // Everything is computed before anything is written; each file is replaced atomically.
-  const std::string report_text = ReportToJson(report).dump(2) + "\n";
-  const std::string t4_text = ReportToT4(report).dump(2) + "\n";
-  const std::string db_text = WinnersDatabase(report).dump(2) + "\n";
-  WriteFileAtomically((out / "report.json").string(), report_text);
-  WriteFileAtomically((out / "report.t4.json").string(), t4_text);
-  WriteFileAtomically((out / "winners-db.json").string(), db_text);
-
-  PrintWinners(report);
-  if (!o.quiet) {
-    std::cerr << "skintune: tune: wrote " << (out / "report.json").string() << ", "
-              << (out / "report.t4.json").string() << ", " << (out / "winners-db.json").string() << " (cache "
-              << options.cache_path << ")\n";
+int RunTune(TuneCliOptions o, bool budget_given) {
+  if (budget_given) o.job.budget = *ParseWholeNumber(o.budget_text, kMaxBudget);
+  const TuneJobResult result = RunTuneJob(o.job);
+  PrintWinners(result.report);
+  if (!o.job.quiet) {
+    std::string written;
+    for (const auto& path : result.written) written += (written.empty() ? "" : ", ") + path.string();
+    std::cerr << "skintune: tune: wrote " << written << " (cache " << result.cache.string() << ")\n";
   }
   return 0;
 }
@@ -169,22 +46,13 @@ Command RegisterTune(CLI::App& app) {
   auto o = std::make_shared<TuneCliOptions>();
   auto* sub = app.add_subcommand(
       "tune", "time and verify the variants of a tuning space on every device found; write the report and winners");
-  sub->add_option("--config", o->config,
-                  "tuning config: a JSON file (configs/*.json), or a built-in name: default, paper (default: default)");
-  sub->add_option("--device", o->device,
-                  "only devices whose 'backend: platform / name' (or vendor, version) contains this "
-                  "(case-insensitive)");
-  sub->add_option("--lang", o->langs, "only these languages: opencl, cuda, glsl-compute, glsl-vertex");
-  sub->add_option("--strategy", o->strategy, "search strategy (overrides the config's)")
+  AddTuneJobOptions(*sub, o->job);
+  sub->add_option("--strategy", o->job.strategy, "search strategy (overrides the config's)")
       ->check(CLI::IsMember({"exhaustive", "random", "coordinate"}));
   auto* budget = sub->add_option("--budget", o->budget_text,
                                  "evaluations per device, language and dataset, 0 to " + std::to_string(kMaxBudget) +
                                      " (overrides the config's)")
                      ->check(BudgetCheck());
-  sub->add_option("--out", o->out,
-                  "output directory: cache.jsonl (resumable: reused by the next run), report.json, report.t4.json, "
-                  "winners-db.json (default: results)");
-  sub->add_flag("--quiet", o->quiet, "no progress on stderr");
   return {sub, [o, budget] { return RunTune(*o, budget->count() > 0); }};
 }
 

@@ -49,7 +49,18 @@ class Backend {
                               const TimingOptions& options) = 0;
   // A plain copy kernel over `bytes` (read + written per second), GB/s.
   virtual double CopyBandwidthGBps(std::size_t bytes) = 0;
+  // Compiles the kernels of `variants` (valid ones) ahead of their Measure,
+  // in parallel where the API allows it, into the program cache that Measure
+  // then loads from. A kernel that fails to compile is left for Measure to
+  // record. Returns how many kernels were compiled (or found compiled); a
+  // backend that cannot compile ahead compiles nothing and returns 0.
+  virtual std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) = 0;
 };
+
+// Whether the devices of `backend` ("opencl", "cuda", "gl") compile kernels
+// ahead of their Measure (Backend::CompileAhead; device_backend.cpp says why
+// each API is in or out).
+bool CompilesAhead(const std::string& backend);
 
 struct Discovery {
   std::vector<std::unique_ptr<Backend>> backends;

@@ -1,7 +1,14 @@
 // skintune: the tuner's Backend on any device of any API: identity, limits
 // and languages from the runtime's discovery (runtime/backend_table.h),
-// Measure and the copy bandwidth through the runner driver (runtime/runner.h).
+// Measure and the copy bandwidth through the runner driver (runtime/runner.h),
+// programs through the on-disk program cache (runtime/program_cache.h), which
+// CompileAhead fills from several threads.
+#include <algorithm>
+#include <atomic>
 #include <memory>
+#include <set>
+#include <string_view>
+#include <thread>
 #include <utility>
 
 #include "tuner/backends_internal.h"
@@ -9,6 +16,22 @@
 namespace skintune::tuner_internal {
 
 namespace {
+
+// The APIs whose kernels CompileAhead builds on several threads, each thread
+// with a runner (and program cache object) of its own, so that no API object
+// is shared between threads:
+// - opencl: clBuildProgram of distinct programs in distinct contexts is
+//   thread-safe (OpenCL 1.2, appendix A.2); PoCL builds them in parallel;
+// - cuda: NVRTC compiles are thread-safe, so is the driver API, and every
+//   runner shares the device's primary context.
+// Not gl: a GL program is compiled on the thread its context is current on;
+// compiling ahead would need a shared context per thread or the driver's own
+// compiler threads (KHR_parallel_shader_compile), neither done yet, so GL
+// compiles one kernel at a time in Measure, as before.
+constexpr std::string_view kCompileAheadBackends[] = {"opencl", "cuda"};
+
+// At most this many compile threads (each holds a context of the device).
+constexpr unsigned kMaxCompileThreads = 8;
 
 class DeviceBackend final : public Backend {
  public:
@@ -31,9 +54,61 @@ class DeviceBackend final : public Backend {
     return CopyGBps(size, Runner().TimeCopy(size, 2, 10));
   }
 
+  std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) override {
+    if (!cache_.enabled() || !CompilesAhead(device_.identity.backend)) return 0;
+    // The kernels, emitted here (one thread): as Measure emits them, without
+    // the injected fault's variant (Measure makes that one fail on purpose).
+    const InjectedFault fault = InjectedFaultFromEnvironment();
+    DatasetCache::Entry& data = datasets_.Get(dataset.key);
+    std::vector<KernelSource> kernels;
+    std::set<std::string> hashes;
+    for (const Variant& v : variants) {
+      if (!fault.kind.empty() && fault.variant_key == v.Key()) continue;
+      try {
+        const PackedMesh packed = Pack(data.asset.mesh, v);
+        for (const Launch& launch : packed.launches) {
+          KernelSource k = Emit(v, launch.influences, static_cast<int>(packed.palette_joints));
+          if (hashes.insert(k.source_hash).second) kernels.push_back(std::move(k));
+        }
+      } catch (const Error&) {
+        // Not packable or emittable: Measure records it (invalid).
+      }
+    }
+    if (kernels.empty()) return 0;
+    const unsigned threads = std::clamp<unsigned>(std::thread::hardware_concurrency(), 1u,
+                                                  std::min<std::size_t>(kMaxCompileThreads, kernels.size()));
+    std::atomic<std::size_t> next{0}, built{0};
+    auto work = [&] {
+      ProgramCache cache(cache_.dir());
+      std::unique_ptr<skintune::Runner> runner;
+      try {
+        runner = device_.open();
+      } catch (const Error&) {
+        return;  // no second context: the kernels compile in Measure
+      }
+      runner->UseProgramCache(&cache, device_.identity.Id());
+      for (std::size_t i = next++; i < kernels.size(); i = next++) {
+        try {
+          runner->Build(kernels[i]);
+          ++built;
+        } catch (const Error&) {
+          // A compile failure is Measure's to record (compile_failed).
+        }
+      }
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
+    work();
+    for (std::thread& t : pool) t.join();
+    return built;
+  }
+
  private:
   skintune::Runner& Runner() {
-    if (!runner_) runner_ = device_.open();
+    if (!runner_) {
+      runner_ = device_.open();
+      if (cache_.enabled()) runner_->UseProgramCache(&cache_, device_.identity.Id());
+    }
     return *runner_;
   }
 
@@ -41,6 +116,7 @@ class DeviceBackend final : public Backend {
   std::vector<Lang> languages_;
   std::unique_ptr<skintune::Runner> runner_;  // made on first use
   DatasetCache datasets_;
+  ProgramCache cache_{""};  // ProgramCache::DefaultDir(): $SKINTUNE_CACHE_DIR, ...
 };
 
 }  // namespace
@@ -50,3 +126,12 @@ std::unique_ptr<Backend> MakeDeviceBackend(FoundDevice device, std::vector<Lang>
 }
 
 }  // namespace skintune::tuner_internal
+
+namespace skintune {
+
+bool CompilesAhead(const std::string& backend) {
+  const auto& list = tuner_internal::kCompileAheadBackends;
+  return std::find(std::begin(list), std::end(list), backend) != std::end(list);
+}
+
+}  // namespace skintune
