@@ -111,7 +111,7 @@ void PrintDeviceWinners(const TuningReport& report) {
     }
     std::cout << FormatTable(rows, {1, 2, 5, 6, 7, 8});
   }
-  for (const std::string& s : report.skipped) std::cout << "skipped: " << s << "\n";
+  for (const std::string& s : report.skipped) std::cout << "not tuned: " << s << "\n";
   std::map<std::string, std::size_t> statuses;
   for (const Measurement& m : report.measurements) ++statuses[Name(m.status)];
   std::string counts;

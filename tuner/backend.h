@@ -57,10 +57,10 @@ class Backend {
   virtual std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) = 0;
 };
 
-// Whether the devices of `backend` ("opencl", "cuda", "gl") compile kernels
-// ahead of their Measure (Backend::CompileAhead; device_backend.cpp says why
-// each API is in or out).
-bool CompilesAhead(const std::string& backend);
+// Whether `device` compiles kernels ahead of their Measure
+// (Backend::CompileAhead; device_backend.cpp says why each API and device
+// type is in or out).
+bool CompilesAhead(const DeviceIdentity& device);
 
 struct Discovery {
   std::vector<std::unique_ptr<Backend>> backends;

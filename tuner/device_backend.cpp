@@ -1,7 +1,7 @@
 // skintune: the tuner's Backend on any device of any API: identity, limits
 // and languages from the runtime's discovery (runtime/backend_table.h),
 // Measure and the copy bandwidth through the runner driver (runtime/runner.h),
-// programs through the on-disk program cache (runtime/program_cache.h), which
+// programs through the on-disk program cache (runtime/program_cache.h) on GPUs, which
 // CompileAhead fills from several threads.
 #include <algorithm>
 #include <atomic>
@@ -33,6 +33,18 @@ constexpr std::string_view kCompileAheadBackends[] = {"opencl", "cuda"};
 // At most this many compile threads (each holds a context of the device).
 constexpr unsigned kMaxCompileThreads = 8;
 
+bool IsCpu(const DeviceIdentity& d) { return d.type.find("cpu") != std::string::npos; }
+
+// CPU devices (PoCL) keep compiled kernels in a cache of their own (PoCL's
+// kernel cache), which a build from source finds; skintune's program cache
+// is not used for them: reading a PoCL program back (CL_PROGRAM_BINARIES) for
+// it made a cold tune of 48 kernels on 100k-b2 38 s instead of 17 s on the
+// 2-core development machine (docs/PERFORMANCE.md). Compiling ahead fills
+// PoCL's cache, and pays only with enough cores to compile on: on 2 cores it
+// measured no gain (the compiles cost the same, two at a time), so a CPU
+// device compiles ahead only on a host with at least this many logical CPUs.
+constexpr unsigned kMinCpusToCompileAheadForACpuDevice = 8;
+
 class DeviceBackend final : public Backend {
  public:
   DeviceBackend(FoundDevice device, std::vector<Lang> languages, int index)
@@ -55,7 +67,7 @@ class DeviceBackend final : public Backend {
   }
 
   std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) override {
-    if (!cache_.enabled() || !CompilesAhead(device_.identity.backend)) return 0;
+    if (!CompilesAhead(device_.identity)) return 0;
     // The kernels, emitted here (one thread): as Measure emits them, without
     // the injected fault's variant (Measure makes that one fail on purpose).
     const InjectedFault fault = InjectedFaultFromEnvironment();
@@ -79,14 +91,14 @@ class DeviceBackend final : public Backend {
                                                   std::min<std::size_t>(kMaxCompileThreads, kernels.size()));
     std::atomic<std::size_t> next{0}, built{0};
     auto work = [&] {
-      ProgramCache cache(cache_.dir());
+      ProgramCache cache(cache_.enabled() ? cache_.dir() : "-");
       std::unique_ptr<skintune::Runner> runner;
       try {
         runner = device_.open();
       } catch (const Error&) {
         return;  // no second context: the kernels compile in Measure
       }
-      runner->UseProgramCache(&cache, device_.identity.Id());
+      if (cache.enabled()) runner->UseProgramCache(&cache, device_.identity.Id());
       for (std::size_t i = next++; i < kernels.size(); i = next++) {
         try {
           runner->Build(kernels[i]);
@@ -116,7 +128,8 @@ class DeviceBackend final : public Backend {
   std::vector<Lang> languages_;
   std::unique_ptr<skintune::Runner> runner_;  // made on first use
   DatasetCache datasets_;
-  ProgramCache cache_{""};  // ProgramCache::DefaultDir(): $SKINTUNE_CACHE_DIR, ...
+  // ProgramCache::DefaultDir() ($SKINTUNE_CACHE_DIR, ...); none for a CPU device.
+  ProgramCache cache_{IsCpu(device_.identity) ? "-" : ""};
 };
 
 }  // namespace
@@ -129,9 +142,11 @@ std::unique_ptr<Backend> MakeDeviceBackend(FoundDevice device, std::vector<Lang>
 
 namespace skintune {
 
-bool CompilesAhead(const std::string& backend) {
+bool CompilesAhead(const DeviceIdentity& device) {
   const auto& list = tuner_internal::kCompileAheadBackends;
-  return std::find(std::begin(list), std::end(list), backend) != std::end(list);
+  if (std::find(std::begin(list), std::end(list), device.backend) == std::end(list)) return false;
+  return !tuner_internal::IsCpu(device) ||
+         std::thread::hardware_concurrency() >= tuner_internal::kMinCpusToCompileAheadForACpuDevice;
 }
 
 }  // namespace skintune

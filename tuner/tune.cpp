@@ -599,7 +599,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
           for (std::size_t i = 0; i < n; ++i)
             if (!cached(cache_key_of(task.candidates[i]))) ahead.push_back(task.candidates[i]);
         }
-        if (ahead.size() > 1 && CompilesAhead(device.identity.backend)) {
+        if (ahead.size() > 1 && CompilesAhead(device.identity)) {
           advance(run, task_start, device_name + ": compiling " + std::to_string(ahead.size()) + " kernels for " + key);
           worker.CompileAhead(ahead, TuningDataset{key});
         }
