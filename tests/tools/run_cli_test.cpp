@@ -117,9 +117,9 @@ TEST(RunCli, TunesEveryDeviceWritesTheFilesAndPrintsEachDevicesWinners) {
   EXPECT_EQ(again.out.find("CPU reference"), std::string::npos);
   // (The copy bandwidth, and so copy_fraction, is measured again.)
   auto timed = [](const nlohmann::json& ws) {
-    std::map<std::string, double> out;
-    for (const nlohmann::json& w : ws) out[w.at("variant").at("key").get<std::string>()] = w.at("median_ms").get<double>();
-    return out;
+    std::map<std::string, double> times;
+    for (const nlohmann::json& w : ws) times[w.at("variant").at("key").get<std::string>()] = w.at("median_ms").get<double>();
+    return times;
   };
   EXPECT_EQ(timed(nlohmann::json::parse(ReadAll(out / "report.json")).at("winners")), timed(winners));
   EXPECT_EQ(again.err.find("compiling"), std::string::npos) << again.err;  // nothing left to compile ahead
@@ -153,7 +153,7 @@ TEST(RunCli, BadInputIsOneErrorLineAndLeavesThePreviousResults) {
   EXPECT_NE(r.exit_code, 0);
   EXPECT_EQ(CountLines(r.err), 1) << r.err;
   EXPECT_NE(r.err.find("report.html"), std::string::npos) << r.err;
-  for (const std::string& name : {"report.json", "report.t4.json", "winners-db.json"})
+  for (const std::string name : {"report.json", "report.t4.json", "winners-db.json"})
     EXPECT_EQ(ReadAll(out / name), before.at(name)) << name;
 
   // --out naming a file.
