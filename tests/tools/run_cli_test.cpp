@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/common/scratch_dir.h"
+#include "tests/common/tiny_tune_config.h"
 #include "tests/tools/run_command.h"
 
 namespace skintune {
@@ -31,28 +32,13 @@ fs::path Scratch() { return skintune::testing::ScratchDir("skintune_run_cli_test
 const std::vector<std::string> kOutputs = {"report.json", "report.t4.json", "winners-db.json", "report.html"};
 
 std::string TinyConfig(const fs::path& dir) {
-  const nlohmann::json config = {
-      {"description", "run_cli_test"},
-      {"space",
-       {{"lang", {"opencl", "glsl-compute"}},
-        {"influences", {2}},
-        {"mixed", {"padded"}},
-        {"layout", {"soa"}},
-        {"position", {"float4"}},
-        {"index", {"u16", "u8"}},
-        {"weight", {"f32"}},
-        {"palette", {"mat3x4"}},
-        {"storage", {"global"}},
-        {"blend", {"matrix"}},
-        {"vertices_per_item", {1}},
-        {"assignment", {"contiguous"}},
-        {"wg_size", {64}},
-        {"normals", {false}}}},
-      {"datasets", {"5000-b2"}},
-      {"timing", {{"warmup", 1}, {"repetitions", 3}, {"max_input_sets", 2}}},
-      {"variant_timeout_s", 20}};
+  testing::TinyTuneConfig config;
+  config.langs = {"opencl", "glsl-compute"};
+  config.indices = {"u16", "u8"};
+  config.max_input_sets = 2;
+  config.variant_timeout_s = 20;
   const fs::path path = dir / "tiny.json";
-  std::ofstream(path) << config.dump(2);
+  std::ofstream(path) << config.Json().dump(2);
   return path.string();
 }
 

@@ -1,0 +1,45 @@
+// A tuning config of a few variants for the command-line tests: the given
+// languages, layouts and index formats at `influences`, every other axis at
+// one value (float4, f32, mat3x4 in global memory, matrix, v1c, wg64), on one
+// dataset, timed briefly.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace skintune::testing {
+
+struct TinyTuneConfig {
+  std::vector<std::string> langs = {"opencl"};
+  std::vector<std::string> layouts = {"soa"};
+  std::vector<std::string> indices = {"u16"};
+  std::string dataset = "5000-b2";
+  int influences = 2;
+  int max_input_sets = 1;
+  double variant_timeout_s = 30;
+
+  nlohmann::json Json() const {
+    return {{"space",
+             {{"lang", langs},
+              {"influences", {influences}},
+              {"mixed", {"padded"}},
+              {"layout", layouts},
+              {"position", {"float4"}},
+              {"index", indices},
+              {"weight", {"f32"}},
+              {"palette", {"mat3x4"}},
+              {"storage", {"global"}},
+              {"blend", {"matrix"}},
+              {"vertices_per_item", {1}},
+              {"assignment", {"contiguous"}},
+              {"wg_size", {64}},
+              {"normals", {false}}}},
+            {"datasets", {dataset}},
+            {"timing", {{"warmup", 1}, {"repetitions", 3}, {"max_input_sets", max_input_sets}}},
+            {"variant_timeout_s", variant_timeout_s}};
+  }
+};
+
+}  // namespace skintune::testing
