@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "reference/error.h"
+#include "generator/copy_kernel.h"
 #include "runtime/output_check.h"
 #include "runtime/run_shape.h"
 
@@ -257,9 +258,15 @@ constexpr double kWarmupMaxMs = 1000.0;
 constexpr std::size_t kProbeBytes = 8u << 20;
 constexpr double kStillWarm = 1.15;
 
-std::optional<double> Runner::ProbeMs() {
+std::optional<double> Runner::ProbeMs(const Prepared::Impl& p) {
   try {
-    std::vector<double> ms = api_->TimeCopy(kProbeBytes, 1, 5);
+    if (p.launches.empty()) return std::nullopt;
+    const Lang lang = p.launches.front()->spec.variant.lang;
+    if (!probe_ || probe_lang_ != lang) {
+      probe_ = std::make_unique<Prepared>(PrepareCopy(lang, kProbeBytes, 1));
+      probe_lang_ = lang;
+    }
+    std::vector<double> ms = TimeFrames(*probe_->impl_, 1, 5, 1);
     if (ms.empty()) return std::nullopt;
     std::sort(ms.begin(), ms.end());
     const double median = ms[ms.size() / 2];
@@ -277,7 +284,7 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
   };
   bool warm = false;
   if (warm_probe_ms_) {
-    const std::optional<double> probe = ProbeMs();
+    const std::optional<double> probe = ProbeMs(p);
     warm = probe && *probe <= kStillWarm * *warm_probe_ms_;
     if (warm) warm_probe_ms_ = std::min(*warm_probe_ms_, *probe);
   }
@@ -299,31 +306,55 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
   }
   if (!warm) {
     // Just warmed: the probe's time at this clock (the fastest seen is kept).
-    if (const std::optional<double> probe = ProbeMs())
+    if (const std::optional<double> probe = ProbeMs(p))
       warm_probe_ms_ = warm_probe_ms_ ? std::min(*warm_probe_ms_, *probe) : *probe;
   }
 }
 
-std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int repetitions) {
+std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int bursts, int burst_frames) {
   api_->MakeCurrent();
   const Prepared::Impl* p = prepared.impl_.get();
   if (!p || p->sets.empty()) Fail("launch", "Time: nothing prepared");
   warmup = std::max(warmup, 0);
-  repetitions = std::max(repetitions, 0);
+  bursts = std::max(bursts, 0);
+  burst_frames = std::max(burst_frames, 1);
   if (api_->timing_policy().warm_until_stable) WarmUntilStable(*p);
+  return TimeFrames(*p, warmup, bursts, burst_frames);
+}
+
+std::vector<double> Runner::TimeFrames(const Prepared::Impl& p, int warmup, int bursts, int burst_frames) {
   FrameRun run;
   run.use = FrameUse::kTime;
-  run.key = p->key;
+  run.key = p.key;
   run.untimed = warmup;
-  for (int frame = 0; frame < warmup + repetitions; ++frame)
-    run.frames.push_back(p->Frame(static_cast<std::size_t>(frame) % p->sets.size()));
+  run.burst = burst_frames;
+  for (int frame = 0; frame < warmup + bursts * burst_frames; ++frame)
+    run.frames.push_back(p.Frame(static_cast<std::size_t>(frame) % p.sets.size()));
   std::vector<double> ms;
-  for (const std::vector<double>& launches : api_->RunFrames(run)) {
-    double total = 0.0;
-    for (const double launch : launches) total += launch;
-    ms.push_back(total);
+  for (const std::vector<double>& burst : api_->RunFrames(run)) {
+    if (burst.size() != 1)
+      Fail("launch", "timing " + p.key + ": the device gave " + std::to_string(burst.size()) + " times for a burst");
+    ms.push_back(burst.front() / burst_frames);
   }
   return ms;
+}
+
+int Runner::BurstFrames(const Prepared& prepared, int warmup, double burst_ms) {
+  std::vector<double> one = Time(prepared, warmup, 3, 1);
+  if (one.empty()) return 1;
+  std::sort(one.begin(), one.end());
+  const double frame_ms = one[one.size() / 2];
+  if (!(frame_ms > 0.0) || !(burst_ms > 0.0)) return frame_ms > 0.0 ? 1 : kMaxBurstFrames;
+  return static_cast<int>(std::clamp(std::ceil(burst_ms / frame_ms), 1.0, static_cast<double>(kMaxBurstFrames)));
+}
+
+Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {
+  const CopyKernel copy = EmitCopy(lang, bytes);
+  const std::vector<std::vector<std::uint8_t>> palettes(static_cast<std::size_t>(std::max(input_sets, 1)),
+                                                        copy.mesh.palette);
+  Prepared prepared = Prepare(copy.mesh, std::span<const KernelSource>(&copy.kernel, 1), palettes);
+  prepared.impl_->key = "the copy of " + std::to_string(CopyBytes(copy)) + " bytes";
+  return prepared;
 }
 
 // ---------------------------------------------------------------- skinning
@@ -372,13 +403,6 @@ void Runner::Finish() {
   api_->Finish();
 }
 
-std::vector<double> Runner::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
-  api_->MakeCurrent();
-  bytes -= bytes % 16;
-  if (bytes == 0) Fail("launch", "copy of less than 16 bytes");
-  return api_->TimeCopy(bytes, std::max(warmup, 0), std::max(repetitions, 0));
-}
-
 // ---------------------------------------------------------------- shared by the APIs
 
 std::size_t DeviceApi::PaletteBufferBytes(const RunShape& shape, std::span<const KernelSource>) const {
@@ -386,13 +410,6 @@ std::size_t DeviceApi::PaletteBufferBytes(const RunShape& shape, std::span<const
 }
 
 const char* DeviceApi::OutputWriter(const Variant&) const { return "kernel"; }
-
-std::vector<std::uint32_t> CopyPattern(std::size_t words) {
-  std::vector<std::uint32_t> pattern(words);
-  std::uint32_t x = 0x9e3779b9u;
-  for (std::uint32_t& w : pattern) w = x = x * 1664525u + 1013904223u;
-  return pattern;
-}
 
 std::string HashOf(const KernelSource& source) {
   return source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;

@@ -3,8 +3,9 @@
 // job of `skintune tune` on every device found (progress bar with ETA on
 // stderr), writing report.json, report.t4.json, winners-db.json and
 // report.html into results/ (or --out) together, then per device the winner
-// of each language and dataset, the HTML report's path and the `skintune emit
-// --db` command that takes the kernels into another build.
+// of each language and dataset (time, GB/s, time over a same-size copy,
+// verification error), the HTML report's path and the `skintune emit --db`
+// command that takes the kernels into another build.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -77,20 +78,19 @@ std::string Fixed(double value, int decimals) {
   return text;
 }
 
-// The winner's time against a plain copy of the device (GB/s over the copy
-// kernel's GB/s), "-" when the copy bandwidth was not measured.
-std::string OfCopy(const Winner& w) { return w.copy_fraction > 0.0 ? Fixed(100.0 * w.copy_fraction, 0) + "%" : "-"; }
+// The winner's time over a copy of the same bytes timed the same way
+// (Measurement::x_copy, docs/TUNING.md "Timing"), "-" when there is none.
+std::string TimesCopy(const Winner& w) { return w.x_copy > 0.0 ? Fixed(w.x_copy, 2) : "-"; }
 
 // Per device (in report order): its winners, one per language, B and vertex count.
 void PrintDeviceWinners(const TuningReport& report) {
   const std::vector<Winner> winners = ComputeWinners(report);
   for (const DeviceIdentity& d : report.devices) {
-    // Column hook (issues 9 and 10): the time against a same-size copy and the
-    // error against the unquantised source join these columns once Winner
-    // carries them; until then "of copy" is GB/s over the copy kernel's GB/s
-    // and the error is the verification's.
+    // Column hook (issue 14, precision): the error against the unquantised
+    // source joins these columns once Winner carries it; until then the error
+    // is the verification's, against the gold of the variant's own inputs.
     std::vector<std::vector<std::string>> rows = {{"lang", "B", "vertices", "dataset", "variant", "ms", "GB/s",
-                                                   "of copy", "max rel. error"}};
+                                                   "x copy", "max rel. error"}};
     for (const Winner& w : winners) {
       if (w.device_id != d.Id()) continue;
       // The error is the verification's, against the float64 gold of the
@@ -102,7 +102,7 @@ void PrintDeviceWinners(const TuningReport& report) {
       char error_text[32];
       std::snprintf(error_text, sizeof error_text, "%.1e", error);
       rows.push_back({Name(w.lang), std::to_string(w.influences), VertexCountName(w.vertices), w.dataset,
-                      w.variant.Key(), Fixed(w.median_ms, 4), Fixed(w.gbps, 1), OfCopy(w), error_text});
+                      w.variant.Key(), Fixed(w.median_ms, 4), Fixed(w.gbps, 1), TimesCopy(w), error_text});
     }
     std::cout << "\n== " << d.backend << ": " << d.name << " (" << d.platform << ")\n";
     if (rows.size() == 1) {

@@ -57,13 +57,13 @@ class DeviceBackend final : public Backend {
   std::vector<Lang> languages() const override { return languages_; }
 
   Measurement Measure(const Variant& variant, const TuningDataset& dataset, const TimingOptions& options) override {
-    RunnerExecutor executor(Runner());
-    return MeasureWith(executor, datasets_, device_.identity, limits(), languages(), variant, dataset, options);
+    return MeasureWith(Executor(), datasets_, device_.identity, limits(), languages(), variant, dataset, options);
   }
 
   double CopyBandwidthGBps(std::size_t bytes) override {
     const std::size_t size = CopyBytesCapped(bytes, device_.max_allocation_bytes);
-    return CopyGBps(size, Runner().TimeCopy(size, 2, 10));
+    // One set (a copy this large is far beyond any cache), bursts of a few frames.
+    return CopyGBps(size, Executor().TimeCopy(languages_.front(), 2 * size, 1, 2, 10, 4));
   }
 
   std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) override {
@@ -116,17 +116,19 @@ class DeviceBackend final : public Backend {
   }
 
  private:
-  skintune::Runner& Runner() {
+  RunnerExecutor& Executor() {
     if (!runner_) {
       runner_ = device_.open();
       if (cache_.enabled()) runner_->UseProgramCache(&cache_, device_.identity.Id());
+      executor_ = std::make_unique<RunnerExecutor>(*runner_);
     }
-    return *runner_;
+    return *executor_;
   }
 
   FoundDevice device_;
   std::vector<Lang> languages_;
   std::unique_ptr<skintune::Runner> runner_;  // made on first use
+  std::unique_ptr<RunnerExecutor> executor_;  // over runner_: remembers the copies it timed
   DatasetCache datasets_;
   // ProgramCache::DefaultDir() ($SKINTUNE_CACHE_DIR, ...); none for a CPU device.
   ProgramCache cache_{IsCpu(device_.identity) ? "-" : ""};
