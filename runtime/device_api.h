@@ -140,7 +140,9 @@ struct TimingPolicy {
   // two bursts in a row take the same wall time within 3% (at most 1 s): a
   // driver that lowers the clock between short bursts of work (NVIDIA's GL
   // driver on the H100: 1980 -> 345 MHz) is back at speed before the first
-  // timed frame.
+  // timed frame. A runner whose clock probe (a small copy) is as fast as
+  // after its last warm-up is still warm: only the steadiness check
+  // (runner.cpp kStillWarm).
   bool warm_until_stable = false;
 };
 

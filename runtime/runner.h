@@ -36,6 +36,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -163,10 +164,21 @@ class Runner {
   void AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const KernelSource> kernels,
               const std::vector<std::uint8_t>& palettes, const RunShape& shape, const SetOptions& options);
   void ReadChecked(const Prepared::Impl& p, const PackedMesh& mesh, const RunShape& shape, RunResult& result);
+  // Warms the device before timed frames (TimingPolicy::warm_until_stable):
+  // 200 ms of bursts and steady, or only steady when the clock probe says the
+  // device is still as fast as after its last full warm-up (runner.cpp).
   void WarmUntilStable(const Prepared::Impl& p);
+  // The clock probe: the median time of a small copy (PrepareCopy in the
+  // language of `p`'s kernels, made once), ms; nothing when it fails.
+  std::optional<double> ProbeMs(const Prepared::Impl& p);
+  // Time without the warm-up: `warmup` frames, then the bursts.
+  std::vector<double> TimeFrames(const Prepared::Impl& p, int warmup, int bursts, int burst_frames);
   [[noreturn]] void Fail(const std::string& stage, const std::string& message) const;
 
   std::unique_ptr<DeviceApi> api_;
+  std::optional<double> warm_probe_ms_;  // the fastest clock probe right after a warm-up
+  std::unique_ptr<Prepared> probe_;     // the clock probe's copy (ProbeMs)
+  Lang probe_lang_ = Lang::kOpenCl;
 };
 
 }  // namespace skintune

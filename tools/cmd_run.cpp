@@ -1,21 +1,37 @@
-// skintune run: the main job on its built-in default. For now: list the
-// devices, then skin the default dataset (the paper's Fig. 1 set-up: 100k
-// vertices, 77 bones, 2 influences) with the three CPU implementations and
-// check them against each other.
+// skintune run: the main job on the built-in default config. A quick check of
+// the CPU implementations against the float64 gold (one line), then the tuning
+// job of `skintune tune` on every device found (progress bar with ETA on
+// stderr), writing report.json, report.t4.json, winners-db.json and
+// report.html into results/ (or --out) together, then per device the winner
+// of each language and dataset (time, GB/s, time over a same-size copy,
+// verification error), the HTML report's path and the `skintune emit --db`
+// command that takes the kernels into another build.
 #include <algorithm>
 #include <chrono>
-#include <iomanip>
+#include <cstdio>
+#include <filesystem>
 #include <iostream>
+#include <map>
+#include <memory>
+#include <sstream>
 
 #include "reference/error.h"
 #include "reference/skinning.h"
 #include "reference/synthetic.h"
-#include "runtime/backends/opencl/opencl_devices.h"
 #include "tools/commands.h"
+#include "tools/progress.h"
+#include "tools/tune_job.h"
 
 namespace skintune::tools {
 
 namespace {
+
+namespace fs = std::filesystem;
+
+struct RunOptions {
+  TuneJobOptions job;
+  std::string cpu_dataset = "default";  // the CPU check's dataset; "none" skips it
+};
 
 template <typename F>
 double MedianMs(int repetitions, F&& f) {
@@ -29,55 +45,114 @@ double MedianMs(int repetitions, F&& f) {
   return ms[ms.size() / 2];
 }
 
-int RunDefault(const std::string& key) {
-  const OpenClInventory inventory = EnumerateOpenCl();
-  std::cout << "== devices\n";
-  if (inventory.devices.empty()) std::cout << "OpenCL: skipped: " << inventory.status << "\n";
-  for (const OpenClDeviceInfo& d : inventory.devices) {
-    std::cout << "OpenCL " << d.platform_index << "." << d.device_index << ": " << d.name << " (" << d.platform_name
-              << ", " << d.type << ", " << d.compute_units << " compute units)\n";
-  }
+// One line: the serial loop and the fast path against the float64 gold.
+void CheckCpu(const std::string& key) {
   const SkinnedAsset asset = GenerateDataset(ParseDatasetKey(key));
   const SkinnedMesh& mesh = asset.mesh;
   const std::vector<glm::mat4> palette = asset.PaletteAt(0, 0.5);
-  std::cout << "== CPU skinning of dataset " << asset.source << ": " << mesh.vertex_count() << " vertices, "
-            << mesh.joint_count << " joints, " << mesh.influences << " influences, frame at t=0.5 s\n";
   const std::size_t n = mesh.vertex_count();
   std::vector<glm::vec3> serial(n), fast(n);
-  GoldResult gold;
+  const GoldResult gold = SkinGold(mesh, palette);
   FastSkinner skinner(mesh);
-  const double gold_ms = MedianMs(3, [&] { gold = SkinGold(mesh, palette); });
-  const double serial_ms = MedianMs(5, [&] { SkinSerial(mesh, palette, serial); });
-  const double fast_ms = MedianMs(5, [&] { skinner.Run(palette, fast); });
-  const GoldComparison serial_err = CompareToGold(gold.positions, serial);
-  const GoldComparison fast_err = CompareToGold(gold.positions, fast);
-  auto line = [&](const char* name, double ms, const GoldComparison* err) {
-    std::cout << "  " << std::left << std::setw(7) << name << std::right << std::setw(9) << std::fixed
-              << std::setprecision(3) << ms << " ms  " << std::setw(8) << std::setprecision(1) << n / ms / 1e3
-              << " Mvertices/s";
-    if (err) std::cout << "  max relative error vs gold " << std::scientific << std::setprecision(2) << err->max_relative;
-    std::cout << std::defaultfloat << "\n";
-  };
-  line("gold", gold_ms, nullptr);
-  line("serial", serial_ms, &serial_err);
-  line("fast", fast_ms, &fast_err);
-  std::cout << "  (median wall time of a few runs, informative only: bench/ has the measured figures; fast uses "
-            << skinner.threads() << " threads)\n";
+  const double serial_ms = MedianMs(3, [&] { SkinSerial(mesh, palette, serial); });
+  const double fast_ms = MedianMs(3, [&] { skinner.Run(palette, fast); });
+  const double worst = std::max(CompareToGold(gold.positions, serial).max_relative,
+                                CompareToGold(gold.positions, fast).max_relative);
   constexpr double kTolerance = 1e-5;
-  if (serial_err.max_relative > kTolerance || fast_err.max_relative > kTolerance) {
-    throw Error("CPU implementations disagree with the gold beyond " + std::to_string(kTolerance));
+  char line[256];
+  std::snprintf(line, sizeof line, " (%s: serial %.2f ms, fast %.2f ms on %d threads; max relative error %.1e)",
+                asset.source.c_str(), serial_ms, fast_ms, skinner.threads(), worst);
+  if (!(worst <= kTolerance)) throw Error("CPU implementations disagree with the float64 gold beyond 1e-5" + std::string(line));
+  std::cout << "CPU reference: serial and fast agree with the float64 gold within 1e-5" << line << "\n";
+}
+
+std::string ShellQuoted(const std::string& text) {
+  std::string quoted = "'";
+  for (const char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return quoted + "'";
+}
+
+std::string Fixed(double value, int decimals) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", decimals, value);
+  return text;
+}
+
+// The winner's time over a copy of the same bytes timed the same way
+// (Measurement::x_copy, docs/TUNING.md "Timing"), "-" when there is none.
+std::string TimesCopy(const Winner& w) { return w.x_copy > 0.0 ? Fixed(w.x_copy, 2) : "-"; }
+
+std::string Sci(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1e", value);
+  return text;
+}
+
+// Per device (in report order): its winners within the budget, one per
+// language, B and vertex count, with what they cost against the unquantised
+// source (docs/TUNING.md "Precision"); faster classes over the budget are
+// counted below each table (the winners database keeps them).
+void PrintDeviceWinners(const TuningReport& report) {
+  const std::vector<Winner> all = ComputeWinners(report);
+  const std::vector<Winner> winners = BudgetWinners(all);
+  for (const DeviceIdentity& d : report.devices) {
+    std::vector<std::vector<std::string>> rows = {{"lang", "B", "vertices", "dataset", "variant", "ms", "GB/s",
+                                                   "x copy", "err/diag", "format costs"}};
+    for (const Winner& w : winners) {
+      if (w.device_id != d.Id()) continue;
+      const SourceError& e = w.source_error;
+      rows.push_back({Name(w.lang), std::to_string(w.influences), VertexCountName(w.vertices), w.dataset,
+                      w.variant.Key(), Fixed(w.median_ms, 4), Fixed(w.gbps, 1), TimesCopy(w),
+                      e.known ? Sci(e.position_rel) : "-", e.known ? Sci(e.quantisation_rel) : "-"});
+    }
+    std::size_t over = 0;
+    for (const Winner& w : all) over += w.device_id == d.Id() && !w.within_budget ? 1 : 0;
+    std::cout << "\n== " << d.backend << ": " << d.name << " (" << d.platform << ")\n";
+    if (rows.size() == 1) {
+      std::cout << "no variant passed verification within the budget on this device\n";
+    } else {
+      std::cout << FormatTable(rows, {1, 2, 5, 6, 7, 8, 9});
+    }
+    if (over > 0)
+      std::cout << over << " faster precision class(es) over the budget max_error " << Sci(report.max_error)
+                << " are in the winners database (skintune emit --db --max-error)\n";
   }
-  std::cout << "ok: serial and fast agree with the float64 gold within 1e-5\n";
+  for (const std::string& s : report.skipped) std::cout << "not tuned: " << s << "\n";
+  std::map<std::string, std::size_t> statuses;
+  for (const Measurement& m : report.measurements) ++statuses[Name(m.status)];
+  std::string counts;
+  for (const auto& [status, n] : statuses) counts += (counts.empty() ? "" : ", ") + std::to_string(n) + " " + status;
+  std::cout << "\nmeasurements: " << (counts.empty() ? "none" : counts) << "\n";
+}
+
+int RunMain(const RunOptions& o) {
+  if (o.cpu_dataset != "none") CheckCpu(o.cpu_dataset);
+  const TuneJobResult result = RunTuneJob(o.job);
+  const fs::path db = result.out / "winners-db.json";
+  PrintDeviceWinners(result.report);
+  std::cout << "report: " << fs::absolute(result.out / "report.html").string() << "\n";
+  std::cout << "files: ";
+  for (std::size_t i = 0; i < result.written.size(); ++i) std::cout << (i ? ", " : "") << result.written[i].string();
+  std::cout << " (measurement cache " << result.cache.string() << ": the next run reuses it)\n";
+  std::cout << "take the winning kernels into another build:\n  skintune emit --db " << ShellQuoted(db.string())
+            << " --device '' --out skintune-kernels\n";
   return 0;
 }
 
 }  // namespace
 
 Command RegisterRun(CLI::App& app) {
-  auto key = std::make_shared<std::string>("default");
-  auto* sub = app.add_subcommand("run", "the main job with built-in defaults: list devices, skin the default dataset");
-  sub->add_option("--dataset", *key, "dataset key (default: 100k-b2, the paper's Fig. 1 data set)");
-  return {sub, [key] { return RunDefault(*key); }};
+  auto o = std::make_shared<RunOptions>();
+  o->job.command = "run";
+  o->job.html = true;
+  auto* sub = app.add_subcommand(
+      "run", "the main job: tune every device found with the default config, write the report (HTML too) and the "
+             "winners database, print the winners");
+  AddTuneJobOptions(*sub, o->job);
+  sub->add_option("--cpu-check", o->cpu_dataset,
+                  "dataset key of the CPU reference check before tuning, or none (default: 100k-b2, the paper's "
+                  "Fig. 1 data set)");
+  return {sub, [o] { return RunMain(*o); }};
 }
 
 }  // namespace skintune::tools

@@ -53,7 +53,18 @@ class Backend {
   // The device's copy bandwidth: the copy kernel (generator/copy_kernel.h)
   // with a source of `bytes`, GB/s (read + written per second).
   virtual double CopyBandwidthGBps(std::size_t bytes) = 0;
+  // Compiles the kernels of `variants` (valid ones) ahead of their Measure,
+  // in parallel where the API allows it, into the program cache that Measure
+  // then loads from. A kernel that fails to compile is left for Measure to
+  // record. Returns how many kernels were compiled (or found compiled); a
+  // backend that cannot compile ahead compiles nothing and returns 0.
+  virtual std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) = 0;
 };
+
+// Whether `device` compiles kernels ahead of their Measure
+// (Backend::CompileAhead; device_backend.cpp says why each API and device
+// type is in or out).
+bool CompilesAhead(const DeviceIdentity& device);
 
 struct Discovery {
   std::vector<std::unique_ptr<Backend>> backends;

@@ -1,7 +1,14 @@
 // skintune: the tuner's Backend on any device of any API: identity, limits
 // and languages from the runtime's discovery (runtime/backend_table.h),
-// Measure and the copy bandwidth through the runner driver (runtime/runner.h).
+// Measure and the copy bandwidth through the runner driver (runtime/runner.h),
+// programs through the on-disk program cache (runtime/program_cache.h) on GPUs, which
+// CompileAhead fills from several threads.
+#include <algorithm>
+#include <atomic>
 #include <memory>
+#include <set>
+#include <string_view>
+#include <thread>
 #include <utility>
 
 #include "tuner/backends_internal.h"
@@ -9,6 +16,34 @@
 namespace skintune::tuner_internal {
 
 namespace {
+
+// The APIs whose kernels CompileAhead builds on several threads, each thread
+// with a runner (and program cache object) of its own, so that no API object
+// is shared between threads:
+// - opencl: clBuildProgram of distinct programs in distinct contexts is
+//   thread-safe (OpenCL 1.2, appendix A.2); PoCL builds them in parallel;
+// - cuda: NVRTC compiles are thread-safe, so is the driver API, and every
+//   runner shares the device's primary context.
+// Not gl: a GL program is compiled on the thread its context is current on;
+// compiling ahead would need a shared context per thread or the driver's own
+// compiler threads (KHR_parallel_shader_compile), neither done yet, so GL
+// compiles one kernel at a time in Measure, as before.
+constexpr std::string_view kCompileAheadBackends[] = {"opencl", "cuda"};
+
+// At most this many compile threads (each holds a context of the device).
+constexpr unsigned kMaxCompileThreads = 8;
+
+bool IsCpu(const DeviceIdentity& d) { return d.type.find("cpu") != std::string::npos; }
+
+// CPU devices (PoCL) keep compiled kernels in a cache of their own (PoCL's
+// kernel cache), which a build from source finds; skintune's program cache
+// is not used for them: reading a PoCL program back (CL_PROGRAM_BINARIES) for
+// it made a cold tune of 48 kernels on 100k-b2 38 s instead of 17 s on the
+// 2-core development machine (docs/PERFORMANCE.md). Compiling ahead fills
+// PoCL's cache, and pays only with enough cores to compile on: on 2 cores it
+// measured no gain (the compiles cost the same, two at a time), so a CPU
+// device compiles ahead only on a host with at least this many logical CPUs.
+constexpr unsigned kMinCpusToCompileAheadForACpuDevice = 8;
 
 class DeviceBackend final : public Backend {
  public:
@@ -31,10 +66,60 @@ class DeviceBackend final : public Backend {
     return CopyGBps(size, Executor().TimeCopy(languages_.front(), 2 * size, 1, 2, 10, 4));
   }
 
+  std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) override {
+    if (!CompilesAhead(device_.identity)) return 0;
+    // The kernels, emitted here (one thread): as Measure emits them, without
+    // the injected fault's variant (Measure makes that one fail on purpose).
+    const InjectedFault fault = InjectedFaultFromEnvironment();
+    DatasetCache::Entry& data = datasets_.Get(dataset.key);
+    std::vector<KernelSource> kernels;
+    std::set<std::string> hashes;
+    for (const Variant& v : variants) {
+      if (!fault.kind.empty() && fault.variant_key == v.Key()) continue;
+      try {
+        const PackedMesh packed = Pack(data.asset.mesh, v);
+        for (const Launch& launch : packed.launches) {
+          KernelSource k = Emit(v, launch.influences, static_cast<int>(packed.palette_joints));
+          if (hashes.insert(k.source_hash).second) kernels.push_back(std::move(k));
+        }
+      } catch (const Error&) {
+        // Not packable or emittable: Measure records it (invalid).
+      }
+    }
+    if (kernels.empty()) return 0;
+    const unsigned threads = std::clamp<unsigned>(std::thread::hardware_concurrency(), 1u,
+                                                  std::min<std::size_t>(kMaxCompileThreads, kernels.size()));
+    std::atomic<std::size_t> next{0}, built{0};
+    auto work = [&] {
+      ProgramCache cache(cache_.enabled() ? cache_.dir() : "-");
+      std::unique_ptr<skintune::Runner> runner;
+      try {
+        runner = device_.open();
+      } catch (const Error&) {
+        return;  // no second context: the kernels compile in Measure
+      }
+      if (cache.enabled()) runner->UseProgramCache(&cache, device_.identity.Id());
+      for (std::size_t i = next++; i < kernels.size(); i = next++) {
+        try {
+          runner->Build(kernels[i]);
+          ++built;
+        } catch (const Error&) {
+          // A compile failure is Measure's to record (compile_failed).
+        }
+      }
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
+    work();
+    for (std::thread& t : pool) t.join();
+    return built;
+  }
+
  private:
   RunnerExecutor& Executor() {
     if (!runner_) {
       runner_ = device_.open();
+      if (cache_.enabled()) runner_->UseProgramCache(&cache_, device_.identity.Id());
       executor_ = std::make_unique<RunnerExecutor>(*runner_);
     }
     return *executor_;
@@ -45,6 +130,8 @@ class DeviceBackend final : public Backend {
   std::unique_ptr<skintune::Runner> runner_;  // made on first use
   std::unique_ptr<RunnerExecutor> executor_;  // over runner_: remembers the copies it timed
   DatasetCache datasets_;
+  // ProgramCache::DefaultDir() ($SKINTUNE_CACHE_DIR, ...); none for a CPU device.
+  ProgramCache cache_{IsCpu(device_.identity) ? "-" : ""};
 };
 
 }  // namespace
@@ -54,3 +141,14 @@ std::unique_ptr<Backend> MakeDeviceBackend(FoundDevice device, std::vector<Lang>
 }
 
 }  // namespace skintune::tuner_internal
+
+namespace skintune {
+
+bool CompilesAhead(const DeviceIdentity& device) {
+  const auto& list = tuner_internal::kCompileAheadBackends;
+  if (std::find(std::begin(list), std::end(list), device.backend) == std::end(list)) return false;
+  return !tuner_internal::IsCpu(device) ||
+         std::thread::hardware_concurrency() >= tuner_internal::kMinCpusToCompileAheadForACpuDevice;
+}
+
+}  // namespace skintune

@@ -140,17 +140,20 @@ SearchResult Random(Session& s, std::uint64_t seed) {
   return s.Result();
 }
 
+// The axes whose values interact most: the formats of the per-vertex data,
+// which decide how the inputs pack into words and loads (a narrow index
+// format pays off with a narrow weight format, and may cost alone: GLSL on
+// the H100 at 6400k-b4). Coordinate descent also tries moves along two of
+// them at once, and its first restart starts from their narrowest values.
+constexpr std::array<std::size_t, 3> kCoupledAxes = {AxisIndex<&Variant::position>(), AxisIndex<&Variant::index>(),
+                                                     AxisIndex<&Variant::weight>()};
+
 // The candidate closest (fewest differing axes) to a sensible default: the
 // Variant{} defaults (soa, float4, u16 indices, f32 weights, mat3x4 in global
 // memory, matrix blend, one vertex per item, 128 items per group) in the first
 // candidate's language, influence count and normals (those are set by the
 // problem, not tuned). Ties go to the earlier candidate.
-std::size_t DefaultStart(const Session& s) {
-  Variant d;
-  d.lang = s.variant(0).lang;
-  d.influences = s.variant(0).influences;
-  d.normals = s.variant(0).normals;
-  const Coords target = CoordsOf(CollapseWorkGroups(d));
+std::size_t ClosestTo(const Session& s, const Coords& target) {
   std::size_t best = 0;
   std::size_t best_distance = kAxisCount + 1;
   for (std::size_t i = 0; i < s.size(); ++i) {
@@ -163,6 +166,26 @@ std::size_t DefaultStart(const Session& s) {
     }
   }
   return best;
+}
+
+Coords DefaultCoords(const Session& s) {
+  Variant d;
+  d.lang = s.variant(0).lang;
+  d.influences = s.variant(0).influences;
+  d.normals = s.variant(0).normals;
+  return CoordsOf(CollapseWorkGroups(d));
+}
+
+std::size_t DefaultStart(const Session& s) { return ClosestTo(s, DefaultCoords(s)); }
+
+// The default with each coupled axis at its narrowest value among the
+// candidates (the formats' codes grow as they narrow: float4 -> float3,
+// i32 -> u16 -> u8, f32 -> unorm16 -> unorm8).
+std::size_t NarrowStart(const Session& s, const std::array<std::vector<int>, kAxisCount>& axis_values) {
+  Coords target = DefaultCoords(s);
+  for (std::size_t a : kCoupledAxes)
+    if (!axis_values[a].empty()) target[a] = axis_values[a].back();
+  return ClosestTo(s, target);
 }
 
 SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts) {
@@ -188,34 +211,71 @@ SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts) {
     return out;
   };
 
-  // One descent from `start`: sweeps over the axes until a full sweep moves nowhere.
+  // Moves from candidate i along two coupled axes at once (both changed).
+  auto pair_line = [&](std::size_t i, std::size_t a, std::size_t b) {
+    std::vector<std::size_t> out;
+    Coords c = s.coords(i);
+    for (int x : axis_values[a]) {
+      if (x == s.coords(i)[a]) continue;
+      for (int y : axis_values[b]) {
+        if (y == s.coords(i)[b]) continue;
+        c[a] = x;
+        c[b] = y;
+        if (const std::optional<std::size_t> j = s.Find(c)) out.push_back(*j);
+      }
+    }
+    return out;
+  };
+
+  // One descent from `start`: sweeps over the axes until a full sweep moves
+  // nowhere. In each sweep, when no single move along a coupled axis won,
+  // the moves along two coupled axes at once come right after the last of
+  // them (a descent stuck on f32 weights because u8 indices or unorm8 weights
+  // alone are slower takes both at once there).
+  const std::size_t last_coupled = *std::max_element(kCoupledAxes.begin(), kCoupledAxes.end());
   auto descend = [&](std::size_t start) {
     std::size_t current = start;
     std::optional<double> current_ms = s.Evaluate(current);
+    // Evaluates `moves` and goes to the fastest when it beats the current point.
+    auto try_moves = [&](const std::vector<std::size_t>& moves) {
+      std::size_t best = current;
+      std::optional<double> best_ms = current_ms;
+      for (std::size_t j : moves) {
+        const std::optional<double> t = s.Evaluate(j);
+        if (t && (!best_ms || *t < *best_ms)) {
+          best = j;
+          best_ms = t;
+        }
+      }
+      if (best == current) return false;
+      current = best;
+      current_ms = best_ms;
+      return true;
+    };
     for (bool moved = true; moved && !s.exhausted();) {
       moved = false;
+      bool coupled_moved = false;
       for (std::size_t a = 0; a < kAxisCount && !s.exhausted(); ++a) {
-        std::size_t best = current;
-        std::optional<double> best_ms = current_ms;
-        for (std::size_t j : line(current, a)) {
-          const std::optional<double> t = s.Evaluate(j);
-          if (t && (!best_ms || *t < *best_ms)) {
-            best = j;
-            best_ms = t;
-          }
-        }
-        if (best != current) {
-          current = best;
-          current_ms = best_ms;
-          moved = true;
-        }
+        const bool m = try_moves(line(current, a));
+        moved = moved || m;
+        if (std::find(kCoupledAxes.begin(), kCoupledAxes.end(), a) != kCoupledAxes.end()) coupled_moved = coupled_moved || m;
+        if (a != last_coupled || coupled_moved) continue;
+        for (std::size_t p = 0; p < kCoupledAxes.size() && !s.exhausted(); ++p)
+          for (std::size_t q = p + 1; q < kCoupledAxes.size() && !s.exhausted(); ++q)
+            moved = try_moves(pair_line(current, kCoupledAxes[p], kCoupledAxes[q])) || moved;
       }
     }
   };
 
   descend(DefaultStart(s));
   if (!restarts) return s.Result();
-  // Restarts from random candidates not evaluated yet, while the budget lasts.
+  // The first restart starts from the fewest bytes: the candidate closest to
+  // the default with the narrowest formats of the coupled axes.
+  if (!s.exhausted()) {
+    const std::size_t narrow = NarrowStart(s, axis_values);
+    if (!s.evaluated(narrow)) descend(narrow);
+  }
+  // Then restarts from random candidates not evaluated yet, while the budget lasts.
   std::vector<std::size_t> order(s.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
   Prng prng(seed);

@@ -2,8 +2,9 @@
 //
 // The parent discovers the devices only for their identities, limits and
 // languages, then measures every device through its own child process
-// (worker.h), one device after another so that no two measurements share
-// the machine. For each device x language x dataset:
+// (worker.h): devices that share hardware one after another, so that no two
+// measurements share a chip, and devices that share none (a CPU device and a
+// GPU: schedule.h) at the same time. For each device x language x dataset:
 //   - the space's points with B = the dataset's influences are checked
 //     against the device's limits and the dataset's shape; an invalid point is
 //     recorded (status invalid, with every constraint it breaks; at most
@@ -24,7 +25,10 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <mutex>
+#include <optional>
 #include <set>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
@@ -34,6 +38,7 @@
 #include "reference/memory_limit.h"
 #include "reference/synthetic.h"
 #include "tuner/measurement.h"
+#include "tuner/schedule.h"
 #include "tuner/worker.h"
 
 namespace skintune {
@@ -520,84 +525,168 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
     throw Error(message);
   }
 
-  std::size_t done = 0;
-  std::size_t devices_with_work = 0;
-  std::size_t devices_failed = 0;
-  for (std::size_t di = 0; di < devices.size(); ++di) {
-    const Device& device = devices[di];
-    const std::string id = device.identity.Id();
+  // The devices with work, tuned in groups that share no hardware
+  // (schedule.h): the groups at the same time, each group's devices one after
+  // another. Each device's results are kept apart and joined in device order,
+  // so the report does not depend on the timing of the threads.
+  struct DeviceRun {
     bool has_tasks = false;
-    for (const Task& t : tasks) has_tasks = has_tasks || t.device == di;
-    if (!has_tasks) continue;  // none of the space's languages: not measured, not reported
-    report.devices.push_back(device.identity);
-    std::size_t device_end = done;
-    for (const Task& t : tasks) {
-      if (t.device != di) continue;
-      device_end += t.planned;
-      for (const Measurement& m : t.invalid) report.measurements.push_back(m);
+    std::size_t planned = 0;     // evaluations expected on the device
+    std::size_t done = 0;        // of them, done
+    std::vector<Measurement> measurements;
+    std::optional<double> copy_gbps;
+    std::optional<std::string> given_up;
+  };
+  std::vector<DeviceRun> runs(devices.size());
+  for (const Task& t : tasks) {
+    runs[t.device].has_tasks = true;
+    runs[t.device].planned += t.planned;
+  }
+  std::mutex shared;  // the cache, `done`, the progress callback
+  std::size_t done = 0;
+  // Moves device `run`'s progress to `device_done` (never back) and reports `what`.
+  auto advance = [&](DeviceRun& run, std::size_t device_done, const std::string& what) {
+    std::lock_guard<std::mutex> lock(shared);
+    device_done = std::min(device_done, run.planned);
+    if (device_done > run.done) {
+      done += device_done - run.done;
+      run.done = device_done;
     }
-    if (device_end == done) continue;  // only invalid points here: recorded, nothing to measure
-    ++devices_with_work;
+    if (!what.empty()) progress(done, total, what);
+  };
+
+  auto tune_device = [&](std::size_t di) {
+    const Device& device = devices[di];
+    DeviceRun& run = runs[di];
+    const std::string id = device.identity.Id();
     IsolatedBackend worker(options.worker_executable, device.identity, config.variant_timeout_s);
     const std::string device_name = device.identity.backend + " " + device.identity.name;
     try {
-      progress(done, total, device_name + ": copy bandwidth");
+      advance(run, 0, device_name + ": copy bandwidth");
       std::string why_not;
       if (const std::optional<double> gbps = worker.CopyBandwidthGBps(CopyBytes(device.identity), &why_not)) {
-        report.copy_bandwidth_gbps[id] = *gbps;
+        run.copy_gbps = *gbps;
       } else {
-        progress(done, total, device_name + ": copy bandwidth not measured: " + why_not);
+        advance(run, 0, device_name + ": copy bandwidth not measured: " + why_not);
       }
+      std::size_t task_start = 0;
       for (Task& task : tasks) {
         if (task.device != di || (task.candidates.empty() && task.baselines.empty())) continue;
         const std::string& key = datasets[task.dataset].info.key;
-        const std::size_t task_start = done;
+        std::size_t task_done = 0;
         std::set<std::string> seen;
-        const Evaluator evaluate = [&](const Variant& v) -> std::optional<double> {
+        auto cache_key_of = [&](const Variant& v) {
           Measurement probe;
           probe.device_id = id;
           probe.dataset = key;
           probe.variant = v;
           probe.generator_version = kGeneratorVersion;
-          const std::string cache_key = probe.CacheKey();
-          Measurement m;
-          bool cached = false;
+          return probe.CacheKey();
+        };
+        // A verified record from before skintune measured the error against
+        // the source cannot be judged by the budget: measured again.
+        auto cached = [&](const std::string& cache_key) -> std::optional<Measurement> {
+          std::lock_guard<std::mutex> lock(shared);
           const Measurement* found = cache.Find(cache_key);
-          // A verified record from before skintune measured the error against
-          // the source cannot be judged by the budget: measured again.
-          if (found && !(IsTimed(found->status) && !found->source_error.known)) {
+          if (found && !(IsTimed(found->status) && !found->source_error.known)) return *found;
+          return std::nullopt;
+        };
+        // Compile ahead: the variants this task will measure and the cache
+        // has not, built in parallel by the worker before any is timed.
+        std::vector<Variant> ahead;
+        for (const Variant& v : task.baselines)
+          if (!cached(cache_key_of(v))) ahead.push_back(v);
+        if (config.strategy.name == "exhaustive") {
+          const std::size_t n = config.strategy.budget > 0 ? std::min(config.strategy.budget, task.candidates.size())
+                                                            : task.candidates.size();
+          for (std::size_t i = 0; i < n; ++i)
+            if (!cached(cache_key_of(task.candidates[i]))) ahead.push_back(task.candidates[i]);
+        }
+        if (ahead.size() > 1 && CompilesAhead(device.identity)) {
+          advance(run, task_start, device_name + ": compiling " + std::to_string(ahead.size()) + " kernels for " + key);
+          worker.CompileAhead(ahead, TuningDataset{key});
+        }
+        const Evaluator evaluate = [&](const Variant& v) -> std::optional<double> {
+          const std::string cache_key = cache_key_of(v);
+          Measurement m;
+          const std::optional<Measurement> found = cached(cache_key);
+          if (found) {
             m = *found;
-            cached = true;
             ApplyBudget(m, config.max_error);  // this run's budget, whatever the record's was
           } else {
             m = worker.Measure(v, TuningDataset{key}, config.timing);
             ApplyBudget(m, config.max_error);
+            std::lock_guard<std::mutex> lock(shared);
             cache.Append(m);  // on disk before the next variant
           }
           if (seen.insert(cache_key).second) {
-            report.measurements.push_back(m);
-            done = std::min(done + 1, task_start + task.planned);
+            run.measurements.push_back(m);
+            task_done = std::min(task_done + 1, task.planned);
             // The variant and its result first: a progress bar cuts the end of long lines.
-            progress(done, total,
-                     v.Key() + ": " + ShortStatus(m) + " [" + device_name + ", " + key + "]" +
-                         (cached ? " (cached)" : ""));
+            advance(run, task_start + task_done,
+                    v.Key() + ": " + ShortStatus(m) + " [" + device_name + ", " + key + "]" +
+                        (found ? " (cached)" : ""));
           }
           if (m.status != MeasureStatus::kOk) return std::nullopt;
           return m.timing.median_ms;
         };
         for (const Variant& b : task.baselines) evaluate(b);
         if (!task.candidates.empty()) Search(task.candidates, evaluate, config.strategy);
-        done = task_start + task.planned;
+        task_start += task.planned;
+        advance(run, task_start, "");
       }
     } catch (const WorkerError& e) {
       // This device cannot be used: the run goes on with the others.
-      ++devices_failed;
-      report.skipped.push_back(id + ": " + e.what());
-      progress(done, total, device_name + ": given up: " + e.what());
+      run.given_up = e.what();
+      advance(run, run.planned, device_name + ": given up: " + e.what());
     }
-    done = device_end;
+    advance(run, run.planned, "");
+  };
+
+  std::vector<std::size_t> with_work;
+  for (std::size_t di = 0; di < devices.size(); ++di) {
+    if (!runs[di].has_tasks) continue;  // none of the space's languages: not measured, not reported
+    report.devices.push_back(devices[di].identity);
+    if (runs[di].planned > 0) with_work.push_back(di);  // else only invalid points: recorded, nothing to measure
   }
-  if (devices_with_work > 0 && devices_failed == devices_with_work) {
+  std::vector<DeviceIdentity> identities;
+  for (std::size_t di : with_work) identities.push_back(devices[di].identity);
+  std::vector<std::vector<std::size_t>> groups = IndependentGroups(identities);
+  if (!options.parallel_devices && groups.size() > 1) {
+    std::vector<std::size_t> all;
+    for (const auto& g : groups) all.insert(all.end(), g.begin(), g.end());
+    std::sort(all.begin(), all.end());
+    groups = {all};
+  }
+  std::vector<std::exception_ptr> errors(groups.size());
+  auto tune_group = [&](std::size_t g) {
+    try {
+      for (std::size_t i : groups[g]) tune_device(with_work[i]);
+    } catch (...) {
+      errors[g] = std::current_exception();
+    }
+  };
+  std::vector<std::thread> threads;
+  for (std::size_t g = 1; g < groups.size(); ++g) threads.emplace_back(tune_group, g);
+  if (!groups.empty()) tune_group(0);
+  for (std::thread& t : threads) t.join();
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
+
+  std::size_t devices_failed = 0;
+  for (std::size_t di = 0; di < devices.size(); ++di) {
+    const DeviceRun& run = runs[di];
+    if (!run.has_tasks) continue;
+    for (const Task& t : tasks)
+      if (t.device == di) report.measurements.insert(report.measurements.end(), t.invalid.begin(), t.invalid.end());
+    report.measurements.insert(report.measurements.end(), run.measurements.begin(), run.measurements.end());
+    if (run.copy_gbps) report.copy_bandwidth_gbps[devices[di].identity.Id()] = *run.copy_gbps;
+    if (run.given_up) {
+      ++devices_failed;
+      report.skipped.push_back(devices[di].identity.Id() + ": " + *run.given_up);
+    }
+  }
+  if (!with_work.empty() && devices_failed == with_work.size()) {
     std::string why;
     for (const std::string& s : report.skipped) why += (why.empty() ? "" : "; ") + s;
     throw Error("no device could be tuned: " + why);

@@ -49,7 +49,11 @@ struct TuneOptions {
   std::vector<Lang> languages;          // empty: every language of every device
   std::string cache_path;               // the resumable measurement cache (JSON lines)
   std::string worker_executable;        // the skintune binary (runs `skintune tune-worker`)
+  // Called from one thread at a time (devices are tuned on several).
   std::function<void(std::size_t done, std::size_t total, const std::string& what)> progress;
+  // Devices that share no hardware (tuner/schedule.h) are tuned at the same
+  // time; false: one device after another, as before.
+  bool parallel_devices = true;
 };
 
 // Runs the whole tuning; every measurement goes through the cache (a recorded

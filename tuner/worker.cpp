@@ -380,6 +380,30 @@ Measurement IsolatedBackend::Measure(const Variant& variant, const TuningDataset
   return m;
 }
 
+std::size_t IsolatedBackend::CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) {
+  if (variants.empty()) return 0;
+  const std::string request = nlohmann::json{{"compile_ahead", variants}, {"dataset", dataset.key}}.dump();
+  if (pid_ < 0) Start();
+  if (!Send(request)) {
+    DeathDetail();
+    return 0;  // the next request starts a fresh child
+  }
+  std::string line;
+  switch (ReadLine(variant_timeout_s_ * static_cast<double>(variants.size()), line)) {
+    case ReadResult::kTimeout: Kill(); return 0;
+    case ReadResult::kEnd: DeathDetail(); return 0;
+    case ReadResult::kLine: break;
+  }
+  try {
+    const nlohmann::json answer = nlohmann::json::parse(line);
+    if (answer.is_object() && answer.contains("compiled") && answer["compiled"].is_number_unsigned())
+      return answer["compiled"].get<std::size_t>();
+  } catch (const nlohmann::json::exception&) {
+  }
+  Kill();  // an answer out of protocol: a fresh child serves the next request
+  return 0;
+}
+
 std::optional<double> IsolatedBackend::CopyBandwidthGBps(std::size_t bytes, std::string* why_not) {
   auto fail = [&](const std::string& why) -> std::optional<double> {
     if (why_not) *why_not = why;
@@ -478,7 +502,10 @@ int RunTuneWorker(int backend_index, const std::string& device_id) {
     nlohmann::json answer;
     try {
       const nlohmann::json request = nlohmann::json::parse(line);
-      if (request.contains("copy_bandwidth")) {
+      if (request.contains("compile_ahead")) {
+        const std::vector<Variant> variants = request.at("compile_ahead").get<std::vector<Variant>>();
+        answer = {{"compiled", backend.CompileAhead(variants, TuningDataset{request.at("dataset").get<std::string>()})}};
+      } else if (request.contains("copy_bandwidth")) {
         try {
           answer = {{"copy_bandwidth_gbps", backend.CopyBandwidthGBps(request.at("copy_bandwidth").get<std::size_t>())}};
         } catch (const Error& e) {

@@ -11,6 +11,8 @@
 //   child -> parent:                 the Measurement (to_json), or {"error": "<set-up problem>"}
 //   parent -> child, a copy kernel:  {"copy_bandwidth": <bytes>}
 //   child -> parent:                 {"copy_bandwidth_gbps": <GB/s>} or {"copy_bandwidth_error": "..."}
+//   parent -> child, compile ahead:  {"compile_ahead": [variant, ...], "dataset": "<key or glTF path>"}
+//   child -> parent:                 {"compiled": <kernels compiled or found compiled>}
 //
 // The child writes its protocol lines on its original stdout and sends
 // anything libraries print on stdout to stderr; the parent keeps the last
@@ -69,6 +71,13 @@ class IsolatedBackend {
   // is recorded as launch_failed. Throws WorkerError when the device cannot
   // be used at all.
   Measurement Measure(const Variant& variant, const TuningDataset& dataset, const TimingOptions& options);
+
+  // Has the child compile the kernels of `variants` ahead of their Measure
+  // (Backend::CompileAhead), waiting at most the variant time limit per
+  // variant. Returns the kernels compiled; anything that goes wrong (a hang,
+  // a crash, a set-up problem) costs only the head start: it returns 0, and
+  // each variant's Measure compiles, and records the failure, as without it.
+  std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset);
 
   // The device's copy bandwidth, or nullopt with the reason in `why_not`.
   // Throws WorkerError when the device cannot be used at all.

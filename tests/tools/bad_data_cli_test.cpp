@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/common/scratch_dir.h"
+#include "tests/common/tiny_tune_config.h"
 #include "tests/tools/run_command.h"
 #include "tests/tuner/sample_report.h"
 #include "tuner/report.h"
@@ -48,24 +49,11 @@ void ExpectOneErrorLine(const testing::CommandResult& r, const std::string& star
 
 // Two OpenCL variants (soa, aos) on `dataset`, timed briefly.
 nlohmann::json TinyConfig(const std::string& dataset = "5000-b2", int influences = 2) {
-  return {{"space",
-           {{"lang", {"opencl"}},
-            {"influences", {influences}},
-            {"mixed", {"padded"}},
-            {"layout", {"soa", "aos"}},
-            {"position", {"float4"}},
-            {"index", {"u16"}},
-            {"weight", {"f32"}},
-            {"palette", {"mat3x4"}},
-            {"storage", {"global"}},
-            {"blend", {"matrix"}},
-            {"vertices_per_item", {1}},
-            {"assignment", {"contiguous"}},
-            {"wg_size", {64}},
-            {"normals", {false}}}},
-          {"datasets", {dataset}},
-          {"timing", {{"warmup", 1}, {"repetitions", 3}, {"max_input_sets", 1}}},
-          {"variant_timeout_s", 30}};
+  testing::TinyTuneConfig config;
+  config.layouts = {"soa", "aos"};
+  config.dataset = dataset;
+  config.influences = influences;
+  return config.Json();
 }
 
 std::size_t FirstOk(const nlohmann::json& report, const std::string& dataset) {

@@ -186,13 +186,6 @@ TEST(SkintuneCli, TimeWithoutAnimationOnAModelWithoutAnimationsIsAnError) {
   EXPECT_EQ(CountLines(r.err), 1) << r.err;
 }
 
-TEST(SkintuneCli, RunChecksTheCpuImplementationsAgainstTheGold) {
-  const auto r = RunSkintune({"run", "--dataset", "20k-b2"});
-  EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("== devices"), std::string::npos);
-  EXPECT_NE(r.out.find("ok: serial and fast agree with the float64 gold within 1e-5"), std::string::npos) << r.out;
-}
-
 TEST(SkintuneCli, EmitWritesTheKernelAndASidecarDescribingItsInterface) {
   const fs::path dir = Scratch() / "kernels";
   const std::string key = "opencl.b3.padded.soa-split.float4.u16.unorm16.mat3x4.local.matrix.v2c.wg64.nonormals";

@@ -238,5 +238,66 @@ TEST(Strategy, CoordinateLeavesAFailedStartingPoint) {
   EXPECT_DOUBLE_EQ(r.best_ms, 1.0);  // the separable optimum (every term 0)
 }
 
+// Like SeparableCost but the index and weight formats interact, as GLSL on the
+// H100 at 6400k-b4 did: u8 indices or unorm8 weights alone cost more than the
+// default u16 + f32, both together cost least (and i32 / unorm16 cost more
+// still). A descent moving one axis at a time stays on f32 weights.
+double CoupledFormatsCost(const Variant& v) {
+  const bool u8 = v.index == IndexFormat::kU8, unorm8 = v.weight == WeightFormat::kUnorm8;
+  double t = SeparableCost(v) - 0.07 * static_cast<int>(2 - static_cast<int>(v.index)) -
+             0.09 * static_cast<int>(2 - static_cast<int>(v.weight));
+  if (u8 && unorm8) return t;
+  if (u8 || unorm8) return t + 0.4;
+  return t + 0.2 + (v.index == IndexFormat::kI32 ? 0.05 : 0.0) + (v.weight == WeightFormat::kUnorm16 ? 0.05 : 0.0);
+}
+
+TEST(Strategy, CoordinateMovesCoupledFormatsTogetherInsteadOfStoppingOnF32Weights) {
+  const std::vector<Variant> candidates = ProductSpace();
+  const std::function<std::optional<double>(const Variant&)> model = [](const Variant& v) {
+    return std::optional<double>(CoupledFormatsCost(v));
+  };
+  const Variant optimum = *TrueOptimum(candidates, model);
+  ASSERT_EQ(optimum.weight, WeightFormat::kUnorm8);
+  ASSERT_EQ(optimum.index, IndexFormat::kU8);
+  // One descent (budget 0): the model's optimum, not a point on f32 weights.
+  const SearchResult r = Search(candidates, model, {"coordinate", 0, 1});
+  ASSERT_TRUE(r.best);
+  EXPECT_EQ(*r.best, optimum) << r.best->Key() << " vs " << optimum.Key();
+  EXPECT_LT(r.evaluations, candidates.size() / 500) << r.evaluations << " of " << candidates.size();
+}
+
+TEST(Strategy, CoordinateWithFivePercentOfAWideSpaceLandsWithinFivePercentOfTheOptimum) {
+  // The shape of the recorded landscapes' space (tests/data/tuning/exhaustive-1600k-b4.json):
+  // 3 layouts x float4/float3 x u16/u8 x f32/unorm8 x 4 storages x 5 vertex assignments, mat3x4, wg 256.
+  TuningSpace space = TuningSpace::Full();
+  space.langs = {Lang::kGlslCompute};
+  space.influences = {4};
+  space.normals = {false};
+  space.mixed = {MixedCounts::kPadded};
+  space.positions = {PositionFormat::kFloat4, PositionFormat::kFloat3};
+  space.indices = {IndexFormat::kU16, IndexFormat::kU8};
+  space.weights = {WeightFormat::kF32, WeightFormat::kUnorm8};
+  space.palettes = {PaletteFormat::kMat3x4};
+  space.storages = {PaletteStorage::kConstant, PaletteStorage::kLocal, PaletteStorage::kGlobal, PaletteStorage::kImage};
+  space.blends = {Blend::kMatrix};
+  space.vertices_per_item = {1, 2, 4};
+  space.assignments = {Assignment::kContiguous, Assignment::kStrided};
+  space.wg_sizes = {256};
+  std::vector<Variant> candidates;
+  space.ForEach([&](const Variant& v) { candidates.push_back(v); });
+  ASSERT_GE(candidates.size(), 400u);
+  const std::function<std::optional<double>(const Variant&)> model = [](const Variant& v) {
+    return std::optional<double>(CoupledFormatsCost(v));
+  };
+  const double optimum_ms = *model(*TrueOptimum(candidates, model));
+  const std::size_t budget = (candidates.size() * 5 + 99) / 100;
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    const SearchResult r = Search(candidates, model, {"coordinate", budget, seed});
+    ASSERT_TRUE(r.best) << seed;
+    EXPECT_LE(r.evaluations, budget);
+    EXPECT_LE(r.best_ms, 1.05 * optimum_ms) << "seed " << seed << ": " << r.best->Key();
+  }
+}
+
 }  // namespace
 }  // namespace skintune

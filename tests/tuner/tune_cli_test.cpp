@@ -20,6 +20,7 @@
 #include "tests/tools/run_command.h"
 #include "tuner/measurement.h"
 #include "tests/common/scratch_dir.h"
+#include "tests/common/tiny_tune_config.h"
 
 namespace skintune {
 namespace {
@@ -38,25 +39,14 @@ fs::path Scratch() { return skintune::testing::ScratchDir("skintune_tune_cli_tes
 // One OpenCL variant per storage x layout x wg of the lists, 5000 vertices, B = 2.
 nlohmann::json TinyConfig(const std::vector<std::string>& storages, const std::vector<std::string>& layouts,
                           const std::vector<int>& wgs) {
-  return {{"description", "tune_cli_test"},
-          {"space",
-           {{"lang", {"opencl"}},
-            {"influences", {2}},
-            {"mixed", {"padded"}},
-            {"layout", layouts},
-            {"position", {"float4"}},
-            {"index", {"u16"}},
-            {"weight", {"f32"}},
-            {"palette", {"mat3x4"}},
-            {"storage", storages},
-            {"blend", {"matrix"}},
-            {"vertices_per_item", {1}},
-            {"assignment", {"contiguous"}},
-            {"wg_size", wgs},
-            {"normals", {false}}}},
-          {"datasets", {"5000-b2"}},
-          {"timing", {{"warmup", 1}, {"repetitions", 3}, {"max_input_sets", 2}}},
-          {"variant_timeout_s", 10}};
+  testing::TinyTuneConfig config;
+  config.description = "tune_cli_test";
+  config.layouts = layouts;
+  config.storages = storages;
+  config.wg_sizes = wgs;
+  config.max_input_sets = 2;
+  config.variant_timeout_s = 10;
+  return config.Json();
 }
 
 std::string WriteConfig(const fs::path& dir, const nlohmann::json& config, const std::string& name = "config.json") {
