@@ -23,6 +23,8 @@ void to_json(nlohmann::json& out, const DeviceIdentity& d) {
          {"local_memory_bytes", d.local_memory_bytes},
          {"constant_memory_bytes", d.constant_memory_bytes},
          {"last_level_cache_bytes", d.last_level_cache_bytes}};
+  if (!d.uuid.empty()) out["uuid"] = d.uuid;
+  if (!d.pci_bus_id.empty()) out["pci_bus_id"] = d.pci_bus_id;
 }
 
 namespace {
@@ -59,6 +61,8 @@ void from_json(const nlohmann::json& in, DeviceIdentity& d) {
   ReadField(in, "local_memory_bytes", d.local_memory_bytes, false);
   ReadField(in, "constant_memory_bytes", d.constant_memory_bytes, false);
   ReadField(in, "last_level_cache_bytes", d.last_level_cache_bytes, false);
+  ReadField(in, "uuid", d.uuid, false);
+  ReadField(in, "pci_bus_id", d.pci_bus_id, false);
 }
 
 }  // namespace skintune

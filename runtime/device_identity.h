@@ -27,6 +27,10 @@ struct DeviceIdentity {
   std::uint64_t local_memory_bytes = 0;
   std::uint64_t constant_memory_bytes = 0;
   std::uint64_t last_level_cache_bytes = 0;  // 0 = unknown (then the rotation rule assumes 64 MiB)
+  // The chip, as every API that says it names it (runtime/physical_device.h):
+  // "" when the API does not say (Vulkan fills both; JSON only when set).
+  std::string uuid;        // 32 lower-case hex digits
+  std::string pci_bus_id;  // "dddd:bb:dd.f"
 
   // Stable across runs and machines with the same device and driver:
   // "<backend>:<platform>/<name>/<driver_version>".
