@@ -212,6 +212,25 @@ TEST(EmbedHeader, SourceIsTheEmittedKernelTextWithItsHashEntryPointAndLaunchRule
   }
 }
 
+// A vulkan kernel carries its SPIR-V (what vkCreateShaderModule takes); the others none.
+TEST(EmbedHeader, VulkanKernelsCarryTheirSpirvWords) {
+  int vulkan = 0;
+  for (int i = 0; i < fk::kKernelCount; ++i) {
+    const fk::Kernel& k = fk::kKernels[i];
+    SCOPED_TRACE(Context(k));
+    if (std::string(k.lang) != "vulkan") {
+      EXPECT_EQ(k.spirv, nullptr);
+      EXPECT_EQ(k.spirv_words, 0u);
+      continue;
+    }
+    ++vulkan;
+    ASSERT_NE(k.spirv, nullptr);
+    ASSERT_GT(k.spirv_words, 5u);
+    EXPECT_EQ(k.spirv[0], 0x07230203u);  // the SPIR-V magic number
+  }
+  EXPECT_GE(vulkan, 1) << "the fixture database has no vulkan winner any more";
+}
+
 TEST(EmbedHeader, WinnersOfTheSameVariantShareOneSourceLiteral) {
   int shared = 0;
   for (int i = 0; i < fk::kKernelCount; ++i) {
