@@ -135,28 +135,6 @@ CpuTiming TimeFast(const SkinnedAsset& asset, const CpuTimingOptions& options, u
                       });
 }
 
-std::uint64_t HostLastLevelCacheBytes() {
-  std::uint64_t largest = 0;
-  for (int index = 0; index < 8; ++index) {
-    std::ifstream in("/sys/devices/system/cpu/cpu0/cache/index" + std::to_string(index) + "/size");
-    std::string text;
-    if (!(in >> text) || text.empty()) continue;
-    std::uint64_t value = 0;
-    std::size_t used = 0;
-    try {
-      value = std::stoull(text, &used);
-    } catch (const std::exception&) {
-      continue;
-    }
-    const char unit = used < text.size() ? text[used] : 'B';
-    if (unit == 'K') value <<= 10;
-    if (unit == 'M') value <<= 20;
-    if (unit == 'G') value <<= 30;
-    largest = std::max(largest, value);
-  }
-  return largest;
-}
-
 double HostCopyBandwidthGBps(unsigned threads) {
   const std::size_t bytes = std::max<std::size_t>(std::size_t(256) << 20, 4 * HostLastLevelCacheBytes());
   std::vector<char> src(bytes, 1), dst(bytes, 0);

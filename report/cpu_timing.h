@@ -13,6 +13,7 @@
 
 #include "reference/asset.h"
 #include "report/paper.h"
+#include "runtime/physical_device.h"  // HostLastLevelCacheBytes
 
 namespace skintune {
 
@@ -34,7 +35,5 @@ CpuTiming TimeFast(const SkinnedAsset& asset, const CpuTimingOptions& options = 
 // memcpy over buffers of 4x the last-level cache (at least 256 MiB) on
 // `threads` threads (0: all), the median of 7 after 2 warm-ups.
 double HostCopyBandwidthGBps(unsigned threads = 0);
-// The largest CPU cache of cpu0 from sysfs, or 0 when unknown.
-std::uint64_t HostLastLevelCacheBytes();
 
 }  // namespace skintune
