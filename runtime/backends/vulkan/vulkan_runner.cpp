@@ -206,6 +206,8 @@ class VulkanApi final : public DeviceApi {
                                      const SetOptions& options, std::size_t& allocated) override;
   void FinishUploads(const std::string&) override { WaitAll(); }
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
+  // On a GPU, warm up until the clock is steady, as GL on the same NVIDIA driver needs.
+  TimingPolicy timing_policy() const override { return {c_->info.type == "gpu"}; }
   void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   void Finish() override;

@@ -21,6 +21,8 @@
 //   vkCmdWriteTimestamp (ms = ticks x timestampPeriod / 1e6); a pipeline
 //   barrier only before a frame whose input set an earlier frame of the same
 //   command buffer used (the outputs are written again).
+// - On a GPU the driver first warms up until two bursts of frames take the
+//   same time (TimingPolicy::warm_until_stable), as for GL on NVIDIA.
 // - Limits (VkPhysicalDeviceLimits): maxUniformBufferRange (constant),
 //   maxTexelBufferElements (image), maxStorageBufferRange (every storage
 //   buffer), maxComputeWorkGroupCount x and y (groups, instances).
