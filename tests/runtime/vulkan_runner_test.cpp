@@ -26,17 +26,7 @@
 namespace skintune {
 namespace {
 
-using testing::Asset;
-using testing::Case;
-using testing::CaseName;
-using testing::ExpectCaseMatchesGold;
-using testing::ExpectCoveringSetMatchesGold;
-using testing::ExpectHalfPoisoned;
-using testing::ExpectRunFails;
-using testing::Faulty;
-using testing::LaunchTimes;
-using testing::Seed;
-using testing::WithFault;
+using namespace skintune::testing;  // the runner tests' helpers (runner_test_support.h)
 
 // One runner with validation for the whole program (device 0), or null with the reason.
 VulkanRunner* Runner(std::string& why) {
