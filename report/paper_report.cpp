@@ -58,7 +58,7 @@ std::string MachineValue(const nlohmann::json& v) { return v.is_string() ? v.get
 
 double CopyFraction(double gbps, double copy) { return copy > 0.0 ? gbps / copy : 0.0; }
 
-KernelOutcome OutcomeOf(const Measurement& m, double copy) {
+KernelOutcome OutcomeOf(const Measurement& m, double copy, std::uint64_t llc = 0) {
   KernelOutcome o;
   o.measured = true;
   o.variant = m.variant;
@@ -68,6 +68,8 @@ KernelOutcome OutcomeOf(const Measurement& m, double copy) {
     o.median_ms = m.timing.median_ms;
     o.gbps = m.gbps;
     o.copy_fraction = CopyFraction(m.gbps, copy);
+    o.x_copy = m.x_copy;
+    o.partly_cached = llc > 0 && m.timing.footprint_bytes > 0.0 && m.timing.footprint_bytes < 2.0 * static_cast<double>(llc);
   }
   return o;
 }
@@ -206,7 +208,7 @@ class ResultSummariser {
             if (m->variant != wanted) continue;
             if (found == nullptr || (found->status != MeasureStatus::kOk && m->status == MeasureStatus::kOk)) found = m;
           }
-          KernelOutcome o = found ? OutcomeOf(*found, device.copy_bandwidth_gbps) : KernelOutcome{};
+          KernelOutcome o = found ? OutcomeOf(*found, device.copy_bandwidth_gbps, device.identity.last_level_cache_bytes) : KernelOutcome{};
           if (!found) o.variant = wanted;
           o.name = kernel.name;
           o.label = kernel.label;
@@ -220,7 +222,7 @@ class ResultSummariser {
           ++k.ok;
           if (best == nullptr || m->timing.median_ms < best->timing.median_ms) best = m;
         }
-        if (best) k.tuned = OutcomeOf(*best, device.copy_bandwidth_gbps);
+        if (best) k.tuned = OutcomeOf(*best, device.copy_bandwidth_gbps, device.identity.last_level_cache_bytes);
         k.tuned.name = "tuned";
         k.tuned.label = std::string(DisplayName(device.api)) + " tuned" +
                         (best ? std::string(" (") + Name(best->variant.lang) + ")" : "");
@@ -390,7 +392,7 @@ class ResultSummariser {
           continue;
         }
         s.points.push_back({dataset.key, dataset.vertices, m->gbps, m->timing.median_ms,
-                            CopyFraction(m->gbps, device.copy_bandwidth_gbps), m->variant});
+                            CopyFraction(m->gbps, device.copy_bandwidth_gbps), m->variant, m->x_copy});
       }
     }
     for (auto& [key, s] : series) {

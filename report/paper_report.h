@@ -79,6 +79,8 @@ struct KernelOutcome {
   double median_ms = 0.0;       // status ok only
   double gbps = 0.0;
   double copy_fraction = 0.0;   // gbps / the device's copy bandwidth; 0 when that is unknown
+  double x_copy = 0.0;          // median_ms / the same-size copy's, timed the same way; 0 when unknown
+  bool partly_cached = false;   // the rotation covered less than 2 x the chip's last-level cache
 
   bool Ok() const { return measured && status == MeasureStatus::kOk; }
 };
@@ -154,6 +156,7 @@ struct GbpsPoint {
   double median_ms = 0.0;
   double copy_fraction = 0.0;  // 0 when the copy bandwidth is unknown
   Variant variant;
+  double x_copy = 0.0;         // the time / the same-size copy's; 0 when unknown
 };
 
 // The fastest status-ok variant of one language and B, per data set.

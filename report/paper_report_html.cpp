@@ -585,21 +585,23 @@ class Renderer {
   }
 
   // The points of a GB/s chart as a table: per data set and language the
-  // winner's time, GB/s, fraction of copy and variant.
+  // winner's time, GB/s, its time over the same-size copy's, fraction of the
+  // device's large copy and variant.
   void WinnersTable(const GbpsChart& chart) {
     std::map<std::string, std::vector<std::pair<Lang, const GbpsPoint*>>> by_dataset;
     for (const GbpsSeries& s : chart.series) {
       for (const GbpsPoint& p : s.points) by_dataset[p.dataset].emplace_back(s.lang, &p);
     }
-    out_ += "<table><thead><tr><th>data set</th><th>language</th><th>time</th><th>GB/s</th><th>of copy</th>"
-            "<th>tuned winner</th></tr></thead><tbody>\n";
+    out_ += "<table><thead><tr><th>data set</th><th>language</th><th>time</th><th>GB/s</th><th title=\"time / the time of a copy of the "
+            "same bytes, timed the same way\">\xC3\x97 same-size copy</th><th>of large copy</th><th>tuned winner</th></tr></thead><tbody>\n";
     for (const DatasetInfo& d : s_.results[s_.devices[chart.device].result].datasets) {
       const auto it = by_dataset.find(d.key);
       if (it == by_dataset.end()) continue;
       for (const auto& [lang, p] : it->second) {
         out_ += "<tr><td>" + Esc(d.key) + "</td><td>" + Esc(Name(lang)) + "</td><td class=\"num\">" +
                 FormatMs(p->median_ms) + "</td><td class=\"num\">" + FormatGbps(p->gbps) + "</td><td class=\"num\">" +
-                (p->copy_fraction > 0.0 ? Fraction(p->copy_fraction) : std::string("copy unknown")) +
+                (p->x_copy > 0.0 ? FormatSignificant(p->x_copy, 3) : std::string("not measured")) +
+                "</td><td class=\"num\">" + (p->copy_fraction > 0.0 ? Fraction(p->copy_fraction) : std::string("copy unknown")) +
                 "</td><td><code>" + Esc(p->variant.Key()) + "</code></td></tr>\n";
       }
     }
@@ -702,8 +704,8 @@ class Renderer {
                 Esc(i.vendor) + "</td><td>" + Esc(i.driver_version) + "</td><td>" + Esc(i.api_version) + "</td><td>" +
                 Esc(i.type) + "</td><td class=\"num\">" +
                 (i.compute_units ? std::to_string(i.compute_units) : std::string("unknown")) +
-                "</td><td class=\"num\">" + Bytes(i.global_memory_bytes) + "</td><td class=\"num\">" +
-                Bytes(i.last_level_cache_bytes) + "</td><td class=\"num\">" +
+                "</td><td class=\"num\">" + Bytes(i.global_memory_bytes) + "</td><td class=\"num\" title=\"" +
+                Esc(i.last_level_cache_source) + "\">" + Bytes(i.last_level_cache_bytes) + "</td><td class=\"num\">" +
                 (d.copy_bandwidth_gbps > 0.0 ? FormatGbps(d.copy_bandwidth_gbps) : std::string("not measured")) +
                 "</td><td>" + Esc(d.chip) + "</td></tr>\n";
       }

@@ -139,14 +139,16 @@ std::string RenderMarkdown(const PaperSummary& s) {
   }
   out += "\n## Fig. 1\n\n" + Figure1Markdown(s) + "## Table 1\n\n" + Table1Markdown(s);
   out += "## Tuned winners per device\n\n"
-         "The fastest verified variant per data set; GB/s = bytes the format moves / median time; \"of copy\" = "
-         "that over the device's copy kernel.\n\n";
+         "The fastest verified variant per data set; GB/s = bytes the format moves / median time; \"x copy\" = "
+         "the time over a copy of the same bytes timed the same way (docs/TUNING.md \"Timing\"; * partly from cache: the "
+         "rotation covered less than twice the chip's last-level cache); \"of copy\" = GB/s over the device's large "
+         "copy.\n\n";
   for (std::size_t d = 0; d < s.devices.size(); ++d) {
     const SummaryDevice& device = s.devices[d];
     out += "### " + Cell(device.label) + " (copy " +
            (device.copy_bandwidth_gbps > 0.0 ? FormatGbps(device.copy_bandwidth_gbps) : std::string("not measured")) +
-           ")\n\n| data set | tuned winner | time | GB/s | of copy | the paper's kernels |\n"
-           "| --- | --- | ---: | ---: | ---: | --- |\n";
+           ")\n\n| data set | tuned winner | time | GB/s | x copy | of copy | the paper's kernels |\n"
+           "| --- | --- | ---: | ---: | ---: | ---: | --- |\n";
     for (const KernelResults& k : s.kernels) {
       if (k.device != d) continue;
       std::string paper;
@@ -159,13 +161,15 @@ std::string RenderMarkdown(const PaperSummary& s) {
       if (k.tuned.Ok()) {
         out += "| " + Cell(k.dataset) + " | " + Cell(k.tuned.label) + " `" + Cell(k.tuned.variant.Key()) + "` | " +
                FormatMs(k.tuned.median_ms) + " | " + FormatGbps(k.tuned.gbps) + " | " +
-               (k.tuned.copy_fraction > 0.0 ? FormatSignificant(k.tuned.copy_fraction, 2) : std::string(kDash)) +
+               (k.tuned.x_copy > 0.0 ? FormatSignificant(k.tuned.x_copy, 3) + (k.tuned.partly_cached ? "*" : "")
+                                     : std::string(kDash)) +
+               " | " + (k.tuned.copy_fraction > 0.0 ? FormatSignificant(k.tuned.copy_fraction, 2) : std::string(kDash)) +
                " | " + Cell(paper) + " |\n";
       } else {
         out += "| " + Cell(k.dataset) + " | " +
                (k.measurements == 0 ? std::string("not measured")
                                     : "no variant passed (" + std::to_string(k.measurements) + " failed or invalid)") +
-               " | " + kDash + " | " + kDash + " | " + kDash + " | " + Cell(paper) + " |\n";
+               " | " + kDash + " | " + kDash + " | " + kDash + " | " + kDash + " | " + Cell(paper) + " |\n";
       }
     }
     out += "\n";
@@ -177,7 +181,8 @@ std::string RenderMarkdown(const PaperSummary& s) {
     out += "| " + Cell(i.backend) + " | " + Cell(i.platform) + " | " + Cell(i.name) + " | " + Cell(i.vendor) + " | " +
            Cell(i.driver_version) + " | " + Cell(i.api_version) + " | " + Cell(i.type) + " | " +
            std::to_string(i.compute_units) + " | " + Bytes(i.global_memory_bytes) + " | " +
-           (i.last_level_cache_bytes ? FormatSignificant(static_cast<double>(i.last_level_cache_bytes) / 1048576.0) + " MiB"
+           (i.last_level_cache_bytes ? FormatSignificant(static_cast<double>(i.last_level_cache_bytes) / 1048576.0) + " MiB" +
+                                           (i.last_level_cache_source.empty() ? "" : " (" + Cell(i.last_level_cache_source) + ")")
                                      : std::string("unknown")) +
            " | " + (d.copy_bandwidth_gbps > 0.0 ? FormatGbps(d.copy_bandwidth_gbps) : std::string("not measured")) +
            " |\n";

@@ -4,6 +4,8 @@
 
 #include <exception>
 
+#include "runtime/physical_device.h"
+
 namespace skintune {
 
 // Each defined in its folder: runtime/backends/<api>/<api>_backend.cpp.
@@ -23,6 +25,24 @@ const BackendEntry* FindBackend(std::string_view name) {
   return nullptr;
 }
 
+namespace {
+
+void ResolveCaches(std::vector<FoundDevice>& devices) {
+  std::vector<CacheReport> reports;
+  for (FoundDevice& d : devices) {
+    DeviceIdentity& i = d.identity;
+    i.reported_cache_bytes = i.last_level_cache_bytes;  // what the API's discovery said
+    reports.push_back({i.backend, i.type, i.name, i.uuid, i.pci_bus_id, i.reported_cache_bytes, i.global_memory_bytes});
+  }
+  const std::vector<CacheFigure> figures = ResolveLastLevelCaches(reports, HostLastLevelCacheBytes());
+  for (std::size_t k = 0; k < devices.size(); ++k) {
+    devices[k].identity.last_level_cache_bytes = figures[k].bytes;
+    devices[k].identity.last_level_cache_source = figures[k].bytes ? figures[k].source : "unknown";
+  }
+}
+
+}  // namespace
+
 Discovered DiscoverDevices(const char* only) {
   Discovered found;
   for (const BackendEntry& b : Backends()) {
@@ -33,6 +53,7 @@ Discovered DiscoverDevices(const char* only) {
       found.skipped.push_back(std::string(b.name) + ": skipped: " + e.what());
     }
   }
+  ResolveCaches(found.devices);
   return found;
 }
 

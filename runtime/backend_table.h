@@ -67,7 +67,12 @@ const std::vector<BackendEntry>& Backends();
 // The entry named `name` ("opencl"), or null.
 const BackendEntry* FindBackend(std::string_view name);
 // Every device of every API (only those of the API named `only` when given;
-// the others are not even looked for), in table order. Never throws.
+// the others are not even looked for), in table order. Never throws. Each
+// identity's last_level_cache_bytes is the physical chip's, matched across
+// the devices found (runtime/physical_device.h: the same GPU through several
+// APIs by UUID or PCI bus id, CPU devices as the host), with its source; the
+// API's own figure moves to reported_cache_bytes. With `only`, only that
+// API's devices are matched (a datasheet figure still applies).
 Discovered DiscoverDevices(const char* only = nullptr);
 // The entries' names or titles joined: "opencl, cuda or gl".
 std::string JoinedBackendNames(bool titles = false);

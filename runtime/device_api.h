@@ -6,7 +6,7 @@
 // (one per API, in runtime/backends/<api>/) does what only its API knows:
 // building a kernel (with the program cache), buffers, the palette's view for
 // the variant's storage, binding a launch's arguments its own way, running
-// frames with the device's timers, and a copy kernel. Modelled on Kernel
+// frames (bursts) with the device's timers. Modelled on Kernel
 // Tuner's Backend (ready_argument_list, compile, start/stop_event,
 // run_kernel, memcpy) and CLBlast's "descriptors plus one driver".
 //
@@ -21,6 +21,7 @@
 #pragma once
 
 #include <cstddef>
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -100,18 +101,34 @@ struct SetOptions {
 // What a frame run is for.
 enum class FrameUse {
   kVerify,  // Run: one frame, each launch timed by the device and checked by the API
-  kTime,    // Time: frames after `untimed` timed per launch by the device, then wait
+  kTime,    // Time: after `untimed` frames, bursts of `burst` frames each timed as a whole, then wait
   kLive,    // the Skinner's frame: no timers, no wait, on the caller's queue/stream
 };
 
 // A frame is every bound launch of one input set, in launch order; `frames`
 // lists the sets' launches frame after frame (a set may appear many times).
+//
+// kTime's bursts (docs/TUNING.md "Timing"): the frames after `untimed` are
+// grouped into bursts of `burst` consecutive frames, and each burst's launches
+// go to the device back to back, with nothing between them (no host wait, no
+// host copy, no query that serialises): the burst is timed by the device from
+// the start of its first launch to the end of its last. A burst divided by its
+// frames is a frame's cost free of launch gaps, which per-launch timers (CUDA
+// events around each launch) would include. A last, shorter group of frames
+// is not timed.
 struct FrameRun {
   FrameUse use = FrameUse::kTime;
   std::vector<std::span<const std::unique_ptr<DeviceObject>>> frames;
   int untimed = 0;                 // kTime: leading frames run without timers (warm-up)
+  int burst = 1;                   // kTime: frames per timed burst (>= 1)
   std::string key;                 // the variant key, for messages
   void* out_positions = nullptr;   // kLive: write positions into this native buffer instead (OpenCL-GL sharing)
+
+  // kTime: the bursts timed (frames after `untimed`, whole bursts only).
+  std::size_t TimedBursts() const {
+    const std::size_t timed = frames.size() - std::min<std::size_t>(frames.size(), static_cast<std::size_t>(std::max(untimed, 0)));
+    return timed / static_cast<std::size_t>(std::max(burst, 1));
+  }
 };
 
 // What the driver does around an API's timed frames.
@@ -176,8 +193,9 @@ class DeviceApi {
   // Waits until the uploads of Prepare's input sets are done.
   virtual void FinishUploads(const std::string& key) = 0;
 
-  // Runs `run.frames` (see FrameUse). Returns, per timed frame, the device
-  // time of each launch in ms (kLive: nothing).
+  // Runs `run.frames` (see FrameUse). Returns kVerify: one vector, the
+  // device time of each launch in ms; kTime: one vector of one value per
+  // timed burst, its device time in ms; kLive: nothing.
   virtual std::vector<std::vector<double>> RunFrames(const FrameRun& run) = 0;
   virtual TimingPolicy timing_policy() const { return {}; }
 
@@ -191,19 +209,10 @@ class DeviceApi {
   // Waits for everything queued.
   virtual void Finish() = 0;
 
-  // A plain copy kernel between two buffers of `bytes` (a multiple of 16;
-  // the source holds CopyPattern): `warmup` untimed then `repetitions` timed
-  // runs, ms each.
-  virtual std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions) = 0;
-
  protected:
   ProgramCache* cache_ = nullptr;
   std::string cache_device_id_;
 };
-
-// A non-zero pattern of `words` 32-bit words (an LCG), so nothing of a copy
-// can be elided or compressed away.
-std::vector<std::uint32_t> CopyPattern(std::size_t words);
 
 // `source.source_hash`, or the hash of its text when it has none.
 std::string HashOf(const KernelSource& source);

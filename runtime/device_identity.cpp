@@ -22,9 +22,11 @@ void to_json(nlohmann::json& out, const DeviceIdentity& d) {
          {"global_memory_bytes", d.global_memory_bytes},
          {"local_memory_bytes", d.local_memory_bytes},
          {"constant_memory_bytes", d.constant_memory_bytes},
-         {"last_level_cache_bytes", d.last_level_cache_bytes}};
-  if (!d.uuid.empty()) out["uuid"] = d.uuid;
-  if (!d.pci_bus_id.empty()) out["pci_bus_id"] = d.pci_bus_id;
+         {"uuid", d.uuid},
+         {"pci_bus_id", d.pci_bus_id},
+         {"last_level_cache_bytes", d.last_level_cache_bytes},
+         {"last_level_cache_source", d.last_level_cache_source},
+         {"reported_cache_bytes", d.reported_cache_bytes}};
 }
 
 namespace {
@@ -60,9 +62,11 @@ void from_json(const nlohmann::json& in, DeviceIdentity& d) {
   ReadField(in, "global_memory_bytes", d.global_memory_bytes, false);
   ReadField(in, "local_memory_bytes", d.local_memory_bytes, false);
   ReadField(in, "constant_memory_bytes", d.constant_memory_bytes, false);
-  ReadField(in, "last_level_cache_bytes", d.last_level_cache_bytes, false);
   ReadField(in, "uuid", d.uuid, false);
   ReadField(in, "pci_bus_id", d.pci_bus_id, false);
+  ReadField(in, "last_level_cache_bytes", d.last_level_cache_bytes, false);
+  ReadField(in, "last_level_cache_source", d.last_level_cache_source, false);
+  ReadField(in, "reported_cache_bytes", d.reported_cache_bytes, false);
 }
 
 }  // namespace skintune

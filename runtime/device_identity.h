@@ -26,11 +26,14 @@ struct DeviceIdentity {
   std::uint64_t global_memory_bytes = 0;
   std::uint64_t local_memory_bytes = 0;
   std::uint64_t constant_memory_bytes = 0;
-  std::uint64_t last_level_cache_bytes = 0;  // 0 = unknown (then the rotation rule assumes 64 MiB)
-  // The chip, as every API that says it names it (runtime/physical_device.h):
-  // "" when the API does not say (Vulkan fills both; JSON only when set).
-  std::string uuid;        // 32 lower-case hex digits
-  std::string pci_bus_id;  // "dddd:bb:dd.f"
+  std::string uuid;             // the chip's UUID, 32 hex digits, where the API says ("" otherwise)
+  std::string pci_bus_id;       // "dddd:bb:dd.f", where the API says ("" otherwise)
+  // The last-level cache the rotation rule uses (docs/TUNING.md
+  // "Residency"): the physical chip's, matched across every API discovery
+  // found (runtime/physical_device.h); 0 = unknown (then it assumes 64 MiB).
+  std::uint64_t last_level_cache_bytes = 0;
+  std::string last_level_cache_source;       // where that figure came from
+  std::uint64_t reported_cache_bytes = 0;    // what this API itself says (0: nothing)
 
   // Stable across runs and machines with the same device and driver:
   // "<backend>:<platform>/<name>/<driver_version>".

@@ -3,10 +3,11 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <fstream>
-#include <stdexcept>
 #include <array>
 #include <cstdio>
+#include <exception>
+#include <fstream>
+#include <string>
 #include <map>
 
 namespace skintune {
@@ -50,10 +51,8 @@ std::uint64_t KnownLastLevelCacheBytes(const std::string& device_name) {
   return 0;
 }
 
-// The largest cache of cpu0 in sysfs (glibc's sysconf(_SC_LEVEL3_CACHE_SIZE)
-// is 10x the real L3 on some hosts: 320 MB for sysfs's 32 MB here).
 std::uint64_t HostLastLevelCacheBytes() {
-  std::uint64_t largest = 0;
+  std::uint64_t best = 0;
   for (int index = 0; index < 8; ++index) {
     std::ifstream in("/sys/devices/system/cpu/cpu0/cache/index" + std::to_string(index) + "/size");
     std::string text;
@@ -69,9 +68,14 @@ std::uint64_t HostLastLevelCacheBytes() {
     if (unit == 'K') value <<= 10;
     if (unit == 'M') value <<= 20;
     if (unit == 'G') value <<= 30;
-    largest = std::max(largest, value);
+    best = std::max(best, value);
   }
-  return largest;
+  if (best == 0)  // no sysfs: what the C library knows
+    for (int level : {_SC_LEVEL4_CACHE_SIZE, _SC_LEVEL3_CACHE_SIZE, _SC_LEVEL2_CACHE_SIZE}) {
+      const long bytes = sysconf(level);
+      if (bytes > 0) best = std::max(best, static_cast<std::uint64_t>(bytes));
+    }
+  return best;
 }
 
 std::string UuidHex(const unsigned char* bytes16) {

@@ -47,7 +47,8 @@ std::vector<CacheFigure> ResolveLastLevelCaches(const std::vector<CacheReport>& 
 // match on a short table of datasheet figures), 0 when not known.
 std::uint64_t KnownLastLevelCacheBytes(const std::string& device_name);
 
-// This machine's last-level cache (sysfs: the largest cache of cpu0), 0 when unknown.
+// This machine's last-level cache: the largest cache of cpu0 in sysfs, else
+// sysconf's largest level, 0 when unknown.
 std::uint64_t HostLastLevelCacheBytes();
 
 // A 16-byte UUID as 32 lower-case hex digits ("" for all zero bytes: not an identity).

@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "reference/error.h"
+#include "generator/copy_kernel.h"
 #include "runtime/output_check.h"
 #include "runtime/run_shape.h"
 
@@ -268,26 +269,46 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
   }
 }
 
-std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int repetitions) {
+std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int bursts, int burst_frames) {
   api_->MakeCurrent();
   const Prepared::Impl* p = prepared.impl_.get();
   if (!p || p->sets.empty()) Fail("launch", "Time: nothing prepared");
   warmup = std::max(warmup, 0);
-  repetitions = std::max(repetitions, 0);
+  bursts = std::max(bursts, 0);
+  burst_frames = std::max(burst_frames, 1);
   if (api_->timing_policy().warm_until_stable) WarmUntilStable(*p);
   FrameRun run;
   run.use = FrameUse::kTime;
   run.key = p->key;
   run.untimed = warmup;
-  for (int frame = 0; frame < warmup + repetitions; ++frame)
+  run.burst = burst_frames;
+  for (int frame = 0; frame < warmup + bursts * burst_frames; ++frame)
     run.frames.push_back(p->Frame(static_cast<std::size_t>(frame) % p->sets.size()));
   std::vector<double> ms;
-  for (const std::vector<double>& launches : api_->RunFrames(run)) {
-    double total = 0.0;
-    for (const double launch : launches) total += launch;
-    ms.push_back(total);
+  for (const std::vector<double>& burst : api_->RunFrames(run)) {
+    if (burst.size() != 1)
+      Fail("launch", "timing " + p->key + ": the device gave " + std::to_string(burst.size()) + " times for a burst");
+    ms.push_back(burst.front() / burst_frames);
   }
   return ms;
+}
+
+int Runner::BurstFrames(const Prepared& prepared, int warmup, double burst_ms) {
+  std::vector<double> one = Time(prepared, warmup, 3, 1);
+  if (one.empty()) return 1;
+  std::sort(one.begin(), one.end());
+  const double frame_ms = one[one.size() / 2];
+  if (!(frame_ms > 0.0) || !(burst_ms > 0.0)) return frame_ms > 0.0 ? 1 : kMaxBurstFrames;
+  return static_cast<int>(std::clamp(std::ceil(burst_ms / frame_ms), 1.0, static_cast<double>(kMaxBurstFrames)));
+}
+
+Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {
+  const CopyKernel copy = EmitCopy(lang, bytes);
+  const std::vector<std::vector<std::uint8_t>> palettes(static_cast<std::size_t>(std::max(input_sets, 1)),
+                                                        copy.mesh.palette);
+  Prepared prepared = Prepare(copy.mesh, std::span<const KernelSource>(&copy.kernel, 1), palettes);
+  prepared.impl_->key = "the copy of " + std::to_string(CopyBytes(copy)) + " bytes";
+  return prepared;
 }
 
 // ---------------------------------------------------------------- skinning
@@ -336,13 +357,6 @@ void Runner::Finish() {
   api_->Finish();
 }
 
-std::vector<double> Runner::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
-  api_->MakeCurrent();
-  bytes -= bytes % 16;
-  if (bytes == 0) Fail("launch", "copy of less than 16 bytes");
-  return api_->TimeCopy(bytes, std::max(warmup, 0), std::max(repetitions, 0));
-}
-
 // ---------------------------------------------------------------- shared by the APIs
 
 std::size_t DeviceApi::PaletteBufferBytes(const RunShape& shape, std::span<const KernelSource>) const {
@@ -350,13 +364,6 @@ std::size_t DeviceApi::PaletteBufferBytes(const RunShape& shape, std::span<const
 }
 
 const char* DeviceApi::OutputWriter(const Variant&) const { return "kernel"; }
-
-std::vector<std::uint32_t> CopyPattern(std::size_t words) {
-  std::vector<std::uint32_t> pattern(words);
-  std::uint32_t x = 0x9e3779b9u;
-  for (std::uint32_t& w : pattern) w = x = x * 1664525u + 1013904223u;
-  return pattern;
-}
 
 std::string HashOf(const KernelSource& source) {
   return source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;

@@ -23,8 +23,9 @@
 // - Timing (the tuner's): Prepare uploads one input set per palette (copies
 //   of every launch's inputs, that palette, outputs of their own, poisoned
 //   but unguarded); Time runs frames rotating among them, uploading,
-//   poisoning and reading back nothing; verify with Run first. A frame's time
-//   is the sum of its launches' device times.
+//   poisoning and reading back nothing, in bursts timed as a whole by the
+//   device (launch-gap free); verify with Run first. PrepareCopy prepares the
+//   same-size copy (generator/copy_kernel.h) the same way.
 // - Skinning (the runtime's Skinner): a Prepared set is also a live set of
 //   device buffers: WritePalette replaces a set's palettes (asynchronously),
 //   LaunchSet runs its launches once on the caller's queue, ReadOutput waits
@@ -73,6 +74,9 @@ class Prepared {
   std::unique_ptr<Impl> impl_;
 };
 
+// The most frames one timed burst holds (Runner::BurstFrames).
+inline constexpr int kMaxBurstFrames = 1000;
+
 class Runner {
  public:
   explicit Runner(std::unique_ptr<DeviceApi> api);
@@ -113,11 +117,24 @@ class Runner {
   Prepared Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                    std::span<const std::vector<std::uint8_t>> palettes, int instances = 1);
 
-  // Runs `warmup` untimed frames, then `repetitions` timed ones; frame f (warm-up
-  // frames counted) reads and writes set f % input_sets(). Nothing is uploaded
-  // or read back. Returns one time per timed frame: the sum over its launches
-  // of their device time, ms. (The API may warm up further: TimingPolicy.)
-  std::vector<double> Time(const Prepared& prepared, int warmup, int repetitions);
+  // Runs `warmup` untimed frames, then `bursts` bursts of `burst_frames`
+  // frames each (>= 1; FrameRun in device_api.h): a burst's launches go to
+  // the device back to back and are timed as a whole by its timers, free of
+  // launch gaps. Frame f (warm-up frames counted) reads and writes set
+  // f % input_sets(). Nothing is uploaded or read back. Returns one time per
+  // burst: its device time divided by its frames, ms. (The API may warm up
+  // further: TimingPolicy.)
+  std::vector<double> Time(const Prepared& prepared, int warmup, int bursts, int burst_frames = 1);
+
+  // Frames per burst so that a burst takes about `burst_ms` of device time:
+  // after `warmup` frames, three bursts of one frame are timed and their
+  // median decides; 1..kMaxBurstFrames.
+  int BurstFrames(const Prepared& prepared, int warmup, double burst_ms);
+
+  // The copy every measurement is judged against (generator/copy_kernel.h):
+  // EmitCopy(lang, bytes) prepared with `input_sets` sets of its own, to be
+  // timed by Time like any kernel (the same rotation, the same bursts).
+  Prepared PrepareCopy(Lang lang, std::size_t bytes, int input_sets);
 
   // Skinning with a prepared set (see the top of this file). WritePalette
   // copies `palettes` (the set's K palettes) and enqueues their upload;

@@ -122,6 +122,7 @@ nlohmann::json WinnersEntryToJson(const WinnersEntry& e) {
                       {"median_ms", e.median_ms},
                       {"gbps", e.gbps},
                       {"copy_fraction", e.copy_fraction},
+                      {"x_copy", e.x_copy},
                       {"created", e.created},
                       {"source", e.source}};
   if (!e.vendor.empty()) j["vendor"] = e.vendor;
@@ -176,6 +177,7 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
   e.median_ms = Number(j, "median_ms");
   e.gbps = Number(j, "gbps");
   e.copy_fraction = Number(j, "copy_fraction");
+  e.x_copy = j.contains("x_copy") ? Number(j, "x_copy") : 0.0;  // 1.3.0
   // The time ranks entries (Selection, merges): it must be possible. The
   // bandwidths are only shown: finite and not negative.
   RecordedTime time;
@@ -183,6 +185,7 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
   std::string problem = ImpossibleTime(time);
   if (problem.empty()) problem = NotFiniteNonNegative("gbps", e.gbps);
   if (problem.empty()) problem = NotFiniteNonNegative("copy_fraction", e.copy_fraction);
+  if (problem.empty()) problem = NotFiniteNonNegative("x_copy", e.x_copy);
   if (!problem.empty()) throw Error("impossible figures: " + problem);
   e.created = CheckedCreated(String(j, "created"));
   e.source = String(j, "source");

@@ -30,7 +30,7 @@
 namespace skintune {
 
 inline constexpr const char* kWinnersDbKind = "skintune-winners-db";
-inline constexpr const char* kWinnersDbSchemaVersion = "1.2.0";
+inline constexpr const char* kWinnersDbSchemaVersion = "1.3.0";  // 1.3.0: x_copy
 
 // The parts of a device id "<backend>:<platform>/<name>/<driver_version>".
 struct DeviceIdParts {
@@ -81,6 +81,7 @@ struct WinnersEntry {
   double median_ms = 0.0;
   double gbps = 0.0;
   double copy_fraction = 0.0;  // gbps / the device's copy bandwidth (0 when unknown)
+  double x_copy = 0.0;         // median_ms / the same-size copy's, timed the same way (0: unknown; before 1.3.0)
   std::string created;         // of the report it came from
   std::string source;          // that report's config and strategy, e.g. "default (exhaustive)"
 };

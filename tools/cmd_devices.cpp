@@ -57,8 +57,18 @@ std::string Languages(const std::string& backend) {
 
 void PrintText(const Discovered& found) {
   std::cout << "Devices (" << JoinedBackendNames(true) << "):\n";
-  for (const FoundDevice& d : found.devices)
-    std::cout << "  " << d.identity.Id() << " (" << d.identity.type << "): " << Languages(d.identity.backend) << "\n";
+  for (const FoundDevice& d : found.devices) {
+    const DeviceIdentity& i = d.identity;
+    std::cout << "  " << i.Id() << " (" << i.type << "): " << Languages(i.backend) << "\n";
+    if (!i.uuid.empty() || !i.pci_bus_id.empty())
+      std::cout << "    chip" << (i.uuid.empty() ? "" : " UUID " + i.uuid) << (i.pci_bus_id.empty() ? "" : " PCI " + i.pci_bus_id)
+                << "\n";
+    std::cout << "    last-level cache for timing: "
+              << (i.last_level_cache_bytes ? std::to_string(i.last_level_cache_bytes >> 10) + " KiB (" +
+                                                 i.last_level_cache_source + ")"
+                                           : std::string("unknown (64 MiB assumed)"))
+              << "\n";
+  }
   for (const std::string& s : found.skipped) std::cout << "  " << s << "\n";
 }
 

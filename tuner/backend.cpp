@@ -333,7 +333,8 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
                    (disagreement.empty() ? "" : "; " + disagreement);
   if (!disagreement.empty()) return finish(MeasureStatus::kVerifyFailed, "wrong results against the float64 gold: " + disagreement);
 
-  // Then time, rotating among K input sets (different frames), device timers.
+  // Then time, in bursts rotating among K input sets (different frames),
+  // device timers; and the same-size copy by the same method.
   std::uint64_t bytes_per_frame = 0;
   for (const Launch& launch : packed.launches)
     for (const PackedBuffer& b : launch.inputs) bytes_per_frame += b.bytes.size();
@@ -346,21 +347,67 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
     palettes.push_back(PackPalette(palette, variant));
   const int warmup = std::max(options.warmup, 0);
   const int repetitions = std::max(options.repetitions, 1);
-  std::vector<double> ms;
+  Executor::Times times;
   try {
-    ms = executor.Time(packed, kernels, palettes, warmup, repetitions);
+    times = executor.Time(packed, kernels, palettes, warmup, repetitions, 0, options.burst_ms);
   } catch (const Error& e) {
     return finish(StatusOfRunnerError(e.what()), std::string("timing: ") + e.what());
   }
+  const std::vector<double>& ms = times.ms;
   if (ms.empty()) return finish(MeasureStatus::kLaunchFailed, "timing: no time measured");
   m.timing.median_ms = Median(ms);
   m.timing.min_ms = *std::min_element(ms.begin(), ms.end());
   m.timing.max_ms = *std::max_element(ms.begin(), ms.end());
   m.timing.warmup = warmup;
   m.timing.repetitions = static_cast<int>(ms.size());
+  m.timing.burst_frames = times.burst_frames;
   m.timing.input_sets = sets;
+  m.timing.footprint_bytes = static_cast<double>(sets) * static_cast<double>(times.bytes_per_set);
   m.gbps = m.timing.median_ms > 0.0 ? m.bytes_per_frame / m.timing.median_ms / 1e6 : 0.0;
-  return finish(MeasureStatus::kOk, "");
+  std::string copy_problem;
+  try {
+    const std::vector<double> copy =
+        executor.TimeCopy(variant.lang, bytes_per_frame, sets, warmup, repetitions, times.burst_frames);
+    const double copy_ms = copy.empty() ? 0.0 : Median(copy);
+    if (copy_ms > 0.0 && std::isfinite(copy_ms)) {
+      m.timing.copy_ms = copy_ms;
+      m.x_copy = m.timing.median_ms / copy_ms;
+    } else {
+      copy_problem = "the same-size copy gave no possible time";
+    }
+  } catch (const Error& e) {
+    copy_problem = std::string("the same-size copy failed: ") + e.what();
+  }
+  return finish(MeasureStatus::kOk, copy_problem);  // a kernel without its copy is still measured
+}
+
+Executor::Output RunnerExecutor::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                     std::span<const std::uint8_t> palette) {
+  RunResult result = runner_.Run(mesh, kernels, palette);
+  return {std::move(result.positions), std::move(result.normals), result.poisoned_vertices};
+}
+
+Executor::Times RunnerExecutor::Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                     std::span<const std::vector<std::uint8_t>> palettes, int warmup, int bursts,
+                                     int burst_frames, double burst_ms) {
+  const Prepared prepared = runner_.Prepare(mesh, kernels, palettes);
+  Times times;
+  times.burst_frames = burst_frames > 0 ? burst_frames : runner_.BurstFrames(prepared, warmup, burst_ms);
+  times.ms = runner_.Time(prepared, warmup, bursts, times.burst_frames);
+  times.bytes_per_set = prepared.bytes_per_set();
+  return times;
+}
+
+std::vector<double> RunnerExecutor::TimeCopy(Lang lang, std::size_t bytes, int input_sets, int warmup, int bursts,
+                                             int burst_frames) {
+  const std::string key = std::string(Name(lang)) + "|" + std::to_string(bytes / 32) + "|" + std::to_string(input_sets) +
+                          "|" + std::to_string(warmup) + "|" + std::to_string(bursts) + "|" +
+                          std::to_string(burst_frames);
+  if (const auto found = copies_.find(key); found != copies_.end()) return found->second;
+  const Prepared prepared = runner_.PrepareCopy(lang, bytes, input_sets);
+  std::vector<double> ms = runner_.Time(prepared, warmup, bursts, burst_frames);
+  copies_[key] = ms;
+  return ms;
 }
 
 }  // namespace tuner_internal

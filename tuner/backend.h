@@ -21,13 +21,16 @@
 namespace skintune {
 
 struct TimingOptions {
-  int warmup = 3;
-  int repetitions = 10;
+  int warmup = 3;        // untimed frames before the bursts
+  int repetitions = 10;  // timed bursts
   // Rotate among enough copies of the inputs that they exceed twice the
   // last-level cache (at most max_input_sets), so no repetition finds its
   // inputs in cache.
   int max_input_sets = 8;
   double tolerance = 1e-5;  // max relative error against the gold
+  // Frames per burst: as many as take about burst_ms of device time (one
+  // frame timed alone first), 1..kMaxBurstFrames (runtime/runner.h).
+  double burst_ms = 2.0;
 };
 
 // What a variant is measured on: a dataset key and the mesh/palettes made from it.
@@ -47,7 +50,8 @@ class Backend {
   // the device itself.
   virtual Measurement Measure(const Variant& variant, const TuningDataset& dataset,
                               const TimingOptions& options) = 0;
-  // A plain copy kernel over `bytes` (read + written per second), GB/s.
+  // The device's copy bandwidth: the copy kernel (generator/copy_kernel.h)
+  // with a source of `bytes`, GB/s (read + written per second).
   virtual double CopyBandwidthGBps(std::size_t bytes) = 0;
 };
 

@@ -76,40 +76,52 @@ class Executor {
     std::vector<std::uint8_t> positions, normals;  // packed order
     std::size_t poisoned_vertices = 0;
   };
+  struct Times {
+    std::vector<double> ms;  // per timed burst: its time / burst_frames
+    int burst_frames = 1;
+    std::size_t bytes_per_set = 0;  // device bytes of one input set
+  };
   virtual ~Executor() = default;
   // One verification run: poisoned outputs and guards (the runners' Run).
   virtual Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                      std::span<const std::uint8_t> palette) = 0;
-  // Prepare (one input set per palette) + Time: per timed frame, ms.
-  virtual std::vector<double> Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                                   std::span<const std::vector<std::uint8_t>> palettes, int warmup,
-                                   int repetitions) = 0;
+  // Prepare (one input set per palette), then `warmup` untimed frames and
+  // `bursts` bursts of burst_frames frames (0: as many as take about
+  // `burst_ms`, from one frame timed alone).
+  virtual Times Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                     std::span<const std::vector<std::uint8_t>> palettes, int warmup, int bursts, int burst_frames,
+                     double burst_ms) = 0;
+  // The same-size copy (generator/copy_kernel.h) moving `bytes` per frame in
+  // `lang`'s API, timed like Time with `input_sets` sets and `burst_frames`.
+  virtual std::vector<double> TimeCopy(Lang lang, std::size_t bytes, int input_sets, int warmup, int bursts,
+                                       int burst_frames) = 0;
 };
 
-// Executor over the runner driver (runtime/runner.h): Run, then Prepare + Time.
+// Executor over the runner driver (runtime/runner.h): Run, then Prepare +
+// Time; copies are timed once per (language, bytes, sets, warm-up, bursts,
+// burst frames) and remembered.
 class RunnerExecutor final : public Executor {
  public:
   explicit RunnerExecutor(Runner& runner) : runner_(runner) {}
   Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-             std::span<const std::uint8_t> palette) override {
-    RunResult result = runner_.Run(mesh, kernels, palette);
-    return {std::move(result.positions), std::move(result.normals), result.poisoned_vertices};
-  }
-  std::vector<double> Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                           std::span<const std::vector<std::uint8_t>> palettes, int warmup, int repetitions) override {
-    const Prepared prepared = runner_.Prepare(mesh, kernels, palettes);
-    return runner_.Time(prepared, warmup, repetitions);
-  }
+             std::span<const std::uint8_t> palette) override;
+  Times Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+             std::span<const std::vector<std::uint8_t>> palettes, int warmup, int bursts, int burst_frames,
+             double burst_ms) override;
+  std::vector<double> TimeCopy(Lang lang, std::size_t bytes, int input_sets, int warmup, int bursts,
+                               int burst_frames) override;
 
  private:
   Runner& runner_;
+  std::map<std::string, std::vector<double>> copies_;
 };
 
 // The one Measure of every backend (tuner/backend.h): checks the variant
 // against the device's limits and the mesh (invalid), packs and emits it
 // (invalid when that throws), applies the injected fault, verifies one run
 // against the gold (compile_failed / launch_failed / verify_failed), then
-// times it rotating among InputSetsFor(...) input sets.
+// times it in bursts rotating among InputSetsFor(...) input sets, and the
+// same-size copy with the same sets and bursts (x_copy).
 Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const DeviceIdentity& identity,
                         const DeviceLimits& limits, const std::vector<Lang>& languages, const Variant& variant,
                         const TuningDataset& dataset, const TimingOptions& options);

@@ -22,24 +22,28 @@ class DeviceBackend final : public Backend {
   std::vector<Lang> languages() const override { return languages_; }
 
   Measurement Measure(const Variant& variant, const TuningDataset& dataset, const TimingOptions& options) override {
-    RunnerExecutor executor(Runner());
-    return MeasureWith(executor, datasets_, device_.identity, limits(), languages(), variant, dataset, options);
+    return MeasureWith(Executor(), datasets_, device_.identity, limits(), languages(), variant, dataset, options);
   }
 
   double CopyBandwidthGBps(std::size_t bytes) override {
     const std::size_t size = CopyBytesCapped(bytes, device_.max_allocation_bytes);
-    return CopyGBps(size, Runner().TimeCopy(size, 2, 10));
+    // One set (a copy this large is far beyond any cache), bursts of a few frames.
+    return CopyGBps(size, Executor().TimeCopy(languages_.front(), 2 * size, 1, 2, 10, 4));
   }
 
  private:
-  skintune::Runner& Runner() {
-    if (!runner_) runner_ = device_.open();
-    return *runner_;
+  RunnerExecutor& Executor() {
+    if (!runner_) {
+      runner_ = device_.open();
+      executor_ = std::make_unique<RunnerExecutor>(*runner_);
+    }
+    return *executor_;
   }
 
   FoundDevice device_;
   std::vector<Lang> languages_;
   std::unique_ptr<skintune::Runner> runner_;  // made on first use
+  std::unique_ptr<RunnerExecutor> executor_;  // over runner_: remembers the copies it timed
   DatasetCache datasets_;
 };
 

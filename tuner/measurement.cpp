@@ -102,11 +102,20 @@ std::string ImpossibleFigures(const Measurement& m) {
   if (problem.empty() && m.timing.repetitions < 1)
     problem = "'repetitions' is " + std::to_string(m.timing.repetitions) + ": a median needs at least one timed run";
   if (problem.empty()) problem = NotFiniteNonNegative("max_relative_error", m.max_relative_error);
+  if (problem.empty()) problem = NotFiniteNonNegative("copy_ms", m.timing.copy_ms);
+  if (problem.empty()) problem = NotFiniteNonNegative("x_copy", m.x_copy);
+  if (problem.empty() && m.timing.copy_ms > 0.0 &&
+      std::abs(m.x_copy - m.timing.median_ms / m.timing.copy_ms) > 1e-6 * (m.x_copy + 1.0))
+    problem = "'x_copy' " + std::to_string(m.x_copy) + " is not median_ms / copy_ms (" +
+              std::to_string(m.timing.median_ms / m.timing.copy_ms) + ")";
+  if (problem.empty() && m.timing.copy_ms == 0.0 && m.x_copy != 0.0)
+    problem = "'x_copy' " + std::to_string(m.x_copy) + " without a copy time";
   return problem.empty() ? "" : "status ok with " + problem;
 }
 
 std::string Measurement::CacheKey() const {
-  return device_id + "|" + generator_version + "|" + dataset + "|" + variant.Key();
+  return device_id + "|" + generator_version + "|timing " + std::to_string(timing.version) + "|" + dataset + "|" +
+         variant.Key();
 }
 
 void to_json(nlohmann::json& out, const Measurement& m) {
@@ -116,11 +125,19 @@ void to_json(nlohmann::json& out, const Measurement& m) {
   out["variant"] = m.variant;
   out["status"] = Name(m.status);
   out["detail"] = m.detail;
-  out["timing"] = {{"median_ms", Number(m.timing.median_ms)}, {"min_ms", Number(m.timing.min_ms)},
-                   {"max_ms", Number(m.timing.max_ms)},       {"warmup", m.timing.warmup},
-                   {"repetitions", m.timing.repetitions},     {"input_sets", m.timing.input_sets}};
+  out["timing"] = {{"median_ms", Number(m.timing.median_ms)},
+                   {"min_ms", Number(m.timing.min_ms)},
+                   {"max_ms", Number(m.timing.max_ms)},
+                   {"warmup", m.timing.warmup},
+                   {"repetitions", m.timing.repetitions},
+                   {"burst_frames", m.timing.burst_frames},
+                   {"input_sets", m.timing.input_sets},
+                   {"footprint_bytes", Number(m.timing.footprint_bytes)},
+                   {"copy_ms", Number(m.timing.copy_ms)},
+                   {"version", m.timing.version}};
   out["bytes_per_frame"] = Number(m.bytes_per_frame);
   out["gbps"] = Number(m.gbps);
+  out["x_copy"] = Number(m.x_copy);
   out["max_relative_error"] = Number(m.max_relative_error);
   out["generator_version"] = m.generator_version;
   out["timestamp"] = m.timestamp;
@@ -155,9 +172,15 @@ void from_json(const nlohmann::json& in, Measurement& m) {
     m.timing.warmup = ReadInt(*timing, "warmup", t);
     m.timing.repetitions = ReadInt(*timing, "repetitions", t);
     m.timing.input_sets = ReadInt(*timing, "input_sets", t);
+    m.timing.burst_frames = ReadInt(*timing, "burst_frames", t);
+    m.timing.footprint_bytes = ReadNumber(*timing, "footprint_bytes", t);
+    m.timing.copy_ms = ReadNumber(*timing, "copy_ms", t);
+    // Lines written before timing versions were recorded are version 1.
+    m.timing.version = timing->contains("version") ? ReadInt(*timing, "version", t) : 1;
   }
   m.bytes_per_frame = ReadNumber(in, "bytes_per_frame", where);
   m.gbps = ReadNumber(in, "gbps", where);
+  m.x_copy = ReadNumber(in, "x_copy", where);
   m.max_relative_error = ReadNumber(in, "max_relative_error", where);
   m.generator_version = ReadString(in, "generator_version", true, where);
   m.timestamp = ReadString(in, "timestamp", false, where);

@@ -23,13 +23,25 @@ enum class MeasureStatus { kOk, kInvalid, kCompileFailed, kLaunchFailed, kVerify
 const char* Name(MeasureStatus);
 MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error for an unknown name
 
+// How times are measured (docs/TUNING.md "Timing"). Part of every cache key,
+// so a change of method measures everything again instead of mixing figures:
+// 1: each frame timed alone by the device's timers (CUDA events around each
+//    launch, counting launch processing), input sets sized from the cache the
+//    API reports; 2: launch-gap-free bursts, input sets sized from the
+//    physical chip's cache, a same-size copy timed beside every measurement.
+inline constexpr int kTimingVersion = 2;
+
 struct Timing {
-  double median_ms = 0.0;
-  double min_ms = 0.0;
-  double max_ms = 0.0;
-  int warmup = 0;          // untimed runs before the repetitions
-  int repetitions = 0;     // timed runs (device-side timers)
-  int input_sets = 0;      // distinct input buffers rotated between runs (the rotation rule is in docs/TUNING.md)
+  double median_ms = 0.0;  // per frame: the median over the bursts of burst time / burst_frames
+  double min_ms = 0.0;     // the fastest burst's, per frame
+  double max_ms = 0.0;     // the slowest burst's, per frame
+  int warmup = 0;          // untimed frames before the bursts
+  int repetitions = 0;     // timed bursts (device-side timers around each)
+  int input_sets = 0;      // distinct input buffers rotated between frames (the rotation rule is in docs/TUNING.md)
+  int burst_frames = 0;    // frames per burst, back to back (0: timing version 1, one frame per timer)
+  double footprint_bytes = 0.0;  // input_sets x the bytes of one set: what the rotation keeps out of cache
+  double copy_ms = 0.0;    // the same-size copy's median, per frame, timed the same way (0: not measured)
+  int version = kTimingVersion;
 };
 
 struct Measurement {
@@ -42,11 +54,13 @@ struct Measurement {
   Timing timing;                  // status ok only
   double bytes_per_frame = 0.0;   // bytes the variant's format must move per frame (inputs + outputs)
   double gbps = 0.0;              // bytes_per_frame / median time (status ok only)
+  double x_copy = 0.0;            // median time / the same-size copy's (timing.copy_ms); 0: no copy time
   double max_relative_error = 0.0;  // against the gold (ok and verify_failed)
   std::string generator_version;
   std::string timestamp;          // UTC, ISO 8601
 
-  // The cache key: device identity (with driver), generator version, dataset, variant.
+  // The cache key: device identity (with driver), generator version, timing
+  // version, dataset, variant.
   std::string CacheKey() const;
 };
 
@@ -54,7 +68,8 @@ struct Measurement {
 // it is possible. Only a status-ok measurement's figures are ever used (a
 // failed one is never ranked), so only those are checked: a possible time
 // (median, min, max), bytes per frame, GB/s consistent with them, at least one
-// repetition and a finite relative error >= 0.
+// repetition, a finite relative error >= 0, and where a copy time is given,
+// a possible one with x_copy = median / copy_ms.
 std::string ImpossibleFigures(const Measurement& m);
 
 // Thrown by from_json for a well-formed measurement with impossible figures.

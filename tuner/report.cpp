@@ -35,7 +35,8 @@ nlohmann::json WinnerJson(const Winner& w) {
           {"lang", Name(w.lang)},       {"influences", w.influences},
           {"vertices", w.vertices},     {"vertex_bucket", w.vertex_bucket}, {"dataset", w.dataset},
           {"variant", w.variant},       {"median_ms", w.median_ms},
-          {"gbps", w.gbps},             {"copy_fraction", w.copy_fraction}};
+          {"gbps", w.gbps},             {"copy_fraction", w.copy_fraction},
+          {"x_copy", w.x_copy}};
 }
 
 // The merge key of a winner / database entry: every measured vertex count keeps its own.
@@ -71,6 +72,7 @@ std::vector<WinnersEntry> EntriesOf(const TuningReport& report) {
     e.median_ms = w.median_ms;
     e.gbps = w.gbps;
     e.copy_fraction = w.copy_fraction;
+    e.x_copy = w.x_copy;
     e.created = report.created;
     e.source = report.config + " (" + report.strategy + ")";
     entries.push_back(std::move(e));
@@ -107,6 +109,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     w.gbps = m.gbps;
     const auto copy = report.copy_bandwidth_gbps.find(m.device_id);
     w.copy_fraction = copy != report.copy_bandwidth_gbps.end() && copy->second > 0.0 ? m.gbps / copy->second : 0.0;
+    w.x_copy = m.x_copy;
     best.insert_or_assign(key, std::move(w));
   }
   std::vector<Winner> out;

@@ -15,7 +15,7 @@
 
 namespace skintune {
 
-inline constexpr const char* kReportSchemaVersion = "1.1.0";  // 1.1.0: winners name their measured vertex count
+inline constexpr const char* kReportSchemaVersion = "1.2.0";  // 1.1.0: winners name their measured vertex count; 1.2.0: timing version 2, x_copy, the physical cache
 
 struct DatasetInfo {
   std::string key;
@@ -51,6 +51,7 @@ struct Winner {
   double median_ms = 0.0;
   double gbps = 0.0;
   double copy_fraction = 0.0;  // gbps / the device's copy bandwidth (0 when unknown)
+  double x_copy = 0.0;         // median_ms / the same-size copy's (Measurement::x_copy; 0 when unknown)
 };
 
 // The fastest status-ok measurement per (device, language, influences,

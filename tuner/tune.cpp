@@ -94,10 +94,11 @@ void CheckFields(const nlohmann::json& object, const std::string& where, const s
 
 TimingOptions TimingFromConfig(const nlohmann::json& in, const std::string& context) {
   const std::string where = context + ": timing";
-  CheckFields(in, where, {"warmup", "repetitions", "max_input_sets", "tolerance"});
+  CheckFields(in, where, {"warmup", "repetitions", "burst_ms", "max_input_sets", "tolerance"});
   TimingOptions t;
   if (in.contains("warmup")) t.warmup = IntField(in["warmup"], where + ".warmup", 0);
   if (in.contains("repetitions")) t.repetitions = IntField(in["repetitions"], where + ".repetitions", 1);
+  if (in.contains("burst_ms")) t.burst_ms = PositiveNumber(in["burst_ms"], where + ".burst_ms");
   if (in.contains("max_input_sets")) t.max_input_sets = IntField(in["max_input_sets"], where + ".max_input_sets", 1);
   if (in.contains("tolerance")) t.tolerance = PositiveNumber(in["tolerance"], where + ".tolerance");
   return t;

@@ -53,6 +53,7 @@ nlohmann::json TimingToJson(const TimingOptions& t) {
   return {{"warmup", t.warmup},
           {"repetitions", t.repetitions},
           {"max_input_sets", t.max_input_sets},
+          {"burst_ms", t.burst_ms},
           {"tolerance", t.tolerance}};
 }
 
@@ -62,6 +63,7 @@ TimingOptions TimingFromJson(const nlohmann::json& in) {
   t.repetitions = in.at("repetitions").get<int>();
   t.max_input_sets = in.at("max_input_sets").get<int>();
   t.tolerance = in.at("tolerance").get<double>();
+  t.burst_ms = in.at("burst_ms").get<double>();
   return t;
 }
 

@@ -7,7 +7,7 @@
 //   child -> parent, once at start:  {"ready": true, "device_id": "<DeviceIdentity::Id()>"}
 //                                    or {"error": "<why the device cannot be used>"}
 //   parent -> child, a variant:      {"variant": {...}, "dataset": "<key or glTF path>",
-//                                     "timing": {"warmup", "repetitions", "max_input_sets", "tolerance"}}
+//                                     "timing": {"warmup", "repetitions", "max_input_sets", "burst_ms", "tolerance"}}
 //   child -> parent:                 the Measurement (to_json), or {"error": "<set-up problem>"}
 //   parent -> child, a copy kernel:  {"copy_bandwidth": <bytes>}
 //   child -> parent:                 {"copy_bandwidth_gbps": <GB/s>} or {"copy_bandwidth_error": "..."}

@@ -14,6 +14,7 @@
 #include <regex>
 
 #include "generator/constraints.h"
+#include "generator/copy_kernel.h"
 #include "generator/covering.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
@@ -161,19 +162,29 @@ TEST_F(Validated, RejectsAGlslVertexKernelAndAConstantPaletteAboveTheLimit) {
   EXPECT_NE(error.find("maxUniformBufferRange"), std::string::npos) << error;
 }
 
-// Timestamps: per launch in Run and Time; the copy kernel; instanced frames.
-TEST_F(Validated, TimesFramesAndTheCopyKernel) {
-  const testing::InstancedRun run = testing::InstancedInputs(ParseVariantKey("vulkan.b4.bucketed.soa.global.wg64"), "cesium", 3);
+// Timestamps: per launch in Run, per burst in Time (instanced frames over two
+// sets, so later frames reuse a set: barriers); the same-size copy, a correct
+// copy, timed the same way.
+TEST_F(Validated, TimesBurstsAndTheCopyKernel) {
+  const InstancedRun run = InstancedInputs(ParseVariantKey("vulkan.b4.bucketed.soa.global.wg64"), "cesium", 3);
   const std::vector<KernelSource> kernels = EmitLaunchKernels(run.packed, 3);
   const std::vector<std::vector<std::uint8_t>> sets = {run.palette_bytes, run.palette_bytes};
   const Prepared prepared = runner_->Prepare(run.packed, kernels, sets, 3);
   EXPECT_EQ(prepared.input_sets(), 2);
-  const std::vector<double> ms = runner_->Time(prepared, 2, 5);
-  ASSERT_EQ(ms.size(), 5u);
+  for (const int frames : {1, 4}) {
+    const std::vector<double> ms = runner_->Time(prepared, 2, 5, frames);
+    ASSERT_EQ(ms.size(), 5u) << frames << " frames per burst";
+    for (const double t : ms) EXPECT_GT(t, 0.0);
+  }
+  const CopyKernel copy = EmitCopy(Lang::kVulkan, 1 << 20);
+  EXPECT_EQ(copy.kernel.lang, Lang::kVulkan);
+  const RunResult copied = runner_->Run(copy.mesh, std::span<const KernelSource>(&copy.kernel, 1));
+  EXPECT_EQ(copied.poisoned_vertices, 0u);
+  EXPECT_EQ(copied.positions, copy.mesh.launches[0].inputs[0].bytes);
+  const Prepared copies = runner_->PrepareCopy(Lang::kVulkan, 1 << 20, 3);
+  const std::vector<double> ms = runner_->Time(copies, 1, 3, 4);
+  ASSERT_EQ(ms.size(), 3u);
   for (const double t : ms) EXPECT_GT(t, 0.0);
-  const std::vector<double> copy = runner_->TimeCopy(1 << 20, 1, 3);
-  ASSERT_EQ(copy.size(), 3u);
-  for (const double t : copy) EXPECT_GT(t, 0.0);
 }
 
 TEST_F(Validated, ProgramCacheStoresSpirvAndASecondRunnerLoadsIt) {

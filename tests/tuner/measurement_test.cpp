@@ -44,8 +44,9 @@ Measurement Sample(const std::string& key, MeasureStatus status) {
   m.status = status;
   m.detail = status == MeasureStatus::kOk ? "" : "line 1\nline 2";
   if (status == MeasureStatus::kOk) {
-    m.timing = {1.5, 1.25, 2.0, 3, 10, 4};
+    m.timing = {1.5, 1.25, 2.0, 3, 10, 4, 20, 4.0e7, 1.2};
     m.gbps = 12.5;
+    m.x_copy = 1.5 / 1.2;
   }
   m.bytes_per_frame = 18750000;  // 12.5 GB/s at 1.5 ms
   m.max_relative_error = status == MeasureStatus::kVerifyFailed ? std::numeric_limits<double>::infinity() : 1e-7;
@@ -66,6 +67,11 @@ void ExpectSame(const Measurement& a, const Measurement& b) {
   EXPECT_EQ(a.timing.warmup, b.timing.warmup);
   EXPECT_EQ(a.timing.repetitions, b.timing.repetitions);
   EXPECT_EQ(a.timing.input_sets, b.timing.input_sets);
+  EXPECT_EQ(a.timing.burst_frames, b.timing.burst_frames);
+  EXPECT_EQ(a.timing.footprint_bytes, b.timing.footprint_bytes);
+  EXPECT_EQ(a.timing.copy_ms, b.timing.copy_ms);
+  EXPECT_EQ(a.timing.version, b.timing.version);
+  EXPECT_EQ(a.x_copy, b.x_copy);
   EXPECT_EQ(a.bytes_per_frame, b.bytes_per_frame);
   EXPECT_EQ(a.gbps, b.gbps);
   EXPECT_EQ(a.max_relative_error, b.max_relative_error);
@@ -103,13 +109,56 @@ TEST(MeasureStatus, NamesRoundTrip) {
 
 TEST(Measurement, CacheKeyNamesDeviceGeneratorDatasetAndVariant) {
   const Measurement m = Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk);
-  EXPECT_EQ(m.CacheKey(), "opencl:Portable Computing Language/cpu/3.1|0.1.0|5000-b2|" + m.variant.Key());
+  EXPECT_EQ(m.CacheKey(), "opencl:Portable Computing Language/cpu/3.1|0.1.0|timing 2|5000-b2|" + m.variant.Key());
   Measurement other = m;
   other.generator_version = "0.2.0";
   EXPECT_NE(other.CacheKey(), m.CacheKey());
   other = m;
   other.dataset = "5000-b2-random";
   EXPECT_NE(other.CacheKey(), m.CacheKey());
+  other = m;
+  other.timing.version = 1;
+  EXPECT_NE(other.CacheKey(), m.CacheKey());
+}
+
+// A change of timing method measures everything again: a line written before
+// timing versions (the old per-launch method) reads as version 1, and the
+// current key never finds it.
+TEST(MeasurementCache, FiguresOfTheOldTimingMethodAreNeverReused) {
+  const fs::path dir = Scratch();
+  const fs::path path = dir / "cache.jsonl";
+  Measurement old = Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk);
+  nlohmann::json line = old;
+  line["timing"].erase("version");
+  line["timing"].erase("burst_frames");
+  line["timing"].erase("copy_ms");
+  line["timing"].erase("footprint_bytes");
+  line.erase("x_copy");
+  WriteAll(path, line.dump() + "\n");
+  MeasurementCache cache(path.string());
+  ASSERT_EQ(cache.all().size(), 1u);
+  EXPECT_EQ(cache.all().front().timing.version, 1);
+  const Measurement fresh = Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk);
+  EXPECT_EQ(fresh.timing.version, kTimingVersion);
+  EXPECT_EQ(cache.Find(fresh.CacheKey()), nullptr);
+  EXPECT_NE(cache.Find(cache.all().front().CacheKey()), nullptr);
+}
+
+// x_copy is the time over the same-size copy's, or 0 without a copy time.
+TEST(Measurement, XCopyMustBeTheTimeOverTheCopyTime) {
+  Measurement m = Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk);
+  m.timing.copy_ms = 1.2;
+  m.x_copy = 1.5 / 1.2;
+  EXPECT_EQ(ImpossibleFigures(m), "");
+  const nlohmann::json j = m;
+  EXPECT_DOUBLE_EQ(j.get<Measurement>().x_copy, 1.25);
+  m.x_copy = 0.9;
+  EXPECT_NE(ImpossibleFigures(m).find("x_copy"), std::string::npos);
+  m.timing.copy_ms = 0.0;
+  EXPECT_NE(ImpossibleFigures(m).find("without a copy time"), std::string::npos);
+  m.x_copy = 0.0;
+  m.timing.copy_ms = -1.0;
+  EXPECT_NE(ImpossibleFigures(m).find("copy_ms"), std::string::npos);
 }
 
 TEST(Measurement, JsonRoundTripKeepsEveryFieldIncludingInfinity) {

@@ -98,7 +98,7 @@ TEST(TuneConfig, ErrorsNameTheElement) {
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"repetitions": 0}})"),
             "c.json: timing.repetitions: must be an integer >= 1 (got 0)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"reps": 3}})"),
-            "c.json: timing.reps: unknown field (expected one of max_input_sets, repetitions, tolerance, warmup)");
+            "c.json: timing.reps: unknown field (expected one of burst_ms, max_input_sets, repetitions, tolerance, warmup)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"tolerance": -1}})"),
             "c.json: timing.tolerance: must be a positive number (got -1)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "strategy": {"name": "genetic"}})"),

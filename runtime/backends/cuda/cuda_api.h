@@ -168,6 +168,9 @@ struct DriverApi {
   Result (*cuStreamSynchronize)(Stream stream);
   Result (*cuMemcpyHtoDAsync)(DevicePtr to, const void* from, std::size_t bytes, Stream stream);  // _v2
   Result (*cuMemcpyDtoDAsync)(DevicePtr to, DevicePtr from, std::size_t bytes, Stream stream);    // _v2
+  // The device's UUID (CUuuid: 16 bytes), to match it with the same chip in
+  // other APIs; null where the driver has neither _v2 nor the plain symbol.
+  Result (*cuDeviceGetUuid)(unsigned char* uuid16, Device device);
 };
 
 // The driver, loaded and initialised once; null, with the reason in `why`

@@ -5,10 +5,12 @@
 #include <dlfcn.h>
 
 #include <cctype>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 
 #include "reference/error.h"
+#include "runtime/physical_device.h"
 #include "runtime/backends/cuda/cuda_api.h"
 
 namespace skintune {
@@ -22,6 +24,9 @@ using cuda::Fail;
 constexpr int kAttributeClockRate = 13;          // CU_DEVICE_ATTRIBUTE_CLOCK_RATE (kHz)
 constexpr int kAttributeMultiprocessorCount = 16;  // CU_DEVICE_ATTRIBUTE_MULTIPROCESSOR_COUNT
 constexpr int kAttributeL2CacheSize = 38;        // CU_DEVICE_ATTRIBUTE_L2_CACHE_SIZE (bytes)
+constexpr int kAttributePciBusId = 33;          // CU_DEVICE_ATTRIBUTE_PCI_BUS_ID
+constexpr int kAttributePciDeviceId = 34;       // CU_DEVICE_ATTRIBUTE_PCI_DEVICE_ID
+constexpr int kAttributePciDomainId = 50;       // CU_DEVICE_ATTRIBUTE_PCI_DOMAIN_ID
 constexpr int kAttributeMaxGridDimY = 6;         // CU_DEVICE_ATTRIBUTE_MAX_GRID_DIM_Y (instances per launch)
 
 // cuDeviceTotalMem_v2 from the driver library Probe() loaded (cuda_api.h
@@ -104,6 +109,12 @@ CudaDeviceInfo QueryCudaDevice(int device_index) {
   info.multiprocessors = attribute(kAttributeMultiprocessorCount, "(multiprocessors)");
   info.clock_khz = attribute(kAttributeClockRate, "(clock rate)");
   info.l2_cache_bytes = static_cast<std::uint64_t>(attribute(kAttributeL2CacheSize, "(L2 cache size)"));
+  unsigned char uuid[16] = {};
+  if (api->cuDeviceGetUuid && api->cuDeviceGetUuid(uuid, device) == cuda::kSuccess) info.uuid = UuidHex(uuid);
+  char pci[32];
+  std::snprintf(pci, sizeof pci, "%04x:%02x:%02x.0", attribute(kAttributePciDomainId, "(PCI domain)"),
+                attribute(kAttributePciBusId, "(PCI bus)"), attribute(kAttributePciDeviceId, "(PCI device)"));
+  info.pci_bus_id = pci;
   info.total_memory_bytes = TotalMemory(available.driver_library, device);
   info.driver_version = available.driver_version;
   info.limits.max_wg_size = static_cast<std::size_t>(attribute(cuda::kAttributeMaxThreadsPerBlock, "(threads per block)"));
@@ -139,6 +150,8 @@ DeviceIdentity IdentityOf(const CudaDeviceInfo& device) {
   d.local_memory_bytes = device.limits.local_memory_bytes;
   d.constant_memory_bytes = device.limits.constant_memory_bytes;
   d.last_level_cache_bytes = device.l2_cache_bytes;  // CU_DEVICE_ATTRIBUTE_L2_CACHE_SIZE
+  d.uuid = device.uuid;
+  d.pci_bus_id = device.pci_bus_id;
   return d;
 }
 

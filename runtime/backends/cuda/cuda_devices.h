@@ -20,6 +20,8 @@ struct CudaDeviceInfo {
   int clock_khz = 0;
   std::uint64_t total_memory_bytes = 0;      // cuDeviceTotalMem (0 when the driver lacks it)
   std::uint64_t l2_cache_bytes = 0;
+  std::string uuid;                          // cuDeviceGetUuid, 32 hex digits ("" when unknown)
+  std::string pci_bus_id;                    // "dddd:bb:dd.0" from the PCI attributes
   int driver_version = 0;                    // cuDriverGetVersion: 13000 = CUDA 13.0
   DeviceLimits limits;                       // threads per block, static __shared__, __constant__, texture width
 };

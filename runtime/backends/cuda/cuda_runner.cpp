@@ -166,13 +166,14 @@ class CudaApi final : public DeviceApi {
   void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   void Finish() override { Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize"); }
-  std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions) override;
 
  private:
   const BuiltKernel& KernelFor(const KernelSource& source);
   Memory NewMemory(std::size_t bytes, const void* data, const std::string& what) const;
   Event NewEvent(const std::string& what) const;
   void LaunchLive(const CudaBound& bound);
+  void LaunchTimed(const CudaBound& bound);
+  double ElapsedMs(const Event& start, const Event& end) const;
   std::vector<std::vector<double>> RunTimed(const FrameRun& run);
 
   std::map<std::string, BuiltKernel> built_;  // by source hash
@@ -352,47 +353,65 @@ void CudaApi::LaunchLive(const CudaBound& bound) {
                       " blocks of " + std::to_string(plan.threads) + ")");
 }
 
-// Run's and Time's frames, on the legacy default stream: `constant` storage
-// copies the set's palette into the symbol before each launch, outside the
-// CUDA events recorded around each timed launch.
+// Enqueues one launch on the legacy default stream for Run and Time:
+// `constant` storage first copies the set's palette into the symbol, on the
+// stream (device to device, as the Skinner does: part of the frame's cost).
+void CudaApi::LaunchTimed(const CudaBound& bound) {
+  const CudaPlanned& plan = *bound.plan;
+  const std::string& where = plan.spec.where;
+  if (plan.constant_symbol)
+    Check(api->cuMemcpyDtoDAsync(plan.constant_symbol, bound.palette->pointer(), bound.palette->host.size(), nullptr),
+          "launch", where + ": cuMemcpyDtoDAsync to '" + kConstantPaletteSymbol + "'");
+  Check(api->cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, nullptr,
+                            const_cast<void**>(bound.parameters.data()), nullptr),
+        "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " x " + std::to_string(plan.instances) +
+                      " blocks of " + std::to_string(plan.threads) + ")");
+}
+
+double CudaApi::ElapsedMs(const Event& start, const Event& end) const {
+  float elapsed = 0.0f;
+  Check(api->cuEventElapsedTime(&elapsed, start.get(), end.get()), "launch", "cuEventElapsedTime");
+  return static_cast<double>(elapsed);
+}
+
+// Run's frame: CUDA events around each launch. Time's frames: events around
+// each burst only, so the launches of a burst follow one another on the
+// device with nothing between them.
 std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
   const bool verify = run.use == FrameUse::kVerify;
-  std::vector<std::vector<std::pair<Event, Event>>> events;
-  for (std::size_t f = 0; f < run.frames.size(); ++f) {
-    const bool timed = static_cast<int>(f) >= run.untimed;
-    if (timed) events.emplace_back();
-    for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
-      const auto& bound = static_cast<const CudaBound&>(*launch);
-      const CudaPlanned& plan = *bound.plan;
-      const std::string& where = plan.spec.where;
-      if (plan.constant_symbol)
-        Check(api->cuMemcpyHtoD(plan.constant_symbol, bound.palette->host.data(), bound.palette->host.size()),
-              "launch", where + ": cuMemcpyHtoD to '" + kConstantPaletteSymbol + "'");
-      Event start, end;
-      if (timed) {
-        const std::string what = verify ? where + ": cuEventCreate" : "cuEventCreate for timing " + run.key;
-        start = NewEvent(what);
-        end = NewEvent(what);
-        Check(api->cuEventRecord(start.get(), nullptr), "launch", where + ": cuEventRecord");
+  const std::string what = verify ? "cuEventCreate for " + run.key : "cuEventCreate for timing " + run.key;
+  const auto record = [&](const Event& e) { Check(api->cuEventRecord(e.get(), nullptr), "launch", "cuEventRecord of " + run.key); };
+  std::vector<std::pair<Event, Event>> events;
+  if (verify) {
+    for (const std::unique_ptr<DeviceObject>& launch : run.frames.front()) {
+      events.emplace_back(NewEvent(what), NewEvent(what));
+      record(events.back().first);
+      LaunchTimed(static_cast<const CudaBound&>(*launch));
+      record(events.back().second);
+    }
+  } else {
+    const auto untimed = static_cast<std::size_t>(std::max(run.untimed, 0));
+    const auto burst = static_cast<std::size_t>(std::max(run.burst, 1));
+    const std::size_t frames = untimed + run.TimedBursts() * burst;
+    for (std::size_t f = 0; f < frames; ++f) {
+      const bool opens = f >= untimed && (f - untimed) % burst == 0;
+      const bool closes = f >= untimed && (f - untimed) % burst == burst - 1;
+      if (opens) {
+        events.emplace_back(NewEvent(what), NewEvent(what));
+        record(events.back().first);
       }
-      Check(api->cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, nullptr,
-                                const_cast<void**>(bound.parameters.data()), nullptr),
-            "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " x " +
-                          std::to_string(plan.instances) + " blocks of " + std::to_string(plan.threads) + ")");
-      if (timed) {
-        Check(api->cuEventRecord(end.get(), nullptr), "launch", where + ": cuEventRecord");
-        events.back().emplace_back(std::move(start), std::move(end));
-      }
+      for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) LaunchTimed(static_cast<const CudaBound&>(*launch));
+      if (closes) record(events.back().second);
     }
   }
   Check(api->cuCtxSynchronize(), "launch", std::string("cuCtxSynchronize after ") + (verify ? "" : "timing ") + run.key);
   std::vector<std::vector<double>> ms;
-  for (const auto& frame : events) {
-    std::vector<double>& launches = ms.emplace_back();
-    for (const auto& [start, end] : frame) {
-      float elapsed = 0.0f;
-      Check(api->cuEventElapsedTime(&elapsed, start.get(), end.get()), "launch", "cuEventElapsedTime");
-      launches.push_back(static_cast<double>(elapsed));
+  if (verify) ms.emplace_back();
+  for (const auto& [start, end] : events) {
+    if (verify) {
+      ms.front().push_back(ElapsedMs(start, end));
+    } else {
+      ms.push_back({ElapsedMs(start, end)});
     }
   }
   return ms;
@@ -403,56 +422,6 @@ std::vector<std::vector<double>> CudaApi::RunFrames(const FrameRun& run) {
   for (const auto& frame : run.frames)
     for (const std::unique_ptr<DeviceObject>& launch : frame) LaunchLive(static_cast<const CudaBound&>(*launch));
   return {};
-}
-
-// ---------------------------------------------------------------- copy bandwidth
-
-namespace {
-
-constexpr const char* kCopyKernel = R"(// skintune copy bandwidth kernel
-extern "C" __global__ void skintune_copy(const uint4* __restrict__ in, uint4* __restrict__ out,
-                                         unsigned long long n) {
-  const unsigned long long i = blockIdx.x * (unsigned long long)blockDim.x + threadIdx.x;
-  if (i < n) out[i] = in[i];
-}
-)";
-
-}  // namespace
-
-std::vector<double> CudaApi::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
-  KernelSource source;
-  source.lang = Lang::kCuda;
-  source.entry_point = "skintune_copy";
-  source.text = kCopyKernel;
-  source.source_hash = SourceHash(source.text);
-  const BuiltKernel& kernel = KernelFor(source);
-  const std::vector<std::uint32_t> pattern = CopyPattern(bytes / 4);
-  Memory in = NewMemory(bytes, pattern.data(), "copy source");
-  Memory out = NewMemory(bytes, nullptr, "copy destination");
-  cuda::DevicePtr in_pointer = in.get(), out_pointer = out.get();
-  unsigned long long n = bytes / 16;
-  void* parameters[] = {&in_pointer, &out_pointer, &n};
-  const auto blocks = static_cast<unsigned>((n + 255) / 256);
-  std::vector<std::pair<Event, Event>> events;
-  for (int r = 0; r < warmup + repetitions; ++r) {
-    const bool timed = r >= warmup;
-    if (timed) {
-      Event start = NewEvent("cuEventCreate");
-      events.emplace_back(std::move(start), NewEvent("cuEventCreate"));
-      Check(api->cuEventRecord(events.back().first.get(), nullptr), "launch", "cuEventRecord");
-    }
-    Check(api->cuLaunchKernel(kernel.function, blocks, 1, 1, 256, 1, 1, 0, nullptr, parameters, nullptr), "launch",
-          "cuLaunchKernel of the copy kernel (" + std::to_string(blocks) + " blocks of 256)");
-    if (timed) Check(api->cuEventRecord(events.back().second.get(), nullptr), "launch", "cuEventRecord");
-  }
-  Check(api->cuCtxSynchronize(), "launch", "cuCtxSynchronize after the copy kernel");
-  std::vector<double> ms;
-  for (const auto& [start, end] : events) {
-    float elapsed = 0.0f;
-    Check(api->cuEventElapsedTime(&elapsed, start.get(), end.get()), "launch", "cuEventElapsedTime");
-    ms.push_back(static_cast<double>(elapsed));
-  }
-  return ms;
 }
 
 // ---------------------------------------------------------------- CudaRunner

@@ -159,7 +159,6 @@ class GlApi final : public DeviceApi {
   void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   void Finish() override { glFinish(); }
-  std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions) override;
 
  private:
   const BuiltProgram& ProgramFor(const KernelSource& source);

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "reference/error.h"
+#include "runtime/physical_device.h"
 
 namespace skintune {
 
@@ -209,6 +210,12 @@ void GlContext::Impl::Query() {
   info.max_compute_shader_storage_blocks = GlInteger(GL_MAX_COMPUTE_SHADER_STORAGE_BLOCKS);
   info.max_shader_storage_block_bytes = GlInteger(GL_MAX_SHADER_STORAGE_BLOCK_SIZE);
   info.max_transform_feedback_separate_attribs = GlInteger(GL_MAX_TRANSFORM_FEEDBACK_SEPARATE_ATTRIBS);
+  // The chip, so the same GPU seen through other APIs is recognised (runtime/physical_device.h).
+  if (epoxy_has_gl_extension("GL_EXT_memory_object") && GlInteger(GL_NUM_DEVICE_UUIDS_EXT) > 0) {
+    GLubyte uuid[GL_UUID_SIZE_EXT] = {};
+    glGetUnsignedBytei_vEXT(GL_DEVICE_UUID_EXT, 0, uuid);
+    if (glGetError() == GL_NO_ERROR) info.device_uuid = UuidHex(uuid);
+  }
   while (glGetError() != GL_NO_ERROR) {
   }
 }
@@ -399,6 +406,7 @@ DeviceIdentity IdentityOf(const GlContextInfo& info) {
   d.type = GlDeviceType(info.renderer);
   d.local_memory_bytes = info.max_compute_shared_memory_bytes;
   d.constant_memory_bytes = info.max_uniform_block_bytes;
+  d.uuid = info.device_uuid;
   return d;  // compute units, global memory, last-level cache: GL does not say (0)
 }
 
@@ -423,6 +431,7 @@ void to_json(nlohmann::json& out, const GlContextInfo& i) {
          {"egl_version", i.egl_version},
          {"vendor", i.vendor},
          {"renderer", i.renderer},
+         {"device_uuid", i.device_uuid},
          {"version", i.version},
          {"glsl_version", i.glsl_version},
          {"major", i.major},

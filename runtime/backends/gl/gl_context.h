@@ -51,6 +51,7 @@ struct GlContextInfo {
   std::uint64_t max_compute_shader_storage_blocks = 0;   // GL_MAX_COMPUTE_SHADER_STORAGE_BLOCKS
   std::uint64_t max_shader_storage_block_bytes = 0;      // GL_MAX_SHADER_STORAGE_BLOCK_SIZE
   std::uint64_t max_transform_feedback_separate_attribs = 0;  // GL_MAX_TRANSFORM_FEEDBACK_SEPARATE_ATTRIBS
+  std::string device_uuid;  // GL_EXT_memory_object's GL_DEVICE_UUID_EXT of device 0, 32 hex digits ("" when not offered)
 };
 
 class GlContext {

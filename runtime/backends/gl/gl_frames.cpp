@@ -2,7 +2,7 @@
 // program, uniforms and buffers, then draws (glsl-vertex: transform feedback
 // with rasterisation discarded, staged captures copied into place) or
 // dispatches (glsl-compute). Run's frame is checked call by call and counts
-// the captured points; Time's launches are timed by GL_TIME_ELAPSED queries,
+// the captured points; Time's bursts are timed by GL_TIME_ELAPSED queries,
 // or by the host clock on software renderers; the Skinner's frame puts back
 // the GL state it changed on the caller's context.
 #include <algorithm>
@@ -209,49 +209,47 @@ std::vector<std::vector<double>> GlApi::RunVerified(const FrameRun& run) {
   return {ms};
 }
 
-// Time's frames: after `untimed` frames, each launch inside a GL_TIME_ELAPSED
-// query, or between two glFinish calls on the host clock (host_timed()).
+// Time's frames: after `untimed` frames, each burst of frames inside one
+// GL_TIME_ELAPSED query, or between two glFinish calls on the host clock
+// (host_timed()). Nothing inside a burst waits or queries.
 std::vector<std::vector<double>> GlApi::RunTimed(const FrameRun& run) {
   const GlPlanned* first = FirstPlan(run);
   const bool vertex = first && first->vertex;
   ClearGlErrors();
   if (vertex) BeginVertexDraws();
   const bool host_clock = host_timed();
-  const std::size_t timed_frames = run.frames.size() - std::min<std::size_t>(run.frames.size(), run.untimed);
-  std::vector<std::vector<GlObject>> timers(timed_frames);
-  std::vector<std::vector<double>> host_ms(timed_frames);
-  for (std::size_t f = 0; f < run.frames.size(); ++f) {
-    const bool timed = static_cast<int>(f) >= run.untimed;
+  const auto untimed = static_cast<std::size_t>(std::max(run.untimed, 0));
+  const auto burst = static_cast<std::size_t>(std::max(run.burst, 1));
+  const std::size_t bursts = run.TimedBursts();
+  const auto frame = [&](std::size_t f) {
     for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
-      const auto& bound = static_cast<const GlBound&>(*launch);
-      auto go = [&] {
-        BindLaunch(bound, false);
-        DrawLaunch(bound);
-      };
-      if (!timed) {
-        go();
-      } else if (host_clock) {
-        host_ms[f - static_cast<std::size_t>(run.untimed)].push_back(HostMs(go));
-      } else {
-        std::vector<GlObject>& frame = timers[f - static_cast<std::size_t>(run.untimed)];
-        frame.push_back(NewQuery());
-        glBeginQuery(GL_TIME_ELAPSED, frame.back().get());
-        go();
-        glEndQuery(GL_TIME_ELAPSED);
-      }
+      BindLaunch(static_cast<const GlBound&>(*launch), false);
+      DrawLaunch(static_cast<const GlBound&>(*launch));
     }
-    if (f == 0) CheckGl("launch", "the first frame of timing " + run.key);
+  };
+  for (std::size_t f = 0; f < untimed; ++f) frame(f);
+  if (untimed > 0) CheckGl("launch", "the first frame of timing " + run.key);
+  std::vector<GlObject> timers;
+  std::vector<std::vector<double>> ms;
+  for (std::size_t b = 0; b < bursts; ++b) {
+    const auto go = [&] {
+      for (std::size_t f = untimed + b * burst; f < untimed + (b + 1) * burst; ++f) frame(f);
+    };
+    if (host_clock) {
+      ms.push_back({HostMs(go)});
+    } else {
+      timers.push_back(NewQuery());
+      glBeginQuery(GL_TIME_ELAPSED, timers.back().get());
+      go();
+      glEndQuery(GL_TIME_ELAPSED);
+    }
+    if (b == 0) CheckGl("launch", "the first burst of timing " + run.key);
   }
   if (vertex) EndVertexDraws(first->spec.variant.normals);
   glUseProgram(0);
   glFinish();
   CheckGl("launch", "timing " + run.key);
-  if (host_clock) return host_ms;
-  std::vector<std::vector<double>> ms;
-  for (const std::vector<GlObject>& frame : timers) {
-    std::vector<double>& launches = ms.emplace_back();
-    for (const GlObject& query : frame) launches.push_back(QueryMs(query));
-  }
+  for (const GlObject& query : timers) ms.push_back({QueryMs(query)});
   CheckGl("launch", "reading the timer queries of " + run.key);
   return ms;
 }
@@ -276,70 +274,6 @@ void GlApi::RunLive(const FrameRun& run) {
   }
   glMemoryBarrier(GL_ALL_BARRIER_BITS);  // the outputs are read next: as vertices, buffers, or by Read*
   CheckGl("launch", "skinning with " + run.key);
-}
-
-// ---------------------------------------------------------------- copy bandwidth
-
-namespace {
-
-constexpr const char* kCopyShader = R"(#version 430 core
-// skintune copy bandwidth shader
-layout(local_size_x = 256) in;
-layout(std430, binding = 0) readonly restrict buffer Source { uvec4 source[]; };
-layout(std430, binding = 1) writeonly restrict buffer Destination { uvec4 destination[]; };
-uniform uint n;
-void main() {
-  uint step = gl_NumWorkGroups.x * 256u;
-  for (uint i = gl_GlobalInvocationID.x; i < n; i += step) destination[i] = source[i];
-}
-)";
-
-}  // namespace
-
-// One uvec4 per invocation and step, grid-stride, between two storage
-// buffers of at most GL_MAX_SHADER_STORAGE_BLOCK_SIZE.
-std::vector<double> GlApi::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
-  if (bytes > info().max_shader_storage_block_bytes)
-    Fail("launch", "copy of " + std::to_string(bytes) + " bytes exceeds GL_MAX_SHADER_STORAGE_BLOCK_SIZE " +
-                       std::to_string(info().max_shader_storage_block_bytes));
-  ClearGlErrors();
-  KernelSource source;
-  source.lang = Lang::kGlslCompute;
-  source.entry_point = "main";
-  source.text = kCopyShader;
-  source.source_hash = SourceHash(source.text);
-  const BuiltProgram& program = ProgramFor(source);
-  const std::vector<std::uint32_t> pattern = CopyPattern(bytes / 4);
-  GlObject in = NewBuffer(bytes, pattern.data(), "copy source");
-  GlObject out = NewBuffer(bytes, nullptr, "copy destination");
-  const std::size_t n = bytes / 16;
-  const std::size_t groups =
-      std::max<std::size_t>(1, std::min<std::size_t>((n + 255) / 256, info().max_compute_work_group_count_x));
-  glUseProgram(program.program.get());
-  glUniform1ui(program.n_location, static_cast<GLuint>(n));
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, in.get());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, out.get());
-  const bool host_clock = host_timed();
-  std::vector<GlObject> timers;
-  std::vector<double> ms;
-  auto launch = [&] { glDispatchCompute(static_cast<GLuint>(groups), 1, 1); };
-  for (int r = 0; r < warmup + repetitions; ++r) {
-    if (r < warmup) {
-      launch();
-    } else if (host_clock) {
-      ms.push_back(HostMs(launch));
-    } else {
-      timers.push_back(NewQuery());
-      glBeginQuery(GL_TIME_ELAPSED, timers.back().get());
-      launch();
-      glEndQuery(GL_TIME_ELAPSED);
-    }
-  }
-  glUseProgram(0);
-  glFinish();
-  CheckGl("launch", "the copy shader (" + std::to_string(groups) + " groups of 256)");
-  for (const GlObject& query : timers) ms.push_back(QueryMs(query));
-  return ms;
 }
 
 }  // namespace skintune::gl

@@ -35,10 +35,10 @@
 //   timing). Instanced constant storage binds a buffer as large as the
 //   kernel's uniform block (max_instances palettes).
 // - Each launch of Run is timed with a GL_TIME_ELAPSED query.
-// - Timing (the tuner's): each launch of Time's frames inside a
+// - Timing (the tuner's): each burst of Time's frames inside one
 //   GL_TIME_ELAPSED query. On Mesa's software renderers (llvmpipe, softpipe,
 //   swrast), whose GL_TIME_ELAPSED covers neither compute dispatches nor
-//   vertex processing (it times their rasteriser threads: ~0), each launch is
+//   vertex processing (it times their rasteriser threads: ~0), each burst is
 //   timed by the host clock between two glFinish calls instead
 //   (host_timed()). On a GPU the driver first warms up until two bursts of
 //   frames take the same time (TimingPolicy::warm_until_stable): NVIDIA's GL
@@ -85,7 +85,7 @@ class GlRunner final : public Runner {
   explicit GlRunner(std::unique_ptr<GlContext> context);
 
   const GlContextInfo& info() const;
-  // Whether Time and TimeCopy time launches with the host clock (software
+  // Whether Time times bursts with the host clock (software
   // renderers) instead of GL_TIME_ELAPSED queries.
   bool host_timed() const;
   // Makes the runner's context current; throws Error("GL setup: ...") when

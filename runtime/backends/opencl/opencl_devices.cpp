@@ -5,10 +5,12 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdio>
 
 #include <nlohmann/json.hpp>
 
 #include "reference/error.h"
+#include "runtime/physical_device.h"
 
 namespace skintune {
 
@@ -53,6 +55,41 @@ std::string TypeName(cl_device_type type) {
   return name.empty() ? "default" : name;
 }
 
+// Which chip the device is, so the same GPU seen through other APIs is
+// recognised (runtime/physical_device.h): its UUID (cl_khr_device_uuid) and
+// PCI address (cl_khr_pci_bus_info, else NVIDIA's cl_nv_device_attribute_query).
+void IdentifyChip(cl_device_id device, OpenClDeviceInfo& d) {
+  const auto has = [&](const char* extension) { return d.extensions.find(extension) != std::string::npos; };
+  constexpr cl_device_info kDeviceUuidKhr = 0x106A;     // CL_DEVICE_UUID_KHR
+  constexpr cl_device_info kPciBusInfoKhr = 0x410F;     // CL_DEVICE_PCI_BUS_INFO_KHR
+  constexpr cl_device_info kPciBusIdNv = 0x4008;        // CL_DEVICE_PCI_BUS_ID_NV
+  constexpr cl_device_info kPciSlotIdNv = 0x4009;       // CL_DEVICE_PCI_SLOT_ID_NV
+  constexpr cl_device_info kPciDomainIdNv = 0x400A;     // CL_DEVICE_PCI_DOMAIN_ID_NV
+  if (has("cl_khr_device_uuid")) {
+    unsigned char uuid[16] = {};
+    if (clGetDeviceInfo(device, kDeviceUuidKhr, sizeof uuid, uuid, nullptr) == CL_SUCCESS) d.uuid = UuidHex(uuid);
+  }
+  char pci[32] = {};
+  if (has("cl_khr_pci_bus_info")) {
+    cl_uint bus_info[4] = {};  // cl_device_pci_bus_info_khr: domain, bus, device, function
+    if (clGetDeviceInfo(device, kPciBusInfoKhr, sizeof bus_info, bus_info, nullptr) == CL_SUCCESS) {
+      std::snprintf(pci, sizeof pci, "%04x:%02x:%02x.%x", bus_info[0], bus_info[1], bus_info[2], bus_info[3]);
+      d.pci_bus_id = pci;
+      return;
+    }
+  }
+  if (has("cl_nv_device_attribute_query")) {
+    cl_uint bus = 0, slot = 0, domain = 0;
+    if (clGetDeviceInfo(device, kPciBusIdNv, sizeof bus, &bus, nullptr) == CL_SUCCESS &&
+        clGetDeviceInfo(device, kPciSlotIdNv, sizeof slot, &slot, nullptr) == CL_SUCCESS) {
+      if (clGetDeviceInfo(device, kPciDomainIdNv, sizeof domain, &domain, nullptr) != CL_SUCCESS) domain = 0;
+      // The slot id packs device (bits 3..7) and function (bits 0..2).
+      std::snprintf(pci, sizeof pci, "%04x:%02x:%02x.%x", domain, bus, slot >> 3, slot & 7);
+      d.pci_bus_id = pci;
+    }
+  }
+}
+
 OpenClDeviceInfo Describe(cl_device_id device) {
   OpenClDeviceInfo d;
   d.name = DeviceString(device, CL_DEVICE_NAME);
@@ -72,6 +109,7 @@ OpenClDeviceInfo Describe(cl_device_id device) {
   d.max_work_group_size = DeviceValue<std::size_t>(device, CL_DEVICE_MAX_WORK_GROUP_SIZE);
   d.image_support = DeviceValue<cl_bool>(device, CL_DEVICE_IMAGE_SUPPORT) == CL_TRUE;
   d.image_buffer_max_pixels = DeviceValue<std::size_t>(device, CL_DEVICE_IMAGE_MAX_BUFFER_SIZE);
+  IdentifyChip(device, d);
   return d;
 }
 
@@ -167,6 +205,8 @@ DeviceIdentity IdentityOf(const OpenClDeviceInfo& device) {
   d.local_memory_bytes = device.local_memory_bytes;
   d.constant_memory_bytes = device.constant_buffer_bytes;
   d.last_level_cache_bytes = device.global_cache_bytes;  // CL_DEVICE_GLOBAL_MEM_CACHE_SIZE
+  d.uuid = device.uuid;
+  d.pci_bus_id = device.pci_bus_id;
   return d;
 }
 
@@ -207,6 +247,8 @@ void to_json(nlohmann::json& out, const OpenClDeviceInfo& d) {
          {"max_clock_mhz", d.max_clock_mhz},
          {"global_memory_bytes", d.global_memory_bytes},
          {"global_cache_bytes", d.global_cache_bytes},
+         {"uuid", d.uuid},
+         {"pci_bus_id", d.pci_bus_id},
          {"local_memory_bytes", d.local_memory_bytes},
          {"constant_buffer_bytes", d.constant_buffer_bytes},
          {"max_allocation_bytes", d.max_allocation_bytes},

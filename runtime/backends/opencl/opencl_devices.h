@@ -27,6 +27,8 @@ struct OpenClDeviceInfo {
   std::uint32_t max_clock_mhz = 0;
   std::uint64_t global_memory_bytes = 0;
   std::uint64_t global_cache_bytes = 0;
+  std::string uuid;        // cl_khr_device_uuid's CL_DEVICE_UUID_KHR, 32 hex digits ("" when not offered)
+  std::string pci_bus_id;  // cl_khr_pci_bus_info or cl_nv_device_attribute_query: "dddd:bb:dd.f" ("" when neither)
   std::uint64_t local_memory_bytes = 0;
   std::uint64_t constant_buffer_bytes = 0;
   std::uint64_t max_allocation_bytes = 0;

@@ -129,7 +129,6 @@ class OpenClApi final : public DeviceApi {
   void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   void Finish() override { Check(clFinish(queue.get()), "launch", "clFinish"); }
-  std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions) override;
 
  private:
   cl_kernel KernelFor(const KernelSource& source);
@@ -335,85 +334,67 @@ void OpenClApi::Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* ev
 
 namespace {
 
-// Profiling end - start of `event` in ms; a profiling query that fails reads as 0
-// in a verification run, and is an error when timing.
-double EventMs(cl_event event, bool checked, const std::string& key) {
+// Profiling END of `last` - START of `first` in ms; a profiling query that
+// fails reads as 0 in a verification run, and is an error when timing.
+double EventMs(cl_event first, cl_event last, bool checked, const std::string& key) {
   cl_ulong start = 0, end = 0;
-  const cl_int s = clGetEventProfilingInfo(event, CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr);
-  const cl_int e = clGetEventProfilingInfo(event, CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr);
+  const cl_int s = clGetEventProfilingInfo(first, CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr);
+  const cl_int e = clGetEventProfilingInfo(last, CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr);
   if (checked) {
     Check(s, "launch", "clGetEventProfilingInfo (start) of " + key);
     Check(e, "launch", "clGetEventProfilingInfo (end) of " + key);
   }
-  return static_cast<double>(end - start) * 1e-6;
+  return end > start ? static_cast<double>(end - start) * 1e-6 : 0.0;
 }
 
 }  // namespace
 
 std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
-  const bool live = run.use == FrameUse::kLive;
-  std::vector<std::vector<Event>> events;
-  for (std::size_t f = 0; f < run.frames.size(); ++f) {
-    const bool timed = !live && static_cast<int>(f) >= run.untimed;
-    if (timed) events.emplace_back();
-    for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
+  if (run.use == FrameUse::kLive) {
+    for (const auto& frame : run.frames)
+      for (const std::unique_ptr<DeviceObject>& launch : frame)
+        Enqueue(static_cast<const ClBound&>(*launch), static_cast<cl_mem>(run.out_positions), nullptr);
+    return {};
+  }
+  if (run.use == FrameUse::kVerify) {
+    std::vector<Event> events;
+    for (const std::unique_ptr<DeviceObject>& launch : run.frames.front()) {
       cl_event event = nullptr;
-      Enqueue(static_cast<const ClBound&>(*launch), live ? static_cast<cl_mem>(run.out_positions) : nullptr,
-              timed ? &event : nullptr);
-      if (timed) events.back().emplace_back(event);
+      Enqueue(static_cast<const ClBound&>(*launch), nullptr, &event);
+      events.emplace_back(event);
+    }
+    Check(clFinish(queue.get()), "launch", "clFinish after " + run.key);
+    std::vector<double> ms;
+    for (const Event& e : events) ms.push_back(EventMs(e.get(), e.get(), false, run.key));
+    return {ms};
+  }
+  // kTime: an event on the first and on the last launch of each burst; the
+  // burst's time runs from the first's START to the last's END (one in-order queue).
+  const auto untimed = static_cast<std::size_t>(std::max(run.untimed, 0));
+  const auto burst = static_cast<std::size_t>(std::max(run.burst, 1));
+  const std::size_t bursts = run.TimedBursts();
+  std::vector<std::pair<Event, Event>> timed(bursts);
+  for (std::size_t f = 0; f < untimed + bursts * burst; ++f) {
+    const bool first_frame = f >= untimed && (f - untimed) % burst == 0;
+    const bool last_frame = f >= untimed && (f - untimed) % burst == burst - 1;
+    const auto& frame = run.frames[f];
+    for (std::size_t l = 0; l < frame.size(); ++l) {
+      std::pair<Event, Event>* pair = f >= untimed ? &timed[(f - untimed) / burst] : nullptr;
+      cl_event start = nullptr, end = nullptr;
+      const bool opens = first_frame && l == 0, closes = last_frame && l + 1 == frame.size();
+      cl_event* event = opens ? &start : (closes ? &end : nullptr);
+      Enqueue(static_cast<const ClBound&>(*frame[l]), nullptr, event);
+      if (opens) pair->first = Event(start);
+      if (closes) pair->second = Event(end);
     }
   }
-  if (live) return {};
-  const bool verify = run.use == FrameUse::kVerify;
-  Check(clFinish(queue.get()), "launch", std::string("clFinish after ") + (verify ? "" : "timing ") + run.key);
+  Check(clFinish(queue.get()), "launch", "clFinish after timing " + run.key);
   std::vector<std::vector<double>> ms;
-  for (const std::vector<Event>& frame : events) {
-    std::vector<double>& launches = ms.emplace_back();
-    for (const Event& e : frame) launches.push_back(EventMs(e.get(), !verify, run.key));
+  for (const auto& [start, end] : timed) {
+    // A burst of one launch: its one event both opens and closes it.
+    cl_event last = end.get() ? end.get() : start.get();
+    ms.push_back({EventMs(start.get(), last, true, run.key)});
   }
-  return ms;
-}
-
-// ---------------------------------------------------------------- copy bandwidth
-
-namespace {
-
-constexpr const char* kCopyKernel = R"(// skintune copy bandwidth kernel
-__kernel void skintune_copy(__global const uint4* restrict in, __global uint4* restrict out, const ulong n) {
-  const size_t i = get_global_id(0);
-  if (i < n) out[i] = in[i];
-}
-)";
-
-}  // namespace
-
-std::vector<double> OpenClApi::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
-  KernelSource source;
-  source.lang = Lang::kOpenCl;
-  source.entry_point = "skintune_copy";
-  source.text = kCopyKernel;
-  source.source_hash = SourceHash(source.text);
-  const cl_kernel kernel = KernelFor(source);
-  const std::vector<std::uint32_t> pattern = CopyPattern(bytes / 4);
-  Memory in = NewMemory(CL_MEM_READ_ONLY, bytes, pattern.data(), "copy source");
-  Memory out = NewMemory(CL_MEM_WRITE_ONLY, bytes, nullptr, "copy destination");
-  const cl_ulong n = bytes / 16;
-  const cl_mem in_mem = in.get(), out_mem = out.get();
-  Check(clSetKernelArg(kernel, 0, sizeof(cl_mem), &in_mem), "launch", "clSetKernelArg 0 of the copy kernel");
-  Check(clSetKernelArg(kernel, 1, sizeof(cl_mem), &out_mem), "launch", "clSetKernelArg 1 of the copy kernel");
-  Check(clSetKernelArg(kernel, 2, sizeof(cl_ulong), &n), "launch", "clSetKernelArg 2 of the copy kernel");
-  const std::size_t global = (n + 255) / 256 * 256;
-  std::vector<Event> events;
-  for (int r = 0; r < warmup + repetitions; ++r) {
-    const bool timed = r >= warmup;
-    cl_event event = nullptr;
-    Check(clEnqueueNDRangeKernel(queue.get(), kernel, 1, nullptr, &global, nullptr, 0, nullptr, timed ? &event : nullptr),
-          "launch", "clEnqueueNDRangeKernel of the copy kernel (" + std::to_string(global) + " items)");
-    if (timed) events.emplace_back(event);
-  }
-  Check(clFinish(queue.get()), "launch", "clFinish after the copy kernel");
-  std::vector<double> ms;
-  for (const Event& e : events) ms.push_back(EventMs(e.get(), false, ""));
   return ms;
 }
 

@@ -153,6 +153,24 @@ class VulkanBound final : public DeviceObject {
   std::map<VkBuffer, VkDescriptorSet> redirected;  // out_positions -> a caller's buffer
 };
 
+// A timestamp query pool, destroyed with this.
+class QueryPool {
+ public:
+  QueryPool(const Context& c, VkQueryPool pool) : c_(c), pool_(pool) {}
+  QueryPool(QueryPool&& other) noexcept : c_(other.c_), pool_(other.pool_) { other.pool_ = VK_NULL_HANDLE; }
+  QueryPool(const QueryPool&) = delete;
+  QueryPool& operator=(const QueryPool&) = delete;
+  QueryPool& operator=(QueryPool&&) = delete;
+  ~QueryPool() {
+    if (pool_) c_.fn.vkDestroyQueryPool(c_.device, pool_, nullptr);
+  }
+  VkQueryPool get() const { return pool_; }
+
+ private:
+  const Context& c_;
+  VkQueryPool pool_;
+};
+
 // A submitted command buffer and what must live until it completes.
 struct Submission {
   VkCommandBuffer cb = VK_NULL_HANDLE;
@@ -211,7 +229,6 @@ class VulkanApi final : public DeviceApi {
   void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   void Finish() override;
-  std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions) override;
 
  private:
   VkShaderModule ModuleFor(const KernelSource& source);
@@ -225,12 +242,16 @@ class VulkanApi final : public DeviceApi {
   void Upload(VulkanBuffer& to, const void* bytes, std::size_t size, const std::string& what);
   void Barrier(VkCommandBuffer cb, VkPipelineStageFlags from, VkAccessFlags from_access, VkPipelineStageFlags to,
                VkAccessFlags to_access) const;
+  void RecordFrames(VkCommandBuffer cb, const FrameRun& run, std::size_t begin, std::size_t end,
+                    std::set<const void*>& used, VkQueryPool pool, int* query);
+  void BarrierBeforeFrames(VkCommandBuffer cb) const;
+  void BarrierAfterFrames(VkCommandBuffer cb, bool for_caller) const;
   // Records one launch (optionally between timestamps `query`, `query + 1`).
   void RecordLaunch(VkCommandBuffer cb, const VulkanBound& bound, VkDescriptorSet set, VkQueryPool pool,
                     int query) const;
   VkDescriptorSet Redirected(VulkanBound& bound, VkBuffer out_positions);
   double TicksToMs(std::uint64_t start, std::uint64_t end) const;
-  VkQueryPool NewQueryPool(std::uint32_t count);
+  QueryPool NewQueryPool(std::uint32_t count);  // none for 0
   std::vector<std::uint64_t> QueryResults(VkQueryPool pool, std::uint32_t count);
   void CheckStorageRange(std::size_t bytes, const std::string& what) const;
 
@@ -581,7 +602,8 @@ void VulkanApi::RecordLaunch(VkCommandBuffer cb, const VulkanBound& bound, VkDes
     c_->fn.vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, pool, static_cast<std::uint32_t>(query + 1));
 }
 
-VkQueryPool VulkanApi::NewQueryPool(std::uint32_t count) {
+QueryPool VulkanApi::NewQueryPool(std::uint32_t count) {
+  if (count == 0) return QueryPool(*c_, VK_NULL_HANDLE);
   if (c_->info.timestamp_valid_bits == 0)
     Fail("launch", "the compute queue family of " + c_->info.name + " has no timestamps (timestampValidBits 0)");
   VkQueryPoolCreateInfo info{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
@@ -589,7 +611,7 @@ VkQueryPool VulkanApi::NewQueryPool(std::uint32_t count) {
   info.queryCount = count;
   VkQueryPool pool = VK_NULL_HANDLE;
   Check(c_->fn.vkCreateQueryPool(c_->device, &info, nullptr, &pool), "launch", "vkCreateQueryPool");
-  return pool;
+  return QueryPool(*c_, pool);
 }
 
 std::vector<std::uint64_t> VulkanApi::QueryResults(VkQueryPool pool, std::uint32_t count) {
@@ -597,7 +619,6 @@ std::vector<std::uint64_t> VulkanApi::QueryResults(VkQueryPool pool, std::uint32
   const VkResult r = c_->fn.vkGetQueryPoolResults(c_->device, pool, 0, count, count * sizeof(std::uint64_t),
                                                   ticks.data(), sizeof(std::uint64_t),
                                                   VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT);
-  c_->fn.vkDestroyQueryPool(c_->device, pool, nullptr);
   Check(r, "launch", "vkGetQueryPoolResults");
   return ticks;
 }
@@ -609,69 +630,119 @@ double VulkanApi::TicksToMs(std::uint64_t start, std::uint64_t end) const {
   return static_cast<double>(ticks) * c_->info.timestamp_period_ns / 1e6;
 }
 
-// kVerify and kTime: one command buffer, every launch of a timed frame
-// between two timestamps, a barrier before a frame whose set an earlier frame
-// used; then wait and read the times. kLive: the set's launches, submitted
-// without waiting, or recorded into the caller's command buffer.
-std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
-  const bool live = run.use == FrameUse::kLive;
-  const bool for_caller = live && record_into_ != VK_NULL_HANDLE;
-  const VkCommandBuffer cb = for_caller ? record_into_ : Begin();
-  std::uint32_t queries = 0;
-  if (!live) {
-    for (std::size_t f = static_cast<std::size_t>(std::max(run.untimed, 0)); f < run.frames.size(); ++f)
-      queries += 2 * static_cast<std::uint32_t>(run.frames[f].size());
-  }
-  VkQueryPool pool = VK_NULL_HANDLE;
-  try {
-    if (queries > 0) {
-      pool = NewQueryPool(queries);
-      c_->fn.vkCmdResetQueryPool(cb, pool, 0, queries);
-    }
-  } catch (...) {
-    if (!for_caller) c_->fn.vkFreeCommandBuffers(c_->device, pool_, 1, &cb);
-    throw;
-  }
-  // Uploads and palette copies (earlier submissions), and earlier frames, before these launches.
+// Records frames [begin, end) of `run` into `cb`: a barrier before a frame
+// whose set an earlier frame of the same command buffer used (`used`: the
+// sets since the last barrier), each launch between timestamps `query`,
+// `query` + 1 (advanced by 2) when `per_launch`.
+void VulkanApi::RecordFrames(VkCommandBuffer cb, const FrameRun& run, std::size_t begin, std::size_t end,
+                             std::set<const void*>& used, VkQueryPool pool, int* query) {
   constexpr VkAccessFlags kShaderAccess = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
-  Barrier(cb, VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
-          VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, kShaderAccess);
-  std::set<const void*> used;  // the sets' frames since the last barrier
-  int query = 0;
-  for (std::size_t f = 0; f < run.frames.size(); ++f) {
+  for (std::size_t f = begin; f < end; ++f) {
     const auto& frame = run.frames[f];
     if (!used.insert(frame.data()).second) {
       Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, kShaderAccess, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
               kShaderAccess);
       used = {frame.data()};
     }
-    const bool timed = !live && static_cast<int>(f) >= run.untimed;
     for (const std::unique_ptr<DeviceObject>& object : frame) {
       auto& bound = static_cast<VulkanBound&>(*object);
       const VkDescriptorSet set =
           run.out_positions ? Redirected(bound, reinterpret_cast<VkBuffer>(run.out_positions)) : bound.set;
-      RecordLaunch(cb, bound, set, pool, timed ? query : -1);
-      if (timed) query += 2;
+      RecordLaunch(cb, bound, set, pool, query ? *query : -1);
+      if (query) *query += 2;
     }
   }
-  // The outputs for read-backs (copies, mapped memory) and, for the caller, any later use.
+}
+
+// Starts a command buffer of frames: after uploads and palette copies
+// (earlier submissions) and earlier frames.
+void VulkanApi::BarrierBeforeFrames(VkCommandBuffer cb) const {
+  Barrier(cb, VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+          VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+          VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
+}
+
+// Ends one: the outputs for read-backs (copies, mapped memory) and, in a
+// caller's command buffer, for any later command.
+void VulkanApi::BarrierAfterFrames(VkCommandBuffer cb, bool for_caller) const {
   Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
           for_caller ? VK_PIPELINE_STAGE_ALL_COMMANDS_BIT : VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_HOST_BIT,
           for_caller ? VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT
                      : VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_HOST_READ_BIT);
-  if (for_caller) {
-    recorded_for_caller_ = true;
+}
+
+// kLive: the set's launches, submitted without waiting, or recorded into the
+// caller's command buffer. kVerify: one command buffer, each launch between
+// two timestamps, then wait. kTime: the untimed frames in one command
+// buffer, then one command buffer per burst: a timestamp once everything
+// before it is done, the burst's launches back to back (a barrier only
+// where a set is used again), a timestamp when they are done; a last,
+// shorter group runs untimed; then wait and read the times.
+std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
+  const std::size_t frames = run.frames.size();
+  std::set<const void*> used;
+  if (run.use == FrameUse::kLive) {
+    const bool for_caller = record_into_ != VK_NULL_HANDLE;
+    const VkCommandBuffer cb = for_caller ? record_into_ : Begin();
+    BarrierBeforeFrames(cb);
+    RecordFrames(cb, run, 0, frames, used, VK_NULL_HANDLE, nullptr);
+    BarrierAfterFrames(cb, for_caller);
+    if (for_caller) {
+      recorded_for_caller_ = true;
+    } else {
+      Submit(cb, false);
+    }
     return {};
   }
-  Submit(cb, !live);
-  if (live) return {};
-  const std::vector<std::uint64_t> ticks = queries > 0 ? QueryResults(pool, queries) : std::vector<std::uint64_t>();
-  std::vector<std::vector<double>> ms;
-  std::size_t at = 0;
-  for (std::size_t f = static_cast<std::size_t>(std::max(run.untimed, 0)); f < run.frames.size(); ++f) {
-    std::vector<double>& frame = ms.emplace_back();
-    for (std::size_t l = 0; l < run.frames[f].size(); ++l, at += 2) frame.push_back(TicksToMs(ticks[at], ticks[at + 1]));
+  if (run.use == FrameUse::kVerify) {
+    std::uint32_t launches = 0;
+    for (const auto& frame : run.frames) launches += static_cast<std::uint32_t>(frame.size());
+    const QueryPool pool = NewQueryPool(2 * launches);
+    const VkCommandBuffer cb = Begin();
+    if (pool.get()) c_->fn.vkCmdResetQueryPool(cb, pool.get(), 0, 2 * launches);
+    BarrierBeforeFrames(cb);
+    int query = 0;
+    RecordFrames(cb, run, 0, frames, used, pool.get(), &query);
+    BarrierAfterFrames(cb, false);
+    Submit(cb, true);
+    if (!pool.get()) return {{}};
+    const std::vector<std::uint64_t> ticks = QueryResults(pool.get(), 2 * launches);
+    std::vector<double> ms;
+    for (std::size_t q = 0; q < ticks.size(); q += 2) ms.push_back(TicksToMs(ticks[q], ticks[q + 1]));
+    return {ms};
   }
+  const std::size_t untimed = std::min<std::size_t>(frames, static_cast<std::size_t>(std::max(run.untimed, 0)));
+  const std::size_t burst = static_cast<std::size_t>(std::max(run.burst, 1));
+  const std::size_t bursts = run.TimedBursts();
+  const auto submit_untimed = [&](std::size_t begin, std::size_t end) {
+    if (begin >= end) return;
+    const VkCommandBuffer cb = Begin();
+    BarrierBeforeFrames(cb);
+    used.clear();
+    RecordFrames(cb, run, begin, end, used, VK_NULL_HANDLE, nullptr);
+    BarrierAfterFrames(cb, false);
+    Submit(cb, false);
+  };
+  submit_untimed(0, untimed);
+  const QueryPool pool = NewQueryPool(static_cast<std::uint32_t>(2 * bursts));
+  for (std::size_t b = 0; b < bursts; ++b) {
+    const VkCommandBuffer cb = Begin();
+    const auto first = static_cast<std::uint32_t>(2 * b);
+    c_->fn.vkCmdResetQueryPool(cb, pool.get(), first, 2);
+    BarrierBeforeFrames(cb);
+    c_->fn.vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, pool.get(), first);
+    used.clear();
+    RecordFrames(cb, run, untimed + b * burst, untimed + (b + 1) * burst, used, VK_NULL_HANDLE, nullptr);
+    c_->fn.vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, pool.get(), first + 1);
+    BarrierAfterFrames(cb, false);
+    Submit(cb, false);
+  }
+  submit_untimed(untimed + bursts * burst, frames);
+  WaitAll();
+  if (!pool.get()) return {};
+  const std::vector<std::uint64_t> ticks = QueryResults(pool.get(), static_cast<std::uint32_t>(2 * bursts));
+  std::vector<std::vector<double>> ms;
+  for (std::size_t b = 0; b < bursts; ++b) ms.push_back({TicksToMs(ticks[2 * b], ticks[2 * b + 1])});
   return ms;
 }
 
@@ -728,66 +799,6 @@ void VulkanApi::Finish() {
     Check(c_->fn.vkQueueWaitIdle(c_->queue), "launch", "vkQueueWaitIdle");
     recorded_for_caller_ = false;
   }
-}
-
-// ---------------------------------------------------------------- copy bandwidth
-
-namespace {
-
-constexpr const char* kCopyShader = R"(#version 450
-// skintune copy bandwidth shader (Vulkan)
-layout(local_size_x = 256) in;
-layout(push_constant) uniform SkinScalars { uint n; uint first; uint vertex_count; };
-layout(std430, binding = 0) readonly restrict buffer CopyIn { uvec4 copy_in[]; };
-layout(std430, binding = 1) writeonly restrict buffer OutPositions { uvec4 out_positions[]; };
-void main() {
-  uint step = gl_NumWorkGroups.x * 256u;
-  for (uint i = gl_GlobalInvocationID.x; i < n; i += step) out_positions[first + i] = copy_in[first + i];
-}
-)";
-
-}  // namespace
-
-// One uvec4 per invocation and step, grid-stride, timed like a launch.
-std::vector<double> VulkanApi::TimeCopy(std::size_t bytes, int warmup, int repetitions) {
-  CheckStorageRange(bytes, "copy");
-  KernelSource source;
-  source.lang = Lang::kVulkan;
-  source.entry_point = "main";
-  source.text = kCopyShader;
-  source.source_hash = SourceHash(source.text);
-  source.arguments = {{"n", "u32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar},
-                      {"first", "u32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar},
-                      {"copy_in", "u32x4", 16, 16, "first+v", ArgumentDirection::kIn, ArgumentKind::kBuffer},
-                      {"out_positions", "u32x4", 16, 16, "first+v", ArgumentDirection::kOut, ArgumentKind::kBuffer}};
-  const Pipeline& p = PipelineFor(source, PaletteStorage::kGlobal);
-  const std::vector<std::uint32_t> pattern = CopyPattern(bytes / 4);
-  std::unique_ptr<DeviceBuffer> in = Allocate(BufferUse::kInput, bytes, pattern.data(), "copy source");
-  std::unique_ptr<DeviceBuffer> out = Allocate(BufferUse::kOutput, bytes, nullptr, "copy destination");
-  LaunchSpec spec;
-  spec.variant.lang = Lang::kVulkan;
-  spec.source = source;
-  spec.where = "the copy kernel";
-  VulkanPlanned plan(spec);
-  plan.pipeline = &p;
-  const std::size_t n = bytes / 16;
-  plan.groups_x = static_cast<std::uint32_t>(std::clamp<std::size_t>((n + 255) / 256, 1, c_->info.limits.maxComputeWorkGroupCount[0]));
-  plan.push[0] = static_cast<std::uint32_t>(n);
-  std::vector<ArgumentBinding> arguments = {{&source.arguments[0], ArgumentRole::kScalar, nullptr, nullptr},
-                                            {&source.arguments[1], ArgumentRole::kScalar, nullptr, nullptr},
-                                            {&source.arguments[2], ArgumentRole::kInput, in.get(), nullptr},
-                                            {&source.arguments[3], ArgumentRole::kOutput, out.get(), nullptr}};
-  std::size_t allocated = 0;
-  std::vector<std::unique_ptr<DeviceObject>> launch;
-  launch.push_back(Bind(plan, arguments, SetOptions{}, allocated));
-  FrameRun run;
-  run.use = FrameUse::kTime;
-  run.untimed = warmup;
-  for (int r = 0; r < warmup + repetitions; ++r) run.frames.push_back(launch);
-  WaitAll();
-  std::vector<double> ms;
-  for (const std::vector<double>& frame : RunFrames(run)) ms.push_back(frame.front());
-  return ms;
 }
 
 }  // namespace vk

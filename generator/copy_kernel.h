@@ -1,0 +1,42 @@
+// skintune: the copy kernel every measurement is judged against, as the
+// runner driver runs it: an ordinary kernel over an ordinary packed mesh.
+//
+// "As fast as a copy of the same bytes" is the ceiling of a memory-bound
+// kernel, so every measurement is timed next to a copy moving the bytes its
+// frame moves, by the same method (the same input-set rotation, the same
+// launch-gap-free bursts: docs/TUNING.md "Same-size copy"). The copy is made
+// of the driver's own parts: a KernelSource with the scalars `n` and `first`,
+// the input buffer `copy_in` and the output `out_positions` (16-byte items),
+// and a PackedMesh of one launch whose "vertices" are those items, so every
+// API plans, binds and times it as it does a skinning kernel.
+#pragma once
+
+#include <cstddef>
+
+#include "generator/emit.h"
+#include "generator/packer.h"
+
+namespace skintune {
+
+// Work items of 256; a work item copies 2, 4 or 8 items (strided) when one
+// item each would take more than kCopyMaxGroups work-groups (GL's minimum
+// GL_MAX_COMPUTE_WORK_GROUP_COUNT).
+inline constexpr int kCopyWorkGroup = 256;
+inline constexpr std::size_t kCopyMaxGroups = 65535;
+
+struct CopyKernel {
+  PackedMesh mesh;      // one launch of `items` "vertices" of 16 bytes, no palette use
+  KernelSource kernel;  // templates/copy.{cl,cu,comp}, entry point "skintune_copy" (GLSL: "main")
+  std::size_t items = 0;
+};
+
+// The copy moving `bytes` per frame (read + written: items = bytes / 32, at
+// least 1) in `lang`'s API: glsl-vertex's copy is the GLSL compute one (both
+// run on GL). Throws Error for more items than 8 per work item of
+// kCopyMaxGroups groups take (a source over 2 GiB).
+CopyKernel EmitCopy(Lang lang, std::size_t bytes);
+
+// The bytes one frame of `copy` moves: 32 per item (16 read, 16 written).
+inline std::size_t CopyBytes(const CopyKernel& copy) { return copy.items * 32; }
+
+}  // namespace skintune

@@ -1,0 +1,164 @@
+// The one Measure (tuner/backends_internal.h MeasureWith) over a fake
+// executor: the residency rule, the burst and the same-size copy it asks the
+// runner for, and what it records. No device: the fake answers the
+// verification run with the gold itself and times with numbers it is given.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "generator/variant.h"
+#include "runtime/physical_device.h"
+#include "tuner/backends_internal.h"
+#include "tuner/measurement.h"
+
+namespace skintune {
+namespace {
+
+using tuner_internal::DatasetCache;
+using tuner_internal::Executor;
+using tuner_internal::MeasureWith;
+
+// Answers Run with the variant's gold (so verification passes) and Time /
+// TimeCopy with fixed per-frame times, recording what it was asked.
+class FakeExecutor final : public Executor {
+ public:
+  FakeExecutor(DatasetCache& datasets, std::string dataset) : datasets_(datasets), dataset_(std::move(dataset)) {}
+
+  Output Run(const PackedMesh& mesh, std::span<const KernelSource>, std::span<const std::uint8_t>) override {
+    DatasetCache::Entry& entry = datasets_.Get(dataset_);
+    const GoldResult& gold = datasets_.Gold(entry, mesh.variant);
+    Output out;
+    out.positions.resize(mesh.vertex_count * mesh.output_stride_bytes);
+    for (std::size_t p = 0; p < mesh.vertex_count; ++p) {
+      const glm::dvec3& g = gold.positions[mesh.order[p]];
+      const float xyz[4] = {static_cast<float>(g.x), static_cast<float>(g.y), static_cast<float>(g.z), 1.0f};
+      std::memcpy(out.positions.data() + p * mesh.output_stride_bytes, xyz, std::min<std::size_t>(16, mesh.output_stride_bytes));
+    }
+    return out;
+  }
+  Times Time(const PackedMesh&, std::span<const KernelSource>, std::span<const std::vector<std::uint8_t>> palettes,
+             int, int bursts, int burst_frames, double burst_ms) override {
+    time_sets = static_cast<int>(palettes.size());
+    asked_burst_ms = burst_ms;
+    Times t;
+    t.burst_frames = burst_frames > 0 ? burst_frames : 17;
+    t.ms.assign(static_cast<std::size_t>(bursts), kernel_ms);
+    t.bytes_per_set = bytes_per_set;
+    return t;
+  }
+  std::vector<double> TimeCopy(Lang lang, std::size_t bytes, int input_sets, int, int bursts, int burst_frames) override {
+    copy_lang = lang;
+    copy_bytes = bytes;
+    copy_sets = input_sets;
+    copy_burst_frames = burst_frames;
+    if (copy_fails) throw Error("OpenCL launch: the copy could not run");
+    return std::vector<double>(static_cast<std::size_t>(bursts), copy_ms);
+  }
+
+  double kernel_ms = 0.030, copy_ms = 0.025;
+  std::size_t bytes_per_set = 0;
+  bool copy_fails = false;
+  int time_sets = 0;
+  double asked_burst_ms = 0.0;
+  std::optional<Lang> copy_lang;
+  std::size_t copy_bytes = 0;
+  int copy_sets = 0, copy_burst_frames = 0;
+
+ private:
+  DatasetCache& datasets_;
+  std::string dataset_;
+};
+
+DeviceIdentity Gpu(std::uint64_t llc) {
+  DeviceIdentity d;
+  d.backend = "opencl";
+  d.platform = "NVIDIA CUDA";
+  d.name = "NVIDIA H100 80GB HBM3";
+  d.driver_version = "580";
+  d.type = "gpu";
+  d.last_level_cache_bytes = llc;
+  return d;
+}
+
+DeviceLimits Limits() {
+  DeviceLimits l;
+  l.max_wg_size = 1024;
+  l.local_memory_bytes = 48 << 10;
+  l.constant_memory_bytes = 64 << 10;
+  return l;
+}
+
+Measurement MeasureOn(FakeExecutor& executor, DatasetCache& datasets, const DeviceIdentity& device,
+                      const std::string& key, const TimingOptions& options) {
+  return MeasureWith(executor, datasets, device, Limits(), {Lang::kOpenCl}, ParseVariantKey(key), {"5000-b4"}, options);
+}
+
+constexpr const char* kVariant = "opencl.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals";
+
+// The residency rule: the sets rotated while timing cover at least twice the
+// PHYSICAL chip's cache, whatever one API reports. NVIDIA's OpenCL reports
+// 4.3 MB on an H100; matched by UUID with CUDA's 50 MB, the OpenCL device's
+// timing footprint covers 2 x 50 MB.
+TEST(Measure, InputSetsCoverTwiceThePhysicalCacheWhateverTheApiReports) {
+  CacheReport opencl{"opencl", "gpu", "NVIDIA H100 80GB HBM3", "00112233445566778899aabbccddeeff", "", 4325376, 80ull << 30};
+  CacheReport cuda{"cuda", "gpu", "NVIDIA H100 80GB HBM3", "00112233445566778899aabbccddeeff", "", 50ull << 20, 80ull << 30};
+  opencl.name = cuda.name = "GPU of its own";  // no datasheet match: the figure must come from CUDA through the UUID
+  const std::vector<CacheFigure> figures = ResolveLastLevelCaches({opencl, cuda}, 0);
+  ASSERT_EQ(figures[0].bytes, 50ull << 20) << figures[0].source;
+
+  DatasetCache datasets;
+  FakeExecutor executor(datasets, "5000-b4");
+  executor.bytes_per_set = 200000;
+  TimingOptions options;
+  options.max_input_sets = 1000;
+  const Measurement m = MeasureOn(executor, datasets, Gpu(figures[0].bytes), kVariant, options);
+  ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+  EXPECT_EQ(executor.time_sets, m.timing.input_sets);
+  EXPECT_GE(static_cast<double>(m.timing.input_sets) * m.bytes_per_frame, 2.0 * (50ull << 20));
+  EXPECT_EQ(m.timing.footprint_bytes, static_cast<double>(m.timing.input_sets) * 200000.0);
+  // What the API alone says would have given far fewer sets.
+  EXPECT_LT(tuner_internal::InputSetsFor(4325376, static_cast<std::uint64_t>(m.bytes_per_frame), 1000),
+            m.timing.input_sets / 5);
+}
+
+// Every measurement carries the same-size copy: the bytes its frame moves,
+// the same input sets, the same burst, and x_copy = time / copy time.
+TEST(Measure, TimesTheSameSizeCopyBySameMethod) {
+  DatasetCache datasets;
+  FakeExecutor executor(datasets, "5000-b4");
+  TimingOptions options;
+  options.burst_ms = 3.5;
+  const Measurement m = MeasureOn(executor, datasets, Gpu(50ull << 20), kVariant, options);
+  ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+  EXPECT_EQ(executor.asked_burst_ms, 3.5);
+  EXPECT_EQ(m.timing.burst_frames, 17);
+  ASSERT_TRUE(executor.copy_lang.has_value());
+  EXPECT_EQ(*executor.copy_lang, Lang::kOpenCl);
+  EXPECT_EQ(static_cast<double>(executor.copy_bytes), m.bytes_per_frame);
+  EXPECT_EQ(executor.copy_sets, m.timing.input_sets);
+  EXPECT_EQ(executor.copy_burst_frames, m.timing.burst_frames);
+  EXPECT_DOUBLE_EQ(m.timing.copy_ms, 0.025);
+  EXPECT_DOUBLE_EQ(m.x_copy, 0.030 / 0.025);
+  EXPECT_EQ(m.timing.version, kTimingVersion);
+  EXPECT_EQ(ImpossibleFigures(m), "");
+}
+
+// A copy that cannot run leaves the kernel's own time standing, with no
+// x_copy and the reason in the detail.
+TEST(Measure, AFailedCopyKeepsTheKernelTimeAndSaysWhy) {
+  DatasetCache datasets;
+  FakeExecutor executor(datasets, "5000-b4");
+  executor.copy_fails = true;
+  const Measurement m = MeasureOn(executor, datasets, Gpu(50ull << 20), kVariant, TimingOptions{});
+  ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+  EXPECT_EQ(m.x_copy, 0.0);
+  EXPECT_EQ(m.timing.copy_ms, 0.0);
+  EXPECT_NE(m.detail.find("same-size copy failed"), std::string::npos) << m.detail;
+  EXPECT_EQ(ImpossibleFigures(m), "");
+}
+
+}  // namespace
+}  // namespace skintune
