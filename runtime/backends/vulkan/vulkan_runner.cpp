@@ -377,12 +377,7 @@ std::size_t VulkanApi::PaletteBufferBytes(const RunShape& shape, std::span<const
 std::unique_ptr<PlannedLaunch> VulkanApi::Plan(const LaunchSpec& spec) {
   const Variant& variant = spec.variant;
   const KernelSource& source = spec.source;
-  if (source.lang != variant.lang)
-    Fail("launch", spec.where + ": kernel language " + Name(source.lang) + " for a " + Name(variant.lang) + " variant");
-  if ((variant.storage == PaletteStorage::kConstant || variant.storage == PaletteStorage::kLocal) &&
-      source.joints != static_cast<int>(spec.palette_joints))
-    Fail("launch", spec.where + ": kernel sized for " + std::to_string(source.joints) + " joints, the palette has " +
-                       std::to_string(spec.palette_joints));
+  CheckLaunchKernel(spec, name());
   auto plan = std::make_unique<VulkanPlanned>(spec);
   plan->pipeline = &PipelineFor(source, variant.storage);
   const std::size_t groups = source.launch.GlobalItems(spec.count) / static_cast<std::size_t>(source.launch.wg_size);
