@@ -597,6 +597,15 @@ TEST(EmbedHeader, CompilesAsCxx17WithWarningsAsErrorsAndLinksTwoUnits) {
   fs::remove_all(dir);
 }
 
+// `dir`/main.cpp compiled as strict C++17 and run: both must succeed (exit 0).
+void CompileAndRunMain(const fs::path& dir) {
+  std::string log;
+  const std::string compile = std::string("'") + SKINTUNE_CXX_COMPILER + "' " + kStrict17 + " '" +
+                              (dir / "main.cpp").string() + "' -o '" + (dir / "main").string() + "'";
+  ASSERT_EQ(Shell(compile, dir / "compile.log", &log), 0) << log;
+  EXPECT_EQ(Shell("'" + (dir / "main").string() + "'", dir / "run.log", &log), 0) << log;
+}
+
 TEST(EmbedHeader, TheTemplateAloneCompilesAsCxx17WithAnEmptyTable) {
   const fs::path dir = Scratch();
   std::ofstream(dir / "main.cpp") << "#include \"" << SKINTUNE_SOURCE_DIR << "/templates/embedded_support.h\"\n"
@@ -604,11 +613,7 @@ TEST(EmbedHeader, TheTemplateAloneCompilesAsCxx17WithAnEmptyTable) {
                                   << "  static_assert(skintune_kernels::kKernelCount == 0);\n"
                                   << "  return skintune_kernels::FindKernel(\"opencl\", 1, 1, 1) == nullptr ? 0 : 1;\n"
                                   << "}\n";
-  std::string log;
-  const std::string compile = std::string("'") + SKINTUNE_CXX_COMPILER + "' " + kStrict17 + " '" +
-                              (dir / "main.cpp").string() + "' -o '" + (dir / "main").string() + "'";
-  ASSERT_EQ(Shell(compile, dir / "compile.log", &log), 0) << log;
-  EXPECT_EQ(Shell("'" + (dir / "main").string() + "'", dir / "run.log", &log), 0) << log;
+  CompileAndRunMain(dir);
   fs::remove_all(dir);
 }
 
@@ -650,11 +655,7 @@ int main() {
   return 0;
 }
 )";
-  std::string log;
-  const std::string compile = std::string("'") + SKINTUNE_CXX_COMPILER + "' " + kStrict17 + " '" +
-                              (dir / "main.cpp").string() + "' -o '" + (dir / "main").string() + "'";
-  ASSERT_EQ(Shell(compile, dir / "compile.log", &log), 0) << log;
-  EXPECT_EQ(Shell("'" + (dir / "main").string() + "'", dir / "run.log", &log), 0) << log;
+  CompileAndRunMain(dir);
   fs::remove_all(dir);
 }
 
@@ -677,11 +678,7 @@ int main() {
   return 0;
 }
 )";
-  std::string log;
-  const std::string compile = std::string("'") + SKINTUNE_CXX_COMPILER + "' " + kStrict17 + " '" +
-                              (dir / "main.cpp").string() + "' -o '" + (dir / "main").string() + "'";
-  ASSERT_EQ(Shell(compile, dir / "compile.log", &log), 0) << log;
-  EXPECT_EQ(Shell("'" + (dir / "main").string() + "'", dir / "run.log", &log), 0) << log;
+  CompileAndRunMain(dir);
 }
 
 TEST(EmbedHeader, EmbedHeaderPutsTheNamespaceAndOneSourcePerDistinctKernel) {
