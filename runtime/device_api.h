@@ -111,11 +111,14 @@ enum class FrameUse {
 // kTime's bursts (docs/TUNING.md "Timing"): the frames after `untimed` are
 // grouped into bursts of `burst` consecutive frames, and each burst's launches
 // go to the device back to back, with nothing between them (no host wait, no
-// host copy, no query that serialises): the burst is timed by the device from
-// the start of its first launch to the end of its last. A burst divided by its
-// frames is a frame's cost free of launch gaps, which per-launch timers (CUDA
-// events around each launch) would include. A last, shorter group of frames
-// is not timed.
+// host copy, no query that serialises), and consecutive frames may overlap
+// as consecutive dispatches do in GL and Vulkan (CUDA and OpenCL alternate
+// two streams / queues; frames never share a set when there are two or
+// more): the burst is timed by the device from the start of its first launch
+// to the end of its last. A burst divided by its frames is a frame's cost
+// free of launch gaps, which per-launch timers (CUDA events around each
+// launch) and one serialising stream (~2 us per dependent launch on an
+// H100) would add. A last, shorter group of frames is not timed.
 struct FrameRun {
   FrameUse use = FrameUse::kTime;
   std::vector<std::span<const std::unique_ptr<DeviceObject>>> frames;

@@ -173,6 +173,9 @@ const LoadedDriver& DriverLibrary() {
     Resolve(handle, "cuCtxGetDevice", a.cuCtxGetDevice, absent);
     Resolve(handle, "cuStreamSynchronize", a.cuStreamSynchronize, absent);
     Resolve(handle, "cuMemcpyHtoDAsync_v2", a.cuMemcpyHtoDAsync, absent);
+    Resolve(handle, "cuStreamCreate", a.cuStreamCreate, absent);
+    Resolve(handle, "cuStreamDestroy_v2", a.cuStreamDestroy, absent);
+    Resolve(handle, "cuStreamWaitEvent", a.cuStreamWaitEvent, absent);
     std::string no_uuid;  // optional: the device is then matched by PCI bus id
     Resolve(handle, "cuDeviceGetUuid_v2", a.cuDeviceGetUuid, no_uuid);
     if (!a.cuDeviceGetUuid) Resolve(handle, "cuDeviceGetUuid", a.cuDeviceGetUuid, no_uuid);

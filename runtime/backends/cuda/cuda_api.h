@@ -82,6 +82,7 @@ using DevicePtr = unsigned long long;  // CUdeviceptr (64-bit)
 using TexObject = unsigned long long;  // CUtexObject = cudaTextureObject_t
 
 inline constexpr Result kSuccess = 0;
+inline constexpr unsigned kStreamNonBlocking = 1;  // CU_STREAM_NON_BLOCKING
 inline constexpr int kAttributeMaxThreadsPerBlock = 1;
 inline constexpr int kAttributeMaxSharedMemoryPerBlock = 8;   // static __shared__ (48 KiB)
 inline constexpr int kAttributeTotalConstantMemory = 9;
@@ -171,6 +172,10 @@ struct DriverApi {
   // The device's UUID (CUuuid: 16 bytes), to match it with the same chip in
   // other APIs; null where the driver has neither _v2 nor the plain symbol.
   Result (*cuDeviceGetUuid)(unsigned char* uuid16, Device device);
+  // Timing's two lanes (runtime/backends/cuda/cuda_runner.cpp RunTimed).
+  Result (*cuStreamCreate)(Stream* stream, unsigned int flags);
+  Result (*cuStreamDestroy)(Stream stream);  // _v2
+  Result (*cuStreamWaitEvent)(Stream stream, Event event, unsigned int flags);
 };
 
 // The driver, loaded and initialised once; null, with the reason in `why`

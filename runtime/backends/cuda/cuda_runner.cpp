@@ -140,6 +140,8 @@ class CudaApi final : public DeviceApi {
   ~CudaApi() override {
     if (!context) return;
     api->cuCtxSetCurrent(context);
+    for (cuda::Stream& lane : lanes_)
+      if (lane) api->cuStreamDestroy(lane);
     built_.clear();  // unloads the modules while their context is current
     if (primary) api->cuDevicePrimaryCtxRelease(device);
   }
@@ -172,11 +174,14 @@ class CudaApi final : public DeviceApi {
   Memory NewMemory(std::size_t bytes, const void* data, const std::string& what) const;
   Event NewEvent(const std::string& what) const;
   void LaunchLive(const CudaBound& bound);
-  void LaunchTimed(const CudaBound& bound);
+  void LaunchTimed(const CudaBound& bound, cuda::Stream lane);
   double ElapsedMs(const Event& start, const Event& end) const;
   std::vector<std::vector<double>> RunTimed(const FrameRun& run);
 
+  cuda::Stream Lane(int i);
+
   std::map<std::string, BuiltKernel> built_;  // by source hash
+  cuda::Stream lanes_[2] = {nullptr, nullptr};  // Time's two streams (made on first use)
 };
 
 // ---------------------------------------------------------------- kernels
@@ -353,16 +358,16 @@ void CudaApi::LaunchLive(const CudaBound& bound) {
                       " blocks of " + std::to_string(plan.threads) + ")");
 }
 
-// Enqueues one launch on the legacy default stream for Run and Time:
-// `constant` storage first copies the set's palette into the symbol, on the
-// stream (device to device, as the Skinner does: part of the frame's cost).
-void CudaApi::LaunchTimed(const CudaBound& bound) {
+// Enqueues one launch on `lane` (Run: the legacy default stream): `constant`
+// storage first copies the set's palette into the symbol, on that stream
+// (device to device, as the Skinner does: part of the frame's cost).
+void CudaApi::LaunchTimed(const CudaBound& bound, cuda::Stream lane) {
   const CudaPlanned& plan = *bound.plan;
   const std::string& where = plan.spec.where;
   if (plan.constant_symbol)
-    Check(api->cuMemcpyDtoDAsync(plan.constant_symbol, bound.palette->pointer(), bound.palette->host.size(), nullptr),
+    Check(api->cuMemcpyDtoDAsync(plan.constant_symbol, bound.palette->pointer(), bound.palette->host.size(), lane),
           "launch", where + ": cuMemcpyDtoDAsync to '" + kConstantPaletteSymbol + "'");
-  Check(api->cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, nullptr,
+  Check(api->cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, lane,
                             const_cast<void**>(bound.parameters.data()), nullptr),
         "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " x " + std::to_string(plan.instances) +
                       " blocks of " + std::to_string(plan.threads) + ")");
@@ -374,34 +379,66 @@ double CudaApi::ElapsedMs(const Event& start, const Event& end) const {
   return static_cast<double>(elapsed);
 }
 
-// Run's frame: CUDA events around each launch. Time's frames: events around
-// each burst only, so the launches of a burst follow one another on the
-// device with nothing between them.
+cuda::Stream CudaApi::Lane(int i) {
+  if (!lanes_[i]) Check(api->cuStreamCreate(&lanes_[i], cuda::kStreamNonBlocking), "launch", "cuStreamCreate for timing");
+  return lanes_[i];
+}
+
+namespace {
+
+bool UsesConstantSymbol(const FrameRun& run) {
+  for (const auto& frame : run.frames)
+    for (const std::unique_ptr<DeviceObject>& launch : frame)
+      if (static_cast<const CudaBound&>(*launch).plan->constant_symbol) return true;
+  return false;
+}
+
+}  // namespace
+
+// Run's frame: CUDA events around each launch, on the legacy default stream.
+// Time's bursts (docs/TUNING.md "Timing"): frames alternate between two
+// streams, so one frame starts while the last blocks of the one before drain,
+// as consecutive dispatches do in GL and Vulkan; one stream alone would add
+// the dependent-launch gap (~2 us per frame on an H100) to every frame.
+// Events around the burst only: the start on lane 0, which lane 1 waits for;
+// the end on lane 0 after it waited for lane 1. `constant` storage keeps one
+// lane: its frames share the module's __constant__ symbol.
 std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
   const bool verify = run.use == FrameUse::kVerify;
   const std::string what = verify ? "cuEventCreate for " + run.key : "cuEventCreate for timing " + run.key;
-  const auto record = [&](const Event& e) { Check(api->cuEventRecord(e.get(), nullptr), "launch", "cuEventRecord of " + run.key); };
+  const auto record = [&](const Event& e, cuda::Stream lane) {
+    Check(api->cuEventRecord(e.get(), lane), "launch", "cuEventRecord of " + run.key);
+  };
   std::vector<std::pair<Event, Event>> events;
   if (verify) {
     for (const std::unique_ptr<DeviceObject>& launch : run.frames.front()) {
       events.emplace_back(NewEvent(what), NewEvent(what));
-      record(events.back().first);
-      LaunchTimed(static_cast<const CudaBound&>(*launch));
-      record(events.back().second);
+      record(events.back().first, nullptr);
+      LaunchTimed(static_cast<const CudaBound&>(*launch), nullptr);
+      record(events.back().second, nullptr);
     }
   } else {
     const auto untimed = static_cast<std::size_t>(std::max(run.untimed, 0));
     const auto burst = static_cast<std::size_t>(std::max(run.burst, 1));
-    const std::size_t frames = untimed + run.TimedBursts() * burst;
-    for (std::size_t f = 0; f < frames; ++f) {
-      const bool opens = f >= untimed && (f - untimed) % burst == 0;
-      const bool closes = f >= untimed && (f - untimed) % burst == burst - 1;
-      if (opens) {
-        events.emplace_back(NewEvent(what), NewEvent(what));
-        record(events.back().first);
+    const int lanes = UsesConstantSymbol(run) ? 1 : 2;
+    const cuda::Stream first = Lane(0), second = lanes == 2 ? Lane(1) : first;
+    for (std::size_t f = 0; f < untimed; ++f)
+      for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) LaunchTimed(static_cast<const CudaBound&>(*launch), first);
+    for (std::size_t b = 0; b < run.TimedBursts(); ++b) {
+      events.emplace_back(NewEvent(what), NewEvent(what));
+      record(events.back().first, first);
+      if (second != first) Check(api->cuStreamWaitEvent(second, events.back().first.get(), 0), "launch", "cuStreamWaitEvent");
+      for (std::size_t i = 0; i < burst; ++i) {
+        const cuda::Stream lane = i % 2 == 0 ? first : second;
+        for (const std::unique_ptr<DeviceObject>& launch : run.frames[untimed + b * burst + i])
+          LaunchTimed(static_cast<const CudaBound&>(*launch), lane);
       }
-      for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) LaunchTimed(static_cast<const CudaBound&>(*launch));
-      if (closes) record(events.back().second);
+      if (second != first) {
+        const Event joined = NewEvent(what);
+        record(joined, second);
+        Check(api->cuStreamWaitEvent(first, joined.get(), 0), "launch", "cuStreamWaitEvent");
+      }
+      record(events.back().second, first);
     }
   }
   Check(api->cuCtxSynchronize(), "launch", std::string("cuCtxSynchronize after ") + (verify ? "" : "timing ") + run.key);

@@ -110,6 +110,7 @@ class OpenClApi final : public DeviceApi {
   std::string name_;
   Context context;
   Queue queue;
+  Queue lanes[2];  // Time's two queues (made on first use, profiling)
 
   const char* name() const override { return "OpenCL"; }
   const std::string& device_name() const override { return name_; }
@@ -136,7 +137,8 @@ class OpenClApi final : public DeviceApi {
   Program ProgramFromBinary(const std::vector<std::uint8_t>& binary, const char* options);
   std::vector<std::uint8_t> BinaryOf(cl_program program);
   Memory NewMemory(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what);
-  void Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event);
+  void Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event, cl_command_queue on = nullptr);
+  cl_command_queue Lane(int i);
 
   std::map<std::string, BuiltKernel> built_;  // by source hash
 };
@@ -305,7 +307,7 @@ std::unique_ptr<DeviceObject> OpenClApi::Bind(const PlannedLaunch& launch, std::
 
 // Sets the arguments of one launch (positions into `out_positions` when not
 // null) and enqueues it, its event into `event` when given.
-void OpenClApi::Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event) {
+void OpenClApi::Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event, cl_command_queue on) {
   const ClPlanned& plan = *bound.plan;
   const LaunchSpec& spec = plan.spec;
   const cl_uint vertex_count = spec.vertex_count;
@@ -326,24 +328,20 @@ void OpenClApi::Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* ev
     }
     Check(err, "launch", spec.where + ": clSetKernelArg " + std::to_string(a) + " '" + arg.name + "'");
   }
-  Check(clEnqueueNDRangeKernel(queue.get(), plan.kernel, plan.dimensions, nullptr, plan.global, plan.local, 0, nullptr,
-                               event),
+  Check(clEnqueueNDRangeKernel(on ? on : queue.get(), plan.kernel, plan.dimensions, nullptr, plan.global, plan.local, 0,
+                               nullptr, event),
         "launch", spec.where + ": clEnqueueNDRangeKernel (" + std::to_string(plan.global[0]) + " items x " +
                       std::to_string(plan.global[1]) + " instances, groups of " + std::to_string(plan.local[0]) + ")");
 }
 
 namespace {
 
-// Profiling END of `last` - START of `first` in ms; a profiling query that
-// fails reads as 0 in a verification run, and is an error when timing.
-double EventMs(cl_event first, cl_event last, bool checked, const std::string& key) {
+// Profiling END - START of `event` in ms; a query that fails reads as 0 (a
+// verification run's launch times are only shown).
+double EventMs(cl_event event) {
   cl_ulong start = 0, end = 0;
-  const cl_int s = clGetEventProfilingInfo(first, CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr);
-  const cl_int e = clGetEventProfilingInfo(last, CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr);
-  if (checked) {
-    Check(s, "launch", "clGetEventProfilingInfo (start) of " + key);
-    Check(e, "launch", "clGetEventProfilingInfo (end) of " + key);
-  }
+  clGetEventProfilingInfo(event, CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr);
+  clGetEventProfilingInfo(event, CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr);
   return end > start ? static_cast<double>(end - start) * 1e-6 : 0.0;
 }
 
@@ -365,37 +363,74 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
     }
     Check(clFinish(queue.get()), "launch", "clFinish after " + run.key);
     std::vector<double> ms;
-    for (const Event& e : events) ms.push_back(EventMs(e.get(), e.get(), false, run.key));
+    for (const Event& e : events) ms.push_back(EventMs(e.get()));
     return {ms};
   }
-  // kTime: an event on the first and on the last launch of each burst; the
-  // burst's time runs from the first's START to the last's END (one in-order queue).
+  // kTime (docs/TUNING.md "Timing"): frames alternate between two in-order
+  // queues, so one frame starts while the last work-groups of the one before
+  // drain, as consecutive dispatches do in GL and Vulkan; one queue alone
+  // would add the dependent-launch gap to every frame. Each burst starts
+  // with both queues fenced on each other; its time runs from the earliest
+  // START of its first launches to the latest END of its last ones.
   const auto untimed = static_cast<std::size_t>(std::max(run.untimed, 0));
   const auto burst = static_cast<std::size_t>(std::max(run.burst, 1));
-  const std::size_t bursts = run.TimedBursts();
-  std::vector<std::pair<Event, Event>> timed(bursts);
-  for (std::size_t f = 0; f < untimed + bursts * burst; ++f) {
-    const bool first_frame = f >= untimed && (f - untimed) % burst == 0;
-    const bool last_frame = f >= untimed && (f - untimed) % burst == burst - 1;
-    const auto& frame = run.frames[f];
-    for (std::size_t l = 0; l < frame.size(); ++l) {
-      std::pair<Event, Event>* pair = f >= untimed ? &timed[(f - untimed) / burst] : nullptr;
-      cl_event start = nullptr, end = nullptr;
-      const bool opens = first_frame && l == 0, closes = last_frame && l + 1 == frame.size();
-      cl_event* event = opens ? &start : (closes ? &end : nullptr);
-      Enqueue(static_cast<const ClBound&>(*frame[l]), nullptr, event);
-      if (opens) pair->first = Event(start);
-      if (closes) pair->second = Event(end);
+  const cl_command_queue lane[2] = {Lane(0), Lane(1)};
+  for (std::size_t f = 0; f < untimed; ++f)
+    for (const std::unique_ptr<DeviceObject>& launch : run.frames[f])
+      Enqueue(static_cast<const ClBound&>(*launch), nullptr, nullptr, lane[0]);
+  struct Edges {
+    Event first[2], last[2];  // per lane: its first launch of the burst, its last
+  };
+  std::vector<Edges> bursts(run.TimedBursts());
+  for (std::size_t b = 0; b < bursts.size(); ++b) {
+    for (int l = 0; l < 2; ++l) {  // each lane waits for the other's earlier work
+      cl_event marker = nullptr;
+      Check(clEnqueueMarkerWithWaitList(lane[l], 0, nullptr, &marker), "launch", "clEnqueueMarkerWithWaitList");
+      const Event fence(marker);
+      Check(clEnqueueBarrierWithWaitList(lane[1 - l], 1, &marker, nullptr), "launch", "clEnqueueBarrierWithWaitList");
+    }
+    for (std::size_t i = 0; i < burst; ++i) {
+      const int l = static_cast<int>(i % 2);
+      const auto& frame = run.frames[untimed + b * burst + i];
+      for (std::size_t k = 0; k < frame.size(); ++k) {
+        cl_event event = nullptr;
+        Enqueue(static_cast<const ClBound&>(*frame[k]), nullptr, &event, lane[l]);
+        Event e(event);
+        if (!bursts[b].first[l].get()) {
+          bursts[b].first[l] = std::move(e);
+        } else {
+          bursts[b].last[l] = std::move(e);
+        }
+      }
     }
   }
-  Check(clFinish(queue.get()), "launch", "clFinish after timing " + run.key);
+  for (int l = 0; l < 2; ++l) Check(clFinish(lane[l]), "launch", "clFinish after timing " + run.key);
   std::vector<std::vector<double>> ms;
-  for (const auto& [start, end] : timed) {
-    // A burst of one launch: its one event both opens and closes it.
-    cl_event last = end.get() ? end.get() : start.get();
-    ms.push_back({EventMs(start.get(), last, true, run.key)});
+  for (const Edges& e : bursts) {
+    cl_ulong start = ~cl_ulong{0}, end = 0;
+    for (int l = 0; l < 2; ++l) {
+      if (!e.first[l].get()) continue;
+      cl_ulong s = 0, t = 0;
+      Check(clGetEventProfilingInfo(e.first[l].get(), CL_PROFILING_COMMAND_START, sizeof s, &s, nullptr), "launch",
+            "clGetEventProfilingInfo (start) of " + run.key);
+      const cl_event last = e.last[l].get() ? e.last[l].get() : e.first[l].get();
+      Check(clGetEventProfilingInfo(last, CL_PROFILING_COMMAND_END, sizeof t, &t, nullptr), "launch",
+            "clGetEventProfilingInfo (end) of " + run.key);
+      start = std::min(start, s);
+      end = std::max(end, t);
+    }
+    ms.push_back({end > start ? static_cast<double>(end - start) * 1e-6 : 0.0});
   }
   return ms;
+}
+
+cl_command_queue OpenClApi::Lane(int i) {
+  if (!lanes[i].get()) {
+    cl_int err = CL_SUCCESS;
+    lanes[i] = Queue(clCreateCommandQueue(context.get(), device, CL_QUEUE_PROFILING_ENABLE, &err));
+    Check(err, "launch", "clCreateCommandQueue for timing on " + name_);
+  }
+  return lanes[i].get();
 }
 
 // ---------------------------------------------------------------- OpenClRunner
