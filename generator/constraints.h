@@ -18,13 +18,11 @@ struct DeviceLimits {
                                                    // GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS
   std::uint64_t local_memory_bytes = 32768;        // __local / __shared__ / shared per work-group
   std::uint64_t constant_memory_bytes = 65536;     // __constant / __constant__ buffer
-  std::uint64_t uniform_block_bytes = 16384;       // GL_MAX_UNIFORM_BLOCK_SIZE, Vulkan maxUniformBufferRange (GLSL "constant")
+  std::uint64_t uniform_block_bytes = 16384;       // GL_MAX_UNIFORM_BLOCK_SIZE (GLSL "constant")
   bool image_support = true;                       // image1d_buffer / texture object / samplerBuffer
-  std::uint64_t image_buffer_max_texels = 65536;   // CL_DEVICE_IMAGE_MAX_BUFFER_SIZE, GL_MAX_TEXTURE_BUFFER_SIZE,
-                                                   // Vulkan maxTexelBufferElements
+  std::uint64_t image_buffer_max_texels = 65536;   // CL_DEVICE_IMAGE_MAX_BUFFER_SIZE, GL_MAX_TEXTURE_BUFFER_SIZE
   bool vertex_shader_storage_blocks = true;        // GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS > 0
-  std::uint64_t max_grid_y = 65535;                // instances per launch: CUDA grid y, GL_MAX_COMPUTE_WORK_GROUP_COUNT[1],
-                                                   // Vulkan maxComputeWorkGroupCount[1]
+  std::uint64_t max_grid_y = 65535;                // instances per launch: CUDA grid y, GL_MAX_COMPUTE_WORK_GROUP_COUNT[1]
                                                    // (not checked for OpenCL and glsl-vertex: no small limit)
 };
 
