@@ -318,6 +318,57 @@ std::size_t PushConstantOffset(const std::string& scalar) {
   throw Error("no push constant '" + scalar + "' (n, first, vertex_count)");
 }
 
+namespace {
+
+constexpr const char* kWorkGroupSizesRule =
+    "emit and the runtime accept any multiple of 32 from 32 to 1024 (the device's limit applies when it runs); "
+    "tuning spaces and `skintune variants --list` list 32, 64, 128, 256, 512 and 1024; glsl-vertex has none (wg0)";
+
+constexpr const char* kStrideBytesRule =
+    "per argument: per-vertex inputs and outputs (positions, normals, records, out_*): bytes from vertex v's element "
+    "to vertex v+1's (the element size; records: the record size); indices and weights: bytes from vertex v's first "
+    "slot to vertex v+1's (soa: B elements; soa-split: one element, within a slot array); palette: bytes from joint j "
+    "to joint j+1 (R float4 rows); scalars: 0";
+
+// The weight format and the one quantisation rule (generator/packer.cpp QuantiseVertex).
+nlohmann::json WeightsJson(WeightFormat format) {
+  if (format == WeightFormat::kF32)
+    return {{"format", "f32"}, {"rule", "the weights as given, as float32 (no quantisation)"}};
+  const int max = format == WeightFormat::kUnorm16 ? 65535 : 255;
+  const std::string m = std::to_string(max);
+  return {{"format", Name(format)},
+          {"max", max},
+          {"rule", "per vertex: t_i = w_i / sum(w) * " + m + "; q_i = floor(t_i); the " + m +
+                       " - sum(q) missing quanta go one each to the slots with the largest remainders t_i - q_i, ties "
+                       "to the earlier slot; zero weights stay 0; the integers sum to exactly " + m +
+                       " and the kernel reads q_i / " + m},
+          {"exact", "weights that are already multiples of 1/" + m + " summing to 1 are kept exactly (zero "
+                    "quantisation error), e.g. a glTF's normalized WEIGHTS of this width"}};
+}
+
+// A bucketed variant: one kernel per influence count, and how to split and reorder.
+nlohmann::json BucketedJson(const Variant& variant) {
+  nlohmann::json kernels = nlohmann::json::array();
+  for (int k = 1; k <= variant.influences; ++k) {
+    Variant bucket = variant;
+    bucket.influences = k;
+    kernels.push_back({{"influences", k}, {"defines", "this kernel's with INFLUENCES " + std::to_string(k)},
+                       {"emit", "skintune emit --variant " + bucket.Key()}});
+  }
+  return {{"bucketed", true},
+          {"order", "sort the vertices by their number of non-zero weights, ascending, stable (vertices of one count "
+                    "keep the mesh's order): packed position p holds mesh vertex order[p]"},
+          {"split", "one launch per count k present: n = the bucket's vertices, first = its first packed position; "
+                    "each launch has its own input buffers holding only its bucket, each vertex's non-zero slots "
+                    "compacted to slots 0..k-1 in the mesh's slot order (weights quantised per vertex on the "
+                    "compacted slots)"},
+          {"kernels", kernels},
+          {"outputs", "launch k writes its vertices at first + v: the outputs are in packed order; vertex "
+                      "order[p]'s result is at p"}};
+}
+
+}  // namespace
+
 nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
   nlohmann::json j;
   j["generator"] = "skintune";
@@ -368,6 +419,28 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
         arg["binding"] = binding++;
       }
     }
+    if (a.name == "palette") {
+      const int rows = PaletteRows(variant.palette);
+      arg["rows_per_joint"] = rows;
+      arg["elements_rule"] = "joints x R float4 rows (R = " + std::to_string(rows) + ")" +
+                             std::string(source.instanced ? ", times the K instances" : "");
+      if (source.joints > 0) arg["elements"] = source.joints * rows;  // float4 rows of one palette
+      if (source.lang == Lang::kOpenCl && variant.storage == PaletteStorage::kImage) {
+        arg["image"] = {{"type", "image1d_buffer_t"},
+                        {"channel_order", "CL_RGBA"},
+                        {"channel_type", "CL_FLOAT"},
+                        {"width", "joints x R texels (one float4 row per texel" +
+                                      std::string(source.instanced ? ", K palettes" : "") + ")"},
+                        {"buffer", "created with clCreateImage (CL_MEM_OBJECT_IMAGE1D_BUFFER) over the palette buffer"},
+                        {"read", "read_imagef(palette, j*R + r)"}};
+        if (source.joints > 0 && !source.instanced) arg["image"]["width_texels"] = source.joints * rows;
+      } else if (IsGlslText(source.lang) && variant.storage == PaletteStorage::kImage) {
+        arg["texture"] = {{"type", "samplerBuffer"},
+                          {source.lang == Lang::kVulkan ? "view_format" : "internal_format",
+                           source.lang == Lang::kVulkan ? "VK_FORMAT_R32G32B32A32_SFLOAT" : "GL_RGBA32F"},
+                          {"read", "texelFetch(palette_texels, j*R + r)"}};
+      }
+    }
     // CUDA binds two palette storages outside the argument list.
     if (source.lang == Lang::kCuda && a.name == "palette") {
       if (variant.storage == PaletteStorage::kConstant) {
@@ -385,17 +458,30 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
   j["launch"] = {{"vertices_per_item", source.launch.vertices_per_item},
                  {"assignment", source.launch.strided ? "strided" : "contiguous"},
                  {"wg_size", source.launch.wg_size},
-                 {"rule", source.launch.rule}};
+                 {"rule", source.launch.rule},
+                 {"wg_sizes", kWorkGroupSizesRule}};
   if (source.instanced) j["instancing"] = InstancingJson(source);
   if (variant.layout == Layout::kAos) {
     const RecordLayout r = AosRecordLayout(variant, source.influences);
     j["aos_record"] = {{"position", r.position}, {"indices", r.indices}, {"weights", r.weights},
-                       {"normal", r.normal}, {"size", r.size}};
+                       {"normal", r.normal}, {"size", r.size}, {"holds_normal", variant.normals}};
+    if (variant.normals)
+      j["aos_record"]["note"] = "the record holds the normal at 'normal' (w = 0 for float4): there is no separate "
+                                "normals argument";
   }
   if (variant.layout == Layout::kSoaSplit) {
     j["slot_stride"] = "S = n rounded up to a multiple of " + std::to_string(SoaSplitSlotStride(1, variant)) +
                        " (every slot array starts on a 256-byte boundary)";
+    j["slot_stride_multiple"] = SoaSplitSlotStride(1, variant);
   }
+  j["buffers"] = {{"word_bytes", 4},
+                  {"rule", "every buffer is an array of 32-bit words: its byte size is rounded up to a multiple of "
+                           "4, the padding bytes are 0; narrower elements are packed little-endian"},
+                  {"stride_bytes", kStrideBytesRule},
+                  {"vectors", "positions and normals in the position format: float4 = x, y, z, w with w = 1 for "
+                              "positions and 0 for normals; float3 = x, y, z packed"}};
+  j["weights"] = WeightsJson(variant.weight);
+  if (variant.mixed == MixedCounts::kBucketed) j["bucketed"] = BucketedJson(variant);
   return j;
 }
 

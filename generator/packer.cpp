@@ -302,4 +302,10 @@ SkinnedMesh QuantisedMesh(const SkinnedMesh& mesh, const Variant& variant) {
   return out;
 }
 
+bool HoldsWeightsExactly(const SkinnedMesh& mesh, WeightFormat format) {
+  Variant variant;
+  variant.weight = format;
+  return QuantisedMesh(mesh, variant).weights == mesh.weights;
+}
+
 }  // namespace skintune

@@ -89,4 +89,11 @@ std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uin
 // the mesh's vertex order (so the gold can be computed on exactly these values).
 SkinnedMesh QuantisedMesh(const SkinnedMesh& mesh, const Variant& variant);
 
+// Whether `format` holds the mesh's weights exactly: QuantisedMesh changes
+// none of them (always for f32; for unorm8 / unorm16 when every weight is
+// k / 255 or k / 65535, as a glTF's normalized WEIGHTS are, and each vertex's
+// sum to 1 on that grid). Such a format costs no precision (zero quantisation
+// error). Throws Error for an invalid mesh, as QuantisedMesh does.
+bool HoldsWeightsExactly(const SkinnedMesh& mesh, WeightFormat format);
+
 }  // namespace skintune

@@ -76,4 +76,22 @@ GoldComparison CompareToGold(std::span<const glm::dvec3> gold, std::span<const g
   return c;
 }
 
+double MaxDistance(std::span<const glm::dvec3> a, std::span<const glm::dvec3> b) {
+  if (a.size() != b.size())
+    throw Error("MaxDistance: " + std::to_string(a.size()) + " values against " + std::to_string(b.size()));
+  double largest = 0.0;
+  for (std::size_t v = 0; v < a.size(); ++v) largest = std::max(largest, glm::length(a[v] - b[v]));
+  return largest;
+}
+
+double BoundingBoxDiagonal(std::span<const glm::vec3> points) {
+  if (points.empty()) return 0.0;
+  glm::dvec3 lo(points.front()), hi(points.front());
+  for (const glm::vec3& p : points) {
+    lo = glm::min(lo, glm::dvec3(p));
+    hi = glm::max(hi, glm::dvec3(p));
+  }
+  return glm::length(hi - lo);
+}
+
 }  // namespace skintune

@@ -78,6 +78,14 @@ struct GoldComparison {
 
 GoldComparison CompareToGold(std::span<const glm::dvec3> gold, std::span<const glm::vec3> actual);
 
+// The largest Euclidean distance between a[v] and b[v] (two golds: what a
+// weight quantisation moves the result). Throws Error for different sizes.
+double MaxDistance(std::span<const glm::dvec3> a, std::span<const glm::dvec3> b);
+
+// The diagonal of the axis-aligned bounding box of `points` (0 for none):
+// the mesh's scale, which errors "relative to the diagonal" divide by.
+double BoundingBoxDiagonal(std::span<const glm::vec3> points);
+
 // Finiteness (reference/skinned_output.cpp): a NaN or infinite palette entry
 // or output is an error naming its origin, never a result.
 //

@@ -70,6 +70,8 @@ KernelOutcome OutcomeOf(const Measurement& m, double copy, std::uint64_t llc = 0
     o.copy_fraction = CopyFraction(m.gbps, copy);
     o.x_copy = m.x_copy;
     o.partly_cached = llc > 0 && m.timing.footprint_bytes > 0.0 && m.timing.footprint_bytes < 2.0 * static_cast<double>(llc);
+    o.max_relative_error = m.max_relative_error;
+    o.source_error = m.source_error;
   }
   return o;
 }
@@ -392,7 +394,8 @@ class ResultSummariser {
           continue;
         }
         s.points.push_back({dataset.key, dataset.vertices, m->gbps, m->timing.median_ms,
-                            CopyFraction(m->gbps, device.copy_bandwidth_gbps), m->variant, m->x_copy});
+                            CopyFraction(m->gbps, device.copy_bandwidth_gbps), m->variant, m->x_copy,
+                            m->max_relative_error, m->source_error});
       }
     }
     for (auto& [key, s] : series) {
@@ -539,6 +542,17 @@ std::string FormatSignificant(double value, int digits) {
 std::string FormatMs(double ms) { return FormatSignificant(ms) + " ms"; }
 
 std::string FormatSpeedup(double factor) { return FormatSignificant(factor) + "\xC3\x97"; }
+
+std::string FormatError(double error) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1e", error);
+  return text;
+}
+
+std::string FormatSourceError(const SourceError& e) {
+  if (!e.known) return "not recorded";
+  return FormatError(e.position_rel) + " of the diagonal (weights " + FormatError(e.quantisation_rel) + ")";
+}
 
 std::string FormatGbps(double gbps) {
   if (gbps >= 100.0) {

@@ -81,6 +81,8 @@ struct KernelOutcome {
   double copy_fraction = 0.0;   // gbps / the device's copy bandwidth; 0 when that is unknown
   double x_copy = 0.0;          // median_ms / the same-size copy's, timed the same way; 0 when unknown
   bool partly_cached = false;   // the rotation covered less than 2 x the chip's last-level cache
+  double max_relative_error = 0.0;  // against the gold of its quantised weights (status ok)
+  SourceError source_error;         // against the unquantised source (docs/TUNING.md "Precision")
 
   bool Ok() const { return measured && status == MeasureStatus::kOk; }
 };
@@ -157,7 +159,16 @@ struct GbpsPoint {
   double copy_fraction = 0.0;  // 0 when the copy bandwidth is unknown
   Variant variant;
   double x_copy = 0.0;         // the time / the same-size copy's; 0 when unknown
+  double max_relative_error = 0.0;  // against the gold of its quantised weights
+  SourceError source_error;         // against the unquantised source
 };
+
+// "4.2e-07 of the diagonal (unorm8 costs 1.6e-04)", or "not recorded": the
+// error against the unquantised source, as both reports show it next to the
+// error against the quantised gold.
+std::string FormatSourceError(const SourceError& e);
+// An error as both reports show it: "2.5e-07".
+std::string FormatError(double error);
 
 // The fastest status-ok variant of one language and B, per data set.
 struct GbpsSeries {

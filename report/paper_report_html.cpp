@@ -592,8 +592,12 @@ class Renderer {
     for (const GbpsSeries& s : chart.series) {
       for (const GbpsPoint& p : s.points) by_dataset[p.dataset].emplace_back(s.lang, &p);
     }
-    out_ += "<table><thead><tr><th>data set</th><th>language</th><th>time</th><th>GB/s</th><th title=\"time / the time of a copy of the "
-            "same bytes, timed the same way\">\xC3\x97 same-size copy</th><th>of large copy</th><th>tuned winner</th></tr></thead><tbody>\n";
+    out_ += "<table><thead><tr><th>data set</th><th>language</th><th>time</th><th>GB/s</th><th title=\"time / the "
+            "time of a copy of the same bytes, timed the same way\">\xC3\x97 same-size copy</th><th>of large copy</th>"
+            "<th title=\"largest relative error against the float64 gold of the variant's quantised weights\">vs "
+            "quantised</th><th title=\"largest error against the float64 gold of the unquantised source, of the "
+            "bounding-box diagonal, and what the weight format alone costs\">vs source</th>"
+            "<th>tuned winner</th></tr></thead><tbody>\n";
     for (const DatasetInfo& d : s_.results[s_.devices[chart.device].result].datasets) {
       const auto it = by_dataset.find(d.key);
       if (it == by_dataset.end()) continue;
@@ -602,7 +606,9 @@ class Renderer {
                 FormatMs(p->median_ms) + "</td><td class=\"num\">" + FormatGbps(p->gbps) + "</td><td class=\"num\">" +
                 (p->x_copy > 0.0 ? FormatSignificant(p->x_copy, 3) : std::string("not measured")) +
                 "</td><td class=\"num\">" + (p->copy_fraction > 0.0 ? Fraction(p->copy_fraction) : std::string("copy unknown")) +
-                "</td><td><code>" + Esc(p->variant.Key()) + "</code></td></tr>\n";
+                "</td><td class=\"num\">" + Esc(FormatError(p->max_relative_error)) +
+                "</td><td class=\"num\">" + Esc(FormatSourceError(p->source_error)) + "</td><td><code>" +
+                Esc(p->variant.Key()) + "</code></td></tr>\n";
       }
     }
     out_ += "</tbody></table>\n";

@@ -142,13 +142,15 @@ std::string RenderMarkdown(const PaperSummary& s) {
          "The fastest verified variant per data set; GB/s = bytes the format moves / median time; \"x copy\" = "
          "the time over a copy of the same bytes timed the same way (docs/TUNING.md \"Timing\"; * partly from cache: the "
          "rotation covered less than twice the chip's last-level cache); \"of copy\" = GB/s over the device's large "
-         "copy.\n\n";
+         "copy; \"vs quantised\" = the largest relative error against the float64 gold of the variant's quantised "
+         "weights (the correctness check); \"vs source\" = the largest error against the gold of the unquantised "
+         "source, of the bounding-box diagonal, and what the weight format alone costs.\n\n";
   for (std::size_t d = 0; d < s.devices.size(); ++d) {
     const SummaryDevice& device = s.devices[d];
     out += "### " + Cell(device.label) + " (copy " +
            (device.copy_bandwidth_gbps > 0.0 ? FormatGbps(device.copy_bandwidth_gbps) : std::string("not measured")) +
-           ")\n\n| data set | tuned winner | time | GB/s | x copy | of copy | the paper's kernels |\n"
-           "| --- | --- | ---: | ---: | ---: | ---: | --- |\n";
+           ")\n\n| data set | tuned winner | time | GB/s | x copy | of copy | vs quantised | vs source | the paper's kernels |\n"
+           "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n";
     for (const KernelResults& k : s.kernels) {
       if (k.device != d) continue;
       std::string paper;
@@ -164,12 +166,14 @@ std::string RenderMarkdown(const PaperSummary& s) {
                (k.tuned.x_copy > 0.0 ? FormatSignificant(k.tuned.x_copy, 3) + (k.tuned.partly_cached ? "*" : "")
                                      : std::string(kDash)) +
                " | " + (k.tuned.copy_fraction > 0.0 ? FormatSignificant(k.tuned.copy_fraction, 2) : std::string(kDash)) +
-               " | " + Cell(paper) + " |\n";
+               " | " + FormatError(k.tuned.max_relative_error) + " | " +
+               Cell(FormatSourceError(k.tuned.source_error)) + " | " + Cell(paper) + " |\n";
       } else {
         out += "| " + Cell(k.dataset) + " | " +
                (k.measurements == 0 ? std::string("not measured")
                                     : "no variant passed (" + std::to_string(k.measurements) + " failed or invalid)") +
-               " | " + kDash + " | " + kDash + " | " + kDash + " | " + kDash + " | " + Cell(paper) + " |\n";
+               " | " + kDash + " | " + kDash + " | " + kDash + " | " + kDash + " | " + kDash + " | " + kDash + " | " +
+               Cell(paper) + " |\n";
       }
     }
     out += "\n";

@@ -71,13 +71,16 @@ Result<WinnersDb> WinnersDb::Load(const std::string& path) {
 }
 
 Result<Selection> Selection::Find(const WinnersDb& db, const DeviceInfo& device, int influences,
-                                  std::size_t vertex_count) {
+                                  std::size_t vertex_count, double max_error) {
   return GuardedResult<Selection>(ErrorCode::kInvalidArgument, [&] {
     if (!db.impl_) FailWith(ErrorCode::kInvalidState, "Selection::Find: the WinnersDb was used after move");
     if (influences < 1 || influences > 8)
       FailWith(ErrorCode::kInvalidArgument,
                "Selection::Find: influences " + std::to_string(influences) + " outside 1..8");
+    if (const std::string bad = BadMaxError(max_error); !bad.empty())
+      FailWith(ErrorCode::kInvalidArgument, "Selection::Find: max_error " + bad);
     SelectionRequest request;
+    request.max_error = max_error;
     request.device = device;
     request.langs = LanguagesOf(device.backend);
     request.influences = influences;

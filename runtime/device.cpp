@@ -13,11 +13,6 @@ namespace skintune {
 
 namespace {
 
-std::string Lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return s;
-}
-
 int Preference(const FoundDevice& d) { return FindBackend(d.identity.backend)->preference(d.identity); }
 
 Device Opened(const FoundDevice& found, const DeviceOptions& options) {
@@ -121,13 +116,8 @@ Result<Device> Device::OpenBest(const DeviceOptions& options) {
 Result<Device> Device::Open(const std::string& pattern, const Backend* backend, const DeviceOptions& options) {
   return GuardedResult<Device>(ErrorCode::kDeviceError, [&] {
     const std::vector<FoundDevice> devices = DiscoverDevices(backend ? BackendName(*backend) : nullptr).devices;
-    const std::string wanted = Lower(pattern);
-    for (const FoundDevice& d : devices) {
-      const DeviceIdentity& i = d.identity;
-      for (const std::string& field : {i.Id(), i.name, i.vendor, i.platform}) {
-        if (Lower(field).find(wanted) != std::string::npos) return Opened(d, options);
-      }
-    }
+    for (const FoundDevice& d : devices)
+      if (MatchesDevice(pattern, d.identity)) return Opened(d, options);
     FailWith(ErrorCode::kNotFound, "Device::Open: no " + (backend ? std::string(BackendName(*backend)) + " " : "") +
                                        "device matches '" + pattern + "' (devices: " + Names(devices) + ")");
   });

@@ -1,5 +1,8 @@
 #include "runtime/device_identity.h"
 
+#include <algorithm>
+#include <cctype>
+
 #include <nlohmann/json.hpp>
 
 #include "reference/error.h"
@@ -7,6 +10,36 @@
 namespace skintune {
 
 std::string DeviceIdentity::Id() const { return backend + ":" + platform + "/" + name + "/" + driver_version; }
+
+namespace {
+
+std::string Lower(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return text;
+}
+
+// Platforms whose full name does not contain the name users call them by.
+struct PlatformAlias {
+  const char* platform;
+  const char* short_name;
+};
+constexpr PlatformAlias kPlatformAliases[] = {{"Portable Computing Language", "PoCL"}};
+
+}  // namespace
+
+std::string PlatformShortName(const std::string& platform) {
+  for (const PlatformAlias& a : kPlatformAliases)
+    if (platform == a.platform) return a.short_name;
+  return "";
+}
+
+bool MatchesDevice(const std::string& pattern, const DeviceIdentity& d) {
+  const std::string wanted = Lower(pattern);
+  for (const std::string& field : {d.Id(), d.vendor, d.type, PlatformShortName(d.platform)})
+    if (Lower(field).find(wanted) != std::string::npos) return true;
+  return false;
+}
 
 void to_json(nlohmann::json& out, const DeviceIdentity& d) {
   out = {{"id", d.Id()},

@@ -40,6 +40,18 @@ struct DeviceIdentity {
   std::string Id() const;
 };
 
+// The one rule of every `--device PATTERN` and Device::Open (tune, variants,
+// emit --db, the runtime): the device matches when PATTERN, case-insensitive,
+// is a substring of its id "<backend>:<platform>/<name>/<driver_version>", its
+// vendor or type, or its platform's short name (PlatformShortName: "PoCL"
+// for "Portable Computing Language"). "" matches every device. Only the fields
+// a winners database records take part, so a pattern that picks a device when
+// tuning picks its entries in the database.
+bool MatchesDevice(const std::string& pattern, const DeviceIdentity& device);
+// The name a platform goes by where its full name says otherwise ("PoCL" for
+// "Portable Computing Language"), or "".
+std::string PlatformShortName(const std::string& platform);
+
 // Every field, and "id". Reading needs backend, platform, name and
 // driver_version; throws Error naming a missing field or one of the wrong type.
 void to_json(nlohmann::json& out, const DeviceIdentity& d);

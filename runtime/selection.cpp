@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <sstream>
 #include <tuple>
 
 #include "runtime/api_errors.h"
@@ -66,6 +67,18 @@ std::string LevelReason(MatchLevel level, const WinnersEntry& e, const DeviceInf
   return "";
 }
 
+std::string OverBudget(const WinnersEntry& e, double max_error) {
+  std::ostringstream text;
+  text.precision(2);
+  if (!e.source_error.known) {
+    text << "its quantisation error is not recorded (a database older than 1.3.0), so it is over any budget";
+  } else {
+    text << std::scientific << "quantisation error " << e.source_error.quantisation_rel
+         << " of the diagonal, over the budget max_error " << max_error;
+  }
+  return text.str();
+}
+
 std::string Langs(const std::vector<Lang>& langs) {
   std::string out;
   for (Lang l : langs) out += (out.empty() ? "" : " or ") + std::string(Name(l));
@@ -106,8 +119,13 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
   for (MatchLevel level : {MatchLevel::kExactDevice, MatchLevel::kSameDeviceName, MatchLevel::kSameVendorType}) {
     std::vector<const WinnersEntry*> candidates;
     for (const WinnersEntry& e : entries) {
-      if (AtLevel(e, device, level) && Contains(request.langs, e.lang) && e.influences >= request.influences)
-        candidates.push_back(&e);
+      if (!AtLevel(e, device, level) || !Contains(request.langs, e.lang) || e.influences < request.influences)
+        continue;
+      if (!EntryWithinBudget(e, request.max_error, request.exact_formats)) {
+        skipped.push_back(Describe(e) + " " + Name(e.variant.weight) + ": " + OverBudget(e, request.max_error));
+        continue;
+      }
+      candidates.push_back(&e);
     }
     std::stable_sort(candidates.begin(), candidates.end(), [&](const WinnersEntry* a, const WinnersEntry* b) {
       return Better(*a, *b, request.influences, request.vertex_count);

@@ -9,9 +9,11 @@
 //   3. same vendor and type: same backend, vendor and device type (entries of
 //      1.0.0 databases, which do not name vendor and type, never match here);
 //   4. the built-in default (GenericDefault), correct on every device.
-// An entry is usable when its language is one of the device's and its
-// influences B hold the mesh's (B >= the largest per-vertex count), and the
-// caller's check accepts it (Skinner::Create: the constraints on the real
+// An entry is usable when its language is one of the device's, its
+// influences B hold the mesh's (B >= the largest per-vertex count), it is
+// within the error budget (EntryWithinBudget: f32, a format exact for the
+// caller's weights, or a recorded quantisation error <= max_error; one over
+// it is named in the reason), and the caller's check accepts it (Skinner::Create: the constraints on the real
 // device and mesh); a rejected entry is named in the reason. Among the usable
 // entries of a level: the smallest B, then the nearest measured vertex count
 // (nearest as a factor: 25k is as near 50k as 100k is; on a tie the larger
@@ -43,6 +45,8 @@ struct SelectionRequest {
   int influences = 1;            // the largest per-vertex count the variant must hold
   std::size_t vertex_count = 0;
   bool normals = false;
+  double max_error = kDefaultBudget;     // the error budget, relative to the bounding-box diagonal
+  std::vector<WeightFormat> exact_formats;  // formats that hold the caller's weights exactly (HoldsWeightsExactly)
   DeviceLimits limits;           // sizes the built-in default's work-group
   // Why `variant` cannot run here, or "" when it can; unset: every variant can.
   std::function<std::string(const Variant&)> check;

@@ -166,6 +166,8 @@ Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshV
     if (options.instances < 1)
       FailWith(ErrorCode::kInvalidArgument,
                "Skinner::Create: SkinnerOptions::instances is " + std::to_string(options.instances) + ", at least 1");
+    if (const std::string bad = BadMaxError(options.max_error); !bad.empty())
+      FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: SkinnerOptions::max_error " + bad);
     DeviceState& state = **state_ptr;
 
     const SkinnedMesh mesh = ToSkinnedMesh(mesh_view, options.normals);
@@ -185,6 +187,10 @@ Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshV
       request.influences = shape.max_influences;
       request.vertex_count = mesh.vertex_count();
       request.normals = options.normals;
+      request.max_error = options.max_error;
+      // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.
+      for (WeightFormat format : {WeightFormat::kUnorm16, WeightFormat::kUnorm8})
+        if (HoldsWeightsExactly(mesh, format)) request.exact_formats.push_back(format);
       request.limits = state.limits;
       request.check = [&](const Variant& v) { return Joined(CheckVariant(v, state.limits, shape)); };
       chosen = Select(db.impl_->entries, request);

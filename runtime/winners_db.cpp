@@ -107,6 +107,12 @@ std::string Describe(const WinnersEntry& e) {
   return e.device_id + " " + Name(e.lang) + " b" + std::to_string(e.influences) + " " + VertexCountName(e.vertices);
 }
 
+bool EntryWithinBudget(const WinnersEntry& e, double max_error, const std::vector<WeightFormat>& exact) {
+  if (e.variant.weight == WeightFormat::kF32) return true;
+  if (std::find(exact.begin(), exact.end(), e.variant.weight) != exact.end()) return true;
+  return WithinBudget(e.source_error, max_error);
+}
+
 nlohmann::json WinnersEntryToJson(const WinnersEntry& e) {
   nlohmann::json j = {{"device_id", e.device_id},
                       {"backend", e.backend},
@@ -125,6 +131,10 @@ nlohmann::json WinnersEntryToJson(const WinnersEntry& e) {
                       {"x_copy", e.x_copy},
                       {"created", e.created},
                       {"source", e.source}};
+  if (e.source_error.known) {
+    j["source_error"] = SourceErrorJson(e.source_error);
+    j["max_relative_error"] = e.max_relative_error;
+  }
   if (!e.vendor.empty()) j["vendor"] = e.vendor;
   if (!e.device_type.empty()) j["device_type"] = e.device_type;
   return j;
@@ -186,6 +196,16 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
   if (problem.empty()) problem = NotFiniteNonNegative("gbps", e.gbps);
   if (problem.empty()) problem = NotFiniteNonNegative("copy_fraction", e.copy_fraction);
   if (problem.empty()) problem = NotFiniteNonNegative("x_copy", e.x_copy);
+  if (j.contains("source_error")) {
+    try {
+      e.source_error = SourceErrorFromJson(j["source_error"]);
+    } catch (const Error& error) {
+      throw Error(std::string("'source_error': ") + error.what());
+    }
+    if (j.contains("max_relative_error")) e.max_relative_error = Number(j, "max_relative_error");
+    if (problem.empty()) problem = ImpossibleSourceError(e.source_error);
+    if (problem.empty()) problem = NotFiniteNonNegative("max_relative_error", e.max_relative_error);
+  }
   if (!problem.empty()) throw Error("impossible figures: " + problem);
   e.created = CheckedCreated(String(j, "created"));
   e.source = String(j, "source");

@@ -2,11 +2,15 @@
 // `skintune db merge` write it and the runtime reads it
 // (configs/winners-db.schema.json, docs/TUNING.md "Winners database").
 //
-//   {"schema_version": "1.2.0", "kind": "skintune-winners-db", "entries": [...]}
+//   {"schema_version": "1.3.0", "kind": "skintune-winners-db", "entries": [...]}
 //
-// One entry per (device id, language, influences, measured vertex count): the
-// fastest verified variant the tuner found on a dataset of that many vertices
-// (since 1.2.0; 1.0.0 and 1.1.0 databases kept one per vertex bucket, so a run
+// One entry per (device id, language, influences, measured vertex count,
+// precision class): the fastest verified variant the tuner found on a dataset
+// of that many vertices in each weight format, with its error against the
+// unquantised source (since 1.3.0: a caller's error budget chooses among the
+// classes; 1.2.0 databases kept one entry per key, whatever its format, and
+// their entries' errors are unknown). Since 1.2.0 per measured vertex count
+// ( 1.0.0 and 1.1.0 databases kept one per vertex bucket, so a run
 // over 1600k-b4 and 6400k-b4 kept only one of them, and their entries load
 // with the bucket's nominal count: 25000, 100000, 400000 or 1600000). The device id
 // "<backend>:<platform>/<name>/<driver_version>" includes the driver, so a new
@@ -26,11 +30,12 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "generator/variant.h"
+#include "runtime/source_error.h"
 
 namespace skintune {
 
 inline constexpr const char* kWinnersDbKind = "skintune-winners-db";
-inline constexpr const char* kWinnersDbSchemaVersion = "1.3.0";  // 1.3.0: x_copy
+inline constexpr const char* kWinnersDbSchemaVersion = "1.3.0";  // 1.3.0: x_copy, source_error
 
 // The parts of a device id "<backend>:<platform>/<name>/<driver_version>".
 struct DeviceIdParts {
@@ -82,11 +87,21 @@ struct WinnersEntry {
   double gbps = 0.0;
   double copy_fraction = 0.0;  // gbps / the device's copy bandwidth (0 when unknown)
   double x_copy = 0.0;         // median_ms / the same-size copy's, timed the same way (0: unknown; before 1.3.0)
+  // Its error against the unquantised source on `dataset` (unknown in entries
+  // before 1.3.0); the precision class is variant.weight.
+  SourceError source_error;
+  double max_relative_error = 0.0;  // against the gold of its quantised weights (0 when not recorded)
   std::string created;         // of the report it came from
   std::string source;          // that report's config and strategy, e.g. "default (exhaustive)"
 };
 
-// "<device id> <lang> b<B> <vertices>": how messages name an entry.
+// Whether the entry fits a budget: f32 (no quantisation), a weight format in
+// `exact` (it holds the caller's weights exactly), or a recorded quantisation
+// error within `max_error`.
+bool EntryWithinBudget(const WinnersEntry& entry, double max_error, const std::vector<WeightFormat>& exact);
+
+// "<device id> <lang> b<B> <vertices>": how messages name an entry (the
+// variant key names its weight format).
 std::string Describe(const WinnersEntry& entry);
 
 // Writes every field; vendor and device_type only when known.

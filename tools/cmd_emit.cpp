@@ -19,6 +19,7 @@
 #include <iostream>
 #include <map>
 #include <sstream>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -47,6 +48,7 @@ struct EmitArgs {
   std::vector<std::string> langs;
   std::string header = "skintune_kernels.h";
   std::string name_space = "skintune_kernels";
+  std::string max_error_text;  // --max-error (ParseMaxError); empty: the default budget
 };
 
 const char* Extension(Lang lang) {
@@ -113,19 +115,16 @@ int RunEmit(const EmitArgs& o) {
 
 // ------------------------------------------------------------------ --db
 
-std::string Lower(std::string text) {
-  std::transform(text.begin(), text.end(), text.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return text;
-}
-
-// Case-insensitive substring of the device id, name, vendor or platform ("" matches every entry).
-bool MatchesDevice(const WinnersEntry& e, const std::string& pattern) {
-  const std::string p = Lower(pattern);
-  for (const std::string* field : {&e.device_id, &e.device_name, &e.vendor, &e.platform}) {
-    if (Lower(*field).find(p) != std::string::npos) return true;
-  }
-  return false;
+// The one --device rule (runtime/device_identity.h MatchesDevice) on the entry's recorded device.
+bool EntryMatchesDevice(const WinnersEntry& e, const std::string& pattern) {
+  DeviceIdentity d;
+  d.backend = e.backend;
+  d.platform = e.platform;
+  d.vendor = e.vendor;
+  d.name = e.device_name;
+  d.driver_version = e.driver_version;
+  d.type = e.device_type;
+  return MatchesDevice(pattern, d);
 }
 
 std::string Joined(const std::vector<std::string>& items, const char* separator) {
@@ -159,6 +158,35 @@ nlohmann::json WinnerJson(const WinnersEntry& e) {
   return j;
 }
 
+// The database keeps a winner per precision class (weight format); the
+// header embeds one kernel per (device, language, B, vertex count): the
+// fastest within the budget (f32 always is; an entry whose error is not
+// recorded, from a database before 1.3.0, never is: warned and skipped, as
+// Selection::Find does).
+std::vector<const WinnersEntry*> FastestWithinBudget(const std::vector<const WinnersEntry*>& entries,
+                                                     double max_error) {
+  std::map<std::tuple<std::string, int, int, std::size_t>, const WinnersEntry*> best;
+  std::vector<std::tuple<std::string, int, int, std::size_t>> order;
+  for (const WinnersEntry* e : entries) {
+    if (!EntryWithinBudget(*e, max_error, {})) {
+      std::cerr << "skintune: warning: skipping " << Describe(*e) << " " << e->variant.Key() << ": ";
+      if (e->source_error.known)
+        std::cerr << "its weights cost " << e->source_error.quantisation_rel << " of the bounding-box diagonal, over "
+                  << "--max-error " << max_error << "\n";
+      else
+        std::cerr << "its quantisation error is not recorded (a database before 1.3.0: tune again)\n";
+      continue;
+    }
+    const auto key = std::make_tuple(e->device_id, static_cast<int>(e->lang), e->influences, e->vertices);
+    const auto it = best.find(key);
+    if (it == best.end()) order.push_back(key);
+    if (it == best.end() || e->median_ms < it->second->median_ms) best[key] = e;
+  }
+  std::vector<const WinnersEntry*> out;
+  for (const auto& key : order) out.push_back(best[key]);
+  return out;
+}
+
 constexpr const char* kBucketedNote =
     "tuned as 'bucketed' (vertices grouped by influence count, one launch per count); emitted as its 'padded' "
     "twin: one launch, outputs in mesh order";
@@ -168,11 +196,16 @@ int RunEmitDb(const EmitArgs& o) {
   std::vector<const WinnersEntry*> matched;
   for (const WinnersEntry& e : entries) {
     const bool lang_ok = o.langs.empty() || std::find(o.langs.begin(), o.langs.end(), Name(e.lang)) != o.langs.end();
-    if (lang_ok && MatchesDevice(e, o.device)) matched.push_back(&e);
+    if (lang_ok && EntryMatchesDevice(e, o.device)) matched.push_back(&e);
   }
   const std::string asked =
       "--device '" + o.device + "'" + (o.langs.empty() ? "" : " and --lang " + Joined(o.langs, ", "));
   if (matched.empty()) throw Error(o.db + ": no winner matches " + asked + " (" + DevicesOf(entries) + ")");
+  const double max_error = o.max_error_text.empty() ? kDefaultBudget : ParseMaxError(o.max_error_text, "--max-error");
+  matched = FastestWithinBudget(matched, max_error);
+  if (matched.empty())
+    throw Error(o.db + ": no winner matching " + asked + " is within the error budget (see the warnings above; "
+                       "--max-error sets a larger one)");
 
   // Everything is generated before anything is written.
   std::vector<EmbeddedKernel> kernels;
@@ -258,8 +291,9 @@ Command RegisterEmit(CLI::App& app) {
           ->check(CLI::Range(1, 1 << 20));
   instances->excludes(db);
   auto* device = sub->add_option("--device", o->device,
-                                 "with --db: entries whose device id, name, vendor or platform contains this "
-                                 "(case-insensitive; \"\" takes every device)");
+                                 "with --db: entries of the devices this matches, as every --device: a "
+                                 "case-insensitive substring of the id '<backend>:<platform>/<name>/<driver>', "
+                                 "vendor, type or platform short name (pocl); \"\" takes every device");
   auto* lang = sub->add_option("--lang", o->langs, "with --db: only these languages (repeatable)")
                    ->check(CLI::IsMember(LanguageNames()));
   auto* header =
@@ -278,8 +312,12 @@ Command RegisterEmit(CLI::App& app) {
                 return IsCppNamespaceName(name) ? "" : "'" + name + "' is not a C++ namespace name";
               },
               "NS"));
+  auto* max_error = sub->add_option(
+      "--max-error", o->max_error_text,
+      "with --db: the error budget, relative to the bounding-box diagonal (default 1e-4): per device, language, B and "
+      "vertex count, the fastest precision class within it");
   db->needs(device);
-  for (CLI::Option* option : {device, lang, header, name_space}) option->needs(db);
+  for (CLI::Option* option : {device, lang, header, name_space, max_error}) option->needs(db);
   sub->callback([variant, db] {
     if (variant->count() == 0 && db->count() == 0)
       throw CLI::ValidationError("emit", "give --variant KEY or --db DB.json");

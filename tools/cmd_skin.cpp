@@ -64,6 +64,19 @@ int Check(const SkinOptions& o, const SkinnedMesh& mesh, const std::vector<glm::
   std::cout << o.check << (ok ? " agrees with " : " DISAGREES with ") << what << ": largest relative error "
             << c.max_relative << " at vertex " << c.worst_vertex << " (absolute " << c.max_absolute << ", "
             << c.non_finite << " non-finite; tolerance " << o.tolerance << ")\n";
+  if (!o.check_variant.empty()) {
+    // What the file is worth against the unquantised source (docs/TUNING.md
+    // "Precision"): shown, never a failure: the quantisation is the variant's choice.
+    const double diagonal = BoundingBoxDiagonal(mesh.positions);
+    const GoldResult source_gold = SkinGold(mesh, palette);
+    const GoldComparison source = CompareToGold(source_gold.positions, theirs.positions);
+    const double quantisation = MaxDistance(gold.positions, source_gold.positions);
+    std::cout << o.check << " against the unquantised source: largest error " << source.max_absolute
+              << " (mesh units), " << (diagonal > 0.0 ? source.max_absolute / diagonal : 0.0)
+              << " of the bounding-box diagonal " << diagonal << "; the "
+              << Name(ParseVariantKey(o.check_variant).weight) << " weights alone cost "
+              << (diagonal > 0.0 ? quantisation / diagonal : 0.0) << " of it\n";
+  }
   if (!ok)
     throw Error(o.check + ": vertex " + std::to_string(c.worst_vertex) + " is off by " +
                 std::to_string(c.max_relative) + " relative (tolerance " + std::to_string(o.tolerance) + ")" +

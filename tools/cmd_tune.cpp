@@ -36,6 +36,7 @@ struct TuneCliOptions {
   std::vector<std::string> langs;
   std::string strategy;
   std::string budget_text;  // checked by BudgetCheck
+  std::string max_error_text;  // checked in RunTune (one message naming the flag)
   std::string out = "results";
   bool quiet = false;
 };
@@ -59,13 +60,25 @@ TuneConfig LoadConfig(const std::string& config) {
   return ConfigFromJson(ReadJsonFile(name), name);
 }
 
+std::string Sci(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1e", value);
+  return text;
+}
+
+// One row per precision class's winner: the run's winner of each key (the
+// fastest within the budget) marked "*", the others "over" the budget or not.
 void PrintWinners(const TuningReport& report) {
   const std::vector<Winner> winners = ComputeWinners(report);
+  const std::vector<Winner> chosen = BudgetWinners(winners);
   std::map<std::string, std::string> names;
   for (const DeviceIdentity& d : report.devices) names[d.Id()] = d.name;
-  std::vector<std::vector<std::string>> rows = {
-      {"device", "lang", "B", "vertices", "variant", "ms", "GB/s", "x copy"}};
+  std::vector<std::vector<std::string>> rows = {{"device", "lang", "B", "vertices", "variant", "ms", "GB/s", "x copy",
+                                                 "err/diag", "quant/diag", "vs quantised", "budget"}};
   for (const Winner& w : winners) {
+    const bool is_chosen = std::any_of(chosen.begin(), chosen.end(), [&](const Winner& c) {
+      return c.device_id == w.device_id && c.variant == w.variant && c.vertices == w.vertices;
+    });
     char ms[32], gbps[32], fraction[32];
     std::snprintf(ms, sizeof ms, "%.4f", w.median_ms);
     std::snprintf(gbps, sizeof gbps, "%.1f", w.gbps);
@@ -76,8 +89,12 @@ void PrintWinners(const TuningReport& report) {
       std::snprintf(fraction, sizeof fraction, "-");
     }
     const auto name = names.find(w.device_id);
+    const SourceError& e = w.source_error;
     rows.push_back({name != names.end() ? name->second : w.device_id, Name(w.lang), std::to_string(w.influences),
-                    VertexCountName(w.vertices), w.variant.Key(), ms, gbps, fraction});
+                    VertexCountName(w.vertices), w.variant.Key(), ms, gbps, fraction,
+                    e.known ? Sci(e.position_rel) : "-", e.known ? Sci(e.quantisation_rel) : "-",
+                    Sci(w.max_relative_error),
+                    is_chosen ? "* winner" : w.within_budget ? "within" : "over"});
   }
   std::map<std::string, std::size_t> statuses;
   for (const Measurement& m : report.measurements) ++statuses[Name(m.status)];
@@ -90,7 +107,7 @@ void PrintWinners(const TuningReport& report) {
     for (const auto& row : rows) {
       for (std::size_t c = 0; c < row.size(); ++c) widths[c] = std::max(widths[c], row[c].size());
     }
-    const std::set<std::size_t> right = {2, 5, 6, 7};  // numbers
+    const std::set<std::size_t> right = {2, 5, 6, 7, 8, 9, 10};  // numbers
     for (const auto& row : rows) {
       std::string line;
       for (std::size_t c = 0; c < row.size(); ++c) {
@@ -101,13 +118,19 @@ void PrintWinners(const TuningReport& report) {
       std::cout << line << "\n";
     }
   }
+  if (!winners.empty() && chosen.empty()) std::cout << "no verified variant is within the budget\n";
   std::cout << "measurements: " << (counts.empty() ? "none" : counts) << "\n";
+  std::cout << "budget: max_error " << Sci(report.max_error)
+            << " of the bounding-box diagonal (err/diag: the kernel against the unquantised source; quant/diag: what "
+               "the weight format alone costs, compared with the budget; vs quantised: relative error against the "
+               "gold of its quantised weights)\n";
 }
 
 int RunTune(const TuneCliOptions& o, bool budget_given) {
   TuneConfig config = LoadConfig(o.config);
   if (!o.strategy.empty()) config.strategy.name = o.strategy;
   if (budget_given) config.strategy.budget = *ParseWholeNumber(o.budget_text, kMaxBudget);
+  if (!o.max_error_text.empty()) config.max_error = ParseMaxError(o.max_error_text, "--max-error");
   if (config.strategy.name == "random" && config.strategy.budget == 0) {
     throw Error("the random strategy needs a budget: --budget N (evaluations per device, language and dataset)");
   }
@@ -157,6 +180,20 @@ int RunTune(const TuneCliOptions& o, bool budget_given) {
 
 }  // namespace
 
+double ParseMaxError(const std::string& text, const std::string& flag) {
+  std::size_t used = 0;
+  double value = 0.0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size())
+    throw Error(flag + " '" + text + "': not a number (an error relative to the bounding-box diagonal, e.g. 1e-4)");
+  if (const std::string bad = BadMaxError(value); !bad.empty()) throw Error(flag + " '" + text + "': " + bad);
+  return value;
+}
+
 CLI::Validator BudgetCheck() {
   return CLI::Validator(
       [](std::string& text) -> std::string {
@@ -173,8 +210,9 @@ Command RegisterTune(CLI::App& app) {
   sub->add_option("--config", o->config,
                   "tuning config: a JSON file (configs/*.json), or a built-in name: default, paper (default: default)");
   sub->add_option("--device", o->device,
-                  "only devices whose 'backend: platform / name' (or vendor, version) contains this "
-                  "(case-insensitive)");
+                  "only the devices this matches: a case-insensitive substring of the id "
+                  "'<backend>:<platform>/<name>/<driver>', vendor, type or platform short name (pocl), as every "
+                  "--device");
   sub->add_option("--lang", o->langs, "only these languages: opencl, cuda, glsl-compute, glsl-vertex");
   sub->add_option("--strategy", o->strategy, "search strategy (overrides the config's)")
       ->check(CLI::IsMember({"exhaustive", "random", "coordinate"}));
@@ -182,6 +220,10 @@ Command RegisterTune(CLI::App& app) {
                                  "evaluations per device, language and dataset, 0 to " + std::to_string(kMaxBudget) +
                                      " (overrides the config's)")
                      ->check(BudgetCheck());
+  sub->add_option("--max-error", o->max_error_text,
+                  "error budget: the largest error, relative to the bounding-box diagonal, that a winner's weight "
+                  "format may cost (overrides the config's max_error; default 1e-4: unorm16 yes, unorm8 no for float "
+                  "weights)");
   sub->add_option("--out", o->out,
                   "output directory: cache.jsonl (resumable: reused by the next run), report.json, report.t4.json, "
                   "winners-db.json (default: results)");

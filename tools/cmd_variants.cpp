@@ -79,7 +79,10 @@ int RunVariants(const VariantsOptions& o) {
 Command RegisterVariants(CLI::App& app) {
   auto o = std::make_shared<VariantsOptions>();
   auto* sub = app.add_subcommand("variants", "list the kernel variant space, its size and what a device allows");
-  sub->add_option("--device", o->device, "OpenCL device whose limits apply (case-insensitive substring of 'platform-vendor platform / device-name')");
+  sub->add_option("--device", o->device,
+                  "OpenCL device whose limits apply: a case-insensitive substring of its id "
+                  "'<backend>:<platform>/<name>/<driver>', vendor, type or platform short name (pocl), as every "
+                  "--device");
   sub->add_option("--config", o->config, "JSON config whose \"space\" restricts the axes (default: every value)");
   sub->add_option("--lang", o->langs, "restrict to these languages: opencl, cuda, glsl-compute, glsl-vertex");
   AddMeshSourceOptions(*sub, o->source);

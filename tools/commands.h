@@ -51,6 +51,10 @@ nlohmann::json ReadJsonFile(const std::string& path);
 // refused as a command-line error otherwise ("-3" is not wrapped around).
 CLI::Validator BudgetCheck();
 
+// --max-error of tune and emit: a finite number >= 0 (runtime/source_error.h
+// BadMaxError); Error("<flag> '<text>': ...") naming the flag otherwise.
+double ParseMaxError(const std::string& text, const std::string& flag);
+
 // Adds --dataset / --mesh / --mesh-name / --strict to `sub`.
 void AddMeshSourceOptions(CLI::App& sub, MeshSource& source);
 // Loads the asset, printing import warnings on stderr ("skintune: warning: ...").

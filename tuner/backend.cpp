@@ -96,6 +96,7 @@ DatasetCache::Entry& DatasetCache::Get(const std::string& key) {
     entry->asset = GenerateDataset(ParseDatasetKey(key));
   }
   entry->verification_palette = FramePalettes(entry->asset, 1).front();
+  entry->diagonal = BoundingBoxDiagonal(entry->asset.mesh.positions);
   return *entries_.emplace(key, std::move(entry)).first->second;
 }
 
@@ -104,6 +105,19 @@ const GoldResult& DatasetCache::Gold(Entry& entry, const Variant& variant) {
   if (auto found = entry.gold.find(key); found != entry.gold.end()) return found->second;
   GoldResult gold = SkinGold(QuantisedMesh(entry.asset.mesh, variant), entry.verification_palette, variant.normals);
   return entry.gold.emplace(key, std::move(gold)).first->second;
+}
+
+const GoldResult& DatasetCache::SourceGold(Entry& entry, bool normals) {
+  if (auto found = entry.source_gold.find(normals); found != entry.source_gold.end()) return found->second;
+  GoldResult gold = SkinGold(entry.asset.mesh, entry.verification_palette, normals);
+  return entry.source_gold.emplace(normals, std::move(gold)).first->second;
+}
+
+double DatasetCache::QuantisationError(Entry& entry, const Variant& variant) {
+  const std::pair<int, bool> key{static_cast<int>(variant.weight), variant.normals};
+  if (auto found = entry.quantisation.find(key); found != entry.quantisation.end()) return found->second;
+  const double error = MaxDistance(Gold(entry, variant).positions, SourceGold(entry, variant.normals).positions);
+  return entry.quantisation.emplace(key, error).first->second;
 }
 
 MeasureStatus StatusOfRunnerError(const std::string& message) {
@@ -319,11 +333,14 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
     return finish(StatusOfRunnerError(e.what()), e.what());
   }
   const GoldResult& gold = datasets.Gold(data, variant);
-  const GoldComparison positions = CompareToGold(gold.positions, Unpack(packed, output.positions));
+  const std::vector<glm::vec3> out_positions = Unpack(packed, output.positions);
+  const GoldComparison positions = CompareToGold(gold.positions, out_positions);
   m.max_relative_error = positions.max_relative;
   std::string disagreement = Disagreement("positions", positions, options.tolerance);
+  std::vector<glm::vec3> out_normals;
   if (variant.normals) {
-    const GoldComparison normals = CompareToGold(gold.normals, Unpack(packed, output.normals));
+    out_normals = Unpack(packed, output.normals);
+    const GoldComparison normals = CompareToGold(gold.normals, out_normals);
     m.max_relative_error = std::max(m.max_relative_error, normals.max_relative);
     const std::string n = Disagreement("normals", normals, options.tolerance);
     if (!n.empty()) disagreement += (disagreement.empty() ? "" : "; ") + n;
@@ -332,6 +349,19 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
     disagreement = std::to_string(output.poisoned_vertices) + " output vectors never written (still poisoned)" +
                    (disagreement.empty() ? "" : "; " + disagreement);
   if (!disagreement.empty()) return finish(MeasureStatus::kVerifyFailed, "wrong results against the float64 gold: " + disagreement);
+
+  // Verified: what the output is worth against the unquantised source.
+  const GoldResult& source = datasets.SourceGold(data, variant.normals);
+  SourceError& error = m.source_error;
+  error.known = true;
+  error.diagonal = data.diagonal;
+  error.position_abs = CompareToGold(source.positions, out_positions).max_absolute;
+  if (variant.normals) error.normal_abs = CompareToGold(source.normals, out_normals).max_absolute;
+  const double quantisation = datasets.QuantisationError(data, variant);
+  // A mesh of one point (diagonal 0): any error is all of it.
+  auto relative = [&](double abs) { return data.diagonal > 0.0 ? abs / data.diagonal : (abs > 0.0 ? 1.0 : 0.0); };
+  error.position_rel = relative(error.position_abs);
+  error.quantisation_rel = relative(quantisation);
 
   // Then time, in bursts rotating among K input sets (different frames),
   // device timers; and the same-size copy by the same method.

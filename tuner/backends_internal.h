@@ -43,18 +43,26 @@ int InputSetsFor(std::uint64_t last_level_cache_bytes, std::uint64_t bytes_per_s
 // The assets a backend measures on, made once per key: a synthetic dataset
 // key (reference/synthetic.h) or a glTF path (.gltf / .glb), with the palettes
 // of its animation frames and, per weight format and normals, the float64 gold
-// of the verification frame.
+// of the verification frame; per normals, the gold of the unquantised source.
 class DatasetCache {
  public:
   struct Entry {
     SkinnedAsset asset;
     std::vector<glm::mat4> verification_palette;  // FramePalettes(asset, 1)[0]
+    double diagonal = 0.0;                         // BoundingBoxDiagonal of the rest positions
     std::map<std::pair<int, bool>, GoldResult> gold;  // (weight format, normals)
+    std::map<bool, GoldResult> source_gold;           // normals
+    std::map<std::pair<int, bool>, double> quantisation;  // (weight format, normals): gold vs source gold
   };
   // Throws Error for a malformed key or a glTF file that cannot be imported.
   Entry& Get(const std::string& key);
   // The gold of `variant`'s quantised mesh at the verification frame.
   const GoldResult& Gold(Entry& entry, const Variant& variant);
+  // The gold of the unquantised source mesh (the weights as the dataset has them).
+  const GoldResult& SourceGold(Entry& entry, bool normals);
+  // MaxDistance(Gold, SourceGold) of the positions: what `variant`'s weight
+  // format alone moves them, mesh units (0 when it holds the weights exactly).
+  double QuantisationError(Entry& entry, const Variant& variant);
 
  private:
   std::map<std::string, std::unique_ptr<Entry>> entries_;

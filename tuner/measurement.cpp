@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -19,8 +20,14 @@ namespace skintune {
 
 namespace {
 
-constexpr MeasureStatus kAllStatuses[] = {MeasureStatus::kOk,           MeasureStatus::kInvalid,      MeasureStatus::kCompileFailed,
-                                   MeasureStatus::kLaunchFailed, MeasureStatus::kVerifyFailed, MeasureStatus::kTimeout};
+// Every enumerator, each once, in order: a status added to the enum and not to the list fails here.
+constexpr bool ListsEveryStatus() {
+  int i = 0;
+  for (MeasureStatus s : kAllMeasureStatuses)
+    if (static_cast<int>(s) != i++) return false;
+  return static_cast<int>(MeasureStatus::kTooImprecise) + 1 == i;  // kTooImprecise: the last enumerator
+}
+static_assert(ListsEveryStatus(), "kAllMeasureStatuses must list every MeasureStatus once, in enum order");
 
 std::string SystemError() { return std::strerror(errno); }
 
@@ -77,13 +84,14 @@ const char* Name(MeasureStatus status) {
     case MeasureStatus::kLaunchFailed: return "launch_failed";
     case MeasureStatus::kVerifyFailed: return "verify_failed";
     case MeasureStatus::kTimeout: return "timeout";
+    case MeasureStatus::kTooImprecise: return "too_imprecise";
   }
   return "unknown";
 }
 
 MeasureStatus MeasureStatusFromName(const std::string& name) {
   std::string choices;
-  for (MeasureStatus s : kAllStatuses) {
+  for (MeasureStatus s : kAllMeasureStatuses) {
     if (name == Name(s)) return s;
     choices += (choices.empty() ? "" : ", ") + std::string(Name(s));
   }
@@ -91,7 +99,7 @@ MeasureStatus MeasureStatusFromName(const std::string& name) {
 }
 
 std::string ImpossibleFigures(const Measurement& m) {
-  if (m.status != MeasureStatus::kOk) return "";
+  if (!IsTimed(m.status)) return "";
   RecordedTime time;
   time.median_ms = m.timing.median_ms;
   time.min_ms = m.timing.min_ms;
@@ -110,7 +118,23 @@ std::string ImpossibleFigures(const Measurement& m) {
               std::to_string(m.timing.median_ms / m.timing.copy_ms) + ")";
   if (problem.empty() && m.timing.copy_ms == 0.0 && m.x_copy != 0.0)
     problem = "'x_copy' " + std::to_string(m.x_copy) + " without a copy time";
-  return problem.empty() ? "" : "status ok with " + problem;
+  if (problem.empty()) problem = ImpossibleSourceError(m.source_error);
+  return problem.empty() ? "" : "status " + std::string(Name(m.status)) + " with " + problem;
+}
+
+void ApplyBudget(Measurement& m, double max_error) {
+  if (!IsTimed(m.status) || !m.source_error.known) return;
+  if (WithinBudget(m.source_error, max_error)) {
+    m.status = MeasureStatus::kOk;
+    m.detail.clear();
+    return;
+  }
+  std::ostringstream detail;
+  detail.precision(2);
+  detail << std::scientific << Name(m.variant.weight) << " weights cost " << m.source_error.quantisation_rel
+         << " of the bounding-box diagonal, over the budget max_error " << max_error;
+  m.status = MeasureStatus::kTooImprecise;
+  m.detail = detail.str();
 }
 
 std::string Measurement::CacheKey() const {
@@ -139,6 +163,7 @@ void to_json(nlohmann::json& out, const Measurement& m) {
   out["gbps"] = Number(m.gbps);
   out["x_copy"] = Number(m.x_copy);
   out["max_relative_error"] = Number(m.max_relative_error);
+  if (m.source_error.known) out["source_error"] = SourceErrorJson(m.source_error);
   out["generator_version"] = m.generator_version;
   out["timestamp"] = m.timestamp;
 }
@@ -162,7 +187,7 @@ void from_json(const nlohmann::json& in, Measurement& m) {
   }
   m.detail = ReadString(in, "detail", false, where);
   const nlohmann::json* timing = Field(in, "timing", false, where);
-  if (!timing && m.status == MeasureStatus::kOk) throw Error(where + ": status ok without 'timing'");
+  if (!timing && IsTimed(m.status)) throw Error(where + ": status " + status + " without 'timing'");
   if (timing) {
     const std::string t = where + ": 'timing'";
     if (!timing->is_object()) throw Error(t + ": expected an object");
@@ -182,6 +207,16 @@ void from_json(const nlohmann::json& in, Measurement& m) {
   m.gbps = ReadNumber(in, "gbps", where);
   m.x_copy = ReadNumber(in, "x_copy", where);
   m.max_relative_error = ReadNumber(in, "max_relative_error", where);
+  // Absent in records written before skintune measured it (older caches and reports): unknown then.
+  if (const nlohmann::json* e = Field(in, "source_error", false, where)) {
+    try {
+      m.source_error = SourceErrorFromJson(*e);
+    } catch (const Error& error) {
+      throw Error(where + ": 'source_error': " + error.what());
+    }
+  }
+  if (m.status == MeasureStatus::kTooImprecise && !m.source_error.known)
+    throw Error(where + ": status too_imprecise without 'source_error'");
   m.generator_version = ReadString(in, "generator_version", true, where);
   m.timestamp = ReadString(in, "timestamp", false, where);
   if (const std::string problem = ImpossibleFigures(m); !problem.empty())

@@ -3,7 +3,10 @@
 //
 // Every variant ends with exactly one MeasureStatus. A time counts only when the
 // variant's output passed verification against the float64 gold on that
-// device (status ok).
+// device (status ok). Every verified measurement also states its error
+// against the unquantised source mesh (SourceError); a variant whose weight
+// format costs more than the run's budget is too_imprecise: verified and
+// timed, recorded, never the winner (docs/TUNING.md "Precision").
 #pragma once
 
 #include <cstdint>
@@ -16,11 +19,20 @@
 
 #include "generator/variant.h"
 #include "reference/error.h"
+#include "runtime/source_error.h"
 
 namespace skintune {
 
-enum class MeasureStatus { kOk, kInvalid, kCompileFailed, kLaunchFailed, kVerifyFailed, kTimeout };
+// The statuses, in the order kAllMeasureStatuses lists them (Name() and the
+// JSON schemas must name each: a forgotten one fails a static_assert or
+// Measurement.SchemasListEveryStatus).
+enum class MeasureStatus { kOk, kInvalid, kCompileFailed, kLaunchFailed, kVerifyFailed, kTimeout, kTooImprecise };
+inline constexpr MeasureStatus kAllMeasureStatuses[] = {
+    MeasureStatus::kOk,           MeasureStatus::kInvalid, MeasureStatus::kCompileFailed, MeasureStatus::kLaunchFailed,
+    MeasureStatus::kVerifyFailed, MeasureStatus::kTimeout, MeasureStatus::kTooImprecise};
 const char* Name(MeasureStatus);
+// Whether a measurement of this status was verified and timed (ok, too_imprecise).
+constexpr bool IsTimed(MeasureStatus s) { return s == MeasureStatus::kOk || s == MeasureStatus::kTooImprecise; }
 MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error for an unknown name
 
 // How times are measured (docs/TUNING.md "Timing"). Part of every cache key,
@@ -55,7 +67,8 @@ struct Measurement {
   double bytes_per_frame = 0.0;   // bytes the variant's format must move per frame (inputs + outputs)
   double gbps = 0.0;              // bytes_per_frame / median time (status ok only)
   double x_copy = 0.0;            // median time / the same-size copy's (timing.copy_ms); 0: no copy time
-  double max_relative_error = 0.0;  // against the gold (ok and verify_failed)
+  double max_relative_error = 0.0;  // against the gold of the quantised mesh (ok, too_imprecise, verify_failed)
+  SourceError source_error;         // against the unquantised source (ok and too_imprecise)
   std::string generator_version;
   std::string timestamp;          // UTC, ISO 8601
 
@@ -68,9 +81,16 @@ struct Measurement {
 // it is possible. Only a status-ok measurement's figures are ever used (a
 // failed one is never ranked), so only those are checked: a possible time
 // (median, min, max), bytes per frame, GB/s consistent with them, at least one
-// repetition, a finite relative error >= 0, and where a copy time is given,
-// a possible one with x_copy = median / copy_ms.
+// repetition and a finite relative error >= 0; too_imprecise ones (timed
+// too) likewise, and a known SourceError must be finite and >= 0; where a
+// copy time is given, a possible one with x_copy = median / copy_ms.
 std::string ImpossibleFigures(const Measurement& m);
+
+// Applies the budget to a timed measurement: status ok when its quantisation
+// error is within `max_error`, too_imprecise (with the figures in `detail`)
+// when over; other statuses, and measurements with no known error, are left
+// as they are. Symmetric, so a cached record is judged by the current run's budget.
+void ApplyBudget(Measurement& m, double max_error);
 
 // Thrown by from_json for a well-formed measurement with impossible figures.
 class ImpossibleMeasurement : public Error {

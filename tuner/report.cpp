@@ -31,19 +31,23 @@ std::string BackendOf(const TuningReport& report, const std::string& device_id) 
 }
 
 nlohmann::json WinnerJson(const Winner& w) {
-  return {{"device_id", w.device_id},   {"backend", w.backend},
-          {"lang", Name(w.lang)},       {"influences", w.influences},
-          {"vertices", w.vertices},     {"vertex_bucket", w.vertex_bucket}, {"dataset", w.dataset},
-          {"variant", w.variant},       {"median_ms", w.median_ms},
-          {"gbps", w.gbps},             {"copy_fraction", w.copy_fraction},
-          {"x_copy", w.x_copy}};
+  nlohmann::json j = {{"device_id", w.device_id},   {"backend", w.backend},
+                      {"lang", Name(w.lang)},       {"influences", w.influences},
+                      {"vertices", w.vertices},     {"vertex_bucket", w.vertex_bucket}, {"dataset", w.dataset},
+                      {"variant", w.variant},       {"median_ms", w.median_ms},
+                      {"gbps", w.gbps},             {"copy_fraction", w.copy_fraction},
+                      {"precision_class", Name(w.variant.weight)}, {"within_budget", w.within_budget},
+                      {"max_relative_error", w.max_relative_error}, {"x_copy", w.x_copy}};
+  if (w.source_error.known) j["source_error"] = SourceErrorJson(w.source_error);
+  return j;
 }
 
-// The merge key of a winner / database entry: every measured vertex count keeps its own.
-using EntryKey = std::tuple<std::string, int, int, std::size_t>;  // device id, lang, influences, vertices
+// The merge key of a winner / database entry: every measured vertex count and
+// precision class (weight format) keeps its own.
+using EntryKey = std::tuple<std::string, int, int, std::size_t, int>;  // device id, lang, influences, vertices, weight
 
-EntryKey KeyOf(const std::string& device_id, Lang lang, int influences, std::size_t vertices) {
-  return {device_id, static_cast<int>(lang), influences, vertices};
+EntryKey KeyOf(const std::string& device_id, Lang lang, int influences, std::size_t vertices, WeightFormat weight) {
+  return {device_id, static_cast<int>(lang), influences, vertices, static_cast<int>(weight)};
 }
 
 // The report's winners as database entries, with the device's identity (the
@@ -73,6 +77,8 @@ std::vector<WinnersEntry> EntriesOf(const TuningReport& report) {
     e.gbps = w.gbps;
     e.copy_fraction = w.copy_fraction;
     e.x_copy = w.x_copy;
+    e.source_error = w.source_error;
+    e.max_relative_error = w.max_relative_error;
     e.created = report.created;
     e.source = report.config + " (" + report.strategy + ")";
     entries.push_back(std::move(e));
@@ -87,7 +93,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
   for (const DatasetInfo& d : report.datasets) datasets[d.key] = &d;
   std::map<EntryKey, Winner> best;
   for (const Measurement& m : report.measurements) {
-    if (m.status != MeasureStatus::kOk) continue;  // a failed variant is never a winner
+    if (!IsTimed(m.status)) continue;  // a failed variant is never a winner
     if (!ImpossibleFigures(m).empty()) continue;   // nor an impossible time (readers refuse one anyway)
     const auto dataset = datasets.find(m.dataset);
     if (dataset == datasets.end()) {
@@ -99,7 +105,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     w.influences = m.variant.influences;
     w.vertices = dataset->second->vertices;
     w.vertex_bucket = VertexBucket(w.vertices);
-    const EntryKey key = KeyOf(w.device_id, w.lang, w.influences, w.vertices);
+    const EntryKey key = KeyOf(w.device_id, w.lang, w.influences, w.vertices, m.variant.weight);
     const auto it = best.find(key);
     if (it != best.end() && it->second.median_ms <= m.timing.median_ms) continue;  // ties: the first one
     w.backend = BackendOf(report, m.device_id);
@@ -110,10 +116,27 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     const auto copy = report.copy_bandwidth_gbps.find(m.device_id);
     w.copy_fraction = copy != report.copy_bandwidth_gbps.end() && copy->second > 0.0 ? m.gbps / copy->second : 0.0;
     w.x_copy = m.x_copy;
+    w.within_budget = m.status == MeasureStatus::kOk;
+    w.source_error = m.source_error;
+    w.max_relative_error = m.max_relative_error;
     best.insert_or_assign(key, std::move(w));
   }
   std::vector<Winner> out;
   for (auto& [key, w] : best) out.push_back(std::move(w));
+  return out;
+}
+
+std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners) {
+  using Key = std::tuple<std::string, int, int, std::size_t>;
+  std::map<Key, const Winner*> best;
+  for (const Winner& w : winners) {
+    if (!w.within_budget) continue;
+    const Key key{w.device_id, static_cast<int>(w.lang), w.influences, w.vertices};
+    const auto it = best.find(key);
+    if (it == best.end() || w.median_ms < it->second->median_ms) best[key] = &w;
+  }
+  std::vector<Winner> out;
+  for (const auto& [key, w] : best) out.push_back(*w);
   return out;
 }
 
@@ -124,6 +147,7 @@ nlohmann::json ReportToJson(const TuningReport& report) {
   out["created"] = report.created;
   out["config"] = report.config;
   out["strategy"] = report.strategy;
+  out["max_error"] = report.max_error;
   out["machine"] = report.machine.is_null() ? nlohmann::json::object() : report.machine;
   out["devices"] = nlohmann::json::array();
   for (const DeviceIdentity& d : report.devices) {
@@ -152,6 +176,13 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
   r.created = At(context, "created", [&] { return CheckedCreated(String(json, "created")); });
   r.config = At(context, "config", [&] { return String(json, "config"); });
   r.strategy = At(context, "strategy", [&] { return String(json, "strategy"); });
+  if (json.contains("max_error")) {  // since 1.2.0
+    r.max_error = At(context, "max_error", [&] {
+      const double value = Number(json, "max_error");
+      if (const std::string bad = BadMaxError(value); !bad.empty()) throw Error(bad);
+      return value;
+    });
+  }
   r.machine = At(context, "machine", [&] {
     const nlohmann::json& m = Field(json, "machine");
     if (!m.is_object()) throw Error("must be an object");
@@ -265,7 +296,7 @@ nlohmann::json ReportToT4(const TuningReport& report) {
     auto count = [&](const char* name, int value) {
       measurements.push_back({{"name", name}, {"value", value}, {"unit", ""}});
     };
-    if (m.status == MeasureStatus::kOk) {
+    if (IsTimed(m.status)) {
       times["runtimes"].push_back(m.timing.median_ms);
       measure("time", m.timing.median_ms, "ms");
       measure("time_min", m.timing.min_ms, "ms");
@@ -276,8 +307,13 @@ nlohmann::json ReportToT4(const TuningReport& report) {
       measure("bandwidth", m.gbps, "GB/s");
     }
     measure("bytes_per_frame", m.bytes_per_frame, "B");
-    if (m.status == MeasureStatus::kOk || m.status == MeasureStatus::kVerifyFailed) {
+    if (IsTimed(m.status) || m.status == MeasureStatus::kVerifyFailed) {
       measure("max_relative_error", m.max_relative_error, "");
+    }
+    if (m.source_error.known) {
+      measure("source_error_position", m.source_error.position_abs, "");
+      measure("source_error_position_relative", m.source_error.position_rel, "");
+      measure("quantisation_error_relative", m.source_error.quantisation_rel, "");
     }
     r["times"] = std::move(times);
     switch (m.status) {
@@ -287,9 +323,11 @@ nlohmann::json ReportToT4(const TuningReport& report) {
       case MeasureStatus::kLaunchFailed: r["invalidity"] = "runtime"; break;
       case MeasureStatus::kVerifyFailed: r["invalidity"] = "correctness"; break;
       case MeasureStatus::kTimeout: r["invalidity"] = "timeout"; break;
+      // Correct and timed, but over the error budget: T4 has no invalidity for precision.
+      case MeasureStatus::kTooImprecise: r["invalidity"] = "correct"; break;
     }
     // 1: the output matched the float64 gold within tolerance; 0: it did not, or was never checked.
-    r["correctness"] = m.status == MeasureStatus::kOk ? 1 : 0;
+    r["correctness"] = IsTimed(m.status) ? 1 : 0;
     r["measurements"] = std::move(measurements);
     // skintune extensions (the T4 schema allows further properties): where it ran, on what, and why it failed.
     r["device_id"] = m.device_id;
@@ -327,7 +365,7 @@ nlohmann::json MergeWinnersDatabases(const std::vector<nlohmann::json>& reports_
     }
     // Newest `created` wins per key; on equal `created`, the later input.
     for (WinnersEntry& e : entries) {
-      const EntryKey key = KeyOf(e.device_id, e.lang, e.influences, e.vertices);
+      const EntryKey key = KeyOf(e.device_id, e.lang, e.influences, e.vertices, e.variant.weight);
       const auto it = merged.find(key);
       if (it == merged.end() || !CreatedBefore(e.created, it->second.created)) merged.insert_or_assign(key, std::move(e));
     }

@@ -15,7 +15,10 @@
 
 namespace skintune {
 
-inline constexpr const char* kReportSchemaVersion = "1.2.0";  // 1.1.0: winners name their measured vertex count; 1.2.0: timing version 2, x_copy, the physical cache
+// 1.1.0: winners name their measured vertex count; 1.2.0: max_error, too_imprecise,
+// source_error, a winner per precision class; timing version 2 (bursts, the physical
+// cache, the same-size copy: x_copy).
+inline constexpr const char* kReportSchemaVersion = "1.2.0";
 
 struct DatasetInfo {
   std::string key;
@@ -28,6 +31,7 @@ struct TuningReport {
   std::string created;                        // UTC ISO 8601
   std::string config;                         // config file or "default"
   std::string strategy;                       // "exhaustive", "random", "coordinate"
+  double max_error = kDefaultBudget;        // the run's error budget (TuneConfig::max_error)
   nlohmann::json machine;                     // hostname, os, cpu model, logical cpus, memory
   std::vector<DeviceIdentity> devices;
   std::map<std::string, double> copy_bandwidth_gbps;  // by DeviceIdentity::Id()
@@ -52,11 +56,21 @@ struct Winner {
   double gbps = 0.0;
   double copy_fraction = 0.0;  // gbps / the device's copy bandwidth (0 when unknown)
   double x_copy = 0.0;         // median_ms / the same-size copy's (Measurement::x_copy; 0 when unknown)
+  // The precision class is variant.weight: one winner per class.
+  bool within_budget = true;      // status ok (not too_imprecise) under the report's max_error
+  SourceError source_error;       // against the unquantised source
+  double max_relative_error = 0.0;  // against the gold of its quantised weights
 };
 
-// The fastest status-ok measurement per (device, language, influences,
-// measured vertex count). A variant that failed verification is never a winner.
+// The fastest verified (ok or too_imprecise) measurement per (device,
+// language, influences, measured vertex count, precision class = weight
+// format), in that key order. A variant that failed verification is never a
+// winner. The run's winner of a key is the fastest one within_budget
+// (BudgetWinners); the others stay for callers with a larger budget.
 std::vector<Winner> ComputeWinners(const TuningReport& report);
+// Of `winners`, the fastest within budget per (device, language, influences,
+// measured vertex count): what the tuning chose at its budget.
+std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners);
 
 nlohmann::json ReportToJson(const TuningReport& report);
 // Throws Error("<context>: ...") naming the element for a malformed report.
@@ -67,7 +81,8 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
 nlohmann::json ReportToT4(const TuningReport& report);
 
 // Winners database (runtime/winners_db.h): {"schema_version", "kind": "skintune-winners-db",
-// "entries": [...]}, one entry per (device id with driver, language, influences, measured vertex count),
+// "entries": [...]}, one entry per (device id with driver, language, influences, measured vertex count,
+// precision class: every class's winner, within the run's budget or not, with its error),
 // each naming the device's platform, vendor, name, driver and type. Merging takes reports and/or
 // databases; for the same device+driver the newest report wins (by `created`).
 nlohmann::json WinnersDatabase(const TuningReport& report);

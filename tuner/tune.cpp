@@ -59,11 +59,6 @@ bool IsGltfPath(const std::string& key) {
   return ends_with(".gltf") || ends_with(".glb");
 }
 
-std::string Lower(std::string text) {
-  std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
-  return text;
-}
-
 int IntField(const nlohmann::json& value, const std::string& where, int min) {
   if (!value.is_number_integer()) throw Error(where + ": expected an integer");
   const long long v = value.get<long long>();
@@ -284,16 +279,12 @@ struct Task {
   std::size_t planned = 0;  // evaluations expected (for progress)
 };
 
-std::string DeviceMatchText(const DeviceIdentity& d) {
-  return Lower(d.backend + ": " + d.platform + " / " + d.name + " " + d.vendor + " " + d.api_version + " " +
-               d.driver_version + " " + d.type);
-}
-
 std::string ShortStatus(const Measurement& m) {
   std::string text = Name(m.status);
-  if (m.status == MeasureStatus::kOk) {
-    char ms[64];
-    std::snprintf(ms, sizeof ms, " %.3f ms", m.timing.median_ms);
+  if (IsTimed(m.status)) {
+    char ms[96];
+    std::snprintf(ms, sizeof ms, " %.3f ms, error %.1e of the diagonal (%s)", m.timing.median_ms,
+                  m.source_error.position_rel, Name(m.variant.weight));
     text += ms;
   } else if (!m.detail.empty()) {
     std::string detail = m.detail.substr(0, m.detail.find('\n'));
@@ -316,12 +307,13 @@ TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context
   // "paper", "figure1", "paper_kernels" and "reported" are fields of configs/paper.json
   // read by `skintune paper` (report/paper.h).
   static const std::set<std::string> kKnown = {"description", "space",    "datasets", "timing",
-                                               "strategy",    "variant_timeout_s", "paper", "figure1",
+                                               "strategy",    "variant_timeout_s", "max_error", "paper", "figure1",
                                                "paper_kernels", "reported"};
   for (const auto& [field, value] : json.items()) {
     if (kKnown.count(field)) continue;
     throw Error(context + ": " + field +
-                ": unknown field (expected description, space, datasets, timing, strategy, variant_timeout_s)");
+                ": unknown field (expected description, space, datasets, timing, strategy, variant_timeout_s, "
+                "max_error)");
   }
   if (json.contains("description") && !json["description"].is_string()) {
     throw Error(context + ": description: expected a string");
@@ -337,6 +329,12 @@ TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context
   if (json.contains("strategy")) c.strategy = StrategyFromConfig(json["strategy"], context);
   if (json.contains("variant_timeout_s")) {
     c.variant_timeout_s = PositiveNumber(json["variant_timeout_s"], context + ": variant_timeout_s");
+  }
+  if (json.contains("max_error")) {
+    const nlohmann::json& value = json["max_error"];
+    if (!value.is_number()) throw Error(context + ": max_error: expected a number (got " + value.dump() + ")");
+    c.max_error = value.get<double>();
+    if (const std::string bad = BadMaxError(c.max_error); !bad.empty()) throw Error(context + ": max_error: " + bad);
   }
   return c;
 }
@@ -356,6 +354,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
   ValidateStrategy(config.strategy, "strategy");
   config.space.Validate(config.name);
   if (!(config.variant_timeout_s > 0.0)) throw Error("variant_timeout_s: must be a positive number");
+  if (const std::string bad = BadMaxError(config.max_error); !bad.empty()) throw Error("max_error: " + bad);
   if (options.worker_executable.empty()) throw Error("RunTuning: no worker executable");
 
   MeasurementCache cache(options.cache_path);
@@ -367,6 +366,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
   report.created = UtcTimestamp();
   report.config = config.name;
   report.strategy = config.strategy.name;
+  report.max_error = config.max_error;
   report.machine = MachineInfo();
 
   // Datasets first: a bad key or glTF file is bad input, found before any device work.
@@ -392,12 +392,11 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
     throw Error("no device to tune on" + (why.empty() ? std::string() : ": " + why));
   }
   if (!options.device_pattern.empty()) {
-    const std::string pattern = Lower(options.device_pattern);
     std::vector<Device> matching;
     std::string all;
     for (Device& d : devices) {
       all += (all.empty() ? "" : "; ") + d.identity.backend + ": " + d.identity.platform + " / " + d.identity.name;
-      if (DeviceMatchText(d.identity).find(pattern) != std::string::npos) matching.push_back(std::move(d));
+      if (MatchesDevice(options.device_pattern, d.identity)) matching.push_back(std::move(d));
     }
     if (matching.empty()) throw Error("--device '" + options.device_pattern + "': no device matches (found: " + all + ")");
     devices = std::move(matching);
@@ -563,11 +562,16 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
           const std::string cache_key = probe.CacheKey();
           Measurement m;
           bool cached = false;
-          if (const Measurement* found = cache.Find(cache_key)) {
+          const Measurement* found = cache.Find(cache_key);
+          // A verified record from before skintune measured the error against
+          // the source cannot be judged by the budget: measured again.
+          if (found && !(IsTimed(found->status) && !found->source_error.known)) {
             m = *found;
             cached = true;
+            ApplyBudget(m, config.max_error);  // this run's budget, whatever the record's was
           } else {
             m = worker.Measure(v, TuningDataset{key}, config.timing);
+            ApplyBudget(m, config.max_error);
             cache.Append(m);  // on disk before the next variant
           }
           if (seen.insert(cache_key).second) {

@@ -27,6 +27,10 @@ struct TuneConfig {
   TimingOptions timing;
   StrategyOptions strategy;
   double variant_timeout_s = 60.0;      // per variant, in the child process
+  // The error budget (config "max_error", `tune --max-error`): a variant whose
+  // weight format costs more than this, relative to the bounding-box diagonal
+  // (SourceError::quantisation_rel), is too_imprecise (docs/TUNING.md "Precision").
+  double max_error = kDefaultBudget;
   // Variants measured on every device x language x dataset of their language
   // before the search, with B set to the dataset's (the paper's own kernels):
   // recorded like any measurement (invalid ones with their constraints), so a
@@ -41,7 +45,7 @@ TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context
 std::string EmbeddedConfig(const std::string& name);
 
 struct TuneOptions {
-  std::string device_pattern;           // substring of DeviceIdentity "platform / name"; empty: all
+  std::string device_pattern;           // MatchesDevice (runtime/device_identity.h), the one --device rule; empty: all
   std::vector<Lang> languages;          // empty: every language of every device
   std::string cache_path;               // the resumable measurement cache (JSON lines)
   std::string worker_executable;        // the skintune binary (runs `skintune tune-worker`)

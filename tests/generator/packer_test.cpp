@@ -271,6 +271,77 @@ TEST(Packer, UnormQuantisationHandlesTiesThirdsAndExactGltfWeights) {
   EXPECT_EQ(QuantisedMesh(OneVertex({0.3f, 0.7f}), v).weights, (std::vector<float>{0.3f, 0.7f}));
 }
 
+// docs/VARIANTS.md, the kernel contract, item 1, written here from the
+// document: floor, then the missing quanta to the largest remainders, ties to
+// the earlier slot. The packer computes it as round-then-adjust; on random
+// weights (with ties and zeros) both must give the same integers.
+std::vector<std::uint32_t> DocumentedQuantisation(const std::vector<float>& w, std::uint32_t max) {
+  double sum = 0.0;
+  for (float x : w) sum += x > 0.0f ? x : 0.0;
+  std::vector<double> t(w.size());
+  std::vector<std::uint32_t> q(w.size());
+  std::uint32_t total = 0;
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    t[i] = w[i] > 0.0f ? w[i] / sum * max : 0.0;
+    q[i] = static_cast<std::uint32_t>(std::floor(t[i]));
+    total += q[i];
+  }
+  for (; total < max; ++total) {
+    std::size_t best = w.size();
+    for (std::size_t i = 0; i < w.size(); ++i)
+      if (w[i] > 0.0f && (best == w.size() || t[i] - std::floor(t[i]) > t[best] - std::floor(t[best]))) best = i;
+    ++q[best];
+    t[best] = std::floor(t[best]);  // one quantum per slot: its remainder is spent
+  }
+  return q;
+}
+
+TEST(Packer, QuantisationIsTheFloorAndLargestRemainderRule) {
+  Variant v;
+  auto words = [&v](std::vector<float> w) {
+    v.influences = static_cast<int>(w.size());
+    return Read(v, Pack(OneVertex(w), v).launches[0], 0).weights;
+  };
+  using W = std::vector<std::uint32_t>;
+  // The worked examples of docs/VARIANTS.md.
+  v.weight = WeightFormat::kUnorm8;
+  EXPECT_EQ(words({0.5f, 0.5f}), (W{128, 127}));
+  EXPECT_EQ(words({0.25f, 0.25f, 0.25f, 0.25f}), (W{64, 64, 64, 63}));
+  EXPECT_EQ(words({0.625f, 0.25f, 0.125f}), (W{159, 64, 32}));
+  EXPECT_EQ(words({0.6f, 0.4f, 0.0f}), (W{153, 102, 0}));
+  v.weight = WeightFormat::kUnorm16;
+  EXPECT_EQ(words({0.5f, 0.5f}), (W{32768, 32767}));
+  EXPECT_EQ(words({0.25f, 0.25f, 0.25f, 0.25f}), (W{16384, 16384, 16384, 16383}));
+
+  std::mt19937 random(14);
+  std::uniform_int_distribution<int> count(1, 8), grid(0, 8);
+  for (auto weight : {WeightFormat::kUnorm8, WeightFormat::kUnorm16}) {
+    v.weight = weight;
+    for (int trial = 0; trial < 2000; ++trial) {
+      // Weights on a coarse grid (many ties), some zero, normalised.
+      std::vector<float> w(static_cast<std::size_t>(count(random)));
+      float sum = 0.0f;
+      for (float& x : w) sum += (x = static_cast<float>(grid(random)));
+      if (sum == 0.0f) w[0] = sum = 1.0f;
+      for (float& x : w) x /= sum;
+      ASSERT_EQ(words(w), DocumentedQuantisation(w, UnormMax(v))) << "trial " << trial;
+    }
+  }
+}
+
+TEST(Packer, HoldsWeightsExactlyOnlyForWeightsOnTheFormatsGrid) {
+  EXPECT_TRUE(HoldsWeightsExactly(OneVertex({0.3f, 0.7f}), WeightFormat::kF32));
+  EXPECT_FALSE(HoldsWeightsExactly(OneVertex({0.3f, 0.7f}), WeightFormat::kUnorm8));
+  EXPECT_TRUE(HoldsWeightsExactly(OneVertex({200 / 255.0f, 50 / 255.0f, 5 / 255.0f}), WeightFormat::kUnorm8));
+  // unorm8's grid is part of unorm16's (65535 = 255 x 257).
+  EXPECT_TRUE(HoldsWeightsExactly(OneVertex({200 / 255.0f, 50 / 255.0f, 5 / 255.0f}), WeightFormat::kUnorm16));
+  EXPECT_FALSE(HoldsWeightsExactly(OneVertex({0.5f, 0.5f}), WeightFormat::kUnorm8));  // 127.5 is not on the grid
+  const SkinnedMesh gltf = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/RiggedSimple-unorm8.gltf").asset.mesh;
+  EXPECT_TRUE(HoldsWeightsExactly(gltf, WeightFormat::kUnorm8));
+  const SkinnedMesh original = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/RiggedSimple.gltf").asset.mesh;
+  EXPECT_FALSE(HoldsWeightsExactly(original, WeightFormat::kUnorm8));
+}
+
 TEST(Packer, SoaSplitSlotArraysStartOn256ByteBoundaries) {
   for (std::size_t n : {1u, 63u, 64u, 65u, 200u, 300u}) {
     const SkinnedMesh mesh = RandomMesh(n, 3, 20, false, static_cast<unsigned>(n));

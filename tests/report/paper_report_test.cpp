@@ -563,6 +563,25 @@ TEST(PaperReportMarkdown, HasFigure1Table1WinnersWithFractionOfCopyAndDevices) {
   EXPECT_NE(md.find("host CPU Test CPU, 8 threads, copy 50.0 GB/s"), std::string::npos);
 }
 
+// Both errors of a tuned winner: against the quantised gold and against the source.
+TEST(PaperReport, WinnersShowTheErrorAgainstTheSourceNextToTheQuantisedOne) {
+  PaperResult r = Tiny();
+  for (Measurement& m : r.tuning.measurements) {
+    if (m.variant.Key() != ParseVariantKey(kTunedOpenCl).Key()) continue;
+    m.max_relative_error = 2.5e-7;
+    m.source_error = {true, 2.0, 8.4e-4, 4.2e-4, 0.0, 4.1e-4};
+  }
+  const PaperSummary s = Summarise({r});
+  const std::string md = RenderMarkdown(s);
+  EXPECT_NE(md.find("| vs quantised | vs source |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| 2.5e-07 | 4.2e-04 of the diagonal (weights 4.1e-04) |"), std::string::npos) << md;
+  const std::string html = RenderHtml(s);
+  EXPECT_NE(html.find("4.2e-04 of the diagonal (weights 4.1e-04)"), std::string::npos);
+  EXPECT_NE(html.find(">vs source</th>"), std::string::npos);
+  // A measurement from before the error was recorded says so.
+  EXPECT_NE(RenderMarkdown(Summarise({Tiny()})).find("| not recorded |"), std::string::npos);
+}
+
 TEST(PaperReportFormat, ThreeSignificantDigitsWithoutAnExponent) {
   EXPECT_EQ(FormatSignificant(0.0234), "0.0234");
   EXPECT_EQ(FormatSignificant(7.85), "7.85");

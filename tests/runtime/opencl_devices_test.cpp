@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <filesystem>
 
 #include <nlohmann/json.hpp>
@@ -36,6 +38,36 @@ TEST(OpenClDevices, PoclIsFoundWhereItsIcdIsRegistered) {
   bool found = false;
   for (const OpenClDeviceInfo& d : inventory.devices) found |= d.platform_name == "Portable Computing Language";
   EXPECT_TRUE(found) << inventory.status;
+}
+
+// The one --device rule (tune, variants, emit --db, Device::Open).
+TEST(MatchesDevice, IdVendorTypeAndPlatformShortNameCaseInsensitive) {
+  DeviceIdentity d;
+  d.backend = "opencl";
+  d.platform = "Portable Computing Language";
+  d.vendor = "AuthenticAMD";
+  d.name = "pthread-skylake-avx512-AMD EPYC";
+  d.driver_version = "3.1+debian";
+  d.api_version = "OpenCL 3.0 PoCL HSTR";  // not part of the rule: a database does not record it
+  d.type = "cpu";
+  for (const char* yes : {"", "pocl", "POCL", "portable computing", "opencl:", "opencl:Portable", "skylake",
+                          "3.1+debian", "authenticamd", "cpu", "/3.1"})
+    EXPECT_TRUE(MatchesDevice(yes, d)) << yes;
+  for (const char* no : {"cuda", "gl:", "gpu", "HSTR", "nvidia"}) EXPECT_FALSE(MatchesDevice(no, d)) << no;
+  EXPECT_EQ(PlatformShortName("Portable Computing Language"), "PoCL");
+  EXPECT_EQ(PlatformShortName("NVIDIA CUDA"), "");
+  // MatchDevices (skintune variants) follows the same rule.
+  const OpenClInventory inventory = EnumerateOpenCl();
+  for (const OpenClDeviceInfo& device : inventory.devices) {
+    const DeviceIdentity identity = IdentityOf(device);
+    for (const std::string& pattern : {std::string("pocl"), identity.name, identity.vendor}) {
+      const std::vector<OpenClDeviceInfo> matched = MatchDevices(inventory, pattern);
+      const bool listed = std::any_of(matched.begin(), matched.end(), [&](const OpenClDeviceInfo& m) {
+        return m.platform_index == device.platform_index && m.device_index == device.device_index;
+      });
+      EXPECT_EQ(listed, MatchesDevice(pattern, identity)) << pattern;
+    }
+  }
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -200,6 +201,66 @@ TEST(Selection, RejectedEntriesFallThroughAndAreNamedInTheReason) {
   // Nothing at all can run: kUnavailable.
   request.check = [](const Variant&) { return "never"; };
   EXPECT_THROW(Select({kExact}, request), Error);
+}
+
+// A winner per precision class of one key (database 1.3.0), the unorm8 one the
+// fastest, its quantisation error 1.2e-3 of the diagonal; unorm16 4e-6.
+std::vector<WinnersEntry> PrecisionClasses() {
+  const std::string id = "opencl:Synthetic/Model GPU/2.0";
+  WinnersEntry f32 = Entry(id, "Example", "gpu", "opencl.b2.soa.f32.wg64", "100k", 3.0);
+  WinnersEntry u16 = Entry(id, "Example", "gpu", "opencl.b2.soa.unorm16.wg64", "100k", 2.0);
+  WinnersEntry u8 = Entry(id, "Example", "gpu", "opencl.b2.soa.unorm8.wg64", "100k", 1.0);
+  for (auto [entry, q] : {std::pair{&f32, 0.0}, std::pair{&u16, 4e-6}, std::pair{&u8, 1.2e-3}}) {
+    entry->source_error.known = true;
+    entry->source_error.diagonal = 2.0;
+    entry->source_error.quantisation_rel = q;
+    entry->source_error.position_rel = q + 1e-7;
+    entry->source_error.position_abs = 2.0 * (q + 1e-7);
+  }
+  return {f32, u16, u8};
+}
+
+TEST(Selection, TheBudgetChoosesAmongPrecisionClassesWithoutRetuning) {
+  const WinnersDb db = Db(PrecisionClasses());
+  auto find = [&](double max_error) {
+    const Result<Selection> s = Selection::Find(db, ThisDevice(), 2, 100000, max_error);
+    EXPECT_TRUE(s.ok()) << s.status().message();
+    return s.ok() ? s->variant : std::string();
+  };
+  EXPECT_EQ(ParseVariantKey(find(kDefaultMaxError)).weight, WeightFormat::kUnorm16);  // unorm8 is over 1e-4
+  EXPECT_EQ(ParseVariantKey(find(1e-2)).weight, WeightFormat::kUnorm8);
+  EXPECT_EQ(ParseVariantKey(find(1e-6)).weight, WeightFormat::kF32);
+  EXPECT_EQ(ParseVariantKey(find(0.0)).weight, WeightFormat::kF32);
+  const Result<Selection> s = Selection::Find(db, ThisDevice(), 2, 100000);
+  ASSERT_TRUE(s.ok());
+  EXPECT_NE(s->reason.find("over the budget max_error"), std::string::npos) << s->reason;
+  for (double bad : {-1e-4, std::nan(""), HUGE_VAL}) {
+    const Result<Selection> r = Selection::Find(db, ThisDevice(), 2, 100000, bad);
+    EXPECT_EQ(r.status().code(), ErrorCode::kInvalidArgument) << bad;
+    EXPECT_NE(r.status().message().find("max_error"), std::string::npos) << r.status().message();
+  }
+}
+
+TEST(Selection, ExactFormatsAndOlderEntriesWithoutAnError) {
+  // Database 1.2.0 entries record no error: unorm8 is over any budget, f32 within every one.
+  WinnersEntry old_u8 = Entry("opencl:Synthetic/Model GPU/2.0", "Example", "gpu", "opencl.b2.soa.unorm8.wg64");
+  WinnersEntry old_f32 = Entry("opencl:Synthetic/Model GPU/2.0", "Example", "gpu", "opencl.b2.soa.f32.wg64",
+                               "100k", 5.0);
+  SelectionRequest request;
+  request.device = ThisDevice();
+  request.langs = {Lang::kOpenCl};
+  request.influences = 2;
+  request.vertex_count = 100000;
+  Chosen chosen = Select({old_u8, old_f32}, request);
+  EXPECT_EQ(chosen.variant.weight, WeightFormat::kF32);
+  EXPECT_NE(chosen.selection.reason.find("not recorded"), std::string::npos) << chosen.selection.reason;
+  // Weights exact in unorm8 (a glTF's unorm8 WEIGHTS): the format costs nothing, whatever was recorded.
+  request.exact_formats = {WeightFormat::kUnorm8};
+  EXPECT_EQ(Select({old_u8, old_f32}, request).variant.weight, WeightFormat::kUnorm8);
+  std::vector<WinnersEntry> classes = PrecisionClasses();
+  EXPECT_EQ(Select(classes, request).variant.weight, WeightFormat::kUnorm8);
+  request.exact_formats.clear();
+  EXPECT_EQ(Select(classes, request).variant.weight, WeightFormat::kUnorm16);
 }
 
 TEST(Selection, BuiltInDefaultSatisfiesEveryConstraintOnEveryDevice) {

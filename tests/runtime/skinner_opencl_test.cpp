@@ -203,8 +203,11 @@ TEST(OpenClSkinner, ForcedVariantsOfEveryLayoutAndFormatMatchTheGoldInMeshOrder)
   }
 }
 
-// A database whose entry for this very device is `key` (tuned on b4 at 25k vertices).
-WinnersDb DbFor(const DeviceInfo& device, const std::string& key) {
+// A database whose entry for this very device is `key` (tuned on b4 at 25k
+// vertices), whose weights cost `quantisation_rel` of the diagonal (0: as if
+// tuned on weights its format holds exactly, within every budget).
+WinnersEntry EntryFor(const DeviceInfo& device, const std::string& key, double quantisation_rel = 0.0,
+                      double ms = 0.5) {
   WinnersEntry e;
   e.device_id = device.id;
   e.backend = "opencl";
@@ -219,13 +222,20 @@ WinnersDb DbFor(const DeviceInfo& device, const std::string& key) {
   e.vertex_bucket = "25k";
   e.vertices = 25000;
   e.dataset = "25k-b4";
-  e.median_ms = 0.5;
+  e.median_ms = ms;
   e.created = "2025-01-31T12:00:00Z";
   e.source = "test";
-  const Result<WinnersDb> db = WinnersDb::Parse(WinnersDbJson({e}).dump(), "test-db.json");
+  e.source_error = {true, 1.0, quantisation_rel + 1e-7, quantisation_rel + 1e-7, 0.0, quantisation_rel};
+  return e;
+}
+
+WinnersDb DbOf(const std::vector<WinnersEntry>& entries) {
+  const Result<WinnersDb> db = WinnersDb::Parse(WinnersDbJson(entries).dump(), "test-db.json");
   EXPECT_TRUE(db.ok()) << db.status().message();
   return db.ok() ? *db : WinnersDb::Empty();
 }
+
+WinnersDb DbFor(const DeviceInfo& device, const std::string& key) { return DbOf({EntryFor(device, key)}); }
 
 TEST(OpenClSkinner, UsesThisDevicesDatabaseEntryAndRunsABucketedWinnerPadded) {
   TempDir dir;
@@ -242,6 +252,59 @@ TEST(OpenClSkinner, UsesThisDevicesDatabaseEntryAndRunsABucketedWinnerPadded) {
   EXPECT_EQ(padded.selection().variant, "opencl.b4.padded.aos.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals");
   EXPECT_NE(padded.selection().reason.find("runs padded"), std::string::npos) << padded.selection().reason;
   ExpectSkinsLikeTheGold(padded, Cesium().mesh, Animated(Cesium()));
+}
+
+// A winner per precision class: the fastest (unorm8) costs 1e-3 of the
+// diagonal. The default budget takes unorm16, a larger one unorm8, and a mesh
+// whose weights are on unorm8's grid (a glTF's unorm8 WEIGHTS) unorm8 at the
+// default: it costs that mesh nothing.
+TEST(OpenClSkinner, TheErrorBudgetChoosesThePrecisionClassAndExactWeightsCostNothing) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  const std::string base = "opencl.b4.padded.soa.float4.u16.%.mat3x4.global.matrix.v1c.wg64";
+  auto key = [&](const char* weight) {
+    return base.substr(0, base.find('%')) + weight + base.substr(base.find('%') + 1);
+  };
+  const WinnersDb db = DbOf({EntryFor(device->info(), key("f32"), 0.0, 3.0),
+                             EntryFor(device->info(), key("unorm16"), 5e-6, 2.0),
+                             EntryFor(device->info(), key("unorm8"), 1e-3, 1.0)});
+  const View view(Cesium().mesh);
+  Skinner standard = MustCreate(*device, db, view.mesh);
+  EXPECT_EQ(standard.selection().variant, key("unorm16") + ".nonormals");
+  EXPECT_NE(standard.selection().reason.find("over the budget"), std::string::npos) << standard.selection().reason;
+  ExpectSkinsLikeTheGold(standard, Cesium().mesh, Animated(Cesium()));
+  SkinnerOptions loose;
+  loose.max_error = 1e-2;
+  EXPECT_EQ(MustCreate(*device, db, view.mesh, loose).selection().variant, key("unorm8") + ".nonormals");
+  SkinnerOptions exact_only;
+  exact_only.max_error = 0.0;
+  EXPECT_EQ(MustCreate(*device, db, view.mesh, exact_only).selection().variant, key("f32") + ".nonormals");
+
+  const SkinnedAsset unorm8 = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/RiggedSimple-unorm8.gltf").asset;
+  const View exact(unorm8.mesh);
+  // RiggedSimple uses 2 bones per vertex: the b4 entries hold it.
+  Skinner gltf = MustCreate(*device, db, exact.mesh);
+  EXPECT_EQ(gltf.selection().variant, key("unorm8") + ".nonormals");
+  ExpectSkinsLikeTheGold(gltf, unorm8.mesh, unorm8.PaletteAt(0, 0.5));
+
+  for (double bad : {-1.0, std::numeric_limits<double>::quiet_NaN()}) {
+    SkinnerOptions o;
+    o.max_error = bad;
+    const Result<Skinner> r = Skinner::Create(*device, db, view.mesh, o);
+    EXPECT_EQ(r.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(r.status().message().find("SkinnerOptions::max_error"), std::string::npos) << r.status().message();
+  }
+}
+
+// One --device rule: "pocl" opens PoCL, whose platform is "Portable Computing Language".
+TEST(OpenClDevice, OpenPoclMatchesPortableComputingLanguage) {
+  bool has_pocl = false;
+  for (const DeviceInfo& d : Device::List()) has_pocl |= d.platform == "Portable Computing Language";
+  if (!has_pocl) GTEST_SKIP() << "no PoCL device here";
+  TempDir dir;
+  const Result<Device> device = Device::Open("pocl", &kOpenCl, CacheIn(dir));
+  ASSERT_TRUE(device.ok()) << device.status().message();
+  EXPECT_EQ(device->info().platform, "Portable Computing Language");
 }
 
 TEST(OpenClSkinner, SkipsADatabaseEntryThatCannotHoldTheMesh) {

@@ -57,6 +57,32 @@ TEST(SkinCheckCli, AcceptsOutputWithinToleranceOfTheQuantisedGold) {
   EXPECT_NE(r.out.find("agrees with the gold with unorm8 weights"), std::string::npos) << r.out;
 }
 
+// Both errors: against the quantised gold (the check) and, next to it, against
+// the unquantised source, in mesh units and of the bounding-box diagonal.
+TEST(SkinCheckCli, ShowsTheErrorAgainstTheSourceNextToTheQuantisedOne) {
+  const fs::path dir = Scratch();
+  const std::string file = (dir / "theirs.stv").string();
+  const std::vector<glm::vec3> theirs = Gold(kUnorm8);
+  WriteSkinnedVertices(file, theirs, {});
+  const auto r = RunSkintune({"skin", "--mesh", kCesium, "--animation", "0", "--time", "0.5", "--check", file,
+                              "--variant", kUnorm8});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string marker = file + " against the unquantised source: largest error ";
+  const std::size_t at = r.out.find(marker);
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const double shown = std::stod(r.out.substr(at + marker.size()));
+  const SkinnedAsset asset = ImportGltf(kCesium).asset;
+  const GoldResult source = SkinGold(asset.mesh, asset.PaletteAt(0, 0.5));
+  const double expected = CompareToGold(source.positions, theirs).max_absolute;
+  EXPECT_GT(expected, 1e-4);  // unorm8 moves CesiumMan's vertices visibly
+  EXPECT_NEAR(shown, expected, 1e-5 * expected) << r.out;
+  const double diagonal = BoundingBoxDiagonal(asset.mesh.positions);
+  const std::string of = " (mesh units), ";
+  const double relative = std::stod(r.out.substr(r.out.find(of, at) + of.size()));
+  EXPECT_NEAR(relative, expected / diagonal, 1e-5 * expected / diagonal) << r.out;
+  EXPECT_NE(r.out.find("the unorm8 weights alone cost "), std::string::npos) << r.out;
+}
+
 TEST(SkinCheckCli, QuantisedOutputFailsAgainstTheUnquantisedGold) {
   const fs::path dir = Scratch();
   const std::string file = (dir / "theirs.stv").string();

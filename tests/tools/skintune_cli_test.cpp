@@ -490,6 +490,49 @@ TEST(SkintuneCli, EmitDbWhenEveryMatchIsSkippedIsAnErrorAndWritesNothing) {
   EXPECT_FALSE(fs::exists(dir));
 }
 
+// --max-error: the fixture's unorm16 winners cost 3.1e-6 of the diagonal (its
+// unorm8 ones 0, f32 0): a budget of 1e-6 skips the 4 unorm16 ones, each with a
+// warning naming its error; the sidecars record every winner's source_error.
+TEST(SkintuneCli, EmitDbKeepsTheWinnersWithinTheErrorBudget) {
+  const fs::path root = Scratch();
+  const fs::path dir = root / "kernels";
+  const auto r = RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--max-error", "1e-6", "--out", dir});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(Lines(r.err).size(), 4u) << r.err;
+  for (const std::string& line : Lines(r.err)) {
+    EXPECT_EQ(line.rfind("skintune: warning: skipping ", 0), 0u) << line;
+    EXPECT_NE(line.find(".unorm16."), std::string::npos) << line;
+    EXPECT_NE(line.find("its weights cost 3.1e-06 of the bounding-box diagonal, over --max-error 1e-06"),
+              std::string::npos)
+        << line;
+  }
+  EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners - 4));
+  EXPECT_FALSE(fs::exists(dir / (kCudaB3 + ".json")));  // a unorm16 winner
+  for (const std::string& name : FilesIn(dir)) {
+    if (name.size() < 5 || name.substr(name.size() - 5) != ".json") continue;
+    for (const nlohmann::json& w : ReadJson(dir / name).at("winners"))
+      EXPECT_TRUE(w.contains("source_error")) << name;
+  }
+  // A database before 1.3.0 records no error: its unorm entries are over any budget.
+  const fs::path old = EditedDb(root, [](nlohmann::json& db) {
+    db["schema_version"] = "1.2.0";
+    for (auto& e : db["entries"]) {
+      e.erase("source_error");
+      e.erase("max_relative_error");
+    }
+  });
+  const auto unknown = RunSkintune({"emit", "--db", old, "--device", "", "--out", root / "old"});
+  ASSERT_EQ(unknown.exit_code, 0) << unknown.err;
+  EXPECT_EQ(Lines(unknown.err).size(), 9u) << unknown.err;  // 5 unorm8 + 4 unorm16
+  EXPECT_NE(unknown.err.find("its quantisation error is not recorded"), std::string::npos) << unknown.err;
+  // A bad budget is one line naming the flag, and nothing is written.
+  const fs::path none = root / "none";
+  const auto bad = RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--max-error", "-1", "--out", none});
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_EQ(bad.err.rfind("skintune: error: --max-error '-1': is -1: must be a finite number >= 0", 0), 0u) << bad.err;
+  EXPECT_FALSE(fs::exists(none));
+}
+
 TEST(SkintuneCli, EmitDbMalformedDatabaseIsOneLineNamingTheFileAndTheElement) {
   const fs::path root = Scratch();
   const fs::path dir = root / "kernels";

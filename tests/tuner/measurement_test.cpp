@@ -96,15 +96,78 @@ TEST(MeasureStatus, LivesBesideThePublicStatusInOneFile) {
 }
 
 TEST(MeasureStatus, NamesRoundTrip) {
-  for (MeasureStatus s : {MeasureStatus::kOk, MeasureStatus::kInvalid, MeasureStatus::kCompileFailed, MeasureStatus::kLaunchFailed,
-                   MeasureStatus::kVerifyFailed, MeasureStatus::kTimeout}) {
-    EXPECT_EQ(MeasureStatusFromName(Name(s)), s) << Name(s);
-  }
+  for (MeasureStatus s : kAllMeasureStatuses) EXPECT_EQ(MeasureStatusFromName(Name(s)), s) << Name(s);
   EXPECT_STREQ(Name(MeasureStatus::kCompileFailed), "compile_failed");
   EXPECT_STREQ(Name(MeasureStatus::kTimeout), "timeout");
+  EXPECT_STREQ(Name(MeasureStatus::kTooImprecise), "too_imprecise");
   EXPECT_EQ(ErrorOf([] { MeasureStatusFromName("slow"); }),
             "unknown status 'slow' (expected one of ok, invalid, compile_failed, launch_failed, verify_failed, "
-            "timeout)");
+            "timeout, too_imprecise)");
+}
+
+// A verified measurement with its error against the source, as MeasureWith records it.
+Measurement WithSourceError(double quantisation_rel) {
+  Measurement m = Sample("opencl.b4.soa.unorm8.wg64", MeasureStatus::kOk);
+  m.source_error.known = true;
+  m.source_error.diagonal = 2.5;
+  m.source_error.quantisation_rel = quantisation_rel;
+  m.source_error.position_rel = quantisation_rel + 1e-7;
+  m.source_error.position_abs = 2.5 * m.source_error.position_rel;
+  return m;
+}
+
+TEST(Measurement, SourceErrorRoundTripsAndTheBudgetMakesTooImpreciseBothWays) {
+  Measurement m = WithSourceError(1.6e-4);
+  ApplyBudget(m, 1e-4);
+  EXPECT_EQ(m.status, MeasureStatus::kTooImprecise);
+  EXPECT_NE(m.detail.find("unorm8 weights cost 1.60e-04"), std::string::npos) << m.detail;
+  const nlohmann::json j = m;
+  EXPECT_EQ(j.at("status"), "too_imprecise");
+  const Measurement back = nlohmann::json::parse(j.dump()).get<Measurement>();
+  ExpectSame(back, m);
+  EXPECT_TRUE(back.source_error.known);
+  EXPECT_EQ(back.source_error.quantisation_rel, 1.6e-4);
+  EXPECT_EQ(back.source_error.position_abs, m.source_error.position_abs);
+  EXPECT_EQ(back.source_error.diagonal, 2.5);
+  // A larger budget takes it back (a cached record judged by a later run).
+  ApplyBudget(m, 1e-2);
+  EXPECT_EQ(m.status, MeasureStatus::kOk);
+  EXPECT_EQ(m.detail, "");
+  // Exactly at the budget is within it; 0 admits exact formats only.
+  Measurement exact = WithSourceError(0.0);
+  ApplyBudget(exact, 0.0);
+  EXPECT_EQ(exact.status, MeasureStatus::kOk);
+  // Failures and records without a known error are left alone.
+  Measurement failed = Sample("opencl.b2", MeasureStatus::kVerifyFailed);
+  ApplyBudget(failed, 0.0);
+  EXPECT_EQ(failed.status, MeasureStatus::kVerifyFailed);
+  Measurement old = Sample("opencl.b2", MeasureStatus::kOk);
+  ApplyBudget(old, 0.0);
+  EXPECT_EQ(old.status, MeasureStatus::kOk);
+  EXPECT_FALSE(nlohmann::json(old).contains("source_error"));
+}
+
+TEST(Measurement, BadSourceErrorsAreRefusedNamingTheField) {
+  nlohmann::json j = WithSourceError(1e-3);
+  j["source_error"].erase("diagonal");
+  EXPECT_EQ(ErrorOf([&] { j.get<Measurement>(); }), "measurement: 'source_error': missing 'diagonal'");
+  j = WithSourceError(1e-3);
+  j["source_error"]["position_rel"] = "far";
+  EXPECT_EQ(ErrorOf([&] { j.get<Measurement>(); }), "measurement: 'source_error': 'position_rel' must be a number");
+  j = WithSourceError(1e-3);
+  j["source_error"]["quantisation_rel"] = -1.0;
+  EXPECT_NE(ErrorOf([&] { j.get<Measurement>(); }).find("'source_error.quantisation_rel' is -1"), std::string::npos);
+  j = WithSourceError(1e-3);
+  j["status"] = "too_imprecise";
+  j.erase("source_error");
+  EXPECT_EQ(ErrorOf([&] { j.get<Measurement>(); }), "measurement: status too_imprecise without 'source_error'");
+}
+
+TEST(Measurement, BadMaxErrorSaysWhy) {
+  EXPECT_EQ(BadMaxError(1e-4), "");
+  EXPECT_EQ(BadMaxError(0.0), "");
+  for (double bad : {-1e-9, std::numeric_limits<double>::infinity(), std::numeric_limits<double>::quiet_NaN()})
+    EXPECT_NE(BadMaxError(bad).find("must be a finite number >= 0"), std::string::npos) << bad;
 }
 
 TEST(Measurement, CacheKeyNamesDeviceGeneratorDatasetAndVariant) {

@@ -65,7 +65,23 @@ TEST(Report, JsonRoundTrip) {
 
 TEST(Report, WinnersAreTheFastestOkPerDeviceLanguageInfluencesAndVertexCount) {
   const TuningReport r = testing::SampleReport();
-  const std::vector<Winner> winners = ComputeWinners(r);
+  const std::vector<Winner> classes = ComputeWinners(r);
+  // Every precision class (weight format) keeps the fastest of its own.
+  for (const Winner& w : classes) {
+    double fastest = 1e300;
+    for (const Measurement& m : r.measurements) {
+      if (m.status != MeasureStatus::kOk || m.device_id != w.device_id || m.variant.lang != w.lang ||
+          m.variant.influences != w.influences || m.variant.weight != w.variant.weight)
+        continue;
+      for (const DatasetInfo& d : r.datasets)
+        if (d.key == m.dataset && d.vertices == w.vertices) fastest = std::min(fastest, m.timing.median_ms);
+    }
+    EXPECT_EQ(w.median_ms, fastest) << w.variant.Key();
+    EXPECT_TRUE(w.within_budget);  // the sample records no error: every class is within
+  }
+  // The run's winners: the fastest within budget per key.
+  const std::vector<Winner> winners = BudgetWinners(classes);
+  EXPECT_GT(classes.size(), winners.size());
   // opencl 100k b4, opencl 25k b4, cuda 100k b4, opencl 1600k b1 (1600k b2 only failed).
   ASSERT_EQ(winners.size(), 4u);
   std::map<std::string, const Winner*> by_key;
@@ -327,7 +343,8 @@ TEST(Report, MergeNewestReportWinsPerDeviceLanguageInfluencesAndBucket) {
   const nlohmann::json b = ReportToJson(newer);
   for (const auto& inputs : {std::vector<nlohmann::json>{a, b}, std::vector<nlohmann::json>{b, a}}) {
     const nlohmann::json db = MergeWinnersDatabases(inputs, {"x.json", "y.json"});
-    ASSERT_EQ(db["entries"].size(), 4u);
+    // One entry per precision class of every key; the newer report lacks 25k only.
+    ASSERT_EQ(db["entries"].size(), ComputeWinners(older).size());
     for (const nlohmann::json& e : db["entries"]) {
       const bool small = e["vertex_bucket"] == "25k";
       EXPECT_EQ(e["created"], small ? "2025-01-01T00:00:00Z" : "2025-02-01T00:00:00Z") << e.dump();
@@ -339,7 +356,10 @@ TEST(Report, MergeNewestReportWinsPerDeviceLanguageInfluencesAndBucket) {
   EXPECT_EQ(merged, MergeWinnersDatabases({a, b}, {"x.json", "y.json"}));
   // Another driver is another device id: both kept.
   const nlohmann::json other_driver = ReportToJson(testing::SampleReport("2025-03-01T00:00:00Z", 1.0, "2.0"));
-  EXPECT_EQ(MergeWinnersDatabases({a, other_driver}, {"a", "b"})["entries"].size(), 4u + 3u);
+  std::size_t gpu_classes = 0;
+  for (const Winner& w : ComputeWinners(older)) gpu_classes += w.device_id == testing::SampleGpu().Id();
+  EXPECT_EQ(MergeWinnersDatabases({a, other_driver}, {"a", "b"})["entries"].size(),
+            ComputeWinners(older).size() + gpu_classes);
   // Fractional seconds order correctly.
   const nlohmann::json early = ReportToJson(testing::SampleReport("2025-01-01T00:00:00.5Z", 3.0));
   const nlohmann::json late = ReportToJson(testing::SampleReport("2025-01-01T00:00:00.25Z", 1.0));

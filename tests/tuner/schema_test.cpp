@@ -54,6 +54,19 @@ TEST(Schema, JsonschemaIsInstalled) {
       << SKINTUNE_PYTHON3 << " has no jsonschema module: run scripts/bootstrap (it installs python3-jsonschema)";
 }
 
+// The report schema's status enum is the tuner's list (kAllMeasureStatuses):
+// a status added to one and not the other fails here.
+TEST(Schema, ReportSchemaListsEveryMeasureStatus) {
+  std::ifstream in(std::string(SKINTUNE_SOURCE_DIR) + "/configs/report.schema.json");
+  ASSERT_TRUE(in);
+  const nlohmann::json schema = nlohmann::json::parse(in);
+  std::vector<std::string> listed, names;
+  for (const nlohmann::json& s : schema.at("$defs").at("measurement").at("properties").at("status").at("enum"))
+    listed.push_back(s.get<std::string>());
+  for (MeasureStatus s : kAllMeasureStatuses) names.emplace_back(Name(s));
+  EXPECT_EQ(listed, names);
+}
+
 TEST(Schema, ReportsValidate) {
   EXPECT_EQ(Validate(ReportToJson(testing::SampleReport()), "report.schema.json", "report"), 0);
   TuningReport empty;
@@ -61,6 +74,36 @@ TEST(Schema, ReportsValidate) {
   empty.config = "default";
   empty.strategy = "coordinate";
   EXPECT_EQ(Validate(ReportToJson(empty), "report.schema.json", "empty"), 0);
+}
+
+TEST(Schema, ReportsWithSourceErrorsTooImpreciseAndPrecisionClassesValidate) {
+  TuningReport report = testing::SampleReport();
+  report.max_error = 1e-3;
+  int changed = 0;
+  for (Measurement& m : report.measurements) {
+    if (m.status != MeasureStatus::kOk) continue;
+    m.source_error = {true, 2.0, 4e-3, 2e-3, 1e-6, changed % 2 ? 2e-3 : 0.0};
+    ApplyBudget(m, report.max_error);
+    ++changed;
+  }
+  ASSERT_GT(changed, 1);
+  const nlohmann::json j = ReportToJson(report);
+  EXPECT_EQ(Validate(j, "report.schema.json", "precision"), 0);
+  EXPECT_EQ(Validate(WinnersDatabase(report), "winners-db.schema.json", "precision-db"), 0);
+  const nlohmann::json t4 = ReportToT4(report);
+  EXPECT_EQ(Validate(t4, "t4-results.schema.json", "precision-t4"), 0);
+  int too_imprecise = 0;
+  for (const nlohmann::json& result : t4.at("results")) {
+    if (result.at("status") != "too_imprecise") continue;
+    ++too_imprecise;
+    EXPECT_EQ(result.at("correctness"), 1);  // right, only over the budget
+    EXPECT_EQ(result.at("times").at("runtimes").size(), 1u);
+  }
+  EXPECT_GT(too_imprecise, 0);
+  nlohmann::json bad = j;
+  for (nlohmann::json& m : bad["measurements"])
+    if (m.contains("source_error")) m["source_error"].erase("quantisation_rel");
+  EXPECT_EQ(Validate(bad, "report.schema.json", "precision-bad"), 3);
 }
 
 TEST(Schema, BrokenReportsFailValidation) {

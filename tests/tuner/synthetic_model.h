@@ -123,6 +123,7 @@ inline Measurement SyntheticMeasurement(const Variant& v, const std::string& dev
       break;
     case MeasureStatus::kTimeout: m.detail = "exceeded 60 s"; break;
     case MeasureStatus::kInvalid: break;
+    case MeasureStatus::kTooImprecise: break;  // never drawn: the model has no weight-format error
   }
   return m;
 }

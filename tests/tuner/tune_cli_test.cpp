@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -354,6 +355,156 @@ TEST(TuneCli, BadLanguageAndDeviceAreOneLine) {
   EXPECT_EQ(device.result.err.rfind("skintune: error: --device 'no-such-gpu': no device matches (found: ", 0), 0u)
       << device.result.err;
   EXPECT_TRUE(device.report_untouched);
+}
+
+// ------------------------------------------------------------------ precision (issue 14)
+
+// One OpenCL variant per weight format of `weights` on `dataset` (a key or a glTF path).
+nlohmann::json WeightConfig(const std::vector<std::string>& weights, const std::string& dataset, int influences) {
+  nlohmann::json c = TinyConfig({"global"}, {"soa"}, {64});
+  c["space"]["weight"] = weights;
+  c["space"]["influences"] = {influences};
+  c["datasets"] = {dataset};
+  return c;
+}
+
+struct Tuned {
+  std::vector<Measurement> measurements;
+  nlohmann::json report, db;
+  std::string out;
+};
+
+Tuned Tune(const fs::path& dir, const nlohmann::json& config, const std::vector<std::string>& extra = {}) {
+  const fs::path out = dir / "out";
+  std::vector<std::string> args = {"tune", "--config", WriteConfig(dir, config), "--out", out.string(),
+                                   "--device", "pocl", "--quiet"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  const auto r = RunSkintune(args);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  Tuned t;
+  t.out = r.out;
+  if (r.exit_code != 0) return t;
+  t.report = nlohmann::json::parse(ReadAll(out / "report.json"));
+  t.db = nlohmann::json::parse(ReadAll(out / "winners-db.json"));
+  t.measurements = ReportMeasurements(t.report);
+  return t;
+}
+
+// The run's choice (one key per test here): the fastest of the report's winners within its budget.
+std::vector<nlohmann::json> Chosen(const nlohmann::json& report) {
+  std::vector<nlohmann::json> within;
+  for (const nlohmann::json& w : report.at("winners"))
+    if (w.at("within_budget").get<bool>()) within.push_back(w);
+  std::sort(within.begin(), within.end(), [](const nlohmann::json& a, const nlohmann::json& b) {
+    return a.at("median_ms").get<double>() < b.at("median_ms").get<double>();
+  });
+  if (within.size() > 1) within.resize(1);
+  return within;
+}
+
+const std::string kFloatMesh = "5000-b4-random";  // float weights, random bones
+
+TEST(TuneCliPrecision, DefaultBudgetOnFloatWeightsNeverPicksUnorm8) {
+  const Tuned t = Tune(Scratch(), WeightConfig({"f32", "unorm16", "unorm8"}, kFloatMesh, 4));
+  ASSERT_EQ(t.measurements.size(), 3u);
+  EXPECT_EQ(t.report.at("max_error"), kDefaultBudget);
+  for (const Measurement& m : t.measurements) {
+    ASSERT_TRUE(m.source_error.known) << m.variant.Key();
+    EXPECT_GT(m.source_error.diagonal, 0.0);
+    EXPECT_NEAR(m.source_error.position_rel, m.source_error.position_abs / m.source_error.diagonal, 1e-12);
+    if (m.variant.weight == WeightFormat::kF32) {
+      EXPECT_EQ(m.source_error.quantisation_rel, 0.0);
+    }
+    if (m.variant.weight == WeightFormat::kUnorm8) {
+      EXPECT_EQ(m.status, MeasureStatus::kTooImprecise) << m.detail;
+      EXPECT_GT(m.source_error.quantisation_rel, kDefaultBudget);
+      EXPECT_NE(m.detail.find("over the budget"), std::string::npos) << m.detail;
+    } else {
+      EXPECT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+      EXPECT_LE(m.source_error.quantisation_rel, kDefaultBudget);
+    }
+  }
+  const std::vector<nlohmann::json> chosen = Chosen(t.report);
+  ASSERT_EQ(chosen.size(), 1u);
+  EXPECT_NE(chosen[0].at("precision_class"), "unorm8");
+  for (const nlohmann::json& w : t.report.at("winners"))
+    EXPECT_EQ(w.at("within_budget").get<bool>(), w.at("precision_class") != "unorm8") << w.dump();
+  // The unorm8 class keeps its winner, over the budget, for callers with a larger one.
+  ASSERT_EQ(t.report.at("winners").size(), 3u);
+  ASSERT_EQ(t.db.at("entries").size(), 3u);
+  EXPECT_EQ(t.db.at("schema_version"), "1.3.0");
+  for (const nlohmann::json& e : t.db.at("entries")) EXPECT_TRUE(e.contains("source_error")) << e.dump();
+  EXPECT_NE(t.out.find("over"), std::string::npos) << t.out;
+  EXPECT_NE(t.out.find("err/diag"), std::string::npos) << t.out;
+}
+
+// --max-error 1e-2 admits unorm8. With unorm8 alone in the space the choice
+// depends on no timing: the default budget has no winner, the larger one takes
+// unorm8, re-judging the cached measurement without measuring it again.
+TEST(TuneCliPrecision, MaxError1em2PicksUnorm8) {
+  const fs::path dir = Scratch();
+  const nlohmann::json config = WeightConfig({"unorm8"}, kFloatMesh, 4);
+  const Tuned strict = Tune(dir, config);
+  ASSERT_EQ(strict.measurements.size(), 1u);
+  EXPECT_EQ(strict.measurements[0].status, MeasureStatus::kTooImprecise);
+  EXPECT_TRUE(Chosen(strict.report).empty());
+  EXPECT_NE(strict.out.find("no verified variant is within the budget"), std::string::npos) << strict.out;
+
+  const Tuned loose = Tune(dir, config, {"--max-error", "1e-2"});
+  ASSERT_EQ(loose.measurements.size(), 1u);
+  EXPECT_EQ(loose.measurements[0].status, MeasureStatus::kOk) << loose.measurements[0].detail;
+  EXPECT_EQ(loose.report.at("max_error"), 1e-2);
+  const std::vector<nlohmann::json> chosen = Chosen(loose.report);
+  ASSERT_EQ(chosen.size(), 1u);
+  EXPECT_EQ(chosen[0].at("precision_class"), "unorm8");
+  EXPECT_EQ(CountLines(ReadAll(dir / "out" / "cache.jsonl")), 1);  // judged again, not measured again
+}
+
+// A glTF whose WEIGHTS are unorm8: unorm8 holds them exactly, so it costs
+// nothing and wins at the default budget (the float original's unorm8 does not).
+TEST(TuneCliPrecision, GltfWithUnorm8WeightsPicksUnorm8AtTheDefaultBudgetWithZeroQuantisationError) {
+  const std::string data = SKINTUNE_TEST_DATA_DIR;
+  const Tuned exact = Tune(Scratch(), WeightConfig({"unorm8"}, data + "/RiggedSimple-unorm8.gltf", 2));
+  ASSERT_EQ(exact.measurements.size(), 1u);
+  const Measurement& m = exact.measurements[0];
+  EXPECT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+  EXPECT_EQ(m.source_error.quantisation_rel, 0.0);
+  EXPECT_LT(m.source_error.position_rel, 1e-6);  // the kernel's float32 rounding only
+  const std::vector<nlohmann::json> chosen = Chosen(exact.report);
+  ASSERT_EQ(chosen.size(), 1u);
+  EXPECT_EQ(chosen[0].at("precision_class"), "unorm8");
+  EXPECT_EQ(chosen[0].at("source_error").at("quantisation_rel"), 0.0);
+
+  const Tuned original = Tune(Scratch(), WeightConfig({"unorm8"}, data + "/RiggedSimple.gltf", 2));
+  ASSERT_EQ(original.measurements.size(), 1u);
+  EXPECT_GT(original.measurements[0].source_error.quantisation_rel, 0.0);
+}
+
+TEST(TuneCliPrecision, BadMaxErrorIsOneLineNamingTheFlagOrField) {
+  const fs::path dir = Scratch();
+  const std::string config = WriteConfig(dir, WeightConfig({"f32"}, kFloatMesh, 4));
+  for (const char* bad : {"-1", "nan", "inf", "abc", "1e-4x"}) {
+    const BadRun run = RunIntoExistingOut(dir, {"--config", config, "--max-error", bad});
+    EXPECT_EQ(run.result.exit_code, 1) << bad;
+    EXPECT_EQ(CountLines(run.result.err), 1) << run.result.err;
+    EXPECT_EQ(run.result.err.rfind("skintune: error: --max-error '" + std::string(bad) + "': ", 0), 0u)
+        << run.result.err;
+    EXPECT_TRUE(run.report_untouched) << bad;
+  }
+  nlohmann::json c = WeightConfig({"f32"}, kFloatMesh, 4);
+  c["max_error"] = "1e-4";
+  const std::string wrong_type = WriteConfig(dir, c, "wrong-type.json");
+  const BadRun typed = RunIntoExistingOut(dir, {"--config", wrong_type});
+  EXPECT_EQ(typed.result.exit_code, 1);
+  EXPECT_EQ(typed.result.err, "skintune: error: " + wrong_type + ": max_error: expected a number (got \"1e-4\")\n");
+  EXPECT_TRUE(typed.report_untouched);
+  c["max_error"] = -0.5;
+  const std::string negative = WriteConfig(dir, c, "negative.json");
+  const BadRun below = RunIntoExistingOut(dir, {"--config", negative});
+  EXPECT_EQ(below.result.exit_code, 1);
+  const std::string expected = "skintune: error: " + negative + ": max_error: is -0.5: must be a finite number >= 0";
+  EXPECT_EQ(below.result.err.rfind(expected, 0), 0u) << below.result.err;
+  EXPECT_TRUE(below.report_untouched);
 }
 
 // ------------------------------------------------------------------ the default run

@@ -81,7 +81,7 @@ TEST(TuneConfig, ErrorsNameTheElement) {
   EXPECT_EQ(ErrorOf(R"([1])"), "c.json: a tune config must be a JSON object");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "speed": 1})"),
             "c.json: speed: unknown field (expected description, space, datasets, timing, strategy, "
-            "variant_timeout_s)");
+            "variant_timeout_s, max_error)");
   EXPECT_EQ(ErrorOf(R"({"datasets": ["5000-b2"]})"), "c.json: space: missing (an object of axis -> list of values)");
   EXPECT_EQ(ErrorOf(R"({"space": {}})"), "c.json: datasets: missing (a list of dataset keys)");
   EXPECT_EQ(ErrorOf(R"({"space": {"layout": ["soa", "zigzag"]}, "datasets": ["5000-b2"]})"),

@@ -221,15 +221,9 @@ DeviceLimits LimitsOf(const OpenClDeviceInfo& d) {
 }
 
 std::vector<OpenClDeviceInfo> MatchDevices(const OpenClInventory& inventory, const std::string& pattern) {
-  auto lower = [](std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-    return s;
-  };
-  const std::string wanted = lower(pattern);
   std::vector<OpenClDeviceInfo> matches;
-  for (const OpenClDeviceInfo& d : inventory.devices) {
-    if (lower(d.platform_vendor + " " + d.platform_name + " / " + d.name).find(wanted) != std::string::npos) matches.push_back(d);
-  }
+  for (const OpenClDeviceInfo& d : inventory.devices)
+    if (MatchesDevice(pattern, IdentityOf(d))) matches.push_back(d);
   return matches;
 }
 

@@ -64,8 +64,8 @@ DeviceLimits LimitsOf(const OpenClDeviceInfo& device);
 // last-level cache.
 DeviceIdentity IdentityOf(const OpenClDeviceInfo& device);
 
-// Devices whose "platform-vendor platform / name" contains `pattern` (case-insensitive); an
-// empty pattern matches every device.
+// The devices `pattern` matches by the one --device rule (MatchesDevice,
+// runtime/device_identity.h, on IdentityOf); an empty pattern matches every device.
 std::vector<OpenClDeviceInfo> MatchDevices(const OpenClInventory& inventory, const std::string& pattern);
 
 void to_json(nlohmann::json& out, const OpenClDeviceInfo& device);

@@ -154,9 +154,13 @@ class Device {
   // every call.
   static Result<Device> OpenBest(const DeviceOptions& options = {});
 
-  // The first device of List() whose id, name, vendor or platform contains
-  // `pattern` (case-insensitive; "" matches any) and, unless `backend` is
-  // null, is of that backend (the other backends are then not probed).
+  // The first device of List() that `pattern` matches and, unless `backend`
+  // is null, is of that backend (the other backends are then not probed).
+  // The rule is the one of every `skintune --device` (docs/RUNTIME.md
+  // "Choosing a device"): `pattern`, case-insensitive, is a substring of the
+  // device's id "<backend>:<platform>/<name>/<driver_version>", its vendor or
+  // type, or its platform's short name ("pocl" matches PoCL's "Portable
+  // Computing Language"); "" matches any.
   // kNotFound naming the pattern and listing the devices there are.
   static Result<Device> Open(const std::string& pattern, const Backend* backend = nullptr,
                              const DeviceOptions& options = {});
@@ -232,6 +236,13 @@ class Device {
 
 // ---------------------------------------------------------------- winners
 
+// The default error budget (SkinnerOptions::max_error, `skintune tune
+// --max-error`): the largest error, relative to the mesh's bounding-box
+// diagonal, that quantising the weights may add. 1e-4 admits 16-bit weights
+// (unorm16) and rejects 8-bit ones (unorm8) for float weights; weights already
+// on a format's grid (a glTF's unorm8 WEIGHTS in unorm8) cost nothing in it.
+inline constexpr double kDefaultMaxError = 1e-4;
+
 // How the database entry for a device was found (the fallback chain).
 enum class MatchLevel {
   kExactDevice,      // same device id (backend, platform, name and driver version)
@@ -283,10 +294,16 @@ struct Selection {
   // over the entries of the device's languages whose influences are at least
   // `influences`. Skinner::Create also checks each candidate against the real
   // device's limits and the mesh and skips those that cannot run, so it may
-  // choose a later entry. kInvalidArgument for influences outside 1..8;
+  // choose a later entry. The database keeps a winner per precision class
+  // (weight format); only entries whose recorded quantisation error is within
+  // `max_error` (relative to the bounding-box diagonal) are candidates, so a
+  // larger budget gets the faster kernel without re-tuning (f32 entries and
+  // 1.3.0 entries within budget; an older database's unorm16/unorm8 entry,
+  // whose error is not recorded, is over any budget). kInvalidArgument for
+  // influences outside 1..8 or a max_error that is negative or not finite;
   // kInvalidState for a moved-from `db`.
   static Result<Selection> Find(const WinnersDb& db, const DeviceInfo& device, int influences,
-                                std::size_t vertex_count);
+                                std::size_t vertex_count, double max_error = kDefaultMaxError);
 };
 
 // ---------------------------------------------------------------- skinning
@@ -320,6 +337,15 @@ struct SkinnerOptions {
   // otherwise kInvalidArgument naming the constraint ("influences_too_few:
   // ..."). Its `normals` axis follows `normals` above.
   std::string variant;
+  // The error budget: the largest error quantising the weights may add to the
+  // skinned positions, relative to the mesh's bounding-box diagonal
+  // (docs/RUNTIME.md "Precision"). Database entries whose recorded error is
+  // larger are skipped, except in a weight format that holds this mesh's
+  // weights exactly (every weight a multiple of 1/255 in unorm8, 1/65535 in
+  // unorm16, summing to 1 on that grid): those cost nothing. 0 takes exact
+  // formats only. Negative or not finite: kInvalidArgument. A forced `variant`
+  // is not checked against it.
+  double max_error = kDefaultMaxError;
 };
 
 class Skinner {

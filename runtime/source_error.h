@@ -1,0 +1,57 @@
+// skintune (internal): a kernel's error against the UNQUANTISED source mesh
+// and the error budget, as the tuner measures them (tuner/measurement.h) and
+// the winners database records them (runtime/winners_db.h): one struct, one
+// JSON form, one budget rule (docs/TUNING.md "Precision").
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json_fwd.hpp>
+
+namespace skintune {
+
+// The default error budget, relative to the bounding-box diagonal: the public
+// header's kDefaultMaxError (skintune/skintune.h includes nothing of the tree,
+// so it states the number itself; source_error.cpp asserts the two agree).
+// It admits unorm16 and rejects unorm8 for float weights.
+inline constexpr double kDefaultBudget = 1e-4;
+
+// A verified kernel's output against the float64 gold computed on the
+// unquantised source mesh (the weights as the dataset has them), and what the
+// variant's weight quantisation alone costs. Distances are Euclidean, per
+// vertex, the largest over the mesh; "rel" ones are divided by the diagonal of
+// the source mesh's rest-pose bounding box.
+struct SourceError {
+  bool known = false;           // false: not measured (a record older than the measurement, a failure)
+  double diagonal = 0.0;        // the bounding-box diagonal of the rest positions, mesh units
+  double position_abs = 0.0;    // kernel positions vs the source gold, mesh units
+  double position_rel = 0.0;    // position_abs / diagonal
+  double normal_abs = 0.0;      // kernel normals vs the source gold's (unit vectors); 0 without normals
+  // The gold of the variant's quantised weights vs the source gold, / diagonal:
+  // the cost of the weight format on this mesh, without the kernel's float32
+  // rounding. Exactly 0 when the format holds the source weights exactly (f32;
+  // glTF unorm8 WEIGHTS in unorm8). The budget is compared with this.
+  double quantisation_rel = 0.0;
+};
+
+// Whether `e` fits a budget of `max_error`: known, and its quantisation error
+// at most max_error. The budget is on the quantisation, not on the kernel's own
+// float32 rounding (bounded by the verification's tolerance), so that it is the
+// same on every device and 0 means "exact formats only".
+constexpr bool WithinBudget(const SourceError& e, double max_error) {
+  return e.known && e.quantisation_rel <= max_error;
+}
+
+// "" when `max_error` is a budget (finite and >= 0), else why not, for
+// messages that name the flag or field: "is -1: must be a finite number >= 0 ...".
+std::string BadMaxError(double max_error);
+
+// {"diagonal", "position_abs", "position_rel", "normal_abs", "quantisation_rel"}
+// (non-finite numbers as "inf" / "nan" strings); null when not known.
+nlohmann::json SourceErrorJson(const SourceError& e);
+// Reads that object (every field required); throws Error("'<field>' ...").
+SourceError SourceErrorFromJson(const nlohmann::json& j);
+// The first field that is not finite and >= 0, as NotFiniteNonNegative says it, or "".
+std::string ImpossibleSourceError(const SourceError& e);
+
+}  // namespace skintune

@@ -1,0 +1,333 @@
+// The kernel contract (docs/VARIANTS.md "The kernel contract"): a program that
+// knows only a kernel's sidecar JSON and the documented rules packs the mesh,
+// launches the kernel (bucketed: one kernel per influence count) and gets the
+// float64 gold. Everything below reads the sidecar; nothing calls the packer
+// (Pack, PackPalette, QuantisedMesh, AosRecordLayout, SoaSplitSlotStride):
+// the quantisation rule and the buffer layouts are written here from the
+// document. Runs on the first OpenCL device (PoCL here).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "generator/emit.h"
+#include "generator/packer.h"  // the PackedMesh struct the runner takes, filled by hand
+#include "reference/gltf_import.h"
+#include "reference/skinning.h"
+#include "runtime/backends/opencl/opencl_devices.h"
+#include "runtime/backends/opencl/opencl_runner.h"
+
+namespace skintune {
+namespace {
+
+using json = nlohmann::json;
+
+std::size_t FormatBytes(const std::string& format) {
+  if (format == "float4") return 16;
+  if (format == "float3") return 12;
+  if (format == "i32" || format == "f32") return 4;
+  if (format == "u16" || format == "unorm16") return 2;
+  if (format == "u8" || format == "unorm8") return 1;
+  ADD_FAILURE() << "format " << format << " is not in the document";
+  return 0;
+}
+
+void PutWord(std::vector<std::uint8_t>& bytes, std::size_t at, std::uint32_t value, std::size_t size) {
+  for (std::size_t b = 0; b < size; ++b) bytes.at(at + b) = static_cast<std::uint8_t>(value >> (8 * b));
+}
+void PutVector(std::vector<std::uint8_t>& bytes, std::size_t at, const glm::vec3& v, std::size_t size, float w) {
+  const float xyzw[4] = {v.x, v.y, v.z, w};
+  for (std::size_t c = 0; c < size / 4; ++c) PutWord(bytes, at + 4 * c, std::bit_cast<std::uint32_t>(xyzw[c]), 4);
+}
+std::size_t Words(std::size_t bytes) { return (bytes + 3) / 4 * 4; }  // contract item 6
+
+// Contract item 1, as the sidecar states it: floor, then the missing quanta
+// to the largest remainders, ties to the earlier slot.
+std::vector<std::uint32_t> Quantise(const float* w, int slots, std::uint32_t max) {
+  double sum = 0.0;
+  for (int i = 0; i < slots; ++i) sum += w[i];
+  std::vector<double> remainder(slots);
+  std::vector<std::uint32_t> q(slots);
+  std::uint32_t total = 0;
+  for (int i = 0; i < slots; ++i) {
+    const double t = w[i] > 0.0f ? w[i] / sum * max : 0.0;
+    q[i] = static_cast<std::uint32_t>(std::floor(t));
+    remainder[i] = w[i] > 0.0f ? t - q[i] : -1.0;
+    total += q[i];
+  }
+  for (; total < max; ++total) {
+    const int best = static_cast<int>(std::max_element(remainder.begin(), remainder.end()) - remainder.begin());
+    ++q[best];
+    remainder[best] = -1.0;
+  }
+  return q;
+}
+
+struct Mesh {
+  SkinnedAsset asset;
+  std::vector<glm::mat4> palette;
+};
+const Mesh& CesiumMan() {
+  static const Mesh mesh = [] {
+    Mesh m;
+    m.asset = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf").asset;
+    m.palette = m.asset.PaletteAt(0, 0.5);
+    return m;
+  }();
+  return mesh;
+}
+
+// One vertex's slots as a launch of `k` influences reads them: padded keeps
+// slot i; bucketed compacts the non-zero ones (contract item 8).
+struct Slots {
+  std::vector<std::uint32_t> joints;
+  std::vector<float> weights;
+};
+Slots SlotsOf(const SkinnedMesh& mesh, std::size_t v, int k, bool bucketed) {
+  Slots s;
+  for (int i = 0; i < mesh.influences; ++i) {
+    const std::size_t at = v * mesh.influences + i;
+    if (bucketed && mesh.weights[at] == 0.0f) continue;
+    s.joints.push_back(mesh.joints[at]);
+    s.weights.push_back(mesh.weights[at]);
+  }
+  s.joints.resize(k, 0);
+  s.weights.resize(k, 0.0f);
+  return s;
+}
+
+struct Built {
+  PackedMesh packed;
+  std::vector<KernelSource> kernels;
+  std::vector<std::uint8_t> palette;
+  SkinnedMesh skinned;  // the mesh with the weights the kernel reads (for the gold)
+};
+
+// The buffers of one launch of `k` influences over mesh vertices `vertices`, from `sidecar`.
+Launch BuildLaunch(const json& sidecar, const SkinnedMesh& mesh, const std::vector<std::uint32_t>& vertices,
+                   std::uint32_t first, int k, SkinnedMesh& skinned) {
+  Launch launch;
+  launch.first = first;
+  launch.count = static_cast<std::uint32_t>(vertices.size());
+  launch.influences = k;
+  const std::size_t n = vertices.size();
+  const json& weights = sidecar.at("weights");
+  const bool quantised = weights.contains("max");
+  const auto max = quantised ? weights.at("max").get<std::uint32_t>() : 0u;
+  const bool bucketed = sidecar.contains("bucketed");
+  std::size_t slot_stride = 0;
+  if (sidecar.contains("slot_stride_multiple")) {
+    const std::size_t m = sidecar.at("slot_stride_multiple");
+    slot_stride = (std::max<std::size_t>(n, 1) + m - 1) / m * m;
+    launch.slot_stride = static_cast<std::uint32_t>(slot_stride);
+  }
+  // The weight word of each slot, and the float the kernel then reads.
+  auto slots_of = [&](std::size_t p, std::vector<std::uint32_t>& words) {
+    const std::size_t v = vertices[p];
+    Slots s = SlotsOf(mesh, v, k, bucketed);
+    words.assign(k, 0);
+    if (quantised) {
+      words = Quantise(s.weights.data(), k, max);
+      for (int i = 0; i < k; ++i) s.weights[i] = static_cast<float>(words[i]) / static_cast<float>(max);
+    } else {
+      for (int i = 0; i < k; ++i) words[i] = std::bit_cast<std::uint32_t>(s.weights[i]);
+    }
+    for (int i = 0; i < mesh.influences; ++i) {  // the gold's mesh: the same slots, kernel weights
+      skinned.joints[v * mesh.influences + i] = i < k ? s.joints[i] : 0;
+      skinned.weights[v * mesh.influences + i] = i < k ? s.weights[i] : 0.0f;
+    }
+    return s;
+  };
+  for (const json& arg : sidecar.at("arguments")) {
+    if (arg.at("direction") != "in" || arg.at("kind") == "scalar" || arg.at("name") == "palette") continue;
+    const std::string name = arg.at("name");
+    const std::string indexing = arg.at("indexing");
+    PackedBuffer buffer{name, {}};
+    if (name == "records") {
+      const json& r = sidecar.at("aos_record");
+      const std::size_t size = r.at("size");
+      const std::size_t pb = FormatBytes(sidecar.at("variant_axes").at("position"));
+      const std::size_t ib = FormatBytes(sidecar.at("variant_axes").at("index"));
+      const std::size_t wb = FormatBytes(sidecar.at("variant_axes").at("weight"));
+      EXPECT_EQ(arg.at("stride_bytes"), size);
+      buffer.bytes.assign(Words(n * size), 0);
+      for (std::size_t p = 0; p < n; ++p) {
+        std::vector<std::uint32_t> words;
+        const Slots s = slots_of(p, words);
+        std::size_t at = p * size;
+        PutVector(buffer.bytes, at + r.at("position").get<std::size_t>(), mesh.positions[vertices[p]], pb, 1.0f);
+        for (int i = 0; i < k; ++i) {
+          PutWord(buffer.bytes, at + r.at("indices").get<std::size_t>() + i * ib, s.joints[i], ib);
+          PutWord(buffer.bytes, at + r.at("weights").get<std::size_t>() + i * wb, words[i], wb);
+        }
+        if (r.at("holds_normal").get<bool>())
+          PutVector(buffer.bytes, at + r.at("normal").get<std::size_t>(), mesh.normals[vertices[p]], pb, 0.0f);
+      }
+    } else if (name == "positions" || name == "normals") {
+      const std::size_t eb = arg.at("element_bytes");
+      EXPECT_EQ(indexing, "v");
+      buffer.bytes.assign(Words(n * eb), 0);
+      for (std::size_t p = 0; p < n; ++p) {
+        const std::size_t v = vertices[p];
+        PutVector(buffer.bytes, p * eb, name == "positions" ? mesh.positions[v] : mesh.normals[v], eb,
+                  name == "positions" ? 1.0f : 0.0f);
+      }
+    } else {  // indices, weights: element of vertex p, slot i by `indexing`
+      const std::size_t eb = arg.at("element_bytes");
+      EXPECT_EQ(eb, FormatBytes(arg.at("format")));
+      const bool split = indexing == "i*S+v";
+      EXPECT_TRUE(split || indexing == "v*B+i") << indexing;
+      const std::size_t elements = split ? k * slot_stride : k * n;
+      buffer.bytes.assign(Words(elements * eb), 0);
+      for (std::size_t p = 0; p < n; ++p) {
+        std::vector<std::uint32_t> words;
+        const Slots s = slots_of(p, words);
+        for (int i = 0; i < k; ++i) {
+          const std::size_t e = split ? i * slot_stride + p : p * k + i;
+          PutWord(buffer.bytes, e * eb, name == "indices" ? s.joints[i] : words[i], eb);
+        }
+      }
+    }
+    launch.inputs.push_back(std::move(buffer));
+  }
+  return launch;
+}
+
+// Contract item 2: joints x R float4 rows, joint j row r at j*R + r.
+std::vector<std::uint8_t> PaletteFromSidecar(const json& sidecar, const std::vector<glm::mat4>& matrices) {
+  const json* palette = nullptr;
+  for (const json& arg : sidecar.at("arguments"))
+    if (arg.at("name") == "palette") palette = &arg;
+  const int rows = palette->at("rows_per_joint");
+  EXPECT_EQ(palette->at("elements"), static_cast<int>(matrices.size()) * rows);
+  EXPECT_EQ(palette->at("stride_bytes"), 16 * rows);
+  std::vector<std::uint8_t> bytes(Words(matrices.size() * rows * 16));
+  for (std::size_t j = 0; j < matrices.size(); ++j)
+    for (int r = 0; r < rows; ++r)
+      for (int c = 0; c < 4; ++c)
+        PutWord(bytes, ((j * rows + r) * 4 + c) * 4, std::bit_cast<std::uint32_t>(matrices[j][c][r]), 4);
+  return bytes;
+}
+
+Built BuildFromSidecar(const std::string& key) {
+  const Mesh& m = CesiumMan();
+  const SkinnedMesh& mesh = m.asset.mesh;
+  const Variant variant = ParseVariantKey(key);
+  const int joints = mesh.joint_count;
+  const json sidecar = SidecarJson(Emit(variant, 0, joints), variant);
+  Built b;
+  b.skinned = mesh;
+  b.packed.variant = variant;
+  b.packed.vertex_count = mesh.vertex_count();
+  b.packed.palette_joints = static_cast<std::size_t>(joints);
+  for (const json& arg : sidecar.at("arguments"))
+    if (arg.at("name") == "out_positions") b.packed.output_stride_bytes = arg.at("stride_bytes");
+  b.palette = PaletteFromSidecar(sidecar, m.palette);
+  b.packed.palette = b.palette;
+  const int influences = sidecar.at("influences");
+  auto count_of = [&](std::size_t v) {
+    int c = 0;
+    for (int i = 0; i < mesh.influences; ++i) c += mesh.weights[v * mesh.influences + i] != 0.0f;
+    return c;
+  };
+  std::vector<std::uint32_t> order(mesh.vertex_count());
+  std::iota(order.begin(), order.end(), 0u);
+  if (!sidecar.contains("bucketed")) {
+    b.packed.order = order;
+    b.packed.launches.push_back(BuildLaunch(sidecar, mesh, order, 0, influences, b.skinned));
+    b.kernels.push_back(Emit(variant, 0, joints));
+    return b;
+  }
+  // Contract item 8: stable ascending sort by count, one launch (and kernel) per count present.
+  const json& bucketed = sidecar.at("bucketed");
+  EXPECT_TRUE(bucketed.at("bucketed").get<bool>());
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::uint32_t a, std::uint32_t c) { return count_of(a) < count_of(c); });
+  b.packed.order = order;
+  for (std::size_t first = 0; first < order.size();) {
+    const int k = count_of(order[first]);
+    std::size_t end = first;
+    while (end < order.size() && count_of(order[end]) == k) ++end;
+    const std::vector<std::uint32_t> bucket(order.begin() + first, order.begin() + end);
+    // The bucket's kernel, as the sidecar names it: `skintune emit --variant <key with b<k>>`.
+    const json& entry = bucketed.at("kernels").at(k - 1);
+    EXPECT_EQ(entry.at("influences"), k);
+    const std::string emit = entry.at("emit");
+    const std::string bucket_key = emit.substr(emit.rfind(' ') + 1);
+    const json bucket_sidecar = SidecarJson(Emit(ParseVariantKey(bucket_key), 0, joints), ParseVariantKey(bucket_key));
+    b.packed.launches.push_back(
+        BuildLaunch(bucket_sidecar, mesh, bucket, static_cast<std::uint32_t>(first), k, b.skinned));
+    b.kernels.push_back(Emit(ParseVariantKey(bucket_key), 0, joints));
+    first = end;
+  }
+  return b;
+}
+
+OpenClRunner* Runner(std::string& why) {
+  static std::unique_ptr<OpenClRunner> runner = [&why]() -> std::unique_ptr<OpenClRunner> {
+    const OpenClInventory inventory = EnumerateOpenCl();
+    if (inventory.devices.empty()) {
+      why = "no OpenCL device on this machine: " + inventory.status;
+      return nullptr;
+    }
+    return std::make_unique<OpenClRunner>(inventory.devices.front().platform_index,
+                                          inventory.devices.front().device_index);
+  }();
+  return runner.get();
+}
+
+void ExpectMatchesGold(const std::string& key) {
+  SCOPED_TRACE(key);
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  const Built b = BuildFromSidecar(key);
+  const RunResult result = runner->Run(b.packed, b.kernels, b.palette);
+  EXPECT_EQ(result.poisoned_vertices, 0u);
+  const Variant variant = ParseVariantKey(key);
+  const GoldResult gold = SkinGold(b.skinned, CesiumMan().palette, variant.normals);
+  // Output element p holds mesh vertex order[p] (read by the documented float layout, not Unpack).
+  auto read = [&](const std::vector<std::uint8_t>& bytes) {
+    std::vector<glm::vec3> out(b.packed.vertex_count);
+    for (std::size_t p = 0; p < out.size(); ++p) {
+      float xyz[3];
+      std::memcpy(xyz, bytes.data() + p * b.packed.output_stride_bytes, sizeof xyz);
+      out[b.packed.order[p]] = glm::vec3(xyz[0], xyz[1], xyz[2]);
+    }
+    return out;
+  };
+  const GoldComparison positions = CompareToGold(gold.positions, read(result.positions));
+  EXPECT_EQ(positions.non_finite, 0u);
+  EXPECT_LT(positions.max_relative, 1e-5) << "vertex " << positions.worst_vertex;
+  if (variant.normals) {
+    const GoldComparison normals = CompareToGold(gold.normals, read(result.normals));
+    EXPECT_LT(normals.max_relative, 1e-5) << "vertex " << normals.worst_vertex;
+  }
+  // The weights really were quantised: the gold of the source weights is further off.
+  if (variant.weight != WeightFormat::kF32) {
+    const GoldResult source = SkinGold(CesiumMan().asset.mesh, CesiumMan().palette);
+    EXPECT_GT(MaxDistance(source.positions, gold.positions), 0.0);
+  }
+}
+
+TEST(SidecarContract, PaddedSoaSplitImageUnorm8FromTheSidecarAloneMatchesTheGold) {
+  ExpectMatchesGold("opencl.b4.padded.soa-split.float3.u16.unorm8.mat3x4.image.matrix.v2s.wg64.nonormals");
+}
+
+TEST(SidecarContract, BucketedAosWithNormalsUnorm16FromTheSidecarAloneMatchesTheGold) {
+  ExpectMatchesGold("opencl.b4.bucketed.aos.float4.u8.unorm16.mat4.global.point.v1c.wg32.normals");
+}
+
+TEST(SidecarContract, PaddedSoaF32ConstantFromTheSidecarAloneMatchesTheGold) {
+  ExpectMatchesGold("opencl.b4.padded.soa.float4.i32.f32.mat4.constant.matrix.v4c.wg128.normals");
+}
+
+}  // namespace
+}  // namespace skintune
