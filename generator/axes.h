@@ -153,7 +153,7 @@ inline constexpr Axis kAxes[] = {
     {.name = "lang",
      .field = FieldOf<&Variant::lang>(),
      .values = {V(Lang::kOpenCl, "opencl"), V(Lang::kCuda, "cuda"), V(Lang::kGlslCompute, "glsl-compute"),
-                V(Lang::kGlslVertex, "glsl-vertex")},
+                V(Lang::kGlslVertex, "glsl-vertex"), V(Lang::kVulkan, "vulkan")},
      .key_hint = "<lang>",
      .define = kNoDefine,  // a template per language
      .covering = Covering::kPerSet,

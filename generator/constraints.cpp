@@ -57,7 +57,7 @@ void CheckGeometry(const Variant& v, const DeviceLimits& device, std::vector<Vio
 
 void CheckInstances(const Variant& v, const DeviceLimits& device, const ProblemShape& shape,
                     std::vector<Violation>& out) {
-  const bool grid_limited = v.lang == Lang::kCuda || v.lang == Lang::kGlslCompute;
+  const bool grid_limited = v.lang == Lang::kCuda || v.lang == Lang::kGlslCompute || v.lang == Lang::kVulkan;
   if (shape.instances < 1) {
     out.push_back({Constraint::kInstanceCount, "instances " + std::to_string(shape.instances) + " below 1"});
   } else if (grid_limited && static_cast<std::uint64_t>(shape.instances) > device.max_grid_y) {
@@ -79,7 +79,7 @@ void CheckStorage(const Variant& v, const DeviceLimits& device, const ProblemSha
       instances == 1 ? palette
                      : std::to_string(instances) + " palettes of " + std::to_string(shape.joints) + " x " +
                            std::to_string(BytesOf(v.palette)) + " B = " + B(instances * bytes);
-  const bool glsl = v.lang == Lang::kGlslCompute || v.lang == Lang::kGlslVertex;
+  const bool glsl = IsGlslText(v.lang);  // a uniform block (Vulkan: maxUniformBufferRange)
   switch (v.storage) {
     case PaletteStorage::kConstant: {
       const std::uint64_t limit = glsl ? device.uniform_block_bytes : device.constant_memory_bytes;

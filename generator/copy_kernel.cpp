@@ -20,7 +20,8 @@ const char* CopyTemplate(Lang lang) {
     case Lang::kOpenCl: return "copy.cl";
     case Lang::kCuda: return "copy.cu";
     case Lang::kGlslCompute:
-    case Lang::kGlslVertex: return "copy.comp";
+    case Lang::kGlslVertex:
+    case Lang::kVulkan: return "copy.comp";  // Vulkan: VULKAN selects push constants
   }
   return "";
 }
@@ -52,7 +53,7 @@ CopyKernel EmitCopy(Lang lang, std::size_t bytes) {
 
   KernelSource& k = copy.kernel;
   k.lang = variant.lang;
-  k.entry_point = variant.lang == Lang::kGlslCompute ? "main" : "skintune_copy";
+  k.entry_point = IsGlslText(variant.lang) ? "main" : "skintune_copy";
   k.influences = 1;
   k.defines = {{"WG_SIZE", kCopyWorkGroup}, {"VERTICES_PER_ITEM", per_item}};
   const auto scalar = [](const char* name) {

@@ -105,6 +105,8 @@ std::string InstanceRule(Lang lang) {
     case Lang::kCuda: return "K instances: grid (items / wg_size, K), instance i = blockIdx.y";
     case Lang::kGlslCompute:
       return "K instances: glDispatchCompute(items / wg_size, K, 1), instance i = gl_WorkGroupID.y";
+    case Lang::kVulkan:
+      return "K instances: vkCmdDispatch(items / wg_size, K, 1), instance i = gl_WorkGroupID.y";
     case Lang::kGlslVertex:
       return "K instances: glDrawArraysInstanced(GL_POINTS, 0, n, K), instance i = gl_InstanceID; the capture "
              "holds the K instances' n vertices one instance after another";
@@ -202,11 +204,10 @@ const char* TemplateFile(Lang lang) {
     case Lang::kCuda: return "skin.cu";
     case Lang::kGlslCompute: return "skin.comp";
     case Lang::kGlslVertex: return "skin.vert";
+    case Lang::kVulkan: return "skin.comp";  // the same compute stage: VULKAN (predefined) selects push constants
   }
   return "";
 }
-
-bool IsGlsl(Lang lang) { return lang == Lang::kGlslCompute || lang == Lang::kGlslVertex; }
 
 // Splits a leading "#version ..." line off a GLSL template.
 std::pair<std::string, std::string> SplitVersion(const std::string& text) {
@@ -247,7 +248,7 @@ KernelSource Emit(const Variant& variant, int influences_override, int joints, c
 
   KernelSource source;
   source.lang = variant.lang;
-  source.entry_point = IsGlsl(variant.lang) ? "main" : "skin";
+  source.entry_point = IsGlslText(variant.lang) ? "main" : "skin";
   source.influences = b;
   source.joints = joints;
   source.instanced = options.instanced;
@@ -264,7 +265,7 @@ KernelSource Emit(const Variant& variant, int influences_override, int joints, c
   text += "\n";
   for (const auto& [name, value] : source.defines) text += "#define " + name + " " + std::to_string(value) + "\n";
   // GLSL's #line takes no file name; the template's own first line follows the #version we hoisted.
-  text += IsGlsl(variant.lang) ? "#line 2\n" : "#line 1 \"" + std::string(file) + "\"\n";
+  text += IsGlslText(variant.lang) ? "#line 2\n" : "#line 1 \"" + std::string(file) + "\"\n";
   text += body;
   source.text = std::move(text);
   source.source_hash = SourceHash(source.text);
@@ -281,7 +282,8 @@ nlohmann::json InstancingJson(const KernelSource& source) {
   switch (source.lang) {
     case Lang::kOpenCl: instance = "get_global_id(1)"; break;
     case Lang::kCuda: instance = "blockIdx.y"; break;
-    case Lang::kGlslCompute: instance = "gl_WorkGroupID.y"; break;
+    case Lang::kGlslCompute:
+    case Lang::kVulkan: instance = "gl_WorkGroupID.y"; break;
     case Lang::kGlslVertex: instance = "gl_InstanceID"; break;
   }
   nlohmann::json j = {
@@ -299,7 +301,22 @@ nlohmann::json InstancingJson(const KernelSource& source) {
   return j;
 }
 
+// Vulkan's descriptor type of a buffer argument (the palette's follows its storage).
+const char* VulkanDescriptorType(const KernelArgument& argument, const Variant& variant) {
+  if (argument.name != "palette") return "VK_DESCRIPTOR_TYPE_STORAGE_BUFFER";
+  if (variant.storage == PaletteStorage::kConstant) return "VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER";
+  if (variant.storage == PaletteStorage::kImage) return "VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER";
+  return "VK_DESCRIPTOR_TYPE_STORAGE_BUFFER";
+}
+
 }  // namespace
+
+std::size_t PushConstantOffset(const std::string& scalar) {
+  if (scalar == "n") return 0;
+  if (scalar == "first") return 4;
+  if (scalar == "vertex_count") return 8;
+  throw Error("no push constant '" + scalar + "' (n, first, vertex_count)");
+}
 
 namespace {
 
@@ -380,7 +397,18 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
     // order; scalars are uniforms of the same name.
     // glsl-vertex outputs are captured by transform feedback (separate
     // attributes, one buffer each), not written to storage buffers.
-    if (IsGlsl(source.lang)) {
+    // Vulkan: scalars are members of one push-constant block (n, first,
+    // vertex_count: 4 bytes each at 0, 4, 8; 12 bytes), the others descriptor
+    // set 0 at the same bindings, of the type the palette storage needs.
+    if (source.lang == Lang::kVulkan) {
+      if (a.kind == ArgumentKind::kScalar) {
+        arg["push_constant_offset"] = PushConstantOffset(a.name);
+      } else {
+        arg["set"] = 0;
+        arg["binding"] = binding++;
+        arg["descriptor_type"] = VulkanDescriptorType(a, variant);
+      }
+    } else if (IsGlslText(source.lang)) {
       if (a.kind == ArgumentKind::kScalar) {
         arg["uniform"] = a.name;
       } else if (source.lang == Lang::kGlslVertex && a.direction == ArgumentDirection::kOut) {
@@ -406,8 +434,10 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
                         {"buffer", "created with clCreateImage (CL_MEM_OBJECT_IMAGE1D_BUFFER) over the palette buffer"},
                         {"read", "read_imagef(palette, j*R + r)"}};
         if (source.joints > 0 && !source.instanced) arg["image"]["width_texels"] = source.joints * rows;
-      } else if (IsGlsl(source.lang) && variant.storage == PaletteStorage::kImage) {
-        arg["texture"] = {{"type", "samplerBuffer"}, {"internal_format", "GL_RGBA32F"},
+      } else if (IsGlslText(source.lang) && variant.storage == PaletteStorage::kImage) {
+        arg["texture"] = {{"type", "samplerBuffer"},
+                          {source.lang == Lang::kVulkan ? "view_format" : "internal_format",
+                           source.lang == Lang::kVulkan ? "VK_FORMAT_R32G32B32A32_SFLOAT" : "GL_RGBA32F"},
                           {"read", "texelFetch(palette_texels, j*R + r)"}};
       }
     }

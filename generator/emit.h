@@ -99,6 +99,12 @@ KernelSource Emit(const Variant& variant, int influences_override = 0, int joint
 // compile-time max_instances (CUDA and GLSL constant storage).
 bool InstancesBoundAtCompileTime(const Variant& variant);
 
+// Vulkan: a scalar argument's byte offset in the kernel's push-constant block
+// (n 0, first 4, vertex_count 8; kPushConstantBytes in all). Throws Error for
+// another name.
+inline constexpr std::size_t kPushConstantBytes = 12;
+std::size_t PushConstantOffset(const std::string& scalar);
+
 // Everything a program needs to bind and launch the kernel.
 nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant);
 

@@ -28,7 +28,13 @@
 
 namespace skintune {
 
-enum class Lang { kOpenCl, kCuda, kGlslCompute, kGlslVertex };
+enum class Lang { kOpenCl, kCuda, kGlslCompute, kGlslVertex, kVulkan };
+// Whether the kernel text is GLSL: glsl-compute, glsl-vertex, and vulkan (the
+// compute template compiled to SPIR-V; GL_KHR_vulkan_glsl's predefined VULKAN
+// selects its push constants).
+constexpr bool IsGlslText(Lang lang) {
+  return lang == Lang::kGlslCompute || lang == Lang::kGlslVertex || lang == Lang::kVulkan;
+}
 enum class MixedCounts { kPadded, kBucketed };
 enum class Layout { kAos, kSoa, kSoaSplit };
 enum class PositionFormat { kFloat4, kFloat3 };

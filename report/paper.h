@@ -37,9 +37,12 @@ inline constexpr const char* kPaperResultKind = "skintune-paper-result";
 
 // The paper compares three APIs; GLSL covers both GL languages (the paper's
 // form is the vertex shader, the tuned winner may be a compute shader).
-enum class PaperApi { kOpenCl, kCuda, kGlsl };
-const char* Name(PaperApi);                // "opencl", "cuda", "glsl"
-const char* DisplayName(PaperApi);         // "OpenCL", "CUDA", "GLSL"
+// Vulkan (compute, SPIR-V) is skintune's fourth API: Table 1 compares it
+// with OpenCL on the same chip too, with no figure of the paper's.
+enum class PaperApi { kOpenCl, kCuda, kGlsl, kVulkan };
+inline constexpr int kPaperApiCount = 4;
+const char* Name(PaperApi);                // "opencl", "cuda", "glsl", "vulkan"
+const char* DisplayName(PaperApi);         // "OpenCL", "CUDA", "GLSL", "Vulkan"
 PaperApi ApiOf(Lang lang);
 
 // One of the paper's kernels as a point of our space. `variant` has the
@@ -69,6 +72,8 @@ struct PaperReported {
   std::map<std::string, double> opencl_vs_glsl;    // dataset key -> t_glsl / t_opencl
 };
 PaperReported PaperReportedFromJson(const nlohmann::json& in, const std::string& context);
+// The paper's Table 1 figures of OpenCL against `other` (none for Vulkan).
+const std::map<std::string, double>& ReportedAgainst(const PaperReported& reported, PaperApi other);
 PaperReported BuiltInPaperReported();
 
 // A CPU implementation timed on one data set: the median of `repetitions`

@@ -24,6 +24,7 @@ PaperApi ApiOfBackend(const std::string& backend, PaperApi otherwise) {
   if (backend == "opencl") return PaperApi::kOpenCl;
   if (backend == "cuda") return PaperApi::kCuda;
   if (backend == "gl") return PaperApi::kGlsl;
+  if (backend == "vulkan") return PaperApi::kVulkan;
   return otherwise;
 }
 
@@ -152,6 +153,7 @@ class ResultSummariser {
     Figure();
     Tables(PaperApi::kCuda, s_.opencl_vs_cuda);
     Tables(PaperApi::kGlsl, s_.opencl_vs_glsl);
+    Tables(PaperApi::kVulkan, s_.opencl_vs_vulkan);
     for (std::size_t d = first_device_; d < s_.devices.size(); ++d) {
       Gbps(d);
       AxisCharts(d);
@@ -321,7 +323,7 @@ class ResultSummariser {
     // The paper kernels compared: the optimised OpenCL kernel (the paper's
     // best OpenCL) against the other API's own kernel.
     int opencl_kernel = -1, other_kernel = -1;
-    int api_index[3] = {0, 0, 0};
+    int api_index[kPaperApiCount] = {};
     for (const PaperKernel& kernel : r_.paper_kernels) {
       const PaperApi api = ApiOf(kernel.variant.lang);
       const int position = api_index[static_cast<int>(api)]++;
@@ -345,8 +347,7 @@ class ResultSummariser {
         g.vertices = vertices;
         g.influences = influences;
         g.cells.assign(vertices.size(), std::vector<std::optional<Table1Cell>>(influences.size()));
-        const std::map<std::string, double>& reported =
-            other == PaperApi::kCuda ? r_.reported.opencl_vs_cuda : r_.reported.opencl_vs_glsl;
+        const std::map<std::string, double>& reported = ReportedAgainst(r_.reported, other);
         for (const DatasetInfo& d : r_.tuning.datasets) {
           const std::size_t row = std::find(vertices.begin(), vertices.end(), d.vertices) - vertices.begin();
           const std::size_t column = std::find(influences.begin(), influences.end(), d.influences) - influences.begin();

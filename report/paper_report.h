@@ -141,7 +141,7 @@ struct Table1Cell {
 
 // OpenCL against one other API on one chip of one result.
 struct Table1Grid {
-  PaperApi other = PaperApi::kCuda;  // kCuda or kGlsl
+  PaperApi other = PaperApi::kCuda;  // kCuda, kGlsl or kVulkan
   std::size_t result = 0;
   std::string chip;
   std::size_t opencl_device = 0;     // indices into PaperSummary::devices
@@ -212,6 +212,7 @@ struct PaperSummary {
   std::vector<Figure1> figure1;            // one per result
   std::vector<Table1Grid> opencl_vs_cuda;  // per chip with both APIs measured
   std::vector<Table1Grid> opencl_vs_glsl;
+  std::vector<Table1Grid> opencl_vs_vulkan;
   std::vector<GbpsChart> gbps;             // one per device
   std::vector<AxisChart> axes;             // per device x language with a status-ok measurement
 

@@ -72,6 +72,7 @@ const char* ApiColour(PaperApi api) {
     case PaperApi::kOpenCl: return "#2563eb";
     case PaperApi::kCuda: return "#16a34a";
     case PaperApi::kGlsl: return "#ea580c";
+    case PaperApi::kVulkan: return "#9333ea";
   }
   return "#6b7280";
 }
@@ -240,6 +241,7 @@ class Renderer {
     Figure1Section();
     Table1Section(PaperApi::kCuda, s_.opencl_vs_cuda, "table1-opencl-vs-cuda");
     Table1Section(PaperApi::kGlsl, s_.opencl_vs_glsl, "table1-opencl-vs-glsl");
+    Table1Section(PaperApi::kVulkan, s_.opencl_vs_vulkan, "table1-opencl-vs-vulkan");
     GbpsSection();
     AxesSection();
     DevicesSection();
@@ -374,6 +376,7 @@ class Renderer {
     swatch(ApiColour(PaperApi::kOpenCl), 1.0, "OpenCL");
     swatch(ApiColour(PaperApi::kCuda), 1.0, "CUDA");
     swatch(ApiColour(PaperApi::kGlsl), 1.0, "GLSL");
+    swatch(ApiColour(PaperApi::kVulkan), 1.0, "Vulkan");
     swatch("#57606a", 0.3, "the paper&#39;s kernel");
     swatch("#57606a", 1.0, "tuned winner");
     if (speedups) {
@@ -443,7 +446,9 @@ class Renderer {
             "</sub> / t<sub>OpenCL</sub> per data set (rows: vertices, columns: influences per vertex B). "
             "<span class=\"gt\">Above 1</span> OpenCL is faster, <span class=\"lt\">below 1</span> slower. "
             "Each cell gives the tuned winners of both APIs, the paper&#39;s kernels (OpenCL optimised against " +
-            (other == PaperApi::kCuda ? std::string("the CUDA kernel") : std::string("the GLSL vertex shader")) +
+            (other == PaperApi::kCuda   ? std::string("the CUDA kernel")
+             : other == PaperApi::kGlsl ? std::string("the GLSL vertex shader")
+                                        : std::string("no kernel: the paper has no Vulkan")) +
             ") and the paper&#39;s published figure.</p>\n";
     if (grids.empty()) {
       out_ += "<p class=\"warn\">No comparison: no chip with both APIs (OpenCL and " + name +
@@ -452,8 +457,7 @@ class Renderer {
     for (const Table1Grid& g : grids) {
       const SummaryResult& r = s_.results[g.result];
       out_ += "<h3>" + Esc(Label(g.opencl_device)) + " vs " + Esc(Label(g.other_device)) + "</h3>\n";
-      const std::map<std::string, double>& reported =
-          other == PaperApi::kCuda ? r.reported.opencl_vs_cuda : r.reported.opencl_vs_glsl;
+      const std::map<std::string, double>& reported = ReportedAgainst(r.reported, other);
       ReportedSource(r, !reported.empty());
       out_ += "<table class=\"grid\"><thead><tr><th>vertices \\ B</th>";
       for (int b : g.influences) out_ += "<th>B = " + std::to_string(b) + "</th>";

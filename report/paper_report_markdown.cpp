@@ -52,8 +52,7 @@ std::string Grids(const PaperSummary& s, PaperApi other, const std::vector<Table
   if (grids.empty()) return out + "No chip with both APIs (OpenCL and " + name + ") in these results.\n\n";
   for (const Table1Grid& g : grids) {
     const SummaryResult& r = s.results[g.result];
-    const std::map<std::string, double>& reported =
-        other == PaperApi::kCuda ? r.reported.opencl_vs_cuda : r.reported.opencl_vs_glsl;
+    const std::map<std::string, double>& reported = ReportedAgainst(r.reported, other);
     out += Cell(s.devices[g.opencl_device].label) + " vs " + Cell(s.devices[g.other_device].label) +
            "; each cell: tuned winners / the paper's kernels" +
            (reported.empty() ? std::string() : " / the paper's figure") + "\n\n";
@@ -125,7 +124,8 @@ std::string Figure1Markdown(const PaperSummary& s) {
 }
 
 std::string Table1Markdown(const PaperSummary& s) {
-  return Grids(s, PaperApi::kCuda, s.opencl_vs_cuda) + Grids(s, PaperApi::kGlsl, s.opencl_vs_glsl);
+  return Grids(s, PaperApi::kCuda, s.opencl_vs_cuda) + Grids(s, PaperApi::kGlsl, s.opencl_vs_glsl) +
+         Grids(s, PaperApi::kVulkan, s.opencl_vs_vulkan);
 }
 
 std::string RenderMarkdown(const PaperSummary& s) {

@@ -90,6 +90,7 @@ const char* Name(PaperApi api) {
     case PaperApi::kOpenCl: return "opencl";
     case PaperApi::kCuda: return "cuda";
     case PaperApi::kGlsl: return "glsl";
+    case PaperApi::kVulkan: return "vulkan";
   }
   return "?";
 }
@@ -99,8 +100,16 @@ const char* DisplayName(PaperApi api) {
     case PaperApi::kOpenCl: return "OpenCL";
     case PaperApi::kCuda: return "CUDA";
     case PaperApi::kGlsl: return "GLSL";
+    case PaperApi::kVulkan: return "Vulkan";
   }
   return "?";
+}
+
+const std::map<std::string, double>& ReportedAgainst(const PaperReported& reported, PaperApi other) {
+  static const std::map<std::string, double> none;
+  if (other == PaperApi::kCuda) return reported.opencl_vs_cuda;
+  if (other == PaperApi::kGlsl) return reported.opencl_vs_glsl;
+  return none;
 }
 
 PaperApi ApiOf(Lang lang) {
@@ -109,6 +118,7 @@ PaperApi ApiOf(Lang lang) {
     case Lang::kCuda: return PaperApi::kCuda;
     case Lang::kGlslCompute:
     case Lang::kGlslVertex: return PaperApi::kGlsl;
+    case Lang::kVulkan: return PaperApi::kVulkan;
   }
   return PaperApi::kOpenCl;
 }

@@ -12,9 +12,10 @@ namespace skintune {
 BackendEntry OpenClEntry();
 BackendEntry CudaEntry();
 BackendEntry GlEntry();
+BackendEntry VulkanEntry();
 
 const std::vector<BackendEntry>& Backends() {
-  static const std::vector<BackendEntry> table = {OpenClEntry(), CudaEntry(), GlEntry()};
+  static const std::vector<BackendEntry> table = {OpenClEntry(), CudaEntry(), GlEntry(), VulkanEntry()};
   return table;
 }
 

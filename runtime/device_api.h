@@ -219,6 +219,11 @@ class DeviceApi {
   std::string cache_device_id_;
 };
 
+// For an API's Plan: throws Error("<api> launch: ...") when the launch's
+// kernel is not of its variant's language, or (constant and local storage,
+// whose kernels size the palette) was emitted for another joint count.
+void CheckLaunchKernel(const LaunchSpec& spec, const std::string& api);
+
 // `source.source_hash`, or the hash of its text when it has none.
 std::string HashOf(const KernelSource& source);
 

@@ -10,6 +10,7 @@
 
 #include "generator/axes.h"
 #include "reference/error.h"
+#include "runtime/backends/vulkan/vulkan_spirv.h"
 
 namespace skintune {
 
@@ -95,6 +96,18 @@ std::string ArgumentsTable(const KernelSource& source) {
   return out;
 }
 
+// A vulkan kernel's SPIR-V words: "inline constexpr std::uint32_t kSpirv<i>[] = {...};".
+std::string SpirvTable(const KernelSource& s, std::size_t index) {
+  const std::vector<std::uint32_t> words = vk::CompileSpirv(s.text, "embed header: kernel " + s.source_hash);
+  std::string out = "inline constexpr std::uint32_t kSpirv" + std::to_string(index) + "[] = {";
+  char word[16];
+  for (std::size_t w = 0; w < words.size(); ++w) {
+    std::snprintf(word, sizeof word, "0x%08xu,", words[w]);
+    out += (w % 8 == 0 ? "\n    " : " ") + std::string(word);
+  }
+  return out + "\n};\n";
+}
+
 std::string KernelRow(const EmbeddedKernel& k, std::size_t index, std::size_t source_index) {
   const WinnersEntry& e = k.entry;
   const Variant& v = k.variant;
@@ -111,7 +124,10 @@ std::string KernelRow(const EmbeddedKernel& k, std::size_t index, std::size_t so
          Bool(v.blend == Blend::kPoint) + ", " + Bool(v.normals) + ", " + std::to_string(s.launch.vertices_per_item) +
          ", " + Bool(s.launch.strided) + ", " +
          std::to_string(s.launch.wg_size) + ", " + std::to_string(s.joints) + ",\n     " + Quoted(s.entry_point) +
-         ", generated::kSource" + n + ", " + Quoted(s.source_hash) + ", generated::kArguments" + n + ", " +
+         ", generated::kSource" + n + ", " + Quoted(s.source_hash) + ", " +
+         (v.lang == Lang::kVulkan ? "generated::kSpirv" + n + ", sizeof generated::kSpirv" + n + " / 4"
+                                  : std::string("nullptr, 0")) +
+         ", generated::kArguments" + n + ", " +
          std::to_string(s.arguments.size()) + ",\n     " + Quoted(s.launch.rule) + ",\n     " + Number(e.median_ms) +
          ", " + Number(e.gbps) + ", " + Number(e.copy_fraction) + ", " + Quoted(e.dataset) + "},\n";
   return row;
@@ -200,6 +216,7 @@ std::string EmbedHeader(const std::vector<EmbeddedKernel>& kernels, const EmbedH
     table += "// " + distinct[i]->variant.Key() + " (" + std::to_string(s.joints) + " joints, " +
              std::to_string(s.text.size()) + " bytes, hash " + s.source_hash + ")\n";
     table += "inline constexpr char kSource" + std::to_string(i) + "[] =\n" + LiteralLines(s.text, "    ") + ";\n";
+    if (s.lang == Lang::kVulkan) table += SpirvTable(s, i);
     table += "inline constexpr Argument kArguments" + std::to_string(i) + "[] = {\n" + ArgumentsTable(s) + "};\n\n";
   }
   table += "}  // namespace generated\n\n";

@@ -411,6 +411,18 @@ std::size_t DeviceApi::PaletteBufferBytes(const RunShape& shape, std::span<const
 
 const char* DeviceApi::OutputWriter(const Variant&) const { return "kernel"; }
 
+void CheckLaunchKernel(const LaunchSpec& spec, const std::string& api) {
+  const Variant& variant = spec.variant;
+  const KernelSource& source = spec.source;
+  if (source.lang != variant.lang)
+    throw Error(api + " launch: " + spec.where + ": kernel language " + Name(source.lang) + " for a " +
+                Name(variant.lang) + " variant");
+  if ((variant.storage == PaletteStorage::kConstant || variant.storage == PaletteStorage::kLocal) &&
+      source.joints != static_cast<int>(spec.palette_joints))
+    throw Error(api + " launch: " + spec.where + ": kernel sized for " + std::to_string(source.joints) +
+                " joints, the palette has " + std::to_string(spec.palette_joints));
+}
+
 std::string HashOf(const KernelSource& source) {
   return source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;
 }

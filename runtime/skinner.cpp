@@ -122,6 +122,10 @@ void SkinnerBackend::SkinIntoGlBuffer(unsigned int) {
   FailWith(ErrorCode::kUnavailable, "Skinner::SkinIntoGlBuffer: only OpenCL devices with GL sharing write into GL buffers");
 }
 
+void SkinnerBackend::SkinIntoVulkan(void*, void*) {
+  FailWith(ErrorCode::kUnavailable, "Skinner::SkinIntoVulkan: only Vulkan devices record into a VkCommandBuffer");
+}
+
 ErrorCode CodeOfRunnerError(const std::string& message) {
   const std::size_t space = message.find(' ');
   return message.compare(space + 1, 6, "build:") == 0 ? ErrorCode::kBuildFailed : ErrorCode::kDeviceError;
@@ -330,6 +334,17 @@ Status Skinner::SkinIntoGlBuffer(unsigned int gl_buffer) {
     if (!im.palette_set)
       FailWith(ErrorCode::kInvalidState, "Skinner::SkinIntoGlBuffer: no palette yet (call SetPalette first)");
     im.backend->SkinIntoGlBuffer(gl_buffer);
+  });
+}
+
+Status Skinner::SkinIntoVulkan(void* vk_command_buffer, void* vk_buffer) {
+  return Guarded(ErrorCode::kDeviceError, [&] {
+    Impl& im = Usable(impl_, "SkinIntoVulkan");
+    if (!im.palette_set)
+      FailWith(ErrorCode::kInvalidState, "Skinner::SkinIntoVulkan: no palette yet (call SetPalette first)");
+    if (!vk_command_buffer) FailWith(ErrorCode::kInvalidArgument, "Skinner::SkinIntoVulkan: a null VkCommandBuffer");
+    im.backend->SkinIntoVulkan(vk_command_buffer, vk_buffer);
+    im.skinned = true;
   });
 }
 

@@ -42,6 +42,8 @@ class SkinnerBackend {
   virtual void* DevicePositions() const = 0;
   // Default: kUnavailable.
   virtual void SkinIntoGlBuffer(unsigned int gl_buffer);
+  // Default: kUnavailable (Vulkan's Skinner records into the command buffer).
+  virtual void SkinIntoVulkan(void* command_buffer, void* buffer);
 };
 
 // The code for a runner's Error: its message names the stage ("OpenCL

@@ -120,7 +120,7 @@ struct Kernel {
   const char* device_name;
   const char* driver_version;
   const char* device_type;     // "gpu", "cpu", ...; "" when the database does not say
-  const char* lang;            // "opencl", "cuda", "glsl-compute", "glsl-vertex"
+  const char* lang;            // "opencl", "cuda", "glsl-compute", "glsl-vertex", "vulkan"
   int influences;              // B the kernel is specialised for
   const char* vertex_bucket;   // "25k" | "100k" | "400k" | "1600k": the bucket of `vertices`
   std::size_t vertices;        // the vertex count of the mesh it won on (one kernel per measured count)
@@ -140,6 +140,8 @@ struct Kernel {
   const char* entry_point;     // "skin" (OpenCL, CUDA) / "main" (GLSL)
   const char* source;          // the whole kernel text, NUL-terminated
   const char* source_hash;     // FNV-1a 64 of `source`, 16 hex digits (skintune's program cache key)
+  const std::uint32_t* spirv;  // vulkan: `source` compiled to SPIR-V (vkCreateShaderModule's pCode); else null
+  std::size_t spirv_words;     // its length in 32-bit words (codeSize = 4 x this); 0 without SPIR-V
   const Argument* arguments;   // in kernel argument order, as in the sidecar
   int argument_count;
   const char* launch_rule;     // the launch geometry in words

@@ -20,6 +20,9 @@
 //   outputs:        out_positions[, out_normals]: the next bindings, written
 //                   at first + v;
 //   uniforms:       uint n (vertices of this launch), uint first.
+// Compiled to SPIR-V for Vulkan (language `vulkan`), the same text: bindings
+// are descriptor set 0, the palette's samplerBuffer a uniform texel buffer,
+// and n, first, vertex_count a push-constant block (skin_body.glsl).
 // INSTANCED (docs/VARIANTS.md "Instancing"): glDispatchCompute(groups, K, 1)
 // skins K instances; instance i = gl_WorkGroupID.y reads palette rows
 // i*JOINTS*PALETTE_ROWS.. and writes vertex v at i*vertex_count + first + v
@@ -75,8 +78,8 @@ void store_normal(uint at, vec3 value) {
 
 // ---------------------------------------------------------------- kernel
 
-#if INSTANCED
-uniform uint vertex_count;  // vertices of one instance in the outputs (the whole mesh)
+#if INSTANCED && !defined(VULKAN)
+uniform uint vertex_count;  // vertices of one instance in the outputs (the whole mesh; Vulkan: a push constant)
 #endif
 
 void main() {

@@ -28,6 +28,7 @@
 #include "reference/error.h"
 #include "reference/mesh_io.h"
 #include "runtime/backend_table.h"
+#include "runtime/backends/vulkan/vulkan_spirv.h"
 #include "runtime/embed_header.h"
 #include "runtime/winners_db.h"
 #include "tools/commands.h"
@@ -56,8 +57,17 @@ const char* Extension(Lang lang) {
     case Lang::kCuda: return ".cu";
     case Lang::kGlslCompute: return ".comp";
     case Lang::kGlslVertex: return ".vert";
+    case Lang::kVulkan: return ".vk.comp";
   }
   return ".txt";
+}
+
+// vulkan: the SPIR-V of the kernel (what vkCreateShaderModule takes), as
+// bytes for a ".spv" file; "" for the other languages.
+std::string SpirvBytes(const KernelSource& source, const Variant& variant) {
+  if (source.lang != Lang::kVulkan) return "";
+  const std::vector<std::uint32_t> words = vk::CompileSpirv(source.text, "emit " + variant.Key());
+  return std::string(reinterpret_cast<const char*>(words.data()), words.size() * 4);
 }
 
 // Only a variant's own constraints: device limits are the tuner's business.
@@ -94,9 +104,12 @@ int RunEmit(const EmitArgs& o) {
   const std::string kernel_file = base + Extension(variant.lang);
   nlohmann::json sidecar = SidecarJson(source, variant);
   sidecar["source_file"] = fs::path(kernel_file).filename().string();
+  const std::string spirv = SpirvBytes(source, variant);
+  if (!spirv.empty()) sidecar["spirv_file"] = fs::path(base + ".spv").filename().string();
   WriteFileAtomically(kernel_file, source.text);
+  if (!spirv.empty()) WriteFileAtomically(base + ".spv", spirv);
   WriteFileAtomically(base + ".json", sidecar.dump(2) + "\n");
-  std::cout << kernel_file << "\n" << base << ".json\n";
+  std::cout << kernel_file << "\n" << (spirv.empty() ? "" : base + ".spv\n") << base << ".json\n";
   return 0;
 }
 
@@ -226,6 +239,7 @@ int RunEmitDb(const EmitArgs& o) {
       keys.push_back(key);
       at->second = SidecarJson(k.source, k.variant);
       at->second["source_file"] = key + Extension(k.variant.lang);
+      if (k.variant.lang == Lang::kVulkan) at->second["spirv_file"] = key + ".spv";
       at->second["winners"] = nlohmann::json::array();
     }
     at->second["winners"].push_back(WinnerJson(k.entry));
@@ -235,6 +249,7 @@ int RunEmitDb(const EmitArgs& o) {
     const auto k = std::find_if(kernels.begin(), kernels.end(),
                                 [&](const EmbeddedKernel& x) { return x.variant.Key() == key; });
     files.emplace_back(key + Extension(k->variant.lang), k->source.text);
+    if (k->variant.lang == Lang::kVulkan) files.emplace_back(key + ".spv", SpirvBytes(k->source, k->variant));
     files.emplace_back(key + ".json", sidecars[key].dump(2) + "\n");
   }
   for (const auto& [name, text] : files) {

@@ -191,7 +191,7 @@ std::string HangLoop(const KernelSource& source, const std::string& input) {
 }  // namespace
 
 void InjectFault(KernelSource& source, const Variant& variant, const std::string& kind) {
-  const bool glsl = source.lang == Lang::kGlslCompute || source.lang == Lang::kGlslVertex;
+  const bool glsl = IsGlslText(source.lang);
   const std::string input = variant.layout == Layout::kAos ? "records" : "positions";
   // Every template skins a vertex with one call whose last two arguments are
   // the skinned position and normal, in the kernel's loop over its vertices

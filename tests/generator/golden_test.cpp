@@ -36,6 +36,7 @@ const char* Extension(Lang lang) {
     case Lang::kCuda: return ".cu";
     case Lang::kGlslCompute: return ".comp";
     case Lang::kGlslVertex: return ".vert";
+    case Lang::kVulkan: return ".vk.comp";
   }
   return "";
 }
@@ -51,6 +52,7 @@ TEST(GoldenEmit, EmittedSourceAndSidecarMatchThePinnedFiles) {
         << key << ": emitted source changed; if intended, run scripts/update-golden and review the diff";
     nlohmann::json sidecar = SidecarJson(source, v);
     sidecar["source_file"] = key + Extension(v.lang);
+    if (v.lang == Lang::kVulkan) sidecar["spirv_file"] = key + ".spv";  // emit's SPIR-V (not pinned: glslang's)
     EXPECT_EQ(sidecar, nlohmann::json::parse(Slurp(kGolden / (key + ".json"))))
         << key << ": sidecar changed; if intended, run scripts/update-golden";
   }

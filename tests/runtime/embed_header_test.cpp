@@ -597,6 +597,15 @@ TEST(EmbedHeader, CompilesAsCxx17WithWarningsAsErrorsAndLinksTwoUnits) {
   fs::remove_all(dir);
 }
 
+// `dir`/main.cpp compiled as strict C++17 and run: both must succeed (exit 0).
+void CompileAndRunMain(const fs::path& dir) {
+  std::string log;
+  const std::string compile = std::string("'") + SKINTUNE_CXX_COMPILER + "' " + kStrict17 + " '" +
+                              (dir / "main.cpp").string() + "' -o '" + (dir / "main").string() + "'";
+  ASSERT_EQ(Shell(compile, dir / "compile.log", &log), 0) << log;
+  EXPECT_EQ(Shell("'" + (dir / "main").string() + "'", dir / "run.log", &log), 0) << log;
+}
+
 TEST(EmbedHeader, TheTemplateAloneCompilesAsCxx17WithAnEmptyTable) {
   const fs::path dir = Scratch();
   std::ofstream(dir / "main.cpp") << "#include \"" << SKINTUNE_SOURCE_DIR << "/templates/embedded_support.h\"\n"
@@ -604,11 +613,7 @@ TEST(EmbedHeader, TheTemplateAloneCompilesAsCxx17WithAnEmptyTable) {
                                   << "  static_assert(skintune_kernels::kKernelCount == 0);\n"
                                   << "  return skintune_kernels::FindKernel(\"opencl\", 1, 1, 1) == nullptr ? 0 : 1;\n"
                                   << "}\n";
-  std::string log;
-  const std::string compile = std::string("'") + SKINTUNE_CXX_COMPILER + "' " + kStrict17 + " '" +
-                              (dir / "main.cpp").string() + "' -o '" + (dir / "main").string() + "'";
-  ASSERT_EQ(Shell(compile, dir / "compile.log", &log), 0) << log;
-  EXPECT_EQ(Shell("'" + (dir / "main").string() + "'", dir / "run.log", &log), 0) << log;
+  CompileAndRunMain(dir);
   fs::remove_all(dir);
 }
 
@@ -650,12 +655,30 @@ int main() {
   return 0;
 }
 )";
-  std::string log;
-  const std::string compile = std::string("'") + SKINTUNE_CXX_COMPILER + "' " + kStrict17 + " '" +
-                              (dir / "main.cpp").string() + "' -o '" + (dir / "main").string() + "'";
-  ASSERT_EQ(Shell(compile, dir / "compile.log", &log), 0) << log;
-  EXPECT_EQ(Shell("'" + (dir / "main").string() + "'", dir / "run.log", &log), 0) << log;
+  CompileAndRunMain(dir);
   fs::remove_all(dir);
+}
+
+// A vulkan kernel carries its SPIR-V (what vkCreateShaderModule takes), the
+// others none; the header still compiles alone as strict C++17.
+TEST(EmbedHeader, AVulkanKernelCarriesItsSpirvWords) {
+  EmbedHeaderOptions options;
+  options.name_space = "spirv_test::kernels";
+  const std::string header =
+      EmbedHeader({Embedded("vulkan.b2.image.wg64", "25k", 20), Embedded("opencl.b2", "25k", 20)}, options);
+  EXPECT_NE(header.find("inline constexpr std::uint32_t kSpirv0[] = {\n    0x07230203u,"), std::string::npos);
+  const fs::path dir = Scratch();
+  std::ofstream(dir / "kernels.h") << header;
+  std::ofstream(dir / "main.cpp") << R"(#include "kernels.h"
+namespace k = spirv_test::kernels;
+int main() {
+  const k::Kernel& vulkan = k::kKernels[0];
+  if (vulkan.spirv_words < 5 || vulkan.spirv[0] != 0x07230203u) return 1;
+  if (k::kKernels[1].spirv != nullptr || k::kKernels[1].spirv_words != 0) return 2;
+  return 0;
+}
+)";
+  CompileAndRunMain(dir);
 }
 
 TEST(EmbedHeader, EmbedHeaderPutsTheNamespaceAndOneSourcePerDistinctKernel) {

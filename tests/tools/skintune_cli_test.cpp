@@ -80,9 +80,9 @@ TEST(SkintuneCli, DevicesListsEveryApisDevicesByIdOrWhyNone) {
                               d.at("name").get<std::string>() + "/" + d.at("driver_version").get<std::string>());
   }
   for (const auto& s : j.at("skipped")) apis.insert(s.get<std::string>().substr(0, s.get<std::string>().find(':')));
-  EXPECT_EQ(apis, (std::set<std::string>{"opencl", "cuda", "gl"})) << j.dump(2);
+  EXPECT_EQ(apis, (std::set<std::string>{"opencl", "cuda", "gl", "vulkan"})) << j.dump(2);
   const auto text = RunSkintune({"devices"});
-  EXPECT_NE(text.out.find("Devices (OpenCL, CUDA or GL):"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("Devices (OpenCL, CUDA, GL or Vulkan):"), std::string::npos) << text.out;
 }
 
 TEST(SkintuneCli, SkinDatasetWritesOneVLinePerVertexMatchingTheGold) {
@@ -199,6 +199,24 @@ TEST(SkintuneCli, EmitWritesTheKernelAndASidecarDescribingItsInterface) {
   std::vector<std::string> names;
   for (const auto& a : sidecar.at("arguments")) names.push_back(a.at("name"));
   EXPECT_EQ(names, (std::vector<std::string>{"n", "first", "positions", "indices", "weights", "palette", "out_positions"}));
+}
+
+// vulkan: the GLSL, its SPIR-V (starting with the SPIR-V magic number) and a
+// sidecar naming both, with the descriptor set and push-constant layout.
+TEST(SkintuneCli, EmitWritesAVulkanKernelsSpirvBesideItsGlsl) {
+  const fs::path dir = Scratch() / "kernels";
+  const std::string key = "vulkan.b2.padded.soa.float4.u16.f32.mat3x4.image.matrix.v1c.wg64.nonormals";
+  const auto r = RunSkintune({"emit", "--variant", key, "--out", dir});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(ReadAll(dir / (key + ".vk.comp")).find("#define STORAGE 3"), std::string::npos);
+  const std::string spirv = ReadAll(dir / (key + ".spv"));
+  ASSERT_GE(spirv.size(), 20u);
+  EXPECT_EQ(spirv.size() % 4, 0u);
+  EXPECT_EQ(spirv.substr(0, 4), std::string("\x03\x02\x23\x07", 4));  // 0x07230203, little-endian
+  const nlohmann::json sidecar = nlohmann::json::parse(ReadAll(dir / (key + ".json")));
+  EXPECT_EQ(sidecar.at("spirv_file"), key + ".spv");
+  EXPECT_EQ(sidecar.at("arguments")[1].at("push_constant_offset"), 4);
+  EXPECT_EQ(sidecar.at("arguments")[5].at("descriptor_type"), "VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER");
 }
 
 TEST(SkintuneCli, EmitInstancesWritesTheInstancedKernelBesideThePlainOne) {

@@ -498,6 +498,38 @@ TEST(GlBackend, CopyBandwidthIsPositive) {
   EXPECT_GT(gbps, 0.0);
 }
 
+// ---------------------------------------------------------------- Vulkan (lavapipe here)
+
+TEST(VulkanBackend, MeasuresVariantsWithTheChipsIdentity) {
+  BACKEND_OR_SKIP(backend, "vulkan");
+  EXPECT_EQ(backend->languages(), std::vector<Lang>{Lang::kVulkan});
+  const DeviceIdentity& d = backend->identity();
+  EXPECT_EQ(d.Id().rfind("vulkan:Vulkan/", 0), 0u) << d.Id();
+  if (d.type == "gpu") EXPECT_EQ(d.uuid.size(), 32u) << "a GPU's Vulkan device names its chip";
+  for (const char* key : {"vulkan.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
+                          "vulkan.b2.bucketed.aos.float3.u8.unorm8.mat4.image.point.v2s.wg64.nonormals"}) {
+    SCOPED_TRACE(key);
+    ExpectOk(backend->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *backend, kDataset);
+  }
+}
+
+TEST(VulkanBackend, InjectedCompileAndWrongFaultsAreCompileAndVerifyFailed) {
+  BACKEND_OR_SKIP(backend, "vulkan");
+  const Variant v = ParseVariantKey("vulkan.b2.soa.wg64");
+  {
+    ScopedFault f(v.Key() + "=compile");
+    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << Name(m.status) << ": " << m.detail;
+    EXPECT_NE(m.detail.find("Vulkan build"), std::string::npos) << m.detail;
+  }
+  {
+    ScopedFault f(v.Key() + "=wrong");
+    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << Name(m.status) << ": " << m.detail;
+    EXPECT_GT(m.max_relative_error, 1e-5);
+  }
+}
+
 // ---------------------------------------------------------------- CUDA (where there is a GPU)
 
 TEST(CudaBackend, MeasuresVariantsAndInjectedFaults) {

@@ -337,7 +337,7 @@ TEST(TuneCli, BadLanguageAndDeviceAreOneLine) {
   EXPECT_EQ(lang.result.exit_code, 1);
   EXPECT_EQ(lang.result.err,
             "skintune: error: --lang 'metal': unknown language (expected one of opencl, cuda, glsl-compute, "
-            "glsl-vertex)\n");
+            "glsl-vertex, vulkan)\n");
   EXPECT_TRUE(lang.report_untouched);
   const BadRun device = RunIntoExistingOut(dir, {"--config", config, "--device", "no-such-gpu"});
   EXPECT_EQ(device.result.exit_code, 1);
@@ -532,6 +532,10 @@ TEST(TuneCli, DefaultRunWithNoArgumentsTunesPoclGlAndCudaWhereFound) {
   }
   std::set<std::string> expected = {"opencl", "glsl-compute", "glsl-vertex"};
   if (cuda_tuned) expected.insert("cuda");
+  // Vulkan likewise (lavapipe here).
+  bool vulkan_tuned = false;
+  for (const nlohmann::json& d : report.at("devices")) vulkan_tuned = vulkan_tuned || d.at("backend") == "vulkan";
+  if (vulkan_tuned) expected.insert("vulkan");
   EXPECT_EQ(languages, expected);
   for (const char* file : {"cache.jsonl", "report.t4.json", "winners-db.json"}) {
     EXPECT_TRUE(fs::exists(dir / "results" / file)) << file;

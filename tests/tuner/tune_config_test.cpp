@@ -43,7 +43,7 @@ TEST(TuneConfig, DefaultConfigIsValidAndSmall) {
   EXPECT_EQ(c.strategy.name, "exhaustive");
   TuningSpace per_dataset = c.space;
   per_dataset.influences = {4};
-  EXPECT_LE(per_dataset.Size(), 200u);  // a quick default, on a CPU device too
+  EXPECT_LE(per_dataset.Size(), 250u);  // a quick default, on a CPU device too (216: five languages)
   EXPECT_TRUE(nlohmann::json::parse(EmbeddedConfig("default")).at("description").is_string());
 }
 

@@ -302,12 +302,7 @@ const char* GlApi::OutputWriter(const Variant& variant) const {
 std::unique_ptr<PlannedLaunch> GlApi::Plan(const LaunchSpec& spec) {
   const Variant& variant = spec.variant;
   const KernelSource& source = spec.source;
-  if (source.lang != variant.lang)
-    Fail("launch", spec.where + ": kernel language " + Name(source.lang) + " for a " + Name(variant.lang) + " variant");
-  if ((variant.storage == PaletteStorage::kConstant || variant.storage == PaletteStorage::kLocal) &&
-      source.joints != static_cast<int>(spec.palette_joints))
-    Fail("launch", spec.where + ": kernel sized for " + std::to_string(source.joints) + " joints, the palette has " +
-                       std::to_string(spec.palette_joints));
+  CheckLaunchKernel(spec, name());
   const BuiltProgram& program = ProgramFor(source);
   auto plan = std::make_unique<GlPlanned>(spec);
   plan->vertex = variant.lang == Lang::kGlslVertex;

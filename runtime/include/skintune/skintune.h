@@ -94,8 +94,8 @@ class Result {
 
 // ---------------------------------------------------------------- devices
 
-enum class Backend { kOpenCl, kCuda, kGl };
-const char* BackendName(Backend backend);  // "opencl", "cuda", "gl"
+enum class Backend { kOpenCl, kCuda, kGl, kVulkan };
+const char* BackendName(Backend backend);  // "opencl", "cuda", "gl", "vulkan"
 
 // A device's identity, as `skintune tune` records it in its reports and winners databases.
 struct DeviceInfo {
@@ -107,6 +107,18 @@ struct DeviceInfo {
   std::string driver_version;
   std::string type;            // "gpu", "cpu", "accelerator" (OpenCL types joined with '+'); GL: "cpu" for
                                // Mesa's software renderers, else "gpu"
+};
+
+// A Vulkan instance, device and compute queue the caller already has
+// (Device::FromVulkan), as void* (VkInstance, VkPhysicalDevice, VkDevice,
+// VkQueue) so this header includes no Vulkan header.
+struct VulkanHandles {
+  void* instance = nullptr;
+  void* physical_device = nullptr;
+  void* device = nullptr;                // created with `queue_family`'s queue; Vulkan 1.1
+  void* queue = nullptr;                 // a queue of `queue_family`, which must have compute
+  std::uint32_t queue_family = 0;
+  void* get_instance_proc_addr = nullptr;  // PFN_vkGetInstanceProcAddr; null: libvulkan.so.1's
 };
 
 struct DeviceOptions {
@@ -181,6 +193,15 @@ class Device {
   // database matches it from the same-device-name level down. kUnavailable
   // when no EGL context is current or it is older than 4.3.
   static Result<Device> FromCurrentGl(const DeviceOptions& options = {});
+
+  // The caller's Vulkan instance, device and queue (VulkanHandles), adopted:
+  // skintune creates no device and destroys none of them; they must outlive
+  // the Device and its Skinners. Skin() submits to that queue (palette copies
+  // too), and Skinner::SkinIntoVulkan records into the caller's command
+  // buffer instead. The queue must not be used from another thread during a
+  // call. kUnavailable without a Vulkan loader; kInvalidArgument for a null
+  // handle or a queue family without compute.
+  static Result<Device> FromVulkan(const VulkanHandles& handles, const DeviceOptions& options = {});
 
   // An OpenCL device that shares buffers with the GL context current on the
   // calling thread (cl_khr_gl_sharing, as in the paper): a new OpenCL context
@@ -417,6 +438,22 @@ class Skinner {
   // kUnavailable when the Device has no GL sharing (see
   // Device::OpenClForCurrentGl); kInvalidState before the first SetPalette.
   Status SkinIntoGlBuffer(unsigned int gl_buffer);
+
+  // Vulkan (how an engine records skinning into its frame): records the
+  // dispatches of one Skin() into `vk_command_buffer` (a VkCommandBuffer of
+  // the Device's queue family, recording, outside a render pass), writing the
+  // positions into `vk_buffer` (a VkBuffer with storage-buffer usage of at
+  // least instances() * vertex_count() * output_stride_bytes() bytes, bound
+  // to memory), or into the Skinner's own output (device_positions(), a
+  // VkBuffer) when null. The recording starts with a barrier after earlier
+  // transfers and compute work (SetPalette's copy was submitted to the queue
+  // already) and ends with one making the outputs visible to every later
+  // command. Normals go to the Skinner's own buffer. The caller submits the
+  // command buffer; Read* and Finish then wait for the queue to be idle.
+  // Each distinct `vk_buffer` takes a descriptor set (at most 7 per
+  // Skinner). kUnavailable on a device of another backend; kInvalidArgument
+  // for a null command buffer; kInvalidState before the first SetPalette.
+  Status SkinIntoVulkan(void* vk_command_buffer, void* vk_buffer = nullptr);
 
   struct Impl;
 

@@ -40,6 +40,9 @@
 //   outputs:        out_positions[, out_normals]: the next bindings, written
 //                   at first + v;
 //   uniforms:       uint n (vertices of this launch), uint first.
+// Compiled to SPIR-V for Vulkan (language `vulkan`), the same text: bindings
+// are descriptor set 0, the palette's samplerBuffer a uniform texel buffer,
+// and n, first, vertex_count a push-constant block (skin_body.glsl).
 // INSTANCED (docs/VARIANTS.md "Instancing"): glDispatchCompute(groups, K, 1)
 // skins K instances; instance i = gl_WorkGroupID.y reads palette rows
 // i*JOINTS*PALETTE_ROWS.. and writes vertex v at i*vertex_count + first + v
@@ -191,7 +194,7 @@
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
 #line 1 2  // skin_body.glsl
 // skintune: the skinning both GLSL stages share, written once: bindings, the
-// uniforms n and first, input loads, palette access, blending and
+// uniforms n and first (Vulkan: push constants), input loads, palette access, blending and
 // skin_vertex() (loads one vertex and skins it). skin.comp and skin.vert
 // include it after skin_params.h, with SKIN_COMPUTE_STAGE defined
 // (templates/README.md, "Preludes"), and add how vertices are assigned to
@@ -226,8 +229,20 @@
 #define BINDING_OUT_POSITIONS 4
 #endif
 
+#ifdef VULKAN
+// Vulkan (GL_KHR_vulkan_glsl predefines VULKAN; the language `vulkan`): no
+// loose uniforms there, so the scalars are one push-constant block at byte
+// offsets 0, 4, 8 (generator/emit.h PushConstantOffset); set 0 holds the
+// bindings above. vertex_count is read by instanced kernels only.
+layout(push_constant) uniform SkinScalars {
+  uint n;
+  uint first;
+  uint vertex_count;
+};
+#else
 uniform uint n;      // vertices of this launch
 uniform uint first;  // index of its first vertex in the outputs (compute: written at first + v)
+#endif
 
 #if INSTANCED
 // The instance this invocation skins (docs/VARIANTS.md "Instancing"): the
@@ -457,7 +472,7 @@ uint slot_stride_of(uint count) {
   return 0u;
 #endif
 }
-#line 40 0  // skin.comp
+#line 43 0  // skin.comp
 
 // ---------------------------------------------------------------- outputs
 
@@ -496,8 +511,8 @@ void store_normal(uint at, vec3 value) {
 
 // ---------------------------------------------------------------- kernel
 
-#if INSTANCED
-uniform uint vertex_count;  // vertices of one instance in the outputs (the whole mesh)
+#if INSTANCED && !defined(VULKAN)
+uniform uint vertex_count;  // vertices of one instance in the outputs (the whole mesh; Vulkan: a push constant)
 #endif
 
 void main() {

@@ -198,7 +198,7 @@
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
 #line 1 2  // skin_body.glsl
 // skintune: the skinning both GLSL stages share, written once: bindings, the
-// uniforms n and first, input loads, palette access, blending and
+// uniforms n and first (Vulkan: push constants), input loads, palette access, blending and
 // skin_vertex() (loads one vertex and skins it). skin.comp and skin.vert
 // include it after skin_params.h, with SKIN_COMPUTE_STAGE defined
 // (templates/README.md, "Preludes"), and add how vertices are assigned to
@@ -233,8 +233,20 @@
 #define BINDING_OUT_POSITIONS 4
 #endif
 
+#ifdef VULKAN
+// Vulkan (GL_KHR_vulkan_glsl predefines VULKAN; the language `vulkan`): no
+// loose uniforms there, so the scalars are one push-constant block at byte
+// offsets 0, 4, 8 (generator/emit.h PushConstantOffset); set 0 holds the
+// bindings above. vertex_count is read by instanced kernels only.
+layout(push_constant) uniform SkinScalars {
+  uint n;
+  uint first;
+  uint vertex_count;
+};
+#else
 uniform uint n;      // vertices of this launch
 uniform uint first;  // index of its first vertex in the outputs (compute: written at first + v)
+#endif
 
 #if INSTANCED
 // The instance this invocation skins (docs/VARIANTS.md "Instancing"): the

@@ -1,0 +1,307 @@
+// The public API on Vulkan (lavapipe here): a Device skintune opens, and the
+// caller's VkInstance / VkDevice / queue adopted (Device::FromVulkan): the
+// Skinner against the gold through Skin() on the caller's queue, and through
+// SkinIntoVulkan recorded into the caller's command buffer writing the
+// caller's VkBuffer; skintune creates no second device and destroys neither
+// the caller's device nor its instance (counted through the
+// vkGetInstanceProcAddr the caller hands over), and the caller's validation
+// layer reports nothing. Each test skips, with the reason, when no Vulkan
+// device is there.
+#include <gtest/gtest.h>
+#include <vulkan/vulkan.h>
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "reference/gltf_import.h"
+#include "reference/skinning.h"
+#include "skintune/skintune.h"
+#include "tests/runtime/api_test_support.h"
+
+namespace skintune {
+namespace {
+
+using testing::ExpectSkinsLikeTheGold;
+using testing::View;
+
+const SkinnedAsset& Cesium() {
+  static const SkinnedAsset asset = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf").asset;
+  return asset;
+}
+
+// ---------------------------------------------------------------- counting loader
+
+struct Counts {
+  int create_instance = 0, destroy_instance = 0, create_device = 0, destroy_device = 0;
+} counts;
+
+VKAPI_ATTR VkResult VKAPI_CALL CountCreateDevice(VkPhysicalDevice p, const VkDeviceCreateInfo* i,
+                                                 const VkAllocationCallbacks* a, VkDevice* d) {
+  ++counts.create_device;
+  return vkCreateDevice(p, i, a, d);
+}
+VKAPI_ATTR void VKAPI_CALL CountDestroyDevice(VkDevice d, const VkAllocationCallbacks* a) {
+  ++counts.destroy_device;
+  vkDestroyDevice(d, a);
+}
+VKAPI_ATTR VkResult VKAPI_CALL CountCreateInstance(const VkInstanceCreateInfo* i, const VkAllocationCallbacks* a,
+                                                   VkInstance* out) {
+  ++counts.create_instance;
+  return vkCreateInstance(i, a, out);
+}
+VKAPI_ATTR void VKAPI_CALL CountDestroyInstance(VkInstance i, const VkAllocationCallbacks* a) {
+  ++counts.destroy_instance;
+  vkDestroyInstance(i, a);
+}
+VKAPI_ATTR PFN_vkVoidFunction VKAPI_CALL CountGetDeviceProcAddr(VkDevice d, const char* name) {
+  if (std::strcmp(name, "vkDestroyDevice") == 0) return reinterpret_cast<PFN_vkVoidFunction>(CountDestroyDevice);
+  return vkGetDeviceProcAddr(d, name);
+}
+// What the test hands skintune as its vkGetInstanceProcAddr.
+VKAPI_ATTR PFN_vkVoidFunction VKAPI_CALL CountGetInstanceProcAddr(VkInstance i, const char* name) {
+  const std::string n = name;
+  if (n == "vkCreateDevice") return reinterpret_cast<PFN_vkVoidFunction>(CountCreateDevice);
+  if (n == "vkDestroyDevice") return reinterpret_cast<PFN_vkVoidFunction>(CountDestroyDevice);
+  if (n == "vkCreateInstance") return reinterpret_cast<PFN_vkVoidFunction>(CountCreateInstance);
+  if (n == "vkDestroyInstance") return reinterpret_cast<PFN_vkVoidFunction>(CountDestroyInstance);
+  if (n == "vkGetDeviceProcAddr") return reinterpret_cast<PFN_vkVoidFunction>(CountGetDeviceProcAddr);
+  return vkGetInstanceProcAddr(i, name);
+}
+
+// ---------------------------------------------------------------- the caller's Vulkan
+
+std::vector<std::string> caller_messages;
+
+VKAPI_ATTR VkBool32 VKAPI_CALL OnMessage(VkDebugUtilsMessageSeverityFlagBitsEXT, VkDebugUtilsMessageTypeFlagsEXT,
+                                         const VkDebugUtilsMessengerCallbackDataEXT* data, void*) {
+  caller_messages.push_back(data->pMessage ? data->pMessage : "?");
+  return VK_FALSE;
+}
+
+// An engine's Vulkan: instance (validation layer and messenger), the first
+// device with compute, one queue; and a host-visible buffer to skin into.
+class CallerVulkan {
+ public:
+  CallerVulkan() {
+    VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+    app.apiVersion = VK_API_VERSION_1_2;
+    const char* layer = "VK_LAYER_KHRONOS_validation";
+    const char* extension = VK_EXT_DEBUG_UTILS_EXTENSION_NAME;
+    VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+    info.pApplicationInfo = &app;
+    info.enabledLayerCount = 1;
+    info.ppEnabledLayerNames = &layer;
+    info.enabledExtensionCount = 1;
+    info.ppEnabledExtensionNames = &extension;
+    if (vkCreateInstance(&info, nullptr, &instance) != VK_SUCCESS) {
+      // No validation layer (a GPU machine may have the driver only): the same test without it.
+      info.enabledLayerCount = 0;
+      info.enabledExtensionCount = 0;
+      if (vkCreateInstance(&info, nullptr, &instance) != VK_SUCCESS) {
+        why = "vkCreateInstance failed (no Vulkan driver?)";
+        instance = VK_NULL_HANDLE;
+        return;
+      }
+    }
+    auto create_messenger = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+        vkGetInstanceProcAddr(instance, "vkCreateDebugUtilsMessengerEXT"));
+    VkDebugUtilsMessengerCreateInfoEXT m{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+    m.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+    m.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                    VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+    m.pfnUserCallback = OnMessage;
+    if (info.enabledLayerCount > 0 && create_messenger) create_messenger(instance, &m, nullptr, &messenger);
+    std::uint32_t count = 0;
+    vkEnumeratePhysicalDevices(instance, &count, nullptr);
+    std::vector<VkPhysicalDevice> devices(count);
+    vkEnumeratePhysicalDevices(instance, &count, devices.data());
+    for (VkPhysicalDevice d : devices) {
+      std::uint32_t families = 0;
+      vkGetPhysicalDeviceQueueFamilyProperties(d, &families, nullptr);
+      std::vector<VkQueueFamilyProperties> props(families);
+      vkGetPhysicalDeviceQueueFamilyProperties(d, &families, props.data());
+      for (std::uint32_t f = 0; f < families && !physical; ++f) {
+        if (props[f].queueFlags & VK_QUEUE_COMPUTE_BIT) {
+          physical = d;
+          family = f;
+        }
+      }
+      if (physical) break;
+    }
+    if (!physical) {
+      why = "no Vulkan device with a compute queue";
+      return;
+    }
+    const float priority = 1.0f;
+    VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+    queue_info.queueFamilyIndex = family;
+    queue_info.queueCount = 1;
+    queue_info.pQueuePriorities = &priority;
+    VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+    device_info.queueCreateInfoCount = 1;
+    device_info.pQueueCreateInfos = &queue_info;
+    if (vkCreateDevice(physical, &device_info, nullptr, &device) != VK_SUCCESS) {
+      why = "vkCreateDevice failed";
+      return;
+    }
+    vkGetDeviceQueue(device, family, 0, &queue);
+    VkCommandPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+    pool_info.queueFamilyIndex = family;
+    vkCreateCommandPool(device, &pool_info, nullptr, &pool);
+  }
+  ~CallerVulkan() {
+    if (device) {
+      vkDeviceWaitIdle(device);
+      if (buffer) vkDestroyBuffer(device, buffer, nullptr);
+      if (memory) vkFreeMemory(device, memory, nullptr);
+      if (pool) vkDestroyCommandPool(device, pool, nullptr);
+      vkDestroyDevice(device, nullptr);
+    }
+    if (messenger) {
+      reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(
+          vkGetInstanceProcAddr(instance, "vkDestroyDebugUtilsMessengerEXT"))(instance, messenger, nullptr);
+    }
+    if (instance) vkDestroyInstance(instance, nullptr);
+  }
+  bool ok() const { return device != VK_NULL_HANDLE; }
+
+  // A host-visible, coherent storage buffer of `bytes`, mapped.
+  void* NewBuffer(std::size_t bytes) {
+    VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+    info.size = bytes;
+    info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+    vkCreateBuffer(device, &info, nullptr, &buffer);
+    VkMemoryRequirements needs{};
+    vkGetBufferMemoryRequirements(device, buffer, &needs);
+    VkPhysicalDeviceMemoryProperties memory_properties{};
+    vkGetPhysicalDeviceMemoryProperties(physical, &memory_properties);
+    const VkMemoryPropertyFlags want = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+    VkMemoryAllocateInfo allocate{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+    allocate.allocationSize = needs.size;
+    for (std::uint32_t t = 0; t < memory_properties.memoryTypeCount; ++t) {
+      if ((needs.memoryTypeBits & (1u << t)) && (memory_properties.memoryTypes[t].propertyFlags & want) == want) {
+        allocate.memoryTypeIndex = t;
+        break;
+      }
+    }
+    vkAllocateMemory(device, &allocate, nullptr, &memory);
+    vkBindBufferMemory(device, buffer, memory, 0);
+    void* mapped = nullptr;
+    vkMapMemory(device, memory, 0, VK_WHOLE_SIZE, 0, &mapped);
+    return mapped;
+  }
+
+  VulkanHandles Handles() const {
+    VulkanHandles h;
+    h.instance = instance;
+    h.physical_device = physical;
+    h.device = device;
+    h.queue = queue;
+    h.queue_family = family;
+    h.get_instance_proc_addr = reinterpret_cast<void*>(&CountGetInstanceProcAddr);
+    return h;
+  }
+
+  std::string why;
+  VkInstance instance = VK_NULL_HANDLE;
+  VkDebugUtilsMessengerEXT messenger = VK_NULL_HANDLE;
+  VkPhysicalDevice physical = VK_NULL_HANDLE;
+  std::uint32_t family = 0;
+  VkDevice device = VK_NULL_HANDLE;
+  VkQueue queue = VK_NULL_HANDLE;
+  VkCommandPool pool = VK_NULL_HANDLE;
+  VkBuffer buffer = VK_NULL_HANDLE;
+  VkDeviceMemory memory = VK_NULL_HANDLE;
+};
+
+constexpr const char* kVariant = "vulkan.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64";
+
+TEST(VulkanAdopted, SkinsOnTheCallersDeviceAndQueueAndIntoItsCommandBufferCreatingAndDestroyingNothing) {
+  CallerVulkan caller;
+  if (!caller.ok()) GTEST_SKIP() << caller.why;
+  counts = {};
+  caller_messages.clear();
+  const SkinnedAsset& asset = Cesium();
+  const View view(asset.mesh);
+  const std::vector<glm::mat4> palette = asset.PaletteAt(0, 0.5);
+  const std::size_t out_bytes = asset.mesh.vertex_count() * 16;
+  auto* skinned_into = static_cast<const float*>(caller.NewBuffer(out_bytes));
+  {
+    Result<Device> device = Device::FromVulkan(caller.Handles());
+    ASSERT_TRUE(device.ok()) << device.status().message();
+    EXPECT_EQ(device->info().backend, Backend::kVulkan);
+    SkinnerOptions options;
+    options.variant = kVariant;
+    Result<Skinner> skinner = Skinner::Create(*device, WinnersDb::Empty(), view.mesh, options);
+    ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+    ASSERT_EQ(skinner->output_stride_bytes(), 16u);
+    ExpectSkinsLikeTheGold(*skinner, asset.mesh, palette);  // Skin() on the caller's queue
+
+    // Recorded into the caller's command buffer, written into the caller's buffer.
+    VkCommandBufferAllocateInfo allocate{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+    allocate.commandPool = caller.pool;
+    allocate.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    allocate.commandBufferCount = 1;
+    VkCommandBuffer cb = VK_NULL_HANDLE;
+    ASSERT_EQ(vkAllocateCommandBuffers(caller.device, &allocate, &cb), VK_SUCCESS);
+    VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    vkBeginCommandBuffer(cb, &begin);
+    const Status recorded = skinner->SkinIntoVulkan(cb, caller.buffer);
+    ASSERT_TRUE(recorded.ok()) << recorded.message();
+    vkEndCommandBuffer(cb);
+    VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+    submit.commandBufferCount = 1;
+    submit.pCommandBuffers = &cb;
+    ASSERT_EQ(vkQueueSubmit(caller.queue, 1, &submit, VK_NULL_HANDLE), VK_SUCCESS);
+    ASSERT_EQ(vkQueueWaitIdle(caller.queue), VK_SUCCESS);
+    const GoldResult gold = SkinGold(QuantisedMesh(asset.mesh, ParseVariantKey(kVariant)), palette, false);
+    std::vector<glm::vec3> positions(asset.mesh.vertex_count());
+    for (std::size_t v = 0; v < positions.size(); ++v)
+      positions[v] = {skinned_into[4 * v], skinned_into[4 * v + 1], skinned_into[4 * v + 2]};
+    const GoldComparison c = CompareToGold(gold.positions, positions);
+    EXPECT_EQ(c.non_finite, 0u);
+    EXPECT_LT(c.max_relative, 1e-5) << "worst vertex " << c.worst_vertex;
+    EXPECT_TRUE(skinner->Finish().ok());
+  }
+  EXPECT_EQ(counts.create_device, 0);
+  EXPECT_EQ(counts.destroy_device, 0);
+  EXPECT_EQ(counts.create_instance, 0);
+  EXPECT_EQ(counts.destroy_instance, 0);
+  // The caller's device still works.
+  EXPECT_EQ(vkDeviceWaitIdle(caller.device), VK_SUCCESS);
+  VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+  info.size = 256;
+  info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  VkBuffer after = VK_NULL_HANDLE;
+  EXPECT_EQ(vkCreateBuffer(caller.device, &info, nullptr, &after), VK_SUCCESS);
+  vkDestroyBuffer(caller.device, after, nullptr);
+  for (const std::string& m : caller_messages) ADD_FAILURE() << "validation: " << m;
+}
+
+TEST(VulkanAdopted, NullHandlesAreInvalidArguments) {
+  const Result<Device> device = Device::FromVulkan(VulkanHandles{});
+  ASSERT_FALSE(device.ok());
+  EXPECT_EQ(device.status().code(), ErrorCode::kInvalidArgument) << device.status().message();
+  EXPECT_NE(device.status().message().find("null"), std::string::npos) << device.status().message();
+}
+
+TEST(VulkanDevice, OpensListsAndSkinsLikeTheGold) {
+  const Backend vulkan = Backend::kVulkan;
+  const testing::TempDir cache;
+  Result<Device> device = Device::Open("", &vulkan, testing::CacheIn(cache));
+  if (!device.ok()) GTEST_SKIP() << device.status().message();
+  EXPECT_EQ(device->info().backend, Backend::kVulkan);
+  EXPECT_EQ(device->info().id.rfind("vulkan:Vulkan/", 0), 0u) << device->info().id;
+  const View view(Cesium().mesh);
+  SkinnerOptions options;
+  options.instances = 3;
+  Result<Skinner> skinner = Skinner::Create(*device, WinnersDb::Empty(), view.mesh, options);
+  ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+  testing::ExpectInstancesLikeTheGold(*skinner, Cesium().mesh, testing::Poses(Cesium(), 3));
+  // Recording into a command buffer is Vulkan's only.
+  EXPECT_EQ(skinner->SkinIntoVulkan(nullptr).code(), ErrorCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace skintune

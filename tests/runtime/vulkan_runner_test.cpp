@@ -1,0 +1,271 @@
+// The language vulkan (templates/skin.comp compiled to SPIR-V) through the
+// runner driver on the machine's Vulkan devices (lavapipe in CI), with the
+// validation layer on: every test also fails on any validation warning or
+// error. The generated covering set against the float64 gold on fresh random
+// meshes (the seed is printed; SKINTUNE_TEST_SEED=<n> reproduces a run),
+// the staging paths of a discrete GPU (forced on lavapipe), instances,
+// poison and guard, build logs, timing, the copy kernel, the program cache
+// and the device identity. Every test skips, with the reason, only when no
+// Vulkan device can be opened; GPU-only expectations skip without a GPU.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <iostream>
+#include <regex>
+
+#include "generator/constraints.h"
+#include "generator/copy_kernel.h"
+#include "generator/covering.h"
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "reference/error.h"
+#include "runner_test_support.h"
+#include "runtime/backends/vulkan/vulkan_runner.h"
+#include "runtime/program_cache.h"
+#include "tests/common/scratch_dir.h"
+
+namespace skintune {
+namespace {
+
+using namespace skintune::testing;  // the runner tests' helpers (runner_test_support.h)
+
+// Whether the validation layer is installed (this machine: vulkan-validationlayers).
+bool ValidationLayerMissing(const std::string& error) {
+  return error.find("no VK_LAYER_KHRONOS_validation") != std::string::npos;
+}
+
+// One runner for the whole program (device 0), with validation where the
+// layer is installed (a GPU machine may have the driver but not the layer),
+// or null with the reason.
+VulkanRunner* Runner(std::string& why) {
+  static std::string reason;
+  static std::unique_ptr<VulkanRunner> runner = []() -> std::unique_ptr<VulkanRunner> {
+    try {
+      std::unique_ptr<VulkanRunner> r;
+      try {
+        r = std::make_unique<VulkanRunner>(0, true);
+      } catch (const Error& e) {
+        if (!ValidationLayerMissing(e.what())) throw;
+        std::cout << "[ Vulkan   ] " << e.what() << ": running without validation\n";
+        r = std::make_unique<VulkanRunner>(0, false);
+      }
+      const vk::VulkanDeviceInfo& i = r->info();
+      std::cout << "[ Vulkan   ] " << i.name << " (" << i.vendor << ", " << i.type << "), " << i.driver_version
+                << ", Vulkan " << i.api_version << ", UUID " << i.uuid << "\n";
+      return r;
+    } catch (const Error& e) {
+      reason = e.what();
+      return nullptr;
+    }
+  }();
+  why = reason;
+  return runner.get();
+}
+
+// Whether this machine's runners validate (the layer is installed).
+bool ValidationOn() {
+  static const bool on = [] {
+    try {
+      VulkanRunner probe(0, true);
+      return true;
+    } catch (const Error&) {
+      return false;
+    }
+  }();
+  return on;
+}
+
+// Fails the test on any validation message that appeared during it.
+class Validated : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    runner_ = Runner(why_);
+    if (!runner_) GTEST_SKIP() << why_;
+    before_ = runner_->validation_messages().size();
+  }
+  void TearDown() override {
+    if (!runner_) return;
+    const std::vector<std::string> messages = runner_->validation_messages();
+    for (std::size_t m = before_; m < messages.size(); ++m) ADD_FAILURE() << "validation: " << messages[m];
+  }
+  VulkanRunner* runner_ = nullptr;
+  std::string why_;
+  std::size_t before_ = 0;
+};
+
+// The generated covering set for this device's limits: every value of every
+// axis and every pair of layout x index x weight x palette x storage x blend
+// that fits, each variant on a fresh mesh with its own influence count.
+TEST_F(Validated, CoveringSetMatchesTheGold) {
+  const CoveringSet set = BuildCoveringSet(Lang::kVulkan, vk::LimitsOf(runner_->info()), {77, 1, true});
+  for (const std::string& pair : set.uncoverable)
+    EXPECT_NE(pair.find("storage=local"), std::string::npos) << "only local storage may be uncoverable: " << pair;
+  ExpectCoveringSetMatchesGold(*runner_, set, LaunchTimes::kNonNegative);
+  std::cout << "[ covering ] " << set.variants.size() << " vulkan variants verified on " << runner_->device_name()
+            << "\n";
+}
+
+// Each palette storage, bucketed launches (first > 0) and normals, with
+// kernel buffers in unmapped memory: uploads and read-backs through staging
+// buffers, as on a discrete GPU. (A runner of its own, made with
+// $SKINTUNE_VULKAN_STAGING set.)
+TEST_F(Validated, StagedBuffersMatchTheGold) {
+  setenv("SKINTUNE_VULKAN_STAGING", "1", 1);
+  VulkanRunner staged(0, ValidationOn());
+  unsetenv("SKINTUNE_VULKAN_STAGING");
+  const Case cases[] = {
+      {"vulkan.b4.bucketed.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.normals", "cesium"},
+      {"vulkan.b2.padded.aos.float3.u16.f32.mat4.image.matrix.v2c.wg64.nonormals", "b2"},
+      {"vulkan.b3.padded.soa-split.float4.u8.unorm8.mat3x4.constant.point.v4s.wg32.normals", "b3"},
+      {"vulkan.b4.bucketed.aos.float3.u8.unorm8.mat4.local.point.v2s.wg64.normals", "cesium"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(std::string(c.key) + " on " + c.mesh + ", seed " + std::to_string(Seed()));
+    ExpectCaseMatchesGold(staged, c, ParseVariantKey(c.key), LaunchTimes::kNonNegative);
+  }
+  for (const std::string& m : staged.validation_messages()) ADD_FAILURE() << "validation: " << m;
+}
+
+// K instances per launch, each against the gold of its own palette.
+TEST_F(Validated, InstancesMatchTheGoldOfTheirPalettes) {
+  const testing::Case cases[] = {
+      {"vulkan.b2.padded.soa.float4.u16.f32.mat3x4.constant.matrix.v1c.wg64.normals", "b2"},
+      {"vulkan.b4.bucketed.soa-split.float3.u8.unorm16.mat3x4.image.point.v2s.wg32.nonormals", "cesium"},
+      {"vulkan.b3.padded.aos.float4.i32.f32.mat4.local.matrix.v4c.wg128.normals", "b3-random"},
+  };
+  for (const testing::InstanceCase& c : testing::WithInstanceCounts(cases)) {
+    SCOPED_TRACE(std::string(c.key) + " x" + std::to_string(c.instances) + ", seed " + std::to_string(Seed()));
+    testing::ExpectInstanceCaseMatchesGold(*runner_, c, vk::LimitsOf(runner_->info()));
+  }
+}
+
+constexpr const char* kKey = "vulkan.b2.soa.float4.u16.f32.wg64";
+
+TEST_F(Validated, PoisonedOutputCatchesAKernelThatSkipsVertices) {
+  Faulty f = WithFault(kKey, "if (v >= n) break;", "if (v >= n / 2u) break;");
+  ExpectHalfPoisoned(f, runner_->Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant)));
+}
+
+TEST_F(Validated, GuardCatchesAKernelThatWritesPastTheEnd) {
+  ExpectRunFails(*runner_,
+                 WithFault(kKey, "STORE_POSITION(out_first + v, skinned_position);",
+                           "STORE_POSITION(out_first + v + 64u, skinned_position);"),
+                 "writing 64 vertices past the output was not caught",
+                 {"Vulkan guard", "out_positions", "wrote past the end"});
+}
+
+TEST_F(Validated, BuildFailureCarriesTheLog) {
+  Faulty f = WithFault(kKey, "float weight_of(uint raw) {", "float weight_of(uint raw) {\n  undeclared_name_xyz = 1;");
+  ExpectRunFails(*runner_, f, "a kernel with an undeclared name built", {"Vulkan build", "undeclared_name_xyz"});
+}
+
+// The same text is a GL shader and a Vulkan one: VULKAN (predefined by
+// glslang for Vulkan targets) selects the push-constant block.
+TEST_F(Validated, TheComputeTemplateCompilesAloneAndInstanced) {
+  for (const bool instanced : {false, true}) {
+    KernelSource s;
+    s.lang = Lang::kVulkan;
+    s.entry_point = "main";
+    s.text = ExpandedTemplate("skin.comp");
+    if (instanced) s.text.insert(s.text.find('\n') + 1, "#define INSTANCED 1\n");
+    s.source_hash = SourceHash(s.text);
+    EXPECT_NO_THROW(runner_->Build(s)) << (instanced ? "instanced" : "plain");
+  }
+}
+
+TEST_F(Validated, RejectsAGlslVertexKernelAndAConstantPaletteAboveTheLimit) {
+  EXPECT_NE(testing::ErrorOf([&] { runner_->Build(Emit(ParseVariantKey("glsl-vertex.b2.v1c.wg0"), 0, 20)); })
+                .find("Vulkan build"),
+            std::string::npos);
+  const std::uint32_t limit = runner_->info().limits.maxUniformBufferRange;
+  const std::size_t instances = limit / (12 * 48) + 1;  // b2's 12 joints of mat3x4 (48 bytes)
+  if (instances > runner_->info().limits.maxComputeWorkGroupCount[1] || instances > 100000)
+    GTEST_SKIP() << "maxUniformBufferRange " << limit << " needs too many instances to exceed";
+  const testing::InstancedRun run = testing::InstancedInputs(ParseVariantKey("vulkan.b2.soa.constant.wg64"), "b2",
+                                                             static_cast<int>(instances));
+  const std::string error = testing::ErrorOf([&] {
+    runner_->RunInstanced(run.packed, static_cast<int>(instances), run.palette_bytes);
+  });
+  EXPECT_NE(error.find("maxUniformBufferRange"), std::string::npos) << error;
+}
+
+// Timestamps: per launch in Run, per burst in Time (instanced frames over two
+// sets, so later frames reuse a set: barriers); the same-size copy, a correct
+// copy, timed the same way.
+TEST_F(Validated, TimesBurstsAndTheCopyKernel) {
+  const InstancedRun run = InstancedInputs(ParseVariantKey("vulkan.b4.bucketed.soa.global.wg64"), "cesium", 3);
+  const std::vector<KernelSource> kernels = EmitLaunchKernels(run.packed, 3);
+  const std::vector<std::vector<std::uint8_t>> sets = {run.palette_bytes, run.palette_bytes};
+  const Prepared prepared = runner_->Prepare(run.packed, kernels, sets, 3);
+  EXPECT_EQ(prepared.input_sets(), 2);
+  for (const int frames : {1, 4}) {
+    const std::vector<double> ms = runner_->Time(prepared, 2, 5, frames);
+    ASSERT_EQ(ms.size(), 5u) << frames << " frames per burst";
+    for (const double t : ms) EXPECT_GT(t, 0.0);
+  }
+  const CopyKernel copy = EmitCopy(Lang::kVulkan, 1 << 20);
+  EXPECT_EQ(copy.kernel.lang, Lang::kVulkan);
+  const RunResult copied = runner_->Run(copy.mesh, std::span<const KernelSource>(&copy.kernel, 1));
+  EXPECT_EQ(copied.poisoned_vertices, 0u);
+  EXPECT_EQ(copied.positions, copy.mesh.launches[0].inputs[0].bytes);
+  const Prepared copies = runner_->PrepareCopy(Lang::kVulkan, 1 << 20, 3);
+  const std::vector<double> ms = runner_->Time(copies, 1, 3, 4);
+  ASSERT_EQ(ms.size(), 3u);
+  for (const double t : ms) EXPECT_GT(t, 0.0);
+}
+
+TEST_F(Validated, ProgramCacheStoresSpirvAndASecondRunnerLoadsIt) {
+  const std::string dir = testing::ScratchDir("vulkan-cache").string();
+  const KernelSource source = Emit(ParseVariantKey(kKey), 0, 20);
+  ProgramCache first(dir);
+  {
+    VulkanRunner a(0, ValidationOn());
+    a.UseProgramCache(&first, "vulkan:test");
+    a.Build(source);
+    a.Build(source);
+  }
+  EXPECT_EQ(first.counters().builds, 1);
+  EXPECT_EQ(first.counters().memory_hits, 1);
+  ProgramCache second(dir);
+  VulkanRunner b(0, ValidationOn());
+  b.UseProgramCache(&second, "vulkan:test");
+  b.Build(source);
+  EXPECT_EQ(second.counters().builds, 0);
+  EXPECT_EQ(second.counters().disk_hits, 1);
+}
+
+TEST_F(Validated, IdentityNamesTheChipByUuid) {
+  const DeviceIdentity id = vk::IdentityOf(runner_->info());
+  EXPECT_EQ(id.backend, "vulkan");
+  EXPECT_TRUE(id.uuid.empty() || std::regex_match(id.uuid, std::regex("[0-9a-f]{32}"))) << id.uuid;
+  EXPECT_TRUE(id.pci_bus_id.empty() || std::regex_match(id.pci_bus_id, std::regex("[0-9a-f]{4}:[0-9a-f]{2}:[0-9a-f]{2}\\.[0-9a-f]")))
+      << id.pci_bus_id;
+  const DeviceLimits limits = vk::LimitsOf(runner_->info());
+  EXPECT_GE(limits.max_wg_size, 128u);
+  EXPECT_GE(limits.uniform_block_bytes, 16384u);
+  EXPECT_GT(runner_->info().timestamp_valid_bits, 0u);
+  if (id.type != "gpu") GTEST_SKIP() << "GPU-only: a GPU's Vulkan device has a UUID (here " << id.name << ", a " << id.type << ")";
+  EXPECT_FALSE(id.uuid.empty());
+}
+
+// CI (lavapipe, a CPU device) must run under the validation layer; a GPU
+// machine without the layer runs the same tests without it.
+TEST_F(Validated, ValidationIsOnOnTheCpuDevice) {
+  std::string error;
+  try {
+    VulkanRunner probe(0, true);
+  } catch (const Error& e) {
+    error = e.what();
+  }
+  if (runner_->info().type != "cpu" && ValidationLayerMissing(error))
+    GTEST_SKIP() << "no validation layer on this GPU machine: " << error;
+  EXPECT_EQ(error, "") << "the validation layer (vulkan-validationlayers) must be installed where CI runs";
+}
+
+TEST(VulkanRunnerSetup, AMissingDeviceIsAClearError) {
+  const std::string error = testing::ErrorOf([] { VulkanRunner r(1000); });
+  EXPECT_TRUE(error.rfind("Vulkan setup: ", 0) == 0) << error;
+}
+
+}  // namespace
+}  // namespace skintune
