@@ -82,12 +82,6 @@ std::string Fixed(double value, int decimals) {
 // (Measurement::x_copy, docs/TUNING.md "Timing"), "-" when there is none.
 std::string TimesCopy(const Winner& w) { return w.x_copy > 0.0 ? Fixed(w.x_copy, 2) : "-"; }
 
-std::string Sci(double value) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.1e", value);
-  return text;
-}
-
 // Per device (in report order): its winners within the budget, one per
 // language, B and vertex count, with what they cost against the unquantised
 // source (docs/TUNING.md "Precision"); faster classes over the budget are

@@ -63,6 +63,9 @@ void WriteFilesTogether(const std::vector<std::pair<std::filesystem::path, std::
 // or not; then the measurement counts per status and the budget.
 void PrintWinners(const TuningReport& report);
 
+// "1.2e-04": an error in the tables.
+std::string Sci(double value);
+
 // Rows of text as columns two spaces apart; the columns in `right` (numbers)
 // aligned right.
 std::string FormatTable(const std::vector<std::vector<std::string>>& rows, const std::vector<std::size_t>& right);

@@ -173,8 +173,7 @@ class CudaApi final : public DeviceApi {
   const BuiltKernel& KernelFor(const KernelSource& source);
   Memory NewMemory(std::size_t bytes, const void* data, const std::string& what) const;
   Event NewEvent(const std::string& what) const;
-  void LaunchLive(const CudaBound& bound);
-  void LaunchTimed(const CudaBound& bound, cuda::Stream lane);
+  void Launch(const CudaBound& bound, cuda::Stream lane);
   double ElapsedMs(const Event& start, const Event& end) const;
   std::vector<std::vector<double>> RunTimed(const FrameRun& run);
 
@@ -343,25 +342,11 @@ Event CudaApi::NewEvent(const std::string& what) const {
   return Event(e, api->cuEventDestroy);
 }
 
-// The Skinner's launch, on the caller's stream. The module's symbol is shared
-// by every set and Skinner of this kernel: the set's palette is copied into it
-// on the stream before each launch.
-void CudaApi::LaunchLive(const CudaBound& bound) {
-  const CudaPlanned& plan = *bound.plan;
-  const std::string& where = plan.spec.where;
-  if (plan.constant_symbol)
-    Check(api->cuMemcpyDtoDAsync(plan.constant_symbol, bound.palette->pointer(), bound.palette->host.size(), stream),
-          "launch", where + ": cuMemcpyDtoDAsync to '" + kConstantPaletteSymbol + "'");
-  Check(api->cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, stream,
-                            const_cast<void**>(bound.parameters.data()), nullptr),
-        "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " x " + std::to_string(plan.instances) +
-                      " blocks of " + std::to_string(plan.threads) + ")");
-}
-
-// Enqueues one launch on `lane` (Run: the legacy default stream): `constant`
-// storage first copies the set's palette into the symbol, on that stream
-// (device to device, as the Skinner does: part of the frame's cost).
-void CudaApi::LaunchTimed(const CudaBound& bound, cuda::Stream lane) {
+// Enqueues one launch on `lane` (Run: the legacy default stream; the
+// Skinner: the caller's stream). The module's symbol is shared by every set
+// and Skinner of the kernel: `constant` storage first copies the set's
+// palette into it, on that stream (device to device: part of a frame's cost).
+void CudaApi::Launch(const CudaBound& bound, cuda::Stream lane) {
   const CudaPlanned& plan = *bound.plan;
   const std::string& where = plan.spec.where;
   if (plan.constant_symbol)
@@ -414,7 +399,7 @@ std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
     for (const std::unique_ptr<DeviceObject>& launch : run.frames.front()) {
       events.emplace_back(NewEvent(what), NewEvent(what));
       record(events.back().first, nullptr);
-      LaunchTimed(static_cast<const CudaBound&>(*launch), nullptr);
+      Launch(static_cast<const CudaBound&>(*launch), nullptr);
       record(events.back().second, nullptr);
     }
   } else {
@@ -423,7 +408,7 @@ std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
     const int lanes = UsesConstantSymbol(run) ? 1 : 2;
     const cuda::Stream first = Lane(0), second = lanes == 2 ? Lane(1) : first;
     for (std::size_t f = 0; f < untimed; ++f)
-      for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) LaunchTimed(static_cast<const CudaBound&>(*launch), first);
+      for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) Launch(static_cast<const CudaBound&>(*launch), first);
     for (std::size_t b = 0; b < run.TimedBursts(); ++b) {
       events.emplace_back(NewEvent(what), NewEvent(what));
       record(events.back().first, first);
@@ -431,7 +416,7 @@ std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
       for (std::size_t i = 0; i < burst; ++i) {
         const cuda::Stream lane = i % 2 == 0 ? first : second;
         for (const std::unique_ptr<DeviceObject>& launch : run.frames[untimed + b * burst + i])
-          LaunchTimed(static_cast<const CudaBound&>(*launch), lane);
+          Launch(static_cast<const CudaBound&>(*launch), lane);
       }
       if (second != first) {
         const Event joined = NewEvent(what);
@@ -457,7 +442,7 @@ std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
 std::vector<std::vector<double>> CudaApi::RunFrames(const FrameRun& run) {
   if (run.use != FrameUse::kLive) return RunTimed(run);
   for (const auto& frame : run.frames)
-    for (const std::unique_ptr<DeviceObject>& launch : frame) LaunchLive(static_cast<const CudaBound&>(*launch));
+    for (const std::unique_ptr<DeviceObject>& launch : frame) Launch(static_cast<const CudaBound&>(*launch), stream);
   return {};
 }
 
