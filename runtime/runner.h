@@ -152,11 +152,6 @@ class Runner {
   // Waits for everything queued.
   void Finish();
 
-  // A plain copy kernel between two buffers of `bytes` (rounded down to a
-  // multiple of 16; the source holds a non-zero pattern): `warmup` untimed
-  // then `repetitions` timed runs, the device's time in ms each.
-  std::vector<double> TimeCopy(std::size_t bytes, int warmup, int repetitions);
-
  private:
   Prepared PrepareSets(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                        std::span<const std::vector<std::uint8_t>> palettes, const RunShape& shape,

@@ -402,8 +402,9 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
           bursts[b].last[l] = std::move(e);
         }
       }
-      // Submitted now: NVIDIA's OpenCL holds a queue's commands back until a
-      // flush, and two queues unflushed cost ~6 us per frame at 400k-b4.
+      // Submitted now, so neither queue waits for the host to flush it. (On
+      // the H100 this did not remove NVIDIA's OpenCL's ~7 us per frame with
+      // two queues at 400k-b4: docs/PERFORMANCE.md "Timing version 2".)
       Check(clFlush(lane[l]), "launch", "clFlush while timing " + run.key);
     }
   }
