@@ -99,8 +99,8 @@ inline constexpr int kArrayFormatFloat = 0x20;         // CU_AD_FORMAT_FLOAT
 inline constexpr int kFilterModePoint = 0;             // CU_TR_FILTER_MODE_POINT
 inline constexpr int kAddressModeClamp = 1;            // CU_TR_ADDRESS_MODE_CLAMP
 inline constexpr unsigned kGraphicsRegisterWriteDiscard = 2;  // CU_GRAPHICS_REGISTER_FLAGS_WRITE_DISCARD
-inline constexpr Result kErrorInvalidGraphicsContext = 219;   // CUDA_ERROR_INVALID_GRAPHICS_CONTEXT
 inline constexpr Result kErrorInvalidValue = 1;               // CUDA_ERROR_INVALID_VALUE
+inline constexpr Result kErrorInvalidHandle = 400;            // CUDA_ERROR_INVALID_HANDLE
 
 // CUDA_RESOURCE_DESC with its `linear` member (the only one used).
 struct ResourceDesc {

@@ -14,6 +14,7 @@
 #include "runtime/api_errors.h"
 #include "runtime/backends/cuda/cuda_api.h"
 #include "runtime/backends/cuda/cuda_runner.h"
+#include "runtime/backends/gl/gl_context.h"
 #include "runtime/skinner.h"
 
 namespace skintune {
@@ -72,13 +73,19 @@ class CudaSkinner final : public RunnerSkinner {
     if (auto found = registered_.find(gl_buffer); found != registered_.end()) return found->second;
     cuda::GraphicsResource resource = nullptr;
     const cuda::Result r = api.cuGraphicsGLRegisterBuffer(&resource, gl_buffer, cuda::kGraphicsRegisterWriteDiscard);
-    if (r == cuda::kErrorInvalidGraphicsContext)
-      FailWith(ErrorCode::kInvalidState, "Skinner::SkinIntoGlBuffer: no GL context of this GPU is current on this "
-                                         "thread (cuGraphicsGLRegisterBuffer of " + buffer + ": " + cuda::ErrorText(r) + ")");
-    if (r == cuda::kErrorInvalidValue)
-      FailWith(ErrorCode::kInvalidArgument, "Skinner::SkinIntoGlBuffer: " + buffer +
-                                                " is not a buffer object of the current GL context (" +
-                                                cuda::ErrorText(r) + ")");
+    if (r != cuda::kSuccess) {
+      // The driver says "invalid value" both without a current GL context
+      // and for a name that is no buffer (seen on the H100): ask EGL which.
+      const std::unique_ptr<GlContext> current = GlContext::AdoptCurrent();
+      if (!current->ok())
+        FailWith(ErrorCode::kInvalidState, "Skinner::SkinIntoGlBuffer: " + current->reason() +
+                                               " (cuGraphicsGLRegisterBuffer of " + buffer + ": " + cuda::ErrorText(r) +
+                                               ")");
+      if (r == cuda::kErrorInvalidValue || r == cuda::kErrorInvalidHandle)
+        FailWith(ErrorCode::kInvalidArgument, "Skinner::SkinIntoGlBuffer: " + buffer +
+                                                  " is not a buffer object of the current GL context (" +
+                                                  cuda::ErrorText(r) + ")");
+    }
     cuda::Check(r, "launch", "cuGraphicsGLRegisterBuffer of " + buffer);
     registered_[gl_buffer] = resource;
     return resource;
