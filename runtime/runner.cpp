@@ -369,13 +369,19 @@ std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int burst
   bursts = std::max(bursts, 0);
   burst_frames = std::max(burst_frames, 1);
   if (api_->timing_policy().warm_until_stable) WarmUntilStable(*p);
+  const auto start = std::chrono::steady_clock::now();
   std::vector<double> ms = TimeFrames(*p, warmup, bursts, burst_frames);
   if (!ms.empty()) {
+    // The host's wall time over every frame of the call (warm-up frames
+    // included, and the final wait): an upper bound of the device's time, a
+    // check on the device timers in the log.
+    const double wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     std::vector<double> sorted = ms;
     std::sort(sorted.begin(), sorted.end());
     TimingLog(p->key + " timed: " + std::to_string(bursts) + " bursts of " + std::to_string(burst_frames) +
               " frames, median " + std::to_string(sorted[sorted.size() / 2]) + " ms, min " +
-              std::to_string(sorted.front()) + ", max " + std::to_string(sorted.back()));
+              std::to_string(sorted.front()) + ", max " + std::to_string(sorted.back()) + "; wall " +
+              std::to_string(wall_ms / (warmup + bursts * burst_frames)) + " ms per frame");
   }
   return ms;
 }
