@@ -141,7 +141,7 @@ Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const st
                            int instances) {
   if (!device.runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no runner");
   Prepared prepared;
-  RunOnDevice([&] { prepared = device.runner->Prepare(mesh, kernels, RestPalettes(mesh, instances), instances); },
+  RunOnDevice([&] { prepared = device.runner->Prepare(mesh, kernels, RestPalettes(mesh, instances), instances, kPaletteSlots); },
               "Skinner::Create: ");
   return prepared;
 }
@@ -299,12 +299,16 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
                std::to_string(im.instances) + " instances x " + std::to_string(im.vertex_count) + " vertices x 3");
     if (!out) FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::") + call + ": out is null");
     if (!im.skinned) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": nothing skinned yet (call Skin first)");
-    im.scratch.resize(vertices * im.output_stride);
-    im.backend->Read(normals, im.scratch);
+    // Straight from the page-locked read-back staging into the caller's array, in mesh order.
+    const std::span<const std::uint8_t> packed = im.backend->Read(normals);
+    if (packed.size() != vertices * im.output_stride)
+      FailWith(ErrorCode::kDeviceError, std::string("Skinner::") + call + ": the device read back " +
+                                            std::to_string(packed.size()) + " bytes, expected " +
+                                            std::to_string(vertices * im.output_stride));
     // A NaN or infinite output never reaches the caller's buffer.
     for (std::size_t p = 0; p < vertices; ++p) {
       float xyz[3];
-      std::memcpy(xyz, im.scratch.data() + p * im.output_stride, sizeof xyz);
+      std::memcpy(xyz, packed.data() + p * im.output_stride, sizeof xyz);
       if (std::isfinite(xyz[0]) && std::isfinite(xyz[1]) && std::isfinite(xyz[2])) continue;
       const std::size_t k = p / im.vertex_count;
       FailWith(ErrorCode::kDeviceError,
@@ -317,7 +321,7 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
     for (std::size_t k = 0; k < static_cast<std::size_t>(im.instances); ++k) {
       const std::size_t base = k * im.vertex_count;
       for (std::size_t p = 0; p < im.vertex_count; ++p)
-        std::memcpy(out + (base + im.order[p]) * 3, im.scratch.data() + (base + p) * im.output_stride,
+        std::memcpy(out + (base + im.order[p]) * 3, packed.data() + (base + p) * im.output_stride,
                     3 * sizeof(float));
     }
   });

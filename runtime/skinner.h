@@ -36,9 +36,10 @@ class SkinnerBackend {
   virtual void Skin() = 0;
   // Waits until every Skin() so far has completed on the device.
   virtual void Finish() = 0;
-  // The positions (or normals) in packed order, instance after instance:
-  // instances x vertex_count x output stride.
-  virtual void Read(bool normals, std::span<std::uint8_t> out) = 0;
+  // Waits, and gives the positions (or normals) in packed order, instance
+  // after instance (instances x vertex_count x output stride), in the
+  // backend's page-locked read-back staging: valid until the next Read.
+  virtual std::span<const std::uint8_t> Read(bool normals) = 0;
   virtual void* DevicePositions() const = 0;
   // Default: kUnavailable.
   virtual void SkinIntoGlBuffer(unsigned int gl_buffer);
@@ -63,8 +64,9 @@ void RunOnDevice(F&& call, const std::string& context = "") {
   }
 }
 
-// The one input set a Skinner prepares: `instances` copies of the mesh's
-// rest-pose palette (SetPalette overwrites it before the first Skin).
+// The one input set a Skinner prepares (with the runner's kPaletteSlots
+// palette slots): `instances` copies of the mesh's rest-pose palette
+// (SetPalette overwrites it before the first Skin).
 std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int instances);
 
 // A SkinnerBackend over one prepared input set of the device's runner
@@ -85,8 +87,10 @@ class RunnerSkinner : public SkinnerBackend {
   void Finish() override {
     RunOnDevice([&] { runner_.Finish(); });
   }
-  void Read(bool normals, std::span<std::uint8_t> out) override {
-    RunOnDevice([&] { runner_.ReadOutput(prepared_, 0, normals && normals_, out); });
+  std::span<const std::uint8_t> Read(bool normals) override {
+    std::span<const std::uint8_t> out;
+    RunOnDevice([&] { out = runner_.ReadOutput(prepared_, 0, normals && normals_); });
+    return out;
   }
   // A cl_mem, or a CUdeviceptr / GL buffer name as a pointer-sized integer.
   void* DevicePositions() const override { return runner_.OutputBuffer(prepared_, 0, false); }
@@ -120,7 +124,6 @@ struct Skinner::Impl {
   std::vector<std::uint32_t> order;     // packed position p holds mesh vertex order[p]
   bool palette_set = false;
   bool skinned = false;
-  std::vector<std::uint8_t> scratch;    // read-back in packed order
   std::unique_ptr<SkinnerBackend> backend;  // declared last: destroyed before `device`
 };
 

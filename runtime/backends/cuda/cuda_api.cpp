@@ -180,6 +180,9 @@ const LoadedDriver& DriverLibrary() {
     Resolve(handle, "cuDeviceGetUuid_v2", a.cuDeviceGetUuid, no_uuid);
     if (!a.cuDeviceGetUuid) Resolve(handle, "cuDeviceGetUuid", a.cuDeviceGetUuid, no_uuid);
     Resolve(handle, "cuMemcpyDtoDAsync_v2", a.cuMemcpyDtoDAsync, absent);
+    Resolve(handle, "cuMemcpyDtoHAsync_v2", a.cuMemcpyDtoHAsync, absent);
+    Resolve(handle, "cuMemHostAlloc", a.cuMemHostAlloc, absent);
+    Resolve(handle, "cuMemFreeHost", a.cuMemFreeHost, absent);
     if (!absent.empty()) {
       d.missing = d.library + " lacks " + absent;
       return d;
