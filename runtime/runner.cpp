@@ -22,7 +22,6 @@ struct Prepared::Impl {
     DeviceBuffer* palette = nullptr;
     std::vector<std::unique_ptr<DeviceObject>> launches;
     std::unique_ptr<DeviceObject> done;
-    bool unmarked = false;  // written since `done` was last marked
   };
   // One input set: every object it owns (released last first), the buffers
   // the driver reads and writes, and its palette slots (one but in a
@@ -211,6 +210,7 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
       slot.launches.push_back(api_->Bind(*p.launches[l], arguments, options, bytes));
     }
   }
+  set.current = set.slots.size() - 1;  // the first WritePalette takes slot 0
   p.bytes_per_set = bytes;
 }
 
@@ -394,6 +394,7 @@ Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {
 
 // The palette ring (runner.h): frame n+1's palette goes into the slot after
 // frame n's, once that slot's last frame (kPaletteSlots frames back) is done.
+// The size is checked first: a rejected palette takes no slot.
 void Runner::WritePalette(Prepared& prepared, int set, std::span<const std::uint8_t> palettes) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
@@ -401,16 +402,13 @@ void Runner::WritePalette(Prepared& prepared, int set, std::span<const std::uint
   if (palettes.size() != p.palettes_bytes)
     Fail("launch", "palettes have " + std::to_string(palettes.size()) + " bytes, expected " +
                        std::to_string(p.palettes_bytes));
-  Prepared::Impl::Slot& current = s.slots[s.current];
-  if (current.unmarked) {  // written and never launched: its upload must be fenced too
-    api_->Mark(current.done, p.key);
-    current.unmarked = false;
-  }
+  // A slot written and never launched needs no fence of its own: an upload
+  // still queued from its staging is followed by this one, and no launch
+  // reads the slot before both have run.
   const std::size_t next = (s.current + 1) % s.slots.size();
   Prepared::Impl::Slot& slot = s.slots[next];
   if (slot.done) api_->Wait(*slot.done, "palette slot " + std::to_string(next) + " of " + p.key);
   api_->Write(*slot.palette, palettes, p.key);
-  slot.unmarked = true;
   s.current = next;
 }
 
@@ -426,7 +424,6 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   run.out_positions = out_positions;
   api_->RunFrames(run);
   api_->Mark(slot.done, p.key);
-  slot.unmarked = false;
 }
 
 std::span<const std::uint8_t> Runner::ReadOutput(const Prepared& prepared, int set, bool normals) {
