@@ -122,6 +122,7 @@ struct Skinner::Impl {
   int instances = 1;
   std::size_t output_stride = 0;
   std::vector<std::uint32_t> order;     // packed position p holds mesh vertex order[p]
+  bool identity_order = false;          // order[p] == p: a read-back of float3 is one memcpy
   bool palette_set = false;
   bool skinned = false;
   std::unique_ptr<SkinnerBackend> backend;  // declared last: destroyed before `device`

@@ -464,10 +464,10 @@ class Skinner {
   // positions into `vk_buffer` (a VkBuffer with storage-buffer usage of at
   // least instances() * vertex_count() * output_stride_bytes() bytes, bound
   // to memory), or into the Skinner's own output (device_positions(), a
-  // VkBuffer) when null. The recording starts with a barrier after earlier
-  // transfers and compute work (SetPalette's copy was submitted to the queue
-  // already) and ends with one making the outputs visible to every later
-  // command. Normals go to the Skinner's own buffer. The caller submits the
+  // VkBuffer) when null. The recording starts with the copy of the palette
+  // SetPalette staged (where the palette is not host-visible) and a barrier
+  // after earlier transfers and compute work, and ends with one making the
+  // outputs visible to every later command. Normals go to the Skinner's own buffer. The caller submits the
   // command buffer; Read* and Finish then wait for the queue to be idle.
   // Each distinct `vk_buffer` takes a descriptor set (at most 7 per
   // Skinner). kUnavailable on a device of another backend; kInvalidArgument
