@@ -212,6 +212,27 @@ TEST_P(SkinnerFrames, ARejectedPaletteTakesNoSlot) {
   ExpectReadIsTheGoldOf(good, "after rejected palettes");
 }
 
+TEST_P(SkinnerFrames, TwoSkinnersOnOneDeviceInterleaveTheirFrames) {
+  // The second Skinner's frames are queued between the first's SetPalette and
+  // Skin: each skins with its own palettes (a palette staged for one is never
+  // uploaded by, nor lost in, the other's frame).
+  SkinnerOptions options;
+  options.instances = kInstances;
+  options.variant = GetParam().variant;
+  Result<Skinner> second = Skinner::Create(device_, WinnersDb::Empty(), view_.mesh, options);
+  ASSERT_TRUE(second.ok()) << second.status().message();
+  for (int f = 0; f < 2 * kPaletteSlots + 1; ++f) {
+    Set(Matrices(FramePoses(f)));
+    const std::vector<float> other = Matrices(FramePoses(f + 50));
+    ASSERT_TRUE(second->SetPalette(other.data(), other.size()).ok());
+    ASSERT_TRUE(second->Skin().ok());
+    Skin();
+  }
+  ExpectReadIsTheGoldOf(FramePoses(2 * kPaletteSlots), "the first Skinner");
+  std::swap(skinner_, *second);
+  ExpectReadIsTheGoldOf(FramePoses(2 * kPaletteSlots + 50), "the second Skinner");
+}
+
 INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerFrames, ::testing::ValuesIn(Cases()), CaseName);
 
 }  // namespace

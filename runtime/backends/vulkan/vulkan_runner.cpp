@@ -154,6 +154,7 @@ class VulkanBound final : public DeviceObject {
   }
   const Context& c_;
   const VulkanPlanned* plan = nullptr;
+  const VulkanBuffer* palette = nullptr;  // the slot's (its staged upload goes first: RecordPendingUploads)
   VkDescriptorPool pool = VK_NULL_HANDLE;
   VkDescriptorSet set = VK_NULL_HANDLE;
   std::vector<VkWriteDescriptorSet> writes;  // how `set` was written (pointing into the two vectors below)
@@ -265,7 +266,7 @@ class VulkanApi final : public DeviceApi {
   void Upload(VulkanBuffer& to, const void* bytes, std::size_t size, const std::string& what);
   void Barrier(VkCommandBuffer cb, VkPipelineStageFlags from, VkAccessFlags from_access, VkPipelineStageFlags to,
                VkAccessFlags to_access) const;
-  void RecordPendingUploads(VkCommandBuffer cb);
+  void RecordPendingUploads(VkCommandBuffer cb, const FrameRun& run);
   void RecordFrames(VkCommandBuffer cb, const FrameRun& run, std::size_t begin, std::size_t end,
                     std::set<const void*>& used, VkQueryPool pool, int* query);
   void BarrierBeforeFrames(VkCommandBuffer cb) const;
@@ -496,6 +497,7 @@ std::unique_ptr<DeviceObject> VulkanApi::Bind(const PlannedLaunch& launch, std::
   for (const ArgumentBinding& a : arguments) {
     if (a.role == ArgumentRole::kScalar) continue;
     const auto* buffer = static_cast<const VulkanBuffer*>(a.buffer);
+    if (a.role == ArgumentRole::kPalette) bound->palette = buffer;
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     w.dstSet = bound->set;
     w.dstBinding = binding;
@@ -705,7 +707,7 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
   if (run.use == FrameUse::kLive) {
     const bool for_caller = record_into_ != VK_NULL_HANDLE;
     const VkCommandBuffer cb = for_caller ? record_into_ : Begin();
-    RecordPendingUploads(cb);
+    RecordPendingUploads(cb, run);
     BarrierBeforeFrames(cb);
     RecordFrames(cb, run, 0, frames, used, VK_NULL_HANDLE, nullptr);
     BarrierAfterFrames(cb, for_caller);
@@ -790,17 +792,30 @@ void VulkanApi::Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes,
   }
 }
 
-// The palette copies Write left, then a barrier to the dispatches that read them.
-void VulkanApi::RecordPendingUploads(VkCommandBuffer cb) {
+// The copies Write left for the palettes `run` reads (another Skinner's stay
+// for its own next frame), then a barrier to the dispatches that read them.
+void VulkanApi::RecordPendingUploads(VkCommandBuffer cb, const FrameRun& run) {
   auto& pending = c_->pending_uploads;
-  if (pending.empty()) return;
-  for (const auto& [palette, size] : pending) {
-    const VkBufferCopy region{0, 0, size};
-    c_->fn.vkCmdCopyBuffer(cb, palette->staging->buffer, palette->buffer, 1, &region);
+  const auto read_by_run = [&](const VulkanBuffer* palette) {
+    for (const auto& frame : run.frames)
+      for (const std::unique_ptr<DeviceObject>& launch : frame)
+        if (static_cast<const VulkanBound&>(*launch).palette == palette) return true;
+    return false;
+  };
+  bool recorded = false;
+  for (auto p = pending.begin(); p != pending.end();) {
+    if (!read_by_run(p->first)) {
+      ++p;
+      continue;
+    }
+    const VkBufferCopy region{0, 0, p->second};
+    c_->fn.vkCmdCopyBuffer(cb, p->first->staging->buffer, p->first->buffer, 1, &region);
+    p = pending.erase(p);
+    recorded = true;
   }
-  pending.clear();
-  Barrier(cb, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
-          VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);
+  if (recorded)
+    Barrier(cb, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+            VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);
 }
 
 void VulkanApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) {

@@ -467,7 +467,9 @@ class Skinner {
   // VkBuffer) when null. The recording starts with the copy of the palette
   // SetPalette staged (where the palette is not host-visible) and a barrier
   // after earlier transfers and compute work, and ends with one making the
-  // outputs visible to every later command. Normals go to the Skinner's own buffer. The caller submits the
+  // outputs visible to every later command. That copy reads staging which
+  // the third SetPalette after this call reuses: submit the command buffer
+  // before then. Normals go to the Skinner's own buffer. The caller submits the
   // command buffer; Read* and Finish then wait for the queue to be idle.
   // Each distinct `vk_buffer` takes a descriptor set (at most 7 per
   // Skinner). kUnavailable on a device of another backend; kInvalidArgument
