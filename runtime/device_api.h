@@ -204,14 +204,17 @@ class DeviceApi {
   virtual std::vector<std::vector<double>> RunFrames(const FrameRun& run) = 0;
   virtual TimingPolicy timing_policy() const { return {}; }
 
-  // Copies `bytes` into `buffer` (a palette) without waiting: the bytes go
-  // into the buffer's own page-locked staging (made on first use: CUDA
-  // cuMemHostAlloc, OpenCL a mapped CL_MEM_ALLOC_HOST_PTR buffer, GL a
-  // persistently mapped buffer, Vulkan host-visible memory), whose upload is
-  // then queued before any launch queued later. The driver calls it only
-  // once the buffer's previous Write and every launch that read the buffer
-  // have completed (its Mark), so no API waits here.
-  virtual void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& what) = 0;
+  // A palette's upload in two steps, so the host packs straight into
+  // page-locked memory: Staging gives the buffer's own staging (buffer.bytes()
+  // bytes, made on first use: CUDA cuMemHostAlloc, OpenCL a mapped
+  // CL_MEM_ALLOC_HOST_PTR buffer, GL a persistently mapped buffer, Vulkan
+  // host-visible memory, or the buffer itself where it is host-visible);
+  // Upload queues the copy of its first `bytes` into the buffer, before any
+  // launch queued later, without waiting. The driver fills a staging only
+  // once the buffer's previous upload and every launch that read the buffer
+  // have completed (its Mark), so no API waits in either.
+  virtual std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& what) = 0;
+  virtual void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& what) = 0;
   // Reads `buffer` back into `out` (its first out.size() bytes); `wait`:
   // first wait for the work queued for the caller. Run's verification reads.
   virtual void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) = 0;

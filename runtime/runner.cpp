@@ -31,7 +31,8 @@ struct Prepared::Impl {
     std::vector<Slot> slots;
     DeviceBuffer* out_positions = nullptr;
     DeviceBuffer* out_normals = nullptr;
-    std::size_t current = 0;  // the slot of the last WritePalette: LaunchSet's
+    std::size_t current = 0;  // the slot of the last upload: LaunchSet's
+    std::optional<std::size_t> staged;  // the slot PaletteStaging gave, until its UploadPalette
   };
   DeviceApi* api = nullptr;  // the runner's; null in a Prepared that holds nothing
   std::string key;           // the variant's
@@ -394,22 +395,42 @@ Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {
 
 // The palette ring (runner.h): frame n+1's palette goes into the slot after
 // frame n's, once that slot's last frame (kPaletteSlots frames back) is done.
-// The size is checked first: a rejected palette takes no slot.
-void Runner::WritePalette(Prepared& prepared, int set, std::span<const std::uint8_t> palettes) {
+// A slot written and never launched needs no fence of its own: an upload
+// still queued from its staging is followed by the next one, and no launch
+// reads the slot before both have run.
+std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
-  if (palettes.size() != p.palettes_bytes)
-    Fail("launch", "palettes have " + std::to_string(palettes.size()) + " bytes, expected " +
-                       std::to_string(p.palettes_bytes));
-  // A slot written and never launched needs no fence of its own: an upload
-  // still queued from its staging is followed by this one, and no launch
-  // reads the slot before both have run.
   const std::size_t next = (s.current + 1) % s.slots.size();
   Prepared::Impl::Slot& slot = s.slots[next];
   if (slot.done) api_->Wait(*slot.done, "palette slot " + std::to_string(next) + " of " + p.key);
-  api_->Write(*slot.palette, palettes, p.key);
-  s.current = next;
+  const std::span<std::uint8_t> staging = api_->Staging(*slot.palette, p.key);
+  if (staging.size() < p.palettes_bytes)
+    Fail("launch", "the palette staging of " + p.key + " has " + std::to_string(staging.size()) + " bytes, the palettes " +
+                       std::to_string(p.palettes_bytes));
+  s.staged = next;
+  return staging.first(p.palettes_bytes);
+}
+
+void Runner::UploadPalette(Prepared& prepared, int set) {
+  api_->MakeCurrent();
+  Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
+  const Prepared::Impl& p = *prepared.impl_;
+  if (!s.staged) Fail("launch", "UploadPalette of " + p.key + " without PaletteStaging");
+  api_->Upload(*s.slots[*s.staged].palette, p.palettes_bytes, p.key);
+  s.current = *s.staged;
+  s.staged.reset();
+}
+
+// The size is checked first: a rejected palette takes no slot.
+void Runner::WritePalette(Prepared& prepared, int set, std::span<const std::uint8_t> palettes) {
+  const std::size_t expected = prepared.impl_ ? prepared.impl_->palettes_bytes : 0;
+  if (palettes.size() != expected)
+    Fail("launch", "palettes have " + std::to_string(palettes.size()) + " bytes, expected " + std::to_string(expected));
+  const std::span<std::uint8_t> staging = PaletteStaging(prepared, set);
+  std::copy(palettes.begin(), palettes.end(), staging.begin());
+  UploadPalette(prepared, set);
 }
 
 void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {

@@ -164,6 +164,13 @@ class Runner {
   // output_stride_bytes, packed order), valid until the next ReadOutput of
   // that output.
   void WritePalette(Prepared& prepared, int set, std::span<const std::uint8_t> palettes);
+  // WritePalette in two steps, for a caller that packs the palettes itself
+  // straight into page-locked memory (the Skinner): PaletteStaging waits as
+  // WritePalette does and gives the next slot's staging (the set's K
+  // palettes' bytes); UploadPalette queues its upload and makes it the slot
+  // LaunchSet uses. A staging given and never uploaded takes no slot.
+  std::span<std::uint8_t> PaletteStaging(Prepared& prepared, int set);
+  void UploadPalette(Prepared& prepared, int set);
   void LaunchSet(Prepared& prepared, int set, void* out_positions = nullptr);
   std::span<const std::uint8_t> ReadOutput(const Prepared& prepared, int set, bool normals);
   // The native output buffer (cl_mem; CUdeviceptr or GL buffer name as an integer); null: none.

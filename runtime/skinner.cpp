@@ -251,7 +251,15 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
     CheckCount("SetPalette", float_count, joints * 16,
                std::to_string(im.instances) + " instances x " + std::to_string(im.joint_count) + " joints x 16");
     if (!matrices) FailWith(ErrorCode::kInvalidArgument, "Skinner::SetPalette: matrices is null");
-    for (std::size_t i = 0; i < joints * 16; ++i) {
+    // Checked and packed in one pass straight into the next palette slot's
+    // page-locked staging; a non-finite element stops before the upload, so
+    // the slot is not taken and the last palette stays the Skinner's.
+    const std::span<std::uint8_t> staging = im.backend->PaletteStaging();
+    if (staging.size() != joints * PaletteMatrixBytes(im.variant))
+      FailWith(ErrorCode::kDeviceError, "Skinner::SetPalette: the palette staging has " + std::to_string(staging.size()) +
+                                            " bytes, expected " + std::to_string(joints * PaletteMatrixBytes(im.variant)));
+    const std::size_t bad = PackPaletteInto(matrices, joints, im.variant, staging.data());
+    for (std::size_t i = bad * 16; i < joints * 16 && i < (bad + 1) * 16; ++i) {
       if (std::isfinite(matrices[i])) continue;
       const std::size_t j = i / 16;
       FailWith(ErrorCode::kInvalidArgument,
@@ -261,12 +269,7 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
                    std::to_string(i % 16 / 4) + "][" + std::to_string(i % 4) + "] is " + std::to_string(matrices[i]) +
                    ": a palette entry must be finite");
     }
-    std::vector<glm::mat4> palette(joints);
-    for (std::size_t j = 0; j < joints; ++j)
-      for (int c = 0; c < 4; ++c)  // column-major, as glm stores it
-        palette[j][c] = glm::vec4(matrices[j * 16 + c * 4], matrices[j * 16 + c * 4 + 1], matrices[j * 16 + c * 4 + 2],
-                                  matrices[j * 16 + c * 4 + 3]);
-    im.backend->WritePalette(PackPalette(palette, im.variant));
+    im.backend->UploadPalette();
     im.palette_set = true;
   });
 }

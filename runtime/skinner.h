@@ -31,8 +31,12 @@ class SkinnerBackend {
   // Throws ApiError(kInvalidState) when the backend cannot be used now (GL:
   // its context is not current on this thread).
   virtual void CheckUsable() const {}
-  // Every instance's palette, one after another (PackPalette of K x J matrices).
-  virtual void WritePalette(std::span<const std::uint8_t> packed_palettes) = 0;
+  // Every instance's palette, one after another (PackPalette of K x J
+  // matrices), in two steps: the page-locked staging to pack them into (may
+  // wait for the palette ring's slot), then its upload. A staging never
+  // uploaded changes nothing.
+  virtual std::span<std::uint8_t> PaletteStaging() = 0;
+  virtual void UploadPalette() = 0;
   virtual void Skin() = 0;
   // Waits until every Skin() so far has completed on the device.
   virtual void Finish() = 0;
@@ -78,8 +82,13 @@ class RunnerSkinner : public SkinnerBackend {
   RunnerSkinner(Runner& runner, Prepared prepared, bool normals)
       : runner_(runner), prepared_(std::move(prepared)), normals_(normals) {}
 
-  void WritePalette(std::span<const std::uint8_t> palettes) override {
-    RunOnDevice([&] { runner_.WritePalette(prepared_, 0, palettes); });
+  std::span<std::uint8_t> PaletteStaging() override {
+    std::span<std::uint8_t> staging;
+    RunOnDevice([&] { staging = runner_.PaletteStaging(prepared_, 0); });
+    return staging;
+  }
+  void UploadPalette() override {
+    RunOnDevice([&] { runner_.UploadPalette(prepared_, 0); });
   }
   void Skin() override {
     RunOnDevice([&] { runner_.LaunchSet(prepared_, 0); });

@@ -82,10 +82,14 @@ class DeferredApi final : public DeviceApi {
     }
     return {};
   }
-  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string&) override {
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string&) override {
     auto& b = static_cast<FakeBuffer&>(buffer);
-    b.staging.assign(bytes.begin(), bytes.end());
-    queue.push_back([&b] { std::copy(b.staging.begin(), b.staging.end(), b.device.begin()); });
+    b.staging.resize(b.bytes());
+    return b.staging;
+  }
+  void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string&) override {
+    auto& b = static_cast<FakeBuffer&>(buffer);
+    queue.push_back([&b, bytes] { std::copy(b.staging.begin(), b.staging.begin() + static_cast<std::ptrdiff_t>(bytes), b.device.begin()); });
   }
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string&, bool) override {
     RunUntil(queue.size());
@@ -180,6 +184,23 @@ TEST(PaletteRing, PalettesReplacedBeforeAnySkinAndSkinsRepeatedReadTheLastPalett
   ring.runner->Finish();
   ASSERT_EQ(ring.api->LaunchesRun(), expected.size());
   for (std::size_t l = 0; l < expected.size(); ++l) EXPECT_EQ(ring.FrameRead(l), expected[l]) << "launch " << l;
+}
+
+TEST(PaletteRing, AStagingNeverUploadedTakesNoSlot) {
+  // The Skinner's SetPalette of a palette it rejects while packing it.
+  Ring ring;
+  ring.runner->WritePalette(ring.prepared, 0, ring.Palette(5));
+  EXPECT_THROW(ring.runner->UploadPalette(ring.prepared, 0), Error);  // nothing staged since the last upload
+  const int slot = ring.runner->PaletteSlot(ring.prepared, 0);
+  for (int i = 0; i < kPaletteSlots + 1; ++i) {
+    const std::span<std::uint8_t> staging = ring.runner->PaletteStaging(ring.prepared, 0);
+    std::fill(staging.begin(), staging.end(), std::uint8_t{0xff});
+  }
+  EXPECT_EQ(ring.runner->PaletteSlot(ring.prepared, 0), slot);
+  ring.runner->LaunchSet(ring.prepared, 0);
+  ring.runner->Finish();
+  ASSERT_EQ(ring.api->LaunchesRun(), 1u);
+  EXPECT_EQ(ring.FrameRead(0), 5);
 }
 
 TEST(PaletteRing, AWrongSizeIsRejectedBeforeTakingASlot) {

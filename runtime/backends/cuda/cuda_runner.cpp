@@ -190,7 +190,8 @@ class CudaApi final : public DeviceApi {
     Check(api->cuCtxSynchronize(), "launch", "cuCtxSynchronize after uploading the input sets of " + key);
   }
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
-  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key) override;
+  void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
                                            const std::string& what) override;
@@ -309,15 +310,19 @@ std::unique_ptr<DeviceObject> CudaApi::PaletteView(const Variant& variant, Devic
   return std::make_unique<CudaTexture>(Texture(object, api->cuTexObjectDestroy));
 }
 
-// Into the palette's page-locked staging, then an asynchronous copy on the
-// Skinner's stream (the driver's ring fence says nothing reads either).
-void CudaApi::Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) {
+// The palette's page-locked staging (write-combined: the host only writes
+// it), and an asynchronous copy from it on the Skinner's stream (the
+// driver's ring fence says nothing reads either).
+std::span<std::uint8_t> CudaApi::Staging(DeviceBuffer& buffer, const std::string& key) {
   auto& m = static_cast<CudaMemory&>(buffer);
-  const std::size_t size = std::min(bytes.size(), m.bytes());
   if (!m.upload)
     m.upload = std::make_unique<CudaPinned>(api, m.bytes(), cuda::kMemHostAllocWriteCombined, "the palette staging of " + key);
-  std::memcpy(m.upload->host, bytes.data(), size);
-  Check(api->cuMemcpyHtoDAsync(m.pointer(), m.upload->host, size, stream), "launch",
+  return {static_cast<std::uint8_t*>(m.upload->host), m.bytes()};
+}
+
+void CudaApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) {
+  auto& m = static_cast<CudaMemory&>(buffer);
+  Check(api->cuMemcpyHtoDAsync(m.pointer(), Staging(buffer, key).data(), bytes, stream), "launch",
         "cuMemcpyHtoDAsync 'palette' of " + key);
 }
 

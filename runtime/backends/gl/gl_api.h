@@ -69,7 +69,7 @@ GlObject NewQuery();
 struct GlStaging {
   GlObject buffer;
   void* map = nullptr;
-  std::vector<std::uint8_t> copy;  // the read-back without buffer storage
+  std::vector<std::uint8_t> copy;  // the bytes themselves without buffer storage
 };
 
 // A buffer, or the texture buffer over the palette (`image` storage); a
@@ -183,7 +183,8 @@ class GlApi final : public DeviceApi {
   void FinishUploads(const std::string& key) override;
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
   TimingPolicy timing_policy() const override { return {!host_timed()}; }
-  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key) override;
+  void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
                                            const std::string& what) override;

@@ -445,23 +445,34 @@ void WaitFence(GLsync sync, const std::string& what) {
 
 }  // namespace
 
-// Into the palette's persistently mapped staging, then a copy on the GPU
+// The palette's persistently mapped staging, and a copy from it on the GPU
 // (glCopyBufferSubData) queued before the next frame; without buffer storage
-// a glBufferSubData into the palette, which no queued frame reads (the
-// driver's ring fence), so the driver need not stall or orphan it.
-void GlApi::Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) {
+// host memory and a glBufferSubData into the palette, which no queued frame
+// reads (the driver's ring fence), so the driver need not stall or orphan it.
+std::span<std::uint8_t> GlApi::Staging(DeviceBuffer& buffer, const std::string& key) {
   auto& palette = static_cast<GlBuffer&>(buffer);
-  const std::size_t size = std::min(bytes.size(), palette.bytes());
+  if (!palette.upload) {
+    ClearGlErrors();
+    palette.upload = persistent_staging()
+                         ? PersistentStaging(palette.bytes(), GL_MAP_WRITE_BIT, "the palette staging of " + key)
+                         : std::make_unique<GlStaging>();
+    if (!palette.upload->map) palette.upload->copy.resize(palette.bytes());
+  }
+  GlStaging& staging = *palette.upload;
+  return {staging.map ? static_cast<std::uint8_t*>(staging.map) : staging.copy.data(), palette.bytes()};
+}
+
+void GlApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) {
+  auto& palette = static_cast<GlBuffer&>(buffer);
+  const std::uint8_t* from = Staging(buffer, key).data();
   ClearGlErrors();
-  if (persistent_staging()) {
-    if (!palette.upload) palette.upload = PersistentStaging(palette.bytes(), GL_MAP_WRITE_BIT, "the palette staging of " + key);
-    std::memcpy(palette.upload->map, bytes.data(), size);
-    CopyBuffer(palette.upload->buffer.get(), palette.id(), size);
+  if (palette.upload->map) {
+    CopyBuffer(palette.upload->buffer.get(), palette.id(), bytes);
     CheckGl("launch", "glCopyBufferSubData 'palette' of " + key);
     return;
   }
   glBindBuffer(GL_COPY_WRITE_BUFFER, palette.id());
-  glBufferSubData(GL_COPY_WRITE_BUFFER, 0, static_cast<GLsizeiptr>(size), bytes.data());
+  glBufferSubData(GL_COPY_WRITE_BUFFER, 0, static_cast<GLsizeiptr>(bytes), from);
   glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
   CheckGl("launch", "glBufferSubData 'palette' of " + key);
 }

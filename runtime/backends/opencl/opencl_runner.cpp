@@ -159,7 +159,8 @@ class OpenClApi final : public DeviceApi {
     Check(clFinish(queue.get()), "launch", "clFinish after uploading the input sets of " + key);
   }
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
-  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key) override;
+  void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
                                            const std::string& what) override;
@@ -278,15 +279,19 @@ std::unique_ptr<DeviceObject> OpenClApi::PaletteView(const Variant& variant, Dev
   return std::make_unique<ClMemory>(std::move(image), 0);
 }
 
-// Into the palette's page-locked staging, then a non-blocking write from it
-// (the driver's ring fence says nothing reads the staging or the palette).
-void OpenClApi::Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) {
+// The palette's page-locked staging, and a non-blocking write from it (the
+// driver's ring fence says nothing reads the staging or the palette).
+std::span<std::uint8_t> OpenClApi::Staging(DeviceBuffer& buffer, const std::string& key) {
   auto& memory = static_cast<ClMemory&>(buffer);
-  const std::size_t size = std::min(bytes.size(), memory.bytes());
-  if (!memory.upload) memory.upload = std::make_unique<ClPinned>(context.get(), queue.get(), memory.bytes(), "the palette staging of " + key);
-  std::memcpy(memory.upload->host, bytes.data(), size);
-  Check(clEnqueueWriteBuffer(queue.get(), memory.memory.get(), CL_FALSE, 0, size, memory.upload->host, 0, nullptr,
-                             nullptr),
+  if (!memory.upload)
+    memory.upload = std::make_unique<ClPinned>(context.get(), queue.get(), memory.bytes(), "the palette staging of " + key);
+  return {static_cast<std::uint8_t*>(memory.upload->host), memory.bytes()};
+}
+
+void OpenClApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) {
+  auto& memory = static_cast<ClMemory&>(buffer);
+  Check(clEnqueueWriteBuffer(queue.get(), memory.memory.get(), CL_FALSE, 0, bytes, Staging(buffer, key).data(), 0,
+                             nullptr, nullptr),
         "launch", "clEnqueueWriteBuffer 'palette' of " + key);
 }
 

@@ -246,7 +246,8 @@ class VulkanApi final : public DeviceApi {
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
   // On a GPU, warm up until the clock is steady, as GL on the same NVIDIA driver needs.
   TimingPolicy timing_policy() const override { return {c_->info.type == "gpu"}; }
-  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key) override;
+  void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
                                            const std::string& what) override;
@@ -771,18 +772,20 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
 }
 
 // The palette (the driver's ring fence says no queued frame reads it, nor
-// its staging): host-visible memory is written at once; other memory
-// through its staging buffer, whose copy the next frame's command buffer
-// records before its dispatches (RecordPendingUploads): no submission of its own.
-void VulkanApi::Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) {
+// its staging): host-visible memory is its own staging, written in place;
+// other memory has a staging buffer whose copy the next frame's command
+// buffer records before its dispatches (RecordPendingUploads): no
+// submission of its own.
+std::span<std::uint8_t> VulkanApi::Staging(DeviceBuffer& buffer, const std::string& key) {
   auto& b = static_cast<VulkanBuffer&>(buffer);
-  const std::size_t size = std::min(bytes.size(), b.bytes());
-  if (b.mapped) {
-    std::memcpy(b.mapped, bytes.data(), size);
-    return;
-  }
+  if (b.mapped) return {static_cast<std::uint8_t*>(b.mapped), b.bytes()};
   if (!b.staging) b.staging = std::make_unique<VulkanBuffer>(*c_, b.bytes(), kStagingUsage, true, "palette staging of " + key);
-  std::memcpy(b.staging->mapped, bytes.data(), size);
+  return {static_cast<std::uint8_t*>(b.staging->mapped), b.bytes()};
+}
+
+void VulkanApi::Upload(DeviceBuffer& buffer, std::size_t size, const std::string&) {
+  auto& b = static_cast<VulkanBuffer&>(buffer);
+  if (b.mapped) return;
   auto& pending = c_->pending_uploads;
   const auto found = std::find_if(pending.begin(), pending.end(), [&](const auto& p) { return p.first == &b; });
   if (found == pending.end()) {
