@@ -16,7 +16,9 @@
 // and, for the frame loops, of_skin_only: their throughput over the
 // Skin-only loop of the same shape (1 = the palette costs nothing).
 // read-back reports bytes/s. A summary on stderr gives pipelined /
-// skin-only and finish-per-frame minus skin-only.
+// skin-only and finish-per-frame minus skin-only, from the medians of the
+// repetitions (--benchmark_repetitions) with benchmarks interleaved
+// (--benchmark_enable_random_interleaving) where the machine is noisy.
 //
 //   skintune_bench_frame [--device PATTERN] [--variant KEY] [--db FILE]
 //                        [--instances K] [--scale S] [--frames F] [google benchmark flags]
@@ -127,7 +129,14 @@ Scene& TheScene() {
   return scene;
 }
 
-std::map<std::string, double> per_frame_us;  // each benchmark's result, for the ratios
+// Each benchmark's per-frame times (one per repetition), for the ratios: their medians.
+std::map<std::string, std::vector<double>> per_frame_us;
+
+double Median(const std::string& name) {
+  std::vector<double> v = per_frame_us.at(name);
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
 
 // Runs `frame(f)` --frames times then `finish`, per iteration; the time per frame is the iteration's.
 template <typename Frame>
@@ -145,10 +154,10 @@ void Frames(benchmark::State& state, const std::string& name, Skinner& finish, F
     total_s += s;
   }
   const double us = total_s / double(state.iterations() * options.frames) * 1e6;
-  per_frame_us[name] = us;
+  per_frame_us[name].push_back(us);
   state.counters["vertices/s"] = benchmark::Counter(double(scene.k * scene.n) / (us * 1e-6));
   state.counters["frames/s"] = benchmark::Counter(1e6 / us);
-  if (skin_only && per_frame_us.count(skin_only)) state.counters["of_skin_only"] = per_frame_us[skin_only] / us;
+  if (skin_only && per_frame_us.count(skin_only)) state.counters["of_skin_only"] = Median(skin_only) / us;
 }
 
 void OneMeshSkinOnly(benchmark::State& state) {
@@ -258,11 +267,11 @@ void ParseOptions(int& argc, char** argv) {
 void Summary() {
   const auto ratio = [](const char* a, const char* b) {
     if (!per_frame_us.count(a) || !per_frame_us.count(b)) return;
-    std::fprintf(stderr, "%s / %s throughput: %.3f\n", a, b, per_frame_us[b] / per_frame_us[a]);
+    std::fprintf(stderr, "%s / %s throughput: %.3f\n", a, b, Median(b) / Median(a));
   };
   const auto minus = [](const char* a, const char* b) {
     if (!per_frame_us.count(a) || !per_frame_us.count(b)) return;
-    std::fprintf(stderr, "%s - %s: %.1f us per frame\n", a, b, per_frame_us[a] - per_frame_us[b]);
+    std::fprintf(stderr, "%s - %s: %.1f us per frame\n", a, b, Median(a) - Median(b));
   };
   ratio("instanced/set-skin-pipelined", "instanced/skin-only");
   minus("instanced/set-skin-finish", "instanced/skin-only");
