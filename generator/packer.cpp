@@ -1,6 +1,7 @@
 #include "generator/packer.h"
 
 #include <algorithm>
+#include <cstring>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -263,16 +264,30 @@ PackedMesh Pack(const SkinnedMesh& mesh, const Variant& variant) {
   return packed;
 }
 
+std::size_t PaletteMatrixBytes(const Variant& variant) { return variant.palette == PaletteFormat::kMat4 ? 64 : 48; }
+
 std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const Variant& variant) {
-  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
-  std::vector<std::uint8_t> bytes(palette.size() * rows * 16);
-  std::uint8_t* at = bytes.data();
-  for (const glm::mat4& m : palette) {
-    for (std::size_t r = 0; r < rows; ++r) {
-      for (int c = 0; c < 4; ++c, at += 4) PutFloat(at, m[c][static_cast<int>(r)]);
-    }
-  }
+  std::vector<std::uint8_t> bytes(palette.size() * PaletteMatrixBytes(variant));
+  static_assert(sizeof(glm::mat4) == 16 * sizeof(float), "glm::mat4 is 16 contiguous floats, column after column");
+  if (!palette.empty()) PackPaletteInto(&palette.front()[0][0], palette.size(), variant, bytes.data());
   return bytes;
+}
+
+// Rows of the transposed matrix (the kernels read a row as a float4); the
+// finiteness test looks at the exponent bits, a branch per matrix only.
+std::size_t PackPaletteInto(const float* column_major, std::size_t matrices, const Variant& variant, std::uint8_t* out) {
+  const std::size_t rows = PaletteMatrixBytes(variant) / 16;
+  std::size_t first_special = matrices;
+  for (std::size_t j = 0; j < matrices; ++j) {
+    std::uint32_t words[16];
+    std::memcpy(words, column_major + 16 * j, sizeof words);
+    std::uint32_t special = 0;
+    for (const std::uint32_t w : words) special |= (w & 0x7f800000u) == 0x7f800000u ? 1u : 0u;
+    if (special && first_special == matrices) first_special = j;
+    for (std::size_t r = 0; r < rows; ++r)
+      for (std::size_t c = 0; c < 4; ++c, out += 4) PutUint(out, words[c * 4 + r], 4);
+  }
+  return first_special;
 }
 
 std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uint8_t> output) {

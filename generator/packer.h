@@ -80,6 +80,15 @@ PackedMesh Pack(const SkinnedMesh& mesh, const Variant& variant);
 
 // Palette rows in the variant's palette format (call per frame).
 std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const Variant& variant);
+// PackPalette's bytes of `matrices` column-major 4x4 float matrices (16
+// floats each, as glm::mat4 stores them) written into `out`, which holds
+// matrices x PaletteRowBytes(variant) bytes, in one pass (the runtime packs
+// straight into its page-locked staging). Returns the index of the first
+// matrix with a NaN or infinite element, or `matrices` when every element
+// is finite.
+std::size_t PackPaletteInto(const float* column_major, std::size_t matrices, const Variant& variant, std::uint8_t* out);
+// Bytes of one packed matrix: 64 (mat4) or 48 (mat3x4).
+std::size_t PaletteMatrixBytes(const Variant& variant);
 
 // Output bytes in packed order (vertex_count x output_stride_bytes) -> one
 // glm::vec3 per mesh vertex, in the mesh's order.

@@ -204,13 +204,33 @@ class DeviceApi {
   virtual std::vector<std::vector<double>> RunFrames(const FrameRun& run) = 0;
   virtual TimingPolicy timing_policy() const { return {}; }
 
-  // Copies `bytes` into `buffer` without waiting for the copy (the Skinner's
-  // palette upload); a second write waits for the first to have read its bytes.
-  virtual void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& what) = 0;
+  // A palette's upload in two steps, so the host packs straight into
+  // page-locked memory: Staging gives the buffer's own staging (buffer.bytes()
+  // bytes, made on first use: CUDA cuMemHostAlloc, OpenCL a mapped
+  // CL_MEM_ALLOC_HOST_PTR buffer, GL a persistently mapped buffer, Vulkan
+  // host-visible memory, or the buffer itself where it is host-visible);
+  // Upload queues the copy of its first `bytes` into the buffer, before any
+  // launch queued later, without waiting. The driver fills a staging only
+  // once the buffer's previous upload and every launch that read the buffer
+  // have completed (its Mark), so no API waits in either.
+  virtual std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& what) = 0;
+  virtual void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& what) = 0;
   // Reads `buffer` back into `out` (its first out.size() bytes); `wait`:
-  // first wait for the work queued for the caller (the Skinner's read-back;
-  // Run's frames have already finished).
+  // first wait for the work queued for the caller. Run's verification reads.
   virtual void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) = 0;
+  // The Skinner's read-back: waits for the work queued so far, copies the
+  // first `bytes` of `buffer` into the buffer's page-locked read-back staging
+  // (made on first use; or the buffer's own mapping where it is host memory)
+  // and returns those bytes, valid until the next ReadPinned of the buffer.
+  virtual std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
+                                                   const std::string& what) = 0;
+  // The palette ring's per-slot fence: `marker` (made when null, else
+  // reused) is signalled once everything queued so far has completed
+  // (OpenCL a marker event, CUDA an event on the Skinner's stream, GL a
+  // fence sync, Vulkan the last submission). Does not wait.
+  virtual void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) = 0;
+  // Blocks until `marker` is signalled.
+  virtual void Wait(DeviceObject& marker, const std::string& what) = 0;
   // Waits for everything queued.
   virtual void Finish() = 0;
 

@@ -17,14 +17,24 @@
 namespace skintune {
 
 struct Prepared::Impl {
+  // One palette buffer of a set and its launches, bound with the set's inputs
+  // and outputs; `done` is signalled once the slot's last upload and launches
+  // have completed (the palette ring: runner.h).
+  struct Slot {
+    DeviceBuffer* palette = nullptr;
+    std::vector<std::unique_ptr<DeviceObject>> launches;
+    std::unique_ptr<DeviceObject> done;
+  };
   // One input set: every object it owns (released last first), the buffers
-  // the driver reads and writes, and its launches bound by the API.
+  // the driver reads and writes, and its palette slots (one but in a
+  // Skinner's set).
   struct Set {
     std::vector<std::unique_ptr<DeviceObject>> objects;
-    DeviceBuffer* palette = nullptr;
+    std::vector<Slot> slots;
     DeviceBuffer* out_positions = nullptr;
     DeviceBuffer* out_normals = nullptr;
-    std::vector<std::unique_ptr<DeviceObject>> launches;
+    std::size_t current = 0;  // the slot of the last upload: LaunchSet's
+    std::optional<std::size_t> staged;  // the slot PaletteStaging gave, until its UploadPalette
   };
   DeviceApi* api = nullptr;  // the runner's; null in a Prepared that holds nothing
   std::string key;           // the variant's
@@ -41,17 +51,22 @@ struct Prepared::Impl {
     if (!api) return;
     const bool ready = api->ReadyToRelease();
     for (Set& set : sets) {
-      if (!ready) {
-        for (auto& o : set.launches) o->Forget();
-        for (auto& o : set.objects) o->Forget();
+      for (Slot& slot : set.slots) {
+        if (!ready) {
+          for (auto& o : slot.launches) o->Forget();
+          if (slot.done) slot.done->Forget();
+        }
+        while (!slot.launches.empty()) slot.launches.pop_back();
+        slot.done.reset();
       }
-      while (!set.launches.empty()) set.launches.pop_back();
+      if (!ready)
+        for (auto& o : set.objects) o->Forget();
       while (!set.objects.empty()) set.objects.pop_back();
     }
   }
 
-  // The frame of set `s`: its bound launches.
-  std::span<const std::unique_ptr<DeviceObject>> Frame(std::size_t s) const { return sets[s].launches; }
+  // The frame of set `s`: its first slot's bound launches.
+  std::span<const std::unique_ptr<DeviceObject>> Frame(std::size_t s) const { return sets[s].slots.front().launches; }
 };
 
 Prepared::Prepared() : impl_(std::make_unique<Impl>()) {}
@@ -97,7 +112,7 @@ void Runner::Build(const KernelSource& source) {
 
 Prepared Runner::PrepareSets(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                              std::span<const std::vector<std::uint8_t>> palettes, const RunShape& shape,
-                             const SetOptions& options) {
+                             const SetOptions& options, int palette_slots) {
   Prepared prepared;
   Prepared::Impl& p = *prepared.impl_;
   p.api = api_.get();
@@ -125,13 +140,14 @@ Prepared Runner::PrepareSets(const PackedMesh& mesh, std::span<const KernelSourc
   for (std::size_t k = 0; k < palettes.size(); ++k) {
     SetOptions set_options = options;
     if (!options.verification) set_options.suffix = " (input set " + std::to_string(k) + ")";
-    AddSet(p, mesh, kernels, palettes[k], shape, set_options);
+    AddSet(p, mesh, kernels, palettes[k], shape, set_options, palette_slots);
   }
   return prepared;
 }
 
 void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                    const std::vector<std::uint8_t>& palettes, const RunShape& shape, const SetOptions& options) {
+                    const std::vector<std::uint8_t>& palettes, const RunShape& shape, const SetOptions& options,
+                    int palette_slots) {
   Prepared::Impl::Set& set = p.sets.emplace_back();
   std::size_t bytes = 0;
   const auto add = [&](BufferUse use, std::size_t size, const void* data, const std::string& what, bool counted) {
@@ -140,13 +156,6 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
     bytes += counted ? size : 0;
     return static_cast<DeviceBuffer*>(set.objects.back().get());
   };
-  // The palette (padded where the API binds a larger block), and its view for the storage.
-  std::vector<std::uint8_t> palette(palettes.begin(), palettes.end());
-  palette.resize(std::max(palette.size(), api_->PaletteBufferBytes(shape, kernels)), 0);
-  set.palette = add(BufferUse::kPalette, palette.size(), palette.data(), "palette" + options.suffix, true);
-  std::unique_ptr<DeviceObject> view = api_->PaletteView(mesh.variant, *set.palette, options.suffix);
-  DeviceObject* palette_view = view.get();
-  if (view) set.objects.push_back(std::move(view));
   // Outputs (K instances, one after another): poisoned; Run's followed by their guard.
   const std::vector<std::uint8_t> poison = PoisonedOutput(p.out_bytes);
   const std::size_t out_size = options.verification ? poison.size() : p.out_bytes;
@@ -154,10 +163,13 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
   set.out_positions = add(BufferUse::kOutput, out_size, poison.data(), "out_positions" + options.suffix, counted);
   if (mesh.variant.normals) set.out_normals = add(BufferUse::kOutput, out_size, poison.data(), "out_normals" + options.suffix, counted);
 
+  // Every launch's arguments, inputs uploaded once for all the slots; the
+  // palette bound per slot below.
+  std::vector<std::vector<ArgumentBinding>> launch_arguments;
   for (const std::unique_ptr<PlannedLaunch>& planned : p.launches) {
     const LaunchSpec& spec = planned->spec;
     const Launch& launch = mesh.launches[spec.index];
-    std::vector<ArgumentBinding> arguments;
+    std::vector<ArgumentBinding>& arguments = launch_arguments.emplace_back();
     for (const KernelArgument& arg : spec.source.arguments) {
       ArgumentBinding b{&arg, ArgumentRole::kScalar, nullptr, nullptr};
       if (arg.kind == ArgumentKind::kScalar) {
@@ -165,8 +177,11 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
         continue;
       }
       if (arg.name == "palette") {
-        b = {&arg, ArgumentRole::kPalette, set.palette, palette_view};
-      } else if (arg.name == "out_positions" || arg.name == "out_normals") {
+        b.role = ArgumentRole::kPalette;
+        arguments.push_back(b);
+        continue;
+      }
+      if (arg.name == "out_positions" || arg.name == "out_normals") {
         b = {&arg, ArgumentRole::kOutput, arg.name == "out_positions" ? set.out_positions : set.out_normals, nullptr};
       } else {
         const auto input = std::find_if(launch.inputs.begin(), launch.inputs.end(),
@@ -178,8 +193,27 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
       if (!b.buffer) Fail("launch", spec.where + ": nothing to bind to argument '" + arg.name + "'");
       arguments.push_back(b);
     }
-    set.launches.push_back(api_->Bind(*planned, arguments, options, bytes));
   }
+
+  // The palette slots: each its palette (padded where the API binds a larger
+  // block), the storage's view of it, and every launch bound with it.
+  std::vector<std::uint8_t> palette(palettes.begin(), palettes.end());
+  palette.resize(std::max(palette.size(), api_->PaletteBufferBytes(shape, kernels)), 0);
+  for (int s = 0; s < std::max(palette_slots, 1); ++s) {
+    Prepared::Impl::Slot& slot = set.slots.emplace_back();
+    const std::string suffix = palette_slots > 1 ? options.suffix + " (palette slot " + std::to_string(s) + ")" : options.suffix;
+    slot.palette = add(BufferUse::kPalette, palette.size(), palette.data(), "palette" + suffix, true);
+    std::unique_ptr<DeviceObject> view = api_->PaletteView(mesh.variant, *slot.palette, suffix);
+    DeviceObject* palette_view = view.get();
+    if (view) set.objects.push_back(std::move(view));
+    for (std::size_t l = 0; l < p.launches.size(); ++l) {
+      std::vector<ArgumentBinding> arguments = launch_arguments[l];
+      for (ArgumentBinding& b : arguments)
+        if (b.role == ArgumentRole::kPalette) b = {b.argument, ArgumentRole::kPalette, slot.palette, palette_view};
+      slot.launches.push_back(api_->Bind(*p.launches[l], arguments, options, bytes));
+    }
+  }
+  set.current = set.slots.size() - 1;  // the first WritePalette takes slot 0
   p.bytes_per_set = bytes;
 }
 
@@ -199,7 +233,7 @@ RunResult Runner::Run(const PackedMesh& mesh, std::span<const KernelSource> kern
   const std::vector<std::vector<std::uint8_t>> palette = {PalettesOrMeshPalette(mesh, palettes, instances)};
   const RunShape shape = CheckRunShape(mesh, kernels, palette.front().size(), instances, api_->name());
   api_->CheckRun(mesh, kernels, shape);
-  const Prepared prepared = PrepareSets(mesh, kernels, palette, shape, SetOptions{true, ""});
+  const Prepared prepared = PrepareSets(mesh, kernels, palette, shape, SetOptions{true, ""}, 1);
   const Prepared::Impl& p = *prepared.impl_;
   FrameRun run;
   run.use = FrameUse::kVerify;
@@ -232,14 +266,14 @@ void Runner::ReadChecked(const Prepared::Impl& p, const PackedMesh& mesh, const 
 // ---------------------------------------------------------------- timing
 
 Prepared Runner::Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                         std::span<const std::vector<std::uint8_t>> palettes, int instances) {
+                         std::span<const std::vector<std::uint8_t>> palettes, int instances, int palette_slots) {
   api_->MakeCurrent();
   if (palettes.empty()) Fail("launch", "no palette (input set) to time " + mesh.variant.Key() + " with");
   RunShape shape;
   for (const std::vector<std::uint8_t>& palette : palettes)
     shape = CheckRunShape(mesh, kernels, palette.size(), instances, api_->name());
   api_->CheckRun(mesh, kernels, shape);
-  Prepared prepared = PrepareSets(mesh, kernels, palettes, shape, SetOptions{});
+  Prepared prepared = PrepareSets(mesh, kernels, palettes, shape, SetOptions{}, palette_slots);
   api_->FinishUploads(prepared.impl_->key);  // the uploads are done before anything is timed
   return prepared;
 }
@@ -423,43 +457,77 @@ Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {
 
 // ---------------------------------------------------------------- skinning
 
-void Runner::WritePalette(Prepared& prepared, int set, std::span<const std::uint8_t> palettes) {
+// The palette ring (runner.h): frame n+1's palette goes into the slot after
+// frame n's, once that slot's last frame (kPaletteSlots frames back) is done.
+// A slot written and never launched needs no fence of its own: an upload
+// still queued from its staging is followed by the next one, and no launch
+// reads the slot before both have run.
+std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
-  if (palettes.size() != p.palettes_bytes)
-    Fail("launch", "palettes have " + std::to_string(palettes.size()) + " bytes, expected " +
+  const std::size_t next = (s.current + 1) % s.slots.size();
+  Prepared::Impl::Slot& slot = s.slots[next];
+  if (slot.done) api_->Wait(*slot.done, "palette slot " + std::to_string(next) + " of " + p.key);
+  const std::span<std::uint8_t> staging = api_->Staging(*slot.palette, p.key);
+  if (staging.size() < p.palettes_bytes)
+    Fail("launch", "the palette staging of " + p.key + " has " + std::to_string(staging.size()) + " bytes, the palettes " +
                        std::to_string(p.palettes_bytes));
-  api_->Write(*s.palette, palettes, p.key);
+  s.staged = next;
+  return staging.first(p.palettes_bytes);
 }
 
-void Runner::LaunchSet(const Prepared& prepared, int set, void* out_positions) {
+void Runner::UploadPalette(Prepared& prepared, int set) {
   api_->MakeCurrent();
-  SetOf(prepared.impl_.get(), set, *api_);
+  Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
+  if (!s.staged) Fail("launch", "UploadPalette of " + p.key + " without PaletteStaging");
+  api_->Upload(*s.slots[*s.staged].palette, p.palettes_bytes, p.key);
+  s.current = *s.staged;
+  s.staged.reset();
+}
+
+// The size is checked first: a rejected palette takes no slot.
+void Runner::WritePalette(Prepared& prepared, int set, std::span<const std::uint8_t> palettes) {
+  const std::size_t expected = prepared.impl_ ? prepared.impl_->palettes_bytes : 0;
+  if (palettes.size() != expected)
+    Fail("launch", "palettes have " + std::to_string(palettes.size()) + " bytes, expected " + std::to_string(expected));
+  const std::span<std::uint8_t> staging = PaletteStaging(prepared, set);
+  std::copy(palettes.begin(), palettes.end(), staging.begin());
+  UploadPalette(prepared, set);
+}
+
+void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
+  api_->MakeCurrent();
+  Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
+  const Prepared::Impl& p = *prepared.impl_;
+  Prepared::Impl::Slot& slot = s.slots[s.current];
   FrameRun run;
   run.use = FrameUse::kLive;
-  run.frames = {p.Frame(static_cast<std::size_t>(set))};
+  run.frames = {slot.launches};
   run.key = p.key;
   run.out_positions = out_positions;
   api_->RunFrames(run);
+  api_->Mark(slot.done, p.key);
 }
 
-void Runner::ReadOutput(const Prepared& prepared, int set, bool normals, std::span<std::uint8_t> out) {
+std::span<const std::uint8_t> Runner::ReadOutput(const Prepared& prepared, int set, bool normals) {
   api_->MakeCurrent();
   const Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
   const DeviceBuffer* buffer = normals ? s.out_normals : s.out_positions;
   if (!buffer) Fail("launch", std::string("no ") + (normals ? "normals" : "positions") + " output in " + p.key);
-  if (out.size() != p.out_bytes)
-    Fail("launch", "read-back of " + std::to_string(out.size()) + " bytes, the output has " + std::to_string(p.out_bytes));
-  api_->Read(*buffer, out, std::string("'") + OutputName(normals) + "' of " + p.key, true);
+  return api_->ReadPinned(*buffer, p.out_bytes, std::string("'") + OutputName(normals) + "' of " + p.key);
 }
 
 void* Runner::OutputBuffer(const Prepared& prepared, int set, bool normals) const {
   const Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const DeviceBuffer* buffer = normals ? s.out_normals : s.out_positions;
   return buffer ? buffer->native() : nullptr;
+}
+
+int Runner::PaletteSlot(const Prepared& prepared, int set) const {
+  return static_cast<int>(SetOf(prepared.impl_.get(), set, *api_).current);
 }
 
 void Runner::Finish() {

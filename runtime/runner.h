@@ -27,9 +27,16 @@
 //   device (launch-gap free); verify with Run first. PrepareCopy prepares the
 //   same-size copy (generator/copy_kernel.h) the same way.
 // - Skinning (the runtime's Skinner): a Prepared set is also a live set of
-//   device buffers: WritePalette replaces a set's palettes (asynchronously),
-//   LaunchSet runs its launches once on the caller's queue, ReadOutput waits
-//   and reads an output back, OutputBuffer gives the native buffer.
+//   device buffers, prepared with kPaletteSlots palette buffers (the palette
+//   ring), each with its own bound launches over the set's one copy of the
+//   inputs and outputs. WritePalette for frame n+1 uploads into the slot
+//   after frame n's, asynchronously from that slot's page-locked staging
+//   (DeviceApi::Write), so it never overwrites a palette a queued frame still
+//   reads; it waits only when that slot's last frame, kPaletteSlots frames
+//   back, has not completed (its DeviceApi::Mark). LaunchSet queues the
+//   launches of the last written slot on the caller's queue and marks the
+//   slot; nothing else waits. ReadOutput waits and reads an output back
+//   through page-locked staging; OutputBuffer gives the native buffer.
 // Errors name the stage: "<API> setup", "build", "launch" or "guard".
 #pragma once
 
@@ -78,6 +85,12 @@ class Prepared {
 // The most frames one timed burst holds (Runner::BurstFrames).
 inline constexpr int kMaxBurstFrames = 1000;
 
+// Palette buffers of a Skinner's live set (the palette ring above): frames
+// that may be queued at once before SetPalette waits for the oldest. Three,
+// as engines buffer frames in flight: the frame the device skins, the one
+// queued behind it, and the one the host is writing.
+inline constexpr int kPaletteSlots = 3;
+
 class Runner {
  public:
   explicit Runner(std::unique_ptr<DeviceApi> api);
@@ -115,8 +128,10 @@ class Runner {
   // each) and builds `kernels` (one per launch, in launch order). Instanced
   // kernels: each entry of `palettes` holds `instances` palettes and each
   // frame skins them all. Throws Error ("build", "launch") like Run.
+  // `palette_slots` (>= 1): palette buffers per set, the Skinner's ring
+  // (kPaletteSlots); timing uses the first only.
   Prepared Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                   std::span<const std::vector<std::uint8_t>> palettes, int instances = 1);
+                   std::span<const std::vector<std::uint8_t>> palettes, int instances = 1, int palette_slots = 1);
 
   // Runs `warmup` untimed frames, then `bursts` bursts of `burst_frames`
   // frames each (>= 1; FrameRun in device_api.h): a burst's launches go to
@@ -138,26 +153,40 @@ class Runner {
   Prepared PrepareCopy(Lang lang, std::size_t bytes, int input_sets);
 
   // Skinning with a prepared set (see the top of this file). WritePalette
-  // copies `palettes` (the set's K palettes) and enqueues their upload;
-  // LaunchSet enqueues every launch of set `set`, writing positions into
-  // `out_positions` (a native buffer of the set's output size; OpenCL-GL
-  // sharing) instead of the set's own when given; ReadOutput waits and copies
-  // the set's positions (or normals) into `out` (K x vertex_count x
-  // output_stride_bytes, packed order).
+  // copies `palettes` (the set's K palettes) into the next palette slot's
+  // staging and queues its upload, first waiting for that slot's last frame
+  // when it has not completed (only then does it block); LaunchSet queues
+  // every launch of set `set` with the last written slot, writing positions
+  // into `out_positions` (a native buffer of the set's output size;
+  // OpenCL-GL sharing) instead of the set's own when given, and never waits;
+  // ReadOutput waits for the queued work and returns the set's positions (or
+  // normals) in the API's page-locked read-back staging (K x vertex_count x
+  // output_stride_bytes, packed order), valid until the next ReadOutput of
+  // that output.
   void WritePalette(Prepared& prepared, int set, std::span<const std::uint8_t> palettes);
-  void LaunchSet(const Prepared& prepared, int set, void* out_positions = nullptr);
-  void ReadOutput(const Prepared& prepared, int set, bool normals, std::span<std::uint8_t> out);
+  // WritePalette in two steps, for a caller that packs the palettes itself
+  // straight into page-locked memory (the Skinner): PaletteStaging waits as
+  // WritePalette does and gives the next slot's staging (the set's K
+  // palettes' bytes); UploadPalette queues its upload and makes it the slot
+  // LaunchSet uses. A staging given and never uploaded takes no slot.
+  std::span<std::uint8_t> PaletteStaging(Prepared& prepared, int set);
+  void UploadPalette(Prepared& prepared, int set);
+  void LaunchSet(Prepared& prepared, int set, void* out_positions = nullptr);
+  std::span<const std::uint8_t> ReadOutput(const Prepared& prepared, int set, bool normals);
   // The native output buffer (cl_mem; CUdeviceptr or GL buffer name as an integer); null: none.
   void* OutputBuffer(const Prepared& prepared, int set, bool normals) const;
+  // The palette slot LaunchSet uses next: that of the last WritePalette (tests).
+  int PaletteSlot(const Prepared& prepared, int set) const;
   // Waits for everything queued.
   void Finish();
 
  private:
   Prepared PrepareSets(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                        std::span<const std::vector<std::uint8_t>> palettes, const RunShape& shape,
-                       const SetOptions& options);
+                       const SetOptions& options, int palette_slots);
   void AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const KernelSource> kernels,
-              const std::vector<std::uint8_t>& palettes, const RunShape& shape, const SetOptions& options);
+              const std::vector<std::uint8_t>& palettes, const RunShape& shape, const SetOptions& options,
+              int palette_slots);
   void ReadChecked(const Prepared::Impl& p, const PackedMesh& mesh, const RunShape& shape, RunResult& result);
   // Warms the device before timed frames (TimingPolicy::warm_until_stable):
   // 200 ms of bursts and steady, or only steady when the clock probe says the

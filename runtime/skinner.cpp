@@ -141,7 +141,7 @@ Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const st
                            int instances) {
   if (!device.runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no runner");
   Prepared prepared;
-  RunOnDevice([&] { prepared = device.runner->Prepare(mesh, kernels, RestPalettes(mesh, instances), instances); },
+  RunOnDevice([&] { prepared = device.runner->Prepare(mesh, kernels, RestPalettes(mesh, instances), instances, kPaletteSlots); },
               "Skinner::Create: ");
   return prepared;
 }
@@ -227,6 +227,8 @@ Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshV
     im.instances = options.instances;
     im.output_stride = packed.output_stride_bytes;
     im.order = packed.order;
+    im.identity_order = true;
+    for (std::size_t p = 0; p < im.order.size() && im.identity_order; ++p) im.identity_order = im.order[p] == p;
     im.backend = state.backend->make_skinner(state, packed, kernels, options.instances);
     return skinner;
   });
@@ -249,7 +251,15 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
     CheckCount("SetPalette", float_count, joints * 16,
                std::to_string(im.instances) + " instances x " + std::to_string(im.joint_count) + " joints x 16");
     if (!matrices) FailWith(ErrorCode::kInvalidArgument, "Skinner::SetPalette: matrices is null");
-    for (std::size_t i = 0; i < joints * 16; ++i) {
+    // Checked and packed in one pass straight into the next palette slot's
+    // page-locked staging; a non-finite element stops before the upload, so
+    // the slot is not taken and the last palette stays the Skinner's.
+    const std::span<std::uint8_t> staging = im.backend->PaletteStaging();
+    if (staging.size() != joints * PaletteMatrixBytes(im.variant))
+      FailWith(ErrorCode::kDeviceError, "Skinner::SetPalette: the palette staging has " + std::to_string(staging.size()) +
+                                            " bytes, expected " + std::to_string(joints * PaletteMatrixBytes(im.variant)));
+    const std::size_t bad = PackPaletteInto(matrices, joints, im.variant, staging.data());
+    for (std::size_t i = bad * 16; i < joints * 16 && i < (bad + 1) * 16; ++i) {
       if (std::isfinite(matrices[i])) continue;
       const std::size_t j = i / 16;
       FailWith(ErrorCode::kInvalidArgument,
@@ -259,12 +269,7 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
                    std::to_string(i % 16 / 4) + "][" + std::to_string(i % 4) + "] is " + std::to_string(matrices[i]) +
                    ": a palette entry must be finite");
     }
-    std::vector<glm::mat4> palette(joints);
-    for (std::size_t j = 0; j < joints; ++j)
-      for (int c = 0; c < 4; ++c)  // column-major, as glm stores it
-        palette[j][c] = glm::vec4(matrices[j * 16 + c * 4], matrices[j * 16 + c * 4 + 1], matrices[j * 16 + c * 4 + 2],
-                                  matrices[j * 16 + c * 4 + 3]);
-    im.backend->WritePalette(PackPalette(palette, im.variant));
+    im.backend->UploadPalette();
     im.palette_set = true;
   });
 }
@@ -287,6 +292,20 @@ Status Skinner::Finish() {
 
 namespace {
 
+// Whether every 32-bit word of `bytes` is a finite float (exponent bits not all set).
+bool AllFinite(std::span<const std::uint8_t> bytes) {
+  constexpr std::size_t kBlock = 1024;
+  std::uint32_t words[kBlock];
+  for (std::size_t at = 0; at < bytes.size() / 4; at += kBlock) {
+    const std::size_t n = std::min(kBlock, bytes.size() / 4 - at);
+    std::memcpy(words, bytes.data() + at * 4, n * 4);
+    std::uint32_t special = 0;
+    for (std::size_t i = 0; i < n; ++i) special |= ((words[i] & 0x7f800000u) == 0x7f800000u) ? 1u : 0u;
+    if (special) return false;
+  }
+  return true;
+}
+
 Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out, std::size_t float_count) {
   const char* call = normals ? "ReadNormals" : "ReadPositions";
   return Guarded(ErrorCode::kDeviceError, [&] {
@@ -299,12 +318,18 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
                std::to_string(im.instances) + " instances x " + std::to_string(im.vertex_count) + " vertices x 3");
     if (!out) FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::") + call + ": out is null");
     if (!im.skinned) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": nothing skinned yet (call Skin first)");
-    im.scratch.resize(vertices * im.output_stride);
-    im.backend->Read(normals, im.scratch);
-    // A NaN or infinite output never reaches the caller's buffer.
-    for (std::size_t p = 0; p < vertices; ++p) {
+    // Straight from the page-locked read-back staging into the caller's array, in mesh order.
+    const std::span<const std::uint8_t> packed = im.backend->Read(normals);
+    if (packed.size() != vertices * im.output_stride)
+      FailWith(ErrorCode::kDeviceError, std::string("Skinner::") + call + ": the device read back " +
+                                            std::to_string(packed.size()) + " bytes, expected " +
+                                            std::to_string(vertices * im.output_stride));
+    // A NaN or infinite output never reaches the caller's buffer: one scan of
+    // the words (float4 outputs' w is 1), and the vertex named when it finds one.
+    const bool finite = AllFinite(packed);
+    for (std::size_t p = 0; p < vertices && !finite; ++p) {
       float xyz[3];
-      std::memcpy(xyz, im.scratch.data() + p * im.output_stride, sizeof xyz);
+      std::memcpy(xyz, packed.data() + p * im.output_stride, sizeof xyz);
       if (std::isfinite(xyz[0]) && std::isfinite(xyz[1]) && std::isfinite(xyz[2])) continue;
       const std::size_t k = p / im.vertex_count;
       FailWith(ErrorCode::kDeviceError,
@@ -314,10 +339,14 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
                    "), not finite: the palette times the mesh overflows float32 (or the kernel is broken); out "
                    "is not written");
     }
+    if (im.identity_order && im.output_stride == 3 * sizeof(float)) {
+      std::memcpy(out, packed.data(), packed.size());  // already the caller's layout
+      return;
+    }
     for (std::size_t k = 0; k < static_cast<std::size_t>(im.instances); ++k) {
       const std::size_t base = k * im.vertex_count;
       for (std::size_t p = 0; p < im.vertex_count; ++p)
-        std::memcpy(out + (base + im.order[p]) * 3, im.scratch.data() + (base + p) * im.output_stride,
+        std::memcpy(out + (base + im.order[p]) * 3, packed.data() + (base + p) * im.output_stride,
                     3 * sizeof(float));
     }
   });

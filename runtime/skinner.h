@@ -31,14 +31,19 @@ class SkinnerBackend {
   // Throws ApiError(kInvalidState) when the backend cannot be used now (GL:
   // its context is not current on this thread).
   virtual void CheckUsable() const {}
-  // Every instance's palette, one after another (PackPalette of K x J matrices).
-  virtual void WritePalette(std::span<const std::uint8_t> packed_palettes) = 0;
+  // Every instance's palette, one after another (PackPalette of K x J
+  // matrices), in two steps: the page-locked staging to pack them into (may
+  // wait for the palette ring's slot), then its upload. A staging never
+  // uploaded changes nothing.
+  virtual std::span<std::uint8_t> PaletteStaging() = 0;
+  virtual void UploadPalette() = 0;
   virtual void Skin() = 0;
   // Waits until every Skin() so far has completed on the device.
   virtual void Finish() = 0;
-  // The positions (or normals) in packed order, instance after instance:
-  // instances x vertex_count x output stride.
-  virtual void Read(bool normals, std::span<std::uint8_t> out) = 0;
+  // Waits, and gives the positions (or normals) in packed order, instance
+  // after instance (instances x vertex_count x output stride), in the
+  // backend's page-locked read-back staging: valid until the next Read.
+  virtual std::span<const std::uint8_t> Read(bool normals) = 0;
   virtual void* DevicePositions() const = 0;
   // Default: kUnavailable.
   virtual void SkinIntoGlBuffer(unsigned int gl_buffer);
@@ -63,8 +68,9 @@ void RunOnDevice(F&& call, const std::string& context = "") {
   }
 }
 
-// The one input set a Skinner prepares: `instances` copies of the mesh's
-// rest-pose palette (SetPalette overwrites it before the first Skin).
+// The one input set a Skinner prepares (with the runner's kPaletteSlots
+// palette slots): `instances` copies of the mesh's rest-pose palette
+// (SetPalette overwrites it before the first Skin).
 std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int instances);
 
 // A SkinnerBackend over one prepared input set of the device's runner
@@ -76,8 +82,13 @@ class RunnerSkinner : public SkinnerBackend {
   RunnerSkinner(Runner& runner, Prepared prepared, bool normals)
       : runner_(runner), prepared_(std::move(prepared)), normals_(normals) {}
 
-  void WritePalette(std::span<const std::uint8_t> palettes) override {
-    RunOnDevice([&] { runner_.WritePalette(prepared_, 0, palettes); });
+  std::span<std::uint8_t> PaletteStaging() override {
+    std::span<std::uint8_t> staging;
+    RunOnDevice([&] { staging = runner_.PaletteStaging(prepared_, 0); });
+    return staging;
+  }
+  void UploadPalette() override {
+    RunOnDevice([&] { runner_.UploadPalette(prepared_, 0); });
   }
   void Skin() override {
     RunOnDevice([&] { runner_.LaunchSet(prepared_, 0); });
@@ -85,8 +96,10 @@ class RunnerSkinner : public SkinnerBackend {
   void Finish() override {
     RunOnDevice([&] { runner_.Finish(); });
   }
-  void Read(bool normals, std::span<std::uint8_t> out) override {
-    RunOnDevice([&] { runner_.ReadOutput(prepared_, 0, normals && normals_, out); });
+  std::span<const std::uint8_t> Read(bool normals) override {
+    std::span<const std::uint8_t> out;
+    RunOnDevice([&] { out = runner_.ReadOutput(prepared_, 0, normals && normals_); });
+    return out;
   }
   // A cl_mem, or a CUdeviceptr / GL buffer name as a pointer-sized integer.
   void* DevicePositions() const override { return runner_.OutputBuffer(prepared_, 0, false); }
@@ -118,9 +131,9 @@ struct Skinner::Impl {
   int instances = 1;
   std::size_t output_stride = 0;
   std::vector<std::uint32_t> order;     // packed position p holds mesh vertex order[p]
+  bool identity_order = false;          // order[p] == p: a read-back of float3 is one memcpy
   bool palette_set = false;
   bool skinned = false;
-  std::vector<std::uint8_t> scratch;    // read-back in packed order
   std::unique_ptr<SkinnerBackend> backend;  // declared last: destroyed before `device`
 };
 

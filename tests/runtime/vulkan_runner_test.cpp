@@ -22,6 +22,7 @@
 #include "runner_test_support.h"
 #include "runtime/backends/vulkan/vulkan_runner.h"
 #include "runtime/program_cache.h"
+#include "runtime/run_shape.h"
 #include "tests/common/scratch_dir.h"
 
 namespace skintune {
@@ -122,6 +123,49 @@ TEST_F(Validated, StagedBuffersMatchTheGold) {
   for (const Case& c : cases) {
     SCOPED_TRACE(std::string(c.key) + " on " + c.mesh + ", seed " + std::to_string(Seed()));
     ExpectCaseMatchesGold(staged, c, ParseVariantKey(c.key), LaunchTimes::kNonNegative);
+  }
+  for (const std::string& m : staged.validation_messages()) ADD_FAILURE() << "validation: " << m;
+}
+
+// The Skinner's frame loop (runtime/runner.h "the palette ring") with
+// unmapped kernel buffers, as on a discrete GPU: palettes through each slot's
+// staging, copied by the frame's own command buffer, frames queued without a
+// wait, read-backs through the kept read-back buffer; each read is the gold
+// of its frame's palettes, and the validation layer says nothing.
+TEST_F(Validated, TheFrameLoopThroughStagingIsEachFramesGold) {
+  setenv("SKINTUNE_VULKAN_STAGING", "1", 1);
+  VulkanRunner staged(0, ValidationOn());
+  unsetenv("SKINTUNE_VULKAN_STAGING");
+  constexpr int kInstances = 2;
+  for (const char* key : {"vulkan.b4.padded.soa.float4.u16.f32.mat3x4.constant.matrix.v1c.wg64.nonormals",
+                          "vulkan.b4.bucketed.aos.float3.u16.f32.mat4.image.matrix.v2c.wg64.normals"}) {
+    SCOPED_TRACE(key);
+    const Variant variant = ParseVariantKey(key);
+    const SkinnedAsset& asset = SmallAsset("cesium");
+    const PackedMesh packed = Pack(asset.mesh, variant);
+    const SkinnedMesh quantised = QuantisedMesh(asset.mesh, variant);
+    const std::vector<KernelSource> kernels = EmitLaunchKernels(packed, kInstances);
+    std::vector<std::uint8_t> rest;
+    for (int k = 0; k < kInstances; ++k) rest.insert(rest.end(), packed.palette.begin(), packed.palette.end());
+    Prepared live = staged.Prepare(packed, kernels, std::vector<std::vector<std::uint8_t>>{rest}, kInstances, kPaletteSlots);
+    const auto frame_palette = [&](int f, int k) { return InstancePalette(asset, f * kInstances + k); };
+    for (int f = 0; f < 3 * kPaletteSlots + 1; ++f) {
+      std::vector<std::uint8_t> bytes;
+      for (int k = 0; k < kInstances; ++k) {
+        const std::vector<std::uint8_t> p = PackPalette(frame_palette(f, k), variant);
+        bytes.insert(bytes.end(), p.begin(), p.end());
+      }
+      staged.WritePalette(live, 0, bytes);
+      staged.LaunchSet(live, 0);
+      if (f % 4 != 3 && f != 3 * kPaletteSlots) continue;
+      const std::span<const std::uint8_t> positions = staged.ReadOutput(live, 0, false);
+      for (int k = 0; k < kInstances; ++k) {
+        const GoldResult gold = SkinGold(quantised, frame_palette(f, k), false);
+        const GoldComparison c = CompareToGold(gold.positions, UnpackInstance(packed, positions, k));
+        EXPECT_EQ(c.non_finite, 0u) << "frame " << f << ", instance " << k;
+        EXPECT_LT(c.max_relative, kTolerance) << "frame " << f << ", instance " << k << ", worst vertex " << c.worst_vertex;
+      }
+    }
   }
   for (const std::string& m : staged.validation_messages()) ADD_FAILURE() << "validation: " << m;
 }

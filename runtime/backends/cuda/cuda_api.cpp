@@ -180,6 +180,9 @@ const LoadedDriver& DriverLibrary() {
     Resolve(handle, "cuDeviceGetUuid_v2", a.cuDeviceGetUuid, no_uuid);
     if (!a.cuDeviceGetUuid) Resolve(handle, "cuDeviceGetUuid", a.cuDeviceGetUuid, no_uuid);
     Resolve(handle, "cuMemcpyDtoDAsync_v2", a.cuMemcpyDtoDAsync, absent);
+    Resolve(handle, "cuMemcpyDtoHAsync_v2", a.cuMemcpyDtoHAsync, absent);
+    Resolve(handle, "cuMemHostAlloc", a.cuMemHostAlloc, absent);
+    Resolve(handle, "cuMemFreeHost", a.cuMemFreeHost, absent);
     std::string no_gl;  // optional: SkinIntoGlBuffer on CUDA then says kUnavailable
     Resolve(handle, "cuGraphicsGLRegisterBuffer", a.cuGraphicsGLRegisterBuffer, no_gl);
     Resolve(handle, "cuGraphicsUnregisterResource", a.cuGraphicsUnregisterResource, no_gl);

@@ -84,6 +84,8 @@ using TexObject = unsigned long long;  // CUtexObject = cudaTextureObject_t
 
 inline constexpr Result kSuccess = 0;
 inline constexpr unsigned kStreamNonBlocking = 1;  // CU_STREAM_NON_BLOCKING
+inline constexpr unsigned kEventDisableTiming = 2;  // CU_EVENT_DISABLE_TIMING
+inline constexpr unsigned kMemHostAllocWriteCombined = 4;  // CU_MEMHOSTALLOC_WRITECOMBINED
 inline constexpr int kAttributeMaxThreadsPerBlock = 1;
 inline constexpr int kAttributeMaxSharedMemoryPerBlock = 8;   // static __shared__ (48 KiB)
 inline constexpr int kAttributeTotalConstantMemory = 9;
@@ -180,6 +182,10 @@ struct DriverApi {
   Result (*cuStreamCreate)(Stream* stream, unsigned int flags);
   Result (*cuStreamDestroy)(Stream stream);  // _v2
   Result (*cuStreamWaitEvent)(Stream stream, Event event, unsigned int flags);
+  // The Skinner's page-locked staging (palette uploads, read-backs).
+  Result (*cuMemcpyDtoHAsync)(void* to, DevicePtr from, std::size_t bytes, Stream stream);  // _v2
+  Result (*cuMemHostAlloc)(void** pointer, std::size_t bytes, unsigned int flags);
+  Result (*cuMemFreeHost)(void* pointer);
   // CUDA-OpenGL interop (Skinner::SkinIntoGlBuffer on a CUDA device, the
   // paper's section 4.1 path); null where the driver lacks them.
   Result (*cuGraphicsGLRegisterBuffer)(GraphicsResource* resource, unsigned int gl_buffer, unsigned int flags);

@@ -88,17 +88,42 @@ std::string CompilePtxCached(const KernelSource& source, const std::string& arch
 
 namespace {
 
-// A device buffer; the palette also keeps its bytes on the host (Run and
-// Time copy them into the __constant__ symbol) and its upload in flight.
+// Page-locked host memory (cuMemHostAlloc), freed with the buffer it stages
+// (the driver makes the context current first: ReadyToRelease).
+class CudaPinned {
+ public:
+  CudaPinned(const cuda::DriverApi* api, std::size_t bytes, unsigned flags, const std::string& what) : api_(api) {
+    Check(api->cuMemHostAlloc(&host, bytes, flags), "launch",
+          "cuMemHostAlloc for " + what + " (" + std::to_string(bytes) + " bytes)");
+  }
+  ~CudaPinned() {
+    if (host) api_->cuMemFreeHost(host);
+  }
+  CudaPinned(const CudaPinned&) = delete;
+  CudaPinned& operator=(const CudaPinned&) = delete;
+  void* host = nullptr;
+
+ private:
+  const cuda::DriverApi* api_;
+};
+
+// A device buffer; a palette also keeps the page-locked staging of its
+// uploads (Write), an output that of its read-backs (ReadPinned).
 class CudaMemory final : public DeviceBuffer {
  public:
   CudaMemory(Memory m, std::size_t bytes) : DeviceBuffer(bytes), memory(std::move(m)) {}
   void* native() const override { return reinterpret_cast<void*>(static_cast<std::uintptr_t>(memory.get())); }
   cuda::DevicePtr pointer() const { return memory.get(); }
   Memory memory;
-  std::vector<std::uint8_t> host;     // kPalette: the palettes as last written
-  std::vector<std::uint8_t> staging;  // the palettes being uploaded (Write)
-  Event upload;                       // recorded after that upload
+  std::unique_ptr<CudaPinned> upload;            // write-combined: the host only writes it
+  mutable std::unique_ptr<CudaPinned> readback;
+};
+
+// The palette ring's fence: an event without timing on the Skinner's stream.
+class CudaMarker final : public DeviceObject {
+ public:
+  explicit CudaMarker(Event e) : event(std::move(e)) {}
+  Event event;
 };
 
 // A texture object over the palette (`image` storage).
@@ -167,8 +192,13 @@ class CudaApi final : public DeviceApi {
     Check(api->cuCtxSynchronize(), "launch", "cuCtxSynchronize after uploading the input sets of " + key);
   }
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
-  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key) override;
+  void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
+  std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
+                                           const std::string& what) override;
+  void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
+  void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override { Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize"); }
 
  private:
@@ -262,14 +292,9 @@ Memory CudaApi::NewMemory(std::size_t bytes, const void* data, const std::string
   return m;
 }
 
-std::unique_ptr<DeviceBuffer> CudaApi::Allocate(BufferUse use, std::size_t bytes, const void* initial,
+std::unique_ptr<DeviceBuffer> CudaApi::Allocate(BufferUse, std::size_t bytes, const void* initial,
                                                 const std::string& what) {
-  auto buffer = std::make_unique<CudaMemory>(NewMemory(bytes, initial, what), bytes);
-  if (use == BufferUse::kPalette && initial) {
-    const auto* first = static_cast<const std::uint8_t*>(initial);
-    buffer->host.assign(first, first + bytes);
-  }
-  return buffer;
+  return std::make_unique<CudaMemory>(NewMemory(bytes, initial, what), bytes);
 }
 
 // `image` storage: a texture object of float4 texels over the palette buffer.
@@ -288,22 +313,50 @@ std::unique_ptr<DeviceObject> CudaApi::PaletteView(const Variant& variant, Devic
   return std::make_unique<CudaTexture>(Texture(object, api->cuTexObjectDestroy));
 }
 
-void CudaApi::Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) {
+// The palette's page-locked staging (write-combined: the host only writes
+// it), and an asynchronous copy from it on the Skinner's stream (the
+// driver's ring fence says nothing reads either).
+std::span<std::uint8_t> CudaApi::Staging(DeviceBuffer& buffer, const std::string& key) {
   auto& m = static_cast<CudaMemory&>(buffer);
-  if (m.upload.get())  // the staging copy may still be read by the previous upload
-    Check(api->cuEventSynchronize(m.upload.get()), "launch", "waiting for the previous palette upload of " + key);
-  m.staging.assign(bytes.begin(), bytes.end());
-  m.host = m.staging;
-  Check(api->cuMemcpyHtoDAsync(m.pointer(), m.staging.data(), m.staging.size(), stream), "launch",
+  if (!m.upload)
+    m.upload = std::make_unique<CudaPinned>(api, m.bytes(), cuda::kMemHostAllocWriteCombined, "the palette staging of " + key);
+  return {static_cast<std::uint8_t*>(m.upload->host), m.bytes()};
+}
+
+void CudaApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) {
+  auto& m = static_cast<CudaMemory&>(buffer);
+  Check(api->cuMemcpyHtoDAsync(m.pointer(), Staging(buffer, key).data(), bytes, stream), "launch",
         "cuMemcpyHtoDAsync 'palette' of " + key);
-  if (!m.upload.get()) m.upload = NewEvent("cuEventCreate");
-  Check(api->cuEventRecord(m.upload.get(), stream), "launch", "cuEventRecord after the palette upload of " + key);
 }
 
 void CudaApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) {
   if (wait) Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize before reading back " + what);
   Check(api->cuMemcpyDtoH(out.data(), static_cast<const CudaMemory&>(buffer).pointer(), out.size()), "launch",
         "cuMemcpyDtoH " + what);
+}
+
+// After the work queued on the stream, into page-locked memory, then wait.
+std::span<const std::uint8_t> CudaApi::ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
+                                                  const std::string& what) {
+  const auto& m = static_cast<const CudaMemory&>(buffer);
+  if (!m.readback) m.readback = std::make_unique<CudaPinned>(api, m.bytes(), 0, "the read-back of " + what);
+  Check(api->cuMemcpyDtoHAsync(m.readback->host, m.pointer(), bytes, stream), "launch", "cuMemcpyDtoHAsync " + what);
+  Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize after reading back " + what);
+  return {static_cast<const std::uint8_t*>(m.readback->host), bytes};
+}
+
+void CudaApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) {
+  if (!marker) {
+    cuda::Event e = nullptr;
+    Check(api->cuEventCreate(&e, cuda::kEventDisableTiming), "launch", "cuEventCreate for the palette ring of " + what);
+    marker = std::make_unique<CudaMarker>(Event(e, api->cuEventDestroy));
+  }
+  Check(api->cuEventRecord(static_cast<CudaMarker&>(*marker).event.get(), stream), "launch",
+        "cuEventRecord after " + what);
+}
+
+void CudaApi::Wait(DeviceObject& marker, const std::string& what) {
+  Check(api->cuEventSynchronize(static_cast<CudaMarker&>(marker).event.get()), "launch", "waiting for " + what);
 }
 
 // ---------------------------------------------------------------- launches
@@ -354,7 +407,7 @@ void CudaApi::Launch(const CudaBound& bound, cuda::Stream lane, void** parameter
   const CudaPlanned& plan = *bound.plan;
   const std::string& where = plan.spec.where;
   if (plan.constant_symbol)
-    Check(api->cuMemcpyDtoDAsync(plan.constant_symbol, bound.palette->pointer(), bound.palette->host.size(), lane),
+    Check(api->cuMemcpyDtoDAsync(plan.constant_symbol, bound.palette->pointer(), bound.palette->bytes(), lane),
           "launch", where + ": cuMemcpyDtoDAsync to '" + kConstantPaletteSymbol + "'");
   Check(api->cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, lane,
                             parameters ? parameters : const_cast<void**>(bound.parameters.data()), nullptr),

@@ -24,8 +24,10 @@
 //   the buffer (linear, float4 texels).
 // - Times: CUDA events recorded around each cuLaunchKernel (Run and Time on
 //   the legacy default stream, then cuCtxSynchronize).
-// - Skinning: palette uploads (cuMemcpyHtoDAsync, an event guards the bytes)
-//   and launches go to the runner's stream; ReadOutput synchronises it.
+// - Skinning: palette uploads (cuMemcpyHtoDAsync from each palette slot's
+//   page-locked, write-combined staging), launches, the ring's fences
+//   (events) and read-backs (cuMemcpyDtoHAsync into page-locked memory, then
+//   cuStreamSynchronize) go to the runner's stream.
 // Errors name the stage: "CUDA setup", "build", "launch" or "guard". A kernel
 // that faults (an illegal address) leaves the CUDA context unusable: later
 // runs of the same runner fail too.

@@ -64,14 +64,41 @@ class GlObject {
 GlObject NewBuffer(std::size_t bytes, const void* data, const std::string& what);
 GlObject NewQuery();
 
-// A buffer, or the texture buffer over the palette (`image` storage).
+// Host-visible staging of a buffer: persistently mapped (glBufferStorage,
+// GL 4.4 or ARB_buffer_storage; `map` null without it).
+struct GlStaging {
+  GlObject buffer;
+  void* map = nullptr;
+  std::vector<std::uint8_t> copy;  // the bytes themselves without buffer storage
+};
+
+// A buffer, or the texture buffer over the palette (`image` storage); a
+// palette also keeps the staging of its uploads (Write), an output that of
+// its read-backs (ReadPinned).
 class GlBuffer final : public DeviceBuffer {
  public:
   GlBuffer(GlObject o, std::size_t bytes) : DeviceBuffer(bytes), object(std::move(o)) {}
   void* native() const override { return reinterpret_cast<void*>(static_cast<std::uintptr_t>(object.get())); }
-  void Forget() override { object.forget(); }
+  void Forget() override {
+    object.forget();
+    if (upload) upload->buffer.forget();
+    if (readback) readback->buffer.forget();
+  }
   GLuint id() const { return object.get(); }
   GlObject object;
+  std::unique_ptr<GlStaging> upload;
+  mutable std::unique_ptr<GlStaging> readback;
+};
+
+// The palette ring's fence: a fence sync.
+class GlFence final : public DeviceObject {
+ public:
+  explicit GlFence(GLsync s) : sync(s) {}
+  ~GlFence() override {
+    if (sync) glDeleteSync(sync);
+  }
+  void Forget() override { sync = nullptr; }
+  GLsync sync = nullptr;
 };
 
 // Where the transform feedback of one glsl-vertex launch goes. An instanced
@@ -156,9 +183,18 @@ class GlApi final : public DeviceApi {
   void FinishUploads(const std::string& key) override;
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
   TimingPolicy timing_policy() const override { return {!host_timed()}; }
-  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key) override;
+  void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
+  std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
+                                           const std::string& what) override;
+  void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
+  void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override { glFinish(); }
+  // Whether staging buffers are persistently mapped (GL 4.4 or
+  // ARB_buffer_storage, unless $SKINTUNE_GL_NO_BUFFER_STORAGE=1 asks for the
+  // glBufferSubData / glGetBufferSubData path).
+  bool persistent_staging() const;
 
  private:
   const BuiltProgram& ProgramFor(const KernelSource& source);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 
 #include "reference/error.h"
@@ -393,10 +394,85 @@ void GlApi::FinishUploads(const std::string& key) {
   CheckGl("launch", "uploading the input sets of " + key);
 }
 
-void GlApi::Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) {
+bool GlApi::persistent_staging() const {
+  static const bool refused = [] {
+    const char* env = std::getenv("SKINTUNE_GL_NO_BUFFER_STORAGE");
+    return env && *env && std::string(env) != "0";
+  }();
+  return !refused && (info().major > 4 || (info().major == 4 && info().minor >= 4) ||
+                      epoxy_has_gl_extension("GL_ARB_buffer_storage"));
+}
+
+namespace {
+
+// A buffer of `bytes` with immutable storage, mapped for good with `access`
+// (GL_MAP_WRITE_BIT or GL_MAP_READ_BIT) and coherent: what the host writes is
+// seen by later commands, what commands wrote is seen once their fence is.
+std::unique_ptr<GlStaging> PersistentStaging(std::size_t bytes, GLbitfield access, const std::string& what) {
+  auto staging = std::make_unique<GlStaging>();
+  GLuint id = 0;
+  glGenBuffers(1, &id);
+  staging->buffer = GlObject(id, [](GLuint name) { glDeleteBuffers(1, &name); });
+  const GLbitfield flags = access | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+  glBindBuffer(GL_COPY_WRITE_BUFFER, id);
+  glBufferStorage(GL_COPY_WRITE_BUFFER, static_cast<GLsizeiptr>(bytes), nullptr,
+                  flags | (access == GL_MAP_READ_BIT ? GL_CLIENT_STORAGE_BIT : 0));
+  staging->map = glMapBufferRange(GL_COPY_WRITE_BUFFER, 0, static_cast<GLsizeiptr>(bytes), flags);
+  glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
+  CheckGl("launch", "a persistently mapped buffer for " + what + " (" + std::to_string(bytes) + " bytes)");
+  if (!staging->map) Fail("launch", "glMapBufferRange of the persistently mapped buffer for " + what + " returned null");
+  return staging;
+}
+
+void CopyBuffer(GLuint from, GLuint to, std::size_t bytes) {
+  glBindBuffer(GL_COPY_READ_BUFFER, from);
+  glBindBuffer(GL_COPY_WRITE_BUFFER, to);
+  glCopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, 0, 0, static_cast<GLsizeiptr>(bytes));
+  glBindBuffer(GL_COPY_READ_BUFFER, 0);
+  glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
+}
+
+void WaitFence(GLsync sync, const std::string& what) {
+  for (;;) {
+    const GLenum r = glClientWaitSync(sync, GL_SYNC_FLUSH_COMMANDS_BIT, 1'000'000'000);
+    if (r == GL_ALREADY_SIGNALED || r == GL_CONDITION_SATISFIED) return;
+    if (r == GL_WAIT_FAILED) {
+      CheckGl("launch", "glClientWaitSync for " + what);
+      Fail("launch", "glClientWaitSync for " + what + " failed");
+    }
+  }
+}
+
+}  // namespace
+
+// The palette's persistently mapped staging, and a copy from it on the GPU
+// (glCopyBufferSubData) queued before the next frame; without buffer storage
+// host memory and a glBufferSubData into the palette, which no queued frame
+// reads (the driver's ring fence), so the driver need not stall or orphan it.
+std::span<std::uint8_t> GlApi::Staging(DeviceBuffer& buffer, const std::string& key) {
+  auto& palette = static_cast<GlBuffer&>(buffer);
+  if (!palette.upload) {
+    ClearGlErrors();
+    palette.upload = persistent_staging()
+                         ? PersistentStaging(palette.bytes(), GL_MAP_WRITE_BIT, "the palette staging of " + key)
+                         : std::make_unique<GlStaging>();
+    if (!palette.upload->map) palette.upload->copy.resize(palette.bytes());
+  }
+  GlStaging& staging = *palette.upload;
+  return {staging.map ? static_cast<std::uint8_t*>(staging.map) : staging.copy.data(), palette.bytes()};
+}
+
+void GlApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) {
+  auto& palette = static_cast<GlBuffer&>(buffer);
+  const std::uint8_t* from = Staging(buffer, key).data();
   ClearGlErrors();
-  glBindBuffer(GL_COPY_WRITE_BUFFER, static_cast<GlBuffer&>(buffer).id());
-  glBufferSubData(GL_COPY_WRITE_BUFFER, 0, static_cast<GLsizeiptr>(bytes.size()), bytes.data());
+  if (palette.upload->map) {
+    CopyBuffer(palette.upload->buffer.get(), palette.id(), bytes);
+    CheckGl("launch", "glCopyBufferSubData 'palette' of " + key);
+    return;
+  }
+  glBindBuffer(GL_COPY_WRITE_BUFFER, palette.id());
+  glBufferSubData(GL_COPY_WRITE_BUFFER, 0, static_cast<GLsizeiptr>(bytes), from);
   glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
   CheckGl("launch", "glBufferSubData 'palette' of " + key);
 }
@@ -408,6 +484,37 @@ void GlApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const 
   glBindBuffer(GL_COPY_READ_BUFFER, 0);
   CheckGl("launch", "glGetBufferSubData " + what);
 }
+
+// A GPU copy into the output's persistently mapped read-back buffer, a fence,
+// the wait; or glGetBufferSubData without buffer storage.
+std::span<const std::uint8_t> GlApi::ReadPinned(const DeviceBuffer& buffer, std::size_t bytes, const std::string& what) {
+  const auto& out = static_cast<const GlBuffer&>(buffer);
+  ClearGlErrors();
+  if (!out.readback)
+    out.readback = persistent_staging() ? PersistentStaging(out.bytes(), GL_MAP_READ_BIT, "the read-back of " + what)
+                                        : std::make_unique<GlStaging>();
+  GlStaging& staging = *out.readback;
+  if (!staging.map) {
+    staging.copy.resize(bytes);
+    Read(buffer, staging.copy, what, true);
+    return staging.copy;
+  }
+  CopyBuffer(out.id(), staging.buffer.get(), bytes);
+  const GLsync sync = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  CheckGl("launch", "glCopyBufferSubData " + what + " into its read-back buffer");
+  const GlFence fence(sync);
+  WaitFence(sync, "the read-back of " + what);
+  return {static_cast<const std::uint8_t*>(staging.map), bytes};
+}
+
+void GlApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) {
+  const GLsync sync = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  if (!sync) CheckGl("launch", "glFenceSync after " + what);
+  marker = std::make_unique<GlFence>(sync);
+  glFlush();  // the frame goes to the device while the host prepares the next
+}
+
+void GlApi::Wait(DeviceObject& marker, const std::string& what) { WaitFence(static_cast<GlFence&>(marker).sync, what); }
 
 // ---------------------------------------------------------------- vertex draw state
 

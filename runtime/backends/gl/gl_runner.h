@@ -48,8 +48,13 @@
 //   2-4x slower than the same kernels timed first (docs/PERFORMANCE.md).
 // Errors name the stage: "GL setup", "build", "launch" or "guard".
 //
-// - Skinning (the runtime's Skinner): WritePalette is a glBufferSubData,
-//   LaunchSet runs the set's launches once (then
+// - Skinning (the runtime's Skinner): WritePalette writes each palette
+//   slot's persistently mapped staging buffer (glBufferStorage, GL 4.4 or
+//   ARB_buffer_storage) and queues a glCopyBufferSubData into the slot, or
+//   without buffer storage a glBufferSubData into the idle slot; the ring's
+//   fences are glFenceSync (and a glFlush); read-backs copy into a
+//   persistently mapped buffer and wait for a fence (else
+//   glGetBufferSubData). LaunchSet runs the set's launches once (then
 //   glMemoryBarrier(GL_ALL_BARRIER_BITS)) and restores the program, vertex
 //   array, framebuffers, transform feedback object and rasteriser-discard
 //   state it found; the indexed buffer bindings (storage, uniform, transform

@@ -75,15 +75,47 @@ struct BuiltKernel {
   Kernel kernel;
 };
 
+// Page-locked host memory: a CL_MEM_ALLOC_HOST_PTR buffer mapped once and
+// kept mapped (NVIDIA's OpenCL best-practice pinned path: copies between it
+// and device buffers run at full bus speed and asynchronously).
+struct ClPinned {
+  ClPinned(cl_context context, cl_command_queue queue, std::size_t bytes, const std::string& what) : queue_(queue) {
+    cl_int err = CL_SUCCESS;
+    buffer = Memory(clCreateBuffer(context, CL_MEM_ALLOC_HOST_PTR | CL_MEM_READ_WRITE, bytes, nullptr, &err));
+    Check(err, "launch", "clCreateBuffer(CL_MEM_ALLOC_HOST_PTR) for " + what + " (" + std::to_string(bytes) + " bytes)");
+    host = clEnqueueMapBuffer(queue, buffer.get(), CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, bytes, 0, nullptr, nullptr,
+                              &err);
+    Check(err, "launch", "clEnqueueMapBuffer of " + what);
+  }
+  ~ClPinned() {
+    if (host) clEnqueueUnmapMemObject(queue_, buffer.get(), host, 0, nullptr, nullptr);
+  }
+  ClPinned(const ClPinned&) = delete;
+  ClPinned& operator=(const ClPinned&) = delete;
+  Memory buffer;
+  void* host = nullptr;
+
+ private:
+  cl_command_queue queue_;
+};
+
 // A buffer, or the image1d_buffer over the palette; the palette also keeps
-// the bytes of its upload in flight (Write).
+// the page-locked staging of its uploads (Write), an output that of its
+// read-backs (ReadPinned).
 class ClMemory final : public DeviceBuffer {
  public:
   ClMemory(Memory m, std::size_t bytes) : DeviceBuffer(bytes), memory(std::move(m)) {}
   void* native() const override { return memory.get(); }
   Memory memory;
-  std::vector<std::uint8_t> staging;  // the bytes being uploaded
-  Event upload;                       // that upload, while in flight
+  std::unique_ptr<ClPinned> upload;            // made on the first Write
+  mutable std::unique_ptr<ClPinned> readback;  // made on the first ReadPinned
+};
+
+// The palette ring's fence: a marker event.
+class ClMarker final : public DeviceObject {
+ public:
+  explicit ClMarker(cl_event e) : event(e) {}
+  Event event;
 };
 
 class ClPlanned final : public PlannedLaunch {
@@ -127,8 +159,13 @@ class OpenClApi final : public DeviceApi {
     Check(clFinish(queue.get()), "launch", "clFinish after uploading the input sets of " + key);
   }
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
-  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key) override;
+  void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
+  std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
+                                           const std::string& what) override;
+  void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
+  void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override { Check(clFinish(queue.get()), "launch", "clFinish"); }
 
  private:
@@ -242,24 +279,51 @@ std::unique_ptr<DeviceObject> OpenClApi::PaletteView(const Variant& variant, Dev
   return std::make_unique<ClMemory>(std::move(image), 0);
 }
 
-void OpenClApi::Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) {
+// The palette's page-locked staging, and a non-blocking write from it (the
+// driver's ring fence says nothing reads the staging or the palette).
+std::span<std::uint8_t> OpenClApi::Staging(DeviceBuffer& buffer, const std::string& key) {
   auto& memory = static_cast<ClMemory&>(buffer);
-  if (memory.upload.get()) {  // the staging copy is still being read by the previous upload
-    const cl_event previous = memory.upload.get();
-    Check(clWaitForEvents(1, &previous), "launch", "waiting for the previous palette upload of " + key);
-  }
-  memory.staging.assign(bytes.begin(), bytes.end());
-  cl_event event = nullptr;
-  Check(clEnqueueWriteBuffer(queue.get(), memory.memory.get(), CL_FALSE, 0, memory.staging.size(),
-                             memory.staging.data(), 0, nullptr, &event),
+  if (!memory.upload)
+    memory.upload = std::make_unique<ClPinned>(context.get(), queue.get(), memory.bytes(), "the palette staging of " + key);
+  return {static_cast<std::uint8_t*>(memory.upload->host), memory.bytes()};
+}
+
+void OpenClApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) {
+  auto& memory = static_cast<ClMemory&>(buffer);
+  Check(clEnqueueWriteBuffer(queue.get(), memory.memory.get(), CL_FALSE, 0, bytes, Staging(buffer, key).data(), 0,
+                             nullptr, nullptr),
         "launch", "clEnqueueWriteBuffer 'palette' of " + key);
-  memory.upload = Event(event);
 }
 
 void OpenClApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool) {
   Check(clEnqueueReadBuffer(queue.get(), static_cast<cl_mem>(buffer.native()), CL_TRUE, 0, out.size(), out.data(), 0,
                             nullptr, nullptr),
         "launch", "clEnqueueReadBuffer " + what);
+}
+
+std::span<const std::uint8_t> OpenClApi::ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
+                                                    const std::string& what) {
+  const auto& memory = static_cast<const ClMemory&>(buffer);
+  if (!memory.readback)
+    memory.readback = std::make_unique<ClPinned>(context.get(), queue.get(), memory.bytes(), "the read-back of " + what);
+  Check(clEnqueueReadBuffer(queue.get(), memory.memory.get(), CL_TRUE, 0, bytes, memory.readback->host, 0, nullptr,
+                            nullptr),
+        "launch", "clEnqueueReadBuffer " + what);
+  return {static_cast<const std::uint8_t*>(memory.readback->host), bytes};
+}
+
+// A marker after everything queued, and the queue flushed: the device starts
+// on the frame while the host prepares the next one.
+void OpenClApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) {
+  cl_event event = nullptr;
+  Check(clEnqueueMarkerWithWaitList(queue.get(), 0, nullptr, &event), "launch", "clEnqueueMarkerWithWaitList after " + what);
+  marker = std::make_unique<ClMarker>(event);
+  Check(clFlush(queue.get()), "launch", "clFlush after " + what);
+}
+
+void OpenClApi::Wait(DeviceObject& marker, const std::string& what) {
+  const cl_event event = static_cast<ClMarker&>(marker).event.get();
+  Check(clWaitForEvents(1, &event), "launch", "waiting for " + what);
 }
 
 // ---------------------------------------------------------------- launches

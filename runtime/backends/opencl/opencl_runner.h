@@ -12,9 +12,12 @@
 // - Launches: arguments set by name per launch (one cl_kernel per program,
 //   shared by every input set); instanced kernels a 2-D NDRange (items, K).
 // - Times: profiling events (the queue needs CL_QUEUE_PROFILING_ENABLE).
-// - Skinning: palettes are uploaded without blocking (the bytes kept until
-//   the upload has read them); LaunchSet may write the positions into
-//   another cl_mem (OpenCL-GL sharing: opencl_gl_sharing.h).
+// - Skinning: each palette slot keeps a page-locked staging buffer
+//   (CL_MEM_ALLOC_HOST_PTR, mapped once) that a non-blocking
+//   clEnqueueWriteBuffer uploads from; read-backs go through one kept per
+//   output; the ring's fences are marker events (and a clFlush); LaunchSet
+//   may write the positions into another cl_mem (OpenCL-GL sharing:
+//   opencl_gl_sharing.h).
 // Errors name the stage: "OpenCL setup", "build", "launch" or "guard".
 #pragma once
 

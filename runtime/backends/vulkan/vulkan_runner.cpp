@@ -18,6 +18,8 @@ namespace vk {
 
 namespace {
 
+class VulkanBuffer;
+
 // The device, its queue and its memory types: owned, or the caller's.
 struct Context {
   std::shared_ptr<VulkanInstance> instance;
@@ -36,6 +38,10 @@ struct Context {
     const char* env = std::getenv("SKINTUNE_VULKAN_STAGING");
     return env && *env && std::string(env) != "0";
   }();
+
+  // Palette uploads written into their staging and not yet recorded: the
+  // next frame's command buffer copies them first (VulkanApi::Write).
+  mutable std::vector<std::pair<VulkanBuffer*, std::size_t>> pending_uploads;
 
   Context() = default;
   Context(const Context&) = delete;
@@ -92,7 +98,11 @@ class VulkanBuffer final : public DeviceBuffer {
       Check(c.fn.vkMapMemory(c.device, memory, 0, VK_WHOLE_SIZE, 0, &mapped), "launch", "vkMapMemory '" + what + "'");
   }
   ~VulkanBuffer() override {
+    auto& pending = c_.pending_uploads;
+    pending.erase(std::remove_if(pending.begin(), pending.end(), [&](const auto& p) { return p.first == this; }),
+                  pending.end());
     staging.reset();
+    readback.reset();
     if (mapped) c_.fn.vkUnmapMemory(c_.device, memory);
     if (buffer) c_.fn.vkDestroyBuffer(c_.device, buffer, nullptr);
     if (memory) c_.fn.vkFreeMemory(c_.device, memory, nullptr);
@@ -102,8 +112,8 @@ class VulkanBuffer final : public DeviceBuffer {
   VkBuffer buffer = VK_NULL_HANDLE;
   VkDeviceMemory memory = VK_NULL_HANDLE;
   void* mapped = nullptr;
-  std::unique_ptr<VulkanBuffer> staging;  // Write's, reused
-  VkFence last_write = VK_NULL_HANDLE;    // Write's copy in flight (owned by a Submission)
+  std::unique_ptr<VulkanBuffer> staging;            // Write's, host-visible, reused
+  mutable std::unique_ptr<VulkanBuffer> readback;   // ReadPinned's, host-visible, reused
 
  private:
   const Context& c_;
@@ -144,6 +154,7 @@ class VulkanBound final : public DeviceObject {
   }
   const Context& c_;
   const VulkanPlanned* plan = nullptr;
+  const VulkanBuffer* palette = nullptr;  // the slot's (its staged upload goes first: RecordPendingUploads)
   VkDescriptorPool pool = VK_NULL_HANDLE;
   VkDescriptorSet set = VK_NULL_HANDLE;
   std::vector<VkWriteDescriptorSet> writes;  // how `set` was written (pointing into the two vectors below)
@@ -175,7 +186,16 @@ class QueryPool {
 struct Submission {
   VkCommandBuffer cb = VK_NULL_HANDLE;
   VkFence fence = VK_NULL_HANDLE;
+  std::uint64_t number = 0;  // 1, 2, ... in submission order
   std::vector<std::unique_ptr<VulkanBuffer>> keep;
+};
+
+// The palette ring's fence: every submission up to `number`, or (after
+// launches recorded into a caller's command buffer) the queue idle.
+class VulkanMarker final : public DeviceObject {
+ public:
+  std::uint64_t number = 0;
+  bool queue_idle = false;
 };
 
 std::string Headline(const std::string& text) {
@@ -226,8 +246,13 @@ class VulkanApi final : public DeviceApi {
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
   // On a GPU, warm up until the clock is steady, as GL on the same NVIDIA driver needs.
   TimingPolicy timing_policy() const override { return {c_->info.type == "gpu"}; }
-  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) override;
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key) override;
+  void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
+  std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
+                                           const std::string& what) override;
+  void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
+  void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override;
 
  private:
@@ -242,6 +267,7 @@ class VulkanApi final : public DeviceApi {
   void Upload(VulkanBuffer& to, const void* bytes, std::size_t size, const std::string& what);
   void Barrier(VkCommandBuffer cb, VkPipelineStageFlags from, VkAccessFlags from_access, VkPipelineStageFlags to,
                VkAccessFlags to_access) const;
+  void RecordPendingUploads(VkCommandBuffer cb, const FrameRun& run);
   void RecordFrames(VkCommandBuffer cb, const FrameRun& run, std::size_t begin, std::size_t end,
                     std::set<const void*>& used, VkQueryPool pool, int* query);
   void BarrierBeforeFrames(VkCommandBuffer cb) const;
@@ -260,6 +286,7 @@ class VulkanApi final : public DeviceApi {
   std::map<std::string, VkShaderModule> modules_;  // by source hash
   std::map<std::string, Pipeline> pipelines_;      // by source hash and palette storage
   std::vector<Submission> in_flight_;
+  std::uint64_t submitted_ = 0;  // submissions so far
   VkCommandBuffer record_into_ = VK_NULL_HANDLE;
   bool recorded_for_caller_ = false;  // launches recorded into a caller's command buffer since the last wait
 };
@@ -471,6 +498,7 @@ std::unique_ptr<DeviceObject> VulkanApi::Bind(const PlannedLaunch& launch, std::
   for (const ArgumentBinding& a : arguments) {
     if (a.role == ArgumentRole::kScalar) continue;
     const auto* buffer = static_cast<const VulkanBuffer*>(a.buffer);
+    if (a.role == ArgumentRole::kPalette) bound->palette = buffer;
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     w.dstSet = bound->set;
     w.dstBinding = binding;
@@ -552,6 +580,7 @@ void VulkanApi::Submit(VkCommandBuffer cb, bool wait, std::vector<std::unique_pt
     drop();
     Check(submitted, "launch", "vkQueueSubmit");
   }
+  s.number = ++submitted_;
   in_flight_.push_back(std::move(s));
   if (wait) WaitAll();
 }
@@ -686,6 +715,7 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
   if (run.use == FrameUse::kLive) {
     const bool for_caller = record_into_ != VK_NULL_HANDLE;
     const VkCommandBuffer cb = for_caller ? record_into_ : Begin();
+    RecordPendingUploads(cb, run);
     BarrierBeforeFrames(cb);
     RecordFrames(cb, run, 0, frames, used, VK_NULL_HANDLE, nullptr);
     BarrierAfterFrames(cb, for_caller);
@@ -748,30 +778,54 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
   return ms;
 }
 
-// The palette: into its staging buffer once the previous copy from it is
-// done, then a copy on the queue, after the launches already submitted.
-void VulkanApi::Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string& key) {
+// The palette (the driver's ring fence says no queued frame reads it, nor
+// its staging): host-visible memory is its own staging, written in place;
+// other memory has a staging buffer whose copy the next frame's command
+// buffer records before its dispatches (RecordPendingUploads): no
+// submission of its own.
+std::span<std::uint8_t> VulkanApi::Staging(DeviceBuffer& buffer, const std::string& key) {
   auto& b = static_cast<VulkanBuffer&>(buffer);
-  if (b.last_write) {
-    for (const Submission& s : in_flight_) {
-      if (s.fence == b.last_write) {
-        Check(c_->fn.vkWaitForFences(c_->device, 1, &s.fence, VK_TRUE, UINT64_MAX), "launch",
-              "waiting for the last palette copy of " + key);
-      }
-    }
-  }
-  Retire(false);
+  if (b.mapped) return {static_cast<std::uint8_t*>(b.mapped), b.bytes()};
   if (!b.staging) b.staging = std::make_unique<VulkanBuffer>(*c_, b.bytes(), kStagingUsage, true, "palette staging of " + key);
-  std::memcpy(b.staging->mapped, bytes.data(), std::min(bytes.size(), b.bytes()));
-  const VkCommandBuffer cb = Begin();
-  // Launches already submitted read the palette first.
-  Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
-  const VkBufferCopy region{0, 0, std::min(bytes.size(), b.bytes())};
-  c_->fn.vkCmdCopyBuffer(cb, b.staging->buffer, b.buffer, 1, &region);
-  Barrier(cb, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
-          VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);
-  Submit(cb, false);
-  b.last_write = in_flight_.back().fence;
+  return {static_cast<std::uint8_t*>(b.staging->mapped), b.bytes()};
+}
+
+void VulkanApi::Upload(DeviceBuffer& buffer, std::size_t size, const std::string&) {
+  auto& b = static_cast<VulkanBuffer&>(buffer);
+  if (b.mapped) return;
+  auto& pending = c_->pending_uploads;
+  const auto found = std::find_if(pending.begin(), pending.end(), [&](const auto& p) { return p.first == &b; });
+  if (found == pending.end()) {
+    pending.emplace_back(&b, size);
+  } else {
+    found->second = size;
+  }
+}
+
+// The copies Write left for the palettes `run` reads (another Skinner's stay
+// for its own next frame), then a barrier to the dispatches that read them.
+void VulkanApi::RecordPendingUploads(VkCommandBuffer cb, const FrameRun& run) {
+  auto& pending = c_->pending_uploads;
+  const auto read_by_run = [&](const VulkanBuffer* palette) {
+    for (const auto& frame : run.frames)
+      for (const std::unique_ptr<DeviceObject>& launch : frame)
+        if (static_cast<const VulkanBound&>(*launch).palette == palette) return true;
+    return false;
+  };
+  bool recorded = false;
+  for (auto p = pending.begin(); p != pending.end();) {
+    if (!read_by_run(p->first)) {
+      ++p;
+      continue;
+    }
+    const VkBufferCopy region{0, 0, p->second};
+    c_->fn.vkCmdCopyBuffer(cb, p->first->staging->buffer, p->first->buffer, 1, &region);
+    p = pending.erase(p);
+    recorded = true;
+  }
+  if (recorded)
+    Barrier(cb, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+            VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);
 }
 
 void VulkanApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) {
@@ -791,6 +845,42 @@ void VulkanApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, co
           VK_ACCESS_HOST_READ_BIT);
   Submit(cb, true);
   std::memcpy(out.data(), staging->mapped, out.size());
+}
+
+// Host-visible outputs are read where they are once the queue is done;
+// others are copied into the output's host-visible read-back buffer (kept)
+// after the frames already submitted, and read there.
+std::span<const std::uint8_t> VulkanApi::ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
+                                                    const std::string& what) {
+  const auto& b = static_cast<const VulkanBuffer&>(buffer);
+  if (b.mapped || recorded_for_caller_) Finish();
+  if (b.mapped) return {static_cast<const std::uint8_t*>(b.mapped), bytes};
+  if (!b.readback) b.readback = std::make_unique<VulkanBuffer>(*c_, b.bytes(), kStagingUsage, true, "read-back of " + what);
+  const VkCommandBuffer cb = Begin();
+  Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+          VK_ACCESS_TRANSFER_READ_BIT);
+  const VkBufferCopy region{0, 0, bytes};
+  c_->fn.vkCmdCopyBuffer(cb, b.buffer, b.readback->buffer, 1, &region);
+  Barrier(cb, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+          VK_ACCESS_HOST_READ_BIT);
+  Submit(cb, true);
+  return {static_cast<const std::uint8_t*>(b.readback->mapped), bytes};
+}
+
+void VulkanApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string&) {
+  if (!marker) marker = std::make_unique<VulkanMarker>();
+  auto& m = static_cast<VulkanMarker&>(*marker);
+  m.queue_idle = recorded_for_caller_;
+  m.number = submitted_;
+}
+
+void VulkanApi::Wait(DeviceObject& marker, const std::string& what) {
+  const auto& m = static_cast<const VulkanMarker&>(marker);
+  if (m.queue_idle) return Finish();
+  for (const Submission& s : in_flight_)
+    if (s.number <= m.number)
+      Check(c_->fn.vkWaitForFences(c_->device, 1, &s.fence, VK_TRUE, UINT64_MAX), "launch", "waiting for " + what);
+  Retire(false);
 }
 
 // Everything skintune submitted; and, when launches went into a caller's

@@ -26,10 +26,13 @@
 // - Limits (VkPhysicalDeviceLimits): maxUniformBufferRange (constant),
 //   maxTexelBufferElements (image), maxStorageBufferRange (every storage
 //   buffer), maxComputeWorkGroupCount x and y (groups, instances).
-// - Skinning: WritePalette copies into a staging buffer and submits its copy
-//   (waiting only for the previous copy of that palette); LaunchSet submits
+// - Skinning: WritePalette writes a host-visible palette slot in place, or
+//   the slot's host-visible staging buffer, whose vkCmdCopyBuffer the next
+//   frame's command buffer records before its dispatches; LaunchSet submits
 //   the set's launches without waiting, or records them into the caller's
-//   command buffer (RecordInto), framed by barriers.
+//   command buffer (RecordInto), framed by barriers. The ring's fences are
+//   submission numbers (their VkFences), or the queue idle after a caller's
+//   command buffer; read-backs go through a kept host-visible buffer.
 // - Adopted handles (Device::FromVulkan): the caller's instance, device and
 //   queue are used and never destroyed; skintune creates no device there.
 // Errors name the stage: "Vulkan setup", "build", "launch" or "guard".

@@ -384,35 +384,54 @@ class Skinner {
   // Skinner keeps its Device's context, queue and programs alive: it may
   // outlive the Device object. A GL Skinner needs its GL context current on
   // the calling thread (kInvalidState otherwise).
+  //
+  // The frame loop (docs/RUNTIME.md "The frame loop") is SetPalette + Skin
+  // per frame, without Finish: a Skinner keeps 3 palette buffers (a ring),
+  // so up to 3 frames are queued on the device while the host prepares the
+  // next. Which calls block:
+  //   SetPalette  only when 3 frames are already in flight: it then waits
+  //               for the oldest of them (the one whose palette buffer it
+  //               reuses), never for the frame just queued;
+  //   Skin        never (it queues the launches);
+  //   Finish, ReadPositions, ReadNormals  wait for the device (everything
+  //               queued so far).
 
   // Uploads the palettes: instances() * joint_count() column-major 4x4 float
   // matrices (16 floats each, as glm::mat4 stores them; instance k's joints
   // at [k * joint_count * 16]). `float_count` must equal
   // instances() * joint_count() * 16, else kInvalidArgument; null `matrices`:
   // kInvalidArgument; a NaN or infinite element: kInvalidArgument naming the
-  // matrix and element. The data is copied: the caller may reuse it at once.
+  // matrix and element. A rejected palette changes nothing: the next Skin()
+  // uses the last palette accepted. The data is copied into page-locked
+  // staging of the next palette buffer before SetPalette returns and
+  // uploaded asynchronously: the caller may reuse `matrices` at once.
+  // Blocks only when the palette buffer it needs is still read by a frame
+  // queued 3 SetPalette calls ago.
   Status SetPalette(const float* matrices, std::size_t float_count);
 
-  // Skins every instance on the device with the last palette (asynchronous
-  // where the backend is: Read* waits). kInvalidState before the first
-  // SetPalette.
+  // Queues the skinning of every instance with the last palette set and
+  // returns without waiting for the device (skintune waits on nothing here).
+  // Several Skin() calls after one SetPalette each skin with it.
+  // kInvalidState before the first SetPalette.
   Status Skin();
 
   // Waits until the last Skin() has completed on the device, e.g. before
   // timing a frame or using device_positions() from another queue or API
   // (OpenCL clFinish, CUDA stream synchronise, GL glFinish). Nothing to wait
-  // for before the first Skin() (returns ok).
+  // for before the first Skin() (returns ok). Blocks.
   Status Finish();
 
-  // Skinned positions (and normals) in the mesh's vertex order: 3 floats per
-  // vertex, instance after instance; `float_count` must equal
-  // instances() * vertex_count() * 3 (else kInvalidArgument), `out` not null.
-  // Waits for the last Skin(); kInvalidState before the first Skin(). A NaN
-  // or infinite output (a finite palette whose product with the mesh
-  // overflows float32) is kDeviceError naming the vertex and instance, and
-  // nothing is written to `out`.
+  // Skinned positions (and normals) of the last Skin() in the mesh's vertex
+  // order: 3 floats per vertex, instance after instance; `float_count` must
+  // equal instances() * vertex_count() * 3 (else kInvalidArgument), `out`
+  // not null. Blocks: waits for everything queued, copies the output into
+  // page-locked read-back memory the Skinner keeps, and from there into
+  // `out`. kInvalidState before the first Skin(). A NaN or infinite output
+  // (a finite palette whose product with the mesh overflows float32) is
+  // kDeviceError naming the vertex and instance, and nothing is written to
+  // `out`.
   Status ReadPositions(float* out, std::size_t float_count);
-  // Likewise; kInvalidState when the Skinner skins no normals.
+  // Likewise (blocks likewise); kInvalidState when the Skinner skins no normals.
   Status ReadNormals(float* out, std::size_t float_count);
 
   // Output left on the device (no read-back): the native buffer holding the
@@ -456,10 +475,12 @@ class Skinner {
   // positions into `vk_buffer` (a VkBuffer with storage-buffer usage of at
   // least instances() * vertex_count() * output_stride_bytes() bytes, bound
   // to memory), or into the Skinner's own output (device_positions(), a
-  // VkBuffer) when null. The recording starts with a barrier after earlier
-  // transfers and compute work (SetPalette's copy was submitted to the queue
-  // already) and ends with one making the outputs visible to every later
-  // command. Normals go to the Skinner's own buffer. The caller submits the
+  // VkBuffer) when null. The recording starts with the copy of the palette
+  // SetPalette staged (where the palette is not host-visible) and a barrier
+  // after earlier transfers and compute work, and ends with one making the
+  // outputs visible to every later command. That copy reads staging which
+  // the third SetPalette after this call reuses: submit the command buffer
+  // before then. Normals go to the Skinner's own buffer. The caller submits the
   // command buffer; Read* and Finish then wait for the queue to be idle.
   // Each distinct `vk_buffer` takes a descriptor set (at most 7 per
   // Skinner). kUnavailable on a device of another backend; kInvalidArgument

@@ -1,0 +1,294 @@
+// The frame, not the kernel (issue 15): what a program pays per frame to skin
+// a crowd through the public API (skintune/skintune.h), on one device:
+//
+//   one-mesh/skin-only            one mesh of K x N vertices, Skin only
+//   one-mesh/set-skin-finish      SetPalette + Skin + Finish every frame
+//   instanced/skin-only           K instances of N vertices in one launch, Skin only
+//   instanced/set-skin-pipelined  SetPalette (K palettes) + Skin, no Finish between frames
+//   instanced/set-skin-finish     SetPalette + Skin + Finish every frame
+//   skinners/skin-only            K Skinners of N vertices, K launches per frame
+//   read-back                     ReadPositions of the one mesh's K x N float3 positions
+//
+// K = 64 and N = 25k-b4 (77 joints) by default: the table of issue 15. Each
+// benchmark iteration runs --frames frames (default 50) and ends with Finish,
+// so the device time is in it; the reported time is per frame (manual time:
+// the iteration's wall time / frames), with counters vertices/s, frames/s
+// and, for the frame loops, of_skin_only: their throughput over the
+// Skin-only loop of the same shape (1 = the palette costs nothing).
+// read-back reports bytes/s. A summary on stderr gives pipelined /
+// skin-only and finish-per-frame minus skin-only, from the medians of the
+// repetitions (--benchmark_repetitions) with benchmarks interleaved
+// (--benchmark_enable_random_interleaving) where the machine is noisy.
+//
+//   skintune_bench_frame [--device PATTERN] [--variant KEY] [--db FILE]
+//                        [--instances K] [--scale S] [--frames F] [google benchmark flags]
+//
+// --scale multiplies N (0.01: 250-vertex instances), for a quick run on a
+// CPU device; --device picks the device as Device::Open does (default
+// OpenBest); --variant forces one variant for every Skinner (else --db's
+// winner, else the built-in default).
+#include <benchmark/benchmark.h>
+#include <skintune/skintune.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace {
+
+using namespace skintune;
+using Clock = std::chrono::steady_clock;
+
+struct Options {
+  std::string device, variant, db;
+  int instances = 64;
+  double scale = 1.0;
+  int frames = 50;
+};
+Options options;
+
+constexpr int kPoses = 8;  // palettes rotate through this many frames
+
+[[noreturn]] void Die(const std::string& message) {
+  std::fprintf(stderr, "skintune_bench_frame: %s\n", message.c_str());
+  std::exit(1);
+}
+
+template <typename T>
+T Must(Result<T> result, const std::string& what) {
+  if (!result) Die(what + ": " + result.status().message());
+  return std::move(*result);
+}
+
+void Must(const Status& status, const std::string& what) {
+  if (!status) Die(what + ": " + status.message());
+}
+
+// The device, database, meshes, Skinners and palettes, made once.
+struct Scene {
+  Device device;
+  WinnersDb db;
+  Model instance, whole;  // N vertices; K x N vertices
+  Skinner instanced, one_mesh;
+  std::vector<Skinner> skinners;
+  std::vector<std::vector<float>> crowd;  // per pose: K palettes, instance k at its own phase
+  std::vector<std::vector<float>> single;  // per pose: the one mesh's palette
+  std::size_t k = 0, n = 0;
+
+  Scene() {
+    k = static_cast<std::size_t>(options.instances);
+    n = static_cast<std::size_t>(std::max(1.0, std::round(25000 * options.scale)));
+    device = Must(options.device.empty() ? Device::OpenBest() : Device::Open(options.device), "device");
+    db = options.db.empty() ? WinnersDb::Empty() : Must(WinnersDb::Load(options.db), options.db);
+    instance = Must(Model::Synthetic(std::to_string(n) + "-b4"), "instance mesh");
+    whole = Must(Model::Synthetic(std::to_string(k * n) + "-b4"), "one mesh");
+    SkinnerOptions crowd_options;
+    crowd_options.variant = options.variant;
+    crowd_options.instances = options.instances;
+    instanced = Must(Skinner::Create(device, db, instance.mesh(), crowd_options), "instanced Skinner");
+    SkinnerOptions one;
+    one.variant = options.variant;
+    one_mesh = Must(Skinner::Create(device, db, whole.mesh(), one), "one-mesh Skinner");
+    for (std::size_t i = 0; i < k; ++i) skinners.push_back(Must(Skinner::Create(device, db, instance.mesh(), one), "Skinner"));
+    const double duration = std::max(instance.animation_duration(0), 1e-3);
+    std::vector<float> palette;
+    for (int f = 0; f < kPoses; ++f) {
+      std::vector<float>& frame = crowd.emplace_back();
+      for (std::size_t i = 0; i < k; ++i) {
+        Must(instance.Palette(0, std::fmod((double(i) / double(k) + f / 30.0) * duration, duration), &palette), "palette");
+        frame.insert(frame.end(), palette.begin(), palette.end());
+      }
+      Must(whole.Palette(0, f / 30.0, &palette), "palette");
+      single.push_back(palette);
+    }
+    // Every Skinner has a palette and has run once (programs built, buffers touched).
+    Must(instanced.SetPalette(crowd[0].data(), crowd[0].size()), "SetPalette");
+    Must(one_mesh.SetPalette(single[0].data(), single[0].size()), "SetPalette");
+    Must(instanced.Skin(), "Skin");
+    Must(one_mesh.Skin(), "Skin");
+    for (Skinner& s : skinners) {
+      Must(s.SetPalette(crowd[0].data(), crowd[0].size() / k), "SetPalette");
+      Must(s.Skin(), "Skin");
+    }
+    Must(instanced.Finish(), "Finish");
+    std::fprintf(stderr, "device: %s (%s)\ninstanced: %zu x %zu vertices, %s\none mesh: %zu vertices, %s\n",
+                 device.info().name.c_str(), BackendName(device.info().backend), k, n,
+                 instanced.selection().variant.c_str(), k * n, one_mesh.selection().variant.c_str());
+  }
+};
+
+Scene& TheScene() {
+  static Scene scene;
+  return scene;
+}
+
+// Each benchmark's per-frame times (one per repetition), for the ratios: their medians.
+std::map<std::string, std::vector<double>> per_frame_us;
+
+double Median(const std::string& name) {
+  std::vector<double> v = per_frame_us.at(name);
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+// Runs `frame(f)` --frames times then `finish`, per iteration; the time per frame is the iteration's.
+template <typename Frame>
+void Frames(benchmark::State& state, const std::string& name, Skinner& finish, Frame&& frame,
+            const char* skin_only = nullptr) {
+  Scene& scene = TheScene();
+  int f = 0;
+  double total_s = 0.0;
+  for (auto _ : state) {
+    const auto start = Clock::now();
+    for (int i = 0; i < options.frames; ++i) frame(f++ % kPoses);
+    Must(finish.Finish(), "Finish");
+    const double s = std::chrono::duration<double>(Clock::now() - start).count();
+    state.SetIterationTime(s / options.frames);
+    total_s += s;
+  }
+  const double us = total_s / double(state.iterations() * options.frames) * 1e6;
+  per_frame_us[name].push_back(us);
+  state.counters["vertices/s"] = benchmark::Counter(double(scene.k * scene.n) / (us * 1e-6));
+  state.counters["frames/s"] = benchmark::Counter(1e6 / us);
+  if (skin_only && per_frame_us.count(skin_only)) state.counters["of_skin_only"] = Median(skin_only) / us;
+}
+
+void OneMeshSkinOnly(benchmark::State& state) {
+  Scene& s = TheScene();
+  Frames(state, "one-mesh/skin-only", s.one_mesh, [&](int) { Must(s.one_mesh.Skin(), "Skin"); });
+}
+
+void OneMeshSetSkinFinish(benchmark::State& state) {
+  Scene& s = TheScene();
+  Frames(
+      state, "one-mesh/set-skin-finish", s.one_mesh,
+      [&](int f) {
+        Must(s.one_mesh.SetPalette(s.single[f].data(), s.single[f].size()), "SetPalette");
+        Must(s.one_mesh.Skin(), "Skin");
+        Must(s.one_mesh.Finish(), "Finish");
+      },
+      "one-mesh/skin-only");
+}
+
+void InstancedSkinOnly(benchmark::State& state) {
+  Scene& s = TheScene();
+  Frames(state, "instanced/skin-only", s.instanced, [&](int) { Must(s.instanced.Skin(), "Skin"); });
+}
+
+void InstancedPipelined(benchmark::State& state) {
+  Scene& s = TheScene();
+  Frames(
+      state, "instanced/set-skin-pipelined", s.instanced,
+      [&](int f) {
+        Must(s.instanced.SetPalette(s.crowd[f].data(), s.crowd[f].size()), "SetPalette");
+        Must(s.instanced.Skin(), "Skin");
+      },
+      "instanced/skin-only");
+}
+
+void InstancedSetSkinFinish(benchmark::State& state) {
+  Scene& s = TheScene();
+  Frames(
+      state, "instanced/set-skin-finish", s.instanced,
+      [&](int f) {
+        Must(s.instanced.SetPalette(s.crowd[f].data(), s.crowd[f].size()), "SetPalette");
+        Must(s.instanced.Skin(), "Skin");
+        Must(s.instanced.Finish(), "Finish");
+      },
+      "instanced/skin-only");
+}
+
+void SkinnersSkinOnly(benchmark::State& state) {
+  Scene& s = TheScene();
+  // The Skinners share the Device's queue: finishing the last waits for all of them.
+  Frames(state, "skinners/skin-only", s.skinners.back(), [&](int) {
+    for (Skinner& skinner : s.skinners) Must(skinner.Skin(), "Skin");
+  }, "instanced/skin-only");
+}
+
+void ReadBack(benchmark::State& state) {
+  Scene& s = TheScene();
+  std::vector<float> positions(s.k * s.n * 3);
+  Must(s.one_mesh.Finish(), "Finish");
+  for (auto _ : state) {
+    const auto start = Clock::now();
+    Must(s.one_mesh.ReadPositions(positions.data(), positions.size()), "ReadPositions");
+    state.SetIterationTime(std::chrono::duration<double>(Clock::now() - start).count());
+  }
+  state.counters["bytes/s"] = benchmark::Counter(double(positions.size() * sizeof(float)),
+                                                 benchmark::Counter::kIsIterationInvariantRate, benchmark::Counter::kIs1000);
+}
+
+void RegisterAll() {
+  const struct {
+    const char* name;
+    void (*run)(benchmark::State&);
+  } kBenchmarks[] = {{"frame/one-mesh/skin-only", OneMeshSkinOnly},
+                     {"frame/one-mesh/set-skin-finish", OneMeshSetSkinFinish},
+                     {"frame/instanced/skin-only", InstancedSkinOnly},
+                     {"frame/instanced/set-skin-pipelined", InstancedPipelined},
+                     {"frame/instanced/set-skin-finish", InstancedSetSkinFinish},
+                     {"frame/skinners/skin-only", SkinnersSkinOnly},
+                     {"frame/read-back", ReadBack}};
+  for (const auto& b : kBenchmarks)
+    benchmark::RegisterBenchmark(b.name, b.run)->UseManualTime()->Unit(benchmark::kMicrosecond);
+}
+
+// Removes this harness's options from argv (Google Benchmark rejects them).
+void ParseOptions(int& argc, char** argv) {
+  int kept = 1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    const bool has_value = i + 1 < argc;
+    const auto number = [&](double low) {
+      char* end = nullptr;
+      const double v = std::strtod(argv[++i], &end);
+      if (!end || *end || !(v >= low)) Die(arg + " " + argv[i] + ": expected a number of at least " + std::to_string(low));
+      return v;
+    };
+    if (arg == "--device" && has_value) options.device = argv[++i];
+    else if (arg == "--variant" && has_value) options.variant = argv[++i];
+    else if (arg == "--db" && has_value) options.db = argv[++i];
+    else if (arg == "--instances" && has_value) options.instances = static_cast<int>(number(1));
+    else if (arg == "--scale" && has_value) options.scale = number(1e-6);
+    else if (arg == "--frames" && has_value) options.frames = static_cast<int>(number(1));
+    else argv[kept++] = argv[i];
+  }
+  argc = kept;
+}
+
+void Summary() {
+  const auto ratio = [](const char* a, const char* b) {
+    if (!per_frame_us.count(a) || !per_frame_us.count(b)) return;
+    std::fprintf(stderr, "%s / %s throughput: %.3f\n", a, b, Median(b) / Median(a));
+  };
+  const auto minus = [](const char* a, const char* b) {
+    if (!per_frame_us.count(a) || !per_frame_us.count(b)) return;
+    std::fprintf(stderr, "%s - %s: %.1f us per frame\n", a, b, Median(a) - Median(b));
+  };
+  ratio("instanced/set-skin-pipelined", "instanced/skin-only");
+  minus("instanced/set-skin-finish", "instanced/skin-only");
+  minus("one-mesh/set-skin-finish", "one-mesh/skin-only");
+  ratio("skinners/skin-only", "instanced/skin-only");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ParseOptions(argc, argv);
+  RegisterAll();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  std::cout.flush();  // the report first, then the summary (stderr)
+  Summary();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -1,0 +1,221 @@
+// The runner driver's palette ring (runtime/runner.h) on a device that runs
+// nothing until the driver waits: a DeviceApi whose queue is a list of
+// deferred operations (a palette upload copies the staging at the time it
+// runs, as a DMA engine does; a launch records the palette it reads), run
+// only by Wait, Finish and ReadPinned. So every overwrite of a palette or a
+// staging buffer that a queued operation still needs shows up in what the
+// launches read, deterministically, and the test sees exactly when the
+// driver blocks and how many frames stay queued.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "generator/packer.h"
+#include "reference/error.h"
+#include "reference/synthetic.h"
+#include "runtime/run_shape.h"
+#include "runtime/runner.h"
+
+namespace skintune {
+namespace {
+
+class FakeBuffer final : public DeviceBuffer {
+ public:
+  FakeBuffer(std::size_t bytes, const void* initial) : DeviceBuffer(bytes), device(bytes) {
+    if (initial) std::memcpy(device.data(), initial, bytes);
+  }
+  void* native() const override { return const_cast<std::uint8_t*>(device.data()); }
+  std::vector<std::uint8_t> device;   // what the device holds
+  std::vector<std::uint8_t> staging;  // the host's page-locked staging (Write)
+};
+
+class FakeLaunch final : public DeviceObject {
+ public:
+  const FakeBuffer* palette = nullptr;
+};
+
+class FakeMarker final : public DeviceObject {
+ public:
+  std::size_t position = 0;  // operations queued when marked
+};
+
+class DeferredApi final : public DeviceApi {
+ public:
+  std::vector<std::function<void()>> queue;  // every operation ever queued, in order
+  std::size_t executed = 0;                  // how many of them ran
+  std::vector<std::vector<std::uint8_t>> read;  // the palette each launch read, in the order they ran
+  std::size_t launches_queued = 0;
+  int waits = 0, blocking_waits = 0;
+
+  void RunUntil(std::size_t position) {
+    for (; executed < position; ++executed) queue[executed]();
+  }
+  std::size_t LaunchesRun() const { return read.size(); }
+
+  const char* name() const override { return "Fake"; }
+  const std::string& device_name() const override { return name_; }
+  void Build(const KernelSource&) override {}
+  void CheckRun(const PackedMesh&, std::span<const KernelSource>, const RunShape&) const override {}
+  std::unique_ptr<PlannedLaunch> Plan(const LaunchSpec& spec) override { return std::make_unique<PlannedLaunch>(spec); }
+  std::unique_ptr<DeviceBuffer> Allocate(BufferUse, std::size_t bytes, const void* initial, const std::string&) override {
+    return std::make_unique<FakeBuffer>(bytes, initial);
+  }
+  std::unique_ptr<DeviceObject> PaletteView(const Variant&, DeviceBuffer&, const std::string&) override { return nullptr; }
+  std::unique_ptr<DeviceObject> Bind(const PlannedLaunch&, std::span<const ArgumentBinding> arguments, const SetOptions&,
+                                     std::size_t&) override {
+    auto launch = std::make_unique<FakeLaunch>();
+    for (const ArgumentBinding& a : arguments)
+      if (a.role == ArgumentRole::kPalette) launch->palette = static_cast<const FakeBuffer*>(a.buffer);
+    return launch;
+  }
+  void FinishUploads(const std::string&) override { RunUntil(queue.size()); }
+  std::vector<std::vector<double>> RunFrames(const FrameRun& run) override {
+    EXPECT_EQ(run.use, FrameUse::kLive);
+    for (const auto& frame : run.frames) {
+      const FakeBuffer* palette = static_cast<const FakeLaunch&>(*frame.front()).palette;
+      queue.push_back([this, palette] { read.push_back(palette->device); });
+      ++launches_queued;
+    }
+    return {};
+  }
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string&) override {
+    auto& b = static_cast<FakeBuffer&>(buffer);
+    b.staging.resize(b.bytes());
+    return b.staging;
+  }
+  void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string&) override {
+    auto& b = static_cast<FakeBuffer&>(buffer);
+    queue.push_back([&b, bytes] { std::copy(b.staging.begin(), b.staging.begin() + static_cast<std::ptrdiff_t>(bytes), b.device.begin()); });
+  }
+  void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string&, bool) override {
+    RunUntil(queue.size());
+    std::memcpy(out.data(), static_cast<const FakeBuffer&>(buffer).device.data(), out.size());
+  }
+  std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes, const std::string&) override {
+    RunUntil(queue.size());
+    return {static_cast<const FakeBuffer&>(buffer).device.data(), bytes};
+  }
+  void Mark(std::unique_ptr<DeviceObject>& marker, const std::string&) override {
+    if (!marker) marker = std::make_unique<FakeMarker>();
+    static_cast<FakeMarker&>(*marker).position = queue.size();
+  }
+  void Wait(DeviceObject& marker, const std::string&) override {
+    const std::size_t position = static_cast<FakeMarker&>(marker).position;
+    ++waits;
+    if (executed < position) ++blocking_waits;
+    RunUntil(position);
+  }
+  void Finish() override { RunUntil(queue.size()); }
+
+ private:
+  std::string name_ = "deferred fake";
+};
+
+// A runner on the fake device with a Skinner's live set of a small mesh.
+struct Ring {
+  Ring() {
+    mesh = Pack(GenerateDataset(ParseDatasetKey("200-b2")).mesh, ParseVariantKey("opencl.b2"));
+    auto owned = std::make_unique<DeferredApi>();
+    api = owned.get();
+    runner = std::make_unique<Runner>(std::move(owned));
+    const std::vector<KernelSource> kernels = EmitLaunchKernels(mesh);
+    prepared = runner->Prepare(mesh, kernels, std::vector<std::vector<std::uint8_t>>{mesh.palette}, 1, kPaletteSlots);
+  }
+  // Frame f's palette: the mesh's bytes with the frame number in the first.
+  std::vector<std::uint8_t> Palette(int f) const {
+    std::vector<std::uint8_t> p = mesh.palette;
+    p[0] = static_cast<std::uint8_t>(f);
+    return p;
+  }
+  int FrameRead(std::size_t launch) const { return api->read.at(launch).at(0); }
+
+  PackedMesh mesh;
+  DeferredApi* api = nullptr;
+  std::unique_ptr<Runner> runner;
+  Prepared prepared;
+};
+
+TEST(PaletteRing, EveryFrameReadsItsOwnPaletteWithSlotsFramesQueued) {
+  Ring ring;
+  constexpr int kFrames = 4 * kPaletteSlots + 1;
+  for (int f = 0; f < kFrames; ++f) {
+    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));
+    // SetPalette for frame f waited for frame f - slots only: frames
+    // f - slots + 1 .. f - 1 are still queued (never for frame f - 1's kernel).
+    EXPECT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(std::max(f - kPaletteSlots + 1, 0))) << "frame " << f;
+    EXPECT_EQ(ring.runner->PaletteSlot(ring.prepared, 0), f % kPaletteSlots);
+    ring.runner->LaunchSet(ring.prepared, 0);
+  }
+  EXPECT_EQ(ring.api->waits, kFrames - kPaletteSlots) << "a wait per reuse of a slot, none before";
+  EXPECT_EQ(ring.api->blocking_waits, kFrames - kPaletteSlots);
+  ring.runner->Finish();
+  ASSERT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(kFrames));
+  for (int f = 0; f < kFrames; ++f) EXPECT_EQ(ring.FrameRead(static_cast<std::size_t>(f)), f) << "launch " << f;
+}
+
+TEST(PaletteRing, ADeviceThatKeepsUpIsNeverWaitedFor) {
+  Ring ring;
+  for (int f = 0; f < 3 * kPaletteSlots; ++f) {
+    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));
+    ring.runner->LaunchSet(ring.prepared, 0);
+    ring.api->Finish();  // the device has done everything before the next SetPalette
+  }
+  EXPECT_EQ(ring.api->blocking_waits, 0);
+  for (int f = 0; f < 3 * kPaletteSlots; ++f) EXPECT_EQ(ring.FrameRead(static_cast<std::size_t>(f)), f);
+}
+
+TEST(PaletteRing, PalettesReplacedBeforeAnySkinAndSkinsRepeatedReadTheLastPalette) {
+  Ring ring;
+  std::vector<int> expected;
+  for (int f = 0; f < 4 * kPaletteSlots; ++f) {
+    if (f % 2 == 0) ring.runner->WritePalette(ring.prepared, 0, ring.Palette(100 + f));  // never skinned
+    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));
+    ring.runner->LaunchSet(ring.prepared, 0);
+    expected.push_back(f);
+    if (f % 3 == 0) {
+      ring.runner->LaunchSet(ring.prepared, 0);
+      expected.push_back(f);
+    }
+  }
+  ring.runner->Finish();
+  ASSERT_EQ(ring.api->LaunchesRun(), expected.size());
+  for (std::size_t l = 0; l < expected.size(); ++l) EXPECT_EQ(ring.FrameRead(l), expected[l]) << "launch " << l;
+}
+
+TEST(PaletteRing, AStagingNeverUploadedTakesNoSlot) {
+  // The Skinner's SetPalette of a palette it rejects while packing it.
+  Ring ring;
+  ring.runner->WritePalette(ring.prepared, 0, ring.Palette(5));
+  EXPECT_THROW(ring.runner->UploadPalette(ring.prepared, 0), Error);  // nothing staged since the last upload
+  const int slot = ring.runner->PaletteSlot(ring.prepared, 0);
+  for (int i = 0; i < kPaletteSlots + 1; ++i) {
+    const std::span<std::uint8_t> staging = ring.runner->PaletteStaging(ring.prepared, 0);
+    std::fill(staging.begin(), staging.end(), std::uint8_t{0xff});
+  }
+  EXPECT_EQ(ring.runner->PaletteSlot(ring.prepared, 0), slot);
+  ring.runner->LaunchSet(ring.prepared, 0);
+  ring.runner->Finish();
+  ASSERT_EQ(ring.api->LaunchesRun(), 1u);
+  EXPECT_EQ(ring.FrameRead(0), 5);
+}
+
+TEST(PaletteRing, AWrongSizeIsRejectedBeforeTakingASlot) {
+  Ring ring;
+  ring.runner->WritePalette(ring.prepared, 0, ring.Palette(7));
+  const int slot = ring.runner->PaletteSlot(ring.prepared, 0);
+  std::vector<std::uint8_t> short_palette = ring.Palette(8);
+  short_palette.pop_back();
+  EXPECT_THROW(ring.runner->WritePalette(ring.prepared, 0, short_palette), Error);
+  EXPECT_EQ(ring.runner->PaletteSlot(ring.prepared, 0), slot);
+  ring.runner->LaunchSet(ring.prepared, 0);
+  ring.runner->Finish();
+  ASSERT_EQ(ring.api->LaunchesRun(), 1u);
+  EXPECT_EQ(ring.FrameRead(0), 7);
+}
+
+}  // namespace
+}  // namespace skintune
