@@ -94,15 +94,26 @@ class FakeApi final : public DeviceApi {
     }
     return bursts;
   }
-  void Write(DeviceBuffer&, std::span<const std::uint8_t>, const std::string&) override {}
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string&) override {
+    staging_.resize(buffer.bytes());
+    return staging_;
+  }
+  void Upload(DeviceBuffer&, std::size_t, const std::string&) override {}
   void Read(const DeviceBuffer&, std::span<std::uint8_t> out, const std::string&, bool) override {
     std::memset(out.data(), 0, out.size());
   }
+  std::span<const std::uint8_t> ReadPinned(const DeviceBuffer&, std::size_t bytes, const std::string&) override {
+    staging_.assign(bytes, 0);
+    return staging_;
+  }
+  void Mark(std::unique_ptr<DeviceObject>&, const std::string&) override {}
+  void Wait(DeviceObject&, const std::string&) override {}
   void Finish() override {}
 
  private:
   Clock& clock_;
   std::string name_ = "fake device";
+  std::vector<std::uint8_t> staging_;
 };
 
 // Per-frame times of `prepared` (one frame per burst, as the tuner's first
