@@ -118,6 +118,9 @@ struct Skinner::Impl {
   int instances = 1;
   std::size_t output_stride = 0;
   std::vector<std::uint32_t> order;     // packed position p holds mesh vertex order[p]
+  SceneShape shape = SceneShape::kSingle;
+  std::vector<std::size_t> vertex_offsets;  // per mesh of a batch (one for Create), then vertex_count
+  std::vector<int> joint_offsets;           // per mesh, then joint_count
   bool palette_set = false;
   bool skinned = false;
   std::vector<std::uint8_t> scratch;    // read-back in packed order
