@@ -94,6 +94,8 @@ Result<Selection> Selection::Find(const WinnersDb& db, const DeviceInfo& device,
     request.influences = influences;
     request.vertex_count = vertex_count;
     request.shape = static_cast<SceneKind>(shape);
+    request.instances = 0;  // Find is not told K or the mesh count: the shape's entries rank by size alone
+    request.meshes = 0;
     return Select(db.impl_->entries, request).selection;
   });
 }

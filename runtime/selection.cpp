@@ -43,7 +43,7 @@ bool ShapeServes(const WinnersEntry& e, const SelectionRequest& r) {
 
 // The instance or mesh count's distance (a factor) within the request's shape; 1 otherwise.
 double CountDistance(const WinnersEntry& e, const SelectionRequest& r) {
-  if (e.shape != r.shape) return 1.0;
+  if (e.shape != r.shape || (r.shape == SceneKind::kInstances ? r.instances : r.meshes) < 1) return 1.0;  // 0: unknown
   if (r.shape == SceneKind::kInstances)
     return VertexCountDistance(static_cast<std::size_t>(e.instances), static_cast<std::size_t>(r.instances));
   if (r.shape == SceneKind::kBatch)

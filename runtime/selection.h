@@ -49,7 +49,7 @@ struct SelectionRequest {
   std::size_t vertex_count = 0;  // the scene's total: K x the mesh's for instances, the meshes' sum for a batch
   // The scene's shape: entries of that shape first, then single-mesh ones.
   SceneKind shape = SceneKind::kSingle;
-  int instances = 1;             // K (an instances scene), the nearest first among the shape's entries
+  int instances = 1;             // K (an instances scene), the nearest first among the shape's entries; 0: unknown
   int meshes = 1;                // a batch's mesh count, likewise
   bool normals = false;
   double max_error = kDefaultBudget;     // the error budget, relative to the bounding-box diagonal
