@@ -11,6 +11,9 @@
 //       skintune::Skinner::Create(*device, *db, mesh_view, options);
 //   per frame: skinner->SetPalette(...); skinner->Skin(); skinner->ReadPositions(...);
 //
+// Crowds: SkinnerOptions::instances skins K copies of a mesh in one launch;
+// Skinner::CreateBatch skins different meshes in one launch.
+//
 // mesh_view is your arrays (MeshView), or Model::Load("model.gltf")->mesh(),
 // whose Palette(animation, t, &matrices) gives each frame's palette
 // (examples/skin_animation.cpp). Link skintune::runtime (find_package(skintune);
