@@ -35,7 +35,7 @@ SkinnedMesh ToSkinnedMesh(const MeshView& view, bool normals, const std::string&
   if (!view.positions) BadMesh("positions is null");
   if (!view.joints) BadMesh("joints is null");
   if (!view.weights) BadMesh("weights is null");
-  if (normals && !view.normals) BadMesh("SkinnerOptions::normals is set but its normals are null");
+  if (normals && !view.normals) BadMesh("SkinnerOptions::normals is set but MeshView::normals is null");
 
   SkinnedMesh mesh;
   mesh.name = "MeshView";

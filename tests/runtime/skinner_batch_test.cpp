@@ -167,7 +167,7 @@ TEST_F(BatchErrors, ABadMeshIsNamedByItsIndexVertexAndSlot) {
   normals.normals = true;
   batch = MakeBatch({"500-b1-normals", "500-b2"});
   EXPECT_EQ(CreateStatus(batch.meshes, normals).message(),
-            "Skinner::CreateBatch: meshes[1]: SkinnerOptions::normals is set but its normals are null");
+            "Skinner::CreateBatch: meshes[1]: SkinnerOptions::normals is set but MeshView::normals is null");
 }
 
 TEST_F(BatchErrors, TheVariantsConstraintsHoldForTheWholeBatch) {
