@@ -1,5 +1,5 @@
 // The public winners database and lookup (skintune/skintune.h): WinnersDb,
-// Selection::Find, and the names of backends and match levels.
+// Selection::Find, and the names of backends, match levels and scene shapes.
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -31,6 +31,14 @@ const char* MatchLevelName(MatchLevel level) {
   }
   return "unknown";
 }
+
+// The public SceneShape is the database's SceneKind (runtime/winners_db.h), value for value.
+static_assert(static_cast<int>(SceneShape::kSingle) == static_cast<int>(SceneKind::kSingle) &&
+              static_cast<int>(SceneShape::kInstances) == static_cast<int>(SceneKind::kInstances) &&
+              static_cast<int>(SceneShape::kBatch) == static_cast<int>(SceneKind::kBatch) && kSceneKinds.size() == 3,
+              "SceneShape (skintune.h) and SceneKind (winners_db.h) must list the same shapes in the same order");
+
+const char* SceneShapeName(SceneShape shape) { return SceneKindName(static_cast<SceneKind>(shape)); }
 
 WinnersDb::WinnersDb() : impl_(std::make_unique<Impl>()) {}
 WinnersDb::~WinnersDb() = default;
@@ -71,7 +79,7 @@ Result<WinnersDb> WinnersDb::Load(const std::string& path) {
 }
 
 Result<Selection> Selection::Find(const WinnersDb& db, const DeviceInfo& device, int influences,
-                                  std::size_t vertex_count, double max_error) {
+                                  std::size_t vertex_count, double max_error, SceneShape shape) {
   return GuardedResult<Selection>(ErrorCode::kInvalidArgument, [&] {
     if (!db.impl_) FailWith(ErrorCode::kInvalidState, "Selection::Find: the WinnersDb was used after move");
     if (influences < 1 || influences > 8)
@@ -85,6 +93,9 @@ Result<Selection> Selection::Find(const WinnersDb& db, const DeviceInfo& device,
     request.langs = LanguagesOf(device.backend);
     request.influences = influences;
     request.vertex_count = vertex_count;
+    request.shape = static_cast<SceneKind>(shape);
+    request.instances = 0;  // Find is not told K or the mesh count: the shape's entries rank by size alone
+    request.meshes = 0;
     return Select(db.impl_->entries, request).selection;
   });
 }

@@ -35,16 +35,35 @@ bool AtLevel(const WinnersEntry& e, const DeviceInfo& device, MatchLevel level) 
   return false;
 }
 
-// Smaller is better: B above the mesh's, the distance (a factor) from the
-// measured vertex count to the mesh's, the larger count on a tie, then the
-// newest `created` and the smallest time (compared separately).
-std::tuple<int, double, long long> Rank(const WinnersEntry& e, int influences, std::size_t vertex_count) {
-  return {e.influences - influences, VertexCountDistance(e.vertices, vertex_count), -static_cast<long long>(e.vertices)};
+// Whether `e` may serve a scene of the request's shape: its own shape, or a
+// single mesh (the fallback at the same total size).
+bool ShapeServes(const WinnersEntry& e, const SelectionRequest& r) {
+  return e.shape == r.shape || e.shape == SceneKind::kSingle;
 }
 
-bool Better(const WinnersEntry& a, const WinnersEntry& b, int influences, std::size_t vertex_count) {
-  const auto ra = Rank(a, influences, vertex_count);
-  const auto rb = Rank(b, influences, vertex_count);
+// The instance or mesh count's distance (a factor) within the request's shape; 1 otherwise.
+double CountDistance(const WinnersEntry& e, const SelectionRequest& r) {
+  if (e.shape != r.shape || (r.shape == SceneKind::kInstances ? r.instances : r.meshes) < 1) return 1.0;  // 0: unknown
+  if (r.shape == SceneKind::kInstances)
+    return VertexCountDistance(static_cast<std::size_t>(e.instances), static_cast<std::size_t>(r.instances));
+  if (r.shape == SceneKind::kBatch)
+    return VertexCountDistance(static_cast<std::size_t>(e.meshes), static_cast<std::size_t>(r.meshes));
+  return 1.0;
+}
+
+// Smaller is better: another shape than the request's (the single-mesh
+// fallback), B above the mesh's, the distance (a factor) from the measured
+// vertex count to the scene's, the instance or mesh count's, the larger
+// count on a tie, then the newest `created` and the smallest time (compared
+// separately).
+std::tuple<bool, int, double, double, long long> Rank(const WinnersEntry& e, const SelectionRequest& r) {
+  return {e.shape != r.shape, e.influences - r.influences, VertexCountDistance(e.vertices, r.vertex_count),
+          CountDistance(e, r), -static_cast<long long>(e.vertices)};
+}
+
+bool Better(const WinnersEntry& a, const WinnersEntry& b, const SelectionRequest& request) {
+  const auto ra = Rank(a, request);
+  const auto rb = Rank(b, request);
   if (ra != rb) return ra < rb;
   if (a.created != b.created) return CreatedBefore(b.created, a.created);
   return a.median_ms < b.median_ms;
@@ -119,7 +138,8 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
   for (MatchLevel level : {MatchLevel::kExactDevice, MatchLevel::kSameDeviceName, MatchLevel::kSameVendorType}) {
     std::vector<const WinnersEntry*> candidates;
     for (const WinnersEntry& e : entries) {
-      if (!AtLevel(e, device, level) || !Contains(request.langs, e.lang) || e.influences < request.influences)
+      if (!AtLevel(e, device, level) || !Contains(request.langs, e.lang) || e.influences < request.influences ||
+          !ShapeServes(e, request))
         continue;
       if (!EntryWithinBudget(e, request.max_error, request.exact_formats)) {
         skipped.push_back(Describe(e) + " " + Name(e.variant.weight) + ": " + OverBudget(e, request.max_error));
@@ -128,7 +148,7 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
       candidates.push_back(&e);
     }
     std::stable_sort(candidates.begin(), candidates.end(), [&](const WinnersEntry* a, const WinnersEntry* b) {
-      return Better(*a, *b, request.influences, request.vertex_count);
+      return Better(*a, *b, request);
     });
     for (const WinnersEntry* e : candidates) {
       Variant v = e->variant;
@@ -149,6 +169,10 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
                   " vertices (the mesh: b" +
                   std::to_string(request.influences) + ", " + std::to_string(request.vertex_count) + " vertices)";
       }
+      if (e->shape != request.shape)
+        reason += "; no " + std::string(SceneKindName(request.shape)) +
+                  " entry: the single-mesh entry of the scene's total size (" +
+                  std::to_string(request.vertex_count) + " vertices)";
       for (const std::string& s : skipped) reason += "; skipped " + s;
       chosen.selection.reason = reason;
       return chosen;

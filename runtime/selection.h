@@ -13,11 +13,14 @@
 // influences B hold the mesh's (B >= the largest per-vertex count), it is
 // within the error budget (EntryWithinBudget: f32, a format exact for the
 // caller's weights, or a recorded quantisation error <= max_error; one over
-// it is named in the reason), and the caller's check accepts it (Skinner::Create: the constraints on the real
-// device and mesh); a rejected entry is named in the reason. Among the usable
-// entries of a level: the smallest B, then the nearest measured vertex count
-// (nearest as a factor: 25k is as near 50k as 100k is; on a tie the larger
-// count), then the newest `created` (the newest driver tuned), then
+// it is named in the reason), the caller's check accepts it (Skinner::Create: the constraints on the real
+// device and mesh; a rejected entry is named in the reason), and its scene
+// shape is the request's or single (a single-mesh entry is the fallback for
+// every shape, at the scene's total vertex count). Among the usable entries
+// of a level: the request's shape first, then the smallest B, then the
+// nearest measured vertex count (nearest as a factor: 25k is as near 50k as
+// 100k is), then within the shape the nearest instance or mesh count (the
+// larger vertex count on a tie), then the newest `created` (the newest driver tuned), then
 // the smallest median time (which chooses between glsl-compute and
 // glsl-vertex on a GL device). The entry's variant is taken with its
 // `normals` set to what the caller needs.
@@ -43,7 +46,11 @@ struct SelectionRequest {
   DeviceInfo device;
   std::vector<Lang> langs;       // the device's languages, preferred first
   int influences = 1;            // the largest per-vertex count the variant must hold
-  std::size_t vertex_count = 0;
+  std::size_t vertex_count = 0;  // the scene's total: K x the mesh's for instances, the meshes' sum for a batch
+  // The scene's shape: entries of that shape first, then single-mesh ones.
+  SceneKind shape = SceneKind::kSingle;
+  int instances = 1;             // K (an instances scene), the nearest first among the shape's entries; 0: unknown
+  int meshes = 1;                // a batch's mesh count, likewise
   bool normals = false;
   double max_error = kDefaultBudget;     // the error budget, relative to the bounding-box diagonal
   std::vector<WeightFormat> exact_formats;  // formats that hold the caller's weights exactly (HoldsWeightsExactly)

@@ -9,6 +9,7 @@
 
 #include "generator/constraints.h"
 #include "reference/mesh.h"
+#include "reference/scene.h"
 #include "runtime/api_errors.h"
 #include "runtime/selection.h"
 #include "runtime/winners_db.h"
@@ -20,12 +21,10 @@ namespace {
 constexpr std::size_t kMaxVertices = std::size_t{1} << 31;  // launches address vertices with 32-bit counts
 constexpr int kMaxJoints = 65536;                          // SkinnedMesh stores joint indices in 16 bits
 
-[[noreturn]] void BadMesh(const std::string& message) {
-  FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: MeshView: " + message);
-}
-
-// The MeshView as a validated SkinnedMesh (normals only when wanted).
-SkinnedMesh ToSkinnedMesh(const MeshView& view, bool normals) {
+// The MeshView as a validated SkinnedMesh (normals only when wanted); errors
+// start with `where` ("Skinner::Create: MeshView", "Skinner::CreateBatch: meshes[2]").
+SkinnedMesh ToSkinnedMesh(const MeshView& view, bool normals, const std::string& where) {
+  auto BadMesh = [&](const std::string& message) { FailWith(ErrorCode::kInvalidArgument, where + ": " + message); };
   if (view.vertex_count == 0) BadMesh("vertex_count is 0");
   if (view.vertex_count > kMaxVertices)
     BadMesh("vertex_count " + std::to_string(view.vertex_count) + " above " + std::to_string(kMaxVertices));
@@ -36,8 +35,7 @@ SkinnedMesh ToSkinnedMesh(const MeshView& view, bool normals) {
   if (!view.positions) BadMesh("positions is null");
   if (!view.joints) BadMesh("joints is null");
   if (!view.weights) BadMesh("weights is null");
-  if (normals && !view.normals)
-    FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: SkinnerOptions::normals is set but MeshView::normals is null");
+  if (normals && !view.normals) BadMesh("SkinnerOptions::normals is set but MeshView::normals is null");
 
   SkinnedMesh mesh;
   mesh.name = "MeshView";
@@ -77,15 +75,15 @@ std::string Joined(const std::vector<Violation>& violations) {
   return out;
 }
 
-Chosen Forced(const std::string& key, const DeviceState& device, const ProblemShape& shape) {
+Chosen Forced(const std::string& call, const std::string& key, const DeviceState& device, const ProblemShape& shape) {
   Variant v;
   try {
     v = ParseVariantKey(key);
   } catch (const Error& e) {
-    FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::Create: SkinnerOptions::variant: ") + e.what());
+    FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::variant: " + e.what());
   }
   v.normals = shape.has_normals;
-  const std::string where = "Skinner::Create: SkinnerOptions::variant " + v.Key() + ": ";
+  const std::string where = call + ": SkinnerOptions::variant " + v.Key() + ": ";
   if (std::find(device.langs.begin(), device.langs.end(), v.lang) == device.langs.end())
     FailWith(ErrorCode::kInvalidArgument,
              where + "language " + Name(v.lang) + " does not run on " + BackendName(device.info.backend) + " devices");
@@ -157,35 +155,69 @@ Skinner::~Skinner() = default;
 Skinner::Skinner(Skinner&&) noexcept = default;
 Skinner& Skinner::operator=(Skinner&&) noexcept = default;
 
-Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshView& mesh_view,
-                                const SkinnerOptions& options) {
-  return GuardedResult<Skinner>(ErrorCode::kInvalidArgument, [&] {
+namespace {
+
+// Create and CreateBatch: the meshes validated one by one, a batch packed as
+// one mesh (ConcatenateMeshes, reference/scene.h), then one path for both:
+// the variant chosen for the scene's shape and total size, packed, emitted
+// and prepared on the device.
+// `entries`: the WinnersDb's (null when it was moved from). Throws ApiError.
+std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& device,
+                                           const std::vector<WinnersEntry>* entries, const MeshView* views,
+                                           std::size_t count, bool batch, const SkinnerOptions& options) {
+  {
     const std::shared_ptr<DeviceState>* state_ptr = DeviceAccess::State(device);
-    if (!state_ptr) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device was used after move");
-    if (!db.impl_) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the WinnersDb was used after move");
+    if (!state_ptr) FailWith(ErrorCode::kInvalidState, call + ": the Device was used after move");
+    if (!entries) FailWith(ErrorCode::kInvalidState, call + ": the WinnersDb was used after move");
+    if (!views || count == 0) FailWith(ErrorCode::kInvalidArgument, call + ": the batch is empty (no meshes)");
     if (options.instances < 1)
       FailWith(ErrorCode::kInvalidArgument,
-               "Skinner::Create: SkinnerOptions::instances is " + std::to_string(options.instances) + ", at least 1");
+               call + ": SkinnerOptions::instances is " + std::to_string(options.instances) + ", at least 1");
     if (const std::string bad = BadMaxError(options.max_error); !bad.empty())
-      FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: SkinnerOptions::max_error " + bad);
+      FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::max_error " + bad);
     DeviceState& state = **state_ptr;
 
-    const SkinnedMesh mesh = ToSkinnedMesh(mesh_view, options.normals);
+    std::vector<SkinnedMesh> meshes;
+    for (std::size_t m = 0; m < count; ++m)
+      meshes.push_back(ToSkinnedMesh(views[m], options.normals,
+                                     call + (batch ? ": meshes[" + std::to_string(m) + "]" : ": MeshView")));
+    MeshBatch scene;
+    if (batch) {
+      std::vector<const SkinnedMesh*> pointers;
+      for (const SkinnedMesh& mesh : meshes) pointers.push_back(&mesh);
+      try {
+        scene = ConcatenateMeshes(pointers);
+      } catch (const Error& e) {
+        FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
+      }
+    } else {
+      scene.mesh = std::move(meshes.front());
+      scene.vertex_offsets = {0, scene.mesh.vertex_count()};
+      scene.joint_offsets = {0, scene.mesh.joint_count};
+    }
+    meshes.clear();
+    const SkinnedMesh& mesh = scene.mesh;
     const auto instances = static_cast<std::size_t>(options.instances);
     if (instances * mesh.vertex_count() >= (std::size_t{1} << 32))
-      FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: " + std::to_string(instances) + " instances x " +
+      FailWith(ErrorCode::kInvalidArgument, call + ": " + std::to_string(instances) + " instances x " +
                                                 std::to_string(mesh.vertex_count()) +
                                                 " vertices exceed the kernels' 32-bit output indices");
+    const SceneShape scene_shape = batch                   ? SceneShape::kBatch
+                                   : options.instances > 1 ? SceneShape::kInstances
+                                                           : SceneShape::kSingle;
     const ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals, options.instances};
     Chosen chosen;
     if (!options.variant.empty()) {
-      chosen = Forced(options.variant, state, shape);
+      chosen = Forced(call, options.variant, state, shape);
     } else {
       SelectionRequest request;
       request.device = state.info;
       request.langs = state.langs;
       request.influences = shape.max_influences;
-      request.vertex_count = mesh.vertex_count();
+      request.vertex_count = instances * mesh.vertex_count();
+      request.shape = static_cast<SceneKind>(scene_shape);
+      request.instances = options.instances;
+      request.meshes = static_cast<int>(count);
       request.normals = options.normals;
       request.max_error = options.max_error;
       // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.
@@ -193,7 +225,7 @@ Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshV
         if (HoldsWeightsExactly(mesh, format)) request.exact_formats.push_back(format);
       request.limits = state.limits;
       request.check = [&](const Variant& v) { return Joined(CheckVariant(v, state.limits, shape)); };
-      chosen = Select(db.impl_->entries, request);
+      chosen = Select(*entries, request);
       if (chosen.variant.mixed == MixedCounts::kBucketed) {
         // Bucketed kernels write vertices grouped by influence count; the padded twin keeps the mesh's order.
         chosen.variant.mixed = MixedCounts::kPadded;
@@ -213,23 +245,47 @@ Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshV
       for (const Launch& launch : packed.launches)
         kernels.push_back(Emit(chosen.variant, launch.influences, mesh.joint_count, emit));
     } catch (const Error& e) {
-      FailWith(ErrorCode::kInvalidArgument, "Skinner::Create: " + chosen.variant.Key() + ": " + e.what());
+      FailWith(ErrorCode::kInvalidArgument, call + ": " + chosen.variant.Key() + ": " + e.what());
     }
 
-    Skinner skinner;
-    skinner.impl_ = std::make_unique<Impl>();
-    Impl& im = *skinner.impl_;
+    auto impl = std::make_unique<Skinner::Impl>();
+    Skinner::Impl& im = *impl;
     im.device = *state_ptr;
     im.selection = chosen.selection;
     im.variant = chosen.variant;
     im.vertex_count = mesh.vertex_count();
     im.joint_count = mesh.joint_count;
     im.instances = options.instances;
+    im.shape = scene_shape;
+    im.vertex_offsets = scene.vertex_offsets;
+    im.joint_offsets = scene.joint_offsets;
     im.output_stride = packed.output_stride_bytes;
     im.order = packed.order;
     im.identity_order = true;
     for (std::size_t p = 0; p < im.order.size() && im.identity_order; ++p) im.identity_order = im.order[p] == p;
     im.backend = state.backend->make_skinner(state, packed, kernels, options.instances);
+    return impl;
+  }
+}
+
+}  // namespace
+
+Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshView& mesh_view,
+                                const SkinnerOptions& options) {
+  return GuardedResult<Skinner>(ErrorCode::kInvalidArgument, [&] {
+    Skinner skinner;
+    skinner.impl_ = CreateScene("Skinner::Create", device, db.impl_ ? &db.impl_->entries : nullptr, &mesh_view, 1,
+                                false, options);
+    return skinner;
+  });
+}
+
+Result<Skinner> Skinner::CreateBatch(Device& device, const WinnersDb& db, const MeshView* meshes,
+                                     std::size_t mesh_count, const SkinnerOptions& options) {
+  return GuardedResult<Skinner>(ErrorCode::kInvalidArgument, [&] {
+    Skinner skinner;
+    skinner.impl_ = CreateScene("Skinner::CreateBatch", device, db.impl_ ? &db.impl_->entries : nullptr, meshes,
+                                mesh_count, true, options);
     return skinner;
   });
 }
@@ -241,6 +297,16 @@ const Selection& Skinner::selection() const {
 std::size_t Skinner::vertex_count() const { return impl_ ? impl_->vertex_count : 0; }
 int Skinner::instances() const { return impl_ ? impl_->instances : 0; }
 int Skinner::joint_count() const { return impl_ ? impl_->joint_count : 0; }
+SceneShape Skinner::shape() const { return impl_ ? impl_->shape : SceneShape::kSingle; }
+std::size_t Skinner::mesh_count() const { return impl_ ? impl_->vertex_offsets.size() - 1 : 0; }
+std::size_t Skinner::vertex_offset(std::size_t m) const { return m < mesh_count() ? impl_->vertex_offsets[m] : 0; }
+std::size_t Skinner::vertex_count(std::size_t m) const {
+  return m < mesh_count() ? impl_->vertex_offsets[m + 1] - impl_->vertex_offsets[m] : 0;
+}
+int Skinner::joint_offset(std::size_t m) const { return m < mesh_count() ? impl_->joint_offsets[m] : 0; }
+int Skinner::joint_count(std::size_t m) const {
+  return m < mesh_count() ? impl_->joint_offsets[m + 1] - impl_->joint_offsets[m] : 0;
+}
 std::size_t Skinner::output_stride_bytes() const { return impl_ ? impl_->output_stride : 0; }
 void* Skinner::device_positions() const { return impl_ ? impl_->backend->DevicePositions() : nullptr; }
 

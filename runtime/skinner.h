@@ -132,6 +132,9 @@ struct Skinner::Impl {
   std::size_t output_stride = 0;
   std::vector<std::uint32_t> order;     // packed position p holds mesh vertex order[p]
   bool identity_order = false;          // order[p] == p: a read-back of float3 is one memcpy
+  SceneShape shape = SceneShape::kSingle;
+  std::vector<std::size_t> vertex_offsets;  // per mesh of a batch (one for Create), then vertex_count
+  std::vector<int> joint_offsets;           // per mesh, then joint_count
   bool palette_set = false;
   bool skinned = false;
   std::unique_ptr<SkinnerBackend> backend;  // declared last: destroyed before `device`

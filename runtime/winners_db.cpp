@@ -103,8 +103,36 @@ bool CreatedBefore(const std::string& a, const std::string& b) {
   return fa < fb;
 }
 
+const char* SceneKindName(SceneKind kind) {
+  switch (kind) {
+    case SceneKind::kSingle: return "single";
+    case SceneKind::kInstances: return "instances";
+    case SceneKind::kBatch: return "batch";
+  }
+  return "unknown";
+}
+
+SceneKind SceneKindFromName(const std::string& name) {
+  std::string names;
+  for (SceneKind kind : kSceneKinds) {
+    if (name == SceneKindName(kind)) return kind;
+    names += (names.empty() ? "" : ", ") + std::string(SceneKindName(kind));
+  }
+  throw Error("'shape' has unknown value '" + name + "' (expected " + names + ")");
+}
+
+std::string SceneSuffix(SceneKind kind, int instances, int meshes) {
+  switch (kind) {
+    case SceneKind::kSingle: return "";
+    case SceneKind::kInstances: return " instances x" + std::to_string(instances);
+    case SceneKind::kBatch: return " batch of " + std::to_string(meshes) + " meshes";
+  }
+  return "";
+}
+
 std::string Describe(const WinnersEntry& e) {
-  return e.device_id + " " + Name(e.lang) + " b" + std::to_string(e.influences) + " " + VertexCountName(e.vertices);
+  return e.device_id + " " + Name(e.lang) + " b" + std::to_string(e.influences) + " " + VertexCountName(e.vertices) +
+         SceneSuffix(e.shape, e.instances, e.meshes);
 }
 
 bool EntryWithinBudget(const WinnersEntry& e, double max_error, const std::vector<WeightFormat>& exact) {
@@ -123,6 +151,9 @@ nlohmann::json WinnersEntryToJson(const WinnersEntry& e) {
                       {"influences", e.influences},
                       {"vertices", e.vertices},
                       {"vertex_bucket", e.vertex_bucket},
+                      {"shape", SceneKindName(e.shape)},
+                      {"instances", e.instances},
+                      {"meshes", e.meshes},
                       {"dataset", e.dataset},
                       {"variant", e.variant},
                       {"median_ms", e.median_ms},
@@ -178,6 +209,19 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
                   " (bucket " + VertexBucket(e.vertices) + ")");
   } else {
     e.vertices = NominalVertices(e.vertex_bucket);  // 1.0.0 / 1.1.0: one entry per bucket
+  }
+  if (j.contains("shape")) {  // 1.4.0; older entries are of one mesh
+    e.shape = SceneKindFromName(String(j, "shape"));
+    e.instances = j.contains("instances") ? static_cast<int>(Integer(j, "instances")) : 1;
+    e.meshes = j.contains("meshes") ? static_cast<int>(Integer(j, "meshes")) : 1;
+    if (e.instances < 1 || e.meshes < 1)
+      throw Error("'instances' and 'meshes' must be at least 1 (got " + std::to_string(e.instances) + " and " +
+                  std::to_string(e.meshes) + ")");
+    const bool fits = e.shape == SceneKind::kBatch ||
+                      (e.meshes == 1 && (e.shape == SceneKind::kInstances) == (e.instances > 1));
+    if (!fits)
+      throw Error("'shape' " + std::string(SceneKindName(e.shape)) + " does not match 'instances' " +
+                  std::to_string(e.instances) + " and 'meshes' " + std::to_string(e.meshes));
   }
   e.dataset = String(j, "dataset");
   e.variant = Field(j, "variant").get<Variant>();

@@ -5,7 +5,7 @@
 //   {"schema_version": "1.3.0", "kind": "skintune-winners-db", "entries": [...]}
 //
 // One entry per (device id, language, influences, measured vertex count,
-// precision class): the fastest verified variant the tuner found on a dataset
+// scene shape (1.4.0: single, instances x K, batch of M meshes), precision class): the fastest verified variant the tuner found on a dataset
 // of that many vertices in each weight format, with its error against the
 // unquantised source (since 1.3.0: a caller's error budget chooses among the
 // classes; 1.2.0 databases kept one entry per key, whatever its format, and
@@ -23,6 +23,7 @@
 // runtime reads with them: the format lives in one place.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -35,7 +36,21 @@
 namespace skintune {
 
 inline constexpr const char* kWinnersDbKind = "skintune-winners-db";
-inline constexpr const char* kWinnersDbSchemaVersion = "1.3.0";  // 1.3.0: x_copy, source_error
+// 1.3.0: x_copy, source_error; 1.4.0: the scene shape (shape, instances, meshes).
+inline constexpr const char* kWinnersDbSchemaVersion = "1.4.0";
+
+// The scene shapes a winner was tuned on (docs/RUNTIME.md "Scene shapes"):
+// the public SceneShape (skintune/skintune.h) inside skintune, whose headers
+// (the tuner's) cannot include the public one; the same values in the same
+// order (static_asserts in runtime/api_winners.cpp). Listed once, here.
+enum class SceneKind { kSingle, kInstances, kBatch };
+inline constexpr std::array<SceneKind, 3> kSceneKinds{SceneKind::kSingle, SceneKind::kInstances, SceneKind::kBatch};
+// "single", "instances", "batch" (SceneShapeName returns these).
+const char* SceneKindName(SceneKind kind);
+// The shape named `name`; throws Error listing the names for another.
+SceneKind SceneKindFromName(const std::string& name);
+// "" for a single mesh, " instances x64", " batch of 31 meshes": how entries and tables name a scene.
+std::string SceneSuffix(SceneKind kind, int instances, int meshes);
 
 // The parts of a device id "<backend>:<platform>/<name>/<driver_version>".
 struct DeviceIdParts {
@@ -79,7 +94,12 @@ struct WinnersEntry {
   std::string device_type;     // "gpu", "cpu", ...; "" when the database does not say
   Lang lang = Lang::kOpenCl;
   int influences = 0;          // the variant's B
-  std::size_t vertices = 0;    // the vertex count of the dataset the winner was measured on
+  std::size_t vertices = 0;    // the vertex count of the dataset the winner was measured on (a scene's total)
+  // The scene it was tuned on (1.4.0; older entries: single): one mesh, K
+  // instances of one mesh (`instances`), or a batch of `meshes` meshes.
+  SceneKind shape = SceneKind::kSingle;
+  int instances = 1;
+  int meshes = 1;
   std::string vertex_bucket;   // VertexBucket(vertices), kept for readers of 1.0/1.1
   std::string dataset;         // what the winning time was measured on
   Variant variant;
@@ -100,8 +120,8 @@ struct WinnersEntry {
 // error within `max_error`.
 bool EntryWithinBudget(const WinnersEntry& entry, double max_error, const std::vector<WeightFormat>& exact);
 
-// "<device id> <lang> b<B> <vertices>": how messages name an entry (the
-// variant key names its weight format).
+// "<device id> <lang> b<B> <vertices>[ <shape>]": how messages name an entry
+// (the variant key names its weight format).
 std::string Describe(const WinnersEntry& entry);
 
 // Writes every field; vendor and device_type only when known.

@@ -196,7 +196,16 @@ int RunEmitDb(const EmitArgs& o) {
   std::vector<const WinnersEntry*> matched;
   for (const WinnersEntry& e : entries) {
     const bool lang_ok = o.langs.empty() || std::find(o.langs.begin(), o.langs.end(), Name(e.lang)) != o.langs.end();
-    if (lang_ok && EntryMatchesDevice(e, o.device)) matched.push_back(&e);
+    if (!lang_ok || !EntryMatchesDevice(e, o.device)) continue;
+    // The header's kernels are plain, one mesh each, and FindKernel knows no
+    // scene shape: a crowd's or batch's winner would compete with the single
+    // mesh of the same total size (the runtime's Skinner uses them).
+    if (e.shape != SceneKind::kSingle) {
+      std::cerr << "skintune: warning: skipping " << Describe(e)
+                << ": tuned on a crowd or batch scene; the header holds single-mesh winners\n";
+      continue;
+    }
+    matched.push_back(&e);
   }
   const std::string asked =
       "--device '" + o.device + "'" + (o.langs.empty() ? "" : " and --lang " + Joined(o.langs, ", "));

@@ -199,7 +199,8 @@ void PrintWinners(const TuningReport& report) {
                                                  "err/diag", "quant/diag", "vs quantised", "budget"}};
   for (const Winner& w : winners) {
     const bool is_chosen = std::any_of(chosen.begin(), chosen.end(), [&](const Winner& c) {
-      return c.device_id == w.device_id && c.variant == w.variant && c.vertices == w.vertices;
+      return c.device_id == w.device_id && c.variant == w.variant && c.vertices == w.vertices && c.shape == w.shape &&
+             c.instances == w.instances && c.meshes == w.meshes;
     });
     char ms[32], gbps[32], fraction[32];
     std::snprintf(ms, sizeof ms, "%.4f", w.median_ms);
@@ -213,7 +214,8 @@ void PrintWinners(const TuningReport& report) {
     const auto name = names.find(w.device_id);
     const SourceError& e = w.source_error;
     rows.push_back({name != names.end() ? name->second : w.device_id, Name(w.lang), std::to_string(w.influences),
-                    VertexCountName(w.vertices), w.variant.Key(), ms, gbps, fraction,
+                    VertexCountName(w.vertices) + SceneSuffix(w.shape, w.instances, w.meshes), w.variant.Key(), ms,
+                    gbps, fraction,
                     e.known ? Sci(e.position_rel) : "-", e.known ? Sci(e.quantisation_rel) : "-",
                     Sci(w.max_relative_error), is_chosen ? "* winner" : w.within_budget ? "within" : "over"});
   }

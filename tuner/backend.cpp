@@ -93,37 +93,113 @@ std::vector<std::vector<glm::mat4>> FramePalettes(const SkinnedAsset& asset, int
   return palettes;
 }
 
+std::vector<std::vector<glm::mat4>> ScenePalettes(const SkinnedScene& scene, int count) {
+  count = std::max(count, 1);
+  const int k = scene.spec.instances;
+  std::vector<std::vector<glm::mat4>> frames(static_cast<std::size_t>(count));
+  if (!scene.spec.batch) {
+    // K instances: K x count different frames, instance after instance within a set.
+    const std::vector<std::vector<glm::mat4>> pool = FramePalettes(scene.assets.front(), count * k);
+    for (std::size_t f = 0; f < pool.size(); ++f)
+      frames[f / static_cast<std::size_t>(k)].insert(frames[f / static_cast<std::size_t>(k)].end(), pool[f].begin(),
+                                                     pool[f].end());
+    return frames;
+  }
+  for (const SkinnedAsset& asset : scene.assets) {
+    const std::vector<std::vector<glm::mat4>> own = FramePalettes(asset, count);
+    for (std::size_t f = 0; f < frames.size(); ++f) frames[f].insert(frames[f].end(), own[f].begin(), own[f].end());
+  }
+  return frames;
+}
+
 DatasetCache::Entry& DatasetCache::Get(const std::string& key) {
   if (auto found = entries_.find(key); found != entries_.end()) return *found->second;
   auto entry = std::make_unique<Entry>();
-  if (IsGltfPath(key)) {
-    entry->asset = ImportGltf(key).asset;  // warnings (renormalised weights) are the importer's to report
+  // Import warnings (renormalised weights) are the importer's to report.
+  entry->scene = LoadScene(ParseSceneKey(key));
+  entry->verification_palette = ScenePalettes(entry->scene, 1).front();
+  const SkinnedScene& scene = entry->scene;
+  const std::vector<glm::vec3>& positions = scene.mesh().positions;
+  const std::size_t n = scene.mesh().vertex_count();
+  if (scene.spec.instances > 1) {
+    const double diagonal = BoundingBoxDiagonal(positions);
+    for (int i = 0; i < scene.spec.instances; ++i)
+      entry->parts.push_back({"instance " + std::to_string(i), static_cast<std::size_t>(i) * n, n, diagonal});
   } else {
-    entry->asset = GenerateDataset(ParseDatasetKey(key));
+    const std::vector<std::size_t>& offsets = scene.batch.vertex_offsets;
+    for (std::size_t m = 0; m + 1 < offsets.size(); ++m) {
+      const std::size_t count = offsets[m + 1] - offsets[m];
+      const std::string name = scene.spec.batch ? "meshes[" + std::to_string(m) + "] (" +
+                                                      std::filesystem::path(scene.spec.meshes[m]).filename().string() + ")"
+                                                : "";
+      entry->parts.push_back(
+          {name, offsets[m], count, BoundingBoxDiagonal(std::span(positions).subspan(offsets[m], count))});
+    }
   }
-  entry->verification_palette = FramePalettes(entry->asset, 1).front();
-  entry->diagonal = BoundingBoxDiagonal(entry->asset.mesh.positions);
   return *entries_.emplace(key, std::move(entry)).first->second;
 }
+
+namespace {
+
+// The gold of the whole scene on `mesh` (the scene's, quantised or not): one
+// run over the mesh and its palette; K instances: one per instance's palette.
+GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, bool normals) {
+  const int k = entry.instances();
+  if (k == 1) return SkinGold(mesh, entry.verification_palette, normals);
+  GoldResult all;
+  const std::size_t joints = static_cast<std::size_t>(mesh.joint_count);
+  for (int i = 0; i < k; ++i) {
+    GoldResult one = SkinGold(mesh, std::span(entry.verification_palette).subspan(i * joints, joints), normals);
+    all.positions.insert(all.positions.end(), one.positions.begin(), one.positions.end());
+    all.normals.insert(all.normals.end(), one.normals.begin(), one.normals.end());
+  }
+  return all;
+}
+
+}  // namespace
 
 const GoldResult& DatasetCache::Gold(Entry& entry, const Variant& variant) {
   const std::pair<int, bool> key{static_cast<int>(variant.weight), variant.normals};
   if (auto found = entry.gold.find(key); found != entry.gold.end()) return found->second;
-  GoldResult gold = SkinGold(QuantisedMesh(entry.asset.mesh, variant), entry.verification_palette, variant.normals);
+  GoldResult gold = SceneGold(entry, QuantisedMesh(entry.mesh(), variant), variant.normals);
   return entry.gold.emplace(key, std::move(gold)).first->second;
 }
 
 const GoldResult& DatasetCache::SourceGold(Entry& entry, bool normals) {
   if (auto found = entry.source_gold.find(normals); found != entry.source_gold.end()) return found->second;
-  GoldResult gold = SkinGold(entry.asset.mesh, entry.verification_palette, normals);
+  GoldResult gold = SceneGold(entry, entry.mesh(), normals);
   return entry.source_gold.emplace(normals, std::move(gold)).first->second;
 }
+
+namespace {
+
+// abs / diagonal; a part of one point (diagonal 0): any error is all of it.
+double Relative(double abs, double diagonal) { return diagonal > 0.0 ? abs / diagonal : (abs > 0.0 ? 1.0 : 0.0); }
+
+}  // namespace
 
 double DatasetCache::QuantisationError(Entry& entry, const Variant& variant) {
   const std::pair<int, bool> key{static_cast<int>(variant.weight), variant.normals};
   if (auto found = entry.quantisation.find(key); found != entry.quantisation.end()) return found->second;
-  const double error = MaxDistance(Gold(entry, variant).positions, SourceGold(entry, variant.normals).positions);
+  const std::span<const glm::dvec3> gold = Gold(entry, variant).positions;
+  const std::span<const glm::dvec3> source = SourceGold(entry, variant.normals).positions;
+  double error = 0.0;
+  for (const Part& part : entry.parts)
+    error = std::max(error, Relative(MaxDistance(gold.subspan(part.first, part.count),
+                                                 source.subspan(part.first, part.count)),
+                                     part.diagonal));
   return entry.quantisation.emplace(key, error).first->second;
+}
+
+PackedMesh PackScene(const DatasetCache::Entry& entry, const Variant& variant, std::vector<KernelSource>& kernels) {
+  PackedMesh packed = Pack(entry.mesh(), variant);
+  EmitOptions emit;  // K instances: the instanced kernels (docs/VARIANTS.md "Instancing")
+  emit.instanced = entry.instances() > 1;
+  emit.max_instances = emit.instanced ? entry.instances() : 0;
+  kernels.clear();
+  for (const Launch& launch : packed.launches)
+    kernels.push_back(Emit(variant, launch.influences, static_cast<int>(packed.palette_joints), emit));
+  return packed;
 }
 
 MeasureStatus StatusOfRunnerError(const std::string& message) {
@@ -280,6 +356,22 @@ std::string Disagreement(const char* what, const GoldComparison& c, double toler
   return "";
 }
 
+// The outputs of K instances (packed order, instance after instance) as
+// one vec3 per vertex in the mesh's order, instance after instance.
+std::vector<glm::vec3> UnpackInstances(const PackedMesh& packed, std::span<const std::uint8_t> output, int instances) {
+  if (instances == 1) return Unpack(packed, output);
+  const std::size_t bytes = packed.vertex_count * packed.output_stride_bytes;
+  if (output.size() != bytes * static_cast<std::size_t>(instances))
+    throw Error("UnpackInstances: " + std::to_string(output.size()) + " output bytes for " + std::to_string(instances) +
+                " instances of " + std::to_string(bytes));
+  std::vector<glm::vec3> all;
+  for (int i = 0; i < instances; ++i) {
+    const std::vector<glm::vec3> one = Unpack(packed, output.subspan(static_cast<std::size_t>(i) * bytes, bytes));
+    all.insert(all.end(), one.begin(), one.end());
+  }
+  return all;
+}
+
 std::string DatasetName(const std::string& key) {
   return IsGltfPath(key) ? std::filesystem::path(key).filename().string() : key;
 }
@@ -306,13 +398,14 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   };
 
   DatasetCache::Entry& data = datasets.Get(dataset.key);
-  const SkinnedMesh& mesh = data.asset.mesh;
+  const SkinnedMesh& mesh = data.mesh();
+  const int instances = data.instances();
 
   // Can it run here at all?
   if (std::find(languages.begin(), languages.end(), variant.lang) == languages.end())
     return finish(MeasureStatus::kInvalid, std::string("language ") + Name(variant.lang) + " does not run on " +
                                         identity.backend + " device " + identity.name);
-  const ProblemShape shape{mesh.joint_count, mesh.influences, mesh.has_normals()};
+  const ProblemShape shape{mesh.joint_count, mesh.influences, mesh.has_normals(), instances};
   const std::vector<Violation> violations = CheckVariant(variant, limits, shape);
   if (!violations.empty()) {
     std::string detail;
@@ -322,70 +415,84 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   PackedMesh packed;
   std::vector<KernelSource> kernels;
   try {
-    packed = Pack(mesh, variant);
-    for (const Launch& launch : packed.launches)
-      kernels.push_back(Emit(variant, launch.influences, static_cast<int>(packed.palette_joints)));
+    packed = PackScene(data, variant, kernels);
   } catch (const Error& e) {
     return finish(MeasureStatus::kInvalid, e.what());
   }
   if (faulty)
     for (KernelSource& k : kernels) InjectFault(k, variant, fault.kind);
 
-  // Verify first: one run on poisoned outputs with guards, against the gold.
+  // Verify first: one run on poisoned outputs with guards, against the gold,
+  // each part of the scene (an instance, a batch's mesh) against its own.
   Executor::Output output;
   try {
-    output = executor.Run(packed, kernels, PackPalette(data.verification_palette, variant));
+    output = executor.Run(packed, kernels, PackPalette(data.verification_palette, variant), instances);
   } catch (const Error& e) {
     return finish(StatusOfRunnerError(e.what()), e.what());
   }
   const GoldResult& gold = datasets.Gold(data, variant);
-  const std::vector<glm::vec3> out_positions = Unpack(packed, output.positions);
-  const GoldComparison positions = CompareToGold(gold.positions, out_positions);
-  m.max_relative_error = positions.max_relative;
-  std::string disagreement = Disagreement("positions", positions, options.tolerance);
+  const std::vector<glm::vec3> out_positions = UnpackInstances(packed, output.positions, instances);
   std::vector<glm::vec3> out_normals;
-  if (variant.normals) {
-    out_normals = Unpack(packed, output.normals);
-    const GoldComparison normals = CompareToGold(gold.normals, out_normals);
-    m.max_relative_error = std::max(m.max_relative_error, normals.max_relative);
-    const std::string n = Disagreement("normals", normals, options.tolerance);
-    if (!n.empty()) disagreement += (disagreement.empty() ? "" : "; ") + n;
+  if (variant.normals) out_normals = UnpackInstances(packed, output.normals, instances);
+  std::string disagreement;
+  for (const DatasetCache::Part& part : data.parts) {
+    auto slice = [&](const auto& all) { return std::span(all).subspan(part.first, part.count); };
+    const GoldComparison positions = CompareToGold(slice(gold.positions), slice(out_positions));
+    m.max_relative_error = std::max(m.max_relative_error, positions.max_relative);
+    std::string wrong = Disagreement("positions", positions, options.tolerance);
+    if (variant.normals) {
+      const GoldComparison normals = CompareToGold(slice(gold.normals), slice(out_normals));
+      m.max_relative_error = std::max(m.max_relative_error, normals.max_relative);
+      const std::string n = Disagreement("normals", normals, options.tolerance);
+      if (!n.empty()) wrong += (wrong.empty() ? "" : "; ") + n;
+    }
+    // The first wrong part says enough (a scene may have 64 instances).
+    if (!wrong.empty() && disagreement.empty()) disagreement = part.name.empty() ? wrong : part.name + ": " + wrong;
   }
   if (output.poisoned_vertices > 0)
     disagreement = std::to_string(output.poisoned_vertices) + " output vectors never written (still poisoned)" +
                    (disagreement.empty() ? "" : "; " + disagreement);
   if (!disagreement.empty()) return finish(MeasureStatus::kVerifyFailed, "wrong results against the float64 gold: " + disagreement);
 
-  // Verified: what the output is worth against the unquantised source.
+  // Verified: what the output is worth against the unquantised source, the
+  // worst part relative to its own diagonal.
   const GoldResult& source = datasets.SourceGold(data, variant.normals);
   SourceError& error = m.source_error;
   error.known = true;
-  error.diagonal = data.diagonal;
-  error.position_abs = CompareToGold(source.positions, out_positions).max_absolute;
-  if (variant.normals) error.normal_abs = CompareToGold(source.normals, out_normals).max_absolute;
-  const double quantisation = datasets.QuantisationError(data, variant);
-  // A mesh of one point (diagonal 0): any error is all of it.
-  auto relative = [&](double abs) { return data.diagonal > 0.0 ? abs / data.diagonal : (abs > 0.0 ? 1.0 : 0.0); };
-  error.position_rel = relative(error.position_abs);
-  error.quantisation_rel = relative(quantisation);
+  for (const DatasetCache::Part& part : data.parts) {
+    auto slice = [&](const auto& all) { return std::span(all).subspan(part.first, part.count); };
+    const double abs = CompareToGold(slice(source.positions), slice(out_positions)).max_absolute;
+    if (&part == &data.parts.front() || Relative(abs, part.diagonal) > error.position_rel) {
+      error.diagonal = part.diagonal;
+      error.position_abs = abs;
+      error.position_rel = Relative(abs, part.diagonal);
+    }
+    if (variant.normals)
+      error.normal_abs = std::max(error.normal_abs, CompareToGold(slice(source.normals), slice(out_normals)).max_absolute);
+  }
+  error.quantisation_rel = datasets.QuantisationError(data, variant);
 
   // Then time, in bursts rotating among K input sets (different frames),
   // device timers; and the same-size copy by the same method.
+  // The bytes of the scene's frame: K instances move what K copies of the
+  // mesh would (so the same-size copy is that of one mesh of the scene's
+  // total bytes, even when an instanced kernel finds its inputs in cache).
   std::uint64_t bytes_per_frame = 0;
   for (const Launch& launch : packed.launches)
     for (const PackedBuffer& b : launch.inputs) bytes_per_frame += b.bytes.size();
   bytes_per_frame += packed.vertex_count * packed.output_stride_bytes * (variant.normals ? 2 : 1);
   bytes_per_frame += packed.palette.size();
+  bytes_per_frame *= static_cast<std::uint64_t>(instances);
   m.bytes_per_frame = static_cast<double>(bytes_per_frame);
   const int sets = InputSetsFor(identity.last_level_cache_bytes, bytes_per_frame, options.max_input_sets);
   std::vector<std::vector<std::uint8_t>> palettes;
-  for (const std::vector<glm::mat4>& palette : FramePalettes(data.asset, sets))
+  for (const std::vector<glm::mat4>& palette : ScenePalettes(data.scene, sets))
     palettes.push_back(PackPalette(palette, variant));
   const int warmup = std::max(options.warmup, 0);
   const int repetitions = std::max(options.repetitions, 1);
   Executor::Times times;
   try {
-    times = executor.Time(packed, kernels, palettes, warmup, repetitions, 0, options.burst_ms);
+    times = executor.Time(packed, kernels, palettes, instances, warmup, repetitions, 0, options.burst_ms);
   } catch (const Error& e) {
     return finish(StatusOfRunnerError(e.what()), std::string("timing: ") + e.what());
   }
@@ -418,15 +525,15 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
 }
 
 Executor::Output RunnerExecutor::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                                     std::span<const std::uint8_t> palette) {
-  RunResult result = runner_.Run(mesh, kernels, palette);
+                                     std::span<const std::uint8_t> palette, int instances) {
+  RunResult result = runner_.Run(mesh, kernels, palette, instances);
   return {std::move(result.positions), std::move(result.normals), result.poisoned_vertices};
 }
 
 Executor::Times RunnerExecutor::Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                                     std::span<const std::vector<std::uint8_t>> palettes, int warmup, int bursts,
-                                     int burst_frames, double burst_ms) {
-  const Prepared prepared = runner_.Prepare(mesh, kernels, palettes);
+                                     std::span<const std::vector<std::uint8_t>> palettes, int instances,
+                                     int warmup, int bursts, int burst_frames, double burst_ms) {
+  const Prepared prepared = runner_.Prepare(mesh, kernels, palettes, instances);
   Times times;
   times.burst_frames = burst_frames > 0 ? burst_frames : runner_.BurstFrames(prepared, warmup, burst_ms);
   times.ms = runner_.Time(prepared, warmup, bursts, times.burst_frames);

@@ -20,6 +20,7 @@
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "reference/asset.h"
+#include "reference/scene.h"
 #include "reference/skinning.h"
 #include "runtime/backend_table.h"
 #include "runtime/runner.h"
@@ -42,19 +43,33 @@ int InputSetsFor(std::uint64_t last_level_cache_bytes, std::uint64_t bytes_per_s
 
 // ---------------------------------------------------------------- datasets
 
-// The assets a backend measures on, made once per key: a synthetic dataset
-// key (reference/synthetic.h) or a glTF path (.gltf / .glb), with the palettes
-// of its animation frames and, per weight format and normals, the float64 gold
-// of the verification frame; per normals, the gold of the unquantised source.
+// The scenes a backend measures on, made once per key (reference/scene.h): a
+// synthetic dataset key or a glTF path (.gltf / .glb), K instances of one
+// ("25k-b4-x64"), or a batch ("a.gltf+25k-b2", "mix1600k-b4"), with, per
+// weight format and normals, the float64 gold of the verification frame and,
+// per normals, the gold of the unquantised source. Golds hold the whole
+// scene's output in the kernel's order: instance after instance, or mesh after
+// mesh of a batch; each part (an instance, a batch's mesh) is compared on its own.
 class DatasetCache {
  public:
+  // A part of a scene's output, verified against its own gold.
+  struct Part {
+    std::string name;         // "" (one mesh), "instance 3", "meshes[2] (Fox.gltf)"
+    std::size_t first = 0;    // its first vertex in the scene's output
+    std::size_t count = 0;    // its vertices
+    double diagonal = 0.0;    // BoundingBoxDiagonal of its rest positions
+  };
   struct Entry {
-    SkinnedAsset asset;
-    std::vector<glm::mat4> verification_palette;  // FramePalettes(asset, 1)[0]
-    double diagonal = 0.0;                         // BoundingBoxDiagonal of the rest positions
+    SkinnedScene scene;
+    // The verification frame's palette as the kernel reads it: instance
+    // after instance (K x joints), a batch's meshes one after another.
+    std::vector<glm::mat4> verification_palette;
+    std::vector<Part> parts;
     std::map<std::pair<int, bool>, GoldResult> gold;  // (weight format, normals)
     std::map<bool, GoldResult> source_gold;           // normals
-    std::map<std::pair<int, bool>, double> quantisation;  // (weight format, normals): gold vs source gold
+    std::map<std::pair<int, bool>, double> quantisation;  // (weight format, normals): gold vs source gold, / diagonal
+    const SkinnedMesh& mesh() const { return scene.mesh(); }
+    int instances() const { return scene.spec.instances; }
   };
   // Throws Error for a malformed key or a glTF file that cannot be imported.
   Entry& Get(const std::string& key);
@@ -62,8 +77,9 @@ class DatasetCache {
   const GoldResult& Gold(Entry& entry, const Variant& variant);
   // The gold of the unquantised source mesh (the weights as the dataset has them).
   const GoldResult& SourceGold(Entry& entry, bool normals);
-  // MaxDistance(Gold, SourceGold) of the positions: what `variant`'s weight
-  // format alone moves them, mesh units (0 when it holds the weights exactly).
+  // The largest over the parts of MaxDistance(Gold, SourceGold) of the
+  // positions / the part's diagonal: what `variant`'s weight format alone
+  // moves them, relative (0 when it holds the weights exactly).
   double QuantisationError(Entry& entry, const Variant& variant);
 
  private:
@@ -76,6 +92,14 @@ bool IsGltfPath(const std::string& key);
 // (frame k at start + duration * (k + 0.5) / count); the rest pose, repeated,
 // when the asset has no animation.
 std::vector<std::vector<glm::mat4>> FramePalettes(const SkinnedAsset& asset, int count);
+// `count` frames of a scene, each as the kernel reads it: one mesh's
+// FramePalettes; K instances: K different frames (set s, instance k: frame
+// s x K + k of count x K); a batch: each mesh's frame s, one after another.
+std::vector<std::vector<glm::mat4>> ScenePalettes(const SkinnedScene& scene, int count);
+
+// The variant packed for the scene's mesh and its kernels, one per launch
+// (instanced for K instances). Throws Error when it cannot be packed or emitted.
+PackedMesh PackScene(const DatasetCache::Entry& entry, const Variant& variant, std::vector<KernelSource>& kernels);
 
 // ---------------------------------------------------------------- measuring
 
@@ -93,14 +117,15 @@ class Executor {
   };
   virtual ~Executor() = default;
   // One verification run: poisoned outputs and guards (the runners' Run).
+  // `instances` K: instanced kernels, `palette` holding K palettes.
   virtual Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                     std::span<const std::uint8_t> palette) = 0;
-  // Prepare (one input set per palette), then `warmup` untimed frames and
-  // `bursts` bursts of burst_frames frames (0: as many as take about
-  // `burst_ms`, from one frame timed alone).
+                     std::span<const std::uint8_t> palette, int instances) = 0;
+  // Prepare (one input set per palette; K palettes each for K instances),
+  // then `warmup` untimed frames and `bursts` bursts of burst_frames frames
+  // (0: as many as take about `burst_ms`, from one frame timed alone).
   virtual Times Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                     std::span<const std::vector<std::uint8_t>> palettes, int warmup, int bursts, int burst_frames,
-                     double burst_ms) = 0;
+                     std::span<const std::vector<std::uint8_t>> palettes, int instances, int warmup, int bursts,
+                     int burst_frames, double burst_ms) = 0;
   // The same-size copy (generator/copy_kernel.h) moving `bytes` per frame in
   // `lang`'s API, timed like Time with `input_sets` sets and `burst_frames`.
   virtual std::vector<double> TimeCopy(Lang lang, std::size_t bytes, int input_sets, int warmup, int bursts,
@@ -113,11 +138,11 @@ class Executor {
 class RunnerExecutor final : public Executor {
  public:
   explicit RunnerExecutor(Runner& runner) : runner_(runner) {}
-  Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-             std::span<const std::uint8_t> palette) override;
+  Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t> palette,
+             int instances) override;
   Times Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-             std::span<const std::vector<std::uint8_t>> palettes, int warmup, int bursts, int burst_frames,
-             double burst_ms) override;
+             std::span<const std::vector<std::uint8_t>> palettes, int instances, int warmup, int bursts,
+             int burst_frames, double burst_ms) override;
   std::vector<double> TimeCopy(Lang lang, std::size_t bytes, int input_sets, int warmup, int bursts,
                                int burst_frames) override;
 
@@ -127,9 +152,10 @@ class RunnerExecutor final : public Executor {
 };
 
 // The one Measure of every backend (tuner/backend.h): checks the variant
-// against the device's limits and the mesh (invalid), packs and emits it
+// against the device's limits and the scene (invalid), packs and emits it
 // (invalid when that throws), applies the injected fault, verifies one run
-// against the gold (compile_failed / launch_failed / verify_failed), then
+// against the gold, each instance or batch mesh on its own (compile_failed /
+// launch_failed / verify_failed, naming the part), then
 // times it in bursts rotating among InputSetsFor(...) input sets, and the
 // same-size copy with the same sets and bursts (x_copy).
 Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const DeviceIdentity& identity,

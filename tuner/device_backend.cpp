@@ -77,11 +77,10 @@ class DeviceBackend final : public Backend {
     for (const Variant& v : variants) {
       if (!fault.kind.empty() && fault.variant_key == v.Key()) continue;
       try {
-        const PackedMesh packed = Pack(data.asset.mesh, v);
-        for (const Launch& launch : packed.launches) {
-          KernelSource k = Emit(v, launch.influences, static_cast<int>(packed.palette_joints));
+        std::vector<KernelSource> emitted;
+        (void)PackScene(data, v, emitted);
+        for (KernelSource& k : emitted)
           if (hashes.insert(k.source_hash).second) kernels.push_back(std::move(k));
-        }
       } catch (const Error&) {
         // Not packable or emittable: Measure records it (invalid).
       }

@@ -37,17 +37,28 @@ nlohmann::json WinnerJson(const Winner& w) {
                       {"variant", w.variant},       {"median_ms", w.median_ms},
                       {"gbps", w.gbps},             {"copy_fraction", w.copy_fraction},
                       {"precision_class", Name(w.variant.weight)}, {"within_budget", w.within_budget},
-                      {"max_relative_error", w.max_relative_error}, {"x_copy", w.x_copy}};
+                      {"max_relative_error", w.max_relative_error}, {"x_copy", w.x_copy},
+                      {"shape", SceneKindName(w.shape)}, {"instances", w.instances}, {"meshes", w.meshes}};
   if (w.source_error.known) j["source_error"] = SourceErrorJson(w.source_error);
   return j;
 }
 
-// The merge key of a winner / database entry: every measured vertex count and
-// precision class (weight format) keeps its own.
-using EntryKey = std::tuple<std::string, int, int, std::size_t, int>;  // device id, lang, influences, vertices, weight
+// The merge key of a winner / database entry: every measured vertex count,
+// scene shape (with its instance or mesh count) and precision class (weight
+// format) keeps its own.
+// device id, lang, influences, vertices, shape, instances, meshes, weight
+using EntryKey = std::tuple<std::string, int, int, std::size_t, int, int, int, int>;
 
-EntryKey KeyOf(const std::string& device_id, Lang lang, int influences, std::size_t vertices, WeightFormat weight) {
-  return {device_id, static_cast<int>(lang), influences, vertices, static_cast<int>(weight)};
+template <typename W>  // Winner or WinnersEntry
+EntryKey KeyOf(const W& w) {
+  return {w.device_id, static_cast<int>(w.lang), w.influences, w.vertices, static_cast<int>(w.shape),
+          w.instances, w.meshes, static_cast<int>(w.variant.weight)};
+}
+
+nlohmann::json DatasetJson(const DatasetInfo& d) {
+  return {{"key", d.key},       {"vertices", d.vertices},         {"influences", d.influences},
+          {"joints", d.joints}, {"shape", SceneKindName(d.shape)}, {"instances", d.instances},
+          {"meshes", d.meshes}};
 }
 
 // The report's winners as database entries, with the device's identity (the
@@ -71,6 +82,9 @@ std::vector<WinnersEntry> EntriesOf(const TuningReport& report) {
     e.influences = w.influences;
     e.vertices = w.vertices;
     e.vertex_bucket = w.vertex_bucket;
+    e.shape = w.shape;
+    e.instances = w.instances;
+    e.meshes = w.meshes;
     e.dataset = w.dataset;
     e.variant = w.variant;
     e.median_ms = w.median_ms;
@@ -105,7 +119,11 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     w.influences = m.variant.influences;
     w.vertices = dataset->second->vertices;
     w.vertex_bucket = VertexBucket(w.vertices);
-    const EntryKey key = KeyOf(w.device_id, w.lang, w.influences, w.vertices, m.variant.weight);
+    w.shape = dataset->second->shape;
+    w.instances = dataset->second->instances;
+    w.meshes = dataset->second->meshes;
+    w.variant = m.variant;
+    const EntryKey key = KeyOf(w);
     const auto it = best.find(key);
     if (it != best.end() && it->second.median_ms <= m.timing.median_ms) continue;  // ties: the first one
     w.backend = BackendOf(report, m.device_id);
@@ -127,11 +145,12 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
 }
 
 std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners) {
-  using Key = std::tuple<std::string, int, int, std::size_t>;
+  using Key = std::tuple<std::string, int, int, std::size_t, int, int, int>;
   std::map<Key, const Winner*> best;
   for (const Winner& w : winners) {
     if (!w.within_budget) continue;
-    const Key key{w.device_id, static_cast<int>(w.lang), w.influences, w.vertices};
+    const Key key{w.device_id, static_cast<int>(w.lang), w.influences, w.vertices, static_cast<int>(w.shape),
+                  w.instances, w.meshes};
     const auto it = best.find(key);
     if (it == best.end() || w.median_ms < it->second->median_ms) best[key] = &w;
   }
@@ -159,10 +178,7 @@ nlohmann::json ReportToJson(const TuningReport& report) {
   for (const auto& [id, gbps] : report.copy_bandwidth_gbps) out["copy_bandwidth_gbps"][id] = gbps;
   out["skipped"] = report.skipped;
   out["datasets"] = nlohmann::json::array();
-  for (const DatasetInfo& d : report.datasets) {
-    out["datasets"].push_back(
-        {{"key", d.key}, {"vertices", d.vertices}, {"influences", d.influences}, {"joints", d.joints}});
-  }
+  for (const DatasetInfo& d : report.datasets) out["datasets"].push_back(DatasetJson(d));
   out["measurements"] = nlohmann::json::array();
   for (const Measurement& m : report.measurements) out["measurements"].push_back(m);
   out["winners"] = nlohmann::json::array();
@@ -232,6 +248,12 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
       info.vertices = static_cast<std::size_t>(vertices);
       info.influences = static_cast<int>(Integer(d, "influences"));
       info.joints = static_cast<int>(Integer(d, "joints"));
+      if (d.contains("shape")) {  // 1.3.0; older reports tuned single meshes
+        info.shape = SceneKindFromName(String(d, "shape"));
+        info.instances = static_cast<int>(Integer(d, "instances"));
+        info.meshes = static_cast<int>(Integer(d, "meshes"));
+        if (info.instances < 1 || info.meshes < 1) throw Error("'instances' and 'meshes' must be at least 1");
+      }
       return info;
     }));
   }
@@ -271,10 +293,7 @@ nlohmann::json ReportToT4(const TuningReport& report) {
     metadata["devices"].push_back(std::move(dj));
   }
   for (const auto& [id, gbps] : report.copy_bandwidth_gbps) metadata["copy_bandwidth_gbps"][id] = gbps;
-  for (const DatasetInfo& d : report.datasets) {
-    metadata["datasets"].push_back(
-        {{"key", d.key}, {"vertices", d.vertices}, {"influences", d.influences}, {"joints", d.joints}});
-  }
+  for (const DatasetInfo& d : report.datasets) metadata["datasets"].push_back(DatasetJson(d));
 
   nlohmann::json results = nlohmann::json::array();
   for (const Measurement& m : report.measurements) {
@@ -365,7 +384,7 @@ nlohmann::json MergeWinnersDatabases(const std::vector<nlohmann::json>& reports_
     }
     // Newest `created` wins per key; on equal `created`, the later input.
     for (WinnersEntry& e : entries) {
-      const EntryKey key = KeyOf(e.device_id, e.lang, e.influences, e.vertices, e.variant.weight);
+      const EntryKey key = KeyOf(e);
       const auto it = merged.find(key);
       if (it == merged.end() || !CreatedBefore(e.created, it->second.created)) merged.insert_or_assign(key, std::move(e));
     }

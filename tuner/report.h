@@ -17,14 +17,18 @@ namespace skintune {
 
 // 1.1.0: winners name their measured vertex count; 1.2.0: max_error, too_imprecise,
 // source_error, a winner per precision class; timing version 2 (bursts, the physical
-// cache, the same-size copy: x_copy).
-inline constexpr const char* kReportSchemaVersion = "1.2.0";
+// cache, the same-size copy: x_copy); 1.3.0: datasets and winners name their scene shape
+// (shape, instances, meshes), and winners are kept per shape.
+inline constexpr const char* kReportSchemaVersion = "1.3.0";
 
 struct DatasetInfo {
-  std::string key;
-  std::size_t vertices = 0;
-  int influences = 0;   // the mesh's slots per vertex
-  int joints = 0;
+  std::string key;          // a scene key (reference/scene.h): a dataset, a glTF path, instances, a batch
+  std::size_t vertices = 0;  // the scene's total (K x the mesh's; the sum of a batch's meshes)
+  int influences = 0;   // the mesh's slots per vertex (a batch's: the largest of its meshes')
+  int joints = 0;       // per instance (a batch's: every mesh's)
+  SceneKind shape = SceneKind::kSingle;
+  int instances = 1;
+  int meshes = 1;
 };
 
 struct TuningReport {
@@ -50,6 +54,9 @@ struct Winner {
   int influences = 0;
   std::size_t vertices = 0;   // the dataset's vertex count: every measured count keeps its winner
   std::string vertex_bucket;  // VertexBucket(vertices)
+  SceneKind shape = SceneKind::kSingle;  // the dataset's scene: every shape keeps its winner
+  int instances = 1;
+  int meshes = 1;
   std::string dataset;
   Variant variant;
   double median_ms = 0.0;
@@ -63,8 +70,8 @@ struct Winner {
 };
 
 // The fastest verified (ok or too_imprecise) measurement per (device,
-// language, influences, measured vertex count, precision class = weight
-// format), in that key order. A variant that failed verification is never a
+// language, influences, measured vertex count, scene shape with its instance
+// and mesh counts, precision class = weight format), in that key order. A variant that failed verification is never a
 // winner. The run's winner of a key is the fastest one within_budget
 // (BudgetWinners); the others stay for callers with a larger budget.
 std::vector<Winner> ComputeWinners(const TuningReport& report);

@@ -36,6 +36,7 @@
 #include "reference/error.h"
 #include "reference/gltf_import.h"
 #include "reference/memory_limit.h"
+#include "reference/scene.h"
 #include "reference/synthetic.h"
 #include "tuner/measurement.h"
 #include "tuner/schedule.h"
@@ -155,25 +156,28 @@ std::vector<std::string> DatasetsFromConfig(const nlohmann::json& in, const std:
     } else {
       throw Error(item + ": expected a dataset key (string) or an object with \"key\"");
     }
-    if (!IsGltfPath(key)) {
-      DatasetSpec spec;
-      try {
-        spec = ParseDatasetKey(key);
-      } catch (const Error& e) {
-        throw Error(item + ": " + e.what());
-      }
-      if (d.is_object()) {
-        auto check = [&](const char* field, long long expected) {
-          if (!d.contains(field)) return;
-          if (!d[field].is_number_integer() || d[field].get<long long>() != expected) {
-            throw Error(item + "." + field + ": " + d[field].dump() + " does not match the key '" + key + "' (" +
-                        std::to_string(expected) + ")");
-          }
-        };
-        check("vertices", static_cast<long long>(spec.vertices));
-        check("influences", spec.influences);
-        check("bones", spec.bones);
-      }
+    SceneSpec scene;
+    try {
+      scene = ParseSceneKey(key);  // a dataset key, a glTF path, instances or a batch (reference/scene.h)
+    } catch (const Error& e) {
+      throw Error(item + ": " + e.what());
+    }
+    if (d.is_object()) {
+      const bool synthetic = !scene.batch && scene.instances == 1 && !IsGltfPath(key);
+      const DatasetSpec spec = synthetic ? ParseDatasetKey(key) : DatasetSpec{};
+      auto check = [&](const char* field, long long expected) {
+        if (!d.contains(field)) return;
+        if (!synthetic)
+          throw Error(item + "." + field + ": only a synthetic dataset of one mesh states its numbers ('" + key +
+                      "' is not one)");
+        if (!d[field].is_number_integer() || d[field].get<long long>() != expected) {
+          throw Error(item + "." + field + ": " + d[field].dump() + " does not match the key '" + key + "' (" +
+                      std::to_string(expected) + ")");
+        }
+      };
+      check("vertices", static_cast<long long>(spec.vertices));
+      check("influences", spec.influences);
+      check("bones", spec.bones);
     }
     if (std::find(keys.begin(), keys.end(), key) != keys.end()) throw Error(item + ": '" + key + "' is listed twice");
     keys.push_back(key);
@@ -204,37 +208,53 @@ std::uint64_t DeviceBytesPerVertex(int influences, bool normals) {
 }
 
 LoadedDataset LoadDataset(const std::string& key) {
-  SkinnedAsset asset;
-  if (IsGltfPath(key)) {
-    asset = std::move(ImportGltf(key).asset);
-  } else {
-    // Before anything is generated: the mesh and a worker's measurement of it
-    // in this machine's memory (the device is checked once it is known).
-    const DatasetSpec spec = ParseDatasetKey(key);
-    const std::uint64_t mesh = DatasetBytesPerVertex(spec);
-    const std::uint64_t work = WorkerBytesPerVertex(spec.influences, spec.normals);
-    CheckMemoryFor("dataset '" + key + "'", spec.vertices, mesh + work,
-                   "mesh " + std::to_string(mesh) + " B + measuring a variant " + std::to_string(work) +
-                       " B per vertex",
-                   HostMemoryAvailable());
-    asset = GenerateDataset(spec);
+  const SceneSpec spec = ParseSceneKey(key);
+  // Before anything is generated: the synthetic meshes (twice for a batch:
+  // its meshes and their concatenation) and a worker's measurement of the
+  // whole scene in this machine's memory (the device is checked once it is known).
+  std::uint64_t synthetic_vertices = 0, mesh_bytes = 0;
+  int widest_slots = 1;
+  bool normals = false;
+  for (const std::string& mesh : spec.meshes) {
+    if (IsGltfPath(mesh)) continue;
+    const DatasetSpec dataset = ParseDatasetKey(mesh);
+    synthetic_vertices += dataset.vertices;
+    mesh_bytes += dataset.vertices * DatasetBytesPerVertex(dataset) * (spec.batch ? 2 : 1);
+    widest_slots = std::max(widest_slots, dataset.influences);
+    normals = normals || dataset.normals;
   }
+  if (synthetic_vertices > 0) {
+    const std::uint64_t scene_vertices = synthetic_vertices * static_cast<std::uint64_t>(spec.instances);
+    const std::uint64_t work = WorkerBytesPerVertex(widest_slots, normals);
+    const std::uint64_t per_vertex = (mesh_bytes + scene_vertices * work + scene_vertices - 1) / scene_vertices;
+    CheckMemoryFor((spec.meshes.size() == 1 && spec.instances == 1 ? "dataset '" : "scene '") + key + "'",
+                   scene_vertices, per_vertex,
+                   "mesh " + std::to_string(mesh_bytes / synthetic_vertices) + " B per mesh vertex + measuring a variant " +
+                       std::to_string(work) + " B per scene vertex",
+                   HostMemoryAvailable());
+  }
+  const SkinnedScene scene = LoadScene(spec);
   // Every palette the workers start from must be finite (Skeleton::Palette):
   // bad input, found here rather than as a device failure.
-  (void)asset.PaletteAt(-1, 0.0);
-  if (!asset.animations.empty()) {
-    const AnimationClip& clip = asset.animations.front();
-    (void)asset.PaletteAt(0, clip.start + clip.duration() * 0.5);
+  for (const SkinnedAsset& asset : scene.assets) {
+    (void)asset.PaletteAt(-1, 0.0);
+    if (!asset.animations.empty()) {
+      const AnimationClip& clip = asset.animations.front();
+      (void)asset.PaletteAt(0, clip.start + clip.duration() * 0.5);
+    }
   }
-  const SkinnedMesh& mesh = asset.mesh;
+  const SkinnedMesh& mesh = scene.mesh();
   int widest = 1;
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) widest = std::max(widest, mesh.InfluencesOf(v));
   LoadedDataset d;
   d.info.key = key;
-  d.info.vertices = mesh.vertex_count();
+  d.info.vertices = scene.total_vertices();
   d.info.influences = mesh.influences;
   d.info.joints = mesh.joint_count;
-  d.shape = ProblemShape{mesh.joint_count, widest, mesh.has_normals()};
+  d.info.shape = spec.batch ? SceneKind::kBatch : spec.instances > 1 ? SceneKind::kInstances : SceneKind::kSingle;
+  d.info.instances = spec.instances;
+  d.info.meshes = static_cast<int>(spec.meshes.size());
+  d.shape = ProblemShape{mesh.joint_count, widest, mesh.has_normals(), spec.instances};
   return d;
 }
 

@@ -300,5 +300,68 @@ TEST(Selection, FindRejectsInfluencesOutsideOneToEightAndAMovedFromDatabase) {
   EXPECT_EQ(s.status().code(), ErrorCode::kInvalidState);
 }
 
+// Scene shapes (database 1.4.0): an entry tuned on the scene's shape comes
+// first, the nearest instance or mesh count among them; without one, the
+// single-mesh entry of the scene's TOTAL size, and the reason says so.
+// Entries of another non-single shape never serve.
+TEST(Selection, EntriesOfTheScenesShapeFirstThenTheSingleMeshOfTheSameTotal) {
+  const std::string id = ThisDevice().id;
+  WinnersEntry single_1600k = Entry(id, "Example", "gpu", "opencl.b4.soa.wg256", "1600k");
+  WinnersEntry single_25k = Entry(id, "Example", "gpu", "opencl.b4.aos.wg32", "25k");
+  WinnersEntry crowd_64 = Entry(id, "Example", "gpu", "opencl.b4.soa-split.wg64", "1600k");
+  crowd_64.shape = SceneKind::kInstances;
+  crowd_64.instances = 64;
+  WinnersEntry crowd_8 = Entry(id, "Example", "gpu", "opencl.b4.soa-split.wg128", "1600k");
+  crowd_8.shape = SceneKind::kInstances;
+  crowd_8.instances = 8;
+  WinnersEntry mixed = Entry(id, "Example", "gpu", "opencl.b4.soa.float3.wg512", "1600k");
+  mixed.shape = SceneKind::kBatch;
+  mixed.meshes = 31;
+  const WinnersDb db = Db({single_1600k, single_25k, crowd_64, crowd_8, mixed});
+
+  auto find = [&](SceneShape shape) {
+    const Result<Selection> s = Selection::Find(db, ThisDevice(), 4, 1600000, kDefaultMaxError, shape);
+    EXPECT_TRUE(s.ok()) << s.status().message();
+    return s.ok() ? *s : Selection{};
+  };
+  const Selection single = find(SceneShape::kSingle);
+  EXPECT_EQ(single.variant, ParseVariantKey("opencl.b4.soa.wg256").Key());
+  EXPECT_EQ(single.reason.find("no single"), std::string::npos) << single.reason;
+  const Selection crowd = find(SceneShape::kInstances);
+  EXPECT_EQ(crowd.variant, ParseVariantKey("opencl.b4.soa-split.wg64").Key()) << crowd.reason;
+  EXPECT_NE(crowd.entry.find("instances x64"), std::string::npos) << crowd.entry;
+  const Selection batch = find(SceneShape::kBatch);
+  EXPECT_EQ(batch.variant, ParseVariantKey("opencl.b4.soa.float3.wg512").Key()) << batch.reason;
+  EXPECT_NE(batch.entry.find("batch of 31 meshes"), std::string::npos) << batch.entry;
+
+  // Without batch entries a batch takes the single mesh of its total size, saying so.
+  const WinnersDb no_batch = Db({single_1600k, single_25k, crowd_64});
+  const Result<Selection> fallback =
+      Selection::Find(no_batch, ThisDevice(), 4, 1600000, kDefaultMaxError, SceneShape::kBatch);
+  ASSERT_TRUE(fallback.ok());
+  EXPECT_EQ(fallback->variant, ParseVariantKey("opencl.b4.soa.wg256").Key());
+  EXPECT_NE(fallback->reason.find("no batch entry: the single-mesh entry of the scene's total size (1600000 vertices)"),
+            std::string::npos)
+      << fallback->reason;
+  // A single mesh never takes an instances or batch entry.
+  const Result<Selection> only_crowds =
+      Selection::Find(Db({crowd_64, mixed}), ThisDevice(), 4, 1600000, kDefaultMaxError, SceneShape::kSingle);
+  ASSERT_TRUE(only_crowds.ok());
+  EXPECT_EQ(only_crowds->level, MatchLevel::kGenericDefault);
+  // Among instances entries of the same total, the nearest instance count
+  // (Skinner::Create asks with its K; Selection::Find has none).
+  SelectionRequest request;
+  request.device = ThisDevice();
+  request.langs = {Lang::kOpenCl};
+  request.influences = 4;
+  request.vertex_count = 1600000;
+  request.shape = SceneKind::kInstances;
+  crowd_8.vertices = 1600000;
+  request.instances = 10;
+  EXPECT_EQ(Select({crowd_64, crowd_8}, request).variant.Key(), ParseVariantKey("opencl.b4.soa-split.wg128").Key());
+  request.instances = 50;
+  EXPECT_EQ(Select({crowd_64, crowd_8}, request).variant.Key(), ParseVariantKey("opencl.b4.soa-split.wg64").Key());
+}
+
 }  // namespace
 }  // namespace skintune

@@ -57,6 +57,48 @@ TEST(WinnersDb, EntryRoundTripsThroughJson) {
   EXPECT_EQ(back.variant, e.variant);
 }
 
+// Database 1.4.0: the scene shape round-trips; entries of older databases
+// (no "shape") are single meshes; a shape that does not fit its counts is refused.
+TEST(WinnersDb, SceneShapesRoundTripAndOlderEntriesAreSingleMeshes) {
+  WinnersEntry e = SampleEntry();
+  e.shape = SceneKind::kInstances;
+  e.instances = 64;
+  const nlohmann::json j = WinnersEntryToJson(e);
+  EXPECT_EQ(j["shape"], "instances");
+  EXPECT_EQ(j["instances"], 64);
+  EXPECT_EQ(j["meshes"], 1);
+  const WinnersEntry back = WinnersEntryFromJson(nlohmann::json::parse(j.dump()));
+  EXPECT_EQ(back.shape, SceneKind::kInstances);
+  EXPECT_EQ(back.instances, 64);
+  EXPECT_EQ(WinnersEntryToJson(back), j);
+  EXPECT_NE(Describe(back).find(" instances x64"), std::string::npos) << Describe(back);
+
+  nlohmann::json old = j;
+  old.erase("shape");
+  old.erase("instances");
+  old.erase("meshes");
+  const WinnersEntry single = WinnersEntryFromJson(old);
+  EXPECT_EQ(single.shape, SceneKind::kSingle);
+  EXPECT_EQ(single.instances, 1);
+  EXPECT_EQ(single.meshes, 1);
+  nlohmann::json db = {{"schema_version", "1.3.0"}, {"kind", "skintune-winners-db"}, {"entries", {old}}};
+  const Result<WinnersDb> loaded = WinnersDb::Parse(db.dump(), "old.json");
+  EXPECT_TRUE(loaded.ok()) << loaded.status().message();
+  EXPECT_EQ(WinnersDbJson({e})["schema_version"], "1.4.0");
+
+  nlohmann::json bad = j;
+  bad["instances"] = 1;
+  db["entries"] = {bad};
+  EXPECT_NE(ParseError(db).find("db.json: entries[0]: 'shape' instances does not match 'instances' 1 and 'meshes' 1"),
+            std::string::npos)
+      << ParseError(db);
+  bad = j;
+  bad["shape"] = "crowd";
+  db["entries"] = {bad};
+  EXPECT_NE(ParseError(db).find("'shape' has unknown value 'crowd' (expected single, instances, batch)"),
+            std::string::npos);
+}
+
 TEST(WinnersDb, EntriesWithoutVendorAndTypeLoadWithTheIdsParts) {
   nlohmann::json j = WinnersEntryToJson(SampleEntry());
   for (const char* field : {"platform", "vendor", "device_name", "driver_version", "device_type"}) j.erase(field);

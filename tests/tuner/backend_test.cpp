@@ -12,7 +12,9 @@
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <iostream>
+#include <map>
 #include <regex>
 #include <string>
 
@@ -28,6 +30,9 @@
 #include "runtime/backends/opencl/opencl_runner.h"
 #include "tuner/backend.h"
 #include "tuner/backends_internal.h"
+#include "tuner/report.h"
+#include "reference/scene.h"
+#include "tests/tuner/scene_selection.h"
 
 namespace skintune {
 namespace {
@@ -353,6 +358,53 @@ TEST(OpenClBackend, MeasuresNormalsAndAGltfMesh) {
   const std::string cesium = std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf";
   ExpectOk(backend->Measure(ParseVariantKey("opencl.b4.bucketed.soa.normals"), {cesium}, SmallTiming()), *backend,
            "CesiumMan.gltf");
+}
+
+// Scenes (reference/scene.h) on every backend found: K instances through
+// the instanced kernels and a batch of CesiumMan, Fox and a synthetic mix,
+// verified per instance / mesh and timed against the copy of the whole
+// scene's bytes; their winners go to the database keyed by shape, and the
+// runtime's selection takes each shape's own.
+TEST(Scenes, InstancesAndBatchesAreVerifiedTimedAndTheirWinnersSelectedByShape) {
+  const std::string data = SKINTUNE_TEST_DATA_DIR;
+  const std::string crowd = "2000-b4-x4";
+  const std::string mix = data + "/CesiumMan.gltf+" + data + "/Fox.gltf+mix20k-b3";
+  const std::string single = "8000-b4";
+  int measured = 0;
+  for (const auto& found : Found().backends) {
+    Backend& backend = *found;
+    TuningReport report;
+    report.created = "2026-11-24T00:00:00Z";
+    report.config = "test";
+    report.strategy = "exhaustive";
+    report.devices.push_back(backend.identity());
+    report.datasets.push_back({single, 8000, 4, 77, SceneKind::kSingle, 1, 1});
+    report.datasets.push_back({crowd, 8000, 4, 77, SceneKind::kInstances, 4, 1});
+    const SceneSpec mix_spec = ParseSceneKey(mix);
+    report.datasets.push_back({mix, 3273 + 1728 + 20000, 4, 0, SceneKind::kBatch, 1,
+                               static_cast<int>(mix_spec.meshes.size())});
+    const Lang lang = backend.languages().front();
+    const std::string vertex = lang == Lang::kGlslVertex ? "v1c.wg0" : "v1c.wg64";
+    std::map<std::string, std::string> variant_of;  // dataset -> the variant measured on it
+    variant_of[single] = std::string(Name(lang)) + ".b4.padded.soa.float4.u16.f32.mat3x4.global.matrix." + vertex;
+    variant_of[crowd] = std::string(Name(lang)) + ".b4.padded.soa-split.float3.u16.unorm16.mat3x4.global.matrix." + vertex;
+    variant_of[mix] = std::string(Name(lang)) + ".b4.padded.aos.float4.i32.f32.mat4.global.point." + vertex;
+    for (const DatasetInfo& dataset : report.datasets) {
+      SCOPED_TRACE(backend.identity().Id() + " " + dataset.key);
+      Measurement m = backend.Measure(ParseVariantKey(variant_of[dataset.key]), {dataset.key}, SmallTiming());
+      ExpectOk(m, backend, IsGltfFile(dataset.key) ? std::filesystem::path(dataset.key).filename().string() : dataset.key);
+      EXPECT_GT(m.x_copy, 0.0) << m.detail;
+      m.dataset = dataset.key;  // as the worker records it (tuner/worker.cpp)
+      report.measurements.push_back(m);
+      ++measured;
+    }
+    // The runtime's selection (through the public API, tests/tuner/scene_selection.h).
+    const std::string db = WinnersDatabase(report).dump();
+    EXPECT_EQ(SelectedVariant(db, backend.identity(), "single", 8000), ParseVariantKey(variant_of[single]).Key());
+    EXPECT_EQ(SelectedVariant(db, backend.identity(), "instances", 8000), ParseVariantKey(variant_of[crowd]).Key());
+    EXPECT_EQ(SelectedVariant(db, backend.identity(), "batch", 8000), ParseVariantKey(variant_of[mix]).Key());
+  }
+  if (measured == 0) GTEST_SKIP() << "no backend here: " << SkippedLines("");
 }
 
 TEST(OpenClBackend, InvalidVariantsSayWhy) {

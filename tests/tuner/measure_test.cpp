@@ -27,20 +27,30 @@ class FakeExecutor final : public Executor {
  public:
   FakeExecutor(DatasetCache& datasets, std::string dataset) : datasets_(datasets), dataset_(std::move(dataset)) {}
 
-  Output Run(const PackedMesh& mesh, std::span<const KernelSource>, std::span<const std::uint8_t>) override {
+  // Instance after instance, each in packed order; vertex `wrong_vertex` of
+  // the scene's output (when set) is moved by 1.
+  Output Run(const PackedMesh& mesh, std::span<const KernelSource>, std::span<const std::uint8_t>,
+             int instances) override {
     DatasetCache::Entry& entry = datasets_.Get(dataset_);
     const GoldResult& gold = datasets_.Gold(entry, mesh.variant);
+    run_instances = instances;
     Output out;
-    out.positions.resize(mesh.vertex_count * mesh.output_stride_bytes);
-    for (std::size_t p = 0; p < mesh.vertex_count; ++p) {
-      const glm::dvec3& g = gold.positions[mesh.order[p]];
-      const float xyz[4] = {static_cast<float>(g.x), static_cast<float>(g.y), static_cast<float>(g.z), 1.0f};
-      std::memcpy(out.positions.data() + p * mesh.output_stride_bytes, xyz, std::min<std::size_t>(16, mesh.output_stride_bytes));
+    out.positions.resize(static_cast<std::size_t>(instances) * mesh.vertex_count * mesh.output_stride_bytes);
+    for (std::size_t k = 0; k < static_cast<std::size_t>(instances); ++k) {
+      for (std::size_t p = 0; p < mesh.vertex_count; ++p) {
+        const std::size_t v = k * mesh.vertex_count + mesh.order[p];
+        const glm::dvec3& g = gold.positions[v];
+        const float xyz[4] = {static_cast<float>(g.x) + (wrong_vertex == v ? 1.0f : 0.0f), static_cast<float>(g.y),
+                              static_cast<float>(g.z), 1.0f};
+        std::memcpy(out.positions.data() + (k * mesh.vertex_count + p) * mesh.output_stride_bytes, xyz,
+                    std::min<std::size_t>(16, mesh.output_stride_bytes));
+      }
     }
     return out;
   }
   Times Time(const PackedMesh&, std::span<const KernelSource>, std::span<const std::vector<std::uint8_t>> palettes,
-             int, int bursts, int burst_frames, double burst_ms) override {
+             int instances, int, int bursts, int burst_frames, double burst_ms) override {
+    time_instances = instances;
     time_sets = static_cast<int>(palettes.size());
     asked_burst_ms = burst_ms;
     Times t;
@@ -59,6 +69,8 @@ class FakeExecutor final : public Executor {
   }
 
   double kernel_ms = 0.030, copy_ms = 0.025;
+  std::size_t wrong_vertex = static_cast<std::size_t>(-1);
+  int run_instances = 0, time_instances = 0;
   std::size_t bytes_per_set = 0;
   bool copy_fails = false;
   int time_sets = 0;
@@ -158,6 +170,60 @@ TEST(Measure, AFailedCopyKeepsTheKernelTimeAndSaysWhy) {
   EXPECT_EQ(m.timing.copy_ms, 0.0);
   EXPECT_NE(m.detail.find("same-size copy failed"), std::string::npos) << m.detail;
   EXPECT_EQ(ImpossibleFigures(m), "");
+}
+
+// Scenes (reference/scene.h): K instances run the instanced kernels with K
+// palettes, a batch one concatenated mesh; both are judged against the copy
+// of the whole scene's bytes, and verified part by part: a wrong vertex is
+// named by its instance or batch mesh.
+TEST(Measure, InstancesAndBatchesAreVerifiedPartByPartAndTimedAsAWhole) {
+  const DeviceIdentity gpu = Gpu(50ull << 20);
+  const Variant variant = ParseVariantKey("opencl.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64");
+  TimingOptions options;
+  {
+    DatasetCache datasets;
+    FakeExecutor executor(datasets, "1000-b2-x5");
+    const Measurement single = [&] {
+      DatasetCache d;
+      FakeExecutor e(d, "1000-b2");
+      return MeasureWith(e, d, gpu, Limits(), {Lang::kOpenCl}, variant, {"1000-b2"}, options);
+    }();
+    const Measurement m = MeasureWith(executor, datasets, gpu, Limits(), {Lang::kOpenCl}, variant, {"1000-b2-x5"}, options);
+    ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+    EXPECT_EQ(executor.run_instances, 5);
+    EXPECT_EQ(executor.time_instances, 5);
+    EXPECT_EQ(m.bytes_per_frame, 5 * single.bytes_per_frame);  // the copy of five meshes' bytes
+    EXPECT_EQ(static_cast<double>(executor.copy_bytes), m.bytes_per_frame);
+    executor.wrong_vertex = 3 * 1000 + 17;
+    const Measurement wrong =
+        MeasureWith(executor, datasets, gpu, Limits(), {Lang::kOpenCl}, variant, {"1000-b2-x5"}, options);
+    EXPECT_EQ(wrong.status, MeasureStatus::kVerifyFailed);
+    EXPECT_NE(wrong.detail.find("instance 3: positions: max relative error"), std::string::npos) << wrong.detail;
+    EXPECT_NE(wrong.detail.find("at vertex 17"), std::string::npos) << wrong.detail;
+  }
+  {
+    const std::string key = "800-b1-bones5+1200-b2-bones30-seed4+600-b2";
+    DatasetCache datasets;
+    FakeExecutor executor(datasets, key);
+    const Measurement m = MeasureWith(executor, datasets, gpu, Limits(), {Lang::kOpenCl}, variant, {key}, options);
+    ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+    EXPECT_EQ(executor.run_instances, 1);
+    EXPECT_EQ(datasets.Get(key).parts.size(), 3u);
+    EXPECT_EQ(datasets.Get(key).mesh().joint_count, 5 + 30 + 77);
+    executor.wrong_vertex = 800 + 1200 + 5;
+    const Measurement wrong = MeasureWith(executor, datasets, gpu, Limits(), {Lang::kOpenCl}, variant, {key}, options);
+    EXPECT_EQ(wrong.status, MeasureStatus::kVerifyFailed);
+    EXPECT_NE(wrong.detail.find("meshes[2] (600-b2): positions"), std::string::npos) << wrong.detail;
+    EXPECT_NE(wrong.detail.find("at vertex 5 "), std::string::npos) << wrong.detail;
+    // The constraints hold for the whole batch: u8 indices address 256 joints, not 4 x 77.
+    const Variant u8 = ParseVariantKey("opencl.b2.padded.soa.float4.u8.f32.mat3x4.global.matrix.v1c.wg64");
+    const std::string big = "500-b2+500-b2-seed2+500-b2-seed3+500-b2-seed4";  // 4 x 77 joints
+    DatasetCache more;
+    FakeExecutor e(more, big);
+    const Measurement invalid = MeasureWith(e, more, gpu, Limits(), {Lang::kOpenCl}, u8, {big}, options);
+    EXPECT_EQ(invalid.status, MeasureStatus::kInvalid);
+    EXPECT_NE(invalid.detail.find("308"), std::string::npos) << invalid.detail;
+  }
 }
 
 }  // namespace

@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/tools/run_command.h"
+#include "runtime/winners_db.h"
 #include "tuner/measurement.h"
 #include "tests/common/scratch_dir.h"
 #include "tests/common/tiny_tune_config.h"
@@ -422,7 +423,7 @@ TEST(TuneCliPrecision, DefaultBudgetOnFloatWeightsNeverPicksUnorm8) {
   // The unorm8 class keeps its winner, over the budget, for callers with a larger one.
   ASSERT_EQ(t.report.at("winners").size(), 3u);
   ASSERT_EQ(t.db.at("entries").size(), 3u);
-  EXPECT_EQ(t.db.at("schema_version"), "1.3.0");
+  EXPECT_EQ(t.db.at("schema_version"), kWinnersDbSchemaVersion);
   for (const nlohmann::json& e : t.db.at("entries")) EXPECT_TRUE(e.contains("source_error")) << e.dump();
   EXPECT_NE(t.out.find("over"), std::string::npos) << t.out;
   EXPECT_NE(t.out.find("err/diag"), std::string::npos) << t.out;

@@ -77,6 +77,21 @@ TEST(TuneConfig, ReadsEveryField) {
   EXPECT_EQ(c.variant_timeout_s, 2.5);
 }
 
+// Scene keys (docs/DATA.md "Scenes"): crowds and batches are datasets; their
+// keys are checked as the config is read, and only a synthetic dataset of one
+// mesh states its numbers.
+TEST(TuneConfig, DatasetsMayBeCrowdsAndBatches) {
+  const TuneConfig c = ConfigFromJson(nlohmann::json::parse(R"({"space": {},
+    "datasets": ["25k-b4-x64", "a.gltf+5k-b2+mix200k-b4", {"key": "1600k-b4", "vertices": 1600000}]})"),
+                                      "c.json");
+  EXPECT_EQ(c.datasets, (std::vector<std::string>{"25k-b4-x64", "a.gltf+5k-b2+mix200k-b4", "1600k-b4"}));
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5k-b2+"]})"),
+            "c.json: datasets[0]: scene '5k-b2+': meshes[1] is empty (a stray '+')");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": [{"key": "25k-b4-x64", "vertices": 25000}]})"),
+            "c.json: datasets[0].vertices: only a synthetic dataset of one mesh states its numbers ('25k-b4-x64' is "
+            "not one)");
+}
+
 TEST(TuneConfig, ErrorsNameTheElement) {
   EXPECT_EQ(ErrorOf(R"([1])"), "c.json: a tune config must be a JSON object");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "speed": 1})"),

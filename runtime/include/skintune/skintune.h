@@ -11,6 +11,9 @@
 //       skintune::Skinner::Create(*device, *db, mesh_view, options);
 //   per frame: skinner->SetPalette(...); skinner->Skin(); skinner->ReadPositions(...);
 //
+// Crowds: SkinnerOptions::instances skins K copies of a mesh in one launch;
+// Skinner::CreateBatch skins different meshes in one launch.
+//
 // mesh_view is your arrays (MeshView), or Model::Load("model.gltf")->mesh(),
 // whose Palette(animation, t, &matrices) gives each frame's palette
 // (examples/skin_animation.cpp). Link skintune::runtime (find_package(skintune);
@@ -243,6 +246,15 @@ class Device {
 // on a format's grid (a glTF's unorm8 WEIGHTS in unorm8) cost nothing in it.
 inline constexpr double kDefaultMaxError = 1e-4;
 
+// What one launch skins (docs/RUNTIME.md "Scene shapes"): one mesh, K
+// instances of one mesh (SkinnerOptions::instances), or a batch of different
+// meshes (Skinner::CreateBatch). A winners database records the shape each
+// entry was tuned on; Selection::Find and Skinner::Create prefer an entry of
+// the scene's shape and fall back to a single-mesh entry of the same total
+// vertex count.
+enum class SceneShape { kSingle, kInstances, kBatch };
+const char* SceneShapeName(SceneShape shape);  // "single", "instances", "batch"
+
 // How the database entry for a device was found (the fallback chain).
 enum class MatchLevel {
   kExactDevice,      // same device id (backend, platform, name and driver version)
@@ -287,7 +299,8 @@ class WinnersDb {
 struct Selection {
   std::string variant;     // the variant key (docs/VARIANTS.md), e.g. "opencl.b4.padded.soa..."
   MatchLevel level = MatchLevel::kGenericDefault;
-  std::string entry;       // the database entry used: "<device id> <lang> b<B> <bucket>", or "built-in default"
+  std::string entry;       // the database entry used: "<device id> <lang> b<B> <vertices>[ <shape>]", or
+                           // "built-in default"
   std::string reason;      // e.g. "no entry for this device; same vendor and type: NVIDIA gpu"
 
   // The lookup alone, for diagnostics: the fallback chain (docs/RUNTIME.md)
@@ -299,11 +312,17 @@ struct Selection {
   // `max_error` (relative to the bounding-box diagonal) are candidates, so a
   // larger budget gets the faster kernel without re-tuning (f32 entries and
   // 1.3.0 entries within budget; an older database's unorm16/unorm8 entry,
-  // whose error is not recorded, is over any budget). kInvalidArgument for
+  // whose error is not recorded, is over any budget). `shape` is the scene's
+  // and `vertex_count` its total (K x the mesh's for instances, the sum of a
+  // batch's meshes): entries tuned on that shape come first (the nearest
+  // instance or mesh count among them), then single-mesh entries of the
+  // nearest total, and `reason` says when it fell back to one (databases
+  // before 1.4.0 hold single-mesh entries only). kInvalidArgument for
   // influences outside 1..8 or a max_error that is negative or not finite;
   // kInvalidState for a moved-from `db`.
   static Result<Selection> Find(const WinnersDb& db, const DeviceInfo& device, int influences,
-                                std::size_t vertex_count, double max_error = kDefaultMaxError);
+                                std::size_t vertex_count, double max_error = kDefaultMaxError,
+                                SceneShape shape = SceneShape::kSingle);
 };
 
 // ---------------------------------------------------------------- skinning
@@ -366,8 +385,37 @@ class Skinner {
   // Device or WinnersDb, and for a GL Device whose context is not current;
   // kBuildFailed (the build log's first lines) or kDeviceError from the
   // device.
+  // The database is asked for the scene's shape and total vertex count
+  // (Selection::Find): instances() > 1 is an instances scene of K x
+  // vertex_count vertices.
   static Result<Skinner> Create(Device& device, const WinnersDb& db, const MeshView& mesh,
                                 const SkinnerOptions& options = {});
+
+  // A batch: `mesh_count` different meshes (each its own vertex count, B and
+  // joint count) skinned by ONE launch, as an engine draws a scene of
+  // different characters (docs/VARIANTS.md "Batches"). They are packed as one
+  // mesh: mesh m's vertices follow mesh m-1's (vertex_offset(m)), its joint
+  // indices are offset by the earlier meshes' joint counts into one palette
+  // (joint_offset(m)), and every mesh is padded with zero-weight slots to the
+  // batch's B (the largest of the meshes'). Then the Skinner is a Skinner of
+  // that mesh: vertex_count() and joint_count() are the batch's totals,
+  // SetPalette takes every mesh's palette one after another (joint_count() x
+  // 16 floats: mesh m's at joint_offset(m) x 16), Read* give every mesh's
+  // vertices in its own order, mesh after mesh (mesh m's at
+  // vertex_offset(m) x 3). The variant is chosen as by Create for a scene of
+  // shape kBatch and the total vertex count, and its constraints hold for the
+  // batch: its index format must address the total joint count and its
+  // palette storage hold every palette (a database entry that cannot is
+  // skipped; a forced variant that cannot is kInvalidArgument naming the
+  // constraint and the total). `options` apply to the whole batch
+  // (instances > 1: K copies of the batch; normals: every mesh needs them).
+  // Errors: those of Create, each naming the mesh: "Skinner::CreateBatch:
+  // meshes[2]: vertex 17 slot 3: joint 80 out of range (24 joints)";
+  // kInvalidArgument for a null `meshes` or `mesh_count` 0, and for more
+  // than 65536 joints in all. Blocks while packing, uploading and building,
+  // like Create.
+  static Result<Skinner> CreateBatch(Device& device, const WinnersDb& db, const MeshView* meshes,
+                                     std::size_t mesh_count, const SkinnerOptions& options = {});
 
   Skinner();
   ~Skinner();
@@ -375,9 +423,18 @@ class Skinner {
   Skinner& operator=(Skinner&&) noexcept;
 
   const Selection& selection() const;
-  std::size_t vertex_count() const;  // per instance
+  std::size_t vertex_count() const;  // per instance (a batch's: every mesh's)
   int instances() const;
-  int joint_count() const;
+  int joint_count() const;           // palette entries per instance (a batch's: every mesh's)
+  SceneShape shape() const;          // kSingle, kInstances (instances() > 1) or kBatch (CreateBatch)
+
+  // The meshes of a batch (1 for Create): where mesh m (0..mesh_count()-1)
+  // lies in the vertices and the palette of an instance. 0 for m out of range.
+  std::size_t mesh_count() const;
+  std::size_t vertex_offset(std::size_t m) const;
+  std::size_t vertex_count(std::size_t m) const;
+  int joint_offset(std::size_t m) const;
+  int joint_count(std::size_t m) const;
 
   // Every call below on a moved-from Skinner returns kInvalidState "used
   // after move" (the accessors return 0 / null / an empty Selection). A
