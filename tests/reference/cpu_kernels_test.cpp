@@ -57,12 +57,11 @@ Streams MakeStreams(const SkinnedAsset& asset) {
 
 // Outputs of `floats` per vertex, 64-byte aligned, poisoned.
 struct Output {
-  explicit Output(std::size_t words) : data(static_cast<float*>(std::aligned_alloc(64, (words * 4 + 63) / 64 * 64))), words(words) {
+  explicit Output(std::size_t words) : data(static_cast<float*>(std::aligned_alloc(64, (words * 4 + 63) / 64 * 64))) {
     for (std::size_t k = 0; k < words; ++k) std::memcpy(data + k, &kPoison, 4);
   }
   ~Output() { std::free(data); }
   float* data;
-  std::size_t words;
   bool Poisoned(std::size_t k) const {
     std::uint32_t w;
     std::memcpy(&w, data + k, 4);
@@ -77,7 +76,7 @@ TEST(CpuKernels, StreamingAndPlainStoresWriteTheSameBytesAndOnlyTheRange) {
   const CpuKernelFn kernel = FindCpuKernel({3, CpuIndex::kU8, CpuWeight::kUnorm16, 3, false});
   for (const int floats : {3, 4}) {
     // Ranges starting and ending on and off 4-vertex (16-byte) boundaries.
-    for (const auto [begin, end] : {std::pair<std::size_t, std::size_t>{0, n}, {1, n - 1}, {3, 7}, {5, 6}, {8, 40}}) {
+    for (const auto& [begin, end] : {std::pair<std::size_t, std::size_t>{0, n}, {1, n - 1}, {3, 7}, {5, 6}, {8, 40}}) {
       SCOPED_TRACE(std::to_string(floats) + " floats, vertices " + std::to_string(begin) + ".." + std::to_string(end));
       Output plain(floats * n), streamed(floats * n), plain_n(floats * n), streamed_n(floats * n);
       for (const bool stream : {false, true}) {
