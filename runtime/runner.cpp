@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <utility>
 
 #include "reference/error.h"
@@ -257,6 +259,11 @@ constexpr double kWarmupMaxMs = 1000.0;
 // as before. A probe that fails means a full warm-up too.
 constexpr std::size_t kProbeBytes = 8u << 20;
 constexpr double kStillWarm = 1.15;
+// Warm-up bursts start at kWarmupFirstFrames frames and double (up to
+// kWarmupMaxFrames) until one keeps the device busy for kWarmupBurstMs.
+constexpr int kWarmupFirstFrames = 16;
+constexpr int kWarmupMaxFrames = 4096;
+constexpr double kWarmupBurstMs = 4.0;
 
 std::optional<double> Runner::ProbeMs(const Prepared::Impl& p) {
   try {
@@ -277,38 +284,81 @@ std::optional<double> Runner::ProbeMs(const Prepared::Impl& p) {
   }
 }
 
+// SKINTUNE_TIMING_LOG=FILE appends one line per warm-up decision (the probe,
+// the warm probe, full or short warm-up, its wall time and bursts) to FILE:
+// a diagnostic for devices whose clocks move (docs/PERFORMANCE.md).
+static void TimingLog(const std::string& line) {
+  static const char* path = std::getenv("SKINTUNE_TIMING_LOG");
+  if (!path || !*path) return;
+  if (std::FILE* f = std::fopen(path, "a")) {
+    const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+    std::fprintf(f, "%.3f %s\n", now, line.c_str());
+    std::fclose(f);
+  }
+}
+
 void Runner::WarmUntilStable(const Prepared::Impl& p) {
   using Clock = std::chrono::steady_clock;
   const auto ms_since = [](Clock::time_point t) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
   };
   bool warm = false;
+  double probed = -1.0;
   if (warm_probe_ms_) {
     const std::optional<double> probe = ProbeMs(p);
+    probed = probe ? *probe : -1.0;
     warm = probe && *probe <= kStillWarm * *warm_probe_ms_;
     if (warm) warm_probe_ms_ = std::min(*warm_probe_ms_, *probe);
   }
   const double floor_ms = warm ? 0.0 : kWarmupMs;
   const auto start = Clock::now();
-  double previous = 0.0;
-  for (std::size_t frame = 0;;) {
+  double previous = 0.0;  // ms per frame of the last burst of the same size
+  int bursts = 0, frames_per_burst = kWarmupFirstFrames;
+  double after = -1.0;
+  for (std::size_t frame = 0;; ++bursts) {
     FrameRun burst;
     burst.use = FrameUse::kTime;
     burst.key = p.key;
-    for (int i = 0; i < 16; ++i, ++frame) burst.frames.push_back(p.Frame(frame % p.sets.size()));
+    for (int i = 0; i < frames_per_burst; ++i, ++frame) burst.frames.push_back(p.Frame(frame % p.sets.size()));
     burst.untimed = static_cast<int>(burst.frames.size());
     const auto burst_start = Clock::now();
     api_->RunFrames(burst);  // waits for the burst
     const double elapsed = ms_since(burst_start), total = ms_since(start);
-    const bool steady = previous > 0.0 && std::abs(elapsed - previous) <= 0.03 * previous;
-    if ((total >= floor_ms && steady) || total >= kWarmupMaxMs) break;
-    previous = elapsed;
+    if (total >= kWarmupMaxMs) break;
+    const double per_frame = elapsed / frames_per_burst;
+    // Keep the device busy: a burst shorter than kWarmupBurstMs is mostly
+    // the host's submit and wait, and a device busy a third of the time is
+    // not raised from its idle clock (Vulkan on the H100 stayed at ~600 MHz
+    // through 200 ms of 16-frame bursts). Double it and start the
+    // steadiness check again.
+    if (elapsed < kWarmupBurstMs && frames_per_burst < kWarmupMaxFrames) {
+      frames_per_burst *= 2;
+      previous = 0.0;
+      continue;
+    }
+    const bool steady = previous > 0.0 && std::abs(per_frame - previous) <= 0.03 * previous;
+    previous = per_frame;
+    if (total < floor_ms || !steady) continue;
+    if (warm || !warm_probe_ms_) break;
+    // A full warm-up ends only when the clock probe is back within
+    // kStillWarm of the fastest probe seen: steady at a low clock is not warm.
+    const std::optional<double> probe = ProbeMs(p);
+    if (!probe) break;
+    after = *probe;
+    if (*probe <= kStillWarm * *warm_probe_ms_) break;
   }
+  const double warm_ms = ms_since(start);
   if (!warm) {
     // Just warmed: the probe's time at this clock (the fastest seen is kept).
-    if (const std::optional<double> probe = ProbeMs(p))
+    if (const std::optional<double> probe = ProbeMs(p)) {
+      after = *probe;
       warm_probe_ms_ = warm_probe_ms_ ? std::min(*warm_probe_ms_, *probe) : *probe;
+    }
   }
+  TimingLog(p.key + (warm ? " short" : " full") + " warm-up " + std::to_string(warm_ms) + " ms, " +
+            std::to_string(bursts + 1) + " bursts of up to " + std::to_string(frames_per_burst) + " frames; probe " +
+            std::to_string(probed) + " ms before, " + std::to_string(after) + " after, warm probe " +
+            std::to_string(warm_probe_ms_.value_or(-1.0)));
 }
 
 std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int bursts, int burst_frames) {
@@ -319,7 +369,15 @@ std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int burst
   bursts = std::max(bursts, 0);
   burst_frames = std::max(burst_frames, 1);
   if (api_->timing_policy().warm_until_stable) WarmUntilStable(*p);
-  return TimeFrames(*p, warmup, bursts, burst_frames);
+  std::vector<double> ms = TimeFrames(*p, warmup, bursts, burst_frames);
+  if (!ms.empty()) {
+    std::vector<double> sorted = ms;
+    std::sort(sorted.begin(), sorted.end());
+    TimingLog(p->key + " timed: " + std::to_string(bursts) + " bursts of " + std::to_string(burst_frames) +
+              " frames, median " + std::to_string(sorted[sorted.size() / 2]) + " ms, min " +
+              std::to_string(sorted.front()) + ", max " + std::to_string(sorted.back()));
+  }
+  return ms;
 }
 
 std::vector<double> Runner::TimeFrames(const Prepared::Impl& p, int warmup, int bursts, int burst_frames) {

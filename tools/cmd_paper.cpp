@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "generator/axes.h"
 #include "reference/error.h"
 #include "reference/mesh_io.h"
 #include "tools/commands.h"
@@ -111,7 +112,7 @@ Command RegisterPaper(CLI::App& app, int argc, char** argv) {
   sub->add_option("--dataset", o->datasets, "only these data-set keys (default: the paper's 16, or --quick's 8)");
   sub->add_option("--device", o->device,
                   "only devices whose 'backend: platform / name' (or vendor, version) contains this (case-insensitive)");
-  sub->add_option("--lang", o->langs, "only these languages: opencl, cuda, glsl-compute, glsl-vertex");
+  sub->add_option("--lang", o->langs, "only these languages: " + Choices(AxisOf<&Variant::lang>()));
   sub->add_option("--budget", o->budget_text,
                   "search evaluations per device, language and data set, 0 to " + std::to_string(kMaxBudget) +
                       " (default: the paper config's 200, 16 with --quick)")

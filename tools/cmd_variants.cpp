@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "generator/axes.h"
 #include "generator/space.h"
 #include "reference/error.h"
 #include "runtime/backends/opencl/opencl_devices.h"
@@ -84,7 +85,7 @@ Command RegisterVariants(CLI::App& app) {
                   "'<backend>:<platform>/<name>/<driver>', vendor, type or platform short name (pocl), as every "
                   "--device");
   sub->add_option("--config", o->config, "JSON config whose \"space\" restricts the axes (default: every value)");
-  sub->add_option("--lang", o->langs, "restrict to these languages: opencl, cuda, glsl-compute, glsl-vertex");
+  sub->add_option("--lang", o->langs, "restrict to these languages: " + Choices(AxisOf<&Variant::lang>()));
   AddMeshSourceOptions(*sub, o->source);
   sub->add_flag("--list", o->list, "print the key of every valid variant");
   sub->add_flag("--json", o->json, "print JSON");

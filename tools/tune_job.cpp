@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "generator/axes.h"
 #include "reference/error.h"
 #include "reference/mesh_io.h"
 #include "report/paper_report.h"
@@ -147,7 +148,7 @@ void AddTuneJobOptions(CLI::App& sub, TuneJobOptions& o) {
                  "only the devices this matches: a case-insensitive substring of the id "
                  "'<backend>:<platform>/<name>/<driver>', vendor, type or platform short name (pocl), as every "
                  "--device");
-  sub.add_option("--lang", o.langs, "only these languages: opencl, cuda, glsl-compute, glsl-vertex");
+  sub.add_option("--lang", o.langs, "only these languages: " + Choices(AxisOf<&Variant::lang>()));
   sub.add_option("--max-error", o.max_error_text,
                  "error budget: the largest error, relative to the bounding-box diagonal, that a winner's weight "
                  "format may cost (overrides the config's max_error; default 1e-4: unorm16 yes, unorm8 no for float "

@@ -35,7 +35,9 @@ inline constexpr std::uint64_t kUnknownLastLevelCacheBytes = 64ull << 20;
 // Input sets to rotate among while timing, so that no repetition finds its
 // inputs in cache: K = ceil(2 * LLC / bytes_per_set), clamped to
 // 1..max_input_sets (at least 1 whatever max_input_sets says), with LLC =
-// last_level_cache_bytes, or kUnknownLastLevelCacheBytes when that is 0.
+// last_level_cache_bytes, or kUnknownLastLevelCacheBytes when that is 0;
+// then made even (one up, or one down at max_input_sets) when above 1, so
+// the two lanes of CUDA and OpenCL bursts never share a set.
 int InputSetsFor(std::uint64_t last_level_cache_bytes, std::uint64_t bytes_per_set, int max_input_sets);
 
 // ---------------------------------------------------------------- datasets

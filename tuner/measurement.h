@@ -40,8 +40,11 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 // 1: each frame timed alone by the device's timers (CUDA events around each
 //    launch, counting launch processing), input sets sized from the cache the
 //    API reports; 2: launch-gap-free bursts, input sets sized from the
-//    physical chip's cache, a same-size copy timed beside every measurement.
-inline constexpr int kTimingVersion = 2;
+//    physical chip's cache, a same-size copy timed beside every measurement;
+// 3: an even number of input sets (so CUDA's and OpenCL's two lanes never
+//    read one set at once), warm-up bursts long enough to raise a GPU's
+//    clock and ended only when the clock probe is back up (runtime/runner.cpp).
+inline constexpr int kTimingVersion = 3;
 
 struct Timing {
   double median_ms = 0.0;  // per frame: the median over the bursts of burst time / burst_frames

@@ -161,19 +161,15 @@ TEST(GlProgramCache, SecondDeviceOnTheSameContextCompilesNothing) {
 
 // ---------------------------------------------------------------- OpenCL-GL interop
 
-TEST(OpenClGlInterop, SkinsStraightIntoAGlBufferWhereAPlatformSharesOne) {
-  CONTEXT_OR_SKIP(context);
-  TempDir dir;
-  Result<Device> device = Device::OpenClForCurrentGl(CacheIn(dir));
-  if (!device.ok()) {
-    EXPECT_EQ(device.status().code(), ErrorCode::kUnavailable) << device.status().message();
-    GTEST_SKIP() << "no OpenCL-GL sharing here: " << device.status().message();
-  }
-  EXPECT_TRUE(device->has_gl_sharing());
+// Skins 3 instances straight into a GL buffer of the current context with
+// `device` (OpenCL-GL sharing or CUDA-GL interop), reads the buffer back
+// through GL and checks every instance against its gold; a buffer too small
+// for the positions is kInvalidArgument.
+void ExpectSkinsIntoGlBuffers(Device& device) {
   const View view(Small().mesh);
   SkinnerOptions options;
   options.instances = 3;
-  Skinner skinner = MustCreate(*device, view.mesh, options);
+  Skinner skinner = MustCreate(device, view.mesh, options);
   const std::vector<std::vector<glm::mat4>> poses = Poses(Small(), 3);
   std::vector<float> palettes;
   for (const auto& pose : poses) {
@@ -185,8 +181,9 @@ TEST(OpenClGlInterop, SkinsStraightIntoAGlBufferWhereAPlatformSharesOne) {
   const std::size_t bytes = 3 * n * skinner.output_stride_bytes();
   GLuint buffers[2] = {0, 0};
   glGenBuffers(2, buffers);
+  const std::vector<float> poison(bytes / 4, -12345.0f);  // what the skinning must overwrite
   glBindBuffer(GL_ARRAY_BUFFER, buffers[0]);
-  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(bytes), nullptr, GL_DYNAMIC_DRAW);
+  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(bytes), poison.data(), GL_DYNAMIC_DRAW);
   glBindBuffer(GL_ARRAY_BUFFER, buffers[1]);
   glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(bytes / 2), nullptr, GL_DYNAMIC_DRAW);
   glBindBuffer(GL_ARRAY_BUFFER, 0);
@@ -212,6 +209,48 @@ TEST(OpenClGlInterop, SkinsStraightIntoAGlBufferWhereAPlatformSharesOne) {
   const Status small = skinner.SkinIntoGlBuffer(buffers[1]);
   EXPECT_EQ(small.code(), ErrorCode::kInvalidArgument) << small.message();
   glDeleteBuffers(2, buffers);
+}
+
+TEST(OpenClGlInterop, SkinsStraightIntoAGlBufferWhereAPlatformSharesOne) {
+  CONTEXT_OR_SKIP(context);
+  TempDir dir;
+  Result<Device> device = Device::OpenClForCurrentGl(CacheIn(dir));
+  if (!device.ok()) {
+    EXPECT_EQ(device.status().code(), ErrorCode::kUnavailable) << device.status().message();
+    GTEST_SKIP() << "no OpenCL-GL sharing here: " << device.status().message();
+  }
+  EXPECT_TRUE(device->has_gl_sharing());
+  ExpectSkinsIntoGlBuffers(*device);
+}
+
+// The paper's section 4.1 path: CUDA skins into a GL buffer it registered
+// (cuGraphicsGLRegisterBuffer), on the GPU's own EGL context; read back
+// through GL. Without a current GL context it is kInvalidState.
+TEST(CudaGlInterop, SkinsIntoAGlBufferOfTheCurrentContext) {
+  CONTEXT_OR_SKIP(context);
+  TempDir dir;
+  const Backend cuda = Backend::kCuda;
+  Result<Device> device = Device::Open("", &cuda, CacheIn(dir));
+  if (!device.ok()) GTEST_SKIP() << "no CUDA device here: " << device.status().message();
+  if (GlDeviceType(context.info().renderer) != "gpu")
+    GTEST_SKIP() << "the GL context is on " << context.info().renderer << ", not a GPU CUDA can share with";
+  ExpectSkinsIntoGlBuffers(*device);
+  Skinner skinner = MustCreate(*device, View(Small().mesh).mesh);
+  const std::vector<float> palette = Floats(Pose(Small(), 0.3));
+  ASSERT_TRUE(skinner.SetPalette(palette.data(), palette.size()).ok());
+  GLuint buffer = 0;
+  glGenBuffers(1, &buffer);
+  glBindBuffer(GL_ARRAY_BUFFER, buffer);
+  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(skinner.vertex_count() * skinner.output_stride_bytes()),
+               nullptr, GL_DYNAMIC_DRAW);
+  glBindBuffer(GL_ARRAY_BUFFER, 0);
+  Status elsewhere;
+  std::thread([&] { elsewhere = skinner.SkinIntoGlBuffer(buffer); }).join();  // no GL context there
+  EXPECT_EQ(elsewhere.code(), ErrorCode::kInvalidState) << elsewhere.message();
+  EXPECT_TRUE(skinner.SkinIntoGlBuffer(buffer).ok());
+  const Status not_a_buffer = skinner.SkinIntoGlBuffer(buffer + 1000);
+  EXPECT_EQ(not_a_buffer.code(), ErrorCode::kInvalidArgument) << not_a_buffer.message();
+  glDeleteBuffers(1, &buffer);
 }
 
 TEST(OpenClGlInterop, WithoutACurrentContextThereIsNothingToShare) {

@@ -253,8 +253,13 @@ TEST(DeviceIdentity, JsonWithoutARequiredFieldThrowsNamingIt) {
 // ---------------------------------------------------------------- rotation rule and helpers
 
 TEST(RotationRule, EnoughSetsToExceedTwiceTheLastLevelCache) {
-  // A tiny cache: 1 MiB, sets of 300 KiB -> ceil(2048 / 300) = 7.
-  EXPECT_EQ(InputSetsFor(1u << 20, 300u << 10, 8), 7);
+  // A tiny cache: 1 MiB, sets of 300 KiB -> ceil(2048 / 300) = 7, made even: 8.
+  EXPECT_EQ(InputSetsFor(1u << 20, 300u << 10, 8), 8);
+  // ... made even downwards where max_input_sets is odd and reached.
+  EXPECT_EQ(InputSetsFor(1u << 20, 300u << 10, 7), 6);
+  // A 1600k-b1 frame (43.2 MB) on an H100 (50 MiB): ceil(2.43) = 3 -> 4, so
+  // the two lanes (even and odd frames) never read one set.
+  EXPECT_EQ(InputSetsFor(50ull << 20, 43'204'928, 8), 4);
   // ... clamped to max_input_sets.
   EXPECT_EQ(InputSetsFor(1u << 20, 300u << 10, 4), 4);
   // Exactly 2 x LLC needs no rounding up.
@@ -265,8 +270,8 @@ TEST(RotationRule, EnoughSetsToExceedTwiceTheLastLevelCache) {
   EXPECT_EQ(InputSetsFor(256ull << 20, 1u << 20, 8), 8);
   // A set larger than twice the cache: one set.
   EXPECT_EQ(InputSetsFor(1u << 20, 3u << 20, 8), 1);
-  // Unknown cache (0): 64 MiB assumed -> 128 MiB / 20 MiB = 6.4 -> 7.
-  EXPECT_EQ(InputSetsFor(0, 20u << 20, 8), 7);
+  // Unknown cache (0): 64 MiB assumed -> 128 MiB / 20 MiB = 6.4 -> 7 -> 8.
+  EXPECT_EQ(InputSetsFor(0, 20u << 20, 8), 8);
   EXPECT_EQ(InputSetsFor(0, 20u << 20, 8), InputSetsFor(tuner_internal::kUnknownLastLevelCacheBytes, 20u << 20, 8));
   // Never fewer than one, whatever the options say.
   EXPECT_EQ(InputSetsFor(1u << 20, 1u << 10, 0), 1);
@@ -505,7 +510,9 @@ TEST(VulkanBackend, MeasuresVariantsWithTheChipsIdentity) {
   EXPECT_EQ(backend->languages(), std::vector<Lang>{Lang::kVulkan});
   const DeviceIdentity& d = backend->identity();
   EXPECT_EQ(d.Id().rfind("vulkan:Vulkan/", 0), 0u) << d.Id();
-  if (d.type == "gpu") EXPECT_EQ(d.uuid.size(), 32u) << "a GPU's Vulkan device names its chip";
+  if (d.type == "gpu") {
+    EXPECT_EQ(d.uuid.size(), 32u) << "a GPU's Vulkan device names its chip";
+  }
   for (const char* key : {"vulkan.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
                           "vulkan.b2.bucketed.aos.float3.u8.unorm8.mat4.image.point.v2s.wg64.nonormals"}) {
     SCOPED_TRACE(key);

@@ -180,6 +180,12 @@ const LoadedDriver& DriverLibrary() {
     Resolve(handle, "cuDeviceGetUuid_v2", a.cuDeviceGetUuid, no_uuid);
     if (!a.cuDeviceGetUuid) Resolve(handle, "cuDeviceGetUuid", a.cuDeviceGetUuid, no_uuid);
     Resolve(handle, "cuMemcpyDtoDAsync_v2", a.cuMemcpyDtoDAsync, absent);
+    std::string no_gl;  // optional: SkinIntoGlBuffer on CUDA then says kUnavailable
+    Resolve(handle, "cuGraphicsGLRegisterBuffer", a.cuGraphicsGLRegisterBuffer, no_gl);
+    Resolve(handle, "cuGraphicsUnregisterResource", a.cuGraphicsUnregisterResource, no_gl);
+    Resolve(handle, "cuGraphicsMapResources", a.cuGraphicsMapResources, no_gl);
+    Resolve(handle, "cuGraphicsUnmapResources", a.cuGraphicsUnmapResources, no_gl);
+    Resolve(handle, "cuGraphicsResourceGetMappedPointer_v2", a.cuGraphicsResourceGetMappedPointer, no_gl);
     if (!absent.empty()) {
       d.missing = d.library + " lacks " + absent;
       return d;

@@ -79,6 +79,7 @@ using Function = struct CUfunc_st*;
 using Stream = struct CUstream_st*;
 using Event = struct CUevent_st*;
 using DevicePtr = unsigned long long;  // CUdeviceptr (64-bit)
+using GraphicsResource = struct CUgraphicsResource_st*;
 using TexObject = unsigned long long;  // CUtexObject = cudaTextureObject_t
 
 inline constexpr Result kSuccess = 0;
@@ -97,6 +98,9 @@ inline constexpr int kResourceTypeLinear = 2;          // CU_RESOURCE_TYPE_LINEA
 inline constexpr int kArrayFormatFloat = 0x20;         // CU_AD_FORMAT_FLOAT
 inline constexpr int kFilterModePoint = 0;             // CU_TR_FILTER_MODE_POINT
 inline constexpr int kAddressModeClamp = 1;            // CU_TR_ADDRESS_MODE_CLAMP
+inline constexpr unsigned kGraphicsRegisterWriteDiscard = 2;  // CU_GRAPHICS_REGISTER_FLAGS_WRITE_DISCARD
+inline constexpr Result kErrorInvalidValue = 1;               // CUDA_ERROR_INVALID_VALUE
+inline constexpr Result kErrorInvalidHandle = 400;            // CUDA_ERROR_INVALID_HANDLE
 
 // CUDA_RESOURCE_DESC with its `linear` member (the only one used).
 struct ResourceDesc {
@@ -176,6 +180,13 @@ struct DriverApi {
   Result (*cuStreamCreate)(Stream* stream, unsigned int flags);
   Result (*cuStreamDestroy)(Stream stream);  // _v2
   Result (*cuStreamWaitEvent)(Stream stream, Event event, unsigned int flags);
+  // CUDA-OpenGL interop (Skinner::SkinIntoGlBuffer on a CUDA device, the
+  // paper's section 4.1 path); null where the driver lacks them.
+  Result (*cuGraphicsGLRegisterBuffer)(GraphicsResource* resource, unsigned int gl_buffer, unsigned int flags);
+  Result (*cuGraphicsUnregisterResource)(GraphicsResource resource);
+  Result (*cuGraphicsMapResources)(unsigned int count, GraphicsResource* resources, Stream stream);
+  Result (*cuGraphicsUnmapResources)(unsigned int count, GraphicsResource* resources, Stream stream);
+  Result (*cuGraphicsResourceGetMappedPointer)(DevicePtr* pointer, std::size_t* bytes, GraphicsResource resource);  // _v2
 };
 
 // The driver, loaded and initialised once; null, with the reason in `why`

@@ -42,7 +42,11 @@ int Preference(const DeviceIdentity&) { return 0; }
 
 }  // namespace
 
-BackendEntry CudaEntry() { return {"cuda", "CUDA", {Lang::kCuda}, Discover, Preference, MakeRunnerSkinner}; }
+// runtime/backends/cuda/skinner_cuda.cpp: RunnerSkinner with CUDA-GL interop.
+std::unique_ptr<SkinnerBackend> MakeCudaSkinner(DeviceState& device, const PackedMesh& mesh,
+                                                const std::vector<KernelSource>& kernels, int instances);
+
+BackendEntry CudaEntry() { return {"cuda", "CUDA", {Lang::kCuda}, Discover, Preference, MakeCudaSkinner}; }
 
 Result<Device> Device::FromCuda(void* cu_context, void* cu_stream, const DeviceOptions& options) {
   return GuardedResult<Device>(ErrorCode::kDeviceError, [&] {

@@ -4,6 +4,7 @@
 #include "runtime/backends/cuda/cuda_runner.h"
 
 #include <algorithm>
+#include <cstdint>
 #include <cstring>
 #include <map>
 #include <utility>
@@ -124,6 +125,7 @@ class CudaBound final : public DeviceObject {
   std::vector<cuda::DevicePtr> pointers;  // reserved: never reallocated
   cuda::TexObject texture = 0;
   std::vector<void*> parameters;
+  int output_parameter = -1;              // the index in `parameters` of "out_positions"
 };
 
 }  // namespace
@@ -173,7 +175,8 @@ class CudaApi final : public DeviceApi {
   const BuiltKernel& KernelFor(const KernelSource& source);
   Memory NewMemory(std::size_t bytes, const void* data, const std::string& what) const;
   Event NewEvent(const std::string& what) const;
-  void Launch(const CudaBound& bound, cuda::Stream lane);
+  // `parameters`: the launch's own (null) or a copy with one argument redirected (kLive).
+  void Launch(const CudaBound& bound, cuda::Stream lane, void** parameters = nullptr);
   double ElapsedMs(const Event& start, const Event& end) const;
   std::vector<std::vector<double>> RunTimed(const FrameRun& run);
 
@@ -329,6 +332,7 @@ std::unique_ptr<DeviceObject> CudaApi::Bind(const PlannedLaunch& launch, std::sp
       if (!a.texture) Fail("launch", spec.where + ": an image palette argument but the variant's storage is not image");
       a.parameters.push_back(&a.texture);
     } else {
+      if (name == "out_positions") a.output_parameter = static_cast<int>(a.parameters.size());
       a.pointers.push_back(static_cast<const CudaMemory*>(b.buffer)->pointer());
       a.parameters.push_back(&a.pointers.back());
     }
@@ -346,14 +350,14 @@ Event CudaApi::NewEvent(const std::string& what) const {
 // Skinner: the caller's stream). The module's symbol is shared by every set
 // and Skinner of the kernel: `constant` storage first copies the set's
 // palette into it, on that stream (device to device: part of a frame's cost).
-void CudaApi::Launch(const CudaBound& bound, cuda::Stream lane) {
+void CudaApi::Launch(const CudaBound& bound, cuda::Stream lane, void** parameters) {
   const CudaPlanned& plan = *bound.plan;
   const std::string& where = plan.spec.where;
   if (plan.constant_symbol)
     Check(api->cuMemcpyDtoDAsync(plan.constant_symbol, bound.palette->pointer(), bound.palette->host.size(), lane),
           "launch", where + ": cuMemcpyDtoDAsync to '" + kConstantPaletteSymbol + "'");
   Check(api->cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, lane,
-                            const_cast<void**>(bound.parameters.data()), nullptr),
+                            parameters ? parameters : const_cast<void**>(bound.parameters.data()), nullptr),
         "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " x " + std::to_string(plan.instances) +
                       " blocks of " + std::to_string(plan.threads) + ")");
 }
@@ -439,10 +443,25 @@ std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
   return ms;
 }
 
+// The Skinner's frame on the caller's stream; positions into run.out_positions
+// (a CUdeviceptr: a mapped GL buffer, SkinIntoGlBuffer) instead of the set's
+// own output when given.
 std::vector<std::vector<double>> CudaApi::RunFrames(const FrameRun& run) {
   if (run.use != FrameUse::kLive) return RunTimed(run);
+  const auto out = static_cast<cuda::DevicePtr>(reinterpret_cast<std::uintptr_t>(run.out_positions));
   for (const auto& frame : run.frames)
-    for (const std::unique_ptr<DeviceObject>& launch : frame) Launch(static_cast<const CudaBound&>(*launch), stream);
+    for (const std::unique_ptr<DeviceObject>& launch : frame) {
+      const auto& bound = static_cast<const CudaBound&>(*launch);
+      if (!out) {
+        Launch(bound, stream);
+        continue;
+      }
+      if (bound.output_parameter < 0) Fail("launch", bound.plan->spec.where + ": no 'out_positions' argument to redirect");
+      std::vector<void*> parameters = bound.parameters;  // the same launch, the positions into `out`
+      cuda::DevicePtr into = out;
+      parameters[static_cast<std::size_t>(bound.output_parameter)] = &into;
+      Launch(bound, stream, parameters.data());
+    }
   return {};
 }
 
@@ -495,6 +514,8 @@ CudaRunner::CudaRunner(void* cu_context, void* cu_stream) : Runner(AdoptContext(
 
 const CudaDeviceInfo& CudaRunner::info() const { return static_cast<const CudaApi&>(api()).info; }
 const std::string& CudaRunner::arch() const { return info().arch; }
+void* CudaRunner::context() const { return static_cast<const CudaApi&>(api()).context; }
+void* CudaRunner::stream() const { return static_cast<const CudaApi&>(api()).stream; }
 const DeviceLimits& CudaRunner::limits() const { return info().limits; }
 
 }  // namespace skintune

@@ -73,6 +73,10 @@ class CudaRunner final : public Runner {
   // and __constant__ bytes, linear texture width in texels.
   const DeviceLimits& limits() const;
   const CudaDeviceInfo& info() const;
+  // The context (CUcontext) and the skinning stream (CUstream; null: the
+  // legacy default stream), for the Skinner's CUDA-GL interop.
+  void* context() const;
+  void* stream() const;
 };
 
 using CudaRunResult = RunResult;

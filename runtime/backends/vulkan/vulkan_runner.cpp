@@ -628,13 +628,20 @@ double VulkanApi::TicksToMs(std::uint64_t start, std::uint64_t end) const {
 // Records frames [begin, end) of `run` into `cb`: a barrier before a frame
 // whose set an earlier frame of the same command buffer used (`used`: the
 // sets since the last barrier), each launch between timestamps `query`,
-// `query` + 1 (advanced by 2) when `per_launch`.
+// `query` + 1 (advanced by 2) when `per_launch`. Timed frames (kTime) get no
+// barrier between them: they only read inputs and palettes that nothing in
+// the burst writes, and their outputs are never read, so consecutive frames
+// may overlap as GL's dispatches and CUDA's and OpenCL's two lanes do
+// (FrameRun in runtime/device_api.h). With one input set (a footprint over
+// twice the last-level cache, 6400k-b4 on the H100) a barrier before every
+// frame drained the GPU each time: 0.21 ms against GL's 0.099 ms for the
+// same kernel (docs/PERFORMANCE.md, "Vulkan's timed frames").
 void VulkanApi::RecordFrames(VkCommandBuffer cb, const FrameRun& run, std::size_t begin, std::size_t end,
                              std::set<const void*>& used, VkQueryPool pool, int* query) {
   constexpr VkAccessFlags kShaderAccess = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
   for (std::size_t f = begin; f < end; ++f) {
     const auto& frame = run.frames[f];
-    if (!used.insert(frame.data()).second) {
+    if (!used.insert(frame.data()).second && run.use != FrameUse::kTime) {
       Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, kShaderAccess, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
               kShaderAccess);
       used = {frame.data()};

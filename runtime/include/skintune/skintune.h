@@ -441,6 +441,17 @@ class Skinner {
   // buffer, and Read* reads the Skinner's own output (of the last Skin()).
   // kUnavailable when the Device has no GL sharing (see
   // Device::OpenClForCurrentGl); kInvalidState before the first SetPalette.
+  //
+  // On a CUDA Device (CUDA-OpenGL interop, the paper's section 4.1): any
+  // buffer object of the GL context current on the calling thread, which
+  // must be on the same GPU (an EGL context on the NVIDIA device). The buffer
+  // is registered once (cuGraphicsGLRegisterBuffer, write-discard) and each
+  // call maps it on the Device's stream, skins into it and unmaps it; the
+  // host does not wait: the map orders the kernel after GL's earlier use of
+  // the buffer, the unmap GL's later use after the kernel. kInvalidState when
+  // no GL context is current; kInvalidArgument for a name that is not a
+  // buffer of that context, or one too small. Registrations are released
+  // with the Skinner (its GL context should still exist then).
   Status SkinIntoGlBuffer(unsigned int gl_buffer);
 
   // Vulkan (how an engine records skinning into its frame): records the

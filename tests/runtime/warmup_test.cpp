@@ -1,0 +1,147 @@
+// The driver's warm-up (runtime/runner.cpp WarmUntilStable) against a fake
+// device whose clock behaves like NVIDIA's on the H100: it rises only under
+// sustained load (a submission that keeps it busy for a while) and falls when
+// left idle. Frames really sleep for their modelled time, so the warm-up's
+// wall-clock rules act on them; the times the fake reports are the model's,
+// so what Time returns says exactly which clock the frames ran at.
+//
+// Timing version 2's warm-up failed both tests: its 16-frame bursts never
+// loaded the device enough to raise the clock, and a steady burst time at
+// the low clock ended the warm-up (docs/PERFORMANCE.md "Timing version 3").
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstring>
+#include <memory>
+#include <span>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "generator/copy_kernel.h"
+#include "runtime/device_api.h"
+#include "runtime/runner.h"
+
+namespace skintune {
+namespace {
+
+// Device bandwidth at each clock, bytes per ms; a submission that keeps the
+// device busy at least kLoadMs counts towards kRaiseMs of load, after which
+// the clock is high; Cool() drops it.
+constexpr double kColdBytesPerMs = 20e6;  // 20 GB/s
+constexpr double kHotBytesPerMs = 40e6;   // 40 GB/s
+constexpr double kLoadMs = 3.0;
+constexpr double kRaiseMs = 60.0;
+
+struct Clock {
+  double load_ms = 0.0;
+  bool hot() const { return load_ms >= kRaiseMs; }
+  double BytesPerMs() const { return hot() ? kHotBytesPerMs : kColdBytesPerMs; }
+};
+
+class FakeBuffer final : public DeviceBuffer {
+ public:
+  explicit FakeBuffer(std::size_t bytes) : DeviceBuffer(bytes) {}
+  void* native() const override { return const_cast<FakeBuffer*>(this); }
+};
+
+class FakeBound final : public DeviceObject {
+ public:
+  std::size_t bytes = 0;  // read and written by one launch
+};
+
+class FakeApi final : public DeviceApi {
+ public:
+  explicit FakeApi(Clock& clock) : clock_(clock) {}
+  const char* name() const override { return "Fake"; }
+  const std::string& device_name() const override { return name_; }
+  void Build(const KernelSource&) override {}
+  void CheckRun(const PackedMesh&, std::span<const KernelSource>, const RunShape&) const override {}
+  std::unique_ptr<PlannedLaunch> Plan(const LaunchSpec& spec) override { return std::make_unique<PlannedLaunch>(spec); }
+  std::unique_ptr<DeviceBuffer> Allocate(BufferUse, std::size_t bytes, const void*, const std::string&) override {
+    return std::make_unique<FakeBuffer>(bytes);
+  }
+  std::unique_ptr<DeviceObject> PaletteView(const Variant&, DeviceBuffer&, const std::string&) override { return nullptr; }
+  std::unique_ptr<DeviceObject> Bind(const PlannedLaunch&, std::span<const ArgumentBinding> arguments, const SetOptions&,
+                                     std::size_t&) override {
+    auto bound = std::make_unique<FakeBound>();
+    for (const ArgumentBinding& a : arguments)
+      if ((a.role == ArgumentRole::kInput || a.role == ArgumentRole::kOutput) && a.buffer) bound->bytes += a.buffer->bytes();
+    return bound;
+  }
+  void FinishUploads(const std::string&) override {}
+  TimingPolicy timing_policy() const override { return {true}; }
+
+  // Every frame sleeps its modelled time; the clock counts this submission's
+  // load once it is done. Bursts report the model's time.
+  std::vector<std::vector<double>> RunFrames(const FrameRun& run) override {
+    const double per_ms = clock_.BytesPerMs();
+    const auto frame_ms = [&](std::size_t f) {
+      double bytes = 0.0;
+      for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) bytes += static_cast<double>(static_cast<const FakeBound&>(*launch).bytes);
+      return bytes / per_ms;
+    };
+    double busy = 0.0;
+    for (std::size_t f = 0; f < run.frames.size(); ++f) busy += frame_ms(f);
+    std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(busy));
+    if (busy >= kLoadMs) clock_.load_ms += busy;
+    std::vector<std::vector<double>> bursts;
+    const std::size_t untimed = static_cast<std::size_t>(run.untimed);
+    for (std::size_t b = 0; b < run.TimedBursts(); ++b) {
+      double ms = 0.0;
+      for (std::size_t f = untimed + b * run.burst; f < untimed + (b + 1) * run.burst; ++f) ms += frame_ms(f);
+      bursts.push_back({ms});
+    }
+    return bursts;
+  }
+  void Write(DeviceBuffer&, std::span<const std::uint8_t>, const std::string&) override {}
+  void Read(const DeviceBuffer&, std::span<std::uint8_t> out, const std::string&, bool) override {
+    std::memset(out.data(), 0, out.size());
+  }
+  void Finish() override {}
+
+ private:
+  Clock& clock_;
+  std::string name_ = "fake device";
+};
+
+// Per-frame times of `prepared` (one frame per burst, as the tuner's first
+// BurstFrames probe does, then bursts of 10).
+std::vector<double> TimeIt(Runner& runner, const Prepared& prepared) {
+  return runner.Time(prepared, 2, 5, 10);
+}
+
+TEST(WarmUp, RaisesAClockThatOnlySustainedLoadRaises) {
+  Clock clock;
+  Runner runner(std::make_unique<FakeApi>(clock));
+  // A copy of 1 MB: 0.05 ms a frame cold, 0.025 hot. A 16-frame burst is
+  // 0.8 ms of load, too little to raise the clock.
+  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, 1'000'000, 2);
+  const std::vector<double> ms = TimeIt(runner, small);
+  ASSERT_FALSE(ms.empty());
+  EXPECT_TRUE(clock.hot()) << "load seen by the device: " << clock.load_ms << " ms";
+  const double hot_ms = static_cast<double>(CopyBytes(EmitCopy(Lang::kOpenCl, 1'000'000))) / kHotBytesPerMs;
+  for (double t : ms) EXPECT_NEAR(t, hot_ms, 1e-12) << "a frame timed at the low clock (" << 2 * hot_ms << " ms)";
+}
+
+TEST(WarmUp, AFullWarmUpEndsOnlyWhenTheClockProbeIsBackUp) {
+  Clock clock;
+  Runner runner(std::make_unique<FakeApi>(clock));
+  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, 1'000'000, 2);
+  const std::vector<double> first = TimeIt(runner, small);
+  ASSERT_TRUE(clock.hot());
+  // The device idles (a compile, a verification): the clock drops. The probe
+  // sees it, and the warm-up must not stop at a steady low clock.
+  clock.load_ms = 0.0;
+  const std::vector<double> second = TimeIt(runner, small);
+  ASSERT_EQ(second.size(), first.size());
+  EXPECT_TRUE(clock.hot());
+  const double hot_ms = static_cast<double>(CopyBytes(EmitCopy(Lang::kOpenCl, 1'000'000))) / kHotBytesPerMs;
+  for (std::size_t i = 0; i < second.size(); ++i) {
+    EXPECT_NEAR(first[i], hot_ms, 1e-12) << "burst " << i;
+    EXPECT_NEAR(second[i], hot_ms, 1e-12) << "burst " << i << " after the device idled";
+  }
+}
+
+}  // namespace
+}  // namespace skintune
