@@ -58,7 +58,9 @@ TEST(BackendTable, DiscoveryFindsEveryOpenClDeviceAndSaysWhyAnApiIsMissing) {
     with_devices.insert(d.identity.backend);
     EXPECT_EQ(d.identity.index, 0);
     EXPECT_TRUE(d.open) << d.identity.Id();
-    if (d.identity.backend != "cpu") EXPECT_GT(d.limits.max_wg_size, 0u) << d.identity.Id();  // cpu: no work-groups
+    if (d.identity.backend != "cpu") {  // cpu: no work-groups
+      EXPECT_GT(d.limits.max_wg_size, 0u) << d.identity.Id();
+    }
     // The public identity is the same device id.
     EXPECT_EQ(PublicInfo(d.identity).id, d.identity.Id());
     EXPECT_STREQ(BackendName(PublicInfo(d.identity).backend), d.identity.backend.c_str());
