@@ -1,15 +1,35 @@
-// CPU skinning benchmarks over the paper's datasets (configs/paper.json:
-// 25k/100k/400k/1600k vertices x 1..4 influences, 77 bones, bone locality),
-// plus the memory copy bandwidth of this machine measured by the same harness,
-// so every GB/s figure can be read as a fraction of what memory can do.
+// CPU skinning on this machine, two ways.
 //
-//   skintune_bench_cpu [--benchmark_filter=REGEX] [google benchmark flags]
+// 1. The comparison (the default): at one dataset (--dataset=KEY, default
+//    1600k-b4), the cpu device's kernels in several formats and PoCL's
+//    OpenCL variants, each measured exactly as `skintune tune` measures a
+//    variant (tuner_internal::MeasureWith over the runner driver: verified
+//    on poisoned, guarded outputs against the float64 gold, its error
+//    against the unquantised source and the default budget, bursts of
+//    frames rotating input sets, and the same-size copy timed the same way:
+//    for the cpu device an all-thread memcpy of the same bytes). The list is
+//    measured --repeat=N times (default 3) one variant after another, and
+//    the medians are printed with the ratios issue 18 asks for: the f32 fast
+//    path's share of the copy bandwidth, the fastest format the budget
+//    allows against f32, and PoCL's best against the fast path.
 //
-// Counters: vertices/s, and bytes/s = the bytes the implementation's layout
-// must move per frame (inputs read + outputs written, palette excluded) per
-// second. Each iteration skins a different animation frame (8 palettes
-// rotate). The 25k and 100k datasets (1-5 MB) fit in this machine's caches:
-// their GB/s can exceed the copy bandwidth measured on 256 MiB buffers.
+//      skintune_bench_cpu [--dataset=KEY] [--repeat=N] [--pocl=default|none|KEY[,KEY...]]
+//
+// 2. Any --benchmark_* flag runs the Google Benchmark suite instead: the
+//    paper's datasets (configs/paper.json: 25k/100k/400k/1600k vertices x
+//    1..4 influences, 77 bones, bone locality) through the serial loop, the
+//    fast path and the gold, plus the memory copy bandwidth measured by the
+//    same harness, so every GB/s figure can be read as a fraction of what
+//    memory can do.
+//
+//      skintune_bench_cpu --benchmark_filter=REGEX [google benchmark flags]
+//
+//    Counters: vertices/s, and bytes/s = the bytes the implementation's
+//    layout must move per frame (inputs read + outputs written, palette
+//    excluded) per second. Each iteration skins a different animation frame
+//    (8 palettes rotate). The 25k and 100k datasets (1-5 MB) fit in this
+//    machine's caches: their GB/s can exceed the copy bandwidth measured on
+//    256 MiB buffers.
 #include <benchmark/benchmark.h>
 
 #include <cstring>
@@ -17,9 +37,22 @@
 #include <memory>
 #include <vector>
 
+#include <algorithm>
+#include <cstdio>
+#include <iostream>
+#include <optional>
+#include <sstream>
+#include <string_view>
+
+#include "generator/constraints.h"
+#include "reference/error.h"
 #include "reference/skinning.h"
 #include "reference/synthetic.h"
 #include "reference/thread_pool.h"
+#include "runtime/backend_table.h"
+#include "runtime/backends/cpu/cpu_runner.h"
+#include "runtime/source_error.h"
+#include "tuner/backends_internal.h"
 
 namespace skintune {
 namespace {
@@ -124,7 +157,246 @@ void RegisterAll() {
 }  // namespace
 }  // namespace skintune
 
+namespace skintune {
+namespace {
+
+// ---------------------------------------------------------------- the comparison
+
+struct CompareOptions {
+  std::string dataset = "1600k-b4";
+  int repeat = 3;
+  std::vector<std::string> pocl;  // variant keys; empty: none
+};
+
+// The cpu variants compared: the fast path's own format first (u16 joints,
+// f32 weights, mat4), then the compressed formats, packed records, the
+// 12-float mat3x4 blend and point blending. B and normals follow the dataset.
+const char* const kCpuVariants[] = {
+    "cpu.padded.soa-split.float3.u16.f32.mat4.global.matrix.v1c.wg0",
+    "cpu.padded.soa-split.float3.u8.f32.mat4.global.matrix.v1c.wg0",
+    "cpu.padded.soa-split.float3.u16.unorm16.mat4.global.matrix.v1c.wg0",
+    "cpu.padded.soa-split.float3.u8.unorm16.mat4.global.matrix.v1c.wg0",
+    "cpu.padded.soa-split.float3.u8.unorm8.mat4.global.matrix.v1c.wg0",
+    "cpu.padded.aos.float3.u8.unorm16.mat4.global.matrix.v1c.wg0",
+    "cpu.padded.soa.float3.u8.unorm16.mat4.global.matrix.v1c.wg0",
+    "cpu.padded.soa-split.float4.u8.unorm16.mat4.global.matrix.v1c.wg0",
+    "cpu.padded.soa-split.float3.u16.f32.mat3x4.global.matrix.v1c.wg0",
+    "cpu.padded.soa-split.float3.u16.f32.mat4.global.point.v1c.wg0",
+};
+
+// PoCL's default set: the layouts and formats above in OpenCL, at the
+// work-group sizes and vertices per item PoCL's tuned winners use here
+// (docs/PERFORMANCE.md).
+const char* const kPoclVariants[] = {
+    "opencl.padded.soa-split.float3.u16.f32.mat4.global.matrix.v1c.wg128",
+    "opencl.padded.soa-split.float3.u16.f32.mat4.global.matrix.v4c.wg64",
+    "opencl.padded.soa-split.float3.u8.unorm16.mat4.global.matrix.v4c.wg64",
+    "opencl.padded.aos.float3.u8.unorm16.mat4.global.matrix.v1c.wg128",
+    "opencl.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg256",
+    "opencl.padded.soa-split.float3.u16.f32.mat4.global.matrix.v8c.wg512",
+};
+
+// One variant's medians over the repeats.
+struct Row {
+  Variant variant;
+  std::string status;       // the last measurement's status (ok, too_imprecise, ...) and detail
+  std::vector<double> ms, x_copy, gbps;
+  double quantisation_rel = 0.0;
+  std::string schedule;     // cpu: the threads, chunks and stores chosen
+  bool ok() const { return !ms.empty(); }
+  double Ms() const { return tuner_internal::Median(ms); }
+  double XCopy() const { return tuner_internal::Median(x_copy); }
+  double GBps() const { return tuner_internal::Median(gbps); }
+  bool WithinBudget() const { return ok() && quantisation_rel <= kDefaultBudget; }
+};
+
+struct Device {
+  FoundDevice found;
+  std::unique_ptr<Runner> runner;
+};
+
+std::optional<Device> OpenDevice(const char* backend, bool cpu_type_only) {
+  Discovered d = DiscoverDevices(backend);
+  for (FoundDevice& f : d.devices) {
+    if (cpu_type_only && f.identity.type.find("cpu") == std::string::npos) continue;
+    Device device{f, nullptr};
+    device.runner = f.open();
+    return device;
+  }
+  return std::nullopt;
+}
+
+void Measure(Device& device, tuner_internal::DatasetCache& datasets, const CompareOptions& options, Row& row) {
+  tuner_internal::RunnerExecutor executor(*device.runner);
+  TimingOptions timing;  // the tuner's defaults: 3 warm-up frames, 10 bursts of ~2 ms, up to 8 input sets
+  const Measurement m = tuner_internal::MeasureWith(executor, datasets, device.found.identity, device.found.limits,
+                                                    {row.variant.lang}, row.variant, {options.dataset}, timing);
+  row.status = std::string(Name(m.status)) + (m.detail.empty() ? "" : ": " + m.detail);
+  if (m.source_error.known) row.quantisation_rel = m.source_error.quantisation_rel;
+  if (m.status != MeasureStatus::kOk && m.status != MeasureStatus::kTooImprecise) return;
+  row.ms.push_back(m.timing.median_ms);
+  row.gbps.push_back(m.gbps);
+  if (m.x_copy > 0.0) row.x_copy.push_back(m.x_copy);
+  if (auto* cpu = dynamic_cast<CpuRunner*>(device.runner.get()))
+    if (const auto choice = cpu->ScheduleOf(row.variant.Key())) row.schedule = Describe(*choice);
+}
+
+std::vector<Row> RowsOf(const std::vector<std::string>& keys, const SkinnedMesh& mesh) {
+  std::vector<Row> rows;
+  for (const std::string& key : keys) {
+    Row row;
+    row.variant = ParseVariantKey(key);
+    row.variant.influences = mesh.influences;
+    row.variant.normals = mesh.has_normals();
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+std::string Fixed(double value, int digits) {
+  std::ostringstream out;
+  out.setf(std::ios::fixed);
+  out.precision(digits);
+  out << value;
+  return out.str();
+}
+
+void PrintRows(const char* title, const std::vector<Row>& rows) {
+  std::printf("\n%s\n%-78s %9s %7s %7s %10s  %s\n", title, "variant", "ms", "GB/s", "x copy", "quant/diag",
+              "status (schedule)");
+  for (const Row& r : rows) {
+    std::printf("%-78s %9s %7s %7s %10.1e  %s%s\n", r.variant.Key().c_str(), r.ok() ? Fixed(r.Ms(), 3).c_str() : "-",
+                r.ok() ? Fixed(r.GBps(), 1).c_str() : "-", r.x_copy.empty() ? "-" : Fixed(r.XCopy(), 2).c_str(),
+                r.quantisation_rel, r.status.c_str(), r.schedule.empty() ? "" : (" (" + r.schedule + ")").c_str());
+  }
+}
+
+// What issue 18's Done-when reads, as ratios within this run.
+void PrintRatios(const std::vector<Row>& cpu, const std::vector<Row>& pocl) {
+  std::printf("\nratios (medians of this run):\n");
+  const Row& f32 = cpu.front();
+  if (!f32.ok() || f32.x_copy.empty()) {
+    std::printf("  the f32 fast path was not measured: %s\n", f32.status.c_str());
+    return;
+  }
+  std::printf("  f32 fast path / all-thread copy bandwidth of the same bytes: %.2f (goal >= 0.80)\n", 1.0 / f32.XCopy());
+  const Row* best = nullptr;
+  for (const Row& r : cpu)
+    if (r.WithinBudget() && (!best || r.Ms() < best->Ms())) best = &r;
+  if (best) {
+    std::printf("  fastest cpu variant the default budget (%.0e) allows: %s, %.2fx faster than f32 (goal >= 1.4)\n",
+                kDefaultBudget, best->variant.Key().c_str(), f32.Ms() / best->Ms());
+  }
+  const Row* pocl_best = nullptr;
+  for (const Row& r : pocl)
+    if (r.WithinBudget() && (!pocl_best || r.Ms() < pocl_best->Ms())) pocl_best = &r;
+  if (pocl_best) {
+    std::printf("  PoCL's best (%s): %.2fx the f32 fast path's time, %.2fx the fastest cpu variant's (goal <= 1.5)\n",
+                pocl_best->variant.Key().c_str(), pocl_best->Ms() / f32.Ms(), best ? pocl_best->Ms() / best->Ms() : 0.0);
+  } else if (!pocl.empty()) {
+    std::printf("  PoCL: no variant measured\n");
+  }
+}
+
+int Compare(const CompareOptions& options) {
+  tuner_internal::DatasetCache datasets;
+  const SkinnedMesh& mesh = datasets.Get(options.dataset).asset.mesh;
+  std::optional<Device> cpu = OpenDevice("cpu", false);
+  if (!cpu) throw Error("no cpu device");
+  std::optional<Device> pocl;
+  if (!options.pocl.empty()) {
+    pocl = OpenDevice("opencl", true);
+    if (!pocl) std::printf("PoCL: no OpenCL CPU device here; its rows are skipped\n");
+  }
+  std::vector<std::string> cpu_keys(std::begin(kCpuVariants), std::end(kCpuVariants));
+  std::vector<Row> cpu_rows = RowsOf(cpu_keys, mesh);
+  std::vector<Row> pocl_rows = pocl ? RowsOf(options.pocl, mesh) : std::vector<Row>{};
+  std::printf("dataset %s: %zu vertices, B = %d; cpu device: %s (%s kernels, %u threads); %d repeats\n",
+              options.dataset.c_str(), mesh.vertex_count(), mesh.influences, cpu->found.identity.name.c_str(),
+              CpuKernelIsa(), cpu->found.identity.compute_units, options.repeat);
+  if (pocl) std::printf("PoCL device: %s\n", pocl->found.identity.Id().c_str());
+  for (int r = 0; r < options.repeat; ++r) {
+    for (Row& row : cpu_rows) Measure(*cpu, datasets, options, row);
+    if (pocl)
+      for (Row& row : pocl_rows) Measure(*pocl, datasets, options, row);
+    std::fprintf(stderr, "skintune_bench_cpu: repeat %d of %d done\n", r + 1, options.repeat);
+  }
+  PrintRows("cpu device (the fast path's kernels), each timed as skintune tune does:", cpu_rows);
+  if (pocl) PrintRows("PoCL (OpenCL on the same CPU), the same way:", pocl_rows);
+  PrintRatios(cpu_rows, pocl_rows);
+  return 0;
+}
+
+// Reads --dataset, --repeat and --pocl (removing them from argv); true when
+// a --benchmark_* flag asks for the Google Benchmark suite.
+bool ParseArguments(int& argc, char** argv, CompareOptions& options) {
+  bool gbench = false;
+  int kept = 1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view a = argv[i];
+    const auto value = [&](std::string_view flag) -> std::optional<std::string> {
+      if (a.rfind(flag, 0) != 0 || a.size() <= flag.size() || a[flag.size()] != '=') return std::nullopt;
+      return std::string(a.substr(flag.size() + 1));
+    };
+    if (auto v = value("--dataset")) {
+      ParseDatasetKey(*v);  // throws Error naming a bad key
+      options.dataset = *v;
+    } else if (auto r = value("--repeat")) {
+      std::size_t used = 0;
+      int n = 0;
+      try {
+        n = std::stoi(*r, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != r->size() || n < 1 || n > 100) throw Error("--repeat=" + *r + ": expected a whole number 1..100");
+      options.repeat = n;
+    } else if (auto p = value("--pocl")) {
+      options.pocl.clear();
+      if (*p == "none") continue;
+      if (*p == "default") {
+        options.pocl.assign(std::begin(kPoclVariants), std::end(kPoclVariants));
+        continue;
+      }
+      std::stringstream keys(*p);
+      for (std::string key; std::getline(keys, key, ',');) {
+        const Variant parsed = ParseVariantKey(key);  // throws Error naming a bad token
+        if (parsed.lang != Lang::kOpenCl) throw Error("--pocl: '" + key + "' is not an opencl variant");
+        options.pocl.push_back(key);
+      }
+    } else {
+      if (a.rfind("--benchmark_", 0) != 0)
+        throw Error(std::string("unknown argument '") + argv[i] +
+                    "' (expected --dataset=KEY, --repeat=N, --pocl=default|none|KEY[,KEY...] or --benchmark_* flags)");
+      gbench = true;
+      argv[kept++] = argv[i];
+    }
+  }
+  argc = kept;
+  return gbench;
+}
+
+}  // namespace
+}  // namespace skintune
+
 int main(int argc, char** argv) {
+  skintune::CompareOptions options;
+  options.pocl.assign(std::begin(skintune::kPoclVariants), std::end(skintune::kPoclVariants));
+  bool gbench = false;
+  try {
+    gbench = skintune::ParseArguments(argc, argv, options);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "skintune_bench_cpu: error: %s\n", e.what());
+    return 2;
+  }
+  if (!gbench) {
+    try {
+      return skintune::Compare(options);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "skintune_bench_cpu: error: %s\n", e.what());
+      return 1;
+    }
+  }
   skintune::RegisterAll();
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;

@@ -153,7 +153,7 @@ inline constexpr Axis kAxes[] = {
     {.name = "lang",
      .field = FieldOf<&Variant::lang>(),
      .values = {V(Lang::kOpenCl, "opencl"), V(Lang::kCuda, "cuda"), V(Lang::kGlslCompute, "glsl-compute"),
-                V(Lang::kGlslVertex, "glsl-vertex"), V(Lang::kVulkan, "vulkan")},
+                V(Lang::kGlslVertex, "glsl-vertex"), V(Lang::kVulkan, "vulkan"), V(Lang::kCpu, "cpu")},
      .key_hint = "<lang>",
      .define = kNoDefine,  // a template per language
      .covering = Covering::kPerSet,
@@ -283,8 +283,10 @@ constexpr bool JoinsNext(std::size_t i) { return i + 1 < kAxisCount && kAxes[i +
 // Every axis's code, in table order: the search coordinates of a variant.
 std::array<int, kAxisCount> AxisCodes(const Variant& v);
 
-// glsl-vertex has no work-groups: its wg_size, vertices_per_item and assignment are wg0 / v1c.
-constexpr bool HasWorkGroups(Lang lang) { return lang != Lang::kGlslVertex; }
+// glsl-vertex and cpu have no work-groups: their wg_size, vertices_per_item and
+// assignment are wg0 / v1c (cpu threads and chunks are chosen per machine by
+// measurement, runtime/backends/cpu/cpu_runner.h).
+constexpr bool HasWorkGroups(Lang lang) { return lang != Lang::kGlslVertex && lang != Lang::kCpu; }
 // `v` with the no-work-group values when its language has no work-groups.
 Variant CollapseWorkGroups(Variant v);
 

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <string>
 
+#include "generator/axes.h"
+
 namespace skintune {
 
 namespace {
@@ -39,10 +41,12 @@ void CheckGeometry(const Variant& v, const DeviceLimits& device, std::vector<Vio
     out.push_back({Constraint::kAssignmentRedundant,
                    "strided assignment with 1 vertex per item is the contiguous kernel (use v1c)"});
   }
-  if (v.lang == Lang::kGlslVertex) {
+  if (!HasWorkGroups(v.lang)) {
     if (v.wg_size != 0 || v.vertices_per_item != 1) {
       out.push_back({Constraint::kNoWorkGroups,
-                     "glsl-vertex runs one vertex per invocation without work-groups: needs v1c and wg0"});
+                     v.lang == Lang::kCpu
+                         ? "cpu has no work-groups (its threads and chunks are chosen per machine): needs v1c and wg0"
+                         : "glsl-vertex runs one vertex per invocation without work-groups: needs v1c and wg0"});
     }
     return;
   }

@@ -22,6 +22,7 @@ const char* CopyTemplate(Lang lang) {
     case Lang::kGlslCompute:
     case Lang::kGlslVertex:
     case Lang::kVulkan: return "copy.comp";  // Vulkan: VULKAN selects push constants
+    case Lang::kCpu: return "copy.cpu";      // the all-thread memcpy compiled into skintune
   }
   return "";
 }

@@ -107,6 +107,8 @@ std::string InstanceRule(Lang lang) {
       return "K instances: glDispatchCompute(items / wg_size, K, 1), instance i = gl_WorkGroupID.y";
     case Lang::kVulkan:
       return "K instances: vkCmdDispatch(items / wg_size, K, 1), instance i = gl_WorkGroupID.y";
+    case Lang::kCpu:
+      return "K instances: the host loops over the instances; instance i = the loop's index";
     case Lang::kGlslVertex:
       return "K instances: glDrawArraysInstanced(GL_POINTS, 0, n, K), instance i = gl_InstanceID; the capture "
              "holds the K instances' n vertices one instance after another";
@@ -205,6 +207,7 @@ const char* TemplateFile(Lang lang) {
     case Lang::kGlslCompute: return "skin.comp";
     case Lang::kGlslVertex: return "skin.vert";
     case Lang::kVulkan: return "skin.comp";  // the same compute stage: VULKAN (predefined) selects push constants
+    case Lang::kCpu: return "skin.cpu";      // parameters only: the kernels are compiled into skintune
   }
   return "";
 }
@@ -285,6 +288,7 @@ nlohmann::json InstancingJson(const KernelSource& source) {
     case Lang::kGlslCompute:
     case Lang::kVulkan: instance = "gl_WorkGroupID.y"; break;
     case Lang::kGlslVertex: instance = "gl_InstanceID"; break;
+    case Lang::kCpu: instance = "the host's instance loop"; break;
   }
   nlohmann::json j = {
       {"instance", instance},

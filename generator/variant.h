@@ -28,7 +28,9 @@
 
 namespace skintune {
 
-enum class Lang { kOpenCl, kCuda, kGlslCompute, kGlslVertex, kVulkan };
+// kCpu: the fast CPU path's kernels (reference/cpu_kernels.h), compiled into
+// skintune and selected by the parameters of the kernel text (templates/skin.cpu).
+enum class Lang { kOpenCl, kCuda, kGlslCompute, kGlslVertex, kVulkan, kCpu };
 // Whether the kernel text is GLSL: glsl-compute, glsl-vertex, and vulkan (the
 // compute template compiled to SPIR-V; GL_KHR_vulkan_glsl's predefined VULKAN
 // selects its push constants).

@@ -8,9 +8,10 @@
 //               over the mesh's array-of-structures data (blend the matrices,
 //               then transform). The denominator of every speedup.
 // - FastSkinner: the honest CPU competitor: structure-of-arrays copy of the
-//               mesh made once, a loop specialised per influence count that
-//               the compiler vectorises (AVX-512/AVX2 clones chosen at run
-//               time), all cores through a persistent thread pool.
+//               mesh made once, the CPU kernel family's kernel for its
+//               influence count (reference/cpu_kernels.h: AVX-512 / AVX2 /
+//               baseline tables chosen at run time, streaming stores), all
+//               cores through a persistent thread pool.
 //
 // Preconditions: palette.size() == mesh.joint_count and output spans of
 // vertex_count() elements (violations throw Error). SkinGold and FastSkinner's

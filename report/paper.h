@@ -39,8 +39,8 @@ inline constexpr const char* kPaperResultKind = "skintune-paper-result";
 // form is the vertex shader, the tuned winner may be a compute shader).
 // Vulkan (compute, SPIR-V) is skintune's fourth API: Table 1 compares it
 // with OpenCL on the same chip too, with no figure of the paper's.
-enum class PaperApi { kOpenCl, kCuda, kGlsl, kVulkan };
-inline constexpr int kPaperApiCount = 4;
+enum class PaperApi { kOpenCl, kCuda, kGlsl, kVulkan, kCpu };
+inline constexpr int kPaperApiCount = 5;
 const char* Name(PaperApi);                // "opencl", "cuda", "glsl", "vulkan"
 const char* DisplayName(PaperApi);         // "OpenCL", "CUDA", "GLSL", "Vulkan"
 PaperApi ApiOf(Lang lang);

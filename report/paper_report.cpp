@@ -25,6 +25,7 @@ PaperApi ApiOfBackend(const std::string& backend, PaperApi otherwise) {
   if (backend == "cuda") return PaperApi::kCuda;
   if (backend == "gl") return PaperApi::kGlsl;
   if (backend == "vulkan") return PaperApi::kVulkan;
+  if (backend == "cpu") return PaperApi::kCpu;
   return otherwise;
 }
 

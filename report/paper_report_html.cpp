@@ -73,6 +73,7 @@ const char* ApiColour(PaperApi api) {
     case PaperApi::kCuda: return "#16a34a";
     case PaperApi::kGlsl: return "#ea580c";
     case PaperApi::kVulkan: return "#9333ea";
+    case PaperApi::kCpu: return "#0f766e";  // the cpu device (the fast path's kernels), not the CPU baselines' grey
   }
   return "#6b7280";
 }

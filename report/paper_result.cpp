@@ -91,6 +91,7 @@ const char* Name(PaperApi api) {
     case PaperApi::kCuda: return "cuda";
     case PaperApi::kGlsl: return "glsl";
     case PaperApi::kVulkan: return "vulkan";
+    case PaperApi::kCpu: return "cpu";
   }
   return "?";
 }
@@ -101,6 +102,7 @@ const char* DisplayName(PaperApi api) {
     case PaperApi::kCuda: return "CUDA";
     case PaperApi::kGlsl: return "GLSL";
     case PaperApi::kVulkan: return "Vulkan";
+    case PaperApi::kCpu: return "CPU";
   }
   return "?";
 }
@@ -119,6 +121,7 @@ PaperApi ApiOf(Lang lang) {
     case Lang::kGlslCompute:
     case Lang::kGlslVertex: return PaperApi::kGlsl;
     case Lang::kVulkan: return PaperApi::kVulkan;
+    case Lang::kCpu: return PaperApi::kCpu;
   }
   return PaperApi::kOpenCl;
 }

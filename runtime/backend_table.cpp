@@ -13,9 +13,10 @@ BackendEntry OpenClEntry();
 BackendEntry CudaEntry();
 BackendEntry GlEntry();
 BackendEntry VulkanEntry();
+BackendEntry CpuEntry();
 
 const std::vector<BackendEntry>& Backends() {
-  static const std::vector<BackendEntry> table = {OpenClEntry(), CudaEntry(), GlEntry(), VulkanEntry()};
+  static const std::vector<BackendEntry> table = {OpenClEntry(), CudaEntry(), GlEntry(), VulkanEntry(), CpuEntry()};
   return table;
 }
 

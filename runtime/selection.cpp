@@ -5,6 +5,7 @@
 #include <sstream>
 #include <tuple>
 
+#include "generator/axes.h"
 #include "runtime/api_errors.h"
 #include "runtime/backend_table.h"
 
@@ -125,7 +126,7 @@ Variant GenericDefault(Lang lang, int influences, bool normals, const DeviceLimi
   v.blend = Blend::kMatrix;
   v.vertices_per_item = 1;
   v.assignment = Assignment::kContiguous;
-  v.wg_size = lang == Lang::kGlslVertex ? 0 : limits.max_wg_size >= 64 ? 64 : 32;
+  v.wg_size = !HasWorkGroups(lang) ? 0 : limits.max_wg_size >= 64 ? 64 : 32;
   v.normals = normals;
   return v;
 }

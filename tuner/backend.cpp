@@ -273,6 +273,21 @@ std::string HangLoop(const KernelSource& source, const std::string& input) {
 }  // namespace
 
 void InjectFault(KernelSource& source, const Variant& variant, const std::string& kind) {
+  if (source.lang == Lang::kCpu) {
+    // The cpu kernel text is a parameter block (templates/skin.cpu): a line
+    // that is not one fails its build; the wrong and hang faults are
+    // parameters the cpu device honours (runtime/backends/cpu/cpu_runner.cpp).
+    if (kind == "compile") {
+      source.text += "\nskintune injected compile fault: this is not a parameter (\n";
+    } else if (kind == "wrong" || kind == "hang") {
+      source.text += std::string("#define ") + (kind == "wrong" ? "SKINTUNE_FAULT_WRONG" : "SKINTUNE_FAULT_HANG") +
+                     " 1  // skintune injected fault: " + kind + "\n";
+    } else {
+      throw Error("injected fault: unknown kind '" + kind + "' (compile, wrong, hang or crash)");
+    }
+    source.source_hash = SourceHash(source.text);
+    return;
+  }
   const bool glsl = IsGlslText(source.lang);
   const std::string input = variant.layout == Layout::kAos ? "records" : "positions";
   // Every template skins a vertex with one call whose last two arguments are

@@ -37,6 +37,7 @@ const char* Extension(Lang lang) {
     case Lang::kGlslCompute: return ".comp";
     case Lang::kGlslVertex: return ".vert";
     case Lang::kVulkan: return ".vk.comp";
+    case Lang::kCpu: return ".cpu";
   }
   return "";
 }

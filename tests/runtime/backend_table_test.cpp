@@ -20,11 +20,12 @@ namespace {
 
 TEST(BackendTable, ListsTheApisInTheOrderOfThePublicEnum) {
   const std::vector<BackendEntry>& table = Backends();
-  ASSERT_EQ(table.size(), 4u);
+  ASSERT_EQ(table.size(), 5u);
   EXPECT_STREQ(BackendName(Backend::kOpenCl), "opencl");
   EXPECT_STREQ(BackendName(Backend::kCuda), "cuda");
   EXPECT_STREQ(BackendName(Backend::kGl), "gl");
   EXPECT_STREQ(BackendName(Backend::kVulkan), "vulkan");
+  EXPECT_STREQ(BackendName(Backend::kCpu), "cpu");
   for (std::size_t i = 0; i < table.size(); ++i) {
     EXPECT_STREQ(BackendName(static_cast<Backend>(i)), table[i].name);
     EXPECT_EQ(FindBackend(table[i].name), &table[i]);
@@ -32,19 +33,21 @@ TEST(BackendTable, ListsTheApisInTheOrderOfThePublicEnum) {
   }
   EXPECT_STREQ(BackendName(static_cast<Backend>(table.size())), "unknown");
   EXPECT_EQ(FindBackend("metal"), nullptr);
-  EXPECT_EQ(JoinedBackendNames(), "opencl, cuda, gl or vulkan");
-  EXPECT_EQ(JoinedBackendNames(true), "OpenCL, CUDA, GL or Vulkan");
+  EXPECT_EQ(JoinedBackendNames(), "opencl, cuda, gl, vulkan or cpu");
+  EXPECT_EQ(JoinedBackendNames(true), "OpenCL, CUDA, GL, Vulkan or CPU");
 }
 
 TEST(BackendTable, EveryLanguageRunsOnExactlyOneBackend) {
   std::multiset<Lang> seen;
   for (const BackendEntry& b : Backends()) seen.insert(b.languages.begin(), b.languages.end());
-  for (const Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex, Lang::kVulkan})
+  for (const Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex, Lang::kVulkan, Lang::kCpu})
     EXPECT_EQ(seen.count(lang), 1u) << Name(lang);
-  EXPECT_EQ(seen.size(), 5u);
+  EXPECT_EQ(seen.size(), 6u);
   EXPECT_EQ(LanguagesOf(Backend::kGl), (std::vector<Lang>{Lang::kGlslCompute, Lang::kGlslVertex}));
   EXPECT_EQ(LanguagesOf(Backend::kVulkan), (std::vector<Lang>{Lang::kVulkan}));
-  EXPECT_EQ(LanguageNames(), (std::vector<std::string>{"opencl", "cuda", "glsl-compute", "glsl-vertex", "vulkan"}));
+  EXPECT_EQ(LanguagesOf(Backend::kCpu), (std::vector<Lang>{Lang::kCpu}));
+  EXPECT_EQ(LanguageNames(),
+            (std::vector<std::string>{"opencl", "cuda", "glsl-compute", "glsl-vertex", "vulkan", "cpu"}));
 }
 
 TEST(BackendTable, DiscoveryFindsEveryOpenClDeviceAndSaysWhyAnApiIsMissing) {
@@ -55,7 +58,9 @@ TEST(BackendTable, DiscoveryFindsEveryOpenClDeviceAndSaysWhyAnApiIsMissing) {
     with_devices.insert(d.identity.backend);
     EXPECT_EQ(d.identity.index, 0);
     EXPECT_TRUE(d.open) << d.identity.Id();
-    EXPECT_GT(d.limits.max_wg_size, 0u) << d.identity.Id();
+    if (d.identity.backend != "cpu") {  // cpu: no work-groups
+      EXPECT_GT(d.limits.max_wg_size, 0u) << d.identity.Id();
+    }
     // The public identity is the same device id.
     EXPECT_EQ(PublicInfo(d.identity).id, d.identity.Id());
     EXPECT_STREQ(BackendName(PublicInfo(d.identity).backend), d.identity.backend.c_str());

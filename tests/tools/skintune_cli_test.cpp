@@ -80,9 +80,9 @@ TEST(SkintuneCli, DevicesListsEveryApisDevicesByIdOrWhyNone) {
                               d.at("name").get<std::string>() + "/" + d.at("driver_version").get<std::string>());
   }
   for (const auto& s : j.at("skipped")) apis.insert(s.get<std::string>().substr(0, s.get<std::string>().find(':')));
-  EXPECT_EQ(apis, (std::set<std::string>{"opencl", "cuda", "gl", "vulkan"})) << j.dump(2);
+  EXPECT_EQ(apis, (std::set<std::string>{"opencl", "cuda", "gl", "vulkan", "cpu"})) << j.dump(2);
   const auto text = RunSkintune({"devices"});
-  EXPECT_NE(text.out.find("Devices (OpenCL, CUDA, GL or Vulkan):"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("Devices (OpenCL, CUDA, GL, Vulkan or CPU):"), std::string::npos) << text.out;
 }
 
 TEST(SkintuneCli, SkinDatasetWritesOneVLinePerVertexMatchingTheGold) {

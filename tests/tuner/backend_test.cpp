@@ -589,6 +589,39 @@ TEST(VulkanBackend, InjectedCompileAndWrongFaultsAreCompileAndVerifyFailed) {
   }
 }
 
+// ---------------------------------------------------------------- cpu (the fast path's kernels, every machine)
+
+TEST(CpuBackend, MeasuresVariantsWithTheSameSizeCopyAndRecordsFaults) {
+  BACKEND_OR_SKIP(backend, "cpu");
+  EXPECT_EQ(backend->languages(), std::vector<Lang>{Lang::kCpu});
+  EXPECT_EQ(backend->identity().Id().rfind("cpu:skintune/", 0), 0u) << backend->identity().Id();
+  for (const char* key : {"cpu.b2.padded.soa-split.float3.u8.unorm16.mat4.global.matrix.v1c.wg0.nonormals",
+                          "cpu.b2.bucketed.aos.float4.i32.f32.mat3x4.global.point.v1c.wg0.nonormals"}) {
+    SCOPED_TRACE(key);
+    const Measurement m = backend->Measure(ParseVariantKey(key), {kDataset}, SmallTiming());
+    ExpectOk(m, *backend, kDataset);
+    EXPECT_GT(m.timing.copy_ms, 0.0) << "the all-thread memcpy of the same bytes";
+    EXPECT_NEAR(m.x_copy, m.timing.median_ms / m.timing.copy_ms, 1e-9 * m.x_copy);
+  }
+  EXPECT_GT(backend->CopyBandwidthGBps(16u << 20), 0.0);
+  const Variant v = ParseVariantKey("cpu.b2.soa.v1c.wg0");
+  {
+    ScopedFault f(v.Key() + "=compile");
+    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << Name(m.status) << ": " << m.detail;
+    EXPECT_NE(m.detail.find("CPU build"), std::string::npos) << m.detail;
+  }
+  {
+    ScopedFault f(v.Key() + "=wrong");
+    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << Name(m.status) << ": " << m.detail;
+    EXPECT_GT(m.max_relative_error, 1e-5);
+  }
+  // Storages other than global are invalid on the device, recorded so.
+  const Measurement local = backend->Measure(ParseVariantKey("cpu.b2.soa.local.v1c.wg0"), {kDataset}, SmallTiming());
+  EXPECT_EQ(local.status, MeasureStatus::kInvalid) << local.detail;
+}
+
 // ---------------------------------------------------------------- CUDA (where there is a GPU)
 
 TEST(CudaBackend, MeasuresVariantsAndInjectedFaults) {

@@ -190,7 +190,7 @@ TEST(Report, MalformedReportsNameTheElement) {
   j["measurements"][2]["device_id"] = "metal:Apple/M3/1.0";  // found by winners_db_fuzz: merged into an unreadable database
   EXPECT_EQ(ErrorOf([&] { ReportFromJson(j, "r.json"); }),
             "r.json: measurements[2]: device id 'metal:Apple/M3/1.0' has unknown backend 'metal' (expected opencl, cuda, "
-            "gl or vulkan)");
+            "gl, vulkan or cpu)");
   j = good;
   j["kind"] = "something";
   EXPECT_NE(ErrorOf([&] { ReportFromJson(j, "r.json"); }).find("kind"), std::string::npos);

@@ -338,7 +338,7 @@ TEST(TuneCli, BadLanguageAndDeviceAreOneLine) {
   EXPECT_EQ(lang.result.exit_code, 1);
   EXPECT_EQ(lang.result.err,
             "skintune: error: --lang 'metal': unknown language (expected one of opencl, cuda, glsl-compute, "
-            "glsl-vertex, vulkan)\n");
+            "glsl-vertex, vulkan, cpu)\n");
   EXPECT_TRUE(lang.report_untouched);
   const BadRun device = RunIntoExistingOut(dir, {"--config", config, "--device", "no-such-gpu"});
   EXPECT_EQ(device.result.exit_code, 1);
@@ -500,6 +500,51 @@ TEST(TuneCliPrecision, BadMaxErrorIsOneLineNamingTheFlagOrField) {
 
 // ------------------------------------------------------------------ the default run
 
+// The cpu device (the fast path's kernels) is tuned like any device: every
+// variant verified and timed against its same-size copy, the storages it
+// cannot hold recorded invalid, a winner in the report, the winners database
+// and the HTML and Markdown reports.
+TEST(TuneCli, CpuDeviceQuickTuneVerifiesTimesAndWritesAWinner) {
+  const fs::path dir = Scratch();
+  nlohmann::json config = TinyConfig({"global", "local"}, {"soa", "soa-split", "aos"}, {64});
+  config["space"]["lang"] = {"cpu"};
+  config["space"]["index"] = {"u8"};
+  config["space"]["weight"] = {"f32", "unorm16"};
+  const fs::path out = dir / "out";
+  const auto r = RunSkintune({"tune", "--config", WriteConfig(dir, config), "--out", out.string(), "--device", "cpu"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(out / "report.json"));
+  ASSERT_EQ(report.at("devices").size(), 1u) << report.at("devices").dump(2);
+  EXPECT_EQ(report.at("devices")[0].at("backend"), "cpu");
+  std::size_t ok = 0, invalid = 0;
+  for (const Measurement& m : ReportMeasurements(report)) {
+    EXPECT_EQ(m.variant.lang, Lang::kCpu);
+    EXPECT_EQ(m.variant.wg_size, 0) << "no work-groups: " << m.variant.Key();
+    if (m.status == MeasureStatus::kOk) {
+      ++ok;
+      EXPECT_GT(m.timing.median_ms, 0.0);
+      EXPECT_GT(m.x_copy, 0.0) << m.variant.Key();
+      EXPECT_LT(m.max_relative_error, 1e-5);
+    } else {
+      EXPECT_EQ(m.status, MeasureStatus::kInvalid) << m.variant.Key() << ": " << m.detail;
+      EXPECT_EQ(m.variant.storage, PaletteStorage::kLocal) << m.variant.Key();
+      ++invalid;
+    }
+  }
+  EXPECT_EQ(ok, 6u);  // 3 layouts x 2 weight formats
+  EXPECT_EQ(invalid, 6u);
+  ASSERT_FALSE(report.at("winners").empty());
+  for (const nlohmann::json& w : report.at("winners")) EXPECT_EQ(w.at("lang"), "cpu") << w.dump();
+  const nlohmann::json db = nlohmann::json::parse(ReadAll(out / "winners-db.json"));
+  ASSERT_FALSE(db.at("entries").empty());
+  EXPECT_EQ(db.at("entries")[0].at("backend"), "cpu");
+  const auto html = RunSkintune({"report", (out / "report.json").string(), "-o", (dir / "report.html").string(),
+                                 "--markdown", (dir / "report.md").string()});
+  ASSERT_EQ(html.exit_code, 0) << html.err;
+  EXPECT_NE(ReadAll(dir / "report.html").find("cpu.b2"), std::string::npos);
+  EXPECT_NE(ReadAll(dir / "report.md").find("cpu.b2"), std::string::npos);
+}
+
 TEST(TuneCli, DefaultRunWithNoArgumentsTunesPoclGlAndCudaWhereFound) {
   const fs::path dir = Scratch();
   const fs::path cwd = fs::current_path();
@@ -537,6 +582,11 @@ TEST(TuneCli, DefaultRunWithNoArgumentsTunesPoclGlAndCudaWhereFound) {
   bool vulkan_tuned = false;
   for (const nlohmann::json& d : report.at("devices")) vulkan_tuned = vulkan_tuned || d.at("backend") == "vulkan";
   if (vulkan_tuned) expected.insert("vulkan");
+  // And the cpu device, on every machine.
+  bool cpu_tuned = false;
+  for (const nlohmann::json& d : report.at("devices")) cpu_tuned = cpu_tuned || d.at("backend") == "cpu";
+  EXPECT_TRUE(cpu_tuned) << report.at("devices").dump(2);
+  expected.insert("cpu");
   EXPECT_EQ(languages, expected);
   for (const char* file : {"cache.jsonl", "report.t4.json", "winners-db.json"}) {
     EXPECT_TRUE(fs::exists(dir / "results" / file)) << file;

@@ -97,8 +97,12 @@ class Result {
 
 // ---------------------------------------------------------------- devices
 
-enum class Backend { kOpenCl, kCuda, kGl, kVulkan };
-const char* BackendName(Backend backend);  // "opencl", "cuda", "gl", "vulkan"
+// kCpu: the host CPU running skintune's own fast-path kernels (language
+// "cpu"; threads, chunks and streaming stores chosen per machine by
+// measurement on the first frames a Skinner runs, which therefore take longer).
+// Device::OpenBest ranks it last.
+enum class Backend { kOpenCl, kCuda, kGl, kVulkan, kCpu };
+const char* BackendName(Backend backend);  // "opencl", "cuda", "gl", "vulkan", "cpu"
 
 // A device's identity, as `skintune tune` records it in its reports and winners databases.
 struct DeviceInfo {

@@ -1,0 +1,326 @@
+#include "runtime/backends/cpu/cpu_runner.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include "reference/error.h"
+#include "reference/thread_pool.h"
+#include "runtime/backends/cpu/cpu_streams.h"
+
+namespace skintune {
+
+namespace {
+
+[[noreturn]] void Fail(const std::string& stage, const std::string& message) {
+  throw Error("CPU " + stage + ": " + message);
+}
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+// Host memory, 64-byte aligned (cache lines; the kernels' 16-byte streaming
+// stores need 16).
+class CpuBuffer final : public DeviceBuffer {
+ public:
+  CpuBuffer(std::size_t bytes, const void* initial) : DeviceBuffer(bytes) {
+    data_ = static_cast<std::uint8_t*>(std::aligned_alloc(64, (std::max<std::size_t>(bytes, 1) + 63) / 64 * 64));
+    if (!data_) throw std::bad_alloc();
+    if (initial) std::memcpy(data_, initial, bytes);
+  }
+  ~CpuBuffer() override { std::free(data_); }
+  void* native() const override { return data_; }
+  std::uint8_t* data() const { return data_; }
+
+ private:
+  std::uint8_t* data_ = nullptr;
+};
+
+// A built kernel text: the parameters it defines.
+struct Parsed {
+  std::map<std::string, long long> defines;
+  bool copy = false;
+};
+
+class CpuPlanned final : public PlannedLaunch {
+ public:
+  using PlannedLaunch::PlannedLaunch;
+  bool copy = false;
+  CpuKernelFn kernel = nullptr;
+  int palette_rows = 4;
+  bool fault_wrong = false, fault_hang = false;
+};
+
+class CpuBound final : public DeviceObject {
+ public:
+  const CpuPlanned* plan = nullptr;
+  std::vector<const std::uint8_t*> inputs;  // the kernel's input buffers in argument order
+  const CpuBuffer* palette = nullptr;
+  float* out_positions = nullptr;  // at output vertex 0 (the launch adds first)
+  float* out_normals = nullptr;
+  CpuPalette converted;            // this launch's palette in the kernels' form, per frame
+};
+
+}  // namespace
+
+std::string Describe(const CpuChoice& choice) {
+  return Describe(choice.schedule) + (choice.stream_stores ? ", streaming stores" : ", plain stores");
+}
+
+class CpuApi final : public DeviceApi {
+ public:
+  explicit CpuApi(unsigned threads)
+      : max_threads_(threads ? threads : std::max(1u, std::thread::hardware_concurrency())),
+        name_(std::string("host CPU (") + CpuKernelIsa() + " kernels)") {}
+
+  const char* name() const override { return "CPU"; }
+  const std::string& device_name() const override { return name_; }
+  void Build(const KernelSource& source) override { ParsedOf(source); }
+  void CheckRun(const PackedMesh&, std::span<const KernelSource>, const RunShape&) const override {}
+  std::unique_ptr<PlannedLaunch> Plan(const LaunchSpec& spec) override;
+  std::unique_ptr<DeviceBuffer> Allocate(BufferUse, std::size_t bytes, const void* initial,
+                                         const std::string& what) override {
+    try {
+      return std::make_unique<CpuBuffer>(bytes, initial);
+    } catch (const std::bad_alloc&) {
+      Fail("launch", "cannot allocate '" + what + "' (" + std::to_string(bytes) + " bytes)");
+    }
+  }
+  std::unique_ptr<DeviceObject> PaletteView(const Variant&, DeviceBuffer&, const std::string&) override {
+    return nullptr;  // the kernels read the buffer itself (storage global)
+  }
+  std::unique_ptr<DeviceObject> Bind(const PlannedLaunch& launch, std::span<const ArgumentBinding> arguments,
+                                     const SetOptions& options, std::size_t& allocated) override;
+  void FinishUploads(const std::string&) override {}
+  std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
+  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string&) override {
+    std::memcpy(static_cast<CpuBuffer&>(buffer).data(), bytes.data(), std::min(bytes.size(), buffer.bytes()));
+  }
+  void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string&, bool) override {
+    std::memcpy(out.data(), static_cast<const CpuBuffer&>(buffer).data(), std::min(out.size(), buffer.bytes()));
+  }
+  void Finish() override {}
+
+  std::optional<CpuChoice> ScheduleOf(const std::string& key) const {
+    if (const auto found = choices_.find(key); found != choices_.end()) return found->second;
+    return std::nullopt;
+  }
+
+ private:
+  const Parsed& ParsedOf(const KernelSource& source);
+  void RunLaunch(CpuBound& bound, const CpuChoice& choice);
+  void RunFrame(std::span<const std::unique_ptr<DeviceObject>> frame, const CpuChoice& choice);
+  const CpuChoice& ChoiceFor(const FrameRun& run);
+
+  unsigned max_threads_;
+  std::string name_;
+  std::map<std::string, Parsed> built_;  // by source hash
+  std::map<std::string, CpuChoice> choices_;  // by variant key
+  CpuPools pools_;
+};
+
+const Parsed& CpuApi::ParsedOf(const KernelSource& source) {
+  if (source.lang != Lang::kCpu) Fail("build", std::string("kernel language is ") + Name(source.lang));
+  const std::string key = HashOf(source);
+  if (const auto found = built_.find(key); found != built_.end()) return found->second;
+  Parsed parsed;
+  parsed.copy = source.entry_point == "skintune_copy";
+  std::istringstream lines(source.text);
+  std::string line;
+  for (int number = 1; std::getline(lines, line); ++number) {
+    const std::size_t start = line.find_first_not_of(" \t\r");
+    if (start == std::string::npos || line.compare(start, 2, "//") == 0 || line.compare(start, 6, "#line ") == 0)
+      continue;
+    std::istringstream words(line.substr(start));
+    std::string directive, name, value, rest;
+    words >> directive >> name >> value;
+    long long number_value = 0;
+    std::size_t used = 0;
+    bool ok = directive == "#define" && !name.empty() && !value.empty();
+    if (ok) {
+      try {
+        number_value = std::stoll(value, &used);
+      } catch (const std::exception&) {
+        ok = false;
+      }
+    }
+    if (ok && used != value.size()) ok = false;
+    if (ok && (words >> rest) && rest.compare(0, 2, "//") != 0) ok = false;
+    if (!ok)
+      Fail("build", "kernel " + key + " line " + std::to_string(number) + ": '" + line.substr(start) +
+                        "' is not a parameter (#define NAME INTEGER), a #line or a comment");
+    parsed.defines[name] = number_value;
+  }
+  if (!parsed.copy) {
+    for (const char* required : {"INFLUENCES", "INDEX_FORMAT", "WEIGHT_FORMAT", "PALETTE_ROWS", "BLEND_POINT"})
+      if (!parsed.defines.contains(required)) Fail("build", "kernel " + key + ": no #define " + required);
+    const auto& d = parsed.defines;
+    if (d.at("INDEX_FORMAT") < 0 || d.at("INDEX_FORMAT") > 2 || d.at("WEIGHT_FORMAT") < 0 || d.at("WEIGHT_FORMAT") > 2)
+      Fail("build", "kernel " + key + ": INDEX_FORMAT and WEIGHT_FORMAT must be 0, 1 or 2");
+    CpuKernelKey k;
+    k.influences = static_cast<int>(d.at("INFLUENCES"));
+    k.index = static_cast<CpuIndex>(d.at("INDEX_FORMAT"));  // the axes' define values: i32 0, u16 1, u8 2
+    k.weight = static_cast<CpuWeight>(d.at("WEIGHT_FORMAT"));  // f32 0, unorm16 1, unorm8 2
+    k.palette_rows = static_cast<int>(d.at("PALETTE_ROWS"));
+    k.point_blend = d.at("BLEND_POINT") != 0;
+    try {
+      FindCpuKernel(k);
+    } catch (const Error& e) {
+      Fail("build", "kernel " + key + ": " + e.what());
+    }
+  }
+  return built_.emplace(key, std::move(parsed)).first->second;
+}
+
+std::unique_ptr<PlannedLaunch> CpuApi::Plan(const LaunchSpec& spec) {
+  CheckLaunchKernel(spec, "CPU");
+  const Parsed& parsed = ParsedOf(spec.source);
+  auto plan = std::make_unique<CpuPlanned>(spec);
+  plan->copy = parsed.copy;
+  const auto flag = [&](const char* name) {
+    const auto found = parsed.defines.find(name);
+    return found != parsed.defines.end() && found->second != 0;
+  };
+  plan->fault_wrong = flag("SKINTUNE_FAULT_WRONG");
+  plan->fault_hang = flag("SKINTUNE_FAULT_HANG");
+  if (parsed.copy) return plan;
+  if (spec.variant.storage != PaletteStorage::kGlobal)
+    Fail("launch", spec.where + ": storage " + Name(spec.variant.storage) +
+                       ": the cpu kernels read the palette from host memory (storage global only)");
+  const auto& d = parsed.defines;
+  CpuKernelKey k;
+  k.influences = static_cast<int>(d.at("INFLUENCES"));
+  k.index = static_cast<CpuIndex>(d.at("INDEX_FORMAT"));
+  k.weight = static_cast<CpuWeight>(d.at("WEIGHT_FORMAT"));
+  k.palette_rows = static_cast<int>(d.at("PALETTE_ROWS"));
+  k.point_blend = d.at("BLEND_POINT") != 0;
+  plan->kernel = FindCpuKernel(k);
+  plan->palette_rows = k.palette_rows;
+  return plan;
+}
+
+std::unique_ptr<DeviceObject> CpuApi::Bind(const PlannedLaunch& launch, std::span<const ArgumentBinding> arguments,
+                                           const SetOptions&, std::size_t&) {
+  auto bound = std::make_unique<CpuBound>();
+  bound->plan = static_cast<const CpuPlanned*>(&launch);
+  for (const ArgumentBinding& a : arguments) {
+    const auto* buffer = static_cast<const CpuBuffer*>(a.buffer);
+    switch (a.role) {
+      case ArgumentRole::kScalar: break;
+      case ArgumentRole::kInput: bound->inputs.push_back(buffer->data()); break;
+      case ArgumentRole::kPalette: bound->palette = buffer; break;
+      case ArgumentRole::kOutput: {
+        auto* out = reinterpret_cast<float*>(buffer->data());
+        (a.argument->name == "out_normals" ? bound->out_normals : bound->out_positions) = out;
+        break;
+      }
+    }
+  }
+  if (!bound->out_positions) Fail("launch", launch.spec.where + ": no output bound");
+  return bound;
+}
+
+void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
+  const CpuPlanned& plan = *b.plan;
+  const LaunchSpec& spec = plan.spec;
+  if (plan.fault_hang) {
+    for (;;) std::this_thread::sleep_for(std::chrono::milliseconds(10));  // the tuner's hang test: never returns
+  }
+  if (plan.copy) {  // n 16-byte items, one chunk per thread
+    const std::uint8_t* in = b.inputs.at(0);
+    auto* out = reinterpret_cast<std::uint8_t*>(b.out_positions) + std::size_t{spec.first} * 16;
+    const std::size_t bytes = std::size_t{spec.count} * 16;
+    ThreadPool& pool = pools_.Get(max_threads_);
+    const std::size_t grain = (bytes / pool.size() + 4095) / 4096 * 4096;
+    pool.ParallelFor(bytes, std::max<std::size_t>(grain, 4096),
+                     [&](std::size_t begin, std::size_t end) { std::memcpy(out + begin, in + begin, end - begin); });
+    return;
+  }
+  const std::size_t floats = spec.output_stride / sizeof(float);
+  const std::size_t joint_bytes = spec.palette_joints * static_cast<std::size_t>(plan.palette_rows) * 16;
+  ThreadPool& pool = pools_.Get(choice.schedule.threads);
+  for (int i = 0; i < std::max(spec.instances, 1); ++i) {
+    const std::size_t out_first = static_cast<std::size_t>(i) * spec.vertex_count + spec.first;
+    LoadCpuPalette(std::span(b.palette->data() + static_cast<std::size_t>(i) * joint_bytes, joint_bytes),
+                   plan.palette_rows, b.converted);
+    const CpuStreams s = CpuStreamsOf(spec.variant, spec.source.influences, spec.count, b.inputs,
+                                      b.out_positions + out_first * floats,
+                                      b.out_normals ? b.out_normals + out_first * floats : nullptr,
+                                      choice.stream_stores);
+    RunCpuKernel(plan.kernel, s, b.converted, spec.count, pool, choice.schedule.chunk);
+    if (plan.fault_wrong && spec.index == 0) s.out_positions[0] += 1.0f;  // the tuner's wrong-result test
+  }
+}
+
+void CpuApi::RunFrame(std::span<const std::unique_ptr<DeviceObject>> frame, const CpuChoice& choice) {
+  for (const std::unique_ptr<DeviceObject>& launch : frame) RunLaunch(static_cast<CpuBound&>(*launch), choice);
+}
+
+const CpuChoice& CpuApi::ChoiceFor(const FrameRun& run) {
+  if (const auto found = choices_.find(run.key); found != choices_.end()) return found->second;
+  std::size_t vertices = 0;
+  bool copy = false;
+  for (const std::unique_ptr<DeviceObject>& launch : run.frames.front()) {
+    const CpuPlanned& plan = *static_cast<const CpuBound&>(*launch).plan;
+    vertices = std::max<std::size_t>(vertices, plan.spec.count);
+    copy = copy || plan.copy;
+  }
+  CpuChoice best;
+  best.schedule = {max_threads_, std::max<std::size_t>(64, vertices)};
+  if (!copy && !run.frames.empty()) {
+    std::vector<CpuChoice> candidates;
+    for (const CpuSchedule& s : CpuScheduleCandidates(vertices, max_threads_))
+      for (const bool stream : {true, false}) candidates.push_back({s, stream});
+    best = candidates[FastestCandidate(candidates.size(), [&](std::size_t c) {
+      const Clock::time_point start = Clock::now();
+      RunFrame(run.frames.front(), candidates[c]);
+      return MsSince(start);
+    })];
+  }
+  return choices_.emplace(run.key, best).first->second;
+}
+
+std::vector<std::vector<double>> CpuApi::RunFrames(const FrameRun& run) {
+  if (run.frames.empty()) return {};
+  if (run.use == FrameUse::kVerify) {
+    const auto found = choices_.find(run.key);
+    const CpuChoice choice =
+        found != choices_.end() ? found->second : CpuChoice{{max_threads_, 16384}, /*stream_stores=*/true};
+    std::vector<double> ms;
+    for (const std::unique_ptr<DeviceObject>& launch : run.frames.front()) {
+      const Clock::time_point start = Clock::now();
+      RunLaunch(static_cast<CpuBound&>(*launch), choice);
+      ms.push_back(MsSince(start));
+    }
+    return {ms};
+  }
+  const CpuChoice choice = ChoiceFor(run);
+  if (run.use == FrameUse::kLive) {
+    for (const auto& frame : run.frames) RunFrame(frame, choice);
+    return {};
+  }
+  const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
+  const auto burst = static_cast<std::size_t>(std::max(run.burst, 1));
+  for (std::size_t f = 0; f < untimed; ++f) RunFrame(run.frames[f], choice);
+  std::vector<std::vector<double>> ms;
+  for (std::size_t b = 0; b < run.TimedBursts(); ++b) {
+    const Clock::time_point start = Clock::now();
+    for (std::size_t i = 0; i < burst; ++i) RunFrame(run.frames[untimed + b * burst + i], choice);
+    ms.push_back({MsSince(start)});
+  }
+  return ms;
+}
+
+CpuRunner::CpuRunner(unsigned threads) : Runner(std::make_unique<CpuApi>(threads)) {}
+
+std::optional<CpuChoice> CpuRunner::ScheduleOf(const std::string& key) const {
+  return static_cast<const CpuApi&>(api()).ScheduleOf(key);
+}
+
+}  // namespace skintune

@@ -1,0 +1,48 @@
+// skintune (internal): the runner driver (runtime/runner.h) on the host CPU,
+// running the fast path's kernels (reference/cpu_kernels.h) as the cpu
+// language. Its DeviceApi (cpu_runner.cpp):
+//
+// - Build: the kernel text is a parameter block (templates/skin.cpu): its
+//   #define lines select the kernel of the table (B, index and weight
+//   formats, palette rows, blend); any other line that is not a comment or
+//   #line fails with Error("CPU build: ..."). The copy (templates/copy.cpu)
+//   is an all-thread memcpy.
+// - Buffers are 64-byte-aligned host memory; palettes are reordered per
+//   frame into the kernels' column blocks (LoadCpuPalette).
+// - Launches run on a thread pool in chunks; instanced launches loop over
+//   the instances.
+// - Schedule: threads, chunk size and streaming stores are chosen per
+//   variant by measurement on the first timed (or live) frames: every
+//   candidate (CpuScheduleCandidates x streaming on/off) runs the variant's
+//   own frame, the fastest median wins (ScheduleOf says which). The copy
+//   runs on every thread, one chunk per thread.
+// - Times: the host's steady clock around each launch (verify) or each
+//   burst (time).
+// Errors name the stage: "CPU setup", "build", "launch" or "guard".
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "reference/cpu_kernels.h"
+#include "runtime/runner.h"
+
+namespace skintune {
+
+// What the cpu device chose for a variant.
+struct CpuChoice {
+  CpuSchedule schedule;
+  bool stream_stores = true;
+};
+// "2 threads x 16384-vertex chunks, streaming stores"
+std::string Describe(const CpuChoice& choice);
+
+class CpuRunner final : public Runner {
+ public:
+  // `threads`: the most threads a schedule may use (0: every logical CPU).
+  explicit CpuRunner(unsigned threads = 0);
+  // The choice made for the variant `key` by its first timed or live frames, if any.
+  std::optional<CpuChoice> ScheduleOf(const std::string& key) const;
+};
+
+}  // namespace skintune

@@ -1,0 +1,27 @@
+// skintune (internal): the CPU kernels (reference/cpu_kernels.h) on the bytes
+// the packer lays out for a variant (generator/packer.h), so that a cpu
+// variant reads exactly what the GPU variants read: layouts aos / soa /
+// soa-split, positions float4 / float3, indices i32 / u16 / u8, weights f32 /
+// unorm16 / unorm8, palettes mat4 / mat3x4.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "generator/packer.h"
+#include "reference/cpu_kernels.h"
+
+namespace skintune {
+
+// The kernel of `variant` for a launch of `influences` (its palette rows and formats).
+CpuKernelKey CpuKeyOf(const Variant& variant, int influences);
+
+// The streams of one launch of `count` vertices and `influences` slots:
+// `inputs` are its buffers in argument order (aos: records; soa, soa-split:
+// positions, indices, weights[, normals]); the outputs point at the launch's
+// first output vertex. Throws Error for the wrong number of inputs.
+CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t count,
+                        std::span<const std::uint8_t* const> inputs, float* out_positions, float* out_normals,
+                        bool stream_stores);
+
+}  // namespace skintune

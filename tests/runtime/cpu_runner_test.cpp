@@ -1,0 +1,188 @@
+// The language cpu (the fast path's kernels, reference/cpu_kernels.h) through
+// the runner driver on the host: every kernel of the table (B 1..8 x index
+// u32/u16/u8 x weight f32/unorm16/unorm8 x mat4/mat3x4 x matrix/point) on
+// fresh random meshes against the float64 gold of the weights as the
+// variant stores them, with poisoned outputs and guards, across the three
+// layouts, both position formats and normals; bucketed meshes, instances,
+// timing with the per-variant schedule choice, the same-size copy, and the
+// errors of bad kernel texts and storages. The seed is printed;
+// SKINTUNE_TEST_SEED=<n> reproduces a run.
+#include <gtest/gtest.h>
+
+#include <iostream>
+
+#include "generator/copy_kernel.h"
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "reference/cpu_kernels.h"
+#include "reference/error.h"
+#include "runner_test_support.h"
+#include "runtime/backend_table.h"
+#include "runtime/backends/cpu/cpu_runner.h"
+
+namespace skintune {
+namespace {
+
+using namespace skintune::testing;  // the runner tests' helpers (runner_test_support.h)
+
+CpuRunner& Runner() {
+  static CpuRunner runner;
+  static const bool once = [] {
+    std::cout << "[ cpu      ] " << runner.device_name() << ", seed " << Seed() << "\n";
+    return true;
+  }();
+  (void)once;
+  return runner;
+}
+
+// The variant running the table's kernel `key`, its layout, position format
+// and normals rotated by `i`.
+Variant VariantOf(const CpuKernelKey& key, std::size_t i) {
+  Variant v = ParseVariantKey("cpu.v1c.wg0.global");
+  v.influences = key.influences;
+  switch (key.index) {
+    case CpuIndex::kU32: v.index = IndexFormat::kI32; break;
+    case CpuIndex::kU16: v.index = IndexFormat::kU16; break;
+    case CpuIndex::kU8: v.index = IndexFormat::kU8; break;
+  }
+  switch (key.weight) {
+    case CpuWeight::kF32: v.weight = WeightFormat::kF32; break;
+    case CpuWeight::kUnorm16: v.weight = WeightFormat::kUnorm16; break;
+    case CpuWeight::kUnorm8: v.weight = WeightFormat::kUnorm8; break;
+  }
+  v.palette = key.palette_rows == 3 ? PaletteFormat::kMat3x4 : PaletteFormat::kMat4;
+  v.blend = key.point_blend ? Blend::kPoint : Blend::kMatrix;
+  const Layout layouts[] = {Layout::kAos, Layout::kSoa, Layout::kSoaSplit};
+  v.layout = layouts[i % 3];
+  v.position = (i / 3) % 2 ? PositionFormat::kFloat3 : PositionFormat::kFloat4;
+  v.normals = (i / 2) % 2 == 1;
+  return v;
+}
+
+TEST(CpuRunner, EveryKernelOfTheTableMatchesTheGold) {
+  const std::vector<CpuKernelKey> keys = AllCpuKernelKeys();
+  ASSERT_EQ(keys.size(), 8u * 3 * 3 * 2 * 2);
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const Variant variant = VariantOf(keys[i], i);
+    const std::string mesh = "b" + std::to_string(variant.influences) + (i % 2 ? "-random" : "");
+    SCOPED_TRACE(CpuKernelName(keys[i]) + ": " + variant.Key() + " on " + mesh + ", seed " + std::to_string(Seed()));
+    ExpectRunMatchesGold(Runner(), variant, mesh, LaunchTimes::kNonNegative);
+    if (HasFailure()) return;  // one failing kernel says enough
+  }
+}
+
+TEST(CpuRunner, BucketedCesiumManRunsOneKernelPerInfluenceCount) {
+  const Case c{"cpu.b4.bucketed.soa-split.float3.u8.unorm16.mat4.global.matrix.v1c.wg0.normals", "cesium"};
+  ExpectCaseMatchesGold(Runner(), c, ParseVariantKey(c.key), LaunchTimes::kNonNegative);
+}
+
+TEST(CpuRunner, InstancesEachSkinWithTheirOwnPalette) {
+  for (const InstanceCase c : {InstanceCase{"cpu.b2.padded.soa.float4.u16.f32.mat4.global.matrix.v1c.wg0", "b2", 3},
+                               InstanceCase{"cpu.b4.bucketed.aos.float3.u8.unorm8.mat3x4.global.point.v1c.wg0.normals",
+                                            "cesium", 2}}) {
+    SCOPED_TRACE(c.key);
+    DeviceLimits limits;
+    limits.image_support = false;
+    ExpectInstanceCaseMatchesGold(Runner(), c, limits);
+  }
+}
+
+TEST(CpuRunner, TimingChoosesThreadsChunksAndStoresPerVariantAndTimesTheCopy) {
+  const SkinnedAsset& asset = Asset("b4");
+  const Variant variant = ParseVariantKey("cpu.b4.padded.soa-split.float3.u8.unorm16.mat4.global.matrix.v1c.wg0");
+  const PackedMesh packed = Pack(asset.mesh, variant);
+  const std::vector<KernelSource> kernels = {Emit(variant, 0, static_cast<int>(packed.palette_joints))};
+  const std::vector<std::vector<std::uint8_t>> sets = {PackPalette(Palette(asset), variant),
+                                                       PackPalette(asset.PaletteAt(-1, 0.0), variant)};
+  EXPECT_FALSE(Runner().ScheduleOf(variant.Key()).has_value());
+  const Prepared prepared = Runner().Prepare(packed, kernels, sets);
+  for (const int frames : {1, 4}) {
+    const std::vector<double> ms = Runner().Time(prepared, 2, 5, frames);
+    ASSERT_EQ(ms.size(), 5u) << frames << " frames per burst";
+    for (const double t : ms) EXPECT_GT(t, 0.0);
+  }
+  const std::optional<CpuChoice> choice = Runner().ScheduleOf(variant.Key());
+  ASSERT_TRUE(choice.has_value());
+  EXPECT_GE(choice->schedule.threads, 1u);
+  EXPECT_GT(choice->schedule.chunk, 0u);
+  std::cout << "[ schedule ] " << Describe(*choice) << "\n";
+  // The chosen schedule is the one verification uses afterwards: still the gold.
+  ExpectRunMatchesGold(Runner(), variant, "b4", LaunchTimes::kNonNegative);
+
+  const CopyKernel copy = EmitCopy(Lang::kCpu, 1 << 20);
+  EXPECT_EQ(copy.kernel.lang, Lang::kCpu);
+  const RunResult copied = Runner().Run(copy.mesh, std::span<const KernelSource>(&copy.kernel, 1));
+  EXPECT_EQ(copied.poisoned_vertices, 0u);
+  EXPECT_EQ(copied.positions, copy.mesh.launches[0].inputs[0].bytes);
+  const Prepared copies = Runner().PrepareCopy(Lang::kCpu, 1 << 20, 3);
+  const std::vector<double> ms = Runner().Time(copies, 1, 3, 4);
+  ASSERT_EQ(ms.size(), 3u);
+  for (const double t : ms) EXPECT_GT(t, 0.0);
+}
+
+TEST(CpuRunner, KernelTextsThatAreNotParameterBlocksFailToBuildNamingTheLine) {
+  const KernelSource good = Emit(ParseVariantKey("cpu.b2.soa.v1c.wg0"), 0, 77);
+  Runner().Build(good);
+  const auto expect_build_error = [](KernelSource s, const std::string& part) {
+    s.source_hash = SourceHash(s.text);
+    try {
+      Runner().Build(s);
+      ADD_FAILURE() << "built: " << s.text;
+    } catch (const Error& e) {
+      const std::string message = e.what();
+      EXPECT_EQ(message.rfind("CPU build: ", 0), 0u) << message;
+      EXPECT_NE(message.find(part), std::string::npos) << message;
+    }
+  };
+  KernelSource junk = good;
+  junk.text += "float x = 1;\n";
+  expect_build_error(junk, "'float x = 1;' is not a parameter");
+  KernelSource not_a_number = good;
+  not_a_number.text += "#define INFLUENCES four\n";
+  expect_build_error(not_a_number, "'#define INFLUENCES four' is not a parameter");
+  KernelSource nine = good;
+  nine.text += "#define INFLUENCES 9\n";  // the last definition wins
+  expect_build_error(nine, "9 influences (expected 1..8)");
+  KernelSource missing = good;
+  missing.text.replace(missing.text.find("#define WEIGHT_FORMAT"), 2, "//");
+  expect_build_error(missing, "no #define WEIGHT_FORMAT");
+  KernelSource other = good;
+  other.lang = Lang::kOpenCl;
+  expect_build_error(other, "kernel language is opencl");
+}
+
+TEST(CpuRunner, PalettesOutsideHostMemoryAreALaunchError) {
+  // The device's limits rule these out of tuning (constant 0 B, no local
+  // memory, no images); a direct run says why.
+  const Faulty f = WithFault("cpu.b2.soa.constant.v1c.wg0", "", "");
+  ExpectRunFails(Runner(), f, "constant storage ran on the cpu device", {"CPU launch: ", "storage constant"});
+}
+
+TEST(CpuRunner, WrongResultFaultIsCaughtByTheGold) {
+  Faulty f = WithFault("cpu.b2.soa.v1c.wg0", "", "");
+  f.kernels[0].text += "#define SKINTUNE_FAULT_WRONG 1\n";
+  f.kernels[0].source_hash = SourceHash(f.kernels[0].text);
+  const RunResult result = Runner().Run(f.packed, f.kernels, PackPalette(f.palette, f.packed.variant));
+  const GoldComparison c = CompareToGold(SkinGold(Asset("b2").mesh, f.palette).positions, Unpack(f.packed, result.positions));
+  EXPECT_GT(c.max_relative, kTolerance);
+  EXPECT_EQ(c.worst_vertex, 0u);
+}
+
+TEST(CpuDevice, IsOneDeviceInTheTableWithNoWorkGroupsAndHostOnlyPalettes) {
+  const Discovered d = DiscoverDevices("cpu");
+  ASSERT_EQ(d.devices.size(), 1u);
+  const FoundDevice& cpu = d.devices.front();
+  EXPECT_EQ(cpu.identity.Id().rfind("cpu:skintune/", 0), 0u) << cpu.identity.Id();
+  EXPECT_EQ(cpu.identity.type, "cpu");
+  EXPECT_GE(cpu.identity.compute_units, 1u);
+  EXPECT_GT(cpu.identity.last_level_cache_bytes, 0u);
+  const ProblemShape shape{77, 4, false, 1};
+  EXPECT_TRUE(CheckVariant(ParseVariantKey("cpu.b4.soa.global.v1c.wg0"), cpu.limits, shape).empty());
+  for (const char* key : {"cpu.b4.soa.constant.v1c.wg0", "cpu.b4.soa.local.v1c.wg0", "cpu.b4.soa.image.v1c.wg0",
+                          "cpu.b4.soa.global.v1c.wg64", "cpu.b4.soa.global.v2c.wg0"}) {
+    EXPECT_FALSE(CheckVariant(ParseVariantKey(key), cpu.limits, shape).empty()) << key;
+  }
+}
+
+}  // namespace
+}  // namespace skintune
