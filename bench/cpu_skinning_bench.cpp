@@ -300,7 +300,7 @@ void PrintRatios(const std::vector<Row>& cpu, const std::vector<Row>& pocl) {
 
 int Compare(const CompareOptions& options) {
   tuner_internal::DatasetCache datasets;
-  const SkinnedMesh& mesh = datasets.Get(options.dataset).asset.mesh;
+  const SkinnedMesh& mesh = datasets.Get(options.dataset).mesh();
   std::optional<Device> cpu = OpenDevice("cpu", false);
   if (!cpu) throw Error("no cpu device");
   std::optional<Device> pocl;

@@ -99,12 +99,22 @@ class CpuApi final : public DeviceApi {
                                      const SetOptions& options, std::size_t& allocated) override;
   void FinishUploads(const std::string&) override {}
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
-  void Write(DeviceBuffer& buffer, std::span<const std::uint8_t> bytes, const std::string&) override {
-    std::memcpy(static_cast<CpuBuffer&>(buffer).data(), bytes.data(), std::min(bytes.size(), buffer.bytes()));
+  // The frame loop (the Skinner's palette ring): buffers are host memory
+  // and frames run synchronously, done when RunFrames returns, so the
+  // palette is written in place, read-backs read the buffer itself, and no
+  // slot is ever still in use: nothing to stage, mark or wait for.
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string&) override {
+    return {static_cast<CpuBuffer&>(buffer).data(), buffer.bytes()};
   }
+  void Upload(DeviceBuffer&, std::size_t, const std::string&) override {}
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string&, bool) override {
     std::memcpy(out.data(), static_cast<const CpuBuffer&>(buffer).data(), std::min(out.size(), buffer.bytes()));
   }
+  std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes, const std::string&) override {
+    return {static_cast<const CpuBuffer&>(buffer).data(), std::min(bytes, buffer.bytes())};
+  }
+  void Mark(std::unique_ptr<DeviceObject>&, const std::string&) override {}
+  void Wait(DeviceObject&, const std::string&) override {}
   void Finish() override {}
 
   std::optional<CpuChoice> ScheduleOf(const std::string& key) const {
