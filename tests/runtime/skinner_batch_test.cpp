@@ -14,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "generator/axes.h"
 #include "reference/gltf_import.h"
 #include "reference/synthetic.h"
 #include "runtime/backend_table.h"
@@ -69,6 +70,9 @@ std::vector<std::string> VariantsOf(Lang lang) {
   const std::string l = Name(lang);
   if (lang == Lang::kGlslVertex)
     return {l + ".b4.padded.soa-split.float3.u16.unorm16.mat3x4.constant.point.v1c.wg0",
+            l + ".b4.padded.aos.float4.i32.f32.mat4.global.matrix.v1c.wg0"};
+  if (!HasWorkGroups(lang))  // cpu: no work-groups, no constant or local memory
+    return {l + ".b4.padded.soa-split.float3.u16.unorm16.mat3x4.global.point.v1c.wg0",
             l + ".b4.padded.aos.float4.i32.f32.mat4.global.matrix.v1c.wg0"};
   return {l + ".b4.padded.soa-split.float3.u16.unorm16.mat3x4.local.point.v2s.wg64",
           l + ".b4.padded.aos.float4.i32.f32.mat4.global.matrix.v1c.wg32"};

@@ -20,6 +20,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "generator/axes.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "reference/error.h"
@@ -384,7 +385,7 @@ TEST(Scenes, InstancesAndBatchesAreVerifiedTimedAndTheirWinnersSelectedByShape) 
     report.datasets.push_back({mix, 3273 + 1728 + 20000, 4, 0, SceneKind::kBatch, 1,
                                static_cast<int>(mix_spec.meshes.size())});
     const Lang lang = backend.languages().front();
-    const std::string vertex = lang == Lang::kGlslVertex ? "v1c.wg0" : "v1c.wg64";
+    const std::string vertex = HasWorkGroups(lang) ? "v1c.wg64" : "v1c.wg0";  // glsl-vertex, cpu: none
     std::map<std::string, std::string> variant_of;  // dataset -> the variant measured on it
     variant_of[single] = std::string(Name(lang)) + ".b4.padded.soa.float4.u16.f32.mat3x4.global.matrix." + vertex;
     variant_of[crowd] = std::string(Name(lang)) + ".b4.padded.soa-split.float3.u16.unorm16.mat3x4.global.matrix." + vertex;
