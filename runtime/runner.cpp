@@ -75,6 +75,7 @@ Prepared::Prepared(Prepared&&) noexcept = default;
 Prepared& Prepared::operator=(Prepared&&) noexcept = default;
 int Prepared::input_sets() const { return impl_ ? static_cast<int>(impl_->sets.size()) : 0; }
 std::size_t Prepared::bytes_per_set() const { return impl_ ? impl_->bytes_per_set : 0; }
+std::size_t Prepared::output_bytes() const { return impl_ ? impl_->out_bytes : 0; }
 
 namespace {
 
@@ -321,12 +322,21 @@ std::optional<double> Runner::ProbeMs(const Prepared::Impl& p) {
 // SKINTUNE_TIMING_LOG=FILE appends one line per warm-up decision (the probe,
 // the warm probe, full or short warm-up, its wall time and bursts) to FILE:
 // a diagnostic for devices whose clocks move (docs/PERFORMANCE.md).
-static void TimingLog(const std::string& line) {
+// Its file, or null when unset: callers build no line then.
+static const char* TimingLogPath() {
   static const char* path = std::getenv("SKINTUNE_TIMING_LOG");
-  if (!path || !*path) return;
+  return path && *path ? path : nullptr;
+}
+
+// Appends `line()` to the log; the line is built only when the log is on
+// (Time and WarmUntilStable run once per measurement).
+template <typename Line>
+static void TimingLog(Line&& line) {
+  const char* path = TimingLogPath();
+  if (!path) return;
   if (std::FILE* f = std::fopen(path, "a")) {
     const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-    std::fprintf(f, "%.3f %s\n", now, line.c_str());
+    std::fprintf(f, "%.3f %s\n", now, line().c_str());
     std::fclose(f);
   }
 }
@@ -389,10 +399,12 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
       warm_probe_ms_ = warm_probe_ms_ ? std::min(*warm_probe_ms_, *probe) : *probe;
     }
   }
-  TimingLog(p.key + (warm ? " short" : " full") + " warm-up " + std::to_string(warm_ms) + " ms, " +
-            std::to_string(bursts + 1) + " bursts of up to " + std::to_string(frames_per_burst) + " frames; probe " +
-            std::to_string(probed) + " ms before, " + std::to_string(after) + " after, warm probe " +
-            std::to_string(warm_probe_ms_.value_or(-1.0)));
+  TimingLog([&] {
+    return p.key + (warm ? " short" : " full") + " warm-up " + std::to_string(warm_ms) + " ms, " +
+           std::to_string(bursts + 1) + " bursts of up to " + std::to_string(frames_per_burst) + " frames; probe " +
+           std::to_string(probed) + " ms before, " + std::to_string(after) + " after, warm probe " +
+           std::to_string(warm_probe_ms_.value_or(-1.0));
+  });
 }
 
 std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int bursts, int burst_frames) {
@@ -410,12 +422,14 @@ std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int burst
     // included, and the final wait): an upper bound of the device's time, a
     // check on the device timers in the log.
     const double wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    std::vector<double> sorted = ms;
-    std::sort(sorted.begin(), sorted.end());
-    TimingLog(p->key + " timed: " + std::to_string(bursts) + " bursts of " + std::to_string(burst_frames) +
-              " frames, median " + std::to_string(sorted[sorted.size() / 2]) + " ms, min " +
-              std::to_string(sorted.front()) + ", max " + std::to_string(sorted.back()) + "; wall " +
-              std::to_string(wall_ms / (warmup + bursts * burst_frames)) + " ms per frame");
+    TimingLog([&] {
+      std::vector<double> sorted = ms;
+      std::sort(sorted.begin(), sorted.end());
+      return p->key + " timed: " + std::to_string(bursts) + " bursts of " + std::to_string(burst_frames) +
+             " frames, median " + std::to_string(sorted[sorted.size() / 2]) + " ms, min " +
+             std::to_string(sorted.front()) + ", max " + std::to_string(sorted.back()) + "; wall " +
+             std::to_string(wall_ms / (warmup + bursts * burst_frames)) + " ms per frame";
+    });
   }
   return ms;
 }

@@ -116,8 +116,13 @@ class FakeApi final : public DeviceApi {
   std::vector<std::uint8_t> staging_;
 };
 
-// Per-frame times of `prepared` (one frame per burst, as the tuner's first
-// BurstFrames probe does, then bursts of 10).
+// The copy every test times: 1 MB, 0.05 ms a frame cold, 0.025 hot.
+constexpr std::size_t kCopyBytes = 1'000'000;
+
+// A frame of that copy at the high clock, by the fake's model.
+double HotFrameMs() { return static_cast<double>(CopyBytes(EmitCopy(Lang::kOpenCl, kCopyBytes))) / kHotBytesPerMs; }
+
+// Per-frame times of `prepared`: 2 untimed frames, then 5 bursts of 10.
 std::vector<double> TimeIt(Runner& runner, const Prepared& prepared) {
   return runner.Time(prepared, 2, 5, 10);
 }
@@ -125,20 +130,19 @@ std::vector<double> TimeIt(Runner& runner, const Prepared& prepared) {
 TEST(WarmUp, RaisesAClockThatOnlySustainedLoadRaises) {
   Clock clock;
   Runner runner(std::make_unique<FakeApi>(clock));
-  // A copy of 1 MB: 0.05 ms a frame cold, 0.025 hot. A 16-frame burst is
-  // 0.8 ms of load, too little to raise the clock.
-  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, 1'000'000, 2);
+  // A 16-frame burst of the copy is 0.8 ms of load, too little to raise the clock.
+  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, kCopyBytes, 2);
   const std::vector<double> ms = TimeIt(runner, small);
   ASSERT_FALSE(ms.empty());
   EXPECT_TRUE(clock.hot()) << "load seen by the device: " << clock.load_ms << " ms";
-  const double hot_ms = static_cast<double>(CopyBytes(EmitCopy(Lang::kOpenCl, 1'000'000))) / kHotBytesPerMs;
+  const double hot_ms = HotFrameMs();
   for (double t : ms) EXPECT_NEAR(t, hot_ms, 1e-12) << "a frame timed at the low clock (" << 2 * hot_ms << " ms)";
 }
 
 TEST(WarmUp, AFullWarmUpEndsOnlyWhenTheClockProbeIsBackUp) {
   Clock clock;
   Runner runner(std::make_unique<FakeApi>(clock));
-  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, 1'000'000, 2);
+  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, kCopyBytes, 2);
   const std::vector<double> first = TimeIt(runner, small);
   ASSERT_TRUE(clock.hot());
   // The device idles (a compile, a verification): the clock drops. The probe
@@ -147,7 +151,7 @@ TEST(WarmUp, AFullWarmUpEndsOnlyWhenTheClockProbeIsBackUp) {
   const std::vector<double> second = TimeIt(runner, small);
   ASSERT_EQ(second.size(), first.size());
   EXPECT_TRUE(clock.hot());
-  const double hot_ms = static_cast<double>(CopyBytes(EmitCopy(Lang::kOpenCl, 1'000'000))) / kHotBytesPerMs;
+  const double hot_ms = HotFrameMs();
   for (std::size_t i = 0; i < second.size(); ++i) {
     EXPECT_NEAR(first[i], hot_ms, 1e-12) << "burst " << i;
     EXPECT_NEAR(second[i], hot_ms, 1e-12) << "burst " << i << " after the device idled";
