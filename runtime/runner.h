@@ -74,6 +74,7 @@ class Prepared {
   Prepared& operator=(Prepared&&) noexcept;
   int input_sets() const;
   std::size_t bytes_per_set() const;  // device bytes of one set: inputs + palette + outputs (+ staging)
+  std::size_t output_bytes() const;   // one output (positions or normals): K x vertex_count x output stride
 
   struct Impl;
 

@@ -23,9 +23,8 @@ namespace {
 
 class CudaSkinner final : public RunnerSkinner {
  public:
-  // `out_bytes`: the positions of every instance, the least a GL buffer must hold.
-  CudaSkinner(CudaRunner& runner, Prepared prepared, bool normals, std::size_t out_bytes)
-      : RunnerSkinner(runner, std::move(prepared), normals), cuda_(runner), out_bytes_(out_bytes) {}
+  CudaSkinner(CudaRunner& runner, Prepared prepared, bool normals)
+      : RunnerSkinner(runner, std::move(prepared), normals), cuda_(runner) {}
 
   ~CudaSkinner() override {
     const cuda::DriverApi* api = cuda::Driver();
@@ -49,12 +48,14 @@ class CudaSkinner final : public RunnerSkinner {
       cuda::DevicePtr pointer = 0;
       std::size_t bytes = 0;
       const cuda::Result mapped = api->cuGraphicsResourceGetMappedPointer(&pointer, &bytes, resource);
-      if (mapped != cuda::kSuccess || bytes < out_bytes_) {
+      // The positions of every instance: the least the GL buffer must hold.
+      const std::size_t needed = prepared_.output_bytes();
+      if (mapped != cuda::kSuccess || bytes < needed) {
         api->cuGraphicsUnmapResources(1, &resource, stream);
         cuda::Check(mapped, "launch", "cuGraphicsResourceGetMappedPointer of " + buffer);
         FailWith(ErrorCode::kInvalidArgument, "Skinner::SkinIntoGlBuffer: " + buffer + " holds " +
                                                   std::to_string(bytes) + " bytes; the positions need " +
-                                                  std::to_string(out_bytes_));
+                                                  std::to_string(needed));
       }
       try {
         runner_.LaunchSet(prepared_, 0, reinterpret_cast<void*>(static_cast<std::uintptr_t>(pointer)));
@@ -92,7 +93,6 @@ class CudaSkinner final : public RunnerSkinner {
   }
 
   CudaRunner& cuda_;
-  std::size_t out_bytes_;
   std::map<unsigned int, cuda::GraphicsResource> registered_;  // unregistered by the destructor
 };
 
@@ -102,9 +102,8 @@ std::unique_ptr<SkinnerBackend> MakeCudaSkinner(DeviceState& device, const Packe
                                                 const std::vector<KernelSource>& kernels, int instances) {
   auto* runner = dynamic_cast<CudaRunner*>(device.runner.get());
   if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no CUDA stream");
-  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, instances);
-  const std::size_t out_bytes = static_cast<std::size_t>(instances) * mesh.vertex_count * mesh.output_stride_bytes;
-  return std::make_unique<CudaSkinner>(*runner, std::move(prepared), mesh.variant.normals, out_bytes);
+  return std::make_unique<CudaSkinner>(*runner, PrepareSkinnerSet(device, mesh, kernels, instances),
+                                       mesh.variant.normals);
 }
 
 }  // namespace skintune

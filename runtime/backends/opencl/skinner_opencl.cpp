@@ -13,22 +13,20 @@ namespace {
 
 class OpenClSkinner final : public RunnerSkinner {
  public:
-  // `out_bytes`: the positions of every instance; `gl_sharing`: the runner's
-  // context shares buffers with a GL context (SkinIntoGlBuffer).
-  OpenClSkinner(OpenClRunner& runner, Prepared prepared, bool normals, std::size_t out_bytes, bool gl_sharing)
-      : RunnerSkinner(runner, std::move(prepared), normals), out_bytes_(out_bytes) {
+  // `gl_sharing`: the runner's context shares buffers with a GL context (SkinIntoGlBuffer).
+  OpenClSkinner(OpenClRunner& runner, Prepared prepared, bool normals, bool gl_sharing)
+      : RunnerSkinner(runner, std::move(prepared), normals) {
     if (gl_sharing) gl_writer_ = std::make_unique<GlBufferWriter>(runner.context(), runner.queue());
   }
 
   void SkinIntoGlBuffer(unsigned int gl_buffer) override {
     if (!gl_writer_) return SkinnerBackend::SkinIntoGlBuffer(gl_buffer);  // kUnavailable
     RunOnDevice([&] {
-      gl_writer_->Write(gl_buffer, out_bytes_, [&](void* mem) { runner_.LaunchSet(prepared_, 0, mem); });
+      gl_writer_->Write(gl_buffer, prepared_.output_bytes(), [&](void* mem) { runner_.LaunchSet(prepared_, 0, mem); });
     });
   }
 
  private:
-  std::size_t out_bytes_;
   std::unique_ptr<GlBufferWriter> gl_writer_;  // a member of the derived class: its cl_mems go before prepared_
 };
 
@@ -38,10 +36,8 @@ std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const Pac
                                                   const std::vector<KernelSource>& kernels, int instances) {
   auto* runner = dynamic_cast<OpenClRunner*>(device.runner.get());
   if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no OpenCL queue");
-  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, instances);
-  const std::size_t out_bytes = static_cast<std::size_t>(instances) * mesh.vertex_count * mesh.output_stride_bytes;
-  return std::make_unique<OpenClSkinner>(*runner, std::move(prepared), mesh.variant.normals, out_bytes,
-                                         device.gl_sharing);
+  return std::make_unique<OpenClSkinner>(*runner, PrepareSkinnerSet(device, mesh, kernels, instances),
+                                         mesh.variant.normals, device.gl_sharing);
 }
 
 }  // namespace skintune
