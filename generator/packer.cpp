@@ -1,9 +1,9 @@
 #include "generator/packer.h"
 
 #include <algorithm>
-#include <cstring>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <sstream>
 
@@ -274,20 +274,34 @@ std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const 
 }
 
 // Rows of the transposed matrix (the kernels read a row as a float4); the
-// finiteness test looks at the exponent bits, a branch per matrix only.
-std::size_t PackPaletteInto(const float* column_major, std::size_t matrices, const Variant& variant, std::uint8_t* out) {
-  const std::size_t rows = PaletteMatrixBytes(variant) / 16;
+// finiteness test looks at the exponent bits, a branch per matrix only. Each
+// matrix is transposed in registers and stored whole (48 or 64 bytes, wide
+// stores): the runtime packs straight into write-combined page-locked
+// staging, where byte stores cost about a nanosecond each (issue 15: byte
+// stores made a 64 x 77-joint SetPalette cost 300 us on the H100's host).
+namespace {
+template <std::size_t kRows>
+std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8_t* out) {
+  static_assert(std::endian::native == std::endian::little, "packed buffers are little-endian, as the devices read them");
   std::size_t first_special = matrices;
-  for (std::size_t j = 0; j < matrices; ++j) {
+  for (std::size_t j = 0; j < matrices; ++j, out += kRows * 16) {
     std::uint32_t words[16];
     std::memcpy(words, column_major + 16 * j, sizeof words);
     std::uint32_t special = 0;
-    for (const std::uint32_t w : words) special |= (w & 0x7f800000u) == 0x7f800000u ? 1u : 0u;
+    std::uint32_t rows[kRows * 4];
+    for (std::size_t i = 0; i < 16; ++i) special |= (words[i] & 0x7f800000u) == 0x7f800000u ? 1u : 0u;
+    for (std::size_t r = 0; r < kRows; ++r)
+      for (std::size_t c = 0; c < 4; ++c) rows[r * 4 + c] = words[c * 4 + r];
+    std::memcpy(out, rows, sizeof rows);
     if (special && first_special == matrices) first_special = j;
-    for (std::size_t r = 0; r < rows; ++r)
-      for (std::size_t c = 0; c < 4; ++c, out += 4) PutUint(out, words[c * 4 + r], 4);
   }
   return first_special;
+}
+}  // namespace
+
+std::size_t PackPaletteInto(const float* column_major, std::size_t matrices, const Variant& variant, std::uint8_t* out) {
+  return PaletteMatrixBytes(variant) == 64 ? PackRows<4>(column_major, matrices, out)
+                                           : PackRows<3>(column_major, matrices, out);
 }
 
 std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uint8_t> output) {

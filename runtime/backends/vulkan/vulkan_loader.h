@@ -86,6 +86,8 @@ namespace skintune::vk {
   X(vkGetQueryPoolResults)              \
   X(vkCreateFence)                      \
   X(vkDestroyFence)                     \
+  X(vkGetFenceStatus)                   \
+  X(vkResetFences)                      \
   X(vkWaitForFences)
 
 #define SKINTUNE_VK_DECLARE(name) PFN_##name name = nullptr;

@@ -222,6 +222,8 @@ class VulkanApi final : public DeviceApi {
   }
   ~VulkanApi() override {
     WaitAll();
+    for (VkFence f : spare_fences_) c_->fn.vkDestroyFence(c_->device, f, nullptr);
+    for (VkCommandBuffer cb : spare_cbs_) c_->fn.vkFreeCommandBuffers(c_->device, pool_, 1, &cb);
     for (auto& [key, p] : pipelines_) DestroyPipeline(p);
     for (auto& [key, module] : modules_) c_->fn.vkDestroyShaderModule(c_->device, module, nullptr);
     c_->fn.vkDestroyCommandPool(c_->device, pool_, nullptr);
@@ -285,7 +287,9 @@ class VulkanApi final : public DeviceApi {
   VkCommandPool pool_ = VK_NULL_HANDLE;
   std::map<std::string, VkShaderModule> modules_;  // by source hash
   std::map<std::string, Pipeline> pipelines_;      // by source hash and palette storage
-  std::vector<Submission> in_flight_;
+  std::vector<Submission> in_flight_;  // oldest first
+  std::vector<VkCommandBuffer> spare_cbs_;  // retired, for reuse
+  std::vector<VkFence> spare_fences_;
   std::uint64_t submitted_ = 0;  // submissions so far
   VkCommandBuffer record_into_ = VK_NULL_HANDLE;
   bool recorded_for_caller_ = false;  // launches recorded into a caller's command buffer since the last wait
@@ -545,17 +549,25 @@ VkDescriptorSet VulkanApi::Redirected(VulkanBound& bound, VkBuffer out_positions
 
 // ---------------------------------------------------------------- command buffers
 
+// Command buffers and fences are recycled (a frame loop submits one of each
+// per Skin): a retired submission's go to `spare_cbs_` and `spare_fences_`,
+// and the next Begin and Submit take them back, reset.
 VkCommandBuffer VulkanApi::Begin() {
   Retire(false);
-  VkCommandBufferAllocateInfo allocate{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
-  allocate.commandPool = pool_;
-  allocate.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-  allocate.commandBufferCount = 1;
   VkCommandBuffer cb = VK_NULL_HANDLE;
-  Check(c_->fn.vkAllocateCommandBuffers(c_->device, &allocate, &cb), "launch", "vkAllocateCommandBuffers");
+  if (!spare_cbs_.empty()) {
+    cb = spare_cbs_.back();
+    spare_cbs_.pop_back();
+  } else {
+    VkCommandBufferAllocateInfo allocate{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+    allocate.commandPool = pool_;
+    allocate.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    allocate.commandBufferCount = 1;
+    Check(c_->fn.vkAllocateCommandBuffers(c_->device, &allocate, &cb), "launch", "vkAllocateCommandBuffers");
+  }
   VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-  c_->fn.vkBeginCommandBuffer(cb, &begin);
+  c_->fn.vkBeginCommandBuffer(cb, &begin);  // resets it (the pool's RESET_COMMAND_BUFFER_BIT)
   return cb;
 }
 
@@ -569,8 +581,23 @@ void VulkanApi::Submit(VkCommandBuffer cb, bool wait, std::vector<std::unique_pt
     drop();
     Check(ended, "launch", "vkEndCommandBuffer");
   }
-  VkFenceCreateInfo fence{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-  Check(c_->fn.vkCreateFence(c_->device, &fence, nullptr, &s.fence), "launch", "vkCreateFence");
+  if (!spare_fences_.empty()) {
+    s.fence = spare_fences_.back();
+    spare_fences_.pop_back();
+    const VkResult reset = c_->fn.vkResetFences(c_->device, 1, &s.fence);
+    if (reset != VK_SUCCESS) {
+      c_->fn.vkDestroyFence(c_->device, s.fence, nullptr);
+      drop();
+      Check(reset, "launch", "vkResetFences");
+    }
+  } else {
+    VkFenceCreateInfo fence{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    const VkResult created = c_->fn.vkCreateFence(c_->device, &fence, nullptr, &s.fence);
+    if (created != VK_SUCCESS) {
+      drop();
+      Check(created, "launch", "vkCreateFence");
+    }
+  }
   VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
   submit.commandBufferCount = 1;
   submit.pCommandBuffers = &cb;
@@ -585,22 +612,30 @@ void VulkanApi::Submit(VkCommandBuffer cb, bool wait, std::vector<std::unique_pt
   if (wait) WaitAll();
 }
 
-// Frees what completed (or, with `wait_all`, waits for everything first).
+// Frees what completed (or, with `wait_all`, waits for everything first),
+// oldest first, stopping at the first submission still running: a frame
+// loop keeps a few in flight, and polling every one of them per Begin would
+// cost in proportion to the queue's depth. Their command buffers and fences
+// are kept for reuse (at most kSpares; the rest are freed).
 void VulkanApi::Retire(bool wait_all) {
+  constexpr std::size_t kSpares = 16;
   VkResult failure = VK_SUCCESS;
-  std::vector<Submission> pending;
-  for (Submission& s : in_flight_) {
+  std::size_t retired = 0;
+  for (; retired < in_flight_.size(); ++retired) {
+    Submission& s = in_flight_[retired];
     const VkResult r = wait_all ? c_->fn.vkWaitForFences(c_->device, 1, &s.fence, VK_TRUE, UINT64_MAX)
-                                : c_->fn.vkWaitForFences(c_->device, 1, &s.fence, VK_TRUE, 0);
-    if (r == VK_TIMEOUT) {
-      pending.push_back(std::move(s));
-      continue;
-    }
+                                : c_->fn.vkGetFenceStatus(c_->device, s.fence);
+    if (r == VK_NOT_READY || r == VK_TIMEOUT) break;
     if (r != VK_SUCCESS) failure = r;
-    c_->fn.vkDestroyFence(c_->device, s.fence, nullptr);
-    c_->fn.vkFreeCommandBuffers(c_->device, pool_, 1, &s.cb);
+    if (r == VK_SUCCESS && spare_fences_.size() < kSpares) {
+      spare_cbs_.push_back(s.cb);
+      spare_fences_.push_back(s.fence);
+    } else {
+      c_->fn.vkDestroyFence(c_->device, s.fence, nullptr);
+      c_->fn.vkFreeCommandBuffers(c_->device, pool_, 1, &s.cb);
+    }
   }
-  in_flight_ = std::move(pending);
+  in_flight_.erase(in_flight_.begin(), in_flight_.begin() + static_cast<std::ptrdiff_t>(retired));
   Check(failure, "launch", "waiting for the queue");
 }
 
