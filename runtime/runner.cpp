@@ -3,6 +3,7 @@
 #include "runtime/runner.h"
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -294,6 +295,10 @@ constexpr double kWarmupMaxMs = 1000.0;
 // as before. A probe that fails means a full warm-up too.
 constexpr std::size_t kProbeBytes = 8u << 20;
 constexpr double kStillWarm = 1.15;
+// Within kStillBusyMs of the device's last timed or warm-up frames (the
+// tuner times a variant's burst length, the variant and its copy back to
+// back) the clock has had no time to fall: no probe, no warm-up.
+constexpr double kStillBusyMs = 10.0;
 // Warm-up bursts start at kWarmupFirstFrames frames and double (up to
 // kWarmupMaxFrames) until one keeps the device busy for kWarmupBurstMs.
 constexpr int kWarmupFirstFrames = 16;
@@ -346,6 +351,10 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
   const auto ms_since = [](Clock::time_point t) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
   };
+  if (warm_probe_ms_ && busy_until_ && ms_since(*busy_until_) < kStillBusyMs) {
+    TimingLog([&] { return p.key + " no warm-up: busy " + std::to_string(ms_since(*busy_until_)) + " ms ago"; });
+    return;
+  }
   bool warm = false;
   double probed = -1.0;
   if (warm_probe_ms_) {
@@ -369,6 +378,9 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
     api_->RunFrames(burst);  // waits for the burst
     const double elapsed = ms_since(burst_start), total = ms_since(start);
     if (total >= kWarmupMaxMs) break;
+    // Still warm (the probe says the clock is up): one burst long enough to
+    // keep the device busy is all it needs.
+    if (warm && elapsed >= kWarmupBurstMs) break;
     const double per_frame = elapsed / frames_per_burst;
     // Keep the device busy: a burst shorter than kWarmupBurstMs is mostly
     // the host's submit and wait, and a device busy a third of the time is
@@ -392,6 +404,7 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
     if (*probe <= kStillWarm * *warm_probe_ms_) break;
   }
   const double warm_ms = ms_since(start);
+  busy_until_ = Clock::now();
   if (!warm) {
     // Just warmed: the probe's time at this clock (the fastest seen is kept).
     if (const std::optional<double> probe = ProbeMs(p)) {
@@ -448,6 +461,7 @@ std::vector<double> Runner::TimeFrames(const Prepared::Impl& p, int warmup, int 
       Fail("launch", "timing " + p.key + ": the device gave " + std::to_string(burst.size()) + " times for a burst");
     ms.push_back(burst.front() / burst_frames);
   }
+  busy_until_ = std::chrono::steady_clock::now();
   return ms;
 }
 
@@ -457,7 +471,8 @@ int Runner::BurstFrames(const Prepared& prepared, int warmup, double burst_ms) {
   std::sort(one.begin(), one.end());
   const double frame_ms = one[one.size() / 2];
   if (!(frame_ms > 0.0) || !(burst_ms > 0.0)) return frame_ms > 0.0 ? 1 : kMaxBurstFrames;
-  return static_cast<int>(std::clamp(std::ceil(burst_ms / frame_ms), 1.0, static_cast<double>(kMaxBurstFrames)));
+  const double wanted = std::clamp(std::ceil(burst_ms / frame_ms), 1.0, static_cast<double>(kMaxBurstFrames));
+  return static_cast<int>(std::bit_ceil(static_cast<unsigned>(wanted)));
 }
 
 Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {

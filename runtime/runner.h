@@ -40,6 +40,7 @@
 // Errors name the stage: "<API> setup", "build", "launch" or "guard".
 #pragma once
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -84,7 +85,7 @@ class Prepared {
 };
 
 // The most frames one timed burst holds (Runner::BurstFrames).
-inline constexpr int kMaxBurstFrames = 1000;
+inline constexpr int kMaxBurstFrames = 1024;
 
 // Palette buffers of a Skinner's live set (the palette ring above): frames
 // that may be queued at once before SetPalette waits for the oldest. Three,
@@ -143,9 +144,11 @@ class Runner {
   // further: TimingPolicy.)
   std::vector<double> Time(const Prepared& prepared, int warmup, int bursts, int burst_frames = 1);
 
-  // Frames per burst so that a burst takes about `burst_ms` of device time:
-  // after `warmup` frames, three bursts of one frame are timed and their
-  // median decides; 1..kMaxBurstFrames.
+  // Frames per burst so that a burst takes `burst_ms` to 2 x `burst_ms` of
+  // device time: after `warmup` frames, three bursts of one frame are timed
+  // and their median decides; a power of two, 1..kMaxBurstFrames (so that
+  // variants of one data set share a few burst lengths, and the tuner times
+  // each same-size copy once per length, not once per variant).
   int BurstFrames(const Prepared& prepared, int warmup, double burst_ms);
 
   // The copy every measurement is judged against (generator/copy_kernel.h):
@@ -202,6 +205,9 @@ class Runner {
 
   std::unique_ptr<DeviceApi> api_;
   std::optional<double> warm_probe_ms_;  // the fastest clock probe right after a warm-up
+  // When the device last finished timed or warm-up frames (WarmUntilStable
+  // skips its probe within kStillBusyMs of it).
+  std::optional<std::chrono::steady_clock::time_point> busy_until_;
   std::unique_ptr<Prepared> probe_;     // the clock probe's copy (ProbeMs)
   Lang probe_lang_ = Lang::kOpenCl;
 };

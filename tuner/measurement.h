@@ -43,8 +43,11 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 //    physical chip's cache, a same-size copy timed beside every measurement;
 // 3: an even number of input sets (so CUDA's and OpenCL's two lanes never
 //    read one set at once), warm-up bursts long enough to raise a GPU's
-//    clock and ended only when the clock probe is back up (runtime/runner.cpp).
-inline constexpr int kTimingVersion = 3;
+//    clock and ended only when the clock probe is back up (runtime/runner.cpp);
+// 4: burst lengths are powers of two (burst_ms to twice it), so the same-size
+//    copy is timed once per length; a device busy within 10 ms is not warmed
+//    again, and one still warm by the probe gets one 4 ms burst.
+inline constexpr int kTimingVersion = 4;
 
 struct Timing {
   double median_ms = 0.0;  // per frame: the median over the bursts of burst time / burst_frames

@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <thread>
@@ -27,17 +28,29 @@ namespace {
 
 // Device bandwidth at each clock, bytes per ms; a submission that keeps the
 // device busy at least kLoadMs counts towards kRaiseMs of load, after which
-// the clock is high; Cool() drops it.
+// the clock is high; kCoolMs of wall time without a submission drops it
+// (the driver lowers an idle clock; the runner's kStillBusyMs is shorter).
 constexpr double kColdBytesPerMs = 20e6;  // 20 GB/s
 constexpr double kHotBytesPerMs = 40e6;   // 40 GB/s
 constexpr double kLoadMs = 3.0;
 constexpr double kRaiseMs = 60.0;
+constexpr double kCoolMs = 30.0;
 
 struct Clock {
   double load_ms = 0.0;
+  std::size_t frames = 0;  // frames run so far
+  std::optional<std::chrono::steady_clock::time_point> idle_since;
   bool hot() const { return load_ms >= kRaiseMs; }
   double BytesPerMs() const { return hot() ? kHotBytesPerMs : kColdBytesPerMs; }
+  // At the start of a submission: a device idle for kCoolMs is cold.
+  void Wake() {
+    if (idle_since && std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - *idle_since).count() >= kCoolMs)
+      load_ms = 0.0;
+  }
 };
+
+// The device idles long enough for its clock to fall (a compile, a verification).
+void Idle() { std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(2 * kCoolMs)); }
 
 class FakeBuffer final : public DeviceBuffer {
  public:
@@ -75,6 +88,8 @@ class FakeApi final : public DeviceApi {
   // Every frame sleeps its modelled time; the clock counts this submission's
   // load once it is done. Bursts report the model's time.
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override {
+    clock_.Wake();
+    clock_.frames += run.frames.size();
     const double per_ms = clock_.BytesPerMs();
     const auto frame_ms = [&](std::size_t f) {
       double bytes = 0.0;
@@ -85,6 +100,7 @@ class FakeApi final : public DeviceApi {
     for (std::size_t f = 0; f < run.frames.size(); ++f) busy += frame_ms(f);
     std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(busy));
     if (busy >= kLoadMs) clock_.load_ms += busy;
+    clock_.idle_since = std::chrono::steady_clock::now();
     std::vector<std::vector<double>> bursts;
     const std::size_t untimed = static_cast<std::size_t>(run.untimed);
     for (std::size_t b = 0; b < run.TimedBursts(); ++b) {
@@ -147,7 +163,7 @@ TEST(WarmUp, AFullWarmUpEndsOnlyWhenTheClockProbeIsBackUp) {
   ASSERT_TRUE(clock.hot());
   // The device idles (a compile, a verification): the clock drops. The probe
   // sees it, and the warm-up must not stop at a steady low clock.
-  clock.load_ms = 0.0;
+  Idle();
   const std::vector<double> second = TimeIt(runner, small);
   ASSERT_EQ(second.size(), first.size());
   EXPECT_TRUE(clock.hot());
@@ -156,6 +172,42 @@ TEST(WarmUp, AFullWarmUpEndsOnlyWhenTheClockProbeIsBackUp) {
     EXPECT_NEAR(first[i], hot_ms, 1e-12) << "burst " << i;
     EXPECT_NEAR(second[i], hot_ms, 1e-12) << "burst " << i << " after the device idled";
   }
+}
+
+// Timings back to back (the tuner times a variant's burst length, the
+// variant and its copy in a row): the device was busy a moment ago, so the
+// second runs exactly its own frames, no probe and no warm-up, and still at
+// the high clock.
+TEST(WarmUp, BackToBackTimingsNeedNoWarmUp) {
+  Clock clock;
+  Runner runner(std::make_unique<FakeApi>(clock));
+  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, kCopyBytes, 2);
+  ASSERT_FALSE(TimeIt(runner, small).empty());
+  ASSERT_TRUE(clock.hot());
+  const std::size_t before = clock.frames;
+  const std::vector<double> second = TimeIt(runner, small);
+  EXPECT_EQ(clock.frames - before, 2u + 5u * 10u) << "frames beyond the timed call's own: a probe or a warm-up ran";
+  for (double t : second) EXPECT_NEAR(t, HotFrameMs(), 1e-12);
+}
+
+// A device still warm after a short pause (the probe within 15% of the best)
+// gets one burst long enough to keep it busy, not the 200 ms floor of a full
+// warm-up nor its steadiness check.
+TEST(WarmUp, AStillWarmDeviceGetsOneBusyBurst) {
+  Clock clock;
+  Runner runner(std::make_unique<FakeApi>(clock));
+  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, kCopyBytes, 2);
+  ASSERT_FALSE(TimeIt(runner, small).empty());
+  ASSERT_TRUE(clock.hot());
+  std::this_thread::sleep_for(std::chrono::milliseconds(15));  // past the runner's 10 ms, short of the clock's 30
+  const std::size_t before = clock.frames;
+  const std::vector<double> second = TimeIt(runner, small);
+  for (double t : second) EXPECT_NEAR(t, HotFrameMs(), 1e-12);
+  // Bursts of 16, 32, ... frames until one lasts 4 ms (256 frames of
+  // 0.025 ms): 496 frames, plus the probe's 6 and the call's own 52. A
+  // steadiness check would add at least one more burst of 256.
+  const std::size_t warm_up = clock.frames - before - (2u + 5u * 10u) - 6u;
+  EXPECT_EQ(warm_up, 16u + 32u + 64u + 128u + 256u);
 }
 
 }  // namespace

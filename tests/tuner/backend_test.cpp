@@ -408,6 +408,33 @@ TEST(Scenes, InstancesAndBatchesAreVerifiedTimedAndTheirWinnersSelectedByShape) 
   if (measured == 0) GTEST_SKIP() << "no backend here: " << SkippedLines("");
 }
 
+// Compiling ahead (the tuner's pool of compile threads, each with a device
+// context of its own): every distinct kernel is built once and counted, a
+// second call finds them all built, and the measurements that follow load
+// them and pass. GPU devices only here (CPU devices compile ahead only on
+// hosts with at least 8 CPUs).
+TEST(CompileAhead, BuildsEveryKernelThenMeasureUsesThem) {
+  int tried = 0;
+  for (const auto& found : Found().backends) {
+    Backend& backend = *found;
+    if (!CompilesAhead(backend.identity())) continue;
+    SCOPED_TRACE(backend.identity().Id());
+    const Lang lang = backend.languages().front();
+    std::vector<Variant> variants;
+    for (const char* storage : {"global", "constant"})
+      for (const char* wg : {"wg64", "wg256"})
+        variants.push_back(ParseVariantKey(std::string(Name(lang)) + ".b2.padded.soa.float4.u16.f32.mat3x4." + storage +
+                                           ".matrix.v1c." + wg + ".nonormals"));
+    EXPECT_EQ(backend.CompileAhead(variants, {kDataset}), variants.size());
+    EXPECT_EQ(backend.CompileAhead(variants, {kDataset}), variants.size()) << "the second time: found built";
+    for (const Variant& v : variants) ExpectOk(backend.Measure(v, {kDataset}, SmallTiming()), backend, kDataset);
+    ++tried;
+  }
+  if (tried == 0)
+    GTEST_SKIP() << "no device here compiles ahead (GPUs do; CPU devices only on hosts with at least 8 CPUs): "
+                 << SkippedLines("");
+}
+
 TEST(OpenClBackend, InvalidVariantsSayWhy) {
   BACKEND_OR_SKIP(backend, "opencl");
   // Normals on a mesh without them: a constraint.

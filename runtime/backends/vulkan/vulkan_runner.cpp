@@ -9,6 +9,7 @@
 #include <map>
 #include <set>
 
+#include "generator/axes.h"
 #include "reference/error.h"
 #include "runtime/backends/vulkan/vulkan_spirv.h"
 #include "runtime/output_check.h"
@@ -204,6 +205,18 @@ std::string Headline(const std::string& text) {
   return text.substr(at, text.find('\n', at) - at);
 }
 
+// The palette storage a kernel was emitted for: its STORAGE define, read back
+// through the axis table.
+PaletteStorage StorageOf(const KernelSource& source) {
+  const Axis& axis = AxisOf<&Variant::storage>();
+  for (const auto& [name, value] : source.defines) {
+    if (name != axis.define) continue;
+    for (const AxisValueSpec& v : axis.values)
+      if (v.define == value) return static_cast<PaletteStorage>(v.code);
+  }
+  return PaletteStorage::kGlobal;  // the template's default
+}
+
 VkDescriptorType DescriptorType(const KernelArgument& a, PaletteStorage storage) {
   if (a.name == "palette" && storage == PaletteStorage::kConstant) return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
   if (a.name == "palette" && storage == PaletteStorage::kImage) return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
@@ -234,7 +247,10 @@ class VulkanApi final : public DeviceApi {
 
   const char* name() const override { return "Vulkan"; }
   const std::string& device_name() const override { return c_->info.name; }
-  void Build(const KernelSource& source) override { ModuleFor(source); }
+  // The pipeline too: its creation is the driver's compile (which the
+  // driver's own disk cache keeps, so the tuner's compile-ahead threads warm
+  // it for the measuring runner). The palette's storage is the kernel's.
+  void Build(const KernelSource& source) override { PipelineFor(source, StorageOf(source)); }
   void CheckRun(const PackedMesh& mesh, std::span<const KernelSource> kernels, const RunShape& shape) const override;
   std::size_t PaletteBufferBytes(const RunShape& shape, std::span<const KernelSource> kernels) const override;
   std::unique_ptr<PlannedLaunch> Plan(const LaunchSpec& spec) override;
