@@ -3,7 +3,6 @@
 #include "runtime/runner.h"
 
 #include <algorithm>
-#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -327,21 +326,17 @@ std::optional<double> Runner::ProbeMs(const Prepared::Impl& p) {
 // SKINTUNE_TIMING_LOG=FILE appends one line per warm-up decision (the probe,
 // the warm probe, full or short warm-up, its wall time and bursts) to FILE:
 // a diagnostic for devices whose clocks move (docs/PERFORMANCE.md).
-// Its file, or null when unset: callers build no line then.
-static const char* TimingLogPath() {
+const char* TimingLogPath() {
   static const char* path = std::getenv("SKINTUNE_TIMING_LOG");
   return path && *path ? path : nullptr;
 }
 
-// Appends `line()` to the log; the line is built only when the log is on
-// (Time and WarmUntilStable run once per measurement).
-template <typename Line>
-static void TimingLog(Line&& line) {
+void AppendTimingLog(const std::string& line) {
   const char* path = TimingLogPath();
   if (!path) return;
   if (std::FILE* f = std::fopen(path, "a")) {
     const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-    std::fprintf(f, "%.3f %s\n", now, line().c_str());
+    std::fprintf(f, "%.3f %s\n", now, line.c_str());
     std::fclose(f);
   }
 }
@@ -471,8 +466,10 @@ int Runner::BurstFrames(const Prepared& prepared, int warmup, double burst_ms) {
   std::sort(one.begin(), one.end());
   const double frame_ms = one[one.size() / 2];
   if (!(frame_ms > 0.0) || !(burst_ms > 0.0)) return frame_ms > 0.0 ? 1 : kMaxBurstFrames;
-  const double wanted = std::clamp(std::ceil(burst_ms / frame_ms), 1.0, static_cast<double>(kMaxBurstFrames));
-  return static_cast<int>(std::bit_ceil(static_cast<unsigned>(wanted)));
+  // The power of two nearest to burst_ms / frame_ms on a log scale: bursts of
+  // 0.71 to 1.41 x burst_ms.
+  const double wanted = std::clamp(burst_ms / frame_ms, 1.0, static_cast<double>(kMaxBurstFrames));
+  return 1 << static_cast<int>(std::lround(std::log2(wanted)));
 }
 
 Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {

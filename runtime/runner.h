@@ -84,6 +84,18 @@ class Prepared {
   std::unique_ptr<Impl> impl_;
 };
 
+// SKINTUNE_TIMING_LOG=FILE: a diagnostic log of the timing method's
+// decisions (warm-ups, bursts, the host's wall time per frame) and, from the
+// tuner, each measurement's phases. The file, or null when unset.
+const char* TimingLogPath();
+// Appends "<unix time> <line>" to the log (nothing when it is off).
+void AppendTimingLog(const std::string& line);
+// Appends `line()`, built only when the log is on.
+template <typename Line>
+void TimingLog(Line&& line) {
+  if (TimingLogPath()) AppendTimingLog(line());
+}
+
 // The most frames one timed burst holds (Runner::BurstFrames).
 inline constexpr int kMaxBurstFrames = 1024;
 
@@ -144,11 +156,12 @@ class Runner {
   // further: TimingPolicy.)
   std::vector<double> Time(const Prepared& prepared, int warmup, int bursts, int burst_frames = 1);
 
-  // Frames per burst so that a burst takes `burst_ms` to 2 x `burst_ms` of
-  // device time: after `warmup` frames, three bursts of one frame are timed
-  // and their median decides; a power of two, 1..kMaxBurstFrames (so that
-  // variants of one data set share a few burst lengths, and the tuner times
-  // each same-size copy once per length, not once per variant).
+  // Frames per burst so that a burst takes about `burst_ms` of device time
+  // (0.71 to 1.41 x): after `warmup` frames, three bursts of one frame are
+  // timed and their median decides; the power of two nearest on a log
+  // scale, 1..kMaxBurstFrames (so that variants of one data set share a few
+  // burst lengths, and the tuner times each same-size copy once per length,
+  // not once per variant).
   int BurstFrames(const Prepared& prepared, int warmup, double burst_ms);
 
   // The copy every measurement is judged against (generator/copy_kernel.h):

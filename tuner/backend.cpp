@@ -3,6 +3,7 @@
 #include "tuner/backend.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <ctime>
@@ -427,6 +428,17 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
     for (const Violation& v : violations) detail += (detail.empty() ? "" : "; ") + std::string(Name(v.constraint)) + ": " + v.message;
     return finish(MeasureStatus::kInvalid, detail);
   }
+  // Each phase's wall time, for the timing log (SKINTUNE_TIMING_LOG).
+  using Clock = std::chrono::steady_clock;
+  auto mark = Clock::now();
+  std::string phases;
+  const auto phase = [&](const char* name) {
+    const auto now = Clock::now();
+    if (TimingLogPath())
+      phases += std::string(phases.empty() ? "" : ", ") + name + " " +
+                std::to_string(std::chrono::duration<double, std::milli>(now - mark).count()) + " ms";
+    mark = now;
+  };
   PackedMesh packed;
   std::vector<KernelSource> kernels;
   try {
@@ -439,12 +451,14 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
 
   // Verify first: one run on poisoned outputs with guards, against the gold,
   // each part of the scene (an instance, a batch's mesh) against its own.
+  phase("pack");
   Executor::Output output;
   try {
     output = executor.Run(packed, kernels, PackPalette(data.verification_palette, variant), instances);
   } catch (const Error& e) {
     return finish(StatusOfRunnerError(e.what()), e.what());
   }
+  phase("run (build, upload, verification launch, read-back)");
   const GoldResult& gold = datasets.Gold(data, variant);
   const std::vector<glm::vec3> out_positions = UnpackInstances(packed, output.positions, instances);
   std::vector<glm::vec3> out_normals;
@@ -503,6 +517,7 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   std::vector<std::vector<std::uint8_t>> palettes;
   for (const std::vector<glm::mat4>& palette : ScenePalettes(data.scene, sets))
     palettes.push_back(PackPalette(palette, variant));
+  phase("check against the gold and the source");
   const int warmup = std::max(options.warmup, 0);
   const int repetitions = std::max(options.repetitions, 1);
   Executor::Times times;
@@ -522,6 +537,7 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   m.timing.input_sets = sets;
   m.timing.footprint_bytes = static_cast<double>(sets) * static_cast<double>(times.bytes_per_set);
   m.gbps = m.timing.median_ms > 0.0 ? m.bytes_per_frame / m.timing.median_ms / 1e6 : 0.0;
+  phase("time (input sets, warm-up, bursts)");
   std::string copy_problem;
   try {
     const std::vector<double> copy =
@@ -536,6 +552,8 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   } catch (const Error& e) {
     copy_problem = std::string("the same-size copy failed: ") + e.what();
   }
+  phase("copy");
+  TimingLog([&] { return variant.Key() + " phases: " + phases; });
   return finish(MeasureStatus::kOk, copy_problem);  // a kernel without its copy is still measured
 }
 

@@ -44,7 +44,7 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 // 3: an even number of input sets (so CUDA's and OpenCL's two lanes never
 //    read one set at once), warm-up bursts long enough to raise a GPU's
 //    clock and ended only when the clock probe is back up (runtime/runner.cpp);
-// 4: burst lengths are powers of two (burst_ms to twice it), so the same-size
+// 4: burst lengths are powers of two (0.71 to 1.41 x burst_ms), so the same-size
 //    copy is timed once per length; a device busy within 10 ms is not warmed
 //    again, and one still warm by the probe gets one 4 ms burst.
 inline constexpr int kTimingVersion = 4;

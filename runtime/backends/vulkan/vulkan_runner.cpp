@@ -349,7 +349,10 @@ VkShaderModule VulkanApi::ModuleFor(const KernelSource& source) {
 
 const Pipeline& VulkanApi::PipelineFor(const KernelSource& source, PaletteStorage storage) {
   const std::string key = HashOf(source) + "/" + Name(storage);
-  if (auto found = pipelines_.find(key); found != pipelines_.end()) return found->second;
+  if (auto found = pipelines_.find(key); found != pipelines_.end()) {
+    if (cache_) ++cache_->counters().memory_hits;  // its program, found in memory
+    return found->second;
+  }
   Pipeline p;
   p.module = ModuleFor(source);
   std::vector<VkDescriptorSetLayoutBinding> bindings;
