@@ -250,7 +250,15 @@ class VulkanApi final : public DeviceApi {
   // The pipeline too: its creation is the driver's compile (which the
   // driver's own disk cache keeps, so the tuner's compile-ahead threads warm
   // it for the measuring runner). The palette's storage is the kernel's.
-  void Build(const KernelSource& source) override { PipelineFor(source, StorageOf(source)); }
+  // (A source without its argument list, such as a bare template, is
+  // compiled to SPIR-V only: its pipeline layout is unknown.)
+  void Build(const KernelSource& source) override {
+    if (source.arguments.empty()) {
+      ModuleFor(source);
+      return;
+    }
+    PipelineFor(source, StorageOf(source));
+  }
   void CheckRun(const PackedMesh& mesh, std::span<const KernelSource> kernels, const RunShape& shape) const override;
   std::size_t PaletteBufferBytes(const RunShape& shape, std::span<const KernelSource> kernels) const override;
   std::unique_ptr<PlannedLaunch> Plan(const LaunchSpec& spec) override;
