@@ -7,6 +7,10 @@
 #include <limits>
 #include <sstream>
 
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
 #include "reference/error.h"
 
 namespace skintune {
@@ -284,6 +288,26 @@ template <std::size_t kRows>
 std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8_t* out) {
   static_assert(std::endian::native == std::endian::little, "packed buffers are little-endian, as the devices read them");
   std::size_t first_special = matrices;
+#if defined(__SSE2__)
+  // Four columns in, a 4x4 transpose in registers, kRows rows out; the
+  // exponent test on all 16 words at once.
+  const __m128i exponent = _mm_set1_epi32(0x7f800000);
+  for (std::size_t j = 0; j < matrices; ++j, out += kRows * 16) {
+    const float* m = column_major + 16 * j;
+    __m128 c0 = _mm_loadu_ps(m), c1 = _mm_loadu_ps(m + 4), c2 = _mm_loadu_ps(m + 8), c3 = _mm_loadu_ps(m + 12);
+    const auto special = [&](__m128 c) {
+      return _mm_cmpeq_epi32(_mm_and_si128(_mm_castps_si128(c), exponent), exponent);
+    };
+    const __m128i any = _mm_or_si128(_mm_or_si128(special(c0), special(c1)), _mm_or_si128(special(c2), special(c3)));
+    _MM_TRANSPOSE4_PS(c0, c1, c2, c3);
+    auto* rows = reinterpret_cast<float*>(out);
+    _mm_storeu_ps(rows, c0);
+    _mm_storeu_ps(rows + 4, c1);
+    _mm_storeu_ps(rows + 8, c2);
+    if constexpr (kRows == 4) _mm_storeu_ps(rows + 12, c3);
+    if (_mm_movemask_epi8(any) != 0 && first_special == matrices) first_special = j;
+  }
+#else
   for (std::size_t j = 0; j < matrices; ++j, out += kRows * 16) {
     std::uint32_t words[16];
     std::memcpy(words, column_major + 16 * j, sizeof words);
@@ -295,6 +319,7 @@ std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8
     std::memcpy(out, rows, sizeof rows);
     if (special && first_special == matrices) first_special = j;
   }
+#endif
   return first_special;
 }
 }  // namespace
