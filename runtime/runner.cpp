@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
+#include <string_view>
 #include <utility>
 
 #include "reference/error.h"
@@ -30,6 +32,7 @@ struct Prepared::Impl {
   // Skinner's set).
   struct Set {
     std::vector<std::unique_ptr<DeviceObject>> objects;
+    std::vector<std::shared_ptr<DeviceBuffer>> shared;  // inputs kept by the runner (ShareTimedInputs)
     std::vector<Slot> slots;
     DeviceBuffer* out_positions = nullptr;
     DeviceBuffer* out_normals = nullptr;
@@ -62,6 +65,7 @@ struct Prepared::Impl {
       if (!ready)
         for (auto& o : set.objects) o->Forget();
       while (!set.objects.empty()) set.objects.pop_back();
+      set.shared.clear();  // after the launches bound to them
     }
   }
 
@@ -98,6 +102,14 @@ Runner::~Runner() = default;
 
 void Runner::Fail(const std::string& stage, const std::string& message) const {
   throw Error(std::string(api_->name()) + " " + stage + ": " + message);
+}
+
+void Runner::ShareTimedInputs(std::size_t max_bytes) {
+  shared_max_bytes_ = max_bytes;
+  if (max_bytes == 0) {
+    shared_inputs_.clear();
+    shared_bytes_ = 0;
+  }
 }
 
 void Runner::UseProgramCache(ProgramCache* cache, const std::string& device_id) {
@@ -188,8 +200,33 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
         const auto input = std::find_if(launch.inputs.begin(), launch.inputs.end(),
                                         [&](const PackedBuffer& pb) { return pb.name == arg.name; });
         if (input == launch.inputs.end()) Fail("launch", spec.where + ": no packed buffer for argument '" + arg.name + "'");
-        b = {&arg, ArgumentRole::kInput, add(BufferUse::kInput, input->bytes.size(), input->bytes.data(), arg.name + options.suffix, true),
-             nullptr};
+        DeviceBuffer* buffer = nullptr;
+        if (shared_max_bytes_ > 0 && !options.verification) {
+          // Kept from an earlier Prepare with the same input in set k, or allocated and kept.
+          const std::string_view bytes_view(reinterpret_cast<const char*>(input->bytes.data()), input->bytes.size());
+          const std::string key = std::to_string(p.sets.size() - 1) + "|" + arg.name + "|" +
+                                  std::to_string(input->bytes.size()) + "|" +
+                                  std::to_string(std::hash<std::string_view>{}(bytes_view));
+          auto found = std::find_if(shared_inputs_.begin(), shared_inputs_.end(),
+                                    [&](const SharedInput& k) { return k.key == key; });
+          if (found == shared_inputs_.end()) {
+            std::shared_ptr<DeviceBuffer> made =
+                api_->Allocate(BufferUse::kInput, input->bytes.size(), input->bytes.data(), arg.name + options.suffix);
+            shared_inputs_.push_back({key, made});
+            shared_bytes_ += input->bytes.size();
+            while (shared_bytes_ > shared_max_bytes_ && shared_inputs_.size() > 1) {
+              shared_bytes_ -= shared_inputs_.front().buffer->bytes();
+              shared_inputs_.erase(shared_inputs_.begin());  // a Prepared still holding it keeps it alive
+            }
+            found = shared_inputs_.end() - 1;
+          }
+          set.shared.push_back(found->buffer);
+          buffer = found->buffer.get();
+          bytes += input->bytes.size();
+        } else {
+          buffer = add(BufferUse::kInput, input->bytes.size(), input->bytes.data(), arg.name + options.suffix, true);
+        }
+        b = {&arg, ArgumentRole::kInput, buffer, nullptr};
       }
       if (!b.buffer) Fail("launch", spec.where + ": nothing to bind to argument '" + arg.name + "'");
       arguments.push_back(b);

@@ -122,6 +122,16 @@ class Runner {
   // Builds (or finds already built) `source`; throws Error("<API> build ...").
   void Build(const KernelSource& source);
 
+  // The tuner's runners: the input buffers of timed sets (never a
+  // verification's: those of Prepare with SetOptions::verification) are kept,
+  // up to `max_bytes`, and set k of a later Prepare whose packed input has the
+  // same name and bytes binds the same buffer instead of allocating and
+  // uploading its own. The variants of one packing (they differ in palette
+  // storage or work-group size only) then upload their 8 input sets once.
+  // Inputs are never written by a kernel; each set still has buffers of its
+  // own, so the footprint rule (input sets beyond twice the cache) holds.
+  void ShareTimedInputs(std::size_t max_bytes);
+
   // Emits the variant's kernel for every launch (Emit(variant, launch.influences,
   // palette_joints)) and runs them. `palette`: PackPalette bytes; empty = mesh.palette.
   RunResult Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette = {});
@@ -223,6 +233,13 @@ class Runner {
   std::optional<std::chrono::steady_clock::time_point> busy_until_;
   std::unique_ptr<Prepared> probe_;     // the clock probe's copy (ProbeMs)
   Lang probe_lang_ = Lang::kOpenCl;
+  // ShareTimedInputs: kept input buffers, oldest first, by "<set>|<name>|<bytes>|<hash>".
+  struct SharedInput {
+    std::string key;
+    std::shared_ptr<DeviceBuffer> buffer;
+  };
+  std::vector<SharedInput> shared_inputs_;
+  std::size_t shared_bytes_ = 0, shared_max_bytes_ = 0;
 };
 
 }  // namespace skintune

@@ -10,6 +10,7 @@
 // the low clock ended the warm-up (docs/PERFORMANCE.md "Timing version 3").
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <memory>
@@ -20,6 +21,7 @@
 #include <vector>
 
 #include "generator/copy_kernel.h"
+#include "reference/error.h"
 #include "runtime/device_api.h"
 #include "runtime/runner.h"
 
@@ -39,6 +41,7 @@ constexpr double kCoolMs = 30.0;
 struct Clock {
   double load_ms = 0.0;
   std::size_t frames = 0;  // frames run so far
+  std::vector<BufferUse> allocations;  // each buffer the runner allocated
   std::optional<std::chrono::steady_clock::time_point> idle_since;
   bool hot() const { return load_ms >= kRaiseMs; }
   double BytesPerMs() const { return hot() ? kHotBytesPerMs : kColdBytesPerMs; }
@@ -71,7 +74,8 @@ class FakeApi final : public DeviceApi {
   void Build(const KernelSource&) override {}
   void CheckRun(const PackedMesh&, std::span<const KernelSource>, const RunShape&) const override {}
   std::unique_ptr<PlannedLaunch> Plan(const LaunchSpec& spec) override { return std::make_unique<PlannedLaunch>(spec); }
-  std::unique_ptr<DeviceBuffer> Allocate(BufferUse, std::size_t bytes, const void*, const std::string&) override {
+  std::unique_ptr<DeviceBuffer> Allocate(BufferUse use, std::size_t bytes, const void*, const std::string&) override {
+    clock_.allocations.push_back(use);
     return std::make_unique<FakeBuffer>(bytes);
   }
   std::unique_ptr<DeviceObject> PaletteView(const Variant&, DeviceBuffer&, const std::string&) override { return nullptr; }
@@ -208,6 +212,34 @@ TEST(WarmUp, AStillWarmDeviceGetsOneBusyBurst) {
   // steadiness check would add at least one more burst of 256.
   const std::size_t warm_up = clock.frames - before - (2u + 5u * 10u) - 6u;
   EXPECT_EQ(warm_up, 16u + 32u + 64u + 128u + 256u);
+}
+
+// Runner::ShareTimedInputs (the tuner's runners): a second Prepare of the
+// same inputs binds the first one's input buffers, set by set, and allocates
+// only its outputs and palettes; a verification Run never shares; and
+// without the call every Prepare allocates its own.
+TEST(SharedInputs, ASecondPrepareOfTheSameInputsAllocatesNone) {
+  const CopyKernel copy = EmitCopy(Lang::kOpenCl, kCopyBytes);
+  const std::vector<std::vector<std::uint8_t>> palettes(3, copy.mesh.palette);
+  const auto inputs_allocated = [&](const Clock& clock) {
+    return std::count(clock.allocations.begin(), clock.allocations.end(), BufferUse::kInput);
+  };
+  for (const bool share : {false, true}) {
+    SCOPED_TRACE(share ? "shared" : "not shared");
+    Clock clock;
+    Runner runner(std::make_unique<FakeApi>(clock));
+    if (share) runner.ShareTimedInputs(std::size_t{1} << 30);
+    const std::span<const KernelSource> kernel(&copy.kernel, 1);
+    { const Prepared first = runner.Prepare(copy.mesh, kernel, palettes); }
+    EXPECT_EQ(inputs_allocated(clock), 3);
+    const Prepared second = runner.Prepare(copy.mesh, kernel, palettes);
+    EXPECT_EQ(second.input_sets(), 3);
+    EXPECT_EQ(inputs_allocated(clock), share ? 3 : 6);
+    // A verification allocates its own (the fake reads back zeros, so its
+    // guard check fails after the allocations this counts).
+    EXPECT_THROW((void)runner.Run(copy.mesh, kernel), Error);
+    EXPECT_EQ(inputs_allocated(clock), share ? 4 : 7);
+  }
 }
 
 }  // namespace
