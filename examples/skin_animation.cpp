@@ -1,7 +1,7 @@
 // skintune example: play a model's animation on the best device with the tuned
 // kernel and print frames per second. Uses only <skintune/skintune.h>.
 //
-//   skin_animation MODEL.gltf|.glb|DATASET [--db winners-db.json] [--device PATTERN]
+//   skin_animation MODEL.gltf|.glb|DATASET [MODEL...] [--db winners-db.json] [--device PATTERN]
 //                  [--seconds S] [--readback] [--instances K]
 //
 // DATASET is a synthetic key such as 1600k-b4 (docs/DATA.md). PATTERN picks the
@@ -10,6 +10,9 @@
 // memory, otherwise it stays on the device (a renderer would draw from it). With
 // --instances K one Skinner skins a crowd of K characters in one launch, each at its
 // own phase of the animation; frames are SetPalette + Skin without waiting between them.
+// With several models, one Skinner skins them all in one launch (Skinner::CreateBatch:
+// a scene of different characters, each playing its own animation), K times with
+// --instances K.
 #include <skintune/skintune.h>
 
 #include <algorithm>
@@ -29,13 +32,14 @@ static int Fail(const Status& status) {
 
 int main(int argc, char** argv) {
   if (argc < 2)
-    return std::fprintf(stderr, "usage: skin_animation MODEL|DATASET [--db F] [--device P] [--seconds S] [--readback] "
-                                "[--instances K]\n"), 2;
-  std::string path = argv[1], db_path, pattern;
+    return std::fprintf(stderr, "usage: skin_animation MODEL|DATASET [MODEL...] [--db F] [--device P] [--seconds S] "
+                                "[--readback] [--instances K]\n"), 2;
+  std::vector<std::string> paths;
+  std::string db_path, pattern;
   double seconds = 3.0;
   bool readback = false;
   SkinnerOptions options;
-  for (int i = 2; i < argc; ++i) {
+  for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     const bool has_value = i + 1 < argc;
     if (arg == "--db" && has_value) db_path = argv[++i];
@@ -43,38 +47,56 @@ int main(int argc, char** argv) {
     else if (arg == "--seconds" && has_value) seconds = std::atof(argv[++i]);
     else if (arg == "--readback") readback = true;
     else if (arg == "--instances" && has_value) options.instances = std::atoi(argv[++i]);
-    else return std::fprintf(stderr, "skin_animation: unknown or incomplete option '%s'\n", arg.c_str()), 2;
+    else if (arg.rfind("--", 0) == 0)
+      return std::fprintf(stderr, "skin_animation: unknown or incomplete option '%s'\n", arg.c_str()), 2;
+    else paths.push_back(arg);
   }
-  const std::string extension = path.substr(std::min(path.rfind('.'), path.size()));
-  const bool gltf = extension == ".gltf" || extension == ".glb";
-  Result<Model> model = gltf ? Model::Load(path) : Model::Synthetic(path);
-  if (!model) return Fail(model.status());
-  for (const std::string& warning : model->warnings()) std::fprintf(stderr, "warning: %s\n", warning.c_str());
+  if (paths.empty()) return std::fprintf(stderr, "skin_animation: no model or dataset given\n"), 2;
+  std::vector<Model> models;
+  std::vector<MeshView> meshes;
+  for (const std::string& path : paths) {
+    const std::string extension = path.substr(std::min(path.rfind('.'), path.size()));
+    const bool gltf = extension == ".gltf" || extension == ".glb";
+    Result<Model> model = gltf ? Model::Load(path) : Model::Synthetic(path);
+    if (!model) return Fail(model.status());
+    for (const std::string& warning : model->warnings()) std::fprintf(stderr, "warning: %s\n", warning.c_str());
+    models.push_back(std::move(*model));
+  }
+  for (const Model& model : models) meshes.push_back(model.mesh());
 
   Result<Device> device = pattern.empty() ? Device::OpenBest() : Device::Open(pattern);
   if (!device) return Fail(device.status());
   Result<WinnersDb> db = db_path.empty() ? Result<WinnersDb>(WinnersDb::Empty()) : WinnersDb::Load(db_path);
   if (!db) return Fail(db.status());
-  Result<Skinner> skinner = Skinner::Create(*device, *db, model->mesh(), options);
+  Result<Skinner> skinner = models.size() == 1 ? Skinner::Create(*device, *db, meshes[0], options)
+                                               : Skinner::CreateBatch(*device, *db, meshes.data(), meshes.size(), options);
   if (!skinner) return Fail(skinner.status());
-  std::printf("%s: %d x %zu vertices, %d influences, %d joints\ndevice: %s (%s)\nkernel: %s\n  %s: %s\n",
-              model->source().c_str(), options.instances, model->vertex_count(), model->influences(),
-              model->joint_count(),
-              device->info().name.c_str(), BackendName(device->info().backend), skinner->selection().variant.c_str(),
-              MatchLevelName(skinner->selection().level), skinner->selection().reason.c_str());
+  for (std::size_t m = 0; m < models.size(); ++m)
+    std::printf("%s: %d x %zu vertices, %d influences, %d joints\n", models[m].source().c_str(), options.instances,
+                models[m].vertex_count(), models[m].influences(), models[m].joint_count());
+  std::printf("device: %s (%s)\nkernel: %s (%s)\n  %s: %s\n", device->info().name.c_str(),
+              BackendName(device->info().backend), skinner->selection().variant.c_str(),
+              SceneShapeName(skinner->shape()), MatchLevelName(skinner->selection().level),
+              skinner->selection().reason.c_str());
 
-  // One frame: character k's palette at time t + k/K of the animation, skinned, read back or
-  // left queued on the device (the next SetPalette waits only when three frames are queued).
-  const int animation = model->animation_count() > 0 ? 0 : -1, k_count = options.instances;
-  const std::size_t n = model->vertex_count(), joint_floats = std::size_t(model->joint_count()) * 16;
-  const double duration = std::max(model->animation_duration(animation), 1e-9);
+  // One frame: character k's palettes at time t + k/K of each model's animation (a batch: every
+  // model's at its place in the palette), skinned, read back or left queued on the device (the
+  // next SetPalette waits only when three frames are queued).
+  const int k_count = options.instances;
+  const std::size_t n = skinner->vertex_count(), joint_floats = std::size_t(skinner->joint_count()) * 16;
   std::vector<float> palette(k_count * joint_floats), one, positions(k_count * n * 3), reference;
+  auto animation_of = [&](const Model& model) { return model.animation_count() > 0 ? 0 : -1; };
   auto frame = [&](double t, bool read) {
     Status status;
     for (int k = 0; k < k_count && status; ++k) {
-      const double at = model->animation_start(animation) + std::fmod(t + duration * k / k_count, duration);
-      if ((status = model->Palette(animation, at, &one)))
-        std::copy(one.begin(), one.end(), palette.begin() + k * joint_floats);
+      for (std::size_t m = 0; m < models.size() && status; ++m) {
+        const Model& model = models[m];
+        const int animation = animation_of(model);
+        const double duration = std::max(model.animation_duration(animation), 1e-9);
+        const double at = model.animation_start(animation) + std::fmod(t + duration * k / k_count, duration);
+        if ((status = model.Palette(animation, at, &one)))
+          std::copy(one.begin(), one.end(), palette.begin() + k * joint_floats + skinner->joint_offset(m) * 16);
+      }
     }
     if (status) status = skinner->SetPalette(palette.data(), palette.size());
     if (status) status = skinner->Skin();
@@ -84,17 +106,24 @@ int main(int argc, char** argv) {
   Status status = frame(0.0, true);  // the first frame, every character checked against the reference
   double error = 0.0, extent = 0.0;
   for (int k = 0; k < k_count && status; ++k) {
-    status = model->SkinReference(palette.data() + k * joint_floats, joint_floats, &reference);
-    for (std::size_t i = 0; i < reference.size(); ++i) {
-      error = std::max(error, std::abs(double(positions[k * n * 3 + i]) - reference[i]));
-      extent = std::max(extent, std::abs(double(reference[i])));
+    for (std::size_t m = 0; m < models.size() && status; ++m) {
+      const std::size_t joints = std::size_t(models[m].joint_count()) * 16;
+      status = models[m].SkinReference(palette.data() + k * joint_floats + skinner->joint_offset(m) * 16, joints,
+                                       &reference);
+      const std::size_t first = (k * n + skinner->vertex_offset(m)) * 3;
+      for (std::size_t i = 0; i < reference.size(); ++i) {
+        error = std::max(error, std::abs(double(positions[first + i]) - reference[i]));
+        extent = std::max(extent, std::abs(double(reference[i])));
+      }
     }
   }
   if (!status) return Fail(status);
-  std::printf("first frame: largest difference from the reference %.3g (%.2g of the model's extent)\n", error,
+  std::printf("first frame: largest difference from the reference %.3g (%.2g of the models' extent)\n", error,
               error / extent);
   if (!(error <= 1e-3 * extent)) return Fail(Status(ErrorCode::kDeviceError, "the kernel's output is wrong"));
 
+  double duration = 1e-9;
+  for (const Model& model : models) duration = std::max(duration, model.animation_duration(animation_of(model)));
   int frames = 0;
   double elapsed = 0.0;
   const auto start = std::chrono::steady_clock::now();
