@@ -178,16 +178,23 @@ TEST(WarmUp, AFullWarmUpEndsOnlyWhenTheClockProbeIsBackUp) {
   }
 }
 
+// A device just timed: its clock is up (the two tests below start here).
+class WarmDevice : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_FALSE(TimeIt(runner, small).empty());
+    ASSERT_TRUE(clock.hot());
+  }
+  Clock clock;
+  Runner runner{std::make_unique<FakeApi>(clock)};
+  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, kCopyBytes, 2);
+};
+
 // Timings back to back (the tuner times a variant's burst length, the
 // variant and its copy in a row): the device was busy a moment ago, so the
 // second runs exactly its own frames, no probe and no warm-up, and still at
 // the high clock.
-TEST(WarmUp, BackToBackTimingsNeedNoWarmUp) {
-  Clock clock;
-  Runner runner(std::make_unique<FakeApi>(clock));
-  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, kCopyBytes, 2);
-  ASSERT_FALSE(TimeIt(runner, small).empty());
-  ASSERT_TRUE(clock.hot());
+TEST_F(WarmDevice, BackToBackTimingsNeedNoWarmUp) {
   const std::size_t before = clock.frames;
   const std::vector<double> second = TimeIt(runner, small);
   EXPECT_EQ(clock.frames - before, 2u + 5u * 10u) << "frames beyond the timed call's own: a probe or a warm-up ran";
@@ -197,12 +204,7 @@ TEST(WarmUp, BackToBackTimingsNeedNoWarmUp) {
 // A device still warm after a short pause (the probe within 15% of the best)
 // gets one burst long enough to keep it busy, not the 200 ms floor of a full
 // warm-up nor its steadiness check.
-TEST(WarmUp, AStillWarmDeviceGetsOneBusyBurst) {
-  Clock clock;
-  Runner runner(std::make_unique<FakeApi>(clock));
-  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, kCopyBytes, 2);
-  ASSERT_FALSE(TimeIt(runner, small).empty());
-  ASSERT_TRUE(clock.hot());
+TEST_F(WarmDevice, AStillWarmDeviceGetsOneBusyBurst) {
   std::this_thread::sleep_for(std::chrono::milliseconds(15));  // past the runner's 10 ms, short of the clock's 30
   const std::size_t before = clock.frames;
   const std::vector<double> second = TimeIt(runner, small);
