@@ -150,6 +150,7 @@ Prepared Runner::PrepareSets(const PackedMesh& mesh, std::span<const KernelSourc
   }
   p.palettes_bytes = static_cast<std::size_t>(shape.instances) * shape.palette_bytes;
   p.out_bytes = shape.out_bytes;
+  input_hashes_.clear();  // ShareTimedInputs: each input hashed once per Prepare, not per set
   for (std::size_t k = 0; k < palettes.size(); ++k) {
     SetOptions set_options = options;
     if (!options.verification) set_options.suffix = " (input set " + std::to_string(k) + ")";
@@ -203,10 +204,13 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
         DeviceBuffer* buffer = nullptr;
         if (shared_max_bytes_ > 0 && !options.verification) {
           // Kept from an earlier Prepare with the same input in set k, or allocated and kept.
-          const std::string_view bytes_view(reinterpret_cast<const char*>(input->bytes.data()), input->bytes.size());
+          auto hashed = input_hashes_.find(input->bytes.data());
+          if (hashed == input_hashes_.end()) {
+            const std::string_view bytes_view(reinterpret_cast<const char*>(input->bytes.data()), input->bytes.size());
+            hashed = input_hashes_.emplace(input->bytes.data(), std::hash<std::string_view>{}(bytes_view)).first;
+          }
           const std::string key = std::to_string(p.sets.size() - 1) + "|" + arg.name + "|" +
-                                  std::to_string(input->bytes.size()) + "|" +
-                                  std::to_string(std::hash<std::string_view>{}(bytes_view));
+                                  std::to_string(input->bytes.size()) + "|" + std::to_string(hashed->second);
           auto found = std::find_if(shared_inputs_.begin(), shared_inputs_.end(),
                                     [&](const SharedInput& k) { return k.key == key; });
           if (found == shared_inputs_.end()) {

@@ -43,6 +43,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <span>
@@ -240,6 +241,7 @@ class Runner {
   };
   std::vector<SharedInput> shared_inputs_;
   std::size_t shared_bytes_ = 0, shared_max_bytes_ = 0;
+  std::map<const void*, std::size_t> input_hashes_;  // within one PrepareSets: packed input -> its hash
 };
 
 }  // namespace skintune

@@ -363,7 +363,6 @@ Status Skinner::Finish() {
 
 namespace {
 
-// Whether every 32-bit word of `bytes` is a finite float (exponent bits not all set).
 // Read-backs of more than kReadChunkVertices vertices are scanned and copied
 // in chunks of that many on a process-wide pool of up to 8 threads (the
 // H100 machine's host copies 5.3 GB/s on one thread: a 1.6M-vertex read-back
@@ -382,6 +381,7 @@ void ForChunks(std::size_t count, std::size_t grain, const std::function<void(st
   pool.ParallelFor(count, grain, body);
 }
 
+// Whether every 32-bit word of `bytes` is a finite float (exponent bits not all set).
 bool AllFinite(std::span<const std::uint8_t> bytes) {
   constexpr std::size_t kBlock = 1024;
   std::uint32_t words[kBlock];
