@@ -161,6 +161,11 @@ void Frames(benchmark::State& state, const std::string& name, Skinner& finish, F
   if (skin_only && per_frame_us.count(skin_only)) state.counters["of_skin_only"] = Median(skin_only) / us;
 }
 
+// A counter of host time per frame, us: `seconds` over `frames` calls.
+benchmark::Counter UsPerFrame(double seconds, std::size_t frames) {
+  return benchmark::Counter(seconds / double(std::max<std::size_t>(frames, 1)) * 1e6);
+}
+
 void OneMeshSkinOnly(benchmark::State& state) {
   Scene& s = TheScene();
   double skin_s = 0.0;
@@ -171,7 +176,7 @@ void OneMeshSkinOnly(benchmark::State& state) {
     skin_s += std::chrono::duration<double>(Clock::now() - start).count();
     ++frames;
   });
-  state.counters["skin_us"] = benchmark::Counter(skin_s / double(std::max<std::size_t>(frames, 1)) * 1e6);
+  state.counters["skin_us"] = UsPerFrame(skin_s, frames);
 }
 
 void OneMeshSetSkinFinish(benchmark::State& state) {
@@ -209,8 +214,8 @@ void InstancedPipelined(benchmark::State& state) {
         ++frames;
       },
       "instanced/skin-only");
-  state.counters["set_palette_us"] = benchmark::Counter(set_s / double(std::max<std::size_t>(frames, 1)) * 1e6);
-  state.counters["skin_us"] = benchmark::Counter(skin_s / double(std::max<std::size_t>(frames, 1)) * 1e6);
+  state.counters["set_palette_us"] = UsPerFrame(set_s, frames);
+  state.counters["skin_us"] = UsPerFrame(skin_s, frames);
 }
 
 void InstancedSetSkinFinish(benchmark::State& state) {
