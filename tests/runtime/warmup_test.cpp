@@ -147,11 +147,16 @@ std::vector<double> TimeIt(Runner& runner, const Prepared& prepared) {
   return runner.Time(prepared, 2, 5, 10);
 }
 
-TEST(WarmUp, RaisesAClockThatOnlySustainedLoadRaises) {
+// A runner on the fake device and the copy every test times.
+class WarmUp : public ::testing::Test {
+ protected:
   Clock clock;
-  Runner runner(std::make_unique<FakeApi>(clock));
-  // A 16-frame burst of the copy is 0.8 ms of load, too little to raise the clock.
+  Runner runner{std::make_unique<FakeApi>(clock)};
   const Prepared small = runner.PrepareCopy(Lang::kOpenCl, kCopyBytes, 2);
+};
+
+// A 16-frame burst of the copy is 0.8 ms of load, too little to raise the clock.
+TEST_F(WarmUp, RaisesAClockThatOnlySustainedLoadRaises) {
   const std::vector<double> ms = TimeIt(runner, small);
   ASSERT_FALSE(ms.empty());
   EXPECT_TRUE(clock.hot()) << "load seen by the device: " << clock.load_ms << " ms";
@@ -159,10 +164,7 @@ TEST(WarmUp, RaisesAClockThatOnlySustainedLoadRaises) {
   for (double t : ms) EXPECT_NEAR(t, hot_ms, 1e-12) << "a frame timed at the low clock (" << 2 * hot_ms << " ms)";
 }
 
-TEST(WarmUp, AFullWarmUpEndsOnlyWhenTheClockProbeIsBackUp) {
-  Clock clock;
-  Runner runner(std::make_unique<FakeApi>(clock));
-  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, kCopyBytes, 2);
+TEST_F(WarmUp, AFullWarmUpEndsOnlyWhenTheClockProbeIsBackUp) {
   const std::vector<double> first = TimeIt(runner, small);
   ASSERT_TRUE(clock.hot());
   // The device idles (a compile, a verification): the clock drops. The probe
@@ -179,15 +181,12 @@ TEST(WarmUp, AFullWarmUpEndsOnlyWhenTheClockProbeIsBackUp) {
 }
 
 // A device just timed: its clock is up (the two tests below start here).
-class WarmDevice : public ::testing::Test {
+class WarmDevice : public WarmUp {
  protected:
   void SetUp() override {
     ASSERT_FALSE(TimeIt(runner, small).empty());
     ASSERT_TRUE(clock.hot());
   }
-  Clock clock;
-  Runner runner{std::make_unique<FakeApi>(clock)};
-  const Prepared small = runner.PrepareCopy(Lang::kOpenCl, kCopyBytes, 2);
 };
 
 // Timings back to back (the tuner times a variant's burst length, the

@@ -126,6 +126,24 @@ class ScopedFault {
   ~ScopedFault() { unsetenv("SKINTUNE_INJECT_FAULT"); }
 };
 
+// The two injected faults on `v`: "compile" is compile_failed naming the
+// API's build stage (`build`, e.g. "Vulkan build"), "wrong" is verify_failed
+// with the error measured.
+void ExpectInjectedCompileAndWrongFaults(Backend& backend, const Variant& v, const std::string& build) {
+  {
+    ScopedFault f(v.Key() + "=compile");
+    const Measurement m = backend.Measure(v, {kDataset}, SmallTiming());
+    EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << Name(m.status) << ": " << m.detail;
+    EXPECT_NE(m.detail.find(build), std::string::npos) << m.detail;
+  }
+  {
+    ScopedFault f(v.Key() + "=wrong");
+    const Measurement m = backend.Measure(v, {kDataset}, SmallTiming());
+    EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << Name(m.status) << ": " << m.detail;
+    EXPECT_GT(m.max_relative_error, 1e-5);
+  }
+}
+
 // ---------------------------------------------------------------- discovery and identity
 
 TEST(Discovery, FindsEveryOpenClDeviceWithItsIdentity) {
@@ -602,19 +620,7 @@ TEST(VulkanBackend, MeasuresVariantsWithTheChipsIdentity) {
 
 TEST(VulkanBackend, InjectedCompileAndWrongFaultsAreCompileAndVerifyFailed) {
   BACKEND_OR_SKIP(backend, "vulkan");
-  const Variant v = ParseVariantKey("vulkan.b2.soa.wg64");
-  {
-    ScopedFault f(v.Key() + "=compile");
-    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-    EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << Name(m.status) << ": " << m.detail;
-    EXPECT_NE(m.detail.find("Vulkan build"), std::string::npos) << m.detail;
-  }
-  {
-    ScopedFault f(v.Key() + "=wrong");
-    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-    EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << Name(m.status) << ": " << m.detail;
-    EXPECT_GT(m.max_relative_error, 1e-5);
-  }
+  ExpectInjectedCompileAndWrongFaults(*backend, ParseVariantKey("vulkan.b2.soa.wg64"), "Vulkan build");
 }
 
 // ---------------------------------------------------------------- cpu (the fast path's kernels, every machine)
@@ -632,19 +638,7 @@ TEST(CpuBackend, MeasuresVariantsWithTheSameSizeCopyAndRecordsFaults) {
     EXPECT_NEAR(m.x_copy, m.timing.median_ms / m.timing.copy_ms, 1e-9 * m.x_copy);
   }
   EXPECT_GT(backend->CopyBandwidthGBps(16u << 20), 0.0);
-  const Variant v = ParseVariantKey("cpu.b2.soa.v1c.wg0");
-  {
-    ScopedFault f(v.Key() + "=compile");
-    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-    EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << Name(m.status) << ": " << m.detail;
-    EXPECT_NE(m.detail.find("CPU build"), std::string::npos) << m.detail;
-  }
-  {
-    ScopedFault f(v.Key() + "=wrong");
-    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
-    EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << Name(m.status) << ": " << m.detail;
-    EXPECT_GT(m.max_relative_error, 1e-5);
-  }
+  ExpectInjectedCompileAndWrongFaults(*backend, ParseVariantKey("cpu.b2.soa.v1c.wg0"), "CPU build");
   // Storages other than global are invalid on the device, recorded so.
   const Measurement local = backend->Measure(ParseVariantKey("cpu.b2.soa.local.v1c.wg0"), {kDataset}, SmallTiming());
   EXPECT_EQ(local.status, MeasureStatus::kInvalid) << local.detail;
