@@ -26,7 +26,18 @@ std::string Context(const Variant& variant) { return "pack " + variant.Key(); }
 
 // ------------------------------------------------------------ little-endian words
 
+// Whole-word stores and loads on a little-endian host (a loop of byte stores
+// made packing a 100k-vertex mesh 2-6 ms of every tuner measurement);
+// byte by byte elsewhere.
 void PutUint(std::uint8_t* at, std::uint32_t value, std::size_t bytes) {
+  if constexpr (std::endian::native == std::endian::little) {
+    switch (bytes) {
+      case 1: *at = static_cast<std::uint8_t>(value); return;
+      case 2: { const auto half = static_cast<std::uint16_t>(value); std::memcpy(at, &half, 2); return; }
+      case 4: std::memcpy(at, &value, 4); return;
+      default: break;
+    }
+  }
   for (std::size_t b = 0; b < bytes; ++b) at[b] = static_cast<std::uint8_t>(value >> (8 * b));
 }
 
@@ -34,7 +45,11 @@ void PutFloat(std::uint8_t* at, float value) { PutUint(at, std::bit_cast<std::ui
 
 float GetFloat(const std::uint8_t* at) {
   std::uint32_t bits = 0;
-  for (int b = 0; b < 4; ++b) bits |= static_cast<std::uint32_t>(at[b]) << (8 * b);
+  if constexpr (std::endian::native == std::endian::little) {
+    std::memcpy(&bits, at, 4);
+  } else {
+    for (int b = 0; b < 4; ++b) bits |= static_cast<std::uint32_t>(at[b]) << (8 * b);
+  }
   return std::bit_cast<float>(bits);
 }
 

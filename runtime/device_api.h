@@ -167,6 +167,11 @@ class DeviceApi {
   }
   // Builds (or finds already built) `source`; throws Error("<name> build: ...").
   virtual void Build(const KernelSource& source) = 0;
+  // True when Build may run on several threads at once (with MakeCurrent on
+  // each): the API's context allows concurrent builds and the API guards its
+  // own table of built kernels. The tuner then compiles ahead into the
+  // measuring runner itself instead of into runners of its own.
+  virtual bool ConcurrentBuilds() const { return false; }
 
   // The API's limits for a run of `shape` (instances per launch, the palette
   // in constant memory or an image): throws Error("<name> launch: ...") naming

@@ -31,6 +31,7 @@
 // source, loaded from disk, and reused in memory by the runners.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -38,10 +39,11 @@
 
 namespace skintune {
 
+// Atomic: an API with ConcurrentBuilds (device_api.h) counts from several threads.
 struct ProgramCacheCounters {
-  int builds = 0;
-  int disk_hits = 0;
-  int memory_hits = 0;
+  std::atomic<int> builds = 0;
+  std::atomic<int> disk_hits = 0;
+  std::atomic<int> memory_hits = 0;
 };
 
 class ProgramCache {

@@ -107,7 +107,7 @@ void Runner::Fail(const std::string& stage, const std::string& message) const {
 void Runner::ShareTimedInputs(std::size_t max_bytes) {
   shared_max_bytes_ = max_bytes;
   if (max_bytes == 0) {
-    shared_inputs_.clear();
+    shared_buffers_.clear();
     shared_bytes_ = 0;
   }
 }
@@ -159,92 +159,111 @@ Prepared Runner::PrepareSets(const PackedMesh& mesh, std::span<const KernelSourc
   return prepared;
 }
 
+std::string Runner::ShareKey(const SetOptions& options, std::size_t set, const char* role, const std::string& name,
+                             std::span<const std::uint8_t> content) {
+  if (shared_max_bytes_ == 0 || options.verification) return "";
+  std::string key = std::to_string(set) + "|" + role + "|" + name + "|" + std::to_string(content.size());
+  if (std::string_view(role) == "out") return key;  // a timed output's bytes are never read
+  const std::string_view bytes(reinterpret_cast<const char*>(content.data()), content.size());
+  if (std::string_view(role) != "in") return key + "|" + std::to_string(std::hash<std::string_view>{}(bytes));
+  // Each packed input hashed once per Prepare (its sets bind the same mesh's bytes).
+  auto hashed = input_hashes_.find(content.data());
+  if (hashed == input_hashes_.end()) hashed = input_hashes_.emplace(content.data(), std::hash<std::string_view>{}(bytes)).first;
+  return key + "|" + std::to_string(hashed->second);
+}
+
+DeviceBuffer* Runner::SetBuffer(Prepared::Impl& p, std::size_t set_index, BufferUse use, std::span<const std::uint8_t> content,
+                                const std::string& what, const std::string& share_key) {
+  Prepared::Impl::Set& set = p.sets[set_index];
+  if (content.empty()) Fail("launch", "buffer '" + what + "' is empty");
+  if (share_key.empty()) {
+    set.objects.push_back(api_->Allocate(use, content.size(), content.data(), what));
+    return static_cast<DeviceBuffer*>(set.objects.back().get());
+  }
+  auto found = std::find_if(shared_buffers_.begin(), shared_buffers_.end(),
+                            [&](const SharedBuffer& k) { return k.key == share_key; });
+  if (found == shared_buffers_.end()) {
+    shared_buffers_.push_back({share_key, api_->Allocate(use, content.size(), content.data(), what)});
+    shared_bytes_ += content.size();
+    while (shared_bytes_ > shared_max_bytes_ && shared_buffers_.size() > 1) {
+      shared_bytes_ -= shared_buffers_.front().buffer->bytes();
+      shared_buffers_.erase(shared_buffers_.begin());  // a Prepared still holding it keeps it alive
+    }
+    found = shared_buffers_.end() - 1;
+  }
+  set.shared.push_back(found->buffer);
+  return found->buffer.get();
+}
+
+std::vector<ArgumentBinding> Runner::InputBindings(Prepared::Impl& p, std::size_t set_index,
+                                                   const LaunchSpec& spec, const Launch& launch,
+                                                   const SetOptions& options, std::size_t& bytes) {
+  const Prepared::Impl::Set& set = p.sets[set_index];
+  std::vector<ArgumentBinding> arguments;
+  for (const KernelArgument& arg : spec.source.arguments) {
+    ArgumentBinding b{&arg, ArgumentRole::kScalar, nullptr, nullptr};
+    if (arg.kind == ArgumentKind::kScalar) {
+      arguments.push_back(b);
+      continue;
+    }
+    if (arg.name == "palette") {
+      b.role = ArgumentRole::kPalette;  // bound per slot (AddSet)
+      arguments.push_back(b);
+      continue;
+    }
+    if (arg.name == "out_positions" || arg.name == "out_normals") {
+      b = {&arg, ArgumentRole::kOutput, arg.name == "out_positions" ? set.out_positions : set.out_normals, nullptr};
+    } else {
+      const auto input = std::find_if(launch.inputs.begin(), launch.inputs.end(),
+                                      [&](const PackedBuffer& pb) { return pb.name == arg.name; });
+      if (input == launch.inputs.end()) Fail("launch", spec.where + ": no packed buffer for argument '" + arg.name + "'");
+      b = {&arg, ArgumentRole::kInput,
+           SetBuffer(p, set_index, BufferUse::kInput, input->bytes, arg.name + options.suffix,
+                     ShareKey(options, set_index, "in", arg.name, input->bytes)),
+           nullptr};
+      bytes += input->bytes.size();
+    }
+    if (!b.buffer) Fail("launch", spec.where + ": nothing to bind to argument '" + arg.name + "'");
+    arguments.push_back(b);
+  }
+  return arguments;
+}
+
 void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const KernelSource> kernels,
                     const std::vector<std::uint8_t>& palettes, const RunShape& shape, const SetOptions& options,
                     int palette_slots) {
+  const std::size_t index = p.sets.size();
   Prepared::Impl::Set& set = p.sets.emplace_back();
   std::size_t bytes = 0;
-  const auto add = [&](BufferUse use, std::size_t size, const void* data, const std::string& what, bool counted) {
-    if (size == 0) Fail("launch", "buffer '" + what + "' is empty");
-    set.objects.push_back(api_->Allocate(use, size, data, what));
-    bytes += counted ? size : 0;
-    return static_cast<DeviceBuffer*>(set.objects.back().get());
-  };
   // Outputs (K instances, one after another): poisoned; Run's followed by their guard.
   const std::vector<std::uint8_t> poison = PoisonedOutput(p.out_bytes);
-  const std::size_t out_size = options.verification ? poison.size() : p.out_bytes;
-  const bool counted = !options.verification;
-  set.out_positions = add(BufferUse::kOutput, out_size, poison.data(), "out_positions" + options.suffix, counted);
-  if (mesh.variant.normals) set.out_normals = add(BufferUse::kOutput, out_size, poison.data(), "out_normals" + options.suffix, counted);
+  const std::span<const std::uint8_t> out(poison.data(), options.verification ? poison.size() : p.out_bytes);
+  for (const bool normals : {false, true}) {
+    if (normals && !mesh.variant.normals) continue;
+    const std::string name = OutputName(normals);
+    (normals ? set.out_normals : set.out_positions) =
+        SetBuffer(p, index, BufferUse::kOutput, out, name + options.suffix, ShareKey(options, index, "out", name, out));
+    bytes += options.verification ? 0 : out.size();
+  }
 
   // Every launch's arguments, inputs uploaded once for all the slots; the
   // palette bound per slot below.
   std::vector<std::vector<ArgumentBinding>> launch_arguments;
-  for (const std::unique_ptr<PlannedLaunch>& planned : p.launches) {
-    const LaunchSpec& spec = planned->spec;
-    const Launch& launch = mesh.launches[spec.index];
-    std::vector<ArgumentBinding>& arguments = launch_arguments.emplace_back();
-    for (const KernelArgument& arg : spec.source.arguments) {
-      ArgumentBinding b{&arg, ArgumentRole::kScalar, nullptr, nullptr};
-      if (arg.kind == ArgumentKind::kScalar) {
-        arguments.push_back(b);
-        continue;
-      }
-      if (arg.name == "palette") {
-        b.role = ArgumentRole::kPalette;
-        arguments.push_back(b);
-        continue;
-      }
-      if (arg.name == "out_positions" || arg.name == "out_normals") {
-        b = {&arg, ArgumentRole::kOutput, arg.name == "out_positions" ? set.out_positions : set.out_normals, nullptr};
-      } else {
-        const auto input = std::find_if(launch.inputs.begin(), launch.inputs.end(),
-                                        [&](const PackedBuffer& pb) { return pb.name == arg.name; });
-        if (input == launch.inputs.end()) Fail("launch", spec.where + ": no packed buffer for argument '" + arg.name + "'");
-        DeviceBuffer* buffer = nullptr;
-        if (shared_max_bytes_ > 0 && !options.verification) {
-          // Kept from an earlier Prepare with the same input in set k, or allocated and kept.
-          auto hashed = input_hashes_.find(input->bytes.data());
-          if (hashed == input_hashes_.end()) {
-            const std::string_view bytes_view(reinterpret_cast<const char*>(input->bytes.data()), input->bytes.size());
-            hashed = input_hashes_.emplace(input->bytes.data(), std::hash<std::string_view>{}(bytes_view)).first;
-          }
-          const std::string key = std::to_string(p.sets.size() - 1) + "|" + arg.name + "|" +
-                                  std::to_string(input->bytes.size()) + "|" + std::to_string(hashed->second);
-          auto found = std::find_if(shared_inputs_.begin(), shared_inputs_.end(),
-                                    [&](const SharedInput& k) { return k.key == key; });
-          if (found == shared_inputs_.end()) {
-            std::shared_ptr<DeviceBuffer> made =
-                api_->Allocate(BufferUse::kInput, input->bytes.size(), input->bytes.data(), arg.name + options.suffix);
-            shared_inputs_.push_back({key, made});
-            shared_bytes_ += input->bytes.size();
-            while (shared_bytes_ > shared_max_bytes_ && shared_inputs_.size() > 1) {
-              shared_bytes_ -= shared_inputs_.front().buffer->bytes();
-              shared_inputs_.erase(shared_inputs_.begin());  // a Prepared still holding it keeps it alive
-            }
-            found = shared_inputs_.end() - 1;
-          }
-          set.shared.push_back(found->buffer);
-          buffer = found->buffer.get();
-          bytes += input->bytes.size();
-        } else {
-          buffer = add(BufferUse::kInput, input->bytes.size(), input->bytes.data(), arg.name + options.suffix, true);
-        }
-        b = {&arg, ArgumentRole::kInput, buffer, nullptr};
-      }
-      if (!b.buffer) Fail("launch", spec.where + ": nothing to bind to argument '" + arg.name + "'");
-      arguments.push_back(b);
-    }
-  }
+  for (const std::unique_ptr<PlannedLaunch>& planned : p.launches)
+    launch_arguments.push_back(
+        InputBindings(p, index, planned->spec, mesh.launches[planned->spec.index], options, bytes));
 
   // The palette slots: each its palette (padded where the API binds a larger
-  // block), the storage's view of it, and every launch bound with it.
+  // block), the storage's view of it, and every launch bound with it. (A
+  // Skinner's several slots are never shared: only a timed set's one.)
   std::vector<std::uint8_t> palette(palettes.begin(), palettes.end());
   palette.resize(std::max(palette.size(), api_->PaletteBufferBytes(shape, kernels)), 0);
   for (int s = 0; s < std::max(palette_slots, 1); ++s) {
     Prepared::Impl::Slot& slot = set.slots.emplace_back();
     const std::string suffix = palette_slots > 1 ? options.suffix + " (palette slot " + std::to_string(s) + ")" : options.suffix;
-    slot.palette = add(BufferUse::kPalette, palette.size(), palette.data(), "palette" + suffix, true);
+    slot.palette = SetBuffer(p, index, BufferUse::kPalette, palette, "palette" + suffix,
+                             palette_slots > 1 ? "" : ShareKey(options, index, "palette", "palette", palette));
+    bytes += palette.size();
     std::unique_ptr<DeviceObject> view = api_->PaletteView(mesh.variant, *slot.palette, suffix);
     DeviceObject* palette_view = view.get();
     if (view) set.objects.push_back(std::move(view));

@@ -122,15 +122,22 @@ class Runner {
 
   // Builds (or finds already built) `source`; throws Error("<API> build ...").
   void Build(const KernelSource& source);
+  // True when Build may be called from several threads at once (OpenCL,
+  // CUDA: DeviceApi::ConcurrentBuilds), the runner's other calls staying on one.
+  bool ConcurrentBuilds() const { return api_->ConcurrentBuilds(); }
 
-  // The tuner's runners: the input buffers of timed sets (never a
-  // verification's: those of Prepare with SetOptions::verification) are kept,
-  // up to `max_bytes`, and set k of a later Prepare whose packed input has the
-  // same name and bytes binds the same buffer instead of allocating and
-  // uploading its own. The variants of one packing (they differ in palette
-  // storage or work-group size only) then upload their 8 input sets once.
-  // Inputs are never written by a kernel; each set still has buffers of its
-  // own, so the footprint rule (input sets beyond twice the cache) holds.
+  // The tuner's runners: the buffers of timed sets (never a verification's:
+  // those of Prepare with SetOptions::verification; never a Skinner's palette
+  // ring) are kept, up to `max_bytes`, and set k of a later Prepare binds
+  // them instead of allocating and uploading its own: an input or a palette
+  // of the same name and bytes, an output of the same name and size (a timed
+  // output's bytes are never read). The variants of one packing (they differ
+  // in palette storage or work-group size only) then upload their 8 input
+  // sets once, and no later variant allocates an output or a palette. Inputs
+  // and palettes are never written by a kernel; each set still has buffers
+  // of its own, so the footprint rule (input sets beyond twice the cache)
+  // holds. Uses of one kept buffer never overlap: a runner times one
+  // Prepared at a time.
   void ShareTimedInputs(std::size_t max_bytes);
 
   // Emits the variant's kernel for every launch (Emit(variant, launch.influences,
@@ -215,6 +222,20 @@ class Runner {
   void AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const KernelSource> kernels,
               const std::vector<std::uint8_t>& palettes, const RunShape& shape, const SetOptions& options,
               int palette_slots);
+  // One launch's arguments for set `set_index`: its inputs allocated (or
+  // shared) and bound, its outputs bound; the palette left to AddSet's slots.
+  // `bytes` grows by the inputs' sizes.
+  std::vector<ArgumentBinding> InputBindings(Prepared::Impl& p, std::size_t set_index, const LaunchSpec& spec,
+                                             const Launch& launch, const SetOptions& options, std::size_t& bytes);
+  // A buffer of `set` holding `content`: its own, or, under a non-empty
+  // `share_key` (ShareKey), the runner's kept buffer (allocated and kept on first use).
+  DeviceBuffer* SetBuffer(Prepared::Impl& p, std::size_t set_index, BufferUse use, std::span<const std::uint8_t> content,
+                          const std::string& what, const std::string& share_key);
+  // ShareTimedInputs' key of a timed set's buffer: "<set>|<role>|<name>|<bytes>"
+  // and, for inputs and palettes, their bytes' hash; "" when not shared
+  // (sharing off, or a verification set).
+  std::string ShareKey(const SetOptions& options, std::size_t set, const char* role, const std::string& name,
+                       std::span<const std::uint8_t> content);
   void ReadChecked(const Prepared::Impl& p, const PackedMesh& mesh, const RunShape& shape, RunResult& result);
   // Warms the device before timed frames (TimingPolicy::warm_until_stable):
   // 200 ms of bursts and steady, or only steady when the clock probe says the
@@ -234,12 +255,12 @@ class Runner {
   std::optional<std::chrono::steady_clock::time_point> busy_until_;
   std::unique_ptr<Prepared> probe_;     // the clock probe's copy (ProbeMs)
   Lang probe_lang_ = Lang::kOpenCl;
-  // ShareTimedInputs: kept input buffers, oldest first, by "<set>|<name>|<bytes>|<hash>".
-  struct SharedInput {
+  // ShareTimedInputs: kept buffers of timed sets, oldest first, by ShareKey.
+  struct SharedBuffer {
     std::string key;
     std::shared_ptr<DeviceBuffer> buffer;
   };
-  std::vector<SharedInput> shared_inputs_;
+  std::vector<SharedBuffer> shared_buffers_;
   std::size_t shared_bytes_ = 0, shared_max_bytes_ = 0;
   std::map<const void*, std::size_t> input_hashes_;  // within one PrepareSets: packed input -> its hash
 };

@@ -17,13 +17,16 @@ namespace skintune::tuner_internal {
 
 namespace {
 
-// The APIs whose kernels CompileAhead builds on several threads, each thread
-// with a runner (and program cache object) of its own, so that no API object
-// is shared between threads:
-// - opencl: clBuildProgram of distinct programs in distinct contexts is
-//   thread-safe (OpenCL 1.2, appendix A.2); PoCL builds them in parallel;
-// - cuda: NVRTC compiles are thread-safe, so is the driver API, and every
-//   runner shares the device's primary context.
+// The APIs whose kernels CompileAhead builds on several threads:
+// - opencl, cuda: into the measuring runner itself (Runner::ConcurrentBuilds:
+//   clBuildProgram of distinct programs in one context is thread-safe, OpenCL
+//   1.2 appendix A.2, and so are NVRTC and the CUDA driver API), so Measure
+//   finds each kernel built in its own context. (With a runner per thread,
+//   NVIDIA's OpenCL built each kernel twice: once ahead, then again from the
+//   cached PTX in the measuring context, 42 ms per measurement on the H100.)
+//   PoCL builds them in parallel;
+// Each of the others with a runner (and program cache object) of its own,
+// so that no API object is shared between threads:
 // - vulkan: each thread's runner has a VkDevice of its own, and its Build
 //   creates the pipeline (the driver's compile): the SPIR-V lands in the
 //   program cache, the driver's compile in the driver's own disk cache
@@ -100,15 +103,24 @@ class DeviceBackend final : public Backend {
     const unsigned threads = std::clamp<unsigned>(std::thread::hardware_concurrency(), 1u,
                                                   std::min<std::size_t>(kMaxCompileThreads, kernels.size()));
     std::atomic<std::size_t> next{0}, built{0};
+    skintune::Runner* shared = nullptr;  // the measuring runner, where the API allows
+    try {
+      if (Executor(), runner_->ConcurrentBuilds()) shared = runner_.get();
+    } catch (const Error&) {
+      return 0;  // the device does not open: Measure records why
+    }
     auto work = [&] {
       ProgramCache cache(cache_.enabled() ? cache_.dir() : "-");
-      std::unique_ptr<skintune::Runner> runner;
-      try {
-        runner = device_.open();
-      } catch (const Error&) {
-        return;  // no second context: the kernels compile in Measure
+      std::unique_ptr<skintune::Runner> own;
+      if (!shared) {
+        try {
+          own = device_.open();
+        } catch (const Error&) {
+          return;  // no second context: the kernels compile in Measure
+        }
+        if (cache.enabled()) own->UseProgramCache(&cache, device_.identity.Id());
       }
-      if (cache.enabled()) runner->UseProgramCache(&cache, device_.identity.Id());
+      skintune::Runner* runner = shared ? shared : own.get();
       for (std::size_t i = next++; i < kernels.size(); i = next++) {
         try {
           runner->Build(kernels[i]);

@@ -6,12 +6,15 @@
 // carries its log.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cstdlib>
 #include <iostream>
+#include <thread>
 
 #include "runner_test_support.h"
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "runtime/backends/opencl/opencl_runner.h"
+#include "runtime/program_cache.h"
 #include "runtime/run_shape.h"
 
 namespace skintune {
@@ -23,6 +26,7 @@ using testing::CaseName;
 using testing::ExpectCaseMatchesGold;
 using testing::ExpectCoveringSetMatchesGold;
 using testing::ExpectHalfPoisoned;
+using testing::ExpectRunMatchesGold;
 using testing::ExpectRunFails;
 using testing::ErrorOf;
 using testing::Faulty;
@@ -162,6 +166,43 @@ TEST(OpenClRunner, BuildFailureCarriesTheBuildLog) {
   if (!runner) GTEST_SKIP() << why;
   Faulty f = WithFault(kFaultKey, "if (v >= n) break;", "if (v >= n) break; undeclared_name_xyz = 1;");
   ExpectRunFails(*runner, f, "a kernel with an undeclared name built", {"OpenCL build", "undeclared_name_xyz"});
+}
+
+// Runner::ConcurrentBuilds (the tuner compiles ahead into the measuring
+// runner): four threads share eight kernels and build each once in the
+// runner's one context, and the runs that follow find every one built and
+// match the gold.
+TEST(OpenClRunner, ConcurrentBuildsBuildEachKernelOnceThenRunsFindThem) {
+  std::string why;
+  const OpenClDeviceInfo* d = TestDevice(why);
+  if (!d) GTEST_SKIP() << why;
+  OpenClRunner runner(d->platform_index, d->device_index);
+  ASSERT_TRUE(runner.ConcurrentBuilds());
+  ProgramCache cache("-");  // no disk: every kernel is built from source, and counted
+  runner.UseProgramCache(&cache, "test");
+  std::vector<Variant> variants;
+  for (const char* storage : {"global", "constant"})
+    for (const char* wg : {"wg32", "wg64", "wg128", "wg256"})
+      variants.push_back(ParseVariantKey(std::string("opencl.b2.padded.soa.float4.u16.f32.mat3x4.") + storage +
+                                         ".matrix.v1c." + wg + ".nonormals"));
+  std::vector<KernelSource> kernels;
+  for (const Variant& v : variants) {
+    const std::vector<KernelSource> emitted = EmitLaunchKernels(Pack(Asset("b2").mesh, v));
+    ASSERT_EQ(emitted.size(), 1u);
+    kernels.push_back(emitted.front());
+  }
+  std::atomic<std::size_t> next{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&] {
+      for (std::size_t i = next++; i < kernels.size(); i = next++) runner.Build(kernels[i]);
+    });
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(cache.counters().builds, 8);
+  EXPECT_EQ(cache.counters().memory_hits, 0);
+  for (const Variant& v : variants) ExpectRunMatchesGold(runner, v, "b2", LaunchTimes::kAny);
+  EXPECT_EQ(cache.counters().builds, 8) << "a run built its kernel again";
+  EXPECT_EQ(cache.counters().memory_hits, 8);
 }
 
 TEST(OpenClRunner, RejectsAPaletteOfTheWrongSizeAndAMissingDevice) {

@@ -216,14 +216,17 @@ TEST_F(WarmDevice, AStillWarmDeviceGetsOneBusyBurst) {
 }
 
 // Runner::ShareTimedInputs (the tuner's runners): a second Prepare of the
-// same inputs binds the first one's input buffers, set by set, and allocates
-// only its outputs and palettes; a verification Run never shares; and
-// without the call every Prepare allocates its own.
+// same inputs and palettes binds the first one's buffers, set by set, and
+// allocates none (inputs, outputs, palettes); other palettes get palettes of
+// their own and nothing else; a verification Run never shares; and without
+// the call every Prepare allocates its own.
 TEST(SharedInputs, ASecondPrepareOfTheSameInputsAllocatesNone) {
   const CopyKernel copy = EmitCopy(Lang::kOpenCl, kCopyBytes);
   const std::vector<std::vector<std::uint8_t>> palettes(3, copy.mesh.palette);
-  const auto inputs_allocated = [&](const Clock& clock) {
-    return std::count(clock.allocations.begin(), clock.allocations.end(), BufferUse::kInput);
+  std::vector<std::vector<std::uint8_t>> other_palettes = palettes;
+  for (std::vector<std::uint8_t>& p : other_palettes) p.front() ^= 1;
+  const auto allocated = [&](const Clock& clock, BufferUse use) {
+    return std::count(clock.allocations.begin(), clock.allocations.end(), use);
   };
   for (const bool share : {false, true}) {
     SCOPED_TRACE(share ? "shared" : "not shared");
@@ -232,15 +235,49 @@ TEST(SharedInputs, ASecondPrepareOfTheSameInputsAllocatesNone) {
     if (share) runner.ShareTimedInputs(std::size_t{1} << 30);
     const std::span<const KernelSource> kernel(&copy.kernel, 1);
     { const Prepared first = runner.Prepare(copy.mesh, kernel, palettes); }
-    EXPECT_EQ(inputs_allocated(clock), 3);
+    EXPECT_EQ(allocated(clock, BufferUse::kInput), 3);
+    EXPECT_EQ(allocated(clock, BufferUse::kOutput), 3);
+    EXPECT_EQ(allocated(clock, BufferUse::kPalette), 3);
     const Prepared second = runner.Prepare(copy.mesh, kernel, palettes);
     EXPECT_EQ(second.input_sets(), 3);
-    EXPECT_EQ(inputs_allocated(clock), share ? 3 : 6);
+    EXPECT_EQ(allocated(clock, BufferUse::kInput), share ? 3 : 6);
+    EXPECT_EQ(allocated(clock, BufferUse::kOutput), share ? 3 : 6);
+    EXPECT_EQ(allocated(clock, BufferUse::kPalette), share ? 3 : 6);
+    // Both alive: set k of each binds the same buffers, and no two sets of one Prepared do.
+    for (int set = 0; set < 3; ++set) {
+      EXPECT_EQ(runner.OutputBuffer(second, set, false) != nullptr, true);
+      for (int other = 0; other < 3; ++other)
+        if (other != set) EXPECT_NE(runner.OutputBuffer(second, set, false), runner.OutputBuffer(second, other, false));
+    }
+    const Prepared third = runner.Prepare(copy.mesh, kernel, other_palettes);
+    EXPECT_EQ(allocated(clock, BufferUse::kInput), share ? 3 : 9);
+    EXPECT_EQ(allocated(clock, BufferUse::kOutput), share ? 3 : 9);
+    EXPECT_EQ(allocated(clock, BufferUse::kPalette), share ? 6 : 9);
+    for (int set = 0; set < 3; ++set)
+      EXPECT_EQ(runner.OutputBuffer(third, set, false) == runner.OutputBuffer(second, set, false), share);
     // A verification allocates its own (the fake reads back zeros, so its
     // guard check fails after the allocations this counts).
     EXPECT_THROW((void)runner.Run(copy.mesh, kernel), Error);
-    EXPECT_EQ(inputs_allocated(clock), share ? 4 : 7);
+    EXPECT_EQ(allocated(clock, BufferUse::kInput), share ? 4 : 10);
+    EXPECT_EQ(allocated(clock, BufferUse::kOutput), share ? 4 : 10);
   }
+}
+
+// Kept buffers past the budget are dropped oldest first (here all but the
+// newest), and a Prepared still holding one keeps it alive.
+TEST(SharedInputs, TheBudgetDropsTheOldestBuffers) {
+  const CopyKernel copy = EmitCopy(Lang::kOpenCl, kCopyBytes);
+  const std::vector<std::vector<std::uint8_t>> palettes(2, copy.mesh.palette);
+  Clock clock;
+  Runner runner(std::make_unique<FakeApi>(clock));
+  runner.ShareTimedInputs(1);  // less than one buffer: only the newest is kept
+  const std::span<const KernelSource> kernel(&copy.kernel, 1);
+  const Prepared first = runner.Prepare(copy.mesh, kernel, palettes);
+  const std::size_t after_first = clock.allocations.size();
+  const Prepared second = runner.Prepare(copy.mesh, kernel, palettes);
+  EXPECT_EQ(clock.allocations.size(), 2 * after_first);  // the one kept buffer is never the one looked up
+  EXPECT_NE(runner.OutputBuffer(first, 0, false), nullptr);
+  EXPECT_NE(runner.OutputBuffer(first, 0, false), runner.OutputBuffer(second, 0, false));
 }
 
 }  // namespace

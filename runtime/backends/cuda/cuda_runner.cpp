@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstring>
 #include <map>
+#include <mutex>
 #include <utility>
 
 #include "reference/error.h"
@@ -180,6 +181,9 @@ class CudaApi final : public DeviceApi {
     return true;
   }
   void Build(const KernelSource& source) override { KernelFor(source); }
+  // NVRTC and the driver API are thread-safe, and every thread makes the
+  // primary context current (Runner::Build); built_ is guarded by built_mutex_.
+  bool ConcurrentBuilds() const override { return true; }
   void CheckRun(const PackedMesh& mesh, std::span<const KernelSource> kernels, const RunShape& shape) const override;
   std::unique_ptr<PlannedLaunch> Plan(const LaunchSpec& spec) override;
   std::unique_ptr<DeviceBuffer> Allocate(BufferUse use, std::size_t bytes, const void* initial,
@@ -213,6 +217,7 @@ class CudaApi final : public DeviceApi {
   cuda::Stream Lane(int i);
 
   std::map<std::string, BuiltKernel> built_;  // by source hash
+  std::mutex built_mutex_;                     // built_ (ConcurrentBuilds)
   cuda::Stream lanes_[2] = {nullptr, nullptr};  // Time's two streams (made on first use)
 };
 
@@ -221,10 +226,14 @@ class CudaApi final : public DeviceApi {
 const BuiltKernel& CudaApi::KernelFor(const KernelSource& source) {
   if (source.lang != Lang::kCuda) Fail("build", std::string("kernel language is ") + Name(source.lang));
   const std::string key = HashOf(source);
-  if (auto found = built_.find(key); found != built_.end()) {
-    if (cache_) ++cache_->counters().memory_hits;
-    return found->second;
+  {
+    const std::lock_guard<std::mutex> lock(built_mutex_);
+    if (auto found = built_.find(key); found != built_.end()) {
+      if (cache_) ++cache_->counters().memory_hits;
+      return found->second;
+    }
   }
+  // Compiled and loaded outside the lock: other threads build other kernels meanwhile.
   const std::string what = "kernel " + key + " (" + source.text.substr(0, source.text.find('\n')) + ")";
   const std::string ptx = CompilePtxCached(source, info.arch, cache_, cache_device_id_);
   // The driver JIT-compiles the PTX for the device; its error log says why it cannot.
@@ -242,7 +251,8 @@ const BuiltKernel& CudaApi::KernelFor(const KernelSource& source) {
   b.module = Module(module, api->cuModuleUnload);
   Check(api->cuModuleGetFunction(&b.function, module, source.entry_point.c_str()), "build",
         "cuModuleGetFunction '" + source.entry_point + "' of " + what);
-  return built_.emplace(key, std::move(b)).first->second;
+  const std::lock_guard<std::mutex> lock(built_mutex_);
+  return built_.emplace(key, std::move(b)).first->second;  // a twin built meanwhile wins
 }
 
 // K instances need K blocks in grid y and, for `image` storage, K palettes of

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cstring>
 #include <map>
+#include <mutex>
 #include <utility>
 
 #include "reference/error.h"
@@ -147,6 +148,9 @@ class OpenClApi final : public DeviceApi {
   const char* name() const override { return "OpenCL"; }
   const std::string& device_name() const override { return name_; }
   void Build(const KernelSource& source) override { KernelFor(source); }
+  // clBuildProgram of distinct programs in one context is thread-safe
+  // (OpenCL 1.2, appendix A.2); built_ is guarded by built_mutex_.
+  bool ConcurrentBuilds() const override { return true; }
   void CheckRun(const PackedMesh& mesh, std::span<const KernelSource> kernels, const RunShape& shape) const override;
   std::unique_ptr<PlannedLaunch> Plan(const LaunchSpec& spec) override;
   std::unique_ptr<DeviceBuffer> Allocate(BufferUse use, std::size_t bytes, const void* initial,
@@ -178,6 +182,7 @@ class OpenClApi final : public DeviceApi {
   cl_command_queue Lane(int i);
 
   std::map<std::string, BuiltKernel> built_;  // by source hash
+  std::mutex built_mutex_;                     // built_ (ConcurrentBuilds)
 };
 
 // ---------------------------------------------------------------- programs
@@ -224,10 +229,14 @@ Program OpenClApi::ProgramFromSource(const KernelSource& source, const std::stri
 cl_kernel OpenClApi::KernelFor(const KernelSource& source) {
   if (source.lang != Lang::kOpenCl) Fail("build", std::string("kernel language is ") + Name(source.lang));
   const std::string key = HashOf(source);
-  if (auto found = built_.find(key); found != built_.end()) {
-    if (cache_) ++cache_->counters().memory_hits;
-    return found->second.kernel.get();
+  {
+    const std::lock_guard<std::mutex> lock(built_mutex_);
+    if (auto found = built_.find(key); found != built_.end()) {
+      if (cache_) ++cache_->counters().memory_hits;
+      return found->second.kernel.get();
+    }
   }
+  // Built outside the lock: other threads build other kernels meanwhile.
   constexpr const char* kOptions = "-cl-std=CL1.2";
   BuiltKernel b;
   const std::string cache_key = cache_ ? ProgramKey("opencl", cache_device_id_, key, kOptions) : "";
@@ -246,7 +255,8 @@ cl_kernel OpenClApi::KernelFor(const KernelSource& source) {
   cl_int err = CL_SUCCESS;
   b.kernel = Kernel(clCreateKernel(b.program.get(), source.entry_point.c_str(), &err));
   Check(err, "build", "clCreateKernel '" + source.entry_point + "' of kernel " + key);
-  return built_.emplace(key, std::move(b)).first->second.kernel.get();
+  const std::lock_guard<std::mutex> lock(built_mutex_);
+  return built_.emplace(key, std::move(b)).first->second.kernel.get();  // a twin built meanwhile wins
 }
 
 // ---------------------------------------------------------------- memory
