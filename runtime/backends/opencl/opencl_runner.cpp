@@ -180,6 +180,12 @@ class OpenClApi final : public DeviceApi {
   Memory NewMemory(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what);
   void Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event, cl_command_queue on = nullptr);
   cl_command_queue Lane(int i);
+  // Time's bursts (FrameUse::kTime) on the two lanes.
+  struct LaneEdges {
+    Event first[2], last[2];  // per lane: its first launch of the burst, its last
+  };
+  std::vector<std::vector<double>> TimeOnLanes(const FrameRun& run);
+  static double SpanMs(const LaneEdges& e, const std::string& key);
 
   std::map<std::string, BuiltKernel> built_;  // by source hash
   std::mutex built_mutex_;                     // built_ (ConcurrentBuilds)
@@ -440,22 +446,23 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
     for (const Event& e : events) ms.push_back(EventMs(e.get()));
     return {ms};
   }
-  // kTime (docs/TUNING.md "Timing"): frames alternate between two in-order
-  // queues, so one frame starts while the last work-groups of the one before
-  // drain, as consecutive dispatches do in GL and Vulkan; one queue alone
-  // would add the dependent-launch gap to every frame. Each burst starts
-  // with both queues fenced on each other; its time runs from the earliest
-  // START of its first launches to the latest END of its last ones.
+  return TimeOnLanes(run);
+}
+
+// kTime (docs/TUNING.md "Timing"): frames alternate between two in-order
+// queues, so one frame starts while the last work-groups of the one before
+// drain, as consecutive dispatches do in GL and Vulkan; one queue alone
+// would add the dependent-launch gap to every frame. Each burst starts
+// with both queues fenced on each other; its time runs from the earliest
+// START of its first launches to the latest END of its last ones.
+std::vector<std::vector<double>> OpenClApi::TimeOnLanes(const FrameRun& run) {
   const auto untimed = static_cast<std::size_t>(std::max(run.untimed, 0));
   const auto burst = static_cast<std::size_t>(std::max(run.burst, 1));
   const cl_command_queue lane[2] = {Lane(0), Lane(1)};
   for (std::size_t f = 0; f < untimed; ++f)
     for (const std::unique_ptr<DeviceObject>& launch : run.frames[f])
       Enqueue(static_cast<const ClBound&>(*launch), nullptr, nullptr, lane[0]);
-  struct Edges {
-    Event first[2], last[2];  // per lane: its first launch of the burst, its last
-  };
-  std::vector<Edges> bursts(run.TimedBursts());
+  std::vector<LaneEdges> bursts(run.TimedBursts());
   for (std::size_t b = 0; b < bursts.size(); ++b) {
     for (int l = 0; l < 2; ++l) {  // each lane waits for the other's earlier work
       cl_event marker = nullptr;
@@ -493,22 +500,26 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
   }
   for (int l = 0; l < 2; ++l) Check(clFinish(lane[l]), "launch", "clFinish after timing " + run.key);
   std::vector<std::vector<double>> ms;
-  for (const Edges& e : bursts) {
-    cl_ulong start = ~cl_ulong{0}, end = 0;
-    for (int l = 0; l < 2; ++l) {
-      if (!e.first[l].get()) continue;
-      cl_ulong s = 0, t = 0;
-      Check(clGetEventProfilingInfo(e.first[l].get(), CL_PROFILING_COMMAND_START, sizeof s, &s, nullptr), "launch",
-            "clGetEventProfilingInfo (start) of " + run.key);
-      const cl_event last = e.last[l].get() ? e.last[l].get() : e.first[l].get();
-      Check(clGetEventProfilingInfo(last, CL_PROFILING_COMMAND_END, sizeof t, &t, nullptr), "launch",
-            "clGetEventProfilingInfo (end) of " + run.key);
-      start = std::min(start, s);
-      end = std::max(end, t);
-    }
-    ms.push_back({end > start ? static_cast<double>(end - start) * 1e-6 : 0.0});
-  }
+  for (const LaneEdges& e : bursts) ms.push_back({SpanMs(e, run.key)});
   return ms;
+}
+
+// A burst's time: from the earliest START of its lanes' first launches to the
+// latest END of their last ones, ms (0 when none ran).
+double OpenClApi::SpanMs(const LaneEdges& e, const std::string& key) {
+  cl_ulong start = ~cl_ulong{0}, end = 0;
+  for (int l = 0; l < 2; ++l) {
+    if (!e.first[l].get()) continue;
+    cl_ulong s = 0, t = 0;
+    Check(clGetEventProfilingInfo(e.first[l].get(), CL_PROFILING_COMMAND_START, sizeof s, &s, nullptr), "launch",
+          "clGetEventProfilingInfo (start) of " + key);
+    const cl_event last = e.last[l].get() ? e.last[l].get() : e.first[l].get();
+    Check(clGetEventProfilingInfo(last, CL_PROFILING_COMMAND_END, sizeof t, &t, nullptr), "launch",
+          "clGetEventProfilingInfo (end) of " + key);
+    start = std::min(start, s);
+    end = std::max(end, t);
+  }
+  return end > start ? static_cast<double>(end - start) * 1e-6 : 0.0;
 }
 
 cl_command_queue OpenClApi::Lane(int i) {
