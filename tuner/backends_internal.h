@@ -68,6 +68,9 @@ class DatasetCache {
     std::map<std::pair<int, bool>, GoldResult> gold;  // (weight format, normals)
     std::map<bool, GoldResult> source_gold;           // normals
     std::map<std::pair<int, bool>, double> quantisation;  // (weight format, normals): gold vs source gold, / diagonal
+    std::map<int, std::vector<std::vector<glm::mat4>>> frames;  // ScenePalettes by count
+    // The last few packings (PackingKey, its packed mesh), newest last.
+    std::vector<std::pair<std::string, PackedMesh>> packings;
     const SkinnedMesh& mesh() const { return scene.mesh(); }
     int instances() const { return scene.spec.instances; }
   };
@@ -81,6 +84,12 @@ class DatasetCache {
   // positions / the part's diagonal: what `variant`'s weight format alone
   // moves them, relative (0 when it holds the weights exactly).
   double QuantisationError(Entry& entry, const Variant& variant);
+  // ScenePalettes(entry.scene, count), made once per count.
+  const std::vector<std::vector<glm::mat4>>& Frames(Entry& entry, int count);
+  // Pack(entry.mesh(), variant), reused from a variant of the same packing
+  // (PackingKey): the variants of one packing differ in their kernels only.
+  // Throws Error (naming `variant`) when it cannot be packed.
+  PackedMesh Packed(Entry& entry, const Variant& variant);
 
  private:
   std::map<std::string, std::unique_ptr<Entry>> entries_;
@@ -97,9 +106,16 @@ std::vector<std::vector<glm::mat4>> FramePalettes(const SkinnedAsset& asset, int
 // s x K + k of count x K); a batch: each mesh's frame s, one after another.
 std::vector<std::vector<glm::mat4>> ScenePalettes(const SkinnedScene& scene, int count);
 
-// The variant packed for the scene's mesh and its kernels, one per launch
-// (instanced for K instances). Throws Error when it cannot be packed or emitted.
-PackedMesh PackScene(const DatasetCache::Entry& entry, const Variant& variant, std::vector<KernelSource>& kernels);
+// `variant`'s key with every axis the packer does not read (generator/packer.h)
+// set to one value: the variants with one packing key have the same packed
+// bytes. An axis not listed here counts as one that changes them.
+std::string PackingKey(Variant variant);
+
+// The variant packed for the scene's mesh (DatasetCache::Packed) and its
+// kernels, one per launch (instanced for K instances). Throws Error when it
+// cannot be packed or emitted.
+PackedMesh PackScene(DatasetCache& datasets, DatasetCache::Entry& entry, const Variant& variant,
+                     std::vector<KernelSource>& kernels);
 
 // ---------------------------------------------------------------- measuring
 

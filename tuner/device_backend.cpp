@@ -5,6 +5,11 @@
 // CompileAhead fills from several threads.
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
+#include <cstdlib>
+#include <functional>
+#include <list>
+#include <mutex>
 #include <memory>
 #include <set>
 #include <string_view>
@@ -59,6 +64,79 @@ std::size_t SharedInputBytes(const DeviceIdentity& d) {
 // device compiles ahead only on a host with at least this many logical CPUs.
 constexpr unsigned kMinCpusToCompileAheadForACpuDevice = 8;
 
+// Compile threads that outlive one CompileAhead call, each with a runner of
+// its own, opened on its thread at its first kernel (GL's EGL context is
+// current on that thread only; Vulkan's VkDevice): opened once per device
+// instead of once per data set, which cost Vulkan ~1.1 s and GL ~0.6 s per
+// data set on the H100 (issue 16).
+class CompileThreads {
+ public:
+  using Open = std::function<std::unique_ptr<skintune::Runner>()>;
+  using Job = std::function<void(skintune::Runner&, std::size_t)>;
+  CompileThreads(unsigned count, Open open) : open_(std::move(open)) {
+    for (unsigned t = 0; t < count; ++t) threads_.emplace_back([this] { Loop(); });
+  }
+  ~CompileThreads() {
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    for (std::thread& t : threads_) t.join();
+  }
+  std::size_t size() const { return threads_.size(); }
+  // Runs job(runner, i) for every i < count on the threads (a thread whose
+  // runner did not open takes none); returns when every thread is done.
+  void Run(std::size_t count, const Job& job) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    job_ = &job;
+    count_ = count;
+    next_ = 0;
+    busy_ = threads_.size();
+    ++generation_;
+    wake_.notify_all();
+    done_.wait(lock, [&] { return busy_ == 0; });
+    job_ = nullptr;
+  }
+
+ private:
+  void Loop() {
+    std::unique_ptr<skintune::Runner> runner;
+    bool opened = false;
+    std::uint64_t seen = 0;
+    for (;;) {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
+      if (stop_) return;
+      seen = generation_;
+      lock.unlock();
+      std::size_t i = next_++;
+      if (i < count_ && !opened) {  // a thread with nothing to build opens nothing
+        opened = true;
+        try {
+          runner = open_();
+        } catch (const Error&) {
+          // No context of its own: the others build the rest, Measure this one.
+        }
+      }
+      for (; runner && i < count_; i = next_++) (*job_)(*runner, i);
+      lock.lock();
+      if (--busy_ == 0) done_.notify_all();
+    }
+  }
+
+  Open open_;
+  std::vector<std::thread> threads_;
+  std::mutex mutex_;
+  std::condition_variable wake_, done_;
+  bool stop_ = false;
+  std::uint64_t generation_ = 0;
+  const Job* job_ = nullptr;
+  std::size_t count_ = 0;
+  std::atomic<std::size_t> next_{0};
+  std::size_t busy_ = 0;
+};
+
 class DeviceBackend final : public Backend {
  public:
   DeviceBackend(FoundDevice device, std::vector<Lang> languages, int index)
@@ -92,7 +170,7 @@ class DeviceBackend final : public Backend {
       if (!fault.kind.empty() && fault.variant_key == v.Key()) continue;
       try {
         std::vector<KernelSource> emitted;
-        (void)PackScene(data, v, emitted);
+        (void)PackScene(datasets_, data, v, emitted);
         for (KernelSource& k : emitted)
           if (hashes.insert(k.source_hash).second) kernels.push_back(std::move(k));
       } catch (const Error&) {
@@ -100,40 +178,42 @@ class DeviceBackend final : public Backend {
       }
     }
     if (kernels.empty()) return 0;
-    const unsigned threads = std::clamp<unsigned>(std::thread::hardware_concurrency(), 1u,
-                                                  std::min<std::size_t>(kMaxCompileThreads, kernels.size()));
-    std::atomic<std::size_t> next{0}, built{0};
-    skintune::Runner* shared = nullptr;  // the measuring runner, where the API allows
+    const unsigned threads = std::clamp<unsigned>(std::thread::hardware_concurrency(), 1u, kMaxCompileThreads);
+    std::atomic<std::size_t> built{0};
+    const auto build = [&](skintune::Runner& runner, std::size_t i) {
+      try {
+        runner.Build(kernels[i]);
+        ++built;
+      } catch (const Error&) {
+        // A compile failure is Measure's to record (compile_failed).
+      }
+    };
     try {
-      if (Executor(), runner_->ConcurrentBuilds()) shared = runner_.get();
+      if (Executor(), runner_->ConcurrentBuilds()) {
+        // Into the measuring runner itself, from short-lived threads.
+        std::atomic<std::size_t> next{0};
+        const auto work = [&] {
+          for (std::size_t i = next++; i < kernels.size(); i = next++) build(*runner_, i);
+        };
+        std::vector<std::thread> pool;
+        for (unsigned t = 1; t < std::min<std::size_t>(threads, kernels.size()); ++t) pool.emplace_back(work);
+        work();
+        for (std::thread& t : pool) t.join();
+        return built;
+      }
     } catch (const Error&) {
       return 0;  // the device does not open: Measure records why
     }
-    auto work = [&] {
-      ProgramCache cache(cache_.enabled() ? cache_.dir() : "-");
-      std::unique_ptr<skintune::Runner> own;
-      if (!shared) {
-        try {
-          own = device_.open();
-        } catch (const Error&) {
-          return;  // no second context: the kernels compile in Measure
+    if (!compile_threads_)
+      compile_threads_ = std::make_unique<CompileThreads>(threads, [this] {
+        std::unique_ptr<skintune::Runner> runner = device_.open();
+        if (cache_.enabled()) {
+          const std::lock_guard<std::mutex> lock(thread_caches_mutex_);
+          runner->UseProgramCache(&thread_caches_.emplace_back(cache_.dir()), device_.identity.Id());
         }
-        if (cache.enabled()) own->UseProgramCache(&cache, device_.identity.Id());
-      }
-      skintune::Runner* runner = shared ? shared : own.get();
-      for (std::size_t i = next++; i < kernels.size(); i = next++) {
-        try {
-          runner->Build(kernels[i]);
-          ++built;
-        } catch (const Error&) {
-          // A compile failure is Measure's to record (compile_failed).
-        }
-      }
-    };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
-    work();
-    for (std::thread& t : pool) t.join();
+        return runner;
+      });
+    compile_threads_->Run(kernels.size(), build);
     return built;
   }
 
@@ -150,11 +230,16 @@ class DeviceBackend final : public Backend {
 
   FoundDevice device_;
   std::vector<Lang> languages_;
+  // ProgramCache::DefaultDir() ($SKINTUNE_CACHE_DIR, ...); none for a CPU device.
+  ProgramCache cache_{IsCpu(device_.identity) ? "-" : ""};
   std::unique_ptr<skintune::Runner> runner_;  // made on first use
   std::unique_ptr<RunnerExecutor> executor_;  // over runner_: remembers the copies it timed
   DatasetCache datasets_;
-  // ProgramCache::DefaultDir() ($SKINTUNE_CACHE_DIR, ...); none for a CPU device.
-  ProgramCache cache_{IsCpu(device_.identity) ? "-" : ""};
+  // The compile threads' program cache objects (one per thread: its counters
+  // are its own), then the threads, joined (and their runners closed) first.
+  std::list<ProgramCache> thread_caches_;
+  std::mutex thread_caches_mutex_;
+  std::unique_ptr<CompileThreads> compile_threads_;
 };
 
 }  // namespace
@@ -170,6 +255,12 @@ namespace skintune {
 bool CompilesAhead(const DeviceIdentity& device) {
   const auto& list = tuner_internal::kCompileAheadBackends;
   if (std::find(std::begin(list), std::end(list), device.backend) == std::end(list)) return false;
+  // SKINTUNE_COMPILE_AHEAD=always|never (docs/TUNING.md): the tests run both
+  // paths on CPU devices with "always".
+  if (const char* forced = std::getenv("SKINTUNE_COMPILE_AHEAD")) {
+    if (std::string_view(forced) == "always") return true;
+    if (std::string_view(forced) == "never") return false;
+  }
   return !tuner_internal::IsCpu(device) ||
          std::thread::hardware_concurrency() >= tuner_internal::kMinCpusToCompileAheadForACpuDevice;
 }

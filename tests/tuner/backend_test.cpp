@@ -119,11 +119,22 @@ void ExpectOk(const Measurement& m, const Backend& backend, const std::string& d
             << m.max_relative_error << "\n";
 }
 
-// Sets $SKINTUNE_INJECT_FAULT for the scope.
-class ScopedFault {
+// Sets an environment variable for the scope (unset after).
+class ScopedEnv {
  public:
-  explicit ScopedFault(const std::string& value) { setenv("SKINTUNE_INJECT_FAULT", value.c_str(), 1); }
-  ~ScopedFault() { unsetenv("SKINTUNE_INJECT_FAULT"); }
+  ScopedEnv(const char* name, const std::string& value) : name_(name) { setenv(name, value.c_str(), 1); }
+  ~ScopedEnv() { unsetenv(name_); }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* name_;
+};
+
+// Sets $SKINTUNE_INJECT_FAULT for the scope.
+class ScopedFault : public ScopedEnv {
+ public:
+  explicit ScopedFault(const std::string& value) : ScopedEnv("SKINTUNE_INJECT_FAULT", value) {}
 };
 
 // The two injected faults on `v`: "compile" is compile_failed naming the
@@ -323,6 +334,67 @@ TEST(Helpers, MedianCopyBytesAndTimestamp) {
   EXPECT_TRUE(std::regex_match(UtcTimestamp(), std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)")));
 }
 
+// DatasetCache::Packed: the variants of one packing (PackingKey) share its
+// bytes, so each is packed once. Every axis PackingKey sets aside must leave
+// the packer's bytes alone, and every other axis must change the key.
+TEST(Packings, KernelOnlyAxesLeaveThePackedBytesAloneAndTheOthersChangeTheKey) {
+  using tuner_internal::PackingKey;
+  const SkinnedMesh mesh = GenerateDataset(ParseDatasetKey("3k-b4-seed5")).mesh;
+  const Variant base = ParseVariantKey("opencl.b4.padded.soa-split.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals");
+  const PackedMesh packed = Pack(mesh, base);
+  const auto same_bytes = [&](const PackedMesh& other) {
+    if (other.launches.size() != packed.launches.size() || other.palette != packed.palette) return false;
+    for (std::size_t l = 0; l < packed.launches.size(); ++l) {
+      if (other.launches[l].inputs.size() != packed.launches[l].inputs.size()) return false;
+      for (std::size_t b = 0; b < packed.launches[l].inputs.size(); ++b)
+        if (other.launches[l].inputs[b].bytes != packed.launches[l].inputs[b].bytes) return false;
+    }
+    return other.order == packed.order;
+  };
+  for (const char* kernel_only : {"cuda.b4.padded.soa-split.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals",
+                                  "opencl.b4.padded.soa-split.float4.u8.unorm8.mat3x4.constant.matrix.v1c.wg64.nonormals",
+                                  "opencl.b4.padded.soa-split.float4.u8.unorm8.mat3x4.local.point.v1c.wg64.nonormals",
+                                  "opencl.b4.padded.soa-split.float4.u8.unorm8.mat3x4.global.matrix.v4s.wg256.nonormals"}) {
+    SCOPED_TRACE(kernel_only);
+    const Variant v = ParseVariantKey(kernel_only);
+    EXPECT_EQ(PackingKey(v), PackingKey(base));
+    EXPECT_TRUE(same_bytes(Pack(mesh, v)));
+  }
+  for (const char* packing : {"opencl.b4.padded.aos.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals",
+                              "opencl.b4.padded.soa.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals",
+                              "opencl.b4.padded.soa-split.float3.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals",
+                              "opencl.b4.padded.soa-split.float4.u16.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals",
+                              "opencl.b4.padded.soa-split.float4.u8.f32.mat3x4.global.matrix.v1c.wg64.nonormals",
+                              "opencl.b4.padded.soa-split.float4.u8.unorm8.mat4.global.matrix.v1c.wg64.nonormals",
+                              "opencl.b4.bucketed.soa-split.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals",
+                              "opencl.b5.padded.soa-split.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals"}) {
+    SCOPED_TRACE(packing);
+    EXPECT_NE(PackingKey(ParseVariantKey(packing)), PackingKey(base));
+  }
+}
+
+TEST(Packings, APackingIsReusedWithTheMeasuredVariantInIt) {
+  tuner_internal::DatasetCache datasets;
+  tuner_internal::DatasetCache::Entry& entry = datasets.Get("3k-b4-seed5");
+  const Variant global = ParseVariantKey("opencl.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals");
+  const Variant local = ParseVariantKey("opencl.b4.padded.soa.float4.u16.f32.mat3x4.local.matrix.v1c.wg256.nonormals");
+  const PackedMesh first = datasets.Packed(entry, global);
+  const PackedMesh second = datasets.Packed(entry, local);
+  EXPECT_EQ(first.variant, global);
+  EXPECT_EQ(second.variant, local);
+  EXPECT_EQ(entry.packings.size(), 1u);
+  EXPECT_EQ(second.launches.front().inputs.front().bytes, Pack(entry.mesh(), local).launches.front().inputs.front().bytes);
+  // A variant that cannot be packed is named in the error, and nothing is kept for it.
+  const Variant too_few = ParseVariantKey("opencl.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals");
+  try {
+    (void)datasets.Packed(entry, too_few);
+    ADD_FAILURE() << "packed a b2 variant of a b4 mesh";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(too_few.Key()), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(entry.packings.size(), 1u);
+}
+
 TEST(InjectedFault, ParsedFromTheEnvironmentWithTheCanonicalKey) {
   {
     ScopedFault f("wg64.b2.opencl=wrong");
@@ -431,7 +503,11 @@ TEST(Scenes, InstancesAndBatchesAreVerifiedTimedAndTheirWinnersSelectedByShape) 
 // second call finds them all built, and the measurements that follow load
 // them and pass. GPU devices only here (CPU devices compile ahead only on
 // hosts with at least 8 CPUs).
+// Every device of an API that compiles ahead (SKINTUNE_COMPILE_AHEAD=always:
+// here PoCL, llvmpipe and lavapipe too), twice: the second time into the
+// same threads' runners (GL, Vulkan) or the measuring runner (OpenCL, CUDA).
 TEST(CompileAhead, BuildsEveryKernelThenMeasureUsesThem) {
+  ScopedEnv always("SKINTUNE_COMPILE_AHEAD", "always");
   int tried = 0;
   for (const auto& found : Found().backends) {
     Backend& backend = *found;
