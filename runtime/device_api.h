@@ -23,6 +23,7 @@
 #include <cstddef>
 #include <algorithm>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -229,6 +230,20 @@ class DeviceApi {
   // and returns those bytes, valid until the next ReadPinned of the buffer.
   virtual std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
                                                    const std::string& what) = 0;
+  // ReadPinned in chunks the host can use while later ones are still in
+  // flight: queues the copies, `chunk` bytes each, and returns the staging
+  // at once with `ready(end)`, which blocks until bytes [0, end) have landed
+  // (callable from any thread; throws Error when the copy failed). The
+  // default reads it all first (ReadPinned) and `ready` returns at once.
+  struct PinnedRead {
+    std::span<const std::uint8_t> bytes;
+    std::function<void(std::size_t end)> ready;
+  };
+  virtual PinnedRead ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk,
+                                      const std::string& what) {
+    (void)chunk;
+    return {ReadPinned(buffer, bytes, what), [](std::size_t) {}};
+  }
   // The palette ring's per-slot fence: `marker` (made when null, else
   // reused) is signalled once everything queued so far has completed
   // (OpenCL a marker event, CUDA an event on the Skinner's stream, GL a

@@ -598,12 +598,18 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
 }
 
 std::span<const std::uint8_t> Runner::ReadOutput(const Prepared& prepared, int set, bool normals) {
+  return ReadOutputChunks(prepared, set, normals, 0).bytes;
+}
+
+DeviceApi::PinnedRead Runner::ReadOutputChunks(const Prepared& prepared, int set, bool normals, std::size_t chunk_bytes) {
   api_->MakeCurrent();
   const Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
   const DeviceBuffer* buffer = normals ? s.out_normals : s.out_positions;
   if (!buffer) Fail("launch", std::string("no ") + (normals ? "normals" : "positions") + " output in " + p.key);
-  return api_->ReadPinned(*buffer, p.out_bytes, std::string("'") + OutputName(normals) + "' of " + p.key);
+  const std::string what = std::string("'") + OutputName(normals) + "' of " + p.key;
+  if (chunk_bytes == 0 || chunk_bytes >= p.out_bytes) return {api_->ReadPinned(*buffer, p.out_bytes, what), [](std::size_t) {}};
+  return api_->ReadPinnedChunks(*buffer, p.out_bytes, chunk_bytes, what);
 }
 
 void* Runner::OutputBuffer(const Prepared& prepared, int set, bool normals) const {

@@ -208,6 +208,9 @@ class Runner {
   void UploadPalette(Prepared& prepared, int set);
   void LaunchSet(Prepared& prepared, int set, void* out_positions = nullptr);
   std::span<const std::uint8_t> ReadOutput(const Prepared& prepared, int set, bool normals);
+  // ReadOutput in chunks of `chunk_bytes` (DeviceApi::ReadPinnedChunks): the
+  // staging at once, and `ready(end)` blocking until its first `end` bytes are in.
+  DeviceApi::PinnedRead ReadOutputChunks(const Prepared& prepared, int set, bool normals, std::size_t chunk_bytes);
   // The native output buffer (cl_mem; CUdeviceptr or GL buffer name as an integer); null: none.
   void* OutputBuffer(const Prepared& prepared, int set, bool normals) const;
   // The palette slot LaunchSet uses next: that of the last WritePalette (tests).

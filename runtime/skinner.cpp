@@ -407,8 +407,11 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
                std::to_string(im.instances) + " instances x " + std::to_string(im.vertex_count) + " vertices x 3");
     if (!out) FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::") + call + ": out is null");
     if (!im.skinned) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": nothing skinned yet (call Skin first)");
-    // Straight from the page-locked read-back staging into the caller's array, in mesh order.
-    const std::span<const std::uint8_t> packed = im.backend->Read(normals);
+    // Straight from the page-locked read-back staging into the caller's array,
+    // in mesh order; the scan of each chunk while later ones are still in flight.
+    const std::size_t stride = im.output_stride;
+    const DeviceApi::PinnedRead read = im.backend->Read(normals, kReadChunkVertices * stride);
+    const std::span<const std::uint8_t> packed = read.bytes;
     if (packed.size() != vertices * im.output_stride)
       FailWith(ErrorCode::kDeviceError, std::string("Skinner::") + call + ": the device read back " +
                                             std::to_string(packed.size()) + " bytes, expected " +
@@ -416,11 +419,21 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
     // A NaN or infinite output never reaches the caller's buffer: one scan of
     // the words (float4 outputs' w is 1), and the vertex named when it finds
     // one; then the copy. Both on the shared read-back pool for large outputs.
-    const std::size_t stride = im.output_stride;
     std::atomic<bool> all_finite{true};
+    std::mutex failed_mutex;
+    std::string failed;  // the first chunk whose copy failed
     ForChunks(vertices, kReadChunkVertices, [&](std::size_t begin, std::size_t end) {
+      try {
+        read.ready(end * stride);
+      } catch (const Error& e) {
+        const std::lock_guard<std::mutex> lock(failed_mutex);
+        if (failed.empty()) failed = e.what();
+        return;
+      }
       if (!AllFinite(packed.subspan(begin * stride, (end - begin) * stride))) all_finite = false;
     });
+    if (!failed.empty()) throw Error(failed);
+    read.ready(packed.size());  // every chunk in, whatever the pool's split
     const bool finite = all_finite;
     for (std::size_t p = 0; p < vertices && !finite; ++p) {
       float xyz[3];

@@ -40,10 +40,13 @@ class SkinnerBackend {
   virtual void Skin() = 0;
   // Waits until every Skin() so far has completed on the device.
   virtual void Finish() = 0;
-  // Waits, and gives the positions (or normals) in packed order, instance
-  // after instance (instances x vertex_count x output stride), in the
-  // backend's page-locked read-back staging: valid until the next Read.
-  virtual std::span<const std::uint8_t> Read(bool normals) = 0;
+  // Gives the positions (or normals) in packed order, instance after
+  // instance (instances x vertex_count x output stride), in the backend's
+  // page-locked read-back staging (valid until the next Read), read back in
+  // chunks of `chunk_bytes` (0: at once) after the work queued so far:
+  // `ready(end)` waits until the first `end` bytes are in (runner.h
+  // ReadOutputChunks).
+  virtual DeviceApi::PinnedRead Read(bool normals, std::size_t chunk_bytes) = 0;
   virtual void* DevicePositions() const = 0;
   // Default: kUnavailable.
   virtual void SkinIntoGlBuffer(unsigned int gl_buffer);
@@ -96,9 +99,9 @@ class RunnerSkinner : public SkinnerBackend {
   void Finish() override {
     RunOnDevice([&] { runner_.Finish(); });
   }
-  std::span<const std::uint8_t> Read(bool normals) override {
-    std::span<const std::uint8_t> out;
-    RunOnDevice([&] { out = runner_.ReadOutput(prepared_, 0, normals && normals_); });
+  DeviceApi::PinnedRead Read(bool normals, std::size_t chunk_bytes) override {
+    DeviceApi::PinnedRead out;
+    RunOnDevice([&] { out = runner_.ReadOutputChunks(prepared_, 0, normals && normals_, chunk_bytes); });
     return out;
   }
   // A cl_mem, or a CUdeviceptr / GL buffer name as a pointer-sized integer.

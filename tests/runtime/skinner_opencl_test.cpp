@@ -177,6 +177,42 @@ TEST(OpenClSkinner, NonFinitePaletteAndOutputAreErrorsNeverData) {
   EXPECT_TRUE(std::all_of(out.begin(), out.end(), [](float v) { return v == 7.0f; }));
 }
 
+// A read-back of more than one 64k-vertex chunk (runtime/skinner.cpp: the
+// chunks are copied back one by one and scanned as they land): float3 and
+// float4 outputs match the gold across the chunk boundaries, and an output
+// that overflows only in the last chunk is still an error that leaves the
+// caller's array untouched.
+TEST(OpenClSkinner, AReadBackInChunksIsTheGoldAndAnOverflowInTheLastChunkWritesNothing) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  const SkinnedAsset& asset = Synthetic("150001-b2-seed7");
+  const View view(asset.mesh);
+  for (const char* key : {"opencl.b2.padded.soa.float3.u16.f32.mat3x4.global.matrix.v1c.wg128",
+                          "opencl.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128"}) {
+    SCOPED_TRACE(key);
+    SkinnerOptions options;
+    options.variant = key;
+    Skinner skinner = MustCreate(*device, WinnersDb::Empty(), view.mesh, options);
+    ExpectSkinsLikeTheGold(skinner, asset.mesh, Animated(asset, 0.3));
+    // The joints of the last vertex scaled to 3e38: it (and the others they move) overflow.
+    const std::vector<glm::mat4> pose = Animated(asset, 0.3);
+    std::vector<float> matrices = testing::Floats(pose);
+    const std::size_t last = asset.mesh.vertex_count() - 1;
+    for (int i = 0; i < asset.mesh.influences; ++i) {
+      if (asset.mesh.weights[last * asset.mesh.influences + i] == 0.0f) continue;
+      const std::size_t j = asset.mesh.joints[last * asset.mesh.influences + i];
+      for (int e = 0; e < 16; e += 5) matrices[j * 16 + e] = 3e38f;
+    }
+    ASSERT_TRUE(skinner.SetPalette(matrices.data(), matrices.size()).ok());
+    ASSERT_TRUE(skinner.Skin().ok());
+    std::vector<float> out(asset.mesh.vertex_count() * 3, 7.0f);
+    const Status read = skinner.ReadPositions(out.data(), out.size());
+    EXPECT_EQ(read.code(), ErrorCode::kDeviceError);
+    EXPECT_NE(read.message().find("not finite"), std::string::npos) << read.message();
+    EXPECT_TRUE(std::all_of(out.begin(), out.end(), [](float v) { return v == 7.0f; }));
+  }
+}
+
 TEST(OpenClSkinner, ForcedVariantsOfEveryLayoutAndFormatMatchTheGoldInMeshOrder) {
   TempDir dir;
   OPEN_OR_SKIP(device, CacheIn(dir));

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -118,6 +119,7 @@ class CudaMemory final : public DeviceBuffer {
   Memory memory;
   std::unique_ptr<CudaPinned> upload;            // write-combined: the host only writes it
   mutable std::unique_ptr<CudaPinned> readback;
+  mutable std::vector<Event> readback_chunks;     // ReadPinnedChunks: one event per chunk, reused
 };
 
 // The palette ring's fence: an event without timing on the Skinner's stream.
@@ -201,6 +203,8 @@ class CudaApi final : public DeviceApi {
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
                                            const std::string& what) override;
+  PinnedRead ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk,
+                              const std::string& what) override;
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override { Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize"); }
@@ -346,6 +350,32 @@ void CudaApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, cons
 }
 
 // After the work queued on the stream, into page-locked memory, then wait.
+// One copy per chunk on the Skinner's stream, each followed by its event:
+// the host scans a chunk while the next ones are still in flight.
+DeviceApi::PinnedRead CudaApi::ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk,
+                                                const std::string& what) {
+  const auto& m = static_cast<const CudaMemory&>(buffer);
+  if (!m.readback) m.readback = std::make_unique<CudaPinned>(api, m.bytes(), 0, "the read-back of " + what);
+  const std::size_t chunks = (bytes + chunk - 1) / chunk;
+  while (m.readback_chunks.size() < chunks) {
+    cuda::Event e = nullptr;
+    Check(api->cuEventCreate(&e, cuda::kEventDisableTiming), "launch", "cuEventCreate for the read-back of " + what);
+    m.readback_chunks.emplace_back(e, api->cuEventDestroy);
+  }
+  auto* host = static_cast<std::uint8_t*>(m.readback->host);
+  for (std::size_t c = 0; c < chunks; ++c) {
+    const std::size_t at = c * chunk, n = std::min(chunk, bytes - at);
+    Check(api->cuMemcpyDtoHAsync(host + at, m.pointer() + at, n, stream), "launch", "cuMemcpyDtoHAsync " + what);
+    Check(api->cuEventRecord(m.readback_chunks[c].get(), stream), "launch", "cuEventRecord after reading back " + what);
+  }
+  const cuda::DriverApi* driver = api;
+  return {{host, bytes}, [&m, driver, chunk, what](std::size_t end) {
+            if (end == 0) return;
+            Check(driver->cuEventSynchronize(m.readback_chunks[(end - 1) / chunk].get()), "launch",
+                  "cuEventSynchronize while reading back " + what);
+          }};
+}
+
 std::span<const std::uint8_t> CudaApi::ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
                                                   const std::string& what) {
   const auto& m = static_cast<const CudaMemory&>(buffer);

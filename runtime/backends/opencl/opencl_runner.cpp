@@ -110,6 +110,7 @@ class ClMemory final : public DeviceBuffer {
   Memory memory;
   std::unique_ptr<ClPinned> upload;            // made on the first Write
   mutable std::unique_ptr<ClPinned> readback;  // made on the first ReadPinned
+  mutable std::vector<Event> readback_chunks;  // ReadPinnedChunks' events, of the last read
 };
 
 // The palette ring's fence: a marker event.
@@ -168,6 +169,8 @@ class OpenClApi final : public DeviceApi {
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
                                            const std::string& what) override;
+  PinnedRead ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk,
+                              const std::string& what) override;
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override { Check(clFinish(queue.get()), "launch", "clFinish"); }
@@ -315,6 +318,30 @@ void OpenClApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, co
   Check(clEnqueueReadBuffer(queue.get(), static_cast<cl_mem>(buffer.native()), CL_TRUE, 0, out.size(), out.data(), 0,
                             nullptr, nullptr),
         "launch", "clEnqueueReadBuffer " + what);
+}
+
+// One non-blocking read per chunk, each with its event: the host scans a
+// chunk while the next ones are still in flight.
+DeviceApi::PinnedRead OpenClApi::ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk,
+                                                  const std::string& what) {
+  const auto& memory = static_cast<const ClMemory&>(buffer);
+  if (!memory.readback)
+    memory.readback = std::make_unique<ClPinned>(context.get(), queue.get(), memory.bytes(), "the read-back of " + what);
+  auto* host = static_cast<std::uint8_t*>(memory.readback->host);
+  memory.readback_chunks.clear();
+  for (std::size_t at = 0; at < bytes; at += chunk) {
+    cl_event event = nullptr;
+    Check(clEnqueueReadBuffer(queue.get(), memory.memory.get(), CL_FALSE, at, std::min(chunk, bytes - at), host + at,
+                              0, nullptr, &event),
+          "launch", "clEnqueueReadBuffer " + what);
+    memory.readback_chunks.emplace_back(event);
+  }
+  Check(clFlush(queue.get()), "launch", "clFlush after queueing the read-back of " + what);
+  return {{host, bytes}, [&memory, chunk, what](std::size_t end) {
+            if (end == 0) return;
+            const cl_event event = memory.readback_chunks[(end - 1) / chunk].get();
+            Check(clWaitForEvents(1, &event), "launch", "clWaitForEvents while reading back " + what);
+          }};
 }
 
 std::span<const std::uint8_t> OpenClApi::ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
