@@ -12,7 +12,8 @@
 // in axes.cpp fail the build when a field has no axis, an axis reads another
 // field, or an entry leaves one of its decisions (define, covering, chart)
 // unset; tests/generator/axes_test.cpp checks configs/*.schema.json list the
-// same values. docs/ARCHITECTURE.md says how to add an axis.
+// same values. docs/ARCHITECTURE.md says how to add an axis. The lang axis's
+// values are the rows of the language table (generator/languages.h).
 #pragma once
 
 #include <array>

@@ -187,14 +187,15 @@ constexpr std::size_t ApiIndex(Lang lang) {
 }
 inline constexpr std::size_t kApiCount = [] {
   std::size_t count = 0;
-  for (const Language& l : kLanguages) count = ApiIndex(l.lang) + 1 > count ? ApiIndex(l.lang) + 1 : count;
+  for (std::size_t row = 0; row < kLangCount; ++row)
+    if (FirstRowOfApi(kLanguages[row].api) == row) ++count;
   return count;
 }();
-// The first row of API `index`: its name and title.
+// The first row of API `index` (< kApiCount): its name and title.
 constexpr const Language& ApiRow(std::size_t index) {
-  for (const Language& l : kLanguages)
-    if (ApiIndex(l.lang) == index) return l;
-  return kLanguages[0];
+  std::size_t row = 0;
+  while (row + 1 < kLangCount && ApiIndex(kLanguages[row].lang) != index) ++row;
+  return kLanguages[row];
 }
 
 }  // namespace skintune
