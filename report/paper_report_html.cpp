@@ -67,6 +67,8 @@ std::string C(double v) {
   return text;
 }
 
+// A switch, not a column of the language table: colours are the report's
+// choice, and -Wswitch names an API that has none.
 const char* ApiColour(PaperApi api) {
   switch (api) {
     case PaperApi::kOpenCl: return "#2563eb";
