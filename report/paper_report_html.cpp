@@ -376,8 +376,8 @@ class Renderer {
       lx += 34 + 6.6 * static_cast<double>(Visible(text));
     };
     swatch(kCpuColour, 1.0, "CPU");
-    // Every API in the language table's order, but the cpu device (its title,
-    // CPU, is the baselines' swatch already; its bars are not in the legend).
+    // Every API in the language table's order but the cpu device, whose title
+    // (CPU) the baselines' swatch already shows in grey.
     for (int i = 0; i < kPaperApiCount; ++i) {
       const auto api = static_cast<PaperApi>(i);
       if (api != PaperApi::kCpu) swatch(ApiColour(api), 1.0, DisplayName(api));
