@@ -12,7 +12,8 @@
 // in axes.cpp fail the build when a field has no axis, an axis reads another
 // field, or an entry leaves one of its decisions (define, covering, chart)
 // unset; tests/generator/axes_test.cpp checks configs/*.schema.json list the
-// same values. docs/ARCHITECTURE.md says how to add an axis.
+// same values. docs/ARCHITECTURE.md says how to add an axis. The lang axis's
+// values are the rows of the language table (generator/languages.h).
 #pragma once
 
 #include <array>
@@ -62,6 +63,7 @@ constexpr AxisValueSpec V(E value, const char* name, const char* token) {
 class AxisValueList {
  public:
   static constexpr std::size_t kCapacity = 8;
+  constexpr AxisValueList() = default;
   constexpr AxisValueList(std::initializer_list<AxisValueSpec> values) {
     for (const AxisValueSpec& v : values) Add(v);
   }
@@ -72,12 +74,12 @@ class AxisValueList {
   constexpr const AxisValueSpec* end() const { return items_.data() + size_; }
   constexpr std::size_t size() const { return size_; }
   constexpr const AxisValueSpec& operator[](std::size_t i) const { return items_[i]; }
-
- private:
   constexpr void Add(const AxisValueSpec& v) {
     if (size_ == kCapacity) throw "an axis lists more than AxisValueList::kCapacity values";
     items_[size_++] = v;
   }
+
+ private:
   std::array<AxisValueSpec, kCapacity> items_{};
   std::size_t size_ = 0;
 };
@@ -148,12 +150,18 @@ struct Axis {
   }
 };
 
+// The lang axis's values: the language table's names (generator/languages.h).
+consteval AxisValueList LanguageValues() {
+  AxisValueList values;
+  for (const Language& language : kLanguages) values.Add(V(language.lang, language.name));
+  return values;
+}
+
 // The table. Order: Variant's fields = key order = ForEach nesting (last fastest).
 inline constexpr Axis kAxes[] = {
     {.name = "lang",
      .field = FieldOf<&Variant::lang>(),
-     .values = {V(Lang::kOpenCl, "opencl"), V(Lang::kCuda, "cuda"), V(Lang::kGlslCompute, "glsl-compute"),
-                V(Lang::kGlslVertex, "glsl-vertex"), V(Lang::kVulkan, "vulkan"), V(Lang::kCpu, "cpu")},
+     .values = LanguageValues(),
      .key_hint = "<lang>",
      .define = kNoDefine,  // a template per language
      .covering = Covering::kPerSet,
@@ -283,10 +291,6 @@ constexpr bool JoinsNext(std::size_t i) { return i + 1 < kAxisCount && kAxes[i +
 // Every axis's code, in table order: the search coordinates of a variant.
 std::array<int, kAxisCount> AxisCodes(const Variant& v);
 
-// glsl-vertex and cpu have no work-groups: their wg_size, vertices_per_item and
-// assignment are wg0 / v1c (cpu threads and chunks are chosen per machine by
-// measurement, runtime/backends/cpu/cpu_runner.h).
-constexpr bool HasWorkGroups(Lang lang) { return lang != Lang::kGlslVertex && lang != Lang::kCpu; }
 // `v` with the no-work-group values when its language has no work-groups.
 Variant CollapseWorkGroups(Variant v);
 

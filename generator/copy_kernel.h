@@ -26,13 +26,13 @@ inline constexpr std::size_t kCopyMaxGroups = 65535;
 
 struct CopyKernel {
   PackedMesh mesh;      // one launch of `items` "vertices" of 16 bytes, no palette use
-  KernelSource kernel;  // templates/copy.{cl,cu,comp}, entry point "skintune_copy" (GLSL: "main")
+  KernelSource kernel;  // the language's copy_template (generator/languages.h), entry point "skintune_copy" (GLSL: "main")
   std::size_t items = 0;
 };
 
 // The copy moving `bytes` per frame (read + written: items = bytes / 32, at
-// least 1) in `lang`'s API: glsl-vertex's copy is the GLSL compute one (both
-// run on GL). Throws Error for more items than 8 per work item of
+// least 1) in `lang`'s API: the language table's copy_template, emitted as its
+// copy_lang (glsl-vertex's copy is the GLSL compute one: both run on GL). Throws Error for more items than 8 per work item of
 // kCopyMaxGroups groups take (a source over 2 GiB).
 CopyKernel EmitCopy(Lang lang, std::size_t bytes);
 

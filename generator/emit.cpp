@@ -98,24 +98,6 @@ std::vector<KernelArgument> KernelArguments(const Variant& v, int b, bool instan
   return args;
 }
 
-// Where an instanced kernel finds its instance, in words.
-std::string InstanceRule(Lang lang) {
-  switch (lang) {
-    case Lang::kOpenCl: return "K instances: global size (items, K), instance i = get_global_id(1)";
-    case Lang::kCuda: return "K instances: grid (items / wg_size, K), instance i = blockIdx.y";
-    case Lang::kGlslCompute:
-      return "K instances: glDispatchCompute(items / wg_size, K, 1), instance i = gl_WorkGroupID.y";
-    case Lang::kVulkan:
-      return "K instances: vkCmdDispatch(items / wg_size, K, 1), instance i = gl_WorkGroupID.y";
-    case Lang::kCpu:
-      return "K instances: the host loops over the instances; instance i = the loop's index";
-    case Lang::kGlslVertex:
-      return "K instances: glDrawArraysInstanced(GL_POINTS, 0, n, K), instance i = gl_InstanceID; the capture "
-             "holds the K instances' n vertices one instance after another";
-  }
-  return "";
-}
-
 LaunchGeometry Geometry(const Variant& v, bool instanced) {
   LaunchGeometry g;
   g.vertices_per_item = v.vertices_per_item;
@@ -128,7 +110,7 @@ LaunchGeometry Geometry(const Variant& v, bool instanced) {
            (g.strided ? "g, g+G, .., g+" + std::to_string(v.vertices_per_item - 1) + "G (G = work items)"
                       : "g*" + n + " .. g*" + n + "+" + std::to_string(v.vertices_per_item - 1)) +
            " below n";
-  if (instanced) g.rule += "; " + InstanceRule(v.lang);
+  if (instanced) g.rule += "; " + std::string(LanguageOf(v.lang).instance_rule);
   return g;
 }
 
@@ -198,20 +180,6 @@ std::string ExpandedTemplate(const std::string& name) {
 
 namespace {
 
-// The template file of each language. Every template compiles alone; GLSL
-// ones start with their #version line, which must stay first.
-const char* TemplateFile(Lang lang) {
-  switch (lang) {
-    case Lang::kOpenCl: return "skin.cl";
-    case Lang::kCuda: return "skin.cu";
-    case Lang::kGlslCompute: return "skin.comp";
-    case Lang::kGlslVertex: return "skin.vert";
-    case Lang::kVulkan: return "skin.comp";  // the same compute stage: VULKAN (predefined) selects push constants
-    case Lang::kCpu: return "skin.cpu";      // parameters only: the kernels are compiled into skintune
-  }
-  return "";
-}
-
 // Splits a leading "#version ..." line off a GLSL template.
 std::pair<std::string, std::string> SplitVersion(const std::string& text) {
   if (text.rfind("#version", 0) != 0) return {"", text};
@@ -227,7 +195,8 @@ bool InstancesBoundAtCompileTime(const Variant& variant) {
 }
 
 KernelSource Emit(const Variant& variant, int influences_override, int joints, const EmitOptions& options) {
-  const char* file = TemplateFile(variant.lang);
+  // Every template compiles alone; GLSL ones start with their #version line, which must stay first.
+  const char* file = LanguageOf(variant.lang).kernel_template;
   const std::vector<std::string> embedded = TemplateNames();
   if (std::find(embedded.begin(), embedded.end(), file) == embedded.end())
     throw Error(std::string("emit: language ") + Name(variant.lang) + " not implemented yet");
@@ -281,17 +250,9 @@ namespace {
 // instance, its palette and where its outputs go.
 nlohmann::json InstancingJson(const KernelSource& source) {
   const bool vertex = source.lang == Lang::kGlslVertex;
-  const char* instance = "";
-  switch (source.lang) {
-    case Lang::kOpenCl: instance = "get_global_id(1)"; break;
-    case Lang::kCuda: instance = "blockIdx.y"; break;
-    case Lang::kGlslCompute:
-    case Lang::kVulkan: instance = "gl_WorkGroupID.y"; break;
-    case Lang::kGlslVertex: instance = "gl_InstanceID"; break;
-    case Lang::kCpu: instance = "the host's instance loop"; break;
-  }
+  const Language& language = LanguageOf(source.lang);
   nlohmann::json j = {
-      {"instance", instance},
+      {"instance", language.instance},
       {"palette", "the K palettes one after another: instance i's joint j row r at float4 (i*" +
                       std::to_string(source.joints) + "+j)*R+r"},
       {"outputs", vertex ? "one capture per draw holds its K instances one after another: instance i's vertex v at "
@@ -299,7 +260,7 @@ nlohmann::json InstancingJson(const KernelSource& source) {
                            "the mesh takes several draws)"
                          : "instance i's vertex v at element i*vertex_count+first+v (vertex_count: the mesh's vertex "
                            "count, every launch together)"},
-      {"rule", InstanceRule(source.lang)},
+      {"rule", language.instance_rule},
   };
   j["max_instances"] = source.max_instances;  // 0: any K
   return j;

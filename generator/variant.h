@@ -26,17 +26,10 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include "generator/languages.h"  // Lang, the lang axis's enum: one row per language
+
 namespace skintune {
 
-// kCpu: the fast CPU path's kernels (reference/cpu_kernels.h), compiled into
-// skintune and selected by the parameters of the kernel text (templates/skin.cpu).
-enum class Lang { kOpenCl, kCuda, kGlslCompute, kGlslVertex, kVulkan, kCpu };
-// Whether the kernel text is GLSL: glsl-compute, glsl-vertex, and vulkan (the
-// compute template compiled to SPIR-V; GL_KHR_vulkan_glsl's predefined VULKAN
-// selects its push constants).
-constexpr bool IsGlslText(Lang lang) {
-  return lang == Lang::kGlslCompute || lang == Lang::kGlslVertex || lang == Lang::kVulkan;
-}
 enum class MixedCounts { kPadded, kBucketed };
 enum class Layout { kAos, kSoa, kSoaSplit };
 enum class PositionFormat { kFloat4, kFloat3 };

@@ -39,11 +39,22 @@ inline constexpr const char* kPaperResultKind = "skintune-paper-result";
 // form is the vertex shader, the tuned winner may be a compute shader).
 // Vulkan (compute, SPIR-V) is skintune's fourth API: Table 1 compares it
 // with OpenCL on the same chip too, with no figure of the paper's.
-enum class PaperApi { kOpenCl, kCuda, kGlsl, kVulkan, kCpu };
-inline constexpr int kPaperApiCount = 5;
-const char* Name(PaperApi);                // "opencl", "cuda", "glsl", "vulkan"
-const char* DisplayName(PaperApi);         // "OpenCL", "CUDA", "GLSL", "Vulkan"
-PaperApi ApiOf(Lang lang);
+// The APIs are the language table's (generator/languages.h: a language's
+// `api` column), in its order: each enumerator is the API of a language, so
+// which API a language counts under is the table's word, not the report's.
+enum class PaperApi {
+  kOpenCl = ApiIndex(Lang::kOpenCl),
+  kCuda = ApiIndex(Lang::kCuda),
+  kGlsl = ApiIndex(Lang::kGlslCompute),  // and glsl-vertex
+  kVulkan = ApiIndex(Lang::kVulkan),
+  kCpu = ApiIndex(Lang::kCpu),
+};
+inline constexpr int kPaperApiCount = static_cast<int>(kApiCount);
+static_assert(kPaperApiCount == static_cast<int>(PaperApi::kCpu) + 1,
+              "a new API in generator/languages.h: name it in PaperApi (last) and give it a colour (ApiColour)");
+const char* Name(PaperApi);                // the table's api: "opencl", "cuda", "glsl", "vulkan", "cpu"
+const char* DisplayName(PaperApi);         // its api_title: "OpenCL", "CUDA", "GLSL", "Vulkan", "CPU"
+constexpr PaperApi ApiOf(Lang lang) { return static_cast<PaperApi>(ApiIndex(lang)); }
 
 // One of the paper's kernels as a point of our space. `variant` has the
 // influences of the Fig. 1 data set; the experiment sets B per data set.

@@ -15,18 +15,17 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/axes.h"
+#include "runtime/backend_table.h"
 
 namespace skintune {
 
 namespace {
 
+// The API of a backend's languages (gl: glsl), from the table of APIs and
+// the language table; `otherwise` for a backend this build does not know.
 PaperApi ApiOfBackend(const std::string& backend, PaperApi otherwise) {
-  if (backend == "opencl") return PaperApi::kOpenCl;
-  if (backend == "cuda") return PaperApi::kCuda;
-  if (backend == "gl") return PaperApi::kGlsl;
-  if (backend == "vulkan") return PaperApi::kVulkan;
-  if (backend == "cpu") return PaperApi::kCpu;
-  return otherwise;
+  const BackendEntry* entry = FindBackend(backend);
+  return entry && !entry->languages.empty() ? ApiOf(entry->languages.front()) : otherwise;
 }
 
 std::string Trim(const std::string& s) {

@@ -85,45 +85,15 @@ nlohmann::json ReportedJson(const PaperReported& r) {
 
 }  // namespace
 
-const char* Name(PaperApi api) {
-  switch (api) {
-    case PaperApi::kOpenCl: return "opencl";
-    case PaperApi::kCuda: return "cuda";
-    case PaperApi::kGlsl: return "glsl";
-    case PaperApi::kVulkan: return "vulkan";
-    case PaperApi::kCpu: return "cpu";
-  }
-  return "?";
-}
+const char* Name(PaperApi api) { return ApiRow(static_cast<std::size_t>(api)).api; }
 
-const char* DisplayName(PaperApi api) {
-  switch (api) {
-    case PaperApi::kOpenCl: return "OpenCL";
-    case PaperApi::kCuda: return "CUDA";
-    case PaperApi::kGlsl: return "GLSL";
-    case PaperApi::kVulkan: return "Vulkan";
-    case PaperApi::kCpu: return "CPU";
-  }
-  return "?";
-}
+const char* DisplayName(PaperApi api) { return ApiRow(static_cast<std::size_t>(api)).api_title; }
 
 const std::map<std::string, double>& ReportedAgainst(const PaperReported& reported, PaperApi other) {
   static const std::map<std::string, double> none;
   if (other == PaperApi::kCuda) return reported.opencl_vs_cuda;
   if (other == PaperApi::kGlsl) return reported.opencl_vs_glsl;
   return none;
-}
-
-PaperApi ApiOf(Lang lang) {
-  switch (lang) {
-    case Lang::kOpenCl: return PaperApi::kOpenCl;
-    case Lang::kCuda: return PaperApi::kCuda;
-    case Lang::kGlslCompute:
-    case Lang::kGlslVertex: return PaperApi::kGlsl;
-    case Lang::kVulkan: return PaperApi::kVulkan;
-    case Lang::kCpu: return PaperApi::kCpu;
-  }
-  return PaperApi::kOpenCl;
 }
 
 std::vector<PaperKernel> PaperKernelsFromJson(const nlohmann::json& list, const std::string& context) {

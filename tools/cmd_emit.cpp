@@ -51,18 +51,6 @@ struct EmitArgs {
   std::string max_error_text;  // --max-error (ParseMaxError); empty: the default budget
 };
 
-const char* Extension(Lang lang) {
-  switch (lang) {
-    case Lang::kOpenCl: return ".cl";
-    case Lang::kCuda: return ".cu";
-    case Lang::kGlslCompute: return ".comp";
-    case Lang::kGlslVertex: return ".vert";
-    case Lang::kVulkan: return ".vk.comp";
-    case Lang::kCpu: return ".cpu";
-  }
-  return ".txt";
-}
-
 // vulkan: the SPIR-V of the kernel (what vkCreateShaderModule takes), as
 // bytes for a ".spv" file; "" for the other languages.
 std::string SpirvBytes(const KernelSource& source, const Variant& variant) {
@@ -102,7 +90,7 @@ int RunEmit(const EmitArgs& o) {
   namespace fs = std::filesystem;
   CreateOutputFolder(o.out);
   const std::string base = (fs::path(o.out) / (variant.Key() + (options.instanced ? ".instanced" : ""))).string();
-  const std::string kernel_file = base + Extension(variant.lang);
+  const std::string kernel_file = base + LanguageOf(variant.lang).extension;
   nlohmann::json sidecar = SidecarJson(source, variant);
   sidecar["source_file"] = fs::path(kernel_file).filename().string();
   const std::string spirv = SpirvBytes(source, variant);
@@ -248,7 +236,7 @@ int RunEmitDb(const EmitArgs& o) {
     if (added) {
       keys.push_back(key);
       at->second = SidecarJson(k.source, k.variant);
-      at->second["source_file"] = key + Extension(k.variant.lang);
+      at->second["source_file"] = key + LanguageOf(k.variant.lang).extension;
       if (k.variant.lang == Lang::kVulkan) at->second["spirv_file"] = key + ".spv";
       at->second["winners"] = nlohmann::json::array();
     }
@@ -258,7 +246,7 @@ int RunEmitDb(const EmitArgs& o) {
   for (const std::string& key : keys) {
     const auto k = std::find_if(kernels.begin(), kernels.end(),
                                 [&](const EmbeddedKernel& x) { return x.variant.Key() == key; });
-    files.emplace_back(key + Extension(k->variant.lang), k->source.text);
+    files.emplace_back(key + LanguageOf(k->variant.lang).extension, k->source.text);
     if (k->variant.lang == Lang::kVulkan) files.emplace_back(key + ".spv", SpirvBytes(k->source, k->variant));
     files.emplace_back(key + ".json", sidecars[key].dump(2) + "\n");
   }

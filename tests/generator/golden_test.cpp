@@ -30,18 +30,6 @@ std::vector<std::string> GoldenKeys() {
   return keys;
 }
 
-const char* Extension(Lang lang) {
-  switch (lang) {
-    case Lang::kOpenCl: return ".cl";
-    case Lang::kCuda: return ".cu";
-    case Lang::kGlslCompute: return ".comp";
-    case Lang::kGlslVertex: return ".vert";
-    case Lang::kVulkan: return ".vk.comp";
-    case Lang::kCpu: return ".cpu";
-  }
-  return "";
-}
-
 TEST(GoldenEmit, ThereArePinnedVariants) { EXPECT_GE(GoldenKeys().size(), 3u); }
 
 TEST(GoldenEmit, EmittedSourceAndSidecarMatchThePinnedFiles) {
@@ -49,10 +37,10 @@ TEST(GoldenEmit, EmittedSourceAndSidecarMatchThePinnedFiles) {
     const Variant v = ParseVariantKey(key);
     ASSERT_EQ(v.Key(), key) << "VARIANTS.txt must list canonical keys";
     const KernelSource source = Emit(v, 0, 77);
-    EXPECT_EQ(source.text, Slurp(kGolden / (key + Extension(v.lang))))
+    EXPECT_EQ(source.text, Slurp(kGolden / (key + LanguageOf(v.lang).extension)))
         << key << ": emitted source changed; if intended, run scripts/update-golden and review the diff";
     nlohmann::json sidecar = SidecarJson(source, v);
-    sidecar["source_file"] = key + Extension(v.lang);
+    sidecar["source_file"] = key + LanguageOf(v.lang).extension;
     if (v.lang == Lang::kVulkan) sidecar["spirv_file"] = key + ".spv";  // emit's SPIR-V (not pinned: glslang's)
     EXPECT_EQ(sidecar, nlohmann::json::parse(Slurp(kGolden / (key + ".json"))))
         << key << ": sidecar changed; if intended, run scripts/update-golden";

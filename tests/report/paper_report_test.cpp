@@ -213,6 +213,29 @@ TEST(PaperSummary, PairsApisOnTheSameChipByNameUpToTheFirstSlashAndCpuDevicesAsT
                    s.Kernels(DeviceIndex(s, testing::SampleOpenClGpu()), "100k-b2")->paper[1].median_ms);
 }
 
+TEST(PaperSummary, DevicesCountUnderTheirBackendsApiAndLanguagesUnderTheLanguageTablesApi) {
+  const PaperSummary s = Summarise({SamplePaperResult()});
+  EXPECT_EQ(s.devices[DeviceIndex(s, testing::SampleOpenClGpu())].api, PaperApi::kOpenCl);
+  EXPECT_EQ(s.devices[DeviceIndex(s, testing::SampleCudaGpu())].api, PaperApi::kCuda);
+  EXPECT_EQ(s.devices[DeviceIndex(s, testing::SampleGlGpu())].api, PaperApi::kGlsl);
+  EXPECT_EQ(s.devices[DeviceIndex(s, testing::SampleOpenClCpu())].api, PaperApi::kOpenCl);
+  EXPECT_EQ(s.devices[DeviceIndex(s, testing::SampleGlCpu())].api, PaperApi::kGlsl);
+  // GLSL covers both GL stages; the names and titles the report has always shown.
+  EXPECT_EQ(ApiOf(Lang::kOpenCl), PaperApi::kOpenCl);
+  EXPECT_EQ(ApiOf(Lang::kCuda), PaperApi::kCuda);
+  EXPECT_EQ(ApiOf(Lang::kGlslCompute), PaperApi::kGlsl);
+  EXPECT_EQ(ApiOf(Lang::kGlslVertex), PaperApi::kGlsl);
+  EXPECT_EQ(ApiOf(Lang::kVulkan), PaperApi::kVulkan);
+  EXPECT_EQ(ApiOf(Lang::kCpu), PaperApi::kCpu);
+  ASSERT_EQ(kPaperApiCount, 5);
+  const char* names[] = {"opencl", "cuda", "glsl", "vulkan", "cpu"};
+  const char* titles[] = {"OpenCL", "CUDA", "GLSL", "Vulkan", "CPU"};
+  for (int i = 0; i < kPaperApiCount; ++i) {
+    EXPECT_STREQ(Name(static_cast<PaperApi>(i)), names[i]);
+    EXPECT_STREQ(DisplayName(static_cast<PaperApi>(i)), titles[i]);
+  }
+}
+
 TEST(PaperSummary, ResultsAreNeverPairedAcrossRunsAndDevicesSayWhichRun) {
   const PaperSummary s = Summarise({SamplePaperResult(), SamplePaperResult()});
   EXPECT_EQ(s.devices.size(), 10u);
@@ -498,6 +521,16 @@ TEST(PaperReportHtml, HasEverySectionAndOneChartPerFigure1DeviceAndDeviceLanguag
   ASSERT_EQ(s.axes.size(), 7u);
   for (std::size_t i = 0; i < 7; ++i) EXPECT_TRUE(HasId(html, "axes-" + std::to_string(i))) << i;
   EXPECT_FALSE(HasId(html, "axes-7"));
+}
+
+TEST(PaperReportHtml, Figure1LegendNamesTheCpuBaselinesThenEveryGpuApiInTableOrder) {
+  const std::string fig1 = Section(RenderHtml(Summarise({SamplePaperResult()})), "fig1");
+  std::size_t at = 0;
+  for (const char* title : {"CPU", "OpenCL", "CUDA", "GLSL", "Vulkan", "the paper&#39;s kernel"}) {
+    const std::size_t found = fig1.find(std::string("class=\"small\">") + title + "</text>", at);
+    ASSERT_NE(found, std::string::npos) << title << " after position " << at;
+    at = found;
+  }
 }
 
 TEST(PaperReportHtml, EveryChartIsAnSvgWithClassRoleTitleViewBoxAndSize) {

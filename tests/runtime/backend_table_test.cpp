@@ -3,12 +3,18 @@
 // and discovery through it finds what each API's own enumeration finds, with a
 // skipped line for every API that has no device here. The device identity's
 // JSON (runtime/device_identity.h) round-trips through the public DeviceInfo.
+// The JSON schemas spell the backends as the table does.
 #include "runtime/backend_table.h"
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+#include <map>
 #include <set>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "runtime/device.h"
@@ -40,14 +46,56 @@ TEST(BackendTable, ListsTheApisInTheOrderOfThePublicEnum) {
 TEST(BackendTable, EveryLanguageRunsOnExactlyOneBackend) {
   std::multiset<Lang> seen;
   for (const BackendEntry& b : Backends()) seen.insert(b.languages.begin(), b.languages.end());
-  for (const Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex, Lang::kVulkan, Lang::kCpu})
-    EXPECT_EQ(seen.count(lang), 1u) << Name(lang);
-  EXPECT_EQ(seen.size(), 6u);
+  for (const Language& language : kLanguages) EXPECT_EQ(seen.count(language.lang), 1u) << language.name;
+  EXPECT_EQ(seen.size(), kLangCount);
   EXPECT_EQ(LanguagesOf(Backend::kGl), (std::vector<Lang>{Lang::kGlslCompute, Lang::kGlslVertex}));
   EXPECT_EQ(LanguagesOf(Backend::kVulkan), (std::vector<Lang>{Lang::kVulkan}));
   EXPECT_EQ(LanguagesOf(Backend::kCpu), (std::vector<Lang>{Lang::kCpu}));
   EXPECT_EQ(LanguageNames(),
             (std::vector<std::string>{"opencl", "cuda", "glsl-compute", "glsl-vertex", "vulkan", "cpu"}));
+}
+
+// configs/*.schema.json are data: every "backend" enum and every device id
+// pattern ("^(opencl|cuda|...):") must list this table's names, in its order.
+int CheckBackendsInSchema(const nlohmann::json& schema, const nlohmann::json& node, const std::string& where) {
+  std::vector<std::string> names;
+  std::string pattern = "^(";
+  for (const BackendEntry& b : Backends()) {
+    names.push_back(b.name);
+    pattern += std::string(names.size() > 1 ? "|" : "") + b.name;
+  }
+  pattern += "):";
+  int found = 0;
+  if (node.is_object() && node.contains("properties") && node["properties"].contains("backend")) {
+    nlohmann::json backend = node["properties"]["backend"];
+    if (backend.contains("$ref"))
+      backend = schema.at(nlohmann::json::json_pointer(backend["$ref"].get<std::string>().substr(1)));
+    EXPECT_EQ(backend.value("enum", nlohmann::json()), nlohmann::json(names)) << where << ".backend";
+    ++found;
+  }
+  if (node.is_object() && node.contains("$defs") && node["$defs"].contains("device_id")) {
+    EXPECT_EQ(node["$defs"]["device_id"].value("pattern", ""), pattern) << where << " $defs/device_id";
+    ++found;
+  }
+  if (node.is_structured()) {
+    for (const auto& [key, child] : node.items()) found += CheckBackendsInSchema(schema, child, where + "/" + key);
+  }
+  return found;
+}
+
+TEST(BackendTable, SchemasListTheTablesBackends) {
+  std::map<std::string, int> found;
+  for (const auto& entry : std::filesystem::directory_iterator(std::string(SKINTUNE_SOURCE_DIR) + "/configs")) {
+    const std::string name = entry.path().filename().string();
+    if (!name.ends_with(".schema.json")) continue;
+    std::ifstream in(entry.path());
+    const nlohmann::json schema = nlohmann::json::parse(in);
+    found[name] = CheckBackendsInSchema(schema, schema, name);
+  }
+  // Not vacuous: the report's devices and measurements, the database's
+  // entries, and both device id patterns were found and read.
+  EXPECT_EQ(found["report.schema.json"], 3);
+  EXPECT_EQ(found["winners-db.schema.json"], 2);
 }
 
 TEST(BackendTable, DiscoveryFindsEveryOpenClDeviceAndSaysWhyAnApiIsMissing) {

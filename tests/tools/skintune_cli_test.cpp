@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "generator/languages.h"
 #include "reference/mesh_io.h"
 #include "reference/skinning.h"
 #include "reference/synthetic.h"
@@ -39,6 +40,20 @@ TEST(SkintuneCli, HelpListsTheCommands) {
   EXPECT_EQ(r.exit_code, 0);
   for (const char* cmd : {"run", "devices", "skin"}) EXPECT_NE(r.out.find(cmd), std::string::npos) << cmd;
   EXPECT_EQ(RunSkintune({"skin", "--help"}).exit_code, 0);
+}
+
+// The --lang help texts come from the language table (generator/languages.h): a
+// new language is listed without editing them.
+TEST(SkintuneCli, LangHelpListsEveryLanguageOfTheTable) {
+  for (const char* command : {"tune", "run", "paper", "variants"}) {
+    const auto r = RunSkintune({command, "--help"});
+    ASSERT_EQ(r.exit_code, 0) << command << ": " << r.err;
+    const std::size_t at = r.out.find("--lang");
+    ASSERT_NE(at, std::string::npos) << command << ": " << r.out;
+    const std::string line = r.out.substr(at, r.out.find('\n', at) - at);
+    for (const Language& language : kLanguages)
+      EXPECT_NE(line.find(language.name), std::string::npos) << command << " --help: " << line;
+  }
 }
 
 TEST(SkintuneCli, NoCommandIsAUsageError) {
