@@ -202,16 +202,24 @@ TEST(Replay, ExhaustiveAtTheFullBudgetIsExactlyOptimal) {
   EXPECT_EQ(testing::SyntheticStatus(*c.optimum), MeasureStatus::kOk);
 }
 
-// The same comparison on real measurements: exhaustive runs of a 576-variant
-// space (480 valid) on the H100 machine, recorded by `skintune tune --config
-// tests/data/tuning/exhaustive-1600k-b4.json` (docs/TUNING.md, "Figures (H100)").
+// The same comparison on real measurements: exhaustive runs on the H100
+// machine (docs/TUNING.md, "Figures (H100)"): a 576-variant space (480 valid)
+// recorded by `skintune tune --config tests/data/tuning/exhaustive-1600k-b4.json`
+// (timing version 2), and issue 16's wide space of 864 (720 valid, 480 within
+// the default error budget) by `--config tests/data/tuning/exhaustive-wide-1600k-b4.json`
+// (timing version 4) in OpenCL, CUDA and GLSL compute.
 struct Recorded {
   const char* file;
   const char* device_id;
+  std::size_t ok;
 };
 const Recorded kRecorded[] = {
-    {"h100-cuda-1600k-b4.jsonl", "cuda:CUDA/NVIDIA H100 80GB HBM3/580.159.04 (CUDA 13.0)"},
-    {"h100-glsl-compute-1600k-b4.jsonl", "gl:device/NVIDIA H100 80GB HBM3/PCIe/SSE2/4.3.0 NVIDIA 580.159.04"},
+    {"h100-cuda-1600k-b4.jsonl", "cuda:CUDA/NVIDIA H100 80GB HBM3/580.159.04 (CUDA 13.0)", 480},
+    {"h100-glsl-compute-1600k-b4.jsonl", "gl:device/NVIDIA H100 80GB HBM3/PCIe/SSE2/4.3.0 NVIDIA 580.159.04", 480},
+    {"h100-v4-opencl-1600k-b4-wide.jsonl", "opencl:NVIDIA CUDA/NVIDIA H100 80GB HBM3/580.159.04", 480},
+    {"h100-v4-cuda-1600k-b4-wide.jsonl", "cuda:CUDA/NVIDIA H100 80GB HBM3/580.159.04 (CUDA 13.0)", 480},
+    {"h100-v4-glsl-compute-1600k-b4-wide.jsonl", "gl:device/NVIDIA H100 80GB HBM3/PCIe/SSE2/4.3.0 NVIDIA 580.159.04",
+     480},
 };
 
 TEST(Replay, StrategyComparisonOnRecordedH100Measurements) {
@@ -219,17 +227,18 @@ TEST(Replay, StrategyComparisonOnRecordedH100Measurements) {
     SCOPED_TRACE(recorded.file);
     const std::string path = std::string(SKINTUNE_TEST_DATA_DIR) + "/tuning/" + recorded.file;
     ReplayEvaluator replay = ReplayEvaluator::FromCacheFile(path, recorded.device_id, "1600k-b4");
-    EXPECT_EQ(replay.ok_count(), 480u);
+    EXPECT_EQ(replay.ok_count(), recorded.ok);
     const StrategyComparison c =
         CompareStrategies(replay.variants(), replay.AsEvaluator(), {0.02, 0.05, 0.1, 0.25, 0.5}, 20);
     std::cout << recorded.file << "\n" << FormatComparison(c);
-    // Coordinate descent at 10% of the evaluations is within 5% of the
-    // exhaustive optimum on average and at worst; random search at the same
-    // budget is not better on average.
+    // Issue 16's bar: the default strategy (coordinate descent) with 5% of
+    // the evaluations lands within 5% of the exhaustive optimum, on average
+    // and at worst over the seeds; random search at the same budget is not
+    // better on average.
     const StrategyComparisonRow* coordinate = nullptr;
     const StrategyComparisonRow* random = nullptr;
     for (const StrategyComparisonRow& row : c.rows) {
-      if (row.budget_fraction != 0.1) continue;
+      if (row.budget_fraction != 0.05) continue;
       if (row.strategy == "coordinate") coordinate = &row;
       if (row.strategy == "random") random = &row;
     }
