@@ -78,7 +78,9 @@ Command RegisterTuneWorker(CLI::App& app) {
   sub->add_option("--backend-index", *index, "the backend's position in discovery order")->required();
   auto device_id = std::make_shared<std::string>();
   sub->add_option("--device-id", *device_id, "the backend's identity (takes precedence over the index)");
-  return {sub, [index, device_id] { return RunTuneWorker(*index, *device_id); }};
+  auto host_lock = std::make_shared<std::string>();
+  sub->add_option("--host-lock", *host_lock, "the lock file of the host's cores, shared with the other workers");
+  return {sub, [index, device_id, host_lock] { return RunTuneWorker(*index, *device_id, *host_lock); }};
 }
 
 }  // namespace skintune::tools

@@ -17,6 +17,7 @@
 #include "reference/gltf_import.h"
 #include "reference/synthetic.h"
 #include "tuner/backends_internal.h"
+#include "tuner/host_lock.h"
 
 namespace skintune {
 
@@ -463,6 +464,10 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
     for (const Violation& v : violations) detail += (detail.empty() ? "" : "; ") + std::string(Name(v.constraint)) + ": " + v.message;
     return finish(MeasureStatus::kInvalid, detail);
   }
+  // The host's cores (tuner/host_lock.h): a GPU's host-side work waits while
+  // a CPU device beside it is timing; a CPU device's bursts hold them alone.
+  const bool cpu_device = identity.type.find("cpu") != std::string::npos;
+  HostLock host_work(HostWorkMode(cpu_device));
   // Each phase's wall time, for the timing log (SKINTUNE_TIMING_LOG).
   using Clock = std::chrono::steady_clock;
   auto mark = Clock::now();
@@ -553,6 +558,8 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   for (const std::vector<glm::mat4>& palette : datasets.Frames(data, sets))
     palettes.push_back(PackPalette(palette, variant));
   phase("check against the gold and the source");
+  host_work.Release();
+  const HostLock timed(TimedMode(cpu_device));  // through the copy's bursts
   const int warmup = std::max(options.warmup, 0);
   const int repetitions = std::max(options.repetitions, 1);
   Executor::Times times;

@@ -17,6 +17,7 @@
 #include <utility>
 
 #include "tuner/backends_internal.h"
+#include "tuner/host_lock.h"
 
 namespace skintune::tuner_internal {
 
@@ -155,11 +156,13 @@ class DeviceBackend final : public Backend {
   double CopyBandwidthGBps(std::size_t bytes) override {
     const std::size_t size = CopyBytesCapped(bytes, device_.max_allocation_bytes);
     // One set (a copy this large is far beyond any cache), bursts of a few frames.
+    const HostLock timed(TimedMode(IsCpu(device_.identity)));
     return CopyGBps(size, Executor().TimeCopy(languages_.front(), 2 * size, 1, 2, 10, 4));
   }
 
   std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) override {
     if (!CompilesAhead(device_.identity)) return 0;
+    const HostLock host_work(HostWorkMode(IsCpu(device_.identity)));  // compiles are host work
     // The kernels, emitted here (one thread): as Measure emits them, without
     // the injected fault's variant (Measure makes that one fail on purpose).
     const InjectedFault fault = InjectedFaultFromEnvironment();

@@ -14,6 +14,7 @@
 //   - the strategy searches the valid points; each evaluation takes the cache's
 //     record when there is one, else measures in the child and appends the
 //     result to the cache before going on.
+#include "tuner/host_lock.h"
 #include "tuner/tune.h"
 
 #include <sys/utsname.h>
@@ -575,11 +576,15 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
     if (!what.empty()) progress(done, total, what);
   };
 
+  // Set below, before any device starts, when a CPU device is tuned beside
+  // a GPU (tuner/host_lock.h).
+  std::unique_ptr<tuner_internal::HostLockFile> host_lock;
   auto tune_device = [&](std::size_t di) {
     const Device& device = devices[di];
     DeviceRun& run = runs[di];
     const std::string id = device.identity.Id();
     IsolatedBackend worker(options.worker_executable, device.identity, config.variant_timeout_s);
+    if (host_lock) worker.UseHostLock(host_lock->path());
     const std::string device_name = device.identity.backend + " " + device.identity.name;
     try {
       advance(run, 0, device_name + ": copy bandwidth");
@@ -677,6 +682,17 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
     for (const auto& g : groups) all.insert(all.end(), g.begin(), g.end());
     std::sort(all.begin(), all.end());
     groups = {all};
+  }
+  // A CPU device tuned at the same time as another group: the workers share
+  // a lock on the host's cores, so that no GPU's host work runs while a CPU
+  // device is timing.
+  const auto is_cpu = [&](std::size_t i) { return identities[i].type.find("cpu") != std::string::npos; };
+  bool cpu_beside_other = false;
+  for (const auto& g : groups)
+    cpu_beside_other = cpu_beside_other || (groups.size() > 1 && std::any_of(g.begin(), g.end(), is_cpu));
+  if (cpu_beside_other) {
+    host_lock = std::make_unique<tuner_internal::HostLockFile>();
+    if (host_lock->path().empty()) host_lock.reset();
   }
   std::vector<std::exception_ptr> errors(groups.size());
   auto tune_group = [&](std::size_t g) {

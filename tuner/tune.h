@@ -61,10 +61,11 @@ struct TuneOptions {
 // after constraints on every device, unwritable cache).
 TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options);
 
-// The child process: `skintune tune-worker --backend-index N [--device-id ID]`
-// (ID, when given, selects the backend and N is ignored) reads one JSON
-// request per line on stdin ({"variant": ..., "dataset": ..., "timing": ...})
-// and writes one Measurement JSON per line on stdout.
-int RunTuneWorker(int backend_index, const std::string& device_id = "");
+// The child process: `skintune tune-worker --backend-index N [--device-id ID]
+// [--host-lock PATH]` (ID, when given, selects the backend and N is ignored;
+// PATH: the host lock shared with the other workers, tuner/host_lock.h) reads
+// one JSON request per line on stdin ({"variant": ..., "dataset": ...,
+// "timing": ...}) and writes one Measurement JSON per line on stdout.
+int RunTuneWorker(int backend_index, const std::string& device_id = "", const std::string& host_lock = "");
 
 }  // namespace skintune

@@ -1,3 +1,4 @@
+#include "tuner/host_lock.h"
 #include "tuner/worker.h"
 
 #include <fcntl.h>
@@ -123,7 +124,12 @@ void IsolatedBackend::Start() {
   const std::string device_id = identity_.Id();
   std::vector<char*> argv = {const_cast<char*>(executable_.c_str()), const_cast<char*>("tune-worker"),
                              const_cast<char*>("--backend-index"), const_cast<char*>(index.c_str()),
-                             const_cast<char*>("--device-id"), const_cast<char*>(device_id.c_str()), nullptr};
+                             const_cast<char*>("--device-id"), const_cast<char*>(device_id.c_str())};
+  if (!host_lock_.empty()) {
+    argv.push_back(const_cast<char*>("--host-lock"));
+    argv.push_back(const_cast<char*>(host_lock_.c_str()));
+  }
+  argv.push_back(nullptr);
   std::vector<char*> envp;
   for (const std::string& entry : kStartupEnvironment) envp.push_back(const_cast<char*>(entry.c_str()));
   envp.push_back(nullptr);
@@ -449,7 +455,15 @@ std::optional<double> IsolatedBackend::CopyBandwidthGBps(std::size_t bytes, std:
 
 // ------------------------------------------------------------------ child side
 
-int RunTuneWorker(int backend_index, const std::string& device_id) {
+int RunTuneWorker(int backend_index, const std::string& device_id, const std::string& host_lock) {
+  if (!host_lock.empty()) {
+    try {
+      tuner_internal::UseHostLock(host_lock);
+    } catch (const Error& e) {
+      std::cerr << "skintune: tune-worker: " << e.what() << "\n";
+      return 1;
+    }
+  }
   // Protocol lines go to the original stdout only; anything a library prints
   // on stdout goes to stderr instead, where the parent keeps it for details.
   const int protocol = ::fcntl(1, F_DUPFD_CLOEXEC, 3);

@@ -85,6 +85,9 @@ class IsolatedBackend {
 
   int starts() const { return starts_; }  // child processes started so far
 
+  // The host lock every worker started from now on shares (tuner/host_lock.h).
+  void UseHostLock(std::string path) { host_lock_ = std::move(path); }
+
  private:
   enum class ReadResult { kLine, kTimeout, kEnd };
   void Start();
@@ -97,6 +100,7 @@ class IsolatedBackend {
   std::string DeathDetail();         // after the end of the child's output
 
   std::string executable_;
+  std::string host_lock_;  // "" = none
   DeviceIdentity identity_;
   double variant_timeout_s_;
   pid_t pid_ = -1;

@@ -207,6 +207,18 @@ TEST(IsolatedBackend, CopyBandwidthAnswerOrReason) {
   EXPECT_EQ(why, "worker process died: exit code 4");
 }
 
+// The host lock (tuner/host_lock.h) reaches every worker as --host-lock.
+TEST(IsolatedBackend, WorkersAreToldTheHostLock) {
+  const fs::path dir = Scratch();
+  for (const bool with_lock : {false, true}) {
+    IsolatedBackend worker(FakeWorker(dir, "read line; echo '{\"copy_bandwidth_gbps\": 12.5}'"), FakeDevice(), 30);
+    if (with_lock) worker.UseHostLock("/tmp/the-host-lock");
+    EXPECT_EQ(worker.CopyBandwidthGBps(1 << 20), 12.5);
+    const std::string args = ReadAll(dir / "args");
+    EXPECT_EQ(args.find("--host-lock /tmp/the-host-lock") != std::string::npos, with_lock) << args;
+  }
+}
+
 // Some OpenCL ICD loaders tokenise OCL_ICD_FILENAMES in place (strtok on
 // getenv's pointer) during the parent's own discovery; the worker must still
 // get the variable as the process started with it. ctest sets
