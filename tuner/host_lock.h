@@ -1,13 +1,17 @@
 // skintune (internal): the host's cores, shared by the tuner's worker
 // processes while a CPU device is tuned beside a GPU (tuner/schedule.h tunes
 // them at the same time). A CPU device's timed bursts run on those cores, so
-// they hold the lock exclusively; a GPU worker holds it shared for each whole
-// measurement (packing, gold checks, its bursts, whose driver threads spin on
-// a host core while they wait) and for its compiles, and waits while a CPU
-// device is timing. A CPU device's host-side work takes no lock. On the H100
-// machine the CPU devices' winners were 15-50% slower tuned beside the GPU
-// than alone without it; with only the GPUs' host phases locked, PoCL's were
-// 6% and the cpu device's still 26% (docs/PERFORMANCE.md, issue 16 item 7).
+// they hold the lock exclusively; a GPU worker's host-side work (packing,
+// gold checks, verification read-backs, compiles) holds it shared, and waits
+// while a CPU device is timing. A GPU's own bursts are timed by the device
+// and take no lock. On the H100 machine the CPU devices' winners were 15-50%
+// slower tuned beside the GPU than alone; with the lock PoCL's are within 6%
+// (median), the cpu device's still 26% slower (its kernels spread over every
+// core, so a host thread the GPU's driver keeps busy, even while it waits on
+// the device, delays them). Locking the GPUs' whole measurements, bursts
+// included, made a default run take more than 160 s instead of 101 s
+// (docs/PERFORMANCE.md, issue 16 item 7): `--one-device-at-a-time` gives the
+// cpu device's figures undisturbed.
 //
 // flock(2) on a file the parent makes (HostLockFile) and names to each worker
 // (`tune-worker --host-lock PATH`: UseHostLock); in a process without one,
@@ -29,7 +33,7 @@ class HostLock {
   ~HostLock() { Release(); }
   HostLock(const HostLock&) = delete;
   HostLock& operator=(const HostLock&) = delete;
-  void Release();  // early
+  void Release();  // early, e.g. before a GPU's timed bursts
 
  private:
   bool held_ = false;
