@@ -357,6 +357,24 @@ void InjectFault(KernelSource& source, const Variant& variant, const std::string
   source.source_hash = SourceHash(source.text);
 }
 
+std::vector<double> SteadyCopyTimes(const std::function<std::vector<double>()>& time) {
+  // One copy serves every measurement of its size and burst length, so a
+  // noisy one would skew them all (the H100's v4 acceptance run: one OpenCL
+  // copy timed at 0.0272 ms, bursts 0.0259-0.0296, where it takes 0.0254,
+  // set 17 measurements' x_copy 7% low). Noise only adds time to a copy.
+  constexpr double kCopySpread = 0.05;
+  constexpr int kCopyTimings = 3;
+  std::vector<double> best;
+  for (int timing = 0; timing < kCopyTimings; ++timing) {
+    std::vector<double> ms = time();
+    if (ms.empty()) break;
+    if (best.empty() || Median(ms) < Median(best)) best = ms;
+    const auto [low, high] = std::minmax_element(ms.begin(), ms.end());
+    if (*low > 0.0 && *high / *low - 1.0 <= kCopySpread) break;
+  }
+  return best;
+}
+
 double Median(std::vector<double> values) {
   if (values.empty()) return 0.0;
   std::sort(values.begin(), values.end());
@@ -623,9 +641,7 @@ std::vector<double> RunnerExecutor::TimeCopy(Lang lang, std::size_t bytes, int i
                           std::to_string(burst_frames);
   if (const auto found = copies_.find(key); found != copies_.end()) return found->second;
   const Prepared prepared = runner_.PrepareCopy(lang, bytes, input_sets);
-  std::vector<double> ms = runner_.Time(prepared, warmup, bursts, burst_frames);
-  copies_[key] = ms;
-  return ms;
+  return copies_[key] = SteadyCopyTimes([&] { return runner_.Time(prepared, warmup, bursts, burst_frames); });
 }
 
 }  // namespace tuner_internal

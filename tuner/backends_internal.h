@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <span>
@@ -143,7 +144,8 @@ class Executor {
                      std::span<const std::vector<std::uint8_t>> palettes, int instances, int warmup, int bursts,
                      int burst_frames, double burst_ms) = 0;
   // The same-size copy (generator/copy_kernel.h) moving `bytes` per frame in
-  // `lang`'s API, timed like Time with `input_sets` sets and `burst_frames`.
+  // `lang`'s API, timed like Time with `input_sets` sets and `burst_frames`
+  // (RunnerExecutor: once per size and burst length, SteadyCopyTimes).
   virtual std::vector<double> TimeCopy(Lang lang, std::size_t bytes, int input_sets, int warmup, int bursts,
                                        int burst_frames) = 0;
 };
@@ -192,6 +194,11 @@ void InjectFault(KernelSource& source, const Variant& variant, const std::string
 
 // Median (the mean of the middle two for an even count), of a non-empty list.
 double Median(std::vector<double> values);
+// A copy's burst times from `time`, timed again while its bursts spread more
+// than 5% (max / min), at most 3 times in all: the timing with the lowest
+// median (noise only adds time to a copy, and one copy serves every
+// measurement of its size and burst length).
+std::vector<double> SteadyCopyTimes(const std::function<std::vector<double>()>& time);
 
 // GB/s of a copy of `bytes` (read + written) from its per-run times in ms.
 double CopyGBps(std::size_t bytes, const std::vector<double>& ms);
