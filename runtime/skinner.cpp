@@ -162,115 +162,123 @@ Skinner& Skinner::operator=(Skinner&&) noexcept = default;
 
 namespace {
 
-// Create and CreateBatch: the meshes validated one by one, a batch packed as
-// one mesh (ConcatenateMeshes, reference/scene.h), then one path for both:
-// the variant chosen for the scene's shape and total size, packed, emitted
-// and prepared on the device.
+// The meshes validated one by one; a batch concatenated as one mesh
+// (ConcatenateMeshes, reference/scene.h). Throws ApiError.
+MeshBatch SceneOf(const std::string& call, const MeshView* views, std::size_t count, bool batch,
+                  const SkinnerOptions& options) {
+  std::vector<SkinnedMesh> meshes;
+  for (std::size_t m = 0; m < count; ++m)
+    meshes.push_back(
+        ToSkinnedMesh(views[m], options.normals, call + (batch ? ": meshes[" + std::to_string(m) + "]" : ": MeshView")));
+  MeshBatch scene;
+  if (batch) {
+    std::vector<const SkinnedMesh*> pointers;
+    for (const SkinnedMesh& mesh : meshes) pointers.push_back(&mesh);
+    try {
+      scene = ConcatenateMeshes(pointers);
+    } catch (const Error& e) {
+      FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
+    }
+  } else {
+    scene.mesh = std::move(meshes.front());
+    scene.vertex_offsets = {0, scene.mesh.vertex_count()};
+    scene.joint_offsets = {0, scene.mesh.joint_count};
+  }
+  const auto instances = static_cast<std::size_t>(options.instances);
+  if (instances * scene.mesh.vertex_count() >= (std::size_t{1} << 32))
+    FailWith(ErrorCode::kInvalidArgument, call + ": " + std::to_string(instances) + " instances x " +
+                                              std::to_string(scene.mesh.vertex_count()) +
+                                              " vertices exceed the kernels' 32-bit output indices");
+  return scene;
+}
+
+// The variant for the scene: forced, or the winners database's choice for
+// its shape and total size (a bucketed winner runs padded). Throws ApiError.
+Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& entries, DeviceState& state,
+                     const SkinnedMesh& mesh, SceneShape scene_shape, std::size_t count,
+                     const SkinnerOptions& options) {
+  const ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals, options.instances};
+  if (!options.variant.empty()) return Forced(call, options.variant, state, shape);
+  SelectionRequest request;
+  request.device = state.info;
+  request.langs = state.langs;
+  request.influences = shape.max_influences;
+  request.vertex_count = static_cast<std::size_t>(options.instances) * mesh.vertex_count();
+  request.shape = static_cast<SceneKind>(scene_shape);
+  request.instances = options.instances;
+  request.meshes = static_cast<int>(count);
+  request.normals = options.normals;
+  request.max_error = options.max_error;
+  // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.
+  for (WeightFormat format : {WeightFormat::kUnorm16, WeightFormat::kUnorm8})
+    if (HoldsWeightsExactly(mesh, format)) request.exact_formats.push_back(format);
+  request.limits = state.limits;
+  request.check = [&](const Variant& v) { return Joined(CheckVariant(v, state.limits, shape)); };
+  Chosen chosen = Select(entries, request);
+  if (chosen.variant.mixed == MixedCounts::kBucketed) {
+    // Bucketed kernels write vertices grouped by influence count; the padded twin keeps the mesh's order.
+    chosen.variant.mixed = MixedCounts::kPadded;
+    chosen.selection.variant = chosen.variant.Key();
+    chosen.selection.reason += "; the bucketed winner runs padded (mesh order kept on the device)";
+  }
+  return chosen;
+}
+
+// Create and CreateBatch: the scene (SceneOf), then one path for both: the
+// variant chosen for the scene's shape and total size, packed, emitted and
+// prepared on the device.
 // `entries`: the WinnersDb's (null when it was moved from). Throws ApiError.
 std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& device,
                                            const std::vector<WinnersEntry>* entries, const MeshView* views,
                                            std::size_t count, bool batch, const SkinnerOptions& options) {
-  {
-    const std::shared_ptr<DeviceState>* state_ptr = DeviceAccess::State(device);
-    if (!state_ptr) FailWith(ErrorCode::kInvalidState, call + ": the Device was used after move");
-    if (!entries) FailWith(ErrorCode::kInvalidState, call + ": the WinnersDb was used after move");
-    if (!views || count == 0) FailWith(ErrorCode::kInvalidArgument, call + ": the batch is empty (no meshes)");
-    if (options.instances < 1)
-      FailWith(ErrorCode::kInvalidArgument,
-               call + ": SkinnerOptions::instances is " + std::to_string(options.instances) + ", at least 1");
-    if (const std::string bad = BadMaxError(options.max_error); !bad.empty())
-      FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::max_error " + bad);
-    DeviceState& state = **state_ptr;
+  const std::shared_ptr<DeviceState>* state_ptr = DeviceAccess::State(device);
+  if (!state_ptr) FailWith(ErrorCode::kInvalidState, call + ": the Device was used after move");
+  if (!entries) FailWith(ErrorCode::kInvalidState, call + ": the WinnersDb was used after move");
+  if (!views || count == 0) FailWith(ErrorCode::kInvalidArgument, call + ": the batch is empty (no meshes)");
+  if (options.instances < 1)
+    FailWith(ErrorCode::kInvalidArgument,
+             call + ": SkinnerOptions::instances is " + std::to_string(options.instances) + ", at least 1");
+  if (const std::string bad = BadMaxError(options.max_error); !bad.empty())
+    FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::max_error " + bad);
+  DeviceState& state = **state_ptr;
+  const MeshBatch scene = SceneOf(call, views, count, batch, options);
+  const SkinnedMesh& mesh = scene.mesh;
+  const SceneShape scene_shape = batch                   ? SceneShape::kBatch
+                                 : options.instances > 1 ? SceneShape::kInstances
+                                                         : SceneShape::kSingle;
+  const Chosen chosen = ChooseVariant(call, *entries, state, mesh, scene_shape, count, options);
 
-    std::vector<SkinnedMesh> meshes;
-    for (std::size_t m = 0; m < count; ++m)
-      meshes.push_back(ToSkinnedMesh(views[m], options.normals,
-                                     call + (batch ? ": meshes[" + std::to_string(m) + "]" : ": MeshView")));
-    MeshBatch scene;
-    if (batch) {
-      std::vector<const SkinnedMesh*> pointers;
-      for (const SkinnedMesh& mesh : meshes) pointers.push_back(&mesh);
-      try {
-        scene = ConcatenateMeshes(pointers);
-      } catch (const Error& e) {
-        FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
-      }
-    } else {
-      scene.mesh = std::move(meshes.front());
-      scene.vertex_offsets = {0, scene.mesh.vertex_count()};
-      scene.joint_offsets = {0, scene.mesh.joint_count};
-    }
-    meshes.clear();
-    const SkinnedMesh& mesh = scene.mesh;
-    const auto instances = static_cast<std::size_t>(options.instances);
-    if (instances * mesh.vertex_count() >= (std::size_t{1} << 32))
-      FailWith(ErrorCode::kInvalidArgument, call + ": " + std::to_string(instances) + " instances x " +
-                                                std::to_string(mesh.vertex_count()) +
-                                                " vertices exceed the kernels' 32-bit output indices");
-    const SceneShape scene_shape = batch                   ? SceneShape::kBatch
-                                   : options.instances > 1 ? SceneShape::kInstances
-                                                           : SceneShape::kSingle;
-    const ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals, options.instances};
-    Chosen chosen;
-    if (!options.variant.empty()) {
-      chosen = Forced(call, options.variant, state, shape);
-    } else {
-      SelectionRequest request;
-      request.device = state.info;
-      request.langs = state.langs;
-      request.influences = shape.max_influences;
-      request.vertex_count = instances * mesh.vertex_count();
-      request.shape = static_cast<SceneKind>(scene_shape);
-      request.instances = options.instances;
-      request.meshes = static_cast<int>(count);
-      request.normals = options.normals;
-      request.max_error = options.max_error;
-      // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.
-      for (WeightFormat format : {WeightFormat::kUnorm16, WeightFormat::kUnorm8})
-        if (HoldsWeightsExactly(mesh, format)) request.exact_formats.push_back(format);
-      request.limits = state.limits;
-      request.check = [&](const Variant& v) { return Joined(CheckVariant(v, state.limits, shape)); };
-      chosen = Select(*entries, request);
-      if (chosen.variant.mixed == MixedCounts::kBucketed) {
-        // Bucketed kernels write vertices grouped by influence count; the padded twin keeps the mesh's order.
-        chosen.variant.mixed = MixedCounts::kPadded;
-        chosen.selection.variant = chosen.variant.Key();
-        chosen.selection.reason += "; the bucketed winner runs padded (mesh order kept on the device)";
-      }
-    }
-
-    PackedMesh packed;
-    std::vector<KernelSource> kernels;
-    try {
-      packed = Pack(mesh, chosen.variant);
-      // One instance: the plain kernel; K: the instanced one (docs/VARIANTS.md "Instancing").
-      EmitOptions emit;
-      emit.instanced = options.instances > 1;
-      emit.max_instances = emit.instanced ? options.instances : 0;
-      for (const Launch& launch : packed.launches)
-        kernels.push_back(Emit(chosen.variant, launch.influences, mesh.joint_count, emit));
-    } catch (const Error& e) {
-      FailWith(ErrorCode::kInvalidArgument, call + ": " + chosen.variant.Key() + ": " + e.what());
-    }
-
-    auto impl = std::make_unique<Skinner::Impl>();
-    Skinner::Impl& im = *impl;
-    im.device = *state_ptr;
-    im.selection = chosen.selection;
-    im.variant = chosen.variant;
-    im.vertex_count = mesh.vertex_count();
-    im.joint_count = mesh.joint_count;
-    im.instances = options.instances;
-    im.shape = scene_shape;
-    im.vertex_offsets = scene.vertex_offsets;
-    im.joint_offsets = scene.joint_offsets;
-    im.output_stride = packed.output_stride_bytes;
-    im.order = packed.order;
-    im.identity_order = true;
-    for (std::size_t p = 0; p < im.order.size() && im.identity_order; ++p) im.identity_order = im.order[p] == p;
-    im.backend = state.backend->make_skinner(state, packed, kernels, options.instances);
-    return impl;
+  PackedMesh packed;
+  std::vector<KernelSource> kernels;
+  try {
+    packed = Pack(mesh, chosen.variant);
+    // One instance: the plain kernel; K: the instanced one (docs/VARIANTS.md "Instancing").
+    EmitOptions emit;
+    emit.instanced = options.instances > 1;
+    emit.max_instances = emit.instanced ? options.instances : 0;
+    for (const Launch& launch : packed.launches)
+      kernels.push_back(Emit(chosen.variant, launch.influences, mesh.joint_count, emit));
+  } catch (const Error& e) {
+    FailWith(ErrorCode::kInvalidArgument, call + ": " + chosen.variant.Key() + ": " + e.what());
   }
+
+  auto impl = std::make_unique<Skinner::Impl>();
+  Skinner::Impl& im = *impl;
+  im.device = *state_ptr;
+  im.selection = chosen.selection;
+  im.variant = chosen.variant;
+  im.vertex_count = mesh.vertex_count();
+  im.joint_count = mesh.joint_count;
+  im.instances = options.instances;
+  im.shape = scene_shape;
+  im.vertex_offsets = scene.vertex_offsets;
+  im.joint_offsets = scene.joint_offsets;
+  im.output_stride = packed.output_stride_bytes;
+  im.order = packed.order;
+  im.identity_order = true;
+  for (std::size_t p = 0; p < im.order.size() && im.identity_order; ++p) im.identity_order = im.order[p] == p;
+  im.backend = state.backend->make_skinner(state, packed, kernels, options.instances);
+  return impl;
 }
 
 }  // namespace
