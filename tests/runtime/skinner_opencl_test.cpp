@@ -213,6 +213,43 @@ TEST(OpenClSkinner, AReadBackInChunksIsTheGoldAndAnOverflowInTheLastChunkWritesN
   }
 }
 
+// A crowd's palette (64 CesiumMen, 1216 matrices) matches its gold, and the
+// error names the first non-finite matrix however many there are; a rejected
+// palette takes no slot.
+TEST(OpenClSkinner, ACrowdsPaletteMatchesTheGoldAndItsFirstNanIsNamed) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  const View view(Cesium().mesh);
+  SkinnerOptions options;
+  options.instances = 64;
+  Skinner skinner = MustCreate(*device, WinnersDb::Empty(), view.mesh, options);
+  std::vector<std::vector<glm::mat4>> palettes;
+  for (int k = 0; k < 64; ++k) palettes.push_back(Animated(Cesium(), (k + 0.5) / 64.0));
+  ExpectInstancesLikeTheGold(skinner, Cesium().mesh, palettes);
+  std::vector<float> matrices;
+  for (const auto& p : palettes) {
+    const std::vector<float> f = testing::Floats(p);
+    matrices.insert(matrices.end(), f.begin(), f.end());
+  }
+  const int joints = Cesium().mesh.joint_count;
+  const auto nan_at = [&](std::vector<std::size_t> bad) {
+    std::vector<float> m = matrices;
+    for (std::size_t j : bad) m[j * 16 + 5] = std::numeric_limits<float>::quiet_NaN();
+    return skinner.SetPalette(m.data(), m.size());
+  };
+  for (const std::vector<std::size_t>& bad : {std::vector<std::size_t>{1100}, {1100, 5}, {1215, 1030}}) {
+    std::size_t first = *std::min_element(bad.begin(), bad.end());
+    const Status status = nan_at(bad);
+    EXPECT_EQ(status.code(), ErrorCode::kInvalidArgument);
+    const std::string expected = "Skinner::SetPalette: matrix " + std::to_string(first) + " (instance " +
+                                 std::to_string(first / joints) + ", joint " + std::to_string(first % joints) +
+                                 ") element [1][1] is nan";
+    EXPECT_EQ(status.message().rfind(expected, 0), 0u) << status.message();
+  }
+  // The rejected palettes took no slot: the last good one is still what Skin uses.
+  ExpectInstancesLikeTheGold(skinner, Cesium().mesh, palettes);
+}
+
 TEST(OpenClSkinner, ForcedVariantsOfEveryLayoutAndFormatMatchTheGoldInMeshOrder) {
   TempDir dir;
   OPEN_OR_SKIP(device, CacheIn(dir));
