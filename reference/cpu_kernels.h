@@ -18,6 +18,12 @@
 //   lines (a plain store reads each output line before writing it: 1.25x the
 //   output bytes for a 12-byte float3 output). Runtime flag; measured in
 //   docs/PERFORMANCE.md.
+// - Each kernel runs one of four loops chosen once per call (normals or not,
+//   3 or 4 output floats), so the vertex loop tests nothing per vertex; the
+//   influences are decoded a 64-vertex block at a time into palette offsets
+//   and float weights (unorm decoded there, not per vertex), and a position
+//   is loaded as 16 bytes straight into a register (the range's last vertex,
+//   whose 16 bytes could leave its stream, from a padded copy).
 // - Each table is compiled three times (cpu_kernels_avx512.cpp, _avx2.cpp,
 //   _baseline.cpp, each with its -march); CpuKernelIsa() says which one this
 //   CPU runs.

@@ -1,6 +1,9 @@
 // The CPU kernel family (reference/cpu_kernels.h) on its own: streaming and
 // plain stores write the same bytes and nothing outside the range, whatever
-// the range's alignment; the table's keys and names; the schedule
+// the range's alignment; every loop path (the first and last vertex of a
+// range, ranges split off 4- and 64-vertex boundaries, positions ending at an
+// unreadable page, each stream layout, normals on and off, 3 and 4 output
+// floats) against the float64 gold; the table's keys and names; the schedule
 // candidates and the choice among them; bad keys and palettes. Every kernel
 // against the float64 gold through the cpu device: tests/runtime/cpu_runner_test.cpp.
 #include <gtest/gtest.h>
@@ -10,7 +13,13 @@
 #include <cstring>
 #include <memory>
 #include <set>
+#include <span>
+#include <stdexcept>
 #include <thread>
+#include <vector>
+
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include "reference/cpu_kernels.h"
 #include "reference/error.h"
@@ -111,6 +120,161 @@ TEST(CpuKernels, StreamingAndPlainStoresWriteTheSameBytesAndOnlyTheRange) {
         }
     }
   }
+}
+
+// Bytes placed so that the last one is followed by an unreadable page: a
+// kernel reading past the end of its stream faults instead of passing.
+class BeforeGuardPage {
+ public:
+  explicit BeforeGuardPage(std::span<const std::uint8_t> bytes) {
+    const std::size_t page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
+    span_ = (bytes.size() + page - 1) / page * page + page;
+    void* m = mmap(nullptr, span_, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (m == MAP_FAILED) throw std::runtime_error("mmap failed");
+    base_ = static_cast<std::uint8_t*>(m);
+    if (mprotect(base_ + span_ - page, page, PROT_NONE) != 0) throw std::runtime_error("mprotect failed");
+    data_ = base_ + span_ - page - bytes.size();
+    std::memcpy(data_, bytes.data(), bytes.size());
+  }
+  ~BeforeGuardPage() { munmap(base_, span_); }
+  BeforeGuardPage(const BeforeGuardPage&) = delete;
+  BeforeGuardPage& operator=(const BeforeGuardPage&) = delete;
+  const std::uint8_t* data() const { return data_; }
+
+ private:
+  std::uint8_t* base_ = nullptr;
+  std::uint8_t* data_ = nullptr;
+  std::size_t span_ = 0;
+};
+
+template <typename T>
+void Put(std::vector<std::uint8_t>& bytes, std::size_t at, T value) {
+  std::memcpy(bytes.data() + at, &value, sizeof value);
+}
+
+TEST(CpuKernels, EveryLoopPathMatchesTheGoldAtRangeEdgesInEveryLayout) {
+  // 301 vertices: ranges end off 4- and 64-vertex boundaries, and the
+  // unorm16 weights are decoded in blocks of 64 vertices across them.
+  SkinnedAsset asset = GenerateDataset(ParseDatasetKey("301-b3-normals"));
+  SkinnedMesh& mesh = asset.mesh;
+  const std::size_t n = mesh.vertex_count(), b = static_cast<std::size_t>(mesh.influences);
+  // The gold of the weights the kernels read: unorm16 as stored (f32 reads them exactly too).
+  for (float& w : mesh.weights) w = static_cast<float>(std::lround(w * 65535.0f)) / 65535.0f;
+  const std::vector<glm::mat4> palette = asset.PaletteAt(-1, 0.0);
+  const GoldResult gold = SkinGold(mesh, palette, true);
+  // Split points of the kernel calls over [0, n): a single vertex, the first
+  // and last vertex of a 64-vertex block, one vertex before and after it.
+  const std::vector<std::size_t> cuts = {0, 1, 2, 5, 63, 64, 65, 67, 128, 200, 299, 300, 301};
+
+  enum class Layout { kSoaSplit, kSoa, kAos };
+  for (const Layout layout : {Layout::kSoaSplit, Layout::kSoa, Layout::kAos})
+    for (const CpuWeight weight : {CpuWeight::kF32, CpuWeight::kUnorm16})
+      for (const int rows : {3, 4})
+        for (const bool point : {false, true})
+          for (const bool normals : {false, true})
+            for (const int floats : {3, 4}) {
+              SCOPED_TRACE("layout " + std::to_string(static_cast<int>(layout)) + ", " +
+                           CpuKernelName({3, CpuIndex::kU8, weight, rows, point}) + (normals ? ", normals" : "") +
+                           ", " + std::to_string(floats) + " output floats");
+              // u8 joints; weights as `weight`; positions and normals 12-byte
+              // float3 runs (soa, soa-split) or inside records (aos).
+              const std::size_t wb = weight == CpuWeight::kF32 ? 4 : 2;
+              const std::size_t record = layout == Layout::kAos ? 24 + b + b * wb + 1 : 0;
+              std::vector<std::uint8_t> pos(layout == Layout::kAos ? record * n : 12 * n), nrm(12 * n),
+                  idx(b * n), wgt(wb * b * n);
+              CpuStreams s;
+              for (std::size_t v = 0; v < n; ++v)
+                for (std::size_t i = 0; i < b; ++i) {
+                  const std::size_t slot_at = layout == Layout::kSoaSplit ? i * n + v : v * b + i;
+                  const float w = mesh.weights[v * b + i];
+                  const auto j = static_cast<std::uint8_t>(mesh.joints[v * b + i]);
+                  if (layout == Layout::kAos) {
+                    Put(pos, v * record + 24 + i, j);
+                    if (wb == 4) Put(pos, v * record + 24 + b + 4 * i, w);
+                    else Put(pos, v * record + 24 + b + 2 * i, static_cast<std::uint16_t>(std::lround(w * 65535.0f)));
+                  } else {
+                    idx[slot_at] = j;
+                    if (wb == 4) Put(wgt, 4 * slot_at, w);
+                    else Put(wgt, 2 * slot_at, static_cast<std::uint16_t>(std::lround(w * 65535.0f)));
+                  }
+                }
+              for (std::size_t v = 0; v < n; ++v) {
+                const std::size_t at = layout == Layout::kAos ? v * record : 12 * v;
+                for (int c = 0; c < 3; ++c) {
+                  Put(pos, at + 4 * c, mesh.positions[v][c]);
+                  Put(layout == Layout::kAos ? pos : nrm, (layout == Layout::kAos ? at + 12 : 12 * v) + 4 * c,
+                      mesh.normals[v][c]);
+                }
+              }
+              // Each stream ends where an unreadable page starts.
+              const BeforeGuardPage g_pos(pos), g_nrm(nrm), g_idx(idx), g_wgt(wgt);
+              if (layout == Layout::kAos) {
+                s.positions = g_pos.data();
+                s.normals = g_pos.data() + 12;
+                s.indices = g_pos.data() + 24;
+                s.weights = g_pos.data() + 24 + b;
+                s.position_stride = s.normal_stride = s.index_stride = s.weight_stride = record;
+                s.index_slot = 1;
+                s.weight_slot = wb;
+              } else {
+                s.positions = g_pos.data();
+                s.normals = g_nrm.data();
+                s.position_stride = s.normal_stride = 12;
+                s.indices = g_idx.data();
+                s.weights = g_wgt.data();
+                const bool split = layout == Layout::kSoaSplit;
+                s.index_stride = split ? 1 : b;
+                s.index_slot = split ? n : 1;
+                s.weight_stride = split ? wb : b * wb;
+                s.weight_slot = split ? n * wb : wb;
+              }
+              // The palette in the kernels' form, 3 or 4 rows per joint.
+              std::vector<std::uint8_t> packed;
+              for (const glm::mat4& m : palette)
+                for (int r = 0; r < rows; ++r)
+                  for (int c = 0; c < 4; ++c) {
+                    packed.resize(packed.size() + 4);
+                    std::memcpy(packed.data() + packed.size() - 4, &m[c][r], 4);
+                  }
+              CpuPalette cpu_palette;
+              LoadCpuPalette(packed, rows, cpu_palette);
+
+              Output out(floats * (n + 4)), out_n(floats * (n + 4));  // 4 guard vertices after the mesh
+              s.out_positions = out.data;
+              s.out_normals = normals ? out_n.data : nullptr;
+              s.output_floats = floats;
+              const CpuKernelFn kernel = FindCpuKernel({3, CpuIndex::kU8, weight, rows, point});
+              for (std::size_t c = 0; c + 1 < cuts.size(); ++c) {
+                s.stream_stores = c % 2 == 1;  // both store paths, alternating by range
+                kernel(s, cpu_palette, cuts[c], cuts[c + 1]);
+              }
+              std::vector<glm::vec3> got(n), got_n(n);
+              for (std::size_t v = 0; v < n; ++v) {
+                got[v] = {out.data[floats * v], out.data[floats * v + 1], out.data[floats * v + 2]};
+                got_n[v] = {out_n.data[floats * v], out_n.data[floats * v + 1], out_n.data[floats * v + 2]};
+                if (floats == 4) {
+                  ASSERT_EQ(out.data[4 * v + 3], 1.0f) << "vertex " << v;
+                  if (normals) {
+                    ASSERT_EQ(out_n.data[4 * v + 3], 0.0f) << "vertex " << v;
+                  }
+                }
+              }
+              for (std::size_t k = floats * n; k < floats * (n + 4); ++k) {
+                ASSERT_TRUE(out.Poisoned(k)) << "guard word " << k;
+                ASSERT_TRUE(out_n.Poisoned(k)) << "guard word " << k;
+              }
+              const GoldComparison p = CompareToGold(gold.positions, got);
+              EXPECT_EQ(p.non_finite, 0u);
+              EXPECT_LT(p.max_relative, 1e-5) << "worst vertex " << p.worst_vertex;
+              if (normals) {
+                const GoldComparison q = CompareToGold(gold.normals, got_n);
+                EXPECT_EQ(q.non_finite, 0u);
+                EXPECT_LT(q.max_absolute, 1e-5) << "worst vertex " << q.worst_vertex;
+              } else {
+                for (std::size_t k = 0; k < floats * n; ++k) ASSERT_TRUE(out_n.Poisoned(k)) << "normal word " << k;
+              }
+              if (HasFailure()) return;  // one failing path says enough
+            }
 }
 
 TEST(CpuKernels, OneKernelPerKeyWithDistinctNames) {
