@@ -192,7 +192,8 @@ class DeviceBackend final : public Backend {
       }
     };
     try {
-      if (Executor(), runner_->ConcurrentBuilds()) {
+      Executor();  // opens runner_, the measuring runner
+      if (runner_->ConcurrentBuilds()) {
         // Into the measuring runner itself, from short-lived threads.
         std::atomic<std::size_t> next{0};
         const auto work = [&] {
