@@ -159,13 +159,14 @@ Prepared Runner::PrepareSets(const PackedMesh& mesh, std::span<const KernelSourc
   return prepared;
 }
 
-std::string Runner::ShareKey(const SetOptions& options, std::size_t set, const char* role, const std::string& name,
+std::string Runner::ShareKey(const SetOptions& options, std::size_t set, BufferUse use, const std::string& name,
                              std::span<const std::uint8_t> content) {
   if (shared_max_bytes_ == 0 || options.verification) return "";
-  std::string key = std::to_string(set) + "|" + role + "|" + name + "|" + std::to_string(content.size());
-  if (std::string_view(role) == "out") return key;  // a timed output's bytes are never read
+  std::string key = std::to_string(set) + "|" + std::to_string(static_cast<int>(use)) + "|" + name + "|" +
+                    std::to_string(content.size());
+  if (use == BufferUse::kOutput) return key;  // a timed output's bytes are never read
   const std::string_view bytes(reinterpret_cast<const char*>(content.data()), content.size());
-  if (std::string_view(role) != "in") return key + "|" + std::to_string(std::hash<std::string_view>{}(bytes));
+  if (use != BufferUse::kInput) return key + "|" + std::to_string(std::hash<std::string_view>{}(bytes));
   // Each packed input hashed once per Prepare (its sets bind the same mesh's bytes).
   auto hashed = input_hashes_.find(content.data());
   if (hashed == input_hashes_.end()) hashed = input_hashes_.emplace(content.data(), std::hash<std::string_view>{}(bytes)).first;
@@ -219,7 +220,7 @@ std::vector<ArgumentBinding> Runner::InputBindings(Prepared::Impl& p, std::size_
       if (input == launch.inputs.end()) Fail("launch", spec.where + ": no packed buffer for argument '" + arg.name + "'");
       b = {&arg, ArgumentRole::kInput,
            SetBuffer(p, set_index, BufferUse::kInput, input->bytes, arg.name + options.suffix,
-                     ShareKey(options, set_index, "in", arg.name, input->bytes)),
+                     ShareKey(options, set_index, BufferUse::kInput, arg.name, input->bytes)),
            nullptr};
       bytes += input->bytes.size();
     }
@@ -242,7 +243,7 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
     if (normals && !mesh.variant.normals) continue;
     const std::string name = OutputName(normals);
     (normals ? set.out_normals : set.out_positions) =
-        SetBuffer(p, index, BufferUse::kOutput, out, name + options.suffix, ShareKey(options, index, "out", name, out));
+        SetBuffer(p, index, BufferUse::kOutput, out, name + options.suffix, ShareKey(options, index, BufferUse::kOutput, name, out));
     bytes += options.verification ? 0 : out.size();
   }
 
@@ -262,7 +263,7 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
     Prepared::Impl::Slot& slot = set.slots.emplace_back();
     const std::string suffix = palette_slots > 1 ? options.suffix + " (palette slot " + std::to_string(s) + ")" : options.suffix;
     slot.palette = SetBuffer(p, index, BufferUse::kPalette, palette, "palette" + suffix,
-                             palette_slots > 1 ? "" : ShareKey(options, index, "palette", "palette", palette));
+                             palette_slots > 1 ? "" : ShareKey(options, index, BufferUse::kPalette, "palette", palette));
     bytes += palette.size();
     std::unique_ptr<DeviceObject> view = api_->PaletteView(mesh.variant, *slot.palette, suffix);
     DeviceObject* palette_view = view.get();

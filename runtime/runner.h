@@ -234,10 +234,10 @@ class Runner {
   // `share_key` (ShareKey), the runner's kept buffer (allocated and kept on first use).
   DeviceBuffer* SetBuffer(Prepared::Impl& p, std::size_t set_index, BufferUse use, std::span<const std::uint8_t> content,
                           const std::string& what, const std::string& share_key);
-  // ShareTimedInputs' key of a timed set's buffer: "<set>|<role>|<name>|<bytes>"
+  // ShareTimedInputs' key of a timed set's buffer: "<set>|<use>|<name>|<bytes>"
   // and, for inputs and palettes, their bytes' hash; "" when not shared
   // (sharing off, or a verification set).
-  std::string ShareKey(const SetOptions& options, std::size_t set, const char* role, const std::string& name,
+  std::string ShareKey(const SetOptions& options, std::size_t set, BufferUse use, const std::string& name,
                        std::span<const std::uint8_t> content);
   void ReadChecked(const Prepared::Impl& p, const PackedMesh& mesh, const RunShape& shape, RunResult& result);
   // Warms the device before timed frames (TimingPolicy::warm_until_stable):
