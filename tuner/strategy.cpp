@@ -59,8 +59,9 @@ struct CoordsHash {
 // evaluator: each distinct variant costs one evaluation, once.
 class Session {
  public:
-  Session(const std::vector<Variant>& candidates, const Evaluator& evaluate, std::size_t budget)
-      : evaluate_(evaluate), budget_(budget) {
+  Session(const std::vector<Variant>& candidates, const Evaluator& evaluate, std::size_t budget,
+          const LookAhead& ahead)
+      : evaluate_(evaluate), ahead_(ahead), budget_(budget) {
     for (const Variant& v : candidates) {
       const Coords c = CoordsOf(v);
       if (index_.emplace(c, variants_.size()).second) {
@@ -84,6 +85,7 @@ class Session {
   bool evaluated(std::size_t i) const { return evaluated_[i]; }
   // Budget 0 means no limit.
   bool exhausted() const { return budget_ != 0 && evaluations_ >= budget_; }
+  std::size_t budget() const { return budget_; }
 
   // The time of candidate i: recorded, or evaluated now when the budget allows.
   // nullopt for a failed variant or when the budget is spent.
@@ -100,6 +102,18 @@ class Session {
     return results_[i];
   }
 
+  // Announces the candidates among `next` that Evaluate would still run, in
+  // order, as many as the budget has left (LookAhead).
+  void Ahead(const std::vector<std::size_t>& next) const {
+    if (!ahead_) return;
+    std::vector<Variant> out;
+    for (std::size_t i : next) {
+      if (budget_ != 0 && evaluations_ + out.size() >= budget_) break;
+      if (!evaluated_[i]) out.push_back(variants_[i]);
+    }
+    if (!out.empty()) ahead_(out);
+  }
+
   SearchResult Result() const {
     SearchResult r;
     if (best_) {
@@ -112,6 +126,7 @@ class Session {
 
  private:
   const Evaluator& evaluate_;
+  const LookAhead& ahead_;
   std::size_t budget_;
   std::vector<Variant> variants_;
   std::vector<Coords> coords_;
@@ -124,6 +139,9 @@ class Session {
 };
 
 SearchResult Exhaustive(Session& s) {
+  std::vector<std::size_t> all(s.size());
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
+  s.Ahead(all);
   for (std::size_t i = 0; i < s.size() && !s.exhausted(); ++i) s.Evaluate(i);
   return s.Result();
 }
@@ -133,10 +151,11 @@ SearchResult Random(Session& s, std::uint64_t seed) {
   std::vector<std::size_t> order(s.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
   Prng prng(seed);
-  for (std::size_t i = 0; i < order.size() && !s.exhausted(); ++i) {
-    std::swap(order[i], order[i + prng.Below(order.size() - i)]);
-    s.Evaluate(order[i]);
-  }
+  const std::size_t n = s.budget() == 0 ? order.size() : std::min(s.budget(), order.size());
+  for (std::size_t i = 0; i < n; ++i) std::swap(order[i], order[i + prng.Below(order.size() - i)]);
+  order.resize(n);
+  s.Ahead(order);
+  for (std::size_t i : order) s.Evaluate(i);
   return s.Result();
 }
 
@@ -240,6 +259,7 @@ SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts) {
     auto try_moves = [&](const std::vector<std::size_t>& moves) {
       std::size_t best = current;
       std::optional<double> best_ms = current_ms;
+      s.Ahead(moves);
       for (std::size_t j : moves) {
         const std::optional<double> t = s.Evaluate(j);
         if (t && (!best_ms || *t < *best_ms)) {
@@ -289,7 +309,7 @@ SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts) {
 }  // namespace
 
 SearchResult Search(const std::vector<Variant>& candidates, const Evaluator& evaluate,
-                    const StrategyOptions& options) {
+                    const StrategyOptions& options, const LookAhead& ahead) {
   const std::string& name = options.name;
   if (name != "exhaustive" && name != "random" && name != "coordinate") {
     throw Error("strategy '" + name + "': unknown (expected exhaustive, random or coordinate)");
@@ -298,7 +318,7 @@ SearchResult Search(const std::vector<Variant>& candidates, const Evaluator& eva
     throw Error("strategy 'random': a budget (number of evaluations, > 0) is required");
   }
   if (!evaluate) throw Error("strategy '" + name + "': no evaluator");
-  Session session(candidates, evaluate, options.budget);
+  Session session(candidates, evaluate, options.budget, ahead);
   if (session.size() == 0) return {};
   if (name == "exhaustive") return Exhaustive(session);
   if (name == "random") return Random(session, options.seed);

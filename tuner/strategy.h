@@ -31,7 +31,14 @@ struct SearchResult {
 };
 
 // Throws Error for an unknown strategy name or a missing budget.
+// Told, before a strategy evaluates them one by one, the variants it will
+// evaluate next (not evaluated yet, within the budget): exhaustive and random
+// search announce all of theirs at once, coordinate descent each set of moves.
+// The tuner builds them in parallel meanwhile (Worker::CompileAhead); a search
+// is the same with or without it.
+using LookAhead = std::function<void(const std::vector<Variant>&)>;
+
 SearchResult Search(const std::vector<Variant>& candidates, const Evaluator& evaluate,
-                    const StrategyOptions& options);
+                    const StrategyOptions& options, const LookAhead& ahead = {});
 
 }  // namespace skintune

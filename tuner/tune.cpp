@@ -616,21 +616,20 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
           if (found && !(IsTimed(found->status) && !found->source_error.known)) return *found;
           return std::nullopt;
         };
-        // Compile ahead: the variants this task will measure and the cache
-        // has not, built in parallel by the worker before any is timed.
-        std::vector<Variant> ahead;
-        for (const Variant& v : task.baselines)
-          if (!cached(cache_key_of(v))) ahead.push_back(v);
-        if (config.strategy.name == "exhaustive") {
-          const std::size_t n = config.strategy.budget > 0 ? std::min(config.strategy.budget, task.candidates.size())
-                                                            : task.candidates.size();
-          for (std::size_t i = 0; i < n; ++i)
-            if (!cached(cache_key_of(task.candidates[i]))) ahead.push_back(task.candidates[i]);
-        }
-        if (ahead.size() > 1 && CompilesAhead(device.identity)) {
-          advance(run, task_start, device_name + ": compiling " + std::to_string(ahead.size()) + " kernels for " + key);
+        // Compile ahead: the variants the task will measure next and the
+        // cache has not (the baselines, then what the strategy announces),
+        // built in parallel by the worker before any of them is timed.
+        const bool compiles_ahead = CompilesAhead(device.identity);
+        const LookAhead compile_ahead = [&](const std::vector<Variant>& next) {
+          std::vector<Variant> ahead;
+          for (const Variant& v : next)
+            if (!cached(cache_key_of(v))) ahead.push_back(v);
+          if (ahead.size() < 2 || !compiles_ahead) return;  // one kernel: built by its measurement
+          advance(run, task_start + task_done,
+                  device_name + ": compiling " + std::to_string(ahead.size()) + " kernels for " + key);
           worker.CompileAhead(ahead, TuningDataset{key});
-        }
+        };
+        compile_ahead(task.baselines);
         const Evaluator evaluate = [&](const Variant& v) -> std::optional<double> {
           const std::string cache_key = cache_key_of(v);
           Measurement m;
@@ -656,7 +655,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
           return m.timing.median_ms;
         };
         for (const Variant& b : task.baselines) evaluate(b);
-        if (!task.candidates.empty()) Search(task.candidates, evaluate, config.strategy);
+        if (!task.candidates.empty()) Search(task.candidates, evaluate, config.strategy, compile_ahead);
         task_start += task.planned;
         advance(run, task_start, "");
       }

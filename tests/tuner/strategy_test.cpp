@@ -299,5 +299,53 @@ TEST(Strategy, CoordinateWithFivePercentOfAWideSpaceLandsWithinFivePercentOfTheO
   }
 }
 
+// The look-ahead (what the tuner compiles in parallel) announces, for every
+// strategy and budget, only variants not evaluated yet, never more than the
+// budget has left, and every evaluated variant before its evaluation except a
+// descent's starting point; and the search is the same with it as without.
+TEST(Strategy, LookAheadAnnouncesWhatIsEvaluatedNextWithinTheBudgetAndChangesNothing) {
+  std::vector<Variant> candidates = testing::SyntheticCandidates();
+  candidates.resize(600);
+  const struct {
+    const char* name;
+    std::size_t budget;
+  } cases[] = {{"exhaustive", 0}, {"exhaustive", 40}, {"random", 30}, {"coordinate", 0}, {"coordinate", 25}, {"coordinate", 60}};
+  for (const auto& c : cases) {
+    SCOPED_TRACE(std::string(c.name) + " budget " + std::to_string(c.budget));
+    const StrategyOptions options{c.name, c.budget, 3};
+    const SearchResult plain = Search(candidates, testing::SyntheticEvaluate, options);
+
+    std::vector<std::string> evaluated;
+    std::map<std::string, std::size_t> announced_at;  // key -> evaluations done when first announced
+    std::size_t announced = 0, unannounced = 0;
+    const Evaluator evaluate = [&](const Variant& v) {
+      if (!announced_at.count(v.Key())) ++unannounced;
+      evaluated.push_back(v.Key());
+      return testing::SyntheticEvaluate(v);
+    };
+    const LookAhead ahead = [&](const std::vector<Variant>& next) {
+      ASSERT_FALSE(next.empty());
+      if (c.budget != 0) EXPECT_LE(evaluated.size() + next.size(), c.budget);
+      for (const Variant& v : next) {
+        EXPECT_EQ(std::find(evaluated.begin(), evaluated.end(), v.Key()), evaluated.end()) << v.Key();
+        announced_at.emplace(v.Key(), evaluated.size());
+        ++announced;
+      }
+    };
+    const SearchResult looked = Search(candidates, evaluate, options, ahead);
+    ASSERT_TRUE(plain.best && looked.best);
+    EXPECT_EQ(looked.best->Key(), plain.best->Key());
+    EXPECT_EQ(looked.evaluations, plain.evaluations);
+    EXPECT_GT(announced, 0u);
+    // Exhaustive and random announce everything up front; a coordinate
+    // descent evaluates its starting points unannounced (one per restart).
+    if (std::string(c.name) == "coordinate") {
+      EXPECT_LT(unannounced, evaluated.size() / 2);
+    } else {
+      EXPECT_EQ(unannounced, 0u);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace skintune
