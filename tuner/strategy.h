@@ -13,7 +13,7 @@
 
 #include "generator/variant.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // Median time in ms, or nullopt when the variant failed (any status but ok).
 using Evaluator = std::function<std::optional<double>(const Variant&)>;
@@ -34,4 +34,4 @@ struct SearchResult {
 SearchResult Search(const std::vector<Variant>& candidates, const Evaluator& evaluate,
                     const StrategyOptions& options);
 
-}  // namespace skintune
+}  // namespace skintune::internal
