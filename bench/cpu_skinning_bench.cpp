@@ -54,7 +54,7 @@
 #include "runtime/source_error.h"
 #include "tuner/backends_internal.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 constexpr int kPalettes = 8;
@@ -155,9 +155,9 @@ void RegisterAll() {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 // ---------------------------------------------------------------- the comparison
@@ -377,27 +377,27 @@ bool ParseArguments(int& argc, char** argv, CompareOptions& options) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal
 
 int main(int argc, char** argv) {
-  skintune::CompareOptions options;
-  options.pocl.assign(std::begin(skintune::kPoclVariants), std::end(skintune::kPoclVariants));
+  skintune::internal::CompareOptions options;
+  options.pocl.assign(std::begin(skintune::internal::kPoclVariants), std::end(skintune::internal::kPoclVariants));
   bool gbench = false;
   try {
-    gbench = skintune::ParseArguments(argc, argv, options);
+    gbench = skintune::internal::ParseArguments(argc, argv, options);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "skintune_bench_cpu: error: %s\n", e.what());
     return 2;
   }
   if (!gbench) {
     try {
-      return skintune::Compare(options);
+      return skintune::internal::Compare(options);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "skintune_bench_cpu: error: %s\n", e.what());
       return 1;
     }
   }
-  skintune::RegisterAll();
+  skintune::internal::RegisterAll();
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

@@ -41,7 +41,7 @@
 
 namespace {
 
-using skintune::GlContext;
+using skintune::internal::GlContext;
 
 void Check(const std::string& what) {
   const GLenum error = glGetError();

@@ -28,7 +28,7 @@
 
 namespace {
 
-using namespace skintune;
+using namespace skintune::internal;
 
 const cuda::DriverApi* api = nullptr;
 cuda::Stream stream = nullptr;

@@ -5,7 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -171,4 +171,4 @@ nlohmann::json ValueJson(const Axis& axis, int code) {
   return ValueOf(axis, code).name;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

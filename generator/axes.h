@@ -28,7 +28,7 @@
 
 #include "generator/variant.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // How a field holds its value, and so how keys, JSON and configs spell it.
 enum class AxisKind {
@@ -312,4 +312,4 @@ int DefineValue(const Axis& axis, int code);
 // A value in JSON and configs: a name, a number or true / false.
 nlohmann::json ValueJson(const Axis& axis, int code);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -5,7 +5,7 @@
 
 #include "generator/axes.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -157,4 +157,4 @@ std::vector<Violation> CheckVariant(const Variant& v, const DeviceLimits& device
   return out;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

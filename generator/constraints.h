@@ -11,7 +11,7 @@
 
 #include "generator/variant.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct DeviceLimits {
   std::size_t max_wg_size = 256;                   // CL_DEVICE_MAX_WORK_GROUP_SIZE, CUDA max threads/block,
@@ -66,4 +66,4 @@ std::vector<Violation> CheckVariant(const Variant& v, const DeviceLimits& device
 // reads `instances` of them; a work-group's local copy holds one).
 std::uint64_t PaletteBytes(const Variant& v, int joints);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -9,7 +9,7 @@
 
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 CopyKernel EmitCopy(Lang lang, std::size_t bytes) {
   CopyKernel copy;
@@ -86,4 +86,4 @@ CopyKernel EmitCopy(Lang lang, std::size_t bytes) {
   return copy;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -16,7 +16,7 @@
 #include "generator/emit.h"
 #include "generator/packer.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // Work items of 256; a work item copies 2, 4 or 8 items (strided) when one
 // item each would take more than kCopyMaxGroups work-groups (GL's minimum
@@ -39,4 +39,4 @@ CopyKernel EmitCopy(Lang lang, std::size_t bytes);
 // The bytes one frame of `copy` moves: 32 per item (16 read, 16 written).
 inline std::size_t CopyBytes(const CopyKernel& copy) { return copy.items * 32; }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -7,7 +7,7 @@
 
 #include "generator/axes.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -133,4 +133,4 @@ CoveringSet BuildCoveringSet(Lang lang, const DeviceLimits& device, const Proble
   return result;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

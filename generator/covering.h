@@ -12,7 +12,7 @@
 #include "generator/constraints.h"
 #include "generator/variant.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct CoveringSet {
   std::vector<Variant> variants;
@@ -24,4 +24,4 @@ struct CoveringSet {
 CoveringSet BuildCoveringSet(Lang lang, const DeviceLimits& device, const ProblemShape& shape,
                              const std::vector<int>& wg_sizes = {32, 64, 128, 256, 512, 1024});
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -12,7 +12,7 @@
 #include "reference/error.h"
 #include "reference/mesh.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // templates/, embedded by cmake/embed_templates.cmake (generated embedded_templates.cpp).
 struct EmbeddedTemplate {
@@ -450,4 +450,4 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
   return j;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -22,7 +22,7 @@
 
 #include "generator/variant.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 inline constexpr const char* kGeneratorVersion = "0.1.0";
 
@@ -124,4 +124,4 @@ std::string ExpandedTemplate(const std::string& name);
 // FNV-1a 64 of `text` as 16 lower-case hex digits.
 std::string SourceHash(const std::string& text);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -18,7 +18,7 @@
 #include <iterator>
 #include <string_view>
 
-namespace skintune {
+namespace skintune::internal {
 
 // kCpu: the fast CPU path's kernels (reference/cpu_kernels.h), compiled into
 // skintune and selected by the parameters of the kernel text (templates/skin.cpu).
@@ -198,4 +198,4 @@ constexpr const Language& ApiRow(std::size_t index) {
   return kLanguages[row];
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

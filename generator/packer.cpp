@@ -13,7 +13,7 @@
 
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 std::size_t RoundUp(std::size_t x, std::size_t multiple) { return (x + multiple - 1) / multiple * multiple; }
@@ -377,4 +377,4 @@ bool HoldsWeightsExactly(const SkinnedMesh& mesh, WeightFormat format) {
   return QuantisedMesh(mesh, variant).weights == mesh.weights;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

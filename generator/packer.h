@@ -24,7 +24,7 @@
 #include "generator/variant.h"
 #include "reference/mesh.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct PackedBuffer {
   std::string name;                // "positions", "indices", "weights", "normals", "records"
@@ -105,4 +105,4 @@ SkinnedMesh QuantisedMesh(const SkinnedMesh& mesh, const Variant& variant);
 // error). Throws Error for an invalid mesh, as QuantisedMesh does.
 bool HoldsWeightsExactly(const SkinnedMesh& mesh, WeightFormat format);
 
-}  // namespace skintune
+}  // namespace skintune::internal

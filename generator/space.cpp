@@ -9,7 +9,7 @@
 #include "generator/axes.h"
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -184,4 +184,4 @@ SpaceCount Enumerate(const TuningSpace& space, const DeviceLimits& device, const
   return count;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -21,7 +21,7 @@
 #include "generator/constraints.h"
 #include "generator/variant.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct TuningSpace {
   std::vector<Lang> langs;
@@ -75,4 +75,4 @@ struct SpaceCount {
 SpaceCount Enumerate(const TuningSpace& space, const DeviceLimits& device, const ProblemShape& shape,
                      const std::function<void(const Variant&)>& valid = {});
 
-}  // namespace skintune
+}  // namespace skintune::internal

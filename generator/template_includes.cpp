@@ -5,7 +5,7 @@
 
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 constexpr const char* kBlanks = " \t\r";
@@ -116,4 +116,4 @@ std::string ExpandIncludes(const std::string& name, const std::string& text, con
   return expander.Take();
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

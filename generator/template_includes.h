@@ -14,7 +14,7 @@
 #include <optional>
 #include <string>
 
-namespace skintune {
+namespace skintune::internal {
 
 // The text of a template file by name; std::nullopt when there is none.
 using TemplateLookup = std::function<std::optional<std::string>(const std::string& name)>;
@@ -40,4 +40,4 @@ using TemplateLookup = std::function<std::optional<std::string>(const std::strin
 //     text would be compiled twice.
 std::string ExpandIncludes(const std::string& name, const std::string& text, const TemplateLookup& lookup);
 
-}  // namespace skintune
+}  // namespace skintune::internal

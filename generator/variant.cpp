@@ -10,7 +10,7 @@
 #include "generator/axes.h"
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -152,4 +152,4 @@ void from_json(const nlohmann::json& in, Variant& v) {
   }
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

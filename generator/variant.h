@@ -28,7 +28,7 @@
 
 #include "generator/languages.h"  // Lang, the lang axis's enum: one row per language
 
-namespace skintune {
+namespace skintune::internal {
 
 enum class MixedCounts { kPadded, kBucketed };
 enum class Layout { kAos, kSoa, kSoaSplit };
@@ -109,9 +109,9 @@ std::size_t BytesOf(IndexFormat);
 std::size_t BytesOf(WeightFormat);
 std::size_t BytesOf(PaletteFormat);
 
-}  // namespace skintune
+}  // namespace skintune::internal
 
 template <>
-struct std::hash<skintune::Variant> {
-  std::size_t operator()(const skintune::Variant& v) const { return v.Hash(); }
+struct std::hash<skintune::internal::Variant> {
+  std::size_t operator()(const skintune::internal::Variant& v) const { return v.Hash(); }
 };

@@ -19,7 +19,7 @@
 
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 const char* PathName(ChannelPath path) {
@@ -176,4 +176,4 @@ void AnimationClip::UpdateRange() {
   end = hi;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -13,7 +13,7 @@
 
 #include "reference/skeleton.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 enum class ChannelPath { kTranslation, kRotation, kScale };
 enum class Interpolation { kStep, kLinear, kCubicSpline };
@@ -45,4 +45,4 @@ struct AnimationClip {
   void UpdateRange();
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

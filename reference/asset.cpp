@@ -4,7 +4,7 @@
 
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 int SkinnedAsset::FindAnimation(const std::string& name_or_index) const {
   for (std::size_t i = 0; i < animations.size(); ++i)
@@ -43,4 +43,4 @@ std::vector<glm::mat4> SkinnedAsset::PaletteAt(int animation, double t) const {
   }
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -8,7 +8,7 @@
 #include "reference/mesh.h"
 #include "reference/skeleton.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct SkinnedAsset {
   std::string source;  // file name or dataset key: used in error messages
@@ -27,4 +27,4 @@ struct SkinnedAsset {
   std::vector<glm::mat4> PaletteAt(int animation, double t) const;
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

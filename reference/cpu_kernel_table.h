@@ -8,7 +8,7 @@
 
 #include "reference/cpu_kernels.h"
 
-namespace skintune::cpu_detail {
+namespace skintune::internal::cpu_detail {
 
 inline constexpr std::size_t kIndexFormats = 3;
 inline constexpr std::size_t kWeightFormats = 3;
@@ -43,4 +43,4 @@ const CpuKernelTable& CpuKernelsAvx512();
 const CpuKernelTable& CpuKernelsAvx2();
 const CpuKernelTable& CpuKernelsBaseline();
 
-}  // namespace skintune::cpu_detail
+}  // namespace skintune::internal::cpu_detail

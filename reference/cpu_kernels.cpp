@@ -11,7 +11,7 @@
 #include "reference/error.h"
 #include "reference/thread_pool.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -161,4 +161,4 @@ ThreadPool& CpuPools::Get(unsigned threads) {
   return *slot;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

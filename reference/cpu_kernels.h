@@ -40,7 +40,7 @@
 #include <string>
 #include <vector>
 
-namespace skintune {
+namespace skintune::internal {
 
 class ThreadPool;
 
@@ -139,4 +139,4 @@ class CpuPools {
   std::vector<std::unique_ptr<ThreadPool>> pools_;  // [threads - 1]
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -1,6 +1,6 @@
 // skintune: the one error type of the offline (reference/generator/tuner) code.
 //
-// Inside skintune, bad input is reported by throwing skintune::Error whose
+// Inside skintune, bad input is reported by throwing skintune::internal::Error whose
 // message is complete and user-facing: it names the file (when there is one)
 // and the offending element, e.g.
 //   "CesiumMan.gltf: accessors[7] (JOINTS_0 of meshes[0].primitives[0]): component type FLOAT is not allowed (expected UNSIGNED_BYTE or UNSIGNED_SHORT)"
@@ -11,11 +11,11 @@
 #include <stdexcept>
 #include <string>
 
-namespace skintune {
+namespace skintune::internal {
 
 class Error : public std::runtime_error {
  public:
   explicit Error(const std::string& message) : std::runtime_error(message) {}
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

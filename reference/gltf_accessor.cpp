@@ -14,7 +14,7 @@
 
 #include "reference/error.h"
 
-namespace skintune::gltf_detail {
+namespace skintune::internal::gltf_detail {
 
 using std::size_t;
 using std::to_string;
@@ -234,4 +234,4 @@ AccessorData ReadAccessor(const Ctx& ctx, int index, const AccessorSpec& spec) {
   return out;
 }
 
-}  // namespace skintune::gltf_detail
+}  // namespace skintune::internal::gltf_detail

@@ -23,7 +23,7 @@
 //    values each bounds-checked like the main data (tightly packed);
 //  - normalized integers map to [0, 1] (unsigned) or [-1, 1] (signed).
 //
-// Every failure throws skintune::Error through Ctx::Fail, so the message
+// Every failure throws skintune::internal::Error through Ctx::Fail, so the message
 // starts with the file path and names the accessor with its role, then the
 // bufferView / buffer at fault, e.g.
 //   "model.gltf: accessors[3] (JOINTS_0 of meshes[0].primitives[0]): bufferViews[2]
@@ -38,7 +38,7 @@
 
 #include "reference/error.h"
 
-namespace skintune::gltf_detail {
+namespace skintune::internal::gltf_detail {
 
 // ---------------------------------------------------------------- naming helpers
 
@@ -100,4 +100,4 @@ std::string AccessorName(int index, const std::string& role);
 // or does not fit in its bufferView / buffer.
 AccessorData ReadAccessor(const Ctx& ctx, int index, const AccessorSpec& spec);
 
-}  // namespace skintune::gltf_detail
+}  // namespace skintune::internal::gltf_detail

@@ -26,7 +26,7 @@
 #include "reference/error.h"
 #include "reference/gltf_accessor.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using namespace gltf_detail;  // Ctx, naming helpers, ReadAccessor
@@ -540,4 +540,4 @@ GltfImportResult ImportGltf(const std::string& path, const GltfImportOptions& op
   return result;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

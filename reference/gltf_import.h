@@ -30,7 +30,7 @@
 
 #include "reference/asset.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct GltfImportOptions {
   std::string mesh;     // node or mesh name; empty = first skinned mesh
@@ -45,4 +45,4 @@ struct GltfImportResult {
 
 GltfImportResult ImportGltf(const std::string& path, const GltfImportOptions& options = {});
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -10,7 +10,7 @@
 
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -96,4 +96,4 @@ void CheckMemoryFor(const std::string& what, std::uint64_t vertices, std::uint64
               ": at most about " + FormatVertexCount(fit) + " vertices fit");
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

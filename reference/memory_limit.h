@@ -11,7 +11,7 @@
 #include <cstdint>
 #include <string>
 
-namespace skintune {
+namespace skintune::internal {
 
 // Memory that may still be allocated somewhere, and where the figure comes
 // from (said in errors).
@@ -43,4 +43,4 @@ std::string FormatBytes(std::uint64_t bytes);
 // written as a dataset key can take it (k and m suffixes, no decimals).
 std::string FormatVertexCount(std::uint64_t vertices);
 
-}  // namespace skintune
+}  // namespace skintune::internal

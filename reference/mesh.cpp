@@ -7,7 +7,7 @@
 
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 int SkinnedMesh::InfluencesOf(std::size_t v) const {
   int count = 0;
@@ -212,4 +212,4 @@ std::vector<std::size_t> InfluenceHistogram(const SkinnedMesh& mesh) {
   return histogram;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -21,7 +21,7 @@
 
 #include <glm/glm.hpp>
 
-namespace skintune {
+namespace skintune::internal {
 
 inline constexpr int kMaxInfluences = 8;
 // |sum(weights) - 1| allowed per vertex. float32 weights that were normalised
@@ -109,4 +109,4 @@ std::size_t CompactInfluences(SkinnedMesh& mesh, int max_influences = kMaxInflue
 // Histogram: result[k] = number of vertices with k non-zero weights (k = 0..influences).
 std::vector<std::size_t> InfluenceHistogram(const SkinnedMesh& mesh);
 
-}  // namespace skintune
+}  // namespace skintune::internal

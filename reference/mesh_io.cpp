@@ -15,7 +15,7 @@
 #include "reference/error.h"
 #include "reference/skinning.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -168,4 +168,4 @@ SkinnedVertices ReadSkinnedVertices(const std::string& path) {
   return IsObj(path) ? DecodeObj(path, data) : DecodeBinary(path, data);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

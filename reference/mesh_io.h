@@ -24,7 +24,7 @@
 
 #include "reference/mesh.h"  // kMaxVertexCount
 
-namespace skintune {
+namespace skintune::internal {
 
 // Chooses the format by extension: ".obj" (case-insensitive) -> obj, else binary.
 // Throws Error("<path>: ...") when the file cannot be written, and without
@@ -51,4 +51,4 @@ void WriteFileAtomically(const std::string& path, const std::string& contents);
 // run never ends in "cannot write".
 void CheckWritable(const std::string& path);
 
-}  // namespace skintune
+}  // namespace skintune::internal

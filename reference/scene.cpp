@@ -10,7 +10,7 @@
 #include "reference/gltf_import.h"
 #include "reference/synthetic.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -212,4 +212,4 @@ SkinnedScene LoadScene(const SceneSpec& spec) {
   return scene;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

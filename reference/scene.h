@@ -31,7 +31,7 @@
 
 #include "reference/asset.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // A batch mix's mesh sizes (vertices): seeded uniform in this range; the last
 // mesh takes what is left (at least kMixMinVertices, so it may be larger).
@@ -85,4 +85,4 @@ struct SkinnedScene {
 // Errors name the scene and the mesh ("scene 'a+b': meshes[1] 'b': ...").
 SkinnedScene LoadScene(const SceneSpec& spec);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -9,7 +9,7 @@
 
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 glm::dmat4 Transform::ToMatrix() const {
   glm::dmat4 m = glm::mat4_cast(glm::normalize(rotation));
@@ -136,4 +136,4 @@ std::vector<glm::mat4> Skeleton::Palette(const Pose& pose) const {
   return std::vector<glm::mat4>(d.begin(), d.end());
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -15,7 +15,7 @@
 #include <glm/glm.hpp>
 #include <glm/gtc/quaternion.hpp>
 
-namespace skintune {
+namespace skintune::internal {
 
 struct Transform {
   glm::dvec3 translation{0.0};
@@ -59,4 +59,4 @@ struct Skeleton {
   std::vector<glm::mat4> Palette(const Pose& pose) const;
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

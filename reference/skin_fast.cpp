@@ -13,7 +13,7 @@
 #include "reference/skinning.h"
 #include "reference/thread_pool.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 void CheckSkinningArguments(const SkinnedMesh& mesh, std::size_t palette_size, std::size_t out_positions,
                             std::size_t out_normals, const char* who);
@@ -110,4 +110,4 @@ void FastSkinner::Run(std::span<const glm::mat4> palette, std::span<glm::vec3> o
   RunCpuKernel(s.kernel, streams, s.palette, s.n, s.pool, kGrain);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

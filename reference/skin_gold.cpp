@@ -5,7 +5,7 @@
 #include "reference/error.h"
 #include "reference/skinning.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 void CheckSkinningArguments(const SkinnedMesh& mesh, std::size_t palette_size, std::size_t out_positions,
                             std::size_t out_normals, const char* who) {
@@ -94,4 +94,4 @@ double BoundingBoxDiagonal(std::span<const glm::vec3> points) {
   return glm::length(hi - lo);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

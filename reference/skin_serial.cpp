@@ -3,7 +3,7 @@
 // denominator of every speedup skintune reports, as in the paper.
 #include "reference/skinning.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 void CheckSkinningArguments(const SkinnedMesh& mesh, std::size_t palette_size, std::size_t out_positions,
                             std::size_t out_normals, const char* who);
@@ -22,4 +22,4 @@ void SkinSerial(const SkinnedMesh& mesh, std::span<const glm::mat4> palette, std
   }
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

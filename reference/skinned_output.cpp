@@ -8,7 +8,7 @@
 #include "reference/error.h"
 #include "reference/skinning.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -65,4 +65,4 @@ void CheckSkinnedOutput(const SkinnedMesh& mesh, std::span<const glm::vec3> posi
   }
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -31,7 +31,7 @@
 
 #include "reference/mesh.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct GoldResult {
   std::vector<glm::dvec3> positions;
@@ -102,4 +102,4 @@ void CheckPaletteFinite(std::span<const glm::mat4> palette, const std::string& c
 void CheckSkinnedOutput(const SkinnedMesh& mesh, std::span<const glm::vec3> positions,
                         std::span<const glm::vec3> normals, const std::string& context);
 
-}  // namespace skintune
+}  // namespace skintune::internal

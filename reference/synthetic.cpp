@@ -26,7 +26,7 @@
 #include "reference/error.h"
 #include "reference/memory_limit.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using glm::dquat;
@@ -577,4 +577,4 @@ SkinnedAsset GenerateDataset(const DatasetSpec& spec) {
   return asset;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

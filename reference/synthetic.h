@@ -28,7 +28,7 @@
 
 #include "reference/asset.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct DatasetSpec {
   std::size_t vertices = 100000;
@@ -57,4 +57,4 @@ std::uint64_t DatasetBytesPerVertex(const DatasetSpec& spec);
 // process may still take (reference/memory_limit.h).
 SkinnedAsset GenerateDataset(const DatasetSpec& spec);
 
-}  // namespace skintune
+}  // namespace skintune::internal

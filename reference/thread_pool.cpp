@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-namespace skintune {
+namespace skintune::internal {
 
 ThreadPool::ThreadPool(unsigned threads) {
   if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
@@ -65,4 +65,4 @@ void ThreadPool::ParallelFor(std::size_t count, std::size_t grain,
   body_ = nullptr;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -9,7 +9,7 @@
 #include <thread>
 #include <vector>
 
-namespace skintune {
+namespace skintune::internal {
 
 class ThreadPool {
  public:
@@ -42,4 +42,4 @@ class ThreadPool {
   bool stop_ = false;
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

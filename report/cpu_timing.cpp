@@ -14,7 +14,7 @@
 #include "reference/thread_pool.h"
 #include "tuner/backends_internal.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -154,4 +154,4 @@ double HostCopyBandwidthGBps(unsigned threads) {
   return 2.0 * static_cast<double>(bytes) / (Median(ms) * 1e6);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

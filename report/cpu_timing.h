@@ -15,7 +15,7 @@
 #include "report/paper.h"
 #include "runtime/physical_device.h"  // HostLastLevelCacheBytes
 
-namespace skintune {
+namespace skintune::internal {
 
 struct CpuTimingOptions {
   int warmup = 2;            // untimed frames
@@ -36,4 +36,4 @@ CpuTiming TimeFast(const SkinnedAsset& asset, const CpuTimingOptions& options = 
 // `threads` threads (0: all), the median of 7 after 2 warm-ups.
 double HostCopyBandwidthGBps(unsigned threads = 0);
 
-}  // namespace skintune
+}  // namespace skintune::internal

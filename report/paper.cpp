@@ -13,7 +13,7 @@
 #include "report/paper.h"
 #include "tuner/worker.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -111,4 +111,4 @@ PaperResult RunPaper(const PaperOptions& options) {
   return result;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

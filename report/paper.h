@@ -30,7 +30,7 @@
 #include "tuner/report.h"
 #include "tuner/tune.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 inline constexpr const char* kPaperResultSchemaVersion = "1.0.0";
 inline constexpr const char* kPaperResultKind = "skintune-paper-result";
@@ -152,4 +152,4 @@ PaperResult RunPaper(const PaperOptions& options);
 // The data sets of the full experiment (the paper's 16) and of --quick.
 std::vector<std::string> PaperDatasets(bool quick);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -17,7 +17,7 @@
 #include "generator/axes.h"
 #include "runtime/backend_table.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -563,4 +563,4 @@ std::string FormatGbps(double gbps) {
   return FormatSignificant(gbps) + " GB/s";
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -31,7 +31,7 @@
 #include "report/paper.h"
 #include "tuner/report.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // What the summary keeps of one input result (for headings and the devices
 // section).
@@ -246,4 +246,4 @@ std::string FormatMs(double ms);           // "0.0234 ms"
 std::string FormatSpeedup(double factor);  // "12.3×"
 std::string FormatGbps(double gbps);       // "2458 GB/s", "56.2 GB/s"
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -17,7 +17,7 @@
 
 #include "report/paper_report.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -787,4 +787,4 @@ class Renderer {
 
 std::string RenderHtml(const PaperSummary& summary) { return Renderer(summary).Render(); }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -8,7 +8,7 @@
 
 #include "report/paper_report.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -203,4 +203,4 @@ std::string RenderMarkdown(const PaperSummary& s) {
   return out;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

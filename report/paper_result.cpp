@@ -9,7 +9,7 @@
 #include "runtime/recorded_time.h"
 #include "report/paper.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -228,4 +228,4 @@ PaperResult PaperResultFromJson(const nlohmann::json& json, const std::string& c
   return r;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

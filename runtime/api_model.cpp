@@ -14,6 +14,8 @@
 
 namespace skintune {
 
+using namespace internal;  // the public calls are written over the library's internals
+
 struct Model::Impl {
   SkinnedAsset asset;
   std::vector<std::string> warnings;
@@ -32,6 +34,10 @@ struct Model::Impl {
   }
   bool HasAnimation(int a) const { return a >= 0 && a < static_cast<int>(asset.animations.size()); }
 };
+
+}  // namespace skintune
+
+namespace skintune::internal {
 
 namespace {
 
@@ -53,6 +59,10 @@ std::vector<glm::mat4> Matrices(const float* matrices, std::size_t float_count, 
 }
 
 }  // namespace
+
+}  // namespace skintune::internal
+
+namespace skintune {
 
 Result<Model> Model::Load(const std::string& path) {
   {

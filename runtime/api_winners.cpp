@@ -15,6 +15,8 @@
 
 namespace skintune {
 
+using namespace internal;  // the public calls are written over the library's internals
+
 // The backend table lists the APIs in Backend's order (runtime/backend_table.h).
 const char* BackendName(Backend backend) {
   const auto index = static_cast<std::size_t>(backend);

@@ -6,7 +6,7 @@
 
 #include "runtime/physical_device.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // Each defined in its folder: runtime/backends/<api>/<api>_backend.cpp.
 BackendEntry OpenClEntry();
@@ -75,4 +75,4 @@ std::vector<std::string> LanguageNames() {
   return names;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -25,7 +25,7 @@
 #include "generator/variant.h"
 #include "runtime/device_identity.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 class Runner;
 class SkinnerBackend;
@@ -80,4 +80,4 @@ std::string JoinedBackendNames(bool titles = false);
 // "glsl-compute", "glsl-vertex".
 std::vector<std::string> LanguageNames();
 
-}  // namespace skintune
+}  // namespace skintune::internal

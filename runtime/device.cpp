@@ -9,7 +9,7 @@
 
 #include "runtime/api_errors.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -54,11 +54,6 @@ Device MakeDevice(const DeviceOptions& options, const DeviceIdentity& identity, 
   return DeviceAccess::Make(std::move(state));
 }
 
-Device::Device() = default;
-Device::~Device() = default;
-Device::Device(Device&&) noexcept = default;
-Device& Device::operator=(Device&&) noexcept = default;
-
 Device DeviceAccess::Make(std::shared_ptr<DeviceState> state) {
   Device device;
   device.impl_ = std::make_unique<Device::Impl>();
@@ -69,6 +64,17 @@ Device DeviceAccess::Make(std::shared_ptr<DeviceState> state) {
 const std::shared_ptr<DeviceState>* DeviceAccess::State(const Device& device) {
   return device.impl_ ? &device.impl_->state : nullptr;
 }
+
+}  // namespace skintune::internal
+
+namespace skintune {
+
+using namespace internal;  // the public calls are written over the library's internals
+
+Device::Device() = default;
+Device::~Device() = default;
+Device::Device(Device&&) noexcept = default;
+Device& Device::operator=(Device&&) noexcept = default;
 
 const DeviceInfo& Device::info() const {
   static const DeviceInfo none;

@@ -21,7 +21,7 @@
 #include "runtime/runner.h"
 #include "skintune/skintune.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct DeviceState {
   explicit DeviceState(const DeviceOptions& options) : cache(options.program_cache_dir) {}
@@ -33,10 +33,6 @@ struct DeviceState {
   ProgramCache cache;                    // declared before the runner, which points at it
   std::unique_ptr<Runner> runner;
   bool gl_sharing = false;  // OpenCL context created for the current GL context (cl_khr_gl_sharing)
-};
-
-struct Device::Impl {
-  std::shared_ptr<DeviceState> state;
 };
 
 struct DeviceAccess {
@@ -53,5 +49,13 @@ DeviceInfo PublicInfo(const DeviceIdentity& identity);
 // languages, limits and program cache. The backends' Device::From* use it.
 Device MakeDevice(const DeviceOptions& options, const DeviceIdentity& identity, const DeviceLimits& limits,
                   std::unique_ptr<Runner> runner, bool gl_sharing = false);
+
+}  // namespace skintune::internal
+
+namespace skintune {
+
+struct Device::Impl {
+  std::shared_ptr<internal::DeviceState> state;
+};
 
 }  // namespace skintune

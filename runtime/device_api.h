@@ -10,7 +10,7 @@
 // Tuner's Backend (ready_argument_list, compile, start/stop_event,
 // run_kernel, memcpy) and CLBlast's "descriptors plus one driver".
 //
-// Errors are skintune::Error with the message "<name()> <stage>: ...", stage
+// Errors are skintune::internal::Error with the message "<name()> <stage>: ...", stage
 // one of setup, build, launch, guard: the tuner maps the stage to a status
 // (StatusOfRunnerError) and the runtime to an ErrorCode (CodeOfRunnerError).
 // The driver raises launch and guard errors with the same prefix.
@@ -34,7 +34,7 @@
 #include "runtime/program_cache.h"
 #include "runtime/run_shape.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // Something a DeviceApi made for the driver (a buffer, a palette view, a bound
 // launch); releases its native object when destroyed.
@@ -267,4 +267,4 @@ void CheckLaunchKernel(const LaunchSpec& spec, const std::string& api);
 // `source.source_hash`, or the hash of its text when it has none.
 std::string HashOf(const KernelSource& source);
 
-}  // namespace skintune
+}  // namespace skintune::internal

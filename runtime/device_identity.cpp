@@ -7,7 +7,7 @@
 
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 std::string DeviceIdentity::Id() const { return backend + ":" + platform + "/" + name + "/" + driver_version; }
 
@@ -102,4 +102,4 @@ void from_json(const nlohmann::json& in, DeviceIdentity& d) {
   ReadField(in, "reported_cache_bytes", d.reported_cache_bytes, false);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -11,7 +11,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
-namespace skintune {
+namespace skintune::internal {
 
 struct DeviceIdentity {
   std::string backend;          // BackendEntry::name: "opencl", "cuda", "gl"
@@ -57,4 +57,4 @@ std::string PlatformShortName(const std::string& platform);
 void to_json(nlohmann::json& out, const DeviceIdentity& d);
 void from_json(const nlohmann::json& in, DeviceIdentity& d);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -12,7 +12,7 @@
 #include "reference/error.h"
 #include "runtime/backends/vulkan/vulkan_spirv.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -260,4 +260,4 @@ std::string EmbedHeader(const std::vector<EmbeddedKernel>& kernels, const EmbedH
   return banner + text;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

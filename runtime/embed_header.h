@@ -17,7 +17,7 @@
 #include "generator/variant.h"
 #include "runtime/winners_db.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct Axis;  // generator/axes.h
 
@@ -56,4 +56,4 @@ std::string EmbeddedEnumerator(const Axis& axis, int code);
 // specialised for a joint count (source.joints == 0).
 std::string EmbedHeader(const std::vector<EmbeddedKernel>& kernels, const EmbedHeaderOptions& options);
 
-}  // namespace skintune
+}  // namespace skintune::internal

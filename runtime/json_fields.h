@@ -14,7 +14,7 @@
 
 #include "reference/error.h"
 
-namespace skintune::json_fields {
+namespace skintune::internal::json_fields {
 
 // Runs `read`, prefixing any error with "<context>: <element>: ".
 template <typename F>
@@ -77,4 +77,4 @@ inline void CheckHeader(const nlohmann::json& json, const std::string& context, 
   if (actual != kind) throw Error(context + ": kind is '" + actual + "', expected '" + kind + "'");
 }
 
-}  // namespace skintune::json_fields
+}  // namespace skintune::internal::json_fields

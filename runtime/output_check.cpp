@@ -4,7 +4,7 @@
 #include <cstring>
 #include <sstream>
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -71,4 +71,4 @@ std::string GuardFailure(const OutputCheck& check, std::size_t out_bytes) {
          std::to_string(check.first_changed_offset) + " bytes)";
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-namespace skintune {
+namespace skintune::internal {
 
 inline constexpr std::size_t kGuardBytes = 4096;
 inline constexpr std::uint32_t kPoisonWord = 0x7fc00000u;  // quiet NaN
@@ -53,4 +53,4 @@ OutputCheck CheckGuardAndCountPoisoned(std::vector<std::uint8_t>& bytes, std::si
 // changed, the first at +<X> bytes)": the tail of a runner's guard error.
 std::string GuardFailure(const OutputCheck& check, std::size_t out_bytes);
 
-}  // namespace skintune
+}  // namespace skintune::internal

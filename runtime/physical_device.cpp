@@ -10,7 +10,7 @@
 #include <string>
 #include <map>
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -130,4 +130,4 @@ std::vector<CacheFigure> ResolveLastLevelCaches(const std::vector<CacheReport>& 
   return out;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

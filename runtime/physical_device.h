@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-namespace skintune {
+namespace skintune::internal {
 
 // What one API says about one device.
 struct CacheReport {
@@ -54,4 +54,4 @@ std::uint64_t HostLastLevelCacheBytes();
 // A 16-byte UUID as 32 lower-case hex digits ("" for all zero bytes: not an identity).
 std::string UuidHex(const unsigned char* bytes16);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -13,7 +13,7 @@
 
 #include "generator/emit.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -124,4 +124,4 @@ void ProgramCache::Store(const std::string& backend, const std::string& key,
   if (error) std::filesystem::remove(temporary, error);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -37,7 +37,7 @@
 #include <string>
 #include <vector>
 
-namespace skintune {
+namespace skintune::internal {
 
 // Atomic: an API with ConcurrentBuilds (device_api.h) counts from several threads.
 struct ProgramCacheCounters {
@@ -78,4 +78,4 @@ class ProgramCache {
 std::string ProgramKey(const std::string& backend, const std::string& device_id, const std::string& source_hash,
                        const std::string& options);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <cstdio>
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -55,4 +55,4 @@ std::string NotFiniteNonNegative(const char* name, double value) {
   return std::string("'") + name + "' is " + Text(value) + ": must be a finite number >= 0";
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

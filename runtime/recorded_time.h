@@ -16,7 +16,7 @@
 #include <optional>
 #include <string>
 
-namespace skintune {
+namespace skintune::internal {
 
 // Relative difference allowed between a recorded GB/s and bytes / median
 // (the writers compute it from the very numbers they write: only rounding in
@@ -40,4 +40,4 @@ std::string ImpossibleTime(const RecordedTime& time);
 // "'<name>' is <value>: must be a finite number >= 0".
 std::string NotFiniteNonNegative(const char* name, double value);
 
-}  // namespace skintune
+}  // namespace skintune::internal

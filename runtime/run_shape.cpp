@@ -6,7 +6,7 @@
 
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 RunShape CheckRunShape(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::size_t palettes_bytes,
                        int instances, const std::string& api) {
@@ -62,4 +62,4 @@ std::vector<std::uint8_t> PalettesOrMeshPalette(const PackedMesh& mesh, std::spa
   return repeated;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -16,7 +16,7 @@
 #include "generator/emit.h"
 #include "generator/packer.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct RunShape {
   int instances = 1;              // K
@@ -43,4 +43,4 @@ std::vector<KernelSource> EmitLaunchKernels(const PackedMesh& mesh, int instance
 std::vector<std::uint8_t> PalettesOrMeshPalette(const PackedMesh& mesh, std::span<const std::uint8_t> palettes,
                                                 int instances);
 
-}  // namespace skintune
+}  // namespace skintune::internal

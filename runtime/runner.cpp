@@ -16,7 +16,7 @@
 #include "runtime/output_check.h"
 #include "runtime/run_shape.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct Prepared::Impl {
   // One palette buffer of a set and its launches, bound with the set's inputs
@@ -652,4 +652,4 @@ std::string HashOf(const KernelSource& source) {
   return source.source_hash.empty() ? SourceHash(source.text) : source.source_hash;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

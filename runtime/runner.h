@@ -55,7 +55,7 @@
 #include "runtime/device_api.h"
 #include "runtime/program_cache.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct RunResult {
   std::vector<std::uint8_t> positions;  // K x vertex_count x output_stride_bytes, packed order, instance after
@@ -268,4 +268,4 @@ class Runner {
   std::map<const void*, std::size_t> input_hashes_;  // within one PrepareSets: packed input -> its hash
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -9,7 +9,7 @@
 #include "runtime/api_errors.h"
 #include "runtime/backend_table.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -204,4 +204,4 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
   FailWith(ErrorCode::kUnavailable, "no variant can run on " + device.id + ": " + tried);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -36,11 +36,7 @@
 #include "runtime/winners_db.h"
 #include "skintune/skintune.h"
 
-namespace skintune {
-
-struct WinnersDb::Impl {
-  std::vector<WinnersEntry> entries;
-};
+namespace skintune::internal {
 
 struct SelectionRequest {
   DeviceInfo device;
@@ -78,5 +74,13 @@ Variant GenericDefault(Lang lang, int influences, bool normals, const DeviceLimi
 
 // A backend's languages, preferred first (its entry in runtime/backend_table.h).
 std::vector<Lang> LanguagesOf(Backend backend);
+
+}  // namespace skintune::internal
+
+namespace skintune {
+
+struct WinnersDb::Impl {
+  std::vector<internal::WinnersEntry> entries;
+};
 
 }  // namespace skintune

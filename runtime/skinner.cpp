@@ -19,7 +19,7 @@
 #include "runtime/selection.h"
 #include "runtime/winners_db.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -155,11 +155,6 @@ std::unique_ptr<SkinnerBackend> MakeRunnerSkinner(DeviceState& device, const Pac
   return std::make_unique<RunnerSkinner>(*device.runner, std::move(prepared), mesh.variant.normals);
 }
 
-Skinner::Skinner() = default;
-Skinner::~Skinner() = default;
-Skinner::Skinner(Skinner&&) noexcept = default;
-Skinner& Skinner::operator=(Skinner&&) noexcept = default;
-
 namespace {
 
 // The meshes validated one by one; a batch concatenated as one mesh
@@ -283,6 +278,17 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
 
 }  // namespace
 
+}  // namespace skintune::internal
+
+namespace skintune {
+
+using namespace internal;  // the public calls are written over the library's internals
+
+Skinner::Skinner() = default;
+Skinner::~Skinner() = default;
+Skinner::Skinner(Skinner&&) noexcept = default;
+Skinner& Skinner::operator=(Skinner&&) noexcept = default;
+
 Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshView& mesh_view,
                                 const SkinnerOptions& options) {
   return GuardedResult<Skinner>(ErrorCode::kInvalidArgument, [&] {
@@ -368,6 +374,10 @@ Status Skinner::Finish() {
     if (im.skinned) im.backend->Finish();
   });
 }
+
+}  // namespace skintune
+
+namespace skintune::internal {
 
 namespace {
 
@@ -470,6 +480,10 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
 }
 
 }  // namespace
+
+}  // namespace skintune::internal
+
+namespace skintune {
 
 Status Skinner::ReadPositions(float* out, std::size_t float_count) { return Read(impl_, false, out, float_count); }
 Status Skinner::ReadNormals(float* out, std::size_t float_count) { return Read(impl_, true, out, float_count); }

@@ -23,7 +23,7 @@
 #include "runtime/device.h"
 #include "skintune/skintune.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 class SkinnerBackend {
  public:
@@ -125,10 +125,14 @@ Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const st
 std::unique_ptr<SkinnerBackend> MakeRunnerSkinner(DeviceState& device, const PackedMesh& mesh,
                                                   const std::vector<KernelSource>& kernels, int instances);
 
+}  // namespace skintune::internal
+
+namespace skintune {
+
 struct Skinner::Impl {
-  std::shared_ptr<DeviceState> device;  // keeps the runner (and its programs) alive
+  std::shared_ptr<internal::DeviceState> device;  // keeps the runner (and its programs) alive
   Selection selection;
-  Variant variant;
+  internal::Variant variant;
   std::size_t vertex_count = 0;
   int joint_count = 0;
   int instances = 1;
@@ -140,7 +144,7 @@ struct Skinner::Impl {
   std::vector<int> joint_offsets;           // per mesh, then joint_count
   bool palette_set = false;
   bool skinned = false;
-  std::unique_ptr<SkinnerBackend> backend;  // declared last: destroyed before `device`
+  std::unique_ptr<internal::SkinnerBackend> backend;  // declared last: destroyed before `device`
 };
 
 }  // namespace skintune

@@ -10,7 +10,7 @@
 #include "runtime/recorded_time.h"
 #include "skintune/skintune.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 static_assert(kDefaultBudget == kDefaultMaxError, "the internal and the public default budget must agree");
 
@@ -86,4 +86,4 @@ std::string ImpossibleSourceError(const SourceError& e) {
   return "";
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -8,7 +8,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
-namespace skintune {
+namespace skintune::internal {
 
 // The default error budget, relative to the bounding-box diagonal: the public
 // header's kDefaultMaxError (skintune/skintune.h includes nothing of the tree,
@@ -54,4 +54,4 @@ SourceError SourceErrorFromJson(const nlohmann::json& j);
 // The first field that is not finite and >= 0, as NotFiniteNonNegative says it, or "".
 std::string ImpossibleSourceError(const SourceError& e);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -11,7 +11,7 @@
 #include "runtime/json_fields.h"
 #include "runtime/recorded_time.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -277,4 +277,4 @@ std::vector<WinnersEntry> WinnersDbFromJson(const nlohmann::json& json, const st
   return entries;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -33,7 +33,7 @@
 #include "generator/variant.h"
 #include "runtime/source_error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 inline constexpr const char* kWinnersDbKind = "skintune-winners-db";
 // 1.3.0: x_copy, source_error; 1.4.0: the scene shape (shape, instances, meshes).
@@ -139,4 +139,4 @@ nlohmann::json WinnersDbJson(const std::vector<WinnersEntry>& entries);
 // database; a tuning report is refused with a hint on how to get its database.
 std::vector<WinnersEntry> WinnersDbFromJson(const nlohmann::json& json, const std::string& name);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -27,7 +27,7 @@
 #include "tuner/replay.h"
 #include "tuner/report.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 namespace {
 
@@ -107,4 +107,4 @@ Command RegisterDb(CLI::App& app) {
   return {sub, [o] { return o->merge->parsed() ? RunDbMerge(*o) : RunDbReplay(*o); }};
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

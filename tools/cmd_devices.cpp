@@ -10,7 +10,7 @@
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "tools/commands.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 namespace {
 
@@ -103,4 +103,4 @@ Command RegisterDevices(CLI::App& app) {
           }};
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

@@ -33,7 +33,7 @@
 #include "runtime/winners_db.h"
 #include "tools/commands.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 namespace {
 
@@ -323,4 +323,4 @@ Command RegisterEmit(CLI::App& app) {
   return {sub, [o, db] { return db->count() > 0 ? RunEmitDb(*o) : RunEmit(*o); }};
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

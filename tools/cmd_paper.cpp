@@ -21,7 +21,7 @@
 #include "report/paper.h"
 #include "report/paper_report.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 namespace {
 
@@ -123,4 +123,4 @@ Command RegisterPaper(CLI::App& app, int argc, char** argv) {
   return {sub, [o, command] { return RunPaperCommand(*o, command); }};
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

@@ -23,7 +23,7 @@
 #include "report/paper_report.h"
 #include "tuner/report.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 namespace {
 
@@ -83,4 +83,4 @@ Command RegisterReport(CLI::App& app) {
   return {sub, [o] { return RunReport(*o); }};
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

@@ -22,7 +22,7 @@
 #include "tools/progress.h"
 #include "tools/tune_job.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 namespace {
 
@@ -149,4 +149,4 @@ Command RegisterRun(CLI::App& app) {
   return {sub, [o] { return RunMain(*o); }};
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

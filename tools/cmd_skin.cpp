@@ -15,7 +15,7 @@
 #include "reference/skinning.h"
 #include "tools/commands.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 namespace {
 
@@ -175,4 +175,4 @@ Command RegisterSkin(CLI::App& app) {
           }};
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

@@ -11,7 +11,7 @@
 #include "tools/progress.h"
 #include "tools/tune_job.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 namespace {
 
@@ -83,4 +83,4 @@ Command RegisterTuneWorker(CLI::App& app) {
   return {sub, [index, device_id, host_lock] { return RunTuneWorker(*index, *device_id, *host_lock); }};
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

@@ -11,7 +11,7 @@
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "tools/commands.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 namespace {
 
@@ -92,4 +92,4 @@ Command RegisterVariants(CLI::App& app) {
   return {sub, [o] { return RunVariants(*o); }};
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

@@ -1,6 +1,6 @@
 // skintune command-line tool: one file per subcommand. Each Register* adds
 // its subcommand and options to the CLI11 app and returns the action to run
-// when that subcommand was chosen. Actions throw skintune::Error for bad
+// when that subcommand was chosen. Actions throw skintune::internal::Error for bad
 // input; main() prints it as one line and exits 1.
 #pragma once
 
@@ -13,7 +13,7 @@
 
 #include "reference/asset.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 struct Command {
   CLI::App* subcommand;
@@ -63,4 +63,4 @@ void AddMeshSourceOptions(CLI::App& sub, MeshSource& source);
 // (`work` names it in the error, e.g. "reference output").
 SkinnedAsset LoadAsset(const MeshSource& source, std::uint64_t work_bytes_per_vertex = 0, const std::string& work = "");
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

@@ -6,7 +6,7 @@
 #include "reference/error.h"
 #include "tools/commands.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 nlohmann::json ParseJson(const std::string& text, const std::string& name) {
   try {
@@ -25,4 +25,4 @@ nlohmann::json ReadJsonFile(const std::string& path) {
   return ParseJson(text.str(), path);
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

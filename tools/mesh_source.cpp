@@ -5,7 +5,7 @@
 #include "reference/synthetic.h"
 #include "tools/commands.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 void AddMeshSourceOptions(CLI::App& sub, MeshSource& source) {
   auto* dataset = sub.add_option("--dataset", source.dataset,
@@ -43,4 +43,4 @@ SkinnedAsset LoadAsset(const MeshSource& source, std::uint64_t work_bytes_per_ve
   return GenerateDataset(spec);
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

@@ -9,7 +9,7 @@
 #include "reference/error.h"
 #include "runtime/backend_table.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 namespace {
 
@@ -131,4 +131,4 @@ std::optional<std::uint64_t> ParseWholeNumber(const std::string& text, std::uint
   return value;
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

@@ -12,7 +12,7 @@
 
 #include "generator/variant.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 // Progress on stderr: a bar with ETA on a terminal, plain lines prefixed with
 // "skintune: <command>: " otherwise.
@@ -54,4 +54,4 @@ Lang LangFromName(const std::string& name);
 // limits on the command line go through this (WholeNumberOption).
 std::optional<std::uint64_t> ParseWholeNumber(const std::string& text, std::uint64_t max);
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

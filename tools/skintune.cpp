@@ -12,7 +12,7 @@
 #endif
 
 int main(int argc, char** argv) {
-  namespace tools = skintune::tools;
+  namespace tools = skintune::internal::tools;
   CLI::App app{"skintune: generates, verifies and autotunes GPU skinning kernels (linear blend skinning)",
                "skintune"};
   app.set_version_flag("--version", std::string("skintune ") + SKINTUNE_VERSION);
@@ -35,7 +35,7 @@ int main(int argc, char** argv) {
     for (const tools::Command& command : commands) {
       if (command.subcommand->parsed()) return command.run();
     }
-  } catch (const skintune::Error& e) {
+  } catch (const skintune::internal::Error& e) {
     std::cerr << "skintune: error: " << e.what() << "\n";
     return 1;
   } catch (const std::exception& e) {

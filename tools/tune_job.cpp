@@ -20,7 +20,7 @@
 #include "tools/commands.h"
 #include "tools/progress.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 namespace {
 
@@ -236,4 +236,4 @@ void PrintWinners(const TuningReport& report) {
                "gold of its quantised weights)\n";
 }
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

@@ -15,7 +15,7 @@
 #include "tuner/report.h"
 #include "tuner/tune.h"
 
-namespace skintune::tools {
+namespace skintune::internal::tools {
 
 struct TuneJobOptions {
   std::string command = "tune";        // for progress and messages: "tune", "run"
@@ -70,4 +70,4 @@ std::string Sci(double value);
 // aligned right.
 std::string FormatTable(const std::vector<std::vector<std::string>>& rows, const std::vector<std::size_t>& right);
 
-}  // namespace skintune::tools
+}  // namespace skintune::internal::tools

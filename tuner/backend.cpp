@@ -19,7 +19,7 @@
 #include "tuner/backends_internal.h"
 #include "tuner/host_lock.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // ---------------------------------------------------------------- injected faults
 
@@ -645,4 +645,4 @@ std::vector<double> RunnerExecutor::TimeCopy(Lang lang, std::size_t bytes, int i
 }
 
 }  // namespace tuner_internal
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -18,7 +18,7 @@
 #include "runtime/device_identity.h"  // DeviceIdentity, its JSON
 #include "tuner/measurement.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct TimingOptions {
   int warmup = 3;        // untimed frames before the bursts
@@ -83,4 +83,4 @@ struct InjectedFault {
 };
 InjectedFault InjectedFaultFromEnvironment();
 
-}  // namespace skintune
+}  // namespace skintune::internal

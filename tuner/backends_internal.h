@@ -27,7 +27,7 @@
 #include "runtime/runner.h"
 #include "tuner/backend.h"
 
-namespace skintune::tuner_internal {
+namespace skintune::internal::tuner_internal {
 
 // ---------------------------------------------------------------- rotation rule
 
@@ -217,4 +217,4 @@ std::string UtcTimestamp();
 // copy, so discovery in a worker that serves one device sets up only that one.
 std::unique_ptr<Backend> MakeDeviceBackend(FoundDevice device, std::vector<Lang> languages, int index);
 
-}  // namespace skintune::tuner_internal
+}  // namespace skintune::internal::tuner_internal

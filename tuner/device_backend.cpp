@@ -19,7 +19,7 @@
 #include "tuner/backends_internal.h"
 #include "tuner/host_lock.h"
 
-namespace skintune::tuner_internal {
+namespace skintune::internal::tuner_internal {
 
 namespace {
 
@@ -72,8 +72,8 @@ constexpr unsigned kMinCpusToCompileAheadForACpuDevice = 8;
 // data set on the H100 (issue 16).
 class CompileThreads {
  public:
-  using Open = std::function<std::unique_ptr<skintune::Runner>()>;
-  using Job = std::function<void(skintune::Runner&, std::size_t)>;
+  using Open = std::function<std::unique_ptr<skintune::internal::Runner>()>;
+  using Job = std::function<void(skintune::internal::Runner&, std::size_t)>;
   CompileThreads(unsigned count, Open open) : open_(std::move(open)) {
     for (unsigned t = 0; t < count; ++t) threads_.emplace_back([this] { Loop(); });
   }
@@ -102,7 +102,7 @@ class CompileThreads {
 
  private:
   void Loop() {
-    std::unique_ptr<skintune::Runner> runner;
+    std::unique_ptr<skintune::internal::Runner> runner;
     bool opened = false;
     std::uint64_t seen = 0;
     for (;;) {
@@ -183,7 +183,7 @@ class DeviceBackend final : public Backend {
     if (kernels.empty()) return 0;
     const unsigned threads = std::clamp<unsigned>(std::thread::hardware_concurrency(), 1u, kMaxCompileThreads);
     std::atomic<std::size_t> built{0};
-    const auto build = [&](skintune::Runner& runner, std::size_t i) {
+    const auto build = [&](skintune::internal::Runner& runner, std::size_t i) {
       try {
         runner.Build(kernels[i]);
         ++built;
@@ -210,7 +210,7 @@ class DeviceBackend final : public Backend {
     }
     if (!compile_threads_)
       compile_threads_ = std::make_unique<CompileThreads>(threads, [this] {
-        std::unique_ptr<skintune::Runner> runner = device_.open();
+        std::unique_ptr<skintune::internal::Runner> runner = device_.open();
         if (cache_.enabled()) {
           const std::lock_guard<std::mutex> lock(thread_caches_mutex_);
           runner->UseProgramCache(&thread_caches_.emplace_back(cache_.dir()), device_.identity.Id());
@@ -236,7 +236,7 @@ class DeviceBackend final : public Backend {
   std::vector<Lang> languages_;
   // ProgramCache::DefaultDir() ($SKINTUNE_CACHE_DIR, ...); none for a CPU device.
   ProgramCache cache_{IsCpu(device_.identity) ? "-" : ""};
-  std::unique_ptr<skintune::Runner> runner_;  // made on first use
+  std::unique_ptr<skintune::internal::Runner> runner_;  // made on first use
   std::unique_ptr<RunnerExecutor> executor_;  // over runner_: remembers the copies it timed
   DatasetCache datasets_;
   // The compile threads' program cache objects (one per thread: its counters
@@ -252,9 +252,9 @@ std::unique_ptr<Backend> MakeDeviceBackend(FoundDevice device, std::vector<Lang>
   return std::make_unique<DeviceBackend>(std::move(device), std::move(languages), index);
 }
 
-}  // namespace skintune::tuner_internal
+}  // namespace skintune::internal::tuner_internal
 
-namespace skintune {
+namespace skintune::internal {
 
 bool CompilesAhead(const DeviceIdentity& device) {
   const auto& list = tuner_internal::kCompileAheadBackends;
@@ -269,4 +269,4 @@ bool CompilesAhead(const DeviceIdentity& device) {
          std::thread::hardware_concurrency() >= tuner_internal::kMinCpusToCompileAheadForACpuDevice;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

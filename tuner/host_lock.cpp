@@ -12,7 +12,7 @@
 
 #include "reference/error.h"
 
-namespace skintune::tuner_internal {
+namespace skintune::internal::tuner_internal {
 
 namespace {
 int lock_fd = -1;  // the worker's lock file, or -1 (no lock)
@@ -58,4 +58,4 @@ HostLockFile::~HostLockFile() {
   if (!path_.empty()) ::unlink(path_.c_str());
 }
 
-}  // namespace skintune::tuner_internal
+}  // namespace skintune::internal::tuner_internal

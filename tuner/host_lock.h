@@ -20,7 +20,7 @@
 
 #include <string>
 
-namespace skintune::tuner_internal {
+namespace skintune::internal::tuner_internal {
 
 // The worker process, once at start: the lock file to use. Throws Error
 // naming the file when it cannot be opened.
@@ -58,4 +58,4 @@ class HostLockFile {
   std::string path_;
 };
 
-}  // namespace skintune::tuner_internal
+}  // namespace skintune::internal::tuner_internal

@@ -16,7 +16,7 @@
 #include "reference/error.h"
 #include "runtime/recorded_time.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -327,4 +327,4 @@ void MeasurementCache::Append(const Measurement& m) {
   }
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -21,7 +21,7 @@
 #include "reference/error.h"
 #include "runtime/source_error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // The statuses, in the order kAllMeasureStatuses lists them (Name() and the
 // JSON schemas must name each: a forgotten one fails a static_assert or
@@ -138,4 +138,4 @@ class MeasurementCache {
   std::map<std::string, std::size_t> index_;
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -13,7 +13,7 @@
 #include "generator/axes.h"
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 std::size_t VariantFieldHash::operator()(const Variant& v) const {
   std::uint64_t h = 1469598103934665603ull;  // FNV-1a over every axis's value (generator/axes.h)
@@ -208,4 +208,4 @@ void to_json(nlohmann::json& out, const StrategyComparison& c) {
   }
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -21,7 +21,7 @@
 #include "tuner/report.h"
 #include "tuner/strategy.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // The measurements of a MeasurementCache file (JSON lines), read without
 // modifying the file: a torn last line (no newline: the writer was killed) is
@@ -100,4 +100,4 @@ StrategyComparison CompareStrategies(const std::vector<Variant>& candidates, con
 std::string FormatComparison(const StrategyComparison& comparison);
 void to_json(nlohmann::json& out, const StrategyComparison& comparison);
 
-}  // namespace skintune
+}  // namespace skintune::internal

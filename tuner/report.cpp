@@ -12,7 +12,7 @@
 #include "runtime/json_fields.h"
 #include "runtime/winners_db.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -394,4 +394,4 @@ nlohmann::json MergeWinnersDatabases(const std::vector<nlohmann::json>& reports_
   return WinnersDbJson(out);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -13,7 +13,7 @@
 #include "tuner/backend.h"
 #include "tuner/measurement.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // 1.1.0: winners name their measured vertex count; 1.2.0: max_error, too_imprecise,
 // source_error, a winner per precision class; timing version 2 (bursts, the physical
@@ -96,4 +96,4 @@ nlohmann::json WinnersDatabase(const TuningReport& report);
 nlohmann::json MergeWinnersDatabases(const std::vector<nlohmann::json>& reports_or_databases,
                                      const std::vector<std::string>& names_for_errors);
 
-}  // namespace skintune
+}  // namespace skintune::internal

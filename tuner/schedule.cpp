@@ -5,7 +5,7 @@
 #include <numeric>
 #include <string>
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -50,4 +50,4 @@ std::vector<std::vector<std::size_t>> IndependentGroups(const std::vector<Device
   return groups;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -20,7 +20,7 @@
 
 #include "runtime/device_identity.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // Whether `a` and `b` may share hardware (the rule above).
 bool MayShareHardware(const DeviceIdentity& a, const DeviceIdentity& b);
@@ -31,4 +31,4 @@ bool MayShareHardware(const DeviceIdentity& a, const DeviceIdentity& b);
 // devices of a group are tuned one after another; the groups at the same time.
 std::vector<std::vector<std::size_t>> IndependentGroups(const std::vector<DeviceIdentity>& devices);
 
-}  // namespace skintune
+}  // namespace skintune::internal

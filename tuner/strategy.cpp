@@ -9,7 +9,7 @@
 #include "generator/axes.h"
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -326,4 +326,4 @@ SearchResult Search(const std::vector<Variant>& candidates, const Evaluator& eva
   return Coordinate(session, options.seed, options.budget != 0);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

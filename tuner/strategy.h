@@ -13,7 +13,7 @@
 
 #include "generator/variant.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // Median time in ms, or nullopt when the variant failed (any status but ok).
 using Evaluator = std::function<std::optional<double>(const Variant&)>;
@@ -41,4 +41,4 @@ using LookAhead = std::function<void(const std::vector<Variant>&)>;
 SearchResult Search(const std::vector<Variant>& candidates, const Evaluator& evaluate,
                     const StrategyOptions& options, const LookAhead& ahead = {});
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -43,7 +43,7 @@
 #include "tuner/schedule.h"
 #include "tuner/worker.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct EmbeddedConfigFile {
   const char* name;
@@ -731,4 +731,4 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
   return report;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

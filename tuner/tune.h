@@ -14,7 +14,7 @@
 #include "tuner/report.h"
 #include "tuner/strategy.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // The largest search budget (evaluations per device, language and dataset)
 // a config or --budget may ask for; 0 means every candidate for exhaustive.
@@ -68,4 +68,4 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options);
 // "timing": ...}) and writes one Measurement JSON per line on stdout.
 int RunTuneWorker(int backend_index, const std::string& device_id = "", const std::string& host_lock = "");
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -23,7 +23,7 @@
 #include "generator/emit.h"
 #include "tuner/tune.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -541,4 +541,4 @@ int RunTuneWorker(int backend_index, const std::string& device_id, const std::st
   return 0;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

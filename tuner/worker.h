@@ -37,7 +37,7 @@
 #include "tuner/backend.h"
 #include "tuner/measurement.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // The device cannot be used: its worker does not start, names another device,
 // or reports a set-up problem of the device. The tuning run goes on without it.
@@ -112,4 +112,4 @@ class IsolatedBackend {
   int starts_ = 0;
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

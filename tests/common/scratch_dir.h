@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <string>
 
-namespace skintune::testing {
+namespace skintune::internal::testing {
 
 inline std::filesystem::path ScratchDir(const std::string& prefix) {
   const std::filesystem::path dir =
@@ -19,4 +19,4 @@ inline std::filesystem::path ScratchDir(const std::string& prefix) {
   return dir;
 }
 
-}  // namespace skintune::testing
+}  // namespace skintune::internal::testing

@@ -9,7 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
-namespace skintune::testing {
+namespace skintune::internal::testing {
 
 struct TinyTuneConfig {
   std::vector<std::string> langs = {"opencl"};
@@ -47,4 +47,4 @@ struct TinyTuneConfig {
   }
 };
 
-}  // namespace skintune::testing
+}  // namespace skintune::internal::testing

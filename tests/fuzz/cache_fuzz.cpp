@@ -9,31 +9,33 @@
 #include "tuner/measurement.h"
 #include "tuner/replay.h"
 
+using namespace skintune::internal;  // the readers under test and fuzz_support.h's helpers
+
 namespace {
 
-void CheckPossible(const skintune::Measurement& m) {
-  if (!skintune::ImpossibleFigures(m).empty())
-    skintune::fuzz::Die("cache_fuzz", "accepted an impossible measurement: " + skintune::ImpossibleFigures(m));
+void CheckPossible(const Measurement& m) {
+  if (!ImpossibleFigures(m).empty())
+    fuzz::Die("cache_fuzz", "accepted an impossible measurement: " + ImpossibleFigures(m));
 }
 
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const std::string path = skintune::fuzz::ScratchFile("cache_fuzz", "cache.jsonl");
-  skintune::fuzz::WriteBytes("cache_fuzz", path, data, size);
+  const std::string path = fuzz::ScratchFile("cache_fuzz", "cache.jsonl");
+  fuzz::WriteBytes("cache_fuzz", path, data, size);
   try {
-    for (const skintune::Measurement& m : skintune::ReadMeasurementLines(path)) CheckPossible(m);
-  } catch (const skintune::Error& e) {
-    skintune::fuzz::ExpectNamed("cache_fuzz", e, path);
+    for (const Measurement& m : ReadMeasurementLines(path)) CheckPossible(m);
+  } catch (const Error& e) {
+    fuzz::ExpectNamed("cache_fuzz", e, path);
   }
   try {
-    skintune::MeasurementCache cache(path);  // may cut off a torn last line: the file is ours
-    for (const skintune::Measurement& m : cache.all()) {
+    MeasurementCache cache(path);  // may cut off a torn last line: the file is ours
+    for (const Measurement& m : cache.all()) {
       CheckPossible(m);
-      if (cache.Find(m.CacheKey()) == nullptr) skintune::fuzz::Die("cache_fuzz", "a measurement it holds is not found");
+      if (cache.Find(m.CacheKey()) == nullptr) fuzz::Die("cache_fuzz", "a measurement it holds is not found");
     }
-  } catch (const skintune::Error& e) {
-    skintune::fuzz::ExpectNamed("cache_fuzz", e, path);
+  } catch (const Error& e) {
+    fuzz::ExpectNamed("cache_fuzz", e, path);
   }
   return 0;
 }

@@ -1,7 +1,7 @@
 // What the fuzz targets of skintune's readers share (tests/fuzz/*_fuzz.cpp).
 //
 // Every reader of untrusted input promises: for any bytes it returns, or
-// throws skintune::Error whose message starts with the name it was given for
+// throws skintune::internal::Error whose message starts with the name it was given for
 // the input ("<file>: <element>: what"). Anything else (another exception, a
 // crash, a sanitizer report, a hang, runaway memory, an anonymous message) is
 // a bug: Die() aborts, which libFuzzer and the corpus replay both report.
@@ -19,7 +19,7 @@
 
 #include "reference/error.h"
 
-namespace skintune::fuzz {
+namespace skintune::internal::fuzz {
 
 [[noreturn]] inline void Die(const char* target, const std::string& what) {
   std::fprintf(stderr, "%s: %s\n", target, what.c_str());
@@ -65,4 +65,4 @@ inline void WriteBytes(const char* target, const std::string& path, const std::u
   if (!out) Die(target, "cannot write " + path);
 }
 
-}  // namespace skintune::fuzz
+}  // namespace skintune::internal::fuzz

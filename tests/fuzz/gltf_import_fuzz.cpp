@@ -1,5 +1,5 @@
 // Fuzz target for the glTF importer: ImportGltf reads untrusted files, so for
-// any input bytes it must either return or throw skintune::Error whose message
+// any input bytes it must either return or throw Error whose message
 // starts with the file name. Anything else (another exception, a crash, a
 // sanitizer report, a hang, runaway memory, an anonymous message) is a bug.
 // Built two ways (tests/fuzz/CMakeLists.txt): as a libFuzzer target
@@ -23,6 +23,8 @@
 
 #include "reference/error.h"
 #include "reference/gltf_import.h"
+
+using namespace skintune::internal;  // the readers under test and fuzz_support.h's helpers
 
 namespace {
 
@@ -72,13 +74,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string& path = InputPath();
   WriteInput(path, data, size);
   for (const bool strict : {false, true}) {
-    skintune::GltfImportOptions options;
+    GltfImportOptions options;
     options.strict = strict;
     try {
-      const skintune::GltfImportResult result = skintune::ImportGltf(path, options);
+      const GltfImportResult result = ImportGltf(path, options);
       // A successful import is a validated asset: touch it so nothing is optimised away.
       if (result.asset.mesh.vertex_count() == 0) Die("imported a mesh without vertices");
-    } catch (const skintune::Error& e) {
+    } catch (const Error& e) {
       // Malformed input, reported as gltf_import.h promises: the message starts with the file name.
       if (std::string_view(e.what()).substr(0, path.size() + 2) != path + ": ")
         Die("error message without the file name: " + std::string(e.what()));

@@ -13,32 +13,34 @@
 #include "tests/fuzz/fuzz_support.h"
 #include "tuner/report.h"
 
+using namespace skintune::internal;  // the readers under test and fuzz_support.h's helpers
+
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const nlohmann::json json = nlohmann::json::parse(data, data + size, nullptr, /*allow_exceptions=*/false);
   if (json.is_discarded()) return 0;
-  const bool paper = json.is_object() && json.contains("kind") && json["kind"] == skintune::kPaperResultKind;
+  const bool paper = json.is_object() && json.contains("kind") && json["kind"] == kPaperResultKind;
   const std::string name = paper ? "result.json" : "report.json";
-  skintune::PaperResult result;
+  PaperResult result;
   try {
     if (paper) {
-      result = skintune::PaperResultFromJson(json, name);
+      result = PaperResultFromJson(json, name);
     } else {
-      result = skintune::PaperResultFromReport(skintune::ReportFromJson(json, name));
+      result = PaperResultFromReport(ReportFromJson(json, name));
     }
-  } catch (const skintune::Error& e) {
-    skintune::fuzz::ExpectNamed("report_fuzz", e, name);
+  } catch (const Error& e) {
+    fuzz::ExpectNamed("report_fuzz", e, name);
     return 0;
   }
   // Accepted: everything made from it works, without an error of its own.
   try {
-    (void)skintune::ReportToJson(result.tuning).dump();
-    (void)skintune::ReportToT4(result.tuning).dump();
-    (void)skintune::WinnersDatabase(result.tuning).dump();
-    const skintune::PaperSummary summary = skintune::Summarise({result});
-    (void)skintune::RenderHtml(summary);
-    (void)skintune::RenderMarkdown(summary);
-  } catch (const skintune::Error& e) {
-    skintune::fuzz::Die("report_fuzz", std::string("an accepted input failed later: ") + e.what());
+    (void)ReportToJson(result.tuning).dump();
+    (void)ReportToT4(result.tuning).dump();
+    (void)WinnersDatabase(result.tuning).dump();
+    const PaperSummary summary = Summarise({result});
+    (void)RenderHtml(summary);
+    (void)RenderMarkdown(summary);
+  } catch (const Error& e) {
+    fuzz::Die("report_fuzz", std::string("an accepted input failed later: ") + e.what());
   }
   return 0;
 }

@@ -12,25 +12,27 @@
 #include "tests/fuzz/fuzz_support.h"
 #include "tuner/report.h"
 
+using namespace skintune::internal;  // the readers under test and fuzz_support.h's helpers
+
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const nlohmann::json json = nlohmann::json::parse(data, data + size, nullptr, /*allow_exceptions=*/false);
   if (json.is_discarded()) return 0;
   try {
-    for (const skintune::WinnersEntry& e : skintune::WinnersDbFromJson(json, "db.json")) {
+    for (const WinnersEntry& e : WinnersDbFromJson(json, "db.json")) {
       if (!(e.median_ms > 0.0) || !std::isfinite(e.median_ms) || !(e.gbps >= 0.0) || !std::isfinite(e.gbps))
-        skintune::fuzz::Die("winners_db_fuzz", "accepted an impossible time in " + skintune::Describe(e));
+        fuzz::Die("winners_db_fuzz", "accepted an impossible time in " + Describe(e));
     }
-  } catch (const skintune::Error& e) {
-    skintune::fuzz::ExpectNamed("winners_db_fuzz", e, "db.json");
+  } catch (const Error& e) {
+    fuzz::ExpectNamed("winners_db_fuzz", e, "db.json");
   }
   try {
-    const nlohmann::json merged = skintune::MergeWinnersDatabases({json, json}, {"a.json", "a.json"});
+    const nlohmann::json merged = MergeWinnersDatabases({json, json}, {"a.json", "a.json"});
     // A merged database reads back, and merges into itself unchanged.
-    (void)skintune::WinnersDbFromJson(merged, "merged");
-    if (skintune::MergeWinnersDatabases({merged}, {"merged"}) != merged)
-      skintune::fuzz::Die("winners_db_fuzz", "merging a merged database changed it");
-  } catch (const skintune::Error& e) {
-    skintune::fuzz::ExpectNamed("winners_db_fuzz", e, "a.json");
+    (void)WinnersDbFromJson(merged, "merged");
+    if (MergeWinnersDatabases({merged}, {"merged"}) != merged)
+      fuzz::Die("winners_db_fuzz", "merging a merged database changed it");
+  } catch (const Error& e) {
+    fuzz::ExpectNamed("winners_db_fuzz", e, "a.json");
   }
   return 0;
 }

@@ -19,7 +19,7 @@
 #include "generator/space.h"
 #include "generator/variant.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 // Variant{} (OpenCL: every axis has work-groups) with axis i set to `code`.
@@ -192,4 +192,4 @@ TEST(Axes, SchemasListTheTablesAxesAndValues) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

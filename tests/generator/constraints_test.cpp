@@ -2,7 +2,7 @@
 
 #include "generator/constraints.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 const DeviceLimits kDevice{};                  // generic: 256 wg, 32 KiB local, 64 KiB constant
@@ -181,4 +181,4 @@ TEST(Constraints, ReportsEveryBrokenConstraint) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -5,7 +5,7 @@
 #include "generator/covering.h"
 #include "generator/space.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 DeviceLimits Roomy() {
@@ -72,4 +72,4 @@ TEST(CoveringSet, SkipsWorkGroupSizesAboveTheDeviceLimit) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -14,7 +14,7 @@
 #include "generator/packer.h"
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 std::string ErrorOf(const std::function<void()>& f) {
@@ -370,4 +370,4 @@ TEST(Emit, InfluencesOutsideTheRangeThrow) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -10,7 +10,7 @@
 
 #include "generator/emit.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -48,4 +48,4 @@ TEST(GoldenEmit, EmittedSourceAndSidecarMatchThePinnedFiles) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

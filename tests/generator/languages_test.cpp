@@ -16,7 +16,7 @@
 #include "generator/copy_kernel.h"
 #include "generator/emit.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 // A variant of `lang` every language emits: its work-group axes collapsed.
@@ -116,4 +116,4 @@ TEST(Languages, ApisAreNumberedInTheOrderTheyFirstAppear) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -17,7 +17,7 @@
 #include "reference/error.h"
 #include "reference/gltf_import.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 // ---------------------------------------------------------------- test-side reader
@@ -525,4 +525,4 @@ TEST(Packer, UnpackRejectsOutputOfTheWrongSize) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -5,7 +5,7 @@
 #include "generator/space.h"
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 TEST(TuningSpace, SizeMatchesTheNumberOfPointsVisited) {
@@ -73,4 +73,4 @@ TEST(Enumerate, CountsValidAndInvalidByConstraint) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -14,7 +14,7 @@
 #include "generator/template_includes.h"
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -299,4 +299,4 @@ TEST(Templates, EmittedKernelsHoldThePreludesOnce) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

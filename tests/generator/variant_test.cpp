@@ -8,7 +8,7 @@
 #include "generator/variant.h"
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 std::string ErrorOf(const std::function<void()>& f) {
@@ -79,4 +79,4 @@ TEST(VariantHash, IsStableAndDistinguishesVariants) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

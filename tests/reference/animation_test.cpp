@@ -10,7 +10,7 @@
 #include "reference/animation.h"
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
@@ -321,4 +321,4 @@ TEST(AnimationValidate, NamesTheOffendingChannel) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -27,7 +27,7 @@
 #include "reference/synthetic.h"
 #include "reference/thread_pool.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 constexpr std::uint32_t kPoison = 0x7fc00000u;  // a quiet NaN, as the runner's poisoned outputs
@@ -340,4 +340,4 @@ TEST(CpuSchedules, TheFastestCandidateByMedianWins) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -22,7 +22,7 @@
 #include "reference/gltf_import.h"
 #include "reference/skinning.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -591,4 +591,4 @@ TEST_F(GltfFiles, MorphWeightChannelsAreIgnored) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -8,7 +8,7 @@
 #include "reference/error.h"
 #include "reference/mesh_io.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -116,4 +116,4 @@ TEST(MeshIo, ReadingATruncatedBinaryFileNamesTheFile) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

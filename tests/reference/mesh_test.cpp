@@ -7,7 +7,7 @@
 #include "reference/mesh.h"
 #include "test_meshes.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::RandomMesh;
@@ -196,4 +196,4 @@ TEST(MeshInfluenceHistogram, CountsNonZeroWeightsPerVertex) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -12,7 +12,7 @@
 #include "reference/skinning.h"
 #include "reference/synthetic.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 std::string ErrorOf(const std::string& key) {
@@ -159,4 +159,4 @@ TEST(Scene, LoadsInstancesAndBatchesWithTheirMeshes) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

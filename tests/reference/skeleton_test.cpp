@@ -6,7 +6,7 @@
 #include "reference/error.h"
 #include "reference/skeleton.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 // root -> a -> b, with b's parent stored after it (glTF allows any order).
@@ -164,4 +164,4 @@ TEST(SkinnedAsset, FindsAnimationsByNameOrIndexAndListsThemOtherwise) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

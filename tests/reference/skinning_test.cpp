@@ -12,7 +12,7 @@
 #include "reference/synthetic.h"
 #include "test_meshes.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::RandomMesh;
@@ -160,4 +160,4 @@ TEST(CompareToGold, MeasuresErrorRelativeToTheVertexWithAFloorNearTheOrigin) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

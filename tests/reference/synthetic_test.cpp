@@ -16,7 +16,7 @@
 #include "reference/memory_limit.h"
 #include "reference/synthetic.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 DatasetSpec Spec(std::size_t vertices, int influences, bool random = false) {
@@ -454,4 +454,4 @@ TEST(SyntheticPaperConfig, ListsTheSixteenPaperDatasets) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -5,7 +5,7 @@
 
 #include "reference/mesh.h"
 
-namespace skintune::testing {
+namespace skintune::internal::testing {
 
 // n vertices, b slots, `joints` joints; random positions, joints and weights
 // that sum to 1 (normalised in double). Deterministic for a given seed.
@@ -32,4 +32,4 @@ inline SkinnedMesh RandomMesh(std::size_t n, int b, int joints, unsigned seed = 
   return m;
 }
 
-}  // namespace skintune::testing
+}  // namespace skintune::internal::testing

@@ -5,7 +5,7 @@
 
 #include "reference/thread_pool.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 TEST(ThreadPool, ParallelForVisitsEveryIndexExactlyOnce) {
@@ -31,4 +31,4 @@ TEST(ThreadPool, RunsManyLoopsBackToBack) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

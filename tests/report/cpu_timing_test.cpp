@@ -8,7 +8,7 @@
 #include "tuner/backends_internal.h"
 #include "report/cpu_timing.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 SkinnedAsset Small(int influences) {
@@ -88,4 +88,4 @@ TEST(CpuTiming, HostCopyBandwidthIsMeasured) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

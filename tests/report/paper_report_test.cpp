@@ -18,7 +18,7 @@
 #include "tests/tuner/sample_report.h"
 #include "report/paper_report.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::PaperMeasurement;
@@ -648,4 +648,4 @@ TEST(PaperReportFixture, CommittedSampleResultIsTheSampleOfThisHeaderAndParses) 
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -12,7 +12,7 @@
 #include "tests/tuner/sample_report.h"
 #include "report/paper.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 std::string ErrorOf(const nlohmann::json& json) {
@@ -169,4 +169,4 @@ TEST(PaperResult, MalformedElementsAreNamed) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

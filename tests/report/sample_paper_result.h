@@ -19,7 +19,7 @@
 #include "report/paper.h"
 #include "tuner/report.h"
 
-namespace skintune::testing {
+namespace skintune::internal::testing {
 
 inline DeviceIdentity PaperDevice(const std::string& backend, int index, const std::string& platform,
                                   const std::string& vendor, const std::string& name, const std::string& driver,
@@ -221,4 +221,4 @@ inline PaperResult SamplePaperResult() {
   return r;
 }
 
-}  // namespace skintune::testing
+}  // namespace skintune::internal::testing

@@ -18,7 +18,7 @@
 #include "reference/skinning.h"
 #include "skintune/skintune.h"
 
-namespace skintune::testing {
+namespace skintune::internal::testing {
 
 // A MeshView of `mesh` (joint indices widened to 32 bits, kept here).
 struct View {
@@ -153,4 +153,4 @@ inline std::vector<std::vector<glm::mat4>> Poses(const SkinnedAsset& asset, int 
   return out;
 }
 
-}  // namespace skintune::testing
+}  // namespace skintune::internal::testing

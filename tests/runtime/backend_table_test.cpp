@@ -21,7 +21,7 @@
 #include "runtime/selection.h"
 #include "skintune/skintune.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 TEST(BackendTable, ListsTheApisInTheOrderOfThePublicEnum) {
@@ -137,4 +137,4 @@ TEST(BackendTable, AnOpenClDeviceOpensAsARunnerOfItsApi) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -20,10 +20,10 @@
 #include "runtime/backend_table.h"
 #include "runtime/backends/cpu/cpu_runner.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
-using namespace skintune::testing;  // the runner tests' helpers (runner_test_support.h)
+using namespace skintune::internal::testing;  // the runner tests' helpers (runner_test_support.h)
 
 CpuRunner& Runner() {
   static CpuRunner runner;
@@ -185,4 +185,4 @@ TEST(CpuDevice, IsOneDeviceInTheTableWithNoWorkGroupsAndHostOnlyPalettes) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -32,7 +32,7 @@
 #include "runtime/backends/cuda/cuda_runner.h"
 #include "runtime/run_shape.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::Asset;
@@ -590,4 +590,4 @@ TEST(CudaInstancedRunner, RejectsMoreInstancesThanTheConstantSymbolHolds) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -30,7 +30,7 @@
 #include "runtime/winners_db.h"
 #include "tests/common/scratch_dir.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fk = fixture_kernels;
@@ -87,7 +87,7 @@ TEST(EmbedHeader, ListsEveryWinnerOfTheDatabaseInItsOrderWithItsDeviceAndTimes) 
     EXPECT_EQ(k.device_name, e.device_name) << i;
     EXPECT_EQ(k.driver_version, e.driver_version) << i;
     EXPECT_EQ(k.device_type, e.device_type) << i;
-    EXPECT_EQ(k.lang, std::string(skintune::Name(e.lang))) << i;
+    EXPECT_EQ(k.lang, std::string(skintune::internal::Name(e.lang))) << i;
     EXPECT_EQ(k.influences, e.influences) << i;
     EXPECT_EQ(k.vertex_bucket, e.vertex_bucket) << i;
     EXPECT_EQ(k.vertices, e.vertices) << i;
@@ -168,14 +168,14 @@ TEST(EmbedHeader, KernelParametersAreTheVariantsAxes) {
     const Variant v = VariantOf(k);
     SCOPED_TRACE(Context(k));
     EXPECT_EQ(v.mixed, MixedCounts::kPadded);
-    EXPECT_EQ(k.lang, std::string(skintune::Name(v.lang)));
+    EXPECT_EQ(k.lang, std::string(skintune::internal::Name(v.lang)));
     EXPECT_EQ(k.influences, v.influences);
-    EXPECT_EQ(Name(k.layout), std::string(skintune::Name(v.layout)));
-    EXPECT_EQ(Name(k.position), std::string(skintune::Name(v.position)));
-    EXPECT_EQ(Name(k.index), std::string(skintune::Name(v.index)));
-    EXPECT_EQ(Name(k.weight), std::string(skintune::Name(v.weight)));
-    EXPECT_EQ(Name(k.palette), std::string(skintune::Name(v.palette)));
-    EXPECT_EQ(Name(k.storage), std::string(skintune::Name(v.storage)));
+    EXPECT_EQ(Name(k.layout), std::string(skintune::internal::Name(v.layout)));
+    EXPECT_EQ(Name(k.position), std::string(skintune::internal::Name(v.position)));
+    EXPECT_EQ(Name(k.index), std::string(skintune::internal::Name(v.index)));
+    EXPECT_EQ(Name(k.weight), std::string(skintune::internal::Name(v.weight)));
+    EXPECT_EQ(Name(k.palette), std::string(skintune::internal::Name(v.palette)));
+    EXPECT_EQ(Name(k.storage), std::string(skintune::internal::Name(v.storage)));
     EXPECT_EQ(k.point_blend, v.blend == Blend::kPoint);
     EXPECT_EQ(k.normals, v.normals);
     EXPECT_EQ(k.vertices_per_item, v.vertices_per_item);
@@ -521,7 +521,7 @@ int IndexOf(const fk::Kernel* k) { return k == nullptr ? -1 : static_cast<int>(k
 int EntryIndex(const std::string& lang, int influences, const std::string& bucket) {
   const std::vector<WinnersEntry>& entries = Fixture();
   for (std::size_t i = 0; i < entries.size(); ++i) {
-    if (skintune::Name(entries[i].lang) == lang && entries[i].influences == influences &&
+    if (skintune::internal::Name(entries[i].lang) == lang && entries[i].influences == influences &&
         entries[i].vertex_bucket == bucket)
       return static_cast<int>(i);
   }
@@ -570,7 +570,7 @@ TEST(EmbedHeader, SecondTranslationUnitSeesTheSameKernelTable) {
   EXPECT_NE(SecondUnitFindKernel("cuda", 3, 400000, kJoints), nullptr);
 }
 
-fs::path Scratch() { return skintune::testing::ScratchDir("skintune_embed_test"); }
+fs::path Scratch() { return skintune::internal::testing::ScratchDir("skintune_embed_test"); }
 
 // Runs a shell command; returns its exit code, its output in *log.
 int Shell(const std::string& command, const fs::path& log_file, std::string* log) {
@@ -742,4 +742,4 @@ TEST(EmbedHeader, EscapingKeepsEveryByteAndFormsNoTrigraph) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -26,7 +26,7 @@
 #include "runtime/backends/gl/gl_runner.h"
 #include "runtime/run_shape.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::Asset;
@@ -474,4 +474,4 @@ TEST(GlContext, AMissingDeviceGivesAReasonInsteadOfAContext) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -16,7 +16,7 @@
 #include "reference/synthetic.h"
 #include "skintune/skintune.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 const std::string kCesium = std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf";
@@ -138,4 +138,4 @@ TEST(Model, CopiesAreIndependent) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

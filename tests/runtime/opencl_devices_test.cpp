@@ -8,7 +8,7 @@
 
 #include "runtime/backends/opencl/opencl_devices.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 TEST(OpenClDevices, EveryEnumeratedDeviceHasAnIdentityAndLimits) {
@@ -71,4 +71,4 @@ TEST(MatchesDevice, IdVendorTypeAndPlatformShortNameCaseInsensitive) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -17,7 +17,7 @@
 #include "runtime/program_cache.h"
 #include "runtime/run_shape.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::Asset;
@@ -337,4 +337,4 @@ TEST(OpenClInstancedRunner, TimesKInstancesPerFrame) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

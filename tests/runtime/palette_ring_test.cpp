@@ -20,7 +20,7 @@
 #include "runtime/run_shape.h"
 #include "runtime/runner.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 class FakeBuffer final : public DeviceBuffer {
@@ -218,4 +218,4 @@ TEST(PaletteRing, AWrongSizeIsRejectedBeforeTakingASlot) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

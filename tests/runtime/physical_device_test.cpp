@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 constexpr std::uint64_t kMiB = 1ull << 20;
@@ -66,4 +66,4 @@ TEST(PhysicalDevice, UuidHexIsEmptyForAllZeroBytes) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -15,7 +15,7 @@
 #include "generator/emit.h"
 #include "tests/common/scratch_dir.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -98,4 +98,4 @@ TEST(ProgramCache, VersionOneFilesAreAbsent) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

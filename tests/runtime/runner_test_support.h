@@ -30,7 +30,7 @@
 #include "reference/skinning.h"
 #include "reference/synthetic.h"
 
-namespace skintune::testing {
+namespace skintune::internal::testing {
 
 inline constexpr double kTolerance = 1e-5;
 
@@ -374,4 +374,4 @@ inline InstancedRun WithInstancedFault(const std::string& key, int instances, co
   return run;
 }
 
-}  // namespace skintune::testing
+}  // namespace skintune::internal::testing

@@ -16,7 +16,7 @@
 #include "runtime/winners_db.h"
 #include "skintune/skintune.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 DeviceInfo ThisDevice() {
@@ -364,4 +364,4 @@ TEST(Selection, EntriesOfTheScenesShapeFirstThenTheSingleMeshOfTheSameTotal) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

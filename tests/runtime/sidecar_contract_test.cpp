@@ -24,7 +24,7 @@
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "runtime/backends/opencl/opencl_runner.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using json = nlohmann::json;
@@ -330,4 +330,4 @@ TEST(SidecarContract, PaddedSoaF32ConstantFromTheSidecarAloneMatchesTheGold) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

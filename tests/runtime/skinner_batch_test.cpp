@@ -22,7 +22,7 @@
 #include "runtime/winners_db.h"
 #include "tests/runtime/api_test_support.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::CacheIn;
@@ -241,4 +241,4 @@ TEST_F(BatchErrors, ABatchTakesTheDatabasesBatchEntry) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -22,7 +22,7 @@
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::CacheIn;
@@ -187,4 +187,4 @@ TEST(CudaSkinner, FromCudaUsesTheCallersContextAndASecondDeviceCompilesNothing) 
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

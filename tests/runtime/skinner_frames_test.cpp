@@ -19,7 +19,7 @@
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::CacheIn;
@@ -236,4 +236,4 @@ TEST_P(SkinnerFrames, TwoSkinnersOnOneDeviceInterleaveTheirFrames) {
 INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerFrames, ::testing::ValuesIn(Cases()), CaseName);
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -17,7 +17,7 @@
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::CacheIn;
@@ -293,4 +293,4 @@ TEST(GlMisuse, SkinningWithAnotherContextCurrentOrTheContextGone) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -13,7 +13,7 @@
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::CacheIn;
@@ -235,4 +235,4 @@ TEST_F(Misuse, SkinIntoGlBufferWithoutGlSharing) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

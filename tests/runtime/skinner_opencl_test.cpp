@@ -22,7 +22,7 @@
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::CacheIn;
@@ -490,4 +490,4 @@ TEST(OpenClProgramCache, DashMeansNoDiskCache) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

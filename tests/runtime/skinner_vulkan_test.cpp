@@ -19,7 +19,7 @@
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using testing::ExpectSkinsLikeTheGold;
@@ -304,4 +304,4 @@ TEST(VulkanDevice, OpensListsAndSkinsLikeTheGold) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

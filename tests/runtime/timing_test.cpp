@@ -13,7 +13,7 @@
 #include "runtime/backend_table.h"
 #include "runtime/runner.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 struct Opened {
@@ -83,4 +83,4 @@ TEST(Timing, BurstsGiveOnePositiveTimePerBurstInEveryApi) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -25,10 +25,10 @@
 #include "runtime/run_shape.h"
 #include "tests/common/scratch_dir.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
-using namespace skintune::testing;  // the runner tests' helpers (runner_test_support.h)
+using namespace skintune::internal::testing;  // the runner tests' helpers (runner_test_support.h)
 
 // Whether the validation layer is installed (this machine: vulkan-validationlayers).
 bool ValidationLayerMissing(const std::string& error) {
@@ -312,4 +312,4 @@ TEST(VulkanRunnerSetup, AMissingDeviceIsAClearError) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

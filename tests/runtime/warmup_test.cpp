@@ -25,7 +25,7 @@
 #include "runtime/device_api.h"
 #include "runtime/runner.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 // Device bandwidth at each clock, bytes per ms; a submission that keeps the
@@ -281,4 +281,4 @@ TEST(SharedInputs, TheBudgetDropsTheOldestBuffers) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -14,7 +14,7 @@
 #include "reference/error.h"
 #include "skintune/skintune.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 WinnersEntry SampleEntry() {
@@ -243,4 +243,4 @@ TEST(WinnersDb, VertexBucketsFollowThePapersCounts) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

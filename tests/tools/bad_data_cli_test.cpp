@@ -23,7 +23,7 @@
 #include "tests/tuner/sample_report.h"
 #include "tuner/report.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -254,4 +254,4 @@ TEST(ImpossibleData, HugeDatasetsAreRefusedBeforeAnyAllocationSayingWhatFits) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

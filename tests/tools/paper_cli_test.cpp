@@ -14,7 +14,7 @@
 #include "tests/tools/run_command.h"
 #include "report/paper.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -22,7 +22,7 @@ using testing::CountLines;
 using testing::ReadAll;
 using testing::RunSkintune;
 
-fs::path Scratch() { return skintune::testing::ScratchDir("skintune_paper_cli_test"); }
+fs::path Scratch() { return skintune::internal::testing::ScratchDir("skintune_paper_cli_test"); }
 
 std::vector<std::string> SmallRun(const fs::path& out) {
   return {"paper", "--dataset", "5000-b2", "--lang", "opencl", "--lang", "glsl-vertex", "--budget", "2",
@@ -123,4 +123,4 @@ TEST(PaperCli, NoMatchingDeviceIsAnErrorListingTheDevicesAndNothingIsWritten) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -18,7 +18,7 @@
 #include "report/paper.h"
 #include "tuner/report.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -139,4 +139,4 @@ TEST(ReportCli, MissingOutputOrInputIsACommandLineError) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -19,7 +19,7 @@
 #include "tests/common/tiny_tune_config.h"
 #include "tests/tools/run_command.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -27,7 +27,7 @@ using testing::CountLines;
 using testing::ReadAll;
 using testing::RunSkintune;
 
-fs::path Scratch() { return skintune::testing::ScratchDir("skintune_run_cli_test"); }
+fs::path Scratch() { return skintune::internal::testing::ScratchDir("skintune_run_cli_test"); }
 
 const std::vector<std::string> kOutputs = {"report.json", "report.t4.json", "winners-db.json", "report.html"};
 
@@ -153,4 +153,4 @@ TEST(RunCli, BadInputIsOneErrorLineAndLeavesThePreviousResults) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-namespace skintune::testing {
+namespace skintune::internal::testing {
 
 struct CommandResult {
   int exit_code = -1;
@@ -65,4 +65,4 @@ inline int CountLines(const std::string& text) {
   return lines;
 }
 
-}  // namespace skintune::testing
+}  // namespace skintune::internal::testing

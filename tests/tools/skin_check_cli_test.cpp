@@ -18,7 +18,7 @@
 #include "tests/common/scratch_dir.h"
 #include "tests/tools/run_command.h"
 
-namespace skintune::testing {
+namespace skintune::internal::testing {
 namespace {
 
 namespace fs = std::filesystem;
@@ -119,4 +119,4 @@ TEST(SkinCheckCli, WrongVertexCountAndMissingOutputsAreErrors) {
 }
 
 }  // namespace
-}  // namespace skintune::testing
+}  // namespace skintune::internal::testing

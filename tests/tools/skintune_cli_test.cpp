@@ -17,7 +17,7 @@
 #include "run_command.h"
 #include "tests/common/scratch_dir.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -27,7 +27,7 @@ using testing::RunSkintune;
 
 const std::string kData = SKINTUNE_TEST_DATA_DIR;
 
-fs::path Scratch() { return skintune::testing::ScratchDir("skintune_cli_test"); }
+fs::path Scratch() { return skintune::internal::testing::ScratchDir("skintune_cli_test"); }
 
 TEST(SkintuneCli, VersionPrintsTheVersion) {
   const auto r = RunSkintune({"--version"});
@@ -609,4 +609,4 @@ TEST(SkintuneCli, EmitDbFailureLeavesExistingOutputsUntouched) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

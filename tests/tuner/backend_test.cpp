@@ -35,7 +35,7 @@
 #include "reference/scene.h"
 #include "tests/tuner/scene_selection.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using tuner_internal::InputSetsFor;
@@ -770,4 +770,4 @@ TEST(CudaBackend, MeasuresVariantsAndInjectedFaults) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -14,7 +14,7 @@
 #include "tests/tuner/sample_report.h"
 #include "tuner/report.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -111,4 +111,4 @@ TEST(DbCli, ReplayComparesStrategiesOnACacheOrAReport) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

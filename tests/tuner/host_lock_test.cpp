@@ -13,7 +13,7 @@
 #include "reference/error.h"
 #include "tuner/host_lock.h"
 
-namespace skintune::tuner_internal {
+namespace skintune::internal::tuner_internal {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -77,4 +77,4 @@ TEST(HostLock, TheParentsFileGoesWithIt) {
 }
 
 }  // namespace
-}  // namespace skintune::tuner_internal
+}  // namespace skintune::internal::tuner_internal

@@ -14,7 +14,7 @@
 #include "tuner/backends_internal.h"
 #include "tuner/measurement.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 using tuner_internal::DatasetCache;
@@ -227,4 +227,4 @@ TEST(Measure, InstancesAndBatchesAreVerifiedPartByPartAndTimedAsAWhole) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

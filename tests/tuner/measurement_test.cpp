@@ -19,12 +19,12 @@
 #include "skintune/skintune.h"  // its Status beside the tuner's MeasureStatus: both in one file
 #include "tests/common/scratch_dir.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path Scratch() { return skintune::testing::ScratchDir("skintune_measurement_test"); }
+fs::path Scratch() { return skintune::internal::testing::ScratchDir("skintune_measurement_test"); }
 
 std::string ReadAll(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -389,4 +389,4 @@ TEST(MeasurementCache, OnlyOneWriterAtATime) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -16,7 +16,7 @@
 #include "reference/error.h"
 #include "tests/tuner/synthetic_model.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -256,4 +256,4 @@ TEST(Replay, ComparisonNeedsAnOkCandidate) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

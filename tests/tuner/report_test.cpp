@@ -11,7 +11,7 @@
 #include "reference/error.h"
 #include "tests/tuner/sample_report.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 std::string ErrorOf(const std::function<void()>& f) {
@@ -388,4 +388,4 @@ TEST(Report, MergeErrorsNameTheInputFile) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -9,7 +9,7 @@
 #include "tests/tuner/synthetic_model.h"
 #include "tuner/report.h"
 
-namespace skintune::testing {
+namespace skintune::internal::testing {
 
 inline DeviceIdentity SampleGpu(const std::string& driver = "1.0") {
   DeviceIdentity d;
@@ -120,4 +120,4 @@ inline TuningReport SampleReport(const std::string& created = "2025-01-31T12:00:
   return r;
 }
 
-}  // namespace skintune::testing
+}  // namespace skintune::internal::testing

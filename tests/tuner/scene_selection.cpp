@@ -4,7 +4,7 @@
 #include "runtime/winners_db.h"
 #include "skintune/skintune.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 std::string SelectedVariant(const std::string& db_json, const DeviceIdentity& identity, const std::string& shape,
                             std::size_t vertices) {
@@ -25,4 +25,4 @@ std::string SelectedVariant(const std::string& db_json, const DeviceIdentity& id
   return s->variant;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -8,7 +8,7 @@
 
 #include "runtime/device_identity.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // The variant key Selection::Find picks from the database `db_json` for
 // `device`, B 4, a scene of shape `shape` ("single", "instances", "batch")
@@ -17,4 +17,4 @@ namespace skintune {
 std::string SelectedVariant(const std::string& db_json, const DeviceIdentity& device, const std::string& shape,
                             std::size_t vertices);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 DeviceIdentity Device(const std::string& backend, const std::string& type, const std::string& uuid = "",
@@ -49,4 +49,4 @@ TEST(Schedule, TwoGpusAreApartOnlyWhenTheirIdentitiesSaySo) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -20,7 +20,7 @@
 #define SKINTUNE_PYTHON3 "python3"
 #endif
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
@@ -215,4 +215,4 @@ TEST(Schema, T4ExportsValidate) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -15,7 +15,7 @@
 #include "reference/error.h"
 #include "tests/tuner/synthetic_model.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 // Every point (constraints ignored) of the OpenCL space at B = 4 without normals: a full product,
@@ -348,4 +348,4 @@ TEST(Strategy, LookAheadAnnouncesWhatIsEvaluatedNextWithinTheBudgetAndChangesNot
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -20,7 +20,7 @@
 #include "generator/variant.h"
 #include "tuner/measurement.h"
 
-namespace skintune::testing {
+namespace skintune::internal::testing {
 
 // The OpenCL space of a 100k-vertex, 4-influence, 77-joint mesh without
 // normals, with influences fixed at 4 (about 48k valid variants).
@@ -134,4 +134,4 @@ inline std::optional<double> SyntheticEvaluate(const Variant& v) {
   return SyntheticTimeMs(v);
 }
 
-}  // namespace skintune::testing
+}  // namespace skintune::internal::testing

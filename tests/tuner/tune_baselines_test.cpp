@@ -9,11 +9,11 @@
 #include "tests/common/scratch_dir.h"
 #include "tuner/tune.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 TEST(TuneBaselines, AreMeasuredWithTheDatasetsBOutsideTheSpaceAndInvalidOnesAreRecorded) {
-  const auto dir = skintune::testing::ScratchDir("skintune_tune_baselines_test");
+  const auto dir = skintune::internal::testing::ScratchDir("skintune_tune_baselines_test");
   TuneConfig config;
   config.name = "baselines";
   config.space.langs = {Lang::kOpenCl};
@@ -69,4 +69,4 @@ TEST(TuneBaselines, AreMeasuredWithTheDatasetsBOutsideTheSpaceAndInvalidOnesAreR
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -23,7 +23,7 @@
 #include "tests/common/scratch_dir.h"
 #include "tests/common/tiny_tune_config.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 // The OpenCL platform every machine of this project has (the CPU device), by
@@ -35,7 +35,7 @@ using testing::CountLines;
 using testing::ReadAll;
 using testing::RunSkintune;
 
-fs::path Scratch() { return skintune::testing::ScratchDir("skintune_tune_cli_test"); }
+fs::path Scratch() { return skintune::internal::testing::ScratchDir("skintune_tune_cli_test"); }
 
 // One OpenCL variant per storage x layout x wg of the lists, 5000 vertices, B = 2.
 nlohmann::json TinyConfig(const std::vector<std::string>& storages, const std::vector<std::string>& layouts,
@@ -594,4 +594,4 @@ TEST(TuneCli, DefaultRunWithNoArgumentsTunesPoclGlAndCudaWhereFound) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

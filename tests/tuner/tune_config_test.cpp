@@ -10,7 +10,7 @@
 #include "reference/error.h"
 #include "tuner/tune.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 std::string ErrorOf(const std::function<void()>& f) {
@@ -136,4 +136,4 @@ TEST(TuneConfig, ErrorsNameTheElement) {
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -18,12 +18,12 @@
 #include "reference/error.h"
 #include "tests/common/scratch_dir.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path Scratch() { return skintune::testing::ScratchDir("skintune_worker_test"); }
+fs::path Scratch() { return skintune::internal::testing::ScratchDir("skintune_worker_test"); }
 
 DeviceIdentity FakeDevice() {
   DeviceIdentity d;
@@ -239,4 +239,4 @@ TEST(IsolatedBackend, WorkerGetsTheStartupEnvironmentEvenAfterALibraryEditedItIn
 }
 
 }  // namespace
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -11,7 +11,7 @@
 #include "runtime/backends/cpu/cpu_runner.h"
 #include "runtime/skinner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -65,4 +65,4 @@ int Preference(const DeviceIdentity&) { return 6; }
 
 BackendEntry CpuEntry() { return {"cpu", "CPU", {Lang::kCpu}, Discover, Preference, MakeRunnerSkinner}; }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -12,7 +12,7 @@
 #include "reference/thread_pool.h"
 #include "runtime/backends/cpu/cpu_streams.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -333,4 +333,4 @@ std::optional<CpuChoice> CpuRunner::ScheduleOf(const std::string& key) const {
   return static_cast<const CpuApi&>(api()).ScheduleOf(key);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

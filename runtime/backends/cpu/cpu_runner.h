@@ -27,7 +27,7 @@
 #include "reference/cpu_kernels.h"
 #include "runtime/runner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // What the cpu device chose for a variant.
 struct CpuChoice {
@@ -45,4 +45,4 @@ class CpuRunner final : public Runner {
   std::optional<CpuChoice> ScheduleOf(const std::string& key) const;
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -2,7 +2,7 @@
 
 #include "reference/error.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 CpuKernelKey CpuKeyOf(const Variant& variant, int influences) {
   CpuKernelKey key;
@@ -75,4 +75,4 @@ CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t coun
   throw Error("cpu streams of " + variant.Key() + ": unknown layout");
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

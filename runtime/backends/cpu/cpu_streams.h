@@ -11,7 +11,7 @@
 #include "generator/packer.h"
 #include "reference/cpu_kernels.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // The kernel of `variant` for a launch of `influences` (its palette rows and formats).
 CpuKernelKey CpuKeyOf(const Variant& variant, int influences);
@@ -24,4 +24,4 @@ CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t coun
                         std::span<const std::uint8_t* const> inputs, float* out_positions, float* out_normals,
                         bool stream_stores);
 
-}  // namespace skintune
+}  // namespace skintune::internal

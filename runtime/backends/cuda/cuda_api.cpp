@@ -9,7 +9,7 @@
 #include "reference/error.h"
 #include "runtime/output_check.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -334,4 +334,4 @@ void Check(Result r, const std::string& stage, const std::string& what) {
 }
 
 }  // namespace cuda
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-namespace skintune {
+namespace skintune::internal {
 
 struct CudaAvailability {
   bool nvrtc = false;                // NVRTC loaded and answered nvrtcVersion
@@ -209,4 +209,4 @@ std::string ErrorText(Result result);
 void Check(Result r, const std::string& stage, const std::string& what);
 
 }  // namespace cuda
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -11,7 +11,7 @@
 #include "runtime/device.h"
 #include "runtime/skinner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -47,6 +47,12 @@ std::unique_ptr<SkinnerBackend> MakeCudaSkinner(DeviceState& device, const Packe
                                                 const std::vector<KernelSource>& kernels, int instances);
 
 BackendEntry CudaEntry() { return {"cuda", "CUDA", {Lang::kCuda}, Discover, Preference, MakeCudaSkinner}; }
+
+}  // namespace skintune::internal
+
+namespace skintune {
+
+using namespace internal;  // the public calls are written over the library's internals
 
 Result<Device> Device::FromCuda(void* cu_context, void* cu_stream, const DeviceOptions& options) {
   return GuardedResult<Device>(ErrorCode::kDeviceError, [&] {

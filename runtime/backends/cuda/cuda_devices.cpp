@@ -13,7 +13,7 @@
 #include "runtime/physical_device.h"
 #include "runtime/backends/cuda/cuda_api.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -155,4 +155,4 @@ DeviceIdentity IdentityOf(const CudaDeviceInfo& device) {
   return d;
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

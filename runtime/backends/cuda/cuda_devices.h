@@ -8,7 +8,7 @@
 #include "generator/constraints.h"
 #include "runtime/device_identity.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // What the driver says about a device, without a context (QueryCudaDevice).
 struct CudaDeviceInfo {
@@ -40,4 +40,4 @@ std::string CudaDriverVersionText(int cuda_driver_version);
 // last-level cache.
 DeviceIdentity IdentityOf(const CudaDeviceInfo& device);
 
-}  // namespace skintune
+}  // namespace skintune::internal

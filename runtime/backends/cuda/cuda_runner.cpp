@@ -15,7 +15,7 @@
 #include "runtime/backends/cuda/cuda_api.h"
 #include "runtime/output_check.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -611,4 +611,4 @@ void* CudaRunner::context() const { return static_cast<const CudaApi&>(api()).co
 void* CudaRunner::stream() const { return static_cast<const CudaApi&>(api()).stream; }
 const DeviceLimits& CudaRunner::limits() const { return info().limits; }
 
-}  // namespace skintune
+}  // namespace skintune::internal

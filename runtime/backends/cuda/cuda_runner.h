@@ -47,7 +47,7 @@
 #include "runtime/program_cache.h"
 #include "runtime/runner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // NVRTC's PTX of `source` for `arch` ("compute_90"), from `cache` when it
 // holds it (key: device_id, source hash, arch), else compiled and stored
@@ -84,4 +84,4 @@ class CudaRunner final : public Runner {
 using CudaRunResult = RunResult;
 using CudaPrepared = Prepared;
 
-}  // namespace skintune
+}  // namespace skintune::internal

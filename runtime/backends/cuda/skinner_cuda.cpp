@@ -17,7 +17,7 @@
 #include "runtime/backends/gl/gl_context.h"
 #include "runtime/skinner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -106,4 +106,4 @@ std::unique_ptr<SkinnerBackend> MakeCudaSkinner(DeviceState& device, const Packe
                                        mesh.variant.normals);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

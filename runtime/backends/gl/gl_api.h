@@ -17,7 +17,7 @@
 #include "runtime/backends/gl/gl_context.h"
 #include "runtime/device_api.h"
 
-namespace skintune::gl {
+namespace skintune::internal::gl {
 
 [[noreturn]] void Fail(const std::string& stage, const std::string& message);
 // Throws when GL recorded an error since the last check (all pending errors named).
@@ -222,4 +222,4 @@ class GlApi final : public DeviceApi {
   GlObject vertex_array_, framebuffer_, renderbuffer_, transform_feedback_;
 };
 
-}  // namespace skintune::gl
+}  // namespace skintune::internal::gl

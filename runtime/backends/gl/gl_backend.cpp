@@ -10,7 +10,7 @@
 #include "runtime/device.h"
 #include "runtime/skinner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // skinner_gl.cpp
 std::unique_ptr<SkinnerBackend> MakeGlSkinner(DeviceState& device, const PackedMesh& mesh,
@@ -44,6 +44,12 @@ int Preference(const DeviceIdentity& d) { return d.type.find("gpu") != std::stri
 BackendEntry GlEntry() {
   return {"gl", "GL", {Lang::kGlslCompute, Lang::kGlslVertex}, Discover, Preference, MakeGlSkinner};
 }
+
+}  // namespace skintune::internal
+
+namespace skintune {
+
+using namespace internal;  // the public calls are written over the library's internals
 
 Result<Device> Device::FromCurrentGl(const DeviceOptions& options) {
   return GuardedResult<Device>(ErrorCode::kDeviceError, [&] {

@@ -17,7 +17,7 @@
 #include "reference/error.h"
 #include "runtime/physical_device.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -449,4 +449,4 @@ void to_json(nlohmann::json& out, const GlContextInfo& i) {
          {"max_transform_feedback_separate_attribs", i.max_transform_feedback_separate_attribs}};
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

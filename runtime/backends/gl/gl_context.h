@@ -32,7 +32,7 @@
 #include "generator/constraints.h"
 #include "runtime/device_identity.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct GlContextInfo {
   std::string egl_platform;   // "device", "surfaceless" or "default"
@@ -123,4 +123,4 @@ DeviceIdentity IdentityOf(const GlContextInfo& info);
 
 void to_json(nlohmann::json& out, const GlContextInfo& info);
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -12,7 +12,7 @@
 #include "reference/error.h"
 #include "runtime/backends/gl/gl_api.h"
 
-namespace skintune::gl {
+namespace skintune::internal::gl {
 
 namespace {
 
@@ -276,4 +276,4 @@ void GlApi::RunLive(const FrameRun& run) {
   CheckGl("launch", "skinning with " + run.key);
 }
 
-}  // namespace skintune::gl
+}  // namespace skintune::internal::gl

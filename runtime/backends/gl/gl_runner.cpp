@@ -12,7 +12,7 @@
 #include "runtime/backends/gl/gl_api.h"
 #include "runtime/output_check.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace gl {
 
 void Fail(const std::string& stage, const std::string& message) { throw Error("GL " + stage + ": " + message); }
@@ -579,4 +579,4 @@ const GlContextInfo& GlRunner::info() const { return gl_api().info(); }
 bool GlRunner::host_timed() const { return gl_api().host_timed(); }
 void GlRunner::MakeCurrent() { api().MakeCurrent(); }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -74,7 +74,7 @@
 #include "runtime/backends/gl/gl_context.h"
 #include "runtime/runner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace gl {
 class GlApi;
@@ -104,4 +104,4 @@ class GlRunner final : public Runner {
 using GlRunResult = RunResult;
 using GlPrepared = Prepared;
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -5,7 +5,7 @@
 #include "runtime/backends/gl/gl_runner.h"
 #include "runtime/skinner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -39,4 +39,4 @@ std::unique_ptr<SkinnerBackend> MakeGlSkinner(DeviceState& device, const PackedM
   return std::make_unique<GlSkinner>(*runner, std::move(prepared), mesh.variant.normals);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -11,7 +11,7 @@
 #include "runtime/device.h"
 #include "runtime/skinner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 // skinner_opencl.cpp
 std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const PackedMesh& mesh,
@@ -44,6 +44,12 @@ int Preference(const DeviceIdentity& d) {
 }  // namespace
 
 BackendEntry OpenClEntry() { return {"opencl", "OpenCL", {Lang::kOpenCl}, Discover, Preference, MakeOpenClSkinner}; }
+
+}  // namespace skintune::internal
+
+namespace skintune {
+
+using namespace internal;  // the public calls are written over the library's internals
 
 Result<Device> Device::FromOpenCl(void* cl_device, void* cl_context, void* cl_queue, const DeviceOptions& options) {
   return GuardedResult<Device>(ErrorCode::kInvalidArgument, [&] {

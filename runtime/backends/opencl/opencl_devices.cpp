@@ -12,7 +12,7 @@
 #include "reference/error.h"
 #include "runtime/physical_device.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -251,4 +251,4 @@ void to_json(nlohmann::json& out, const OpenClDeviceInfo& d) {
          {"image_buffer_max_pixels", d.image_buffer_max_pixels}};
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

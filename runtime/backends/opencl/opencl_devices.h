@@ -15,7 +15,7 @@
 #include "generator/constraints.h"
 #include "runtime/device_identity.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 struct OpenClDeviceInfo {
   int platform_index = 0;
@@ -70,4 +70,4 @@ std::vector<OpenClDeviceInfo> MatchDevices(const OpenClInventory& inventory, con
 
 void to_json(nlohmann::json& out, const OpenClDeviceInfo& device);
 
-}  // namespace skintune
+}  // namespace skintune::internal

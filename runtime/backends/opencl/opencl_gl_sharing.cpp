@@ -13,7 +13,7 @@
 
 #include "runtime/api_errors.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -144,4 +144,4 @@ void GlBufferWriter::Write(unsigned int gl_buffer, std::size_t bytes, const std:
                                           std::to_string(err));
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -19,7 +19,7 @@
 #include <memory>
 #include <string>
 
-namespace skintune {
+namespace skintune::internal {
 
 struct OpenClGlHandles {
   void* device = nullptr;   // cl_device_id
@@ -52,4 +52,4 @@ class GlBufferWriter {
   std::map<unsigned int, void*> shared_;  // GL buffer name -> cl_mem (released by the destructor)
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -15,7 +15,7 @@
 #include "reference/error.h"
 #include "runtime/output_check.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -645,4 +645,4 @@ void* OpenClRunner::device() const { return cl().device; }
 void* OpenClRunner::context() const { return cl().context.get(); }
 void* OpenClRunner::queue() const { return cl().queue.get(); }
 
-}  // namespace skintune
+}  // namespace skintune::internal

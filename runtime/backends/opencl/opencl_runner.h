@@ -23,7 +23,7 @@
 
 #include "runtime/runner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 class OpenClApi;
 
@@ -49,4 +49,4 @@ class OpenClRunner final : public Runner {
 using OpenClRunResult = RunResult;
 using OpenClPrepared = Prepared;
 
-}  // namespace skintune
+}  // namespace skintune::internal

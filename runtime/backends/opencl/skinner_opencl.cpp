@@ -7,7 +7,7 @@
 #include "runtime/backends/opencl/opencl_runner.h"
 #include "runtime/skinner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -40,4 +40,4 @@ std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const Pac
                                          mesh.variant.normals, device.gl_sharing);
 }
 
-}  // namespace skintune
+}  // namespace skintune::internal

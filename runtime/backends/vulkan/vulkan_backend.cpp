@@ -11,7 +11,7 @@
 #include "runtime/device.h"
 #include "runtime/skinner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace {
 
@@ -79,6 +79,12 @@ std::unique_ptr<SkinnerBackend> MakeVulkanSkinner(DeviceState& device, const Pac
 BackendEntry VulkanEntry() {
   return {"vulkan", "Vulkan", {Lang::kVulkan}, Discover, Preference, MakeVulkanSkinner};
 }
+
+}  // namespace skintune::internal
+
+namespace skintune {
+
+using namespace internal;  // the public calls are written over the library's internals
 
 Result<Device> Device::FromVulkan(const VulkanHandles& handles, const DeviceOptions& options) {
   return GuardedResult<Device>(ErrorCode::kDeviceError, [&] {

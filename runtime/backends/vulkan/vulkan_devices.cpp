@@ -8,7 +8,7 @@
 
 #include "runtime/physical_device.h"
 
-namespace skintune::vk {
+namespace skintune::internal::vk {
 
 namespace {
 
@@ -243,4 +243,4 @@ DeviceLimits LimitsOf(const VulkanDeviceInfo& info) {
   return limits;
 }
 
-}  // namespace skintune::vk
+}  // namespace skintune::internal::vk

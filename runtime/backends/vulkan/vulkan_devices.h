@@ -20,7 +20,7 @@
 #include "runtime/backends/vulkan/vulkan_loader.h"
 #include "runtime/device_identity.h"
 
-namespace skintune::vk {
+namespace skintune::internal::vk {
 
 class VulkanInstance {
  public:
@@ -74,4 +74,4 @@ VulkanDeviceInfo QueryDevice(const VulkanInstance& instance, VkPhysicalDevice de
 DeviceIdentity IdentityOf(const VulkanDeviceInfo& info);
 DeviceLimits LimitsOf(const VulkanDeviceInfo& info);
 
-}  // namespace skintune::vk
+}  // namespace skintune::internal::vk

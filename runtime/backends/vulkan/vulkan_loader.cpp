@@ -5,7 +5,7 @@
 
 #include "reference/error.h"
 
-namespace skintune::vk {
+namespace skintune::internal::vk {
 
 void Fail(const std::string& stage, const std::string& message) { throw Error("Vulkan " + stage + ": " + message); }
 
@@ -106,4 +106,4 @@ const Loader& SystemLoader() {
   return loader;
 }
 
-}  // namespace skintune::vk
+}  // namespace skintune::internal::vk

@@ -14,7 +14,7 @@
 
 #include <string>
 
-namespace skintune::vk {
+namespace skintune::internal::vk {
 
 // Global commands (no instance).
 #define SKINTUNE_VK_GLOBAL_FUNCTIONS(X) \
@@ -124,4 +124,4 @@ std::string ResultName(VkResult result);
 void Check(VkResult result, const std::string& stage, const std::string& what);
 [[noreturn]] void Fail(const std::string& stage, const std::string& message);
 
-}  // namespace skintune::vk
+}  // namespace skintune::internal::vk

@@ -14,7 +14,7 @@
 #include "runtime/backends/vulkan/vulkan_spirv.h"
 #include "runtime/output_check.h"
 
-namespace skintune {
+namespace skintune::internal {
 namespace vk {
 
 namespace {
@@ -1026,4 +1026,4 @@ std::vector<std::string> VulkanRunner::validation_messages() const {
 }
 void VulkanRunner::RecordInto(VkCommandBuffer command_buffer) { vk_api().RecordInto(command_buffer); }
 
-}  // namespace skintune
+}  // namespace skintune::internal

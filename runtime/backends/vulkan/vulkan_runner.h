@@ -45,7 +45,7 @@
 #include "runtime/backends/vulkan/vulkan_devices.h"
 #include "runtime/runner.h"
 
-namespace skintune {
+namespace skintune::internal {
 
 namespace vk {
 class VulkanApi;
@@ -82,4 +82,4 @@ class VulkanRunner final : public Runner {
   vk::VulkanApi& vk_api() const;
 };
 
-}  // namespace skintune
+}  // namespace skintune::internal

@@ -9,7 +9,7 @@
 #include "runtime/backends/vulkan/vulkan_loader.h"
 #include "runtime/output_check.h"
 
-namespace skintune::vk {
+namespace skintune::internal::vk {
 
 std::vector<std::uint32_t> CompileSpirv(const std::string& text, const std::string& what) {
   static std::once_flag initialised;
@@ -60,4 +60,4 @@ std::vector<std::uint32_t> CompileSpirv(const std::string& text, const std::stri
   return spirv;
 }
 
-}  // namespace skintune::vk
+}  // namespace skintune::internal::vk

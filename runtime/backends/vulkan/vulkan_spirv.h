@@ -11,11 +11,11 @@
 #include <string>
 #include <vector>
 
-namespace skintune::vk {
+namespace skintune::internal::vk {
 
 // The SPIR-V words of `text` (a compute shader, entry point main, Vulkan 1.1
 // target, SPIR-V 1.3, optimised); throws Error("Vulkan build: <what> failed
 // to compile (glslang); log: <its first lines>").
 std::vector<std::uint32_t> CompileSpirv(const std::string& text, const std::string& what);
 
-}  // namespace skintune::vk
+}  // namespace skintune::internal::vk

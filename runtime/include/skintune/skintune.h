@@ -45,6 +45,12 @@
 
 namespace skintune {
 
+// The library's own code lives in skintune::internal, which is not API; this
+// header names it only to befriend one accessor.
+namespace internal {
+struct DeviceAccess;
+}  // namespace internal
+
 // ---------------------------------------------------------------- errors
 
 enum class ErrorCode {
@@ -238,7 +244,7 @@ class Device {
  private:
   std::unique_ptr<Impl> impl_;
   friend class Skinner;
-  friend struct DeviceAccess;  // the library's own, not part of the API
+  friend struct internal::DeviceAccess;  // the library's own, not part of the API
 };
 
 // ---------------------------------------------------------------- winners
