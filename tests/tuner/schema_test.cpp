@@ -193,7 +193,8 @@ TEST(Schema, PaperResultsValidateAndTheirBrokenCopiesDoNot) {
 // The committed results (docs/results) and the report tests' fixture follow the schema and
 // read back: a format change must regenerate or migrate them.
 TEST(Schema, CommittedPaperResultsValidateAndReadBack) {
-  for (const char* file : {"docs/results/h100-paper/paper-result.json", "docs/results/cpu-quick-paper/paper-result.json",
+  for (const char* file : {"docs/results/h100-paper-v4/paper-result.json", "docs/results/h100-paper/paper-result.json",
+                           "docs/results/cpu-quick-paper/paper-result.json",
                            "tests/data/paper/sample-result.json"}) {
     std::ifstream in(std::string(SKINTUNE_SOURCE_DIR) + "/" + file);
     ASSERT_TRUE(in) << file;
