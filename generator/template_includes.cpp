@@ -1,5 +1,7 @@
 #include "generator/template_includes.h"
 
+#include <algorithm>
+#include <cstdio>
 #include <map>
 #include <vector>
 
@@ -114,6 +116,24 @@ std::string ExpandIncludes(const std::string& name, const std::string& text, con
   expander.MarkRoot(name);
   expander.Expand(name, text, 0);
   return expander.Take();
+}
+
+std::string GlslSourceStrings(const std::string& expanded) {
+  std::map<int, std::string> files;  // source-string number -> file
+  for (std::size_t begin = 0; begin < expanded.size();) {
+    const std::size_t end = std::min(expanded.find('\n', begin), expanded.size());
+    const std::string line = expanded.substr(begin, end - begin);
+    begin = end + 1;
+    if (line.rfind("#line ", 0) != 0) continue;
+    const std::size_t comment = line.find("  // ");
+    if (comment == std::string::npos) continue;
+    int number = 0, source = -1;
+    if (std::sscanf(line.c_str(), "#line %d %d", &number, &source) != 2 || source < 0) continue;
+    files.emplace(source, Trimmed(line.substr(comment + 5)));
+  }
+  std::string legend;
+  for (const auto& [source, file] : files) legend += (legend.empty() ? " (source strings: " : ", ") + std::to_string(source) + " " + file;
+  return legend.empty() ? "" : legend + ")";
 }
 
 }  // namespace skintune::internal

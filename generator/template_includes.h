@@ -40,4 +40,10 @@ using TemplateLookup = std::function<std::optional<std::string>(const std::strin
 //     text would be compiled twice.
 std::string ExpandIncludes(const std::string& name, const std::string& text, const TemplateLookup& lookup);
 
+// For a GLSL compiler's log of an expanded text: " (source strings: 0
+// skin.comp, 1 skin_params.h, 2 skin_body.glsl)" from the text's `#line N K
+// // FILE` directives, so that "2:48(3): error" (Mesa) or "2(48) : error"
+// (NVIDIA) names its file; "" when the text has none.
+std::string GlslSourceStrings(const std::string& expanded);
+
 }  // namespace skintune::internal

@@ -68,6 +68,17 @@ TEST(ExpandIncludes, GlslLineDirectivesNumberTheFilesInIncludeOrder) {
             "void main() {}\n");
 }
 
+// A GLSL compiler's log names source strings by number; the legend names them.
+TEST(ExpandIncludes, GlslSourceStringsNameEveryNumberedFile) {
+  const Files files = {{"a.comp", "#version 430 core\n#include \"p.h\"\n#include \"q.glsl\"\nvoid main() {}\n"},
+                       {"p.h", "p1\n"},
+                       {"q.glsl", "q1\n"}};
+  EXPECT_EQ(GlslSourceStrings(Expand(files, "a.comp")), " (source strings: 0 a.comp, 1 p.h, 2 q.glsl)");
+  EXPECT_EQ(GlslSourceStrings("#version 430 core\nvoid main() {}\n"), "");
+  EXPECT_EQ(GlslSourceStrings(ExpandedTemplate("skin.comp")),
+            " (source strings: 0 skin.comp, 1 skin_params.h, 2 skin_body.glsl)");
+}
+
 TEST(ExpandIncludes, TextWithoutIncludesIsUnchanged) {
   const Files files = {{"a.cl", "x\n// #include \"commented-out.h\"\n#define INCLUDE 1\n#ifndef X\ny"}};
   EXPECT_EQ(Expand(files, "a.cl"), files.at("a.cl"));

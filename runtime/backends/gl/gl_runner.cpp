@@ -1,6 +1,7 @@
 // The GL DeviceApi (gl_api.h), part one: programs (with the program cache),
 // buffers, the palette's block or texture buffer, bindings and capture
 // ranges; and GlRunner. Draws, dispatches and timers: gl_frames.cpp.
+#include "generator/template_includes.h"
 #include "runtime/backends/gl/gl_runner.h"
 
 #include <algorithm>
@@ -146,7 +147,7 @@ GlObject GlApi::ProgramFromSource(const KernelSource& source, const std::vector<
     std::string log(static_cast<std::size_t>(std::max(log_length, 1)), '\0');
     glGetShaderInfoLog(shader, static_cast<GLsizei>(log.size()), nullptr, log.data());
     log.resize(std::strlen(log.c_str()));
-    Fail("build", what + " failed to compile; log:" + FirstLines(log, 20));
+    Fail("build", what + " failed to compile" + GlslSourceStrings(source.text) + "; log:" + FirstLines(log, 20));
   }
   GlObject owner(glCreateProgram(), [](GLuint name) { glDeleteProgram(name); });
   const GLuint program = owner.get();

@@ -6,6 +6,7 @@
 
 #include <mutex>
 
+#include "generator/template_includes.h"
 #include "runtime/backends/vulkan/vulkan_loader.h"
 #include "runtime/output_check.h"
 
@@ -41,7 +42,7 @@ std::vector<std::uint32_t> CompileSpirv(const std::string& text, const std::stri
     return std::string(glslang_shader_get_info_log(o.shader)) + glslang_shader_get_info_debug_log(o.shader);
   };
   if (!glslang_shader_preprocess(o.shader, &input) || !glslang_shader_parse(o.shader, &input))
-    Fail("build", what + " failed to compile (glslang); log:" + FirstLines(log_of(), 20));
+    Fail("build", what + " failed to compile (glslang)" + GlslSourceStrings(text) + "; log:" + FirstLines(log_of(), 20));
   o.program = glslang_program_create();
   glslang_program_add_shader(o.program, o.shader);
   if (!glslang_program_link(o.program, GLSLANG_MSG_SPV_RULES_BIT | GLSLANG_MSG_VULKAN_RULES_BIT))
