@@ -2,9 +2,13 @@
 
 #include <algorithm>
 
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
 namespace skintune::internal {
 
-ThreadPool::ThreadPool(unsigned threads) {
+ThreadPool::ThreadPool(unsigned threads, std::chrono::microseconds spin) : spin_(spin) {
   if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
   for (unsigned i = 1; i < threads; ++i) workers_.emplace_back([this] { WorkerLoop(); });
 }
@@ -18,6 +22,21 @@ ThreadPool::~ThreadPool() {
   for (std::thread& t : workers_) t.join();
 }
 
+template <typename Ready>
+bool ThreadPool::Spin(Ready&& ready) const {
+  if (spin_.count() <= 0) return ready();
+  const auto until = std::chrono::steady_clock::now() + spin_;
+  for (;;) {
+    for (int i = 0; i < 64; ++i) {
+      if (ready()) return true;
+#if defined(__SSE2__)
+      _mm_pause();
+#endif
+    }
+    if (std::chrono::steady_clock::now() >= until) return ready();
+  }
+}
+
 void ThreadPool::RunChunks() {
   std::unique_lock lock(mutex_);
   while (next_chunk_ < chunks_) {
@@ -27,13 +46,14 @@ void ThreadPool::RunChunks() {
     const std::size_t begin = chunk * grain_;
     (*body)(begin, std::min(count_, begin + grain_));
     lock.lock();
-    if (++finished_chunks_ == chunks_) done_.notify_all();
+    if (finished_chunks_.fetch_add(1) + 1 == chunks_) done_.notify_all();
   }
 }
 
 void ThreadPool::WorkerLoop() {
   std::size_t seen = 0;
   for (;;) {
+    Spin([&] { return stop_.load(std::memory_order_acquire) || generation_.load(std::memory_order_acquire) != seen; });
     {
       std::unique_lock lock(mutex_);
       wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
@@ -60,6 +80,8 @@ void ThreadPool::ParallelFor(std::size_t count, std::size_t grain,
   }
   wake_.notify_all();
   RunChunks();
+  const std::size_t chunks = chunks_;  // RunChunks returned: no chunk is left to take, so chunks_ stays
+  Spin([&] { return finished_chunks_.load(std::memory_order_acquire) == chunks; });
   std::unique_lock lock(mutex_);
   done_.wait(lock, [&] { return finished_chunks_ == chunks_; });
   body_ = nullptr;

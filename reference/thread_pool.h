@@ -2,6 +2,8 @@
 // Starting threads per frame would cost more than skinning a small mesh.
 #pragma once
 
+#include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstddef>
 #include <functional>
@@ -15,7 +17,14 @@ class ThreadPool {
  public:
   // threads = 0: std::thread::hardware_concurrency(). The calling thread
   // takes part in every loop, so `threads - 1` workers are started.
-  explicit ThreadPool(unsigned threads = 0);
+  //
+  // spin: how long an idle worker (and a caller waiting for the last chunk)
+  // keeps polling before it sleeps on a condition variable. Zero for loops
+  // of milliseconds (the cpu device's kernels: a sleeping worker costs
+  // nothing); some tens of microseconds for loops of a few microseconds run
+  // every frame (the runtime's palette packing and read-backs), where waking
+  // a sleeping thread takes about as long as the work.
+  explicit ThreadPool(unsigned threads = 0, std::chrono::microseconds spin = std::chrono::microseconds(0));
   ~ThreadPool();
   ThreadPool(const ThreadPool&) = delete;
   ThreadPool& operator=(const ThreadPool&) = delete;
@@ -31,15 +40,21 @@ class ThreadPool {
  private:
   void WorkerLoop();
   void RunChunks();
+  // Polls `ready` for up to spin_; whether it came true.
+  template <typename Ready>
+  bool Spin(Ready&& ready) const;
 
   std::vector<std::thread> workers_;
+  std::chrono::microseconds spin_;
   std::mutex mutex_;
   std::condition_variable wake_;
   std::condition_variable done_;
   const std::function<void(std::size_t, std::size_t)>* body_ = nullptr;
-  std::size_t count_ = 0, grain_ = 1, next_chunk_ = 0, chunks_ = 0, finished_chunks_ = 0;
-  std::size_t generation_ = 0;
-  bool stop_ = false;
+  std::size_t count_ = 0, grain_ = 1, next_chunk_ = 0, chunks_ = 0;
+  // Written under mutex_; read without it by spinning threads.
+  std::atomic<std::size_t> finished_chunks_{0};
+  std::atomic<std::size_t> generation_{0};
+  std::atomic<bool> stop_{false};
 };
 
 }  // namespace skintune::internal

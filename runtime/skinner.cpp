@@ -14,8 +14,8 @@
 #include "generator/constraints.h"
 #include "reference/mesh.h"
 #include "reference/scene.h"
-#include "reference/thread_pool.h"
 #include "runtime/api_errors.h"
+#include "runtime/host_work.h"
 #include "runtime/selection.h"
 #include "runtime/winners_db.h"
 
@@ -381,37 +381,10 @@ namespace skintune::internal {
 
 namespace {
 
-// Read-backs of more than kReadChunkVertices vertices are scanned and copied
-// in chunks of that many on a process-wide pool of up to 8 threads (the
-// H100 machine's host copies 5.3 GB/s on one thread: a 1.6M-vertex read-back
-// took 8.5 ms, 2.3 GB/s). A second thread reading while the pool is busy
-// works on its own thread.
+// Read-backs are scanned and copied in chunks of kReadChunkVertices on the
+// runtime's host pool (runtime/host_work.h), each chunk's scan as soon as
+// its copy from the device is in.
 constexpr std::size_t kReadChunkVertices = 1 << 16;
-
-void ForChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body) {
-  static std::mutex busy;
-  std::unique_lock<std::mutex> lock(busy, std::try_to_lock);
-  if (count <= grain || !lock) {
-    if (count > 0) body(0, count);
-    return;
-  }
-  static ThreadPool pool(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
-  pool.ParallelFor(count, grain, body);
-}
-
-// Whether every 32-bit word of `bytes` is a finite float (exponent bits not all set).
-bool AllFinite(std::span<const std::uint8_t> bytes) {
-  constexpr std::size_t kBlock = 1024;
-  std::uint32_t words[kBlock];
-  for (std::size_t at = 0; at < bytes.size() / 4; at += kBlock) {
-    const std::size_t n = std::min(kBlock, bytes.size() / 4 - at);
-    std::memcpy(words, bytes.data() + at * 4, n * 4);
-    std::uint32_t special = 0;
-    for (std::size_t i = 0; i < n; ++i) special |= ((words[i] & 0x7f800000u) == 0x7f800000u) ? 1u : 0u;
-    if (special) return false;
-  }
-  return true;
-}
 
 Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out, std::size_t float_count) {
   const char* call = normals ? "ReadNormals" : "ReadPositions";
@@ -440,6 +413,18 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
     std::atomic<bool> all_finite{true};
     std::mutex failed_mutex;
     std::string failed;  // the first chunk whose copy failed
+    const bool same_order = im.identity_order;
+    const bool streaming = StreamingWrite(vertices * 3 * sizeof(float));
+    const auto copy = [&](std::size_t begin, std::size_t end) {
+      if (same_order) {
+        CopyFloat3(packed.data(), stride, out, begin, end, streaming);
+        return;
+      }
+      for (std::size_t v = begin; v < end; ++v) {
+        const std::size_t k = v / im.vertex_count, p = v % im.vertex_count;
+        std::memcpy(out + (k * im.vertex_count + im.order[p]) * 3, packed.data() + v * stride, 3 * sizeof(float));
+      }
+    };
     ForChunks(vertices, kReadChunkVertices, [&](std::size_t begin, std::size_t end) {
       try {
         read.ready(end * stride);
@@ -465,17 +450,7 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
                    "), not finite: the palette times the mesh overflows float32 (or the kernel is broken); out "
                    "is not written");
     }
-    const bool same_layout = im.identity_order && stride == 3 * sizeof(float);  // already the caller's
-    ForChunks(vertices, kReadChunkVertices, [&](std::size_t begin, std::size_t end) {
-      if (same_layout) {
-        std::memcpy(out + begin * 3, packed.data() + begin * stride, (end - begin) * stride);
-        return;
-      }
-      for (std::size_t v = begin; v < end; ++v) {
-        const std::size_t k = v / im.vertex_count, p = v % im.vertex_count;
-        std::memcpy(out + (k * im.vertex_count + im.order[p]) * 3, packed.data() + v * stride, 3 * sizeof(float));
-      }
-    });
+    ForChunks(vertices, kReadChunkVertices, copy);
   });
 }
 

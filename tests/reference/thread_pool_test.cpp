@@ -1,6 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <string>
+#include <thread>
 #include <vector>
 
 #include "reference/thread_pool.h"
@@ -8,8 +11,11 @@
 namespace skintune::internal {
 namespace {
 
-TEST(ThreadPool, ParallelForVisitsEveryIndexExactlyOnce) {
-  ThreadPool pool(4);
+// Sleeping workers, and workers that poll for the next loop (the runtime's pool).
+class ThreadPoolSpin : public ::testing::TestWithParam<int> {};
+
+TEST_P(ThreadPoolSpin, ParallelForVisitsEveryIndexExactlyOnce) {
+  ThreadPool pool(4, std::chrono::microseconds(GetParam()));
   for (std::size_t count : {0u, 1u, 7u, 1000u, 100003u}) {
     for (std::size_t grain : {1u, 64u, 5000u}) {
       std::vector<std::atomic<int>> hits(count);
@@ -21,14 +27,32 @@ TEST(ThreadPool, ParallelForVisitsEveryIndexExactlyOnce) {
   }
 }
 
-TEST(ThreadPool, RunsManyLoopsBackToBack) {
-  ThreadPool pool(3);
+TEST_P(ThreadPoolSpin, RunsManyLoopsBackToBack) {
+  ThreadPool pool(3, std::chrono::microseconds(GetParam()));
   std::atomic<long> sum{0};
   for (int loop = 0; loop < 500; ++loop) {
     pool.ParallelFor(100, 7, [&](std::size_t b, std::size_t e) { sum += long(e - b); });
   }
   EXPECT_EQ(sum.load(), 500 * 100);
 }
+
+// A loop started after the workers went back to sleep (past their spin) still
+// reaches them: every chunk runs, some on a thread other than the caller's.
+TEST_P(ThreadPoolSpin, WakesWorkersThatStoppedSpinning) {
+  ThreadPool pool(4, std::chrono::microseconds(GetParam()));
+  for (int loop = 0; loop < 3; ++loop) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    std::atomic<int> chunks{0};
+    pool.ParallelFor(64, 1, [&](std::size_t, std::size_t) {
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+      ++chunks;
+    });
+    EXPECT_EQ(chunks.load(), 64);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(SleepOrSpin, ThreadPoolSpin, ::testing::Values(0, 50, 2000),
+                         [](const ::testing::TestParamInfo<int>& info) { return "spin" + std::to_string(info.param) + "us"; });
 
 }  // namespace
 }  // namespace skintune::internal

@@ -1,0 +1,130 @@
+#include "runtime/host_work.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstring>
+#include <mutex>
+#include <thread>
+
+#include <unistd.h>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#include <xmmintrin.h>
+#endif
+
+#include "reference/thread_pool.h"
+
+namespace skintune::internal {
+
+namespace {
+
+// Up to 16 threads (the GPU machines' hosts have 16; more would only contend
+// for their memory); idle workers poll for 20 us after a loop before
+// sleeping: long enough to catch the copy that follows a scan, short enough
+// not to hold cores the driver's threads want (a 100 us spin after every
+// parallel palette packing made a SetPalette + Skin + Finish frame 10 us
+// slower on the H200 machine).
+constexpr unsigned kMaxHostThreads = 16;
+constexpr auto kHostSpin = std::chrono::microseconds(20);
+
+ThreadPool& HostPool() {
+  static ThreadPool pool(std::clamp(std::thread::hardware_concurrency(), 1u, kMaxHostThreads), kHostSpin);
+  return pool;
+}
+
+}  // namespace
+
+unsigned HostThreads() { return HostPool().size(); }
+
+void ForChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body,
+               unsigned min_threads) {
+  static std::mutex busy;
+  grain = std::max<std::size_t>(grain, 1);
+  std::unique_lock<std::mutex> lock(busy, std::defer_lock);
+  if (count <= grain || std::thread::hardware_concurrency() < min_threads || !lock.try_lock()) {
+    for (std::size_t begin = 0; begin < count; begin += grain) body(begin, std::min(count, begin + grain));
+    return;
+  }
+  HostPool().ParallelFor(count, grain, body);
+}
+
+bool StreamingWrite(std::size_t bytes) {
+  static const std::size_t threshold = [] {
+    long cache = 0;
+#if defined(_SC_LEVEL3_CACHE_SIZE)
+    cache = sysconf(_SC_LEVEL3_CACHE_SIZE);
+    if (cache <= 0) cache = sysconf(_SC_LEVEL2_CACHE_SIZE);
+#endif
+    if (cache <= 0) cache = 32L << 20;  // not told: a typical server's
+    return static_cast<std::size_t>(cache) / 4 * 3;
+  }();
+  return bytes >= threshold;
+}
+
+bool AllFinite(std::span<const std::uint8_t> bytes) {
+  constexpr std::size_t kBlock = 1024;
+  std::uint32_t words[kBlock];
+  for (std::size_t at = 0; at < bytes.size() / 4; at += kBlock) {
+    const std::size_t n = std::min(kBlock, bytes.size() / 4 - at);
+    std::memcpy(words, bytes.data() + at * 4, n * 4);
+    std::uint32_t special = 0;
+    for (std::size_t i = 0; i < n; ++i) special |= ((words[i] & 0x7f800000u) == 0x7f800000u) ? 1u : 0u;
+    if (special) return false;
+  }
+  return true;
+}
+
+void CopyFloat3(const std::uint8_t* packed, std::size_t stride, float* out, std::size_t begin, std::size_t end,
+                bool streaming) {
+  std::size_t v = begin;
+  const auto scalar_until = [&](std::size_t until) {
+    if (stride == 3 * sizeof(float)) {
+      std::memcpy(out + 3 * v, packed + v * stride, (until - v) * stride);
+      v = until;
+    }
+    for (; v < until; ++v) std::memcpy(out + 3 * v, packed + v * stride, 3 * sizeof(float));
+  };
+#if defined(__SSE2__)
+  if (streaming && (reinterpret_cast<std::uintptr_t>(out) % sizeof(float)) == 0 && (stride == 12 || stride == 16)) {
+    // The first vertex whose float3 starts on a 16-byte boundary (one of the
+    // next four: 12 v mod 16 cycles through 0, 12, 8, 4), then four vertices
+    // (48 bytes, three aligned 16-byte stores) at a time.
+    std::size_t aligned = v;
+    while (aligned < end && reinterpret_cast<std::uintptr_t>(out + 3 * aligned) % 16 != 0) ++aligned;
+    if (aligned + 4 <= end && reinterpret_cast<std::uintptr_t>(out + 3 * aligned) % 16 == 0) {
+      scalar_until(aligned);
+      const std::size_t groups_end = aligned + (end - aligned) / 4 * 4;
+      for (; v < groups_end; v += 4) {
+        float* o = out + 3 * v;
+        const std::uint8_t* in = packed + v * stride;
+        if (stride == 16) {
+          const __m128 a = _mm_loadu_ps(reinterpret_cast<const float*>(in));
+          const __m128 b = _mm_loadu_ps(reinterpret_cast<const float*>(in + 16));
+          const __m128 c = _mm_loadu_ps(reinterpret_cast<const float*>(in + 32));
+          const __m128 d = _mm_loadu_ps(reinterpret_cast<const float*>(in + 48));
+          const __m128 zx = _mm_shuffle_ps(a, b, _MM_SHUFFLE(0, 0, 2, 2));   // z0 z0 x1 x1
+          const __m128 o0 = _mm_shuffle_ps(a, zx, _MM_SHUFFLE(2, 0, 1, 0));  // x0 y0 z0 x1
+          const __m128 o1 = _mm_shuffle_ps(b, c, _MM_SHUFFLE(1, 0, 2, 1));   // y1 z1 x2 y2
+          const __m128 zx2 = _mm_shuffle_ps(c, d, _MM_SHUFFLE(0, 0, 2, 2));  // z2 z2 x3 x3
+          const __m128 o2 = _mm_shuffle_ps(zx2, d, _MM_SHUFFLE(2, 1, 2, 0)); // z2 x3 y3 z3
+          _mm_stream_ps(o, o0);
+          _mm_stream_ps(o + 4, o1);
+          _mm_stream_ps(o + 8, o2);
+        } else {
+          for (int i = 0; i < 3; ++i)
+            _mm_stream_si128(reinterpret_cast<__m128i*>(o) + i,
+                             _mm_loadu_si128(reinterpret_cast<const __m128i*>(in) + i));
+        }
+      }
+      _mm_sfence();
+    }
+  }
+#else
+  (void)streaming;
+#endif
+  scalar_until(end);
+}
+
+}  // namespace skintune::internal

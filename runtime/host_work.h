@@ -1,0 +1,44 @@
+// The Skinner's host work of a read-back, spread over the host's cores: the
+// scan and the copy out of page-locked memory (ReadPositions / ReadNormals).
+//
+// A host thread of the GPU machines moves about 5 GB/s, so a read-back of
+// 1.6M vertices runs on one process-wide pool of up to 16 threads, whose idle
+// workers poll for the next loop for a short while (the copy follows the scan
+// within microseconds) instead of sleeping.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <span>
+
+#include "generator/variant.h"
+
+namespace skintune::internal {
+
+// body(begin, end) over [0, count) in chunks of `grain` on the runtime's host
+// pool when the host has at least `min_threads` hardware threads and count >
+// grain; otherwise (and when another thread is using the pool) on the calling
+// thread, as one chunk per grain in order.
+void ForChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body,
+               unsigned min_threads = 1);
+
+// The number of threads of the runtime's host pool.
+unsigned HostThreads();
+
+// Whether every 32-bit word of `bytes` is a finite float (exponent bits not all set).
+bool AllFinite(std::span<const std::uint8_t> bytes);
+
+// Whether a read-back of `bytes` into the caller's array should use
+// non-temporal stores: from 3/4 of the host's last-level cache on, as glibc's
+// memcpy decides (below it the array stays in cache for the caller, who reads
+// it next; above it, streaming saves the read for ownership of every line).
+bool StreamingWrite(std::size_t bytes);
+
+// Copies vertices [begin, end) of `packed` (stride 12 or 16 bytes, float3 at
+// the start of each, in mesh order) to out[3 * v ...]: when `streaming`, with
+// non-temporal stores followed by a store fence.
+void CopyFloat3(const std::uint8_t* packed, std::size_t stride, float* out, std::size_t begin, std::size_t end,
+                bool streaming);
+
+}  // namespace skintune::internal

@@ -1,0 +1,85 @@
+// The Skinner's host work (runtime/host_work.h): the read-back's scan and
+// copy give exactly what their serial forms give.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "runtime/host_work.h"
+
+namespace skintune::internal {
+namespace {
+
+// Vertices [begin, end) of a stride-12 or stride-16 buffer into a float3
+// array at every alignment of the array, streaming or not: exactly the
+// float3s, and nothing outside [3 begin, 3 end) written.
+TEST(HostWork, CopyFloat3WritesExactlyTheRangeAtEveryAlignmentAndStride) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-100.0f, 100.0f);
+  for (const std::size_t stride : {12u, 16u}) {
+    const std::size_t vertices = 1000;
+    std::vector<std::uint8_t> packed(vertices * stride);
+    std::vector<float> truth(vertices * 3);
+    for (std::size_t v = 0; v < vertices; ++v)
+      for (int c = 0; c < 3; ++c) {
+        truth[v * 3 + c] = u(rng);
+        std::memcpy(packed.data() + v * stride + c * 4, &truth[v * 3 + c], 4);
+      }
+    if (stride == 16)
+      for (std::size_t v = 0; v < vertices; ++v) std::memcpy(packed.data() + v * 16 + 12, &truth[0], 4);
+    for (const bool streaming : {false, true})
+      for (std::size_t shift = 0; shift < 4; ++shift)
+        for (const auto& [begin, end] : std::vector<std::pair<std::size_t, std::size_t>>{
+                 {0, 1000}, {0, 3}, {1, 2}, {5, 9}, {3, 997}, {17, 18}, {0, 0}, {999, 1000}}) {
+          std::vector<float> storage(vertices * 3 + 8, -7.0f);
+          float* out = storage.data() + shift;  // 4-byte steps through a 16-byte line
+          CopyFloat3(packed.data(), stride, out, begin, end, streaming);
+          for (std::size_t i = 0; i < storage.size(); ++i) {
+            const std::ptrdiff_t at = static_cast<std::ptrdiff_t>(i) - static_cast<std::ptrdiff_t>(shift);
+            const bool inside = at >= static_cast<std::ptrdiff_t>(begin * 3) && at < static_cast<std::ptrdiff_t>(end * 3);
+            ASSERT_EQ(storage[i], inside ? truth[static_cast<std::size_t>(at)] : -7.0f)
+                << "stride " << stride << (streaming ? " streaming" : "") << ", shift " << shift << ", [" << begin
+                << ", " << end << ") at " << at;
+          }
+        }
+  }
+}
+
+TEST(HostWork, AllFiniteFindsAnInfinityOrNaNAnywhere) {
+  std::vector<float> words(5000, 1.5f);
+  const auto bytes = [&] { return std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(words.data()), words.size() * 4); };
+  EXPECT_TRUE(AllFinite(bytes()));
+  for (const std::size_t at : {0u, 1023u, 1024u, 4999u}) {
+    for (const float bad : {std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
+                            std::numeric_limits<float>::quiet_NaN()}) {
+      words[at] = bad;
+      EXPECT_FALSE(AllFinite(bytes())) << at;
+      words[at] = std::numeric_limits<float>::max();
+      EXPECT_TRUE(AllFinite(bytes())) << at;
+    }
+  }
+}
+
+// Every chunk exactly once, on the pool and on the caller alone.
+TEST(HostWork, ForChunksVisitsEveryChunkOnce) {
+  for (const unsigned min_threads : {1u, 1000u}) {
+    std::vector<int> hits(100003, 0);
+    ForChunks(hits.size(), 4096, [&](std::size_t b, std::size_t e) {
+      for (std::size_t i = b; i < e; ++i) ++hits[i];
+    }, min_threads);
+    for (std::size_t i = 0; i < hits.size(); ++i) ASSERT_EQ(hits[i], 1) << i;
+  }
+}
+
+TEST(HostWork, StreamingOnlyForWritesLargerThanMostOfTheLastLevelCache) {
+  EXPECT_FALSE(StreamingWrite(0));
+  EXPECT_FALSE(StreamingWrite(64 << 10));
+  EXPECT_TRUE(StreamingWrite(std::size_t{1} << 40));
+}
+
+}  // namespace
+}  // namespace skintune::internal
