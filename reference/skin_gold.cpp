@@ -1,11 +1,20 @@
 // The float64 gold: the reference every kernel variant is checked against.
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <vector>
+
+#include "reference/thread_pool.h"
 
 #include "reference/error.h"
 #include "reference/skinning.h"
 
 namespace skintune::internal {
+
+namespace {
+// Vertices per chunk of the gold and its comparisons on the reference pool.
+constexpr std::size_t kGoldGrain = 16384;
+}  // namespace
 
 void CheckSkinningArguments(const SkinnedMesh& mesh, std::size_t palette_size, std::size_t out_positions,
                             std::size_t out_normals, const char* who) {
@@ -33,7 +42,8 @@ GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
   GoldResult result;
   result.positions.resize(n);
   if (with_normals) result.normals.resize(n);
-  for (std::size_t v = 0; v < n; ++v) {
+  ParallelChunks(n, kGoldGrain, [&](std::size_t first, std::size_t last) {
+  for (std::size_t v = first; v < last; ++v) {
     glm::dmat4 blended(0.0);
     for (int i = 0; i < b; ++i) {
       const double w = mesh.weights[v * b + i];
@@ -46,6 +56,7 @@ GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
       result.normals[v] = len > 0.0 ? n3 / len : n3;
     }
   }
+  });
   return result;
 }
 
@@ -54,23 +65,44 @@ GoldComparison CompareToGold(std::span<const glm::dvec3> gold, std::span<const g
     throw Error("CompareToGold: " + std::to_string(actual.size()) + " values against a gold of " +
                 std::to_string(gold.size()));
   }
-  double largest = 0.0;
-  for (const glm::dvec3& g : gold) largest = std::max(largest, glm::length(g));
+  // Per chunk, then merged in chunk order: the same result as one pass (the
+  // first non-finite vertex, else the first vertex of the largest error).
+  const std::size_t n = gold.size();
+  const std::size_t chunks = (n + kGoldGrain - 1) / kGoldGrain;
+  std::vector<double> largest_of(chunks, 0.0);
+  ParallelChunks(n, kGoldGrain, [&](std::size_t first, std::size_t last) {
+    double largest = 0.0;
+    for (std::size_t v = first; v < last; ++v) largest = std::max(largest, glm::length(gold[v]));
+    largest_of[first / kGoldGrain] = largest;
+  });
+  const double largest = chunks ? *std::max_element(largest_of.begin(), largest_of.end()) : 0.0;
   const double floor = std::max(1e-3 * largest, 1e-30);
+  std::vector<GoldComparison> of(chunks);
+  ParallelChunks(n, kGoldGrain, [&](std::size_t first, std::size_t last) {
+    GoldComparison& c = of[first / kGoldGrain];
+    c.worst_vertex = first;
+    for (std::size_t v = first; v < last; ++v) {
+      const glm::dvec3 a(actual[v]);
+      if (!std::isfinite(a.x) || !std::isfinite(a.y) || !std::isfinite(a.z)) {
+        if (c.non_finite++ == 0) c.worst_vertex = v;
+        continue;
+      }
+      const double abs_err = glm::length(a - gold[v]);
+      const double rel = abs_err / std::max(glm::length(gold[v]), floor);
+      if (rel > c.max_relative) {
+        c.max_relative = rel;
+        if (c.non_finite == 0) c.worst_vertex = v;
+      }
+      c.max_absolute = std::max(c.max_absolute, abs_err);
+    }
+  });
   GoldComparison c;
-  for (std::size_t v = 0; v < gold.size(); ++v) {
-    const glm::dvec3 a(actual[v]);
-    if (!std::isfinite(a.x) || !std::isfinite(a.y) || !std::isfinite(a.z)) {
-      if (c.non_finite++ == 0) c.worst_vertex = v;
-      continue;
-    }
-    const double abs_err = glm::length(a - gold[v]);
-    const double rel = abs_err / std::max(glm::length(gold[v]), floor);
-    if (rel > c.max_relative) {
-      c.max_relative = rel;
-      if (c.non_finite == 0) c.worst_vertex = v;
-    }
-    c.max_absolute = std::max(c.max_absolute, abs_err);
+  for (const GoldComparison& part : of) {
+    if (part.non_finite > 0 && c.non_finite == 0) c.worst_vertex = part.worst_vertex;
+    if (c.non_finite == 0 && part.non_finite == 0 && part.max_relative > c.max_relative) c.worst_vertex = part.worst_vertex;
+    c.non_finite += part.non_finite;
+    c.max_relative = std::max(c.max_relative, part.max_relative);
+    c.max_absolute = std::max(c.max_absolute, part.max_absolute);
   }
   if (c.non_finite > 0) c.max_relative = std::numeric_limits<double>::infinity();
   return c;

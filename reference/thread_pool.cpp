@@ -87,4 +87,25 @@ void ThreadPool::ParallelFor(std::size_t count, std::size_t grain,
   body_ = nullptr;
 }
 
+void ForChunksOn(ThreadPool& pool, std::mutex& busy, std::size_t count, std::size_t grain,
+                 const std::function<void(std::size_t, std::size_t)>& body) {
+  grain = std::max<std::size_t>(grain, 1);
+  std::unique_lock<std::mutex> lock(busy, std::defer_lock);
+  if (count <= grain || pool.size() < 2 || !lock.try_lock()) {
+    for (std::size_t begin = 0; begin < count; begin += grain) body(begin, std::min(count, begin + grain));
+    return;
+  }
+  pool.ParallelFor(count, grain, body);
+}
+
+void ParallelChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body) {
+  if (count <= grain) {  // no pool for small meshes
+    if (count > 0) body(0, count);
+    return;
+  }
+  static std::mutex busy;
+  static ThreadPool pool;
+  ForChunksOn(pool, busy, count, grain, body);
+}
+
 }  // namespace skintune::internal

@@ -57,4 +57,16 @@ class ThreadPool {
   std::atomic<bool> stop_{false};
 };
 
+// body(begin, end) over [0, count) in chunks of `grain` on `pool` when count >
+// grain and no other loop holds `busy` (ParallelFor is not reentrant: a
+// second caller, or a nested loop, runs on its own thread); otherwise on the
+// calling thread, chunk by chunk in order.
+void ForChunksOn(ThreadPool& pool, std::mutex& busy, std::size_t count, std::size_t grain,
+                 const std::function<void(std::size_t, std::size_t)>& body);
+
+// ForChunksOn a process-wide pool of hardware_concurrency() sleeping threads:
+// the float64 gold and its comparisons, which the tuner runs on meshes of
+// millions of vertices (6.4M: ~0.5 s for one gold on one thread).
+void ParallelChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body);
+
 }  // namespace skintune::internal

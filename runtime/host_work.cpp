@@ -42,12 +42,11 @@ void ForChunks(std::size_t count, std::size_t grain, const std::function<void(st
                unsigned min_threads) {
   static std::mutex busy;
   grain = std::max<std::size_t>(grain, 1);
-  std::unique_lock<std::mutex> lock(busy, std::defer_lock);
-  if (count <= grain || std::thread::hardware_concurrency() < min_threads || !lock.try_lock()) {
+  if (count <= grain || std::thread::hardware_concurrency() < min_threads) {
     for (std::size_t begin = 0; begin < count; begin += grain) body(begin, std::min(count, begin + grain));
     return;
   }
-  HostPool().ParallelFor(count, grain, body);
+  ForChunksOn(HostPool(), busy, count, grain, body);
 }
 
 bool StreamingWrite(std::size_t bytes) {

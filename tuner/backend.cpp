@@ -209,7 +209,7 @@ std::string PackingKey(Variant v) {
   return v.Key();
 }
 
-PackedMesh DatasetCache::Packed(Entry& entry, const Variant& variant) {
+const PackedMesh& DatasetCache::Packed(Entry& entry, const Variant& variant) {
   // A few: an exhaustive space walks its storage and work-group values within one packing.
   constexpr std::size_t kPackingsKept = 4;
   const std::string key = PackingKey(variant);
@@ -222,14 +222,13 @@ PackedMesh DatasetCache::Packed(Entry& entry, const Variant& variant) {
     entry.packings.emplace_back(key, Pack(entry.mesh(), variant));  // errors name `variant`
     found = entry.packings.end() - 1;
   }
-  PackedMesh packed = found->second;
-  packed.variant = variant;
-  return packed;
+  found->second.variant = variant;
+  return found->second;
 }
 
-PackedMesh PackScene(DatasetCache& datasets, DatasetCache::Entry& entry, const Variant& variant,
-                     std::vector<KernelSource>& kernels) {
-  PackedMesh packed = datasets.Packed(entry, variant);
+const PackedMesh& PackScene(DatasetCache& datasets, DatasetCache::Entry& entry, const Variant& variant,
+                            std::vector<KernelSource>& kernels) {
+  const PackedMesh& packed = datasets.Packed(entry, variant);
   EmitOptions emit;  // K instances: the instanced kernels (docs/VARIANTS.md "Instancing")
   emit.instanced = entry.instances() > 1;
   emit.max_instances = emit.instanced ? entry.instances() : 0;
@@ -497,13 +496,14 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
                 std::to_string(std::chrono::duration<double, std::milli>(now - mark).count()) + " ms";
     mark = now;
   };
-  PackedMesh packed;
+  const PackedMesh* packed_at = nullptr;  // DatasetCache's packing: nothing packs again during this measurement
   std::vector<KernelSource> kernels;
   try {
-    packed = PackScene(datasets, data, variant, kernels);
+    packed_at = &PackScene(datasets, data, variant, kernels);
   } catch (const Error& e) {
     return finish(MeasureStatus::kInvalid, e.what());
   }
+  const PackedMesh& packed = *packed_at;
   if (faulty)
     for (KernelSource& k : kernels) InjectFault(k, variant, fault.kind);
 

@@ -89,8 +89,12 @@ class DatasetCache {
   const std::vector<std::vector<glm::mat4>>& Frames(Entry& entry, int count);
   // Pack(entry.mesh(), variant), reused from a variant of the same packing
   // (PackingKey): the variants of one packing differ in their kernels only.
-  // Throws Error (naming `variant`) when it cannot be packed.
-  PackedMesh Packed(Entry& entry, const Variant& variant);
+  // The cached packing itself, its `variant` set to `variant`, not a copy (a
+  // 6400k-vertex packing is ~200 MB: copying it cost 85 ms a measurement,
+  // and compile-ahead packs every variant it announces): valid, and of
+  // `variant`, until the next call. Throws Error (naming `variant`) when it
+  // cannot be packed.
+  const PackedMesh& Packed(Entry& entry, const Variant& variant);
 
  private:
   std::map<std::string, std::unique_ptr<Entry>> entries_;
@@ -112,11 +116,11 @@ std::vector<std::vector<glm::mat4>> ScenePalettes(const SkinnedScene& scene, int
 // bytes. An axis not listed here counts as one that changes them.
 std::string PackingKey(Variant variant);
 
-// The variant packed for the scene's mesh (DatasetCache::Packed) and its
-// kernels, one per launch (instanced for K instances). Throws Error when it
-// cannot be packed or emitted.
-PackedMesh PackScene(DatasetCache& datasets, DatasetCache::Entry& entry, const Variant& variant,
-                     std::vector<KernelSource>& kernels);
+// The variant packed for the scene's mesh (DatasetCache::Packed: valid until
+// the next packing) and its kernels, one per launch (instanced for K
+// instances). Throws Error when it cannot be packed or emitted.
+const PackedMesh& PackScene(DatasetCache& datasets, DatasetCache::Entry& entry, const Variant& variant,
+                            std::vector<KernelSource>& kernels);
 
 // ---------------------------------------------------------------- measuring
 

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -157,6 +158,82 @@ TEST(CompareToGold, MeasuresErrorRelativeToTheVertexWithAFloorNearTheOrigin) {
   const GoldComparison c = CompareToGold(gold, actual);
   EXPECT_NEAR(c.max_relative, 0.05 / 0.1, 1e-6);  // floor = 1e-3 * 100
   EXPECT_EQ(c.worst_vertex, 1u);
+}
+
+// CompareToGold runs in chunks on a thread pool for large meshes; one pass
+// over the vertices, as it was written first, is the reference: the same
+// maxima, count and worst vertex (the first non-finite one, else the first of
+// the largest error), whatever chunk holds them.
+GoldComparison OnePass(std::span<const glm::dvec3> gold, std::span<const glm::vec3> actual) {
+  double largest = 0.0;
+  for (const glm::dvec3& g : gold) largest = std::max(largest, glm::length(g));
+  const double floor = std::max(1e-3 * largest, 1e-30);
+  GoldComparison c;
+  for (std::size_t v = 0; v < gold.size(); ++v) {
+    const glm::dvec3 a(actual[v]);
+    if (!std::isfinite(a.x) || !std::isfinite(a.y) || !std::isfinite(a.z)) {
+      if (c.non_finite++ == 0) c.worst_vertex = v;
+      continue;
+    }
+    const double abs_err = glm::length(a - gold[v]);
+    const double rel = abs_err / std::max(glm::length(gold[v]), floor);
+    if (rel > c.max_relative) {
+      c.max_relative = rel;
+      if (c.non_finite == 0) c.worst_vertex = v;
+    }
+    c.max_absolute = std::max(c.max_absolute, abs_err);
+  }
+  if (c.non_finite > 0) c.max_relative = std::numeric_limits<double>::infinity();
+  return c;
+}
+
+TEST(CompareToGold, InChunksIsOnePassWhereverTheWorstVertexAndTheNonFiniteOnesAre) {
+  const std::size_t n = 200003;  // 13 chunks of 16384, the last short
+  std::vector<glm::dvec3> gold(n);
+  std::vector<glm::vec3> actual(n);
+  for (std::size_t v = 0; v < n; ++v) {
+    gold[v] = glm::dvec3(std::sin(0.001 * double(v)), std::cos(0.0007 * double(v)), 0.5 + double(v % 97) / 97.0);
+    actual[v] = glm::vec3(gold[v]) + glm::vec3(float(v % 13) * 1e-7f, 0.0f, float(v % 7) * -1e-7f);
+  }
+  const auto expect_same = [&](const char* what) {
+    const GoldComparison want = OnePass(gold, actual), got = CompareToGold(gold, actual);
+    EXPECT_EQ(got.worst_vertex, want.worst_vertex) << what;
+    EXPECT_EQ(got.non_finite, want.non_finite) << what;
+    EXPECT_EQ(got.max_relative, want.max_relative) << what;
+    EXPECT_EQ(got.max_absolute, want.max_absolute) << what;
+  };
+  expect_same("small errors everywhere");
+  actual[150000].y += 0.25f;  // the largest error, in a late chunk
+  actual[150001].y += 0.25f;  // and a tie after it: the first one is named
+  expect_same("one large error");
+  actual[20000].x += 0.25f;  // the same error, earlier: the tie goes to it
+  expect_same("a tie across chunks");
+  actual[190000].z = std::numeric_limits<float>::quiet_NaN();
+  expect_same("a NaN after the worst vertex");
+  actual[70000].x = std::numeric_limits<float>::infinity();
+  expect_same("an infinity before it");
+  EXPECT_EQ(CompareToGold(gold, actual).worst_vertex, 70000u);
+  EXPECT_EQ(CompareToGold(gold, actual).non_finite, 2u);
+}
+
+// The gold of a large mesh (computed in chunks on a thread pool) is each
+// vertex's own: slices of 50 vertices from several chunks, skinned alone.
+TEST(SkinGold, InChunksIsEveryVertexsOwnGold) {
+  const SkinnedMesh big = RandomMesh(40000, 4, 30, 11, true);
+  const std::vector<glm::mat4> palette = RandomPalette(30, 5);
+  const GoldResult all = SkinGold(big, palette, true);
+  for (const std::size_t first : {0u, 16383u, 16384u, 39950u}) {
+    SkinnedMesh slice = big;
+    slice.positions.assign(big.positions.begin() + first, big.positions.begin() + first + 50);
+    slice.normals.assign(big.normals.begin() + first, big.normals.begin() + first + 50);
+    slice.joints.assign(big.joints.begin() + first * 4, big.joints.begin() + (first + 50) * 4);
+    slice.weights.assign(big.weights.begin() + first * 4, big.weights.begin() + (first + 50) * 4);
+    const GoldResult alone = SkinGold(slice, palette, true);
+    for (std::size_t v = 0; v < 50; ++v) {
+      ASSERT_EQ(all.positions[first + v], alone.positions[v]) << first + v;
+      ASSERT_EQ(all.normals[first + v], alone.normals[v]) << first + v;
+    }
+  }
 }
 
 }  // namespace

@@ -52,7 +52,7 @@ TEST_P(ThreadPoolSpin, WakesWorkersThatStoppedSpinning) {
 }
 
 INSTANTIATE_TEST_SUITE_P(SleepOrSpin, ThreadPoolSpin, ::testing::Values(0, 50, 2000),
-                         [](const ::testing::TestParamInfo<int>& info) { return "spin" + std::to_string(info.param) + "us"; });
+                         [](const ::testing::TestParamInfo<int>& p) { return "spin" + std::to_string(p.param) + "us"; });
 
 }  // namespace
 }  // namespace skintune::internal

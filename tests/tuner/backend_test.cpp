@@ -382,6 +382,12 @@ TEST(Packings, APackingIsReusedWithTheMeasuredVariantInIt) {
   const PackedMesh second = datasets.Packed(entry, local);
   EXPECT_EQ(first.variant, global);
   EXPECT_EQ(second.variant, local);
+  // The cached packing itself, not a copy (a 6400k-vertex one is ~200 MB),
+  // with the variant of the last call.
+  const PackedMesh* at_global = &datasets.Packed(entry, global);
+  const PackedMesh& again = datasets.Packed(entry, local);
+  EXPECT_EQ(&again, at_global);
+  EXPECT_EQ(again.variant, local);
   EXPECT_EQ(entry.packings.size(), 1u);
   EXPECT_EQ(second.launches.front().inputs.front().bytes, Pack(entry.mesh(), local).launches.front().inputs.front().bytes);
   // A variant that cannot be packed is named in the error, and nothing is kept for it.
