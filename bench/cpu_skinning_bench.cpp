@@ -18,7 +18,8 @@
 // 2. Any --benchmark_* flag runs the Google Benchmark suite instead: the
 //    paper's datasets (configs/paper.json: 25k/100k/400k/1600k vertices x
 //    1..4 influences, 77 bones, bone locality) through the serial loop, the
-//    fast path and the gold, plus the memory copy bandwidth measured by the
+//    fast path and the gold (on every core since 2026-11-26: reference/thread_pool.h
+//    ParallelChunks), plus the memory copy bandwidth measured by the
 //    same harness, so every GB/s figure can be read as a fraction of what
 //    memory can do.
 //
