@@ -6,6 +6,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <ctime>
 #include <filesystem>
 #include <limits>
@@ -117,6 +120,11 @@ std::vector<std::vector<glm::mat4>> ScenePalettes(const SkinnedScene& scene, int
 DatasetCache::Entry& DatasetCache::Get(const std::string& key) {
   if (auto found = entries_.find(key); found != entries_.end()) return *found->second;
   auto entry = std::make_unique<Entry>();
+#if defined(__GLIBC__)
+  // The tune worker keeps freed blocks (KeepLargeBlocks, tuner/worker.cpp):
+  // hand them back before a new data set's memory check reads MemAvailable.
+  malloc_trim(0);
+#endif
   // Import warnings (renormalised weights) are the importer's to report.
   entry->scene = LoadScene(ParseSceneKey(key));
   entry->verification_palette = ScenePalettes(entry->scene, 1).front();

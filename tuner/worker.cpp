@@ -2,6 +2,9 @@
 #include "tuner/worker.h"
 
 #include <fcntl.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <poll.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
@@ -455,7 +458,27 @@ std::optional<double> IsolatedBackend::CopyBandwidthGBps(std::size_t bytes, std:
 
 // ------------------------------------------------------------------ child side
 
+namespace {
+
+// A measurement allocates and frees buffers of hundreds of MB on a large mesh
+// (6400k-b4: the poisoned outputs, the read-backs, their unpacking, the
+// drivers' host copies). glibc maps every block over 32 MB afresh and unmaps
+// it when freed, so each measurement paid the kernel's zeroing of every new
+// page again (27% of a 6400k measurement's process time under perf). From the
+// heap instead, kept once freed: the worker's memory stays at its largest
+// measurement's, and a 6400k-b4 measurement's "run" phase went from ~275 to
+// ~80 ms on PoCL (docs/PERFORMANCE.md, issue 16 item 10).
+void KeepLargeBlocks() {
+#if defined(__GLIBC__)
+  mallopt(M_MMAP_MAX, 0);
+  mallopt(M_TRIM_THRESHOLD, INT_MAX);
+#endif
+}
+
+}  // namespace
+
 int RunTuneWorker(int backend_index, const std::string& device_id, const std::string& host_lock) {
+  KeepLargeBlocks();
   if (!host_lock.empty()) {
     try {
       tuner_internal::UseHostLock(host_lock);
