@@ -130,8 +130,8 @@ TEST_P(BatchOnEveryBackend, EveryLanguageSkinsEachMeshLikeItsOwnGold) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, BatchOnEveryBackend, ::testing::ValuesIn(BackendIndices()),
-                         [](const ::testing::TestParamInfo<int>& info) {
-                           return std::string(BackendName(static_cast<Backend>(info.param)));
+                         [](const ::testing::TestParamInfo<int>& p) {
+                           return std::string(BackendName(static_cast<Backend>(p.param)));
                          });
 
 // The errors of a batch, on the first OpenCL device (PoCL here).

@@ -247,7 +247,9 @@ TEST(SharedInputs, ASecondPrepareOfTheSameInputsAllocatesNone) {
     for (int set = 0; set < 3; ++set) {
       EXPECT_EQ(runner.OutputBuffer(second, set, false) != nullptr, true);
       for (int other = 0; other < 3; ++other)
-        if (other != set) EXPECT_NE(runner.OutputBuffer(second, set, false), runner.OutputBuffer(second, other, false));
+        if (other != set) {
+          EXPECT_NE(runner.OutputBuffer(second, set, false), runner.OutputBuffer(second, other, false));
+        }
     }
     const Prepared third = runner.Prepare(copy.mesh, kernel, other_palettes);
     EXPECT_EQ(allocated(clock, BufferUse::kInput), share ? 3 : 9);

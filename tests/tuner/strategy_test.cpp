@@ -325,7 +325,9 @@ TEST(Strategy, LookAheadAnnouncesWhatIsEvaluatedNextWithinTheBudgetAndChangesNot
     };
     const LookAhead ahead = [&](const std::vector<Variant>& next) {
       ASSERT_FALSE(next.empty());
-      if (c.budget != 0) EXPECT_LE(evaluated.size() + next.size(), c.budget);
+      if (c.budget != 0) {
+        EXPECT_LE(evaluated.size() + next.size(), c.budget);
+      }
       for (const Variant& v : next) {
         EXPECT_EQ(std::find(evaluated.begin(), evaluated.end(), v.Key()), evaluated.end()) << v.Key();
         announced_at.emplace(v.Key(), evaluated.size());
