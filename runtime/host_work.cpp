@@ -36,14 +36,10 @@ ThreadPool& HostPool() {
 
 }  // namespace
 
-unsigned HostThreads() { return HostPool().size(); }
-
-void ForChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body,
-               unsigned min_threads) {
+void ForChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body) {
   static std::mutex busy;
-  grain = std::max<std::size_t>(grain, 1);
-  if (count <= grain || std::thread::hardware_concurrency() < min_threads) {
-    for (std::size_t begin = 0; begin < count; begin += grain) body(begin, std::min(count, begin + grain));
+  if (count <= std::max<std::size_t>(grain, 1)) {  // the pool only for more than one chunk
+    if (count > 0) body(0, count);
     return;
   }
   ForChunksOn(HostPool(), busy, count, grain, body);

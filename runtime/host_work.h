@@ -17,14 +17,9 @@
 namespace skintune::internal {
 
 // body(begin, end) over [0, count) in chunks of `grain` on the runtime's host
-// pool when the host has at least `min_threads` hardware threads and count >
-// grain; otherwise (and when another thread is using the pool) on the calling
-// thread, as one chunk per grain in order.
-void ForChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body,
-               unsigned min_threads = 1);
-
-// The number of threads of the runtime's host pool.
-unsigned HostThreads();
+// pool when count > grain; otherwise (and when another thread is using the
+// pool) on the calling thread, chunk by chunk in order.
+void ForChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body);
 
 // Whether every 32-bit word of `bytes` is a finite float (exponent bits not all set).
 bool AllFinite(std::span<const std::uint8_t> bytes);

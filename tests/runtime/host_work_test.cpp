@@ -2,6 +2,7 @@
 // copy give exactly what their serial forms give.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -64,14 +65,14 @@ TEST(HostWork, AllFiniteFindsAnInfinityOrNaNAnywhere) {
   }
 }
 
-// Every chunk exactly once, on the pool and on the caller alone.
-TEST(HostWork, ForChunksVisitsEveryChunkOnce) {
-  for (const unsigned min_threads : {1u, 1000u}) {
-    std::vector<int> hits(100003, 0);
-    ForChunks(hits.size(), 4096, [&](std::size_t b, std::size_t e) {
+// Every index exactly once, in chunks on the pool and as one chunk on the caller.
+TEST(HostWork, ForChunksVisitsEveryIndexOnce) {
+  for (const std::size_t grain : {std::size_t{4096}, std::size_t{1} << 20}) {
+    std::vector<std::atomic<int>> hits(100003);
+    ForChunks(hits.size(), grain, [&](std::size_t b, std::size_t e) {
       for (std::size_t i = b; i < e; ++i) ++hits[i];
-    }, min_threads);
-    for (std::size_t i = 0; i < hits.size(); ++i) ASSERT_EQ(hits[i], 1) << i;
+    });
+    for (std::size_t i = 0; i < hits.size(); ++i) ASSERT_EQ(hits[i].load(), 1) << i;
   }
 }
 
