@@ -4,10 +4,9 @@
 #include <limits>
 #include <vector>
 
-#include "reference/thread_pool.h"
-
 #include "reference/error.h"
 #include "reference/skinning.h"
+#include "reference/thread_pool.h"
 
 namespace skintune::internal {
 
@@ -43,19 +42,19 @@ GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
   result.positions.resize(n);
   if (with_normals) result.normals.resize(n);
   ParallelChunks(n, kGoldGrain, [&](std::size_t first, std::size_t last) {
-  for (std::size_t v = first; v < last; ++v) {
-    glm::dmat4 blended(0.0);
-    for (int i = 0; i < b; ++i) {
-      const double w = mesh.weights[v * b + i];
-      if (w != 0.0) blended += w * glm::dmat4(palette[mesh.joints[v * b + i]]);
+    for (std::size_t v = first; v < last; ++v) {
+      glm::dmat4 blended(0.0);
+      for (int i = 0; i < b; ++i) {
+        const double w = mesh.weights[v * b + i];
+        if (w != 0.0) blended += w * glm::dmat4(palette[mesh.joints[v * b + i]]);
+      }
+      result.positions[v] = glm::dvec3(blended * glm::dvec4(glm::dvec3(mesh.positions[v]), 1.0));
+      if (with_normals) {
+        const glm::dvec3 n3 = glm::dmat3(blended) * glm::dvec3(mesh.normals[v]);
+        const double len = glm::length(n3);
+        result.normals[v] = len > 0.0 ? n3 / len : n3;
+      }
     }
-    result.positions[v] = glm::dvec3(blended * glm::dvec4(glm::dvec3(mesh.positions[v]), 1.0));
-    if (with_normals) {
-      const glm::dvec3 n3 = glm::dmat3(blended) * glm::dvec3(mesh.normals[v]);
-      const double len = glm::length(n3);
-      result.normals[v] = len > 0.0 ? n3 / len : n3;
-    }
-  }
   });
   return result;
 }

@@ -21,9 +21,9 @@ class ThreadPool {
   // spin: how long an idle worker (and a caller waiting for the last chunk)
   // keeps polling before it sleeps on a condition variable. Zero for loops
   // of milliseconds (the cpu device's kernels: a sleeping worker costs
-  // nothing); some tens of microseconds for loops of a few microseconds run
-  // every frame (the runtime's palette packing and read-backs), where waking
-  // a sleeping thread takes about as long as the work.
+  // nothing); some microseconds for loops that follow each other closely
+  // (the runtime's read-back: its scan, then its copy), where waking a
+  // sleeping thread takes about as long as the work.
   explicit ThreadPool(unsigned threads = 0, std::chrono::microseconds spin = std::chrono::microseconds(0));
   ~ThreadPool();
   ThreadPool(const ThreadPool&) = delete;

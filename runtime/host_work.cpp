@@ -1,7 +1,6 @@
 #include "runtime/host_work.h"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cstring>
 #include <mutex>

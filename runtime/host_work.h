@@ -12,8 +12,6 @@
 #include <functional>
 #include <span>
 
-#include "generator/variant.h"
-
 namespace skintune::internal {
 
 // body(begin, end) over [0, count) in chunks of `grain` on the runtime's host

@@ -6,13 +6,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
 #include <ctime>
 #include <filesystem>
 #include <limits>
 #include <sstream>
+#if defined(__GLIBC__)
+#include <malloc.h>  // malloc_trim
+#endif
 
 #include <nlohmann/json.hpp>
 

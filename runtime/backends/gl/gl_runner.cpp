@@ -1,7 +1,6 @@
 // The GL DeviceApi (gl_api.h), part one: programs (with the program cache),
 // buffers, the palette's block or texture buffer, bindings and capture
 // ranges; and GlRunner. Draws, dispatches and timers: gl_frames.cpp.
-#include "generator/template_includes.h"
 #include "runtime/backends/gl/gl_runner.h"
 
 #include <algorithm>
@@ -9,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "generator/template_includes.h"
 #include "reference/error.h"
 #include "runtime/backends/gl/gl_api.h"
 #include "runtime/output_check.h"
