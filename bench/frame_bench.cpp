@@ -6,6 +6,7 @@
 //   instanced/skin-only           K instances of N vertices in one launch, Skin only
 //   instanced/set-skin-pipelined  SetPalette (K palettes) + Skin, no Finish between frames
 //   instanced/set-skin-finish     SetPalette + Skin + Finish every frame
+//   instanced/set-only            SetPalette (K palettes) alone: the uploads' own cost
 //   skinners/skin-only            K Skinners of N vertices, K launches per frame
 //   read-back                     ReadPositions of the one mesh's K x N float3 positions
 //
@@ -16,7 +17,10 @@
 // and, for the frame loops, of_skin_only: their throughput over the
 // Skin-only loop of the same shape (1 = the palette costs nothing).
 // read-back reports bytes/s. one-mesh/skin-only and the pipelined loop also
-// report the host's time inside Skin (and SetPalette) per frame. A summary on stderr gives pipelined /
+// report the host's time inside Skin (and SetPalette) per frame; set-only
+// also reports the palettes' bytes/s (host packing and the copy, which a
+// pipelined frame can hide behind the kernel only where it is the shorter).
+// A summary on stderr gives pipelined /
 // skin-only and finish-per-frame minus skin-only, from the medians of the
 // repetitions (--benchmark_repetitions) with benchmarks interleaved
 // (--benchmark_enable_random_interleaving) where the machine is noisy.
@@ -230,6 +234,25 @@ void InstancedSetSkinFinish(benchmark::State& state) {
       "instanced/skin-only");
 }
 
+// No Skin: nothing reads the palettes, so SetPalette never waits on the
+// ring, and the iteration's Finish waits for the last upload.
+void InstancedSetOnly(benchmark::State& state) {
+  Scene& s = TheScene();
+  double set_s = 0.0;
+  std::size_t frames = 0;
+  Frames(state, "instanced/set-only", s.instanced, [&](int f) {
+    const auto start = Clock::now();
+    Must(s.instanced.SetPalette(s.crowd[f].data(), s.crowd[f].size()), "SetPalette");
+    set_s += std::chrono::duration<double>(Clock::now() - start).count();
+    ++frames;
+  });
+  state.counters["set_palette_us"] = UsPerFrame(set_s, frames);
+  // The bytes uploaded: 48 per matrix for mat3x4 blending (three rows), else 64.
+  const bool rows3 = s.instanced.selection().variant.find(".mat3x4.") != std::string::npos;
+  const double bytes = double(s.crowd[0].size() / 16) * (rows3 ? 48.0 : 64.0);
+  state.counters["palette_bytes/s"] = benchmark::Counter(bytes / (per_frame_us["instanced/set-only"].back() * 1e-6));
+}
+
 void SkinnersSkinOnly(benchmark::State& state) {
   Scene& s = TheScene();
   // The Skinners share the Device's queue: finishing the last waits for all of them.
@@ -260,6 +283,7 @@ void RegisterAll() {
                      {"frame/instanced/skin-only", InstancedSkinOnly},
                      {"frame/instanced/set-skin-pipelined", InstancedPipelined},
                      {"frame/instanced/set-skin-finish", InstancedSetSkinFinish},
+                     {"frame/instanced/set-only", InstancedSetOnly},
                      {"frame/skinners/skin-only", SkinnersSkinOnly},
                      {"frame/read-back", ReadBack}};
   for (const auto& b : kBenchmarks)

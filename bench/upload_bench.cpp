@@ -12,6 +12,11 @@
 //   sync/empty               cuEventRecord + cuEventSynchronize on an idle stream
 //   host/<bytes>/pack-wc     memcpy of the bytes into write-combined memory (the packing's stores)
 //   host/<bytes>/pack        the same into ordinary memory
+//   palette/<memory>         PackPaletteInto of 64 x 77 mat3x4 (SetPalette's packing) into
+//                            each kind of host memory, from 8 poses in turn as the frame
+//                            benchmark's (2.5 MB of input: not all in a core's cache)
+//   palette/<memory>/chunks:<n>  the same in n chunks on the runtime's host pool
+//                            (runtime/host_work.h ForChunks: the read-back's spinning threads)
 //
 // Each reports bytes/s; the time is the host's wall time per copy.
 //
@@ -24,7 +29,9 @@
 #include <string>
 #include <vector>
 
+#include "generator/packer.h"
 #include "runtime/backends/cuda/cuda_api.h"
+#include "runtime/host_work.h"
 
 namespace {
 
@@ -105,7 +112,7 @@ void EmptySync(benchmark::State& state) {
   api->cuEventDestroy(event);
 }
 
-void Pack(benchmark::State& state, std::size_t bytes, Memory kind) {
+void CopyIn(benchmark::State& state, std::size_t bytes, Memory kind) {
   Host to(bytes, kind);
   std::vector<unsigned char> from(bytes, 2);
   for (auto _ : state) {
@@ -113,6 +120,30 @@ void Pack(benchmark::State& state, std::size_t bytes, Memory kind) {
     benchmark::ClobberMemory();
   }
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * bytes));
+}
+
+void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks) {
+  constexpr std::size_t kMatrices = 64 * 77, kPoses = 8;
+  Variant variant;
+  variant.palette = PaletteFormat::kMat3x4;
+  Host to(kMatrices * 48, kind);
+  std::vector<std::vector<float>> poses(kPoses, std::vector<float>(kMatrices * 16));
+  for (std::size_t p = 0; p < kPoses; ++p)
+    for (std::size_t i = 0; i < poses[p].size(); ++i) poses[p][i] = static_cast<float>((i + p) % 97) * 0.01f;
+  std::size_t pose = 0;
+  auto* out = static_cast<std::uint8_t*>(to.p);
+  for (auto _ : state) {
+    const float* in = poses[pose++ % kPoses].data();
+    if (chunks <= 1) {
+      benchmark::DoNotOptimize(PackPaletteInto(in, kMatrices, variant, out));
+    } else {
+      ForChunks(kMatrices, (kMatrices + chunks - 1) / chunks, [&](std::size_t begin, std::size_t end) {
+        benchmark::DoNotOptimize(PackPaletteInto(in + 16 * begin, end - begin, variant, out + 48 * begin));
+      });
+    }
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * kMatrices * 48));
 }
 
 }  // namespace
@@ -143,10 +174,15 @@ int main(int argc, char** argv) {
         benchmark::RegisterBenchmark(("dtoh/" + size + "/" + m.name).c_str(), DtoH, bytes, m.kind)->UseRealTime();
       if (m.kind != Memory::kPinned)
         benchmark::RegisterBenchmark(("host/" + size + "/" + std::string(m.kind == Memory::kPinnedWc ? "pack-wc" : "pack")).c_str(),
-                                     Pack, bytes, m.kind)
+                                     CopyIn, bytes, m.kind)
             ->UseRealTime();
     }
   }
+  for (const auto& m : memories)
+    for (std::size_t chunks : {1, 4, 8, 16}) {
+      const std::string name = std::string("palette/") + m.name + (chunks > 1 ? "/chunks:" + std::to_string(chunks) : "");
+      benchmark::RegisterBenchmark(name.c_str(), PackPalettes, m.kind, chunks)->UseRealTime();
+    }
   benchmark::RegisterBenchmark("sync/empty", EmptySync)->UseRealTime();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

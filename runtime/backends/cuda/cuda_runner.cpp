@@ -118,6 +118,7 @@ class CudaMemory final : public DeviceBuffer {
   cuda::DevicePtr pointer() const { return memory.get(); }
   Memory memory;
   std::unique_ptr<CudaPinned> upload;            // write-combined: the host only writes it
+  Event uploaded;                                // recorded on the upload stream after each upload from `upload`
   mutable std::unique_ptr<CudaPinned> readback;
   mutable std::vector<Event> readback_chunks;     // ReadPinnedChunks: one event per chunk, reused
 };
@@ -172,6 +173,10 @@ class CudaApi final : public DeviceApi {
     api->cuCtxSetCurrent(context);
     for (cuda::Stream& lane : lanes_)
       if (lane) api->cuStreamDestroy(lane);
+    if (uploads_) {
+      api->cuStreamSynchronize(uploads_);
+      api->cuStreamDestroy(uploads_);
+    }
     built_.clear();  // unloads the modules while their context is current
     if (primary) api->cuDevicePrimaryCtxRelease(device);
   }
@@ -180,6 +185,8 @@ class CudaApi final : public DeviceApi {
   void MakeCurrent() override { Check(api->cuCtxSetCurrent(context), "launch", "cuCtxSetCurrent"); }
   bool ReadyToRelease() override {
     api->cuCtxSetCurrent(context);  // frees the buffers and textures while their context is current
+    if (uploads_) api->cuStreamSynchronize(uploads_);  // no upload still reads a staging about to be freed
+    last_upload_ = nullptr;                            // done, and its event may go with its buffer
     return true;
   }
   void Build(const KernelSource& source) override { KernelFor(source); }
@@ -207,7 +214,10 @@ class CudaApi final : public DeviceApi {
                               const std::string& what) override;
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
-  void Finish() override { Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize"); }
+  void Finish() override {
+    JoinUploads(stream);
+    Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize");
+  }
 
  private:
   const BuiltKernel& KernelFor(const KernelSource& source);
@@ -219,10 +229,17 @@ class CudaApi final : public DeviceApi {
   std::vector<std::vector<double>> RunTimed(const FrameRun& run);
 
   cuda::Stream Lane(int i);
+  // Palette uploads run on a stream of their own (non-blocking: it does not
+  // wait for the legacy default stream's kernels, which the Skinner uses
+  // unless given one), so frame n+1's upload overlaps frame n's kernel. The
+  // next work queued on `lane` after an upload waits for it on the device.
+  void JoinUploads(cuda::Stream lane);
 
   std::map<std::string, BuiltKernel> built_;  // by source hash
   std::mutex built_mutex_;                     // built_ (ConcurrentBuilds)
   cuda::Stream lanes_[2] = {nullptr, nullptr};  // Time's two streams (made on first use)
+  cuda::Stream uploads_ = nullptr;              // the palette uploads' stream (made on first use)
+  cuda::Event last_upload_ = nullptr;           // the latest upload's event, until a stream waits for it
 };
 
 // ---------------------------------------------------------------- kernels
@@ -328,22 +345,43 @@ std::unique_ptr<DeviceObject> CudaApi::PaletteView(const Variant& variant, Devic
 }
 
 // The palette's page-locked staging (write-combined: the host only writes
-// it), and an asynchronous copy from it on the Skinner's stream (the
-// driver's ring fence says nothing reads either).
+// it), and an asynchronous copy from it on the upload stream. The driver's
+// ring fence says no launch still reads the buffer; Staging also waits until
+// the buffer's last upload has read the staging (a slot written again
+// before any launch used it).
 std::span<std::uint8_t> CudaApi::Staging(DeviceBuffer& buffer, const std::string& key) {
   auto& m = static_cast<CudaMemory&>(buffer);
   if (!m.upload)
     m.upload = std::make_unique<CudaPinned>(api, m.bytes(), cuda::kMemHostAllocWriteCombined, "the palette staging of " + key);
+  if (m.uploaded.get())
+    Check(api->cuEventSynchronize(m.uploaded.get()), "launch", "cuEventSynchronize on the last upload of 'palette' of " + key);
   return {static_cast<std::uint8_t*>(m.upload->host), m.bytes()};
 }
 
 void CudaApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) {
   auto& m = static_cast<CudaMemory&>(buffer);
-  Check(api->cuMemcpyHtoDAsync(m.pointer(), Staging(buffer, key).data(), bytes, stream), "launch",
+  if (!m.upload) Fail("launch", "Upload of 'palette' of " + key + " before its Staging");
+  if (!uploads_) Check(api->cuStreamCreate(&uploads_, cuda::kStreamNonBlocking), "launch", "cuStreamCreate for uploads");
+  if (!m.uploaded.get()) {
+    cuda::Event e = nullptr;
+    Check(api->cuEventCreate(&e, cuda::kEventDisableTiming), "launch", "cuEventCreate for the uploads of " + key);
+    m.uploaded = Event(e, api->cuEventDestroy);
+  }
+  Check(api->cuMemcpyHtoDAsync(m.pointer(), m.upload->host, bytes, uploads_), "launch",
         "cuMemcpyHtoDAsync 'palette' of " + key);
+  Check(api->cuEventRecord(m.uploaded.get(), uploads_), "launch", "cuEventRecord after uploading 'palette' of " + key);
+  last_upload_ = m.uploaded.get();
+}
+
+// One stream's wait covers every upload before the last (one upload stream, in order).
+void CudaApi::JoinUploads(cuda::Stream lane) {
+  if (!last_upload_) return;
+  Check(api->cuStreamWaitEvent(lane, last_upload_, 0), "launch", "cuStreamWaitEvent for the palette uploads");
+  if (lane == stream) last_upload_ = nullptr;
 }
 
 void CudaApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) {
+  JoinUploads(stream);
   if (wait) Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize before reading back " + what);
   Check(api->cuMemcpyDtoH(out.data(), static_cast<const CudaMemory&>(buffer).pointer(), out.size()), "launch",
         "cuMemcpyDtoH " + what);
@@ -363,6 +401,7 @@ DeviceApi::PinnedRead CudaApi::ReadPinnedChunks(const DeviceBuffer& buffer, std:
     m.readback_chunks.emplace_back(e, api->cuEventDestroy);
   }
   auto* host = static_cast<std::uint8_t*>(m.readback->host);
+  JoinUploads(stream);
   for (std::size_t c = 0; c < chunks; ++c) {
     const std::size_t at = c * chunk, n = std::min(chunk, bytes - at);
     Check(api->cuMemcpyDtoHAsync(host + at, m.pointer() + at, n, stream), "launch", "cuMemcpyDtoHAsync " + what);
@@ -380,6 +419,7 @@ std::span<const std::uint8_t> CudaApi::ReadPinned(const DeviceBuffer& buffer, st
                                                   const std::string& what) {
   const auto& m = static_cast<const CudaMemory&>(buffer);
   if (!m.readback) m.readback = std::make_unique<CudaPinned>(api, m.bytes(), 0, "the read-back of " + what);
+  JoinUploads(stream);
   Check(api->cuMemcpyDtoHAsync(m.readback->host, m.pointer(), bytes, stream), "launch", "cuMemcpyDtoHAsync " + what);
   Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize after reading back " + what);
   return {static_cast<const std::uint8_t*>(m.readback->host), bytes};
@@ -391,6 +431,7 @@ void CudaApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& wha
     Check(api->cuEventCreate(&e, cuda::kEventDisableTiming), "launch", "cuEventCreate for the palette ring of " + what);
     marker = std::make_unique<CudaMarker>(Event(e, api->cuEventDestroy));
   }
+  JoinUploads(stream);
   Check(api->cuEventRecord(static_cast<CudaMarker&>(*marker).event.get(), stream), "launch",
         "cuEventRecord after " + what);
 }
@@ -487,6 +528,10 @@ bool UsesConstantSymbol(const FrameRun& run) {
 // lane: its frames share the module's __constant__ symbol.
 std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
   const bool verify = run.use == FrameUse::kVerify;
+  if (last_upload_) {  // not timed: wait for the uploads on the host
+    Check(api->cuStreamSynchronize(uploads_), "launch", "cuStreamSynchronize on the palette uploads");
+    last_upload_ = nullptr;
+  }
   const std::string what = verify ? "cuEventCreate for " + run.key : "cuEventCreate for timing " + run.key;
   const auto record = [&](const Event& e, cuda::Stream lane) {
     Check(api->cuEventRecord(e.get(), lane), "launch", "cuEventRecord of " + run.key);
@@ -542,6 +587,7 @@ std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
 std::vector<std::vector<double>> CudaApi::RunFrames(const FrameRun& run) {
   if (run.use != FrameUse::kLive) return RunTimed(run);
   const auto out = static_cast<cuda::DevicePtr>(reinterpret_cast<std::uintptr_t>(run.out_positions));
+  JoinUploads(stream);
   for (const auto& frame : run.frames)
     for (const std::unique_ptr<DeviceObject>& launch : frame) {
       const auto& bound = static_cast<const CudaBound&>(*launch);

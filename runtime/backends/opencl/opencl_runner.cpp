@@ -109,6 +109,7 @@ class ClMemory final : public DeviceBuffer {
   void* native() const override { return memory.get(); }
   Memory memory;
   std::unique_ptr<ClPinned> upload;            // made on the first Write
+  Event uploaded;                              // the last upload from `upload`
   mutable std::unique_ptr<ClPinned> readback;  // made on the first ReadPinned
   mutable std::vector<Event> readback_chunks;  // ReadPinnedChunks' events, of the last read
 };
@@ -173,7 +174,15 @@ class OpenClApi final : public DeviceApi {
                               const std::string& what) override;
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
-  void Finish() override { Check(clFinish(queue.get()), "launch", "clFinish"); }
+  void Finish() override {
+    JoinUploads(queue.get());
+    Check(clFinish(queue.get()), "launch", "clFinish");
+  }
+  bool ReadyToRelease() override {  // no upload still reads a staging about to be released
+    if (uploads_.get()) clFinish(uploads_.get());
+    last_upload_.reset();
+    return true;
+  }
 
  private:
   cl_kernel KernelFor(const KernelSource& source);
@@ -183,6 +192,10 @@ class OpenClApi final : public DeviceApi {
   Memory NewMemory(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what);
   void Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event, cl_command_queue on = nullptr);
   cl_command_queue Lane(int i);
+  // Palette uploads run on an in-order queue of their own, so frame n+1's
+  // upload overlaps frame n's kernel; the next command queued on `on` after
+  // an upload waits for it (a barrier on its event).
+  void JoinUploads(cl_command_queue on);
   // Time's bursts (FrameUse::kTime) on the two lanes.
   struct LaneEdges {
     Event first[2], last[2];  // per lane: its first launch of the burst, its last
@@ -192,6 +205,8 @@ class OpenClApi final : public DeviceApi {
 
   std::map<std::string, BuiltKernel> built_;  // by source hash
   std::mutex built_mutex_;                     // built_ (ConcurrentBuilds)
+  Queue uploads_;                              // the palette uploads' queue (made on first use)
+  Event last_upload_;                          // the latest upload's event, until `queue` waits for it
 };
 
 // ---------------------------------------------------------------- programs
@@ -298,23 +313,47 @@ std::unique_ptr<DeviceObject> OpenClApi::PaletteView(const Variant& variant, Dev
   return std::make_unique<ClMemory>(std::move(image), 0);
 }
 
-// The palette's page-locked staging, and a non-blocking write from it (the
-// driver's ring fence says nothing reads the staging or the palette).
+// The palette's page-locked staging, and a non-blocking write from it on the
+// upload queue. The driver's ring fence says no launch still reads the
+// buffer; Staging also waits until the buffer's last upload has read the
+// staging (a slot written again before any launch used it).
 std::span<std::uint8_t> OpenClApi::Staging(DeviceBuffer& buffer, const std::string& key) {
   auto& memory = static_cast<ClMemory&>(buffer);
   if (!memory.upload)
     memory.upload = std::make_unique<ClPinned>(context.get(), queue.get(), memory.bytes(), "the palette staging of " + key);
+  if (const cl_event last = memory.uploaded.get())
+    Check(clWaitForEvents(1, &last), "launch", "clWaitForEvents on the last upload of 'palette' of " + key);
   return {static_cast<std::uint8_t*>(memory.upload->host), memory.bytes()};
 }
 
 void OpenClApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) {
   auto& memory = static_cast<ClMemory&>(buffer);
-  Check(clEnqueueWriteBuffer(queue.get(), memory.memory.get(), CL_FALSE, 0, bytes, Staging(buffer, key).data(), 0,
-                             nullptr, nullptr),
+  if (!memory.upload) Fail("launch", "Upload of 'palette' of " + key + " before its Staging");
+  if (!uploads_.get()) {
+    cl_int err = CL_SUCCESS;
+    uploads_ = Queue(clCreateCommandQueue(context.get(), device, 0, &err));
+    Check(err, "launch", "clCreateCommandQueue for uploads on " + name_);
+  }
+  cl_event event = nullptr;
+  Check(clEnqueueWriteBuffer(uploads_.get(), memory.memory.get(), CL_FALSE, 0, bytes, memory.upload->host, 0, nullptr,
+                             &event),
         "launch", "clEnqueueWriteBuffer 'palette' of " + key);
+  memory.uploaded = Event(event);
+  Check(clRetainEvent(event), "launch", "clRetainEvent of the upload of " + key);
+  last_upload_ = Event(event);
+  Check(clFlush(uploads_.get()), "launch", "clFlush after uploading 'palette' of " + key);
+}
+
+// One barrier covers every upload before the last (one in-order upload queue).
+void OpenClApi::JoinUploads(cl_command_queue on) {
+  const cl_event last = last_upload_.get();
+  if (!last) return;
+  Check(clEnqueueBarrierWithWaitList(on, 1, &last, nullptr), "launch", "clEnqueueBarrierWithWaitList for the palette uploads");
+  if (on == queue.get()) last_upload_.reset();
 }
 
 void OpenClApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool) {
+  JoinUploads(queue.get());
   Check(clEnqueueReadBuffer(queue.get(), static_cast<cl_mem>(buffer.native()), CL_TRUE, 0, out.size(), out.data(), 0,
                             nullptr, nullptr),
         "launch", "clEnqueueReadBuffer " + what);
@@ -329,6 +368,7 @@ DeviceApi::PinnedRead OpenClApi::ReadPinnedChunks(const DeviceBuffer& buffer, st
     memory.readback = std::make_unique<ClPinned>(context.get(), queue.get(), memory.bytes(), "the read-back of " + what);
   auto* host = static_cast<std::uint8_t*>(memory.readback->host);
   memory.readback_chunks.clear();
+  JoinUploads(queue.get());
   for (std::size_t at = 0; at < bytes; at += chunk) {
     cl_event event = nullptr;
     Check(clEnqueueReadBuffer(queue.get(), memory.memory.get(), CL_FALSE, at, std::min(chunk, bytes - at), host + at,
@@ -349,6 +389,7 @@ std::span<const std::uint8_t> OpenClApi::ReadPinned(const DeviceBuffer& buffer, 
   const auto& memory = static_cast<const ClMemory&>(buffer);
   if (!memory.readback)
     memory.readback = std::make_unique<ClPinned>(context.get(), queue.get(), memory.bytes(), "the read-back of " + what);
+  JoinUploads(queue.get());
   Check(clEnqueueReadBuffer(queue.get(), memory.memory.get(), CL_TRUE, 0, bytes, memory.readback->host, 0, nullptr,
                             nullptr),
         "launch", "clEnqueueReadBuffer " + what);
@@ -358,6 +399,7 @@ std::span<const std::uint8_t> OpenClApi::ReadPinned(const DeviceBuffer& buffer, 
 // A marker after everything queued, and the queue flushed: the device starts
 // on the frame while the host prepares the next one.
 void OpenClApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) {
+  JoinUploads(queue.get());
   cl_event event = nullptr;
   Check(clEnqueueMarkerWithWaitList(queue.get(), 0, nullptr, &event), "launch", "clEnqueueMarkerWithWaitList after " + what);
   marker = std::make_unique<ClMarker>(event);
@@ -456,10 +498,15 @@ double EventMs(cl_event event) {
 
 std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
   if (run.use == FrameUse::kLive) {
+    JoinUploads(queue.get());
     for (const auto& frame : run.frames)
       for (const std::unique_ptr<DeviceObject>& launch : frame)
         Enqueue(static_cast<const ClBound&>(*launch), static_cast<cl_mem>(run.out_positions), nullptr);
     return {};
+  }
+  if (last_upload_.get()) {  // not timed: wait for the uploads on the host
+    Check(clFinish(uploads_.get()), "launch", "clFinish on the palette uploads");
+    last_upload_.reset();
   }
   if (run.use == FrameUse::kVerify) {
     std::vector<Event> events;
