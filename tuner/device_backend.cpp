@@ -155,9 +155,15 @@ class DeviceBackend final : public Backend {
 
   double CopyBandwidthGBps(std::size_t bytes) override {
     const std::size_t size = CopyBytesCapped(bytes, device_.max_allocation_bytes);
-    // One set (a copy this large is far beyond any cache), bursts of a few frames.
+    // One set (a copy this large is far beyond any cache), bursts of a few
+    // frames. Its buffers (several times the last-level cache: seconds of
+    // allocation and first touch on a CPU device) are made before a CPU
+    // device takes the host's cores for the bursts alone (tuner/host_lock.h),
+    // so the GPU workers beside it wait only for the bursts.
+    Executor();  // opens runner_
+    const Prepared prepared = runner_->PrepareCopy(languages_.front(), 2 * size, 1);
     const HostLock timed(TimedMode(IsCpu(device_.identity)));
-    return CopyGBps(size, Executor().TimeCopy(languages_.front(), 2 * size, 1, 2, 10, 4));
+    return CopyGBps(size, SteadyCopyTimes([&] { return runner_->Time(prepared, 2, 10, 4); }));
   }
 
   std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) override {
