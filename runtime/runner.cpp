@@ -424,6 +424,7 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
   double previous = 0.0;  // ms per frame of the last burst of the same size
   int bursts = 0, frames_per_burst = kWarmupFirstFrames;
   double after = -1.0;
+  bool capped = false;  // stopped by kWarmupMaxMs
   for (std::size_t frame = 0;; ++bursts) {
     FrameRun burst;
     burst.use = FrameUse::kTime;
@@ -433,7 +434,10 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
     const auto burst_start = Clock::now();
     api_->RunFrames(burst);  // waits for the burst
     const double elapsed = ms_since(burst_start), total = ms_since(start);
-    if (total >= kWarmupMaxMs) break;
+    if (total >= kWarmupMaxMs) {
+      capped = true;
+      break;
+    }
     // Still warm (the probe says the clock is up): one burst long enough to
     // keep the device busy is all it needs.
     if (warm && elapsed >= kWarmupBurstMs) break;
@@ -463,13 +467,17 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
   busy_until_ = Clock::now();
   if (!warm) {
     // Just warmed: the probe's time at this clock (the fastest seen is kept).
+    // After a whole second of load the clock is as high as it gets now: a
+    // probe still slower than the fastest seen (a lucky one, or a device
+    // slower since: NVIDIA's Vulkan on the H100 late in a tuning run) is the
+    // new reference, or every later variant would pay the full second again.
     if (const std::optional<double> probe = ProbeMs(p)) {
       after = *probe;
-      warm_probe_ms_ = warm_probe_ms_ ? std::min(*warm_probe_ms_, *probe) : *probe;
+      warm_probe_ms_ = warm_probe_ms_ && !capped ? std::min(*warm_probe_ms_, *probe) : *probe;
     }
   }
   TimingLog([&] {
-    return p.key + (warm ? " short" : " full") + " warm-up " + std::to_string(warm_ms) + " ms, " +
+    return p.key + (warm ? " short" : capped ? " full (capped)" : " full") + " warm-up " + std::to_string(warm_ms) + " ms, " +
            std::to_string(bursts + 1) + " bursts of up to " + std::to_string(frames_per_burst) + " frames; probe " +
            std::to_string(probed) + " ms before, " + std::to_string(after) + " after, warm probe " +
            std::to_string(warm_probe_ms_.value_or(-1.0));

@@ -40,11 +40,12 @@ constexpr double kCoolMs = 30.0;
 
 struct Clock {
   double load_ms = 0.0;
+  double slowdown = 1.0;  // > 1: the device slower than it was, at every clock, from now on
   std::size_t frames = 0;  // frames run so far
   std::vector<BufferUse> allocations;  // each buffer the runner allocated
   std::optional<std::chrono::steady_clock::time_point> idle_since;
   bool hot() const { return load_ms >= kRaiseMs; }
-  double BytesPerMs() const { return hot() ? kHotBytesPerMs : kColdBytesPerMs; }
+  double BytesPerMs() const { return (hot() ? kHotBytesPerMs : kColdBytesPerMs) / slowdown; }
   // At the start of a submission: a device idle for kCoolMs is cold.
   void Wake() {
     if (idle_since && std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - *idle_since).count() >= kCoolMs)
@@ -213,6 +214,29 @@ TEST_F(WarmDevice, AStillWarmDeviceGetsOneBusyBurst) {
   // steadiness check would add at least one more burst of 256.
   const std::size_t warm_up = clock.frames - before - (2u + 5u * 10u) - 6u;
   EXPECT_EQ(warm_up, 16u + 32u + 64u + 128u + 256u);
+}
+
+// The device got slower for good (the fastest probe seen can no longer be
+// reached): one full warm-up runs to its one-second cap, and its last probe
+// becomes the reference, so the next variant after a pause is still warm
+// (one busy burst) instead of paying another second (NVIDIA's Vulkan on the
+// H100 late in a `skintune run`: seven variants in a row, 1 s each).
+TEST_F(WarmDevice, AWarmUpCappedAtASecondResetsTheReference) {
+  clock.slowdown = 1.3;  // beyond the probe's 15%
+  Idle();
+  auto start = std::chrono::steady_clock::now();
+  ASSERT_FALSE(TimeIt(runner, small).empty());
+  const double first_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_GE(first_ms, 1000.0) << "the first warm-up after the slowdown should run to the cap";
+  std::this_thread::sleep_for(std::chrono::milliseconds(15));  // past the runner's 10 ms, short of the clock's 30
+  const std::size_t before = clock.frames;
+  start = std::chrono::steady_clock::now();
+  const std::vector<double> second = TimeIt(runner, small);
+  const double second_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_LT(second_ms, 200.0) << "a second full warm-up ran";
+  const std::size_t warm_up = clock.frames - before - (2u + 5u * 10u) - 6u;
+  EXPECT_LE(warm_up, 16u + 32u + 64u + 128u + 256u) << "more than one busy burst";
+  for (double t : second) EXPECT_NEAR(t, HotFrameMs() * clock.slowdown, 1e-12);
 }
 
 // Runner::ShareTimedInputs (the tuner's runners): a second Prepare of the
