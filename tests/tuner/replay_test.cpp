@@ -207,26 +207,32 @@ TEST(Replay, ExhaustiveAtTheFullBudgetIsExactlyOptimal) {
 // recorded by `skintune tune --config tests/data/tuning/exhaustive-1600k-b4.json`
 // (timing version 2), and issue 16's wide space of 864 (720 valid, 480 within
 // the default error budget) by `--config tests/data/tuning/exhaustive-wide-1600k-b4.json`
-// (timing version 4) in OpenCL, CUDA and GLSL compute.
+// (timing version 4) in OpenCL, CUDA and GLSL compute, at 1600k-b4 and at
+// 6400k-b4 (`--config tests/data/tuning/exhaustive-wide-6400k-b4.json`).
 struct Recorded {
   const char* file;
   const char* device_id;
+  const char* dataset;
   std::size_t ok;
 };
+constexpr const char* kH100Cuda = "cuda:CUDA/NVIDIA H100 80GB HBM3/580.159.04 (CUDA 13.0)";
+constexpr const char* kH100Gl = "gl:device/NVIDIA H100 80GB HBM3/PCIe/SSE2/4.3.0 NVIDIA 580.159.04";
+constexpr const char* kH100OpenCl = "opencl:NVIDIA CUDA/NVIDIA H100 80GB HBM3/580.159.04";
 const Recorded kRecorded[] = {
-    {"h100-cuda-1600k-b4.jsonl", "cuda:CUDA/NVIDIA H100 80GB HBM3/580.159.04 (CUDA 13.0)", 480},
-    {"h100-glsl-compute-1600k-b4.jsonl", "gl:device/NVIDIA H100 80GB HBM3/PCIe/SSE2/4.3.0 NVIDIA 580.159.04", 480},
-    {"h100-v4-opencl-1600k-b4-wide.jsonl", "opencl:NVIDIA CUDA/NVIDIA H100 80GB HBM3/580.159.04", 480},
-    {"h100-v4-cuda-1600k-b4-wide.jsonl", "cuda:CUDA/NVIDIA H100 80GB HBM3/580.159.04 (CUDA 13.0)", 480},
-    {"h100-v4-glsl-compute-1600k-b4-wide.jsonl", "gl:device/NVIDIA H100 80GB HBM3/PCIe/SSE2/4.3.0 NVIDIA 580.159.04",
-     480},
+    {"h100-cuda-1600k-b4.jsonl", kH100Cuda, "1600k-b4", 480},
+    {"h100-glsl-compute-1600k-b4.jsonl", kH100Gl, "1600k-b4", 480},
+    {"h100-v4-opencl-1600k-b4-wide.jsonl", kH100OpenCl, "1600k-b4", 480},
+    {"h100-v4-cuda-1600k-b4-wide.jsonl", kH100Cuda, "1600k-b4", 480},
+    {"h100-v4-glsl-compute-1600k-b4-wide.jsonl", kH100Gl, "1600k-b4", 480},
+    {"h100-v4-opencl-6400k-b4-wide.jsonl", kH100OpenCl, "6400k-b4", 480},
+    {"h100-v4-cuda-6400k-b4-wide.jsonl", kH100Cuda, "6400k-b4", 480},
 };
 
 TEST(Replay, StrategyComparisonOnRecordedH100Measurements) {
   for (const Recorded& recorded : kRecorded) {
     SCOPED_TRACE(recorded.file);
     const std::string path = std::string(SKINTUNE_TEST_DATA_DIR) + "/tuning/" + recorded.file;
-    ReplayEvaluator replay = ReplayEvaluator::FromCacheFile(path, recorded.device_id, "1600k-b4");
+    ReplayEvaluator replay = ReplayEvaluator::FromCacheFile(path, recorded.device_id, recorded.dataset);
     EXPECT_EQ(replay.ok_count(), recorded.ok);
     const StrategyComparison c =
         CompareStrategies(replay.variants(), replay.AsEvaluator(), {0.02, 0.05, 0.1, 0.25, 0.5}, 20);
