@@ -226,6 +226,7 @@ const Recorded kRecorded[] = {
     {"h100-v4-glsl-compute-1600k-b4-wide.jsonl", kH100Gl, "1600k-b4", 480},
     {"h100-v4-opencl-6400k-b4-wide.jsonl", kH100OpenCl, "6400k-b4", 480},
     {"h100-v4-cuda-6400k-b4-wide.jsonl", kH100Cuda, "6400k-b4", 480},
+    {"h100-v4-glsl-compute-6400k-b4-wide.jsonl", kH100Gl, "6400k-b4", 480},
 };
 
 TEST(Replay, StrategyComparisonOnRecordedH100Measurements) {
