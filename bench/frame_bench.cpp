@@ -26,7 +26,7 @@
 // (--benchmark_enable_random_interleaving) where the machine is noisy.
 //
 //   skintune_bench_frame [--device PATTERN] [--variant KEY] [--db FILE]
-//                        [--instances K] [--scale S] [--frames F] [google benchmark flags]
+//                        [--instances K] [--scale S] [--frames F] [--poses P] [google benchmark flags]
 //
 // --scale multiplies N (0.01: 250-vertex instances), for a quick run on a
 // CPU device; --device picks the device as Device::Open does (default
@@ -56,10 +56,14 @@ struct Options {
   int instances = 64;
   double scale = 1.0;
   int frames = 50;
+  // Frames rotate through this many precomputed poses. 2 (the default): the
+  // palettes SetPalette reads are in the core's cache, as an animation
+  // system's output is right after it wrote them (64 x 77 matrices: 315 KB a
+  // pose); 8 poses (2.5 MB) are read from the last-level cache instead.
+  int poses = 2;
 };
 Options options;
 
-constexpr int kPoses = 8;  // palettes rotate through this many frames
 
 [[noreturn]] void Die(const std::string& message) {
   std::fprintf(stderr, "skintune_bench_frame: %s\n", message.c_str());
@@ -104,7 +108,7 @@ struct Scene {
     for (std::size_t i = 0; i < k; ++i) skinners.push_back(Must(Skinner::Create(device, db, instance.mesh(), one), "Skinner"));
     const double duration = std::max(instance.animation_duration(0), 1e-3);
     std::vector<float> palette;
-    for (int f = 0; f < kPoses; ++f) {
+    for (int f = 0; f < options.poses; ++f) {
       std::vector<float>& frame = crowd.emplace_back();
       for (std::size_t i = 0; i < k; ++i) {
         Must(instance.Palette(0, std::fmod((double(i) / double(k) + f / 30.0) * duration, duration), &palette), "palette");
@@ -152,7 +156,7 @@ void Frames(benchmark::State& state, const std::string& name, Skinner& finish, F
   double total_s = 0.0;
   for (auto _ : state) {
     const auto start = Clock::now();
-    for (int i = 0; i < options.frames; ++i) frame(f++ % kPoses);
+    for (int i = 0; i < options.frames; ++i) frame(f++ % options.poses);
     Must(finish.Finish(), "Finish");
     const double s = std::chrono::duration<double>(Clock::now() - start).count();
     state.SetIterationTime(s / options.frames);
@@ -308,6 +312,7 @@ void ParseOptions(int& argc, char** argv) {
     else if (arg == "--instances" && has_value) options.instances = static_cast<int>(number(1));
     else if (arg == "--scale" && has_value) options.scale = number(1e-6);
     else if (arg == "--frames" && has_value) options.frames = static_cast<int>(number(1));
+    else if (arg == "--poses" && has_value) options.poses = static_cast<int>(number(2));
     else argv[kept++] = argv[i];
   }
   argc = kept;
