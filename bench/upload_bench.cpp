@@ -10,6 +10,9 @@
 //   dtoh/<bytes>/pageable    cuMemcpyDtoH into malloc'd memory
 //   dtoh/<bytes>/pinned      cuMemcpyDtoHAsync into cuMemHostAlloc(0) + cuStreamSynchronize
 //   sync/empty               cuEventRecord + cuEventSynchronize on an idle stream
+//   call/<bytes>/<memory>    the host's time in the calls of one SetPalette upload alone:
+//                            cuMemcpyHtoDAsync + cuEventRecord, the copy not waited for
+//                            (the stream is drained every 32 copies, outside the time)
 //   host/<bytes>/pack-wc     memcpy of the bytes into write-combined memory (the packing's stores)
 //   host/<bytes>/pack        the same into ordinary memory
 //   palette/<memory>         PackPaletteInto of 64 x 77 mat3x4 (SetPalette's packing) into
@@ -23,6 +26,7 @@
 //   skintune_bench_upload [google benchmark flags]
 #include <benchmark/benchmark.h>
 
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -102,6 +106,23 @@ void DtoH(benchmark::State& state, std::size_t bytes, Memory kind) {
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * bytes));
 }
 
+void UploadCalls(benchmark::State& state, std::size_t bytes, Memory kind) {
+  Host host(bytes, kind);
+  DeviceMemory device(bytes);
+  cuda::Event event = nullptr;
+  Ok(api->cuEventCreate(&event, cuda::kEventDisableTiming), "cuEventCreate");
+  std::size_t n = 0;
+  for (auto _ : state) {
+    const auto start = std::chrono::steady_clock::now();
+    Ok(api->cuMemcpyHtoDAsync(device.p, host.p, bytes, stream), "cuMemcpyHtoDAsync");
+    Ok(api->cuEventRecord(event, stream), "cuEventRecord");
+    state.SetIterationTime(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    if (++n % 32 == 0) Ok(api->cuStreamSynchronize(stream), "cuStreamSynchronize");
+  }
+  Ok(api->cuStreamSynchronize(stream), "cuStreamSynchronize");
+  api->cuEventDestroy(event);
+}
+
 void EmptySync(benchmark::State& state) {
   cuda::Event event = nullptr;
   Ok(api->cuEventCreate(&event, cuda::kEventDisableTiming), "cuEventCreate");
@@ -172,6 +193,8 @@ int main(int argc, char** argv) {
       benchmark::RegisterBenchmark(("htod/" + size + "/" + m.name).c_str(), HtoD, bytes, m.kind)->UseRealTime();
       if (m.kind != Memory::kPinnedWc)
         benchmark::RegisterBenchmark(("dtoh/" + size + "/" + m.name).c_str(), DtoH, bytes, m.kind)->UseRealTime();
+      if (m.kind != Memory::kPageable)
+        benchmark::RegisterBenchmark(("call/" + size + "/" + m.name).c_str(), UploadCalls, bytes, m.kind)->UseManualTime();
       if (m.kind != Memory::kPinned)
         benchmark::RegisterBenchmark(("host/" + size + "/" + std::string(m.kind == Memory::kPinnedWc ? "pack-wc" : "pack")).c_str(),
                                      CopyIn, bytes, m.kind)

@@ -471,9 +471,12 @@ class Skinner {
   // matrix and element. A rejected palette changes nothing: the next Skin()
   // uses the last palette accepted. The data is copied into page-locked
   // staging of the next palette buffer before SetPalette returns and
-  // uploaded asynchronously: the caller may reuse `matrices` at once.
-  // Blocks only when the palette buffer it needs is still read by a frame
-  // queued 3 SetPalette calls ago.
+  // uploaded asynchronously (CUDA and OpenCL: on a stream / queue of the
+  // Skinner's own, which the next Skin waits for on the device, so the
+  // upload overlaps the frame still running): the caller may reuse
+  // `matrices` at once. Blocks only when the palette buffer it needs is
+  // still read by a frame queued 3 SetPalette calls ago (or, when no Skin
+  // came between, while that buffer's upload is still in flight).
   Status SetPalette(const float* matrices, std::size_t float_count);
 
   // Queues the skinning of every instance with the last palette set and
