@@ -321,9 +321,19 @@ std::string ShortStatus(const Measurement& m) {
   return text;
 }
 
+// The measurement cache's key of `variant` on a device and data set, by this generator.
+std::string CacheKeyOf(const std::string& device_id, const std::string& dataset, const Variant& variant) {
+  Measurement probe;
+  probe.device_id = device_id;
+  probe.dataset = dataset;
+  probe.variant = variant;
+  probe.generator_version = kGeneratorVersion;
+  return probe.CacheKey();
+}
+
 // The bytes each of the probe copy's source and destination hold: together
 // four times the last-level cache, so the copy streams from memory (a larger
-// copy measures the same and, on a CPU device, costs seconds of allocation).
+// one cost a CPU device seconds of allocation and first touch).
 std::size_t CopyBytes(const DeviceIdentity& d) {
   std::uint64_t bytes = std::max<std::uint64_t>(64ull << 20, 2 * d.last_level_cache_bytes);
   if (d.global_memory_bytes > 0) bytes = std::min<std::uint64_t>(bytes, d.global_memory_bytes / 4);
@@ -604,14 +614,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
         const std::string& key = datasets[task.dataset].info.key;
         std::size_t task_done = 0;
         std::set<std::string> seen;
-        auto cache_key_of = [&](const Variant& v) {
-          Measurement probe;
-          probe.device_id = id;
-          probe.dataset = key;
-          probe.variant = v;
-          probe.generator_version = kGeneratorVersion;
-          return probe.CacheKey();
-        };
+        auto cache_key_of = [&](const Variant& v) { return CacheKeyOf(id, key, v); };
         // A verified record from before skintune measured the error against
         // the source cannot be judged by the budget: measured again.
         auto cached = [&](const std::string& cache_key) -> std::optional<Measurement> {
@@ -724,13 +727,9 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
           std::vector<Variant> ahead;
           for (const std::vector<Variant>* list : {&task.baselines, &task.candidates})
             for (const Variant& v : *list) {
-              Measurement probe;
-              probe.device_id = device.identity.Id();
-              probe.dataset = key;
-              probe.variant = v;
-              probe.generator_version = kGeneratorVersion;
+              const std::string cache_key = CacheKeyOf(device.identity.Id(), key, v);
               std::lock_guard<std::mutex> lock(shared);
-              if (!cache.Find(probe.CacheKey())) ahead.push_back(v);
+              if (!cache.Find(cache_key)) ahead.push_back(v);
             }
           if (ahead.size() >= 2) worker.CompileAhead(ahead, TuningDataset{key});
         }
