@@ -7,7 +7,7 @@
 #include <limits>
 #include <sstream>
 
-#if defined(__SSE2__)
+#if defined(__SSE2__) || defined(__x86_64__)
 #include <immintrin.h>
 #endif
 
@@ -337,11 +337,60 @@ std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8
 #endif
   return first_special;
 }
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define SKINTUNE_PACK_AVX512 1
+// One matrix per 512-bit register: the transpose is one permute, the rows
+// one masked store (48 or 64 bytes; masked-off lanes are never written), the
+// exponent test one compare into a mask. Built for AVX-512F whatever the
+// compiler's target; called only where the CPU has it (PackIsaAvailable).
+__attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* column_major, std::size_t matrices,
+                                                                std::uint8_t* out, std::size_t rows) {
+  // Output word k (row k / 4, column k % 4) is input word (k % 4) * 4 + k / 4.
+  const __m512i transpose = _mm512_set_epi32(15, 11, 7, 3, 14, 10, 6, 2, 13, 9, 5, 1, 12, 8, 4, 0);
+  const __m512i exponent = _mm512_set1_epi32(0x7f800000);
+  const __mmask16 kept = rows == 4 ? 0xFFFF : 0x0FFF;
+  auto* rows_out = reinterpret_cast<float*>(out);
+  std::size_t first_special = matrices;
+  for (std::size_t j = 0; j < matrices; ++j) {
+    const __m512 m = _mm512_loadu_ps(column_major + 16 * j);
+    const __mmask16 special =
+        _mm512_cmpeq_epi32_mask(_mm512_and_si512(_mm512_castps_si512(m), exponent), exponent);
+    _mm512_mask_storeu_ps(rows_out + 4 * rows * j, kept, _mm512_maskz_permutexvar_ps(kept, transpose, m));
+    if (special != 0 && first_special == matrices) first_special = j;
+  }
+  return first_special;
+}
+#endif
 }  // namespace
 
-std::size_t PackPaletteInto(const float* column_major, std::size_t matrices, const Variant& variant, std::uint8_t* out) {
-  return PaletteMatrixBytes(variant) == 64 ? PackRows<4>(column_major, matrices, out)
-                                           : PackRows<3>(column_major, matrices, out);
+bool PackIsaAvailable(PackIsa isa) {
+  switch (isa) {
+    case PackIsa::kAuto:
+    case PackIsa::kBaseline:
+      return true;
+    case PackIsa::kAvx512:
+#if defined(SKINTUNE_PACK_AVX512)
+      return __builtin_cpu_supports("avx512f");
+#else
+      return false;
+#endif
+  }
+  return false;
+}
+
+std::size_t PackPaletteInto(const float* column_major, std::size_t matrices, const Variant& variant, std::uint8_t* out,
+                            PackIsa isa) {
+  const std::size_t rows = PaletteMatrixBytes(variant) / 16;
+#if defined(SKINTUNE_PACK_AVX512)
+  static const bool avx512 = PackIsaAvailable(PackIsa::kAvx512);
+  if (isa == PackIsa::kAvx512 && !avx512) throw Error("PackPaletteInto: this CPU has no AVX-512F");
+  if (isa == PackIsa::kAvx512 || (isa == PackIsa::kAuto && avx512))
+    return PackRowsAvx512(column_major, matrices, out, rows);
+#else
+  if (isa == PackIsa::kAvx512) throw Error("PackPaletteInto: built without the AVX-512 path");
+#endif
+  return rows == 4 ? PackRows<4>(column_major, matrices, out) : PackRows<3>(column_major, matrices, out);
 }
 
 std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uint8_t> output) {

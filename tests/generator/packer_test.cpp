@@ -6,6 +6,8 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <iostream>
+#include <limits>
 #include <numeric>
 #include <random>
 #include <string>
@@ -463,6 +465,46 @@ TEST(Packer, PalettesAreFloat4RowsFourForMat4AndThreeForMat3x4) {
     const PackedMesh packed = Pack(RandomMesh(4, 2, 3, false, 1), v);
     EXPECT_EQ(packed.palette_joints, 3u);
     EXPECT_EQ(packed.palette, PackPalette(std::vector<glm::mat4>(3, glm::mat4(1.0f)), v));
+  }
+}
+
+// Every code path of PackPaletteInto (the AVX-512 one where this CPU has
+// it, else skipped and said so) against the element-by-element definition:
+// the transposed rows, nothing written past the last matrix, and the first
+// matrix with a NaN or infinite element, wherever it sits in the matrix.
+TEST(Packer, EveryPackPathWritesTheRowsAndFindsTheFirstNonFiniteMatrix) {
+  constexpr std::size_t kMatrices = 37;
+  std::vector<float> matrices(16 * kMatrices);
+  for (std::size_t i = 0; i < matrices.size(); ++i) matrices[i] = static_cast<float>(i % 251) * 0.5f - 60.0f;
+  const float specials[] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
+                            -std::numeric_limits<float>::infinity()};
+  for (PackIsa isa : {PackIsa::kBaseline, PackIsa::kAvx512, PackIsa::kAuto}) {
+    if (!PackIsaAvailable(isa)) {
+      std::cout << "[   INFO   ] pack path " << static_cast<int>(isa) << " skipped: this CPU (or build) lacks it\n";
+      continue;
+    }
+    for (auto format : {PaletteFormat::kMat4, PaletteFormat::kMat3x4}) {
+      Variant v;
+      v.palette = format;
+      const std::size_t rows = format == PaletteFormat::kMat4 ? 4 : 3;
+      std::vector<std::uint8_t> out(kMatrices * rows * 16 + 64, 0xAB);  // a guard after the rows
+      EXPECT_EQ(PackPaletteInto(matrices.data(), kMatrices, v, out.data(), isa), kMatrices);
+      for (std::size_t j = 0; j < kMatrices; ++j)
+        for (std::size_t r = 0; r < rows; ++r)
+          for (std::size_t c = 0; c < 4; ++c)
+            ASSERT_EQ(ReadFloat(out, ((j * rows + r) * 4 + c) * 4), matrices[16 * j + 4 * c + r])
+                << "isa " << static_cast<int>(isa) << " matrix " << j << " row " << r << " column " << c;
+      for (std::size_t b = kMatrices * rows * 16; b < out.size(); ++b) ASSERT_EQ(out[b], 0xAB) << "byte " << b;
+      // A special element in each position of a few matrices: the first such matrix is reported.
+      for (std::size_t bad : {std::size_t{0}, std::size_t{17}, kMatrices - 1})
+        for (std::size_t e = 0; e < 16; ++e) {
+          std::vector<float> with = matrices;
+          with[16 * bad + e] = specials[e % 3];
+          if (bad + 5 < kMatrices) with[16 * (bad + 5)] = specials[(e + 1) % 3];  // a later one does not count
+          EXPECT_EQ(PackPaletteInto(with.data(), kMatrices, v, out.data(), isa), bad)
+              << "isa " << static_cast<int>(isa) << " element " << e << " of matrix " << bad;
+        }
+    }
   }
 }
 
