@@ -341,9 +341,12 @@ std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define SKINTUNE_PACK_AVX512 1
 // One matrix per 512-bit register: the transpose is one permute, the rows
-// one masked store (48 or 64 bytes; masked-off lanes are never written), the
-// exponent test one compare into a mask. Built for AVX-512F whatever the
-// compiler's target; called only where the CPU has it (PackIsaAvailable).
+// one 64-byte store, the exponent test one compare into a mask. With three
+// rows each store's fourth row lands on the next matrix's first, which the
+// next store overwrites: every store is a plain one, in order, as
+// write-combined staging wants; only the last matrix's is masked (nothing
+// written past the end). Built for AVX-512F whatever the compiler's target;
+// called only where the CPU has it (PackIsaAvailable).
 __attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* column_major, std::size_t matrices,
                                                                 std::uint8_t* out, std::size_t rows) {
   // Output word k (row k / 4, column k % 4) is input word (k % 4) * 4 + k / 4.
@@ -356,7 +359,12 @@ __attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* colum
     const __m512 m = _mm512_loadu_ps(column_major + 16 * j);
     const __mmask16 special =
         _mm512_cmpeq_epi32_mask(_mm512_and_si512(_mm512_castps_si512(m), exponent), exponent);
-    _mm512_mask_storeu_ps(rows_out + 4 * rows * j, kept, _mm512_maskz_permutexvar_ps(kept, transpose, m));
+    const __m512 t = _mm512_maskz_permutexvar_ps(0xFFFF, transpose, m);
+    if (rows == 4 || j + 1 < matrices) {
+      _mm512_storeu_ps(rows_out + 4 * rows * j, t);
+    } else {
+      _mm512_mask_storeu_ps(rows_out + 4 * rows * j, kept, t);
+    }
     if (special != 0 && first_special == matrices) first_special = j;
   }
   return first_special;
