@@ -359,6 +359,8 @@ __attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* colum
     const __m512 m = _mm512_loadu_ps(column_major + 16 * j);
     const __mmask16 special =
         _mm512_cmpeq_epi32_mask(_mm512_and_si512(_mm512_castps_si512(m), exponent), exponent);
+    // maskz with every lane kept is the plain permute; GCC 12 warns on
+    // _mm512_permutexvar_ps's own undefined source operand.
     const __m512 t = _mm512_maskz_permutexvar_ps(0xFFFF, transpose, m);
     if (rows == 4 || j + 1 < matrices) {
       _mm512_storeu_ps(rows_out + 4 * rows * j, t);
