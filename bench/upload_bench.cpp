@@ -13,11 +13,23 @@
 //   call/<bytes>/<memory>    the host's time in the calls of one SetPalette upload alone:
 //                            cuMemcpyHtoDAsync + cuEventRecord, the copy not waited for
 //                            (the stream is drained every 32 copies, outside the time)
+//   call/frame/<op>          each other driver call of a pipelined frame alone, the host's time:
+//                              launch        cuLaunchKernel of an empty kernel (the stream drained every 32)
+//                              record        cuEventRecord
+//                              wait-event    cuStreamWaitEvent on an event already recorded
+//                              sync-done     cuEventSynchronize on an event already complete
+//                              query-done    cuEventQuery on an event already complete
+//                              set-current   cuCtxSetCurrent (the runtime's MakeCurrent)
+//                              all           the frame's five queueing calls in order: upload
+//                                            (cuMemcpyHtoDAsync 236 KB + cuEventRecord on the
+//                                            upload stream), cuStreamWaitEvent, cuLaunchKernel,
+//                                            cuEventRecord on the kernel's stream
 //   host/<bytes>/pack-wc     memcpy of the bytes into write-combined memory (the packing's stores)
 //   host/<bytes>/pack        the same into ordinary memory
 //   palette/<memory>         PackPaletteInto of 64 x 77 mat3x4 (SetPalette's packing) into
 //                            each kind of host memory, from 8 poses in turn as the frame
 //                            benchmark's (2.5 MB of input: not all in a core's cache)
+//   palette/<memory>/poses:2 the same from 2 poses (0.6 MB: in L2, as the frame benchmark's default)
 //   palette/<memory>/chunks:<n>  the same in n chunks on the runtime's host pool
 //                            (runtime/host_work.h ForChunks: the read-back's spinning threads)
 //
@@ -43,6 +55,7 @@ using namespace skintune::internal;
 
 const cuda::DriverApi* api = nullptr;
 cuda::Stream stream = nullptr;
+cuda::Context context = nullptr;  // the device's primary context
 
 void Ok(cuda::Result r, const char* what) {
   if (r != cuda::kSuccess) {
@@ -123,6 +136,55 @@ void UploadCalls(benchmark::State& state, std::size_t bytes, Memory kind) {
   api->cuEventDestroy(event);
 }
 
+// An empty kernel, as PTX the driver compiles for any device.
+constexpr char kEmptyPtx[] =
+    ".version 7.0\n.target sm_50\n.address_size 64\n.visible .entry skintune_empty()\n{\n  ret;\n}\n";
+
+enum class Call { kLaunch, kRecord, kWaitEvent, kSyncDone, kQueryDone, kSetCurrent, kAll };
+
+void FrameCall(benchmark::State& state, Call call) {
+  cuda::Module module = nullptr;
+  cuda::Function function = nullptr;
+  Ok(api->cuModuleLoadDataEx(&module, kEmptyPtx, 0, nullptr, nullptr), "cuModuleLoadDataEx");
+  Ok(api->cuModuleGetFunction(&function, module, "skintune_empty"), "cuModuleGetFunction");
+  cuda::Stream uploads = nullptr;
+  Ok(api->cuStreamCreate(&uploads, 1 /* CU_STREAM_NON_BLOCKING */), "cuStreamCreate");
+  cuda::Event done = nullptr, uploaded = nullptr, marker = nullptr;
+  for (cuda::Event* e : {&done, &uploaded, &marker}) Ok(api->cuEventCreate(e, cuda::kEventDisableTiming), "cuEventCreate");
+  Ok(api->cuEventRecord(done, stream), "cuEventRecord");
+  Ok(api->cuStreamSynchronize(stream), "cuStreamSynchronize");
+  constexpr std::size_t kPalettes = 64 * 77 * 48;
+  Host host(kPalettes, Memory::kPinnedWc);
+  DeviceMemory device(kPalettes);
+  std::size_t n = 0;
+  for (auto _ : state) {
+    const auto start = std::chrono::steady_clock::now();
+    switch (call) {
+      case Call::kLaunch:
+        Ok(api->cuLaunchKernel(function, 1, 1, 1, 32, 1, 1, 0, stream, nullptr, nullptr), "cuLaunchKernel");
+        break;
+      case Call::kRecord: Ok(api->cuEventRecord(marker, stream), "cuEventRecord"); break;
+      case Call::kWaitEvent: Ok(api->cuStreamWaitEvent(stream, done, 0), "cuStreamWaitEvent"); break;
+      case Call::kSyncDone: Ok(api->cuEventSynchronize(done), "cuEventSynchronize"); break;
+      case Call::kQueryDone: Ok(api->cuEventQuery(done), "cuEventQuery"); break;
+      case Call::kSetCurrent: Ok(api->cuCtxSetCurrent(context), "cuCtxSetCurrent"); break;
+      case Call::kAll:
+        Ok(api->cuMemcpyHtoDAsync(device.p, host.p, kPalettes, uploads), "cuMemcpyHtoDAsync");
+        Ok(api->cuEventRecord(uploaded, uploads), "cuEventRecord");
+        Ok(api->cuStreamWaitEvent(stream, uploaded, 0), "cuStreamWaitEvent");
+        Ok(api->cuLaunchKernel(function, 1, 1, 1, 32, 1, 1, 0, stream, nullptr, nullptr), "cuLaunchKernel");
+        Ok(api->cuEventRecord(marker, stream), "cuEventRecord");
+        break;
+    }
+    state.SetIterationTime(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    if (++n % 32 == 0) Ok(api->cuCtxSynchronize(), "cuCtxSynchronize");
+  }
+  Ok(api->cuCtxSynchronize(), "cuCtxSynchronize");
+  for (cuda::Event e : {done, uploaded, marker}) api->cuEventDestroy(e);
+  api->cuStreamDestroy(uploads);
+  api->cuModuleUnload(module);
+}
+
 void EmptySync(benchmark::State& state) {
   cuda::Event event = nullptr;
   Ok(api->cuEventCreate(&event, cuda::kEventDisableTiming), "cuEventCreate");
@@ -143,8 +205,8 @@ void CopyIn(benchmark::State& state, std::size_t bytes, Memory kind) {
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * bytes));
 }
 
-void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks) {
-  constexpr std::size_t kMatrices = 64 * 77, kPoses = 8;
+void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks, std::size_t kPoses) {
+  constexpr std::size_t kMatrices = 64 * 77;
   Variant variant;
   variant.palette = PaletteFormat::kMat3x4;
   Host to(kMatrices * 48, kind);
@@ -178,7 +240,6 @@ int main(int argc, char** argv) {
     return 1;
   }
   cuda::Device device = 0;
-  cuda::Context context = nullptr;
   Ok(api->cuDeviceGet(&device, 0), "cuDeviceGet");
   Ok(api->cuDevicePrimaryCtxRetain(&context, device), "cuDevicePrimaryCtxRetain");
   Ok(api->cuCtxSetCurrent(context), "cuCtxSetCurrent");
@@ -204,8 +265,18 @@ int main(int argc, char** argv) {
   for (const auto& m : memories)
     for (std::size_t chunks : {1, 4, 8, 16}) {
       const std::string name = std::string("palette/") + m.name + (chunks > 1 ? "/chunks:" + std::to_string(chunks) : "");
-      benchmark::RegisterBenchmark(name.c_str(), PackPalettes, m.kind, chunks)->UseRealTime();
+      benchmark::RegisterBenchmark(name.c_str(), PackPalettes, m.kind, chunks, std::size_t{8})->UseRealTime();
+      if (chunks == 1)
+        benchmark::RegisterBenchmark((name + "/poses:2").c_str(), PackPalettes, m.kind, chunks, std::size_t{2})->UseRealTime();
     }
+  const struct {
+    const char* name;
+    Call call;
+  } calls[] = {{"launch", Call::kLaunch},         {"record", Call::kRecord},         {"wait-event", Call::kWaitEvent},
+               {"sync-done", Call::kSyncDone},    {"query-done", Call::kQueryDone}, {"set-current", Call::kSetCurrent},
+               {"all", Call::kAll}};
+  for (const auto& c : calls)
+    benchmark::RegisterBenchmark((std::string("call/frame/") + c.name).c_str(), FrameCall, c.call)->UseManualTime();
   benchmark::RegisterBenchmark("sync/empty", EmptySync)->UseRealTime();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

@@ -26,6 +26,7 @@ struct Prepared::Impl {
     DeviceBuffer* palette = nullptr;
     std::vector<std::unique_ptr<DeviceObject>> launches;
     std::unique_ptr<DeviceObject> done;
+    std::string fence_name;  // "palette slot N of <key>", built on the slot's first wait
   };
   // One input set: every object it owns (released last first), the buffers
   // the driver reads and writes, and its palette slots (one but in a
@@ -563,7 +564,10 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   const Prepared::Impl& p = *prepared.impl_;
   const std::size_t next = (s.current + 1) % s.slots.size();
   Prepared::Impl::Slot& slot = s.slots[next];
-  if (slot.done) api_->Wait(*slot.done, "palette slot " + std::to_string(next) + " of " + p.key);
+  if (slot.done) {
+    if (slot.fence_name.empty()) slot.fence_name = "palette slot " + std::to_string(next) + " of " + p.key;
+    api_->Wait(*slot.done, slot.fence_name);
+  }
   const std::span<std::uint8_t> staging = api_->Staging(*slot.palette, p.key);
   if (staging.size() < p.palettes_bytes)
     Fail("launch", "the palette staging of " + p.key + " has " + std::to_string(staging.size()) + " bytes, the palettes " +

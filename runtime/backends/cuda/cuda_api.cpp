@@ -164,6 +164,7 @@ const LoadedDriver& DriverLibrary() {
     Resolve(handle, "cuEventCreate", a.cuEventCreate, absent);
     Resolve(handle, "cuEventRecord", a.cuEventRecord, absent);
     Resolve(handle, "cuEventSynchronize", a.cuEventSynchronize, absent);
+    Resolve(handle, "cuEventQuery", a.cuEventQuery, absent);
     std::string old_driver;
     Resolve(handle, "cuEventElapsedTime_v2", a.cuEventElapsedTime, old_driver);  // CUDA 12.8+
     if (!a.cuEventElapsedTime) Resolve(handle, "cuEventElapsedTime", a.cuEventElapsedTime, absent);

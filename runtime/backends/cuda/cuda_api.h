@@ -18,6 +18,7 @@
 
 #include <cstddef>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace skintune::internal {
@@ -83,6 +84,7 @@ using GraphicsResource = struct CUgraphicsResource_st*;
 using TexObject = unsigned long long;  // CUtexObject = cudaTextureObject_t
 
 inline constexpr Result kSuccess = 0;
+inline constexpr Result kErrorNotReady = 600;  // CUDA_ERROR_NOT_READY (cuEventQuery, cuStreamQuery)
 inline constexpr unsigned kStreamNonBlocking = 1;  // CU_STREAM_NON_BLOCKING
 inline constexpr unsigned kEventDisableTiming = 2;  // CU_EVENT_DISABLE_TIMING
 inline constexpr unsigned kMemHostAllocWriteCombined = 4;  // CU_MEMHOSTALLOC_WRITECOMBINED
@@ -165,6 +167,7 @@ struct DriverApi {
   Result (*cuEventCreate)(Event* event, unsigned int flags);
   Result (*cuEventRecord)(Event event, Stream stream);
   Result (*cuEventSynchronize)(Event event);
+  Result (*cuEventQuery)(Event event);  // kSuccess when complete, kErrorNotReady while not
   Result (*cuEventElapsedTime)(float* ms, Event start, Event end);  // _v2 where the driver has it
   Result (*cuEventDestroy)(Event event);                            // _v2
   Result (*cuTexObjectCreate)(TexObject* object, const ResourceDesc* resource, const TextureDesc* texture,
@@ -207,6 +210,13 @@ std::string ErrorText(Result result);
 [[noreturn]] void Fail(const std::string& stage, const std::string& message);
 // Fail(stage, "<what> failed: <ErrorText(r)>") unless `r` is success.
 void Check(Result r, const std::string& stage, const std::string& what);
+// The same with the message built only on failure: the frame loop's calls
+// (SetPalette, Skin) build no strings.
+template <typename Message>
+  requires std::is_invocable_r_v<std::string, Message>
+void Check(Result r, const char* stage, Message&& what) {
+  if (r != kSuccess) Check(r, stage, what());
+}
 
 }  // namespace cuda
 }  // namespace skintune::internal

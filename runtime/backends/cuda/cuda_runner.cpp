@@ -182,7 +182,7 @@ class CudaApi final : public DeviceApi {
   }
   const char* name() const override { return "CUDA"; }
   const std::string& device_name() const override { return info.name; }
-  void MakeCurrent() override { Check(api->cuCtxSetCurrent(context), "launch", "cuCtxSetCurrent"); }
+  void MakeCurrent() override { Check(api->cuCtxSetCurrent(context), "launch", [] { return std::string("cuCtxSetCurrent"); }); }
   bool ReadyToRelease() override {
     api->cuCtxSetCurrent(context);  // frees the buffers and textures while their context is current
     if (uploads_) api->cuStreamSynchronize(uploads_);  // no upload still reads a staging about to be freed
@@ -349,12 +349,22 @@ std::unique_ptr<DeviceObject> CudaApi::PaletteView(const Variant& variant, Devic
 // ring fence says no launch still reads the buffer; Staging also waits until
 // the buffer's last upload has read the staging (a slot written again
 // before any launch used it).
+// EXPERIMENT (session 27): SKINTUNE_PALETTE_STAGING=wc|cached picks the staging's memory.
+unsigned PaletteStagingFlags() {
+  static const unsigned flags = [] {
+    const char* env = std::getenv("SKINTUNE_PALETTE_STAGING");
+    return env && std::string(env) == "cached" ? 0u : cuda::kMemHostAllocWriteCombined;
+  }();
+  return flags;
+}
+
 std::span<std::uint8_t> CudaApi::Staging(DeviceBuffer& buffer, const std::string& key) {
   auto& m = static_cast<CudaMemory&>(buffer);
   if (!m.upload)
-    m.upload = std::make_unique<CudaPinned>(api, m.bytes(), cuda::kMemHostAllocWriteCombined, "the palette staging of " + key);
+    m.upload = std::make_unique<CudaPinned>(api, m.bytes(), PaletteStagingFlags(), "the palette staging of " + key);
   if (m.uploaded.get())
-    Check(api->cuEventSynchronize(m.uploaded.get()), "launch", "cuEventSynchronize on the last upload of 'palette' of " + key);
+    Check(api->cuEventSynchronize(m.uploaded.get()), "launch",
+          [&] { return "cuEventSynchronize on the last upload of 'palette' of " + key; });
   return {static_cast<std::uint8_t*>(m.upload->host), m.bytes()};
 }
 
@@ -368,15 +378,16 @@ void CudaApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string&
     m.uploaded = Event(e, api->cuEventDestroy);
   }
   Check(api->cuMemcpyHtoDAsync(m.pointer(), m.upload->host, bytes, uploads_), "launch",
-        "cuMemcpyHtoDAsync 'palette' of " + key);
-  Check(api->cuEventRecord(m.uploaded.get(), uploads_), "launch", "cuEventRecord after uploading 'palette' of " + key);
+        [&] { return "cuMemcpyHtoDAsync 'palette' of " + key; });
+  Check(api->cuEventRecord(m.uploaded.get(), uploads_), "launch",
+        [&] { return "cuEventRecord after uploading 'palette' of " + key; });
   last_upload_ = m.uploaded.get();
 }
 
 // One stream's wait covers every upload before the last (one upload stream, in order).
 void CudaApi::JoinUploads(cuda::Stream lane) {
   if (!last_upload_) return;
-  Check(api->cuStreamWaitEvent(lane, last_upload_, 0), "launch", "cuStreamWaitEvent for the palette uploads");
+  Check(api->cuStreamWaitEvent(lane, last_upload_, 0), "launch", [] { return std::string("cuStreamWaitEvent for the palette uploads"); });
   if (lane == stream) last_upload_ = nullptr;
 }
 
@@ -433,11 +444,11 @@ void CudaApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& wha
   }
   JoinUploads(stream);
   Check(api->cuEventRecord(static_cast<CudaMarker&>(*marker).event.get(), stream), "launch",
-        "cuEventRecord after " + what);
+        [&] { return "cuEventRecord after " + what; });
 }
 
 void CudaApi::Wait(DeviceObject& marker, const std::string& what) {
-  Check(api->cuEventSynchronize(static_cast<CudaMarker&>(marker).event.get()), "launch", "waiting for " + what);
+  Check(api->cuEventSynchronize(static_cast<CudaMarker&>(marker).event.get()), "launch", [&] { return "waiting for " + what; });
 }
 
 // ---------------------------------------------------------------- launches
@@ -489,11 +500,13 @@ void CudaApi::Launch(const CudaBound& bound, cuda::Stream lane, void** parameter
   const std::string& where = plan.spec.where;
   if (plan.constant_symbol)
     Check(api->cuMemcpyDtoDAsync(plan.constant_symbol, bound.palette->pointer(), bound.palette->bytes(), lane),
-          "launch", where + ": cuMemcpyDtoDAsync to '" + kConstantPaletteSymbol + "'");
+          "launch", [&] { return where + ": cuMemcpyDtoDAsync to '" + kConstantPaletteSymbol + "'"; });
   Check(api->cuLaunchKernel(plan.function, plan.blocks, plan.instances, 1, plan.threads, 1, 1, 0, lane,
                             parameters ? parameters : const_cast<void**>(bound.parameters.data()), nullptr),
-        "launch", where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " x " + std::to_string(plan.instances) +
-                      " blocks of " + std::to_string(plan.threads) + ")");
+        "launch", [&] {
+          return where + ": cuLaunchKernel (" + std::to_string(plan.blocks) + " x " + std::to_string(plan.instances) +
+                 " blocks of " + std::to_string(plan.threads) + ")";
+        });
 }
 
 double CudaApi::ElapsedMs(const Event& start, const Event& end) const {

@@ -7,9 +7,11 @@
 #include <CL/cl.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstring>
 #include <map>
 #include <mutex>
+#include <type_traits>
 #include <utility>
 
 #include "reference/error.h"
@@ -38,6 +40,11 @@ class Handle {
   Handle(const Handle&) = delete;
   Handle& operator=(const Handle&) = delete;
   T get() const { return value_; }
+  T release() {  // the handle's reference, now the caller's
+    T value = value_;
+    value_ = nullptr;
+    return value;
+  }
   void reset() {
     if (value_) Release(value_);
     value_ = nullptr;
@@ -60,6 +67,13 @@ using Event = Handle<cl_event, clReleaseEvent>;
 
 void Check(cl_int err, const std::string& stage, const std::string& what) {
   if (err != CL_SUCCESS) Fail(stage, what + " failed with error " + std::to_string(err));
+}
+
+// The same with the message built only on failure (the frame loop's calls).
+template <typename Message>
+  requires std::is_invocable_r_v<std::string, Message>
+void Check(cl_int err, const char* stage, Message&& what) {
+  if (err != CL_SUCCESS) Check(err, stage, what());
 }
 
 std::string DeviceName(cl_device_id device) {
@@ -190,7 +204,8 @@ class OpenClApi final : public DeviceApi {
   Program ProgramFromBinary(const std::vector<std::uint8_t>& binary, const char* options);
   std::vector<std::uint8_t> BinaryOf(cl_program program);
   Memory NewMemory(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what);
-  void Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event, cl_command_queue on = nullptr);
+  void Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event, cl_command_queue on = nullptr,
+               cl_uint wait_count = 0, const cl_event* wait_list = nullptr);
   cl_command_queue Lane(int i);
   // Palette uploads run on an in-order queue of their own, so frame n+1's
   // upload overlaps frame n's kernel; the next command queued on `on` after
@@ -207,6 +222,18 @@ class OpenClApi final : public DeviceApi {
   std::mutex built_mutex_;                     // built_ (ConcurrentBuilds)
   Queue uploads_;                              // the palette uploads' queue (made on first use)
   Event last_upload_;                          // the latest upload's event, until `queue` waits for it
+  // The Skinner's last launch (RunFrames, kLive), until Mark takes its event
+  // as the palette ring's fence: on the in-order queue it completes after
+  // everything queued before it, so no marker need be queued. Anything else
+  // queued on `queue` in between drops it (Mark then queues a marker).
+  Event last_launch_;
+  // What each kernel's arguments were last set to (clSetKernelArg is called
+  // only for those that changed: a Skinner's frame changes only the palette).
+  struct ArgValue {
+    std::size_t size = 0;
+    std::uint64_t value = 0;
+  };
+  std::map<cl_kernel, std::vector<ArgValue>> kernel_args_;
 };
 
 // ---------------------------------------------------------------- programs
@@ -322,7 +349,7 @@ std::span<std::uint8_t> OpenClApi::Staging(DeviceBuffer& buffer, const std::stri
   if (!memory.upload)
     memory.upload = std::make_unique<ClPinned>(context.get(), queue.get(), memory.bytes(), "the palette staging of " + key);
   if (const cl_event last = memory.uploaded.get())
-    Check(clWaitForEvents(1, &last), "launch", "clWaitForEvents on the last upload of 'palette' of " + key);
+    Check(clWaitForEvents(1, &last), "launch", [&] { return "clWaitForEvents on the last upload of 'palette' of " + key; });
   return {static_cast<std::uint8_t*>(memory.upload->host), memory.bytes()};
 }
 
@@ -337,15 +364,16 @@ void OpenClApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::strin
   cl_event event = nullptr;
   Check(clEnqueueWriteBuffer(uploads_.get(), memory.memory.get(), CL_FALSE, 0, bytes, memory.upload->host, 0, nullptr,
                              &event),
-        "launch", "clEnqueueWriteBuffer 'palette' of " + key);
+        "launch", [&] { return "clEnqueueWriteBuffer 'palette' of " + key; });
   memory.uploaded = Event(event);
-  Check(clRetainEvent(event), "launch", "clRetainEvent of the upload of " + key);
+  Check(clRetainEvent(event), "launch", [&] { return "clRetainEvent of the upload of " + key; });
   last_upload_ = Event(event);
-  Check(clFlush(uploads_.get()), "launch", "clFlush after uploading 'palette' of " + key);
+  Check(clFlush(uploads_.get()), "launch", [&] { return "clFlush after uploading 'palette' of " + key; });
 }
 
 // One barrier covers every upload before the last (one in-order upload queue).
 void OpenClApi::JoinUploads(cl_command_queue on) {
+  if (on == queue.get()) last_launch_.reset();  // a command after the launch: Mark queues a marker
   const cl_event last = last_upload_.get();
   if (!last) return;
   Check(clEnqueueBarrierWithWaitList(on, 1, &last, nullptr), "launch", "clEnqueueBarrierWithWaitList for the palette uploads");
@@ -399,16 +427,21 @@ std::span<const std::uint8_t> OpenClApi::ReadPinned(const DeviceBuffer& buffer, 
 // A marker after everything queued, and the queue flushed: the device starts
 // on the frame while the host prepares the next one.
 void OpenClApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) {
-  JoinUploads(queue.get());
-  cl_event event = nullptr;
-  Check(clEnqueueMarkerWithWaitList(queue.get(), 0, nullptr, &event), "launch", "clEnqueueMarkerWithWaitList after " + what);
-  marker = std::make_unique<ClMarker>(event);
-  Check(clFlush(queue.get()), "launch", "clFlush after " + what);
+  if (last_launch_.get() && !last_upload_.get()) {
+    marker = std::make_unique<ClMarker>(last_launch_.release());
+  } else {
+    JoinUploads(queue.get());
+    cl_event event = nullptr;
+    Check(clEnqueueMarkerWithWaitList(queue.get(), 0, nullptr, &event), "launch", "clEnqueueMarkerWithWaitList after " + what);
+    marker = std::make_unique<ClMarker>(event);
+  }
+  const cl_int err = clFlush(queue.get());
+  if (err != CL_SUCCESS) Check(err, "launch", "clFlush after " + what);
 }
 
 void OpenClApi::Wait(DeviceObject& marker, const std::string& what) {
   const cl_event event = static_cast<ClMarker&>(marker).event.get();
-  Check(clWaitForEvents(1, &event), "launch", "waiting for " + what);
+  Check(clWaitForEvents(1, &event), "launch", [&] { return "waiting for " + what; });
 }
 
 // ---------------------------------------------------------------- launches
@@ -456,31 +489,47 @@ std::unique_ptr<DeviceObject> OpenClApi::Bind(const PlannedLaunch& launch, std::
 
 // Sets the arguments of one launch (positions into `out_positions` when not
 // null) and enqueues it, its event into `event` when given.
-void OpenClApi::Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event, cl_command_queue on) {
+void OpenClApi::Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event, cl_command_queue on,
+                        cl_uint wait_count, const cl_event* wait_list) {
   const ClPlanned& plan = *bound.plan;
   const LaunchSpec& spec = plan.spec;
   const cl_uint vertex_count = spec.vertex_count;
+  std::vector<ArgValue>& set = kernel_args_[plan.kernel];
+  set.resize(spec.source.arguments.size());
   for (std::size_t a = 0; a < spec.source.arguments.size(); ++a) {
     const KernelArgument& arg = spec.source.arguments[a];
-    const auto index = static_cast<cl_uint>(a);
-    cl_int err = CL_SUCCESS;
+    ArgValue value;
     if (arg.name == "n") {
-      err = clSetKernelArg(plan.kernel, index, sizeof(cl_uint), &spec.count);
+      value = {sizeof(cl_uint), spec.count};
     } else if (arg.name == "first") {
-      err = clSetKernelArg(plan.kernel, index, sizeof(cl_uint), &spec.first);
+      value = {sizeof(cl_uint), spec.first};
     } else if (arg.name == "vertex_count") {
-      err = clSetKernelArg(plan.kernel, index, sizeof(cl_uint), &vertex_count);
-    } else if (arg.name == "out_positions" && out_positions) {
-      err = clSetKernelArg(plan.kernel, index, sizeof(cl_mem), &out_positions);
+      value = {sizeof(cl_uint), vertex_count};
     } else {
-      err = clSetKernelArg(plan.kernel, index, sizeof(cl_mem), &bound.arguments[a]);
+      const cl_mem memory = arg.name == "out_positions" && out_positions ? out_positions : bound.arguments[a];
+      value = {sizeof(cl_mem), reinterpret_cast<std::uintptr_t>(memory)};
     }
-    Check(err, "launch", spec.where + ": clSetKernelArg " + std::to_string(a) + " '" + arg.name + "'");
+    if (set[a].size == value.size && set[a].value == value.value) continue;
+    cl_int err = CL_SUCCESS;
+    if (value.size == sizeof(cl_uint)) {
+      const auto scalar = static_cast<cl_uint>(value.value);
+      err = clSetKernelArg(plan.kernel, static_cast<cl_uint>(a), sizeof scalar, &scalar);
+    } else {
+      const auto memory = reinterpret_cast<cl_mem>(static_cast<std::uintptr_t>(value.value));
+      err = clSetKernelArg(plan.kernel, static_cast<cl_uint>(a), sizeof memory, &memory);
+    }
+    if (err != CL_SUCCESS) {
+      set[a] = {};
+      Check(err, "launch", spec.where + ": clSetKernelArg " + std::to_string(a) + " '" + arg.name + "'");
+    }
+    set[a] = value;
   }
-  Check(clEnqueueNDRangeKernel(on ? on : queue.get(), plan.kernel, plan.dimensions, nullptr, plan.global, plan.local, 0,
-                               nullptr, event),
-        "launch", spec.where + ": clEnqueueNDRangeKernel (" + std::to_string(plan.global[0]) + " items x " +
-                      std::to_string(plan.global[1]) + " instances, groups of " + std::to_string(plan.local[0]) + ")");
+  const cl_int err = clEnqueueNDRangeKernel(on ? on : queue.get(), plan.kernel, plan.dimensions, nullptr, plan.global,
+                                            plan.local, wait_count, wait_list, event);
+  if (err != CL_SUCCESS)
+    Check(err, "launch",
+          spec.where + ": clEnqueueNDRangeKernel (" + std::to_string(plan.global[0]) + " items x " +
+              std::to_string(plan.global[1]) + " instances, groups of " + std::to_string(plan.local[0]) + ")");
 }
 
 namespace {
@@ -497,11 +546,21 @@ double EventMs(cl_event event) {
 }  // namespace
 
 std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
+  last_launch_.reset();
   if (run.use == FrameUse::kLive) {
-    JoinUploads(queue.get());
+    // The first launch waits for the palette uploads (its wait list, not a
+    // barrier); the last one's event is kept for Mark.
+    std::vector<const ClBound*> launches;
     for (const auto& frame : run.frames)
-      for (const std::unique_ptr<DeviceObject>& launch : frame)
-        Enqueue(static_cast<const ClBound&>(*launch), static_cast<cl_mem>(run.out_positions), nullptr);
+      for (const std::unique_ptr<DeviceObject>& launch : frame) launches.push_back(static_cast<const ClBound*>(launch.get()));
+    for (std::size_t l = 0; l < launches.size(); ++l) {
+      const cl_event upload = last_upload_.get();
+      cl_event event = nullptr;
+      Enqueue(*launches[l], static_cast<cl_mem>(run.out_positions), l + 1 == launches.size() ? &event : nullptr, nullptr,
+              upload ? 1 : 0, upload ? &upload : nullptr);
+      last_upload_.reset();
+      if (event) last_launch_ = Event(event);
+    }
     return {};
   }
   if (last_upload_.get()) {  // not timed: wait for the uploads on the host
