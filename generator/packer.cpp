@@ -341,11 +341,11 @@ std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define SKINTUNE_PACK_AVX512 1
 // One matrix per 512-bit register: the transpose is one permute, the rows
-// one 64-byte store, the exponent test one compare into a mask. With three
-// rows each store's fourth row lands on the next matrix's first, which the
-// next store overwrites: every store is a plain one, in order, as
-// write-combined staging wants; only the last matrix's is masked (nothing
-// written past the end). Built for AVX-512F whatever the compiler's target;
+// one 64-byte store, the exponent test one compare into a mask. Three rows
+// go four matrices at a time (below); for the last few each store's fourth
+// row lands on the next matrix's first, which the next store overwrites:
+// every store is a plain one, in order, as write-combined staging wants;
+// only the last matrix's is masked (nothing written past the end). Built for AVX-512F whatever the compiler's target;
 // called only where the CPU has it (PackIsaAvailable).
 __attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* column_major, std::size_t matrices,
                                                                 std::uint8_t* out, std::size_t rows) {
@@ -355,7 +355,44 @@ __attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* colum
   const __mmask16 kept = rows == 4 ? 0xFFFF : 0x0FFF;
   auto* rows_out = reinterpret_cast<float*>(out);
   std::size_t first_special = matrices;
-  for (std::size_t j = 0; j < matrices; ++j) {
+  std::size_t j = 0;
+  if (rows == 3) {
+    // Four matrices' rows are 192 bytes: three whole 64-byte stores, each
+    // gathered from two matrices by one two-source permute (index bit 4
+    // picks the second), so no store straddles a cache line where `out` is
+    // 64-byte aligned (page-locked staging is) and none writes a byte twice.
+    // Output word k of a matrix is input word (k % 4) * 4 + k / 4.
+    constexpr auto word = [](int k, int from_second) { return from_second * 16 + (k % 4) * 4 + k / 4; };
+    const __m512i first = _mm512_set_epi32(word(3, 1), word(2, 1), word(1, 1), word(0, 1), word(11, 0), word(10, 0),
+                                           word(9, 0), word(8, 0), word(7, 0), word(6, 0), word(5, 0), word(4, 0),
+                                           word(3, 0), word(2, 0), word(1, 0), word(0, 0));
+    const __m512i second = _mm512_set_epi32(word(7, 1), word(6, 1), word(5, 1), word(4, 1), word(3, 1), word(2, 1),
+                                            word(1, 1), word(0, 1), word(11, 0), word(10, 0), word(9, 0), word(8, 0),
+                                            word(7, 0), word(6, 0), word(5, 0), word(4, 0));
+    const __m512i third = _mm512_set_epi32(word(11, 1), word(10, 1), word(9, 1), word(8, 1), word(7, 1), word(6, 1),
+                                           word(5, 1), word(4, 1), word(3, 1), word(2, 1), word(1, 1), word(0, 1),
+                                           word(11, 0), word(10, 0), word(9, 0), word(8, 0));
+    for (; j + 4 <= matrices; j += 4) {
+      const float* m = column_major + 16 * j;
+      const __m512 m0 = _mm512_loadu_ps(m), m1 = _mm512_loadu_ps(m + 16), m2 = _mm512_loadu_ps(m + 32),
+                   m3 = _mm512_loadu_ps(m + 48);
+      float* o = rows_out + 12 * j;
+      _mm512_storeu_ps(o, _mm512_permutex2var_ps(m0, first, m1));
+      _mm512_storeu_ps(o + 16, _mm512_permutex2var_ps(m1, second, m2));
+      _mm512_storeu_ps(o + 32, _mm512_permutex2var_ps(m2, third, m3));
+      if (first_special != matrices) continue;
+      // (Written out: a lambda would not inherit this function's AVX-512 target.)
+      const __mmask16 s0 = _mm512_cmpeq_epi32_mask(_mm512_and_si512(_mm512_castps_si512(m0), exponent), exponent);
+      const __mmask16 s1 = _mm512_cmpeq_epi32_mask(_mm512_and_si512(_mm512_castps_si512(m1), exponent), exponent);
+      const __mmask16 s2 = _mm512_cmpeq_epi32_mask(_mm512_and_si512(_mm512_castps_si512(m2), exponent), exponent);
+      const __mmask16 s3 = _mm512_cmpeq_epi32_mask(_mm512_and_si512(_mm512_castps_si512(m3), exponent), exponent);
+      if (s0 != 0) first_special = j;
+      else if (s1 != 0) first_special = j + 1;
+      else if (s2 != 0) first_special = j + 2;
+      else if (s3 != 0) first_special = j + 3;
+    }
+  }
+  for (; j < matrices; ++j) {
     const __m512 m = _mm512_loadu_ps(column_major + 16 * j);
     const __mmask16 special =
         _mm512_cmpeq_epi32_mask(_mm512_and_si512(_mm512_castps_si512(m), exponent), exponent);

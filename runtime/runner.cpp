@@ -27,6 +27,7 @@ struct Prepared::Impl {
     std::vector<std::unique_ptr<DeviceObject>> launches;
     std::unique_ptr<DeviceObject> done;
     std::string fence_name;  // "palette slot N of <key>", built on the slot's first wait
+    bool launched = false;   // a launch read the slot (and so waited for its upload) since that upload
   };
   // One input set: every object it owns (released last first), the buffers
   // the driver reads and writes, and its palette slots (one but in a
@@ -568,7 +569,7 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
     if (slot.fence_name.empty()) slot.fence_name = "palette slot " + std::to_string(next) + " of " + p.key;
     api_->Wait(*slot.done, slot.fence_name);
   }
-  const std::span<std::uint8_t> staging = api_->Staging(*slot.palette, p.key);
+  const std::span<std::uint8_t> staging = api_->Staging(*slot.palette, p.key, slot.done && slot.launched);
   if (staging.size() < p.palettes_bytes)
     Fail("launch", "the palette staging of " + p.key + " has " + std::to_string(staging.size()) + " bytes, the palettes " +
                        std::to_string(p.palettes_bytes));
@@ -582,6 +583,7 @@ void Runner::UploadPalette(Prepared& prepared, int set) {
   const Prepared::Impl& p = *prepared.impl_;
   if (!s.staged) Fail("launch", "UploadPalette of " + p.key + " without PaletteStaging");
   api_->Upload(*s.slots[*s.staged].palette, p.palettes_bytes, p.key);
+  s.slots[*s.staged].launched = false;
   s.current = *s.staged;
   s.staged.reset();
 }
@@ -608,6 +610,7 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   run.out_positions = out_positions;
   api_->RunFrames(run);
   api_->Mark(slot.done, p.key);
+  slot.launched = true;
 }
 
 std::span<const std::uint8_t> Runner::ReadOutput(const Prepared& prepared, int set, bool normals) {

@@ -113,10 +113,12 @@ Skinner::Impl& Usable(const std::unique_ptr<Skinner::Impl>& impl, const char* ca
   return *impl;
 }
 
-void CheckCount(const char* call, std::size_t given, std::size_t expected, const std::string& what) {
+// `what` (how `expected` is made up) is built only for the error: SetPalette runs every frame.
+template <typename What>
+void CheckCount(const char* call, std::size_t given, std::size_t expected, What&& what) {
   if (given != expected)
     FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::") + call + ": float_count is " + std::to_string(given) +
-                                              ", expected " + what + " = " + std::to_string(expected));
+                                              ", expected " + what() + " = " + std::to_string(expected));
 }
 
 }  // namespace
@@ -333,8 +335,9 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
   return Guarded(ErrorCode::kDeviceError, [&] {
     Impl& im = Usable(impl_, "SetPalette");
     const std::size_t joints = static_cast<std::size_t>(im.instances) * static_cast<std::size_t>(im.joint_count);
-    CheckCount("SetPalette", float_count, joints * 16,
-               std::to_string(im.instances) + " instances x " + std::to_string(im.joint_count) + " joints x 16");
+    CheckCount("SetPalette", float_count, joints * 16, [&] {
+      return std::to_string(im.instances) + " instances x " + std::to_string(im.joint_count) + " joints x 16";
+    });
     if (!matrices) FailWith(ErrorCode::kInvalidArgument, "Skinner::SetPalette: matrices is null");
     // Checked and packed in one pass straight into the next palette slot's
     // page-locked staging; a non-finite element stops before the upload, so
@@ -394,8 +397,9 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
       FailWith(ErrorCode::kInvalidState,
                "Skinner::ReadNormals: this Skinner skins no normals (SkinnerOptions::normals was not set)");
     const std::size_t vertices = static_cast<std::size_t>(im.instances) * im.vertex_count;
-    CheckCount(call, float_count, vertices * 3,
-               std::to_string(im.instances) + " instances x " + std::to_string(im.vertex_count) + " vertices x 3");
+    CheckCount(call, float_count, vertices * 3, [&] {
+      return std::to_string(im.instances) + " instances x " + std::to_string(im.vertex_count) + " vertices x 3";
+    });
     if (!out) FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::") + call + ": out is null");
     if (!im.skinned) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": nothing skinned yet (call Skin first)");
     // Straight from the page-locked read-back staging into the caller's array,

@@ -496,11 +496,13 @@ TEST(Packer, EveryPackPathWritesTheRowsAndFindsTheFirstNonFiniteMatrix) {
                 << "isa " << static_cast<int>(isa) << " matrix " << j << " row " << r << " column " << c;
       for (std::size_t b = kMatrices * rows * 16; b < out.size(); ++b) ASSERT_EQ(out[b], 0xAB) << "byte " << b;
       // A special element in each position of a few matrices: the first such matrix is reported.
-      for (std::size_t bad : {std::size_t{0}, std::size_t{17}, kMatrices - 1})
+      // (AVX-512 packs three rows four matrices at a time: each position in a group, and the tail.)
+      for (std::size_t bad : {std::size_t{0}, std::size_t{2}, std::size_t{17}, std::size_t{35}, kMatrices - 1})
         for (std::size_t e = 0; e < 16; ++e) {
           std::vector<float> with = matrices;
           with[16 * bad + e] = specials[e % 3];
           if (bad + 5 < kMatrices) with[16 * (bad + 5)] = specials[(e + 1) % 3];  // a later one does not count
+          if (bad + 1 < kMatrices) with[16 * (bad + 1) + 15 - e] = specials[(e + 2) % 3];  // nor the next, in its group
           EXPECT_EQ(PackPaletteInto(with.data(), kMatrices, v, out.data(), isa), bad)
               << "isa " << static_cast<int>(isa) << " element " << e << " of matrix " << bad;
         }

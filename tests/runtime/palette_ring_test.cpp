@@ -31,6 +31,7 @@ class FakeBuffer final : public DeviceBuffer {
   void* native() const override { return const_cast<std::uint8_t*>(device.data()); }
   std::vector<std::uint8_t> device;   // what the device holds
   std::vector<std::uint8_t> staging;  // the host's page-locked staging (Write)
+  std::size_t uploaded_at = 0;        // the queue's length after this buffer's last upload
 };
 
 class FakeLaunch final : public DeviceObject {
@@ -50,6 +51,7 @@ class DeferredApi final : public DeviceApi {
   std::vector<std::vector<std::uint8_t>> read;  // the palette each launch read, in the order they ran
   std::size_t launches_queued = 0;
   int waits = 0, blocking_waits = 0;
+  int fenced_stagings = 0, upload_waits = 0;  // Staging told the ring fence covers the last upload; or not, and waited
 
   void RunUntil(std::size_t position) {
     for (; executed < position; ++executed) queue[executed]();
@@ -82,14 +84,24 @@ class DeferredApi final : public DeviceApi {
     }
     return {};
   }
-  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string&) override {
+  // As CUDA and OpenCL: where the driver's fence does not cover the last
+  // upload, wait for it; where the driver says it does, it must have run.
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string&, bool upload_fenced) override {
     auto& b = static_cast<FakeBuffer&>(buffer);
+    if (upload_fenced) {
+      ++fenced_stagings;
+      EXPECT_GE(executed, b.uploaded_at) << "Staging told the fence covers an upload still queued";
+    } else if (executed < b.uploaded_at) {
+      ++upload_waits;
+      RunUntil(b.uploaded_at);
+    }
     b.staging.resize(b.bytes());
     return b.staging;
   }
   void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string&) override {
     auto& b = static_cast<FakeBuffer&>(buffer);
     queue.push_back([&b, bytes] { std::copy(b.staging.begin(), b.staging.begin() + static_cast<std::ptrdiff_t>(bytes), b.device.begin()); });
+    b.uploaded_at = queue.size();
   }
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string&, bool) override {
     RunUntil(queue.size());
@@ -184,6 +196,27 @@ TEST(PaletteRing, PalettesReplacedBeforeAnySkinAndSkinsRepeatedReadTheLastPalett
   ring.runner->Finish();
   ASSERT_EQ(ring.api->LaunchesRun(), expected.size());
   for (std::size_t l = 0; l < expected.size(); ++l) EXPECT_EQ(ring.FrameRead(l), expected[l]) << "launch " << l;
+}
+
+// Every frame skinned: each reuse of a slot is covered by the fence of the
+// launch that read it (which waited for its upload), so no upload is waited
+// for on its own; a slot uploaded and never skinned is, when it comes round.
+TEST(PaletteRing, TheRingFenceCoversTheUploadOnlyOfASlotSkinnedSinceItsUpload) {
+  Ring ring;
+  for (int f = 0; f < 3 * kPaletteSlots; ++f) {
+    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));
+    ring.runner->LaunchSet(ring.prepared, 0);
+  }
+  EXPECT_EQ(ring.api->fenced_stagings, 2 * kPaletteSlots) << "every staging after the first round";
+  EXPECT_EQ(ring.api->upload_waits, 0);
+  for (int f = 0; f < kPaletteSlots; ++f) ring.runner->WritePalette(ring.prepared, 0, ring.Palette(50 + f));  // none skinned
+  const int fenced = ring.api->fenced_stagings;
+  ring.runner->WritePalette(ring.prepared, 0, ring.Palette(60));  // back to a slot uploaded and never skinned
+  EXPECT_EQ(ring.api->fenced_stagings, fenced);
+  EXPECT_EQ(ring.api->upload_waits, 1) << "its own upload waited for";
+  ring.runner->LaunchSet(ring.prepared, 0);
+  ring.runner->Finish();
+  EXPECT_EQ(ring.FrameRead(ring.api->LaunchesRun() - 1), 60);
 }
 
 TEST(PaletteRing, AStagingNeverUploadedTakesNoSlot) {

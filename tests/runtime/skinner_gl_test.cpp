@@ -107,16 +107,33 @@ TEST(GlSkinner, FromCurrentGlSkinsIntoABufferOfTheCallersContextAndKeepsItsState
   options.normals = true;
   Skinner skinner = MustCreate(*device, view.mesh, options);
 
-  // The caller's bindings survive a Skin().
+  // The caller's bindings survive a Skin(): a dispatch puts back the program
+  // and texture unit it changes, a vertex draw also the vertex array and
+  // rasteriser discard (the state each path touches).
   GLuint vertex_array = 0;
   glGenVertexArrays(1, &vertex_array);
-  glBindVertexArray(vertex_array);
-  ExpectSkinsLikeTheGold(skinner, Small().mesh, Pose(Small(), 0.6));
-  GLint bound = 0;
-  glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &bound);
-  EXPECT_EQ(static_cast<GLuint>(bound), vertex_array);
-  glBindVertexArray(0);
+  for (const std::string& key : {std::string(), std::string("glsl-compute.b4.soa.image.mat4"),
+                                 std::string("glsl-vertex.b4.soa.image.mat4")}) {
+    SCOPED_TRACE(key.empty() ? "built-in default" : key);
+    SkinnerOptions keyed = options;
+    keyed.variant = key;
+    Skinner other = MustCreate(*device, view.mesh, keyed);
+    glBindVertexArray(vertex_array);
+    glActiveTexture(GL_TEXTURE3);
+    glEnable(GL_RASTERIZER_DISCARD);
+    ExpectSkinsLikeTheGold(other, Small().mesh, Pose(Small(), 0.6));
+    GLint bound = 0, unit = 0;
+    glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &bound);
+    EXPECT_EQ(static_cast<GLuint>(bound), vertex_array);
+    glGetIntegerv(GL_ACTIVE_TEXTURE, &unit);
+    EXPECT_EQ(unit, GL_TEXTURE3);
+    EXPECT_TRUE(glIsEnabled(GL_RASTERIZER_DISCARD));
+    glDisable(GL_RASTERIZER_DISCARD);
+    glActiveTexture(GL_TEXTURE0);
+    glBindVertexArray(0);
+  }
   glDeleteVertexArrays(1, &vertex_array);
+  ExpectSkinsLikeTheGold(skinner, Small().mesh, Pose(Small(), 0.6));
 
   // The output is a buffer object of this context, in the mesh's order.
   const auto buffer = static_cast<GLuint>(reinterpret_cast<std::uintptr_t>(skinner.device_positions()));

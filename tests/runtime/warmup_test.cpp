@@ -115,7 +115,7 @@ class FakeApi final : public DeviceApi {
     }
     return bursts;
   }
-  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string&) override {
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string&, bool) override {
     staging_.resize(buffer.bytes());
     return staging_;
   }

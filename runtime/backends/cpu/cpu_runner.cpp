@@ -103,7 +103,7 @@ class CpuApi final : public DeviceApi {
   // and frames run synchronously, done when RunFrames returns, so the
   // palette is written in place, read-backs read the buffer itself, and no
   // slot is ever still in use: nothing to stage, mark or wait for.
-  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string&) override {
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string&, bool) override {
     return {static_cast<CpuBuffer&>(buffer).data(), buffer.bytes()};
   }
   void Upload(DeviceBuffer&, std::size_t, const std::string&) override {}

@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cstdint>
-#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -205,7 +204,7 @@ class CudaApi final : public DeviceApi {
     Check(api->cuCtxSynchronize(), "launch", "cuCtxSynchronize after uploading the input sets of " + key);
   }
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
-  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key) override;
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key, bool upload_fenced) override;
   void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
@@ -346,23 +345,15 @@ std::unique_ptr<DeviceObject> CudaApi::PaletteView(const Variant& variant, Devic
 
 // The palette's page-locked staging (write-combined: the host only writes
 // it), and an asynchronous copy from it on the upload stream. The driver's
-// ring fence says no launch still reads the buffer; Staging also waits until
-// the buffer's last upload has read the staging (a slot written again
-// before any launch used it).
-// EXPERIMENT (session 27): SKINTUNE_PALETTE_STAGING=wc|cached picks the staging's memory.
-unsigned PaletteStagingFlags() {
-  static const unsigned flags = [] {
-    const char* env = std::getenv("SKINTUNE_PALETTE_STAGING");
-    return env && std::string(env) == "cached" ? 0u : cuda::kMemHostAllocWriteCombined;
-  }();
-  return flags;
-}
-
-std::span<std::uint8_t> CudaApi::Staging(DeviceBuffer& buffer, const std::string& key) {
+// ring fence says no launch still reads the buffer, and covers its last
+// upload too where a launch waited for it; otherwise (a slot written again
+// before any launch used it) Staging waits until that upload has read the
+// staging.
+std::span<std::uint8_t> CudaApi::Staging(DeviceBuffer& buffer, const std::string& key, bool upload_fenced) {
   auto& m = static_cast<CudaMemory&>(buffer);
   if (!m.upload)
-    m.upload = std::make_unique<CudaPinned>(api, m.bytes(), PaletteStagingFlags(), "the palette staging of " + key);
-  if (m.uploaded.get())
+    m.upload = std::make_unique<CudaPinned>(api, m.bytes(), cuda::kMemHostAllocWriteCombined, "the palette staging of " + key);
+  if (!upload_fenced && m.uploaded.get())
     Check(api->cuEventSynchronize(m.uploaded.get()), "launch",
           [&] { return "cuEventSynchronize on the last upload of 'palette' of " + key; });
   return {static_cast<std::uint8_t*>(m.upload->host), m.bytes()};

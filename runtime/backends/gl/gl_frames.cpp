@@ -119,22 +119,27 @@ const GlPlanned* FirstPlan(const FrameRun& run) {
 // The state a Skinner's frame changes on a context the caller also draws with, put back afterwards.
 class KeptGlState {
  public:
-  KeptGlState() {
+  // `vertex`: the draws change the vertex array, framebuffers, transform
+  // feedback and rasteriser discard too; a dispatch only the program and
+  // the active texture unit (each glGet is a round trip into the driver).
+  explicit KeptGlState(bool vertex) : vertex_(vertex) {
     glGetIntegerv(GL_CURRENT_PROGRAM, &program_);
+    glGetIntegerv(GL_ACTIVE_TEXTURE, &active_texture_);
+    if (!vertex_) return;
     glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &vertex_array_);
     glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &draw_framebuffer_);
     glGetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &read_framebuffer_);
     glGetIntegerv(GL_TRANSFORM_FEEDBACK_BINDING, &transform_feedback_);
-    glGetIntegerv(GL_ACTIVE_TEXTURE, &active_texture_);
     discard_ = glIsEnabled(GL_RASTERIZER_DISCARD);
   }
   ~KeptGlState() {
     glUseProgram(static_cast<GLuint>(program_));
+    glActiveTexture(static_cast<GLenum>(active_texture_));
+    if (!vertex_) return;
     glBindVertexArray(static_cast<GLuint>(vertex_array_));
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(draw_framebuffer_));
     glBindFramebuffer(GL_READ_FRAMEBUFFER, static_cast<GLuint>(read_framebuffer_));
     glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, static_cast<GLuint>(transform_feedback_));
-    glActiveTexture(static_cast<GLenum>(active_texture_));
     if (discard_) {
       glEnable(GL_RASTERIZER_DISCARD);
     } else {
@@ -145,6 +150,7 @@ class KeptGlState {
   KeptGlState& operator=(const KeptGlState&) = delete;
 
  private:
+  bool vertex_;
   GLint program_ = 0, vertex_array_ = 0, draw_framebuffer_ = 0, read_framebuffer_ = 0, transform_feedback_ = 0;
   GLint active_texture_ = GL_TEXTURE0;
   GLboolean discard_ = GL_FALSE;
@@ -262,7 +268,7 @@ void GlApi::RunLive(const FrameRun& run) {
   const bool vertex = first && first->vertex;
   ClearGlErrors();
   {
-    KeptGlState kept;
+    KeptGlState kept(vertex);
     if (vertex) BeginVertexDraws();
     for (const auto& frame : run.frames) {
       for (const std::unique_ptr<DeviceObject>& launch : frame) {

@@ -450,7 +450,7 @@ void WaitFence(GLsync sync, const std::string& what) {
 // (glCopyBufferSubData) queued before the next frame; without buffer storage
 // host memory and a glBufferSubData into the palette, which no queued frame
 // reads (the driver's ring fence), so the driver need not stall or orphan it.
-std::span<std::uint8_t> GlApi::Staging(DeviceBuffer& buffer, const std::string& key) {
+std::span<std::uint8_t> GlApi::Staging(DeviceBuffer& buffer, const std::string& key, bool) {
   auto& palette = static_cast<GlBuffer&>(buffer);
   if (!palette.upload) {
     ClearGlErrors();
@@ -465,7 +465,7 @@ std::span<std::uint8_t> GlApi::Staging(DeviceBuffer& buffer, const std::string& 
 
 void GlApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) {
   auto& palette = static_cast<GlBuffer&>(buffer);
-  const std::uint8_t* from = Staging(buffer, key).data();
+  const std::uint8_t* from = Staging(buffer, key, true).data();
   ClearGlErrors();
   if (palette.upload->map) {
     CopyBuffer(palette.upload->buffer.get(), palette.id(), bytes);

@@ -179,7 +179,7 @@ class OpenClApi final : public DeviceApi {
     Check(clFinish(queue.get()), "launch", "clFinish after uploading the input sets of " + key);
   }
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
-  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key) override;
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key, bool upload_fenced) override;
   void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
@@ -342,13 +342,14 @@ std::unique_ptr<DeviceObject> OpenClApi::PaletteView(const Variant& variant, Dev
 
 // The palette's page-locked staging, and a non-blocking write from it on the
 // upload queue. The driver's ring fence says no launch still reads the
-// buffer; Staging also waits until the buffer's last upload has read the
-// staging (a slot written again before any launch used it).
-std::span<std::uint8_t> OpenClApi::Staging(DeviceBuffer& buffer, const std::string& key) {
+// buffer, and covers its last upload too where a launch waited for it;
+// otherwise (a slot written again before any launch used it) Staging waits
+// until that upload has read the staging.
+std::span<std::uint8_t> OpenClApi::Staging(DeviceBuffer& buffer, const std::string& key, bool upload_fenced) {
   auto& memory = static_cast<ClMemory&>(buffer);
   if (!memory.upload)
     memory.upload = std::make_unique<ClPinned>(context.get(), queue.get(), memory.bytes(), "the palette staging of " + key);
-  if (const cl_event last = memory.uploaded.get())
+  if (const cl_event last = memory.uploaded.get(); last && !upload_fenced)
     Check(clWaitForEvents(1, &last), "launch", [&] { return "clWaitForEvents on the last upload of 'palette' of " + key; });
   return {static_cast<std::uint8_t*>(memory.upload->host), memory.bytes()};
 }

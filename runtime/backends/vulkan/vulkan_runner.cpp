@@ -272,7 +272,7 @@ class VulkanApi final : public DeviceApi {
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
   // On a GPU, warm up until the clock is steady, as GL on the same NVIDIA driver needs.
   TimingPolicy timing_policy() const override { return {c_->info.type == "gpu"}; }
-  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key) override;
+  std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key, bool upload_fenced) override;
   void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
@@ -845,7 +845,7 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
 // other memory has a staging buffer whose copy the next frame's command
 // buffer records before its dispatches (RecordPendingUploads): no
 // submission of its own.
-std::span<std::uint8_t> VulkanApi::Staging(DeviceBuffer& buffer, const std::string& key) {
+std::span<std::uint8_t> VulkanApi::Staging(DeviceBuffer& buffer, const std::string& key, bool) {
   auto& b = static_cast<VulkanBuffer&>(buffer);
   if (b.mapped) return {static_cast<std::uint8_t*>(b.mapped), b.bytes()};
   if (!b.staging) b.staging = std::make_unique<VulkanBuffer>(*c_, b.bytes(), kStagingUsage, true, "palette staging of " + key);
