@@ -26,7 +26,11 @@
 // (--benchmark_enable_random_interleaving) where the machine is noisy.
 //
 //   skintune_bench_frame [--device PATTERN] [--variant KEY] [--db FILE]
-//                        [--instances K] [--scale S] [--frames F] [--poses P] [google benchmark flags]
+//                        [--instances K] [--scale S] [--frames F] [--poses P] [--submit-thread]
+//                        [google benchmark flags]
+//
+// --submit-thread opens the device with DeviceOptions::submit_thread (the
+// driver calls of SetPalette's upload and of Skin on a thread of its own).
 //
 // --scale multiplies N (0.01: 250-vertex instances), for a quick run on a
 // CPU device; --device picks the device as Device::Open does (default
@@ -61,6 +65,7 @@ struct Options {
   // system's output is right after it wrote them (64 x 77 matrices: 315 KB a
   // pose); 8 poses (2.5 MB) are read from the last-level cache instead.
   int poses = 2;
+  bool submit_thread = false;
 };
 Options options;
 
@@ -94,7 +99,11 @@ struct Scene {
   Scene() {
     k = static_cast<std::size_t>(options.instances);
     n = static_cast<std::size_t>(std::max(1.0, std::round(25000 * options.scale)));
-    device = Must(options.device.empty() ? Device::OpenBest() : Device::Open(options.device), "device");
+    DeviceOptions device_options;
+    device_options.submit_thread = options.submit_thread;
+    device = Must(options.device.empty() ? Device::OpenBest(device_options)
+                                         : Device::Open(options.device, nullptr, device_options),
+                  "device");
     db = options.db.empty() ? WinnersDb::Empty() : Must(WinnersDb::Load(options.db), options.db);
     instance = Must(Model::Synthetic(std::to_string(n) + "-b4"), "instance mesh");
     whole = Must(Model::Synthetic(std::to_string(k * n) + "-b4"), "one mesh");
@@ -127,8 +136,9 @@ struct Scene {
       Must(s.Skin(), "Skin");
     }
     Must(instanced.Finish(), "Finish");
-    std::fprintf(stderr, "device: %s (%s)\ninstanced: %zu x %zu vertices, %s\none mesh: %zu vertices, %s\n",
-                 device.info().name.c_str(), BackendName(device.info().backend), k, n,
+    std::fprintf(stderr, "device: %s (%s)%s\ninstanced: %zu x %zu vertices, %s\none mesh: %zu vertices, %s\n",
+                 device.info().name.c_str(), BackendName(device.info().backend),
+                 device.info().submit_thread ? ", submit thread" : "", k, n,
                  instanced.selection().variant.c_str(), k * n, one_mesh.selection().variant.c_str());
   }
 };
@@ -313,6 +323,7 @@ void ParseOptions(int& argc, char** argv) {
     else if (arg == "--scale" && has_value) options.scale = number(1e-6);
     else if (arg == "--frames" && has_value) options.frames = static_cast<int>(number(1));
     else if (arg == "--poses" && has_value) options.poses = static_cast<int>(number(2));
+    else if (arg == "--submit-thread") options.submit_thread = true;
     else argv[kept++] = argv[i];
   }
   argc = kept;

@@ -51,6 +51,7 @@ Device MakeDevice(const DeviceOptions& options, const DeviceIdentity& identity, 
   state->runner = std::move(runner);
   state->gl_sharing = gl_sharing;
   state->runner->UseProgramCache(&state->cache, state->info.id);
+  state->info.submit_thread = options.submit_thread && state->runner->UseSubmitThread();
   return DeviceAccess::Make(std::move(state));
 }
 

@@ -257,6 +257,10 @@ class DeviceApi {
   virtual void Wait(DeviceObject& marker, const std::string& what) = 0;
   // Waits for everything queued.
   virtual void Finish() = 0;
+  // True where Upload, RunFrames (kLive) and Mark may be called from a thread
+  // other than the one making the API's other calls, one call at a time, in
+  // order, with MakeCurrent before each (CUDA, OpenCL: Runner::UseSubmitThread).
+  virtual bool SubmitsFromAnyThread() const { return false; }
 
  protected:
   ProgramCache* cache_ = nullptr;

@@ -28,6 +28,7 @@ struct Prepared::Impl {
     std::unique_ptr<DeviceObject> done;
     std::string fence_name;  // "palette slot N of <key>", built on the slot's first wait
     bool launched = false;   // a launch read the slot (and so waited for its upload) since that upload
+    std::uint64_t submitted = 0;  // the submit thread's number of the slot's last upload or launch
   };
   // One input set: every object it owns (released last first), the buffers
   // the driver reads and writes, and its palette slots (one but in a
@@ -42,6 +43,7 @@ struct Prepared::Impl {
     std::optional<std::size_t> staged;  // the slot PaletteStaging gave, until its UploadPalette
   };
   DeviceApi* api = nullptr;  // the runner's; null in a Prepared that holds nothing
+  SubmitThread* submit = nullptr;  // the runner's, where it has one
   std::string key;           // the variant's
   std::vector<std::unique_ptr<PlannedLaunch>> launches;
   std::vector<Set> sets;
@@ -54,6 +56,7 @@ struct Prepared::Impl {
   Impl& operator=(const Impl&) = delete;
   ~Impl() {
     if (!api) return;
+    if (submit) submit->DrainQuietly();  // no queued call still uses what goes below
     const bool ready = api->ReadyToRelease();
     for (Set& set : sets) {
       for (Slot& slot : set.slots) {
@@ -102,6 +105,16 @@ const char* OutputName(bool normals) { return normals ? "out_normals" : "out_pos
 Runner::Runner(std::unique_ptr<DeviceApi> api) : api_(std::move(api)) {}
 Runner::~Runner() = default;
 
+bool Runner::UseSubmitThread() {
+  if (!api_->SubmitsFromAnyThread()) return false;
+  if (!submit_) submit_ = std::make_unique<SubmitThread>();
+  return true;
+}
+
+void Runner::Settle() {
+  if (submit_) submit_->Drain();
+}
+
 void Runner::Fail(const std::string& stage, const std::string& message) const {
   throw Error(std::string(api_->name()) + " " + stage + ": " + message);
 }
@@ -129,8 +142,10 @@ Prepared Runner::PrepareSets(const PackedMesh& mesh, std::span<const KernelSourc
                              std::span<const std::vector<std::uint8_t>> palettes, const RunShape& shape,
                              const SetOptions& options, int palette_slots) {
   Prepared prepared;
+  Settle();
   Prepared::Impl& p = *prepared.impl_;
   p.api = api_.get();
+  p.submit = submit_.get();
   p.key = mesh.variant.Key();
   for (std::size_t l = 0; l < mesh.launches.size(); ++l) {
     const Launch& launch = mesh.launches[l];
@@ -487,6 +502,7 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
 }
 
 std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int bursts, int burst_frames) {
+  Settle();
   api_->MakeCurrent();
   const Prepared::Impl* p = prepared.impl_.get();
   if (!p || p->sets.empty()) Fail("launch", "Time: nothing prepared");
@@ -565,6 +581,9 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   const Prepared::Impl& p = *prepared.impl_;
   const std::size_t next = (s.current + 1) % s.slots.size();
   Prepared::Impl::Slot& slot = s.slots[next];
+  // With a submit thread: only the calls of this slot's last upload and launch
+  // must have been made (its fence exists), not those of the frames since.
+  if (submit_) submit_->WaitFor(slot.submitted);
   if (slot.done) {
     if (slot.fence_name.empty()) slot.fence_name = "palette slot " + std::to_string(next) + " of " + p.key;
     api_->Wait(*slot.done, slot.fence_name);
@@ -582,8 +601,20 @@ void Runner::UploadPalette(Prepared& prepared, int set) {
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
   if (!s.staged) Fail("launch", "UploadPalette of " + p.key + " without PaletteStaging");
-  api_->Upload(*s.slots[*s.staged].palette, p.palettes_bytes, p.key);
-  s.slots[*s.staged].launched = false;
+  Prepared::Impl::Slot& slot = s.slots[*s.staged];
+  if (submit_) {
+    DeviceApi* api = api_.get();
+    DeviceBuffer* palette = slot.palette;
+    const std::size_t bytes = p.palettes_bytes;
+    const std::string& key = p.key;  // the Prepared drains the thread before it goes
+    slot.submitted = submit_->Push([api, palette, bytes, &key] {
+      api->MakeCurrent();
+      api->Upload(*palette, bytes, key);
+    });
+  } else {
+    api_->Upload(*slot.palette, p.palettes_bytes, p.key);
+  }
+  slot.launched = false;
   s.current = *s.staged;
   s.staged.reset();
 }
@@ -608,8 +639,19 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   run.frames = {slot.launches};
   run.key = p.key;
   run.out_positions = out_positions;
-  api_->RunFrames(run);
-  api_->Mark(slot.done, p.key);
+  if (submit_ && !out_positions) {
+    DeviceApi* api = api_.get();
+    const std::string& key = p.key;
+    slot.submitted = submit_->Push([api, run, &slot, &key] {
+      api->MakeCurrent();
+      api->RunFrames(run);
+      api->Mark(slot.done, key);
+    });
+  } else {
+    Settle();  // the positions go into the caller's buffer now (interop)
+    api_->RunFrames(run);
+    api_->Mark(slot.done, p.key);
+  }
   slot.launched = true;
 }
 
@@ -618,6 +660,7 @@ std::span<const std::uint8_t> Runner::ReadOutput(const Prepared& prepared, int s
 }
 
 DeviceApi::PinnedRead Runner::ReadOutputChunks(const Prepared& prepared, int set, bool normals, std::size_t chunk_bytes) {
+  Settle();
   api_->MakeCurrent();
   const Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
@@ -639,6 +682,7 @@ int Runner::PaletteSlot(const Prepared& prepared, int set) const {
 }
 
 void Runner::Finish() {
+  Settle();
   api_->MakeCurrent();
   api_->Finish();
 }

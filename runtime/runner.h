@@ -53,6 +53,7 @@
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "runtime/device_api.h"
+#include "runtime/submit_thread.h"
 #include "runtime/program_cache.h"
 
 namespace skintune::internal {
@@ -218,7 +219,18 @@ class Runner {
   // Waits for everything queued.
   void Finish();
 
+  // From now on UploadPalette and LaunchSet (without out_positions) hand
+  // their driver calls to a thread of the runner's own and return
+  // (DeviceOptions::submit_thread); every other call first waits until that
+  // thread has made them, and an error of theirs is thrown by the next call.
+  // False, and nothing changes, where the API's calls cannot be made from
+  // another thread (DeviceApi::SubmitsFromAnyThread). Call before Prepare.
+  bool UseSubmitThread();
+
  private:
+  // Waits until the submit thread (if any) has made every call handed to it;
+  // throws the first error among them.
+  void Settle();
   Prepared PrepareSets(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                        std::span<const std::vector<std::uint8_t>> palettes, const RunShape& shape,
                        const SetOptions& options, int palette_slots);
@@ -252,6 +264,7 @@ class Runner {
   [[noreturn]] void Fail(const std::string& stage, const std::string& message) const;
 
   std::unique_ptr<DeviceApi> api_;
+  std::unique_ptr<SubmitThread> submit_;  // after api_: stopped before it goes
   std::optional<double> warm_probe_ms_;  // the fastest clock probe right after a warm-up
   // When the device last finished timed or warm-up frames (WarmUntilStable
   // skips its probe within kStillBusyMs of it).

@@ -60,15 +60,18 @@ std::vector<float> Matrices(const std::vector<std::vector<glm::mat4>>& poses) {
 struct FrameCase {
   Backend backend;
   std::string variant;
+  bool submit_thread = false;  // DeviceOptions::submit_thread (CUDA and OpenCL)
 };
 
 void PrintTo(const FrameCase& c, std::ostream* out) {
-  *out << BackendName(c.backend) << " " << (c.variant.empty() ? "built-in default" : c.variant);
+  *out << BackendName(c.backend) << " " << (c.variant.empty() ? "built-in default" : c.variant)
+       << (c.submit_thread ? " with a submit thread" : "");
 }
 
 std::string CaseName(const ::testing::TestParamInfo<FrameCase>& info) {
   std::string name = std::string(BackendName(info.param.backend)) + "_" +
-                     (info.param.variant.empty() ? "default" : info.param.variant);
+                     (info.param.variant.empty() ? "default" : info.param.variant) +
+                     (info.param.submit_thread ? "_submit_thread" : "");
   for (char& c : name)
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   return name;
@@ -92,6 +95,12 @@ std::vector<FrameCase> Cases() {
     for (const std::string& lang : b.langs)
       for (const char* storage : {"constant", "global", "image"}) cases.push_back({b.backend, lang + ".b4.soa." + storage});
   }
+  // The frame's driver calls on the device's submit thread, where the API allows it.
+  for (const auto& b : kBackends) {
+    if (b.backend != Backend::kOpenCl && b.backend != Backend::kCuda) continue;
+    cases.push_back({b.backend, "", true});
+    cases.push_back({b.backend, b.langs.front() + ".b4.soa.image", true});
+  }
   return cases;
 }
 
@@ -99,9 +108,12 @@ class SkinnerFrames : public ::testing::TestWithParam<FrameCase> {
  protected:
   void SetUp() override {
     const Backend backend = GetParam().backend;
-    Result<Device> device = Device::Open("", &backend, CacheIn(dir_));
+    DeviceOptions device_options = CacheIn(dir_);
+    device_options.submit_thread = GetParam().submit_thread;
+    Result<Device> device = Device::Open("", &backend, device_options);
     if (!device.ok()) GTEST_SKIP() << "no " << BackendName(backend) << " device: " << device.status().message();
     device_ = std::move(*device);
+    EXPECT_EQ(device_.info().submit_thread, GetParam().submit_thread);
     SkinnerOptions options;
     options.instances = kInstances;
     options.variant = GetParam().variant;

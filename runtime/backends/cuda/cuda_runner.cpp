@@ -217,6 +217,8 @@ class CudaApi final : public DeviceApi {
     JoinUploads(stream);
     Check(api->cuStreamSynchronize(stream), "launch", "cuStreamSynchronize");
   }
+  // The driver API is thread-safe; MakeCurrent puts the context on the calling thread.
+  bool SubmitsFromAnyThread() const override { return true; }
 
  private:
   const BuiltKernel& KernelFor(const KernelSource& source);

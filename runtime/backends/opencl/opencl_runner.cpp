@@ -192,6 +192,9 @@ class OpenClApi final : public DeviceApi {
     JoinUploads(queue.get());
     Check(clFinish(queue.get()), "launch", "clFinish");
   }
+  // Every OpenCL call but clSetKernelArg is thread-safe (OpenCL 1.2, appendix
+  // A.2); the live frame's arguments are set only by the thread making it.
+  bool SubmitsFromAnyThread() const override { return true; }
   bool ReadyToRelease() override {  // no upload still reads a staging about to be released
     if (uploads_.get()) clFinish(uploads_.get());
     last_upload_.reset();

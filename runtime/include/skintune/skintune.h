@@ -120,6 +120,7 @@ struct DeviceInfo {
   std::string driver_version;
   std::string type;            // "gpu", "cpu", "accelerator" (OpenCL types joined with '+'); GL: "cpu" for
                                // Mesa's software renderers, else "gpu"
+  bool submit_thread = false;  // DeviceOptions::submit_thread was asked for and this device's API allows it
 };
 
 // A Vulkan instance, device and compute queue the caller already has
@@ -142,6 +143,16 @@ struct DeviceOptions {
   // damaged or foreign file is rebuilt and rewritten, never an error, and a
   // directory that cannot be written only costs the rebuild next start.
   std::string program_cache_dir;
+  // Make the driver calls of SetPalette's upload and of Skin on a thread of
+  // the Device's own (CUDA and OpenCL devices; elsewhere ignored, see
+  // DeviceInfo::submit_thread): SetPalette then only packs the palette and
+  // Skin only hands the launch over, so the calling thread packs frame n+1
+  // while the driver queues frame n. Every other call (Read*, Finish, another
+  // Skinner's creation) first waits until those calls are made, and an error
+  // of a handed-over call is returned by the next call on the Device's
+  // Skinners instead of its own. The thread polls for work for 0.5 ms after
+  // each call, then sleeps.
+  bool submit_thread = false;
 };
 
 // Counters for the program cache (tests and diagnostics).

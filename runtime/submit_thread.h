@@ -1,0 +1,62 @@
+// A thread that makes a Device's driver calls for the caller (DeviceOptions::
+// submit_thread): the Runner hands it a frame's palette upload and launches
+// and returns, so the caller packs the next palette while the driver queues
+// this frame's work (issue 15: on the H100's host the packing and the frame's
+// driver calls each take less than the kernel, together more).
+//
+// Operations run in the order pushed. The thread polls for work for a while
+// after each one (a frame's next operation is microseconds away; waking a
+// sleeping thread costs more than that), then sleeps; it polls an atomic
+// counter with the CPU's pause hint, so a core it shares with the caller's
+// thread (hyperthreads) keeps most of its issue slots. An operation that
+// throws is recorded and every one pushed before the caller collects the
+// error is skipped: the next WaitFor or Drain rethrows it, once.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <exception>
+#include <functional>
+#include <mutex>
+#include <thread>
+
+namespace skintune::internal {
+
+class SubmitThread {
+ public:
+  SubmitThread();
+  ~SubmitThread();  // runs what is queued, then joins (errors dropped)
+  SubmitThread(const SubmitThread&) = delete;
+  SubmitThread& operator=(const SubmitThread&) = delete;
+
+  // Queues `op`; returns its number (1, 2, ...), for WaitFor.
+  std::uint64_t Push(std::function<void()> op);
+  // Blocks until operation `number` (and every one before it) has run;
+  // rethrows the first error of an operation run since the last rethrow.
+  void WaitFor(std::uint64_t number);
+  // WaitFor the last operation pushed.
+  void Drain() { WaitFor(pushed_); }
+  // Drain without rethrowing (destructors).
+  void DrainQuietly() noexcept;
+
+ private:
+  void Loop();
+  void Rethrow();
+
+  std::mutex mutex_;
+  std::condition_variable work_, done_;
+  std::deque<std::function<void()>> queue_;  // under mutex_
+  std::uint64_t pushed_ = 0;                 // the caller's thread only
+  // Polled without the lock (a poll that took the lock would hold up the
+  // caller's Push), written under it.
+  std::atomic<std::uint64_t> queued_{0};     // operations pushed
+  std::atomic<std::uint64_t> finished_{0};   // operations run (or skipped)
+  std::exception_ptr error_;                 // under mutex_: the first failure not yet rethrown
+  std::uint64_t skip_through_ = 0;           // under mutex_: operations pushed before the caller heard of a failure
+  bool sleeping_ = false, stop_ = false;     // under mutex_
+  std::thread thread_;                       // last: started once the rest is initialised
+};
+
+}  // namespace skintune::internal
