@@ -345,7 +345,8 @@ std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8
 // go four matrices at a time (below); for the last few each store's fourth
 // row lands on the next matrix's first, which the next store overwrites:
 // every store is a plain one, in order, as write-combined staging wants;
-// only the last matrix's is masked (nothing written past the end). Built for AVX-512F whatever the compiler's target;
+// only the last matrix's is masked (nothing written past the end). Built
+// for AVX-512F whatever the compiler's target;
 // called only where the CPU has it (PackIsaAvailable).
 __attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* column_major, std::size_t matrices,
                                                                 std::uint8_t* out, std::size_t rows) {

@@ -84,7 +84,6 @@ using GraphicsResource = struct CUgraphicsResource_st*;
 using TexObject = unsigned long long;  // CUtexObject = cudaTextureObject_t
 
 inline constexpr Result kSuccess = 0;
-inline constexpr Result kErrorNotReady = 600;  // CUDA_ERROR_NOT_READY (cuEventQuery, cuStreamQuery)
 inline constexpr unsigned kStreamNonBlocking = 1;  // CU_STREAM_NON_BLOCKING
 inline constexpr unsigned kEventDisableTiming = 2;  // CU_EVENT_DISABLE_TIMING
 inline constexpr unsigned kMemHostAllocWriteCombined = 4;  // CU_MEMHOSTALLOC_WRITECOMBINED
@@ -167,7 +166,7 @@ struct DriverApi {
   Result (*cuEventCreate)(Event* event, unsigned int flags);
   Result (*cuEventRecord)(Event event, Stream stream);
   Result (*cuEventSynchronize)(Event event);
-  Result (*cuEventQuery)(Event event);  // kSuccess when complete, kErrorNotReady while not
+  Result (*cuEventQuery)(Event event);  // kSuccess when complete, CUDA_ERROR_NOT_READY (600) while not
   Result (*cuEventElapsedTime)(float* ms, Event start, Event end);  // _v2 where the driver has it
   Result (*cuEventDestroy)(Event event);                            // _v2
   Result (*cuTexObjectCreate)(TexObject* object, const ResourceDesc* resource, const TextureDesc* texture,

@@ -439,8 +439,7 @@ void OpenClApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& w
     Check(clEnqueueMarkerWithWaitList(queue.get(), 0, nullptr, &event), "launch", "clEnqueueMarkerWithWaitList after " + what);
     marker = std::make_unique<ClMarker>(event);
   }
-  const cl_int err = clFlush(queue.get());
-  if (err != CL_SUCCESS) Check(err, "launch", "clFlush after " + what);
+  Check(clFlush(queue.get()), "launch", [&] { return "clFlush after " + what; });
 }
 
 void OpenClApi::Wait(DeviceObject& marker, const std::string& what) {
@@ -528,12 +527,12 @@ void OpenClApi::Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* ev
     }
     set[a] = value;
   }
-  const cl_int err = clEnqueueNDRangeKernel(on ? on : queue.get(), plan.kernel, plan.dimensions, nullptr, plan.global,
-                                            plan.local, wait_count, wait_list, event);
-  if (err != CL_SUCCESS)
-    Check(err, "launch",
-          spec.where + ": clEnqueueNDRangeKernel (" + std::to_string(plan.global[0]) + " items x " +
-              std::to_string(plan.global[1]) + " instances, groups of " + std::to_string(plan.local[0]) + ")");
+  Check(clEnqueueNDRangeKernel(on ? on : queue.get(), plan.kernel, plan.dimensions, nullptr, plan.global, plan.local,
+                               wait_count, wait_list, event),
+        "launch", [&] {
+          return spec.where + ": clEnqueueNDRangeKernel (" + std::to_string(plan.global[0]) + " items x " +
+                 std::to_string(plan.global[1]) + " instances, groups of " + std::to_string(plan.local[0]) + ")";
+        });
 }
 
 namespace {
