@@ -473,6 +473,10 @@ class Skinner {
   //   Skin        never (it queues the launches);
   //   Finish, ReadPositions, ReadNormals  wait for the device (everything
   //               queued so far).
+  // With DeviceOptions::submit_thread the Device's thread makes the upload's
+  // and the launch's driver calls: SetPalette also waits while that thread
+  // has not yet queued the frame 3 SetPalette calls ago, and an error of a
+  // handed-over call comes back from the next call instead.
 
   // Uploads the palettes: instances() * joint_count() column-major 4x4 float
   // matrices (16 floats each, as glm::mat4 stores them; instance k's joints
