@@ -11,7 +11,9 @@
 #include <cstring>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "generator/packer.h"
@@ -52,6 +54,15 @@ class DeferredApi final : public DeviceApi {
   std::size_t launches_queued = 0;
   int waits = 0, blocking_waits = 0;
   int fenced_stagings = 0, upload_waits = 0;  // Staging told the ring fence covers the last upload; or not, and waited
+  // A submit thread (Runner::UseSubmitThread): the calls are serialised by
+  // `mutex`, and the threads that made uploads and launches are recorded.
+  bool threaded = false;
+  int fail_upload = -1;  // the upload (0, 1, ...) that throws
+  int uploads = 0;
+  std::vector<std::thread::id> submit_threads;
+  std::mutex mutex;
+
+  bool SubmitsFromAnyThread() const override { return threaded; }
 
   void RunUntil(std::size_t position) {
     for (; executed < position; ++executed) queue[executed]();
@@ -76,6 +87,8 @@ class DeferredApi final : public DeviceApi {
   }
   void FinishUploads(const std::string&) override { RunUntil(queue.size()); }
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override {
+    const std::lock_guard<std::mutex> lock(mutex);
+    submit_threads.push_back(std::this_thread::get_id());
     EXPECT_EQ(run.use, FrameUse::kLive);
     for (const auto& frame : run.frames) {
       const FakeBuffer* palette = static_cast<const FakeLaunch&>(*frame.front()).palette;
@@ -87,6 +100,7 @@ class DeferredApi final : public DeviceApi {
   // As CUDA and OpenCL: where the driver's fence does not cover the last
   // upload, wait for it; where the driver says it does, it must have run.
   std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string&, bool upload_fenced) override {
+    const std::lock_guard<std::mutex> lock(mutex);
     auto& b = static_cast<FakeBuffer&>(buffer);
     if (upload_fenced) {
       ++fenced_stagings;
@@ -99,6 +113,9 @@ class DeferredApi final : public DeviceApi {
     return b.staging;
   }
   void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string&) override {
+    const std::lock_guard<std::mutex> lock(mutex);
+    submit_threads.push_back(std::this_thread::get_id());
+    if (uploads++ == fail_upload) throw Error("Fake launch: upload " + std::to_string(fail_upload) + " refused");
     auto& b = static_cast<FakeBuffer&>(buffer);
     queue.push_back([&b, bytes] { std::copy(b.staging.begin(), b.staging.begin() + static_cast<std::ptrdiff_t>(bytes), b.device.begin()); });
     b.uploaded_at = queue.size();
@@ -108,20 +125,26 @@ class DeferredApi final : public DeviceApi {
     std::memcpy(out.data(), static_cast<const FakeBuffer&>(buffer).device.data(), out.size());
   }
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes, const std::string&) override {
+    const std::lock_guard<std::mutex> lock(mutex);
     RunUntil(queue.size());
     return {static_cast<const FakeBuffer&>(buffer).device.data(), bytes};
   }
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string&) override {
+    const std::lock_guard<std::mutex> lock(mutex);
     if (!marker) marker = std::make_unique<FakeMarker>();
     static_cast<FakeMarker&>(*marker).position = queue.size();
   }
   void Wait(DeviceObject& marker, const std::string&) override {
+    const std::lock_guard<std::mutex> lock(mutex);
     const std::size_t position = static_cast<FakeMarker&>(marker).position;
     ++waits;
     if (executed < position) ++blocking_waits;
     RunUntil(position);
   }
-  void Finish() override { RunUntil(queue.size()); }
+  void Finish() override {
+    const std::lock_guard<std::mutex> lock(mutex);
+    RunUntil(queue.size());
+  }
 
  private:
   std::string name_ = "deferred fake";
@@ -129,11 +152,13 @@ class DeferredApi final : public DeviceApi {
 
 // A runner on the fake device with a Skinner's live set of a small mesh.
 struct Ring {
-  Ring() {
+  explicit Ring(bool submit_thread = false) {
     mesh = Pack(GenerateDataset(ParseDatasetKey("200-b2")).mesh, ParseVariantKey("opencl.b2"));
     auto owned = std::make_unique<DeferredApi>();
     api = owned.get();
+    api->threaded = submit_thread;
     runner = std::make_unique<Runner>(std::move(owned));
+    EXPECT_EQ(runner->UseSubmitThread(), submit_thread);
     const std::vector<KernelSource> kernels = EmitLaunchKernels(mesh);
     prepared = runner->Prepare(mesh, kernels, std::vector<std::vector<std::uint8_t>>{mesh.palette}, 1, kPaletteSlots);
   }
@@ -217,6 +242,47 @@ TEST(PaletteRing, TheRingFenceCoversTheUploadOnlyOfASlotSkinnedSinceItsUpload) {
   ring.runner->LaunchSet(ring.prepared, 0);
   ring.runner->Finish();
   EXPECT_EQ(ring.FrameRead(ring.api->LaunchesRun() - 1), 60);
+}
+
+// With a submit thread the uploads and launches are made on it, and every
+// frame still reads its own palette with the ring's frames in flight.
+TEST(PaletteRing, WithASubmitThreadEveryFrameStillReadsItsOwnPalette) {
+  Ring ring(true);
+  constexpr int kFrames = 4 * kPaletteSlots + 1;
+  for (int f = 0; f < kFrames; ++f) {
+    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));
+    ring.runner->LaunchSet(ring.prepared, 0);
+  }
+  ring.runner->Finish();
+  ASSERT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(kFrames));
+  for (int f = 0; f < kFrames; ++f) EXPECT_EQ(ring.FrameRead(static_cast<std::size_t>(f)), f) << "launch " << f;
+  ASSERT_EQ(ring.api->submit_threads.size(), 2u * kFrames);
+  for (const std::thread::id id : ring.api->submit_threads) EXPECT_NE(id, std::this_thread::get_id());
+}
+
+// A handed-over upload that fails is thrown by the next call that waits for
+// the thread, once; what was queued behind it is dropped, and the next frame
+// skins with its own palette.
+TEST(PaletteRing, AFailedUploadOnTheSubmitThreadIsThrownOnceByTheNextCall) {
+  Ring ring(true);
+  ring.api->fail_upload = 2;
+  for (int f = 0; f < 3; ++f) {
+    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));  // frame 2's upload fails on the thread
+    ring.runner->LaunchSet(ring.prepared, 0);
+  }
+  try {
+    ring.runner->Finish();
+    ADD_FAILURE() << "Finish did not report the failed upload";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "Fake launch: upload 2 refused");
+  }
+  EXPECT_NO_THROW(ring.runner->Finish());
+  EXPECT_EQ(ring.api->LaunchesRun(), 2u) << "frame 2's launch, queued behind the failure, dropped";
+  ring.runner->WritePalette(ring.prepared, 0, ring.Palette(10));
+  ring.runner->LaunchSet(ring.prepared, 0);
+  ring.runner->Finish();
+  ASSERT_EQ(ring.api->LaunchesRun(), 3u);
+  EXPECT_EQ(ring.FrameRead(2), 10);
 }
 
 TEST(PaletteRing, AStagingNeverUploadedTakesNoSlot) {
