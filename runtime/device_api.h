@@ -217,12 +217,11 @@ class DeviceApi {
   // host-visible memory, or the buffer itself where it is host-visible);
   // Upload queues the copy of its first `bytes` into the buffer, before any
   // launch queued later, without waiting. The driver fills a staging only
-  // once the buffer's previous upload and every launch that read the buffer
-  // have completed (its Mark), so no API waits in either. `upload_fenced`:
-  // the fence the driver waited for also covers the buffer's last upload (a
-  // launch that read the buffer waited for it); false where the buffer was
-  // uploaded and not launched since, so an API whose copy reads the staging
-  // asynchronously waits for that copy first.
+  // once every launch that read the buffer has completed (its Mark), and
+  // Upload never waits. `upload_fenced`: that fence also covers the buffer's
+  // last upload (a launch that read the buffer waited for it); false where
+  // the buffer was uploaded and not launched since, so an API whose copy
+  // reads the staging asynchronously waits in Staging for that copy first.
   virtual std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& what, bool upload_fenced) = 0;
   virtual void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& what) = 0;
   // Reads `buffer` back into `out` (its first out.size() bytes); `wait`:

@@ -572,9 +572,9 @@ Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {
 
 // The palette ring (runner.h): frame n+1's palette goes into the slot after
 // frame n's, once that slot's last frame (kPaletteSlots frames back) is done.
-// A slot written and never launched needs no fence of its own: an upload
-// still queued from its staging is followed by the next one, and no launch
-// reads the slot before both have run.
+// A slot written and never launched needs no fence of its own (no launch
+// reads it before its next upload); the API's Staging waits for its last
+// upload instead (upload_fenced false).
 std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
@@ -642,7 +642,7 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   if (submit_ && !out_positions) {
     DeviceApi* api = api_.get();
     const std::string& key = p.key;
-    slot.submitted = submit_->Push([api, run, &slot, &key] {
+    slot.submitted = submit_->Push([api, run = std::move(run), &slot, &key] {
       api->MakeCurrent();
       api->RunFrames(run);
       api->Mark(slot.done, key);

@@ -53,8 +53,8 @@
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "runtime/device_api.h"
-#include "runtime/submit_thread.h"
 #include "runtime/program_cache.h"
+#include "runtime/submit_thread.h"
 
 namespace skintune::internal {
 
