@@ -300,13 +300,15 @@ std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const 
 // stores made a 64 x 77-joint SetPalette cost 300 us on the H100's host).
 namespace {
 template <std::size_t kRows>
-std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8_t* out) {
+std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8_t* out, float& largest) {
   static_assert(std::endian::native == std::endian::little, "packed buffers are little-endian, as the devices read them");
   std::size_t first_special = matrices;
 #if defined(__SSE2__)
   // Four columns in, a 4x4 transpose in registers, kRows rows out; the
-  // exponent test on all 16 words at once.
+  // exponent test on all 16 words at once, and the magnitudes' maximum.
   const __m128i exponent = _mm_set1_epi32(0x7f800000);
+  const __m128 magnitude = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  __m128 top = _mm_setzero_ps();
   for (std::size_t j = 0; j < matrices; ++j, out += kRows * 16) {
     const float* m = column_major + 16 * j;
     __m128 c0 = _mm_loadu_ps(m), c1 = _mm_loadu_ps(m + 4), c2 = _mm_loadu_ps(m + 8), c3 = _mm_loadu_ps(m + 12);
@@ -314,6 +316,8 @@ std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8
       return _mm_cmpeq_epi32(_mm_and_si128(_mm_castps_si128(c), exponent), exponent);
     };
     const __m128i any = _mm_or_si128(_mm_or_si128(special(c0), special(c1)), _mm_or_si128(special(c2), special(c3)));
+    top = _mm_max_ps(top, _mm_max_ps(_mm_max_ps(_mm_and_ps(c0, magnitude), _mm_and_ps(c1, magnitude)),
+                                     _mm_max_ps(_mm_and_ps(c2, magnitude), _mm_and_ps(c3, magnitude))));
     _MM_TRANSPOSE4_PS(c0, c1, c2, c3);
     auto* rows = reinterpret_cast<float*>(out);
     _mm_storeu_ps(rows, c0);
@@ -322,6 +326,9 @@ std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8
     if constexpr (kRows == 4) _mm_storeu_ps(rows + 12, c3);
     if (_mm_movemask_epi8(any) != 0 && first_special == matrices) first_special = j;
   }
+  float lanes[4];
+  _mm_storeu_ps(lanes, top);
+  largest = std::max(std::max(lanes[0], lanes[1]), std::max(lanes[2], lanes[3]));
 #else
   for (std::size_t j = 0; j < matrices; ++j, out += kRows * 16) {
     std::uint32_t words[16];
@@ -329,6 +336,7 @@ std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8
     std::uint32_t special = 0;
     std::uint32_t rows[kRows * 4];
     for (std::size_t i = 0; i < 16; ++i) special |= (words[i] & 0x7f800000u) == 0x7f800000u ? 1u : 0u;
+    for (std::size_t i = 0; i < 16; ++i) largest = std::max(largest, std::fabs(column_major[16 * j + i]));
     for (std::size_t r = 0; r < kRows; ++r)
       for (std::size_t c = 0; c < 4; ++c) rows[r * 4 + c] = words[c * 4 + r];
     std::memcpy(out, rows, sizeof rows);
@@ -349,7 +357,7 @@ std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8
 // for AVX-512F whatever the compiler's target;
 // called only where the CPU has it (PackIsaAvailable).
 __attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* column_major, std::size_t matrices,
-                                                                std::uint8_t* out, std::size_t rows) {
+                                                                std::uint8_t* out, std::size_t rows, float& largest) {
   // Output word k (row k / 4, column k % 4) is input word (k % 4) * 4 + k / 4.
   const __m512i transpose = _mm512_set_epi32(15, 11, 7, 3, 14, 10, 6, 2, 13, 9, 5, 1, 12, 8, 4, 0);
   const __m512i exponent = _mm512_set1_epi32(0x7f800000);
@@ -357,6 +365,7 @@ __attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* colum
   auto* rows_out = reinterpret_cast<float*>(out);
   std::size_t first_special = matrices;
   std::size_t j = 0;
+  __m512 top = _mm512_setzero_ps();  // the magnitudes' maximum, per lane (maskz: GCC 12 warns on the plain max's undefined source)
   if (rows == 3) {
     // Four matrices' rows are 192 bytes: three whole 64-byte stores, each
     // gathered from two matrices by one two-source permute (index bit 4
@@ -381,6 +390,9 @@ __attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* colum
       _mm512_storeu_ps(o, _mm512_permutex2var_ps(m0, first, m1));
       _mm512_storeu_ps(o + 16, _mm512_permutex2var_ps(m1, second, m2));
       _mm512_storeu_ps(o + 32, _mm512_permutex2var_ps(m2, third, m3));
+      top = _mm512_maskz_max_ps(0xFFFF, top,
+                                _mm512_maskz_max_ps(0xFFFF, _mm512_maskz_max_ps(0xFFFF, _mm512_abs_ps(m0), _mm512_abs_ps(m1)),
+                                                    _mm512_maskz_max_ps(0xFFFF, _mm512_abs_ps(m2), _mm512_abs_ps(m3))));
       if (first_special != matrices) continue;
       // (Written out: a lambda would not inherit this function's AVX-512 target.)
       const __mmask16 s0 = _mm512_cmpeq_epi32_mask(_mm512_and_si512(_mm512_castps_si512(m0), exponent), exponent);
@@ -400,6 +412,7 @@ __attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* colum
     // maskz with every lane kept is the plain permute; GCC 12 warns on
     // _mm512_permutexvar_ps's own undefined source operand.
     const __m512 t = _mm512_maskz_permutexvar_ps(0xFFFF, transpose, m);
+    top = _mm512_maskz_max_ps(0xFFFF, top, _mm512_abs_ps(m));
     if (rows == 4 || j + 1 < matrices) {
       _mm512_storeu_ps(rows_out + 4 * rows * j, t);
     } else {
@@ -407,6 +420,9 @@ __attribute__((target("avx512f"))) std::size_t PackRowsAvx512(const float* colum
     }
     if (special != 0 && first_special == matrices) first_special = j;
   }
+  float lanes[16];
+  _mm512_storeu_ps(lanes, top);
+  largest = *std::max_element(lanes, lanes + 16);
   return first_special;
 }
 #endif
@@ -428,17 +444,20 @@ bool PackIsaAvailable(PackIsa isa) {
 }
 
 std::size_t PackPaletteInto(const float* column_major, std::size_t matrices, const Variant& variant, std::uint8_t* out,
-                            PackIsa isa) {
+                            PackIsa isa, float* largest_magnitude) {
   const std::size_t rows = PaletteMatrixBytes(variant) / 16;
+  float unused = 0.0f;
+  float& largest = largest_magnitude ? *largest_magnitude : unused;
+  largest = 0.0f;
 #if defined(SKINTUNE_PACK_AVX512)
   static const bool avx512 = PackIsaAvailable(PackIsa::kAvx512);
   if (isa == PackIsa::kAvx512 && !avx512) throw Error("PackPaletteInto: this CPU has no AVX-512F");
   if (isa == PackIsa::kAvx512 || (isa == PackIsa::kAuto && avx512))
-    return PackRowsAvx512(column_major, matrices, out, rows);
+    return PackRowsAvx512(column_major, matrices, out, rows, largest);
 #else
   if (isa == PackIsa::kAvx512) throw Error("PackPaletteInto: built without the AVX-512 path");
 #endif
-  return rows == 4 ? PackRows<4>(column_major, matrices, out) : PackRows<3>(column_major, matrices, out);
+  return rows == 4 ? PackRows<4>(column_major, matrices, out, largest) : PackRows<3>(column_major, matrices, out, largest);
 }
 
 std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uint8_t> output) {

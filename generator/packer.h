@@ -85,7 +85,9 @@ std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const 
 // matrices x PaletteRowBytes(variant) bytes, in one pass (the runtime packs
 // straight into its page-locked staging). Returns the index of the first
 // matrix with a NaN or infinite element, or `matrices` when every element
-// is finite.
+// is finite. `largest_magnitude`, where given, receives the largest |element|
+// of them all (meaningful when every element is finite; 0 for no matrices):
+// the runtime's bound on the outputs (runtime/skinner.cpp, the read-back).
 //
 // `isa` picks the code path: kAuto the best this CPU has (AVX-512: a matrix
 // a load, one permute and one masked store; 2.2x the baseline's speed on the
@@ -93,7 +95,7 @@ std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const 
 enum class PackIsa { kAuto, kBaseline, kAvx512 };
 bool PackIsaAvailable(PackIsa isa);
 std::size_t PackPaletteInto(const float* column_major, std::size_t matrices, const Variant& variant, std::uint8_t* out,
-                            PackIsa isa = PackIsa::kAuto);
+                            PackIsa isa = PackIsa::kAuto, float* largest_magnitude = nullptr);
 // Bytes of one packed matrix: 64 (mat4) or 48 (mat3x4).
 std::size_t PaletteMatrixBytes(const Variant& variant);
 

@@ -121,4 +121,15 @@ void CopyFloat3(const std::uint8_t* packed, std::size_t stride, float* out, std:
   scalar_until(end);
 }
 
+bool CopyFloat3Finite(const std::uint8_t* packed, std::size_t stride, float* out, std::size_t begin, std::size_t end,
+                      bool streaming) {
+  constexpr std::size_t kBlock = 512;  // vertices: 6-8 KB of `packed`, well inside a core's L1
+  for (std::size_t at = begin; at < end; at += kBlock) {
+    const std::size_t until = std::min(end, at + kBlock);
+    if (!AllFinite({packed + at * stride, (until - at) * stride})) return false;
+    CopyFloat3(packed, stride, out, at, until, streaming);
+  }
+  return true;
+}
+
 }  // namespace skintune::internal

@@ -34,4 +34,12 @@ bool StreamingWrite(std::size_t bytes);
 void CopyFloat3(const std::uint8_t* packed, std::size_t stride, float* out, std::size_t begin, std::size_t end,
                 bool streaming);
 
+// CopyFloat3 and AllFinite in one pass: block by block, each block of
+// `packed` scanned and then copied while it is in the cache. Stops before
+// the first block holding a NaN or infinite word and returns false (the
+// blocks before it are copied, that one and the rest are not); true when
+// every word of [begin, end) is finite and copied.
+bool CopyFloat3Finite(const std::uint8_t* packed, std::size_t stride, float* out, std::size_t begin, std::size_t end,
+                      bool streaming);
+
 }  // namespace skintune::internal

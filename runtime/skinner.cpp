@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <mutex>
 #include <thread>
 
@@ -221,6 +222,24 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   return chosen;
 }
 
+// A bound on every position output's |component| per unit of the palette's
+// largest |element|: x' = sum_i w_i (M_i (x, y, z, 1)) has at most 4 terms of
+// |w_i| |M_i[r][c]| |p_c| per influence. The weight sum is the mesh's
+// largest, plus one per influence for the formats' rounding (a unorm weight
+// is at most 1 anyway); the position's the largest |component|, at least 1
+// (the translation column). Normals are not bounded: they are normalised.
+double OutputBound(const SkinnedMesh& mesh) {
+  double weight_sum = 0.0, position = 1.0;
+  const std::size_t b = static_cast<std::size_t>(mesh.influences);
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < b; ++i) sum += std::fabs(static_cast<double>(mesh.weights[v * b + i]));
+    weight_sum = std::max(weight_sum, sum);
+    for (int c = 0; c < 3; ++c) position = std::max(position, std::fabs(static_cast<double>(mesh.positions[v][c])));
+  }
+  return 4.0 * (weight_sum + static_cast<double>(b)) * position;
+}
+
 // Create and CreateBatch: the scene (SceneOf), then one path for both: the
 // variant chosen for the scene's shape and total size, packed, emitted and
 // prepared on the device.
@@ -274,6 +293,7 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
   im.order = packed.order;
   im.identity_order = true;
   for (std::size_t p = 0; p < im.order.size() && im.identity_order; ++p) im.identity_order = im.order[p] == p;
+  im.output_bound = OutputBound(mesh);
   im.backend = state.backend->make_skinner(state, packed, kernels, options.instances);
   return impl;
 }
@@ -346,7 +366,8 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
     if (staging.size() != joints * PaletteMatrixBytes(im.variant))
       FailWith(ErrorCode::kDeviceError, "Skinner::SetPalette: the palette staging has " + std::to_string(staging.size()) +
                                             " bytes, expected " + std::to_string(joints * PaletteMatrixBytes(im.variant)));
-    const std::size_t bad = PackPaletteInto(matrices, joints, im.variant, staging.data());
+    float magnitude = 0.0f;
+    const std::size_t bad = PackPaletteInto(matrices, joints, im.variant, staging.data(), PackIsa::kAuto, &magnitude);
     for (std::size_t i = bad * 16; i < joints * 16 && i < (bad + 1) * 16; ++i) {
       if (std::isfinite(matrices[i])) continue;
       const std::size_t j = i / 16;
@@ -359,6 +380,7 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
     }
     im.backend->UploadPalette();
     im.palette_set = true;
+    im.palette_magnitude = magnitude;
   });
 }
 
@@ -368,6 +390,7 @@ Status Skinner::Skin() {
     if (!im.palette_set) FailWith(ErrorCode::kInvalidState, "Skinner::Skin: no palette yet (call SetPalette first)");
     im.backend->Skin();
     im.skinned = true;
+    im.skinned_magnitude = im.palette_magnitude;  // the output is this palette's alone
   });
 }
 
@@ -384,10 +407,20 @@ namespace skintune::internal {
 
 namespace {
 
-// Read-backs are scanned and copied in chunks of kReadChunkVertices on the
-// runtime's host pool (runtime/host_work.h), each chunk's scan as soon as
-// its copy from the device is in.
+// Read-backs come from the device in chunks of kReadChunkVertices (each
+// copy queued at once, each waited for by the host thread that needs it) and
+// are scanned and copied in grains of kReadGrainVertices on the runtime's
+// host pool (runtime/host_work.h), each grain as soon as its chunk is in.
 constexpr std::size_t kReadChunkVertices = 1 << 16;
+constexpr std::size_t kReadGrainVertices = 1 << 14;
+
+// Whether a position output skinned with a palette whose largest |element|
+// is `magnitude` cannot overflow float32 (Skinner::Impl::output_bound): the
+// bound a thousandth of float32's largest, ample for the kernels' rounding
+// (each partial sum is within a few ulp of the exact one's bound).
+bool CannotOverflow(double output_bound, float magnitude) {
+  return output_bound * static_cast<double>(magnitude) <= static_cast<double>(std::numeric_limits<float>::max()) / 1024.0;
+}
 
 Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out, std::size_t float_count) {
   const char* call = normals ? "ReadNormals" : "ReadPositions";
@@ -403,7 +436,7 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
     if (!out) FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::") + call + ": out is null");
     if (!im.skinned) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": nothing skinned yet (call Skin first)");
     // Straight from the page-locked read-back staging into the caller's array,
-    // in mesh order; the scan of each chunk while later ones are still in flight.
+    // in mesh order; each grain's work while later chunks are still in flight.
     const std::size_t stride = im.output_stride;
     const DeviceApi::PinnedRead read = im.backend->Read(normals, kReadChunkVertices * stride);
     const std::span<const std::uint8_t> packed = read.bytes;
@@ -411,9 +444,14 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
       FailWith(ErrorCode::kDeviceError, std::string("Skinner::") + call + ": the device read back " +
                                             std::to_string(packed.size()) + " bytes, expected " +
                                             std::to_string(vertices * im.output_stride));
-    // A NaN or infinite output never reaches the caller's buffer: one scan of
-    // the words (float4 outputs' w is 1), and the vertex named when it finds
-    // one; then the copy. Both on the shared read-back pool for large outputs.
+    // A NaN or infinite output never reaches the caller's buffer. Where the
+    // palette may overflow float32, one scan of every word (float4 outputs'
+    // w is 1) first, the vertex named when it finds one, then the copy: out
+    // untouched on failure. Where it cannot (positions, CannotOverflow), each
+    // grain is scanned and copied in one pass: a non-finite output can only
+    // come from a broken kernel, and is an error with the grains before it
+    // already written.
+    const bool one_pass = !normals && CannotOverflow(im.output_bound, im.skinned_magnitude);
     std::atomic<bool> all_finite{true};
     std::mutex failed_mutex;
     std::string failed;  // the first chunk whose copy failed
@@ -429,7 +467,7 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
         std::memcpy(out + (k * im.vertex_count + im.order[p]) * 3, packed.data() + v * stride, 3 * sizeof(float));
       }
     };
-    ForChunks(vertices, kReadChunkVertices, [&](std::size_t begin, std::size_t end) {
+    ForChunks(vertices, kReadGrainVertices, [&](std::size_t begin, std::size_t end) {
       try {
         read.ready(end * stride);
       } catch (const Error& e) {
@@ -437,7 +475,17 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
         if (failed.empty()) failed = e.what();
         return;
       }
-      if (!AllFinite(packed.subspan(begin * stride, (end - begin) * stride))) all_finite = false;
+      if (!one_pass) {
+        if (!AllFinite(packed.subspan(begin * stride, (end - begin) * stride))) all_finite = false;
+      } else if (all_finite.load(std::memory_order_relaxed)) {  // nothing more written once one is found
+        if (same_order) {
+          if (!CopyFloat3Finite(packed.data(), stride, out, begin, end, streaming)) all_finite = false;
+        } else if (!AllFinite(packed.subspan(begin * stride, (end - begin) * stride))) {
+          all_finite = false;
+        } else {
+          copy(begin, end);
+        }
+      }
     });
     if (!failed.empty()) throw Error(failed);
     read.ready(packed.size());  // every chunk in, whatever the pool's split
@@ -451,10 +499,12 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
                std::string("Skinner::") + call + ": vertex " + std::to_string(im.order[p % im.vertex_count]) +
                    " of instance " + std::to_string(k) + " is (" + std::to_string(xyz[0]) + ", " +
                    std::to_string(xyz[1]) + ", " + std::to_string(xyz[2]) +
-                   "), not finite: the palette times the mesh overflows float32 (or the kernel is broken); out "
-                   "is not written");
+                   (one_pass ? "), not finite although this palette and mesh cannot overflow float32: the kernel is "
+                               "broken; out may hold some of the other vertices, never a non-finite value"
+                             : "), not finite: the palette times the mesh overflows float32 (or the kernel is broken); "
+                               "out is not written"));
     }
-    ForChunks(vertices, kReadChunkVertices, copy);
+    if (!one_pass) ForChunks(vertices, kReadGrainVertices, copy);
   });
 }
 
@@ -484,6 +534,7 @@ Status Skinner::SkinIntoVulkan(void* vk_command_buffer, void* vk_buffer) {
     if (!vk_command_buffer) FailWith(ErrorCode::kInvalidArgument, "Skinner::SkinIntoVulkan: a null VkCommandBuffer");
     im.backend->SkinIntoVulkan(vk_command_buffer, vk_buffer);
     im.skinned = true;
+    im.skinned_magnitude = std::max(im.skinned_magnitude, im.palette_magnitude);  // whichever output Read reads
   });
 }
 

@@ -144,6 +144,14 @@ struct Skinner::Impl {
   std::vector<int> joint_offsets;           // per mesh, then joint_count
   bool palette_set = false;
   bool skinned = false;
+  // The read-back's overflow bound (ReadPositions): every position output's
+  // |component| is at most output_bound x the largest |element| of the
+  // palette it was skinned with (4 terms of weight sum x position x matrix
+  // element); palette_magnitude is the last SetPalette's largest |element|,
+  // skinned_magnitude the largest of the palettes the output was written with.
+  double output_bound = 0.0;
+  float palette_magnitude = 0.0f;
+  float skinned_magnitude = 0.0f;
   std::unique_ptr<internal::SkinnerBackend> backend;  // declared last: destroyed before `device`
 };
 

@@ -495,6 +495,25 @@ TEST(Packer, EveryPackPathWritesTheRowsAndFindsTheFirstNonFiniteMatrix) {
             ASSERT_EQ(ReadFloat(out, ((j * rows + r) * 4 + c) * 4), matrices[16 * j + 4 * c + r])
                 << "isa " << static_cast<int>(isa) << " matrix " << j << " row " << r << " column " << c;
       for (std::size_t b = kMatrices * rows * 16; b < out.size(); ++b) ASSERT_EQ(out[b], 0xAB) << "byte " << b;
+      // The largest magnitude, wherever it sits (each element of a group of
+      // four, of the tail, and of row 4, which mat3x4 does not store), and
+      // negative or positive.
+      for (std::size_t at : {std::size_t{0}, std::size_t{16 * 5 + 7}, std::size_t{16 * 34 + 15}, 16 * kMatrices - 1,
+                             std::size_t{16 * 9 + 3}})
+        for (float sign : {1.0f, -1.0f}) {
+          std::vector<float> with = matrices;
+          with[at] = sign * 1e30f;
+          float largest = -1.0f;
+          EXPECT_EQ(PackPaletteInto(with.data(), kMatrices, v, out.data(), isa, &largest), kMatrices);
+          EXPECT_EQ(largest, 1e30f) << "isa " << static_cast<int>(isa) << " element " << at;
+        }
+      float largest = -1.0f;
+      PackPaletteInto(matrices.data(), kMatrices, v, out.data(), isa, &largest);
+      float expected = 0.0f;
+      for (float m : matrices) expected = std::max(expected, std::fabs(m));
+      EXPECT_EQ(largest, expected);
+      EXPECT_EQ(PackPaletteInto(matrices.data(), 0, v, out.data(), isa, &largest), 0u);
+      EXPECT_EQ(largest, 0.0f) << "no matrices";
       // A special element in each position of a few matrices: the first such matrix is reported.
       // (AVX-512 packs three rows four matrices at a time: each position in a group, and the tail.)
       for (std::size_t bad : {std::size_t{0}, std::size_t{2}, std::size_t{17}, std::size_t{35}, kMatrices - 1})

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
@@ -151,6 +152,33 @@ inline std::vector<std::vector<glm::mat4>> Poses(const SkinnedAsset& asset, int 
   for (int k = 0; k < instances; ++k)
     out.push_back(asset.PaletteAt(0, clip.start + (clip.end - clip.start) * (k + 0.5) / instances));
   return out;
+}
+
+// `pose` with every joint of the mesh's last vertex scaled to 3e38: finite,
+// but that vertex's output (and any other those joints move) overflows
+// float32, so the read-back scans everything before copying.
+inline std::vector<float> OverflowingLastVertex(const SkinnedMesh& mesh, std::span<const glm::mat4> pose) {
+  std::vector<float> matrices = Floats(pose);
+  const std::size_t last = mesh.vertex_count() - 1, b = static_cast<std::size_t>(mesh.influences);
+  for (std::size_t i = 0; i < b; ++i) {
+    if (mesh.weights[last * b + i] == 0.0f) continue;
+    const std::size_t j = mesh.joints[last * b + i];
+    for (int e = 0; e < 16; e += 5) matrices[j * 16 + e] = 3e38f;
+  }
+  return matrices;
+}
+
+// Skins with `matrices` (finite, but the output overflows float32) and
+// expects ReadPositions to fail naming it, leaving the caller's array as it was.
+inline void ExpectOverflowWritesNothing(Skinner& skinner, const std::vector<float>& matrices) {
+  ASSERT_TRUE(skinner.SetPalette(matrices.data(), matrices.size()).ok());
+  ASSERT_TRUE(skinner.Skin().ok());
+  std::vector<float> out(skinner.vertex_count() * static_cast<std::size_t>(skinner.instances()) * 3, 7.0f);
+  const Status read = skinner.ReadPositions(out.data(), out.size());
+  EXPECT_EQ(read.code(), ErrorCode::kDeviceError);
+  EXPECT_NE(read.message().find("not finite: the palette times the mesh overflows float32"), std::string::npos)
+      << read.message();
+  EXPECT_TRUE(std::all_of(out.begin(), out.end(), [](float v) { return v == 7.0f; }));
 }
 
 }  // namespace skintune::internal::testing

@@ -65,6 +65,42 @@ TEST(HostWork, AllFiniteFindsAnInfinityOrNaNAnywhere) {
   }
 }
 
+// The one-pass copy and scan: every vertex of a finite range copied as
+// CopyFloat3 copies it (true); a NaN or infinity anywhere (x, y, z, or
+// float4's w) gives false, and no vertex from its 512-vertex block on is
+// written, so the bad word never reaches the array.
+TEST(HostWork, CopyFloat3FiniteCopiesAFiniteRangeAndStopsBeforeANonFiniteBlock) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-100.0f, 100.0f);
+  const std::size_t vertices = 3000;
+  for (const std::size_t stride : {12u, 16u}) {
+    std::vector<float> words(vertices * stride / 4);
+    for (float& w : words) w = u(rng);
+    const auto* packed = reinterpret_cast<const std::uint8_t*>(words.data());
+    for (const bool streaming : {false, true})
+      for (const auto& [begin, end] : std::vector<std::pair<std::size_t, std::size_t>>{{0, 3000}, {7, 2001}, {513, 514}, {5, 5}}) {
+        std::vector<float> expected(vertices * 3, -7.0f), out(vertices * 3, -7.0f);
+        CopyFloat3(packed, stride, expected.data(), begin, end, false);
+        EXPECT_TRUE(CopyFloat3Finite(packed, stride, out.data(), begin, end, streaming));
+        ASSERT_EQ(out, expected) << "stride " << stride << ", [" << begin << ", " << end << ")";
+      }
+    for (const std::size_t bad_vertex : {std::size_t{0}, std::size_t{511}, std::size_t{1700}, vertices - 1})
+      for (std::size_t word = 0; word < stride / 4; ++word) {
+        std::vector<float> with = words;
+        with[bad_vertex * stride / 4 + word] =
+            word % 2 ? std::numeric_limits<float>::quiet_NaN() : -std::numeric_limits<float>::infinity();
+        std::vector<float> out(vertices * 3, -7.0f);
+        EXPECT_FALSE(CopyFloat3Finite(reinterpret_cast<const std::uint8_t*>(with.data()), stride, out.data(), 0,
+                                      vertices, true))
+            << "stride " << stride << ", vertex " << bad_vertex << " word " << word;
+        const std::size_t block = bad_vertex / 512 * 512;  // blocks of 512 from `begin` (0)
+        std::vector<float> before(vertices * 3, -7.0f);     // the blocks before it, copied
+        CopyFloat3(reinterpret_cast<const std::uint8_t*>(with.data()), stride, before.data(), 0, block, false);
+        ASSERT_EQ(out, before) << "stride " << stride << ", vertex " << bad_vertex << " word " << word;
+      }
+  }
+}
+
 // Every index exactly once, in chunks on the pool and as one chunk on the caller.
 TEST(HostWork, ForChunksVisitsEveryIndexOnce) {
   for (const std::size_t grain : {std::size_t{4096}, std::size_t{1} << 20}) {

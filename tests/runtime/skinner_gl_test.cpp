@@ -4,9 +4,12 @@
 // instances, the program binary cache, and the misuse a GL context allows
 // (not current, gone). Every test skips with the reason where no GL 4.3
 // context can be made.
+#include <epoxy/egl.h>
 #include <epoxy/gl.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <iostream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -92,6 +95,36 @@ TEST(GlSkinner, SkinsKInstancesWithComputeAndVertexShaders) {
       Skinner skinner = MustCreate(*device, view.mesh, options);
       ExpectInstancesLikeTheGold(skinner, Small().mesh, Poses(Small(), k));
     }
+  }
+}
+
+// A read-back of more than one chunk (GlApi::ReadPinnedChunks: one GPU copy
+// and one EGL fence per chunk, waited for by the host pool's threads, where
+// the display has EGL_KHR_fence_sync): float3 and float4 outputs match the
+// gold across the chunks, read in one pass; a palette that overflows only in
+// the last chunk's vertices is an error that leaves the caller's array as it
+// was (the scan first, then the copy).
+TEST(GlSkinner, AReadBackInChunksIsTheGoldAndAnOverflowInTheLastChunkWritesNothing) {
+  TempDir dir;
+  Result<Device> device = Device::Open("", &kGl, CacheIn(dir));
+  if (!device.ok()) GTEST_SKIP() << "no GL device: " << device.status().message();
+  static const SkinnedAsset asset = GenerateDataset(ParseDatasetKey("150001-b2-seed7"));
+  const View view(asset.mesh);
+  for (const char* key : {"glsl-compute.b2.padded.soa.float3.u16.f32.mat3x4.global.matrix.v1c.wg128",
+                          "glsl-compute.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128"}) {
+    SCOPED_TRACE(key);
+    SkinnerOptions options;
+    options.variant = key;
+    Skinner skinner = MustCreate(*device, view.mesh, options);
+    ExpectSkinsLikeTheGold(skinner, asset.mesh, Pose(asset, 0.3));
+    const EGLDisplay display = eglGetCurrentDisplay();  // the Device's context is current on this thread
+    std::cout << "[   INFO   ] read back "
+              << (display != EGL_NO_DISPLAY && epoxy_has_egl_extension(display, "EGL_KHR_fence_sync")
+                      ? "in chunks (EGL_KHR_fence_sync)"
+                      : "whole (no EGL fence sync here)")
+              << "\n";
+    ExpectSkinsLikeTheGold(skinner, asset.mesh, Pose(asset, 0.7));  // the fences of the first read replaced
+    testing::ExpectOverflowWritesNothing(skinner, testing::OverflowingLastVertex(asset.mesh, Pose(asset, 0.3)));
   }
 }
 

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include <cstdlib>
 #include <fstream>
@@ -27,6 +28,7 @@ namespace {
 
 using testing::CacheIn;
 using testing::ExpectInstancesLikeTheGold;
+using testing::ExpectOverflowWritesNothing;
 using testing::ExpectSkinsLikeTheGold;
 using testing::Poses;
 using testing::Floats;
@@ -148,18 +150,6 @@ TEST(OpenClSkinner, SkinsCesiumManWithTheBuiltInDefaultLikeTheGold) {
   ExpectSkinsLikeTheGold(skinner, Cesium().mesh, Animated(Cesium(), 0.8));
 }
 
-// Skins with `matrices` (finite, but the output overflows float32) and
-// expects ReadPositions to fail naming it, leaving the caller's array as it was.
-void ExpectOverflowWritesNothing(Skinner& skinner, const std::vector<float>& matrices) {
-  ASSERT_TRUE(skinner.SetPalette(matrices.data(), matrices.size()).ok());
-  ASSERT_TRUE(skinner.Skin().ok());
-  std::vector<float> out(skinner.vertex_count() * static_cast<std::size_t>(skinner.instances()) * 3, 7.0f);
-  const Status read = skinner.ReadPositions(out.data(), out.size());
-  EXPECT_EQ(read.code(), ErrorCode::kDeviceError);
-  EXPECT_NE(read.message().find("not finite"), std::string::npos) << read.message();
-  EXPECT_TRUE(std::all_of(out.begin(), out.end(), [](float v) { return v == 7.0f; }));
-}
-
 // Issue 11, item 3: a NaN palette entry is refused where it enters, and an
 // output that overflows float32 (a finite palette of 3e38) never reaches the
 // caller's buffer.
@@ -200,17 +190,47 @@ TEST(OpenClSkinner, AReadBackInChunksIsTheGoldAndAnOverflowInTheLastChunkWritesN
     options.variant = key;
     Skinner skinner = MustCreate(*device, WinnersDb::Empty(), view.mesh, options);
     ExpectSkinsLikeTheGold(skinner, asset.mesh, Animated(asset, 0.3));
-    // The joints of the last vertex scaled to 3e38: it (and the others they move) overflow.
-    const std::vector<glm::mat4> pose = Animated(asset, 0.3);
-    std::vector<float> matrices = testing::Floats(pose);
-    const std::size_t last = asset.mesh.vertex_count() - 1;
-    for (int i = 0; i < asset.mesh.influences; ++i) {
-      if (asset.mesh.weights[last * asset.mesh.influences + i] == 0.0f) continue;
-      const std::size_t j = asset.mesh.joints[last * asset.mesh.influences + i];
-      for (int e = 0; e < 16; e += 5) matrices[j * 16 + e] = 3e38f;
-    }
-    ExpectOverflowWritesNothing(skinner, matrices);
+    ExpectOverflowWritesNothing(skinner, testing::OverflowingLastVertex(asset.mesh, Animated(asset, 0.3)));
   }
+}
+
+// A palette that cannot overflow float32 is read back in one pass, each
+// grain scanned as it is copied: still the gold; and a NaN that only a broken
+// kernel could leave (written into the output buffer here, after the kernel)
+// is an error naming its vertex, with the caller's array holding no
+// non-finite value and nothing of that vertex.
+TEST(OpenClSkinner, AOnePassReadBackIsTheGoldAndABrokenKernelsNanNeverReachesTheArray) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  const SkinnedAsset& asset = Synthetic("150001-b2-seed7");
+  const View view(asset.mesh);
+  SkinnerOptions options;
+  options.variant = "opencl.b2.padded.soa.float3.u16.f32.mat3x4.global.matrix.v1c.wg128";
+  Skinner skinner = MustCreate(*device, WinnersDb::Empty(), view.mesh, options);
+  ExpectSkinsLikeTheGold(skinner, asset.mesh, Animated(asset, 0.6));
+  ASSERT_TRUE(skinner.Finish().ok());
+  // The Skinner's output buffer, written through a queue of the test's own.
+  const auto output = static_cast<cl_mem>(skinner.device_positions());
+  cl_context context = nullptr;
+  ASSERT_EQ(clGetMemObjectInfo(output, CL_MEM_CONTEXT, sizeof context, &context, nullptr), CL_SUCCESS);
+  cl_device_id cl_device = nullptr;
+  ASSERT_EQ(clGetContextInfo(context, CL_CONTEXT_DEVICES, sizeof cl_device, &cl_device, nullptr), CL_SUCCESS);
+  cl_int err = CL_SUCCESS;
+  cl_command_queue queue = clCreateCommandQueue(context, cl_device, 0, &err);
+  ASSERT_EQ(err, CL_SUCCESS);
+  constexpr std::size_t kBad = 40000;  // in the third 16k-vertex grain, the first 64k chunk
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  ASSERT_EQ(clEnqueueWriteBuffer(queue, output, CL_TRUE, (kBad * 3 + 1) * sizeof(float), sizeof nan, &nan, 0, nullptr,
+                                 nullptr),
+            CL_SUCCESS);
+  clReleaseCommandQueue(queue);
+  std::vector<float> out(asset.mesh.vertex_count() * 3, 7.0f);
+  const Status read = skinner.ReadPositions(out.data(), out.size());
+  EXPECT_EQ(read.code(), ErrorCode::kDeviceError);
+  EXPECT_EQ(read.message().rfind("Skinner::ReadPositions: vertex 40000 of instance 0 is (", 0), 0u) << read.message();
+  EXPECT_NE(read.message().find("cannot overflow float32: the kernel is broken"), std::string::npos) << read.message();
+  EXPECT_TRUE(std::all_of(out.begin(), out.end(), [](float v) { return std::isfinite(v); }));
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(out[kBad * 3 + c], 7.0f) << c;
 }
 
 // A crowd's palette (64 CesiumMen, 1216 matrices) matches its gold, and the

@@ -512,11 +512,19 @@ class Skinner {
   // not null. Blocks: waits for everything queued, copies the output into
   // page-locked read-back memory the Skinner keeps, and from there into
   // `out`. kInvalidState before the first Skin(). A NaN or infinite output
-  // (a finite palette whose product with the mesh overflows float32) is
-  // kDeviceError naming the vertex and instance, and nothing is written to
-  // `out`.
+  // is kDeviceError naming the vertex and instance, and never reaches `out`:
+  // - where the palette's largest |element| times the mesh's largest
+  //   |position| and weight sum could overflow float32, the whole output is
+  //   scanned before anything is copied, and on such an error nothing is
+  //   written to `out`;
+  // - otherwise (every realistic palette) overflow is impossible, so each
+  //   part is scanned as it is copied, in one pass over the bytes; a
+  //   non-finite output can then only come from a broken kernel, and `out`
+  //   may hold some of the other vertices when it is reported.
   Status ReadPositions(float* out, std::size_t float_count);
-  // Likewise (blocks likewise); kInvalidState when the Skinner skins no normals.
+  // Likewise (blocks likewise), always scanned before it is copied (normals
+  // are normalised: no bound holds); kInvalidState when the Skinner skins no
+  // normals.
   Status ReadNormals(float* out, std::size_t float_count);
 
   // Output left on the device (no read-back): the native buffer holding the
