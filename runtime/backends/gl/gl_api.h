@@ -72,20 +72,9 @@ struct GlStaging {
   std::vector<std::uint8_t> copy;  // the bytes themselves without buffer storage
 };
 
-// The EGL fence syncs of a read-back in chunks (ReadPinnedChunks), one per
-// chunk: unlike GL's, any thread can wait for them (the host pool's). EGL's
-// types as void*, so this header needs no EGL one; destroyed with the next
-// read-back or the buffer (not once the context is gone: Forget).
-struct GlReadChunks {
-  void* display = nullptr;    // EGLDisplay
-  std::vector<void*> syncs;   // EGLSyncKHR
-  ~GlReadChunks() { Clear(); }
-  void Clear();
-};
-
 // A buffer, or the texture buffer over the palette (`image` storage); a
 // palette also keeps the staging of its uploads (Write), an output that of
-// its read-backs (ReadPinned) and their fences (ReadPinnedChunks).
+// its read-backs (ReadPinned).
 class GlBuffer final : public DeviceBuffer {
  public:
   GlBuffer(GlObject o, std::size_t bytes) : DeviceBuffer(bytes), object(std::move(o)) {}
@@ -94,13 +83,11 @@ class GlBuffer final : public DeviceBuffer {
     object.forget();
     if (upload) upload->buffer.forget();
     if (readback) readback->buffer.forget();
-    if (read_chunks) read_chunks->syncs.clear();
   }
   GLuint id() const { return object.get(); }
   GlObject object;
   std::unique_ptr<GlStaging> upload;
   mutable std::unique_ptr<GlStaging> readback;
-  mutable std::unique_ptr<GlReadChunks> read_chunks;
 };
 
 // The palette ring's fence: a fence sync.
@@ -201,12 +188,6 @@ class GlApi final : public DeviceApi {
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
                                            const std::string& what) override;
-  // One GPU copy per chunk into the persistently mapped read-back buffer,
-  // each followed by an EGL fence sync (EGL_KHR_fence_sync), which `ready`
-  // waits for on whichever thread calls it; ReadPinned where there is no
-  // buffer storage, no current EGL display or no such extension.
-  PinnedRead ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk,
-                              const std::string& what) override;
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override { glFinish(); }

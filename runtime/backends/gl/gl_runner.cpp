@@ -8,8 +8,6 @@
 #include <cstdlib>
 #include <cstring>
 
-#include <epoxy/egl.h>
-
 #include "generator/template_includes.h"
 #include "reference/error.h"
 #include "runtime/backends/gl/gl_api.h"
@@ -508,59 +506,6 @@ std::span<const std::uint8_t> GlApi::ReadPinned(const DeviceBuffer& buffer, std:
   const GlFence fence(sync);
   WaitFence(sync, "the read-back of " + what);
   return {static_cast<const std::uint8_t*>(staging.map), bytes};
-}
-
-void GlReadChunks::Clear() {
-  for (void* sync : syncs) eglDestroySyncKHR(static_cast<EGLDisplay>(display), static_cast<EGLSyncKHR>(sync));
-  syncs.clear();
-}
-
-// At most kReadChunks copies (each a multiple of `chunk_bytes`); the first
-// flushed at once, so the device starts on it while the rest are queued.
-DeviceApi::PinnedRead GlApi::ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk_bytes,
-                                              const std::string& what) {
-  constexpr std::size_t kReadChunks = 16;
-  const EGLDisplay display = eglGetCurrentDisplay();
-  if (chunk_bytes == 0 || chunk_bytes >= bytes || !persistent_staging() || display == EGL_NO_DISPLAY ||
-      !epoxy_has_egl_extension(display, "EGL_KHR_fence_sync"))
-    return DeviceApi::ReadPinnedChunks(buffer, bytes, chunk_bytes, what);
-  const std::size_t chunk = std::max(chunk_bytes, (bytes / kReadChunks + chunk_bytes - 1) / chunk_bytes * chunk_bytes);
-  const auto& out = static_cast<const GlBuffer&>(buffer);
-  ClearGlErrors();
-  if (!out.readback) out.readback = PersistentStaging(out.bytes(), GL_MAP_READ_BIT, "the read-back of " + what);
-  if (!out.read_chunks) out.read_chunks = std::make_unique<GlReadChunks>();
-  GlReadChunks& chunks = *out.read_chunks;
-  chunks.Clear();
-  chunks.display = display;
-  glBindBuffer(GL_COPY_READ_BUFFER, out.id());
-  glBindBuffer(GL_COPY_WRITE_BUFFER, out.readback->buffer.get());
-  for (std::size_t at = 0; at < bytes; at += chunk) {
-    const auto offset = static_cast<GLintptr>(at);
-    glCopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, offset, offset,
-                        static_cast<GLsizeiptr>(std::min(chunk, bytes - at)));
-    const EGLSyncKHR sync = eglCreateSyncKHR(display, EGL_SYNC_FENCE_KHR, nullptr);
-    if (sync == EGL_NO_SYNC_KHR) {
-      glBindBuffer(GL_COPY_READ_BUFFER, 0);
-      glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
-      Fail("launch", "eglCreateSyncKHR after copying back a chunk of " + what + " failed: EGL error " +
-                         std::to_string(eglGetError()));
-    }
-    chunks.syncs.push_back(sync);
-    if (at == 0) glFlush();
-  }
-  glBindBuffer(GL_COPY_READ_BUFFER, 0);
-  glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
-  glFlush();  // no wait below flushes: the waiting threads have no context
-  CheckGl("launch", "glCopyBufferSubData " + what + " into its read-back buffer, in chunks");
-  return {{static_cast<const std::uint8_t*>(out.readback->map), bytes}, [&chunks, chunk, what](std::size_t end) {
-            if (end == 0) return;
-            const EGLint r = eglClientWaitSyncKHR(static_cast<EGLDisplay>(chunks.display),
-                                                  static_cast<EGLSyncKHR>(chunks.syncs[(end - 1) / chunk]), 0,
-                                                  EGL_FOREVER_KHR);
-            if (r != EGL_CONDITION_SATISFIED_KHR)
-              Fail("launch", "eglClientWaitSyncKHR while reading back " + what + " failed: EGL error " +
-                                 std::to_string(eglGetError()));
-          }};
 }
 
 void GlApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) {
