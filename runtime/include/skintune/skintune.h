@@ -520,7 +520,8 @@ class Skinner {
   // - otherwise (every realistic palette) overflow is impossible, so each
   //   part is scanned as it is copied, in one pass over the bytes; a
   //   non-finite output can then only come from a broken kernel, and `out`
-  //   may hold some of the other vertices when it is reported.
+  //   may hold some of the other vertices when it is reported (as it may
+  //   when the device fails in the middle of this read-back).
   Status ReadPositions(float* out, std::size_t float_count);
   // Likewise (blocks likewise), always scanned before it is copied (normals
   // are normalised: no bound holds); kInvalidState when the Skinner skins no
