@@ -523,6 +523,7 @@ Status Skinner::SkinIntoGlBuffer(unsigned int gl_buffer) {
     if (!im.palette_set)
       FailWith(ErrorCode::kInvalidState, "Skinner::SkinIntoGlBuffer: no palette yet (call SetPalette first)");
     im.backend->SkinIntoGlBuffer(gl_buffer);
+    im.skinned_magnitude = std::max(im.skinned_magnitude, im.palette_magnitude);  // whichever output Read reads
   });
 }
 
