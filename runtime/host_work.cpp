@@ -1,6 +1,8 @@
 #include "runtime/host_work.h"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <chrono>
 #include <cstring>
 #include <mutex>
@@ -130,6 +132,22 @@ bool CopyFloat3Finite(const std::uint8_t* packed, std::size_t stride, float* out
     CopyFloat3(packed, stride, out, at, until, streaming);
   }
   return true;
+}
+
+double OutputBound(const SkinnedMesh& mesh) {
+  double weight_sum = 0.0, position = 1.0;
+  const std::size_t b = static_cast<std::size_t>(mesh.influences);
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < b; ++i) sum += std::fabs(static_cast<double>(mesh.weights[v * b + i]));
+    weight_sum = std::max(weight_sum, sum);
+    for (int c = 0; c < 3; ++c) position = std::max(position, std::fabs(static_cast<double>(mesh.positions[v][c])));
+  }
+  return 4.0 * (weight_sum + static_cast<double>(b)) * position;
+}
+
+bool CannotOverflow(double output_bound, float magnitude) {
+  return output_bound * static_cast<double>(magnitude) <= static_cast<double>(std::numeric_limits<float>::max()) / 1024.0;
 }
 
 }  // namespace skintune::internal

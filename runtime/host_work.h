@@ -12,6 +12,8 @@
 #include <functional>
 #include <span>
 
+#include "reference/mesh.h"
+
 namespace skintune::internal {
 
 // body(begin, end) over [0, count) in chunks of `grain` on the runtime's host
@@ -41,5 +43,19 @@ void CopyFloat3(const std::uint8_t* packed, std::size_t stride, float* out, std:
 // every word of [begin, end) is finite and copied.
 bool CopyFloat3Finite(const std::uint8_t* packed, std::size_t stride, float* out, std::size_t begin, std::size_t end,
                       bool streaming);
+
+// The read-back's overflow bound (Skinner::ReadPositions): every position
+// output's |component| is at most OutputBound(mesh) x the palette's largest
+// |element|. x' = sum_i w_i (M_i (x, y, z, 1)) has at most 4 terms of
+// |w_i| |M_i[r][c]| |p_c| per influence; the weight sum is the mesh's
+// largest plus one per influence (the formats' rounding; a unorm weight is
+// at most 1 anyway), the position's the largest |component|, at least 1 (the
+// translation column). Normals have no such bound: they are normalised.
+double OutputBound(const SkinnedMesh& mesh);
+// Whether outputs of that bound, skinned with a palette whose largest
+// |element| is `magnitude`, cannot overflow float32: the product at most a
+// 1024th of float32's largest, ample for the kernels' rounding (each partial
+// sum is within a few ulp of the exact one's bound).
+bool CannotOverflow(double output_bound, float magnitude);
 
 }  // namespace skintune::internal

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
-#include <limits>
 #include <mutex>
 #include <thread>
 
@@ -222,24 +221,6 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   return chosen;
 }
 
-// A bound on every position output's |component| per unit of the palette's
-// largest |element|: x' = sum_i w_i (M_i (x, y, z, 1)) has at most 4 terms of
-// |w_i| |M_i[r][c]| |p_c| per influence. The weight sum is the mesh's
-// largest, plus one per influence for the formats' rounding (a unorm weight
-// is at most 1 anyway); the position's the largest |component|, at least 1
-// (the translation column). Normals are not bounded: they are normalised.
-double OutputBound(const SkinnedMesh& mesh) {
-  double weight_sum = 0.0, position = 1.0;
-  const std::size_t b = static_cast<std::size_t>(mesh.influences);
-  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-    double sum = 0.0;
-    for (std::size_t i = 0; i < b; ++i) sum += std::fabs(static_cast<double>(mesh.weights[v * b + i]));
-    weight_sum = std::max(weight_sum, sum);
-    for (int c = 0; c < 3; ++c) position = std::max(position, std::fabs(static_cast<double>(mesh.positions[v][c])));
-  }
-  return 4.0 * (weight_sum + static_cast<double>(b)) * position;
-}
-
 // Create and CreateBatch: the scene (SceneOf), then one path for both: the
 // variant chosen for the scene's shape and total size, packed, emitted and
 // prepared on the device.
@@ -413,14 +394,6 @@ namespace {
 // host pool (runtime/host_work.h), each grain as soon as its chunk is in.
 constexpr std::size_t kReadChunkVertices = 1 << 16;
 constexpr std::size_t kReadGrainVertices = 1 << 14;
-
-// Whether a position output skinned with a palette whose largest |element|
-// is `magnitude` cannot overflow float32 (Skinner::Impl::output_bound): the
-// bound a thousandth of float32's largest, ample for the kernels' rounding
-// (each partial sum is within a few ulp of the exact one's bound).
-bool CannotOverflow(double output_bound, float magnitude) {
-  return output_bound * static_cast<double>(magnitude) <= static_cast<double>(std::numeric_limits<float>::max()) / 1024.0;
-}
 
 Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out, std::size_t float_count) {
   const char* call = normals ? "ReadNormals" : "ReadPositions";

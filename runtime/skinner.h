@@ -144,11 +144,12 @@ struct Skinner::Impl {
   std::vector<int> joint_offsets;           // per mesh, then joint_count
   bool palette_set = false;
   bool skinned = false;
-  // The read-back's overflow bound (ReadPositions): every position output's
-  // |component| is at most output_bound x the largest |element| of the
-  // palette it was skinned with (4 terms of weight sum x position x matrix
-  // element); palette_magnitude is the last SetPalette's largest |element|,
-  // skinned_magnitude the largest of the palettes the output was written with.
+  // The read-back's overflow bound (ReadPositions; OutputBound and
+  // CannotOverflow, runtime/host_work.h): every position output's |component|
+  // is at most output_bound x the largest |element| of the palette it was
+  // skinned with; palette_magnitude is the last SetPalette's largest
+  // |element|, skinned_magnitude the largest of the palettes the output read
+  // back may have been written with.
   double output_bound = 0.0;
   float palette_magnitude = 0.0f;
   float skinned_magnitude = 0.0f;

@@ -101,6 +101,27 @@ TEST(HostWork, CopyFloat3FiniteCopiesAFiniteRangeAndStopsBeforeANonFiniteBlock) 
   }
 }
 
+// The read-back's overflow bound: 4 x (largest weight sum + B) x largest
+// |position| (at least 1), whatever vertex holds each; and the one-pass
+// threshold at a 1024th of float32's largest.
+TEST(HostWork, TheOutputBoundIsFourTermsOfWeightSumAndPositionAndItsThreshold) {
+  SkinnedMesh mesh;
+  mesh.influences = 2;
+  mesh.joint_count = 3;
+  mesh.positions = {{0.5f, -0.25f, 0.0f}, {3.0f, -5.0f, 2.0f}, {0.0f, 0.0f, 0.0f}};
+  mesh.joints = {0, 1, 1, 2, 0, 0};
+  mesh.weights = {0.5f, 0.5f, 1.0f, 0.0f, 0.75f, 0.5f};  // the last vertex's sum, 1.25, is the largest
+  EXPECT_DOUBLE_EQ(OutputBound(mesh), 4.0 * (1.25 + 2.0) * 5.0);
+  mesh.positions = {{0.5f, -0.25f, 0.0f}, {0.1f, 0.2f, 0.3f}, {0.0f, 0.0f, 0.0f}};
+  EXPECT_DOUBLE_EQ(OutputBound(mesh), 4.0 * (1.25 + 2.0) * 1.0) << "the translation column: |position| at least 1";
+  const double bound = 65.0, limit = static_cast<double>(std::numeric_limits<float>::max()) / 1024.0;
+  EXPECT_TRUE(CannotOverflow(bound, 1.0f));
+  EXPECT_TRUE(CannotOverflow(bound, static_cast<float>(limit / bound * 0.999)));
+  EXPECT_FALSE(CannotOverflow(bound, static_cast<float>(limit / bound * 1.001)));
+  EXPECT_FALSE(CannotOverflow(bound, 3e38f));
+  EXPECT_FALSE(CannotOverflow(bound, std::numeric_limits<float>::max()));
+}
+
 // Every index exactly once, in chunks on the pool and as one chunk on the caller.
 TEST(HostWork, ForChunksVisitsEveryIndexOnce) {
   for (const std::size_t grain : {std::size_t{4096}, std::size_t{1} << 20}) {
