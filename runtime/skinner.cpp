@@ -422,8 +422,8 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
     // w is 1) first, the vertex named when it finds one, then the copy: out
     // untouched on failure. Where it cannot (positions, CannotOverflow), each
     // grain is scanned and copied in one pass: a non-finite output can only
-    // come from a broken kernel, and is an error with the grains before it
-    // already written.
+    // come from a broken kernel, and is an error with other grains possibly
+    // written already (never a non-finite value).
     const bool one_pass = !normals && CannotOverflow(im.output_bound, im.skinned_magnitude);
     std::atomic<bool> all_finite{true};
     std::mutex failed_mutex;
