@@ -236,11 +236,17 @@ class DeviceApi {
   // ReadPinned in chunks the host can use while later ones are still in
   // flight: queues the copies, `chunk` bytes each, and returns the staging
   // at once with `ready(end)`, which blocks until bytes [0, end) have landed
-  // (callable from any thread; throws Error when the copy failed). The
-  // default reads it all first (ReadPinned) and `ready` returns at once.
+  // (callable from any thread unless `caller_only`; throws Error when the
+  // copy failed). The default reads it all first (ReadPinned) and `ready`
+  // returns at once. `caller_only` (GL, whose fences only the context's
+  // thread can wait for): `ready` only on the thread that read, at multiples
+  // of `chunk` (the chunks as queued, a multiple of the one asked for) or
+  // the end.
   struct PinnedRead {
     std::span<const std::uint8_t> bytes;
     std::function<void(std::size_t end)> ready;
+    bool caller_only = false;
+    std::size_t chunk = 0;
   };
   virtual PinnedRead ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk,
                                       const std::string& what) {

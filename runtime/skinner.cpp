@@ -440,13 +440,15 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
         std::memcpy(out + (k * im.vertex_count + im.order[p]) * 3, packed.data() + v * stride, 3 * sizeof(float));
       }
     };
-    ForChunks(vertices, kReadGrainVertices, [&](std::size_t begin, std::size_t end) {
-      try {
-        read.ready(end * stride);
-      } catch (const Error& e) {
-        const std::lock_guard<std::mutex> lock(failed_mutex);
-        if (failed.empty()) failed = e.what();
-        return;
+    const auto grain = [&](std::size_t begin, std::size_t end) {
+      if (!read.caller_only) {
+        try {
+          read.ready(end * stride);
+        } catch (const Error& e) {
+          const std::lock_guard<std::mutex> lock(failed_mutex);
+          if (failed.empty()) failed = e.what();
+          return;
+        }
       }
       if (!one_pass) {
         if (!AllFinite(packed.subspan(begin * stride, (end - begin) * stride))) all_finite = false;
@@ -459,7 +461,20 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
           copy(begin, end);
         }
       }
-    });
+    };
+    if (!read.caller_only) {
+      ForChunks(vertices, kReadGrainVertices, grain);
+    } else {
+      // Chunk after chunk: this thread waits for it (the API's fences are
+      // this thread's), then the pool works on its grains.
+      const std::size_t chunk_vertices = std::max<std::size_t>(read.chunk / stride, 1);
+      for (std::size_t first = 0; first < vertices; first += chunk_vertices) {
+        const std::size_t last = std::min(vertices, first + chunk_vertices);
+        read.ready(last * stride);
+        ForChunks(last - first, kReadGrainVertices,
+                  [&](std::size_t begin, std::size_t end) { grain(first + begin, first + end); });
+      }
+    }
     if (!failed.empty()) throw Error(failed);
     read.ready(packed.size());  // every chunk in, whatever the pool's split
     const bool finite = all_finite;

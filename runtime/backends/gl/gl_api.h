@@ -83,11 +83,18 @@ class GlBuffer final : public DeviceBuffer {
     object.forget();
     if (upload) upload->buffer.forget();
     if (readback) readback->buffer.forget();
+    read_fences.clear();
   }
   GLuint id() const { return object.get(); }
   GlObject object;
   std::unique_ptr<GlStaging> upload;
   mutable std::unique_ptr<GlStaging> readback;
+  mutable std::vector<GLsync> read_fences;  // ReadPinnedChunks': one per chunk, of the last read
+  ~GlBuffer() override { DeleteReadFences(); }
+  void DeleteReadFences() const {
+    for (GLsync fence : read_fences) glDeleteSync(fence);
+    read_fences.clear();
+  }
 };
 
 // The palette ring's fence: a fence sync.
@@ -188,6 +195,12 @@ class GlApi final : public DeviceApi {
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
   std::span<const std::uint8_t> ReadPinned(const DeviceBuffer& buffer, std::size_t bytes,
                                            const std::string& what) override;
+  // One GPU copy and one fence per chunk into the persistently mapped
+  // read-back buffer (at most 16 chunks); `caller_only`: the fences are
+  // waited for on the context's thread, chunk after chunk, while the host
+  // pool works on the chunks already in. ReadPinned without buffer storage.
+  PinnedRead ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk,
+                              const std::string& what) override;
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override { glFinish(); }

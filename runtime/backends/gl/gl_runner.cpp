@@ -508,6 +508,39 @@ std::span<const std::uint8_t> GlApi::ReadPinned(const DeviceBuffer& buffer, std:
   return {static_cast<const std::uint8_t*>(staging.map), bytes};
 }
 
+DeviceApi::PinnedRead GlApi::ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk_bytes,
+                                              const std::string& what) {
+  constexpr std::size_t kReadChunks = 16;
+  if (chunk_bytes == 0 || chunk_bytes >= bytes || !persistent_staging())
+    return DeviceApi::ReadPinnedChunks(buffer, bytes, chunk_bytes, what);
+  const std::size_t chunk = std::max(chunk_bytes, (bytes / kReadChunks + chunk_bytes - 1) / chunk_bytes * chunk_bytes);
+  const auto& out = static_cast<const GlBuffer&>(buffer);
+  ClearGlErrors();
+  if (!out.readback) out.readback = PersistentStaging(out.bytes(), GL_MAP_READ_BIT, "the read-back of " + what);
+  out.DeleteReadFences();
+  glBindBuffer(GL_COPY_READ_BUFFER, out.id());
+  glBindBuffer(GL_COPY_WRITE_BUFFER, out.readback->buffer.get());
+  for (std::size_t at = 0; at < bytes; at += chunk) {
+    const auto offset = static_cast<GLintptr>(at);
+    glCopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, offset, offset,
+                        static_cast<GLsizeiptr>(std::min(chunk, bytes - at)));
+    const GLsync fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+    if (fence) out.read_fences.push_back(fence);
+    if (at == 0) glFlush();  // the device starts on the first while the rest are queued
+  }
+  glBindBuffer(GL_COPY_READ_BUFFER, 0);
+  glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
+  CheckGl("launch", "glCopyBufferSubData " + what + " into its read-back buffer, in chunks");
+  if (out.read_fences.size() != (bytes + chunk - 1) / chunk) Fail("launch", "glFenceSync after a chunk of " + what + " failed");
+  PinnedRead read{{static_cast<const std::uint8_t*>(out.readback->map), bytes},
+                  [&out, chunk, what](std::size_t end) {
+                    if (end > 0) WaitFence(out.read_fences[(end - 1) / chunk], "the read-back of " + what);
+                  }};
+  read.caller_only = true;
+  read.chunk = chunk;
+  return read;
+}
+
 void GlApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) {
   const GLsync sync = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
   if (!sync) CheckGl("launch", "glFenceSync after " + what);
