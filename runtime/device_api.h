@@ -260,6 +260,13 @@ class DeviceApi {
   virtual void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) = 0;
   // Blocks until `marker` is signalled.
   virtual void Wait(DeviceObject& marker, const std::string& what) = 0;
+  // True where an Upload into a buffer takes effect only after every launch
+  // queued before it has read the buffer (GL: one command stream, in order;
+  // only shader writes need a barrier). The palette ring's fence then need
+  // only cover a slot's upload (its staging is free again once the copy ran),
+  // so Mark follows each palette upload and no launch; elsewhere (CUDA and
+  // OpenCL upload on a queue of their own) it follows each launch.
+  virtual bool OrdersUploadsAfterLaunches() const { return false; }
   // Waits for everything queued.
   virtual void Finish() = 0;
   // True where Upload, RunFrames (kLive) and Mark may be called from a thread

@@ -574,7 +574,9 @@ Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {
 // frame n's, once that slot's last frame (kPaletteSlots frames back) is done.
 // A slot written and never launched needs no fence of its own (no launch
 // reads it before its next upload); the API's Staging waits for its last
-// upload instead (upload_fenced false).
+// upload instead (upload_fenced false). Where the API orders uploads after
+// the launches before them (OrdersUploadsAfterLaunches: GL), the fence follows
+// the slot's upload instead of each launch, and covers it.
 std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
@@ -588,7 +590,8 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
     if (slot.fence_name.empty()) slot.fence_name = "palette slot " + std::to_string(next) + " of " + p.key;
     api_->Wait(*slot.done, slot.fence_name);
   }
-  const std::span<std::uint8_t> staging = api_->Staging(*slot.palette, p.key, slot.done && slot.launched);
+  const bool upload_fenced = slot.done && (slot.launched || api_->OrdersUploadsAfterLaunches());
+  const std::span<std::uint8_t> staging = api_->Staging(*slot.palette, p.key, upload_fenced);
   if (staging.size() < p.palettes_bytes)
     Fail("launch", "the palette staging of " + p.key + " has " + std::to_string(staging.size()) + " bytes, the palettes " +
                        std::to_string(p.palettes_bytes));
@@ -607,12 +610,15 @@ void Runner::UploadPalette(Prepared& prepared, int set) {
     DeviceBuffer* palette = slot.palette;
     const std::size_t bytes = p.palettes_bytes;
     const std::string& key = p.key;  // the Prepared drains the thread before it goes
-    slot.submitted = submit_->Push([api, palette, bytes, &key] {
+    const bool mark = api_->OrdersUploadsAfterLaunches();
+    slot.submitted = submit_->Push([api, palette, bytes, &key, &slot, mark] {
       api->MakeCurrent();
       api->Upload(*palette, bytes, key);
+      if (mark) api->Mark(slot.done, key);
     });
   } else {
     api_->Upload(*slot.palette, p.palettes_bytes, p.key);
+    if (api_->OrdersUploadsAfterLaunches()) api_->Mark(slot.done, p.key);
   }
   slot.launched = false;
   s.current = *s.staged;
@@ -642,15 +648,16 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   if (submit_ && !out_positions) {
     DeviceApi* api = api_.get();
     const std::string& key = p.key;
-    slot.submitted = submit_->Push([api, run = std::move(run), &slot, &key] {
+    const bool mark = !api_->OrdersUploadsAfterLaunches();
+    slot.submitted = submit_->Push([api, run = std::move(run), &slot, &key, mark] {
       api->MakeCurrent();
       api->RunFrames(run);
-      api->Mark(slot.done, key);
+      if (mark) api->Mark(slot.done, key);
     });
   } else {
     Settle();  // the positions go into the caller's buffer now (interop)
     api_->RunFrames(run);
-    api_->Mark(slot.done, p.key);
+    if (!api_->OrdersUploadsAfterLaunches()) api_->Mark(slot.done, p.key);
   }
   slot.launched = true;
 }

@@ -62,7 +62,13 @@ class DeferredApi final : public DeviceApi {
   std::vector<std::thread::id> submit_threads;
   std::mutex mutex;
 
+  // A device that orders an upload after the launches queued before it (GL);
+  // this fake's one queue does, and Mark counts its calls.
+  bool ordered = false;
+  int marks = 0;
+
   bool SubmitsFromAnyThread() const override { return threaded; }
+  bool OrdersUploadsAfterLaunches() const override { return ordered; }
 
   void RunUntil(std::size_t position) {
     for (; executed < position; ++executed) queue[executed]();
@@ -133,6 +139,7 @@ class DeferredApi final : public DeviceApi {
     const std::lock_guard<std::mutex> lock(mutex);
     if (!marker) marker = std::make_unique<FakeMarker>();
     static_cast<FakeMarker&>(*marker).position = queue.size();
+    ++marks;
   }
   void Wait(DeviceObject& marker, const std::string&) override {
     const std::lock_guard<std::mutex> lock(mutex);
@@ -152,11 +159,12 @@ class DeferredApi final : public DeviceApi {
 
 // A runner on the fake device with a Skinner's live set of a small mesh.
 struct Ring {
-  explicit Ring(bool submit_thread = false) {
+  explicit Ring(bool submit_thread = false, bool ordered = false) {
     mesh = Pack(GenerateDataset(ParseDatasetKey("200-b2")).mesh, ParseVariantKey("opencl.b2"));
     auto owned = std::make_unique<DeferredApi>();
     api = owned.get();
     api->threaded = submit_thread;
+    api->ordered = ordered;
     runner = std::make_unique<Runner>(std::move(owned));
     EXPECT_EQ(runner->UseSubmitThread(), submit_thread);
     const std::vector<KernelSource> kernels = EmitLaunchKernels(mesh);
@@ -242,6 +250,52 @@ TEST(PaletteRing, TheRingFenceCoversTheUploadOnlyOfASlotSkinnedSinceItsUpload) {
   ring.runner->LaunchSet(ring.prepared, 0);
   ring.runner->Finish();
   EXPECT_EQ(ring.FrameRead(ring.api->LaunchesRun() - 1), 60);
+}
+
+// On a device that orders uploads after launches (GL), the ring's fence
+// follows each upload and no launch: SetPalette for frame f waits for frame
+// f - slots's upload only, so one more launch stays queued than elsewhere,
+// and every frame still reads its own palette.
+TEST(PaletteRing, WhereUploadsFollowLaunchesInOrderTheFenceFollowsTheUploadAndSkinMarksNothing) {
+  Ring ring(false, true);
+  constexpr int kFrames = 4 * kPaletteSlots + 1;
+  for (int f = 0; f < kFrames; ++f) {
+    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));
+    EXPECT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(std::max(f - kPaletteSlots, 0))) << "frame " << f;
+    EXPECT_EQ(ring.api->marks, f + 1) << "one fence per upload";
+    ring.runner->LaunchSet(ring.prepared, 0);
+    EXPECT_EQ(ring.api->marks, f + 1) << "Skin marked";
+  }
+  EXPECT_EQ(ring.api->blocking_waits, kFrames - kPaletteSlots);
+  EXPECT_EQ(ring.api->upload_waits, 0) << "the fence covers every upload";
+  ring.runner->Finish();
+  ASSERT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(kFrames));
+  for (int f = 0; f < kFrames; ++f) EXPECT_EQ(ring.FrameRead(static_cast<std::size_t>(f)), f) << "launch " << f;
+}
+
+// The same with palettes replaced before any Skin and Skins repeated: no
+// staging is overwritten while its upload is queued (the fake's Staging
+// checks that the fence it was told of covers the upload).
+TEST(PaletteRing, WhereUploadsFollowLaunchesInOrderReplacedAndRepeatedFramesReadTheirPalettes) {
+  Ring ring(false, true);
+  std::vector<int> expected;
+  int uploads = 0;
+  for (int f = 0; f < 4 * kPaletteSlots; ++f) {
+    if (f % 2 == 0) ring.runner->WritePalette(ring.prepared, 0, ring.Palette(100 + f)), ++uploads;  // never skinned
+    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));
+    ++uploads;
+    ring.runner->LaunchSet(ring.prepared, 0);
+    expected.push_back(f);
+    if (f % 3 == 0) {
+      ring.runner->LaunchSet(ring.prepared, 0);
+      expected.push_back(f);
+    }
+  }
+  EXPECT_EQ(ring.api->marks, uploads);
+  EXPECT_EQ(ring.api->upload_waits, 0);
+  ring.runner->Finish();
+  ASSERT_EQ(ring.api->LaunchesRun(), expected.size());
+  for (std::size_t l = 0; l < expected.size(); ++l) EXPECT_EQ(ring.FrameRead(l), expected[l]) << "launch " << l;
 }
 
 // With a submit thread the uploads and launches are made on it, and every

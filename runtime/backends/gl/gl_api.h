@@ -204,6 +204,10 @@ class GlApi final : public DeviceApi {
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override { glFinish(); }
+  // glCopyBufferSubData into a palette after the dispatches and draws that
+  // read it: GL orders them (a Skin without SetPalette then needs no fence:
+  // glFenceSync and its flush cost 7-10 us a frame on NVIDIA).
+  bool OrdersUploadsAfterLaunches() const override { return true; }
   // Whether staging buffers are persistently mapped (GL 4.4 or
   // ARB_buffer_storage, unless $SKINTUNE_GL_NO_BUFFER_STORAGE=1 asks for the
   // glBufferSubData / glGetBufferSubData path).
