@@ -24,6 +24,16 @@
 //                                            (cuMemcpyHtoDAsync 236 KB + cuEventRecord on the
 //                                            upload stream), cuStreamWaitEvent, cuLaunchKernel,
 //                                            cuEventRecord on the kernel's stream
+//   call/frame/<op>/thread:<beside>/cpu:<where>
+//                            the same call made by a second thread, one call per frame, while
+//                            the calling thread does <beside> (idle: spins on an atomic; pack-wc /
+//                            pack: memcpy of a 236 KB palette into write-combined / ordinary
+//                            page-locked memory, then spins) and <where> places the two threads
+//                            (any: the scheduler's; sibling: the two hardware threads of one core;
+//                            apart: two cores): the submit thread's launch, taken apart
+//   call/frame/graph/<shape> cuGraphLaunch of a graph holding the frame's work (one-stream: the
+//                            236 KB upload, then the kernel; two-streams: the upload on its own
+//                            stream, joined to the kernel's by an event), instantiated once
 //   host/<bytes>/pack-wc     memcpy of the bytes into write-combined memory (the packing's stores)
 //   host/<bytes>/pack        the same into ordinary memory
 //   palette/<memory>         PackPaletteInto of 64 x 77 mat3x4 (SetPalette's packing) into
@@ -38,8 +48,15 @@
 //   skintune_bench_upload [google benchmark flags]
 #include <benchmark/benchmark.h>
 
+#include <dlfcn.h>
+#include <pthread.h>
+#include <sched.h>
+
+#include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <fstream>
+#include <thread>
 #include <cstdlib>
 #include <cstring>
 #include <string>
@@ -185,6 +202,176 @@ void FrameCall(benchmark::State& state, Call call) {
   api->cuModuleUnload(module);
 }
 
+// The second thread's frame calls (call/frame/<op>/thread:...): `caller` and
+// `submitter` are CPU numbers, or -1 for the scheduler's choice.
+enum class Beside { kIdle, kPackWc, kPack };
+
+// The CPUs the process started on: PinTo(-1) gives them back (a thread made
+// by a pinned one inherits its one CPU).
+cpu_set_t original_cpus;
+
+void PinTo(int cpu) {
+  cpu_set_t set = original_cpus;
+  if (cpu >= 0) {
+    CPU_ZERO(&set);
+    CPU_SET(cpu, &set);
+  }
+  pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+}
+
+void FrameCallOnThread(benchmark::State& state, Call call, Beside beside, int caller, int submitter) {
+  cuda::Module module = nullptr;
+  cuda::Function function = nullptr;
+  Ok(api->cuModuleLoadDataEx(&module, kEmptyPtx, 0, nullptr, nullptr), "cuModuleLoadDataEx");
+  Ok(api->cuModuleGetFunction(&function, module, "skintune_empty"), "cuModuleGetFunction");
+  cuda::Stream uploads = nullptr;
+  Ok(api->cuStreamCreate(&uploads, 1 /* CU_STREAM_NON_BLOCKING */), "cuStreamCreate");
+  cuda::Event uploaded = nullptr, marker = nullptr;
+  for (cuda::Event* e : {&uploaded, &marker}) Ok(api->cuEventCreate(e, cuda::kEventDisableTiming), "cuEventCreate");
+  constexpr std::size_t kPalettes = 64 * 77 * 48;
+  Host staging(kPalettes, Memory::kPinnedWc);
+  Host packed(kPalettes, beside == Beside::kPack ? Memory::kPinned : Memory::kPinnedWc);
+  std::vector<unsigned char> pose(kPalettes, 3);
+  DeviceMemory device(kPalettes);
+  std::atomic<int> go{0}, done{0};
+  std::atomic<bool> stop{false};
+  double call_seconds = 0.0;
+  std::thread thread([&] {
+    PinTo(submitter);
+    Ok(api->cuCtxSetCurrent(context), "cuCtxSetCurrent");
+    int seen = 0;
+    while (true) {
+      while (go.load(std::memory_order_acquire) == seen && !stop.load(std::memory_order_relaxed)) __builtin_ia32_pause();
+      if (stop.load()) break;
+      ++seen;
+      const auto start = std::chrono::steady_clock::now();
+      if (call == Call::kAll) {
+        Ok(api->cuMemcpyHtoDAsync(device.p, staging.p, kPalettes, uploads), "cuMemcpyHtoDAsync");
+        Ok(api->cuEventRecord(uploaded, uploads), "cuEventRecord");
+        Ok(api->cuStreamWaitEvent(stream, uploaded, 0), "cuStreamWaitEvent");
+      }
+      Ok(api->cuLaunchKernel(function, 1, 1, 1, 32, 1, 1, 0, stream, nullptr, nullptr), "cuLaunchKernel");
+      if (call == Call::kAll) Ok(api->cuEventRecord(marker, stream), "cuEventRecord");
+      call_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (seen % 32 == 0) Ok(api->cuStreamSynchronize(stream), "cuStreamSynchronize");
+      done.store(seen, std::memory_order_release);
+    }
+  });
+  PinTo(caller);
+  int n = 0;
+  for (auto _ : state) {
+    go.store(++n, std::memory_order_release);  // the thread calls while this one packs the next frame
+    if (beside != Beside::kIdle) std::memcpy(packed.p, pose.data(), kPalettes);
+    while (done.load(std::memory_order_acquire) != n) __builtin_ia32_pause();
+    state.SetIterationTime(call_seconds);
+  }
+  stop.store(true);
+  thread.join();
+  PinTo(-1);
+  Ok(api->cuCtxSynchronize(), "cuCtxSynchronize");
+  for (cuda::Event e : {uploaded, marker}) api->cuEventDestroy(e);
+  api->cuStreamDestroy(uploads);
+  api->cuModuleUnload(module);
+}
+
+// Stream capture and graphs, looked up here (the runtime does not use them).
+struct GraphApi {
+  cuda::Result (*cuStreamBeginCapture)(cuda::Stream, int mode) = nullptr;  // _v2
+  cuda::Result (*cuStreamEndCapture)(cuda::Stream, void** graph) = nullptr;
+  cuda::Result (*cuGraphInstantiateWithFlags)(void** exec, void* graph, unsigned long long flags) = nullptr;
+  cuda::Result (*cuGraphLaunch)(void* exec, cuda::Stream) = nullptr;
+  cuda::Result (*cuGraphExecDestroy)(void* exec) = nullptr;
+  cuda::Result (*cuGraphDestroy)(void* graph) = nullptr;
+};
+
+const GraphApi* Graphs() {
+  static const GraphApi graphs = [] {
+    GraphApi g;
+    void* handle = dlopen("libcuda.so.1", RTLD_NOW | RTLD_NOLOAD);
+    if (!handle) return g;
+    g.cuStreamBeginCapture = reinterpret_cast<decltype(g.cuStreamBeginCapture)>(dlsym(handle, "cuStreamBeginCapture_v2"));
+    g.cuStreamEndCapture = reinterpret_cast<decltype(g.cuStreamEndCapture)>(dlsym(handle, "cuStreamEndCapture"));
+    g.cuGraphInstantiateWithFlags =
+        reinterpret_cast<decltype(g.cuGraphInstantiateWithFlags)>(dlsym(handle, "cuGraphInstantiateWithFlags"));
+    g.cuGraphLaunch = reinterpret_cast<decltype(g.cuGraphLaunch)>(dlsym(handle, "cuGraphLaunch"));
+    g.cuGraphExecDestroy = reinterpret_cast<decltype(g.cuGraphExecDestroy)>(dlsym(handle, "cuGraphExecDestroy"));
+    g.cuGraphDestroy = reinterpret_cast<decltype(g.cuGraphDestroy)>(dlsym(handle, "cuGraphDestroy"));
+    return g;
+  }();
+  return &graphs;
+}
+
+void GraphLaunch(benchmark::State& state, bool two_streams) {
+  const GraphApi* g = Graphs();
+  if (!g->cuStreamBeginCapture || !g->cuGraphLaunch || !g->cuGraphInstantiateWithFlags) {
+    state.SkipWithError("the driver has no stream capture or graphs");
+    return;
+  }
+  cuda::Module module = nullptr;
+  cuda::Function function = nullptr;
+  Ok(api->cuModuleLoadDataEx(&module, kEmptyPtx, 0, nullptr, nullptr), "cuModuleLoadDataEx");
+  Ok(api->cuModuleGetFunction(&function, module, "skintune_empty"), "cuModuleGetFunction");
+  cuda::Stream uploads = nullptr;
+  Ok(api->cuStreamCreate(&uploads, 1 /* CU_STREAM_NON_BLOCKING */), "cuStreamCreate");
+  cuda::Event fork = nullptr, uploaded = nullptr;
+  for (cuda::Event* e : {&fork, &uploaded}) Ok(api->cuEventCreate(e, cuda::kEventDisableTiming), "cuEventCreate");
+  constexpr std::size_t kPalettes = 64 * 77 * 48;
+  Host staging(kPalettes, Memory::kPinnedWc);
+  DeviceMemory device(kPalettes);
+  void* graph = nullptr;
+  void* exec = nullptr;
+  Ok(g->cuStreamBeginCapture(stream, 2 /* CU_STREAM_CAPTURE_MODE_RELAXED */), "cuStreamBeginCapture");
+  if (two_streams) {
+    Ok(api->cuEventRecord(fork, stream), "cuEventRecord");
+    Ok(api->cuStreamWaitEvent(uploads, fork, 0), "cuStreamWaitEvent");
+    Ok(api->cuMemcpyHtoDAsync(device.p, staging.p, kPalettes, uploads), "cuMemcpyHtoDAsync");
+    Ok(api->cuEventRecord(uploaded, uploads), "cuEventRecord");
+    Ok(api->cuStreamWaitEvent(stream, uploaded, 0), "cuStreamWaitEvent");
+  } else {
+    Ok(api->cuMemcpyHtoDAsync(device.p, staging.p, kPalettes, stream), "cuMemcpyHtoDAsync");
+  }
+  Ok(api->cuLaunchKernel(function, 1, 1, 1, 32, 1, 1, 0, stream, nullptr, nullptr), "cuLaunchKernel");
+  Ok(g->cuStreamEndCapture(stream, &graph), "cuStreamEndCapture");
+  Ok(g->cuGraphInstantiateWithFlags(&exec, graph, 0), "cuGraphInstantiateWithFlags");
+  std::size_t n = 0;
+  for (auto _ : state) {
+    const auto start = std::chrono::steady_clock::now();
+    Ok(g->cuGraphLaunch(exec, stream), "cuGraphLaunch");
+    state.SetIterationTime(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    if (++n % 32 == 0) Ok(api->cuStreamSynchronize(stream), "cuStreamSynchronize");
+  }
+  Ok(api->cuCtxSynchronize(), "cuCtxSynchronize");
+  g->cuGraphExecDestroy(exec);
+  g->cuGraphDestroy(graph);
+  for (cuda::Event e : {fork, uploaded}) api->cuEventDestroy(e);
+  api->cuStreamDestroy(uploads);
+  api->cuModuleUnload(module);
+}
+
+// CPU 0's partner hardware thread, or -1 (none, or unknown).
+int SiblingOfCpu0() {
+  std::ifstream in("/sys/devices/system/cpu/cpu0/topology/thread_siblings_list");
+  std::string list;
+  if (!(in >> list)) return -1;
+  for (std::size_t at = 0; at < list.size();) {
+    const std::size_t end = list.find_first_of(",-", at);
+    const int cpu = std::atoi(list.substr(at, end - at).c_str());
+    if (cpu != 0) return cpu;
+    if (end == std::string::npos) break;
+    at = end + 1;
+  }
+  return -1;
+}
+
+// A CPU on another core than CPU 0, or -1.
+int ApartFromCpu0() {
+  const int sibling = SiblingOfCpu0();
+  const unsigned n = std::thread::hardware_concurrency();
+  for (unsigned cpu = 1; cpu < n; ++cpu)
+    if (static_cast<int>(cpu) != sibling) return static_cast<int>(cpu);
+  return -1;
+}
+
 void EmptySync(benchmark::State& state) {
   cuda::Event event = nullptr;
   Ok(api->cuEventCreate(&event, cuda::kEventDisableTiming), "cuEventCreate");
@@ -233,6 +420,7 @@ void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks, std:
 
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
+  pthread_getaffinity_np(pthread_self(), sizeof original_cpus, &original_cpus);
   std::string why;
   api = cuda::Driver(&why);
   if (!api) {
@@ -277,6 +465,25 @@ int main(int argc, char** argv) {
                {"all", Call::kAll}};
   for (const auto& c : calls)
     benchmark::RegisterBenchmark((std::string("call/frame/") + c.name).c_str(), FrameCall, c.call)->UseManualTime();
+  const struct {
+    const char* name;
+    Beside beside;
+  } besides[] = {{"idle", Beside::kIdle}, {"pack-wc", Beside::kPackWc}, {"pack", Beside::kPack}};
+  const struct {
+    const char* name;
+    int caller, submitter;
+  } places[] = {{"any", -1, -1}, {"sibling", 0, SiblingOfCpu0()}, {"apart", 0, ApartFromCpu0()}};
+  for (Call call : {Call::kLaunch, Call::kAll})
+    for (const auto& b : besides)
+      for (const auto& p : places) {
+        if (p.caller >= 0 && p.submitter < 0) continue;  // no such pair of CPUs here
+        const std::string name = std::string("call/frame/") + (call == Call::kLaunch ? "launch" : "all") +
+                                 "/thread:" + b.name + "/cpu:" + p.name;
+        benchmark::RegisterBenchmark(name.c_str(), FrameCallOnThread, call, b.beside, p.caller, p.submitter)
+            ->UseManualTime();
+      }
+  benchmark::RegisterBenchmark("call/frame/graph/one-stream", GraphLaunch, false)->UseManualTime();
+  benchmark::RegisterBenchmark("call/frame/graph/two-streams", GraphLaunch, true)->UseManualTime();
   benchmark::RegisterBenchmark("sync/empty", EmptySync)->UseRealTime();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
