@@ -292,6 +292,20 @@ uint field(uint word, uint byte_in_word, uint bytes) {
   return bitfieldExtract(word, int(byte_in_word * 8u), int(bytes * 8u));
 }
 
+// A run: one vertex's B values of `bytes` bytes each, adjacent, starting at
+// byte `head` of a word (aos records; soa runs of whole words). Its words are
+// read once each, then split: NVIDIA's GLSL compiler kept one load of the same
+// word per value (its NVcp5.0 assembly of the crowd kernel: 11 loads a vertex
+// where CUDA's has 5). RUN_CAPACITY words hold any run of values up to 4 bytes.
+#define RUN_CAPACITY (INFLUENCES + 1)
+uint run_words(uint head, uint bytes) { return (head + uint(INFLUENCES) * bytes + 3u) >> 2u; }
+void split_run(uint words[RUN_CAPACITY], uint head, uint bytes, out uint values[INFLUENCES]) {
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) {
+    uint byte = head + i * bytes;
+    values[i] = field(words[byte >> 2u], byte & 3u, bytes);
+  }
+}
+
 #if LAYOUT == 0
 // xyz of the float4/float3 at byte `offset` of vertex v's record.
 vec3 record_xyz(uint v, uint offset) {
@@ -305,13 +319,17 @@ vec3 load_position(uint v) { return record_xyz(v, uint(AOS_POSITION_OFFSET)); }
 #if NORMALS
 vec3 load_normal(uint v) { return record_xyz(v, uint(AOS_NORMAL_OFFSET)); }
 #endif
-uint load_index(uint v, uint i, uint slot_stride) {
-  uint byte = uint(AOS_INDICES_OFFSET) + i * uint(INDEX_BYTES);
-  return field(RECORD_WORD(v, byte >> 2u), byte & 3u, uint(INDEX_BYTES));
+// The B values of `bytes` bytes each at byte `offset` of vertex v's record.
+void load_record_run(uint v, uint offset, uint bytes, out uint values[INFLUENCES]) {
+  uint words[RUN_CAPACITY];
+  for (uint k = 0u; k < run_words(offset & 3u, bytes); ++k) words[k] = RECORD_WORD(v, (offset >> 2u) + k);
+  split_run(words, offset & 3u, bytes, values);
 }
-uint load_raw_weight(uint v, uint i, uint slot_stride) {
-  uint byte = uint(AOS_WEIGHTS_OFFSET) + i * uint(WEIGHT_BYTES);
-  return field(RECORD_WORD(v, byte >> 2u), byte & 3u, uint(WEIGHT_BYTES));
+void load_indices(uint v, uint slot_stride, out uint joint[INFLUENCES]) {
+  load_record_run(v, uint(AOS_INDICES_OFFSET), uint(INDEX_BYTES), joint);
+}
+void load_raw_weights(uint v, uint slot_stride, out uint raw_weight[INFLUENCES]) {
+  load_record_run(v, uint(AOS_WEIGHTS_OFFSET), uint(WEIGHT_BYTES), raw_weight);
 }
 #else
 #if POSITION_FLOAT4
@@ -327,35 +345,48 @@ vec3 load_normal(uint v) { return vec3(normals[3u * v], normals[3u * v + 1u], no
 #endif
 #if LAYOUT == 1
 // soa: vertex v's B values are adjacent, starting at element v*B. When a run
-// is a whole number of words, its first word is v * (run / 4) and the word and
-// shift of slot i are constants after unrolling.
-uint load_index(uint v, uint i, uint slot_stride) {
+// is a whole number of words, its first word is v * (run / 4), each of its
+// words is read once, and the word and shift of slot i are constants after
+// unrolling; otherwise each value is read on its own.
+void load_indices(uint v, uint slot_stride, out uint joint[INFLUENCES]) {
 #if (INFLUENCES * INDEX_BYTES) % 4 == 0
-  uint byte = i * uint(INDEX_BYTES);
-  return field(indices[v * uint(INFLUENCES * INDEX_BYTES / 4) + (byte >> 2u)], byte & 3u, uint(INDEX_BYTES));
+  uint words[RUN_CAPACITY];
+  for (uint k = 0u; k < uint(INFLUENCES * INDEX_BYTES / 4); ++k)
+    words[k] = indices[v * uint(INFLUENCES * INDEX_BYTES / 4) + k];
+  split_run(words, 0u, uint(INDEX_BYTES), joint);
 #else
-  uint byte = (v * uint(INFLUENCES) + i) * uint(INDEX_BYTES);
-  return field(indices[byte >> 2u], byte & 3u, uint(INDEX_BYTES));
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) {
+    uint byte = (v * uint(INFLUENCES) + i) * uint(INDEX_BYTES);
+    joint[i] = field(indices[byte >> 2u], byte & 3u, uint(INDEX_BYTES));
+  }
 #endif
 }
-uint load_raw_weight(uint v, uint i, uint slot_stride) {
+void load_raw_weights(uint v, uint slot_stride, out uint raw_weight[INFLUENCES]) {
 #if (INFLUENCES * WEIGHT_BYTES) % 4 == 0
-  uint byte = i * uint(WEIGHT_BYTES);
-  return field(weights[v * uint(INFLUENCES * WEIGHT_BYTES / 4) + (byte >> 2u)], byte & 3u, uint(WEIGHT_BYTES));
+  uint words[RUN_CAPACITY];
+  for (uint k = 0u; k < uint(INFLUENCES * WEIGHT_BYTES / 4); ++k)
+    words[k] = weights[v * uint(INFLUENCES * WEIGHT_BYTES / 4) + k];
+  split_run(words, 0u, uint(WEIGHT_BYTES), raw_weight);
 #else
-  uint byte = (v * uint(INFLUENCES) + i) * uint(WEIGHT_BYTES);
-  return field(weights[byte >> 2u], byte & 3u, uint(WEIGHT_BYTES));
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) {
+    uint byte = (v * uint(INFLUENCES) + i) * uint(WEIGHT_BYTES);
+    raw_weight[i] = field(weights[byte >> 2u], byte & 3u, uint(WEIGHT_BYTES));
+  }
 #endif
 }
 #else
 // soa-split: slot i of vertex v is element i*S + v.
-uint load_index(uint v, uint i, uint slot_stride) {
-  uint byte = (i * slot_stride + v) * uint(INDEX_BYTES);
-  return field(indices[byte >> 2u], byte & 3u, uint(INDEX_BYTES));
+void load_indices(uint v, uint slot_stride, out uint joint[INFLUENCES]) {
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) {
+    uint byte = (i * slot_stride + v) * uint(INDEX_BYTES);
+    joint[i] = field(indices[byte >> 2u], byte & 3u, uint(INDEX_BYTES));
+  }
 }
-uint load_raw_weight(uint v, uint i, uint slot_stride) {
-  uint byte = (i * slot_stride + v) * uint(WEIGHT_BYTES);
-  return field(weights[byte >> 2u], byte & 3u, uint(WEIGHT_BYTES));
+void load_raw_weights(uint v, uint slot_stride, out uint raw_weight[INFLUENCES]) {
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) {
+    uint byte = (i * slot_stride + v) * uint(WEIGHT_BYTES);
+    raw_weight[i] = field(weights[byte >> 2u], byte & 3u, uint(WEIGHT_BYTES));
+  }
 }
 #endif
 #endif
@@ -447,10 +478,8 @@ void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 s
 #endif
   uint joint[INFLUENCES];
   uint raw_weight[INFLUENCES];
-  for (uint i = 0u; i < uint(INFLUENCES); ++i) {
-    joint[i] = load_index(v, i, slot_stride);
-    raw_weight[i] = load_raw_weight(v, i, slot_stride);
-  }
+  load_indices(v, slot_stride, joint);
+  load_raw_weights(v, slot_stride, raw_weight);
 #if INSTANCED && STORAGE != 1
   for (uint i = 0u; i < uint(INFLUENCES); ++i) joint[i] += INSTANCE * uint(JOINTS);  // this instance's palette
 #endif
