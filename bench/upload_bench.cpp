@@ -159,47 +159,62 @@ constexpr char kEmptyPtx[] =
 
 enum class Call { kLaunch, kRecord, kWaitEvent, kSyncDone, kQueryDone, kSetCurrent, kAll };
 
-void FrameCall(benchmark::State& state, Call call) {
+// What the frame's call rows share: the empty kernel, an upload stream, three
+// events (`done` recorded and complete), and a 236 KB palette in write-combined
+// page-locked memory and on the device. Drains the device before it goes.
+struct FrameSetup {
+  static constexpr std::size_t kPalettes = 64 * 77 * 48;
   cuda::Module module = nullptr;
   cuda::Function function = nullptr;
-  Ok(api->cuModuleLoadDataEx(&module, kEmptyPtx, 0, nullptr, nullptr), "cuModuleLoadDataEx");
-  Ok(api->cuModuleGetFunction(&function, module, "skintune_empty"), "cuModuleGetFunction");
   cuda::Stream uploads = nullptr;
-  Ok(api->cuStreamCreate(&uploads, 1 /* CU_STREAM_NON_BLOCKING */), "cuStreamCreate");
   cuda::Event done = nullptr, uploaded = nullptr, marker = nullptr;
-  for (cuda::Event* e : {&done, &uploaded, &marker}) Ok(api->cuEventCreate(e, cuda::kEventDisableTiming), "cuEventCreate");
-  Ok(api->cuEventRecord(done, stream), "cuEventRecord");
-  Ok(api->cuStreamSynchronize(stream), "cuStreamSynchronize");
-  constexpr std::size_t kPalettes = 64 * 77 * 48;
-  Host host(kPalettes, Memory::kPinnedWc);
-  DeviceMemory device(kPalettes);
+  Host staging{kPalettes, Memory::kPinnedWc};
+  DeviceMemory device{kPalettes};
+
+  FrameSetup() {
+    Ok(api->cuModuleLoadDataEx(&module, kEmptyPtx, 0, nullptr, nullptr), "cuModuleLoadDataEx");
+    Ok(api->cuModuleGetFunction(&function, module, "skintune_empty"), "cuModuleGetFunction");
+    Ok(api->cuStreamCreate(&uploads, 1 /* CU_STREAM_NON_BLOCKING */), "cuStreamCreate");
+    for (cuda::Event* e : {&done, &uploaded, &marker}) Ok(api->cuEventCreate(e, cuda::kEventDisableTiming), "cuEventCreate");
+    Ok(api->cuEventRecord(done, stream), "cuEventRecord");
+    Ok(api->cuStreamSynchronize(stream), "cuStreamSynchronize");
+  }
+  ~FrameSetup() {
+    api->cuCtxSynchronize();
+    for (cuda::Event e : {done, uploaded, marker}) api->cuEventDestroy(e);
+    api->cuStreamDestroy(uploads);
+    api->cuModuleUnload(module);
+  }
+  void Launch() const {
+    Ok(api->cuLaunchKernel(function, 1, 1, 1, 32, 1, 1, 0, stream, nullptr, nullptr), "cuLaunchKernel");
+  }
+  // The frame's five queueing calls: upload, record, wait, launch, record.
+  void All() const {
+    Ok(api->cuMemcpyHtoDAsync(device.p, staging.p, kPalettes, uploads), "cuMemcpyHtoDAsync");
+    Ok(api->cuEventRecord(uploaded, uploads), "cuEventRecord");
+    Ok(api->cuStreamWaitEvent(stream, uploaded, 0), "cuStreamWaitEvent");
+    Launch();
+    Ok(api->cuEventRecord(marker, stream), "cuEventRecord");
+  }
+};
+
+void FrameCall(benchmark::State& state, Call call) {
+  const FrameSetup f;
   std::size_t n = 0;
   for (auto _ : state) {
     const auto start = std::chrono::steady_clock::now();
     switch (call) {
-      case Call::kLaunch:
-        Ok(api->cuLaunchKernel(function, 1, 1, 1, 32, 1, 1, 0, stream, nullptr, nullptr), "cuLaunchKernel");
-        break;
-      case Call::kRecord: Ok(api->cuEventRecord(marker, stream), "cuEventRecord"); break;
-      case Call::kWaitEvent: Ok(api->cuStreamWaitEvent(stream, done, 0), "cuStreamWaitEvent"); break;
-      case Call::kSyncDone: Ok(api->cuEventSynchronize(done), "cuEventSynchronize"); break;
-      case Call::kQueryDone: Ok(api->cuEventQuery(done), "cuEventQuery"); break;
+      case Call::kLaunch: f.Launch(); break;
+      case Call::kRecord: Ok(api->cuEventRecord(f.marker, stream), "cuEventRecord"); break;
+      case Call::kWaitEvent: Ok(api->cuStreamWaitEvent(stream, f.done, 0), "cuStreamWaitEvent"); break;
+      case Call::kSyncDone: Ok(api->cuEventSynchronize(f.done), "cuEventSynchronize"); break;
+      case Call::kQueryDone: Ok(api->cuEventQuery(f.done), "cuEventQuery"); break;
       case Call::kSetCurrent: Ok(api->cuCtxSetCurrent(context), "cuCtxSetCurrent"); break;
-      case Call::kAll:
-        Ok(api->cuMemcpyHtoDAsync(device.p, host.p, kPalettes, uploads), "cuMemcpyHtoDAsync");
-        Ok(api->cuEventRecord(uploaded, uploads), "cuEventRecord");
-        Ok(api->cuStreamWaitEvent(stream, uploaded, 0), "cuStreamWaitEvent");
-        Ok(api->cuLaunchKernel(function, 1, 1, 1, 32, 1, 1, 0, stream, nullptr, nullptr), "cuLaunchKernel");
-        Ok(api->cuEventRecord(marker, stream), "cuEventRecord");
-        break;
+      case Call::kAll: f.All(); break;
     }
     state.SetIterationTime(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     if (++n % 32 == 0) Ok(api->cuCtxSynchronize(), "cuCtxSynchronize");
   }
-  Ok(api->cuCtxSynchronize(), "cuCtxSynchronize");
-  for (cuda::Event e : {done, uploaded, marker}) api->cuEventDestroy(e);
-  api->cuStreamDestroy(uploads);
-  api->cuModuleUnload(module);
 }
 
 // The second thread's frame calls (call/frame/<op>/thread:...): `caller` and
@@ -220,19 +235,9 @@ void PinTo(int cpu) {
 }
 
 void FrameCallOnThread(benchmark::State& state, Call call, Beside beside, int caller, int submitter) {
-  cuda::Module module = nullptr;
-  cuda::Function function = nullptr;
-  Ok(api->cuModuleLoadDataEx(&module, kEmptyPtx, 0, nullptr, nullptr), "cuModuleLoadDataEx");
-  Ok(api->cuModuleGetFunction(&function, module, "skintune_empty"), "cuModuleGetFunction");
-  cuda::Stream uploads = nullptr;
-  Ok(api->cuStreamCreate(&uploads, 1 /* CU_STREAM_NON_BLOCKING */), "cuStreamCreate");
-  cuda::Event uploaded = nullptr, marker = nullptr;
-  for (cuda::Event* e : {&uploaded, &marker}) Ok(api->cuEventCreate(e, cuda::kEventDisableTiming), "cuEventCreate");
-  constexpr std::size_t kPalettes = 64 * 77 * 48;
-  Host staging(kPalettes, Memory::kPinnedWc);
-  Host packed(kPalettes, beside == Beside::kPack ? Memory::kPinned : Memory::kPinnedWc);
-  std::vector<unsigned char> pose(kPalettes, 3);
-  DeviceMemory device(kPalettes);
+  const FrameSetup f;
+  Host packed(FrameSetup::kPalettes, beside == Beside::kPack ? Memory::kPinned : Memory::kPinnedWc);
+  std::vector<unsigned char> pose(FrameSetup::kPalettes, 3);
   std::atomic<int> go{0}, done{0};
   std::atomic<bool> stop{false};
   double call_seconds = 0.0;
@@ -245,13 +250,8 @@ void FrameCallOnThread(benchmark::State& state, Call call, Beside beside, int ca
       if (stop.load()) break;
       ++seen;
       const auto start = std::chrono::steady_clock::now();
-      if (call == Call::kAll) {
-        Ok(api->cuMemcpyHtoDAsync(device.p, staging.p, kPalettes, uploads), "cuMemcpyHtoDAsync");
-        Ok(api->cuEventRecord(uploaded, uploads), "cuEventRecord");
-        Ok(api->cuStreamWaitEvent(stream, uploaded, 0), "cuStreamWaitEvent");
-      }
-      Ok(api->cuLaunchKernel(function, 1, 1, 1, 32, 1, 1, 0, stream, nullptr, nullptr), "cuLaunchKernel");
-      if (call == Call::kAll) Ok(api->cuEventRecord(marker, stream), "cuEventRecord");
+      if (call == Call::kAll) f.All();
+      else f.Launch();
       call_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       if (seen % 32 == 0) Ok(api->cuStreamSynchronize(stream), "cuStreamSynchronize");
       done.store(seen, std::memory_order_release);
@@ -261,17 +261,13 @@ void FrameCallOnThread(benchmark::State& state, Call call, Beside beside, int ca
   int n = 0;
   for (auto _ : state) {
     go.store(++n, std::memory_order_release);  // the thread calls while this one packs the next frame
-    if (beside != Beside::kIdle) std::memcpy(packed.p, pose.data(), kPalettes);
+    if (beside != Beside::kIdle) std::memcpy(packed.p, pose.data(), FrameSetup::kPalettes);
     while (done.load(std::memory_order_acquire) != n) __builtin_ia32_pause();
     state.SetIterationTime(call_seconds);
   }
   stop.store(true);
   thread.join();
   PinTo(-1);
-  Ok(api->cuCtxSynchronize(), "cuCtxSynchronize");
-  for (cuda::Event e : {uploaded, marker}) api->cuEventDestroy(e);
-  api->cuStreamDestroy(uploads);
-  api->cuModuleUnload(module);
 }
 
 // Stream capture and graphs, looked up here (the runtime does not use them).
@@ -307,30 +303,20 @@ void GraphLaunch(benchmark::State& state, bool two_streams) {
     state.SkipWithError("the driver has no stream capture or graphs");
     return;
   }
-  cuda::Module module = nullptr;
-  cuda::Function function = nullptr;
-  Ok(api->cuModuleLoadDataEx(&module, kEmptyPtx, 0, nullptr, nullptr), "cuModuleLoadDataEx");
-  Ok(api->cuModuleGetFunction(&function, module, "skintune_empty"), "cuModuleGetFunction");
-  cuda::Stream uploads = nullptr;
-  Ok(api->cuStreamCreate(&uploads, 1 /* CU_STREAM_NON_BLOCKING */), "cuStreamCreate");
-  cuda::Event fork = nullptr, uploaded = nullptr;
-  for (cuda::Event* e : {&fork, &uploaded}) Ok(api->cuEventCreate(e, cuda::kEventDisableTiming), "cuEventCreate");
-  constexpr std::size_t kPalettes = 64 * 77 * 48;
-  Host staging(kPalettes, Memory::kPinnedWc);
-  DeviceMemory device(kPalettes);
+  const FrameSetup f;
   void* graph = nullptr;
   void* exec = nullptr;
   Ok(g->cuStreamBeginCapture(stream, 2 /* CU_STREAM_CAPTURE_MODE_RELAXED */), "cuStreamBeginCapture");
   if (two_streams) {
-    Ok(api->cuEventRecord(fork, stream), "cuEventRecord");
-    Ok(api->cuStreamWaitEvent(uploads, fork, 0), "cuStreamWaitEvent");
-    Ok(api->cuMemcpyHtoDAsync(device.p, staging.p, kPalettes, uploads), "cuMemcpyHtoDAsync");
-    Ok(api->cuEventRecord(uploaded, uploads), "cuEventRecord");
-    Ok(api->cuStreamWaitEvent(stream, uploaded, 0), "cuStreamWaitEvent");
+    Ok(api->cuEventRecord(f.marker, stream), "cuEventRecord");  // the fork
+    Ok(api->cuStreamWaitEvent(f.uploads, f.marker, 0), "cuStreamWaitEvent");
+    Ok(api->cuMemcpyHtoDAsync(f.device.p, f.staging.p, FrameSetup::kPalettes, f.uploads), "cuMemcpyHtoDAsync");
+    Ok(api->cuEventRecord(f.uploaded, f.uploads), "cuEventRecord");
+    Ok(api->cuStreamWaitEvent(stream, f.uploaded, 0), "cuStreamWaitEvent");
   } else {
-    Ok(api->cuMemcpyHtoDAsync(device.p, staging.p, kPalettes, stream), "cuMemcpyHtoDAsync");
+    Ok(api->cuMemcpyHtoDAsync(f.device.p, f.staging.p, FrameSetup::kPalettes, stream), "cuMemcpyHtoDAsync");
   }
-  Ok(api->cuLaunchKernel(function, 1, 1, 1, 32, 1, 1, 0, stream, nullptr, nullptr), "cuLaunchKernel");
+  f.Launch();
   Ok(g->cuStreamEndCapture(stream, &graph), "cuStreamEndCapture");
   Ok(g->cuGraphInstantiateWithFlags(&exec, graph, 0), "cuGraphInstantiateWithFlags");
   std::size_t n = 0;
@@ -343,9 +329,6 @@ void GraphLaunch(benchmark::State& state, bool two_streams) {
   Ok(api->cuCtxSynchronize(), "cuCtxSynchronize");
   g->cuGraphExecDestroy(exec);
   g->cuGraphDestroy(graph);
-  for (cuda::Event e : {fork, uploaded}) api->cuEventDestroy(e);
-  api->cuStreamDestroy(uploads);
-  api->cuModuleUnload(module);
 }
 
 // CPU 0's partner hardware thread, or -1 (none, or unknown).
