@@ -491,7 +491,9 @@ class Skinner {
   // upload overlaps the frame still running): the caller may reuse
   // `matrices` at once. Blocks only when the palette buffer it needs is
   // still read by a frame queued 3 SetPalette calls ago (or, when no Skin
-  // came between, while that buffer's upload is still in flight).
+  // came between, while that buffer's upload is still in flight). On GL it
+  // waits only for that buffer's upload 3 SetPalette calls ago: GL runs the
+  // new upload after the frames that read the buffer by itself.
   Status SetPalette(const float* matrices, std::size_t float_count);
 
   // Queues the skinning of every instance with the last palette set and
