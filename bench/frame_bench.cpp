@@ -85,16 +85,28 @@ void Must(const Status& status, const std::string& what) {
   if (!status) Die(what + ": " + status.message());
 }
 
-// The device, database, meshes, Skinners and palettes, made once.
+// The device and database, opened once, and each shape's meshes, Skinners and
+// palettes, made on first use: a run filtered to some rows builds only what
+// they need (the one mesh of K x N vertices and the K Skinners take most of a
+// whole run's start-up).
 struct Scene {
   Device device;
   WinnersDb db;
-  Model instance, whole;  // N vertices; K x N vertices
-  Skinner instanced, one_mesh;
-  std::vector<Skinner> skinners;
-  std::vector<std::vector<float>> crowd;  // per pose: K palettes, instance k at its own phase
-  std::vector<std::vector<float>> single;  // per pose: the one mesh's palette
   std::size_t k = 0, n = 0;
+
+  // K instances of N vertices in one Skinner, and per pose the K palettes
+  // (instance k at its own phase).
+  struct Crowd {
+    Model instance;
+    Skinner skinner;
+    std::vector<std::vector<float>> palettes;
+  };
+  // One mesh of K x N vertices, and per pose its palette.
+  struct OneMesh {
+    Model whole;
+    Skinner skinner;
+    std::vector<std::vector<float>> palettes;
+  };
 
   Scene() {
     k = static_cast<std::size_t>(options.instances);
@@ -105,42 +117,74 @@ struct Scene {
                                          : Device::Open(options.device, nullptr, device_options),
                   "device");
     db = options.db.empty() ? WinnersDb::Empty() : Must(WinnersDb::Load(options.db), options.db);
-    instance = Must(Model::Synthetic(std::to_string(n) + "-b4"), "instance mesh");
-    whole = Must(Model::Synthetic(std::to_string(k * n) + "-b4"), "one mesh");
+    std::fprintf(stderr, "device: %s (%s)%s\n", device.info().name.c_str(), BackendName(device.info().backend),
+                 device.info().submit_thread ? ", submit thread" : "");
+  }
+
+  // Each is made, given its first palette and run once (programs built,
+  // buffers touched) on first use.
+  Crowd& crowd() {
+    if (crowd_) return *crowd_;
+    auto c = std::make_unique<Crowd>();
+    c->instance = Must(Model::Synthetic(std::to_string(n) + "-b4"), "instance mesh");
     SkinnerOptions crowd_options;
     crowd_options.variant = options.variant;
     crowd_options.instances = options.instances;
-    instanced = Must(Skinner::Create(device, db, instance.mesh(), crowd_options), "instanced Skinner");
-    SkinnerOptions one;
-    one.variant = options.variant;
-    one_mesh = Must(Skinner::Create(device, db, whole.mesh(), one), "one-mesh Skinner");
-    for (std::size_t i = 0; i < k; ++i) skinners.push_back(Must(Skinner::Create(device, db, instance.mesh(), one), "Skinner"));
-    const double duration = std::max(instance.animation_duration(0), 1e-3);
+    c->skinner = Must(Skinner::Create(device, db, c->instance.mesh(), crowd_options), "instanced Skinner");
+    const double duration = std::max(c->instance.animation_duration(0), 1e-3);
     std::vector<float> palette;
     for (int f = 0; f < options.poses; ++f) {
-      std::vector<float>& frame = crowd.emplace_back();
+      std::vector<float>& frame = c->palettes.emplace_back();
       for (std::size_t i = 0; i < k; ++i) {
-        Must(instance.Palette(0, std::fmod((double(i) / double(k) + f / 30.0) * duration, duration), &palette), "palette");
+        Must(c->instance.Palette(0, std::fmod((double(i) / double(k) + f / 30.0) * duration, duration), &palette), "palette");
         frame.insert(frame.end(), palette.begin(), palette.end());
       }
-      Must(whole.Palette(0, f / 30.0, &palette), "palette");
-      single.push_back(palette);
     }
-    // Every Skinner has a palette and has run once (programs built, buffers touched).
-    Must(instanced.SetPalette(crowd[0].data(), crowd[0].size()), "SetPalette");
-    Must(one_mesh.SetPalette(single[0].data(), single[0].size()), "SetPalette");
-    Must(instanced.Skin(), "Skin");
-    Must(one_mesh.Skin(), "Skin");
-    for (Skinner& s : skinners) {
-      Must(s.SetPalette(crowd[0].data(), crowd[0].size() / k), "SetPalette");
-      Must(s.Skin(), "Skin");
-    }
-    Must(instanced.Finish(), "Finish");
-    std::fprintf(stderr, "device: %s (%s)%s\ninstanced: %zu x %zu vertices, %s\none mesh: %zu vertices, %s\n",
-                 device.info().name.c_str(), BackendName(device.info().backend),
-                 device.info().submit_thread ? ", submit thread" : "", k, n,
-                 instanced.selection().variant.c_str(), k * n, one_mesh.selection().variant.c_str());
+    FirstFrame(c->skinner, c->palettes[0]);
+    std::fprintf(stderr, "instanced: %zu x %zu vertices, %s\n", k, n, c->skinner.selection().variant.c_str());
+    crowd_ = std::move(c);
+    return *crowd_;
   }
+  OneMesh& one_mesh() {
+    if (one_mesh_) return *one_mesh_;
+    auto o = std::make_unique<OneMesh>();
+    o->whole = Must(Model::Synthetic(std::to_string(k * n) + "-b4"), "one mesh");
+    SkinnerOptions one;
+    one.variant = options.variant;
+    o->skinner = Must(Skinner::Create(device, db, o->whole.mesh(), one), "one-mesh Skinner");
+    std::vector<float> palette;
+    for (int f = 0; f < options.poses; ++f) {
+      Must(o->whole.Palette(0, f / 30.0, &palette), "palette");
+      o->palettes.push_back(palette);
+    }
+    FirstFrame(o->skinner, o->palettes[0]);
+    std::fprintf(stderr, "one mesh: %zu vertices, %s\n", k * n, o->skinner.selection().variant.c_str());
+    one_mesh_ = std::move(o);
+    return *one_mesh_;
+  }
+  // K Skinners of the crowd's mesh, each with instance 0's palette.
+  std::vector<Skinner>& skinners() {
+    if (!skinners_.empty()) return skinners_;
+    Crowd& c = crowd();
+    SkinnerOptions one;
+    one.variant = options.variant;
+    const std::vector<float> palette(c.palettes[0].begin(), c.palettes[0].begin() + c.palettes[0].size() / k);
+    for (std::size_t i = 0; i < k; ++i) {
+      skinners_.push_back(Must(Skinner::Create(device, db, c.instance.mesh(), one), "Skinner"));
+      FirstFrame(skinners_.back(), palette);
+    }
+    return skinners_;
+  }
+
+ private:
+  static void FirstFrame(Skinner& skinner, const std::vector<float>& palette) {
+    Must(skinner.SetPalette(palette.data(), palette.size()), "SetPalette");
+    Must(skinner.Skin(), "Skin");
+    Must(skinner.Finish(), "Finish");
+  }
+  std::unique_ptr<Crowd> crowd_;
+  std::unique_ptr<OneMesh> one_mesh_;
+  std::vector<Skinner> skinners_;
 };
 
 Scene& TheScene() {
@@ -185,12 +229,12 @@ benchmark::Counter UsPerFrame(double seconds, std::size_t frames) {
 }
 
 void OneMeshSkinOnly(benchmark::State& state) {
-  Scene& s = TheScene();
+  Skinner& one_mesh = TheScene().one_mesh().skinner;
   double skin_s = 0.0;
   std::size_t frames = 0;
-  Frames(state, "one-mesh/skin-only", s.one_mesh, [&](int) {
+  Frames(state, "one-mesh/skin-only", one_mesh, [&](int) {
     const auto start = Clock::now();
-    Must(s.one_mesh.Skin(), "Skin");
+    Must(one_mesh.Skin(), "Skin");
     skin_s += std::chrono::duration<double>(Clock::now() - start).count();
     ++frames;
   });
@@ -198,35 +242,35 @@ void OneMeshSkinOnly(benchmark::State& state) {
 }
 
 void OneMeshSetSkinFinish(benchmark::State& state) {
-  Scene& s = TheScene();
+  Scene::OneMesh& o = TheScene().one_mesh();
   Frames(
-      state, "one-mesh/set-skin-finish", s.one_mesh,
+      state, "one-mesh/set-skin-finish", o.skinner,
       [&](int f) {
-        Must(s.one_mesh.SetPalette(s.single[f].data(), s.single[f].size()), "SetPalette");
-        Must(s.one_mesh.Skin(), "Skin");
-        Must(s.one_mesh.Finish(), "Finish");
+        Must(o.skinner.SetPalette(o.palettes[f].data(), o.palettes[f].size()), "SetPalette");
+        Must(o.skinner.Skin(), "Skin");
+        Must(o.skinner.Finish(), "Finish");
       },
       "one-mesh/skin-only");
 }
 
 void InstancedSkinOnly(benchmark::State& state) {
-  Scene& s = TheScene();
-  Frames(state, "instanced/skin-only", s.instanced, [&](int) { Must(s.instanced.Skin(), "Skin"); });
+  Skinner& instanced = TheScene().crowd().skinner;
+  Frames(state, "instanced/skin-only", instanced, [&](int) { Must(instanced.Skin(), "Skin"); });
 }
 
 // Also the host's time inside each call (counters set_palette_us and
 // skin_us, per frame): what the program's thread pays, apart from waiting.
 void InstancedPipelined(benchmark::State& state) {
-  Scene& s = TheScene();
+  Scene::Crowd& c = TheScene().crowd();
   double set_s = 0.0, skin_s = 0.0;
   std::size_t frames = 0;
   Frames(
-      state, "instanced/set-skin-pipelined", s.instanced,
+      state, "instanced/set-skin-pipelined", c.skinner,
       [&](int f) {
         const auto start = Clock::now();
-        Must(s.instanced.SetPalette(s.crowd[f].data(), s.crowd[f].size()), "SetPalette");
+        Must(c.skinner.SetPalette(c.palettes[f].data(), c.palettes[f].size()), "SetPalette");
         const auto set = Clock::now();
-        Must(s.instanced.Skin(), "Skin");
+        Must(c.skinner.Skin(), "Skin");
         set_s += std::chrono::duration<double>(set - start).count();
         skin_s += std::chrono::duration<double>(Clock::now() - set).count();
         ++frames;
@@ -237,13 +281,13 @@ void InstancedPipelined(benchmark::State& state) {
 }
 
 void InstancedSetSkinFinish(benchmark::State& state) {
-  Scene& s = TheScene();
+  Scene::Crowd& c = TheScene().crowd();
   Frames(
-      state, "instanced/set-skin-finish", s.instanced,
+      state, "instanced/set-skin-finish", c.skinner,
       [&](int f) {
-        Must(s.instanced.SetPalette(s.crowd[f].data(), s.crowd[f].size()), "SetPalette");
-        Must(s.instanced.Skin(), "Skin");
-        Must(s.instanced.Finish(), "Finish");
+        Must(c.skinner.SetPalette(c.palettes[f].data(), c.palettes[f].size()), "SetPalette");
+        Must(c.skinner.Skin(), "Skin");
+        Must(c.skinner.Finish(), "Finish");
       },
       "instanced/skin-only");
 }
@@ -251,37 +295,38 @@ void InstancedSetSkinFinish(benchmark::State& state) {
 // No Skin: nothing reads the palettes, so SetPalette never waits on the
 // ring, and the iteration's Finish waits for the last upload.
 void InstancedSetOnly(benchmark::State& state) {
-  Scene& s = TheScene();
+  Scene::Crowd& c = TheScene().crowd();
   double set_s = 0.0;
   std::size_t frames = 0;
-  Frames(state, "instanced/set-only", s.instanced, [&](int f) {
+  Frames(state, "instanced/set-only", c.skinner, [&](int f) {
     const auto start = Clock::now();
-    Must(s.instanced.SetPalette(s.crowd[f].data(), s.crowd[f].size()), "SetPalette");
+    Must(c.skinner.SetPalette(c.palettes[f].data(), c.palettes[f].size()), "SetPalette");
     set_s += std::chrono::duration<double>(Clock::now() - start).count();
     ++frames;
   });
   state.counters["set_palette_us"] = UsPerFrame(set_s, frames);
   // The bytes uploaded: 48 per matrix for mat3x4 blending (three rows), else 64.
-  const bool rows3 = s.instanced.selection().variant.find(".mat3x4.") != std::string::npos;
-  const double bytes = double(s.crowd[0].size() / 16) * (rows3 ? 48.0 : 64.0);
+  const bool rows3 = c.skinner.selection().variant.find(".mat3x4.") != std::string::npos;
+  const double bytes = double(c.palettes[0].size() / 16) * (rows3 ? 48.0 : 64.0);
   state.counters["palette_bytes/s"] = benchmark::Counter(bytes / (per_frame_us["instanced/set-only"].back() * 1e-6));
 }
 
 void SkinnersSkinOnly(benchmark::State& state) {
-  Scene& s = TheScene();
+  std::vector<Skinner>& skinners = TheScene().skinners();
   // The Skinners share the Device's queue: finishing the last waits for all of them.
-  Frames(state, "skinners/skin-only", s.skinners.back(), [&](int) {
-    for (Skinner& skinner : s.skinners) Must(skinner.Skin(), "Skin");
+  Frames(state, "skinners/skin-only", skinners.back(), [&](int) {
+    for (Skinner& skinner : skinners) Must(skinner.Skin(), "Skin");
   }, "instanced/skin-only");
 }
 
 void ReadBack(benchmark::State& state) {
   Scene& s = TheScene();
+  Skinner& one_mesh = s.one_mesh().skinner;
   std::vector<float> positions(s.k * s.n * 3);
-  Must(s.one_mesh.Finish(), "Finish");
+  Must(one_mesh.Finish(), "Finish");
   for (auto _ : state) {
     const auto start = Clock::now();
-    Must(s.one_mesh.ReadPositions(positions.data(), positions.size()), "ReadPositions");
+    Must(one_mesh.ReadPositions(positions.data(), positions.size()), "ReadPositions");
     state.SetIterationTime(std::chrono::duration<double>(Clock::now() - start).count());
   }
   state.counters["bytes/s"] = benchmark::Counter(double(positions.size() * sizeof(float)),
