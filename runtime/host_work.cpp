@@ -1,10 +1,10 @@
 #include "runtime/host_work.h"
 
 #include <algorithm>
-#include <cmath>
-#include <limits>
 #include <chrono>
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <mutex>
 #include <thread>
 
@@ -121,6 +121,11 @@ void CopyFloat3(const std::uint8_t* packed, std::size_t stride, float* out, std:
   (void)streaming;
 #endif
   scalar_until(end);
+}
+
+std::size_t ChunkCovering(std::size_t bytes, std::size_t chunk_bytes, std::size_t max_chunks) {
+  const std::size_t at_least = (bytes + max_chunks - 1) / max_chunks;  // so that max_chunks of them cover `bytes`
+  return std::max(chunk_bytes, (at_least + chunk_bytes - 1) / chunk_bytes * chunk_bytes);
 }
 
 bool CopyFloat3Finite(const std::uint8_t* packed, std::size_t stride, float* out, std::size_t begin, std::size_t end,

@@ -36,6 +36,12 @@ bool StreamingWrite(std::size_t bytes);
 void CopyFloat3(const std::uint8_t* packed, std::size_t stride, float* out, std::size_t begin, std::size_t end,
                 bool streaming);
 
+// The bytes of each chunk when `bytes` are read back in at most `max_chunks`
+// chunks of whole multiples of `chunk_bytes` (at least one of them): the
+// APIs whose reads cost much host time each to queue (NVIDIA's OpenCL) or
+// carry a fence each (GL) read in few chunks, the host grains within them.
+std::size_t ChunkCovering(std::size_t bytes, std::size_t chunk_bytes, std::size_t max_chunks);
+
 // CopyFloat3 and AllFinite in one pass: block by block, each block of
 // `packed` scanned and then copied while it is in the cache. Stops before
 // the first block holding a NaN or infinite word and returns false (the

@@ -123,6 +123,26 @@ TEST(HostWork, TheOutputBoundIsFourTermsOfWeightSumAndPositionAndItsThreshold) {
 }
 
 // Every index exactly once, in chunks on the pool and as one chunk on the caller.
+// The read-back's chunk for at most N chunks: a multiple of the one asked
+// for, at least it, and N of them cover every byte count, including those
+// not a multiple of N (bytes / N rounded down gave N + 1 chunks there).
+TEST(HostWork, ChunkCoveringIsAWholeMultipleAndAtMostMaxChunksCoverTheBytes) {
+  EXPECT_EQ(ChunkCovering(100, 1000, 8), 1000u);  // fewer bytes than one chunk
+  EXPECT_EQ(ChunkCovering(8000, 1000, 8), 1000u);
+  EXPECT_EQ(ChunkCovering(8001, 1000, 8), 2000u);
+  for (std::size_t max_chunks : {1u, 8u, 16u})
+    for (std::size_t unit : {12u, 786432u})
+      for (std::size_t bytes : std::initializer_list<std::size_t>{unit, 16 * unit + 1, 19200000, 19200012, 100 * unit + 7}) {
+        const std::size_t chunk = ChunkCovering(bytes, unit, max_chunks);
+        EXPECT_EQ(chunk % unit, 0u) << bytes << " " << unit;
+        EXPECT_GE(chunk, unit);
+        EXPECT_LE((bytes + chunk - 1) / chunk, max_chunks) << bytes << " " << unit << " " << max_chunks;
+        if (chunk > unit) {
+          EXPECT_GT((bytes + chunk - unit - 1) / (chunk - unit), max_chunks) << "not the smallest";
+        }
+      }
+}
+
 TEST(HostWork, ForChunksVisitsEveryIndexOnce) {
   for (const std::size_t grain : {std::size_t{4096}, std::size_t{1} << 20}) {
     std::vector<std::atomic<int>> hits(100003);

@@ -96,8 +96,9 @@ TEST(GlSkinner, SkinsKInstancesWithComputeAndVertexShaders) {
   }
 }
 
-// A read-back of many host grains (runtime/skinner.cpp: GL copies it back
-// whole, the host pool scans and copies it in 16k-vertex grains): float3 and
+// A read-back of many host grains (runtime/skinner.cpp: GL copies it back in
+// chunks, each with a fence the reading thread waits for, and the host pool
+// scans and copies each chunk in 16k-vertex grains): float3 and
 // float4 outputs match the gold across the grains, read in one pass; a
 // palette that overflows only in the last vertices is an error that leaves
 // the caller's array as it was (the scan first, then the copy).

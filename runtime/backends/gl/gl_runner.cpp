@@ -11,6 +11,7 @@
 #include "generator/template_includes.h"
 #include "reference/error.h"
 #include "runtime/backends/gl/gl_api.h"
+#include "runtime/host_work.h"
 #include "runtime/output_check.h"
 
 namespace skintune::internal {
@@ -513,7 +514,7 @@ DeviceApi::PinnedRead GlApi::ReadPinnedChunks(const DeviceBuffer& buffer, std::s
   constexpr std::size_t kReadChunks = 16;
   if (chunk_bytes == 0 || chunk_bytes >= bytes || !persistent_staging())
     return DeviceApi::ReadPinnedChunks(buffer, bytes, chunk_bytes, what);
-  const std::size_t chunk = std::max(chunk_bytes, (bytes / kReadChunks + chunk_bytes - 1) / chunk_bytes * chunk_bytes);
+  const std::size_t chunk = ChunkCovering(bytes, chunk_bytes, kReadChunks);
   const auto& out = static_cast<const GlBuffer&>(buffer);
   ClearGlErrors();
   if (!out.readback) out.readback = PersistentStaging(out.bytes(), GL_MAP_READ_BIT, "the read-back of " + what);

@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "reference/error.h"
+#include "runtime/host_work.h"
 #include "runtime/output_check.h"
 
 namespace skintune::internal {
@@ -400,8 +401,7 @@ void OpenClApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, co
 DeviceApi::PinnedRead OpenClApi::ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk_bytes,
                                                   const std::string& what) {
   constexpr std::size_t kReadChunks = 8;
-  const std::size_t at_least = (bytes + kReadChunks - 1) / kReadChunks;  // so that kReadChunks of them cover `bytes`
-  const std::size_t chunk = std::max(chunk_bytes, (at_least + chunk_bytes - 1) / chunk_bytes * chunk_bytes);
+  const std::size_t chunk = ChunkCovering(bytes, chunk_bytes, kReadChunks);
   const auto& memory = static_cast<const ClMemory&>(buffer);
   if (!memory.readback)
     memory.readback = std::make_unique<ClPinned>(context.get(), queue.get(), memory.bytes(), "the read-back of " + what);
