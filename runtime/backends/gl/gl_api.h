@@ -203,7 +203,8 @@ class GlApi final : public DeviceApi {
                               const std::string& what) override;
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
-  void Finish() override { glFinish(); }
+  // A fence sync waited for (WaitFence), glFinish without one.
+  void Finish() override;
   // glCopyBufferSubData into a palette after the dispatches and draws that
   // read it: GL orders them (a Skin without SetPalette then needs no fence:
   // glFenceSync and its flush cost 7-10 us a frame on NVIDIA).

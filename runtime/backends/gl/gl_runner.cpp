@@ -542,6 +542,23 @@ DeviceApi::PinnedRead GlApi::ReadPinnedChunks(const DeviceBuffer& buffer, std::s
   return read;
 }
 
+// A fence waited for with glClientWaitSync, not glFinish: the same
+// completion of everything queued, and on NVIDIA sooner (session 29 call H,
+// SetPalette + Skin + Finish every frame: 85.2 us with glFinish, 67.7 with the
+// fence). Without a fence object, glFinish.
+void GlApi::Finish() {
+  const GLsync sync = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  if (!sync) {
+    glFinish();
+    return;
+  }
+  struct Owned {
+    GLsync sync;
+    ~Owned() { glDeleteSync(sync); }
+  } owned{sync};
+  WaitFence(sync, "Finish");
+}
+
 void GlApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) {
   const GLsync sync = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
   if (!sync) CheckGl("launch", "glFenceSync after " + what);
