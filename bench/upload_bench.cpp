@@ -34,14 +34,58 @@
 //   call/frame/graph/<shape> cuGraphLaunch of a graph holding the frame's work (one-stream: the
 //                            236 KB upload, then the kernel; two-streams: the upload on its own
 //                            stream, joined to the kernel's by an event), instantiated once
+//   model/<frame>/<submit>   a frame loop in miniature, its wall time per frame: a kernel that
+//                            holds every SM for 11 us (the 64 x 25k-b4 crowd kernel's time on
+//                            the H100; it spins on %globaltimer), a ring of 6 palette slots whose
+//                            marker is waited for before the slot is packed again, and
+//                              <frame>  skin-only  the launch and its marker alone
+//                                       pipelined  PackPaletteInto of 64 x 77 mat3x4 (2 poses)
+//                                                  into the slot's write-combined staging, its
+//                                                  236 KB upload, the launch, the marker
+//                                       unpacked   pipelined without the packing (the staging
+//                                                  uploaded as it is): the submission's bound
+//                                       packed-only  pipelined without the upload (the packing
+//                                                  beside the kernel but no copy engine reading)
+//                                       pipelined-cached  pipelined from ordinary (not
+//                                                  write-combined) page-locked staging
+//                                       pipelined-pool  pipelined, the packing in 4 chunks on a
+//                                                  ThreadPool of 4 threads (20 us spin)
+//                                       finish     pipelined, then the marker waited for
+//                              <submit> calls      the runtime's five calls (upload on a stream
+//                                                  of its own, record, wait, launch, record)
+//                                       calls:no-wait  the same without the launch's wait for
+//                                                  the upload (wrong: what the wait costs)
+//                                       graph:one-stream    one cuGraphLaunch per frame of a graph
+//                                                  per slot (upload -> kernel -> marker) on the
+//                                                  kernel's stream: frames run one after another
+//                                       graph:alternating   the same graphs on two streams by
+//                                                  the slot's parity, each kernel after the last
+//                                                  frame's marker (an event wait node), so frame
+//                                                  n+1's upload can run beside kernel n
+//                                       graph:rotating      the same on three streams
+//                                       calls:thread / graph:thread  calls or graph:alternating made
+//                                                  by a thread of their own, which also waits for
+//                                                  the ring (the caller makes no driver call: it
+//                                                  packs, hands the frame over by an atomic, and
+//                                                  spins on one for a free slot)
+//   model/<frame>/<submit>/parts:<k>  calls and calls:thread with the upload in k copies of
+//                            whole matrices on k streams of their own (more copies in flight)
+//                            Counters: the host's time per frame in the ring's wait, the packing
+//                            and the submission (ring_us, pack_us, submit_us: the thread's when
+//                            threaded).
+//                            What a frame's submission costs beside a kernel really running.
 //   host/<bytes>/pack-wc     memcpy of the bytes into write-combined memory (the packing's stores)
 //   host/<bytes>/pack        the same into ordinary memory
 //   palette/<memory>         PackPaletteInto of 64 x 77 mat3x4 (SetPalette's packing) into
 //                            each kind of host memory, from 8 poses in turn as the frame
 //                            benchmark's (2.5 MB of input: not all in a core's cache)
 //   palette/<memory>/poses:2 the same from 2 poses (0.6 MB: in L2, as the frame benchmark's default)
+//   palette/pinned-wc/poses:2/spinning:<n>  the same on n threads, n - 1 of them helpers that spin
+//                            between frames (no wake-up), each packing its share of the matrices
 //   palette/<memory>/chunks:<n>  the same in n chunks on the runtime's host pool
 //                            (runtime/host_work.h ForChunks: the read-back's spinning threads)
+//   palette/pinned-wc/poses:2/chunks:<n>[/pool:<n>]  from 2 poses in n chunks on the host pool, or
+//                            on a ThreadPool of n threads (the host pool's 20 us spin)
 //
 // Each reports bytes/s; the time is the host's wall time per copy.
 //
@@ -56,6 +100,7 @@
 #include <chrono>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <thread>
 #include <cstdlib>
 #include <cstring>
@@ -64,6 +109,7 @@
 
 #include "generator/packer.h"
 #include "runtime/backends/cuda/cuda_api.h"
+#include "reference/thread_pool.h"
 #include "runtime/host_work.h"
 
 namespace {
@@ -278,6 +324,7 @@ struct GraphApi {
   cuda::Result (*cuGraphLaunch)(void* exec, cuda::Stream) = nullptr;
   cuda::Result (*cuGraphExecDestroy)(void* exec) = nullptr;
   cuda::Result (*cuGraphDestroy)(void* graph) = nullptr;
+  cuda::Result (*cuEventRecordWithFlags)(cuda::Event, cuda::Stream, unsigned flags) = nullptr;
 };
 
 const GraphApi* Graphs() {
@@ -292,6 +339,8 @@ const GraphApi* Graphs() {
     g.cuGraphLaunch = reinterpret_cast<decltype(g.cuGraphLaunch)>(dlsym(handle, "cuGraphLaunch"));
     g.cuGraphExecDestroy = reinterpret_cast<decltype(g.cuGraphExecDestroy)>(dlsym(handle, "cuGraphExecDestroy"));
     g.cuGraphDestroy = reinterpret_cast<decltype(g.cuGraphDestroy)>(dlsym(handle, "cuGraphDestroy"));
+    g.cuEventRecordWithFlags =
+        reinterpret_cast<decltype(g.cuEventRecordWithFlags)>(dlsym(handle, "cuEventRecordWithFlags"));
     return g;
   }();
   return &graphs;
@@ -329,6 +378,186 @@ void GraphLaunch(benchmark::State& state, bool two_streams) {
   Ok(api->cuCtxSynchronize(), "cuCtxSynchronize");
   g->cuGraphExecDestroy(exec);
   g->cuGraphDestroy(graph);
+}
+
+// The model frame's kernel: every thread spins on %globaltimer for `ns`.
+constexpr char kSpinPtx[] =
+    ".version 7.0\n.target sm_50\n.address_size 64\n"
+    ".visible .entry skintune_spin(.param .u64 ns, .param .u64 palette)\n{\n"
+    "  .reg .pred %p;\n  .reg .b64 %r<5>;\n"
+    "  ld.param.u64 %r1, [ns];\n  mov.u64 %r2, %globaltimer;\n"
+    "LOOP:\n  mov.u64 %r3, %globaltimer;\n  sub.s64 %r4, %r3, %r2;\n"
+    "  setp.lt.u64 %p, %r4, %r1;\n  @%p bra LOOP;\n  ret;\n}\n";
+
+enum class ModelFrame { kSkinOnly, kPipelined, kUnpacked, kPackedOnly, kPipelinedCached, kPipelinedPool, kFinish };
+constexpr bool Packs(ModelFrame f) { return f != ModelFrame::kSkinOnly && f != ModelFrame::kUnpacked; }
+constexpr bool Uploads(ModelFrame f) { return f != ModelFrame::kSkinOnly && f != ModelFrame::kPackedOnly; }
+enum class Submit { kCalls, kCallsNoWait, kGraphOneStream, kGraphAlternating, kGraphRotating, kCallsThread, kGraphThread };
+
+void FrameModel(benchmark::State& state, ModelFrame frame, Submit submit, std::size_t parts) {
+  constexpr std::size_t kSlots = 6, kMatrices = 64 * 77, kBytes = kMatrices * 48;
+  constexpr unsigned long long kKernelNs = 11000;
+  const GraphApi* g = Graphs();
+  const bool calls = submit == Submit::kCalls || submit == Submit::kCallsNoWait || submit == Submit::kCallsThread;
+  const bool threaded = submit == Submit::kCallsThread || submit == Submit::kGraphThread;
+  const std::size_t n_streams = submit == Submit::kGraphRotating                                       ? 3
+                                : submit == Submit::kGraphAlternating || submit == Submit::kGraphThread ? 2
+                                                                                                        : 1;
+  if (!calls && (!g->cuStreamBeginCapture || !g->cuEventRecordWithFlags)) {
+    state.SkipWithError("the driver has no stream capture or external event nodes");
+    return;
+  }
+  cuda::Device device = 0;
+  int sms = 0;
+  Ok(api->cuCtxGetDevice(&device), "cuCtxGetDevice");
+  Ok(api->cuDeviceGetAttribute(&sms, 16 /* CU_DEVICE_ATTRIBUTE_MULTIPROCESSOR_COUNT */, device), "cuDeviceGetAttribute");
+  cuda::Module module = nullptr;
+  cuda::Function spin = nullptr;
+  Ok(api->cuModuleLoadDataEx(&module, kSpinPtx, 0, nullptr, nullptr), "cuModuleLoadDataEx");
+  Ok(api->cuModuleGetFunction(&spin, module, "skintune_spin"), "cuModuleGetFunction");
+  constexpr std::size_t kMaxParts = 4;
+  cuda::Stream streams[3] = {stream, nullptr, nullptr}, uploads[kMaxParts] = {};
+  for (std::size_t i = 1; i < 3; ++i) Ok(api->cuStreamCreate(&streams[i], 1), "cuStreamCreate");
+  for (cuda::Stream& u : uploads) Ok(api->cuStreamCreate(&u, 1), "cuStreamCreate");
+  std::vector<std::unique_ptr<Host>> staging;
+  std::vector<std::unique_ptr<DeviceMemory>> palettes;
+  cuda::Event marker[kSlots], uploaded[kSlots][kMaxParts];
+  for (std::size_t s = 0; s < kSlots; ++s) {
+    staging.push_back(
+        std::make_unique<Host>(kBytes, frame == ModelFrame::kPipelinedCached ? Memory::kPinned : Memory::kPinnedWc));
+    palettes.push_back(std::make_unique<DeviceMemory>(kBytes));
+    Ok(api->cuEventCreate(&marker[s], cuda::kEventDisableTiming), "cuEventCreate");
+    for (cuda::Event& e : uploaded[s]) Ok(api->cuEventCreate(&e, cuda::kEventDisableTiming), "cuEventCreate");
+    Ok(api->cuEventRecord(marker[s], stream), "cuEventRecord");
+  }
+  Variant variant;
+  variant.palette = PaletteFormat::kMat3x4;
+  std::vector<std::vector<float>> poses(2, std::vector<float>(kMatrices * 16));
+  for (std::size_t p = 0; p < poses.size(); ++p)
+    for (std::size_t i = 0; i < poses[p].size(); ++i) poses[p][i] = static_cast<float>((i + p) % 97) * 0.01f;
+  std::unique_ptr<ThreadPool> pack_pool;  // pipelined-pool: the packing in 4 chunks on 4 threads
+  if (frame == ModelFrame::kPipelinedPool) pack_pool = std::make_unique<ThreadPool>(4, std::chrono::microseconds(20));
+  unsigned long long ns = kKernelNs;
+  const auto launch = [&](std::size_t s, cuda::Stream on) {
+    void* params[] = {&ns, &palettes[s]->p};
+    Ok(api->cuLaunchKernel(spin, 2 * sms, 1, 1, 256, 1, 1, 0, on, params, nullptr), "cuLaunchKernel");
+  };
+  // One graph per slot: its upload, its launch, its marker.
+  void* graphs[kSlots] = {};
+  void* execs[kSlots] = {};
+  if (!calls) {
+    for (std::size_t s = 0; s < kSlots; ++s) {
+      const cuda::Stream on = streams[s % n_streams];
+      Ok(g->cuStreamBeginCapture(on, 2 /* CU_STREAM_CAPTURE_MODE_RELAXED */), "cuStreamBeginCapture");
+      if (Uploads(frame))
+        Ok(api->cuMemcpyHtoDAsync(palettes[s]->p, staging[s]->p, kBytes, on), "cuMemcpyHtoDAsync");
+      if (n_streams > 1)  // after the last frame's kernel
+        Ok(api->cuStreamWaitEvent(on, marker[(s + kSlots - 1) % kSlots], 1 /* CU_EVENT_WAIT_EXTERNAL */),
+           "cuStreamWaitEvent");
+      launch(s, on);
+      Ok(g->cuEventRecordWithFlags(marker[s], on, 1 /* CU_EVENT_RECORD_EXTERNAL */), "cuEventRecordWithFlags");
+      Ok(g->cuStreamEndCapture(on, &graphs[s]), "cuStreamEndCapture");
+      Ok(g->cuGraphInstantiateWithFlags(&execs[s], graphs[s], 0), "cuGraphInstantiateWithFlags");
+    }
+  }
+  const auto submit_frame = [&](std::size_t s) {
+    if (calls) {
+      if (Uploads(frame)) {  // in `parts` copies on as many streams, each of whole matrices
+        const std::size_t part = (kMatrices + parts - 1) / parts * 48;
+        for (std::size_t p = 0; p < parts; ++p) {
+          const std::size_t at = p * part, bytes = std::min(part, kBytes - at);
+          Ok(api->cuMemcpyHtoDAsync(palettes[s]->p + at, static_cast<std::uint8_t*>(staging[s]->p) + at, bytes,
+                                    uploads[p]),
+             "cuMemcpyHtoDAsync");
+          Ok(api->cuEventRecord(uploaded[s][p], uploads[p]), "cuEventRecord");
+        }
+        if (submit != Submit::kCallsNoWait)
+          for (std::size_t p = 0; p < parts; ++p)
+            Ok(api->cuStreamWaitEvent(stream, uploaded[s][p], 0), "cuStreamWaitEvent");
+      }
+      launch(s, stream);
+      Ok(api->cuEventRecord(marker[s], stream), "cuEventRecord");
+    } else {
+      Ok(g->cuGraphLaunch(execs[s], streams[s % n_streams]), "cuGraphLaunch");
+    }
+  };
+  Ok(api->cuCtxSynchronize(), "cuCtxSynchronize");
+  using Clock = std::chrono::steady_clock;
+  const auto seconds = [](Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); };
+  // threaded: a thread of its own makes every driver call (the submission and
+  // the ring's wait), the caller only packs: it waits for `freed` (frames whose
+  // slot is free again) and hands each frame over by `requested`.
+  std::atomic<std::size_t> requested{0}, freed{1};  // frames 0 and 1 may be packed at once
+  std::atomic<bool> stop{false};
+  double thread_submit_s = 0;
+  std::thread thread;
+  if (threaded)
+    thread = std::thread([&] {
+      Ok(api->cuCtxSetCurrent(context), "cuCtxSetCurrent");
+      std::size_t done = 0;
+      for (;;) {
+        while (requested.load(std::memory_order_acquire) == done && !stop.load(std::memory_order_acquire))
+          __builtin_ia32_pause();
+        if (requested.load(std::memory_order_acquire) == done) break;
+        const auto a = Clock::now();
+        submit_frame(done % kSlots);
+        thread_submit_s += seconds(a, Clock::now());
+        ++done;
+        // Frame done + 1 may be packed once its slot's last frame (done + 1 - kSlots) is complete:
+        // the caller packs up to two frames ahead of the submission.
+        Ok(api->cuEventSynchronize(marker[(done + 1) % kSlots]), "cuEventSynchronize");
+        freed.store(done + 1, std::memory_order_release);
+      }
+    });
+  std::size_t n = 0;
+  double ring_s = 0, pack_s = 0, submit_s = 0;  // the host's time in each part
+  for (auto _ : state) {
+    const std::size_t s = n % kSlots;
+    const auto t0 = Clock::now();
+    if (threaded) {
+      while (freed.load(std::memory_order_acquire) < n) __builtin_ia32_pause();
+    } else {
+      Ok(api->cuEventSynchronize(marker[s]), "cuEventSynchronize");  // the ring: slot s is free again
+    }
+    const auto t1 = Clock::now();
+    if (pack_pool) {
+      auto* out = static_cast<std::uint8_t*>(staging[s]->p);
+      const float* in = poses[n % 2].data();
+      pack_pool->ParallelFor(kMatrices, (kMatrices + 3) / 4, [&](std::size_t begin, std::size_t end) {
+        PackPaletteInto(in + 16 * begin, end - begin, variant, out + 48 * begin);
+      });
+    } else if (Packs(frame)) {
+      PackPaletteInto(poses[n % 2].data(), kMatrices, variant, static_cast<std::uint8_t*>(staging[s]->p));
+    }
+    const auto t2 = Clock::now();
+    if (threaded) requested.store(n + 1, std::memory_order_release);
+    else submit_frame(s);
+    const auto t3 = Clock::now();
+    if (frame == ModelFrame::kFinish) Ok(api->cuEventSynchronize(marker[s]), "cuEventSynchronize");
+    ring_s += seconds(t0, t1);
+    pack_s += seconds(t1, t2);
+    submit_s += seconds(t2, t3);
+    ++n;
+  }
+  if (threaded) {
+    stop.store(true, std::memory_order_release);
+    thread.join();
+    submit_s = thread_submit_s;
+  }
+  const double per_frame_us = 1e6 / static_cast<double>(std::max<std::size_t>(n, 1));
+  state.counters["ring_us"] = ring_s * per_frame_us;
+  state.counters["pack_us"] = pack_s * per_frame_us;
+  state.counters["submit_us"] = submit_s * per_frame_us;
+  Ok(api->cuCtxSynchronize(), "cuCtxSynchronize");
+  for (std::size_t s = 0; s < kSlots; ++s) {
+    if (execs[s]) g->cuGraphExecDestroy(execs[s]);
+    if (graphs[s]) g->cuGraphDestroy(graphs[s]);
+    api->cuEventDestroy(marker[s]);
+    for (cuda::Event e : uploaded[s]) api->cuEventDestroy(e);
+  }
+  for (std::size_t i = 1; i < 3; ++i) api->cuStreamDestroy(streams[i]);
+  for (cuda::Stream u : uploads) api->cuStreamDestroy(u);
+  api->cuModuleUnload(module);
 }
 
 // CPU 0's partner hardware thread, or -1 (none, or unknown).
@@ -375,7 +604,10 @@ void CopyIn(benchmark::State& state, std::size_t bytes, Memory kind) {
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * bytes));
 }
 
-void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks, std::size_t kPoses) {
+void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks, std::size_t kPoses, unsigned pool_threads) {
+  // pool_threads: a pool of that many threads of the bench's own (the host pool's spin), not the host pool
+  std::unique_ptr<ThreadPool> pool;
+  if (pool_threads > 0) pool = std::make_unique<ThreadPool>(pool_threads, std::chrono::microseconds(20));
   constexpr std::size_t kMatrices = 64 * 77;
   Variant variant;
   variant.palette = PaletteFormat::kMat3x4;
@@ -390,12 +622,60 @@ void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks, std:
     if (chunks <= 1) {
       benchmark::DoNotOptimize(PackPaletteInto(in, kMatrices, variant, out));
     } else {
-      ForChunks(kMatrices, (kMatrices + chunks - 1) / chunks, [&](std::size_t begin, std::size_t end) {
+      const auto body = [&](std::size_t begin, std::size_t end) {
         benchmark::DoNotOptimize(PackPaletteInto(in + 16 * begin, end - begin, variant, out + 48 * begin));
-      });
+      };
+      if (pool) pool->ParallelFor(kMatrices, (kMatrices + chunks - 1) / chunks, body);
+      else ForChunks(kMatrices, (kMatrices + chunks - 1) / chunks, body);
     }
     benchmark::ClobberMemory();
   }
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * kMatrices * 48));
+}
+
+// PackPaletteInto on `threads` threads: the caller's share and threads - 1
+// helpers that spin between frames (no sleep, no wake-up), each packing its
+// share of whole matrices into the write-combined staging.
+void PackPalettesSpinning(benchmark::State& state, std::size_t threads) {
+  constexpr std::size_t kMatrices = 64 * 77;
+  Variant variant;
+  variant.palette = PaletteFormat::kMat3x4;
+  Host to(kMatrices * 48, Memory::kPinnedWc);
+  std::vector<std::vector<float>> poses(2, std::vector<float>(kMatrices * 16));
+  for (std::size_t p = 0; p < poses.size(); ++p)
+    for (std::size_t i = 0; i < poses[p].size(); ++i) poses[p][i] = static_cast<float>((i + p) % 97) * 0.01f;
+  auto* out = static_cast<std::uint8_t*>(to.p);
+  const std::size_t share = (kMatrices + threads - 1) / threads;
+  std::atomic<std::size_t> generation{0}, finished{0};
+  std::atomic<bool> stop{false};
+  const auto pack = [&](std::size_t t, std::size_t frame) {
+    const std::size_t begin = std::min(kMatrices, t * share), end = std::min(kMatrices, begin + share);
+    PackPaletteInto(poses[frame % 2].data() + 16 * begin, end - begin, variant, out + 48 * begin);
+  };
+  std::vector<std::thread> helpers;
+  for (std::size_t t = 1; t < threads; ++t)
+    helpers.emplace_back([&, t] {
+      std::size_t seen = 0;
+      for (;;) {
+        std::size_t g;
+        while ((g = generation.load(std::memory_order_acquire)) == seen && !stop.load(std::memory_order_relaxed))
+          __builtin_ia32_pause();
+        if (stop.load()) return;
+        seen = g;
+        pack(t, g);
+        finished.fetch_add(1, std::memory_order_acq_rel);
+      }
+    });
+  std::size_t frame = 0;
+  for (auto _ : state) {
+    ++frame;
+    finished.store(0, std::memory_order_relaxed);
+    generation.store(frame, std::memory_order_release);
+    pack(0, frame);
+    while (finished.load(std::memory_order_acquire) != threads - 1) __builtin_ia32_pause();
+  }
+  stop.store(true);
+  for (std::thread& h : helpers) h.join();
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * kMatrices * 48));
 }
 
@@ -436,10 +716,22 @@ int main(int argc, char** argv) {
   for (const auto& m : memories)
     for (std::size_t chunks : {1, 4, 8, 16}) {
       const std::string name = std::string("palette/") + m.name + (chunks > 1 ? "/chunks:" + std::to_string(chunks) : "");
-      benchmark::RegisterBenchmark(name.c_str(), PackPalettes, m.kind, chunks, std::size_t{8})->UseRealTime();
+      benchmark::RegisterBenchmark(name.c_str(), PackPalettes, m.kind, chunks, std::size_t{8}, 0u)->UseRealTime();
       if (chunks == 1)
-        benchmark::RegisterBenchmark((name + "/poses:2").c_str(), PackPalettes, m.kind, chunks, std::size_t{2})->UseRealTime();
+        benchmark::RegisterBenchmark((name + "/poses:2").c_str(), PackPalettes, m.kind, chunks, std::size_t{2}, 0u)
+            ->UseRealTime();
     }
+  for (std::size_t chunks : {2, 4}) {
+    const std::string name = "palette/pinned-wc/poses:2/chunks:" + std::to_string(chunks);
+    benchmark::RegisterBenchmark(name.c_str(), PackPalettes, Memory::kPinnedWc, chunks, std::size_t{2}, 0u)->UseRealTime();
+    benchmark::RegisterBenchmark((name + "/pool:" + std::to_string(chunks)).c_str(), PackPalettes, Memory::kPinnedWc,
+                                 chunks, std::size_t{2}, static_cast<unsigned>(chunks))
+        ->UseRealTime();
+    }
+  for (std::size_t threads : {1, 2, 4})
+    benchmark::RegisterBenchmark(("palette/pinned-wc/poses:2/spinning:" + std::to_string(threads)).c_str(),
+                                 PackPalettesSpinning, threads)
+        ->UseRealTime();
   const struct {
     const char* name;
     Call call;
@@ -467,6 +759,35 @@ int main(int argc, char** argv) {
       }
   benchmark::RegisterBenchmark("call/frame/graph/one-stream", GraphLaunch, false)->UseManualTime();
   benchmark::RegisterBenchmark("call/frame/graph/two-streams", GraphLaunch, true)->UseManualTime();
+  const struct {
+    const char* name;
+    ModelFrame frame;
+  } model_frames[] = {{"skin-only", ModelFrame::kSkinOnly}, {"pipelined", ModelFrame::kPipelined},
+                      {"unpacked", ModelFrame::kUnpacked},   {"packed-only", ModelFrame::kPackedOnly},
+                      {"pipelined-cached", ModelFrame::kPipelinedCached},
+                      {"pipelined-pool", ModelFrame::kPipelinedPool}, {"finish", ModelFrame::kFinish}};
+  const struct {
+    const char* name;
+    Submit submit;
+  } submits[] = {{"calls", Submit::kCalls},
+                 {"calls:no-wait", Submit::kCallsNoWait},
+                 {"graph:one-stream", Submit::kGraphOneStream},
+                 {"graph:alternating", Submit::kGraphAlternating},
+                 {"graph:rotating", Submit::kGraphRotating},
+                 {"calls:thread", Submit::kCallsThread},
+                 {"graph:thread", Submit::kGraphThread}};
+  for (const auto& f : model_frames)
+    for (const auto& m : submits) {
+      if (f.frame == ModelFrame::kFinish && (m.submit == Submit::kCallsThread || m.submit == Submit::kGraphThread))
+        continue;  // a frame waited for has nothing to overlap
+      const std::string name = std::string("model/") + f.name + "/" + m.name;
+      benchmark::RegisterBenchmark(name.c_str(), FrameModel, f.frame, m.submit, std::size_t{1})->UseRealTime();
+      if (m.submit == Submit::kCalls || m.submit == Submit::kCallsThread)
+        for (std::size_t parts : {2, 4})
+          benchmark::RegisterBenchmark((name + "/parts:" + std::to_string(parts)).c_str(), FrameModel, f.frame, m.submit,
+                                       parts)
+              ->UseRealTime();
+    }
   benchmark::RegisterBenchmark("sync/empty", EmptySync)->UseRealTime();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
