@@ -14,9 +14,9 @@ ThreadPool::ThreadPool(unsigned threads, std::chrono::microseconds spin) : spin_
 }
 
 ThreadPool::~ThreadPool() {
+  stop_.store(true);
   {
-    std::lock_guard lock(mutex_);
-    stop_ = true;
+    std::lock_guard lock(mutex_);  // a worker between its check of stop_ and its wait holds it
   }
   wake_.notify_all();
   for (std::thread& t : workers_) t.join();
@@ -37,30 +37,34 @@ bool ThreadPool::Spin(Ready&& ready) const {
   }
 }
 
-void ThreadPool::RunChunks() {
-  std::unique_lock lock(mutex_);
-  while (next_chunk_ < chunks_) {
-    const std::size_t chunk = next_chunk_++;
-    const auto* body = body_;
-    lock.unlock();
-    const std::size_t begin = chunk * grain_;
-    (*body)(begin, std::min(count_, begin + grain_));
-    lock.lock();
-    if (finished_chunks_.fetch_add(1) + 1 == chunks_) done_.notify_all();
+void ThreadPool::RunChunks(std::uint64_t generation) {
+  std::uint64_t c = claim_.load(std::memory_order_acquire);
+  while (Generation(c) == generation && Next(c) < Chunks(c)) {
+    if (!claim_.compare_exchange_weak(c, c + 1, std::memory_order_acq_rel, std::memory_order_acquire)) continue;
+    const std::size_t begin = static_cast<std::size_t>(Next(c)) * grain_;
+    (*body_)(begin, std::min(count_, begin + grain_));
+    // The last chunk wakes the caller if it sleeps (seq_cst with its flag: Dekker).
+    if (finished_.fetch_add(1) + 1 == Chunks(c) && caller_sleeps_.load()) {
+      { std::lock_guard lock(mutex_); }
+      done_.notify_all();
+    }
+    c = claim_.load(std::memory_order_acquire);
   }
 }
 
 void ThreadPool::WorkerLoop() {
-  std::size_t seen = 0;
+  std::uint64_t seen = 0;  // the last generation this worker looked at
   for (;;) {
-    Spin([&] { return stop_.load(std::memory_order_acquire) || generation_.load(std::memory_order_acquire) != seen; });
-    {
+    const auto fresh = [&] { return stop_.load() || Generation(claim_.load()) != seen; };
+    if (!Spin(fresh)) {
       std::unique_lock lock(mutex_);
-      wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
-      if (stop_) return;
-      seen = generation_;
+      sleepers_.fetch_add(1);  // before the check (seq_cst with the caller's store of claim_: Dekker)
+      wake_.wait(lock, fresh);
+      sleepers_.fetch_sub(1);
     }
-    RunChunks();
+    if (stop_.load()) return;
+    seen = Generation(claim_.load());
+    RunChunks(seen);
   }
 }
 
@@ -68,22 +72,27 @@ void ThreadPool::ParallelFor(std::size_t count, std::size_t grain,
                              const std::function<void(std::size_t, std::size_t)>& body) {
   if (count == 0) return;
   grain = std::max<std::size_t>(grain, 1);
-  {
-    std::lock_guard lock(mutex_);
-    body_ = &body;
-    count_ = count;
-    grain_ = grain;
-    chunks_ = (count + grain - 1) / grain;
-    next_chunk_ = 0;
-    finished_chunks_ = 0;
-    ++generation_;
+  if ((count + grain - 1) / grain > kChunkMask) grain = (count + kChunkMask - 1) / kChunkMask;
+  const std::uint64_t chunks = (count + grain - 1) / grain;
+  body_ = &body;
+  count_ = count;
+  grain_ = grain;
+  finished_.store(0);
+  generation_ = (generation_ + 1) & 0xffff;
+  if (generation_ == 0) generation_ = 1;  // 0 is the pool's state before its first loop
+  claim_.store((generation_ << (2 * kChunkBits)) | (chunks << kChunkBits));  // seq_cst: see sleepers_
+  if (sleepers_.load() > 0) {
+    { std::lock_guard lock(mutex_); }
+    wake_.notify_all();
   }
-  wake_.notify_all();
-  RunChunks();
-  const std::size_t chunks = chunks_;  // RunChunks returned: no chunk is left to take, so chunks_ stays
-  Spin([&] { return finished_chunks_.load(std::memory_order_acquire) == chunks; });
-  std::unique_lock lock(mutex_);
-  done_.wait(lock, [&] { return finished_chunks_ == chunks_; });
+  RunChunks(generation_);
+  const auto done = [&] { return finished_.load() == chunks; };
+  if (!Spin(done)) {
+    std::unique_lock lock(mutex_);
+    caller_sleeps_.store(true);
+    done_.wait(lock, done);
+    caller_sleeps_.store(false);
+  }
   body_ = nullptr;
 }
 

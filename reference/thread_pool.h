@@ -6,6 +6,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <mutex>
 #include <thread>
@@ -38,23 +39,38 @@ class ThreadPool {
                    const std::function<void(std::size_t, std::size_t)>& body);
 
  private:
+  // The loop's chunks are claimed without a lock: claim_ holds the loop's
+  // generation (16 bits), its chunk count (24 bits) and the next chunk (24
+  // bits), so a thread claims a chunk only of the loop it was woken for, and
+  // one compare-and-swap hands it out. A thread that holds a claim reads
+  // body_, count_ and grain_, which stay until every chunk is finished. The
+  // mutex and the condition variables are only for threads that sleep.
+  static constexpr int kChunkBits = 24;
+  static constexpr std::uint64_t kChunkMask = (std::uint64_t{1} << kChunkBits) - 1;
+  static std::uint64_t Generation(std::uint64_t c) { return c >> (2 * kChunkBits); }
+  static std::uint64_t Chunks(std::uint64_t c) { return (c >> kChunkBits) & kChunkMask; }
+  static std::uint64_t Next(std::uint64_t c) { return c & kChunkMask; }
+
   void WorkerLoop();
-  void RunChunks();
+  // Runs chunks of loop `generation` while some are left unclaimed.
+  void RunChunks(std::uint64_t generation);
   // Polls `ready` for up to spin_; whether it came true.
   template <typename Ready>
   bool Spin(Ready&& ready) const;
 
   std::vector<std::thread> workers_;
   std::chrono::microseconds spin_;
+  const std::function<void(std::size_t, std::size_t)>* body_ = nullptr;
+  std::size_t count_ = 0, grain_ = 1;
+  std::uint64_t generation_ = 0;  // the caller's count of loops
+  std::atomic<std::uint64_t> claim_{0};
+  std::atomic<std::uint64_t> finished_{0};  // chunks of the current loop done
+  std::atomic<int> sleepers_{0};            // workers asleep on wake_ (or about to be)
+  std::atomic<bool> caller_sleeps_{false};  // the caller asleep on done_ (or about to be)
+  std::atomic<bool> stop_{false};
   std::mutex mutex_;
   std::condition_variable wake_;
   std::condition_variable done_;
-  const std::function<void(std::size_t, std::size_t)>* body_ = nullptr;
-  std::size_t count_ = 0, grain_ = 1, next_chunk_ = 0, chunks_ = 0;
-  // Written under mutex_; read without it by spinning threads.
-  std::atomic<std::size_t> finished_chunks_{0};
-  std::atomic<std::size_t> generation_{0};
-  std::atomic<bool> stop_{false};
 };
 
 // body(begin, end) over [0, count) in chunks of `grain` on `pool` when count >

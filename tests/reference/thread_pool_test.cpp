@@ -36,6 +36,23 @@ TEST_P(ThreadPoolSpin, RunsManyLoopsBackToBack) {
   EXPECT_EQ(sum.load(), 500 * 100);
 }
 
+// Many short loops, each of a different chunk count, back to back: a worker
+// still busy with (or just done with) one loop never claims a chunk of the
+// next one as if it were its own, and none is skipped or run twice.
+TEST_P(ThreadPoolSpin, ShortLoopsOfEveryChunkCountRunEachChunkOnce) {
+  ThreadPool pool(5, std::chrono::microseconds(GetParam()));
+  std::vector<std::atomic<int>> hits(40);
+  for (int loop = 0; loop < 4000; ++loop) {
+    const std::size_t count = 1 + static_cast<std::size_t>(loop * 7 % 40);
+    for (auto& h : hits) h.store(0, std::memory_order_relaxed);
+    pool.ParallelFor(count, 1 + loop % 3, [&](std::size_t b, std::size_t e) {
+      for (std::size_t i = b; i < e; ++i) hits[i].fetch_add(1, std::memory_order_relaxed);
+    });
+    for (std::size_t i = 0; i < hits.size(); ++i)
+      ASSERT_EQ(hits[i].load(), i < count ? 1 : 0) << "loop " << loop << ", index " << i;
+  }
+}
+
 // A loop started after the workers went back to sleep (past their spin) still
 // reaches them: every chunk runs, some on a thread other than the caller's.
 TEST_P(ThreadPoolSpin, WakesWorkersThatStoppedSpinning) {
