@@ -15,6 +15,7 @@
 #include <xmmintrin.h>
 #endif
 
+#include "generator/packer.h"
 #include "reference/thread_pool.h"
 
 namespace skintune::internal {
@@ -35,6 +36,16 @@ ThreadPool& HostPool() {
   return pool;
 }
 
+// The palette's pool: 4 threads pack 236 KB in 3-4 us where one takes 7-15
+// (skintune_bench_upload palette/pinned-wc/poses:2/spinning:<n>, H200
+// machine); more would spin on cores the driver's threads want.
+constexpr unsigned kPaletteThreads = 4;
+
+ThreadPool& PalettePool() {
+  static ThreadPool pool(std::clamp(std::thread::hardware_concurrency(), 1u, kPaletteThreads), kHostSpin);
+  return pool;
+}
+
 }  // namespace
 
 void ForChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body) {
@@ -44,6 +55,34 @@ void ForChunks(std::size_t count, std::size_t grain, const std::function<void(st
     return;
   }
   ForChunksOn(HostPool(), busy, count, grain, body);
+}
+
+std::size_t PackPaletteOnPool(const float* column_major, std::size_t matrices, const Variant& variant,
+                              std::uint8_t* out, float* largest_magnitude) {
+  static std::mutex busy;
+  ThreadPool& pool = PalettePool();
+  const std::size_t runs = std::min<std::size_t>(pool.size(), matrices / kPaletteGrain);
+  if (runs < 2) return PackPaletteInto(column_major, matrices, variant, out, PackIsa::kAuto, largest_magnitude);
+  // Runs of whole multiples of 16 matrices (the packer's four-matrix stores
+  // then start on the same boundaries as in one pass).
+  const std::size_t grain = ((matrices + runs - 1) / runs + 15) / 16 * 16;
+  const std::size_t bytes = PaletteMatrixBytes(variant);
+  std::size_t first_bad[kPaletteThreads];
+  float largest[kPaletteThreads];
+  ForChunksOn(pool, busy, matrices, grain, [&](std::size_t begin, std::size_t end) {
+    const std::size_t run = begin / grain;
+    first_bad[run] = begin + PackPaletteInto(column_major + 16 * begin, end - begin, variant, out + bytes * begin,
+                                             PackIsa::kAuto, &largest[run]);
+  });
+  std::size_t bad = matrices;
+  float magnitude = 0.0f;
+  for (std::size_t run = 0; run * grain < matrices; ++run) {
+    const std::size_t end = std::min(matrices, (run + 1) * grain);
+    if (first_bad[run] < end) bad = std::min(bad, first_bad[run]);
+    magnitude = std::max(magnitude, largest[run]);
+  }
+  if (largest_magnitude) *largest_magnitude = magnitude;
+  return bad;
 }
 
 bool StreamingWrite(std::size_t bytes) {

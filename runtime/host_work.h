@@ -12,6 +12,7 @@
 #include <functional>
 #include <span>
 
+#include "generator/variant.h"
 #include "reference/mesh.h"
 
 namespace skintune::internal {
@@ -20,6 +21,18 @@ namespace skintune::internal {
 // pool when count > grain; otherwise (and when another thread is using the
 // pool) on the calling thread, chunk by chunk in order.
 void ForChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body);
+
+// PackPaletteInto (generator/packer.h) spread over the runtime's palette pool:
+// up to 4 threads (the caller's and 3 workers that poll for 20 us after each
+// packing, so a frame loop's next SetPalette finds them awake), each packing
+// whole runs of at least kPaletteGrain matrices. One core stores ~25-30 GB/s
+// into page-locked memory on the GPU machines' hosts, so 64 x 77 mat3x4
+// (236 KB) cost it 7-15 us a frame, about the crowd kernel's time (issue 15).
+// Returns what PackPaletteInto does for the whole palette: the first
+// non-finite matrix (or `matrices`), and the largest |element|.
+std::size_t PackPaletteOnPool(const float* column_major, std::size_t matrices, const Variant& variant,
+                              std::uint8_t* out, float* largest_magnitude);
+inline constexpr std::size_t kPaletteGrain = 1024;
 
 // Whether every 32-bit word of `bytes` is a finite float (exponent bits not all set).
 bool AllFinite(std::span<const std::uint8_t> bytes);

@@ -348,7 +348,7 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
       FailWith(ErrorCode::kDeviceError, "Skinner::SetPalette: the palette staging has " + std::to_string(staging.size()) +
                                             " bytes, expected " + std::to_string(joints * PaletteMatrixBytes(im.variant)));
     float magnitude = 0.0f;
-    const std::size_t bad = PackPaletteInto(matrices, joints, im.variant, staging.data(), PackIsa::kAuto, &magnitude);
+    const std::size_t bad = PackPaletteOnPool(matrices, joints, im.variant, staging.data(), &magnitude);
     for (std::size_t i = bad * 16; i < joints * 16 && i < (bad + 1) * 16; ++i) {
       if (std::isfinite(matrices[i])) continue;
       const std::size_t j = i / 16;

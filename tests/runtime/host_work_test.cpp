@@ -8,8 +8,10 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#include <string>
 #include <vector>
 
+#include "generator/packer.h"
 #include "runtime/host_work.h"
 
 namespace skintune::internal {
@@ -141,6 +143,49 @@ TEST(HostWork, ChunkCoveringIsAWholeMultipleAndAtMostMaxChunksCoverTheBytes) {
           EXPECT_GT((bytes + chunk - unit - 1) / (chunk - unit), max_chunks) << "not the smallest";
         }
       }
+}
+
+// The palette packed on the pool is PackPaletteInto's, byte for byte, in
+// both palette formats and at sizes below, at and above a run: the same
+// first non-finite matrix (wherever it falls among the runs, the earliest
+// of two in different runs) and the same largest |element|.
+TEST(HostWork, PackingOnThePoolGivesTheOnePassBytesFirstBadMatrixAndMagnitude) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-50.0f, 50.0f);
+  for (const PaletteFormat format : {PaletteFormat::kMat3x4, PaletteFormat::kMat4}) {
+    Variant variant;
+    variant.palette = format;
+    const std::size_t row = PaletteMatrixBytes(variant);
+    for (const std::size_t matrices : {std::size_t{77}, kPaletteGrain * 2, std::size_t{64 * 77}, std::size_t{5003}}) {
+      std::vector<float> in(matrices * 16);
+      for (float& f : in) f = u(rng);
+      in[16 * (matrices - 2) + 5] = 97.5f;  // the largest, in the last run
+      const auto check = [&](const std::string& what) {
+        std::vector<std::uint8_t> one(matrices * row, 0xcd), pooled(matrices * row, 0xab);
+        float one_largest = -1.0f, pooled_largest = -2.0f;
+        const std::size_t one_bad = PackPaletteInto(in.data(), matrices, variant, one.data(), PackIsa::kAuto, &one_largest);
+        const std::size_t pooled_bad = PackPaletteOnPool(in.data(), matrices, variant, pooled.data(), &pooled_largest);
+        ASSERT_EQ(pooled_bad, one_bad) << what;
+        if (one_bad == matrices) {
+          EXPECT_EQ(pooled, one) << what;
+          EXPECT_EQ(pooled_largest, one_largest) << what;
+        }
+      };
+      check(std::to_string(matrices) + " finite matrices");
+      for (const std::size_t bad : {std::size_t{0}, matrices / 2, matrices - 1}) {
+        const float kept = in[16 * bad + 3];
+        in[16 * bad + 3] = std::numeric_limits<float>::quiet_NaN();
+        check("a NaN in matrix " + std::to_string(bad) + " of " + std::to_string(matrices));
+        if (bad > 0) {
+          const float first = in[7];
+          in[7] = std::numeric_limits<float>::infinity();  // an earlier one, in the first run
+          check("infinity in matrix 0 and a NaN in matrix " + std::to_string(bad));
+          in[7] = first;
+        }
+        in[16 * bad + 3] = kept;
+      }
+    }
+  }
 }
 
 TEST(HostWork, ForChunksVisitsEveryIndexOnce) {
