@@ -29,10 +29,6 @@ struct Prepared::Impl {
     std::string fence_name;  // "palette slot N of <key>", built on the slot's first wait
     bool launched = false;   // a launch read the slot (and so waited for its upload) since that upload
     std::uint64_t submitted = 0;  // the submit thread's number of the slot's last upload or launch
-    // The submit thread's number of its wait for `done` as marked by operation
-    // `submitted` (LaunchSet queues it for the slot the next frame takes): the
-    // caller then waits for the thread, not in the driver beside its calls.
-    std::uint64_t freed = 0;
   };
   // One input set: every object it owns (released last first), the buffers
   // the driver reads and writes, and its palette slots (one but in a
@@ -588,14 +584,9 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   const std::size_t next = (s.current + 1) % s.slots.size();
   Prepared::Impl::Slot& slot = s.slots[next];
   // With a submit thread: only the calls of this slot's last upload and launch
-  // must have been made (its fence exists), not those of the frames since;
-  // where the thread has also waited for that fence, that is all.
-  bool fence_waited = false;
-  if (submit_) {
-    fence_waited = slot.freed > slot.submitted;
-    submit_->WaitFor(fence_waited ? slot.freed : slot.submitted);
-  }
-  if (slot.done && !fence_waited) {
+  // must have been made (its fence exists), not those of the frames since.
+  if (submit_) submit_->WaitFor(slot.submitted);
+  if (slot.done) {
     if (slot.fence_name.empty()) slot.fence_name = "palette slot " + std::to_string(next) + " of " + p.key;
     api_->Wait(*slot.done, slot.fence_name);
   }
@@ -663,18 +654,6 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
       api->RunFrames(run);
       if (mark) api->Mark(slot.done, key);
     });
-    // The thread then waits for the fence of the slot the next SetPalette
-    // takes (its frame kPaletteSlots - 1 back), while the caller packs.
-    const std::size_t next = (s.current + 1) % s.slots.size();
-    if (next != s.current) {
-      Prepared::Impl::Slot& following = s.slots[next];
-      if (following.fence_name.empty()) following.fence_name = "palette slot " + std::to_string(next) + " of " + p.key;
-      following.freed = submit_->Push([api, &following] {
-        if (!following.done) return;
-        api->MakeCurrent();
-        api->Wait(*following.done, following.fence_name);
-      });
-    }
   } else {
     Settle();  // the positions go into the caller's buffer now (interop)
     api_->RunFrames(run);

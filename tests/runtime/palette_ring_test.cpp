@@ -60,7 +60,6 @@ class DeferredApi final : public DeviceApi {
   int fail_upload = -1;  // the upload (0, 1, ...) that throws
   int uploads = 0;
   std::vector<std::thread::id> submit_threads;
-  std::vector<std::thread::id> wait_threads;  // the threads that waited for ring fences (Wait)
   std::mutex mutex;
 
   // A device that orders an upload after the launches queued before it (GL);
@@ -146,7 +145,6 @@ class DeferredApi final : public DeviceApi {
     const std::lock_guard<std::mutex> lock(mutex);
     const std::size_t position = static_cast<FakeMarker&>(marker).position;
     ++waits;
-    wait_threads.push_back(std::this_thread::get_id());
     if (executed < position) ++blocking_waits;
     RunUntil(position);
   }
@@ -314,24 +312,6 @@ TEST(PaletteRing, WithASubmitThreadEveryFrameStillReadsItsOwnPalette) {
   for (int f = 0; f < kFrames; ++f) EXPECT_EQ(ring.FrameRead(static_cast<std::size_t>(f)), f) << "launch " << f;
   ASSERT_EQ(ring.api->submit_threads.size(), 2u * kFrames);
   for (const std::thread::id id : ring.api->submit_threads) EXPECT_NE(id, std::this_thread::get_id());
-}
-
-// With a submit thread the ring's fences are waited for on it too (queued
-// after each launch, for the slot the next frame takes): the caller's thread
-// makes no driver call of the frame loop, and every frame reads its own
-// palette. Without that wait on the thread, frames read later palettes.
-TEST(PaletteRing, WithASubmitThreadTheRingsFencesAreWaitedForOnIt) {
-  Ring ring(true);
-  constexpr int kFrames = 4 * kPaletteSlots + 2;
-  for (int f = 0; f < kFrames; ++f) {
-    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));
-    ring.runner->LaunchSet(ring.prepared, 0);
-  }
-  ring.runner->Finish();
-  ASSERT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(kFrames));
-  for (int f = 0; f < kFrames; ++f) EXPECT_EQ(ring.FrameRead(static_cast<std::size_t>(f)), f) << "launch " << f;
-  EXPECT_GE(ring.api->wait_threads.size(), static_cast<std::size_t>(kFrames - kPaletteSlots));
-  for (const std::thread::id id : ring.api->wait_threads) EXPECT_NE(id, std::this_thread::get_id());
 }
 
 // A handed-over upload that fails is thrown by the next call that waits for
