@@ -27,8 +27,11 @@
 //
 //   skintune_bench_frame [--device PATTERN] [--variant KEY] [--db FILE]
 //                        [--instances K] [--scale S] [--frames F] [--poses P] [--submit-thread]
+//                        [--palette-buffers N]
 //                        [google benchmark flags]
 //
+// --palette-buffers N gives every Skinner a ring of N palette buffers
+// (SkinnerOptions::palette_buffers, default 3).
 // --submit-thread opens the device with DeviceOptions::submit_thread (the
 // driver calls of SetPalette's upload and of Skin on a thread of its own).
 //
@@ -66,6 +69,7 @@ struct Options {
   // pose); 8 poses (2.5 MB) are read from the last-level cache instead.
   int poses = 2;
   bool submit_thread = false;
+  int palette_buffers = kDefaultPaletteBuffers;
 };
 Options options;
 
@@ -130,6 +134,7 @@ struct Scene {
     SkinnerOptions crowd_options;
     crowd_options.variant = options.variant;
     crowd_options.instances = options.instances;
+    crowd_options.palette_buffers = options.palette_buffers;
     c->skinner = Must(Skinner::Create(device, db, c->instance.mesh(), crowd_options), "instanced Skinner");
     const double duration = std::max(c->instance.animation_duration(0), 1e-3);
     std::vector<float> palette;
@@ -151,6 +156,7 @@ struct Scene {
     o->whole = Must(Model::Synthetic(std::to_string(k * n) + "-b4"), "one mesh");
     SkinnerOptions one;
     one.variant = options.variant;
+    one.palette_buffers = options.palette_buffers;
     o->skinner = Must(Skinner::Create(device, db, o->whole.mesh(), one), "one-mesh Skinner");
     std::vector<float> palette;
     for (int f = 0; f < options.poses; ++f) {
@@ -168,6 +174,7 @@ struct Scene {
     Crowd& c = crowd();
     SkinnerOptions one;
     one.variant = options.variant;
+    one.palette_buffers = options.palette_buffers;
     const std::vector<float> palette(c.palettes[0].begin(), c.palettes[0].begin() + c.palettes[0].size() / k);
     for (std::size_t i = 0; i < k; ++i) {
       skinners_.push_back(Must(Skinner::Create(device, db, c.instance.mesh(), one), "Skinner"));
@@ -369,6 +376,7 @@ void ParseOptions(int& argc, char** argv) {
     else if (arg == "--frames" && has_value) options.frames = static_cast<int>(number(1));
     else if (arg == "--poses" && has_value) options.poses = static_cast<int>(number(2));
     else if (arg == "--submit-thread") options.submit_thread = true;
+    else if (arg == "--palette-buffers" && has_value) options.palette_buffers = static_cast<int>(number(1));
     else argv[kept++] = argv[i];
   }
   argc = kept;

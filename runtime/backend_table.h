@@ -47,6 +47,13 @@ struct Discovered {
   std::vector<std::string> skipped;  // why an API or a device is missing: "cuda: skipped: libcuda.so.1 ..."
 };
 
+// What a Skinner's input set is prepared for: its instances and the depth
+// of its palette ring (SkinnerOptions::palette_buffers).
+struct SkinnerSetup {
+  int instances;
+  int palette_buffers;
+};
+
 struct BackendEntry {
   const char* name;             // "opencl": device ids, databases, DeviceIdentity::backend
   const char* title;            // "OpenCL": messages (the first word of its runner's errors)
@@ -57,9 +64,9 @@ struct BackendEntry {
   // Device::OpenBest's rank of one of its devices (smaller first, over every API).
   int (*preference)(const DeviceIdentity& device);
   // The Skinner's device work on `device` (whose runner is this API's): one
-  // prepared input set of `kernels` (one per launch) for `instances` instances.
+  // prepared input set of `kernels` (one per launch) as `setup` says.
   std::unique_ptr<SkinnerBackend> (*make_skinner)(DeviceState& device, const PackedMesh& mesh,
-                                                  const std::vector<KernelSource>& kernels, int instances);
+                                                  const std::vector<KernelSource>& kernels, const SkinnerSetup& setup);
 };
 
 // Every API, in skintune::Backend order (which is the discovery order).

@@ -143,17 +143,20 @@ std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int 
 }
 
 Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const std::vector<KernelSource>& kernels,
-                           int instances) {
+                           const SkinnerSetup& setup) {
   if (!device.runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no runner");
   Prepared prepared;
-  RunOnDevice([&] { prepared = device.runner->Prepare(mesh, kernels, RestPalettes(mesh, instances), instances, kPaletteSlots); },
+  RunOnDevice([&] {
+    prepared = device.runner->Prepare(mesh, kernels, RestPalettes(mesh, setup.instances), setup.instances,
+                                      setup.palette_buffers);
+  },
               "Skinner::Create: ");
   return prepared;
 }
 
 std::unique_ptr<SkinnerBackend> MakeRunnerSkinner(DeviceState& device, const PackedMesh& mesh,
-                                                  const std::vector<KernelSource>& kernels, int instances) {
-  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, instances);
+                                                  const std::vector<KernelSource>& kernels, const SkinnerSetup& setup) {
+  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, setup);
   return std::make_unique<RunnerSkinner>(*device.runner, std::move(prepared), mesh.variant.normals);
 }
 
@@ -237,6 +240,11 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
              call + ": SkinnerOptions::instances is " + std::to_string(options.instances) + ", at least 1");
   if (const std::string bad = BadMaxError(options.max_error); !bad.empty())
     FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::max_error " + bad);
+  if (options.palette_buffers < kMinPaletteBuffers || options.palette_buffers > kMaxPaletteBuffers)
+    FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::palette_buffers is " +
+                                              std::to_string(options.palette_buffers) + ", expected " +
+                                              std::to_string(kMinPaletteBuffers) + " to " +
+                                              std::to_string(kMaxPaletteBuffers));
   DeviceState& state = **state_ptr;
   const MeshBatch scene = SceneOf(call, views, count, batch, options);
   const SkinnedMesh& mesh = scene.mesh;
@@ -275,7 +283,7 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
   im.identity_order = true;
   for (std::size_t p = 0; p < im.order.size() && im.identity_order; ++p) im.identity_order = im.order[p] == p;
   im.output_bound = OutputBound(mesh);
-  im.backend = state.backend->make_skinner(state, packed, kernels, options.instances);
+  im.backend = state.backend->make_skinner(state, packed, kernels, {options.instances, options.palette_buffers});
   return impl;
 }
 

@@ -71,7 +71,7 @@ void RunOnDevice(F&& call, const std::string& context = "") {
   }
 }
 
-// The one input set a Skinner prepares (with the runner's kPaletteSlots
+// The one input set a Skinner prepares (with SkinnerOptions::palette_buffers
 // palette slots): `instances` copies of the mesh's rest-pose palette
 // (SetPalette overwrites it before the first Skin).
 std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int instances);
@@ -117,13 +117,13 @@ class RunnerSkinner : public SkinnerBackend {
 // its Error turned into ApiError ("Skinner::Create: " + the runner's message):
 // kBuildFailed when a kernel does not compile, kDeviceError when the device
 // refuses (allocation, launch set-up). `kernels`: one per launch, instanced
-// when `instances` > 1.
+// when setup.instances > 1; setup.palette_buffers palette slots.
 Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const std::vector<KernelSource>& kernels,
-                           int instances);
+                           const SkinnerSetup& setup);
 
 // The Skinner of an API that needs nothing more than RunnerSkinner.
 std::unique_ptr<SkinnerBackend> MakeRunnerSkinner(DeviceState& device, const PackedMesh& mesh,
-                                                  const std::vector<KernelSource>& kernels, int instances);
+                                                  const std::vector<KernelSource>& kernels, const SkinnerSetup& setup);
 
 }  // namespace skintune::internal
 

@@ -14,6 +14,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "generator/packer.h"
@@ -159,7 +160,7 @@ class DeferredApi final : public DeviceApi {
 
 // A runner on the fake device with a Skinner's live set of a small mesh.
 struct Ring {
-  explicit Ring(bool submit_thread = false, bool ordered = false) {
+  explicit Ring(bool submit_thread = false, bool ordered = false, int slots = kPaletteSlots) {
     mesh = Pack(GenerateDataset(ParseDatasetKey("200-b2")).mesh, ParseVariantKey("opencl.b2"));
     auto owned = std::make_unique<DeferredApi>();
     api = owned.get();
@@ -168,7 +169,7 @@ struct Ring {
     runner = std::make_unique<Runner>(std::move(owned));
     EXPECT_EQ(runner->UseSubmitThread(), submit_thread);
     const std::vector<KernelSource> kernels = EmitLaunchKernels(mesh);
-    prepared = runner->Prepare(mesh, kernels, std::vector<std::vector<std::uint8_t>>{mesh.palette}, 1, kPaletteSlots);
+    prepared = runner->Prepare(mesh, kernels, std::vector<std::vector<std::uint8_t>>{mesh.palette}, 1, slots);
   }
   // Frame f's palette: the mesh's bytes with the frame number in the first.
   std::vector<std::uint8_t> Palette(int f) const {
@@ -201,6 +202,35 @@ TEST(PaletteRing, EveryFrameReadsItsOwnPaletteWithSlotsFramesQueued) {
   ASSERT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(kFrames));
   for (int f = 0; f < kFrames; ++f) EXPECT_EQ(ring.FrameRead(static_cast<std::size_t>(f)), f) << "launch " << f;
 }
+
+// Any depth of ring (SkinnerOptions::palette_buffers), with and without a
+// submit thread: SetPalette waits only for the frame `slots` back, and every
+// frame reads its own palette; one slot waits for every frame.
+class PaletteRingDepth : public ::testing::TestWithParam<std::tuple<int, bool>> {};
+
+TEST_P(PaletteRingDepth, EveryFrameReadsItsOwnPaletteAndWaitsOnlyForTheFrameItsSlotHeld) {
+  const auto [slots, threaded] = GetParam();
+  Ring ring(threaded, false, slots);
+  const int frames = 3 * slots + 2;
+  for (int f = 0; f < frames; ++f) {
+    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));
+    if (!threaded)
+      EXPECT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(std::max(f - slots + 1, 0))) << "frame " << f;
+    EXPECT_EQ(ring.runner->PaletteSlot(ring.prepared, 0), f % slots);
+    ring.runner->LaunchSet(ring.prepared, 0);
+  }
+  ring.runner->Finish();
+  EXPECT_EQ(ring.api->waits, frames - slots) << "a wait per reuse of a slot, none before";
+  ASSERT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(frames));
+  for (int f = 0; f < frames; ++f) EXPECT_EQ(ring.FrameRead(static_cast<std::size_t>(f)), f) << "launch " << f;
+}
+
+INSTANTIATE_TEST_SUITE_P(Slots, PaletteRingDepth,
+                         ::testing::Combine(::testing::Values(1, 2, 3, 6, 16), ::testing::Bool()),
+                         [](const ::testing::TestParamInfo<std::tuple<int, bool>>& p) {
+                           return std::to_string(std::get<0>(p.param)) + "_slots" +
+                                  (std::get<1>(p.param) ? "_submit_thread" : "");
+                         });
 
 TEST(PaletteRing, ADeviceThatKeepsUpIsNeverWaitedFor) {
   Ring ring;

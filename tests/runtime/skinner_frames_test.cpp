@@ -61,17 +61,22 @@ struct FrameCase {
   Backend backend;
   std::string variant;
   bool submit_thread = false;  // DeviceOptions::submit_thread (CUDA and OpenCL)
+  int palette_buffers = kDefaultPaletteBuffers;  // SkinnerOptions::palette_buffers
 };
 
 void PrintTo(const FrameCase& c, std::ostream* out) {
   *out << BackendName(c.backend) << " " << (c.variant.empty() ? "built-in default" : c.variant)
-       << (c.submit_thread ? " with a submit thread" : "");
+       << (c.submit_thread ? " with a submit thread" : "")
+       << (c.palette_buffers != kDefaultPaletteBuffers ? ", " + std::to_string(c.palette_buffers) + " palette buffers" : "");
 }
 
 std::string CaseName(const ::testing::TestParamInfo<FrameCase>& info) {
   std::string name = std::string(BackendName(info.param.backend)) + "_" +
                      (info.param.variant.empty() ? "default" : info.param.variant) +
-                     (info.param.submit_thread ? "_submit_thread" : "");
+                     (info.param.submit_thread ? "_submit_thread" : "") +
+                     (info.param.palette_buffers != kDefaultPaletteBuffers
+                          ? "_" + std::to_string(info.param.palette_buffers) + "_buffers"
+                          : "");
   for (char& c : name)
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   return name;
@@ -92,6 +97,8 @@ std::vector<FrameCase> Cases() {
   std::vector<FrameCase> cases;
   for (const auto& b : kBackends) {
     cases.push_back({b.backend, ""});
+    // The shallowest ring (two palette buffers) and a deep one.
+    for (int buffers : {2, 6}) cases.push_back({b.backend, "", false, buffers});
     for (const std::string& lang : b.langs)
       for (const char* storage : {"constant", "global", "image"}) cases.push_back({b.backend, lang + ".b4.soa." + storage});
   }
@@ -99,6 +106,7 @@ std::vector<FrameCase> Cases() {
   for (const auto& b : kBackends) {
     if (b.backend != Backend::kOpenCl && b.backend != Backend::kCuda) continue;
     cases.push_back({b.backend, "", true});
+    cases.push_back({b.backend, "", true, 6});
     cases.push_back({b.backend, b.langs.front() + ".b4.soa.image", true});
   }
   return cases;
@@ -117,6 +125,7 @@ class SkinnerFrames : public ::testing::TestWithParam<FrameCase> {
     SkinnerOptions options;
     options.instances = kInstances;
     options.variant = GetParam().variant;
+    options.palette_buffers = GetParam().palette_buffers;
     Result<Skinner> skinner = Skinner::Create(device_, WinnersDb::Empty(), view_.mesh, options);
     ASSERT_TRUE(skinner.ok()) << skinner.status().message();
     skinner_ = std::move(*skinner);

@@ -162,6 +162,15 @@ TEST_F(Misuse, InstancesOutOfRange) {
   ExpectError(CreateError(view_.mesh, options), ErrorCode::kInvalidArgument, "instances is 0");
 }
 
+TEST_F(Misuse, PaletteBuffersOutOfRange) {
+  SkinnerOptions options;
+  for (const int buffers : {-1, 0, 1, kMaxPaletteBuffers + 1}) {
+    options.palette_buffers = buffers;
+    ExpectError(CreateError(view_.mesh, options), ErrorCode::kInvalidArgument,
+                "SkinnerOptions::palette_buffers is " + std::to_string(buffers) + ", expected 2 to 16");
+  }
+}
+
 TEST_F(Misuse, WrongPaletteSizeForKInstances) {
   SkinnerOptions options;
   options.instances = 3;

@@ -44,7 +44,7 @@ int Preference(const DeviceIdentity&) { return 0; }
 
 // runtime/backends/cuda/skinner_cuda.cpp: RunnerSkinner with CUDA-GL interop.
 std::unique_ptr<SkinnerBackend> MakeCudaSkinner(DeviceState& device, const PackedMesh& mesh,
-                                                const std::vector<KernelSource>& kernels, int instances);
+                                                const std::vector<KernelSource>& kernels, const SkinnerSetup& setup);
 
 BackendEntry CudaEntry() { return {"cuda", "CUDA", {Lang::kCuda}, Discover, Preference, MakeCudaSkinner}; }
 

@@ -99,10 +99,10 @@ class CudaSkinner final : public RunnerSkinner {
 }  // namespace
 
 std::unique_ptr<SkinnerBackend> MakeCudaSkinner(DeviceState& device, const PackedMesh& mesh,
-                                                const std::vector<KernelSource>& kernels, int instances) {
+                                                const std::vector<KernelSource>& kernels, const SkinnerSetup& setup) {
   auto* runner = dynamic_cast<CudaRunner*>(device.runner.get());
   if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no CUDA stream");
-  return std::make_unique<CudaSkinner>(*runner, PrepareSkinnerSet(device, mesh, kernels, instances),
+  return std::make_unique<CudaSkinner>(*runner, PrepareSkinnerSet(device, mesh, kernels, setup),
                                        mesh.variant.normals);
 }
 

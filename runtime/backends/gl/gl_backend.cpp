@@ -14,7 +14,7 @@ namespace skintune::internal {
 
 // skinner_gl.cpp
 std::unique_ptr<SkinnerBackend> MakeGlSkinner(DeviceState& device, const PackedMesh& mesh,
-                                              const std::vector<KernelSource>& kernels, int instances);
+                                              const std::vector<KernelSource>& kernels, const SkinnerSetup& setup);
 
 namespace {
 

@@ -31,11 +31,11 @@ class GlSkinner final : public RunnerSkinner {
 }  // namespace
 
 std::unique_ptr<SkinnerBackend> MakeGlSkinner(DeviceState& device, const PackedMesh& mesh,
-                                              const std::vector<KernelSource>& kernels, int instances) {
+                                              const std::vector<KernelSource>& kernels, const SkinnerSetup& setup) {
   auto* runner = dynamic_cast<GlRunner*>(device.runner.get());
   if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no GL context");
   CheckCurrent(*runner, "Skinner::Create");
-  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, instances);
+  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, setup);
   return std::make_unique<GlSkinner>(*runner, std::move(prepared), mesh.variant.normals);
 }
 

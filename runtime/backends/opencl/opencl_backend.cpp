@@ -15,7 +15,7 @@ namespace skintune::internal {
 
 // skinner_opencl.cpp
 std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const PackedMesh& mesh,
-                                                  const std::vector<KernelSource>& kernels, int instances);
+                                                  const std::vector<KernelSource>& kernels, const SkinnerSetup& setup);
 
 namespace {
 

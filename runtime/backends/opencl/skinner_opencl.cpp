@@ -33,10 +33,10 @@ class OpenClSkinner final : public RunnerSkinner {
 }  // namespace
 
 std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const PackedMesh& mesh,
-                                                  const std::vector<KernelSource>& kernels, int instances) {
+                                                  const std::vector<KernelSource>& kernels, const SkinnerSetup& setup) {
   auto* runner = dynamic_cast<OpenClRunner*>(device.runner.get());
   if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no OpenCL queue");
-  return std::make_unique<OpenClSkinner>(*runner, PrepareSkinnerSet(device, mesh, kernels, instances),
+  return std::make_unique<OpenClSkinner>(*runner, PrepareSkinnerSet(device, mesh, kernels, setup),
                                          mesh.variant.normals, device.gl_sharing);
 }
 

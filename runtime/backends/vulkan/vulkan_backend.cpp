@@ -67,10 +67,10 @@ class VulkanSkinner final : public RunnerSkinner {
 };
 
 std::unique_ptr<SkinnerBackend> MakeVulkanSkinner(DeviceState& device, const PackedMesh& mesh,
-                                                  const std::vector<KernelSource>& kernels, int instances) {
+                                                  const std::vector<KernelSource>& kernels, const SkinnerSetup& setup) {
   auto* runner = dynamic_cast<VulkanRunner*>(device.runner.get());
   if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no Vulkan queue");
-  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, instances);
+  Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, setup);
   return std::make_unique<VulkanSkinner>(*runner, std::move(prepared), mesh.variant.normals);
 }
 

@@ -360,6 +360,11 @@ struct MeshView {
   const float* weights = nullptr;         // B per vertex, each >= 0, summing to 1 within 1e-3
 };
 
+// SkinnerOptions::palette_buffers: its default and its range.
+inline constexpr int kDefaultPaletteBuffers = 3;
+inline constexpr int kMinPaletteBuffers = 2;
+inline constexpr int kMaxPaletteBuffers = 16;
+
 struct SkinnerOptions {
   // K >= 1 copies of the mesh (a crowd) skinned in one launch, each with its
   // own palette (docs/VARIANTS.md "Instancing"). The variant must hold K
@@ -386,6 +391,18 @@ struct SkinnerOptions {
   // formats only. Negative or not finite: kInvalidArgument. A forced `variant`
   // is not checked against it.
   double max_error = kDefaultMaxError;
+  // The palette ring's depth (docs/RUNTIME.md "The frame loop"): how many
+  // frames SetPalette + Skin may have queued on the device before SetPalette
+  // waits for the oldest, each with a palette buffer (and its page-locked
+  // staging) of its own, kMinPaletteBuffers (2) to kMaxPaletteBuffers (16),
+  // else kInvalidArgument: SetPalette packs into a buffer no queued frame
+  // reads, so a palette it rejects never touches the one in use. With 2 it
+  // waits for the frame before the last. A deeper ring lets
+  // the host run further ahead of the device where its frames come unevenly;
+  // with DeviceOptions::submit_thread on the H200 machine, 64 x 25k-b4 ran
+  // at 0.76-0.78 of the Skin-only rate with 3 buffers and 0.86-0.87 with 6
+  // (session 30; docs/RUNTIME.md "The frame loop").
+  int palette_buffers = kDefaultPaletteBuffers;
 };
 
 class Skinner {
@@ -464,10 +481,10 @@ class Skinner {
   // the calling thread (kInvalidState otherwise).
   //
   // The frame loop (docs/RUNTIME.md "The frame loop") is SetPalette + Skin
-  // per frame, without Finish: a Skinner keeps 3 palette buffers (a ring),
-  // so up to 3 frames are queued on the device while the host prepares the
-  // next. Which calls block:
-  //   SetPalette  only when 3 frames are already in flight: it then waits
+  // per frame, without Finish: a Skinner keeps SkinnerOptions::palette_buffers
+  // palette buffers (a ring, 3 by default: N below), so up to N frames are
+  // queued on the device while the host prepares the next. Which calls block:
+  //   SetPalette  only when N frames are already in flight: it then waits
   //               for the oldest of them (the one whose palette buffer it
   //               reuses), never for the frame just queued;
   //   Skin        never (it queues the launches);
@@ -475,7 +492,7 @@ class Skinner {
   //               queued so far).
   // With DeviceOptions::submit_thread the Device's thread makes the upload's
   // and the launch's driver calls: SetPalette also waits while that thread
-  // has not yet queued the frame 3 SetPalette calls ago, and an error of a
+  // has not yet queued the frame N SetPalette calls ago, and an error of a
   // handed-over call comes back from the next call instead.
 
   // Uploads the palettes: instances() * joint_count() column-major 4x4 float
@@ -485,14 +502,17 @@ class Skinner {
   // kInvalidArgument; a NaN or infinite element: kInvalidArgument naming the
   // matrix and element. A rejected palette changes nothing: the next Skin()
   // uses the last palette accepted. The data is copied into page-locked
-  // staging of the next palette buffer before SetPalette returns and
+  // staging of the next palette buffer before SetPalette returns (a palette
+  // of 2048 matrices or more on up to 4 threads of skintune's own, which
+  // poll for 20 us after each SetPalette before they sleep) and
   // uploaded asynchronously (CUDA and OpenCL: on a stream / queue of the
   // Skinner's own, which the next Skin waits for on the device, so the
   // upload overlaps the frame still running): the caller may reuse
   // `matrices` at once. Blocks only when the palette buffer it needs is
-  // still read by a frame queued 3 SetPalette calls ago (or, when no Skin
-  // came between, while that buffer's upload is still in flight). On GL it
-  // waits only for that buffer's upload 3 SetPalette calls ago: GL runs the
+  // still read by a frame queued N SetPalette calls ago (N: palette_buffers;
+  // or, when no Skin came between, while that buffer's upload is still in
+  // flight). On GL it waits only for that buffer's upload N SetPalette calls
+  // ago: GL runs the
   // new upload after the frames that read the buffer by itself.
   Status SetPalette(const float* matrices, std::size_t float_count);
 
