@@ -20,6 +20,9 @@
 // report the host's time inside Skin (and SetPalette) per frame; set-only
 // also reports the palettes' bytes/s (host packing and the copy, which a
 // pipelined frame can hide behind the kernel only where it is the shorter).
+// --benchmark_min_time counts that per-frame time, so each repetition runs
+// --frames times longer on the wall clock: 0.02 is ~1 s a row at 14 us frames
+// (0.1 took ~70 s for three rows of three repetitions on the H200 machine).
 // A summary on stderr gives pipelined /
 // skin-only and finish-per-frame minus skin-only, from the medians of the
 // repetitions (--benchmark_repetitions) with benchmarks interleaved
