@@ -2,7 +2,7 @@
 // kernel and print frames per second. Uses only <skintune/skintune.h>.
 //
 //   skin_animation MODEL.gltf|.glb|DATASET [MODEL...] [--db winners-db.json] [--device PATTERN]
-//                  [--seconds S] [--readback] [--instances K]
+//                  [--seconds S] [--readback] [--instances K] [--palette-buffers N]
 //
 // DATASET is a synthetic key such as 1600k-b4 (docs/DATA.md). PATTERN picks the
 // device as Device::Open does ("cuda:", "gl:", "opencl:NVIDIA", "pocl"). Without --db the
@@ -12,7 +12,9 @@
 // own phase of the animation; frames are SetPalette + Skin without waiting between them.
 // With several models, one Skinner skins them all in one launch (Skinner::CreateBatch:
 // a scene of different characters, each playing its own animation), K times with
-// --instances K.
+// --instances K. --palette-buffers N gives the Skinner a ring of N palette
+// buffers (SkinnerOptions::palette_buffers: how many frames may be queued before
+// SetPalette waits; 3 by default).
 #include <skintune/skintune.h>
 
 #include <algorithm>
@@ -33,7 +35,7 @@ static int Fail(const Status& status) {
 int main(int argc, char** argv) {
   if (argc < 2)
     return std::fprintf(stderr, "usage: skin_animation MODEL|DATASET [MODEL...] [--db F] [--device P] [--seconds S] "
-                                "[--readback] [--instances K]\n"), 2;
+                                "[--readback] [--instances K] [--palette-buffers N]\n"), 2;
   std::vector<std::string> paths;
   std::string db_path, pattern;
   double seconds = 3.0;
@@ -47,6 +49,7 @@ int main(int argc, char** argv) {
     else if (arg == "--seconds" && has_value) seconds = std::atof(argv[++i]);
     else if (arg == "--readback") readback = true;
     else if (arg == "--instances" && has_value) options.instances = std::atoi(argv[++i]);
+    else if (arg == "--palette-buffers" && has_value) options.palette_buffers = std::atoi(argv[++i]);
     else if (arg.rfind("--", 0) == 0)
       return std::fprintf(stderr, "skin_animation: unknown or incomplete option '%s'\n", arg.c_str()), 2;
     else paths.push_back(arg);
