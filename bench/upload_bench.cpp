@@ -199,6 +199,15 @@ void UploadCalls(benchmark::State& state, std::size_t bytes, Memory kind) {
   api->cuEventDestroy(event);
 }
 
+// `count` poses of `matrices` column-major 4x4 matrices each, for the packing
+// rows (the values only need to be finite and differ between poses).
+std::vector<std::vector<float>> Poses(std::size_t count, std::size_t matrices) {
+  std::vector<std::vector<float>> poses(count, std::vector<float>(matrices * 16));
+  for (std::size_t p = 0; p < count; ++p)
+    for (std::size_t i = 0; i < poses[p].size(); ++i) poses[p][i] = static_cast<float>((i + p) % 97) * 0.01f;
+  return poses;
+}
+
 // An empty kernel, as PTX the driver compiles for any device.
 constexpr char kEmptyPtx[] =
     ".version 7.0\n.target sm_50\n.address_size 64\n.visible .entry skintune_empty()\n{\n  ret;\n}\n";
@@ -432,9 +441,7 @@ void FrameModel(benchmark::State& state, ModelFrame frame, Submit submit, std::s
   }
   Variant variant;
   variant.palette = PaletteFormat::kMat3x4;
-  std::vector<std::vector<float>> poses(2, std::vector<float>(kMatrices * 16));
-  for (std::size_t p = 0; p < poses.size(); ++p)
-    for (std::size_t i = 0; i < poses[p].size(); ++i) poses[p][i] = static_cast<float>((i + p) % 97) * 0.01f;
+  const std::vector<std::vector<float>> poses = Poses(2, kMatrices);
   std::unique_ptr<ThreadPool> pack_pool;  // pipelined-pool: the packing in 4 chunks on 4 threads
   if (frame == ModelFrame::kPipelinedPool) pack_pool = std::make_unique<ThreadPool>(4, std::chrono::microseconds(20));
   unsigned long long ns = kKernelNs;
@@ -612,9 +619,7 @@ void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks, std:
   Variant variant;
   variant.palette = PaletteFormat::kMat3x4;
   Host to(kMatrices * 48, kind);
-  std::vector<std::vector<float>> poses(kPoses, std::vector<float>(kMatrices * 16));
-  for (std::size_t p = 0; p < kPoses; ++p)
-    for (std::size_t i = 0; i < poses[p].size(); ++i) poses[p][i] = static_cast<float>((i + p) % 97) * 0.01f;
+  const std::vector<std::vector<float>> poses = Poses(kPoses, kMatrices);
   std::size_t pose = 0;
   auto* out = static_cast<std::uint8_t*>(to.p);
   for (auto _ : state) {
@@ -641,9 +646,7 @@ void PackPalettesSpinning(benchmark::State& state, std::size_t threads) {
   Variant variant;
   variant.palette = PaletteFormat::kMat3x4;
   Host to(kMatrices * 48, Memory::kPinnedWc);
-  std::vector<std::vector<float>> poses(2, std::vector<float>(kMatrices * 16));
-  for (std::size_t p = 0; p < poses.size(); ++p)
-    for (std::size_t i = 0; i < poses[p].size(); ++i) poses[p][i] = static_cast<float>((i + p) % 97) * 0.01f;
+  const std::vector<std::vector<float>> poses = Poses(2, kMatrices);
   auto* out = static_cast<std::uint8_t*>(to.p);
   const std::size_t share = (kMatrices + threads - 1) / threads;
   std::atomic<std::size_t> generation{0}, finished{0};

@@ -571,7 +571,8 @@ Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {
 // ---------------------------------------------------------------- skinning
 
 // The palette ring (runner.h): frame n+1's palette goes into the slot after
-// frame n's, once that slot's last frame (kPaletteSlots frames back) is done.
+// frame n's, once that slot's last frame (as many frames back as there are
+// slots) is done.
 // A slot written and never launched needs no fence of its own (no launch
 // reads it before its next upload); the API's Staging waits for its last
 // upload instead (upload_fenced false). Where the API orders uploads after

@@ -27,13 +27,13 @@
 //   device (launch-gap free); verify with Run first. PrepareCopy prepares the
 //   same-size copy (generator/copy_kernel.h) the same way.
 // - Skinning (the runtime's Skinner): a Prepared set is also a live set of
-//   device buffers, prepared with kPaletteSlots palette buffers (the palette
-//   ring), each with its own bound launches over the set's one copy of the
+//   device buffers, prepared with N palette buffers (the palette ring; a
+//   Skinner's SkinnerOptions::palette_buffers), each with its own bound launches over the set's one copy of the
 //   inputs and outputs. WritePalette for frame n+1 uploads into the slot
 //   after frame n's, asynchronously from that slot's page-locked staging
 //   (DeviceApi::Write), so it never overwrites a palette a queued frame still
-//   reads; it waits only when that slot's last frame, kPaletteSlots frames
-//   back, has not completed (its DeviceApi::Mark). LaunchSet queues the
+//   reads; it waits only when that slot's last frame, N frames back, has
+//   not completed (its DeviceApi::Mark). LaunchSet queues the
 //   launches of the last written slot on the caller's queue and marks the
 //   slot; nothing else waits. ReadOutput waits and reads an output back
 //   through page-locked staging; OutputBuffer gives the native buffer.
@@ -101,10 +101,12 @@ void TimingLog(Line&& line) {
 // The most frames one timed burst holds (Runner::BurstFrames).
 inline constexpr int kMaxBurstFrames = 1024;
 
-// Palette buffers of a Skinner's live set (the palette ring above): frames
-// that may be queued at once before SetPalette waits for the oldest. Three,
-// as engines buffer frames in flight: the frame the device skins, the one
-// queued behind it, and the one the host is writing.
+// The default depth of a Skinner's palette ring (the palette ring above;
+// SkinnerOptions::palette_buffers, whose default kDefaultPaletteBuffers
+// skinner.cpp checks is this): frames that may be queued at once before
+// SetPalette waits for the oldest. Three, as engines buffer frames in flight:
+// the frame the device skins, the one queued behind it, and the one the host
+// is writing.
 inline constexpr int kPaletteSlots = 3;
 
 class Runner {
@@ -162,7 +164,7 @@ class Runner {
   // kernels: each entry of `palettes` holds `instances` palettes and each
   // frame skins them all. Throws Error ("build", "launch") like Run.
   // `palette_slots` (>= 1): palette buffers per set, the Skinner's ring
-  // (kPaletteSlots); timing uses the first only.
+  // (SkinnerOptions::palette_buffers); timing uses the first only.
   Prepared Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                    std::span<const std::vector<std::uint8_t>> palettes, int instances = 1, int palette_slots = 1);
 

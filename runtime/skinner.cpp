@@ -16,6 +16,7 @@
 #include "reference/scene.h"
 #include "runtime/api_errors.h"
 #include "runtime/host_work.h"
+#include "runtime/runner.h"
 #include "runtime/selection.h"
 #include "runtime/winners_db.h"
 
@@ -141,6 +142,8 @@ std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int 
   for (int k = 0; k < instances; ++k) palettes[0].insert(palettes[0].end(), mesh.palette.begin(), mesh.palette.end());
   return palettes;
 }
+
+static_assert(kDefaultPaletteBuffers == kPaletteSlots, "the Skinner's default palette ring is the runner's");
 
 Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const std::vector<KernelSource>& kernels,
                            const SkinnerSetup& setup) {

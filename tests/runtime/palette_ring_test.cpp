@@ -214,8 +214,9 @@ TEST_P(PaletteRingDepth, EveryFrameReadsItsOwnPaletteAndWaitsOnlyForTheFrameItsS
   const int frames = 3 * slots + 2;
   for (int f = 0; f < frames; ++f) {
     ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));
-    if (!threaded)
+    if (!threaded) {
       EXPECT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(std::max(f - slots + 1, 0))) << "frame " << f;
+    }
     EXPECT_EQ(ring.runner->PaletteSlot(ring.prepared, 0), f % slots);
     ring.runner->LaunchSet(ring.prepared, 0);
   }

@@ -8,6 +8,7 @@
 // palettes of its frame.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <ostream>
@@ -159,6 +160,10 @@ class SkinnerFrames : public ::testing::TestWithParam<FrameCase> {
     }
   }
 
+  // The ring's depth the frame counts below go round: this case's palette
+  // buffers, never fewer than the default ring's.
+  static int Slots() { return std::max(kPaletteSlots, GetParam().palette_buffers); }
+
   TempDir dir_;
   View view_{Cesium().mesh};
   Device device_;
@@ -168,7 +173,7 @@ class SkinnerFrames : public ::testing::TestWithParam<FrameCase> {
 };
 
 TEST_P(SkinnerFrames, FramesQueuedWithoutFinishEndWithTheLastFramesGold) {
-  constexpr int kFrames = 4 * kPaletteSlots + 2;
+  const int kFrames = 4 * Slots() + 2;
   for (int f = 0; f < kFrames; ++f) {
     Set(Matrices(FramePoses(f)));
     Skin();
@@ -178,7 +183,7 @@ TEST_P(SkinnerFrames, FramesQueuedWithoutFinishEndWithTheLastFramesGold) {
 
 TEST_P(SkinnerFrames, AReadEveryFewFramesIsThatFramesGold) {
   // Every fourth frame: the reads land on every slot of the ring in turn.
-  constexpr int kEvery = kPaletteSlots + 1;
+  const int kEvery = Slots() + 1;
   for (int f = 0; f < 4 * kEvery; ++f) {
     Set(Matrices(FramePoses(f)));
     Skin();
@@ -191,7 +196,7 @@ TEST_P(SkinnerFrames, TheCallersArrayIsFreeRightAfterSetPalette) {
   // with the next frame's palettes before this frame's Skin, and with a
   // pose no frame has after the last.
   std::vector<float> matrices = Matrices(FramePoses(0));
-  constexpr int kFrames = 2 * kPaletteSlots + 1;
+  const int kFrames = 2 * Slots() + 1;
   for (int f = 0; f < kFrames; ++f) {
     Set(matrices);
     matrices = Matrices(FramePoses(f + 1));
@@ -205,7 +210,7 @@ TEST_P(SkinnerFrames, MoreFramesInFlightThanPaletteSlotsIncludingRepeatedCalls) 
   // Frames that call Skin twice, and palettes replaced before any Skin read
   // them: each Skin uses the last palettes set.
   std::vector<std::vector<glm::mat4>> last;
-  for (int f = 0; f < 5 * kPaletteSlots; ++f) {
+  for (int f = 0; f < 5 * Slots(); ++f) {
     if (f % 4 == 1) Set(Matrices(FramePoses(f + 100)));  // replaced at once, never skinned
     last = FramePoses(f);
     Set(Matrices(last));
@@ -223,7 +228,7 @@ TEST_P(SkinnerFrames, ARejectedPaletteTakesNoSlot) {
   Skin();
   std::vector<float> bad = Matrices(FramePoses(4));
   bad[5] = std::numeric_limits<float>::quiet_NaN();
-  for (int i = 0; i < kPaletteSlots + 1; ++i) {
+  for (int i = 0; i < Slots() + 1; ++i) {
     const Status nan = skinner_.SetPalette(bad.data(), bad.size());
     EXPECT_EQ(nan.code(), ErrorCode::kInvalidArgument) << nan.message();
     const Status short_array = skinner_.SetPalette(bad.data(), bad.size() - 16);
@@ -240,18 +245,19 @@ TEST_P(SkinnerFrames, TwoSkinnersOnOneDeviceInterleaveTheirFrames) {
   SkinnerOptions options;
   options.instances = kInstances;
   options.variant = GetParam().variant;
+  options.palette_buffers = GetParam().palette_buffers;
   Result<Skinner> second = Skinner::Create(device_, WinnersDb::Empty(), view_.mesh, options);
   ASSERT_TRUE(second.ok()) << second.status().message();
-  for (int f = 0; f < 2 * kPaletteSlots + 1; ++f) {
+  for (int f = 0; f < 2 * Slots() + 1; ++f) {
     Set(Matrices(FramePoses(f)));
     const std::vector<float> other = Matrices(FramePoses(f + 50));
     ASSERT_TRUE(second->SetPalette(other.data(), other.size()).ok());
     ASSERT_TRUE(second->Skin().ok());
     Skin();
   }
-  ExpectReadIsTheGoldOf(FramePoses(2 * kPaletteSlots), "the first Skinner");
+  ExpectReadIsTheGoldOf(FramePoses(2 * Slots()), "the first Skinner");
   std::swap(skinner_, *second);
-  ExpectReadIsTheGoldOf(FramePoses(2 * kPaletteSlots + 50), "the second Skinner");
+  ExpectReadIsTheGoldOf(FramePoses(2 * Slots() + 50), "the second Skinner");
 }
 
 INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerFrames, ::testing::ValuesIn(Cases()), CaseName);
