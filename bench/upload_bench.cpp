@@ -49,12 +49,21 @@
 //                                       pipelined-cached  pipelined from ordinary (not
 //                                                  write-combined) page-locked staging
 //                                       pipelined-pool  pipelined, the packing in 4 chunks on a
-//                                                  ThreadPool of 4 threads (20 us spin)
+//                                                  ThreadPool of 4 threads (20 us spin; with
+//                                                  /spin:<us>, that spin)
 //                                       finish     pipelined, then the marker waited for
+//                                       finish-unpacked  unpacked, the marker waited for
+//                                       finish-pool  finish, packed as pipelined-pool (the
+//                                                  pool's workers asleep after the wait)
 //                              <submit> calls      the runtime's five calls (upload on a stream
 //                                                  of its own, record, wait, launch, record)
 //                                       calls:no-wait  the same without the launch's wait for
 //                                                  the upload (wrong: what the wait costs)
+//                                       calls:same-stream  the upload on the kernel's stream
+//                                                  (no event: serialised with the kernels)
+//                                       fetch      no copy engine: a kernel on the kernel's
+//                                                  stream reads the staging over PCIe (16 bytes
+//                                                  a thread) into the slot's palette
 //                                       graph:one-stream    one cuGraphLaunch per frame of a graph
 //                                                  per slot (upload -> kernel -> marker) on the
 //                                                  kernel's stream: frames run one after another
@@ -396,18 +405,66 @@ constexpr char kSpinPtx[] =
     "  .reg .pred %p;\n  .reg .b64 %r<5>;\n"
     "  ld.param.u64 %r1, [ns];\n  mov.u64 %r2, %globaltimer;\n"
     "LOOP:\n  mov.u64 %r3, %globaltimer;\n  sub.s64 %r4, %r3, %r2;\n"
-    "  setp.lt.u64 %p, %r4, %r1;\n  @%p bra LOOP;\n  ret;\n}\n";
+    "  setp.lt.u64 %p, %r4, %r1;\n  @%p bra LOOP;\n  ret;\n}\n"
+    // The palette fetched by the device itself: each thread copies 16 bytes
+    // from page-locked host memory (read over PCIe) into device memory.
+    ".visible .entry skintune_fetch(.param .u64 dst, .param .u64 src, .param .u64 n16)\n{\n"
+    "  .reg .pred %p;\n  .reg .b32 %t<4>;\n  .reg .b32 %v<4>;\n  .reg .b64 %r<8>;\n"
+    "  ld.param.u64 %r1, [dst];\n  ld.param.u64 %r2, [src];\n  ld.param.u64 %r3, [n16];\n"
+    "  mov.u32 %t1, %ctaid.x;\n  mov.u32 %t2, %ntid.x;\n  mov.u32 %t3, %tid.x;\n"
+    "  mul.wide.u32 %r4, %t1, %t2;\n  cvt.u64.u32 %r5, %t3;\n  add.u64 %r4, %r4, %r5;\n"
+    "  setp.ge.u64 %p, %r4, %r3;\n  @%p bra DONE;\n  shl.b64 %r5, %r4, 4;\n"
+    "  add.u64 %r6, %r2, %r5;\n  ld.global.nc.v4.u32 {%v0, %v1, %v2, %v3}, [%r6];\n"
+    "  add.u64 %r7, %r1, %r5;\n  st.global.v4.u32 [%r7], {%v0, %v1, %v2, %v3};\n"
+    "DONE:\n  ret;\n}\n";
 
-enum class ModelFrame { kSkinOnly, kPipelined, kUnpacked, kPackedOnly, kPipelinedCached, kPipelinedPool, kFinish };
-constexpr bool Packs(ModelFrame f) { return f != ModelFrame::kSkinOnly && f != ModelFrame::kUnpacked; }
+enum class ModelFrame {
+  kSkinOnly,
+  kPipelined,
+  kUnpacked,
+  kPackedOnly,
+  kPipelinedCached,
+  kPipelinedPool,
+  kFinish,
+  kFinishUnpacked,
+  kFinishPool
+};
+constexpr bool Packs(ModelFrame f) {
+  return f != ModelFrame::kSkinOnly && f != ModelFrame::kUnpacked && f != ModelFrame::kFinishUnpacked;
+}
 constexpr bool Uploads(ModelFrame f) { return f != ModelFrame::kSkinOnly && f != ModelFrame::kPackedOnly; }
-enum class Submit { kCalls, kCallsNoWait, kGraphOneStream, kGraphAlternating, kGraphRotating, kCallsThread, kGraphThread };
+constexpr bool Waits(ModelFrame f) {
+  return f == ModelFrame::kFinish || f == ModelFrame::kFinishUnpacked || f == ModelFrame::kFinishPool;
+}
+constexpr bool PoolPacks(ModelFrame f) { return f == ModelFrame::kPipelinedPool || f == ModelFrame::kFinishPool; }
+enum class Submit {
+  kCalls,
+  kCallsNoWait,
+  kCallsSameStream,
+  kFetch,
+  kGraphOneStream,
+  kGraphAlternating,
+  kGraphRotating,
+  kCallsThread,
+  kGraphThread
+};
+// cuMemHostGetDevicePointer_v2 (write-combined page-locked memory has a device
+// address of its own even under unified addressing).
+using HostDevicePointerFn = cuda::Result (*)(cuda::DevicePtr*, void*, unsigned);
+HostDevicePointerFn HostDevicePointer() {
+  static const HostDevicePointerFn f = [] {
+    void* handle = dlopen("libcuda.so.1", RTLD_NOW | RTLD_NOLOAD);
+    return handle ? reinterpret_cast<HostDevicePointerFn>(dlsym(handle, "cuMemHostGetDevicePointer_v2")) : nullptr;
+  }();
+  return f;
+}
 
-void FrameModel(benchmark::State& state, ModelFrame frame, Submit submit, std::size_t parts) {
+void FrameModel(benchmark::State& state, ModelFrame frame, Submit submit, std::size_t parts, unsigned spin_us) {
   constexpr std::size_t kSlots = 6, kMatrices = 64 * 77, kBytes = kMatrices * 48;
   constexpr unsigned long long kKernelNs = 11000;
   const GraphApi* g = Graphs();
-  const bool calls = submit == Submit::kCalls || submit == Submit::kCallsNoWait || submit == Submit::kCallsThread;
+  const bool calls = submit != Submit::kGraphOneStream && submit != Submit::kGraphAlternating &&
+                     submit != Submit::kGraphRotating && submit != Submit::kGraphThread;
   const bool threaded = submit == Submit::kCallsThread || submit == Submit::kGraphThread;
   const std::size_t n_streams = submit == Submit::kGraphRotating                                       ? 3
                                 : submit == Submit::kGraphAlternating || submit == Submit::kGraphThread ? 2
@@ -424,6 +481,13 @@ void FrameModel(benchmark::State& state, ModelFrame frame, Submit submit, std::s
   cuda::Function spin = nullptr;
   Ok(api->cuModuleLoadDataEx(&module, kSpinPtx, 0, nullptr, nullptr), "cuModuleLoadDataEx");
   Ok(api->cuModuleGetFunction(&spin, module, "skintune_spin"), "cuModuleGetFunction");
+  cuda::Function fetch = nullptr;
+  Ok(api->cuModuleGetFunction(&fetch, module, "skintune_fetch"), "cuModuleGetFunction");
+  if (submit == Submit::kFetch && !HostDevicePointer()) {
+    state.SkipWithError("the driver has no cuMemHostGetDevicePointer_v2");
+    api->cuModuleUnload(module);
+    return;
+  }
   constexpr std::size_t kMaxParts = 4;
   cuda::Stream streams[3] = {stream, nullptr, nullptr}, uploads[kMaxParts] = {};
   for (std::size_t i = 1; i < 3; ++i) Ok(api->cuStreamCreate(&streams[i], 1), "cuStreamCreate");
@@ -443,7 +507,11 @@ void FrameModel(benchmark::State& state, ModelFrame frame, Submit submit, std::s
   variant.palette = PaletteFormat::kMat3x4;
   const std::vector<std::vector<float>> poses = Poses(2, kMatrices);
   std::unique_ptr<ThreadPool> pack_pool;  // pipelined-pool: the packing in 4 chunks on 4 threads
-  if (frame == ModelFrame::kPipelinedPool) pack_pool = std::make_unique<ThreadPool>(4, std::chrono::microseconds(20));
+  std::vector<cuda::DevicePtr> staging_on_device(kSlots, 0);  // fetch: the staging's device addresses
+  if (submit == Submit::kFetch)
+    for (std::size_t s = 0; s < kSlots; ++s)
+      Ok(HostDevicePointer()(&staging_on_device[s], staging[s]->p, 0), "cuMemHostGetDevicePointer");
+  if (PoolPacks(frame)) pack_pool = std::make_unique<ThreadPool>(4, std::chrono::microseconds(spin_us));
   unsigned long long ns = kKernelNs;
   const auto launch = [&](std::size_t s, cuda::Stream on) {
     void* params[] = {&ns, &palettes[s]->p};
@@ -468,8 +536,15 @@ void FrameModel(benchmark::State& state, ModelFrame frame, Submit submit, std::s
     }
   }
   const auto submit_frame = [&](std::size_t s) {
-    if (calls) {
-      if (Uploads(frame)) {  // in `parts` copies on as many streams, each of whole matrices
+    if (calls && Uploads(frame) && submit == Submit::kCallsSameStream) {
+      Ok(api->cuMemcpyHtoDAsync(palettes[s]->p, staging[s]->p, kBytes, stream), "cuMemcpyHtoDAsync");
+    } else if (calls && Uploads(frame) && submit == Submit::kFetch) {
+      unsigned long long n16 = kBytes / 16;
+      void* params[] = {&palettes[s]->p, &staging_on_device[s], &n16};
+      Ok(api->cuLaunchKernel(fetch, static_cast<unsigned>((n16 + 255) / 256), 1, 1, 256, 1, 1, 0, stream, params, nullptr),
+         "cuLaunchKernel (fetch)");
+    } else if (calls && Uploads(frame)) {
+      {  // in `parts` copies on as many streams, each of whole matrices
         const std::size_t part = (kMatrices + parts - 1) / parts * 48;
         for (std::size_t p = 0; p < parts; ++p) {
           const std::size_t at = p * part, bytes = std::min(part, kBytes - at);
@@ -482,6 +557,8 @@ void FrameModel(benchmark::State& state, ModelFrame frame, Submit submit, std::s
           for (std::size_t p = 0; p < parts; ++p)
             Ok(api->cuStreamWaitEvent(stream, uploaded[s][p], 0), "cuStreamWaitEvent");
       }
+    }
+    if (calls) {
       launch(s, stream);
       Ok(api->cuEventRecord(marker[s], stream), "cuEventRecord");
     } else {
@@ -540,7 +617,7 @@ void FrameModel(benchmark::State& state, ModelFrame frame, Submit submit, std::s
     if (threaded) requested.store(n + 1, std::memory_order_release);
     else submit_frame(s);
     const auto t3 = Clock::now();
-    if (frame == ModelFrame::kFinish) Ok(api->cuEventSynchronize(marker[s]), "cuEventSynchronize");
+    if (Waits(frame)) Ok(api->cuEventSynchronize(marker[s]), "cuEventSynchronize");
     ring_s += seconds(t0, t1);
     pack_s += seconds(t1, t2);
     submit_s += seconds(t2, t3);
@@ -768,12 +845,15 @@ int main(int argc, char** argv) {
   } model_frames[] = {{"skin-only", ModelFrame::kSkinOnly}, {"pipelined", ModelFrame::kPipelined},
                       {"unpacked", ModelFrame::kUnpacked},   {"packed-only", ModelFrame::kPackedOnly},
                       {"pipelined-cached", ModelFrame::kPipelinedCached},
-                      {"pipelined-pool", ModelFrame::kPipelinedPool}, {"finish", ModelFrame::kFinish}};
+                      {"pipelined-pool", ModelFrame::kPipelinedPool}, {"finish", ModelFrame::kFinish},
+                      {"finish-unpacked", ModelFrame::kFinishUnpacked}, {"finish-pool", ModelFrame::kFinishPool}};
   const struct {
     const char* name;
     Submit submit;
   } submits[] = {{"calls", Submit::kCalls},
                  {"calls:no-wait", Submit::kCallsNoWait},
+                 {"calls:same-stream", Submit::kCallsSameStream},
+                 {"fetch", Submit::kFetch},
                  {"graph:one-stream", Submit::kGraphOneStream},
                  {"graph:alternating", Submit::kGraphAlternating},
                  {"graph:rotating", Submit::kGraphRotating},
@@ -781,14 +861,19 @@ int main(int argc, char** argv) {
                  {"graph:thread", Submit::kGraphThread}};
   for (const auto& f : model_frames)
     for (const auto& m : submits) {
-      if (f.frame == ModelFrame::kFinish && (m.submit == Submit::kCallsThread || m.submit == Submit::kGraphThread))
+      if (Waits(f.frame) && (m.submit == Submit::kCallsThread || m.submit == Submit::kGraphThread))
         continue;  // a frame waited for has nothing to overlap
       const std::string name = std::string("model/") + f.name + "/" + m.name;
-      benchmark::RegisterBenchmark(name.c_str(), FrameModel, f.frame, m.submit, std::size_t{1})->UseRealTime();
+      benchmark::RegisterBenchmark(name.c_str(), FrameModel, f.frame, m.submit, std::size_t{1}, 20u)->UseRealTime();
       if (m.submit == Submit::kCalls || m.submit == Submit::kCallsThread)
         for (std::size_t parts : {2, 4})
           benchmark::RegisterBenchmark((name + "/parts:" + std::to_string(parts)).c_str(), FrameModel, f.frame, m.submit,
-                                       parts)
+                                       parts, 20u)
+              ->UseRealTime();
+      if (PoolPacks(f.frame))
+        for (unsigned spin : {100u, 500u, 2000u})
+          benchmark::RegisterBenchmark((name + "/spin:" + std::to_string(spin)).c_str(), FrameModel, f.frame, m.submit,
+                                       std::size_t{1}, spin)
               ->UseRealTime();
     }
   benchmark::RegisterBenchmark("sync/empty", EmptySync)->UseRealTime();

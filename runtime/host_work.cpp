@@ -38,11 +38,15 @@ ThreadPool& HostPool() {
 
 // The palette's pool: 4 threads pack 236 KB in 3-4 us where one takes 7-15
 // (skintune_bench_upload palette/pinned-wc/poses:2/spinning:<n>, H200
-// machine); more would spin on cores the driver's threads want.
+// machine); more would spin on cores the driver's threads want. Its 3 workers
+// poll for kFramePoll after each packing, as the submit thread does: with
+// 20 us they were asleep by the next SetPalette of a frame loop that waits
+// for its frames, and the wake-up cost the frame ~9 us (docs/PERFORMANCE.md,
+// session 31).
 constexpr unsigned kPaletteThreads = 4;
 
 ThreadPool& PalettePool() {
-  static ThreadPool pool(std::clamp(std::thread::hardware_concurrency(), 1u, kPaletteThreads), kHostSpin);
+  static ThreadPool pool(std::clamp(std::thread::hardware_concurrency(), 1u, kPaletteThreads), kFramePoll);
   return pool;
 }
 

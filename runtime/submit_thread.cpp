@@ -1,5 +1,7 @@
 #include "runtime/submit_thread.h"
 
+#include "runtime/host_work.h"
+
 #include <chrono>
 #include <utility>
 
@@ -13,8 +15,8 @@ namespace {
 
 // How long the thread polls for the next operation (and WaitFor for its
 // operation) before sleeping: longer than a frame's gap between SetPalette's
-// upload and Skin's launch.
-constexpr auto kPoll = std::chrono::microseconds(500);
+// upload and Skin's launch (kFramePoll, runtime/host_work.h).
+constexpr auto kPoll = kFramePoll;
 
 void Pause() {
 #if defined(__x86_64__) || defined(__i386__)
