@@ -260,6 +260,13 @@ class DeviceApi {
   virtual void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) = 0;
   // Blocks until `marker` is signalled.
   virtual void Wait(DeviceObject& marker, const std::string& what) = 0;
+  // Whether `marker` is signalled, without blocking (the submit thread polls
+  // the ring's fence with it: SubmitThread::Await). Where the API has no such
+  // query, Wait, then true.
+  virtual bool Signalled(DeviceObject& marker, const std::string& what) {
+    Wait(marker, what);
+    return true;
+  }
   // True where an Upload into a buffer takes effect only after every launch
   // queued before it has read the buffer (GL: one command stream, in order;
   // only shader writes need a barrier). The palette ring's fence then need

@@ -589,7 +589,22 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   if (submit_) submit_->WaitFor(slot.submitted);
   if (slot.done) {
     if (slot.fence_name.empty()) slot.fence_name = "palette slot " + std::to_string(next) + " of " + p.key;
-    api_->Wait(*slot.done, slot.fence_name);
+    if (submit_) {  // the thread, which makes the frame's calls, polls the fence: the caller makes none
+      DeviceApi* api = api_.get();
+      DeviceObject& fence = *slot.done;
+      const std::string& name = slot.fence_name;
+      submit_->Await(
+          [api, &fence, &name] {
+            api->MakeCurrent();
+            return api->Signalled(fence, name);
+          },
+          [api, &fence, &name] {
+            api->MakeCurrent();
+            api->Wait(fence, name);
+          });
+    } else {
+      api_->Wait(*slot.done, slot.fence_name);
+    }
   }
   const bool upload_fenced = slot.done && (slot.launched || api_->OrdersUploadsAfterLaunches());
   const std::span<std::uint8_t> staging = api_->Staging(*slot.palette, p.key, upload_fenced);

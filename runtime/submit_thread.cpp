@@ -66,13 +66,20 @@ std::uint64_t SubmitThread::Push(std::function<void()> op) {
 void SubmitThread::Loop() {
   std::uint64_t taken = 0;
   for (;;) {
-    if (!Poll([&] { return queued_.load(std::memory_order_acquire) > taken; })) {
+    const auto work = [&] { return queued_.load(std::memory_order_acquire) > taken; };
+    if (!work() && awaiting_.load(std::memory_order_acquire)) {
+      // Nothing queued, the caller waits: poll its condition, then block in its wait.
+      if (!Poll([&] { return work() || CheckAwait(false); }) && !work()) CheckAwait(true);
+      continue;
+    }
+    if (!Poll([&] { return work() || awaiting_.load(std::memory_order_acquire); })) {
       std::unique_lock<std::mutex> lock(mutex_);
       sleeping_ = true;
-      work_.wait(lock, [this] { return !queue_.empty() || stop_; });
+      work_.wait(lock, [this] { return !queue_.empty() || stop_ || awaiting_.load(std::memory_order_relaxed); });
       sleeping_ = false;
-      if (queue_.empty()) return;  // stop_, and nothing left
+      if (queue_.empty() && stop_) return;  // nothing left
     }
+    if (!work()) continue;  // woken for an Await
     std::function<void()> op;
     bool skip = false;
     {
@@ -93,11 +100,42 @@ void SubmitThread::Loop() {
     op = nullptr;  // what it captured goes before the caller hears it ran
     {
       const std::lock_guard<std::mutex> lock(mutex_);
-      if (failed && !error_) error_ = failed;
+      if (failed && !error_) error_ = std::move(failed);
       finished_.store(taken, std::memory_order_release);
     }
     done_.notify_all();
+    CheckAwait(false);
   }
+}
+
+bool SubmitThread::CheckAwait(bool blocking) {
+  if (!awaiting_.load(std::memory_order_acquire)) return false;
+  std::exception_ptr failed;
+  bool resolved = true;
+  {
+    bool errors = false;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      errors = error_ != nullptr;  // an operation before it failed: the caller hears that instead
+    }
+    if (!errors) {
+      try {
+        if (blocking) (*await_wait_)();
+        else resolved = (*await_done_)();
+      } catch (...) {
+        failed = std::current_exception();
+      }
+    }
+  }
+  if (!resolved) return false;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    await_error_ = std::move(failed);
+    awaiting_.store(false, std::memory_order_relaxed);
+    awaited_.store(true, std::memory_order_release);
+  }
+  done_.notify_all();
+  return true;
 }
 
 void SubmitThread::Rethrow() {
@@ -118,6 +156,30 @@ void SubmitThread::WaitFor(std::uint64_t number) {
     done_.wait(lock, [&] { return finished_.load(std::memory_order_acquire) >= number; });
   }
   Rethrow();
+}
+
+void SubmitThread::Await(const std::function<bool()>& done, const std::function<void()>& wait) {
+  bool wake = false;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    await_done_ = &done;
+    await_wait_ = &wait;
+    awaited_.store(false, std::memory_order_relaxed);
+    awaiting_.store(true, std::memory_order_release);
+    wake = sleeping_;
+  }
+  if (wake) work_.notify_one();
+  if (!Poll([&] { return awaited_.load(std::memory_order_acquire); })) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    done_.wait(lock, [&] { return awaited_.load(std::memory_order_acquire); });
+  }
+  std::exception_ptr failed;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    failed = std::exchange(await_error_, nullptr);
+  }
+  Rethrow();  // an operation's error first
+  if (failed) std::rethrow_exception(failed);
 }
 
 void SubmitThread::DrainQuietly() noexcept {

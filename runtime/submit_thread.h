@@ -38,12 +38,26 @@ class SubmitThread {
   void WaitFor(std::uint64_t number);
   // WaitFor the last operation pushed.
   void Drain() { WaitFor(pushed_); }
+  // Blocks until the thread has seen `done` return true, so that the caller
+  // makes no driver call of its own while the thread makes the frame's (a
+  // driver call on the caller's thread slowed the thread's launches 2x on
+  // the H200 machine: docs/PERFORMANCE.md, session 31). The thread calls
+  // `done` (which must not block) after each operation and while it polls
+  // for work; once it has polled for as long as it polls for work, it calls
+  // `wait` (which blocks until `done` would hold) after the operations
+  // queued. An error of either is thrown here (an operation's earlier error
+  // first, as WaitFor throws it); unlike an operation's, it skips none of the
+  // operations queued. One Await at a time (the caller's thread).
+  void Await(const std::function<bool()>& done, const std::function<void()>& wait);
   // Drain without rethrowing (destructors).
   void DrainQuietly() noexcept;
 
  private:
   void Loop();
   void Rethrow();
+  // The thread's side of Await: calls the awaited `done` (or, when
+  // `blocking`, `wait`) if an Await is pending; true when it resolved it.
+  bool CheckAwait(bool blocking);
 
   std::mutex mutex_;
   std::condition_variable work_, done_;
@@ -56,6 +70,13 @@ class SubmitThread {
   std::exception_ptr error_;                 // under mutex_: the first failure not yet rethrown
   std::uint64_t skip_through_ = 0;           // under mutex_: operations pushed before the caller heard of a failure
   bool sleeping_ = false, stop_ = false;     // under mutex_
+  // Await: the caller's functions (set under mutex_, then `awaiting_`), and
+  // whether the thread resolved them (set under mutex_).
+  const std::function<bool()>* await_done_ = nullptr;
+  const std::function<void()>* await_wait_ = nullptr;
+  std::atomic<bool> awaiting_{false};
+  std::atomic<bool> awaited_{false};
+  std::exception_ptr await_error_;  // under mutex_: what `done` or `wait` threw
   std::thread thread_;                       // last: started once the rest is initialised
 };
 

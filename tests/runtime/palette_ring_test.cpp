@@ -149,6 +149,18 @@ class DeferredApi final : public DeviceApi {
     if (executed < position) ++blocking_waits;
     RunUntil(position);
   }
+  // Polled (by the submit thread: SubmitThread::Await), the device runs one
+  // more operation per query.
+  bool Signalled(DeviceObject& marker, const std::string&) override {
+    const std::lock_guard<std::mutex> lock(mutex);
+    signal_threads.push_back(std::this_thread::get_id());
+    if (fail_signal) throw Error("Fake launch: the fence query failed");
+    const std::size_t position = static_cast<FakeMarker&>(marker).position;
+    if (executed < position) queue[executed++]();
+    return executed >= position;
+  }
+  std::vector<std::thread::id> signal_threads;  // the thread of each Signalled
+  bool fail_signal = false;                     // Signalled throws
   void Finish() override {
     const std::lock_guard<std::mutex> lock(mutex);
     RunUntil(queue.size());
@@ -221,7 +233,15 @@ TEST_P(PaletteRingDepth, EveryFrameReadsItsOwnPaletteAndWaitsOnlyForTheFrameItsS
     ring.runner->LaunchSet(ring.prepared, 0);
   }
   ring.runner->Finish();
-  EXPECT_EQ(ring.api->waits, frames - slots) << "a wait per reuse of a slot, none before";
+  if (threaded) {
+    // The thread polled each fence: the caller made no wait of its own.
+    EXPECT_EQ(ring.api->waits, 0);
+    EXPECT_GE(ring.api->signal_threads.size(), static_cast<std::size_t>(frames - slots));
+    for (const std::thread::id& t : ring.api->signal_threads) EXPECT_NE(t, std::this_thread::get_id());
+  } else {
+    EXPECT_EQ(ring.api->waits, frames - slots) << "a wait per reuse of a slot, none before";
+    EXPECT_TRUE(ring.api->signal_threads.empty());
+  }
   ASSERT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(frames));
   for (int f = 0; f < frames; ++f) EXPECT_EQ(ring.FrameRead(static_cast<std::size_t>(f)), f) << "launch " << f;
 }
@@ -368,6 +388,34 @@ TEST(PaletteRing, AFailedUploadOnTheSubmitThreadIsThrownOnceByTheNextCall) {
   ring.runner->Finish();
   ASSERT_EQ(ring.api->LaunchesRun(), 3u);
   EXPECT_EQ(ring.FrameRead(2), 10);
+}
+
+// The ring's fence, polled on the submit thread, fails: SetPalette throws
+// that error (once) and takes no slot; the frames queued before it still run.
+TEST(PaletteRing, AFenceQueryThatFailsOnTheSubmitThreadIsThrownBySetPalette) {
+  Ring ring(true);
+  for (int f = 0; f < kPaletteSlots; ++f) {
+    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(f));
+    ring.runner->LaunchSet(ring.prepared, 0);
+  }
+  const int slot = ring.runner->PaletteSlot(ring.prepared, 0);
+  ring.api->fail_signal = true;  // the next SetPalette reuses a slot: its fence is polled
+  try {
+    ring.runner->WritePalette(ring.prepared, 0, ring.Palette(20));
+    ADD_FAILURE() << "SetPalette did not report the failed fence query";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "Fake launch: the fence query failed");
+  }
+  EXPECT_FALSE(ring.api->signal_threads.empty());
+  EXPECT_EQ(ring.runner->PaletteSlot(ring.prepared, 0), slot);
+  ring.api->fail_signal = false;
+  ring.runner->Finish();
+  ASSERT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(kPaletteSlots));
+  ring.runner->WritePalette(ring.prepared, 0, ring.Palette(21));
+  ring.runner->LaunchSet(ring.prepared, 0);
+  ring.runner->Finish();
+  ASSERT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(kPaletteSlots) + 1);
+  EXPECT_EQ(ring.FrameRead(kPaletteSlots), 21);
 }
 
 TEST(PaletteRing, AStagingNeverUploadedTakesNoSlot) {

@@ -104,6 +104,7 @@ inline constexpr int kAddressModeClamp = 1;            // CU_TR_ADDRESS_MODE_CLA
 inline constexpr unsigned kGraphicsRegisterWriteDiscard = 2;  // CU_GRAPHICS_REGISTER_FLAGS_WRITE_DISCARD
 inline constexpr Result kErrorInvalidValue = 1;               // CUDA_ERROR_INVALID_VALUE
 inline constexpr Result kErrorInvalidHandle = 400;            // CUDA_ERROR_INVALID_HANDLE
+inline constexpr Result kErrorNotReady = 600;                 // CUDA_ERROR_NOT_READY: cuEventQuery on an event not yet complete
 
 // CUDA_RESOURCE_DESC with its `linear` member (the only one used).
 struct ResourceDesc {

@@ -213,6 +213,7 @@ class CudaApi final : public DeviceApi {
   PinnedRead ReadPinnedChunks(const DeviceBuffer& buffer, std::size_t bytes, std::size_t chunk,
                               const std::string& what) override;
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
+  bool Signalled(DeviceObject& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override {
     JoinUploads(stream);
@@ -443,6 +444,13 @@ void CudaApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& wha
 
 void CudaApi::Wait(DeviceObject& marker, const std::string& what) {
   Check(api->cuEventSynchronize(static_cast<CudaMarker&>(marker).event.get()), "launch", [&] { return "waiting for " + what; });
+}
+
+bool CudaApi::Signalled(DeviceObject& marker, const std::string& what) {
+  const cuda::Result r = api->cuEventQuery(static_cast<CudaMarker&>(marker).event.get());
+  if (r == cuda::kErrorNotReady) return false;
+  Check(r, "launch", [&] { return "cuEventQuery on " + what; });
+  return true;
 }
 
 // ---------------------------------------------------------------- launches

@@ -189,6 +189,7 @@ class OpenClApi final : public DeviceApi {
                               const std::string& what) override;
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
+  bool Signalled(DeviceObject& marker, const std::string& what) override;
   void Finish() override {
     JoinUploads(queue.get());
     Check(clFinish(queue.get()), "launch", "clFinish");
@@ -453,6 +454,17 @@ void OpenClApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string& w
 void OpenClApi::Wait(DeviceObject& marker, const std::string& what) {
   const cl_event event = static_cast<ClMarker&>(marker).event.get();
   Check(clWaitForEvents(1, &event), "launch", [&] { return "waiting for " + what; });
+}
+
+// A negative status is the command's error (clWaitForEvents reports it as
+// CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST): Wait then says so.
+bool OpenClApi::Signalled(DeviceObject& marker, const std::string& what) {
+  const cl_event event = static_cast<ClMarker&>(marker).event.get();
+  cl_int status = CL_QUEUED;
+  Check(clGetEventInfo(event, CL_EVENT_COMMAND_EXECUTION_STATUS, sizeof status, &status, nullptr), "launch",
+        [&] { return "clGetEventInfo on " + what; });
+  if (status < 0) Wait(marker, what);
+  return status <= CL_COMPLETE;
 }
 
 // ---------------------------------------------------------------- launches
