@@ -589,7 +589,13 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   if (submit_) submit_->WaitFor(slot.submitted);
   if (slot.done) {
     if (slot.fence_name.empty()) slot.fence_name = "palette slot " + std::to_string(next) + " of " + p.key;
-    if (submit_) {  // the thread, which makes the frame's calls, polls the fence: the caller makes none
+    // With a submit thread: one query here, and when the fence is not yet
+    // signalled the thread polls it (SubmitThread::Await), so the caller does
+    // not wait in the driver beside the thread's calls. The query first: when
+    // the thread, not the device, sets the pace, the fence is long signalled
+    // and handing the check over would wait for the thread's current call.
+    if (submit_ && api_->Signalled(*slot.done, slot.fence_name)) {
+    } else if (submit_) {
       DeviceApi* api = api_.get();
       DeviceObject& fence = *slot.done;
       const std::string& name = slot.fence_name;

@@ -225,9 +225,9 @@ class Runner {
   // their driver calls to a thread of the runner's own and return
   // (DeviceOptions::submit_thread); every other call first waits until that
   // thread has made them, and an error of theirs is thrown by the next call.
-  // The palette ring's fence is then polled by that thread too
-  // (SubmitThread::Await, DeviceApi::Signalled): PaletteStaging makes no
-  // driver call on the caller's thread once a slot has been used.
+  // PaletteStaging then queries a slot's fence once (DeviceApi::Signalled)
+  // and, when it is not yet signalled, lets that thread poll it
+  // (SubmitThread::Await) instead of waiting in the driver itself.
   // False, and nothing changes, where the API's calls cannot be made from
   // another thread (DeviceApi::SubmitsFromAnyThread). Call before Prepare.
   bool UseSubmitThread();

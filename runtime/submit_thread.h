@@ -39,9 +39,8 @@ class SubmitThread {
   // WaitFor the last operation pushed.
   void Drain() { WaitFor(pushed_); }
   // Blocks until the thread has seen `done` return true, so that the caller
-  // makes no driver call of its own while the thread makes the frame's (a
-  // driver call on the caller's thread slowed the thread's launches 2x on
-  // the H200 machine: docs/PERFORMANCE.md, session 31). The thread calls
+  // waits outside the driver while the thread makes the frame's calls (the
+  // palette ring's fence: Runner::PaletteStaging). The thread calls
   // `done` (which must not block) after each operation and while it polls
   // for work; once it has polled for as long as it polls for work, it calls
   // `wait` (which blocks until `done` would hold) after the operations

@@ -147,9 +147,9 @@ struct DeviceOptions {
   // the Device's own (CUDA and OpenCL devices; elsewhere ignored, see
   // DeviceInfo::submit_thread): SetPalette then only packs the palette and
   // Skin only hands the launch over, so the calling thread packs frame n+1
-  // while the driver queues frame n. The thread also watches the palette
-  // buffers' fences, so SetPalette's wait for a free buffer makes no driver
-  // call on the calling thread. Every other call (Read*, Finish, another
+  // while the driver queues frame n. When SetPalette must wait for a palette
+  // buffer, the thread polls its fence and the calling thread waits outside
+  // the driver. Every other call (Read*, Finish, another
   // Skinner's creation) first waits until those calls are made, and an error
   // of a handed-over call is returned by the next call on the Device's
   // Skinners instead of its own. The thread polls for work for 0.5 ms after
