@@ -3,7 +3,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <functional>
 #include <mutex>
@@ -287,6 +289,7 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
   for (std::size_t p = 0; p < im.order.size() && im.identity_order; ++p) im.identity_order = im.order[p] == p;
   im.output_bound = OutputBound(mesh);
   im.backend = state.backend->make_skinner(state, packed, kernels, {options.instances, options.palette_buffers});
+  if (internal::TimingLogPath()) im.set_palette_times = std::make_unique<Skinner::Impl::SetPaletteTimes>();
   return impl;
 }
 
@@ -299,6 +302,17 @@ namespace skintune {
 using namespace internal;  // the public calls are written over the library's internals
 
 Skinner::Skinner() = default;
+Skinner::Impl::SetPaletteTimes::~SetPaletteTimes() {
+  if (calls == 0) return;
+  const double per_call_us = 1e6 / static_cast<double>(calls);
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "skinner: %llu SetPalette calls, host us per call: buffer wait %.2f, packing %.2f, upload hand-over %.2f",
+                static_cast<unsigned long long>(calls), wait_s * per_call_us, pack_s * per_call_us,
+                upload_s * per_call_us);
+  internal::AppendTimingLog(line);
+}
+
 Skinner::~Skinner() = default;
 Skinner::Skinner(Skinner&&) noexcept = default;
 Skinner& Skinner::operator=(Skinner&&) noexcept = default;
@@ -354,12 +368,17 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
     // Checked and packed in one pass straight into the next palette slot's
     // page-locked staging; a non-finite element stops before the upload, so
     // the slot is not taken and the last palette stays the Skinner's.
+    using Clock = std::chrono::steady_clock;
+    Impl::SetPaletteTimes* times = im.set_palette_times.get();
+    const Clock::time_point t0 = times ? Clock::now() : Clock::time_point{};
     const std::span<std::uint8_t> staging = im.backend->PaletteStaging();
+    const Clock::time_point t1 = times ? Clock::now() : Clock::time_point{};
     if (staging.size() != joints * PaletteMatrixBytes(im.variant))
       FailWith(ErrorCode::kDeviceError, "Skinner::SetPalette: the palette staging has " + std::to_string(staging.size()) +
                                             " bytes, expected " + std::to_string(joints * PaletteMatrixBytes(im.variant)));
     float magnitude = 0.0f;
     const std::size_t bad = PackPaletteOnPool(matrices, joints, im.variant, staging.data(), &magnitude);
+    const Clock::time_point t2 = times ? Clock::now() : Clock::time_point{};
     for (std::size_t i = bad * 16; i < joints * 16 && i < (bad + 1) * 16; ++i) {
       if (std::isfinite(matrices[i])) continue;
       const std::size_t j = i / 16;
@@ -371,6 +390,13 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
                    ": a palette entry must be finite");
     }
     im.backend->UploadPalette();
+    if (times) {
+      const Clock::time_point t3 = Clock::now();
+      ++times->calls;
+      times->wait_s += std::chrono::duration<double>(t1 - t0).count();
+      times->pack_s += std::chrono::duration<double>(t2 - t1).count();
+      times->upload_s += std::chrono::duration<double>(t3 - t2).count();
+    }
     im.palette_set = true;
     im.palette_magnitude = magnitude;
   });

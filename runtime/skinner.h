@@ -153,6 +153,15 @@ struct Skinner::Impl {
   double output_bound = 0.0;
   float palette_magnitude = 0.0f;
   float skinned_magnitude = 0.0f;
+  // SKINTUNE_TIMING_LOG (runtime/runner.h): where SetPalette's host time
+  // went (the wait for a free palette buffer, the packing, the hand-over of
+  // the upload), summed, logged in one line when the Skinner goes.
+  struct SetPaletteTimes {
+    std::uint64_t calls = 0;
+    double wait_s = 0.0, pack_s = 0.0, upload_s = 0.0;
+    ~SetPaletteTimes();
+  };
+  std::unique_ptr<SetPaletteTimes> set_palette_times;  // null while the log is off
   std::unique_ptr<internal::SkinnerBackend> backend;  // declared last: destroyed before `device`
 };
 
