@@ -1,7 +1,6 @@
 #include "runtime/host_work.h"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -72,29 +71,10 @@ std::size_t PackPaletteOnPool(const float* column_major, std::size_t matrices, c
   // then start on the same boundaries as in one pass).
   const std::size_t grain = ((matrices + runs - 1) / runs + 15) / 16 * 16;
   const std::size_t bytes = PaletteMatrixBytes(variant);
-  const std::size_t count = (matrices + grain - 1) / grain;  // runs of `grain` (<= runs)
   std::size_t first_bad[kPaletteThreads];
   float largest[kPaletteThreads];
-  // Each thread packs the same run every call when it can (its lane): a run
-  // whose input and output lines another core touched last costs that core's
-  // cache a snoop per line, and on the GPU machine's host that made 4 threads
-  // taking runs as they came (10-17 us) slower than one (7-12); with the same
-  // run each time, 4.1 us (session 31, docs/results/h100-s31/pool-exp.cpp).
-  // A pool loop's chunk is only a ticket for one run: its thread takes its
-  // lane's run, else the chunk's, else any left, so every run is packed once
-  // whichever threads come (a late worker's run goes to the others).
-  static std::atomic<unsigned> lanes{0};
-  thread_local const unsigned lane = lanes.fetch_add(1, std::memory_order_relaxed);
-  std::atomic<bool> taken[kPaletteThreads] = {};
-  const auto take = [&](std::size_t run) {
-    bool free = false;
-    return run < count && taken[run].compare_exchange_strong(free, true, std::memory_order_relaxed);
-  };
-  ForChunksOn(pool, busy, matrices, grain, [&](std::size_t ticket_begin, std::size_t) {
-    std::size_t run = lane % runs;
-    if (!take(run) && !take(run = ticket_begin / grain))
-      for (run = 0; run < count && !take(run);) ++run;
-    const std::size_t begin = run * grain, end = std::min(matrices, begin + grain);
+  ForChunksOn(pool, busy, matrices, grain, [&](std::size_t begin, std::size_t end) {
+    const std::size_t run = begin / grain;
     first_bad[run] = begin + PackPaletteInto(column_major + 16 * begin, end - begin, variant, out + bytes * begin,
                                              PackIsa::kAuto, &largest[run]);
   });
