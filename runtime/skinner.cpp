@@ -289,7 +289,7 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
   for (std::size_t p = 0; p < im.order.size() && im.identity_order; ++p) im.identity_order = im.order[p] == p;
   im.output_bound = OutputBound(mesh);
   im.backend = state.backend->make_skinner(state, packed, kernels, {options.instances, options.palette_buffers});
-  if (internal::TimingLogPath()) im.set_palette_times = std::make_unique<Skinner::Impl::SetPaletteTimes>();
+  if (internal::TimingLogPath()) im.set_palette_times = std::make_unique<internal::SetPaletteTimes>();
   return impl;
 }
 
@@ -302,17 +302,6 @@ namespace skintune {
 using namespace internal;  // the public calls are written over the library's internals
 
 Skinner::Skinner() = default;
-Skinner::Impl::SetPaletteTimes::~SetPaletteTimes() {
-  if (calls == 0) return;
-  const double per_call_us = 1e6 / static_cast<double>(calls);
-  char line[256];
-  std::snprintf(line, sizeof line,
-                "skinner: %llu SetPalette calls, host us per call: buffer wait %.2f, packing %.2f, upload hand-over %.2f",
-                static_cast<unsigned long long>(calls), wait_s * per_call_us, pack_s * per_call_us,
-                upload_s * per_call_us);
-  internal::AppendTimingLog(line);
-}
-
 Skinner::~Skinner() = default;
 Skinner::Skinner(Skinner&&) noexcept = default;
 Skinner& Skinner::operator=(Skinner&&) noexcept = default;
@@ -369,7 +358,7 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
     // page-locked staging; a non-finite element stops before the upload, so
     // the slot is not taken and the last palette stays the Skinner's.
     using Clock = std::chrono::steady_clock;
-    Impl::SetPaletteTimes* times = im.set_palette_times.get();
+    internal::SetPaletteTimes* times = im.set_palette_times.get();
     const Clock::time_point t0 = times ? Clock::now() : Clock::time_point{};
     const std::span<std::uint8_t> staging = im.backend->PaletteStaging();
     const Clock::time_point t1 = times ? Clock::now() : Clock::time_point{};
@@ -565,3 +554,18 @@ Status Skinner::SkinIntoVulkan(void* vk_command_buffer, void* vk_buffer) {
 }
 
 }  // namespace skintune
+
+namespace skintune::internal {
+
+SetPaletteTimes::~SetPaletteTimes() {
+  if (calls == 0) return;
+  const double per_call_us = 1e6 / static_cast<double>(calls);
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "skinner: %llu SetPalette calls, host us per call: buffer wait %.2f, packing %.2f, upload hand-over %.2f",
+                static_cast<unsigned long long>(calls), wait_s * per_call_us, pack_s * per_call_us,
+                upload_s * per_call_us);
+  AppendTimingLog(line);
+}
+
+}  // namespace skintune::internal

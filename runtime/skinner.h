@@ -125,6 +125,16 @@ Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const st
 std::unique_ptr<SkinnerBackend> MakeRunnerSkinner(DeviceState& device, const PackedMesh& mesh,
                                                   const std::vector<KernelSource>& kernels, const SkinnerSetup& setup);
 
+// SKINTUNE_TIMING_LOG (runtime/runner.h): where a Skinner's SetPalette host
+// time went (the wait for a free palette buffer, the packing, the hand-over
+// of the upload), summed; logged in one line when it goes (nothing without
+// a call).
+struct SetPaletteTimes {
+  std::uint64_t calls = 0;
+  double wait_s = 0.0, pack_s = 0.0, upload_s = 0.0;
+  ~SetPaletteTimes();
+};
+
 }  // namespace skintune::internal
 
 namespace skintune {
@@ -153,15 +163,7 @@ struct Skinner::Impl {
   double output_bound = 0.0;
   float palette_magnitude = 0.0f;
   float skinned_magnitude = 0.0f;
-  // SKINTUNE_TIMING_LOG (runtime/runner.h): where SetPalette's host time
-  // went (the wait for a free palette buffer, the packing, the hand-over of
-  // the upload), summed, logged in one line when the Skinner goes.
-  struct SetPaletteTimes {
-    std::uint64_t calls = 0;
-    double wait_s = 0.0, pack_s = 0.0, upload_s = 0.0;
-    ~SetPaletteTimes();
-  };
-  std::unique_ptr<SetPaletteTimes> set_palette_times;  // null while the log is off
+  std::unique_ptr<internal::SetPaletteTimes> set_palette_times;  // null while SKINTUNE_TIMING_LOG is off
   std::unique_ptr<internal::SkinnerBackend> backend;  // declared last: destroyed before `device`
 };
 
