@@ -91,6 +91,11 @@
 //   palette/<memory>/poses:2 the same from 2 poses (0.6 MB: in L2, as the frame benchmark's default)
 //   palette/pinned-wc/poses:2/spinning:<n>  the same on n threads, n - 1 of them helpers that spin
 //                            between frames (no wake-up), each packing its share of the matrices
+//   palette/pinned-wc/poses:2/spinning:<n>/claims  the same, each share handed out by a counter
+//                            (a thread packs a different share each frame, as pool claims fall)
+//   palette/pinned-wc/poses:2/pool-fixed:<n>  on a ThreadPool of n threads (20 us spin), each
+//                            thread packing the same share every frame
+//   palette/pinned-wc/poses:2/runtime  SetPalette's packing: PackPaletteOnPool (runtime/host_work.h)
 //   palette/<memory>/chunks:<n>  the same in n chunks on the runtime's host pool
 //                            (runtime/host_work.h ForChunks: the read-back's spinning threads)
 //   palette/pinned-wc/poses:2/chunks:<n>[/pool:<n>]  from 2 poses in n chunks on the host pool, or
@@ -688,6 +693,62 @@ void CopyIn(benchmark::State& state, std::size_t bytes, Memory kind) {
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * bytes));
 }
 
+// The palette on a ThreadPool of `threads` threads (20 us spin), each thread
+// packing the same share every frame whatever chunk it claimed (a thread's
+// share fixed on its first chunk): the pool's machinery with the spinning
+// helpers' placement of the work.
+void PackPalettesPoolFixed(benchmark::State& state, std::size_t threads) {
+  constexpr std::size_t kMatrices = 64 * 77;
+  Variant variant;
+  variant.palette = PaletteFormat::kMat3x4;
+  Host to(kMatrices * 48, Memory::kPinnedWc);
+  const std::vector<std::vector<float>> poses = Poses(2, kMatrices);
+  auto* out = static_cast<std::uint8_t*>(to.p);
+  const std::size_t share = (kMatrices + threads - 1) / threads;
+  ThreadPool pool(static_cast<unsigned>(threads), std::chrono::microseconds(20));
+  std::atomic<std::size_t> next_id{0};
+  std::vector<std::atomic<bool>> taken(threads);
+  std::size_t frame = 0;
+  for (auto _ : state) {
+    const float* in = poses[frame++ % 2].data();
+    for (auto& t : taken) t.store(false, std::memory_order_relaxed);
+    pool.ParallelFor(kMatrices, share, [&](std::size_t ticket, std::size_t) {
+      thread_local std::size_t id = static_cast<std::size_t>(-1);
+      if (id == static_cast<std::size_t>(-1)) id = next_id.fetch_add(1);
+      std::size_t part = id % threads;
+      bool free = false;
+      if (!taken[part].compare_exchange_strong(free, true)) {
+        for (part = ticket / share;; part = (part + 1) % threads) {
+          free = false;
+          if (taken[part].compare_exchange_strong(free, true)) break;
+        }
+      }
+      const std::size_t begin = std::min(kMatrices, part * share), end = std::min(kMatrices, begin + share);
+      PackPaletteInto(in + 16 * begin, end - begin, variant, out + 48 * begin);
+    });
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * kMatrices * 48));
+}
+
+// SetPalette's packing itself: the runtime's PackPaletteOnPool (its palette
+// pool, its poll), with the largest magnitude it also gives.
+void PackPalettesRuntime(benchmark::State& state) {
+  constexpr std::size_t kMatrices = 64 * 77;
+  Variant variant;
+  variant.palette = PaletteFormat::kMat3x4;
+  Host to(kMatrices * 48, Memory::kPinnedWc);
+  const std::vector<std::vector<float>> poses = Poses(2, kMatrices);
+  std::size_t frame = 0;
+  float largest = 0.0f;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(
+        PackPaletteOnPool(poses[frame++ % 2].data(), kMatrices, variant, static_cast<std::uint8_t*>(to.p), &largest));
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * kMatrices * 48));
+}
+
 void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks, std::size_t kPoses, unsigned pool_threads) {
   // pool_threads: a pool of that many threads of the bench's own (the host pool's spin), not the host pool
   std::unique_ptr<ThreadPool> pool;
@@ -718,7 +779,7 @@ void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks, std:
 // PackPaletteInto on `threads` threads: the caller's share and threads - 1
 // helpers that spin between frames (no sleep, no wake-up), each packing its
 // share of whole matrices into the write-combined staging.
-void PackPalettesSpinning(benchmark::State& state, std::size_t threads) {
+void PackPalettesSpinning(benchmark::State& state, std::size_t threads, bool claims) {
   constexpr std::size_t kMatrices = 64 * 77;
   Variant variant;
   variant.palette = PaletteFormat::kMat3x4;
@@ -726,9 +787,10 @@ void PackPalettesSpinning(benchmark::State& state, std::size_t threads) {
   const std::vector<std::vector<float>> poses = Poses(2, kMatrices);
   auto* out = static_cast<std::uint8_t*>(to.p);
   const std::size_t share = (kMatrices + threads - 1) / threads;
-  std::atomic<std::size_t> generation{0}, finished{0};
+  std::atomic<std::size_t> generation{0}, finished{0}, claimed{0};
   std::atomic<bool> stop{false};
   const auto pack = [&](std::size_t t, std::size_t frame) {
+    if (claims) t = claimed.fetch_add(1) % threads;  // the share a counter hands out, as the pool's claims do
     const std::size_t begin = std::min(kMatrices, t * share), end = std::min(kMatrices, begin + share);
     PackPaletteInto(poses[frame % 2].data() + 16 * begin, end - begin, variant, out + 48 * begin);
   };
@@ -808,10 +870,18 @@ int main(int argc, char** argv) {
                                  chunks, std::size_t{2}, static_cast<unsigned>(chunks))
         ->UseRealTime();
     }
-  for (std::size_t threads : {1, 2, 4})
+  benchmark::RegisterBenchmark("palette/pinned-wc/poses:2/runtime", PackPalettesRuntime)->UseRealTime();
+  for (std::size_t threads : {1, 2, 4}) {
     benchmark::RegisterBenchmark(("palette/pinned-wc/poses:2/spinning:" + std::to_string(threads)).c_str(),
-                                 PackPalettesSpinning, threads)
+                                 PackPalettesSpinning, threads, false)
         ->UseRealTime();
+    benchmark::RegisterBenchmark(("palette/pinned-wc/poses:2/spinning:" + std::to_string(threads) + "/claims").c_str(),
+                                 PackPalettesSpinning, threads, true)
+        ->UseRealTime();
+    benchmark::RegisterBenchmark(("palette/pinned-wc/poses:2/pool-fixed:" + std::to_string(threads)).c_str(),
+                                 PackPalettesPoolFixed, threads)
+        ->UseRealTime();
+  }
   const struct {
     const char* name;
     Call call;

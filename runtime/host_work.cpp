@@ -1,17 +1,22 @@
 #include "runtime/host_work.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <thread>
+#include <vector>
 
 #include <unistd.h>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
+#include <immintrin.h>
 #include <xmmintrin.h>
 #endif
 
@@ -36,18 +41,120 @@ ThreadPool& HostPool() {
   return pool;
 }
 
-// The palette's pool: 4 threads pack 236 KB in 3-4 us where one takes 7-15
-// (skintune_bench_upload palette/pinned-wc/poses:2/spinning:<n>, H200
-// machine); more would spin on cores the driver's threads want. Its 3 workers
+// Threads that each run the same lane of every loop: Run(body) calls
+// body(lane) once for each lane, lane 0 on the caller and lane l on helper l
+// when that helper takes it in time; the caller takes every lane still free
+// once its own is done, so a helper asleep or descheduled costs the loop
+// nothing but its share of the speed-up. Helpers poll for the next loop for
+// `poll`, then sleep. One Run at a time.
+//
+// Why not the ThreadPool, whose chunks go to whichever thread claims them: on
+// the GPU machine's host (16 cores) the palette's 4 runs packed in 3.1-3.4 us
+// by threads that keep their run, in 9.9-10.3 us when the runs changed hands
+// every frame, and 10.5-11.3 us on the ThreadPool, no better than one thread
+// (skintune_bench_upload palette/pinned-wc/poses:2/{spinning:4,
+// spinning:4/claims,runtime}, docs/PERFORMANCE.md session 31): a run's input
+// lines are in the cache of the core that packed it last.
+class LaneCrew {
+ public:
+  LaneCrew(unsigned lanes, std::chrono::microseconds poll) : lanes_(std::clamp(lanes, 1u, kMaxLanes)), poll_(poll) {
+    for (unsigned l = 0; l < lanes_; ++l) claimed_[l].store(0, std::memory_order_relaxed);
+    for (unsigned l = 1; l < lanes_; ++l) helpers_.emplace_back([this, l] { Helper(l); });
+  }
+  ~LaneCrew() {
+    stop_.store(true);
+    { const std::lock_guard<std::mutex> lock(mutex_); }
+    wake_.notify_all();
+    for (std::thread& t : helpers_) t.join();
+  }
+  LaneCrew(const LaneCrew&) = delete;
+  LaneCrew& operator=(const LaneCrew&) = delete;
+
+  unsigned lanes() const { return lanes_; }
+
+  void Run(const std::function<void(unsigned)>& body) {
+    body_ = &body;
+    done_.store(0, std::memory_order_relaxed);
+    const std::uint64_t generation = generation_.fetch_add(1) + 1;  // seq_cst: publishes body_; see sleepers_
+    if (sleepers_.load() > 0) {
+      { const std::lock_guard<std::mutex> lock(mutex_); }
+      wake_.notify_all();
+    }
+    for (unsigned l = 0; l < lanes_; ++l)  // its own lane first, then any a helper has not taken
+      if (Take(l, generation)) {
+        body(l);
+        done_.fetch_add(1, std::memory_order_acq_rel);
+      }
+    while (done_.load(std::memory_order_acquire) != lanes_) Pause();  // lanes running on helpers
+    body_ = nullptr;
+  }
+
+ private:
+  static constexpr unsigned kMaxLanes = 16;
+  static void Pause() {
+#if defined(__SSE2__)
+    _mm_pause();
+#else
+    std::this_thread::yield();
+#endif
+  }
+  // Lane l of loop `generation`, unless someone took it (each lane's last
+  // loop is its claim, so a helper late for an earlier loop takes nothing).
+  bool Take(unsigned l, std::uint64_t generation) {
+    std::uint64_t last = claimed_[l].load(std::memory_order_acquire);
+    while (last < generation)
+      if (claimed_[l].compare_exchange_weak(last, generation, std::memory_order_acq_rel)) return true;
+    return false;
+  }
+  void Helper(unsigned lane) {
+    std::uint64_t seen = 0;
+    for (;;) {
+      const auto fresh = [&] { return stop_.load() || generation_.load() != seen; };
+      const auto until = std::chrono::steady_clock::now() + poll_;
+      bool ready = fresh();
+      for (int n = 1; !ready; ++n) {
+        Pause();
+        ready = fresh();
+        if (!ready && n % 64 == 0 && std::chrono::steady_clock::now() >= until) break;
+      }
+      if (!ready) {
+        std::unique_lock<std::mutex> lock(mutex_);
+        sleepers_.fetch_add(1);  // before the check (seq_cst with Run's generation: Dekker)
+        wake_.wait(lock, fresh);
+        sleepers_.fetch_sub(1);
+      }
+      if (stop_.load()) return;
+      seen = generation_.load();
+      if (Take(lane, seen)) {
+        (*body_)(lane);
+        done_.fetch_add(1, std::memory_order_acq_rel);
+      }
+    }
+  }
+
+  const unsigned lanes_;
+  const std::chrono::microseconds poll_;
+  const std::function<void(unsigned)>* body_ = nullptr;
+  std::atomic<std::uint64_t> generation_{0};
+  std::atomic<std::uint64_t> claimed_[kMaxLanes];
+  std::atomic<unsigned> done_{0};
+  std::atomic<int> sleepers_{0};
+  std::atomic<bool> stop_{false};
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::vector<std::thread> helpers_;
+};
+
+// The palette's crew: 4 threads pack 236 KB in 3-4 us where one takes 7-15
+// (above); more would spin on cores the driver's threads want. Its helpers
 // poll for kFramePoll after each packing, as the submit thread does: with
 // 20 us they were asleep by the next SetPalette of a frame loop that waits
-// for its frames, and the wake-up cost the frame ~9 us (docs/PERFORMANCE.md,
-// session 31).
+// for its frames, and the wake-up cost the frame ~9 us (session 31).
 constexpr unsigned kPaletteThreads = 4;
 
-ThreadPool& PalettePool() {
-  static ThreadPool pool(std::clamp(std::thread::hardware_concurrency(), 1u, kPaletteThreads), kFramePoll);
-  return pool;
+LaneCrew& PaletteCrew() {
+  static LaneCrew crew(std::clamp(std::thread::hardware_concurrency(), 1u, kPaletteThreads), kFramePoll);
+  return crew;
 }
 
 }  // namespace
@@ -63,18 +170,22 @@ void ForChunks(std::size_t count, std::size_t grain, const std::function<void(st
 
 std::size_t PackPaletteOnPool(const float* column_major, std::size_t matrices, const Variant& variant,
                               std::uint8_t* out, float* largest_magnitude) {
-  static std::mutex busy;
-  ThreadPool& pool = PalettePool();
-  const std::size_t runs = std::min<std::size_t>(pool.size(), matrices / kPaletteGrain);
-  if (runs < 2) return PackPaletteInto(column_major, matrices, variant, out, PackIsa::kAuto, largest_magnitude);
+  static std::mutex busy;  // one Run at a time: a second caller packs alone
+  LaneCrew& crew = PaletteCrew();
+  const std::size_t runs = std::min<std::size_t>(crew.lanes(), matrices / kPaletteGrain);
+  std::unique_lock<std::mutex> lock(busy, std::defer_lock);
+  if (runs < 2 || !lock.try_lock())
+    return PackPaletteInto(column_major, matrices, variant, out, PackIsa::kAuto, largest_magnitude);
   // Runs of whole multiples of 16 matrices (the packer's four-matrix stores
   // then start on the same boundaries as in one pass).
   const std::size_t grain = ((matrices + runs - 1) / runs + 15) / 16 * 16;
   const std::size_t bytes = PaletteMatrixBytes(variant);
   std::size_t first_bad[kPaletteThreads];
   float largest[kPaletteThreads];
-  ForChunksOn(pool, busy, matrices, grain, [&](std::size_t begin, std::size_t end) {
-    const std::size_t run = begin / grain;
+  crew.Run([&](unsigned lane) {
+    const std::size_t run = lane, begin = run * grain;
+    if (begin >= matrices) return;
+    const std::size_t end = std::min(matrices, begin + grain);
     first_bad[run] = begin + PackPaletteInto(column_major + 16 * begin, end - begin, variant, out + bytes * begin,
                                              PackIsa::kAuto, &largest[run]);
   });

@@ -3,12 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "generator/packer.h"
@@ -186,6 +188,45 @@ TEST(HostWork, PackingOnThePoolGivesTheOnePassBytesFirstBadMatrixAndMagnitude) {
       }
     }
   }
+}
+
+// The palette's threads (each its own run, the caller any run left) under
+// the frame loop's conditions: thousands of packings back to back, a packing
+// after the helpers have gone to sleep, and two callers at once (the second
+// packs alone); every result PackPaletteInto's.
+TEST(HostWork, PackingOnThePoolStaysExactBackToBackAfterASleepAndFromTwoThreads) {
+  Variant variant;
+  variant.palette = PaletteFormat::kMat3x4;
+  constexpr std::size_t kMatrices = 64 * 77;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-3.0f, 3.0f);
+  std::vector<std::vector<float>> poses(3, std::vector<float>(kMatrices * 16));
+  std::vector<std::vector<std::uint8_t>> expected;
+  for (auto& pose : poses) {
+    for (float& f : pose) f = u(rng);
+    expected.emplace_back(kMatrices * 48);
+    PackPaletteInto(pose.data(), kMatrices, variant, expected.back().data());
+  }
+  const auto pack_and_check = [&](std::size_t pose, std::vector<std::uint8_t>& out) {
+    float largest = 0.0f;
+    EXPECT_EQ(PackPaletteOnPool(poses[pose].data(), kMatrices, variant, out.data(), &largest), kMatrices);
+    return out == expected[pose];
+  };
+  std::vector<std::uint8_t> out(kMatrices * 48);
+  int wrong = 0;
+  for (int f = 0; f < 2000; ++f) wrong += !pack_and_check(static_cast<std::size_t>(f) % 3, out);
+  EXPECT_EQ(wrong, 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(5));  // past the helpers' polling: asleep
+  EXPECT_TRUE(pack_and_check(1, out));
+  std::atomic<int> wrong_elsewhere{0};
+  std::thread other([&] {
+    std::vector<std::uint8_t> mine(kMatrices * 48);
+    for (int f = 0; f < 300; ++f) wrong_elsewhere += !pack_and_check(static_cast<std::size_t>(f + 1) % 3, mine);
+  });
+  for (int f = 0; f < 300; ++f) wrong += !pack_and_check(static_cast<std::size_t>(f) % 3, out);
+  other.join();
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(wrong_elsewhere.load(), 0);
 }
 
 TEST(HostWork, ForChunksVisitsEveryIndexOnce) {
