@@ -119,6 +119,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "generator/packer.h"
@@ -713,9 +714,9 @@ void PackPalettesPoolFixed(benchmark::State& state, std::size_t threads) {
     const float* in = poses[frame++ % 2].data();
     for (auto& t : taken) t.store(false, std::memory_order_relaxed);
     pool.ParallelFor(kMatrices, share, [&](std::size_t ticket, std::size_t) {
-      thread_local std::size_t id = static_cast<std::size_t>(-1);
-      if (id == static_cast<std::size_t>(-1)) id = next_id.fetch_add(1);
-      std::size_t part = id % threads;
+      thread_local std::pair<const void*, std::size_t> id{nullptr, 0};  // this pool's number for the thread
+      if (id.first != &pool) id = {&pool, next_id.fetch_add(1)};
+      std::size_t part = id.second % threads;
       bool free = false;
       if (!taken[part].compare_exchange_strong(free, true)) {
         for (part = ticket / share;; part = (part + 1) % threads) {
