@@ -23,17 +23,20 @@ namespace skintune::internal {
 // pool) on the calling thread, chunk by chunk in order.
 void ForChunks(std::size_t count, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body);
 
-// How long a thread that serves a frame loop (the palette pool's workers, the
+// How long a thread that serves a frame loop (the palette crew's helpers, the
 // submit thread) polls for its next piece of work before it sleeps: longer
 // than a frame that waits for the device (SetPalette + Skin + Finish, ~50 us
 // on the H200 machine), so the next frame finds it awake; a game's frame of
 // milliseconds lets it sleep.
 inline constexpr std::chrono::microseconds kFramePoll{500};
 
-// PackPaletteInto (generator/packer.h) spread over the runtime's palette pool:
-// up to 4 threads (the caller's and 3 workers that poll for kFramePoll after
-// each packing, so a frame loop's next SetPalette finds them awake), each packing
-// whole runs of at least kPaletteGrain matrices. One core stores ~25-30 GB/s
+// PackPaletteInto (generator/packer.h) spread over the runtime's palette crew:
+// up to 4 threads (the caller's and 3 helpers that poll for kFramePoll after
+// each packing, so a frame loop's next SetPalette finds them awake), each
+// packing the same run of at least kPaletteGrain whole matrices every call
+// (its input's lines stay in its core's cache; the caller takes the run of a
+// helper that does not come in time). A second caller at the same time packs
+// alone. One core stores ~25-30 GB/s
 // into page-locked memory on the GPU machines' hosts, so 64 x 77 mat3x4
 // (236 KB) cost it 7-15 us a frame, about the crowd kernel's time (issue 15).
 // Returns what PackPaletteInto does for the whole palette: the first
