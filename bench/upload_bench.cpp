@@ -694,17 +694,30 @@ void CopyIn(benchmark::State& state, std::size_t bytes, Memory kind) {
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * bytes));
 }
 
+// The packing rows' work: 64 x 77 mat3x4 (SetPalette's crowd palette) from 2
+// poses in turn into write-combined page-locked staging.
+struct PackingSetup {
+  static constexpr std::size_t kMatrices = 64 * 77;
+  Variant variant = [] {
+    Variant v;
+    v.palette = PaletteFormat::kMat3x4;
+    return v;
+  }();
+  Host to{kMatrices * 48, Memory::kPinnedWc};
+  std::vector<std::vector<float>> poses = Poses(2, kMatrices);
+  std::uint8_t* out = static_cast<std::uint8_t*>(to.p);
+};
+
 // The palette on a ThreadPool of `threads` threads (20 us spin), each thread
 // packing the same share every frame whatever chunk it claimed (a thread's
 // share fixed on its first chunk): the pool's machinery with the spinning
 // helpers' placement of the work.
 void PackPalettesPoolFixed(benchmark::State& state, std::size_t threads) {
-  constexpr std::size_t kMatrices = 64 * 77;
-  Variant variant;
-  variant.palette = PaletteFormat::kMat3x4;
-  Host to(kMatrices * 48, Memory::kPinnedWc);
-  const std::vector<std::vector<float>> poses = Poses(2, kMatrices);
-  auto* out = static_cast<std::uint8_t*>(to.p);
+  const PackingSetup setup;
+  constexpr std::size_t kMatrices = PackingSetup::kMatrices;
+  const Variant& variant = setup.variant;
+  const std::vector<std::vector<float>>& poses = setup.poses;
+  std::uint8_t* out = setup.out;
   const std::size_t share = (kMatrices + threads - 1) / threads;
   ThreadPool pool(static_cast<unsigned>(threads), std::chrono::microseconds(20));
   std::atomic<std::size_t> next_id{0};
@@ -735,19 +748,15 @@ void PackPalettesPoolFixed(benchmark::State& state, std::size_t threads) {
 // SetPalette's packing itself: the runtime's PackPaletteOnPool (its palette
 // pool, its poll), with the largest magnitude it also gives.
 void PackPalettesRuntime(benchmark::State& state) {
-  constexpr std::size_t kMatrices = 64 * 77;
-  Variant variant;
-  variant.palette = PaletteFormat::kMat3x4;
-  Host to(kMatrices * 48, Memory::kPinnedWc);
-  const std::vector<std::vector<float>> poses = Poses(2, kMatrices);
+  const PackingSetup setup;
   std::size_t frame = 0;
   float largest = 0.0f;
   for (auto _ : state) {
-    benchmark::DoNotOptimize(
-        PackPaletteOnPool(poses[frame++ % 2].data(), kMatrices, variant, static_cast<std::uint8_t*>(to.p), &largest));
+    benchmark::DoNotOptimize(PackPaletteOnPool(setup.poses[frame++ % 2].data(), PackingSetup::kMatrices, setup.variant,
+                                               setup.out, &largest));
     benchmark::ClobberMemory();
   }
-  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * kMatrices * 48));
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * PackingSetup::kMatrices * 48));
 }
 
 void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks, std::size_t kPoses, unsigned pool_threads) {
@@ -781,12 +790,11 @@ void PackPalettes(benchmark::State& state, Memory kind, std::size_t chunks, std:
 // helpers that spin between frames (no sleep, no wake-up), each packing its
 // share of whole matrices into the write-combined staging.
 void PackPalettesSpinning(benchmark::State& state, std::size_t threads, bool claims) {
-  constexpr std::size_t kMatrices = 64 * 77;
-  Variant variant;
-  variant.palette = PaletteFormat::kMat3x4;
-  Host to(kMatrices * 48, Memory::kPinnedWc);
-  const std::vector<std::vector<float>> poses = Poses(2, kMatrices);
-  auto* out = static_cast<std::uint8_t*>(to.p);
+  const PackingSetup setup;
+  constexpr std::size_t kMatrices = PackingSetup::kMatrices;
+  const Variant& variant = setup.variant;
+  const std::vector<std::vector<float>>& poses = setup.poses;
+  std::uint8_t* out = setup.out;
   const std::size_t share = (kMatrices + threads - 1) / threads;
   std::atomic<std::size_t> generation{0}, finished{0}, claimed{0};
   std::atomic<bool> stop{false};
