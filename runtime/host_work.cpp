@@ -145,15 +145,24 @@ class LaneCrew {
   std::vector<std::thread> helpers_;
 };
 
-// The palette's crew: 4 threads pack 236 KB in 3-4 us where one takes 7-15
-// (above); more would spin on cores the driver's threads want. Its helpers
-// poll for kFramePoll after each packing, as the submit thread does: with
-// 20 us they were asleep by the next SetPalette of a frame loop that waits
-// for its frames, and the wake-up cost the frame ~9 us (session 31).
-constexpr unsigned kPaletteThreads = 4;
+// The palette's crew: half the host's cores, at least 2 (where there are 2)
+// and at most kMaxPaletteLanes. 4 threads pack 236 KB in 3-4 us where one
+// takes 7-15 (above); inside the frame loop 8 packed it in 6.5-7 us where 4
+// took 7.3-10.2, and the CUDA frame with the submit thread went from 0.92-0.94
+// to 0.96-0.97 of Skin-only (H100 machine, session 31 call J); the other half
+// of the cores stays for the driver's threads and the application. The
+// helpers poll for kFramePoll after each packing, as the submit thread does:
+// with 20 us they were asleep by the next SetPalette of a frame loop that
+// waits for its frames, and the wake-up cost the frame ~9 us (session 31).
+constexpr unsigned kMaxPaletteLanes = 8;
+
+unsigned PaletteLanes() {
+  const unsigned cores = std::max(std::thread::hardware_concurrency(), 1u);
+  return std::min(cores, std::clamp(cores / 2, 2u, kMaxPaletteLanes));
+}
 
 LaneCrew& PaletteCrew() {
-  static LaneCrew crew(std::clamp(std::thread::hardware_concurrency(), 1u, kPaletteThreads), kFramePoll);
+  static LaneCrew crew(PaletteLanes(), kFramePoll);
   return crew;
 }
 
@@ -180,8 +189,8 @@ std::size_t PackPaletteOnPool(const float* column_major, std::size_t matrices, c
   // then start on the same boundaries as in one pass).
   const std::size_t grain = ((matrices + runs - 1) / runs + 15) / 16 * 16;
   const std::size_t bytes = PaletteMatrixBytes(variant);
-  std::size_t first_bad[kPaletteThreads];
-  float largest[kPaletteThreads];
+  std::size_t first_bad[kMaxPaletteLanes];
+  float largest[kMaxPaletteLanes];
   crew.Run([&](unsigned lane) {
     const std::size_t run = lane, begin = run * grain;
     if (begin >= matrices) return;

@@ -31,8 +31,9 @@ void ForChunks(std::size_t count, std::size_t grain, const std::function<void(st
 inline constexpr std::chrono::microseconds kFramePoll{500};
 
 // PackPaletteInto (generator/packer.h) spread over the runtime's palette crew:
-// up to 4 threads (the caller's and 3 helpers that poll for kFramePoll after
-// each packing, so a frame loop's next SetPalette finds them awake), each
+// half the host's cores, 2 to 8 threads (the caller's and helpers that poll
+// for kFramePoll after each packing, so a frame loop's next SetPalette finds
+// them awake), each
 // packing the same run of at least kPaletteGrain whole matrices every call
 // (its input's lines stay in its core's cache; the caller takes the run of a
 // helper that does not come in time). A second caller at the same time packs
@@ -43,7 +44,7 @@ inline constexpr std::chrono::microseconds kFramePoll{500};
 // non-finite matrix (or `matrices`), and the largest |element|.
 std::size_t PackPaletteOnPool(const float* column_major, std::size_t matrices, const Variant& variant,
                               std::uint8_t* out, float* largest_magnitude);
-inline constexpr std::size_t kPaletteGrain = 1024;
+inline constexpr std::size_t kPaletteGrain = 512;
 
 // Whether every 32-bit word of `bytes` is a finite float (exponent bits not all set).
 bool AllFinite(std::span<const std::uint8_t> bytes);

@@ -505,8 +505,9 @@ class Skinner {
   // matrix and element. A rejected palette changes nothing: the next Skin()
   // uses the last palette accepted. The data is copied into page-locked
   // staging of the next palette buffer before SetPalette returns (a palette
-  // of 2048 matrices or more on up to 4 threads of skintune's own, which
-  // poll for 0.5 ms after each SetPalette before they sleep) and
+  // of 1024 matrices or more on threads of skintune's own, half the host's
+  // cores from 2 to 8, which poll for 0.5 ms after each SetPalette before
+  // they sleep) and
   // uploaded asynchronously (CUDA and OpenCL: on a stream / queue of the
   // Skinner's own, which the next Skin waits for on the device, so the
   // upload overlaps the frame still running): the caller may reuse
