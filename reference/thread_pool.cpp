@@ -2,10 +2,6 @@
 
 #include <algorithm>
 
-#if defined(__SSE2__)
-#include <immintrin.h>
-#endif
-
 namespace skintune::internal {
 
 ThreadPool::ThreadPool(unsigned threads, std::chrono::microseconds spin) : spin_(spin) {
@@ -20,21 +16,6 @@ ThreadPool::~ThreadPool() {
   }
   wake_.notify_all();
   for (std::thread& t : workers_) t.join();
-}
-
-template <typename Ready>
-bool ThreadPool::Spin(Ready&& ready) const {
-  if (spin_.count() <= 0) return ready();
-  const auto until = std::chrono::steady_clock::now() + spin_;
-  for (;;) {
-    for (int i = 0; i < 64; ++i) {
-      if (ready()) return true;
-#if defined(__SSE2__)
-      _mm_pause();
-#endif
-    }
-    if (std::chrono::steady_clock::now() >= until) return ready();
-  }
 }
 
 void ThreadPool::RunChunks(std::uint64_t generation) {
@@ -56,7 +37,7 @@ void ThreadPool::WorkerLoop() {
   std::uint64_t seen = 0;  // the last generation this worker looked at
   for (;;) {
     const auto fresh = [&] { return stop_.load() || Generation(claim_.load()) != seen; };
-    if (!Spin(fresh)) {
+    if (!PollFor(spin_, fresh)) {
       std::unique_lock lock(mutex_);
       sleepers_.fetch_add(1);  // before the check (seq_cst with the caller's store of claim_: Dekker)
       wake_.wait(lock, fresh);
@@ -87,7 +68,7 @@ void ThreadPool::ParallelFor(std::size_t count, std::size_t grain,
   }
   RunChunks(generation_);
   const auto done = [&] { return finished_.load() == chunks; };
-  if (!Spin(done)) {
+  if (!PollFor(spin_, done)) {
     std::unique_lock lock(mutex_);
     caller_sleeps_.store(true);
     done_.wait(lock, done);

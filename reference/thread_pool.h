@@ -12,7 +12,39 @@
 #include <thread>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
 namespace skintune::internal {
+
+// The CPU's hint for a spin-wait loop (x86's pause, which leaves a sibling
+// hardware thread most of the core; elsewhere a yield).
+inline void CpuPause() {
+#if defined(__SSE2__)
+  _mm_pause();
+#else
+  std::this_thread::yield();
+#endif
+}
+
+// Polls `ready` until it holds or `limit` has passed, pausing between polls
+// and reading the clock every 64; whether it held. A zero limit checks once.
+// The threads that serve a frame loop wait so for their next piece of work
+// (ThreadPool's workers, the runtime's submit thread and palette crew):
+// waking a sleeping thread costs more than the work.
+template <typename Ready>
+bool PollFor(std::chrono::microseconds limit, Ready&& ready) {
+  if (limit.count() <= 0) return ready();
+  const auto until = std::chrono::steady_clock::now() + limit;
+  for (;;) {
+    for (int i = 0; i < 64; ++i) {
+      if (ready()) return true;
+      CpuPause();
+    }
+    if (std::chrono::steady_clock::now() >= until) return ready();
+  }
+}
 
 class ThreadPool {
  public:
@@ -54,9 +86,6 @@ class ThreadPool {
   void WorkerLoop();
   // Runs chunks of loop `generation` while some are left unclaimed.
   void RunChunks(std::uint64_t generation);
-  // Polls `ready` for up to spin_; whether it came true.
-  template <typename Ready>
-  bool Spin(Ready&& ready) const;
 
   std::vector<std::thread> workers_;
   std::chrono::microseconds spin_;

@@ -16,7 +16,6 @@
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
-#include <immintrin.h>
 #include <xmmintrin.h>
 #endif
 
@@ -85,19 +84,12 @@ class LaneCrew {
         body(l);
         done_.fetch_add(1, std::memory_order_acq_rel);
       }
-    while (done_.load(std::memory_order_acquire) != lanes_) Pause();  // lanes running on helpers
+    while (done_.load(std::memory_order_acquire) != lanes_) CpuPause();  // lanes running on helpers
     body_ = nullptr;
   }
 
  private:
   static constexpr unsigned kMaxLanes = 16;
-  static void Pause() {
-#if defined(__SSE2__)
-    _mm_pause();
-#else
-    std::this_thread::yield();
-#endif
-  }
   // Lane l of loop `generation`, unless someone took it (each lane's last
   // loop is its claim, so a helper late for an earlier loop takes nothing).
   bool Take(unsigned l, std::uint64_t generation) {
@@ -110,14 +102,7 @@ class LaneCrew {
     std::uint64_t seen = 0;
     for (;;) {
       const auto fresh = [&] { return stop_.load() || generation_.load() != seen; };
-      const auto until = std::chrono::steady_clock::now() + poll_;
-      bool ready = fresh();
-      for (int n = 1; !ready; ++n) {
-        Pause();
-        ready = fresh();
-        if (!ready && n % 64 == 0 && std::chrono::steady_clock::now() >= until) break;
-      }
-      if (!ready) {
+      if (!PollFor(poll_, fresh)) {
         std::unique_lock<std::mutex> lock(mutex_);
         sleepers_.fetch_add(1);  // before the check (seq_cst with Run's generation: Dekker)
         wake_.wait(lock, fresh);

@@ -33,13 +33,12 @@ inline constexpr std::chrono::microseconds kFramePoll{500};
 // PackPaletteInto (generator/packer.h) spread over the runtime's palette crew:
 // half the host's cores, 2 to 8 threads (the caller's and helpers that poll
 // for kFramePoll after each packing, so a frame loop's next SetPalette finds
-// them awake), each
-// packing the same run of at least kPaletteGrain whole matrices every call
-// (its input's lines stay in its core's cache; the caller takes the run of a
-// helper that does not come in time). A second caller at the same time packs
-// alone. One core stores ~25-30 GB/s
-// into page-locked memory on the GPU machines' hosts, so 64 x 77 mat3x4
-// (236 KB) cost it 7-15 us a frame, about the crowd kernel's time (issue 15).
+// them awake), each packing the same run of at least kPaletteGrain whole
+// matrices every call (its input's lines stay in its core's cache; the caller
+// takes the run of a helper that does not come in time). A second caller at
+// the same time packs alone. One core stores ~25-30 GB/s into page-locked
+// memory on the GPU machines' hosts, so 64 x 77 mat3x4 (236 KB) cost it 7-15
+// us a frame, about the crowd kernel's time (issue 15).
 // Returns what PackPaletteInto does for the whole palette: the first
 // non-finite matrix (or `matrices`), and the largest |element|.
 std::size_t PackPaletteOnPool(const float* column_major, std::size_t matrices, const Variant& variant,

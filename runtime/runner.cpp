@@ -594,8 +594,9 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
     // not wait in the driver beside the thread's calls. The query first: when
     // the thread, not the device, sets the pace, the fence is long signalled
     // and handing the check over would wait for the thread's current call.
-    if (submit_ && api_->Signalled(*slot.done, slot.fence_name)) {
-    } else if (submit_) {
+    if (!submit_) {
+      api_->Wait(*slot.done, slot.fence_name);
+    } else if (!api_->Signalled(*slot.done, slot.fence_name)) {
       DeviceApi* api = api_.get();
       DeviceObject& fence = *slot.done;
       const std::string& name = slot.fence_name;
@@ -608,8 +609,6 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
             api->MakeCurrent();
             api->Wait(fence, name);
           });
-    } else {
-      api_->Wait(*slot.done, slot.fence_name);
     }
   }
   const bool upload_fenced = slot.done && (slot.launched || api_->OrdersUploadsAfterLaunches());

@@ -1,13 +1,10 @@
 #include "runtime/submit_thread.h"
 
+#include "reference/thread_pool.h"
 #include "runtime/host_work.h"
 
 #include <chrono>
 #include <utility>
-
-#if defined(__x86_64__) || defined(__i386__)
-#include <immintrin.h>
-#endif
 
 namespace skintune::internal {
 
@@ -17,25 +14,6 @@ namespace {
 // operation) before sleeping: longer than a frame's gap between SetPalette's
 // upload and Skin's launch (kFramePoll, runtime/host_work.h).
 constexpr auto kPoll = kFramePoll;
-
-void Pause() {
-#if defined(__x86_64__) || defined(__i386__)
-  _mm_pause();
-#else
-  std::this_thread::yield();
-#endif
-}
-
-// Polls `until_true` for kPoll, the clock read every 64 polls; true when it held.
-template <typename Condition>
-bool Poll(Condition until_true) {
-  const auto until = std::chrono::steady_clock::now() + kPoll;
-  for (int n = 1;; ++n) {
-    if (until_true()) return true;
-    Pause();
-    if (n % 64 == 0 && std::chrono::steady_clock::now() >= until) return until_true();
-  }
-}
 
 }  // namespace
 
@@ -69,10 +47,10 @@ void SubmitThread::Loop() {
     const auto work = [&] { return queued_.load(std::memory_order_acquire) > taken; };
     if (!work() && awaiting_.load(std::memory_order_acquire)) {
       // Nothing queued, the caller waits: poll its condition, then block in its wait.
-      if (!Poll([&] { return work() || CheckAwait(false); }) && !work()) CheckAwait(true);
+      if (!PollFor(kPoll, [&] { return work() || CheckAwait(false); }) && !work()) CheckAwait(true);
       continue;
     }
-    if (!Poll([&] { return work() || awaiting_.load(std::memory_order_acquire); })) {
+    if (!PollFor(kPoll, [&] { return work() || awaiting_.load(std::memory_order_acquire); })) {
       std::unique_lock<std::mutex> lock(mutex_);
       sleeping_ = true;
       work_.wait(lock, [this] { return !queue_.empty() || stop_ || awaiting_.load(std::memory_order_relaxed); });
@@ -151,7 +129,7 @@ void SubmitThread::Rethrow() {
 void SubmitThread::WaitFor(std::uint64_t number) {
   // The frame loop waits for operations a few frames old, mostly done: poll
   // briefly, then sleep until the thread says one finished.
-  if (!Poll([&] { return finished_.load(std::memory_order_acquire) >= number; })) {
+  if (!PollFor(kPoll, [&] { return finished_.load(std::memory_order_acquire) >= number; })) {
     std::unique_lock<std::mutex> lock(mutex_);
     done_.wait(lock, [&] { return finished_.load(std::memory_order_acquire) >= number; });
   }
@@ -169,7 +147,7 @@ void SubmitThread::Await(const std::function<bool()>& done, const std::function<
     wake = sleeping_;
   }
   if (wake) work_.notify_one();
-  if (!Poll([&] { return awaited_.load(std::memory_order_acquire); })) {
+  if (!PollFor(kPoll, [&] { return awaited_.load(std::memory_order_acquire); })) {
     std::unique_lock<std::mutex> lock(mutex_);
     done_.wait(lock, [&] { return awaited_.load(std::memory_order_acquire); });
   }
