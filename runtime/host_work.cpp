@@ -71,27 +71,31 @@ class LaneCrew {
 
   unsigned lanes() const { return lanes_; }
 
-  void Run(const std::function<void(unsigned)>& body) {
+  // Lanes [0, count) (count clamped to [1, lanes()]); the helpers of the
+  // others go back to sleep without polling.
+  void Run(unsigned count, const std::function<void(unsigned)>& body) {
+    count = std::clamp(count, 1u, lanes_);
     body_ = &body;
     done_.store(0, std::memory_order_relaxed);
-    const std::uint64_t generation = generation_.fetch_add(1) + 1;  // seq_cst: publishes body_; see sleepers_
+    const std::uint64_t generation = ++loops_;
+    loop_.store(generation << 8 | count);  // seq_cst: publishes body_; see sleepers_
     if (sleepers_.load() > 0) {
       { const std::lock_guard<std::mutex> lock(mutex_); }
       wake_.notify_all();
     }
-    for (unsigned l = 0; l < lanes_; ++l)  // its own lane first, then any a helper has not taken
+    for (unsigned l = 0; l < count; ++l)  // its own lane first, then any a helper has not taken
       if (Take(l, generation)) {
         body(l);
         done_.fetch_add(1, std::memory_order_acq_rel);
       }
-    while (done_.load(std::memory_order_acquire) != lanes_) CpuPause();  // lanes running on helpers
+    while (done_.load(std::memory_order_acquire) != count) CpuPause();  // lanes running on helpers
     body_ = nullptr;
   }
 
  private:
   static constexpr unsigned kMaxLanes = 16;
   // Lane l of loop `generation`, unless someone took it (each lane's last
-  // loop is its claim, so a helper late for an earlier loop takes nothing).
+  // loop is its claim).
   bool Take(unsigned l, std::uint64_t generation) {
     std::uint64_t last = claimed_[l].load(std::memory_order_acquire);
     while (last < generation)
@@ -100,17 +104,22 @@ class LaneCrew {
   }
   void Helper(unsigned lane) {
     std::uint64_t seen = 0;
+    bool idle = true;  // not in the last loop: sleep at once, without polling
     for (;;) {
-      const auto fresh = [&] { return stop_.load() || generation_.load() != seen; };
-      if (!PollFor(poll_, fresh)) {
+      const auto fresh = [&] { return stop_.load() || loop_.load() != seen; };
+      if (!PollFor(idle ? std::chrono::microseconds(0) : poll_, fresh)) {
         std::unique_lock<std::mutex> lock(mutex_);
-        sleepers_.fetch_add(1);  // before the check (seq_cst with Run's generation: Dekker)
+        sleepers_.fetch_add(1);  // before the check (seq_cst with Run's store of loop_: Dekker)
         wake_.wait(lock, fresh);
         sleepers_.fetch_sub(1);
       }
       if (stop_.load()) return;
-      seen = generation_.load();
-      if (Take(lane, seen)) {
+      // A loop's number and lane count in one word: a helper that reads it
+      // late, after the next loop began, takes nothing (every lane of that
+      // loop was taken before it ended).
+      seen = loop_.load();
+      idle = lane >= (seen & 0xff);
+      if (!idle && Take(lane, seen >> 8)) {
         (*body_)(lane);
         done_.fetch_add(1, std::memory_order_acq_rel);
       }
@@ -120,8 +129,9 @@ class LaneCrew {
   const unsigned lanes_;
   const std::chrono::microseconds poll_;
   const std::function<void(unsigned)>* body_ = nullptr;
-  std::atomic<std::uint64_t> generation_{0};
-  std::atomic<std::uint64_t> claimed_[kMaxLanes];
+  std::uint64_t loops_ = 0;              // the caller's count of loops
+  std::atomic<std::uint64_t> loop_{0};   // the current loop: its number << 8 | its lane count
+  std::atomic<std::uint64_t> claimed_[kMaxLanes];  // each lane: the last loop that took it
   std::atomic<unsigned> done_{0};
   std::atomic<int> sleepers_{0};
   std::atomic<bool> stop_{false};
@@ -139,8 +149,6 @@ class LaneCrew {
 // helpers poll for kFramePoll after each packing, as the submit thread does:
 // with 20 us they were asleep by the next SetPalette of a frame loop that
 // waits for its frames, and the wake-up cost the frame ~9 us (session 31).
-constexpr unsigned kMaxPaletteLanes = 8;
-
 unsigned PaletteLanes() {
   const unsigned cores = std::max(std::thread::hardware_concurrency(), 1u);
   return std::min(cores, std::clamp(cores / 2, 2u, kMaxPaletteLanes));
@@ -163,10 +171,13 @@ void ForChunks(std::size_t count, std::size_t grain, const std::function<void(st
 }
 
 std::size_t PackPaletteOnPool(const float* column_major, std::size_t matrices, const Variant& variant,
-                              std::uint8_t* out, float* largest_magnitude) {
+                              std::uint8_t* out, float* largest_magnitude, unsigned max_threads) {
   static std::mutex busy;  // one Run at a time: a second caller packs alone
+  if (max_threads == 1 || matrices < 2 * kPaletteGrain)  // the crew not even started
+    return PackPaletteInto(column_major, matrices, variant, out, PackIsa::kAuto, largest_magnitude);
   LaneCrew& crew = PaletteCrew();
-  const std::size_t runs = std::min<std::size_t>(crew.lanes(), matrices / kPaletteGrain);
+  const unsigned threads = max_threads == 0 ? crew.lanes() : std::min(crew.lanes(), max_threads);
+  const std::size_t runs = std::min<std::size_t>(threads, matrices / kPaletteGrain);
   std::unique_lock<std::mutex> lock(busy, std::defer_lock);
   if (runs < 2 || !lock.try_lock())
     return PackPaletteInto(column_major, matrices, variant, out, PackIsa::kAuto, largest_magnitude);
@@ -176,7 +187,7 @@ std::size_t PackPaletteOnPool(const float* column_major, std::size_t matrices, c
   const std::size_t bytes = PaletteMatrixBytes(variant);
   std::size_t first_bad[kMaxPaletteLanes];
   float largest[kMaxPaletteLanes];
-  crew.Run([&](unsigned lane) {
+  crew.Run(static_cast<unsigned>(runs), [&](unsigned lane) {
     const std::size_t run = lane, begin = run * grain;
     if (begin >= matrices) return;
     const std::size_t end = std::min(matrices, begin + grain);

@@ -39,11 +39,15 @@ inline constexpr std::chrono::microseconds kFramePoll{500};
 // the same time packs alone. One core stores ~25-30 GB/s into page-locked
 // memory on the GPU machines' hosts, so 64 x 77 mat3x4 (236 KB) cost it 7-15
 // us a frame, about the crowd kernel's time (issue 15).
+// `max_threads` (SkinnerOptions::palette_threads): 0, the whole crew; 1, the
+// calling thread alone (the crew is not started); else at most that many.
 // Returns what PackPaletteInto does for the whole palette: the first
 // non-finite matrix (or `matrices`), and the largest |element|.
 std::size_t PackPaletteOnPool(const float* column_major, std::size_t matrices, const Variant& variant,
-                              std::uint8_t* out, float* largest_magnitude);
+                              std::uint8_t* out, float* largest_magnitude, unsigned max_threads = 0);
 inline constexpr std::size_t kPaletteGrain = 512;
+// The palette crew's most threads (SkinnerOptions' kMaxPaletteThreads).
+inline constexpr unsigned kMaxPaletteLanes = 8;
 
 // Whether every 32-bit word of `bytes` is a finite float (exponent bits not all set).
 bool AllFinite(std::span<const std::uint8_t> bytes);

@@ -146,6 +146,7 @@ std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int 
 }
 
 static_assert(kDefaultPaletteBuffers == kPaletteSlots, "the Skinner's default palette ring is the runner's");
+static_assert(kMaxPaletteThreads == static_cast<int>(kMaxPaletteLanes), "palette_threads' range is the palette crew's");
 
 Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const std::vector<KernelSource>& kernels,
                            const SkinnerSetup& setup) {
@@ -250,6 +251,10 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
                                               std::to_string(options.palette_buffers) + ", expected " +
                                               std::to_string(kMinPaletteBuffers) + " to " +
                                               std::to_string(kMaxPaletteBuffers));
+  if (options.palette_threads < 0 || options.palette_threads > kMaxPaletteThreads)
+    FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::palette_threads is " +
+                                              std::to_string(options.palette_threads) + ", expected 0 (skintune's choice) to " +
+                                              std::to_string(kMaxPaletteThreads));
   DeviceState& state = **state_ptr;
   const MeshBatch scene = SceneOf(call, views, count, batch, options);
   const SkinnedMesh& mesh = scene.mesh;
@@ -289,6 +294,7 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
   for (std::size_t p = 0; p < im.order.size() && im.identity_order; ++p) im.identity_order = im.order[p] == p;
   im.output_bound = OutputBound(mesh);
   im.backend = state.backend->make_skinner(state, packed, kernels, {options.instances, options.palette_buffers});
+  im.palette_threads = static_cast<unsigned>(options.palette_threads);
   if (internal::TimingLogPath()) im.set_palette_times = std::make_unique<internal::SetPaletteTimes>();
   return impl;
 }
@@ -366,7 +372,8 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
       FailWith(ErrorCode::kDeviceError, "Skinner::SetPalette: the palette staging has " + std::to_string(staging.size()) +
                                             " bytes, expected " + std::to_string(joints * PaletteMatrixBytes(im.variant)));
     float magnitude = 0.0f;
-    const std::size_t bad = PackPaletteOnPool(matrices, joints, im.variant, staging.data(), &magnitude);
+    const std::size_t bad =
+        PackPaletteOnPool(matrices, joints, im.variant, staging.data(), &magnitude, im.palette_threads);
     const Clock::time_point t2 = times ? Clock::now() : Clock::time_point{};
     for (std::size_t i = bad * 16; i < joints * 16 && i < (bad + 1) * 16; ++i) {
       if (std::isfinite(matrices[i])) continue;

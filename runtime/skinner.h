@@ -163,6 +163,7 @@ struct Skinner::Impl {
   double output_bound = 0.0;
   float palette_magnitude = 0.0f;
   float skinned_magnitude = 0.0f;
+  unsigned palette_threads = 0;  // SkinnerOptions::palette_threads (0: all the palette crew's)
   std::unique_ptr<internal::SetPaletteTimes> set_palette_times;  // null while SKINTUNE_TIMING_LOG is off
   std::unique_ptr<internal::SkinnerBackend> backend;  // declared last: destroyed before `device`
 };

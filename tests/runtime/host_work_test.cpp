@@ -2,6 +2,7 @@
 // copy give exactly what their serial forms give.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -191,9 +192,9 @@ TEST(HostWork, PackingOnThePoolGivesTheOnePassBytesFirstBadMatrixAndMagnitude) {
 }
 
 // The palette's threads (each its own run, the caller any run left) under
-// the frame loop's conditions: thousands of packings back to back, a packing
-// after the helpers have gone to sleep, and two callers at once (the second
-// packs alone); every result PackPaletteInto's.
+// the frame loop's conditions: thousands of packings back to back, on 1 to 8
+// threads in turn, a packing after the helpers have gone to sleep, and two
+// callers at once (the second packs alone); every result PackPaletteInto's.
 TEST(HostWork, PackingOnThePoolStaysExactBackToBackAfterASleepAndFromTwoThreads) {
   Variant variant;
   variant.palette = PaletteFormat::kMat3x4;
@@ -216,6 +217,14 @@ TEST(HostWork, PackingOnThePoolStaysExactBackToBackAfterASleepAndFromTwoThreads)
   int wrong = 0;
   for (int f = 0; f < 2000; ++f) wrong += !pack_and_check(static_cast<std::size_t>(f) % 3, out);
   EXPECT_EQ(wrong, 0);
+  // At most n threads (SkinnerOptions::palette_threads), in any order of n.
+  for (const unsigned n : {1u, 2u, 8u, 3u, 0u, 5u, 1u, 4u})
+    for (std::size_t pose = 0; pose < 3; ++pose) {
+      float largest = 0.0f;
+      std::fill(out.begin(), out.end(), std::uint8_t{0xee});
+      EXPECT_EQ(PackPaletteOnPool(poses[pose].data(), kMatrices, variant, out.data(), &largest, n), kMatrices);
+      EXPECT_TRUE(out == expected[pose]) << n << " threads, pose " << pose;
+    }
   std::this_thread::sleep_for(std::chrono::milliseconds(5));  // past the helpers' polling: asleep
   EXPECT_TRUE(pack_and_check(1, out));
   std::atomic<int> wrong_elsewhere{0};

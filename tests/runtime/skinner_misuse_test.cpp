@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <limits>
 #include <string>
 #include <vector>
@@ -169,6 +170,40 @@ TEST_F(Misuse, PaletteBuffersOutOfRange) {
     ExpectError(CreateError(view_.mesh, options), ErrorCode::kInvalidArgument,
                 "SkinnerOptions::palette_buffers is " + std::to_string(buffers) + ", expected 2 to 16");
   }
+}
+
+TEST_F(Misuse, PaletteThreadsOutOfRange) {
+  SkinnerOptions options;
+  for (const int threads : {-1, kMaxPaletteThreads + 1}) {
+    options.palette_threads = threads;
+    ExpectError(CreateError(view_.mesh, options), ErrorCode::kInvalidArgument,
+                "SkinnerOptions::palette_threads is " + std::to_string(threads) +
+                    ", expected 0 (skintune's choice) to " + std::to_string(kMaxPaletteThreads));
+  }
+}
+
+// A crowd palette of 16 x 77 matrices (past the size the palette threads
+// take) packed by the calling thread alone, by 2 threads and by skintune's
+// choice: the same positions, byte for byte.
+TEST_F(Misuse, PaletteThreadsChangeNothingButTheTime) {
+  std::vector<float> palettes;
+  for (int k = 0; k < 16; ++k) {
+    const std::vector<float> p = Floats(Asset().PaletteAt(0, 0.05 * k));
+    palettes.insert(palettes.end(), p.begin(), p.end());
+  }
+  std::vector<std::vector<float>> outs;
+  for (const int threads : {0, 1, 2, kMaxPaletteThreads}) {
+    SkinnerOptions options;
+    options.instances = 16;
+    options.palette_threads = threads;
+    Skinner skinner = Made(options);
+    ASSERT_TRUE(skinner.SetPalette(palettes.data(), palettes.size()).ok()) << threads;
+    ASSERT_TRUE(skinner.Skin().ok());
+    outs.emplace_back(16 * skinner.vertex_count() * 3);
+    ASSERT_TRUE(skinner.ReadPositions(outs.back().data(), outs.back().size()).ok());
+  }
+  for (std::size_t i = 1; i < outs.size(); ++i)
+    EXPECT_EQ(std::memcmp(outs[i].data(), outs[0].data(), outs[0].size() * sizeof(float)), 0) << i;
 }
 
 TEST_F(Misuse, WrongPaletteSizeForKInstances) {
