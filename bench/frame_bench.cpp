@@ -30,11 +30,13 @@
 //
 //   skintune_bench_frame [--device PATTERN] [--variant KEY] [--db FILE]
 //                        [--instances K] [--scale S] [--frames F] [--poses P] [--submit-thread]
-//                        [--palette-buffers N]
+//                        [--palette-buffers N] [--palette-threads T]
 //                        [google benchmark flags]
 //
 // --palette-buffers N gives every Skinner a ring of N palette buffers
-// (SkinnerOptions::palette_buffers, default 3).
+// (SkinnerOptions::palette_buffers, default 3); --palette-threads T lets at
+// most T threads pack its palettes (SkinnerOptions::palette_threads, default
+// 0: skintune's choice).
 // --submit-thread opens the device with DeviceOptions::submit_thread (the
 // driver calls of SetPalette's upload and of Skin on a thread of its own).
 //
@@ -73,6 +75,7 @@ struct Options {
   int poses = 2;
   bool submit_thread = false;
   int palette_buffers = kDefaultPaletteBuffers;
+  int palette_threads = 0;
 };
 Options options;
 
@@ -138,6 +141,7 @@ struct Scene {
     crowd_options.variant = options.variant;
     crowd_options.instances = options.instances;
     crowd_options.palette_buffers = options.palette_buffers;
+    crowd_options.palette_threads = options.palette_threads;
     c->skinner = Must(Skinner::Create(device, db, c->instance.mesh(), crowd_options), "instanced Skinner");
     const double duration = std::max(c->instance.animation_duration(0), 1e-3);
     std::vector<float> palette;
@@ -160,6 +164,7 @@ struct Scene {
     SkinnerOptions one;
     one.variant = options.variant;
     one.palette_buffers = options.palette_buffers;
+    one.palette_threads = options.palette_threads;
     o->skinner = Must(Skinner::Create(device, db, o->whole.mesh(), one), "one-mesh Skinner");
     std::vector<float> palette;
     for (int f = 0; f < options.poses; ++f) {
@@ -178,6 +183,7 @@ struct Scene {
     SkinnerOptions one;
     one.variant = options.variant;
     one.palette_buffers = options.palette_buffers;
+    one.palette_threads = options.palette_threads;
     const std::vector<float> palette(c.palettes[0].begin(), c.palettes[0].begin() + c.palettes[0].size() / k);
     for (std::size_t i = 0; i < k; ++i) {
       skinners_.push_back(Must(Skinner::Create(device, db, c.instance.mesh(), one), "Skinner"));
@@ -380,6 +386,7 @@ void ParseOptions(int& argc, char** argv) {
     else if (arg == "--poses" && has_value) options.poses = static_cast<int>(number(2));
     else if (arg == "--submit-thread") options.submit_thread = true;
     else if (arg == "--palette-buffers" && has_value) options.palette_buffers = static_cast<int>(number(1));
+    else if (arg == "--palette-threads" && has_value) options.palette_threads = static_cast<int>(number(0));
     else argv[kept++] = argv[i];
   }
   argc = kept;
