@@ -416,9 +416,10 @@ struct SkinnerOptions {
   // thread is started for this Skinner (a job system that owns the cores);
   // 2 to kMaxPaletteThreads: at most that many, never more than skintune's
   // choice. Else kInvalidArgument. Fewer threads only cost time: the bytes
-  // uploaded are the same. On the H100 machine 8 threads packed 64 x 77
-  // matrices in 6.5-7 us inside the frame loop, 4 in 7.3-10.2, one in 10-15
-  // (docs/RUNTIME.md "The frame loop").
+  // uploaded are the same. On the H100 machine's 16-core host, 64 x 77
+  // matrices packed inside a pipelined frame loop in 6.0-6.7 us with 8
+  // threads, 10.9 with 4, 17.7 with 2 and 14.4 with 1 (docs/RUNTIME.md
+  // "The frame loop").
   int palette_threads = 0;
 };
 
