@@ -78,8 +78,13 @@ class LaneCrew {
     body_ = &body;
     done_.store(0, std::memory_order_relaxed);
     const std::uint64_t generation = ++loops_;
-    loop_.store(generation << 8 | count);  // seq_cst: publishes body_; see sleepers_
-    if (sleepers_.load() > 0) {
+    loop_.store(generation << 8 | count);  // seq_cst: publishes body_; see asleep_
+    // Woken only when a helper of this loop sleeps: the helpers of lanes it
+    // leaves out sleep for good, and waking them every loop would cost each
+    // SetPalette a system call.
+    bool wake = false;
+    for (unsigned l = 1; l < count && !wake; ++l) wake = asleep_[l].load();
+    if (wake) {
       { const std::lock_guard<std::mutex> lock(mutex_); }
       wake_.notify_all();
     }
@@ -109,9 +114,9 @@ class LaneCrew {
       const auto fresh = [&] { return stop_.load() || loop_.load() != seen; };
       if (!PollFor(idle ? std::chrono::microseconds(0) : poll_, fresh)) {
         std::unique_lock<std::mutex> lock(mutex_);
-        sleepers_.fetch_add(1);  // before the check (seq_cst with Run's store of loop_: Dekker)
+        asleep_[lane].store(true);  // before the check (seq_cst with Run's store of loop_: Dekker)
         wake_.wait(lock, fresh);
-        sleepers_.fetch_sub(1);
+        asleep_[lane].store(false);
       }
       if (stop_.load()) return;
       // A loop's number and lane count in one word: a helper that reads it
@@ -133,7 +138,7 @@ class LaneCrew {
   std::atomic<std::uint64_t> loop_{0};   // the current loop: its number << 8 | its lane count
   std::atomic<std::uint64_t> claimed_[kMaxLanes];  // each lane: the last loop that took it
   std::atomic<unsigned> done_{0};
-  std::atomic<int> sleepers_{0};
+  std::atomic<bool> asleep_[kMaxLanes] = {};  // each helper's: asleep on wake_ (or about to be)
   std::atomic<bool> stop_{false};
   std::mutex mutex_;
   std::condition_variable wake_;
