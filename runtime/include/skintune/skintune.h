@@ -417,9 +417,9 @@ struct SkinnerOptions {
   // 2 to kMaxPaletteThreads: at most that many, never more than skintune's
   // choice. Else kInvalidArgument. Fewer threads only cost time: the bytes
   // uploaded are the same. On the H100 machine's 16-core host, 64 x 77
-  // matrices packed inside a pipelined frame loop in 6.0-6.7 us with 8
-  // threads, 10.9 with 4, 17.7 with 2 and 14.4 with 1 (docs/RUNTIME.md
-  // "The frame loop").
+  // matrices packed inside a pipelined frame loop in 6-7.5 us with 8
+  // threads, 7.3-10.9 with 4, 10.1 with 2 and 14.2-14.4 with 1
+  // (docs/RUNTIME.md "The frame loop").
   int palette_threads = 0;
 };
 
