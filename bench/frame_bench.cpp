@@ -45,6 +45,8 @@
 // OpenBest); --variant forces one variant for every Skinner (else --db's
 // winner, else the built-in default).
 #include <benchmark/benchmark.h>
+
+#include <CLI/CLI.hpp>
 #include <skintune/skintune.h>
 
 #include <algorithm>
@@ -365,31 +367,31 @@ void RegisterAll() {
     benchmark::RegisterBenchmark(b.name, b.run)->UseManualTime()->Unit(benchmark::kMicrosecond);
 }
 
-// Removes this harness's options from argv (Google Benchmark rejects them).
+// This harness's options (CLI11); whatever it does not know is left in argv
+// for Google Benchmark, which rejects what it does not know either.
 void ParseOptions(int& argc, char** argv) {
-  int kept = 1;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    const bool has_value = i + 1 < argc;
-    const auto number = [&](double low) {
-      char* end = nullptr;
-      const double v = std::strtod(argv[++i], &end);
-      if (!end || *end || !(v >= low)) Die(arg + " " + argv[i] + ": expected a number of at least " + std::to_string(low));
-      return v;
-    };
-    if (arg == "--device" && has_value) options.device = argv[++i];
-    else if (arg == "--variant" && has_value) options.variant = argv[++i];
-    else if (arg == "--db" && has_value) options.db = argv[++i];
-    else if (arg == "--instances" && has_value) options.instances = static_cast<int>(number(1));
-    else if (arg == "--scale" && has_value) options.scale = number(1e-6);
-    else if (arg == "--frames" && has_value) options.frames = static_cast<int>(number(1));
-    else if (arg == "--poses" && has_value) options.poses = static_cast<int>(number(2));
-    else if (arg == "--submit-thread") options.submit_thread = true;
-    else if (arg == "--palette-buffers" && has_value) options.palette_buffers = static_cast<int>(number(1));
-    else if (arg == "--palette-threads" && has_value) options.palette_threads = static_cast<int>(number(0));
-    else argv[kept++] = argv[i];
+  CLI::App app{"skintune_bench_frame: frames of SetPalette, Skin and Finish through the public API"};
+  app.allow_extras();
+  app.add_option("--device", options.device, "device pattern (Device::Open)");
+  app.add_option("--variant", options.variant, "force a variant key");
+  app.add_option("--db", options.db, "winners database file");
+  app.add_option("--instances", options.instances, "instances in the crowd")->check(CLI::Range(1, 1 << 20));
+  app.add_option("--scale", options.scale, "vertex-count scale of the meshes")->check(CLI::Range(1e-6, 1e6));
+  app.add_option("--frames", options.frames, "frames per case")->check(CLI::Range(1, 1 << 24));
+  app.add_option("--poses", options.poses, "precomputed poses the frames rotate through")->check(CLI::Range(2, 1 << 16));
+  app.add_flag("--submit-thread", options.submit_thread, "DeviceOptions::submit_thread");
+  app.add_option("--palette-buffers", options.palette_buffers, "SkinnerOptions::palette_buffers");
+  app.add_option("--palette-threads", options.palette_threads, "SkinnerOptions::palette_threads");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    std::exit(app.exit(e));
   }
-  argc = kept;
+  // The extras, in order, after the program's name (their strings outlive argv's use).
+  static std::vector<std::string> rest;
+  rest = app.remaining();
+  argc = 1;
+  for (std::string& r : rest) argv[argc++] = r.data();
 }
 
 void Summary() {
