@@ -4,6 +4,8 @@
 // for the bucketed launches. Plus: the poisoned output catches a kernel that
 // skips vertices, the guard one that writes past the end, and a build error
 // carries its log.
+#define CL_TARGET_OPENCL_VERSION 120
+#include <CL/cl.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -223,6 +225,24 @@ TEST(OpenClRunner, RejectsAPaletteOfTheWrongSizeAndAMissingDevice) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("OpenCL setup"), std::string::npos) << e.what();
   }
+}
+
+// The runner's own queue, which the Skinner's frames use, has no profiling
+// (on NVIDIA a launch returning an event costs ~10.5 us of host time on a
+// profiling queue, ~4.9 on one without: docs/PERFORMANCE.md, session 32),
+// and a verification run still has each launch timed by the device, on a
+// profiling queue of its own: a run on the frames' queue would read 0 ms.
+TEST(OpenClRunner, TheFramesQueueHasNoProfilingAndARunStillTimesEachLaunch) {
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  cl_command_queue_properties properties = 0;
+  ASSERT_EQ(clGetCommandQueueInfo(static_cast<cl_command_queue>(runner->queue()), CL_QUEUE_PROPERTIES,
+                                  sizeof properties, &properties, nullptr),
+            CL_SUCCESS);
+  EXPECT_EQ(properties & CL_QUEUE_PROFILING_ENABLE, 0u);
+  ExpectRunMatchesGold(*runner, ParseVariantKey("opencl.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64"),
+                       "cesium", LaunchTimes::kPositive);
 }
 
 // ---------------------------------------------------------------- instances
