@@ -15,6 +15,9 @@
 //
 //      skintune_bench_cpu [--dataset=KEY] [--repeat=N] [--pocl=default|none|KEY[,KEY...]]
 //
+//    (CLI11: --opt=value or --opt value; --help prints the usage. The
+//    last of an option given twice counts.)
+//
 // 2. Any --benchmark_* flag runs the Google Benchmark suite instead: the
 //    paper's datasets (configs/paper.json: 25k/100k/400k/1600k vertices x
 //    1..4 influences, 77 bones, bone locality) through the serial loop, the
@@ -33,6 +36,8 @@
 //    256 MiB buffers.
 #include <benchmark/benchmark.h>
 
+#include <CLI/CLI.hpp>
+
 #include <cstring>
 #include <map>
 #include <memory>
@@ -40,10 +45,12 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
+#include <functional>
 #include <iostream>
 #include <optional>
 #include <sstream>
-#include <string_view>
+#include <string>
 
 #include "generator/constraints.h"
 #include "reference/error.h"
@@ -328,53 +335,92 @@ int Compare(const CompareOptions& options) {
   return 0;
 }
 
-// Reads --dataset, --repeat and --pocl (removing them from argv); true when
-// a --benchmark_* flag asks for the Google Benchmark suite.
-bool ParseArguments(int& argc, char** argv, CompareOptions& options) {
-  bool gbench = false;
-  int kept = 1;
-  for (int i = 1; i < argc; ++i) {
-    const std::string_view a = argv[i];
-    const auto value = [&](std::string_view flag) -> std::optional<std::string> {
-      if (a.rfind(flag, 0) != 0 || a.size() <= flag.size() || a[flag.size()] != '=') return std::nullopt;
-      return std::string(a.substr(flag.size() + 1));
-    };
-    if (auto v = value("--dataset")) {
-      ParseDatasetKey(*v);  // throws Error naming a bad key
-      options.dataset = *v;
-    } else if (auto r = value("--repeat")) {
-      std::size_t used = 0;
-      int n = 0;
-      try {
-        n = std::stoi(*r, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used != r->size() || n < 1 || n > 100) throw Error("--repeat=" + *r + ": expected a whole number 1..100");
-      options.repeat = n;
-    } else if (auto p = value("--pocl")) {
-      options.pocl.clear();
-      if (*p == "none") continue;
-      if (*p == "default") {
-        options.pocl.assign(std::begin(kPoclVariants), std::end(kPoclVariants));
-        continue;
-      }
-      std::stringstream keys(*p);
-      for (std::string key; std::getline(keys, key, ',');) {
-        const Variant parsed = ParseVariantKey(key);  // throws Error naming a bad token
-        if (parsed.lang != Lang::kOpenCl) throw Error("--pocl: '" + key + "' is not an opencl variant");
-        options.pocl.push_back(key);
-      }
-    } else {
-      if (a.rfind("--benchmark_", 0) != 0)
-        throw Error(std::string("unknown argument '") + argv[i] +
-                    "' (expected --dataset=KEY, --repeat=N, --pocl=default|none|KEY[,KEY...] or --benchmark_* flags)");
-      gbench = true;
-      argv[kept++] = argv[i];
-    }
+// The --pocl list: default (PoCL's set above), none, or opencl variant keys
+// separated by commas. Throws Error naming what is wrong.
+std::vector<std::string> PoclList(const std::string& value) {
+  if (value == "none") return {};
+  if (value == "default") return {std::begin(kPoclVariants), std::end(kPoclVariants)};
+  if (value.empty()) throw Error("expected default, none or opencl variant keys separated by commas");
+  std::vector<std::string> list;
+  std::stringstream keys(value);
+  for (std::string key; std::getline(keys, key, ',');) {
+    const Variant parsed = ParseVariantKey(key);  // throws Error naming a bad token
+    if (parsed.lang != Lang::kOpenCl) throw Error("'" + key + "' is not an opencl variant");
+    list.push_back(key);
   }
-  argc = kept;
-  return gbench;
+  return list;
+}
+
+// A CLI11 check from a function that throws on a bad value: its message
+// becomes the option's error ("--dataset: dataset '12q': ...").
+CLI::Validator Throwing(const char* name, std::function<void(const std::string&)> check) {
+  return CLI::Validator(
+      [check](std::string& value) {
+        try {
+          check(value);
+        } catch (const std::exception& e) {
+          return std::string(e.what());
+        }
+        return std::string();
+      },
+      "", name);
+}
+
+// CLI11 2.1 reads integers with strtoll's base 0 ("010" is 8, "0x10" 16):
+// --repeat is decimal digits, leading zeros dropped before CLI11 converts it.
+const CLI::Validator kDecimal(
+    [](std::string& value) {
+      if (value.empty() || value.find_first_not_of("0123456789") != std::string::npos)
+        return "Value " + value + " is not a whole number";
+      value.erase(0, std::min(value.find_first_not_of('0'), value.size() - 1));
+      return std::string();
+    },
+    "", "DECIMAL");
+
+// This harness's options (CLI11); what it does not know is left in argv for
+// Google Benchmark, and must be a --benchmark_* flag, which asks for the
+// Google Benchmark suite instead of the comparison (true). --help prints the
+// usage and exits 0; a bad option prints one line and exits 2.
+bool ParseArguments(int& argc, char** argv, CompareOptions& options) {
+  const auto fail = [](const std::string& message) {
+    std::fprintf(stderr, "skintune_bench_cpu: error: %s\n", message.c_str());
+    std::exit(2);
+  };
+  CLI::App app{"skintune_bench_cpu: the cpu device's formats and PoCL's variants at one dataset, measured as "
+               "skintune tune does (the comparison), or with any --benchmark_* flag the Google Benchmark suite"};
+  app.allow_extras();
+  app.footer("Any --benchmark_* flag (e.g. --benchmark_filter=REGEX) runs the Google Benchmark suite instead of the "
+             "comparison; --dataset, --repeat and --pocl apply to the comparison only.");
+  // Given twice, the last one counts (as before CLI11).
+  app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+  app.add_option("--dataset", options.dataset, "the comparison's dataset key (<vertices>-b<influences>..., e.g. 100k-b2)")
+      ->capture_default_str()
+      ->check(Throwing("DATASET", [](const std::string& key) { ParseDatasetKey(key); }));
+  app.add_option("--repeat", options.repeat, "times the list of variants is measured (medians are printed)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100))
+      ->transform(kDecimal);
+  std::string pocl = "default";
+  app.add_option("--pocl", pocl, "PoCL's variants: default, none or opencl variant keys separated by commas")
+      ->capture_default_str()
+      ->check(Throwing("POCL", [](const std::string& value) { PoclList(value); }));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) std::exit(app.exit(e));  // --help
+    fail(e.what());
+  }
+  options.pocl = PoclList(pocl);
+  // The extras, in order, after the program's name (their strings outlive argv's use).
+  static std::vector<std::string> rest;
+  rest = app.remaining();
+  for (const std::string& r : rest)
+    if (r.rfind("--benchmark_", 0) != 0)
+      fail("unknown argument '" + r +
+           "' (expected --dataset=KEY, --repeat=N, --pocl=default|none|KEY[,KEY...] or --benchmark_* flags; see --help)");
+  argc = 1;
+  for (std::string& r : rest) argv[argc++] = r.data();
+  return !rest.empty();
 }
 
 }  // namespace
@@ -382,14 +428,7 @@ bool ParseArguments(int& argc, char** argv, CompareOptions& options) {
 
 int main(int argc, char** argv) {
   skintune::internal::CompareOptions options;
-  options.pocl.assign(std::begin(skintune::internal::kPoclVariants), std::end(skintune::internal::kPoclVariants));
-  bool gbench = false;
-  try {
-    gbench = skintune::internal::ParseArguments(argc, argv, options);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "skintune_bench_cpu: error: %s\n", e.what());
-    return 2;
-  }
+  const bool gbench = skintune::internal::ParseArguments(argc, argv, options);
   if (!gbench) {
     try {
       return skintune::internal::Compare(options);
