@@ -45,6 +45,7 @@
 #include <thread>
 #include <vector>
 
+#include "gl_probe_shaders.h"
 #include "runtime/backends/gl/gl_context.h"
 
 namespace {
@@ -54,10 +55,8 @@ constexpr std::size_t kPaletteBytes = 236544;
 constexpr std::size_t kPaletteVec4 = kPaletteBytes / 16;
 constexpr int kSlots = 3;
 
-void Check(const std::string& what) {
-  const GLenum error = glGetError();
-  if (error != GL_NO_ERROR) throw std::runtime_error(what + ": GL error " + std::to_string(error));
-}
+using skintune::bench::Check;
+using skintune::bench::Link;
 
 const char* kShader = R"(#version 430
 layout(local_size_x = 256) in;
@@ -91,29 +90,10 @@ struct Gl {
   EGLContext main = EGL_NO_CONTEXT, second = EGL_NO_CONTEXT;
 };
 
-GLuint Program(const char* text) {
-  const GLuint shader = glCreateShader(GL_COMPUTE_SHADER);
-  glShaderSource(shader, 1, &text, nullptr);
-  glCompileShader(shader);
-  GLint ok = 0;
-  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    glGetShaderInfoLog(shader, sizeof log, nullptr, log);
-    throw std::runtime_error(std::string("shader: ") + log);
-  }
-  const GLuint program = glCreateProgram();
-  glAttachShader(program, shader);
-  glLinkProgram(program);
-  glGetProgramiv(program, GL_LINK_STATUS, &ok);
-  if (!ok) throw std::runtime_error("link failed");
-  return program;
-}
-
 void Setup(Gl& gl, std::size_t mib) {
   gl.n = mib * 1024 * 1024 / 32;  // read 16 + write 16 bytes an element
-  gl.program = Program(kShader);
-  gl.copy = Program(kCopyShader);
+  gl.program = Link(GL_COMPUTE_SHADER, kShader);
+  gl.copy = Link(GL_COMPUTE_SHADER, kCopyShader);
   std::vector<float> input(gl.n * 4);
   for (std::size_t i = 0; i < gl.n; ++i)
     for (int c = 0; c < 4; ++c) input[4 * i + c] = static_cast<float>(i % 1024);

@@ -37,51 +37,15 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "gl_probe_shaders.h"
 #include "runtime/backends/gl/gl_context.h"
 
 namespace {
 
 using skintune::internal::GlContext;
 
-void Check(const std::string& what) {
-  const GLenum error = glGetError();
-  if (error != GL_NO_ERROR) throw std::runtime_error(what + ": GL error 0x" + std::to_string(error));
-}
-
-GLuint Compile(GLenum stage, const std::string& text) {
-  const GLuint shader = glCreateShader(stage);
-  const char* source = text.c_str();
-  glShaderSource(shader, 1, &source, nullptr);
-  glCompileShader(shader);
-  GLint ok = 0;
-  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    glGetShaderInfoLog(shader, sizeof log, nullptr, log);
-    throw std::runtime_error(std::string("shader: ") + log);
-  }
-  return shader;
-}
-
-GLuint Link(GLenum stage, const std::string& text, bool capture) {
-  const GLuint program = glCreateProgram();
-  const GLuint shader = Compile(stage, text);
-  glAttachShader(program, shader);
-  if (capture) {
-    const char* varyings[] = {"captured"};
-    glTransformFeedbackVaryings(program, 1, varyings, GL_INTERLEAVED_ATTRIBS);
-  }
-  glLinkProgram(program);
-  glDeleteShader(shader);
-  GLint ok = 0;
-  glGetProgramiv(program, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    glGetProgramInfoLog(program, sizeof log, nullptr, log);
-    throw std::runtime_error(std::string("link: ") + log);
-  }
-  return program;
-}
+using skintune::bench::Check;
+using skintune::bench::Link;
 
 GLuint Buffer(std::size_t bytes, const void* data) {
   GLuint buffer = 0;
