@@ -16,11 +16,24 @@
 //   flush, marker: clFlush after one enqueue; clEnqueueMarkerWithWaitList with an event out;
 //   write/236544: clEnqueueWriteBuffer of 236 544 bytes (64 palettes of 77 mat3x4) from
 //     page-locked memory, non-blocking, with an event out.
+// Device time (profiling events), not host time:
+//   upload/<write-mapped|copy-buffer|write-pageable>/queues:<1|2|4>: 64 uploads of the
+//     236 544-byte palette back to back, each split over 1, 2 or 4 in-order upload queues;
+//     the time is the span from the first START to the last END over 64: what one upload
+//     costs where uploads follow each other (write-mapped: from the mapped pointer of a
+//     CL_MEM_ALLOC_HOST_PTR buffer, the runtime's way; copy-buffer: clEnqueueCopyBuffer
+//     from that buffer, which stays mapped, so formally undefined (OpenCL 1.2 5.4.2.1):
+//     for comparison only; write-pageable: from ordinary memory);
+//   frame/<how>/queues:<n>: the crowd frame's shape, 64 frames: each a kernel streaming
+//     48 MiB that reads the whole palette, on one queue, waiting for its frame's upload on
+//     the upload queues; frame n + 1's upload may run beside kernel n. Span over 64 per
+//     frame, against frame/kernel-only (the kernels alone).
 #define CL_TARGET_OPENCL_VERSION 120
 #include <CL/cl.h>
 #include <benchmark/benchmark.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -49,6 +62,12 @@ struct Device {
   std::vector<cl_mem> buffers;  // 12, one float each
   cl_mem palette = nullptr, staging = nullptr;
   void* staging_host = nullptr;
+  std::vector<unsigned char> pageable;
+  cl_command_queue timed = nullptr;        // profiling: the frame kernels
+  cl_command_queue timed_uploads[4] = {};  // profiling: the uploads
+  cl_kernel stream = nullptr;
+  cl_mem in = nullptr, out = nullptr;
+  std::size_t stream_items = 0;
   std::string name;
 };
 
@@ -63,6 +82,10 @@ __kernel void twelve(__global float* a0, __global float* a1, __global float* a2,
                      __global float* a4, __global float* a5, __global float* a6, __global float* a7,
                      __global float* a8, __global float* a9, __global float* a10, __global float* a11) {
   if (get_global_id(0) > 100000) a0[0] = a1[0] + a2[0] + a3[0] + a4[0] + a5[0] + a6[0] + a7[0] + a8[0] + a9[0] + a10[0] + a11[0];
+}
+__kernel void stream(__global const float4* a, __global float4* b, __global const float4* p, uint n) {
+  uint i = get_global_id(0);
+  if (i < n) b[i] = a[i] + p[i % 14784u];
 }
 )";
 
@@ -117,6 +140,25 @@ bool Open(const std::string& platform_substring) {
   Check(err, "clCreateBuffer staging");
   d.staging_host = clEnqueueMapBuffer(d.plain, d.staging, CL_TRUE, CL_MAP_WRITE, 0, kPalette, 0, nullptr, nullptr, &err);
   Check(err, "clEnqueueMapBuffer staging");
+  d.pageable.assign(kPalette, 0);
+  d.timed = clCreateCommandQueue(d.context, d.device, CL_QUEUE_PROFILING_ENABLE, &err);
+  Check(err, "clCreateCommandQueue (timed)");
+  for (cl_command_queue& q : d.timed_uploads) {
+    q = clCreateCommandQueue(d.context, d.device, CL_QUEUE_PROFILING_ENABLE, &err);
+    Check(err, "clCreateCommandQueue (timed uploads)");
+  }
+  d.stream = clCreateKernel(program, "stream", &err);
+  Check(err, "clCreateKernel stream");
+  d.stream_items = std::size_t{48} << 20 >> 5;  // 48 MiB read + written, 16 + 16 bytes an item
+  d.in = clCreateBuffer(d.context, CL_MEM_READ_ONLY, d.stream_items * 16, nullptr, &err);
+  Check(err, "clCreateBuffer in");
+  d.out = clCreateBuffer(d.context, CL_MEM_WRITE_ONLY, d.stream_items * 16, nullptr, &err);
+  Check(err, "clCreateBuffer out");
+  const cl_uint items = static_cast<cl_uint>(d.stream_items);
+  Check(clSetKernelArg(d.stream, 0, sizeof(cl_mem), &d.in), "clSetKernelArg");
+  Check(clSetKernelArg(d.stream, 1, sizeof(cl_mem), &d.out), "clSetKernelArg");
+  Check(clSetKernelArg(d.stream, 2, sizeof(cl_mem), &d.palette), "clSetKernelArg");
+  Check(clSetKernelArg(d.stream, 3, sizeof items, &items), "clSetKernelArg");
   return true;
 }
 
@@ -209,6 +251,82 @@ void Write(benchmark::State& state) {
   Check(clFinish(d.uploads), "clFinish");
 }
 
+enum class How { kWriteMapped, kCopyBuffer, kWritePageable };
+
+// One upload of the palette split over `queues` upload queues; its events into `events`.
+void Upload(How how, int queues, std::vector<cl_event>& events) {
+  Device& d = TheDevice();
+  constexpr std::size_t kPalette = 236544;
+  const std::size_t part = kPalette / static_cast<std::size_t>(queues);
+  for (int q = 0; q < queues; ++q) {
+    const std::size_t at = part * static_cast<std::size_t>(q);
+    cl_event e = nullptr;
+    const cl_command_queue queue = d.timed_uploads[q];
+    if (how == How::kCopyBuffer) {
+      Check(clEnqueueCopyBuffer(queue, d.staging, d.palette, at, at, part, 0, nullptr, &e), "clEnqueueCopyBuffer");
+    } else {
+      const unsigned char* from = how == How::kWriteMapped ? static_cast<const unsigned char*>(d.staging_host)
+                                                           : d.pageable.data();
+      Check(clEnqueueWriteBuffer(queue, d.palette, CL_FALSE, at, part, from + at, 0, nullptr, &e), "clEnqueueWriteBuffer");
+    }
+    Check(clFlush(queue), "clFlush");
+    events.push_back(e);
+  }
+}
+
+cl_ulong Profile(cl_event e, cl_profiling_info what) {
+  cl_ulong t = 0;
+  Check(clGetEventProfilingInfo(e, what, sizeof t, &t, nullptr), "clGetEventProfilingInfo");
+  return t;
+}
+
+// The span from the earliest START to the latest END of `events`, seconds; releases them.
+double Span(std::vector<cl_event>& events) {
+  cl_ulong start = ~cl_ulong{0}, end = 0;
+  for (cl_event e : events) {
+    start = std::min(start, Profile(e, CL_PROFILING_COMMAND_START));
+    end = std::max(end, Profile(e, CL_PROFILING_COMMAND_END));
+    clReleaseEvent(e);
+  }
+  events.clear();
+  return end > start ? static_cast<double>(end - start) * 1e-9 : 0.0;
+}
+
+constexpr int kBurst = 64;
+
+void Uploads(benchmark::State& state, How how, int queues) {
+  Device& d = TheDevice();
+  std::vector<cl_event> events;
+  for (auto _ : state) {
+    for (int i = 0; i < kBurst; ++i) Upload(how, queues, events);
+    for (int q = 0; q < queues; ++q) Check(clFinish(d.timed_uploads[q]), "clFinish");
+    state.SetIterationTime(Span(events) / kBurst);
+  }
+}
+
+// queues 0: the kernels alone.
+void FrameModel(benchmark::State& state, How how, int queues) {
+  Device& d = TheDevice();
+  const std::size_t local = 256, global = (d.stream_items + local - 1) / local * local;
+  std::vector<cl_event> events, uploads;
+  for (auto _ : state) {
+    for (int i = 0; i < kBurst; ++i) {
+      if (queues > 0) Upload(how, queues, uploads);
+      cl_event e = nullptr;
+      Check(clEnqueueNDRangeKernel(d.timed, d.stream, 1, nullptr, &global, &local, static_cast<cl_uint>(uploads.size()),
+                                   uploads.empty() ? nullptr : uploads.data(), &e),
+            "clEnqueueNDRangeKernel");
+      Check(clFlush(d.timed), "clFlush");
+      events.push_back(e);
+      events.insert(events.end(), uploads.begin(), uploads.end());
+      uploads.clear();
+    }
+    Check(clFinish(d.timed), "clFinish");
+    for (int q = 0; q < 4; ++q) Check(clFinish(d.timed_uploads[q]), "clFinish");
+    state.SetIterationTime(Span(events) / kBurst);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -238,6 +356,14 @@ int main(int argc, char** argv) {
   benchmark::RegisterBenchmark("flush", Flush)->UseManualTime();
   benchmark::RegisterBenchmark("marker", Marker)->UseManualTime();
   benchmark::RegisterBenchmark("write/236544", Write)->UseManualTime();
+  benchmark::RegisterBenchmark("frame/kernel-only", FrameModel, How::kWriteMapped, 0)->UseManualTime();
+  for (const auto& [how, how_name] : {std::pair{How::kWriteMapped, "write-mapped"}, {How::kCopyBuffer, "copy-buffer"},
+                                      {How::kWritePageable, "write-pageable"}})
+    for (const int queues : {1, 2, 4}) {
+      const std::string tail = std::string(how_name) + "/queues:" + std::to_string(queues);
+      benchmark::RegisterBenchmark(("upload/" + tail).c_str(), Uploads, how, queues)->UseManualTime();
+      benchmark::RegisterBenchmark(("frame/" + tail).c_str(), FrameModel, how, queues)->UseManualTime();
+    }
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;
