@@ -101,7 +101,8 @@ TEST(ImpossibleData, TuneRefusesACachedOkLineWithoutTimingAndKeepsItsOutputs) {
   const nlohmann::json config = TinyConfig();
   const std::string config_path = Write(dir / "config.json", config.dump());
   const fs::path out = dir / "out";
-  const testing::CommandResult first = RunSkintune({"tune", "--config", config_path, "--device", "pocl", "--out", out.string(), "--quiet"});
+  const testing::CommandResult first =
+      RunSkintune({"tune", "--config", config_path, "--device", "pocl", "--out", out.string(), "--quiet"});
   ASSERT_EQ(first.exit_code, 0) << first.err;
   // The slower of the two measured variants loses its timing in the cache
   // (on PoCL alone: a GPU machine's NVIDIA platform would add two lines).
@@ -123,7 +124,8 @@ TEST(ImpossibleData, TuneRefusesACachedOkLineWithoutTimingAndKeepsItsOutputs) {
   std::map<std::string, std::string> before;
   for (const char* name : {"report.json", "report.t4.json", "winners-db.json"}) before[name] = ReadAll(out / name);
 
-  const testing::CommandResult r = RunSkintune({"tune", "--config", config_path, "--device", "pocl", "--out", out.string(), "--quiet"});
+  const testing::CommandResult r =
+      RunSkintune({"tune", "--config", config_path, "--device", "pocl", "--out", out.string(), "--quiet"});
   ExpectOneErrorLine(r, (out / "cache.jsonl").string() + ":" + std::to_string(slower + 1) +
                             ": malformed measurement: status ok without 'timing'");
   EXPECT_EQ(ReadAll(out / "cache.jsonl"), cache_before);
