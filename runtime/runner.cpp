@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -403,7 +404,8 @@ std::optional<double> Runner::ProbeMs(const Prepared::Impl& p) {
 
 // SKINTUNE_TIMING_LOG=FILE appends one line per warm-up decision (the probe,
 // the warm probe, full or short warm-up, its wall time and bursts) to FILE:
-// a diagnostic for devices whose clocks move (docs/PERFORMANCE.md).
+// a diagnostic for devices whose clocks move (docs/PERFORMANCE.md). "-"
+// writes to standard error instead (a run whose files are not kept).
 const char* TimingLogPath() {
   static const char* path = std::getenv("SKINTUNE_TIMING_LOG");
   return path && *path ? path : nullptr;
@@ -412,8 +414,10 @@ const char* TimingLogPath() {
 void AppendTimingLog(const std::string& line) {
   const char* path = TimingLogPath();
   if (!path) return;
-  if (std::FILE* f = std::fopen(path, "a")) {
-    const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  if (std::strcmp(path, "-") == 0) {
+    std::fprintf(stderr, "%.3f %s\n", now, line.c_str());
+  } else if (std::FILE* f = std::fopen(path, "a")) {
     std::fprintf(f, "%.3f %s\n", now, line.c_str());
     std::fclose(f);
   }

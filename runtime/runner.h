@@ -88,7 +88,8 @@ class Prepared {
 
 // SKINTUNE_TIMING_LOG=FILE: a diagnostic log of the timing method's
 // decisions (warm-ups, bursts, the host's wall time per frame) and, from the
-// tuner, each measurement's phases. The file, or null when unset.
+// tuner, each measurement's phases. The file ("-": standard error), or null
+// when unset.
 const char* TimingLogPath();
 // Appends "<unix time> <line>" to the log (nothing when it is off).
 void AppendTimingLog(const std::string& line);
