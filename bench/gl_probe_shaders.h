@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace skintune::bench {
+namespace skintune::internal::bench {
 
 inline void Check(const std::string& what) {
   const GLenum error = glGetError();
@@ -52,4 +52,4 @@ inline GLuint Link(GLenum stage, const std::string& text, bool capture = false) 
   return program;
 }
 
-}  // namespace skintune::bench
+}  // namespace skintune::internal::bench

@@ -55,8 +55,8 @@ constexpr std::size_t kPaletteBytes = 236544;
 constexpr std::size_t kPaletteVec4 = kPaletteBytes / 16;
 constexpr int kSlots = 3;
 
-using skintune::bench::Check;
-using skintune::bench::Link;
+using skintune::internal::bench::Check;
+using skintune::internal::bench::Link;
 
 const char* kShader = R"(#version 430
 layout(local_size_x = 256) in;

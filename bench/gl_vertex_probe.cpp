@@ -44,8 +44,8 @@ namespace {
 
 using skintune::internal::GlContext;
 
-using skintune::bench::Check;
-using skintune::bench::Link;
+using skintune::internal::bench::Check;
+using skintune::internal::bench::Link;
 
 GLuint Buffer(std::size_t bytes, const void* data) {
   GLuint buffer = 0;
