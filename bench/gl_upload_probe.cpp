@@ -162,8 +162,9 @@ void Verify(const Gl& gl, float value, const char* mode) {
 
 enum class Mode { kDispatchOnly, kSame, kShared, kKernelCopy, kDirect };
 
-// Runs `frames` frames (after `untimed`); returns us per timed frame.
-double Run(Gl& gl, Mode mode, bool fill, int untimed, int frames, int run) {
+// Runs `frames` frames (after `untimed`), checks the last frame's output
+// (Verify, as `name`); returns us per timed frame.
+double Run(Gl& gl, const char* name, Mode mode, bool fill, int untimed, int frames, int run) {
   const int total = untimed + frames;
   const auto value = [&](int f) { return static_cast<float>((f + run * 7) % 1000); };
   // Without a fill the staging keeps the value written before the run.
@@ -183,7 +184,9 @@ double Run(Gl& gl, Mode mode, bool fill, int untimed, int frames, int run) {
       Dispatch(gl, 0);
     }
     glFinish();
-    last = 0.0f;
+    std::vector<float> p(4);  // palette slot 0: whatever the last upload left there
+    glGetNamedBufferSubData(gl.palette[0], 0, 16, p.data());
+    last = p[0];
   } else if (mode == Mode::kSame || mode == Mode::kKernelCopy || mode == Mode::kDirect) {
     GLsync done[kSlots] = {};
     for (int f = 0; f < total; ++f) {
@@ -274,7 +277,7 @@ double Run(Gl& gl, Mode mode, bool fill, int untimed, int frames, int run) {
   }
   const double us = std::chrono::duration<double, std::micro>(Clock::now() - start).count() / frames;
   Check("run");
-  (void)last;
+  Verify(gl, last, name);
   return us;
 }
 
@@ -309,21 +312,8 @@ int main(int argc, char** argv) {
                           {"direct", Mode::kDirect, true},              {"direct-nofill", Mode::kDirect, false}};
     std::vector<std::vector<double>> us(std::size(cases));
     for (int r = 0; r < repeat; ++r)
-      for (std::size_t c = 0; c < std::size(cases); ++c) {
-        us[c].push_back(Run(gl, cases[c].mode, cases[c].fill, 100, frames, r));
-        const int total = 100 + frames;
-        const float last = cases[c].mode == Mode::kDispatchOnly ? 0.0f
-                           : cases[c].fill                     ? static_cast<float>((total - 1 + r * 7) % 1000)
-                                                               : 5.0f;
-        if (cases[c].mode == Mode::kDispatchOnly) {
-          // palette slot 0 holds whatever the last run left; check against it
-          std::vector<float> p(4);
-          glGetNamedBufferSubData(gl.palette[0], 0, 16, p.data());
-          Verify(gl, p[0], cases[c].name);
-        } else {
-          Verify(gl, last, cases[c].name);
-        }
-      }
+      for (std::size_t c = 0; c < std::size(cases); ++c)
+        us[c].push_back(Run(gl, cases[c].name, cases[c].mode, cases[c].fill, 100, frames, r));
     for (std::size_t c = 0; c < std::size(cases); ++c) {
       std::vector<double> v = us[c];
       std::sort(v.begin(), v.end());
