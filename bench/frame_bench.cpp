@@ -6,6 +6,8 @@
 //   instanced/skin-only           K instances of N vertices in one launch, Skin only
 //   instanced/set-skin-pipelined  SetPalette (K palettes) + Skin, no Finish between frames
 //   instanced/set-skin-finish     SetPalette + Skin + Finish every frame
+//   instanced/skin-finish         Skin + Finish every frame, no SetPalette: the
+//                                 waited-for frame's floor without a palette
 //   instanced/set-only            SetPalette (K palettes) alone: the uploads' own cost
 //   skinners/skin-only            K Skinners of N vertices, K launches per frame
 //   read-back                     ReadPositions of the one mesh's K x N float3 positions
@@ -310,6 +312,19 @@ void InstancedSetSkinFinish(benchmark::State& state) {
       "instanced/skin-only");
 }
 
+// The waited-for frame without its palette: a launch and the wait for it.
+// set-skin-finish minus this is what the palette adds to a waited-for frame.
+void InstancedSkinFinish(benchmark::State& state) {
+  Skinner& instanced = TheScene().crowd().skinner;
+  Frames(
+      state, "instanced/skin-finish", instanced,
+      [&](int) {
+        Must(instanced.Skin(), "Skin");
+        Must(instanced.Finish(), "Finish");
+      },
+      "instanced/skin-only");
+}
+
 // No Skin: nothing reads the palettes, so SetPalette never waits on the
 // ring, and the iteration's Finish waits for the last upload.
 void InstancedSetOnly(benchmark::State& state) {
@@ -360,6 +375,7 @@ void RegisterAll() {
                      {"frame/instanced/skin-only", InstancedSkinOnly},
                      {"frame/instanced/set-skin-pipelined", InstancedPipelined},
                      {"frame/instanced/set-skin-finish", InstancedSetSkinFinish},
+                     {"frame/instanced/skin-finish", InstancedSkinFinish},
                      {"frame/instanced/set-only", InstancedSetOnly},
                      {"frame/skinners/skin-only", SkinnersSkinOnly},
                      {"frame/read-back", ReadBack}};
@@ -405,6 +421,8 @@ void Summary() {
   };
   ratio("instanced/set-skin-pipelined", "instanced/skin-only");
   minus("instanced/set-skin-finish", "instanced/skin-only");
+  minus("instanced/skin-finish", "instanced/skin-only");
+  minus("instanced/set-skin-finish", "instanced/skin-finish");
   minus("one-mesh/set-skin-finish", "one-mesh/skin-only");
   ratio("skinners/skin-only", "instanced/skin-only");
 }
