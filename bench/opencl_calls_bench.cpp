@@ -28,6 +28,13 @@
 //     48 MiB that reads the whole palette, on one queue, waiting for its frame's upload on
 //     the upload queues; frame n + 1's upload may run beside kernel n. Span over 64 per
 //     frame, against frame/kernel-only (the kernels alone).
+//   frame/write-mapped/queues:1/<no-wait|barrier|out-of-order>: the same frame with the
+//     kernel not waiting for its upload at all (wrong, for timing only: do the two queues'
+//     work overlap when nothing orders them?), waiting through a barrier before the
+//     launch (the runtime's launch takes the upload's event as its wait list, like the
+//     plain row; its reads and markers wait through a barrier, OpenClApi::JoinUploads),
+//     or with the upload and the kernel on one out-of-order queue, the kernel waiting for
+//     its upload's event (skipped where the device refuses such a queue).
 #define CL_TARGET_OPENCL_VERSION 120
 #include <CL/cl.h>
 #include <benchmark/benchmark.h>
@@ -65,6 +72,7 @@ struct Device {
   std::vector<unsigned char> pageable;
   cl_command_queue timed = nullptr;        // profiling: the frame kernels
   cl_command_queue timed_uploads[4] = {};  // profiling: the uploads
+  cl_command_queue out_of_order = nullptr;  // profiling and out-of-order, or null where refused
   cl_kernel stream = nullptr;
   cl_mem in = nullptr, out = nullptr;
   std::size_t stream_items = 0;
@@ -147,6 +155,9 @@ bool Open(const std::string& platform_substring) {
     q = clCreateCommandQueue(d.context, d.device, CL_QUEUE_PROFILING_ENABLE, &err);
     Check(err, "clCreateCommandQueue (timed uploads)");
   }
+  d.out_of_order = clCreateCommandQueue(d.context, d.device,
+                                        CL_QUEUE_PROFILING_ENABLE | CL_QUEUE_OUT_OF_ORDER_EXEC_MODE_ENABLE, &err);
+  if (err != CL_SUCCESS) d.out_of_order = nullptr;
   d.stream = clCreateKernel(program, "stream", &err);
   Check(err, "clCreateKernel stream");
   d.stream_items = std::size_t{48} << 20 >> 5;  // 48 MiB read + written, 16 + 16 bytes an item
@@ -253,15 +264,16 @@ void Write(benchmark::State& state) {
 
 enum class How { kWriteMapped, kCopyBuffer, kWritePageable };
 
-// One upload of the palette split over `queues` upload queues; its events into `events`.
-void Upload(How how, int queues, std::vector<cl_event>& events) {
+// One upload of the palette split over `queues` upload queues (or on `only`,
+// when given); its events into `events`.
+void Upload(How how, int queues, std::vector<cl_event>& events, cl_command_queue only = nullptr) {
   Device& d = TheDevice();
   constexpr std::size_t kPalette = 236544;
   const std::size_t part = kPalette / static_cast<std::size_t>(queues);
   for (int q = 0; q < queues; ++q) {
     const std::size_t at = part * static_cast<std::size_t>(q);
     cl_event e = nullptr;
-    const cl_command_queue queue = d.timed_uploads[q];
+    const cl_command_queue queue = only ? only : d.timed_uploads[q];
     if (how == How::kCopyBuffer) {
       Check(clEnqueueCopyBuffer(queue, d.staging, d.palette, at, at, part, 0, nullptr, &e), "clEnqueueCopyBuffer");
     } else {
@@ -304,24 +316,37 @@ void Uploads(benchmark::State& state, How how, int queues) {
   }
 }
 
+// How a frame's kernel is ordered after its upload.
+enum class Order { kWaitList, kNoWait, kBarrier, kOutOfOrder };
+
 // queues 0: the kernels alone.
-void FrameModel(benchmark::State& state, How how, int queues) {
+void FrameModel(benchmark::State& state, How how, int queues, Order order) {
   Device& d = TheDevice();
+  if (order == Order::kOutOfOrder && !d.out_of_order) {
+    state.SkipWithError("the device refuses an out-of-order queue with profiling");
+    return;
+  }
+  const cl_command_queue kernels = order == Order::kOutOfOrder ? d.out_of_order : d.timed;
   const std::size_t local = 256, global = (d.stream_items + local - 1) / local * local;
   std::vector<cl_event> events, uploads;
   for (auto _ : state) {
     for (int i = 0; i < kBurst; ++i) {
-      if (queues > 0) Upload(how, queues, uploads);
+      if (queues > 0) Upload(how, queues, uploads, order == Order::kOutOfOrder ? d.out_of_order : nullptr);
+      const bool wait_list = order == Order::kWaitList || order == Order::kOutOfOrder;
+      if (order == Order::kBarrier && !uploads.empty())
+        Check(clEnqueueBarrierWithWaitList(kernels, static_cast<cl_uint>(uploads.size()), uploads.data(), nullptr),
+              "clEnqueueBarrierWithWaitList");
       cl_event e = nullptr;
-      Check(clEnqueueNDRangeKernel(d.timed, d.stream, 1, nullptr, &global, &local, static_cast<cl_uint>(uploads.size()),
-                                   uploads.empty() ? nullptr : uploads.data(), &e),
+      Check(clEnqueueNDRangeKernel(kernels, d.stream, 1, nullptr, &global, &local,
+                                   wait_list ? static_cast<cl_uint>(uploads.size()) : 0,
+                                   wait_list && !uploads.empty() ? uploads.data() : nullptr, &e),
             "clEnqueueNDRangeKernel");
-      Check(clFlush(d.timed), "clFlush");
+      Check(clFlush(kernels), "clFlush");
       events.push_back(e);
       events.insert(events.end(), uploads.begin(), uploads.end());
       uploads.clear();
     }
-    Check(clFinish(d.timed), "clFinish");
+    Check(clFinish(kernels), "clFinish");
     for (int q = 0; q < 4; ++q) Check(clFinish(d.timed_uploads[q]), "clFinish");
     state.SetIterationTime(Span(events) / kBurst);
   }
@@ -356,13 +381,18 @@ int main(int argc, char** argv) {
   benchmark::RegisterBenchmark("flush", Flush)->UseManualTime();
   benchmark::RegisterBenchmark("marker", Marker)->UseManualTime();
   benchmark::RegisterBenchmark("write/236544", Write)->UseManualTime();
-  benchmark::RegisterBenchmark("frame/kernel-only", FrameModel, How::kWriteMapped, 0)->UseManualTime();
+  benchmark::RegisterBenchmark("frame/kernel-only", FrameModel, How::kWriteMapped, 0, Order::kWaitList)->UseManualTime();
+  for (const auto& [order, order_name] : {std::pair{Order::kNoWait, "no-wait"}, {Order::kBarrier, "barrier"},
+                                          {Order::kOutOfOrder, "out-of-order"}})
+    benchmark::RegisterBenchmark((std::string("frame/write-mapped/queues:1/") + order_name).c_str(), FrameModel,
+                                 How::kWriteMapped, 1, order)
+        ->UseManualTime();
   for (const auto& [how, how_name] : {std::pair{How::kWriteMapped, "write-mapped"}, {How::kCopyBuffer, "copy-buffer"},
                                       {How::kWritePageable, "write-pageable"}})
     for (const int queues : {1, 2, 4}) {
       const std::string tail = std::string(how_name) + "/queues:" + std::to_string(queues);
       benchmark::RegisterBenchmark(("upload/" + tail).c_str(), Uploads, how, queues)->UseManualTime();
-      benchmark::RegisterBenchmark(("frame/" + tail).c_str(), FrameModel, how, queues)->UseManualTime();
+      benchmark::RegisterBenchmark(("frame/" + tail).c_str(), FrameModel, how, queues, Order::kWaitList)->UseManualTime();
     }
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
