@@ -1,5 +1,6 @@
 // skintune example: play a model's animation on the best device with the tuned
-// kernel and print frames per second. Uses only <skintune/skintune.h>.
+// kernel and print frames per second. Uses only <skintune/skintune.h> (and CLI11
+// for its options).
 //
 //   skin_animation MODEL.gltf|.glb|DATASET [MODEL...] [--db winners-db.json] [--device PATTERN]
 //                  [--seconds S] [--readback] [--instances K] [--palette-buffers N]
@@ -15,6 +16,7 @@
 // --instances K. --palette-buffers N gives the Skinner a ring of N palette
 // buffers (SkinnerOptions::palette_buffers: how many frames may be queued before
 // SetPalette waits; 3 by default).
+#include <CLI/CLI.hpp>
 #include <skintune/skintune.h>
 
 #include <algorithm>
@@ -33,28 +35,35 @@ static int Fail(const Status& status) {
 }
 
 int main(int argc, char** argv) {
-  if (argc < 2)
-    return std::fprintf(stderr, "usage: skin_animation MODEL|DATASET [MODEL...] [--db F] [--device P] [--seconds S] "
-                                "[--readback] [--instances K] [--palette-buffers N]\n"), 2;
   std::vector<std::string> paths;
   std::string db_path, pattern;
   double seconds = 3.0;
   bool readback = false;
   SkinnerOptions options;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    const bool has_value = i + 1 < argc;
-    if (arg == "--db" && has_value) db_path = argv[++i];
-    else if (arg == "--device" && has_value) pattern = argv[++i];
-    else if (arg == "--seconds" && has_value) seconds = std::atof(argv[++i]);
-    else if (arg == "--readback") readback = true;
-    else if (arg == "--instances" && has_value) options.instances = std::atoi(argv[++i]);
-    else if (arg == "--palette-buffers" && has_value) options.palette_buffers = std::atoi(argv[++i]);
-    else if (arg.rfind("--", 0) == 0)
-      return std::fprintf(stderr, "skin_animation: unknown or incomplete option '%s'\n", arg.c_str()), 2;
-    else paths.push_back(arg);
+  CLI::App app{"skin_animation: play models' animations on one device with the tuned kernel"};
+  app.add_option("models", paths, "glTF files (.gltf, .glb) or synthetic dataset keys (1600k-b4)")->required();
+  app.add_option("--db", db_path, "winners database (skintune tune's winners-db.json)");
+  app.add_option("--device", pattern, "device pattern as Device::Open takes it (cuda:, gl:, opencl:NVIDIA, pocl)");
+  // CLI::Range lets NaN through (every comparison with it is false).
+  const CLI::Validator seconds_range(
+      [](std::string& value) {
+        double v = 0.0;
+        if (CLI::detail::lexical_cast(value, v) && v >= 1e-3 && v <= 86400.0) return std::string();
+        return "Value " + value + " not in range 0.001 to 86400";
+      },
+      "SECONDS");
+  app.add_option("--seconds", seconds, "how long to play")->check(seconds_range);
+  app.add_flag("--readback", readback, "read every frame back to host memory");
+  app.add_option("--instances", options.instances, "characters per model, one launch")->check(CLI::Range(1, 1 << 20));
+  app.add_option("--palette-buffers", options.palette_buffers, "SkinnerOptions::palette_buffers");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "skin_animation: %s (--help lists the options)\n", e.what());
+    return 2;
   }
-  if (paths.empty()) return std::fprintf(stderr, "skin_animation: no model or dataset given\n"), 2;
   std::vector<Model> models;
   std::vector<MeshView> meshes;
   for (const std::string& path : paths) {
