@@ -26,17 +26,29 @@ namespace skintune::internal {
 
 // ---------------------------------------------------------------- injected faults
 
+namespace {
+
+// "compile, wrong, hang, crash or lost"
+std::string FaultKindList() {
+  std::string list;
+  const std::size_t n = std::size(kInjectedFaultKinds);
+  for (std::size_t i = 0; i < n; ++i) list += (i == 0 ? "" : i + 1 == n ? " or " : ", ") + std::string(kInjectedFaultKinds[i]);
+  return list;
+}
+
+}  // namespace
+
 InjectedFault InjectedFaultFromEnvironment() {
   const char* env = std::getenv("SKINTUNE_INJECT_FAULT");
   if (!env || !*env) return {};
   const std::string text = env;
   const std::size_t at = text.rfind('=');
   const std::string why = "SKINTUNE_INJECT_FAULT='" + text + "': ";
-  if (at == std::string::npos || at == 0) throw Error(why + "expected <variant key>=<compile|wrong|hang|crash>");
+  if (at == std::string::npos || at == 0) throw Error(why + "expected <variant key>=<kind>, the kind " + FaultKindList());
   InjectedFault fault;
   fault.kind = text.substr(at + 1);
-  if (fault.kind != "compile" && fault.kind != "wrong" && fault.kind != "hang" && fault.kind != "crash")
-    throw Error(why + "unknown fault '" + fault.kind + "' (compile, wrong, hang or crash)");
+  if (std::find(std::begin(kInjectedFaultKinds), std::end(kInjectedFaultKinds), fault.kind) == std::end(kInjectedFaultKinds))
+    throw Error(why + "unknown fault '" + fault.kind + "' (" + FaultKindList() + ")");
   // The canonical key, so that the tokens may be given in any order.
   fault.variant_key = ParseVariantKey(text.substr(0, at)).Key();
   return fault;
@@ -246,16 +258,29 @@ const PackedMesh& PackScene(DatasetCache& datasets, DatasetCache::Entry& entry, 
   return packed;
 }
 
-MeasureStatus StatusOfRunnerError(const std::string& message) {
-  // "<API> <stage>: ...": the API is one word ("OpenCL", "CUDA", "GL").
+namespace {
+
+// The stage a runner's Error names ("<API> <stage>: ..."), or "".
+std::string RunnerErrorStage(const std::string& message) {
+  // The API is one word ("OpenCL", "CUDA", "GL").
   const std::size_t space = message.find(' ');
   const std::size_t colon = message.find(':');
-  if (space != std::string::npos && colon != std::string::npos && space < colon) {
-    const std::string stage = message.substr(space + 1, colon - space - 1);
-    if (stage == "build") return MeasureStatus::kCompileFailed;
-    if (stage == "guard") return MeasureStatus::kVerifyFailed;
-  }
+  if (space == std::string::npos || colon == std::string::npos || space > colon) return "";
+  return message.substr(space + 1, colon - space - 1);
+}
+
+}  // namespace
+
+MeasureStatus StatusOfRunnerError(const std::string& message) {
+  const std::string stage = RunnerErrorStage(message);
+  if (stage == "build") return MeasureStatus::kCompileFailed;
+  if (stage == "guard") return MeasureStatus::kVerifyFailed;
   return MeasureStatus::kLaunchFailed;
+}
+
+bool DeviceLostIn(const std::string& detail) {
+  const std::string timing = "timing: ";
+  return RunnerErrorStage(detail.rfind(timing, 0) == 0 ? detail.substr(timing.size()) : detail) == "lost";
 }
 
 namespace {
@@ -274,10 +299,6 @@ void EditAt(KernelSource& source, const std::string& marker, const std::string& 
   source.text.insert(line_end, after);
   source.text.insert(line_start, before);
 }
-
-}  // namespace
-
-namespace {
 
 // The injected hang: a loop no compiler can bound, with a side effect in
 // every iteration. It spins while the first word of the first input is not
@@ -327,7 +348,7 @@ void InjectFault(KernelSource& source, const Variant& variant, const std::string
       source.text += std::string("#define ") + (kind == "wrong" ? "SKINTUNE_FAULT_WRONG" : "SKINTUNE_FAULT_HANG") +
                      " 1  // skintune injected fault: " + kind + "\n";
     } else {
-      throw Error("injected fault: unknown kind '" + kind + "' (compile, wrong, hang or crash)");
+      throw Error("injected fault: kind '" + kind + "' is not a kernel edit (compile, wrong or hang)");
     }
     source.source_hash = SourceHash(source.text);
     return;
@@ -359,7 +380,7 @@ void InjectFault(KernelSource& source, const Variant& variant, const std::string
     }
     EditAt(source, marker, loop, "", kind);
   } else {
-    throw Error("injected fault: unknown kind '" + kind + "' (compile, wrong, hang or crash)");
+    throw Error("injected fault: kind '" + kind + "' is not a kernel edit (compile, wrong or hang)");
   }
   source.source_hash = SourceHash(source.text);
 }
@@ -461,6 +482,9 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   const InjectedFault fault = InjectedFaultFromEnvironment();
   const bool faulty = !fault.kind.empty() && fault.variant_key == variant.Key();
   if (faulty && fault.kind == "crash") std::abort();  // the test hook: the worker process must survive this
+  // The test hook "lost": from this variant on, nothing measures in this process.
+  static bool injected_lost = false;
+  if (faulty && fault.kind == "lost") injected_lost = true;
 
   Measurement m;
   m.device_id = identity.Id();
@@ -473,6 +497,9 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
     m.detail = std::move(detail);
     return m;
   };
+
+  if (injected_lost)
+    return finish(MeasureStatus::kLaunchFailed, identity.backend + " lost: the device was lost in this process (injected fault 'lost')");
 
   DatasetCache::Entry& data = datasets.Get(dataset.key);
   const SkinnedMesh& mesh = data.mesh();
@@ -512,7 +539,7 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
     return finish(MeasureStatus::kInvalid, e.what());
   }
   const PackedMesh& packed = *packed_at;
-  if (faulty)
+  if (faulty && fault.kind != "lost")
     for (KernelSource& k : kernels) InjectFault(k, variant, fault.kind);
 
   // Verify first: one run on poisoned outputs with guards, against the gold,

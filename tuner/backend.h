@@ -74,12 +74,19 @@ struct Discovery {
 Discovery DiscoverBackends();
 
 // Test hook (for the tuner's failure tests, never set in normal use): when
-// $SKINTUNE_INJECT_FAULT is "<variant key>=<compile|wrong|hang|crash>", every
-// backend's Measure of that exact variant makes its kernel fail to compile,
-// write wrong results (one vertex off), loop forever, or abort the process.
+// $SKINTUNE_INJECT_FAULT is "<variant key>=<kind>", every backend's Measure of
+// that exact variant fails as the kind says (kInjectedFaultKinds):
+//   compile  its kernel fails to compile;
+//   wrong    its kernel writes wrong results (one vertex off);
+//   hang     its kernel loops forever;
+//   crash    the (worker) process aborts;
+//   lost     the device is lost in this process, as when a driver resets a GL
+//            context: this Measure and every later one in the same process
+//            fail with "<API> lost: ..." (DeviceLostIn).
+inline constexpr const char* kInjectedFaultKinds[] = {"compile", "wrong", "hang", "crash", "lost"};
 struct InjectedFault {
   std::string variant_key;
-  std::string kind;  // "compile", "wrong", "hang", "crash", or empty
+  std::string kind;  // one of kInjectedFaultKinds, or empty
 };
 InjectedFault InjectedFaultFromEnvironment();
 

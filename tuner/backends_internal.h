@@ -189,6 +189,13 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
 // anything else -> launch_failed.
 MeasureStatus StatusOfRunnerError(const std::string& message);
 
+// Whether a Measurement's detail is a runner's Error of stage "lost" (after
+// an optional "timing: "): the device or its context is gone for this
+// process (a GL context the driver reset), so no later measurement in it can
+// be trusted (the tune worker then exits, and the parent measures the variant
+// again in a fresh one).
+bool DeviceLostIn(const std::string& detail);
+
 // Edits an emitted kernel so that it fails as `kind` says ("compile": a
 // syntax error; "wrong": vertex 0 of each launch gets x + 1; "hang": a loop
 // on a volatile read of the first input that never ends), and updates its

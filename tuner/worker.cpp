@@ -24,6 +24,7 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/emit.h"
+#include "tuner/backends_internal.h"
 #include "tuner/tune.h"
 
 namespace skintune::internal {
@@ -320,8 +321,32 @@ IsolatedBackend::ReadResult IsolatedBackend::ReadLine(double timeout_s, std::str
   }
 }
 
+// A worker that lost its device (DeviceLostIn: a GL context the driver reset,
+// whether this kernel hung or another process's work did) has answered and
+// exited: the variant is measured once more in a fresh one, so a reset caused
+// elsewhere costs no variant, and the variants after it never run on a dead
+// context.
 Measurement IsolatedBackend::Measure(const Variant& variant, const TuningDataset& dataset,
                                      const TimingOptions& options) {
+  bool lost = false;
+  Measurement m = MeasureOnce(variant, dataset, options, &lost);
+  if (!lost) return m;
+  const std::string first = m.detail;
+  Stop();
+  bool lost_again = false;
+  m = MeasureOnce(variant, dataset, options, &lost_again);
+  if (lost_again) {
+    Stop();
+    m.detail += " (the device was lost in two fresh worker processes, one after the other)";
+  } else {
+    m.detail += std::string(m.detail.empty() ? "" : "; ") + "measured in a fresh worker process: the first lost the device (" +
+                first + ")";
+  }
+  return m;
+}
+
+Measurement IsolatedBackend::MeasureOnce(const Variant& variant, const TuningDataset& dataset,
+                                         const TimingOptions& options, bool* lost) {
   Measurement result;
   result.device_id = identity_.Id();
   result.dataset = dataset.key;
@@ -365,6 +390,10 @@ Measurement IsolatedBackend::Measure(const Variant& variant, const TuningDataset
   if (answer.is_object() && answer.contains("error")) {
     Kill();
     throw WorkerError(answer["error"].is_string() ? answer["error"].get<std::string>() : answer["error"].dump());
+  }
+  if (answer.is_object() && answer.contains("device_lost")) {
+    *lost = answer["device_lost"] == true;
+    answer.erase("device_lost");
   }
   Measurement m;
   try {
@@ -552,7 +581,15 @@ int RunTuneWorker(int backend_index, const std::string& device_id, const std::st
         const Variant variant = request.at("variant").get<Variant>();
         const TuningDataset dataset{request.at("dataset").get<std::string>()};
         const TimingOptions timing = TimingFromJson(request.at("timing"));
-        answer = backend.Measure(variant, dataset, timing);
+        const Measurement m = backend.Measure(variant, dataset, timing);
+        answer = m;
+        if (tuner_internal::DeviceLostIn(m.detail)) {
+          // Nothing this process measures from now on can be trusted: it
+          // answers, then exits, and the parent starts a fresh worker.
+          answer["device_lost"] = true;
+          write_line(answer);
+          return 0;
+        }
       }
     } catch (const Error& e) {
       answer = {{"error", e.what()}};

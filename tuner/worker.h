@@ -68,8 +68,10 @@ class IsolatedBackend {
   // Always returns a Measurement of the variant (device_id, dataset, variant,
   // generator version and timestamp filled in), whatever the child did; an
   // answer with impossible figures (ImpossibleFigures: a time of 0, NaN...)
-  // is recorded as launch_failed. Throws WorkerError when the device cannot
-  // be used at all.
+  // is recorded as launch_failed. A child that lost its device (a GL context
+  // the driver reset) exits after its answer, and the variant is measured
+  // once more in a fresh child (the detail says so). Throws WorkerError when
+  // the device cannot be used at all.
   Measurement Measure(const Variant& variant, const TuningDataset& dataset, const TimingOptions& options);
 
   // Has the child compile the kernels of `variants` ahead of their Measure
@@ -90,6 +92,8 @@ class IsolatedBackend {
 
  private:
   enum class ReadResult { kLine, kTimeout, kEnd };
+  // One request to the worker; *lost: the worker lost its device and exited.
+  Measurement MeasureOnce(const Variant& variant, const TuningDataset& dataset, const TimingOptions& options, bool* lost);
   void Start();
   void Stop();                       // end of input, then SIGKILL if it lingers
   void Kill();                       // SIGKILL and reap

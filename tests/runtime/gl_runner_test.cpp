@@ -52,7 +52,8 @@ GlRunner* Runner(std::string& why) {
       auto r = std::make_unique<GlRunner>();
       const GlContextInfo& i = r->info();
       std::cout << "[ GL       ] " << i.renderer << " (" << i.vendor << "), " << i.version << ", EGL platform "
-                << i.egl_platform << (i.egl_device.empty() ? "" : ", " + i.egl_device) << "\n";
+                << i.egl_platform << (i.egl_device.empty() ? "" : ", " + i.egl_device)
+                << (i.reset_notification ? ", reset notification" : ", no reset notification") << "\n";
       return r;
     } catch (const Error& e) {
       reason = e.what();

@@ -156,6 +156,44 @@ TEST(IsolatedBackend, CrashIsALaunchFailureNamingTheSignal) {
   EXPECT_EQ(worker.starts(), 2);
 }
 
+// A worker whose device was lost answers with "device_lost" and exits; the
+// variant is measured again in a fresh worker, whose answer is kept, with the
+// first one's detail.
+const char* kLostAnswer =
+    R"({"device_id":"elsewhere","dataset":"x","variant":{"lang":"cuda"},"status":"launch_failed",)"
+    R"("generator_version":"9","detail":"GL lost: the driver reset the GL context","device_lost":true})";
+
+TEST(IsolatedBackend, ALostDeviceIsMeasuredAgainInAFreshWorker) {
+  const fs::path dir = Scratch();
+  const std::string exe = FakeWorker(
+      dir, std::string("if [ ! -e \"$DIR/lost\" ]; then : > \"$DIR/lost\"; read line; echo '") + kLostAnswer +
+               "'; exit 0; fi\nwhile read line; do echo '" + kAnswer + "'; done");
+  IsolatedBackend worker(exe, FakeDevice(), 30);
+  const Measurement m = worker.Measure(kVariant, kDataset, {});
+  EXPECT_EQ(m.status, MeasureStatus::kOk);
+  EXPECT_EQ(m.detail,
+            "measured in a fresh worker process: the first lost the device (GL lost: the driver reset the GL context)");
+  EXPECT_EQ(worker.starts(), 2);
+  // The fresh worker serves the next variant.
+  EXPECT_EQ(worker.Measure(kVariant, kDataset, {}).status, MeasureStatus::kOk);
+  EXPECT_EQ(worker.starts(), 2);
+}
+
+TEST(IsolatedBackend, ADeviceLostTwiceIsRecordedAndTheNextVariantGetsAThirdWorker) {
+  const fs::path dir = Scratch();
+  const std::string exe = FakeWorker(
+      dir, std::string("n=$(ls \"$DIR\" | grep -c '^lost') ; if [ \"$n\" -lt 2 ]; then : > \"$DIR/lost$n\"; read line; echo '") +
+               kLostAnswer + "'; exit 0; fi\nwhile read line; do echo '" + kAnswer + "'; done");
+  IsolatedBackend worker(exe, FakeDevice(), 30);
+  const Measurement m = worker.Measure(kVariant, kDataset, {});
+  EXPECT_EQ(m.status, MeasureStatus::kLaunchFailed);
+  EXPECT_EQ(m.detail,
+            "GL lost: the driver reset the GL context (the device was lost in two fresh worker processes, one after the other)");
+  EXPECT_EQ(worker.starts(), 2);
+  EXPECT_EQ(worker.Measure(kVariant, kDataset, {}).status, MeasureStatus::kOk);
+  EXPECT_EQ(worker.starts(), 3);
+}
+
 TEST(IsolatedBackend, ExitIsALaunchFailureNamingTheExitCode) {
   const fs::path dir = Scratch();
   const std::string exe = FakeWorker(dir, "read line; exit 3");

@@ -20,8 +20,14 @@
 namespace skintune::internal::gl {
 
 [[noreturn]] void Fail(const std::string& stage, const std::string& message);
-// Throws when GL recorded an error since the last check (all pending errors named).
+// Throws when GL recorded an error since the last check (all pending errors
+// named); GL_CONTEXT_LOST among them throws stage "lost" with the driver's
+// reason (the context was reset: nothing it runs from now on happens).
 void CheckGl(const std::string& stage, const std::string& what);
+// Throws stage "lost" when the driver has reset the current context (GL 4.5's
+// glGetGraphicsResetStatus; a context made without reset notification never
+// reports one).
+void CheckReset(const std::string& what);
 void ClearGlErrors();
 
 // Owns one GL object name; deleted with its glDelete* (the context must be current).

@@ -151,15 +151,32 @@ std::string GlContext::Impl::TryDisplay(EGLDisplay candidate, const std::string&
   }
   if (configs.empty()) return fail("no EGL config renders with desktop OpenGL (EGL_OPENGL_BIT)");
 
-  const EGLint context_attributes[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 3,
-                                       EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
-                                       EGL_NONE};
+  // First with reset notification (EGL 1.5, else EGL_EXT_create_context_robustness),
+  // so that a context the driver resets says so (GlContextInfo::reset_notification);
+  // then without, where the driver refuses it.
+  const EGLint reset_strategy = egl15 ? EGL_CONTEXT_OPENGL_RESET_NOTIFICATION_STRATEGY
+                                : HasExtension(extensions, "EGL_EXT_create_context_robustness")
+                                    ? EGL_CONTEXT_OPENGL_RESET_NOTIFICATION_STRATEGY_EXT
+                                    : EGL_NONE;
+  const EGLint with_reset[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 3,
+                               EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                               reset_strategy, EGL_LOSE_CONTEXT_ON_RESET, EGL_NONE};
+  const EGLint plain[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 3,
+                          EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
   std::string errors;
   EGLContext created = EGL_NO_CONTEXT;
-  for (EGLConfig config : configs) {
-    created = eglCreateContext(candidate, config, EGL_NO_CONTEXT, context_attributes);
-    if (created != EGL_NO_CONTEXT) break;
-    errors += (errors.empty() ? "" : ", ") + LastEglError();
+  bool reset_notification = false;
+  for (const EGLint* context_attributes : {with_reset, plain}) {
+    if (context_attributes == with_reset && reset_strategy == EGL_NONE) continue;
+    for (EGLConfig config : configs) {
+      created = eglCreateContext(candidate, config, EGL_NO_CONTEXT, context_attributes);
+      if (created != EGL_NO_CONTEXT) break;
+      errors += (errors.empty() ? "" : ", ") + LastEglError();
+    }
+    if (created != EGL_NO_CONTEXT) {
+      reset_notification = context_attributes == with_reset;
+      break;
+    }
   }
   if (created == EGL_NO_CONTEXT)
     return fail("eglCreateContext(OpenGL 4.3 core) failed (" + errors + "): the driver offers no GL 4.3 core");
@@ -184,6 +201,7 @@ std::string GlContext::Impl::TryDisplay(EGLDisplay candidate, const std::string&
   }
   display = candidate;
   context = created;
+  info.reset_notification = reset_notification;
   info.egl_platform = platform;
   info.egl_device = device;
   const char* vendor = eglQueryString(candidate, EGL_VENDOR);

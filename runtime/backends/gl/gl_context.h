@@ -52,6 +52,12 @@ struct GlContextInfo {
   std::uint64_t max_shader_storage_block_bytes = 0;      // GL_MAX_SHADER_STORAGE_BLOCK_SIZE
   std::uint64_t max_transform_feedback_separate_attribs = 0;  // GL_MAX_TRANSFORM_FEEDBACK_SEPARATE_ATTRIBS
   std::string device_uuid;  // GL_EXT_memory_object's GL_DEVICE_UUID_EXT of device 0, 32 hex digits ("" when not offered)
+  // The context was made with EGL's reset notification strategy
+  // EGL_LOSE_CONTEXT_ON_RESET: when the driver resets it (a kernel that ran
+  // past the driver's limit, here or in another process), every later call
+  // raises GL_CONTEXT_LOST instead of doing nothing, and the runner reports
+  // the device lost (stage "lost") instead of outputs never written.
+  bool reset_notification = false;
 };
 
 class GlContext {

@@ -199,6 +199,7 @@ std::vector<std::vector<double>> GlApi::RunVerified(const FrameRun& run) {
   glUseProgram(0);
   glFinish();
   CheckGl("launch", "finishing " + run.key);
+  CheckReset("finishing " + run.key);  // a reset context may have run nothing, and said nothing
   std::vector<double> ms;
   for (std::size_t t = 0; t < timers.size(); ++t) {
     ms.push_back(QueryMs(timers[t]));
@@ -255,6 +256,7 @@ std::vector<std::vector<double>> GlApi::RunTimed(const FrameRun& run) {
   glUseProgram(0);
   glFinish();
   CheckGl("launch", "timing " + run.key);
+  CheckReset("timing " + run.key);
   for (const GlObject& query : timers) ms.push_back({QueryMs(query)});
   CheckGl("launch", "reading the timer queries of " + run.key);
   return ms;

@@ -30,6 +30,7 @@ std::string GlErrorName(GLenum error) {
     case GL_OUT_OF_MEMORY: return "GL_OUT_OF_MEMORY";
     case GL_STACK_UNDERFLOW: return "GL_STACK_UNDERFLOW";
     case GL_STACK_OVERFLOW: return "GL_STACK_OVERFLOW";
+    case GL_CONTEXT_LOST: return "GL_CONTEXT_LOST";
     default: {
       char text[24];
       std::snprintf(text, sizeof text, "GL error 0x%04x", error);
@@ -77,14 +78,42 @@ CapturePlan PlanCapture(const LaunchSpec& spec) {
 
 }  // namespace
 
+// Why the driver reset the current context (GL 4.5's glGetGraphicsResetStatus),
+// or "" when it did not, or cannot say.
+std::string ResetReason() {
+  if (epoxy_gl_version() < 45) return "";
+  switch (glGetGraphicsResetStatus()) {
+    case GL_GUILTY_CONTEXT_RESET:
+      return "the driver reset the GL context because of its own work (GL_GUILTY_CONTEXT_RESET: a kernel ran past "
+             "the driver's time limit, or faulted)";
+    case GL_INNOCENT_CONTEXT_RESET:
+      return "the driver reset the GL context because of another context's work (GL_INNOCENT_CONTEXT_RESET)";
+    case GL_UNKNOWN_CONTEXT_RESET: return "the driver reset the GL context (GL_UNKNOWN_CONTEXT_RESET)";
+    default: return "";
+  }
+}
+
 void CheckGl(const std::string& stage, const std::string& what) {
   std::string errors;
+  bool lost = false;
   for (int i = 0; i < 16; ++i) {
     const GLenum e = glGetError();
     if (e == GL_NO_ERROR) break;
+    lost = lost || e == GL_CONTEXT_LOST;
     errors += (errors.empty() ? "" : ", ") + GlErrorName(e);
   }
+  if (lost) {
+    const std::string reason = ResetReason();
+    // NVIDIA's driver (580, the H200 machine) raises GL_CONTEXT_LOST after
+    // resetting a hung context and gives no reason.
+    Fail("lost", what + ": " + (reason.empty() ? "the GL context was lost (GL_CONTEXT_LOST)" : reason));
+  }
   if (!errors.empty()) Fail(stage, what + " raised " + errors);
+}
+
+void CheckReset(const std::string& what) {
+  const std::string reason = ResetReason();
+  if (!reason.empty()) Fail("lost", what + ": " + reason);
 }
 
 void ClearGlErrors() {
