@@ -59,7 +59,9 @@ enum class ErrorCode {
   kNotFound,           // no device / file / database entry matches
   kUnavailable,        // the backend is not present on this machine (no driver, no extension)
   kBuildFailed,        // the kernel did not compile (message: first lines of the build log)
-  kDeviceError,        // an API call failed on the device (message: the call and its error)
+  kDeviceError,        // an API call failed on the device (message: the call and its error;
+                       // "GL lost: ...": the driver reset the GL context, e.g. after a kernel
+                       // ran past its time limit: open a new Device, nothing on the old one runs)
   kIoError,            // a file could not be read or written
   kInvalidState,       // use after move, destroyed context, palette not set yet
 };
