@@ -187,6 +187,25 @@ const std::vector<std::string>& CoveringKeys() {
   return keys;
 }
 
+// The driver's sticky errors are stage "lost" whatever the caller's stage (the
+// tune worker then exits); every other result keeps the caller's. No GPU needed.
+TEST(CudaCheck, AStickyErrorIsStageLost) {
+  const auto message = [](cuda::Result r) {
+    try {
+      cuda::Check(r, "launch", "cuStreamSynchronize");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  for (const cuda::Result r : cuda::kContextLostResults)
+    EXPECT_EQ(message(r).rfind("CUDA lost: cuStreamSynchronize failed: ", 0), 0u) << message(r);
+  EXPECT_EQ(message(cuda::kErrorInvalidValue).rfind("CUDA launch: cuStreamSynchronize failed: ", 0), 0u)
+      << message(cuda::kErrorInvalidValue);
+  EXPECT_EQ(message(cuda::kErrorNotReady).rfind("CUDA launch: ", 0), 0u);
+  EXPECT_EQ(message(cuda::kSuccess), "no error");
+}
+
 TEST(CudaCoveringArray, CoversEveryPairOfAxisValues) {
   const std::vector<std::size_t> sizes = AxisSizes();
   PairSet open(sizes);

@@ -20,6 +20,7 @@
 #include "generator/packer.h"
 #include "reference/error.h"
 #include "runner_test_support.h"
+#include "runtime/backends/vulkan/vulkan_loader.h"
 #include "runtime/backends/vulkan/vulkan_runner.h"
 #include "runtime/program_cache.h"
 #include "runtime/run_shape.h"
@@ -97,6 +98,22 @@ class Validated : public ::testing::Test {
 // The generated covering set for this device's limits: every value of every
 // axis and every pair of layout x index x weight x palette x storage x blend
 // that fits, each variant on a fresh mesh with its own influence count.
+// A lost device is stage "lost" whatever the caller's stage (the tune worker
+// then exits); every other result keeps the caller's.
+TEST(VulkanCheck, ADeviceLostIsStageLost) {
+  const auto message = [](VkResult r) {
+    try {
+      vk::Check(r, "launch", "vkQueueSubmit");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message(VK_ERROR_DEVICE_LOST), "Vulkan lost: vkQueueSubmit: VK_ERROR_DEVICE_LOST");
+  EXPECT_EQ(message(VK_ERROR_OUT_OF_DEVICE_MEMORY), "Vulkan launch: vkQueueSubmit: VK_ERROR_OUT_OF_DEVICE_MEMORY");
+  EXPECT_EQ(message(VK_SUCCESS), "no error");
+}
+
 TEST_F(Validated, CoveringSetMatchesTheGold) {
   const CoveringSet set = BuildCoveringSet(Lang::kVulkan, vk::LimitsOf(runner_->info()), {77, 1, true});
   for (const std::string& pair : set.uncoverable)

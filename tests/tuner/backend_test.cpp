@@ -320,6 +320,20 @@ TEST(Helpers, RunnerErrorsMapToStatusByStage) {
   EXPECT_EQ(StatusOfRunnerError("GL launch: glDispatchCompute raised GL_INVALID_VALUE"), MeasureStatus::kLaunchFailed);
   EXPECT_EQ(StatusOfRunnerError("CUDA setup: cuCtxSetCurrent"), MeasureStatus::kLaunchFailed);
   EXPECT_EQ(StatusOfRunnerError("something else"), MeasureStatus::kLaunchFailed);
+  EXPECT_EQ(StatusOfRunnerError("GL lost: finishing x: the GL context was lost (GL_CONTEXT_LOST)"),
+            MeasureStatus::kLaunchFailed);
+}
+
+// Stage "lost", alone or after the timing's prefix, is a device lost for the worker.
+TEST(Helpers, DeviceLostIsTheRunnerStageLost) {
+  using tuner_internal::DeviceLostIn;
+  EXPECT_TRUE(DeviceLostIn("GL lost: finishing x: the GL context was lost (GL_CONTEXT_LOST)"));
+  EXPECT_TRUE(DeviceLostIn("timing: CUDA lost: cuStreamSynchronize failed: CUDA_ERROR_ILLEGAL_ADDRESS (700)"));
+  EXPECT_TRUE(DeviceLostIn("Vulkan lost: vkQueueSubmit: VK_ERROR_DEVICE_LOST"));
+  EXPECT_FALSE(DeviceLostIn("GL launch: glDispatchCompute raised GL_INVALID_VALUE"));
+  EXPECT_FALSE(DeviceLostIn("wrong results against the float64 gold: the device was lost"));
+  EXPECT_FALSE(DeviceLostIn("worker process died: signal 6 (Aborted)"));
+  EXPECT_FALSE(DeviceLostIn(""));
 }
 
 TEST(Helpers, MedianCopyBytesAndTimestamp) {

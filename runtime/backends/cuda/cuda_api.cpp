@@ -331,7 +331,7 @@ std::string ErrorText(Result result) { return DriverErrorText(DriverLibrary().ap
 void Fail(const std::string& stage, const std::string& message) { throw Error("CUDA " + stage + ": " + message); }
 
 void Check(Result r, const std::string& stage, const std::string& what) {
-  if (r != kSuccess) Fail(stage, what + " failed: " + ErrorText(r));
+  if (r != kSuccess) Fail(ContextLost(r) ? "lost" : stage, what + " failed: " + ErrorText(r));
 }
 
 }  // namespace cuda

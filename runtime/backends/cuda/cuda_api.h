@@ -205,8 +205,22 @@ const DriverApi* Driver(std::string* why = nullptr);
 // "CUDA_ERROR_NAME (code): description" for a driver result.
 std::string ErrorText(Result result);
 
+// The driver results after which the context is unusable for good ("any
+// further CUDA work will return the same error; the process must be
+// terminated", the driver API's documentation): a kernel's illegal address,
+// instruction or stack, misaligned or wrong-space access, bad PC, a failed or
+// timed-out launch.
+inline constexpr Result kContextLostResults[] = {700, 702, 714, 715, 716, 717, 718, 719};
+constexpr bool ContextLost(Result r) {
+  for (const Result lost : kContextLostResults)
+    if (r == lost) return true;
+  return false;
+}
+
 // Throws Error("CUDA <stage>: <message>"): the stages the tuner and the
-// runtime map to statuses and error codes ("setup", "build", "launch", "guard").
+// runtime map to statuses and error codes ("setup", "build", "launch", "guard",
+// and "lost": Check's stage for a result of kContextLostResults, whatever the
+// caller's).
 [[noreturn]] void Fail(const std::string& stage, const std::string& message);
 // Fail(stage, "<what> failed: <ErrorText(r)>") unless `r` is success.
 void Check(Result r, const std::string& stage, const std::string& what);

@@ -37,7 +37,8 @@ std::string ResultName(VkResult result) {
 }
 
 void Check(VkResult result, const std::string& stage, const std::string& what) {
-  if (result != VK_SUCCESS) Fail(stage, what + ": " + ResultName(result));
+  // A lost device stays lost: stage "lost" (the tuner's worker then exits), whatever the caller's.
+  if (result != VK_SUCCESS) Fail(result == VK_ERROR_DEVICE_LOST ? "lost" : stage, what + ": " + ResultName(result));
 }
 
 GlobalFunctions GlobalsOf(PFN_vkGetInstanceProcAddr get_instance_proc_addr) {

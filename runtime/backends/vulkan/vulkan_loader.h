@@ -120,7 +120,8 @@ DeviceFunctions DeviceFunctionsOf(const InstanceFunctions& instance, VkDevice de
 
 // "VK_ERROR_OUT_OF_DEVICE_MEMORY", or the number.
 std::string ResultName(VkResult result);
-// Throws Error("Vulkan <stage>: <what>: <result name>") unless `result` is VK_SUCCESS.
+// Throws Error("Vulkan <stage>: <what>: <result name>") unless `result` is VK_SUCCESS;
+// stage "lost" for VK_ERROR_DEVICE_LOST, whatever the caller's.
 void Check(VkResult result, const std::string& stage, const std::string& what);
 [[noreturn]] void Fail(const std::string& stage, const std::string& message);
 
