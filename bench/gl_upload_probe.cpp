@@ -127,8 +127,14 @@ void Setup(Gl& gl, std::size_t mib) {
     EGLint count = 0;
     eglChooseConfig(gl.display, attributes, &config, 1, &count);
   }
+  // A shared context must have the reset notification strategy of the one it
+  // shares with (skintune's asks for EGL_LOSE_CONTEXT_ON_RESET where offered).
+  GLint strategy = GL_NO_RESET_NOTIFICATION;
+  glGetIntegerv(GL_RESET_NOTIFICATION_STRATEGY, &strategy);
+  const EGLint reset = strategy == GL_LOSE_CONTEXT_ON_RESET ? EGL_LOSE_CONTEXT_ON_RESET : EGL_NO_RESET_NOTIFICATION;
   const EGLint context_attributes[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 3,
-                                       EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+                                       EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                                       EGL_CONTEXT_OPENGL_RESET_NOTIFICATION_STRATEGY, reset, EGL_NONE};
   gl.second = eglCreateContext(gl.display, config, gl.main, context_attributes);
   if (gl.second == EGL_NO_CONTEXT) throw std::runtime_error("eglCreateContext (shared) failed: " + std::to_string(eglGetError()));
 }
