@@ -8,10 +8,26 @@
 // The runtime's public API (runtime/) turns these into error values.
 #pragma once
 
+#include <iterator>
 #include <stdexcept>
 #include <string>
 
 namespace skintune::internal {
+
+// "A", "A or B", "A, B or C": `name(item)` of each item of `items`, for the
+// messages that list what was expected.
+template <typename Items, typename Name>
+std::string OneOf(const Items& items, Name&& name) {
+  std::string out;
+  const std::size_t n = std::size(items);
+  std::size_t i = 0;
+  for (const auto& item : items) {
+    if (i > 0) out += i + 1 == n ? " or " : ", ";
+    out += name(item);
+    ++i;
+  }
+  return out;
+}
 
 class Error : public std::runtime_error {
  public:

@@ -67,16 +67,6 @@ std::string TypeName(int t) {
   return NameOf(names, "type ", t);
 }
 
-// "A", "A or B", "A, B or C".
-std::string OneOf(const std::vector<int>& values, std::string (*name)(int)) {
-  std::string s;
-  for (size_t i = 0; i < values.size(); ++i) {
-    if (i > 0) s += (i + 1 == values.size()) ? " or " : ", ";
-    s += name(values[i]);
-  }
-  return s;
-}
-
 bool Contains(const std::vector<int>& v, int x) { return std::find(v.begin(), v.end(), x) != v.end(); }
 
 size_t ComponentSize(int type) {

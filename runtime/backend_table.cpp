@@ -4,6 +4,7 @@
 
 #include <exception>
 
+#include "reference/error.h"
 #include "runtime/physical_device.h"
 
 namespace skintune::internal {
@@ -59,13 +60,7 @@ Discovered DiscoverDevices(const char* only) {
 }
 
 std::string JoinedBackendNames(bool titles) {
-  const std::vector<BackendEntry>& table = Backends();
-  std::string out;
-  for (std::size_t i = 0; i < table.size(); ++i) {
-    if (i > 0) out += i + 1 == table.size() ? " or " : ", ";
-    out += titles ? table[i].title : table[i].name;
-  }
-  return out;
+  return OneOf(Backends(), [titles](const BackendEntry& b) { return std::string(titles ? b.title : b.name); });
 }
 
 std::vector<std::string> LanguageNames() {

@@ -189,10 +189,8 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
   for (const BackendEntry& b : Backends()) langs.insert(langs.end(), b.languages.begin(), b.languages.end());
   const auto l = std::find_if(langs.begin(), langs.end(), [&](Lang x) { return lang == Name(x); });
   if (l == langs.end()) {
-    std::string expected;
-    for (std::size_t i = 0; i < langs.size(); ++i)
-      expected += std::string(i == 0 ? "" : i + 1 == langs.size() ? " or " : ", ") + Name(langs[i]);
-    throw Error("'lang' has unknown value '" + lang + "' (expected " + expected + ")");
+    throw Error("'lang' has unknown value '" + lang + "' (expected " +
+                OneOf(langs, [](Lang x) { return std::string(Name(x)); }) + ")");
   }
   e.lang = *l;
   e.influences = static_cast<int>(Integer(j, "influences"));

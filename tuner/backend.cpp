@@ -30,10 +30,7 @@ namespace {
 
 // "compile, wrong, hang, crash or lost"
 std::string FaultKindList() {
-  std::string list;
-  const std::size_t n = std::size(kInjectedFaultKinds);
-  for (std::size_t i = 0; i < n; ++i) list += (i == 0 ? "" : i + 1 == n ? " or " : ", ") + std::string(kInjectedFaultKinds[i]);
-  return list;
+  return OneOf(kInjectedFaultKinds, [](const char* kind) { return std::string(kind); });
 }
 
 }  // namespace
