@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 
 #include "generator/emit.h"
 #include "generator/packer.h"
@@ -35,6 +36,21 @@ struct CopyKernel {
 // copy_lang (glsl-vertex's copy is the GLSL compute one: both run on GL). Throws Error for more items than 8 per work item of
 // kCopyMaxGroups groups take (a source over 2 GiB).
 CopyKernel EmitCopy(Lang lang, std::size_t bytes);
+
+// The flush that runs before every kernel-time sample (docs/TUNING.md
+// "Kernel time"): the copy kernel of `read_bytes` of input with
+// SKINTUNE_FLUSH defined, which reads every item and writes none (no item of
+// the copy's input has all four words 0xffffffff, the only value it would
+// write). Run over at least twice the last-level cache (FlushBytes), it
+// leaves the cache holding clean lines of its own input: the next kernel
+// finds none of its data there and has no dirty line of another's to write
+// back, the state Nsight Compute's default cache control (--cache-control
+// all) leaves before each kernel it profiles.
+CopyKernel EmitFlush(Lang lang, std::size_t read_bytes);
+// The flush's input for a device whose last-level cache holds `llc_bytes`
+// (0: unknown, kUnknownCacheBytes assumed): twice the cache, at least 8 MiB.
+std::size_t FlushBytes(std::uint64_t llc_bytes);
+inline constexpr std::uint64_t kUnknownCacheBytes = 64ull << 20;
 
 // The bytes one frame of `copy` moves: 32 per item (16 read, 16 written).
 inline std::size_t CopyBytes(const CopyKernel& copy) { return copy.items * 32; }

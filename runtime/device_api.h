@@ -103,6 +103,7 @@ struct SetOptions {
 enum class FrameUse {
   kVerify,  // Run: one frame, each launch timed by the device and checked by the API
   kTime,    // Time: after `untimed` frames, bursts of `burst` frames each timed as a whole, then wait
+  kCold,    // TimeCold: each frame after the flush, each of its launches timed alone by the device, then wait
   kLive,    // the Skinner's frame: no timers, no wait, on the caller's queue/stream
 };
 
@@ -120,6 +121,21 @@ enum class FrameUse {
 // free of launch gaps, which per-launch timers (CUDA events around each
 // launch) and one serialising stream (~2 us per dependent launch on an
 // H100) would add. A last, shorter group of frames is not timed.
+//
+// kCold, the kernel time (docs/TUNING.md "Kernel time"): before each frame
+// the `flush` launches run (a kernel that reads a buffer of at least twice the
+// last-level cache and writes nothing, generator/copy_kernel.h EmitFlush), so
+// the frame starts from a cache holding only clean lines of other data, the
+// state Nsight Compute's default cache control leaves; the frame's launches
+// wait for it and for each other (in order, one queue or stream). Each launch
+// is timed alone by the device's own record of that launch: OpenCL's
+// profiling START/END of its event, CUDA's CUPTI kernel activity record
+// (the clock Nsight Compute reads; CUDA events around each launch where CUPTI
+// cannot be loaded), GL a TIME_ELAPSED query around the dispatch, Vulkan
+// timestamps around the dispatch, the cpu device the host's clock. No launch
+// processing and no gap between launches is counted. `untimed` frames first
+// run the same way without timers. Returns one vector per timed frame: each
+// launch's device time, ms, in launch order.
 struct FrameRun {
   FrameUse use = FrameUse::kTime;
   std::vector<std::span<const std::unique_ptr<DeviceObject>>> frames;
@@ -127,6 +143,7 @@ struct FrameRun {
   int burst = 1;                   // kTime: frames per timed burst (>= 1)
   std::string key;                 // the variant key, for messages
   void* out_positions = nullptr;   // kLive: write positions into this native buffer instead (OpenCL-GL sharing)
+  std::span<const std::unique_ptr<DeviceObject>> flush;  // kCold: the flush's bound launches, run before each frame
 
   // kTime: the bursts timed (frames after `untimed`, whole bursts only).
   std::size_t TimedBursts() const {
@@ -206,7 +223,8 @@ class DeviceApi {
 
   // Runs `run.frames` (see FrameUse). Returns kVerify: one vector, the
   // device time of each launch in ms; kTime: one vector of one value per
-  // timed burst, its device time in ms; kLive: nothing.
+  // timed burst, its device time in ms; kCold: one vector per timed frame,
+  // each launch's device time in ms; kLive: nothing.
   virtual std::vector<std::vector<double>> RunFrames(const FrameRun& run) = 0;
   virtual TimingPolicy timing_policy() const { return {}; }
 

@@ -551,6 +551,51 @@ std::vector<double> Runner::TimeFrames(const Prepared::Impl& p, int warmup, int 
   return ms;
 }
 
+Prepared Runner::PrepareFlush(Lang lang, std::size_t read_bytes) {
+  const CopyKernel flush = EmitFlush(lang, read_bytes);
+  const std::vector<std::vector<std::uint8_t>> palette = {flush.mesh.palette};
+  return Prepare(flush.mesh, std::span(&flush.kernel, 1), palette);
+}
+
+std::vector<double> Runner::TimeCold(const Prepared& prepared, const Prepared& flush, int untimed, int samples) {
+  Settle();
+  api_->MakeCurrent();
+  const Prepared::Impl* p = prepared.impl_.get();
+  const Prepared::Impl* f = flush.impl_.get();
+  if (!p || p->sets.empty() || !f || f->sets.empty()) Fail("launch", "TimeCold: nothing prepared");
+  if (api_->timing_policy().warm_until_stable) WarmUntilStable(*p);
+  FrameRun run;
+  run.use = FrameUse::kCold;
+  run.key = p->key;
+  run.untimed = std::max(untimed, 0);
+  run.flush = f->Frame(0);
+  for (int frame = 0; frame < run.untimed + std::max(samples, 0); ++frame)
+    run.frames.push_back(p->Frame(static_cast<std::size_t>(frame) % p->sets.size()));
+  std::vector<double> ms;
+  for (const std::vector<double>& launches : api_->RunFrames(run)) {
+    if (launches.size() != p->launches.size())
+      Fail("launch", "timing " + p->key + ": the device gave " + std::to_string(launches.size()) + " launch times for a frame of " +
+                         std::to_string(p->launches.size()));
+    double sum = 0.0;
+    for (const double launch : launches) sum += launch;
+    ms.push_back(sum);
+  }
+  busy_until_ = std::chrono::steady_clock::now();
+  return ms;
+}
+
+double Runner::FrameMs(Prepared& prepared, int untimed, int frames) {
+  using Clock = std::chrono::steady_clock;
+  for (int i = 0; i < std::max(untimed, 0); ++i) LaunchSet(prepared, 0);
+  Finish();
+  frames = std::max(frames, 1);
+  const Clock::time_point start = Clock::now();
+  for (int i = 0; i < frames; ++i) LaunchSet(prepared, 0);
+  Finish();
+  busy_until_ = Clock::now();
+  return std::chrono::duration<double, std::milli>(*busy_until_ - start).count() / frames;
+}
+
 int Runner::BurstFrames(const Prepared& prepared, int warmup, double burst_ms) {
   std::vector<double> one = Time(prepared, warmup, 3, 1);
   if (one.empty()) return 1;

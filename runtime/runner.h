@@ -191,6 +191,23 @@ class Runner {
   // timed by Time like any kernel (the same rotation, the same bursts).
   Prepared PrepareCopy(Lang lang, std::size_t bytes, int input_sets);
 
+  // The kernel time (docs/TUNING.md "Kernel time"; FrameUse::kCold):
+  // PrepareFlush prepares the flush (generator/copy_kernel.h EmitFlush) over
+  // `read_bytes` (FlushBytes of the device's last-level cache); TimeCold runs
+  // `untimed` frames and then `samples` frames of `prepared`, frame f on set
+  // f % input_sets(), each after the flush, and returns each timed frame's
+  // kernel time: the sum of its launches' own device times, ms. (The API may
+  // warm up first: TimingPolicy.)
+  Prepared PrepareFlush(Lang lang, std::size_t read_bytes);
+  std::vector<double> TimeCold(const Prepared& prepared, const Prepared& flush, int untimed, int samples);
+
+  // The frame time (docs/TUNING.md "Frame time"): `untimed` frames, then
+  // `frames` frames of set 0 issued back to back as a Skinner issues them
+  // (LaunchSet on its queue: no palette upload, no wait between frames),
+  // then a wait for the last; the host's wall time from the first timed
+  // frame's issue to that wait's end, per frame, ms. Host issue included.
+  double FrameMs(Prepared& prepared, int untimed, int frames);
+
   // Skinning with a prepared set (see the top of this file). WritePalette
   // copies `palettes` (the set's K palettes) into the next palette slot's
   // staging and queues its upload, first waiting for that slot's last frame

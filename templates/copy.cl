@@ -10,6 +10,14 @@ void skintune_copy(const uint n, const uint first, __global const uint4* restric
   const uint g = (uint)get_global_id(0), items = (uint)get_global_size(0);
   for (uint k = 0; k < VERTICES_PER_ITEM; ++k) {
     const uint i = g + k * items;
+#ifdef SKINTUNE_FLUSH
+    // The flush (generator/copy_kernel.h EmitFlush): every item read, none written.
+    if (i < n) {
+      const uint4 v = copy_in[i];
+      if ((v.x & v.y & v.z & v.w) == 0xffffffffu) out_positions[first + i] = v;
+    }
+#else
     if (i < n) out_positions[first + i] = copy_in[i];
+#endif
   }
 }

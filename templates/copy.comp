@@ -25,6 +25,14 @@ void main() {
   uint g = gl_GlobalInvocationID.x, items = gl_NumWorkGroups.x * uint(WG_SIZE);
   for (uint k = 0u; k < uint(VERTICES_PER_ITEM); ++k) {
     uint i = g + k * items;
+#ifdef SKINTUNE_FLUSH
+    // The flush (generator/copy_kernel.h EmitFlush): every item read, none written.
+    if (i < n) {
+      uvec4 v = copy_in[i];
+      if ((v.x & v.y & v.z & v.w) == 0xffffffffu) out_positions[first + i] = v;
+    }
+#else
     if (i < n) out_positions[first + i] = copy_in[i];
+#endif
   }
 }

@@ -10,6 +10,14 @@ skintune_copy(unsigned n, unsigned first, const uint4* __restrict__ copy_in, uin
   const unsigned g = blockIdx.x * WG_SIZE + threadIdx.x, items = gridDim.x * WG_SIZE;
   for (unsigned k = 0; k < VERTICES_PER_ITEM; ++k) {
     const unsigned i = g + k * items;
+#ifdef SKINTUNE_FLUSH
+    // The flush (generator/copy_kernel.h EmitFlush): every item read, none written.
+    if (i < n) {
+      const uint4 v = copy_in[i];
+      if ((v.x & v.y & v.z & v.w) == 0xffffffffu) out_positions[first + i] = v;
+    }
+#else
     if (i < n) out_positions[first + i] = copy_in[i];
+#endif
   }
 }

@@ -1,6 +1,7 @@
 #include "runtime/backends/cpu/cpu_runner.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -52,6 +53,7 @@ class CpuPlanned final : public PlannedLaunch {
  public:
   using PlannedLaunch::PlannedLaunch;
   bool copy = false;
+  bool flush = false;  // the copy's flush form (SKINTUNE_FLUSH): read every item, write none
   CpuKernelFn kernel = nullptr;
   int palette_rows = 4;
   bool fault_wrong = false, fault_hang = false;
@@ -129,6 +131,7 @@ class CpuApi final : public DeviceApi {
   const CpuChoice& ChoiceFor(const FrameRun& run);
 
   unsigned max_threads_;
+  std::uint64_t flush_sink_ = 0;  // what the flush read, kept so that no compiler drops the reads
   std::string name_;
   std::map<std::string, Parsed> built_;  // by source hash
   std::map<std::string, CpuChoice> choices_;  // by variant key
@@ -199,6 +202,7 @@ std::unique_ptr<PlannedLaunch> CpuApi::Plan(const LaunchSpec& spec) {
   };
   plan->fault_wrong = flag("SKINTUNE_FAULT_WRONG");
   plan->fault_hang = flag("SKINTUNE_FAULT_HANG");
+  plan->flush = parsed.copy && flag("SKINTUNE_FLUSH");
   if (parsed.copy) return plan;
   if (spec.variant.storage != PaletteStorage::kGlobal)
     Fail("launch", spec.where + ": storage " + Name(spec.variant.storage) +
@@ -241,6 +245,20 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
   const LaunchSpec& spec = plan.spec;
   if (plan.fault_hang) {
     for (;;) std::this_thread::sleep_for(std::chrono::milliseconds(10));  // the tuner's hang test: never returns
+  }
+  if (plan.flush) {  // every 8-byte word read on every thread, nothing written
+    const auto* in = reinterpret_cast<const std::uint64_t*>(b.inputs.at(0));
+    const std::size_t words = std::size_t{spec.count} * 2;
+    ThreadPool& pool = pools_.Get(max_threads_);
+    std::atomic<std::uint64_t> sink{0};
+    pool.ParallelFor(words, std::max<std::size_t>((words / pool.size() + 511) / 512 * 512, 512),
+                     [&](std::size_t begin, std::size_t end) {
+                       std::uint64_t all = ~std::uint64_t{0};
+                       for (std::size_t w = begin; w < end; ++w) all &= in[w];
+                       sink.fetch_or(all, std::memory_order_relaxed);
+                     });
+    flush_sink_ ^= sink.load();
+    return;
   }
   if (plan.copy) {  // n 16-byte items, one chunk per thread
     const std::uint8_t* in = b.inputs.at(0);
@@ -314,6 +332,24 @@ std::vector<std::vector<double>> CpuApi::RunFrames(const FrameRun& run) {
   if (run.use == FrameUse::kLive) {
     for (const auto& frame : run.frames) RunFrame(frame, choice);
     return {};
+  }
+  if (run.use == FrameUse::kCold) {  // device_api.h: each launch on the host's clock, after the flush
+    const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
+    std::vector<std::vector<double>> ms;
+    for (std::size_t f = 0; f < run.frames.size(); ++f) {
+      RunFrame(run.flush, choice);
+      if (f < untimed) {
+        RunFrame(run.frames[f], choice);
+        continue;
+      }
+      std::vector<double>& launches = ms.emplace_back();
+      for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
+        const Clock::time_point start = Clock::now();
+        RunLaunch(static_cast<CpuBound&>(*launch), choice);
+        launches.push_back(MsSince(start));
+      }
+    }
+    return ms;
   }
   const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
   const auto burst = static_cast<std::size_t>(std::max(run.burst, 1));

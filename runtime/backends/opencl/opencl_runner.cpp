@@ -225,6 +225,8 @@ class OpenClApi final : public DeviceApi {
     Event first[2], last[2];  // per lane: its first launch of the burst, its last
   };
   std::vector<std::vector<double>> TimeOnLanes(const FrameRun& run);
+  // Kernel time (FrameUse::kCold) on one profiling lane.
+  std::vector<std::vector<double>> TimeCold(const FrameRun& run);
   static double SpanMs(const LaneEdges& e, const std::string& key);
 
   std::map<std::string, BuiltKernel> built_;  // by source hash
@@ -610,7 +612,42 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
     for (const Event& e : events) ms.push_back(EventMs(e.get()));
     return {ms};
   }
+  if (run.use == FrameUse::kCold) return TimeCold(run);
   return TimeOnLanes(run);
+}
+
+// kCold (device_api.h): one in-order profiling queue, each frame after the
+// flush's launches; an event on every launch of a timed frame, whose
+// profiling START and END bound the kernel's own execution (no launch
+// processing: the queue has already submitted it when START is stamped).
+std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
+  const cl_command_queue lane = Lane(0);
+  const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
+  std::vector<std::vector<Event>> events(run.frames.size() - untimed);
+  for (std::size_t f = 0; f < run.frames.size(); ++f) {
+    for (const std::unique_ptr<DeviceObject>& launch : run.flush)
+      Enqueue(static_cast<const ClBound&>(*launch), nullptr, nullptr, lane);
+    for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
+      cl_event event = nullptr;
+      Enqueue(static_cast<const ClBound&>(*launch), nullptr, f < untimed ? nullptr : &event, lane);
+      if (event) events[f - untimed].emplace_back(event);
+    }
+    Check(clFlush(lane), "launch", "clFlush while timing " + run.key);
+  }
+  Check(clFinish(lane), "launch", "clFinish after timing " + run.key);
+  std::vector<std::vector<double>> ms;
+  for (const std::vector<Event>& frame : events) {
+    std::vector<double>& launches = ms.emplace_back();
+    for (const Event& e : frame) {
+      cl_ulong start = 0, end = 0;
+      Check(clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr), "launch",
+            "clGetEventProfilingInfo (start) of " + run.key);
+      Check(clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr), "launch",
+            "clGetEventProfilingInfo (end) of " + run.key);
+      launches.push_back(end > start ? static_cast<double>(end - start) * 1e-6 : 0.0);
+    }
+  }
+  return ms;
 }
 
 // kTime (docs/TUNING.md "Timing"): frames alternate between two in-order
