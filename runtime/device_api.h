@@ -227,6 +227,9 @@ class DeviceApi {
   // each launch's device time in ms; kLive: nothing.
   virtual std::vector<std::vector<double>> RunFrames(const FrameRun& run) = 0;
   virtual TimingPolicy timing_policy() const { return {}; }
+  // What times a kCold launch on this device (the measurement records it):
+  // "OpenCL profiling START/END", "CUPTI kernel activity", ...
+  virtual std::string kernel_clock() const = 0;
 
   // A palette's upload in two steps, so the host packs straight into
   // page-locked memory: Staging gives the buffer's own staging (buffer.bytes()

@@ -50,6 +50,7 @@ class FakeMarker final : public DeviceObject {
 
 class DeferredApi final : public DeviceApi {
  public:
+  std::string kernel_clock() const override { return "fake"; }
   std::vector<std::function<void()>> queue;  // every operation ever queued, in order
   std::size_t executed = 0;                  // how many of them ran
   std::vector<std::vector<std::uint8_t>> read;  // the palette each launch read, in the order they ran

@@ -69,6 +69,7 @@ class FakeBound final : public DeviceObject {
 
 class FakeApi final : public DeviceApi {
  public:
+  std::string kernel_clock() const override { return "fake"; }
   explicit FakeApi(Clock& clock) : clock_(clock) {}
   const char* name() const override { return "Fake"; }
   const std::string& device_name() const override { return name_; }

@@ -77,6 +77,7 @@ std::string Describe(const CpuChoice& choice) {
 
 class CpuApi final : public DeviceApi {
  public:
+  std::string kernel_clock() const override { return "the host's steady clock"; }
   explicit CpuApi(unsigned threads)
       : max_threads_(threads ? threads : std::max(1u, std::thread::hardware_concurrency())),
         name_(std::string("host CPU (") + CpuKernelIsa() + " kernels)") {}

@@ -13,6 +13,7 @@
 
 #include "reference/error.h"
 #include "runtime/backends/cuda/cuda_api.h"
+#include "runtime/backends/cuda/cupti.h"
 #include "runtime/output_check.h"
 
 namespace skintune::internal {
@@ -221,6 +222,9 @@ class CudaApi final : public DeviceApi {
   }
   // The driver API is thread-safe; MakeCurrent puts the context on the calling thread.
   bool SubmitsFromAnyThread() const override { return true; }
+  std::string kernel_clock() const override {
+    return cupti::Unavailable().empty() ? "CUPTI kernel activity" : "CUDA events around each launch (" + cupti::Unavailable() + ")";
+  }
 
  private:
   const BuiltKernel& KernelFor(const KernelSource& source);
@@ -230,6 +234,10 @@ class CudaApi final : public DeviceApi {
   void Launch(const CudaBound& bound, cuda::Stream lane, void** parameters = nullptr);
   double ElapsedMs(const Event& start, const Event& end) const;
   std::vector<std::vector<double>> RunTimed(const FrameRun& run);
+  // Kernel time (FrameUse::kCold) on one stream: CUPTI's kernel records, or
+  // events around each launch where CUPTI is unavailable (kernel_clock()).
+  std::vector<std::vector<double>> TimeCold(const FrameRun& run);
+  void QueueColdFrame(const FrameRun& run, std::size_t frame, cuda::Stream lane, std::vector<std::pair<Event, Event>>* events);
 
   cuda::Stream Lane(int i);
   // Palette uploads run on a stream of their own (non-blocking: it does not
@@ -599,7 +607,54 @@ std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
 // The Skinner's frame on the caller's stream; positions into run.out_positions
 // (a CUdeviceptr: a mapped GL buffer, SkinIntoGlBuffer) instead of the set's
 // own output when given.
+// Queues frame `frame` of a kCold run on `lane`: the flush, then the
+// frame's launches, each between two events when `events` is given.
+void CudaApi::QueueColdFrame(const FrameRun& run, std::size_t frame, cuda::Stream lane,
+                             std::vector<std::pair<Event, Event>>* events) {
+  for (const std::unique_ptr<DeviceObject>& launch : run.flush) Launch(static_cast<const CudaBound&>(*launch), lane);
+  for (const std::unique_ptr<DeviceObject>& launch : run.frames[frame]) {
+    if (events) {
+      events->emplace_back(NewEvent("cuEventCreate for timing " + run.key), NewEvent("cuEventCreate for timing " + run.key));
+      Check(api->cuEventRecord(events->back().first.get(), lane), "launch", "cuEventRecord of " + run.key);
+    }
+    Launch(static_cast<const CudaBound&>(*launch), lane);
+    if (events) Check(api->cuEventRecord(events->back().second.get(), lane), "launch", "cuEventRecord of " + run.key);
+  }
+}
+
+// kCold (device_api.h): every frame on one stream, in order, after the
+// flush. Each launch's time is CUPTI's record of the kernel's own start
+// and end (cupti.h says why); where CUPTI cannot be loaded, events around
+// each launch, which count the launch's processing too (kernel_clock()
+// says which, and the report with it).
+std::vector<std::vector<double>> CudaApi::TimeCold(const FrameRun& run) {
+  if (last_upload_) {
+    Check(api->cuStreamSynchronize(uploads_), "launch", "cuStreamSynchronize on the palette uploads");
+    last_upload_ = nullptr;
+  }
+  const cuda::Stream lane = Lane(0);
+  const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
+  for (std::size_t f = 0; f < untimed; ++f) QueueColdFrame(run, f, lane, nullptr);
+  Check(api->cuStreamSynchronize(lane), "launch", "cuStreamSynchronize before timing " + run.key);
+  const std::size_t timed = run.frames.size() - untimed;
+  const std::size_t launches = timed ? run.frames[untimed].size() : 0;
+  if (cupti::Unavailable().empty()) {
+    cupti::KernelActivity activity;
+    activity.Start();
+    for (std::size_t f = untimed; f < run.frames.size(); ++f) QueueColdFrame(run, f, lane, nullptr);
+    Check(api->cuStreamSynchronize(lane), "launch", "cuStreamSynchronize after timing " + run.key);
+    return cupti::ColdFrameTimes(activity.Stop(), timed, run.flush.size(), launches);
+  }
+  std::vector<std::pair<Event, Event>> events;
+  for (std::size_t f = untimed; f < run.frames.size(); ++f) QueueColdFrame(run, f, lane, &events);
+  Check(api->cuStreamSynchronize(lane), "launch", "cuStreamSynchronize after timing " + run.key);
+  std::vector<std::vector<double>> ms(timed);
+  for (std::size_t e = 0; e < events.size(); ++e) ms[e / std::max<std::size_t>(launches, 1)].push_back(ElapsedMs(events[e].first, events[e].second));
+  return ms;
+}
+
 std::vector<std::vector<double>> CudaApi::RunFrames(const FrameRun& run) {
+  if (run.use == FrameUse::kCold) return TimeCold(run);
   if (run.use != FrameUse::kLive) return RunTimed(run);
   const auto out = static_cast<cuda::DevicePtr>(reinterpret_cast<std::uintptr_t>(run.out_positions));
   JoinUploads(stream);

@@ -196,6 +196,9 @@ class GlApi final : public DeviceApi {
   void FinishUploads(const std::string& key) override;
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
   TimingPolicy timing_policy() const override { return {!host_timed()}; }
+  std::string kernel_clock() const override {
+    return host_timed() ? "the host's clock between glFinish calls" : "GL_TIME_ELAPSED queries";
+  }
   std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key, bool upload_fenced) override;
   void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;

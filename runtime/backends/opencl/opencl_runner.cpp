@@ -201,6 +201,7 @@ class OpenClApi final : public DeviceApi {
   // Every OpenCL call but clSetKernelArg is thread-safe (OpenCL 1.2, appendix
   // A.2); the live frame's arguments are set only by the thread making it.
   bool SubmitsFromAnyThread() const override { return true; }
+  std::string kernel_clock() const override { return "OpenCL profiling START/END"; }
   bool ReadyToRelease() override {  // no upload still reads a staging about to be released
     if (uploads_.get()) clFinish(uploads_.get());
     last_upload_.reset();

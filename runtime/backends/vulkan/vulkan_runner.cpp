@@ -272,6 +272,7 @@ class VulkanApi final : public DeviceApi {
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
   // On a GPU, warm up until the clock is steady, as GL on the same NVIDIA driver needs.
   TimingPolicy timing_policy() const override { return {c_->info.type == "gpu"}; }
+  std::string kernel_clock() const override { return "Vulkan timestamp queries"; }
   std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key, bool upload_fenced) override;
   void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
   void Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) override;
