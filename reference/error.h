@@ -34,4 +34,11 @@ class Error : public std::runtime_error {
   explicit Error(const std::string& message) : std::runtime_error(message) {}
 };
 
+// A setting that cannot work (a config's impossible stop rule): the command
+// exits 2, as for a bad command line, rather than 1 for bad data.
+class UsageError : public Error {
+ public:
+  using Error::Error;
+};
+
 }  // namespace skintune::internal

@@ -82,22 +82,32 @@ std::string Fixed(double value, int decimals) {
 // (Measurement::x_copy, docs/TUNING.md "Timing"), "-" when there is none.
 std::string TimesCopy(const Winner& w) { return w.x_copy > 0.0 ? Fixed(w.x_copy, 2) : "-"; }
 
+// "3.79 [3.76, 3.81]": the kernel time's median and 95% interval, us.
+std::string KernelInterval(const Winner& w) {
+  std::string text = Fixed(w.median_ms * 1e3, 2);
+  if (w.high_ms > w.low_ms) text += " [" + Fixed(w.low_ms * 1e3, 2) + ", " + Fixed(w.high_ms * 1e3, 2) + "]";
+  return text;
+}
+
 // Per device (in report order): its winners within the budget, one per
 // language, B and vertex count, with what they cost against the unquantised
 // source (docs/TUNING.md "Precision"); faster classes over the budget are
 // counted below each table (the winners database keeps them).
 void PrintDeviceWinners(const TuningReport& report) {
   const std::vector<Winner> all = ComputeWinners(report);
-  const std::vector<Winner> winners = BudgetWinners(all);
+  const std::vector<Winner> winners = BudgetWinners(all, report.tie_margin);
   for (const DeviceIdentity& d : report.devices) {
-    std::vector<std::vector<std::string>> rows = {{"lang", "B", "vertices", "dataset", "variant", "ms", "GB/s",
-                                                   "x copy", "err/diag", "format costs"}};
+    std::vector<std::vector<std::string>> rows = {{"lang", "B", "vertices", "dataset", "variant", "kernel us [95%]",
+                                                   "frame us", "GB/s", "x copy", "ties", "err/diag", "format costs"}};
+    std::vector<std::string> noisy;
     for (const Winner& w : winners) {
       if (w.device_id != d.Id()) continue;
       const SourceError& e = w.source_error;
       rows.push_back({Name(w.lang), std::to_string(w.influences), VertexCountName(w.vertices), w.dataset,
-                      w.variant.Key(), Fixed(w.median_ms, 4), Fixed(w.gbps, 1), TimesCopy(w),
+                      w.variant.Key(), KernelInterval(w), w.frame_ms > 0.0 ? Fixed(w.frame_ms * 1e3, 2) : "-",
+                      Fixed(w.gbps, 1), TimesCopy(w), std::to_string(w.tie_set.size() > 0 ? w.tie_set.size() - 1 : 0),
                       e.known ? Sci(e.position_rel) : "-", e.known ? Sci(e.quantisation_rel) : "-"});
+      if (w.within_noise) noisy.push_back(std::string(Name(w.lang)) + " " + w.dataset);
     }
     std::size_t over = 0;
     for (const Winner& w : all) over += w.device_id == d.Id() && !w.within_budget ? 1 : 0;
@@ -105,7 +115,15 @@ void PrintDeviceWinners(const TuningReport& report) {
     if (rows.size() == 1) {
       std::cout << "no variant passed verification within the budget on this device\n";
     } else {
-      std::cout << FormatTable(rows, {1, 2, 5, 6, 7, 8, 9});
+      std::cout << FormatTable(rows, {1, 2, 5, 6, 7, 8, 9, 10, 11});
+      std::cout << "kernel: the kernel's own device time from a flushed cache, median and 95% interval; frame: Skin() "
+                   "issued back to back; ties: other candidates within the tie margin "
+                << Fixed(report.tie_margin * 100.0, 1) << "% (the winner among ties: fewest bytes, then lower error)\n";
+      if (!noisy.empty()) {
+        std::cout << "every candidate within noise of the winner in: ";
+        for (std::size_t i = 0; i < noisy.size(); ++i) std::cout << (i ? ", " : "") << noisy[i];
+        std::cout << "\n";
+      }
     }
     if (over > 0)
       std::cout << over << " faster precision class(es) over the budget max_error " << Sci(report.max_error)

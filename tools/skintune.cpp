@@ -1,6 +1,6 @@
 // skintune: generates, verifies and autotunes GPU skinning kernels.
 // Exit codes: 0 success, 1 bad input or failed operation (one line on
-// stderr), 2 bad command line.
+// stderr), 2 bad command line or a setting that cannot work (UsageError).
 #include <iostream>
 #include <vector>
 
@@ -35,6 +35,9 @@ int main(int argc, char** argv) {
     for (const tools::Command& command : commands) {
       if (command.subcommand->parsed()) return command.run();
     }
+  } catch (const skintune::internal::UsageError& e) {
+    std::cerr << "skintune: error: " << e.what() << "\n";
+    return 2;
   } catch (const skintune::internal::Error& e) {
     std::cerr << "skintune: error: " << e.what() << "\n";
     return 1;

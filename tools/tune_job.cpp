@@ -192,7 +192,7 @@ std::string Sci(double value) {
 
 void PrintWinners(const TuningReport& report) {
   const std::vector<Winner> winners = ComputeWinners(report);
-  const std::vector<Winner> chosen = BudgetWinners(winners);
+  const std::vector<Winner> chosen = BudgetWinners(winners, report.tie_margin);
   std::map<std::string, std::string> names;
   for (const DeviceIdentity& d : report.devices) names[d.Id()] = d.name;
   std::vector<std::vector<std::string>> rows = {{"device", "lang", "B", "vertices", "variant", "ms", "GB/s", "x copy",

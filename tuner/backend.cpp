@@ -51,6 +51,88 @@ InjectedFault InjectedFaultFromEnvironment() {
   return fault;
 }
 
+// ---------------------------------------------------------------- timing options
+
+namespace {
+
+// The fields of TimingOptions, declared once for the reader and the writer.
+struct TimingField {
+  const char* name;
+  enum Kind { kInt, kCount, kNumber } kind;
+  int* as_int;
+  std::size_t* as_count;
+  double* as_number;
+};
+
+std::vector<TimingField> Fields(TimingOptions& t) {
+  return {{"warmup", TimingField::kInt, &t.warmup, nullptr, nullptr},
+          {"repetitions", TimingField::kInt, &t.repetitions, nullptr, nullptr},
+          {"max_input_sets", TimingField::kInt, &t.max_input_sets, nullptr, nullptr},
+          {"tolerance", TimingField::kNumber, nullptr, nullptr, &t.tolerance},
+          {"burst_ms", TimingField::kNumber, nullptr, nullptr, &t.burst_ms},
+          {"interval", TimingField::kNumber, nullptr, nullptr, &t.stop.interval},
+          {"min_samples", TimingField::kCount, nullptr, &t.stop.min_samples, nullptr},
+          {"max_samples", TimingField::kCount, nullptr, &t.stop.max_samples, nullptr},
+          {"sample_batch", TimingField::kCount, nullptr, &t.stop.batch, nullptr},
+          {"sample_ms", TimingField::kNumber, nullptr, nullptr, &t.stop.max_ms},
+          {"race", TimingField::kInt, &t.race, nullptr, nullptr},
+          {"tie_margin", TimingField::kNumber, nullptr, nullptr, &t.tie_margin}};
+}
+
+std::string Dumped(const nlohmann::json& v) {
+  std::string text = v.dump();
+  return text.size() > 40 ? text.substr(0, 40) + "..." : text;
+}
+
+}  // namespace
+
+TimingOptions TimingOptionsFromJson(const nlohmann::json& in, const std::string& where) {
+  if (!in.is_object()) throw Error(where + ": expected an object");
+  TimingOptions t;
+  std::vector<TimingField> fields = Fields(t);
+  for (const auto& [name, value] : in.items()) {
+    const auto field = std::find_if(fields.begin(), fields.end(), [&](const TimingField& f) { return name == f.name; });
+    if (field == fields.end()) {
+      std::string list;
+      for (const TimingField& f : fields) list += (list.empty() ? "" : ", ") + std::string(f.name);
+      throw Error(where + "." + name + ": unknown field (expected one of " + list + ")");
+    }
+    const std::string at = where + "." + name;
+    if (field->kind == TimingField::kNumber) {
+      if (!value.is_number()) throw Error(at + ": expected a number (got " + Dumped(value) + ")");
+      *field->as_number = value.get<double>();
+      if (!std::isfinite(*field->as_number)) throw Error(at + ": must be finite (got " + Dumped(value) + ")");
+      continue;
+    }
+    if (!value.is_number_integer()) throw Error(at + ": expected an integer (got " + Dumped(value) + ")");
+    const long long v = value.get<long long>();
+    const long long least = field->kind == TimingField::kCount || name == "repetitions" || name == "max_input_sets" ? 1 : 0;
+    if (v < least || v > 1000000)
+      throw Error(at + ": must be an integer from " + std::to_string(least) + " to 1000000 (got " + std::to_string(v) + ")");
+    if (field->as_int) *field->as_int = static_cast<int>(v);
+    if (field->as_count) *field->as_count = static_cast<std::size_t>(v);
+  }
+  if (!(t.burst_ms > 0.0)) throw Error(where + ".burst_ms: must be a positive number");
+  if (!(t.tolerance > 0.0)) throw Error(where + ".tolerance: must be a positive number");
+  const std::string prefix = where.substr(where.rfind(' ') == std::string::npos ? 0 : where.rfind(' ') + 1) + ".";
+  if (const std::string bad = BadStopRule(t.stop, prefix); !bad.empty()) throw UsageError(where + ": " + bad);
+  if (!(t.tie_margin > 0.0) || t.tie_margin > 0.5)
+    throw UsageError(where + ": '" + prefix + "tie_margin' is " + Dumped(in.at("tie_margin")) +
+                     ": a relative difference in (0, 0.5] (0.02: 2%)");
+  return t;
+}
+
+nlohmann::json ToJson(const TimingOptions& t) {
+  TimingOptions copy = t;
+  nlohmann::json out = nlohmann::json::object();
+  for (const TimingField& f : Fields(copy)) {
+    if (f.as_int) out[f.name] = *f.as_int;
+    if (f.as_count) out[f.name] = *f.as_count;
+    if (f.as_number) out[f.name] = *f.as_number;
+  }
+  return out;
+}
+
 // ---------------------------------------------------------------- discovery
 
 Discovery DiscoverBackends() {
@@ -382,24 +464,6 @@ void InjectFault(KernelSource& source, const Variant& variant, const std::string
   source.source_hash = SourceHash(source.text);
 }
 
-std::vector<double> SteadyCopyTimes(const std::function<std::vector<double>()>& time) {
-  // One copy serves every measurement of its size and burst length, so a
-  // noisy one would skew them all (the H100's v4 acceptance run: one OpenCL
-  // copy timed at 0.0272 ms, bursts 0.0259-0.0296, where it takes 0.0254,
-  // set 17 measurements' x_copy 7% low). Noise only adds time to a copy.
-  constexpr double kCopySpread = 0.05;
-  constexpr int kCopyTimings = 3;
-  std::vector<double> best;
-  for (int timing = 0; timing < kCopyTimings; ++timing) {
-    std::vector<double> ms = time();
-    if (ms.empty()) break;
-    if (best.empty() || Median(ms) < Median(best)) best = ms;
-    const auto [low, high] = std::minmax_element(ms.begin(), ms.end());
-    if (*low > 0.0 && *high / *low - 1.0 <= kCopySpread) break;
-  }
-  return best;
-}
-
 double Median(std::vector<double> values) {
   if (values.empty()) return 0.0;
   std::sort(values.begin(), values.end());
@@ -591,56 +655,33 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   }
   error.quantisation_rel = datasets.QuantisationError(data, variant);
 
-  // Then time, in bursts rotating among K input sets (different frames),
-  // device timers; and the same-size copy by the same method.
+  // Then time: the kernel time (cold samples rotating among K input sets of
+  // different frames, to the stop rule), the frame time, and the same-size
+  // copy's kernel time by the same method.
   // The bytes of the scene's frame: K instances move what K copies of the
   // mesh would (so the same-size copy is that of one mesh of the scene's
   // total bytes, even when an instanced kernel finds its inputs in cache).
-  std::uint64_t bytes_per_frame = 0;
-  for (const Launch& launch : packed.launches)
-    for (const PackedBuffer& b : launch.inputs) bytes_per_frame += b.bytes.size();
-  bytes_per_frame += packed.vertex_count * packed.output_stride_bytes * (variant.normals ? 2 : 1);
-  bytes_per_frame += packed.palette.size();
-  bytes_per_frame *= static_cast<std::uint64_t>(instances);
+  const std::uint64_t bytes_per_frame = FrameBytes(packed, instances);
   m.bytes_per_frame = static_cast<double>(bytes_per_frame);
   const int sets = InputSetsFor(identity.last_level_cache_bytes, bytes_per_frame, options.max_input_sets);
-  std::vector<std::vector<std::uint8_t>> palettes;
-  for (const std::vector<glm::mat4>& palette : datasets.Frames(data, sets))
-    palettes.push_back(PackPalette(palette, variant));
+  const std::vector<std::vector<std::uint8_t>> palettes = TimedPalettes(datasets, data, variant, sets);
   phase("check against the gold and the source");
   host_work.Release();
-  const HostLock timed(TimedMode(cpu_device));  // through the copy's bursts
-  const int warmup = std::max(options.warmup, 0);
-  const int repetitions = std::max(options.repetitions, 1);
-  Executor::Times times;
+  const HostLock timed(TimedMode(cpu_device));  // through the copy's samples
   try {
-    times = executor.Time(packed, kernels, palettes, instances, warmup, repetitions, 0, options.burst_ms);
+    const std::unique_ptr<Executor::Timed> prepared = executor.Prepare(packed, kernels, palettes, instances);
+    RecordKernelTime(m, SampleKernelTime(*prepared, options), executor, sets, prepared->bytes_per_set());
+    phase("kernel time");
+    m.timing.frame_ms = SampleFrameTime(*prepared, options, &m.timing.burst_frames);
+    phase("frame time");
   } catch (const Error& e) {
     return finish(StatusOfRunnerError(e.what()), std::string("timing: ") + e.what());
   }
-  const std::vector<double>& ms = times.ms;
-  if (ms.empty()) return finish(MeasureStatus::kLaunchFailed, "timing: no time measured");
-  m.timing.median_ms = Median(ms);
-  m.timing.min_ms = *std::min_element(ms.begin(), ms.end());
-  m.timing.max_ms = *std::max_element(ms.begin(), ms.end());
-  m.timing.warmup = warmup;
-  m.timing.repetitions = static_cast<int>(ms.size());
-  m.timing.burst_frames = times.burst_frames;
-  m.timing.input_sets = sets;
-  m.timing.footprint_bytes = static_cast<double>(sets) * static_cast<double>(times.bytes_per_set);
-  m.gbps = m.timing.median_ms > 0.0 ? m.bytes_per_frame / m.timing.median_ms / 1e6 : 0.0;
-  phase("time (input sets, warm-up, bursts)");
   std::string copy_problem;
   try {
-    const std::vector<double> copy =
-        executor.TimeCopy(variant.lang, bytes_per_frame, sets, warmup, repetitions, times.burst_frames);
-    const double copy_ms = copy.empty() ? 0.0 : Median(copy);
-    if (copy_ms > 0.0 && std::isfinite(copy_ms)) {
-      m.timing.copy_ms = copy_ms;
-      m.x_copy = m.timing.median_ms / copy_ms;
-    } else {
-      copy_problem = "the same-size copy gave no possible time";
-    }
+    const KernelTime& copy = executor.CopyTime(variant.lang, bytes_per_frame, sets, options);
+    m.timing.copy_ms = copy.interval.median;
+    m.x_copy = m.timing.median_ms / copy.interval.median;
   } catch (const Error& e) {
     copy_problem = std::string("the same-size copy failed: ") + e.what();
   }
@@ -649,31 +690,162 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   return finish(MeasureStatus::kOk, copy_problem);  // a kernel without its copy is still measured
 }
 
+std::uint64_t FrameBytes(const PackedMesh& packed, int instances) {
+  std::uint64_t bytes = 0;
+  for (const Launch& launch : packed.launches)
+    for (const PackedBuffer& b : launch.inputs) bytes += b.bytes.size();
+  bytes += packed.vertex_count * packed.output_stride_bytes * (packed.variant.normals ? 2 : 1);
+  bytes += packed.palette.size();
+  return bytes * static_cast<std::uint64_t>(instances);
+}
+
+std::vector<std::vector<std::uint8_t>> TimedPalettes(DatasetCache& datasets, DatasetCache::Entry& data,
+                                                     const Variant& variant, int sets) {
+  std::vector<std::vector<std::uint8_t>> palettes;
+  for (const std::vector<glm::mat4>& palette : datasets.Frames(data, sets)) palettes.push_back(PackPalette(palette, variant));
+  return palettes;
+}
+
+std::vector<std::vector<double>> RaceWith(Executor& executor, DatasetCache& datasets, const DeviceIdentity& identity,
+                                          const std::vector<Variant>& variants, const TuningDataset& dataset,
+                                          const TimingOptions& options) {
+  using Clock = std::chrono::steady_clock;
+  DatasetCache::Entry& data = datasets.Get(dataset.key);
+  const bool cpu_device = identity.type.find("cpu") != std::string::npos;
+  std::vector<std::unique_ptr<Executor::Timed>> timed;
+  std::vector<RaceEntry> entries;
+  {
+    const HostLock host_work(HostWorkMode(cpu_device));
+    for (const Variant& v : variants) {
+      std::vector<KernelSource> kernels;
+      const PackedMesh& packed = PackScene(datasets, data, v, kernels);  // valid until the next packing
+      const int sets = InputSetsFor(identity.last_level_cache_bytes, FrameBytes(packed, data.instances()), options.max_input_sets);
+      timed.push_back(executor.Prepare(packed, kernels, TimedPalettes(datasets, data, v, sets), data.instances()));
+      entries.push_back({v.Key(), {}, 0.0, 0.0});
+    }
+  }
+  const HostLock timed_lock(TimedMode(cpu_device));
+  const StopRule& rule = options.stop;
+  const auto start = Clock::now();
+  // Rounds of one batch each, candidate after candidate: a drift of the
+  // device's clock or of its neighbours' load falls on every candidate alike.
+  for (int round = 0;; ++round) {
+    for (std::size_t i = 0; i < timed.size(); ++i) {
+      const std::vector<double> batch = timed[i]->Cold(round == 0 ? std::max(options.warmup, 0) : 0, static_cast<int>(rule.batch));
+      entries[i].samples.insert(entries[i].samples.end(), batch.begin(), batch.end());
+    }
+    std::size_t fewest = entries.front().samples.size();
+    for (const RaceEntry& e : entries) fewest = std::min(fewest, e.samples.size());
+    if (fewest == 0) throw Error("race: the device gave no kernel time");
+    const RaceOutcome outcome = JudgeRace(entries, options.tie_margin);
+    const double elapsed = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    if ((outcome.decided && fewest >= rule.min_samples) || fewest >= rule.max_samples ||
+        elapsed >= rule.max_ms * static_cast<double>(entries.size()))
+      break;
+  }
+  std::vector<std::vector<double>> samples;
+  for (RaceEntry& e : entries) samples.push_back(std::move(e.samples));
+  return samples;
+}
+
+KernelTime SampleKernelTime(Executor::Timed& timed, const TimingOptions& options) {
+  using Clock = std::chrono::steady_clock;
+  const StopRule& rule = options.stop;
+  const auto start = Clock::now();
+  KernelTime t;
+  int untimed = std::max(options.warmup, 0);
+  for (;;) {
+    const std::size_t want = std::min(rule.batch, rule.max_samples - std::min(rule.max_samples, t.samples.size()));
+    const std::vector<double> batch = timed.Cold(untimed, static_cast<int>(std::max<std::size_t>(want, 1)));
+    untimed = 0;
+    if (batch.empty()) throw Error("timing: the device gave no kernel time");
+    t.samples.insert(t.samples.end(), batch.begin(), batch.end());
+    for (const double s : batch)
+      if (!(s > 0.0) || !std::isfinite(s))
+        throw Error("timing: the device gave a kernel time of " + std::to_string(s) + " ms");
+    t.interval = MedianInterval(t.samples);
+    const double elapsed = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    if (ShouldStop(rule, t.interval, elapsed, &t.tight)) return t;
+  }
+}
+
+double SampleFrameTime(Executor::Timed& timed, const TimingOptions& options, int* frames) {
+  const double one = timed.FrameMs(std::max(options.warmup, 1), 1);
+  const double wanted = one > 0.0 ? options.burst_ms / one : 1.0;
+  // A power of two on a log scale, as the kernel's old bursts were, 1..kMaxBurstFrames.
+  int n = 1;
+  while (n < kMaxBurstFrames && n * std::sqrt(2.0) < wanted) n *= 2;
+  std::vector<double> ms;
+  for (int r = 0; r < std::max(options.repetitions, 1); ++r) ms.push_back(timed.FrameMs(0, n));
+  if (frames) *frames = n;
+  return Median(ms);
+}
+
+void RecordKernelTime(Measurement& m, const KernelTime& t, const Executor& executor, int sets, std::size_t bytes_per_set) {
+  m.timing.median_ms = t.interval.median;
+  m.timing.low_ms = t.interval.low;
+  m.timing.high_ms = t.interval.high;
+  m.timing.min_ms = *std::min_element(t.samples.begin(), t.samples.end());
+  m.timing.max_ms = *std::max_element(t.samples.begin(), t.samples.end());
+  m.timing.repetitions = static_cast<int>(t.samples.size());
+  m.timing.tight = t.tight;
+  m.timing.clock = executor.KernelClock();
+  m.timing.input_sets = sets;
+  m.timing.footprint_bytes = static_cast<double>(sets) * static_cast<double>(bytes_per_set);
+  m.timing.flush_bytes = static_cast<double>(executor.FlushReadBytes());
+  m.gbps = m.timing.median_ms > 0.0 ? m.bytes_per_frame / m.timing.median_ms / 1e6 : 0.0;
+}
+
 Executor::Output RunnerExecutor::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                                      std::span<const std::uint8_t> palette, int instances) {
   RunResult result = runner_.Run(mesh, kernels, palette, instances);
   return {std::move(result.positions), std::move(result.normals), result.poisoned_vertices};
 }
 
-Executor::Times RunnerExecutor::Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                                     std::span<const std::vector<std::uint8_t>> palettes, int instances,
-                                     int warmup, int bursts, int burst_frames, double burst_ms) {
-  const Prepared prepared = runner_.Prepare(mesh, kernels, palettes, instances);
-  Times times;
-  times.burst_frames = burst_frames > 0 ? burst_frames : runner_.BurstFrames(prepared, warmup, burst_ms);
-  times.ms = runner_.Time(prepared, warmup, bursts, times.burst_frames);
-  times.bytes_per_set = prepared.bytes_per_set();
-  return times;
+namespace {
+
+class RunnerTimed final : public Executor::Timed {
+ public:
+  RunnerTimed(Runner& runner, RunnerExecutor& executor, Prepared prepared, Lang lang)
+      : runner_(runner), executor_(executor), prepared_(std::move(prepared)), lang_(lang) {}
+  std::vector<double> Cold(int untimed, int samples) override {
+    return runner_.TimeCold(prepared_, executor_.Flush(lang_), untimed, samples);
+  }
+  double FrameMs(int untimed, int frames) override { return runner_.FrameMs(prepared_, untimed, frames); }
+  std::size_t bytes_per_set() const override { return prepared_.bytes_per_set(); }
+
+ private:
+  Runner& runner_;
+  RunnerExecutor& executor_;
+  Prepared prepared_;
+  Lang lang_;
+};
+
+}  // namespace
+
+const Prepared& RunnerExecutor::Flush(Lang lang) {
+  if (const auto found = flushes_.find(lang); found != flushes_.end()) return found->second;
+  return flushes_.emplace(lang, runner_.PrepareFlush(lang, flush_bytes_)).first->second;
 }
 
-std::vector<double> RunnerExecutor::TimeCopy(Lang lang, std::size_t bytes, int input_sets, int warmup, int bursts,
-                                             int burst_frames) {
-  const std::string key = std::string(Name(lang)) + "|" + std::to_string(bytes / 32) + "|" + std::to_string(input_sets) +
-                          "|" + std::to_string(warmup) + "|" + std::to_string(bursts) + "|" +
-                          std::to_string(burst_frames);
-  if (const auto found = copies_.find(key); found != copies_.end()) return found->second;
-  const Prepared prepared = runner_.PrepareCopy(lang, bytes, input_sets);
-  return copies_[key] = SteadyCopyTimes([&] { return runner_.Time(prepared, warmup, bursts, burst_frames); });
+std::unique_ptr<Executor::Timed> RunnerExecutor::Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                                         std::span<const std::vector<std::uint8_t>> palettes,
+                                                         int instances) {
+  const Lang lang = kernels.empty() ? mesh.variant.lang : kernels.front().lang;
+  return std::make_unique<RunnerTimed>(runner_, *this, runner_.Prepare(mesh, kernels, palettes, instances), lang);
+}
+
+std::unique_ptr<Executor::Timed> RunnerExecutor::Copy(Lang lang, std::size_t bytes, int input_sets) {
+  return std::make_unique<RunnerTimed>(runner_, *this, runner_.PrepareCopy(lang, bytes, input_sets),
+                                       LanguageOf(lang).copy_lang);
+}
+
+const KernelTime& Executor::CopyTime(Lang lang, std::size_t bytes, int input_sets, const TimingOptions& options) {
+  const std::string key = std::string(Name(lang)) + "|" + std::to_string(bytes / 32) + "|" + std::to_string(input_sets);
+  if (const auto found = copy_times_.find(key); found != copy_times_.end()) return *found->second;
+  const std::unique_ptr<Timed> copy = Copy(lang, bytes, input_sets);
+  auto time = std::make_unique<KernelTime>(SampleKernelTime(*copy, options));
+  return *copy_times_.emplace(key, std::move(time)).first->second;
 }
 
 }  // namespace tuner_internal

@@ -13,25 +13,43 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "generator/constraints.h"
 #include "generator/variant.h"
 #include "runtime/device_identity.h"  // DeviceIdentity, its JSON
 #include "tuner/measurement.h"
+#include "tuner/statistics.h"
 
 namespace skintune::internal {
 
 struct TimingOptions {
-  int warmup = 3;        // untimed frames before the bursts
-  int repetitions = 10;  // timed bursts
-  // Rotate among enough copies of the inputs that they exceed twice the
-  // last-level cache (at most max_input_sets), so no repetition finds its
-  // inputs in cache.
+  int warmup = 3;        // untimed frames before the kernel-time samples and before the frame time
+  // The frame time (docs/TUNING.md "Frame time"): `repetitions` runs of
+  // back-to-back frames, each of as many frames as take about burst_ms.
+  int repetitions = 10;
+  // Input sets rotated between kernel-time samples (each also starts from
+  // the flushed cache, so none finds its inputs there).
   int max_input_sets = 8;
   double tolerance = 1e-5;  // max relative error against the gold
-  // Frames per burst: as many as take about burst_ms of device time (one
-  // frame timed alone first), 1..kMaxBurstFrames (runtime/runner.h).
   double burst_ms = 2.0;
+  // The kernel time's samples (docs/TUNING.md "Kernel time"): until the 95%
+  // interval of the median is tight, or a cap (tuner/statistics.h).
+  StopRule stop;
+  // The race at the end of each search: up to `race` leading candidates
+  // measured again, interleaved, until they separate by more than
+  // `tie_margin` or prove equal within it (0: no race).
+  int race = 4;
+  double tie_margin = 0.02;
 };
+
+// The config's and the worker protocol's "timing" object: every field of
+// TimingOptions, each optional in a config (its default), all written by
+// ToJson. Throws Error("<where>.<field>: ...") for an unknown field or a
+// value of the wrong type, and UsageError naming the field for an impossible
+// stop rule or race (BadStopRule; race < 0; a tie margin outside (0, 0.5]).
+TimingOptions TimingOptionsFromJson(const nlohmann::json& in, const std::string& where);
+nlohmann::json ToJson(const TimingOptions& t);
 
 // What a variant is measured on: a dataset key and the mesh/palettes made from it.
 struct TuningDataset {
@@ -50,6 +68,13 @@ class Backend {
   // the device itself.
   virtual Measurement Measure(const Variant& variant, const TuningDataset& dataset,
                               const TimingOptions& options) = 0;
+  // The race at the end of a search (docs/TUNING.md "Races and ties"):
+  // `variants` (verified before) measured again, interleaved, until their
+  // kernel times separate or prove equal (tuner_internal::RaceWith).
+  // Returns each variant's samples, ms. Throws Error when one cannot be
+  // prepared or timed.
+  virtual std::vector<std::vector<double>> Race(const std::vector<Variant>& variants, const TuningDataset& dataset,
+                                                const TimingOptions& options) = 0;
   // The device's copy bandwidth: the copy kernel (generator/copy_kernel.h)
   // with a source of `bytes`, GB/s (read + written per second).
   virtual double CopyBandwidthGBps(std::size_t bytes) = 0;

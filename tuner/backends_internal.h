@@ -25,7 +25,9 @@
 #include "reference/skinning.h"
 #include "runtime/backend_table.h"
 #include "runtime/runner.h"
+#include "generator/copy_kernel.h"
 #include "tuner/backend.h"
+#include "tuner/statistics.h"
 
 namespace skintune::internal::tuner_internal {
 
@@ -124,6 +126,13 @@ const PackedMesh& PackScene(DatasetCache& datasets, DatasetCache::Entry& entry, 
 
 // ---------------------------------------------------------------- measuring
 
+// A kernel time (docs/TUNING.md "Kernel time"): its cold samples, taken
+// until the stop rule is met or a cap is reached (SampleKernelTime).
+struct KernelTime {
+  std::vector<double> samples;
+  Interval interval;
+  bool tight = false;  // the interval met the rule (not stopped by a cap)
+};
 // What Measure needs from a backend's runner.
 class Executor {
  public:
@@ -131,55 +140,98 @@ class Executor {
     std::vector<std::uint8_t> positions, normals;  // packed order
     std::size_t poisoned_vertices = 0;
   };
-  struct Times {
-    std::vector<double> ms;  // per timed burst: its time / burst_frames
-    int burst_frames = 1;
-    std::size_t bytes_per_set = 0;  // device bytes of one input set
+  // A variant (or a copy) prepared for timing: its input sets on the device.
+  class Timed {
+   public:
+    virtual ~Timed() = default;
+    // Kernel-time samples (Runner::TimeCold): `untimed` cold frames, then
+    // `samples` more, each its launches' device time from a flushed cache, ms.
+    virtual std::vector<double> Cold(int untimed, int samples) = 0;
+    // The frame time (Runner::FrameMs): `untimed` frames, then `frames`
+    // issued back to back as a Skinner issues them; host ms per frame.
+    virtual double FrameMs(int untimed, int frames) = 0;
+    virtual std::size_t bytes_per_set() const = 0;  // device bytes of one input set
   };
   virtual ~Executor() = default;
   // One verification run: poisoned outputs and guards (the runners' Run).
   // `instances` K: instanced kernels, `palette` holding K palettes.
   virtual Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                      std::span<const std::uint8_t> palette, int instances) = 0;
-  // Prepare (one input set per palette; K palettes each for K instances),
-  // then `warmup` untimed frames and `bursts` bursts of burst_frames frames
-  // (0: as many as take about `burst_ms`, from one frame timed alone).
-  virtual Times Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-                     std::span<const std::vector<std::uint8_t>> palettes, int instances, int warmup, int bursts,
-                     int burst_frames, double burst_ms) = 0;
+  // Prepares one input set per palette (K palettes each for K instances).
+  virtual std::unique_ptr<Timed> Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                         std::span<const std::vector<std::uint8_t>> palettes, int instances) = 0;
   // The same-size copy (generator/copy_kernel.h) moving `bytes` per frame in
-  // `lang`'s API, timed like Time with `input_sets` sets and `burst_frames`
-  // (RunnerExecutor: once per size and burst length, SteadyCopyTimes).
-  virtual std::vector<double> TimeCopy(Lang lang, std::size_t bytes, int input_sets, int warmup, int bursts,
-                                       int burst_frames) = 0;
+  // `lang`'s API with `input_sets` sets of its own, prepared (Copy); its
+  // kernel time, measured once per (language, bytes, sets) and remembered
+  // (CopyTime: every variant of one size is judged against the same copy).
+  virtual std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) = 0;
+  const KernelTime& CopyTime(Lang lang, std::size_t bytes, int input_sets, const TimingOptions& options);
+  // What times a kernel-time sample on this device (DeviceApi::kernel_clock).
+  virtual std::string KernelClock() const = 0;
+  // The bytes the flush before each sample reads (generator/copy_kernel.h FlushBytes).
+  virtual std::size_t FlushReadBytes() const = 0;
+
+ private:
+  std::map<std::string, std::unique_ptr<KernelTime>> copy_times_;
 };
 
-// Executor over the runner driver (runtime/runner.h): Run, then Prepare +
-// Time; copies are timed once per (language, bytes, sets, warm-up, bursts,
-// burst frames) and remembered.
+// Executor over the runner driver (runtime/runner.h): Run, Prepare +
+// TimeCold / FrameMs with the flush of FlushBytes(`last_level_cache_bytes`),
+// made once per language; copies prepared once per size and kept.
 class RunnerExecutor final : public Executor {
  public:
-  explicit RunnerExecutor(Runner& runner) : runner_(runner) {}
+  RunnerExecutor(Runner& runner, std::uint64_t last_level_cache_bytes)
+      : runner_(runner), flush_bytes_(FlushBytes(last_level_cache_bytes)) {}
   Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t> palette,
              int instances) override;
-  Times Time(const PackedMesh& mesh, std::span<const KernelSource> kernels,
-             std::span<const std::vector<std::uint8_t>> palettes, int instances, int warmup, int bursts,
-             int burst_frames, double burst_ms) override;
-  std::vector<double> TimeCopy(Lang lang, std::size_t bytes, int input_sets, int warmup, int bursts,
-                               int burst_frames) override;
+  std::unique_ptr<Timed> Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                 std::span<const std::vector<std::uint8_t>> palettes, int instances) override;
+  std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) override;
+  std::string KernelClock() const override { return runner_.api().kernel_clock(); }
+  std::size_t FlushReadBytes() const override { return flush_bytes_; }
+  // The flush in `lang`'s API (prepared on first use).
+  const Prepared& Flush(Lang lang);
 
  private:
   Runner& runner_;
-  std::map<std::string, std::vector<double>> copies_;
+  std::size_t flush_bytes_;
+  std::map<Lang, Prepared> flushes_;
 };
+
+// The bytes one frame of `packed` moves (inputs, outputs, palette) for K
+// `instances`: what K copies of the mesh would move (an instanced kernel
+// may find its one mesh in cache; the same-size copy is that of the scene's
+// total bytes).
+std::uint64_t FrameBytes(const PackedMesh& packed, int instances);
+// `sets` frames' palettes of the scene, packed as `variant` reads them.
+std::vector<std::vector<std::uint8_t>> TimedPalettes(DatasetCache& datasets, DatasetCache::Entry& data,
+                                                     const Variant& variant, int sets);
+// The race (Backend::Race): every variant prepared, then rounds of one
+// batch of cold samples each, candidate after candidate, until JudgeRace
+// decides them all (each with at least min_samples), or max_samples each,
+// or max_ms per candidate of wall time. Returns each variant's samples.
+std::vector<std::vector<double>> RaceWith(Executor& executor, DatasetCache& datasets, const DeviceIdentity& identity,
+                                          const std::vector<Variant>& variants, const TuningDataset& dataset,
+                                          const TimingOptions& options);
+
+// Cold samples of `timed` until the stop rule is met or a cap is reached
+// (`options.stop`), after `options.warmup` untimed cold frames.
+KernelTime SampleKernelTime(Executor::Timed& timed, const TimingOptions& options);
+// Records `t` in `m` (timing's median, interval, samples, clock, input sets,
+// footprint and flush; gbps).
+void RecordKernelTime(Measurement& m, const KernelTime& t, const Executor& executor, int sets, std::size_t bytes_per_set);
+// The frame time: frames per repetition chosen to last about burst_ms, the
+// median over `repetitions` repetitions, ms per frame; `frames` says how many.
+double SampleFrameTime(Executor::Timed& timed, const TimingOptions& options, int* frames);
 
 // The one Measure of every backend (tuner/backend.h): checks the variant
 // against the device's limits and the scene (invalid), packs and emits it
 // (invalid when that throws), applies the injected fault, verifies one run
 // against the gold, each instance or batch mesh on its own (compile_failed /
-// launch_failed / verify_failed, naming the part), then
-// times it in bursts rotating among InputSetsFor(...) input sets, and the
-// same-size copy with the same sets and bursts (x_copy).
+// launch_failed / verify_failed, naming the part), then measures its
+// kernel time (cold samples rotating among InputSetsFor(...) input sets,
+// to the stop rule), its frame time, and the same-size copy's kernel time
+// by the same method (x_copy).
 Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const DeviceIdentity& identity,
                         const DeviceLimits& limits, const std::vector<Lang>& languages, const Variant& variant,
                         const TuningDataset& dataset, const TimingOptions& options);
@@ -205,11 +257,6 @@ void InjectFault(KernelSource& source, const Variant& variant, const std::string
 
 // Median (the mean of the middle two for an even count), of a non-empty list.
 double Median(std::vector<double> values);
-// A copy's burst times from `time`, timed again while its bursts spread more
-// than 5% (max / min), at most 3 times in all: the timing with the lowest
-// median (noise only adds time to a copy, and one copy serves every
-// measurement of its size and burst length).
-std::vector<double> SteadyCopyTimes(const std::function<std::vector<double>()>& time);
 
 // GB/s of a copy of `bytes` (read + written) from its per-run times in ms.
 double CopyGBps(std::size_t bytes, const std::vector<double>& ms);

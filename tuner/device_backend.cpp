@@ -153,17 +153,28 @@ class DeviceBackend final : public Backend {
     return MeasureWith(Executor(), datasets_, device_.identity, limits(), languages(), variant, dataset, options);
   }
 
+  std::vector<std::vector<double>> Race(const std::vector<Variant>& variants, const TuningDataset& dataset,
+                                        const TimingOptions& options) override {
+    return RaceWith(Executor(), datasets_, device_.identity, variants, dataset, options);
+  }
+
   double CopyBandwidthGBps(std::size_t bytes) override {
     const std::size_t size = CopyBytesCapped(bytes, device_.max_allocation_bytes);
-    // One set (a copy this large is far beyond any cache), bursts of a few
-    // frames. Its buffers (several times the last-level cache: seconds of
+    // One set (a copy this large is far beyond any cache), its kernel time
+    // by the same method as every variant's (the flush, then each copy
+    // alone). Its buffers (several times the last-level cache: seconds of
     // allocation and first touch on a CPU device) are made before a CPU
-    // device takes the host's cores for the bursts alone (tuner/host_lock.h),
-    // so the GPU workers beside it wait only for the bursts.
-    Executor();  // opens runner_
-    const Prepared prepared = runner_->PrepareCopy(languages_.front(), 2 * size, 1);
+    // device takes the host's cores for the samples alone (tuner/host_lock.h),
+    // so the GPU workers beside it wait only for the samples.
+    RunnerExecutor& executor = Executor();  // opens runner_
+    const std::unique_ptr<tuner_internal::Executor::Timed> copy = executor.Copy(languages_.front(), 2 * size, 1);
     const HostLock timed(TimedMode(IsCpu(device_.identity)));
-    return CopyGBps(size, SteadyCopyTimes([&] { return runner_->Time(prepared, 2, 10, 4); }));
+    TimingOptions options;
+    options.warmup = 2;
+    options.stop.min_samples = 5;
+    options.stop.max_samples = 20;
+    options.stop.batch = 5;
+    return CopyGBps(size, {tuner_internal::SampleKernelTime(*copy, options).interval.median});
   }
 
   std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) override {
@@ -233,7 +244,7 @@ class DeviceBackend final : public Backend {
       runner_ = device_.open();
       if (cache_.enabled()) runner_->UseProgramCache(&cache_, device_.identity.Id());
       runner_->ShareTimedInputs(SharedInputBytes(device_.identity));
-      executor_ = std::make_unique<RunnerExecutor>(*runner_);
+      executor_ = std::make_unique<RunnerExecutor>(*runner_, device_.identity.last_level_cache_bytes);
     }
     return *executor_;
   }

@@ -74,6 +74,18 @@ int ReadInt(const nlohmann::json& in, const char* name, const std::string& where
   return value->get<int>();
 }
 
+// Timing version 5's interval and frame time: low <= median <= high within
+// [min, max], a frame time >= 0, a flush >= 0.
+std::string ImpossibleInterval(const Timing& t) {
+  if (const std::string bad = NotFiniteNonNegative("frame_ms", t.frame_ms); !bad.empty()) return bad;
+  if (const std::string bad = NotFiniteNonNegative("flush_bytes", t.flush_bytes); !bad.empty()) return bad;
+  const bool ordered = t.min_ms <= t.low_ms && t.low_ms <= t.median_ms && t.median_ms <= t.high_ms && t.high_ms <= t.max_ms;
+  if (!ordered || !std::isfinite(t.low_ms) || !std::isfinite(t.high_ms))
+    return "an interval ['low_ms' " + std::to_string(t.low_ms) + ", 'high_ms' " + std::to_string(t.high_ms) +
+           "] that is not min <= low <= median <= high <= max";
+  return "";
+}
+
 }  // namespace
 
 const char* Name(MeasureStatus status) {
@@ -109,6 +121,7 @@ std::string ImpossibleFigures(const Measurement& m) {
   std::string problem = ImpossibleTime(time);
   if (problem.empty() && m.timing.repetitions < 1)
     problem = "'repetitions' is " + std::to_string(m.timing.repetitions) + ": a median needs at least one timed run";
+  if (problem.empty() && m.timing.version >= 5) problem = ImpossibleInterval(m.timing);
   if (problem.empty()) problem = NotFiniteNonNegative("max_relative_error", m.max_relative_error);
   if (problem.empty()) problem = NotFiniteNonNegative("copy_ms", m.timing.copy_ms);
   if (problem.empty()) problem = NotFiniteNonNegative("x_copy", m.x_copy);
@@ -150,14 +163,20 @@ void to_json(nlohmann::json& out, const Measurement& m) {
   out["status"] = Name(m.status);
   out["detail"] = m.detail;
   out["timing"] = {{"median_ms", Number(m.timing.median_ms)},
+                   {"low_ms", Number(m.timing.low_ms)},
+                   {"high_ms", Number(m.timing.high_ms)},
                    {"min_ms", Number(m.timing.min_ms)},
                    {"max_ms", Number(m.timing.max_ms)},
-                   {"warmup", m.timing.warmup},
                    {"repetitions", m.timing.repetitions},
+                   {"tight", m.timing.tight},
+                   {"clock", m.timing.clock},
+                   {"flush_bytes", Number(m.timing.flush_bytes)},
+                   {"warmup", m.timing.warmup},
                    {"burst_frames", m.timing.burst_frames},
                    {"input_sets", m.timing.input_sets},
                    {"footprint_bytes", Number(m.timing.footprint_bytes)},
                    {"copy_ms", Number(m.timing.copy_ms)},
+                   {"frame_ms", Number(m.timing.frame_ms)},
                    {"version", m.timing.version}};
   out["bytes_per_frame"] = Number(m.bytes_per_frame);
   out["gbps"] = Number(m.gbps);
@@ -200,6 +219,16 @@ void from_json(const nlohmann::json& in, Measurement& m) {
     m.timing.burst_frames = ReadInt(*timing, "burst_frames", t);
     m.timing.footprint_bytes = ReadNumber(*timing, "footprint_bytes", t);
     m.timing.copy_ms = ReadNumber(*timing, "copy_ms", t);
+    // Timing version 5's figures; absent in older records, which no run reuses (their cache key differs).
+    if (timing->contains("low_ms")) m.timing.low_ms = ReadNumber(*timing, "low_ms", t);
+    if (timing->contains("high_ms")) m.timing.high_ms = ReadNumber(*timing, "high_ms", t);
+    if (timing->contains("frame_ms")) m.timing.frame_ms = ReadNumber(*timing, "frame_ms", t);
+    if (timing->contains("flush_bytes")) m.timing.flush_bytes = ReadNumber(*timing, "flush_bytes", t);
+    if (timing->contains("clock")) m.timing.clock = ReadString(*timing, "clock", false, t);
+    if (const nlohmann::json* tight = Field(*timing, "tight", false, t)) {
+      if (!tight->is_boolean()) throw Error(t + ": 'tight' must be true or false");
+      m.timing.tight = tight->get<bool>();
+    }
     // Lines written before timing versions were recorded are version 1.
     m.timing.version = timing->contains("version") ? ReadInt(*timing, "version", t) : 1;
   }

@@ -47,18 +47,36 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 // 4: burst lengths are powers of two (0.71 to 1.41 x burst_ms), so the same-size
 //    copy is timed once per length; a device busy within 10 ms is not warmed
 //    again, and one still warm by the probe gets one 4 ms burst.
-inline constexpr int kTimingVersion = 4;
+// 5: two figures named for what they measure. The kernel time ranks: each
+//    sample is one frame's launches, each timed alone by the device's own
+//    record of the kernel (OpenCL profiling, CUPTI, GL timer queries, Vulkan
+//    timestamps), after a flush that leaves the last-level cache holding
+//    only clean lines of other data (Nsight Compute's default state);
+//    samples are taken until the median's 95% interval is tight or a cap.
+//    The frame time is the host's wall time per frame of frames issued back
+//    to back as a Skinner issues them. Bursts timed as a whole are gone: at
+//    the sizes engines skin they timed how fast the host issued launches.
+inline constexpr int kTimingVersion = 5;
 
 struct Timing {
-  double median_ms = 0.0;  // per frame: the median over the bursts of burst time / burst_frames
-  double min_ms = 0.0;     // the fastest burst's, per frame
-  double max_ms = 0.0;     // the slowest burst's, per frame
-  int warmup = 0;          // untimed frames before the bursts
-  int repetitions = 0;     // timed bursts (device-side timers around each)
-  int input_sets = 0;      // distinct input buffers rotated between frames (the rotation rule is in docs/TUNING.md)
-  int burst_frames = 0;    // frames per burst, back to back (0: timing version 1, one frame per timer)
-  double footprint_bytes = 0.0;  // input_sets x the bytes of one set: what the rotation keeps out of cache
-  double copy_ms = 0.0;    // the same-size copy's median, per frame, timed the same way (0: not measured)
+  // The kernel time (docs/TUNING.md "Kernel time"), ms.
+  double median_ms = 0.0;  // the median of the samples
+  double low_ms = 0.0;     // its 95% interval (order statistics)
+  double high_ms = 0.0;
+  double min_ms = 0.0;     // the fastest sample
+  double max_ms = 0.0;     // the slowest
+  int repetitions = 0;     // samples taken
+  bool tight = false;      // the interval met the stop rule (not stopped by a cap)
+  std::string clock;       // what timed each launch (DeviceApi::kernel_clock)
+  double flush_bytes = 0;  // what the flush before each sample read (0: none)
+  int warmup = 0;          // untimed cold frames before the samples
+  int input_sets = 0;      // distinct input sets rotated between samples
+  double footprint_bytes = 0.0;  // input_sets x the bytes of one set
+  double copy_ms = 0.0;    // the same-size copy's kernel time, the same method (0: not measured)
+  // The frame time (docs/TUNING.md "Frame time"): host ms per frame of
+  // `burst_frames` frames issued back to back as a Skinner issues them (0: not measured).
+  double frame_ms = 0.0;
+  int burst_frames = 0;
   int version = kTimingVersion;
 };
 

@@ -40,7 +40,67 @@ nlohmann::json WinnerJson(const Winner& w) {
                       {"max_relative_error", w.max_relative_error}, {"x_copy", w.x_copy},
                       {"shape", SceneKindName(w.shape)}, {"instances", w.instances}, {"meshes", w.meshes}};
   if (w.source_error.known) j["source_error"] = SourceErrorJson(w.source_error);
+  j["low_ms"] = w.low_ms;
+  j["high_ms"] = w.high_ms;
+  j["frame_ms"] = w.frame_ms;
+  j["tie_set"] = w.tie_set;
+  j["within_noise"] = w.within_noise;
+  j["judged_by"] = w.judged_by;
   return j;
+}
+
+nlohmann::json RaceJson(const RaceRecord& r) {
+  nlohmann::json entries = nlohmann::json::array();
+  for (const RaceRecord::Entry& e : r.entries)
+    entries.push_back({{"variant", e.variant.Key()},
+                       {"median_ms", e.interval.median},
+                       {"low_ms", e.interval.low},
+                       {"high_ms", e.interval.high},
+                       {"samples", e.interval.samples},
+                       {"verdict", Name(e.verdict)}});
+  return {{"device_id", r.device_id}, {"lang", Name(r.lang)}, {"dataset", r.dataset},
+          {"entries", entries},       {"decided", r.decided}, {"detail", r.detail}};
+}
+
+Lang LangFromName(const std::string& name) {
+  for (const Language& l : kLanguages)
+    if (name == Name(l.lang)) return l.lang;
+  throw Error("'lang' has unknown value '" + name + "' (expected " +
+              OneOf(kLanguages, [](const Language& l) { return std::string(Name(l.lang)); }) + ")");
+}
+
+RaceRecord RaceFromJson(const nlohmann::json& j) {
+  if (!j.is_object()) throw Error("expected an object");
+  RaceRecord r;
+  r.device_id = String(j, "device_id");
+  r.lang = LangFromName(String(j, "lang"));
+  r.dataset = String(j, "dataset");
+  r.decided = Field(j, "decided").is_boolean() ? Field(j, "decided").get<bool>() : throw Error("'decided' must be true or false");
+  r.detail = String(j, "detail");
+  const nlohmann::json& entries = Array(j, "entries");
+  for (std::size_t i = 0; i < entries.size(); ++i) {
+    const nlohmann::json& e = entries[i];
+    const std::string at = "entries[" + std::to_string(i) + "]";
+    if (!e.is_object()) throw Error(at + ": expected an object");
+    RaceRecord::Entry entry;
+    entry.variant = ParseVariantKey(String(e, "variant"));
+    entry.interval.median = Number(e, "median_ms");
+    entry.interval.low = Number(e, "low_ms");
+    entry.interval.high = Number(e, "high_ms");
+    const std::int64_t samples = Integer(e, "samples");
+    if (samples < 1) throw Error(at + ": 'samples' must be at least 1");
+    entry.interval.samples = static_cast<std::size_t>(samples);
+    const Interval& in = entry.interval;
+    if (!(in.low > 0.0) || !(in.low <= in.median) || !(in.median <= in.high) || !std::isfinite(in.high))
+      throw Error(at + ": not 0 < low_ms <= median_ms <= high_ms, finite");
+    const std::string verdict = String(e, "verdict");
+    bool known = false;
+    for (const RaceVerdict v : {RaceVerdict::kLeader, RaceVerdict::kEqual, RaceVerdict::kUndecided, RaceVerdict::kSeparated})
+      if (verdict == Name(v)) entry.verdict = v, known = true;
+    if (!known) throw Error(at + ": unknown verdict '" + verdict + "'");
+    r.entries.push_back(std::move(entry));
+  }
+  return r;
 }
 
 // The merge key of a winner / database entry: every measured vertex count,
@@ -102,10 +162,38 @@ std::vector<WinnersEntry> EntriesOf(const TuningReport& report) {
 
 }  // namespace
 
+namespace {
+
+// The race interval of `m` where a race of its device, language and dataset measured it.
+const Interval* RacedInterval(const TuningReport& report, const Measurement& m) {
+  for (const RaceRecord& r : report.races) {
+    if (r.device_id != m.device_id || r.lang != m.variant.lang || r.dataset != m.dataset || !r.detail.empty()) continue;
+    for (const RaceRecord::Entry& e : r.entries)
+      if (e.variant.Key() == m.variant.Key()) return &e.interval;
+  }
+  return nullptr;
+}
+
+// The interval of `m`'s kernel time: the race's, else its own (a report
+// before timing version 5 has none: its median alone).
+Interval IntervalOf(const TuningReport& report, const Measurement& m) {
+  if (const Interval* raced = RacedInterval(report, m)) return *raced;
+  Interval i;
+  i.median = m.timing.median_ms;
+  const bool has = m.timing.low_ms > 0.0 && m.timing.high_ms >= m.timing.low_ms;
+  i.low = has ? m.timing.low_ms : m.timing.median_ms;
+  i.high = has ? m.timing.high_ms : m.timing.median_ms;
+  i.samples = static_cast<std::size_t>(std::max(m.timing.repetitions, 1));
+  return i;
+}
+
+}  // namespace
+
 std::vector<Winner> ComputeWinners(const TuningReport& report) {
   std::map<std::string, const DatasetInfo*> datasets;
   for (const DatasetInfo& d : report.datasets) datasets[d.key] = &d;
-  std::map<EntryKey, Winner> best;
+  std::map<EntryKey, std::vector<const Measurement*>> groups;
+  std::map<EntryKey, Winner> shape;  // each key's fields but the variant's
   for (const Measurement& m : report.measurements) {
     if (!IsTimed(m.status)) continue;  // a failed variant is never a winner
     if (!ImpossibleFigures(m).empty()) continue;   // nor an impossible time (readers refuse one anyway)
@@ -124,38 +212,73 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     w.meshes = dataset->second->meshes;
     w.variant = m.variant;
     const EntryKey key = KeyOf(w);
-    const auto it = best.find(key);
-    if (it != best.end() && it->second.median_ms <= m.timing.median_ms) continue;  // ties: the first one
+    groups[key].push_back(&m);
+    shape.emplace(key, std::move(w));
+  }
+  std::vector<Winner> out;
+  for (auto& [key, members] : groups) {
+    std::vector<RaceEntry> entries;
+    std::vector<Interval> intervals;
+    bool raced = false;
+    for (const Measurement* m : members) {
+      entries.push_back({m->variant.Key(), {}, m->bytes_per_frame, m->source_error.known ? m->source_error.position_rel : 0.0});
+      intervals.push_back(IntervalOf(report, *m));
+      raced = raced || RacedInterval(report, *m) != nullptr;
+    }
+    const RaceOutcome outcome = JudgeIntervals(intervals, entries, report.tie_margin > 0.0 ? report.tie_margin : 0.02);
+    const Measurement& m = *members[outcome.winner];
+    Winner w = shape.at(key);
     w.backend = BackendOf(report, m.device_id);
     w.dataset = m.dataset;
     w.variant = m.variant;
-    w.median_ms = m.timing.median_ms;
+    w.median_ms = outcome.intervals[outcome.winner].median;
+    w.low_ms = outcome.intervals[outcome.winner].low;
+    w.high_ms = outcome.intervals[outcome.winner].high;
+    w.frame_ms = m.timing.frame_ms;
+    for (std::size_t i = 0; i < entries.size(); ++i)
+      if (outcome.verdicts[i] != RaceVerdict::kSeparated) w.tie_set.push_back(entries[i].key);
+    std::sort(w.tie_set.begin(), w.tie_set.end());
+    w.within_noise = outcome.all_within_noise;
+    w.judged_by = raced ? "race" : "intervals";
     w.gbps = m.gbps;
+    w.bytes_per_frame = m.bytes_per_frame;
     const auto copy = report.copy_bandwidth_gbps.find(m.device_id);
     w.copy_fraction = copy != report.copy_bandwidth_gbps.end() && copy->second > 0.0 ? m.gbps / copy->second : 0.0;
     w.x_copy = m.x_copy;
     w.within_budget = m.status == MeasureStatus::kOk;
     w.source_error = m.source_error;
     w.max_relative_error = m.max_relative_error;
-    best.insert_or_assign(key, std::move(w));
+    out.push_back(std::move(w));
   }
-  std::vector<Winner> out;
-  for (auto& [key, w] : best) out.push_back(std::move(w));
   return out;
 }
 
-std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners) {
+std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners, double tie_margin) {
   using Key = std::tuple<std::string, int, int, std::size_t, int, int, int>;
-  std::map<Key, const Winner*> best;
+  std::map<Key, std::vector<const Winner*>> classes;
   for (const Winner& w : winners) {
     if (!w.within_budget) continue;
-    const Key key{w.device_id, static_cast<int>(w.lang), w.influences, w.vertices, static_cast<int>(w.shape),
-                  w.instances, w.meshes};
-    const auto it = best.find(key);
-    if (it == best.end() || w.median_ms < it->second->median_ms) best[key] = &w;
+    classes[{w.device_id, static_cast<int>(w.lang), w.influences, w.vertices, static_cast<int>(w.shape), w.instances,
+             w.meshes}]
+        .push_back(&w);
   }
+  // The precision classes' winners judged as one landscape: a class within
+  // the margin of the fastest ties with it, and the tie-break decides.
   std::vector<Winner> out;
-  for (const auto& [key, w] : best) out.push_back(*w);
+  for (const auto& [key, members] : classes) {
+    std::vector<RaceEntry> entries;
+    std::vector<Interval> intervals;
+    for (const Winner* w : members) {
+      entries.push_back({w->variant.Key(), {}, w->bytes_per_frame, w->source_error.known ? w->source_error.position_rel : 0.0});
+      Interval i;
+      i.median = w->median_ms;
+      i.low = w->low_ms > 0.0 ? w->low_ms : w->median_ms;
+      i.high = w->high_ms >= i.median ? w->high_ms : w->median_ms;
+      i.samples = 1;
+      intervals.push_back(i);
+    }
+    out.push_back(*members[JudgeIntervals(intervals, entries, tie_margin > 0.0 ? tie_margin : 0.02).winner]);
+  }
   return out;
 }
 
@@ -183,6 +306,9 @@ nlohmann::json ReportToJson(const TuningReport& report) {
   for (const Measurement& m : report.measurements) out["measurements"].push_back(m);
   out["winners"] = nlohmann::json::array();
   for (const Winner& w : ComputeWinners(report)) out["winners"].push_back(WinnerJson(w));
+  out["tie_margin"] = report.tie_margin;
+  out["races"] = nlohmann::json::array();
+  for (const RaceRecord& r : report.races) out["races"].push_back(RaceJson(r));
   return out;
 }
 
@@ -273,7 +399,19 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
       return m;
     }));
   }
-  // "winners" is derived from the measurements: recomputed, never trusted.
+  if (json.contains("tie_margin")) {  // since 1.4.0
+    r.tie_margin = At(context, "tie_margin", [&] {
+      const double value = Number(json, "tie_margin");
+      if (!(value > 0.0) || value > 0.5) throw Error("must be in (0, 0.5]");
+      return value;
+    });
+  }
+  if (json.contains("races")) {  // since 1.4.0
+    const nlohmann::json& races = At(context, "races", [&]() -> const nlohmann::json& { return Array(json, "races"); });
+    for (std::size_t i = 0; i < races.size(); ++i)
+      r.races.push_back(At(context, "races[" + std::to_string(i) + "]", [&] { return RaceFromJson(races[i]); }));
+  }
+  // "winners" is derived from the measurements and races: recomputed, never trusted.
   return r;
 }
 

@@ -18,8 +18,10 @@ namespace skintune::internal {
 // 1.1.0: winners name their measured vertex count; 1.2.0: max_error, too_imprecise,
 // source_error, a winner per precision class; timing version 2 (bursts, the physical
 // cache, the same-size copy: x_copy); 1.3.0: datasets and winners name their scene shape
-// (shape, instances, meshes), and winners are kept per shape.
-inline constexpr const char* kReportSchemaVersion = "1.3.0";
+// (shape, instances, meshes), and winners are kept per shape; 1.4.0: timing
+// version 5 (kernel time with its interval, frame time), the races of each
+// search, tie_margin, and each winner's interval and tie set.
+inline constexpr const char* kReportSchemaVersion = "1.4.0";
 
 struct DatasetInfo {
   std::string key;          // a scene key (reference/scene.h): a dataset, a glTF path, instances, a batch
@@ -29,6 +31,23 @@ struct DatasetInfo {
   SceneKind shape = SceneKind::kSingle;
   int instances = 1;
   int meshes = 1;
+};
+
+// The race at the end of one (device, language, dataset) search
+// (docs/TUNING.md "Races and ties"): its candidates measured again,
+// interleaved in one worker, and judged against the fastest.
+struct RaceRecord {
+  std::string device_id;
+  Lang lang = Lang::kOpenCl;
+  std::string dataset;
+  struct Entry {
+    Variant variant;
+    Interval interval;  // of the race's own samples
+    RaceVerdict verdict = RaceVerdict::kUndecided;
+  };
+  std::vector<Entry> entries;
+  bool decided = false;  // every candidate separated from the fastest or proven equal to it
+  std::string detail;    // why the race did not run or failed ("": it ran)
 };
 
 struct TuningReport {
@@ -42,6 +61,9 @@ struct TuningReport {
   std::vector<std::string> skipped;           // backends not present, with the reason
   std::vector<DatasetInfo> datasets;
   std::vector<Measurement> measurements;
+  // Timing version 5: the margin within which kernel times tie (TimingOptions::tie_margin), and the races.
+  double tie_margin = 0.02;
+  std::vector<RaceRecord> races;
 };
 
 // VertexBucket (the paper's vertex counts as buckets) and the database format
@@ -59,8 +81,17 @@ struct Winner {
   int meshes = 1;
   std::string dataset;
   Variant variant;
-  double median_ms = 0.0;
+  double median_ms = 0.0;     // its kernel time
+  double low_ms = 0.0, high_ms = 0.0;  // its 95% interval (the race's, where it was raced)
+  double frame_ms = 0.0;      // its frame time (0: not measured)
+  // The candidates that cannot be told from the fastest (the fastest among
+  // them, the winner too), in key order; the rule that picked the winner
+  // among them: fewest bytes moved, then lower error against the source, then key.
+  std::vector<std::string> tie_set;
+  bool within_noise = false;  // every candidate of the key is in the tie set
+  std::string judged_by;      // "race" or "intervals" (no race covered it)
   double gbps = 0.0;
+  double bytes_per_frame = 0.0;  // what its frame moves (the tie-break's first key)
   double copy_fraction = 0.0;  // gbps / the device's copy bandwidth (0 when unknown)
   double x_copy = 0.0;         // median_ms / the same-size copy's (Measurement::x_copy; 0 when unknown)
   // The precision class is variant.weight: one winner per class.
@@ -69,15 +100,22 @@ struct Winner {
   double max_relative_error = 0.0;  // against the gold of its quantised weights
 };
 
-// The fastest verified (ok or too_imprecise) measurement per (device,
+// The winning verified (ok or too_imprecise) measurement per (device,
 // language, influences, measured vertex count, scene shape with its instance
-// and mesh counts, precision class = weight format), in that key order. A variant that failed verification is never a
-// winner. The run's winner of a key is the fastest one within_budget
-// (BudgetWinners); the others stay for callers with a larger budget.
+// and mesh counts, precision class = weight format), in that key order: the
+// candidates of a key are judged against the fastest at the report's
+// tie_margin (JudgeIntervals, on the race's intervals where the race
+// covered them), and TieBreak picks among the tie set, so the same
+// landscape gives the same winner whatever the measurement order. A variant
+// that failed verification is never a winner. The run's winner of a key is
+// the fastest one within_budget (BudgetWinners); the others stay for callers
+// with a larger budget.
 std::vector<Winner> ComputeWinners(const TuningReport& report);
-// Of `winners`, the fastest within budget per (device, language, influences,
-// measured vertex count): what the tuning chose at its budget.
-std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners);
+// Of `winners`, the one within budget per (device, language, influences,
+// measured vertex count, shape): the precision classes' winners judged
+// against the fastest at `tie_margin` and TieBreak among the tied (so a
+// class a hair faster by noise does not win by it): what the tuning chose at its budget.
+std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners, double tie_margin);
 
 nlohmann::json ReportToJson(const TuningReport& report);
 // Throws Error("<context>: ...") naming the element for a malformed report.

@@ -41,6 +41,7 @@
 #include "reference/scene.h"
 #include "reference/synthetic.h"
 #include "tuner/measurement.h"
+#include "tuner/race.h"
 #include "tuner/schedule.h"
 #include "tuner/worker.h"
 
@@ -96,15 +97,7 @@ void CheckFields(const nlohmann::json& object, const std::string& where, const s
 }
 
 TimingOptions TimingFromConfig(const nlohmann::json& in, const std::string& context) {
-  const std::string where = context + ": timing";
-  CheckFields(in, where, {"warmup", "repetitions", "burst_ms", "max_input_sets", "tolerance"});
-  TimingOptions t;
-  if (in.contains("warmup")) t.warmup = IntField(in["warmup"], where + ".warmup", 0);
-  if (in.contains("repetitions")) t.repetitions = IntField(in["repetitions"], where + ".repetitions", 1);
-  if (in.contains("burst_ms")) t.burst_ms = PositiveNumber(in["burst_ms"], where + ".burst_ms");
-  if (in.contains("max_input_sets")) t.max_input_sets = IntField(in["max_input_sets"], where + ".max_input_sets", 1);
-  if (in.contains("tolerance")) t.tolerance = PositiveNumber(in["tolerance"], where + ".tolerance");
-  return t;
+  return TimingOptionsFromJson(in, context + ": timing");
 }
 
 void ValidateStrategy(const StrategyOptions& s, const std::string& where) {
@@ -407,6 +400,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
   report.config = config.name;
   report.strategy = config.strategy.name;
   report.max_error = config.max_error;
+  report.tie_margin = config.timing.tie_margin;
   report.machine = MachineInfo();
 
   // Datasets first: a bad key or glTF file is bad input, found before any device work.
@@ -569,6 +563,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
     std::size_t planned = 0;     // evaluations expected on the device
     std::size_t done = 0;        // of them, done
     std::vector<Measurement> measurements;
+    std::vector<RaceRecord> races;
     std::optional<double> copy_gbps;
     std::optional<std::string> given_up;
   };
@@ -647,6 +642,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
           } else {
             m = worker.Measure(v, TuningDataset{key}, config.timing);
             ApplyBudget(m, config.max_error);
+            if (run.copy_gbps) RejectOverCeiling(m, *run.copy_gbps);
             std::lock_guard<std::mutex> lock(shared);
             cache.Append(m);  // on disk before the next variant
           }
@@ -661,8 +657,16 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
           if (m.status != MeasureStatus::kOk) return std::nullopt;
           return m.timing.median_ms;
         };
+        const std::size_t first_of_task = run.measurements.size();
         for (const Variant& b : task.baselines) evaluate(b);
         if (!task.candidates.empty()) Search(task.candidates, evaluate, config.strategy, compile_ahead);
+        // The race of the search's leaders, in this device's worker (race.h).
+        const std::vector<Measurement> measured(run.measurements.begin() + static_cast<std::ptrdiff_t>(first_of_task),
+                                                run.measurements.end());
+        if (!measured.empty()) {
+          advance(run, task_start + task_done, device_name + ": racing the leaders of " + key);
+          run.races.push_back(RaceSearch(worker, measured, id, task.lang, measured.front().dataset, config.timing));
+        }
         task_start += task.planned;
         advance(run, task_start, "");
       }
@@ -768,6 +772,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
     for (const Task& t : tasks)
       if (t.device == di) report.measurements.insert(report.measurements.end(), t.invalid.begin(), t.invalid.end());
     report.measurements.insert(report.measurements.end(), run.measurements.begin(), run.measurements.end());
+    report.races.insert(report.races.end(), run.races.begin(), run.races.end());
     if (run.copy_gbps) report.copy_bandwidth_gbps[devices[di].identity.Id()] = *run.copy_gbps;
     if (run.given_up) {
       ++devices_failed;

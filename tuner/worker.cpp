@@ -54,23 +54,7 @@ std::string Seconds(double s) {
   return out.str();
 }
 
-nlohmann::json TimingToJson(const TimingOptions& t) {
-  return {{"warmup", t.warmup},
-          {"repetitions", t.repetitions},
-          {"max_input_sets", t.max_input_sets},
-          {"burst_ms", t.burst_ms},
-          {"tolerance", t.tolerance}};
-}
-
-TimingOptions TimingFromJson(const nlohmann::json& in) {
-  TimingOptions t;
-  t.warmup = in.at("warmup").get<int>();
-  t.repetitions = in.at("repetitions").get<int>();
-  t.max_input_sets = in.at("max_input_sets").get<int>();
-  t.tolerance = in.at("tolerance").get<double>();
-  t.burst_ms = in.at("burst_ms").get<double>();
-  return t;
-}
+TimingOptions TimingFromJson(const nlohmann::json& in) { return TimingOptionsFromJson(in, "timing"); }
 
 void CloseFd(int& fd) {
   if (fd >= 0) ::close(fd);
@@ -355,7 +339,7 @@ Measurement IsolatedBackend::MeasureOnce(const Variant& variant, const TuningDat
   result.timestamp = UtcTimestamp();
 
   const std::string request =
-      nlohmann::json{{"variant", variant}, {"dataset", dataset.key}, {"timing", TimingToJson(options)}}.dump();
+      nlohmann::json{{"variant", variant}, {"dataset", dataset.key}, {"timing", ToJson(options)}}.dump();
   if (pid_ < 0) Start();
   if (!Send(request)) {
     // The previous child died after its last answer: a fresh one takes the request.
@@ -440,6 +424,49 @@ std::size_t IsolatedBackend::CompileAhead(const std::vector<Variant>& variants, 
   }
   Kill();  // an answer out of protocol: a fresh child serves the next request
   return 0;
+}
+
+std::optional<std::vector<std::vector<double>>> IsolatedBackend::Race(const std::vector<Variant>& variants,
+                                                                        const TuningDataset& dataset,
+                                                                        const TimingOptions& options, std::string* why_not) {
+  auto fail = [&](const std::string& why) -> std::optional<std::vector<std::vector<double>>> {
+    if (why_not) *why_not = why;
+    return std::nullopt;
+  };
+  if (variants.empty()) return std::vector<std::vector<double>>{};
+  const std::string request =
+      nlohmann::json{{"race", variants}, {"dataset", dataset.key}, {"timing", ToJson(options)}}.dump();
+  if (pid_ < 0) Start();
+  if (!Send(request)) {
+    DeathDetail();
+    Start();
+    if (!Send(request)) return fail("worker process died: " + DeathDetail());
+  }
+  std::string line;
+  const double limit = variant_timeout_s_ * static_cast<double>(variants.size());
+  switch (ReadLine(limit, line)) {
+    case ReadResult::kTimeout:
+      Kill();
+      return fail("no result within " + Seconds(limit) + " s");
+    case ReadResult::kEnd:
+      return fail("worker process died: " + DeathDetail());
+    case ReadResult::kLine: break;
+  }
+  try {
+    const nlohmann::json answer = nlohmann::json::parse(line);
+    if (answer.is_object() && answer.contains("race_error") && answer["race_error"].is_string())
+      return fail(answer["race_error"].get<std::string>());
+    if (answer.is_object() && answer.contains("race") && answer["race"].is_array() && answer["race"].size() == variants.size()) {
+      auto samples = answer["race"].get<std::vector<std::vector<double>>>();
+      for (const std::vector<double>& s : samples)
+        for (const double ms : s)
+          if (!(ms > 0.0) || !std::isfinite(ms)) return fail("impossible race sample " + std::to_string(ms) + " ms");
+      return samples;
+    }
+  } catch (const nlohmann::json::exception&) {
+  }
+  Kill();  // an answer out of protocol: a fresh child serves the next request
+  return fail("worker process sent a malformed race answer: '" + line.substr(0, 200) + "'");
 }
 
 std::optional<double> IsolatedBackend::CopyBandwidthGBps(std::size_t bytes, std::string* why_not) {
@@ -571,6 +598,14 @@ int RunTuneWorker(int backend_index, const std::string& device_id, const std::st
       if (request.contains("compile_ahead")) {
         const std::vector<Variant> variants = request.at("compile_ahead").get<std::vector<Variant>>();
         answer = {{"compiled", backend.CompileAhead(variants, TuningDataset{request.at("dataset").get<std::string>()})}};
+      } else if (request.contains("race")) {
+        try {
+          answer = {{"race", backend.Race(request.at("race").get<std::vector<Variant>>(),
+                                          TuningDataset{request.at("dataset").get<std::string>()},
+                                          TimingFromJson(request.at("timing")))}};
+        } catch (const Error& e) {
+          answer = {{"race_error", e.what()}};
+        }
       } else if (request.contains("copy_bandwidth")) {
         try {
           answer = {{"copy_bandwidth_gbps", backend.CopyBandwidthGBps(request.at("copy_bandwidth").get<std::size_t>())}};

@@ -7,10 +7,12 @@
 //   child -> parent, once at start:  {"ready": true, "device_id": "<DeviceIdentity::Id()>"}
 //                                    or {"error": "<why the device cannot be used>"}
 //   parent -> child, a variant:      {"variant": {...}, "dataset": "<key or glTF path>",
-//                                     "timing": {"warmup", "repetitions", "max_input_sets", "burst_ms", "tolerance"}}
+//                                     "timing": {every field of TimingOptions (ToJson)}}
 //   child -> parent:                 the Measurement (to_json), or {"error": "<set-up problem>"}
 //   parent -> child, a copy kernel:  {"copy_bandwidth": <bytes>}
 //   child -> parent:                 {"copy_bandwidth_gbps": <GB/s>} or {"copy_bandwidth_error": "..."}
+//   parent -> child, a race:         {"race": [variant, ...], "dataset": "<key or glTF path>", "timing": {...}}
+//   child -> parent:                 {"race": [[ms, ...], ...]} (each variant's samples) or {"race_error": "..."}
 //   parent -> child, compile ahead:  {"compile_ahead": [variant, ...], "dataset": "<key or glTF path>"}
 //   child -> parent:                 {"compiled": <kernels compiled or found compiled>}
 //
@@ -80,6 +82,13 @@ class IsolatedBackend {
   // a crash, a set-up problem) costs only the head start: it returns 0, and
   // each variant's Measure compiles, and records the failure, as without it.
   std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset);
+
+  // The race of `variants` (Backend::Race) in the child, waiting at most the
+  // variant time limit per variant: each variant's samples, or nullopt with
+  // the reason in `why_not` (a failed race costs the run only its
+  // judgement: the winners are then judged on the search's own intervals).
+  std::optional<std::vector<std::vector<double>>> Race(const std::vector<Variant>& variants, const TuningDataset& dataset,
+                                                        const TimingOptions& options, std::string* why_not = nullptr);
 
   // The device's copy bandwidth, or nullopt with the reason in `why_not`.
   // Throws WorkerError when the device cannot be used at all.

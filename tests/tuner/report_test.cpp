@@ -80,7 +80,7 @@ TEST(Report, WinnersAreTheFastestOkPerDeviceLanguageInfluencesAndVertexCount) {
     EXPECT_TRUE(w.within_budget);  // the sample records no error: every class is within
   }
   // The run's winners: the fastest within budget per key.
-  const std::vector<Winner> winners = BudgetWinners(classes);
+  const std::vector<Winner> winners = BudgetWinners(classes, 0.02);
   EXPECT_GT(classes.size(), winners.size());
   // opencl 100k b4, opencl 25k b4, cuda 100k b4, opencl 1600k b1 (1600k b2 only failed).
   ASSERT_EQ(winners.size(), 4u);

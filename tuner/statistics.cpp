@@ -1,0 +1,139 @@
+#include "tuner/statistics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "reference/error.h"
+
+namespace skintune::internal {
+
+namespace {
+
+// P(Binomial(n, 1/2) <= j - 1) <= 2.5% for the largest rank j >= 1; 0 when
+// even j = 1 misses (n < 6).
+std::size_t LowerRank(std::size_t n) {
+  const double log_half_n = -static_cast<double>(n) * std::log(2.0);
+  const double lg_n1 = std::lgamma(static_cast<double>(n) + 1.0);
+  double cdf = 0.0;
+  std::size_t j = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    cdf += std::exp(lg_n1 - std::lgamma(static_cast<double>(i) + 1.0) - std::lgamma(static_cast<double>(n - i) + 1.0) +
+                    log_half_n);
+    if (cdf > 0.025) break;
+    j = i + 1;  // P(B <= i) <= 2.5%: x(i + 1) is a lower bound
+  }
+  return j;
+}
+
+std::string Number(double v) {
+  std::ostringstream out;
+  out << v;
+  return out.str();
+}
+
+}  // namespace
+
+Interval MedianInterval(std::vector<double> samples) {
+  if (samples.empty()) throw Error("MedianInterval: no samples");
+  if (samples.size() > 100000) throw Error("MedianInterval: more than 100000 samples");
+  for (const double s : samples)
+    if (!(s > 0.0) || !std::isfinite(s)) throw Error("MedianInterval: a sample of " + Number(s) + " ms");
+  std::sort(samples.begin(), samples.end());
+  const std::size_t n = samples.size();
+  Interval interval;
+  interval.samples = n;
+  interval.median = n % 2 ? samples[n / 2] : (samples[n / 2 - 1] + samples[n / 2]) / 2.0;
+  const std::size_t j = std::max<std::size_t>(LowerRank(n), 1);
+  interval.low = samples[j - 1];
+  interval.high = samples[n - j];
+  return interval;
+}
+
+std::string BadStopRule(const StopRule& rule, const std::string& prefix) {
+  const auto field = [&](const char* name) { return "'" + prefix + name + "' "; };
+  if (!(rule.interval > 0.0) || !(rule.interval <= 0.5))
+    return field("interval") + "is " + Number(rule.interval) +
+           ": the interval's half-width, relative to the median, must be in (0, 0.5] (0.01: 1%)";
+  if (rule.batch < 1) return field("batch") + "is 0: at least one sample per submission";
+  if (rule.min_samples < 1) return field("min_samples") + "is 0: at least one sample";
+  if (rule.max_samples < rule.batch)
+    return field("max_samples") + "is " + std::to_string(rule.max_samples) + ": below one batch of " +
+           std::to_string(rule.batch) + " samples";
+  if (rule.max_samples < rule.min_samples)
+    return field("max_samples") + "is " + std::to_string(rule.max_samples) + ": below min_samples (" +
+           std::to_string(rule.min_samples) + ")";
+  if (rule.max_samples > 100000) return field("max_samples") + "is " + std::to_string(rule.max_samples) + ": at most 100000";
+  if (!(rule.max_ms > 0.0) || !std::isfinite(rule.max_ms) || rule.max_ms > 3.6e6)
+    return field("max_ms") + "is " + Number(rule.max_ms) + ": a positive number of ms, at most an hour";
+  return "";
+}
+
+bool ShouldStop(const StopRule& rule, const Interval& interval, double elapsed_ms, bool* tight) {
+  const bool met = interval.samples >= rule.min_samples && interval.HalfWidthRatio() <= rule.interval;
+  if (tight) *tight = met;
+  return met || interval.samples >= rule.max_samples || (elapsed_ms >= rule.max_ms && interval.samples >= 1);
+}
+
+const char* Name(RaceVerdict v) {
+  switch (v) {
+    case RaceVerdict::kLeader: return "fastest";
+    case RaceVerdict::kEqual: return "equal";
+    case RaceVerdict::kUndecided: return "undecided";
+    case RaceVerdict::kSeparated: return "slower";
+  }
+  return "?";
+}
+
+std::size_t TieBreak(const std::vector<RaceEntry>& entries, const std::vector<std::size_t>& tied) {
+  if (tied.empty()) throw Error("TieBreak: no candidate");
+  return *std::min_element(tied.begin(), tied.end(), [&](std::size_t a, std::size_t b) {
+    const RaceEntry& x = entries[a];
+    const RaceEntry& y = entries[b];
+    if (x.bytes_per_frame != y.bytes_per_frame) return x.bytes_per_frame < y.bytes_per_frame;
+    if (x.error != y.error) return x.error < y.error;
+    return x.key < y.key;
+  });
+}
+
+RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin) {
+  std::vector<Interval> intervals;
+  for (const RaceEntry& e : entries) intervals.push_back(MedianInterval(e.samples));
+  return JudgeIntervals(intervals, entries, margin);
+}
+
+RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::vector<RaceEntry>& entries, double margin) {
+  if (entries.empty() || intervals.size() != entries.size()) throw Error("JudgeRace: no candidate, or not one interval each");
+  if (!(margin > 0.0)) throw Error("JudgeRace: the tie margin must be positive");
+  RaceOutcome out;
+  out.intervals = intervals;
+  for (std::size_t e = 1; e < entries.size(); ++e) {
+    const Interval& a = out.intervals[e];
+    const Interval& b = out.intervals[out.fastest];
+    // Ties in the median go to the key order, so that the fastest does not
+    // depend on the order the entries came in.
+    if (a.median < b.median || (a.median == b.median && entries[e].key < entries[out.fastest].key)) out.fastest = e;
+  }
+  const Interval& f = out.intervals[out.fastest];
+  std::vector<std::size_t> tied;
+  out.decided = true;
+  for (std::size_t e = 0; e < entries.size(); ++e) {
+    const Interval& i = out.intervals[e];
+    RaceVerdict v = RaceVerdict::kUndecided;
+    if (e == out.fastest) {
+      v = RaceVerdict::kLeader;
+    } else if (i.low > f.high * (1.0 + margin)) {
+      v = RaceVerdict::kSeparated;
+    } else if (i.high <= f.low * (1.0 + margin)) {
+      v = RaceVerdict::kEqual;
+    }
+    if (v == RaceVerdict::kUndecided) out.decided = false;
+    if (v != RaceVerdict::kSeparated) tied.push_back(e);
+    out.verdicts.push_back(v);
+  }
+  out.winner = TieBreak(entries, tied);
+  out.all_within_noise = tied.size() == entries.size() && entries.size() > 1;
+  return out;
+}
+
+}  // namespace skintune::internal

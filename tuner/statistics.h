@@ -1,0 +1,90 @@
+// skintune: the statistics of the tuner's figures (docs/TUNING.md
+// "Intervals, races and ties").
+//
+// - A kernel time is the median of its cold samples, with a distribution-free
+//   95% interval from the order statistics (the interval every sample
+//   distribution allows: no normality assumed, since GPU times are skewed
+//   and have outliers). Sampling stops when the interval's half-width is at
+//   most `interval` of the median, or at a cap (StopRule), as nvbench stops
+//   on its noise criterion and Google Benchmark's repetitions report spread.
+// - A race (RaceOutcome) decides the leading candidates of one search from
+//   samples measured interleaved in one process: each candidate is either
+//   separated from the fastest (slower by more than the tie margin, with
+//   both intervals saying so), proven equal to it (both intervals within the
+//   margin), or undecided. Equal and undecided candidates form the tie set,
+//   and one deterministic rule (TieBreak) picks the winner among them, so
+//   the same landscape gives the same winner whatever the order of
+//   measurement, as irace's racing and CLBlast users' reports suggest.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace skintune::internal {
+
+struct Interval {
+  double median = 0.0;
+  double low = 0.0, high = 0.0;  // the 95% interval of the median
+  std::size_t samples = 0;
+  double HalfWidthRatio() const { return median > 0.0 ? (high - low) / 2.0 / median : 0.0; }
+};
+
+// The median of `samples` (>= 1) and its 95% distribution-free interval: the
+// order statistics x(j) and x(k), j and k the ranks where the binomial
+// (n, 1/2) distribution puts 2.5% below and above (exact sums, n <= 100000).
+// With fewer than 6 samples no order statistics cover 95%: the interval is
+// then the whole range [min, max]. Throws Error for no samples or a sample
+// that is not a positive finite number.
+Interval MedianInterval(std::vector<double> samples);
+
+// When to stop sampling one kernel time.
+struct StopRule {
+  double interval = 0.01;        // stop once the interval's half-width <= this x the median
+  std::size_t min_samples = 10;  // never before
+  std::size_t max_samples = 200; // never after
+  std::size_t batch = 10;        // samples per device submission (the sampling's unit)
+  double max_ms = 100.0;         // host wall time of one variant's sampling, at most (then stop at the next batch)
+};
+// Why `rule` is impossible ("'timing.interval' is 0: ..."), or "" when it is
+// possible: interval in (0, 0.5], min_samples >= 1, batch >= 1, max_samples
+// >= min_samples and >= batch (a cap below one burst), max_ms > 0; every
+// number finite. `prefix` names the config element ("timing.").
+std::string BadStopRule(const StopRule& rule, const std::string& prefix);
+// Whether sampling stops with `samples` taken over `elapsed_ms`; `tight`:
+// the interval met the rule.
+bool ShouldStop(const StopRule& rule, const Interval& interval, double elapsed_ms, bool* tight = nullptr);
+
+// One candidate of a race: its samples (taken interleaved with the others')
+// and what the tie-break reads.
+struct RaceEntry {
+  std::string key;             // the variant key: the last tie-break
+  std::vector<double> samples;
+  double bytes_per_frame = 0;  // fewer bytes first
+  double error = 0;            // the error against the source (SourceError::position_rel): lower first
+};
+enum class RaceVerdict { kLeader, kEqual, kUndecided, kSeparated };
+const char* Name(RaceVerdict);
+struct RaceOutcome {
+  std::vector<Interval> intervals;       // per entry, in entry order
+  std::vector<RaceVerdict> verdicts;     // per entry, against the fastest
+  std::size_t fastest = 0;               // the entry with the lowest median
+  std::size_t winner = 0;                // TieBreak among the tie set (leader, equal, undecided)
+  bool decided = false;                  // no entry undecided: sampling may stop
+  bool all_within_noise = false;         // every entry is in the tie set
+};
+// Judges the entries (>= 1, each with >= 1 sample) at tie margin `margin`
+// (> 0): entry e against the fastest f, their intervals E and F, is
+// separated when E.low > F.high x (1 + margin), equal when E.high <=
+// F.low x (1 + margin) (both within the margin), else undecided.
+RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin);
+// The same judgement from intervals already computed (one per entry; the
+// entries' samples are not read): a search's own measurements, where no race ran.
+RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::vector<RaceEntry>& entries, double margin);
+// The deterministic rule among tied candidates: fewest bytes moved, then the
+// lower error against the source, then the variant key. Returns the index
+// into `entries` of the chosen one among `tied` (indices, non-empty).
+std::size_t TieBreak(const std::vector<RaceEntry>& entries, const std::vector<std::size_t>& tied);
+
+}  // namespace skintune::internal
