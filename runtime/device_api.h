@@ -128,14 +128,22 @@ enum class FrameUse {
 // the frame starts from a cache holding only clean lines of other data, the
 // state Nsight Compute's default cache control leaves; the frame's launches
 // wait for it and for each other (in order, one queue or stream). Each launch
-// is timed alone by the device's own record of that launch: OpenCL's
-// profiling START/END of its event, CUDA's CUPTI kernel activity record
-// (the clock Nsight Compute reads; CUDA events around each launch where CUPTI
-// cannot be loaded), GL a TIME_ELAPSED query around the dispatch, Vulkan
-// timestamps around the dispatch, the cpu device the host's clock. No launch
-// processing and no gap between launches is counted. `untimed` frames first
-// run the same way without timers. Returns one vector per timed frame: each
-// launch's device time, ms, in launch order.
+// is timed by the device's own clock from the end of the command before it
+// (the flush's last launch, or the frame's previous launch) to its own end:
+// its execution and the device's start of it, which every launch in a
+// dependent sequence pays, and no host time (everything is queued ahead).
+// Measured on an H100 (November 2026): the kernels' own START-to-END spans
+// differ between APIs by a fixed ~1-3 us (NVIDIA's OpenCL START/END 6.2 us
+// where CUPTI's kernel record spans 2.5 us for the same 25k-vertex kernel,
+// and Nsight Compute's gpu__time_duration 3.8), while the end-to-end time
+// is what every API's timer can stamp alike. OpenCL: the profiling END of
+// the flush's and each launch's event; CUDA: CUPTI's kernel activity
+// records (events between the launches where CUPTI cannot be loaded); GL:
+// GL_TIMESTAMP query counters after the flush and after each launch;
+// Vulkan: timestamps after the flush and after each dispatch; the cpu
+// device: the host's clock. `untimed` frames first run the same way without
+// timers. Returns one vector per timed frame: each launch's time, ms, in
+// launch order (their sum: the flush's end to the frame's end).
 struct FrameRun {
   FrameUse use = FrameUse::kTime;
   std::vector<std::span<const std::unique_ptr<DeviceObject>>> frames;

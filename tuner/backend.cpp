@@ -726,12 +726,13 @@ std::vector<std::vector<double>> RaceWith(Executor& executor, DatasetCache& data
   }
   const HostLock timed_lock(TimedMode(cpu_device));
   const StopRule& rule = options.stop;
+  for (const std::unique_ptr<Executor::Timed>& t : timed) (void)t->Cold(std::max(options.warmup, 1), 0);  // as SampleKernelTime
   const auto start = Clock::now();
   // Rounds of one batch each, candidate after candidate: a drift of the
   // device's clock or of its neighbours' load falls on every candidate alike.
-  for (int round = 0;; ++round) {
+  for (;;) {
     for (std::size_t i = 0; i < timed.size(); ++i) {
-      const std::vector<double> batch = timed[i]->Cold(round == 0 ? std::max(options.warmup, 0) : 0, static_cast<int>(rule.batch));
+      const std::vector<double> batch = timed[i]->Cold(0, static_cast<int>(rule.batch));
       entries[i].samples.insert(entries[i].samples.end(), batch.begin(), batch.end());
     }
     std::size_t fewest = entries.front().samples.size();
@@ -751,13 +752,14 @@ std::vector<std::vector<double>> RaceWith(Executor& executor, DatasetCache& data
 KernelTime SampleKernelTime(Executor::Timed& timed, const TimingOptions& options) {
   using Clock = std::chrono::steady_clock;
   const StopRule& rule = options.stop;
+  // The warm-up frames first, outside the time cap: they also prepare the
+  // flush (its buffer is made on first use) and warm the device.
+  (void)timed.Cold(std::max(options.warmup, 1), 0);
   const auto start = Clock::now();
   KernelTime t;
-  int untimed = std::max(options.warmup, 0);
   for (;;) {
     const std::size_t want = std::min(rule.batch, rule.max_samples - std::min(rule.max_samples, t.samples.size()));
-    const std::vector<double> batch = timed.Cold(untimed, static_cast<int>(std::max<std::size_t>(want, 1)));
-    untimed = 0;
+    const std::vector<double> batch = timed.Cold(0, static_cast<int>(std::max<std::size_t>(want, 1)));
     if (batch.empty()) throw Error("timing: the device gave no kernel time");
     t.samples.insert(t.samples.end(), batch.begin(), batch.end());
     for (const double s : batch)

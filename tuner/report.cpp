@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <set>
 #include <tuple>
 
 #include <nlohmann/json.hpp>
@@ -305,7 +306,14 @@ nlohmann::json ReportToJson(const TuningReport& report) {
   out["measurements"] = nlohmann::json::array();
   for (const Measurement& m : report.measurements) out["measurements"].push_back(m);
   out["winners"] = nlohmann::json::array();
-  for (const Winner& w : ComputeWinners(report)) out["winners"].push_back(WinnerJson(w));
+  const std::vector<Winner> winners = ComputeWinners(report);
+  std::set<std::pair<std::string, std::string>> chosen;  // (device, variant key) of the budget winners
+  for (const Winner& w : BudgetWinners(winners, report.tie_margin)) chosen.insert({w.device_id, w.variant.Key() + "|" + w.dataset});
+  for (const Winner& w : winners) {
+    nlohmann::json j = WinnerJson(w);
+    j["chosen"] = chosen.count({w.device_id, w.variant.Key() + "|" + w.dataset}) > 0;
+    out["winners"].push_back(std::move(j));
+  }
   out["tie_margin"] = report.tie_margin;
   out["races"] = nlohmann::json::array();
   for (const RaceRecord& r : report.races) out["races"].push_back(RaceJson(r));

@@ -44,6 +44,10 @@ Interval MedianInterval(std::vector<double> samples) {
   Interval interval;
   interval.samples = n;
   interval.median = n % 2 ? samples[n / 2] : (samples[n / 2 - 1] + samples[n / 2]) / 2.0;
+  for (std::size_t i = 1; i < n; ++i) {
+    const double step = samples[i] - samples[i - 1];
+    if (step > 0.0 && (interval.resolution == 0.0 || step < interval.resolution)) interval.resolution = step;
+  }
   const std::size_t j = std::max<std::size_t>(LowerRank(n), 1);
   interval.low = samples[j - 1];
   interval.high = samples[n - j];
@@ -70,7 +74,9 @@ std::string BadStopRule(const StopRule& rule, const std::string& prefix) {
 }
 
 bool ShouldStop(const StopRule& rule, const Interval& interval, double elapsed_ms, bool* tight) {
-  const bool met = interval.samples >= rule.min_samples && interval.HalfWidthRatio() <= rule.interval;
+  const double half = (interval.high - interval.low) / 2.0;
+  const bool met = interval.samples >= rule.min_samples &&
+                   (interval.HalfWidthRatio() <= rule.interval || (interval.resolution > 0.0 && half <= interval.resolution));
   if (tight) *tight = met;
   return met || interval.samples >= rule.max_samples || (elapsed_ms >= rule.max_ms && interval.samples >= 1);
 }

@@ -68,15 +68,6 @@ bool IsGltfPath(const std::string& key) {
   return ends_with(".gltf") || ends_with(".glb");
 }
 
-int IntField(const nlohmann::json& value, const std::string& where, int min) {
-  if (!value.is_number_integer()) throw Error(where + ": expected an integer");
-  const long long v = value.get<long long>();
-  if (v < min || v > std::numeric_limits<int>::max()) {
-    throw Error(where + ": must be an integer >= " + std::to_string(min) + " (got " + std::to_string(v) + ")");
-  }
-  return static_cast<int>(v);
-}
-
 double PositiveNumber(const nlohmann::json& value, const std::string& where) {
   if (!value.is_number()) throw Error(where + ": expected a number");
   const double v = value.get<double>();

@@ -608,25 +608,33 @@ std::vector<std::vector<double>> CudaApi::RunTimed(const FrameRun& run) {
 // (a CUdeviceptr: a mapped GL buffer, SkinIntoGlBuffer) instead of the set's
 // own output when given.
 // Queues frame `frame` of a kCold run on `lane`: the flush, then the
-// frame's launches, each between two events when `events` is given.
+// frame's launches; when `events` is given, an event after the flush and
+// after each launch (each launch's time runs from the event before it).
 void CudaApi::QueueColdFrame(const FrameRun& run, std::size_t frame, cuda::Stream lane,
                              std::vector<std::pair<Event, Event>>* events) {
   for (const std::unique_ptr<DeviceObject>& launch : run.flush) Launch(static_cast<const CudaBound&>(*launch), lane);
+  Event before;
+  if (events) {
+    before = NewEvent("cuEventCreate for timing " + run.key);
+    Check(api->cuEventRecord(before.get(), lane), "launch", "cuEventRecord of " + run.key);
+  }
   for (const std::unique_ptr<DeviceObject>& launch : run.frames[frame]) {
-    if (events) {
-      events->emplace_back(NewEvent("cuEventCreate for timing " + run.key), NewEvent("cuEventCreate for timing " + run.key));
-      Check(api->cuEventRecord(events->back().first.get(), lane), "launch", "cuEventRecord of " + run.key);
-    }
     Launch(static_cast<const CudaBound&>(*launch), lane);
-    if (events) Check(api->cuEventRecord(events->back().second.get(), lane), "launch", "cuEventRecord of " + run.key);
+    if (!events) continue;
+    Event after = NewEvent("cuEventCreate for timing " + run.key);
+    Check(api->cuEventRecord(after.get(), lane), "launch", "cuEventRecord of " + run.key);
+    Event next = NewEvent("cuEventCreate for timing " + run.key);  // the next launch's start: this one's end
+    Check(api->cuEventRecord(next.get(), lane), "launch", "cuEventRecord of " + run.key);
+    events->emplace_back(std::move(before), std::move(after));
+    before = std::move(next);
   }
 }
 
 // kCold (device_api.h): every frame on one stream, in order, after the
-// flush. Each launch's time is CUPTI's record of the kernel's own start
-// and end (cupti.h says why); where CUPTI cannot be loaded, events around
-// each launch, which count the launch's processing too (kernel_clock()
-// says which, and the report with it).
+// flush. Each launch's time runs from the end of the command before it to
+// its own end, by CUPTI's records of the kernels (cupti.h says why); where
+// CUPTI cannot be loaded, by events between them, which count the events'
+// own processing too (kernel_clock() says which, and the report with it).
 std::vector<std::vector<double>> CudaApi::TimeCold(const FrameRun& run) {
   if (last_upload_) {
     Check(api->cuStreamSynchronize(uploads_), "launch", "cuStreamSynchronize on the palette uploads");

@@ -195,14 +195,21 @@ std::vector<std::vector<double>> ColdFrameTimes(const std::vector<KernelSpan>& s
   if (spans.size() != frames * per_frame)
     throw Error("CUDA launch: CUPTI recorded " + std::to_string(spans.size()) + " kernels for " + std::to_string(frames) +
                 " frames of " + std::to_string(flush) + " flush and " + std::to_string(launches) + " timed launches");
+  // Each launch from the end of the command before it (the flush's last
+  // launch, or the frame's previous launch) to its own end (device_api.h).
   std::vector<std::vector<double>> ms(frames);
-  for (std::size_t f = 0; f < frames; ++f)
+  for (std::size_t f = 0; f < frames; ++f) {
+    if (flush == 0) throw Error("CUDA launch: a cold frame without a flush before it");
+    std::uint64_t previous_end = spans[f * per_frame + flush - 1].end_ns;
     for (std::size_t l = 0; l < launches; ++l) {
       const KernelSpan& s = spans[f * per_frame + flush + l];
-      if (s.end_ns < s.start_ns)
-        throw Error("CUDA launch: CUPTI recorded a kernel ending before it started (frame " + std::to_string(f) + ")");
-      ms[f].push_back(static_cast<double>(s.end_ns - s.start_ns) * 1e-6);
+      if (s.end_ns < s.start_ns || s.end_ns < previous_end)
+        throw Error("CUDA launch: CUPTI recorded a kernel ending before it started or before the command before it (frame " +
+                    std::to_string(f) + ")");
+      ms[f].push_back(static_cast<double>(s.end_ns - previous_end) * 1e-6);
+      previous_end = s.end_ns;
     }
+  }
   return ms;
 }
 

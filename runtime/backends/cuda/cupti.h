@@ -60,8 +60,9 @@ struct KernelSpan {
 };
 
 // The kernel times of kCold frames (runtime/device_api.h) from the spans of
-// one stream, sorted by start: per frame `flush` flush launches, then
-// `launches` launches; returns per frame each launch's end - start, ms.
+// one stream, sorted by start: per frame `flush` (>= 1) flush launches,
+// then `launches` launches; returns per frame each launch's time from the
+// end of the command before it to its own end, ms.
 // Throws Error("CUDA launch: ...") when the spans are not frames x (flush +
 // launches) kernels (a kernel of another stream, or records CUPTI dropped).
 std::vector<std::vector<double>> ColdFrameTimes(const std::vector<KernelSpan>& spans, std::size_t frames,

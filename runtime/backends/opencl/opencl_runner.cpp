@@ -201,7 +201,7 @@ class OpenClApi final : public DeviceApi {
   // Every OpenCL call but clSetKernelArg is thread-safe (OpenCL 1.2, appendix
   // A.2); the live frame's arguments are set only by the thread making it.
   bool SubmitsFromAnyThread() const override { return true; }
-  std::string kernel_clock() const override { return "OpenCL profiling START/END"; }
+  std::string kernel_clock() const override { return "OpenCL profiling END stamps"; }
   bool ReadyToRelease() override {  // no upload still reads a staging about to be released
     if (uploads_.get()) clFinish(uploads_.get());
     last_upload_.reset();
@@ -618,16 +618,20 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
 }
 
 // kCold (device_api.h): one in-order profiling queue, each frame after the
-// flush's launches; an event on every launch of a timed frame, whose
-// profiling START and END bound the kernel's own execution (no launch
-// processing: the queue has already submitted it when START is stamped).
+// flush's launches; an event on the flush's last launch and on every launch
+// of a timed frame: a launch's time runs from the END of the command before
+// it to its own END.
 std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
   const cl_command_queue lane = Lane(0);
   const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
-  std::vector<std::vector<Event>> events(run.frames.size() - untimed);
+  std::vector<std::vector<Event>> events(run.frames.size() - untimed);  // the flush's last, then each launch's
   for (std::size_t f = 0; f < run.frames.size(); ++f) {
-    for (const std::unique_ptr<DeviceObject>& launch : run.flush)
-      Enqueue(static_cast<const ClBound&>(*launch), nullptr, nullptr, lane);
+    for (std::size_t k = 0; k < run.flush.size(); ++k) {
+      cl_event event = nullptr;
+      const bool last = f >= untimed && k + 1 == run.flush.size();
+      Enqueue(static_cast<const ClBound&>(*run.flush[k]), nullptr, last ? &event : nullptr, lane);
+      if (event) events[f - untimed].emplace_back(event);
+    }
     for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
       cl_event event = nullptr;
       Enqueue(static_cast<const ClBound&>(*launch), nullptr, f < untimed ? nullptr : &event, lane);
@@ -639,13 +643,13 @@ std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
   std::vector<std::vector<double>> ms;
   for (const std::vector<Event>& frame : events) {
     std::vector<double>& launches = ms.emplace_back();
-    for (const Event& e : frame) {
-      cl_ulong start = 0, end = 0;
-      Check(clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr), "launch",
-            "clGetEventProfilingInfo (start) of " + run.key);
-      Check(clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr), "launch",
+    cl_ulong previous = 0;
+    for (std::size_t k = 0; k < frame.size(); ++k) {
+      cl_ulong end = 0;
+      Check(clGetEventProfilingInfo(frame[k].get(), CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr), "launch",
             "clGetEventProfilingInfo (end) of " + run.key);
-      launches.push_back(end > start ? static_cast<double>(end - start) * 1e-6 : 0.0);
+      if (k > 0) launches.push_back(end > previous ? static_cast<double>(end - previous) * 1e-6 : 0.0);
+      previous = end;
     }
   }
   return ms;

@@ -1,0 +1,103 @@
+#!/usr/bin/env python3
+"""Summaries of bench/kernel-time/run.sh's outputs.
+
+  compare.py ncu OUT SIZE...      skintune's kernel time against Nsight Compute's gpu__time_duration, per variant and size
+  compare.py runs REPORT...       the chosen winners of several `skintune run` reports: agreement, tie sets, spread
+  compare.py twins OUT            one variant's kernel time in each language, per size
+"""
+import csv, glob, json, os, statistics, sys
+
+
+def ncu(out, sizes):
+    print("size      variant                                                               skintune us   ncu us   ratio")
+    worst = 0.0
+    for size in sizes:
+        ours = [json.loads(l) for l in open(os.path.join(out, "skintune-%s.jsonl" % size)) if l.strip()]
+        rows = []
+        path = os.path.join(out, "ncu-%s.csv" % size)
+        if os.path.exists(path):
+            lines = [l for l in open(path) if l.startswith('"')]
+            rows = [r for r in csv.DictReader(lines) if r.get("Metric Name") == "gpu__time_duration.sum"]
+        per = len(rows) // max(len(ours), 1)
+        for i, m in enumerate(ours):
+            key = m["variant"]["key"]
+            mine = m["timing"]["median_ms"] * 1e3
+            theirs = [float(r["Metric Value"].replace(",", "")) / 1e3 for r in rows[i * per:(i + 1) * per]]
+            if not theirs:
+                print("%-9s %-70s %10.3f        -       -" % (size, key, mine))
+                continue
+            t = statistics.median(theirs)
+            worst = max(worst, abs(mine / t - 1))
+            print("%-9s %-70s %10.3f %8.3f %7.3f" % (size, key, mine, t, mine / t))
+    print("largest |skintune / ncu - 1|: %.3f" % worst)
+
+
+def chosen(report):
+    r = json.load(open(report))
+    rows = {}
+    for w in r["winners"]:
+        if w.get("chosen"):
+            rows[(w["device_id"], w["lang"], w["dataset"])] = w
+    return rows
+
+
+def runs(reports):
+    all_rows = [chosen(p) for p in reports]
+    keys = sorted(set().union(*[set(r) for r in all_rows]))
+    same = compatible = 0
+    worst_spread = 1.0
+    for k in keys:
+        ws = [r.get(k) for r in all_rows]
+        if any(w is None for w in ws):
+            print("missing in a run:", k)
+            continue
+        names = [w["variant"]["key"] for w in ws]
+        times = [w["median_ms"] for w in ws]
+        spread = max(times) / min(times)
+        worst_spread = max(worst_spread, spread)
+        if len(set(names)) == 1:
+            same += 1
+        else:
+            ok = all(n in w["tie_set"] for n in names for w in ws)
+            compatible += ok
+            print("differ%s: %s %s %s: %s" % (" (each in the others' tie sets)" if ok else "", k[0][:40], k[1], k[2],
+                                             ", ".join("%s %.2f us" % (n.split(".", 2)[2], t * 1e3) for n, t in zip(names, times))))
+        if spread > 1.03:
+            print("spread %.3f: %s %s %s" % (spread, k[0][:40], k[1], k[2]))
+    n = len(keys)
+    print("rows: %d; the same winner in every run: %d (%.0f%%); differing but within each other's tie sets: %d; "
+          "largest winner time ratio across runs: %.3f" % (n, same, 100.0 * same / max(n, 1), compatible, worst_spread))
+    over = 0
+    for p in reports:
+        r = json.load(open(p))
+        for m in r["measurements"]:
+            if m["status"] == "invalid" and "impossible kernel time" in m.get("detail", ""):
+                over += 1
+    print("measurements rejected over the ceiling: %d" % over)
+
+
+def twins(out):
+    by = {}
+    for path in glob.glob(os.path.join(out, "twins-*.jsonl")):
+        for l in open(path):
+            if l.strip():
+                m = json.loads(l)
+                by.setdefault(m["dataset"], {})[m["variant"]["lang"]] = m["timing"]["median_ms"] * 1e3
+    print("size       " + "  ".join("%12s" % l for l in ("opencl", "cuda", "vulkan", "glsl-compute")) + "   max/min")
+    for size in sorted(by, key=lambda s: float(s.split("k")[0])):
+        t = by[size]
+        vals = [t[l] for l in t]
+        print("%-10s " % size + "  ".join("%12s" % ("%.2f" % t[l] if l in t else "-") for l in ("opencl", "cuda", "vulkan", "glsl-compute"))
+              + "   %.3f" % (max(vals) / min(vals)))
+
+
+if __name__ == "__main__":
+    mode = sys.argv[1]
+    if mode == "ncu":
+        ncu(sys.argv[2], sys.argv[3:])
+    elif mode == "runs":
+        runs(sys.argv[2:])
+    elif mode == "twins":
+        twins(sys.argv[2])
+    else:
+        sys.exit("unknown mode " + mode)

@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# The kernel-time and winner-stability checks on a GPU machine
+# (docs/PERFORMANCE.md "Kernel time and frame time"), from the repository copy
+# there after `eval "$(scripts/device-unpack)"`:
+#
+#   bench/kernel-time/run.sh ncu          five CUDA variants at 25k..6400k-b4: skintune's kernel time beside
+#                                         Nsight Compute's gpu__time_duration (--cache-control all --clock-control none)
+#   bench/kernel-time/run.sh runs N ARGS  N cold `skintune run ARGS` (every program cache emptied before each),
+#                                         then compare.py on their reports
+#   bench/kernel-time/run.sh twins        one variant in OpenCL, CUDA and Vulkan (and GLSL) at 100k..6400k-b4
+#
+# Writes under $OUT (default ./out); prints a short table last.
+set -euo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
+out=${OUT:-$here/out}
+bin="$here/build/bin"
+mkdir -p "$out"
+mode=${1:?usage: run.sh ncu|runs N ARGS|twins}
+shift
+sizes=${SIZES:-"25k-b4 100k-b4 400k-b4 1600k-b4 6400k-b4"}
+cuda_variants=(
+  cuda.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg256.nonormals
+  cuda.b4.padded.soa-split.float4.u8.unorm8.mat3x4.local.matrix.v1c.wg64.nonormals
+  cuda.b4.padded.soa.float4.u8.f32.mat3x4.constant.matrix.v1c.wg256.nonormals
+  cuda.b4.padded.aos.float3.i32.f32.mat4.global.matrix.v1c.wg128.nonormals
+  cuda.b4.padded.soa-split.float4.u16.unorm16.mat3x4.global.matrix.v1c.wg64.nonormals
+)
+case "$mode" in
+  ncu)
+    ncu=$(command -v ncu || ls /usr/local/cuda/bin/ncu 2>/dev/null || true)
+    args=()
+    for v in "${cuda_variants[@]}"; do args+=(--variant "$v"); done
+    for size in $sizes; do
+      "$bin/skintune_bench_kernel_time" --device cuda: --dataset "$size" "${args[@]}" --json "$out/skintune-$size.jsonl" \
+        > "$out/skintune-$size.txt" 2>&1 || cat "$out/skintune-$size.txt"
+      [ -n "$ncu" ] || { echo "no ncu"; continue; }
+      "$ncu" --cache-control all --clock-control none -k 'regex:^skin$' --metrics gpu__time_duration.sum --csv \
+        --print-units base "$bin/skintune_bench_kernel_time" --device cuda: --dataset "$size" "${args[@]}" --launches 10 \
+        > "$out/ncu-$size.csv" 2> "$out/ncu-$size.err" || tail -5 "$out/ncu-$size.err"
+    done
+    python3 "$here/bench/kernel-time/compare.py" ncu "$out" $sizes | tee "$out/ncu-summary.txt"
+    ;;
+  runs)
+    n=${1:?runs N}
+    shift
+    reports=()
+    for i in $(seq 1 "$n"); do
+      cache=$(mktemp -d)
+      start=$(date +%s.%N)
+      SKINTUNE_CACHE_DIR="$cache/skintune" POCL_CACHE_DIR="$cache/pocl" CUDA_CACHE_PATH="$cache/cuda" \
+        __GL_SHADER_DISK_CACHE_PATH="$cache/gl" "$bin/skintune" run --out "$out/run$i" --quiet "$@" > "$out/run$i.txt" 2>&1 \
+        || tail -5 "$out/run$i.txt"
+      echo "run $i: $(python3 -c "import time,sys; print(round(time.time()-float(sys.argv[1]),1))" "$start") s" | tee -a "$out/runs-wall.txt"
+      reports+=("$out/run$i/report.json")
+      rm -rf "$cache"
+    done
+    python3 "$here/bench/kernel-time/compare.py" runs "${reports[@]}" | tee "$out/runs-summary.txt"
+    ;;
+  twins)
+    for size in ${TWIN_SIZES:-"100k-b4 400k-b4 1600k-b4 6400k-b4"}; do
+      for lang in opencl cuda vulkan glsl-compute; do
+        case $lang in opencl) dev='opencl:NVIDIA';; cuda) dev='cuda:';; vulkan) dev='vulkan:';; glsl-compute) dev='gl:';; esac
+        "$bin/skintune_bench_kernel_time" --device "$dev" --dataset "$size" --json "$out/twins-$lang-$size.jsonl" \
+          --variant "$lang.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg256.nonormals" \
+          > "$out/twins-$lang-$size.txt" 2>&1 || tail -3 "$out/twins-$lang-$size.txt"
+      done
+    done
+    python3 "$here/bench/kernel-time/compare.py" twins "$out" | tee "$out/twins-summary.txt"
+    ;;
+  *) echo "unknown mode $mode" >&2; exit 2 ;;
+esac
