@@ -112,8 +112,8 @@ TimingOptions TimingOptionsFromJson(const nlohmann::json& in, const std::string&
     if (field->as_int) *field->as_int = static_cast<int>(v);
     if (field->as_count) *field->as_count = static_cast<std::size_t>(v);
   }
-  if (!(t.burst_ms > 0.0)) throw Error(where + ".burst_ms: must be a positive number");
-  if (!(t.tolerance > 0.0)) throw Error(where + ".tolerance: must be a positive number");
+  for (const auto& [name, value] : {std::pair<const char*, double>{"burst_ms", t.burst_ms}, {"tolerance", t.tolerance}})
+    if (!(value > 0.0)) throw Error(where + "." + name + ": must be a positive number (got " + Dumped(in.at(name)) + ")");
   const std::string prefix = where.substr(where.rfind(' ') == std::string::npos ? 0 : where.rfind(' ') + 1) + ".";
   if (const std::string bad = BadStopRule(t.stop, prefix); !bad.empty()) throw UsageError(where + ": " + bad);
   if (!(t.tie_margin > 0.0) || t.tie_margin > 0.5)

@@ -74,11 +74,12 @@ int ReadInt(const nlohmann::json& in, const char* name, const std::string& where
   return value->get<int>();
 }
 
-// Timing version 5's interval and frame time: low <= median <= high within
-// [min, max], a frame time >= 0, a flush >= 0.
+// Timing version 5's interval (when recorded) and frame time: low <= median
+// <= high within [min, max], a frame time >= 0, a flush >= 0.
 std::string ImpossibleInterval(const Timing& t) {
   if (const std::string bad = NotFiniteNonNegative("frame_ms", t.frame_ms); !bad.empty()) return bad;
   if (const std::string bad = NotFiniteNonNegative("flush_bytes", t.flush_bytes); !bad.empty()) return bad;
+  if (t.low_ms == 0.0 && t.high_ms == 0.0) return "";
   const bool ordered = t.min_ms <= t.low_ms && t.low_ms <= t.median_ms && t.median_ms <= t.high_ms && t.high_ms <= t.max_ms;
   if (!ordered || !std::isfinite(t.low_ms) || !std::isfinite(t.high_ms))
     return "an interval ['low_ms' " + std::to_string(t.low_ms) + ", 'high_ms' " + std::to_string(t.high_ms) +

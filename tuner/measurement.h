@@ -61,23 +61,24 @@ inline constexpr int kTimingVersion = 5;
 struct Timing {
   // The kernel time (docs/TUNING.md "Kernel time"), ms.
   double median_ms = 0.0;  // the median of the samples
-  double low_ms = 0.0;     // its 95% interval (order statistics)
-  double high_ms = 0.0;
   double min_ms = 0.0;     // the fastest sample
   double max_ms = 0.0;     // the slowest
+  int warmup = 0;          // untimed cold frames before the samples
   int repetitions = 0;     // samples taken
+  int input_sets = 0;      // distinct input sets rotated between samples
+  // Frames per frame-time run (frame_ms; before timing version 5: per burst).
+  int burst_frames = 0;
+  double footprint_bytes = 0.0;  // input_sets x the bytes of one set
+  double copy_ms = 0.0;    // the same-size copy's kernel time, the same method (0: not measured)
+  int version = kTimingVersion;
+  double low_ms = 0.0;     // the median's 95% interval (order statistics); both 0: not recorded
+  double high_ms = 0.0;
   bool tight = false;      // the interval met the stop rule (not stopped by a cap)
   std::string clock;       // what timed each launch (DeviceApi::kernel_clock)
   double flush_bytes = 0;  // what the flush before each sample read (0: none)
-  int warmup = 0;          // untimed cold frames before the samples
-  int input_sets = 0;      // distinct input sets rotated between samples
-  double footprint_bytes = 0.0;  // input_sets x the bytes of one set
-  double copy_ms = 0.0;    // the same-size copy's kernel time, the same method (0: not measured)
   // The frame time (docs/TUNING.md "Frame time"): host ms per frame of
   // `burst_frames` frames issued back to back as a Skinner issues them (0: not measured).
   double frame_ms = 0.0;
-  int burst_frames = 0;
-  int version = kTimingVersion;
 };
 
 struct Measurement {

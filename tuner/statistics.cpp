@@ -59,7 +59,7 @@ std::string BadStopRule(const StopRule& rule, const std::string& prefix) {
   if (!(rule.interval > 0.0) || !(rule.interval <= 0.5))
     return field("interval") + "is " + Number(rule.interval) +
            ": the interval's half-width, relative to the median, must be in (0, 0.5] (0.01: 1%)";
-  if (rule.batch < 1) return field("batch") + "is 0: at least one sample per submission";
+  if (rule.batch < 1) return field("sample_batch") + "is 0: at least one sample per submission";
   if (rule.min_samples < 1) return field("min_samples") + "is 0: at least one sample";
   if (rule.max_samples < rule.batch)
     return field("max_samples") + "is " + std::to_string(rule.max_samples) + ": below one batch of " +
@@ -69,7 +69,7 @@ std::string BadStopRule(const StopRule& rule, const std::string& prefix) {
            std::to_string(rule.min_samples) + ")";
   if (rule.max_samples > 100000) return field("max_samples") + "is " + std::to_string(rule.max_samples) + ": at most 100000";
   if (!(rule.max_ms > 0.0) || !std::isfinite(rule.max_ms) || rule.max_ms > 3.6e6)
-    return field("max_ms") + "is " + Number(rule.max_ms) + ": a positive number of ms, at most an hour";
+    return field("sample_ms") + "is " + Number(rule.max_ms) + ": a positive number of ms, at most an hour";
   return "";
 }
 

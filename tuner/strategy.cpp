@@ -207,7 +207,7 @@ std::size_t NarrowStart(const Session& s, const std::array<std::vector<int>, kAx
   return ClosestTo(s, target);
 }
 
-SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts) {
+SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts, double margin) {
   // The values each axis takes among the candidates (in increasing order).
   std::array<std::vector<int>, kAxisCount> axis_values;
   for (std::size_t a = 0; a < kAxisCount; ++a) {
@@ -255,14 +255,17 @@ SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts) {
   auto descend = [&](std::size_t start) {
     std::size_t current = start;
     std::optional<double> current_ms = s.Evaluate(current);
-    // Evaluates `moves` and goes to the fastest when it beats the current point.
+    // Evaluates `moves` and goes to the fastest when it beats the current
+    // point by more than `margin`; a later move replaces an earlier one only
+    // by beating it by as much, so moves within noise of each other are
+    // decided by their order, the same in every run.
     auto try_moves = [&](const std::vector<std::size_t>& moves) {
       std::size_t best = current;
       std::optional<double> best_ms = current_ms;
       s.Ahead(moves);
       for (std::size_t j : moves) {
         const std::optional<double> t = s.Evaluate(j);
-        if (t && (!best_ms || *t < *best_ms)) {
+        if (t && (!best_ms || *t < *best_ms * (1.0 - margin))) {
           best = j;
           best_ms = t;
         }
@@ -323,7 +326,7 @@ SearchResult Search(const std::vector<Variant>& candidates, const Evaluator& eva
   if (name == "exhaustive") return Exhaustive(session);
   if (name == "random") return Random(session, options.seed);
   // Without a budget, coordinate descent stops at its first local optimum.
-  return Coordinate(session, options.seed, options.budget != 0);
+  return Coordinate(session, options.seed, options.budget != 0, options.margin);
 }
 
 }  // namespace skintune::internal

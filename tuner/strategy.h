@@ -22,6 +22,11 @@ struct StrategyOptions {
   std::string name = "exhaustive";  // "exhaustive", "random", "coordinate"
   std::size_t budget = 0;           // evaluations allowed (0: all for exhaustive; required for random)
   std::uint64_t seed = 1;
+  // Coordinate descent moves only to a point faster by more than this
+  // fraction (the run's tie margin, TimingOptions::tie_margin): a move
+  // decided by noise would send two runs of one landscape down different
+  // paths to different candidates. 0: any faster point.
+  double margin = 0.0;
 };
 
 struct SearchResult {

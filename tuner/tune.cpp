@@ -650,7 +650,9 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
         };
         const std::size_t first_of_task = run.measurements.size();
         for (const Variant& b : task.baselines) evaluate(b);
-        if (!task.candidates.empty()) Search(task.candidates, evaluate, config.strategy, compile_ahead);
+        StrategyOptions strategy = config.strategy;
+        strategy.margin = config.timing.tie_margin;  // moves beyond noise only (strategy.h)
+        if (!task.candidates.empty()) Search(task.candidates, evaluate, strategy, compile_ahead);
         // The race of the search's leaders, in this device's worker (race.h).
         const std::vector<Measurement> measured(run.measurements.begin() + static_cast<std::ptrdiff_t>(first_of_task),
                                                 run.measurements.end());

@@ -415,28 +415,6 @@ TEST(Packings, APackingIsReusedWithTheMeasuredVariantInIt) {
   EXPECT_EQ(entry.packings.size(), 1u);
 }
 
-// The same-size copy is timed again while its bursts spread more than 5%, at
-// most 3 times, and the timing with the lowest median is kept.
-TEST(Helpers, ANoisyCopyIsTimedAgainAndTheLowestMedianKept) {
-  using tuner_internal::SteadyCopyTimes;
-  const auto scripted = [](std::vector<std::vector<double>> timings, int& calls) {
-    return [timings = std::move(timings), &calls] { return timings[static_cast<std::size_t>(calls++)]; };
-  };
-  int calls = 0;
-  EXPECT_EQ(SteadyCopyTimes(scripted({{1.00, 1.02, 1.04}}, calls)), (std::vector<double>{1.00, 1.02, 1.04}));
-  EXPECT_EQ(calls, 1) << "a steady copy is timed once";
-  calls = 0;
-  EXPECT_EQ(SteadyCopyTimes(scripted({{1.07, 1.10, 1.16}, {1.00, 1.01, 1.02}}, calls)),
-            (std::vector<double>{1.00, 1.01, 1.02}));
-  EXPECT_EQ(calls, 2);
-  calls = 0;  // never steady: three timings, the lowest median
-  EXPECT_EQ(SteadyCopyTimes(scripted({{1.2, 1.5, 1.9}, {1.0, 1.1, 1.4}, {1.1, 1.3, 1.6}}, calls)),
-            (std::vector<double>{1.0, 1.1, 1.4}));
-  EXPECT_EQ(calls, 3);
-  calls = 0;
-  EXPECT_TRUE(SteadyCopyTimes(scripted({{}}, calls)).empty());  // no time: nothing to keep
-}
-
 TEST(InjectedFault, ParsedFromTheEnvironmentWithTheCanonicalKey) {
   {
     ScopedFault f("wg64.b2.opencl=wrong");

@@ -48,36 +48,54 @@ class FakeExecutor final : public Executor {
     }
     return out;
   }
-  Times Time(const PackedMesh&, std::span<const KernelSource>, std::span<const std::vector<std::uint8_t>> palettes,
-             int instances, int, int bursts, int burst_frames, double burst_ms) override {
+  // Samples of `ms` with a spread of `spread` (alternating above and below), and a fixed frame time.
+  class FakeTimed final : public Timed {
+   public:
+    FakeTimed(FakeExecutor& owner, double ms, double spread) : owner_(owner), ms_(ms), spread_(spread) {}
+    std::vector<double> Cold(int untimed, int samples) override {
+      owner_.cold_untimed += untimed;
+      std::vector<double> out;
+      for (int i = 0; i < samples; ++i, ++n_) out.push_back(ms_ * (1.0 + (n_ % 2 ? spread_ : -spread_) * (n_ % 7) / 7.0));
+      owner_.samples_taken += samples;
+      return out;
+    }
+    double FrameMs(int, int frames) override {
+      owner_.frame_frames = frames;
+      return owner_.frame_ms;
+    }
+    std::size_t bytes_per_set() const override { return owner_.bytes_per_set; }
+
+   private:
+    FakeExecutor& owner_;
+    double ms_, spread_;
+    int n_ = 0;
+  };
+  std::unique_ptr<Timed> Prepare(const PackedMesh&, std::span<const KernelSource>,
+                                 std::span<const std::vector<std::uint8_t>> palettes, int instances) override {
     time_instances = instances;
     time_sets = static_cast<int>(palettes.size());
-    asked_burst_ms = burst_ms;
-    Times t;
-    t.burst_frames = burst_frames > 0 ? burst_frames : 17;
-    t.ms.assign(static_cast<std::size_t>(bursts), kernel_ms);
-    t.bytes_per_set = bytes_per_set;
-    return t;
+    return std::make_unique<FakeTimed>(*this, kernel_ms, spread);
   }
-  std::vector<double> TimeCopy(Lang lang, std::size_t bytes, int input_sets, int, int bursts, int burst_frames) override {
+  std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) override {
     copy_lang = lang;
     copy_bytes = bytes;
     copy_sets = input_sets;
-    copy_burst_frames = burst_frames;
     if (copy_fails) throw Error("OpenCL launch: the copy could not run");
-    return std::vector<double>(static_cast<std::size_t>(bursts), copy_ms);
+    return std::make_unique<FakeTimed>(*this, copy_ms, 0.0);
   }
+  std::string KernelClock() const override { return "fake clock"; }
+  std::size_t FlushReadBytes() const override { return flush_bytes; }
 
-  double kernel_ms = 0.030, copy_ms = 0.025;
+  double kernel_ms = 0.030, copy_ms = 0.025, frame_ms = 0.040, spread = 0.0;
   std::size_t wrong_vertex = static_cast<std::size_t>(-1);
   int run_instances = 0, time_instances = 0;
-  std::size_t bytes_per_set = 0;
+  std::size_t bytes_per_set = 0, flush_bytes = 100u << 20;
   bool copy_fails = false;
-  int time_sets = 0;
-  double asked_burst_ms = 0.0;
+  int time_sets = 0, frame_frames = 0;
+  int cold_untimed = 0, samples_taken = 0;
   std::optional<Lang> copy_lang;
   std::size_t copy_bytes = 0;
-  int copy_sets = 0, copy_burst_frames = 0;
+  int copy_sets = 0;
 
  private:
   DatasetCache& datasets_;
@@ -137,21 +155,17 @@ TEST(Measure, InputSetsCoverTwiceThePhysicalCacheWhateverTheApiReports) {
 }
 
 // Every measurement carries the same-size copy: the bytes its frame moves,
-// the same input sets, the same burst, and x_copy = time / copy time.
+// the same input sets, the same method, and x_copy = time / copy time.
 TEST(Measure, TimesTheSameSizeCopyBySameMethod) {
   DatasetCache datasets;
   FakeExecutor executor(datasets, "5000-b4");
   TimingOptions options;
-  options.burst_ms = 3.5;
   const Measurement m = MeasureOn(executor, datasets, Gpu(50ull << 20), kVariant, options);
   ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
-  EXPECT_EQ(executor.asked_burst_ms, 3.5);
-  EXPECT_EQ(m.timing.burst_frames, 17);
   ASSERT_TRUE(executor.copy_lang.has_value());
   EXPECT_EQ(*executor.copy_lang, Lang::kOpenCl);
   EXPECT_EQ(static_cast<double>(executor.copy_bytes), m.bytes_per_frame);
   EXPECT_EQ(executor.copy_sets, m.timing.input_sets);
-  EXPECT_EQ(executor.copy_burst_frames, m.timing.burst_frames);
   EXPECT_DOUBLE_EQ(m.timing.copy_ms, 0.025);
   EXPECT_DOUBLE_EQ(m.x_copy, 0.030 / 0.025);
   EXPECT_EQ(m.timing.version, kTimingVersion);
@@ -224,6 +238,67 @@ TEST(Measure, InstancesAndBatchesAreVerifiedPartByPartAndTimedAsAWhole) {
     EXPECT_EQ(invalid.status, MeasureStatus::kInvalid);
     EXPECT_NE(invalid.detail.find("308"), std::string::npos) << invalid.detail;
   }
+}
+
+// Every ok measurement records both figures: the kernel time with its
+// interval, the samples and the clock, and the frame time.
+TEST(Measure, RecordsTheKernelTimeWithItsIntervalAndTheFrameTime) {
+  DatasetCache datasets;
+  FakeExecutor executor(datasets, "5000-b4");
+  executor.spread = 0.001;
+  TimingOptions options;
+  options.burst_ms = 1.0;
+  const Measurement m = MeasureOn(executor, datasets, Gpu(50ull << 20), kVariant, options);
+  ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+  EXPECT_NEAR(m.timing.median_ms, 0.030, 0.0001);
+  EXPECT_LE(m.timing.low_ms, m.timing.median_ms);
+  EXPECT_GE(m.timing.high_ms, m.timing.median_ms);
+  EXPECT_GE(m.timing.repetitions, static_cast<int>(options.stop.min_samples));
+  EXPECT_TRUE(m.timing.tight);
+  EXPECT_EQ(m.timing.clock, "fake clock");
+  EXPECT_DOUBLE_EQ(m.timing.frame_ms, 0.040);
+  EXPECT_EQ(m.timing.burst_frames, executor.frame_frames);
+  EXPECT_GE(executor.cold_untimed, options.warmup) << "warm-up frames before the samples";
+  EXPECT_EQ(m.timing.version, kTimingVersion);
+  EXPECT_EQ(ImpossibleFigures(m), "");
+}
+
+// The stop rule as MeasureWith applies it: a steady kernel stops at
+// min_samples; a noisy one samples up to the cap and says it was capped.
+TEST(Measure, SamplesUntilTheIntervalIsTightOrTheCap) {
+  TimingOptions options;
+  options.stop.min_samples = 10;
+  options.stop.batch = 10;
+  options.stop.max_samples = 60;
+  options.stop.max_ms = 1e6;
+  DatasetCache datasets;
+  FakeExecutor steady(datasets, "5000-b4");
+  const Measurement a = MeasureOn(steady, datasets, Gpu(50ull << 20), kVariant, options);
+  EXPECT_EQ(a.timing.repetitions, 10);
+  EXPECT_TRUE(a.timing.tight);
+  FakeExecutor noisy(datasets, "5000-b4");
+  noisy.spread = 0.3;
+  const Measurement b = MeasureOn(noisy, datasets, Gpu(50ull << 20), kVariant, options);
+  EXPECT_EQ(b.timing.repetitions, 60);
+  EXPECT_FALSE(b.timing.tight);
+}
+
+// Cold residency: a footprint inside the cache (one input set of a small
+// mesh) is never timed without the flush, which reads at least twice the
+// last-level cache before every sample.
+TEST(Measure, AFootprintInsideTheCacheIsTimedAfterAFlush) {
+  DatasetCache datasets;
+  FakeExecutor executor(datasets, "5000-b4");
+  executor.bytes_per_set = 100000;
+  TimingOptions options;
+  options.max_input_sets = 1;
+  const std::uint64_t llc = 50ull << 20;
+  executor.flush_bytes = FlushBytes(llc);
+  const Measurement m = MeasureOn(executor, datasets, Gpu(llc), kVariant, options);
+  ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+  EXPECT_LT(m.timing.footprint_bytes, 2.0 * static_cast<double>(llc));
+  EXPECT_GE(m.timing.flush_bytes, 2.0 * static_cast<double>(llc));
+  EXPECT_GE(FlushBytes(0), 2 * kUnknownCacheBytes) << "an unknown cache is flushed as a 64 MiB one";
 }
 
 }  // namespace

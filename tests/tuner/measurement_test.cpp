@@ -44,7 +44,21 @@ Measurement Sample(const std::string& key, MeasureStatus status) {
   m.status = status;
   m.detail = status == MeasureStatus::kOk ? "" : "line 1\nline 2";
   if (status == MeasureStatus::kOk) {
-    m.timing = {1.5, 1.25, 2.0, 3, 10, 4, 20, 4.0e7, 1.2};
+    m.timing.median_ms = 1.5;
+    m.timing.low_ms = 1.4;
+    m.timing.high_ms = 1.6;
+    m.timing.min_ms = 1.25;
+    m.timing.max_ms = 2.0;
+    m.timing.repetitions = 10;
+    m.timing.tight = true;
+    m.timing.clock = "OpenCL profiling END stamps";
+    m.timing.flush_bytes = 1.0e8;
+    m.timing.warmup = 3;
+    m.timing.input_sets = 4;
+    m.timing.burst_frames = 20;
+    m.timing.footprint_bytes = 4.0e7;
+    m.timing.copy_ms = 1.2;
+    m.timing.frame_ms = 1.7;
     m.gbps = 12.5;
     m.x_copy = 1.5 / 1.2;
   }
@@ -70,6 +84,12 @@ void ExpectSame(const Measurement& a, const Measurement& b) {
   EXPECT_EQ(a.timing.burst_frames, b.timing.burst_frames);
   EXPECT_EQ(a.timing.footprint_bytes, b.timing.footprint_bytes);
   EXPECT_EQ(a.timing.copy_ms, b.timing.copy_ms);
+  EXPECT_EQ(a.timing.low_ms, b.timing.low_ms);
+  EXPECT_EQ(a.timing.high_ms, b.timing.high_ms);
+  EXPECT_EQ(a.timing.tight, b.timing.tight);
+  EXPECT_EQ(a.timing.clock, b.timing.clock);
+  EXPECT_EQ(a.timing.flush_bytes, b.timing.flush_bytes);
+  EXPECT_EQ(a.timing.frame_ms, b.timing.frame_ms);
   EXPECT_EQ(a.timing.version, b.timing.version);
   EXPECT_EQ(a.x_copy, b.x_copy);
   EXPECT_EQ(a.bytes_per_frame, b.bytes_per_frame);
@@ -172,7 +192,7 @@ TEST(Measurement, BadMaxErrorSaysWhy) {
 
 TEST(Measurement, CacheKeyNamesDeviceGeneratorDatasetAndVariant) {
   const Measurement m = Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk);
-  EXPECT_EQ(m.CacheKey(), "opencl:Portable Computing Language/cpu/3.1|0.1.0|timing 4|5000-b2|" + m.variant.Key());
+  EXPECT_EQ(m.CacheKey(), "opencl:Portable Computing Language/cpu/3.1|0.1.0|timing 5|5000-b2|" + m.variant.Key());
   Measurement other = m;
   other.generator_version = "0.2.0";
   EXPECT_NE(other.CacheKey(), m.CacheKey());

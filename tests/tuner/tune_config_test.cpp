@@ -115,11 +115,13 @@ TEST(TuneConfig, ErrorsNameTheElement) {
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2", "5000-b2"]})"),
             "c.json: datasets[1]: '5000-b2' is listed twice");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"repetitions": 0}})"),
-            "c.json: timing.repetitions: must be an integer >= 1 (got 0)");
+            "c.json: timing.repetitions: must be an integer from 1 to 1000000 (got 0)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"reps": 3}})"),
-            "c.json: timing.reps: unknown field (expected one of burst_ms, max_input_sets, repetitions, tolerance, warmup)");
+            "c.json: timing.reps: unknown field (expected one of warmup, repetitions, max_input_sets, tolerance, burst_ms, interval, min_samples, max_samples, sample_batch, sample_ms, race, tie_margin)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"tolerance": -1}})"),
             "c.json: timing.tolerance: must be a positive number (got -1)");
+  EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"race": -1}})"),
+            "c.json: timing.race: must be an integer from 0 to 1000000 (got -1)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "strategy": {"name": "genetic"}})"),
             "c.json: strategy.name: unknown strategy 'genetic' (expected one of exhaustive, random, coordinate)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "strategy": {"name": "random"}})"),
@@ -133,6 +135,36 @@ TEST(TuneConfig, ErrorsNameTheElement) {
             "c.json: strategy.budget: must be a whole number from 0 to 1000000000 (got 1000000001)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "variant_timeout_s": 0})"),
             "c.json: variant_timeout_s: must be a positive number (got 0)");
+}
+
+}  // namespace
+}  // namespace skintune::internal
+
+namespace skintune::internal {
+namespace {
+
+// An impossible stop rule is a setting that cannot work (UsageError: exit 2),
+// one line naming the field.
+TEST(TuneConfig, ImpossibleStopRulesNameTheField) {
+  const auto usage = [](const std::string& timing) -> std::string {
+    try {
+      (void)ConfigFromJson(nlohmann::json::parse(R"({"space": {}, "datasets": ["5000-b2"], "timing": )" + timing + "}"), "c.json");
+    } catch (const UsageError& e) {
+      return e.what();
+    } catch (const Error& e) {
+      return std::string("not a UsageError: ") + e.what();
+    }
+    return "accepted";
+  };
+  EXPECT_NE(usage(R"({"interval": 0})").find("'timing.interval' is 0"), std::string::npos) << usage(R"({"interval": 0})");
+  EXPECT_NE(usage(R"({"interval": -0.5})").find("'timing.interval' is -0.5"), std::string::npos);
+  EXPECT_NE(usage(R"({"max_samples": 5, "sample_batch": 10})").find("'timing.max_samples' is 5: below one batch"),
+            std::string::npos);
+  EXPECT_NE(usage(R"({"sample_ms": 1e300})").find("'timing.sample_ms'"), std::string::npos) << usage(R"({"sample_ms": 1e300})");
+  EXPECT_NE(usage(R"({"tie_margin": 0.9})").find("'timing.tie_margin' is 0.9"), std::string::npos);
+  EXPECT_EQ(usage(R"({"interval": 0.02, "min_samples": 5, "max_samples": 40, "sample_batch": 5, "tie_margin": 0.03})"),
+            "accepted");
+  EXPECT_EQ(usage(R"({"interval": 0})").find('\n'), std::string::npos) << "one line";
 }
 
 }  // namespace

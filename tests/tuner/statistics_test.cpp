@@ -1,0 +1,161 @@
+// The tuner's statistics (tuner/statistics.h): the median's interval, the
+// stop rule, the race's verdicts and the tie-break.
+#include "tuner/statistics.h"
+
+#include <algorithm>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "reference/error.h"
+
+namespace skintune::internal {
+namespace {
+
+// n samples around `median` with a relative spread `spread`, from a fixed seed.
+std::vector<double> Samples(double median, double spread, int n, unsigned seed) {
+  std::mt19937 gen(seed);
+  std::normal_distribution<double> noise(0.0, spread);
+  std::vector<double> s;
+  for (int i = 0; i < n; ++i) s.push_back(median * (1.0 + noise(gen)));
+  return s;
+}
+
+TEST(MedianInterval, OrderStatisticsAroundTheMedian) {
+  std::vector<double> s;
+  for (int i = 1; i <= 100; ++i) s.push_back(i);
+  std::shuffle(s.begin(), s.end(), std::mt19937(3));
+  const Interval in = MedianInterval(s);
+  EXPECT_DOUBLE_EQ(in.median, 50.5);
+  // Binomial(100, 1/2): P(B <= 39) = 0.0176 <= 2.5% < P(B <= 40) = 0.0284: x(40) and x(61).
+  EXPECT_DOUBLE_EQ(in.low, 40.0);
+  EXPECT_DOUBLE_EQ(in.high, 61.0);
+  EXPECT_EQ(in.samples, 100u);
+  EXPECT_DOUBLE_EQ(in.resolution, 1.0);
+}
+
+TEST(MedianInterval, FewSamplesSpanTheirRange) {
+  const Interval in = MedianInterval({3.0, 1.0, 2.0});
+  EXPECT_DOUBLE_EQ(in.median, 2.0);
+  EXPECT_DOUBLE_EQ(in.low, 1.0);
+  EXPECT_DOUBLE_EQ(in.high, 3.0);
+}
+
+TEST(MedianInterval, RejectsImpossibleSamples) {
+  EXPECT_THROW(MedianInterval({}), Error);
+  EXPECT_THROW(MedianInterval({1.0, 0.0}), Error);
+  EXPECT_THROW(MedianInterval({1.0, -2.0}), Error);
+  EXPECT_THROW(MedianInterval({1.0, std::numeric_limits<double>::quiet_NaN()}), Error);
+}
+
+// The stop rule: tight once the half-width is within `interval` of the
+// median; or a cap (samples, time); never before min_samples.
+TEST(StopRule, StopsWhenTightOrCapped) {
+  StopRule rule;
+  rule.interval = 0.01;
+  rule.min_samples = 10;
+  rule.max_samples = 50;
+  bool tight = false;
+  const Interval narrow = MedianInterval(Samples(1.0, 0.002, 20, 1));
+  EXPECT_TRUE(ShouldStop(rule, narrow, 1.0, &tight));
+  EXPECT_TRUE(tight);
+  const Interval wide = MedianInterval(Samples(1.0, 0.2, 20, 2));
+  EXPECT_FALSE(ShouldStop(rule, wide, 1.0, &tight));
+  EXPECT_FALSE(tight);
+  EXPECT_TRUE(ShouldStop(rule, MedianInterval(Samples(1.0, 0.2, 50, 2)), 1.0, &tight));  // the sample cap
+  EXPECT_FALSE(tight);
+  EXPECT_TRUE(ShouldStop(rule, wide, rule.max_ms, &tight));  // the time cap
+  EXPECT_FALSE(tight);
+  const Interval few = MedianInterval(Samples(1.0, 0.0001, 5, 3));
+  EXPECT_FALSE(ShouldStop(rule, few, 1.0, &tight)) << "never before min_samples";
+}
+
+// A timer that stamps in steps (CUPTI, NVIDIA's OpenCL: 32 ns) cannot narrow
+// an interval below one step: one step is tight.
+TEST(StopRule, OneTimerStepIsTight) {
+  StopRule rule;
+  rule.interval = 0.001;
+  std::vector<double> s;
+  for (int i = 0; i < 30; ++i) s.push_back(i % 3 == 0 ? 3.072 : (i % 3 == 1 ? 3.104 : 3.136));
+  bool tight = false;
+  EXPECT_TRUE(ShouldStop(rule, MedianInterval(s), 1.0, &tight));
+  EXPECT_TRUE(tight);
+}
+
+TEST(StopRule, ImpossibleRulesNameTheField) {
+  const auto bad = [](StopRule r) { return BadStopRule(r, "timing."); };
+  StopRule r;
+  EXPECT_EQ(bad(r), "");
+  r.interval = 0.0;
+  EXPECT_NE(bad(r).find("'timing.interval' is 0"), std::string::npos) << bad(r);
+  r.interval = -0.1;
+  EXPECT_NE(bad(r).find("'timing.interval'"), std::string::npos);
+  r = StopRule{};
+  r.max_samples = r.batch - 1;
+  EXPECT_NE(bad(r).find("'timing.max_samples'"), std::string::npos) << "a cap below one burst";
+  r = StopRule{};
+  r.max_samples = 5;
+  r.batch = 5;
+  r.min_samples = 6;
+  EXPECT_NE(bad(r).find("below min_samples"), std::string::npos);
+  r = StopRule{};
+  r.max_ms = 0.0;
+  EXPECT_NE(bad(r).find("'timing.sample_ms'"), std::string::npos);
+}
+
+// The race: separated, equal and undecided against the fastest.
+TEST(Race, VerdictsAgainstTheFastest) {
+  std::vector<RaceEntry> entries = {
+      {"b.fast", Samples(1.00, 0.002, 60, 4), 100, 0},
+      {"a.equal", Samples(1.002, 0.002, 60, 5), 100, 0},
+      {"c.slow", Samples(1.20, 0.002, 60, 6), 100, 0},
+      {"d.noisy", Samples(1.05, 0.3, 60, 7), 100, 0},
+  };
+  const RaceOutcome out = JudgeRace(entries, 0.02);
+  EXPECT_EQ(out.fastest, 0u);
+  EXPECT_EQ(out.verdicts[0], RaceVerdict::kLeader);
+  EXPECT_EQ(out.verdicts[1], RaceVerdict::kEqual);
+  EXPECT_EQ(out.verdicts[2], RaceVerdict::kSeparated);
+  EXPECT_EQ(out.verdicts[3], RaceVerdict::kUndecided);
+  EXPECT_FALSE(out.decided);
+  EXPECT_FALSE(out.all_within_noise);
+  // Tied: b.fast, a.equal, d.noisy, all moving the same bytes at error 0: the key decides.
+  EXPECT_EQ(entries[out.winner].key, "a.equal");
+}
+
+// The tie-break: fewest bytes, then lower error, then key.
+TEST(Race, TieBreakPrefersFewerBytesThenLowerErrorThenKey) {
+  std::vector<RaceEntry> e = {{"z", {1}, 100, 1e-3}, {"y", {1}, 80, 1e-3}, {"x", {1}, 80, 1e-6}, {"w", {1}, 80, 1e-6}};
+  EXPECT_EQ(TieBreak(e, {0, 1}), 1u);
+  EXPECT_EQ(TieBreak(e, {0, 1, 2}), 2u);
+  EXPECT_EQ(TieBreak(e, {0, 1, 2, 3}), 3u);
+}
+
+// The same landscape gives the same winner whatever the order the
+// candidates were measured in.
+TEST(Race, SameWinnerUnderPermutedMeasurementOrder) {
+  std::vector<RaceEntry> entries = {
+      {"v1", Samples(1.000, 0.004, 40, 11), 120, 1e-7}, {"v2", Samples(1.004, 0.004, 40, 12), 100, 1e-7},
+      {"v3", Samples(1.006, 0.004, 40, 13), 100, 1e-5}, {"v4", Samples(1.30, 0.004, 40, 14), 60, 1e-7},
+      {"v5", Samples(1.003, 0.004, 40, 15), 100, 1e-7},
+  };
+  const std::string first = entries[JudgeRace(entries, 0.02).winner].key;
+  EXPECT_EQ(first, "v2") << "tied: v1..v3 and v5; fewest bytes among them: v2, v3, v5; lowest error: v2, v5; key: v2";
+  std::vector<std::size_t> order = {0, 1, 2, 3, 4};
+  do {
+    std::vector<RaceEntry> permuted;
+    for (std::size_t i : order) permuted.push_back(entries[i]);
+    EXPECT_EQ(permuted[JudgeRace(permuted, 0.02).winner].key, first);
+  } while (std::next_permutation(order.begin(), order.end()));
+}
+
+TEST(Race, AllWithinNoiseSaysSo) {
+  const RaceOutcome out = JudgeRace({{"a", Samples(1.0, 0.001, 30, 21), 1, 0}, {"b", Samples(1.001, 0.001, 30, 22), 1, 0}}, 0.02);
+  EXPECT_TRUE(out.all_within_noise);
+  EXPECT_TRUE(out.decided);
+}
+
+}  // namespace
+}  // namespace skintune::internal
