@@ -235,7 +235,7 @@ std::optional<Device> OpenDevice(const char* backend, bool cpu_type_only) {
 }
 
 void Measure(Device& device, tuner_internal::DatasetCache& datasets, const CompareOptions& options, Row& row) {
-  tuner_internal::RunnerExecutor executor(*device.runner, device.found.identity.last_level_cache_bytes);
+  tuner_internal::RunnerExecutor executor(*device.runner, device.found.identity);
   TimingOptions timing;  // the tuner's defaults: 3 warm-up frames, 10 bursts of ~2 ms, up to 8 input sets
   const Measurement m = tuner_internal::MeasureWith(executor, datasets, device.found.identity, device.found.limits,
                                                     {row.variant.lang}, row.variant, {options.dataset}, timing);

@@ -47,7 +47,7 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
     return 1;
   }
   std::unique_ptr<Runner> runner = device->open();
-  tuner_internal::RunnerExecutor executor(*runner, device->identity.last_level_cache_bytes);
+  tuner_internal::RunnerExecutor executor(*runner, device->identity);
   tuner_internal::DatasetCache datasets;
   std::ofstream json;
   if (!json_path.empty()) json.open(json_path);

@@ -96,9 +96,10 @@ CopyKernel EmitCopy(Lang lang, std::size_t bytes) { return EmitCopyOrFlush(lang,
 
 CopyKernel EmitFlush(Lang lang, std::size_t read_bytes) { return EmitCopyOrFlush(lang, 2 * read_bytes, true); }
 
-std::size_t FlushBytes(std::uint64_t llc_bytes) {
+std::size_t FlushBytes(std::uint64_t llc_bytes, bool cpu) {
   const std::uint64_t llc = llc_bytes ? llc_bytes : kUnknownCacheBytes;
-  return static_cast<std::size_t>(std::max<std::uint64_t>(2 * llc, 8ull << 20));
+  const std::uint64_t bytes = std::max<std::uint64_t>(2 * llc, 8ull << 20);
+  return static_cast<std::size_t>(cpu ? std::min(bytes, kCpuFlushCapBytes) : bytes);
 }
 
 }  // namespace skintune::internal

@@ -377,12 +377,18 @@ class ResultSummariser {
     chart.device = d;
     chart.copy_bandwidth_gbps = device.copy_bandwidth_gbps;
     std::map<std::pair<Lang, int>, GbpsSeries> series;
+    // The tuner's own choice of each language and data set (the winner among
+    // the ties at the run's budget: tuner/report.h BudgetWinners).
+    const std::vector<Winner> chosen = BudgetWinners(ComputeWinners(r_.tuning), r_.tuning.tie_margin);
     for (const DatasetInfo& dataset : r_.tuning.datasets) {
       std::map<Lang, const Measurement*> best;
+      std::map<Lang, const Winner*> winner_of;
+      for (const Winner& w : chosen)
+        if (w.device_id == device.id && w.dataset == dataset.key) winner_of[w.lang] = &w;
       for (const Measurement* m : Of(device.id, dataset.key)) {
         if (m->status != MeasureStatus::kOk) continue;
-        const Measurement*& b = best[m->variant.lang];
-        if (b == nullptr || m->timing.median_ms < b->timing.median_ms) b = m;
+        const auto w = winner_of.find(m->variant.lang);
+        if (w != winner_of.end() && w->second->variant.Key() == m->variant.Key()) best[m->variant.lang] = m;
       }
       for (const auto& [lang, m] : best) {
         GbpsSeries& s = series[{lang, dataset.influences}];
@@ -393,9 +399,11 @@ class ResultSummariser {
                         [&](const GbpsPoint& p) { return p.vertices == dataset.vertices; })) {
           continue;
         }
-        s.points.push_back({dataset.key, dataset.vertices, m->gbps, m->timing.median_ms,
+        const Winner& w = *winner_of.at(lang);
+        s.points.push_back({dataset.key, dataset.vertices, m->gbps, w.median_ms,
                             CopyFraction(m->gbps, device.copy_bandwidth_gbps), m->variant, m->x_copy,
-                            m->max_relative_error, m->source_error});
+                            m->max_relative_error, m->source_error, w.low_ms, w.high_ms, w.frame_ms,
+                            w.tie_set.empty() ? 0 : w.tie_set.size() - 1, w.within_noise});
       }
     }
     for (auto& [key, s] : series) {

@@ -161,6 +161,10 @@ struct GbpsPoint {
   double x_copy = 0.0;         // the time / the same-size copy's; 0 when unknown
   double max_relative_error = 0.0;  // against the gold of its quantised weights
   SourceError source_error;         // against the unquantised source
+  double low_ms = 0.0, high_ms = 0.0;  // the kernel time's 95% interval (0: not recorded)
+  double frame_ms = 0.0;               // the frame time (0: not measured)
+  std::size_t ties = 0;                // other candidates the tuner could not tell from it
+  bool within_noise = false;           // every candidate of its key was within noise of it
 };
 
 // "4.2e-07 of the diagonal (unorm8 costs 1.6e-04)", or "not recorded": the

@@ -597,7 +597,10 @@ class Renderer {
     for (const GbpsSeries& s : chart.series) {
       for (const GbpsPoint& p : s.points) by_dataset[p.dataset].emplace_back(s.lang, &p);
     }
-    out_ += "<table><thead><tr><th>data set</th><th>language</th><th>time</th><th>GB/s</th><th title=\"time / the "
+    out_ += "<table><thead><tr><th>data set</th><th>language</th><th title=\"the kernel's own device time from a "
+            "flushed cache: median and 95% interval\">kernel time</th><th title=\"Skin() issued back to back, host "
+            "issue included\">frame time</th><th title=\"other candidates within the tie margin of the fastest; the "
+            "winner among them moves the fewest bytes, then has the lowest error\">ties</th><th>GB/s</th><th title=\"time / the "
             "time of a copy of the same bytes, timed the same way\">\xC3\x97 same-size copy</th><th>of large copy</th>"
             "<th title=\"largest relative error against the float64 gold of the variant's quantised weights\">vs "
             "quantised</th><th title=\"largest error against the float64 gold of the unquantised source, of the "
@@ -607,8 +610,13 @@ class Renderer {
       const auto it = by_dataset.find(d.key);
       if (it == by_dataset.end()) continue;
       for (const auto& [lang, p] : it->second) {
+        const std::string interval =
+            p->high_ms > p->low_ms ? " [" + FormatSignificant(p->low_ms, 3) + ", " + FormatSignificant(p->high_ms, 3) + "]" : "";
         out_ += "<tr><td>" + Esc(d.key) + "</td><td>" + Esc(Name(lang)) + "</td><td class=\"num\">" +
-                FormatMs(p->median_ms) + "</td><td class=\"num\">" + FormatGbps(p->gbps) + "</td><td class=\"num\">" +
+                FormatMs(p->median_ms) + Esc(interval) + "</td><td class=\"num\">" +
+                (p->frame_ms > 0.0 ? FormatMs(p->frame_ms) : std::string("not measured")) + "</td><td class=\"num\">" +
+                std::to_string(p->ties) + (p->within_noise ? " (all within noise)" : "") + "</td><td class=\"num\">" +
+                FormatGbps(p->gbps) + "</td><td class=\"num\">" +
                 (p->x_copy > 0.0 ? FormatSignificant(p->x_copy, 3) : std::string("not measured")) +
                 "</td><td class=\"num\">" + (p->copy_fraction > 0.0 ? Fraction(p->copy_fraction) : std::string("copy unknown")) +
                 "</td><td class=\"num\">" + Esc(FormatError(p->max_relative_error)) +

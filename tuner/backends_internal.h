@@ -180,8 +180,9 @@ class Executor {
 // made once per language; copies prepared once per size and kept.
 class RunnerExecutor final : public Executor {
  public:
-  RunnerExecutor(Runner& runner, std::uint64_t last_level_cache_bytes)
-      : runner_(runner), flush_bytes_(FlushBytes(last_level_cache_bytes)) {}
+  RunnerExecutor(Runner& runner, const DeviceIdentity& device)
+      : runner_(runner),
+        flush_bytes_(FlushBytes(device.last_level_cache_bytes, device.type.find("cpu") != std::string::npos)) {}
   Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t> palette,
              int instances) override;
   std::unique_ptr<Timed> Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,

@@ -244,7 +244,7 @@ class DeviceBackend final : public Backend {
       runner_ = device_.open();
       if (cache_.enabled()) runner_->UseProgramCache(&cache_, device_.identity.Id());
       runner_->ShareTimedInputs(SharedInputBytes(device_.identity));
-      executor_ = std::make_unique<RunnerExecutor>(*runner_, device_.identity.last_level_cache_bytes);
+      executor_ = std::make_unique<RunnerExecutor>(*runner_, device_.identity);
     }
     return *executor_;
   }

@@ -40,7 +40,9 @@ struct TinyTuneConfig {
               {"wg_size", wg_sizes},
               {"normals", {false}}}},
             {"datasets", {dataset}},
-            {"timing", {{"warmup", 1}, {"repetitions", 3}, {"max_input_sets", max_input_sets}}},
+            // A few samples: the tests check what is recorded, never the figures.
+            {"timing", {{"warmup", 1}, {"repetitions", 3}, {"max_input_sets", max_input_sets}, {"min_samples", 3},
+                        {"sample_batch", 3}, {"max_samples", 6}, {"sample_ms", 20}}},
             {"variant_timeout_s", variant_timeout_s}};
     if (!description.empty()) config["description"] = description;
     return config;

@@ -299,6 +299,8 @@ TEST(Measure, AFootprintInsideTheCacheIsTimedAfterAFlush) {
   EXPECT_LT(m.timing.footprint_bytes, 2.0 * static_cast<double>(llc));
   EXPECT_GE(m.timing.flush_bytes, 2.0 * static_cast<double>(llc));
   EXPECT_GE(FlushBytes(0), 2 * kUnknownCacheBytes) << "an unknown cache is flushed as a 64 MiB one";
+  EXPECT_EQ(FlushBytes(300ull << 20, /*cpu=*/true), kCpuFlushCapBytes) << "a CPU's socket-wide L3 is not read whole";
+  EXPECT_EQ(FlushBytes(300ull << 20, /*cpu=*/false), 600ull << 20);
 }
 
 }  // namespace
