@@ -671,6 +671,7 @@ Measurement MeasureWith(Executor& executor, DatasetCache& datasets, const Device
   try {
     const std::unique_ptr<Executor::Timed> prepared = executor.Prepare(packed, kernels, palettes, instances);
     RecordKernelTime(m, SampleKernelTime(*prepared, options), executor, sets, prepared->bytes_per_set());
+    m.timing.warmup = std::max(options.warmup, 1);  // SampleKernelTime runs at least one
     phase("kernel time");
     m.timing.frame_ms = SampleFrameTime(*prepared, options, &m.timing.burst_frames);
     phase("frame time");

@@ -91,6 +91,10 @@ TimingOptions SmallTiming() {
   o.warmup = 1;
   o.repetitions = 5;
   o.max_input_sets = 3;
+  o.stop.min_samples = 4;
+  o.stop.batch = 4;
+  o.stop.max_samples = 8;
+  o.stop.max_ms = 30.0;
   return o;
 }
 
@@ -106,7 +110,13 @@ void ExpectOk(const Measurement& m, const Backend& backend, const std::string& d
   EXPECT_LE(m.timing.min_ms, m.timing.median_ms);
   EXPECT_LE(m.timing.median_ms, m.timing.max_ms);
   EXPECT_EQ(m.timing.warmup, 1);
-  EXPECT_EQ(m.timing.repetitions, 5);
+  EXPECT_GE(m.timing.repetitions, 4);  // the samples: at least min_samples, at most max_samples
+  EXPECT_LE(m.timing.repetitions, 8);
+  EXPECT_LE(m.timing.low_ms, m.timing.median_ms);
+  EXPECT_GE(m.timing.high_ms, m.timing.median_ms);
+  EXPECT_GT(m.timing.frame_ms, 0.0) << "the frame time, recorded for every ok measurement";
+  EXPECT_GT(m.timing.flush_bytes, 0.0);
+  EXPECT_FALSE(m.timing.clock.empty());
   EXPECT_GE(m.timing.input_sets, 1);
   EXPECT_LE(m.timing.input_sets, 3);
   EXPECT_GT(m.bytes_per_frame, 0.0);
