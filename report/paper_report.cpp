@@ -66,10 +66,13 @@ KernelOutcome OutcomeOf(const Measurement& m, double copy, std::uint64_t llc = 0
   o.detail = m.detail;
   if (m.status == MeasureStatus::kOk) {
     o.median_ms = m.timing.median_ms;
+    o.frame_ms = m.timing.frame_ms;
     o.gbps = m.gbps;
     o.copy_fraction = CopyFraction(m.gbps, copy);
     o.x_copy = m.x_copy;
-    o.partly_cached = llc > 0 && m.timing.footprint_bytes > 0.0 && m.timing.footprint_bytes < 2.0 * static_cast<double>(llc);
+    // Timing version 5 flushes the cache before every sample: never partly cached.
+    o.partly_cached = llc > 0 && m.timing.flush_bytes == 0.0 && m.timing.footprint_bytes > 0.0 &&
+                      m.timing.footprint_bytes < 2.0 * static_cast<double>(llc);
     o.max_relative_error = m.max_relative_error;
     o.source_error = m.source_error;
   }
@@ -356,7 +359,10 @@ class ResultSummariser {
           cell.dataset = d.key;
           const KernelResults* ko = s_.Kernels(o, d.key);
           const KernelResults* kx = s_.Kernels(x, d.key);
-          if (ko && kx && ko->tuned.Ok() && kx->tuned.Ok()) cell.tuned = kx->tuned.median_ms / ko->tuned.median_ms;
+          if (ko && kx && ko->tuned.Ok() && kx->tuned.Ok()) {
+            cell.tuned = kx->tuned.median_ms / ko->tuned.median_ms;
+            if (kx->tuned.frame_ms > 0.0 && ko->tuned.frame_ms > 0.0) cell.tuned_frame = kx->tuned.frame_ms / ko->tuned.frame_ms;
+          }
           if (ko && kx && opencl_kernel >= 0 && other_kernel >= 0 && ko->paper[opencl_kernel].Ok() &&
               kx->paper[other_kernel].Ok()) {
             cell.paper = kx->paper[other_kernel].median_ms / ko->paper[opencl_kernel].median_ms;

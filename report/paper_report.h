@@ -76,7 +76,8 @@ struct KernelOutcome {
   Variant variant;              // paper kernel: with the data set's B; tuned: the winner's
   MeasureStatus status = MeasureStatus::kOk;  // measured only; a time is shown for ok only
   std::string detail;           // the measurement's detail (why it failed)
-  double median_ms = 0.0;       // status ok only
+  double median_ms = 0.0;       // status ok only: the kernel time
+  double frame_ms = 0.0;        // status ok only: the frame time (0: not measured)
   double gbps = 0.0;
   double copy_fraction = 0.0;   // gbps / the device's copy bandwidth; 0 when that is unknown
   double x_copy = 0.0;          // median_ms / the same-size copy's, timed the same way; 0 when unknown
@@ -132,7 +133,8 @@ struct Figure1 {
 
 struct Table1Cell {
   std::string dataset;
-  std::optional<double> tuned;     // t_other / t_opencl of the tuned winners
+  std::optional<double> tuned;     // t_other / t_opencl of the tuned winners' kernel times
+  std::optional<double> tuned_frame;  // the same of their frame times (Skin() back to back, host issue included)
   std::optional<double> paper;     // t_other / t_opencl of the paper kernels (opencl-optimised against
                                    // the other API's first paper kernel: cuda, glsl-vertex)
   std::optional<double> reported;  // the paper's figure for the data set (GPU chips only: the paper's

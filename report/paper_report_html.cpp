@@ -477,7 +477,8 @@ class Renderer {
           }
           const std::optional<double>& lead = cell->tuned ? cell->tuned : cell->paper;
           const char* cls = !lead ? "none" : *lead > 1.02 ? "faster" : *lead < 0.98 ? "slower" : "even";
-          out_ += std::string("<td class=\"") + cls + "\">tuned " + RatioSpan(cell->tuned) + "<br>paper&#39;s kernels " +
+          out_ += std::string("<td class=\"") + cls + "\">tuned " + RatioSpan(cell->tuned) + "<br>per frame " +
+                  RatioSpan(cell->tuned_frame) + "<br>paper&#39;s kernels " +
                   RatioSpan(cell->paper);
           if (!reported.empty()) {  // none on record at all: said once above the grid
             out_ += "<br>paper&#39;s figure " +

@@ -54,7 +54,7 @@ std::string Grids(const PaperSummary& s, PaperApi other, const std::vector<Table
     const SummaryResult& r = s.results[g.result];
     const std::map<std::string, double>& reported = ReportedAgainst(r.reported, other);
     out += Cell(s.devices[g.opencl_device].label) + " vs " + Cell(s.devices[g.other_device].label) +
-           "; each cell: tuned winners / the paper's kernels" +
+           "; each cell: the tuned winners' kernel time (their frame time) / the paper's kernels" +
            (reported.empty() ? std::string() : " / the paper's figure") + "\n\n";
     out += ReportedNote(r, !reported.empty());
     out += "| vertices |";
@@ -69,7 +69,7 @@ std::string Grids(const PaperSummary& s, PaperApi other, const std::vector<Table
           out += " no such data set |";
           continue;
         }
-        out += " " + Ratio(cell->tuned) + " / " + Ratio(cell->paper);
+        out += " " + Ratio(cell->tuned) + " (" + Ratio(cell->tuned_frame) + ") / " + Ratio(cell->paper);
         if (!reported.empty()) {
           out += " / " + (cell->reported ? FormatSignificant(*cell->reported) : std::string("not on record"));
         }
