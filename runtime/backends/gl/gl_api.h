@@ -197,7 +197,7 @@ class GlApi final : public DeviceApi {
   std::vector<std::vector<double>> RunFrames(const FrameRun& run) override;
   TimingPolicy timing_policy() const override { return {!host_timed()}; }
   std::string kernel_clock() const override {
-    return host_timed() ? "the host's clock between glFinish calls" : "GL_TIME_ELAPSED queries";
+    return host_timed() ? "the host's clock between glFinish calls" : "GL_TIMESTAMP query counters";
   }
   std::span<std::uint8_t> Staging(DeviceBuffer& buffer, const std::string& key, bool upload_fenced) override;
   void Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& key) override;
@@ -242,11 +242,16 @@ class GlApi final : public DeviceApi {
   void EndVertexDraws(bool normals);
   std::vector<std::vector<double>> RunVerified(const FrameRun& run);
   std::vector<std::vector<double>> RunTimed(const FrameRun& run);
+  std::vector<std::vector<double>> RunCold(const FrameRun& run);
   void RunLive(const FrameRun& run);
 
   std::unique_ptr<GlContext> context_;  // declared first: destroyed after every GL object below
   std::map<std::string, BuiltProgram> built_;  // by source hash
   GlObject vertex_array_, framebuffer_, renderbuffer_, transform_feedback_;
+  // RunCold's GL_TIMESTAMP queries (a timed frame's: one after the flush,
+  // one after each launch), kept between calls (each result is read before
+  // the call returns) and grown as needed.
+  std::vector<GlObject> cold_queries_;
 };
 
 }  // namespace skintune::internal::gl

@@ -3,8 +3,10 @@
 // with rasterisation discarded, staged captures copied into place) or
 // dispatches (glsl-compute). Run's frame is checked call by call and counts
 // the captured points; Time's bursts are timed by GL_TIME_ELAPSED queries,
-// or by the host clock on software renderers; the Skinner's frame puts back
-// the GL state it changed on the caller's context.
+// or by the host clock on software renderers; the kernel time's frames
+// (kCold) run after the flush, each launch between GL_TIMESTAMP counters;
+// the Skinner's frame puts back the GL state it changed on the caller's
+// context.
 #include <algorithm>
 #include <cctype>
 #include <chrono>
@@ -164,6 +166,7 @@ std::vector<std::vector<double>> GlApi::RunFrames(const FrameRun& run) {
   switch (run.use) {
     case FrameUse::kVerify: return RunVerified(run);
     case FrameUse::kTime: return RunTimed(run);
+    case FrameUse::kCold: return RunCold(run);
     case FrameUse::kLive: RunLive(run); break;
   }
   return {};
@@ -259,6 +262,110 @@ std::vector<std::vector<double>> GlApi::RunTimed(const FrameRun& run) {
   CheckReset("timing " + run.key);
   for (const GlObject& query : timers) ms.push_back({QueryMs(query)});
   CheckGl("launch", "reading the timer queries of " + run.key);
+  return ms;
+}
+
+// The kernel time (FrameUse::kCold, device_api.h): a launch's time runs
+// from the end of the command before it (the flush, or the frame's launch
+// before) to its own end. Per frame: the flush's dispatches, a barrier, a
+// glQueryCounter(GL_TIMESTAMP); then per launch: bound, drawn or dispatched
+// (glsl-vertex: the draw and the copies of a staged capture into place, as
+// Run's and Time's queries count a launch), a barrier, a counter. Untimed
+// frames run the same way without counters; nothing waits on the host until
+// the last frame is queued, then the counters are read. Software renderers
+// (host_timed()): each launch between two glFinish calls on the host clock
+// instead (the first waits for the command before it).
+//
+// What keeps the launches apart, on NVIDIA's driver as on any:
+// - glQueryCounter: "the time is recorded after all previous commands on
+//   the GL client and server state and the framebuffer have been fully
+//   realized" (GL 4.6, 4.3 "Time Queries"), so each counter stamps the end
+//   of the command before it, and the flush's time is in no launch's. (The
+//   reference page's one-line summary says "have reached the GL server but
+//   have not yet necessarily executed"; its description and the
+//   specification say fully realized.) So n + 1 counters a frame of n
+//   launches stamp the end of every command, as the other APIs' end stamps
+//   do; a GL_TIME_ELAPSED query per launch starts its timer by the same
+//   rule, but would stamp the end of each launch twice (its own query's
+//   end, the next one's start).
+// - glMemoryBarrier(GL_ALL_BARRIER_BITS) after the flush and after every
+//   launch, before its counter: a counter says when it is written, not that
+//   the dispatch after it waits; the barrier does: shader writes before it
+//   must be complete and visible to every shader access after it, and the
+//   flush has a shader store (taken only for an all-ones item, which its
+//   input never holds), so no driver can tell that it writes nothing and
+//   skip the wait. Without barriers consecutive dispatches may overlap
+//   (Time's bursts rely on that). So a launch never runs beside the flush
+//   or another launch, starts on the cache the flush left, and pays its own
+//   barrier (the one that waits for it), as every launch of a dependent
+//   sequence does.
+std::vector<std::vector<double>> GlApi::RunCold(const FrameRun& run) {
+  const GlPlanned* first = FirstPlan(run);
+  const bool vertex = first && first->vertex;
+  ClearGlErrors();
+  const bool host_clock = host_timed();
+  const std::size_t untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
+  std::size_t counters = 0;
+  for (std::size_t f = untimed; f < run.frames.size(); ++f) counters += 1 + run.frames[f].size();
+  GLint bits = 64;
+  if (!host_clock && counters > 0) {
+    glGetQueryiv(GL_TIMESTAMP, GL_QUERY_COUNTER_BITS, &bits);
+    if (bits <= 0)
+      Fail("launch", "timing " + run.key + ": " + info().renderer + " has no GL_TIMESTAMP counter (GL_QUERY_COUNTER_BITS 0)");
+    if (cold_queries_.size() < counters) {
+      std::vector<GLuint> names(counters - cold_queries_.size());
+      glGenQueries(static_cast<GLsizei>(names.size()), names.data());
+      for (const GLuint name : names) cold_queries_.emplace_back(name, [](GLuint id) { glDeleteQueries(1, &id); });
+    }
+  }
+  if (vertex) BeginVertexDraws();  // the flush (a compute dispatch) runs under the draw state unaffected
+  std::vector<std::vector<double>> ms(run.frames.size() - untimed);
+  std::size_t query = 0;
+  for (std::size_t f = 0; f < run.frames.size(); ++f) {
+    const bool stamped = f >= untimed && !host_clock;
+    for (const std::unique_ptr<DeviceObject>& launch : run.flush) {
+      BindLaunch(static_cast<const GlBound&>(*launch), false);
+      DrawLaunch(static_cast<const GlBound&>(*launch));
+    }
+    glMemoryBarrier(GL_ALL_BARRIER_BITS);
+    if (stamped) glQueryCounter(cold_queries_[query++].get(), GL_TIMESTAMP);
+    for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
+      const auto& bound = static_cast<const GlBound&>(*launch);
+      BindLaunch(bound, false);
+      if (f >= untimed && host_clock) {
+        ms[f - untimed].push_back(HostMs([&] {
+          DrawLaunch(bound);
+          glMemoryBarrier(GL_ALL_BARRIER_BITS);
+        }));
+        continue;
+      }
+      DrawLaunch(bound);
+      glMemoryBarrier(GL_ALL_BARRIER_BITS);
+      if (stamped) glQueryCounter(cold_queries_[query++].get(), GL_TIMESTAMP);
+    }
+    if (f == 0) CheckGl("launch", "the first frame of timing " + run.key + " (kernel time)");
+    if (!host_clock) glFlush();  // the device starts on this frame while the next is queued
+  }
+  if (vertex) EndVertexDraws(first->spec.variant.normals);
+  glUseProgram(0);
+  glFinish();
+  CheckGl("launch", "timing " + run.key + " (kernel time)");
+  CheckReset("timing " + run.key + " (kernel time)");  // a reset context may have run nothing, and said nothing
+  if (!host_clock) {
+    const std::uint64_t mask = bits >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits) - 1;
+    query = 0;
+    for (std::size_t f = untimed; f < run.frames.size(); ++f) {
+      GLuint64 previous = 0;
+      glGetQueryObjectui64v(cold_queries_[query++].get(), GL_QUERY_RESULT, &previous);
+      for (std::size_t l = 0; l < run.frames[f].size(); ++l) {
+        GLuint64 end = 0;
+        glGetQueryObjectui64v(cold_queries_[query++].get(), GL_QUERY_RESULT, &end);
+        ms[f - untimed].push_back(static_cast<double>(((end & mask) - (previous & mask)) & mask) * 1e-6);
+        previous = end;
+      }
+    }
+    CheckGl("launch", "reading the timestamps of " + run.key + " (kernel time)");
+  }
   return ms;
 }
 

@@ -142,6 +142,7 @@ GlObject NewQuery() {
 GlApi::~GlApi() {
   const bool current = ReadyToRelease();
   for (auto& [hash, program] : built_) program.program.release(current);
+  for (GlObject& query : cold_queries_) query.release(current);
   for (GlObject* object : {&vertex_array_, &framebuffer_, &renderbuffer_, &transform_feedback_})
     object->release(current);
 }
