@@ -298,6 +298,8 @@ class VulkanApi final : public DeviceApi {
   void RecordFrames(VkCommandBuffer cb, const FrameRun& run, std::size_t begin, std::size_t end,
                     std::set<const void*>& used, VkQueryPool pool, int* query);
   void BarrierBeforeFrames(VkCommandBuffer cb) const;
+  // kCold: every frame after the flush, each launch alone between timestamps.
+  std::vector<std::vector<double>> RunCold(const FrameRun& run);
   void BarrierAfterFrames(VkCommandBuffer cb, bool for_caller) const;
   // Records one launch (optionally between timestamps `query`, `query + 1`).
   void RecordLaunch(VkCommandBuffer cb, const VulkanBound& bound, VkDescriptorSet set, VkQueryPool pool,
@@ -806,6 +808,7 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
     for (std::size_t q = 0; q < ticks.size(); q += 2) ms.push_back(TicksToMs(ticks[q], ticks[q + 1]));
     return {ms};
   }
+  if (run.use == FrameUse::kCold) return RunCold(run);
   const std::size_t untimed = std::min<std::size_t>(frames, static_cast<std::size_t>(std::max(run.untimed, 0)));
   const std::size_t burst = static_cast<std::size_t>(std::max(run.burst, 1));
   const std::size_t bursts = run.TimedBursts();
@@ -838,6 +841,85 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
   const std::vector<std::uint64_t> ticks = QueryResults(pool.get(), static_cast<std::uint32_t>(2 * bursts));
   std::vector<std::vector<double>> ms;
   for (std::size_t b = 0; b < bursts; ++b) ms.push_back({TicksToMs(ticks[2 * b], ticks[2 * b + 1])});
+  return ms;
+}
+
+// The kernel time (FrameUse::kCold, device_api.h): a launch's time runs
+// from the end of the command before it (the flush, or the frame's launch
+// before) to its own end. Command buffers of at most kColdFramesPerSubmission
+// frames, submitted without waiting; per frame the flush's dispatches and a
+// timestamp, then per launch a compute-to-compute barrier, the dispatch and a
+// timestamp; a barrier after the frame keeps the next flush off its last
+// launch, and a last one hands the outputs to the transfers and the host.
+// Untimed frames run the same way without timestamps. One query pool holds
+// every timed frame's 1 + launches stamps; it is reset in the first command
+// buffer and read, with a wait, after the last.
+//
+// The stamps (vkCmdWriteTimestamp): "the first synchronization scope
+// includes all commands that occur earlier in submission order. The
+// synchronization scope is limited to operations on the pipeline stage
+// specified by pipelineStage", and an implementation "may write the
+// timestamp at any stage that is logically later" (never earlier). Every
+// stamp names VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, the end of every stage:
+// it is written once every earlier command (the flush, the launches before
+// and this one) has completed, the end of a command as the other APIs stamp
+// it (and as Run's and Time's stamps on the same device). TOP_OF_PIPE would
+// be written as soon as the earlier commands had started: the flush's time
+// would land in the first launch's. A stamp waits for earlier work but holds
+// no later command back ("the second synchronization scope includes only
+// the timestamp write operation"), so the barrier before each dispatch is
+// what keeps it from starting beside the flush or the launch before. Ticks
+// become ms through timestampValidBits and timestampPeriod (TicksToMs).
+std::vector<std::vector<double>> VulkanApi::RunCold(const FrameRun& run) {
+  // A few frames per command buffer: the device starts on the first while
+  // later ones are recorded, and no command buffer grows with the samples.
+  constexpr std::size_t kColdFramesPerSubmission = 16;
+  constexpr VkAccessFlags kShaderAccess = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+  const std::size_t frames = run.frames.size();
+  const std::size_t untimed = std::min<std::size_t>(frames, static_cast<std::size_t>(std::max(run.untimed, 0)));
+  std::uint32_t stamps = 0;
+  for (std::size_t f = untimed; f < frames; ++f) stamps += static_cast<std::uint32_t>(1 + run.frames[f].size());
+  const QueryPool pool = NewQueryPool(stamps);
+  const auto serialise = [&](VkCommandBuffer cb) {
+    Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, kShaderAccess, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, kShaderAccess);
+  };
+  std::uint32_t query = 0;
+  const auto stamp = [&](VkCommandBuffer cb) {
+    c_->fn.vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, pool.get(), query++);
+  };
+  for (std::size_t begin = 0; begin < frames; begin += kColdFramesPerSubmission) {
+    const VkCommandBuffer cb = Begin();
+    if (begin == 0 && pool.get()) c_->fn.vkCmdResetQueryPool(cb, pool.get(), 0, stamps);
+    BarrierBeforeFrames(cb);  // after the uploads and everything submitted before
+    for (std::size_t f = begin; f < std::min(frames, begin + kColdFramesPerSubmission); ++f) {
+      const bool timed = f >= untimed;
+      for (const std::unique_ptr<DeviceObject>& object : run.flush) {
+        const auto& bound = static_cast<const VulkanBound&>(*object);
+        RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1);
+      }
+      if (timed) stamp(cb);
+      for (const std::unique_ptr<DeviceObject>& object : run.frames[f]) {
+        const auto& bound = static_cast<const VulkanBound&>(*object);
+        serialise(cb);
+        RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1);
+        if (timed) stamp(cb);
+      }
+      serialise(cb);  // the next frame's flush starts once this frame's last launch is done
+    }
+    BarrierAfterFrames(cb, false);
+    Submit(cb, false);
+  }
+  WaitAll();
+  if (!pool.get()) return std::vector<std::vector<double>>(frames - untimed);
+  const std::vector<std::uint64_t> ticks = QueryResults(pool.get(), stamps);
+  std::vector<std::vector<double>> ms;
+  query = 0;
+  for (std::size_t f = untimed; f < frames; ++f) {
+    std::vector<double>& launches = ms.emplace_back();
+    for (std::size_t l = 0; l < run.frames[f].size(); ++l, ++query)
+      launches.push_back(TicksToMs(ticks[query], ticks[query + 1]));
+    ++query;  // past the frame's last stamp
+  }
   return ms;
 }
 

@@ -20,7 +20,10 @@
 //   Time's frames are one command buffer each, every launch between two
 //   vkCmdWriteTimestamp (ms = ticks x timestampPeriod / 1e6); a pipeline
 //   barrier only before a frame whose input set an earlier frame of the same
-//   command buffer used (the outputs are written again).
+//   command buffer used (the outputs are written again). The kernel time's
+//   frames (kCold): the flush and a timestamp, then per launch a compute
+//   barrier, the dispatch and a timestamp (BOTTOM_OF_PIPE: the end of the
+//   command before; vulkan_runner.cpp RunCold says why).
 // - On a GPU the driver first warms up until two bursts of frames take the
 //   same time (TimingPolicy::warm_until_stable), as for GL on NVIDIA.
 // - Limits (VkPhysicalDeviceLimits): maxUniformBufferRange (constant),
