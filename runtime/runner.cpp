@@ -557,7 +557,8 @@ Prepared Runner::PrepareFlush(Lang lang, std::size_t read_bytes) {
   return Prepare(flush.mesh, std::span(&flush.kernel, 1), palette);
 }
 
-std::vector<double> Runner::TimeCold(const Prepared& prepared, const Prepared& flush, int untimed, int samples) {
+std::vector<double> Runner::TimeCold(const Prepared& prepared, const Prepared& flush, int untimed, int samples,
+                                     std::vector<std::vector<double>>* launch_ms) {
   Settle();
   api_->MakeCurrent();
   const Prepared::Impl* p = prepared.impl_.get();
@@ -572,7 +573,11 @@ std::vector<double> Runner::TimeCold(const Prepared& prepared, const Prepared& f
   for (int frame = 0; frame < run.untimed + std::max(samples, 0); ++frame)
     run.frames.push_back(p->Frame(static_cast<std::size_t>(frame) % p->sets.size()));
   std::vector<double> ms;
-  for (const std::vector<double>& launches : api_->RunFrames(run)) {
+  std::vector<std::vector<double>> frames = api_->RunFrames(run);
+  if (frames.size() != static_cast<std::size_t>(std::max(samples, 0)))
+    Fail("launch", "timing " + p->key + ": the device gave " + std::to_string(frames.size()) + " frames of " +
+                       std::to_string(std::max(samples, 0)));
+  for (const std::vector<double>& launches : frames) {
     if (launches.size() != p->launches.size())
       Fail("launch", "timing " + p->key + ": the device gave " + std::to_string(launches.size()) + " launch times for a frame of " +
                          std::to_string(p->launches.size()));
@@ -580,6 +585,7 @@ std::vector<double> Runner::TimeCold(const Prepared& prepared, const Prepared& f
     for (const double launch : launches) sum += launch;
     ms.push_back(sum);
   }
+  if (launch_ms) *launch_ms = std::move(frames);
   busy_until_ = std::chrono::steady_clock::now();
   return ms;
 }

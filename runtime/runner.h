@@ -197,9 +197,11 @@ class Runner {
   // `untimed` frames and then `samples` frames of `prepared`, frame f on set
   // f % input_sets(), each after the flush, and returns each timed frame's
   // kernel time: the sum of its launches' own device times, ms. (The API may
-  // warm up first: TimingPolicy.)
+  // warm up first: TimingPolicy.) `launch_ms` (when given) receives those
+  // launch times, one vector per timed frame, in launch order.
   Prepared PrepareFlush(Lang lang, std::size_t read_bytes);
-  std::vector<double> TimeCold(const Prepared& prepared, const Prepared& flush, int untimed, int samples);
+  std::vector<double> TimeCold(const Prepared& prepared, const Prepared& flush, int untimed, int samples,
+                               std::vector<std::vector<double>>* launch_ms = nullptr);
 
   // The frame time (docs/TUNING.md "Frame time"): `untimed` frames, then
   // `frames` frames of set 0 issued back to back as a Skinner issues them
