@@ -13,10 +13,14 @@
 // reason, only when no EGL / GL 4.3 core context can be made.
 #include <gtest/gtest.h>
 
+#include <epoxy/gl.h>
+
 #include <algorithm>
+#include <cstring>
 #include <iostream>
 
 #include "generator/constraints.h"
+#include "generator/copy_kernel.h"
 #include "generator/covering.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
@@ -24,6 +28,7 @@
 #include "runner_test_support.h"
 #include "runtime/backends/gl/gl_context.h"
 #include "runtime/backends/gl/gl_runner.h"
+#include "runtime/output_check.h"
 #include "runtime/run_shape.h"
 
 namespace skintune::internal {
@@ -429,6 +434,88 @@ TEST(GlInstancedRunner, TimesKInstancesPerFrame) {
     EXPECT_GE(prepared.bytes_per_set(), 5 * run.packed.vertex_count * run.packed.output_stride_bytes) << key;
     const std::vector<double> ms = runner->Time(prepared, 1, 2);
     EXPECT_EQ(ms.size(), 2u) << key;
+  }
+}
+
+// ------------------------------------------------------------------ kernel time
+
+// The kernel time's frames (FrameUse::kCold) of an instanced bucketed vertex
+// variant: each launch's draw captures its K instances into a staging buffer
+// whose copies into place belong to the launch (as Run and Time count them):
+// after TimeCold every vertex of every instance has left the poison.
+TEST(GlKernelTime, StagedCapturesAreCopiedIntoPlaceInEveryFrame) {
+  REQUIRE_GL(runner);
+  const testing::InstancedRun run =
+      testing::InstancedInputs(ParseVariantKey("glsl-vertex.b4.bucketed.soa.global.v1c.wg0"), "cesium", 5);
+  const std::vector<KernelSource> kernels = EmitLaunchKernels(run.packed, 5);
+  const std::vector<std::vector<std::uint8_t>> sets = {run.palette_bytes};
+  const GlPrepared prepared = runner->Prepare(run.packed, kernels, sets, 5);
+  const GlPrepared flush = runner->PrepareFlush(Lang::kGlslVertex, 8u << 20);
+  std::vector<std::vector<double>> launch_ms;
+  const std::vector<double> ms = runner->TimeCold(prepared, flush, 1, 3, &launch_ms);
+  ASSERT_EQ(ms.size(), 3u);
+  ASSERT_EQ(launch_ms.size(), 3u);
+  for (const std::vector<double>& frame : launch_ms) EXPECT_EQ(frame.size(), run.packed.launches.size());
+  const std::span<const std::uint8_t> out = runner->ReadOutput(prepared, 0, false);
+  ASSERT_EQ(out.size(), 5 * run.packed.vertex_count * run.packed.output_stride_bytes);
+  std::size_t poisoned = 0;
+  for (std::size_t at = 0; at + 4 <= out.size(); at += 4) {
+    std::uint32_t word = 0;
+    std::memcpy(&word, out.data() + at, 4);
+    poisoned += word == kPoisonWord;
+  }
+  EXPECT_EQ(poisoned, 0u);
+}
+
+// The flush before every frame, counted by the driver: a
+// GL_COMPUTE_SHADER_INVOCATIONS_ARB query (GL 4.6 or
+// GL_ARB_pipeline_statistics_query) around TimeCold counts the flush's
+// invocations once per frame, untimed frames included, plus the frames'
+// own (glsl-compute); a glsl-vertex frame draws with no compute at all, so
+// there the count is the flushes' alone.
+TEST(GlKernelTime, EveryFrameRunsAfterItsOwnFlushByTheDriversCount) {
+  REQUIRE_GL(runner);
+  runner->MakeCurrent();
+  if (!epoxy_has_gl_extension("GL_ARB_pipeline_statistics_query") && epoxy_gl_version() < 46)
+    GTEST_SKIP() << runner->info().renderer << " has no pipeline statistics queries";
+  constexpr std::size_t kFlushBytes = 8u << 20;
+  const CopyKernel flush_kernel = EmitFlush(Lang::kGlslCompute, kFlushBytes);
+  const std::uint64_t flush_invocations = flush_kernel.kernel.launch.GlobalItems(flush_kernel.items);
+  for (const char* key : {"glsl-compute.b4.bucketed.soa.global.wg64", "glsl-vertex.b4.bucketed.soa.global.v1c.wg0"}) {
+    SCOPED_TRACE(key);
+    const Variant variant = ParseVariantKey(key);
+    const PackedMesh packed = Pack(Asset("cesium").mesh, variant);
+    std::vector<KernelSource> kernels;
+    std::uint64_t frame_invocations = 0;
+    for (const Launch& launch : packed.launches) {
+      kernels.push_back(Emit(variant, launch.influences, static_cast<int>(packed.palette_joints)));
+      if (variant.lang == Lang::kGlslCompute) frame_invocations += kernels.back().launch.GlobalItems(launch.count);
+    }
+    const std::vector<std::vector<std::uint8_t>> sets = {PackPalette(Palette(Asset("cesium")), variant)};
+    const GlPrepared prepared = runner->Prepare(packed, kernels, sets);
+    const GlPrepared flush = runner->PrepareFlush(variant.lang, kFlushBytes);
+    constexpr int kUntimed = 2, kSamples = 3;
+    runner->MakeCurrent();
+    GLuint query = 0;
+    glGenQueries(1, &query);
+    glBeginQuery(GL_COMPUTE_SHADER_INVOCATIONS_ARB, query);
+    const std::vector<double> ms = runner->TimeCold(prepared, flush, kUntimed, kSamples);
+    runner->MakeCurrent();
+    glEndQuery(GL_COMPUTE_SHADER_INVOCATIONS_ARB);
+    GLuint64 invocations = 0;
+    glGetQueryObjectui64v(query, GL_QUERY_RESULT, &invocations);
+    glDeleteQueries(1, &query);
+    EXPECT_EQ(glGetError(), static_cast<GLenum>(GL_NO_ERROR));
+    EXPECT_EQ(ms.size(), static_cast<std::size_t>(kSamples));
+    const std::uint64_t expected = (kUntimed + kSamples) * (flush_invocations + frame_invocations);
+    if (runner->api().timing_policy().warm_until_stable) {
+      // A GPU: TimeCold first warms the device up (frames and the clock
+      // probe's copy, runner.cpp WarmUntilStable), all counted too.
+      EXPECT_GE(invocations, expected) << "one flush is " << flush_invocations << " invocations";
+    } else {
+      EXPECT_EQ(invocations, expected)
+          << "one flush is " << flush_invocations << " invocations, one frame " << frame_invocations;
+    }
   }
 }
 

@@ -1,0 +1,297 @@
+// The kernel time (FrameUse::kCold, runtime/device_api.h; Runner::PrepareFlush
+// and TimeCold) on every runner and language this machine has: OpenCL on
+// PoCL, GL's glsl-compute and glsl-vertex on llvmpipe, Vulkan on lavapipe
+// (validation layer on where installed: any message fails the test), the
+// cpu device; CUDA and the GPUs' OpenCL, GL and Vulkan where a GPU is. A
+// case whose API has no device here skips with the reason.
+//
+// Checked: one positive time per timed frame (untimed frames not returned);
+// a frame of several launches (a bucketed variant on CesiumMan) gives one
+// time per launch, in launch order, summed into the frame's; a kernel over
+// 16 times the vertices takes longer; and the flush: the one given runs
+// (an input poisoned so that it writes shows where), before every frame
+// (the wall time of the frames holds a flush per frame), and its own time
+// is in no launch's.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <ostream>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "generator/copy_kernel.h"
+#include "generator/emit.h"
+#include "generator/languages.h"
+#include "generator/packer.h"
+#include "reference/asset.h"
+#include "reference/error.h"
+#include "reference/gltf_import.h"
+#include "reference/synthetic.h"
+#include "runtime/backend_table.h"
+#include "runtime/backends/vulkan/vulkan_runner.h"
+#include "runtime/output_check.h"
+#include "runtime/runner.h"
+
+namespace skintune::internal {
+namespace {
+
+// One API and one of its languages (GL: both stages).
+struct ColdCase {
+  std::string backend;
+  Lang lang;
+};
+
+void PrintTo(const ColdCase& c, std::ostream* os) { *os << c.backend << " " << LanguageOf(c.lang).name; }
+
+std::string CaseName(const ::testing::TestParamInfo<ColdCase>& info) {
+  std::string name = info.param.backend + "_" + LanguageOf(info.param.lang).name;
+  for (char& ch : name)
+    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+  return name;
+}
+
+// Every language of every API in the table of APIs.
+std::vector<ColdCase> Cases() {
+  std::vector<ColdCase> cases;
+  for (const BackendEntry& b : Backends())
+    for (const Lang lang : b.languages) cases.push_back({b.name, lang});
+  return cases;
+}
+
+// A runner on the API's first device, opened once per program, or why there is none.
+struct Opened {
+  std::unique_ptr<Runner> runner;
+  std::size_t flush_bytes = 0;  // the flush the tuner runs there (FlushBytes)
+  std::string why;
+};
+
+Opened& DeviceOf(const std::string& backend) {
+  static std::map<std::string, Opened> opened;
+  if (const auto found = opened.find(backend); found != opened.end()) return found->second;
+  Opened& o = opened[backend];
+  // Vulkan with the validation layer where it is installed.
+  const auto no_layer = [](const std::string& why) {
+    return why.find("no VK_LAYER_KHRONOS_validation") != std::string::npos;
+  };
+  if (backend == "vulkan") setenv("SKINTUNE_VULKAN_VALIDATION", "1", 0);
+  Discovered d = DiscoverDevices(backend.c_str());
+  if (backend == "vulkan" && d.devices.empty() && std::any_of(d.skipped.begin(), d.skipped.end(), no_layer)) {
+    unsetenv("SKINTUNE_VULKAN_VALIDATION");
+    d = DiscoverDevices(backend.c_str());
+  }
+  if (d.devices.empty()) {
+    o.why = "no " + backend + " device";
+    for (const std::string& s : d.skipped) o.why += "; " + s;
+    return o;
+  }
+  try {
+    try {
+      o.runner = d.devices.front().open();
+    } catch (const Error& e) {
+      if (backend != "vulkan" || !no_layer(e.what())) throw;
+      unsetenv("SKINTUNE_VULKAN_VALIDATION");
+      o.runner = d.devices.front().open();
+    }
+  } catch (const Error& e) {
+    o.why = e.what();
+    return o;
+  }
+  const DeviceIdentity& identity = d.devices.front().identity;
+  o.flush_bytes = FlushBytes(identity.last_level_cache_bytes, identity.type.find("cpu") != std::string::npos);
+  return o;
+}
+
+// The validation layer's messages so far (Vulkan with the layer; else none).
+std::vector<std::string> ValidationMessages(const Runner& runner) {
+  if (const auto* vulkan = dynamic_cast<const VulkanRunner*>(&runner)) return vulkan->validation_messages();
+  return {};
+}
+
+const SkinnedAsset& Synthetic(const std::string& key) {
+  static std::map<std::string, SkinnedAsset> cache;
+  if (const auto found = cache.find(key); found != cache.end()) return found->second;
+  return cache[key] = GenerateDataset(ParseDatasetKey(key));
+}
+
+const SkinnedAsset& Cesium() {
+  static const SkinnedAsset asset = ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf").asset;
+  return asset;
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+class KernelTime : public ::testing::TestWithParam<ColdCase> {
+ protected:
+  void SetUp() override {
+    Opened& o = DeviceOf(GetParam().backend);
+    if (!o.runner) GTEST_SKIP() << o.why;
+    runner_ = o.runner.get();
+    device_flush_bytes_ = o.flush_bytes;
+    messages_before_ = ValidationMessages(*runner_).size();
+  }
+  void TearDown() override {
+    if (!runner_) return;
+    const std::vector<std::string> messages = ValidationMessages(*runner_);
+    for (std::size_t m = messages_before_; m < messages.size(); ++m) ADD_FAILURE() << "validation: " << messages[m];
+  }
+
+  // The case's language with B = 4, `mixed` ("padded" or "bucketed"), SoA,
+  // a global palette (every language's defaults for the other axes; no work
+  // groups where the language has none).
+  Variant VariantOf(const std::string& mixed) const {
+    return ParseVariantKey(std::string(LanguageOf(GetParam().lang).name) + ".b4." + mixed + ".soa.global");
+  }
+
+  // `asset` packed for `variant`, its kernels (one per launch) prepared with
+  // two input sets: the bind pose and a pose of its first clip.
+  Prepared PrepareMesh(const SkinnedAsset& asset, const Variant& variant, std::size_t* launches = nullptr) {
+    const PackedMesh packed = Pack(asset.mesh, variant);
+    std::vector<KernelSource> kernels;
+    for (const Launch& launch : packed.launches)
+      kernels.push_back(Emit(variant, launch.influences, static_cast<int>(packed.palette_joints)));
+    std::vector<std::vector<std::uint8_t>> palettes = {PackPalette(asset.PaletteAt(-1, 0.0), variant)};
+    if (!asset.animations.empty()) {
+      const AnimationClip& clip = asset.animations.front();
+      palettes.push_back(PackPalette(asset.PaletteAt(0, 0.5 * (clip.start + clip.end)), variant));
+    }
+    if (launches) *launches = packed.launches.size();
+    return runner_->Prepare(packed, kernels, palettes);
+  }
+
+  Runner* runner_ = nullptr;
+  std::size_t device_flush_bytes_ = 0;  // the flush the tuner runs on this device
+  std::size_t messages_before_ = 0;
+};
+
+// The smallest flush EmitFlush makes sense for (FlushBytes' floor): enough
+// for the tests that only need one to run, and quick on a software device.
+constexpr std::size_t kSmallFlushBytes = 8u << 20;
+
+TEST_P(KernelTime, OnePositiveTimePerSampleAndUntimedFramesAreNotReturned) {
+  std::size_t launches = 0;
+  const Prepared mesh = PrepareMesh(Synthetic("20k-b4-seed5"), VariantOf("padded"), &launches);
+  const Prepared flush = runner_->PrepareFlush(GetParam().lang, kSmallFlushBytes);
+  for (const auto& [untimed, samples] : {std::pair{3, 5}, std::pair{0, 1}, std::pair{2, 0}}) {
+    SCOPED_TRACE(std::to_string(untimed) + " untimed frames, " + std::to_string(samples) + " samples");
+    std::vector<std::vector<double>> per_launch;
+    const std::vector<double> ms = runner_->TimeCold(mesh, flush, untimed, samples, &per_launch);
+    ASSERT_EQ(ms.size(), static_cast<std::size_t>(samples));
+    ASSERT_EQ(per_launch.size(), ms.size());
+    for (std::size_t f = 0; f < ms.size(); ++f) {
+      EXPECT_GT(ms[f], 0.0) << "sample " << f;
+      EXPECT_EQ(per_launch[f].size(), launches) << "sample " << f;
+    }
+  }
+}
+
+TEST_P(KernelTime, AFrameOfSeveralLaunchesIsTheSumOfItsLaunchesOwnTimes) {
+  std::size_t launches = 0;
+  const Prepared mesh = PrepareMesh(Cesium(), VariantOf("bucketed"), &launches);
+  ASSERT_EQ(launches, 4u);  // CesiumMan: vertices with 1, 2, 3 and 4 bones, a launch each
+  const Prepared flush = runner_->PrepareFlush(GetParam().lang, kSmallFlushBytes);
+  std::vector<std::vector<double>> per_launch;
+  const std::vector<double> ms = runner_->TimeCold(mesh, flush, 1, 4, &per_launch);
+  ASSERT_EQ(ms.size(), 4u);
+  ASSERT_EQ(per_launch.size(), 4u);
+  for (std::size_t f = 0; f < ms.size(); ++f) {
+    SCOPED_TRACE("sample " + std::to_string(f));
+    ASSERT_EQ(per_launch[f].size(), 4u);
+    double sum = 0.0;
+    for (const double launch : per_launch[f]) {
+      EXPECT_GE(launch, 0.0);
+      sum += launch;
+    }
+    EXPECT_DOUBLE_EQ(ms[f], sum);
+    EXPECT_GT(ms[f], 0.0);
+  }
+}
+
+TEST_P(KernelTime, SixteenTimesTheVerticesTakesLonger) {
+  // 16x rather than 8x: on a GPU a small kernel's time is mostly its ramp
+  // (a few us on an H100), which would leave 8x of a 25k mesh near a ratio
+  // of 2; on the software devices here the ratio is near 16.
+  const Prepared small = PrepareMesh(Synthetic("25k-b4-seed5"), VariantOf("padded"));
+  const Prepared large = PrepareMesh(Synthetic("400k-b4-seed5"), VariantOf("padded"));
+  const Prepared flush = runner_->PrepareFlush(GetParam().lang, kSmallFlushBytes);
+  const double small_ms = Median(runner_->TimeCold(small, flush, 1, 7));
+  const double large_ms = Median(runner_->TimeCold(large, flush, 1, 7));
+  ASSERT_GT(small_ms, 0.0);
+  EXPECT_GT(large_ms / small_ms, 2.0) << "25k vertices: " << small_ms << " ms, 400k: " << large_ms << " ms";
+}
+
+TEST_P(KernelTime, TheFlushGivenRunsAndWritesNothingButTheItemsPoisonedToBeWritten) {
+  // The flush's kernel writes an item only where its input is all ones
+  // (generator/copy_kernel.h EmitFlush), which EmitFlush's input never is:
+  // three items poisoned so, the flush's output (poisoned by the driver)
+  // must hold those three items and the poison everywhere else.
+  CopyKernel poisoned = EmitFlush(GetParam().lang, kSmallFlushBytes);
+  std::vector<std::uint8_t>& in = poisoned.mesh.launches.at(0).inputs.at(0).bytes;
+  const std::vector<std::size_t> items = {0, poisoned.items / 2 + 1, poisoned.items - 1};
+  for (const std::size_t i : items) std::memset(in.data() + i * 16, 0xff, 16);
+  const std::vector<std::vector<std::uint8_t>> palette = {poisoned.mesh.palette};
+  const Prepared flush = runner_->Prepare(poisoned.mesh, std::span(&poisoned.kernel, 1), palette);
+  const Prepared mesh = PrepareMesh(Synthetic("5000-b4-seed5"), VariantOf("padded"));
+  ASSERT_EQ(runner_->TimeCold(mesh, flush, 1, 2).size(), 2u);
+  const std::span<const std::uint8_t> out = runner_->ReadOutput(flush, 0, false);
+  ASSERT_EQ(out.size(), poisoned.items * 16);
+  std::size_t written = 0, wrong = 0;
+  for (std::size_t i = 0; i < poisoned.items; ++i) {
+    const bool expected = std::find(items.begin(), items.end(), i) != items.end();
+    for (std::size_t w = 0; w < 4; ++w) {
+      std::uint32_t word = 0;
+      std::memcpy(&word, out.data() + i * 16 + w * 4, 4);
+      if (expected) {
+        written += word == 0xffffffffu;
+      } else {
+        wrong += word != kPoisonWord;
+      }
+    }
+  }
+  EXPECT_EQ(written, 3u * 4u) << "the flush given to TimeCold did not run";
+  EXPECT_EQ(wrong, 0u) << "words the flush should not have written";
+}
+
+TEST_P(KernelTime, TheFlushRunsBeforeEveryFrameAndIsInNoLaunchsTime) {
+  // The device's own flush (twice its last-level cache; a CPU device's
+  // capped), timed alone: the fastest of a few single-frame bursts.
+  const Prepared flush = runner_->PrepareFlush(GetParam().lang, device_flush_bytes_);
+  const std::vector<double> alone = runner_->Time(flush, 1, 3, 1);
+  ASSERT_FALSE(alone.empty());
+  const double flush_ms = *std::min_element(alone.begin(), alone.end());
+  ASSERT_GT(flush_ms, 0.0);
+  // A small kernel, so that the frames' wall time is mostly flushes.
+  const Prepared mesh = PrepareMesh(Synthetic("2000-b4-seed5"), VariantOf("padded"));
+  runner_->TimeCold(mesh, flush, 0, 1);  // builds and first uses out of the way
+  constexpr int kFrames = 6;
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<double> ms = runner_->TimeCold(mesh, flush, 0, kFrames);
+  const double wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(ms.size(), static_cast<std::size_t>(kFrames));
+  // Before every frame: six flushes take at least six times the fastest
+  // one; a flush run once (or once per submission) would stay near one
+  // flush. Half of it, for a device whose flushes run faster in a row than
+  // alone. (Only a lower bound: a loaded machine makes the wall time longer.)
+  EXPECT_GE(wall_ms, 0.5 * kFrames * flush_ms)
+      << "the wall time of " << kFrames << " frames holds fewer flushes than frames (one flush alone: " << flush_ms
+      << " ms)";
+  // In no launch's time: a frame of a 2000-vertex kernel is far shorter than
+  // a read of twice the last-level cache.
+  EXPECT_LT(Median(ms), 0.25 * flush_ms) << "a frame's kernel time holds the flush's";
+}
+
+INSTANTIATE_TEST_SUITE_P(EveryRunner, KernelTime, ::testing::ValuesIn(Cases()), CaseName);
+
+}  // namespace
+}  // namespace skintune::internal
