@@ -21,7 +21,7 @@ sizes=${SIZES:-"25k-b4 100k-b4 400k-b4 1600k-b4 6400k-b4"}
 cuda_variants=(
   cuda.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg256.nonormals
   cuda.b4.padded.soa-split.float4.u8.unorm8.mat3x4.local.matrix.v1c.wg64.nonormals
-  cuda.b4.padded.soa.float4.u8.f32.mat3x4.constant.matrix.v1c.wg256.nonormals
+  cuda.b4.padded.soa.float4.u8.f32.mat3x4.local.matrix.v1c.wg256.nonormals
   cuda.b4.padded.aos.float3.i32.f32.mat4.global.matrix.v1c.wg128.nonormals
   cuda.b4.padded.soa-split.float4.u16.unorm16.mat3x4.global.matrix.v1c.wg64.nonormals
 )
