@@ -73,8 +73,22 @@ struct Opened {
   std::string why;
 };
 
-Opened& DeviceOf(const std::string& backend) {
+std::map<std::string, Opened>& OpenedDevices() {
   static std::map<std::string, Opened> opened;
+  return opened;
+}
+
+// Closes the runners after the last test, before static destruction: the
+// map is made before the first runner, so it would outlive what the runners
+// need at exit (the Vulkan loader's statics: a segfault on exit).
+class CloseDevices : public ::testing::Environment {
+ public:
+  void TearDown() override { OpenedDevices().clear(); }
+};
+[[maybe_unused]] ::testing::Environment* const kCloseDevices = ::testing::AddGlobalTestEnvironment(new CloseDevices);
+
+Opened& DeviceOf(const std::string& backend) {
+  std::map<std::string, Opened>& opened = OpenedDevices();
   if (const auto found = opened.find(backend); found != opened.end()) return found->second;
   Opened& o = opened[backend];
   // Vulkan with the validation layer where it is installed.
