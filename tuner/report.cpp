@@ -226,7 +226,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
       intervals.push_back(IntervalOf(report, *m));
       raced = raced || RacedInterval(report, *m) != nullptr;
     }
-    const RaceOutcome outcome = JudgeIntervals(intervals, entries, report.tie_margin > 0.0 ? report.tie_margin : 0.02);
+    const RaceOutcome outcome = JudgeIntervals(intervals, entries, report.tie_margin > 0.0 ? report.tie_margin : TimingOptions{}.tie_margin);
     const Measurement& m = *members[outcome.winner];
     Winner w = shape.at(key);
     w.backend = BackendOf(report, m.device_id);
@@ -278,7 +278,7 @@ std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners, double tie
       i.samples = 1;
       intervals.push_back(i);
     }
-    out.push_back(*members[JudgeIntervals(intervals, entries, tie_margin > 0.0 ? tie_margin : 0.02).winner]);
+    out.push_back(*members[JudgeIntervals(intervals, entries, tie_margin > 0.0 ? tie_margin : TimingOptions{}.tie_margin).winner]);
   }
   return out;
 }

@@ -62,7 +62,7 @@ struct TuningReport {
   std::vector<DatasetInfo> datasets;
   std::vector<Measurement> measurements;
   // Timing version 5: the margin within which kernel times tie (TimingOptions::tie_margin), and the races.
-  double tie_margin = 0.02;
+  double tie_margin = TimingOptions{}.tie_margin;
   std::vector<RaceRecord> races;
 };
 

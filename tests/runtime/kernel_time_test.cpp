@@ -87,33 +87,43 @@ class CloseDevices : public ::testing::Environment {
 };
 [[maybe_unused]] ::testing::Environment* const kCloseDevices = ::testing::AddGlobalTestEnvironment(new CloseDevices);
 
+// Every API is discovered once, before any runner opens, as a tune worker
+// does: discovery probes the other APIs (the chip's identity through GL, on
+// an H200 in November 2026), and run after a GL runner was open it left that
+// runner's context invalid (EGL_BAD_CONTEXT in the next test).
+const Discovered& Discovery() {
+  static const Discovered all = [] {
+    setenv("SKINTUNE_VULKAN_VALIDATION", "1", 0);  // Vulkan with the validation layer where it is installed
+    Discovered d = DiscoverDevices();
+    const bool layer_missing = std::any_of(d.skipped.begin(), d.skipped.end(), [](const std::string& why) {
+      return why.find("no VK_LAYER_KHRONOS_validation") != std::string::npos;
+    });
+    if (layer_missing) {
+      unsetenv("SKINTUNE_VULKAN_VALIDATION");
+      d = DiscoverDevices();
+    }
+    return d;
+  }();
+  return all;
+}
+
 Opened& DeviceOf(const std::string& backend) {
   std::map<std::string, Opened>& opened = OpenedDevices();
   if (const auto found = opened.find(backend); found != opened.end()) return found->second;
   Opened& o = opened[backend];
-  // Vulkan with the validation layer where it is installed.
-  const auto no_layer = [](const std::string& why) {
-    return why.find("no VK_LAYER_KHRONOS_validation") != std::string::npos;
-  };
-  if (backend == "vulkan") setenv("SKINTUNE_VULKAN_VALIDATION", "1", 0);
-  Discovered d = DiscoverDevices(backend.c_str());
-  if (backend == "vulkan" && d.devices.empty() && std::any_of(d.skipped.begin(), d.skipped.end(), no_layer)) {
-    unsetenv("SKINTUNE_VULKAN_VALIDATION");
-    d = DiscoverDevices(backend.c_str());
-  }
+  const Discovered& all = Discovery();
+  Discovered d;
+  for (const FoundDevice& f : all.devices)
+    if (f.identity.backend == backend) d.devices.push_back(f);
+  for (const std::string& why : all.skipped)
+    if (why.rfind(backend + ":", 0) == 0) d.skipped.push_back(why);
   if (d.devices.empty()) {
     o.why = "no " + backend + " device";
     for (const std::string& s : d.skipped) o.why += "; " + s;
     return o;
   }
   try {
-    try {
-      o.runner = d.devices.front().open();
-    } catch (const Error& e) {
-      if (backend != "vulkan" || !no_layer(e.what())) throw;
-      unsetenv("SKINTUNE_VULKAN_VALIDATION");
-      o.runner = d.devices.front().open();
-    }
+    o.runner = d.devices.front().open();
   } catch (const Error& e) {
     o.why = e.what();
     return o;
@@ -232,17 +242,17 @@ TEST_P(KernelTime, AFrameOfSeveralLaunchesIsTheSumOfItsLaunchesOwnTimes) {
   }
 }
 
-TEST_P(KernelTime, SixteenTimesTheVerticesTakesLonger) {
-  // 16x rather than 8x: on a GPU a small kernel's time is mostly its ramp
-  // (a few us on an H100), which would leave 8x of a 25k mesh near a ratio
-  // of 2; on the software devices here the ratio is near 16.
+TEST_P(KernelTime, SixtyFourTimesTheVerticesTakesLonger) {
+  // 64x: on a GPU a small kernel's time is mostly its ramp; on an H200
+  // (November 2026) 16x of a 25k mesh took only 1.6x as long (5.4 against
+  // 8.8 us). On the software devices here the ratio is near 64.
   const Prepared small = PrepareMesh(Synthetic("25k-b4-seed5"), VariantOf("padded"));
-  const Prepared large = PrepareMesh(Synthetic("400k-b4-seed5"), VariantOf("padded"));
+  const Prepared large = PrepareMesh(Synthetic("1600k-b4-seed5"), VariantOf("padded"));
   const Prepared flush = runner_->PrepareFlush(GetParam().lang, kSmallFlushBytes);
   const double small_ms = Median(runner_->TimeCold(small, flush, 1, 7));
   const double large_ms = Median(runner_->TimeCold(large, flush, 1, 7));
   ASSERT_GT(small_ms, 0.0);
-  EXPECT_GT(large_ms / small_ms, 2.0) << "25k vertices: " << small_ms << " ms, 400k: " << large_ms << " ms";
+  EXPECT_GT(large_ms / small_ms, 2.0) << "25k vertices: " << small_ms << " ms, 1600k: " << large_ms << " ms";
 }
 
 TEST_P(KernelTime, TheFlushGivenRunsAndWritesNothingButTheItemsPoisonedToBeWritten) {
