@@ -123,7 +123,7 @@ TEST(Schema, BrokenReportsFailValidation) {
   j = good;
   j["winners"][0]["vertex_bucket"] = "3k";
   EXPECT_EQ(Validate(j, "report.schema.json", "bad-bucket"), 3);
-  // Issue 11: what the readers refuse as impossible, the schema refuses too
+  // docs/INPUTS.md: what the readers refuse as impossible, the schema refuses too
   // (all but the GB/s consistency, which a schema cannot state).
   std::size_t ok = 0;
   while (good["measurements"][ok]["status"] != "ok") ++ok;

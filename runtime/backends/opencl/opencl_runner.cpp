@@ -161,8 +161,8 @@ class OpenClApi final : public DeviceApi {
   Context context;
   // The frames' queue, without profiling: on NVIDIA a launch that returns an
   // event costs ~10.5 us of host time on a profiling queue against ~4.9 on
-  // one without (`skintune_bench_opencl_calls`, docs/PERFORMANCE.md session
-  // 32), and the Skinner's last launch of a frame returns its ring fence.
+  // one without (`skintune_bench_opencl_calls` on the H100
+  // machine, 2026-11-27), and the Skinner's last launch of a frame returns its ring fence.
   Queue queue;
   Queue lanes[2];  // Time's two queues and Run's (made on first use, profiling)
 
