@@ -190,11 +190,11 @@ TEST(Schema, PaperResultsValidateAndTheirBrokenCopiesDoNot) {
   EXPECT_EQ(Validate(bad, "paper-result.schema.json", "paper_bad_reported"), 3);
 }
 
-// The committed results (docs/results) and the report tests' fixture follow the schema and
-// read back: a format change must regenerate or migrate them.
+// The committed results (the H100 paper run, whose report docs/results/paper-h100 holds, and
+// docs/results/paper-2core) and the report tests' fixture follow the schema and read back: a
+// format change must regenerate or migrate them.
 TEST(Schema, CommittedPaperResultsValidateAndReadBack) {
-  for (const char* file : {"docs/results/h100-paper-v4/paper-result.json", "docs/results/h100-paper/paper-result.json",
-                           "docs/results/cpu-quick-paper/paper-result.json",
+  for (const char* file : {"tests/data/paper/h100-result.json", "docs/results/paper-2core/paper-result.json",
                            "tests/data/paper/sample-result.json"}) {
     std::ifstream in(std::string(SKINTUNE_SOURCE_DIR) + "/" + file);
     ASSERT_TRUE(in) << file;

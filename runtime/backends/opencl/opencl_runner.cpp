@@ -700,7 +700,8 @@ std::vector<std::vector<double>> OpenClApi::TimeOnLanes(const FrameRun& run) {
       }
       // Submitted now, so neither queue waits for the host to flush it. (On
       // the H100 this did not remove NVIDIA's OpenCL's ~7 us per frame with
-      // two queues at 400k-b4: docs/PERFORMANCE.md "Timing version 2".)
+      // two queues at 400k-b4, 2026-11-24; it was the event on every launch,
+      // docs/PERFORMANCE.md "Lessons that still hold".)
       Check(clFlush(lane[l]), "launch", "clFlush while timing " + run.key);
     }
   }
