@@ -9,7 +9,7 @@
 //    frames rotating input sets, and the same-size copy timed the same way:
 //    for the cpu device an all-thread memcpy of the same bytes). The list is
 //    measured --repeat=N times (default 3) one variant after another, and
-//    the medians are printed with the ratios issue 18 asks for: the f32 fast
+//    the medians are printed with the ratios the cpu device is judged by: the f32 fast
 //    path's share of the copy bandwidth, the fastest format the budget
 //    allows against f32, and PoCL's best against the fast path.
 //
@@ -279,7 +279,7 @@ void PrintRows(const char* title, const std::vector<Row>& rows) {
   }
 }
 
-// What issue 18's Done-when reads, as ratios within this run.
+// The ratios the cpu device is judged by (docs/PERFORMANCE.md "The CPU"), within this run.
 void PrintRatios(const std::vector<Row>& cpu, const std::vector<Row>& pocl) {
   std::printf("\nratios (medians of this run):\n");
   const Row& f32 = cpu.front();

@@ -1,4 +1,4 @@
-// The frame, not the kernel (issue 15): what a program pays per frame to skin
+// The frame, not the kernel: what a program pays per frame to skin
 // a crowd through the public API (skintune/skintune.h), on one device:
 //
 //   one-mesh/skin-only            one mesh of K x N vertices, Skin only
@@ -12,7 +12,7 @@
 //   skinners/skin-only            K Skinners of N vertices, K launches per frame
 //   read-back                     ReadPositions of the one mesh's K x N float3 positions
 //
-// K = 64 and N = 25k-b4 (77 joints) by default: the table of issue 15. Each
+// K = 64 and N = 25k-b4 (77 joints) by default: a crowd of 64 characters. Each
 // benchmark iteration runs --frames frames (default 50) and ends with Finish,
 // so the device time is in it; the reported time is per frame (manual time:
 // the iteration's wall time / frames), with counters vertices/s, frames/s

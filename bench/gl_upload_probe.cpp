@@ -1,5 +1,5 @@
 // skintune_bench_glupload: can GL overlap a palette upload with the kernel
-// before it? (issue 15: GL's pipelined frame is ~2x its Skin-only frame,
+// before it? (On the H100, 2026-11, GL's pipelined frame was ~2x its Skin-only frame,
 // because its one queue runs each 236 KB upload after the dispatch before it.)
 //
 // A stand-in for the crowd frame on one EGL context: a compute dispatch that

@@ -1,5 +1,5 @@
 // The host time of the OpenCL calls a frame makes, one variation at a time
-// (issue 15: NVIDIA's clEnqueueNDRangeKernel took ~14 us of host time in the
+// (on the H100 machine, 2026-11, NVIDIA's clEnqueueNDRangeKernel took ~14 us of host time in the
 // Skinner's frame against ~7 us a frame in the tuner's bursts). Each row times
 // only the call named, on a device kept idle: the kernel is empty and one
 // work-group, and the queue is drained every kDrain calls outside the timing.

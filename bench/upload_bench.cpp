@@ -1,5 +1,5 @@
-// Host <-> device copies on a CUDA device, the raw costs under the frame loop
-// (issue 15): what one palette upload (64 x 77 mat3x4, 236 KB; or mat4,
+// Host <-> device copies on a CUDA device, the raw costs under the frame loop:
+// what one palette upload (64 x 77 mat3x4, 236 KB; or mat4,
 // 315 KB) and one read-back (1.6M float4, 25.6 MB) cost on this machine,
 // from each kind of host memory, each copy waited for (the frame loop's
 // fence wait is the same wait).

@@ -296,8 +296,8 @@ std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const 
 // finiteness test looks at the exponent bits, a branch per matrix only. Each
 // matrix is transposed in registers and stored whole (48 or 64 bytes, wide
 // stores): the runtime packs straight into write-combined page-locked
-// staging, where byte stores cost about a nanosecond each (issue 15: byte
-// stores made a 64 x 77-joint SetPalette cost 300 us on the H100's host).
+// staging, where byte stores cost about a nanosecond each (byte stores made
+// a 64 x 77-joint SetPalette cost 300 us on the H100 machine's host, 2026-11).
 namespace {
 template <std::size_t kRows>
 std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8_t* out, float& largest) {

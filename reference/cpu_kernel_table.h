@@ -1,5 +1,6 @@
 // skintune (internal): the layout of the CPU kernel table (cpu_kernels.h),
-// shared by the three ISA builds of cpu_kernels.inc and cpu_kernels.cpp.
+// shared by the slices of cpu_kernels.inc and cpu_kernels.cpp, which
+// assembles one table per instruction set from its 8 slices.
 // Slot = (((B - 1) x 3 + index) x 3 + weight) x 2 + (rows == 3)) x 2 + point_blend.
 #pragma once
 
@@ -38,9 +39,23 @@ constexpr CpuKernelKey KeyOfSlot(std::size_t slot) {
   return key;
 }
 
-// One table per instruction set (cpu_kernels_<isa>.cpp).
-const CpuKernelTable& CpuKernelsAvx512();
-const CpuKernelTable& CpuKernelsAvx2();
-const CpuKernelTable& CpuKernelsBaseline();
+// The instruction sets a table is compiled for (reference/CMakeLists.txt
+// gives each its -march; elsewhere than x86-64 all three are the baseline).
+enum class CpuIsa { kAvx512, kAvx2, kBaseline };
+
+// One slice of a table: the slots of one influence count B, in table order
+// (slot SlotOf(key) of the table is slot SlotOf(key) - (B - 1) x
+// kSlotsPerInfluenceCount of B's slice).
+inline constexpr std::size_t kSlotsPerInfluenceCount = kIndexFormats * kWeightFormats * kRowChoices * kBlendChoices;
+static_assert(kCpuKernelCount == kCpuMaxInfluences * kSlotsPerInfluenceCount);
+using CpuKernelSlice = std::array<CpuKernelFn, kSlotsPerInfluenceCount>;
+
+// The slice of instruction set kIsa and influence count kB (1..8), defined in
+// cpu_kernels.inc and instantiated once per (kIsa, kB) by cpu_kernels_slice.cpp,
+// compiled 24 times with that ISA's -march: 24 small objects that build in
+// parallel, where one table per ISA was one object of 70-120 s at -O3 that
+// the rest of the build waited for (2-core development machine, 2026-11).
+template <CpuIsa kIsa, int kB>
+const CpuKernelSlice& CpuKernelSliceOf();
 
 }  // namespace skintune::internal::cpu_detail

@@ -1,5 +1,6 @@
 // The CPU kernels' selection (one table per instruction set), palettes,
-// schedules and the threaded loop. The kernels: cpu_kernels.inc.
+// schedules and the threaded loop. The kernels: cpu_kernels.inc, compiled in
+// slices by cpu_kernels_slice.cpp.
 #include "reference/cpu_kernels.h"
 
 #include <algorithm>
@@ -20,32 +21,49 @@ const char* const kWeightNames[] = {"f32", "unorm16", "unorm8"};
 static_assert(std::size(kIndexNames) == cpu_detail::kIndexFormats);
 static_assert(std::size(kWeightNames) == cpu_detail::kWeightFormats);
 
-enum class Isa { kAvx512, kAvx2, kBaseline };
+using cpu_detail::CpuIsa;
 
-Isa ThisCpu() {
+CpuIsa ThisCpu() {
 #if defined(__x86_64__) || defined(__i386__)
-  static const Isa isa = [] {
+  static const CpuIsa isa = [] {
     __builtin_cpu_init();
     if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
         __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq"))
-      return Isa::kAvx512;
+      return CpuIsa::kAvx512;
     if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("bmi2"))
-      return Isa::kAvx2;
-    return Isa::kBaseline;
+      return CpuIsa::kAvx2;
+    return CpuIsa::kBaseline;
   }();
   return isa;
 #else
-  return Isa::kBaseline;
+  return CpuIsa::kBaseline;
 #endif
+}
+
+// The table of kIsa, its 8 slices (B = 1..8) one after another.
+template <CpuIsa kIsa, int... kB>
+cpu_detail::CpuKernelTable AssembleTable(std::integer_sequence<int, kB...>) {
+  cpu_detail::CpuKernelTable table{};
+  const cpu_detail::CpuKernelSlice* slices[] = {&cpu_detail::CpuKernelSliceOf<kIsa, kB + 1>()...};
+  static_assert(std::size(slices) == kCpuMaxInfluences);
+  for (std::size_t b = 0; b < std::size(slices); ++b)
+    std::copy(slices[b]->begin(), slices[b]->end(), table.begin() + b * cpu_detail::kSlotsPerInfluenceCount);
+  return table;
+}
+
+template <CpuIsa kIsa>
+const cpu_detail::CpuKernelTable& TableOf() {
+  static const cpu_detail::CpuKernelTable table = AssembleTable<kIsa>(std::make_integer_sequence<int, kCpuMaxInfluences>{});
+  return table;
 }
 
 const cpu_detail::CpuKernelTable& Table() {
   switch (ThisCpu()) {
-    case Isa::kAvx512: return cpu_detail::CpuKernelsAvx512();
-    case Isa::kAvx2: return cpu_detail::CpuKernelsAvx2();
-    case Isa::kBaseline: break;
+    case CpuIsa::kAvx512: return TableOf<CpuIsa::kAvx512>();
+    case CpuIsa::kAvx2: return TableOf<CpuIsa::kAvx2>();
+    case CpuIsa::kBaseline: break;
   }
-  return cpu_detail::CpuKernelsBaseline();
+  return TableOf<CpuIsa::kBaseline>();
 }
 
 }  // namespace
@@ -84,9 +102,9 @@ CpuKernelFn FindCpuKernel(const CpuKernelKey& key) {
 
 const char* CpuKernelIsa() {
   switch (ThisCpu()) {
-    case Isa::kAvx512: return "avx512";
-    case Isa::kAvx2: return "avx2";
-    case Isa::kBaseline: break;
+    case CpuIsa::kAvx512: return "avx512";
+    case CpuIsa::kAvx2: return "avx2";
+    case CpuIsa::kBaseline: break;
   }
   return "baseline";
 }

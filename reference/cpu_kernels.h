@@ -24,9 +24,9 @@
 //   and float weights (unorm decoded there, not per vertex), and a position
 //   is loaded as 16 bytes straight into a register (the range's last vertex,
 //   whose 16 bytes could leave its stream, from a padded copy).
-// - Each table is compiled three times (cpu_kernels_avx512.cpp, _avx2.cpp,
-//   _baseline.cpp, each with its -march); CpuKernelIsa() says which one this
-//   CPU runs.
+// - Each table is compiled three times, for AVX-512, AVX2 and a baseline,
+//   in slices of one influence count each (cpu_kernels_slice.cpp, 24
+//   objects); CpuKernelIsa() says which table this CPU runs.
 //
 // Threads and chunking are not fixed: RunCpuKernel takes a CpuSchedule, and
 // FastestCandidate times the candidates on the caller's own frames.

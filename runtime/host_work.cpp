@@ -52,7 +52,7 @@ ThreadPool& HostPool() {
 // by threads that keep their run, in 9.9-10.3 us when the runs changed hands
 // every frame, and 10.5-11.3 us on the ThreadPool, no better than one thread
 // (skintune_bench_upload palette/pinned-wc/poses:2/{spinning:4,
-// spinning:4/claims,runtime}, docs/PERFORMANCE.md session 31): a run's input
+// spinning:4/claims,runtime}, H100 machine, 2026-11-27): a run's input
 // lines are in the cache of the core that packed it last.
 class LaneCrew {
  public:
@@ -149,11 +149,12 @@ class LaneCrew {
 // and at most kMaxPaletteLanes. 4 threads pack 236 KB in 3-4 us where one
 // takes 7-15 (above); inside the frame loop 8 packed it in 6.5-7 us where 4
 // took 7.3-10.2, and the CUDA frame with the submit thread went from 0.92-0.94
-// to 0.96-0.97 of Skin-only (H100 machine, session 31 call J); the other half
+// to 0.96-0.97 of Skin-only (H100 machine, 2026-11-27); the other half
 // of the cores stays for the driver's threads and the application. The
 // helpers poll for kFramePoll after each packing, as the submit thread does:
 // with 20 us they were asleep by the next SetPalette of a frame loop that
-// waits for its frames, and the wake-up cost the frame ~9 us (session 31).
+// waits for its frames, and the wake-up cost the frame ~9 us (H100 machine,
+// 2026-11-27).
 unsigned PaletteLanes() {
   const unsigned cores = std::max(std::thread::hardware_concurrency(), 1u);
   return std::min(cores, std::clamp(cores / 2, 2u, kMaxPaletteLanes));

@@ -38,7 +38,7 @@ inline constexpr std::chrono::microseconds kFramePoll{500};
 // takes the run of a helper that does not come in time). A second caller at
 // the same time packs alone. One core stores ~25-30 GB/s into page-locked
 // memory on the GPU machines' hosts, so 64 x 77 mat3x4 (236 KB) cost it 7-15
-// us a frame, about the crowd kernel's time (issue 15).
+// us a frame, about the crowd kernel's time (H100 and H200 machines, 2026-11).
 // `max_threads` (SkinnerOptions::palette_threads): 0, the whole crew; 1, the
 // calling thread alone (the crew is not started); else at most that many.
 // Returns what PackPaletteInto does for the whole palette: the first

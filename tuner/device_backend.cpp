@@ -40,7 +40,7 @@ namespace {
 // - gl: each thread's runner has an EGL context of its own, current on that
 //   thread only; program binaries land in the program cache.
 // On the H100 a cold default run spent 100-130 ms per GL and Vulkan variant
-// between timings, most of it compiling one kernel at a time (issue 16).
+// between timings, most of it compiling one kernel at a time (H100 machine, 2026-11-24).
 constexpr std::string_view kCompileAheadBackends[] = {"opencl", "cuda", "vulkan", "gl"};
 
 // At most this many compile threads (each holds a context of the device).
@@ -69,7 +69,7 @@ constexpr unsigned kMinCpusToCompileAheadForACpuDevice = 8;
 // its own, opened on its thread at its first kernel (GL's EGL context is
 // current on that thread only; Vulkan's VkDevice): opened once per device
 // instead of once per data set, which cost Vulkan ~1.1 s and GL ~0.6 s per
-// data set on the H100 (issue 16).
+// data set on the H100 (2026-11-24).
 class CompileThreads {
  public:
   using Open = std::function<std::unique_ptr<skintune::internal::Runner>()>;

@@ -10,7 +10,7 @@
 // core, so a host thread the GPU's driver keeps busy, even while it waits on
 // the device, delays them). Locking the GPUs' whole measurements, bursts
 // included, made a default run take more than 160 s instead of 101 s
-// (docs/PERFORMANCE.md, issue 16 item 7): `--one-device-at-a-time` gives the
+// (docs/PERFORMANCE.md "The cost of a tuning run"): `--one-device-at-a-time` gives the
 // cpu device's figures undisturbed.
 //
 // flock(2) on a file the parent makes (HostLockFile) and names to each worker

@@ -523,7 +523,7 @@ namespace {
 // page again (27% of a 6400k measurement's process time under perf). From the
 // heap instead, kept once freed: the worker's memory stays at its largest
 // measurement's, and a 6400k-b4 measurement's "run" phase went from ~275 to
-// ~80 ms on PoCL (docs/PERFORMANCE.md, issue 16 item 10).
+// ~80 ms on PoCL (docs/PERFORMANCE.md "The cost of a tuning run").
 void KeepLargeBlocks() {
 #if defined(__GLIBC__)
   mallopt(M_MMAP_MAX, 0);

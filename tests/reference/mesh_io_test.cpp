@@ -28,7 +28,7 @@ std::string Slurp(const fs::path& p) {
 const std::vector<glm::vec3> kPositions = {{1.5f, -2.0f, 0.125f}, {3.0f, 4.0f, 5.0f}};
 const std::vector<glm::vec3> kNormals = {{0, 1, 0}, {1, 0, 0}};
 
-// Issue 11, item 3: a NaN or infinite value is never written ("-nan" was
+// docs/INPUTS.md "Finite outputs": a NaN or infinite value is never written ("-nan" was
 // not even readable back by --check); an existing file is kept.
 TEST(MeshIo, NonFiniteValuesAreRefusedAndNothingIsWritten) {
   const fs::path dir = TempDir();
@@ -51,7 +51,7 @@ TEST(MeshIo, NonFiniteValuesAreRefusedAndNothingIsWritten) {
   EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);  // no temporary left
 }
 
-// Issue 11, item 5: whether an output can be written is known before the work.
+// docs/INPUTS.md "Limits": whether an output can be written is known before the work.
 TEST(MeshIo, CheckWritableRefusesFoldersAndMissingFoldersAndTouchesNothing) {
   const fs::path dir = TempDir();
   fs::create_directories(dir / "folder");

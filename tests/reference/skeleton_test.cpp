@@ -28,7 +28,7 @@ Skeleton ThreeNodes() {
   return s;
 }
 
-// Issue 11, item 3: an entry finite in double but not in float (or not at
+// docs/INPUTS.md "Finite outputs": an entry finite in double but not in float (or not at
 // all) is an error naming the joint, its node and the element, never a
 // palette that skins every vertex to NaN.
 TEST(Skeleton, PaletteEntriesBeyondFloatAreAnErrorNamingTheJoint) {

@@ -143,11 +143,11 @@ INSTANTIATE_TEST_SUITE_P(
                     BadKeyCase{"100k-b0", "influences 0 outside 1..8"},
                     BadKeyCase{"100k-b9", "influences 9 outside 1..8"}, BadKeyCase{"100k-b2-bones0", "bones 0"},
                     BadKeyCase{"100k-b8-bones4", "influences 8 exceed bones 4"},
-                    // Issue 11, item 6: beyond what 32-bit vertex indices address.
+                    // docs/INPUTS.md "Limits": beyond what 32-bit vertex indices address.
                     BadKeyCase{"100000m-b8", "100000000000 vertices exceed the 2^32 - 1 = 4294967295"},
                     BadKeyCase{"4294968k-b1", "exceed the 2^32 - 1"}));
 
-// Issue 11, item 6: the memory a size needs is checked before anything is
+// docs/INPUTS.md "Limits": the memory a size needs is checked before anything is
 // allocated, and the message says what fits.
 TEST(SyntheticMemory, TooBigForTheMemoryGivenIsRefusedSayingWhatFits) {
   const DatasetSpec spec = ParseDatasetKey("300m-b8");

@@ -229,7 +229,7 @@ TEST(OpenClRunner, RejectsAPaletteOfTheWrongSizeAndAMissingDevice) {
 
 // The runner's own queue, which the Skinner's frames use, has no profiling
 // (on NVIDIA a launch returning an event costs ~10.5 us of host time on a
-// profiling queue, ~4.9 on one without: docs/PERFORMANCE.md, session 32),
+// profiling queue, ~4.9 on one without: the H100 machine, 2026-11-27),
 // and a verification run still has each launch timed by the device, on a
 // profiling queue of its own: a run on the frames' queue would read 0 ms.
 TEST(OpenClRunner, TheFramesQueueHasNoProfilingAndARunStillTimesEachLaunch) {

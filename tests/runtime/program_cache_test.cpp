@@ -1,7 +1,8 @@
 // The on-disk program cache (runtime/program_cache.h): what it loads back and
 // what it treats as absent (then the program is rebuilt and the file
-// rewritten). Issue 11, item 7: a payload altered so that its old FNV-1a
-// checksum still matched was loaded, and PoCL crashed on it at every start.
+// rewritten). A payload altered so that its old FNV-1a checksum still
+// matched was once loaded, and PoCL crashed on it at every start (2026-11);
+// the cache now checks SHA-256.
 #include "runtime/program_cache.h"
 
 #include <gtest/gtest.h>

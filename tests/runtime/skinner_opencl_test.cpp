@@ -150,7 +150,7 @@ TEST(OpenClSkinner, SkinsCesiumManWithTheBuiltInDefaultLikeTheGold) {
   ExpectSkinsLikeTheGold(skinner, Cesium().mesh, Animated(Cesium(), 0.8));
 }
 
-// Issue 11, item 3: a NaN palette entry is refused where it enters, and an
+// docs/INPUTS.md "Finite outputs": a NaN palette entry is refused where it enters, and an
 // output that overflows float32 (a finite palette of 3e38) never reaches the
 // caller's buffer.
 TEST(OpenClSkinner, NonFinitePaletteAndOutputAreErrorsNeverData) {

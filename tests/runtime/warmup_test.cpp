@@ -7,7 +7,7 @@
 //
 // Timing version 2's warm-up failed both tests: its 16-frame bursts never
 // loaded the device enough to raise the clock, and a steady burst time at
-// the low clock ended the warm-up (docs/PERFORMANCE.md "Timing version 3").
+// the low clock ended the warm-up (docs/PERFORMANCE.md "Lessons that still hold").
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -216,7 +216,7 @@ TEST(WinnersDb, MalformedEntriesNameTheEntryAndTheField) {
   EXPECT_EQ(ParseError(not_array), "db.json: entries: 'entries' must be an array");
 }
 
-// Issue 11, item 2: an impossible time in a database never reaches a
+// docs/INPUTS.md "Measurements: one rule for every time": an impossible time in a database never reaches a
 // Selection (the runtime) or a merge (the tuner): both read through here.
 TEST(WinnersDb, ImpossibleTimesAreRefusedNamingTheEntry) {
   auto with = [](const char* field, const nlohmann::json& value) {

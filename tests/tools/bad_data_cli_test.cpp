@@ -1,4 +1,4 @@
-// Issue 11 end to end: files that are well formed but impossible, outputs
+// docs/INPUTS.md end to end: files that are well formed but impossible, outputs
 // that cannot be finite, limits on the command line, outputs that cannot be
 // written and sizes that cannot fit. Each must end in one error line on
 // stderr and a non-zero exit, with every earlier output left as it was.

@@ -265,7 +265,7 @@ TEST(Measurement, FromJsonNamesTheBadField) {
   EXPECT_EQ(ErrorOf([&] { (void)j.get<Measurement>(); }), "measurement: 'timing': 'median_ms' must be a number");
 }
 
-// Issue 11, items 1 and 2: a status-ok measurement's figures obey physics
+// docs/INPUTS.md "Measurements: one rule for every time": a status-ok measurement's figures obey physics
 // wherever it is read; from_json (used by the cache, reports, replay and the
 // worker's answers) refuses anything else, naming the field.
 TEST(Measurement, OkWithoutTimingIsRefused) {

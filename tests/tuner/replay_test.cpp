@@ -205,7 +205,7 @@ TEST(Replay, ExhaustiveAtTheFullBudgetIsExactlyOptimal) {
 // The same comparison on real measurements: exhaustive runs on the H100
 // machine (docs/TUNING.md, "Figures (H100)"): a 576-variant space (480 valid)
 // recorded by `skintune tune --config tests/data/tuning/exhaustive-1600k-b4.json`
-// (timing version 2), and issue 16's wide space of 864 (720 valid, 480 within
+// (timing version 2), and the wide space of 864 (720 valid, 480 within
 // the default error budget) by `--config tests/data/tuning/exhaustive-wide-1600k-b4.json`
 // (timing version 4) in OpenCL, CUDA and GLSL compute, at 1600k-b4 and at
 // 6400k-b4 (`--config tests/data/tuning/exhaustive-wide-6400k-b4.json`).
@@ -238,7 +238,7 @@ TEST(Replay, StrategyComparisonOnRecordedH100Measurements) {
     const StrategyComparison c =
         CompareStrategies(replay.variants(), replay.AsEvaluator(), {0.02, 0.05, 0.1, 0.25, 0.5}, 20);
     std::cout << recorded.file << "\n" << FormatComparison(c);
-    // Issue 16's bar: the default strategy (coordinate descent) with 5% of
+    // The default strategy's bar (docs/TUNING.md): the default strategy (coordinate descent) with 5% of
     // the evaluations lands within 5% of the exhaustive optimum, on average
     // and at worst over the seeds; random search at the same budget is not
     // better on average.

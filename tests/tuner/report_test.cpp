@@ -210,7 +210,7 @@ TEST(Report, MalformedReportsNameTheElement) {
   EXPECT_NE(ErrorOf([&] { ReportFromJson(nlohmann::json::array(), "r.json"); }).find("r.json:"), std::string::npos);
 }
 
-// Issue 11, items 1 and 2: the first status-ok measurement of the report.
+// The first status-ok measurement of the report (its figures obey docs/INPUTS.md's rule).
 std::size_t FirstOk(const nlohmann::json& report) {
   const nlohmann::json& list = report.at("measurements");
   for (std::size_t i = 0; i < list.size(); ++i)

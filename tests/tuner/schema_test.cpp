@@ -123,7 +123,7 @@ TEST(Schema, BrokenReportsFailValidation) {
   j = good;
   j["winners"][0]["vertex_bucket"] = "3k";
   EXPECT_EQ(Validate(j, "report.schema.json", "bad-bucket"), 3);
-  // Issue 11: what the readers refuse as impossible, the schema refuses too
+  // docs/INPUTS.md: what the readers refuse as impossible, the schema refuses too
   // (all but the GB/s consistency, which a schema cannot state).
   std::size_t ok = 0;
   while (good["measurements"][ok]["status"] != "ok") ++ok;
@@ -190,11 +190,11 @@ TEST(Schema, PaperResultsValidateAndTheirBrokenCopiesDoNot) {
   EXPECT_EQ(Validate(bad, "paper-result.schema.json", "paper_bad_reported"), 3);
 }
 
-// The committed results (docs/results) and the report tests' fixture follow the schema and
-// read back: a format change must regenerate or migrate them.
+// The committed results (the H100 paper run, whose report docs/results/paper-h100 holds, and
+// docs/results/paper-2core) and the report tests' fixture follow the schema and read back: a
+// format change must regenerate or migrate them.
 TEST(Schema, CommittedPaperResultsValidateAndReadBack) {
-  for (const char* file : {"docs/results/h100-paper-v4/paper-result.json", "docs/results/h100-paper/paper-result.json",
-                           "docs/results/cpu-quick-paper/paper-result.json",
+  for (const char* file : {"tests/data/paper/h100-result.json", "docs/results/paper-2core/paper-result.json",
                            "tests/data/paper/sample-result.json"}) {
     std::ifstream in(std::string(SKINTUNE_SOURCE_DIR) + "/" + file);
     ASSERT_TRUE(in) << file;

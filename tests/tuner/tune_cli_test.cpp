@@ -227,7 +227,7 @@ INSTANTIATE_TEST_SUITE_P(Faults, TuneCliFault,
                                                                       std::end(kInjectedFaultKinds))),
                          [](const auto& test) { return test.param; });
 
-// Issue 11, item 8: on llvmpipe a spinning GLSL kernel is cut off after 65535
+// On llvmpipe a spinning GLSL kernel is cut off after 65535
 // loop iterations per invocation (Mesa's loop limiter), so a plain injected
 // hang finished in about 0.6 s per run and was recorded ok. The injected hang
 // must outlast any limit there too: recorded timeout, never a winner.
@@ -253,7 +253,7 @@ TEST(TuneCli, InjectedHangOnGlslComputeIsRecordedTimeout) {
   std::cout << "[ hang     ] " << Name(hung.status) << ": " << hung.detail << "\n";
   // Alone on a GPU (and on llvmpipe) the hang runs until the worker's time
   // limit. Where other work shares the GPU, NVIDIA's driver resets the hung
-  // context within 5-6 s (the H200 machine, session 33: "GL lost: finishing
+  // context within 5-6 s (the H200 machine, 2026-11-27: "GL lost: finishing
   // <key>: the GL context was lost (GL_CONTEXT_LOST)", twice): the worker
   // reports the device lost, and the good variant after it runs in a fresh
   // worker (before, it was recorded verify_failed: its outputs never written).
@@ -373,7 +373,7 @@ TEST(TuneCli, BadLanguageAndDeviceAreOneLine) {
   EXPECT_TRUE(device.report_untouched);
 }
 
-// ------------------------------------------------------------------ precision (issue 14)
+// ------------------------------------------------------------------ precision (docs/TUNING.md)
 
 // One OpenCL variant per weight format of `weights` on `dataset` (a key or a glTF path).
 nlohmann::json WeightConfig(const std::vector<std::string>& weights, const std::string& dataset, int influences) {

@@ -71,7 +71,7 @@ std::string ReadAll(const fs::path& p) {
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
-// Issue 11, item 2: a device (its timer, its driver) that reports an
+// docs/INPUTS.md "Measurements: one rule for every time": a device (its timer, its driver) that reports an
 // impossible time fails that variant, never the run, and never ranks.
 TEST(IsolatedBackend, AnImpossibleTimeFromTheWorkerIsLaunchFailedAndTheWorkerStays) {
   const fs::path dir = Scratch();

@@ -573,9 +573,9 @@ DeviceApi::PinnedRead GlApi::ReadPinnedChunks(const DeviceBuffer& buffer, std::s
 }
 
 // A fence waited for with glClientWaitSync, not glFinish: the same
-// completion of everything queued, and on NVIDIA sooner (session 29 call H,
-// SetPalette + Skin + Finish every frame: 85.2 us with glFinish, 67.7 with the
-// fence). Without a fence object, glFinish.
+// completion of everything queued, and on NVIDIA sooner (H100 machine,
+// 2026-11-26, SetPalette + Skin + Finish every frame: 85.2 us with glFinish,
+// 67.7 with the fence). Without a fence object, glFinish.
 void GlApi::Finish() {
   const GLsync sync = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
   if (!sync) {

@@ -161,8 +161,8 @@ class OpenClApi final : public DeviceApi {
   Context context;
   // The frames' queue, without profiling: on NVIDIA a launch that returns an
   // event costs ~10.5 us of host time on a profiling queue against ~4.9 on
-  // one without (`skintune_bench_opencl_calls`, docs/PERFORMANCE.md session
-  // 32), and the Skinner's last launch of a frame returns its ring fence.
+  // one without (`skintune_bench_opencl_calls` on the H100
+  // machine, 2026-11-27), and the Skinner's last launch of a frame returns its ring fence.
   Queue queue;
   Queue lanes[2];  // Time's two queues and Run's (made on first use, profiling)
 
@@ -700,7 +700,8 @@ std::vector<std::vector<double>> OpenClApi::TimeOnLanes(const FrameRun& run) {
       }
       // Submitted now, so neither queue waits for the host to flush it. (On
       // the H100 this did not remove NVIDIA's OpenCL's ~7 us per frame with
-      // two queues at 400k-b4: docs/PERFORMANCE.md "Timing version 2".)
+      // two queues at 400k-b4, 2026-11-24; it was the event on every launch,
+      // docs/PERFORMANCE.md "Lessons that still hold".)
       Check(clFlush(lane[l]), "launch", "clFlush while timing " + run.key);
     }
   }

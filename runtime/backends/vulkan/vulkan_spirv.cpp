@@ -1,64 +1,23 @@
-// GLSL to SPIR-V with glslang's C interface (vulkan_spirv.h).
+// GLSL to SPIR-V (vulkan_spirv.h): glslang in libskintune_glslang.so
+// (glslang_compile.h), its failures as skintune's build errors.
 #include "runtime/backends/vulkan/vulkan_spirv.h"
 
-#include <glslang/Include/glslang_c_interface.h>
-#include <glslang/Public/resource_limits_c.h>
-
-#include <mutex>
-
 #include "generator/template_includes.h"
+#include "runtime/backends/vulkan/glslang_compile.h"
 #include "runtime/backends/vulkan/vulkan_loader.h"
 #include "runtime/output_check.h"
 
 namespace skintune::internal::vk {
 
 std::vector<std::uint32_t> CompileSpirv(const std::string& text, const std::string& what) {
-  static std::once_flag initialised;
-  std::call_once(initialised, [] { glslang_initialize_process(); });  // once per process, never finalised
-  glslang_input_t input{};
-  input.language = GLSLANG_SOURCE_GLSL;
-  input.stage = GLSLANG_STAGE_COMPUTE;
-  input.client = GLSLANG_CLIENT_VULKAN;
-  input.client_version = GLSLANG_TARGET_VULKAN_1_1;
-  input.target_language = GLSLANG_TARGET_SPV;
-  input.target_language_version = GLSLANG_TARGET_SPV_1_3;
-  input.code = text.c_str();
-  input.default_version = 450;
-  input.default_profile = GLSLANG_NO_PROFILE;
-  input.messages = static_cast<glslang_messages_t>(GLSLANG_MSG_SPV_RULES_BIT | GLSLANG_MSG_VULKAN_RULES_BIT);
-  input.resource = glslang_default_resource();
-
-  struct Owned {
-    glslang_shader_t* shader = nullptr;
-    glslang_program_t* program = nullptr;
-    ~Owned() {
-      if (program) glslang_program_delete(program);
-      if (shader) glslang_shader_delete(shader);
-    }
-  } o;
-  o.shader = glslang_shader_create(&input);
-  if (!o.shader) Fail("build", what + ": glslang could not start");
-  const auto log_of = [&] {
-    return std::string(glslang_shader_get_info_log(o.shader)) + glslang_shader_get_info_debug_log(o.shader);
-  };
-  if (!glslang_shader_preprocess(o.shader, &input) || !glslang_shader_parse(o.shader, &input))
-    Fail("build", what + " failed to compile (glslang)" + GlslSourceStrings(text) + "; log:" + FirstLines(log_of(), 20));
-  o.program = glslang_program_create();
-  glslang_program_add_shader(o.program, o.shader);
-  if (!glslang_program_link(o.program, GLSLANG_MSG_SPV_RULES_BIT | GLSLANG_MSG_VULKAN_RULES_BIT))
-    Fail("build", what + " failed to link (glslang); log:" +
-                      FirstLines(std::string(glslang_program_get_info_log(o.program)), 20));
-  glslang_spv_options_t options{};
-  options.disable_optimizer = false;  // glslang's SPIR-V optimiser (SPIRV-Tools) on
-  options.validate = true;
-  glslang_program_SPIRV_generate_with_options(o.program, GLSLANG_STAGE_COMPUTE, &options);
-  if (const char* messages = glslang_program_SPIRV_get_messages(o.program); messages && *messages)
-    Fail("build", what + ": SPIR-V generation: " + FirstLines(messages, 20));
-  const std::size_t words = glslang_program_SPIRV_get_size(o.program);
-  std::vector<std::uint32_t> spirv(words);
-  glslang_program_SPIRV_get(o.program, spirv.data());
-  if (spirv.empty()) Fail("build", what + ": glslang produced no SPIR-V");
-  return spirv;
+  GlslangResult r = CompileWithGlslang(text);
+  if (r.failed.empty()) return std::move(r.spirv);
+  if (r.failed == "start") Fail("build", what + ": glslang could not start");
+  if (r.failed == "compile")
+    Fail("build", what + " failed to compile (glslang)" + GlslSourceStrings(text) + "; log:" + FirstLines(r.log, 20));
+  if (r.failed == "link") Fail("build", what + " failed to link (glslang); log:" + FirstLines(r.log, 20));
+  if (r.failed == "generate") Fail("build", what + ": SPIR-V generation: " + FirstLines(r.log, 20));
+  Fail("build", what + ": glslang produced no SPIR-V");
 }
 
 }  // namespace skintune::internal::vk

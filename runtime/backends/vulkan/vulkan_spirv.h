@@ -1,7 +1,7 @@
 // skintune (internal): GLSL compute shaders to SPIR-V for Vulkan, with
 // glslang (Debian's glslang-dev: its C interface, its default resource
-// limits and SPIRV-Tools' optimiser, static libraries kept inside
-// libskintune.so). Not shaderc: Debian's libshaderc.so.1 is linked without
+// limits and SPIRV-Tools' optimiser, static libraries held once in
+// libskintune_glslang.so: glslang_compile.h). Not shaderc: Debian's libshaderc.so.1 is linked without
 // its glslang dependency (undefined glslang symbols that the program would
 // have to export). Used by the Vulkan runner (vulkan_runner.cpp) and by
 // `skintune emit`, which writes the SPIR-V beside the GLSL it came from.

@@ -411,7 +411,7 @@ struct SkinnerOptions {
   // the host run further ahead of the device where its frames come unevenly;
   // with DeviceOptions::submit_thread on the H200 machine, 64 x 25k-b4 ran
   // at 0.76-0.78 of the Skin-only rate with 3 buffers and 0.86-0.87 with 6
-  // (session 30; docs/RUNTIME.md "The frame loop").
+  // (measured 2026-11-26; docs/RUNTIME.md "The frame loop").
   int palette_buffers = kDefaultPaletteBuffers;
   // How many threads may pack a palette of 1024 matrices or more in
   // SetPalette: the calling thread and helpers of skintune's own, shared by
