@@ -280,6 +280,16 @@ class VulkanApi final : public DeviceApi {
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override;
+  // Every submission (and the caller's, after SkinIntoVulkan) completes
+  // before its buffers and descriptor sets are destroyed: lavapipe frees
+  // them under a queue thread still running the frame otherwise.
+  bool ReadyToRelease() override {
+    try {
+      Finish();
+    } catch (const Error&) {  // a lost device: nothing runs any more
+    }
+    return true;
+  }
 
  private:
   VkShaderModule ModuleFor(const KernelSource& source);
