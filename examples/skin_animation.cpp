@@ -41,8 +41,14 @@ int main(int argc, char** argv) {
   bool readback = false;
   SkinnerOptions options;
   CLI::App app{"skin_animation: play models' animations on one device with the tuned kernel"};
-  app.add_option("models", paths, "glTF files (.gltf, .glb) or synthetic dataset keys (1600k-b4)")->required();
-  app.add_option("--db", db_path, "winners database (skintune tune's winners-db.json)");
+  // '' (an unset variable in a script) names no file: an error, never "no database".
+  const CLI::Validator non_empty(
+      [](std::string& value) { return value.empty() ? std::string("an empty path names no file") : std::string(); },
+      "PATH");
+  app.add_option("models", paths, "glTF files (.gltf, .glb) or synthetic dataset keys (1600k-b4)")
+      ->required()
+      ->check(non_empty);
+  app.add_option("--db", db_path, "winners database (skintune tune's winners-db.json)")->check(non_empty);
   app.add_option("--device", pattern, "device pattern as Device::Open takes it (cuda:, gl:, opencl:NVIDIA, pocl)");
   // CLI::Range lets NaN through (every comparison with it is false).
   const CLI::Validator seconds_range(

@@ -11,6 +11,7 @@
 #include <iterator>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace skintune::internal {
 
@@ -27,6 +28,14 @@ std::string OneOf(const Items& items, Name&& name) {
     ++i;
   }
   return out;
+}
+
+// `text` as an error message quotes it: whole up to `max` characters, else
+// its start, "..." and how long it was, so a 100 KB bad string in an input
+// gives a line a terminal can show.
+inline std::string Excerpt(std::string_view text, std::size_t max = 120) {
+  if (text.size() <= max) return std::string(text);
+  return std::string(text.substr(0, max)) + "... (" + std::to_string(text.size()) + " characters)";
 }
 
 class Error : public std::runtime_error {

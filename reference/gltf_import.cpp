@@ -25,6 +25,7 @@
 
 #include "reference/error.h"
 #include "reference/gltf_accessor.h"
+#include "reference/input_file.h"
 
 namespace skintune::internal {
 namespace {
@@ -50,14 +51,7 @@ std::string Tidy(std::string message) {
 
 // ---------------------------------------------------------------- file loading
 
-std::vector<unsigned char> ReadFileBytes(const std::string& path) {
-  std::error_code ec;
-  std::ifstream in(path, std::ios::binary);
-  if (!std::filesystem::is_regular_file(path, ec) || !in) throw Error(path + ": cannot open file");
-  std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw Error(path + ": cannot read file");
-  return bytes;
-}
+std::vector<unsigned char> ReadFileBytes(const std::string& path) { return ReadInputBytes(path, kGltfInput); }
 
 bool LooksLikeGltfJson(const std::vector<unsigned char>& bytes) {
   const nlohmann::json j = nlohmann::json::parse(bytes.begin(), bytes.end(), nullptr, false);
@@ -84,18 +78,13 @@ bool ReadRegularFile(std::vector<unsigned char>* out, std::string* err, const st
     if (err) *err += what + path + "\n";
     return false;
   };
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) return fail("File open error : ");
-  const std::uintmax_t size = std::filesystem::file_size(path, ec);
-  std::ifstream in(path, std::ios::binary);
-  if (ec || !in) return fail("File open error : ");
-  if (size == 0) return fail("File is empty : ");
-  if (size > static_cast<std::uintmax_t>(std::numeric_limits<std::streamsize>::max()))
-    return fail("File too large : ");
-  out->resize(static_cast<size_t>(size));
-  in.read(reinterpret_cast<char*>(out->data()), static_cast<std::streamsize>(size));
-  if (in.gcount() != static_cast<std::streamsize>(size)) return fail("File read error : ");
-  return true;
+  try {
+    *out = ReadInputBytes(path, kGltfInput);
+  } catch (const Error& e) {
+    if (err) *err += std::string(e.what()) + "\n";
+    return false;
+  }
+  return out->empty() ? fail("File is empty : ") : true;
 }
 
 // tinygltf recurses once per nesting level of `extras` / `extensions` values;

@@ -13,6 +13,8 @@
 #include <unistd.h>
 
 #include "reference/error.h"
+#include "reference/input_file.h"
+#include "reference/memory_limit.h"
 #include "reference/skinning.h"
 
 namespace skintune::internal {
@@ -160,11 +162,12 @@ void WriteSkinnedVertices(const std::string& path, std::span<const glm::vec3> po
 }
 
 SkinnedVertices ReadSkinnedVertices(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open file");
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  const std::string data = buffer.str();
+  const std::uint64_t size = CheckInputFile(path, kSkinnedVerticesInput);
+  const MemoryAvailable available = HostMemoryAvailable();
+  if (available.bytes > 0 && size > available.bytes)
+    throw Error(path + ": is " + FormatBytes(size) + " but " + FormatBytes(available.bytes) +
+                " of memory are available (" + available.from + ")");
+  const std::string data = ReadInputFile(path, kSkinnedVerticesInput);
   return IsObj(path) ? DecodeObj(path, data) : DecodeBinary(path, data);
 }
 

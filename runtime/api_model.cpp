@@ -1,12 +1,11 @@
 // The public Model (skintune/skintune.h): a glTF model or synthetic dataset
 // with its skeleton and animations, over reference/ (import, palettes, gold).
-#include <cerrno>
 #include <cmath>
 #include <cstring>
-#include <fstream>
 
 #include "reference/asset.h"
 #include "reference/gltf_import.h"
+#include "reference/input_file.h"
 #include "reference/skinning.h"
 #include "reference/synthetic.h"
 #include "runtime/api_errors.h"
@@ -65,9 +64,10 @@ std::vector<glm::mat4> Matrices(const float* matrices, std::size_t float_count, 
 namespace skintune {
 
 Result<Model> Model::Load(const std::string& path) {
-  {
-    std::ifstream probe(path, std::ios::binary);
-    if (!probe) return Status(ErrorCode::kIoError, path + ": cannot read: " + std::strerror(errno));
+  try {
+    CheckInputFile(path, kGltfInput);  // a regular file (a FIFO would block the import), not too large
+  } catch (const Error& e) {
+    return Status(ErrorCode::kIoError, e.what());
   }
   return GuardedResult<Model>(ErrorCode::kInvalidArgument, [&] {
     GltfImportResult imported = ImportGltf(path);

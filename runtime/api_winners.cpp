@@ -1,12 +1,8 @@
 // The public winners database and lookup (skintune/skintune.h): WinnersDb,
 // Selection::Find, and the names of backends, match levels and scene shapes.
-#include <cerrno>
-#include <cstring>
-#include <fstream>
-#include <sstream>
-
 #include <nlohmann/json.hpp>
 
+#include "reference/input_file.h"
 #include "runtime/api_errors.h"
 #include "runtime/backend_table.h"
 #include "runtime/selection.h"
@@ -59,25 +55,20 @@ WinnersDb WinnersDb::Empty() { return WinnersDb(); }
 
 Result<WinnersDb> WinnersDb::Parse(const std::string& json_text, const std::string& name_for_errors) {
   return GuardedResult<WinnersDb>(ErrorCode::kInvalidArgument, [&] {
-    nlohmann::json json;
-    try {
-      json = nlohmann::json::parse(json_text);
-    } catch (const nlohmann::json::parse_error& e) {
-      FailWith(ErrorCode::kInvalidArgument, name_for_errors + ": not JSON: " + e.what());
-    }
     WinnersDb db;
-    db.impl_->entries = WinnersDbFromJson(json, name_for_errors);
+    db.impl_->entries = WinnersDbFromJson(ParseJson(json_text, name_for_errors), name_for_errors);
     return db;
   });
 }
 
 Result<WinnersDb> WinnersDb::Load(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status(ErrorCode::kIoError, "cannot read winners database '" + path + "': " + std::strerror(errno));
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return Status(ErrorCode::kIoError, "cannot read winners database '" + path + "': read failed");
-  return Parse(text.str(), path);
+  std::string text;
+  try {
+    text = ReadInputFile(path, kJsonInput);  // a regular file, not too large: not a FIFO, /dev/zero or a folder
+  } catch (const Error& e) {
+    return Status(ErrorCode::kIoError, std::string("winners database ") + e.what());
+  }
+  return Parse(text, path);
 }
 
 Result<Selection> Selection::Find(const WinnersDb& db, const DeviceInfo& device, int influences,

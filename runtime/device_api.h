@@ -182,7 +182,11 @@ class DeviceApi {
   // Makes the API's context current on the calling thread (CUDA, GL); throws
   // Error("<name> launch|setup: ...") when it cannot be.
   virtual void MakeCurrent() {}
-  // Before the driver releases a set's objects: makes the context current.
+  // Before the driver releases a set's objects: makes the context current
+  // and waits until every command queued on the device (uploads and
+  // launches) has completed, so that nothing the driver still works on
+  // (PoCL compiles a launch's kernel on a thread of its own) outlives the
+  // objects, or the process when the program exits next. Never throws.
   // False when it cannot (then every object is Forgotten, not released).
   virtual bool ReadyToRelease() { return true; }
 

@@ -12,6 +12,8 @@
 #include <openssl/evp.h>
 
 #include "generator/emit.h"
+#include "reference/error.h"
+#include "reference/input_file.h"
 
 namespace skintune::internal {
 
@@ -77,31 +79,51 @@ std::string ProgramCache::PathOf(const std::string& backend, const std::string& 
   return dir_ + "/" + backend + "-" + SourceHash(key) + ".bin";
 }
 
-std::optional<std::vector<std::uint8_t>> ProgramCache::Load(const std::string& backend, const std::string& key) const {
-  if (!enabled()) return std::nullopt;
-  std::ifstream in(PathOf(backend, key), std::ios::binary);
-  if (!in) return std::nullopt;
-  std::string magic, stored_key, sizes;
-  if (!std::getline(in, magic) || magic != kMagic) return std::nullopt;
-  if (!std::getline(in, stored_key) || stored_key != Escaped(key)) return std::nullopt;
-  if (!std::getline(in, sizes)) return std::nullopt;
-  std::istringstream fields(sizes);
+std::optional<std::vector<std::uint8_t>> DecodeProgramCacheFile(std::string_view bytes, const std::string& key) {
+  std::string_view rest = bytes;
+  auto line = [&rest]() -> std::optional<std::string_view> {
+    const std::size_t end = rest.find('\n');
+    if (end == std::string_view::npos) return std::nullopt;
+    const std::string_view out = rest.substr(0, end);
+    rest.remove_prefix(end + 1);
+    return out;
+  };
+  const std::optional<std::string_view> magic = line(), stored_key = line(), sizes = line();
+  if (!magic || *magic != kMagic || !stored_key || *stored_key != Escaped(key) || !sizes) return std::nullopt;
+  std::istringstream fields{std::string(*sizes)};
   std::size_t size = 0;
   std::string hash;
-  if (!(fields >> size >> hash) || size == 0 || size > (std::size_t{1} << 30)) return std::nullopt;
-  std::vector<std::uint8_t> payload(size);
-  if (!in.read(reinterpret_cast<char*>(payload.data()), static_cast<std::streamsize>(size))) return std::nullopt;
-  if (in.peek() != std::char_traits<char>::eof()) return std::nullopt;  // trailing bytes
+  if (!(fields >> size >> hash) || size == 0 || size != rest.size()) return std::nullopt;  // truncated or trailing bytes
+  std::vector<std::uint8_t> payload(rest.begin(), rest.end());
   const std::string actual = PayloadHash(payload);
   if (actual.empty() || actual != hash) return std::nullopt;
   return payload;
 }
 
+std::string EncodeProgramCacheFile(const std::string& key, const std::vector<std::uint8_t>& payload) {
+  const std::string hash = PayloadHash(payload);
+  if (payload.empty() || hash.empty()) return "";
+  std::string out = std::string(kMagic) + '\n' + Escaped(key) + '\n' + std::to_string(payload.size()) + ' ' + hash + '\n';
+  out.append(payload.begin(), payload.end());
+  return out;
+}
+
+std::optional<std::vector<std::uint8_t>> ProgramCache::Load(const std::string& backend, const std::string& key) const {
+  if (!enabled()) return std::nullopt;
+  std::string bytes;
+  try {
+    bytes = ReadInputFile(PathOf(backend, key), kProgramCacheInput);  // a FIFO or a folder in its place: absent
+  } catch (const Error&) {
+    return std::nullopt;
+  }
+  return DecodeProgramCacheFile(bytes, key);
+}
+
 void ProgramCache::Store(const std::string& backend, const std::string& key,
                          const std::vector<std::uint8_t>& payload) const {
-  if (!enabled() || payload.empty()) return;
-  const std::string hash = PayloadHash(payload);
-  if (hash.empty()) return;
+  if (!enabled()) return;
+  const std::string file = EncodeProgramCacheFile(key, payload);
+  if (file.empty()) return;
   static std::atomic<unsigned> counter{0};
   std::error_code error;
   std::filesystem::create_directories(dir_, error);
@@ -111,8 +133,7 @@ void ProgramCache::Store(const std::string& backend, const std::string& key,
   {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
     if (!out) return;
-    out << kMagic << '\n' << Escaped(key) << '\n' << payload.size() << ' ' << hash << '\n';
-    out.write(reinterpret_cast<const char*>(payload.data()), static_cast<std::streamsize>(payload.size()));
+    out.write(file.data(), static_cast<std::streamsize>(file.size()));
     out.flush();
     if (!out) {
       out.close();

@@ -35,6 +35,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace skintune::internal {
@@ -73,6 +74,14 @@ class ProgramCache {
   std::string dir_;
   ProgramCacheCounters counters_;
 };
+
+// A cache file's bytes for `key` (the layout above); "" when there is
+// nothing to store (an empty payload, libcrypto failing).
+std::string EncodeProgramCacheFile(const std::string& key, const std::vector<std::uint8_t>& payload);
+// The payload a cache file's `bytes` hold for `key`, or nothing when they do
+// not follow the layout exactly (Load reads the file, at most
+// kProgramCacheInput, reference/input_file.h, then this).
+std::optional<std::vector<std::uint8_t>> DecodeProgramCacheFile(std::string_view bytes, const std::string& key);
 
 // The key text of a program: one line per field, in this order.
 std::string ProgramKey(const std::string& backend, const std::string& device_id, const std::string& source_hash,

@@ -307,6 +307,14 @@ namespace skintune {
 
 using namespace internal;  // the public calls are written over the library's internals
 
+Skinner::Impl::~Impl() {
+  if (!skinned || !backend) return;
+  try {
+    backend->Finish();
+  } catch (const std::exception&) {  // ApiError or Error: nothing left to wait for
+  }
+}
+
 Skinner::Skinner() = default;
 Skinner::~Skinner() = default;
 Skinner::Skinner(Skinner&&) noexcept = default;

@@ -57,12 +57,14 @@ int RunDbMerge(const DbOptions& o) {
 
 // A report (a JSON object of kind skintune-report) or a measurement cache (JSON lines).
 ReplayEvaluator LoadRecorded(const DbOptions& o) {
-  std::ifstream in(o.recorded, std::ios::binary);
-  if (!in) throw Error(o.recorded + ": cannot open file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  const nlohmann::json whole = nlohmann::json::parse(text.str(), nullptr, /*allow_exceptions=*/false);
-  if (whole.is_object() && whole.value("kind", "") == "skintune-report") {
+  const std::string text = ReadInputFile(o.recorded, kMeasurementCacheInput);
+  // A report is one JSON document of at most kJsonInput; a cache's lines are not one document.
+  const nlohmann::json whole = text.size() <= kJsonInput.bytes
+                                   ? nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false)
+                                   : nlohmann::json();
+  // A measurement line has no "kind": an object with one is a report, and
+  // ReportFromJson names what is wrong with it ("kind": 42 included).
+  if (whole.is_object() && whole.contains("kind")) {
     return ReplayEvaluator::FromReport(ReportFromJson(whole, o.recorded), o.device_id, o.dataset, o.recorded);
   }
   return ReplayEvaluator::FromCacheFile(o.recorded, o.device_id, o.dataset);
@@ -90,12 +92,17 @@ Command RegisterDb(CLI::App& app) {
       "merge", "merge reports and/or databases into one database (per device+driver, language, influences and "
                "vertex bucket the newest report wins)");
   merge->add_option("inputs", o->inputs, "tuning reports (skintune-report) or winners databases (skintune-winners-db)")
-      ->required();
-  merge->add_option("-o,--output", o->output, "the database to write (atomically; untouched on error)")->required();
+      ->required()
+      ->check(NonEmptyPath());
+  merge->add_option("-o,--output", o->output, "the database to write (atomically; untouched on error)")
+      ->required()
+      ->check(NonEmptyPath());
   o->merge = merge;
   auto* replay = sub->add_subcommand(
       "replay", "compare the search strategies on recorded measurements (a measurement cache or a report), no device");
-  replay->add_option("recorded", o->recorded, "measurement cache (JSON lines) or tuning report")->required();
+  replay->add_option("recorded", o->recorded, "measurement cache (JSON lines) or tuning report")
+      ->required()
+      ->check(NonEmptyPath());
   replay->add_option("--device-id", o->device_id, "device id as recorded (\"<backend>:<platform>/<name>/<driver>\")")
       ->required();
   replay->add_option("--dataset", o->dataset, "dataset key as recorded")->required();

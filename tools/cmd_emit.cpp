@@ -277,9 +277,10 @@ Command RegisterEmit(CLI::App& app) {
                                   "variant key (see skintune variants --list and docs/VARIANTS.md)");
   auto* db = sub->add_option("--db", o->db,
                              "winners database (skintune tune / skintune db merge): emit the winners of the devices "
-                             "matching --device, and one C++17 header holding them (--header)");
+                             "matching --device, and one C++17 header holding them (--header)")
+                 ->check(NonEmptyPath());
   variant->excludes(db);
-  sub->add_option("--out", o->out, "output folder (created if missing)")->required();
+  sub->add_option("--out", o->out, "output folder (created if missing)")->required()->check(NonEmptyPath());
   sub->add_option("--joints", o->joints, "palette size the kernel is specialised for (default 77)")
       ->check(CLI::Range(1, 65536));
   auto* instances =

@@ -106,7 +106,8 @@ Command RegisterPaper(CLI::App& app, int argc, char** argv) {
       "and tuned winners on every device; write the result, an HTML report and a Markdown summary");
   sub->add_option("--out", o->out,
                   "output directory: paper-result.json, report.html, summary.md, cache.jsonl (resumable: a rerun "
-                  "reuses every measurement recorded) (default: paper)");
+                  "reuses every measurement recorded) (default: paper)")
+      ->check(NonEmptyPath());
   sub->add_flag("--quick", o->quick,
                 "the reduced set: 25k and 100k vertices x 1..4 influences, a 16-evaluation search, fewer repetitions");
   sub->add_option("--dataset", o->datasets, "only these data-set keys (default: the paper's 16, or --quick's 8)");

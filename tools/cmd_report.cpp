@@ -77,9 +77,13 @@ Command RegisterReport(CLI::App& app) {
                 "against the copy bandwidth, the variant axes, the devices");
   sub->add_option("results", o->inputs,
                   "paper results (skintune-paper-result) and/or tuning reports (skintune-report)")
-      ->required();
-  sub->add_option("-o,--out", o->output, "the HTML file to write (atomically; untouched on error)")->required();
-  sub->add_option("--markdown", o->markdown, "also write a Markdown summary to FILE (- for stdout)");
+      ->required()
+      ->check(NonEmptyPath());
+  sub->add_option("-o,--out", o->output, "the HTML file to write (atomically; untouched on error)")
+      ->required()
+      ->check(NonEmptyPath());
+  sub->add_option("--markdown", o->markdown, "also write a Markdown summary to FILE (- for stdout)")
+      ->check(NonEmptyPath());
   return {sub, [o] { return RunReport(*o); }};
 }
 

@@ -151,13 +151,16 @@ Command RegisterSkin(CLI::App& app) {
       ->each([o](const std::string&) { o->time_given = true; });
   // At least one output: a usage error (exit 2) otherwise.
   auto* outputs = sub->add_option_group("outputs", "what to write or check (at least one)");
-  outputs->add_option("--out", o->out, "output file: .obj (v x y z lines) or skintune binary (docs/FORMATS.md)");
+  outputs->add_option("--out", o->out, "output file: .obj (v x y z lines) or skintune binary (docs/FORMATS.md)")
+      ->check(NonEmptyPath());
   outputs->add_option("--palette-out", o->palette_out,
-                      "also write the palette used: joints x 16 float32, column-major 4x4 (docs/FORMATS.md)");
+                      "also write the palette used: joints x 16 float32, column-major 4x4 (docs/FORMATS.md)")
+      ->check(NonEmptyPath());
   CLI::Option* check =
       outputs->add_option("--check", o->check,
                           "compare this skinned-vertex file (.obj or binary, e.g. your kernel's output) with the gold; "
-                          "exit 1 naming the worst vertex when it is off by more than --tolerance");
+                          "exit 1 naming the worst vertex when it is off by more than --tolerance")
+          ->check(NonEmptyPath());
   outputs->require_option(1, 3);
   sub->add_option("--variant", o->check_variant,
                   "with --check: quantise the weights as this variant does (e.g. unorm8) before the gold")

@@ -84,7 +84,8 @@ Command RegisterVariants(CLI::App& app) {
                   "OpenCL device whose limits apply: a case-insensitive substring of its id "
                   "'<backend>:<platform>/<name>/<driver>', vendor, type or platform short name (pocl), as every "
                   "--device");
-  sub->add_option("--config", o->config, "JSON config whose \"space\" restricts the axes (default: every value)");
+  sub->add_option("--config", o->config, "JSON config whose \"space\" restricts the axes (default: every value)")
+      ->check(NonEmptyPath());
   sub->add_option("--lang", o->langs, "restrict to these languages: " + Choices(AxisOf<&Variant::lang>()));
   AddMeshSourceOptions(*sub, o->source);
   sub->add_flag("--list", o->list, "print the key of every valid variant");

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "reference/asset.h"
+#include "reference/input_file.h"  // ParseJson, ReadJsonFile: the JSON files the commands take
 
 namespace skintune::internal::tools {
 
@@ -41,11 +42,9 @@ struct MeshSource {
   bool normals = false;   // import/generate normals
 };
 
-// JSON from `text`, or Error("<name>: not valid JSON (...)").
-nlohmann::json ParseJson(const std::string& text, const std::string& name);
-// The JSON file at `path`; Error("<path>: cannot open file" / "cannot read
-// file" / "not valid JSON (...)").
-nlohmann::json ReadJsonFile(const std::string& path);
+// Every option naming a file or folder: '' is a command-line error naming
+// the option ("--config: an empty path names no file ..."), never "not given".
+CLI::Validator NonEmptyPath();
 
 // --budget of tune and paper: a whole number 0..kMaxBudget (tuner/tune.h),
 // refused as a command-line error otherwise ("-3" is not wrapped around).

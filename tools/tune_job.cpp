@@ -143,7 +143,8 @@ TuneJobResult RunTuneJob(const TuneJobOptions& o) {
 
 void AddTuneJobOptions(CLI::App& sub, TuneJobOptions& o) {
   sub.add_option("--config", o.config,
-                 "tuning config: a JSON file (configs/*.json), or a built-in name: default, paper (default: default)");
+                 "tuning config: a JSON file (configs/*.json), or a built-in name: default, paper (default: default)")
+      ->check(NonEmptyPath());
   sub.add_option("--device", o.device,
                  "only the devices this matches: a case-insensitive substring of the id "
                  "'<backend>:<platform>/<name>/<driver>', vendor, type or platform short name (pocl), as every "
@@ -157,7 +158,8 @@ void AddTuneJobOptions(CLI::App& sub, TuneJobOptions& o) {
                                    : "report.json, report.t4.json, winners-db.json";
   sub.add_option("--out", o.out,
                  "output directory: cache.jsonl (resumable: reused by the next run), " + files +
-                     " (default: results)");
+                     " (default: results)")
+      ->check(NonEmptyPath());
   sub.add_flag("--one-device-at-a-time", o.one_device_at_a_time,
                "tune one device after another (by default devices that share no hardware, such as a CPU device "
                "and a GPU, are tuned at the same time)");

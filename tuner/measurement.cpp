@@ -14,6 +14,8 @@
 #include <nlohmann/json.hpp>
 
 #include "reference/error.h"
+#include "reference/input_file.h"
+#include "reference/memory_limit.h"
 #include "runtime/recorded_time.h"
 
 namespace skintune::internal {
@@ -262,6 +264,9 @@ MeasurementCache::MeasurementCache(const std::string& path) : path_(path) {
     struct stat info {};
     if (::fstat(fd_, &info) != 0) throw Error(path + ": cannot stat (" + SystemError() + ")");
     if (!S_ISREG(info.st_mode)) throw Error(path + ": not a regular file");
+    if (static_cast<std::uint64_t>(info.st_size) > kMeasurementCacheInput.bytes)
+      throw Error(path + ": is " + FormatBytes(static_cast<std::uint64_t>(info.st_size)) + ", more than the " +
+                  FormatBytes(kMeasurementCacheInput.bytes) + " " + kMeasurementCacheInput.what + " may have");
     // One writer at a time: a second `skintune tune` on the same cache would
     // measure the same variants twice. The lock goes with the process.
     if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {

@@ -12,6 +12,7 @@
 
 #include "generator/axes.h"
 #include "reference/error.h"
+#include "reference/input_file.h"
 
 namespace skintune::internal {
 
@@ -25,12 +26,7 @@ std::size_t VariantFieldHash::operator()(const Variant& v) const {
 }
 
 std::vector<Measurement> ReadMeasurementLines(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open file");
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  if (in.bad()) throw Error(path + ": read error");
-  const std::string text = buffer.str();
+  const std::string text = ReadInputFile(path, kMeasurementCacheInput);
   std::vector<Measurement> out;
   std::size_t line_number = 0;
   for (std::size_t begin = 0; begin < text.size();) {

@@ -11,11 +11,14 @@
 #include <vulkan/vulkan.h>
 
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
 #include "reference/gltf_import.h"
 #include "reference/skinning.h"
+#include "runtime/program_cache.h"
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"
 
@@ -301,6 +304,65 @@ TEST(VulkanDevice, OpensListsAndSkinsLikeTheGold) {
   testing::ExpectInstancesLikeTheGold(*skinner, Cesium().mesh, testing::Poses(Cesium(), 3));
   // Recording into a command buffer is Vulkan's only.
   EXPECT_EQ(skinner->SkinIntoVulkan(nullptr).code(), ErrorCode::kInvalidArgument);
+}
+
+// ---------------------------------------------------------------- program cache
+
+// The key a program-cache file was stored under (its second line, unescaped).
+std::string StoredKey(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::string magic, escaped, key;
+  std::getline(in, magic);
+  std::getline(in, escaped);
+  for (std::size_t i = 0; i < escaped.size(); ++i) {
+    if (escaped[i] == '\\' && i + 1 < escaped.size()) {
+      key += escaped[++i] == 'n' ? '\n' : escaped[i];
+    } else {
+      key += escaped[i];
+    }
+  }
+  return key;
+}
+
+// GL and OpenCL rebuild a program the driver refuses to load from the cache;
+// a damaged SPIR-V under a valid SHA-256 (a disk error before the checksum
+// was taken, another tool's bytes) failed every Skinner::Create with
+// VkResult -13 until the file was deleted.
+TEST(VulkanProgramCache, ADamagedShaderWithAValidChecksumIsRebuiltNotAnError) {
+  const Backend vulkan = Backend::kVulkan;
+  const View view(Cesium().mesh);
+  for (const char* damage : {"zeros", "body"}) {
+    SCOPED_TRACE(damage);
+    const testing::TempDir dir;
+    {
+      Result<Device> first = Device::Open("", &vulkan, testing::CacheIn(dir));
+      if (!first.ok()) GTEST_SKIP() << first.status().message();
+      ASSERT_TRUE(Skinner::Create(*first, WinnersDb::Empty(), view.mesh).ok());
+    }
+    const ProgramCache cache(dir.str());
+    ASSERT_FALSE(dir.Files().empty());
+    for (const std::filesystem::path& file : dir.Files()) {
+      const std::string key = StoredKey(file);
+      std::vector<std::uint8_t> spirv = *cache.Load("vulkan", key);
+      // "zeros": no SPIR-V at all; "body": the header (magic, version,
+      // generator, bound, schema) kept and every instruction after it garbled.
+      const std::size_t from = std::string(damage) == "zeros" ? 0 : 20;
+      for (std::size_t i = from; i < spirv.size(); ++i) spirv[i] = static_cast<std::uint8_t>(i * 37 + 11);
+      cache.Store("vulkan", key, spirv);
+      ASSERT_EQ(cache.Load("vulkan", key), spirv);  // its SHA-256 is valid
+    }
+    Result<Device> device = Device::Open("", &vulkan, testing::CacheIn(dir));
+    ASSERT_TRUE(device.ok()) << device.status().message();
+    Result<Skinner> skinner = Skinner::Create(*device, WinnersDb::Empty(), view.mesh);
+    ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+    EXPECT_EQ(device->cache_stats().disk_hits, 0);
+    ExpectSkinsLikeTheGold(*skinner, Cesium().mesh, Cesium().PaletteAt(0, 0.25));
+    Result<Device> again = Device::Open("", &vulkan, testing::CacheIn(dir));  // rewritten: a hit again
+    ASSERT_TRUE(again.ok()) << again.status().message();
+    ASSERT_TRUE(Skinner::Create(*again, WinnersDb::Empty(), view.mesh).ok());
+    EXPECT_GE(again->cache_stats().disk_hits, 1);
+    EXPECT_EQ(again->cache_stats().builds, 0);
+  }
 }
 
 }  // namespace

@@ -29,7 +29,10 @@ inline std::string ReadAll(const std::filesystem::path& p) {
 
 // `address_space_bytes` > 0: the child's RLIMIT_AS, so that a command that
 // would allocate without bound fails fast instead of exhausting the machine.
-inline CommandResult RunSkintune(const std::vector<std::string>& args, std::uint64_t address_space_bytes = 0) {
+// `timeout_s` > 0: the child is killed by SIGALRM after that long (exit code
+// 128 + 14), so a command that would block (reading a FIFO) fails the test.
+inline CommandResult RunSkintune(const std::vector<std::string>& args, std::uint64_t address_space_bytes = 0,
+                                 unsigned timeout_s = 0) {
   namespace fs = std::filesystem;
   static int counter = 0;
   const fs::path dir = fs::temp_directory_path() / ("skintune_cli_" + std::to_string(::getpid()));
@@ -47,6 +50,7 @@ inline CommandResult RunSkintune(const std::vector<std::string>& args, std::uint
       const rlimit limit{address_space_bytes, address_space_bytes};
       if (::setrlimit(RLIMIT_AS, &limit) != 0) std::_Exit(126);
     }
+    if (timeout_s > 0) ::alarm(timeout_s);  // kept across execv
     ::execv(exe.c_str(), argv.data());
     std::_Exit(127);
   }

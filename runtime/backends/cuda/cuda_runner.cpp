@@ -186,8 +186,8 @@ class CudaApi final : public DeviceApi {
   void MakeCurrent() override { Check(api->cuCtxSetCurrent(context), "launch", [] { return std::string("cuCtxSetCurrent"); }); }
   bool ReadyToRelease() override {
     api->cuCtxSetCurrent(context);  // frees the buffers and textures while their context is current
-    if (uploads_) api->cuStreamSynchronize(uploads_);  // no upload still reads a staging about to be freed
-    last_upload_ = nullptr;                            // done, and its event may go with its buffer
+    api->cuCtxSynchronize();        // no upload or launch still uses what is about to be freed
+    last_upload_ = nullptr;         // done, and its event may go with its buffer
     return true;
   }
   void Build(const KernelSource& source) override { KernelFor(source); }

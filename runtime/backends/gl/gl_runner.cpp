@@ -151,6 +151,7 @@ bool GlApi::ReadyToRelease() {
   if (!context_ || !context_->ok()) return false;
   try {
     context_->MakeCurrent();
+    glFinish();  // no draw or dispatch still runs on a driver thread when the objects (or the process) go
     return true;
   } catch (const Error&) {
     // The caller's context is gone or not current: nothing can be deleted

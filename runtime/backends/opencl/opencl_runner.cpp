@@ -202,8 +202,9 @@ class OpenClApi final : public DeviceApi {
   // A.2); the live frame's arguments are set only by the thread making it.
   bool SubmitsFromAnyThread() const override { return true; }
   std::string kernel_clock() const override { return "OpenCL profiling END stamps"; }
-  bool ReadyToRelease() override {  // no upload still reads a staging about to be released
-    if (uploads_.get()) clFinish(uploads_.get());
+  bool ReadyToRelease() override {  // no upload or launch still uses what is about to be released
+    for (const Queue* q : {&uploads_, &queue, &lanes[0], &lanes[1]})
+      if (q->get()) clFinish(q->get());
     last_upload_.reset();
     return true;
   }

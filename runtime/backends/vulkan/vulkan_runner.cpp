@@ -281,10 +281,26 @@ class VulkanApi final : public DeviceApi {
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override;
+  // Every submission (and the caller's, after SkinIntoVulkan) completes
+  // before its buffers and descriptor sets are destroyed: lavapipe frees
+  // them under a queue thread still running the frame otherwise.
+  bool ReadyToRelease() override {
+    try {
+      Finish();
+    } catch (const Error&) {  // a lost device: nothing runs any more
+    }
+    return true;
+  }
 
  private:
-  VkShaderModule ModuleFor(const KernelSource& source);
+  // The shader module of `source`: from memory, the disk cache or compiled;
+  // `from_source` skips memory and disk (a cached module the driver refused).
+  VkShaderModule ModuleFor(const KernelSource& source, bool from_source = false);
+  // SPIR-V stored for `cache_key` that looks like SPIR-V (its magic number), or none.
+  std::vector<std::uint32_t> CachedSpirv(const std::string& cache_key) const;
   const Pipeline& PipelineFor(const KernelSource& source, PaletteStorage storage);
+  // Creates p's layouts and pipeline over p.module; throws build errors.
+  void CreatePipeline(Pipeline& p, const KernelSource& source, PaletteStorage storage);
   void DestroyPipeline(Pipeline& p);
   VkCommandBuffer Begin();
   // Ends and submits `cb`; waits when `wait`, else keeps it (and `keep`) in flight.
@@ -313,6 +329,7 @@ class VulkanApi final : public DeviceApi {
   std::unique_ptr<Context> c_;
   VkCommandPool pool_ = VK_NULL_HANDLE;
   std::map<std::string, VkShaderModule> modules_;  // by source hash
+  std::set<std::string> modules_from_disk_;        // those loaded from the disk cache
   std::map<std::string, Pipeline> pipelines_;      // by source hash and palette storage
   std::vector<Submission> in_flight_;  // oldest first
   std::vector<VkCommandBuffer> spare_cbs_;  // retired, for reuse
@@ -324,36 +341,52 @@ class VulkanApi final : public DeviceApi {
 
 // ---------------------------------------------------------------- programs
 
-VkShaderModule VulkanApi::ModuleFor(const KernelSource& source) {
+std::vector<std::uint32_t> VulkanApi::CachedSpirv(const std::string& cache_key) const {
+  constexpr std::uint32_t kSpirvMagic = 0x07230203;
+  const auto payload = cache_->Load("vulkan", cache_key);
+  std::vector<std::uint32_t> words;
+  if (!payload || payload->size() % 4 != 0 || payload->size() < 20) return words;  // 5 header words at least
+  words.resize(payload->size() / 4);
+  std::memcpy(words.data(), payload->data(), payload->size());
+  if (words[0] != kSpirvMagic) words.clear();
+  return words;
+}
+
+VkShaderModule VulkanApi::ModuleFor(const KernelSource& source, bool from_source) {
   if (!IsGlslText(source.lang) || source.lang == Lang::kGlslVertex)
     Fail("build", std::string("kernel language is ") + Name(source.lang) + ", not vulkan");
   const std::string key = HashOf(source);
   if (auto found = modules_.find(key); found != modules_.end()) {
-    if (cache_) ++cache_->counters().memory_hits;
-    return found->second;
+    if (!from_source) {
+      if (cache_) ++cache_->counters().memory_hits;
+      return found->second;
+    }
+    c_->fn.vkDestroyShaderModule(c_->device, found->second, nullptr);
+    modules_.erase(found);
+    if (modules_from_disk_.erase(key) > 0 && cache_) --cache_->counters().disk_hits;  // no hit after all
   }
   const std::string what = "kernel " + key + " (" + Headline(source.text) + ") on " + c_->info.name;
   const std::string cache_key = cache_ ? ProgramKey("vulkan", cache_device_id_, key, "shaderc vulkan1.1 -O") : "";
-  std::vector<std::uint32_t> words;
-  if (cache_) {
-    if (const auto payload = cache_->Load("vulkan", cache_key); payload && payload->size() % 4 == 0 && !payload->empty()) {
-      words.resize(payload->size() / 4);
-      std::memcpy(words.data(), payload->data(), payload->size());
-      ++cache_->counters().disk_hits;
-    }
-  }
-  if (words.empty()) {
-    words = CompileSpirv(source.text, what);
-    if (cache_) {
-      ++cache_->counters().builds;
-      const auto* bytes = reinterpret_cast<const std::uint8_t*>(words.data());
-      cache_->Store("vulkan", cache_key, std::vector<std::uint8_t>(bytes, bytes + words.size() * 4));
-    }
-  }
   VkShaderModuleCreateInfo info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+  VkShaderModule module = VK_NULL_HANDLE;
+  if (cache_ && !from_source) {
+    const std::vector<std::uint32_t> words = CachedSpirv(cache_key);
+    info.codeSize = words.size() * 4;
+    info.pCode = words.data();
+    if (!words.empty() && c_->fn.vkCreateShaderModule(c_->device, &info, nullptr, &module) == VK_SUCCESS) {
+      ++cache_->counters().disk_hits;
+      modules_from_disk_.insert(key);
+      return modules_.emplace(key, module).first->second;
+    }
+  }
+  const std::vector<std::uint32_t> words = CompileSpirv(source.text, what);
+  if (cache_) {
+    ++cache_->counters().builds;
+    const auto* bytes = reinterpret_cast<const std::uint8_t*>(words.data());
+    cache_->Store("vulkan", cache_key, std::vector<std::uint8_t>(bytes, bytes + words.size() * 4));
+  }
   info.codeSize = words.size() * 4;
   info.pCode = words.data();
-  VkShaderModule module = VK_NULL_HANDLE;
   Check(c_->fn.vkCreateShaderModule(c_->device, &info, nullptr, &module), "build", "vkCreateShaderModule " + what);
   return modules_.emplace(key, module).first->second;
 }
@@ -366,6 +399,21 @@ const Pipeline& VulkanApi::PipelineFor(const KernelSource& source, PaletteStorag
   }
   Pipeline p;
   p.module = ModuleFor(source);
+  try {
+    CreatePipeline(p, source, storage);
+  } catch (const Error&) {
+    // A module from the disk cache whose checksum holds may still be damaged
+    // SPIR-V (written so, or by another tool): rebuilt from source, as GL and
+    // OpenCL rebuild a binary their driver refuses, and stored over the file.
+    if (!modules_from_disk_.count(HashOf(source))) throw;
+    p = Pipeline{};
+    p.module = ModuleFor(source, true);
+    CreatePipeline(p, source, storage);
+  }
+  return pipelines_.emplace(key, p).first->second;
+}
+
+void VulkanApi::CreatePipeline(Pipeline& p, const KernelSource& source, PaletteStorage storage) {
   std::vector<VkDescriptorSetLayoutBinding> bindings;
   for (const KernelArgument& a : source.arguments) {
     if (a.kind == ArgumentKind::kScalar) continue;
@@ -397,10 +445,11 @@ const Pipeline& VulkanApi::PipelineFor(const KernelSource& source, PaletteStorag
     Check(c_->fn.vkCreateComputePipelines(c_->device, VK_NULL_HANDLE, 1, &info, nullptr, &p.pipeline), "build",
           "vkCreateComputePipelines " + what);
   } catch (...) {
+    const VkShaderModule module = p.module;  // the module's owner is modules_
     DestroyPipeline(p);
+    p.module = module;
     throw;
   }
-  return pipelines_.emplace(key, p).first->second;
 }
 
 void VulkanApi::DestroyPipeline(Pipeline& p) {

@@ -480,6 +480,9 @@ class Skinner {
                                      std::size_t mesh_count, const SkinnerOptions& options = {});
 
   Skinner();
+  // Waits until the frames it queued have completed on the device, so a
+  // program may return from main right after Skin() (a driver still
+  // compiling or running them while exit() tears down its globals crashes).
   ~Skinner();
   Skinner(Skinner&&) noexcept;
   Skinner& operator=(Skinner&&) noexcept;
