@@ -225,6 +225,7 @@ KernelSource Emit(const Variant& variant, int influences_override, int joints, c
   source.joints = joints;
   source.instanced = options.instanced;
   source.max_instances = options.instanced && InstancesBoundAtCompileTime(variant) ? options.max_instances : 0;
+  source.instances = options.instanced ? std::max(options.max_instances, 0) : 0;
   source.defines = ParameterDefines(variant, b, joints, options);  // the same parameters in every language
   source.arguments = KernelArguments(variant, b, options.instanced);
   source.launch = Geometry(variant, options.instanced);
@@ -264,6 +265,21 @@ nlohmann::json InstancingJson(const KernelSource& source) {
   };
   j["max_instances"] = source.max_instances;  // 0: any K
   return j;
+}
+
+// The image's width in texels where the joint count is known: one palette's
+// rows; instanced, per instance and for the K the kernel was emitted for.
+void ImageWidths(const KernelSource& source, int rows, nlohmann::json& image) {
+  const int one = source.joints * rows;
+  if (!source.instanced) {
+    image["width_texels"] = one;
+    return;
+  }
+  image["width_texels_per_instance"] = one;
+  if (source.instances > 0) {
+    image["instances"] = source.instances;
+    image["width_texels"] = static_cast<long long>(one) * source.instances;
+  }
 }
 
 // Vulkan's descriptor type of a buffer argument (the palette's follows its storage).
@@ -311,14 +327,30 @@ nlohmann::json WeightsJson(WeightFormat format) {
                     "quantisation error), e.g. a glTF's normalized WEIGHTS of this width"}};
 }
 
+// The `skintune emit` command that writes `variant`'s kernel exactly as
+// `source` was emitted (joint count, instancing), into the current folder,
+// and the files it writes there.
+nlohmann::json EmitCommandJson(const Variant& variant, const KernelSource& source) {
+  std::string command = "skintune emit --variant " + variant.Key();
+  if (source.joints > 0) command += " --joints " + std::to_string(source.joints);
+  // Every K >= 1 gives the same text where K is not compiled in (max_instances 0).
+  if (source.instanced) command += " --instances " + std::to_string(std::max(source.instances, 1));
+  command += " --out .";
+  const std::string base = variant.Key() + (source.instanced ? ".instanced" : "");
+  return {{"emit", command},
+          {"source_file", base + LanguageOf(variant.lang).extension},
+          {"sidecar_file", base + ".json"}};
+}
+
 // A bucketed variant: one kernel per influence count, and how to split and reorder.
-nlohmann::json BucketedJson(const Variant& variant) {
+nlohmann::json BucketedJson(const Variant& variant, const KernelSource& source) {
   nlohmann::json kernels = nlohmann::json::array();
   for (int k = 1; k <= variant.influences; ++k) {
     Variant bucket = variant;
     bucket.influences = k;
-    kernels.push_back({{"influences", k}, {"defines", "this kernel's with INFLUENCES " + std::to_string(k)},
-                       {"emit", "skintune emit --variant " + bucket.Key()}});
+    nlohmann::json kernel = {{"influences", k}, {"defines", "this kernel's with INFLUENCES " + std::to_string(k)}};
+    kernel.update(EmitCommandJson(bucket, source));
+    kernels.push_back(std::move(kernel));
   }
   return {{"bucketed", true},
           {"order", "sort the vertices by their number of non-zero weights, ascending, stable (vertices of one count "
@@ -328,6 +360,9 @@ nlohmann::json BucketedJson(const Variant& variant) {
                     "compacted to slots 0..k-1 in the mesh's slot order (weights quantised per vertex on the "
                     "compacted slots)"},
           {"kernels", kernels},
+          {"kernels_rule", "kernels[k-1] is bucket k's kernel: its `emit` command, run as written, writes "
+                           "`source_file` and `sidecar_file` into the current folder, specialised for this "
+                           "kernel's joint count" + std::string(source.instanced ? " and instancing" : "")},
           {"outputs", "launch k writes its vertices at first + v: the outputs are in packed order; vertex "
                       "order[p]'s result is at p"}};
 }
@@ -395,10 +430,10 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
                         {"channel_order", "CL_RGBA"},
                         {"channel_type", "CL_FLOAT"},
                         {"width", "joints x R texels (one float4 row per texel" +
-                                      std::string(source.instanced ? ", K palettes" : "") + ")"},
+                                      std::string(source.instanced ? "), times the K instances of the launch" : ")")},
                         {"buffer", "created with clCreateImage (CL_MEM_OBJECT_IMAGE1D_BUFFER) over the palette buffer"},
-                        {"read", "read_imagef(palette, j*R + r)"}};
-        if (source.joints > 0 && !source.instanced) arg["image"]["width_texels"] = source.joints * rows;
+                        {"read", source.instanced ? "read_imagef(palette, (i*J + j)*R + r)" : "read_imagef(palette, j*R + r)"}};
+        if (source.joints > 0) ImageWidths(source, rows, arg["image"]);
       } else if (IsGlslText(source.lang) && variant.storage == PaletteStorage::kImage) {
         arg["texture"] = {{"type", "samplerBuffer"},
                           {source.lang == Lang::kVulkan ? "view_format" : "internal_format",
@@ -446,7 +481,7 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
                   {"vectors", "positions and normals in the position format: float4 = x, y, z, w with w = 1 for "
                               "positions and 0 for normals; float3 = x, y, z packed"}};
   j["weights"] = WeightsJson(variant.weight);
-  if (variant.mixed == MixedCounts::kBucketed) j["bucketed"] = BucketedJson(variant);
+  if (variant.mixed == MixedCounts::kBucketed) j["bucketed"] = BucketedJson(variant, source);
   return j;
 }
 

@@ -79,6 +79,7 @@ struct KernelSource {
   int joints = 0;                                     // palette entries (0: not specialised)
   bool instanced = false;                             // EmitOptions::instanced
   int max_instances = 0;                              // instances the kernel can skin per launch (0: any)
+  int instances = 0;  // instanced: EmitOptions::max_instances as asked (the K of `emit --instances K`), 0 if none
   std::vector<KernelArgument> arguments;              // in kernel argument order
   LaunchGeometry launch;
   std::string generator_version = kGeneratorVersion;

@@ -320,6 +320,29 @@ TEST(EmitInstanced, SidecarSaysWhereEachInstanceReadsAndWrites) {
             "blockIdx.y");
 }
 
+// Contract item 3: the image's width in texels wherever the joint count is
+// known: one palette's rows, and for an instanced kernel per instance and
+// for the K it was emitted for.
+TEST(EmitInstanced, ImageSidecarGivesTheWidthInTexelsPerInstanceAndForItsK) {
+  const Variant v = ParseVariantKey("opencl.b2.soa.mat3x4.image");
+  auto image_of = [&v](const KernelSource& source) {
+    const nlohmann::json sidecar = SidecarJson(source, v);
+    for (const auto& a : sidecar.at("arguments"))
+      if (a.at("name") == "palette") return a.at("image");
+    return nlohmann::json();
+  };
+  EXPECT_EQ(image_of(Emit(v, 0, 77)).at("width_texels"), 231);
+  const nlohmann::json instanced = image_of(Emit(v, 0, 77, Instanced(4)));
+  EXPECT_EQ(instanced.at("width_texels_per_instance"), 231) << instanced;
+  EXPECT_EQ(instanced.at("instances"), 4) << instanced;
+  EXPECT_EQ(instanced.at("width_texels"), 924) << instanced;
+  EXPECT_EQ(instanced.at("read"), "read_imagef(palette, (i*J + j)*R + r)");
+  // Emitted for no particular K: the width per instance only.
+  const nlohmann::json any = image_of(Emit(v, 0, 77, Instanced()));
+  EXPECT_EQ(any.at("width_texels_per_instance"), 231) << any;
+  EXPECT_FALSE(any.contains("width_texels")) << any;
+}
+
 TEST(EmitInstanced, NeedsTheJointCount) {
   EXPECT_NE(ErrorOf([] { Emit(ParseVariantKey("opencl.global"), 0, 0, Instanced()); })
                 .find("an instanced kernel needs the joint count"),

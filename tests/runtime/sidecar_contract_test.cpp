@@ -4,13 +4,17 @@
 // float64 gold. Everything below reads the sidecar; nothing calls the packer
 // (Pack, PackPalette, QuantisedMesh, AosRecordLayout, SoaSplitSlotStride):
 // the quantisation rule and the buffer layouts are written here from the
-// document. Runs on the first OpenCL device (PoCL here).
+// document. Runs on the first OpenCL device (PoCL here). The bucketed kernels
+// of the last tests are what the sidecars' commands write, run as written.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -23,6 +27,7 @@
 #include "reference/skinning.h"
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "runtime/backends/opencl/opencl_runner.h"
+#include "tests/common/scratch_dir.h"
 
 namespace skintune::internal {
 namespace {
@@ -260,7 +265,8 @@ Built BuildFromSidecar(const std::string& key) {
     const json& entry = bucketed.at("kernels").at(k - 1);
     EXPECT_EQ(entry.at("influences"), k);
     const std::string emit = entry.at("emit");
-    const std::string bucket_key = emit.substr(emit.rfind(' ') + 1);
+    const std::size_t key_at = emit.find("--variant ") + 10;
+    const std::string bucket_key = emit.substr(key_at, emit.find(' ', key_at) - key_at);
     const json bucket_sidecar = SidecarJson(Emit(ParseVariantKey(bucket_key), 0, joints), ParseVariantKey(bucket_key));
     b.packed.launches.push_back(
         BuildLaunch(bucket_sidecar, mesh, bucket, static_cast<std::uint32_t>(first), k, b.skinned));
@@ -327,6 +333,166 @@ TEST(SidecarContract, BucketedAosWithNormalsUnorm16FromTheSidecarAloneMatchesThe
 
 TEST(SidecarContract, PaddedSoaF32ConstantFromTheSidecarAloneMatchesTheGold) {
   ExpectMatchesGold("opencl.b4.padded.soa.float4.i32.f32.mat4.constant.matrix.v4c.wg128.normals");
+}
+
+// ------------------------------------------------------------ following the commands
+
+namespace fs = std::filesystem;
+
+std::string ReadText(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  EXPECT_TRUE(in) << path;
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+std::string ShellQuoted(const std::string& text) {
+  std::string quoted = "'";
+  for (const char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return quoted + "'";
+}
+
+// Runs `command` as a shell would in `dir`, with the built skintune first on
+// PATH; returns the sidecar of the files it printed (the .json one).
+json RunEmitCommand(const std::string& command, const fs::path& dir) {
+  const std::string shell = "cd " + ShellQuoted(dir.string()) + " && PATH=" +
+                            ShellQuoted(std::string(SKINTUNE_BINARY_DIR) + "/bin") + ":\"$PATH\" " + command;
+  FILE* pipe = ::popen(shell.c_str(), "r");
+  EXPECT_NE(pipe, nullptr) << shell;
+  if (pipe == nullptr) return json();
+  std::string printed;
+  char buffer[512];
+  while (std::fgets(buffer, sizeof buffer, pipe)) printed += buffer;
+  EXPECT_EQ(::pclose(pipe), 0) << "'" << command << "' failed; it printed: " << printed;
+  for (std::size_t start = 0, end; (end = printed.find('\n', start)) != std::string::npos; start = end + 1) {
+    const fs::path file = fs::path(dir) / printed.substr(start, end - start);
+    if (file.extension() == ".json") return json::parse(ReadText(file));
+  }
+  ADD_FAILURE() << "'" << command << "' wrote no sidecar; it printed: " << printed;
+  return json();
+}
+
+// The kernel as a program knows it from its sidecar and its source file.
+KernelSource KernelFromSidecar(const json& sidecar, const fs::path& dir) {
+  KernelSource k;
+  k.lang = ParseVariantKey(sidecar.at("variant").get<std::string>()).lang;
+  k.entry_point = sidecar.at("entry_point");
+  k.text = ReadText(dir / sidecar.at("source_file").get<std::string>());
+  k.influences = sidecar.at("influences");
+  k.joints = sidecar.at("joints");
+  k.instanced = sidecar.contains("instancing");
+  if (k.instanced) k.max_instances = sidecar.at("instancing").at("max_instances");
+  for (const json& a : sidecar.at("arguments")) {
+    k.arguments.push_back({a.at("name"), a.at("format"), a.at("element_bytes"), a.at("stride_bytes"),
+                           a.at("indexing"),
+                           a.at("direction") == "out" ? ArgumentDirection::kOut : ArgumentDirection::kIn,
+                           a.at("kind") == "scalar"  ? ArgumentKind::kScalar
+                           : a.at("kind") == "image" ? ArgumentKind::kImage
+                                                     : ArgumentKind::kBuffer});
+  }
+  const json& launch = sidecar.at("launch");
+  k.launch.vertices_per_item = launch.at("vertices_per_item");
+  k.launch.strided = launch.at("assignment") == "strided";
+  k.launch.wg_size = launch.at("wg_size");
+  k.launch.instanced = k.instanced;
+  k.source_hash = sidecar.at("source_hash");
+  return k;
+}
+
+// CesiumMan at B = 3 with its 19 joints spread over a palette of `joints`
+// entries (joint j at 15j + 7), so a kernel sized for fewer joints reads
+// entries it does not hold.
+constexpr int kSpreadJoints = 300;
+std::uint16_t Spread(std::uint16_t joint) { return static_cast<std::uint16_t>(15 * joint + 7); }
+
+SkinnedMesh SpreadMesh() {
+  SkinnedMesh mesh = CesiumMan().asset.mesh;
+  CompactInfluences(mesh, 3);
+  for (std::uint16_t& j : mesh.joints) j = Spread(j);
+  mesh.joint_count = kSpreadJoints;
+  return mesh;
+}
+
+// Instance i's palette: CesiumMan's pose at its own time on the spread
+// joints, a scaling elsewhere (a read of a wrong entry shows).
+std::vector<glm::mat4> SpreadPalette(int instance) {
+  std::vector<glm::mat4> palette(kSpreadJoints, glm::mat4(7.0f));
+  const std::vector<glm::mat4> pose = CesiumMan().asset.PaletteAt(0, 0.2 + 0.3 * instance);
+  for (std::size_t j = 0; j < pose.size(); ++j) palette[Spread(static_cast<std::uint16_t>(j))] = pose[j];
+  return palette;
+}
+
+// Contract item 8 to the letter: `skintune emit` of a bucketed variant, then
+// each bucket's kernel from the command its sidecar gives, run as written;
+// the buffers from the bucket kernels' sidecars (BuildLaunch), K palettes one
+// after another, every instance against its own float64 gold.
+void ExpectTheSidecarsCommandsGiveTheGold(const std::string& key, int instances) {
+  SCOPED_TRACE(key + " x" + std::to_string(instances));
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  const fs::path dir = testing::ScratchDir("sidecar_commands");
+  const std::string asked = "skintune emit --variant " + key + " --joints " + std::to_string(kSpreadJoints) +
+                            (instances > 1 ? " --instances " + std::to_string(instances) : "") + " --out .";
+  const json sidecar = RunEmitCommand(asked, dir);
+  ASSERT_TRUE(sidecar.contains("bucketed")) << sidecar.dump(1);
+  const SkinnedMesh mesh = SpreadMesh();
+  const auto count_of = [&](std::uint32_t v) { return mesh.InfluencesOf(v); };
+  Built b;
+  b.skinned = mesh;
+  b.packed.variant = ParseVariantKey(key);
+  b.packed.vertex_count = mesh.vertex_count();
+  b.packed.palette_joints = kSpreadJoints;
+  b.packed.order.resize(mesh.vertex_count());
+  std::iota(b.packed.order.begin(), b.packed.order.end(), 0u);
+  std::stable_sort(b.packed.order.begin(), b.packed.order.end(),
+                   [&](std::uint32_t a, std::uint32_t c) { return count_of(a) < count_of(c); });
+  const std::vector<std::uint32_t>& order = b.packed.order;
+  for (std::size_t first = 0; first < order.size();) {
+    const int k = count_of(order[first]);
+    std::size_t end = first;
+    while (end < order.size() && count_of(order[end]) == k) ++end;
+    const json bucket = RunEmitCommand(sidecar.at("bucketed").at("kernels").at(k - 1).at("emit"), dir);
+    ASSERT_EQ(bucket.at("influences"), k);
+    const std::vector<std::uint32_t> vertices(order.begin() + static_cast<std::ptrdiff_t>(first),
+                                              order.begin() + static_cast<std::ptrdiff_t>(end));
+    b.packed.launches.push_back(BuildLaunch(bucket, mesh, vertices, static_cast<std::uint32_t>(first), k, b.skinned));
+    b.kernels.push_back(KernelFromSidecar(bucket, dir));
+    for (const json& arg : bucket.at("arguments"))
+      if (arg.at("name") == "out_positions") b.packed.output_stride_bytes = arg.at("stride_bytes");
+    first = end;
+  }
+  ASSERT_GT(b.packed.launches.size(), 1u) << "the mesh has one influence count: no buckets to follow";
+  std::vector<std::uint8_t> palettes;
+  for (int i = 0; i < instances; ++i) {
+    const std::vector<std::uint8_t> one = PaletteFromSidecar(sidecar, SpreadPalette(i));
+    palettes.insert(palettes.end(), one.begin(), one.end());
+  }
+  const RunResult result = runner->Run(b.packed, b.kernels, palettes, instances);
+  EXPECT_EQ(result.poisoned_vertices, 0u);
+  const std::size_t n = b.packed.vertex_count;
+  for (int i = 0; i < instances; ++i) {
+    std::vector<glm::vec3> out(n);
+    for (std::size_t p = 0; p < n; ++p) {
+      float xyz[3];
+      std::memcpy(xyz, result.positions.data() + (i * n + p) * b.packed.output_stride_bytes, sizeof xyz);
+      out[order[p]] = glm::vec3(xyz[0], xyz[1], xyz[2]);
+    }
+    const GoldComparison c = CompareToGold(SkinGold(b.skinned, SpreadPalette(i)).positions, out);
+    EXPECT_EQ(c.non_finite, 0u) << "instance " << i;
+    EXPECT_LT(c.max_relative, 1e-5) << "instance " << i << " vertex " << c.worst_vertex;
+  }
+}
+
+TEST(SidecarContract, BucketKernelsFromTheSidecarsCommandsMatchTheGoldAt300Joints) {
+  ExpectTheSidecarsCommandsGiveTheGold("opencl.b3.bucketed.soa.float4.u16.f32.mat4.local.matrix.v1c.wg64.nonormals",
+                                       1);
+}
+
+TEST(SidecarContract, InstancedBucketKernelsFromTheSidecarsCommandsMatchTheGoldOfEachInstance) {
+  ExpectTheSidecarsCommandsGiveTheGold("opencl.b3.bucketed.soa.float4.u16.f32.mat4.local.matrix.v1c.wg64.nonormals",
+                                       4);
+  ExpectTheSidecarsCommandsGiveTheGold("opencl.b3.bucketed.aos.float3.u16.unorm8.mat3x4.image.point.v2s.wg32.nonormals",
+                                       4);
 }
 
 }  // namespace
