@@ -426,6 +426,29 @@ std::size_t IsolatedBackend::CompileAhead(const std::vector<Variant>& variants, 
   return 0;
 }
 
+bool IsolatedBackend::Exchange(const std::string& request, double timeout_s, std::string& line, std::string& why) {
+  if (pid_ < 0) Start();
+  if (!Send(request)) {
+    DeathDetail();
+    Start();
+    if (!Send(request)) {
+      why = "worker process died: " + DeathDetail();
+      return false;
+    }
+  }
+  switch (ReadLine(timeout_s, line)) {
+    case ReadResult::kTimeout:
+      Kill();
+      why = "no result within " + Seconds(timeout_s) + " s";
+      return false;
+    case ReadResult::kEnd:
+      why = "worker process died: " + DeathDetail();
+      return false;
+    case ReadResult::kLine: break;
+  }
+  return true;
+}
+
 std::optional<std::vector<std::vector<double>>> IsolatedBackend::Race(const std::vector<Variant>& variants,
                                                                         const TuningDataset& dataset,
                                                                         const TimingOptions& options, std::string* why_not) {
@@ -436,22 +459,8 @@ std::optional<std::vector<std::vector<double>>> IsolatedBackend::Race(const std:
   if (variants.empty()) return std::vector<std::vector<double>>{};
   const std::string request =
       nlohmann::json{{"race", variants}, {"dataset", dataset.key}, {"timing", ToJson(options)}}.dump();
-  if (pid_ < 0) Start();
-  if (!Send(request)) {
-    DeathDetail();
-    Start();
-    if (!Send(request)) return fail("worker process died: " + DeathDetail());
-  }
-  std::string line;
-  const double limit = variant_timeout_s_ * static_cast<double>(variants.size());
-  switch (ReadLine(limit, line)) {
-    case ReadResult::kTimeout:
-      Kill();
-      return fail("no result within " + Seconds(limit) + " s");
-    case ReadResult::kEnd:
-      return fail("worker process died: " + DeathDetail());
-    case ReadResult::kLine: break;
-  }
+  std::string line, why;
+  if (!Exchange(request, variant_timeout_s_ * static_cast<double>(variants.size()), line, why)) return fail(why);
   try {
     const nlohmann::json answer = nlohmann::json::parse(line);
     if (answer.is_object() && answer.contains("race_error") && answer["race_error"].is_string())
@@ -475,21 +484,8 @@ std::optional<double> IsolatedBackend::CopyBandwidthGBps(std::size_t bytes, std:
     return std::nullopt;
   };
   const std::string request = nlohmann::json{{"copy_bandwidth", bytes}}.dump();
-  if (pid_ < 0) Start();
-  if (!Send(request)) {
-    DeathDetail();
-    Start();
-    if (!Send(request)) return fail("worker process died: " + DeathDetail());
-  }
-  std::string line;
-  switch (ReadLine(variant_timeout_s_, line)) {
-    case ReadResult::kTimeout:
-      Kill();
-      return fail("no result within " + Seconds(variant_timeout_s_) + " s");
-    case ReadResult::kEnd:
-      return fail("worker process died: " + DeathDetail());
-    case ReadResult::kLine: break;
-  }
+  std::string line, why;
+  if (!Exchange(request, variant_timeout_s_, line, why)) return fail(why);
   nlohmann::json answer;
   try {
     answer = nlohmann::json::parse(line);

@@ -108,6 +108,10 @@ class IsolatedBackend {
   void Kill();                       // SIGKILL and reap
   std::string Reap(bool block);      // waits for the child; "signal N (name)" / "exit code N"
   bool Send(const std::string& line);
+  // Sends `request` (to a fresh child once more when the first one is gone)
+  // and reads one answer line within `timeout_s`; false with `why` when the
+  // child died or timed out (killed then), as the copy and the race report it.
+  bool Exchange(const std::string& request, double timeout_s, std::string& line, std::string& why);
   ReadResult ReadLine(double timeout_s, std::string& line);
   std::string StderrTail() const;    // the child's last stderr line, or empty
   std::string DeathDetail();         // after the end of the child's output
