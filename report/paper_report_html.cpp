@@ -203,7 +203,8 @@ nav{margin:12px 0 0;padding:8px 0;border-top:1px solid #e5e7eb;border-bottom:1px
 nav a{margin-right:18px;color:#0b5cad;text-decoration:none;font-weight:600}
 .note{color:#57606a;font-size:14px}
 .warn{background:#fff8e6;border-left:4px solid #e3a008;padding:6px 12px;max-width:980px}
-table{border-collapse:collapse;margin:8px 0 18px;font-size:14px}
+table{border-collapse:collapse;margin:8px 0 18px;font-size:14px;display:block;max-width:100%;overflow-x:auto}
+td code{word-break:break-all}
 th,td{border:1px solid #d8dee4;padding:4px 8px;text-align:left;vertical-align:top}
 th{background:#f3f4f6;font-weight:600}
 td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}

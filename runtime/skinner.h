@@ -142,8 +142,9 @@ namespace skintune {
 struct Skinner::Impl {
   // Waits for the frames still on the device (quietly: a lost device or a GL
   // context no longer current has nothing to wait for), so that no driver
-  // thread works on them after the Skinner, or the program, is gone.
-  ~Impl();
+  // thread works on them after the Skinner, or the program, is gone. Hidden:
+  // skintune.map's `skintune::Skinner::*` would export it, and it is no API.
+  __attribute__((visibility("hidden"))) ~Impl();
 
   std::shared_ptr<internal::DeviceState> device;  // keeps the runner (and its programs) alive
   Selection selection;

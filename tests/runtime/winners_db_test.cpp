@@ -168,7 +168,7 @@ TEST(WinnersDb, NotJsonNamesTheFile) {
   const Result<WinnersDb> db = WinnersDb::Parse("{\"schema_version\": ", "broken.json");
   ASSERT_FALSE(db.ok());
   EXPECT_EQ(db.status().code(), ErrorCode::kInvalidArgument);
-  EXPECT_EQ(db.status().message().rfind("broken.json: not JSON: ", 0), 0u) << db.status().message();
+  EXPECT_EQ(db.status().message().rfind("broken.json: not valid JSON (", 0), 0u) << db.status().message();
 }
 
 TEST(WinnersDb, WrongKindOrVersionNamesTheFileAndTheField) {
