@@ -302,9 +302,23 @@ MeasurementCache::MeasurementCache(const std::string& path) : path_(path) {
       const std::string line = data.substr(start, end - start);
       start = end + 1;
       if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      nlohmann::json j;
+      try {
+        j = nlohmann::json::parse(line);
+      } catch (const nlohmann::json::exception& e) {
+        throw Error(path + ":" + std::to_string(line_number) + ": malformed measurement (" + e.what() + ")");
+      }
+      if (j.is_object() && j.contains("race_key")) {
+        try {
+          races_[j.at("race_key").get<std::string>()] = RaceFromJson(j.at("race"));
+        } catch (const std::exception& e) {  // nlohmann's or RaceFromJson's Error
+          throw Error(path + ":" + std::to_string(line_number) + ": malformed race (" + e.what() + ")");
+        }
+        continue;
+      }
       Measurement m;
       try {
-        m = nlohmann::json::parse(line).get<Measurement>();
+        m = j.get<Measurement>();
       } catch (const nlohmann::json::exception& e) {
         throw Error(path + ":" + std::to_string(line_number) + ": malformed measurement (" + e.what() + ")");
       } catch (const ImpossibleMeasurement& e) {
@@ -338,20 +352,33 @@ const Measurement* MeasurementCache::Find(const std::string& cache_key) const {
   return found == index_.end() ? nullptr : &measurements_[found->second];
 }
 
-void MeasurementCache::Append(const Measurement& m) {
-  const std::string line = nlohmann::json(m).dump() + "\n";
+void MeasurementCache::AppendLine(const std::string& line, const char* what) {
   // One write() on an O_APPEND descriptor: the record lands whole at the end
   // of the file or (killed mid-way, disk full) as a torn line the next open cuts.
   ssize_t n;
   do {
     n = ::write(fd_, line.data(), line.size());
   } while (n < 0 && errno == EINTR);
-  if (n < 0) throw Error(path_ + ": cannot append a measurement (" + SystemError() + ")");
+  if (n < 0) throw Error(path_ + ": cannot append " + what + " (" + SystemError() + ")");
   if (static_cast<std::size_t>(n) != line.size()) {
-    throw Error(path_ + ": short write appending a measurement (" + std::to_string(n) + " of " +
+    throw Error(path_ + ": short write appending " + what + " (" + std::to_string(n) + " of " +
                 std::to_string(line.size()) + " bytes; disk full?)");
   }
   if (::fsync(fd_) != 0) throw Error(path_ + ": fsync failed (" + SystemError() + ")");
+}
+
+const RaceRecord* MeasurementCache::FindRace(const std::string& race_key) const {
+  const auto found = races_.find(race_key);
+  return found == races_.end() ? nullptr : &found->second;
+}
+
+void MeasurementCache::AppendRace(const std::string& race_key, const RaceRecord& race) {
+  AppendLine(nlohmann::json{{"race_key", race_key}, {"race", RaceJson(race)}}.dump() + "\n", "a race");
+  races_[race_key] = race;
+}
+
+void MeasurementCache::Append(const Measurement& m) {
+  AppendLine(nlohmann::json(m).dump() + "\n", "a measurement");
   const std::string key = m.CacheKey();
   const auto found = index_.find(key);
   if (found != index_.end()) {

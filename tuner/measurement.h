@@ -20,6 +20,7 @@
 #include "generator/variant.h"
 #include "reference/error.h"
 #include "runtime/source_error.h"
+#include "tuner/race_record.h"
 
 namespace skintune::internal {
 
@@ -147,6 +148,12 @@ class MeasurementCache {
 
   const Measurement* Find(const std::string& cache_key) const;
   void Append(const Measurement& m);
+  // A race is kept beside the measurements, on a line of its own
+  // ({"race_key": ..., "race": ...}), under a key that names everything its
+  // verdicts depend on (RaceCacheKey, tuner/race.h): a run whose candidates
+  // were all cached finds it and does not race them again.
+  const RaceRecord* FindRace(const std::string& race_key) const;
+  void AppendRace(const std::string& race_key, const RaceRecord& race);
   const std::vector<Measurement>& all() const { return measurements_; }
   const std::string& path() const { return path_; }
 
@@ -155,6 +162,9 @@ class MeasurementCache {
   int fd_ = -1;
   std::vector<Measurement> measurements_;
   std::map<std::string, std::size_t> index_;
+  std::map<std::string, RaceRecord> races_;
+
+  void AppendLine(const std::string& line, const char* what);
 };
 
 }  // namespace skintune::internal

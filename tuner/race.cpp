@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "generator/emit.h"
 #include "tuner/statistics.h"
 
 namespace skintune::internal {
@@ -26,8 +27,20 @@ std::vector<const Measurement*> RaceCandidates(const std::vector<Measurement>& m
   return out.size() >= 2 ? out : std::vector<const Measurement*>{};
 }
 
+std::string RaceCacheKey(const std::string& device_id, const std::string& dataset, Lang lang,
+                         const std::vector<Variant>& candidates, double tie_margin) {
+  char margin[32];
+  std::snprintf(margin, sizeof margin, "%.17g", tie_margin);
+  std::string key = device_id + "|" + kGeneratorVersion + "|timing " + std::to_string(kTimingVersion) + "|" + dataset +
+                    "|" + Name(lang) + "|margin " + margin + "|";
+  for (std::size_t i = 0; i < candidates.size(); ++i) key += (i ? "," : "") + candidates[i].Key();
+  return key;
+}
+
 RaceRecord RaceSearch(IsolatedBackend& worker, const std::vector<Measurement>& measured, const std::string& device_id,
-                      Lang lang, const std::string& dataset, const TimingOptions& options) {
+                      Lang lang, const std::string& dataset, const TimingOptions& options, const RaceMemo& memo,
+                      bool* from_memo) {
+  if (from_memo) *from_memo = false;
   RaceRecord record;
   record.device_id = device_id;
   record.lang = lang;
@@ -39,6 +52,13 @@ RaceRecord RaceSearch(IsolatedBackend& worker, const std::vector<Measurement>& m
   }
   std::vector<Variant> variants;
   for (const Measurement* m : candidates) variants.push_back(m->variant);
+  const std::string race_key = RaceCacheKey(device_id, dataset, lang, variants, options.tie_margin);
+  if (memo.find) {
+    if (std::optional<RaceRecord> kept = memo.find(race_key)) {
+      if (from_memo) *from_memo = true;
+      return *kept;
+    }
+  }
   std::string why;
   const auto samples = worker.Race(variants, TuningDataset{measured.front().dataset}, options, &why);
   if (!samples) {
@@ -54,6 +74,7 @@ RaceRecord RaceSearch(IsolatedBackend& worker, const std::vector<Measurement>& m
   for (std::size_t i = 0; i < candidates.size(); ++i)
     record.entries.push_back({candidates[i]->variant, outcome.intervals[i], outcome.verdicts[i]});
   record.decided = outcome.decided;
+  if (memo.keep) memo.keep(race_key, record);
   return record;
 }
 

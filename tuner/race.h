@@ -3,6 +3,8 @@
 // device's worker.
 #pragma once
 
+#include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,8 +26,23 @@ std::vector<const Measurement*> RaceCandidates(const std::vector<Measurement>& m
 // `worker` and judges them; a record with `detail` saying why when no race
 // was needed or it failed (the winners are then judged on the search's own
 // intervals).
+//
+// `memo` remembers races between runs (the measurement cache): a race of
+// the same key (RaceCacheKey) is taken from it and not run again, and a
+// race that ran is given to it.
+struct RaceMemo {
+  std::function<std::optional<RaceRecord>(const std::string& race_key)> find;
+  std::function<void(const std::string& race_key, const RaceRecord& race)> keep;
+};
 RaceRecord RaceSearch(IsolatedBackend& worker, const std::vector<Measurement>& measured, const std::string& device_id,
-                      Lang lang, const std::string& dataset, const TimingOptions& options);
+                      Lang lang, const std::string& dataset, const TimingOptions& options, const RaceMemo& memo = {},
+                      bool* from_memo = nullptr);
+
+// What a race's verdicts depend on: the device (with its driver), the
+// generator and timing versions, the data set, the language, the tie margin
+// and the candidates in their order.
+std::string RaceCacheKey(const std::string& device_id, const std::string& dataset, Lang lang,
+                         const std::vector<Variant>& candidates, double tie_margin);
 
 // Whether `m`'s kernel time implies more than kCeiling x the device's
 // large-copy bandwidth `copy_gbps` (0: unknown, never): such a figure is

@@ -12,6 +12,7 @@
 #include "runtime/winners_db.h"
 #include "tuner/backend.h"
 #include "tuner/measurement.h"
+#include "tuner/race_record.h"
 
 namespace skintune::internal {
 
@@ -31,23 +32,6 @@ struct DatasetInfo {
   SceneKind shape = SceneKind::kSingle;
   int instances = 1;
   int meshes = 1;
-};
-
-// The race at the end of one (device, language, dataset) search
-// (docs/TUNING.md "Races and ties"): its candidates measured again,
-// interleaved in one worker, and judged against the fastest.
-struct RaceRecord {
-  std::string device_id;
-  Lang lang = Lang::kOpenCl;
-  std::string dataset;
-  struct Entry {
-    Variant variant;
-    Interval interval;  // of the race's own samples
-    RaceVerdict verdict = RaceVerdict::kUndecided;
-  };
-  std::vector<Entry> entries;
-  bool decided = false;  // every candidate separated from the fastest or proven equal to it
-  std::string detail;    // why the race did not run or failed ("": it ran)
 };
 
 struct TuningReport {

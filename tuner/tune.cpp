@@ -658,7 +658,20 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
                                                 run.measurements.end());
         if (!measured.empty()) {
           advance(run, task_start + task_done, device_name + ": racing the leaders of " + key);
-          run.races.push_back(RaceSearch(worker, measured, id, task.lang, measured.front().dataset, config.timing));
+          RaceMemo memo;
+          memo.find = [&](const std::string& race_key) -> std::optional<RaceRecord> {
+            std::lock_guard<std::mutex> lock(shared);
+            const RaceRecord* found = cache.FindRace(race_key);
+            return found ? std::optional<RaceRecord>(*found) : std::nullopt;
+          };
+          memo.keep = [&](const std::string& race_key, const RaceRecord& race) {
+            std::lock_guard<std::mutex> lock(shared);
+            cache.AppendRace(race_key, race);
+          };
+          bool cached_race = false;
+          run.races.push_back(
+              RaceSearch(worker, measured, id, task.lang, measured.front().dataset, config.timing, memo, &cached_race));
+          if (cached_race) advance(run, task_start + task_done, device_name + ": the race of " + key + " (cached)");
         }
         task_start += task.planned;
         advance(run, task_start, "");

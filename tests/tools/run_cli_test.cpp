@@ -85,8 +85,9 @@ TEST(RunCli, TunesEveryDeviceWritesTheFilesAndPrintsEachDevicesWinners) {
     std::istringstream words(line);
     std::vector<std::string> columns;
     for (std::string w; words >> w;) columns.push_back(w);
-    EXPECT_EQ(columns, (std::vector<std::string>{"lang", "B", "vertices", "dataset", "variant", "ms", "GB/s", "x",
-                                                 "copy", "err/diag", "format", "costs"}));
+    EXPECT_EQ(columns, (std::vector<std::string>{"lang", "B", "vertices", "dataset", "variant", "kernel", "us", "[95%]",
+                                                 "frame", "us", "GB/s", "x", "copy", "ties", "err/diag", "format",
+                                                 "costs"}));
   }
   EXPECT_EQ(headers, report.at("devices").size()) << r.out;
 
@@ -99,7 +100,8 @@ TEST(RunCli, TunesEveryDeviceWritesTheFilesAndPrintsEachDevicesWinners) {
   EXPECT_EQ(e.exit_code, 0) << e.err;
   EXPECT_TRUE(fs::is_regular_file(kernels / "skintune_kernels.h"));
 
-  // A second run reuses the measurement cache: every variant cached, the same winners.
+  // A second run reuses the measurement cache: every variant and every race
+  // cached, the same winners.
   const auto again = RunSkintune({"run", "--config", TinyConfig(dir), "--out", out.string(), "--cpu-check", "none"});
   ASSERT_EQ(again.exit_code, 0) << again.err;
   EXPECT_EQ(again.out.find("CPU reference"), std::string::npos);
@@ -109,7 +111,9 @@ TEST(RunCli, TunesEveryDeviceWritesTheFilesAndPrintsEachDevicesWinners) {
     for (const nlohmann::json& w : ws) times[w.at("variant").at("key").get<std::string>()] = w.at("median_ms").get<double>();
     return times;
   };
-  EXPECT_EQ(timed(nlohmann::json::parse(ReadAll(out / "report.json")).at("winners")), timed(winners));
+  const nlohmann::json second = nlohmann::json::parse(ReadAll(out / "report.json"));
+  EXPECT_EQ(timed(second.at("winners")), timed(winners));
+  EXPECT_EQ(second.at("races"), report.at("races"));  // not raced again
   EXPECT_EQ(again.err.find("compiling"), std::string::npos) << again.err;  // nothing left to compile ahead
 }
 

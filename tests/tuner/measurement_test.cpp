@@ -354,6 +354,50 @@ TEST(MeasurementCache, AppendedMeasurementsAreThereWhenReopened) {
   EXPECT_EQ(cache.Find("nothing|0.1.0|5000-b2|opencl.b1"), nullptr);
 }
 
+TEST(MeasurementCache, RacesAreKeptBesideTheMeasurementsAndFoundWhenReopened) {
+  const fs::path path = Scratch() / "cache.jsonl";
+  RaceRecord race;
+  race.device_id = "opencl:p/d/1";
+  race.lang = Lang::kOpenCl;
+  race.dataset = "5000-b2";
+  race.decided = true;
+  RaceRecord::Entry fastest;
+  fastest.variant = ParseVariantKey("opencl.b2.soa.global.wg64");
+  fastest.interval = {0.010, 0.009, 0.011, 30};
+  fastest.verdict = RaceVerdict::kLeader;
+  RaceRecord::Entry slower = fastest;
+  slower.variant = ParseVariantKey("opencl.b2.soa.local.wg64");
+  slower.interval = {0.020, 0.019, 0.021, 30};
+  slower.verdict = RaceVerdict::kSeparated;
+  race.entries = {fastest, slower};
+  const Measurement m = Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk);
+  {
+    MeasurementCache cache(path.string());
+    cache.Append(m);
+    cache.AppendRace("the key", race);
+    ASSERT_NE(cache.FindRace("the key"), nullptr);
+  }
+  MeasurementCache cache(path.string());
+  EXPECT_EQ(cache.all().size(), 1u);  // a race is no measurement
+  const RaceRecord* found = cache.FindRace("the key");
+  ASSERT_NE(found, nullptr);
+  EXPECT_EQ(RaceJson(*found), RaceJson(race));
+  EXPECT_EQ(cache.FindRace("another key"), nullptr);
+}
+
+TEST(MeasurementCache, MalformedRaceLineIsAnErrorNamingFileAndLine) {
+  const fs::path path = Scratch() / "cache.jsonl";
+  const std::string good = nlohmann::json(Sample("opencl.b2", MeasureStatus::kOk)).dump() + "\n";
+  const std::string bad = R"({"race_key": "k", "race": {"device_id": "d", "lang": "opencl", "dataset": "x", )"
+                          R"("decided": true, "detail": "", "entries": [{"variant": "opencl.b2", "median_ms": 1, )"
+                          R"("low_ms": 2, "high_ms": 3, "samples": 5, "verdict": "fastest"}]}})";
+  WriteAll(path, good + bad + "\n");
+  const std::string error = ErrorOf([&] { MeasurementCache cache(path.string()); });
+  EXPECT_EQ(error.rfind(path.string() + ":2: malformed race (", 0), 0u) << error;
+  EXPECT_NE(error.find("low_ms <= median_ms"), std::string::npos) << error;
+  EXPECT_EQ(ReadAll(path), good + bad + "\n");  // never modified
+}
+
 TEST(MeasurementCache, TornLastLineIsCutOffAndIgnored) {
   const fs::path path = Scratch() / "cache.jsonl";
   const Measurement a = Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk);
