@@ -30,6 +30,7 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <sstream>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -68,11 +69,18 @@ bool IsGltfPath(const std::string& key) {
   return ends_with(".gltf") || ends_with(".glb");
 }
 
-double PositiveNumber(const nlohmann::json& value, const std::string& where) {
-  if (!value.is_number()) throw Error(where + ": expected a number");
+// A positive number at most `most` (a bound stated in the error).
+double PositiveNumber(const nlohmann::json& value, const std::string& where,
+                      double most = std::numeric_limits<double>::max()) {
+  if (!value.is_number()) throw Error(where + ": expected a number (got " + Excerpt(value.dump()) + ")");
   const double v = value.get<double>();
   if (!(v > 0.0) || v == std::numeric_limits<double>::infinity()) {
     throw Error(where + ": must be a positive number (got " + value.dump() + ")");
+  }
+  if (v > most) {  // absurd: a setting that cannot work (exit 2)
+    std::ostringstream bound;
+    bound << most;
+    throw UsageError(where + ": must be a positive number at most " + bound.str() + " (got " + value.dump() + ")");
   }
   return v;
 }
@@ -352,7 +360,7 @@ TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context
   if (json.contains("timing")) c.timing = TimingFromConfig(json["timing"], context);
   if (json.contains("strategy")) c.strategy = StrategyFromConfig(json["strategy"], context);
   if (json.contains("variant_timeout_s")) {
-    c.variant_timeout_s = PositiveNumber(json["variant_timeout_s"], context + ": variant_timeout_s");
+    c.variant_timeout_s = PositiveNumber(json["variant_timeout_s"], context + ": variant_timeout_s", kMaxVariantTimeoutS);
   }
   if (json.contains("max_error")) {
     const nlohmann::json& value = json["max_error"];
@@ -377,7 +385,10 @@ std::string EmbeddedConfig(const std::string& name) {
 TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
   ValidateStrategy(config.strategy, "strategy");
   config.space.Validate(config.name);
-  if (!(config.variant_timeout_s > 0.0)) throw Error("variant_timeout_s: must be a positive number");
+  if (!(config.variant_timeout_s > 0.0 && config.variant_timeout_s <= kMaxVariantTimeoutS))
+    throw Error("variant_timeout_s: must be a positive number at most " + std::to_string(kMaxVariantTimeoutS));
+  if (!(config.timing.tolerance > 0.0 && config.timing.tolerance <= kMaxTolerance))
+    throw Error("timing.tolerance: must be a positive number at most " + std::to_string(kMaxTolerance));
   if (const std::string bad = BadMaxError(config.max_error); !bad.empty()) throw Error("max_error: " + bad);
   if (options.worker_executable.empty()) throw Error("RunTuning: no worker executable");
 
@@ -601,12 +612,11 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
         std::size_t task_done = 0;
         std::set<std::string> seen;
         auto cache_key_of = [&](const Variant& v) { return CacheKeyOf(id, key, v); };
-        // A verified record from before skintune measured the error against
-        // the source cannot be judged by the budget: measured again.
+        // The cache is input: a record this run cannot trust is measured again.
         auto cached = [&](const std::string& cache_key) -> std::optional<Measurement> {
           std::lock_guard<std::mutex> lock(shared);
           const Measurement* found = cache.Find(cache_key);
-          if (found && !(IsTimed(found->status) && !found->source_error.known)) return *found;
+          if (found && MeasuredAgainOnResume(*found, config.timing.tolerance).empty()) return *found;
           return std::nullopt;
         };
         // Compile ahead: the variants the task will measure next and the
