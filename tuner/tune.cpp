@@ -382,6 +382,20 @@ std::string EmbeddedConfig(const std::string& name) {
   throw Error("no built-in config '" + name + "' (built in: " + names + ")");
 }
 
+namespace {
+
+// `call`'s Error prefixed with the config and its dataset: "c.json: datasets[1]: ...".
+template <typename F>
+auto InConfig(const TuneConfig& config, std::size_t dataset, F&& call) -> decltype(call()) {
+  try {
+    return call();
+  } catch (const Error& e) {
+    throw Error(config.name + ": datasets[" + std::to_string(dataset) + "]: " + e.what());
+  }
+}
+
+}  // namespace
+
 TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
   ValidateStrategy(config.strategy, "strategy");
   config.space.Validate(config.name);
@@ -406,10 +420,12 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
   report.machine = MachineInfo();
 
   // Datasets first: a bad key or glTF file is bad input, found before any device work.
+  // Its errors (memory, a glTF of a scene) name the config and the element too.
   std::vector<LoadedDataset> datasets;
-  for (const std::string& key : config.datasets) {
+  for (std::size_t i = 0; i < config.datasets.size(); ++i) {
+    const std::string& key = config.datasets[i];
     progress(0, 0, "loading dataset " + key);
-    datasets.push_back(LoadDataset(key));
+    datasets.push_back(InConfig(config, i, [&] { return LoadDataset(key); }));
     report.datasets.push_back(datasets.back().info);
   }
 
@@ -440,12 +456,15 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
 
   // Every dataset fits every device's memory (one set of inputs and the output).
   for (const Device& d : devices) {
-    for (const LoadedDataset& dataset : datasets) {
+    for (std::size_t i = 0; i < datasets.size(); ++i) {
+      const LoadedDataset& dataset = datasets[i];
       const std::uint64_t per_vertex = DeviceBytesPerVertex(dataset.info.influences, dataset.shape.has_normals);
-      CheckMemoryFor("dataset '" + dataset.info.key + "' on " + d.identity.backend + " device '" + d.identity.name + "'",
+      InConfig(config, i, [&] {
+        CheckMemoryFor("dataset '" + dataset.info.key + "' on " + d.identity.backend + " device '" + d.identity.name + "'",
                      dataset.info.vertices, per_vertex,
                      "inputs and output of a variant (--device selects other devices)",
                      {d.identity.global_memory_bytes, "the device's global memory"});
+      });
     }
   }
 

@@ -152,7 +152,7 @@ TEST(SkintuneCli, StrictRejectsCesiumManAndLeavesTheOutputUntouched) {
 TEST(SkintuneCli, MissingGltfFileIsOneLineNamingTheFile) {
   const auto r = RunSkintune({"skin", "--mesh", "/nonexistent/model.gltf", "--out", Scratch() / "x.obj"});
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_EQ(r.err, "skintune: error: /nonexistent/model.gltf: cannot open file\n");
+  EXPECT_EQ(r.err, "skintune: error: /nonexistent/model.gltf: cannot open file (No such file or directory)\n");
 }
 
 TEST(SkintuneCli, NotAGltfFileIsRejected) {

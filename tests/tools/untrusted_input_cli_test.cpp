@@ -249,6 +249,74 @@ TEST(UntrustedInput, ImpossibleFiguresInACacheOrReportAreRefusedNamingTheFileAnd
   }
 }
 
+// A config that cannot run (no valid variant, a dataset that does not fit, a
+// scene with a bad glTF) is one error naming the config and the dataset, and
+// leaves no --out folder behind; `variants --config` takes only a config.
+TEST(UntrustedInput, AConfigThatCannotRunNamesItselfAndCreatesNoOutputFolder) {
+  const fs::path dir = testing::ScratchDir("skintune_untrusted");
+  const std::string junk = Write(dir / "junk.gltf", "{\"asset\": 42}");
+  struct Case {
+    nlohmann::json datasets;
+    std::vector<std::string> index;
+    std::string says;  // after "<config>: "
+  };
+  const std::vector<Case> cases = {
+      {{"5000-b2-bones300"}, {"u8"}, ""},  // 300 joints fit no u8 index: "no valid variant ..."
+      {{"5000-b2", "4000m-b2"}, {"u16"}, "datasets[1]: dataset '4000m-b2': needs about "},
+      {{"5000-b2+" + junk}, {"u16"}, "datasets[0]: scene '5000-b2+" + junk + "': meshes[1] "},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.datasets.dump());
+    testing::TinyTuneConfig tiny;
+    tiny.indices = c.index;
+    nlohmann::json config = tiny.Json();
+    config["datasets"] = c.datasets;
+    const std::string path = Write(dir / "config.json", config.dump());
+    const fs::path out = dir / "new" / "out";
+    const testing::CommandResult r =
+        RunSkintune({"tune", "--config", path, "--out", out.string(), "--quiet"}, kTwoGiB, kTimeoutS);
+    if (c.says.empty()) {
+      ExpectOneErrorLine(r, "no valid variant of the space on any device: ");
+    } else {
+      ExpectOneErrorLine(r, path + ": " + c.says);
+    }
+    EXPECT_FALSE(fs::exists(dir / "new")) << r.err;
+  }
+  for (const char* text : {"42", "null", "[]", "{}"}) {
+    SCOPED_TRACE(text);
+    const std::string path = Write(dir / "not-a-config.json", text);
+    const testing::CommandResult r = RunSkintune({"variants", "--config", path}, kTwoGiB, kTimeoutS);
+    ExpectOneErrorLine(r, path + ": ");
+    EXPECT_EQ(r.out, "");
+  }
+}
+
+// A reader quotes the bad string it finds: 100 KB of it (or its newlines)
+// made a 100 KB error of many lines.
+TEST(UntrustedInput, ALongOrMultiLineBadStringIsQuotedShortOnOneLine) {
+  const fs::path dir = testing::ScratchDir("skintune_untrusted");
+  const std::string long_string(100000, 'x');
+  nlohmann::json long_value = testing::TinyTuneConfig().Json();
+  long_value["space"]["layout"] = {"soa", long_string};
+  nlohmann::json lines = testing::TinyTuneConfig().Json();
+  lines["datasets"] = {"5000-b2\nskintune: error: a second line"};
+  for (const nlohmann::json& config : {long_value, lines}) {
+    const std::string path = Write(dir / "config.json", config.dump());
+    const testing::CommandResult r =
+        RunSkintune({"tune", "--config", path, "--out", (dir / "out").string(), "--quiet"}, kTwoGiB, kTimeoutS);
+    ExpectOneErrorLine(r, path + ": ");
+    EXPECT_LT(r.err.size(), 1000u) << r.err.substr(0, 300);
+  }
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"skin", "--dataset", long_string, "--out", (dir / "x.obj").string()},
+        std::vector<std::string>{"emit", "--variant", long_string, "--out", (dir / "e").string()}}) {
+    const testing::CommandResult r = RunSkintune(args, kTwoGiB, kTimeoutS);
+    ExpectOneErrorLine(r, "");
+    EXPECT_LT(r.err.size(), 1000u) << r.err.substr(0, 300);
+    EXPECT_NE(r.err.find("... (1000"), std::string::npos) << r.err.substr(0, 300);  // its start and its length
+  }
+}
+
 TEST(UntrustedInput, AnEmptyPathIsACommandLineErrorNamingTheOption) {
   const fs::path dir = testing::ScratchDir("skintune_untrusted");
   const std::string out = (dir / "out").string();

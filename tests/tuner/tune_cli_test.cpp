@@ -320,7 +320,7 @@ TEST(TuneCli, MissingConfigFileIsOneLine) {
   const std::string missing = (dir / "nope.json").string();
   const BadRun run = RunIntoExistingOut(dir, {"--config", missing});
   EXPECT_EQ(run.result.exit_code, 1);
-  EXPECT_EQ(run.result.err, "skintune: error: " + missing + ": cannot open file\n");
+  EXPECT_EQ(run.result.err, "skintune: error: " + missing + ": cannot open file (No such file or directory)\n");
   EXPECT_TRUE(run.report_untouched);
   const BadRun unknown = RunIntoExistingOut(dir, {"--config", "fastest"});
   EXPECT_EQ(unknown.result.exit_code, 1);
