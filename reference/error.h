@@ -38,6 +38,37 @@ inline std::string Excerpt(std::string_view text, std::size_t max = 120) {
   return std::string(text.substr(0, max)) + "... (" + std::to_string(text.size()) + " characters)";
 }
 
+// An error message as it is shown (a public Status, a command's stderr):
+// a run of more than 4096 characters without white space (longer than any
+// path) keeps its first 120 (Excerpt), and the whole is cut at 16384. An
+// input's bad string is quoted whole by the reader that finds it; a 100 KB
+// one must not become a 100 KB message.
+inline std::string Bounded(std::string_view message) {
+  constexpr std::size_t kLongestRun = 4096, kLongest = 16384;
+  std::string out;
+  for (std::size_t i = 0; i < message.size();) {
+    std::size_t end = i;
+    while (end < message.size() && static_cast<unsigned char>(message[end]) > ' ') ++end;
+    if (end == i) {
+      out += message[i++];
+      continue;
+    }
+    const std::string_view run = message.substr(i, end - i);
+    out += run.size() > kLongestRun ? Excerpt(run) : std::string(run);
+    i = end;
+  }
+  return Excerpt(out, kLongest);
+}
+
+// Bounded, on one line: control characters (a newline in a config's string,
+// a build log's lines) become spaces. What the command prints after "skintune: error: ".
+inline std::string OneLine(std::string_view message) {
+  std::string out = Bounded(message);
+  for (char& c : out)
+    if (static_cast<unsigned char>(c) < ' ') c = ' ';
+  return out;
+}
+
 class Error : public std::runtime_error {
  public:
   explicit Error(const std::string& message) : std::runtime_error(message) {}

@@ -35,9 +35,9 @@ Result<T> GuardedResult(ErrorCode fallback, F&& body) noexcept {
   try {
     return Result<T>(body());
   } catch (const ApiError& e) {
-    return Status(e.code(), e.what());
+    return Status(e.code(), Bounded(e.what()));
   } catch (const Error& e) {
-    return Status(fallback, e.what());
+    return Status(fallback, Bounded(e.what()));
   } catch (const std::bad_alloc&) {
     return Status(ErrorCode::kDeviceError, "out of host memory");
   } catch (const std::exception& e) {

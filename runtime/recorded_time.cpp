@@ -41,6 +41,9 @@ std::string ImpossibleTime(const RecordedTime& t) {
     if (!Positive(*t.gbps)) return NotPositive("gbps", *t.gbps, "a bandwidth");
     if (t.bytes_per_frame) {
       const double expected = *t.bytes_per_frame / t.median_ms / 1e6;
+      if (!std::isfinite(expected))  // 1e308 bytes in 0.001 ms: the check below would pass inf against inf
+        return "'bytes_per_frame' " + Text(*t.bytes_per_frame) + " / 'median_ms' " + Text(t.median_ms) +
+               " overflows: not a bandwidth";
       if (!(std::fabs(*t.gbps - expected) <= kGbpsTolerance * expected)) {
         return "'gbps' is " + Text(*t.gbps) + " but 'bytes_per_frame' / 'median_ms' is " + Text(expected) +
                " GB/s: they must agree";

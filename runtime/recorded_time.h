@@ -8,7 +8,8 @@
 //   - min and max, when recorded, are positive and finite, min <= median <= max;
 //   - the bytes moved per frame, when recorded, are positive and finite;
 //   - the GB/s, when recorded, are positive and finite and, with the bytes,
-//     equal bytes / median within kGbpsTolerance (relative).
+//     equal bytes / median within kGbpsTolerance (relative), which must
+//     itself be finite (1e308 bytes over 0.001 ms is not).
 // The rule lives here, once; each reader turns a violation into its own error
 // naming the file and the element (docs/INPUTS.md lists the readers).
 #pragma once

@@ -83,6 +83,15 @@ std::string ImpossibleSourceError(const SourceError& e) {
     const std::string name = std::string("source_error.") + f.name;
     if (std::string problem = NotFiniteNonNegative(name.c_str(), e.*f.member); !problem.empty()) return problem;
   }
+  // The writers divide (a diagonal of 0 makes any error 1); JSON keeps doubles exact.
+  const double expected = e.diagonal > 0.0 ? e.position_abs / e.diagonal : (e.position_abs > 0.0 ? 1.0 : 0.0);
+  if (!(std::fabs(e.position_rel - expected) <= 1e-9 * expected)) {
+    std::ostringstream text;
+    text.precision(17);
+    text << "'source_error.position_rel' is " << e.position_rel << " but position_abs / diagonal is " << expected
+         << ": they must agree";
+    return text.str();
+  }
   return "";
 }
 

@@ -115,9 +115,10 @@ struct WinnersEntry {
   std::string source;          // that report's config and strategy, e.g. "default (exhaustive)"
 };
 
-// Whether the entry fits a budget: f32 (no quantisation), a weight format in
-// `exact` (it holds the caller's weights exactly), or a recorded quantisation
-// error within `max_error`.
+// Whether the entry fits a budget: its kernel adds only rounding to what its
+// weights cost (KernelAddsOnlyRounding), and f32 (no quantisation), a weight
+// format in `exact` (it holds the caller's weights exactly), or a recorded
+// quantisation error within `max_error`.
 bool EntryWithinBudget(const WinnersEntry& entry, double max_error, const std::vector<WeightFormat>& exact);
 
 // "<device id> <lang> b<B> <vertices>[ <shape>]": how messages name an entry

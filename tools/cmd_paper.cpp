@@ -56,7 +56,8 @@ int RunPaperCommand(const PaperCliOptions& o, const std::string& command) {
   options.command = command;
 
   // The output directory, cache and outputs before any measurement.
-  const fs::path out = OutputDirectory(o.out);
+  OutputDirectory out_directory(o.out);
+  const fs::path& out = out_directory.path();
   options.cache_path = (out / "cache.jsonl").string();
   for (const char* name : {"paper-result.json", "report.html", "summary.md"}) CheckWritable((out / name).string());
 
@@ -78,6 +79,7 @@ int RunPaperCommand(const PaperCliOptions& o, const std::string& command) {
     throw;
   }
   progress.Finish(true);
+  out_directory.Keep();
 
   const PaperSummary summary = Summarise({result});
   const std::string json_text = PaperResultToJson(result).dump(2) + "\n";

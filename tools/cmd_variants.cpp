@@ -10,6 +10,7 @@
 #include "reference/error.h"
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "tools/commands.h"
+#include "tuner/tune.h"
 
 namespace skintune::internal::tools {
 
@@ -28,7 +29,8 @@ TuningSpace LoadSpace(const VariantsOptions& o) {
   nlohmann::json space = nlohmann::json::object();
   if (!o.config.empty()) {
     const nlohmann::json config = ReadJsonFile(o.config);
-    if (config.contains("space")) space = config["space"];
+    ConfigFromJson(config, o.config);  // a tuning config as `tune` takes it (42, null, [] are not)
+    space = config["space"];
   }
   if (!o.langs.empty()) space["lang"] = o.langs;
   return SpaceFromJson(space, o.config.empty() ? "--lang" : o.config);

@@ -89,16 +89,36 @@ void Progress::Finish(bool keep) {
   shown_ = false;
 }
 
-std::filesystem::path OutputDirectory(const std::string& dir) {
+namespace {
+
+// `path` absolute, without "." and ".." and without a trailing separator.
+std::filesystem::path Normal(const std::filesystem::path& path) {
+  std::error_code ec;
+  return (std::filesystem::absolute(path, ec).lexically_normal() / "").parent_path();
+}
+
+}  // namespace
+
+OutputDirectory::OutputDirectory(const std::string& dir) : path_(dir) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  const fs::path out = dir;
-  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) throw Error(dir + ": not a directory");
-  fs::create_directories(out, ec);
-  if (ec || !fs::is_directory(out)) {
+  if (fs::exists(path_, ec) && !fs::is_directory(path_, ec)) throw Error(dir + ": not a directory");
+  for (fs::path p = Normal(path_); p.has_relative_path() && !fs::exists(p, ec); p = p.parent_path()) created_ = p;
+  fs::create_directories(path_, ec);
+  if (ec || !fs::is_directory(path_)) {
     throw Error(dir + ": cannot create the output directory (" + (ec ? ec.message() : "not a directory") + ")");
   }
-  return out;
+}
+
+OutputDirectory::~OutputDirectory() {
+  namespace fs = std::filesystem;
+  if (kept_ || created_.empty()) return;
+  std::error_code ec;
+  const fs::path cache = path_ / "cache.jsonl";
+  if (fs::is_regular_file(cache, ec) && fs::file_size(cache, ec) == 0) fs::remove(cache, ec);
+  // fs::remove takes empty folders only: anything a run left stays.
+  for (fs::path p = Normal(path_); p.string().size() >= created_.string().size(); p = p.parent_path())
+    if (!fs::remove(p, ec) || p == created_) break;
 }
 
 std::string SelfExecutable() {

@@ -40,9 +40,26 @@ class Progress {
   std::size_t measured_ = 0;
 };
 
-// The output directory `dir`, created when missing; Error naming it when it
-// is a file or cannot be created.
-std::filesystem::path OutputDirectory(const std::string& dir);
+// The output directory of a run (tune, paper): `dir`, created when missing;
+// Error naming it when it is a file or cannot be created. A run that fails
+// before it recorded a measurement (a config with no valid variant, no
+// device) leaves no trace: unless Keep() was called, the destructor removes
+// the folders it created while they hold nothing but an empty cache.jsonl.
+class OutputDirectory {
+ public:
+  explicit OutputDirectory(const std::string& dir);
+  ~OutputDirectory();
+  OutputDirectory(const OutputDirectory&) = delete;
+  OutputDirectory& operator=(const OutputDirectory&) = delete;
+
+  const std::filesystem::path& path() const { return path_; }
+  void Keep() { kept_ = true; }
+
+ private:
+  std::filesystem::path path_;
+  std::filesystem::path created_;  // the outermost folder created here, or empty
+  bool kept_ = false;
+};
 // The running skintune binary (started again as `skintune tune-worker`).
 std::string SelfExecutable();
 // --lang NAME; Error naming the accepted names.

@@ -2,6 +2,7 @@
 // Exit codes: 0 success, 1 bad input or failed operation (one line on
 // stderr), 2 bad command line or a setting that cannot work (UsageError).
 #include <iostream>
+#include <new>
 #include <vector>
 
 #include "reference/error.h"
@@ -28,7 +29,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::Success& e) {
     return app.exit(e);  // --help, --version
   } catch (const CLI::ParseError& e) {
-    std::cerr << "skintune: " << e.what() << " (try --help)\n";
+    std::cerr << "skintune: " << skintune::internal::OneLine(e.what()) << " (try --help)\n";
     return 2;
   }
   try {
@@ -39,7 +40,10 @@ int main(int argc, char** argv) {
     std::cerr << "skintune: error: " << e.what() << "\n";
     return 2;
   } catch (const skintune::internal::Error& e) {
-    std::cerr << "skintune: error: " << e.what() << "\n";
+    std::cerr << "skintune: error: " << skintune::internal::OneLine(e.what()) << "\n";
+    return 1;
+  } catch (const std::bad_alloc&) {  // every input is sized before it is read: a fallback
+    std::cerr << "skintune: error: out of memory\n";
     return 1;
   } catch (const std::exception& e) {
     std::cerr << "skintune: internal error: " << e.what() << "\n";

@@ -113,7 +113,8 @@ TuneJobResult RunTuneJob(const TuneJobOptions& o) {
   // The output directory and every file written at the end: checked (and the
   // cache opened) before any device work.
   TuneJobResult result;
-  result.out = OutputDirectory(o.out);
+  OutputDirectory out(o.out);
+  result.out = out.path();
   result.cache = result.out / "cache.jsonl";
   options.cache_path = result.cache.string();
   const std::vector<std::string> names = OutputNames(o.html);
@@ -132,6 +133,7 @@ TuneJobResult RunTuneJob(const TuneJobOptions& o) {
     throw;
   }
   progress.Finish(true);
+  out.Keep();
 
   // Everything is computed before anything is written, then written together.
   std::vector<std::pair<fs::path, std::string>> files;

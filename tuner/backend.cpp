@@ -114,6 +114,9 @@ TimingOptions TimingOptionsFromJson(const nlohmann::json& in, const std::string&
   }
   for (const auto& [name, value] : {std::pair<const char*, double>{"burst_ms", t.burst_ms}, {"tolerance", t.tolerance}})
     if (!(value > 0.0)) throw Error(where + "." + name + ": must be a positive number (got " + Dumped(in.at(name)) + ")");
+  // A verification that passes any output would let a wrong kernel win: a setting that cannot work.
+  if (t.tolerance > kMaxTolerance)
+    throw UsageError(where + ".tolerance: must be a positive number at most 0.001 (got " + Dumped(in.at("tolerance")) + ")");
   const std::string prefix = where.substr(where.rfind(' ') == std::string::npos ? 0 : where.rfind(' ') + 1) + ".";
   if (const std::string bad = BadStopRule(t.stop, prefix); !bad.empty()) throw UsageError(where + ": " + bad);
   if (!(t.tie_margin > 0.0) || t.tie_margin > 0.5)

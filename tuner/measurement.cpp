@@ -72,8 +72,35 @@ double ReadNumber(const nlohmann::json& in, const char* name, const std::string&
 int ReadInt(const nlohmann::json& in, const char* name, const std::string& where) {
   const nlohmann::json* value = Field(in, name, false, where);
   if (!value) return 0;
-  if (!value->is_number_integer()) throw Error(where + ": '" + name + "' must be an integer");
-  return value->get<int>();
+  constexpr auto kLeast = std::numeric_limits<int>::min(), kMost = std::numeric_limits<int>::max();
+  bool in_range = false;
+  if (value->is_number_unsigned()) {
+    in_range = value->get<std::uint64_t>() <= std::uint64_t{kMost};
+  } else if (value->is_number_integer()) {
+    const std::int64_t v = value->get<std::int64_t>();
+    in_range = v >= kLeast && v <= kMost;
+  }
+  if (!in_range)
+    throw Error(where + ": '" + name + "' must be an integer from " + std::to_string(kLeast) + " to " +
+                std::to_string(kMost) + " (got " + Excerpt(value->dump()) + ")");
+  return static_cast<int>(value->get<std::int64_t>());
+}
+
+// The first impossible count of a timed record's timing, or "".
+std::string ImpossibleCounts(const Timing& t) {
+  auto at_least = [](const char* name, int value, int least) {
+    return value >= least ? std::string()
+                          : "'" + std::string(name) + "' is " + std::to_string(value) + ": must be at least " +
+                                std::to_string(least);
+  };
+  for (const std::string& problem :
+       {at_least("repetitions", t.repetitions, 1), at_least("warmup", t.warmup, 0),
+        at_least("input_sets", t.input_sets, 1), at_least("version", t.version, 1),
+        // Frames per burst (per frame-time run from version 5, when one ran); version 1 timed frames alone.
+        at_least("burst_frames", t.burst_frames, t.version == 1 || (t.version >= 5 && t.frame_ms == 0.0) ? 0 : 1),
+        NotFiniteNonNegative("footprint_bytes", t.footprint_bytes)})
+    if (!problem.empty()) return problem;
+  return "";
 }
 
 // Timing version 5's interval (when recorded) and frame time: low <= median
@@ -122,10 +149,12 @@ std::string ImpossibleFigures(const Measurement& m) {
   time.bytes_per_frame = m.bytes_per_frame;
   time.gbps = m.gbps;
   std::string problem = ImpossibleTime(time);
-  if (problem.empty() && m.timing.repetitions < 1)
-    problem = "'repetitions' is " + std::to_string(m.timing.repetitions) + ": a median needs at least one timed run";
+  if (problem.empty()) problem = ImpossibleCounts(m.timing);
   if (problem.empty() && m.timing.version >= 5) problem = ImpossibleInterval(m.timing);
   if (problem.empty()) problem = NotFiniteNonNegative("max_relative_error", m.max_relative_error);
+  if (problem.empty() && m.max_relative_error > kMaxTolerance)
+    problem = "'max_relative_error' is " + std::to_string(m.max_relative_error) +
+              ": over the largest verification tolerance (" + std::to_string(kMaxTolerance) + "), it cannot have passed";
   if (problem.empty()) problem = NotFiniteNonNegative("copy_ms", m.timing.copy_ms);
   if (problem.empty()) problem = NotFiniteNonNegative("x_copy", m.x_copy);
   if (problem.empty() && m.timing.copy_ms > 0.0 &&
@@ -147,10 +176,24 @@ void ApplyBudget(Measurement& m, double max_error) {
   }
   std::ostringstream detail;
   detail.precision(2);
-  detail << std::scientific << Name(m.variant.weight) << " weights cost " << m.source_error.quantisation_rel
-         << " of the bounding-box diagonal, over the budget max_error " << max_error;
+  if (KernelAddsOnlyRounding(m.source_error)) {
+    detail << std::scientific << Name(m.variant.weight) << " weights cost " << m.source_error.quantisation_rel
+           << " of the bounding-box diagonal, over the budget max_error " << max_error;
+  } else {
+    detail << std::scientific << "the kernel's output is off the source by " << m.source_error.position_rel
+           << " of the bounding-box diagonal, more than its weights cost (" << m.source_error.quantisation_rel
+           << ") and " << kKernelRoundingAllowance << " for its rounding";
+  }
   m.status = MeasureStatus::kTooImprecise;
   m.detail = detail.str();
+}
+
+std::string MeasuredAgainOnResume(const Measurement& m, double tolerance) {
+  if (IsTimed(m.status) && !m.source_error.known) return "recorded before the error against the source was measured";
+  if (IsTimed(m.status) && m.max_relative_error > tolerance)
+    return "its relative error " + std::to_string(m.max_relative_error) + " is over this run's tolerance";
+  if (m.detail.rfind(kInterruptedDetail, 0) == 0) return "its measurement was interrupted";
+  return "";
 }
 
 std::string Measurement::CacheKey() const {

@@ -59,6 +59,12 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 //    the sizes engines skin they timed how fast the host issued launches.
 inline constexpr int kTimingVersion = 5;
 
+// The largest verification tolerance a config may set (timing.tolerance:
+// the largest relative error against the gold of the quantised mesh): float32
+// kernels agree with it within ~5e-7 (docs/TUNING.md "Precision"), so more
+// would let a wrong kernel pass. A timed record claiming more is impossible.
+inline constexpr double kMaxTolerance = 1e-3;
+
 struct Timing {
   // The kernel time (docs/TUNING.md "Kernel time"), ms.
   double median_ms = 0.0;  // the median of the samples
@@ -107,14 +113,29 @@ struct Measurement {
 // it is possible. Only a status-ok measurement's figures are ever used (a
 // failed one is never ranked), so only those are checked: a possible time
 // (median, min, max), bytes per frame, GB/s consistent with them, at least one
-// repetition and a finite relative error >= 0; too_imprecise ones (timed
-// too) likewise, and a known SourceError must be finite and >= 0; where a
-// copy time is given, a possible one with x_copy = median / copy_ms.
+// repetition, warm-up >= 0, at least one input set, bursts of at least one
+// frame (0 only in timing version 1), a finite footprint >= 0, and a finite
+// relative error from 0 to kMaxTolerance; too_imprecise ones (timed too)
+// likewise, and a known SourceError must be possible (ImpossibleSourceError);
+// where a copy time is given, a possible one with x_copy = median / copy_ms.
 std::string ImpossibleFigures(const Measurement& m);
 
-// Applies the budget to a timed measurement: status ok when its quantisation
-// error is within `max_error`, too_imprecise (with the figures in `detail`)
-// when over; other statuses, and measurements with no known error, are left
+// The start of the detail of a failure that says nothing about the variant:
+// its worker was killed by a signal the tuner did not send (SIGKILL, SIGTERM,
+// SIGINT, SIGHUP, SIGQUIT: a user, the OOM killer, a shutdown) or was
+// stopped until its time ran out.
+inline constexpr const char* kInterruptedDetail = "interrupted: ";
+
+// Why a cached record of this run's cache key is measured again instead of
+// reused ("" when it is reused): a timed record without a source error (older
+// than that measurement), or with a relative error over this run's
+// `tolerance`; a failure that was interrupted (kInterruptedDetail).
+std::string MeasuredAgainOnResume(const Measurement& m, double tolerance);
+
+// Applies the budget to a timed measurement: status ok when it is
+// WithinBudget (its quantisation error within `max_error`, its whole error
+// within that and the kernel's rounding allowance), too_imprecise (with the
+// figures in `detail`) when over; other statuses, and measurements with no known error, are left
 // as they are. Symmetric, so a cached record is judged by the current run's budget.
 void ApplyBudget(Measurement& m, double max_error);
 

@@ -192,7 +192,8 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     const auto copy = report.copy_bandwidth_gbps.find(m.device_id);
     w.copy_fraction = copy != report.copy_bandwidth_gbps.end() && copy->second > 0.0 ? m.gbps / copy->second : 0.0;
     w.x_copy = m.x_copy;
-    w.within_budget = m.status == MeasureStatus::kOk;
+    // A report is input: an ok the kernel's own error belies is not within budget.
+    w.within_budget = m.status == MeasureStatus::kOk && KernelAddsOnlyRounding(m.source_error);
     w.source_error = m.source_error;
     w.max_relative_error = m.max_relative_error;
     out.push_back(std::move(w));

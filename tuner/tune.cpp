@@ -30,6 +30,7 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <sstream>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -68,11 +69,18 @@ bool IsGltfPath(const std::string& key) {
   return ends_with(".gltf") || ends_with(".glb");
 }
 
-double PositiveNumber(const nlohmann::json& value, const std::string& where) {
-  if (!value.is_number()) throw Error(where + ": expected a number");
+// A positive number at most `most` (a bound stated in the error).
+double PositiveNumber(const nlohmann::json& value, const std::string& where,
+                      double most = std::numeric_limits<double>::max()) {
+  if (!value.is_number()) throw Error(where + ": expected a number (got " + Excerpt(value.dump()) + ")");
   const double v = value.get<double>();
   if (!(v > 0.0) || v == std::numeric_limits<double>::infinity()) {
     throw Error(where + ": must be a positive number (got " + value.dump() + ")");
+  }
+  if (v > most) {  // absurd: a setting that cannot work (exit 2)
+    std::ostringstream bound;
+    bound << most;
+    throw UsageError(where + ": must be a positive number at most " + bound.str() + " (got " + value.dump() + ")");
   }
   return v;
 }
@@ -352,7 +360,7 @@ TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context
   if (json.contains("timing")) c.timing = TimingFromConfig(json["timing"], context);
   if (json.contains("strategy")) c.strategy = StrategyFromConfig(json["strategy"], context);
   if (json.contains("variant_timeout_s")) {
-    c.variant_timeout_s = PositiveNumber(json["variant_timeout_s"], context + ": variant_timeout_s");
+    c.variant_timeout_s = PositiveNumber(json["variant_timeout_s"], context + ": variant_timeout_s", kMaxVariantTimeoutS);
   }
   if (json.contains("max_error")) {
     const nlohmann::json& value = json["max_error"];
@@ -374,10 +382,27 @@ std::string EmbeddedConfig(const std::string& name) {
   throw Error("no built-in config '" + name + "' (built in: " + names + ")");
 }
 
+namespace {
+
+// `call`'s Error prefixed with the config and its dataset: "c.json: datasets[1]: ...".
+template <typename F>
+auto InConfig(const TuneConfig& config, std::size_t dataset, F&& call) -> decltype(call()) {
+  try {
+    return call();
+  } catch (const Error& e) {
+    throw Error(config.name + ": datasets[" + std::to_string(dataset) + "]: " + e.what());
+  }
+}
+
+}  // namespace
+
 TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
   ValidateStrategy(config.strategy, "strategy");
   config.space.Validate(config.name);
-  if (!(config.variant_timeout_s > 0.0)) throw Error("variant_timeout_s: must be a positive number");
+  if (!(config.variant_timeout_s > 0.0 && config.variant_timeout_s <= kMaxVariantTimeoutS))
+    throw Error("variant_timeout_s: must be a positive number at most " + std::to_string(kMaxVariantTimeoutS));
+  if (!(config.timing.tolerance > 0.0 && config.timing.tolerance <= kMaxTolerance))
+    throw Error("timing.tolerance: must be a positive number at most " + std::to_string(kMaxTolerance));
   if (const std::string bad = BadMaxError(config.max_error); !bad.empty()) throw Error("max_error: " + bad);
   if (options.worker_executable.empty()) throw Error("RunTuning: no worker executable");
 
@@ -395,10 +420,12 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
   report.machine = MachineInfo();
 
   // Datasets first: a bad key or glTF file is bad input, found before any device work.
+  // Its errors (memory, a glTF of a scene) name the config and the element too.
   std::vector<LoadedDataset> datasets;
-  for (const std::string& key : config.datasets) {
+  for (std::size_t i = 0; i < config.datasets.size(); ++i) {
+    const std::string& key = config.datasets[i];
     progress(0, 0, "loading dataset " + key);
-    datasets.push_back(LoadDataset(key));
+    datasets.push_back(InConfig(config, i, [&] { return LoadDataset(key); }));
     report.datasets.push_back(datasets.back().info);
   }
 
@@ -429,12 +456,15 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
 
   // Every dataset fits every device's memory (one set of inputs and the output).
   for (const Device& d : devices) {
-    for (const LoadedDataset& dataset : datasets) {
+    for (std::size_t i = 0; i < datasets.size(); ++i) {
+      const LoadedDataset& dataset = datasets[i];
       const std::uint64_t per_vertex = DeviceBytesPerVertex(dataset.info.influences, dataset.shape.has_normals);
-      CheckMemoryFor("dataset '" + dataset.info.key + "' on " + d.identity.backend + " device '" + d.identity.name + "'",
+      InConfig(config, i, [&] {
+        CheckMemoryFor("dataset '" + dataset.info.key + "' on " + d.identity.backend + " device '" + d.identity.name + "'",
                      dataset.info.vertices, per_vertex,
                      "inputs and output of a variant (--device selects other devices)",
                      {d.identity.global_memory_bytes, "the device's global memory"});
+      });
     }
   }
 
@@ -601,12 +631,11 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
         std::size_t task_done = 0;
         std::set<std::string> seen;
         auto cache_key_of = [&](const Variant& v) { return CacheKeyOf(id, key, v); };
-        // A verified record from before skintune measured the error against
-        // the source cannot be judged by the budget: measured again.
+        // The cache is input: a record this run cannot trust is measured again.
         auto cached = [&](const std::string& cache_key) -> std::optional<Measurement> {
           std::lock_guard<std::mutex> lock(shared);
           const Measurement* found = cache.Find(cache_key);
-          if (found && !(IsTimed(found->status) && !found->source_error.known)) return *found;
+          if (found && MeasuredAgainOnResume(*found, config.timing.tolerance).empty()) return *found;
           return std::nullopt;
         };
         // Compile ahead: the variants the task will measure next and the

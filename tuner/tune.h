@@ -19,6 +19,9 @@ namespace skintune::internal {
 // The largest search budget (evaluations per device, language and dataset)
 // a config or --budget may ask for; 0 means every candidate for exhaustive.
 inline constexpr std::size_t kMaxBudget = 1000000000;
+// The largest variant_timeout_s of a config: a day (one variant's build,
+// verification and timing; the worker's poll takes milliseconds in an int).
+inline constexpr double kMaxVariantTimeoutS = 86400.0;
 
 struct TuneConfig {
   std::string name;                     // file name or "default"

@@ -14,6 +14,8 @@
 #include <climits>
 #include <cmath>
 #include <csignal>
+#include <fstream>
+#include <iterator>
 #include <cstring>
 #include <ctime>
 #include <iostream>
@@ -151,6 +153,7 @@ void IsolatedBackend::Start() {
   out_buffer_.clear();
   err_tail_.clear();
   ++starts_;
+  killed_here_ = false;
 
   // Discovery in the child (every API) comes before its greeting.
   const double start_timeout_s = std::max(variant_timeout_s_, 60.0);
@@ -198,7 +201,10 @@ std::string IsolatedBackend::Reap(bool block) {
       if (r != 0) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
-    if (r == 0) ::kill(pid_, SIGKILL);
+    if (r == 0) {
+      ::kill(pid_, SIGKILL);
+      killed_here_ = true;
+    }
   }
   if (block || r == 0) {
     do {
@@ -206,11 +212,28 @@ std::string IsolatedBackend::Reap(bool block) {
     } while (r < 0 && errno == EINTR);
   }
   pid_ = -1;
+  reaped_status_ = r < 0 ? 0 : status;
   return r < 0 ? "unknown status (" + std::string(std::strerror(errno)) + ")" : StatusText(status);
+}
+
+bool IsolatedBackend::KilledFromOutside() const {
+  if (killed_here_ || !WIFSIGNALED(reaped_status_)) return false;
+  const int sig = WTERMSIG(reaped_status_);
+  return sig == SIGKILL || sig == SIGTERM || sig == SIGINT || sig == SIGHUP || sig == SIGQUIT;
+}
+
+bool IsolatedBackend::Stopped() const {
+  if (pid_ < 0) return false;
+  std::ifstream stat("/proc/" + std::to_string(pid_) + "/stat");
+  std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
+  const std::size_t name_end = text.rfind(')');  // "pid (comm) S ...": the name may hold spaces
+  return name_end != std::string::npos && name_end + 2 < text.size() &&
+         (text[name_end + 2] == 'T' || text[name_end + 2] == 't');
 }
 
 void IsolatedBackend::Kill() {
   if (pid_ >= 0) {
+    killed_here_ = true;
     ::kill(pid_, SIGKILL);
     Reap(true);
   }
@@ -341,27 +364,31 @@ Measurement IsolatedBackend::MeasureOnce(const Variant& variant, const TuningDat
   const std::string request =
       nlohmann::json{{"variant", variant}, {"dataset", dataset.key}, {"timing", ToJson(options)}}.dump();
   if (pid_ < 0) Start();
+  // A death or a timeout the variant did not cause is recorded as
+  // interrupted, so that a resumed run measures it again.
+  auto died = [&] {
+    const std::string how = DeathDetail();
+    result.status = MeasureStatus::kLaunchFailed;
+    result.detail = (KilledFromOutside() ? kInterruptedDetail : "") + std::string("worker process died: ") + how;
+    return result;
+  };
   if (!Send(request)) {
     // The previous child died after its last answer: a fresh one takes the request.
     DeathDetail();
     Start();
-    if (!Send(request)) {
-      result.status = MeasureStatus::kLaunchFailed;
-      result.detail = "worker process died: " + DeathDetail();
-      return result;
-    }
+    if (!Send(request)) return died();
   }
   std::string line;
   switch (ReadLine(variant_timeout_s_, line)) {
-    case ReadResult::kTimeout:
+    case ReadResult::kTimeout: {
+      const bool stopped = Stopped();
       Kill();
       result.status = MeasureStatus::kTimeout;
-      result.detail = "no result within " + Seconds(variant_timeout_s_) + " s";
+      result.detail = (stopped ? std::string(kInterruptedDetail) + "the worker process was stopped; " : "") +
+                      "no result within " + Seconds(variant_timeout_s_) + " s";
       return result;
-    case ReadResult::kEnd:
-      result.status = MeasureStatus::kLaunchFailed;
-      result.detail = "worker process died: " + DeathDetail();
-      return result;
+    }
+    case ReadResult::kEnd: return died();
     case ReadResult::kLine: break;
   }
   nlohmann::json answer;

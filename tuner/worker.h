@@ -115,6 +115,9 @@ class IsolatedBackend {
   ReadResult ReadLine(double timeout_s, std::string& line);
   std::string StderrTail() const;    // the child's last stderr line, or empty
   std::string DeathDetail();         // after the end of the child's output
+  // The reaped child died of a signal from outside (kInterruptedDetail), not of its own fault or ours.
+  bool KilledFromOutside() const;
+  bool Stopped() const;              // the running child is stopped (SIGSTOP, a debugger)
 
   std::string executable_;
   std::string host_lock_;  // "" = none
@@ -127,6 +130,8 @@ class IsolatedBackend {
   std::string out_buffer_;
   std::string err_tail_;
   int starts_ = 0;
+  int reaped_status_ = 0;    // the last reaped child's wait status
+  bool killed_here_ = false;  // that child got its SIGKILL from us
 };
 
 }  // namespace skintune::internal

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "reference/input_file.h"
 #include "report/paper.h"
 #include "report/paper_report.h"
 #include "tests/fuzz/fuzz_support.h"
@@ -16,8 +17,13 @@
 using namespace skintune::internal;  // the readers under test and fuzz_support.h's helpers
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const nlohmann::json json = nlohmann::json::parse(data, data + size, nullptr, /*allow_exceptions=*/false);
-  if (json.is_discarded()) return 0;
+  nlohmann::json json;
+  try {
+    json = ParseJson(std::string(reinterpret_cast<const char*>(data), size), "report.json");  // 1e400 included
+  } catch (const Error& e) {
+    fuzz::ExpectNamed("report_fuzz", e, "report.json");
+    return 0;
+  }
   const bool paper = json.is_object() && json.contains("kind") && json["kind"] == kPaperResultKind;
   const std::string name = paper ? "result.json" : "report.json";
   PaperResult result;

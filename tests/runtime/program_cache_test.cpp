@@ -6,6 +6,8 @@
 #include "runtime/program_cache.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <cstdint>
 #include <filesystem>
@@ -14,6 +16,7 @@
 #include <vector>
 
 #include "generator/emit.h"
+#include "reference/input_file.h"
 #include "tests/common/scratch_dir.h"
 
 namespace skintune::internal {
@@ -96,6 +99,40 @@ TEST(ProgramCache, VersionOneFilesAreAbsent) {
       << SourceHash(std::string(payload.begin(), payload.end())) << "\n"
       << std::string(payload.begin(), payload.end());
   EXPECT_EQ(cache.Load("opencl", kKey), std::nullopt);
+}
+
+// A FIFO in place of a cache file blocked the open forever (skin_animation
+// hung on GL, OpenCL and Vulkan); a folder, an oversized file or one that
+// cannot be read is as absent as a damaged one. The alarm fails the test
+// (SIGALRM) instead of letting it hang.
+TEST(ProgramCache, AFifoAFolderOrAnOversizedFileInPlaceOfAnEntryIsAbsentWithoutBlocking) {
+  const fs::path dir = testing::ScratchDir("skintune_program_cache");
+  const ProgramCache cache(dir.string());
+  const std::string path = cache.PathOf("opencl", kKey);
+  ::alarm(30);
+  ASSERT_EQ(::mkfifo(path.c_str(), 0600), 0);
+  EXPECT_EQ(cache.Load("opencl", kKey), std::nullopt);
+  fs::remove(path);
+  fs::create_directories(path);
+  EXPECT_EQ(cache.Load("opencl", kKey), std::nullopt);
+  fs::remove(path);
+  std::ofstream(path, std::ios::binary) << "skintune-program-cache 2\n";
+  fs::resize_file(path, kProgramCacheInput.bytes + 1);  // sparse
+  EXPECT_EQ(cache.Load("opencl", kKey), std::nullopt);
+  ::alarm(0);
+  cache.Store("opencl", kKey, Payload(kBlockA));  // replaced by an entry: loads
+  EXPECT_EQ(cache.Load("opencl", kKey), Payload(kBlockA));
+}
+
+// What Load does with a file's bytes, without the file.
+TEST(ProgramCache, DecodeTakesExactlyWhatEncodeWritesForItsKey) {
+  const std::vector<std::uint8_t> payload = Payload(kBlockA);
+  const std::string file = EncodeProgramCacheFile(kKey, payload);
+  EXPECT_EQ(DecodeProgramCacheFile(file, kKey), payload);
+  EXPECT_EQ(DecodeProgramCacheFile(file, kKey + "x"), std::nullopt);
+  EXPECT_EQ(DecodeProgramCacheFile(file + "x", kKey), std::nullopt);                     // trailing bytes
+  EXPECT_EQ(DecodeProgramCacheFile(file.substr(0, file.size() - 1), kKey), std::nullopt);  // truncated
+  EXPECT_EQ(EncodeProgramCacheFile(kKey, {}), "");
 }
 
 }  // namespace

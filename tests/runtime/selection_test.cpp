@@ -241,6 +241,26 @@ TEST(Selection, TheBudgetChoosesAmongPrecisionClassesWithoutRetuning) {
   }
 }
 
+// An entry whose kernel was off the source by far more than its weights cost
+// (it verified under a loose tolerance) is within no budget, even as f32 or
+// an exact format: it was selected because f32 skipped every check.
+TEST(Selection, AnEntryWhoseKernelIsOffTheSourceIsWithinNoBudget) {
+  std::vector<WinnersEntry> classes = PrecisionClasses();
+  SelectionRequest request;
+  request.device = ThisDevice();
+  request.langs = {Lang::kOpenCl};
+  request.influences = 2;
+  request.vertex_count = 100000;
+  request.max_error = 0.0;  // f32 alone
+  EXPECT_EQ(Select(classes, request).selection.level, MatchLevel::kExactDevice);
+  classes[0].source_error.position_rel = 0.39;
+  classes[0].source_error.position_abs = 2.0 * 0.39;
+  const Chosen chosen = Select(classes, request);
+  EXPECT_EQ(chosen.selection.level, MatchLevel::kGenericDefault) << chosen.selection.reason;
+  request.exact_formats = {WeightFormat::kUnorm16};  // an exact unorm16 entry still serves
+  EXPECT_EQ(Select(classes, request).variant.weight, WeightFormat::kUnorm16);
+}
+
 TEST(Selection, ExactFormatsAndOlderEntriesWithoutAnError) {
   // Database 1.2.0 entries record no error: unorm8 is over any budget, f32 within every one.
   WinnersEntry old_u8 = Entry("opencl:Synthetic/Model GPU/2.0", "Example", "gpu", "opencl.b2.soa.unorm8.wg64");

@@ -3,6 +3,8 @@
 #include "runtime/winners_db.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -169,6 +171,32 @@ TEST(WinnersDb, NotJsonNamesTheFile) {
   ASSERT_FALSE(db.ok());
   EXPECT_EQ(db.status().code(), ErrorCode::kInvalidArgument);
   EXPECT_EQ(db.status().message().rfind("broken.json: not valid JSON (", 0), 0u) << db.status().message();
+}
+
+// A number beyond double gave "internal error: ... number overflow" (kDeviceError).
+TEST(WinnersDb, ANumberBeyondDoubleIsNotValidJsonNamingTheFile) {
+  const Result<WinnersDb> db = WinnersDb::Parse("{\"schema_version\": 1e400}", "huge.json");
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().code(), ErrorCode::kInvalidArgument);
+  EXPECT_EQ(db.status().message().rfind("huge.json: not valid JSON (", 0), 0u) << db.status().message();
+  EXPECT_NE(db.status().message().find("1e400"), std::string::npos) << db.status().message();
+}
+
+// A folder or a FIFO where the database should be: an I/O error naming it, never a hang.
+TEST(WinnersDb, AFolderOrAFifoIsAnIoErrorNamingItWithoutBlocking) {
+  const std::string dir = ::testing::TempDir() + "skintune-winners-db-fifo";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir + "/folder.json");
+  ASSERT_EQ(::mkfifo((dir + "/fifo.json").c_str(), 0600), 0);
+  ::alarm(30);  // a blocked open fails the test (SIGALRM) instead of hanging it
+  for (const char* name : {"/folder.json", "/fifo.json"}) {
+    const Result<WinnersDb> db = WinnersDb::Load(dir + name);
+    ASSERT_FALSE(db.ok());
+    EXPECT_EQ(db.status().code(), ErrorCode::kIoError);
+    EXPECT_NE(db.status().message().find(dir + name + ": is a"), std::string::npos) << db.status().message();
+  }
+  ::alarm(0);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(WinnersDb, WrongKindOrVersionNamesTheFileAndTheField) {

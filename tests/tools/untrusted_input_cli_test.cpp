@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -163,6 +164,157 @@ TEST(UntrustedInput, AReportWhoseKindIsNotAStringIsReplayedAsAReportAndRefusedNa
   const testing::CommandResult r =
       RunSkintune({"db", "replay", path, "--device-id", "x", "--dataset", "y"}, kTwoGiB, kTimeoutS);
   ExpectOneErrorLine(r, path + ": kind: ");
+}
+
+// A verification tolerance of 1.0 let a kernel whose output was 0.39 of the
+// diagonal off win; a timeout of 1e10 s failed later as "worker process did
+// not start within 1e+10 s". Both are refused before anything is made.
+TEST(UntrustedInput, AnAbsurdToleranceOrVariantTimeoutInAConfigIsOneErrorNamingTheField) {
+  const fs::path dir = testing::ScratchDir("skintune_untrusted");
+  const fs::path out = dir / "out";
+  struct Case {
+    const char* field;
+    nlohmann::json value;
+    std::string says;
+  };
+  for (const Case& c : {Case{"tolerance", 1.0, "timing.tolerance: must be a positive number at most 0.001 (got 1.0)"},
+                        Case{"tolerance", 1e308, "timing.tolerance: must be a positive number at most 0.001"},
+                        Case{"variant_timeout_s", 1e10, "variant_timeout_s: must be a positive number at most 86400"}}) {
+    SCOPED_TRACE(c.says);
+    nlohmann::json config = testing::TinyTuneConfig().Json();
+    if (std::string(c.field) == "tolerance") {
+      config["timing"]["tolerance"] = c.value;
+    } else {
+      config[c.field] = c.value;
+    }
+    const std::string path = Write(dir / "config.json", config.dump());
+    ExpectOneErrorLine(RunSkintune({"tune", "--config", path, "--out", out.string(), "--quiet"}, kTwoGiB, kTimeoutS),
+                       path + ": " + c.says);
+    EXPECT_FALSE(fs::exists(out));
+  }
+}
+
+// A measurement cache is input: a line a run could not have written is
+// refused on resume, naming the file and line, before anything is measured,
+// and a report or database made from such figures is refused the same way.
+TEST(UntrustedInput, ImpossibleFiguresInACacheOrReportAreRefusedNamingTheFileAndElement) {
+  const fs::path dir = testing::ScratchDir("skintune_untrusted");
+  const std::string config = Write(dir / "config.json", testing::TinyTuneConfig().Json().dump());
+  TuningReport sample = testing::SampleReport();
+  std::size_t ok = 0;
+  while (sample.measurements.at(ok).status != MeasureStatus::kOk) ++ok;
+  SourceError& error = sample.measurements[ok].source_error;  // as a verified kernel of f32 weights has it
+  error.known = true;
+  error.diagonal = 2.5;
+  error.position_rel = 1.5e-7;
+  error.position_abs = 2.5 * 1.5e-7;
+  const nlohmann::json line = sample.measurements[ok];
+  struct Case {
+    std::function<void(nlohmann::json&)> edit;
+    std::string says;
+  };
+  const std::vector<Case> cases = {
+      {[](nlohmann::json& j) { j["timing"]["footprint_bytes"] = "nan"; }, "'footprint_bytes' is nan"},
+      {[](nlohmann::json& j) { j["timing"]["footprint_bytes"] = -4096; }, "'footprint_bytes' is -4096"},
+      {[](nlohmann::json& j) { j["timing"]["burst_frames"] = -1; }, "'burst_frames' is -1"},
+      {[](nlohmann::json& j) { j["timing"]["input_sets"] = 0; }, "'input_sets' is 0"},
+      {[](nlohmann::json& j) { j["timing"]["warmup"] = -1; }, "'warmup' is -1"},
+      {[](nlohmann::json& j) { j["max_relative_error"] = 0.5; }, "'max_relative_error' is 0.5"},
+      {[](nlohmann::json& j) { j["source_error"]["position_rel"] = 1e308; }, "'source_error.position_rel' is 1e+308"},
+      {[](nlohmann::json& j) {
+         j["bytes_per_frame"] = 1e308;
+         j["gbps"] = 1e308;
+       },
+       "'bytes_per_frame' 1e+308 / 'median_ms'"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.says);
+    nlohmann::json bad = line;
+    c.edit(bad);
+    const fs::path out = dir / "out";
+    fs::remove_all(out);
+    fs::create_directories(out);
+    const std::string cache = Write(out / "cache.jsonl", bad.dump() + "\n");
+    ExpectOneErrorLine(RunSkintune({"tune", "--config", config, "--out", out.string(), "--quiet"}, kTwoGiB, kTimeoutS),
+                       cache + ":1: measurement: impossible figures: status ok with ");
+    EXPECT_EQ(ReadAll(cache), bad.dump() + "\n");
+    EXPECT_FALSE(fs::exists(out / "report.json"));
+    nlohmann::json report = ReportToJson(sample);
+    report["measurements"][ok] = bad;
+    const std::string path = Write(dir / "report.json", report.dump());
+    const testing::CommandResult merged =
+        RunSkintune({"db", "merge", path, "-o", (dir / "db.json").string()}, kTwoGiB, kTimeoutS);
+    ExpectOneErrorLine(merged, path + ": measurements[" + std::to_string(ok) + "]: measurement: impossible figures: ");
+    EXPECT_NE(merged.err.find(c.says), std::string::npos) << merged.err;
+  }
+}
+
+// A config that cannot run (no valid variant, a dataset that does not fit, a
+// scene with a bad glTF) is one error naming the config and the dataset, and
+// leaves no --out folder behind; `variants --config` takes only a config.
+TEST(UntrustedInput, AConfigThatCannotRunNamesItselfAndCreatesNoOutputFolder) {
+  const fs::path dir = testing::ScratchDir("skintune_untrusted");
+  const std::string junk = Write(dir / "junk.gltf", "{\"asset\": 42}");
+  struct Case {
+    nlohmann::json datasets;
+    std::vector<std::string> index;
+    std::string says;  // after "<config>: "
+  };
+  const std::vector<Case> cases = {
+      {{"5000-b2-bones300"}, {"u8"}, ""},  // 300 joints fit no u8 index: "no valid variant ..."
+      {{"5000-b2", "4000m-b2"}, {"u16"}, "datasets[1]: dataset '4000m-b2': needs about "},
+      {{"5000-b2+" + junk}, {"u16"}, "datasets[0]: scene '5000-b2+" + junk + "': meshes[1] "},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.datasets.dump());
+    testing::TinyTuneConfig tiny;
+    tiny.indices = c.index;
+    nlohmann::json config = tiny.Json();
+    config["datasets"] = c.datasets;
+    const std::string path = Write(dir / "config.json", config.dump());
+    const fs::path out = dir / "new" / "out";
+    const testing::CommandResult r =
+        RunSkintune({"tune", "--config", path, "--out", out.string(), "--quiet"}, kTwoGiB, kTimeoutS);
+    if (c.says.empty()) {
+      ExpectOneErrorLine(r, "no valid variant of the space on any device: ");
+    } else {
+      ExpectOneErrorLine(r, path + ": " + c.says);
+    }
+    EXPECT_FALSE(fs::exists(dir / "new")) << r.err;
+  }
+  for (const char* text : {"42", "null", "[]", "{}"}) {
+    SCOPED_TRACE(text);
+    const std::string path = Write(dir / "not-a-config.json", text);
+    const testing::CommandResult r = RunSkintune({"variants", "--config", path}, kTwoGiB, kTimeoutS);
+    ExpectOneErrorLine(r, path + ": ");
+    EXPECT_EQ(r.out, "");
+  }
+}
+
+// A reader quotes the bad string it finds: 100 KB of it (or its newlines)
+// made a 100 KB error of many lines.
+TEST(UntrustedInput, ALongOrMultiLineBadStringIsQuotedShortOnOneLine) {
+  const fs::path dir = testing::ScratchDir("skintune_untrusted");
+  const std::string long_string(100000, 'x');
+  nlohmann::json long_value = testing::TinyTuneConfig().Json();
+  long_value["space"]["layout"] = {"soa", long_string};
+  nlohmann::json lines = testing::TinyTuneConfig().Json();
+  lines["datasets"] = {"5000-b2\nskintune: error: a second line"};
+  for (const nlohmann::json& config : {long_value, lines}) {
+    const std::string path = Write(dir / "config.json", config.dump());
+    const testing::CommandResult r =
+        RunSkintune({"tune", "--config", path, "--out", (dir / "out").string(), "--quiet"}, kTwoGiB, kTimeoutS);
+    ExpectOneErrorLine(r, path + ": ");
+    EXPECT_LT(r.err.size(), 1000u) << r.err.substr(0, 300);
+  }
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"skin", "--dataset", long_string, "--out", (dir / "x.obj").string()},
+        std::vector<std::string>{"emit", "--variant", long_string, "--out", (dir / "e").string()}}) {
+    const testing::CommandResult r = RunSkintune(args, kTwoGiB, kTimeoutS);
+    ExpectOneErrorLine(r, "");
+    EXPECT_LT(r.err.size(), 1000u) << r.err.substr(0, 300);
+    EXPECT_NE(r.err.find("... (1000"), std::string::npos) << r.err.substr(0, 300);  // its start and its length
+  }
 }
 
 TEST(UntrustedInput, AnEmptyPathIsACommandLineErrorNamingTheOption) {

@@ -183,6 +183,93 @@ TEST(Measurement, BadSourceErrorsAreRefusedNamingTheField) {
   EXPECT_EQ(ErrorOf([&] { j.get<Measurement>(); }), "measurement: status too_imprecise without 'source_error'");
 }
 
+// A kernel that passed a loose verification (or a record that claims one)
+// with exact weights but an output 0.39 of the diagonal off the source: the
+// budget held only the weights' error, so it was ok, won and was
+// within_budget. The kernel's whole error counts, with its rounding allowed.
+TEST(Measurement, TheKernelsWholeErrorAgainstTheSourceIsHeldToTheBudget) {
+  Measurement wrong = WithSourceError(0.0);
+  wrong.source_error.position_rel = 0.39;
+  wrong.source_error.position_abs = 2.5 * 0.39;
+  ApplyBudget(wrong, 1e-4);
+  EXPECT_EQ(wrong.status, MeasureStatus::kTooImprecise);
+  EXPECT_NE(wrong.detail.find("the kernel's output is off the source by 3.90e-01"), std::string::npos) << wrong.detail;
+  // A verified kernel's own float32 rounding (~2e-7 of the diagonal) stays within even a budget of 0.
+  Measurement rounded = WithSourceError(0.0);
+  ApplyBudget(rounded, 0.0);
+  EXPECT_EQ(rounded.status, MeasureStatus::kOk);
+  rounded.source_error.position_rel = 2 * kKernelRoundingAllowance;
+  rounded.source_error.position_abs = 2.5 * rounded.source_error.position_rel;
+  ApplyBudget(rounded, 0.0);
+  EXPECT_EQ(rounded.status, MeasureStatus::kTooImprecise);
+}
+
+// Counts and sizes of a timed record that no run can produce were taken from
+// the cache and written into report.json: a footprint of "nan", -1 frames
+// per burst, 0 input sets, a warm-up of -1, bytes whose GB/s overflow, an
+// integer beyond int, a relative error no tolerance admits, a position_rel
+// that is not position_abs / diagonal.
+TEST(Measurement, ImpossibleCountsSizesAndErrorsAreRefusedNamingTheField) {
+  const std::vector<std::pair<std::function<void(nlohmann::json&)>, std::string>> cases = {
+      {[](nlohmann::json& j) { j["timing"]["footprint_bytes"] = "nan"; },
+       "'footprint_bytes' is nan: must be a finite number >= 0"},
+      {[](nlohmann::json& j) { j["timing"]["footprint_bytes"] = -1; }, "'footprint_bytes' is -1"},
+      {[](nlohmann::json& j) { j["timing"]["burst_frames"] = -1; }, "'burst_frames' is -1: must be at least 1"},
+      {[](nlohmann::json& j) { j["timing"]["input_sets"] = 0; }, "'input_sets' is 0: must be at least 1"},
+      {[](nlohmann::json& j) { j["timing"]["warmup"] = -1; }, "'warmup' is -1: must be at least 0"},
+      {[](nlohmann::json& j) { j["timing"]["version"] = 0; }, "'version' is 0: must be at least 1"},
+      {[](nlohmann::json& j) {
+         j["bytes_per_frame"] = 1e308;
+         j["timing"] = {{"median_ms", 1e-3}, {"min_ms", 1e-3}, {"max_ms", 1e-3}, {"warmup", 1}, {"repetitions", 3},
+                        {"input_sets", 1}, {"burst_frames", 8}, {"footprint_bytes", 1}, {"copy_ms", 0}};
+         j["x_copy"] = 0;
+         j["gbps"] = 1e300;
+       },
+       "'bytes_per_frame' 1e+308 / 'median_ms' 0.001 overflows"},
+      {[](nlohmann::json& j) { j["max_relative_error"] = 0.5; },
+       "'max_relative_error' is 0.500000: over the largest verification tolerance"},
+  };
+  for (const auto& [edit, message] : cases) {
+    nlohmann::json j = Sample("opencl.b2", MeasureStatus::kOk);
+    edit(j);
+    const std::string error = ErrorOf([&] { (void)j.get<Measurement>(); });
+    EXPECT_EQ(error.rfind("measurement: impossible figures: status ok with ", 0), 0u) << error;
+    EXPECT_NE(error.find(message), std::string::npos) << error;
+  }
+  nlohmann::json huge = Sample("opencl.b2", MeasureStatus::kOk);
+  huge["timing"]["input_sets"] = 1000000000000000000;
+  EXPECT_NE(ErrorOf([&] { (void)huge.get<Measurement>(); })
+                .find("'input_sets' must be an integer from -2147483648 to 2147483647 (got 1000000000000000000)"),
+            std::string::npos);
+  nlohmann::json far = WithSourceError(1e-3);
+  far["source_error"]["position_rel"] = 1e308;
+  EXPECT_NE(ErrorOf([&] { (void)far.get<Measurement>(); })
+                .find("'source_error.position_rel' is 1e+308 but position_abs / diagonal is 0.001000"),
+            std::string::npos)
+      << ErrorOf([&] { (void)far.get<Measurement>(); });
+  // A failure's figures are never used, so never checked.
+  nlohmann::json failed = Sample("opencl.b2", MeasureStatus::kTimeout);
+  failed["timing"]["input_sets"] = 0;
+  EXPECT_EQ(failed.get<Measurement>().status, MeasureStatus::kTimeout);
+}
+
+// The cache is input: what a resumed run does not take from it.
+TEST(Measurement, AResumedRunMeasuresAgainWhatItCannotTrust) {
+  const Measurement good = WithSourceError(0.0);
+  EXPECT_EQ(MeasuredAgainOnResume(good, 1e-5), "");
+  Measurement loose = good;
+  loose.max_relative_error = 5e-4;  // verified under a tolerance of 1e-3, this run's is 1e-5
+  EXPECT_NE(MeasuredAgainOnResume(loose, 1e-5), "");
+  EXPECT_EQ(MeasuredAgainOnResume(loose, 1e-3), "");
+  EXPECT_NE(MeasuredAgainOnResume(Sample("opencl.b2", MeasureStatus::kOk), 1e-5), "");  // no source error
+  Measurement killed = Sample("opencl.b2", MeasureStatus::kLaunchFailed);
+  killed.detail = std::string(kInterruptedDetail) + "worker process died: signal 9 (Killed)";
+  EXPECT_NE(MeasuredAgainOnResume(killed, 1e-5), "");
+  Measurement crashed = Sample("opencl.b2", MeasureStatus::kLaunchFailed);
+  crashed.detail = "worker process died: signal 11 (Segmentation fault)";  // the variant's own doing
+  EXPECT_EQ(MeasuredAgainOnResume(crashed, 1e-5), "");
+}
+
 TEST(Measurement, BadMaxErrorSaysWhy) {
   EXPECT_EQ(BadMaxError(1e-4), "");
   EXPECT_EQ(BadMaxError(0.0), "");

@@ -156,6 +156,28 @@ TEST(IsolatedBackend, CrashIsALaunchFailureNamingTheSignal) {
   EXPECT_EQ(worker.starts(), 2);
 }
 
+// A worker killed from outside (kill -9 by a user, the OOM killer) or
+// stopped until its time ran out says nothing about the variant: recorded
+// as interrupted, which a resumed run measures again, unlike a crash.
+TEST(IsolatedBackend, AWorkerKilledOrStoppedFromOutsideIsRecordedAsInterrupted) {
+  const fs::path dir = Scratch();
+  const std::string exe = FakeWorker(
+      dir, std::string("read line; case \"$(ls \"$DIR\" | grep -c '^seen')\" in\n") +
+               "0) : > \"$DIR/seen1\"; kill -KILL $$;;\n"   // as `kill -9 <worker>` from a shell
+               "1) : > \"$DIR/seen2\"; kill -STOP $$;;\n"   // as a debugger or `kill -STOP`
+               "esac\nwhile :; do echo '" + kAnswer + "'; read line || exit 0; done");
+  IsolatedBackend worker(exe, FakeDevice(), 1.0);
+  const Measurement killed = worker.Measure(kVariant, kDataset, {});
+  EXPECT_EQ(killed.status, MeasureStatus::kLaunchFailed);
+  EXPECT_EQ(killed.detail, std::string(kInterruptedDetail) + "worker process died: signal 9 (Killed)");
+  EXPECT_NE(MeasuredAgainOnResume(killed, 1e-5), "");
+  const Measurement stopped = worker.Measure(kVariant, kDataset, {});
+  EXPECT_EQ(stopped.status, MeasureStatus::kTimeout);
+  EXPECT_EQ(stopped.detail, std::string(kInterruptedDetail) + "the worker process was stopped; no result within 1 s");
+  EXPECT_NE(MeasuredAgainOnResume(stopped, 1e-5), "");
+  EXPECT_EQ(worker.Measure(kVariant, kDataset, {}).status, MeasureStatus::kOk);
+}
+
 // A worker whose device was lost answers with "device_lost" and exits; the
 // variant is measured again in a fresh worker, whose answer is kept, with the
 // first one's detail.
