@@ -54,8 +54,16 @@ PaperResult RunPaper(const PaperOptions& options) {
     config.strategy.budget = kQuickBudget;
   }
   if (options.quick) {
+    // A first look in minutes on a laptop's CPU devices: fewer, shorter
+    // kernel-time samplings (each sample flushes the cache first, which on a
+    // CPU device costs more than the kernel) and races of two.
     config.timing.warmup = 2;
     config.timing.repetitions = 7;
+    config.timing.stop.min_samples = 5;
+    config.timing.stop.batch = 5;
+    config.timing.stop.max_samples = 20;
+    config.timing.stop.max_ms = 20.0;
+    config.timing.race = 2;
     config.variant_timeout_s = 30.0;
   }
   for (const PaperKernel& k : result.paper_kernels) config.baselines.push_back(k.variant);
