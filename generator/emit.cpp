@@ -311,18 +311,30 @@ constexpr const char* kStrideBytesRule =
     "slot to vertex v+1's (soa: B elements; soa-split: one element, within a slot array); palette: bytes from joint j "
     "to joint j+1 (R float4 rows); scalars: 0";
 
-// The weight format and the one quantisation rule (generator/packer.cpp QuantiseVertex).
+// The quantisation rule in the words of docs/VARIANTS.md (the kernel
+// contract's item 1) and of the generated header's QuantiseVertex
+// (templates/embedded_support.h); generator/packer.cpp computes it.
+constexpr const char* kQuantisationRule =
+    "In IEEE 754 double precision (binary64), each operation rounded to nearest, ties to even: "
+    "1. s = ((w_0 + w_1) + w_2) + ... + w_(B-1): the float32 weights converted to double (exactly) and added in "
+    "slot order. "
+    "2. t_i = (w_i / s) x M: the quotient rounded to double, then the product rounded to double. "
+    "3. q_i = floor(t_i) and r_i = t_i - q_i (exact in double). "
+    "4. D = M - (q_0 + ... + q_(B-1)): the quanta still missing, at most the number of non-zero weights. "
+    "5. The D slots of non-zero weight with the largest r_i get one quantum more each; of equal r_i the earlier "
+    "slot (smaller i) comes first. A zero weight stays 0.";
+
 nlohmann::json WeightsJson(WeightFormat format) {
+  const std::string input = "finite, non-negative, not all zero per vertex (others are an error naming the vertex)";
   if (format == WeightFormat::kF32)
-    return {{"format", "f32"}, {"rule", "the weights as given, as float32 (no quantisation)"}};
+    return {{"format", "f32"}, {"input", input}, {"rule", "the weights as given, as float32 (no quantisation)"}};
   const int max = format == WeightFormat::kUnorm16 ? 65535 : 255;
   const std::string m = std::to_string(max);
   return {{"format", Name(format)},
           {"max", max},
-          {"rule", "per vertex: t_i = w_i / sum(w) * " + m + "; q_i = floor(t_i); the " + m +
-                       " - sum(q) missing quanta go one each to the slots with the largest remainders t_i - q_i, ties "
-                       "to the earlier slot; zero weights stay 0; the integers sum to exactly " + m +
-                       " and the kernel reads q_i / " + m},
+          {"input", input},
+          {"rule", "per vertex, the B weights w_0 .. w_(B-1) become integers q_0 .. q_(B-1) summing to exactly M = " +
+                       m + ", read by the kernel as q_i / " + m + ". " + kQuantisationRule},
           {"exact", "weights that are already multiples of 1/" + m + " summing to 1 are kept exactly (zero "
                     "quantisation error), e.g. a glTF's normalized WEIGHTS of this width"}};
 }

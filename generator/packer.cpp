@@ -66,37 +66,30 @@ void PutVector(std::uint8_t* at, const glm::vec3& v, PositionFormat format, floa
 std::uint32_t UnormMax(WeightFormat format) { return format == WeightFormat::kUnorm16 ? 65535u : 255u; }
 
 // Largest-remainder quantisation of one vertex's weights to integers summing
-// to exactly `max`: round to nearest, then hand out (or take back) the
-// difference one quantum at a time to the slot with the largest (smallest)
-// residue; on a tie the earlier slot gets (or keeps) the quantum. The weights
-// are normalised by their sum first (in double), so a mesh within
-// kWeightSumTolerance still gets the nearest apportionment. Zero weights stay
-// zero; no weight goes negative.
+// to exactly `max`, the rule of docs/VARIANTS.md (the kernel contract's item
+// 1), step by step in double: s = the weights added in slot order; t_i =
+// (w_i / s) x M; q_i = floor(t_i), r_i = t_i - q_i; the M - sum(q) missing
+// quanta one each to the non-zero slots of largest r_i, the earlier slot on a
+// tie. The generated header's QuantiseVertex (templates/embedded_support.h)
+// is the same code; the mesh was validated (finite weights >= 0, not all zero).
 void QuantiseVertex(const float* w, int slots, std::uint32_t max, std::uint32_t* q) {
-  double sum = 0.0;
-  for (int i = 0; i < slots; ++i) sum += w[i] > 0.0f ? static_cast<double>(w[i]) : 0.0;
-  double target[kMaxInfluences] = {};
-  long total = 0;
+  double s = 0.0;
+  for (int i = 0; i < slots; ++i) s += static_cast<double>(w[i]);
+  double r[kMaxInfluences] = {};
+  std::uint32_t sum = 0;
   for (int i = 0; i < slots; ++i) {
-    target[i] = w[i] > 0.0f && sum > 0.0 ? static_cast<double>(w[i]) / sum * max : 0.0;
-    q[i] = static_cast<std::uint32_t>(std::floor(target[i] + 0.5));
-    total += q[i];
+    const double t = static_cast<double>(w[i]) / s * static_cast<double>(max);
+    const double whole = std::floor(t);
+    q[i] = static_cast<std::uint32_t>(whole);
+    r[i] = w[i] > 0.0f ? t - whole : -1.0;  // -1: a zero weight gets no quantum
+    sum += q[i];
   }
-  if (sum <= 0.0) return;  // all-zero vertex: invalid mesh, rejected before packing
-  for (long diff = static_cast<long>(max) - total; diff != 0;) {
-    int best = -1;
-    for (int i = 0; i < slots; ++i) {
-      if (diff > 0 ? !(w[i] > 0.0f) : q[i] == 0) continue;
-      const double residue = target[i] - q[i];
-      if (best < 0 || (diff > 0 ? residue > target[best] - q[best] : residue <= target[best] - q[best])) best = i;
-    }
-    if (diff > 0) {
-      ++q[best];
-      --diff;
-    } else {
-      --q[best];
-      ++diff;
-    }
+  for (std::uint32_t missing = max - sum; missing > 0; --missing) {
+    int best = 0;
+    for (int i = 1; i < slots; ++i) best = r[i] > r[best] ? i : best;  // strictly larger: the earlier on a tie
+    if (r[best] < 0.0) break;  // unreachable for a valid mesh: D never exceeds the non-zero weights
+    ++q[best];
+    r[best] = -1.0;  // one quantum per slot
   }
 }
 

@@ -3,9 +3,10 @@
 // into the mesh's vertex order.
 //
 // - Formats: positions/normals float4 (w = 1 / 0) or float3; indices i32/u16/u8;
-//   weights f32, or unorm16/unorm8 quantised with round-to-nearest and then
-//   renormalised so that each vertex's quantised weights sum to exactly
-//   65535 / 255 (the largest rounding residues absorb the difference).
+//   weights f32, or unorm16/unorm8 quantised by the largest-remainder rule of
+//   docs/VARIANTS.md (the kernel contract's item 1, exact to the double
+//   operation) so that each vertex's quantised weights sum to exactly
+//   65535 / 255.
 // - Mixed counts: `padded` keeps every vertex with B slots (zero weights,
 //   index 0, in unused slots); `bucketed` orders vertices by their non-zero
 //   influence count (stable, so vertex order is kept inside a bucket) and

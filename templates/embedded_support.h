@@ -82,6 +82,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -206,36 +207,38 @@ inline void PutVector(std::uint8_t* at, const float* xyz, PositionFormat format,
   if (format == PositionFormat::kFloat4) PutFloat(at + 12, w);
 }
 
-// skintune's quantisation of one vertex's weights to integers summing to
-// exactly `max`: normalise by the sum (in double), round to nearest, then hand
-// out (or take back) the difference one quantum at a time to the slot with the
-// largest (smallest) residue, the earlier slot on a tie. Zero (and negative)
-// weights stay zero.
+// skintune's quantisation of one vertex's weights w_0 .. w_(B-1) (B =
+// `slots`) to integers q_0 .. q_(B-1) summing to exactly M = `max` (65535 or
+// 255). The weights must be finite and non-negative, and not all zero
+// (PackMesh refuses others). The rule (skintune's docs/VARIANTS.md, the
+// kernel contract's item 1, in the same words):
+// In IEEE 754 double precision (binary64), each operation rounded to nearest, ties to even:
+// 1. s = ((w_0 + w_1) + w_2) + ... + w_(B-1): the float32 weights converted to double (exactly)
+//    and added in slot order.
+// 2. t_i = (w_i / s) x M: the quotient rounded to double, then the product rounded to double.
+// 3. q_i = floor(t_i) and r_i = t_i - q_i (exact in double).
+// 4. D = M - (q_0 + ... + q_(B-1)): the quanta still missing, at most the number of non-zero
+//    weights.
+// 5. The D slots of non-zero weight with the largest r_i get one quantum more each; of equal r_i
+//    the earlier slot (smaller i) comes first. A zero weight stays 0.
 inline void QuantiseVertex(const float* w, int slots, std::uint32_t max, std::uint32_t* q) {
-  double sum = 0.0;
-  for (int i = 0; i < slots; ++i) sum += w[i] > 0.0f ? static_cast<double>(w[i]) : 0.0;
-  double target[8] = {};
-  long total = 0;
+  double s = 0.0;
+  for (int i = 0; i < slots; ++i) s += static_cast<double>(w[i]);
+  double r[8] = {};
+  std::uint32_t sum = 0;
   for (int i = 0; i < slots; ++i) {
-    target[i] = w[i] > 0.0f && sum > 0.0 ? static_cast<double>(w[i]) / sum * max : 0.0;
-    q[i] = static_cast<std::uint32_t>(std::floor(target[i] + 0.5));
-    total += static_cast<long>(q[i]);
+    const double t = static_cast<double>(w[i]) / s * static_cast<double>(max);
+    const double whole = std::floor(t);
+    q[i] = static_cast<std::uint32_t>(whole);
+    r[i] = w[i] > 0.0f ? t - whole : -1.0;  // -1: a zero weight gets no quantum
+    sum += q[i];
   }
-  if (sum <= 0.0) return;
-  for (long diff = static_cast<long>(max) - total; diff != 0;) {
-    int best = -1;
-    for (int i = 0; i < slots; ++i) {
-      if (diff > 0 ? !(w[i] > 0.0f) : q[i] == 0) continue;
-      const double residue = target[i] - q[i];
-      if (best < 0 || (diff > 0 ? residue > target[best] - q[best] : residue <= target[best] - q[best])) best = i;
-    }
-    if (diff > 0) {
-      ++q[best];
-      --diff;
-    } else {
-      --q[best];
-      ++diff;
-    }
+  for (std::uint32_t missing = max - sum; missing > 0; --missing) {
+    int best = 0;
+    for (int i = 1; i < slots; ++i) best = r[i] > r[best] ? i : best;  // strictly larger: the earlier on a tie
+    if (r[best] < 0.0) break;  // unreachable for valid weights: D never exceeds the non-zero ones
+    ++q[best];
+    r[best] = -1.0;  // one quantum per slot
   }
 }
 
@@ -311,13 +314,14 @@ struct PackedInputs {
 //              v*influences+i), each < k.joints and addressable by k.index;
 //   weights    `influences` weights per vertex, same order; kF32 stores them
 //              as given, kUnorm16 / kUnorm8 quantise each vertex's weights
-//              (normalised by their sum, rounded to nearest, the remaining
-//              quanta to the largest rounding residues, ties to the earlier
-//              slot) so they sum to exactly 65535 / 255; zero weights stay 0.
+//              by QuantiseVertex's rule so they sum to exactly 65535 / 255;
+//              zero weights stay 0. Every weight finite and >= 0, and not
+//              all of a vertex's zero.
 // influences may be below k.influences: the unused slots get index 0 and
 // weight 0. Returns false and sets *error (when error is not null) for
 // out == null, n == 0 or n >= 2^32, influences outside 1..k.influences, null
-// positions / joints / weights, normals missing when k.normals, or a joint
+// positions / joints / weights, normals missing when k.normals, a negative or
+// non-finite weight, a vertex whose weights are all zero, or a joint
 // index the index format cannot hold or >= k.joints.
 inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float* positions, const float* normals,
                      const std::uint32_t* joints, const float* weights, PackedInputs* out, std::string* error) {
@@ -346,6 +350,22 @@ inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float
       return fail(where + " does not fit " + detail::IndexName(k.index) + " indices (at most " +
                   std::to_string(capacity - 1) + ")");
     return fail(where + " out of range (the kernel has " + std::to_string(k.joints) + " joints)");
+  }
+  // The weights the contract covers: finite, non-negative, not all zero per
+  // vertex (a quantised format divides by their sum).
+  for (std::size_t v = 0; v < n; ++v) {
+    bool any = false;
+    for (std::size_t i = 0; i < slots; ++i) {
+      const float w = weights[v * slots + i];
+      if (!(w >= 0.0f) || w > 3.4028234663852886e38f) {
+        char text[96];
+        std::snprintf(text, sizeof text, "vertex %zu slot %zu: weight %g is %s", v, i, static_cast<double>(w),
+                      w < 0.0f ? "negative" : "not finite");
+        return fail(text);
+      }
+      any = any || w > 0.0f;
+    }
+    if (!any) return fail("vertex " + std::to_string(v) + ": all weights are zero");
   }
 
   const std::size_t b = static_cast<std::size_t>(k.influences);

@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
       if (command.subcommand->parsed()) return command.run();
     }
   } catch (const skintune::internal::UsageError& e) {
-    std::cerr << "skintune: error: " << e.what() << "\n";
+    std::cerr << "skintune: error: " << skintune::internal::OneLine(e.what()) << "\n";
     return 2;
   } catch (const skintune::internal::Error& e) {
     std::cerr << "skintune: error: " << skintune::internal::OneLine(e.what()) << "\n";

@@ -489,7 +489,7 @@ TEST(EmbedHeader, PackMeshRefusesAJointBeyondTheKernelsPalette) {
 }
 
 TEST(EmbedHeader, PackMeshRefusesMissingNormalsOnlyWhenTheKernelSkinsThem) {
-  const std::vector<float> p(3, 0.0f), w(8, 0.0f);
+  const std::vector<float> p(3, 0.0f), w = {1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
   const std::vector<std::uint32_t> j(8, 0);
   const fk::Kernel& with = KernelWith("opencl.b2.padded.soa-split.float4.u16.unorm16.mat4.local.point.v2c.wg128.");
   EXPECT_NE(PackError(with, 1, 1, p.data(), nullptr, j.data(), w.data()).find("normals is null"), std::string::npos);
@@ -511,6 +511,95 @@ TEST(EmbedHeader, PackMeshRefusesNullPointersAndAnEmptyMesh) {
   std::string error;
   EXPECT_FALSE(fk::PackMesh(k, 1, 1, p, nullptr, j, w, nullptr, &error));
   EXPECT_NE(error.find("out is null"), std::string::npos) << error;
+}
+
+// The contract's weights: finite, non-negative, not all zero per vertex. A
+// negative weight was left out of the sum ([-0.1, 0.6, 0.5] packed to
+// [0, 139, 116]) and an all-zero vertex packed to zeros that do not sum to M.
+TEST(EmbedHeader, PackMeshRefusesANegativeOrNonFiniteWeightAndAVertexOfZeroWeights) {
+  const float p[6] = {};
+  const std::uint32_t j[6] = {};
+  for (const char* key : {".unorm8.", ".unorm16.", ".f32."}) {
+    const fk::Kernel& k = KernelWith(key);
+    if (k.influences < 3) continue;
+    SCOPED_TRACE(k.variant);
+    const float negative[6] = {0.2f, 0.3f, 0.5f, -0.1f, 0.6f, 0.5f};
+    EXPECT_NE(PackError(k, 2, 3, p, p, j, negative).find(": vertex 1 slot 0: weight -0.1 is negative"), std::string::npos);
+    const float nan[6] = {0.2f, std::nanf(""), 0.8f, 1.0f, 0.0f, 0.0f};
+    EXPECT_NE(PackError(k, 2, 3, p, p, j, nan).find(": vertex 0 slot 1: weight nan is not finite"), std::string::npos);
+    const float inf[6] = {1.0f, 0.0f, 0.0f, 0.0f, 0.0f, HUGE_VALF};
+    EXPECT_NE(PackError(k, 2, 3, p, p, j, inf).find(": vertex 1 slot 2: weight inf is not finite"), std::string::npos);
+    const float zero[6] = {0.5f, 0.5f, 0.0f, 0.0f, 0.0f, 0.0f};
+    EXPECT_NE(PackError(k, 2, 3, p, p, j, zero).find(": vertex 1: all weights are zero"), std::string::npos);
+  }
+}
+
+// docs/VARIANTS.md's quantisation rule, written from its text alone (not from
+// the header's or the packer's code): every step one double operation, the
+// missing quanta to the largest remainders by a stable sort.
+std::vector<std::uint32_t> DocumentedQuantisation(const float* w, int b, std::uint32_t m) {
+  double s = 0.0;
+  for (int i = 0; i < b; ++i) s = s + static_cast<double>(w[i]);
+  std::vector<std::uint32_t> q(static_cast<std::size_t>(b));
+  std::vector<double> r(static_cast<std::size_t>(b));
+  std::uint64_t total = 0;
+  for (int i = 0; i < b; ++i) {
+    const double t = (static_cast<double>(w[i]) / s) * static_cast<double>(m);
+    q[i] = static_cast<std::uint32_t>(std::floor(t));
+    r[i] = t - std::floor(t);
+    total += q[i];
+  }
+  std::vector<int> nonzero;
+  for (int i = 0; i < b; ++i)
+    if (w[i] != 0.0f) nonzero.push_back(i);
+  std::stable_sort(nonzero.begin(), nonzero.end(), [&](int x, int y) { return r[x] > r[y]; });
+  const std::uint64_t missing = m - total;
+  EXPECT_LE(missing, nonzero.size());
+  for (std::uint64_t d = 0; d < missing && d < nonzero.size(); ++d) ++q[nonzero[d]];
+  return q;
+}
+
+TEST(EmbedHeader, AFloat64ReimplementationOfTheDocumentedRuleIsBitIdenticalToPackMeshAndPack) {
+  std::mt19937 rng(2026);
+  std::uniform_real_distribution<float> any(0.0f, 1.0f);
+  std::uniform_int_distribution<int> kind(0, 5), slots(1, 8), quanta(0, 255);
+  std::size_t differ_header = 0, differ_packer = 0, vertices = 0;
+  for (const std::uint32_t m : {255u, 65535u}) {
+    // A million vertices through the header's rule, B = 1..8 (the header's limit).
+    for (int v = 0; v < 500000; ++v) {
+      const int b = slots(rng);
+      float w[8] = {};
+      const int k = kind(rng);
+      for (int i = 0; i < b; ++i) {
+        if (k == 0) w[i] = 1.0f;                                   // all equal: every remainder ties
+        if (k == 1) w[i] = static_cast<float>(quanta(rng)) / 255;  // multiples of 1/255, some zero
+        if (k == 2) w[i] = any(rng) < 0.3f ? 0.0f : any(rng);      // zeros among them
+        if (k == 3) w[i] = any(rng) * 1e-30f;                      // tiny, unnormalised
+        if (k >= 4) w[i] = any(rng);
+      }
+      if (std::all_of(w, w + b, [](float x) { return x == 0.0f; })) w[b - 1] = 1.0f;
+      std::uint32_t header[8] = {};
+      fk::detail::QuantiseVertex(w, b, m, header);
+      const std::vector<std::uint32_t> want = DocumentedQuantisation(w, b, m);
+      differ_header += !std::equal(want.begin(), want.end(), header);
+      ++vertices;
+    }
+    // skintune's packer on a mesh of normalised weights (QuantisedMesh gives q / M as float).
+    for (int b = 1; b <= 4; ++b) {
+      SkinnedMesh mesh = RandomMesh(20000, b, false, 300u + m + static_cast<unsigned>(b));
+      Variant variant = ParseVariantKey("opencl.b" + std::to_string(b));
+      variant.weight = m == 255u ? WeightFormat::kUnorm8 : WeightFormat::kUnorm16;
+      const SkinnedMesh quantised = QuantisedMesh(mesh, variant);
+      for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+        const std::vector<std::uint32_t> want = DocumentedQuantisation(&mesh.weights[v * b], b, m);
+        for (int i = 0; i < b; ++i)
+          differ_packer += std::lround(static_cast<double>(quantised.weights[v * b + i]) * m) != want[i];
+      }
+    }
+  }
+  EXPECT_EQ(vertices, 1000000u);
+  EXPECT_EQ(differ_header, 0u);
+  EXPECT_EQ(differ_packer, 0u);
 }
 
 // ------------------------------------------------------------------ FindKernel

@@ -46,9 +46,9 @@ std::string WithOverflow(const nlohmann::json& json) {
   return text.insert(1, "\"overflow\": 1e400, ");
 }
 
-// One line on stderr: "skintune: error: " + `start`..., exit 1, no internal error.
-void ExpectOneErrorLine(const testing::CommandResult& r, const std::string& start) {
-  EXPECT_EQ(r.exit_code, 1) << r.err;
+// One line on stderr: "skintune: error: " + `start`..., exit `exit_code`, no internal error.
+void ExpectOneErrorLine(const testing::CommandResult& r, const std::string& start, int exit_code = 1) {
+  EXPECT_EQ(r.exit_code, exit_code) << r.err;
   EXPECT_EQ(CountLines(r.err), 1) << r.err;
   EXPECT_EQ(r.err.rfind("skintune: error: " + start, 0), 0u) << r.err;
   EXPECT_EQ(r.err.find("internal error"), std::string::npos) << r.err;
@@ -168,7 +168,8 @@ TEST(UntrustedInput, AReportWhoseKindIsNotAStringIsReplayedAsAReportAndRefusedNa
 
 // A verification tolerance of 1.0 let a kernel whose output was 0.39 of the
 // diagonal off win; a timeout of 1e10 s failed later as "worker process did
-// not start within 1e+10 s". Both are refused before anything is made.
+// not start within 1e+10 s". Both are settings that cannot work, refused
+// (exit 2) before anything is made.
 TEST(UntrustedInput, AnAbsurdToleranceOrVariantTimeoutInAConfigIsOneErrorNamingTheField) {
   const fs::path dir = testing::ScratchDir("skintune_untrusted");
   const fs::path out = dir / "out";
@@ -189,7 +190,7 @@ TEST(UntrustedInput, AnAbsurdToleranceOrVariantTimeoutInAConfigIsOneErrorNamingT
     }
     const std::string path = Write(dir / "config.json", config.dump());
     ExpectOneErrorLine(RunSkintune({"tune", "--config", path, "--out", out.string(), "--quiet"}, kTwoGiB, kTimeoutS),
-                       path + ": " + c.says);
+                       path + ": " + c.says, 2);
     EXPECT_FALSE(fs::exists(out));
   }
 }
