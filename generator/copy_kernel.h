@@ -52,14 +52,16 @@ CopyKernel EmitFlush(Lang lang, std::size_t read_bytes);
 // for a CPU device (`cpu`) at most kCpuFlushCapBytes. A CPU's last-level
 // cache as sysfs reports it is the socket's, shared with cores the device
 // does not time (300 MiB on this project's 2-core and 16-core machines,
-// November 2026): twice that, 600 MiB read before every sample, took ~60 ms
-// a sample on 2 cores and made CPU tuning ten times slower, while 64 MiB is
-// 16 times the cores' own L2 and 13 times the largest mesh the default run
-// tunes (100k-b4's 5 MB). A CPU's kernel time is therefore cold in its
-// cores' caches, not necessarily in the whole socket's L3 (docs/TUNING.md).
+// November 2026): no affordable flush empties it (600 MiB before every sample
+// took ~60 ms a sample on 2 cores and made CPU tuning ten times slower). 32 MiB
+// is 8 times the 2-core machine's L2 (4 MiB) and 6 times the largest mesh the
+// default run tunes (100k-b4's 5 MB); on llvmpipe, whose flush runs at a few
+// GB/s, 64 MiB made a GL variant's kernel time 1.7 times as long to sample.
+// A CPU's kernel time is therefore cold in its cores' caches, not
+// necessarily in the whole socket's L3 (docs/TUNING.md).
 std::size_t FlushBytes(std::uint64_t llc_bytes, bool cpu = false);
 inline constexpr std::uint64_t kUnknownCacheBytes = 64ull << 20;
-inline constexpr std::uint64_t kCpuFlushCapBytes = 64ull << 20;
+inline constexpr std::uint64_t kCpuFlushCapBytes = 32ull << 20;
 
 // The bytes one frame of `copy` moves: 32 per item (16 read, 16 written).
 inline std::size_t CopyBytes(const CopyKernel& copy) { return copy.items * 32; }

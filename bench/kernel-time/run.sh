@@ -47,6 +47,7 @@ case "$mode" in
     for i in $(seq 1 "$n"); do
       cache=$(mktemp -d)
       start=$(date +%s.%N)
+      SKINTUNE_TIMING_LOG="$out/run$i.phases.log" \
       SKINTUNE_CACHE_DIR="$cache/skintune" POCL_CACHE_DIR="$cache/pocl" CUDA_CACHE_PATH="$cache/cuda" \
         __GL_SHADER_DISK_CACHE_PATH="$cache/gl" "$bin/skintune" run --out "$out/run$i" --quiet "$@" > "$out/run$i.txt" 2>&1 \
         || tail -5 "$out/run$i.txt"
