@@ -19,7 +19,7 @@ namespace {
 
 // --quick: a search of this many evaluations per device x language x data set
 // (the full run takes the paper config's budget).
-constexpr std::size_t kQuickBudget = 16;
+constexpr std::size_t kQuickBudget = 8;
 
 }  // namespace
 

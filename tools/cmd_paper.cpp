@@ -118,7 +118,7 @@ Command RegisterPaper(CLI::App& app, int argc, char** argv) {
   sub->add_option("--lang", o->langs, "only these languages: " + Choices(AxisOf<&Variant::lang>()));
   sub->add_option("--budget", o->budget_text,
                   "search evaluations per device, language and data set, 0 to " + std::to_string(kMaxBudget) +
-                      " (default: the paper config's 200, 16 with --quick)")
+                      " (default: the paper config's 200, 8 with --quick)")
       ->check(BudgetCheck());
   sub->add_flag("--no-cpu", o->no_cpu, "skip the CPU timings (the report then has no speedups)");
   sub->add_flag("--quiet", o->quiet, "no progress on stderr");
