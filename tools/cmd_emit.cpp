@@ -18,6 +18,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <tuple>
 
@@ -183,6 +184,7 @@ constexpr const char* kBucketedNote =
 int RunEmitDb(const EmitArgs& o) {
   const std::vector<WinnersEntry> entries = WinnersDbFromJson(ReadJsonFile(o.db), o.db);
   std::vector<const WinnersEntry*> matched;
+  std::set<std::string> warned;
   for (const WinnersEntry& e : entries) {
     const bool lang_ok = o.langs.empty() || std::find(o.langs.begin(), o.langs.end(), Name(e.lang)) != o.langs.end();
     if (!lang_ok || !EntryMatchesDevice(e, o.device)) continue;
@@ -190,8 +192,10 @@ int RunEmitDb(const EmitArgs& o) {
     // scene shape: a crowd's or batch's winner would compete with the single
     // mesh of the same total size (the runtime's Skinner uses them).
     if (e.shape != SceneKind::kSingle) {
-      std::cerr << "skintune: warning: skipping " << Describe(e)
-                << ": tuned on a crowd or batch scene; the header holds single-mesh winners\n";
+      // Once per distinct line: the precision classes of one scene read the same.
+      const std::string warning = "skipping " + Describe(e) + ": tuned on a crowd or batch scene; the header holds "
+                                  "single-mesh winners";
+      if (warned.insert(warning).second) std::cerr << "skintune: warning: " << warning << "\n";
       continue;
     }
     matched.push_back(&e);

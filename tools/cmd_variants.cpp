@@ -8,6 +8,7 @@
 #include "generator/axes.h"
 #include "generator/space.h"
 #include "reference/error.h"
+#include "reference/scene.h"
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "tools/commands.h"
 #include "tuner/tune.h"
@@ -48,11 +49,20 @@ int RunVariants(const VariantsOptions& o) {
   }
   ProblemShape shape{77, 1, true};
   std::string mesh_name = "the paper's rig (77 joints, any influence count, normals available)";
-  if (!o.source.dataset.empty() || !o.source.mesh_file.empty()) {
-    const SkinnedAsset asset = LoadAsset(o.source);
+  const auto widest_of = [](const SkinnedMesh& mesh) {
     int widest = 1;
-    for (std::size_t v = 0; v < asset.mesh.vertex_count(); ++v) widest = std::max(widest, asset.mesh.InfluencesOf(v));
-    shape = {asset.mesh.joint_count, widest, asset.mesh.has_normals()};
+    for (std::size_t v = 0; v < mesh.vertex_count(); ++v) widest = std::max(widest, mesh.InfluencesOf(v));
+    return widest;
+  };
+  if (!o.source.dataset.empty()) {
+    // A scene key as `tune` and `run` take it (5k-b4-x16, a+b batches):
+    // the instances count toward the constant and image storage limits.
+    const SkinnedScene scene = LoadScene(ParseSceneKey(o.source.dataset));
+    shape = {scene.mesh().joint_count, widest_of(scene.mesh()), scene.mesh().has_normals(), scene.spec.instances};
+    mesh_name = "scene '" + scene.spec.key + "'";
+  } else if (!o.source.mesh_file.empty()) {
+    const SkinnedAsset asset = LoadAsset(o.source);
+    shape = {asset.mesh.joint_count, widest_of(asset.mesh), asset.mesh.has_normals()};
     mesh_name = asset.source;
   }
   std::vector<std::string> keys;

@@ -210,11 +210,14 @@ TEST_F(WarmDevice, AStillWarmDeviceGetsOneBusyBurst) {
   const std::size_t before = clock.frames;
   const std::vector<double> second = TimeIt(runner, small);
   for (double t : second) EXPECT_NEAR(t, HotFrameMs(), 1e-12);
-  // Bursts of 16, 32, ... frames until one lasts 4 ms (256 frames of
-  // 0.025 ms): 496 frames, plus the probe's 6 and the call's own 52. A
-  // steadiness check would add at least one more burst of 256.
+  // Bursts of 16, 32, ... frames until one lasts 4 ms of the host's clock
+  // (256 frames of 0.025 ms): 496 frames, plus the probe's 6 and the call's
+  // own 52; fewer when a loaded machine stretches a burst past 4 ms sooner
+  // (112 seen under a parallel ctest). A steadiness check would add at
+  // least one more burst of 256, a full warm-up bursts to its 1 s cap.
   const std::size_t warm_up = clock.frames - before - (2u + 5u * 10u) - 6u;
-  EXPECT_EQ(warm_up, 16u + 32u + 64u + 128u + 256u);
+  EXPECT_GE(warm_up, 16u);
+  EXPECT_LE(warm_up, 16u + 32u + 64u + 128u + 256u);
 }
 
 // The device got slower for good (the fastest probe seen can no longer be

@@ -282,6 +282,25 @@ TEST(SkintuneCli, VariantsCountsTheSpaceAndTheInvalidPointsPerConstraint) {
   EXPECT_GT(j.at("invalid_by").at("assignment_redundant").get<std::uint64_t>(), 0u);
 }
 
+// One dataset grammar for every command: `variants` takes the scene keys
+// `tune` takes ("unknown option 'x16'" before), and the instances count
+// against the storages that hold every palette.
+TEST(SkintuneCli, VariantsTakesASceneKeyAndItsInstancesCount) {
+  auto valid = [](const std::string& key) {
+    const auto r = RunSkintune({"variants", "--lang", "opencl", "--dataset", key, "--json"});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out.empty() ? "{}" : r.out);
+    EXPECT_EQ(j.value("mesh", ""), "scene '" + key + "'");
+    return j.value("valid", std::uint64_t{0});
+  };
+  const std::uint64_t one = valid("5k-b4");
+  const std::uint64_t crowd = valid("5k-b4-x16");
+  const std::uint64_t big_crowd = valid("5k-b4-x64");
+  EXPECT_GT(one, 0u);
+  EXPECT_GE(one, crowd);
+  EXPECT_GT(crowd, big_crowd) << "64 palettes of 77 joints do not fit constant storage";
+}
+
 TEST(SkintuneCli, VariantsWithAnUnknownDeviceIsAnError) {
   const auto r = RunSkintune({"variants", "--device", "no-such-device-xyz"});
   EXPECT_EQ(r.exit_code, 1);
@@ -461,6 +480,30 @@ TEST(SkintuneCli, EmitDbWithNoMatchingDeviceListsTheDatabasesDevicesAndWritesNot
   EXPECT_EQ(r.err, "skintune: error: " + empty.string() + ": no winner matches --device '' (the database has no "
                    "entries)\n");
   EXPECT_FALSE(fs::exists(dir));
+}
+
+// A crowd's winners of two precision classes read the same in the skip
+// warning: it is printed once, not once per class.
+TEST(SkintuneCli, EmitDbWarnsOnceForACrowdWinnerOfTwoPrecisionClasses) {
+  const fs::path root = Scratch();
+  const fs::path db = EditedDb(root, [](nlohmann::json& d) {
+    nlohmann::json crowd = d["entries"][0];
+    crowd["shape"] = "instances";
+    crowd["instances"] = 8;
+    nlohmann::json other = crowd;
+    const std::string weight = other["variant"]["weight"], to = weight == "f32" ? "unorm16" : "f32";
+    std::string key = other["variant"]["key"];
+    key.replace(key.find("." + weight + "."), weight.size() + 2, "." + to + ".");
+    other["variant"]["weight"] = to;
+    other["variant"]["key"] = key;
+    d["entries"].push_back(crowd);
+    d["entries"].push_back(other);
+  });
+  const auto r = RunSkintune({"emit", "--db", db, "--device", "", "--out", root / "kernels"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::vector<std::string> lines = Lines(r.err);
+  ASSERT_EQ(lines.size(), 1u) << r.err;
+  EXPECT_NE(lines[0].find("tuned on a crowd or batch scene"), std::string::npos) << lines[0];
 }
 
 TEST(SkintuneCli, EmitDbSkipsWinnersThatCannotTakeTheJointCountWithOneWarningEach) {
