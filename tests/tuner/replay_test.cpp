@@ -144,6 +144,32 @@ TEST(Replay, ErrorsNameTheFileAndWhatWasRecorded) {
   }
 }
 
+// A cache holds races beside the measurements: read and checked, not
+// replayed, and a malformed one is an error naming the line.
+TEST(Replay, ReadsACacheWithARaceLine) {
+  const fs::path path = TempDir() / "with-race.jsonl";
+  const std::string measurement = nlohmann::json(testing::SyntheticMeasurement(Variant{}, kDevice, kDataset)).dump();
+  RaceRecord race;
+  race.device_id = kDevice;
+  race.dataset = kDataset;
+  RaceRecord::Entry entry;
+  entry.variant = Variant{};
+  entry.interval = {0.01, 0.009, 0.011, 20};
+  race.entries = {entry, entry};
+  const std::string race_line = nlohmann::json{{"race_key", "k"}, {"race", RaceJson(race)}}.dump();
+  std::ofstream(path) << measurement << "\n" << race_line << "\n";
+  EXPECT_EQ(ReadMeasurementLines(path.string()).size(), 1u);
+  nlohmann::json bad = nlohmann::json::parse(race_line);
+  bad["race"]["entries"][0]["samples"] = 0;
+  std::ofstream(path) << measurement << "\n" << bad.dump() << "\n";
+  try {
+    ReadMeasurementLines(path.string());
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("with-race.jsonl:2: malformed race ("), std::string::npos) << e.what();
+  }
+}
+
 TEST(Replay, ReplaysAReport) {
   TuningReport report;
   report.datasets = {{kDataset, 100000, 4, 77}};
