@@ -313,7 +313,7 @@ constexpr const char* kStrideBytesRule =
 
 // The quantisation rule in the words of docs/VARIANTS.md (the kernel
 // contract's item 1) and of the generated header's QuantiseVertex
-// (templates/embedded_support.h); generator/packer.cpp computes it.
+// (templates/embedded_support.h), the code generator/packer.cpp also runs.
 constexpr const char* kQuantisationRule =
     "In IEEE 754 double precision (binary64), each operation rounded to nearest, ties to even: "
     "1. s = ((w_0 + w_1) + w_2) + ... + w_(B-1): the float32 weights converted to double (exactly) and added in "

@@ -12,6 +12,7 @@
 #endif
 
 #include "reference/error.h"
+#include "templates/embedded_support.h"  // QuantiseVertex
 
 namespace skintune::internal {
 namespace {
@@ -65,34 +66,6 @@ void PutVector(std::uint8_t* at, const glm::vec3& v, PositionFormat format, floa
 
 std::uint32_t UnormMax(WeightFormat format) { return format == WeightFormat::kUnorm16 ? 65535u : 255u; }
 
-// Largest-remainder quantisation of one vertex's weights to integers summing
-// to exactly `max`, the rule of docs/VARIANTS.md (the kernel contract's item
-// 1), step by step in double: s = the weights added in slot order; t_i =
-// (w_i / s) x M; q_i = floor(t_i), r_i = t_i - q_i; the M - sum(q) missing
-// quanta one each to the non-zero slots of largest r_i, the earlier slot on a
-// tie. The generated header's QuantiseVertex (templates/embedded_support.h)
-// is the same code; the mesh was validated (finite weights >= 0, not all zero).
-void QuantiseVertex(const float* w, int slots, std::uint32_t max, std::uint32_t* q) {
-  double s = 0.0;
-  for (int i = 0; i < slots; ++i) s += static_cast<double>(w[i]);
-  double r[kMaxInfluences] = {};
-  std::uint32_t sum = 0;
-  for (int i = 0; i < slots; ++i) {
-    const double t = static_cast<double>(w[i]) / s * static_cast<double>(max);
-    const double whole = std::floor(t);
-    q[i] = static_cast<std::uint32_t>(whole);
-    r[i] = w[i] > 0.0f ? t - whole : -1.0;  // -1: a zero weight gets no quantum
-    sum += q[i];
-  }
-  for (std::uint32_t missing = max - sum; missing > 0; --missing) {
-    int best = 0;
-    for (int i = 1; i < slots; ++i) best = r[i] > r[best] ? i : best;  // strictly larger: the earlier on a tie
-    if (r[best] < 0.0) break;  // unreachable for a valid mesh: D never exceeds the non-zero weights
-    ++q[best];
-    r[best] = -1.0;  // one quantum per slot
-  }
-}
-
 // The 32-bit value stored for every weight slot of the mesh: the float's bits
 // for f32, the quantised integer for unorm16 / unorm8.
 std::vector<std::uint32_t> WeightWords(const SkinnedMesh& mesh, WeightFormat format) {
@@ -103,8 +76,11 @@ std::vector<std::uint32_t> WeightWords(const SkinnedMesh& mesh, WeightFormat for
     return words;
   }
   const auto b = static_cast<std::size_t>(mesh.influences);
+  // The quantisation rule of docs/VARIANTS.md (the kernel contract's item 1)
+  // is the generated header's own code: one implementation for skintune's
+  // packer and every program that packs with the header's PackMesh.
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v)
-    QuantiseVertex(&mesh.weights[v * b], mesh.influences, UnormMax(format), &words[v * b]);
+    skintune_kernels::detail::QuantiseVertex(&mesh.weights[v * b], mesh.influences, UnormMax(format), &words[v * b]);
   return words;
 }
 

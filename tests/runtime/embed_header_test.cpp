@@ -559,6 +559,44 @@ std::vector<std::uint32_t> DocumentedQuantisation(const float* w, int b, std::ui
   return q;
 }
 
+// The rule's words, from "In IEEE 754" to "A zero weight stays 0.", with
+// comment markers and line breaks reduced to single spaces.
+std::string RuleWords(const std::string& text, const std::string& where) {
+  std::string flat;
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);) {
+    std::size_t at = line.find_first_not_of(" \t");
+    if (at != std::string::npos && line.compare(at, 2, "//") == 0) at = line.find_first_not_of(" \t", at + 2);
+    if (at != std::string::npos) flat += line.substr(at) + " ";
+  }
+  const std::size_t begin = flat.find("In IEEE 754");
+  const std::string end_words = "A zero weight stays 0.";
+  const std::size_t end = flat.find(end_words, begin);
+  EXPECT_NE(begin, std::string::npos) << where << " does not state the rule";
+  EXPECT_NE(end, std::string::npos) << where << " does not state the rule to its end";
+  if (begin == std::string::npos || end == std::string::npos) return "";
+  std::string words;
+  for (const char c : flat.substr(begin, end + end_words.size() - begin))
+    if (c != ' ' || (!words.empty() && words.back() != ' ')) words += c;
+  return words;
+}
+
+// VARIANTS.md says its rule is copied word for word into the header's
+// QuantiseVertex and the sidecar's weights.rule: one rule, three places.
+TEST(EmbedHeader, TheQuantisationRuleReadsTheSameInTheDocsTheHeaderAndTheSidecar) {
+  auto read = [](const std::string& file) {
+    std::ifstream in(std::string(SKINTUNE_SOURCE_DIR) + "/" + file);
+    EXPECT_TRUE(in) << file;
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string docs = RuleWords(read("docs/VARIANTS.md"), "docs/VARIANTS.md");
+  ASSERT_FALSE(docs.empty());
+  EXPECT_EQ(RuleWords(read("templates/embedded_support.h"), "templates/embedded_support.h"), docs);
+  const Variant v = ParseVariantKey("opencl.b4.padded.soa.float4.u16.unorm16");
+  const std::string sidecar = SidecarJson(Emit(v), v).at("weights").at("rule").get<std::string>();
+  EXPECT_EQ(RuleWords(sidecar, "the sidecar's weights.rule"), docs);
+}
+
 TEST(EmbedHeader, AFloat64ReimplementationOfTheDocumentedRuleIsBitIdenticalToPackMeshAndPack) {
   std::mt19937 rng(2026);
   std::uniform_real_distribution<float> any(0.0f, 1.0f);
