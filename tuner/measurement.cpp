@@ -351,12 +351,14 @@ MeasurementCache::MeasurementCache(const std::string& path) : path_(path) {
       } catch (const nlohmann::json::exception& e) {
         throw Error(path + ":" + std::to_string(line_number) + ": malformed measurement (" + e.what() + ")");
       }
-      if (j.is_object() && j.contains("race_key")) {
-        try {
-          races_[j.at("race_key").get<std::string>()] = RaceFromJson(j.at("race"));
-        } catch (const std::exception& e) {  // nlohmann's or RaceFromJson's Error
-          throw Error(path + ":" + std::to_string(line_number) + ": malformed race (" + e.what() + ")");
-        }
+      std::optional<std::pair<std::string, RaceRecord>> race;
+      try {
+        race = CachedRaceOf(j);
+      } catch (const Error& e) {
+        throw Error(path + ":" + std::to_string(line_number) + ": " + e.what());
+      }
+      if (race) {
+        races_[race->first] = std::move(race->second);
         continue;
       }
       Measurement m;
@@ -416,7 +418,7 @@ const RaceRecord* MeasurementCache::FindRace(const std::string& race_key) const 
 }
 
 void MeasurementCache::AppendRace(const std::string& race_key, const RaceRecord& race) {
-  AppendLine(nlohmann::json{{"race_key", race_key}, {"race", RaceJson(race)}}.dump() + "\n", "a race");
+  AppendLine(CachedRaceLine(race_key, race).dump() + "\n", "a race");
   races_[race_key] = race;
 }
 

@@ -69,4 +69,17 @@ RaceRecord RaceFromJson(const nlohmann::json& j) {
   return r;
 }
 
+nlohmann::json CachedRaceLine(const std::string& race_key, const RaceRecord& race) {
+  return {{"race_key", race_key}, {"race", RaceJson(race)}};
+}
+
+std::optional<std::pair<std::string, RaceRecord>> CachedRaceOf(const nlohmann::json& line) {
+  if (!line.is_object() || !line.contains("race_key")) return std::nullopt;
+  try {
+    return std::make_pair(line.at("race_key").get<std::string>(), RaceFromJson(line.at("race")));
+  } catch (const std::exception& e) {  // nlohmann's or RaceFromJson's Error
+    throw Error(std::string("malformed race (") + e.what() + ")");
+  }
+}
+
 }  // namespace skintune::internal

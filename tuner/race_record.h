@@ -2,7 +2,9 @@
 // JSON, kept in the report's "races" and in the measurement cache.
 #pragma once
 
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json_fwd.hpp>
@@ -33,5 +35,12 @@ struct RaceRecord {
 // lines) and back; FromJson throws Error naming the field.
 nlohmann::json RaceJson(const RaceRecord& r);
 RaceRecord RaceFromJson(const nlohmann::json& j);
+
+// A race as a line of the measurement cache, beside the measurements:
+// {"race_key": KEY, "race": RaceJson(race)}. CachedRaceOf reads one back: the
+// key and record of a race line, nullopt for any other line (a measurement);
+// throws Error("malformed race (...)") for a race line that is not one.
+nlohmann::json CachedRaceLine(const std::string& race_key, const RaceRecord& race);
+std::optional<std::pair<std::string, RaceRecord>> CachedRaceOf(const nlohmann::json& line);
 
 }  // namespace skintune::internal

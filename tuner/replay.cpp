@@ -38,14 +38,7 @@ std::vector<Measurement> ReadMeasurementLines(const std::string& path) {
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
     try {
       const nlohmann::json j = nlohmann::json::parse(line);
-      if (j.is_object() && j.contains("race_key")) {  // a race kept beside the measurements: checked, not replayed
-        try {
-          (void)RaceFromJson(j.at("race"));
-        } catch (const std::exception& e) {
-          throw Error(std::string("malformed race (") + e.what() + ")");
-        }
-        continue;
-      }
+      if (CachedRaceOf(j)) continue;  // a race kept beside the measurements: checked, not replayed
       out.push_back(j.get<Measurement>());
     } catch (const nlohmann::json::exception& e) {
       throw Error(path + ":" + std::to_string(line_number) + ": malformed measurement (" + e.what() + ")");
