@@ -19,6 +19,7 @@
 
 #include "tests/common/scratch_dir.h"
 #include "tests/common/tiny_tune_config.h"
+#include "tests/tools/expect_error_line.h"
 #include "tests/tools/run_command.h"
 #include "tests/tuner/sample_report.h"
 #include "tuner/report.h"
@@ -29,23 +30,12 @@ namespace {
 namespace fs = std::filesystem;
 using testing::CountLines;
 using testing::ReadAll;
+using testing::ExpectOneErrorLine;
 using testing::RunSkintune;
+using testing::Write;
 
 constexpr std::uint64_t kTwoGiB = 2ull << 30;
 constexpr const char* kEarlier = "an earlier output\n";
-
-std::string Write(const fs::path& path, const std::string& text) {
-  std::ofstream(path, std::ios::binary) << text;
-  return path.string();
-}
-
-// One line on stderr starting with "skintune: error: " + `start`.
-void ExpectOneErrorLine(const testing::CommandResult& r, const std::string& start, int exit_code = 1) {
-  EXPECT_EQ(r.exit_code, exit_code) << r.err;
-  EXPECT_EQ(CountLines(r.err), 1) << r.err;
-  EXPECT_EQ(r.err.rfind("skintune: error: " + start, 0), 0u) << r.err;
-  EXPECT_EQ(r.err.find("internal error"), std::string::npos) << r.err;
-}
 
 // Two OpenCL variants (soa, aos) on `dataset`, timed briefly.
 nlohmann::json TinyConfig(const std::string& dataset = "5000-b2", int influences = 2) {

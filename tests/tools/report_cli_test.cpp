@@ -22,11 +22,7 @@ namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string Write(const fs::path& path, const std::string& text) {
-  std::ofstream(path, std::ios::binary) << text;
-  return path.string();
-}
+using testing::Write;
 
 std::string PaperJson() { return PaperResultToJson(testing::SamplePaperResult()).dump(); }
 

@@ -63,6 +63,12 @@ inline CommandResult RunSkintune(const std::vector<std::string>& args, std::uint
   return r;
 }
 
+// Writes `text` to `path` as it is; returns the path, for a command's argument.
+inline std::string Write(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+  return path.string();
+}
+
 inline int CountLines(const std::string& text) {
   int lines = 0;
   for (char c : text) lines += c == '\n';

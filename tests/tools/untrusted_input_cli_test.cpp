@@ -19,6 +19,7 @@
 #include "report/paper_report.h"
 #include "tests/common/scratch_dir.h"
 #include "tests/common/tiny_tune_config.h"
+#include "tests/tools/expect_error_line.h"
 #include "tests/tools/run_command.h"
 #include "tests/tuner/sample_report.h"
 #include "tuner/report.h"
@@ -29,29 +30,18 @@ namespace {
 namespace fs = std::filesystem;
 using testing::CountLines;
 using testing::ReadAll;
+using testing::ExpectOneErrorLine;
 using testing::RunSkintune;
+using testing::Write;
 
 constexpr std::uint64_t kTwoGiB = 2ull << 30;
 constexpr unsigned kTimeoutS = 60;  // a blocked read is killed (exit 142)
-
-std::string Write(const fs::path& path, const std::string& text) {
-  std::ofstream(path, std::ios::binary) << text;
-  return path.string();
-}
 
 // `json` as text with "1e400" as its first member's value: valid JSON
 // grammar, a number no double holds.
 std::string WithOverflow(const nlohmann::json& json) {
   std::string text = json.dump();
   return text.insert(1, "\"overflow\": 1e400, ");
-}
-
-// One line on stderr: "skintune: error: " + `start`..., exit `exit_code`, no internal error.
-void ExpectOneErrorLine(const testing::CommandResult& r, const std::string& start, int exit_code = 1) {
-  EXPECT_EQ(r.exit_code, exit_code) << r.err;
-  EXPECT_EQ(CountLines(r.err), 1) << r.err;
-  EXPECT_EQ(r.err.rfind("skintune: error: " + start, 0), 0u) << r.err;
-  EXPECT_EQ(r.err.find("internal error"), std::string::npos) << r.err;
 }
 
 // A command of the tool that reads `path` as one of its inputs.

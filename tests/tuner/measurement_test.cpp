@@ -209,8 +209,24 @@ TEST(Measurement, TheKernelsWholeErrorAgainstTheSourceIsHeldToTheBudget) {
 // per burst, 0 input sets, a warm-up of -1, bytes whose GB/s overflow, an
 // integer beyond int, a relative error no tolerance admits, a position_rel
 // that is not position_abs / diagonal.
+// An edit of a status-ok sample that makes it impossible, and what the
+// error says of it.
+using ImpossibleCase = std::pair<std::function<void(nlohmann::json&)>, std::string>;
+
+// Each edited sample is refused as ImpossibleMeasurement, naming the figure.
+void ExpectImpossible(const std::vector<ImpossibleCase>& cases) {
+  for (const auto& [edit, message] : cases) {
+    nlohmann::json j = Sample("opencl.b2", MeasureStatus::kOk);
+    edit(j);
+    const std::string error = ErrorOf([&] { (void)j.get<Measurement>(); });
+    EXPECT_EQ(error.rfind("measurement: impossible figures: status ok with ", 0), 0u) << error;
+    EXPECT_NE(error.find(message), std::string::npos) << error;
+    EXPECT_THROW((void)j.get<Measurement>(), ImpossibleMeasurement);
+  }
+}
+
 TEST(Measurement, ImpossibleCountsSizesAndErrorsAreRefusedNamingTheField) {
-  const std::vector<std::pair<std::function<void(nlohmann::json&)>, std::string>> cases = {
+  const std::vector<ImpossibleCase> cases = {
       {[](nlohmann::json& j) { j["timing"]["footprint_bytes"] = "nan"; },
        "'footprint_bytes' is nan: must be a finite number >= 0"},
       {[](nlohmann::json& j) { j["timing"]["footprint_bytes"] = -1; }, "'footprint_bytes' is -1"},
@@ -229,13 +245,7 @@ TEST(Measurement, ImpossibleCountsSizesAndErrorsAreRefusedNamingTheField) {
       {[](nlohmann::json& j) { j["max_relative_error"] = 0.5; },
        "'max_relative_error' is 0.500000: over the largest verification tolerance"},
   };
-  for (const auto& [edit, message] : cases) {
-    nlohmann::json j = Sample("opencl.b2", MeasureStatus::kOk);
-    edit(j);
-    const std::string error = ErrorOf([&] { (void)j.get<Measurement>(); });
-    EXPECT_EQ(error.rfind("measurement: impossible figures: status ok with ", 0), 0u) << error;
-    EXPECT_NE(error.find(message), std::string::npos) << error;
-  }
+  ExpectImpossible(cases);
   nlohmann::json huge = Sample("opencl.b2", MeasureStatus::kOk);
   huge["timing"]["input_sets"] = 1000000000000000000;
   EXPECT_NE(ErrorOf([&] { (void)huge.get<Measurement>(); })
@@ -366,7 +376,7 @@ TEST(Measurement, OkWithoutTimingIsRefused) {
 }
 
 TEST(Measurement, ImpossibleTimesAreRefusedNamingTheField) {
-  const std::vector<std::pair<std::function<void(nlohmann::json&)>, std::string>> cases = {
+  const std::vector<ImpossibleCase> cases = {
       {[](nlohmann::json& j) { j["timing"]["median_ms"] = 0; },
        "'median_ms' is 0: a time must be a positive, finite number"},
       {[](nlohmann::json& j) { j["timing"]["median_ms"] = -5; },
@@ -387,14 +397,7 @@ TEST(Measurement, ImpossibleTimesAreRefusedNamingTheField) {
       {[](nlohmann::json& j) { j["max_relative_error"] = "inf"; },
        "'max_relative_error' is inf: must be a finite number >= 0"},
   };
-  for (const auto& [edit, message] : cases) {
-    nlohmann::json j = Sample("opencl.b2", MeasureStatus::kOk);
-    edit(j);
-    const std::string error = ErrorOf([&] { (void)j.get<Measurement>(); });
-    EXPECT_EQ(error.rfind("measurement: impossible figures: status ok with ", 0), 0u) << error;
-    EXPECT_NE(error.find(message), std::string::npos) << error;
-    EXPECT_THROW((void)j.get<Measurement>(), ImpossibleMeasurement);
-  }
+  ExpectImpossible(cases);
   // The writer's own output always reads back.
   EXPECT_NO_THROW((void)nlohmann::json(Sample("opencl.b2", MeasureStatus::kOk)).get<Measurement>());
 }
