@@ -76,7 +76,8 @@ std::vector<TimingField> Fields(TimingOptions& t) {
           {"sample_batch", TimingField::kCount, nullptr, &t.stop.batch, nullptr},
           {"sample_ms", TimingField::kNumber, nullptr, nullptr, &t.stop.max_ms},
           {"race", TimingField::kInt, &t.race, nullptr, nullptr},
-          {"tie_margin", TimingField::kNumber, nullptr, nullptr, &t.tie_margin}};
+          {"tie_margin", TimingField::kNumber, nullptr, nullptr, &t.tie_margin},
+          {"host_tie_margin", TimingField::kNumber, nullptr, nullptr, &t.host_tie_margin}};
 }
 
 std::string Dumped(const nlohmann::json& v) {
@@ -119,10 +120,15 @@ TimingOptions TimingOptionsFromJson(const nlohmann::json& in, const std::string&
     throw UsageError(where + ".tolerance: must be a positive number at most 0.001 (got " + Dumped(in.at("tolerance")) + ")");
   const std::string prefix = where.substr(where.rfind(' ') == std::string::npos ? 0 : where.rfind(' ') + 1) + ".";
   if (const std::string bad = BadStopRule(t.stop, prefix); !bad.empty()) throw UsageError(where + ": " + bad);
-  if (!(t.tie_margin > 0.0) || t.tie_margin > 0.5)
-    throw UsageError(where + ": '" + prefix + "tie_margin' is " + Dumped(in.at("tie_margin")) +
-                     ": a relative difference in (0, 0.5] (0.02: 2%)");
+  for (const auto& [name, value] : {std::pair<const char*, double>{"tie_margin", t.tie_margin}, {"host_tie_margin", t.host_tie_margin}})
+    if (!(value > 0.0) || value > 0.5)
+      throw UsageError(where + ": '" + prefix + name + "' is " + Dumped(in.at(name)) +
+                       ": a relative difference in (0, 0.5] (0.02: 2%)");
   return t;
+}
+
+double TimingOptions::MarginFor(const DeviceIdentity& device) const {
+  return device.type.find("cpu") != std::string::npos ? host_tie_margin : tie_margin;
 }
 
 nlohmann::json ToJson(const TimingOptions& t) {

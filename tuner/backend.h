@@ -42,8 +42,16 @@ struct TimingOptions {
   // (November 2026) the same winner's kernel time moved 4-6% between two
   // cold runs at 100k vertices while each run's own interval was +-1%, so a
   // margin narrower than the run-to-run shift let noise pick the winner.
-  int race = 4;
+  int race = 8;
   double tie_margin = 0.05;
+  // The tie margin on a device that is the host's CPU (PoCL's, skintune's
+  // cpu device), whose times move between runs far more than a GPU's: on the
+  // H200 machine's 16-thread host (November 2026) three cold runs' winner
+  // times differed by up to 1.27x, and two variants 10-30% apart in one run's
+  // race swapped places in the next.
+  double host_tie_margin = 0.25;
+  // The margin a race and the search use on a device (host_tie_margin on a CPU).
+  double MarginFor(const DeviceIdentity& device) const;
 };
 
 // The config's and the worker protocol's "timing" object: every field of

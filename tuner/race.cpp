@@ -2,29 +2,66 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <set>
 
 #include "generator/emit.h"
 #include "tuner/statistics.h"
+#include "tuner/strategy.h"
 
 namespace skintune::internal {
 
-std::vector<const Measurement*> RaceCandidates(const std::vector<Measurement>& measured, const TimingOptions& options) {
+namespace {
+
+bool Faster(const Measurement* a, const Measurement* b) {
+  if (a->timing.median_ms != b->timing.median_ms) return a->timing.median_ms < b->timing.median_ms;
+  return a->variant.Key() < b->variant.Key();
+}
+
+bool Raceable(const Measurement& m) { return m.status == MeasureStatus::kOk && m.timing.median_ms > 0.0; }
+
+RaceEntry EntryOf(const Measurement& m) {
+  return {m.variant.Key(), {}, m.bytes_per_frame, m.source_error.known ? m.source_error.position_rel : 0.0};
+}
+
+}  // namespace
+
+std::vector<const Measurement*> RaceCandidates(const std::vector<Measurement>& measured, const TimingOptions& options,
+                                               const Variant* leader, const std::vector<Variant>& around) {
   std::vector<const Measurement*> ok;
   for (const Measurement& m : measured)
-    if (m.status == MeasureStatus::kOk && m.timing.median_ms > 0.0) ok.push_back(&m);
-  std::sort(ok.begin(), ok.end(), [](const Measurement* a, const Measurement* b) {
-    if (a->timing.median_ms != b->timing.median_ms) return a->timing.median_ms < b->timing.median_ms;
-    return a->variant.Key() < b->variant.Key();
-  });
+    if (Raceable(m)) ok.push_back(&m);
+  std::sort(ok.begin(), ok.end(), Faster);
   if (ok.size() < 2 || options.race < 2) return {};
   const Measurement& fastest = *ok.front();
   const double reach = std::max(fastest.timing.high_ms, fastest.timing.median_ms) * (1.0 + options.tie_margin);
-  std::vector<const Measurement*> out;
-  for (const Measurement* m : ok) {
+  auto is = [](const Measurement* m, const Variant& v) { return m->variant.Key() == v.Key(); };
+  // Priority 0: the leader; 1: its neighbours; 2: within reach of the fastest.
+  auto priority = [&](const Measurement* m) {
+    if (leader && is(m, *leader)) return 0;
+    for (const Variant& v : around)
+      if (is(m, v)) return 1;
     const double low = m->timing.low_ms > 0.0 ? m->timing.low_ms : m->timing.median_ms;
-    if (low <= reach && out.size() < static_cast<std::size_t>(options.race)) out.push_back(m);
-  }
+    return low <= reach ? 2 : 3;
+  };
+  std::vector<const Measurement*> out;
+  for (int p = 0; p <= 2; ++p)
+    for (const Measurement* m : ok)
+      if (priority(m) == p && out.size() < static_cast<std::size_t>(options.race)) out.push_back(m);
+  std::sort(out.begin(), out.end(), Faster);
   return out.size() >= 2 ? out : std::vector<const Measurement*>{};
+}
+
+std::optional<Variant> RaceWinner(const RaceRecord& race, const std::vector<Measurement>& measured, double margin) {
+  if (!race.detail.empty() || race.entries.empty()) return std::nullopt;
+  std::vector<RaceEntry> entries;
+  std::vector<Interval> intervals;
+  for (const RaceRecord::Entry& e : race.entries) {
+    const auto m = std::find_if(measured.begin(), measured.end(),
+                                [&](const Measurement& x) { return x.variant.Key() == e.variant.Key(); });
+    entries.push_back(m != measured.end() ? EntryOf(*m) : RaceEntry{e.variant.Key(), {}, 0.0, 0.0});
+    intervals.push_back(e.interval);
+  }
+  return race.entries[JudgeIntervals(intervals, entries, margin).winner].variant;
 }
 
 std::string RaceCacheKey(const std::string& device_id, const std::string& dataset, Lang lang,
@@ -37,15 +74,17 @@ std::string RaceCacheKey(const std::string& device_id, const std::string& datase
   return key;
 }
 
-RaceRecord RaceSearch(IsolatedBackend& worker, const std::vector<Measurement>& measured, const std::string& device_id,
-                      Lang lang, const std::string& dataset, const TimingOptions& options, const RaceMemo& memo,
-                      bool* from_memo) {
+namespace {
+
+// Races `candidates` (RaceCandidates of `measured`), or takes their race from `memo`.
+RaceRecord RaceThese(const Racer& racer, const std::vector<const Measurement*>& candidates, const std::string& device_id,
+                     Lang lang, const std::string& dataset, const TimingOptions& options, const RaceMemo& memo,
+                     bool* from_memo) {
   if (from_memo) *from_memo = false;
   RaceRecord record;
   record.device_id = device_id;
   record.lang = lang;
   record.dataset = dataset;
-  const std::vector<const Measurement*> candidates = RaceCandidates(measured, options);
   if (candidates.empty()) {
     record.detail = "no race: fewer than two candidates within the tie margin of the fastest";
     return record;
@@ -60,15 +99,15 @@ RaceRecord RaceSearch(IsolatedBackend& worker, const std::vector<Measurement>& m
     }
   }
   std::string why;
-  const auto samples = worker.Race(variants, TuningDataset{measured.front().dataset}, options, &why);
+  const auto samples = racer(variants, &why);
   if (!samples) {
     record.detail = "race failed: " + why;
     return record;
   }
   std::vector<RaceEntry> entries;
   for (std::size_t i = 0; i < candidates.size(); ++i) {
-    const Measurement& m = *candidates[i];
-    entries.push_back({m.variant.Key(), (*samples)[i], m.bytes_per_frame, m.source_error.known ? m.source_error.position_rel : 0.0});
+    entries.push_back(EntryOf(*candidates[i]));
+    entries.back().samples = (*samples)[i];
   }
   const RaceOutcome outcome = JudgeRace(entries, options.tie_margin);
   for (std::size_t i = 0; i < candidates.size(); ++i)
@@ -76,6 +115,44 @@ RaceRecord RaceSearch(IsolatedBackend& worker, const std::vector<Measurement>& m
   record.decided = outcome.decided;
   if (memo.keep) memo.keep(race_key, record);
   return record;
+}
+
+std::optional<Variant> FastestOf(const std::vector<Measurement>& measured) {
+  const Measurement* best = nullptr;
+  for (const Measurement& m : measured)
+    if (Raceable(m) && (!best || Faster(&m, best))) best = &m;
+  return best ? std::optional<Variant>(best->variant) : std::nullopt;
+}
+
+}  // namespace
+
+RaceRecord SettleSearch(const Racer& racer, const SearchToSettle& search, const std::string& device_id, Lang lang,
+                        const std::string& dataset, const TimingOptions& options, const RaceMemo& memo,
+                        bool* from_memo) {
+  std::optional<Variant> leader = FastestOf(search.measured());
+  RaceRecord race;
+  race.device_id = device_id;
+  race.lang = lang;
+  race.dataset = dataset;
+  race.detail = "no race: no candidate was verified";
+  std::set<std::string> settled;  // the leaders whose neighbourhood raced
+  bool all_from_memo = true;
+  for (int round = 0; leader && round < kSettleRounds; ++round) {
+    const std::vector<Variant> around = Neighbours(search.candidates, *leader);
+    if (search.ahead) search.ahead(around);
+    for (const Variant& v : around) search.evaluate(v);
+    const std::vector<Measurement> measured = search.measured();
+    bool cached = false;
+    race = RaceThese(racer, RaceCandidates(measured, options, &*leader, around), device_id, lang, dataset, options, memo,
+                     &cached);
+    all_from_memo = all_from_memo && cached;
+    settled.insert(leader->Key());
+    const std::optional<Variant> winner = RaceWinner(race, measured, options.tie_margin);
+    if (!winner || settled.count(winner->Key())) break;
+    leader = winner;
+  }
+  if (from_memo) *from_memo = all_from_memo && race.detail.empty();
+  return race;
 }
 
 bool RejectOverCeiling(Measurement& m, double copy_gbps) {

@@ -11,22 +11,32 @@
 #include "tuner/backend.h"
 #include "tuner/measurement.h"
 #include "tuner/report.h"
-#include "tuner/worker.h"
 
 namespace skintune::internal {
 
-// The candidates a search's measurements send to the race: its status-ok
-// measurements (within the budget) whose interval reaches within the tie
-// margin of the fastest's (low <= fastest's high x (1 + margin)), fastest
-// first, at most `options.race`; none when fewer than two qualify (the
-// fastest is then alone, separated by its own interval).
-std::vector<const Measurement*> RaceCandidates(const std::vector<Measurement>& measured, const TimingOptions& options);
+// The candidates a search's measurements send to the race, of its status-ok
+// measurements (within the budget): `leader`'s and every one of `around`
+// (its neighbourhood, whatever their search figures: a neighbour's search
+// figure is as noisy as the leader's), then the others whose interval
+// reaches within the tie margin of the fastest's (low <= fastest's high x
+// (1 + margin)); at most `options.race` in that priority, returned fastest
+// first; none when fewer than two qualify (the fastest is then alone,
+// separated by its own interval). Without a leader, the fastest leads and
+// nothing is raced for being a neighbour.
+std::vector<const Measurement*> RaceCandidates(const std::vector<Measurement>& measured, const TimingOptions& options,
+                                               const Variant* leader = nullptr, const std::vector<Variant>& around = {});
 
-// Races the candidates of `measured` (one search's measurements) in
-// `worker` and judges them; a record with `detail` saying why when no race
-// was needed or it failed (the winners are then judged on the search's own
-// intervals).
-//
+// The race's winner: TieBreak among the candidates it did not separate from
+// its fastest, judged on its own intervals (the measurements give the
+// tie-break's bytes and errors); nullopt for a race that did not run.
+std::optional<Variant> RaceWinner(const RaceRecord& race, const std::vector<Measurement>& measured, double margin);
+
+// A race between verified variants (Backend::Race through the device's
+// worker): each one's kernel-time samples, or nullopt with `why` when the
+// race failed.
+using Racer = std::function<std::optional<std::vector<std::vector<double>>>(const std::vector<Variant>& variants,
+                                                                             std::string* why)>;
+
 // `memo` remembers races between runs (the measurement cache): a race of
 // the same key (RaceCacheKey) is taken from it and not run again, and a
 // race that ran is given to it.
@@ -34,9 +44,28 @@ struct RaceMemo {
   std::function<std::optional<RaceRecord>(const std::string& race_key)> find;
   std::function<void(const std::string& race_key, const RaceRecord& race)> keep;
 };
-RaceRecord RaceSearch(IsolatedBackend& worker, const std::vector<Measurement>& measured, const std::string& device_id,
-                      Lang lang, const std::string& dataset, const TimingOptions& options, const RaceMemo& memo = {},
-                      bool* from_memo = nullptr);
+
+// Settles one search (docs/TUNING.md "Races and ties"). The search's path
+// depends on noise (its moves compare single measurements), so two runs may
+// stop at different points of one plateau of near-equal variants. The
+// settling makes the end independent of the path: the leader (the fastest
+// verified measurement) and its whole neighbourhood (Neighbours: every
+// candidate one axis away, measured now where the search did not) race as
+// one set; when the race's winner (TieBreak among the tied) is not the
+// leader, the winner's own neighbourhood races next, up to kSettleRounds
+// races, so runs entering a plateau at different points walk to the same
+// preferred point of it. Returns the last race (a record saying why when
+// none ran).
+inline constexpr int kSettleRounds = 3;
+struct SearchToSettle {
+  const std::vector<Variant>& candidates;         // the search's space
+  const std::function<std::optional<double>(const Variant&)>& evaluate;  // measures one (or finds it cached)
+  std::function<std::vector<Measurement>()> measured;  // the search's measurements so far
+  std::function<void(const std::vector<Variant>&)> ahead;  // told the neighbours about to be measured
+};
+RaceRecord SettleSearch(const Racer& race, const SearchToSettle& search, const std::string& device_id, Lang lang,
+                        const std::string& dataset, const TimingOptions& options, const RaceMemo& memo = {},
+                        bool* from_memo = nullptr);
 
 // What a race's verdicts depend on: the device (with its driver), the
 // generator and timing versions, the data set, the language, the tie margin

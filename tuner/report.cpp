@@ -136,6 +136,15 @@ Interval IntervalOf(const TuningReport& report, const Measurement& m) {
 
 }  // namespace
 
+double TuningReport::TieMarginOf(const std::string& device_id) const {
+  TimingOptions margins;
+  if (tie_margin > 0.0) margins.tie_margin = tie_margin;
+  margins.host_tie_margin = host_tie_margin > 0.0 ? host_tie_margin : margins.tie_margin;
+  for (const DeviceIdentity& d : devices)
+    if (d.Id() == device_id) return margins.MarginFor(d);
+  return margins.tie_margin;
+}
+
 std::vector<Winner> ComputeWinners(const TuningReport& report) {
   std::map<std::string, const DatasetInfo*> datasets;
   for (const DatasetInfo& d : report.datasets) datasets[d.key] = &d;
@@ -164,17 +173,24 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
   }
   std::vector<Winner> out;
   for (auto& [key, members] : groups) {
+    // Where the race measured some of them, it alone decides: the search's
+    // figures of the others came minutes earlier, under other conditions,
+    // and the race left them out as separated or beyond the neighbourhood.
+    const bool raced = std::any_of(members.begin(), members.end(),
+                                   [&](const Measurement* m) { return RacedInterval(report, *m) != nullptr; });
+    if (raced)
+      std::erase_if(members, [&](const Measurement* m) { return RacedInterval(report, *m) == nullptr; });
     std::vector<RaceEntry> entries;
     std::vector<Interval> intervals;
-    bool raced = false;
     for (const Measurement* m : members) {
       entries.push_back({m->variant.Key(), {}, m->bytes_per_frame, m->source_error.known ? m->source_error.position_rel : 0.0});
       intervals.push_back(IntervalOf(report, *m));
-      raced = raced || RacedInterval(report, *m) != nullptr;
     }
-    const RaceOutcome outcome = JudgeIntervals(intervals, entries, report.tie_margin > 0.0 ? report.tie_margin : TimingOptions{}.tie_margin);
+    const double margin = report.TieMarginOf(members.front()->device_id);
+    const RaceOutcome outcome = JudgeIntervals(intervals, entries, margin);
     const Measurement& m = *members[outcome.winner];
     Winner w = shape.at(key);
+    w.tie_margin = margin;
     w.backend = BackendOf(report, m.device_id);
     w.dataset = m.dataset;
     w.variant = m.variant;
@@ -225,7 +241,8 @@ std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners, double tie
       i.samples = 1;
       intervals.push_back(i);
     }
-    out.push_back(*members[JudgeIntervals(intervals, entries, tie_margin > 0.0 ? tie_margin : TimingOptions{}.tie_margin).winner]);
+    const double own = members.front()->tie_margin > 0.0 ? members.front()->tie_margin : tie_margin;
+    out.push_back(*members[JudgeIntervals(intervals, entries, own > 0.0 ? own : TimingOptions{}.tie_margin).winner]);
   }
   return out;
 }
@@ -262,6 +279,7 @@ nlohmann::json ReportToJson(const TuningReport& report) {
     out["winners"].push_back(std::move(j));
   }
   out["tie_margin"] = report.tie_margin;
+  out["host_tie_margin"] = report.host_tie_margin;
   out["races"] = nlohmann::json::array();
   for (const RaceRecord& r : report.races) out["races"].push_back(RaceJson(r));
   return out;
@@ -354,9 +372,14 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
       return m;
     }));
   }
-  if (json.contains("tie_margin")) {  // since 1.4.0
-    r.tie_margin = At(context, "tie_margin", [&] {
-      const double value = Number(json, "tie_margin");
+  // tie_margin since 1.4.0, host_tie_margin since 1.5.0 (before it, a CPU device's was tie_margin too).
+  for (auto [name, field] : {std::pair<const char*, double*>{"tie_margin", &r.tie_margin}, {"host_tie_margin", &r.host_tie_margin}}) {
+    if (!json.contains(name)) {
+      if (field == &r.host_tie_margin) r.host_tie_margin = r.tie_margin;
+      continue;
+    }
+    *field = At(context, name, [&] {
+      const double value = Number(json, name);
       if (!(value > 0.0) || value > 0.5) throw Error("must be in (0, 0.5]");
       return value;
     });

@@ -22,7 +22,7 @@ namespace skintune::internal {
 // (shape, instances, meshes), and winners are kept per shape; 1.4.0: timing
 // version 5 (kernel time with its interval, frame time), the races of each
 // search, tie_margin, and each winner's interval and tie set.
-inline constexpr const char* kReportSchemaVersion = "1.4.0";
+inline constexpr const char* kReportSchemaVersion = "1.5.0";
 
 struct DatasetInfo {
   std::string key;          // a scene key (reference/scene.h): a dataset, a glTF path, instances, a batch
@@ -47,6 +47,10 @@ struct TuningReport {
   std::vector<Measurement> measurements;
   // Timing version 5: the margin within which kernel times tie (TimingOptions::tie_margin), and the races.
   double tie_margin = TimingOptions{}.tie_margin;
+  // The margin of a device that is the host's CPU (TimingOptions::host_tie_margin; 1.5.0).
+  double host_tie_margin = TimingOptions{}.host_tie_margin;
+  // The margin `device_id`'s candidates are judged at (host_tie_margin for a CPU device).
+  double TieMarginOf(const std::string& device_id) const;
   std::vector<RaceRecord> races;
 };
 
@@ -65,6 +69,7 @@ struct Winner {
   int meshes = 1;
   std::string dataset;
   Variant variant;
+  double tie_margin = 0.0;    // the margin it was judged at (TuningReport::TieMarginOf; 0: unknown)
   double median_ms = 0.0;     // its kernel time
   double low_ms = 0.0, high_ms = 0.0;  // its 95% interval (the race's, where it was raced)
   double frame_ms = 0.0;      // its frame time (0: not measured)
@@ -99,6 +104,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report);
 // measured vertex count, shape): the precision classes' winners judged
 // against the fastest at `tie_margin` and TieBreak among the tied (so a
 // class a hair faster by noise does not win by it): what the tuning chose at its budget.
+// A winner's own tie_margin is used where it has one, else `tie_margin`.
 std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners, double tie_margin);
 
 nlohmann::json ReportToJson(const TuningReport& report);

@@ -311,6 +311,19 @@ SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts, double ma
 
 }  // namespace
 
+std::vector<Variant> Neighbours(const std::vector<Variant>& candidates, const Variant& of) {
+  const Coords centre = CoordsOf(of);
+  std::vector<Variant> out;
+  std::unordered_map<Coords, bool, CoordsHash> seen;
+  for (const Variant& v : candidates) {
+    const Coords c = CoordsOf(v);
+    std::size_t differing = 0;
+    for (std::size_t a = 0; a < kAxisCount; ++a) differing += c[a] != centre[a] ? 1 : 0;
+    if (differing == 1 && seen.emplace(c, true).second) out.push_back(v);
+  }
+  return out;
+}
+
 SearchResult Search(const std::vector<Variant>& candidates, const Evaluator& evaluate,
                     const StrategyOptions& options, const LookAhead& ahead) {
   const std::string& name = options.name;

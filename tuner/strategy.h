@@ -46,4 +46,9 @@ using LookAhead = std::function<void(const std::vector<Variant>&)>;
 SearchResult Search(const std::vector<Variant>& candidates, const Evaluator& evaluate,
                     const StrategyOptions& options, const LookAhead& ahead = {});
 
+// The candidates that differ from `of` along exactly one axis
+// (generator/axes.h), in candidate order, each once: the neighbourhood of a
+// search's leader, which the race settles (tuner/race.h SettleSearch).
+std::vector<Variant> Neighbours(const std::vector<Variant>& candidates, const Variant& of);
+
 }  // namespace skintune::internal

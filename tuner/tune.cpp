@@ -417,6 +417,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
   report.strategy = config.strategy.name;
   report.max_error = config.max_error;
   report.tie_margin = config.timing.tie_margin;
+  report.host_tie_margin = config.timing.host_tie_margin;
   report.machine = MachineInfo();
 
   // Datasets first: a bad key or glTF file is bad input, found before any device work.
@@ -614,6 +615,9 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
     DeviceRun& run = runs[di];
     const std::string id = device.identity.Id();
     IsolatedBackend worker(options.worker_executable, device.identity, config.variant_timeout_s);
+    // This device's timing: its tie margin (a CPU's is wider: TimingOptions::MarginFor).
+    TimingOptions timing = config.timing;
+    timing.tie_margin = config.timing.MarginFor(device.identity);
     if (host_lock) worker.UseHostLock(host_lock->path());
     const std::string device_name = device.identity.backend + " " + device.identity.name;
     try {
@@ -660,7 +664,7 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
             m = *found;
             ApplyBudget(m, config.max_error);  // this run's budget, whatever the record's was
           } else {
-            m = worker.Measure(v, TuningDataset{key}, config.timing);
+            m = worker.Measure(v, TuningDataset{key}, timing);
             ApplyBudget(m, config.max_error);
             if (run.copy_gbps) RejectOverCeiling(m, *run.copy_gbps);
             std::lock_guard<std::mutex> lock(shared);
@@ -680,12 +684,14 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
         const std::size_t first_of_task = run.measurements.size();
         for (const Variant& b : task.baselines) evaluate(b);
         StrategyOptions strategy = config.strategy;
-        strategy.margin = config.timing.tie_margin;  // moves beyond noise only (strategy.h)
+        strategy.margin = timing.tie_margin;  // moves beyond noise only (strategy.h)
         if (!task.candidates.empty()) Search(task.candidates, evaluate, strategy, compile_ahead);
-        // The race of the search's leaders, in this device's worker (race.h).
-        const std::vector<Measurement> measured(run.measurements.begin() + static_cast<std::ptrdiff_t>(first_of_task),
-                                                run.measurements.end());
-        if (!measured.empty()) {
+        // The search settled by races of its leader's neighbourhood, in this device's worker (race.h).
+        const auto measured = [&] {
+          return std::vector<Measurement>(run.measurements.begin() + static_cast<std::ptrdiff_t>(first_of_task),
+                                          run.measurements.end());
+        };
+        if (!measured().empty()) {
           advance(run, task_start + task_done, device_name + ": racing the leaders of " + key);
           RaceMemo memo;
           memo.find = [&](const std::string& race_key) -> std::optional<RaceRecord> {
@@ -698,8 +704,11 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
             cache.AppendRace(race_key, race);
           };
           bool cached_race = false;
-          run.races.push_back(
-              RaceSearch(worker, measured, id, task.lang, measured.front().dataset, config.timing, memo, &cached_race));
+          const SearchToSettle search{task.candidates, evaluate, measured, compile_ahead};
+          const Racer racer = [&](const std::vector<Variant>& variants, std::string* why) {
+            return worker.Race(variants, TuningDataset{key}, timing, why);
+          };
+          run.races.push_back(SettleSearch(racer, search, id, task.lang, key, timing, memo, &cached_race));
           if (cached_race) advance(run, task_start + task_done, device_name + ": the race of " + key + " (cached)");
         }
         task_start += task.planned;

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -116,6 +117,94 @@ TEST(Report, WinnersAreTheFastestOkPerDeviceLanguageInfluencesAndVertexCount) {
   EXPECT_DOUBLE_EQ(g.copy_fraction, g.gbps / 2000.0);
   EXPECT_EQ(by_key[cuda + "|cuda|4|100k"]->copy_fraction, 0.0);  // copy bandwidth unknown
   EXPECT_EQ(by_key[cuda + "|cuda|4|100k"]->backend, "cuda");
+}
+
+// `m`'s kernel time made `ms` with a tight interval, its other figures consistent.
+void SetTime(Measurement& m, double ms) {
+  const double scale = ms / m.timing.median_ms;
+  m.timing.median_ms = ms;
+  m.timing.min_ms *= scale;
+  m.timing.max_ms *= scale;
+  m.timing.low_ms = ms * 0.995;
+  m.timing.high_ms = ms * 1.005;
+  m.gbps /= scale;
+  m.x_copy *= scale;
+  m.timing.copy_ms = m.x_copy > 0.0 ? ms / m.x_copy : 0.0;
+}
+
+// Two ok measurements of one row, `slower` x apart, each with a tight interval.
+TuningReport TwoCandidates(const DeviceIdentity& device, double slower) {
+  TuningReport r;
+  r.created = "2026-11-28T12:00:00Z";
+  r.devices = {device};
+  r.datasets = {{"100k-b4", 100000, 4, 77}};
+  // Two f32 candidates of one precision class, so that one row judges them.
+  std::vector<Variant> f32;
+  for (Variant v : testing::SyntheticCandidates()) {
+    v.weight = WeightFormat::kF32;
+    if (v.influences == 4 && (f32.empty() || v.Key() != f32.back().Key())) f32.push_back(v);
+  }
+  for (const auto& [v, ms] : {std::pair{f32.at(0), 1.0}, {f32.at(1), slower}}) {
+    Measurement m = testing::SyntheticMeasurement(v, device.Id(), "100k-b4", 100000);
+    m.status = MeasureStatus::kOk;
+    m.variant = v;
+    SetTime(m, ms);
+    r.measurements.push_back(m);
+  }
+  return r;
+}
+
+// A device that is the host's CPU ties at host_tie_margin (its times move
+// between runs by tens of percent), a GPU at tie_margin; a report before
+// host_tie_margin was recorded reads it as tie_margin.
+TEST(Report, ACpuDevicesCandidatesTieAtTheHostMarginAGpusAtTheTieMargin) {
+  DeviceIdentity cpu = testing::SampleGpu();
+  cpu.type = "cpu";
+  const DeviceIdentity gpu = testing::SampleGpu();
+  for (const auto& [device, ties] : {std::pair{cpu, true}, {gpu, false}}) {
+    TuningReport r = TwoCandidates(device, 1.15);  // 15% apart
+    r.tie_margin = 0.05;
+    r.host_tie_margin = 0.25;
+    const std::vector<Winner> winners = ComputeWinners(r);
+    ASSERT_EQ(winners.size(), 1u) << device.type;
+    EXPECT_EQ(winners[0].tie_set.size(), ties ? 2u : 1u) << device.type;
+    EXPECT_DOUBLE_EQ(winners[0].tie_margin, ties ? 0.25 : 0.05);
+    EXPECT_DOUBLE_EQ(r.TieMarginOf(device.Id()), ties ? 0.25 : 0.05);
+  }
+  nlohmann::json old = ReportToJson(TwoCandidates(cpu, 1.15));
+  old["tie_margin"] = 0.03;
+  old.erase("host_tie_margin");
+  EXPECT_DOUBLE_EQ(ReportFromJson(old, "old.json").TieMarginOf(cpu.Id()), 0.03);
+  old["host_tie_margin"] = 0.0;
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(old, "bad.json"); }).find("host_tie_margin"), std::string::npos);
+}
+
+// Where a race measured a row, the race alone judges it: a candidate the
+// race left out does not win on a search figure from minutes before.
+TEST(Report, ARacedRowIsJudgedByTheRacesCandidatesOnly) {
+  TuningReport r = TwoCandidates(testing::SampleGpu(), 1.30);
+  SetTime(r.measurements[1], 0.5);  // the search's figure, fastest by far
+  RaceRecord race;
+  race.device_id = r.devices[0].Id();
+  race.lang = r.measurements[0].variant.lang;
+  race.dataset = "100k-b4";
+  RaceRecord::Entry raced;
+  raced.variant = r.measurements[0].variant;
+  raced.interval = {1.0, 0.99, 1.01, 40};
+  raced.verdict = RaceVerdict::kLeader;
+  RaceRecord::Entry second = raced;
+  second.variant = r.measurements[0].variant;
+  second.variant.wg_size = 512;  // raced, not among the measurements here
+  race.entries = {raced, second};
+  r.races = {race};
+  std::vector<Winner> winners = ComputeWinners(r);
+  ASSERT_EQ(winners.size(), 1u);
+  EXPECT_EQ(winners[0].variant.Key(), r.measurements[0].variant.Key());
+  EXPECT_EQ(winners[0].judged_by, "race");
+  EXPECT_EQ(winners[0].tie_set, std::vector<std::string>{r.measurements[0].variant.Key()});
+  r.races.clear();  // without the race, the search's figures judge
+  winners = ComputeWinners(r);
+  EXPECT_EQ(winners[0].variant.Key(), r.measurements[1].variant.Key());
 }
 
 TEST(Report, EveryMeasuredVertexCountKeepsItsWinnerInTheReportAndTheDatabase) {

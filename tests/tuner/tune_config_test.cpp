@@ -117,7 +117,7 @@ TEST(TuneConfig, ErrorsNameTheElement) {
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"repetitions": 0}})"),
             "c.json: timing.repetitions: must be an integer from 1 to 1000000 (got 0)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"reps": 3}})"),
-            "c.json: timing.reps: unknown field (expected one of warmup, repetitions, max_input_sets, tolerance, burst_ms, interval, min_samples, max_samples, sample_batch, sample_ms, race, tie_margin)");
+            "c.json: timing.reps: unknown field (expected one of warmup, repetitions, max_input_sets, tolerance, burst_ms, interval, min_samples, max_samples, sample_batch, sample_ms, race, tie_margin, host_tie_margin)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"tolerance": -1}})"),
             "c.json: timing.tolerance: must be a positive number (got -1)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"race": -1}})"),
@@ -162,7 +162,9 @@ TEST(TuneConfig, ImpossibleStopRulesNameTheField) {
             std::string::npos);
   EXPECT_NE(usage(R"({"sample_ms": 1e300})").find("'timing.sample_ms'"), std::string::npos) << usage(R"({"sample_ms": 1e300})");
   EXPECT_NE(usage(R"({"tie_margin": 0.9})").find("'timing.tie_margin' is 0.9"), std::string::npos);
-  EXPECT_EQ(usage(R"({"interval": 0.02, "min_samples": 5, "max_samples": 40, "sample_batch": 5, "tie_margin": 0.03})"),
+  EXPECT_NE(usage(R"({"host_tie_margin": 0})").find("'timing.host_tie_margin' is 0"), std::string::npos)
+      << usage(R"({"host_tie_margin": 0})");
+  EXPECT_EQ(usage(R"({"interval": 0.02, "min_samples": 5, "max_samples": 40, "sample_batch": 5, "tie_margin": 0.03, "host_tie_margin": 0.2})"),
             "accepted");
   EXPECT_EQ(usage(R"({"interval": 0})").find('\n'), std::string::npos) << "one line";
 }

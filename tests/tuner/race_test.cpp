@@ -1,0 +1,229 @@
+// The settling of a search (tuner/race.h): which candidates race, who wins
+// a race, and that two runs whose searches stopped at different points of
+// one plateau of near-equal variants name the same winner.
+#include "tuner/race.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "tuner/strategy.h"
+
+namespace skintune::internal {
+namespace {
+
+// 3 storages x 2 index formats x 2 work-group sizes: 12 OpenCL variants.
+std::vector<Variant> SmallSpace() {
+  std::vector<Variant> out;
+  for (PaletteStorage s : {PaletteStorage::kConstant, PaletteStorage::kLocal, PaletteStorage::kGlobal})
+    for (IndexFormat i : {IndexFormat::kU16, IndexFormat::kU8})
+      for (int wg : {64, 256}) {
+        Variant v;
+        v.storage = s;
+        v.index = i;
+        v.wg_size = wg;
+        out.push_back(v);
+      }
+  return out;
+}
+
+double BytesOf(const Variant& v) { return v.index == IndexFormat::kU8 ? 40.0e6 : 48.0e6; }
+
+// A landscape: local storage is a plateau at 1.00 ms whatever the index and
+// group size; global 1.30, constant 1.60.
+double TrueMs(const Variant& v) {
+  switch (v.storage) {
+    case PaletteStorage::kLocal: return 1.00;
+    case PaletteStorage::kGlobal: return 1.30;
+    default: return 1.60;
+  }
+}
+
+Measurement Measured(const Variant& v, double ms, double spread = 0.005) {
+  Measurement m;
+  m.variant = v;
+  m.dataset = "100k-b4";
+  m.status = MeasureStatus::kOk;
+  m.timing.median_ms = ms;
+  m.timing.low_ms = ms * (1.0 - spread);
+  m.timing.high_ms = ms * (1.0 + spread);
+  m.bytes_per_frame = BytesOf(v);
+  return m;
+}
+
+// A run: measurements with its own noise (a seed), and a racer whose samples
+// carry the run's noise too: up to +-2% on each variant, differently in
+// each run, so that two plateau points are at most about 4% apart, within
+// the 5% margin.
+class NoisyRun {
+ public:
+  explicit NoisyRun(std::uint64_t seed) : seed_(seed) {}
+
+  double Noise(const Variant& v) const {
+    std::uint64_t h = seed_ * 0x9E3779B97F4A7C15ull;
+    for (char c : v.Key()) h = (h ^ static_cast<unsigned char>(c)) * 1099511628211ull;
+    return 1.0 + 0.02 * (static_cast<double>(h % 2001) / 1000.0 - 1.0);
+  }
+  std::optional<double> Evaluate(const Variant& v) {
+    if (!seen_.insert(v.Key()).second) return measured_.at(index_.at(v.Key())).timing.median_ms;
+    index_[v.Key()] = measured_.size();
+    measured_.push_back(Measured(v, TrueMs(v) * Noise(v)));
+    ++evaluations_;
+    return measured_.back().timing.median_ms;
+  }
+  std::optional<std::vector<std::vector<double>>> Race(const std::vector<Variant>& variants, std::string*) {
+    ++races_;
+    std::vector<std::vector<double>> samples;
+    for (const Variant& v : variants) {
+      std::vector<double> s;
+      for (int i = 0; i < 40; ++i) s.push_back(TrueMs(v) * Noise(v) * (1.0 + 0.001 * ((i % 5) - 2)));
+      samples.push_back(s);
+    }
+    return samples;
+  }
+  RaceRecord Settle(const std::vector<Variant>& space) {
+    const std::function<std::optional<double>(const Variant&)> evaluate = [this](const Variant& v) { return Evaluate(v); };
+    const SearchToSettle search{space, evaluate, [this] { return measured_; }, {}};
+    const Racer racer = [this](const std::vector<Variant>& v, std::string* why) { return Race(v, why); };
+    TimingOptions options;
+    return SettleSearch(racer, search, "opencl:p/d/1", Lang::kOpenCl, "100k-b4", options);
+  }
+  const std::vector<Measurement>& measured() const { return measured_; }
+  int races() const { return races_; }
+  int evaluations() const { return evaluations_; }
+
+ private:
+  std::uint64_t seed_;
+  std::vector<Measurement> measured_;
+  std::map<std::string, std::size_t> index_;
+  std::set<std::string> seen_;
+  int races_ = 0;
+  int evaluations_ = 0;
+};
+
+Variant At(PaletteStorage s, IndexFormat i, int wg) {
+  Variant v;
+  v.storage = s;
+  v.index = i;
+  v.wg_size = wg;
+  return v;
+}
+
+TEST(Neighbours, AreTheCandidatesOneAxisAwayEachOnce) {
+  const std::vector<Variant> space = SmallSpace();
+  const Variant centre = At(PaletteStorage::kGlobal, IndexFormat::kU16, 64);
+  std::vector<Variant> twice = space;
+  twice.insert(twice.end(), space.begin(), space.end());
+  std::set<std::string> keys;
+  for (const Variant& v : Neighbours(twice, centre)) EXPECT_TRUE(keys.insert(v.Key()).second) << v.Key();
+  // Two other storages, the other index format, the other group size.
+  EXPECT_EQ(keys, (std::set<std::string>{At(PaletteStorage::kConstant, IndexFormat::kU16, 64).Key(),
+                                         At(PaletteStorage::kLocal, IndexFormat::kU16, 64).Key(),
+                                         At(PaletteStorage::kGlobal, IndexFormat::kU8, 64).Key(),
+                                         At(PaletteStorage::kGlobal, IndexFormat::kU16, 256).Key()}));
+}
+
+// The leader's neighbours race whatever their search figures (a neighbour
+// measured 20% slower by noise still races); the rest only within reach.
+TEST(RaceCandidates, TheLeaderAndItsWholeNeighbourhoodRaceOthersOnlyWithinReach) {
+  const Variant leader = At(PaletteStorage::kLocal, IndexFormat::kU16, 64);
+  const Variant far_neighbour = At(PaletteStorage::kConstant, IndexFormat::kU16, 64);
+  const Variant near_stranger = At(PaletteStorage::kGlobal, IndexFormat::kU8, 256);
+  const Variant far_stranger = At(PaletteStorage::kConstant, IndexFormat::kU8, 256);
+  const std::vector<Measurement> measured = {Measured(leader, 1.0), Measured(far_neighbour, 1.2),
+                                             Measured(near_stranger, 1.03), Measured(far_stranger, 1.2)};
+  TimingOptions options;
+  std::vector<std::string> keys;
+  for (const Measurement* m : RaceCandidates(measured, options, &leader, Neighbours(SmallSpace(), leader)))
+    keys.push_back(m->variant.Key());
+  EXPECT_EQ(keys, (std::vector<std::string>{leader.Key(), near_stranger.Key(), far_neighbour.Key()}));  // fastest first
+
+  // At most options.race: the leader first, then its neighbours, then the others.
+  options.race = 2;
+  keys.clear();
+  for (const Measurement* m : RaceCandidates(measured, options, &leader, Neighbours(SmallSpace(), leader)))
+    keys.push_back(m->variant.Key());
+  EXPECT_EQ(keys, (std::vector<std::string>{leader.Key(), far_neighbour.Key()}));
+}
+
+TEST(RaceWinner, IsTheTieBreakAmongTheTiedOnTheRacesOwnIntervals) {
+  const Variant a = At(PaletteStorage::kLocal, IndexFormat::kU16, 64);  // fastest, more bytes
+  const Variant b = At(PaletteStorage::kLocal, IndexFormat::kU8, 64);   // 3% slower: tied, fewer bytes
+  const Variant c = At(PaletteStorage::kGlobal, IndexFormat::kU8, 64);  // 30% slower: separated
+  RaceRecord race;
+  for (const auto& [v, ms] : {std::pair{a, 1.0}, {b, 1.03}, {c, 1.3}}) {
+    RaceRecord::Entry e;
+    e.variant = v;
+    e.interval.median = ms;
+    e.interval.low = ms * 0.995;
+    e.interval.high = ms * 1.005;
+    race.entries.push_back(e);
+  }
+  const std::vector<Measurement> measured = {Measured(a, 1.0), Measured(b, 1.03), Measured(c, 1.3)};
+  ASSERT_TRUE(RaceWinner(race, measured, 0.05).has_value());
+  EXPECT_EQ(RaceWinner(race, measured, 0.05)->Key(), b.Key());
+  EXPECT_EQ(RaceWinner(race, measured, 0.01)->Key(), a.Key());  // 3% apart is no tie at a 1% margin
+  race.detail = "race failed: the worker died";
+  EXPECT_FALSE(RaceWinner(race, measured, 0.05).has_value());
+}
+
+// The point of settling: searches stopped at different points of the local
+// plateau (each run's own noise ranks its points differently) end at one
+// winner, the plateau's point of fewest bytes then key order, in every run.
+TEST(SettleSearch, RunsWhoseSearchesStoppedAtDifferentPointsOfAPlateauNameTheSameWinner) {
+  const std::vector<Variant> space = SmallSpace();
+  const std::vector<std::vector<Variant>> search_paths = {
+      {At(PaletteStorage::kGlobal, IndexFormat::kU16, 64), At(PaletteStorage::kLocal, IndexFormat::kU16, 64)},
+      {At(PaletteStorage::kConstant, IndexFormat::kU16, 256), At(PaletteStorage::kLocal, IndexFormat::kU16, 256)},
+      {At(PaletteStorage::kGlobal, IndexFormat::kU8, 256), At(PaletteStorage::kLocal, IndexFormat::kU8, 256)},
+      {At(PaletteStorage::kLocal, IndexFormat::kU8, 64)}};
+  std::set<std::string> winners;
+  std::uint64_t seed = 1;
+  for (const std::vector<Variant>& path : search_paths) {
+    for (int repeat = 0; repeat < 8; ++repeat) {
+      NoisyRun run(seed++);
+      for (const Variant& v : path) run.Evaluate(v);
+      const RaceRecord race = run.Settle(space);
+      ASSERT_TRUE(race.detail.empty()) << race.detail;
+      const std::optional<Variant> winner = RaceWinner(race, run.measured(), TimingOptions{}.tie_margin);
+      ASSERT_TRUE(winner.has_value());
+      winners.insert(winner->Key());
+      EXPECT_LE(run.races(), kSettleRounds);
+      EXPECT_LE(run.evaluations(), 12);
+    }
+  }
+  // Local (the plateau), u8 (fewest bytes), wg256 before wg64 in key order.
+  EXPECT_EQ(winners, (std::set<std::string>{At(PaletteStorage::kLocal, IndexFormat::kU8, 256).Key()}));
+}
+
+// Without settling (the leader's own race only, as before) the same runs
+// disagree: the test above would fail without the neighbourhood and the
+// walk to the race's winner.
+TEST(SettleSearch, WithoutTheNeighbourhoodTheSameRunsWouldDisagree) {
+  std::set<std::string> fastest;
+  for (std::uint64_t seed = 1; seed <= 16; ++seed) {
+    NoisyRun run(seed);
+    for (const Variant& v : {At(PaletteStorage::kLocal, IndexFormat::kU16, 64), At(PaletteStorage::kLocal, IndexFormat::kU16, 256)})
+      run.Evaluate(v);
+    const std::vector<const Measurement*> raced = RaceCandidates(run.measured(), TimingOptions{});
+    ASSERT_FALSE(raced.empty());
+    fastest.insert(raced.front()->variant.Key());
+  }
+  EXPECT_GT(fastest.size(), 1u);
+}
+
+TEST(SettleSearch, NothingVerifiedIsNoRaceSayingSo) {
+  NoisyRun run(1);
+  const RaceRecord race = run.Settle(SmallSpace());
+  EXPECT_EQ(race.detail, "no race: no candidate was verified");
+  EXPECT_EQ(run.races(), 0);
+}
+
+}  // namespace
+}  // namespace skintune::internal
