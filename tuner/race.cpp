@@ -5,6 +5,7 @@
 #include <set>
 
 #include "generator/emit.h"
+#include "reference/error.h"
 #include "tuner/statistics.h"
 #include "tuner/strategy.h"
 
@@ -105,11 +106,21 @@ RaceRecord RaceThese(const Racer& racer, const std::vector<const Measurement*>& 
     return record;
   }
   std::vector<RaceEntry> entries;
+  std::vector<Interval> intervals;
   for (std::size_t i = 0; i < candidates.size(); ++i) {
     entries.push_back(EntryOf(*candidates[i]));
-    entries.back().samples = (*samples)[i];
+    std::vector<std::vector<double>> legs;
+    for (const RaceSamples& leg : *samples) {
+      if (leg.size() != candidates.size()) {
+        record.detail = "race failed: a leg gave samples of " + std::to_string(leg.size()) + " candidates, not " +
+                        std::to_string(candidates.size());
+        return record;
+      }
+      legs.push_back(leg[i]);
+    }
+    intervals.push_back(LegsInterval(legs));
   }
-  const RaceOutcome outcome = JudgeRace(entries, options.tie_margin);
+  const RaceOutcome outcome = JudgeIntervals(intervals, entries, options.tie_margin);
   for (std::size_t i = 0; i < candidates.size(); ++i)
     record.entries.push_back({candidates[i]->variant, outcome.intervals[i], outcome.verdicts[i]});
   record.decided = outcome.decided;
@@ -153,6 +164,27 @@ RaceRecord SettleSearch(const Racer& racer, const SearchToSettle& search, const 
   }
   if (from_memo) *from_memo = all_from_memo && race.detail.empty();
   return race;
+}
+
+int RaceLegsFor(const DeviceIdentity& device) { return device.type.find("cpu") != std::string::npos ? 2 : 1; }
+
+Interval LegsInterval(const std::vector<std::vector<double>>& legs) {
+  if (legs.empty()) throw Error("LegsInterval: no leg");
+  std::vector<double> all;
+  Interval out;
+  for (std::size_t l = 0; l < legs.size(); ++l) {
+    const Interval leg = MedianInterval(legs[l]);
+    out.low = l == 0 ? leg.low : std::min(out.low, leg.low);
+    out.high = l == 0 ? leg.high : std::max(out.high, leg.high);
+    if (leg.resolution > 0.0 && (out.resolution == 0.0 || leg.resolution < out.resolution)) out.resolution = leg.resolution;
+    all.insert(all.end(), legs[l].begin(), legs[l].end());
+  }
+  const Interval pooled = MedianInterval(all);
+  out.median = pooled.median;
+  out.samples = pooled.samples;
+  out.low = std::min(out.low, out.median);
+  out.high = std::max(out.high, out.median);
+  return out;
 }
 
 bool RejectOverCeiling(Measurement& m, double copy_gbps) {

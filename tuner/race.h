@@ -32,10 +32,18 @@ std::vector<const Measurement*> RaceCandidates(const std::vector<Measurement>& m
 std::optional<Variant> RaceWinner(const RaceRecord& race, const std::vector<Measurement>& measured, double margin);
 
 // A race between verified variants (Backend::Race through the device's
-// worker): each one's kernel-time samples, or nullopt with `why` when the
-// race failed.
-using Racer = std::function<std::optional<std::vector<std::vector<double>>>(const std::vector<Variant>& variants,
-                                                                             std::string* why)>;
+// worker), in one or more legs: per leg, each variant's kernel-time samples
+// (legs[l][v]); nullopt with `why` when the race failed. A leg is one
+// worker process: on a device that is the host's CPU a variant's times
+// depend on its process's memory placement and threads, stable within a
+// process and not between two, so the race runs there in two processes
+// (RaceLegsFor) and a variant's interval spans both legs' (LegsInterval).
+using RaceSamples = std::vector<std::vector<double>>;  // per variant
+using Racer = std::function<std::optional<std::vector<RaceSamples>>(const std::vector<Variant>& variants, std::string* why)>;
+int RaceLegsFor(const DeviceIdentity& device);
+// The median of every leg's samples together, from the lowest leg's low
+// end to the highest leg's high end (MedianInterval of each leg).
+Interval LegsInterval(const std::vector<std::vector<double>>& legs);
 
 // `memo` remembers races between runs (the measurement cache): a race of
 // the same key (RaceCacheKey) is taken from it and not run again, and a
@@ -53,10 +61,10 @@ struct RaceMemo {
 // candidate one axis away, measured now where the search did not) race as
 // one set; when the race's winner (TieBreak among the tied) is not the
 // leader, the winner's own neighbourhood races next, up to kSettleRounds
-// races, so runs entering a plateau at different points walk to the same
+// races (each step goes to a point the tie-break prefers), so runs entering a plateau at different points walk to the same
 // preferred point of it. Returns the last race (a record saying why when
 // none ran).
-inline constexpr int kSettleRounds = 3;
+inline constexpr int kSettleRounds = 6;
 struct SearchToSettle {
   const std::vector<Variant>& candidates;         // the search's space
   const std::function<std::optional<double>(const Variant&)>& evaluate;  // measures one (or finds it cached)

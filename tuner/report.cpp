@@ -198,8 +198,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     w.low_ms = outcome.intervals[outcome.winner].low;
     w.high_ms = outcome.intervals[outcome.winner].high;
     w.frame_ms = m.timing.frame_ms;
-    for (std::size_t i = 0; i < entries.size(); ++i)
-      if (outcome.verdicts[i] != RaceVerdict::kSeparated) w.tie_set.push_back(entries[i].key);
+    for (const std::size_t i : outcome.tied) w.tie_set.push_back(entries[i].key);
     std::sort(w.tie_set.begin(), w.tie_set.end());
     w.within_noise = outcome.all_within_noise;
     w.judged_by = raced ? "race" : "intervals";

@@ -121,7 +121,7 @@ RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::ve
     if (a.median < b.median || (a.median == b.median && entries[e].key < entries[out.fastest].key)) out.fastest = e;
   }
   const Interval& f = out.intervals[out.fastest];
-  std::vector<std::size_t> tied;
+  std::vector<std::size_t>& tied = out.tied;
   out.decided = true;
   for (std::size_t e = 0; e < entries.size(); ++e) {
     const Interval& i = out.intervals[e];
@@ -134,7 +134,9 @@ RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::ve
       v = RaceVerdict::kEqual;
     }
     if (v == RaceVerdict::kUndecided) out.decided = false;
-    if (v != RaceVerdict::kSeparated) tied.push_back(e);
+    if (v == RaceVerdict::kLeader || v == RaceVerdict::kEqual ||
+        (v == RaceVerdict::kUndecided && i.median <= f.median * (1.0 + margin)))
+      tied.push_back(e);
     out.verdicts.push_back(v);
   }
   out.winner = TieBreak(entries, tied);

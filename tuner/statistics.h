@@ -76,14 +76,19 @@ struct RaceOutcome {
   std::vector<Interval> intervals;       // per entry, in entry order
   std::vector<RaceVerdict> verdicts;     // per entry, against the fastest
   std::size_t fastest = 0;               // the entry with the lowest median
-  std::size_t winner = 0;                // TieBreak among the tie set (leader, equal, undecided)
+  std::vector<std::size_t> tied;         // the tie set: the leader, the equal, and the undecided whose median is within the margin
+  std::size_t winner = 0;                // TieBreak among the tie set
   bool decided = false;                  // no entry undecided: sampling may stop
   bool all_within_noise = false;         // every entry is in the tie set
 };
 // Judges the entries (>= 1, each with >= 1 sample) at tie margin `margin`
 // (> 0): entry e against the fastest f, their intervals E and F, is
 // separated when E.low > F.high x (1 + margin), equal when E.high <=
-// F.low x (1 + margin) (both within the margin), else undecided.
+// F.low x (1 + margin) (both within the margin), else undecided. The tie
+// set holds the fastest, the equal, and the undecided whose median is
+// within the margin of the fastest's: an undecided candidate 9% slower at a
+// 5% margin is most likely slower, and letting the tie-break pick it would
+// let the race's cap decide the winner.
 RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin);
 // The same judgement from intervals already computed (one per entry; the
 // entries' samples are not read): a search's own measurements, where no race ran.

@@ -706,7 +706,14 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
           bool cached_race = false;
           const SearchToSettle search{task.candidates, evaluate, measured, compile_ahead};
           const Racer racer = [&](const std::vector<Variant>& variants, std::string* why) {
-            return worker.Race(variants, TuningDataset{key}, timing, why);
+            std::vector<RaceSamples> legs;
+            for (int leg = 0; leg < RaceLegsFor(device.identity); ++leg) {
+              if (leg > 0) worker.Restart();  // the next leg in a fresh process
+              std::optional<RaceSamples> samples = worker.Race(variants, TuningDataset{key}, timing, why);
+              if (!samples) return std::optional<std::vector<RaceSamples>>();
+              legs.push_back(std::move(*samples));
+            }
+            return std::optional<std::vector<RaceSamples>>(std::move(legs));
           };
           run.races.push_back(SettleSearch(racer, search, id, task.lang, key, timing, memo, &cached_race));
           if (cached_race) advance(run, task_start + task_done, device_name + ": the race of " + key + " (cached)");

@@ -96,6 +96,10 @@ class IsolatedBackend {
 
   int starts() const { return starts_; }  // child processes started so far
 
+  // Ends the child (if one runs); the next request starts a fresh one, with
+  // its own memory placement and threads (a race's second leg on a CPU).
+  void Restart() { Stop(); }
+
   // The host lock every worker started from now on shares (tuner/host_lock.h).
   void UseHostLock(std::string path) { host_lock_ = std::move(path); }
 

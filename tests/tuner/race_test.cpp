@@ -77,7 +77,7 @@ class NoisyRun {
     ++evaluations_;
     return measured_.back().timing.median_ms;
   }
-  std::optional<std::vector<std::vector<double>>> Race(const std::vector<Variant>& variants, std::string*) {
+  std::optional<std::vector<RaceSamples>> Race(const std::vector<Variant>& variants, std::string*) {
     ++races_;
     std::vector<std::vector<double>> samples;
     for (const Variant& v : variants) {
@@ -85,7 +85,7 @@ class NoisyRun {
       for (int i = 0; i < 40; ++i) s.push_back(TrueMs(v) * Noise(v) * (1.0 + 0.001 * ((i % 5) - 2)));
       samples.push_back(s);
     }
-    return samples;
+    return std::vector<RaceSamples>{samples};
   }
   RaceRecord Settle(const std::vector<Variant>& space) {
     const std::function<std::optional<double>(const Variant&)> evaluate = [this](const Variant& v) { return Evaluate(v); };
@@ -216,6 +216,27 @@ TEST(SettleSearch, WithoutTheNeighbourhoodTheSameRunsWouldDisagree) {
     fastest.insert(raced.front()->variant.Key());
   }
   EXPECT_GT(fastest.size(), 1u);
+}
+
+// A race in two worker processes (a CPU device): a variant's interval spans
+// both legs', so a variant fast in one process and slow in the other is
+// not told apart from one steady in both.
+TEST(LegsInterval, SpansEveryLegsIntervalAroundThePooledMedian) {
+  const std::vector<double> fast(41, 1.0), slow(41, 1.3);
+  const Interval one = LegsInterval({fast});
+  EXPECT_DOUBLE_EQ(one.low, 1.0);
+  EXPECT_DOUBLE_EQ(one.high, 1.0);
+  const Interval both = LegsInterval({fast, slow});
+  EXPECT_DOUBLE_EQ(both.low, 1.0);
+  EXPECT_DOUBLE_EQ(both.high, 1.3);
+  EXPECT_EQ(both.samples, 82u);
+  EXPECT_GE(both.median, 1.0);
+  EXPECT_LE(both.median, 1.3);
+  DeviceIdentity cpu, gpu;
+  cpu.type = "cpu";
+  gpu.type = "gpu";
+  EXPECT_EQ(RaceLegsFor(cpu), 2);
+  EXPECT_EQ(RaceLegsFor(gpu), 1);
 }
 
 TEST(SettleSearch, NothingVerifiedIsNoRaceSayingSo) {

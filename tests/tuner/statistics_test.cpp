@@ -121,8 +121,26 @@ TEST(Race, VerdictsAgainstTheFastest) {
   EXPECT_EQ(out.verdicts[3], RaceVerdict::kUndecided);
   EXPECT_FALSE(out.decided);
   EXPECT_FALSE(out.all_within_noise);
-  // Tied: b.fast, a.equal, d.noisy, all moving the same bytes at error 0: the key decides.
+  // Tied: b.fast, a.equal, and d.noisy if its median is within the margin;
+  // all moving the same bytes at error 0: the key decides.
+  const bool noisy_within = out.intervals[3].median <= out.intervals[0].median * 1.02;
+  EXPECT_EQ(out.tied, noisy_within ? (std::vector<std::size_t>{0, 1, 3}) : (std::vector<std::size_t>{0, 1}));
   EXPECT_EQ(entries[out.winner].key, "a.equal");
+}
+
+// An undecided candidate whose median is beyond the margin is not in the tie
+// set: it is most likely slower, and the tie-break would otherwise pick it
+// for its key whenever the race ran out of samples before separating it.
+TEST(Race, AnUndecidedCandidateWhoseMedianIsBeyondTheMarginIsNoTie) {
+  std::vector<RaceEntry> entries = {
+      {"b.fast", Samples(1.00, 0.002, 60, 4), 100, 0},
+      {"a.noisy.slower", Samples(1.09, 0.2, 60, 8), 100, 0},
+  };
+  const RaceOutcome out = JudgeRace(entries, 0.05);
+  ASSERT_EQ(out.verdicts[1], RaceVerdict::kUndecided);
+  ASSERT_GT(out.intervals[1].median, 1.05);
+  EXPECT_EQ(out.tied, std::vector<std::size_t>{0});
+  EXPECT_EQ(entries[out.winner].key, "b.fast");
 }
 
 // The tie-break: fewest bytes, then lower error, then key.
