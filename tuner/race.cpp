@@ -166,7 +166,7 @@ RaceRecord SettleSearch(const Racer& racer, const SearchToSettle& search, const 
   return race;
 }
 
-int RaceLegsFor(const DeviceIdentity& device) { return device.type.find("cpu") != std::string::npos ? 2 : 1; }
+int RaceLegsFor(const DeviceIdentity& device) { return device.backend == "cpu" ? 2 : 1; }
 
 Interval LegsInterval(const std::vector<std::vector<double>>& legs) {
   if (legs.empty()) throw Error("LegsInterval: no leg");

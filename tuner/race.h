@@ -34,10 +34,15 @@ std::optional<Variant> RaceWinner(const RaceRecord& race, const std::vector<Meas
 // A race between verified variants (Backend::Race through the device's
 // worker), in one or more legs: per leg, each variant's kernel-time samples
 // (legs[l][v]); nullopt with `why` when the race failed. A leg is one
-// worker process: on a device that is the host's CPU a variant's times
-// depend on its process's memory placement and threads, stable within a
-// process and not between two, so the race runs there in two processes
-// (RaceLegsFor) and a variant's interval spans both legs' (LegsInterval).
+// worker process. On skintune's cpu device a variant's times depend on its
+// process's memory placement and threads, steady within a process and not
+// between two (on the H200 machine's host its 5k-b4-x8 winner took 301,
+// 379 and 496 us in three runs), so the race runs there in two processes
+// (RaceLegsFor) and a variant's interval spans both legs' (LegsInterval);
+// its kernels are compiled in, so a fresh process costs no build. PoCL's
+// races stay in one process: a second would build every candidate again
+// (about 24 s of a default run on that host), and its rows named the same
+// winners in three runs without it.
 using RaceSamples = std::vector<std::vector<double>>;  // per variant
 using Racer = std::function<std::optional<std::vector<RaceSamples>>(const std::vector<Variant>& variants, std::string* why)>;
 int RaceLegsFor(const DeviceIdentity& device);

@@ -232,10 +232,14 @@ TEST(LegsInterval, SpansEveryLegsIntervalAroundThePooledMedian) {
   EXPECT_EQ(both.samples, 82u);
   EXPECT_GE(both.median, 1.0);
   EXPECT_LE(both.median, 1.3);
-  DeviceIdentity cpu, gpu;
-  cpu.type = "cpu";
+  DeviceIdentity cpu, pocl, gpu;
+  cpu.backend = "cpu";
+  cpu.type = pocl.type = "cpu";
+  pocl.backend = "opencl";
+  gpu.backend = "opencl";
   gpu.type = "gpu";
   EXPECT_EQ(RaceLegsFor(cpu), 2);
+  EXPECT_EQ(RaceLegsFor(pocl), 1);
   EXPECT_EQ(RaceLegsFor(gpu), 1);
 }
 
