@@ -308,6 +308,10 @@ TEST(Selection, AnEntryWhoseKernelIsOffTheSourceIsWithinNoBudget) {
   classes[0].source_error.position_abs = 2.0 * 0.39;
   const Chosen chosen = Select(classes, request);
   EXPECT_EQ(chosen.selection.level, MatchLevel::kGenericDefault) << chosen.selection.reason;
+  EXPECT_NE(chosen.selection.reason.find("b2 100k f32: its kernel is off the source by 3.90e-01 of the diagonal, more "
+                                         "than its weights cost (0.00e+00) and float32 rounding: no budget admits it"),
+            std::string::npos)
+      << chosen.selection.reason;
   request.exact_formats = {WeightFormat::kUnorm16};  // an exact unorm16 entry still serves
   EXPECT_EQ(Select(classes, request).variant.weight, WeightFormat::kUnorm16);
 }
