@@ -220,6 +220,7 @@ std::string EmbedHeader(const std::vector<EmbeddedKernel>& kernels, const EmbedH
     table += "inline constexpr Argument kArguments" + std::to_string(i) + "[] = {\n" + ArgumentsTable(s) + "};\n\n";
   }
   table += "}  // namespace generated\n\n";
+  table += "inline constexpr double kMaxError = " + Number(options.max_error) + ";\n";
   table += "inline constexpr int kKernelCount = " + std::to_string(kernels.size()) + ";\n";
   table += "inline constexpr Kernel kKernels[kKernelCount] = {\n";
   for (std::size_t i = 0; i < kernels.size(); ++i) table += KernelRow(kernels[i], i, source_index[i]);
@@ -248,7 +249,9 @@ std::string EmbedHeader(const std::vector<EmbeddedKernel>& kernels, const EmbedH
                        Quoted(options.device_pattern) + ", languages: ";
   if (options.langs.empty()) banner += "all";
   for (std::size_t i = 0; i < options.langs.size(); ++i) banner += (i ? ", " : "") + CppEscaped(options.langs[i]);
-  banner += ".\n// " + std::to_string(kernels.size()) + " kernel(s), " + std::to_string(distinct.size()) +
+  banner += ".\n// Error budget (--max-error): " + Number(options.max_error) +
+            " of the bounding-box diagonal; each kernel's weight format costs at most that (kMaxError).";
+  banner += "\n// " + std::to_string(kernels.size()) + " kernel(s), " + std::to_string(distinct.size()) +
             " distinct source(s), in namespace " + options.name_space + ":\n";
   for (std::size_t i = 0; i < kernels.size(); ++i) {
     const EmbeddedKernel& k = kernels[i];

@@ -34,6 +34,8 @@ struct EmbedHeaderOptions {
   std::string database;                 // the winners database file
   std::string device_pattern;           // --device
   std::vector<std::string> langs;       // --lang (empty: every language)
+  // The error budget the winners were chosen under (--max-error): the header's kMaxError.
+  double max_error = 0.0;
 };
 
 // Whether `name` can name a namespace: identifiers (not keywords, not

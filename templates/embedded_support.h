@@ -155,9 +155,15 @@ struct Kernel {
 // skintune:kernel-table-begin
 // The generator replaces this placeholder, from the marker above to the one
 // below, by the kernel table:
+//   inline constexpr double kMaxError = <--max-error>;
 //   inline constexpr int kKernelCount = <count>;
 //   inline constexpr Kernel kKernels[kKernelCount] = {...};
 // (inline variables: one object however many translation units include it).
+// kMaxError is the error budget the kernels were chosen under (skintune emit
+// --db --max-error, default 1e-4), relative to the tuning mesh's bounding-box
+// diagonal: of each winner's precision classes (weight formats) the fastest
+// whose quantisation costs at most this much; f32 costs nothing.
+inline constexpr double kMaxError = 0.0;
 inline constexpr int kKernelCount = 0;
 inline constexpr const Kernel* kKernels = nullptr;
 // skintune:kernel-table-end

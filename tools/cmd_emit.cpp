@@ -242,6 +242,7 @@ int RunEmitDb(const EmitArgs& o) {
       at->second = SidecarJson(k.source, k.variant);
       at->second["source_file"] = key + LanguageOf(k.variant.lang).extension;
       if (k.variant.lang == Lang::kVulkan) at->second["spirv_file"] = key + ".spv";
+      at->second["max_error"] = max_error;  // the budget the winners were chosen under
       at->second["winners"] = nlohmann::json::array();
     }
     at->second["winners"].push_back(WinnerJson(k.entry));
@@ -262,6 +263,7 @@ int RunEmitDb(const EmitArgs& o) {
   options.database = fs::path(o.db).filename().string();
   options.device_pattern = o.device;
   options.langs = o.langs;
+  options.max_error = max_error;
   files.emplace_back(o.header, EmbedHeader(kernels, options));
 
   CreateOutputFolder(o.out);

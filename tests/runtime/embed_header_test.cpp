@@ -75,6 +75,12 @@ const char* Name(fk::PaletteStorage v) {
 
 // ------------------------------------------------------------------ the table
 
+// Emitted without --max-error: the default budget, recorded in the header.
+TEST(EmbedHeader, RecordsTheErrorBudgetItWasEmittedUnder) {
+  EXPECT_EQ(fk::kMaxError, kDefaultBudget);
+  static_assert(fk::kMaxError > 0.0, "a constant expression, usable at compile time");
+}
+
 TEST(EmbedHeader, ListsEveryWinnerOfTheDatabaseInItsOrderWithItsDeviceAndTimes) {
   const std::vector<WinnersEntry>& entries = Fixture();
   ASSERT_EQ(static_cast<std::size_t>(fk::kKernelCount), entries.size());

@@ -385,7 +385,9 @@ TEST(SkintuneCli, EmitDbKernelAndSidecarAreThoseOfEmitVariantPlusTheWinners) {
   EXPECT_EQ(ReadAll(dir / "db" / (key + ".cl")), ReadAll(dir / "variant" / (key + ".cl")));
   nlohmann::json sidecar = ReadJson(dir / "db" / (key + ".json"));
   ASSERT_EQ(sidecar.at("winners").size(), 1u);
+  EXPECT_EQ(sidecar.at("max_error"), 1e-4);  // the default budget
   sidecar.erase("winners");
+  sidecar.erase("max_error");
   EXPECT_EQ(sidecar, ReadJson(dir / "variant" / (key + ".json")));
 }
 
@@ -559,8 +561,13 @@ TEST(SkintuneCli, EmitDbKeepsTheWinnersWithinTheErrorBudget) {
   }
   EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners - 4));
   EXPECT_FALSE(fs::exists(dir / (kCudaB3 + ".json")));  // a unorm16 winner
+  // The header and every sidecar record the budget they were emitted under.
+  const std::string header = ReadAll(dir / "skintune_kernels.h");
+  EXPECT_NE(header.find("\n// Error budget (--max-error): 1e-06 of the bounding-box diagonal;"), std::string::npos);
+  EXPECT_NE(header.find("\ninline constexpr double kMaxError = 1e-06;\n"), std::string::npos);
   for (const std::string& name : FilesIn(dir)) {
     if (name.size() < 5 || name.substr(name.size() - 5) != ".json") continue;
+    EXPECT_EQ(ReadJson(dir / name).at("max_error"), 1e-6) << name;
     for (const nlohmann::json& w : ReadJson(dir / name).at("winners"))
       EXPECT_TRUE(w.contains("source_error")) << name;
   }
