@@ -108,19 +108,27 @@ std::string SpirvTable(const KernelSource& s, std::size_t index) {
   return out + "\n};\n";
 }
 
+// The Kernel's scene fields: "\"instances\", 64, 1, true, 0" (shape, instances, meshes, instanced, max_instances).
+std::string SceneFields(const EmbeddedKernel& k) {
+  return Quoted(SceneKindName(k.entry.shape)) + ", " + std::to_string(k.entry.instances) + ", " +
+         std::to_string(k.entry.meshes) + ", " + Bool(k.source.instanced) + ", " + std::to_string(k.source.max_instances);
+}
+
 std::string KernelRow(const EmbeddedKernel& k, std::size_t index, std::size_t source_index) {
   const WinnersEntry& e = k.entry;
   const Variant& v = k.variant;
   const KernelSource& s = k.source;
   const std::string n = std::to_string(source_index);
   std::string row = "    // [" + std::to_string(index) + "] " + Name(e.lang) + " b" + std::to_string(e.influences) +
-                    " " + VertexCountName(e.vertices) + " on " + Quoted(e.device_id);
+                    " " + VertexCountName(e.vertices) + SceneSuffix(e.shape, e.instances, e.meshes) + " on " +
+                    Quoted(e.device_id);
   if (e.variant.mixed != v.mixed)
     row += " (tuned " + std::string(Name(e.variant.mixed)) + ", emitted " + Name(v.mixed) + ")";
   row += "\n    {" + Quoted(e.device_id) + ",\n     " + Quoted(e.platform) + ", " + Quoted(e.vendor) + ", " +
          Quoted(e.device_name) + ", " + Quoted(e.driver_version) + ", " + Quoted(e.device_type) + ",\n     " +
          Quoted(Name(v.lang)) + ", " + std::to_string(s.influences) + ", " + Quoted(e.vertex_bucket) + ", " +
-         std::to_string(e.vertices) + "u,\n     " + Quoted(v.Key()) + ",\n     " + EnumFields(v) + ",\n     " +
+         std::to_string(e.vertices) + "u,\n     " + SceneFields(k) + ",\n     " + Quoted(v.Key()) + ",\n     " +
+         EnumFields(v) + ",\n     " +
          Bool(v.blend == Blend::kPoint) + ", " + Bool(v.normals) + ", " + std::to_string(s.launch.vertices_per_item) +
          ", " + Bool(s.launch.strided) + ", " +
          std::to_string(s.launch.wg_size) + ", " + std::to_string(s.joints) + ",\n     " + Quoted(s.entry_point) +
@@ -196,8 +204,10 @@ std::string EmbedHeader(const std::vector<EmbeddedKernel>& kernels, const EmbedH
       throw Error("embed header: " + k.variant.Key() + " is not padded (the header's kernels skin in mesh order)");
     if (k.source.joints <= 0)
       throw Error("embed header: " + k.variant.Key() + " is not specialised for a joint count");
-    if (k.source.lang != k.variant.lang || k.source.influences != k.variant.influences || k.source.instanced)
-      throw Error("embed header: the kernel of " + k.variant.Key() + " is not Emit(variant, 0, joints)");
+    if (k.source.lang != k.variant.lang || k.source.influences != k.variant.influences ||
+        k.source.instanced != (k.entry.shape == SceneKind::kInstances))
+      throw Error("embed header: the kernel of " + k.variant.Key() + " (" + Describe(k.entry) +
+                  ") is not Emit(variant, 0, joints), instanced for a crowd's winner alone");
   }
 
   // One source literal and argument array per distinct kernel text.
@@ -220,6 +230,7 @@ std::string EmbedHeader(const std::vector<EmbeddedKernel>& kernels, const EmbedH
     table += "inline constexpr Argument kArguments" + std::to_string(i) + "[] = {\n" + ArgumentsTable(s) + "};\n\n";
   }
   table += "}  // namespace generated\n\n";
+  table += "inline constexpr double kMaxError = " + Number(options.max_error) + ";\n";
   table += "inline constexpr int kKernelCount = " + std::to_string(kernels.size()) + ";\n";
   table += "inline constexpr Kernel kKernels[kKernelCount] = {\n";
   for (std::size_t i = 0; i < kernels.size(); ++i) table += KernelRow(kernels[i], i, source_index[i]);
@@ -248,13 +259,16 @@ std::string EmbedHeader(const std::vector<EmbeddedKernel>& kernels, const EmbedH
                        Quoted(options.device_pattern) + ", languages: ";
   if (options.langs.empty()) banner += "all";
   for (std::size_t i = 0; i < options.langs.size(); ++i) banner += (i ? ", " : "") + CppEscaped(options.langs[i]);
-  banner += ".\n// " + std::to_string(kernels.size()) + " kernel(s), " + std::to_string(distinct.size()) +
+  banner += ".\n// Error budget (--max-error): " + Number(options.max_error) +
+            " of the bounding-box diagonal; each kernel's weight format costs at most that (kMaxError).";
+  banner += "\n// " + std::to_string(kernels.size()) + " kernel(s), " + std::to_string(distinct.size()) +
             " distinct source(s), in namespace " + options.name_space + ":\n";
   for (std::size_t i = 0; i < kernels.size(); ++i) {
     const EmbeddedKernel& k = kernels[i];
     banner += "//   [" + std::to_string(i) + "] " + Quoted(k.entry.device_id) + " " + Name(k.entry.lang) + " b" +
-              std::to_string(k.entry.influences) + " " + VertexCountName(k.entry.vertices) + ": " + k.variant.Key() + ", " +
-              std::to_string(k.source.joints) + " joints\n";
+              std::to_string(k.entry.influences) + " " + VertexCountName(k.entry.vertices) +
+              SceneSuffix(k.entry.shape, k.entry.instances, k.entry.meshes) + ": " + k.variant.Key() +
+              (k.source.instanced ? " instanced" : "") + ", " + std::to_string(k.source.joints) + " joints\n";
   }
   banner += "// The API is documented below (skintune's templates/embedded_support.h).\n\n";
   return banner + text;

@@ -25,7 +25,10 @@ struct Axis;  // generator/axes.h
 struct EmbeddedKernel {
   WinnersEntry entry;   // the winner as the database has it (its variant may be `bucketed`)
   Variant variant;      // the variant emitted: `padded` (a bucketed winner's padded twin)
-  KernelSource source;  // Emit(variant, 0, joints): joints > 0
+  // Emit(variant, 0, joints), joints > 0; for a crowd's winner (entry.shape
+  // instances) instanced, for its K instances (max_instances K); a batch's
+  // winner holds its meshes' palettes together.
+  KernelSource source;
 };
 
 struct EmbedHeaderOptions {
@@ -34,6 +37,8 @@ struct EmbedHeaderOptions {
   std::string database;                 // the winners database file
   std::string device_pattern;           // --device
   std::vector<std::string> langs;       // --lang (empty: every language)
+  // The error budget the winners were chosen under (--max-error): the header's kMaxError.
+  double max_error = 0.0;
 };
 
 // Whether `name` can name a namespace: identifiers (not keywords, not
@@ -53,7 +58,8 @@ std::string EmbeddedEnumerator(const Axis& axis, int code);
 // namespace set and its kernel table filled in. Kernels share one source
 // literal and one argument array when their text is the same. Throws Error
 // for no kernels, an invalid namespace, a kernel that is not padded or not
-// specialised for a joint count (source.joints == 0).
+// specialised for a joint count (source.joints == 0), or instanced for a
+// winner that is not a crowd's (or plain for a crowd's).
 std::string EmbedHeader(const std::vector<EmbeddedKernel>& kernels, const EmbedHeaderOptions& options);
 
 }  // namespace skintune::internal

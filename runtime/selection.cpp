@@ -87,16 +87,41 @@ std::string LevelReason(MatchLevel level, const WinnersEntry& e, const DeviceInf
   return "";
 }
 
-std::string OverBudget(const WinnersEntry& e, double max_error) {
+std::string OverBudget(const WinnersEntry& e, const SelectionRequest& r) {
+  const SourceError& error = e.source_error;
   std::ostringstream text;
   text.precision(2);
-  if (!e.source_error.known) {
+  text << std::scientific;
+  if (!error.known) {
     text << "its quantisation error is not recorded (a database older than 1.3.0), so it is over any budget";
+  } else if (!KernelAddsOnlyRounding(error)) {
+    text << "its kernel is off the source by " << error.position_rel << " of the diagonal, more than its weights cost ("
+         << error.quantisation_rel << ") and float32 rounding: no budget admits it";
   } else {
-    text << std::scientific << "quantisation error " << e.source_error.quantisation_rel
-         << " of the diagonal, over the budget max_error " << max_error;
+    text << "quantisation error " << error.quantisation_rel << " of the diagonal, over the budget " << r.max_error_name
+         << " " << r.max_error << " (raising it to " << error.quantisation_rel << " admits it)";
   }
   return text.str();
+}
+
+// An entry skipped for the budget or the check, and why.
+struct Skipped {
+  const WinnersEntry* entry;
+  MatchLevel level;
+  std::string why;
+};
+
+// "; skipped A; skipped B": the skipped entries that could have served
+// instead of `chosen` (at `level`; null for the built-in default): every one
+// of an earlier level, and those of its level that rank no worse than it.
+std::string SkippedText(const std::vector<Skipped>& skipped, const WinnersEntry* chosen, MatchLevel level,
+                        const SelectionRequest& r) {
+  std::string text;
+  for (const Skipped& s : skipped) {
+    if (chosen != nullptr && s.level == level && Rank(*chosen, r) < Rank(*s.entry, r)) continue;
+    text += "; skipped " + s.why;
+  }
+  return text;
 }
 
 std::string Langs(const std::vector<Lang>& langs) {
@@ -134,7 +159,7 @@ Variant GenericDefault(Lang lang, int influences, bool normals, const DeviceLimi
 Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& request) {
   const DeviceInfo& device = request.device;
   auto check = [&](const Variant& v) { return request.check ? request.check(v) : std::string(); };
-  std::vector<std::string> skipped;
+  std::vector<Skipped> skipped;
 
   for (MatchLevel level : {MatchLevel::kExactDevice, MatchLevel::kSameDeviceName, MatchLevel::kSameVendorType}) {
     std::vector<const WinnersEntry*> candidates;
@@ -143,7 +168,7 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
           !ShapeServes(e, request))
         continue;
       if (!EntryWithinBudget(e, request.max_error, request.exact_formats)) {
-        skipped.push_back(Describe(e) + " " + Name(e.variant.weight) + ": " + OverBudget(e, request.max_error));
+        skipped.push_back({&e, level, Describe(e) + " " + Name(e.variant.weight) + ": " + OverBudget(e, request)});
         continue;
       }
       candidates.push_back(&e);
@@ -156,7 +181,7 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
       v.normals = request.normals;
       const std::string why = check(v);
       if (!why.empty()) {
-        skipped.push_back(Describe(*e) + ": " + why);
+        skipped.push_back({e, level, Describe(*e) + ": " + why});
         continue;
       }
       Chosen chosen;
@@ -174,8 +199,7 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
         reason += "; no " + std::string(SceneKindName(request.shape)) +
                   " entry: the single-mesh entry of the scene's total size (" +
                   std::to_string(request.vertex_count) + " vertices)";
-      for (const std::string& s : skipped) reason += "; skipped " + s;
-      chosen.selection.reason = reason;
+      chosen.selection.reason = reason + SkippedText(skipped, e, level, request);
       return chosen;
     }
   }
@@ -196,7 +220,7 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
     std::string reason = "no " + Langs(request.langs) + " entry with b" + std::to_string(request.influences) +
                          " or more for this device, its name '" + device.name + "' or its vendor and type (" +
                          device.vendor + " " + device.type + "): the built-in default, correct on every device";
-    for (const std::string& s : skipped) reason += "; skipped " + s;
+    reason += SkippedText(skipped, nullptr, MatchLevel::kGenericDefault, request);
     if (!tried.empty()) reason += "; also skipped " + tried;
     chosen.selection.reason = reason;
     return chosen;

@@ -12,9 +12,9 @@
 // An entry is usable when its language is one of the device's, its
 // influences B hold the mesh's (B >= the largest per-vertex count), it is
 // within the error budget (EntryWithinBudget: f32, a format exact for the
-// caller's weights, or a recorded quantisation error <= max_error; one over
-// it is named in the reason), the caller's check accepts it (Skinner::Create: the constraints on the real
-// device and mesh; a rejected entry is named in the reason), and its scene
+// caller's weights, or a recorded quantisation error <= max_error), the
+// caller's check accepts it (Skinner::Create: the constraints on the real
+// device and mesh), and its scene
 // shape is the request's or single (a single-mesh entry is the fallback for
 // every shape, at the scene's total vertex count). Among the usable entries
 // of a level: the request's shape first, then the smallest B, then the
@@ -24,6 +24,11 @@
 // the smallest median time (which chooses between glsl-compute and
 // glsl-vertex on a GL device). The entry's variant is taken with its
 // `normals` set to what the caller needs.
+// The reason names the entries skipped for the budget or the check that
+// could have served instead: those of an earlier level, and those of the
+// chosen one's level that rank no worse than it (another B, vertex count or
+// shape ranks worse and never applies); one over the budget says by how much
+// raising it (max_error_name) admits it.
 #pragma once
 
 #include <cstddef>
@@ -49,6 +54,7 @@ struct SelectionRequest {
   int meshes = 1;                // a batch's mesh count, likewise
   bool normals = false;
   double max_error = kDefaultBudget;     // the error budget, relative to the bounding-box diagonal
+  std::string max_error_name = "max_error";  // how the caller names it in reasons ("SkinnerOptions::max_error")
   std::vector<WeightFormat> exact_formats;  // formats that hold the caller's weights exactly (HoldsWeightsExactly)
   DeviceLimits limits;           // sizes the built-in default's work-group
   // Why `variant` cannot run here, or "" when it can; unset: every variant can.

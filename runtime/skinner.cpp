@@ -215,6 +215,7 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   request.meshes = static_cast<int>(count);
   request.normals = options.normals;
   request.max_error = options.max_error;
+  request.max_error_name = "SkinnerOptions::max_error";
   // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.
   for (WeightFormat format : {WeightFormat::kUnorm16, WeightFormat::kUnorm8})
     if (HoldsWeightsExactly(mesh, format)) request.exact_formats.push_back(format);

@@ -7,7 +7,12 @@
 // the devices that matched, each specialised for one palette size, with
 // everything a program needs to bind and launch them: the kernel text, its
 // variant parameters, its argument list, its launch geometry, and helpers that
-// pack a mesh and a palette into exactly the bytes the kernel reads. It needs
+// pack a mesh and a palette into exactly the bytes the kernel reads. Winners
+// tuned on a crowd (K instances of one mesh per launch) are instanced kernels,
+// winners tuned on a batch (different meshes packed as one) plain kernels for
+// the batch's palette; each kernel says which scene it won on (`shape`,
+// `instances`, `meshes`), and FindKernel, FindCrowdKernel and FindBatchKernel
+// pick by it. It needs
 // only the C++17 standard library: no skintune library, no OpenCL, CUDA or GL
 // header. The generator replaces the namespace `skintune_kernels` below by the
 // one asked for (--namespace) and the placeholder kernel table by the real one
@@ -27,6 +32,15 @@
 //   // bind the arguments in the order of k->arguments (n, first = 0, inputs, palette, outputs) and
 //   // launch skintune_kernels::GlobalWorkItems(*k, vertex_count) work items in groups of k->wg_size;
 //   skintune_kernels::UnpackPositions(*k, output_bytes, vertex_count, xyz);
+//
+// A crowd of K instances of the mesh in one launch: FindCrowdKernel(lang, 4,
+// vertex_count, joint_count, K), the same PackMesh, PackPalette(*k, matrices,
+// joint_count, K) with instance i's matrices at matrices + i*joint_count*16,
+// one more scalar argument (vertex_count, after first), a second launch
+// dimension of K (below), and K*vertex_count output vertices, instance after
+// instance. A batch of different meshes in one launch: PackBatch (the meshes
+// as one), FindBatchKernel with the batch's totals, PackPalette of every
+// mesh's matrices one after another, and the plain launch over the batch.
 //
 // The kernel interface (skintune's docs/VARIANTS.md "Kernel interface"):
 //
@@ -71,6 +85,26 @@
 //   one launch skins the whole mesh (it always does here: every kernel of this
 //   header is `padded`, in mesh order). Output buffers hold n elements of
 //   OutputStrideBytes(k) bytes.
+// - Crowds (k.instanced, shape "instances"; skintune's docs/VARIANTS.md
+//   "Instancing"): the arguments are skin(n, first, vertex_count, ...) with
+//   vertex_count = n (GLSL: uniform vertex_count; glsl-vertex has none); the
+//   palette buffer holds K palettes, instance i's joint j row r at float4
+//   (i*k.joints + j)*R + r (an image over it is k.joints*R*K texels wide);
+//   instance i's vertex v is written at element i*n + v (K*n elements). The
+//   instance is the launch's second dimension: OpenCL global size
+//   (GlobalWorkItems(k, n), K) with local size (k.wg_size, 1), CUDA grid
+//   (GlobalWorkItems(k, n) / wg_size, K), glDispatchCompute(groups, K, 1),
+//   glsl-vertex glDrawArraysInstanced(GL_POINTS, 0, n, K). A kernel whose
+//   palette lives in a compile-time array (CUDA kConstant, GLSL kConstant)
+//   holds k.max_instances palettes: a launch skins at most that many; 0 for
+//   the others (any K).
+// - Batches (shape "batch"; skintune's docs/VARIANTS.md "Batches"): a plain
+//   kernel skinning several meshes packed as one (PackBatch): mesh m's
+//   vertices follow the earlier meshes' (its outputs at
+//   offsets.vertices[m] + v), its joint j is palette entry
+//   offsets.joints[m] + j, and every mesh is padded to the batch's B with
+//   zero-weight slots naming its own first joint. k.joints holds the
+//   meshes' palettes together.
 // - Launch: GlobalWorkItems(k, n) work items (ceil(n / vertices_per_item)
 //   rounded up to a multiple of wg_size) in work-groups of k.wg_size; OpenCL
 //   global size = that, CUDA grid = that / wg_size blocks of wg_size threads,
@@ -85,6 +119,7 @@
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace skintune_kernels {
@@ -99,8 +134,8 @@ enum class PaletteStorage { kGlobal, kConstant, kLocal, kImage };
 
 // One kernel argument, as the sidecar JSON describes it.
 struct Argument {
-  const char* name;         // "n", "first", "records", "positions", "indices", "weights", "normals",
-                            // "palette", "out_positions", "out_normals"
+  const char* name;         // "n", "first", "vertex_count" (instanced), "records", "positions", "indices",
+                            // "weights", "normals", "palette", "out_positions", "out_normals"
   const char* format;       // "u32", "float4", "float3", "i32", "u16", "u8", "f32", "unorm16", "unorm8",
                             // "record", "float4 rows"
   unsigned element_bytes;   // one element of `format` (a whole record for "record")
@@ -124,7 +159,13 @@ struct Kernel {
   const char* lang;            // "opencl", "cuda", "glsl-compute", "glsl-vertex", "vulkan"
   int influences;              // B the kernel is specialised for
   const char* vertex_bucket;   // "25k" | "100k" | "400k" | "1600k": the bucket of `vertices`
-  std::size_t vertices;        // the vertex count of the mesh it won on (one kernel per measured count)
+  std::size_t vertices;        // the vertex count of the scene it won on, a crowd's or batch's total
+                               // (one kernel per measured count)
+  const char* shape;           // the scene it won on: "single" (one mesh), "instances" (a crowd), "batch"
+  int instances;               // a crowd's K (1 for the other shapes)
+  int meshes;                  // a batch's mesh count (1 for the other shapes)
+  bool instanced;              // an instanced kernel (shape "instances"): K instances per launch
+  int max_instances;           // instances one launch may skin: 0 = any K; else at most this (compile-time palettes)
   const char* variant;         // variant key (always `padded`: a `bucketed` winner is emitted as its padded twin)
   Layout layout;
   PositionFormat position;
@@ -137,7 +178,8 @@ struct Kernel {
   int vertices_per_item;       // 1, 2, 4, 8
   bool strided;                // item g skins g, g+G, ... (else g*N .. g*N+N-1)
   int wg_size;                 // work-group size (0 for glsl-vertex)
-  int joints;                  // palette entries the kernel is specialised for
+  int joints;                  // palette entries the kernel is specialised for (a crowd's: per instance;
+                               // a batch's: its meshes' together)
   const char* entry_point;     // "skin" (OpenCL, CUDA) / "main" (GLSL)
   const char* source;          // the whole kernel text, NUL-terminated
   const char* source_hash;     // FNV-1a 64 of `source`, 16 hex digits (skintune's program cache key)
@@ -155,9 +197,15 @@ struct Kernel {
 // skintune:kernel-table-begin
 // The generator replaces this placeholder, from the marker above to the one
 // below, by the kernel table:
+//   inline constexpr double kMaxError = <--max-error>;
 //   inline constexpr int kKernelCount = <count>;
 //   inline constexpr Kernel kKernels[kKernelCount] = {...};
 // (inline variables: one object however many translation units include it).
+// kMaxError is the error budget the kernels were chosen under (skintune emit
+// --db --max-error, default 1e-4), relative to the tuning mesh's bounding-box
+// diagonal: of each winner's precision classes (weight formats) the fastest
+// whose quantisation costs at most this much; f32 costs nothing.
+inline constexpr double kMaxError = 0.0;
 inline constexpr int kKernelCount = 0;
 inline constexpr const Kernel* kKernels = nullptr;
 // skintune:kernel-table-end
@@ -207,6 +255,45 @@ inline void PutVector(std::uint8_t* at, const float* xyz, PositionFormat format,
   if (format == PositionFormat::kFloat4) PutFloat(at + 12, w);
 }
 
+// "vertex V slot I" of slot `s` (joints / weights element) of `slots` per vertex.
+inline std::string SlotName(std::size_t s, std::size_t slots) {
+  return "vertex " + std::to_string(s / slots) + " slot " + std::to_string(s % slots);
+}
+
+// Joints a kernel's palette and index format can both hold.
+inline std::uint64_t JointLimit(const Kernel& k) {
+  const std::uint64_t palette = static_cast<std::uint64_t>(k.joints);
+  return IndexCapacity(k.index) < palette ? IndexCapacity(k.index) : palette;
+}
+
+// The first of `count` joint indices that is >= `limit`; `count` when none is.
+inline std::size_t FirstJointFrom(const std::uint32_t* joints, std::size_t count, std::uint64_t limit) {
+  for (std::size_t s = 0; s < count; ++s)
+    if (joints[s] >= limit) return s;
+  return count;
+}
+
+// What is wrong with the weights of n vertices of `slots` each, "" when
+// nothing: the contract covers finite, non-negative weights, not all zero
+// per vertex (a quantised format divides by their sum).
+inline std::string BadWeight(const float* weights, std::size_t n, std::size_t slots) {
+  for (std::size_t v = 0; v < n; ++v) {
+    bool any = false;
+    for (std::size_t i = 0; i < slots; ++i) {
+      const float w = weights[v * slots + i];
+      if (!(w >= 0.0f) || w > 3.4028234663852886e38f) {
+        char text[96];
+        std::snprintf(text, sizeof text, "vertex %zu slot %zu: weight %g is %s", v, i, static_cast<double>(w),
+                      w < 0.0f ? "negative" : "not finite");
+        return text;
+      }
+      any = any || w > 0.0f;
+    }
+    if (!any) return "vertex " + std::to_string(v) + ": all weights are zero";
+  }
+  return "";
+}
+
 // skintune's quantisation of one vertex's weights w_0 .. w_(B-1) (B =
 // `slots`) to integers q_0 .. q_(B-1) summing to exactly M = `max` (65535 or
 // 255). The weights must be finite and non-negative, and not all zero
@@ -242,37 +329,99 @@ inline void QuantiseVertex(const float* w, int slots, std::uint32_t max, std::ui
   }
 }
 
+// What a Find* call asks for: kernels of `lang` whose scene is `shape` (or,
+// with single_serves, a single mesh's: skintune's fallback), joints >=
+// joint_count addressable by the index format, B >= influences, and at least
+// `instances` per launch; `vertices` the scene's total, `count` its instance
+// or mesh count.
+struct Request {
+  const char* lang;
+  const char* shape;
+  bool single_serves;
+  int influences;
+  std::size_t vertices;
+  int joint_count;
+  int count;
+  int instances;
+};
+
+inline bool Serves(const Kernel& k, const Request& r) {
+  const bool shape = std::strcmp(k.shape, r.shape) == 0 || (r.single_serves && std::strcmp(k.shape, "single") == 0);
+  return shape && std::strcmp(k.lang, r.lang) == 0 && k.influences >= r.influences && k.joints >= r.joint_count &&
+         static_cast<std::uint64_t>(r.joint_count) <= IndexCapacity(k.index) &&
+         (k.max_instances == 0 || k.max_instances >= r.instances);
+}
+
+// Smaller is better: another shape than asked (the single-mesh fallback), B
+// above the mesh's, the vertex count's distance, the instance or mesh count's
+// (within the shape), then the larger vertex count.
+inline bool Better(const Kernel& a, const Kernel& b, const Request& r) {
+  const auto rank = [&r](const Kernel& k, double* vertices, double* count) {
+    const bool other = std::strcmp(k.shape, r.shape) != 0;
+    *vertices = VertexCountDistance(k.vertices, r.vertices);
+    const int tuned = std::strcmp(k.shape, "instances") == 0 ? k.instances : k.meshes;
+    *count = other ? 1.0 : VertexCountDistance(static_cast<std::size_t>(tuned), static_cast<std::size_t>(r.count));
+    return other;
+  };
+  double av = 0.0, ac = 0.0, bv = 0.0, bc = 0.0;
+  const bool a_other = rank(a, &av, &ac), b_other = rank(b, &bv, &bc);
+  if (a_other != b_other) return !a_other;
+  if (a.influences != b.influences) return a.influences < b.influences;
+  if (av != bv) return av < bv;
+  if (ac != bc) return ac < bc;
+  return a.vertices > b.vertices;
+}
+
+inline const Kernel* Find(const Request& r) {
+  if (r.lang == nullptr || r.influences < 1 || r.joint_count < 1 || r.count < 1) return nullptr;
+  const Kernel* best = nullptr;
+  for (int i = 0; i < kKernelCount; ++i) {
+    if (Serves(kKernels[i], r) && (best == nullptr || Better(kKernels[i], *best, r))) best = &kKernels[i];
+  }
+  return best;
+}
+
 }  // namespace detail
 
 // The kernel for a mesh of `vertex_count` vertices whose vertices use at most
 // `influences` bones and whose palette has `joint_count` joints: among the
-// kernels of `lang` ("opencl", "cuda", "glsl-compute", "glsl-vertex") whose
-// `joints` >= joint_count and whose index format can address joint_count
-// joints (u8: 256, u16: 65536), the smallest B >= influences wins, then the
-// nearest measured vertex count (as a factor; the larger on a tie), then the
-// first in kKernels.
+// single-mesh kernels (shape "single") of `lang` ("opencl", "cuda",
+// "glsl-compute", "glsl-vertex", "vulkan") whose `joints` >= joint_count and
+// whose index format can address joint_count joints (u8: 256, u16: 65536),
+// the smallest B >= influences wins, then the nearest measured vertex count
+// (as a factor; the larger on a tie), then the first in kKernels.
 // Kernels of every device of the header take part (check k->device_id, or
 // generate one header per device). nullptr if none fits, or for a null `lang`,
 // influences < 1 or joint_count < 1. Check k->normals yourself when you skin
 // normals.
 inline const Kernel* FindKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count) {
-  if (lang == nullptr || influences < 1 || joint_count < 1) return nullptr;
-  const Kernel* best = nullptr;
-  double best_distance = 0.0;
-  for (int i = 0; i < kKernelCount; ++i) {
-    const Kernel& k = kKernels[i];
-    if (std::strcmp(k.lang, lang) != 0 || k.influences < influences || k.joints < joint_count ||
-        static_cast<std::uint64_t>(joint_count) > detail::IndexCapacity(k.index))
-      continue;
-    const double distance = detail::VertexCountDistance(k.vertices, vertex_count);
-    if (best == nullptr || k.influences < best->influences ||
-        (k.influences == best->influences &&
-         (distance < best_distance || (distance == best_distance && k.vertices > best->vertices)))) {
-      best = &k;
-      best_distance = distance;
-    }
-  }
-  return best;
+  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1});
+}
+
+// The instanced kernel for a crowd of `instances` instances of one mesh of
+// `vertex_count` vertices (each instance its own palette of `joint_count`
+// joints) in one launch: FindKernel's rule among the crowd kernels (shape
+// "instances") that take that many instances per launch (max_instances 0 or
+// >= instances), the vertex count compared as the crowd's total
+// (instances x vertex_count), then the nearest tuned instance count.
+// nullptr if none fits, or for instances < 1 (and as FindKernel).
+inline const Kernel* FindCrowdKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count,
+                                     int instances) {
+  const std::size_t total = vertex_count * static_cast<std::size_t>(instances > 0 ? instances : 0);
+  return detail::Find({lang, "instances", false, influences, total, joint_count, instances, instances});
+}
+
+// The kernel for a batch of `meshes` meshes packed as one (PackBatch) of
+// `vertex_count` vertices and `joint_count` joints in all (offsets.vertices
+// and offsets.joints' last entries), `influences` the largest B of its
+// meshes: FindKernel's rule among the batch kernels (shape "batch"), then the
+// nearest tuned mesh count; without one, the single-mesh kernel of the
+// batch's size (a batch is one mesh to a kernel; skintune's runtime falls
+// back the same way). nullptr if none fits, or for meshes < 1 (and as
+// FindKernel).
+inline const Kernel* FindBatchKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count,
+                                     int meshes) {
+  return detail::Find({lang, "batch", true, influences, vertex_count, joint_count, meshes, 1});
 }
 
 // Work items for a launch of n vertices: ceil(n / vertices_per_item) rounded
@@ -342,31 +491,16 @@ inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float
   if (k.normals && normals == nullptr) return fail("the kernel skins normals but normals is null");
   const std::size_t slots = static_cast<std::size_t>(influences);
   const std::uint64_t capacity = detail::IndexCapacity(k.index);
-  for (std::size_t s = 0; s < n * slots; ++s) {
-    if (joints[s] < capacity && joints[s] < static_cast<std::uint32_t>(k.joints)) continue;
-    const std::string where = "vertex " + std::to_string(s / slots) + " slot " + std::to_string(s % slots) +
-                              ": joint " + std::to_string(joints[s]);
-    if (joints[s] >= capacity)
+  const std::size_t bad = detail::FirstJointFrom(joints, n * slots, detail::JointLimit(k));
+  if (bad < n * slots) {
+    const std::string where = detail::SlotName(bad, slots) + ": joint " + std::to_string(joints[bad]);
+    if (joints[bad] >= capacity)
       return fail(where + " does not fit " + detail::IndexName(k.index) + " indices (at most " +
                   std::to_string(capacity - 1) + ")");
     return fail(where + " out of range (the kernel has " + std::to_string(k.joints) + " joints)");
   }
-  // The weights the contract covers: finite, non-negative, not all zero per
-  // vertex (a quantised format divides by their sum).
-  for (std::size_t v = 0; v < n; ++v) {
-    bool any = false;
-    for (std::size_t i = 0; i < slots; ++i) {
-      const float w = weights[v * slots + i];
-      if (!(w >= 0.0f) || w > 3.4028234663852886e38f) {
-        char text[96];
-        std::snprintf(text, sizeof text, "vertex %zu slot %zu: weight %g is %s", v, i, static_cast<double>(w),
-                      w < 0.0f ? "negative" : "not finite");
-        return fail(text);
-      }
-      any = any || w > 0.0f;
-    }
-    if (!any) return fail("vertex " + std::to_string(v) + ": all weights are zero");
-  }
+  const std::string weight_error = detail::BadWeight(weights, n, slots);
+  if (!weight_error.empty()) return fail(weight_error);
 
   const std::size_t b = static_cast<std::size_t>(k.influences);
   const std::size_t pb = detail::VectorBytes(k.position);
@@ -431,25 +565,154 @@ inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float
   return true;
 }
 
-// The palette buffer in the kernel's format, as floats (upload them as they
-// are): `joint_count` matrices, each 16 floats column-major (glm's layout:
-// element (row r, column c) at c*4+r), become R = 4 (kMat4) or 3 (kMat3x4)
-// float4 rows per joint, joint j row r at float4 j*R+r, followed by identity
-// matrices up to k.joints entries (the kernel is specialised for k.joints:
-// the buffer always holds k.joints*R*4 floats). Empty for joint_count < 0,
-// joint_count > k.joints, or null matrices with joint_count > 0.
-inline std::vector<float> PackPalette(const Kernel& k, const float* matrices, int joint_count) {
-  if (joint_count < 0 || joint_count > k.joints || (matrices == nullptr && joint_count > 0)) return {};
-  const std::size_t rows = k.palette == PaletteFormat::kMat4 ? 4 : 3;
-  std::vector<float> out(static_cast<std::size_t>(k.joints) * rows * 4, 0.0f);
-  float* at = out.data();
-  for (int j = 0; j < k.joints; ++j) {
+// One mesh of a batch (PackBatch): its arrays as PackMesh takes a mesh's.
+struct BatchMesh {
+  std::size_t vertex_count = 0;
+  int influences = 0;                     // slots per vertex of `joints` and `weights`
+  int joint_count = 0;                    // its own palette's joints: its indices are 0..joint_count-1
+  const float* positions = nullptr;       // 3 floats per vertex
+  const float* normals = nullptr;         // likewise; required when the kernel skins normals
+  const std::uint32_t* joints = nullptr;  // `influences` per vertex
+  const float* weights = nullptr;         // `influences` per vertex
+};
+
+// Where each mesh lies in a batch: mesh m's vertices from vertices[m] on (its
+// outputs too), its joints from palette entry joints[m] on; each list ends
+// with the batch's total.
+struct BatchOffsets {
+  std::vector<std::size_t> vertices;
+  std::vector<int> joints;
+};
+
+namespace detail {
+
+// The batch as one mesh's arrays.
+struct BatchArrays {
+  int influences = 0;  // the largest of its meshes'
+  std::vector<float> positions, normals, weights;
+  std::vector<std::uint32_t> joints;
+};
+
+// What is wrong with a mesh of a batch for kernel k, "" when nothing.
+inline std::string BadBatchMesh(const Kernel& k, const BatchMesh& mesh) {
+  if (mesh.vertex_count == 0) return "no vertices";
+  if (mesh.joint_count < 1) return "no joints";
+  if (mesh.influences < 1 || mesh.influences > k.influences)
+    return "influences " + std::to_string(mesh.influences) + " outside 1.." + std::to_string(k.influences) +
+           " (the kernel's B)";
+  if (mesh.positions == nullptr || mesh.joints == nullptr || mesh.weights == nullptr)
+    return "positions, joints or weights is null";
+  if (k.normals && mesh.normals == nullptr) return "the kernel skins normals but normals is null";
+  const std::size_t slots = static_cast<std::size_t>(mesh.influences), count = mesh.vertex_count * slots;
+  const std::size_t bad = FirstJointFrom(mesh.joints, count, static_cast<std::uint64_t>(mesh.joint_count));
+  if (bad < count)
+    return SlotName(bad, slots) + ": joint " + std::to_string(mesh.joints[bad]) + " out of range (the mesh has " +
+           std::to_string(mesh.joint_count) + " joints)";
+  return BadWeight(mesh.weights, mesh.vertex_count, slots);
+}
+
+// Appends a mesh whose joints start at palette entry `offset`, its slots
+// padded to the batch's B with weight 0 on its own first joint.
+inline void AppendMesh(BatchArrays& batch, const BatchMesh& mesh, std::uint32_t offset, bool normals) {
+  const std::size_t n = mesh.vertex_count, mb = static_cast<std::size_t>(mesh.influences);
+  batch.positions.insert(batch.positions.end(), mesh.positions, mesh.positions + 3 * n);
+  if (normals) batch.normals.insert(batch.normals.end(), mesh.normals, mesh.normals + 3 * n);
+  for (std::size_t v = 0; v < n; ++v) {
+    for (std::size_t i = 0; i < static_cast<std::size_t>(batch.influences); ++i) {
+      batch.joints.push_back(offset + (i < mb ? mesh.joints[v * mb + i] : 0u));
+      batch.weights.push_back(i < mb ? mesh.weights[v * mb + i] : 0.0f);
+    }
+  }
+}
+
+}  // namespace detail
+
+// Packs `mesh_count` meshes as one mesh for a batch kernel, byte for byte as
+// skintune packs a batch (docs/VARIANTS.md "Batches"): the meshes' vertices
+// one after another; mesh m's joint j becomes palette entry
+// offsets.joints[m] + j, the earlier meshes' joint counts summed; every mesh
+// padded to the batch's B (the largest of their influences) with zero-weight
+// slots naming its own first joint; then PackMesh. Fills *offsets (when not
+// null) with where each mesh lies. Returns false and sets *error (when not
+// null), naming the mesh as meshes[m], for out == null, no meshes, a mesh
+// without vertices or joints, influences outside 1..k.influences, null
+// arrays, missing normals when k.normals, a joint index >= the mesh's
+// joint_count, weights PackMesh refuses, or a batch of more joints than
+// k.joints or its index format holds.
+inline bool PackBatch(const Kernel& k, const BatchMesh* meshes, std::size_t mesh_count, PackedInputs* out,
+                      BatchOffsets* offsets, std::string* error) {
+  const auto fail = [error, &k](const std::string& message) {
+    if (error != nullptr) *error = "PackBatch " + std::string(k.variant) + ": " + message;
+    return false;
+  };
+  if (out == nullptr) return fail("no output (out is null)");
+  *out = PackedInputs{};
+  if (meshes == nullptr || mesh_count == 0) return fail("no meshes");
+  const std::uint64_t limit = detail::JointLimit(k);
+  BatchOffsets where{{0}, {0}};
+  detail::BatchArrays batch;
+  for (std::size_t m = 0; m < mesh_count; ++m) {
+    const std::string bad = detail::BadBatchMesh(k, meshes[m]);
+    if (!bad.empty()) return fail("meshes[" + std::to_string(m) + "]: " + bad);
+    const std::uint64_t joints =
+        static_cast<std::uint64_t>(where.joints.back()) + static_cast<std::uint64_t>(meshes[m].joint_count);
+    if (joints > limit)
+      return fail("meshes[" + std::to_string(m) + "]: the batch's joints reach " + std::to_string(joints) +
+                  " with this mesh's, above the " + std::to_string(limit) + " the kernel holds (" +
+                  std::to_string(k.joints) + " joints, " + detail::IndexName(k.index) + " indices)");
+    where.vertices.push_back(where.vertices.back() + meshes[m].vertex_count);
+    where.joints.push_back(static_cast<int>(joints));
+    if (meshes[m].influences > batch.influences) batch.influences = meshes[m].influences;
+  }
+  for (std::size_t m = 0; m < mesh_count; ++m)
+    detail::AppendMesh(batch, meshes[m], static_cast<std::uint32_t>(where.joints[m]), k.normals);
+  if (!PackMesh(k, where.vertices.back(), batch.influences, batch.positions.data(),
+                k.normals ? batch.normals.data() : nullptr, batch.joints.data(), batch.weights.data(), out, error))
+    return false;
+  if (offsets != nullptr) *offsets = std::move(where);
+  return true;
+}
+
+namespace detail {
+
+// One palette's rows at `at`: `joint_count` column-major matrices as `rows`
+// float4 rows each, then identities up to `joints` entries.
+inline float* PutPalette(const float* matrices, int joint_count, int joints, std::size_t rows, float* at) {
+  for (int j = 0; j < joints; ++j) {
     for (std::size_t r = 0; r < rows; ++r) {
       for (std::size_t c = 0; c < 4; ++c, ++at) {
         *at = j < joint_count ? matrices[static_cast<std::size_t>(j) * 16 + c * 4 + r] : (c == r ? 1.0f : 0.0f);
       }
     }
   }
+  return at;
+}
+
+}  // namespace detail
+
+// The palette buffer in the kernel's format, as floats (upload them as they
+// are): `joint_count` matrices, each 16 floats column-major (glm's layout:
+// element (row r, column c) at c*4+r), become R = 4 (kMat4) or 3 (kMat3x4)
+// float4 rows per joint, joint j row r at float4 j*R+r, followed by identity
+// matrices up to k.joints entries (the kernel is specialised for k.joints:
+// the buffer always holds k.joints*R*4 floats). A crowd kernel (k.instanced)
+// takes `instances` K palettes in one buffer: instance i's joint_count
+// matrices at matrices + i*joint_count*16, packed from float4 i*k.joints*R on
+// (K*k.joints*R*4 floats). A batch's palette is its meshes' matrices one
+// after another (mesh m's at joint offsets.joints[m]), joint_count their total.
+// Empty for joint_count < 0, joint_count > k.joints, null matrices with
+// joint_count > 0, instances < 1, instances > 1 for a kernel that is not
+// instanced, or more instances than k.max_instances (when it is not 0).
+inline std::vector<float> PackPalette(const Kernel& k, const float* matrices, int joint_count, int instances = 1) {
+  if (joint_count < 0 || joint_count > k.joints || (matrices == nullptr && joint_count > 0) || instances < 1 ||
+      (instances > 1 && !k.instanced) || (k.max_instances > 0 && instances > k.max_instances))
+    return {};
+  const std::size_t rows = k.palette == PaletteFormat::kMat4 ? 4 : 3;
+  const std::size_t per_instance = static_cast<std::size_t>(joint_count) * 16;
+  std::vector<float> out(static_cast<std::size_t>(instances) * static_cast<std::size_t>(k.joints) * rows * 4, 0.0f);
+  float* at = out.data();
+  for (std::size_t i = 0; i < static_cast<std::size_t>(instances); ++i)
+    at = detail::PutPalette(joint_count > 0 ? matrices + i * per_instance : nullptr, joint_count, k.joints, rows, at);
   return out;
 }
 

@@ -7,8 +7,9 @@
 //                 [--header NAME] [--namespace NS]
 //
 // The second form emits the winners of a winners database for the matching
-// devices (kernel file + sidecar per distinct variant) and one generated C++17
-// header holding all of them with packing helpers (runtime/embed_header.h,
+// devices (kernel file + sidecar per distinct kernel: single-mesh, crowd
+// (instanced) and batch winners) and one generated C++17 header holding all
+// of them with packing helpers (runtime/embed_header.h,
 // docs/RUNTIME.md "Emitting kernels into other builds"). Every file is
 // generated in memory first and written (atomically) only when all of them
 // were generated.
@@ -18,7 +19,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
-#include <set>
+#include <optional>
 #include <sstream>
 #include <tuple>
 
@@ -148,120 +149,175 @@ nlohmann::json WinnerJson(const WinnersEntry& e) {
   return j;
 }
 
-// The database keeps a winner per precision class (weight format); the
-// header embeds one kernel per (device, language, B, vertex count): the
-// fastest within the budget (f32 always is; an entry whose error is not
-// recorded, from a database before 1.3.0, never is: warned and skipped, as
-// Selection::Find does).
+// A winner's row: device, language, B, vertex count and scene (shape,
+// instances, meshes). The database keeps a winner per precision class of a
+// row; the header embeds one kernel per row.
+using Row = std::tuple<std::string, int, int, std::size_t, int, int, int>;
+
+Row RowOf(const WinnersEntry& e) {
+  return {e.device_id, static_cast<int>(e.lang), e.influences, e.vertices, static_cast<int>(e.shape), e.instances,
+          e.meshes};
+}
+
+void WarnOverBudget(const WinnersEntry& e, double max_error) {
+  std::cerr << "skintune: warning: skipping " << Describe(e) << " " << e.variant.Key() << ": ";
+  if (e.source_error.known)
+    std::cerr << "its weights cost " << e.source_error.quantisation_rel << " of the bounding-box diagonal, over "
+              << "--max-error " << max_error << "\n";
+  else
+    std::cerr << "its quantisation error is not recorded (a database before 1.3.0: tune again)\n";
+}
+
+// Of each row's precision classes, the fastest within the budget (f32 always
+// is; an entry whose error is not recorded, from a database before 1.3.0,
+// never is: warned and skipped, as Selection::Find does).
 std::vector<const WinnersEntry*> FastestWithinBudget(const std::vector<const WinnersEntry*>& entries,
                                                      double max_error) {
-  std::map<std::tuple<std::string, int, int, std::size_t>, const WinnersEntry*> best;
-  std::vector<std::tuple<std::string, int, int, std::size_t>> order;
+  std::map<Row, const WinnersEntry*> best;
+  std::vector<Row> order;
   for (const WinnersEntry* e : entries) {
     if (!EntryWithinBudget(*e, max_error, {})) {
-      std::cerr << "skintune: warning: skipping " << Describe(*e) << " " << e->variant.Key() << ": ";
-      if (e->source_error.known)
-        std::cerr << "its weights cost " << e->source_error.quantisation_rel << " of the bounding-box diagonal, over "
-                  << "--max-error " << max_error << "\n";
-      else
-        std::cerr << "its quantisation error is not recorded (a database before 1.3.0: tune again)\n";
+      WarnOverBudget(*e, max_error);
       continue;
     }
-    const auto key = std::make_tuple(e->device_id, static_cast<int>(e->lang), e->influences, e->vertices);
-    const auto it = best.find(key);
-    if (it == best.end()) order.push_back(key);
-    if (it == best.end() || e->median_ms < it->second->median_ms) best[key] = e;
+    const Row row = RowOf(*e);
+    const auto it = best.find(row);
+    if (it == best.end()) order.push_back(row);
+    if (it == best.end() || e->median_ms < it->second->median_ms) best[row] = e;
   }
   std::vector<const WinnersEntry*> out;
-  for (const auto& key : order) out.push_back(best[key]);
+  for (const Row& row : order) out.push_back(best[row]);
   return out;
+}
+
+// The entries of the devices and languages asked for; throws naming what the
+// database holds when none matches.
+std::vector<const WinnersEntry*> MatchingEntries(const std::vector<WinnersEntry>& entries, const EmitArgs& o,
+                                                 const std::string& asked) {
+  std::vector<const WinnersEntry*> matched;
+  for (const WinnersEntry& e : entries) {
+    const bool lang_ok = o.langs.empty() || std::find(o.langs.begin(), o.langs.end(), Name(e.lang)) != o.langs.end();
+    if (lang_ok && EntryMatchesDevice(e, o.device)) matched.push_back(&e);
+  }
+  if (matched.empty()) throw Error(o.db + ": no winner matches " + asked + " (" + DevicesOf(entries) + ")");
+  return matched;
+}
+
+// The palette sizes --joints accepts; a batch's kernel (its meshes' palettes together) is held to it too.
+constexpr int kMaxPaletteJoints = 65536;
+
+// "300 joints", "3 meshes x 300 joints", "300 joints x 64 instances": what a winner's kernel is emitted for.
+std::string EmittedFor(const WinnersEntry& e, int joints) {
+  const std::string each = std::to_string(joints) + " joints";
+  if (e.shape == SceneKind::kBatch) return std::to_string(e.meshes) + " meshes x " + each;
+  if (e.shape == SceneKind::kInstances) return each + " x " + std::to_string(e.instances) + " instances";
+  return each;
+}
+
+// A winner's kernel as the header embeds it: its padded variant (a bucketed
+// winner's padded twin keeps mesh order in one launch) specialised for
+// `joints` palette entries; a crowd's winner instanced for its K instances
+// (max_instances K), a batch's for its meshes' palettes together (meshes x
+// `joints`). Warns and returns nothing when the variant cannot take them.
+std::optional<EmbeddedKernel> EmbedWinner(const WinnersEntry& e, int joints) {
+  Variant variant = e.variant;
+  variant.mixed = MixedCounts::kPadded;
+  const long long palette = e.shape == SceneKind::kBatch ? static_cast<long long>(joints) * e.meshes : joints;
+  const int instances = e.shape == SceneKind::kInstances ? e.instances : 1;
+  std::string broken;
+  if (palette > kMaxPaletteJoints) {
+    broken = "more than " + std::to_string(kMaxPaletteJoints) + " palette entries";
+  } else if (const std::vector<Violation> v =
+                 CheckVariant(variant, Unlimited(), ProblemShape{static_cast<int>(palette), 1, true, instances});
+             !v.empty()) {
+    broken = v.front().message + " (constraint " + Name(v.front().constraint) + ")";
+  }
+  if (!broken.empty()) {
+    std::cerr << "skintune: warning: skipping " << Describe(e) << ": " << variant.Key() << " cannot be emitted for "
+              << EmittedFor(e, joints) << ": " << broken << "\n";
+    return std::nullopt;
+  }
+  EmitOptions options;
+  options.instanced = e.shape == SceneKind::kInstances;
+  options.max_instances = options.instanced ? instances : 0;
+  return EmbeddedKernel{e, variant, Emit(variant, 0, static_cast<int>(palette), options)};
+}
+
+// "<key>", "<key>.x64" (a crowd's instanced kernel), "<key>.batch3": the
+// name of a kernel's files without extension; the same name, the same text.
+std::string FileBase(const EmbeddedKernel& k) {
+  const std::string key = k.variant.Key();
+  if (k.entry.shape == SceneKind::kInstances) return key + ".x" + std::to_string(k.entry.instances);
+  if (k.entry.shape == SceneKind::kBatch) return key + ".batch" + std::to_string(k.entry.meshes);
+  return key;
 }
 
 constexpr const char* kBucketedNote =
     "tuned as 'bucketed' (vertices grouped by influence count, one launch per count); emitted as its 'padded' "
     "twin: one launch, outputs in mesh order";
 
+// Per distinct kernel (FileBase, in order of first appearance): its source
+// file, its SPIR-V (vulkan) and its sidecar naming every winner it serves and
+// the budget they were chosen under: file name in --out, contents.
+std::vector<std::pair<std::string, std::string>> KernelFiles(const std::vector<EmbeddedKernel>& kernels,
+                                                             double max_error) {
+  std::map<std::string, nlohmann::json> sidecars;
+  std::vector<const EmbeddedKernel*> distinct;
+  for (const EmbeddedKernel& k : kernels) {
+    const std::string base = FileBase(k);
+    auto [at, added] = sidecars.emplace(base, nlohmann::json());
+    if (added) {
+      distinct.push_back(&k);
+      at->second = SidecarJson(k.source, k.variant);
+      at->second["source_file"] = base + LanguageOf(k.variant.lang).extension;
+      if (k.variant.lang == Lang::kVulkan) at->second["spirv_file"] = base + ".spv";
+      at->second["max_error"] = max_error;  // the budget the winners were chosen under
+      at->second["winners"] = nlohmann::json::array();
+    }
+    at->second["winners"].push_back(WinnerJson(k.entry));
+    if (k.entry.variant.mixed == MixedCounts::kBucketed) at->second["note"] = kBucketedNote;
+  }
+  std::vector<std::pair<std::string, std::string>> files;
+  for (const EmbeddedKernel* k : distinct) {
+    const std::string base = FileBase(*k);
+    files.emplace_back(base + LanguageOf(k->variant.lang).extension, k->source.text);
+    if (k->variant.lang == Lang::kVulkan) files.emplace_back(base + ".spv", SpirvBytes(k->source, k->variant));
+    files.emplace_back(base + ".json", sidecars[base].dump(2) + "\n");
+  }
+  return files;
+}
+
 int RunEmitDb(const EmitArgs& o) {
   const std::vector<WinnersEntry> entries = WinnersDbFromJson(ReadJsonFile(o.db), o.db);
-  std::vector<const WinnersEntry*> matched;
-  std::set<std::string> warned;
-  for (const WinnersEntry& e : entries) {
-    const bool lang_ok = o.langs.empty() || std::find(o.langs.begin(), o.langs.end(), Name(e.lang)) != o.langs.end();
-    if (!lang_ok || !EntryMatchesDevice(e, o.device)) continue;
-    // The header's kernels are plain, one mesh each, and FindKernel knows no
-    // scene shape: a crowd's or batch's winner would compete with the single
-    // mesh of the same total size (the runtime's Skinner uses them).
-    if (e.shape != SceneKind::kSingle) {
-      // Once per distinct line: the precision classes of one scene read the same.
-      const std::string warning = "skipping " + Describe(e) + ": tuned on a crowd or batch scene; the header holds "
-                                  "single-mesh winners";
-      if (warned.insert(warning).second) std::cerr << "skintune: warning: " << warning << "\n";
-      continue;
-    }
-    matched.push_back(&e);
-  }
   const std::string asked =
       "--device '" + o.device + "'" + (o.langs.empty() ? "" : " and --lang " + Joined(o.langs, ", "));
-  if (matched.empty()) throw Error(o.db + ": no winner matches " + asked + " (" + DevicesOf(entries) + ")");
+  const std::vector<const WinnersEntry*> candidates = MatchingEntries(entries, o, asked);
   const double max_error = o.max_error_text.empty() ? kDefaultBudget : ParseMaxError(o.max_error_text, "--max-error");
-  matched = FastestWithinBudget(matched, max_error);
+  const std::vector<const WinnersEntry*> matched = FastestWithinBudget(candidates, max_error);
   if (matched.empty())
     throw Error(o.db + ": no winner matching " + asked + " is within the error budget (see the warnings above; "
                        "--max-error sets a larger one)");
 
   // Everything is generated before anything is written.
   std::vector<EmbeddedKernel> kernels;
-  const ProblemShape shape{o.joints, 1, true, 1};
   for (const WinnersEntry* e : matched) {
-    Variant variant = e->variant;
-    // Bucketed kernels write vertices grouped by count; the padded twin keeps mesh order in one launch.
-    variant.mixed = MixedCounts::kPadded;
-    const std::vector<Violation> broken = CheckVariant(variant, Unlimited(), shape);
-    if (!broken.empty()) {
-      std::cerr << "skintune: warning: skipping " << Describe(*e) << ": " << variant.Key() << " cannot be emitted for "
-                << o.joints << " joints: " << broken.front().message << " (constraint "
-                << Name(broken.front().constraint) << ")\n";
-      continue;
-    }
-    kernels.push_back({*e, variant, Emit(variant, 0, o.joints)});
+    if (std::optional<EmbeddedKernel> k = EmbedWinner(*e, o.joints)) kernels.push_back(std::move(*k));
   }
   if (kernels.empty()) {
     throw Error(o.db + ": none of the " + std::to_string(matched.size()) + " winner(s) matching " + asked +
                 " can be emitted for " + std::to_string(o.joints) + " joints (see the warnings above)");
   }
-
-  namespace fs = std::filesystem;
-  std::vector<std::pair<std::string, std::string>> files;  // file name in --out, contents
-  std::map<std::string, nlohmann::json> sidecars;          // by variant key
-  std::vector<std::string> keys;                           // in order of first appearance
-  for (const EmbeddedKernel& k : kernels) {
-    const std::string key = k.variant.Key();
-    auto [at, added] = sidecars.emplace(key, nlohmann::json());
-    if (added) {
-      keys.push_back(key);
-      at->second = SidecarJson(k.source, k.variant);
-      at->second["source_file"] = key + LanguageOf(k.variant.lang).extension;
-      if (k.variant.lang == Lang::kVulkan) at->second["spirv_file"] = key + ".spv";
-      at->second["winners"] = nlohmann::json::array();
-    }
-    at->second["winners"].push_back(WinnerJson(k.entry));
-    if (k.entry.variant.mixed == MixedCounts::kBucketed) at->second["note"] = kBucketedNote;
-  }
-  for (const std::string& key : keys) {
-    const auto k = std::find_if(kernels.begin(), kernels.end(),
-                                [&](const EmbeddedKernel& x) { return x.variant.Key() == key; });
-    files.emplace_back(key + LanguageOf(k->variant.lang).extension, k->source.text);
-    if (k->variant.lang == Lang::kVulkan) files.emplace_back(key + ".spv", SpirvBytes(k->source, k->variant));
-    files.emplace_back(key + ".json", sidecars[key].dump(2) + "\n");
-  }
+  std::vector<std::pair<std::string, std::string>> files = KernelFiles(kernels, max_error);
   for (const auto& [name, text] : files) {
     if (name == o.header) throw Error("--header '" + o.header + "' is also the name of a kernel file");
   }
+  namespace fs = std::filesystem;
   EmbedHeaderOptions options;
   options.name_space = o.name_space;
   options.database = fs::path(o.db).filename().string();
   options.device_pattern = o.device;
   options.langs = o.langs;
+  options.max_error = max_error;
   files.emplace_back(o.header, EmbedHeader(kernels, options));
 
   CreateOutputFolder(o.out);
@@ -285,8 +341,10 @@ Command RegisterEmit(CLI::App& app) {
                  ->check(NonEmptyPath());
   variant->excludes(db);
   sub->add_option("--out", o->out, "output folder (created if missing)")->required()->check(NonEmptyPath());
-  sub->add_option("--joints", o->joints, "palette size the kernel is specialised for (default 77)")
-      ->check(CLI::Range(1, 65536));
+  sub->add_option("--joints", o->joints,
+                  "palette size the kernel is specialised for (default 77; with --db, a batch winner's kernel holds "
+                  "that many per mesh)")
+      ->check(CLI::Range(1, kMaxPaletteJoints));
   auto* instances =
       sub->add_option("--instances", o->instances,
                       "emit the instanced kernel for up to K instances per launch (docs/VARIANTS.md \"Instancing\"); "

@@ -89,13 +89,29 @@ std::string KernelInterval(const Winner& w) {
   return text;
 }
 
+// The line under a device's table naming its classes over the budget that
+// are faster than their row's winner (nothing when there are none).
+void PrintFasterOverBudget(const std::vector<FasterOverBudget>& faster, const std::string& device_id,
+                           double max_error) {
+  std::vector<std::string> over;
+  for (const FasterOverBudget& f : faster)
+    if (f.over.device_id == device_id) over.push_back(Describe(f));
+  if (over.empty()) return;
+  std::cout << over.size() << " faster precision class(es) over the budget max_error " << Sci(max_error)
+            << " are in the winners database (skintune emit --db --max-error): ";
+  for (std::size_t i = 0; i < over.size(); ++i) std::cout << (i ? "; " : "") << over[i];
+  std::cout << "\n";
+}
+
 // Per device (in report order): its winners within the budget, one per
 // language, B and vertex count, with what they cost against the unquantised
-// source (docs/TUNING.md "Precision"); faster classes over the budget are
-// counted below each table (the winners database keeps them).
+// source (docs/TUNING.md "Precision"); the classes over the budget that are
+// faster than a row's winner beyond the tie margin are named below each
+// table (the winners database keeps them).
 void PrintDeviceWinners(const TuningReport& report) {
   const std::vector<Winner> all = ComputeWinners(report);
   const std::vector<Winner> winners = BudgetWinners(all, report.tie_margin);
+  const std::vector<FasterOverBudget> faster = FasterClassesOverBudget(all, report.tie_margin);
   for (const DeviceIdentity& d : report.devices) {
     std::vector<std::vector<std::string>> rows = {{"lang", "B", "vertices", "dataset", "variant", "kernel us [95%]",
                                                    "frame us", "GB/s", "x copy", "ties", "err/diag", "format costs"}};
@@ -109,8 +125,6 @@ void PrintDeviceWinners(const TuningReport& report) {
                       e.known ? Sci(e.position_rel) : "-", e.known ? Sci(e.quantisation_rel) : "-"});
       if (w.within_noise) noisy.push_back(std::string(Name(w.lang)) + " " + w.dataset);
     }
-    std::size_t over = 0;
-    for (const Winner& w : all) over += w.device_id == d.Id() && !w.within_budget ? 1 : 0;
     std::cout << "\n== " << d.backend << ": " << d.name << " (" << d.platform << ")\n";
     if (rows.size() == 1) {
       std::cout << "no variant passed verification within the budget on this device\n";
@@ -125,9 +139,7 @@ void PrintDeviceWinners(const TuningReport& report) {
         std::cout << "\n";
       }
     }
-    if (over > 0)
-      std::cout << over << " faster precision class(es) over the budget max_error " << Sci(report.max_error)
-                << " are in the winners database (skintune emit --db --max-error)\n";
+    PrintFasterOverBudget(faster, d.Id(), report.max_error);
   }
   for (const std::string& s : report.skipped) std::cout << "not tuned: " << s << "\n";
   std::map<std::string, std::size_t> statuses;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <set>
 #include <tuple>
@@ -216,34 +217,80 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
   return out;
 }
 
+namespace {
+
+// A row of the winners table: every key field but the precision class.
+using RowKey = std::tuple<std::string, int, int, std::size_t, int, int, int>;
+
+RowKey RowOf(const Winner& w) {
+  return {w.device_id, static_cast<int>(w.lang), w.influences, w.vertices, static_cast<int>(w.shape), w.instances,
+          w.meshes};
+}
+
+// A winner as JudgeIntervals takes it: its interval, and what the tie-break reads.
+Interval IntervalOf(const Winner& w) {
+  Interval i;
+  i.median = w.median_ms;
+  i.low = w.low_ms > 0.0 ? w.low_ms : w.median_ms;
+  i.high = w.high_ms >= i.median ? w.high_ms : w.median_ms;
+  i.samples = 1;
+  return i;
+}
+
+RaceEntry RaceEntryOf(const Winner& w) {
+  return {w.variant.Key(), {}, w.bytes_per_frame, w.source_error.known ? w.source_error.position_rel : 0.0};
+}
+
+RaceOutcome JudgeWinners(const std::vector<const Winner*>& members, double tie_margin) {
+  std::vector<RaceEntry> entries;
+  std::vector<Interval> intervals;
+  for (const Winner* w : members) {
+    entries.push_back(RaceEntryOf(*w));
+    intervals.push_back(IntervalOf(*w));
+  }
+  // The winners' own margin (their device's) where they carry one.
+  const double own = members.front()->tie_margin > 0.0 ? members.front()->tie_margin : tie_margin;
+  return JudgeIntervals(intervals, entries, own > 0.0 ? own : TimingOptions{}.tie_margin);
+}
+
+std::string Milliseconds(double ms) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.4g ms", ms);
+  return text;
+}
+
+}  // namespace
+
 std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners, double tie_margin) {
-  using Key = std::tuple<std::string, int, int, std::size_t, int, int, int>;
-  std::map<Key, std::vector<const Winner*>> classes;
+  std::map<RowKey, std::vector<const Winner*>> classes;
   for (const Winner& w : winners) {
-    if (!w.within_budget) continue;
-    classes[{w.device_id, static_cast<int>(w.lang), w.influences, w.vertices, static_cast<int>(w.shape), w.instances,
-             w.meshes}]
-        .push_back(&w);
+    if (w.within_budget) classes[RowOf(w)].push_back(&w);
   }
   // The precision classes' winners judged as one landscape: a class within
   // the margin of the fastest ties with it, and the tie-break decides.
   std::vector<Winner> out;
-  for (const auto& [key, members] : classes) {
-    std::vector<RaceEntry> entries;
-    std::vector<Interval> intervals;
-    for (const Winner* w : members) {
-      entries.push_back({w->variant.Key(), {}, w->bytes_per_frame, w->source_error.known ? w->source_error.position_rel : 0.0});
-      Interval i;
-      i.median = w->median_ms;
-      i.low = w->low_ms > 0.0 ? w->low_ms : w->median_ms;
-      i.high = w->high_ms >= i.median ? w->high_ms : w->median_ms;
-      i.samples = 1;
-      intervals.push_back(i);
-    }
-    const double own = members.front()->tie_margin > 0.0 ? members.front()->tie_margin : tie_margin;
-    out.push_back(*members[JudgeIntervals(intervals, entries, own > 0.0 ? own : TimingOptions{}.tie_margin).winner]);
+  for (const auto& [key, members] : classes) out.push_back(*members[JudgeWinners(members, tie_margin).winner]);
+  return out;
+}
+
+std::vector<FasterOverBudget> FasterClassesOverBudget(const std::vector<Winner>& winners, double tie_margin) {
+  const std::vector<Winner> chosen = BudgetWinners(winners, tie_margin);
+  std::map<RowKey, const Winner*> chosen_of_row;
+  for (const Winner& w : chosen) chosen_of_row[RowOf(w)] = &w;
+  std::vector<FasterOverBudget> out;
+  for (const Winner& w : winners) {
+    const auto row = chosen_of_row.find(RowOf(w));
+    if (w.within_budget || row == chosen_of_row.end()) continue;
+    const RaceOutcome outcome = JudgeWinners({row->second, &w}, tie_margin);
+    if (outcome.fastest == 1 && outcome.verdicts[0] == RaceVerdict::kSeparated) out.push_back({w, *row->second});
   }
   return out;
+}
+
+std::string Describe(const FasterOverBudget& f) {
+  return std::string(Name(f.over.lang)) + " " + f.over.dataset + " " + Name(f.over.variant.weight) + " " +
+         Milliseconds(f.over.median_ms) + " against " + Name(f.chosen.variant.weight) + " " +
+         Milliseconds(f.chosen.median_ms);
 }
 
 nlohmann::json ReportToJson(const TuningReport& report) {

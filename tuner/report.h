@@ -106,6 +106,22 @@ std::vector<Winner> ComputeWinners(const TuningReport& report);
 // class a hair faster by noise does not win by it): what the tuning chose at its budget.
 // A winner's own tie_margin is used where it has one, else `tie_margin`.
 std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners, double tie_margin);
+// A precision class over the budget that is faster than the winner within it
+// of the same row (device, language, influences, measured vertex count,
+// shape): its kernel time below the chosen one's and outside the tie margin
+// (the two judged as BudgetWinners judges classes: the chosen one separated
+// from it). The winners database keeps it for callers with a larger budget.
+struct FasterOverBudget {
+  Winner over;    // the class over the budget
+  Winner chosen;  // the row's winner within the budget (BudgetWinners)
+};
+// Of `winners` (ComputeWinners), every class over the budget faster than its
+// row's chosen winner beyond `tie_margin`, in the order of `winners`; a row
+// with no winner within the budget has none.
+std::vector<FasterOverBudget> FasterClassesOverBudget(const std::vector<Winner>& winners, double tie_margin);
+// "opencl 100k-b4 unorm8 0.15 ms against f32 0.3 ms": the language, dataset,
+// precision class and kernel time of both.
+std::string Describe(const FasterOverBudget& faster);
 
 nlohmann::json ReportToJson(const TuningReport& report);
 // Throws Error("<context>: ...") naming the element for a malformed report.

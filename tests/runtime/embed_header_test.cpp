@@ -29,6 +29,7 @@
 #include "runtime/embed_header.h"
 #include "runtime/winners_db.h"
 #include "tests/common/scratch_dir.h"
+#include "tests/runtime/embed_header_test_support.h"
 
 namespace skintune::internal {
 namespace {
@@ -39,11 +40,7 @@ namespace fs = std::filesystem;
 constexpr int kJoints = 77;  // the fixture header's palette size (skintune emit's default)
 
 const std::vector<WinnersEntry>& Fixture() {
-  static const std::vector<WinnersEntry> entries = [] {
-    const std::string path = std::string(SKINTUNE_TEST_DATA_DIR) + "/embed-winners-db.json";
-    std::ifstream in(path);
-    return WinnersDbFromJson(nlohmann::json::parse(in), path);
-  }();
+  static const std::vector<WinnersEntry> entries = testing::TestDataWinnersDb("embed-winners-db.json");
   return entries;
 }
 
@@ -74,6 +71,12 @@ const char* Name(fk::PaletteStorage v) {
 }
 
 // ------------------------------------------------------------------ the table
+
+// Emitted without --max-error: the default budget, recorded in the header.
+TEST(EmbedHeader, RecordsTheErrorBudgetItWasEmittedUnder) {
+  EXPECT_EQ(fk::kMaxError, kDefaultBudget);
+  static_assert(fk::kMaxError > 0.0, "a constant expression, usable at compile time");
+}
 
 TEST(EmbedHeader, ListsEveryWinnerOfTheDatabaseInItsOrderWithItsDeviceAndTimes) {
   const std::vector<WinnersEntry>& entries = Fixture();
@@ -312,31 +315,9 @@ SkinnedMesh RandomMesh(std::size_t n, int slots, bool normals, unsigned seed) {
   return mesh;
 }
 
-struct MeshArrays {
-  std::vector<float> positions, normals, weights;
-  std::vector<std::uint32_t> joints;
-};
-
-MeshArrays ArraysOf(const SkinnedMesh& mesh) {
-  MeshArrays a;
-  for (const glm::vec3& p : mesh.positions) a.positions.insert(a.positions.end(), {p.x, p.y, p.z});
-  for (const glm::vec3& p : mesh.normals) a.normals.insert(a.normals.end(), {p.x, p.y, p.z});
-  a.weights = mesh.weights;
-  a.joints.assign(mesh.joints.begin(), mesh.joints.end());
-  return a;
-}
-
-const std::vector<std::uint8_t>& Field(const fk::PackedInputs& p, const std::string& name) {
-  if (name == "records") return p.records;
-  if (name == "positions") return p.positions;
-  if (name == "indices") return p.indices;
-  if (name == "weights") return p.weights;
-  return p.normals;
-}
-
 void ExpectPackedLikeSkintune(const fk::Kernel& k, const SkinnedMesh& mesh) {
   const Variant v = VariantOf(k);
-  const MeshArrays a = ArraysOf(mesh);
+  const testing::MeshArrays a = testing::ArraysOf(mesh);
   fk::PackedInputs packed;
   std::string error;
   ASSERT_TRUE(fk::PackMesh(k, mesh.vertex_count(), mesh.influences, a.positions.data(),
@@ -345,17 +326,7 @@ void ExpectPackedLikeSkintune(const fk::Kernel& k, const SkinnedMesh& mesh) {
       << error;
   const PackedMesh want = Pack(mesh, v);
   ASSERT_EQ(want.launches.size(), 1u);
-  std::set<std::string> names;
-  for (const PackedBuffer& buffer : want.launches[0].inputs) {
-    names.insert(buffer.name);
-    EXPECT_EQ(Field(packed, buffer.name), buffer.bytes) << buffer.name;
-    EXPECT_EQ(Field(packed, buffer.name).size() % 4, 0u) << buffer.name;
-  }
-  for (const char* name : {"records", "positions", "indices", "weights", "normals"}) {
-    if (!names.count(name)) {
-      EXPECT_TRUE(Field(packed, name).empty()) << name << " is not an input of the layout";
-    }
-  }
+  testing::ExpectInputsOf(packed, want.launches[0]);
 }
 
 TEST(EmbedHeader, PackMeshIsByteIdenticalToTheSkintunePackerForEveryKernel) {

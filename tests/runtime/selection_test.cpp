@@ -233,12 +233,63 @@ TEST(Selection, TheBudgetChoosesAmongPrecisionClassesWithoutRetuning) {
   EXPECT_EQ(ParseVariantKey(find(0.0)).weight, WeightFormat::kF32);
   const Result<Selection> s = Selection::Find(db, ThisDevice(), 2, 100000);
   ASSERT_TRUE(s.ok());
-  EXPECT_NE(s->reason.find("over the budget max_error"), std::string::npos) << s->reason;
+  EXPECT_NE(s->reason.find("over the budget max_error 1.00e-04 (raising it to 1.20e-03 admits it)"), std::string::npos)
+      << s->reason;
   for (double bad : {-1e-4, std::nan(""), HUGE_VAL}) {
     const Result<Selection> r = Selection::Find(db, ThisDevice(), 2, 100000, bad);
     EXPECT_EQ(r.status().code(), ErrorCode::kInvalidArgument) << bad;
     EXPECT_NE(r.status().message().find("max_error"), std::string::npos) << r.status().message();
   }
+}
+
+// The reason names only the skipped entries that could have served this
+// mesh (B = 2, 100k): the b2 100k unorm8 class over the budget, with the
+// option that admits it, and not the unorm8 classes of b3, b4, another
+// vertex count or another shape, which rank below the chosen b2 100k
+// unorm16 whatever the budget.
+TEST(Selection, TheReasonNamesOnlySkippedEntriesThatCouldServeAndTheBudgetThatAdmitsThem) {
+  std::vector<WinnersEntry> entries = PrecisionClasses();  // b2 100k: f32, unorm16, unorm8 (1.2e-3)
+  const auto over_budget = [&](const std::string& key, const std::string& bucket) {
+    WinnersEntry e = entries[2];
+    e.variant = ParseVariantKey(key);
+    e.influences = e.variant.influences;
+    e.vertex_bucket = bucket;
+    e.vertices = NominalVertices(bucket);
+    return e;
+  };
+  entries.push_back(over_budget("opencl.b3.soa.unorm8.wg64", "100k"));
+  entries.push_back(over_budget("opencl.b4.soa.unorm8.wg64", "100k"));
+  entries.push_back(over_budget("opencl.b2.soa.unorm8.wg128", "1600k"));
+  SelectionRequest request;
+  request.device = ThisDevice();
+  request.langs = {Lang::kOpenCl};
+  request.influences = 2;
+  request.vertex_count = 100000;
+  request.max_error_name = "SkinnerOptions::max_error";
+  const std::string reason = Select(entries, request).selection.reason;
+  EXPECT_NE(reason.find("skipped opencl:Synthetic/Model GPU/2.0 opencl b2 100k unorm8: quantisation error 1.20e-03 of "
+                        "the diagonal, over the budget SkinnerOptions::max_error 1.00e-04 (raising it to 1.20e-03 "
+                        "admits it)"),
+            std::string::npos)
+      << reason;
+  for (const char* never : {" b3 ", " b4 ", " 1600k"}) EXPECT_EQ(reason.find(never), std::string::npos) << reason;
+  // A crowd's own entries first: the single-mesh classes rank below them.
+  std::vector<WinnersEntry> crowd = PrecisionClasses();
+  for (WinnersEntry& e : crowd) {
+    e.shape = SceneKind::kInstances;
+    e.instances = 4;
+  }
+  crowd.push_back(entries[2]);
+  request.shape = SceneKind::kInstances;
+  request.instances = 4;
+  const std::string crowd_reason = Select(crowd, request).selection.reason;
+  EXPECT_NE(crowd_reason.find("b2 100k instances x4 unorm8"), std::string::npos) << crowd_reason;
+  EXPECT_EQ(crowd_reason.find("b2 100k unorm8"), std::string::npos) << crowd_reason;
+  // With nothing within the budget, every skipped entry could have served the mesh.
+  request.shape = SceneKind::kSingle;
+  const Chosen fallback = Select({entries.begin() + 2, entries.end()}, request);
+  ASSERT_EQ(fallback.selection.level, MatchLevel::kGenericDefault);
+  EXPECT_NE(fallback.selection.reason.find("b4 100k unorm8"), std::string::npos) << fallback.selection.reason;
 }
 
 // An entry whose kernel was off the source by far more than its weights cost
@@ -257,6 +308,10 @@ TEST(Selection, AnEntryWhoseKernelIsOffTheSourceIsWithinNoBudget) {
   classes[0].source_error.position_abs = 2.0 * 0.39;
   const Chosen chosen = Select(classes, request);
   EXPECT_EQ(chosen.selection.level, MatchLevel::kGenericDefault) << chosen.selection.reason;
+  EXPECT_NE(chosen.selection.reason.find("b2 100k f32: its kernel is off the source by 3.90e-01 of the diagonal, more "
+                                         "than its weights cost (0.00e+00) and float32 rounding: no budget admits it"),
+            std::string::npos)
+      << chosen.selection.reason;
   request.exact_formats = {WeightFormat::kUnorm16};  // an exact unorm16 entry still serves
   EXPECT_EQ(Select(classes, request).variant.weight, WeightFormat::kUnorm16);
 }

@@ -25,9 +25,8 @@
 #include "generator/packer.h"  // the PackedMesh struct the runner takes, filled by hand
 #include "reference/gltf_import.h"
 #include "reference/skinning.h"
-#include "runtime/backends/opencl/opencl_devices.h"
-#include "runtime/backends/opencl/opencl_runner.h"
 #include "tests/common/scratch_dir.h"
+#include "tests/runtime/first_opencl_runner.h"
 
 namespace skintune::internal {
 namespace {
@@ -276,23 +275,10 @@ Built BuildFromSidecar(const std::string& key) {
   return b;
 }
 
-OpenClRunner* Runner(std::string& why) {
-  static std::unique_ptr<OpenClRunner> runner = [&why]() -> std::unique_ptr<OpenClRunner> {
-    const OpenClInventory inventory = EnumerateOpenCl();
-    if (inventory.devices.empty()) {
-      why = "no OpenCL device on this machine: " + inventory.status;
-      return nullptr;
-    }
-    return std::make_unique<OpenClRunner>(inventory.devices.front().platform_index,
-                                          inventory.devices.front().device_index);
-  }();
-  return runner.get();
-}
-
 void ExpectMatchesGold(const std::string& key) {
   SCOPED_TRACE(key);
   std::string why;
-  OpenClRunner* runner = Runner(why);
+  OpenClRunner* runner = testing::FirstOpenClRunner(why);
   if (!runner) GTEST_SKIP() << why;
   const Built b = BuildFromSidecar(key);
   const RunResult result = runner->Run(b.packed, b.kernels, b.palette);
@@ -428,7 +414,7 @@ std::vector<glm::mat4> SpreadPalette(int instance) {
 void ExpectTheSidecarsCommandsGiveTheGold(const std::string& key, int instances) {
   SCOPED_TRACE(key + " x" + std::to_string(instances));
   std::string why;
-  OpenClRunner* runner = Runner(why);
+  OpenClRunner* runner = testing::FirstOpenClRunner(why);
   if (!runner) GTEST_SKIP() << why;
   const fs::path dir = testing::ScratchDir("sidecar_commands");
   const std::string asked = "skintune emit --variant " + key + " --joints " + std::to_string(kSpreadJoints) +

@@ -8,18 +8,16 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
-#include <map>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "generator/axes.h"
-#include "reference/gltf_import.h"
-#include "reference/synthetic.h"
 #include "runtime/backend_table.h"
 #include "runtime/selection.h"
 #include "runtime/winners_db.h"
+#include "tests/common/test_asset.h"
 #include "tests/runtime/api_test_support.h"
 
 namespace skintune::internal {
@@ -28,17 +26,9 @@ namespace {
 using testing::CacheIn;
 using testing::Floats;
 using testing::TempDir;
+using testing::TestAsset;
 using testing::Vec3s;
 using testing::View;
-
-const SkinnedAsset& Asset(const std::string& key) {
-  static std::map<std::string, SkinnedAsset> cache;
-  auto found = cache.find(key);
-  if (found != cache.end()) return found->second;
-  SkinnedAsset asset = key.ends_with(".gltf") ? ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/" + key).asset
-                                              : GenerateDataset(ParseDatasetKey(key));
-  return cache.emplace(key, std::move(asset)).first->second;
-}
 
 // Four different meshes: B 4, 4, 2 and 1; 19, 24, 40 and 12 joints; 3273, 1728, 1500 and 2000 vertices.
 const std::vector<std::string> kMeshes = {"CesiumMan.gltf", "Fox.gltf", "1500-b2-bones40-seed3", "2000-b1-bones12-seed2"};
@@ -54,7 +44,7 @@ Batch MakeBatch(const std::vector<std::string>& keys) {
   Batch b;
   b.views.reserve(keys.size());
   for (std::size_t m = 0; m < keys.size(); ++m) {
-    const SkinnedAsset& asset = Asset(keys[m]);
+    const SkinnedAsset& asset = TestAsset(keys[m]);
     b.views.emplace_back(asset.mesh);
     const AnimationClip& clip = asset.animations.front();
     b.palettes.push_back(asset.PaletteAt(0, clip.start + clip.duration() * (0.2 + 0.15 * static_cast<double>(m))));
@@ -115,7 +105,7 @@ TEST_P(BatchOnEveryBackend, EveryLanguageSkinsEachMeshLikeItsOwnGold) {
       const Variant variant = ParseVariantKey(skinner.selection().variant);
       for (std::size_t m = 0; m < kMeshes.size(); ++m) {
         SCOPED_TRACE("meshes[" + std::to_string(m) + "] " + kMeshes[m]);
-        const SkinnedMesh& mesh = Asset(kMeshes[m]).mesh;
+        const SkinnedMesh& mesh = TestAsset(kMeshes[m]).mesh;
         ASSERT_EQ(skinner.vertex_count(m), mesh.vertex_count());
         ASSERT_EQ(skinner.joint_count(m), mesh.joint_count);
         const GoldResult gold = SkinGold(QuantisedMesh(mesh, variant), batch.palettes[m]);

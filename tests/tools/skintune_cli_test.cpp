@@ -385,7 +385,9 @@ TEST(SkintuneCli, EmitDbKernelAndSidecarAreThoseOfEmitVariantPlusTheWinners) {
   EXPECT_EQ(ReadAll(dir / "db" / (key + ".cl")), ReadAll(dir / "variant" / (key + ".cl")));
   nlohmann::json sidecar = ReadJson(dir / "db" / (key + ".json"));
   ASSERT_EQ(sidecar.at("winners").size(), 1u);
+  EXPECT_EQ(sidecar.at("max_error"), 1e-4);  // the default budget
   sidecar.erase("winners");
+  sidecar.erase("max_error");
   EXPECT_EQ(sidecar, ReadJson(dir / "variant" / (key + ".json")));
 }
 
@@ -482,28 +484,52 @@ TEST(SkintuneCli, EmitDbWithNoMatchingDeviceListsTheDatabasesDevicesAndWritesNot
   EXPECT_FALSE(fs::exists(dir));
 }
 
-// A crowd's winners of two precision classes read the same in the skip
-// warning: it is printed once, not once per class.
-TEST(SkintuneCli, EmitDbWarnsOnceForACrowdWinnerOfTwoPrecisionClasses) {
+// Crowd and batch winners are emitted with the single-mesh ones: a crowd's
+// instanced kernel for its K instances (<key>.x8; of its two precision
+// classes the faster within the budget), a batch's plain kernel holding its
+// meshes' palettes together (<key>.batch3: 3 x 77 joints), each file pair
+// named by its scene and listing its winners; the header's rows say the scene.
+TEST(SkintuneCli, EmitDbEmitsCrowdAndBatchWinnersNamedByTheirScene) {
   const fs::path root = Scratch();
+  const nlohmann::json fixture = ReadJson(kEmbedDb);
+  const std::string crowd_key = fixture["entries"][0]["variant"]["key"];  // cuda b2, constant palette
+  const std::string batch_key = fixture["entries"][9]["variant"]["key"];  // opencl b2, local palette
   const fs::path db = EditedDb(root, [](nlohmann::json& d) {
     nlohmann::json crowd = d["entries"][0];
     crowd["shape"] = "instances";
     crowd["instances"] = 8;
-    nlohmann::json other = crowd;
-    const std::string weight = other["variant"]["weight"], to = weight == "f32" ? "unorm16" : "f32";
-    std::string key = other["variant"]["key"];
-    key.replace(key.find("." + weight + "."), weight.size() + 2, "." + to + ".");
-    other["variant"]["weight"] = to;
-    other["variant"]["key"] = key;
-    d["entries"].push_back(crowd);
-    d["entries"].push_back(other);
+    nlohmann::json slower = crowd;
+    std::string key = slower["variant"]["key"];
+    key.replace(key.find(".unorm8."), 8, ".f32.");
+    slower["variant"]["weight"] = "f32";
+    slower["variant"]["key"] = key;
+    slower["median_ms"] = 0.5;
+    nlohmann::json batch = d["entries"][9];
+    batch["shape"] = "batch";
+    batch["meshes"] = 3;
+    for (const nlohmann::json& e : {crowd, slower, batch}) d["entries"].push_back(e);
   });
-  const auto r = RunSkintune({"emit", "--db", db, "--device", "", "--out", root / "kernels"});
+  const fs::path dir = root / "kernels";
+  const auto r = RunSkintune({"emit", "--db", db, "--device", "", "--out", dir});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const std::vector<std::string> lines = Lines(r.err);
-  ASSERT_EQ(lines.size(), 1u) << r.err;
-  EXPECT_NE(lines[0].find("tuned on a crowd or batch scene"), std::string::npos) << lines[0];
+  EXPECT_EQ(r.err, "");
+  EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners + 2));
+  EXPECT_EQ(Lines(r.out).size(), 2 * (kEmbedVariants + 2) + 1) << r.out;
+  const nlohmann::json crowd = ReadJson(dir / (crowd_key + ".x8.json"));
+  EXPECT_EQ(crowd.at("source_file"), crowd_key + ".x8.cu");
+  EXPECT_EQ(crowd.at("instancing").at("max_instances"), 8);
+  ASSERT_EQ(crowd.at("winners").size(), 1u);
+  EXPECT_EQ(crowd.at("winners")[0].at("instances"), 8);
+  EXPECT_NE(ReadAll(dir / (crowd_key + ".x8.cu")).find("#define INSTANCED 1\n"), std::string::npos);
+  const nlohmann::json batch = ReadJson(dir / (batch_key + ".batch3.json"));
+  EXPECT_EQ(batch.at("joints"), 3 * 77);
+  EXPECT_FALSE(batch.contains("instancing"));
+  EXPECT_EQ(batch.at("winners")[0].at("meshes"), 3);
+  EXPECT_NE(ReadAll(dir / (batch_key + ".batch3.cl")).find("#define JOINTS 231\n"), std::string::npos);
+  const std::string header = ReadAll(dir / "skintune_kernels.h");
+  EXPECT_NE(header.find("\"instances\", 8, 1, true, 8,"), std::string::npos);
+  EXPECT_NE(header.find("\"batch\", 1, 3, false, 0,"), std::string::npos);
+  EXPECT_NE(header.find("b2 25k instances x8: " + crowd_key + " instanced, 77 joints"), std::string::npos);
 }
 
 TEST(SkintuneCli, EmitDbSkipsWinnersThatCannotTakeTheJointCountWithOneWarningEach) {
@@ -559,8 +585,13 @@ TEST(SkintuneCli, EmitDbKeepsTheWinnersWithinTheErrorBudget) {
   }
   EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners - 4));
   EXPECT_FALSE(fs::exists(dir / (kCudaB3 + ".json")));  // a unorm16 winner
+  // The header and every sidecar record the budget they were emitted under.
+  const std::string header = ReadAll(dir / "skintune_kernels.h");
+  EXPECT_NE(header.find("\n// Error budget (--max-error): 1e-06 of the bounding-box diagonal;"), std::string::npos);
+  EXPECT_NE(header.find("\ninline constexpr double kMaxError = 1e-06;\n"), std::string::npos);
   for (const std::string& name : FilesIn(dir)) {
     if (name.size() < 5 || name.substr(name.size() - 5) != ".json") continue;
+    EXPECT_EQ(ReadJson(dir / name).at("max_error"), 1e-6) << name;
     for (const nlohmann::json& w : ReadJson(dir / name).at("winners"))
       EXPECT_TRUE(w.contains("source_error")) << name;
   }

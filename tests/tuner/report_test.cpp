@@ -245,6 +245,43 @@ TEST(Report, EveryMeasuredVertexCountKeepsItsWinnerInTheReportAndTheDatabase) {
   EXPECT_EQ(merged["entries"].size(), WinnersDatabase(r)["entries"].size());
 }
 
+// One class per weight format on one device: a measurement of `weight`
+// taking `ms` (its interval 1% either side), within the budget or not.
+Measurement ClassMeasurement(const std::string& dataset, std::size_t vertices, const char* weight, double ms,
+                             bool within_budget) {
+  Measurement m = testing::SyntheticMeasurement(ParseVariantKey(std::string("opencl.b4.soa.") + weight + ".wg64"),
+                                                testing::SampleGpu().Id(), dataset, vertices);
+  m.status = within_budget ? MeasureStatus::kOk : MeasureStatus::kTooImprecise;
+  m.timing = {ms, ms * 0.99, ms * 1.01, 3, 30, 4, 8};
+  m.timing.low_ms = ms * 0.99;
+  m.timing.high_ms = ms * 1.01;
+  m.gbps = m.bytes_per_frame / (ms * 1e6);
+  return m;
+}
+
+// The classes over the budget named under a device's winners (skintune run):
+// only those faster than the chosen class of their own row, beyond the tie
+// margin; not one that ties with it, is slower, or is of another row.
+TEST(Report, OnlyClassesOverTheBudgetFasterThanTheirRowsWinnerBeyondTheTieMarginAreNamed) {
+  TuningReport r = testing::SampleReport();
+  r.datasets = {{"100k-b4", 100000, 4, 77}, {"25k-b4", 25000, 4, 77}};
+  r.measurements = {ClassMeasurement("100k-b4", 100000, "f32", 0.30, true),
+                    ClassMeasurement("100k-b4", 100000, "unorm8", 0.15, false),     // faster
+                    ClassMeasurement("100k-b4", 100000, "unorm16", 0.298, false),   // a tie
+                    ClassMeasurement("25k-b4", 25000, "f32", 0.10, true),
+                    ClassMeasurement("25k-b4", 25000, "unorm8", 0.12, false)};      // slower
+  const std::vector<Winner> all = ComputeWinners(r);
+  ASSERT_EQ(all.size(), 5u);
+  const std::vector<FasterOverBudget> faster = FasterClassesOverBudget(all, r.tie_margin);
+  ASSERT_EQ(faster.size(), 1u);
+  EXPECT_EQ(faster[0].over.variant.weight, WeightFormat::kUnorm8);
+  EXPECT_EQ(faster[0].chosen.variant.weight, WeightFormat::kF32);
+  EXPECT_EQ(Describe(faster[0]), "opencl 100k-b4 unorm8 0.15 ms against f32 0.3 ms");
+  // Slower than its row's winner's interval by less than the margin: a tie, not faster.
+  r.measurements[1] = ClassMeasurement("100k-b4", 100000, "unorm8", 0.30 * (1.0 - r.tie_margin / 4.0), false);
+  EXPECT_TRUE(FasterClassesOverBudget(ComputeWinners(r), r.tie_margin).empty());
+}
+
 TEST(Report, FailedVariantsAreNeverWinners) {
   const TuningReport r = testing::SampleReport();
   for (const Winner& w : ComputeWinners(r)) {

@@ -155,15 +155,18 @@ TEST(Schema, WinnersDatabasesValidate) {
   EXPECT_EQ(Validate(ReportToJson(testing::SampleReport()), "winners-db.schema.json", "report-as-db"), 3);
 }
 
-TEST(Schema, EmbedFixtureDatabaseValidates) {
-  // tests/data/embed-winners-db.json, written by hand for `skintune emit --db`'s tests.
-  std::ifstream in(std::string(SKINTUNE_TEST_DATA_DIR) + "/embed-winners-db.json");
-  ASSERT_TRUE(in) << "tests/data/embed-winners-db.json not found";
-  const nlohmann::json fixture = nlohmann::json::parse(in);
-  EXPECT_EQ(Validate(fixture, "winners-db.schema.json", "embed-fixture"), 0);
-  nlohmann::json broken = fixture;
-  broken["entries"][0]["variant"]["storage"] = "texture";
-  EXPECT_EQ(Validate(broken, "winners-db.schema.json", "embed-fixture-broken"), 3);
+TEST(Schema, EmbedFixtureDatabasesValidate) {
+  // tests/data/embed-winners-db.json and embed-scenes-winners-db.json, written by hand for
+  // `skintune emit --db`'s tests.
+  for (const std::string name : {"embed-winners-db.json", "embed-scenes-winners-db.json"}) {
+    std::ifstream in(std::string(SKINTUNE_TEST_DATA_DIR) + "/" + name);
+    ASSERT_TRUE(in) << "tests/data/" << name << " not found";
+    const nlohmann::json fixture = nlohmann::json::parse(in);
+    EXPECT_EQ(Validate(fixture, "winners-db.schema.json", name), 0);
+    nlohmann::json broken = fixture;
+    broken["entries"][0]["variant"]["storage"] = "texture";
+    EXPECT_EQ(Validate(broken, "winners-db.schema.json", name + "-broken"), 3);
+  }
 }
 
 // A paper result embeds a tuning report: its schema refers to report.schema.json by $id.
