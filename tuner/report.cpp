@@ -419,12 +419,13 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
     }));
   }
   // tie_margin since 1.4.0, host_tie_margin since 1.5.0 (before it, a CPU device's was tie_margin too).
-  for (auto [name, field] : {std::pair<const char*, double*>{"tie_margin", &r.tie_margin}, {"host_tie_margin", &r.host_tie_margin}}) {
+  for (const auto& margin : {std::pair<const char*, double*>{"tie_margin", &r.tie_margin}, {"host_tie_margin", &r.host_tie_margin}}) {
+    const char* name = margin.first;  // not a structured binding: a lambda below captures it (clang 14)
     if (!json.contains(name)) {
-      if (field == &r.host_tie_margin) r.host_tie_margin = r.tie_margin;
+      if (margin.second == &r.host_tie_margin) r.host_tie_margin = r.tie_margin;
       continue;
     }
-    *field = At(context, name, [&] {
+    *margin.second = At(context, name, [&] {
       const double value = Number(json, name);
       if (!(value > 0.0) || value > 0.5) throw Error("must be in (0, 0.5]");
       return value;
