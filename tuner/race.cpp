@@ -148,8 +148,17 @@ RaceRecord SettleSearch(const Racer& racer, const SearchToSettle& search, const 
   race.detail = "no race: no candidate was verified";
   std::set<std::string> settled;  // the leaders whose neighbourhood raced
   bool all_from_memo = true;
+  std::size_t walked = 0;  // evaluations after the first neighbourhood
   for (int round = 0; leader && round < kSettleRounds; ++round) {
     const std::vector<Variant> around = Neighbours(search.candidates, *leader);
+    if (round > 0 && search.walk_evaluations > 0) {
+      std::size_t unmeasured = 0;
+      const std::vector<Measurement> so_far = search.measured();
+      for (const Variant& v : around)
+        unmeasured += std::none_of(so_far.begin(), so_far.end(), [&](const Measurement& m) { return m.variant.Key() == v.Key(); });
+      if (walked + unmeasured > search.walk_evaluations) break;  // the last race stands
+      walked += unmeasured;
+    }
     if (search.ahead) search.ahead(around);
     for (const Variant& v : around) search.evaluate(v);
     const std::vector<Measurement> measured = search.measured();

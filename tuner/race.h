@@ -70,11 +70,20 @@ struct RaceMemo {
 // preferred point of it. Returns the last race (a record saying why when
 // none ran).
 inline constexpr int kSettleRounds = 6;
+// The walk's allowance when the search has no budget (exhaustive: the walk
+// then finds every neighbour measured and spends nothing).
+inline constexpr std::size_t kSettleWalkDefault = 8;
 struct SearchToSettle {
   const std::vector<Variant>& candidates;         // the search's space
   const std::function<std::optional<double>(const Variant&)>& evaluate;  // measures one (or finds it cached)
   std::function<std::vector<Measurement>()> measured;  // the search's measurements so far
   std::function<void(const std::vector<Variant>&)> ahead;  // told the neighbours about to be measured
+  // The walk's allowance: evaluations after the first neighbourhood's, at
+  // most (0: no cap). A walk that would need more stops, and its last race
+  // stands: on a CPU device, where a wide margin ties most of the space,
+  // the walk otherwise wandered over it (PoCL on the 2-core machine: 23
+  // evaluations and 4.5 races a row).
+  std::size_t walk_evaluations = 0;
 };
 RaceRecord SettleSearch(const Racer& race, const SearchToSettle& search, const std::string& device_id, Lang lang,
                         const std::string& dataset, const TimingOptions& options, const RaceMemo& memo = {},

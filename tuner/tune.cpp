@@ -704,7 +704,9 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
             cache.AppendRace(race_key, race);
           };
           bool cached_race = false;
-          const SearchToSettle search{task.candidates, evaluate, measured, compile_ahead};
+          // The walk may spend the search's budget once more (docs/TUNING.md "Races and ties").
+          const SearchToSettle search{task.candidates, evaluate, measured, compile_ahead,
+                                      config.strategy.budget > 0 ? config.strategy.budget : kSettleWalkDefault};
           const Racer racer = [&](const std::vector<Variant>& variants, std::string* why) {
             std::vector<RaceSamples> legs;
             for (int leg = 0; leg < RaceLegsFor(device.identity); ++leg) {

@@ -87,9 +87,9 @@ class NoisyRun {
     }
     return std::vector<RaceSamples>{samples};
   }
-  RaceRecord Settle(const std::vector<Variant>& space) {
+  RaceRecord Settle(const std::vector<Variant>& space, std::size_t walk_evaluations = 0) {
     const std::function<std::optional<double>(const Variant&)> evaluate = [this](const Variant& v) { return Evaluate(v); };
-    const SearchToSettle search{space, evaluate, [this] { return measured_; }, {}};
+    const SearchToSettle search{space, evaluate, [this] { return measured_; }, {}, walk_evaluations};
     const Racer racer = [this](const std::vector<Variant>& v, std::string* why) { return Race(v, why); };
     TimingOptions options;
     return SettleSearch(racer, search, "opencl:p/d/1", Lang::kOpenCl, "100k-b4", options);
@@ -200,6 +200,23 @@ TEST(SettleSearch, RunsWhoseSearchesStoppedAtDifferentPointsOfAPlateauNameTheSam
   }
   // Local (the plateau), u8 (fewest bytes), wg256 before wg64 in key order.
   EXPECT_EQ(winners, (std::set<std::string>{At(PaletteStorage::kLocal, IndexFormat::kU8, 256).Key()}));
+}
+
+// The walk spends at most its allowance after the first neighbourhood; a
+// step that would need more is not taken, and the last race stands.
+TEST(SettleSearch, TheWalkStopsWhereItsAllowanceEnds) {
+  const Variant start = At(PaletteStorage::kLocal, IndexFormat::kU16, 64);
+  NoisyRun free_walk(3), short_walk(3);
+  free_walk.Evaluate(start);
+  short_walk.Evaluate(start);
+  free_walk.Settle(SmallSpace());
+  short_walk.Settle(SmallSpace(), 1);
+  // From local-u16-64 the walk goes to local-u8-64 (fewer bytes), whose
+  // neighbourhood needs 3 more (constant, global, wg256 at u8): over 1.
+  EXPECT_GT(free_walk.races(), 1);
+  EXPECT_EQ(short_walk.races(), 1);
+  EXPECT_EQ(short_walk.evaluations(), 1 + 4);  // the start and its first neighbourhood
+  EXPECT_GT(free_walk.evaluations(), short_walk.evaluations());
 }
 
 // Without settling (the leader's own race only, as before) the same runs
