@@ -94,6 +94,8 @@ std::optional<std::vector<std::uint8_t>> DecodeProgramCacheFile(std::string_view
   std::size_t size = 0;
   std::string hash;
   if (!(fields >> size >> hash) || size == 0 || size != rest.size()) return std::nullopt;  // truncated or trailing bytes
+  // The line exactly as Store writes it: a stream also reads " 280", "+280", "0280" and ignores what follows the hash.
+  if (*sizes != std::to_string(size) + ' ' + hash) return std::nullopt;
   std::vector<std::uint8_t> payload(rest.begin(), rest.end());
   const std::string actual = PayloadHash(payload);
   if (actual.empty() || actual != hash) return std::nullopt;

@@ -92,7 +92,7 @@ TimingOptions TimingOptionsFromJson(const nlohmann::json& in, const std::string&
   TimingOptions t;
   std::vector<TimingField> fields = Fields(t);
   for (const auto& [name, value] : in.items()) {
-    const auto field = std::find_if(fields.begin(), fields.end(), [&](const TimingField& f) { return name == f.name; });
+    const auto field = std::find_if(fields.begin(), fields.end(), [&key = name](const TimingField& f) { return key == f.name; });
     if (field == fields.end()) {
       std::string list;
       for (const TimingField& f : fields) list += (list.empty() ? "" : ", ") + std::string(f.name);

@@ -133,6 +133,17 @@ TEST(ProgramCache, DecodeTakesExactlyWhatEncodeWritesForItsKey) {
   EXPECT_EQ(DecodeProgramCacheFile(file + "x", kKey), std::nullopt);                     // trailing bytes
   EXPECT_EQ(DecodeProgramCacheFile(file.substr(0, file.size() - 1), kKey), std::nullopt);  // truncated
   EXPECT_EQ(EncodeProgramCacheFile(kKey, {}), "");
+  // The size line only as written: no padding, sign or leading zero, nothing after the hash.
+  const std::string size = std::to_string(payload.size());
+  const std::size_t at = file.find("\n" + size + " sha256:") + 1;
+  ASSERT_NE(at, 0u);
+  for (const char* edit : {" ", "+", "0"})
+    EXPECT_EQ(DecodeProgramCacheFile(file.substr(0, at) + edit + file.substr(at), kKey), std::nullopt) << edit;
+  const std::size_t end = file.find('\n', at);
+  for (const char* edit : {" ", "\t", " x"})
+    EXPECT_EQ(DecodeProgramCacheFile(file.substr(0, end) + edit + file.substr(end), kKey), std::nullopt) << edit;
+  EXPECT_EQ(DecodeProgramCacheFile(file.substr(0, at + size.size()) + "  " + file.substr(at + size.size() + 1), kKey),
+            std::nullopt);
 }
 
 }  // namespace
