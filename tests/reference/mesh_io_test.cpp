@@ -7,18 +7,14 @@
 
 #include "reference/error.h"
 #include "reference/mesh_io.h"
+#include "tests/common/scratch_dir.h"
 
 namespace skintune::internal {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path TempDir() {
-  const fs::path dir = fs::temp_directory_path() / ("skintune_mesh_io_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path TempDir() { return testing::ScratchDir("skintune_mesh_io"); }
 
 std::string Slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);

@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "tests/common/scratch_dir.h"
+
 namespace skintune::internal::testing {
 
 struct CommandResult {
@@ -36,6 +38,7 @@ inline CommandResult RunSkintune(const std::vector<std::string>& args, std::uint
   namespace fs = std::filesystem;
   static int counter = 0;
   const fs::path dir = fs::temp_directory_path() / ("skintune_cli_" + std::to_string(::getpid()));
+  if (counter == 0) scratch_internal::Made().Add(dir);  // removed at exit when every test passed
   fs::create_directories(dir);
   const fs::path out = dir / ("out" + std::to_string(counter));
   const fs::path err = dir / ("err" + std::to_string(counter++));
