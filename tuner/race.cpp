@@ -107,20 +107,25 @@ RaceRecord RaceThese(const Racer& racer, const std::vector<const Measurement*>& 
   }
   std::vector<RaceEntry> entries;
   std::vector<Interval> intervals;
-  for (std::size_t i = 0; i < candidates.size(); ++i) {
-    entries.push_back(EntryOf(*candidates[i]));
-    std::vector<std::vector<double>> legs;
-    for (const RaceSamples& leg : *samples) {
-      if (leg.size() != candidates.size()) {
-        record.detail = "race failed: a leg gave samples of " + std::to_string(leg.size()) + " candidates, not " +
-                        std::to_string(candidates.size());
-        return record;
+  RaceOutcome outcome;
+  try {  // a race answer is input: a leg without samples fails the race, never the run
+    if (samples->empty()) throw Error("no leg");
+    for (std::size_t i = 0; i < candidates.size(); ++i) {
+      entries.push_back(EntryOf(*candidates[i]));
+      std::vector<std::vector<double>> legs;
+      for (const RaceSamples& leg : *samples) {
+        if (leg.size() != candidates.size())
+          throw Error("a leg gave samples of " + std::to_string(leg.size()) + " candidates, not " +
+                      std::to_string(candidates.size()));
+        legs.push_back(leg[i]);
       }
-      legs.push_back(leg[i]);
+      intervals.push_back(LegsInterval(legs));
     }
-    intervals.push_back(LegsInterval(legs));
+    outcome = JudgeIntervals(intervals, entries, options.tie_margin);
+  } catch (const Error& e) {
+    record.detail = std::string("race failed: ") + e.what();
+    return record;
   }
-  const RaceOutcome outcome = JudgeIntervals(intervals, entries, options.tie_margin);
   for (std::size_t i = 0; i < candidates.size(); ++i)
     record.entries.push_back({candidates[i]->variant, outcome.intervals[i], outcome.verdicts[i]});
   record.decided = outcome.decided;

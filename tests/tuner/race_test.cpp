@@ -260,6 +260,23 @@ TEST(LegsInterval, SpansEveryLegsIntervalAroundThePooledMedian) {
   EXPECT_EQ(RaceLegsFor(gpu), 1);
 }
 
+// A race answer is input: a leg without samples, or of other candidates,
+// fails the race (the winners are then judged on the search's intervals)
+// and never the run.
+TEST(SettleSearch, ARaceAnswerWithoutSamplesFailsTheRaceNotTheRun) {
+  const std::vector<Variant> space = SmallSpace();
+  std::vector<Measurement> measured = {Measured(space[0], 1.0), Measured(space[1], 1.01)};
+  const std::function<std::optional<double>(const Variant&)> evaluate = [](const Variant&) { return std::nullopt; };
+  const SearchToSettle search{space, evaluate, [&] { return measured; }, {}};
+  for (const std::vector<RaceSamples>& answer :
+       {std::vector<RaceSamples>{}, std::vector<RaceSamples>{RaceSamples{{1.0}, {}}}, std::vector<RaceSamples>{RaceSamples{{1.0}}}}) {
+    const Racer racer = [&](const std::vector<Variant>&, std::string*) { return std::optional<std::vector<RaceSamples>>(answer); };
+    RaceRecord race;
+    EXPECT_NO_THROW(race = SettleSearch(racer, search, "opencl:p/d/1", Lang::kOpenCl, "100k-b4", TimingOptions{}));
+    EXPECT_EQ(race.detail.rfind("race failed: ", 0), 0u) << race.detail;
+  }
+}
+
 TEST(SettleSearch, NothingVerifiedIsNoRaceSayingSo) {
   NoisyRun run(1);
   const RaceRecord race = run.Settle(SmallSpace());
