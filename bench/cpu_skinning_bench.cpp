@@ -3,7 +3,7 @@
 // 1. The comparison (the default): at one dataset (--dataset=KEY, default
 //    1600k-b4), the cpu device's kernels in several formats and PoCL's
 //    OpenCL variants, each measured exactly as `skintune tune` measures a
-//    variant (tuner_internal::MeasureWith over the runner driver: verified
+//    variant (tuner_internal::MeasureJob over the runner driver: verified
 //    on poisoned, guarded outputs against the float64 gold, its error
 //    against the unquantised source and the default budget, bursts of
 //    frames rotating input sets, and the same-size copy timed the same way:
@@ -60,7 +60,9 @@
 #include "runtime/backend_table.h"
 #include "runtime/backends/cpu/cpu_runner.h"
 #include "runtime/source_error.h"
-#include "tuner/backends_internal.h"
+#include "tuner/datasets.h"
+#include "tuner/executor.h"
+#include "tuner/measure_job.h"
 
 namespace skintune::internal {
 namespace {
@@ -237,8 +239,8 @@ std::optional<Device> OpenDevice(const char* backend, bool cpu_type_only) {
 void Measure(Device& device, tuner_internal::DatasetCache& datasets, const CompareOptions& options, Row& row) {
   tuner_internal::RunnerExecutor executor(*device.runner, device.found.identity);
   TimingOptions timing;  // the tuner's defaults: 3 warm-up frames, 10 bursts of ~2 ms, up to 8 input sets
-  const Measurement m = tuner_internal::MeasureWith(executor, datasets, device.found.identity, device.found.limits,
-                                                    {row.variant.lang}, row.variant, {options.dataset}, timing);
+  const Measurement m = tuner_internal::MeasurementOf({&executor, &datasets, &device.found.identity, device.found.limits,
+                                                      {row.variant.lang}, row.variant, {options.dataset}, timing});
   row.status = std::string(Name(m.status)) + (m.detail.empty() ? "" : ": " + m.detail);
   if (m.source_error.known) row.quantisation_rel = m.source_error.quantisation_rel;
   if (m.status != MeasureStatus::kOk && m.status != MeasureStatus::kTooImprecise) return;

@@ -5,7 +5,7 @@
 //       [--launches N] [--json FILE]
 //
 // Without --launches: each variant measured as `skintune tune` measures it
-// (tuner_internal::MeasureWith: verification against the float64 gold, the
+// (tuner_internal::MeasureJob: verification against the float64 gold, the
 // kernel time from a flushed cache to the stop rule, the frame time, the
 // same-size copy), one line each, and with --json one JSON object per line.
 // With --launches N: each variant run once (Runner::Run, no timing), then
@@ -30,7 +30,9 @@
 #include "reference/error.h"
 #include "runtime/backend_table.h"
 #include "runtime/device_identity.h"
-#include "tuner/backends_internal.h"
+#include "tuner/datasets.h"
+#include "tuner/executor.h"
+#include "tuner/measure_job.h"
 
 namespace {
 
@@ -67,8 +69,8 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
       std::printf("%s: %d launches\n", key.c_str(), launches);
       continue;
     }
-    const Measurement m = tuner_internal::MeasureWith(executor, datasets, device->identity, device->limits,
-                                                      {variant.lang}, variant, {dataset}, TimingOptions{});
+    const Measurement m = tuner_internal::MeasurementOf(
+        {&executor, &datasets, &device->identity, device->limits, {variant.lang}, variant, {dataset}, TimingOptions{}});
     if (m.status != MeasureStatus::kOk && m.status != MeasureStatus::kTooImprecise) {
       std::printf("%s: %s %s\n", key.c_str(), Name(m.status), m.detail.c_str());
       ++failed;

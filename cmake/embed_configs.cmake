@@ -4,7 +4,7 @@
 #   cmake -DCONFIG_DIR=<dir> -DCONFIG_NAMES=default,paper -DOUTPUT=<file.cpp> -P embed_configs.cmake
 # Each <name>.json becomes `const unsigned char kConfig_<name>[]` (its bytes as
 # hex, NUL-terminated) and an entry of skintune::internal::kEmbeddedConfigs {name, data,
-# size} (tuner/tune.cpp: EmbeddedConfig). Same scheme as embed_templates.cmake.
+# size} (tuner/config.cpp: EmbeddedConfig). Same scheme as embed_templates.cmake.
 if(NOT CONFIG_DIR OR NOT CONFIG_NAMES OR NOT OUTPUT)
   message(FATAL_ERROR "embed_configs.cmake: CONFIG_DIR, CONFIG_NAMES and OUTPUT are required")
 endif()

@@ -12,7 +12,8 @@
 #include "reference/error.h"
 #include "reference/skinning.h"
 #include "reference/thread_pool.h"
-#include "tuner/backends_internal.h"
+#include "tuner/datasets.h"
+#include "tuner/measure_job.h"
 
 namespace skintune::internal {
 

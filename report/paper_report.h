@@ -26,7 +26,7 @@
 #include <vector>
 
 #include "generator/variant.h"
-#include "tuner/backend.h"
+#include "tuner/tuned_device.h"
 #include "tuner/measurement.h"
 #include "report/paper.h"
 #include "tuner/report.h"

@@ -75,9 +75,9 @@ Command RegisterTuneWorker(CLI::App& app) {
   auto index = std::make_shared<int>(-1);
   auto* sub = app.add_subcommand("tune-worker", "measure variants for `skintune tune` (internal)");
   sub->group("");  // hidden: started by `skintune tune` only
-  sub->add_option("--backend-index", *index, "the backend's position in discovery order")->required();
+  sub->add_option("--device-index", *index, "the device's position in discovery order")->required();
   auto device_id = std::make_shared<std::string>();
-  sub->add_option("--device-id", *device_id, "the backend's identity (takes precedence over the index)");
+  sub->add_option("--device-id", *device_id, "the device's identity (takes precedence over the index)");
   auto host_lock = std::make_shared<std::string>();
   sub->add_option("--host-lock", *host_lock, "the lock file of the host's cores, shared with the other workers");
   return {sub, [index, device_id, host_lock] { return RunTuneWorker(*index, *device_id, *host_lock); }};

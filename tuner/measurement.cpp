@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <ctime>
 #include <limits>
 #include <sstream>
 
@@ -19,6 +20,15 @@
 #include "runtime/recorded_time.h"
 
 namespace skintune::internal {
+
+std::string UtcTimestamp() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  ::gmtime_r(&now, &utc);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return text;
+}
 
 namespace {
 
@@ -304,87 +314,101 @@ MeasurementCache::MeasurementCache(const std::string& path) : path_(path) {
   fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
   if (fd_ < 0) throw Error(path + ": cannot open the measurement cache for appending (" + SystemError() + ")");
   try {
-    struct stat info {};
-    if (::fstat(fd_, &info) != 0) throw Error(path + ": cannot stat (" + SystemError() + ")");
-    if (!S_ISREG(info.st_mode)) throw Error(path + ": not a regular file");
-    if (static_cast<std::uint64_t>(info.st_size) > kMeasurementCacheInput.bytes)
-      throw Error(path + ": is " + FormatBytes(static_cast<std::uint64_t>(info.st_size)) + ", more than the " +
-                  FormatBytes(kMeasurementCacheInput.bytes) + " " + kMeasurementCacheInput.what + " may have");
-    // One writer at a time: a second `skintune tune` on the same cache would
-    // measure the same variants twice. The lock goes with the process.
-    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-      if (errno == EWOULDBLOCK) throw Error(path + ": in use by another skintune tune (locked)");
-      throw Error(path + ": cannot lock (" + SystemError() + ")");
-    }
-    std::string data;
-    data.resize(static_cast<std::size_t>(info.st_size));
-    std::size_t got = 0;
-    while (got < data.size()) {
-      const ssize_t n = ::pread(fd_, data.data() + got, data.size() - got, static_cast<off_t>(got));
-      if (n < 0 && errno == EINTR) continue;
-      if (n < 0) throw Error(path + ": cannot read (" + SystemError() + ")");
-      if (n == 0) break;
-      got += static_cast<std::size_t>(n);
-    }
-    data.resize(got);
-
-    std::size_t start = 0;
-    std::size_t line_number = 0;
-    while (start < data.size()) {
-      const std::size_t end = data.find('\n', start);
-      ++line_number;
-      if (end == std::string::npos) {
-        // A torn last line: the run was killed while writing it. Cut it off so
-        // the next append starts on a line of its own.
-        if (::ftruncate(fd_, static_cast<off_t>(start)) != 0) {
-          throw Error(path + ": cannot cut off the incomplete last line " + std::to_string(line_number) + " (" +
-                      SystemError() + ")");
-        }
-        break;
-      }
-      const std::string line = data.substr(start, end - start);
-      start = end + 1;
-      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-      nlohmann::json j;
-      try {
-        j = nlohmann::json::parse(line);
-      } catch (const nlohmann::json::exception& e) {
-        throw Error(path + ":" + std::to_string(line_number) + ": malformed measurement (" + e.what() + ")");
-      }
-      std::optional<std::pair<std::string, RaceRecord>> race;
-      try {
-        race = CachedRaceOf(j);
-      } catch (const Error& e) {
-        throw Error(path + ":" + std::to_string(line_number) + ": " + e.what());
-      }
-      if (race) {
-        races_[race->first] = std::move(race->second);
-        continue;
-      }
-      Measurement m;
-      try {
-        m = j.get<Measurement>();
-      } catch (const nlohmann::json::exception& e) {
-        throw Error(path + ":" + std::to_string(line_number) + ": malformed measurement (" + e.what() + ")");
-      } catch (const ImpossibleMeasurement& e) {
-        throw Error(path + ":" + std::to_string(line_number) + ": " + e.what() +
-                    " (never used; delete the line to measure the variant again)");
-      } catch (const Error& e) {
-        throw Error(path + ":" + std::to_string(line_number) + ": malformed " + e.what());
-      }
-      const std::string key = m.CacheKey();
-      const auto found = index_.find(key);
-      if (found != index_.end()) {
-        measurements_[found->second] = std::move(m);  // the later record wins
-      } else {
-        index_.emplace(key, measurements_.size());
-        measurements_.push_back(std::move(m));
-      }
-    }
+    Load(ReadLocked());
   } catch (...) {
     ::close(fd_);
     fd_ = -1;
     throw;
+  }
+}
+
+std::string MeasurementCache::ReadLocked() {
+  struct stat info {};
+  if (::fstat(fd_, &info) != 0) throw Error(path_ + ": cannot stat (" + SystemError() + ")");
+  if (!S_ISREG(info.st_mode)) throw Error(path_ + ": not a regular file");
+  if (static_cast<std::uint64_t>(info.st_size) > kMeasurementCacheInput.bytes)
+    throw Error(path_ + ": is " + FormatBytes(static_cast<std::uint64_t>(info.st_size)) + ", more than the " +
+                FormatBytes(kMeasurementCacheInput.bytes) + " " + kMeasurementCacheInput.what + " may have");
+  // One writer at a time: a second `skintune tune` on the same cache would
+  // measure the same variants twice. The lock goes with the process.
+  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+    if (errno == EWOULDBLOCK) throw Error(path_ + ": in use by another skintune tune (locked)");
+    throw Error(path_ + ": cannot lock (" + SystemError() + ")");
+  }
+  std::string data;
+  data.resize(static_cast<std::size_t>(info.st_size));
+  std::size_t got = 0;
+  while (got < data.size()) {
+    const ssize_t n = ::pread(fd_, data.data() + got, data.size() - got, static_cast<off_t>(got));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw Error(path_ + ": cannot read (" + SystemError() + ")");
+    if (n == 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  data.resize(got);
+  return data;
+}
+
+void MeasurementCache::Load(const std::string& data) {
+  std::size_t start = 0;
+  std::size_t line_number = 0;
+  while (start < data.size()) {
+    const std::size_t end = data.find('\n', start);
+    ++line_number;
+    if (end == std::string::npos) {
+      // A torn last line: the run was killed while writing it. Cut it off so
+      // the next append starts on a line of its own.
+      if (::ftruncate(fd_, static_cast<off_t>(start)) != 0) {
+        throw Error(path_ + ": cannot cut off the incomplete last line " + std::to_string(line_number) + " (" +
+                    SystemError() + ")");
+      }
+      break;
+    }
+    const std::string line = data.substr(start, end - start);
+    start = end + 1;
+    if (line.find_first_not_of(" \t\r") != std::string::npos) LoadLine(line, line_number);
+  }
+}
+
+void MeasurementCache::LoadLine(const std::string& line, std::size_t line_number) {
+  const std::string at = path_ + ":" + std::to_string(line_number) + ": ";
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(line);
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(at + "malformed measurement (" + e.what() + ")");
+  }
+  std::optional<std::pair<std::string, RaceRecord>> race;
+  try {
+    race = CachedRaceOf(j);
+  } catch (const Error& e) {
+    throw Error(at + e.what());
+  }
+  if (race) {
+    races_[race->first] = std::move(race->second);
+    return;
+  }
+  Measurement m;
+  try {
+    m = j.get<Measurement>();
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(at + "malformed measurement (" + e.what() + ")");
+  } catch (const ImpossibleMeasurement& e) {
+    throw Error(at + e.what() + " (never used; delete the line to measure the variant again)");
+  } catch (const Error& e) {
+    throw Error(at + "malformed " + e.what());
+  }
+  Keep(std::move(m));
+}
+
+void MeasurementCache::Keep(Measurement m) {
+  const std::string key = m.CacheKey();
+  const auto found = index_.find(key);
+  if (found != index_.end()) {
+    measurements_[found->second] = std::move(m);  // the later record wins
+  } else {
+    index_.emplace(key, measurements_.size());
+    measurements_.push_back(std::move(m));
   }
 }
 
@@ -424,14 +448,7 @@ void MeasurementCache::AppendRace(const std::string& race_key, const RaceRecord&
 
 void MeasurementCache::Append(const Measurement& m) {
   AppendLine(nlohmann::json(m).dump() + "\n", "a measurement");
-  const std::string key = m.CacheKey();
-  const auto found = index_.find(key);
-  if (found != index_.end()) {
-    measurements_[found->second] = m;
-  } else {
-    index_.emplace(key, measurements_.size());
-    measurements_.push_back(m);
-  }
+  Keep(m);
 }
 
 }  // namespace skintune::internal

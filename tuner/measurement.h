@@ -24,6 +24,9 @@
 
 namespace skintune::internal {
 
+// Now, UTC, ISO 8601 ("2026-11-22T13:39:17Z"): when a measurement or a report was made.
+std::string UtcTimestamp();
+
 // The statuses, in the order kAllMeasureStatuses lists them (Name() and the
 // JSON schemas must name each: a forgotten one fails a static_assert or
 // Measurement.SchemasListEveryStatus).
@@ -186,6 +189,14 @@ class MeasurementCache {
   std::map<std::string, RaceRecord> races_;
 
   void AppendLine(const std::string& line, const char* what);
+  // The opened file, locked, whole (its size checked against the input limit).
+  std::string ReadLocked();
+  // Every complete line of `data`; a torn last line is cut off the file.
+  void Load(const std::string& data);
+  // One line (number `line_number`): a race or a measurement; the later record of a key wins.
+  void LoadLine(const std::string& line, std::size_t line_number);
+  // Keeps `m` under its cache key, replacing an earlier record of it.
+  void Keep(Measurement m);
 };
 
 }  // namespace skintune::internal

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "tuner/backend.h"
+#include "tuner/timing_options.h"
 #include "tuner/measurement.h"
 #include "tuner/report.h"
 
@@ -31,7 +31,7 @@ std::vector<const Measurement*> RaceCandidates(const std::vector<Measurement>& m
 // tie-break's bytes and errors); nullopt for a race that did not run.
 std::optional<Variant> RaceWinner(const RaceRecord& race, const std::vector<Measurement>& measured, double margin);
 
-// A race between verified variants (Backend::Race through the device's
+// A race between verified variants (TunedDevice::Race through the device's
 // worker), in one or more legs: per leg, each variant's kernel-time samples
 // (legs[l][v]); nullopt with `why` when the race failed. A leg is one
 // worker process. On skintune's cpu device a variant's times depend on its

@@ -331,6 +331,114 @@ nlohmann::json ReportToJson(const TuningReport& report) {
   return out;
 }
 
+namespace {
+
+// The report's sections, each read into `r` with its errors naming the
+// element ("<context>: devices[2]: ...").
+
+void ReadDevices(const nlohmann::json& json, const std::string& context, TuningReport& r) {
+  const nlohmann::json& devices = At(context, "devices", [&]() -> const nlohmann::json& { return Array(json, "devices"); });
+  for (std::size_t i = 0; i < devices.size(); ++i) {
+    r.devices.push_back(At(context, "devices[" + std::to_string(i) + "]", [&] {
+      DeviceIdentity d = devices[i].get<DeviceIdentity>();
+      if (devices[i].contains("id") && devices[i]["id"] != d.Id()) {
+        throw Error("'id' " + devices[i]["id"].dump() + " does not match the identity (" + d.Id() + ")");
+      }
+      return d;
+    }));
+  }
+}
+
+void ReadCopyBandwidths(const nlohmann::json& json, const std::string& context, TuningReport& r) {
+  const nlohmann::json& copy = At(context, "copy_bandwidth_gbps", [&]() -> const nlohmann::json& {
+    const nlohmann::json& c = Field(json, "copy_bandwidth_gbps");
+    if (!c.is_object()) throw Error("must be an object");
+    return c;
+  });
+  for (const auto& item : copy.items()) {
+    const std::string& id = item.key();
+    const nlohmann::json& gbps = item.value();  // not a structured binding: clang 14 cannot capture one
+    r.copy_bandwidth_gbps[id] = At(context, "copy_bandwidth_gbps[\"" + id + "\"]", [&] {
+      if (!gbps.is_number()) throw Error("must be a number");
+      const double value = gbps.get<double>();
+      if (!(std::isfinite(value) && value > 0.0)) throw Error("is " + gbps.dump() + ": must be a positive, finite GB/s");
+      return value;
+    });
+  }
+}
+
+void ReadSkipped(const nlohmann::json& json, const std::string& context, TuningReport& r) {
+  const nlohmann::json& skipped = At(context, "skipped", [&]() -> const nlohmann::json& { return Array(json, "skipped"); });
+  for (std::size_t i = 0; i < skipped.size(); ++i) {
+    r.skipped.push_back(At(context, "skipped[" + std::to_string(i) + "]", [&] {
+      if (!skipped[i].is_string()) throw Error("must be a string");
+      return skipped[i].get<std::string>();
+    }));
+  }
+}
+
+DatasetInfo DatasetInfoFromJson(const nlohmann::json& d) {
+  if (!d.is_object()) throw Error("expected an object");
+  DatasetInfo info;
+  info.key = String(d, "key");
+  const std::int64_t vertices = Integer(d, "vertices");
+  if (vertices < 0) throw Error("'vertices' must not be negative");
+  info.vertices = static_cast<std::size_t>(vertices);
+  info.influences = static_cast<int>(Integer(d, "influences"));
+  info.joints = static_cast<int>(Integer(d, "joints"));
+  if (d.contains("shape")) {  // 1.3.0; older reports tuned single meshes
+    info.shape = SceneKindFromName(String(d, "shape"));
+    info.instances = static_cast<int>(Integer(d, "instances"));
+    info.meshes = static_cast<int>(Integer(d, "meshes"));
+    if (info.instances < 1 || info.meshes < 1) throw Error("'instances' and 'meshes' must be at least 1");
+  }
+  return info;
+}
+
+void ReadDatasets(const nlohmann::json& json, const std::string& context, TuningReport& r) {
+  const nlohmann::json& datasets = At(context, "datasets", [&]() -> const nlohmann::json& { return Array(json, "datasets"); });
+  for (std::size_t i = 0; i < datasets.size(); ++i)
+    r.datasets.push_back(At(context, "datasets[" + std::to_string(i) + "]", [&] { return DatasetInfoFromJson(datasets[i]); }));
+}
+
+// After the datasets: each measurement must name one of them.
+void ReadMeasurements(const nlohmann::json& json, const std::string& context, TuningReport& r) {
+  const nlohmann::json& measurements =
+      At(context, "measurements", [&]() -> const nlohmann::json& { return Array(json, "measurements"); });
+  for (std::size_t i = 0; i < measurements.size(); ++i) {
+    r.measurements.push_back(At(context, "measurements[" + std::to_string(i) + "]", [&] {
+      Measurement m = measurements[i].get<Measurement>();
+      // Winners and databases are keyed by the id's parts and name its backend.
+      const std::string backend = SplitDeviceId(m.device_id).backend;
+      if (!FindBackend(backend))
+        throw Error("device id '" + m.device_id + "' has unknown backend '" + backend + "' (expected " +
+                    JoinedBackendNames() + ")");
+      if (std::none_of(r.datasets.begin(), r.datasets.end(), [&](const DatasetInfo& d) { return d.key == m.dataset; })) {
+        throw Error("dataset '" + m.dataset + "' is not in 'datasets'");
+      }
+      return m;
+    }));
+  }
+}
+
+// tie_margin since 1.4.0, host_tie_margin since 1.5.0 (before it, a CPU device's was tie_margin too).
+void ReadMargins(const nlohmann::json& json, const std::string& context, TuningReport& r) {
+  for (const auto& margin : {std::pair<const char*, double*>{"tie_margin", &r.tie_margin}, {"host_tie_margin", &r.host_tie_margin}}) {
+    const char* name = margin.first;  // not a structured binding: a lambda below captures it (clang 14)
+    if (!json.contains(name)) {
+      if (margin.second == &r.host_tie_margin) r.host_tie_margin = r.tie_margin;
+      continue;
+    }
+    *margin.second = At(context, name, [&] {
+      const double value = Number(json, name);
+      if (!(value > 0.0) || value > 0.5) throw Error("must be in (0, 0.5]");
+      return value;
+    });
+  }
+}
+
+}  // namespace
+
 TuningReport ReportFromJson(const nlohmann::json& json, const std::string& context) {
   CheckReportHeader(json, context);
   TuningReport r;
@@ -349,88 +457,12 @@ TuningReport ReportFromJson(const nlohmann::json& json, const std::string& conte
     if (!m.is_object()) throw Error("must be an object");
     return m;
   });
-  const nlohmann::json& devices = At(context, "devices", [&]() -> const nlohmann::json& { return Array(json, "devices"); });
-  for (std::size_t i = 0; i < devices.size(); ++i) {
-    r.devices.push_back(At(context, "devices[" + std::to_string(i) + "]", [&] {
-      DeviceIdentity d = devices[i].get<DeviceIdentity>();
-      if (devices[i].contains("id") && devices[i]["id"] != d.Id()) {
-        throw Error("'id' " + devices[i]["id"].dump() + " does not match the identity (" + d.Id() + ")");
-      }
-      return d;
-    }));
-  }
-  const nlohmann::json& copy = At(context, "copy_bandwidth_gbps", [&]() -> const nlohmann::json& {
-    const nlohmann::json& c = Field(json, "copy_bandwidth_gbps");
-    if (!c.is_object()) throw Error("must be an object");
-    return c;
-  });
-  for (const auto& item : copy.items()) {
-    const std::string& id = item.key();
-    const nlohmann::json& gbps = item.value();  // not a structured binding: clang 14 cannot capture one
-    r.copy_bandwidth_gbps[id] = At(context, "copy_bandwidth_gbps[\"" + id + "\"]", [&] {
-      if (!gbps.is_number()) throw Error("must be a number");
-      const double value = gbps.get<double>();
-      if (!(std::isfinite(value) && value > 0.0)) throw Error("is " + gbps.dump() + ": must be a positive, finite GB/s");
-      return value;
-    });
-  }
-  const nlohmann::json& skipped = At(context, "skipped", [&]() -> const nlohmann::json& { return Array(json, "skipped"); });
-  for (std::size_t i = 0; i < skipped.size(); ++i) {
-    r.skipped.push_back(At(context, "skipped[" + std::to_string(i) + "]", [&] {
-      if (!skipped[i].is_string()) throw Error("must be a string");
-      return skipped[i].get<std::string>();
-    }));
-  }
-  const nlohmann::json& datasets = At(context, "datasets", [&]() -> const nlohmann::json& { return Array(json, "datasets"); });
-  for (std::size_t i = 0; i < datasets.size(); ++i) {
-    r.datasets.push_back(At(context, "datasets[" + std::to_string(i) + "]", [&] {
-      const nlohmann::json& d = datasets[i];
-      if (!d.is_object()) throw Error("expected an object");
-      DatasetInfo info;
-      info.key = String(d, "key");
-      const std::int64_t vertices = Integer(d, "vertices");
-      if (vertices < 0) throw Error("'vertices' must not be negative");
-      info.vertices = static_cast<std::size_t>(vertices);
-      info.influences = static_cast<int>(Integer(d, "influences"));
-      info.joints = static_cast<int>(Integer(d, "joints"));
-      if (d.contains("shape")) {  // 1.3.0; older reports tuned single meshes
-        info.shape = SceneKindFromName(String(d, "shape"));
-        info.instances = static_cast<int>(Integer(d, "instances"));
-        info.meshes = static_cast<int>(Integer(d, "meshes"));
-        if (info.instances < 1 || info.meshes < 1) throw Error("'instances' and 'meshes' must be at least 1");
-      }
-      return info;
-    }));
-  }
-  const nlohmann::json& measurements =
-      At(context, "measurements", [&]() -> const nlohmann::json& { return Array(json, "measurements"); });
-  for (std::size_t i = 0; i < measurements.size(); ++i) {
-    r.measurements.push_back(At(context, "measurements[" + std::to_string(i) + "]", [&] {
-      Measurement m = measurements[i].get<Measurement>();
-      // Winners and databases are keyed by the id's parts and name its backend.
-      const std::string backend = SplitDeviceId(m.device_id).backend;
-      if (!FindBackend(backend))
-        throw Error("device id '" + m.device_id + "' has unknown backend '" + backend + "' (expected " +
-                    JoinedBackendNames() + ")");
-      if (std::none_of(r.datasets.begin(), r.datasets.end(), [&](const DatasetInfo& d) { return d.key == m.dataset; })) {
-        throw Error("dataset '" + m.dataset + "' is not in 'datasets'");
-      }
-      return m;
-    }));
-  }
-  // tie_margin since 1.4.0, host_tie_margin since 1.5.0 (before it, a CPU device's was tie_margin too).
-  for (const auto& margin : {std::pair<const char*, double*>{"tie_margin", &r.tie_margin}, {"host_tie_margin", &r.host_tie_margin}}) {
-    const char* name = margin.first;  // not a structured binding: a lambda below captures it (clang 14)
-    if (!json.contains(name)) {
-      if (margin.second == &r.host_tie_margin) r.host_tie_margin = r.tie_margin;
-      continue;
-    }
-    *margin.second = At(context, name, [&] {
-      const double value = Number(json, name);
-      if (!(value > 0.0) || value > 0.5) throw Error("must be in (0, 0.5]");
-      return value;
-    });
-  }
+  ReadDevices(json, context, r);
+  ReadCopyBandwidths(json, context, r);
+  ReadSkipped(json, context, r);
+  ReadDatasets(json, context, r);
+  ReadMeasurements(json, context, r);
+  ReadMargins(json, context, r);
   if (json.contains("races")) {  // since 1.4.0
     const nlohmann::json& races = At(context, "races", [&]() -> const nlohmann::json& { return Array(json, "races"); });
     for (std::size_t i = 0; i < races.size(); ++i)

@@ -10,7 +10,7 @@
 #include <nlohmann/json.hpp>  // TuningReport holds a json by value (json_fwd.hpp is not enough)
 
 #include "runtime/winners_db.h"
-#include "tuner/backend.h"
+#include "tuner/timing_options.h"
 #include "tuner/measurement.h"
 #include "tuner/race_record.h"
 
@@ -42,7 +42,7 @@ struct TuningReport {
   nlohmann::json machine;                     // hostname, os, cpu model, logical cpus, memory
   std::vector<DeviceIdentity> devices;
   std::map<std::string, double> copy_bandwidth_gbps;  // by DeviceIdentity::Id()
-  std::vector<std::string> skipped;           // backends not present, with the reason
+  std::vector<std::string> skipped;           // APIs and devices not measured, with the reason
   std::vector<DatasetInfo> datasets;
   std::vector<Measurement> measurements;
   // Timing version 5: the margin within which kernel times tie (TimingOptions::tie_margin), and the races.

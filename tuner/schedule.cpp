@@ -2,23 +2,21 @@
 
 #include <algorithm>
 #include <cctype>
+#include <exception>
 #include <numeric>
 #include <string>
+#include <thread>
 
 namespace skintune::internal {
 
-namespace {
-
-bool IsCpu(const DeviceIdentity& d) {
+bool IsHostCpu(const DeviceIdentity& d) {
   std::string type = d.type;
   std::transform(type.begin(), type.end(), type.begin(), [](unsigned char c) { return std::tolower(c); });
   return type.find("cpu") != std::string::npos;
 }
 
-}  // namespace
-
 bool MayShareHardware(const DeviceIdentity& a, const DeviceIdentity& b) {
-  if (IsCpu(a) || IsCpu(b)) return IsCpu(a) && IsCpu(b);
+  if (IsHostCpu(a) || IsHostCpu(b)) return IsHostCpu(a) && IsHostCpu(b);
   if (!a.uuid.empty() && !b.uuid.empty()) return a.uuid == b.uuid;
   if (!a.pci_bus_id.empty() && !b.pci_bus_id.empty()) return a.pci_bus_id == b.pci_bus_id;
   return true;
@@ -48,6 +46,47 @@ std::vector<std::vector<std::size_t>> IndependentGroups(const std::vector<Device
     }
   }
   return groups;
+}
+
+Schedule ScheduleDevices(const std::vector<DeviceIdentity>& devices, bool parallel) {
+  Schedule schedule;
+  schedule.groups = IndependentGroups(devices);
+  if (!parallel && schedule.groups.size() > 1) {
+    std::vector<std::size_t> all;
+    for (const auto& g : schedule.groups) all.insert(all.end(), g.begin(), g.end());
+    std::sort(all.begin(), all.end());
+    schedule.groups = {all};
+  }
+  const auto is_cpu = [&](std::size_t i) { return IsHostCpu(devices[i]); };
+  for (const auto& g : schedule.groups)
+    schedule.shares_host = schedule.shares_host || (schedule.groups.size() > 1 && std::any_of(g.begin(), g.end(), is_cpu));
+  return schedule;
+}
+
+void RunSchedule(const Schedule& schedule, const std::function<void(std::size_t device)>& tune, const GroupAhead& ahead) {
+  const auto& groups = schedule.groups;
+  std::vector<std::exception_ptr> errors(groups.size());
+  auto run_group = [&](std::size_t g) {
+    std::atomic<std::size_t> reached{0};
+    std::thread beside;
+    try {
+      if (ahead && groups[g].size() > 1) beside = std::thread(ahead, std::cref(groups[g]), std::cref(reached));
+      for (std::size_t k = 0; k < groups[g].size(); ++k) {
+        reached = k;
+        tune(groups[g][k]);
+      }
+    } catch (...) {
+      errors[g] = std::current_exception();
+    }
+    reached = groups[g].size();
+    if (beside.joinable()) beside.join();
+  };
+  std::vector<std::thread> threads;
+  for (std::size_t g = 1; g < groups.size(); ++g) threads.emplace_back(run_group, g);
+  if (!groups.empty()) run_group(0);
+  for (std::thread& t : threads) t.join();
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
 }
 
 }  // namespace skintune::internal

@@ -15,12 +15,19 @@
 // wrong, only slower.
 #pragma once
 
+#include <atomic>
 #include <cstddef>
+#include <functional>
 #include <vector>
 
 #include "runtime/device_identity.h"
 
 namespace skintune::internal {
+
+// Whether `d` is the host's CPU (its type names "cpu", any case): its work
+// takes the host's cores (tuner/host_lock.h), and its times move more than
+// a GPU's (TimingOptions::host_tie_margin).
+bool IsHostCpu(const DeviceIdentity& d);
 
 // Whether `a` and `b` may share hardware (the rule above).
 bool MayShareHardware(const DeviceIdentity& a, const DeviceIdentity& b);
@@ -30,5 +37,30 @@ bool MayShareHardware(const DeviceIdentity& a, const DeviceIdentity& b);
 // order of their first device, each group's devices in their order. The
 // devices of a group are tuned one after another; the groups at the same time.
 std::vector<std::vector<std::size_t>> IndependentGroups(const std::vector<DeviceIdentity>& devices);
+
+// When a tuning run measures its devices.
+struct Schedule {
+  // Indices into the devices scheduled: the groups run at the same time,
+  // each group's devices one after another.
+  std::vector<std::vector<std::size_t>> groups;
+  // A CPU device is tuned at the same time as another group: the workers
+  // share a lock on the host's cores (tuner/host_lock.h), so that no GPU's
+  // host work runs while a CPU device is timing.
+  bool shares_host = false;
+};
+
+// The devices' IndependentGroups; with `parallel` false, one group of every
+// device in order (one device after another).
+Schedule ScheduleDevices(const std::vector<DeviceIdentity>& devices, bool parallel);
+
+// Runs tune(i) for every device i of `schedule`: each group on a thread of
+// its own (the first on the calling thread), its devices in order. Beside a
+// group of several devices, ahead(group, reached) runs on another thread,
+// `reached` telling how many of the group's devices have had their turn
+// (the group's size once it is done), so that it can prepare the later ones
+// (tune.cpp compiles their kernels). Returns when every thread has ended;
+// then rethrows the first group's exception, if any.
+using GroupAhead = std::function<void(const std::vector<std::size_t>& group, const std::atomic<std::size_t>& reached)>;
+void RunSchedule(const Schedule& schedule, const std::function<void(std::size_t device)>& tune, const GroupAhead& ahead);
 
 }  // namespace skintune::internal

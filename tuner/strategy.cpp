@@ -207,8 +207,8 @@ std::size_t NarrowStart(const Session& s, const std::array<std::vector<int>, kAx
   return ClosestTo(s, target);
 }
 
-SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts, double margin) {
-  // The values each axis takes among the candidates (in increasing order).
+// The values each axis takes among the candidates (in increasing order).
+std::array<std::vector<int>, kAxisCount> AxisValues(const Session& s) {
   std::array<std::vector<int>, kAxisCount> axis_values;
   for (std::size_t a = 0; a < kAxisCount; ++a) {
     std::vector<int>& values = axis_values[a];
@@ -218,85 +218,111 @@ SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts, double ma
     }
     std::sort(values.begin(), values.end());
   }
+  return axis_values;
+}
+
+// Coordinate descent's descents over one session: each from a start, in
+// sweeps over the axes until a full sweep moves nowhere.
+class Descent {
+ public:
+  Descent(Session& s, const std::array<std::vector<int>, kAxisCount>& axis_values, double margin)
+      : s_(s), axis_values_(axis_values), margin_(margin) {}
+
+  // One descent from `start`. In each sweep, when no single move along a
+  // coupled axis won, the moves along two coupled axes at once come right
+  // after the last of them (a descent stuck on f32 weights because u8
+  // indices or unorm8 weights alone are slower takes both at once there).
+  void From(std::size_t start) {
+    current_ = start;
+    current_ms_ = s_.Evaluate(current_);
+    while (!s_.exhausted() && Sweep()) {
+    }
+  }
+
+ private:
+  // One sweep over the axes; whether it moved.
+  bool Sweep() {
+    const std::size_t last_coupled = *std::max_element(kCoupledAxes.begin(), kCoupledAxes.end());
+    bool moved = false;
+    bool coupled_moved = false;
+    for (std::size_t a = 0; a < kAxisCount && !s_.exhausted(); ++a) {
+      const bool m = TryMoves(Line(current_, a));
+      moved = moved || m;
+      if (std::find(kCoupledAxes.begin(), kCoupledAxes.end(), a) != kCoupledAxes.end()) coupled_moved = coupled_moved || m;
+      if (a != last_coupled || coupled_moved) continue;
+      for (std::size_t p = 0; p < kCoupledAxes.size() && !s_.exhausted(); ++p)
+        for (std::size_t q = p + 1; q < kCoupledAxes.size() && !s_.exhausted(); ++q)
+          moved = TryMoves(PairLine(current_, kCoupledAxes[p], kCoupledAxes[q])) || moved;
+    }
+    return moved;
+  }
+
+  // Evaluates `moves` and goes to the fastest when it beats the current
+  // point by more than the margin; a later move replaces an earlier one only
+  // by beating it by as much, so moves within noise of each other are
+  // decided by their order, the same in every run.
+  bool TryMoves(const std::vector<std::size_t>& moves) {
+    std::size_t best = current_;
+    std::optional<double> best_ms = current_ms_;
+    s_.Ahead(moves);
+    for (std::size_t j : moves) {
+      const std::optional<double> t = s_.Evaluate(j);
+      if (t && (!best_ms || *t < *best_ms * (1.0 - margin_))) {
+        best = j;
+        best_ms = t;
+      }
+    }
+    if (best == current_) return false;
+    current_ = best;
+    current_ms_ = best_ms;
+    return true;
+  }
+
   // The other candidates that differ from candidate i on axis a only.
-  auto line = [&](std::size_t i, std::size_t a) {
+  std::vector<std::size_t> Line(std::size_t i, std::size_t a) const {
     std::vector<std::size_t> out;
-    Coords c = s.coords(i);
-    for (int x : axis_values[a]) {
-      if (x == s.coords(i)[a]) continue;
+    Coords c = s_.coords(i);
+    for (int x : axis_values_[a]) {
+      if (x == s_.coords(i)[a]) continue;
       c[a] = x;
-      if (const std::optional<std::size_t> j = s.Find(c)) out.push_back(*j);
+      if (const std::optional<std::size_t> j = s_.Find(c)) out.push_back(*j);
     }
     return out;
-  };
+  }
 
   // Moves from candidate i along two coupled axes at once (both changed).
-  auto pair_line = [&](std::size_t i, std::size_t a, std::size_t b) {
+  std::vector<std::size_t> PairLine(std::size_t i, std::size_t a, std::size_t b) const {
     std::vector<std::size_t> out;
-    Coords c = s.coords(i);
-    for (int x : axis_values[a]) {
-      if (x == s.coords(i)[a]) continue;
-      for (int y : axis_values[b]) {
-        if (y == s.coords(i)[b]) continue;
+    Coords c = s_.coords(i);
+    for (int x : axis_values_[a]) {
+      if (x == s_.coords(i)[a]) continue;
+      for (int y : axis_values_[b]) {
+        if (y == s_.coords(i)[b]) continue;
         c[a] = x;
         c[b] = y;
-        if (const std::optional<std::size_t> j = s.Find(c)) out.push_back(*j);
+        if (const std::optional<std::size_t> j = s_.Find(c)) out.push_back(*j);
       }
     }
     return out;
-  };
+  }
 
-  // One descent from `start`: sweeps over the axes until a full sweep moves
-  // nowhere. In each sweep, when no single move along a coupled axis won,
-  // the moves along two coupled axes at once come right after the last of
-  // them (a descent stuck on f32 weights because u8 indices or unorm8 weights
-  // alone are slower takes both at once there).
-  const std::size_t last_coupled = *std::max_element(kCoupledAxes.begin(), kCoupledAxes.end());
-  auto descend = [&](std::size_t start) {
-    std::size_t current = start;
-    std::optional<double> current_ms = s.Evaluate(current);
-    // Evaluates `moves` and goes to the fastest when it beats the current
-    // point by more than `margin`; a later move replaces an earlier one only
-    // by beating it by as much, so moves within noise of each other are
-    // decided by their order, the same in every run.
-    auto try_moves = [&](const std::vector<std::size_t>& moves) {
-      std::size_t best = current;
-      std::optional<double> best_ms = current_ms;
-      s.Ahead(moves);
-      for (std::size_t j : moves) {
-        const std::optional<double> t = s.Evaluate(j);
-        if (t && (!best_ms || *t < *best_ms * (1.0 - margin))) {
-          best = j;
-          best_ms = t;
-        }
-      }
-      if (best == current) return false;
-      current = best;
-      current_ms = best_ms;
-      return true;
-    };
-    for (bool moved = true; moved && !s.exhausted();) {
-      moved = false;
-      bool coupled_moved = false;
-      for (std::size_t a = 0; a < kAxisCount && !s.exhausted(); ++a) {
-        const bool m = try_moves(line(current, a));
-        moved = moved || m;
-        if (std::find(kCoupledAxes.begin(), kCoupledAxes.end(), a) != kCoupledAxes.end()) coupled_moved = coupled_moved || m;
-        if (a != last_coupled || coupled_moved) continue;
-        for (std::size_t p = 0; p < kCoupledAxes.size() && !s.exhausted(); ++p)
-          for (std::size_t q = p + 1; q < kCoupledAxes.size() && !s.exhausted(); ++q)
-            moved = try_moves(pair_line(current, kCoupledAxes[p], kCoupledAxes[q])) || moved;
-      }
-    }
-  };
+  Session& s_;
+  const std::array<std::vector<int>, kAxisCount>& axis_values_;
+  double margin_;
+  std::size_t current_ = 0;
+  std::optional<double> current_ms_;
+};
 
-  descend(DefaultStart(s));
+SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts, double margin) {
+  const std::array<std::vector<int>, kAxisCount> axis_values = AxisValues(s);
+  Descent descent(s, axis_values, margin);
+  descent.From(DefaultStart(s));
   if (!restarts) return s.Result();
   // The first restart starts from the fewest bytes: the candidate closest to
   // the default with the narrowest formats of the coupled axes.
   if (!s.exhausted()) {
     const std::size_t narrow = NarrowStart(s, axis_values);
-    if (!s.evaluated(narrow)) descend(narrow);
+    if (!s.evaluated(narrow)) descent.From(narrow);
   }
   // Then restarts from random candidates not evaluated yet, while the budget lasts.
   std::vector<std::size_t> order(s.size());
@@ -304,7 +330,7 @@ SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts, double ma
   Prng prng(seed);
   for (std::size_t i = 0; i < order.size() && !s.exhausted(); ++i) {
     std::swap(order[i], order[i + prng.Below(order.size() - i)]);
-    if (!s.evaluated(order[i])) descend(order[i]);
+    if (!s.evaluated(order[i])) descent.From(order[i]);
   }
   return s.Result();
 }

@@ -1,74 +1,30 @@
-// skintune: a tuning run: a config (space, datasets, timing, strategy), every
-// device found, each device's work in a child process with a time limit per
-// variant, every measurement appended to the cache as it is taken.
+// skintune: a tuning run: a config (space, datasets, timing, strategy,
+// tuner/config.h), every device found, each device's work in a child process
+// with a time limit per variant, every measurement appended to the cache as
+// it is taken. tune.cpp says how the run is put together: a plan
+// (tuner/plan.h), a schedule (tuner/schedule.h), each device's tuning
+// (tuner/device_tuning.h) through its worker (tuner/worker.h).
 #pragma once
 
-#include <functional>
 #include <string>
-#include <vector>
 
-#include <nlohmann/json_fwd.hpp>
-
-#include "generator/space.h"
-#include "tuner/backend.h"
+#include "tuner/config.h"
 #include "tuner/report.h"
-#include "tuner/strategy.h"
 
 namespace skintune::internal {
 
-// The largest search budget (evaluations per device, language and dataset)
-// a config or --budget may ask for; 0 means every candidate for exhaustive.
-inline constexpr std::size_t kMaxBudget = 1000000000;
-// The largest variant_timeout_s of a config: a day (one variant's build,
-// verification and timing; the worker's poll takes milliseconds in an int).
-inline constexpr double kMaxVariantTimeoutS = 86400.0;
-
-struct TuneConfig {
-  std::string name;                     // file name or "default"
-  TuningSpace space;
-  std::vector<std::string> datasets;    // dataset keys or glTF paths
-  TimingOptions timing;
-  StrategyOptions strategy;
-  double variant_timeout_s = 60.0;      // per variant, in the child process
-  // The error budget (config "max_error", `tune --max-error`): a variant whose
-  // weight format costs more than this, relative to the bounding-box diagonal
-  // (SourceError::quantisation_rel), is too_imprecise (docs/TUNING.md "Precision").
-  double max_error = kDefaultBudget;
-  // Variants measured on every device x language x dataset of their language
-  // before the search, with B set to the dataset's (the paper's own kernels):
-  // recorded like any measurement (invalid ones with their constraints), so a
-  // baseline can win and the search's best is compared with it. Need not be
-  // points of `space`.
-  std::vector<Variant> baselines;
-};
-
-// Parses a config (configs/*.json). Throws Error("<context>: <element>: ...").
-TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context);
-// The embedded configs/default.json and configs/paper.json ("default", "paper").
-std::string EmbeddedConfig(const std::string& name);
-
-struct TuneOptions {
-  std::string device_pattern;           // MatchesDevice (runtime/device_identity.h), the one --device rule; empty: all
-  std::vector<Lang> languages;          // empty: every language of every device
-  std::string cache_path;               // the resumable measurement cache (JSON lines)
-  std::string worker_executable;        // the skintune binary (runs `skintune tune-worker`)
-  // Called from one thread at a time (devices are tuned on several).
-  std::function<void(std::size_t done, std::size_t total, const std::string& what)> progress;
-  // Devices that share no hardware (tuner/schedule.h) are tuned at the same
-  // time; false: one device after another, as before.
-  bool parallel_devices = true;
-};
-
 // Runs the whole tuning; every measurement goes through the cache (a recorded
 // one is reused, never re-measured). Throws Error for bad set-up (empty space
-// after constraints on every device, unwritable cache).
+// after constraints on every device, unwritable cache) before any device
+// measures.
 TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options);
 
-// The child process: `skintune tune-worker --backend-index N [--device-id ID]
-// [--host-lock PATH]` (ID, when given, selects the backend and N is ignored;
+// The child process: `skintune tune-worker --device-index N [--device-id ID]
+// [--host-lock PATH]` (ID, when given, selects the device and N is ignored;
 // PATH: the host lock shared with the other workers, tuner/host_lock.h) reads
 // one JSON request per line on stdin ({"variant": ..., "dataset": ...,
-// "timing": ...}) and writes one Measurement JSON per line on stdout.
-int RunTuneWorker(int backend_index, const std::string& device_id = "", const std::string& host_lock = "");
+// "timing": ...}) and writes one Measurement JSON per line on stdout
+// (tuner/worker.h has the whole protocol).
+int RunTuneWorker(int device_index, const std::string& device_id = "", const std::string& host_lock = "");
 
 }  // namespace skintune::internal

@@ -26,7 +26,9 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/emit.h"
-#include "tuner/backends_internal.h"
+#include "tuner/fault_injection.h"
+#include "tuner/measure_job.h"
+#include "tuner/runner_device.h"
 #include "tuner/tune.h"
 
 namespace skintune::internal {
@@ -77,23 +79,19 @@ std::string StatusText(int status) {
 
 const std::vector<std::string>& StartupEnvironment() { return kStartupEnvironment; }
 
-std::string UtcTimestamp() {
-  const std::time_t now = std::time(nullptr);
-  std::tm utc{};
-  ::gmtime_r(&now, &utc);
-  char text[32];
-  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", &utc);
-  return text;
-}
-
 // ------------------------------------------------------------------ parent side
 
-IsolatedBackend::IsolatedBackend(std::string executable, DeviceIdentity identity, double variant_timeout_s)
+IsolatedDevice::IsolatedDevice(std::string executable, DeviceIdentity identity, double variant_timeout_s)
     : executable_(std::move(executable)), identity_(std::move(identity)), variant_timeout_s_(variant_timeout_s) {}
 
-IsolatedBackend::~IsolatedBackend() { Stop(); }
+IsolatedDevice::~IsolatedDevice() { Stop(); }
 
-void IsolatedBackend::Start() {
+void IsolatedDevice::Start() {
+  Spawn();
+  AwaitGreeting();
+}
+
+void IsolatedDevice::Spawn() {
   // A child that died between two requests must not kill us when we write to it.
   std::signal(SIGPIPE, SIG_IGN);
   int in[2], out[2], err[2];
@@ -113,7 +111,7 @@ void IsolatedBackend::Start() {
   const std::string index = std::to_string(identity_.index);
   const std::string device_id = identity_.Id();
   std::vector<char*> argv = {const_cast<char*>(executable_.c_str()), const_cast<char*>("tune-worker"),
-                             const_cast<char*>("--backend-index"), const_cast<char*>(index.c_str()),
+                             const_cast<char*>("--device-index"), const_cast<char*>(index.c_str()),
                              const_cast<char*>("--device-id"), const_cast<char*>(device_id.c_str())};
   if (!host_lock_.empty()) {
     argv.push_back(const_cast<char*>("--host-lock"));
@@ -154,7 +152,9 @@ void IsolatedBackend::Start() {
   err_tail_.clear();
   ++starts_;
   killed_here_ = false;
+}
 
+void IsolatedDevice::AwaitGreeting() {
   // Discovery in the child (every API) comes before its greeting.
   const double start_timeout_s = std::max(variant_timeout_s_, 60.0);
   std::string line;
@@ -183,12 +183,13 @@ void IsolatedBackend::Start() {
   }
   if (hello["device_id"].get<std::string>() != identity_.Id()) {
     Stop();
-    throw WorkerError("worker process found '" + hello["device_id"].get<std::string>() + "' as backend " + index +
-                      ", not '" + identity_.Id() + "' (the devices changed since discovery)");
+    throw WorkerError("worker process found '" + hello["device_id"].get<std::string>() + "' as device " +
+                      std::to_string(identity_.index) + ", not '" + identity_.Id() +
+                      "' (the devices changed since discovery)");
   }
 }
 
-std::string IsolatedBackend::Reap(bool block) {
+std::string IsolatedDevice::Reap(bool block) {
   if (pid_ < 0) return "not running";
   int status = 0;
   pid_t r = 0;
@@ -216,13 +217,13 @@ std::string IsolatedBackend::Reap(bool block) {
   return r < 0 ? "unknown status (" + std::string(std::strerror(errno)) + ")" : StatusText(status);
 }
 
-bool IsolatedBackend::KilledFromOutside() const {
+bool IsolatedDevice::KilledFromOutside() const {
   if (killed_here_ || !WIFSIGNALED(reaped_status_)) return false;
   const int sig = WTERMSIG(reaped_status_);
   return sig == SIGKILL || sig == SIGTERM || sig == SIGINT || sig == SIGHUP || sig == SIGQUIT;
 }
 
-bool IsolatedBackend::Stopped() const {
+bool IsolatedDevice::Stopped() const {
   if (pid_ < 0) return false;
   std::ifstream stat("/proc/" + std::to_string(pid_) + "/stat");
   std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
@@ -231,7 +232,7 @@ bool IsolatedBackend::Stopped() const {
          (text[name_end + 2] == 'T' || text[name_end + 2] == 't');
 }
 
-void IsolatedBackend::Kill() {
+void IsolatedDevice::Kill() {
   if (pid_ >= 0) {
     killed_here_ = true;
     ::kill(pid_, SIGKILL);
@@ -242,7 +243,7 @@ void IsolatedBackend::Kill() {
   CloseFd(child_stderr_);
 }
 
-void IsolatedBackend::Stop() {
+void IsolatedDevice::Stop() {
   if (pid_ < 0) return;
   CloseFd(to_child_);  // end of input: the worker returns
   Reap(false);
@@ -250,7 +251,7 @@ void IsolatedBackend::Stop() {
   CloseFd(child_stderr_);
 }
 
-std::string IsolatedBackend::DeathDetail() {
+std::string IsolatedDevice::DeathDetail() {
   CloseFd(to_child_);
   const std::string how = Reap(false);
   // Whatever the child wrote on stderr before it died is in the pipe now.
@@ -268,7 +269,7 @@ std::string IsolatedBackend::DeathDetail() {
   return how + (tail.empty() ? "" : "; its last stderr line: " + tail);
 }
 
-std::string IsolatedBackend::StderrTail() const {
+std::string IsolatedDevice::StderrTail() const {
   std::size_t end = err_tail_.find_last_not_of(" \t\r\n");
   if (end == std::string::npos) return {};
   const std::size_t begin = err_tail_.rfind('\n', end);
@@ -277,7 +278,7 @@ std::string IsolatedBackend::StderrTail() const {
   return line;
 }
 
-bool IsolatedBackend::Send(const std::string& line) {
+bool IsolatedDevice::Send(const std::string& line) {
   const std::string text = line + "\n";
   std::size_t sent = 0;
   while (sent < text.size()) {
@@ -289,7 +290,7 @@ bool IsolatedBackend::Send(const std::string& line) {
   return true;
 }
 
-IsolatedBackend::ReadResult IsolatedBackend::ReadLine(double timeout_s, std::string& line) {
+IsolatedDevice::ReadResult IsolatedDevice::ReadLine(double timeout_s, std::string& line) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point deadline =
       Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
@@ -333,7 +334,7 @@ IsolatedBackend::ReadResult IsolatedBackend::ReadLine(double timeout_s, std::str
 // exited: the variant is measured once more in a fresh one, so a reset caused
 // elsewhere costs no variant, and the variants after it never run on a dead
 // context.
-Measurement IsolatedBackend::Measure(const Variant& variant, const TuningDataset& dataset,
+Measurement IsolatedDevice::Measure(const Variant& variant, const TuningDataset& dataset,
                                      const TimingOptions& options) {
   bool lost = false;
   Measurement m = MeasureOnce(variant, dataset, options, &lost);
@@ -352,7 +353,7 @@ Measurement IsolatedBackend::Measure(const Variant& variant, const TuningDataset
   return m;
 }
 
-Measurement IsolatedBackend::MeasureOnce(const Variant& variant, const TuningDataset& dataset,
+Measurement IsolatedDevice::MeasureOnce(const Variant& variant, const TuningDataset& dataset,
                                          const TimingOptions& options, bool* lost) {
   Measurement result;
   result.device_id = identity_.Id();
@@ -429,7 +430,7 @@ Measurement IsolatedBackend::MeasureOnce(const Variant& variant, const TuningDat
   return m;
 }
 
-std::size_t IsolatedBackend::CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) {
+std::size_t IsolatedDevice::CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) {
   if (variants.empty()) return 0;
   const std::string request = nlohmann::json{{"compile_ahead", variants}, {"dataset", dataset.key}}.dump();
   if (pid_ < 0) Start();
@@ -453,7 +454,7 @@ std::size_t IsolatedBackend::CompileAhead(const std::vector<Variant>& variants, 
   return 0;
 }
 
-bool IsolatedBackend::Exchange(const std::string& request, double timeout_s, std::string& line, std::string& why) {
+bool IsolatedDevice::Exchange(const std::string& request, double timeout_s, std::string& line, std::string& why) {
   if (pid_ < 0) Start();
   if (!Send(request)) {
     DeathDetail();
@@ -476,7 +477,7 @@ bool IsolatedBackend::Exchange(const std::string& request, double timeout_s, std
   return true;
 }
 
-std::optional<std::vector<std::vector<double>>> IsolatedBackend::Race(const std::vector<Variant>& variants,
+std::optional<std::vector<std::vector<double>>> IsolatedDevice::Race(const std::vector<Variant>& variants,
                                                                         const TuningDataset& dataset,
                                                                         const TimingOptions& options, std::string* why_not) {
   auto fail = [&](const std::string& why) -> std::optional<std::vector<std::vector<double>>> {
@@ -505,7 +506,7 @@ std::optional<std::vector<std::vector<double>>> IsolatedBackend::Race(const std:
   return fail("worker process sent a malformed race answer: '" + line.substr(0, 200) + "'");
 }
 
-std::optional<double> IsolatedBackend::CopyBandwidthGBps(std::size_t bytes, std::string* why_not) {
+std::optional<double> IsolatedDevice::CopyBandwidthGBps(std::size_t bytes, std::string* why_not) {
   auto fail = [&](const std::string& why) -> std::optional<double> {
     if (why_not) *why_not = why;
     return std::nullopt;
@@ -554,9 +555,97 @@ void KeepLargeBlocks() {
 #endif
 }
 
+// Writes one protocol line, whole, on `fd` (the original stdout); ends the
+// process when the parent is gone.
+void WriteLine(int fd, const nlohmann::json& answer) {
+  const std::string text = answer.dump() + "\n";
+  std::size_t sent = 0;
+  while (sent < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + sent, text.size() - sent);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) std::_Exit(1);  // the parent is gone
+    sent += static_cast<std::size_t>(n);
+  }
+}
+
+// The device the worker serves: the one whose id is `device_id` when given
+// (the parent's numbering may differ from this process's), else number
+// `index`; nullptr with `why` when there is none.
+TunedDevice* ServedDevice(const Discovery& discovery, int index, const std::string& device_id, std::string& why) {
+  if (!device_id.empty()) {
+    std::string found;
+    for (const std::unique_ptr<TunedDevice>& d : discovery.devices) {
+      if (d->identity().Id() == device_id) return d.get();
+      found += (found.empty() ? "" : ", ") + d->identity().Id();
+    }
+    why = "device '" + device_id + "' not found by the worker (it found: " + found + ")";
+    return nullptr;
+  }
+  if (index < 0 || static_cast<std::size_t>(index) >= discovery.devices.size()) {
+    why = "no device " + std::to_string(index) + " (" + std::to_string(discovery.devices.size()) + " found)";
+    return nullptr;
+  }
+  return discovery.devices[static_cast<std::size_t>(index)].get();
+}
+
+TuningDataset DatasetOf(const nlohmann::json& request) { return {request.at("dataset").get<std::string>()}; }
+
+// The answer to one request (worker.h's protocol); *lost: the device is lost
+// for this process (DeviceLostIn), which then answers and exits.
+nlohmann::json Answer(TunedDevice& device, const nlohmann::json& request, bool* lost) {
+  if (request.contains("compile_ahead")) {
+    const std::vector<Variant> variants = request.at("compile_ahead").get<std::vector<Variant>>();
+    return {{"compiled", device.CompileAhead(variants, DatasetOf(request))}};
+  }
+  if (request.contains("race")) {
+    try {
+      const std::vector<Variant> variants = request.at("race").get<std::vector<Variant>>();
+      const TuningDataset dataset = DatasetOf(request);
+      return {{"race", device.Race(variants, dataset, TimingFromJson(request.at("timing")))}};
+    } catch (const Error& e) {
+      return {{"race_error", e.what()}};
+    }
+  }
+  if (request.contains("copy_bandwidth")) {
+    try {
+      return {{"copy_bandwidth_gbps", device.CopyBandwidthGBps(request.at("copy_bandwidth").get<std::size_t>())}};
+    } catch (const Error& e) {
+      return {{"copy_bandwidth_error", e.what()}};
+    }
+  }
+  const Variant variant = request.at("variant").get<Variant>();
+  const TuningDataset dataset = DatasetOf(request);
+  const Measurement m = device.Measure(variant, dataset, TimingFromJson(request.at("timing")));
+  nlohmann::json answer = m;
+  // Nothing this process measures from now on can be trusted: it answers,
+  // then exits, and the parent starts a fresh worker.
+  *lost = tuner_internal::DeviceLostIn(m.detail);
+  if (*lost) answer["device_lost"] = true;
+  return answer;
+}
+
+// Answers every request line on stdin until its end, or until the device is lost.
+void Serve(TunedDevice& device, int protocol) {
+  std::string line;
+  while (std::getline(std::cin, line)) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    nlohmann::json answer;
+    bool lost = false;
+    try {
+      answer = Answer(device, nlohmann::json::parse(line), &lost);
+    } catch (const Error& e) {
+      answer = {{"error", e.what()}};
+    } catch (const std::exception& e) {
+      answer = {{"error", std::string("tune-worker: internal error: ") + e.what()}};
+    }
+    WriteLine(protocol, answer);
+    if (lost) return;
+  }
+}
+
 }  // namespace
 
-int RunTuneWorker(int backend_index, const std::string& device_id, const std::string& host_lock) {
+int RunTuneWorker(int device_index, const std::string& device_id, const std::string& host_lock) {
   KeepLargeBlocks();
   if (!host_lock.empty()) {
     try {
@@ -573,89 +662,27 @@ int RunTuneWorker(int backend_index, const std::string& device_id, const std::st
     std::cerr << "skintune: tune-worker: cannot set up its output (" << std::strerror(errno) << ")\n";
     return 1;
   }
-  auto write_line = [protocol](const nlohmann::json& answer) {
-    const std::string text = answer.dump() + "\n";
-    std::size_t sent = 0;
-    while (sent < text.size()) {
-      const ssize_t n = ::write(protocol, text.data() + sent, text.size() - sent);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) std::_Exit(1);  // the parent is gone
-      sent += static_cast<std::size_t>(n);
-    }
-  };
-
   Discovery discovery;
   try {
-    discovery = DiscoverBackends();
-  } catch (const std::exception& e) {
-    write_line({{"error", std::string("device discovery failed: ") + e.what()}});
-    return 1;
-  }
-  if (!device_id.empty()) {
-    backend_index = -1;
-    std::string found;
-    for (std::size_t i = 0; i < discovery.backends.size(); ++i) {
-      const std::string id = discovery.backends[i]->identity().Id();
-      if (id == device_id) backend_index = static_cast<int>(i);
-      found += (found.empty() ? "" : ", ") + id;
-    }
-    if (backend_index < 0) {
-      write_line({{"error", "device '" + device_id + "' not found by the worker (it found: " + found + ")"}});
-      return 1;
-    }
-  }
-  if (backend_index < 0 || static_cast<std::size_t>(backend_index) >= discovery.backends.size()) {
-    write_line({{"error", "no backend " + std::to_string(backend_index) + " (" +
-                              std::to_string(discovery.backends.size()) + " found)"}});
-    return 1;
-  }
-  Backend& backend = *discovery.backends[static_cast<std::size_t>(backend_index)];
-  write_line({{"ready", true}, {"device_id", backend.identity().Id()}});
-
-  std::string line;
-  while (std::getline(std::cin, line)) {
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    nlohmann::json answer;
+    // The failure tests' hook: $SKINTUNE_INJECT_FAULT breaks one variant on every device (fault_injection.h).
+    const tuner_internal::ExecutorDecorator faults = tuner_internal::FaultsFromEnvironment();
     try {
-      const nlohmann::json request = nlohmann::json::parse(line);
-      if (request.contains("compile_ahead")) {
-        const std::vector<Variant> variants = request.at("compile_ahead").get<std::vector<Variant>>();
-        answer = {{"compiled", backend.CompileAhead(variants, TuningDataset{request.at("dataset").get<std::string>()})}};
-      } else if (request.contains("race")) {
-        try {
-          answer = {{"race", backend.Race(request.at("race").get<std::vector<Variant>>(),
-                                          TuningDataset{request.at("dataset").get<std::string>()},
-                                          TimingFromJson(request.at("timing")))}};
-        } catch (const Error& e) {
-          answer = {{"race_error", e.what()}};
-        }
-      } else if (request.contains("copy_bandwidth")) {
-        try {
-          answer = {{"copy_bandwidth_gbps", backend.CopyBandwidthGBps(request.at("copy_bandwidth").get<std::size_t>())}};
-        } catch (const Error& e) {
-          answer = {{"copy_bandwidth_error", e.what()}};
-        }
-      } else {
-        const Variant variant = request.at("variant").get<Variant>();
-        const TuningDataset dataset{request.at("dataset").get<std::string>()};
-        const TimingOptions timing = TimingFromJson(request.at("timing"));
-        const Measurement m = backend.Measure(variant, dataset, timing);
-        answer = m;
-        if (tuner_internal::DeviceLostIn(m.detail)) {
-          // Nothing this process measures from now on can be trusted: it
-          // answers, then exits, and the parent starts a fresh worker.
-          answer["device_lost"] = true;
-          write_line(answer);
-          return 0;
-        }
-      }
-    } catch (const Error& e) {
-      answer = {{"error", e.what()}};
+      discovery = tuner_internal::DiscoverTunedDevices(faults);
     } catch (const std::exception& e) {
-      answer = {{"error", std::string("tune-worker: internal error: ") + e.what()}};
+      throw Error(std::string("device discovery failed: ") + e.what());
     }
-    write_line(answer);
+  } catch (const Error& e) {
+    WriteLine(protocol, {{"error", e.what()}});
+    return 1;
   }
+  std::string why;
+  TunedDevice* device = ServedDevice(discovery, device_index, device_id, why);
+  if (!device) {
+    WriteLine(protocol, {{"error", why}});
+    return 1;
+  }
+  WriteLine(protocol, {{"ready", true}, {"device_id", device->identity().Id()}});
+  Serve(*device, protocol);
   return 0;
 }
 

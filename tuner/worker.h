@@ -1,8 +1,8 @@
-// skintune: a Backend measured in a child process, so that a kernel that
+// skintune: a TunedDevice measured in a child process, so that a kernel that
 // hangs or crashes the driver costs one variant, never the tuning run.
 //
-// The child is `<skintune> tune-worker --backend-index N` (RunTuneWorker in
-// tune.h). Protocol, one JSON object per line each way:
+// The child is `<skintune> tune-worker --device-index N --device-id ID`
+// (RunTuneWorker in tune.h). Protocol, one JSON object per line each way:
 //
 //   child -> parent, once at start:  {"ready": true, "device_id": "<DeviceIdentity::Id()>"}
 //                                    or {"error": "<why the device cannot be used>"}
@@ -36,8 +36,9 @@
 #include <vector>
 
 #include "reference/error.h"
-#include "tuner/backend.h"
 #include "tuner/measurement.h"
+#include "tuner/timing_options.h"
+#include "tuner/tuned_device.h"
 
 namespace skintune::internal {
 
@@ -48,22 +49,19 @@ class WorkerError : public Error {
   using Error::Error;
 };
 
-// Now, UTC, ISO 8601 ("2026-11-22T13:39:17Z").
-std::string UtcTimestamp();
-
 // The process environment as it was at start-up, before any library could
 // change it; workers are started with it (see worker.cpp for why).
 const std::vector<std::string>& StartupEnvironment();
 
-class IsolatedBackend {
+class IsolatedDevice {
  public:
   // `executable`: the skintune binary. `identity`: the device as the parent
-  // discovered it (its index picks the backend in the child). The child is
+  // discovered it (the child finds it by its id; its index is a hint). The child is
   // started on the first request.
-  IsolatedBackend(std::string executable, DeviceIdentity identity, double variant_timeout_s);
-  ~IsolatedBackend();
-  IsolatedBackend(const IsolatedBackend&) = delete;
-  IsolatedBackend& operator=(const IsolatedBackend&) = delete;
+  IsolatedDevice(std::string executable, DeviceIdentity identity, double variant_timeout_s);
+  ~IsolatedDevice();
+  IsolatedDevice(const IsolatedDevice&) = delete;
+  IsolatedDevice& operator=(const IsolatedDevice&) = delete;
 
   const DeviceIdentity& identity() const { return identity_; }
 
@@ -77,13 +75,13 @@ class IsolatedBackend {
   Measurement Measure(const Variant& variant, const TuningDataset& dataset, const TimingOptions& options);
 
   // Has the child compile the kernels of `variants` ahead of their Measure
-  // (Backend::CompileAhead), waiting at most the variant time limit per
+  // (TunedDevice::CompileAhead), waiting at most the variant time limit per
   // variant. Returns the kernels compiled; anything that goes wrong (a hang,
   // a crash, a set-up problem) costs only the head start: it returns 0, and
   // each variant's Measure compiles, and records the failure, as without it.
   std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset);
 
-  // The race of `variants` (Backend::Race) in the child, waiting at most the
+  // The race of `variants` (TunedDevice::Race) in the child, waiting at most the
   // variant time limit per variant: each variant's samples, or nullopt with
   // the reason in `why_not` (a failed race costs the run only its
   // judgement: the winners are then judged on the search's own intervals).
@@ -108,6 +106,8 @@ class IsolatedBackend {
   // One request to the worker; *lost: the worker lost its device and exited.
   Measurement MeasureOnce(const Variant& variant, const TuningDataset& dataset, const TimingOptions& options, bool* lost);
   void Start();
+  void Spawn();                      // the child process, its pipes connected
+  void AwaitGreeting();              // its {"ready": ...} line, for this device
   void Stop();                       // end of input, then SIGKILL if it lingers
   void Kill();                       // SIGKILL and reap
   std::string Reap(bool block);      // waits for the child; "signal N (name)" / "exit code N"

@@ -5,7 +5,8 @@
 #include "reference/error.h"
 #include "reference/skinning.h"
 #include "reference/synthetic.h"
-#include "tuner/backends_internal.h"
+#include "tuner/datasets.h"
+#include "tuner/measure_job.h"
 #include "report/cpu_timing.h"
 
 namespace skintune::internal {

@@ -1,17 +1,23 @@
-// The one Measure (tuner/backends_internal.h MeasureWith) over a fake
+// The measurement job (tuner/measure_job.h MeasureJob) over a fake
 // executor: the residency rule, the burst and the same-size copy it asks the
 // runner for, and what it records. No device: the fake answers the
 // verification run with the gold itself and times with numbers it is given.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <cstring>
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "generator/variant.h"
 #include "runtime/physical_device.h"
-#include "tuner/backends_internal.h"
+#include "tuner/datasets.h"
+#include "tuner/executor.h"
+#include "tuner/fault_injection.h"
+#include "tuner/measure_job.h"
 #include "tuner/measurement.h"
 
 namespace skintune::internal {
@@ -19,7 +25,8 @@ namespace {
 
 using tuner_internal::DatasetCache;
 using tuner_internal::Executor;
-using tuner_internal::MeasureWith;
+using tuner_internal::MeasureJob;
+using tuner_internal::MeasurementOf;
 
 // Answers Run with the variant's gold (so verification passes) and Time /
 // TimeCopy with fixed per-frame times, recording what it was asked.
@@ -29,8 +36,9 @@ class FakeExecutor final : public Executor {
 
   // Instance after instance, each in packed order; vertex `wrong_vertex` of
   // the scene's output (when set) is moved by 1.
-  Output Run(const PackedMesh& mesh, std::span<const KernelSource>, std::span<const std::uint8_t>,
+  Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t>,
              int instances) override {
+    for (const KernelSource& k : kernels) run_texts.push_back(k.text);
     DatasetCache::Entry& entry = datasets_.Get(dataset_);
     const GoldResult& gold = datasets_.Gold(entry, mesh.variant);
     run_instances = instances;
@@ -96,6 +104,7 @@ class FakeExecutor final : public Executor {
   std::optional<Lang> copy_lang;
   std::size_t copy_bytes = 0;
   int copy_sets = 0;
+  std::vector<std::string> run_texts;  // the kernels of every Run, in order
 
  private:
   DatasetCache& datasets_;
@@ -123,7 +132,7 @@ DeviceLimits Limits() {
 
 Measurement MeasureOn(FakeExecutor& executor, DatasetCache& datasets, const DeviceIdentity& device,
                       const std::string& key, const TimingOptions& options) {
-  return MeasureWith(executor, datasets, device, Limits(), {Lang::kOpenCl}, ParseVariantKey(key), {"5000-b4"}, options);
+  return MeasurementOf({&executor, &datasets, &device, Limits(), {Lang::kOpenCl}, ParseVariantKey(key), {"5000-b4"}, options});
 }
 
 constexpr const char* kVariant = "opencl.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals";
@@ -200,9 +209,9 @@ TEST(Measure, InstancesAndBatchesAreVerifiedPartByPartAndTimedAsAWhole) {
     const Measurement single = [&] {
       DatasetCache d;
       FakeExecutor e(d, "1000-b2");
-      return MeasureWith(e, d, gpu, Limits(), {Lang::kOpenCl}, variant, {"1000-b2"}, options);
+      return MeasurementOf({&e, &d, &gpu, Limits(), {Lang::kOpenCl}, variant, {"1000-b2"}, options});
     }();
-    const Measurement m = MeasureWith(executor, datasets, gpu, Limits(), {Lang::kOpenCl}, variant, {"1000-b2-x5"}, options);
+    const Measurement m = MeasurementOf({&executor, &datasets, &gpu, Limits(), {Lang::kOpenCl}, variant, {"1000-b2-x5"}, options});
     ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
     EXPECT_EQ(executor.run_instances, 5);
     EXPECT_EQ(executor.time_instances, 5);
@@ -210,7 +219,7 @@ TEST(Measure, InstancesAndBatchesAreVerifiedPartByPartAndTimedAsAWhole) {
     EXPECT_EQ(static_cast<double>(executor.copy_bytes), m.bytes_per_frame);
     executor.wrong_vertex = 3 * 1000 + 17;
     const Measurement wrong =
-        MeasureWith(executor, datasets, gpu, Limits(), {Lang::kOpenCl}, variant, {"1000-b2-x5"}, options);
+        MeasurementOf({&executor, &datasets, &gpu, Limits(), {Lang::kOpenCl}, variant, {"1000-b2-x5"}, options});
     EXPECT_EQ(wrong.status, MeasureStatus::kVerifyFailed);
     EXPECT_NE(wrong.detail.find("instance 3: positions: max relative error"), std::string::npos) << wrong.detail;
     EXPECT_NE(wrong.detail.find("at vertex 17"), std::string::npos) << wrong.detail;
@@ -219,13 +228,13 @@ TEST(Measure, InstancesAndBatchesAreVerifiedPartByPartAndTimedAsAWhole) {
     const std::string key = "800-b1-bones5+1200-b2-bones30-seed4+600-b2";
     DatasetCache datasets;
     FakeExecutor executor(datasets, key);
-    const Measurement m = MeasureWith(executor, datasets, gpu, Limits(), {Lang::kOpenCl}, variant, {key}, options);
+    const Measurement m = MeasurementOf({&executor, &datasets, &gpu, Limits(), {Lang::kOpenCl}, variant, {key}, options});
     ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
     EXPECT_EQ(executor.run_instances, 1);
     EXPECT_EQ(datasets.Get(key).parts.size(), 3u);
     EXPECT_EQ(datasets.Get(key).mesh().joint_count, 5 + 30 + 77);
     executor.wrong_vertex = 800 + 1200 + 5;
-    const Measurement wrong = MeasureWith(executor, datasets, gpu, Limits(), {Lang::kOpenCl}, variant, {key}, options);
+    const Measurement wrong = MeasurementOf({&executor, &datasets, &gpu, Limits(), {Lang::kOpenCl}, variant, {key}, options});
     EXPECT_EQ(wrong.status, MeasureStatus::kVerifyFailed);
     EXPECT_NE(wrong.detail.find("meshes[2] (600-b2): positions"), std::string::npos) << wrong.detail;
     EXPECT_NE(wrong.detail.find("at vertex 5 "), std::string::npos) << wrong.detail;
@@ -234,7 +243,7 @@ TEST(Measure, InstancesAndBatchesAreVerifiedPartByPartAndTimedAsAWhole) {
     const std::string big = "500-b2+500-b2-seed2+500-b2-seed3+500-b2-seed4";  // 4 x 77 joints
     DatasetCache more;
     FakeExecutor e(more, big);
-    const Measurement invalid = MeasureWith(e, more, gpu, Limits(), {Lang::kOpenCl}, u8, {big}, options);
+    const Measurement invalid = MeasurementOf({&e, &more, &gpu, Limits(), {Lang::kOpenCl}, u8, {big}, options});
     EXPECT_EQ(invalid.status, MeasureStatus::kInvalid);
     EXPECT_NE(invalid.detail.find("308"), std::string::npos) << invalid.detail;
   }
@@ -263,7 +272,7 @@ TEST(Measure, RecordsTheKernelTimeWithItsIntervalAndTheFrameTime) {
   EXPECT_EQ(ImpossibleFigures(m), "");
 }
 
-// The stop rule as MeasureWith applies it: a steady kernel stops at
+// The stop rule as the job applies it: a steady kernel stops at
 // min_samples; a noisy one samples up to the cap and says it was capped.
 TEST(Measure, SamplesUntilTheIntervalIsTightOrTheCap) {
   TimingOptions options;
@@ -301,6 +310,111 @@ TEST(Measure, AFootprintInsideTheCacheIsTimedAfterAFlush) {
   EXPECT_GE(FlushBytes(0), 2 * kUnknownCacheBytes) << "an unknown cache is flushed as a 64 MiB one";
   EXPECT_EQ(FlushBytes(300ull << 20, /*cpu=*/true), kCpuFlushCapBytes) << "a CPU's socket-wide L3 is not read whole";
   EXPECT_EQ(FlushBytes(300ull << 20, /*cpu=*/false), 600ull << 20);
+}
+
+// ---------------------------------------------------------------- the job's inputs
+
+MeasureJob CompleteJob(FakeExecutor& executor, DatasetCache& datasets, const DeviceIdentity& device, Measurement& m) {
+  return {&executor, &datasets, &device, Limits(), {Lang::kOpenCl}, ParseVariantKey(kVariant), {"5000-b4"}, {}, &m};
+}
+
+// A job checks its inputs before it runs: a missing one, or timing options
+// that cannot work, fail Validate() and Run() writes nothing.
+TEST(MeasureJob, RunsOnlyWithEveryInputAndTimingThatCanWork) {
+  DatasetCache datasets;
+  FakeExecutor executor(datasets, "5000-b4");
+  const DeviceIdentity gpu = Gpu(50ull << 20);
+  Measurement m;
+  EXPECT_TRUE(CompleteJob(executor, datasets, gpu, m).Validate());
+  const std::vector<std::pair<const char*, std::function<void(MeasureJob&)>>> breaks = {
+      {"no executor", [](MeasureJob& j) { j.executor = nullptr; }},
+      {"no data sets", [](MeasureJob& j) { j.datasets = nullptr; }},
+      {"no device", [](MeasureJob& j) { j.device = nullptr; }},
+      {"no output", [](MeasureJob& j) { j.measurement = nullptr; }},
+      {"no data set key", [](MeasureJob& j) { j.dataset.key.clear(); }},
+      {"no language", [](MeasureJob& j) { j.languages.clear(); }},
+      {"a tolerance of 0", [](MeasureJob& j) { j.options.tolerance = 0.0; }},
+      {"a tolerance over kMaxTolerance", [](MeasureJob& j) { j.options.tolerance = 2 * kMaxTolerance; }},
+      {"a batch of no samples", [](MeasureJob& j) { j.options.stop.batch = 0; }},
+      {"bursts of no time", [](MeasureJob& j) { j.options.burst_ms = 0.0; }}};
+  for (const auto& [what, broken] : breaks) {
+    SCOPED_TRACE(what);
+    m.detail = "untouched";
+    MeasureJob job = CompleteJob(executor, datasets, gpu, m);
+    broken(job);
+    EXPECT_FALSE(job.Validate());
+    EXPECT_FALSE(job.Run());
+    EXPECT_EQ(m.detail, "untouched");
+  }
+  EXPECT_EQ(executor.run_texts.size(), 0u) << "nothing ran";
+  EXPECT_TRUE(CompleteJob(executor, datasets, gpu, m).Run());
+  EXPECT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+}
+
+// ---------------------------------------------------------------- injected faults (tuner/fault_injection.h)
+
+// The fault-injecting executor around a fake, and a job on it.
+struct FaultyFake {
+  DatasetCache datasets;
+  FakeExecutor* fake = nullptr;  // owned by `executor`
+  std::unique_ptr<Executor> executor;
+  DeviceIdentity gpu = Gpu(50ull << 20);
+
+  explicit FaultyFake(const std::string& kind) {
+    auto inner = std::make_unique<FakeExecutor>(datasets, "5000-b4");
+    fake = inner.get();
+    executor = tuner_internal::InjectingFault({ParseVariantKey(kVariant).Key(), kind})(std::move(inner), gpu);
+  }
+  Measurement Measure(const std::string& key) {
+    return MeasurementOf({executor.get(), &datasets, &gpu, Limits(), {Lang::kOpenCl}, ParseVariantKey(key), {"5000-b4"}, {}});
+  }
+};
+
+constexpr const char* kOtherVariant = "opencl.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals";
+
+TEST(FaultInjection, TheDeviceGetsTheFaultyVariantsKernelsEditedAndEveryOtherAsEmitted) {
+  for (const char* kind : {"compile", "wrong", "hang"}) {
+    SCOPED_TRACE(kind);
+    FaultyFake f(kind);
+    (void)f.Measure(kOtherVariant);
+    ASSERT_FALSE(f.fake->run_texts.empty());
+    for (const std::string& text : f.fake->run_texts) EXPECT_EQ(text.find("skintune injected"), std::string::npos);
+    f.fake->run_texts.clear();
+    (void)f.Measure(kVariant);
+    ASSERT_FALSE(f.fake->run_texts.empty());
+    for (const std::string& text : f.fake->run_texts) EXPECT_NE(text.find("skintune injected"), std::string::npos);
+  }
+}
+
+TEST(FaultInjection, ALostDeviceFailsItsVariantAndEveryLaterRunAsTheRunnerSaysLost) {
+  FaultyFake f("lost");
+  EXPECT_EQ(f.Measure(kOtherVariant).status, MeasureStatus::kOk);
+  for (const char* key : {kVariant, kOtherVariant}) {
+    SCOPED_TRACE(key);
+    const Measurement m = f.Measure(key);
+    EXPECT_EQ(m.status, MeasureStatus::kLaunchFailed);
+    EXPECT_EQ(m.detail, "opencl lost: the device was lost in this process (injected fault 'lost')");
+    EXPECT_TRUE(tuner_internal::DeviceLostIn(m.detail));
+  }
+  EXPECT_THROW((void)f.executor->Copy(Lang::kOpenCl, 4096, 1), Error);
+}
+
+TEST(FaultInjection, ACrashEndsTheProcessWhenTheVariantRuns) {
+  EXPECT_DEATH(
+      {
+        FaultyFake f("crash");
+        (void)f.Measure(kOtherVariant);
+        (void)f.Measure(kVariant);
+      },
+      "");
+}
+
+TEST(FaultInjection, NoFaultInTheEnvironmentIsNoDecorator) {
+  ::unsetenv("SKINTUNE_INJECT_FAULT");
+  EXPECT_FALSE(tuner_internal::FaultsFromEnvironment());
+  ::setenv("SKINTUNE_INJECT_FAULT", "opencl.b2=hang", 1);
+  EXPECT_TRUE(tuner_internal::FaultsFromEnvironment());
+  ::unsetenv("SKINTUNE_INJECT_FAULT");
 }
 
 }  // namespace

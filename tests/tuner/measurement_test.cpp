@@ -125,7 +125,7 @@ TEST(MeasureStatus, NamesRoundTrip) {
             "timeout, too_imprecise)");
 }
 
-// A verified measurement with its error against the source, as MeasureWith records it.
+// A verified measurement with its error against the source, as the measurement job records it.
 Measurement WithSourceError(double quantisation_rel) {
   Measurement m = Sample("opencl.b4.soa.unorm8.wg64", MeasureStatus::kOk);
   m.source_error.known = true;

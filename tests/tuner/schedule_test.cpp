@@ -3,6 +3,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <atomic>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "reference/error.h"
+
 namespace skintune::internal {
 namespace {
 
@@ -46,6 +54,59 @@ TEST(Schedule, TwoGpusAreApartOnlyWhenTheirIdentitiesSaySo) {
   EXPECT_TRUE(MayShareHardware(Device("cuda", "gpu", "aa"), Device("opencl", "gpu", "", "0000:01:00.0")));
   EXPECT_FALSE(MayShareHardware(Device("opencl", "cpu"), Device("cuda", "gpu", "aa")));
   EXPECT_TRUE(IndependentGroups({}).empty());
+}
+
+TEST(Schedule, GroupsRunSideBySideUnlessAskedOneAfterAnotherAndACpuBesideAGpuSharesTheHost) {
+  const std::vector<DeviceIdentity> devices = {Device("cuda", "gpu", "aa"), Device("opencl", "cpu"),
+                                               Device("gl", "gpu", "aa")};
+  const Schedule parallel = ScheduleDevices(devices, true);
+  EXPECT_EQ(parallel.groups, (Groups{{0, 2}, {1}}));
+  EXPECT_TRUE(parallel.shares_host);
+  const Schedule serial = ScheduleDevices(devices, false);
+  EXPECT_EQ(serial.groups, (Groups{{0, 1, 2}}));
+  EXPECT_FALSE(serial.shares_host);  // nothing runs beside the CPU device
+  EXPECT_FALSE(ScheduleDevices({Device("cuda", "gpu", "aa"), Device("cuda", "gpu", "bb")}, true).shares_host);
+}
+
+TEST(Schedule, EveryDeviceRunsOnceInItsGroupsOrderBesideWhatPreparesTheLaterOnes) {
+  Schedule schedule;
+  schedule.groups = {{0, 2, 3}, {1}};
+  std::mutex mutex;
+  std::vector<std::size_t> order_of_first;  // the first group's devices, in the order they ran
+  std::vector<std::size_t> ran;
+  std::vector<std::size_t> reached_seen;
+  RunSchedule(
+      schedule,
+      [&](std::size_t d) {
+        const std::lock_guard<std::mutex> lock(mutex);
+        ran.push_back(d);
+        if (d != 1) order_of_first.push_back(d);
+      },
+      [&](const std::vector<std::size_t>& group, const std::atomic<std::size_t>& reached) {
+        EXPECT_EQ(group, (std::vector<std::size_t>{0, 2, 3}));  // only beside a group of several devices
+        while (reached.load() < group.size()) std::this_thread::yield();
+        const std::lock_guard<std::mutex> lock(mutex);
+        reached_seen.push_back(reached.load());
+      });
+  std::sort(ran.begin(), ran.end());
+  EXPECT_EQ(ran, (std::vector<std::size_t>{0, 1, 2, 3}));
+  EXPECT_EQ(order_of_first, (std::vector<std::size_t>{0, 2, 3}));
+  EXPECT_EQ(reached_seen, (std::vector<std::size_t>{3}));
+}
+
+TEST(Schedule, AGroupsErrorIsRethrownOnceEveryGroupHasRun) {
+  Schedule schedule;
+  schedule.groups = {{0}, {1}};
+  std::atomic<int> runs{0};
+  EXPECT_THROW(RunSchedule(
+                   schedule,
+                   [&](std::size_t d) {
+                     ++runs;
+                     if (d == 1) throw Error("device 1 failed");
+                   },
+                   {}),
+               Error);
+  EXPECT_EQ(runs.load(), 2);
 }
 
 }  // namespace

@@ -20,7 +20,7 @@
 
 #include "tests/tools/run_command.h"
 #include "runtime/winners_db.h"
-#include "tuner/backend.h"
+#include "tuner/fault_injection.h"
 #include "tuner/measurement.h"
 #include "tests/common/scratch_dir.h"
 #include "tests/common/tiny_tune_config.h"

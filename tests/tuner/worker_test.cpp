@@ -73,12 +73,12 @@ std::string ReadAll(const fs::path& p) {
 
 // docs/INPUTS.md "Measurements: one rule for every time": a device (its timer, its driver) that reports an
 // impossible time fails that variant, never the run, and never ranks.
-TEST(IsolatedBackend, AnImpossibleTimeFromTheWorkerIsLaunchFailedAndTheWorkerStays) {
+TEST(IsolatedDevice, AnImpossibleTimeFromTheWorkerIsLaunchFailedAndTheWorkerStays) {
   const fs::path dir = Scratch();
   std::string zero = kAnswer;
   zero.replace(zero.find("\"median_ms\":1.5"), 15, "\"median_ms\":0.0");
   const std::string exe = FakeWorker(dir, "while read line; do echo '" + zero + "'; done");
-  IsolatedBackend worker(exe, FakeDevice(), 30);
+  IsolatedDevice worker(exe, FakeDevice(), 30);
   for (int i = 0; i < 2; ++i) {
     const Measurement m = worker.Measure(kVariant, kDataset, TimingOptions{});
     EXPECT_EQ(m.status, MeasureStatus::kLaunchFailed);
@@ -90,12 +90,12 @@ TEST(IsolatedBackend, AnImpossibleTimeFromTheWorkerIsLaunchFailedAndTheWorkerSta
   EXPECT_EQ(worker.starts(), 1);
 }
 
-TEST(IsolatedBackend, SendsOneRequestPerLineAndReadsTheMeasurement) {
+TEST(IsolatedDevice, SendsOneRequestPerLineAndReadsTheMeasurement) {
   const fs::path dir = Scratch();
   const std::string exe =
       FakeWorker(dir, std::string("while read line; do echo \"$line\" >> \"$DIR/requests\"; echo '") + kAnswer +
                           "'; done");
-  IsolatedBackend worker(exe, FakeDevice(), 30);
+  IsolatedDevice worker(exe, FakeDevice(), 30);
   TimingOptions timing;
   timing.repetitions = 3;
   for (int i = 0; i < 2; ++i) {
@@ -111,7 +111,7 @@ TEST(IsolatedBackend, SendsOneRequestPerLineAndReadsTheMeasurement) {
   }
   EXPECT_EQ(worker.starts(), 1);
   // The worker selects its device by identity; the index is only a hint.
-  EXPECT_EQ(ReadAll(dir / "args"), "tune-worker --backend-index 3 --device-id " + FakeDevice().Id() + "\n");
+  EXPECT_EQ(ReadAll(dir / "args"), "tune-worker --device-index 3 --device-id " + FakeDevice().Id() + "\n");
   std::ifstream requests(dir / "requests");
   std::string line;
   ASSERT_TRUE(std::getline(requests, line));
@@ -124,13 +124,13 @@ TEST(IsolatedBackend, SendsOneRequestPerLineAndReadsTheMeasurement) {
   EXPECT_EQ(request.at("timing").at("tolerance"), timing.tolerance);
 }
 
-TEST(IsolatedBackend, HangIsATimeoutAndAFreshWorkerServesTheNextVariant) {
+TEST(IsolatedDevice, HangIsATimeoutAndAFreshWorkerServesTheNextVariant) {
   const fs::path dir = Scratch();
   // The first worker hangs on its request; the ones after it answer.
   const std::string exe = FakeWorker(
       dir, std::string("if [ ! -e \"$DIR/hung\" ]; then : > \"$DIR/hung\"; read line; exec sleep 600; fi\n") +
                "while read line; do echo '" + kAnswer + "'; done");
-  IsolatedBackend worker(exe, FakeDevice(), 0.5);
+  IsolatedDevice worker(exe, FakeDevice(), 0.5);
   const auto start = std::chrono::steady_clock::now();
   const Measurement hung = worker.Measure(kVariant, kDataset, {});
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
@@ -143,12 +143,12 @@ TEST(IsolatedBackend, HangIsATimeoutAndAFreshWorkerServesTheNextVariant) {
   EXPECT_EQ(worker.starts(), 2);
 }
 
-TEST(IsolatedBackend, CrashIsALaunchFailureNamingTheSignal) {
+TEST(IsolatedDevice, CrashIsALaunchFailureNamingTheSignal) {
   const fs::path dir = Scratch();
   const std::string exe = FakeWorker(
       dir, std::string("if [ ! -e \"$DIR/crashed\" ]; then : > \"$DIR/crashed\"; read line; ") +
                "echo 'about to crash' >&2; kill -ABRT $$; fi\nwhile read line; do echo '" + kAnswer + "'; done");
-  IsolatedBackend worker(exe, FakeDevice(), 30);
+  IsolatedDevice worker(exe, FakeDevice(), 30);
   const Measurement crashed = worker.Measure(kVariant, kDataset, {});
   EXPECT_EQ(crashed.status, MeasureStatus::kLaunchFailed);
   EXPECT_EQ(crashed.detail, "worker process died: signal 6 (Aborted); its last stderr line: about to crash");
@@ -159,14 +159,14 @@ TEST(IsolatedBackend, CrashIsALaunchFailureNamingTheSignal) {
 // A worker killed from outside (kill -9 by a user, the OOM killer) or
 // stopped until its time ran out says nothing about the variant: recorded
 // as interrupted, which a resumed run measures again, unlike a crash.
-TEST(IsolatedBackend, AWorkerKilledOrStoppedFromOutsideIsRecordedAsInterrupted) {
+TEST(IsolatedDevice, AWorkerKilledOrStoppedFromOutsideIsRecordedAsInterrupted) {
   const fs::path dir = Scratch();
   const std::string exe = FakeWorker(
       dir, std::string("read line; case \"$(ls \"$DIR\" | grep -c '^seen')\" in\n") +
                "0) : > \"$DIR/seen1\"; kill -KILL $$;;\n"   // as `kill -9 <worker>` from a shell
                "1) : > \"$DIR/seen2\"; kill -STOP $$;;\n"   // as a debugger or `kill -STOP`
                "esac\nwhile :; do echo '" + kAnswer + "'; read line || exit 0; done");
-  IsolatedBackend worker(exe, FakeDevice(), 1.0);
+  IsolatedDevice worker(exe, FakeDevice(), 1.0);
   const Measurement killed = worker.Measure(kVariant, kDataset, {});
   EXPECT_EQ(killed.status, MeasureStatus::kLaunchFailed);
   EXPECT_EQ(killed.detail, std::string(kInterruptedDetail) + "worker process died: signal 9 (Killed)");
@@ -185,12 +185,12 @@ const char* kLostAnswer =
     R"({"device_id":"elsewhere","dataset":"x","variant":{"lang":"cuda"},"status":"launch_failed",)"
     R"("generator_version":"9","detail":"GL lost: the driver reset the GL context","device_lost":true})";
 
-TEST(IsolatedBackend, ALostDeviceIsMeasuredAgainInAFreshWorker) {
+TEST(IsolatedDevice, ALostDeviceIsMeasuredAgainInAFreshWorker) {
   const fs::path dir = Scratch();
   const std::string exe = FakeWorker(
       dir, std::string("if [ ! -e \"$DIR/lost\" ]; then : > \"$DIR/lost\"; read line; echo '") + kLostAnswer +
                "'; exit 0; fi\nwhile read line; do echo '" + kAnswer + "'; done");
-  IsolatedBackend worker(exe, FakeDevice(), 30);
+  IsolatedDevice worker(exe, FakeDevice(), 30);
   const Measurement m = worker.Measure(kVariant, kDataset, {});
   EXPECT_EQ(m.status, MeasureStatus::kOk);
   EXPECT_EQ(m.detail,
@@ -201,12 +201,12 @@ TEST(IsolatedBackend, ALostDeviceIsMeasuredAgainInAFreshWorker) {
   EXPECT_EQ(worker.starts(), 2);
 }
 
-TEST(IsolatedBackend, ADeviceLostTwiceIsRecordedAndTheNextVariantGetsAThirdWorker) {
+TEST(IsolatedDevice, ADeviceLostTwiceIsRecordedAndTheNextVariantGetsAThirdWorker) {
   const fs::path dir = Scratch();
   const std::string exe = FakeWorker(
       dir, std::string("n=$(ls \"$DIR\" | grep -c '^lost') ; if [ \"$n\" -lt 2 ]; then : > \"$DIR/lost$n\"; read line; echo '") +
                kLostAnswer + "'; exit 0; fi\nwhile read line; do echo '" + kAnswer + "'; done");
-  IsolatedBackend worker(exe, FakeDevice(), 30);
+  IsolatedDevice worker(exe, FakeDevice(), 30);
   const Measurement m = worker.Measure(kVariant, kDataset, {});
   EXPECT_EQ(m.status, MeasureStatus::kLaunchFailed);
   EXPECT_EQ(m.detail,
@@ -216,46 +216,46 @@ TEST(IsolatedBackend, ADeviceLostTwiceIsRecordedAndTheNextVariantGetsAThirdWorke
   EXPECT_EQ(worker.starts(), 3);
 }
 
-TEST(IsolatedBackend, ExitIsALaunchFailureNamingTheExitCode) {
+TEST(IsolatedDevice, ExitIsALaunchFailureNamingTheExitCode) {
   const fs::path dir = Scratch();
   const std::string exe = FakeWorker(dir, "read line; exit 3");
-  IsolatedBackend worker(exe, FakeDevice(), 30);
+  IsolatedDevice worker(exe, FakeDevice(), 30);
   const Measurement m = worker.Measure(kVariant, kDataset, {});
   EXPECT_EQ(m.status, MeasureStatus::kLaunchFailed);
   EXPECT_EQ(m.detail, "worker process died: exit code 3");
 }
 
-TEST(IsolatedBackend, SetUpErrorOfTheDeviceIsAWorkerError) {
+TEST(IsolatedDevice, SetUpErrorOfTheDeviceIsAWorkerError) {
   const fs::path dir = Scratch();
-  IsolatedBackend worker(FakeWorker(dir, "read line; echo '{\"error\": \"device lost\"}'"), FakeDevice(), 30);
+  IsolatedDevice worker(FakeWorker(dir, "read line; echo '{\"error\": \"device lost\"}'"), FakeDevice(), 30);
   EXPECT_EQ(ErrorOf([&] { worker.Measure(kVariant, kDataset, {}); }), "device lost");
 }
 
-TEST(IsolatedBackend, WorkerOfAnotherDeviceIsAWorkerError) {
+TEST(IsolatedDevice, WorkerOfAnotherDeviceIsAWorkerError) {
   const fs::path dir = Scratch();
-  IsolatedBackend worker(FakeWorker(dir, "cat > /dev/null", "gl:EGL/other/2"), FakeDevice(), 30);
+  IsolatedDevice worker(FakeWorker(dir, "cat > /dev/null", "gl:EGL/other/2"), FakeDevice(), 30);
   EXPECT_EQ(ErrorOf([&] { worker.Measure(kVariant, kDataset, {}); }),
-            "worker process found 'gl:EGL/other/2' as backend 3, not '" + FakeDevice().Id() +
+            "worker process found 'gl:EGL/other/2' as device 3, not '" + FakeDevice().Id() +
                 "' (the devices changed since discovery)");
 }
 
-TEST(IsolatedBackend, WorkerThatCannotStartIsAWorkerError) {
+TEST(IsolatedDevice, WorkerThatCannotStartIsAWorkerError) {
   const fs::path dir = Scratch();
   const fs::path script = dir / "broken";
   std::ofstream(script) << "#!/bin/sh\necho 'no device here' >&2\nexit 1\n";
   ::chmod(script.c_str(), 0755);
-  IsolatedBackend worker(script.string(), FakeDevice(), 30);
+  IsolatedDevice worker(script.string(), FakeDevice(), 30);
   EXPECT_EQ(ErrorOf([&] { worker.Measure(kVariant, kDataset, {}); }),
             "worker process failed to start: exit code 1; its last stderr line: no device here");
-  IsolatedBackend missing((dir / "does-not-exist").string(), FakeDevice(), 30);
+  IsolatedDevice missing((dir / "does-not-exist").string(), FakeDevice(), 30);
   EXPECT_EQ(ErrorOf([&] { missing.Measure(kVariant, kDataset, {}); }),
             "worker process failed to start: exit code 127; its last stderr line: skintune: cannot execute the tune "
             "worker");
 }
 
-TEST(IsolatedBackend, CopyBandwidthAnswerOrReason) {
+TEST(IsolatedDevice, CopyBandwidthAnswerOrReason) {
   const fs::path dir = Scratch();
-  IsolatedBackend worker(
+  IsolatedDevice worker(
       FakeWorker(dir, "read line; echo '{\"copy_bandwidth_gbps\": 12.5}'; read line; "
                       "echo '{\"copy_bandwidth_error\": \"no copy kernel\"}'; read line; exit 4"),
       FakeDevice(), 30);
@@ -268,10 +268,10 @@ TEST(IsolatedBackend, CopyBandwidthAnswerOrReason) {
 }
 
 // The host lock (tuner/host_lock.h) reaches every worker as --host-lock.
-TEST(IsolatedBackend, WorkersAreToldTheHostLock) {
+TEST(IsolatedDevice, WorkersAreToldTheHostLock) {
   const fs::path dir = Scratch();
   for (const bool with_lock : {false, true}) {
-    IsolatedBackend worker(FakeWorker(dir, "read line; echo '{\"copy_bandwidth_gbps\": 12.5}'"), FakeDevice(), 30);
+    IsolatedDevice worker(FakeWorker(dir, "read line; echo '{\"copy_bandwidth_gbps\": 12.5}'"), FakeDevice(), 30);
     if (with_lock) worker.UseHostLock("/tmp/the-host-lock");
     EXPECT_EQ(worker.CopyBandwidthGBps(1 << 20), 12.5);
     const std::string args = ReadAll(dir / "args");
@@ -283,14 +283,14 @@ TEST(IsolatedBackend, WorkersAreToldTheHostLock) {
 // getenv's pointer) during the parent's own discovery; the worker must still
 // get the variable as the process started with it. ctest sets
 // SKINTUNE_TEST_ICD_LIST=first.so:second.so for this binary.
-TEST(IsolatedBackend, WorkerGetsTheStartupEnvironmentEvenAfterALibraryEditedItInPlace) {
+TEST(IsolatedDevice, WorkerGetsTheStartupEnvironmentEvenAfterALibraryEditedItInPlace) {
   char* live = std::getenv("SKINTUNE_TEST_ICD_LIST");
   if (live == nullptr) GTEST_SKIP() << "SKINTUNE_TEST_ICD_LIST is not set (ctest sets it)";
   ASSERT_STREQ(live, "first.so:second.so");
   std::strtok(live, ":");  // what such a loader does
   ASSERT_STREQ(std::getenv("SKINTUNE_TEST_ICD_LIST"), "first.so");
   const fs::path dir = Scratch();
-  IsolatedBackend worker(
+  IsolatedDevice worker(
       FakeWorker(dir, "read line; echo \"{\\\"copy_bandwidth_error\\\": \\\"$SKINTUNE_TEST_ICD_LIST\\\"}\""),
       FakeDevice(), 30);
   std::string why;

@@ -1,7 +1,8 @@
-// skintune: the tuner's Backend on any device of any API: identity, limits
-// and languages from the runtime's discovery (runtime/backend_table.h),
-// Measure and the copy bandwidth through the runner driver (runtime/runner.h),
-// programs through the on-disk program cache (runtime/program_cache.h) on GPUs, which
+// skintune: the tuner's TunedDevice on any device of any API
+// (tuner/runner_device.h): identity, limits and languages from the runtime's
+// discovery (runtime/backend_table.h), the jobs (tuner/measure_job.h) and the
+// copy bandwidth through the runner driver (runtime/runner.h), programs
+// through the on-disk program cache (runtime/program_cache.h) on GPUs, which
 // CompileAhead fills from several threads.
 #include <algorithm>
 #include <atomic>
@@ -16,8 +17,14 @@
 #include <thread>
 #include <utility>
 
-#include "tuner/backends_internal.h"
+#include "tuner/runner_device.h"
+
+#include "reference/error.h"
+#include "runtime/program_cache.h"
+#include "tuner/datasets.h"
 #include "tuner/host_lock.h"
+#include "tuner/measure_job.h"
+#include "tuner/schedule.h"  // IsHostCpu
 
 namespace skintune::internal::tuner_internal {
 
@@ -41,12 +48,11 @@ namespace {
 //   thread only; program binaries land in the program cache.
 // On the H100 a cold default run spent 100-130 ms per GL and Vulkan variant
 // between timings, most of it compiling one kernel at a time (H100 machine, 2026-11-24).
-constexpr std::string_view kCompileAheadBackends[] = {"opencl", "cuda", "vulkan", "gl"};
+constexpr std::string_view kCompileAheadApis[] = {"opencl", "cuda", "vulkan", "gl"};
 
 // At most this many compile threads (each holds a context of the device).
 constexpr unsigned kMaxCompileThreads = 8;
 
-bool IsCpu(const DeviceIdentity& d) { return d.type.find("cpu") != std::string::npos; }
 // Input sets kept across the measurements of one data set (Runner::ShareTimedInputs):
 // an eighth of the device's memory, at most 1 GiB (8 sets of a 6400k-vertex
 // mesh's inputs: 8 x ~100 MB); 256 MiB where the device does not say.
@@ -138,10 +144,10 @@ class CompileThreads {
   std::size_t busy_ = 0;
 };
 
-class DeviceBackend final : public Backend {
+class RunnerDevice final : public TunedDevice {
  public:
-  DeviceBackend(FoundDevice device, std::vector<Lang> languages, int index)
-      : device_(std::move(device)), languages_(std::move(languages)) {
+  RunnerDevice(FoundDevice device, std::vector<Lang> languages, int index, ExecutorDecorator decorate)
+      : device_(std::move(device)), languages_(std::move(languages)), decorate_(std::move(decorate)) {
     device_.identity.index = index;
   }
 
@@ -150,12 +156,16 @@ class DeviceBackend final : public Backend {
   std::vector<Lang> languages() const override { return languages_; }
 
   Measurement Measure(const Variant& variant, const TuningDataset& dataset, const TimingOptions& options) override {
-    return MeasureWith(Executor(), datasets_, device_.identity, limits(), languages(), variant, dataset, options);
+    return MeasurementOf(
+        {&MeasuringExecutor(), &datasets_, &device_.identity, limits(), languages(), variant, dataset, options});
   }
 
   std::vector<std::vector<double>> Race(const std::vector<Variant>& variants, const TuningDataset& dataset,
                                         const TimingOptions& options) override {
-    return RaceWith(Executor(), datasets_, device_.identity, variants, dataset, options);
+    std::vector<std::vector<double>> samples;
+    const RaceJob job{&MeasuringExecutor(), &datasets_, &device_.identity, variants, dataset, options, &samples};
+    if (!job.Run()) throw Error("race on " + dataset.key + ": no variant, or a stop rule that cannot work");
+    return samples;
   }
 
   double CopyBandwidthGBps(std::size_t bytes) override {
@@ -166,39 +176,21 @@ class DeviceBackend final : public Backend {
     // allocation and first touch on a CPU device) are made before a CPU
     // device takes the host's cores for the samples alone (tuner/host_lock.h),
     // so the GPU workers beside it wait only for the samples.
-    RunnerExecutor& executor = Executor();  // opens runner_
-    const std::unique_ptr<tuner_internal::Executor::Timed> copy = executor.Copy(languages_.front(), 2 * size, 1);
-    const HostLock timed(TimedMode(IsCpu(device_.identity)));
+    const std::unique_ptr<Executor::Timed> copy = MeasuringExecutor().Copy(languages_.front(), 2 * size, 1);
+    const HostLock timed(TimedMode(IsHostCpu(device_.identity)));
     TimingOptions options;
     options.warmup = 2;
     options.stop.min_samples = 5;
     options.stop.max_samples = 20;
     options.stop.batch = 5;
-    return CopyGBps(size, {tuner_internal::SampleKernelTime(*copy, options).interval.median});
+    return CopyGBps(size, {SampleKernelTime(*copy, options).interval.median});
   }
 
   std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) override {
     if (!CompilesAhead(device_.identity)) return 0;
-    const HostLock host_work(HostWorkMode(IsCpu(device_.identity)));  // compiles are host work
-    // The kernels, emitted here (one thread): as Measure emits them, without
-    // the injected fault's variant (Measure makes that one fail on purpose).
-    const InjectedFault fault = InjectedFaultFromEnvironment();
-    DatasetCache::Entry& data = datasets_.Get(dataset.key);
-    std::vector<KernelSource> kernels;
-    std::set<std::string> hashes;
-    for (const Variant& v : variants) {
-      if (!fault.kind.empty() && fault.variant_key == v.Key()) continue;
-      try {
-        std::vector<KernelSource> emitted;
-        (void)PackScene(datasets_, data, v, emitted);
-        for (KernelSource& k : emitted)
-          if (hashes.insert(k.source_hash).second) kernels.push_back(std::move(k));
-      } catch (const Error&) {
-        // Not packable or emittable: Measure records it (invalid).
-      }
-    }
+    const HostLock host_work(HostWorkMode(IsHostCpu(device_.identity)));  // compiles are host work
+    const std::vector<KernelSource> kernels = KernelsOf(variants, dataset);
     if (kernels.empty()) return 0;
-    const unsigned threads = std::clamp<unsigned>(std::thread::hardware_concurrency(), 1u, kMaxCompileThreads);
     std::atomic<std::size_t> built{0};
     const auto build = [&](skintune::internal::Runner& runner, std::size_t i) {
       try {
@@ -209,24 +201,71 @@ class DeviceBackend final : public Backend {
       }
     };
     try {
-      Executor();  // opens runner_, the measuring runner
+      MeasuringExecutor();  // opens runner_, the measuring runner
       if (runner_->ConcurrentBuilds()) {
-        // Into the measuring runner itself, from short-lived threads.
-        std::atomic<std::size_t> next{0};
-        const auto work = [&] {
-          for (std::size_t i = next++; i < kernels.size(); i = next++) build(*runner_, i);
-        };
-        std::vector<std::thread> pool;
-        for (unsigned t = 1; t < std::min<std::size_t>(threads, kernels.size()); ++t) pool.emplace_back(work);
-        work();
-        for (std::thread& t : pool) t.join();
+        BuildOnShortLivedThreads(kernels.size(), build);
         return built;
       }
     } catch (const Error&) {
       return 0;  // the device does not open: Measure records why
     }
+    CompileThreadsOfTheirOwn().Run(kernels.size(), build);
+    return built;
+  }
+
+ private:
+  // The executor the jobs run on (opening runner_ on first use): the
+  // RunnerExecutor over it, wrapped in decorate_ when given.
+  Executor& MeasuringExecutor() {
+    if (!runner_) {
+      runner_ = device_.open();
+      if (cache_.enabled()) runner_->UseProgramCache(&cache_, device_.identity.Id());
+      runner_->ShareTimedInputs(SharedInputBytes(device_.identity));
+      executor_ = std::make_unique<RunnerExecutor>(*runner_, device_.identity);
+      if (decorate_) executor_ = decorate_(std::move(executor_), device_.identity);
+    }
+    return *executor_;
+  }
+
+  // The kernels of `variants`, each once, emitted here (one thread) as
+  // Measure emits them; a variant that cannot be packed or emitted is left
+  // for Measure to record (invalid).
+  std::vector<KernelSource> KernelsOf(const std::vector<Variant>& variants, const TuningDataset& dataset) {
+    DatasetCache::Entry& data = datasets_.Get(dataset.key);
+    std::vector<KernelSource> kernels;
+    std::set<std::string> hashes;
+    for (const Variant& v : variants) {
+      try {
+        std::vector<KernelSource> emitted;
+        (void)PackScene(datasets_, data, v, emitted);
+        for (KernelSource& k : emitted)
+          if (hashes.insert(k.source_hash).second) kernels.push_back(std::move(k));
+      } catch (const Error&) {
+      }
+    }
+    return kernels;
+  }
+
+  static unsigned CompileThreadCount() {
+    return std::clamp<unsigned>(std::thread::hardware_concurrency(), 1u, kMaxCompileThreads);
+  }
+
+  // Into the measuring runner itself, from threads that end with the call.
+  void BuildOnShortLivedThreads(std::size_t count, const CompileThreads::Job& build) {
+    std::atomic<std::size_t> next{0};
+    const auto work = [&] {
+      for (std::size_t i = next++; i < count; i = next++) build(*runner_, i);
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < std::min<std::size_t>(CompileThreadCount(), count); ++t) pool.emplace_back(work);
+    work();
+    for (std::thread& t : pool) t.join();
+  }
+
+  // The compile threads with runners of their own, started on first use.
+  CompileThreads& CompileThreadsOfTheirOwn() {
     if (!compile_threads_)
-      compile_threads_ = std::make_unique<CompileThreads>(threads, [this] {
+      compile_threads_ = std::make_unique<CompileThreads>(CompileThreadCount(), [this] {
         std::unique_ptr<skintune::internal::Runner> runner = device_.open();
         if (cache_.enabled()) {
           const std::lock_guard<std::mutex> lock(thread_caches_mutex_);
@@ -234,27 +273,16 @@ class DeviceBackend final : public Backend {
         }
         return runner;
       });
-    compile_threads_->Run(kernels.size(), build);
-    return built;
-  }
-
- private:
-  RunnerExecutor& Executor() {
-    if (!runner_) {
-      runner_ = device_.open();
-      if (cache_.enabled()) runner_->UseProgramCache(&cache_, device_.identity.Id());
-      runner_->ShareTimedInputs(SharedInputBytes(device_.identity));
-      executor_ = std::make_unique<RunnerExecutor>(*runner_, device_.identity);
-    }
-    return *executor_;
+    return *compile_threads_;
   }
 
   FoundDevice device_;
   std::vector<Lang> languages_;
+  ExecutorDecorator decorate_;  // empty: the RunnerExecutor as it is
   // ProgramCache::DefaultDir() ($SKINTUNE_CACHE_DIR, ...); none for a CPU device.
-  ProgramCache cache_{IsCpu(device_.identity) ? "-" : ""};
+  ProgramCache cache_{IsHostCpu(device_.identity) ? "-" : ""};
   std::unique_ptr<skintune::internal::Runner> runner_;  // made on first use
-  std::unique_ptr<RunnerExecutor> executor_;  // over runner_: remembers the copies it timed
+  std::unique_ptr<Executor> executor_;  // over runner_: remembers the copies it timed
   DatasetCache datasets_;
   // The compile threads' program cache objects (one per thread: its counters
   // are its own), then the threads, joined (and their runners closed) first.
@@ -265,16 +293,31 @@ class DeviceBackend final : public Backend {
 
 }  // namespace
 
-std::unique_ptr<Backend> MakeDeviceBackend(FoundDevice device, std::vector<Lang> languages, int index) {
-  return std::make_unique<DeviceBackend>(std::move(device), std::move(languages), index);
+std::unique_ptr<TunedDevice> MakeRunnerDevice(FoundDevice device, std::vector<Lang> languages, int index,
+                                              ExecutorDecorator decorate) {
+  return std::make_unique<RunnerDevice>(std::move(device), std::move(languages), index, std::move(decorate));
+}
+
+Discovery DiscoverTunedDevices(const ExecutorDecorator& decorate) {
+  Discovered found = DiscoverDevices();
+  Discovery discovery;
+  discovery.skipped = std::move(found.skipped);
+  int index = 0;
+  for (FoundDevice& device : found.devices) {
+    const BackendEntry* entry = FindBackend(device.identity.backend);
+    discovery.devices.push_back(MakeRunnerDevice(std::move(device), entry->languages, index++, decorate));
+  }
+  return discovery;
 }
 
 }  // namespace skintune::internal::tuner_internal
 
 namespace skintune::internal {
 
+Discovery DiscoverTunedDevices() { return tuner_internal::DiscoverTunedDevices(tuner_internal::ExecutorDecorator{}); }
+
 bool CompilesAhead(const DeviceIdentity& device) {
-  const auto& list = tuner_internal::kCompileAheadBackends;
+  const auto& list = tuner_internal::kCompileAheadApis;
   if (std::find(std::begin(list), std::end(list), device.backend) == std::end(list)) return false;
   // SKINTUNE_COMPILE_AHEAD=always|never (docs/TUNING.md): the tests run both
   // paths on CPU devices with "always".
@@ -282,7 +325,7 @@ bool CompilesAhead(const DeviceIdentity& device) {
     if (std::string_view(forced) == "always") return true;
     if (std::string_view(forced) == "never") return false;
   }
-  return !tuner_internal::IsCpu(device) ||
+  return !IsHostCpu(device) ||
          std::thread::hardware_concurrency() >= tuner_internal::kMinCpusToCompileAheadForACpuDevice;
 }
 

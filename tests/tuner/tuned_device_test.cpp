@@ -1,10 +1,12 @@
-// The tuner's backends (tuner/backend.h) on this machine's devices: discovery
+// The tuner's devices (tuner/tuned_device.h) on this machine's devices: discovery
 // (PoCL and Mesa's llvmpipe in CI, CUDA skipped with its reason where there is
 // no driver), identities and their JSON, Measure of a few variants per API
 // (verified, then timed over rotating input sets), the injected faults that
-// must fail verification or the build ("hang" and "crash" are exercised by
-// the orchestrator's tests, which run Measure in a child process; here the
-// hang kernels are only built), the copy bandwidth, and the rotation rule.
+// must fail verification or the build, through a device whose executor is
+// decorated with them (tuner/fault_injection.h; "hang" and "crash" are
+// exercised by the orchestrator's tests, which run Measure in a child
+// process; here the hang kernels are only built), the copy bandwidth, and
+// the rotation rule.
 // A test that needs an API the machine lacks skips with the discovery's reason.
 #include <gtest/gtest.h>
 
@@ -29,8 +31,13 @@
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "runtime/backends/gl/gl_runner.h"
 #include "runtime/backends/opencl/opencl_runner.h"
-#include "tuner/backend.h"
-#include "tuner/backends_internal.h"
+#include "runtime/backend_table.h"
+#include "tuner/datasets.h"
+#include "tuner/executor.h"
+#include "tuner/fault_injection.h"
+#include "tuner/measure_job.h"
+#include "tuner/runner_device.h"
+#include "tuner/tuned_device.h"
 #include "tuner/report.h"
 #include "reference/scene.h"
 #include "tests/tuner/scene_selection.h"
@@ -50,8 +57,8 @@ std::string Lower(std::string s) {
 // Discovery, once per test program.
 const Discovery& Found() {
   static const Discovery discovery = [] {
-    Discovery d = DiscoverBackends();
-    for (const auto& b : d.backends) std::cout << "[ backend  ] " << b->identity().index << ": " << b->identity().Id() << "\n";
+    Discovery d = DiscoverTunedDevices();
+    for (const auto& b : d.devices) std::cout << "[ device   ] " << b->identity().index << ": " << b->identity().Id() << "\n";
     for (const std::string& s : d.skipped) std::cout << "[ skipped  ] " << s << "\n";
     return d;
   }();
@@ -62,14 +69,14 @@ std::string SkippedLines(const std::string& prefix) {
   std::string lines;
   for (const std::string& s : Found().skipped)
     if (s.rfind(prefix, 0) == 0) lines += (lines.empty() ? "" : "; ") + s;
-  return lines.empty() ? "no " + prefix + " backend and no skipped line" : lines;
+  return lines.empty() ? "no " + prefix + " device and no skipped line" : lines;
 }
 
-// The first backend of `api`; for OpenCL the first whose "platform / name"
+// The first device of `api`; for OpenCL the first whose "platform / name"
 // contains $SKINTUNE_TEST_OPENCL_DEVICE when set (as the runner tests do).
-Backend* Find(const std::string& api) {
+TunedDevice* Find(const std::string& api) {
   const char* pattern = api == "opencl" ? std::getenv("SKINTUNE_TEST_OPENCL_DEVICE") : nullptr;
-  for (const auto& b : Found().backends) {
+  for (const auto& b : Found().devices) {
     const DeviceIdentity& d = b->identity();
     if (d.backend != api) continue;
     if (pattern && Lower(d.platform + " / " + d.name).find(Lower(pattern)) == std::string::npos) continue;
@@ -78,8 +85,8 @@ Backend* Find(const std::string& api) {
   return nullptr;
 }
 
-#define BACKEND_OR_SKIP(var, api)                                  \
-  Backend* var = Find(api);                                        \
+#define DEVICE_OR_SKIP(var, api)                                   \
+  TunedDevice* var = Find(api);                                    \
   if (!var) {                                                      \
     if (std::string(api) == "opencl" && std::getenv("SKINTUNE_TEST_OPENCL_DEVICE")) \
       FAIL() << "the requested OpenCL device is missing";          \
@@ -99,7 +106,7 @@ TimingOptions SmallTiming() {
 }
 
 // A variant that passed: verified, timed, everything filled in.
-void ExpectOk(const Measurement& m, const Backend& backend, const std::string& dataset) {
+void ExpectOk(const Measurement& m, const TunedDevice& backend, const std::string& dataset) {
   ASSERT_EQ(m.status, MeasureStatus::kOk) << Name(m.status) << ": " << m.detail;
   EXPECT_EQ(m.detail, "");
   EXPECT_EQ(m.device_id, backend.identity().Id());
@@ -141,25 +148,28 @@ class ScopedEnv {
   const char* name_;
 };
 
-// Sets $SKINTUNE_INJECT_FAULT for the scope.
-class ScopedFault : public ScopedEnv {
- public:
-  explicit ScopedFault(const std::string& value) : ScopedEnv("SKINTUNE_INJECT_FAULT", value) {}
-};
+// A fresh device like `device` that measures through the fault-injecting
+// executor (tuner/fault_injection.h): `v`'s kernels fail as `kind` says.
+std::unique_ptr<TunedDevice> Faulty(const TunedDevice& device, const Variant& v, const std::string& kind) {
+  static const Discovered found = DiscoverDevices();
+  for (const FoundDevice& f : found.devices)
+    if (f.identity.Id() == device.identity().Id())
+      return tuner_internal::MakeRunnerDevice(f, device.languages(), device.identity().index,
+                                              tuner_internal::InjectingFault({v.Key(), kind}));
+  throw Error("no device " + device.identity().Id() + " in a second discovery");
+}
 
 // The two injected faults on `v`: "compile" is compile_failed naming the
 // API's build stage (`build`, e.g. "Vulkan build"), "wrong" is verify_failed
 // with the error measured.
-void ExpectInjectedCompileAndWrongFaults(Backend& backend, const Variant& v, const std::string& build) {
+void ExpectInjectedCompileAndWrongFaults(const TunedDevice& device, const Variant& v, const std::string& build) {
   {
-    ScopedFault f(v.Key() + "=compile");
-    const Measurement m = backend.Measure(v, {kDataset}, SmallTiming());
+    const Measurement m = Faulty(device, v, "compile")->Measure(v, {kDataset}, SmallTiming());
     EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << Name(m.status) << ": " << m.detail;
     EXPECT_NE(m.detail.find(build), std::string::npos) << m.detail;
   }
   {
-    ScopedFault f(v.Key() + "=wrong");
-    const Measurement m = backend.Measure(v, {kDataset}, SmallTiming());
+    const Measurement m = Faulty(device, v, "wrong")->Measure(v, {kDataset}, SmallTiming());
     EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << Name(m.status) << ": " << m.detail;
     EXPECT_GT(m.max_relative_error, 1e-5);
   }
@@ -170,7 +180,7 @@ void ExpectInjectedCompileAndWrongFaults(Backend& backend, const Variant& v, con
 TEST(Discovery, FindsEveryOpenClDeviceWithItsIdentity) {
   const OpenClInventory inventory = EnumerateOpenCl();
   std::size_t opencl = 0;
-  for (const auto& b : Found().backends) {
+  for (const auto& b : Found().devices) {
     const DeviceIdentity& d = b->identity();
     if (d.backend != "opencl") continue;
     ++opencl;
@@ -193,7 +203,7 @@ TEST(Discovery, FindsEveryOpenClDeviceWithItsIdentity) {
     EXPECT_NE(SkippedLines("opencl:").find("opencl: skipped: "), std::string::npos);
   }
   // PoCL, where CI has it: a CPU device with its cache size.
-  for (const auto& b : Found().backends) {
+  for (const auto& b : Found().devices) {
     const DeviceIdentity& d = b->identity();
     if (d.backend == "opencl" && d.platform.find("Portable Computing Language") != std::string::npos) {
       EXPECT_EQ(d.type, "cpu");
@@ -205,7 +215,7 @@ TEST(Discovery, FindsEveryOpenClDeviceWithItsIdentity) {
 TEST(Discovery, CudaBackendsOrTheReasonThereAreNone) {
   const CudaAvailability cuda = Probe();
   std::size_t found = 0;
-  for (const auto& b : Found().backends) {
+  for (const auto& b : Found().devices) {
     const DeviceIdentity& d = b->identity();
     if (d.backend != "cuda") continue;
     ++found;
@@ -228,7 +238,7 @@ TEST(Discovery, CudaBackendsOrTheReasonThereAreNone) {
 
 TEST(Discovery, OneGlBackendOrTheReasonThereIsNone) {
   std::size_t found = 0;
-  for (const auto& b : Found().backends) {
+  for (const auto& b : Found().devices) {
     const DeviceIdentity& d = b->identity();
     if (d.backend != "gl") continue;
     ++found;
@@ -258,8 +268,8 @@ TEST(Discovery, OneGlBackendOrTheReasonThereIsNone) {
 }
 
 TEST(Discovery, IndicesFollowTheDiscoveryOrder) {
-  for (std::size_t i = 0; i < Found().backends.size(); ++i)
-    EXPECT_EQ(Found().backends[i]->identity().index, static_cast<int>(i));
+  for (std::size_t i = 0; i < Found().devices.size(); ++i)
+    EXPECT_EQ(Found().devices[i]->identity().index, static_cast<int>(i));
 }
 
 TEST(DeviceIdentity, JsonRoundTripsEveryField) {
@@ -355,7 +365,7 @@ TEST(Helpers, MedianCopyBytesAndTimestamp) {
   EXPECT_EQ(CopyBytesCapped(10000, 0), 8192u);
   EXPECT_EQ(CopyBytesCapped(1, 0), 4096u);
   EXPECT_NEAR(CopyGBps(1000000, {1.0, 2.0, 1.0}), 2.0, 1e-12);  // 2 MB moved in 1 ms
-  EXPECT_TRUE(std::regex_match(UtcTimestamp(), std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)")));
+  EXPECT_TRUE(std::regex_match(skintune::internal::UtcTimestamp(), std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)")));
 }
 
 // DatasetCache::Packed: the variants of one packing (PackingKey) share its
@@ -427,18 +437,18 @@ TEST(Packings, APackingIsReusedWithTheMeasuredVariantInIt) {
 
 TEST(InjectedFault, ParsedFromTheEnvironmentWithTheCanonicalKey) {
   {
-    ScopedFault f("wg64.b2.opencl=wrong");
+    ScopedEnv f("SKINTUNE_INJECT_FAULT", "wg64.b2.opencl=wrong");
     const InjectedFault fault = InjectedFaultFromEnvironment();
     EXPECT_EQ(fault.variant_key, ParseVariantKey("opencl.b2.wg64").Key());
     EXPECT_EQ(fault.kind, "wrong");
   }
   EXPECT_EQ(InjectedFaultFromEnvironment().kind, "");
   {
-    ScopedFault f("opencl.b2=explode");
+    ScopedEnv f("SKINTUNE_INJECT_FAULT", "opencl.b2=explode");
     EXPECT_THROW(InjectedFaultFromEnvironment(), Error);
   }
   {
-    ScopedFault f("no-equals-sign");
+    ScopedEnv f("SKINTUNE_INJECT_FAULT", "no-equals-sign");
     EXPECT_THROW(InjectedFaultFromEnvironment(), Error);
   }
 }
@@ -460,8 +470,8 @@ TEST(InjectedFault, EveryTemplateTakesEveryEdit) {
 
 // ---------------------------------------------------------------- OpenCL
 
-TEST(OpenClBackend, MeasuresVariantsVerifiedThenTimed) {
-  BACKEND_OR_SKIP(backend, "opencl");
+TEST(OpenClTunedDevice, MeasuresVariantsVerifiedThenTimed) {
+  DEVICE_OR_SKIP(backend, "opencl");
   for (const char* key : {"opencl.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
                           "opencl.b2.bucketed.soa-split.float3.u8.unorm8.mat4.local.point.v2s.wg64.nonormals",
                           "opencl.b2.padded.aos.float4.i32.unorm16.mat3x4.image.matrix.v4c.wg256.nonormals",
@@ -471,8 +481,8 @@ TEST(OpenClBackend, MeasuresVariantsVerifiedThenTimed) {
   }
 }
 
-TEST(OpenClBackend, MeasuresNormalsAndAGltfMesh) {
-  BACKEND_OR_SKIP(backend, "opencl");
+TEST(OpenClTunedDevice, MeasuresNormalsAndAGltfMesh) {
+  DEVICE_OR_SKIP(backend, "opencl");
   ExpectOk(backend->Measure(ParseVariantKey("opencl.b2.soa.normals"), {"5000-b2-normals"}, SmallTiming()), *backend,
            "5000-b2-normals");
   // CesiumMan: 1..4 bones per vertex, so bucketed makes four launches, timed together.
@@ -492,8 +502,8 @@ TEST(Scenes, InstancesAndBatchesAreVerifiedTimedAndTheirWinnersSelectedByShape) 
   const std::string mix = data + "/CesiumMan.gltf+" + data + "/Fox.gltf+mix20k-b3";
   const std::string single = "8000-b4";
   int measured = 0;
-  for (const auto& found : Found().backends) {
-    Backend& backend = *found;
+  for (const auto& found : Found().devices) {
+    TunedDevice& backend = *found;
     TuningReport report;
     report.created = "2026-11-24T00:00:00Z";
     report.config = "test";
@@ -539,8 +549,8 @@ TEST(Scenes, InstancesAndBatchesAreVerifiedTimedAndTheirWinnersSelectedByShape) 
 TEST(CompileAhead, BuildsEveryKernelThenMeasureUsesThem) {
   ScopedEnv always("SKINTUNE_COMPILE_AHEAD", "always");
   int tried = 0;
-  for (const auto& found : Found().backends) {
-    Backend& backend = *found;
+  for (const auto& found : Found().devices) {
+    TunedDevice& backend = *found;
     if (!CompilesAhead(backend.identity())) continue;
     SCOPED_TRACE(backend.identity().Id());
     const Lang lang = backend.languages().front();
@@ -559,8 +569,8 @@ TEST(CompileAhead, BuildsEveryKernelThenMeasureUsesThem) {
                  << SkippedLines("");
 }
 
-TEST(OpenClBackend, InvalidVariantsSayWhy) {
-  BACKEND_OR_SKIP(backend, "opencl");
+TEST(OpenClTunedDevice, InvalidVariantsSayWhy) {
+  DEVICE_OR_SKIP(backend, "opencl");
   // Normals on a mesh without them: a constraint.
   Measurement m = backend->Measure(ParseVariantKey("opencl.b2.normals"), {kDataset}, SmallTiming());
   EXPECT_EQ(m.status, MeasureStatus::kInvalid) << m.detail;
@@ -574,28 +584,27 @@ TEST(OpenClBackend, InvalidVariantsSayWhy) {
   EXPECT_EQ(m.status, MeasureStatus::kInvalid) << m.detail;
 }
 
-TEST(OpenClBackend, ABadDatasetIsASetUpError) {
-  BACKEND_OR_SKIP(backend, "opencl");
+TEST(OpenClTunedDevice, ABadDatasetIsASetUpError) {
+  DEVICE_OR_SKIP(backend, "opencl");
   EXPECT_THROW(backend->Measure(ParseVariantKey("opencl.b2"), {"not-a-dataset"}, SmallTiming()), Error);
 }
 
-TEST(OpenClBackend, InjectedCompileFaultIsCompileFailed) {
-  BACKEND_OR_SKIP(backend, "opencl");
+TEST(OpenClTunedDevice, InjectedCompileFaultIsCompileFailed) {
+  DEVICE_OR_SKIP(backend, "opencl");
   const Variant v = ParseVariantKey("opencl.b2.soa.v2c.wg64");
-  ScopedFault f(v.Key() + "=compile");
-  const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+  const std::unique_ptr<TunedDevice> faulty = Faulty(*backend, v, "compile");
+  const Measurement m = faulty->Measure(v, {kDataset}, SmallTiming());
   EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << Name(m.status) << ": " << m.detail;
   EXPECT_NE(m.detail.find("OpenCL build"), std::string::npos) << m.detail;
   EXPECT_NE(m.detail.find("build log"), std::string::npos) << m.detail;
   // Another variant is not affected.
-  ExpectOk(backend->Measure(ParseVariantKey("opencl.b2.soa.v2c.wg128"), {kDataset}, SmallTiming()), *backend, kDataset);
+  ExpectOk(faulty->Measure(ParseVariantKey("opencl.b2.soa.v2c.wg128"), {kDataset}, SmallTiming()), *faulty, kDataset);
 }
 
-TEST(OpenClBackend, InjectedWrongResultIsVerifyFailed) {
-  BACKEND_OR_SKIP(backend, "opencl");
+TEST(OpenClTunedDevice, InjectedWrongResultIsVerifyFailed) {
+  DEVICE_OR_SKIP(backend, "opencl");
   const Variant v = ParseVariantKey("opencl.b2.aos.float3.u8.unorm8");
-  ScopedFault f(v.Key() + "=wrong");
-  const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+  const Measurement m = Faulty(*backend, v, "wrong")->Measure(v, {kDataset}, SmallTiming());
   EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << Name(m.status) << ": " << m.detail;
   EXPECT_NE(m.detail.find("max relative error"), std::string::npos) << m.detail;
   EXPECT_NE(m.detail.find("at vertex"), std::string::npos) << m.detail;
@@ -603,8 +612,8 @@ TEST(OpenClBackend, InjectedWrongResultIsVerifyFailed) {
   EXPECT_EQ(m.timing.repetitions, 0);  // never timed
 }
 
-TEST(OpenClBackend, InjectedHangKernelBuilds) {
-  BACKEND_OR_SKIP(backend, "opencl");
+TEST(OpenClTunedDevice, InjectedHangKernelBuilds) {
+  DEVICE_OR_SKIP(backend, "opencl");
   const OpenClInventory inventory = EnumerateOpenCl();
   const auto device = std::find_if(inventory.devices.begin(), inventory.devices.end(), [&](const OpenClDeviceInfo& d) {
     return d.platform_name == backend->identity().platform && d.name == backend->identity().name;
@@ -619,15 +628,15 @@ TEST(OpenClBackend, InjectedHangKernelBuilds) {
   }
 }
 
-TEST(OpenClBackend, CopyBandwidthIsPositive) {
-  BACKEND_OR_SKIP(backend, "opencl");
+TEST(OpenClTunedDevice, CopyBandwidthIsPositive) {
+  DEVICE_OR_SKIP(backend, "opencl");
   const double gbps = backend->CopyBandwidthGBps(16u << 20);
   std::cout << "[ copy     ] " << backend->identity().name << ": " << gbps << " GB/s\n";
   EXPECT_GT(gbps, 0.0);
 }
 
 TEST(OpenClRunnerTiming, PreparesOneSetPerPaletteAndTimesEachRepetition) {
-  BACKEND_OR_SKIP(backend, "opencl");
+  DEVICE_OR_SKIP(backend, "opencl");
   const OpenClInventory inventory = EnumerateOpenCl();
   const auto device = std::find_if(inventory.devices.begin(), inventory.devices.end(), [&](const OpenClDeviceInfo& d) {
     return d.platform_name == backend->identity().platform && d.name == backend->identity().name;
@@ -655,8 +664,8 @@ TEST(OpenClRunnerTiming, PreparesOneSetPerPaletteAndTimesEachRepetition) {
 
 // ---------------------------------------------------------------- GL
 
-TEST(GlBackend, MeasuresComputeAndVertexVariants) {
-  BACKEND_OR_SKIP(backend, "gl");
+TEST(GlTunedDevice, MeasuresComputeAndVertexVariants) {
+  DEVICE_OR_SKIP(backend, "gl");
   for (const char* key : {"glsl-compute.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
                           "glsl-compute.b2.bucketed.soa-split.float3.u8.unorm8.mat4.local.point.v2s.wg64.nonormals",
                           "glsl-vertex.b2.padded.aos.float4.u16.unorm16.mat3x4.constant.matrix.v1c.wg0.nonormals",
@@ -666,31 +675,29 @@ TEST(GlBackend, MeasuresComputeAndVertexVariants) {
   }
 }
 
-TEST(GlBackend, InjectedCompileFaultIsCompileFailed) {
-  BACKEND_OR_SKIP(backend, "gl");
+TEST(GlTunedDevice, InjectedCompileFaultIsCompileFailed) {
+  DEVICE_OR_SKIP(backend, "gl");
   for (const char* key : {"glsl-compute.b2.soa", "glsl-vertex.b2.soa.v1c.wg0"}) {
     const Variant v = ParseVariantKey(key);
-    ScopedFault f(v.Key() + "=compile");
-    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    const Measurement m = Faulty(*backend, v, "compile")->Measure(v, {kDataset}, SmallTiming());
     EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << key << ": " << Name(m.status) << ": " << m.detail;
     EXPECT_NE(m.detail.find("GL build"), std::string::npos) << m.detail;
   }
 }
 
-TEST(GlBackend, InjectedWrongResultIsVerifyFailed) {
-  BACKEND_OR_SKIP(backend, "gl");
+TEST(GlTunedDevice, InjectedWrongResultIsVerifyFailed) {
+  DEVICE_OR_SKIP(backend, "gl");
   for (const char* key : {"glsl-compute.b2.aos.float3", "glsl-vertex.b2.soa-split.v1c.wg0"}) {
     const Variant v = ParseVariantKey(key);
-    ScopedFault f(v.Key() + "=wrong");
-    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    const Measurement m = Faulty(*backend, v, "wrong")->Measure(v, {kDataset}, SmallTiming());
     EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << key << ": " << Name(m.status) << ": " << m.detail;
     EXPECT_NE(m.detail.find("max relative error"), std::string::npos) << m.detail;
     EXPECT_GT(m.max_relative_error, 1e-5);
   }
 }
 
-TEST(GlBackend, InjectedHangKernelsBuild) {
-  BACKEND_OR_SKIP(backend, "gl");
+TEST(GlTunedDevice, InjectedHangKernelsBuild) {
+  DEVICE_OR_SKIP(backend, "gl");
   GlRunner runner;
   for (const char* key : {"glsl-compute.b2.soa", "glsl-compute.b2.aos", "glsl-vertex.b2.soa.v1c.wg0"}) {
     const Variant v = ParseVariantKey(key);
@@ -700,8 +707,8 @@ TEST(GlBackend, InjectedHangKernelsBuild) {
   }
 }
 
-TEST(GlBackend, CopyBandwidthIsPositive) {
-  BACKEND_OR_SKIP(backend, "gl");
+TEST(GlTunedDevice, CopyBandwidthIsPositive) {
+  DEVICE_OR_SKIP(backend, "gl");
   const double gbps = backend->CopyBandwidthGBps(16u << 20);
   std::cout << "[ copy     ] " << backend->identity().name << ": " << gbps << " GB/s\n";
   EXPECT_GT(gbps, 0.0);
@@ -709,8 +716,8 @@ TEST(GlBackend, CopyBandwidthIsPositive) {
 
 // ---------------------------------------------------------------- Vulkan (lavapipe here)
 
-TEST(VulkanBackend, MeasuresVariantsWithTheChipsIdentity) {
-  BACKEND_OR_SKIP(backend, "vulkan");
+TEST(VulkanTunedDevice, MeasuresVariantsWithTheChipsIdentity) {
+  DEVICE_OR_SKIP(backend, "vulkan");
   EXPECT_EQ(backend->languages(), std::vector<Lang>{Lang::kVulkan});
   const DeviceIdentity& d = backend->identity();
   EXPECT_EQ(d.Id().rfind("vulkan:Vulkan/", 0), 0u) << d.Id();
@@ -724,15 +731,15 @@ TEST(VulkanBackend, MeasuresVariantsWithTheChipsIdentity) {
   }
 }
 
-TEST(VulkanBackend, InjectedCompileAndWrongFaultsAreCompileAndVerifyFailed) {
-  BACKEND_OR_SKIP(backend, "vulkan");
+TEST(VulkanTunedDevice, InjectedCompileAndWrongFaultsAreCompileAndVerifyFailed) {
+  DEVICE_OR_SKIP(backend, "vulkan");
   ExpectInjectedCompileAndWrongFaults(*backend, ParseVariantKey("vulkan.b2.soa.wg64"), "Vulkan build");
 }
 
 // ---------------------------------------------------------------- cpu (the fast path's kernels, every machine)
 
-TEST(CpuBackend, MeasuresVariantsWithTheSameSizeCopyAndRecordsFaults) {
-  BACKEND_OR_SKIP(backend, "cpu");
+TEST(CpuTunedDevice, MeasuresVariantsWithTheSameSizeCopyAndRecordsFaults) {
+  DEVICE_OR_SKIP(backend, "cpu");
   EXPECT_EQ(backend->languages(), std::vector<Lang>{Lang::kCpu});
   EXPECT_EQ(backend->identity().Id().rfind("cpu:skintune/", 0), 0u) << backend->identity().Id();
   for (const char* key : {"cpu.b2.padded.soa-split.float3.u8.unorm16.mat4.global.matrix.v1c.wg0.nonormals",
@@ -752,8 +759,8 @@ TEST(CpuBackend, MeasuresVariantsWithTheSameSizeCopyAndRecordsFaults) {
 
 // ---------------------------------------------------------------- CUDA (where there is a GPU)
 
-TEST(CudaBackend, MeasuresVariantsAndInjectedFaults) {
-  BACKEND_OR_SKIP(backend, "cuda");
+TEST(CudaTunedDevice, MeasuresVariantsAndInjectedFaults) {
+  DEVICE_OR_SKIP(backend, "cuda");
   for (const char* key : {"cuda.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
                           "cuda.b2.bucketed.soa-split.float3.u8.unorm8.mat4.constant.point.v2s.wg64.nonormals",
                           "cuda.b2.padded.aos.float4.i32.unorm16.mat3x4.image.matrix.v4c.wg256.nonormals",
@@ -763,13 +770,11 @@ TEST(CudaBackend, MeasuresVariantsAndInjectedFaults) {
   }
   const Variant v = ParseVariantKey("cuda.b2.soa");
   {
-    ScopedFault f(v.Key() + "=compile");
-    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    const Measurement m = Faulty(*backend, v, "compile")->Measure(v, {kDataset}, SmallTiming());
     EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << m.detail;
   }
   {
-    ScopedFault f(v.Key() + "=wrong");
-    const Measurement m = backend->Measure(v, {kDataset}, SmallTiming());
+    const Measurement m = Faulty(*backend, v, "wrong")->Measure(v, {kDataset}, SmallTiming());
     EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << m.detail;
   }
   const double gbps = backend->CopyBandwidthGBps(256u << 20);

@@ -1,0 +1,191 @@
+// skintune: the tuner's data sets: scenes, golds, palettes and packings (tuner/datasets.h).
+#include "tuner/datasets.h"
+
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <span>
+#if defined(__GLIBC__)
+#include <malloc.h>  // malloc_trim
+#endif
+
+#include "reference/error.h"
+
+namespace skintune::internal::tuner_internal {
+
+std::vector<std::vector<glm::mat4>> FramePalettes(const SkinnedAsset& asset, int count) {
+  count = std::max(count, 1);
+  std::vector<std::vector<glm::mat4>> palettes;
+  if (asset.animations.empty()) {
+    const std::vector<glm::mat4> rest = asset.PaletteAt(-1, 0.0);
+    palettes.assign(static_cast<std::size_t>(count), rest);
+    return palettes;
+  }
+  const AnimationClip& clip = asset.animations.front();
+  for (int k = 0; k < count; ++k) {
+    const double t = clip.start + clip.duration() * (k + 0.5) / count;
+    palettes.push_back(asset.PaletteAt(0, t));
+  }
+  return palettes;
+}
+
+std::vector<std::vector<glm::mat4>> ScenePalettes(const SkinnedScene& scene, int count) {
+  count = std::max(count, 1);
+  const int k = scene.spec.instances;
+  std::vector<std::vector<glm::mat4>> frames(static_cast<std::size_t>(count));
+  if (!scene.spec.batch) {
+    // K instances: K x count different frames, instance after instance within a set.
+    const std::vector<std::vector<glm::mat4>> pool = FramePalettes(scene.assets.front(), count * k);
+    for (std::size_t f = 0; f < pool.size(); ++f)
+      frames[f / static_cast<std::size_t>(k)].insert(frames[f / static_cast<std::size_t>(k)].end(), pool[f].begin(),
+                                                     pool[f].end());
+    return frames;
+  }
+  for (const SkinnedAsset& asset : scene.assets) {
+    const std::vector<std::vector<glm::mat4>> own = FramePalettes(asset, count);
+    for (std::size_t f = 0; f < frames.size(); ++f) frames[f].insert(frames[f].end(), own[f].begin(), own[f].end());
+  }
+  return frames;
+}
+
+DatasetCache::Entry& DatasetCache::Get(const std::string& key) {
+  if (auto found = entries_.find(key); found != entries_.end()) return *found->second;
+  auto entry = std::make_unique<Entry>();
+#if defined(__GLIBC__)
+  // The tune worker keeps freed blocks (KeepLargeBlocks, tuner/worker.cpp):
+  // hand them back before a new data set's memory check reads MemAvailable.
+  malloc_trim(0);
+#endif
+  // Import warnings (renormalised weights) are the importer's to report.
+  entry->scene = LoadScene(ParseSceneKey(key));
+  entry->verification_palette = ScenePalettes(entry->scene, 1).front();
+  const SkinnedScene& scene = entry->scene;
+  const std::vector<glm::vec3>& positions = scene.mesh().positions;
+  const std::size_t n = scene.mesh().vertex_count();
+  if (scene.spec.instances > 1) {
+    const double diagonal = BoundingBoxDiagonal(positions);
+    for (int i = 0; i < scene.spec.instances; ++i)
+      entry->parts.push_back({"instance " + std::to_string(i), static_cast<std::size_t>(i) * n, n, diagonal});
+  } else {
+    const std::vector<std::size_t>& offsets = scene.batch.vertex_offsets;
+    for (std::size_t m = 0; m + 1 < offsets.size(); ++m) {
+      const std::size_t count = offsets[m + 1] - offsets[m];
+      const std::string name = scene.spec.batch ? "meshes[" + std::to_string(m) + "] (" +
+                                                      std::filesystem::path(scene.spec.meshes[m]).filename().string() + ")"
+                                                : "";
+      entry->parts.push_back(
+          {name, offsets[m], count, BoundingBoxDiagonal(std::span(positions).subspan(offsets[m], count))});
+    }
+  }
+  return *entries_.emplace(key, std::move(entry)).first->second;
+}
+
+namespace {
+
+// The gold of the whole scene on `mesh` (the scene's, quantised or not): one
+// run over the mesh and its palette; K instances: one per instance's palette.
+GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, bool normals) {
+  const int k = entry.instances();
+  if (k == 1) return SkinGold(mesh, entry.verification_palette, normals);
+  GoldResult all;
+  const std::size_t joints = static_cast<std::size_t>(mesh.joint_count);
+  for (int i = 0; i < k; ++i) {
+    GoldResult one = SkinGold(mesh, std::span(entry.verification_palette).subspan(i * joints, joints), normals);
+    all.positions.insert(all.positions.end(), one.positions.begin(), one.positions.end());
+    all.normals.insert(all.normals.end(), one.normals.begin(), one.normals.end());
+  }
+  return all;
+}
+
+}  // namespace
+
+const GoldResult& DatasetCache::Gold(Entry& entry, const Variant& variant) {
+  const std::pair<int, bool> key{static_cast<int>(variant.weight), variant.normals};
+  if (auto found = entry.gold.find(key); found != entry.gold.end()) return found->second;
+  GoldResult gold = SceneGold(entry, QuantisedMesh(entry.mesh(), variant), variant.normals);
+  return entry.gold.emplace(key, std::move(gold)).first->second;
+}
+
+const GoldResult& DatasetCache::SourceGold(Entry& entry, bool normals) {
+  if (auto found = entry.source_gold.find(normals); found != entry.source_gold.end()) return found->second;
+  GoldResult gold = SceneGold(entry, entry.mesh(), normals);
+  return entry.source_gold.emplace(normals, std::move(gold)).first->second;
+}
+
+double Relative(double abs, double diagonal) { return diagonal > 0.0 ? abs / diagonal : (abs > 0.0 ? 1.0 : 0.0); }
+
+double DatasetCache::QuantisationError(Entry& entry, const Variant& variant) {
+  const std::pair<int, bool> key{static_cast<int>(variant.weight), variant.normals};
+  if (auto found = entry.quantisation.find(key); found != entry.quantisation.end()) return found->second;
+  const std::span<const glm::dvec3> gold = Gold(entry, variant).positions;
+  const std::span<const glm::dvec3> source = SourceGold(entry, variant.normals).positions;
+  double error = 0.0;
+  for (const Part& part : entry.parts)
+    error = std::max(error, Relative(MaxDistance(gold.subspan(part.first, part.count),
+                                                 source.subspan(part.first, part.count)),
+                                     part.diagonal));
+  return entry.quantisation.emplace(key, error).first->second;
+}
+
+const std::vector<std::vector<glm::mat4>>& DatasetCache::Frames(Entry& entry, int count) {
+  if (auto found = entry.frames.find(count); found != entry.frames.end()) return found->second;
+  return entry.frames.emplace(count, ScenePalettes(entry.scene, count)).first->second;
+}
+
+std::string PackingKey(Variant v) {
+  // Kernel-only axes (packer.cpp reads none of them).
+  v.lang = Lang::kOpenCl;
+  v.storage = PaletteStorage::kGlobal;
+  v.blend = Blend::kMatrix;
+  v.vertices_per_item = 1;
+  v.assignment = Assignment::kContiguous;
+  v.wg_size = 128;
+  return v.Key();
+}
+
+const PackedMesh& DatasetCache::Packed(Entry& entry, const Variant& variant) {
+  // A few: an exhaustive space walks its storage and work-group values within one packing.
+  constexpr std::size_t kPackingsKept = 4;
+  const std::string key = PackingKey(variant);
+  auto found = std::find_if(entry.packings.begin(), entry.packings.end(), [&](const auto& p) { return p.first == key; });
+  if (found == entry.packings.end()) {
+    // Only the data set being measured keeps packings (a 6400k-vertex one is ~200 MB each).
+    for (auto& [name, other] : entries_)
+      if (other.get() != &entry) other->packings.clear();
+    if (entry.packings.size() >= kPackingsKept) entry.packings.erase(entry.packings.begin());
+    entry.packings.emplace_back(key, Pack(entry.mesh(), variant));  // errors name `variant`
+    found = entry.packings.end() - 1;
+  }
+  found->second.variant = variant;
+  return found->second;
+}
+
+const PackedMesh& PackScene(DatasetCache& datasets, DatasetCache::Entry& entry, const Variant& variant,
+                            std::vector<KernelSource>& kernels) {
+  const PackedMesh& packed = datasets.Packed(entry, variant);
+  EmitOptions emit;  // K instances: the instanced kernels (docs/VARIANTS.md "Instancing")
+  emit.instanced = entry.instances() > 1;
+  emit.max_instances = emit.instanced ? entry.instances() : 0;
+  kernels.clear();
+  for (const Launch& launch : packed.launches)
+    kernels.push_back(Emit(variant, launch.influences, static_cast<int>(packed.palette_joints), emit));
+  return packed;
+}
+
+std::uint64_t FrameBytes(const PackedMesh& packed, int instances) {
+  std::uint64_t bytes = 0;
+  for (const Launch& launch : packed.launches)
+    for (const PackedBuffer& b : launch.inputs) bytes += b.bytes.size();
+  bytes += packed.vertex_count * packed.output_stride_bytes * (packed.variant.normals ? 2 : 1);
+  bytes += packed.palette.size();
+  return bytes * static_cast<std::uint64_t>(instances);
+}
+
+std::vector<std::vector<std::uint8_t>> TimedPalettes(DatasetCache& datasets, DatasetCache::Entry& data,
+                                                     const Variant& variant, int sets) {
+  std::vector<std::vector<std::uint8_t>> palettes;
+  for (const std::vector<glm::mat4>& palette : datasets.Frames(data, sets)) palettes.push_back(PackPalette(palette, variant));
+  return palettes;
+}
+
+}  // namespace skintune::internal::tuner_internal

@@ -1,0 +1,268 @@
+// skintune: one device's part of a tuning run (tuner/device_tuning.h).
+#include "tuner/device_tuning.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <set>
+#include <utility>
+
+#include "generator/emit.h"  // kGeneratorVersion
+
+#include "tuner/race.h"
+#include "tuner/strategy.h"
+#include "tuner/tuned_device.h"
+#include "tuner/worker.h"
+
+namespace skintune::internal {
+
+TuningLedger::TuningLedger(MeasurementCache& cache, std::size_t total, Progress progress)
+    : cache_(cache), total_(total), progress_(std::move(progress)) {}
+
+std::optional<Measurement> TuningLedger::Trusted(const std::string& cache_key, double tolerance) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  const Measurement* found = cache_.Find(cache_key);
+  if (found && MeasuredAgainOnResume(*found, tolerance).empty()) return *found;
+  return std::nullopt;
+}
+
+bool TuningLedger::Cached(const std::string& cache_key) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  return cache_.Find(cache_key) != nullptr;
+}
+
+void TuningLedger::Append(const Measurement& m) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  cache_.Append(m);
+}
+
+std::optional<RaceRecord> TuningLedger::FindRace(const std::string& race_key) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  const RaceRecord* found = cache_.FindRace(race_key);
+  return found ? std::optional<RaceRecord>(*found) : std::nullopt;
+}
+
+void TuningLedger::AppendRace(const std::string& race_key, const RaceRecord& race) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  cache_.AppendRace(race_key, race);
+}
+
+void TuningLedger::Advance(DeviceResult& device, std::size_t device_done, const std::string& what) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  device_done = std::min(device_done, device.planned);
+  if (device_done > device.done) {
+    done_ += device_done - device.done;
+    device.done = device_done;
+  }
+  if (!what.empty() && progress_) progress_(done_, total_, what);
+}
+
+namespace {
+
+// "ok 0.123 ms, error 1.2e-07 of the diagonal (f32)", or the status and the
+// first line of its detail.
+std::string ShortStatus(const Measurement& m) {
+  std::string text = Name(m.status);
+  if (IsTimed(m.status)) {
+    char ms[96];
+    std::snprintf(ms, sizeof ms, " %.3f ms, error %.1e of the diagonal (%s)", m.timing.median_ms,
+                  m.source_error.position_rel, Name(m.variant.weight));
+    text += ms;
+  } else if (!m.detail.empty()) {
+    std::string detail = m.detail.substr(0, m.detail.find('\n'));
+    if (detail.size() > 120) detail = detail.substr(0, 120) + "...";
+    text += " (" + detail + ")";
+  }
+  return text;
+}
+
+// The measurement cache's key of `variant` on a device and data set, by this generator.
+std::string CacheKeyOf(const std::string& device_id, const std::string& dataset, const Variant& variant) {
+  Measurement probe;
+  probe.device_id = device_id;
+  probe.dataset = dataset;
+  probe.variant = variant;
+  probe.generator_version = kGeneratorVersion;
+  return probe.CacheKey();
+}
+
+// The bytes each of the probe copy's source and destination hold: together
+// four times the last-level cache, so the copy streams from memory (a larger
+// one cost a CPU device seconds of allocation and first touch).
+std::size_t CopyBytes(const DeviceIdentity& d) {
+  std::uint64_t bytes = std::max<std::uint64_t>(64ull << 20, 2 * d.last_level_cache_bytes);
+  if (d.global_memory_bytes > 0) bytes = std::min<std::uint64_t>(bytes, d.global_memory_bytes / 4);
+  return static_cast<std::size_t>(bytes);
+}
+
+class DeviceTuning {
+ public:
+  DeviceTuning(const TuningPlan& plan, std::size_t d, const TuneConfig& config, const WorkerSetup& workers,
+               TuningLedger& ledger, DeviceResult& result)
+      : plan_(plan),
+        d_(d),
+        device_(plan.devices[d].identity),
+        config_(config),
+        ledger_(ledger),
+        result_(result),
+        worker_(workers.executable, device_, workers.variant_timeout_s),
+        id_(device_.Id()),
+        name_(device_.backend + " " + device_.name) {
+    // This device's timing: its tie margin (a CPU's is wider: TimingOptions::MarginFor).
+    timing_.tie_margin = config.timing.MarginFor(device_);
+    if (!workers.host_lock.empty()) worker_.UseHostLock(workers.host_lock);
+  }
+
+  void Run() {
+    try {
+      MeasureCopyBandwidth();
+      for (const Task& task : plan_.tasks) {
+        if (task.device != d_ || (task.candidates.empty() && task.baselines.empty())) continue;
+        RunTask(task);
+        task_start_ += task.planned;
+        Advance(0, "");
+      }
+    } catch (const WorkerError& e) {
+      // This device cannot be used: the run goes on with the others.
+      result_.given_up = e.what();
+      ledger_.Advance(result_, result_.planned, name_ + ": given up: " + e.what());
+    }
+    ledger_.Advance(result_, result_.planned, "");
+  }
+
+ private:
+  // The device's progress at `task_done` evaluations into the current task.
+  void Advance(std::size_t task_done, const std::string& what) { ledger_.Advance(result_, task_start_ + task_done, what); }
+
+  void MeasureCopyBandwidth() {
+    Advance(0, name_ + ": copy bandwidth");
+    std::string why_not;
+    if (const std::optional<double> gbps = worker_.CopyBandwidthGBps(CopyBytes(device_), &why_not))
+      result_.copy_gbps = *gbps;
+    else
+      Advance(0, name_ + ": copy bandwidth not measured: " + why_not);
+  }
+
+  // One task: the baselines, the search, then the race that settles it.
+  void RunTask(const Task& task) {
+    task_ = &task;
+    key_ = plan_.datasets[task.dataset].info.key;
+    task_done_ = 0;
+    seen_.clear();
+    const Evaluator evaluate = [this](const Variant& v) { return Evaluate(v); };
+    const LookAhead ahead = [this](const std::vector<Variant>& next) { CompileAhead(next); };
+    ahead(task.baselines);
+    const std::size_t first_of_task = result_.measurements.size();
+    for (const Variant& b : task.baselines) evaluate(b);
+    StrategyOptions strategy = config_.strategy;
+    strategy.margin = timing_.tie_margin;  // moves beyond noise only (strategy.h)
+    if (!task.candidates.empty()) Search(task.candidates, evaluate, strategy, ahead);
+    const auto measured = [this, first_of_task] {
+      return std::vector<Measurement>(result_.measurements.begin() + static_cast<std::ptrdiff_t>(first_of_task),
+                                      result_.measurements.end());
+    };
+    if (!measured().empty()) Settle(evaluate, ahead, measured);
+  }
+
+  // Compile ahead: the variants the task will measure next and the cache
+  // has not (the baselines, then what the strategy announces), built in
+  // parallel by the worker before any of them is timed.
+  void CompileAhead(const std::vector<Variant>& next) {
+    std::vector<Variant> ahead;
+    for (const Variant& v : next)
+      if (!ledger_.Trusted(CacheKeyOf(id_, key_, v), config_.timing.tolerance)) ahead.push_back(v);
+    if (ahead.size() < 2 || !CompilesAhead(device_)) return;  // one kernel: built by its measurement
+    Advance(task_done_, name_ + ": compiling " + std::to_string(ahead.size()) + " kernels for " + key_);
+    worker_.CompileAhead(ahead, TuningDataset{key_});
+  }
+
+  // One evaluation of the search: the cache's record, or a measurement in
+  // the worker appended to the cache; the kernel time of an ok one.
+  std::optional<double> Evaluate(const Variant& v) {
+    const std::string cache_key = CacheKeyOf(id_, key_, v);
+    const std::optional<Measurement> found = ledger_.Trusted(cache_key, config_.timing.tolerance);
+    Measurement m = found ? *found : worker_.Measure(v, TuningDataset{key_}, timing_);
+    ApplyBudget(m, config_.max_error);  // this run's budget, whatever the record's was
+    if (!found) {
+      if (result_.copy_gbps) RejectOverCeiling(m, *result_.copy_gbps);
+      ledger_.Append(m);
+    }
+    if (seen_.insert(cache_key).second) {
+      result_.measurements.push_back(m);
+      task_done_ = std::min(task_done_ + 1, task_->planned);
+      // The variant and its result first: a progress bar cuts the end of long lines.
+      Advance(task_done_, v.Key() + ": " + ShortStatus(m) + " [" + name_ + ", " + key_ + "]" + (found ? " (cached)" : ""));
+    }
+    if (m.status != MeasureStatus::kOk) return std::nullopt;
+    return m.timing.median_ms;
+  }
+
+  // The search settled by races of its leader's neighbourhood, in this device's worker (race.h).
+  void Settle(const Evaluator& evaluate, const LookAhead& ahead, const std::function<std::vector<Measurement>()>& measured) {
+    Advance(task_done_, name_ + ": racing the leaders of " + key_);
+    RaceMemo memo;
+    memo.find = [this](const std::string& race_key) { return ledger_.FindRace(race_key); };
+    memo.keep = [this](const std::string& race_key, const RaceRecord& race) { ledger_.AppendRace(race_key, race); };
+    // The walk may spend the search's budget once more (docs/TUNING.md "Races and ties").
+    const SearchToSettle search{task_->candidates, evaluate, measured, ahead,
+                                config_.strategy.budget > 0 ? config_.strategy.budget : kSettleWalkDefault};
+    const Racer racer = [this](const std::vector<Variant>& variants, std::string* why) {
+      std::vector<RaceSamples> legs;
+      for (int leg = 0; leg < RaceLegsFor(device_); ++leg) {
+        if (leg > 0) worker_.Restart();  // the next leg in a fresh process
+        std::optional<RaceSamples> samples = worker_.Race(variants, TuningDataset{key_}, timing_, why);
+        if (!samples) return std::optional<std::vector<RaceSamples>>();
+        legs.push_back(std::move(*samples));
+      }
+      return std::optional<std::vector<RaceSamples>>(std::move(legs));
+    };
+    bool cached_race = false;
+    result_.races.push_back(SettleSearch(racer, search, id_, task_->lang, key_, timing_, memo, &cached_race));
+    if (cached_race) Advance(task_done_, name_ + ": the race of " + key_ + " (cached)");
+  }
+
+  const TuningPlan& plan_;
+  const std::size_t d_;
+  const DeviceIdentity& device_;
+  const TuneConfig& config_;
+  TuningLedger& ledger_;
+  DeviceResult& result_;
+  IsolatedDevice worker_;
+  TimingOptions timing_ = config_.timing;
+  const std::string id_, name_;
+  std::size_t task_start_ = 0;  // evaluations planned before the current task
+  // The current task.
+  const Task* task_ = nullptr;
+  std::string key_;             // its dataset
+  std::size_t task_done_ = 0;   // its evaluations done
+  std::set<std::string> seen_;  // its cache keys recorded
+};
+
+}  // namespace
+
+void TuneDevice(const TuningPlan& plan, std::size_t d, const TuneConfig& config, const WorkerSetup& workers,
+                TuningLedger& ledger, DeviceResult& result) {
+  DeviceTuning(plan, d, config, workers, ledger, result).Run();
+}
+
+void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& workers, TuningLedger& ledger,
+                      const std::function<bool()>& overtaken) {
+  const DeviceIdentity& device = plan.devices[d].identity;
+  if (!CompilesAhead(device)) return;
+  try {
+    IsolatedDevice worker(workers.executable, device, workers.variant_timeout_s);
+    if (!workers.host_lock.empty()) worker.UseHostLock(workers.host_lock);
+    for (const Task& task : plan.tasks) {
+      if (task.device != d || overtaken()) continue;
+      const std::string& key = plan.datasets[task.dataset].info.key;
+      std::vector<Variant> ahead;
+      for (const std::vector<Variant>* list : {&task.baselines, &task.candidates})
+        for (const Variant& v : *list)
+          if (!ledger.Cached(CacheKeyOf(device.Id(), key, v))) ahead.push_back(v);
+      if (ahead.size() >= 2) worker.CompileAhead(ahead, TuningDataset{key});
+    }
+  } catch (...) {
+    // Only a head start lost: the device's own worker compiles and records any failure.
+  }
+}
+
+}  // namespace skintune::internal

@@ -1,0 +1,83 @@
+// skintune: one device's part of a tuning run, measured through a worker
+// process of its own (tuner/worker.h): for each of its tasks (tuner/plan.h)
+// the baselines, the search (tuner/strategy.h: each evaluation takes the
+// cache's record when there is one, else measures in the worker and appends
+// the result to the cache before going on) and the race that settles it
+// (tuner/race.h). tuner/schedule.h decides which devices run at once; what
+// they share is a TuningLedger.
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "tuner/config.h"
+#include "tuner/measurement.h"
+#include "tuner/plan.h"
+#include "tuner/race_record.h"
+
+namespace skintune::internal {
+
+// One device's results, kept apart from the others' until the run joins
+// them in device order, so that the report does not depend on the timing of
+// the threads.
+struct DeviceResult {
+  std::size_t planned = 0;  // evaluations expected on the device
+  std::size_t done = 0;     // of them, done
+  std::vector<Measurement> measurements;
+  std::vector<RaceRecord> races;
+  std::optional<double> copy_gbps;
+  std::optional<std::string> given_up;  // why the device could not be used
+};
+
+// What the devices tuned at the same time share, behind one lock: the
+// measurement cache and the run's progress.
+class TuningLedger {
+ public:
+  using Progress = std::function<void(std::size_t done, std::size_t total, const std::string& what)>;
+  TuningLedger(MeasurementCache& cache, std::size_t total, Progress progress);
+
+  // The cache's record of `cache_key` when this run can trust it (the cache
+  // is input: MeasuredAgainOnResume names why a record is measured again).
+  std::optional<Measurement> Trusted(const std::string& cache_key, double tolerance);
+  // Whether the cache has any record of `cache_key`.
+  bool Cached(const std::string& cache_key);
+  void Append(const Measurement& m);  // on disk before the next variant
+  std::optional<RaceRecord> FindRace(const std::string& race_key);
+  void AppendRace(const std::string& race_key, const RaceRecord& race);
+  // Moves `device`'s progress to `device_done` (never back, at most its
+  // planned) and reports `what` (nothing when empty).
+  void Advance(DeviceResult& device, std::size_t device_done, const std::string& what);
+
+ private:
+  std::mutex mutex_;
+  MeasurementCache& cache_;
+  std::size_t total_;
+  std::size_t done_ = 0;
+  Progress progress_;
+};
+
+// How a device's worker processes are started.
+struct WorkerSetup {
+  std::string executable;         // the skintune binary
+  double variant_timeout_s = 60;  // per variant
+  std::string host_lock;          // shared by every worker (tuner/host_lock.h); "" = none
+};
+
+// Tunes device `d` of `plan` into `result`: its copy bandwidth, then each of
+// its tasks. A device that cannot be used (WorkerError) is given up with the
+// reason, never the run.
+void TuneDevice(const TuningPlan& plan, std::size_t d, const TuneConfig& config, const WorkerSetup& workers,
+                TuningLedger& ledger, DeviceResult& result);
+
+// Compiles the kernels of device `d`'s tasks that the cache has no record
+// of, in a worker of its own, ahead of the device's turn: stops at the task
+// when `overtaken()` (the device's own turn came: it compiles its own). Only
+// a head start: any failure is left to the device's own worker to record.
+void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& workers, TuningLedger& ledger,
+                      const std::function<bool()>& overtaken);
+
+}  // namespace skintune::internal

@@ -1,0 +1,122 @@
+// skintune: the executor over the runner driver and the sampling of kernel
+// and frame times (tuner/executor.h).
+#include "tuner/executor.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+#include "generator/languages.h"
+#include "reference/error.h"
+
+namespace skintune::internal::tuner_internal {
+
+KernelTime SampleKernelTime(Executor::Timed& timed, const TimingOptions& options) {
+  using Clock = std::chrono::steady_clock;
+  const StopRule& rule = options.stop;
+  // The warm-up frames first, outside the time cap: they also prepare the
+  // flush (its buffer is made on first use) and warm the device.
+  (void)timed.Cold(std::max(options.warmup, 1), 0);
+  const auto start = Clock::now();
+  KernelTime t;
+  for (;;) {
+    const std::size_t want = std::min(rule.batch, rule.max_samples - std::min(rule.max_samples, t.samples.size()));
+    const std::vector<double> batch = timed.Cold(0, static_cast<int>(std::max<std::size_t>(want, 1)));
+    if (batch.empty()) throw Error("timing: the device gave no kernel time");
+    t.samples.insert(t.samples.end(), batch.begin(), batch.end());
+    for (const double s : batch)
+      if (!(s > 0.0) || !std::isfinite(s))
+        throw Error("timing: the device gave a kernel time of " + std::to_string(s) + " ms");
+    t.interval = MedianInterval(t.samples);
+    const double elapsed = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    if (ShouldStop(rule, t.interval, elapsed, &t.tight)) return t;
+  }
+}
+
+double SampleFrameTime(Executor::Timed& timed, const TimingOptions& options, int* frames) {
+  const double one = timed.FrameMs(std::max(options.warmup, 1), 1);
+  const double wanted = one > 0.0 ? options.burst_ms / one : 1.0;
+  // A power of two on a log scale, as the kernel's old bursts were, 1..kMaxBurstFrames.
+  int n = 1;
+  while (n < kMaxBurstFrames && n * std::sqrt(2.0) < wanted) n *= 2;
+  std::vector<double> ms;
+  for (int r = 0; r < std::max(options.repetitions, 1); ++r) ms.push_back(timed.FrameMs(0, n));
+  if (frames) *frames = n;
+  return Median(ms);
+}
+
+Executor::Output RunnerExecutor::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                     std::span<const std::uint8_t> palette, int instances) {
+  RunResult result = runner_.Run(mesh, kernels, palette, instances);
+  return {std::move(result.positions), std::move(result.normals), result.poisoned_vertices};
+}
+
+namespace {
+
+class RunnerTimed final : public Executor::Timed {
+ public:
+  RunnerTimed(Runner& runner, RunnerExecutor& executor, Prepared prepared, Lang lang)
+      : runner_(runner), executor_(executor), prepared_(std::move(prepared)), lang_(lang) {}
+  std::vector<double> Cold(int untimed, int samples) override {
+    return runner_.TimeCold(prepared_, executor_.Flush(lang_), untimed, samples);
+  }
+  double FrameMs(int untimed, int frames) override { return runner_.FrameMs(prepared_, untimed, frames); }
+  std::size_t bytes_per_set() const override { return prepared_.bytes_per_set(); }
+
+ private:
+  Runner& runner_;
+  RunnerExecutor& executor_;
+  Prepared prepared_;
+  Lang lang_;
+};
+
+}  // namespace
+
+const Prepared& RunnerExecutor::Flush(Lang lang) {
+  if (const auto found = flushes_.find(lang); found != flushes_.end()) return found->second;
+  return flushes_.emplace(lang, runner_.PrepareFlush(lang, flush_bytes_)).first->second;
+}
+
+std::unique_ptr<Executor::Timed> RunnerExecutor::Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                                         std::span<const std::vector<std::uint8_t>> palettes,
+                                                         int instances) {
+  const Lang lang = kernels.empty() ? mesh.variant.lang : kernels.front().lang;
+  return std::make_unique<RunnerTimed>(runner_, *this, runner_.Prepare(mesh, kernels, palettes, instances), lang);
+}
+
+std::unique_ptr<Executor::Timed> RunnerExecutor::Copy(Lang lang, std::size_t bytes, int input_sets) {
+  return std::make_unique<RunnerTimed>(runner_, *this, runner_.PrepareCopy(lang, bytes, input_sets),
+                                       LanguageOf(lang).copy_lang);
+}
+
+const KernelTime& Executor::CopyTime(Lang lang, std::size_t bytes, int input_sets, const TimingOptions& options) {
+  const std::string key = std::string(Name(lang)) + "|" + std::to_string(bytes / 32) + "|" + std::to_string(input_sets);
+  if (const auto found = copy_times_.find(key); found != copy_times_.end()) return *found->second;
+  const std::unique_ptr<Timed> copy = Copy(lang, bytes, input_sets);
+  auto time = std::make_unique<KernelTime>(SampleKernelTime(*copy, options));
+  return *copy_times_.emplace(key, std::move(time)).first->second;
+}
+
+double Median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const std::size_t n = values.size();
+  return n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+}
+
+double CopyGBps(std::size_t bytes, const std::vector<double>& ms) {
+  const double median = Median(ms);
+  if (!(median > 0.0)) throw Error("copy kernel: no positive time measured");
+  return 2.0 * static_cast<double>(bytes) / median / 1e6;
+}
+
+std::size_t CopyBytesCapped(std::size_t bytes, std::uint64_t max_allocation_bytes) {
+  constexpr std::size_t kGranule = 4096;
+  std::uint64_t capped = bytes;
+  if (max_allocation_bytes > 0) capped = std::min<std::uint64_t>(capped, max_allocation_bytes / 4);
+  capped -= capped % kGranule;
+  return static_cast<std::size_t>(std::max<std::uint64_t>(capped, kGranule));
+}
+
+}  // namespace skintune::internal::tuner_internal

@@ -1,0 +1,120 @@
+// skintune (internal to tuner/): what a measurement needs from a device's
+// runner (Executor), the one executor over the runner driver, and how kernel
+// and frame times are sampled from it.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "generator/copy_kernel.h"
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "runtime/device_identity.h"
+#include "runtime/runner.h"
+#include "tuner/statistics.h"
+#include "tuner/schedule.h"  // IsHostCpu
+#include "tuner/timing_options.h"
+
+namespace skintune::internal::tuner_internal {
+
+// A kernel time (docs/TUNING.md "Kernel time"): its cold samples, taken
+// until the stop rule is met or a cap is reached (SampleKernelTime).
+struct KernelTime {
+  std::vector<double> samples;
+  Interval interval;
+  bool tight = false;  // the interval met the rule (not stopped by a cap)
+};
+// What a job (tuner/measure_job.h) needs from a device's runner.
+class Executor {
+ public:
+  struct Output {
+    std::vector<std::uint8_t> positions, normals;  // packed order
+    std::size_t poisoned_vertices = 0;
+  };
+  // A variant (or a copy) prepared for timing: its input sets on the device.
+  class Timed {
+   public:
+    virtual ~Timed() = default;
+    // Kernel-time samples (Runner::TimeCold): `untimed` cold frames, then
+    // `samples` more, each its launches' device time from a flushed cache, ms.
+    virtual std::vector<double> Cold(int untimed, int samples) = 0;
+    // The frame time (Runner::FrameMs): `untimed` frames, then `frames`
+    // issued back to back as a Skinner issues them; host ms per frame.
+    virtual double FrameMs(int untimed, int frames) = 0;
+    virtual std::size_t bytes_per_set() const = 0;  // device bytes of one input set
+  };
+  virtual ~Executor() = default;
+  // One verification run: poisoned outputs and guards (the runners' Run).
+  // `instances` K: instanced kernels, `palette` holding K palettes.
+  virtual Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                     std::span<const std::uint8_t> palette, int instances) = 0;
+  // Prepares one input set per palette (K palettes each for K instances).
+  virtual std::unique_ptr<Timed> Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                         std::span<const std::vector<std::uint8_t>> palettes, int instances) = 0;
+  // The same-size copy (generator/copy_kernel.h) moving `bytes` per frame in
+  // `lang`'s API with `input_sets` sets of its own, prepared (Copy); its
+  // kernel time, measured once per (language, bytes, sets) and remembered
+  // (CopyTime: every variant of one size is judged against the same copy).
+  virtual std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) = 0;
+  const KernelTime& CopyTime(Lang lang, std::size_t bytes, int input_sets, const TimingOptions& options);
+  // What times a kernel-time sample on this device (DeviceApi::kernel_clock).
+  virtual std::string KernelClock() const = 0;
+  // The bytes the flush before each sample reads (generator/copy_kernel.h FlushBytes).
+  virtual std::size_t FlushReadBytes() const = 0;
+
+ private:
+  std::map<std::string, std::unique_ptr<KernelTime>> copy_times_;
+};
+
+// Executor over the runner driver (runtime/runner.h): Run, Prepare +
+// TimeCold / FrameMs with the flush of FlushBytes(`last_level_cache_bytes`),
+// made once per language; copies prepared once per size and kept.
+class RunnerExecutor final : public Executor {
+ public:
+  RunnerExecutor(Runner& runner, const DeviceIdentity& device)
+      : runner_(runner), flush_bytes_(FlushBytes(device.last_level_cache_bytes, IsHostCpu(device))) {}
+  Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t> palette,
+             int instances) override;
+  std::unique_ptr<Timed> Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                 std::span<const std::vector<std::uint8_t>> palettes, int instances) override;
+  std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) override;
+  std::string KernelClock() const override { return runner_.api().kernel_clock(); }
+  std::size_t FlushReadBytes() const override { return flush_bytes_; }
+  // The flush in `lang`'s API (prepared on first use).
+  const Prepared& Flush(Lang lang);
+
+ private:
+  Runner& runner_;
+  std::size_t flush_bytes_;
+  std::map<Lang, Prepared> flushes_;
+};
+
+// Wraps the executor a device measures through in another that adds to what
+// it does (tuner/fault_injection.h breaks one variant's kernels for the
+// failure tests); `device` is the device it runs on.
+using ExecutorDecorator = std::function<std::unique_ptr<Executor>(std::unique_ptr<Executor> inner, const DeviceIdentity& device)>;
+
+// Cold samples of `timed` until the stop rule is met or a cap is reached
+// (`options.stop`), after `options.warmup` untimed cold frames.
+KernelTime SampleKernelTime(Executor::Timed& timed, const TimingOptions& options);
+// The frame time: frames per repetition chosen to last about burst_ms, the
+// median over `repetitions` repetitions, ms per frame; `frames` says how many.
+double SampleFrameTime(Executor::Timed& timed, const TimingOptions& options, int* frames);
+
+// Median (the mean of the middle two for an even count), of a non-empty list.
+double Median(std::vector<double> values);
+
+// GB/s of a copy of `bytes` (read + written) from its per-run times in ms.
+double CopyGBps(std::size_t bytes, const std::vector<double>& ms);
+
+// The copy size CopyBandwidthGBps uses: `bytes` capped at a quarter of the
+// device's largest allocation (when known), rounded down to 4 KiB, at least 4 KiB.
+std::size_t CopyBytesCapped(std::size_t bytes, std::uint64_t max_allocation_bytes);
+
+}  // namespace skintune::internal::tuner_internal

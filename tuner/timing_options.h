@@ -1,0 +1,53 @@
+// skintune: how the tuner times a variant (docs/TUNING.md "Timing"): the
+// config's and the worker protocol's "timing" object.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "runtime/device_identity.h"  // DeviceIdentity
+#include "tuner/statistics.h"         // StopRule
+
+namespace skintune::internal {
+
+struct TimingOptions {
+  int warmup = 3;        // untimed frames before the kernel-time samples and before the frame time
+  // The frame time (docs/TUNING.md "Frame time"): `repetitions` runs of
+  // back-to-back frames, each of as many frames as take about burst_ms.
+  int repetitions = 10;
+  // Input sets rotated between kernel-time samples (each also starts from
+  // the flushed cache, so none finds its inputs there).
+  int max_input_sets = 8;
+  double tolerance = 1e-5;  // max relative error against the gold
+  double burst_ms = 2.0;
+  // The kernel time's samples (docs/TUNING.md "Kernel time"): until the 95%
+  // interval of the median is tight, or a cap (tuner/statistics.h).
+  StopRule stop;
+  // The race at the end of each search: up to `race` leading candidates
+  // measured again, interleaved, until they separate by more than
+  // `tie_margin` or prove equal within it (0: no race). 5%: on an H200
+  // (November 2026) the same winner's kernel time moved 4-6% between two
+  // cold runs at 100k vertices while each run's own interval was +-1%, so a
+  // margin narrower than the run-to-run shift let noise pick the winner.
+  int race = 8;
+  double tie_margin = 0.05;
+  // The tie margin on a device that is the host's CPU (PoCL's, skintune's
+  // cpu device), whose times move between runs far more than a GPU's: on the
+  // H200 machine's 16-thread host (November 2026) three cold runs' winner
+  // times differed by up to 1.27x, and two variants 10-30% apart in one run's
+  // race swapped places in the next.
+  double host_tie_margin = 0.25;
+  // The margin a race and the search use on a device (host_tie_margin on a CPU).
+  double MarginFor(const DeviceIdentity& device) const;
+};
+
+// The config's and the worker protocol's "timing" object: every field of
+// TimingOptions, each optional in a config (its default), all written by
+// ToJson. Throws Error("<where>.<field>: ...") for an unknown field or a
+// value of the wrong type, and UsageError naming the field for an impossible
+// stop rule or race (BadStopRule; race < 0; a tie margin outside (0, 0.5]).
+TimingOptions TimingOptionsFromJson(const nlohmann::json& in, const std::string& where);
+nlohmann::json ToJson(const TimingOptions& t);
+
+}  // namespace skintune::internal
