@@ -1,4 +1,4 @@
-// The tuner's devices (tuner/tuned_device.h) on this machine's devices: discovery
+// The tuner's TunedDevice (tuner/tuned_device.h) on this machine's devices: discovery
 // (PoCL and Mesa's llvmpipe in CI, CUDA skipped with its reason where there is
 // no driver), identities and their JSON, Measure of a few variants per API
 // (verified, then timed over rotating input sets), the injected faults that
@@ -106,10 +106,10 @@ TimingOptions SmallTiming() {
 }
 
 // A variant that passed: verified, timed, everything filled in.
-void ExpectOk(const Measurement& m, const TunedDevice& backend, const std::string& dataset) {
+void ExpectOk(const Measurement& m, const TunedDevice& tuned, const std::string& dataset) {
   ASSERT_EQ(m.status, MeasureStatus::kOk) << Name(m.status) << ": " << m.detail;
   EXPECT_EQ(m.detail, "");
-  EXPECT_EQ(m.device_id, backend.identity().Id());
+  EXPECT_EQ(m.device_id, tuned.identity().Id());
   EXPECT_EQ(m.dataset, dataset);
   EXPECT_EQ(m.generator_version, kGeneratorVersion);
   EXPECT_TRUE(std::regex_match(m.timestamp, std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)"))) << m.timestamp;
@@ -471,27 +471,27 @@ TEST(InjectedFault, EveryTemplateTakesEveryEdit) {
 // ---------------------------------------------------------------- OpenCL
 
 TEST(OpenClTunedDevice, MeasuresVariantsVerifiedThenTimed) {
-  DEVICE_OR_SKIP(backend, "opencl");
+  DEVICE_OR_SKIP(tuned, "opencl");
   for (const char* key : {"opencl.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
                           "opencl.b2.bucketed.soa-split.float3.u8.unorm8.mat4.local.point.v2s.wg64.nonormals",
                           "opencl.b2.padded.aos.float4.i32.unorm16.mat3x4.image.matrix.v4c.wg256.nonormals",
                           "opencl.b2.padded.soa.float4.u16.f32.mat3x4.constant.matrix.v8s.wg32.nonormals"}) {
     SCOPED_TRACE(key);
-    ExpectOk(backend->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *backend, kDataset);
+    ExpectOk(tuned->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *tuned, kDataset);
   }
 }
 
 TEST(OpenClTunedDevice, MeasuresNormalsAndAGltfMesh) {
-  DEVICE_OR_SKIP(backend, "opencl");
-  ExpectOk(backend->Measure(ParseVariantKey("opencl.b2.soa.normals"), {"5000-b2-normals"}, SmallTiming()), *backend,
+  DEVICE_OR_SKIP(tuned, "opencl");
+  ExpectOk(tuned->Measure(ParseVariantKey("opencl.b2.soa.normals"), {"5000-b2-normals"}, SmallTiming()), *tuned,
            "5000-b2-normals");
   // CesiumMan: 1..4 bones per vertex, so bucketed makes four launches, timed together.
   const std::string cesium = std::string(SKINTUNE_TEST_DATA_DIR) + "/CesiumMan.gltf";
-  ExpectOk(backend->Measure(ParseVariantKey("opencl.b4.bucketed.soa.normals"), {cesium}, SmallTiming()), *backend,
+  ExpectOk(tuned->Measure(ParseVariantKey("opencl.b4.bucketed.soa.normals"), {cesium}, SmallTiming()), *tuned,
            "CesiumMan.gltf");
 }
 
-// Scenes (reference/scene.h) on every backend found: K instances through
+// Scenes (reference/scene.h) on every device found: K instances through
 // the instanced kernels and a batch of CesiumMan, Fox and a synthetic mix,
 // verified per instance / mesh and timed against the copy of the whole
 // scene's bytes; their winners go to the database keyed by shape, and the
@@ -503,27 +503,27 @@ TEST(Scenes, InstancesAndBatchesAreVerifiedTimedAndTheirWinnersSelectedByShape) 
   const std::string single = "8000-b4";
   int measured = 0;
   for (const auto& found : Found().devices) {
-    TunedDevice& backend = *found;
+    TunedDevice& tuned = *found;
     TuningReport report;
     report.created = "2026-11-24T00:00:00Z";
     report.config = "test";
     report.strategy = "exhaustive";
-    report.devices.push_back(backend.identity());
+    report.devices.push_back(tuned.identity());
     report.datasets.push_back({single, 8000, 4, 77, SceneKind::kSingle, 1, 1});
     report.datasets.push_back({crowd, 8000, 4, 77, SceneKind::kInstances, 4, 1});
     const SceneSpec mix_spec = ParseSceneKey(mix);
     report.datasets.push_back({mix, 3273 + 1728 + 20000, 4, 0, SceneKind::kBatch, 1,
                                static_cast<int>(mix_spec.meshes.size())});
-    const Lang lang = backend.languages().front();
+    const Lang lang = tuned.languages().front();
     const std::string vertex = HasWorkGroups(lang) ? "v1c.wg64" : "v1c.wg0";  // glsl-vertex, cpu: none
     std::map<std::string, std::string> variant_of;  // dataset -> the variant measured on it
     variant_of[single] = std::string(Name(lang)) + ".b4.padded.soa.float4.u16.f32.mat3x4.global.matrix." + vertex;
     variant_of[crowd] = std::string(Name(lang)) + ".b4.padded.soa-split.float3.u16.unorm16.mat3x4.global.matrix." + vertex;
     variant_of[mix] = std::string(Name(lang)) + ".b4.padded.aos.float4.i32.f32.mat4.global.point." + vertex;
     for (const DatasetInfo& dataset : report.datasets) {
-      SCOPED_TRACE(backend.identity().Id() + " " + dataset.key);
-      Measurement m = backend.Measure(ParseVariantKey(variant_of[dataset.key]), {dataset.key}, SmallTiming());
-      ExpectOk(m, backend, IsGltfFile(dataset.key) ? std::filesystem::path(dataset.key).filename().string() : dataset.key);
+      SCOPED_TRACE(tuned.identity().Id() + " " + dataset.key);
+      Measurement m = tuned.Measure(ParseVariantKey(variant_of[dataset.key]), {dataset.key}, SmallTiming());
+      ExpectOk(m, tuned, IsGltfFile(dataset.key) ? std::filesystem::path(dataset.key).filename().string() : dataset.key);
       EXPECT_GT(m.x_copy, 0.0) << m.detail;
       m.dataset = dataset.key;  // as the worker records it (tuner/worker.cpp)
       report.measurements.push_back(m);
@@ -531,11 +531,11 @@ TEST(Scenes, InstancesAndBatchesAreVerifiedTimedAndTheirWinnersSelectedByShape) 
     }
     // The runtime's selection (through the public API, tests/tuner/scene_selection.h).
     const std::string db = WinnersDatabase(report).dump();
-    EXPECT_EQ(SelectedVariant(db, backend.identity(), "single", 8000), ParseVariantKey(variant_of[single]).Key());
-    EXPECT_EQ(SelectedVariant(db, backend.identity(), "instances", 8000), ParseVariantKey(variant_of[crowd]).Key());
-    EXPECT_EQ(SelectedVariant(db, backend.identity(), "batch", 8000), ParseVariantKey(variant_of[mix]).Key());
+    EXPECT_EQ(SelectedVariant(db, tuned.identity(), "single", 8000), ParseVariantKey(variant_of[single]).Key());
+    EXPECT_EQ(SelectedVariant(db, tuned.identity(), "instances", 8000), ParseVariantKey(variant_of[crowd]).Key());
+    EXPECT_EQ(SelectedVariant(db, tuned.identity(), "batch", 8000), ParseVariantKey(variant_of[mix]).Key());
   }
-  if (measured == 0) GTEST_SKIP() << "no backend here: " << SkippedLines("");
+  if (measured == 0) GTEST_SKIP() << "no device here: " << SkippedLines("");
 }
 
 // Compiling ahead (the tuner's pool of compile threads, each with a device
@@ -550,18 +550,18 @@ TEST(CompileAhead, BuildsEveryKernelThenMeasureUsesThem) {
   ScopedEnv always("SKINTUNE_COMPILE_AHEAD", "always");
   int tried = 0;
   for (const auto& found : Found().devices) {
-    TunedDevice& backend = *found;
-    if (!CompilesAhead(backend.identity())) continue;
-    SCOPED_TRACE(backend.identity().Id());
-    const Lang lang = backend.languages().front();
+    TunedDevice& tuned = *found;
+    if (!CompilesAhead(tuned.identity())) continue;
+    SCOPED_TRACE(tuned.identity().Id());
+    const Lang lang = tuned.languages().front();
     std::vector<Variant> variants;
     for (const char* storage : {"global", "constant"})
       for (const char* wg : {"wg64", "wg256"})
         variants.push_back(ParseVariantKey(std::string(Name(lang)) + ".b2.padded.soa.float4.u16.f32.mat3x4." + storage +
                                            ".matrix.v1c." + wg + ".nonormals"));
-    EXPECT_EQ(backend.CompileAhead(variants, {kDataset}), variants.size());
-    EXPECT_EQ(backend.CompileAhead(variants, {kDataset}), variants.size()) << "the second time: found built";
-    for (const Variant& v : variants) ExpectOk(backend.Measure(v, {kDataset}, SmallTiming()), backend, kDataset);
+    EXPECT_EQ(tuned.CompileAhead(variants, {kDataset}), variants.size());
+    EXPECT_EQ(tuned.CompileAhead(variants, {kDataset}), variants.size()) << "the second time: found built";
+    for (const Variant& v : variants) ExpectOk(tuned.Measure(v, {kDataset}, SmallTiming()), tuned, kDataset);
     ++tried;
   }
   if (tried == 0)
@@ -570,29 +570,29 @@ TEST(CompileAhead, BuildsEveryKernelThenMeasureUsesThem) {
 }
 
 TEST(OpenClTunedDevice, InvalidVariantsSayWhy) {
-  DEVICE_OR_SKIP(backend, "opencl");
+  DEVICE_OR_SKIP(tuned, "opencl");
   // Normals on a mesh without them: a constraint.
-  Measurement m = backend->Measure(ParseVariantKey("opencl.b2.normals"), {kDataset}, SmallTiming());
+  Measurement m = tuned->Measure(ParseVariantKey("opencl.b2.normals"), {kDataset}, SmallTiming());
   EXPECT_EQ(m.status, MeasureStatus::kInvalid) << m.detail;
   EXPECT_NE(m.detail.find("normals"), std::string::npos) << m.detail;
   // Another API's language.
-  m = backend->Measure(ParseVariantKey("cuda.b2"), {kDataset}, SmallTiming());
+  m = tuned->Measure(ParseVariantKey("cuda.b2"), {kDataset}, SmallTiming());
   EXPECT_EQ(m.status, MeasureStatus::kInvalid);
   EXPECT_NE(m.detail.find("cuda"), std::string::npos) << m.detail;
   // Fewer slots than the mesh needs.
-  m = backend->Measure(ParseVariantKey("opencl.b1"), {kDataset}, SmallTiming());
+  m = tuned->Measure(ParseVariantKey("opencl.b1"), {kDataset}, SmallTiming());
   EXPECT_EQ(m.status, MeasureStatus::kInvalid) << m.detail;
 }
 
 TEST(OpenClTunedDevice, ABadDatasetIsASetUpError) {
-  DEVICE_OR_SKIP(backend, "opencl");
-  EXPECT_THROW(backend->Measure(ParseVariantKey("opencl.b2"), {"not-a-dataset"}, SmallTiming()), Error);
+  DEVICE_OR_SKIP(tuned, "opencl");
+  EXPECT_THROW(tuned->Measure(ParseVariantKey("opencl.b2"), {"not-a-dataset"}, SmallTiming()), Error);
 }
 
 TEST(OpenClTunedDevice, InjectedCompileFaultIsCompileFailed) {
-  DEVICE_OR_SKIP(backend, "opencl");
+  DEVICE_OR_SKIP(tuned, "opencl");
   const Variant v = ParseVariantKey("opencl.b2.soa.v2c.wg64");
-  const std::unique_ptr<TunedDevice> faulty = Faulty(*backend, v, "compile");
+  const std::unique_ptr<TunedDevice> faulty = Faulty(*tuned, v, "compile");
   const Measurement m = faulty->Measure(v, {kDataset}, SmallTiming());
   EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << Name(m.status) << ": " << m.detail;
   EXPECT_NE(m.detail.find("OpenCL build"), std::string::npos) << m.detail;
@@ -602,9 +602,9 @@ TEST(OpenClTunedDevice, InjectedCompileFaultIsCompileFailed) {
 }
 
 TEST(OpenClTunedDevice, InjectedWrongResultIsVerifyFailed) {
-  DEVICE_OR_SKIP(backend, "opencl");
+  DEVICE_OR_SKIP(tuned, "opencl");
   const Variant v = ParseVariantKey("opencl.b2.aos.float3.u8.unorm8");
-  const Measurement m = Faulty(*backend, v, "wrong")->Measure(v, {kDataset}, SmallTiming());
+  const Measurement m = Faulty(*tuned, v, "wrong")->Measure(v, {kDataset}, SmallTiming());
   EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << Name(m.status) << ": " << m.detail;
   EXPECT_NE(m.detail.find("max relative error"), std::string::npos) << m.detail;
   EXPECT_NE(m.detail.find("at vertex"), std::string::npos) << m.detail;
@@ -613,10 +613,10 @@ TEST(OpenClTunedDevice, InjectedWrongResultIsVerifyFailed) {
 }
 
 TEST(OpenClTunedDevice, InjectedHangKernelBuilds) {
-  DEVICE_OR_SKIP(backend, "opencl");
+  DEVICE_OR_SKIP(tuned, "opencl");
   const OpenClInventory inventory = EnumerateOpenCl();
   const auto device = std::find_if(inventory.devices.begin(), inventory.devices.end(), [&](const OpenClDeviceInfo& d) {
-    return d.platform_name == backend->identity().platform && d.name == backend->identity().name;
+    return d.platform_name == tuned->identity().platform && d.name == tuned->identity().name;
   });
   ASSERT_NE(device, inventory.devices.end());
   OpenClRunner runner(device->platform_index, device->device_index);
@@ -629,17 +629,17 @@ TEST(OpenClTunedDevice, InjectedHangKernelBuilds) {
 }
 
 TEST(OpenClTunedDevice, CopyBandwidthIsPositive) {
-  DEVICE_OR_SKIP(backend, "opencl");
-  const double gbps = backend->CopyBandwidthGBps(16u << 20);
-  std::cout << "[ copy     ] " << backend->identity().name << ": " << gbps << " GB/s\n";
+  DEVICE_OR_SKIP(tuned, "opencl");
+  const double gbps = tuned->CopyBandwidthGBps(16u << 20);
+  std::cout << "[ copy     ] " << tuned->identity().name << ": " << gbps << " GB/s\n";
   EXPECT_GT(gbps, 0.0);
 }
 
 TEST(OpenClRunnerTiming, PreparesOneSetPerPaletteAndTimesEachRepetition) {
-  DEVICE_OR_SKIP(backend, "opencl");
+  DEVICE_OR_SKIP(tuned, "opencl");
   const OpenClInventory inventory = EnumerateOpenCl();
   const auto device = std::find_if(inventory.devices.begin(), inventory.devices.end(), [&](const OpenClDeviceInfo& d) {
-    return d.platform_name == backend->identity().platform && d.name == backend->identity().name;
+    return d.platform_name == tuned->identity().platform && d.name == tuned->identity().name;
   });
   ASSERT_NE(device, inventory.devices.end());
   OpenClRunner runner(device->platform_index, device->device_index);
@@ -665,31 +665,31 @@ TEST(OpenClRunnerTiming, PreparesOneSetPerPaletteAndTimesEachRepetition) {
 // ---------------------------------------------------------------- GL
 
 TEST(GlTunedDevice, MeasuresComputeAndVertexVariants) {
-  DEVICE_OR_SKIP(backend, "gl");
+  DEVICE_OR_SKIP(tuned, "gl");
   for (const char* key : {"glsl-compute.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
                           "glsl-compute.b2.bucketed.soa-split.float3.u8.unorm8.mat4.local.point.v2s.wg64.nonormals",
                           "glsl-vertex.b2.padded.aos.float4.u16.unorm16.mat3x4.constant.matrix.v1c.wg0.nonormals",
                           "glsl-vertex.b2.bucketed.soa.float3.i32.f32.mat4.image.point.v1c.wg0.nonormals"}) {
     SCOPED_TRACE(key);
-    ExpectOk(backend->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *backend, kDataset);
+    ExpectOk(tuned->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *tuned, kDataset);
   }
 }
 
 TEST(GlTunedDevice, InjectedCompileFaultIsCompileFailed) {
-  DEVICE_OR_SKIP(backend, "gl");
+  DEVICE_OR_SKIP(tuned, "gl");
   for (const char* key : {"glsl-compute.b2.soa", "glsl-vertex.b2.soa.v1c.wg0"}) {
     const Variant v = ParseVariantKey(key);
-    const Measurement m = Faulty(*backend, v, "compile")->Measure(v, {kDataset}, SmallTiming());
+    const Measurement m = Faulty(*tuned, v, "compile")->Measure(v, {kDataset}, SmallTiming());
     EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << key << ": " << Name(m.status) << ": " << m.detail;
     EXPECT_NE(m.detail.find("GL build"), std::string::npos) << m.detail;
   }
 }
 
 TEST(GlTunedDevice, InjectedWrongResultIsVerifyFailed) {
-  DEVICE_OR_SKIP(backend, "gl");
+  DEVICE_OR_SKIP(tuned, "gl");
   for (const char* key : {"glsl-compute.b2.aos.float3", "glsl-vertex.b2.soa-split.v1c.wg0"}) {
     const Variant v = ParseVariantKey(key);
-    const Measurement m = Faulty(*backend, v, "wrong")->Measure(v, {kDataset}, SmallTiming());
+    const Measurement m = Faulty(*tuned, v, "wrong")->Measure(v, {kDataset}, SmallTiming());
     EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << key << ": " << Name(m.status) << ": " << m.detail;
     EXPECT_NE(m.detail.find("max relative error"), std::string::npos) << m.detail;
     EXPECT_GT(m.max_relative_error, 1e-5);
@@ -697,7 +697,7 @@ TEST(GlTunedDevice, InjectedWrongResultIsVerifyFailed) {
 }
 
 TEST(GlTunedDevice, InjectedHangKernelsBuild) {
-  DEVICE_OR_SKIP(backend, "gl");
+  DEVICE_OR_SKIP(tuned, "gl");
   GlRunner runner;
   for (const char* key : {"glsl-compute.b2.soa", "glsl-compute.b2.aos", "glsl-vertex.b2.soa.v1c.wg0"}) {
     const Variant v = ParseVariantKey(key);
@@ -708,18 +708,18 @@ TEST(GlTunedDevice, InjectedHangKernelsBuild) {
 }
 
 TEST(GlTunedDevice, CopyBandwidthIsPositive) {
-  DEVICE_OR_SKIP(backend, "gl");
-  const double gbps = backend->CopyBandwidthGBps(16u << 20);
-  std::cout << "[ copy     ] " << backend->identity().name << ": " << gbps << " GB/s\n";
+  DEVICE_OR_SKIP(tuned, "gl");
+  const double gbps = tuned->CopyBandwidthGBps(16u << 20);
+  std::cout << "[ copy     ] " << tuned->identity().name << ": " << gbps << " GB/s\n";
   EXPECT_GT(gbps, 0.0);
 }
 
 // ---------------------------------------------------------------- Vulkan (lavapipe here)
 
 TEST(VulkanTunedDevice, MeasuresVariantsWithTheChipsIdentity) {
-  DEVICE_OR_SKIP(backend, "vulkan");
-  EXPECT_EQ(backend->languages(), std::vector<Lang>{Lang::kVulkan});
-  const DeviceIdentity& d = backend->identity();
+  DEVICE_OR_SKIP(tuned, "vulkan");
+  EXPECT_EQ(tuned->languages(), std::vector<Lang>{Lang::kVulkan});
+  const DeviceIdentity& d = tuned->identity();
   EXPECT_EQ(d.Id().rfind("vulkan:Vulkan/", 0), 0u) << d.Id();
   if (d.type == "gpu") {
     EXPECT_EQ(d.uuid.size(), 32u) << "a GPU's Vulkan device names its chip";
@@ -727,58 +727,58 @@ TEST(VulkanTunedDevice, MeasuresVariantsWithTheChipsIdentity) {
   for (const char* key : {"vulkan.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
                           "vulkan.b2.bucketed.aos.float3.u8.unorm8.mat4.image.point.v2s.wg64.nonormals"}) {
     SCOPED_TRACE(key);
-    ExpectOk(backend->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *backend, kDataset);
+    ExpectOk(tuned->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *tuned, kDataset);
   }
 }
 
 TEST(VulkanTunedDevice, InjectedCompileAndWrongFaultsAreCompileAndVerifyFailed) {
-  DEVICE_OR_SKIP(backend, "vulkan");
-  ExpectInjectedCompileAndWrongFaults(*backend, ParseVariantKey("vulkan.b2.soa.wg64"), "Vulkan build");
+  DEVICE_OR_SKIP(tuned, "vulkan");
+  ExpectInjectedCompileAndWrongFaults(*tuned, ParseVariantKey("vulkan.b2.soa.wg64"), "Vulkan build");
 }
 
 // ---------------------------------------------------------------- cpu (the fast path's kernels, every machine)
 
 TEST(CpuTunedDevice, MeasuresVariantsWithTheSameSizeCopyAndRecordsFaults) {
-  DEVICE_OR_SKIP(backend, "cpu");
-  EXPECT_EQ(backend->languages(), std::vector<Lang>{Lang::kCpu});
-  EXPECT_EQ(backend->identity().Id().rfind("cpu:skintune/", 0), 0u) << backend->identity().Id();
+  DEVICE_OR_SKIP(tuned, "cpu");
+  EXPECT_EQ(tuned->languages(), std::vector<Lang>{Lang::kCpu});
+  EXPECT_EQ(tuned->identity().Id().rfind("cpu:skintune/", 0), 0u) << tuned->identity().Id();
   for (const char* key : {"cpu.b2.padded.soa-split.float3.u8.unorm16.mat4.global.matrix.v1c.wg0.nonormals",
                           "cpu.b2.bucketed.aos.float4.i32.f32.mat3x4.global.point.v1c.wg0.nonormals"}) {
     SCOPED_TRACE(key);
-    const Measurement m = backend->Measure(ParseVariantKey(key), {kDataset}, SmallTiming());
-    ExpectOk(m, *backend, kDataset);
+    const Measurement m = tuned->Measure(ParseVariantKey(key), {kDataset}, SmallTiming());
+    ExpectOk(m, *tuned, kDataset);
     EXPECT_GT(m.timing.copy_ms, 0.0) << "the all-thread memcpy of the same bytes";
     EXPECT_NEAR(m.x_copy, m.timing.median_ms / m.timing.copy_ms, 1e-9 * m.x_copy);
   }
-  EXPECT_GT(backend->CopyBandwidthGBps(16u << 20), 0.0);
-  ExpectInjectedCompileAndWrongFaults(*backend, ParseVariantKey("cpu.b2.soa.v1c.wg0"), "CPU build");
+  EXPECT_GT(tuned->CopyBandwidthGBps(16u << 20), 0.0);
+  ExpectInjectedCompileAndWrongFaults(*tuned, ParseVariantKey("cpu.b2.soa.v1c.wg0"), "CPU build");
   // Storages other than global are invalid on the device, recorded so.
-  const Measurement local = backend->Measure(ParseVariantKey("cpu.b2.soa.local.v1c.wg0"), {kDataset}, SmallTiming());
+  const Measurement local = tuned->Measure(ParseVariantKey("cpu.b2.soa.local.v1c.wg0"), {kDataset}, SmallTiming());
   EXPECT_EQ(local.status, MeasureStatus::kInvalid) << local.detail;
 }
 
 // ---------------------------------------------------------------- CUDA (where there is a GPU)
 
 TEST(CudaTunedDevice, MeasuresVariantsAndInjectedFaults) {
-  DEVICE_OR_SKIP(backend, "cuda");
+  DEVICE_OR_SKIP(tuned, "cuda");
   for (const char* key : {"cuda.b2.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals",
                           "cuda.b2.bucketed.soa-split.float3.u8.unorm8.mat4.constant.point.v2s.wg64.nonormals",
                           "cuda.b2.padded.aos.float4.i32.unorm16.mat3x4.image.matrix.v4c.wg256.nonormals",
                           "cuda.b2.padded.soa.float4.u16.f32.mat3x4.local.matrix.v8s.wg32.nonormals"}) {
     SCOPED_TRACE(key);
-    ExpectOk(backend->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *backend, kDataset);
+    ExpectOk(tuned->Measure(ParseVariantKey(key), {kDataset}, SmallTiming()), *tuned, kDataset);
   }
   const Variant v = ParseVariantKey("cuda.b2.soa");
   {
-    const Measurement m = Faulty(*backend, v, "compile")->Measure(v, {kDataset}, SmallTiming());
+    const Measurement m = Faulty(*tuned, v, "compile")->Measure(v, {kDataset}, SmallTiming());
     EXPECT_EQ(m.status, MeasureStatus::kCompileFailed) << m.detail;
   }
   {
-    const Measurement m = Faulty(*backend, v, "wrong")->Measure(v, {kDataset}, SmallTiming());
+    const Measurement m = Faulty(*tuned, v, "wrong")->Measure(v, {kDataset}, SmallTiming());
     EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << m.detail;
   }
-  const double gbps = backend->CopyBandwidthGBps(256u << 20);
-  std::cout << "[ copy     ] " << backend->identity().name << ": " << gbps << " GB/s\n";
+  const double gbps = tuned->CopyBandwidthGBps(256u << 20);
+  std::cout << "[ copy     ] " << tuned->identity().name << ": " << gbps << " GB/s\n";
   EXPECT_GT(gbps, 0.0);
 }
 
