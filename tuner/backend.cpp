@@ -131,6 +131,13 @@ double TimingOptions::MarginFor(const DeviceIdentity& device) const {
   return device.type.find("cpu") != std::string::npos ? host_tie_margin : tie_margin;
 }
 
+TimingOptions TimingOptions::ForDevice(const DeviceIdentity& device) const {
+  TimingOptions out = *this;
+  out.tie_margin = MarginFor(device);
+  out.stop.interval = std::min(stop.interval * out.tie_margin / tie_margin, 0.5);  // BadStopRule's bound
+  return out;
+}
+
 nlohmann::json ToJson(const TimingOptions& t) {
   TimingOptions copy = t;
   nlohmann::json out = nlohmann::json::object();

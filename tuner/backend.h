@@ -52,6 +52,14 @@ struct TimingOptions {
   double host_tie_margin = 0.25;
   // The margin a race and the search use on a device (host_tie_margin on a CPU).
   double MarginFor(const DeviceIdentity& device) const;
+  // This timing as `device` is measured with: its margin (MarginFor), and the
+  // stop rule's interval kept the same fraction of that margin (0.01 of 0.05
+  // on a GPU, so 0.05 of 0.25 on a CPU by default). A CPU device's samples
+  // spread wider than its GPU's (half-width 2-4% at the caps: 200 samples
+  // on the H200 machine's host, 100 ms on the 2-core machine, 2026-11-28)
+  // while a quarter's margin judges it, so its 1% interval was never met
+  // and every variant sampled to the cap.
+  TimingOptions ForDevice(const DeviceIdentity& device) const;
 };
 
 // The config's and the worker protocol's "timing" object: every field of

@@ -615,9 +615,8 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
     DeviceRun& run = runs[di];
     const std::string id = device.identity.Id();
     IsolatedBackend worker(options.worker_executable, device.identity, config.variant_timeout_s);
-    // This device's timing: its tie margin (a CPU's is wider: TimingOptions::MarginFor).
-    TimingOptions timing = config.timing;
-    timing.tie_margin = config.timing.MarginFor(device.identity);
+    // This device's timing: its tie margin and stop rule (a CPU's are wider: TimingOptions::ForDevice).
+    const TimingOptions timing = config.timing.ForDevice(device.identity);
     if (host_lock) worker.UseHostLock(host_lock->path());
     const std::string device_name = device.identity.backend + " " + device.identity.name;
     try {

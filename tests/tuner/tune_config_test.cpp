@@ -171,3 +171,34 @@ TEST(TuneConfig, ImpossibleStopRulesNameTheField) {
 
 }  // namespace
 }  // namespace skintune::internal
+
+namespace skintune::internal {
+namespace {
+
+// A device is timed with its own margin and a stop interval that is the same
+// fraction of it: a CPU device's wider margin brings a wider interval, a
+// GPU's keeps the config's.
+TEST(TuneConfig, ADeviceIsTimedWithItsMarginAndAnIntervalInProportion) {
+  TimingOptions t;
+  t.tie_margin = 0.04;
+  t.host_tie_margin = 0.2;
+  t.stop.interval = 0.01;
+  DeviceIdentity gpu;
+  gpu.type = "gpu";
+  DeviceIdentity cpu;
+  cpu.type = "cpu";
+  const TimingOptions on_gpu = t.ForDevice(gpu);
+  EXPECT_DOUBLE_EQ(on_gpu.tie_margin, 0.04);
+  EXPECT_DOUBLE_EQ(on_gpu.stop.interval, 0.01);
+  const TimingOptions on_cpu = t.ForDevice(cpu);
+  EXPECT_DOUBLE_EQ(on_cpu.tie_margin, 0.2);
+  EXPECT_DOUBLE_EQ(on_cpu.stop.interval, 0.05);
+  EXPECT_EQ(on_cpu.stop.max_samples, t.stop.max_samples) << "only the interval follows the margin";
+  // Never beyond the stop rule's own bound.
+  t.stop.interval = 0.3;
+  EXPECT_DOUBLE_EQ(t.ForDevice(cpu).stop.interval, 0.5);
+  EXPECT_TRUE(BadStopRule(t.ForDevice(cpu).stop, "timing.").empty());
+}
+
+}  // namespace
+}  // namespace skintune::internal
