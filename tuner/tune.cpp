@@ -418,6 +418,8 @@ TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options) {
   report.max_error = config.max_error;
   report.tie_margin = config.timing.tie_margin;
   report.host_tie_margin = config.timing.host_tie_margin;
+  report.process_spread = config.timing.process_spread;
+  report.host_process_spread = config.timing.host_process_spread;
   report.machine = MachineInfo();
 
   // Datasets first: a bad key or glTF file is bad input, found before any device work.
