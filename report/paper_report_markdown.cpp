@@ -39,10 +39,12 @@ std::string Heading(const SummaryResult& r, const std::string& text) {
   return r.label.empty() ? text : r.label + ": " + text;
 }
 
-std::string ReportedNote(const SummaryResult& r, bool any) {
-  if (any) return r.reported.source.empty() ? "" : "The paper's figures: " + Cell(r.reported.source) + "\n\n";
-  return "The paper's figures: not on record" + (r.reported.source.empty() ? "." : " (" + Cell(r.reported.source) + ")") +
-         "\n\n";
+// Where the paper's figures come from, said once (under Fig. 1, the first
+// table printed); the tables after it say only where none is on record.
+std::string ReportedNote(const SummaryResult& r, bool any, bool with_source) {
+  const std::string source = with_source && !r.reported.source.empty() ? Cell(r.reported.source) : "";
+  if (any) return source.empty() ? "" : "The paper's figures: " + source + "\n\n";
+  return "The paper's figures: not on record" + (source.empty() ? "." : " (" + source + ")") + "\n\n";
 }
 
 std::string Grids(const PaperSummary& s, PaperApi other, const std::vector<Table1Grid>& grids) {
@@ -56,7 +58,7 @@ std::string Grids(const PaperSummary& s, PaperApi other, const std::vector<Table
     out += Cell(s.devices[g.opencl_device].label) + " vs " + Cell(s.devices[g.other_device].label) +
            "; each cell: the tuned winners' kernel time (their frame time) / the paper's kernels" +
            (reported.empty() ? std::string() : " / the paper's figure") + "\n\n";
-    out += ReportedNote(r, !reported.empty());
+    out += ReportedNote(r, !reported.empty(), /*with_source=*/false);
     out += "| vertices |";
     for (int b : g.influences) out += " B=" + std::to_string(b) + " |";
     out += "\n| --- |";
@@ -100,7 +102,7 @@ std::string Figure1Markdown(const PaperSummary& s) {
     if (!f.serial_ms) {
       out += "No serial baseline: no serial CPU timing of " + Cell(f.dataset) + " in this result, so no speedups.\n\n";
     }
-    out += ReportedNote(r, !r.reported.figure1.empty());
+    out += ReportedNote(r, !r.reported.figure1.empty(), /*with_source=*/true);
     out += "| device | implementation | time | speedup | the paper |\n| --- | --- | ---: | ---: | ---: |\n";
     for (const Figure1Row& row : f.rows) {
       const std::string device =

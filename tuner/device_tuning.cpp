@@ -107,8 +107,8 @@ class DeviceTuning {
         worker_(workers.executable, device_, workers.variant_timeout_s),
         id_(device_.Id()),
         name_(device_.backend + " " + device_.name) {
-    // This device's timing: its tie margin (a CPU's is wider: TimingOptions::MarginFor).
-    timing_.tie_margin = config.timing.MarginFor(device_);
+    // This device's timing: its tie margin and stop rule (a CPU's are wider: TimingOptions::ForDevice).
+    timing_ = config.timing.ForDevice(device_);
     if (!workers.host_lock.empty()) worker_.UseHostLock(workers.host_lock);
   }
 

@@ -146,6 +146,15 @@ double TuningReport::TieMarginOf(const std::string& device_id) const {
   return margins.tie_margin;
 }
 
+double TuningReport::TieSpreadOf(const std::string& device_id) const {
+  TimingOptions spreads;
+  spreads.process_spread = process_spread;
+  spreads.host_process_spread = host_process_spread;
+  for (const DeviceIdentity& d : devices)
+    if (d.Id() == device_id) return spreads.SpreadFor(d);
+  return process_spread;
+}
+
 std::vector<Winner> ComputeWinners(const TuningReport& report) {
   std::map<std::string, const DatasetInfo*> datasets;
   for (const DatasetInfo& d : report.datasets) datasets[d.key] = &d;
@@ -188,7 +197,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
       intervals.push_back(IntervalOf(report, *m));
     }
     const double margin = report.TieMarginOf(members.front()->device_id);
-    const RaceOutcome outcome = JudgeIntervals(intervals, entries, margin);
+    const RaceOutcome outcome = JudgeIntervals(intervals, entries, margin, report.TieSpreadOf(members.front()->device_id));
     const Measurement& m = *members[outcome.winner];
     Winner w = shape.at(key);
     w.tie_margin = margin;
@@ -326,6 +335,8 @@ nlohmann::json ReportToJson(const TuningReport& report) {
   }
   out["tie_margin"] = report.tie_margin;
   out["host_tie_margin"] = report.host_tie_margin;
+  out["process_spread"] = report.process_spread;
+  out["host_process_spread"] = report.host_process_spread;
   out["races"] = nlohmann::json::array();
   for (const RaceRecord& r : report.races) out["races"].push_back(RaceJson(r));
   return out;
@@ -432,6 +443,20 @@ void ReadMargins(const nlohmann::json& json, const std::string& context, TuningR
     *margin.second = At(context, name, [&] {
       const double value = Number(json, name);
       if (!(value > 0.0) || value > 0.5) throw Error("must be in (0, 0.5]");
+      return value;
+    });
+  }
+  // The spreads since 1.6.0; an older report's tie sets were its contenders.
+  for (const auto& spread : {std::pair<const char*, double*>{"process_spread", &r.process_spread},
+                             {"host_process_spread", &r.host_process_spread}}) {
+    const char* name = spread.first;  // not a structured binding: a lambda below captures it (clang 14)
+    if (!json.contains(name)) {
+      *spread.second = 0.0;
+      continue;
+    }
+    *spread.second = At(context, name, [&] {
+      const double value = Number(json, name);
+      if (!(value >= 0.0) || value > 0.5) throw Error("must be in [0, 0.5]");
       return value;
     });
   }

@@ -22,7 +22,7 @@ namespace skintune::internal {
 // (shape, instances, meshes), and winners are kept per shape; 1.4.0: timing
 // version 5 (kernel time with its interval, frame time), the races of each
 // search, tie_margin, and each winner's interval and tie set.
-inline constexpr const char* kReportSchemaVersion = "1.5.0";
+inline constexpr const char* kReportSchemaVersion = "1.6.0";
 
 struct DatasetInfo {
   std::string key;          // a scene key (reference/scene.h): a dataset, a glTF path, instances, a batch
@@ -51,6 +51,11 @@ struct TuningReport {
   double host_tie_margin = TimingOptions{}.host_tie_margin;
   // The margin `device_id`'s candidates are judged at (host_tie_margin for a CPU device).
   double TieMarginOf(const std::string& device_id) const;
+  // The spreads that widen the tie sets (TimingOptions::process_spread; 1.6.0:
+  // an older report's are 0, its tie sets as it had them).
+  double process_spread = TimingOptions{}.process_spread;
+  double host_process_spread = TimingOptions{}.host_process_spread;
+  double TieSpreadOf(const std::string& device_id) const;
   std::vector<RaceRecord> races;
 };
 

@@ -102,15 +102,33 @@ std::size_t TieBreak(const std::vector<RaceEntry>& entries, const std::vector<st
   });
 }
 
-RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin) {
+RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin, double spread) {
   std::vector<Interval> intervals;
   for (const RaceEntry& e : entries) intervals.push_back(MedianInterval(e.samples));
-  return JudgeIntervals(intervals, entries, margin);
+  return JudgeIntervals(intervals, entries, margin, spread);
 }
 
-RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::vector<RaceEntry>& entries, double margin) {
+namespace {
+
+// The entries that tie with the fastest `f` at `margin`: the leader, the
+// equal, and the undecided whose median is within the margin.
+std::vector<std::size_t> TiedAt(const std::vector<Interval>& intervals, std::size_t f, double margin) {
+  std::vector<std::size_t> tied;
+  for (std::size_t e = 0; e < intervals.size(); ++e) {
+    const Interval& i = intervals[e];
+    if (e == f || i.median <= intervals[f].median * (1.0 + margin) || i.high <= intervals[f].low * (1.0 + margin))
+      tied.push_back(e);
+  }
+  return tied;
+}
+
+}  // namespace
+
+RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::vector<RaceEntry>& entries, double margin,
+                           double spread) {
   if (entries.empty() || intervals.size() != entries.size()) throw Error("JudgeRace: no candidate, or not one interval each");
   if (!(margin > 0.0)) throw Error("JudgeRace: the tie margin must be positive");
+  if (!(spread >= 0.0) || !std::isfinite(spread)) throw Error("JudgeRace: the spread must be 0 or more");
   RaceOutcome out;
   out.intervals = intervals;
   for (std::size_t e = 1; e < entries.size(); ++e) {
@@ -121,7 +139,6 @@ RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::ve
     if (a.median < b.median || (a.median == b.median && entries[e].key < entries[out.fastest].key)) out.fastest = e;
   }
   const Interval& f = out.intervals[out.fastest];
-  std::vector<std::size_t>& tied = out.tied;
   out.decided = true;
   for (std::size_t e = 0; e < entries.size(); ++e) {
     const Interval& i = out.intervals[e];
@@ -134,13 +151,14 @@ RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::ve
       v = RaceVerdict::kEqual;
     }
     if (v == RaceVerdict::kUndecided) out.decided = false;
-    if (v == RaceVerdict::kLeader || v == RaceVerdict::kEqual ||
-        (v == RaceVerdict::kUndecided && i.median <= f.median * (1.0 + margin)))
-      tied.push_back(e);
     out.verdicts.push_back(v);
   }
-  out.winner = TieBreak(entries, tied);
-  out.all_within_noise = tied.size() == entries.size() && entries.size() > 1;
+  // A separated entry's median is beyond the margin and its high end too, so
+  // TiedAt takes exactly the leader, the equal and the undecided within it.
+  out.contenders = TiedAt(out.intervals, out.fastest, margin);
+  out.tied = spread > 0.0 ? TiedAt(out.intervals, out.fastest, margin + spread) : out.contenders;
+  out.winner = TieBreak(entries, out.contenders);
+  out.all_within_noise = out.tied.size() == entries.size() && entries.size() > 1;
   return out;
 }
 

@@ -76,8 +76,9 @@ struct RaceOutcome {
   std::vector<Interval> intervals;       // per entry, in entry order
   std::vector<RaceVerdict> verdicts;     // per entry, against the fastest
   std::size_t fastest = 0;               // the entry with the lowest median
-  std::vector<std::size_t> tied;         // the tie set: the leader, the equal, and the undecided whose median is within the margin
-  std::size_t winner = 0;                // TieBreak among the tie set
+  std::vector<std::size_t> contenders;   // the leader, the equal, and the undecided whose median is within the margin
+  std::vector<std::size_t> tied;         // the tie set: the contenders judged at the margin plus the spread (below)
+  std::size_t winner = 0;                // TieBreak among the contenders
   bool decided = false;                  // no entry undecided: sampling may stop
   bool all_within_noise = false;         // every entry is in the tie set
 };
@@ -88,11 +89,21 @@ struct RaceOutcome {
 // set holds the fastest, the equal, and the undecided whose median is
 // within the margin of the fastest's: an undecided candidate 9% slower at a
 // 5% margin is most likely slower, and letting the tie-break pick it would
-// let the race's cap decide the winner.
-RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin);
+// let the race's cap decide the winner. These are the contenders, among
+// which TieBreak picks the winner.
+//
+// The tie set is the same judgement at `margin + spread`, where `spread`
+// (>= 0) is how far the difference between two candidates moves from one
+// process to the next (the p95 of its change between three cold runs: 3.4%
+// on an H200's APIs, 8% on PoCL, 25% on skintune's cpu device on its host,
+// 2026-11-28). A pair judged 4.9% apart in one run (both contenders) and
+// 5.1% in the next (one separated) cannot be told apart across runs: the
+// tie set says so, while the winner stays one of this run's contenders.
+RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin, double spread = 0.0);
 // The same judgement from intervals already computed (one per entry; the
 // entries' samples are not read): a search's own measurements, where no race ran.
-RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::vector<RaceEntry>& entries, double margin);
+RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::vector<RaceEntry>& entries, double margin,
+                           double spread = 0.0);
 // The deterministic rule among tied candidates: fewest bytes moved, then the
 // lower error against the source, then the variant key. Returns the index
 // into `entries` of the chosen one among `tied` (indices, non-empty).

@@ -38,7 +38,9 @@ std::vector<TimingField> Fields(TimingOptions& t) {
           {"sample_ms", TimingField::kNumber, nullptr, nullptr, &t.stop.max_ms},
           {"race", TimingField::kInt, &t.race, nullptr, nullptr},
           {"tie_margin", TimingField::kNumber, nullptr, nullptr, &t.tie_margin},
-          {"host_tie_margin", TimingField::kNumber, nullptr, nullptr, &t.host_tie_margin}};
+          {"host_tie_margin", TimingField::kNumber, nullptr, nullptr, &t.host_tie_margin},
+          {"process_spread", TimingField::kNumber, nullptr, nullptr, &t.process_spread},
+          {"host_process_spread", TimingField::kNumber, nullptr, nullptr, &t.host_process_spread}};
 }
 
 std::string Dumped(const nlohmann::json& v) {
@@ -85,11 +87,27 @@ TimingOptions TimingOptionsFromJson(const nlohmann::json& in, const std::string&
     if (!(value > 0.0) || value > 0.5)
       throw UsageError(where + ": '" + prefix + name + "' is " + Dumped(in.at(name)) +
                        ": a relative difference in (0, 0.5] (0.02: 2%)");
+  for (const auto& [name, value] :
+       {std::pair<const char*, double>{"process_spread", t.process_spread}, {"host_process_spread", t.host_process_spread}})
+    if (!(value >= 0.0) || value > 0.5)
+      throw UsageError(where + ": '" + prefix + name + "' is " + Dumped(in.at(name)) +
+                       ": a relative difference in [0, 0.5] (0.034: 3.4%)");
   return t;
 }
 
 double TimingOptions::MarginFor(const DeviceIdentity& device) const {
   return IsHostCpu(device) ? host_tie_margin : tie_margin;
+}
+
+double TimingOptions::SpreadFor(const DeviceIdentity& device) const {
+  return IsHostCpu(device) ? host_process_spread : process_spread;
+}
+
+TimingOptions TimingOptions::ForDevice(const DeviceIdentity& device) const {
+  TimingOptions out = *this;
+  out.tie_margin = MarginFor(device);
+  out.stop.interval = std::min(stop.interval * out.tie_margin / tie_margin, 0.5);  // BadStopRule's bound
+  return out;
 }
 
 nlohmann::json ToJson(const TimingOptions& t) {

@@ -38,8 +38,24 @@ struct TimingOptions {
   // times differed by up to 1.27x, and two variants 10-30% apart in one run's
   // race swapped places in the next.
   double host_tie_margin = 0.25;
+  // How far the difference between two candidates moves from one process to
+  // the next, widening the tie set (not the choice: tuner/statistics.h
+  // JudgeIntervals). The p95 of that move between three cold runs on the
+  // H200 machine (2026-11-28): 3.4% on the GPU's APIs; 8% on PoCL and 25% on
+  // skintune's cpu device, the host's CPU taking the larger.
+  double process_spread = 0.034;
+  double host_process_spread = 0.25;
+  double SpreadFor(const DeviceIdentity& device) const;
   // The margin a race and the search use on a device (host_tie_margin on a CPU).
   double MarginFor(const DeviceIdentity& device) const;
+  // This timing as `device` is measured with: its margin (MarginFor), and the
+  // stop rule's interval kept the same fraction of that margin (0.01 of 0.05
+  // on a GPU, so 0.05 of 0.25 on a CPU by default). A CPU device's samples
+  // spread wider than its GPU's (half-width 2-4% at the caps: 200 samples
+  // on the H200 machine's host, 100 ms on the 2-core machine, 2026-11-28)
+  // while a quarter's margin judges it, so its 1% interval was never met
+  // and every variant sampled to the cap.
+  TimingOptions ForDevice(const DeviceIdentity& device) const;
 };
 
 // The config's and the worker protocol's "timing" object: every field of

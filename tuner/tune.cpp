@@ -70,6 +70,8 @@ TuningReport ReportHeader(const TuneConfig& config) {
   report.max_error = config.max_error;
   report.tie_margin = config.timing.tie_margin;
   report.host_tie_margin = config.timing.host_tie_margin;
+  report.process_spread = config.timing.process_spread;
+  report.host_process_spread = config.timing.host_process_spread;
   report.machine = MachineInfo();
   return report;
 }

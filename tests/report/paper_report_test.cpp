@@ -397,6 +397,18 @@ TEST(PaperSummary, WithoutReportedFiguresTheReportSaysNotOnRecord) {
   EXPECT_NE(Figure1Markdown(s).find("The paper's figures: not on record"), std::string::npos);
 }
 
+// The Markdown summary names where the paper's figures come from once, under
+// Fig. 1; the Table 1 grids after it say only where none is on record.
+TEST(PaperSummary, TheMarkdownNamesThePapersSourceOnce) {
+  const PaperResult r = SamplePaperResult();
+  ASSERT_FALSE(r.reported.source.empty());
+  const std::string md = RenderMarkdown(Summarise({r}));
+  const std::size_t first = md.find(r.reported.source);
+  ASSERT_NE(first, std::string::npos);
+  EXPECT_EQ(md.find(r.reported.source, first + 1), std::string::npos) << md;
+  EXPECT_LT(first, md.find("## Table 1"));
+}
+
 TEST(PaperSummary, ReportedSeriesWithoutAMatchingDeviceIsListedApart) {
   PaperResult r = SamplePaperResult();
   const std::string cpu = testing::SampleOpenClCpu().Id();

@@ -179,6 +179,34 @@ TEST(Report, ACpuDevicesCandidatesTieAtTheHostMarginAGpusAtTheTieMargin) {
   EXPECT_NE(ErrorOf([&] { ReportFromJson(old, "bad.json"); }).find("host_tie_margin"), std::string::npos);
 }
 
+// A tie set spans the spread between processes: a GPU candidate 7% slower is
+// no contender at a 5% margin (the winner stays the fastest) but is in the tie
+// set with pairs moving 3.4% between processes. A report from before the
+// spreads were recorded keeps its tie sets as they were; the spreads survive
+// the round trip, and an impossible one is an error naming it.
+TEST(Report, ATieSetSpansTheSpreadBetweenProcessesNotTheChoice) {
+  const DeviceIdentity gpu = testing::SampleGpu();
+  TuningReport r = TwoCandidates(gpu, 1.07);
+  r.tie_margin = 0.05;
+  r.process_spread = 0.034;
+  std::vector<Winner> winners = ComputeWinners(r);
+  ASSERT_EQ(winners.size(), 1u);
+  EXPECT_EQ(winners[0].variant.Key(), r.measurements[0].variant.Key());
+  EXPECT_EQ(winners[0].tie_set.size(), 2u);
+  r.process_spread = 0.0;
+  EXPECT_EQ(ComputeWinners(r)[0].tie_set.size(), 1u);
+  r.process_spread = 0.034;
+  nlohmann::json json = ReportToJson(r);
+  EXPECT_DOUBLE_EQ(ReportFromJson(json, "r.json").TieSpreadOf(gpu.Id()), 0.034);
+  json.erase("process_spread");
+  json.erase("host_process_spread");
+  const TuningReport old = ReportFromJson(json, "old.json");
+  EXPECT_DOUBLE_EQ(old.TieSpreadOf(gpu.Id()), 0.0);
+  EXPECT_EQ(ComputeWinners(old)[0].tie_set.size(), 1u);
+  json["host_process_spread"] = -0.1;
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(json, "bad.json"); }).find("host_process_spread"), std::string::npos);
+}
+
 // Where a race measured a row, the race alone judges it: a candidate the
 // race left out does not win on a search figure from minutes before.
 TEST(Report, ARacedRowIsJudgedByTheRacesCandidatesOnly) {

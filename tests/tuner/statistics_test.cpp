@@ -169,6 +169,29 @@ TEST(Race, SameWinnerUnderPermutedMeasurementOrder) {
   } while (std::next_permutation(order.begin(), order.end()));
 }
 
+// The spread between processes widens the tie set, never the winner's
+// choice: a candidate 7% slower is no contender at a 5% margin, so the
+// tie-break cannot pick it for its fewer bytes; but with pairs moving 3.4%
+// from one process to the next it cannot be told from the winner either, so
+// it is in the tie set. With no spread the two sets are one.
+TEST(Race, TheSpreadWidensTheTieSetNotTheChoice) {
+  const std::vector<RaceEntry> entries = {
+      {"fast", Samples(1.00, 0.002, 60, 31), 100, 0},
+      {"seven.percent", Samples(1.07, 0.002, 60, 32), 80, 0},
+      {"twelve.percent", Samples(1.12, 0.002, 60, 33), 60, 0},
+  };
+  const RaceOutcome plain = JudgeRace(entries, 0.05);
+  EXPECT_EQ(plain.contenders, std::vector<std::size_t>{0});
+  EXPECT_EQ(plain.tied, plain.contenders);
+  const RaceOutcome spread = JudgeRace(entries, 0.05, 0.034);
+  EXPECT_EQ(spread.contenders, std::vector<std::size_t>{0});
+  EXPECT_EQ(spread.tied, (std::vector<std::size_t>{0, 1}));
+  EXPECT_EQ(entries[spread.winner].key, "fast") << "the winner is a contender, not the tie set's fewest bytes";
+  EXPECT_EQ(spread.verdicts, plain.verdicts) << "verdicts (and so when a race stops) are judged at the margin";
+  EXPECT_FALSE(spread.all_within_noise);
+  EXPECT_THROW(JudgeRace(entries, 0.05, -0.01), Error);
+}
+
 TEST(Race, AllWithinNoiseSaysSo) {
   const RaceOutcome out = JudgeRace({{"a", Samples(1.0, 0.001, 30, 21), 1, 0}, {"b", Samples(1.001, 0.001, 30, 22), 1, 0}}, 0.02);
   EXPECT_TRUE(out.all_within_noise);

@@ -117,7 +117,7 @@ TEST(TuneConfig, ErrorsNameTheElement) {
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"repetitions": 0}})"),
             "c.json: timing.repetitions: must be an integer from 1 to 1000000 (got 0)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"reps": 3}})"),
-            "c.json: timing.reps: unknown field (expected one of warmup, repetitions, max_input_sets, tolerance, burst_ms, interval, min_samples, max_samples, sample_batch, sample_ms, race, tie_margin, host_tie_margin)");
+            "c.json: timing.reps: unknown field (expected one of warmup, repetitions, max_input_sets, tolerance, burst_ms, interval, min_samples, max_samples, sample_batch, sample_ms, race, tie_margin, host_tie_margin, process_spread, host_process_spread)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"tolerance": -1}})"),
             "c.json: timing.tolerance: must be a positive number (got -1)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"race": -1}})"),
@@ -166,7 +166,41 @@ TEST(TuneConfig, ImpossibleStopRulesNameTheField) {
       << usage(R"({"host_tie_margin": 0})");
   EXPECT_EQ(usage(R"({"interval": 0.02, "min_samples": 5, "max_samples": 40, "sample_batch": 5, "tie_margin": 0.03, "host_tie_margin": 0.2})"),
             "accepted");
+  EXPECT_NE(usage(R"({"process_spread": -0.01})").find("'timing.process_spread' is -0.01"), std::string::npos)
+      << usage(R"({"process_spread": -0.01})");
+  EXPECT_EQ(usage(R"({"process_spread": 0, "host_process_spread": 0.5})"), "accepted");
   EXPECT_EQ(usage(R"({"interval": 0})").find('\n'), std::string::npos) << "one line";
+}
+
+}  // namespace
+}  // namespace skintune::internal
+
+namespace skintune::internal {
+namespace {
+
+// A device is timed with its own margin and a stop interval that is the same
+// fraction of it: a CPU device's wider margin brings a wider interval, a
+// GPU's keeps the config's.
+TEST(TuneConfig, ADeviceIsTimedWithItsMarginAndAnIntervalInProportion) {
+  TimingOptions t;
+  t.tie_margin = 0.04;
+  t.host_tie_margin = 0.2;
+  t.stop.interval = 0.01;
+  DeviceIdentity gpu;
+  gpu.type = "gpu";
+  DeviceIdentity cpu;
+  cpu.type = "cpu";
+  const TimingOptions on_gpu = t.ForDevice(gpu);
+  EXPECT_DOUBLE_EQ(on_gpu.tie_margin, 0.04);
+  EXPECT_DOUBLE_EQ(on_gpu.stop.interval, 0.01);
+  const TimingOptions on_cpu = t.ForDevice(cpu);
+  EXPECT_DOUBLE_EQ(on_cpu.tie_margin, 0.2);
+  EXPECT_DOUBLE_EQ(on_cpu.stop.interval, 0.05);
+  EXPECT_EQ(on_cpu.stop.max_samples, t.stop.max_samples) << "only the interval follows the margin";
+  // Never beyond the stop rule's own bound.
+  t.stop.interval = 0.3;
+  EXPECT_DOUBLE_EQ(t.ForDevice(cpu).stop.interval, 0.5);
+  EXPECT_TRUE(BadStopRule(t.ForDevice(cpu).stop, "timing.").empty());
 }
 
 }  // namespace
