@@ -1,5 +1,5 @@
-// Reading a file from outside: kind and size first (reference/input_file.h).
-#include "reference/input_file.h"
+// Reading a file from outside: kind and size first (base/input_file.h).
+#include "base/input_file.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -8,8 +8,8 @@
 #include <cerrno>
 #include <cstring>
 
-#include "reference/error.h"
-#include "reference/memory_limit.h"
+#include "base/error.h"
+#include "base/memory_limit.h"
 
 namespace skintune::internal {
 namespace {

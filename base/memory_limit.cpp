@@ -1,4 +1,4 @@
-#include "reference/memory_limit.h"
+#include "base/memory_limit.h"
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -8,7 +8,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 

@@ -7,7 +7,7 @@
 #include <array>
 #include <cstddef>
 
-#include "reference/cpu_kernels.h"
+#include "cpu_kernels/cpu_kernels.h"
 
 namespace skintune::internal::cpu_detail {
 

@@ -1,16 +1,16 @@
 // The CPU kernels' selection (one table per instruction set), palettes,
 // schedules and the threaded loop. The kernels: cpu_kernels.inc, compiled in
 // slices by cpu_kernels_slice.cpp.
-#include "reference/cpu_kernels.h"
+#include "cpu_kernels/cpu_kernels.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <thread>
 
-#include "reference/cpu_kernel_table.h"
-#include "reference/error.h"
-#include "reference/thread_pool.h"
+#include "cpu_kernels/cpu_kernel_table.h"
+#include "base/error.h"
+#include "base/thread_pool.h"
 
 namespace skintune::internal {
 

@@ -2,7 +2,7 @@
 // compiled for instruction set CPU_KERNELS_ISA (a cpu_detail::CpuIsa), with
 // that set's -march. reference/CMakeLists.txt compiles this file once per
 // pair; cpu_kernels.cpp assembles the tables from the slices.
-#include "reference/cpu_kernels.inc"
+#include "cpu_kernels/cpu_kernels.inc"
 
 #if !defined(CPU_KERNELS_ISA) || !defined(CPU_KERNELS_B)
 #error "cpu_kernels_slice.cpp is compiled with CPU_KERNELS_ISA and CPU_KERNELS_B defined"

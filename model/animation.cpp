@@ -7,7 +7,7 @@
 //                tangents scaled by the key interval (t[k+1] - t[k]).
 // Rotations are normalised after every interpolation. Outside the keyed range
 // the first/last key value is held.
-#include "reference/animation.h"
+#include "model/animation.h"
 
 #include <algorithm>
 #include <cmath>
@@ -17,7 +17,7 @@
 
 #include <glm/gtc/quaternion.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 namespace {

@@ -11,7 +11,7 @@
 
 #include <glm/glm.hpp>
 
-#include "reference/skeleton.h"
+#include "model/skeleton.h"
 
 namespace skintune::internal {
 

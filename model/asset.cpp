@@ -1,8 +1,8 @@
-#include "reference/asset.h"
+#include "model/asset.h"
 
 #include <charconv>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 

@@ -4,9 +4,9 @@
 #include <string>
 #include <vector>
 
-#include "reference/animation.h"
-#include "reference/mesh.h"
-#include "reference/skeleton.h"
+#include "model/animation.h"
+#include "model/mesh.h"
+#include "model/skeleton.h"
 
 namespace skintune::internal {
 

@@ -1,5 +1,5 @@
 // skintune: the bounds-checked glTF accessor reader (see gltf_accessor.h).
-#include "reference/gltf_accessor.h"
+#include "model/gltf_accessor.h"
 
 #include <algorithm>
 #include <cstdint>
@@ -12,7 +12,7 @@
 
 #include <tiny_gltf.h>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal::gltf_detail {
 

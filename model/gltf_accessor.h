@@ -36,7 +36,7 @@
 
 #include <tiny_gltf.h>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal::gltf_detail {
 

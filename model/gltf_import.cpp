@@ -3,7 +3,7 @@
 // bounds-checked accessor reader (gltf_accessor.h), so a malformed file gives
 // an Error naming the accessor / bufferView / buffer instead of reading out of
 // bounds. This file: file loading, mesh selection, mesh, skeleton, animations.
-#include "reference/gltf_import.h"
+#include "model/gltf_import.h"
 
 #include <algorithm>
 #include <cmath>
@@ -23,9 +23,9 @@
 #include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
-#include "reference/error.h"
-#include "reference/gltf_accessor.h"
-#include "reference/input_file.h"
+#include "base/error.h"
+#include "model/gltf_accessor.h"
+#include "base/input_file.h"
 
 namespace skintune::internal {
 namespace {

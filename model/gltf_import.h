@@ -28,7 +28,7 @@
 #include <string>
 #include <vector>
 
-#include "reference/asset.h"
+#include "model/asset.h"
 
 namespace skintune::internal {
 

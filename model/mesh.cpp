@@ -1,11 +1,11 @@
-#include "reference/mesh.h"
+#include "model/mesh.h"
 
 #include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <sstream>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 

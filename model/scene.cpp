@@ -1,14 +1,14 @@
 // skintune: scenes (see scene.h).
-#include "reference/scene.h"
+#include "model/scene.h"
 
 #include <algorithm>
 #include <cctype>
 #include <cstdint>
 #include <filesystem>
 
-#include "reference/error.h"
-#include "reference/gltf_import.h"
-#include "reference/synthetic.h"
+#include "base/error.h"
+#include "model/gltf_import.h"
+#include "model/synthetic.h"
 
 namespace skintune::internal {
 

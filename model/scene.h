@@ -16,7 +16,7 @@
 // meshes' golds one after another (checked per mesh).
 //
 // Scene keys (the tuner's datasets, docs/DATA.md):
-//   <dataset>              one mesh: a synthetic key (reference/synthetic.h) or a glTF path
+//   <dataset>              one mesh: a synthetic key (model/synthetic.h) or a glTF path
 //   <dataset>-x<K>         K >= 2 instances of it, e.g. "25k-b4-x64"
 //   <m1>+<m2>+...          a batch of the meshes m1, m2, ... (synthetic keys, glTF paths, mixes)
 //   mix<N>-b<B>[-seed<S>]  a batch of seeded synthetic meshes of 5k..100k vertices, N vertices in
@@ -29,7 +29,7 @@
 #include <string>
 #include <vector>
 
-#include "reference/asset.h"
+#include "model/asset.h"
 
 namespace skintune::internal {
 

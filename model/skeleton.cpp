@@ -1,4 +1,4 @@
-#include "reference/skeleton.h"
+#include "model/skeleton.h"
 
 #include <cfloat>
 #include <cmath>
@@ -7,7 +7,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 

@@ -9,7 +9,7 @@
 //
 // Determinism: splitmix64 streams seeded from spec.seed, double maths, no
 // std:: distributions.
-#include "reference/synthetic.h"
+#include "model/synthetic.h"
 
 #include <algorithm>
 #include <cmath>
@@ -23,8 +23,8 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 
-#include "reference/error.h"
-#include "reference/memory_limit.h"
+#include "base/error.h"
+#include "base/memory_limit.h"
 
 namespace skintune::internal {
 namespace {

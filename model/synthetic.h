@@ -26,7 +26,7 @@
 #include <cstdint>
 #include <string>
 
-#include "reference/asset.h"
+#include "model/asset.h"
 
 namespace skintune::internal {
 
@@ -54,7 +54,7 @@ std::uint64_t DatasetBytesPerVertex(const DatasetSpec& spec);
 // Deterministic: the same spec gives bit-identical output on every machine.
 // Throws Error("dataset 'KEY': needs about ... at most about N vertices fit")
 // before allocating anything when the mesh does not fit in the memory this
-// process may still take (reference/memory_limit.h).
+// process may still take (base/memory_limit.h).
 SkinnedAsset GenerateDataset(const DatasetSpec& spec);
 
 }  // namespace skintune::internal

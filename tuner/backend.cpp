@@ -16,9 +16,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
-#include "reference/gltf_import.h"
-#include "reference/synthetic.h"
+#include "base/error.h"
+#include "model/gltf_import.h"
+#include "model/synthetic.h"
 #include "tuner/backends_internal.h"
 #include "tuner/host_lock.h"
 

@@ -20,8 +20,8 @@
 #include "generator/constraints.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
-#include "reference/asset.h"
-#include "reference/scene.h"
+#include "model/asset.h"
+#include "model/scene.h"
 #include "reference/skinning.h"
 #include "runtime/backend_table.h"
 #include "runtime/runner.h"
@@ -46,7 +46,7 @@ int InputSetsFor(std::uint64_t last_level_cache_bytes, std::uint64_t bytes_per_s
 
 // ---------------------------------------------------------------- datasets
 
-// The scenes a backend measures on, made once per key (reference/scene.h): a
+// The scenes a backend measures on, made once per key (model/scene.h): a
 // synthetic dataset key or a glTF path (.gltf / .glb), K instances of one
 // ("25k-b4-x64"), or a batch ("a.gltf+25k-b2", "mix1600k-b4"), with, per
 // weight format and normals, the float64 gold of the verification frame and,

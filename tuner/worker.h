@@ -35,7 +35,7 @@
 #include <string>
 #include <vector>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "tuner/backend.h"
 #include "tuner/measurement.h"
 

@@ -6,7 +6,7 @@
 #include <thread>
 #include <vector>
 
-#include "reference/thread_pool.h"
+#include "base/thread_pool.h"
 
 namespace skintune::internal {
 namespace {

@@ -1,4 +1,4 @@
-// The CPU kernel family (reference/cpu_kernels.h) on its own: streaming and
+// The CPU kernel family (cpu_kernels/cpu_kernels.h) on its own: streaming and
 // plain stores write the same bytes and nothing outside the range, whatever
 // the range's alignment; every loop path (the first and last vertex of a
 // range, ranges split off 4- and 64-vertex boundaries, positions ending at an
@@ -21,11 +21,11 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
-#include "reference/cpu_kernels.h"
-#include "reference/error.h"
+#include "cpu_kernels/cpu_kernels.h"
+#include "base/error.h"
 #include "reference/skinning.h"
-#include "reference/synthetic.h"
-#include "reference/thread_pool.h"
+#include "model/synthetic.h"
+#include "base/thread_pool.h"
 
 namespace skintune::internal {
 namespace {

@@ -7,8 +7,8 @@
 #include <glm/gtc/quaternion.hpp>
 #include <gtest/gtest.h>
 
-#include "reference/animation.h"
-#include "reference/error.h"
+#include "model/animation.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 namespace {

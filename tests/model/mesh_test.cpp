@@ -3,8 +3,8 @@
 #include <cmath>
 #include <limits>
 
-#include "reference/error.h"
-#include "reference/mesh.h"
+#include "base/error.h"
+#include "model/mesh.h"
 #include "test_meshes.h"
 
 namespace skintune::internal {

@@ -1,4 +1,4 @@
-// Scenes (reference/scene.h): the key grammar (one mesh, K instances, a
+// Scenes (model/scene.h): the key grammar (one mesh, K instances, a
 // batch, a seeded mix), the concatenation of a batch (vertex and joint
 // offsets, padding to the batch's B, the gold of the batch equal to each
 // mesh's own), and the errors naming the key or the mesh.
@@ -7,10 +7,10 @@
 #include <numeric>
 #include <string>
 
-#include "reference/error.h"
-#include "reference/scene.h"
+#include "base/error.h"
+#include "model/scene.h"
 #include "reference/skinning.h"
-#include "reference/synthetic.h"
+#include "model/synthetic.h"
 
 namespace skintune::internal {
 namespace {

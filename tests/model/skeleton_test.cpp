@@ -2,9 +2,9 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "reference/asset.h"
-#include "reference/error.h"
-#include "reference/skeleton.h"
+#include "model/asset.h"
+#include "base/error.h"
+#include "model/skeleton.h"
 
 namespace skintune::internal {
 namespace {

@@ -1,4 +1,4 @@
-// Tests of the synthetic datasets (reference/synthetic.h) and configs/paper.json.
+// Tests of the synthetic datasets (model/synthetic.h) and configs/paper.json.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,10 +11,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/skinning.h"
-#include "reference/memory_limit.h"
-#include "reference/synthetic.h"
+#include "base/memory_limit.h"
+#include "model/synthetic.h"
 
 namespace skintune::internal {
 namespace {

@@ -3,7 +3,7 @@
 
 #include <random>
 
-#include "reference/mesh.h"
+#include "model/mesh.h"
 
 namespace skintune::internal::testing {
 

@@ -7,10 +7,10 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "reference/error.h"
-#include "reference/gltf_import.h"
+#include "base/error.h"
+#include "model/gltf_import.h"
 #include "reference/skinning.h"
-#include "reference/synthetic.h"
+#include "model/synthetic.h"
 #include "test_meshes.h"
 
 namespace skintune::internal {

@@ -1,4 +1,4 @@
-#include "runtime/embed_header.h"
+#include "tools/emit/embed_header.h"
 
 #include <algorithm>
 #include <cctype>
@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/axes.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/backends/vulkan/vulkan_spirv.h"
 
 namespace skintune::internal {

@@ -1,4 +1,4 @@
-#include "report/cpu_timing.h"
+#include "tools/experiments/cpu_timing.h"
 
 #include <algorithm>
 #include <chrono>
@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/skinning.h"
-#include "reference/thread_pool.h"
+#include "base/thread_pool.h"
 #include "tuner/backends_internal.h"
 
 namespace skintune::internal {

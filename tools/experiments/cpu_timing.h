@@ -11,8 +11,8 @@
 
 #include <cstdint>
 
-#include "reference/asset.h"
-#include "report/paper.h"
+#include "model/asset.h"
+#include "report/paper_result.h"
 #include "runtime/physical_device.h"  // HostLastLevelCacheBytes
 
 namespace skintune::internal {

@@ -1,4 +1,4 @@
-// skintune: the paper's experiment (report/paper.h): one tuning run over the
+// skintune: the paper's experiment (report/paper_result.h): one tuning run over the
 // paper's data sets with the paper's kernels measured first on every device
 // and language, then the CPU baselines.
 #include <algorithm>
@@ -6,11 +6,11 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
-#include "reference/synthetic.h"
-#include "report/cpu_timing.h"
+#include "base/error.h"
+#include "model/synthetic.h"
+#include "tools/experiments/cpu_timing.h"
 #include "tuner/measurement.h"
-#include "report/paper.h"
+#include "report/paper_result.h"
 #include "tuner/worker.h"
 
 namespace skintune::internal {

@@ -18,12 +18,12 @@
 #include <vector>
 
 #include "generator/packer.h"
-#include "reference/scene.h"
+#include "model/scene.h"
 #include "reference/skinning.h"
 #include "runtime/source_error.h"
 #include "runtime/winners_db.h"
 #include "tests/common/test_asset.h"
-#include "tests/runtime/embed_header_test_support.h"
+#include "tests/tools/emit/embed_header_test_support.h"
 #include "tests/runtime/first_opencl_runner.h"
 
 namespace skintune::internal {

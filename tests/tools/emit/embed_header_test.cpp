@@ -1,4 +1,4 @@
-// The header `skintune emit --db` generates (runtime/embed_header.h,
+// The header `skintune emit --db` generates (tools/emit/embed_header.h,
 // templates/embedded_support.h): built at build time from
 // tests/data/embed-winners-db.json (every value of every axis, one bucketed
 // winner, two winners sharing a variant) into namespace fixture_kernels, and
@@ -25,11 +25,11 @@
 #include "generator/axes.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
-#include "reference/error.h"
-#include "runtime/embed_header.h"
+#include "base/error.h"
+#include "tools/emit/embed_header.h"
 #include "runtime/winners_db.h"
 #include "tests/common/scratch_dir.h"
-#include "tests/runtime/embed_header_test_support.h"
+#include "tests/tools/emit/embed_header_test_support.h"
 
 namespace skintune::internal {
 namespace {

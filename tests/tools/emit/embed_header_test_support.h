@@ -16,7 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/packer.h"
-#include "reference/mesh.h"
+#include "model/mesh.h"
 #include "runtime/winners_db.h"
 
 namespace skintune::internal::testing {

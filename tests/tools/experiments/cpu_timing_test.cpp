@@ -2,11 +2,11 @@
 // the tuner's device inputs.
 #include <gtest/gtest.h>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/skinning.h"
-#include "reference/synthetic.h"
+#include "model/synthetic.h"
 #include "tuner/backends_internal.h"
-#include "report/cpu_timing.h"
+#include "tools/experiments/cpu_timing.h"
 
 namespace skintune::internal {
 namespace {
