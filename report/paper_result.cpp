@@ -8,6 +8,7 @@
 #include "runtime/json_fields.h"
 #include "runtime/recorded_time.h"
 #include "report/paper_result.h"
+#include "tuner/tune.h"  // EmbeddedConfig
 
 namespace skintune::internal {
 

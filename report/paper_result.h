@@ -1,24 +1,25 @@
-// skintune: the seed paper's experiment on the present machine.
+// skintune: the result of the seed paper's experiment, as report/ renders it.
 //
 // "GPGPU Acceleration for Skeletal Animation — Comparing OpenCL with CUDA and
 // GLSL" measured a serial CPU baseline against GLSL, CUDA and OpenCL kernels
 // (its Fig. 1: speedups on 100k vertices, 2 influences, 77 bones) and
 // OpenCL's speed relative to CUDA and to GLSL on 16 data sets (its Table 1:
-// 25k/100k/400k/1600k vertices x 1..4 influences). RunPaper repeats that on
-// every device found:
+// 25k/100k/400k/1600k vertices x 1..4 influences). The experiment that repeats
+// it on the present machine is tools/experiments/paper.h (RunPaper); what it
+// finds is a PaperResult:
 //   - the CPU: the paper's serial baseline (SkinSerial, one thread) and the
 //     fast multi-core path (FastSkinner), both checked against the gold;
 //   - every device and language: the paper's own kernels, which are points of
 //     skintune's variant space (PaperKernels(), configs/paper.json
 //     "paper_kernels"), and the tuned winner of a search over the space;
 //   - every device's copy bandwidth (a plain copy kernel) and the host's, so
-//     every GB/s figure can be read as a fraction of the physical limit.
-// The result (PaperResult) is versioned JSON (configs/paper-result.schema.json);
+//     every GB/s figure can be read as a fraction of the physical limit;
+//   - the figures the paper published (PaperReported), to stand beside them.
+// The result is versioned JSON (configs/paper-result.schema.json);
 // report/paper_report.h turns one or more results into the Fig. 1- and
 // Table 1-shaped tables, an HTML report and a Markdown summary.
 #pragma once
 
-#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -28,7 +29,6 @@
 
 #include "generator/variant.h"
 #include "tuner/report.h"
-#include "tuner/tune.h"
 
 namespace skintune::internal {
 
@@ -130,24 +130,6 @@ struct PaperResult {
 nlohmann::json PaperResultToJson(const PaperResult& result);
 // Throws Error("<context>: <element>: ...") for a malformed result.
 PaperResult PaperResultFromJson(const nlohmann::json& json, const std::string& context);
-
-struct PaperOptions {
-  bool quick = false;                 // 25k and 100k only, a smaller search
-  std::vector<std::string> datasets;  // override the data-set list (keys); empty: the paper's (or quick) list
-  std::string device_pattern;         // as TuneOptions
-  std::vector<Lang> languages;        // as TuneOptions
-  std::size_t budget = 0;             // evaluations of the search per device x language x data set
-                                      // (0: the config's, or the quick default)
-  bool skip_cpu = false;              // no serial/fast CPU timing (for tests of the device part)
-  std::string cache_path;             // the tuner's resumable cache
-  std::string worker_executable;
-  std::string command;
-  // As TuneOptions::progress; the CPU steps come with total 0.
-  std::function<void(std::size_t done, std::size_t total, const std::string& what)> progress;
-};
-
-// Throws Error for bad options (unknown data-set key, no device matching).
-PaperResult RunPaper(const PaperOptions& options);
 
 // The data sets of the full experiment (the paper's 16) and of --quick.
 std::vector<std::string> PaperDatasets(bool quick);

@@ -20,6 +20,8 @@
 #include "tools/progress.h"
 #include "report/paper_result.h"
 #include "report/paper_report.h"
+#include "tools/experiments/paper.h"
+#include "tuner/tune.h"  // kMaxBudget
 
 namespace skintune::internal::tools {
 

@@ -11,7 +11,7 @@
 #include "model/gltf_import.h"
 #include "reference/skinning.h"
 #include "model/synthetic.h"
-#include "test_meshes.h"
+#include "tests/model/test_meshes.h"
 
 namespace skintune::internal {
 namespace {

@@ -1,6 +1,8 @@
-// skintune: the paper's experiment (report/paper_result.h): one tuning run over the
-// paper's data sets with the paper's kernels measured first on every device
-// and language, then the CPU baselines.
+// skintune: the paper's experiment (tools/experiments/paper.h): one tuning run
+// over the paper's data sets with the paper's kernels measured first on every
+// device and language, then the CPU baselines.
+#include "tools/experiments/paper.h"
+
 #include <algorithm>
 #include <set>
 
@@ -10,7 +12,7 @@
 #include "model/synthetic.h"
 #include "tools/experiments/cpu_timing.h"
 #include "tuner/measurement.h"
-#include "report/paper_result.h"
+#include "tuner/tune.h"
 #include "tuner/worker.h"
 
 namespace skintune::internal {

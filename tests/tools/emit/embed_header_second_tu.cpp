@@ -1,6 +1,6 @@
 // The generated fixture header in a second translation unit of
-// runtime_embed_header_test, compiled with -Wpedantic -Wshadow -Wconversion
-// -Wsign-conversion -Werror (tests/runtime/CMakeLists.txt); the C++17 test in
+// emit_embed_header_test, compiled with -Wpedantic -Wshadow -Wconversion
+// -Wsign-conversion -Werror (tests/tools/emit/CMakeLists.txt); the C++17 test in
 // embed_header_test.cpp links it with embed_header_main17.cpp.
 #include "skintune_kernels.h"  // first: the header needs nothing before it
 

@@ -685,7 +685,7 @@ const std::string kStrict17 =
 
 TEST(EmbedHeader, CompilesAsCxx17WithWarningsAsErrorsAndLinksTwoUnits) {
   const fs::path dir = Scratch();
-  const std::string here = std::string(SKINTUNE_SOURCE_DIR) + "/tests/runtime";
+  const std::string here = std::string(SKINTUNE_SOURCE_DIR) + "/tests/tools/emit";
   std::string log;
   const std::string compile = std::string("'") + SKINTUNE_CXX_COMPILER + "' " + kStrict17 + " -I'" +
                               SKINTUNE_EMBED_DIR + "' -I'" + here + "' '" + here + "/embed_header_main17.cpp' '" +
