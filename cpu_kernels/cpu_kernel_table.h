@@ -39,7 +39,7 @@ constexpr CpuKernelKey KeyOfSlot(std::size_t slot) {
   return key;
 }
 
-// The instruction sets a table is compiled for (reference/CMakeLists.txt
+// The instruction sets a table is compiled for (cpu_kernels/CMakeLists.txt
 // gives each its -march; elsewhere than x86-64 all three are the baseline).
 enum class CpuIsa { kAvx512, kAvx2, kBaseline };
 

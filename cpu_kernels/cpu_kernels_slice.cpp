@@ -1,6 +1,6 @@
 // One slice of the CPU kernel table: influence count CPU_KERNELS_B (1..8)
 // compiled for instruction set CPU_KERNELS_ISA (a cpu_detail::CpuIsa), with
-// that set's -march. reference/CMakeLists.txt compiles this file once per
+// that set's -march. cpu_kernels/CMakeLists.txt compiles this file once per
 // pair; cpu_kernels.cpp assembles the tables from the slices.
 #include "cpu_kernels/cpu_kernels.inc"
 
