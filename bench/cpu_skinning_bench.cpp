@@ -21,7 +21,7 @@
 // 2. Any --benchmark_* flag runs the Google Benchmark suite instead: the
 //    paper's datasets (configs/paper.json: 25k/100k/400k/1600k vertices x
 //    1..4 influences, 77 bones, bone locality) through the serial loop, the
-//    fast path and the gold (on every core since 2026-11-26: reference/thread_pool.h
+//    fast path and the gold (on every core since 2026-11-26: base/thread_pool.h
 //    ParallelChunks), plus the memory copy bandwidth measured by the
 //    same harness, so every GB/s figure can be read as a fraction of what
 //    memory can do.
@@ -53,10 +53,10 @@
 #include <string>
 
 #include "generator/constraints.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/skinning.h"
-#include "reference/synthetic.h"
-#include "reference/thread_pool.h"
+#include "model/synthetic.h"
+#include "base/thread_pool.h"
 #include "runtime/backend_table.h"
 #include "runtime/backends/cpu/cpu_runner.h"
 #include "runtime/source_error.h"

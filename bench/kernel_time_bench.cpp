@@ -27,7 +27,7 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/variant.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/backend_table.h"
 #include "runtime/device_identity.h"
 #include "tuner/datasets.h"

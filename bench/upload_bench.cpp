@@ -124,7 +124,7 @@
 
 #include "generator/packer.h"
 #include "runtime/backends/cuda/cuda_api.h"
-#include "reference/thread_pool.h"
+#include "base/thread_pool.h"
 #include "runtime/host_work.h"
 
 namespace {

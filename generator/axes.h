@@ -6,7 +6,7 @@
 // sets (covering.cpp), the kernels' #defines (emit.cpp), search coordinates
 // (tuner/strategy.cpp, tuner/replay.cpp), the report's axis charts
 // (report/paper_report.cpp) and the embedded header's enums
-// (runtime/embed_header.cpp) iterate it instead of naming axes.
+// (tools/emit/embed_header.cpp) iterate it instead of naming axes.
 //
 // Axis i is Variant's field i (VariantFields in variant.h). The static_asserts
 // in axes.cpp fail the build when a field has no axis, an axis reads another

@@ -8,7 +8,7 @@
 
 #include <glm/glm.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 

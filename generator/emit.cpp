@@ -9,8 +9,8 @@
 #include "generator/axes.h"
 #include "generator/packer.h"
 #include "generator/template_includes.h"
-#include "reference/error.h"
-#include "reference/mesh.h"
+#include "base/error.h"
+#include "model/mesh.h"
 
 namespace skintune::internal {
 

@@ -4,7 +4,7 @@
 // takes its values from here), the template Emit expands, the instancing text
 // of its sidecar, its same-size copy (copy_kernel.cpp), the file extension of
 // `skintune emit`, whether its text is GLSL and whether it has work-groups, and
-// the API reports name it under (report/paper.h's PaperApi). What a language
+// the API reports name it under (report/paper_result.h's PaperApi). What a language
 // does differently in code (its sidecar bindings, its constraints, fault
 // injection) stays code; this table holds what is data.
 //
@@ -20,7 +20,7 @@
 
 namespace skintune::internal {
 
-// kCpu: the fast CPU path's kernels (reference/cpu_kernels.h), compiled into
+// kCpu: the fast CPU path's kernels (cpu_kernels/cpu_kernels.h), compiled into
 // skintune and selected by the parameters of the kernel text (templates/skin.cpu).
 enum class Lang { kOpenCl, kCuda, kGlslCompute, kGlslVertex, kVulkan, kCpu };
 // Lang's enumerators: a new language goes last and moves this, and the
@@ -172,7 +172,7 @@ constexpr bool IsGlslText(Lang lang) { return LanguageOf(lang).glsl_text; }
 constexpr bool HasWorkGroups(Lang lang) { return LanguageOf(lang).work_groups; }
 
 // The APIs of the rows, each once, in the order they first appear (opencl,
-// cuda, glsl, vulkan, cpu): report/paper.h's PaperApi takes its values from
+// cuda, glsl, vulkan, cpu): report/paper_result.h's PaperApi takes its values from
 // ApiIndex, so the report derives which API a language counts under.
 constexpr std::size_t FirstRowOfApi(const char* api) {
   std::size_t row = 0;

@@ -11,7 +11,7 @@
 #include <immintrin.h>
 #endif
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "templates/embedded_support.h"  // QuantiseVertex
 
 namespace skintune::internal {

@@ -23,7 +23,7 @@
 #include <glm/glm.hpp>
 
 #include "generator/variant.h"
-#include "reference/mesh.h"
+#include "model/mesh.h"
 
 namespace skintune::internal {
 

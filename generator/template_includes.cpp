@@ -5,7 +5,7 @@
 #include <map>
 #include <vector>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 namespace {

@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/axes.h"
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 

@@ -12,9 +12,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "reference/error.h"
-#include "reference/input_file.h"
-#include "reference/memory_limit.h"
+#include "base/error.h"
+#include "base/input_file.h"
+#include "base/memory_limit.h"
 #include "reference/skinning.h"
 
 namespace skintune::internal {

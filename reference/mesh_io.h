@@ -22,7 +22,7 @@
 
 #include <glm/glm.hpp>
 
-#include "reference/mesh.h"  // kMaxVertexCount
+#include "model/mesh.h"  // kMaxVertexCount
 
 namespace skintune::internal {
 

@@ -1,6 +1,6 @@
 // The fast CPU path: structure-of-arrays data made once (packed float3
 // positions and normals, u16 joint and f32 weight slot arrays), skinned by
-// the CPU kernel family (reference/cpu_kernels.h: a kernel per influence
+// the CPU kernel family (cpu_kernels/cpu_kernels.h: a kernel per influence
 // count, the table of this CPU's instruction set) with streaming stores, all
 // cores through a persistent ThreadPool. The cpu device (skintune tune)
 // runs the same kernels on every format and layout of the variant space.
@@ -8,10 +8,10 @@
 #include <cmath>
 #include <cstring>
 
-#include "reference/cpu_kernels.h"
-#include "reference/error.h"
+#include "cpu_kernels/cpu_kernels.h"
+#include "base/error.h"
 #include "reference/skinning.h"
-#include "reference/thread_pool.h"
+#include "base/thread_pool.h"
 
 namespace skintune::internal {
 

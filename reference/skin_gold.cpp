@@ -4,9 +4,9 @@
 #include <limits>
 #include <vector>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/skinning.h"
-#include "reference/thread_pool.h"
+#include "base/thread_pool.h"
 
 namespace skintune::internal {
 

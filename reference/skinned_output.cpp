@@ -5,7 +5,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/skinning.h"
 
 namespace skintune::internal {

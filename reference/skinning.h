@@ -9,7 +9,7 @@
 //               then transform). The denominator of every speedup.
 // - FastSkinner: the honest CPU competitor: structure-of-arrays copy of the
 //               mesh made once, the CPU kernel family's kernel for its
-//               influence count (reference/cpu_kernels.h: AVX-512 / AVX2 /
+//               influence count (cpu_kernels/cpu_kernels.h: AVX-512 / AVX2 /
 //               baseline tables chosen at run time, streaming stores), all
 //               cores through a persistent thread pool.
 //
@@ -29,7 +29,7 @@
 
 #include <glm/glm.hpp>
 
-#include "reference/mesh.h"
+#include "model/mesh.h"
 
 namespace skintune::internal {
 

@@ -1,4 +1,4 @@
-// skintune: the paper experiment's results (report/paper.h) shaped like the
+// skintune: the paper experiment's results (report/paper_result.h) shaped like the
 // paper's own figures, and rendered for people.
 //
 // Summarise derives, from one or more PaperResults, plain tables of numbers:
@@ -28,7 +28,7 @@
 #include "generator/variant.h"
 #include "tuner/tuned_device.h"
 #include "tuner/measurement.h"
-#include "report/paper.h"
+#include "report/paper_result.h"
 #include "tuner/report.h"
 
 namespace skintune::internal {

@@ -4,10 +4,11 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/json_fields.h"
 #include "runtime/recorded_time.h"
-#include "report/paper.h"
+#include "report/paper_result.h"
+#include "tuner/tune.h"  // EmbeddedConfig
 
 namespace skintune::internal {
 

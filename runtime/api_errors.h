@@ -1,7 +1,7 @@
 // skintune (internal): how the public API (skintune/skintune.h) turns the
 // library's exceptions into error values, so that none crosses the header.
 //
-// Inside, code throws skintune::internal::Error (reference/error.h) with a complete
+// Inside, code throws skintune::internal::Error (base/error.h) with a complete
 // message; where the error code matters it throws ApiError, which carries
 // one. Each public entry point runs its body through Guarded(), which maps
 // ApiError to its code, Error to the entry point's default code, running out
@@ -12,7 +12,7 @@
 #include <string>
 #include <utility>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "skintune/skintune.h"
 
 namespace skintune::internal {

@@ -3,11 +3,11 @@
 #include <cmath>
 #include <cstring>
 
-#include "reference/asset.h"
-#include "reference/gltf_import.h"
-#include "reference/input_file.h"
+#include "model/asset.h"
+#include "model/gltf_import.h"
+#include "base/input_file.h"
 #include "reference/skinning.h"
-#include "reference/synthetic.h"
+#include "model/synthetic.h"
 #include "runtime/api_errors.h"
 #include "skintune/skintune.h"
 

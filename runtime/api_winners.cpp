@@ -2,7 +2,7 @@
 // Selection::Find, and the names of backends, match levels and scene shapes.
 #include <nlohmann/json.hpp>
 
-#include "reference/input_file.h"
+#include "base/input_file.h"
 #include "runtime/api_errors.h"
 #include "runtime/backend_table.h"
 #include "runtime/selection.h"

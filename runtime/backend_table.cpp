@@ -4,7 +4,7 @@
 
 #include <exception>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/physical_device.h"
 
 namespace skintune::internal {

@@ -20,7 +20,7 @@
 #endif
 
 #include "generator/packer.h"
-#include "reference/thread_pool.h"
+#include "base/thread_pool.h"
 
 namespace skintune::internal {
 

@@ -14,7 +14,7 @@
 #include <span>
 
 #include "generator/variant.h"
-#include "reference/mesh.h"
+#include "model/mesh.h"
 
 namespace skintune::internal {
 

@@ -12,7 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal::json_fields {
 

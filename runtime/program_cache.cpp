@@ -12,8 +12,8 @@
 #include <openssl/evp.h>
 
 #include "generator/emit.h"
-#include "reference/error.h"
-#include "reference/input_file.h"
+#include "base/error.h"
+#include "base/input_file.h"
 
 namespace skintune::internal {
 

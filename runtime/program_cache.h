@@ -80,7 +80,7 @@ class ProgramCache {
 std::string EncodeProgramCacheFile(const std::string& key, const std::vector<std::uint8_t>& payload);
 // The payload a cache file's `bytes` hold for `key`, or nothing when they do
 // not follow the layout exactly (Load reads the file, at most
-// kProgramCacheInput, reference/input_file.h, then this).
+// kProgramCacheInput, base/input_file.h, then this).
 std::optional<std::vector<std::uint8_t>> DecodeProgramCacheFile(std::string_view bytes, const std::string& key);
 
 // The key text of a program: one line per field, in this order.

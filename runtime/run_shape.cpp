@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <limits>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 

@@ -12,7 +12,7 @@
 #include <string_view>
 #include <utility>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "generator/copy_kernel.h"
 #include "runtime/output_check.h"
 #include "runtime/run_shape.h"

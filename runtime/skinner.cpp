@@ -14,8 +14,8 @@
 #include <glm/glm.hpp>
 
 #include "generator/constraints.h"
-#include "reference/mesh.h"
-#include "reference/scene.h"
+#include "model/mesh.h"
+#include "model/scene.h"
 #include "runtime/api_errors.h"
 #include "runtime/host_work.h"
 #include "runtime/runner.h"
@@ -169,7 +169,7 @@ std::unique_ptr<SkinnerBackend> MakeRunnerSkinner(DeviceState& device, const Pac
 namespace {
 
 // The meshes validated one by one; a batch concatenated as one mesh
-// (ConcatenateMeshes, reference/scene.h). Throws ApiError.
+// (ConcatenateMeshes, model/scene.h). Throws ApiError.
 MeshBatch SceneOf(const std::string& call, const MeshView* views, std::size_t count, bool batch,
                   const SkinnerOptions& options) {
   std::vector<SkinnedMesh> meshes;

@@ -6,7 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/recorded_time.h"
 #include "skintune/skintune.h"
 

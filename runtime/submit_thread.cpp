@@ -1,6 +1,6 @@
 #include "runtime/submit_thread.h"
 
-#include "reference/thread_pool.h"
+#include "base/thread_pool.h"
 #include "runtime/host_work.h"
 
 #include <chrono>

@@ -1,7 +1,7 @@
 # The public namespace holds the public API and nothing else (docs/ARCHITECTURE.md,
 # "Where internals live"): the library's own code lives in skintune::internal.
 #
-#   cmake -DSOURCE_DIR=<skintune's source> -P namespaces.cmake
+#   cmake -DSOURCE_DIR=<skintune's source> -DFLOORS=<floor>,... -P namespaces.cmake
 #       every C++ file (and the CMake scripts that generate C++) opens
 #       `namespace skintune::internal` and never `namespace skintune` itself or
 #       another namespace under it, except the files of kPublicApiFiles below;
@@ -37,18 +37,25 @@ set(kPublicApiFiles
   runtime/backends/gl/gl_backend.cpp          # Device::FromCurrentGl
   runtime/backends/vulkan/vulkan_backend.cpp  # Device::FromVulkan
 )
-set(kSourceFolders reference generator runtime tuner report tools tests bench examples templates cmake)
+# The folders read: the floors (FLOORS, the top-level CMakeLists.txt's SKINTUNE_FLOORS)
+# and the folders that are no floor.
+set(kOtherSourceFolders tests bench examples templates cmake)
 set(kSourceGlobs *.h *.hpp *.cpp *.cc *.cu *.cuh *.inc *.cmake *.in)
 
 # ---------------------------------------------------------------- the sources
 if(NOT DEFINED NM)
+if(NOT DEFINED FLOORS)
+  message(FATAL_ERROR "namespaces.cmake: -DFLOORS= is required to read the sources")
+endif()
+string(REPLACE "," ";" floors "${FLOORS}")
 set(globs "")
-foreach(folder IN LISTS kSourceFolders)
+foreach(folder IN LISTS floors kOtherSourceFolders)
   foreach(glob IN LISTS kSourceGlobs)
     list(APPEND globs "${SOURCE_DIR}/${folder}/${glob}")
   endforeach()
 endforeach()
 file(GLOB_RECURSE files RELATIVE "${SOURCE_DIR}" ${globs})
+list(REMOVE_DUPLICATES files)  # tools/ holds the floors tools/emit and tools/experiments
 list(LENGTH files file_count)
 if(file_count LESS 100)
   message(FATAL_ERROR "namespaces.cmake: found only ${file_count} source files under ${SOURCE_DIR}")

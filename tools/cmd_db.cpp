@@ -21,7 +21,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/mesh_io.h"
 #include "tools/commands.h"
 #include "tuner/replay.h"

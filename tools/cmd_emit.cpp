@@ -9,7 +9,7 @@
 // The second form emits the winners of a winners database for the matching
 // devices (kernel file + sidecar per distinct kernel: single-mesh, crowd
 // (instanced) and batch winners) and one generated C++17 header holding all
-// of them with packing helpers (runtime/embed_header.h,
+// of them with packing helpers (tools/emit/embed_header.h,
 // docs/RUNTIME.md "Emitting kernels into other builds"). Every file is
 // generated in memory first and written (atomically) only when all of them
 // were generated.
@@ -27,11 +27,11 @@
 
 #include "generator/constraints.h"
 #include "generator/emit.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/mesh_io.h"
 #include "runtime/backend_table.h"
 #include "runtime/backends/vulkan/vulkan_spirv.h"
-#include "runtime/embed_header.h"
+#include "tools/emit/embed_header.h"
 #include "runtime/winners_db.h"
 #include "tools/commands.h"
 

@@ -1,4 +1,4 @@
-// skintune paper: the seed paper's experiment on this machine (report/paper.h):
+// skintune paper: the seed paper's experiment on this machine (report/paper_result.h):
 // the serial and fast CPU paths, the paper's kernels and the tuned winners on
 // every device found, every device's copy bandwidth. Writes the result JSON,
 // its HTML report and a Markdown summary, and prints the Fig. 1- and
@@ -14,12 +14,14 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/axes.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/mesh_io.h"
 #include "tools/commands.h"
 #include "tools/progress.h"
-#include "report/paper.h"
+#include "report/paper_result.h"
 #include "report/paper_report.h"
+#include "tools/experiments/paper.h"
+#include "tuner/tune.h"  // kMaxBudget
 
 namespace skintune::internal::tools {
 

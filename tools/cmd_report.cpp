@@ -16,10 +16,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/mesh_io.h"
 #include "tools/commands.h"
-#include "report/paper.h"
+#include "report/paper_result.h"
 #include "report/paper_report.h"
 #include "tuner/report.h"
 

@@ -15,9 +15,9 @@
 #include <memory>
 #include <sstream>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/skinning.h"
-#include "reference/synthetic.h"
+#include "model/synthetic.h"
 #include "tools/commands.h"
 #include "tools/progress.h"
 #include "tools/tune_job.h"

@@ -10,7 +10,7 @@
 
 #include "generator/packer.h"
 #include "generator/variant.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/mesh_io.h"
 #include "reference/skinning.h"
 #include "tools/commands.h"

@@ -7,8 +7,8 @@
 
 #include "generator/axes.h"
 #include "generator/space.h"
-#include "reference/error.h"
-#include "reference/scene.h"
+#include "base/error.h"
+#include "model/scene.h"
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "tools/commands.h"
 #include "tuner/tune.h"

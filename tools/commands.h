@@ -11,8 +11,8 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include "reference/asset.h"
-#include "reference/input_file.h"  // ParseJson, ReadJsonFile: the JSON files the commands take
+#include "model/asset.h"
+#include "base/input_file.h"  // ParseJson, ReadJsonFile: the JSON files the commands take
 
 namespace skintune::internal::tools {
 
@@ -35,7 +35,7 @@ Command RegisterPaper(CLI::App& app, int argc, char** argv);
 
 // How a command names its input mesh: a synthetic dataset key or a glTF file.
 struct MeshSource {
-  std::string dataset;    // key (see reference/synthetic.h), or empty
+  std::string dataset;    // key (see model/synthetic.h), or empty
   std::string mesh_file;  // .gltf / .glb, or empty
   std::string mesh_name;  // node/mesh name inside the file, or empty
   bool strict = false;    // reject glTF weights that do not sum to 1

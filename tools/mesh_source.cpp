@@ -1,8 +1,8 @@
 #include <iostream>
 
-#include "reference/gltf_import.h"
-#include "reference/memory_limit.h"
-#include "reference/synthetic.h"
+#include "model/gltf_import.h"
+#include "base/memory_limit.h"
+#include "model/synthetic.h"
 #include "tools/commands.h"
 
 namespace skintune::internal::tools {

@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <iostream>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/backend_table.h"
 
 namespace skintune::internal::tools {

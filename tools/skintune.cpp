@@ -5,7 +5,7 @@
 #include <new>
 #include <vector>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "tools/commands.h"
 
 #ifndef SKINTUNE_VERSION

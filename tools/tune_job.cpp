@@ -14,7 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/axes.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/mesh_io.h"
 #include "report/paper_report.h"
 #include "tools/commands.h"

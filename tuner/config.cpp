@@ -9,9 +9,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
-#include "reference/scene.h"
-#include "reference/synthetic.h"
+#include "base/error.h"
+#include "model/scene.h"
+#include "model/synthetic.h"
 #include "tuner/measurement.h"  // kMaxTolerance
 
 namespace skintune::internal {
@@ -109,7 +109,7 @@ std::vector<std::string> DatasetsFromConfig(const nlohmann::json& in, const std:
     }
     SceneSpec scene;
     try {
-      scene = ParseSceneKey(key);  // a dataset key, a glTF path, instances or a batch (reference/scene.h)
+      scene = ParseSceneKey(key);  // a dataset key, a glTF path, instances or a batch (model/scene.h)
     } catch (const Error& e) {
       throw Error(item + ": " + e.what());
     }
@@ -141,7 +141,7 @@ std::vector<std::string> DatasetsFromConfig(const nlohmann::json& in, const std:
 TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context) {
   if (!json.is_object()) throw Error(context + ": a tune config must be a JSON object");
   // "paper", "figure1", "paper_kernels" and "reported" are fields of configs/paper.json
-  // read by `skintune paper` (report/paper.h).
+  // read by `skintune paper` (report/paper_result.h).
   static const std::set<std::string> kKnown = {"description", "space",    "datasets", "timing",
                                                "strategy",    "variant_timeout_s", "max_error", "paper", "figure1",
                                                "paper_kernels", "reported"};

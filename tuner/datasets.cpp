@@ -9,7 +9,7 @@
 #include <malloc.h>  // malloc_trim
 #endif
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal::tuner_internal {
 

@@ -16,13 +16,13 @@
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "generator/variant.h"
-#include "reference/asset.h"
-#include "reference/scene.h"
+#include "model/asset.h"
+#include "model/scene.h"
 #include "reference/skinning.h"
 
 namespace skintune::internal::tuner_internal {
 
-// The scenes a tuned device measures on, made once per key (reference/scene.h): a
+// The scenes a tuned device measures on, made once per key (model/scene.h): a
 // synthetic dataset key or a glTF path (.gltf / .glb), K instances of one
 // ("25k-b4-x64"), or a batch ("a.gltf+25k-b2", "mix1600k-b4"), with, per
 // weight format and normals, the float64 gold of the verification frame and,

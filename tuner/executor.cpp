@@ -8,7 +8,7 @@
 #include <utility>
 
 #include "generator/languages.h"
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal::tuner_internal {
 

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "generator/languages.h"
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 

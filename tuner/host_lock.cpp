@@ -10,7 +10,7 @@
 #include <cstring>
 #include <filesystem>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal::tuner_internal {
 

@@ -10,8 +10,8 @@
 #include <sstream>
 #include <utility>
 
-#include "reference/error.h"
-#include "reference/scene.h"
+#include "base/error.h"
+#include "model/scene.h"
 #include "tuner/host_lock.h"
 #include "tuner/schedule.h"  // IsHostCpu
 

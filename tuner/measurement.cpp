@@ -14,9 +14,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
-#include "reference/input_file.h"
-#include "reference/memory_limit.h"
+#include "base/error.h"
+#include "base/input_file.h"
+#include "base/memory_limit.h"
 #include "runtime/recorded_time.h"
 
 namespace skintune::internal {

@@ -18,7 +18,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "generator/variant.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/source_error.h"
 #include "tuner/race_record.h"
 
@@ -93,7 +93,7 @@ struct Timing {
 
 struct Measurement {
   std::string device_id;          // DeviceIdentity::Id() (includes the driver version)
-  std::string dataset;            // dataset key (reference/synthetic.h) or glTF file name
+  std::string dataset;            // dataset key (model/synthetic.h) or glTF file name
   Variant variant;
   MeasureStatus status = MeasureStatus::kOk;
   std::string detail;             // invalid: the constraint and its message; compile_failed: the first

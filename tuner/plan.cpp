@@ -9,10 +9,10 @@
 
 #include "generator/emit.h"  // kGeneratorVersion
 
-#include "reference/error.h"
-#include "reference/memory_limit.h"
-#include "reference/scene.h"
-#include "reference/synthetic.h"
+#include "base/error.h"
+#include "base/memory_limit.h"
+#include "model/scene.h"
+#include "model/synthetic.h"
 #include "tuner/tuned_device.h"
 
 namespace skintune::internal {

@@ -5,7 +5,7 @@
 #include <set>
 
 #include "generator/emit.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "tuner/statistics.h"
 #include "tuner/strategy.h"
 

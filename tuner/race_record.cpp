@@ -4,7 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/json_fields.h"
 
 namespace skintune::internal {

@@ -11,8 +11,8 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/axes.h"
-#include "reference/error.h"
-#include "reference/input_file.h"
+#include "base/error.h"
+#include "base/input_file.h"
 
 namespace skintune::internal {
 

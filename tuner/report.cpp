@@ -9,7 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/backend_table.h"
 #include "runtime/json_fields.h"
 #include "runtime/winners_db.h"

@@ -25,7 +25,7 @@ namespace skintune::internal {
 inline constexpr const char* kReportSchemaVersion = "1.6.0";
 
 struct DatasetInfo {
-  std::string key;          // a scene key (reference/scene.h): a dataset, a glTF path, instances, a batch
+  std::string key;          // a scene key (model/scene.h): a dataset, a glTF path, instances, a batch
   std::size_t vertices = 0;  // the scene's total (K x the mesh's; the sum of a batch's meshes)
   int influences = 0;   // the mesh's slots per vertex (a batch's: the largest of its meshes')
   int joints = 0;       // per instance (a batch's: every mesh's)

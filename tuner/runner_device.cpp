@@ -19,7 +19,7 @@
 
 #include "tuner/runner_device.h"
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/program_cache.h"
 #include "tuner/datasets.h"
 #include "tuner/host_lock.h"

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 

@@ -7,7 +7,7 @@
 #include <utility>
 
 #include "generator/axes.h"
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 

@@ -8,7 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "tuner/measurement.h"  // kMaxTolerance
 #include "tuner/schedule.h"     // IsHostCpu
 

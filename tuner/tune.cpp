@@ -22,7 +22,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "tuner/device_tuning.h"
 #include "tuner/host_lock.h"
 #include "tuner/plan.h"

@@ -26,7 +26,7 @@ namespace skintune::internal {
 
 // What a variant is measured on: a dataset key and the mesh/palettes made from it.
 struct TuningDataset {
-  std::string key;  // reference/synthetic.h key, or a glTF path
+  std::string key;  // model/synthetic.h key, or a glTF path
 };
 
 class TunedDevice {

@@ -35,7 +35,7 @@
 #include <string>
 #include <vector>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "tuner/measurement.h"
 #include "tuner/timing_options.h"
 #include "tuner/tuned_device.h"

@@ -5,8 +5,8 @@
 #include <map>
 #include <string>
 
-#include "reference/gltf_import.h"
-#include "reference/synthetic.h"
+#include "model/gltf_import.h"
+#include "model/synthetic.h"
 
 namespace skintune::internal::testing {
 

@@ -7,7 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/input_file.h"
+#include "base/input_file.h"
 #include "tests/fuzz/fuzz_support.h"
 #include "tuner/tune.h"
 

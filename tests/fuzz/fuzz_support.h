@@ -17,7 +17,7 @@
 #include <string_view>
 #include <system_error>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal::fuzz {
 

@@ -21,8 +21,8 @@
 #include <string_view>
 #include <system_error>
 
-#include "reference/error.h"
-#include "reference/gltf_import.h"
+#include "base/error.h"
+#include "model/gltf_import.h"
 
 using namespace skintune::internal;  // the readers under test and fuzz_support.h's helpers
 

@@ -8,8 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/input_file.h"
-#include "report/paper.h"
+#include "base/input_file.h"
+#include "report/paper_result.h"
 #include "report/paper_report.h"
 #include "tests/fuzz/fuzz_support.h"
 #include "tuner/report.h"

@@ -8,7 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/input_file.h"
+#include "base/input_file.h"
 #include "runtime/winners_db.h"
 #include "skintune/skintune.h"
 #include "tests/fuzz/fuzz_support.h"

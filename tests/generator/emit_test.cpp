@@ -12,7 +12,7 @@
 
 #include "generator/emit.h"
 #include "generator/packer.h"
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 namespace {

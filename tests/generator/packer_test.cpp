@@ -16,8 +16,8 @@
 #include <gtest/gtest.h>
 
 #include "generator/packer.h"
-#include "reference/error.h"
-#include "reference/gltf_import.h"
+#include "base/error.h"
+#include "model/gltf_import.h"
 
 namespace skintune::internal {
 namespace {

@@ -3,7 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/space.h"
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 namespace {

@@ -12,7 +12,7 @@
 
 #include "generator/emit.h"
 #include "generator/template_includes.h"
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 namespace {

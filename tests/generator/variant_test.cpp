@@ -6,7 +6,7 @@
 
 #include "generator/space.h"
 #include "generator/variant.h"
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 namespace {

@@ -5,7 +5,7 @@
 #include <iterator>
 #include <limits>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "reference/mesh_io.h"
 #include "tests/common/scratch_dir.h"
 

@@ -7,11 +7,11 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "reference/error.h"
-#include "reference/gltf_import.h"
+#include "base/error.h"
+#include "model/gltf_import.h"
 #include "reference/skinning.h"
-#include "reference/synthetic.h"
-#include "test_meshes.h"
+#include "model/synthetic.h"
+#include "tests/model/test_meshes.h"
 
 namespace skintune::internal {
 namespace {

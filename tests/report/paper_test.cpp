@@ -8,9 +8,9 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/constraints.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "tests/tuner/sample_report.h"
-#include "report/paper.h"
+#include "report/paper_result.h"
 
 namespace skintune::internal {
 namespace {

@@ -1,4 +1,4 @@
-// A small paper result (report/paper.h) for the paper report tests and the
+// A small paper result (report/paper_result.h) for the paper report tests and the
 // committed fixture tests/data/paper/sample-result.json: a GPU seen through
 // OpenCL, CUDA and GL, a CPU OpenCL device (PoCL) and llvmpipe GL (type cpu),
 // six data sets (25k/100k/400k x B = 1, 2), the paper's kernels measured on
@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "generator/variant.h"
-#include "report/paper.h"
+#include "report/paper_result.h"
 #include "tuner/report.h"
 
 namespace skintune::internal::testing {

@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "generator/packer.h"
-#include "reference/asset.h"
+#include "model/asset.h"
 #include "reference/skinning.h"
 #include "skintune/skintune.h"
 

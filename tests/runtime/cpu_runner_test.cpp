@@ -1,4 +1,4 @@
-// The language cpu (the fast path's kernels, reference/cpu_kernels.h) through
+// The language cpu (the fast path's kernels, cpu_kernels/cpu_kernels.h) through
 // the runner driver on the host: every kernel of the table (B 1..8 x index
 // u32/u16/u8 x weight f32/unorm16/unorm8 x mat4/mat3x4 x matrix/point) on
 // fresh random meshes against the float64 gold of the weights as the
@@ -14,8 +14,8 @@
 #include "generator/copy_kernel.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
-#include "reference/cpu_kernels.h"
-#include "reference/error.h"
+#include "cpu_kernels/cpu_kernels.h"
+#include "base/error.h"
 #include "runner_test_support.h"
 #include "runtime/backend_table.h"
 #include "runtime/backends/cpu/cpu_runner.h"

@@ -26,7 +26,7 @@
 #include "generator/covering.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "runner_test_support.h"
 #include "runtime/backends/cuda/cuda_api.h"
 #include "runtime/backends/cuda/cuda_runner.h"

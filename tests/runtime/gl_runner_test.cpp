@@ -24,7 +24,7 @@
 #include "generator/covering.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "runner_test_support.h"
 #include "runtime/backends/gl/gl_context.h"
 #include "runtime/backends/gl/gl_runner.h"

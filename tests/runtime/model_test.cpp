@@ -10,10 +10,10 @@
 
 #include <glm/gtc/type_ptr.hpp>
 
-#include "reference/asset.h"
-#include "reference/gltf_import.h"
+#include "model/asset.h"
+#include "model/gltf_import.h"
 #include "reference/skinning.h"
-#include "reference/synthetic.h"
+#include "model/synthetic.h"
 #include "skintune/skintune.h"
 
 namespace skintune::internal {

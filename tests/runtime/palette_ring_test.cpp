@@ -19,8 +19,8 @@
 #include <vector>
 
 #include "generator/packer.h"
-#include "reference/error.h"
-#include "reference/synthetic.h"
+#include "base/error.h"
+#include "model/synthetic.h"
 #include "runtime/run_shape.h"
 #include "runtime/runner.h"
 

@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "generator/emit.h"
-#include "reference/input_file.h"
+#include "base/input_file.h"
 #include "tests/common/scratch_dir.h"
 
 namespace skintune::internal {

@@ -25,10 +25,10 @@
 #include "generator/covering.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
-#include "reference/error.h"
-#include "reference/gltf_import.h"
+#include "base/error.h"
+#include "model/gltf_import.h"
 #include "reference/skinning.h"
-#include "reference/synthetic.h"
+#include "model/synthetic.h"
 
 namespace skintune::internal::testing {
 

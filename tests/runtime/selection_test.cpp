@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/constraints.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/winners_db.h"
 #include "skintune/skintune.h"
 

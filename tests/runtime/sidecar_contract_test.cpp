@@ -23,7 +23,7 @@
 
 #include "generator/emit.h"
 #include "generator/packer.h"  // the PackedMesh struct the runner takes, filled by hand
-#include "reference/gltf_import.h"
+#include "model/gltf_import.h"
 #include "reference/skinning.h"
 #include "tests/common/scratch_dir.h"
 #include "tests/runtime/first_opencl_runner.h"

@@ -12,9 +12,9 @@
 #include <vector>
 
 #include "generator/emit.h"
-#include "reference/error.h"
-#include "reference/gltf_import.h"
-#include "reference/synthetic.h"
+#include "base/error.h"
+#include "model/gltf_import.h"
+#include "model/synthetic.h"
 #include "runtime/backends/cuda/cuda_api.h"
 #include "runtime/backends/cuda/cuda_runner.h"
 #include "runtime/program_cache.h"

@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "reference/gltf_import.h"
+#include "model/gltf_import.h"
 #include "runtime/runner.h"
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"

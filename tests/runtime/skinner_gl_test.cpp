@@ -12,8 +12,8 @@
 #include <thread>
 #include <vector>
 
-#include "reference/gltf_import.h"
-#include "reference/synthetic.h"
+#include "model/gltf_import.h"
+#include "model/synthetic.h"
 #include "runtime/backends/gl/gl_context.h"
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"

@@ -17,8 +17,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/gltf_import.h"
-#include "reference/synthetic.h"
+#include "model/gltf_import.h"
+#include "model/synthetic.h"
 #include "runtime/winners_db.h"
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"

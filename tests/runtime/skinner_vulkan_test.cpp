@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "reference/gltf_import.h"
+#include "model/gltf_import.h"
 #include "reference/skinning.h"
 #include "runtime/program_cache.h"
 #include "skintune/skintune.h"

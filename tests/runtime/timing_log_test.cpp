@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "reference/synthetic.h"
+#include "model/synthetic.h"
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"
 

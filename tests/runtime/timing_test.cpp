@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "generator/copy_kernel.h"
-#include "reference/synthetic.h"
+#include "model/synthetic.h"
 #include "runtime/backend_table.h"
 #include "runtime/runner.h"
 

@@ -18,7 +18,7 @@
 #include "generator/covering.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "runner_test_support.h"
 #include "runtime/backends/vulkan/vulkan_loader.h"
 #include "runtime/backends/vulkan/vulkan_runner.h"

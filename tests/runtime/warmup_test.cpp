@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "generator/copy_kernel.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/device_api.h"
 #include "runtime/runner.h"
 

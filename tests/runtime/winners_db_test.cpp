@@ -13,7 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "skintune/skintune.h"
 
 namespace skintune::internal {

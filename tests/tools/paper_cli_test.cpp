@@ -12,7 +12,7 @@
 
 #include "tests/common/scratch_dir.h"
 #include "tests/tools/run_command.h"
-#include "report/paper.h"
+#include "report/paper_result.h"
 
 namespace skintune::internal {
 namespace {

@@ -15,7 +15,7 @@
 #include "tests/tools/run_command.h"
 #include "tests/report/sample_paper_result.h"
 #include "tests/tuner/sample_report.h"
-#include "report/paper.h"
+#include "report/paper_result.h"
 #include "tuner/report.h"
 
 namespace skintune::internal {

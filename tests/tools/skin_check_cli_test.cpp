@@ -11,8 +11,8 @@
 
 #include "generator/packer.h"
 #include "generator/variant.h"
-#include "reference/asset.h"
-#include "reference/gltf_import.h"
+#include "model/asset.h"
+#include "model/gltf_import.h"
 #include "reference/mesh_io.h"
 #include "reference/skinning.h"
 #include "tests/common/scratch_dir.h"

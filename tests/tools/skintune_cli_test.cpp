@@ -13,7 +13,7 @@
 #include "generator/languages.h"
 #include "reference/mesh_io.h"
 #include "reference/skinning.h"
-#include "reference/synthetic.h"
+#include "model/synthetic.h"
 #include "run_command.h"
 #include "tests/common/scratch_dir.h"
 

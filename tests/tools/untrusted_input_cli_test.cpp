@@ -15,7 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "report/paper.h"
+#include "report/paper_result.h"
 #include "report/paper_report.h"
 #include "tests/common/scratch_dir.h"
 #include "tests/common/tiny_tune_config.h"

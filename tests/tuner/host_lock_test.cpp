@@ -10,7 +10,7 @@
 #include <filesystem>
 #include <thread>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "tuner/host_lock.h"
 
 namespace skintune::internal::tuner_internal {

@@ -195,7 +195,7 @@ TEST(Measure, AFailedCopyKeepsTheKernelTimeAndSaysWhy) {
   EXPECT_EQ(ImpossibleFigures(m), "");
 }
 
-// Scenes (reference/scene.h): K instances run the instanced kernels with K
+// Scenes (model/scene.h): K instances run the instanced kernels with K
 // palettes, a batch one concatenated mesh; both are judged against the copy
 // of the whole scene's bytes, and verified part by part: a wrong vertex is
 // named by its instance or batch mesh.

@@ -15,7 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "skintune/skintune.h"  // its Status beside the tuner's MeasureStatus: both in one file
 #include "tests/common/scratch_dir.h"
 

@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "tests/common/tiny_tune_config.h"
 
 namespace skintune::internal {

@@ -13,7 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "generator/axes.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "tests/tuner/synthetic_model.h"
 
 namespace skintune::internal {

@@ -9,7 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "tests/tuner/sample_report.h"
 
 namespace skintune::internal {

@@ -9,7 +9,7 @@
 #include <thread>
 #include <vector>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 namespace {

@@ -13,7 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/tuner/sample_report.h"
-#include "report/paper.h"
+#include "report/paper_result.h"
 #include "tuner/report.h"
 
 #ifndef SKINTUNE_PYTHON3

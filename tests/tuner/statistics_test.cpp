@@ -9,7 +9,7 @@
 
 #include <gtest/gtest.h>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 namespace {

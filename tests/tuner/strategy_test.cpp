@@ -12,7 +12,7 @@
 
 #include "generator/axes.h"
 #include "generator/space.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "tests/tuner/synthetic_model.h"
 
 namespace skintune::internal {

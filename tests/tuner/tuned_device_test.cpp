@@ -25,8 +25,8 @@
 #include "generator/axes.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
-#include "reference/error.h"
-#include "reference/synthetic.h"
+#include "base/error.h"
+#include "model/synthetic.h"
 #include "runtime/backends/cuda/cuda_api.h"
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "runtime/backends/gl/gl_runner.h"
@@ -39,7 +39,7 @@
 #include "tuner/runner_device.h"
 #include "tuner/tuned_device.h"
 #include "tuner/report.h"
-#include "reference/scene.h"
+#include "model/scene.h"
 #include "tests/tuner/scene_selection.h"
 
 namespace skintune::internal {
@@ -491,7 +491,7 @@ TEST(OpenClTunedDevice, MeasuresNormalsAndAGltfMesh) {
            "CesiumMan.gltf");
 }
 
-// Scenes (reference/scene.h) on every device found: K instances through
+// Scenes (model/scene.h) on every device found: K instances through
 // the instanced kernels and a batch of CesiumMan, Fox and a synthetic mix,
 // verified per instance / mesh and timed against the copy of the whole
 // scene's bytes; their winners go to the database keyed by shape, and the

@@ -15,7 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "tests/common/scratch_dir.h"
 
 namespace skintune::internal {

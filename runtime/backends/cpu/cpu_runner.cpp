@@ -9,8 +9,8 @@
 #include <sstream>
 #include <thread>
 
-#include "reference/error.h"
-#include "reference/thread_pool.h"
+#include "base/error.h"
+#include "base/thread_pool.h"
 #include "runtime/backends/cpu/cpu_streams.h"
 
 namespace skintune::internal {

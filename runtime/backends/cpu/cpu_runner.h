@@ -1,5 +1,5 @@
 // skintune (internal): the runner driver (runtime/runner.h) on the host CPU,
-// running the fast path's kernels (reference/cpu_kernels.h) as the cpu
+// running the fast path's kernels (cpu_kernels/cpu_kernels.h) as the cpu
 // language. Its DeviceApi (cpu_runner.cpp):
 //
 // - Build: the kernel text is a parameter block (templates/skin.cpu): its
@@ -24,7 +24,7 @@
 #include <optional>
 #include <string>
 
-#include "reference/cpu_kernels.h"
+#include "cpu_kernels/cpu_kernels.h"
 #include "runtime/runner.h"
 
 namespace skintune::internal {

@@ -1,6 +1,6 @@
 #include "runtime/backends/cpu/cpu_streams.h"
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal {
 

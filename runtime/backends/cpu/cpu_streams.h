@@ -1,4 +1,4 @@
-// skintune (internal): the CPU kernels (reference/cpu_kernels.h) on the bytes
+// skintune (internal): the CPU kernels (cpu_kernels/cpu_kernels.h) on the bytes
 // the packer lays out for a variant (generator/packer.h), so that a cpu
 // variant reads exactly what the GPU variants read: layouts aos / soa /
 // soa-split, positions float4 / float3, indices i32 / u16 / u8, weights f32 /
@@ -9,7 +9,7 @@
 #include <span>
 
 #include "generator/packer.h"
-#include "reference/cpu_kernels.h"
+#include "cpu_kernels/cpu_kernels.h"
 
 namespace skintune::internal {
 

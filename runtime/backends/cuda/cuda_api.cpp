@@ -6,7 +6,7 @@
 #include <chrono>
 #include <cstdlib>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/output_check.h"
 
 namespace skintune::internal {

@@ -9,7 +9,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/physical_device.h"
 #include "runtime/backends/cuda/cuda_api.h"
 

@@ -11,7 +11,7 @@
 #include <mutex>
 #include <utility>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/backends/cuda/cuda_api.h"
 #include "runtime/backends/cuda/cupti.h"
 #include "runtime/output_check.h"

@@ -7,7 +7,7 @@
 #include <cstring>
 #include <mutex>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal::cupti {
 

@@ -14,7 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/physical_device.h"
 
 namespace skintune::internal {

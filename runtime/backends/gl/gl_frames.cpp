@@ -11,7 +11,7 @@
 #include <cctype>
 #include <chrono>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/backends/gl/gl_api.h"
 
 namespace skintune::internal::gl {

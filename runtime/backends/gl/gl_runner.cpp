@@ -9,7 +9,7 @@
 #include <cstring>
 
 #include "generator/template_includes.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/backends/gl/gl_api.h"
 #include "runtime/host_work.h"
 #include "runtime/output_check.h"

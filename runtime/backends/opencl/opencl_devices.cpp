@@ -9,7 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/physical_device.h"
 
 namespace skintune::internal {

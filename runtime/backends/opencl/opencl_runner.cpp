@@ -14,7 +14,7 @@
 #include <type_traits>
 #include <utility>
 
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/host_work.h"
 #include "runtime/output_check.h"
 

@@ -3,7 +3,7 @@
 
 #include <dlfcn.h>
 
-#include "reference/error.h"
+#include "base/error.h"
 
 namespace skintune::internal::vk {
 

@@ -10,7 +10,7 @@
 #include <set>
 
 #include "generator/axes.h"
-#include "reference/error.h"
+#include "base/error.h"
 #include "runtime/backends/vulkan/vulkan_spirv.h"
 #include "runtime/output_check.h"
 

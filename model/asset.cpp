@@ -1,0 +1,46 @@
+#include "model/asset.h"
+
+#include <charconv>
+
+#include "base/error.h"
+
+namespace skintune::internal {
+
+int SkinnedAsset::FindAnimation(const std::string& name_or_index) const {
+  for (std::size_t i = 0; i < animations.size(); ++i)
+    if (animations[i].name == name_or_index) return static_cast<int>(i);
+  int index = -1;
+  const char* end = name_or_index.data() + name_or_index.size();
+  auto [ptr, ec] = std::from_chars(name_or_index.data(), end, index);
+  if (ec == std::errc() && ptr == end && !name_or_index.empty()) {
+    if (index >= 0 && index < static_cast<int>(animations.size())) return index;
+  }
+  std::string known;
+  for (std::size_t i = 0; i < animations.size(); ++i) {
+    known += (i ? ", " : "") + std::to_string(i);
+    if (!animations[i].name.empty()) known += " '" + animations[i].name + "'";
+  }
+  throw Error(source + ": no animation '" + name_or_index + "' (" +
+              (animations.empty() ? std::string("it has no animations") : "it has: " + known) + ")");
+}
+
+Pose SkinnedAsset::PoseAt(int animation, double t) const {
+  Pose pose = skeleton.RestPose();
+  if (animation >= 0) animations.at(animation).Sample(t, pose);
+  return pose;
+}
+
+std::vector<glm::mat4> SkinnedAsset::PaletteAt(int animation, double t) const {
+  const Pose pose = PoseAt(animation, t);
+  try {
+    return skeleton.Palette(pose);
+  } catch (const Error& e) {
+    const std::string when = animation < 0 ? std::string("rest pose")
+                                           : "animation " + std::to_string(animation) +
+                                                 (animations[animation].name.empty() ? "" : " '" + animations[animation].name + "'") +
+                                                 " at t=" + std::to_string(t) + " s";
+    throw Error(source + ": " + when + ": " + e.what());
+  }
+}
+
+}  // namespace skintune::internal
