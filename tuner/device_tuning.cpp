@@ -2,16 +2,19 @@
 #include "tuner/device_tuning.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
+#include <memory>
 #include <set>
+#include <thread>
 #include <utility>
 
 #include "generator/emit.h"  // kGeneratorVersion
+#include "runtime/runner.h"  // TimingLog
 
 #include "tuner/race.h"
 #include "tuner/strategy.h"
 #include "tuner/tuned_device.h"
-#include "tuner/worker.h"
 
 namespace skintune::internal {
 
@@ -56,6 +59,33 @@ void TuningLedger::Advance(DeviceResult& device, std::size_t device_done, const 
   if (!what.empty() && progress_) progress_(done_, total_, what);
 }
 
+CompileHelpers::CompileHelpers(const WorkerSetup& workers, const DeviceIdentity& device)
+    : workers_(workers), device_(device) {}
+
+CompileHelpers::~CompileHelpers() = default;
+
+std::size_t CompileHelpers::Count() { return std::clamp<std::size_t>(std::thread::hardware_concurrency() / 2, 1, 8); }
+
+void CompileHelpers::CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) {
+  if (!threads_) threads_ = std::make_unique<ThreadPool>(static_cast<unsigned>(Count()));
+  const std::size_t count = std::min(Count(), variants.size());
+  while (helpers_.size() < count) {
+    helpers_.push_back(std::make_unique<IsolatedDevice>(workers_.executable, device_, workers_.variant_timeout_s));
+    if (!workers_.host_lock.empty()) helpers_.back()->UseHostLock(workers_.host_lock);
+  }
+  std::vector<std::vector<Variant>> shares(count);
+  for (std::size_t i = 0; i < variants.size(); ++i) shares[i % count].push_back(variants[i]);
+  threads_->ParallelFor(count, 1, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t h = begin; h < end; ++h) (void)helpers_[h]->CompileAhead(shares[h], dataset);
+  });
+}
+
+int CompileHelpers::starts() const {
+  int total = 0;
+  for (const auto& h : helpers_) total += h->starts();
+  return total;
+}
+
 namespace {
 
 // "ok 0.123 ms, error 1.2e-07 of the diagonal (f32)", or the status and the
@@ -94,6 +124,29 @@ std::size_t CopyBytes(const DeviceIdentity& d) {
   return static_cast<std::size_t>(bytes);
 }
 
+// SKINTUNE_TIMING_LOG: how long one step of a device's tuning took, as
+// "<device> <step>: <ms> ms" when the span ends (nothing when the log is off).
+// With the measurements' phases it tells where a run's time goes.
+class LoggedSpan {
+ public:
+  LoggedSpan(const std::string& who, std::string what) : who_(who), what_(std::move(what)) {}
+  ~LoggedSpan() {
+    TimingLog([&] {
+      const std::chrono::duration<double, std::milli> ms = std::chrono::steady_clock::now() - start_;
+      char text[32];
+      std::snprintf(text, sizeof text, "%.1f ms", ms.count());
+      return who_ + " " + what_ + ": " + text;
+    });
+  }
+  LoggedSpan(const LoggedSpan&) = delete;
+  LoggedSpan& operator=(const LoggedSpan&) = delete;
+
+ private:
+  const std::string& who_;
+  std::string what_;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
 class DeviceTuning {
  public:
   DeviceTuning(const TuningPlan& plan, std::size_t d, const TuneConfig& config, const WorkerSetup& workers,
@@ -105,6 +158,7 @@ class DeviceTuning {
         ledger_(ledger),
         result_(result),
         worker_(workers.executable, device_, workers.variant_timeout_s),
+        helpers_(workers, device_),
         id_(device_.Id()),
         name_(device_.backend + " " + device_.name) {
     // This device's timing: its tie margin and stop rule (a CPU's are wider: TimingOptions::ForDevice).
@@ -113,6 +167,7 @@ class DeviceTuning {
   }
 
   void Run() {
+    const LoggedSpan span(name_, "device");
     try {
       MeasureCopyBandwidth();
       for (const Task& task : plan_.tasks) {
@@ -135,6 +190,7 @@ class DeviceTuning {
 
   void MeasureCopyBandwidth() {
     Advance(0, name_ + ": copy bandwidth");
+    const LoggedSpan span(name_, "start and copy bandwidth");
     std::string why_not;
     if (const std::optional<double> gbps = worker_.CopyBandwidthGBps(CopyBytes(device_), &why_not))
       result_.copy_gbps = *gbps;
@@ -146,6 +202,7 @@ class DeviceTuning {
   void RunTask(const Task& task) {
     task_ = &task;
     key_ = plan_.datasets[task.dataset].info.key;
+    const LoggedSpan span(name_, "task " + key_);
     task_done_ = 0;
     seen_.clear();
     const Evaluator evaluate = [this](const Variant& v) { return Evaluate(v); };
@@ -172,7 +229,11 @@ class DeviceTuning {
       if (!ledger_.Trusted(CacheKeyOf(id_, key_, v), config_.timing.tolerance)) ahead.push_back(v);
     if (ahead.size() < 2 || !CompilesAhead(device_)) return;  // one kernel: built by its measurement
     Advance(task_done_, name_ + ": compiling " + std::to_string(ahead.size()) + " kernels for " + key_);
-    worker_.CompileAhead(ahead, TuningDataset{key_});
+    const LoggedSpan span(name_, "compile ahead of " + std::to_string(ahead.size()) + " kernels for " + key_);
+    if (CompilesAheadInProcesses(device_))
+      helpers_.CompileAhead(ahead, TuningDataset{key_});
+    else
+      worker_.CompileAhead(ahead, TuningDataset{key_});
   }
 
   // One evaluation of the search: the cache's record, or a measurement in
@@ -209,6 +270,7 @@ class DeviceTuning {
       std::vector<RaceSamples> legs;
       for (int leg = 0; leg < RaceLegsFor(device_); ++leg) {
         if (leg > 0) worker_.Restart();  // the next leg in a fresh process
+        const LoggedSpan span(name_, "race of " + std::to_string(variants.size()) + " for " + key_);
         std::optional<RaceSamples> samples = worker_.Race(variants, TuningDataset{key_}, timing_, why);
         if (!samples) return std::optional<std::vector<RaceSamples>>();
         legs.push_back(std::move(*samples));
@@ -227,6 +289,7 @@ class DeviceTuning {
   TuningLedger& ledger_;
   DeviceResult& result_;
   IsolatedDevice worker_;
+  CompileHelpers helpers_;  // CompileAheadInProcesses only
   TimingOptions timing_ = config_.timing;
   const std::string id_, name_;
   std::size_t task_start_ = 0;  // evaluations planned before the current task
@@ -258,6 +321,8 @@ void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& 
       for (const std::vector<Variant>* list : {&task.baselines, &task.candidates})
         for (const Variant& v : *list)
           if (!ledger.Cached(CacheKeyOf(device.Id(), key, v))) ahead.push_back(v);
+      const std::string who = device.backend + " " + device.name;
+      const LoggedSpan span(who, "precompile of " + std::to_string(ahead.size()) + " kernels for " + key);
       if (ahead.size() >= 2) worker.CompileAhead(ahead, TuningDataset{key});
     }
   } catch (...) {

@@ -9,15 +9,18 @@
 
 #include <cstddef>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "base/thread_pool.h"
 #include "tuner/config.h"
 #include "tuner/measurement.h"
 #include "tuner/plan.h"
 #include "tuner/race_record.h"
+#include "tuner/worker.h"
 
 namespace skintune::internal {
 
@@ -65,6 +68,36 @@ struct WorkerSetup {
   std::string executable;         // the skintune binary
   double variant_timeout_s = 60;  // per variant
   std::string host_lock;          // shared by every worker (tuner/host_lock.h); "" = none
+};
+
+// Worker processes that compile a device's kernels ahead side by side, each a
+// share of them (CompileAheadInProcesses, tuner/tuned_device.h: a driver that
+// compiles one kernel at a time in a process). Started at their first share,
+// they live as long as the object; a helper that fails costs only its
+// share's head start (IsolatedDevice::CompileAhead). They are driven from
+// threads that live as long as they do: a worker is killed when the thread
+// that started it ends (PR_SET_PDEATHSIG, tuner/worker.h).
+class CompileHelpers {
+ public:
+  CompileHelpers(const WorkerSetup& workers, const DeviceIdentity& device);
+  ~CompileHelpers();
+  CompileHelpers(const CompileHelpers&) = delete;
+  CompileHelpers& operator=(const CompileHelpers&) = delete;
+
+  // Half the host's logical CPUs (the others are the GPU workers' beside it), 1 to 8.
+  static std::size_t Count();
+
+  // Each helper (up to Count(), at most one per variant) compiles its share
+  // of `variants`; returns when every one has answered.
+  void CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset);
+
+  int starts() const;  // helper processes started so far
+
+ private:
+  const WorkerSetup& workers_;
+  const DeviceIdentity& device_;
+  std::unique_ptr<ThreadPool> threads_;                   // outlives the helpers (declared before them)
+  std::vector<std::unique_ptr<IsolatedDevice>> helpers_;  // each driven by one thread at a time
 };
 
 // Tunes device `d` of `plan` into `result`: its copy bandwidth, then each of

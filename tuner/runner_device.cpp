@@ -20,6 +20,7 @@
 #include "tuner/runner_device.h"
 
 #include "base/error.h"
+#include "generator/packer.h"  // PackPalette
 #include "runtime/program_cache.h"
 #include "tuner/datasets.h"
 #include "tuner/host_lock.h"
@@ -37,7 +38,11 @@ namespace {
 //   finds each kernel built in its own context. (With a runner per thread,
 //   NVIDIA's OpenCL built each kernel twice: once ahead, then again from the
 //   cached PTX in the measuring context, 42 ms per measurement on the H100.)
-//   PoCL builds them in parallel;
+//   PoCL compiles one kernel at a time in a process, whatever the threads,
+//   and once more per work-group size at the kernel's first launch (~250 ms
+//   a variant on the H200 machine's host, 2026-11-28), so its kernels are
+//   compiled ahead by running them once, in several processes of their own
+//   (CompileAheadInProcesses; tuner/device_tuning.cpp starts them);
 // Each of the others with a runner (and program cache object) of its own,
 // so that no API object is shared between threads:
 // - vulkan: each thread's runner has a VkDevice of its own, and its Build
@@ -189,6 +194,7 @@ class RunnerDevice final : public TunedDevice {
   std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) override {
     if (!CompilesAhead(device_.identity)) return 0;
     const HostLock host_work(HostWorkMode(IsHostCpu(device_.identity)));  // compiles are host work
+    if (CompilesAheadInProcesses(device_.identity)) return RunOnce(variants, dataset);
     const std::vector<KernelSource> kernels = KernelsOf(variants, dataset);
     if (kernels.empty()) return 0;
     std::atomic<std::size_t> built{0};
@@ -244,6 +250,28 @@ class RunnerDevice final : public TunedDevice {
       }
     }
     return kernels;
+  }
+
+  // Each variant run once as its verification runs it (a build, then a
+  // launch of its geometry), its output unread: the compile ahead of a device
+  // that compiles again at a kernel's first launch. One at a time: such a
+  // driver compiles one kernel at a time in a process (the tuner runs several
+  // processes: CompileAheadInProcesses). Returns the variants run; one that
+  // fails is left for Measure to record.
+  std::size_t RunOnce(const std::vector<Variant>& variants, const TuningDataset& dataset) {
+    DatasetCache::Entry& data = datasets_.Get(dataset.key);
+    std::size_t ran = 0;
+    for (const Variant& v : variants) {
+      try {
+        std::vector<KernelSource> kernels;
+        const PackedMesh& packed = PackScene(datasets_, data, v, kernels);
+        (void)MeasuringExecutor().Run(packed, kernels, PackPalette(data.verification_palette, v), data.instances());
+        ++ran;
+      } catch (const Error&) {
+        // Measure records it.
+      }
+    }
+    return ran;
   }
 
   static unsigned CompileThreadCount() {
@@ -315,6 +343,10 @@ Discovery DiscoverTunedDevices(const ExecutorDecorator& decorate) {
 namespace skintune::internal {
 
 Discovery DiscoverTunedDevices() { return tuner_internal::DiscoverTunedDevices(tuner_internal::ExecutorDecorator{}); }
+
+bool CompilesAheadInProcesses(const DeviceIdentity& device) {
+  return device.backend == "opencl" && IsHostCpu(device) && CompilesAhead(device);
+}
 
 bool CompilesAhead(const DeviceIdentity& device) {
   const auto& list = tuner_internal::kCompileAheadApis;

@@ -62,6 +62,12 @@ class TunedDevice {
 // type is in or out).
 bool CompilesAhead(const DeviceIdentity& device);
 
+// Whether `device`'s kernels are compiled ahead in processes of their own, by
+// running each once (runner_device.cpp: PoCL compiles one kernel at a time in
+// a process, and again for each work-group size at its first launch; both
+// land in its disk cache, where the measuring process finds them).
+bool CompilesAheadInProcesses(const DeviceIdentity& device);
+
 struct Discovery {
   std::vector<std::unique_ptr<TunedDevice>> devices;
   std::vector<std::string> skipped;  // "cuda: skipped: libcuda.so.1 not found (...)"

@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -17,6 +18,7 @@
 
 #include "base/error.h"
 #include "tests/common/scratch_dir.h"
+#include "tuner/device_tuning.h"
 
 namespace skintune::internal {
 namespace {
@@ -296,6 +298,45 @@ TEST(IsolatedDevice, WorkerGetsTheStartupEnvironmentEvenAfterALibraryEditedItInP
   std::string why;
   EXPECT_EQ(worker.CopyBandwidthGBps(1 << 20, &why), std::nullopt);
   EXPECT_EQ(why, "first.so:second.so");
+}
+
+}  // namespace
+}  // namespace skintune::internal
+
+namespace skintune::internal {
+namespace {
+
+// Compile helpers (tuner/device_tuning.h) stay the same processes from one
+// compile ahead to the next: each is driven from a thread that lives as long
+// as it does. One started from a thread that then ended would be killed with
+// it (PR_SET_PDEATHSIG), its next share lost and a fresh one started after.
+TEST(CompileHelpers, EachHelperStaysOneProcessAndGetsItsShare) {
+  const fs::path dir = Scratch();
+  const std::string exe = FakeWorker(dir,
+                                     "echo started >> \"$DIR/starts\"\n"
+                                     "while read line; do echo \"$line\" >> \"$DIR/requests\"; "
+                                     "echo '{\"compiled\": 1}'; done");
+  const WorkerSetup workers{exe, 30, ""};
+  const DeviceIdentity device = FakeDevice();
+  CompileHelpers helpers(workers, device);
+  const std::vector<Variant> variants = {ParseVariantKey("opencl.b2.soa.global.wg64"),
+                                         ParseVariantKey("opencl.b2.soa.global.wg128"),
+                                         ParseVariantKey("opencl.b2.soa.constant.wg64"),
+                                         ParseVariantKey("opencl.b2.soa.local.wg64")};
+  const std::size_t expected = std::min<std::size_t>(CompileHelpers::Count(), variants.size());
+  for (int call = 0; call < 3; ++call) helpers.CompileAhead(variants, kDataset);
+  EXPECT_EQ(helpers.starts(), static_cast<int>(expected));
+  std::size_t started = 0, requested = 0;
+  std::ifstream starts(dir / "starts"), requests(dir / "requests");
+  for (std::string line; std::getline(starts, line);) ++started;
+  std::size_t variants_sent = 0;
+  for (std::string line; std::getline(requests, line);) {
+    ++requested;
+    variants_sent += nlohmann::json::parse(line).at("compile_ahead").size();
+  }
+  EXPECT_EQ(started, expected) << "helper processes started";
+  EXPECT_EQ(requested, 3 * expected) << "one request per helper per call";
+  EXPECT_EQ(variants_sent, 3 * variants.size()) << "every variant in one share per call";
 }
 
 }  // namespace
