@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstring>
+#include <optional>
+#include <string>
 #include <thread>
 
 #include "cpu_kernels/cpu_kernel_table.h"
@@ -23,21 +25,46 @@ static_assert(std::size(kWeightNames) == cpu_detail::kWeightFormats);
 
 using cpu_detail::CpuIsa;
 
-CpuIsa ThisCpu() {
+// Whether this CPU runs the table of `isa` (the -march of its slices,
+// cpu_kernels/CMakeLists.txt).
+bool Runs(CpuIsa isa) {
 #if defined(__x86_64__) || defined(__i386__)
-  static const CpuIsa isa = [] {
-    __builtin_cpu_init();
-    if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
-        __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq"))
-      return CpuIsa::kAvx512;
-    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("bmi2"))
-      return CpuIsa::kAvx2;
-    return CpuIsa::kBaseline;
-  }();
-  return isa;
+  __builtin_cpu_init();
+  switch (isa) {
+    case CpuIsa::kAvx512:
+      return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+             __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
+    case CpuIsa::kAvx2:
+      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("bmi2");
+    case CpuIsa::kBaseline: return true;
+  }
+  return false;
 #else
-  return CpuIsa::kBaseline;
+  return isa == CpuIsa::kBaseline;
 #endif
+}
+
+// The tables this build holds (SKINTUNE_CPU_ISAS, cpu_kernels/CMakeLists.txt),
+// the fastest first.
+constexpr struct {
+  CpuIsa isa;
+  const char* name;
+  bool built;
+} kIsas[] = {
+    {CpuIsa::kAvx512, "avx512", SKINTUNE_CPU_ISA_AVX512},
+    {CpuIsa::kAvx2, "avx2", SKINTUNE_CPU_ISA_AVX2},
+    {CpuIsa::kBaseline, "baseline", SKINTUNE_CPU_ISA_BASELINE},
+};
+
+// The fastest table this build holds and this CPU runs (kIsas's index), or
+// none.
+std::optional<std::size_t> ThisCpu() {
+  static const std::optional<std::size_t> chosen = []() -> std::optional<std::size_t> {
+    for (std::size_t i = 0; i < std::size(kIsas); ++i)
+      if (kIsas[i].built && Runs(kIsas[i].isa)) return i;
+    return std::nullopt;
+  }();
+  return chosen;
 }
 
 // The table of kIsa, its 8 slices (B = 1..8) one after another.
@@ -58,12 +85,27 @@ const cpu_detail::CpuKernelTable& TableOf() {
 }
 
 const cpu_detail::CpuKernelTable& Table() {
-  switch (ThisCpu()) {
-    case CpuIsa::kAvx512: return TableOf<CpuIsa::kAvx512>();
-    case CpuIsa::kAvx2: return TableOf<CpuIsa::kAvx2>();
-    case CpuIsa::kBaseline: break;
+  const std::optional<std::size_t> chosen = ThisCpu();
+  if (!chosen) {
+    std::string built;
+    for (const auto& isa : kIsas)
+      if (isa.built) built += std::string(built.empty() ? "" : ", ") + isa.name;
+    throw Error("cpu kernel: this build holds the tables of " + built +
+                " (SKINTUNE_CPU_ISAS), none of which this CPU runs: build with the default, which includes baseline");
   }
-  return TableOf<CpuIsa::kBaseline>();
+  switch (kIsas[*chosen].isa) {
+#if SKINTUNE_CPU_ISA_AVX512
+    case CpuIsa::kAvx512: return TableOf<CpuIsa::kAvx512>();
+#endif
+#if SKINTUNE_CPU_ISA_AVX2
+    case CpuIsa::kAvx2: return TableOf<CpuIsa::kAvx2>();
+#endif
+#if SKINTUNE_CPU_ISA_BASELINE
+    case CpuIsa::kBaseline: return TableOf<CpuIsa::kBaseline>();
+#endif
+    default: break;
+  }
+  throw Error("cpu kernel: no table");  // unreachable: ThisCpu() picks a built one
 }
 
 }  // namespace
@@ -100,13 +142,16 @@ CpuKernelFn FindCpuKernel(const CpuKernelKey& key) {
   return Table()[cpu_detail::SlotOf(key)];
 }
 
+std::vector<std::string> CpuKernelIsasBuilt() {
+  std::vector<std::string> built;
+  for (const auto& isa : kIsas)
+    if (isa.built) built.push_back(isa.name);
+  return built;
+}
+
 const char* CpuKernelIsa() {
-  switch (ThisCpu()) {
-    case CpuIsa::kAvx512: return "avx512";
-    case CpuIsa::kAvx2: return "avx2";
-    case CpuIsa::kBaseline: break;
-  }
-  return "baseline";
+  const std::optional<std::size_t> chosen = ThisCpu();
+  return chosen ? kIsas[*chosen].name : "none";
 }
 
 std::vector<CpuKernelKey> AllCpuKernelKeys() {

@@ -26,7 +26,8 @@
 //   whose 16 bytes could leave its stream, from a padded copy).
 // - Each table is compiled three times, for AVX-512, AVX2 and a baseline,
 //   in slices of one influence count each (cpu_kernels_slice.cpp, 24
-//   objects); CpuKernelIsa() says which table this CPU runs.
+//   objects; a build for this machine only, SKINTUNE_CPU_ISAS=native, compiles
+//   the one its CPU runs); CpuKernelIsa() says which table this CPU runs.
 //
 // Threads and chunking are not fixed: RunCpuKernel takes a CpuSchedule, and
 // FastestCandidate times the candidates on the caller's own frames.
@@ -99,8 +100,13 @@ using CpuKernelFn = void (*)(const CpuStreams& s, const CpuPalette& palette, std
 // The kernel for `key` on this CPU; throws Error("cpu kernel: ...") for a key
 // outside the table (B outside 1..8, rows not 3 or 4).
 CpuKernelFn FindCpuKernel(const CpuKernelKey& key);
-// The instruction set of the tables FindCpuKernel returns: "avx512", "avx2" or "baseline".
+// The instruction set of the tables FindCpuKernel returns: "avx512", "avx2" or
+// "baseline", the fastest this CPU runs of those the build holds
+// (SKINTUNE_CPU_ISAS); "none" when it runs none of them (then FindCpuKernel
+// throws Error naming the tables built).
 const char* CpuKernelIsa();
+// The tables this build holds, the fastest first (SKINTUNE_CPU_ISAS).
+std::vector<std::string> CpuKernelIsasBuilt();
 // Every key of the table, in table order (B, index, weight, rows, blend): for tests.
 std::vector<CpuKernelKey> AllCpuKernelKeys();
 
