@@ -310,9 +310,17 @@ TEST_P(KernelTime, TheFlushRunsBeforeEveryFrameAndIsInNoLaunchsTime) {
   EXPECT_GE(wall_ms, 0.5 * kFrames * flush_ms)
       << "the wall time of " << kFrames << " frames holds fewer flushes than frames (one flush alone: " << flush_ms
       << " ms)";
-  // In no launch's time: a frame of a 2000-vertex kernel is far shorter than
-  // a read of twice the last-level cache.
-  EXPECT_LT(Median(ms), 0.25 * flush_ms) << "a frame's kernel time holds the flush's";
+  // In no launch's time: a cold frame's kernel time stays below the kernel's
+  // own warm time plus half a flush; with the flush inside it, it would be at
+  // least both. (Not "far below a flush": GL's vertex path takes ~28 us for
+  // these 2000 vertices on an H200, where the flush of twice its cache takes
+  // 33 us; 2026-11-28.)
+  const std::vector<double> warm = runner_->Time(mesh, 1, 3, 1);
+  ASSERT_FALSE(warm.empty());
+  const double warm_ms = *std::min_element(warm.begin(), warm.end());
+  EXPECT_LT(Median(ms), warm_ms + 0.5 * flush_ms)
+      << "a frame's kernel time holds the flush's (the kernel warm: " << warm_ms << " ms, the flush alone: " << flush_ms
+      << " ms)";
 }
 
 INSTANTIATE_TEST_SUITE_P(EveryRunner, KernelTime, ::testing::ValuesIn(Cases()), CaseName);
