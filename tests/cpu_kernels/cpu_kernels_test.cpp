@@ -297,7 +297,9 @@ TEST(CpuKernels, OneKernelPerKeyWithDistinctNames) {
   const std::vector<std::string> built = CpuKernelIsasBuilt();
   ASSERT_FALSE(built.empty());
   EXPECT_NE(std::find(built.begin(), built.end(), isa), built.end()) << isa;
-  if (built.back() == "baseline") EXPECT_NE(isa, "none");
+  if (built.back() == "baseline") {
+    EXPECT_NE(isa, "none");
+  }
 }
 
 TEST(CpuKernels, BadKeysAndPalettesAreErrorsNamingTheProblem) {
