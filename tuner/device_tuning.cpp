@@ -321,9 +321,10 @@ void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& 
       for (const std::vector<Variant>* list : {&task.baselines, &task.candidates})
         for (const Variant& v : *list)
           if (!ledger.Cached(CacheKeyOf(device.Id(), key, v))) ahead.push_back(v);
+      if (ahead.size() < 2) continue;  // one kernel: built by its measurement
       const std::string who = device.backend + " " + device.name;
       const LoggedSpan span(who, "precompile of " + std::to_string(ahead.size()) + " kernels for " + key);
-      if (ahead.size() >= 2) worker.CompileAhead(ahead, TuningDataset{key});
+      worker.CompileAhead(ahead, TuningDataset{key});
     }
   } catch (...) {
     // Only a head start lost: the device's own worker compiles and records any failure.
