@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <regex>
 #include <string>
 
@@ -173,6 +174,23 @@ void ExpectInjectedCompileAndWrongFaults(const TunedDevice& device, const Varian
     EXPECT_EQ(m.status, MeasureStatus::kVerifyFailed) << Name(m.status) << ": " << m.detail;
     EXPECT_GT(m.max_relative_error, 1e-5);
   }
+}
+
+// The OpenCL runner of a tuned OpenCL device (found in the inventory by
+// platform and name, as discovery names it), or null.
+std::unique_ptr<OpenClRunner> RunnerOf(const TunedDevice& tuned) {
+  const OpenClInventory inventory = EnumerateOpenCl();
+  for (const OpenClDeviceInfo& d : inventory.devices)
+    if (d.platform_name == tuned.identity().platform && d.name == tuned.identity().name)
+      return std::make_unique<OpenClRunner>(d.platform_index, d.device_index);
+  return nullptr;
+}
+
+// The device's copy bandwidth over 16 MiB: positive, and printed.
+void ExpectCopyBandwidth(TunedDevice& tuned) {
+  const double gbps = tuned.CopyBandwidthGBps(16u << 20);
+  std::cout << "[ copy     ] " << tuned.identity().name << ": " << gbps << " GB/s\n";
+  EXPECT_GT(gbps, 0.0);
 }
 
 // ---------------------------------------------------------------- discovery and identity
@@ -614,12 +632,9 @@ TEST(OpenClTunedDevice, InjectedWrongResultIsVerifyFailed) {
 
 TEST(OpenClTunedDevice, InjectedHangKernelBuilds) {
   DEVICE_OR_SKIP(tuned, "opencl");
-  const OpenClInventory inventory = EnumerateOpenCl();
-  const auto device = std::find_if(inventory.devices.begin(), inventory.devices.end(), [&](const OpenClDeviceInfo& d) {
-    return d.platform_name == tuned->identity().platform && d.name == tuned->identity().name;
-  });
-  ASSERT_NE(device, inventory.devices.end());
-  OpenClRunner runner(device->platform_index, device->device_index);
+  const std::unique_ptr<OpenClRunner> opencl = RunnerOf(*tuned);
+  ASSERT_TRUE(opencl) << "the tuned device is not in the OpenCL inventory";
+  OpenClRunner& runner = *opencl;
   for (const char* key : {"opencl.b2.soa", "opencl.b2.aos.float3"}) {
     const Variant v = ParseVariantKey(key);
     KernelSource s = Emit(v, 0, 77);
@@ -630,19 +645,14 @@ TEST(OpenClTunedDevice, InjectedHangKernelBuilds) {
 
 TEST(OpenClTunedDevice, CopyBandwidthIsPositive) {
   DEVICE_OR_SKIP(tuned, "opencl");
-  const double gbps = tuned->CopyBandwidthGBps(16u << 20);
-  std::cout << "[ copy     ] " << tuned->identity().name << ": " << gbps << " GB/s\n";
-  EXPECT_GT(gbps, 0.0);
+  ExpectCopyBandwidth(*tuned);
 }
 
 TEST(OpenClRunnerTiming, PreparesOneSetPerPaletteAndTimesEachRepetition) {
   DEVICE_OR_SKIP(tuned, "opencl");
-  const OpenClInventory inventory = EnumerateOpenCl();
-  const auto device = std::find_if(inventory.devices.begin(), inventory.devices.end(), [&](const OpenClDeviceInfo& d) {
-    return d.platform_name == tuned->identity().platform && d.name == tuned->identity().name;
-  });
-  ASSERT_NE(device, inventory.devices.end());
-  OpenClRunner runner(device->platform_index, device->device_index);
+  const std::unique_ptr<OpenClRunner> opencl = RunnerOf(*tuned);
+  ASSERT_TRUE(opencl) << "the tuned device is not in the OpenCL inventory";
+  OpenClRunner& runner = *opencl;
   const SkinnedAsset asset = GenerateDataset(ParseDatasetKey("3000-b3"));
   const Variant v = ParseVariantKey("opencl.b3.bucketed.soa.image");
   const PackedMesh packed = Pack(asset.mesh, v);
@@ -709,9 +719,7 @@ TEST(GlTunedDevice, InjectedHangKernelsBuild) {
 
 TEST(GlTunedDevice, CopyBandwidthIsPositive) {
   DEVICE_OR_SKIP(tuned, "gl");
-  const double gbps = tuned->CopyBandwidthGBps(16u << 20);
-  std::cout << "[ copy     ] " << tuned->identity().name << ": " << gbps << " GB/s\n";
-  EXPECT_GT(gbps, 0.0);
+  ExpectCopyBandwidth(*tuned);
 }
 
 // ---------------------------------------------------------------- Vulkan (lavapipe here)
