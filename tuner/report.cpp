@@ -434,29 +434,30 @@ void ReadMeasurements(const nlohmann::json& json, const std::string& context, Tu
 
 // tie_margin since 1.4.0, host_tie_margin since 1.5.0 (before it, a CPU device's was tie_margin too).
 void ReadMargins(const nlohmann::json& json, const std::string& context, TuningReport& r) {
-  for (const auto& margin : {std::pair<const char*, double*>{"tie_margin", &r.tie_margin}, {"host_tie_margin", &r.host_tie_margin}}) {
-    const char* name = margin.first;  // not a structured binding: a lambda below captures it (clang 14)
-    if (!json.contains(name)) {
-      if (margin.second == &r.host_tie_margin) r.host_tie_margin = r.tie_margin;
+  // Each field, its range ((0, 0.5] for a margin, [0, 0.5] for a spread) and its value in a
+  // report without it: the default margin, the tie margin for the host's, and no spread
+  // before 1.6.0 (an older report's tie sets were its contenders).
+  static constexpr double kNoSpread = 0.0;
+  const struct {
+    const char* name;
+    double* value;
+    bool may_be_zero;
+    const double* absent;
+  } fields[] = {
+      {"tie_margin", &r.tie_margin, false, &r.tie_margin},
+      {"host_tie_margin", &r.host_tie_margin, false, &r.tie_margin},
+      {"process_spread", &r.process_spread, true, &kNoSpread},
+      {"host_process_spread", &r.host_process_spread, true, &kNoSpread},
+  };
+  for (const auto& f : fields) {
+    if (!json.contains(f.name)) {
+      *f.value = *f.absent;
       continue;
     }
-    *margin.second = At(context, name, [&] {
-      const double value = Number(json, name);
-      if (!(value > 0.0) || value > 0.5) throw Error("must be in (0, 0.5]");
-      return value;
-    });
-  }
-  // The spreads since 1.6.0; an older report's tie sets were its contenders.
-  for (const auto& spread : {std::pair<const char*, double*>{"process_spread", &r.process_spread},
-                             {"host_process_spread", &r.host_process_spread}}) {
-    const char* name = spread.first;  // not a structured binding: a lambda below captures it (clang 14)
-    if (!json.contains(name)) {
-      *spread.second = 0.0;
-      continue;
-    }
-    *spread.second = At(context, name, [&] {
-      const double value = Number(json, name);
-      if (!(value >= 0.0) || value > 0.5) throw Error("must be in [0, 0.5]");
+    *f.value = At(context, f.name, [&] {
+      const double value = Number(json, f.name);
+      const bool in_range = (f.may_be_zero ? value >= 0.0 : value > 0.0) && value <= 0.5;
+      if (!in_range) throw Error(f.may_be_zero ? "must be in [0, 0.5]" : "must be in (0, 0.5]");
       return value;
     });
   }
