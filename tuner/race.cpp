@@ -20,10 +20,6 @@ bool Faster(const Measurement* a, const Measurement* b) {
 
 bool Raceable(const Measurement& m) { return m.status == MeasureStatus::kOk && m.timing.median_ms > 0.0; }
 
-RaceEntry EntryOf(const Measurement& m) {
-  return {m.variant.Key(), {}, m.bytes_per_frame, m.source_error.known ? m.source_error.position_rel : 0.0};
-}
-
 }  // namespace
 
 std::vector<const Measurement*> RaceCandidates(const std::vector<Measurement>& measured, const TimingOptions& options,
@@ -59,7 +55,7 @@ std::optional<Variant> RaceWinner(const RaceRecord& race, const std::vector<Meas
   for (const RaceRecord::Entry& e : race.entries) {
     const auto m = std::find_if(measured.begin(), measured.end(),
                                 [&](const Measurement& x) { return x.variant.Key() == e.variant.Key(); });
-    entries.push_back(m != measured.end() ? EntryOf(*m) : RaceEntry{e.variant.Key(), {}, 0.0, 0.0});
+    entries.push_back(m != measured.end() ? RaceEntryOf(*m) : RaceEntry{e.variant.Key(), {}, 0.0, 0.0});
     intervals.push_back(e.interval);
   }
   return race.entries[JudgeIntervals(intervals, entries, margin).winner].variant;
@@ -111,7 +107,7 @@ RaceRecord RaceThese(const Racer& racer, const std::vector<const Measurement*>& 
   try {  // a race answer is input: a leg without samples fails the race, never the run
     if (samples->empty()) throw Error("no leg");
     for (std::size_t i = 0; i < candidates.size(); ++i) {
-      entries.push_back(EntryOf(*candidates[i]));
+      entries.push_back(RaceEntryOf(*candidates[i]));
       std::vector<std::vector<double>> legs;
       for (const RaceSamples& leg : *samples) {
         if (leg.size() != candidates.size())

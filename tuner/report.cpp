@@ -193,7 +193,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     std::vector<RaceEntry> entries;
     std::vector<Interval> intervals;
     for (const Measurement* m : members) {
-      entries.push_back({m->variant.Key(), {}, m->bytes_per_frame, m->source_error.known ? m->source_error.position_rel : 0.0});
+      entries.push_back(RaceEntryOf(*m));
       intervals.push_back(IntervalOf(report, *m));
     }
     const double margin = report.TieMarginOf(members.front()->device_id);
@@ -244,10 +244,6 @@ Interval IntervalOf(const Winner& w) {
   i.high = w.high_ms >= i.median ? w.high_ms : w.median_ms;
   i.samples = 1;
   return i;
-}
-
-RaceEntry RaceEntryOf(const Winner& w) {
-  return {w.variant.Key(), {}, w.bytes_per_frame, w.source_error.known ? w.source_error.position_rel : 0.0};
 }
 
 RaceOutcome JudgeWinners(const std::vector<const Winner*>& members, double tie_margin) {

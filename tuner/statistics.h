@@ -70,6 +70,13 @@ struct RaceEntry {
   double bytes_per_frame = 0;  // fewer bytes first
   double error = 0;            // the error against the source (SourceError::position_rel): lower first
 };
+// The entry of a measured candidate, its samples left empty: what the
+// tie-break reads of a Measurement (tuner/measurement.h) or a Winner
+// (tuner/report.h), which carry the same fields.
+template <typename Measured>
+RaceEntry RaceEntryOf(const Measured& m) {
+  return {m.variant.Key(), {}, m.bytes_per_frame, m.source_error.known ? m.source_error.position_rel : 0.0};
+}
 enum class RaceVerdict { kLeader, kEqual, kUndecided, kSeparated };
 const char* Name(RaceVerdict);
 struct RaceOutcome {
