@@ -558,25 +558,40 @@ Prepared Runner::PrepareFlush(Lang lang, std::size_t read_bytes) {
 }
 
 std::vector<double> Runner::TimeCold(const Prepared& prepared, const Prepared& flush, int untimed, int samples,
-                                     std::vector<std::vector<double>>* launch_ms) {
+                                     std::vector<std::vector<double>>* launch_ms, const std::function<void()>& before_each) {
   Settle();
   api_->MakeCurrent();
   const Prepared::Impl* p = prepared.impl_.get();
   const Prepared::Impl* f = flush.impl_.get();
   if (!p || p->sets.empty() || !f || f->sets.empty()) Fail("launch", "TimeCold: nothing prepared");
   if (api_->timing_policy().warm_until_stable) WarmUntilStable(*p);
-  FrameRun run;
-  run.use = FrameUse::kCold;
-  run.key = p->key;
-  run.untimed = std::max(untimed, 0);
-  run.flush = f->Frame(0);
-  for (int frame = 0; frame < run.untimed + std::max(samples, 0); ++frame)
-    run.frames.push_back(p->Frame(static_cast<std::size_t>(frame) % p->sets.size()));
+  untimed = std::max(untimed, 0);
+  samples = std::max(samples, 0);
+  // One device submission of frames [first, first + count), the first `skip` untimed.
+  auto run_frames = [&](int first, int count, int skip) {
+    FrameRun run;
+    run.use = FrameUse::kCold;
+    run.key = p->key;
+    run.untimed = skip;
+    run.flush = f->Frame(0);
+    for (int frame = first; frame < first + count; ++frame)
+      run.frames.push_back(p->Frame(static_cast<std::size_t>(frame) % p->sets.size()));
+    return api_->RunFrames(run);
+  };
+  std::vector<std::vector<double>> frames;
+  if (!before_each) {
+    frames = run_frames(0, untimed + samples, untimed);
+  } else {
+    if (untimed > 0) (void)run_frames(0, untimed, untimed);
+    for (int s = 0; s < samples; ++s) {
+      before_each();
+      for (std::vector<double>& frame : run_frames(untimed + s, 1, 0)) frames.push_back(std::move(frame));
+    }
+  }
   std::vector<double> ms;
-  std::vector<std::vector<double>> frames = api_->RunFrames(run);
-  if (frames.size() != static_cast<std::size_t>(std::max(samples, 0)))
+  if (frames.size() != static_cast<std::size_t>(samples))
     Fail("launch", "timing " + p->key + ": the device gave " + std::to_string(frames.size()) + " frames of " +
-                       std::to_string(std::max(samples, 0)));
+                       std::to_string(samples));
   for (const std::vector<double>& launches : frames) {
     if (launches.size() != p->launches.size())
       Fail("launch", "timing " + p->key + ": the device gave " + std::to_string(launches.size()) + " launch times for a frame of " +

@@ -43,6 +43,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -199,9 +200,15 @@ class Runner {
   // kernel time: the sum of its launches' own device times, ms. (The API may
   // warm up first: TimingPolicy.) `launch_ms` (when given) receives those
   // launch times, one vector per timed frame, in launch order.
+  // `before_each` (when given) is called before each timed frame, with the
+  // device idle: the frames then go to the device one at a time, each after
+  // `flush` (a device whose memory is the host's is flushed by the host's
+  // own reads, tuner/executor.h HostFlush, and `flush` is then a launch that
+  // only marks where the frame's time starts).
   Prepared PrepareFlush(Lang lang, std::size_t read_bytes);
   std::vector<double> TimeCold(const Prepared& prepared, const Prepared& flush, int untimed, int samples,
-                               std::vector<std::vector<double>>* launch_ms = nullptr);
+                               std::vector<std::vector<double>>* launch_ms = nullptr,
+                               const std::function<void()>& before_each = {});
 
   // The frame time (docs/TUNING.md "Frame time"): `untimed` frames, then
   // `frames` frames of set 0 issued back to back as a Skinner issues them

@@ -80,7 +80,11 @@ Command RegisterTuneWorker(CLI::App& app) {
   sub->add_option("--device-id", *device_id, "the device's identity (takes precedence over the index)");
   auto host_lock = std::make_shared<std::string>();
   sub->add_option("--host-lock", *host_lock, "the lock file of the host's cores, shared with the other workers");
-  return {sub, [index, device_id, host_lock] { return RunTuneWorker(*index, *device_id, *host_lock); }};
+  auto chip_lock = std::make_shared<std::string>();
+  sub->add_option("--chip-lock", *chip_lock, "the lock file of the GPU, shared with its other APIs' workers");
+  return {sub, [index, device_id, host_lock, chip_lock] {
+            return RunTuneWorker(*index, *device_id, *host_lock, *chip_lock);
+          }};
 }
 
 }  // namespace skintune::internal::tools

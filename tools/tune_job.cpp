@@ -164,7 +164,8 @@ void AddTuneJobOptions(CLI::App& sub, TuneJobOptions& o) {
       ->check(NonEmptyPath());
   sub.add_flag("--one-device-at-a-time", o.one_device_at_a_time,
                "tune one device after another (by default devices that share no hardware, such as a CPU device "
-               "and a GPU, are tuned at the same time)");
+               "and a GPU, are tuned at the same time, and so are one GPU's APIs, each holding the chip alone "
+               "for its work on it)");
   sub.add_flag("--quiet", o.quiet, "no progress on stderr");
 }
 

@@ -164,6 +164,7 @@ class DeviceTuning {
     // This device's timing: its tie margin and stop rule (a CPU's are wider: TimingOptions::ForDevice).
     timing_ = config.timing.ForDevice(device_);
     if (!workers.host_lock.empty()) worker_.UseHostLock(workers.host_lock);
+    if (!workers.chip_lock.empty()) worker_.UseChipLock(workers.chip_lock);
   }
 
   void Run() {

@@ -68,6 +68,7 @@ struct WorkerSetup {
   std::string executable;         // the skintune binary
   double variant_timeout_s = 60;  // per variant
   std::string host_lock;          // shared by every worker (tuner/host_lock.h); "" = none
+  std::string chip_lock;          // shared by the workers of one chip's APIs tuned at once; "" = none
 };
 
 // Worker processes that compile a device's kernels ahead side by side, each a

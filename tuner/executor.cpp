@@ -9,6 +9,7 @@
 
 #include "generator/languages.h"
 #include "base/error.h"
+#include "base/thread_pool.h"
 
 namespace skintune::internal::tuner_internal {
 
@@ -59,7 +60,7 @@ class RunnerTimed final : public Executor::Timed {
   RunnerTimed(Runner& runner, RunnerExecutor& executor, Prepared prepared, Lang lang)
       : runner_(runner), executor_(executor), prepared_(std::move(prepared)), lang_(lang) {}
   std::vector<double> Cold(int untimed, int samples) override {
-    return runner_.TimeCold(prepared_, executor_.Flush(lang_), untimed, samples);
+    return runner_.TimeCold(prepared_, executor_.Flush(lang_), untimed, samples, nullptr, executor_.BeforeEachSample());
   }
   double FrameMs(int untimed, int frames) override { return runner_.FrameMs(prepared_, untimed, frames); }
   std::size_t bytes_per_set() const override { return prepared_.bytes_per_set(); }
@@ -73,9 +74,42 @@ class RunnerTimed final : public Executor::Timed {
 
 }  // namespace
 
+HostFlush::HostFlush(std::size_t bytes)
+    : words_(std::max<std::size_t>(bytes / sizeof(std::uint64_t), 1)), threads_(std::make_unique<ThreadPool>()) {
+  // Distinct values, written once: no page is shared or left unbacked.
+  for (std::size_t i = 0; i < words_.size(); ++i) words_[i] = i * 0x9e3779b97f4a7c15ull;
+}
+
+HostFlush::~HostFlush() = default;
+
+void HostFlush::operator()() {
+  const std::size_t threads = threads_->size();
+  const std::size_t share = (words_.size() + threads - 1) / threads;
+  std::vector<std::uint64_t> sums(threads, 0);
+  threads_->ParallelFor(threads, 1, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t t = begin; t < end; ++t) {
+      const std::size_t from = std::min(words_.size(), t * share), to = std::min(words_.size(), from + share);
+      std::uint64_t sum = 0;
+      for (std::size_t i = from; i < to; ++i) sum ^= words_[i];
+      sums[t] = sum;
+    }
+  });
+  std::uint64_t all = 0;
+  for (const std::uint64_t s : sums) all ^= s;
+  // The reads must happen: their result goes where the compiler cannot see through.
+  asm volatile("" : : "r"(all) : "memory");
+}
+
+RunnerExecutor::~RunnerExecutor() = default;
+
 const Prepared& RunnerExecutor::Flush(Lang lang) {
   if (const auto found = flushes_.find(lang); found != flushes_.end()) return found->second;
-  return flushes_.emplace(lang, runner_.PrepareFlush(lang, flush_bytes_)).first->second;
+  return flushes_.emplace(lang, runner_.PrepareFlush(lang, host_flush_ ? kAnchorBytes : flush_bytes_)).first->second;
+}
+
+std::function<void()> RunnerExecutor::BeforeEachSample() {
+  if (!host_flush_) return {};
+  return [flush = host_flush_.get()] { (*flush)(); };
 }
 
 std::unique_ptr<Executor::Timed> RunnerExecutor::Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,

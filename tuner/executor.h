@@ -21,6 +21,10 @@
 #include "tuner/schedule.h"  // IsHostCpu
 #include "tuner/timing_options.h"
 
+namespace skintune::internal {
+class ThreadPool;  // base/thread_pool.h
+}  // namespace skintune::internal
+
 namespace skintune::internal::tuner_internal {
 
 // A kernel time (docs/TUNING.md "Kernel time"): its cold samples, taken
@@ -72,13 +76,41 @@ class Executor {
   std::map<std::string, std::unique_ptr<KernelTime>> copy_times_;
 };
 
+// The flush of a device whose memory is the host's (IsHostCpu: PoCL,
+// llvmpipe, lavapipe, skintune's cpu device), done by the host: `bytes` of
+// its own buffer read by one thread per core, each core its share, so every
+// core's caches and the shared last-level cache hold only clean lines of
+// that buffer, as the device's own flush kernel leaves them. The device's
+// flush kernel ran at the device's speed: on llvmpipe (2-core machine,
+// 2026-11-28) reading 32 MiB took ~9 ms a sample, 3-4 times the kernel
+// being timed, and most of a default run's time on that machine.
+class HostFlush {
+ public:
+  explicit HostFlush(std::size_t bytes);
+  ~HostFlush();
+  HostFlush(const HostFlush&) = delete;
+  HostFlush& operator=(const HostFlush&) = delete;
+  void operator()();
+  std::size_t bytes() const { return words_.size() * sizeof(std::uint64_t); }
+
+ private:
+  std::vector<std::uint64_t> words_;
+  std::unique_ptr<ThreadPool> threads_;
+};
+
 // Executor over the runner driver (runtime/runner.h): Run, Prepare +
 // TimeCold / FrameMs with the flush of FlushBytes(`last_level_cache_bytes`),
-// made once per language; copies prepared once per size and kept.
+// made once per language; copies prepared once per size and kept. On a
+// device whose memory is the host's the host flushes (HostFlush) and the
+// device's flush is a launch of kAnchorBytes that only starts the frame's time.
 class RunnerExecutor final : public Executor {
  public:
+  static constexpr std::size_t kAnchorBytes = 4096;
   RunnerExecutor(Runner& runner, const DeviceIdentity& device)
-      : runner_(runner), flush_bytes_(FlushBytes(device.last_level_cache_bytes, IsHostCpu(device))) {}
+      : runner_(runner), flush_bytes_(FlushBytes(device.last_level_cache_bytes, IsHostCpu(device))) {
+    if (IsHostCpu(device)) host_flush_ = std::make_unique<HostFlush>(flush_bytes_);
+  }
+  ~RunnerExecutor() override;
   Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t> palette,
              int instances) override;
   std::unique_ptr<Timed> Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
@@ -86,12 +118,16 @@ class RunnerExecutor final : public Executor {
   std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) override;
   std::string KernelClock() const override { return runner_.api().kernel_clock(); }
   std::size_t FlushReadBytes() const override { return flush_bytes_; }
-  // The flush in `lang`'s API (prepared on first use).
+  // The flush in `lang`'s API (prepared on first use): the anchor launch
+  // where the host flushes.
   const Prepared& Flush(Lang lang);
+  // The host's flush before each sample, or none: the device flushes itself.
+  std::function<void()> BeforeEachSample();
 
  private:
   Runner& runner_;
   std::size_t flush_bytes_;
+  std::unique_ptr<HostFlush> host_flush_;
   std::map<Lang, Prepared> flushes_;
 };
 

@@ -15,23 +15,32 @@
 namespace skintune::internal::tuner_internal {
 
 namespace {
-int lock_fd = -1;  // the worker's lock file, or -1 (no lock)
-}  // namespace
+int lock_fd = -1;  // the worker's host lock file, or -1 (no lock)
+int chip_fd = -1;  // the worker's chip lock file, or -1 (no lock)
 
-void UseHostLock(const std::string& path) {
+void Use(int& fd_of, const std::string& path, const char* what) {
   const int fd = ::open(path.c_str(), O_RDWR | O_CLOEXEC);
-  if (fd < 0) throw Error("host lock '" + path + "': cannot open it (" + std::strerror(errno) + ")");
-  if (lock_fd >= 0) ::close(lock_fd);
-  lock_fd = fd;
+  if (fd < 0) throw Error(std::string(what) + " '" + path + "': cannot open it (" + std::strerror(errno) + ")");
+  if (fd_of >= 0) ::close(fd_of);
+  fd_of = fd;
 }
 
-HostLock::HostLock(Mode mode) {
-  if (mode == Mode::kNone || lock_fd < 0) return;
-  const int operation = mode == Mode::kShared ? LOCK_SH : LOCK_EX;
-  while (::flock(lock_fd, operation) != 0) {
-    if (errno != EINTR) return;  // a lock that cannot be taken costs only the measurement's quiet
+// Whether `operation` on `fd` was taken (a lock that cannot be taken costs
+// only the measurement's quiet).
+bool Take(int fd, int operation) {
+  if (fd < 0) return false;
+  while (::flock(fd, operation) != 0) {
+    if (errno != EINTR) return false;
   }
-  held_ = true;
+  return true;
+}
+}  // namespace
+
+void UseHostLock(const std::string& path) { Use(lock_fd, path, "host lock"); }
+void UseChipLock(const std::string& path) { Use(chip_fd, path, "chip lock"); }
+
+HostLock::HostLock(Mode mode) {
+  if (mode != Mode::kNone) held_ = Take(lock_fd, mode == Mode::kShared ? LOCK_SH : LOCK_EX);
 }
 
 void HostLock::Release() {
@@ -40,14 +49,20 @@ void HostLock::Release() {
   held_ = false;
 }
 
+ChipLock::ChipLock() : held_(Take(chip_fd, LOCK_EX)) {}
+
+ChipLock::~ChipLock() {
+  if (held_) ::flock(chip_fd, LOCK_UN);
+}
+
 HostLock::Mode HostWorkMode(bool cpu_device) { return cpu_device ? HostLock::Mode::kNone : HostLock::Mode::kShared; }
 HostLock::Mode TimedMode(bool cpu_device) { return cpu_device ? HostLock::Mode::kExclusive : HostLock::Mode::kNone; }
 
-HostLockFile::HostLockFile() {
+HostLockFile::HostLockFile(const char* what) {
   std::error_code error;
   const std::filesystem::path dir = std::filesystem::temp_directory_path(error);
   if (error) return;
-  std::string name = (dir / "skintune-host-XXXXXX").string();
+  std::string name = (dir / ("skintune-" + std::string(what) + "-XXXXXX")).string();
   const int fd = ::mkstemp(name.data());
   if (fd < 0) return;
   ::close(fd);

@@ -43,12 +43,34 @@ class HostLock {
 HostLock::Mode HostWorkMode(bool cpu_device);
 HostLock::Mode TimedMode(bool cpu_device);
 
-// The parent: a new, empty lock file in the temporary directory, removed
+// The chip lock: one GPU seen through several APIs (OpenCL, CUDA, GL,
+// Vulkan), their devices tuned at the same time (tuner/schedule.h), each
+// API's worker holding the chip alone for whatever runs on it: a whole
+// measurement (uploads, the verification launch, the kernel's, frame's and
+// copy's samples), a race, the copy bandwidth. What runs on the host meanwhile
+// (compiles ahead, worker start-up, the parent's bookkeeping) overlaps the
+// other APIs' work on the chip. flock(2) on a file the parent makes per
+// chip (HostLockFile) and names to each of that chip's workers
+// (`tune-worker --chip-lock PATH`: UseChipLock); in a process without one,
+// every ChipLock is a no-op. Taken before the host lock, never after it.
+void UseChipLock(const std::string& path);
+class ChipLock {
+ public:
+  ChipLock();
+  ~ChipLock();
+  ChipLock(const ChipLock&) = delete;
+  ChipLock& operator=(const ChipLock&) = delete;
+
+ private:
+  bool held_ = false;
+};
+
+// The parent: a new, empty lock file (the host's or a chip's) in the temporary directory, removed
 // when the object goes; path() is "" when none could be made (then the
 // workers run without a lock, as before).
 class HostLockFile {
  public:
-  HostLockFile();
+  explicit HostLockFile(const char* what = "host");  // the file's name says whose
   ~HostLockFile();
   HostLockFile(const HostLockFile&) = delete;
   HostLockFile& operator=(const HostLockFile&) = delete;

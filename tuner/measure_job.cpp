@@ -268,8 +268,11 @@ bool MeasureJob::Run() const {
     Fail(m, MeasureStatus::kInvalid, why);
     return true;
   }
-  // The host's cores (tuner/host_lock.h): a GPU's host-side work waits while
-  // a CPU device beside it is timing; a CPU device's bursts hold them alone.
+  // The chip (tuner/host_lock.h): this API's work on it alone, from the
+  // verification's uploads to the copy's last sample. The host's cores: a
+  // GPU's host-side work waits while a CPU device beside it is timing; a CPU
+  // device's bursts hold them alone.
+  const ChipLock chip;
   const bool cpu_device = IsHostCpu(*device);
   HostLock host_work(HostWorkMode(cpu_device));
   Measuring run{*this, m, data};
@@ -306,8 +309,9 @@ Measurement MeasurementOf(MeasureJob job) {
 
 namespace {
 
-// Every variant of the race prepared for timing, with its input sets.
-std::vector<std::unique_ptr<Executor::Timed>> PrepareRacers(const RaceJob& job) {
+// Every variant of the race prepared for timing, with its input sets; each
+// one's tie-break entry (its key and the bytes it moves a frame) into `entries`.
+std::vector<std::unique_ptr<Executor::Timed>> PrepareRacers(const RaceJob& job, std::vector<RaceEntry>& entries) {
   DatasetCache::Entry& data = job.datasets->Get(job.dataset.key);
   const HostLock host_work(HostWorkMode(IsHostCpu(*job.device)));
   std::vector<std::unique_ptr<Executor::Timed>> timed;
@@ -317,6 +321,7 @@ std::vector<std::unique_ptr<Executor::Timed>> PrepareRacers(const RaceJob& job) 
     const int sets = InputSetsFor(job.device->last_level_cache_bytes, FrameBytes(packed, data.instances()),
                                   job.options.max_input_sets);
     timed.push_back(job.executor->Prepare(packed, kernels, TimedPalettes(*job.datasets, data, v, sets), data.instances()));
+    entries.push_back({v.Key(), {}, static_cast<double>(FrameBytes(packed, data.instances())), 0.0});
   }
   return timed;
 }
@@ -331,9 +336,9 @@ bool RaceJob::Validate() const {
 bool RaceJob::Run() const {
   if (!Validate()) return false;
   using Clock = std::chrono::steady_clock;
-  const std::vector<std::unique_ptr<Executor::Timed>> timed = PrepareRacers(*this);
+  const ChipLock chip;  // from the first upload to the last sample (tuner/host_lock.h)
   std::vector<RaceEntry> entries;
-  for (const Variant& v : variants) entries.push_back({v.Key(), {}, 0.0, 0.0});
+  const std::vector<std::unique_ptr<Executor::Timed>> timed = PrepareRacers(*this, entries);
   const HostLock timed_lock(TimedMode(IsHostCpu(*device)));
   const StopRule& rule = options.stop;
   for (const std::unique_ptr<Executor::Timed>& t : timed) (void)t->Cold(std::max(options.warmup, 1), 0);  // as SampleKernelTime
@@ -350,7 +355,7 @@ bool RaceJob::Run() const {
     if (fewest == 0) throw Error("race: the device gave no kernel time");
     const RaceOutcome outcome = JudgeRace(entries, options.tie_margin);
     const double elapsed = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-    if ((outcome.decided && fewest >= rule.min_samples) || fewest >= rule.max_samples ||
+    if ((outcome.settled && fewest >= rule.min_samples) || fewest >= rule.max_samples ||
         elapsed >= rule.max_ms * static_cast<double>(entries.size()))
       break;
   }

@@ -84,8 +84,9 @@ Measurement MeasurementOf(MeasureJob job);
 
 // Races variants already verified: every one prepared, then rounds of one
 // batch of cold samples each, candidate after candidate, until JudgeRace
-// decides them all (each with at least min_samples), or max_samples each,
-// or max_ms per candidate of wall time.
+// settles the winner (each with at least min_samples: RaceOutcome::settled,
+// judged on the bytes each moves; the errors are the parent's to weigh),
+// or max_samples each, or max_ms per candidate of wall time.
 struct RaceJob {
   Executor* executor = nullptr;
   DatasetCache* datasets = nullptr;

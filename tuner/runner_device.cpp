@@ -181,6 +181,7 @@ class RunnerDevice final : public TunedDevice {
     // allocation and first touch on a CPU device) are made before a CPU
     // device takes the host's cores for the samples alone (tuner/host_lock.h),
     // so the GPU workers beside it wait only for the samples.
+    const ChipLock chip;  // its buffers and its samples (tuner/host_lock.h)
     const std::unique_ptr<Executor::Timed> copy = MeasuringExecutor().Copy(languages_.front(), 2 * size, 1);
     const HostLock timed(TimedMode(IsHostCpu(device_.identity)));
     TimingOptions options;

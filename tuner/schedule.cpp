@@ -58,8 +58,10 @@ Schedule ScheduleDevices(const std::vector<DeviceIdentity>& devices, bool parall
     schedule.groups = {all};
   }
   const auto is_cpu = [&](std::size_t i) { return IsHostCpu(devices[i]); };
-  for (const auto& g : schedule.groups)
+  for (const auto& g : schedule.groups) {
     schedule.shares_host = schedule.shares_host || (schedule.groups.size() > 1 && std::any_of(g.begin(), g.end(), is_cpu));
+    schedule.shares_chip.push_back(parallel && g.size() > 1 && std::none_of(g.begin(), g.end(), is_cpu));
+  }
   return schedule;
 }
 
@@ -67,6 +69,24 @@ void RunSchedule(const Schedule& schedule, const std::function<void(std::size_t 
   const auto& groups = schedule.groups;
   std::vector<std::exception_ptr> errors(groups.size());
   auto run_group = [&](std::size_t g) {
+    if (g < schedule.shares_chip.size() && schedule.shares_chip[g]) {
+      // Every device at once; the first error of any of them is the group's.
+      std::vector<std::exception_ptr> device_errors(groups[g].size());
+      auto run_device = [&](std::size_t k) {
+        try {
+          tune(groups[g][k]);
+        } catch (...) {
+          device_errors[k] = std::current_exception();
+        }
+      };
+      std::vector<std::thread> devices;
+      for (std::size_t k = 1; k < groups[g].size(); ++k) devices.emplace_back(run_device, k);
+      if (!groups[g].empty()) run_device(0);
+      for (std::thread& t : devices) t.join();
+      for (const std::exception_ptr& e : device_errors)
+        if (e && !errors[g]) errors[g] = e;
+      return;
+    }
     std::atomic<std::size_t> reached{0};
     std::thread beside;
     try {

@@ -41,21 +41,31 @@ std::vector<std::vector<std::size_t>> IndependentGroups(const std::vector<Device
 // When a tuning run measures its devices.
 struct Schedule {
   // Indices into the devices scheduled: the groups run at the same time,
-  // each group's devices one after another.
+  // each group's devices one after another, but for a group that shares a chip.
   std::vector<std::vector<std::size_t>> groups;
+  // Per group: its devices are GPUs (one chip seen through several APIs, or
+  // GPUs that cannot be told apart), tuned at the same time, each API's
+  // worker holding the chip's lock for its work on it (tuner/host_lock.h
+  // ChipLock), so that one API's compiles, start-up and host work overlap
+  // another's measurements. One after another, the five APIs of the H200
+  // machine took 61-69 s of a default run (2026-11-28) while the chip was
+  // busy for about 40 s of it.
+  std::vector<bool> shares_chip;
   // A CPU device is tuned at the same time as another group: the workers
   // share a lock on the host's cores (tuner/host_lock.h), so that no GPU's
   // host work runs while a CPU device is timing.
   bool shares_host = false;
 };
 
-// The devices' IndependentGroups; with `parallel` false, one group of every
-// device in order (one device after another).
+// The devices' IndependentGroups, a group of GPUs sharing its chip; with
+// `parallel` false, one group of every device in order (one device after
+// another, sharing nothing).
 Schedule ScheduleDevices(const std::vector<DeviceIdentity>& devices, bool parallel);
 
 // Runs tune(i) for every device i of `schedule`: each group on a thread of
-// its own (the first on the calling thread), its devices in order. Beside a
-// group of several devices, ahead(group, reached) runs on another thread,
+// its own (the first on the calling thread), its devices in order, or each
+// device on a thread of its own where the group shares a chip. Beside a
+// group of several devices taken in order, ahead(group, reached) runs on another thread,
 // `reached` telling how many of the group's devices have had their turn
 // (the group's size once it is done), so that it can prepare the later ones
 // (tune.cpp compiles their kernels). Returns when every thread has ended;

@@ -158,6 +158,15 @@ RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::ve
   out.contenders = TiedAt(out.intervals, out.fastest, margin);
   out.tied = spread > 0.0 ? TiedAt(out.intervals, out.fastest, margin + spread) : out.contenders;
   out.winner = TieBreak(entries, out.contenders);
+  out.settled = true;
+  for (std::size_t u = 0; u < entries.size(); ++u) {
+    if (out.verdicts[u] != RaceVerdict::kUndecided) continue;
+    bool outranked = false;  // by a decided contender moving fewer bytes
+    for (std::size_t c = 0; c < entries.size() && !outranked; ++c)
+      outranked = (out.verdicts[c] == RaceVerdict::kLeader || out.verdicts[c] == RaceVerdict::kEqual) &&
+                  entries[c].bytes_per_frame < entries[u].bytes_per_frame;
+    out.settled = out.settled && outranked;
+  }
   out.all_within_noise = out.tied.size() == entries.size() && entries.size() > 1;
   return out;
 }

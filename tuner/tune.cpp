@@ -143,12 +143,24 @@ std::vector<DeviceResult> TuneDevices(const TuningPlan& plan, const TuneConfig& 
     identities.push_back(plan.devices[d].identity);
   }
   *with_work_count = with_work.size();
-  const Schedule schedule = ScheduleDevices(identities, options.parallel_devices);
+  Schedule schedule = ScheduleDevices(identities, options.parallel_devices);
   std::unique_ptr<tuner_internal::HostLockFile> host_lock;
   if (schedule.shares_host) host_lock = std::make_unique<tuner_internal::HostLockFile>();
-  const WorkerSetup workers{options.worker_executable, config.variant_timeout_s, host_lock ? host_lock->path() : ""};
+  const WorkerSetup workers{options.worker_executable, config.variant_timeout_s, host_lock ? host_lock->path() : "", ""};
+  // A lock file per group that shares a chip, named to each of its devices' workers.
+  std::vector<std::unique_ptr<tuner_internal::HostLockFile>> chip_locks;
+  std::vector<WorkerSetup> workers_of(with_work.size(), workers);
+  for (std::size_t g = 0; g < schedule.groups.size(); ++g) {
+    if (!schedule.shares_chip[g]) continue;
+    chip_locks.push_back(std::make_unique<tuner_internal::HostLockFile>("chip"));
+    if (chip_locks.back()->path().empty()) {  // no lock to share: the chip's APIs one after another
+      schedule.shares_chip[g] = false;
+      continue;
+    }
+    for (const std::size_t k : schedule.groups[g]) workers_of[k].chip_lock = chip_locks.back()->path();
+  }
   RunSchedule(
-      schedule, [&](std::size_t k) { TuneDevice(plan, with_work[k], config, workers, ledger, results[with_work[k]]); },
+      schedule, [&](std::size_t k) { TuneDevice(plan, with_work[k], config, workers_of[k], ledger, results[with_work[k]]); },
       PrecompileLaterDevices(plan, with_work, workers, ledger));
   return results;
 }

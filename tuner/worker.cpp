@@ -117,6 +117,10 @@ void IsolatedDevice::Spawn() {
     argv.push_back(const_cast<char*>("--host-lock"));
     argv.push_back(const_cast<char*>(host_lock_.c_str()));
   }
+  if (!chip_lock_.empty()) {
+    argv.push_back(const_cast<char*>("--chip-lock"));
+    argv.push_back(const_cast<char*>(chip_lock_.c_str()));
+  }
   argv.push_back(nullptr);
   std::vector<char*> envp;
   for (const std::string& entry : kStartupEnvironment) envp.push_back(const_cast<char*>(entry.c_str()));
@@ -645,15 +649,15 @@ void Serve(TunedDevice& device, int protocol) {
 
 }  // namespace
 
-int RunTuneWorker(int device_index, const std::string& device_id, const std::string& host_lock) {
+int RunTuneWorker(int device_index, const std::string& device_id, const std::string& host_lock,
+                  const std::string& chip_lock) {
   KeepLargeBlocks();
-  if (!host_lock.empty()) {
-    try {
-      tuner_internal::UseHostLock(host_lock);
-    } catch (const Error& e) {
-      std::cerr << "skintune: tune-worker: " << e.what() << "\n";
-      return 1;
-    }
+  try {
+    if (!host_lock.empty()) tuner_internal::UseHostLock(host_lock);
+    if (!chip_lock.empty()) tuner_internal::UseChipLock(chip_lock);
+  } catch (const Error& e) {
+    std::cerr << "skintune: tune-worker: " << e.what() << "\n";
+    return 1;
   }
   // Protocol lines go to the original stdout only; anything a library prints
   // on stdout goes to stderr instead, where the parent keeps it for details.

@@ -100,6 +100,8 @@ class IsolatedDevice {
 
   // The host lock every worker started from now on shares (tuner/host_lock.h).
   void UseHostLock(std::string path) { host_lock_ = std::move(path); }
+  // The chip lock every worker started from now on takes (tuner/host_lock.h ChipLock).
+  void UseChipLock(std::string path) { chip_lock_ = std::move(path); }
 
  private:
   enum class ReadResult { kLine, kTimeout, kEnd };
@@ -125,6 +127,7 @@ class IsolatedDevice {
 
   std::string executable_;
   std::string host_lock_;  // "" = none
+  std::string chip_lock_;  // "" = none
   DeviceIdentity identity_;
   double variant_timeout_s_;
   pid_t pid_ = -1;

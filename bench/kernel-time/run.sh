@@ -49,7 +49,7 @@ case "$mode" in
       start=$(date +%s.%N)
       SKINTUNE_TIMING_LOG="$out/run$i.phases.log" \
       SKINTUNE_CACHE_DIR="$cache/skintune" POCL_CACHE_DIR="$cache/pocl" CUDA_CACHE_PATH="$cache/cuda" \
-        __GL_SHADER_DISK_CACHE_PATH="$cache/gl" "$bin/skintune" run --out "$out/run$i" --quiet "$@" > "$out/run$i.txt" 2>&1 \
+        __GL_SHADER_DISK_CACHE_PATH="$cache/gl" MESA_SHADER_CACHE_DIR="$cache/mesa" "$bin/skintune" run --out "$out/run$i" --quiet "$@" > "$out/run$i.txt" 2>&1 \
         || tail -5 "$out/run$i.txt"
       echo "run $i: $(python3 -c "import time,sys; print(round(time.time()-float(sys.argv[1]),1))" "$start") s" | tee -a "$out/runs-wall.txt"
       reports+=("$out/run$i/report.json")

@@ -220,6 +220,32 @@ TEST_P(KernelTime, OnePositiveTimePerSampleAndUntimedFramesAreNotReturned) {
   }
 }
 
+// A flush done by the host (the tuner's HostFlush, on a device whose memory
+// is the host's) runs once before each timed sample, with the device idle,
+// and never for the untimed frames; the samples are the same count, each
+// with its launches' times, and the frames still rotate over the input sets.
+TEST_P(KernelTime, AFlushBeforeEachSampleRunsOncePerTimedSampleWithTheDeviceIdle) {
+  std::size_t launches = 0;
+  const Prepared mesh = PrepareMesh(Synthetic("20k-b4-seed5"), VariantOf("padded"), &launches);
+  const Prepared anchor = runner_->PrepareFlush(GetParam().lang, 4096);
+  for (const auto& [untimed, samples] : {std::pair{3, 5}, std::pair{0, 1}, std::pair{2, 0}}) {
+    SCOPED_TRACE(std::to_string(untimed) + " untimed frames, " + std::to_string(samples) + " samples");
+    int flushes = 0;
+    std::vector<std::vector<double>> per_launch;
+    const std::vector<double> ms = runner_->TimeCold(mesh, anchor, untimed, samples, &per_launch, [&] {
+      runner_->Finish();  // the device has nothing left to do: this returns at once
+      ++flushes;
+    });
+    EXPECT_EQ(flushes, samples);
+    ASSERT_EQ(ms.size(), static_cast<std::size_t>(samples));
+    ASSERT_EQ(per_launch.size(), ms.size());
+    for (std::size_t f = 0; f < ms.size(); ++f) {
+      EXPECT_GT(ms[f], 0.0) << "sample " << f;
+      EXPECT_EQ(per_launch[f].size(), launches) << "sample " << f;
+    }
+  }
+}
+
 TEST_P(KernelTime, AFrameOfSeveralLaunchesIsTheSumOfItsLaunchesOwnTimes) {
   std::size_t launches = 0;
   const Prepared mesh = PrepareMesh(Cesium(), VariantOf("bucketed"), &launches);

@@ -8,6 +8,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <functional>
 #include <thread>
 
 #include "base/error.h"
@@ -20,26 +21,44 @@ using Clock = std::chrono::steady_clock;
 
 double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
+// Another process (a worker) that takes a lock with hold() and keeps it for
+// 300 ms; returned once it holds it. Join() checks that it ended well.
+class Holder {
+ public:
+  explicit Holder(const std::function<void()>& hold) {
+    if (::pipe(ready_) != 0) ADD_FAILURE() << "no pipe";
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      hold();
+      const char byte = 1;
+      if (::write(ready_[1], &byte, 1) != 1) ::_exit(2);
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+      ::_exit(0);  // the lock goes with the process
+    }
+    char byte = 0;
+    if (pid_ < 0 || ::read(ready_[0], &byte, 1) != 1) ADD_FAILURE() << "the holder did not start";
+  }
+  void Join() {
+    int status = 0;
+    ASSERT_EQ(::waitpid(pid_, &status, 0), pid_);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    ::close(ready_[0]);
+    ::close(ready_[1]);
+  }
+
+ private:
+  int ready_[2] = {-1, -1};
+  pid_t pid_ = -1;
+};
+
 TEST(HostLock, HostWorkWaitsWhileACpuDeviceTimesInAnotherProcess) {
   const HostLockFile file;
   ASSERT_FALSE(file.path().empty());
   EXPECT_TRUE(std::filesystem::exists(file.path()));
-  int ready[2];
-  ASSERT_EQ(::pipe(ready), 0);
-  const pid_t child = ::fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {  // the CPU device's worker: its timed bursts, 300 ms
+  Holder cpu_device([&] {  // the CPU device's worker, in its timed bursts
     UseHostLock(file.path());
-    {
-      const HostLock timed(TimedMode(/*cpu_device=*/true));
-      const char byte = 1;
-      if (::write(ready[1], &byte, 1) != 1) ::_exit(2);
-      std::this_thread::sleep_for(std::chrono::milliseconds(300));
-    }
-    ::_exit(0);
-  }
-  char byte = 0;
-  ASSERT_EQ(::read(ready[0], &byte, 1), 1);  // the child holds it now
+    new HostLock(TimedMode(/*cpu_device=*/true));  // held until the process ends
+  });
   UseHostLock(file.path());
   const Clock::time_point start = Clock::now();
   {
@@ -50,11 +69,30 @@ TEST(HostLock, HostWorkWaitsWhileACpuDeviceTimesInAnotherProcess) {
   const Clock::time_point again = Clock::now();
   { const HostLock gpu_timed(TimedMode(false)), cpu_work(HostWorkMode(true)); }
   EXPECT_LT(MsSince(again), 50.0);
-  int status = 0;
-  ASSERT_EQ(::waitpid(child, &status, 0), child);
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
-  ::close(ready[0]);
-  ::close(ready[1]);
+  cpu_device.Join();
+}
+
+// The chip lock: while one API's worker holds the chip (a measurement on
+// it), another API's worker of the same chip waits for it; a process
+// without a chip lock file never waits.
+TEST(ChipLock, AnotherApisWorkOnTheChipWaitsWhileOneHoldsIt) {
+  const HostLockFile file("chip");
+  ASSERT_FALSE(file.path().empty());
+  EXPECT_NE(file.path().find("skintune-chip-"), std::string::npos) << file.path();
+  {
+    const Clock::time_point start = Clock::now();
+    const ChipLock none;  // no file named yet: a no-op
+    EXPECT_LT(MsSince(start), 50.0);
+  }
+  Holder other_api([&] {  // one API's worker, in a measurement on the chip
+    UseChipLock(file.path());
+    new ChipLock;  // held until the process ends
+  });
+  UseChipLock(file.path());
+  const Clock::time_point start = Clock::now();
+  { const ChipLock chip; EXPECT_GE(MsSince(start), 200.0) << "two APIs' work was on the chip at once"; }
+  other_api.Join();
+  EXPECT_THROW(UseChipLock("/nonexistent-dir/skintune-chip-lock"), Error);
 }
 
 TEST(HostLock, AMissingLockFileIsOneErrorNamingIt) {

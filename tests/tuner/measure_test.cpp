@@ -13,7 +13,9 @@
 #include <vector>
 
 #include "generator/variant.h"
+#include "runtime/backend_table.h"
 #include "runtime/physical_device.h"
+#include "runtime/runner.h"
 #include "tuner/datasets.h"
 #include "tuner/executor.h"
 #include "tuner/fault_injection.h"
@@ -82,6 +84,10 @@ class FakeExecutor final : public Executor {
                                  std::span<const std::vector<std::uint8_t>> palettes, int instances) override {
     time_instances = instances;
     time_sets = static_cast<int>(palettes.size());
+    if (prepared < per_prepare.size()) {
+      const auto [ms, its_spread] = per_prepare[prepared++];
+      return std::make_unique<FakeTimed>(*this, ms, its_spread);
+    }
     return std::make_unique<FakeTimed>(*this, kernel_ms, spread);
   }
   std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) override {
@@ -95,6 +101,9 @@ class FakeExecutor final : public Executor {
   std::size_t FlushReadBytes() const override { return flush_bytes; }
 
   double kernel_ms = 0.030, copy_ms = 0.025, frame_ms = 0.040, spread = 0.0;
+  // The times (ms, spread) of the first Prepares, in order; then kernel_ms and spread.
+  std::vector<std::pair<double, double>> per_prepare;
+  std::size_t prepared = 0;
   std::size_t wrong_vertex = static_cast<std::size_t>(-1);
   int run_instances = 0, time_instances = 0;
   std::size_t bytes_per_set = 0, flush_bytes = 100u << 20;
@@ -371,6 +380,61 @@ struct FaultyFake {
 };
 
 constexpr const char* kOtherVariant = "opencl.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals";
+
+// A device whose memory is the host's is flushed by the host before each
+// sample (HostFlush: the same bytes its flush kernel read, recorded the
+// same); a GPU flushes itself with its kernel, and nothing runs between.
+TEST(Executor, AHostDeviceIsFlushedByTheHostAndAGpuByItsKernel) {
+  Discovered found = DiscoverDevices("cpu");
+  ASSERT_FALSE(found.devices.empty()) << "skintune's cpu device is always there";
+  const std::unique_ptr<Runner> runner = found.devices.front().open();
+  DeviceIdentity host = found.devices.front().identity;
+  ASSERT_EQ(host.type, "cpu");
+  tuner_internal::RunnerExecutor on_host(*runner, host);
+  EXPECT_TRUE(on_host.BeforeEachSample());
+  EXPECT_EQ(on_host.FlushReadBytes(), FlushBytes(host.last_level_cache_bytes, true));
+  DeviceIdentity gpu = host;
+  gpu.type = "gpu";
+  tuner_internal::RunnerExecutor on_gpu(*runner, gpu);
+  EXPECT_FALSE(on_gpu.BeforeEachSample());
+  EXPECT_EQ(on_gpu.FlushReadBytes(), FlushBytes(host.last_level_cache_bytes, false));
+  tuner_internal::HostFlush flush(1u << 20);
+  EXPECT_EQ(flush.bytes(), 1u << 20);
+  flush();  // reads every word on every core, and returns
+}
+
+// The race stops once no undecided candidate can be the winner: a noisy
+// candidate near the margin's edge that moves more bytes than one proven
+// equal to the fastest cannot be picked, so its verdict decides nothing and
+// the race ends at min_samples; one moving as few bytes as any contender
+// could be picked, and the race samples on to its cap.
+TEST(RaceJob, StopsOnceNoUndecidedCandidateCanWin) {
+  const std::string lean = "opencl.b4.padded.soa.float4.u8.unorm8.mat3x4.global.matrix.v1c.wg64.nonormals";
+  for (const bool noisy_moves_more : {true, false}) {
+    SCOPED_TRACE(noisy_moves_more ? "the noisy candidate moves more bytes" : "the noisy candidate moves as few");
+    DatasetCache datasets;
+    FakeExecutor executor(datasets, "5000-b4");
+    executor.per_prepare = {{1.0, 0.0}, {1.002, 0.0}, {1.05, 0.3}};
+    const DeviceIdentity gpu = Gpu(50u << 20);
+    tuner_internal::RaceJob job;
+    job.executor = &executor;
+    job.datasets = &datasets;
+    job.device = &gpu;
+    job.variants = {ParseVariantKey(kVariant), ParseVariantKey(lean),
+                    ParseVariantKey(noisy_moves_more ? std::string(kVariant).replace(std::string(kVariant).find("wg64"), 4, "wg256")
+                                                     : std::string(lean).replace(lean.find("wg64"), 4, "wg256"))};
+    job.dataset = {"5000-b4"};
+    job.options.stop.min_samples = 10;
+    job.options.stop.batch = 10;
+    job.options.stop.max_samples = 60;
+    job.options.stop.max_ms = 3.6e6;
+    std::vector<std::vector<double>> samples;
+    job.samples = &samples;
+    ASSERT_TRUE(job.Run());
+    ASSERT_EQ(samples.size(), 3u);
+    EXPECT_EQ(samples[2].size(), noisy_moves_more ? 10u : 60u);
+  }
+}
 
 TEST(FaultInjection, TheDeviceGetsTheFaultyVariantsKernelsEditedAndEveryOtherAsEmitted) {
   for (const char* kind : {"compile", "wrong", "hang"}) {

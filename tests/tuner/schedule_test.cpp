@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -66,6 +67,49 @@ TEST(Schedule, GroupsRunSideBySideUnlessAskedOneAfterAnotherAndACpuBesideAGpuSha
   EXPECT_EQ(serial.groups, (Groups{{0, 1, 2}}));
   EXPECT_FALSE(serial.shares_host);  // nothing runs beside the CPU device
   EXPECT_FALSE(ScheduleDevices({Device("cuda", "gpu", "aa"), Device("cuda", "gpu", "bb")}, true).shares_host);
+}
+
+// One GPU's APIs share its chip: tuned at the same time, each holding the
+// chip's lock for its work on it. A group of CPU devices, a lone GPU, and
+// every group of a run asked for one device after another do not.
+TEST(Schedule, OneGpusApisShareItsChipAndCpuDevicesNever) {
+  const std::vector<DeviceIdentity> devices = {Device("cuda", "gpu", "aa"), Device("opencl", "cpu"),
+                                               Device("gl", "gpu", "aa"), Device("gl", "CPU"),
+                                               Device("vulkan", "gpu", "bb")};
+  const Schedule parallel = ScheduleDevices(devices, true);
+  EXPECT_EQ(parallel.groups, (Groups{{0, 2}, {1, 3}, {4}}));
+  EXPECT_EQ(parallel.shares_chip, (std::vector<bool>{true, false, false}));
+  const Schedule serial = ScheduleDevices(devices, false);
+  EXPECT_EQ(serial.shares_chip, (std::vector<bool>{false}));
+}
+
+// A group that shares a chip runs its devices at the same time (each on a
+// thread of its own, none waiting for another to end), nothing beside it
+// preparing later devices, and its first error is rethrown at the end.
+TEST(Schedule, AGroupSharingAChipRunsItsDevicesAtOnce) {
+  Schedule schedule;
+  schedule.groups = {{0, 1, 2}, {3}};
+  schedule.shares_chip = {true, false};
+  std::atomic<int> inside{0}, most{0}, ahead_calls{0};
+  std::atomic<int> runs{0};
+  EXPECT_THROW(RunSchedule(
+                   schedule,
+                   [&](std::size_t d) {
+                     ++runs;
+                     if (d == 3) return;
+                     const int now = ++inside;
+                     for (int seen = most.load(); now > seen && !most.compare_exchange_weak(seen, now);) {}
+                     // Each device waits (up to 2 s) until all three are inside: only at once can they all be.
+                     const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+                     while (most.load() < 3 && std::chrono::steady_clock::now() < until) std::this_thread::yield();
+                     --inside;
+                     if (d == 1) throw Error("device 1 failed");
+                   },
+                   [&](const std::vector<std::size_t>&, const std::atomic<std::size_t>&) { ++ahead_calls; }),
+               Error);
+  EXPECT_EQ(runs.load(), 4);
+  EXPECT_EQ(most.load(), 3) << "the chip's devices ran one after another";
+  EXPECT_EQ(ahead_calls.load(), 0);
 }
 
 TEST(Schedule, EveryDeviceRunsOnceInItsGroupsOrderBesideWhatPreparesTheLaterOnes) {

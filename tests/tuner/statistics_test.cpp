@@ -143,6 +143,33 @@ TEST(Race, AnUndecidedCandidateWhoseMedianIsBeyondTheMarginIsNoTie) {
   EXPECT_EQ(entries[out.winner].key, "b.fast");
 }
 
+// A race may stop while a candidate is undecided when it cannot be the
+// winner: it moves more bytes than a candidate already proven the fastest or
+// equal, so the tie-break would never pick it. An undecided candidate moving
+// as few bytes as every decided contender (or fewer) keeps the race going,
+// whatever its error (the worker judges bytes only).
+TEST(Race, AnUndecidedCandidateThatCannotWinSettlesTheRace) {
+  const auto judge = [](double noisy_bytes) {
+    return JudgeRace({{"b.fast", Samples(1.00, 0.002, 60, 4), 100, 0},
+                      {"a.equal", Samples(1.002, 0.002, 60, 5), 90, 0},
+                      {"c.slow", Samples(1.20, 0.002, 60, 6), 10, 0},
+                      {"d.noisy", Samples(1.05, 0.3, 60, 7), noisy_bytes, 0}},
+                     0.02);
+  };
+  const RaceOutcome more = judge(95);
+  ASSERT_EQ(more.verdicts[3], RaceVerdict::kUndecided);
+  EXPECT_FALSE(more.decided);
+  EXPECT_TRUE(more.settled) << "a.equal moves fewer bytes: d.noisy can never be picked";
+  EXPECT_FALSE(judge(90).settled) << "as few bytes as a.equal: its error or key may pick it";
+  EXPECT_FALSE(judge(50).settled) << "fewer bytes: it would win if proven equal";
+}
+
+TEST(Race, ADecidedRaceIsSettled) {
+  const RaceOutcome out = JudgeRace({{"a", Samples(1.0, 0.001, 30, 21), 1, 0}, {"b", Samples(1.5, 0.001, 30, 22), 0, 0}}, 0.02);
+  EXPECT_TRUE(out.decided);
+  EXPECT_TRUE(out.settled);
+}
+
 // The tie-break: fewest bytes, then lower error, then key.
 TEST(Race, TieBreakPrefersFewerBytesThenLowerErrorThenKey) {
   std::vector<RaceEntry> e = {{"z", {1}, 100, 1e-3}, {"y", {1}, 80, 1e-3}, {"x", {1}, 80, 1e-6}, {"w", {1}, 80, 1e-6}};

@@ -269,15 +269,18 @@ TEST(IsolatedDevice, CopyBandwidthAnswerOrReason) {
   EXPECT_EQ(why, "worker process died: exit code 4");
 }
 
-// The host lock (tuner/host_lock.h) reaches every worker as --host-lock.
-TEST(IsolatedDevice, WorkersAreToldTheHostLock) {
+// The host lock and the chip lock (tuner/host_lock.h) reach every worker as
+// --host-lock and --chip-lock.
+TEST(IsolatedDevice, WorkersAreToldTheHostAndChipLocks) {
   const fs::path dir = Scratch();
   for (const bool with_lock : {false, true}) {
     IsolatedDevice worker(FakeWorker(dir, "read line; echo '{\"copy_bandwidth_gbps\": 12.5}'"), FakeDevice(), 30);
     if (with_lock) worker.UseHostLock("/tmp/the-host-lock");
+    if (with_lock) worker.UseChipLock("/tmp/the-chip-lock");
     EXPECT_EQ(worker.CopyBandwidthGBps(1 << 20), 12.5);
     const std::string args = ReadAll(dir / "args");
     EXPECT_EQ(args.find("--host-lock /tmp/the-host-lock") != std::string::npos, with_lock) << args;
+    EXPECT_EQ(args.find("--chip-lock /tmp/the-chip-lock") != std::string::npos, with_lock) << args;
   }
 }
 
