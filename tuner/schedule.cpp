@@ -58,10 +58,11 @@ Schedule ScheduleDevices(const std::vector<DeviceIdentity>& devices, bool parall
     schedule.groups = {all};
   }
   const auto is_cpu = [&](std::size_t i) { return IsHostCpu(devices[i]); };
-  for (const auto& g : schedule.groups) {
+  for (const auto& g : schedule.groups)
     schedule.shares_host = schedule.shares_host || (schedule.groups.size() > 1 && std::any_of(g.begin(), g.end(), is_cpu));
-    schedule.shares_chip.push_back(parallel && g.size() > 1 && std::none_of(g.begin(), g.end(), is_cpu));
-  }
+  for (const auto& g : schedule.groups)
+    schedule.shares_chip.push_back(parallel && !schedule.shares_host && g.size() > 1 &&
+                                   std::none_of(g.begin(), g.end(), is_cpu));
   return schedule;
 }
 

@@ -47,9 +47,12 @@ struct Schedule {
   // GPUs that cannot be told apart), tuned at the same time, each API's
   // worker holding the chip's lock for its work on it (tuner/host_lock.h
   // ChipLock), so that one API's compiles, start-up and host work overlap
-  // another's measurements. One after another, the five APIs of the H200
-  // machine took 61-69 s of a default run (2026-11-28) while the chip was
-  // busy for about 40 s of it.
+  // another's measurements. Only where no CPU device is tuned beside them:
+  // on the H200 machine (2026-11-28, three cold default runs) the GPU's five
+  // languages at once ended after 52-69 s instead of 61-69, but their four
+  // workers' host work, waited for by PoCL's timing (the host lock), made
+  // PoCL 52 s instead of 40-48, the run 71-74 s instead of 63-72, and three
+  // of PoCL's rows name different winners in the three runs.
   std::vector<bool> shares_chip;
   // A CPU device is tuned at the same time as another group: the workers
   // share a lock on the host's cores (tuner/host_lock.h), so that no GPU's
