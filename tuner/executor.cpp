@@ -100,6 +100,10 @@ void HostFlush::operator()() {
   asm volatile("" : : "r"(all) : "memory");
 }
 
+bool HostFlushes(const DeviceIdentity& device) {
+  return IsHostCpu(device) && (device.backend == "gl" || device.backend == "vulkan");
+}
+
 RunnerExecutor::~RunnerExecutor() = default;
 
 const Prepared& RunnerExecutor::Flush(Lang lang) {

@@ -76,14 +76,14 @@ class Executor {
   std::map<std::string, std::unique_ptr<KernelTime>> copy_times_;
 };
 
-// The flush of a device whose memory is the host's (IsHostCpu: PoCL,
-// llvmpipe, lavapipe, skintune's cpu device), done by the host: `bytes` of
-// its own buffer read by one thread per core, each core its share, so every
-// core's caches and the shared last-level cache hold only clean lines of
-// that buffer, as the device's own flush kernel leaves them. The device's
-// flush kernel ran at the device's speed: on llvmpipe (2-core machine,
-// 2026-11-28) reading 32 MiB took ~9 ms a sample, 3-4 times the kernel
-// being timed, and most of a default run's time on that machine.
+// The flush of a GPU API run on the host's CPU (HostFlushes: llvmpipe's GL,
+// lavapipe's Vulkan), done by the host: `bytes` of its own buffer read by
+// one thread per core, each core its share, so every core's caches and the
+// shared last-level cache hold only clean lines of that buffer, as the
+// device's own flush kernel leaves them. That kernel ran at the rasterizer's
+// compute speed: on llvmpipe (2-core machine, 2026-11-28) reading 32 MiB
+// took ~9 ms a sample, 3-4 times the kernel being timed, and most of a
+// default run's time on that machine.
 class HostFlush {
  public:
   explicit HostFlush(std::size_t bytes);
@@ -103,12 +103,20 @@ class HostFlush {
 // made once per language; copies prepared once per size and kept. On a
 // device whose memory is the host's the host flushes (HostFlush) and the
 // device's flush is a launch of kAnchorBytes that only starts the frame's time.
+// Whether `device` is flushed by the host (HostFlush): a GL or Vulkan device
+// on the host's CPU. PoCL and skintune's cpu device read their flush at
+// the host's speed (27 and 40 GB/s on the 2-core machine, where llvmpipe
+// read 3.6) in one submission of many frames; flushed by the host, a
+// sample at a time, PoCL's kernel times took 1.4-1.7 times as long to
+// sample on the H200 machine's 16-core host (2026-11-28).
+bool HostFlushes(const DeviceIdentity& device);
+
 class RunnerExecutor final : public Executor {
  public:
   static constexpr std::size_t kAnchorBytes = 4096;
   RunnerExecutor(Runner& runner, const DeviceIdentity& device)
       : runner_(runner), flush_bytes_(FlushBytes(device.last_level_cache_bytes, IsHostCpu(device))) {
-    if (IsHostCpu(device)) host_flush_ = std::make_unique<HostFlush>(flush_bytes_);
+    if (HostFlushes(device)) host_flush_ = std::make_unique<HostFlush>(flush_bytes_);
   }
   ~RunnerExecutor() override;
   Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t> palette,

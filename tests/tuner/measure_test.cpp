@@ -381,23 +381,30 @@ struct FaultyFake {
 
 constexpr const char* kOtherVariant = "opencl.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg128.nonormals";
 
-// A device whose memory is the host's is flushed by the host before each
-// sample (HostFlush: the same bytes its flush kernel read, recorded the
-// same); a GPU flushes itself with its kernel, and nothing runs between.
-TEST(Executor, AHostDeviceIsFlushedByTheHostAndAGpuByItsKernel) {
+// A GPU API on the host's CPU (llvmpipe, lavapipe) is flushed by the host
+// before each sample (HostFlush: the same bytes its flush kernel read,
+// recorded the same); a GPU, PoCL and the cpu device flush with their kernel.
+TEST(Executor, AGpuApiOnTheHostIsFlushedByTheHostAndEveryOtherDeviceByItsKernel) {
   Discovered found = DiscoverDevices("cpu");
   ASSERT_FALSE(found.devices.empty()) << "skintune's cpu device is always there";
   const std::unique_ptr<Runner> runner = found.devices.front().open();
-  DeviceIdentity host = found.devices.front().identity;
-  ASSERT_EQ(host.type, "cpu");
-  tuner_internal::RunnerExecutor on_host(*runner, host);
-  EXPECT_TRUE(on_host.BeforeEachSample());
-  EXPECT_EQ(on_host.FlushReadBytes(), FlushBytes(host.last_level_cache_bytes, true));
-  DeviceIdentity gpu = host;
-  gpu.type = "gpu";
-  tuner_internal::RunnerExecutor on_gpu(*runner, gpu);
-  EXPECT_FALSE(on_gpu.BeforeEachSample());
-  EXPECT_EQ(on_gpu.FlushReadBytes(), FlushBytes(host.last_level_cache_bytes, false));
+  const DeviceIdentity cpu = found.devices.front().identity;
+  ASSERT_EQ(cpu.type, "cpu");
+  const auto as = [&](const char* backend, const char* type) {
+    DeviceIdentity d = cpu;
+    d.backend = backend;
+    d.type = type;
+    return d;
+  };
+  for (const DeviceIdentity& d : {as("gl", "cpu"), as("vulkan", "cpu"), as("cpu", "cpu"), as("opencl", "cpu"),
+                                  as("vulkan", "gpu"), as("cuda", "gpu")}) {
+    SCOPED_TRACE(d.backend + " on a " + d.type);
+    const bool host = d.type == "cpu" && (d.backend == "gl" || d.backend == "vulkan");
+    EXPECT_EQ(tuner_internal::HostFlushes(d), host);
+    tuner_internal::RunnerExecutor executor(*runner, d);
+    EXPECT_EQ(static_cast<bool>(executor.BeforeEachSample()), host);
+    EXPECT_EQ(executor.FlushReadBytes(), FlushBytes(cpu.last_level_cache_bytes, d.type == "cpu"));
+  }
   tuner_internal::HostFlush flush(1u << 20);
   EXPECT_EQ(flush.bytes(), 1u << 20);
   flush();  // reads every word on every core, and returns
