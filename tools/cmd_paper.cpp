@@ -34,6 +34,7 @@ struct PaperCliOptions {
   bool quick = false;
   std::vector<std::string> datasets;
   std::string device;
+  bool software_rasterizers = false;
   std::vector<std::string> langs;
   std::string budget_text;  // checked by BudgetCheck; empty: the default
   bool no_cpu = false;
@@ -51,6 +52,7 @@ int RunPaperCommand(const PaperCliOptions& o, const std::string& command) {
   options.quick = o.quick;
   options.datasets = o.datasets;
   options.device_pattern = o.device;
+  options.software_rasterizers = o.software_rasterizers;
   for (const std::string& l : o.langs) options.languages.push_back(LangFromName(l));
   options.budget = o.budget_text.empty() ? 0 : *ParseWholeNumber(o.budget_text, kMaxBudget);
   options.skip_cpu = o.no_cpu;
@@ -116,7 +118,10 @@ Command RegisterPaper(CLI::App& app, int argc, char** argv) {
                 "the reduced set: 25k and 100k vertices x 1..4 influences, a 16-evaluation search, fewer repetitions");
   sub->add_option("--dataset", o->datasets, "only these data-set keys (default: the paper's 16, or --quick's 8)");
   sub->add_option("--device", o->device,
-                  "only devices whose 'backend: platform / name' (or vendor, version) contains this (case-insensitive)");
+                  "only devices whose 'backend: platform / name' (or vendor, version) contains this (case-insensitive); "
+                  "without it every device but software rasterizers");
+  sub->add_flag("--software-rasterizers", o->software_rasterizers,
+                "without --device, GL and Vulkan on the host's CPU too (Mesa's llvmpipe and lavapipe)");
   sub->add_option("--lang", o->langs, "only these languages: " + Choices(AxisOf<&Variant::lang>()));
   sub->add_option("--budget", o->budget_text,
                   "search evaluations per device, language and data set, 0 to " + std::to_string(kMaxBudget) +

@@ -106,6 +106,7 @@ TuneJobResult RunTuneJob(const TuneJobOptions& o) {
 
   TuneOptions options;
   options.device_pattern = o.device;
+  options.software_rasterizers = o.software_rasterizers;
   for (const std::string& l : o.langs) options.languages.push_back(LangFromName(l));
   options.worker_executable = SelfExecutable();
   options.parallel_devices = !o.one_device_at_a_time;
@@ -150,7 +151,10 @@ void AddTuneJobOptions(CLI::App& sub, TuneJobOptions& o) {
   sub.add_option("--device", o.device,
                  "only the devices this matches: a case-insensitive substring of the id "
                  "'<backend>:<platform>/<name>/<driver>', vendor, type or platform short name (pocl), as every "
-                 "--device");
+                 "--device; without it every device but software rasterizers");
+  sub.add_flag("--software-rasterizers", o.software_rasterizers,
+               "without --device, tune GL and Vulkan on the host's CPU too (Mesa's llvmpipe and lavapipe: left out "
+               "by default, as no build ships kernels for them)");
   sub.add_option("--lang", o.langs, "only these languages: " + Choices(AxisOf<&Variant::lang>()));
   sub.add_option("--max-error", o.max_error_text,
                  "error budget: the largest error, relative to the bounding-box diagonal, that a winner's weight "

@@ -29,6 +29,7 @@ struct TuneJobOptions {
   bool quiet = false;
   bool html = false;                   // also write report.html
   bool one_device_at_a_time = false;   // no devices at the same time (TuneOptions::parallel_devices)
+  bool software_rasterizers = false;   // TuneOptions::software_rasterizers
 };
 
 // Adds the options `tune` and `run` share to `sub`: --config, --device,

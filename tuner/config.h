@@ -52,6 +52,8 @@ std::string EmbeddedConfig(const std::string& name);
 // languages, the cache, the worker, progress, devices side by side or not.
 struct TuneOptions {
   std::string device_pattern;           // MatchesDevice (runtime/device_identity.h), the one --device rule; empty: all
+                                        // but software rasterizers (IsSoftwareRasterizer)
+  bool software_rasterizers = false;    // with an empty device_pattern, tune llvmpipe and lavapipe too
   std::vector<Lang> languages;          // empty: every language of every device
   std::string cache_path;               // the resumable measurement cache (JSON lines)
   std::string worker_executable;        // the skintune binary (runs `skintune tune-worker`)

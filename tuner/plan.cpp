@@ -13,6 +13,7 @@
 #include "base/memory_limit.h"
 #include "model/scene.h"
 #include "model/synthetic.h"
+#include "tuner/schedule.h"  // IsSoftwareRasterizer
 #include "tuner/tuned_device.h"
 
 namespace skintune::internal {
@@ -117,28 +118,55 @@ std::vector<PlannedDataset> PlanDatasets(const TuneConfig& config, const PlanPro
 
 // The devices discovery finds, as the plan needs them (their contexts go
 // away with the discovery: the children measure), into `plan`.
-void PlanDevices(TuningPlan& plan, const std::string& device_pattern) {
+void PlanDevices(TuningPlan& plan, const TuneOptions& options) {
+  std::vector<PlannedDevice> found;
   {
     Discovery discovery = DiscoverTunedDevices();
     plan.skipped = discovery.skipped;
     for (const auto& device : discovery.devices)
-      plan.devices.push_back({device->identity(), device->limits(), device->languages()});
+      found.push_back({device->identity(), device->limits(), device->languages()});
   }
-  if (plan.devices.empty()) {
+  if (found.empty()) {
     std::string why;
     for (const std::string& s : plan.skipped) why += (why.empty() ? "" : "; ") + s;
     throw Error("no device to tune on" + (why.empty() ? std::string() : ": " + why));
   }
-  if (device_pattern.empty()) return;
-  std::vector<PlannedDevice> matching;
-  std::string all;
-  for (PlannedDevice& d : plan.devices) {
-    all += (all.empty() ? "" : "; ") + d.identity.backend + ": " + d.identity.platform + " / " + d.identity.name;
-    if (MatchesDevice(device_pattern, d.identity)) matching.push_back(std::move(d));
-  }
-  if (matching.empty()) throw Error("--device '" + device_pattern + "': no device matches (found: " + all + ")");
-  plan.devices = std::move(matching);
+  plan.devices = SelectDevices(std::move(found), options, plan.skipped);
 }
+
+}  // namespace
+
+std::vector<PlannedDevice> SelectDevices(std::vector<PlannedDevice> found, const TuneOptions& options,
+                                         std::vector<std::string>& skipped) {
+  std::vector<PlannedDevice> kept;
+  if (!options.device_pattern.empty()) {
+    std::string all;
+    for (PlannedDevice& d : found) {
+      all += (all.empty() ? "" : "; ") + d.identity.backend + ": " + d.identity.platform + " / " + d.identity.name;
+      if (MatchesDevice(options.device_pattern, d.identity)) kept.push_back(std::move(d));
+    }
+    if (kept.empty())
+      throw Error("--device '" + options.device_pattern + "': no device matches (found: " + all + ")");
+    return kept;
+  }
+  if (options.software_rasterizers) return found;
+  // Software rasterizers are left out unless asked for, or all there is:
+  // their winners serve no build that ships, and on a machine without a GPU
+  // they took 121 of a default run's 203 s (2-core machine, 2026-11-28).
+  std::vector<std::string> left_out;
+  for (PlannedDevice& d : found) {
+    if (IsSoftwareRasterizer(d.identity))
+      left_out.push_back(d.identity.Id() + ": a software rasterizer (the host's CPU running " + d.identity.backend +
+                         "), tuned only when asked for: --software-rasterizers, or a --device naming it");
+    else
+      kept.push_back(std::move(d));
+  }
+  if (kept.empty()) return found;
+  skipped.insert(skipped.end(), left_out.begin(), left_out.end());
+  return kept;
+}
+
+namespace {
 
 // Every dataset fits every device's memory (one set of inputs and the output).
 void CheckDeviceMemory(const TuneConfig& config, const TuningPlan& plan) {
@@ -279,7 +307,7 @@ TuningPlan PlanTuning(const TuneConfig& config, const TuneOptions& options, cons
   // Datasets first: a bad key or glTF file is bad input, found before any device work.
   plan.datasets = PlanDatasets(config, progress);
   progress("discovering devices");
-  PlanDevices(plan, options.device_pattern);
+  PlanDevices(plan, options);
   CheckDeviceMemory(config, plan);
   plan.tasks = PlanTasks(config, options.languages, plan.datasets, plan.devices, created);
   for (const Task& t : plan.tasks) plan.total += t.planned;

@@ -83,6 +83,13 @@ TuningPlan PlanTuning(const TuneConfig& config, const TuneOptions& options, cons
 // memory before it is generated, every palette the workers start from finite.
 PlannedDataset PlanDataset(const std::string& key);
 
+// Of the devices `found`, those options.device_pattern matches (Error when
+// none does); without a pattern all but software rasterizers
+// (IsSoftwareRasterizer), each left out added to `skipped` with the reason,
+// unless options.software_rasterizers asks for them or they are all there is.
+std::vector<PlannedDevice> SelectDevices(std::vector<PlannedDevice> found, const TuneOptions& options,
+                                         std::vector<std::string>& skipped);
+
 // The tasks of `devices` x their languages (those of the space, and of
 // `languages` when not empty) x `datasets`, in that order; invalid points
 // recorded with timestamp `created`. Throws Error when no device offers a

@@ -15,6 +15,10 @@ bool IsHostCpu(const DeviceIdentity& d) {
   return type.find("cpu") != std::string::npos;
 }
 
+bool IsSoftwareRasterizer(const DeviceIdentity& d) {
+  return IsHostCpu(d) && (d.backend == "gl" || d.backend == "vulkan");
+}
+
 bool MayShareHardware(const DeviceIdentity& a, const DeviceIdentity& b) {
   if (IsHostCpu(a) || IsHostCpu(b)) return IsHostCpu(a) && IsHostCpu(b);
   if (!a.uuid.empty() && !b.uuid.empty()) return a.uuid == b.uuid;

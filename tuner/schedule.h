@@ -28,6 +28,9 @@ namespace skintune::internal {
 // takes the host's cores (tuner/host_lock.h), and its times move more than
 // a GPU's (TimingOptions::host_tie_margin).
 bool IsHostCpu(const DeviceIdentity& d);
+// Whether `d` is a GL or Vulkan device that is the host's CPU emulating a GPU
+// (Mesa's llvmpipe and lavapipe): tuned only when asked for (tuner/plan.h).
+bool IsSoftwareRasterizer(const DeviceIdentity& d);
 
 // Whether `a` and `b` may share hardware (the rule above).
 bool MayShareHardware(const DeviceIdentity& a, const DeviceIdentity& b);

@@ -26,7 +26,7 @@ fs::path Scratch() { return skintune::internal::testing::ScratchDir("skintune_pa
 
 std::vector<std::string> SmallRun(const fs::path& out) {
   return {"paper", "--dataset", "5000-b2", "--lang", "opencl", "--lang", "glsl-vertex", "--budget", "2",
-          "--out", out.string(), "--quiet"};
+          "--out", out.string(), "--quiet", "--software-rasterizers"};
 }
 
 TEST(PaperCli, MeasuresThePapersKernelsAndTheCpuAndWritesResultReportAndSummary) {

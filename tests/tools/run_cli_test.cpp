@@ -51,7 +51,8 @@ std::map<std::string, std::string> Outputs(const fs::path& out) {
 TEST(RunCli, TunesEveryDeviceWritesTheFilesAndPrintsEachDevicesWinners) {
   const fs::path dir = Scratch();
   const fs::path out = dir / "results";
-  const auto r = RunSkintune({"run", "--config", TinyConfig(dir), "--out", out.string(), "--cpu-check", "2k-b2"});
+  const auto r = RunSkintune({"run", "--config", TinyConfig(dir), "--out", out.string(), "--cpu-check", "2k-b2",
+                              "--software-rasterizers"});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("CPU reference: serial and fast agree with the float64 gold within 1e-5"), std::string::npos)
       << r.out;
@@ -102,7 +103,8 @@ TEST(RunCli, TunesEveryDeviceWritesTheFilesAndPrintsEachDevicesWinners) {
 
   // A second run reuses the measurement cache: every variant and every race
   // cached, the same winners.
-  const auto again = RunSkintune({"run", "--config", TinyConfig(dir), "--out", out.string(), "--cpu-check", "none"});
+  const auto again = RunSkintune(
+      {"run", "--config", TinyConfig(dir), "--out", out.string(), "--cpu-check", "none", "--software-rasterizers"});
   ASSERT_EQ(again.exit_code, 0) << again.err;
   EXPECT_EQ(again.out.find("CPU reference"), std::string::npos);
   // (The copy bandwidth, and so copy_fraction, is measured again.)

@@ -131,5 +131,51 @@ TEST(Plan, ARunWithoutAWorkerOrWithAnImpossibleConfigFailsBeforeAnyDevice) {
   EXPECT_THROW(ValidateRun(config, options), Error);
 }
 
+PlannedDevice OnTheHost(PlannedDevice d, const std::string& name) {
+  d.identity.type = "cpu";
+  d.identity.name = name;
+  return d;
+}
+
+std::vector<std::string> Backends(const std::vector<PlannedDevice>& devices) {
+  std::vector<std::string> backends;
+  for (const PlannedDevice& d : devices) backends.push_back(d.identity.backend + " " + d.identity.type);
+  return backends;
+}
+
+TEST(Plan, SoftwareRasterizersAreTunedOnlyWhenAskedFor) {
+  const std::vector<PlannedDevice> found = {
+      OnTheHost(Device("opencl", {Lang::kOpenCl}), "pthread"),
+      OnTheHost(Device("gl", {Lang::kGlslCompute, Lang::kGlslVertex}), "llvmpipe (LLVM 15)"),
+      OnTheHost(Device("vulkan", {Lang::kVulkan}), "llvmpipe (LLVM 15)"),
+      Device("gl", {Lang::kGlslCompute}),
+      OnTheHost(Device("cpu", {Lang::kCpu}), "Xeon")};
+  TuneOptions options;
+  std::vector<std::string> skipped = {"cuda: no driver"};
+  EXPECT_EQ(Backends(SelectDevices(found, options, skipped)),
+            (std::vector<std::string>{"opencl cpu", "gl gpu", "cpu cpu"}));
+  ASSERT_EQ(skipped.size(), 3u);  // discovery's line kept, one line for each left out
+  EXPECT_NE(skipped[1].find("gl:Test/llvmpipe (LLVM 15)/1: a software rasterizer"), std::string::npos) << skipped[1];
+  EXPECT_NE(skipped[2].find("--software-rasterizers"), std::string::npos) << skipped[2];
+
+  options.software_rasterizers = true;
+  skipped.clear();
+  EXPECT_EQ(SelectDevices(found, options, skipped).size(), found.size());
+  EXPECT_TRUE(skipped.empty());
+
+  options.software_rasterizers = false;
+  options.device_pattern = "llvmpipe";  // named: tuned
+  EXPECT_EQ(Backends(SelectDevices(found, options, skipped)), (std::vector<std::string>{"gl cpu", "vulkan cpu"}));
+  EXPECT_TRUE(skipped.empty());
+
+  options.device_pattern.clear();  // all there is: tuned
+  const std::vector<PlannedDevice> only = {found[1], found[2]};
+  EXPECT_EQ(SelectDevices(only, options, skipped).size(), 2u);
+  EXPECT_TRUE(skipped.empty());
+
+  options.device_pattern = "nothing-like-it";
+  EXPECT_THROW(SelectDevices(found, options, skipped), Error);
+}
+
 }  // namespace
 }  // namespace skintune::internal

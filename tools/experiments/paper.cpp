@@ -72,6 +72,7 @@ PaperResult RunPaper(const PaperOptions& options) {
 
   TuneOptions tune;
   tune.device_pattern = options.device_pattern;
+  tune.software_rasterizers = options.software_rasterizers;
   tune.languages = options.languages;
   tune.cache_path = options.cache_path;
   tune.worker_executable = options.worker_executable;

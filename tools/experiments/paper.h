@@ -21,6 +21,7 @@ struct PaperOptions {
   bool quick = false;                 // 25k and 100k only, a smaller search
   std::vector<std::string> datasets;  // override the data-set list (keys); empty: the paper's (or quick) list
   std::string device_pattern;         // as TuneOptions
+  bool software_rasterizers = false;  // as TuneOptions
   std::vector<Lang> languages;        // as TuneOptions
   std::size_t budget = 0;             // evaluations of the search per device x language x data set
                                       // (0: the config's, or the quick default)
