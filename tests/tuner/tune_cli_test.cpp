@@ -605,7 +605,9 @@ TEST(TuneCli, DefaultRunWithNoArgumentsTunesEveryDeviceFoundButSoftwareRasterize
     pocl = pocl || (d.at("backend") == "opencl" && (text.find("PoCL") != std::string::npos ||
                                                     text.find("Portable Computing Language") != std::string::npos));
     // No software rasterizer is tuned unless asked for.
-    if (d.at("backend") == "gl" || d.at("backend") == "vulkan") EXPECT_NE(d.at("type"), "cpu") << text;
+    if (d.at("backend") == "gl" || d.at("backend") == "vulkan") {
+      EXPECT_NE(d.at("type"), "cpu") << text;
+    }
   }
   EXPECT_TRUE(pocl) << report.at("devices").dump(2);
   // GL and Vulkan are tuned where a GPU runs them; on this project's CPU
