@@ -5,6 +5,7 @@
 
 #include <epoxy/gl.h>
 
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -12,7 +13,10 @@ namespace skintune::internal::bench {
 
 inline void Check(const std::string& what) {
   const GLenum error = glGetError();
-  if (error != GL_NO_ERROR) throw std::runtime_error(what + ": GL error 0x" + std::to_string(error));
+  if (error == GL_NO_ERROR) return;
+  char hex[16];
+  std::snprintf(hex, sizeof hex, "0x%04x", static_cast<unsigned>(error));
+  throw std::runtime_error(what + ": GL error " + hex);
 }
 
 inline GLuint Compile(GLenum stage, const std::string& text) {
