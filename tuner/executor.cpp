@@ -100,9 +100,7 @@ void HostFlush::operator()() {
   asm volatile("" : : "r"(all) : "memory");
 }
 
-bool HostFlushes(const DeviceIdentity& device) {
-  return IsHostCpu(device) && (device.backend == "gl" || device.backend == "vulkan");
-}
+bool HostFlushes(const DeviceIdentity& device) { return IsSoftwareRasterizer(device); }
 
 RunnerExecutor::~RunnerExecutor() = default;
 
