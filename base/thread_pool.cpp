@@ -77,6 +77,19 @@ void ThreadPool::ParallelFor(std::size_t count, std::size_t grain,
   body_ = nullptr;
 }
 
+void ThreadPool::Ready() {
+  if (workers_.empty()) return;
+  // One chunk per thread, each held until every thread holds one: a thread
+  // cannot claim a second chunk while in its first, so each chunk is a
+  // different thread's.
+  const std::size_t threads = size();
+  std::atomic<std::size_t> arrived{0};
+  ParallelFor(threads, 1, [&](std::size_t, std::size_t) {
+    arrived.fetch_add(1);
+    while (arrived.load() < threads) CpuPause();
+  });
+}
+
 void ForChunksOn(ThreadPool& pool, std::mutex& busy, std::size_t count, std::size_t grain,
                  const std::function<void(std::size_t, std::size_t)>& body) {
   grain = std::max<std::size_t>(grain, 1);

@@ -53,16 +53,24 @@ class ThreadPool {
   //
   // spin: how long an idle worker (and a caller waiting for the last chunk)
   // keeps polling before it sleeps on a condition variable. Zero for loops
-  // of milliseconds (the cpu device's kernels: a sleeping worker costs
+  // of milliseconds far apart (the float64 gold: a sleeping worker costs
   // nothing); some microseconds for loops that follow each other closely
-  // (the runtime's read-back: its scan, then its copy), where waking a
-  // sleeping thread takes about as long as the work.
+  // (the runtime's read-back: its scan, then its copy; the cpu device's
+  // kernels, one loop per instance of a crowd), where waking a sleeping
+  // thread takes about as long as the work.
   explicit ThreadPool(unsigned threads = 0, std::chrono::microseconds spin = std::chrono::microseconds(0));
   ~ThreadPool();
   ThreadPool(const ThreadPool&) = delete;
   ThreadPool& operator=(const ThreadPool&) = delete;
 
   unsigned size() const { return static_cast<unsigned>(workers_.size()) + 1; }
+
+  // Wakes every worker and returns once all of them run: a loop started
+  // within `spin` of it starts on every thread at once, paying no sleeping
+  // thread's wake-up (tens of microseconds, and unsteady: a futex wake and a
+  // scheduler's decision per worker). The cpu device's kernel time starts
+  // after it, as a GPU's starts after its launch reached the device.
+  void Ready();
 
   // Calls body(begin, end) over [0, count) in chunks of `grain` (the last may
   // be shorter), spread over all threads; returns when every chunk is done.

@@ -220,7 +220,7 @@ ThreadPool& CpuPools::Get(unsigned threads) {
   threads = std::max(threads, 1u);
   if (pools_.size() < threads) pools_.resize(threads);
   auto& slot = pools_[threads - 1];
-  if (!slot) slot = std::make_unique<ThreadPool>(threads);
+  if (!slot) slot = std::make_unique<ThreadPool>(threads, kCpuPoolSpin);
   return *slot;
 }
 

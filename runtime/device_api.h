@@ -242,6 +242,12 @@ class DeviceApi {
   // What times a kCold launch on this device (the measurement records it):
   // "OpenCL profiling START/END", "CUPTI kernel activity", ...
   virtual std::string kernel_clock() const = 0;
+  // Whether kCold ignores `flush` and instead evicts each frame's own
+  // buffers from every cache before it (the cpu device: clflushopt, which
+  // writes back and invalidates each line in the whole coherence domain, the
+  // socket's L3 included): the same clean-cold state, exact, where a flush
+  // read of twice a 300 MiB L3 shared with other tenants' cores cost more than the kernel.
+  virtual bool evicts_own_buffers() const { return false; }
 
   // A palette's upload in two steps, so the host packs straight into
   // page-locked memory: Staging gives the buffer's own staging (buffer.bytes()

@@ -69,8 +69,12 @@ class Executor {
   const KernelTime& CopyTime(Lang lang, std::size_t bytes, int input_sets, const TimingOptions& options);
   // What times a kernel-time sample on this device (DeviceApi::kernel_clock).
   virtual std::string KernelClock() const = 0;
-  // The bytes the flush before each sample reads (generator/copy_kernel.h FlushBytes).
+  // The bytes the flush before each sample reads (generator/copy_kernel.h
+  // FlushBytes); 0 where the device evicts each frame's own buffers instead.
   virtual std::size_t FlushReadBytes() const = 0;
+  // Whether the device evicts each sample's own buffers from every cache
+  // instead of a flush (DeviceApi::evicts_own_buffers: the cpu device).
+  virtual bool EvictsOwnBuffers() const { return false; }
 
  private:
   std::map<std::string, std::unique_ptr<KernelTime>> copy_times_;
@@ -115,7 +119,8 @@ class RunnerExecutor final : public Executor {
  public:
   static constexpr std::size_t kAnchorBytes = 4096;
   RunnerExecutor(Runner& runner, const DeviceIdentity& device)
-      : runner_(runner), flush_bytes_(FlushBytes(device.last_level_cache_bytes, IsHostCpu(device))) {
+      : runner_(runner),
+        flush_bytes_(runner.api().evicts_own_buffers() ? 0 : FlushBytes(device.last_level_cache_bytes, IsHostCpu(device))) {
     if (HostFlushes(device)) host_flush_ = std::make_unique<HostFlush>(flush_bytes_);
   }
   ~RunnerExecutor() override;
@@ -126,6 +131,7 @@ class RunnerExecutor final : public Executor {
   std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) override;
   std::string KernelClock() const override { return runner_.api().kernel_clock(); }
   std::size_t FlushReadBytes() const override { return flush_bytes_; }
+  bool EvictsOwnBuffers() const override { return runner_.api().evicts_own_buffers(); }
   // The flush in `lang`'s API (prepared on first use): the anchor launch
   // where the host flushes.
   const Prepared& Flush(Lang lang);

@@ -168,6 +168,7 @@ class FaultyExecutor final : public Executor {
   }
   std::string KernelClock() const override { return inner_->KernelClock(); }
   std::size_t FlushReadBytes() const override { return inner_->FlushReadBytes(); }
+  bool EvictsOwnBuffers() const override { return inner_->EvictsOwnBuffers(); }
 
  private:
   // The kernels a run of `variant` gets: the faulty variant's edited; at

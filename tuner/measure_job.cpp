@@ -377,7 +377,8 @@ void RecordKernelTime(Measurement& m, const KernelTime& t, const Executor& execu
   m.timing.clock = executor.KernelClock();
   m.timing.input_sets = sets;
   m.timing.footprint_bytes = static_cast<double>(sets) * static_cast<double>(bytes_per_set);
-  m.timing.flush_bytes = static_cast<double>(executor.FlushReadBytes());
+  // Where the device evicts the frame's own buffers instead, those bytes.
+  m.timing.flush_bytes = static_cast<double>(executor.EvictsOwnBuffers() ? bytes_per_set : executor.FlushReadBytes());
   m.gbps = m.timing.median_ms > 0.0 ? m.bytes_per_frame / m.timing.median_ms / 1e6 : 0.0;
 }
 

@@ -85,7 +85,7 @@ struct Timing {
   double high_ms = 0.0;
   bool tight = false;      // the interval met the stop rule (not stopped by a cap)
   std::string clock;       // what timed each launch (DeviceApi::kernel_clock)
-  double flush_bytes = 0;  // what the flush before each sample read (0: none)
+  double flush_bytes = 0;  // what the flush before each sample read, or the frame's own bytes where the device evicts them (0: none)
   // The frame time (docs/TUNING.md "Frame time"): host ms per frame of
   // `burst_frames` frames issued back to back as a Skinner issues them (0: not measured).
   double frame_ms = 0.0;

@@ -68,6 +68,22 @@ TEST_P(ThreadPoolSpin, WakesWorkersThatStoppedSpinning) {
   }
 }
 
+// Ready (every worker woken, each holding a chunk until all do) returns,
+// whether the workers slept or polled, for pools of every size, and leaves
+// the pool's loops as they were.
+TEST_P(ThreadPoolSpin, ReadyReturnsOnceEveryThreadRunsAndLoopsFollowIt) {
+  for (const unsigned threads : {1u, 2u, 3u, 8u}) {
+    ThreadPool pool(threads, std::chrono::microseconds(GetParam()));
+    std::atomic<long> sum{0};
+    for (int loop = 0; loop < 100; ++loop) {
+      if (loop % 25 == 0) std::this_thread::sleep_for(std::chrono::milliseconds(3));  // past any spin: asleep
+      pool.Ready();
+      pool.ParallelFor(40, 3, [&](std::size_t b, std::size_t e) { sum += long(e - b); });
+    }
+    EXPECT_EQ(sum.load(), 100 * 40) << threads << " threads";
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(SleepOrSpin, ThreadPoolSpin, ::testing::Values(0, 50, 2000),
                          [](const ::testing::TestParamInfo<int>& p) { return "spin" + std::to_string(p.param) + "us"; });
 

@@ -383,13 +383,26 @@ constexpr const char* kOtherVariant = "opencl.b4.padded.soa.float4.u16.f32.mat3x
 
 // A GPU API on the host's CPU (llvmpipe, lavapipe) is flushed by the host
 // before each sample (HostFlush: the same bytes its flush kernel read,
-// recorded the same); a GPU, PoCL and the cpu device flush with their kernel.
+// recorded the same); a GPU and PoCL flush with their kernel; skintune's cpu
+// device evicts each frame's own buffers and reads no flush.
 TEST(Executor, AGpuApiOnTheHostIsFlushedByTheHostAndEveryOtherDeviceByItsKernel) {
   Discovered found = DiscoverDevices("cpu");
   ASSERT_FALSE(found.devices.empty()) << "skintune's cpu device is always there";
   const std::unique_ptr<Runner> runner = found.devices.front().open();
   const DeviceIdentity cpu = found.devices.front().identity;
   ASSERT_EQ(cpu.type, "cpu");
+  {
+    tuner_internal::RunnerExecutor own(*runner, cpu);
+    EXPECT_TRUE(own.EvictsOwnBuffers());
+    EXPECT_EQ(own.FlushReadBytes(), 0u);
+    EXPECT_FALSE(static_cast<bool>(own.BeforeEachSample()));
+  }
+  // The choice by identity, on a runner that flushes (the executor reads
+  // only its identity's type and backend, and whether the runner evicts).
+  Discovered opencl = DiscoverDevices("opencl");
+  if (opencl.devices.empty()) GTEST_SKIP() << "no OpenCL device here: the flush by identity needs a runner that flushes";
+  const std::unique_ptr<Runner> flushing = opencl.devices.front().open();
+  ASSERT_FALSE(flushing->api().evicts_own_buffers());
   const auto as = [&](const char* backend, const char* type) {
     DeviceIdentity d = cpu;
     d.backend = backend;
@@ -401,7 +414,8 @@ TEST(Executor, AGpuApiOnTheHostIsFlushedByTheHostAndEveryOtherDeviceByItsKernel)
     SCOPED_TRACE(d.backend + " on a " + d.type);
     const bool host = d.type == "cpu" && (d.backend == "gl" || d.backend == "vulkan");
     EXPECT_EQ(tuner_internal::HostFlushes(d), host);
-    tuner_internal::RunnerExecutor executor(*runner, d);
+    tuner_internal::RunnerExecutor executor(*flushing, d);
+    EXPECT_FALSE(executor.EvictsOwnBuffers());
     EXPECT_EQ(static_cast<bool>(executor.BeforeEachSample()), host);
     EXPECT_EQ(executor.FlushReadBytes(), FlushBytes(cpu.last_level_cache_bytes, d.type == "cpu"));
   }

@@ -8,6 +8,9 @@
 #include <map>
 #include <sstream>
 #include <thread>
+#include <utility>
+
+#include <immintrin.h>
 
 #include "base/error.h"
 #include "base/thread_pool.h"
@@ -67,7 +70,23 @@ class CpuBound final : public DeviceObject {
   float* out_positions = nullptr;  // at output vertex 0 (the launch adds first)
   float* out_normals = nullptr;
   CpuPalette converted;            // this launch's palette in the kernels' form, per frame
+  std::vector<std::span<const std::uint8_t>> buffers;  // every buffer bound to it (what kCold evicts)
 };
+
+// Writes back and invalidates every cache line of `bytes` in every cache of
+// the coherence domain (clflushopt where the CPU has it, else clflush), so
+// the next read of them comes from memory, whatever core or socket held them.
+__attribute__((target("clflushopt"))) void EvictByClflushopt(std::span<const std::uint8_t> bytes) {
+  for (std::size_t o = 0; o < bytes.size(); o += 64) _mm_clflushopt(const_cast<std::uint8_t*>(bytes.data() + o));
+}
+void Evict(std::span<const std::uint8_t> bytes) {
+  static const bool opt = __builtin_cpu_supports("clflushopt");
+  if (opt) {
+    EvictByClflushopt(bytes);
+  } else {
+    for (std::size_t o = 0; o < bytes.size(); o += 64) _mm_clflush(bytes.data() + o);
+  }
+}
 
 }  // namespace
 
@@ -78,6 +97,7 @@ std::string Describe(const CpuChoice& choice) {
 class CpuApi final : public DeviceApi {
  public:
   std::string kernel_clock() const override { return "the host's steady clock"; }
+  bool evicts_own_buffers() const override { return true; }
   explicit CpuApi(unsigned threads)
       : max_threads_(threads ? threads : std::max(1u, std::thread::hardware_concurrency())),
         name_(std::string("host CPU (") + CpuKernelIsa() + " kernels)") {}
@@ -120,6 +140,7 @@ class CpuApi final : public DeviceApi {
   void Wait(DeviceObject&, const std::string&) override {}
   void Finish() override {}
 
+  std::size_t evicted_bytes() const { return evicted_bytes_; }
   std::optional<CpuChoice> ScheduleOf(const std::string& key) const {
     if (const auto found = choices_.find(key); found != choices_.end()) return found->second;
     return std::nullopt;
@@ -132,6 +153,7 @@ class CpuApi final : public DeviceApi {
   const CpuChoice& ChoiceFor(const FrameRun& run);
 
   unsigned max_threads_;
+  std::size_t evicted_bytes_ = 0;  // by kCold, in all
   std::uint64_t flush_sink_ = 0;  // what the flush read, kept so that no compiler drops the reads
   std::string name_;
   std::map<std::string, Parsed> built_;  // by source hash
@@ -226,6 +248,7 @@ std::unique_ptr<DeviceObject> CpuApi::Bind(const PlannedLaunch& launch, std::spa
   bound->plan = static_cast<const CpuPlanned*>(&launch);
   for (const ArgumentBinding& a : arguments) {
     const auto* buffer = static_cast<const CpuBuffer*>(a.buffer);
+    if (a.role != ArgumentRole::kScalar && buffer) bound->buffers.emplace_back(buffer->data(), buffer->bytes());
     switch (a.role) {
       case ArgumentRole::kScalar: break;
       case ArgumentRole::kInput: bound->inputs.push_back(buffer->data()); break;
@@ -346,11 +369,20 @@ std::vector<std::vector<double>> CpuApi::RunFrames(const FrameRun& run) {
     for (const auto& frame : run.frames) RunFrame(frame, choice);
     return {};
   }
-  if (run.use == FrameUse::kCold) {  // device_api.h: each launch on the host's clock, after the flush
+  if (run.use == FrameUse::kCold) {  // device_api.h: each launch on the host's clock, its buffers evicted
     const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
+    ThreadPool& pool = pools_.Get(choice.schedule.threads);
     std::vector<std::vector<double>> ms;
     for (std::size_t f = 0; f < run.frames.size(); ++f) {
-      RunFrame(run.flush, choice);
+      // The frame's own lines out of every cache (evicts_own_buffers: run.flush
+      // is not run), then every thread of its pool awake, then the clock.
+      for (const std::unique_ptr<DeviceObject>& launch : run.frames[f])
+        for (const std::span<const std::uint8_t> buffer : static_cast<const CpuBound&>(*launch).buffers) {
+          Evict(buffer);
+          evicted_bytes_ += buffer.size();
+        }
+      _mm_mfence();  // the evictions complete before the frame's first load
+      pool.Ready();
       if (f < untimed) {
         RunFrame(run.frames[f], choice);
         continue;
@@ -377,6 +409,8 @@ std::vector<std::vector<double>> CpuApi::RunFrames(const FrameRun& run) {
 }
 
 CpuRunner::CpuRunner(unsigned threads) : Runner(std::make_unique<CpuApi>(threads)) {}
+
+std::size_t CpuRunner::EvictedBytes() const { return static_cast<const CpuApi&>(api()).evicted_bytes(); }
 
 std::optional<CpuChoice> CpuRunner::ScheduleOf(const std::string& key) const {
   return static_cast<const CpuApi&>(api()).ScheduleOf(key);

@@ -16,8 +16,10 @@
 //   candidate (CpuScheduleCandidates x streaming on/off) runs the variant's
 //   own frame, the fastest median wins (ScheduleOf says which). The copy
 //   runs on every thread, one chunk per thread.
-// - Times: the host's steady clock around each launch (verify) or each
-//   burst (time).
+// - Times: the host's steady clock around each launch (verify, and the
+//   kernel time: each frame's buffers first evicted from every cache with
+//   clflushopt and the pool's threads woken, then the clock) or each burst
+//   (time).
 // Errors name the stage: "CPU setup", "build", "launch" or "guard".
 #pragma once
 
@@ -43,6 +45,9 @@ class CpuRunner final : public Runner {
   explicit CpuRunner(unsigned threads = 0);
   // The choice made for the variant `key` by its first timed or live frames, if any.
   std::optional<CpuChoice> ScheduleOf(const std::string& key) const;
+  // The bytes the kernel time's frames have evicted (their buffers, each
+  // frame's before it: DeviceApi::evicts_own_buffers), in all.
+  std::size_t EvictedBytes() const;
 };
 
 }  // namespace skintune::internal
