@@ -57,8 +57,10 @@ CopyKernel EmitFlush(Lang lang, std::size_t read_bytes);
 // is 8 times the 2-core machine's L2 (4 MiB) and 6 times the largest mesh the
 // default run tunes (100k-b4's 5 MB); on llvmpipe, whose flush runs at a few
 // GB/s, 64 MiB made a GL variant's kernel time 1.7 times as long to sample.
-// A CPU's kernel time is therefore cold in its cores' caches, not
-// necessarily in the whole socket's L3 (docs/TUNING.md).
+// Where such a flush is read (GL and Vulkan on the host's CPU), a kernel
+// time is therefore cold in the cores' caches, not necessarily in the whole
+// socket's L3; PoCL and skintune's cpu device evict the frame's own lines
+// instead, which is exact (docs/TUNING.md).
 std::size_t FlushBytes(std::uint64_t llc_bytes, bool cpu = false);
 inline constexpr std::uint64_t kUnknownCacheBytes = 64ull << 20;
 inline constexpr std::uint64_t kCpuFlushCapBytes = 32ull << 20;

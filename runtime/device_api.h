@@ -247,7 +247,10 @@ class DeviceApi {
   // writes back and invalidates each line in the whole coherence domain, the
   // socket's L3 included): the same clean-cold state, exact, where a flush
   // read of twice a 300 MiB L3 shared with other tenants' cores cost more than the kernel.
+  // PoCL does the same with a native kernel queued in the flush's place.
   virtual bool evicts_own_buffers() const { return false; }
+  // The bytes evicted so, in all (0 where the device does not evict).
+  virtual std::size_t evicted_bytes() const { return 0; }
 
   // A palette's upload in two steps, so the host packs straight into
   // page-locked memory: Staging gives the buffer's own staging (buffer.bytes()

@@ -108,11 +108,11 @@ class HostFlush {
 // device whose memory is the host's the host flushes (HostFlush) and the
 // device's flush is a launch of kAnchorBytes that only starts the frame's time.
 // Whether `device` is flushed by the host (HostFlush): a software rasterizer
-// (IsSoftwareRasterizer: a GL or Vulkan device on the host's CPU). PoCL and skintune's cpu device read their flush at
-// the host's speed (27 and 40 GB/s on the 2-core machine, where llvmpipe
-// read 3.6) in one submission of many frames; flushed by the host, a
-// sample at a time, PoCL's kernel times took 1.4-1.7 times as long to
-// sample on the H200 machine's 16-core host (2026-11-28).
+// (IsSoftwareRasterizer: a GL or Vulkan device on the host's CPU). PoCL and
+// skintune's cpu device evict each frame's own buffers instead
+// (DeviceApi::evicts_own_buffers), in one submission of many frames; flushed
+// by the host, a sample at a time, PoCL's kernel times took 1.4-1.7 times as
+// long to sample on the H200 machine's 16-core host (2026-11-28).
 bool HostFlushes(const DeviceIdentity& device);
 
 class RunnerExecutor final : public Executor {

@@ -120,31 +120,6 @@ TEST(CpuRunner, TimingChoosesThreadsChunksAndStoresPerVariantAndTimesTheCopy) {
   for (const double t : ms) EXPECT_GT(t, 0.0);
 }
 
-// The kernel time's cold state on the host: before every frame, timed or
-// not, the frame's own buffers are evicted from every cache (the flush given
-// is not run: KernelTime.TheFlushGivenRuns...), all of them and nothing else.
-TEST(CpuRunner, ColdFramesEvictTheirOwnBuffers) {
-  EXPECT_TRUE(Runner().api().evicts_own_buffers());
-  const SkinnedAsset& asset = Asset("b4");
-  const Variant variant = ParseVariantKey("cpu.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg0");
-  const PackedMesh packed = Pack(asset.mesh, variant);
-  const std::vector<KernelSource> kernels = {Emit(variant, 0, static_cast<int>(packed.palette_joints))};
-  const std::vector<std::vector<std::uint8_t>> sets = {PackPalette(Palette(asset), variant),
-                                                       PackPalette(asset.PaletteAt(-1, 0.0), variant)};
-  const Prepared prepared = Runner().Prepare(packed, kernels, sets);
-  const Prepared flush = Runner().PrepareFlush(Lang::kCpu, 4096);
-  std::size_t before = Runner().EvictedBytes();
-  ASSERT_EQ(Runner().TimeCold(prepared, flush, 0, 1).size(), 1u);
-  const std::size_t one = Runner().EvictedBytes() - before;
-  // Inputs, palette and outputs at least: the bytes a frame moves.
-  std::size_t input_bytes = 0;
-  for (const auto& input : packed.launches.at(0).inputs) input_bytes += input.bytes.size();
-  EXPECT_GE(one, input_bytes + packed.vertex_count * packed.output_stride_bytes);
-  before = Runner().EvictedBytes();
-  ASSERT_EQ(Runner().TimeCold(prepared, flush, 2, 3).size(), 3u);
-  EXPECT_EQ(Runner().EvictedBytes() - before, 5 * one) << "each of 2 untimed and 3 timed frames evicts its own buffers";
-}
-
 TEST(CpuRunner, KernelTextsThatAreNotParameterBlocksFailToBuildNamingTheLine) {
   const KernelSource good = Emit(ParseVariantKey("cpu.b2.soa.v1c.wg0"), 0, 77);
   Runner().Build(good);

@@ -317,6 +317,27 @@ TEST_P(KernelTime, TheFlushGivenRunsAndWritesNothingButTheItemsPoisonedToBeWritt
   EXPECT_EQ(wrong, 0u) << "words the flush should not have written";
 }
 
+// A device whose memory is the host's (the cpu device, PoCL) evicts each
+// frame's own buffers from every cache before it, untimed frames too,
+// instead of running the flush (TheFlushGivenRuns... checks that the flush
+// did not run there); no other device evicts anything.
+TEST_P(KernelTime, ADeviceThatEvictsEvictsEachFramesOwnBuffersBeforeIt) {
+  const Prepared mesh = PrepareMesh(Synthetic("20k-b4-seed5"), VariantOf("padded"));
+  const Prepared flush = runner_->PrepareFlush(GetParam().lang, kSmallFlushBytes);
+  std::size_t before = runner_->api().evicted_bytes();
+  ASSERT_EQ(runner_->TimeCold(mesh, flush, 0, 1).size(), 1u);
+  const std::size_t one = runner_->api().evicted_bytes() - before;
+  if (!runner_->api().evicts_own_buffers()) {
+    EXPECT_EQ(one, 0u);
+    return;
+  }
+  // At least the outputs (12 bytes a vertex or more) and the positions read.
+  EXPECT_GE(one, 20000u * 12u * 2u);
+  before = runner_->api().evicted_bytes();
+  ASSERT_EQ(runner_->TimeCold(mesh, flush, 2, 3).size(), 3u);
+  EXPECT_EQ(runner_->api().evicted_bytes() - before, 5 * one) << "2 untimed and 3 timed frames, each its own buffers";
+}
+
 TEST_P(KernelTime, TheFlushRunsBeforeEveryFrameAndIsInNoLaunchsTime) {
   if (runner_->api().evicts_own_buffers())
     GTEST_SKIP() << "this device runs no flush: it evicts each frame's own buffers (CpuRunner.ColdFramesEvictTheirOwnBuffers)";

@@ -10,8 +10,7 @@
 #include <thread>
 #include <utility>
 
-#include <immintrin.h>
-
+#include "base/cache_eviction.h"
 #include "base/error.h"
 #include "base/thread_pool.h"
 #include "runtime/backends/cpu/cpu_streams.h"
@@ -73,20 +72,6 @@ class CpuBound final : public DeviceObject {
   std::vector<std::span<const std::uint8_t>> buffers;  // every buffer bound to it (what kCold evicts)
 };
 
-// Writes back and invalidates every cache line of `bytes` in every cache of
-// the coherence domain (clflushopt where the CPU has it, else clflush), so
-// the next read of them comes from memory, whatever core or socket held them.
-__attribute__((target("clflushopt"))) void EvictByClflushopt(std::span<const std::uint8_t> bytes) {
-  for (std::size_t o = 0; o < bytes.size(); o += 64) _mm_clflushopt(const_cast<std::uint8_t*>(bytes.data() + o));
-}
-void Evict(std::span<const std::uint8_t> bytes) {
-  static const bool opt = __builtin_cpu_supports("clflushopt");
-  if (opt) {
-    EvictByClflushopt(bytes);
-  } else {
-    for (std::size_t o = 0; o < bytes.size(); o += 64) _mm_clflush(bytes.data() + o);
-  }
-}
 
 }  // namespace
 
@@ -140,7 +125,7 @@ class CpuApi final : public DeviceApi {
   void Wait(DeviceObject&, const std::string&) override {}
   void Finish() override {}
 
-  std::size_t evicted_bytes() const { return evicted_bytes_; }
+  std::size_t evicted_bytes() const override { return evicted_bytes_; }
   std::optional<CpuChoice> ScheduleOf(const std::string& key) const {
     if (const auto found = choices_.find(key); found != choices_.end()) return found->second;
     return std::nullopt;
@@ -376,12 +361,13 @@ std::vector<std::vector<double>> CpuApi::RunFrames(const FrameRun& run) {
     for (std::size_t f = 0; f < run.frames.size(); ++f) {
       // The frame's own lines out of every cache (evicts_own_buffers: run.flush
       // is not run), then every thread of its pool awake, then the clock.
+      std::vector<std::span<const std::uint8_t>> buffers;
       for (const std::unique_ptr<DeviceObject>& launch : run.frames[f])
         for (const std::span<const std::uint8_t> buffer : static_cast<const CpuBound&>(*launch).buffers) {
-          Evict(buffer);
+          buffers.push_back(buffer);
           evicted_bytes_ += buffer.size();
         }
-      _mm_mfence();  // the evictions complete before the frame's first load
+      EvictFromCaches(buffers);
       pool.Ready();
       if (f < untimed) {
         RunFrame(run.frames[f], choice);
@@ -409,8 +395,6 @@ std::vector<std::vector<double>> CpuApi::RunFrames(const FrameRun& run) {
 }
 
 CpuRunner::CpuRunner(unsigned threads) : Runner(std::make_unique<CpuApi>(threads)) {}
-
-std::size_t CpuRunner::EvictedBytes() const { return static_cast<const CpuApi&>(api()).evicted_bytes(); }
 
 std::optional<CpuChoice> CpuRunner::ScheduleOf(const std::string& key) const {
   return static_cast<const CpuApi&>(api()).ScheduleOf(key);

@@ -45,9 +45,6 @@ class CpuRunner final : public Runner {
   explicit CpuRunner(unsigned threads = 0);
   // The choice made for the variant `key` by its first timed or live frames, if any.
   std::optional<CpuChoice> ScheduleOf(const std::string& key) const;
-  // The bytes the kernel time's frames have evicted (their buffers, each
-  // frame's before it: DeviceApi::evicts_own_buffers), in all.
-  std::size_t EvictedBytes() const;
 };
 
 }  // namespace skintune::internal

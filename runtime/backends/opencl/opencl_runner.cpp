@@ -7,13 +7,17 @@
 #include <CL/cl.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <cstring>
 #include <map>
 #include <mutex>
+#include <span>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
+#include "base/cache_eviction.h"
 #include "base/error.h"
 #include "runtime/host_work.h"
 #include "runtime/output_check.h"
@@ -149,7 +153,31 @@ class ClBound final : public DeviceObject {
  public:
   const ClPlanned* plan = nullptr;
   std::vector<cl_mem> arguments;
+  std::vector<cl_mem> buffers;  // the buffer objects among them, each once (what an evicting kCold evicts)
 };
+
+// The native kernel that evicts a frame's buffers (OpenClApi::evicts_):
+// its argument block is a header, each buffer's bytes, then one slot per
+// buffer where clEnqueueNativeKernel puts the buffer's host address in
+// place of its cl_mem.
+struct EvictHeader {
+  std::atomic<std::size_t>* evicted;  // the api's count of bytes evicted
+  std::size_t buffers;
+};
+void CL_CALLBACK EvictNatively(void* args) {
+  const auto* header = static_cast<const EvictHeader*>(args);
+  const auto* bytes = reinterpret_cast<const std::size_t*>(header + 1);
+  const auto* addresses = reinterpret_cast<const std::uint8_t* const*>(bytes + header->buffers);
+  std::vector<std::span<const std::uint8_t>> spans;
+  std::size_t total = 0;
+  for (std::size_t b = 0; b < header->buffers; ++b) {
+    if (!addresses[b]) continue;  // not allocated on the device yet (PoCL allocates at first use): in no cache
+    spans.emplace_back(addresses[b], bytes[b]);
+    total += bytes[b];
+  }
+  EvictFromCaches(spans);
+  header->evicted->fetch_add(total);
+}
 
 }  // namespace
 
@@ -202,6 +230,14 @@ class OpenClApi final : public DeviceApi {
   // A.2); the live frame's arguments are set only by the thread making it.
   bool SubmitsFromAnyThread() const override { return true; }
   std::string kernel_clock() const override { return "OpenCL profiling END stamps"; }
+  // A CPU device that runs native kernels (PoCL) evicts each cold frame's
+  // buffers with one, queued where the flush kernel was: the flush read
+  // twice a last-level cache the host shares with other cores (capped at
+  // 32 MiB, so not cold in the whole L3), at the host's speed, before each sample.
+  bool evicts_own_buffers() const override { return evicts_; }
+  std::size_t evicted_bytes() const override { return evicted_bytes_.load(); }
+  bool evicts_ = false;
+  std::atomic<std::size_t> evicted_bytes_{0};  // by the eviction's native kernels, in all
   bool ReadyToRelease() override {  // no upload or launch still uses what is about to be released
     for (const Queue* q : {&uploads_, &queue, &lanes[0], &lanes[1]})
       if (q->get()) clFinish(q->get());
@@ -229,6 +265,8 @@ class OpenClApi final : public DeviceApi {
   std::vector<std::vector<double>> TimeOnLanes(const FrameRun& run);
   // Kernel time (FrameUse::kCold) on one profiling lane.
   std::vector<std::vector<double>> TimeCold(const FrameRun& run);
+  // Queues on `on` the native kernel that evicts `frame`'s buffers (evicts_).
+  void EnqueueEviction(std::span<const std::unique_ptr<DeviceObject>> frame, cl_event* event, cl_command_queue on);
   static double SpanMs(const LaneEdges& e, const std::string& key);
 
   std::map<std::string, BuiltKernel> built_;  // by source hash
@@ -514,6 +552,12 @@ std::unique_ptr<DeviceObject> OpenClApi::Bind(const PlannedLaunch& launch, std::
   for (const ArgumentBinding& a : arguments) {
     const DeviceObject* object = a.view ? a.view : a.buffer;
     bound->arguments.push_back(object ? static_cast<cl_mem>(static_cast<const ClMemory*>(object)->native()) : nullptr);
+    // The buffers under views too (an image view of a palette evicts its buffer).
+    const cl_mem buffer = a.buffer ? static_cast<cl_mem>(static_cast<const ClMemory*>(a.buffer)->native()) : nullptr;
+    cl_mem_object_type type = 0;
+    if (buffer && clGetMemObjectInfo(buffer, CL_MEM_TYPE, sizeof type, &type, nullptr) == CL_SUCCESS &&
+        type == CL_MEM_OBJECT_BUFFER && std::find(bound->buffers.begin(), bound->buffers.end(), buffer) == bound->buffers.end())
+      bound->buffers.push_back(buffer);
   }
   return bound;
 }
@@ -627,7 +671,12 @@ std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
   const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
   std::vector<std::vector<Event>> events(run.frames.size() - untimed);  // the flush's last, then each launch's
   for (std::size_t f = 0; f < run.frames.size(); ++f) {
-    for (std::size_t k = 0; k < run.flush.size(); ++k) {
+    if (evicts_) {  // the frame's own buffers, evicted by a native kernel in the flush's place
+      cl_event event = nullptr;
+      EnqueueEviction(run.frames[f], f >= untimed ? &event : nullptr, lane);
+      if (event) events[f - untimed].emplace_back(event);
+    }
+    for (std::size_t k = 0; k < run.flush.size() && !evicts_; ++k) {
       cl_event event = nullptr;
       const bool last = f >= untimed && k + 1 == run.flush.size();
       Enqueue(static_cast<const ClBound&>(*run.flush[k]), nullptr, last ? &event : nullptr, lane);
@@ -654,6 +703,31 @@ std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
     }
   }
   return ms;
+}
+
+void OpenClApi::EnqueueEviction(std::span<const std::unique_ptr<DeviceObject>> frame, cl_event* event,
+                                cl_command_queue on) {
+  std::vector<cl_mem> buffers;
+  for (const std::unique_ptr<DeviceObject>& launch : frame)
+    for (const cl_mem b : static_cast<const ClBound&>(*launch).buffers)
+      if (std::find(buffers.begin(), buffers.end(), b) == buffers.end()) buffers.push_back(b);
+  // Header, bytes, address slots: std::size_t words throughout.
+  static_assert(sizeof(EvictHeader) % sizeof(std::size_t) == 0 && sizeof(cl_mem) == sizeof(std::size_t));
+  const std::size_t header_words = sizeof(EvictHeader) / sizeof(std::size_t);
+  std::vector<std::size_t> args(header_words + 2 * buffers.size());
+  const EvictHeader header{&evicted_bytes_, buffers.size()};
+  std::memcpy(args.data(), &header, sizeof header);
+  std::vector<const void*> slots;
+  for (std::size_t b = 0; b < buffers.size(); ++b) {
+    std::size_t bytes = 0;
+    Check(clGetMemObjectInfo(buffers[b], CL_MEM_SIZE, sizeof bytes, &bytes, nullptr), "launch", "clGetMemObjectInfo (size)");
+    args[header_words + b] = bytes;
+    std::memcpy(&args[header_words + buffers.size() + b], &buffers[b], sizeof(cl_mem));
+    slots.push_back(&args[header_words + buffers.size() + b]);
+  }
+  Check(clEnqueueNativeKernel(on, EvictNatively, args.data(), args.size() * sizeof(std::size_t),
+                              static_cast<cl_uint>(buffers.size()), buffers.data(), slots.data(), 0, nullptr, event),
+        "launch", "clEnqueueNativeKernel (the cache eviction before a cold frame)");
 }
 
 // kTime (docs/TUNING.md "Timing"): frames alternate between two in-order
@@ -771,6 +845,12 @@ std::unique_ptr<OpenClApi> OpenDevice(int platform_index, int device_index) {
   Check(err, "setup", "clCreateContext on " + api->name_);
   api->queue = Queue(clCreateCommandQueue(api->context.get(), api->device, 0, &err));
   Check(err, "setup", "clCreateCommandQueue on " + api->name_);
+  cl_device_type type = 0;
+  cl_device_exec_capabilities exec = 0;
+  api->evicts_ = clGetDeviceInfo(api->device, CL_DEVICE_TYPE, sizeof type, &type, nullptr) == CL_SUCCESS &&
+                 (type & CL_DEVICE_TYPE_CPU) &&
+                 clGetDeviceInfo(api->device, CL_DEVICE_EXECUTION_CAPABILITIES, sizeof exec, &exec, nullptr) == CL_SUCCESS &&
+                 (exec & CL_EXEC_NATIVE_KERNEL);
   return api;
 }
 
