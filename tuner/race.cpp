@@ -129,6 +129,41 @@ RaceRecord RaceThese(const Racer& racer, const std::vector<const Measurement*>& 
   return record;
 }
 
+// Whether `a` and `b` move the same bytes a frame: they differ at most on
+// the axes that change how a kernel runs, not what it reads and writes
+// (palette storage, work-group size, vertices per item, their assignment).
+bool SameBytes(const Variant& a, const Variant& b) {
+  Variant x = a;
+  x.storage = b.storage;
+  x.wg_size = b.wg_size;
+  x.vertices_per_item = b.vertices_per_item;
+  x.assignment = b.assignment;
+  return x == b;
+}
+
+// The walk's neighbourhood of `leader` where the allowance cannot pay for
+// all of it: the neighbours measured already, and the unmeasured ones that
+// the tie-break would take over the leader if they tied with it (the same
+// bytes, a lower key; their errors are the leader's, as these axes do not
+// change the arithmetic); where the plateau's preferred point lies along
+// such an axis, the walk still reaches it.
+std::vector<Variant> PreferredOrMeasured(const std::vector<Variant>& around, const Variant& leader,
+                                         const std::vector<Measurement>& measured) {
+  std::vector<Variant> out;
+  for (const Variant& v : around) {
+    const bool known = std::any_of(measured.begin(), measured.end(), [&](const Measurement& m) { return m.variant == v; });
+    if (known || (SameBytes(v, leader) && v.Key() < leader.Key())) out.push_back(v);
+  }
+  return out;
+}
+
+std::size_t Unmeasured(const std::vector<Variant>& around, const std::vector<Measurement>& measured) {
+  std::size_t n = 0;
+  for (const Variant& v : around)
+    n += std::none_of(measured.begin(), measured.end(), [&](const Measurement& m) { return m.variant == v; });
+  return n;
+}
+
 std::optional<Variant> FastestOf(const std::vector<Measurement>& measured) {
   const Measurement* best = nullptr;
   for (const Measurement& m : measured)
@@ -151,12 +186,11 @@ RaceRecord SettleSearch(const Racer& racer, const SearchToSettle& search, const 
   bool all_from_memo = true;
   std::size_t walked = 0;  // evaluations after the first neighbourhood
   for (int round = 0; leader && round < kSettleRounds; ++round) {
-    const std::vector<Variant> around = Neighbours(search.candidates, *leader);
+    std::vector<Variant> around = Neighbours(search.candidates, *leader);
     if (round > 0 && search.walk_evaluations > 0) {
-      std::size_t unmeasured = 0;
       const std::vector<Measurement> so_far = search.measured();
-      for (const Variant& v : around)
-        unmeasured += std::none_of(so_far.begin(), so_far.end(), [&](const Measurement& m) { return m.variant.Key() == v.Key(); });
+      if (walked + Unmeasured(around, so_far) > search.walk_evaluations) around = PreferredOrMeasured(around, *leader, so_far);
+      const std::size_t unmeasured = Unmeasured(around, so_far);
       if (walked + unmeasured > search.walk_evaluations) break;  // the last race stands
       walked += unmeasured;
     }

@@ -67,8 +67,15 @@ struct RaceMemo {
 // one set; when the race's winner (TieBreak among the tied) is not the
 // leader, the winner's own neighbourhood races next, up to kSettleRounds
 // races (each step goes to a point the tie-break prefers), so runs entering a plateau at different points walk to the same
-// preferred point of it. Returns the last race (a record saying why when
-// none ran).
+// preferred point of it. Where the walk's allowance cannot pay for a whole
+// neighbourhood, the step races the neighbours measured already and
+// measures only those the tie-break would prefer to the leader on a tie
+// (the same bytes, a lower key: another palette storage or work-group
+// size); only when even these are too many does the last race stand. On
+// the H200 (2026-11-29) the GPU rows that named different winners in three
+// runs were such pairs: Vulkan 100k-b3's constant and global storage of one
+// format, 5.4-5.6 us, one run's walk ending before the constant one was
+// measured. Returns the last race (a record saying why when none ran).
 inline constexpr int kSettleRounds = 6;
 // The walk's allowance when the search has no budget (exhaustive: the walk
 // then finds every neighbour measured and spends nothing).

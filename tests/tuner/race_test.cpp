@@ -63,7 +63,7 @@ Measurement Measured(const Variant& v, double ms, double spread = 0.005) {
 // the 5% margin.
 class NoisyRun {
  public:
-  explicit NoisyRun(std::uint64_t seed) : seed_(seed) {}
+  explicit NoisyRun(std::uint64_t seed, double (*landscape)(const Variant&) = TrueMs) : seed_(seed), true_ms_(landscape) {}
 
   double Noise(const Variant& v) const {
     std::uint64_t h = seed_ * 0x9E3779B97F4A7C15ull;
@@ -73,7 +73,7 @@ class NoisyRun {
   std::optional<double> Evaluate(const Variant& v) {
     if (!seen_.insert(v.Key()).second) return measured_.at(index_.at(v.Key())).timing.median_ms;
     index_[v.Key()] = measured_.size();
-    measured_.push_back(Measured(v, TrueMs(v) * Noise(v)));
+    measured_.push_back(Measured(v, true_ms_(v) * Noise(v)));
     ++evaluations_;
     return measured_.back().timing.median_ms;
   }
@@ -82,7 +82,7 @@ class NoisyRun {
     std::vector<std::vector<double>> samples;
     for (const Variant& v : variants) {
       std::vector<double> s;
-      for (int i = 0; i < 40; ++i) s.push_back(TrueMs(v) * Noise(v) * (1.0 + 0.001 * ((i % 5) - 2)));
+      for (int i = 0; i < 40; ++i) s.push_back(true_ms_(v) * Noise(v) * (1.0 + 0.001 * ((i % 5) - 2)));
       samples.push_back(s);
     }
     return std::vector<RaceSamples>{samples};
@@ -100,6 +100,7 @@ class NoisyRun {
 
  private:
   std::uint64_t seed_;
+  double (*true_ms_)(const Variant&);
   std::vector<Measurement> measured_;
   std::map<std::string, std::size_t> index_;
   std::set<std::string> seen_;
@@ -217,6 +218,33 @@ TEST(SettleSearch, TheWalkStopsWhereItsAllowanceEnds) {
   EXPECT_EQ(short_walk.races(), 1);
   EXPECT_EQ(short_walk.evaluations(), 1 + 4);  // the start and its first neighbourhood
   EXPECT_GT(free_walk.evaluations(), short_walk.evaluations());
+}
+
+// Where the allowance cannot pay for a whole neighbourhood, the walk still
+// measures the neighbours the tie-break would prefer on a tie (the same
+// bytes, a lower key) and reaches the plateau's preferred point, as a walk
+// without a cap does. Constant and global storage are one plateau here;
+// from global-u8-64 the first race goes to constant-u8-64 (key order),
+// whose neighbourhood needs constant-u16-64 and constant-u8-256: over an
+// allowance of 1, but constant-u8-256 alone (wg256 before wg64) fits.
+double StoragePlateauMs(const Variant& v) { return v.storage == PaletteStorage::kLocal ? 1.30 : 1.00; }
+TEST(SettleSearch, WhereTheAllowanceEndsTheWalkStillMeasuresWhatTheTieBreakPrefers) {
+  const Variant start = At(PaletteStorage::kGlobal, IndexFormat::kU8, 64);
+  const Variant preferred = At(PaletteStorage::kConstant, IndexFormat::kU8, 256);
+  for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    NoisyRun free_walk(seed, StoragePlateauMs), short_walk(seed, StoragePlateauMs);
+    free_walk.Evaluate(start);
+    short_walk.Evaluate(start);
+    const RaceRecord free_race = free_walk.Settle(SmallSpace());
+    const RaceRecord short_race = short_walk.Settle(SmallSpace(), 1);
+    const std::optional<Variant> free_winner = RaceWinner(free_race, free_walk.measured(), TimingOptions{}.tie_margin);
+    const std::optional<Variant> short_winner = RaceWinner(short_race, short_walk.measured(), TimingOptions{}.tie_margin);
+    ASSERT_TRUE(free_winner && short_winner);
+    EXPECT_EQ(free_winner->Key(), preferred.Key());
+    EXPECT_EQ(short_winner->Key(), preferred.Key());
+    EXPECT_EQ(short_walk.evaluations(), 1 + 4 + 1) << "the start, its neighbourhood, and the one preferred neighbour";
+  }
 }
 
 // Without settling (the leader's own race only, as before) the same runs
