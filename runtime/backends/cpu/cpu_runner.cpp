@@ -72,7 +72,6 @@ class CpuBound final : public DeviceObject {
   std::vector<std::span<const std::uint8_t>> buffers;  // every buffer bound to it (what kCold evicts)
 };
 
-
 }  // namespace
 
 std::string Describe(const CpuChoice& choice) {

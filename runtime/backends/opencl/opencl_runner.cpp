@@ -153,7 +153,8 @@ class ClBound final : public DeviceObject {
  public:
   const ClPlanned* plan = nullptr;
   std::vector<cl_mem> arguments;
-  std::vector<cl_mem> buffers;  // the buffer objects among them, each once (what an evicting kCold evicts)
+  // The buffer objects among them, each once, with its size (what an evicting kCold evicts).
+  std::vector<std::pair<cl_mem, std::size_t>> buffers;
 };
 
 // The native kernel that evicts a frame's buffers (OpenClApi::evicts_):
@@ -555,9 +556,11 @@ std::unique_ptr<DeviceObject> OpenClApi::Bind(const PlannedLaunch& launch, std::
     // The buffers under views too (an image view of a palette evicts its buffer).
     const cl_mem buffer = a.buffer ? static_cast<cl_mem>(static_cast<const ClMemory*>(a.buffer)->native()) : nullptr;
     cl_mem_object_type type = 0;
-    if (buffer && clGetMemObjectInfo(buffer, CL_MEM_TYPE, sizeof type, &type, nullptr) == CL_SUCCESS &&
-        type == CL_MEM_OBJECT_BUFFER && std::find(bound->buffers.begin(), bound->buffers.end(), buffer) == bound->buffers.end())
-      bound->buffers.push_back(buffer);
+    std::size_t bytes = 0;
+    const bool listed = std::any_of(bound->buffers.begin(), bound->buffers.end(), [&](const auto& b) { return b.first == buffer; });
+    if (buffer && !listed && clGetMemObjectInfo(buffer, CL_MEM_TYPE, sizeof type, &type, nullptr) == CL_SUCCESS &&
+        type == CL_MEM_OBJECT_BUFFER && clGetMemObjectInfo(buffer, CL_MEM_SIZE, sizeof bytes, &bytes, nullptr) == CL_SUCCESS)
+      bound->buffers.emplace_back(buffer, bytes);
   }
   return bound;
 }
@@ -708,9 +711,13 @@ std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
 void OpenClApi::EnqueueEviction(std::span<const std::unique_ptr<DeviceObject>> frame, cl_event* event,
                                 cl_command_queue on) {
   std::vector<cl_mem> buffers;
+  std::vector<std::size_t> sizes;
   for (const std::unique_ptr<DeviceObject>& launch : frame)
-    for (const cl_mem b : static_cast<const ClBound&>(*launch).buffers)
-      if (std::find(buffers.begin(), buffers.end(), b) == buffers.end()) buffers.push_back(b);
+    for (const auto& [b, bytes] : static_cast<const ClBound&>(*launch).buffers)
+      if (std::find(buffers.begin(), buffers.end(), b) == buffers.end()) {
+        buffers.push_back(b);
+        sizes.push_back(bytes);
+      }
   // Header, bytes, address slots: std::size_t words throughout.
   static_assert(sizeof(EvictHeader) % sizeof(std::size_t) == 0 && sizeof(cl_mem) == sizeof(std::size_t));
   const std::size_t header_words = sizeof(EvictHeader) / sizeof(std::size_t);
@@ -719,9 +726,7 @@ void OpenClApi::EnqueueEviction(std::span<const std::unique_ptr<DeviceObject>> f
   std::memcpy(args.data(), &header, sizeof header);
   std::vector<const void*> slots;
   for (std::size_t b = 0; b < buffers.size(); ++b) {
-    std::size_t bytes = 0;
-    Check(clGetMemObjectInfo(buffers[b], CL_MEM_SIZE, sizeof bytes, &bytes, nullptr), "launch", "clGetMemObjectInfo (size)");
-    args[header_words + b] = bytes;
+    args[header_words + b] = sizes[b];
     std::memcpy(&args[header_words + buffers.size() + b], &buffers[b], sizeof(cl_mem));
     slots.push_back(&args[header_words + buffers.size() + b]);
   }
