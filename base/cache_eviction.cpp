@@ -9,45 +9,40 @@ namespace skintune::internal {
 
 namespace {
 
+#if SKINTUNE_X86
 constexpr std::size_t kLine = 64;
 
-#if SKINTUNE_X86
+// Each line of `bytes`, and the last (a buffer's end need not be line-aligned).
+template <typename Flush>
+void EachLine(std::span<const std::uint8_t> bytes, Flush flush) {
+  for (std::size_t o = 0; o < bytes.size(); o += kLine) flush(bytes.data() + o);
+  flush(bytes.data() + bytes.size() - 1);
+}
+
 __attribute__((target("clflushopt"))) void EvictByClflushopt(std::span<const std::uint8_t> bytes) {
-  for (std::size_t o = 0; o < bytes.size(); o += kLine) _mm_clflushopt(const_cast<std::uint8_t*>(bytes.data() + o));
+  EachLine(bytes, [](const std::uint8_t* p) __attribute__((target("clflushopt"))) {
+    _mm_clflushopt(const_cast<std::uint8_t*>(p));
+  });
 }
 #endif
-
-void Evict(std::span<const std::uint8_t> bytes) {
-  if (bytes.empty()) return;
-#if SKINTUNE_X86
-  static const bool opt = __builtin_cpu_supports("clflushopt");
-  if (opt) {
-    EvictByClflushopt(bytes);
-    // The last partial line (a buffer's end need not be line-aligned).
-    _mm_clflush(bytes.data() + bytes.size() - 1);
-  } else {
-    for (std::size_t o = 0; o < bytes.size(); o += kLine) _mm_clflush(bytes.data() + o);
-    _mm_clflush(bytes.data() + bytes.size() - 1);
-  }
-#endif
-}
-
-void Fence() {
-#if SKINTUNE_X86
-  _mm_mfence();  // orders clflushopt before later loads
-#endif
-}
 
 }  // namespace
 
-void EvictFromCaches(std::span<const std::uint8_t> bytes) {
-  Evict(bytes);
-  Fence();
-}
-
 void EvictFromCaches(std::span<const std::span<const std::uint8_t>> buffers) {
-  for (const std::span<const std::uint8_t> b : buffers) Evict(b);
-  Fence();
+#if SKINTUNE_X86
+  static const bool opt = __builtin_cpu_supports("clflushopt");
+  for (const std::span<const std::uint8_t> b : buffers) {
+    if (b.empty()) continue;
+    if (opt) {
+      EvictByClflushopt(b);
+    } else {
+      EachLine(b, [](const std::uint8_t* p) { _mm_clflush(p); });
+    }
+  }
+  _mm_mfence();  // orders the flushes before later loads
+#else
+  (void)buffers;
+#endif
 }
 
 }  // namespace skintune::internal

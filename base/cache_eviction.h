@@ -10,16 +10,13 @@
 
 namespace skintune::internal {
 
-// Writes back and invalidates every cache line of `bytes` in every cache of
+// Writes back and invalidates every cache line of `buffers` in every cache of
 // the coherence domain, the shared last-level cache and other cores' caches
 // included (clflushopt where the CPU has it, else clflush), and waits until
-// that is done (mfence), so the next read of them comes from memory. Unlike a
-// flush by reading other data, it is exact whatever the cache's size, and it
-// costs one instruction per 64 bytes of the kernel's own data. A no-op on
-// a CPU without these instructions.
-void EvictFromCaches(std::span<const std::uint8_t> bytes);
-
-// The same for several buffers, fenced once.
+// that is done (mfence, once), so the next read of them comes from memory.
+// Unlike a flush by reading other data, it is exact whatever the cache's
+// size, and it costs one instruction per 64 bytes of the kernel's own data.
+// A no-op on a CPU without these instructions.
 void EvictFromCaches(std::span<const std::span<const std::uint8_t>> buffers);
 
 }  // namespace skintune::internal

@@ -106,7 +106,7 @@ RunnerExecutor::~RunnerExecutor() = default;
 
 const Prepared& RunnerExecutor::Flush(Lang lang) {
   if (const auto found = flushes_.find(lang); found != flushes_.end()) return found->second;
-  return flushes_.emplace(lang, runner_.PrepareFlush(lang, host_flush_ || flush_bytes_ == 0 ? kAnchorBytes : flush_bytes_)).first->second;
+  return flushes_.emplace(lang, runner_.PrepareFlush(lang, host_flush_ || EvictsOwnBuffers() ? kAnchorBytes : flush_bytes_)).first->second;
 }
 
 std::function<void()> RunnerExecutor::BeforeEachSample() {

@@ -141,6 +141,10 @@ bool SameBytes(const Variant& a, const Variant& b) {
   return x == b;
 }
 
+bool IsMeasured(const Variant& v, const std::vector<Measurement>& measured) {
+  return std::any_of(measured.begin(), measured.end(), [&](const Measurement& m) { return m.variant == v; });
+}
+
 // The walk's neighbourhood of `leader` where the allowance cannot pay for
 // all of it: the neighbours measured already, and the unmeasured ones that
 // the tie-break would take over the leader if they tied with it (the same
@@ -150,17 +154,14 @@ bool SameBytes(const Variant& a, const Variant& b) {
 std::vector<Variant> PreferredOrMeasured(const std::vector<Variant>& around, const Variant& leader,
                                          const std::vector<Measurement>& measured) {
   std::vector<Variant> out;
-  for (const Variant& v : around) {
-    const bool known = std::any_of(measured.begin(), measured.end(), [&](const Measurement& m) { return m.variant == v; });
-    if (known || (SameBytes(v, leader) && v.Key() < leader.Key())) out.push_back(v);
-  }
+  for (const Variant& v : around)
+    if (IsMeasured(v, measured) || (SameBytes(v, leader) && v.Key() < leader.Key())) out.push_back(v);
   return out;
 }
 
 std::size_t Unmeasured(const std::vector<Variant>& around, const std::vector<Measurement>& measured) {
   std::size_t n = 0;
-  for (const Variant& v : around)
-    n += std::none_of(measured.begin(), measured.end(), [&](const Measurement& m) { return m.variant == v; });
+  for (const Variant& v : around) n += IsMeasured(v, measured) ? 0 : 1;
   return n;
 }
 
