@@ -34,19 +34,43 @@ bool Take(int fd, int operation) {
   }
   return true;
 }
+
+// The gate: an open-file-description lock on the lock file's first byte
+// (independent of the flock on the whole file, Linux fcntl(2)). flock grants
+// a shared request while an exclusive one waits, so a CPU device could wait
+// for as long as the GPU workers' shared holds overlap; an exclusive request
+// holds the gate while it waits and while it holds the lock, and a shared
+// request passes the gate before it takes the lock, so it waits behind it.
+bool Gate(int fd, short type) {
+  if (fd < 0) return false;
+  struct flock range {};
+  range.l_type = type;
+  range.l_whence = SEEK_SET;
+  range.l_start = 0;
+  range.l_len = 1;
+  while (::fcntl(fd, F_OFD_SETLKW, &range) != 0) {
+    if (errno != EINTR) return false;
+  }
+  return true;
+}
 }  // namespace
 
 void UseHostLock(const std::string& path) { Use(lock_fd, path, "host lock"); }
 void UseChipLock(const std::string& path) { Use(chip_fd, path, "chip lock"); }
 
 HostLock::HostLock(Mode mode) {
-  if (mode != Mode::kNone) held_ = Take(lock_fd, mode == Mode::kShared ? LOCK_SH : LOCK_EX);
+  if (mode == Mode::kNone) return;
+  const bool exclusive = mode == Mode::kExclusive;
+  const bool gated = Gate(lock_fd, exclusive ? F_WRLCK : F_RDLCK);
+  held_ = Take(lock_fd, exclusive ? LOCK_EX : LOCK_SH);
+  if (gated && !exclusive) (void)Gate(lock_fd, F_UNLCK);
+  gate_held_ = gated && exclusive;
 }
 
 void HostLock::Release() {
-  if (!held_) return;
-  ::flock(lock_fd, LOCK_UN);
-  held_ = false;
+  if (held_) ::flock(lock_fd, LOCK_UN);
+  if (gate_held_) (void)Gate(lock_fd, F_UNLCK);
+  held_ = gate_held_ = false;
 }
 
 ChipLock::ChipLock() : held_(Take(chip_fd, LOCK_EX)) {}

@@ -6,12 +6,18 @@
 // while a CPU device is timing. A GPU's own bursts are timed by the device
 // and take no lock. On the H100 machine the CPU devices' winners were 15-50%
 // slower tuned beside the GPU than alone; with the lock PoCL's are within 6%
-// (median), the cpu device's still 26% slower (its kernels spread over every
-// core, so a host thread the GPU's driver keeps busy, even while it waits on
-// the device, delays them). Locking the GPUs' whole measurements, bursts
-// included, made a default run take more than 160 s instead of 101 s
-// (docs/PERFORMANCE.md "The cost of a tuning run"): `--one-device-at-a-time` gives the
-// cpu device's figures undisturbed.
+// (median), the cpu device's still 10-26% slower (its kernels spread over
+// every core, so a host thread the GPU's driver keeps busy, even while it
+// waits on the device, delays them). Locking the GPUs' bursts too cost a
+// default run 5-12 s on the H200 machine and named the same winner in all
+// three cold runs in 37 rows of 42 against 40 without (2026-11-29); locking
+// the GPUs' whole measurements made a run take more than 160 s instead of
+// 101 s on the H100 (docs/PERFORMANCE.md "The cost of a tuning run").
+// `--one-device-at-a-time` gives the cpu device's figures undisturbed.
+//
+// An exclusive request is not starved by shared holds that overlap one
+// another (a GPU's compiles ahead beside another API's host work): it closes
+// a gate that later shared requests wait at (host_lock.cpp).
 //
 // flock(2) on a file the parent makes (HostLockFile) and names to each worker
 // (`tune-worker --host-lock PATH`: UseHostLock); in a process without one,
@@ -37,6 +43,7 @@ class HostLock {
 
  private:
   bool held_ = false;
+  bool gate_held_ = false;  // an exclusive holder's gate (host_lock.cpp Gate)
 };
 
 // The lock's mode for host-side work, and for timed bursts, of a device.

@@ -1,6 +1,7 @@
 // The host lock between the tuner's workers (tuner/host_lock.h): a GPU
-// worker's host work waits while a CPU device's worker is timing, and a
-// process without a lock file never waits.
+// worker's host work waits while a CPU device's worker is timing, a waiting
+// CPU device is not passed by later host work, and a process without a lock
+// file never waits.
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -70,6 +71,40 @@ TEST(HostLock, HostWorkWaitsWhileACpuDeviceTimesInAnotherProcess) {
   { const HostLock gpu_timed(TimedMode(false)), cpu_work(HostWorkMode(true)); }
   EXPECT_LT(MsSince(again), 50.0);
   cpu_device.Join();
+}
+
+// A CPU device that asks for the cores while a GPU's work holds them shared
+// gets them before any shared request made after its own: GPU workers whose
+// holds overlap one another cannot keep it waiting for the whole run.
+TEST(HostLock, ACpuDeviceWaitsOnlyForTheSharedHoldsTakenBeforeItAsked) {
+  const HostLockFile file;
+  ASSERT_FALSE(file.path().empty());
+  Holder gpu_work([&] {  // a GPU worker's host work, held 300 ms
+    UseHostLock(file.path());
+    new HostLock(HostWorkMode(/*cpu_device=*/false));
+  });
+  const Clock::time_point start = Clock::now();
+  const pid_t cpu_device = ::fork();  // asks now, holds it 300 ms once given
+  if (cpu_device == 0) {
+    UseHostLock(file.path());
+    { const HostLock timed(TimedMode(/*cpu_device=*/true)); std::this_thread::sleep_for(std::chrono::milliseconds(300)); }
+    ::_exit(0);
+  }
+  ASSERT_GT(cpu_device, 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // the CPU device is waiting by now
+  UseHostLock(file.path());
+  double got_after = 0;
+  {
+    const HostLock gpu_work_later(HostWorkMode(/*cpu_device=*/false));
+    got_after = MsSince(start);
+  }
+  // The first hold ends at ~300 ms, the CPU device's at ~600 ms; without the
+  // gate this shared request would be granted at once, beside the first.
+  EXPECT_GE(got_after, 500.0) << "a later shared request went ahead of the waiting CPU device";
+  int status = 0;
+  ASSERT_EQ(::waitpid(cpu_device, &status, 0), cpu_device);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  gpu_work.Join();
 }
 
 // The chip lock: while one API's worker holds the chip (a measurement on
