@@ -187,14 +187,17 @@ std::size_t FastestCandidate(std::size_t candidates, const std::function<double(
                              int samples) {
   if (candidates == 0) throw Error("cpu schedule: no candidates");
   samples = std::max(samples, 1);
+  for (std::size_t i = 0; i < candidates; ++i) frame_ms(i);  // untimed: first touch, the pool's start
+  // Rounds of one call per candidate: a drift of the host's load falls on
+  // every candidate alike rather than on those timed during it.
+  std::vector<std::vector<double>> t(candidates);
+  for (int k = 0; k < samples; ++k)
+    for (std::size_t i = 0; i < candidates; ++i) t[i].push_back(frame_ms(i));
   std::size_t best = 0;
   double best_ms = 0.0;
   for (std::size_t i = 0; i < candidates; ++i) {
-    frame_ms(i);  // untimed: first touch, the pool's start
-    std::vector<double> t;
-    for (int k = 0; k < samples; ++k) t.push_back(frame_ms(i));
-    std::nth_element(t.begin(), t.begin() + t.size() / 2, t.end());
-    const double median = t[t.size() / 2];
+    std::nth_element(t[i].begin(), t[i].begin() + t[i].size() / 2, t[i].end());
+    const double median = t[i][t[i].size() / 2];
     if (i == 0 || median < best_ms) {
       best = i;
       best_ms = median;

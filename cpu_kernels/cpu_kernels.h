@@ -124,9 +124,9 @@ std::string Describe(const CpuSchedule& schedule);
 // and at least one).
 std::vector<CpuSchedule> CpuScheduleCandidates(std::size_t vertices, unsigned max_threads = 0);
 // The index of the candidate (0..candidates-1) whose `frame_ms(i)` (the
-// median of `samples` calls after one untimed call) is the smallest: how
-// schedules and streaming stores are chosen on the caller's own frames.
-// Throws Error for no candidates.
+// median of `samples` calls after one untimed call) is the smallest, the
+// calls made in rounds of one per candidate: how schedules and streaming
+// stores are chosen on the caller's own frames. Throws Error for no candidates.
 std::size_t FastestCandidate(std::size_t candidates, const std::function<double(std::size_t)>& frame_ms,
                              int samples = 3);
 

@@ -87,6 +87,33 @@ TEST(CpuRunner, InstancesEachSkinWithTheirOwnPalette) {
   }
 }
 
+// One variant on two meshes in one process (a tuner worker's data sets, a
+// program's meshes) gets a schedule per mesh: chunks chosen for 5k vertices
+// are none of a 100-vertex mesh's candidates, and the 5k mesh keeps its own.
+TEST(CpuRunner, TheScheduleIsChosenPerFrameShapeNotOncePerVariant) {
+  CpuRunner runner;
+  const Variant variant = ParseVariantKey("cpu.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg0");
+  const auto time = [&](const SkinnedAsset& asset) {
+    const PackedMesh packed = Pack(asset.mesh, variant);
+    const std::vector<KernelSource> kernels = {Emit(variant, 0, static_cast<int>(packed.palette_joints))};
+    const std::vector<std::vector<std::uint8_t>> sets = {PackPalette(Palette(asset), variant)};
+    const Prepared prepared = runner.Prepare(packed, kernels, sets);
+    EXPECT_EQ(runner.Time(prepared, 1, 3, 1).size(), 3u);
+    const std::optional<CpuChoice> choice = runner.ScheduleOf(variant.Key());
+    EXPECT_TRUE(choice.has_value());
+    return choice.value_or(CpuChoice{});
+  };
+  const SkinnedAsset& large = Asset("b4");  // 5000 vertices and a tail
+  const SkinnedAsset tiny = GenerateDataset(ParseDatasetKey("100-b4-seed" + std::to_string(Seed())));
+  const CpuChoice for_large = time(large);
+  EXPECT_GE(for_large.schedule.chunk, 256u) << Describe(for_large);
+  const CpuChoice for_tiny = time(tiny);
+  EXPECT_LE(for_tiny.schedule.chunk, 128u) << "the 5k mesh's schedule was reused: " << Describe(for_tiny);
+  const CpuChoice again = time(large);
+  EXPECT_EQ(again.schedule.chunk, for_large.schedule.chunk);
+  EXPECT_EQ(again.schedule.threads, for_large.schedule.threads);
+}
+
 TEST(CpuRunner, TimingChoosesThreadsChunksAndStoresPerVariantAndTimesTheCopy) {
   const SkinnedAsset& asset = Asset("b4");
   const Variant variant = ParseVariantKey("cpu.b4.padded.soa-split.float3.u8.unorm16.mat4.global.matrix.v1c.wg0");

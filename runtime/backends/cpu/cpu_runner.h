@@ -12,9 +12,11 @@
 // - Launches run on a thread pool in chunks; instanced launches loop over
 //   the instances.
 // - Schedule: threads, chunk size and streaming stores are chosen per
-//   variant by measurement on the first timed (or live) frames: every
-//   candidate (CpuScheduleCandidates x streaming on/off) runs the variant's
-//   own frame, the fastest median wins (ScheduleOf says which). The copy
+//   variant and frame shape (each launch's vertices and instances) by
+//   measurement on the first timed (or live) frames: every candidate
+//   (CpuScheduleCandidates x streaming on/off) runs the variant's own frame,
+//   timed as the use times it (cold for the kernel time), in rounds; the
+//   fastest median wins (ScheduleOf says which). The copy
 //   runs on every thread, one chunk per thread.
 // - Times: the host's steady clock around each launch (verify, and the
 //   kernel time: each frame's buffers first evicted from every cache with
@@ -43,7 +45,7 @@ class CpuRunner final : public Runner {
  public:
   // `threads`: the most threads a schedule may use (0: every logical CPU).
   explicit CpuRunner(unsigned threads = 0);
-  // The choice made for the variant `key` by its first timed or live frames, if any.
+  // The choice made for the variant `key` on the frame shape it ran last, if any.
   std::optional<CpuChoice> ScheduleOf(const std::string& key) const;
 };
 
