@@ -29,7 +29,7 @@ std::string Cell(const std::string& text) {
   return out;
 }
 
-std::string Cut(const std::string& text, std::size_t limit) {
+std::string Shortened(const std::string& text, std::size_t limit) {
   return text.size() <= limit ? text : text.substr(0, limit) + "\xE2\x80\xA6";
 }
 
@@ -84,7 +84,7 @@ std::string Grids(const PaperSummary& s, PaperApi other, const std::vector<Table
   return out;
 }
 
-std::string Bytes(std::uint64_t bytes) {
+std::string GiBText(std::uint64_t bytes) {
   if (bytes == 0) return "unknown";
   return FormatSignificant(static_cast<double>(bytes) / (1024.0 * 1024.0 * 1024.0)) + " GiB";
 }
@@ -114,7 +114,7 @@ std::string Figure1Markdown(const PaperSummary& s) {
         paper = "not on record";
       }
       out += "| " + Cell(device) + " | " + Cell(row.label) + " | " +
-             (row.median_ms ? FormatMs(*row.median_ms) : Cell(Cut(row.note, 60))) + " | " +
+             (row.median_ms ? FormatMs(*row.median_ms) : Cell(Shortened(row.note, 60))) + " | " +
              (row.speedup ? FormatSpeedup(*row.speedup) : std::string(kDash)) + " | " + paper + " |\n";
     }
     for (const auto& [series, figure] : f.unmatched) {
@@ -160,7 +160,7 @@ std::string RenderMarkdown(const PaperSummary& s) {
         if (!paper.empty()) paper += "; ";
         paper += o.label + ": " +
                  (o.Ok() ? FormatMs(o.median_ms) : !o.measured ? std::string("not measured")
-                                                               : Cut(std::string(Name(o.status)) + (o.detail.empty() ? "" : " (" + o.detail + ")"), 60));
+                                                               : Shortened(std::string(Name(o.status)) + (o.detail.empty() ? "" : " (" + o.detail + ")"), 60));
       }
       if (k.tuned.Ok()) {
         out += "| " + Cell(k.dataset) + " | " + Cell(k.tuned.label) + " `" + Cell(k.tuned.variant.Key()) + "` | " +
@@ -186,7 +186,7 @@ std::string RenderMarkdown(const PaperSummary& s) {
     const DeviceIdentity& i = d.identity;
     out += "| " + Cell(i.backend) + " | " + Cell(i.platform) + " | " + Cell(i.name) + " | " + Cell(i.vendor) + " | " +
            Cell(i.driver_version) + " | " + Cell(i.api_version) + " | " + Cell(i.type) + " | " +
-           std::to_string(i.compute_units) + " | " + Bytes(i.global_memory_bytes) + " | " +
+           std::to_string(i.compute_units) + " | " + GiBText(i.global_memory_bytes) + " | " +
            (i.last_level_cache_bytes ? FormatSignificant(static_cast<double>(i.last_level_cache_bytes) / 1048576.0) + " MiB" +
                                            (i.last_level_cache_source.empty() ? "" : " (" + Cell(i.last_level_cache_source) + ")")
                                      : std::string("unknown")) +

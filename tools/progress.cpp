@@ -13,10 +13,6 @@ namespace skintune::internal::tools {
 
 namespace {
 
-bool EndsWith(const std::string& text, const std::string& suffix) {
-  return text.size() >= suffix.size() && text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
 std::string Duration(double seconds) {
   const long s = static_cast<long>(seconds + 0.5);
   char text[32];
@@ -36,7 +32,7 @@ Progress::Progress(bool terminal, std::string command)
     : terminal_(terminal), command_(std::move(command)), start_(Clock::now()) {}
 
 void Progress::Update(std::size_t done, std::size_t total, const std::string& what) {
-  const bool cached = EndsWith(what, "(cached)");
+  const bool cached = what.ends_with("(cached)");
   if (done > last_done_ && !cached) {
     if (measured_ == 0) first_measured_ = last_time_;
     ++measured_;

@@ -26,10 +26,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-bool EndsWith(const std::string& text, const std::string& suffix) {
-  return text.size() >= suffix.size() && text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
 // The output files of a job, in writing order (report.html only when asked).
 std::vector<std::string> OutputNames(bool html) {
   std::vector<std::string> names = {"report.json", "report.t4.json", "winners-db.json"};
@@ -49,7 +45,7 @@ std::string ContentsOf(const std::string& name, const TuningReport& report) {
 
 TuneConfig LoadTuneConfig(const std::string& config) {
   const std::string name = config.empty() ? "default" : config;
-  if (name.find('/') == std::string::npos && !EndsWith(name, ".json")) {
+  if (name.find('/') == std::string::npos && !name.ends_with(".json")) {
     std::string text;
     try {
       text = EmbeddedConfig(name);

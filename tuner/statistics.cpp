@@ -26,7 +26,7 @@ std::size_t LowerRank(std::size_t n) {
   return j;
 }
 
-std::string Number(double v) {
+std::string NumberText(double v) {
   std::ostringstream out;
   out << v;
   return out.str();
@@ -38,7 +38,7 @@ Interval MedianInterval(std::vector<double> samples) {
   if (samples.empty()) throw Error("MedianInterval: no samples");
   if (samples.size() > 100000) throw Error("MedianInterval: more than 100000 samples");
   for (const double s : samples)
-    if (!(s > 0.0) || !std::isfinite(s)) throw Error("MedianInterval: a sample of " + Number(s) + " ms");
+    if (!(s > 0.0) || !std::isfinite(s)) throw Error("MedianInterval: a sample of " + NumberText(s) + " ms");
   std::sort(samples.begin(), samples.end());
   const std::size_t n = samples.size();
   Interval interval;
@@ -57,7 +57,7 @@ Interval MedianInterval(std::vector<double> samples) {
 std::string BadStopRule(const StopRule& rule, const std::string& prefix) {
   const auto field = [&](const char* name) { return "'" + prefix + name + "' "; };
   if (!(rule.interval > 0.0) || !(rule.interval <= 0.5))
-    return field("interval") + "is " + Number(rule.interval) +
+    return field("interval") + "is " + NumberText(rule.interval) +
            ": the interval's half-width, relative to the median, must be in (0, 0.5] (0.01: 1%)";
   if (rule.batch < 1) return field("sample_batch") + "is 0: at least one sample per submission";
   if (rule.min_samples < 1) return field("min_samples") + "is 0: at least one sample";
@@ -69,7 +69,7 @@ std::string BadStopRule(const StopRule& rule, const std::string& prefix) {
            std::to_string(rule.min_samples) + ")";
   if (rule.max_samples > 100000) return field("max_samples") + "is " + std::to_string(rule.max_samples) + ": at most 100000";
   if (!(rule.max_ms > 0.0) || !std::isfinite(rule.max_ms) || rule.max_ms > 3.6e6)
-    return field("sample_ms") + "is " + Number(rule.max_ms) + ": a positive number of ms, at most an hour";
+    return field("sample_ms") + "is " + NumberText(rule.max_ms) + ": a positive number of ms, at most an hour";
   return "";
 }
 
