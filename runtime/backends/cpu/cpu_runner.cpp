@@ -344,11 +344,9 @@ std::string ChoiceKey(const FrameRun& run) {
 
 // The schedule is chosen on the variant's own frame, timed as the use will
 // time it: for the kernel time (kCold) each candidate's frame from its own
-// buffers evicted and its pool awake, as the cold samples run; otherwise
-// back to back. Timed warm, a 5k-vertex crowd of 8 instances on the H200
-// machine's 16-core host ran about as fast on 1 thread as on 16 (its data in
-// cache), so processes chose either, and its cold kernel time was 476 or 81
-// us from process to process (2026-11-29).
+// buffers evicted and its pool awake, as the cold samples run, so that what
+// ranks the candidates is the figure that ranks variants; otherwise back to
+// back.
 const CpuChoice& CpuApi::ChoiceFor(const FrameRun& run) {
   const std::string key = ChoiceKey(run);
   if (const auto found = choices_.find(key); found != choices_.end()) return latest_[run.key] = found->second;
