@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
 
 #include "base/error.h"
 
@@ -16,6 +17,11 @@ namespace skintune::internal::tuner_internal {
 
 namespace {
 int lock_fd = -1;  // the worker's host lock file, or -1 (no lock)
+// The process's shared holds of lock_fd: its threads (a GPU worker's
+// compile threads, one hold per kernel) share one flock, taken by the first
+// and released by the last; each passes the gate on its own.
+std::mutex shared_mutex;
+int shared_holds = 0;
 int chip_fd = -1;  // the worker's chip lock file, or -1 (no lock)
 
 void Use(int& fd_of, const std::string& path, const char* what) {
@@ -59,18 +65,29 @@ void UseHostLock(const std::string& path) { Use(lock_fd, path, "host lock"); }
 void UseChipLock(const std::string& path) { Use(chip_fd, path, "chip lock"); }
 
 HostLock::HostLock(Mode mode) {
-  if (mode == Mode::kNone) return;
-  const bool exclusive = mode == Mode::kExclusive;
-  const bool gated = Gate(lock_fd, exclusive ? F_WRLCK : F_RDLCK);
-  held_ = Take(lock_fd, exclusive ? LOCK_EX : LOCK_SH);
-  if (gated && !exclusive) (void)Gate(lock_fd, F_UNLCK);
-  gate_held_ = gated && exclusive;
+  if (mode == Mode::kNone || lock_fd < 0) return;
+  if (mode == Mode::kExclusive) {
+    gate_held_ = Gate(lock_fd, F_WRLCK);
+    held_ = Take(lock_fd, LOCK_EX);
+    return;
+  }
+  const bool gated = Gate(lock_fd, F_RDLCK);
+  {
+    const std::lock_guard<std::mutex> lock(shared_mutex);
+    shared_ = shared_holds > 0 || Take(lock_fd, LOCK_SH);
+    if (shared_) ++shared_holds;
+  }
+  if (gated) (void)Gate(lock_fd, F_UNLCK);
 }
 
 void HostLock::Release() {
+  if (shared_) {
+    const std::lock_guard<std::mutex> lock(shared_mutex);
+    if (--shared_holds == 0) ::flock(lock_fd, LOCK_UN);
+  }
   if (held_) ::flock(lock_fd, LOCK_UN);
   if (gate_held_) (void)Gate(lock_fd, F_UNLCK);
-  held_ = gate_held_ = false;
+  held_ = gate_held_ = shared_ = false;
 }
 
 ChipLock::ChipLock() : held_(Take(chip_fd, LOCK_EX)) {}

@@ -17,7 +17,10 @@
 //
 // An exclusive request is not starved by shared holds that overlap one
 // another (a GPU's compiles ahead beside another API's host work): it closes
-// a gate that later shared requests wait at (host_lock.cpp).
+// a gate that later shared requests wait at (host_lock.cpp). Shared holds
+// may be taken by several threads of one process at once (a GPU worker's
+// compile threads hold it per kernel), so that one waits for the work under
+// way, not for a batch.
 //
 // flock(2) on a file the parent makes (HostLockFile) and names to each worker
 // (`tune-worker --host-lock PATH`: UseHostLock); in a process without one,
@@ -42,8 +45,9 @@ class HostLock {
   void Release();  // early, e.g. before a GPU's timed bursts
 
  private:
-  bool held_ = false;
-  bool gate_held_ = false;  // an exclusive holder's gate (host_lock.cpp Gate)
+  bool held_ = false;        // an exclusive hold
+  bool gate_held_ = false;   // an exclusive holder's gate (host_lock.cpp Gate)
+  bool shared_ = false;      // one of the process's shared holds (host_lock.cpp)
 };
 
 // The lock's mode for host-side work, and for timed bursts, of a device.

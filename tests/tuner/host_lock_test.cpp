@@ -107,6 +107,48 @@ TEST(HostLock, ACpuDeviceWaitsOnlyForTheSharedHoldsTakenBeforeItAsked) {
   gpu_work.Join();
 }
 
+// One worker's threads hold the host lock shared each for its own work (a
+// GPU worker's compile threads, a hold per kernel): one thread's release
+// leaves the others' holds in place, a CPU device asking meanwhile gets the
+// lock when the last of them ends, and a thread asking after it waits for it.
+TEST(HostLock, AWorkersThreadsEachHoldItSharedUntilTheLastOfThemEnds) {
+  const HostLockFile file;
+  ASSERT_FALSE(file.path().empty());
+  UseHostLock(file.path());
+  const Clock::time_point start = Clock::now();
+  const auto hold = [](int from_ms, int to_ms, const Clock::time_point t0) {
+    std::this_thread::sleep_until(t0 + std::chrono::milliseconds(from_ms));
+    const HostLock held(HostWorkMode(/*cpu_device=*/false));
+    std::this_thread::sleep_until(t0 + std::chrono::milliseconds(to_ms));
+  };
+  std::thread long_build(hold, 0, 400, start);   // a kernel building until ~400 ms
+  std::thread short_build(hold, 20, 100, start);  // one that ends at ~100 ms
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const pid_t cpu_device = ::fork();  // asks at ~50 ms, holds it 300 ms once given
+  if (cpu_device == 0) {
+    UseHostLock(file.path());
+    const HostLock timed(TimedMode(/*cpu_device=*/true));
+    const bool waited_for_the_long_build = MsSince(start) >= 350.0;
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    ::_exit(waited_for_the_long_build ? 0 : 1);
+  }
+  ASSERT_GT(cpu_device, 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // ~150 ms: the short build has ended
+  double got_after = 0;
+  {
+    const HostLock later_build(HostWorkMode(/*cpu_device=*/false));
+    got_after = MsSince(start);
+  }
+  long_build.join();
+  short_build.join();
+  int status = 0;
+  ASSERT_EQ(::waitpid(cpu_device, &status, 0), cpu_device);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << "the CPU device got the lock while a thread of the worker still held it shared";
+  // The long build ends at ~400 ms, the CPU device's hold at ~700 ms.
+  EXPECT_GE(got_after, 650.0) << "a thread asking after the CPU device went ahead of it";
+}
+
 // The chip lock: while one API's worker holds the chip (a measurement on
 // it), another API's worker of the same chip waits for it; a process
 // without a chip lock file never waits.
