@@ -67,15 +67,6 @@ Schedule ScheduleDevices(const std::vector<DeviceIdentity>& devices, bool parall
   for (const auto& g : schedule.groups)
     schedule.shares_chip.push_back(parallel && !schedule.shares_host && g.size() > 1 &&
                                    std::none_of(g.begin(), g.end(), is_cpu));
-  const auto turn = [&](std::size_t i) {
-    const auto at = std::find(std::begin(kChipTurnOrder), std::end(kChipTurnOrder), devices[i].backend);
-    return static_cast<std::size_t>(at - std::begin(kChipTurnOrder));
-  };
-  for (std::size_t g = 0; g < schedule.groups.size(); ++g) {
-    std::vector<std::size_t>& group = schedule.groups[g];
-    if (!parallel || schedule.shares_chip[g] || std::any_of(group.begin(), group.end(), is_cpu)) continue;
-    std::stable_sort(group.begin(), group.end(), [&](std::size_t a, std::size_t b) { return turn(a) < turn(b); });
-  }
   return schedule;
 }
 

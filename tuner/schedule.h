@@ -18,7 +18,6 @@
 #include <atomic>
 #include <cstddef>
 #include <functional>
-#include <string_view>
 #include <vector>
 
 #include "runtime/device_identity.h"
@@ -64,23 +63,14 @@ struct Schedule {
   bool shares_host = false;
 };
 
-// The order in which one GPU's APIs take their turns on the chip, when they
-// are tuned one after another: the API whose driver compiles slowest last,
-// so that the helper beside the group (RunSchedule's `ahead`, tune.cpp) has
-// compiled its kernels into the program cache by its turn; the first API,
-// which no helper can prepare, is the one that compiles fastest on its own.
-// Kernels a second compiled on the H200 machine (2026-11-29, three cold
-// default runs): Vulkan 288 in 2.8-3.4 s on 8 threads, GL 384 in 7.2-7.9 s,
-// CUDA 288 in 8.1-8.5 s, NVIDIA's OpenCL 78-104 ms each, one at a time
-// whatever the threads (~25 s for 288). With OpenCL first in discovery order
-// it compiled all of them in its own turn: 27 of the GPU's 77 s.
-inline constexpr std::string_view kChipTurnOrder[] = {"vulkan", "cuda", "gl", "opencl"};
-
 // The devices' IndependentGroups, a group of GPUs sharing its chip; with
 // `parallel` false, one group of every device in order (one device after
-// another, sharing nothing). A group of GPUs taken one after another is
-// ordered by kChipTurnOrder (an API not listed goes last, discovery order
-// breaking ties); a group with a CPU device keeps discovery order.
+// another, sharing nothing). A chip's APIs keep discovery order (NVIDIA's
+// OpenCL first): taking it last, so that its slow compiles (78-104 ms a
+// kernel, one at a time) ran beside the other APIs' turns, made those turns
+// twice as long (CUDA 23 s instead of 10-11, Vulkan 35-50 s instead of 22)
+// and the run no shorter (97-112 s, H200 machine, 2026-11-29): loading
+// NVIDIA OpenCL programs on the chip disturbs whatever is timed on it.
 Schedule ScheduleDevices(const std::vector<DeviceIdentity>& devices, bool parallel);
 
 // Runs tune(i) for every device i of `schedule`: each group on a thread of

@@ -88,28 +88,6 @@ TEST(Schedule, OneGpusApisShareItsChipWhenNoCpuDeviceIsTunedBeside) {
   EXPECT_EQ(beside.shares_chip, (std::vector<bool>{false, false, false}));
 }
 
-// One GPU's APIs taken one after another (a CPU device beside them) go in
-// kChipTurnOrder: the slowest compiler, NVIDIA's OpenCL, last, so that its
-// kernels are compiled beside the earlier turns. An API the list does not
-// name goes after those it names; CPU groups and a run asked for one device
-// after another keep discovery order.
-TEST(Schedule, OneGpusApisTakeTheirTurnsWithTheSlowestCompilerLast) {
-  // The H200 machine in discovery order: PoCL, NVIDIA's OpenCL, CUDA, GL, Vulkan, the cpu device.
-  const std::vector<DeviceIdentity> devices = {Device("opencl", "cpu"),        Device("opencl", "gpu", "", "0000:1a:00.0"),
-                                               Device("cuda", "gpu", "ab", "0000:1a:00.0"), Device("gl", "gpu", "ab"),
-                                               Device("vulkan", "gpu", "ab"), Device("cpu", "cpu")};
-  const Schedule schedule = ScheduleDevices(devices, true);
-  EXPECT_EQ(schedule.groups, (Groups{{0, 5}, {4, 2, 3, 1}}));
-  EXPECT_EQ(schedule.shares_chip, (std::vector<bool>{false, false}));
-  EXPECT_EQ(ScheduleDevices(devices, false).groups, (Groups{{0, 1, 2, 3, 4, 5}}));
-  // Not listed: after the listed ones, in discovery order.
-  EXPECT_EQ(ScheduleDevices({Device("metal", "gpu", "ab"), Device("opencl", "gpu", "ab"), Device("webgpu", "gpu", "ab"),
-                             Device("cuda", "gpu", "ab"), Device("opencl", "cpu")},
-                            true)
-                .groups,
-            (Groups{{3, 1, 0, 2}, {4}}));
-}
-
 // A group that shares a chip runs its devices at the same time (each on a
 // thread of its own, none waiting for another to end), nothing beside it
 // preparing later devices, and its first error is rethrown at the end.
