@@ -42,7 +42,7 @@ ChildExit RunSkinAndExit(const std::string& backend) {
   const std::string err_path = logs.path + "/err";
   const pid_t pid = ::fork();
   if (pid == 0) {
-    const std::string exe = std::string(SKINTUNE_BINARY_DIR) + "/bin/skin_and_exit";
+    const std::string exe = SKINTUNE_BINARY_DIR "/bin/skin_and_exit";
     ::setenv("POCL_CACHE_DIR", pocl_cache.path.c_str(), 1);
     if (!std::freopen(err_path.c_str(), "w", stderr)) std::_Exit(127);
     ::execl(exe.c_str(), exe.c_str(), backend.c_str(), program_cache.path.c_str(), static_cast<char*>(nullptr));
