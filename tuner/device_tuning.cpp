@@ -199,6 +199,16 @@ class DeviceTuning {
       Advance(0, name_ + ": copy bandwidth not measured: " + why_not);
   }
 
+  // `m` made invalid if its kernel time is impossible against the device's
+  // copy bandwidth, measured again first (RejectOverCeilingMeasuringAgain).
+  void RejectOverTheCeiling(Measurement& m) {
+    if (!result_.copy_gbps) return;
+    RejectOverCeilingMeasuringAgain(m, *result_.copy_gbps, copy_remeasures_left_, [this] {
+      const LoggedSpan span(name_, "copy bandwidth measured again");
+      return worker_.CopyBandwidthGBps(CopyBytes(device_));
+    });
+  }
+
   // One task: the baselines, the search, then the race that settles it.
   void RunTask(const Task& task) {
     task_ = &task;
@@ -245,7 +255,7 @@ class DeviceTuning {
     Measurement m = found ? *found : worker_.Measure(v, TuningDataset{key_}, timing_);
     ApplyBudget(m, config_.max_error);  // this run's budget, whatever the record's was
     if (!found) {
-      if (result_.copy_gbps) RejectOverCeiling(m, *result_.copy_gbps);
+      RejectOverTheCeiling(m);
       ledger_.Append(m);
     }
     if (seen_.insert(cache_key).second) {
@@ -294,6 +304,7 @@ class DeviceTuning {
   TimingOptions timing_ = config_.timing;
   const std::string id_, name_;
   std::size_t task_start_ = 0;  // evaluations planned before the current task
+  int copy_remeasures_left_ = kCopyRemeasures;  // RejectOverTheCeiling
   // The current task.
   const Task* task_ = nullptr;
   std::string key_;             // its dataset

@@ -244,4 +244,13 @@ bool RejectOverCeiling(Measurement& m, double copy_gbps) {
   return true;
 }
 
+bool RejectOverCeilingMeasuringAgain(Measurement& m, double& copy_gbps, int& remeasures_left,
+                                     const std::function<std::optional<double>()>& measure_copy) {
+  while (IsTimed(m.status) && m.gbps > kCeiling * copy_gbps && remeasures_left > 0) {
+    --remeasures_left;
+    if (const std::optional<double> gbps = measure_copy()) copy_gbps = std::max(copy_gbps, *gbps);
+  }
+  return RejectOverCeiling(m, copy_gbps);
+}
+
 }  // namespace skintune::internal

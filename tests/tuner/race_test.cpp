@@ -312,5 +312,50 @@ TEST(SettleSearch, NothingVerifiedIsNoRaceSayingSo) {
   EXPECT_EQ(run.races(), 0);
 }
 
+
+// The physical ceiling against the highest copy bandwidth measured: a copy
+// measured low (the host loaded at the device's start) is measured again
+// before a figure above it is rejected, at most kCopyRemeasures times a
+// device; a figure above every copy measured is still rejected, and a figure
+// within the ceiling costs no copy.
+TEST(Ceiling, AFigureOverALowCopyIsJudgedAgainstTheCopyMeasuredAgain) {
+  const auto at_gbps = [](double gbps) {
+    Measurement m;
+    m.status = MeasureStatus::kOk;
+    m.bytes_per_frame = 1e6;
+    m.timing.median_ms = m.bytes_per_frame / (gbps * 1e6);
+    m.gbps = gbps;
+    return m;
+  };
+  std::vector<double> copies = {12.0, 40.0};  // measured again: still low, then as fast as it is
+  int copies_measured = 0;
+  const auto measure_copy = [&]() -> std::optional<double> {
+    return copies_measured < static_cast<int>(copies.size()) ? std::optional<double>(copies[copies_measured++])
+                                                             : std::nullopt;
+  };
+  double copy_gbps = 16.0;  // at the device's start, under load
+  int left = kCopyRemeasures;
+  Measurement fast = at_gbps(36.0);
+  EXPECT_FALSE(RejectOverCeilingMeasuringAgain(fast, copy_gbps, left, measure_copy));
+  EXPECT_EQ(fast.status, MeasureStatus::kOk);
+  EXPECT_EQ(copy_gbps, 40.0);
+  EXPECT_EQ(copies_measured, 2);
+  EXPECT_EQ(left, kCopyRemeasures - 2);
+  Measurement within = at_gbps(41.0);  // within 1.05x: no copy measured
+  EXPECT_FALSE(RejectOverCeilingMeasuringAgain(within, copy_gbps, left, measure_copy));
+  EXPECT_EQ(left, kCopyRemeasures - 2);
+  // Impossible against every copy: measured again until the allowance ends, then rejected.
+  copies = {30.0, 41.0, 39.0};
+  copies_measured = 0;
+  Measurement impossible = at_gbps(90.0);
+  EXPECT_TRUE(RejectOverCeilingMeasuringAgain(impossible, copy_gbps, left, measure_copy));
+  EXPECT_EQ(impossible.status, MeasureStatus::kInvalid);
+  EXPECT_NE(impossible.detail.find("41 GB/s"), std::string::npos) << impossible.detail;
+  EXPECT_EQ(left, 0);
+  Measurement later = at_gbps(60.0);  // the allowance spent: judged against the highest copy, none measured
+  EXPECT_TRUE(RejectOverCeilingMeasuringAgain(later, copy_gbps, left, measure_copy));
+  EXPECT_EQ(copies_measured, 2);
+}
+
 }  // namespace
 }  // namespace skintune::internal
