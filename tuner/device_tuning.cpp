@@ -203,7 +203,8 @@ class DeviceTuning {
   // copy bandwidth, measured again first (RejectOverCeilingMeasuringAgain).
   void RejectOverTheCeiling(Measurement& m) {
     if (!result_.copy_gbps) return;
-    RejectOverCeilingMeasuringAgain(m, *result_.copy_gbps, copy_remeasures_left_, [this] {
+    const double copy_traffic = IsHostCpu(device_) ? kHostCopyTraffic : 1.0;
+    RejectOverCeilingMeasuringAgain(m, *result_.copy_gbps, copy_traffic, copy_remeasures_left_, [this] {
       const LoggedSpan span(name_, "copy bandwidth measured again");
       return worker_.CopyBandwidthGBps(CopyBytes(device_));
     });

@@ -232,25 +232,27 @@ Interval LegsInterval(const std::vector<std::vector<double>>& legs) {
   return out;
 }
 
-bool RejectOverCeiling(Measurement& m, double copy_gbps) {
-  if (!IsTimed(m.status) || !(copy_gbps > 0.0) || !(m.gbps > kCeiling * copy_gbps)) return false;
-  char detail[320];
+bool RejectOverCeiling(Measurement& m, double copy_gbps, double copy_traffic) {
+  const double most = kCeiling * copy_traffic;
+  if (!IsTimed(m.status) || !(copy_gbps > 0.0) || !(m.gbps > most * copy_gbps)) return false;
+  char detail[400];
   std::snprintf(detail, sizeof detail,
                 "impossible kernel time: %.4g ms for %.0f bytes is %.0f GB/s, %.2fx the device's copy bandwidth "
-                "(%.0f GB/s; at most %.2fx is possible)",
-                m.timing.median_ms, m.bytes_per_frame, m.gbps, m.gbps / copy_gbps, copy_gbps, kCeiling);
+                "(%.0f GB/s; at most %.2fx is possible%s)",
+                m.timing.median_ms, m.bytes_per_frame, m.gbps, m.gbps / copy_gbps, copy_gbps, most,
+                copy_traffic > 1.0 ? ", its copy's stores reading their lines first" : "");
   m.status = MeasureStatus::kInvalid;
   m.detail = detail;
   return true;
 }
 
-bool RejectOverCeilingMeasuringAgain(Measurement& m, double& copy_gbps, int& remeasures_left,
+bool RejectOverCeilingMeasuringAgain(Measurement& m, double& copy_gbps, double copy_traffic, int& remeasures_left,
                                      const std::function<std::optional<double>()>& measure_copy) {
-  while (IsTimed(m.status) && m.gbps > kCeiling * copy_gbps && remeasures_left > 0) {
+  while (IsTimed(m.status) && m.gbps > kCeiling * copy_traffic * copy_gbps && remeasures_left > 0) {
     --remeasures_left;
     if (const std::optional<double> gbps = measure_copy()) copy_gbps = std::max(copy_gbps, *gbps);
   }
-  return RejectOverCeiling(m, copy_gbps);
+  return RejectOverCeiling(m, copy_gbps, copy_traffic);
 }
 
 }  // namespace skintune::internal
