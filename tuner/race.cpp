@@ -232,9 +232,16 @@ Interval LegsInterval(const std::vector<std::vector<double>>& legs) {
   return out;
 }
 
+namespace {
+// Whether `m`'s figure is over the ceiling (RejectOverCeiling).
+bool OverCeiling(const Measurement& m, double copy_gbps, double copy_traffic) {
+  return IsTimed(m.status) && copy_gbps > 0.0 && m.gbps > kCeiling * copy_traffic * copy_gbps;
+}
+}  // namespace
+
 bool RejectOverCeiling(Measurement& m, double copy_gbps, double copy_traffic) {
+  if (!OverCeiling(m, copy_gbps, copy_traffic)) return false;
   const double most = kCeiling * copy_traffic;
-  if (!IsTimed(m.status) || !(copy_gbps > 0.0) || !(m.gbps > most * copy_gbps)) return false;
   char detail[400];
   std::snprintf(detail, sizeof detail,
                 "impossible kernel time: %.4g ms for %.0f bytes is %.0f GB/s, %.2fx the device's copy bandwidth "
@@ -248,7 +255,7 @@ bool RejectOverCeiling(Measurement& m, double copy_gbps, double copy_traffic) {
 
 bool RejectOverCeilingMeasuringAgain(Measurement& m, double& copy_gbps, double copy_traffic, int& remeasures_left,
                                      const std::function<std::optional<double>()>& measure_copy) {
-  while (IsTimed(m.status) && m.gbps > kCeiling * copy_traffic * copy_gbps && remeasures_left > 0) {
+  while (OverCeiling(m, copy_gbps, copy_traffic) && remeasures_left > 0) {
     --remeasures_left;
     if (const std::optional<double> gbps = measure_copy()) copy_gbps = std::max(copy_gbps, *gbps);
   }
