@@ -198,7 +198,7 @@ class RunnerDevice final : public TunedDevice {
     // own, not the whole batch: a CPU device asking to time waits for the
     // builds under way, not for a batch of 48 (3.5 s with NVIDIA's OpenCL,
     // which made PoCL's first data set take 36 s instead of 16 on the H200
-    // machine, and the GPU's other APIs wait behind PoCL, 2026-11-29).
+    // machine, and the GPU's other APIs waited behind PoCL, 2026-11-29).
     const HostLock::Mode host_work = HostWorkMode(IsHostCpu(device_.identity));
     if (CompilesAheadInProcesses(device_.identity)) {
       const HostLock held(host_work);
