@@ -26,6 +26,7 @@ KernelTime SampleKernelTime(Executor::Timed& timed, const TimingOptions& options
     const std::vector<double> batch = timed.Cold(0, static_cast<int>(std::max<std::size_t>(want, 1)));
     if (batch.empty()) throw Error("timing: the device gave no kernel time");
     t.samples.insert(t.samples.end(), batch.begin(), batch.end());
+    t.clock_mhz = timed.ClockMhz();
     for (const double s : batch)
       if (!(s > 0.0) || !std::isfinite(s))
         throw Error("timing: the device gave a kernel time of " + std::to_string(s) + " ms");
@@ -57,11 +58,19 @@ namespace {
 
 class RunnerTimed final : public Executor::Timed {
  public:
-  RunnerTimed(Runner& runner, RunnerExecutor& executor, Prepared prepared, Lang lang)
-      : runner_(runner), executor_(executor), prepared_(std::move(prepared)), lang_(lang) {}
+  RunnerTimed(Runner& runner, RunnerExecutor& executor, Prepared prepared, Lang lang, std::string what)
+      : runner_(runner), executor_(executor), prepared_(std::move(prepared)), lang_(lang), what_(std::move(what)) {}
   std::vector<double> Cold(int untimed, int samples) override {
-    return runner_.TimeCold(prepared_, executor_.Flush(lang_), untimed, samples, nullptr, executor_.BeforeEachSample());
+    const Prepared& flush = executor_.Flush(lang_);
+    const std::function<void()> before = executor_.BeforeEachSample();
+    const auto take = [&] { return runner_.TimeCold(prepared_, flush, untimed, samples, nullptr, before); };
+    if (samples == 0 || !executor_.clock().active()) return take();
+    const auto warm = [&] { (void)runner_.TimeCold(prepared_, flush, kClockWarmFrames, 0, nullptr, before); };
+    ClockGuard::Batch batch = executor_.clock().Take(take, warm, what_);
+    if (batch.mhz > 0) clock_mhz_ = clock_mhz_ == 0 ? batch.mhz : std::min(clock_mhz_, batch.mhz);
+    return std::move(batch.samples);
   }
+  unsigned ClockMhz() const override { return clock_mhz_; }
   double FrameMs(int untimed, int frames) override { return runner_.FrameMs(prepared_, untimed, frames); }
   std::size_t bytes_per_set() const override { return prepared_.bytes_per_set(); }
 
@@ -70,6 +79,8 @@ class RunnerTimed final : public Executor::Timed {
   RunnerExecutor& executor_;
   Prepared prepared_;
   Lang lang_;
+  std::string what_;  // the variant or copy, for the timing log
+  unsigned clock_mhz_ = 0;
 };
 
 }  // namespace
@@ -102,6 +113,27 @@ void HostFlush::operator()() {
 
 bool HostFlushes(const DeviceIdentity& device) { return IsSoftwareRasterizer(device); }
 
+namespace {
+
+// The GPU's clock reader (runtime/device_clock.h), null for a device on the
+// host's CPU or one whose clock is not told; the reason goes to the timing log.
+std::unique_ptr<DeviceClock> ClockOf(const DeviceIdentity& device) {
+  if (IsHostCpu(device)) return nullptr;
+  std::string why;
+  std::unique_ptr<DeviceClock> clock = DeviceClock::Open(device, &why);
+  TimingLog([&] { return device.Id() + (clock ? " SM clock read through NVML" : " SM clock not read: " + why); });
+  return clock;
+}
+
+}  // namespace
+
+RunnerExecutor::RunnerExecutor(Runner& runner, const DeviceIdentity& device)
+    : runner_(runner),
+      flush_bytes_(runner.api().evicts_own_buffers() ? 0 : FlushBytes(device.last_level_cache_bytes, IsHostCpu(device))),
+      clock_(ClockOf(device)) {
+  if (HostFlushes(device)) host_flush_ = std::make_unique<HostFlush>(flush_bytes_);
+}
+
 RunnerExecutor::~RunnerExecutor() = default;
 
 const Prepared& RunnerExecutor::Flush(Lang lang) {
@@ -118,12 +150,13 @@ std::unique_ptr<Executor::Timed> RunnerExecutor::Prepare(const PackedMesh& mesh,
                                                          std::span<const std::vector<std::uint8_t>> palettes,
                                                          int instances) {
   const Lang lang = kernels.empty() ? mesh.variant.lang : kernels.front().lang;
-  return std::make_unique<RunnerTimed>(runner_, *this, runner_.Prepare(mesh, kernels, palettes, instances), lang);
+  return std::make_unique<RunnerTimed>(runner_, *this, runner_.Prepare(mesh, kernels, palettes, instances), lang,
+                                       mesh.variant.Key());
 }
 
 std::unique_ptr<Executor::Timed> RunnerExecutor::Copy(Lang lang, std::size_t bytes, int input_sets) {
   return std::make_unique<RunnerTimed>(runner_, *this, runner_.PrepareCopy(lang, bytes, input_sets),
-                                       LanguageOf(lang).copy_lang);
+                                       LanguageOf(lang).copy_lang, "copy of " + std::to_string(bytes) + " bytes");
 }
 
 const KernelTime& Executor::CopyTime(Lang lang, std::size_t bytes, int input_sets, const TimingOptions& options) {

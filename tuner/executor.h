@@ -17,6 +17,7 @@
 #include "generator/packer.h"
 #include "runtime/device_identity.h"
 #include "runtime/runner.h"
+#include "tuner/clock_guard.h"
 #include "tuner/statistics.h"
 #include "tuner/schedule.h"  // IsHostCpu
 #include "tuner/timing_options.h"
@@ -33,6 +34,7 @@ struct KernelTime {
   std::vector<double> samples;
   Interval interval;
   bool tight = false;  // the interval met the rule (not stopped by a cap)
+  unsigned clock_mhz = 0;  // the lowest SM clock read around the batches kept (0: not read)
 };
 // What a job (tuner/measure_job.h) needs from a device's runner.
 class Executor {
@@ -52,6 +54,9 @@ class Executor {
     // issued back to back as a Skinner issues them; host ms per frame.
     virtual double FrameMs(int untimed, int frames) = 0;
     virtual std::size_t bytes_per_set() const = 0;  // device bytes of one input set
+    // The lowest SM clock read around its batches of samples so far
+    // (tuner/clock_guard.h); 0 where the device's clock is not read.
+    virtual unsigned ClockMhz() const { return 0; }
   };
   virtual ~Executor() = default;
   // One verification run: poisoned outputs and guards (the runners' Run).
@@ -118,11 +123,7 @@ bool HostFlushes(const DeviceIdentity& device);
 class RunnerExecutor final : public Executor {
  public:
   static constexpr std::size_t kAnchorBytes = 4096;
-  RunnerExecutor(Runner& runner, const DeviceIdentity& device)
-      : runner_(runner),
-        flush_bytes_(runner.api().evicts_own_buffers() ? 0 : FlushBytes(device.last_level_cache_bytes, IsHostCpu(device))) {
-    if (HostFlushes(device)) host_flush_ = std::make_unique<HostFlush>(flush_bytes_);
-  }
+  RunnerExecutor(Runner& runner, const DeviceIdentity& device);
   ~RunnerExecutor() override;
   Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t> palette,
              int instances) override;
@@ -137,12 +138,15 @@ class RunnerExecutor final : public Executor {
   const Prepared& Flush(Lang lang);
   // The host's flush before each sample, or none: the device flushes itself.
   std::function<void()> BeforeEachSample();
+  // The GPU's clock around each batch of samples (inactive where it is not read).
+  ClockGuard& clock() { return clock_; }
 
  private:
   Runner& runner_;
   std::size_t flush_bytes_;
   std::unique_ptr<HostFlush> host_flush_;
   std::map<Lang, Prepared> flushes_;
+  ClockGuard clock_;
 };
 
 // Wraps the executor a device measures through in another that adds to what

@@ -118,6 +118,7 @@ std::string ImpossibleCounts(const Timing& t) {
 std::string ImpossibleInterval(const Timing& t) {
   if (const std::string bad = NotFiniteNonNegative("frame_ms", t.frame_ms); !bad.empty()) return bad;
   if (const std::string bad = NotFiniteNonNegative("flush_bytes", t.flush_bytes); !bad.empty()) return bad;
+  if (const std::string bad = NotFiniteNonNegative("sm_clock_mhz", t.sm_clock_mhz); !bad.empty()) return bad;
   if (t.low_ms == 0.0 && t.high_ms == 0.0) return "";
   const bool ordered = t.min_ms <= t.low_ms && t.low_ms <= t.median_ms && t.median_ms <= t.high_ms && t.high_ms <= t.max_ms;
   if (!ordered || !std::isfinite(t.low_ms) || !std::isfinite(t.high_ms))
@@ -227,6 +228,7 @@ void to_json(nlohmann::json& out, const Measurement& m) {
                    {"tight", m.timing.tight},
                    {"clock", m.timing.clock},
                    {"flush_bytes", Number(m.timing.flush_bytes)},
+                   {"sm_clock_mhz", Number(m.timing.sm_clock_mhz)},
                    {"warmup", m.timing.warmup},
                    {"burst_frames", m.timing.burst_frames},
                    {"input_sets", m.timing.input_sets},
@@ -280,6 +282,8 @@ void from_json(const nlohmann::json& in, Measurement& m) {
     if (timing->contains("high_ms")) m.timing.high_ms = ReadNumber(*timing, "high_ms", t);
     if (timing->contains("frame_ms")) m.timing.frame_ms = ReadNumber(*timing, "frame_ms", t);
     if (timing->contains("flush_bytes")) m.timing.flush_bytes = ReadNumber(*timing, "flush_bytes", t);
+    // Timing version 7's clock; absent in older records.
+    if (timing->contains("sm_clock_mhz")) m.timing.sm_clock_mhz = ReadNumber(*timing, "sm_clock_mhz", t);
     if (timing->contains("clock")) m.timing.clock = ReadString(*timing, "clock", false, t);
     if (const nlohmann::json* tight = Field(*timing, "tight", false, t)) {
       if (!tight->is_boolean()) throw Error(t + ": 'tight' must be true or false");

@@ -65,7 +65,13 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 //    chose once per variant: a schedule chosen for 100k vertices ran a
 //    5k-vertex crowd on one thread, 5x slower. The other devices' method is
 //    that of 5.
-inline constexpr int kTimingVersion = 6;
+// 7: on a GPU whose driver tells its SM clock (NVIDIA's, through NVML), each
+//    batch of samples is taken at the clock the GPU runs at under load,
+//    warmed back before it and taken again when the clock fell during it
+//    (tuner/clock_guard.h); the clock is recorded (timing.sm_clock_mhz).
+//    Version 6's GL and Vulkan batches on the H200 ran at 630-1500 MHz
+//    instead of 1980 in parts of a run. Other devices time as in 6.
+inline constexpr int kTimingVersion = 7;
 
 // The largest verification tolerance a config may set (timing.tolerance:
 // the largest relative error against the gold of the quantised mesh): float32
@@ -91,6 +97,7 @@ struct Timing {
   bool tight = false;      // the interval met the stop rule (not stopped by a cap)
   std::string clock;       // what timed each launch (DeviceApi::kernel_clock)
   double flush_bytes = 0;  // what the flush before each sample read, or the frame's own bytes where the device evicts them (0: none)
+  double sm_clock_mhz = 0; // the lowest SM clock read around the samples kept (tuner/clock_guard.h; 0: not read)
   // The frame time (docs/TUNING.md "Frame time"): host ms per frame of
   // `burst_frames` frames issued back to back as a Skinner issues them (0: not measured).
   double frame_ms = 0.0;

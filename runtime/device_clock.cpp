@@ -1,0 +1,127 @@
+#include "runtime/device_clock.h"
+
+#include <dlfcn.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <mutex>
+#include <vector>
+
+namespace skintune::internal {
+
+namespace {
+
+// NVML's C API, the part used (nvml.h: nvmlReturn_t 0 = NVML_SUCCESS;
+// nvmlClockType_t NVML_CLOCK_SM = 1).
+using NvmlReturn = int;
+using NvmlDevice = void*;
+constexpr int kNvmlClockSm = 1;
+struct NvmlApi {
+  NvmlReturn (*init)();
+  NvmlReturn (*by_uuid)(const char* uuid, NvmlDevice* device);
+  NvmlReturn (*by_pci_bus_id)(const char* pci_bus_id, NvmlDevice* device);
+  NvmlReturn (*clock)(NvmlDevice device, int type, unsigned* mhz);
+  NvmlReturn (*max_clock)(NvmlDevice device, int type, unsigned* mhz);
+};
+
+struct Loaded {
+  NvmlApi api{};
+  bool ok = false;
+  std::string why;  // why not
+};
+
+std::vector<std::string> Candidates() {
+  if (const char* forced = std::getenv("SKINTUNE_NVML_LIBRARY"); forced && *forced) return {forced};
+  return {"libnvidia-ml.so.1"};
+}
+
+Loaded Load() {
+  Loaded l;
+  void* library = nullptr;
+  std::string tried;
+  for (const std::string& name : Candidates()) {
+    library = dlopen(name.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (library) break;
+    tried += (tried.empty() ? "" : ", ") + name;
+  }
+  if (!library) {
+    l.why = "NVML not found (" + tried + ")";
+    return l;
+  }
+  const auto symbol = [&](const char* name) { return dlsym(library, name); };
+  l.api.init = reinterpret_cast<NvmlReturn (*)()>(symbol("nvmlInit_v2"));
+  l.api.by_uuid = reinterpret_cast<NvmlReturn (*)(const char*, NvmlDevice*)>(symbol("nvmlDeviceGetHandleByUUID"));
+  l.api.by_pci_bus_id =
+      reinterpret_cast<NvmlReturn (*)(const char*, NvmlDevice*)>(symbol("nvmlDeviceGetHandleByPciBusId_v2"));
+  l.api.clock = reinterpret_cast<NvmlReturn (*)(NvmlDevice, int, unsigned*)>(symbol("nvmlDeviceGetClockInfo"));
+  l.api.max_clock = reinterpret_cast<NvmlReturn (*)(NvmlDevice, int, unsigned*)>(symbol("nvmlDeviceGetMaxClockInfo"));
+  if (!l.api.init || !l.api.by_uuid || !l.api.by_pci_bus_id || !l.api.clock || !l.api.max_clock) {
+    l.why = "NVML lacks a function skintune uses";
+    return l;
+  }
+  if (const NvmlReturn r = l.api.init(); r != 0) {
+    l.why = "nvmlInit_v2 failed (" + std::to_string(r) + ")";
+    return l;
+  }
+  l.ok = true;
+  return l;  // never unloaded: the handles live as long as the process
+}
+
+const Loaded& Library() {
+  static std::once_flag once;
+  static Loaded loaded;
+  std::call_once(once, [] { loaded = Load(); });
+  return loaded;
+}
+
+class NvmlClock final : public DeviceClock {
+ public:
+  NvmlClock(const NvmlApi& api, NvmlDevice device) : api_(api), device_(device) {}
+  std::optional<unsigned> SmMhz() override { return Read(api_.clock); }
+  std::optional<unsigned> MaxSmMhz() override { return Read(api_.max_clock); }
+
+ private:
+  std::optional<unsigned> Read(NvmlReturn (*fn)(NvmlDevice, int, unsigned*)) const {
+    unsigned mhz = 0;
+    if (fn(device_, kNvmlClockSm, &mhz) != 0 || mhz == 0) return std::nullopt;
+    return mhz;
+  }
+  const NvmlApi& api_;
+  NvmlDevice device_;
+};
+
+bool Contains(std::string text, const std::string& lower_word) {
+  std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
+  return text.find(lower_word) != std::string::npos;
+}
+
+}  // namespace
+
+std::string NvmlUuid(const std::string& hex32) {
+  if (hex32.size() != 32 || !std::all_of(hex32.begin(), hex32.end(), [](unsigned char c) { return std::isxdigit(c); }))
+    return "";
+  return "GPU-" + hex32.substr(0, 8) + "-" + hex32.substr(8, 4) + "-" + hex32.substr(12, 4) + "-" +
+         hex32.substr(16, 4) + "-" + hex32.substr(20);
+}
+
+std::unique_ptr<DeviceClock> DeviceClock::Open(const DeviceIdentity& device, std::string* why) {
+  const auto fail = [&](const std::string& reason) {
+    if (why) *why = reason;
+    return std::unique_ptr<DeviceClock>();
+  };
+  if (Contains(device.type, "cpu")) return fail("a CPU device");
+  if (!Contains(device.vendor, "nvidia") && !Contains(device.name, "nvidia")) return fail("not an NVIDIA GPU");
+  const std::string uuid = NvmlUuid(device.uuid);
+  if (uuid.empty() && device.pci_bus_id.empty()) return fail("its API gave neither a UUID nor a PCI bus id");
+  const Loaded& nvml = Library();
+  if (!nvml.ok) return fail(nvml.why);
+  NvmlDevice handle = nullptr;
+  if (!uuid.empty() && nvml.api.by_uuid(uuid.c_str(), &handle) == 0 && handle)
+    return std::make_unique<NvmlClock>(nvml.api, handle);
+  if (!device.pci_bus_id.empty() && nvml.api.by_pci_bus_id(device.pci_bus_id.c_str(), &handle) == 0 && handle)
+    return std::make_unique<NvmlClock>(nvml.api, handle);
+  return fail("NVML does not know the GPU (" + (uuid.empty() ? device.pci_bus_id : uuid) + ")");
+}
+
+}  // namespace skintune::internal

@@ -1,0 +1,47 @@
+// skintune (internal): a GPU's SM clock as its driver reports it, so that the
+// tuner times kernels only at the clock the GPU runs at under load.
+//
+// A kernel of 5k-100k vertices takes 3-8 us on an H200, mostly latency, so
+// its time follows the SM clock. NVIDIA's driver lowers that clock whenever
+// the GPU idles for a few milliseconds, and a tuner's GL or Vulkan worker,
+// alone on the chip between its compiles and verifications, kept it there:
+// in three cold default runs on the H200 machine (2026-11-29) the SM clock
+// read 630-1500 MHz instead of 1980 through parts of those turns, and the
+// same winners' kernel times moved up to 47% between the runs. CUDA's and
+// NVIDIA OpenCL's turns stayed at 1980 MHz throughout.
+//
+// On NVIDIA GPUs the clock is read through NVML (libnvidia-ml, part of the
+// driver, loaded at run time like libcuda: SKINTUNE_NVML_LIBRARY, a path or
+// soname, when set, and then only it; otherwise libnvidia-ml.so.1), the GPU
+// matched by the UUID or the PCI bus id its API reported. The few functions
+// used are declared in device_clock.cpp (NVML's C API, stable since 2012).
+// Other GPUs have no such reader: Open says why.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "runtime/device_identity.h"
+
+namespace skintune::internal {
+
+class DeviceClock {
+ public:
+  virtual ~DeviceClock() = default;
+  // The SM clock now, MHz; nothing when the driver does not answer.
+  virtual std::optional<unsigned> SmMhz() = 0;
+  // The highest SM clock the GPU may run at (its boost), MHz; nothing when unknown.
+  virtual std::optional<unsigned> MaxSmMhz() = 0;
+
+  // The clock of `device` (an NVIDIA GPU with a UUID or PCI bus id), or
+  // null with the reason in `why` (a CPU device, another vendor, no NVML,
+  // the GPU not found by NVML).
+  static std::unique_ptr<DeviceClock> Open(const DeviceIdentity& device, std::string* why);
+};
+
+// NVML's name of a UUID given as 32 hex digits: "GPU-8-4-4-4-12"; "" when
+// `hex32` is not 32 hex digits.
+std::string NvmlUuid(const std::string& hex32);
+
+}  // namespace skintune::internal
