@@ -29,6 +29,7 @@
 #include "generator/variant.h"
 #include "base/error.h"
 #include "runtime/backend_table.h"
+#include "runtime/device_clock.h"
 #include "runtime/device_identity.h"
 #include "tuner/datasets.h"
 #include "tuner/executor.h"
@@ -48,6 +49,9 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
     std::cerr << "skintune_bench_kernel_time: no device matches '" << pattern << "'\n";
     return 1;
   }
+  // As a tuning run does: the GPU at a compute context's clocks (runtime/device_clock.h).
+  std::string unheld;
+  const std::unique_ptr<ClockHold> clocks = ClockHold::ForDevices({device->identity}, &unheld);
   std::unique_ptr<Runner> runner = device->open();
   tuner_internal::RunnerExecutor executor(*runner, device->identity);
   tuner_internal::DatasetCache datasets;

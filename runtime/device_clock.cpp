@@ -8,6 +8,9 @@
 #include <mutex>
 #include <vector>
 
+#include "runtime/backends/cuda/cuda_api.h"
+#include "runtime/physical_device.h"  // UuidHex
+
 namespace skintune::internal {
 
 namespace {
@@ -122,6 +125,47 @@ std::unique_ptr<DeviceClock> DeviceClock::Open(const DeviceIdentity& device, std
   if (!device.pci_bus_id.empty() && nvml.api.by_pci_bus_id(device.pci_bus_id.c_str(), &handle) == 0 && handle)
     return std::make_unique<NvmlClock>(nvml.api, handle);
   return fail("NVML does not know the GPU (" + (uuid.empty() ? device.pci_bus_id : uuid) + ")");
+}
+
+ClockHold::~ClockHold() {
+  if (const cuda::DriverApi* api = cuda::Driver())
+    for (const int device : held_) (void)api->cuDevicePrimaryCtxRelease(device);
+}
+
+std::unique_ptr<ClockHold> ClockHold::ForDevices(const std::vector<DeviceIdentity>& devices, std::string* why) {
+  const auto fail = [&](const std::string& reason) {
+    if (why) *why = reason;
+    return std::unique_ptr<ClockHold>();
+  };
+  std::vector<std::string> uuids;
+  bool any = false, without_uuid = false;
+  for (const DeviceIdentity& d : devices) {
+    if (Contains(d.type, "cpu") || (!Contains(d.vendor, "nvidia") && !Contains(d.name, "nvidia"))) continue;
+    any = true;
+    if (d.uuid.empty()) without_uuid = true;
+    else uuids.push_back(d.uuid);
+  }
+  if (!any) return fail("no NVIDIA GPU among the devices");
+  std::string missing;
+  const cuda::DriverApi* api = cuda::Driver(&missing);
+  if (!api) return fail("no CUDA driver: " + missing);
+  int count = 0;
+  if (api->cuDeviceGetCount(&count) != cuda::kSuccess) return fail("cuDeviceGetCount failed");
+  std::unique_ptr<ClockHold> hold(new ClockHold);
+  constexpr int kAttributeComputeMode = 20;  // CU_DEVICE_ATTRIBUTE_COMPUTE_MODE; 0 = CU_COMPUTEMODE_DEFAULT
+  for (int ordinal = 0; ordinal < count; ++ordinal) {
+    cuda::Device device = 0;
+    if (api->cuDeviceGet(&device, ordinal) != cuda::kSuccess) continue;
+    unsigned char bytes[16] = {};
+    const std::string uuid = api->cuDeviceGetUuid(bytes, device) == cuda::kSuccess ? UuidHex(bytes) : "";
+    if (!without_uuid && std::find(uuids.begin(), uuids.end(), uuid) == uuids.end()) continue;
+    int mode = -1;
+    if (api->cuDeviceGetAttribute(&mode, kAttributeComputeMode, device) != cuda::kSuccess || mode != 0) continue;
+    cuda::Context context = nullptr;
+    if (api->cuDevicePrimaryCtxRetain(&context, device) == cuda::kSuccess) hold->held_.push_back(device);
+  }
+  if (hold->held_.empty()) return fail("no NVIDIA GPU of the devices could be held (CUDA sees none, or each is in an exclusive compute mode)");
+  return hold;
 }
 
 }  // namespace skintune::internal

@@ -23,6 +23,8 @@
 #include <nlohmann/json.hpp>
 
 #include "base/error.h"
+#include "runtime/device_clock.h"
+#include "runtime/runner.h"  // TimingLog
 #include "tuner/device_tuning.h"
 #include "tuner/host_lock.h"
 #include "tuner/plan.h"
@@ -143,6 +145,14 @@ std::vector<DeviceResult> TuneDevices(const TuningPlan& plan, const TuneConfig& 
     identities.push_back(plan.devices[d].identity);
   }
   *with_work_count = with_work.size();
+  // Every NVIDIA GPU tuned is held at a compute context's clocks while the
+  // devices are tuned (runtime/device_clock.h ClockHold): its GL and Vulkan
+  // kernels are then timed at the clock its CUDA and OpenCL kernels are.
+  std::string unheld;
+  const std::unique_ptr<ClockHold> clocks = ClockHold::ForDevices(identities, &unheld);
+  TimingLog([&] {
+    return clocks ? "compute clocks held on " + std::to_string(clocks->held()) + " GPU(s)" : "compute clocks not held: " + unheld;
+  });
   Schedule schedule = ScheduleDevices(identities, options.parallel_devices);
   std::unique_ptr<tuner_internal::HostLockFile> host_lock;
   if (schedule.shares_host) host_lock = std::make_unique<tuner_internal::HostLockFile>();

@@ -4,9 +4,13 @@
 // each test runs in a process of its own (gtest_discover_tests).
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdlib>
+#include <thread>
+#include <vector>
 #include <string>
 
+#include "runtime/backend_table.h"
 #include "runtime/device_clock.h"
 
 namespace skintune::internal {
@@ -98,6 +102,38 @@ TEST_F(DeviceClockTest, SaysWhyWhenNvmlDoesNotStart) {
   std::string why;
   EXPECT_FALSE(DeviceClock::Open(NvidiaGpu(), &why));
   EXPECT_EQ(why, "nvmlInit_v2 failed (999)");
+}
+
+// On a GPU machine with NVIDIA's driver: with the hold, the SM clock of an
+// idle GPU stays within the clock guard's tolerance of its boost (without
+// it NVIDIA's driver lowers it within milliseconds when no CUDA context
+// exists: 345 MHz on an H200). The real NVML reads it.
+TEST(ClockHold, KeepsAnIdleNvidiaGpuAtItsClockUnderLoad) {
+  std::vector<DeviceIdentity> gpus;
+  for (const FoundDevice& found : DiscoverDevices("cuda").devices) gpus.push_back(found.identity);
+  if (gpus.empty()) GTEST_SKIP() << "no CUDA GPU on this machine";
+  std::string why;
+  const std::unique_ptr<DeviceClock> clock = DeviceClock::Open(gpus.front(), &why);
+  if (!clock) GTEST_SKIP() << "the GPU's clock cannot be read here: " << why;
+  const std::unique_ptr<ClockHold> hold = ClockHold::ForDevices(gpus, &why);
+  ASSERT_TRUE(hold) << why;
+  EXPECT_GE(hold->held(), 1u);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // idle: the driver would lower the clock by now
+  const std::optional<unsigned> mhz = clock->SmMhz(), boost = clock->MaxSmMhz();
+  ASSERT_TRUE(mhz && boost);
+  EXPECT_GE(static_cast<double>(*mhz), 0.97 * *boost) << "SM clock " << *mhz << " MHz of " << *boost << " with the hold";
+}
+
+TEST(ClockHold, HoldsNothingWithoutAnNvidiaGpu) {
+  DeviceIdentity cpu;
+  cpu.type = "cpu";
+  cpu.vendor = "GenuineIntel";
+  DeviceIdentity amd;
+  amd.type = "gpu";
+  amd.vendor = "AMD";
+  std::string why;
+  EXPECT_FALSE(ClockHold::ForDevices({cpu, amd}, &why));
+  EXPECT_EQ(why, "no NVIDIA GPU among the devices");
 }
 
 }  // namespace
