@@ -58,7 +58,7 @@ case "$mode" in
     python3 "$here/bench/kernel-time/compare.py" runs "${reports[@]}" | tee "$out/runs-summary.txt"
     ;;
   twins)
-    for size in ${TWIN_SIZES:-"100k-b4 400k-b4 1600k-b4 6400k-b4"}; do
+    for size in ${TWIN_SIZES:-100k-b4 400k-b4 1600k-b4 6400k-b4}; do
       for lang in opencl cuda vulkan glsl-compute; do
         case $lang in opencl) dev='opencl:NVIDIA';; cuda) dev='cuda:';; vulkan) dev='vulkan:';; glsl-compute) dev='gl:';; esac
         "$bin/skintune_bench_kernel_time" --device "$dev" --dataset "$size" --json "$out/twins-$lang-$size.jsonl" \
