@@ -251,6 +251,10 @@ class DeviceApi {
   virtual bool evicts_own_buffers() const { return false; }
   // The bytes evicted so, in all (0 where the device does not evict).
   virtual std::size_t evicted_bytes() const { return 0; }
+  // How the device last ran the frames of `key` (a variant key), where it
+  // chooses that itself: the cpu device's threads and chunk ("16 threads x
+  // 2048-vertex chunks, streaming stores"); "" elsewhere.
+  virtual std::string schedule_of(const std::string& /*key*/) const { return ""; }
 
   // A palette's upload in two steps, so the host packs straight into
   // page-locked memory: Staging gives the buffer's own staging (buffer.bytes()

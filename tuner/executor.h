@@ -74,6 +74,9 @@ class Executor {
   const KernelTime& CopyTime(Lang lang, std::size_t bytes, int input_sets, const TimingOptions& options);
   // What times a kernel-time sample on this device (DeviceApi::kernel_clock).
   virtual std::string KernelClock() const = 0;
+  // How the device last ran `key`'s frames where it chooses that itself
+  // (DeviceApi::schedule_of: the cpu device's threads and chunk); "" elsewhere.
+  virtual std::string ScheduleOf(const std::string& /*key*/) const { return ""; }
   // The bytes the flush before each sample reads (generator/copy_kernel.h
   // FlushBytes); 0 where the device evicts each frame's own buffers instead.
   virtual std::size_t FlushReadBytes() const = 0;
@@ -131,6 +134,7 @@ class RunnerExecutor final : public Executor {
                                  std::span<const std::vector<std::uint8_t>> palettes, int instances) override;
   std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) override;
   std::string KernelClock() const override { return runner_.api().kernel_clock(); }
+  std::string ScheduleOf(const std::string& key) const override { return runner_.api().schedule_of(key); }
   std::size_t FlushReadBytes() const override { return flush_bytes_; }
   bool EvictsOwnBuffers() const override { return runner_.api().evicts_own_buffers(); }
   // The flush in `lang`'s API (prepared on first use): the anchor launch

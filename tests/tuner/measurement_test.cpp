@@ -59,6 +59,8 @@ Measurement Sample(const std::string& key, MeasureStatus status) {
     m.timing.footprint_bytes = 4.0e7;
     m.timing.copy_ms = 1.2;
     m.timing.frame_ms = 1.7;
+    m.timing.sm_clock_mhz = 1980;
+    m.timing.schedule = "2 threads x 16384-vertex chunks, streaming stores";
     m.gbps = 12.5;
     m.x_copy = 1.5 / 1.2;
   }
@@ -90,6 +92,8 @@ void ExpectSame(const Measurement& a, const Measurement& b) {
   EXPECT_EQ(a.timing.clock, b.timing.clock);
   EXPECT_EQ(a.timing.flush_bytes, b.timing.flush_bytes);
   EXPECT_EQ(a.timing.frame_ms, b.timing.frame_ms);
+  EXPECT_EQ(a.timing.sm_clock_mhz, b.timing.sm_clock_mhz);
+  EXPECT_EQ(a.timing.schedule, b.timing.schedule);
   EXPECT_EQ(a.timing.version, b.timing.version);
   EXPECT_EQ(a.x_copy, b.x_copy);
   EXPECT_EQ(a.bytes_per_frame, b.bytes_per_frame);

@@ -28,6 +28,7 @@
 #include "generator/packer.h"
 #include "base/error.h"
 #include "model/synthetic.h"
+#include "runtime/device_clock.h"
 #include "runtime/backends/cuda/cuda_api.h"
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "runtime/backends/gl/gl_runner.h"
@@ -125,6 +126,18 @@ void ExpectOk(const Measurement& m, const TunedDevice& tuned, const std::string&
   EXPECT_GT(m.timing.frame_ms, 0.0) << "the frame time, recorded for every ok measurement";
   EXPECT_GT(m.timing.flush_bytes, 0.0);
   EXPECT_FALSE(m.timing.clock.empty());
+  // The schedule where the device chooses it: the cpu device's threads and chunk.
+  if (tuned.identity().backend == "cpu")
+    EXPECT_TRUE(std::regex_match(m.timing.schedule, std::regex(R"(\d+ threads? x \d+-vertex chunks, (streaming|plain) stores)")))
+        << m.timing.schedule;
+  else
+    EXPECT_EQ(m.timing.schedule, "");
+  // The GPU's clock around the samples, where its driver tells it (NVML on NVIDIA's GPUs).
+  std::string unread;
+  if (tuned.identity().type != "cpu" && DeviceClock::Open(tuned.identity(), &unread))
+    EXPECT_GT(m.timing.sm_clock_mhz, 0.0) << "the clock is read on this GPU";
+  else
+    EXPECT_EQ(m.timing.sm_clock_mhz, 0.0) << "no clock is read here: " << unread;
   EXPECT_GE(m.timing.input_sets, 1);
   EXPECT_LE(m.timing.input_sets, 3);
   EXPECT_GT(m.bytes_per_frame, 0.0);

@@ -129,6 +129,10 @@ class CpuApi final : public DeviceApi {
     if (const auto found = latest_.find(key); found != latest_.end()) return found->second;
     return std::nullopt;
   }
+  std::string schedule_of(const std::string& key) const override {
+    const std::optional<CpuChoice> choice = ScheduleOf(key);
+    return choice ? Describe(*choice) : "";
+  }
 
  private:
   const Parsed& ParsedOf(const KernelSource& source);
