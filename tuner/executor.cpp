@@ -128,9 +128,12 @@ std::unique_ptr<DeviceClock> ClockOf(const DeviceIdentity& device) {
 }  // namespace
 
 RunnerExecutor::RunnerExecutor(Runner& runner, const DeviceIdentity& device)
+    : RunnerExecutor(runner, device, ClockOf(device)) {}
+
+RunnerExecutor::RunnerExecutor(Runner& runner, const DeviceIdentity& device, std::unique_ptr<DeviceClock> clock)
     : runner_(runner),
       flush_bytes_(runner.api().evicts_own_buffers() ? 0 : FlushBytes(device.last_level_cache_bytes, IsHostCpu(device))),
-      clock_(ClockOf(device)) {
+      clock_(std::move(clock)) {
   if (HostFlushes(device)) host_flush_ = std::make_unique<HostFlush>(flush_bytes_);
 }
 

@@ -127,6 +127,9 @@ class RunnerExecutor final : public Executor {
  public:
   static constexpr std::size_t kAnchorBytes = 4096;
   RunnerExecutor(Runner& runner, const DeviceIdentity& device);
+  // With `clock` read around each batch of samples instead of the one the
+  // device's driver tells (null: none): the tests' stand-in.
+  RunnerExecutor(Runner& runner, const DeviceIdentity& device, std::unique_ptr<DeviceClock> clock);
   ~RunnerExecutor() override;
   Output Run(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t> palette,
              int instances) override;

@@ -14,6 +14,7 @@
 
 #include "generator/variant.h"
 #include "runtime/backend_table.h"
+#include "runtime/device_clock.h"
 #include "runtime/physical_device.h"
 #include "runtime/runner.h"
 #include "tuner/datasets.h"
@@ -431,6 +432,62 @@ TEST(Executor, AGpuApiOnTheHostIsFlushedByTheHostAndEveryOtherDeviceByItsKernel)
   tuner_internal::HostFlush flush(1u << 20);
   EXPECT_EQ(flush.bytes(), 1u << 20);
   flush();  // reads every word on every core, and returns
+}
+
+// A clock that reads `low` MHz for its first `low_reads` readings, then
+// `high`; its boost is 1980. It counts its readings.
+class ScriptedClock final : public DeviceClock {
+ public:
+  ScriptedClock(unsigned low, int low_reads, unsigned high, int* reads)
+      : low_(low), low_reads_(low_reads), high_(high), reads_(reads) {}
+  std::optional<unsigned> SmMhz() override { return (*reads_)++ < low_reads_ ? low_ : high_; }
+  std::optional<unsigned> MaxSmMhz() override { return 1980u; }
+
+ private:
+  unsigned low_;
+  int low_reads_;
+  unsigned high_;
+  int* reads_;
+};
+
+// Every batch of samples a device's executor takes goes through the clock
+// guard where the device's clock is read (tuner/clock_guard.h): an idle
+// clock is warmed back first and the clock around the batches kept is the
+// kernel time's. Here on the cpu device with a stand-in clock (a real one is
+// only opened for an NVIDIA GPU).
+TEST(Executor, EveryBatchOfSamplesIsTakenAtTheClockUnderLoadAndRecordsIt) {
+  Discovered found = DiscoverDevices("cpu");
+  ASSERT_FALSE(found.devices.empty()) << "skintune's cpu device is always there";
+  const std::unique_ptr<Runner> runner = found.devices.front().open();
+  TimingOptions options;
+  options.warmup = 1;
+  options.stop.batch = 4;
+  options.stop.min_samples = 4;
+  options.stop.max_samples = 8;
+  {
+    int reads = 0;  // idle at 900 MHz for two readings: before the batch and the warm-up's first
+    tuner_internal::RunnerExecutor executor(*runner, found.devices.front().identity,
+                                            std::make_unique<ScriptedClock>(900, 2, 1980, &reads));
+    const std::unique_ptr<Executor::Timed> copy = executor.Copy(Lang::kCpu, 1u << 20, 2);
+    const tuner_internal::KernelTime t = tuner_internal::SampleKernelTime(*copy, options);
+    EXPECT_EQ(t.clock_mhz, 1980u) << "the batches ran after the clock was warmed back";
+    EXPECT_GE(reads, 4) << "read before and after each batch, and in the warm-up";
+    EXPECT_EQ(executor.clock().reference_mhz(), 1980u);
+  }
+  {
+    int reads = 0;  // a GPU that never gets above 1500 MHz under load: its clock becomes the reference
+    tuner_internal::RunnerExecutor executor(*runner, found.devices.front().identity,
+                                            std::make_unique<ScriptedClock>(1500, 1 << 30, 1500, &reads));
+    const std::unique_ptr<Executor::Timed> copy = executor.Copy(Lang::kCpu, 1u << 20, 2);
+    const tuner_internal::KernelTime t = tuner_internal::SampleKernelTime(*copy, options);
+    EXPECT_EQ(t.clock_mhz, 1500u);
+    EXPECT_EQ(executor.clock().reference_mhz(), 1500u) << "after a second of warming";
+    EXPECT_FALSE(t.samples.empty());
+  }
+  tuner_internal::RunnerExecutor without(*runner, found.devices.front().identity);
+  EXPECT_FALSE(without.clock().active()) << "the cpu device's clock is not read";
+  const std::unique_ptr<Executor::Timed> copy = without.Copy(Lang::kCpu, 1u << 20, 2);
+  EXPECT_EQ(tuner_internal::SampleKernelTime(*copy, options).clock_mhz, 0u);
 }
 
 // The race stops once no undecided candidate can be the winner: a noisy
