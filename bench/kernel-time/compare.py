@@ -4,6 +4,10 @@
   compare.py ncu OUT SIZE...      skintune's kernel time against Nsight Compute's gpu__time_duration, per variant and size
   compare.py runs REPORT...       the chosen winners of several `skintune run` reports: agreement, tie sets, spread
   compare.py twins OUT            one variant's kernel time in each language, per size
+  compare.py choice MARGIN REPORT...
+                                  the runs' agreement were each row's last race to choose its winner among
+                                  the undecided within MARGIN of the fastest (GPU rows; host rows at
+                                  host_tie_margin) instead of within tie_margin: what a wider choice costs
 """
 import csv, glob, json, os, statistics, sys
 
@@ -76,6 +80,36 @@ def runs(reports):
     print("measurements rejected over the ceiling: %d" % over)
 
 
+def choice(margin, reports):
+    """Each run's last race per row, its winner chosen again: the tie-break rule (fewest bytes, then
+    the lower error, then the key) among the fastest, the equal and the undecided whose median is
+    within `margin` (GPU) of the fastest's. At margin = tie_margin this is the run's own rule (the
+    row's final judgement may also come from intervals where no race ran)."""
+    picks, cost = {}, []
+    for i, p in enumerate(reports):
+        r = json.load(open(p))
+        measured = {(m["device_id"], m["dataset"], m["variant"]["key"]): m for m in r["measurements"] if m["status"] == "ok"}
+        for race in r["races"]:
+            host = race["device_id"].startswith("cpu:") or "Portable" in race["device_id"]
+            allowed = r.get("host_tie_margin", 0.25) if host else margin
+            fastest = next(e for e in race["entries"] if e["verdict"] == "fastest")
+
+            def rule(e):
+                m = measured.get((race["device_id"], race["dataset"], e["variant"]), {})
+                return (m.get("bytes_per_frame", float("inf")), m.get("source_error", {}).get("position_rel", 0.0), e["variant"])
+            pool = [e for e in race["entries"] if e["verdict"] in ("fastest", "equal")
+                    or (e["verdict"] == "undecided" and e["median_ms"] <= fastest["median_ms"] * (1 + allowed))]
+            winner = min(pool, key=rule)
+            picks.setdefault((race["device_id"], race["lang"], race["dataset"]), [None] * len(reports))[i] = winner["variant"]
+            if not host:
+                cost.append(winner["median_ms"] / fastest["median_ms"])
+    same = sum(1 for v in picks.values() if None not in v and len(set(v)) == 1)
+    cost.sort()
+    print("choice margin %.3f: rows %d, the same winner in every run %d; GPU winners against their race's fastest: "
+          "median %.3f, p90 %.3f, largest %.3f" % (margin, len(picks), same, statistics.median(cost),
+                                                   cost[int(0.9 * len(cost))], cost[-1]))
+
+
 def twins(out):
     by = {}
     for path in glob.glob(os.path.join(out, "twins-*.jsonl")):
@@ -99,5 +133,7 @@ if __name__ == "__main__":
         runs(sys.argv[2:])
     elif mode == "twins":
         twins(sys.argv[2])
+    elif mode == "choice":
+        choice(float(sys.argv[2]), sys.argv[3:])
     else:
         sys.exit("unknown mode " + mode)
