@@ -99,6 +99,9 @@ bool Contains(std::string text, const std::string& lower_word) {
   return text.find(lower_word) != std::string::npos;
 }
 
+bool IsCpu(const DeviceIdentity& d) { return Contains(d.type, "cpu"); }
+bool IsNvidia(const DeviceIdentity& d) { return Contains(d.vendor, "nvidia") || Contains(d.name, "nvidia"); }
+
 }  // namespace
 
 std::string NvmlUuid(const std::string& hex32) {
@@ -113,8 +116,8 @@ std::unique_ptr<DeviceClock> DeviceClock::Open(const DeviceIdentity& device, std
     if (why) *why = reason;
     return std::unique_ptr<DeviceClock>();
   };
-  if (Contains(device.type, "cpu")) return fail("a CPU device");
-  if (!Contains(device.vendor, "nvidia") && !Contains(device.name, "nvidia")) return fail("not an NVIDIA GPU");
+  if (IsCpu(device)) return fail("a CPU device");
+  if (!IsNvidia(device)) return fail("not an NVIDIA GPU");
   const std::string uuid = NvmlUuid(device.uuid);
   if (uuid.empty() && device.pci_bus_id.empty()) return fail("its API gave neither a UUID nor a PCI bus id");
   const Loaded& nvml = Library();
@@ -140,7 +143,7 @@ std::unique_ptr<ClockHold> ClockHold::ForDevices(const std::vector<DeviceIdentit
   std::vector<std::string> uuids;
   bool any = false, without_uuid = false;
   for (const DeviceIdentity& d : devices) {
-    if (Contains(d.type, "cpu") || (!Contains(d.vendor, "nvidia") && !Contains(d.name, "nvidia"))) continue;
+    if (IsCpu(d) || !IsNvidia(d)) continue;
     any = true;
     if (d.uuid.empty()) without_uuid = true;
     else uuids.push_back(d.uuid);
