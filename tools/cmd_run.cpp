@@ -89,6 +89,20 @@ std::string KernelInterval(const Winner& w) {
   return text;
 }
 
+// The GPU's SM clock around the device's kernel-time samples, where it was
+// read (timing.sm_clock_mhz: NVIDIA's GPUs, docs/TUNING.md "Kernel time");
+// nothing elsewhere.
+void PrintSmClocks(const TuningReport& report, const std::string& device_id) {
+  double low = 0.0, high = 0.0;
+  for (const Measurement& m : report.measurements) {
+    if (m.device_id != device_id || m.timing.sm_clock_mhz <= 0.0) continue;
+    low = low > 0.0 ? std::min(low, m.timing.sm_clock_mhz) : m.timing.sm_clock_mhz;
+    high = std::max(high, m.timing.sm_clock_mhz);
+  }
+  if (high <= 0.0) return;
+  std::cout << "SM clock around the samples: " << Fixed(low, 0) << (high > low ? "-" + Fixed(high, 0) : "") << " MHz\n";
+}
+
 // The line under a device's table naming its classes over the budget that
 // are faster than their row's winner (nothing when there are none).
 void PrintFasterOverBudget(const std::vector<FasterOverBudget>& faster, const std::string& device_id,
@@ -132,7 +146,9 @@ void PrintDeviceWinners(const TuningReport& report) {
       std::cout << FormatTable(rows, {1, 2, 5, 6, 7, 8, 9, 10, 11});
       std::cout << "kernel: the kernel's own device time from a flushed cache, median and 95% interval; frame: Skin() "
                    "issued back to back; ties: other candidates within the tie margin "
-                << Fixed(report.tie_margin * 100.0, 1) << "% (the winner among ties: fewest bytes, then lower error)\n";
+                << Fixed(report.TieMarginOf(d.Id()) * 100.0, 1)
+                << "% (the winner among ties: fewest bytes, then lower error)\n";
+      PrintSmClocks(report, d.Id());
       if (!noisy.empty()) {
         std::cout << "every candidate within noise of the winner in: ";
         for (std::size_t i = 0; i < noisy.size(); ++i) std::cout << (i ? ", " : "") << noisy[i];

@@ -91,6 +91,21 @@ TEST(RunCli, TunesEveryDeviceWritesTheFilesAndPrintsEachDevicesWinners) {
                                                  "costs"}));
   }
   EXPECT_EQ(headers, report.at("devices").size()) << r.out;
+  // Each device's footer names the margin its candidates were judged at: a
+  // device on the host's CPU (all of this machine's) its wider one.
+  for (const nlohmann::json& d : report.at("devices")) {
+    const std::string header = "== " + d.at("backend").get<std::string>() + ": " + d.at("name").get<std::string>();
+    const std::size_t at = r.out.find(header);
+    ASSERT_NE(at, std::string::npos);
+    const bool host = d.at("type").get<std::string>().find("cpu") != std::string::npos;
+    const double margin = report.at(host ? "host_tie_margin" : "tie_margin").get<double>();
+    char expected[64];
+    std::snprintf(expected, sizeof expected, "within the tie margin %.1f%%", margin * 100.0);
+    const std::size_t next = r.out.find("\n== ", at + 1);
+    EXPECT_NE(r.out.substr(at, next == std::string::npos ? std::string::npos : next - at).find(expected), std::string::npos)
+        << expected << " under " << header << "\n" << r.out;
+  }
+  EXPECT_EQ(r.out.find("SM clock around the samples"), std::string::npos) << "no GPU clock is read on this machine's devices";
 
   // The report's path, and an emit command that takes the kernels.
   EXPECT_NE(r.out.find("report: " + fs::absolute(out / "report.html").string() + "\n"), std::string::npos) << r.out;
