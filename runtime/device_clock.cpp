@@ -1,97 +1,31 @@
 #include "runtime/device_clock.h"
 
-#include <dlfcn.h>
-
 #include <algorithm>
 #include <cctype>
-#include <cstdlib>
-#include <mutex>
 #include <vector>
 
 #include "runtime/backends/cuda/cuda_api.h"
+#include "runtime/backends/cuda/nvml.h"
 #include "runtime/physical_device.h"  // UuidHex
 
 namespace skintune::internal {
 
 namespace {
 
-// NVML's C API, the part used (nvml.h: nvmlReturn_t 0 = NVML_SUCCESS;
-// nvmlClockType_t NVML_CLOCK_SM = 1).
-using NvmlReturn = int;
-using NvmlDevice = void*;
-constexpr int kNvmlClockSm = 1;
-struct NvmlApi {
-  NvmlReturn (*init)();
-  NvmlReturn (*by_uuid)(const char* uuid, NvmlDevice* device);
-  NvmlReturn (*by_pci_bus_id)(const char* pci_bus_id, NvmlDevice* device);
-  NvmlReturn (*clock)(NvmlDevice device, int type, unsigned* mhz);
-  NvmlReturn (*max_clock)(NvmlDevice device, int type, unsigned* mhz);
-};
-
-struct Loaded {
-  NvmlApi api{};
-  bool ok = false;
-  std::string why;  // why not
-};
-
-std::vector<std::string> Candidates() {
-  if (const char* forced = std::getenv("SKINTUNE_NVML_LIBRARY"); forced && *forced) return {forced};
-  return {"libnvidia-ml.so.1"};
-}
-
-Loaded Load() {
-  Loaded l;
-  void* library = nullptr;
-  std::string tried;
-  for (const std::string& name : Candidates()) {
-    library = dlopen(name.c_str(), RTLD_NOW | RTLD_LOCAL);
-    if (library) break;
-    tried += (tried.empty() ? "" : ", ") + name;
-  }
-  if (!library) {
-    l.why = "NVML not found (" + tried + ")";
-    return l;
-  }
-  const auto symbol = [&](const char* name) { return dlsym(library, name); };
-  l.api.init = reinterpret_cast<NvmlReturn (*)()>(symbol("nvmlInit_v2"));
-  l.api.by_uuid = reinterpret_cast<NvmlReturn (*)(const char*, NvmlDevice*)>(symbol("nvmlDeviceGetHandleByUUID"));
-  l.api.by_pci_bus_id =
-      reinterpret_cast<NvmlReturn (*)(const char*, NvmlDevice*)>(symbol("nvmlDeviceGetHandleByPciBusId_v2"));
-  l.api.clock = reinterpret_cast<NvmlReturn (*)(NvmlDevice, int, unsigned*)>(symbol("nvmlDeviceGetClockInfo"));
-  l.api.max_clock = reinterpret_cast<NvmlReturn (*)(NvmlDevice, int, unsigned*)>(symbol("nvmlDeviceGetMaxClockInfo"));
-  if (!l.api.init || !l.api.by_uuid || !l.api.by_pci_bus_id || !l.api.clock || !l.api.max_clock) {
-    l.why = "NVML lacks a function skintune uses";
-    return l;
-  }
-  if (const NvmlReturn r = l.api.init(); r != 0) {
-    l.why = "nvmlInit_v2 failed (" + std::to_string(r) + ")";
-    return l;
-  }
-  l.ok = true;
-  return l;  // never unloaded: the handles live as long as the process
-}
-
-const Loaded& Library() {
-  static std::once_flag once;
-  static Loaded loaded;
-  std::call_once(once, [] { loaded = Load(); });
-  return loaded;
-}
-
 class NvmlClock final : public DeviceClock {
  public:
-  NvmlClock(const NvmlApi& api, NvmlDevice device) : api_(api), device_(device) {}
+  NvmlClock(const nvml::Api& api, nvml::Device device) : api_(api), device_(device) {}
   std::optional<unsigned> SmMhz() override { return Read(api_.clock); }
   std::optional<unsigned> MaxSmMhz() override { return Read(api_.max_clock); }
 
  private:
-  std::optional<unsigned> Read(NvmlReturn (*fn)(NvmlDevice, int, unsigned*)) const {
+  std::optional<unsigned> Read(nvml::Return (*fn)(nvml::Device, int, unsigned*)) const {
     unsigned mhz = 0;
-    if (fn(device_, kNvmlClockSm, &mhz) != 0 || mhz == 0) return std::nullopt;
+    if (fn(device_, nvml::kClockSm, &mhz) != 0 || mhz == 0) return std::nullopt;
     return mhz;
   }
-  const NvmlApi& api_;
-  NvmlDevice device_;
+  const nvml::Api& api_;
+  nvml::Device device_;
 };
 
 bool Contains(std::string text, const std::string& lower_word) {
@@ -120,13 +54,16 @@ std::unique_ptr<DeviceClock> DeviceClock::Open(const DeviceIdentity& device, std
   if (!IsNvidia(device)) return fail("not an NVIDIA GPU");
   const std::string uuid = NvmlUuid(device.uuid);
   if (uuid.empty() && device.pci_bus_id.empty()) return fail("its API gave neither a UUID nor a PCI bus id");
-  const Loaded& nvml = Library();
-  if (!nvml.ok) return fail(nvml.why);
-  NvmlDevice handle = nullptr;
-  if (!uuid.empty() && nvml.api.by_uuid(uuid.c_str(), &handle) == 0 && handle)
-    return std::make_unique<NvmlClock>(nvml.api, handle);
-  if (!device.pci_bus_id.empty() && nvml.api.by_pci_bus_id(device.pci_bus_id.c_str(), &handle) == 0 && handle)
-    return std::make_unique<NvmlClock>(nvml.api, handle);
+  std::string missing;
+  const nvml::Api* api = nvml::Library(&missing);
+  if (!api) return fail(missing);
+  if (!api->by_uuid || !api->by_pci_bus_id || !api->clock || !api->max_clock)
+    return fail("NVML lacks a function skintune uses");
+  nvml::Device handle = nullptr;
+  if (!uuid.empty() && api->by_uuid(uuid.c_str(), &handle) == 0 && handle)
+    return std::make_unique<NvmlClock>(*api, handle);
+  if (!device.pci_bus_id.empty() && api->by_pci_bus_id(device.pci_bus_id.c_str(), &handle) == 0 && handle)
+    return std::make_unique<NvmlClock>(*api, handle);
   return fail("NVML does not know the GPU (" + (uuid.empty() ? device.pci_bus_id : uuid) + ")");
 }
 

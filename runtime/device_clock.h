@@ -10,12 +10,10 @@
 // same winners' kernel times moved up to 47% between the runs. CUDA's and
 // NVIDIA OpenCL's turns stayed at 1980 MHz throughout.
 //
-// On NVIDIA GPUs the clock is read through NVML (libnvidia-ml, part of the
-// driver, loaded at run time like libcuda: SKINTUNE_NVML_LIBRARY, a path or
-// soname, when set, and then only it; otherwise libnvidia-ml.so.1), the GPU
-// matched by the UUID or the PCI bus id its API reported. The few functions
-// used are declared in device_clock.cpp (NVML's C API, stable since 2012).
-// Other GPUs have no such reader: Open says why.
+// On NVIDIA GPUs the clock is read through NVML (runtime/backends/cuda/nvml.h:
+// part of the driver, loaded at run time like libcuda), the GPU matched by
+// the UUID or the PCI bus id its API reported. Other GPUs have no such
+// reader: Open says why.
 #pragma once
 
 #include <memory>

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "base/error.h"
+#include "runtime/backends/cuda/nvml.h"
 #include "runtime/physical_device.h"
 #include "runtime/backends/cuda/cuda_api.h"
 
@@ -43,7 +44,7 @@ std::uint64_t TotalMemory(const std::string& library, cuda::Device device) {
 }
 
 // The kernel driver's version ("580.159.04"): from /proc/driver/nvidia/version,
-// else from NVML (libnvidia-ml, loaded at run time like the rest of CUDA;
+// else from NVML (nvml.h: loaded at run time like the rest of CUDA;
 // containers often have no /proc entry), else empty (the CUDA version then
 // stands alone). Looked up once per process.
 std::string KernelDriverVersion() {
@@ -59,19 +60,10 @@ std::string KernelDriverVersion() {
         previous = word;
       }
     }
-    void* nvml = dlopen("libnvidia-ml.so.1", RTLD_LAZY | RTLD_LOCAL);
-    if (!nvml) return "";  // kept loaded when found: never unloaded, like libcuda
-    using Call = int (*)();
-    using DriverVersion = int (*)(char*, unsigned int);
-    const auto init = reinterpret_cast<Call>(dlsym(nvml, "nvmlInit_v2"));
-    const auto driver_version = reinterpret_cast<DriverVersion>(dlsym(nvml, "nvmlSystemGetDriverVersion"));
-    const auto shutdown = reinterpret_cast<Call>(dlsym(nvml, "nvmlShutdown"));
+    const nvml::Api* api = nvml::Library();
     std::string found;
-    if (init && driver_version && init() == 0) {  // NVML_SUCCESS
-      char text[96] = {};
-      if (driver_version(text, sizeof text - 1) == 0) found = text;
-      if (shutdown) shutdown();
-    }
+    char text[96] = {};
+    if (api && api->driver_version && api->driver_version(text, sizeof text - 1) == 0) found = text;
     return found;
   }();
   return version;
