@@ -48,7 +48,8 @@ std::vector<const Measurement*> RaceCandidates(const std::vector<Measurement>& m
   return out.size() >= 2 ? out : std::vector<const Measurement*>{};
 }
 
-std::optional<Variant> RaceWinner(const RaceRecord& race, const std::vector<Measurement>& measured, double margin) {
+std::optional<Variant> RaceWinner(const RaceRecord& race, const std::vector<Measurement>& measured, double margin,
+                                  double spread, Choice choice) {
   if (!race.detail.empty() || race.entries.empty()) return std::nullopt;
   std::vector<RaceEntry> entries;
   std::vector<Interval> intervals;
@@ -58,7 +59,7 @@ std::optional<Variant> RaceWinner(const RaceRecord& race, const std::vector<Meas
     entries.push_back(m != measured.end() ? RaceEntryOf(*m) : RaceEntry{e.variant.Key(), {}, 0.0, 0.0});
     intervals.push_back(e.interval);
   }
-  return race.entries[JudgeIntervals(intervals, entries, margin).winner].variant;
+  return race.entries[JudgeIntervals(intervals, entries, margin, spread, choice).winner].variant;
 }
 
 std::string RaceCacheKey(const std::string& device_id, const std::string& dataset, Lang lang,
@@ -203,7 +204,10 @@ RaceRecord SettleSearch(const Racer& racer, const SearchToSettle& search, const 
                      &cached);
     all_from_memo = all_from_memo && cached;
     settled.insert(leader->Key());
-    const std::optional<Variant> winner = RaceWinner(race, measured, options.tie_margin);
+    // The walk follows the winner the report will name (options are the device's: ForDevice).
+    const std::optional<Variant> winner =
+        RaceWinner(race, measured, options.tie_margin, options.process_spread,
+                   options.choose_in_tie_set ? Choice::kTieSet : Choice::kContenders);
     if (!winner || settled.count(winner->Key())) break;
     leader = winner;
   }

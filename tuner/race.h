@@ -27,9 +27,12 @@ std::vector<const Measurement*> RaceCandidates(const std::vector<Measurement>& m
                                                const Variant* leader = nullptr, const std::vector<Variant>& around = {});
 
 // The race's winner: TieBreak among the candidates it did not separate from
-// its fastest, judged on its own intervals (the measurements give the
-// tie-break's bytes and errors); nullopt for a race that did not run.
-std::optional<Variant> RaceWinner(const RaceRecord& race, const std::vector<Measurement>& measured, double margin);
+// its fastest (the contenders at `margin`, or the tie set at `margin` +
+// `spread`: JudgeIntervals's `choice`), judged on its own intervals (the
+// measurements give the tie-break's bytes and errors); nullopt for a race
+// that did not run.
+std::optional<Variant> RaceWinner(const RaceRecord& race, const std::vector<Measurement>& measured, double margin,
+                                  double spread = 0.0, Choice choice = Choice::kContenders);
 
 // A race between verified variants (TunedDevice::Race through the device's
 // worker), in one or more legs: per leg, each variant's kernel-time samples

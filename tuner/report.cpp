@@ -155,6 +155,15 @@ double TuningReport::TieSpreadOf(const std::string& device_id) const {
   return process_spread;
 }
 
+Choice TuningReport::ChoiceOf(const std::string& device_id) const {
+  TimingOptions choices;
+  choices.choose_in_tie_set = choose_in_tie_set;
+  choices.host_choose_in_tie_set = host_choose_in_tie_set;
+  for (const DeviceIdentity& d : devices)
+    if (d.Id() == device_id) return choices.ChoiceFor(d);
+  return choose_in_tie_set ? Choice::kTieSet : Choice::kContenders;
+}
+
 std::vector<Winner> ComputeWinners(const TuningReport& report) {
   std::map<std::string, const DatasetInfo*> datasets;
   for (const DatasetInfo& d : report.datasets) datasets[d.key] = &d;
@@ -197,7 +206,9 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
       intervals.push_back(IntervalOf(report, *m));
     }
     const double margin = report.TieMarginOf(members.front()->device_id);
-    const RaceOutcome outcome = JudgeIntervals(intervals, entries, margin, report.TieSpreadOf(members.front()->device_id));
+    const std::string& device = members.front()->device_id;
+    const RaceOutcome outcome =
+        JudgeIntervals(intervals, entries, margin, report.TieSpreadOf(device), report.ChoiceOf(device));
     const Measurement& m = *members[outcome.winner];
     Winner w = shape.at(key);
     w.tie_margin = margin;
@@ -333,6 +344,8 @@ nlohmann::json ReportToJson(const TuningReport& report) {
   out["host_tie_margin"] = report.host_tie_margin;
   out["process_spread"] = report.process_spread;
   out["host_process_spread"] = report.host_process_spread;
+  out["choose_in_tie_set"] = report.choose_in_tie_set;
+  out["host_choose_in_tie_set"] = report.host_choose_in_tie_set;
   out["races"] = nlohmann::json::array();
   for (const RaceRecord& r : report.races) out["races"].push_back(RaceJson(r));
   return out;
@@ -455,6 +468,14 @@ void ReadMargins(const nlohmann::json& json, const std::string& context, TuningR
       const bool in_range = (f.may_be_zero ? value >= 0.0 : value > 0.0) && value <= 0.5;
       if (!in_range) throw Error(f.may_be_zero ? "must be in [0, 0.5]" : "must be in (0, 0.5]");
       return value;
+    });
+  }
+  // Where the winner is picked, since 1.8.0; before it, among the contenders.
+  for (const auto& [name, value] : {std::pair<const char*, bool*>{"choose_in_tie_set", &r.choose_in_tie_set},
+                                    {"host_choose_in_tie_set", &r.host_choose_in_tie_set}}) {
+    *value = json.contains(name) && At(context, name, [&] {
+      if (!json.at(name).is_boolean()) throw Error("must be true or false");
+      return json.at(name).get<bool>();
     });
   }
 }

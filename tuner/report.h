@@ -22,7 +22,7 @@ namespace skintune::internal {
 // (shape, instances, meshes), and winners are kept per shape; 1.4.0: timing
 // version 5 (kernel time with its interval, frame time), the races of each
 // search, tie_margin, and each winner's interval and tie set.
-inline constexpr const char* kReportSchemaVersion = "1.7.0";
+inline constexpr const char* kReportSchemaVersion = "1.8.0";
 
 struct DatasetInfo {
   std::string key;          // a scene key (model/scene.h): a dataset, a glTF path, instances, a batch
@@ -56,6 +56,11 @@ struct TuningReport {
   double process_spread = TimingOptions{}.process_spread;
   double host_process_spread = TimingOptions{}.host_process_spread;
   double TieSpreadOf(const std::string& device_id) const;
+  // Where the winner is picked (TimingOptions::choose_in_tie_set; 1.8.0: an
+  // older report's among its contenders, its winners as it had them).
+  bool choose_in_tie_set = TimingOptions{}.choose_in_tie_set;
+  bool host_choose_in_tie_set = TimingOptions{}.host_choose_in_tie_set;
+  Choice ChoiceOf(const std::string& device_id) const;
   std::vector<RaceRecord> races;
 };
 

@@ -102,10 +102,10 @@ std::size_t TieBreak(const std::vector<RaceEntry>& entries, const std::vector<st
   });
 }
 
-RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin, double spread) {
+RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin, double spread, Choice choice) {
   std::vector<Interval> intervals;
   for (const RaceEntry& e : entries) intervals.push_back(MedianInterval(e.samples));
-  return JudgeIntervals(intervals, entries, margin, spread);
+  return JudgeIntervals(intervals, entries, margin, spread, choice);
 }
 
 namespace {
@@ -125,7 +125,7 @@ std::vector<std::size_t> TiedAt(const std::vector<Interval>& intervals, std::siz
 }  // namespace
 
 RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::vector<RaceEntry>& entries, double margin,
-                           double spread) {
+                           double spread, Choice choice) {
   if (entries.empty() || intervals.size() != entries.size()) throw Error("JudgeRace: no candidate, or not one interval each");
   if (!(margin > 0.0)) throw Error("JudgeRace: the tie margin must be positive");
   if (!(spread >= 0.0) || !std::isfinite(spread)) throw Error("JudgeRace: the spread must be 0 or more");
@@ -157,7 +157,7 @@ RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::ve
   // TiedAt takes exactly the leader, the equal and the undecided within it.
   out.contenders = TiedAt(out.intervals, out.fastest, margin);
   out.tied = spread > 0.0 ? TiedAt(out.intervals, out.fastest, margin + spread) : out.contenders;
-  out.winner = TieBreak(entries, out.contenders);
+  out.winner = TieBreak(entries, choice == Choice::kTieSet ? out.tied : out.contenders);
   out.settled = true;
   for (std::size_t u = 0; u < entries.size(); ++u) {
     if (out.verdicts[u] != RaceVerdict::kUndecided) continue;

@@ -85,7 +85,7 @@ struct RaceOutcome {
   std::size_t fastest = 0;               // the entry with the lowest median
   std::vector<std::size_t> contenders;   // the leader, the equal, and the undecided whose median is within the margin
   std::vector<std::size_t> tied;         // the tie set: the contenders judged at the margin plus the spread (below)
-  std::size_t winner = 0;                // TieBreak among the contenders
+  std::size_t winner = 0;                // TieBreak among the contenders, or the whole tie set (Choice)
   bool decided = false;                  // no entry undecided
   // Sampling may stop: decided, or no undecided entry can become the winner
   // whatever its errors, because each moves more bytes than some entry
@@ -114,12 +114,19 @@ struct RaceOutcome {
 // on an H200's APIs, 8% on PoCL, 25% on skintune's cpu device on its host,
 // 2026-11-28). A pair judged 4.9% apart in one run (both contenders) and
 // 5.1% in the next (one separated) cannot be told apart across runs: the
-// tie set says so, while the winner stays one of this run's contenders.
-RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin, double spread = 0.0);
+// tie set says so.
+//
+// `choice` says where TieBreak picks the winner: among the contenders, or
+// among the whole tie set, so that the order of the candidates within the
+// spread, which moves from process to process, does not decide the winner
+// (TimingOptions::choose_in_tie_set: a GPU's default).
+enum class Choice { kContenders, kTieSet };
+RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin, double spread = 0.0,
+                      Choice choice = Choice::kContenders);
 // The same judgement from intervals already computed (one per entry; the
 // entries' samples are not read): a search's own measurements, where no race ran.
 RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::vector<RaceEntry>& entries, double margin,
-                           double spread = 0.0);
+                           double spread = 0.0, Choice choice = Choice::kContenders);
 // The deterministic rule among tied candidates: fewest bytes moved, then the
 // lower error against the source, then the variant key. Returns the index
 // into `entries` of the chosen one among `tied` (indices, non-empty).

@@ -19,10 +19,11 @@ namespace {
 // The fields of TimingOptions, declared once for the reader and the writer.
 struct TimingField {
   const char* name;
-  enum Kind { kInt, kCount, kNumber } kind;
+  enum Kind { kInt, kCount, kNumber, kBool } kind;
   int* as_int;
   std::size_t* as_count;
   double* as_number;
+  bool* as_bool = nullptr;
 };
 
 std::vector<TimingField> Fields(TimingOptions& t) {
@@ -40,7 +41,9 @@ std::vector<TimingField> Fields(TimingOptions& t) {
           {"tie_margin", TimingField::kNumber, nullptr, nullptr, &t.tie_margin},
           {"host_tie_margin", TimingField::kNumber, nullptr, nullptr, &t.host_tie_margin},
           {"process_spread", TimingField::kNumber, nullptr, nullptr, &t.process_spread},
-          {"host_process_spread", TimingField::kNumber, nullptr, nullptr, &t.host_process_spread}};
+          {"host_process_spread", TimingField::kNumber, nullptr, nullptr, &t.host_process_spread},
+          {"choose_in_tie_set", TimingField::kBool, nullptr, nullptr, nullptr, &t.choose_in_tie_set},
+          {"host_choose_in_tie_set", TimingField::kBool, nullptr, nullptr, nullptr, &t.host_choose_in_tie_set}};
 }
 
 std::string Dumped(const nlohmann::json& v) {
@@ -62,6 +65,11 @@ TimingOptions TimingOptionsFromJson(const nlohmann::json& in, const std::string&
       throw Error(where + "." + name + ": unknown field (expected one of " + list + ")");
     }
     const std::string at = where + "." + name;
+    if (field->kind == TimingField::kBool) {
+      if (!value.is_boolean()) throw Error(at + ": expected true or false (got " + Dumped(value) + ")");
+      *field->as_bool = value.get<bool>();
+      continue;
+    }
     if (field->kind == TimingField::kNumber) {
       if (!value.is_number()) throw Error(at + ": expected a number (got " + Dumped(value) + ")");
       *field->as_number = value.get<double>();
@@ -103,9 +111,15 @@ double TimingOptions::SpreadFor(const DeviceIdentity& device) const {
   return IsHostCpu(device) ? host_process_spread : process_spread;
 }
 
+Choice TimingOptions::ChoiceFor(const DeviceIdentity& device) const {
+  return (IsHostCpu(device) ? host_choose_in_tie_set : choose_in_tie_set) ? Choice::kTieSet : Choice::kContenders;
+}
+
 TimingOptions TimingOptions::ForDevice(const DeviceIdentity& device) const {
   TimingOptions out = *this;
   out.tie_margin = MarginFor(device);
+  out.process_spread = SpreadFor(device);
+  out.choose_in_tie_set = ChoiceFor(device) == Choice::kTieSet;
   out.stop.interval = std::min(stop.interval * out.tie_margin / tie_margin, 0.5);  // BadStopRule's bound
   return out;
 }
@@ -117,6 +131,7 @@ nlohmann::json ToJson(const TimingOptions& t) {
     if (f.as_int) out[f.name] = *f.as_int;
     if (f.as_count) out[f.name] = *f.as_count;
     if (f.as_number) out[f.name] = *f.as_number;
+    if (f.as_bool) out[f.name] = *f.as_bool;
   }
   return out;
 }

@@ -46,9 +46,22 @@ struct TimingOptions {
   double process_spread = 0.034;
   double host_process_spread = 0.25;
   double SpreadFor(const DeviceIdentity& device) const;
+  // Where the tie-break picks the winner (tuner/statistics.h Choice): on a
+  // GPU among the whole tie set. Three cold default runs on the H200 machine
+  // (2026-11-29) named the same winner in 37 rows of 42 choosing among the
+  // contenders: the misses were pairs of the palette storage axis 3-7% apart,
+  // whose order moved from process to process across the 5% margin. Chosen
+  // again among their tie sets, the same runs' reports name the same winner
+  // in every GPU row, the winners at most 7.8% (median 0.4%) slower than
+  // their race's fastest. On the host's CPU among the contenders: its tie
+  // set (the margin plus 25%) would pick winners up to 1.41x slower.
+  bool choose_in_tie_set = true;
+  bool host_choose_in_tie_set = false;
+  Choice ChoiceFor(const DeviceIdentity& device) const;
   // The margin a race and the search use on a device (host_tie_margin on a CPU).
   double MarginFor(const DeviceIdentity& device) const;
-  // This timing as `device` is measured with: its margin (MarginFor), and the
+  // This timing as `device` is measured with: its margin (MarginFor), its
+  // spread and choice in process_spread and choose_in_tie_set, and the
   // stop rule's interval kept the same fraction of that margin (0.01 of 0.05
   // on a GPU, so 0.05 of 0.25 on a CPU by default). A CPU device's samples
   // spread wider than its GPU's (half-width 2-4% at the caps: 200 samples

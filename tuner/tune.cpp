@@ -74,6 +74,8 @@ TuningReport ReportHeader(const TuneConfig& config) {
   report.host_tie_margin = config.timing.host_tie_margin;
   report.process_spread = config.timing.process_spread;
   report.host_process_spread = config.timing.host_process_spread;
+  report.choose_in_tie_set = config.timing.choose_in_tie_set;
+  report.host_choose_in_tie_set = config.timing.host_choose_in_tie_set;
   report.machine = MachineInfo();
   return report;
 }

@@ -6,8 +6,10 @@
   compare.py twins OUT            one variant's kernel time in each language, per size
   compare.py choice MARGIN REPORT...
                                   the runs' agreement were each row's last race to choose its winner among
-                                  the undecided within MARGIN of the fastest (GPU rows; host rows at
-                                  host_tie_margin) instead of within tie_margin: what a wider choice costs
+                                  the candidates within MARGIN of the fastest (GPU rows, judged as
+                                  tuner/statistics.cpp TiedAt does; host rows among their contenders, at
+                                  host_tie_margin): what a choice wider or narrower than the report's costs.
+                                  MARGIN = tie_margin + process_spread is the GPU's default choice, its tie set
 """
 import csv, glob, json, os, statistics, sys
 
@@ -82,9 +84,10 @@ def runs(reports):
 
 def choice(margin, reports):
     """Each run's last race per row, its winner chosen again: the tie-break rule (fewest bytes, then
-    the lower error, then the key) among the fastest, the equal and the undecided whose median is
-    within `margin` (GPU) of the fastest's. At margin = tie_margin this is the run's own rule (the
-    row's final judgement may also come from intervals where no race ran)."""
+    the lower error, then the key) among the candidates within `margin` (GPU) of the fastest, as
+    TiedAt judges them. At margin = tie_margin this is the contenders' choice, at tie_margin +
+    process_spread the tie set's (the row's final judgement may also come from intervals where no
+    race ran)."""
     picks, cost = {}, []
     for i, p in enumerate(reports):
         r = json.load(open(p))
@@ -97,13 +100,16 @@ def choice(margin, reports):
             def rule(e):
                 m = measured.get((race["device_id"], race["dataset"], e["variant"]), {})
                 return (m.get("bytes_per_frame", float("inf")), m.get("source_error", {}).get("position_rel", 0.0), e["variant"])
-            pool = [e for e in race["entries"] if e["verdict"] in ("fastest", "equal")
-                    or (e["verdict"] == "undecided" and e["median_ms"] <= fastest["median_ms"] * (1 + allowed))]
+            # TiedAt: the fastest, and each entry whose median, or whole interval, is within the margin.
+            pool = [e for e in race["entries"] if e is fastest or e["median_ms"] <= fastest["median_ms"] * (1 + allowed)
+                    or e["high_ms"] <= fastest["low_ms"] * (1 + allowed)]
             winner = min(pool, key=rule)
             picks.setdefault((race["device_id"], race["lang"], race["dataset"]), [None] * len(reports))[i] = winner["variant"]
             if not host:
                 cost.append(winner["median_ms"] / fastest["median_ms"])
     same = sum(1 for v in picks.values() if None not in v and len(set(v)) == 1)
+    gpu = [v for k, v in picks.items() if not (k[0].startswith("cpu:") or "Portable" in k[0])]
+    print("GPU rows %d, the same winner in every run %d" % (len(gpu), sum(1 for v in gpu if None not in v and len(set(v)) == 1)))
     cost.sort()
     print("choice margin %.3f: rows %d, the same winner in every run %d; GPU winners against their race's fastest: "
           "median %.3f, p90 %.3f, largest %.3f" % (margin, len(picks), same, statistics.median(cost),

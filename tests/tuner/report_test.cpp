@@ -189,6 +189,7 @@ TEST(Report, ATieSetSpansTheSpreadBetweenProcessesNotTheChoice) {
   TuningReport r = TwoCandidates(gpu, 1.07);
   r.tie_margin = 0.05;
   r.process_spread = 0.034;
+  r.choose_in_tie_set = false;
   std::vector<Winner> winners = ComputeWinners(r);
   ASSERT_EQ(winners.size(), 1u);
   EXPECT_EQ(winners[0].variant.Key(), r.measurements[0].variant.Key());
@@ -205,6 +206,42 @@ TEST(Report, ATieSetSpansTheSpreadBetweenProcessesNotTheChoice) {
   EXPECT_EQ(ComputeWinners(old)[0].tie_set.size(), 1u);
   json["host_process_spread"] = -0.1;
   EXPECT_NE(ErrorOf([&] { ReportFromJson(json, "bad.json"); }).find("host_process_spread"), std::string::npos);
+}
+
+// A GPU's winner is picked among its whole tie set by default (1.8.0): of two
+// candidates 7% apart, within the margin plus the spread, the one moving
+// fewer bytes wins whichever ran faster; a report before 1.8.0 picked among
+// its contenders and keeps its winners; the host's CPU picks among its
+// contenders unless asked; a choice that is not true or false is an error
+// naming it.
+TEST(Report, AGpusWinnerIsPickedAmongItsTieSet) {
+  const DeviceIdentity gpu = testing::SampleGpu();
+  TuningReport r = TwoCandidates(gpu, 1.07);
+  r.tie_margin = 0.05;
+  r.process_spread = 0.034;
+  for (const auto& [m, bytes] : {std::pair{&r.measurements[0], 2e6}, {&r.measurements[1], 1e6}}) {
+    m->gbps *= bytes / m->bytes_per_frame;  // the same time
+    m->bytes_per_frame = bytes;
+  }
+  ASSERT_TRUE(r.choose_in_tie_set) << "the default";
+  ASSERT_EQ(r.ChoiceOf(gpu.Id()), Choice::kTieSet);
+  EXPECT_EQ(ComputeWinners(r).at(0).variant.Key(), r.measurements[1].variant.Key()) << "fewer bytes, 7% slower";
+  nlohmann::json json = ReportToJson(r);
+  EXPECT_EQ(json.at("choose_in_tie_set"), true);
+  EXPECT_EQ(json.at("host_choose_in_tie_set"), false);
+  EXPECT_EQ(ComputeWinners(ReportFromJson(json, "r.json")).at(0).variant.Key(), r.measurements[1].variant.Key());
+  json.erase("choose_in_tie_set");
+  json.erase("host_choose_in_tie_set");
+  const TuningReport old = ReportFromJson(json, "old.json");
+  EXPECT_EQ(old.ChoiceOf(gpu.Id()), Choice::kContenders);
+  EXPECT_EQ(ComputeWinners(old).at(0).variant.Key(), r.measurements[0].variant.Key()) << "an older report's winner";
+  DeviceIdentity cpu = gpu;
+  cpu.backend = "cpu";
+  cpu.type = "cpu";
+  r.devices = {cpu};
+  EXPECT_EQ(r.ChoiceOf(cpu.Id()), Choice::kContenders);
+  json["choose_in_tie_set"] = "yes";
+  EXPECT_NE(ErrorOf([&] { ReportFromJson(json, "bad.json"); }).find("choose_in_tie_set"), std::string::npos);
 }
 
 // Where a race measured a row, the race alone judges it: a candidate the

@@ -213,10 +213,37 @@ TEST(Race, TheSpreadWidensTheTieSetNotTheChoice) {
   const RaceOutcome spread = JudgeRace(entries, 0.05, 0.034);
   EXPECT_EQ(spread.contenders, std::vector<std::size_t>{0});
   EXPECT_EQ(spread.tied, (std::vector<std::size_t>{0, 1}));
-  EXPECT_EQ(entries[spread.winner].key, "fast") << "the winner is a contender, not the tie set's fewest bytes";
+  EXPECT_EQ(entries[spread.winner].key, "fast") << "among the contenders, the winner is not the tie set's fewest bytes";
   EXPECT_EQ(spread.verdicts, plain.verdicts) << "verdicts (and so when a race stops) are judged at the margin";
   EXPECT_FALSE(spread.all_within_noise);
   EXPECT_THROW(JudgeRace(entries, 0.05, -0.01), Error);
+}
+
+// Choice::kTieSet (a GPU's default): the tie-break picks among the whole tie
+// set, so a pair whose order within the spread moves from one process to the
+// next gives the same winner in both: the fewer bytes, whichever was faster.
+// The tie set, the verdicts and the candidates beyond it are unchanged.
+TEST(Race, ChoosingInTheTieSetPicksItsFewestBytesWhicheverRanFaster) {
+  const auto race = [](double second) {
+    return std::vector<RaceEntry>{
+        {"fast", Samples(1.00, 0.002, 60, 31), 100, 0},
+        {"seven.percent", Samples(second, 0.002, 60, 32), 80, 0},
+        {"twelve.percent", Samples(1.12, 0.002, 60, 33), 60, 0},
+    };
+  };
+  for (const double second : {1.07, 1.03, 0.97}) {  // beyond the margin, within it, faster
+    const std::vector<RaceEntry> entries = race(second);
+    const RaceOutcome contenders = JudgeRace(entries, 0.05, 0.034);
+    const RaceOutcome tie_set = JudgeRace(entries, 0.05, 0.034, Choice::kTieSet);
+    EXPECT_EQ(entries[tie_set.winner].key, "seven.percent") << second;
+    EXPECT_EQ(tie_set.tied, contenders.tied) << second;
+    EXPECT_EQ(tie_set.verdicts, contenders.verdicts) << second;
+    EXPECT_EQ(tie_set.fastest, contenders.fastest) << second;
+  }
+  EXPECT_EQ(race(1.07)[JudgeRace(race(1.07), 0.05, 0.034).winner].key, "fast") << "the contenders' choice differs";
+  const std::vector<RaceEntry> far = race(1.07);
+  EXPECT_EQ(far[JudgeRace(far, 0.05, 0.0, Choice::kTieSet).winner].key, "fast")
+      << "with no spread the tie set is the contenders";
 }
 
 TEST(Race, AllWithinNoiseSaysSo) {

@@ -117,7 +117,7 @@ TEST(TuneConfig, ErrorsNameTheElement) {
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"repetitions": 0}})"),
             "c.json: timing.repetitions: must be an integer from 1 to 1000000 (got 0)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"reps": 3}})"),
-            "c.json: timing.reps: unknown field (expected one of warmup, repetitions, max_input_sets, tolerance, burst_ms, interval, min_samples, max_samples, sample_batch, sample_ms, race, tie_margin, host_tie_margin, process_spread, host_process_spread)");
+            "c.json: timing.reps: unknown field (expected one of warmup, repetitions, max_input_sets, tolerance, burst_ms, interval, min_samples, max_samples, sample_batch, sample_ms, race, tie_margin, host_tie_margin, process_spread, host_process_spread, choose_in_tie_set, host_choose_in_tie_set)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"tolerance": -1}})"),
             "c.json: timing.tolerance: must be a positive number (got -1)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"race": -1}})"),
@@ -169,6 +169,10 @@ TEST(TuneConfig, ImpossibleStopRulesNameTheField) {
   EXPECT_NE(usage(R"({"process_spread": -0.01})").find("'timing.process_spread' is -0.01"), std::string::npos)
       << usage(R"({"process_spread": -0.01})");
   EXPECT_EQ(usage(R"({"process_spread": 0, "host_process_spread": 0.5})"), "accepted");
+  EXPECT_EQ(usage(R"({"choose_in_tie_set": false, "host_choose_in_tie_set": true})"), "accepted");
+  EXPECT_NE(usage(R"({"choose_in_tie_set": 1})").find("timing.choose_in_tie_set: expected true or false (got 1)"),
+            std::string::npos)
+      << usage(R"({"choose_in_tie_set": 1})");
   EXPECT_EQ(usage(R"({"interval": 0})").find('\n'), std::string::npos) << "one line";
 }
 
