@@ -50,11 +50,11 @@ struct TimingOptions {
   // GPU among the whole tie set. Three cold default runs on the H200 machine
   // (2026-11-29) named the same winner in 37 rows of 42 choosing among the
   // contenders: the misses were pairs of the palette storage axis 3-7% apart,
-  // whose order moved from process to process across the 5% margin. Chosen
-  // again among their tie sets, the same runs' reports name the same winner
-  // in every GPU row, the winners at most 7.8% (median 0.4%) slower than
-  // their race's fastest. On the host's CPU among the contenders: its tie
-  // set (the margin plus 25%) would pick winners up to 1.41x slower.
+  // whose order moved from process to process across the 5% margin. Picking
+  // among the tie set, three new cold runs named the same winner in 29 of 30
+  // GPU rows, the winners at most 8.2% (median 0.4%) slower than their
+  // race's fastest. On the host's CPU among the contenders: its tie set (the
+  // margin plus 25%) would pick winners up to 1.41x slower.
   bool choose_in_tie_set = true;
   bool host_choose_in_tie_set = false;
   Choice ChoiceFor(const DeviceIdentity& device) const;
