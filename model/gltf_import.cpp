@@ -490,7 +490,45 @@ Channel ReadChannel(const Ctx& ctx, const tinygltf::Animation& anim, const std::
   return ch;
 }
 
-// Every animation's translation/rotation/scale channels (morph `weights` channels are skipped).
+// Morph targets of the skinned mesh, which skintune does not apply yet: an
+// error where they would move the vertices (a non-zero default weight of the
+// node or mesh, or an animation's `weights` channel on the node), since the
+// skin would then be wrong without a word; a warning where they cannot (every
+// weight zero, none animated).
+void CheckMorphTargets(const Ctx& ctx, size_t node_index, std::vector<std::string>& warnings) {
+  const tinygltf::Node& node = ctx.model.nodes[node_index];
+  const tinygltf::Mesh& mesh = ctx.model.meshes[Z(node.mesh)];
+  const std::string mesh_ref = Idx("meshes", node.mesh);
+  size_t targets = 0;
+  std::string first;
+  for (size_t p = 0; p < mesh.primitives.size(); ++p) {
+    if (mesh.primitives[p].targets.empty() || !IsTriangles(mesh.primitives[p].mode)) continue;
+    targets = std::max(targets, mesh.primitives[p].targets.size());
+    if (first.empty()) first = mesh_ref + "." + Idx("primitives", p) + ".targets";
+  }
+  if (targets == 0) return;
+  const std::vector<double>& weights = !node.weights.empty() ? node.weights : mesh.weights;
+  const std::string weights_ref = !node.weights.empty() ? Idx("nodes", node_index) + ".weights" : mesh_ref + ".weights";
+  std::string moves;
+  for (size_t k = 0; k < weights.size() && moves.empty(); ++k)
+    if (weights[k] != 0.0) moves = weights_ref + "[" + to_string(k) + "] is " + Num(weights[k]);
+  for (size_t a = 0; a < ctx.model.animations.size() && moves.empty(); ++a) {
+    const tinygltf::Animation& anim = ctx.model.animations[a];
+    for (size_t c = 0; c < anim.channels.size() && moves.empty(); ++c)
+      if (anim.channels[c].target_path == "weights" && anim.channels[c].target_node == static_cast<int>(node_index))
+        moves = Idx("animations", a) + "." + Idx("channels", c) + " animates their weights";
+  }
+  const std::string what = first + ": " + to_string(targets) + " morph target" + (targets == 1 ? "" : "s");
+  if (!moves.empty())
+    ctx.Fail(what + ", which skintune does not apply; " + moves +
+             ", so the skinned positions would be wrong (export the model without morph targets, or with their "
+             "weights at zero)");
+  warnings.push_back(ctx.path + ": " + what + " with every weight zero and none animated: not applied (they move "
+                                            "no vertex)");
+}
+
+// Every animation's translation/rotation/scale channels (morph `weights`
+// channels: CheckMorphTargets).
 std::vector<AnimationClip> ReadAnimations(const Ctx& ctx) {
   std::vector<AnimationClip> clips;
   for (size_t a = 0; a < ctx.model.animations.size(); ++a) {
@@ -525,6 +563,7 @@ GltfImportResult ImportGltf(const std::string& path, const GltfImportOptions& op
   asset.source = path;
   asset.skeleton = ReadSkeleton(ctx, model.nodes[node].skin);
   asset.mesh = ReadMesh(ctx, node, options, result.warnings);
+  CheckMorphTargets(ctx, node, result.warnings);
   asset.animations = ReadAnimations(ctx);
   return result;
 }

@@ -501,6 +501,47 @@ TEST_F(GltfFiles, JointOutsideTheSkinIsRejected) {
        "joint 5 is outside the skin (2 joints)"});
 }
 
+// Morph targets are not applied: where they would move vertices (a default
+// weight of the mesh or node, or an animated weight), the import is one error
+// naming the targets and what moves them; where they cannot, one warning.
+TEST_F(GltfFiles, MorphTargetsThatWouldMoveVerticesAreAnErrorOthersAWarning) {
+  const auto with_targets = [](json& g) {
+    g["meshes"][0]["primitives"][0]["targets"] = json::array({{{"POSITION", 3}}, {{"NORMAL", 2}}});
+  };
+  ExpectError(
+      [&](json& g) {
+        with_targets(g);
+        g["meshes"][0]["weights"] = {0.0, 0.25};
+      },
+      {"meshes[0].primitives[0].targets: 2 morph targets, which skintune does not apply",
+       "meshes[0].weights[1] is 0.25", "would be wrong"});
+  ExpectError(
+      [&](json& g) {
+        with_targets(g);
+        g["meshes"][0]["weights"] = {0.0, 0.0};
+        g["nodes"][2]["weights"] = {0.5, 0.0};
+      },
+      {"nodes[2].weights[0] is 0.5"});
+  ExpectError(
+      [&](json& g) {
+        with_targets(g);
+        json channel = g["animations"][0]["channels"][0];
+        channel["target"] = {{"node", 2}, {"path", "weights"}};
+        g["animations"][0]["channels"].push_back(channel);
+      },
+      {"2 morph targets", "animations[0].channels[", "animates their weights"});
+  json quiet = rigged_;
+  with_targets(quiet);
+  quiet["meshes"][0]["weights"] = {0.0, 0.0};
+  const GltfImportResult result = ImportGltf(WriteJson("Quiet.gltf", quiet));
+  ASSERT_EQ(result.warnings.size(), 1u);
+  EXPECT_NE(result.warnings[0].find("Quiet.gltf: meshes[0].primitives[0].targets: 2 morph targets with every weight "
+                                    "zero and none animated: not applied"),
+            std::string::npos)
+      << result.warnings[0];
+  EXPECT_EQ(result.asset.mesh.vertex_count(), ImportGltf(DataFile("RiggedSimple.gltf")).asset.mesh.vertex_count());
+}
+
 TEST_F(GltfFiles, NegativeWeightIsRejected) {
   ExpectError(
       [](json& g) {
