@@ -24,7 +24,11 @@
 
 namespace skintune::internal {
 
-inline constexpr const char* kGeneratorVersion = "0.1.0";
+// Part of every measurement's cache key: a change of what the kernels compute
+// (or of the data sets they are verified on) makes earlier records unusable.
+// 0.2.0: normals by the normal matrix (sign(det A) cofactor(A)) instead of the
+// blended matrix's upper 3x3, and the synthetic rigs' joints scale.
+inline constexpr const char* kGeneratorVersion = "0.2.0";
 
 enum class ArgumentKind { kScalar, kBuffer, kImage };
 enum class ArgumentDirection { kIn, kOut };

@@ -405,6 +405,9 @@ SkinnedMesh BuildMesh(const DatasetSpec& spec, const std::vector<Bone>& bones, c
 
 glm::dvec4 AsXyzw(const dquat& q) { return {q.x, q.y, q.z, q.w}; }
 
+// The largest relative change of a joint's scale along one axis.
+constexpr double kScaleAmplitude = 0.2;
+
 AnimationClip BuildAnimation(const DatasetSpec& spec, const Skeleton& skeleton) {
   Rng rng(spec.seed, 4);
   AnimationClip clip;
@@ -419,6 +422,29 @@ AnimationClip BuildAnimation(const DatasetSpec& spec, const Skeleton& skeleton) 
     for (float t : times) {
       const double angle = amplitude * std::sin(2.0 * kPi * hz * static_cast<double>(t) + phase);
       channel.values.push_back(AsXyzw(glm::normalize(skeleton.nodes[i].rest.rotation * glm::angleAxis(angle, axis))));
+    }
+    clip.channels.push_back(std::move(channel));
+  }
+  // Every joint also scales non-uniformly (each axis by up to +-kScaleAmplitude,
+  // its own sinusoid), as rigs' squash-and-stretch and corrective joints do:
+  // the palettes are then general affine maps (scale and, through the
+  // hierarchy, shear), on which a normal turned by the blended matrix's plain
+  // upper 3x3 leaves its surface and the normal matrix does not. A stream of
+  // its own, so the rotations are those of the rig without it.
+  Rng scales(spec.seed, 5);
+  for (std::size_t i = 0; i < skeleton.nodes.size(); ++i) {
+    dvec3 amplitude, hz, phase;
+    for (int a = 0; a < 3; ++a) {
+      amplitude[a] = scales.Range(0.25, 1.0) * kScaleAmplitude;
+      hz[a] = scales.Range(0.3, 1.2);
+      phase[a] = scales.Range(0.0, 2.0 * kPi);
+    }
+    Channel channel{static_cast<int>(i), ChannelPath::kScale, Interpolation::kLinear, times, {}};
+    for (float ft : times) {
+      const auto t = static_cast<double>(ft);
+      dvec3 scale;
+      for (int a = 0; a < 3; ++a) scale[a] = 1.0 + amplitude[a] * std::sin(2.0 * kPi * hz[a] * t + phase[a]);
+      channel.values.emplace_back(skeleton.nodes[i].rest.scale * scale, 0.0);
     }
     clip.channels.push_back(std::move(channel));
   }

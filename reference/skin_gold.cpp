@@ -50,7 +50,7 @@ GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
       }
       result.positions[v] = glm::dvec3(blended * glm::dvec4(glm::dvec3(mesh.positions[v]), 1.0));
       if (with_normals) {
-        const glm::dvec3 n3 = glm::dmat3(blended) * glm::dvec3(mesh.normals[v]);
+        const glm::dvec3 n3 = NormalMatrix(glm::dmat3(blended)) * glm::dvec3(mesh.normals[v]);
         const double len = glm::length(n3);
         result.normals[v] = len > 0.0 ? n3 / len : n3;
       }

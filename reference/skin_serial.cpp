@@ -18,7 +18,7 @@ void SkinSerial(const SkinnedMesh& mesh, std::span<const glm::mat4> palette, std
     glm::mat4 blended(0.0f);
     for (int i = 0; i < b; ++i) blended += mesh.weights[v * b + i] * palette[mesh.joints[v * b + i]];
     out_positions[v] = glm::vec3(blended * glm::vec4(mesh.positions[v], 1.0f));
-    if (with_normals) out_normals[v] = glm::normalize(glm::mat3(blended) * mesh.normals[v]);
+    if (with_normals) out_normals[v] = glm::normalize(NormalMatrix(glm::mat3(blended)) * mesh.normals[v]);
   }
 }
 

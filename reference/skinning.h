@@ -1,7 +1,15 @@
 // skintune: CPU linear blend skinning, three ways.
 //
 //   v' = sum_i w_i * M[d_i] * v            (positions)
-//   n' = normalize(upper3x3(sum_i w_i * M[d_i]) * n)   (normals)
+//   n' = normalize(N(A) * n), A = upper3x3(sum_i w_i * M[d_i])   (normals)
+//
+// N(A) is the normal matrix, the inverse transpose of A up to its positive
+// length: sign(det A) * cofactor(A) (NormalMatrix below). The plain upper
+// 3x3 turns a normal off its surface under non-uniform scale or shear: up to
+// 0.41 rad on a joint scaled (1.7, 1, 0.6). The cofactor needs no inverse,
+// so a singular A (a blend that flattens the surface) still gives a
+// direction; the sign keeps a mirrored surface's normal on its side, as the
+// inverse transpose does.
 //
 // - SkinGold:   float64 throughout; the reference every correctness check uses.
 // - SkinSerial: the paper's serial baseline: float32, one thread, a plain loop
@@ -32,6 +40,15 @@
 #include "model/mesh.h"
 
 namespace skintune::internal {
+
+// sign(det a) * cofactor(a) for a glm 3x3 (float or double): its columns are
+// the cross products of a's columns c1 x c2, c2 x c0, c0 x c1, and det a =
+// c0 . (c1 x c2); +1 where det a is 0.
+template <typename M3>
+M3 NormalMatrix(const M3& a) {
+  const M3 cofactor(glm::cross(a[1], a[2]), glm::cross(a[2], a[0]), glm::cross(a[0], a[1]));
+  return glm::dot(a[0], cofactor[0]) < 0 ? -cofactor : cofactor;
+}
 
 struct GoldResult {
   std::vector<glm::dvec3> positions;

@@ -1,7 +1,8 @@
 // skintune: linear blend skinning, every OpenCL variant in one kernel file.
 //
 //   v' = sum_i w_i * M[d_i] * (v, 1)                    (positions)
-//   n' = normalize(upper3x3(sum_i w_i * M[d_i]) * n)     (normals)
+//   n' = normalize(N(A) * n), A = upper3x3(sum_i w_i * M[d_i])   (normals;
+//        N(A) = sign(det A) * cofactor(A), the inverse transpose's direction)
 //
 // The parameters, their defaults and the aos layout are in skin_params.h,
 // shared by every template; the generator (generator/emit.cpp) prepends one
@@ -178,8 +179,13 @@ static inline float3 transform_point(const float4 r0, const float4 r1, const flo
   return (float3)(dot(r0, h), dot(r1, h), dot(r2, h));
 }
 
-static inline float3 transform_direction(const float4 r0, const float4 r1, const float4 r2, const float3 d) {
-  return (float3)(dot(r0.xyz, d), dot(r1.xyz, d), dot(r2.xyz, d));
+// The normal matrix's product (reference/skinning.h NormalMatrix): sign(det A)
+// * cofactor(A) * d, for A's rows a0..a2 (xyz): the direction of the inverse
+// transpose's, right under non-uniform scale and shear.
+static inline float3 transform_normal(const float4 a0, const float4 a1, const float4 a2, const float3 d) {
+  const float3 c0 = cross(a1.xyz, a2.xyz);
+  const float3 n = (float3)(dot(c0, d), dot(cross(a2.xyz, a0.xyz), d), dot(cross(a0.xyz, a1.xyz), d));
+  return dot(a0.xyz, c0) < 0.0f ? -n : n;
 }
 
 // Skins one vertex given its joints and weights; writes position (and normal).
@@ -189,16 +195,17 @@ static inline void blend(PALETTE_REF_PARAM, const uint joint[INFLUENCES], const 
   uint k = joint[0] * PALETTE_ROWS;
   float4 r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
   float3 p = weight[0] * transform_point(r0, r1, r2, position);
-  float3 nrm = weight[0] * transform_direction(r0, r1, r2, normal);  // dead code without NORMALS
+  // The blended matrix for the normal (dead code without NORMALS).
+  float4 a0 = weight[0] * r0, a1 = weight[0] * r1, a2 = weight[0] * r2;
 #pragma unroll
   for (uint i = 1; i < INFLUENCES; ++i) {
     k = joint[i] * PALETTE_ROWS;
     r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
     p += weight[i] * transform_point(r0, r1, r2, position);
-    nrm += weight[i] * transform_direction(r0, r1, r2, normal);
+    a0 += weight[i] * r0, a1 += weight[i] * r1, a2 += weight[i] * r2;
   }
   *out_position = p;
-  *out_normal = nrm;
+  *out_normal = transform_normal(a0, a1, a2, normal);
 #else
   const uint k0 = joint[0] * PALETTE_ROWS;
   float4 m0 = weight[0] * ROW(pal, k0), m1 = weight[0] * ROW(pal, k0 + 1), m2 = weight[0] * ROW(pal, k0 + 2);
@@ -210,7 +217,7 @@ static inline void blend(PALETTE_REF_PARAM, const uint joint[INFLUENCES], const 
     m2 += weight[i] * ROW(pal, k + 2);
   }
   *out_position = transform_point(m0, m1, m2, position);
-  *out_normal = transform_direction(m0, m1, m2, normal);  // dead code without NORMALS
+  *out_normal = transform_normal(m0, m1, m2, normal);  // dead code without NORMALS
 #endif
 }
 

@@ -3,7 +3,8 @@
 // compute shader: the same algorithm on the same bytes as templates/skin.cl.
 //
 //   v' = sum_i w_i * M[d_i] * (v, 1)                    (positions)
-//   n' = normalize(upper3x3(sum_i w_i * M[d_i]) * n)     (normals)
+//   n' = normalize(N(A) * n), A = upper3x3(sum_i w_i * M[d_i])   (normals;
+//        N(A) = sign(det A) * cofactor(A), the inverse transpose's direction)
 //
 // The generator (generator/emit.cpp) puts one #define per parameter right
 // after the #version line; every parameter has its default in skin_params.h,

@@ -1,7 +1,8 @@
 // skintune: linear blend skinning, every CUDA variant in one kernel file.
 //
 //   v' = sum_i w_i * M[d_i] * (v, 1)                    (positions)
-//   n' = normalize(upper3x3(sum_i w_i * M[d_i]) * n)     (normals)
+//   n' = normalize(N(A) * n), A = upper3x3(sum_i w_i * M[d_i])   (normals;
+//        N(A) = sign(det A) * cofactor(A), the inverse transpose's direction)
 //
 // The CUDA twin of templates/skin.cl: the same #define parameters (from
 // skin_params.h, shared by every template; the generator, generator/emit.cpp,
@@ -90,13 +91,13 @@ DEVICE float3 scale3(const float s, const float3 a) { return make_float3(s * a.x
 #endif
 #if BLEND_POINT
 DEVICE float3 add3(const float3 a, const float3 b) { return make_float3(a.x + b.x, a.y + b.y, a.z + b.z); }
-#else
+#endif
+// The blended matrix (BLEND_POINT: for the normal only).
 DEVICE float4 scale4(const float s, const float4 a) { return make_float4(s * a.x, s * a.y, s * a.z, s * a.w); }
 // acc + s * a
 DEVICE float4 madd4(const float s, const float4 a, const float4 acc) {
   return make_float4(acc.x + s * a.x, acc.y + s * a.y, acc.z + s * a.z, acc.w + s * a.w);
 }
-#endif
 
 // ---------------------------------------------------------------- loads
 //
@@ -237,9 +238,19 @@ DEVICE float3 transform_point(const float4 r0, const float4 r1, const float4 r2,
                      r2.x * p.x + r2.y * p.y + r2.z * p.z + r2.w);
 }
 
-DEVICE float3 transform_direction(const float4 r0, const float4 r1, const float4 r2, const float3 d) {
-  return make_float3(r0.x * d.x + r0.y * d.y + r0.z * d.z, r1.x * d.x + r1.y * d.y + r1.z * d.z,
-                     r2.x * d.x + r2.y * d.y + r2.z * d.z);
+// a x b and a . b of the rows' xyz.
+DEVICE float3 cross3(const float4 a, const float4 b) {
+  return make_float3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+DEVICE float dot3(const float3 a, const float3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+// The normal matrix's product (reference/skinning.h NormalMatrix): sign(det A)
+// * cofactor(A) * d, for A's rows a0..a2 (xyz): the direction of the inverse
+// transpose's, right under non-uniform scale and shear.
+DEVICE float3 transform_normal(const float4 a0, const float4 a1, const float4 a2, const float3 d) {
+  const float3 c0 = cross3(a1, a2);
+  const float3 n = make_float3(dot3(c0, d), dot3(cross3(a2, a0), d), dot3(cross3(a0, a1), d));
+  return dot3(make_float3(a0.x, a0.y, a0.z), c0) < 0.0f ? make_float3(-n.x, -n.y, -n.z) : n;
 }
 
 #if NORMALS
@@ -257,16 +268,17 @@ DEVICE void blend(PALETTE_REF_PARAM, const u32 joint[INFLUENCES], const float we
   u32 k = joint[0] * PALETTE_ROWS;
   float4 r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
   float3 p = scale3(weight[0], transform_point(r0, r1, r2, position));
-  float3 nrm = scale3(weight[0], transform_direction(r0, r1, r2, normal));  // dead code without NORMALS
+  // The blended matrix for the normal (dead code without NORMALS).
+  float4 a0 = scale4(weight[0], r0), a1 = scale4(weight[0], r1), a2 = scale4(weight[0], r2);
 #pragma unroll
   for (u32 i = 1; i < INFLUENCES; ++i) {
     k = joint[i] * PALETTE_ROWS;
     r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
     p = add3(p, scale3(weight[i], transform_point(r0, r1, r2, position)));
-    nrm = add3(nrm, scale3(weight[i], transform_direction(r0, r1, r2, normal)));
+    a0 = madd4(weight[i], r0, a0), a1 = madd4(weight[i], r1, a1), a2 = madd4(weight[i], r2, a2);
   }
   *out_position = p;
-  *out_normal = nrm;
+  *out_normal = transform_normal(a0, a1, a2, normal);
 #else
   const u32 k0 = joint[0] * PALETTE_ROWS;
   float4 m0 = scale4(weight[0], ROW(pal, k0)), m1 = scale4(weight[0], ROW(pal, k0 + 1)),
@@ -279,7 +291,7 @@ DEVICE void blend(PALETTE_REF_PARAM, const u32 joint[INFLUENCES], const float we
     m2 = madd4(weight[i], ROW(pal, k + 2), m2);
   }
   *out_position = transform_point(m0, m1, m2, position);
-  *out_normal = transform_direction(m0, m1, m2, normal);  // dead code without NORMALS
+  *out_normal = transform_normal(m0, m1, m2, normal);  // dead code without NORMALS
 #endif
 }
 

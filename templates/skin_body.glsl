@@ -243,8 +243,13 @@ vec3 transform_point(vec4 r0, vec4 r1, vec4 r2, vec3 p) {
   return vec3(dot(r0, h), dot(r1, h), dot(r2, h));
 }
 
-vec3 transform_direction(vec4 r0, vec4 r1, vec4 r2, vec3 d) {
-  return vec3(dot(r0.xyz, d), dot(r1.xyz, d), dot(r2.xyz, d));
+// The normal matrix's product (reference/skinning.h NormalMatrix): sign(det A)
+// * cofactor(A) * d, for A's rows a0..a2 (xyz): the direction of the inverse
+// transpose's, right under non-uniform scale and shear.
+vec3 transform_normal(vec4 a0, vec4 a1, vec4 a2, vec3 d) {
+  vec3 c0 = cross(a1.xyz, a2.xyz);
+  vec3 n = vec3(dot(c0, d), dot(cross(a2.xyz, a0.xyz), d), dot(cross(a0.xyz, a1.xyz), d));
+  return dot(a0.xyz, c0) < 0.0 ? -n : n;
 }
 
 // Skins one vertex given its joints and weights.
@@ -254,17 +259,20 @@ void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, vec3
   uint k = joint[0] * uint(PALETTE_ROWS);
   vec4 r0 = ROW(k), r1 = ROW(k + 1u), r2 = ROW(k + 2u);
   vec3 p = weight[0] * transform_point(r0, r1, r2, position);
-  vec3 nrm = weight[0] * transform_direction(r0, r1, r2, normal);  // dead code without NORMALS
+  // The blended matrix for the normal (dead code without NORMALS).
+  vec4 a0 = weight[0] * r0, a1 = weight[0] * r1, a2 = weight[0] * r2;
   for (uint i = 1u; i < uint(INFLUENCES); ++i) {
     k = joint[i] * uint(PALETTE_ROWS);
     r0 = ROW(k);
     r1 = ROW(k + 1u);
     r2 = ROW(k + 2u);
     p += weight[i] * transform_point(r0, r1, r2, position);
-    nrm += weight[i] * transform_direction(r0, r1, r2, normal);
+    a0 += weight[i] * r0;
+    a1 += weight[i] * r1;
+    a2 += weight[i] * r2;
   }
   out_p = p;
-  out_n = nrm;
+  out_n = transform_normal(a0, a1, a2, normal);
 #else
   uint k0 = joint[0] * uint(PALETTE_ROWS);
   vec4 m0 = weight[0] * ROW(k0), m1 = weight[0] * ROW(k0 + 1u), m2 = weight[0] * ROW(k0 + 2u);
@@ -275,7 +283,7 @@ void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, vec3
     m2 += weight[i] * ROW(k + 2u);
   }
   out_p = transform_point(m0, m1, m2, position);
-  out_n = transform_direction(m0, m1, m2, normal);  // dead code without NORMALS
+  out_n = transform_normal(m0, m1, m2, normal);  // dead code without NORMALS
 #endif
 }
 

@@ -24,7 +24,9 @@ std::vector<glm::mat4> RandomPalette(int joints, unsigned seed) {
     const float a = 0.37f * float(j + seed), b = 0.11f * float(j * seed + 1);
     glm::mat4 m = glm::translate(glm::mat4(1.0f), glm::vec3(std::sin(a), std::cos(b), 0.5f * a - 3.0f));
     m = glm::rotate(m, a, glm::normalize(glm::vec3(1.0f, b, 0.3f)));
-    palette.push_back(glm::scale(m, glm::vec3(1.0f + 0.1f * std::sin(b))));
+    // Non-uniform scale, so the normal rule shows (the plain upper 3x3 would
+    // fail the agreement tests below against the gold's normal matrix).
+    palette.push_back(glm::scale(m, glm::vec3(1.0f + 0.1f * std::sin(b), 1.0f - 0.3f * std::cos(a), 1.2f)));
   }
   return palette;
 }
@@ -69,7 +71,7 @@ TEST(SkinGold, BlendsTranslationsByWeight) {
   EXPECT_DOUBLE_EQ(r.positions[0].z, 3.0);
 }
 
-TEST(SkinGold, NormalsUseTheBlendedUpper3x3AndAreRenormalised) {
+TEST(SkinGold, NormalsOfARotationAndUniformScaleAreRotatedAndRenormalised) {
   SkinnedMesh mesh;
   mesh.influences = 1;
   mesh.joint_count = 1;
@@ -84,6 +86,60 @@ TEST(SkinGold, NormalsUseTheBlendedUpper3x3AndAreRenormalised) {
   ASSERT_EQ(r.normals.size(), 1u);
   EXPECT_NEAR(r.normals[0].x, 0.0, 1e-7);
   EXPECT_NEAR(r.normals[0].y, 1.0, 1e-7);
+}
+
+// Normals follow the inverse transpose of the blended 3x3 (its direction):
+// under non-uniform scale, shear, a mirror and a blend of two differently
+// scaled joints, against glm's inverse in float64; a singular blend (a joint
+// flattened along z) still gives the cofactor's direction. The serial and
+// fast CPU skinners agree with the gold. The plain upper 3x3 is 0.32 rad off
+// in the first case.
+TEST(SkinGold, NormalsFollowTheInverseTransposeUnderScaleShearAndMirror) {
+  const glm::vec3 n0 = glm::normalize(glm::vec3(1, 1, 0.5f));
+  glm::mat4 shear(1.0f);
+  shear[1][0] = 0.5f;  // x += 0.5 y
+  shear[2][1] = -0.3f;  // y -= 0.3 z
+  const std::vector<std::pair<std::vector<glm::mat4>, std::vector<float>>> cases = {
+      {{glm::scale(glm::mat4(1.0f), {2, 1, 1})}, {1.0f}},
+      {{shear}, {1.0f}},
+      {{glm::scale(glm::mat4(1.0f), {-1, 1, 1})}, {1.0f}},
+      {{glm::scale(glm::mat4(1.0f), {1.7f, 1, 0.6f}), glm::rotate(glm::scale(glm::mat4(1.0f), {0.5f, 2, 1}), 0.7f, {0, 0, 1})},
+       {0.3f, 0.7f}},
+  };
+  for (std::size_t c = 0; c < cases.size(); ++c) {
+    const auto& [palette, weights] = cases[c];
+    SkinnedMesh mesh;
+    mesh.influences = static_cast<int>(weights.size());
+    mesh.joint_count = static_cast<int>(palette.size());
+    mesh.positions = {{0.2f, -0.1f, 0.4f}};
+    mesh.normals = {n0};
+    mesh.weights = weights;
+    for (int i = 0; i < mesh.influences; ++i) mesh.joints.push_back(static_cast<std::uint16_t>(i));
+    glm::dmat3 a(0.0);
+    for (int i = 0; i < mesh.influences; ++i) a += double(weights[i]) * glm::dmat3(glm::dmat4(palette[i]));
+    const glm::dvec3 expected = glm::normalize(glm::transpose(glm::inverse(a)) * glm::dvec3(n0));
+    const GoldResult gold = SkinGold(mesh, palette, true);
+    ASSERT_EQ(gold.normals.size(), 1u);
+    EXPECT_NEAR(glm::length(gold.normals[0] - expected), 0.0, 1e-12) << "case " << c;
+    std::vector<glm::vec3> p(1), serial(1), fast(1);
+    SkinSerial(mesh, palette, p, serial);
+    FastSkinner(mesh, 1).Run(palette, p, fast);
+    EXPECT_NEAR(glm::length(glm::dvec3(serial[0]) - expected), 0.0, 1e-6) << "serial, case " << c;
+    EXPECT_NEAR(glm::length(glm::dvec3(fast[0]) - expected), 0.0, 1e-6) << "fast, case " << c;
+    if (c == 0) {  // what the plain upper 3x3 would give
+      const double off = std::acos(glm::dot(glm::normalize(a * glm::dvec3(n0)), expected));
+      EXPECT_GT(off, 0.3) << off;
+    }
+  }
+  SkinnedMesh flat;
+  flat.influences = 1;
+  flat.joint_count = 1;
+  flat.positions = {{0, 0, 0}};
+  flat.normals = {{0, 0, 1}};
+  flat.joints = {0};
+  flat.weights = {1.0f};
+  const GoldResult r = SkinGold(flat, std::vector<glm::mat4>{glm::scale(glm::mat4(1.0f), {1, 1, 0})}, true);
+  EXPECT_NEAR(glm::length(r.normals[0] - glm::dvec3(0, 0, 1)), 0.0, 1e-12) << "a singular blend keeps a direction";
 }
 
 TEST(SkinGold, RejectsInvalidMeshAndWrongPaletteSize) {

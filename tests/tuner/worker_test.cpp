@@ -3,6 +3,8 @@
 // No device needed; the real worker is exercised by tune_cli_test.
 #include "tuner/worker.h"
 
+#include "generator/emit.h"  // kGeneratorVersion
+
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -109,7 +111,7 @@ TEST(IsolatedDevice, SendsOneRequestPerLineAndReadsTheMeasurement) {
     EXPECT_EQ(m.device_id, FakeDevice().Id());
     EXPECT_EQ(m.dataset, "5000-b2");
     EXPECT_EQ(m.variant, kVariant);
-    EXPECT_EQ(m.generator_version, "0.1.0");
+    EXPECT_EQ(m.generator_version, kGeneratorVersion);
   }
   EXPECT_EQ(worker.starts(), 1);
   // The worker selects its device by identity; the index is only a hint.
