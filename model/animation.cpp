@@ -27,6 +27,7 @@ const char* PathName(ChannelPath path) {
     case ChannelPath::kTranslation: return "translation";
     case ChannelPath::kRotation: return "rotation";
     case ChannelPath::kScale: return "scale";
+    case ChannelPath::kWeights: return "weights";
   }
   return "?";
 }
@@ -153,12 +154,26 @@ void AnimationClip::Sample(double t, Pose& pose) const {
       throw Error("animation '" + name + "': channel on node " + std::to_string(c.node) +
                   " cannot be sampled (clip not validated against this skeleton)");
     }
+    if (c.path == ChannelPath::kWeights) continue;  // SampleMorphWeights
     const glm::dvec4 v = Evaluate(c, t);
     Transform& target = pose[static_cast<std::size_t>(c.node)];
     switch (c.path) {
       case ChannelPath::kTranslation: target.translation = glm::dvec3(v); break;
       case ChannelPath::kScale: target.scale = glm::dvec3(v); break;
       case ChannelPath::kRotation: target.rotation = ToQuat(NormalizeQuat(v)); break;
+      case ChannelPath::kWeights: break;
+    }
+  }
+}
+
+void AnimationClip::SampleMorphWeights(double t, std::vector<double>& weights) const {
+  for (const Channel& c : channels) {
+    if (c.path != ChannelPath::kWeights || c.times.empty() || c.values.size() != c.times.size() * ValuesPerKey(c))
+      continue;
+    const glm::dvec4 v = Evaluate(c, t);
+    for (int k = 0; k < 4; ++k) {
+      const std::size_t target = static_cast<std::size_t>(c.first_target + k);
+      if (target < weights.size()) weights[target] = v[k];
     }
   }
 }

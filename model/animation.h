@@ -4,6 +4,8 @@
 // of one node with STEP, LINEAR (rotations: shortest-path slerp) or
 // CUBICSPLINE (Hermite, glTF's in-tangent/value/out-tangent triplets)
 // interpolation. Sampling outside the keyed range clamps to the first/last key.
+// A `weights` channel drives the morph target weights of the skinned mesh,
+// four targets per Channel (SampleMorphWeights).
 #pragma once
 
 #include <string>
@@ -15,7 +17,7 @@
 
 namespace skintune::internal {
 
-enum class ChannelPath { kTranslation, kRotation, kScale };
+enum class ChannelPath { kTranslation, kRotation, kScale, kWeights };
 enum class Interpolation { kStep, kLinear, kCubicSpline };
 
 struct Channel {
@@ -23,9 +25,11 @@ struct Channel {
   ChannelPath path = ChannelPath::kRotation;
   Interpolation interpolation = Interpolation::kLinear;
   std::vector<float> times;        // strictly increasing
-  // One value per key (xyz for T/S, quaternion as (x, y, z, w) for R), or
-  // three per key for CUBICSPLINE: in-tangent, value, out-tangent.
+  // One value per key (xyz for T/S, quaternion as (x, y, z, w) for R, the
+  // weights of targets first_target.. first_target + 3 for W, unused lanes 0),
+  // or three per key for CUBICSPLINE: in-tangent, value, out-tangent.
   std::vector<glm::dvec4> values;
+  int first_target = 0;  // kWeights only
 };
 
 struct AnimationClip {
@@ -41,6 +45,9 @@ struct AnimationClip {
   // Overwrites the animated components of `pose` with the clip sampled at
   // time t (seconds, clip time: keys are at their own times, not shifted).
   void Sample(double t, Pose& pose) const;
+  // Overwrites the weights of the morph targets the clip animates (kWeights
+  // channels) with their values at time t; the others keep theirs.
+  void SampleMorphWeights(double t, std::vector<double>& weights) const;
   // Recomputes start/end from the channels.
   void UpdateRange();
 };

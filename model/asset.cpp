@@ -43,4 +43,47 @@ std::vector<glm::mat4> SkinnedAsset::PaletteAt(int animation, double t) const {
   }
 }
 
+std::vector<double> SkinnedAsset::MorphWeightsAt(int animation, double t) const {
+  std::vector<double> weights = morph.weights;
+  weights.resize(morph.count(), 0.0);
+  if (animation >= 0) animations.at(animation).SampleMorphWeights(t, weights);
+  return weights;
+}
+
+SkinnedMesh SkinnedAsset::MeshAt(int animation, double t) const {
+  SkinnedMesh out = mesh;
+  if (morph.count() == 0) return out;
+  const std::vector<double> weights = MorphWeightsAt(animation, t);
+  const std::size_t n = out.positions.size();
+  for (std::size_t k = 0; k < morph.count(); ++k) {
+    if (weights[k] == 0.0) continue;
+    for (std::size_t v = 0; v < n; ++v)
+      out.positions[v] = glm::vec3(glm::dvec3(out.positions[v]) + weights[k] * glm::dvec3(morph.positions[k][v]));
+    if (out.has_normals() && k < morph.normals.size() && !morph.normals[k].empty())
+      for (std::size_t v = 0; v < n; ++v)
+        out.normals[v] = glm::vec3(glm::dvec3(out.normals[v]) + weights[k] * glm::dvec3(morph.normals[k][v]));
+  }
+  return out;
+}
+
+std::string SkinnedAsset::MorphInUse() const {
+  if (morph.count() == 0) return "";
+  for (std::size_t k = 0; k < morph.weights.size(); ++k)
+    if (morph.weights[k] != 0.0) return "default weight " + std::to_string(k) + " is " + std::to_string(morph.weights[k]);
+  for (std::size_t a = 0; a < animations.size(); ++a)
+    for (const Channel& c : animations[a].channels)
+      if (c.path == ChannelPath::kWeights)
+        return "animation " + std::to_string(a) + (animations[a].name.empty() ? "" : " '" + animations[a].name + "'") +
+               " animates their weights";
+  return "";
+}
+
+void SkinnedAsset::RequireNoMorphInUse(const std::string& who) const {
+  const std::string why = MorphInUse();
+  if (why.empty()) return;
+  throw Error(source + ": " + morph.where + ": " + std::to_string(morph.count()) + " morph target" +
+              (morph.count() == 1 ? "" : "s") + " move its vertices (" + why + "), which " + who +
+              " does not apply yet (`skintune skin` applies them on the CPU)");
+}
+
 }  // namespace skintune::internal

@@ -490,46 +490,112 @@ Channel ReadChannel(const Ctx& ctx, const tinygltf::Animation& anim, const std::
   return ch;
 }
 
-// Morph targets of the skinned mesh, which skintune does not apply yet: an
-// error where they would move the vertices (a non-zero default weight of the
-// node or mesh, or an animation's `weights` channel on the node), since the
-// skin would then be wrong without a word; a warning where they cannot (every
-// weight zero, none animated).
-void CheckMorphTargets(const Ctx& ctx, size_t node_index, std::vector<std::string>& warnings) {
+// The skinned mesh's morph targets (every triangle primitive's `targets`, in
+// the mesh's vertex order; glTF gives every primitive of a mesh the same
+// number of targets), and their default weights: the node's, else the
+// mesh's, else zero. POSITION and NORMAL offsets are read; a TANGENT offset
+// needs the tangents skintune does not skin yet, and is reported once.
+MorphTargets ReadMorphTargets(const Ctx& ctx, size_t node_index, const SkinnedMesh& mesh,
+                              std::vector<std::string>& warnings) {
   const tinygltf::Node& node = ctx.model.nodes[node_index];
-  const tinygltf::Mesh& mesh = ctx.model.meshes[Z(node.mesh)];
+  const tinygltf::Mesh& src = ctx.model.meshes[Z(node.mesh)];
   const std::string mesh_ref = Idx("meshes", node.mesh);
+  MorphTargets morph;
   size_t targets = 0;
-  std::string first;
-  for (size_t p = 0; p < mesh.primitives.size(); ++p) {
-    if (mesh.primitives[p].targets.empty() || !IsTriangles(mesh.primitives[p].mode)) continue;
-    targets = std::max(targets, mesh.primitives[p].targets.size());
-    if (first.empty()) first = mesh_ref + "." + Idx("primitives", p) + ".targets";
+  for (size_t p = 0; p < src.primitives.size(); ++p) {
+    if (!IsTriangles(src.primitives[p].mode) || src.primitives[p].targets.empty()) continue;
+    const std::string where = mesh_ref + "." + Idx("primitives", p) + ".targets";
+    if (targets != 0 && src.primitives[p].targets.size() != targets)
+      ctx.Fail(where + ": " + to_string(src.primitives[p].targets.size()) + " morph targets, where " + morph.where +
+               " has " + to_string(targets) + " (every primitive of a mesh has the same number)");
+    if (targets == 0) morph.where = where;
+    targets = src.primitives[p].targets.size();
   }
-  if (targets == 0) return;
-  const std::vector<double>& weights = !node.weights.empty() ? node.weights : mesh.weights;
+  if (targets == 0) return morph;
+  const size_t n = mesh.positions.size();
+  morph.positions.assign(targets, std::vector<glm::vec3>(n, glm::vec3(0.0f)));
+  if (mesh.has_normals()) morph.normals.assign(targets, std::vector<glm::vec3>(n, glm::vec3(0.0f)));
+  bool tangents = false;
+  size_t first = 0;
+  for (size_t p = 0; p < src.primitives.size(); ++p) {
+    const tinygltf::Primitive& prim = src.primitives[p];
+    if (!IsTriangles(prim.mode)) continue;
+    const size_t count = ctx.model.accessors[Z(prim.attributes.at("POSITION"))].count;
+    for (size_t k = 0; k < prim.targets.size(); ++k) {
+      const std::string where = mesh_ref + "." + Idx("primitives", p) + "." + Idx("targets", k);
+      for (const auto& [name, accessor] : prim.targets[k]) {
+        std::vector<std::vector<glm::vec3>>* into = name == "POSITION" ? &morph.positions
+                                                    : name == "NORMAL" && mesh.has_normals() ? &morph.normals
+                                                                                              : nullptr;
+        tangents = tangents || name == "TANGENT";
+        if (!into) continue;
+        const AccessorData d = ReadAccessor(ctx, accessor, {name + " of " + where, kRotationTypes, {TINYGLTF_TYPE_VEC3}});
+        if (d.count != count)
+          ctx.Fail(AccessorName(accessor, name + " of " + where) + ": count " + to_string(d.count) +
+                   " differs from POSITION's count " + to_string(count));
+        for (size_t v = 0; v < count; ++v) {
+          const glm::dvec3 delta(d.at(v, 0), d.at(v, 1), d.at(v, 2));
+          if (!std::isfinite(delta.x) || !std::isfinite(delta.y) || !std::isfinite(delta.z))
+            ctx.Fail(AccessorName(accessor, name + " of " + where) + ": vertex " + to_string(v) + ": not finite");
+          (*into)[k][first + v] = glm::vec3(delta);
+        }
+      }
+    }
+    first += count;
+  }
+  const std::vector<double>& weights = !node.weights.empty() ? node.weights : src.weights;
   const std::string weights_ref = !node.weights.empty() ? Idx("nodes", node_index) + ".weights" : mesh_ref + ".weights";
-  std::string moves;
-  for (size_t k = 0; k < weights.size() && moves.empty(); ++k)
-    if (weights[k] != 0.0) moves = weights_ref + "[" + to_string(k) + "] is " + Num(weights[k]);
-  for (size_t a = 0; a < ctx.model.animations.size() && moves.empty(); ++a) {
-    const tinygltf::Animation& anim = ctx.model.animations[a];
-    for (size_t c = 0; c < anim.channels.size() && moves.empty(); ++c)
-      if (anim.channels[c].target_path == "weights" && anim.channels[c].target_node == static_cast<int>(node_index))
-        moves = Idx("animations", a) + "." + Idx("channels", c) + " animates their weights";
-  }
-  const std::string what = first + ": " + to_string(targets) + " morph target" + (targets == 1 ? "" : "s");
-  if (!moves.empty())
-    ctx.Fail(what + ", which skintune does not apply; " + moves +
-             ", so the skinned positions would be wrong (export the model without morph targets, or with their "
-             "weights at zero)");
-  warnings.push_back(ctx.path + ": " + what + " with every weight zero and none animated: not applied (they move "
-                                            "no vertex)");
+  if (!weights.empty() && weights.size() != targets)
+    ctx.Fail(weights_ref + ": " + to_string(weights.size()) + " weights for " + to_string(targets) + " morph targets");
+  for (size_t k = 0; k < weights.size(); ++k)
+    if (!std::isfinite(weights[k])) ctx.Fail(weights_ref + "[" + to_string(k) + "] is not finite");
+  morph.weights = weights;
+  morph.weights.resize(targets, 0.0);
+  if (tangents)
+    warnings.push_back(ctx.path + ": " + morph.where + ": TANGENT offsets not applied (skintune skins no tangents)");
+  return morph;
 }
 
-// Every animation's translation/rotation/scale channels (morph `weights`
-// channels: CheckMorphTargets).
-std::vector<AnimationClip> ReadAnimations(const Ctx& ctx) {
+// A `weights` channel on the skinned node: its sampler's output holds the K
+// targets' weights per key (3K for CUBICSPLINE), split into Channels of four.
+std::vector<Channel> ReadWeightsChannels(const Ctx& ctx, const tinygltf::Animation& anim, const std::string& where,
+                                         size_t c, size_t targets) {
+  const tinygltf::AnimationChannel& src = anim.channels[c];
+  const std::string channel_ref = where + "." + Idx("channels", c);
+  if (targets == 0) ctx.Fail(channel_ref + ": animates the morph weights of a mesh without morph targets");
+  if (!InRange(src.sampler, anim.samplers)) ctx.Fail(channel_ref + ": sampler " + to_string(src.sampler) + " does not exist");
+  const tinygltf::AnimationSampler& sampler = anim.samplers[Z(src.sampler)];
+  const std::string sampler_ref = where + "." + Idx("samplers", src.sampler);
+  const Interpolation interpolation = ParseInterpolation(ctx, sampler.interpolation, sampler_ref);
+  const AccessorData in = ReadAccessor(ctx, sampler.input, {"input of " + sampler_ref, kFloat, {TINYGLTF_TYPE_SCALAR}});
+  const AccessorData out =
+      ReadAccessor(ctx, sampler.output, {"output of " + sampler_ref, kRotationTypes, {TINYGLTF_TYPE_SCALAR}});
+  const size_t per_key = interpolation == Interpolation::kCubicSpline ? 3 : 1;
+  if (out.count != in.count * per_key * targets)
+    ctx.Fail(sampler_ref + ": output " + Idx("accessors", sampler.output) + " has " + to_string(out.count) +
+             " values for " + to_string(in.count) + " keys of " + to_string(targets) + " morph targets (expected " +
+             to_string(in.count * per_key * targets) + ")");
+  std::vector<Channel> channels;
+  for (size_t group = 0; group < targets; group += 4) {
+    Channel ch;
+    ch.node = src.target_node;
+    ch.path = ChannelPath::kWeights;
+    ch.interpolation = interpolation;
+    ch.first_target = static_cast<int>(group);
+    for (size_t k = 0; k < in.count; ++k) ch.times.push_back(static_cast<float>(in.values[k]));
+    for (size_t e = 0; e < in.count * per_key; ++e) {  // element e: K values
+      glm::dvec4 v(0.0);
+      for (size_t i = 0; i < 4 && group + i < targets; ++i) v[static_cast<int>(i)] = out.values[e * targets + group + i];
+      ch.values.push_back(v);
+    }
+    channels.push_back(std::move(ch));
+  }
+  return channels;
+}
+
+// Every animation's translation/rotation/scale channels, and the `weights`
+// channels of the skinned node (those of other nodes move other meshes).
+std::vector<AnimationClip> ReadAnimations(const Ctx& ctx, size_t skinned_node, size_t targets) {
   std::vector<AnimationClip> clips;
   for (size_t a = 0; a < ctx.model.animations.size(); ++a) {
     const tinygltf::Animation& anim = ctx.model.animations[a];
@@ -539,7 +605,11 @@ std::vector<AnimationClip> ReadAnimations(const Ctx& ctx) {
     for (size_t c = 0; c < anim.channels.size(); ++c) {
       const std::string& target = anim.channels[c].target_path;
       ChannelPath path;
-      if (target == "weights") continue;
+      if (target == "weights") {
+        if (anim.channels[c].target_node != static_cast<int>(skinned_node)) continue;
+        for (Channel& w : ReadWeightsChannels(ctx, anim, where, c, targets)) clip.channels.push_back(std::move(w));
+        continue;
+      }
       if (!ParsePath(target, &path))
         ctx.Fail(where + "." + Idx("channels", c) + ": unknown target path '" + target + "'");
       clip.channels.push_back(ReadChannel(ctx, anim, where, c, path));
@@ -563,8 +633,8 @@ GltfImportResult ImportGltf(const std::string& path, const GltfImportOptions& op
   asset.source = path;
   asset.skeleton = ReadSkeleton(ctx, model.nodes[node].skin);
   asset.mesh = ReadMesh(ctx, node, options, result.warnings);
-  CheckMorphTargets(ctx, node, result.warnings);
-  asset.animations = ReadAnimations(ctx);
+  asset.morph = ReadMorphTargets(ctx, node, asset.mesh, result.warnings);
+  asset.animations = ReadAnimations(ctx, node, asset.morph.count());
   return result;
 }
 

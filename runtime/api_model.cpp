@@ -71,6 +71,7 @@ Result<Model> Model::Load(const std::string& path) {
   }
   return GuardedResult<Model>(ErrorCode::kInvalidArgument, [&] {
     GltfImportResult imported = ImportGltf(path);
+    imported.asset.RequireNoMorphInUse("skintune's runtime");
     Model model;
     model.impl_ = std::make_unique<Impl>(std::move(imported.asset), std::move(imported.warnings));
     return model;

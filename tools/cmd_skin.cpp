@@ -111,7 +111,9 @@ int RunSkin(const SkinOptions& o) {
   }
   const double t = o.time_given || clip < 0 ? o.time : asset.animations[clip].start;
   const std::vector<glm::mat4> palette = asset.PaletteAt(clip, t);
-  const SkinnedMesh& mesh = asset.mesh;
+  // Morph targets first, at the clip's weights (the defaults at the rest pose), then the skin.
+  const SkinnedMesh morphed = asset.morph.count() > 0 ? asset.MeshAt(clip, t) : SkinnedMesh{};
+  const SkinnedMesh& mesh = asset.morph.count() > 0 ? morphed : asset.mesh;
   const std::size_t n = mesh.vertex_count();
   std::vector<glm::vec3> positions(n), normals(o.source.normals && mesh.has_normals() ? n : 0);
   const auto start = std::chrono::steady_clock::now();
@@ -136,6 +138,11 @@ int RunSkin(const SkinOptions& o) {
             << (clip < 0 ? std::string("rest pose") : "t=" + std::to_string(t) + " s of animation " +
                                                           std::to_string(clip))
             << " with " << o.implementation << " in " << ms << " ms" << (o.out.empty() ? "" : " -> " + o.out) << "\n";
+  if (asset.morph.count() > 0) {
+    std::cout << "morph targets applied first: " << asset.morph.count() << ", weights";
+    for (const double w : asset.MorphWeightsAt(clip, t)) std::cout << " " << w;
+    std::cout << "\n";
+  }
   return o.check.empty() ? 0 : Check(o, mesh, palette);
 }
 

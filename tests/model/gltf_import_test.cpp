@@ -501,45 +501,127 @@ TEST_F(GltfFiles, JointOutsideTheSkinIsRejected) {
        "joint 5 is outside the skin (2 joints)"});
 }
 
-// Morph targets are not applied: where they would move vertices (a default
-// weight of the mesh or node, or an animated weight), the import is one error
-// naming the targets and what moves them; where they cannot, one warning.
-TEST_F(GltfFiles, MorphTargetsThatWouldMoveVerticesAreAnErrorOthersAWarning) {
-  const auto with_targets = [](json& g) {
-    g["meshes"][0]["primitives"][0]["targets"] = json::array({{{"POSITION", 3}}, {{"NORMAL", 2}}});
+// Appends `floats` to buffers[0] as a new buffer view and accessor (FLOAT,
+// `type`, `count` elements); returns the accessor's index.
+int AppendFloatAccessor(json& gltf, const std::vector<float>& floats, const char* type, std::size_t count) {
+  std::vector<std::uint8_t> bytes = BufferBytes(gltf);
+  while (bytes.size() % 4 != 0) bytes.push_back(0);
+  const std::size_t offset = bytes.size();
+  bytes.resize(offset + floats.size() * sizeof(float));
+  std::memcpy(bytes.data() + offset, floats.data(), floats.size() * sizeof(float));
+  SetBufferBytes(gltf, bytes);
+  gltf["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", offset}, {"byteLength", floats.size() * sizeof(float)}});
+  gltf["accessors"].push_back({{"bufferView", gltf["bufferViews"].size() - 1},
+                               {"componentType", 5126},
+                               {"count", count},
+                               {"type", type}});
+  return static_cast<int>(gltf["accessors"].size() - 1);
+}
+
+// RiggedSimple (160 vertices) with two morph targets: target 0 moves vertex v
+// by (0.01 v, 0, 0.5), target 1 by (0, -0.2, 0) and turns its normal by
+// (0, 0, 1); default weights (0.5, 0.25); with `animated`, a LINEAR weights
+// channel on the skinned node (keys at 0 s: (0, 0), 1 s: (1, 0.5)).
+json MorphedRigged(json gltf, bool animated) {
+  constexpr std::size_t n = 160;
+  std::vector<float> d0, d1, n1;
+  for (std::size_t v = 0; v < n; ++v) {
+    d0.insert(d0.end(), {0.01f * static_cast<float>(v), 0.0f, 0.5f});
+    d1.insert(d1.end(), {0.0f, -0.2f, 0.0f});
+    n1.insert(n1.end(), {0.0f, 0.0f, 1.0f});
+  }
+  const int a0 = AppendFloatAccessor(gltf, d0, "VEC3", n), a1 = AppendFloatAccessor(gltf, d1, "VEC3", n),
+            an = AppendFloatAccessor(gltf, n1, "VEC3", n);
+  gltf["meshes"][0]["primitives"][0]["targets"] = json::array({{{"POSITION", a0}}, {{"POSITION", a1}, {"NORMAL", an}}});
+  gltf["meshes"][0]["weights"] = {0.5, 0.25};
+  if (animated) {
+    const int times = AppendFloatAccessor(gltf, {0.0f, 1.0f}, "SCALAR", 2);
+    const int values = AppendFloatAccessor(gltf, {0.0f, 0.0f, 1.0f, 0.5f}, "SCALAR", 4);
+    json& anim = gltf["animations"][0];
+    anim["samplers"].push_back({{"input", times}, {"output", values}, {"interpolation", "LINEAR"}});
+    anim["channels"].push_back({{"sampler", anim["samplers"].size() - 1}, {"target", {{"node", 2}, {"path", "weights"}}}});
+  }
+  return gltf;
+}
+
+// Morph targets are read with their default weights and the skinned node's
+// weights channel; MeshAt applies them before skinning (checked against the
+// offsets computed here, at the defaults and at three times of the clip);
+// what skins only the mesh (the tuner, the runtime) refuses an asset whose
+// targets move vertices, and accepts one whose cannot.
+TEST_F(GltfFiles, MorphTargetsAreReadAndAppliedAtTheClipsWeights) {
+  GltfImportOptions with_normals;
+  with_normals.normals = true;
+  const SkinnedAsset base = ImportGltf(DataFile("RiggedSimple.gltf"), with_normals).asset;
+  const GltfImportResult result = ImportGltf(WriteJson("Morph.gltf", MorphedRigged(rigged_, true)), with_normals);
+  const SkinnedAsset& asset = result.asset;
+  ASSERT_EQ(asset.morph.count(), 2u);
+  EXPECT_EQ(asset.morph.where, "meshes[0].primitives[0].targets");
+  EXPECT_EQ(asset.morph.weights, (std::vector<double>{0.5, 0.25}));
+  const auto expect_at = [&](int clip, double t, double w0, double w1) {
+    const std::vector<double> w = asset.MorphWeightsAt(clip, t);
+    ASSERT_EQ(w.size(), 2u);
+    EXPECT_NEAR(w[0], w0, 1e-12) << t;
+    EXPECT_NEAR(w[1], w1, 1e-12) << t;
+    const SkinnedMesh mesh = asset.MeshAt(clip, t);
+    ASSERT_EQ(mesh.vertex_count(), base.mesh.vertex_count());
+    for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+      const glm::dvec3 expected =
+          glm::dvec3(base.mesh.positions[v]) + w0 * glm::dvec3(0.01 * static_cast<double>(v), 0.0, 0.5) + w1 * glm::dvec3(0.0, -0.2, 0.0);
+      ASSERT_NEAR(glm::length(glm::dvec3(mesh.positions[v]) - expected), 0.0, 1e-5) << "vertex " << v << " t " << t;
+      const glm::dvec3 normal = glm::dvec3(base.mesh.normals[v]) + w1 * glm::dvec3(0.0, 0.0, 1.0);
+      ASSERT_NEAR(glm::length(glm::dvec3(mesh.normals[v]) - normal), 0.0, 1e-6) << "vertex " << v;
+    }
   };
-  ExpectError(
-      [&](json& g) {
-        with_targets(g);
-        g["meshes"][0]["weights"] = {0.0, 0.25};
-      },
-      {"meshes[0].primitives[0].targets: 2 morph targets, which skintune does not apply",
-       "meshes[0].weights[1] is 0.25", "would be wrong"});
-  ExpectError(
-      [&](json& g) {
-        with_targets(g);
-        g["meshes"][0]["weights"] = {0.0, 0.0};
-        g["nodes"][2]["weights"] = {0.5, 0.0};
-      },
-      {"nodes[2].weights[0] is 0.5"});
-  ExpectError(
-      [&](json& g) {
-        with_targets(g);
-        json channel = g["animations"][0]["channels"][0];
-        channel["target"] = {{"node", 2}, {"path", "weights"}};
-        g["animations"][0]["channels"].push_back(channel);
-      },
-      {"2 morph targets", "animations[0].channels[", "animates their weights"});
-  json quiet = rigged_;
-  with_targets(quiet);
+  expect_at(-1, 0.0, 0.5, 0.25);  // the rest pose: the default weights
+  expect_at(0, 0.0, 0.0, 0.0);
+  expect_at(0, 0.25, 0.25, 0.125);
+  expect_at(0, 0.8, 0.8, 0.4);
+  expect_at(0, 5.0, 1.0, 0.5);  // clamped to the last key
+  EXPECT_NE(asset.MorphInUse(), "");
+  try {
+    asset.RequireNoMorphInUse("a tuning data set");
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("Morph.gltf: meshes[0].primitives[0].targets: 2 morph targets move its vertices (default weight 0 is "
+                     "0.5"),
+              std::string::npos)
+        << m;
+    EXPECT_NE(m.find("which a tuning data set does not apply yet"), std::string::npos) << m;
+  }
+  // Zero weights and no weights channel: the targets move nothing, and the asset is accepted.
+  json quiet = MorphedRigged(rigged_, false);
   quiet["meshes"][0]["weights"] = {0.0, 0.0};
-  const GltfImportResult result = ImportGltf(WriteJson("Quiet.gltf", quiet));
-  ASSERT_EQ(result.warnings.size(), 1u);
-  EXPECT_NE(result.warnings[0].find("Quiet.gltf: meshes[0].primitives[0].targets: 2 morph targets with every weight "
-                                    "zero and none animated: not applied"),
-            std::string::npos)
-      << result.warnings[0];
-  EXPECT_EQ(result.asset.mesh.vertex_count(), ImportGltf(DataFile("RiggedSimple.gltf")).asset.mesh.vertex_count());
+  const SkinnedAsset still = ImportGltf(WriteJson("Quiet.gltf", quiet)).asset;
+  EXPECT_EQ(still.MorphInUse(), "");
+  EXPECT_NO_THROW(still.RequireNoMorphInUse("a tuning data set"));
+  // The node's weights override the mesh's.
+  json node = MorphedRigged(rigged_, false);
+  node["nodes"][2]["weights"] = {0.0, 1.0};
+  EXPECT_EQ(ImportGltf(WriteJson("Node.gltf", node)).asset.morph.weights, (std::vector<double>{0.0, 1.0}));
+}
+
+// Malformed morph data is one error naming the element.
+TEST_F(GltfFiles, MalformedMorphTargetsAreRejected) {
+  ExpectError(
+      [](json& g) {
+        g = MorphedRigged(g, false);
+        g["meshes"][0]["weights"] = {0.5};
+      },
+      {"meshes[0].weights: 1 weights for 2 morph targets"});
+  ExpectError(
+      [](json& g) {
+        g = MorphedRigged(g, false);
+        g["meshes"][0]["primitives"][0]["targets"][0]["POSITION"] = AppendFloatAccessor(g, {1, 2, 3}, "VEC3", 1);
+      },
+      {"POSITION of meshes[0].primitives[0].targets[0]", "count 1 differs from POSITION's count 160"});
+  ExpectError(
+      [](json& g) {
+        g = MorphedRigged(g, true);
+        g["accessors"][g["animations"][0]["samplers"].back()["output"].get<int>()]["count"] = 3;
+      },
+      {"has 3 values for 2 keys of 2 morph targets (expected 4)"});
 }
 
 TEST_F(GltfFiles, NegativeWeightIsRejected) {
@@ -624,11 +706,17 @@ TEST_F(GltfFiles, NonIncreasingKeyTimesAreRejected) {
       {"animations[0]", "not strictly increasing: key 3"});
 }
 
-TEST_F(GltfFiles, MorphWeightChannelsAreIgnored) {
+// A weights channel on another node moves another mesh: skipped. On the
+// skinned node of a mesh without morph targets it is malformed.
+TEST_F(GltfFiles, MorphWeightChannelsOfOtherNodesAreSkippedOfTheSkinnedMeshWithoutTargetsRejected) {
   json gltf = rigged_;
-  gltf["animations"][0]["channels"].push_back(
-      {{"sampler", 0}, {"target", {{"node", 2}, {"path", "weights"}}}});
-  EXPECT_EQ(ImportGltf(WriteJson("Morph.gltf", gltf)).asset.animations[0].channels.size(), 3u);
+  gltf["animations"][0]["channels"].push_back({{"sampler", 0}, {"target", {{"node", 3}, {"path", "weights"}}}});
+  EXPECT_EQ(ImportGltf(WriteJson("Other.gltf", gltf)).asset.animations[0].channels.size(), 3u);
+  ExpectError(
+      [](json& g) {
+        g["animations"][0]["channels"].push_back({{"sampler", 0}, {"target", {{"node", 2}, {"path", "weights"}}}});
+      },
+      {"animations[0].channels[3]: animates the morph weights of a mesh without morph targets"});
 }
 
 }  // namespace

@@ -649,7 +649,10 @@ class Model {
   // that do not sum to 1 are renormalised with one line in warnings().
   // kIoError when the file cannot be read; kInvalidArgument naming the file
   // and the element for anything malformed (accessor out of its buffer, joint
-  // outside the skin, negative weights, not glTF at all...).
+  // outside the skin, negative weights, not glTF at all...), and for morph
+  // targets that move vertices (a non-zero default weight or an animated
+  // weight), which the kernels do not apply yet: skinning without them would
+  // be wrong without a word.
   static Result<Model> Load(const std::string& path);
   // A synthetic dataset by key: "100k-b4", "1600k-b2-random",
   // "5000-b8-bones12-seed3-normals" (docs/DATA.md); kInvalidArgument naming
