@@ -1,6 +1,7 @@
 #include "model/asset.h"
 
 #include <charconv>
+#include <cstdio>
 
 #include "base/error.h"
 
@@ -69,7 +70,11 @@ SkinnedMesh SkinnedAsset::MeshAt(int animation, double t) const {
 std::string SkinnedAsset::MorphInUse() const {
   if (morph.count() == 0) return "";
   for (std::size_t k = 0; k < morph.weights.size(); ++k)
-    if (morph.weights[k] != 0.0) return "default weight " + std::to_string(k) + " is " + std::to_string(morph.weights[k]);
+    if (morph.weights[k] != 0.0) {
+      char weight[32];
+      std::snprintf(weight, sizeof weight, "%.6g", morph.weights[k]);
+      return "default weight " + std::to_string(k) + " is " + weight;
+    }
   for (std::size_t a = 0; a < animations.size(); ++a)
     for (const Channel& c : animations[a].channels)
       if (c.path == ChannelPath::kWeights)
@@ -82,7 +87,7 @@ void SkinnedAsset::RequireNoMorphInUse(const std::string& who) const {
   const std::string why = MorphInUse();
   if (why.empty()) return;
   throw Error(source + ": " + morph.where + ": " + std::to_string(morph.count()) + " morph target" +
-              (morph.count() == 1 ? "" : "s") + " move its vertices (" + why + "), which " + who +
+              (morph.count() == 1 ? " moves" : "s move") + " its vertices (" + why + "), which " + who +
               " does not apply yet (`skintune skin` applies them on the CPU)");
 }
 

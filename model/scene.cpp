@@ -190,7 +190,7 @@ SkinnedScene LoadScene(const SceneSpec& spec) {
     const std::string& key = spec.meshes[m];
     try {
       scene.assets.push_back(IsGltfFile(key) ? ImportGltf(key).asset : GenerateDataset(ParseDatasetKey(key)));
-      scene.assets.back().RequireNoMorphInUse("a tuning data set");
+      scene.assets.back().RequireNoMorphInUse("the tuner");
     } catch (const Error& e) {
       if (spec.meshes.size() == 1) throw;  // a scene of one mesh: the mesh's own message
       throw Error("scene '" + spec.key + "': meshes[" + std::to_string(m) + "] '" + key + "': " + e.what());
