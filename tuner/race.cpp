@@ -149,14 +149,15 @@ bool IsMeasured(const Variant& v, const std::vector<Measurement>& measured) {
 // The walk's neighbourhood of `leader` where the allowance cannot pay for
 // all of it: the neighbours measured already, and the unmeasured ones that
 // the tie-break would take over the leader if they tied with it (the same
-// bytes, a lower key; their errors are the leader's, as these axes do not
-// change the arithmetic); where the plateau's preferred point lies along
-// such an axis, the walk still reaches it.
+// bytes, fewer storage limits or as few and a lower key; their errors are the
+// leader's, as these axes do not change the arithmetic); where the plateau's
+// preferred point lies along such an axis, the walk still reaches it.
 std::vector<Variant> PreferredOrMeasured(const std::vector<Variant>& around, const Variant& leader,
                                          const std::vector<Measurement>& measured) {
+  const auto order = [](const Variant& v) { return std::make_pair(StorageLimits(v.storage), v.Key()); };
   std::vector<Variant> out;
   for (const Variant& v : around)
-    if (IsMeasured(v, measured) || (SameBytes(v, leader) && v.Key() < leader.Key())) out.push_back(v);
+    if (IsMeasured(v, measured) || (SameBytes(v, leader) && order(v) < order(leader))) out.push_back(v);
   return out;
 }
 

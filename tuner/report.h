@@ -85,7 +85,8 @@ struct Winner {
   double frame_ms = 0.0;      // its frame time (0: not measured)
   // The candidates that cannot be told from the fastest (the fastest among
   // them, the winner too), in key order; the rule that picked the winner
-  // among them: fewest bytes moved, then lower error against the source, then key.
+  // among them: fewest bytes moved, then lower error against the source, then
+  // fewer storage limits (StorageLimits), then key.
   std::vector<std::string> tie_set;
   bool within_noise = false;  // every candidate of the key is in the tie set
   std::string judged_by;      // "race" or "intervals" (no race covered it)

@@ -98,6 +98,7 @@ std::size_t TieBreak(const std::vector<RaceEntry>& entries, const std::vector<st
     const RaceEntry& y = entries[b];
     if (x.bytes_per_frame != y.bytes_per_frame) return x.bytes_per_frame < y.bytes_per_frame;
     if (x.error != y.error) return x.error < y.error;
+    if (x.limits != y.limits) return x.limits < y.limits;
     return x.key < y.key;
   });
 }

@@ -22,6 +22,8 @@
 #include <string>
 #include <vector>
 
+#include "generator/variant.h"  // PaletteStorage
+
 namespace skintune::internal {
 
 struct Interval {
@@ -69,13 +71,31 @@ struct RaceEntry {
   std::vector<double> samples;
   double bytes_per_frame = 0;  // fewer bytes first
   double error = 0;            // the error against the source (SourceError::position_rel): lower first
+  int limits = 0;              // how limited its palette storage is (StorageLimits): fewer first
 };
+// How limited a palette storage is, for the tie-break: global memory holds
+// any palette; constant memory a device's 64 KB or so; local memory a
+// work-group's 48 KB; an image needs image support and its size limit. Among
+// tied candidates moving the same bytes, the one with fewer limits is the
+// winner that applies to the most meshes and crowds (and the GPU's storage
+// pairs that moved from run to run were a global one and a constant one, the
+// constant first by key).
+inline int StorageLimits(PaletteStorage storage) {
+  switch (storage) {
+    case PaletteStorage::kGlobal: return 0;
+    case PaletteStorage::kConstant: return 1;
+    case PaletteStorage::kLocal: return 2;
+    case PaletteStorage::kImage: return 3;
+  }
+  return 3;
+}
 // The entry of a measured candidate, its samples left empty: what the
 // tie-break reads of a Measurement (tuner/measurement.h) or a Winner
 // (tuner/report.h), which carry the same fields.
 template <typename Measured>
 RaceEntry RaceEntryOf(const Measured& m) {
-  return {m.variant.Key(), {}, m.bytes_per_frame, m.source_error.known ? m.source_error.position_rel : 0.0};
+  return {m.variant.Key(), {}, m.bytes_per_frame, m.source_error.known ? m.source_error.position_rel : 0.0,
+          StorageLimits(m.variant.storage)};
 }
 enum class RaceVerdict { kLeader, kEqual, kUndecided, kSeparated };
 const char* Name(RaceVerdict);
@@ -128,7 +148,8 @@ RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin, doub
 RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::vector<RaceEntry>& entries, double margin,
                            double spread = 0.0, Choice choice = Choice::kContenders);
 // The deterministic rule among tied candidates: fewest bytes moved, then the
-// lower error against the source, then the variant key. Returns the index
+// lower error against the source, then the fewer storage limits, then the
+// variant key. Returns the index
 // into `entries` of the chosen one among `tied` (indices, non-empty).
 std::size_t TieBreak(const std::vector<RaceEntry>& entries, const std::vector<std::size_t>& tied);
 

@@ -82,9 +82,12 @@ def runs(reports):
     print("measurements rejected over the ceiling: %d" % over)
 
 
+STORAGE_LIMITS = {"global": 0, "constant": 1, "local": 2, "image": 3}  # tuner/statistics.h StorageLimits
+
+
 def choice(margin, reports):
     """Each run's last race per row, its winner chosen again: the tie-break rule (fewest bytes, then
-    the lower error, then the key) among the candidates within `margin` (GPU) of the fastest, as
+    the lower error, then the storage's limits, then the key) among the candidates within `margin` (GPU) of the fastest, as
     TiedAt judges them. At margin = tie_margin this is the contenders' choice, at tie_margin +
     process_spread the tie set's (the row's final judgement may also come from intervals where no
     race ran)."""
@@ -97,9 +100,11 @@ def choice(margin, reports):
             allowed = r.get("host_tie_margin", 0.25) if host else margin
             fastest = next(e for e in race["entries"] if e["verdict"] == "fastest")
 
-            def rule(e):
+            def rule(e):  # TieBreak: bytes, error, storage limits (StorageLimits), key
                 m = measured.get((race["device_id"], race["dataset"], e["variant"]), {})
-                return (m.get("bytes_per_frame", float("inf")), m.get("source_error", {}).get("position_rel", 0.0), e["variant"])
+                limits = STORAGE_LIMITS.get(m.get("variant", {}).get("storage", "global"), 3)
+                return (m.get("bytes_per_frame", float("inf")), m.get("source_error", {}).get("position_rel", 0.0),
+                        limits, e["variant"])
             # TiedAt: the fastest, and each entry whose median, or whole interval, is within the margin.
             pool = [e for e in race["entries"] if e is fastest or e["median_ms"] <= fastest["median_ms"] * (1 + allowed)
                     or e["high_ms"] <= fastest["low_ms"] * (1 + allowed)]

@@ -222,15 +222,16 @@ TEST(SettleSearch, TheWalkStopsWhereItsAllowanceEnds) {
 
 // Where the allowance cannot pay for a whole neighbourhood, the walk still
 // measures the neighbours the tie-break would prefer on a tie (the same
-// bytes, a lower key) and reaches the plateau's preferred point, as a walk
-// without a cap does. Constant and global storage are one plateau here;
-// from global-u8-64 the first race goes to constant-u8-64 (key order),
-// whose neighbourhood needs constant-u16-64 and constant-u8-256: over an
-// allowance of 1, but constant-u8-256 alone (wg256 before wg64) fits.
+// bytes, fewer storage limits, then a lower key) and reaches the plateau's
+// preferred point, as a walk without a cap does. Constant and global
+// storage are one plateau here; from constant-u8-64 the first race goes to
+// global-u8-64 (global storage has fewer limits), whose neighbourhood needs
+// global-u16-64 and global-u8-256: over an allowance of 1, but
+// global-u8-256 alone (wg256 before wg64) fits.
 double StoragePlateauMs(const Variant& v) { return v.storage == PaletteStorage::kLocal ? 1.30 : 1.00; }
 TEST(SettleSearch, WhereTheAllowanceEndsTheWalkStillMeasuresWhatTheTieBreakPrefers) {
-  const Variant start = At(PaletteStorage::kGlobal, IndexFormat::kU8, 64);
-  const Variant preferred = At(PaletteStorage::kConstant, IndexFormat::kU8, 256);
+  const Variant start = At(PaletteStorage::kConstant, IndexFormat::kU8, 64);
+  const Variant preferred = At(PaletteStorage::kGlobal, IndexFormat::kU8, 256);
   for (std::uint64_t seed = 1; seed <= 8; ++seed) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     NoisyRun free_walk(seed, StoragePlateauMs), short_walk(seed, StoragePlateauMs);

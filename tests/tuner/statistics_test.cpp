@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "base/error.h"
+#include "tuner/measurement.h"  // RaceEntryOf of a Measurement
 
 namespace skintune::internal {
 namespace {
@@ -170,12 +171,23 @@ TEST(Race, ADecidedRaceIsSettled) {
   EXPECT_TRUE(out.settled);
 }
 
-// The tie-break: fewest bytes, then lower error, then key.
-TEST(Race, TieBreakPrefersFewerBytesThenLowerErrorThenKey) {
+// The tie-break: fewest bytes, then lower error, then fewer storage limits, then key.
+TEST(Race, TieBreakPrefersFewerBytesThenLowerErrorThenFewerLimitsThenKey) {
   std::vector<RaceEntry> e = {{"z", {1}, 100, 1e-3}, {"y", {1}, 80, 1e-3}, {"x", {1}, 80, 1e-6}, {"w", {1}, 80, 1e-6}};
   EXPECT_EQ(TieBreak(e, {0, 1}), 1u);
   EXPECT_EQ(TieBreak(e, {0, 1, 2}), 2u);
   EXPECT_EQ(TieBreak(e, {0, 1, 2, 3}), 3u);
+  // Global storage over constant, local and image, whatever the keys' order.
+  const std::vector<RaceEntry> storage = {{"a.constant", {1}, 80, 0, StorageLimits(PaletteStorage::kConstant)},
+                                          {"b.image", {1}, 80, 0, StorageLimits(PaletteStorage::kImage)},
+                                          {"c.local", {1}, 80, 0, StorageLimits(PaletteStorage::kLocal)},
+                                          {"d.global", {1}, 80, 0, StorageLimits(PaletteStorage::kGlobal)}};
+  EXPECT_EQ(TieBreak(storage, {0, 1, 2, 3}), 3u);
+  EXPECT_EQ(TieBreak(storage, {0, 1, 2}), 0u) << "then constant";
+  EXPECT_EQ(TieBreak(storage, {1, 2}), 2u) << "local before image";
+  Measurement m;
+  m.variant = ParseVariantKey("cuda.b4.padded.soa.float4.u8.f32.mat3x4.constant.matrix.v1c.wg256.nonormals");
+  EXPECT_EQ(RaceEntryOf(m).limits, StorageLimits(PaletteStorage::kConstant));
 }
 
 // The same landscape gives the same winner whatever the order the
