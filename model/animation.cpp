@@ -149,12 +149,12 @@ void AnimationClip::Validate(int node_count, const std::string& context) const {
 
 void AnimationClip::Sample(double t, Pose& pose) const {
   for (const Channel& c : channels) {
+    if (c.path == ChannelPath::kWeights) continue;  // SampleMorphWeights
     if (c.node < 0 || static_cast<std::size_t>(c.node) >= pose.size() || c.times.empty() ||
         c.values.size() != c.times.size() * ValuesPerKey(c)) {
       throw Error("animation '" + name + "': channel on node " + std::to_string(c.node) +
                   " cannot be sampled (clip not validated against this skeleton)");
     }
-    if (c.path == ChannelPath::kWeights) continue;  // SampleMorphWeights
     const glm::dvec4 v = Evaluate(c, t);
     Transform& target = pose[static_cast<std::size_t>(c.node)];
     switch (c.path) {
