@@ -320,5 +320,42 @@ TEST(AnimationValidate, NamesTheOffendingChannel) {
   ExpectInvalid(clip, "channels[1] (node 2 rotation): no keys");
 }
 
+// ---------------------------------------------------------------- morph weights
+
+// A weights channel sets the weights of its four targets from first_target
+// on, by any interpolation (component-wise, tangents for CUBICSPLINE scaled
+// by the key interval), and leaves the pose alone; targets beyond the
+// weights given are ignored, others keep their value.
+TEST(AnimationMorphWeights, EveryInterpolationSetsItsFourTargetsAndNotThePose) {
+  AnimationClip clip = OneChannel(MakeChannel(ChannelPath::kWeights, Interpolation::kStep, {0.0f, 1.0f},
+                                              {{0.1, 0.2, 0.3, 0.4}, {0.9, 0.8, 0.7, 0.6}}));
+  clip.channels[0].first_target = 2;
+  std::vector<double> w = {5.0, 6.0, 0.0, 0.0, 0.0};  // targets 0-4: the channel drives 2-5 (5 absent)
+  clip.SampleMorphWeights(0.99, w);
+  EXPECT_EQ(w, (std::vector<double>{5.0, 6.0, 0.1, 0.2, 0.3}));
+  clip.SampleMorphWeights(1.0, w);
+  EXPECT_EQ(w, (std::vector<double>{5.0, 6.0, 0.9, 0.8, 0.7}));
+  const Pose pose = SampleAt(clip, 0.5);
+  EXPECT_EQ(pose[0].translation, Transform{}.translation) << "a weights channel moves no node";
+  EXPECT_EQ(pose[0].scale, Transform{}.scale);
+
+  const AnimationClip linear = OneChannel(MakeChannel(ChannelPath::kWeights, Interpolation::kLinear, {0.0f, 2.0f},
+                                                      {{0.0, 1.0, 0.0, 0.0}, {1.0, 0.0, 0.0, 0.0}}));
+  std::vector<double> two(2, 0.0);
+  linear.SampleMorphWeights(0.5, two);
+  EXPECT_DOUBLE_EQ(two[0], 0.25);
+  EXPECT_DOUBLE_EQ(two[1], 0.75);
+
+  // CUBICSPLINE: in-tangent, value, out-tangent per key; zero tangents give
+  // the Hermite basis 3u^2 - 2u^3 between the values; an out-tangent adds
+  // (u^3 - 2u^2 + u) x tangent x interval.
+  const AnimationClip cubic = OneChannel(MakeChannel(
+      ChannelPath::kWeights, Interpolation::kCubicSpline, {0.0f, 2.0f},
+      {{0, 0, 0, 0}, {0.0, 0.0, 0, 0}, {0.0, 1.0, 0, 0}, {0, 0, 0, 0}, {1.0, 0.0, 0, 0}, {0, 0, 0, 0}}));
+  cubic.SampleMorphWeights(1.0, two);  // u = 0.5
+  EXPECT_NEAR(two[0], 0.5, 1e-12);
+  EXPECT_NEAR(two[1], (0.125 - 0.5 + 0.5) * 1.0 * 2.0, 1e-12);
+}
+
 }  // namespace
 }  // namespace skintune::internal
