@@ -63,6 +63,11 @@ SkinnedMesh SkinnedAsset::MeshAt(int animation, double t) const {
     if (out.has_normals() && k < morph.normals.size() && !morph.normals[k].empty())
       for (std::size_t v = 0; v < n; ++v)
         out.normals[v] = glm::vec3(glm::dvec3(out.normals[v]) + weights[k] * glm::dvec3(morph.normals[k][v]));
+    if (out.has_tangents() && k < morph.tangents.size() && !morph.tangents[k].empty())
+      for (std::size_t v = 0; v < n; ++v) {
+        const glm::dvec3 t = glm::dvec3(out.tangents[v]) + weights[k] * glm::dvec3(morph.tangents[k][v]);
+        out.tangents[v] = glm::vec4(glm::vec3(t), out.tangents[v].w);
+      }
   }
   return out;
 }

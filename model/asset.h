@@ -16,6 +16,7 @@ namespace skintune::internal {
 struct MorphTargets {
   std::vector<std::vector<glm::vec3>> positions;  // [target][vertex]
   std::vector<std::vector<glm::vec3>> normals;    // [target][vertex]; empty without normals
+  std::vector<std::vector<glm::vec3>> tangents;   // [target][vertex] (xyz offsets); empty without tangents
   std::vector<double> weights;                    // default weights (the node's, else the mesh's, else 0)
   std::string where;                              // e.g. "meshes[0].primitives[0].targets"
   std::size_t count() const { return positions.size(); }

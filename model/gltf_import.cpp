@@ -275,7 +275,7 @@ void ReadInfluenceSet(const Ctx& ctx, const tinygltf::Primitive& prim, const std
 }
 
 void AppendPrimitive(const Ctx& ctx, const tinygltf::Primitive& prim, const std::string& where,
-                     bool with_normals, SkinnedMesh& mesh) {
+                     bool with_normals, bool with_tangents, SkinnedMesh& mesh) {
   if (!prim.attributes.count("POSITION")) ctx.Fail(where + ": no POSITION attribute");
   const AccessorData pos = ReadAccessor(ctx, prim.attributes.at("POSITION"),
                                         {"POSITION of " + where, kFloat, {TINYGLTF_TYPE_VEC3}});
@@ -285,6 +285,18 @@ void AppendPrimitive(const Ctx& ctx, const tinygltf::Primitive& prim, const std:
     const AccessorData nrm =
         ReadAttribute(ctx, prim, "NORMAL", where, {"", kFloat, {TINYGLTF_TYPE_VEC3}}, count);
     for (size_t v = 0; v < count; ++v) mesh.normals.emplace_back(nrm.at(v, 0), nrm.at(v, 1), nrm.at(v, 2));
+  }
+  if (with_tangents) {
+    if (!prim.attributes.count("TANGENT")) ctx.Fail(where + ": no TANGENT attribute (tangents were asked for)");
+    const AccessorData tan =
+        ReadAttribute(ctx, prim, "TANGENT", where, {"", kRotationTypes, {TINYGLTF_TYPE_VEC4}}, count);
+    for (size_t v = 0; v < count; ++v) {
+      const double w = tan.at(v, 3);
+      if (w != 1.0 && w != -1.0)
+        ctx.Fail(AccessorName(prim.attributes.at("TANGENT"), "TANGENT of " + where) + ": vertex " + to_string(v) +
+                 ": handedness (w) is " + Num(w) + ", not +1 or -1");
+      mesh.tangents.emplace_back(tan.at(v, 0), tan.at(v, 1), tan.at(v, 2), w);
+    }
   }
   const auto slots = static_cast<size_t>(mesh.influences);
   mesh.joints.resize(mesh.positions.size() * slots, 0);
@@ -359,7 +371,7 @@ SkinnedMesh ReadMesh(const Ctx& ctx, size_t node_index, const GltfImportOptions&
   }
   mesh.influences = static_cast<int>(4 * sets);
   for (size_t p : used)
-    AppendPrimitive(ctx, src.primitives[p], mesh_ref + "." + Idx("primitives", p), normals, mesh);
+    AppendPrimitive(ctx, src.primitives[p], mesh_ref + "." + Idx("primitives", p), normals, options.tangents, mesh);
   FinishWeights(ctx, mesh_ref + " '" + mesh.name + "'", options.strict, mesh, warnings);
   ThrowIfInvalid(mesh, ctx.path);
   return mesh;
@@ -493,8 +505,8 @@ Channel ReadChannel(const Ctx& ctx, const tinygltf::Animation& anim, const std::
 // The skinned mesh's morph targets (every triangle primitive's `targets`, in
 // the mesh's vertex order; glTF gives every primitive of a mesh the same
 // number of targets), and their default weights: the node's, else the
-// mesh's, else zero. POSITION and NORMAL offsets are read; a TANGENT offset
-// needs the tangents skintune does not skin yet, and is reported once.
+// mesh's, else zero. POSITION offsets are read, and NORMAL and TANGENT ones
+// where the mesh's normals and tangents are.
 MorphTargets ReadMorphTargets(const Ctx& ctx, size_t node_index, const SkinnedMesh& mesh,
                               std::vector<std::string>& warnings) {
   const tinygltf::Node& node = ctx.model.nodes[node_index];
@@ -515,7 +527,7 @@ MorphTargets ReadMorphTargets(const Ctx& ctx, size_t node_index, const SkinnedMe
   const size_t n = mesh.positions.size();
   morph.positions.assign(targets, std::vector<glm::vec3>(n, glm::vec3(0.0f)));
   if (mesh.has_normals()) morph.normals.assign(targets, std::vector<glm::vec3>(n, glm::vec3(0.0f)));
-  bool tangents = false;
+  if (mesh.has_tangents()) morph.tangents.assign(targets, std::vector<glm::vec3>(n, glm::vec3(0.0f)));
   size_t first = 0;
   for (size_t p = 0; p < src.primitives.size(); ++p) {
     const tinygltf::Primitive& prim = src.primitives[p];
@@ -524,10 +536,10 @@ MorphTargets ReadMorphTargets(const Ctx& ctx, size_t node_index, const SkinnedMe
     for (size_t k = 0; k < prim.targets.size(); ++k) {
       const std::string where = mesh_ref + "." + Idx("primitives", p) + "." + Idx("targets", k);
       for (const auto& [name, accessor] : prim.targets[k]) {
-        std::vector<std::vector<glm::vec3>>* into = name == "POSITION" ? &morph.positions
-                                                    : name == "NORMAL" && mesh.has_normals() ? &morph.normals
-                                                                                              : nullptr;
-        tangents = tangents || name == "TANGENT";
+        std::vector<std::vector<glm::vec3>>* into = name == "POSITION"                         ? &morph.positions
+                                                    : name == "NORMAL" && mesh.has_normals()   ? &morph.normals
+                                                    : name == "TANGENT" && mesh.has_tangents() ? &morph.tangents
+                                                                                               : nullptr;
         if (!into) continue;
         const AccessorData d = ReadAccessor(ctx, accessor, {name + " of " + where, kRotationTypes, {TINYGLTF_TYPE_VEC3}});
         if (d.count != count)
@@ -551,8 +563,6 @@ MorphTargets ReadMorphTargets(const Ctx& ctx, size_t node_index, const SkinnedMe
     if (!std::isfinite(weights[k])) ctx.Fail(weights_ref + "[" + to_string(k) + "] is not finite");
   morph.weights = weights;
   morph.weights.resize(targets, 0.0);
-  if (tangents)
-    warnings.push_back(ctx.path + ": " + morph.where + ": TANGENT offsets not applied (skintune skins no tangents)");
   return morph;
 }
 

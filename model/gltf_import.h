@@ -36,6 +36,10 @@ struct GltfImportOptions {
   std::string mesh;     // node or mesh name; empty = first skinned mesh
   bool strict = false;  // reject weights that do not sum to 1
   bool normals = true;  // import NORMAL when present
+  // Import TANGENT (and the morph targets' TANGENT offsets): every triangle
+  // primitive must have it, each handedness +1 or -1 (an error names the
+  // first primitive without it, or the vertex).
+  bool tangents = false;
 };
 
 struct GltfImportResult {

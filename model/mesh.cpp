@@ -58,6 +58,10 @@ bool CheckShape(const SkinnedMesh& mesh, IssueCollector& out) {
     out.Add(MeshProblem::kLengthMismatch, 0, -1,
             std::to_string(mesh.normals.size()) + " normals for " + std::to_string(n) + " vertices");
   }
+  if (!mesh.tangents.empty() && mesh.tangents.size() != n) {
+    out.Add(MeshProblem::kLengthMismatch, 0, -1,
+            std::to_string(mesh.tangents.size()) + " tangents for " + std::to_string(n) + " vertices");
+  }
   if (per_vertex_ok) {
     const std::size_t slots = n * static_cast<std::size_t>(mesh.influences);
     for (auto [name, size] : {std::pair{"joint indices", mesh.joints.size()},
@@ -79,6 +83,12 @@ void CheckVertex(const SkinnedMesh& mesh, std::size_t v, const ValidateOptions& 
   if (!Finite(mesh.positions[v]) || (mesh.has_normals() && mesh.normals.size() == mesh.vertex_count() &&
                                      !Finite(mesh.normals[v]))) {
     out.Add(MeshProblem::kNonFinitePosition, v, -1, VertexSlot(v, -1) + ": position or normal is not finite");
+  }
+  if (mesh.has_tangents() && mesh.tangents.size() == mesh.vertex_count()) {
+    const glm::vec4& t = mesh.tangents[v];
+    if (!std::isfinite(t.x) || !std::isfinite(t.y) || !std::isfinite(t.z) || (t.w != 1.0f && t.w != -1.0f))
+      out.Add(MeshProblem::kNonFinitePosition, v, -1,
+              VertexSlot(v, -1) + ": tangent is not finite or its handedness (w) is not +1 or -1");
   }
   const int b = mesh.influences;
   double sum = 0.0;

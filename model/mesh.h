@@ -38,11 +38,15 @@ struct SkinnedMesh {
   int joint_count = 0;                 // palette size the joint indices refer to
   std::vector<glm::vec3> positions;    // rest pose, one per vertex
   std::vector<glm::vec3> normals;      // empty, or one per vertex
+  // Empty, or one per vertex: xyz a unit tangent, w its handedness (+1 or
+  // -1: the bitangent is w * cross(normal, tangent), glTF's TANGENT).
+  std::vector<glm::vec4> tangents;
   std::vector<std::uint16_t> joints;   // vertex_count() * influences
   std::vector<float> weights;          // vertex_count() * influences
 
   std::size_t vertex_count() const { return positions.size(); }
   bool has_normals() const { return !normals.empty(); }
+  bool has_tangents() const { return !tangents.empty(); }
   // Number of slots of vertex v with a non-zero weight.
   int InfluencesOf(std::size_t v) const;
 };
@@ -51,8 +55,8 @@ enum class MeshProblem {
   kBadInfluenceCount,   // influences outside 1..kMaxInfluences
   kNoJoints,            // joint_count == 0
   kNoVertices,          // empty mesh
-  kLengthMismatch,      // normals/joints/weights arrays do not match the vertex count
-  kNonFinitePosition,   // NaN or infinite position or normal
+  kLengthMismatch,      // normals/tangents/joints/weights arrays do not match the vertex count
+  kNonFinitePosition,   // NaN or infinite position, normal or tangent, or a handedness not +-1
   kJointOutOfRange,     // joint index >= joint_count (any slot: kernels read every slot)
   kBadWeight,           // negative or NaN/infinite weight
   kZeroWeights,         // every weight of a vertex is zero (cannot be renormalised)

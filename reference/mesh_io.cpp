@@ -4,6 +4,7 @@
 #include <cerrno>
 #include <cstdint>
 #include <cstdio>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -60,13 +61,18 @@ std::string EncodeObj(std::span<const glm::vec3> positions, std::span<const glm:
   return out;
 }
 
-std::string EncodeBinary(std::span<const glm::vec3> positions, std::span<const glm::vec3> normals) {
+std::string EncodeBinary(std::span<const glm::vec3> positions, std::span<const glm::vec3> normals,
+                         std::span<const glm::vec4> tangents) {
   std::string out(kMagic, 4);
   AppendU32(out, static_cast<std::uint32_t>(positions.size()));
-  AppendU32(out, normals.empty() ? 0u : 1u);
+  AppendU32(out, (normals.empty() ? 0u : 1u) | (tangents.empty() ? 0u : 2u));
   AppendU32(out, 0u);
   AppendFloats(out, positions);
   AppendFloats(out, normals);
+  static_assert(sizeof(glm::vec4) == 16);
+  const std::size_t at = out.size();
+  out.resize(at + tangents.size() * sizeof(glm::vec4));
+  if (!tangents.empty()) std::memcpy(out.data() + at, tangents.data(), tangents.size() * sizeof(glm::vec4));
   return out;
 }
 
@@ -91,8 +97,11 @@ SkinnedVertices DecodeBinary(const std::string& path, const std::string& data) {
     throw Error(path + ": not a skintune vertex file (magic 'STV1' missing)");
   }
   const std::size_t n = ReadU32(data, 4);
-  const bool normals = (ReadU32(data, 8) & 1u) != 0;
-  const std::size_t expected = 16 + n * sizeof(glm::vec3) * (normals ? 2 : 1);
+  const std::uint32_t flags = ReadU32(data, 8);
+  if ((flags & ~3u) != 0) throw Error(path + ": unknown flags " + std::to_string(flags) + " (bit 0 normals, bit 1 tangents)");
+  const bool normals = (flags & 1u) != 0, tangents = (flags & 2u) != 0;
+  const std::size_t expected =
+      16 + n * sizeof(glm::vec3) * (normals ? 2 : 1) + (tangents ? n * sizeof(glm::vec4) : 0);
   if (data.size() != expected) {
     throw Error(path + ": size " + std::to_string(data.size()) + " bytes, expected " + std::to_string(expected) +
                 " for " + std::to_string(n) + " vertices");
@@ -103,6 +112,11 @@ SkinnedVertices DecodeBinary(const std::string& path, const std::string& data) {
   if (normals) {
     result.normals.resize(n);
     if (n) std::memcpy(result.normals.data(), data.data() + 16 + n * sizeof(glm::vec3), n * sizeof(glm::vec3));
+  }
+  if (tangents) {
+    result.tangents.resize(n);
+    const std::size_t at = 16 + n * sizeof(glm::vec3) * (normals ? 2 : 1);
+    if (n) std::memcpy(result.tangents.data(), data.data() + at, n * sizeof(glm::vec4));
   }
   return result;
 }
@@ -143,10 +157,21 @@ void CheckWritable(const std::string& path) {
 }
 
 void WriteSkinnedVertices(const std::string& path, std::span<const glm::vec3> positions,
-                          std::span<const glm::vec3> normals) {
+                          std::span<const glm::vec3> normals, std::span<const glm::vec4> tangents) {
   if (!normals.empty() && normals.size() != positions.size()) {
     throw Error(path + ": " + std::to_string(normals.size()) + " normals for " + std::to_string(positions.size()) +
                 " positions");
+  }
+  if (!tangents.empty() && tangents.size() != positions.size()) {
+    throw Error(path + ": " + std::to_string(tangents.size()) + " tangents for " + std::to_string(positions.size()) +
+                " positions");
+  }
+  if (!tangents.empty() && IsObj(path))
+    throw Error(path + ": a .obj file holds no tangents; nothing written (write skintune's binary format)");
+  for (std::size_t v = 0; v < tangents.size(); ++v) {
+    const glm::vec4& t = tangents[v];
+    if (!std::isfinite(t.x) || !std::isfinite(t.y) || !std::isfinite(t.z) || !std::isfinite(t.w))
+      throw Error(path + ": vertex " + std::to_string(v) + ": tangent is not finite; nothing written");
   }
   // The last line of defence (callers name the origin first, CheckSkinnedOutput):
   // a NaN written as "-nan" is not even readable back.
@@ -158,7 +183,7 @@ void WriteSkinnedVertices(const std::string& path, std::span<const glm::vec3> po
   if (positions.size() > kMaxVertexCount)
     throw Error(path + ": " + std::to_string(positions.size()) + " vertices, more than the " +
                 std::to_string(kMaxVertexCount) + " a vertex file can hold");
-  WriteFileAtomically(path, IsObj(path) ? EncodeObj(positions, normals) : EncodeBinary(positions, normals));
+  WriteFileAtomically(path, IsObj(path) ? EncodeObj(positions, normals) : EncodeBinary(positions, normals, tangents));
 }
 
 SkinnedVertices ReadSkinnedVertices(const std::string& path) {

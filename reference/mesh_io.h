@@ -6,10 +6,11 @@
 // skintune binary vertex file (.stv), little-endian, documented in docs/FORMATS.md:
 //   offset 0  char[4]  magic "STV1"
 //   offset 4  uint32   vertex count N
-//   offset 8  uint32   flags: bit 0 = normals present
+//   offset 8  uint32   flags: bit 0 = normals present, bit 1 = tangents present
 //   offset 12 uint32   reserved, 0
 //   offset 16 float32  positions, N x (x, y, z)
 //   then      float32  normals,   N x (x, y, z), when flag bit 0 is set
+//   then      float32  tangents,  N x (x, y, z, w), when flag bit 1 is set
 //
 // Writes are atomic: data goes to a temporary file beside the target that is
 // renamed over it only when complete, so a failure never truncates an existing file.
@@ -30,12 +31,14 @@ namespace skintune::internal {
 // Throws Error("<path>: ...") when the file cannot be written, and without
 // writing anything for a NaN or infinite value ("<path>: vertex V: position
 // is not finite; nothing written") or more than kMaxVertexCount vertices.
+// Tangents go to the binary format only (a .obj path with tangents is an error).
 void WriteSkinnedVertices(const std::string& path, std::span<const glm::vec3> positions,
-                          std::span<const glm::vec3> normals = {});
+                          std::span<const glm::vec3> normals = {}, std::span<const glm::vec4> tangents = {});
 
 struct SkinnedVertices {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;
+  std::vector<glm::vec4> tangents;
 };
 
 // Reads either format back. Throws Error("<path>: ...") on malformed input.

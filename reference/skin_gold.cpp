@@ -32,15 +32,18 @@ void CheckSkinningArguments(const SkinnedMesh& mesh, std::size_t palette_size, s
   }
 }
 
-GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette, bool with_normals) {
+GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette, bool with_normals,
+                    bool with_tangents) {
   ThrowIfInvalid(mesh, "SkinGold");
   CheckSkinningArguments(mesh, palette.size(), mesh.vertex_count(), 0, "SkinGold");
   with_normals = with_normals && mesh.has_normals();
+  with_tangents = with_tangents && mesh.has_tangents();
   const std::size_t n = mesh.vertex_count();
   const int b = mesh.influences;
   GoldResult result;
   result.positions.resize(n);
   if (with_normals) result.normals.resize(n);
+  if (with_tangents) result.tangents.resize(n);
   ParallelChunks(n, kGoldGrain, [&](std::size_t first, std::size_t last) {
     for (std::size_t v = first; v < last; ++v) {
       glm::dmat4 blended(0.0);
@@ -53,6 +56,13 @@ GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
         const glm::dvec3 n3 = NormalMatrix(glm::dmat3(blended)) * glm::dvec3(mesh.normals[v]);
         const double len = glm::length(n3);
         result.normals[v] = len > 0.0 ? n3 / len : n3;
+      }
+      if (with_tangents) {
+        const glm::dmat3 a(blended);
+        const glm::dvec3 t3 = a * glm::dvec3(mesh.tangents[v]);
+        const double len = glm::length(t3);
+        const double handedness = glm::determinant(a) < 0.0 ? -mesh.tangents[v].w : mesh.tangents[v].w;
+        result.tangents[v] = glm::dvec4(len > 0.0 ? t3 / len : t3, handedness);
       }
     }
   });

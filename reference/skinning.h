@@ -10,6 +10,8 @@
 // so a singular A (a blend that flattens the surface) still gives a
 // direction; the sign keeps a mirrored surface's normal on its side, as the
 // inverse transpose does.
+//   t' = (normalize(A * t.xyz), t.w * sign(det A))   (tangents: they follow the
+//        surface, so the plain 3x3; a mirror flips the handedness)
 //
 // - SkinGold:   float64 throughout; the reference every correctness check uses.
 // - SkinSerial: the paper's serial baseline: float32, one thread, a plain loop
@@ -52,14 +54,17 @@ M3 NormalMatrix(const M3& a) {
 
 struct GoldResult {
   std::vector<glm::dvec3> positions;
-  std::vector<glm::dvec3> normals;  // empty unless requested and present
+  std::vector<glm::dvec3> normals;   // empty unless requested and present
+  std::vector<glm::dvec4> tangents;  // empty unless requested and present
 };
 
 GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
-                    bool with_normals = false);
+                    bool with_normals = false, bool with_tangents = false);
 
+// Tangents are skinned when the mesh has them and out_tangents is given.
 void SkinSerial(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
-                std::span<glm::vec3> out_positions, std::span<glm::vec3> out_normals = {});
+                std::span<glm::vec3> out_positions, std::span<glm::vec3> out_normals = {},
+                std::span<glm::vec4> out_tangents = {});
 
 class FastSkinner {
  public:

@@ -3,6 +3,7 @@
 // optionally the palette it used (--palette-out) and a check of another
 // program's output against it (--check, --variant: the gold on the weights as
 // that variant quantises them).
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <cmath>
@@ -92,12 +93,19 @@ std::vector<glm::vec3> ToFloat(const std::vector<glm::dvec3>& values) {
 // (positions and normals), the float32 output, and for --impl fast its
 // structure-of-arrays copy of the mesh (at most as large as the mesh: 40 B).
 std::uint64_t SkinWorkBytesPerVertex(const SkinOptions& o) {
-  const std::uint64_t sides = o.source.normals ? 2 : 1;
+  const std::uint64_t sides = (o.source.normals ? 2 : 1) + (o.source.tangents ? 2 : 0);  // a tangent ~ 1.3 normals
   return sides * (24 + 12) + (o.implementation == "fast" ? 40 + 12 * sides : 0) + (o.check.empty() ? 0 : 24 + 12);
 }
 
 int RunSkin(const SkinOptions& o) {
   if (!std::isfinite(o.time)) throw Error("--time must be a finite number of seconds");
+  if (o.source.tangents && o.implementation == "fast")
+    throw UsageError("--tangents: --impl fast skins no tangents yet (use gold or serial)");
+  if (o.source.tangents && o.out.size() >= 4) {
+    std::string extension = o.out.substr(o.out.size() - 4);
+    std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
+    if (extension == ".obj") throw UsageError("--tangents: " + o.out + ": a .obj file holds no tangents (write a .stv)");
+  }
   // Every output can be written, before any work.
   if (!o.out.empty()) CheckWritable(o.out);
   if (!o.palette_out.empty()) CheckWritable(o.palette_out);
@@ -116,14 +124,16 @@ int RunSkin(const SkinOptions& o) {
   const SkinnedMesh& mesh = asset.morph.count() > 0 ? morphed : asset.mesh;
   const std::size_t n = mesh.vertex_count();
   std::vector<glm::vec3> positions(n), normals(o.source.normals && mesh.has_normals() ? n : 0);
+  std::vector<glm::vec4> tangents(o.source.tangents && mesh.has_tangents() ? n : 0);
   const auto start = std::chrono::steady_clock::now();
   if (o.implementation == "gold") {
-    const GoldResult gold = SkinGold(mesh, palette, !normals.empty());
+    const GoldResult gold = SkinGold(mesh, palette, !normals.empty(), !tangents.empty());
     positions = ToFloat(gold.positions);
     normals = ToFloat(gold.normals);
+    tangents.assign(gold.tangents.begin(), gold.tangents.end());
   } else if (o.implementation == "serial") {
     ThrowIfInvalid(mesh, asset.source);
-    SkinSerial(mesh, palette, positions, normals);
+    SkinSerial(mesh, palette, positions, normals, tangents);
   } else {
     FastSkinner(mesh).Run(palette, positions, normals);
   }
@@ -131,7 +141,7 @@ int RunSkin(const SkinOptions& o) {
   // A NaN or infinite output is an error naming its vertex, never a file.
   CheckSkinnedOutput(mesh, positions, normals,
                      asset.source + ": " + (clip < 0 ? std::string("rest pose") : "t=" + std::to_string(t) + " s of animation " + std::to_string(clip)));
-  if (!o.out.empty()) WriteSkinnedVertices(o.out, positions, normals);
+  if (!o.out.empty()) WriteSkinnedVertices(o.out, positions, normals, tangents);
   if (!o.palette_out.empty()) WritePalette(o.palette_out, palette);
   std::cout << "skinned " << n << " vertices (" << mesh.influences << " influences, " << mesh.joint_count
             << " joints) of " << asset.source << " at "
@@ -176,6 +186,9 @@ Command RegisterSkin(CLI::App& app) {
       ->check(CLI::PositiveNumber)
       ->needs(check);
   sub->add_flag("--normals", o->source.normals, "also skin and write normals (when the mesh has them)");
+  sub->add_flag("--tangents", o->source.tangents,
+                "also skin and write tangents (glTF TANGENT, every primitive; binary output; --impl gold or serial)")
+      ->needs("--mesh");
   sub->add_option("--impl", o->implementation, "CPU implementation: gold (float64), serial (paper baseline), fast")
       ->check(CLI::IsMember({"gold", "serial", "fast"}));
   return {sub, [o] {

@@ -40,6 +40,7 @@ struct MeshSource {
   std::string mesh_name;  // node/mesh name inside the file, or empty
   bool strict = false;    // reject glTF weights that do not sum to 1
   bool normals = false;   // import/generate normals
+  bool tangents = false;  // import TANGENT (glTF only: every primitive must have it)
 };
 
 // Every option naming a file or folder: '' is a command-line error naming

@@ -27,10 +27,14 @@ SkinnedAsset LoadAsset(const MeshSource& source, std::uint64_t work_bytes_per_ve
     options.mesh = source.mesh_name;
     options.strict = source.strict;
     options.normals = source.normals;
+    options.tangents = source.tangents;
     GltfImportResult result = ImportGltf(source.mesh_file, options);
     for (const std::string& warning : result.warnings) std::cerr << "skintune: warning: " << warning << "\n";
     return std::move(result.asset);
   }
+  if (source.tangents)
+    throw Error("dataset '" + (source.dataset.empty() ? std::string("default") : source.dataset) +
+                "': synthetic datasets have no tangents (--tangents needs a glTF mesh with TANGENT)");
   DatasetSpec spec = ParseDatasetKey(source.dataset.empty() ? "default" : source.dataset);
   spec.normals = spec.normals || source.normals;
   if (work_bytes_per_vertex > 0) {

@@ -602,6 +602,33 @@ TEST_F(GltfFiles, MorphTargetsAreReadAndAppliedAtTheClipsWeights) {
   EXPECT_EQ(ImportGltf(WriteJson("Node.gltf", node)).asset.morph.weights, (std::vector<double>{0.0, 1.0}));
 }
 
+// TANGENT is read when asked for (every primitive), its handedness checked;
+// a morph target's TANGENT offsets move the tangents' xyz and keep w.
+TEST_F(GltfFiles, TangentsAreReadWhenAskedForWithTheirMorphOffsets) {
+  constexpr std::size_t n = 160;
+  json gltf = MorphedRigged(rigged_, false);
+  std::vector<float> tangents, offsets;
+  for (std::size_t v = 0; v < n; ++v) {
+    tangents.insert(tangents.end(), {1.0f, 0.0f, 0.0f, v % 2 ? -1.0f : 1.0f});
+    offsets.insert(offsets.end(), {0.0f, 0.5f, 0.0f});
+  }
+  const int tangent = AppendFloatAccessor(gltf, tangents, "VEC4", n);
+  gltf["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = tangent;
+  gltf["meshes"][0]["primitives"][0]["targets"][1]["TANGENT"] = AppendFloatAccessor(gltf, offsets, "VEC3", n);
+  GltfImportOptions options;
+  options.tangents = true;
+  const SkinnedAsset asset = ImportGltf(WriteJson("Tangents.gltf", gltf), options).asset;
+  ASSERT_EQ(asset.mesh.tangents.size(), n);
+  EXPECT_EQ(asset.mesh.tangents[1], glm::vec4(1, 0, 0, -1));
+  const SkinnedMesh morphed = asset.MeshAt(-1, 0.0);  // default weights (0.5, 0.25)
+  EXPECT_EQ(morphed.tangents[1], glm::vec4(1, 0.125f, 0, -1));
+  EXPECT_EQ(ImportGltf(WriteJson("Tangents.gltf", gltf)).asset.mesh.tangents.size(), 0u) << "not asked for";
+  tangents[4 * 3 + 3] = 0.5f;
+  gltf["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = AppendFloatAccessor(gltf, tangents, "VEC4", n);
+  ExpectFileError(WriteJson("Bad.gltf", gltf), {"TANGENT of meshes[0].primitives[0]", "vertex 3: handedness (w) is 0.5"},
+                  options);
+}
+
 // Malformed morph data is one error naming the element.
 TEST_F(GltfFiles, MalformedMorphTargetsAreRejected) {
   ExpectError(

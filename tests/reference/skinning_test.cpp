@@ -142,6 +142,51 @@ TEST(SkinGold, NormalsFollowTheInverseTransposeUnderScaleShearAndMirror) {
   EXPECT_NEAR(glm::length(r.normals[0] - glm::dvec3(0, 0, 1)), 0.0, 1e-12) << "a singular blend keeps a direction";
 }
 
+// Tangents follow the surface: the blended 3x3 itself, renormalised, their
+// handedness kept, and flipped by a mirror (det < 0) so the bitangent
+// w * cross(n, t) stays the skinned surface's; gold and serial agree. The
+// same cases as the normals above.
+TEST(SkinGold, TangentsFollowTheBlendedMatrixAndAMirrorFlipsTheirHandedness) {
+  const glm::vec4 t0(glm::normalize(glm::vec3(1.0f, 0.2f, -0.3f)), -1.0f);
+  glm::mat4 shear(1.0f);
+  shear[1][0] = 0.5f;
+  const std::vector<std::pair<glm::mat4, bool>> cases = {
+      {glm::scale(glm::mat4(1.0f), {2, 1, 1}), false},
+      {shear, false},
+      {glm::scale(glm::mat4(1.0f), {-1, 1, 1}), true},
+      {glm::rotate(glm::scale(glm::mat4(1.0f), {0.5f, 2, 1}), 0.7f, {0, 0, 1}), false},
+  };
+  for (std::size_t c = 0; c < cases.size(); ++c) {
+    const auto& [m, mirror] = cases[c];
+    SkinnedMesh mesh;
+    mesh.influences = 1;
+    mesh.joint_count = 1;
+    mesh.positions = {{0.2f, -0.1f, 0.4f}};
+    mesh.tangents = {t0};
+    mesh.joints = {0};
+    mesh.weights = {1.0f};
+    const std::vector<glm::mat4> palette = {m};
+    const glm::dvec3 expected = glm::normalize(glm::dmat3(glm::dmat4(m)) * glm::dvec3(t0));
+    const GoldResult gold = SkinGold(mesh, palette, false, true);
+    ASSERT_EQ(gold.tangents.size(), 1u);
+    EXPECT_NEAR(glm::length(glm::dvec3(gold.tangents[0]) - expected), 0.0, 1e-12) << "case " << c;
+    EXPECT_EQ(gold.tangents[0].w, mirror ? 1.0 : -1.0) << "case " << c;
+    std::vector<glm::vec3> p(1);
+    std::vector<glm::vec4> serial(1);
+    SkinSerial(mesh, palette, p, {}, serial);
+    EXPECT_NEAR(glm::length(glm::dvec3(serial[0]) - expected), 0.0, 1e-6) << "serial, case " << c;
+    EXPECT_EQ(serial[0].w, mirror ? 1.0f : -1.0f) << "serial, case " << c;
+  }
+  SkinnedMesh bad;
+  bad.influences = 1;
+  bad.joint_count = 1;
+  bad.positions = {{0, 0, 0}};
+  bad.tangents = {{1, 0, 0, 0.5f}};
+  bad.joints = {0};
+  bad.weights = {1.0f};
+  EXPECT_FALSE(Validate(bad).ok()) << "a handedness other than +-1";
+}
+
 TEST(SkinGold, RejectsInvalidMeshAndWrongPaletteSize) {
   SkinnedMesh mesh = RandomMesh(5, 2, 3);
   EXPECT_THROW(SkinGold(mesh, RandomPalette(2, 1)), Error);

@@ -165,6 +165,43 @@ TEST(SkinMorphCli, MorphsThenSkinsAtEveryTimeAgainstAnIndependentReference) {
     // Without the morph targets the positions would be off: the test can fail.
     EXPECT_GT(CompareToGold(SkinGold(base, asset.PaletteAt(0, t)).positions, skinned.positions).max_relative, 1e-3);
   }
+  // Tangents: the blended 3x3 on the morphed mesh's tangents (the file has no
+  // TANGENT offsets), renormalised, the handedness kept (no joint mirrors);
+  // gold and serial alike; --impl fast and .obj refused before any work.
+  GltfImportOptions with_tangents;
+  with_tangents.tangents = true;
+  const SkinnedAsset tangent_asset = ImportGltf(file, with_tangents).asset;
+  ASSERT_TRUE(tangent_asset.mesh.has_tangents());
+  for (const char* impl : {"gold", "serial"}) {
+    const double t = 1.3;
+    const std::string out = (dir / "tangents.stv").string();
+    const auto r = RunSkintune({"skin", "--mesh", file, "--tangents", "--impl", impl, "--animation", "0", "--time",
+                                std::to_string(t), "--out", out});
+    ASSERT_EQ(r.exit_code, 0) << impl << ": " << r.err;
+    const SkinnedVertices skinned = ReadSkinnedVertices(out);
+    ASSERT_EQ(skinned.tangents.size(), tangent_asset.mesh.vertex_count()) << impl;
+    const std::vector<glm::mat4> palette = tangent_asset.PaletteAt(0, t);
+    const SkinnedMesh& m = tangent_asset.mesh;
+    double worst = 0.0;
+    for (std::size_t v = 0; v < m.vertex_count(); ++v) {
+      glm::dmat3 a(0.0);
+      for (int i = 0; i < m.influences; ++i)
+        a += double(m.weights[v * m.influences + i]) * glm::dmat3(glm::dmat4(palette[m.joints[v * m.influences + i]]));
+      ASSERT_GT(glm::determinant(a), 0.0);
+      const glm::dvec3 expected = glm::normalize(a * glm::dvec3(m.tangents[v]));
+      worst = std::max(worst, std::acos(std::min(1.0, glm::dot(glm::normalize(glm::dvec3(skinned.tangents[v])), expected))));
+      ASSERT_EQ(skinned.tangents[v].w, m.tangents[v].w) << impl << " vertex " << v;
+    }
+    EXPECT_LE(worst, 1e-4) << impl << ": radians";
+  }
+  EXPECT_EQ(RunSkintune({"skin", "--mesh", file, "--tangents", "--impl", "fast", "--out", (dir / "f.stv").string()}).exit_code, 2);
+  EXPECT_EQ(RunSkintune({"skin", "--mesh", file, "--tangents", "--out", (dir / "t.obj").string()}).exit_code, 2);
+  EXPECT_FALSE(fs::exists(dir / "t.obj"));
+  const auto untangled = RunSkintune({"skin", "--mesh", std::string(SKINTUNE_TEST_DATA_DIR) + "/RiggedSimple.gltf",
+                                      "--tangents", "--out", (dir / "u.stv").string()});
+  EXPECT_NE(untangled.exit_code, 0);
+  EXPECT_NE(untangled.err.find("meshes[0].primitives[0]: no TANGENT attribute"), std::string::npos) << untangled.err;
+
   // What skins only the mesh (a tuning data set) refuses the file, naming the targets.
   const auto scene = RunSkintune({"variants", "--dataset", file});
   EXPECT_NE(scene.exit_code, 0);
