@@ -14,6 +14,7 @@
 //        surface, so the plain 3x3; a mirror flips the handedness)
 //
 // - SkinGold:   float64 throughout; the reference every correctness check uses.
+//               (SkinGoldDualQuaternion: the same for dual-quaternion skinning.)
 // - SkinSerial: the paper's serial baseline: float32, one thread, a plain loop
 //               over the mesh's array-of-structures data (blend the matrices,
 //               then transform). The denominator of every speedup.
@@ -60,6 +61,14 @@ struct GoldResult {
 
 GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
                     bool with_normals = false, bool with_tangents = false);
+
+// The float64 gold of dual-quaternion skinning (reference/skin_dual_quaternion.cpp):
+// the joints' rotations and translations blended as unit dual quaternions
+// (antipodality against the first influence), their scale and shear (A = R S)
+// blended linearly first (Kavan et al.'s two-phase method). Throws Error
+// naming a joint whose matrix is not an invertible affine map.
+GoldResult SkinGoldDualQuaternion(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
+                                  bool with_normals = false, bool with_tangents = false);
 
 // Tangents are skinned when the mesh has them and out_tangents is given.
 void SkinSerial(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,

@@ -31,7 +31,15 @@ struct SkinOptions {
   std::string check;         // a skinned-vertex file to compare with the result
   std::string check_variant; // quantise the weights as this variant does first
   double tolerance = 1e-5;   // largest relative error CompareToGold may report
+  std::string blend = "linear";  // "linear" (the kernels' blend) or "dq" (dual quaternions: the gold only)
 };
+
+// The gold of `o.blend`.
+GoldResult BlendGold(const SkinOptions& o, const SkinnedMesh& mesh, const std::vector<glm::mat4>& palette,
+                     bool normals = false, bool tangents = false) {
+  return o.blend == "dq" ? SkinGoldDualQuaternion(mesh, palette, normals, tangents)
+                         : SkinGold(mesh, palette, normals, tangents);
+}
 
 void WritePalette(const std::string& path, const std::vector<glm::mat4>& palette) {
   CheckPaletteFinite(palette, path);
@@ -59,7 +67,7 @@ int Check(const SkinOptions& o, const SkinnedMesh& mesh, const std::vector<glm::
     reference = QuantisedMesh(mesh, variant);
     what += " with " + std::string(Name(variant.weight)) + " weights";
   }
-  const GoldResult gold = SkinGold(reference, palette);
+  const GoldResult gold = BlendGold(o, reference, palette);
   const GoldComparison c = CompareToGold(gold.positions, theirs.positions);
   const bool ok = c.non_finite == 0 && c.max_relative <= o.tolerance;
   std::cout << o.check << (ok ? " agrees with " : " DISAGREES with ") << what << ": largest relative error "
@@ -69,7 +77,7 @@ int Check(const SkinOptions& o, const SkinnedMesh& mesh, const std::vector<glm::
     // What the file is worth against the unquantised source (docs/TUNING.md
     // "Precision"): shown, never a failure: the quantisation is the variant's choice.
     const double diagonal = BoundingBoxDiagonal(mesh.positions);
-    const GoldResult source_gold = SkinGold(mesh, palette);
+    const GoldResult source_gold = BlendGold(o, mesh, palette);
     const GoldComparison source = CompareToGold(source_gold.positions, theirs.positions);
     const double quantisation = MaxDistance(gold.positions, source_gold.positions);
     std::cout << o.check << " against the unquantised source: largest error " << source.max_absolute
@@ -99,6 +107,8 @@ std::uint64_t SkinWorkBytesPerVertex(const SkinOptions& o) {
 
 int RunSkin(const SkinOptions& o) {
   if (!std::isfinite(o.time)) throw Error("--time must be a finite number of seconds");
+  if (o.blend == "dq" && o.implementation != "gold")
+    throw UsageError("--blend dq: only --impl gold skins with dual quaternions yet");
   if (o.source.tangents && o.implementation == "fast")
     throw UsageError("--tangents: --impl fast skins no tangents yet (use gold or serial)");
   if (o.source.tangents && o.out.size() >= 4) {
@@ -127,7 +137,7 @@ int RunSkin(const SkinOptions& o) {
   std::vector<glm::vec4> tangents(o.source.tangents && mesh.has_tangents() ? n : 0);
   const auto start = std::chrono::steady_clock::now();
   if (o.implementation == "gold") {
-    const GoldResult gold = SkinGold(mesh, palette, !normals.empty(), !tangents.empty());
+    const GoldResult gold = BlendGold(o, mesh, palette, !normals.empty(), !tangents.empty());
     positions = ToFloat(gold.positions);
     normals = ToFloat(gold.normals);
     tangents.assign(gold.tangents.begin(), gold.tangents.end());
@@ -147,7 +157,8 @@ int RunSkin(const SkinOptions& o) {
             << " joints) of " << asset.source << " at "
             << (clip < 0 ? std::string("rest pose") : "t=" + std::to_string(t) + " s of animation " +
                                                           std::to_string(clip))
-            << " with " << o.implementation << " in " << ms << " ms" << (o.out.empty() ? "" : " -> " + o.out) << "\n";
+            << " with " << o.implementation << (o.blend == "dq" ? " (dual quaternions)" : "") << " in " << ms << " ms"
+            << (o.out.empty() ? "" : " -> " + o.out) << "\n";
   if (asset.morph.count() > 0) {
     std::cout << "morph targets applied first: " << asset.morph.count() << ", weights";
     for (const double w : asset.MorphWeightsAt(clip, t)) std::cout << " " << w;
@@ -189,6 +200,10 @@ Command RegisterSkin(CLI::App& app) {
   sub->add_flag("--tangents", o->source.tangents,
                 "also skin and write tangents (glTF TANGENT, every primitive; binary output; --impl gold or serial)")
       ->needs("--mesh");
+  sub->add_option("--blend", o->blend,
+                  "linear (linear blend skinning, default) or dq (dual quaternions, scale and shear by the two-phase "
+                  "method; --impl gold)")
+      ->check(CLI::IsMember({"linear", "dq"}));
   sub->add_option("--impl", o->implementation, "CPU implementation: gold (float64), serial (paper baseline), fast")
       ->check(CLI::IsMember({"gold", "serial", "fast"}));
   return {sub, [o] {

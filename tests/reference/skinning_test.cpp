@@ -187,6 +187,65 @@ TEST(SkinGold, TangentsFollowTheBlendedMatrixAndAMirrorFlipsTheirHandedness) {
   EXPECT_FALSE(Validate(bad).ok()) << "a handedness other than +-1";
 }
 
+// Dual-quaternion skinning's gold: with one influence it is the linear
+// gold, rigid or not (scale, shear and a mirror go through the two-phase S);
+// at a twisting joint it keeps the volume linear blending loses (the candy
+// wrapper); rotations more than 180 degrees apart blend the short way
+// (antipodality against the first influence); a singular joint is an error
+// naming it.
+TEST(SkinGoldDualQuaternion, IsTheLinearGoldForOneInfluenceAndKeepsVolumeWhereItCollapses) {
+  glm::mat4 shear(1.0f);
+  shear[1][0] = 0.5f;
+  const std::vector<glm::mat4> joints = {
+      glm::translate(glm::rotate(glm::mat4(1.0f), 0.8f, glm::normalize(glm::vec3(1, 2, 3))), {1, -2, 0.5f}),
+      glm::translate(glm::scale(glm::mat4(1.0f), {2, 1, 0.5f}), {0.3f, 0, 0}),
+      shear,
+      glm::scale(glm::mat4(1.0f), {-1, 1, 1}),
+  };
+  for (std::size_t j = 0; j < joints.size(); ++j) {
+    SkinnedMesh mesh;
+    mesh.influences = 1;
+    mesh.joint_count = 1;
+    mesh.positions = {{0.2f, -0.7f, 0.4f}};
+    mesh.normals = {glm::normalize(glm::vec3(1, 1, 0.5f))};
+    mesh.tangents = {{glm::normalize(glm::vec3(1, -1, 0)), 1.0f}};
+    mesh.joints = {0};
+    mesh.weights = {1.0f};
+    const std::vector<glm::mat4> palette = {joints[j]};
+    const GoldResult lbs = SkinGold(mesh, palette, true, true), dq = SkinGoldDualQuaternion(mesh, palette, true, true);
+    EXPECT_NEAR(glm::length(dq.positions[0] - lbs.positions[0]), 0.0, 1e-6) << "joint " << j;
+    EXPECT_NEAR(glm::length(dq.normals[0] - lbs.normals[0]), 0.0, 1e-6) << "joint " << j;
+    EXPECT_NEAR(glm::length(dq.tangents[0] - lbs.tangents[0]), 0.0, 1e-6) << "joint " << j;
+  }
+  // A twist of +-90 degrees about x, half and half: linear blending collapses
+  // the point onto the axis, dual quaternions keep its distance.
+  SkinnedMesh twist;
+  twist.influences = 2;
+  twist.joint_count = 2;
+  twist.positions = {{0.5f, 1.0f, 0.0f}};
+  twist.joints = {0, 1};
+  twist.weights = {0.5f, 0.5f};
+  const std::vector<glm::mat4> twisted = {glm::rotate(glm::mat4(1.0f), glm::radians(90.0f), {1, 0, 0}),
+                                          glm::rotate(glm::mat4(1.0f), glm::radians(-90.0f), {1, 0, 0})};
+  const glm::dvec3 lbs = SkinGold(twist, twisted).positions[0], dq = SkinGoldDualQuaternion(twist, twisted).positions[0];
+  EXPECT_NEAR(glm::length(glm::dvec2(lbs.y, lbs.z)), 0.0, 1e-6) << "linear blending: on the axis";
+  EXPECT_NEAR(glm::length(glm::dvec2(dq.y, dq.z)), 1.0, 1e-6) << "dual quaternions: the radius kept";
+  EXPECT_NEAR(dq.x, 0.5, 1e-6);
+  // 170 and 190 degrees about z: the short way round, through 180.
+  const std::vector<glm::mat4> far = {glm::rotate(glm::mat4(1.0f), glm::radians(170.0f), {0, 0, 1}),
+                                      glm::rotate(glm::mat4(1.0f), glm::radians(190.0f), {0, 0, 1})};
+  twist.positions = {{1.0f, 0.0f, 0.0f}};
+  const glm::dvec3 half = SkinGoldDualQuaternion(twist, far).positions[0];
+  EXPECT_NEAR(glm::length(half - glm::dvec3(-1, 0, 0)), 0.0, 1e-6) << half.x << " " << half.y;
+  const std::vector<glm::mat4> singular = {glm::mat4(1.0f), glm::scale(glm::mat4(1.0f), {1, 1, 0})};
+  try {
+    (void)SkinGoldDualQuaternion(twist, singular);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("joint 1: not an invertible affine matrix"), std::string::npos) << e.what();
+  }
+}
+
 TEST(SkinGold, RejectsInvalidMeshAndWrongPaletteSize) {
   SkinnedMesh mesh = RandomMesh(5, 2, 3);
   EXPECT_THROW(SkinGold(mesh, RandomPalette(2, 1)), Error);

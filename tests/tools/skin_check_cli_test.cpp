@@ -210,5 +210,28 @@ TEST(SkinMorphCli, MorphsThenSkinsAtEveryTimeAgainstAnIndependentReference) {
       << scene.err;
 }
 
+// --blend dq: CesiumMan skinned by the dual-quaternion gold, which differs
+// from the linear one on its twisting joints; --check compares against the
+// blend asked for; only --impl gold skins with dual quaternions.
+TEST(SkinCheckCli, BlendDqWritesTheDualQuaternionGoldAndChecksAgainstIt) {
+  const fs::path dir = Scratch();
+  const std::string out = (dir / "dq.stv").string();
+  const auto r = RunSkintune({"skin", "--mesh", kCesium, "--animation", "0", "--time", "0.5", "--blend", "dq", "--out", out});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("(dual quaternions)"), std::string::npos) << r.out;
+  const SkinnedAsset asset = ImportGltf(kCesium).asset;
+  const std::vector<glm::mat4> palette = asset.PaletteAt(0, 0.5);
+  const SkinnedVertices skinned = ReadSkinnedVertices(out);
+  EXPECT_LE(CompareToGold(SkinGoldDualQuaternion(asset.mesh, palette).positions, skinned.positions).max_relative, 1e-6);
+  EXPECT_GT(CompareToGold(SkinGold(asset.mesh, palette).positions, skinned.positions).max_absolute, 1e-4)
+      << "dual quaternions move some vertex away from linear blending";
+  EXPECT_EQ(RunSkintune({"skin", "--mesh", kCesium, "--animation", "0", "--time", "0.5", "--blend", "dq", "--check", out})
+                .exit_code,
+            0);
+  EXPECT_NE(RunSkintune({"skin", "--mesh", kCesium, "--animation", "0", "--time", "0.5", "--check", out}).exit_code, 0)
+      << "the linear gold disagrees";
+  EXPECT_EQ(RunSkintune({"skin", "--mesh", kCesium, "--blend", "dq", "--impl", "serial", "--out", out}).exit_code, 2);
+}
+
 }  // namespace
 }  // namespace skintune::internal::testing
