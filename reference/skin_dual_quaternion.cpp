@@ -3,9 +3,10 @@
 // (R a rotation, S the rest: scale, shear, a mirror), the rigid part (R, t)
 // as a unit dual quaternion. Per vertex, the S are blended linearly and the
 // dual quaternions (each made antipodal-consistent with the first
-// influence's) blended and normalised:
-//   v' = R_b (S_b v) + t_b,  n' = normalize(R_b N(S_b) n),  t' = R_b S_b t
-// (N: reference/skinning.h NormalMatrix). For rigid joints S = I and this is
+// influence's) blended and normalised: each vertex's map is the affine
+// (R_b S_b, t_b), skinned by GoldOfMaps as the linear gold's blended matrix:
+//   v' = R_b (S_b v) + t_b,  n' = normalize(N(R_b S_b) n) = normalize(R_b N(S_b) n),
+//   t' = R_b S_b t   (N: reference/skinning.h NormalMatrix). For rigid joints S = I and this is
 // plain dual-quaternion skinning: no volume lost at twisting joints.
 #define GLM_ENABLE_EXPERIMENTAL
 #include <glm/gtx/dual_quaternion.hpp>
@@ -16,7 +17,6 @@
 #include <vector>
 
 #include "base/error.h"
-#include "base/thread_pool.h"
 #include "reference/skinning.h"
 
 namespace skintune::internal {
@@ -55,52 +55,33 @@ std::vector<JointParts> Decompose(std::span<const glm::mat4> palette) {
 
 GoldResult SkinGoldDualQuaternion(const SkinnedMesh& mesh, std::span<const glm::mat4> palette, bool with_normals,
                                   bool with_tangents) {
-  ThrowIfInvalid(mesh, "SkinGoldDualQuaternion");
+  // A palette of the wrong size is GoldOfMaps's to name, before any joint is decomposed.
   CheckSkinningArguments(mesh, palette.size(), mesh.vertex_count(), 0, "SkinGoldDualQuaternion");
-  with_normals = with_normals && mesh.has_normals();
-  with_tangents = with_tangents && mesh.has_tangents();
   const std::vector<JointParts> joints = Decompose(palette);
-  const std::size_t n = mesh.vertex_count();
   const int b = mesh.influences;
-  GoldResult result;
-  result.positions.resize(n);
-  if (with_normals) result.normals.resize(n);
-  if (with_tangents) result.tangents.resize(n);
-  ParallelChunks(n, 16384, [&](std::size_t first, std::size_t last) {
-    for (std::size_t v = first; v < last; ++v) {
-      glm::ddualquat blended(glm::dquat(0.0, 0.0, 0.0, 0.0), glm::dquat(0.0, 0.0, 0.0, 0.0));
-      glm::dmat3 rest(0.0);
-      const glm::dquat* pivot = nullptr;  // the first influence's rotation: antipodality against it
-      for (int i = 0; i < b; ++i) {
-        const double w = mesh.weights[v * b + i];
-        if (w == 0.0) continue;
-        const JointParts& joint = joints[mesh.joints[v * b + i]];
-        if (!pivot) pivot = &joint.rigid.real;
-        const double sign = glm::dot(*pivot, joint.rigid.real) < 0.0 ? -1.0 : 1.0;
-        blended.real = blended.real + (sign * w) * joint.rigid.real;
-        blended.dual = blended.dual + (sign * w) * joint.rigid.dual;
-        rest += w * joint.rest;
-      }
-      const double length = glm::length(blended.real);
-      blended.real = blended.real / length;
-      blended.dual = blended.dual / length;
-      const glm::dmat3 r = glm::mat3_cast(blended.real);
-      const glm::dquat t = 2.0 * (blended.dual * glm::conjugate(blended.real));
-      result.positions[v] = r * (rest * glm::dvec3(mesh.positions[v])) + glm::dvec3(t.x, t.y, t.z);
-      if (with_normals) {
-        const glm::dvec3 n3 = r * (NormalMatrix(rest) * glm::dvec3(mesh.normals[v]));
-        const double len = glm::length(n3);
-        result.normals[v] = len > 0.0 ? n3 / len : n3;
-      }
-      if (with_tangents) {
-        const glm::dvec3 t3 = r * (rest * glm::dvec3(mesh.tangents[v]));
-        const double len = glm::length(t3);
-        const double handedness = glm::determinant(rest) < 0.0 ? -mesh.tangents[v].w : mesh.tangents[v].w;
-        result.tangents[v] = glm::dvec4(len > 0.0 ? t3 / len : t3, handedness);
-      }
+  // Each vertex's map: R_b S_b and t_b (the normal matrix of R_b S_b is R_b N(S_b)).
+  return GoldOfMaps(mesh, palette.size(), with_normals, with_tangents, "SkinGoldDualQuaternion", [&](std::size_t v) {
+    glm::ddualquat blended(glm::dquat(0.0, 0.0, 0.0, 0.0), glm::dquat(0.0, 0.0, 0.0, 0.0));
+    glm::dmat3 rest(0.0);
+    const glm::dquat* pivot = nullptr;  // the first influence's rotation: antipodality against it
+    for (int i = 0; i < b; ++i) {
+      const double w = mesh.weights[v * b + i];
+      if (w == 0.0) continue;
+      const JointParts& joint = joints[mesh.joints[v * b + i]];
+      if (!pivot) pivot = &joint.rigid.real;
+      const double sign = glm::dot(*pivot, joint.rigid.real) < 0.0 ? -1.0 : 1.0;
+      blended.real = blended.real + (sign * w) * joint.rigid.real;
+      blended.dual = blended.dual + (sign * w) * joint.rigid.dual;
+      rest += w * joint.rest;
     }
+    const double length = glm::length(blended.real);
+    blended.real = blended.real / length;
+    blended.dual = blended.dual / length;
+    const glm::dquat t = 2.0 * (blended.dual * glm::conjugate(blended.real));
+    glm::dmat4 map(glm::mat3_cast(blended.real) * rest);
+    map[3] = glm::dvec4(t.x, t.y, t.z, 1.0);
+    return map;
   });
-  return result;
 }
 
 }  // namespace skintune::internal

@@ -1,6 +1,7 @@
 // The float64 gold: the reference every kernel variant is checked against.
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -32,33 +33,28 @@ void CheckSkinningArguments(const SkinnedMesh& mesh, std::size_t palette_size, s
   }
 }
 
-GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette, bool with_normals,
-                    bool with_tangents) {
-  ThrowIfInvalid(mesh, "SkinGold");
-  CheckSkinningArguments(mesh, palette.size(), mesh.vertex_count(), 0, "SkinGold");
+GoldResult GoldOfMaps(const SkinnedMesh& mesh, std::size_t palette_size, bool with_normals, bool with_tangents,
+                      const char* who, const std::function<glm::dmat4(std::size_t)>& map_of) {
+  ThrowIfInvalid(mesh, who);
+  CheckSkinningArguments(mesh, palette_size, mesh.vertex_count(), 0, who);
   with_normals = with_normals && mesh.has_normals();
   with_tangents = with_tangents && mesh.has_tangents();
   const std::size_t n = mesh.vertex_count();
-  const int b = mesh.influences;
   GoldResult result;
   result.positions.resize(n);
   if (with_normals) result.normals.resize(n);
   if (with_tangents) result.tangents.resize(n);
   ParallelChunks(n, kGoldGrain, [&](std::size_t first, std::size_t last) {
     for (std::size_t v = first; v < last; ++v) {
-      glm::dmat4 blended(0.0);
-      for (int i = 0; i < b; ++i) {
-        const double w = mesh.weights[v * b + i];
-        if (w != 0.0) blended += w * glm::dmat4(palette[mesh.joints[v * b + i]]);
-      }
-      result.positions[v] = glm::dvec3(blended * glm::dvec4(glm::dvec3(mesh.positions[v]), 1.0));
+      const glm::dmat4 map = map_of(v);
+      const glm::dmat3 a(map);
+      result.positions[v] = glm::dvec3(map * glm::dvec4(glm::dvec3(mesh.positions[v]), 1.0));
       if (with_normals) {
-        const glm::dvec3 n3 = NormalMatrix(glm::dmat3(blended)) * glm::dvec3(mesh.normals[v]);
+        const glm::dvec3 n3 = NormalMatrix(a) * glm::dvec3(mesh.normals[v]);
         const double len = glm::length(n3);
         result.normals[v] = len > 0.0 ? n3 / len : n3;
       }
       if (with_tangents) {
-        const glm::dmat3 a(blended);
         const glm::dvec3 t3 = a * glm::dvec3(mesh.tangents[v]);
         const double len = glm::length(t3);
         const double handedness = glm::determinant(a) < 0.0 ? -mesh.tangents[v].w : mesh.tangents[v].w;
@@ -67,6 +63,19 @@ GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
     }
   });
   return result;
+}
+
+GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette, bool with_normals,
+                    bool with_tangents) {
+  const int b = mesh.influences;
+  return GoldOfMaps(mesh, palette.size(), with_normals, with_tangents, "SkinGold", [&](std::size_t v) {
+    glm::dmat4 blended(0.0);
+    for (int i = 0; i < b; ++i) {
+      const double w = mesh.weights[v * b + i];
+      if (w != 0.0) blended += w * glm::dmat4(palette[mesh.joints[v * b + i]]);
+    }
+    return blended;
+  });
 }
 
 GoldComparison CompareToGold(std::span<const glm::dvec3> gold, std::span<const glm::vec3> actual) {

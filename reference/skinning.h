@@ -33,6 +33,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -61,6 +62,13 @@ struct GoldResult {
 
 GoldResult SkinGold(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
                     bool with_normals = false, bool with_tangents = false);
+
+// The gold's outputs from each vertex's affine map (SkinGold's blended matrix,
+// SkinGoldDualQuaternion's R_b S_b and t_b): positions by the map, normals by
+// its 3x3's NormalMatrix, tangents by its 3x3 (a mirror flipping their
+// handedness). Validates the mesh and the palette's size as `who`.
+GoldResult GoldOfMaps(const SkinnedMesh& mesh, std::size_t palette_size, bool with_normals, bool with_tangents,
+                      const char* who, const std::function<glm::dmat4(std::size_t)>& map_of);
 
 // The float64 gold of dual-quaternion skinning (reference/skin_dual_quaternion.cpp):
 // the joints' rotations and translations blended as unit dual quaternions
