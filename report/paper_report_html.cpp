@@ -601,8 +601,9 @@ class Renderer {
     }
     out_ += "<table><thead><tr><th>data set</th><th>language</th><th title=\"the kernel's own device time from a "
             "flushed cache: median and 95% interval\">kernel time</th><th title=\"Skin() issued back to back, host "
-            "issue included\">frame time</th><th title=\"other candidates within the tie margin of the fastest; the "
-            "winner among them moves the fewest bytes, then has the lowest error\">ties</th><th>GB/s</th><th title=\"time / the "
+            "issue included\">frame time</th><th title=\"other candidates within the tie margin of the fastest, plus the spread between "
+            "processes; the winner moves the fewest bytes, then has the lowest error, then the palette storage with "
+            "the fewest limits\">ties</th><th>GB/s</th><th title=\"time / the "
             "time of a copy of the same bytes, timed the same way\">\xC3\x97 same-size copy</th><th>of large copy</th>"
             "<th title=\"largest relative error against the float64 gold of the variant's quantised weights\">vs "
             "quantised</th><th title=\"largest error against the float64 gold of the unquantised source, of the "

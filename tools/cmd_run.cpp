@@ -146,8 +146,10 @@ void PrintDeviceWinners(const TuningReport& report) {
       std::cout << FormatTable(rows, {1, 2, 5, 6, 7, 8, 9, 10, 11});
       std::cout << "kernel: the kernel's own device time from a flushed cache, median and 95% interval; frame: Skin() "
                    "issued back to back; ties: other candidates within the tie margin "
-                << Fixed(report.TieMarginOf(d.Id()) * 100.0, 1)
-                << "% (the winner among ties: fewest bytes, then lower error)\n";
+                << Fixed(report.TieMarginOf(d.Id()) * 100.0, 1) << "% plus the spread between processes "
+                << Fixed(report.TieSpreadOf(d.Id()) * 100.0, 1) << "% (the winner among "
+                << (report.ChoiceOf(d.Id()) == Choice::kTieSet ? "them" : "those within the margin")
+                << ": fewest bytes, then lower error, then the palette storage with the fewest limits)\n";
       PrintSmClocks(report, d.Id());
       if (!noisy.empty()) {
         std::cout << "every candidate within noise of the winner in: ";
