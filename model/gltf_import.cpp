@@ -230,10 +230,11 @@ size_t InfluenceSets(const Ctx& ctx, const tinygltf::Primitive& prim, const std:
   return sets;
 }
 
-// Reads attribute `name` of a primitive, which must have `count` elements (POSITION's count).
-AccessorData ReadAttribute(const Ctx& ctx, const tinygltf::Primitive& prim, const std::string& name,
+// Reads attribute `name` of an attribute map (a primitive's, or one of its
+// morph targets'), which must have `count` elements (POSITION's count).
+AccessorData ReadAttribute(const Ctx& ctx, const std::map<std::string, int>& attributes, const std::string& name,
                            const std::string& where, AccessorSpec spec, size_t count) {
-  const int index = prim.attributes.at(name);
+  const int index = attributes.at(name);
   spec.role = name + " of " + where;
   AccessorData data = ReadAccessor(ctx, index, spec);
   if (data.count != count) {
@@ -249,9 +250,9 @@ void ReadInfluenceSet(const Ctx& ctx, const tinygltf::Primitive& prim, const std
                       size_t first, size_t count, SkinnedMesh& mesh) {
   const std::string n = to_string(set);
   const AccessorData joints =
-      ReadAttribute(ctx, prim, "JOINTS_" + n, where, {"", kJointTypes, {TINYGLTF_TYPE_VEC4}, true}, count);
+      ReadAttribute(ctx, prim.attributes, "JOINTS_" + n, where, {"", kJointTypes, {TINYGLTF_TYPE_VEC4}, true}, count);
   const AccessorData weights =
-      ReadAttribute(ctx, prim, "WEIGHTS_" + n, where, {"", kWeightTypes, {TINYGLTF_TYPE_VEC4}}, count);
+      ReadAttribute(ctx, prim.attributes, "WEIGHTS_" + n, where, {"", kWeightTypes, {TINYGLTF_TYPE_VEC4}}, count);
   const auto slots = static_cast<size_t>(mesh.influences);
   for (size_t v = 0; v < count; ++v) {
     for (int k = 0; k < 4; ++k) {
@@ -283,13 +284,13 @@ void AppendPrimitive(const Ctx& ctx, const tinygltf::Primitive& prim, const std:
   for (size_t v = 0; v < count; ++v) mesh.positions.emplace_back(pos.at(v, 0), pos.at(v, 1), pos.at(v, 2));
   if (with_normals) {
     const AccessorData nrm =
-        ReadAttribute(ctx, prim, "NORMAL", where, {"", kFloat, {TINYGLTF_TYPE_VEC3}}, count);
+        ReadAttribute(ctx, prim.attributes, "NORMAL", where, {"", kFloat, {TINYGLTF_TYPE_VEC3}}, count);
     for (size_t v = 0; v < count; ++v) mesh.normals.emplace_back(nrm.at(v, 0), nrm.at(v, 1), nrm.at(v, 2));
   }
   if (with_tangents) {
     if (!prim.attributes.count("TANGENT")) ctx.Fail(where + ": no TANGENT attribute (tangents were asked for)");
     const AccessorData tan =
-        ReadAttribute(ctx, prim, "TANGENT", where, {"", kRotationTypes, {TINYGLTF_TYPE_VEC4}}, count);
+        ReadAttribute(ctx, prim.attributes, "TANGENT", where, {"", kRotationTypes, {TINYGLTF_TYPE_VEC4}}, count);
     for (size_t v = 0; v < count; ++v) {
       const double w = tan.at(v, 3);
       if (w != 1.0 && w != -1.0)
@@ -541,10 +542,8 @@ MorphTargets ReadMorphTargets(const Ctx& ctx, size_t node_index, const SkinnedMe
                                                     : name == "TANGENT" && mesh.has_tangents() ? &morph.tangents
                                                                                                : nullptr;
         if (!into) continue;
-        const AccessorData d = ReadAccessor(ctx, accessor, {name + " of " + where, kRotationTypes, {TINYGLTF_TYPE_VEC3}});
-        if (d.count != count)
-          ctx.Fail(AccessorName(accessor, name + " of " + where) + ": count " + to_string(d.count) +
-                   " differs from POSITION's count " + to_string(count));
+        const AccessorData d =
+            ReadAttribute(ctx, prim.targets[k], name, where, {"", kRotationTypes, {TINYGLTF_TYPE_VEC3}}, count);
         for (size_t v = 0; v < count; ++v) {
           const glm::dvec3 delta(d.at(v, 0), d.at(v, 1), d.at(v, 2));
           if (!std::isfinite(delta.x) || !std::isfinite(delta.y) || !std::isfinite(delta.z))

@@ -24,13 +24,6 @@ namespace {
 
 constexpr char kMagic[4] = {'S', 'T', 'V', '1'};
 
-bool IsObj(const std::string& path) {
-  if (path.size() < 4) return false;
-  std::string ext = path.substr(path.size() - 4);
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext == ".obj";
-}
-
 void AppendU32(std::string& out, std::uint32_t value) {
   for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>((value >> (8 * i)) & 0xffu));
 }
@@ -123,6 +116,13 @@ SkinnedVertices DecodeBinary(const std::string& path, const std::string& data) {
 
 }  // namespace
 
+bool IsObjPath(const std::string& path) {
+  if (path.size() < 4) return false;
+  std::string ext = path.substr(path.size() - 4);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext == ".obj";
+}
+
 void WriteFileAtomically(const std::string& path, const std::string& contents) {
   const std::string temp = path + ".tmp." + std::to_string(::getpid());
   {
@@ -166,13 +166,10 @@ void WriteSkinnedVertices(const std::string& path, std::span<const glm::vec3> po
     throw Error(path + ": " + std::to_string(tangents.size()) + " tangents for " + std::to_string(positions.size()) +
                 " positions");
   }
-  if (!tangents.empty() && IsObj(path))
+  if (!tangents.empty() && IsObjPath(path))
     throw Error(path + ": a .obj file holds no tangents; nothing written (write skintune's binary format)");
-  for (std::size_t v = 0; v < tangents.size(); ++v) {
-    const glm::vec4& t = tangents[v];
-    if (!std::isfinite(t.x) || !std::isfinite(t.y) || !std::isfinite(t.z) || !std::isfinite(t.w))
-      throw Error(path + ": vertex " + std::to_string(v) + ": tangent is not finite; nothing written");
-  }
+  if (const std::size_t v = FirstNonFinite(tangents); v < tangents.size())
+    throw Error(path + ": vertex " + std::to_string(v) + ": tangent is not finite; nothing written");
   // The last line of defence (callers name the origin first, CheckSkinnedOutput):
   // a NaN written as "-nan" is not even readable back.
   for (const auto& [values, what] : {std::pair{positions, "position"}, std::pair{normals, "normal"}}) {
@@ -183,7 +180,7 @@ void WriteSkinnedVertices(const std::string& path, std::span<const glm::vec3> po
   if (positions.size() > kMaxVertexCount)
     throw Error(path + ": " + std::to_string(positions.size()) + " vertices, more than the " +
                 std::to_string(kMaxVertexCount) + " a vertex file can hold");
-  WriteFileAtomically(path, IsObj(path) ? EncodeObj(positions, normals) : EncodeBinary(positions, normals, tangents));
+  WriteFileAtomically(path, IsObjPath(path) ? EncodeObj(positions, normals) : EncodeBinary(positions, normals, tangents));
 }
 
 SkinnedVertices ReadSkinnedVertices(const std::string& path) {
@@ -193,7 +190,7 @@ SkinnedVertices ReadSkinnedVertices(const std::string& path) {
     throw Error(path + ": is " + FormatBytes(size) + " but " + FormatBytes(available.bytes) +
                 " of memory are available (" + available.from + ")");
   const std::string data = ReadInputFile(path, kSkinnedVerticesInput);
-  return IsObj(path) ? DecodeObj(path, data) : DecodeBinary(path, data);
+  return IsObjPath(path) ? DecodeObj(path, data) : DecodeBinary(path, data);
 }
 
 }  // namespace skintune::internal

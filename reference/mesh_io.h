@@ -27,6 +27,9 @@
 
 namespace skintune::internal {
 
+// Whether `path` names a .obj file (case-insensitive): the format WriteSkinnedVertices picks.
+bool IsObjPath(const std::string& path);
+
 // Chooses the format by extension: ".obj" (case-insensitive) -> obj, else binary.
 // Throws Error("<path>: ...") when the file cannot be written, and without
 // writing anything for a NaN or infinite value ("<path>: vertex V: position

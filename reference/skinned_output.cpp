@@ -45,6 +45,12 @@ std::size_t FirstNonFinite(std::span<const glm::vec3> values) {
   return values.size();
 }
 
+std::size_t FirstNonFinite(std::span<const glm::vec4> values) {
+  for (std::size_t v = 0; v < values.size(); ++v)
+    if (!Finite(glm::vec3(values[v])) || !std::isfinite(values[v].w)) return v;
+  return values.size();
+}
+
 void CheckPaletteFinite(std::span<const glm::mat4> palette, const std::string& context) {
   for (std::size_t j = 0; j < palette.size(); ++j)
     for (int c = 0; c < 4; ++c)

@@ -131,6 +131,7 @@ double BoundingBoxDiagonal(std::span<const glm::vec3> points);
 //
 // The first vector with a NaN or infinite component, or values.size().
 std::size_t FirstNonFinite(std::span<const glm::vec3> values);
+std::size_t FirstNonFinite(std::span<const glm::vec4> values);  // tangents: w too
 // Throws Error("<context>: palette matrix J element [c][r] is nan: ...") for
 // the first element that is not finite (a palette from outside: an engine's,
 // a file's; Skeleton::Palette checks its own with the joint's node).

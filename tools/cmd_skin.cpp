@@ -3,7 +3,6 @@
 // optionally the palette it used (--palette-out) and a check of another
 // program's output against it (--check, --variant: the gold on the weights as
 // that variant quantises them).
-#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <cmath>
@@ -111,11 +110,8 @@ int RunSkin(const SkinOptions& o) {
     throw UsageError("--blend dq: only --impl gold skins with dual quaternions yet");
   if (o.source.tangents && o.implementation == "fast")
     throw UsageError("--tangents: --impl fast skins no tangents yet (use gold or serial)");
-  if (o.source.tangents && o.out.size() >= 4) {
-    std::string extension = o.out.substr(o.out.size() - 4);
-    std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
-    if (extension == ".obj") throw UsageError("--tangents: " + o.out + ": a .obj file holds no tangents (write a .stv)");
-  }
+  if (o.source.tangents && IsObjPath(o.out))
+    throw UsageError("--tangents: " + o.out + ": a .obj file holds no tangents (write a .stv)");
   // Every output can be written, before any work.
   if (!o.out.empty()) CheckWritable(o.out);
   if (!o.palette_out.empty()) CheckWritable(o.palette_out);
