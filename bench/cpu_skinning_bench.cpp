@@ -257,7 +257,7 @@ std::vector<Row> RowsOf(const std::vector<std::string>& keys, const SkinnedMesh&
     Row row;
     row.variant = ParseVariantKey(key);
     row.variant.influences = mesh.influences;
-    row.variant.normals = mesh.has_normals();
+    row.variant.normals = NormalsFor(mesh.has_normals(), false);
     rows.push_back(row);
   }
   return rows;

@@ -78,7 +78,8 @@ void LoadCpuPalette(std::span<const std::uint8_t> packed_rows, int rows, CpuPale
 // Where a kernel reads and writes, in bytes. Vertex v's slot i is at
 // `base + v * stride + i * slot`; positions and normals are x, y, z floats at
 // `base + v * stride`. Outputs are `output_floats` (3 or 4; w = 1 for
-// positions, 0 for normals) floats per vertex from vertex 0 of the range.
+// positions, 0 for normals) floats per vertex from vertex 0 of the range;
+// tangents 4 floats in and out.
 struct CpuStreams {
   const std::uint8_t* positions = nullptr;
   std::size_t position_stride = 0;
@@ -90,6 +91,12 @@ struct CpuStreams {
   std::size_t weight_stride = 0, weight_slot = 0;
   float* out_positions = nullptr;
   float* out_normals = nullptr;  // skinned normals (normalised) when `normals` and this are set
+  // Tangents (read only with normals): 4 floats (xyz, handedness w) at
+  // `tangents + v * tangent_stride`, written as 4 floats per vertex (xyz
+  // normalised, w flipped where the blended matrix mirrors).
+  const std::uint8_t* tangents = nullptr;
+  std::size_t tangent_stride = 0;
+  float* out_tangents = nullptr;
   int output_floats = 3;
   bool stream_stores = false;  // non-temporal stores (16-byte aligned outputs; others store plainly)
 };

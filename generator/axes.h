@@ -139,6 +139,9 @@ struct Axis {
   int covering_step = 0;                // kRotated: values change every `step` rows
   Chart chart = Chart::kUnset;
   const char* embedded_enum = nullptr;  // the enum type of the embedded header's Kernel field, if any
+  // An enum axis that was a flag in earlier files (reports, winners
+  // databases, configs): JSON's false / true read as the values of code 0 / 1.
+  bool reads_flags = false;
 
   int Get(const Variant& v) const { return field.get(v); }
   void Set(Variant& v, int code) const { field.set(v, code); }
@@ -263,12 +266,13 @@ inline constexpr Axis kAxes[] = {
      .chart = Chart::kYes},
     {.name = "normals",
      .field = FieldOf<&Variant::normals>(),
-     .values = {V(false, "nonormals"), V(true, "normals")},
-     .key_hint = "<normals|nonormals>",
-     .define = "NORMALS",
+     .values = {V(Normals::kNone, "none", "nonormals"), V(Normals::kNormals, "normals"),
+                V(Normals::kTangents, "tangents")},
+     .define = "NORMALS",  // 0, 1, 2: 2 skins normals and tangents
      .covering = Covering::kRotated,
      .covering_step = 3,
-     .chart = Chart::kNo},  // set by the data set
+     .chart = Chart::kNo,  // set by the data set
+     .reads_flags = true},  // a flag before tangents: older files say false / true
 };
 inline constexpr std::size_t kAxisCount = std::size(kAxes);
 

@@ -25,8 +25,15 @@ void CheckShape(const Variant& v, const ProblemShape& shape, std::vector<Violati
                                                 std::to_string(shape.joints) + " joints do not fit (at most " +
                                                 std::to_string(index_limit) + ")"});
   }
-  if (v.normals && !shape.has_normals) {
+  if (SkinsNormals(v) && !shape.has_normals) {
     out.push_back({Constraint::kNormalsMissing, "normals requested but the mesh has none"});
+  }
+  if (SkinsTangents(v) && !shape.has_tangents) {
+    out.push_back({Constraint::kTangentsMissing, "tangents requested but the mesh has none"});
+  }
+  if (SkinsTangents(v) && v.position != PositionFormat::kFloat4) {
+    out.push_back({Constraint::kTangentsFormat,
+                   "tangents need the float4 position format (tangents are float4, and every output has one stride)"});
   }
 }
 
@@ -139,6 +146,8 @@ const char* Name(Constraint c) {
     case Constraint::kStorageBlocks: return "storage_blocks";
     case Constraint::kIndexRange: return "index_range";
     case Constraint::kNormalsMissing: return "normals_missing";
+    case Constraint::kTangentsMissing: return "tangents_missing";
+    case Constraint::kTangentsFormat: return "tangents_format";
     case Constraint::kInstanceCount: return "instance_count";
   }
   return "unknown";

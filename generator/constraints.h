@@ -32,6 +32,7 @@ struct ProblemShape {
   bool has_normals = false;
   int instances = 1;          // K instances skinned per launch, each with its own palette (docs/VARIANTS.md
                               // "Instancing"): constant and image storage hold all K palettes
+  bool has_tangents = false;  // the mesh has tangents (then also normals)
 };
 
 enum class Constraint {
@@ -49,6 +50,8 @@ enum class Constraint {
   kStorageBlocks,         // vertex shader without storage blocks
   kIndexRange,            // joint count does not fit the index format
   kNormalsMissing,        // normals requested, mesh has none
+  kTangentsMissing,       // tangents requested, mesh has none
+  kTangentsFormat,        // tangents with float3 positions (tangents are float4: outputs share one stride)
   kInstanceCount,         // instances below 1, or more than one launch's grid can hold (CUDA, glsl-compute)
 };
 

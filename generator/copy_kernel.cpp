@@ -34,7 +34,7 @@ CopyKernel EmitCopyOrFlush(Lang lang, std::size_t bytes, bool flush) {
   variant.wg_size = kCopyWorkGroup;
   variant.vertices_per_item = per_item;
   variant.assignment = Assignment::kStrided;
-  variant.normals = false;
+  variant.normals = Normals::kNone;
 
   KernelSource& k = copy.kernel;
   k.lang = variant.lang;

@@ -76,7 +76,9 @@ Variant Complete(Variant v, std::size_t i, const DeviceLimits& device, const Pro
   }
   // What the problem and the other axes allow.
   v.influences = std::max(shape.max_influences, v.influences);
-  v.normals = v.normals && shape.has_normals;
+  if (!shape.has_normals) v.normals = Normals::kNone;
+  if (!shape.has_tangents && v.normals == Normals::kTangents) v.normals = Normals::kNormals;
+  if (v.normals == Normals::kTangents) v.position = PositionFormat::kFloat4;  // tangents are float4
   if (v.vertices_per_item == 1) v.assignment = Assignment::kContiguous;
   if (HasWorkGroups(v.lang)) {
     for (std::size_t k = 0; k < wgs.size() && !CheckVariant(v, device, shape).empty(); ++k)

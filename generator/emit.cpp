@@ -45,7 +45,8 @@ std::vector<std::pair<std::string, long long>> ParameterDefines(const Variant& v
     d.emplace_back("AOS_POSITION_OFFSET", static_cast<long long>(r.position));
     d.emplace_back("AOS_INDICES_OFFSET", static_cast<long long>(r.indices));
     d.emplace_back("AOS_WEIGHTS_OFFSET", static_cast<long long>(r.weights));
-    if (v.normals) d.emplace_back("AOS_NORMAL_OFFSET", static_cast<long long>(r.normal));
+    if (SkinsNormals(v)) d.emplace_back("AOS_NORMAL_OFFSET", static_cast<long long>(r.normal));
+    if (SkinsTangents(v)) d.emplace_back("AOS_TANGENT_OFFSET", static_cast<long long>(r.tangent));
     d.emplace_back("AOS_RECORD_WORDS", static_cast<long long>(r.size / 4));
   }
   if (options.instanced) {
@@ -62,6 +63,11 @@ KernelArgument Scalar(const char* name) {
 KernelArgument Vector(const std::string& name, const Variant& v, ArgumentDirection direction) {
   const std::size_t bytes = BytesOf(v.position);
   return {name, Name(v.position), bytes, bytes, direction == ArgumentDirection::kOut ? "first+v" : "v",
+          direction, ArgumentKind::kBuffer};
+}
+// Tangents: float4 (xyz, then the handedness w) in every position format.
+KernelArgument Tangents(const std::string& name, ArgumentDirection direction) {
+  return {name, "float4", kTangentBytes, kTangentBytes, direction == ArgumentDirection::kOut ? "first+v" : "v",
           direction, ArgumentKind::kBuffer};
 }
 
@@ -81,14 +87,16 @@ std::vector<KernelArgument> KernelArguments(const Variant& v, int b, bool instan
                     ArgumentDirection::kIn, ArgumentKind::kBuffer});
     args.push_back({"weights", Name(v.weight), wb, split ? wb : bb * wb, split ? "i*S+v" : "v*B+i",
                     ArgumentDirection::kIn, ArgumentKind::kBuffer});
-    if (v.normals) args.push_back(Vector("normals", v, ArgumentDirection::kIn));
+    if (SkinsNormals(v)) args.push_back(Vector("normals", v, ArgumentDirection::kIn));
+    if (SkinsTangents(v)) args.push_back(Tangents("tangents", ArgumentDirection::kIn));
   }
   const auto rows = static_cast<std::size_t>(PaletteRows(v.palette));
   args.push_back({"palette", "float4 rows", 16, rows * 16, instanced ? "(i*J+j)*R+r" : "j*R+r",
                   ArgumentDirection::kIn,
                   v.storage == PaletteStorage::kImage ? ArgumentKind::kImage : ArgumentKind::kBuffer});
   args.push_back(Vector("out_positions", v, ArgumentDirection::kOut));
-  if (v.normals) args.push_back(Vector("out_normals", v, ArgumentDirection::kOut));
+  if (SkinsNormals(v)) args.push_back(Vector("out_normals", v, ArgumentDirection::kOut));
+  if (SkinsTangents(v)) args.push_back(Tangents("out_tangents", ArgumentDirection::kOut));
   if (instanced) {
     for (KernelArgument& a : args) {
       if (a.direction == ArgumentDirection::kOut)
@@ -424,9 +432,9 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
       if (a.kind == ArgumentKind::kScalar) {
         arg["uniform"] = a.name;
       } else if (source.lang == Lang::kGlslVertex && a.direction == ArgumentDirection::kOut) {
-        const bool normal = a.name == "out_normals";
-        arg["transform_feedback_buffer"] = normal ? 1 : 0;
-        arg["varying"] = normal ? "out_normal" : "out_position";
+        const OutputSpec* output = OutputOfArgument(a.name);
+        arg["transform_feedback_buffer"] = static_cast<int>(output->output);
+        arg["varying"] = output->varying;
       } else {
         arg["binding"] = binding++;
       }
@@ -476,8 +484,13 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
   if (variant.layout == Layout::kAos) {
     const RecordLayout r = AosRecordLayout(variant, source.influences);
     j["aos_record"] = {{"position", r.position}, {"indices", r.indices}, {"weights", r.weights},
-                       {"normal", r.normal}, {"size", r.size}, {"holds_normal", variant.normals}};
-    if (variant.normals)
+                       {"normal", r.normal}, {"tangent", r.tangent}, {"size", r.size},
+                       {"holds_normal", SkinsNormals(variant)}, {"holds_tangent", SkinsTangents(variant)}};
+    if (SkinsTangents(variant))
+      j["aos_record"]["note"] = "the record holds the normal at 'normal' (w = 0 for float4) and the tangent at "
+                                "'tangent' (4 floats: xyz, then the handedness w): there are no separate normals "
+                                "and tangents arguments";
+    else if (SkinsNormals(variant))
       j["aos_record"]["note"] = "the record holds the normal at 'normal' (w = 0 for float4): there is no separate "
                                 "normals argument";
   }
@@ -491,10 +504,19 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
                            "4, the padding bytes are 0; narrower elements are packed little-endian"},
                   {"stride_bytes", kStrideBytesRule},
                   {"vectors", "positions and normals in the position format: float4 = x, y, z, w with w = 1 for "
-                              "positions and 0 for normals; float3 = x, y, z packed"}};
+                              "positions and 0 for normals; float3 = x, y, z packed"},
+                  {"tangents", "tangents (inputs and outputs) are float4 in every position format: x, y, z, then "
+                               "w = the handedness (+1 or -1; a skinned tangent's w is flipped where the blended "
+                               "matrix mirrors)"}};
   j["weights"] = WeightsJson(variant.weight);
   if (variant.mixed == MixedCounts::kBucketed) j["bucketed"] = BucketedJson(variant, source);
   return j;
+}
+
+const OutputSpec* OutputOfArgument(std::string_view argument) {
+  for (const OutputSpec& o : kOutputs)
+    if (argument == o.argument) return &o;
+  return nullptr;
 }
 
 }  // namespace skintune::internal

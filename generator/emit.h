@@ -14,7 +14,9 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <iterator>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -29,6 +31,30 @@ namespace skintune::internal {
 // 0.2.0: normals by the normal matrix (sign(det A) cofactor(A)) instead of the
 // blended matrix's upper 3x3, and the synthetic rigs' joints scale.
 inline constexpr const char* kGeneratorVersion = "0.2.0";
+
+// The kernel's outputs, in argument order: positions, then normals and
+// tangents where the variant skins them. Runners, the Skinner and the tuner
+// iterate this list.
+enum class Output { kPositions, kNormals, kTangents };
+struct OutputSpec {
+  Output output;
+  const char* argument;  // the kernel argument ("out_normals")
+  const char* varying;   // glsl-vertex's captured output ("out_normal")
+  const char* what;      // in messages ("normals")
+};
+inline constexpr OutputSpec kOutputs[] = {
+    {Output::kPositions, "out_positions", "out_position", "positions"},
+    {Output::kNormals, "out_normals", "out_normal", "normals"},
+    {Output::kTangents, "out_tangents", "out_tangent", "tangents"},
+};
+inline constexpr std::size_t kOutputCount = std::size(kOutputs);
+constexpr const OutputSpec& SpecOf(Output o) { return kOutputs[static_cast<std::size_t>(o)]; }
+// Whether `v` writes output `o`.
+constexpr bool Writes(const Variant& v, Output o) {
+  return o == Output::kPositions || (o == Output::kNormals ? SkinsNormals(v) : SkinsTangents(v));
+}
+// The output whose kernel argument is `argument`, or null.
+const OutputSpec* OutputOfArgument(std::string_view argument);
 
 enum class ArgumentKind { kScalar, kBuffer, kImage };
 enum class ArgumentDirection { kIn, kOut };

@@ -62,6 +62,11 @@ void PutVector(std::uint8_t* at, const glm::vec3& v, PositionFormat format, floa
   if (format == PositionFormat::kFloat4) PutFloat(at + 12, w);
 }
 
+// A tangent's four floats: xyz, then w (the handedness).
+void PutTangent(std::uint8_t* at, const glm::vec4& t) {
+  for (int c = 0; c < 4; ++c) PutFloat(at + 4 * c, t[c]);
+}
+
 // ------------------------------------------------------------ weights
 
 std::uint32_t UnormMax(WeightFormat format) { return format == WeightFormat::kUnorm16 ? 65535u : 255u; }
@@ -98,7 +103,12 @@ void CheckFit(const SkinnedMesh& mesh, const Variant& variant) {
   if (static_cast<std::size_t>(mesh.joint_count) > joint_limit)
     Fail(variant, std::to_string(mesh.joint_count) + " joints do not fit " + Name(variant.index) +
                       " indices (at most " + std::to_string(joint_limit) + ")");
-  if (variant.normals && !mesh.has_normals()) Fail(variant, "normals requested but the mesh '" + mesh.name + "' has none");
+  if (SkinsNormals(variant) && !mesh.has_normals())
+    Fail(variant, "normals requested but the mesh '" + mesh.name + "' has none");
+  if (SkinsTangents(variant) && !mesh.has_tangents())
+    Fail(variant, "tangents requested but the mesh '" + mesh.name + "' has none");
+  if (SkinsTangents(variant) && variant.position != PositionFormat::kFloat4)
+    Fail(variant, "tangents need the float4 position format (every output has the tangents' 16-byte stride)");
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
     const int count = mesh.InfluencesOf(v);
     if (count == 0) Fail(variant, "vertex " + std::to_string(v) + " has no non-zero weight");
@@ -161,7 +171,8 @@ Launch PackLaunch(const SkinnedMesh& mesh, const Variant& variant, const std::ve
         PutUint(rec + r.indices + i * ib, slots[i].joint, ib);
         PutUint(rec + r.weights + i * wb, slots[i].weight, wb);
       }
-      if (variant.normals) PutVector(rec + r.normal, mesh.normals[v], variant.position, 0.0f);
+      if (SkinsNormals(variant)) PutVector(rec + r.normal, mesh.normals[v], variant.position, 0.0f);
+      if (SkinsTangents(variant)) PutTangent(rec + r.tangent, mesh.tangents[v]);
     }
     launch.inputs.push_back(std::move(records));
     return launch;
@@ -174,11 +185,13 @@ Launch PackLaunch(const SkinnedMesh& mesh, const Variant& variant, const std::ve
   PackedBuffer positions{"positions", std::vector<std::uint8_t>(n * pb, 0)};
   PackedBuffer indices{"indices", std::vector<std::uint8_t>(RoundUp(elements * ib, 4), 0)};
   PackedBuffer weights{"weights", std::vector<std::uint8_t>(RoundUp(elements * wb, 4), 0)};
-  PackedBuffer normals{"normals", std::vector<std::uint8_t>(variant.normals ? n * pb : 0, 0)};
+  PackedBuffer normals{"normals", std::vector<std::uint8_t>(SkinsNormals(variant) ? n * pb : 0, 0)};
+  PackedBuffer tangents{"tangents", std::vector<std::uint8_t>(SkinsTangents(variant) ? n * kTangentBytes : 0, 0)};
   for (std::size_t p = 0; p < n; ++p) {
     const std::uint32_t v = order[first + p];
     PutVector(positions.bytes.data() + p * pb, mesh.positions[v], variant.position, 1.0f);
-    if (variant.normals) PutVector(normals.bytes.data() + p * pb, mesh.normals[v], variant.position, 0.0f);
+    if (SkinsNormals(variant)) PutVector(normals.bytes.data() + p * pb, mesh.normals[v], variant.position, 0.0f);
+    if (SkinsTangents(variant)) PutTangent(tangents.bytes.data() + p * kTangentBytes, mesh.tangents[v]);
     GatherSlots(mesh, words, variant.mixed, v, k, slots);
     for (std::size_t i = 0; i < kk; ++i) {
       const std::size_t e = split ? i * stride + p : p * kk + i;
@@ -189,7 +202,8 @@ Launch PackLaunch(const SkinnedMesh& mesh, const Variant& variant, const std::ve
   launch.inputs.push_back(std::move(positions));
   launch.inputs.push_back(std::move(indices));
   launch.inputs.push_back(std::move(weights));
-  if (variant.normals) launch.inputs.push_back(std::move(normals));
+  if (SkinsNormals(variant)) launch.inputs.push_back(std::move(normals));
+  if (SkinsTangents(variant)) launch.inputs.push_back(std::move(tangents));
   return launch;
 }
 
@@ -204,9 +218,13 @@ RecordLayout AosRecordLayout(const Variant& variant, int influences) {
   const std::size_t wb = BytesOf(variant.weight);
   r.weights = RoundUp(r.indices + b * BytesOf(variant.index), wb);
   std::size_t end = r.weights + b * wb;
-  if (variant.normals) {
+  if (SkinsNormals(variant)) {
     r.normal = RoundUp(end, align);
     end = r.normal + BytesOf(variant.position);
+  }
+  if (SkinsTangents(variant)) {
+    r.tangent = RoundUp(end, align);
+    end = r.tangent + kTangentBytes;
   }
   r.size = RoundUp(end, align);
   return r;
@@ -429,7 +447,12 @@ std::size_t PackPaletteInto(const float* column_major, std::size_t matrices, con
   return rows == 4 ? PackRows<4>(column_major, matrices, out, largest) : PackRows<3>(column_major, matrices, out, largest);
 }
 
-std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uint8_t> output) {
+namespace {
+
+// Calls put(mesh vertex, bytes of its output) for each packed output vertex,
+// after checking the output's size.
+template <typename Put>
+void ForEachOutput(const PackedMesh& packed, std::span<const std::uint8_t> output, Put put) {
   const std::size_t stride = packed.output_stride_bytes;
   const std::size_t expected = packed.vertex_count * stride;
   if (output.size() != expected || packed.order.size() != packed.vertex_count) {
@@ -438,11 +461,27 @@ std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uin
       << packed.vertex_count << " vertices x " << stride << " bytes = " << expected;
     throw Error(s.str());
   }
+  for (std::size_t p = 0; p < packed.vertex_count; ++p) put(packed.order[p], output.data() + p * stride);
+}
+
+}  // namespace
+
+std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uint8_t> output) {
   std::vector<glm::vec3> out(packed.vertex_count);
-  for (std::size_t p = 0; p < packed.vertex_count; ++p) {
-    const std::uint8_t* at = output.data() + p * stride;
-    out[packed.order[p]] = glm::vec3(GetFloat(at), GetFloat(at + 4), GetFloat(at + 8));
-  }
+  ForEachOutput(packed, output, [&](std::uint32_t v, const std::uint8_t* at) {
+    out[v] = glm::vec3(GetFloat(at), GetFloat(at + 4), GetFloat(at + 8));
+  });
+  return out;
+}
+
+std::vector<glm::vec4> UnpackTangents(const PackedMesh& packed, std::span<const std::uint8_t> output) {
+  if (packed.output_stride_bytes != kTangentBytes)
+    throw Error("unpack " + packed.variant.Key() + ": tangents need a 16-byte output stride, not " +
+                std::to_string(packed.output_stride_bytes));
+  std::vector<glm::vec4> out(packed.vertex_count);
+  ForEachOutput(packed, output, [&](std::uint32_t v, const std::uint8_t* at) {
+    out[v] = glm::vec4(GetFloat(at), GetFloat(at + 4), GetFloat(at + 8), GetFloat(at + 12));
+  });
   return out;
 }
 

@@ -27,8 +27,13 @@
 
 namespace skintune::internal {
 
+// Bytes of one tangent, input or output, in every position format: x, y, z,
+// then w, the handedness (+1 or -1). Variants that skin tangents use the
+// float4 position format, so every output of a variant has one stride.
+inline constexpr std::size_t kTangentBytes = 16;
+
 struct PackedBuffer {
-  std::string name;                // "positions", "indices", "weights", "normals", "records"
+  std::string name;                // "positions", "indices", "weights", "normals", "tangents", "records"
   std::vector<std::uint8_t> bytes;
 };
 
@@ -53,7 +58,8 @@ struct PackedMesh {
 };
 
 // Byte offsets of the fields of one `aos` record: the position at 0, the
-// `influences` indices, the weights, then the normal (variant.normals), each
+// `influences` indices, the weights, then the normal and the tangent (where
+// the variant skins them), each
 // field at its natural alignment (weights: their element size; a float4 normal:
 // 16 bytes; a float3 normal: 4), as in the equivalent C struct; the record size
 // is rounded up to 16 bytes (float4) or 4 bytes (float3).
@@ -64,6 +70,7 @@ struct RecordLayout {
   std::size_t indices = 0;
   std::size_t weights = 0;
   std::size_t normal = 0;    // 0 when the variant has no normals
+  std::size_t tangent = 0;   // after the normal (4 floats); 0 when the variant has no tangents
   std::size_t size = 0;      // bytes per record (the record stride)
 };
 RecordLayout AosRecordLayout(const Variant& variant, int influences);
@@ -103,6 +110,8 @@ std::size_t PaletteMatrixBytes(const Variant& variant);
 // Output bytes in packed order (vertex_count x output_stride_bytes) -> one
 // glm::vec3 per mesh vertex, in the mesh's order.
 std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uint8_t> output);
+// The tangent output likewise: xyz and the handedness w per mesh vertex.
+std::vector<glm::vec4> UnpackTangents(const PackedMesh& packed, std::span<const std::uint8_t> output);
 
 // The mesh the kernel really skins: weights after quantisation, as floats, in
 // the mesh's vertex order (so the gold can be computed on exactly these values).

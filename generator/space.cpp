@@ -88,7 +88,7 @@ Codes ReadList(const Axis& axis, const nlohmann::json& list, const std::string& 
     if (axis.field.kind == AxisKind::kNumber) {
       if (!item.is_number_integer()) throw Error(item_where + ": expected an integer");
       codes.push_back(item.get<int>());
-    } else if (axis.field.kind == AxisKind::kFlag) {
+    } else if (axis.field.kind == AxisKind::kFlag || (axis.reads_flags && item.is_boolean())) {
       if (!item.is_boolean()) throw Error(item_where + ": expected true or false");
       codes.push_back(item.get<bool>() ? 1 : 0);
     } else {

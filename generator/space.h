@@ -2,7 +2,8 @@
 //
 // Configs (configs/*.json) give a space as an object of axis -> list of values
 // (names as in variant keys; numbers for influences, vertices_per_item and
-// wg_size; booleans for normals); an axis left out takes every value
+// wg_size; "none", "normals" or "tangents" for normals, where older configs
+// wrote false / true); an axis left out takes every value
 // (TuningSpace::Full). glsl-vertex has no work-groups: for it the wg_size and
 // vertices_per_item/assignment axes collapse to wg0 / v1c.
 #pragma once
@@ -37,7 +38,7 @@ struct TuningSpace {
   std::vector<int> vertices_per_item;
   std::vector<Assignment> assignments;
   std::vector<int> wg_sizes;
-  std::vector<bool> normals;
+  std::vector<Normals> normals;
 
   // Every value of every axis: wg sizes 32, 64, 128, 256, 512, 1024.
   static TuningSpace Full();

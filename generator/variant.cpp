@@ -127,6 +127,7 @@ int ReadValue(const Axis& a, const nlohmann::json& j) {
       return j.get<bool>() ? 1 : 0;
     case AxisKind::kEnum: break;
   }
+  if (a.reads_flags && j.is_boolean()) return j.get<bool>() ? 1 : 0;
   if (!j.is_string()) throw Error(field + "must be a string");
   const std::optional<int> code = CodeNamed(a, j.get<std::string>());
   if (!code) {

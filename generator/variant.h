@@ -7,7 +7,7 @@
 //
 // Compact key: the axis values joined by '.', in this canonical order:
 //   <lang>.b<B>.<mixed>.<layout>.<position>.<index>.<weight>.<palette>.<storage>
-//   .<blend>.v<vertices_per_item><c|s>.wg<wg_size>.<normals>
+//   .<blend>.v<vertices_per_item><c|s>.wg<wg_size>.<nonormals|normals|tangents>
 // e.g. "opencl.b4.padded.soa-split.float4.u16.unorm16.mat3x4.local.matrix.v2c.wg256.nonormals".
 // Every token is unique across axes, so ParseVariantKey accepts the tokens in
 // any order; omitted axes take their default (Variant{}), so "cuda.b2" is a key.
@@ -39,6 +39,9 @@ enum class PaletteFormat { kMat4, kMat3x4 };
 enum class PaletteStorage { kConstant, kLocal, kGlobal, kImage };
 enum class Blend { kMatrix, kPoint };
 enum class Assignment { kContiguous, kStrided };
+// What a variant skins beside positions: nothing, normals, or normals and
+// tangents (xyz skinned, w the handedness: docs/VARIANTS.md "Normals and tangents").
+enum class Normals { kNone, kNormals, kTangents };
 
 struct Variant {
   Lang lang = Lang::kOpenCl;
@@ -54,12 +57,20 @@ struct Variant {
   int vertices_per_item = 1;                          // 1, 2, 4, 8
   Assignment assignment = Assignment::kContiguous;
   int wg_size = 128;                                  // 32..1024, a multiple of 32
-  bool normals = false;
+  Normals normals = Normals::kNone;
 
   std::string Key() const;
   std::size_t Hash() const;  // stable across runs and machines (FNV-1a of Key())
   friend bool operator==(const Variant&, const Variant&) = default;
 };
+
+// Whether the variant skins normals (normals or normals + tangents), tangents.
+constexpr bool SkinsNormals(const Variant& v) { return v.normals != Normals::kNone; }
+constexpr bool SkinsTangents(const Variant& v) { return v.normals == Normals::kTangents; }
+// The value that skins normals (and tangents) where asked.
+constexpr Normals NormalsFor(bool normals, bool tangents) {
+  return tangents ? Normals::kTangents : normals ? Normals::kNormals : Normals::kNone;
+}
 
 // Throws Error("variant 'KEY': unknown token 'X' (...)") etc.
 Variant ParseVariantKey(std::string_view key);

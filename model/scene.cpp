@@ -141,7 +141,7 @@ MeshBatch ConcatenateMeshes(std::span<const SkinnedMesh* const> meshes) {
   out.name = "batch";
   std::size_t vertices = 0;
   long long joints = 0;
-  bool normals = true;
+  bool normals = true, tangents = true;
   for (std::size_t m = 0; m < meshes.size(); ++m) {
     const SkinnedMesh& mesh = *meshes[m];
     const std::string where = "meshes[" + std::to_string(m) + "]";
@@ -157,13 +157,16 @@ MeshBatch ConcatenateMeshes(std::span<const SkinnedMesh* const> meshes) {
                   " (joint indices are 16-bit)");
     out.influences = std::max(out.influences, mesh.influences);
     normals = normals && mesh.has_normals();
+    tangents = tangents && mesh.has_tangents();
   }
+  tangents = tangents && normals;
   batch.vertex_offsets.push_back(vertices);
   batch.joint_offsets.push_back(static_cast<int>(joints));
   out.joint_count = static_cast<int>(joints);
   const auto b = static_cast<std::size_t>(out.influences);
   out.positions.reserve(vertices);
   if (normals) out.normals.reserve(vertices);
+  if (tangents) out.tangents.reserve(vertices);
   out.joints.reserve(vertices * b);
   out.weights.reserve(vertices * b);
   for (std::size_t m = 0; m < meshes.size(); ++m) {
@@ -172,6 +175,7 @@ MeshBatch ConcatenateMeshes(std::span<const SkinnedMesh* const> meshes) {
     const auto mb = static_cast<std::size_t>(mesh.influences);
     out.positions.insert(out.positions.end(), mesh.positions.begin(), mesh.positions.end());
     if (normals) out.normals.insert(out.normals.end(), mesh.normals.begin(), mesh.normals.end());
+    if (tangents) out.tangents.insert(out.tangents.end(), mesh.tangents.begin(), mesh.tangents.end());
     for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
       for (std::size_t i = 0; i < b; ++i) {
         // Padding slots: weight 0 on the mesh's own first joint.

@@ -43,7 +43,7 @@ constexpr double kWeightEps = 1e-3;        // metres, in 1 / (d + eps)^2
 constexpr std::size_t kCandidates = 128;
 constexpr int kMaxBones = 65535;
 constexpr const char* kKeyHint =
-    "expected <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-normals], e.g. 100k-b2";
+    "expected <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-normals|-tangents], e.g. 100k-b2";
 
 // ---------------------------------------------------------------- PRNG
 
@@ -358,7 +358,7 @@ class Weigher {
 // A tube of `count` vertices around `bone`: rings along the bone, points
 // around each ring (odd rings staggered half a step).
 void EmitTube(const Bone& bone, const dquat& frame, std::size_t count, double radius, int index,
-              Weigher& weigher, SkinnedMesh& mesh, bool normals) {
+              Weigher& weigher, SkinnedMesh& mesh, bool normals, bool tangents) {
   if (count == 0) return;
   const double circumference = 2.0 * kPi * radius;
   const double spacing = std::sqrt(circumference * bone.length / static_cast<double>(count));
@@ -377,6 +377,7 @@ void EmitTube(const Bone& bone, const dquat& frame, std::size_t count, double ra
     const std::size_t vertex = mesh.positions.size();
     mesh.positions.emplace_back(p);
     if (normals) mesh.normals.emplace_back(glm::normalize(glm::vec3(out)));
+    if (tangents) mesh.tangents.emplace_back(glm::normalize(glm::vec3(bone.dir)), k % 2 == 0 ? 1.0f : -1.0f);
     weigher.Weigh(index, p, &mesh.joints[vertex * b], &mesh.weights[vertex * b]);
   }
 }
@@ -389,6 +390,7 @@ SkinnedMesh BuildMesh(const DatasetSpec& spec, const std::vector<Bone>& bones, c
   const auto b = static_cast<std::size_t>(spec.influences);
   mesh.positions.reserve(spec.vertices);
   if (spec.normals) mesh.normals.reserve(spec.vertices);
+  if (spec.tangents) mesh.tangents.reserve(spec.vertices);
   mesh.joints.assign(spec.vertices * b, 0);
   mesh.weights.assign(spec.vertices * b, 0.0f);
   Weigher weigher(bones, spec.influences, spec.random_bones, spec.seed);
@@ -396,7 +398,7 @@ SkinnedMesh BuildMesh(const DatasetSpec& spec, const std::vector<Bone>& bones, c
   const std::vector<std::size_t> counts = SplitVertices(bones, spec.vertices);
   for (std::size_t i = 0; i < bones.size(); ++i) {
     const double radius = kRadiusPerLength * bones[i].length * rng.Range(0.9, 1.1);
-    EmitTube(bones[i], frames[i], counts[i], radius, static_cast<int>(i), weigher, mesh, spec.normals);
+    EmitTube(bones[i], frames[i], counts[i], radius, static_cast<int>(i), weigher, mesh, spec.normals, spec.tangents);
   }
   return mesh;
 }
@@ -534,6 +536,8 @@ void ParseOption(const std::string& key, std::string_view token, DatasetSpec& sp
     spec.random_bones = true;
   } else if (token == "normals") {
     spec.normals = true;
+  } else if (token == "tangents") {
+    spec.normals = spec.tangents = true;
   } else {
     BadKey(key, "unknown option '" + name + "'");
   }
@@ -555,7 +559,7 @@ void DatasetSpec::Validate() const {
 }
 
 std::uint64_t DatasetBytesPerVertex(const DatasetSpec& spec) {
-  return MeshBytesPerVertex(spec.influences, spec.normals);
+  return MeshBytesPerVertex(spec.influences, spec.normals) + (spec.tangents ? 16 : 0);
 }
 
 std::string DatasetSpec::Key() const {
@@ -563,7 +567,8 @@ std::string DatasetSpec::Key() const {
   if (bones != 77) key += "-bones" + std::to_string(bones);
   if (random_bones) key += "-random";
   if (seed != 1) key += "-seed" + std::to_string(seed);
-  if (normals) key += "-normals";
+  if (tangents) key += "-tangents";
+  else if (normals) key += "-normals";
   return key;
 }
 

@@ -17,9 +17,11 @@
 // palettes differ every frame and are rigid (rotation + translation).
 //
 // A dataset is named by a compact key, parsed by ParseDatasetKey:
-//   <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-normals]
+//   <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-normals|-tangents]
 // where <vertices> is a count with an optional k/m suffix (1000 / 1000000),
 // e.g. "100k-b2", "1600k-b4-random", "5000-b8-bones12-seed3-normals".
+// -tangents gives normals and tangents: each vertex's tangent runs along its
+// bone, with handedness +1 and -1 in turn around each ring.
 // "default" means "100k-b2" (the data set of the paper's Fig. 1).
 #pragma once
 
@@ -37,6 +39,7 @@ struct DatasetSpec {
   bool random_bones = false;  // false: bone locality; true: uniformly random indices
   std::uint64_t seed = 1;
   bool normals = false;
+  bool tangents = false;      // also tangents (then normals too)
   int frames = 60;            // keys of the generated animation clip (30 fps)
 
   // Throws Error naming the bad field (vertices 0 or above kMaxVertexCount,

@@ -126,6 +126,22 @@ GoldComparison CompareToGold(std::span<const glm::dvec3> gold, std::span<const g
   return c;
 }
 
+GoldComparison CompareTangentsToGold(std::span<const glm::dvec4> gold, std::span<const glm::vec4> actual) {
+  if (gold.size() != actual.size()) {
+    throw Error("CompareTangentsToGold: " + std::to_string(actual.size()) + " values against a gold of " +
+                std::to_string(gold.size()));
+  }
+  std::vector<glm::dvec3> gold_xyz(gold.size());
+  std::vector<glm::vec3> actual_xyz(actual.size());
+  for (std::size_t v = 0; v < gold.size(); ++v) gold_xyz[v] = glm::dvec3(gold[v]), actual_xyz[v] = glm::vec3(actual[v]);
+  GoldComparison c = CompareToGold(gold_xyz, actual_xyz);
+  for (std::size_t v = 0; v < gold.size(); ++v) {
+    if (static_cast<double>(actual[v].w) == gold[v].w) continue;
+    if (c.wrong_handedness++ == 0 && c.non_finite == 0) c.worst_vertex = v;
+  }
+  return c;
+}
+
 double MaxDistance(std::span<const glm::dvec3> a, std::span<const glm::dvec3> b) {
   if (a.size() != b.size())
     throw Error("MaxDistance: " + std::to_string(a.size()) + " values against " + std::to_string(b.size()));

@@ -114,9 +114,13 @@ struct GoldComparison {
   double max_absolute = 0.0;
   std::size_t worst_vertex = 0;
   std::size_t non_finite = 0;  // NaN/inf outputs (count as failures)
+  std::size_t wrong_handedness = 0;  // tangents whose w differs from the gold's (count as failures)
 };
 
 GoldComparison CompareToGold(std::span<const glm::dvec3> gold, std::span<const glm::vec3> actual);
+// Tangents: xyz as CompareToGold does, and each w (the handedness, +-1)
+// exactly; worst_vertex is the first wrong w where there is one.
+GoldComparison CompareTangentsToGold(std::span<const glm::dvec4> gold, std::span<const glm::vec4> actual);
 
 // The largest Euclidean distance between a[v] and b[v] (two golds: what a
 // weight quantisation moves the result). Throws Error for different sizes.

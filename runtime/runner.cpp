@@ -3,6 +3,7 @@
 #include "runtime/runner.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstring>
 #include <cmath>
@@ -38,8 +39,7 @@ struct Prepared::Impl {
     std::vector<std::unique_ptr<DeviceObject>> objects;
     std::vector<std::shared_ptr<DeviceBuffer>> shared;  // inputs kept by the runner (ShareTimedInputs)
     std::vector<Slot> slots;
-    DeviceBuffer* out_positions = nullptr;
-    DeviceBuffer* out_normals = nullptr;
+    std::array<DeviceBuffer*, kOutputCount> outputs{};  // by Output; null where the variant writes none
     std::size_t current = 0;  // the slot of the last upload: LaunchSet's
     std::optional<std::size_t> staged;  // the slot PaletteStaging gave, until its UploadPalette
   };
@@ -98,8 +98,6 @@ auto& SetOf(ImplT* impl, int set, const DeviceApi& api) {
                 std::to_string(count) + " prepared)");
   return impl->sets[static_cast<std::size_t>(set)];
 }
-
-const char* OutputName(bool normals) { return normals ? "out_normals" : "out_positions"; }
 
 }  // namespace
 
@@ -230,8 +228,8 @@ std::vector<ArgumentBinding> Runner::InputBindings(Prepared::Impl& p, std::size_
       arguments.push_back(b);
       continue;
     }
-    if (arg.name == "out_positions" || arg.name == "out_normals") {
-      b = {&arg, ArgumentRole::kOutput, arg.name == "out_positions" ? set.out_positions : set.out_normals, nullptr};
+    if (const OutputSpec* output = OutputOfArgument(arg.name)) {
+      b = {&arg, ArgumentRole::kOutput, set.outputs[static_cast<std::size_t>(output->output)], nullptr};
     } else {
       const auto input = std::find_if(launch.inputs.begin(), launch.inputs.end(),
                                       [&](const PackedBuffer& pb) { return pb.name == arg.name; });
@@ -257,10 +255,10 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
   // Outputs (K instances, one after another): poisoned; Run's followed by their guard.
   const std::vector<std::uint8_t> poison = PoisonedOutput(p.out_bytes);
   const std::span<const std::uint8_t> out(poison.data(), options.verification ? poison.size() : p.out_bytes);
-  for (const bool normals : {false, true}) {
-    if (normals && !mesh.variant.normals) continue;
-    const std::string name = OutputName(normals);
-    (normals ? set.out_normals : set.out_positions) =
+  for (const OutputSpec& output : kOutputs) {
+    if (!Writes(mesh.variant, output.output)) continue;
+    const std::string name = output.argument;
+    set.outputs[static_cast<std::size_t>(output.output)] =
         SetBuffer(p, index, BufferUse::kOutput, out, name + options.suffix, ShareKey(options, index, BufferUse::kOutput, name, out));
     bytes += options.verification ? 0 : out.size();
   }
@@ -339,8 +337,10 @@ void Runner::ReadChecked(const Prepared::Impl& p, const PackedMesh& mesh, const 
     result.poisoned_vertices += check.poisoned_vertices;
     out = std::move(bytes);
   };
-  read_back(*set.out_positions, "out_positions", result.positions);
-  if (set.out_normals) read_back(*set.out_normals, "out_normals", result.normals);
+  for (const OutputSpec& output : kOutputs) {
+    if (const DeviceBuffer* buffer = set.outputs[static_cast<std::size_t>(output.output)])
+      read_back(*buffer, output.argument, result.Bytes(output.output));
+  }
 }
 
 // ---------------------------------------------------------------- timing
@@ -753,25 +753,25 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   slot.launched = true;
 }
 
-std::span<const std::uint8_t> Runner::ReadOutput(const Prepared& prepared, int set, bool normals) {
-  return ReadOutputChunks(prepared, set, normals, 0).bytes;
+std::span<const std::uint8_t> Runner::ReadOutput(const Prepared& prepared, int set, Output output) {
+  return ReadOutputChunks(prepared, set, output, 0).bytes;
 }
 
-DeviceApi::PinnedRead Runner::ReadOutputChunks(const Prepared& prepared, int set, bool normals, std::size_t chunk_bytes) {
+DeviceApi::PinnedRead Runner::ReadOutputChunks(const Prepared& prepared, int set, Output output, std::size_t chunk_bytes) {
   Settle();
   api_->MakeCurrent();
   const Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
-  const DeviceBuffer* buffer = normals ? s.out_normals : s.out_positions;
-  if (!buffer) Fail("launch", std::string("no ") + (normals ? "normals" : "positions") + " output in " + p.key);
-  const std::string what = std::string("'") + OutputName(normals) + "' of " + p.key;
+  const DeviceBuffer* buffer = s.outputs[static_cast<std::size_t>(output)];
+  if (!buffer) Fail("launch", std::string("no ") + SpecOf(output).what + " output in " + p.key);
+  const std::string what = std::string("'") + SpecOf(output).argument + "' of " + p.key;
   if (chunk_bytes == 0 || chunk_bytes >= p.out_bytes) return {api_->ReadPinned(*buffer, p.out_bytes, what), [](std::size_t) {}};
   return api_->ReadPinnedChunks(*buffer, p.out_bytes, chunk_bytes, what);
 }
 
-void* Runner::OutputBuffer(const Prepared& prepared, int set, bool normals) const {
+void* Runner::OutputBuffer(const Prepared& prepared, int set, Output output) const {
   const Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
-  const DeviceBuffer* buffer = normals ? s.out_normals : s.out_positions;
+  const DeviceBuffer* buffer = s.outputs[static_cast<std::size_t>(output)];
   return buffer ? buffer->native() : nullptr;
 }
 

@@ -63,8 +63,13 @@ struct RunResult {
   std::vector<std::uint8_t> positions;  // K x vertex_count x output_stride_bytes, packed order, instance after
                                         // instance (Unpack each instance's part)
   std::vector<std::uint8_t> normals;    // likewise; empty without normals
+  std::vector<std::uint8_t> tangents;   // likewise; empty without tangents
   std::vector<double> launch_ms;        // per launch, the device's time
-  std::size_t poisoned_vertices = 0;    // output vectors (positions, normals) still holding the poison
+  std::size_t poisoned_vertices = 0;    // output vectors (positions, normals, tangents) still holding the poison
+
+  std::vector<std::uint8_t>& Bytes(Output o) {
+    return o == Output::kPositions ? positions : o == Output::kNormals ? normals : tangents;
+  }
 };
 
 // The device buffers of one variant (Runner::Prepare): input_sets() sets,
@@ -78,7 +83,7 @@ class Prepared {
   Prepared& operator=(Prepared&&) noexcept;
   int input_sets() const;
   std::size_t bytes_per_set() const;  // device bytes of one set: inputs + palette + outputs (+ staging)
-  std::size_t output_bytes() const;   // one output (positions or normals): K x vertex_count x output stride
+  std::size_t output_bytes() const;   // one output (positions, normals or tangents): K x vertex_count x output stride
 
   struct Impl;
 
@@ -225,7 +230,7 @@ class Runner {
   // into `out_positions` (a native buffer of the set's output size;
   // OpenCL-GL sharing) instead of the set's own when given, and never waits;
   // ReadOutput waits for the queued work and returns the set's positions (or
-  // normals) in the API's page-locked read-back staging (K x vertex_count x
+  // normals, or tangents) in the API's page-locked read-back staging (K x vertex_count x
   // output_stride_bytes, packed order), valid until the next ReadOutput of
   // that output.
   void WritePalette(Prepared& prepared, int set, std::span<const std::uint8_t> palettes);
@@ -237,12 +242,12 @@ class Runner {
   std::span<std::uint8_t> PaletteStaging(Prepared& prepared, int set);
   void UploadPalette(Prepared& prepared, int set);
   void LaunchSet(Prepared& prepared, int set, void* out_positions = nullptr);
-  std::span<const std::uint8_t> ReadOutput(const Prepared& prepared, int set, bool normals);
+  std::span<const std::uint8_t> ReadOutput(const Prepared& prepared, int set, Output output);
   // ReadOutput in chunks of `chunk_bytes` (DeviceApi::ReadPinnedChunks): the
   // staging at once, and `ready(end)` blocking until its first `end` bytes are in.
-  DeviceApi::PinnedRead ReadOutputChunks(const Prepared& prepared, int set, bool normals, std::size_t chunk_bytes);
+  DeviceApi::PinnedRead ReadOutputChunks(const Prepared& prepared, int set, Output output, std::size_t chunk_bytes);
   // The native output buffer (cl_mem; CUdeviceptr or GL buffer name as an integer); null: none.
-  void* OutputBuffer(const Prepared& prepared, int set, bool normals) const;
+  void* OutputBuffer(const Prepared& prepared, int set, Output output) const;
   // The palette slot LaunchSet uses next: that of the last WritePalette (tests).
   int PaletteSlot(const Prepared& prepared, int set) const;
   // Waits for everything queued.

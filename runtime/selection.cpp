@@ -137,7 +137,7 @@ std::vector<Lang> LanguagesOf(Backend backend) {
   return entry ? entry->languages : std::vector<Lang>{};
 }
 
-Variant GenericDefault(Lang lang, int influences, bool normals, const DeviceLimits& limits) {
+Variant GenericDefault(Lang lang, int influences, Normals normals, const DeviceLimits& limits) {
   Variant v;
   v.lang = lang;
   v.influences = influences;

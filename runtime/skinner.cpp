@@ -90,7 +90,7 @@ Chosen Forced(const std::string& call, const std::string& key, const DeviceState
   } catch (const Error& e) {
     FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::variant: " + e.what());
   }
-  v.normals = shape.has_normals;
+  v.normals = NormalsFor(shape.has_normals, shape.has_tangents);
   const std::string where = call + ": SkinnerOptions::variant " + v.Key() + ": ";
   if (std::find(device.langs.begin(), device.langs.end(), v.lang) == device.langs.end())
     FailWith(ErrorCode::kInvalidArgument,
@@ -163,7 +163,7 @@ Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const st
 std::unique_ptr<SkinnerBackend> MakeRunnerSkinner(DeviceState& device, const PackedMesh& mesh,
                                                   const std::vector<KernelSource>& kernels, const SkinnerSetup& setup) {
   Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, setup);
-  return std::make_unique<RunnerSkinner>(*device.runner, std::move(prepared), mesh.variant.normals);
+  return std::make_unique<RunnerSkinner>(*device.runner, std::move(prepared));
 }
 
 namespace {
@@ -213,7 +213,7 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   request.shape = static_cast<SceneKind>(scene_shape);
   request.instances = options.instances;
   request.meshes = static_cast<int>(count);
-  request.normals = options.normals;
+  request.normals = NormalsFor(options.normals, false);
   request.max_error = options.max_error;
   request.max_error_name = "SkinnerOptions::max_error";
   // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.
@@ -441,7 +441,7 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
   const char* call = normals ? "ReadNormals" : "ReadPositions";
   return Guarded(ErrorCode::kDeviceError, [&] {
     Skinner::Impl& im = Usable(impl, call);
-    if (normals && !im.variant.normals)
+    if (normals && !SkinsNormals(im.variant))
       FailWith(ErrorCode::kInvalidState,
                "Skinner::ReadNormals: this Skinner skins no normals (SkinnerOptions::normals was not set)");
     const std::size_t vertices = static_cast<std::size_t>(im.instances) * im.vertex_count;
@@ -453,7 +453,8 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
     // Straight from the page-locked read-back staging into the caller's array,
     // in mesh order; each grain's work while later chunks are still in flight.
     const std::size_t stride = im.output_stride;
-    const DeviceApi::PinnedRead read = im.backend->Read(normals, kReadChunkVertices * stride);
+    const DeviceApi::PinnedRead read =
+        im.backend->Read(normals ? Output::kNormals : Output::kPositions, kReadChunkVertices * stride);
     const std::span<const std::uint8_t> packed = read.bytes;
     if (packed.size() != vertices * im.output_stride)
       FailWith(ErrorCode::kDeviceError, std::string("Skinner::") + call + ": the device read back " +

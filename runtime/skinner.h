@@ -40,13 +40,13 @@ class SkinnerBackend {
   virtual void Skin() = 0;
   // Waits until every Skin() so far has completed on the device.
   virtual void Finish() = 0;
-  // Gives the positions (or normals) in packed order, instance after
+  // Gives the positions (or normals, or tangents) in packed order, instance after
   // instance (instances x vertex_count x output stride), in the backend's
   // page-locked read-back staging (valid until the next Read), read back in
   // chunks of `chunk_bytes` (0: at once) after the work queued so far:
   // `ready(end)` waits until the first `end` bytes are in (runner.h
   // ReadOutputChunks).
-  virtual DeviceApi::PinnedRead Read(bool normals, std::size_t chunk_bytes) = 0;
+  virtual DeviceApi::PinnedRead Read(Output output, std::size_t chunk_bytes) = 0;
   virtual void* DevicePositions() const = 0;
   // Default: kUnavailable.
   virtual void SkinIntoGlBuffer(unsigned int gl_buffer);
@@ -82,8 +82,7 @@ std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int 
 // runtime/backend_table.h) derives from it to add what differs.
 class RunnerSkinner : public SkinnerBackend {
  public:
-  RunnerSkinner(Runner& runner, Prepared prepared, bool normals)
-      : runner_(runner), prepared_(std::move(prepared)), normals_(normals) {}
+  RunnerSkinner(Runner& runner, Prepared prepared) : runner_(runner), prepared_(std::move(prepared)) {}
 
   std::span<std::uint8_t> PaletteStaging() override {
     std::span<std::uint8_t> staging;
@@ -99,18 +98,17 @@ class RunnerSkinner : public SkinnerBackend {
   void Finish() override {
     RunOnDevice([&] { runner_.Finish(); });
   }
-  DeviceApi::PinnedRead Read(bool normals, std::size_t chunk_bytes) override {
+  DeviceApi::PinnedRead Read(Output output, std::size_t chunk_bytes) override {
     DeviceApi::PinnedRead out;
-    RunOnDevice([&] { out = runner_.ReadOutputChunks(prepared_, 0, normals && normals_, chunk_bytes); });
+    RunOnDevice([&] { out = runner_.ReadOutputChunks(prepared_, 0, output, chunk_bytes); });
     return out;
   }
   // A cl_mem, or a CUdeviceptr / GL buffer name as a pointer-sized integer.
-  void* DevicePositions() const override { return runner_.OutputBuffer(prepared_, 0, false); }
+  void* DevicePositions() const override { return runner_.OutputBuffer(prepared_, 0, Output::kPositions); }
 
  protected:
   Runner& runner_;
   Prepared prepared_;
-  bool normals_;
 };
 
 // The runner's Prepare of the one input set a Skinner uses (RestPalettes),

@@ -13,12 +13,12 @@
 // array of 32-bit words (narrower formats packed little-endian, unpacked here
 // with shifts), bound in argument order:
 //   aos:            records                                  binding 0
-//   soa, soa-split: positions, indices, weights[, normals]   bindings 0..
+//   soa, soa-split: positions, indices, weights[, normals[, tangents]]   bindings 0..
 //   palette:        the next binding: a std140 uniform block (STORAGE 0
 //                   constant), a std430 buffer (2 global; 1 local: copied
 //                   into shared memory by each work-group) or a samplerBuffer
 //                   on texture unit = that binding (3 image, RGBA32F texels);
-//   outputs:        out_positions[, out_normals]: the next bindings, written
+//   outputs:        out_positions[, out_normals[, out_tangents]]: the next bindings, written
 //                   at first + v;
 //   uniforms:       uint n (vertices of this launch), uint first.
 // Compiled to SPIR-V for Vulkan (language `vulkan`), the same text: bindings
@@ -77,6 +77,10 @@ void store_normal(uint at, vec3 value) {
 #endif
 #endif
 
+#if TANGENTS
+layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTangents { vec4 out_tangents[]; };
+#endif
+
 // ---------------------------------------------------------------- kernel
 
 #if INSTANCED && !defined(VULKAN)
@@ -117,10 +121,14 @@ void main() {
     if (v >= n) break;
 
     vec3 skinned_position, skinned_normal;
-    skin_vertex(v, slot_stride, skinned_position, skinned_normal);
+    vec4 skinned_tangent;
+    skin_vertex(v, slot_stride, skinned_position, skinned_normal, skinned_tangent);
     STORE_POSITION(out_first + v, skinned_position);
 #if NORMALS
     STORE_NORMAL(out_first + v, normalize(skinned_normal));
+#endif
+#if TANGENTS
+    out_tangents[out_first + v] = vec4(normalize(skinned_tangent.xyz), skinned_tangent.w);
 #endif
   }
 }

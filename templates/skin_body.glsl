@@ -18,6 +18,17 @@
 #define BINDING_PALETTE 1
 #define BINDING_OUT_POSITIONS 2
 #define BINDING_OUT_NORMALS 3
+#define BINDING_OUT_TANGENTS 4
+#elif TANGENTS
+#define BINDING_POSITIONS 0
+#define BINDING_INDICES 1
+#define BINDING_WEIGHTS 2
+#define BINDING_NORMALS 3
+#define BINDING_TANGENTS 4
+#define BINDING_PALETTE 5
+#define BINDING_OUT_POSITIONS 6
+#define BINDING_OUT_NORMALS 7
+#define BINDING_OUT_TANGENTS 8
 #elif NORMALS
 #define BINDING_POSITIONS 0
 #define BINDING_INDICES 1
@@ -93,6 +104,9 @@ layout(std430, binding = BINDING_NORMALS) readonly restrict buffer Normals { vec
 layout(std430, binding = BINDING_NORMALS) readonly restrict buffer Normals { float normals[]; };
 #endif
 #endif
+#if TANGENTS
+layout(std430, binding = BINDING_TANGENTS) readonly restrict buffer Tangents { vec4 tangents[]; };
+#endif
 #endif
 
 // The `bytes`-byte little-endian value at byte `byte_in_word` of `word`
@@ -129,6 +143,17 @@ vec3 load_position(uint v) { return record_xyz(v, uint(AOS_POSITION_OFFSET)); }
 #if NORMALS
 vec3 load_normal(uint v) { return record_xyz(v, uint(AOS_NORMAL_OFFSET)); }
 #endif
+#if TANGENTS
+// The 4 floats (xyz and the handedness w) at the tangent's offset of vertex v's record.
+vec4 load_tangent(uint v) {
+#if RECORD_VEC4S
+  if (uint(AOS_TANGENT_OFFSET) % 16u == 0u)
+    return uintBitsToFloat(records[v * uint(AOS_RECORD_WORDS / 4) + uint(AOS_TANGENT_OFFSET) / 16u]);
+#endif
+  uint w = uint(AOS_TANGENT_OFFSET) / 4u;
+  return uintBitsToFloat(uvec4(RECORD_WORD(v, w), RECORD_WORD(v, w + 1u), RECORD_WORD(v, w + 2u), RECORD_WORD(v, w + 3u)));
+}
+#endif
 // The B values of `bytes` bytes each at byte `offset` of vertex v's record.
 void load_record_run(uint v, uint offset, uint bytes, out uint values[INFLUENCES]) {
   uint words[RUN_CAPACITY];
@@ -142,6 +167,9 @@ void load_raw_weights(uint v, uint slot_stride, out uint raw_weight[INFLUENCES])
   load_record_run(v, uint(AOS_WEIGHTS_OFFSET), uint(WEIGHT_BYTES), raw_weight);
 }
 #else
+#if TANGENTS
+vec4 load_tangent(uint v) { return tangents[v]; }
+#endif
 #if POSITION_FLOAT4
 vec3 load_position(uint v) { return positions[v].xyz; }
 #if NORMALS
@@ -252,15 +280,24 @@ vec3 transform_normal(vec4 a0, vec4 a1, vec4 a2, vec3 d) {
   return dot(a0.xyz, c0) < 0.0 ? -n : n;
 }
 
-// Skins one vertex given its joints and weights.
-void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, vec3 normal,
-           out vec3 out_p, out vec3 out_n) {
+// The tangent's product: A * t.xyz, and t.w flipped where A mirrors (det A < 0).
+vec4 transform_tangent(vec4 a0, vec4 a1, vec4 a2, vec4 t) {
+  float det = dot(a0.xyz, cross(a1.xyz, a2.xyz));
+  return vec4(dot(a0.xyz, t.xyz), dot(a1.xyz, t.xyz), dot(a2.xyz, t.xyz), det < 0.0 ? -t.w : t.w);
+}
+
+// Skins one vertex's position given its joints and weights, and gives the
+// blended matrix's rows (a0..a2) that normals and tangents are turned by
+// (dead code without NORMALS).
+void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, out vec3 out_p,
+           out vec4 a0, out vec4 a1, out vec4 a2) {
 #if BLEND_POINT
   uint k = joint[0] * uint(PALETTE_ROWS);
   vec4 r0 = ROW(k), r1 = ROW(k + 1u), r2 = ROW(k + 2u);
   vec3 p = weight[0] * transform_point(r0, r1, r2, position);
-  // The blended matrix for the normal (dead code without NORMALS).
-  vec4 a0 = weight[0] * r0, a1 = weight[0] * r1, a2 = weight[0] * r2;
+  a0 = weight[0] * r0;
+  a1 = weight[0] * r1;
+  a2 = weight[0] * r2;
   for (uint i = 1u; i < uint(INFLUENCES); ++i) {
     k = joint[i] * uint(PALETTE_ROWS);
     r0 = ROW(k);
@@ -272,28 +309,26 @@ void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, vec3
     a2 += weight[i] * r2;
   }
   out_p = p;
-  out_n = transform_normal(a0, a1, a2, normal);
 #else
   uint k0 = joint[0] * uint(PALETTE_ROWS);
-  vec4 m0 = weight[0] * ROW(k0), m1 = weight[0] * ROW(k0 + 1u), m2 = weight[0] * ROW(k0 + 2u);
+  a0 = weight[0] * ROW(k0);
+  a1 = weight[0] * ROW(k0 + 1u);
+  a2 = weight[0] * ROW(k0 + 2u);
   for (uint i = 1u; i < uint(INFLUENCES); ++i) {
     uint k = joint[i] * uint(PALETTE_ROWS);
-    m0 += weight[i] * ROW(k);
-    m1 += weight[i] * ROW(k + 1u);
-    m2 += weight[i] * ROW(k + 2u);
+    a0 += weight[i] * ROW(k);
+    a1 += weight[i] * ROW(k + 1u);
+    a2 += weight[i] * ROW(k + 2u);
   }
-  out_p = transform_point(m0, m1, m2, position);
-  out_n = transform_normal(m0, m1, m2, normal);  // dead code without NORMALS
+  out_p = transform_point(a0, a1, a2, position);
 #endif
 }
 
-// Loads vertex v of the launch and skins it (the normal is not normalised yet).
-void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 skinned_normal) {
+// Loads vertex v of the launch and skins it: the position, the normal and the
+// tangent (xyz not normalised yet; zero without NORMALS / TANGENTS).
+void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 skinned_normal,
+                 out vec4 skinned_tangent) {
   vec3 position = load_position(v);
-  vec3 normal = vec3(0.0);
-#if NORMALS
-  normal = load_normal(v);
-#endif
   uint joint[INFLUENCES];
   uint raw_weight[INFLUENCES];
   load_indices(v, slot_stride, joint);
@@ -303,7 +338,16 @@ void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 s
 #endif
   float weight[INFLUENCES];
   for (uint i = 0u; i < uint(INFLUENCES); ++i) weight[i] = weight_of(raw_weight[i]);
-  blend(joint, weight, position, normal, skinned_position, skinned_normal);
+  vec4 a0, a1, a2;
+  blend(joint, weight, position, skinned_position, a0, a1, a2);
+  skinned_normal = vec3(0.0);
+  skinned_tangent = vec4(0.0);
+#if NORMALS
+  skinned_normal = transform_normal(a0, a1, a2, load_normal(v));
+#endif
+#if TANGENTS
+  skinned_tangent = transform_tangent(a0, a1, a2, load_tangent(v));
+#endif
 }
 
 // The slot stride S of soa-split for a launch of n vertices (0 otherwise).

@@ -47,7 +47,7 @@
 #ifndef WG_SIZE               // work-group size (CUDA: threads per block); 0 for glsl-vertex
 #define WG_SIZE 128
 #endif
-#ifndef NORMALS               // 1: also skin normals
+#ifndef NORMALS               // 1: also skin normals; 2: normals and tangents
 #define NORMALS 0
 #endif
 #ifndef INSTANCED             // 1: K instances per launch, K palettes (docs/VARIANTS.md "Instancing")
@@ -81,6 +81,15 @@
 #define RECORD_ALIGN 4
 #endif
 
+// Tangents are 4 floats in every position format (xyz, then w: the
+// handedness, +1 or -1), inputs and outputs alike.
+#if NORMALS == 2
+#define TANGENTS 1
+#else
+#define TANGENTS 0
+#endif
+#define TANGENT_BYTES 16
+
 // (The GLSL preprocessor has no ?: operator: derived values use #if chains.)
 
 // soa-split: slot i of vertex v at element i*S + v, S = n rounded up to this
@@ -111,8 +120,13 @@
 #ifndef AOS_NORMAL_OFFSET
 #define AOS_NORMAL_OFFSET ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN)
 #endif
+#ifndef AOS_TANGENT_OFFSET
+#define AOS_TANGENT_OFFSET ROUND_UP(AOS_NORMAL_OFFSET + POSITION_BYTES, RECORD_ALIGN)
+#endif
 #ifndef AOS_RECORD_WORDS
-#if NORMALS
+#if TANGENTS
+#define AOS_RECORD_WORDS (ROUND_UP(AOS_TANGENT_OFFSET + TANGENT_BYTES, RECORD_ALIGN) / 4)
+#elif NORMALS
 #define AOS_RECORD_WORDS (ROUND_UP(AOS_NORMAL_OFFSET + POSITION_BYTES, RECORD_ALIGN) / 4)
 #else
 #define AOS_RECORD_WORDS (ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN) / 4)
@@ -125,6 +139,9 @@
 #endif
 #if VERTICES_PER_ITEM != 1 && VERTICES_PER_ITEM != 2 && VERTICES_PER_ITEM != 4 && VERTICES_PER_ITEM != 8
 #error "VERTICES_PER_ITEM must be 1, 2, 4 or 8"
+#endif
+#if NORMALS < 0 || NORMALS > 2
+#error "NORMALS must be 0 (none), 1 (normals) or 2 (normals and tangents)"
 #endif
 #if STORAGE < 0 || STORAGE > 3
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"

@@ -84,15 +84,18 @@ namespace {
 
 // The gold of the whole scene on `mesh` (the scene's, quantised or not): one
 // run over the mesh and its palette; K instances: one per instance's palette.
-GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, bool normals) {
+GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, Normals normals) {
   const int k = entry.instances();
-  if (k == 1) return SkinGold(mesh, entry.verification_palette, normals);
+  const bool with_normals = normals != Normals::kNone, with_tangents = normals == Normals::kTangents;
+  if (k == 1) return SkinGold(mesh, entry.verification_palette, with_normals, with_tangents);
   GoldResult all;
   const std::size_t joints = static_cast<std::size_t>(mesh.joint_count);
   for (int i = 0; i < k; ++i) {
-    GoldResult one = SkinGold(mesh, std::span(entry.verification_palette).subspan(i * joints, joints), normals);
+    GoldResult one = SkinGold(mesh, std::span(entry.verification_palette).subspan(i * joints, joints), with_normals,
+                              with_tangents);
     all.positions.insert(all.positions.end(), one.positions.begin(), one.positions.end());
     all.normals.insert(all.normals.end(), one.normals.begin(), one.normals.end());
+    all.tangents.insert(all.tangents.end(), one.tangents.begin(), one.tangents.end());
   }
   return all;
 }
@@ -100,13 +103,13 @@ GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, 
 }  // namespace
 
 const GoldResult& DatasetCache::Gold(Entry& entry, const Variant& variant) {
-  const std::pair<int, bool> key{static_cast<int>(variant.weight), variant.normals};
+  const std::pair<int, Normals> key{static_cast<int>(variant.weight), variant.normals};
   if (auto found = entry.gold.find(key); found != entry.gold.end()) return found->second;
   GoldResult gold = SceneGold(entry, QuantisedMesh(entry.mesh(), variant), variant.normals);
   return entry.gold.emplace(key, std::move(gold)).first->second;
 }
 
-const GoldResult& DatasetCache::SourceGold(Entry& entry, bool normals) {
+const GoldResult& DatasetCache::SourceGold(Entry& entry, Normals normals) {
   if (auto found = entry.source_gold.find(normals); found != entry.source_gold.end()) return found->second;
   GoldResult gold = SceneGold(entry, entry.mesh(), normals);
   return entry.source_gold.emplace(normals, std::move(gold)).first->second;
@@ -115,7 +118,7 @@ const GoldResult& DatasetCache::SourceGold(Entry& entry, bool normals) {
 double Relative(double abs, double diagonal) { return diagonal > 0.0 ? abs / diagonal : (abs > 0.0 ? 1.0 : 0.0); }
 
 double DatasetCache::QuantisationError(Entry& entry, const Variant& variant) {
-  const std::pair<int, bool> key{static_cast<int>(variant.weight), variant.normals};
+  const std::pair<int, Normals> key{static_cast<int>(variant.weight), variant.normals};
   if (auto found = entry.quantisation.find(key); found != entry.quantisation.end()) return found->second;
   const std::span<const glm::dvec3> gold = Gold(entry, variant).positions;
   const std::span<const glm::dvec3> source = SourceGold(entry, variant.normals).positions;
@@ -176,7 +179,8 @@ std::uint64_t FrameBytes(const PackedMesh& packed, int instances) {
   std::uint64_t bytes = 0;
   for (const Launch& launch : packed.launches)
     for (const PackedBuffer& b : launch.inputs) bytes += b.bytes.size();
-  bytes += packed.vertex_count * packed.output_stride_bytes * (packed.variant.normals ? 2 : 1);
+  for (const OutputSpec& output : kOutputs)
+    if (Writes(packed.variant, output.output)) bytes += packed.vertex_count * packed.output_stride_bytes;
   bytes += packed.palette.size();
   return bytes * static_cast<std::uint64_t>(instances);
 }

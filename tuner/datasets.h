@@ -44,9 +44,9 @@ class DatasetCache {
     // after instance (K x joints), a batch's meshes one after another.
     std::vector<glm::mat4> verification_palette;
     std::vector<Part> parts;
-    std::map<std::pair<int, bool>, GoldResult> gold;  // (weight format, normals)
-    std::map<bool, GoldResult> source_gold;           // normals
-    std::map<std::pair<int, bool>, double> quantisation;  // (weight format, normals): gold vs source gold, / diagonal
+    std::map<std::pair<int, Normals>, GoldResult> gold;  // (weight format, normals)
+    std::map<Normals, GoldResult> source_gold;           // normals
+    std::map<std::pair<int, Normals>, double> quantisation;  // (weight format, normals): gold vs source gold, / diagonal
     std::map<int, std::vector<std::vector<glm::mat4>>> frames;  // ScenePalettes by count
     // The last few packings (PackingKey, its packed mesh), newest last.
     std::vector<std::pair<std::string, PackedMesh>> packings;
@@ -58,7 +58,7 @@ class DatasetCache {
   // The gold of `variant`'s quantised mesh at the verification frame.
   const GoldResult& Gold(Entry& entry, const Variant& variant);
   // The gold of the unquantised source mesh (the weights as the dataset has them).
-  const GoldResult& SourceGold(Entry& entry, bool normals);
+  const GoldResult& SourceGold(Entry& entry, Normals normals);
   // The largest over the parts of MaxDistance(Gold, SourceGold) of the
   // positions / the part's diagonal: what `variant`'s weight format alone
   // moves them, relative (0 when it holds the weights exactly).

@@ -51,7 +51,7 @@ double SampleFrameTime(Executor::Timed& timed, const TimingOptions& options, int
 Executor::Output RunnerExecutor::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                                      std::span<const std::uint8_t> palette, int instances) {
   RunResult result = runner_.Run(mesh, kernels, palette, instances);
-  return {std::move(result.positions), std::move(result.normals), result.poisoned_vertices};
+  return {std::move(result.positions), std::move(result.normals), std::move(result.tangents), result.poisoned_vertices};
 }
 
 namespace {

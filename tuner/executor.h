@@ -40,7 +40,7 @@ struct KernelTime {
 class Executor {
  public:
   struct Output {
-    std::vector<std::uint8_t> positions, normals;  // packed order
+    std::vector<std::uint8_t> positions, normals, tangents;  // packed order
     std::size_t poisoned_vertices = 0;
   };
   // A variant (or a copy) prepared for timing: its input sets on the device.

@@ -113,11 +113,13 @@ void InjectFault(KernelSource& source, const Variant& variant, const std::string
   }
   const bool glsl = IsGlslText(source.lang);
   const std::string input = variant.layout == Layout::kAos ? "records" : "positions";
-  // Every template skins a vertex with one call whose last two arguments are
-  // the skinned position and normal, in the kernel's loop over its vertices
-  // (v in scope), after the shared helpers: the last such line is in the
-  // kernel body (GLSL: skin_vertex in main(); OpenCL/CUDA: blend).
-  const std::string marker = glsl ? " skinned_position, skinned_normal);" : "&skinned_position, &skinned_normal);";
+  // Every template skins a vertex with one call that ends with where the
+  // skinned position goes and what normals and tangents are made from, in the
+  // kernel's loop over its vertices (v in scope), after the shared helpers:
+  // the last such line is in the kernel body (GLSL: skin_vertex in main();
+  // OpenCL/CUDA: blend, then the blended matrix's rows).
+  const std::string marker =
+      glsl ? " skinned_position, skinned_normal, skinned_tangent);" : "&skinned_position, &a0, &a1, &a2);";
   if (kind == "compile") {
     source.text += "\nskintune injected compile fault: this is not a kernel language (\n";
   } else if (kind == "wrong") {

@@ -52,6 +52,9 @@ std::string Disagreement(const char* what, const GoldComparison& c, double toler
   if (c.non_finite > 0)
     return std::string(what) + ": " + std::to_string(c.non_finite) + " non-finite vertices, the first at vertex " +
            std::to_string(c.worst_vertex);
+  if (c.wrong_handedness > 0)
+    return std::string(what) + ": " + std::to_string(c.wrong_handedness) +
+           " with the wrong handedness (w), the first at vertex " + std::to_string(c.worst_vertex);
   if (c.max_relative > tolerance)
     return std::string(what) + ": max relative error " + Scientific(c.max_relative) + " at vertex " +
            std::to_string(c.worst_vertex) + " (tolerance " + Scientific(tolerance) + ")";
@@ -60,18 +63,23 @@ std::string Disagreement(const char* what, const GoldComparison& c, double toler
 
 // The outputs of K instances (packed order, instance after instance) as
 // one vec3 per vertex in the mesh's order, instance after instance.
-std::vector<glm::vec3> UnpackInstances(const PackedMesh& packed, std::span<const std::uint8_t> output, int instances) {
-  if (instances == 1) return Unpack(packed, output);
+template <typename Vector>
+std::vector<Vector> UnpackInstancesBy(const PackedMesh& packed, std::span<const std::uint8_t> output, int instances,
+                                      std::vector<Vector> (*unpack)(const PackedMesh&, std::span<const std::uint8_t>)) {
+  if (instances == 1) return unpack(packed, output);
   const std::size_t bytes = packed.vertex_count * packed.output_stride_bytes;
   if (output.size() != bytes * static_cast<std::size_t>(instances))
     throw Error("UnpackInstances: " + std::to_string(output.size()) + " output bytes for " + std::to_string(instances) +
                 " instances of " + std::to_string(bytes));
-  std::vector<glm::vec3> all;
+  std::vector<Vector> all;
   for (int i = 0; i < instances; ++i) {
-    const std::vector<glm::vec3> one = Unpack(packed, output.subspan(static_cast<std::size_t>(i) * bytes, bytes));
+    const std::vector<Vector> one = unpack(packed, output.subspan(static_cast<std::size_t>(i) * bytes, bytes));
     all.insert(all.end(), one.begin(), one.end());
   }
   return all;
+}
+std::vector<glm::vec3> UnpackInstances(const PackedMesh& packed, std::span<const std::uint8_t> output, int instances) {
+  return UnpackInstancesBy(packed, output, instances, &Unpack);
 }
 
 std::string DatasetName(const std::string& key) {
@@ -105,6 +113,7 @@ struct Measuring {
   const PackedMesh* packed = nullptr;  // DatasetCache's packing: nothing packs again during the job
   std::vector<KernelSource> kernels;
   std::vector<glm::vec3> positions, normals;  // the verified output, in the mesh's order
+  std::vector<glm::vec4> tangents;
 };
 
 // Ends the measurement with `status`; false, so that a stage returns it.
@@ -121,7 +130,8 @@ std::string WhyNotHere(const MeasureJob& job, const DatasetCache::Entry& data) {
     return std::string("language ") + Name(variant.lang) + " does not run on " + job.device->backend + " device " +
            job.device->name;
   const SkinnedMesh& mesh = data.mesh();
-  const ProblemShape shape{mesh.joint_count, mesh.influences, mesh.has_normals(), data.instances()};
+  const ProblemShape shape{mesh.joint_count, mesh.influences, mesh.has_normals(), data.instances(),
+                           mesh.has_normals() && mesh.has_tangents()};
   std::string detail;
   for (const Violation& v : CheckVariant(variant, job.limits, shape))
     detail += (detail.empty() ? "" : "; ") + std::string(Name(v.constraint)) + ": " + v.message;
@@ -144,7 +154,7 @@ bool Pack(Measuring& run) {
 // relative error in the measurement.
 std::string DisagreementWithGold(Measuring& run) {
   const GoldResult& gold = run.job.datasets->Gold(run.data, run.job.variant);
-  const bool normals = run.job.variant.normals;
+  const bool normals = SkinsNormals(run.job.variant), tangents = SkinsTangents(run.job.variant);
   const double tolerance = run.job.options.tolerance;
   std::string disagreement;
   for (const DatasetCache::Part& part : run.data.parts) {
@@ -156,6 +166,12 @@ std::string DisagreementWithGold(Measuring& run) {
       const GoldComparison n = CompareToGold(slice(gold.normals), slice(run.normals));
       run.m.max_relative_error = std::max(run.m.max_relative_error, n.max_relative);
       const std::string text = Disagreement("normals", n, tolerance);
+      if (!text.empty()) wrong += (wrong.empty() ? "" : "; ") + text;
+    }
+    if (tangents) {
+      const GoldComparison t = CompareTangentsToGold(slice(gold.tangents), slice(run.tangents));
+      run.m.max_relative_error = std::max(run.m.max_relative_error, t.max_relative);
+      const std::string text = Disagreement("tangents", t, tolerance);
       if (!text.empty()) wrong += (wrong.empty() ? "" : "; ") + text;
     }
     if (!wrong.empty() && disagreement.empty()) disagreement = part.name.empty() ? wrong : part.name + ": " + wrong;
@@ -177,7 +193,8 @@ bool Verify(Measuring& run) {
   }
   run.phases.Mark("run (build, upload, verification launch, read-back)");
   run.positions = UnpackInstances(*run.packed, output.positions, instances);
-  if (variant.normals) run.normals = UnpackInstances(*run.packed, output.normals, instances);
+  if (SkinsNormals(variant)) run.normals = UnpackInstances(*run.packed, output.normals, instances);
+  if (SkinsTangents(variant)) run.tangents = UnpackInstancesBy(*run.packed, output.tangents, instances, &UnpackTangents);
   std::string disagreement = DisagreementWithGold(run);
   if (output.poisoned_vertices > 0)
     disagreement = std::to_string(output.poisoned_vertices) + " output vectors never written (still poisoned)" +
@@ -202,8 +219,11 @@ void RecordSourceError(Measuring& run) {
       error.position_abs = abs;
       error.position_rel = Relative(abs, part.diagonal);
     }
-    if (variant.normals)
+    if (SkinsNormals(variant))
       error.normal_abs = std::max(error.normal_abs, CompareToGold(slice(source.normals), slice(run.normals)).max_absolute);
+    if (SkinsTangents(variant))
+      error.normal_abs = std::max(error.normal_abs,
+                                  CompareTangentsToGold(slice(source.tangents), slice(run.tangents)).max_absolute);
   }
   error.quantisation_rel = run.job.datasets->QuantisationError(run.data, variant);
 }

@@ -21,18 +21,19 @@ namespace skintune::internal {
 namespace {
 
 // What measuring one variant takes per vertex, beyond the mesh: in the
-// worker, the float64 gold and the unpacked output (positions, normals), the
-// packed inputs in the widest formats (float4, u16 + f32 per slot) and the
-// read-back (float4); on the device, those inputs and the output.
-std::uint64_t PackedBytesPerVertex(int influences, bool normals) {
-  return 16 + 6 * static_cast<std::uint64_t>(influences) + (normals ? 16 : 0);
+// worker, the float64 gold and the unpacked output (positions, normals,
+// tangents: `vectors` of them, 1 to 3; a tangent's w counted with its xyz),
+// the packed inputs in the widest formats (float4, u16 + f32 per slot) and
+// the read-back (float4); on the device, those inputs and the outputs.
+std::uint64_t VectorsOf(Normals normals) { return normals == Normals::kTangents ? 3 : normals == Normals::kNormals ? 2 : 1; }
+std::uint64_t PackedBytesPerVertex(int influences, std::uint64_t vectors) {
+  return 6 * static_cast<std::uint64_t>(influences) + vectors * 16;
 }
-std::uint64_t WorkerBytesPerVertex(int influences, bool normals) {
-  const std::uint64_t sides = normals ? 2 : 1;
-  return sides * (24 + 12) + PackedBytesPerVertex(influences, normals) + sides * 16;
+std::uint64_t WorkerBytesPerVertex(int influences, std::uint64_t vectors) {
+  return vectors * (32 + 16) + PackedBytesPerVertex(influences, vectors) + vectors * 16;
 }
-std::uint64_t DeviceBytesPerVertex(int influences, bool normals) {
-  return PackedBytesPerVertex(influences, normals) + (normals ? 2 : 1) * 16;
+std::uint64_t DeviceBytesPerVertex(int influences, std::uint64_t vectors) {
+  return PackedBytesPerVertex(influences, vectors) + vectors * 16;
 }
 
 // `call`'s Error prefixed with the config and its dataset: "c.json: datasets[1]: ...".
@@ -59,18 +60,18 @@ PlannedDataset PlanDataset(const std::string& key) {
   // whole scene in this machine's memory (the device is checked once it is known).
   std::uint64_t synthetic_vertices = 0, mesh_bytes = 0;
   int widest_slots = 1;
-  bool normals = false;
+  std::uint64_t vectors = 1;
   for (const std::string& mesh : spec.meshes) {
     if (IsGltfFile(mesh)) continue;
     const DatasetSpec dataset = ParseDatasetKey(mesh);
     synthetic_vertices += dataset.vertices;
     mesh_bytes += dataset.vertices * DatasetBytesPerVertex(dataset) * (spec.batch ? 2 : 1);
     widest_slots = std::max(widest_slots, dataset.influences);
-    normals = normals || dataset.normals;
+    vectors = std::max(vectors, VectorsOf(NormalsFor(dataset.normals, dataset.tangents)));
   }
   if (synthetic_vertices > 0) {
     const std::uint64_t scene_vertices = synthetic_vertices * static_cast<std::uint64_t>(spec.instances);
-    const std::uint64_t work = WorkerBytesPerVertex(widest_slots, normals);
+    const std::uint64_t work = WorkerBytesPerVertex(widest_slots, vectors);
     const std::uint64_t per_vertex = (mesh_bytes + scene_vertices * work + scene_vertices - 1) / scene_vertices;
     CheckMemoryFor((spec.meshes.size() == 1 && spec.instances == 1 ? "dataset '" : "scene '") + key + "'",
                    scene_vertices, per_vertex,
@@ -99,7 +100,8 @@ PlannedDataset PlanDataset(const std::string& key) {
   d.info.shape = spec.batch ? SceneKind::kBatch : spec.instances > 1 ? SceneKind::kInstances : SceneKind::kSingle;
   d.info.instances = spec.instances;
   d.info.meshes = static_cast<int>(spec.meshes.size());
-  d.shape = ProblemShape{mesh.joint_count, widest, mesh.has_normals(), spec.instances};
+  d.shape = ProblemShape{mesh.joint_count, widest, mesh.has_normals(), spec.instances,
+                         mesh.has_normals() && mesh.has_tangents()};
   return d;
 }
 
@@ -173,7 +175,8 @@ void CheckDeviceMemory(const TuneConfig& config, const TuningPlan& plan) {
   for (const PlannedDevice& d : plan.devices) {
     for (std::size_t i = 0; i < plan.datasets.size(); ++i) {
       const PlannedDataset& dataset = plan.datasets[i];
-      const std::uint64_t per_vertex = DeviceBytesPerVertex(dataset.info.influences, dataset.shape.has_normals);
+      const std::uint64_t per_vertex = DeviceBytesPerVertex(
+          dataset.info.influences, VectorsOf(NormalsFor(dataset.shape.has_normals, dataset.shape.has_tangents)));
       InConfig(config, i, [&] {
         CheckMemoryFor("dataset '" + dataset.info.key + "' on " + d.identity.backend + " device '" + d.identity.name + "'",
                        dataset.info.vertices, per_vertex,

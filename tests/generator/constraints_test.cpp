@@ -123,8 +123,18 @@ TEST(Constraints, RejectsIndexFormatsTooSmallForTheJointCount) {
 
 TEST(Constraints, RejectsNormalsWhenTheMeshHasNone) {
   Variant v;
-  v.normals = true;
+  v.normals = Normals::kNormals;
   ExpectOnly(v, Constraint::kNormalsMissing, "mesh has none", kDevice, {77, 4, false});
+}
+
+TEST(Constraints, RejectsTangentsWhenTheMeshHasNoneAndWithFloat3Positions) {
+  Variant v;
+  v.normals = Normals::kTangents;
+  ExpectOnly(v, Constraint::kTangentsMissing, "mesh has none", kDevice, {77, 4, true, 1, false});
+  v.position = PositionFormat::kFloat3;
+  ExpectOnly(v, Constraint::kTangentsFormat, "float4 position format", kDevice, {77, 4, true, 1, true});
+  v.position = PositionFormat::kFloat4;
+  EXPECT_TRUE(CheckVariant(v, kDevice, {77, 4, true, 1, true}).empty());
 }
 
 // Instanced launches (docs/VARIANTS.md "Instancing"): K palettes live in
@@ -176,7 +186,7 @@ TEST(Constraints, ReportsEveryBrokenConstraint) {
   Variant v;
   v.influences = 1;
   v.wg_size = 2048;
-  v.normals = true;
+  v.normals = Normals::kNormals;
   EXPECT_EQ(CheckVariant(v, kDevice, {77, 4, false}).size(), 3u);
 }
 

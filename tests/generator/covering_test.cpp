@@ -2,6 +2,7 @@
 
 #include <set>
 
+#include "generator/axes.h"
 #include "generator/covering.h"
 #include "generator/space.h"
 
@@ -15,7 +16,7 @@ DeviceLimits Roomy() {
   return d;
 }
 
-const ProblemShape kShape{77, 1, true};
+const ProblemShape kShape{77, 1, true, 1, true};
 
 TEST(CoveringSet, EveryValueOfEveryAxisAppearsForEachLanguage) {
   for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex}) {
@@ -26,12 +27,12 @@ TEST(CoveringSet, EveryValueOfEveryAxisAppearsForEachLanguage) {
       seen.insert({"b" + std::to_string(v.influences), Name(v.mixed), Name(v.layout), Name(v.position),
                    Name(v.index), Name(v.weight), Name(v.palette), Name(v.storage), Name(v.blend),
                    "v" + std::to_string(v.vertices_per_item), Name(v.assignment), "wg" + std::to_string(v.wg_size),
-                   v.normals ? "normals" : "nonormals"});
+                   KeyToken(AxisOf<&Variant::normals>(), static_cast<int>(v.normals))});
     }
     std::vector<std::string> expected = {"b1", "b2", "b3", "b4", "b5", "b6", "b7", "b8", "padded", "bucketed", "aos",
                                          "soa", "soa-split", "float4", "float3", "i32", "u16", "u8", "f32", "unorm16",
                                          "unorm8", "mat4", "mat3x4", "constant", "global", "image", "matrix", "point",
-                                         "normals", "nonormals"};
+                                         "normals", "nonormals", "tangents"};
     if (lang == Lang::kGlslVertex) {
       expected.insert(expected.end(), {"v1", "contiguous", "wg0"});
     } else {

@@ -183,8 +183,11 @@ TEST(Emit, AosOffsetsAreThePackersRecordLayout) {
     EXPECT_EQ(DefineOf(s, "AOS_INDICES_OFFSET"), static_cast<long long>(r.indices)) << key;
     EXPECT_EQ(DefineOf(s, "AOS_WEIGHTS_OFFSET"), static_cast<long long>(r.weights)) << key;
     EXPECT_EQ(DefineOf(s, "AOS_RECORD_WORDS") * 4, static_cast<long long>(r.size)) << key;
-    if (v.normals) {
+    if (SkinsNormals(v)) {
       EXPECT_EQ(DefineOf(s, "AOS_NORMAL_OFFSET"), static_cast<long long>(r.normal)) << key;
+    }
+    if (SkinsTangents(v)) {
+      EXPECT_EQ(DefineOf(s, "AOS_TANGENT_OFFSET"), static_cast<long long>(r.tangent)) << key;
     }
     EXPECT_EQ(SidecarJson(s, v).at("aos_record").at("size"), r.size) << key;
   }

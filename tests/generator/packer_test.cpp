@@ -43,14 +43,15 @@ std::size_t WgtBytes(const Variant& v) {
 std::uint32_t UnormMax(const Variant& v) { return (1u << (8 * WgtBytes(v))) - 1; }
 
 // The aos record as a C struct: fields at their natural alignment.
-struct Record { std::size_t indices, weights, normal, size; };
+struct Record { std::size_t indices, weights, normal, tangent, size; };
 Record ExpectedRecord(const Variant& v, int b) {
   const std::size_t align = v.position == PositionFormat::kFloat4 ? 16 : 4;
   Record r{};
   r.indices = PosBytes(v);
   r.weights = Up(r.indices + b * IdxBytes(v), WgtBytes(v));
   std::size_t end = r.weights + b * WgtBytes(v);
-  if (v.normals) end = (r.normal = Up(end, align)) + PosBytes(v);
+  if (SkinsNormals(v)) end = (r.normal = Up(end, align)) + PosBytes(v);
+  if (SkinsTangents(v)) end = (r.tangent = Up(end, align)) + 16;  // 4 floats
   r.size = Up(end, align);
   return r;
 }
@@ -58,6 +59,7 @@ Record ExpectedRecord(const Variant& v, int b) {
 struct Decoded {
   float position[4] = {};
   float normal[4] = {};
+  float tangent[4] = {};
   std::vector<std::uint32_t> joints, weights;  // weights: stored word (float bits / unorm integer)
 };
 
@@ -85,11 +87,13 @@ Decoded Read(const Variant& v, const Launch& l, std::size_t p) {
       d.joints.push_back(ReadUint(rec, base + r.indices + i * IdxBytes(v), IdxBytes(v)));
       d.weights.push_back(ReadUint(rec, base + r.weights + i * WgtBytes(v), WgtBytes(v)));
     }
-    if (v.normals) ReadVector(rec, base + r.normal, v, d.normal);
+    if (SkinsNormals(v)) ReadVector(rec, base + r.normal, v, d.normal);
+    for (int c = 0; c < 4 && SkinsTangents(v); ++c) d.tangent[c] = ReadFloat(rec, base + r.tangent + 4 * c);
     return d;
   }
   ReadVector(Buffer(l, "positions"), p * PosBytes(v), v, d.position);
-  if (v.normals) ReadVector(Buffer(l, "normals"), p * PosBytes(v), v, d.normal);
+  if (SkinsNormals(v)) ReadVector(Buffer(l, "normals"), p * PosBytes(v), v, d.normal);
+  for (int c = 0; c < 4 && SkinsTangents(v); ++c) d.tangent[c] = ReadFloat(Buffer(l, "tangents"), p * 16 + 4 * c);
   for (std::size_t i = 0; i < b; ++i) {
     const std::size_t e = v.layout == Layout::kSoa ? p * b + i : i * l.slot_stride + p;
     d.joints.push_back(ReadUint(Buffer(l, "indices"), e * IdxBytes(v), IdxBytes(v)));
@@ -112,6 +116,7 @@ SkinnedMesh RandomMesh(std::size_t n, int influences, int joints, bool normals, 
   for (std::size_t v = 0; v < n; ++v) {
     m.positions.emplace_back(coord(rng), coord(rng), coord(rng));
     if (normals) m.normals.push_back(glm::normalize(glm::vec3(coord(rng), coord(rng), 1.0f)));
+    if (normals) m.tangents.emplace_back(glm::normalize(glm::vec3(1.0f, coord(rng), coord(rng))), v % 3 ? 1.0f : -1.0f);
     std::vector<double> w(influences, 0.0);  // 1..influences of them non-zero, anywhere
     std::fill_n(w.begin(), 1 + rng() % influences, 1.0);
     std::shuffle(w.begin(), w.end(), rng);
@@ -157,9 +162,12 @@ void ExpectDecodesToQuantisedMesh(const SkinnedMesh& mesh, const Variant& v, con
       const bool w = v.position == PositionFormat::kFloat4;
       ASSERT_EQ(glm::vec4(d.position[0], d.position[1], d.position[2], w ? d.position[3] : 1.0f),
                 glm::vec4(mesh.positions[mv], 1.0f)) << v.Key();
-      if (v.normals) {
+      if (SkinsNormals(v)) {
         ASSERT_EQ(glm::vec4(d.normal[0], d.normal[1], d.normal[2], w ? d.normal[3] : 0.0f),
                   glm::vec4(mesh.normals[mv], 0.0f)) << v.Key();
+      }
+      if (SkinsTangents(v)) {
+        ASSERT_EQ(glm::vec4(d.tangent[0], d.tangent[1], d.tangent[2], d.tangent[3]), mesh.tangents[mv]) << v.Key();
       }
       std::vector<std::uint32_t> joints, words;
       for (int i = 0; i < mesh.influences; ++i) {
@@ -184,7 +192,8 @@ std::vector<Variant> AllFormatVariants() {
       for (auto position : {PositionFormat::kFloat4, PositionFormat::kFloat3})
         for (auto index : {IndexFormat::kI32, IndexFormat::kU16, IndexFormat::kU8})
           for (auto weight : {WeightFormat::kF32, WeightFormat::kUnorm16, WeightFormat::kUnorm8})
-            for (bool normals : {false, true}) {
+            for (Normals normals : {Normals::kNone, Normals::kNormals, Normals::kTangents}) {
+              if (normals == Normals::kTangents && position != PositionFormat::kFloat4) continue;  // tangents_format
               Variant v;
               v.mixed = mixed, v.layout = layout, v.position = position, v.index = index;
               v.weight = weight, v.normals = normals;
@@ -205,8 +214,8 @@ TEST(Packer, EveryLayoutPositionIndexWeightCombinationDecodesToTheQuantisedMesh)
       names.push_back(b.name);
       EXPECT_EQ(b.bytes.size() % 4, 0u) << v.Key() << " " << b.name;
     }
-    std::vector<std::string> expected{"positions", "indices", "weights", "normals"};
-    expected.resize(v.normals ? 4 : 3);
+    std::vector<std::string> expected{"positions", "indices", "weights", "normals", "tangents"};
+    expected.resize(3 + (SkinsNormals(v) ? 1 : 0) + (SkinsTangents(v) ? 1 : 0));
     EXPECT_EQ(names, v.layout == Layout::kAos ? std::vector<std::string>{"records"} : expected) << v.Key();
     ExpectDecodesToQuantisedMesh(mesh, v, packed);
   }
@@ -348,7 +357,7 @@ TEST(Packer, SoaSplitSlotArraysStartOn256ByteBoundaries) {
   for (std::size_t n : {1u, 63u, 64u, 65u, 200u, 300u}) {
     const SkinnedMesh mesh = RandomMesh(n, 3, 20, false, static_cast<unsigned>(n));
     for (const Variant& base : AllFormatVariants()) {
-      if (base.layout != Layout::kSoaSplit || base.mixed != MixedCounts::kPadded || base.normals) continue;
+      if (base.layout != Layout::kSoaSplit || base.mixed != MixedCounts::kPadded || SkinsNormals(base)) continue;
       Variant v = base;
       v.influences = 3;
       const Launch l = Pack(mesh, v).launches.at(0);
@@ -443,7 +452,7 @@ TEST(Packer, UnpackRestoresTheMeshOrder) {
       }
     }
     EXPECT_EQ(Unpack(packed, out), mesh.positions) << key;
-    if (v.normals) { EXPECT_EQ(Unpack(packed, out_normals), mesh.normals) << key; }
+    if (SkinsNormals(v)) { EXPECT_EQ(Unpack(packed, out_normals), mesh.normals) << key; }
   }
 }
 
@@ -570,8 +579,14 @@ TEST(Packer, RejectsInfluencesBelowTheMeshCount) {
 
 TEST(Packer, RejectsNormalsOnAMeshWithoutNormalsAndInvalidMeshes) {
   Variant v;
-  v.normals = true;
+  v.normals = Normals::kNormals;
   ExpectPackError(RandomMesh(10, 2, 5, false, 4), v, "normals");
+  v.normals = Normals::kTangents;
+  SkinnedMesh no_tangents = RandomMesh(10, 2, 5, true, 4);
+  no_tangents.tangents.clear();
+  ExpectPackError(no_tangents, v, "tangents requested");
+  v.position = PositionFormat::kFloat3;
+  ExpectPackError(RandomMesh(10, 2, 5, true, 4), v, "float4 position format");
   SkinnedMesh bad = RandomMesh(10, 2, 5, false, 4);
   bad.joints[3] = 9;
   ExpectPackError(bad, Variant{}, "out of range");

@@ -47,7 +47,7 @@ std::string ValidateError(const DatasetSpec& spec) {
 
 bool SameSpec(const DatasetSpec& a, const DatasetSpec& b) {
   return a.vertices == b.vertices && a.influences == b.influences && a.bones == b.bones &&
-         a.random_bones == b.random_bones && a.seed == b.seed && a.normals == b.normals && a.frames == b.frames;
+         a.random_bones == b.random_bones && a.seed == b.seed && a.normals == b.normals && a.tangents == b.tangents && a.frames == b.frames;
 }
 
 template <typename T>
@@ -56,7 +56,7 @@ bool SameBytes(const std::vector<T>& a, const std::vector<T>& b) {
 }
 
 bool SameAsset(const SkinnedAsset& a, const SkinnedAsset& b) {
-  if (!SameBytes(a.mesh.positions, b.mesh.positions) || !SameBytes(a.mesh.normals, b.mesh.normals) ||
+  if (!SameBytes(a.mesh.positions, b.mesh.positions) || !SameBytes(a.mesh.normals, b.mesh.normals) || !SameBytes(a.mesh.tangents, b.mesh.tangents) ||
       !SameBytes(a.mesh.joints, b.mesh.joints) || !SameBytes(a.mesh.weights, b.mesh.weights) ||
       !SameBytes(a.skeleton.inverse_bind, b.skeleton.inverse_bind) || a.animations.size() != b.animations.size()) {
     return false;
@@ -122,7 +122,7 @@ TEST_P(SyntheticMalformedKey, ThrowsErrorNamingKeyProblemAndFormat) {
   const std::string message = ErrorOf(GetParam().key);
   EXPECT_EQ(message.rfind("dataset '" + std::string(GetParam().key) + "': ", 0), 0u) << message;
   EXPECT_NE(message.find(GetParam().problem), std::string::npos) << message;
-  EXPECT_NE(message.find("(expected <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-normals], e.g. 100k-b2)"),
+  EXPECT_NE(message.find("(expected <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-normals|-tangents], e.g. 100k-b2)"),
             std::string::npos)
       << message;
 }
@@ -268,6 +268,26 @@ TEST(SyntheticMesh, NormalsAreUnitLengthOnlyWhenRequested) {
   const SkinnedMesh mesh = GenerateDataset(spec).mesh;
   ASSERT_EQ(mesh.normals.size(), mesh.vertex_count());
   for (const glm::vec3& n : mesh.normals) ASSERT_NEAR(glm::length(n), 1.0f, 1e-6f);
+  EXPECT_FALSE(mesh.has_tangents());
+}
+
+TEST(SyntheticMesh, TangentsComeWithNormalsAlongTheBoneWithBothHandednesses) {
+  const DatasetSpec spec = ParseDatasetKey("3000-b3-tangents");
+  EXPECT_TRUE(spec.normals);
+  EXPECT_TRUE(spec.tangents);
+  EXPECT_EQ(spec.Key(), "3k-b3-tangents");
+  const SkinnedMesh mesh = GenerateDataset(spec).mesh;
+  ASSERT_EQ(mesh.normals.size(), mesh.vertex_count());
+  ASSERT_EQ(mesh.tangents.size(), mesh.vertex_count());
+  int left = 0, right = 0;
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    const glm::vec4& t = mesh.tangents[v];
+    ASSERT_NEAR(glm::length(glm::vec3(t)), 1.0f, 1e-6f) << v;
+    ASSERT_TRUE(t.w == 1.0f || t.w == -1.0f) << v;
+    (t.w > 0 ? right : left)++;
+  }
+  EXPECT_GT(left, 1000);
+  EXPECT_GT(right, 1000);
 }
 
 TEST(SyntheticMesh, GenerationIsBitIdenticalForTheSameSpec) {

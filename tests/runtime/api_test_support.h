@@ -89,14 +89,14 @@ inline void ExpectSkinsLikeTheGold(Skinner& skinner, const SkinnedMesh& mesh, st
   ASSERT_TRUE(skinner.SetPalette(matrices.data(), matrices.size()).ok());
   const Status skinned = skinner.Skin();
   ASSERT_TRUE(skinned.ok()) << skinned.message();
-  const GoldResult gold = SkinGold(QuantisedMesh(mesh, variant), palette, variant.normals);
+  const GoldResult gold = SkinGold(QuantisedMesh(mesh, variant), palette, SkinsNormals(variant));
   std::vector<float> positions(mesh.vertex_count() * 3);
   const Status read = skinner.ReadPositions(positions.data(), positions.size());
   ASSERT_TRUE(read.ok()) << read.message();
   const GoldComparison p = CompareToGold(gold.positions, Vec3s(positions));
   EXPECT_EQ(p.non_finite, 0u) << variant.Key() << ": first at vertex " << p.worst_vertex;
   EXPECT_LT(p.max_relative, 1e-5) << variant.Key() << ": positions, worst vertex " << p.worst_vertex;
-  if (variant.normals) {
+  if (SkinsNormals(variant)) {
     std::vector<float> normals(mesh.vertex_count() * 3);
     ASSERT_TRUE(skinner.ReadNormals(normals.data(), normals.size()).ok());
     const GoldComparison n = CompareToGold(gold.normals, Vec3s(normals));
@@ -122,21 +122,21 @@ inline void ExpectInstancesLikeTheGold(Skinner& skinner, const SkinnedMesh& mesh
   const Status skinned = skinner.Skin();
   ASSERT_TRUE(skinned.ok()) << skinned.message();
   const std::size_t n = mesh.vertex_count();
-  std::vector<float> positions(palettes.size() * n * 3), normals(variant.normals ? positions.size() : 0);
+  std::vector<float> positions(palettes.size() * n * 3), normals(SkinsNormals(variant) ? positions.size() : 0);
   ASSERT_TRUE(skinner.ReadPositions(positions.data(), positions.size()).ok());
-  if (variant.normals) {
+  if (SkinsNormals(variant)) {
     ASSERT_TRUE(skinner.ReadNormals(normals.data(), normals.size()).ok());
   }
   const SkinnedMesh quantised = QuantisedMesh(mesh, variant);
   for (std::size_t k = 0; k < palettes.size(); ++k) {
     SCOPED_TRACE("instance " + std::to_string(k) + " of " + std::to_string(palettes.size()));
-    const GoldResult gold = SkinGold(quantised, palettes[k], variant.normals);
+    const GoldResult gold = SkinGold(quantised, palettes[k], SkinsNormals(variant));
     const std::vector<float> part(positions.begin() + static_cast<std::ptrdiff_t>(k * n * 3),
                                   positions.begin() + static_cast<std::ptrdiff_t>((k + 1) * n * 3));
     const GoldComparison p = CompareToGold(gold.positions, Vec3s(part));
     EXPECT_EQ(p.non_finite, 0u) << variant.Key();
     EXPECT_LT(p.max_relative, 1e-5) << variant.Key() << ": positions, worst vertex " << p.worst_vertex;
-    if (variant.normals) {
+    if (SkinsNormals(variant)) {
       const std::vector<float> npart(normals.begin() + static_cast<std::ptrdiff_t>(k * n * 3),
                                      normals.begin() + static_cast<std::ptrdiff_t>((k + 1) * n * 3));
       const GoldComparison c = CompareToGold(gold.normals, Vec3s(npart));

@@ -55,7 +55,7 @@ Variant VariantOf(const CpuKernelKey& key, std::size_t i) {
   const Layout layouts[] = {Layout::kAos, Layout::kSoa, Layout::kSoaSplit};
   v.layout = layouts[i % 3];
   v.position = (i / 3) % 2 ? PositionFormat::kFloat3 : PositionFormat::kFloat4;
-  v.normals = (i / 2) % 2 == 1;
+  v.normals = (i / 2) % 2 == 1 ? Normals::kNormals : Normals::kNone;
   return v;
 }
 

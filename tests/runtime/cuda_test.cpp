@@ -80,7 +80,7 @@ const std::vector<Axis>& Axes() {
       {"blend", {"matrix", "point"}},
       {"work", {"v1c", "v2c", "v2s", "v4c", "v4s", "v8c", "v8s"}},
       {"wg", {"wg32", "wg64", "wg128", "wg256", "wg512", "wg1024"}},
-      {"normals", {"nonormals", "normals"}},
+      {"normals", {"nonormals", "normals", "tangents"}},
   };
   return axes;
 }
@@ -287,7 +287,7 @@ DeviceLimits CudaLimits() {
   return d;
 }
 
-const ProblemShape kCoveringShape{kJoints, 1, true};
+const ProblemShape kCoveringShape{kJoints, 1, true, 1, true};
 
 // The project's covering set (generator/covering.h), which the tools use.
 TEST(CudaCoveringSet, EveryVariantCompilesCleanly) {
@@ -480,7 +480,7 @@ TEST(CudaVariantCases, CompileCleanlyHere) {
 // variant on a fresh mesh with its own influence count.
 TEST(CudaCoveringSet, EveryVariantMatchesTheGold) {
   RUNNER_OR_SKIP(runner);
-  const CoveringSet set = BuildCoveringSet(Lang::kCuda, runner->limits(), {kJoints, 1, true});
+  const CoveringSet set = BuildCoveringSet(Lang::kCuda, runner->limits(), {kJoints, 1, true, 1, true});
   ASSERT_TRUE(set.uncoverable.empty());
   ExpectCoveringSetMatchesGold(*runner, set, LaunchTimes::kPositive);
   std::cout << "[ covering ] " << set.variants.size() << " CUDA variants verified on " << runner->device_name()

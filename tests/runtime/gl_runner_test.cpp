@@ -197,7 +197,7 @@ KernelSource Bare(const char* file, Lang lang) {
 // fresh mesh with its own influence count.
 void RunCoveringSet(Lang lang) {
   REQUIRE_GL(runner);
-  const CoveringSet set = BuildCoveringSet(lang, LimitsOf(runner->info()), {77, 1, true});
+  const CoveringSet set = BuildCoveringSet(lang, LimitsOf(runner->info()), {77, 1, true, 1, true});
   for (const std::string& pair : set.uncoverable) {
     EXPECT_NE(pair.find("storage=local"), std::string::npos) << "only local storage may be uncoverable: " << pair;
   }
@@ -456,7 +456,7 @@ TEST(GlKernelTime, StagedCapturesAreCopiedIntoPlaceInEveryFrame) {
   ASSERT_EQ(ms.size(), 3u);
   ASSERT_EQ(launch_ms.size(), 3u);
   for (const std::vector<double>& frame : launch_ms) EXPECT_EQ(frame.size(), run.packed.launches.size());
-  const std::span<const std::uint8_t> out = runner->ReadOutput(prepared, 0, false);
+  const std::span<const std::uint8_t> out = runner->ReadOutput(prepared, 0, Output::kPositions);
   ASSERT_EQ(out.size(), 5 * run.packed.vertex_count * run.packed.output_stride_bytes);
   std::size_t poisoned = 0;
   for (std::size_t at = 0; at + 4 <= out.size(); at += 4) {

@@ -294,7 +294,7 @@ TEST_P(KernelTime, TheFlushGivenRunsAndWritesNothingButTheItemsPoisonedToBeWritt
   const Prepared flush = runner_->Prepare(poisoned.mesh, std::span(&poisoned.kernel, 1), palette);
   const Prepared mesh = PrepareMesh(Synthetic("5000-b4-seed5"), VariantOf("padded"));
   ASSERT_EQ(runner_->TimeCold(mesh, flush, 1, 2).size(), 2u);
-  const std::span<const std::uint8_t> out = runner_->ReadOutput(flush, 0, false);
+  const std::span<const std::uint8_t> out = runner_->ReadOutput(flush, 0, Output::kPositions);
   ASSERT_EQ(out.size(), poisoned.items * 16);
   std::size_t written = 0, wrong = 0;
   for (std::size_t i = 0; i < poisoned.items; ++i) {

@@ -69,7 +69,7 @@ inline const SkinnedAsset& Asset(const std::string& mesh) {
   }
   // 5000 vertices plus a seed-dependent tail, so launches end mid-work-group (mid-block).
   const std::string key = std::to_string(5000 + Seed() % 97) + "-" + mesh + "-seed" + std::to_string(Seed()) +
-                          "-normals";
+                          "-tangents";
   return cache[mesh] = GenerateDataset(ParseDatasetKey(key));
 }
 
@@ -91,15 +91,21 @@ template <typename RunResult>
 void ExpectMatchesGold(const PackedMesh& packed, const RunResult& result, const SkinnedMesh& mesh,
                        std::span<const glm::mat4> palette, LaunchTimes times) {
   const SkinnedMesh quantised = QuantisedMesh(mesh, packed.variant);
-  const GoldResult gold = SkinGold(quantised, palette, packed.variant.normals);
+  const GoldResult gold = SkinGold(quantised, palette, SkinsNormals(packed.variant), SkinsTangents(packed.variant));
   EXPECT_EQ(result.poisoned_vertices, 0u);
   const GoldComparison p = CompareToGold(gold.positions, Unpack(packed, result.positions));
   EXPECT_EQ(p.non_finite, 0u) << "first at vertex " << p.worst_vertex;
   EXPECT_LT(p.max_relative, kTolerance) << "positions, worst vertex " << p.worst_vertex;
-  if (packed.variant.normals) {
+  if (SkinsNormals(packed.variant)) {
     const GoldComparison n = CompareToGold(gold.normals, Unpack(packed, result.normals));
     EXPECT_EQ(n.non_finite, 0u) << "first at vertex " << n.worst_vertex;
     EXPECT_LT(n.max_relative, kTolerance) << "normals, worst vertex " << n.worst_vertex;
+  }
+  if (SkinsTangents(packed.variant)) {
+    const GoldComparison t = CompareTangentsToGold(gold.tangents, UnpackTangents(packed, result.tangents));
+    EXPECT_EQ(t.non_finite, 0u) << "first at vertex " << t.worst_vertex;
+    EXPECT_EQ(t.wrong_handedness, 0u) << "first at vertex " << t.worst_vertex;
+    EXPECT_LT(t.max_relative, kTolerance) << "tangents, worst vertex " << t.worst_vertex;
   }
   EXPECT_EQ(result.launch_ms.size(), packed.launches.size());
   if (times == LaunchTimes::kNonNegative) {
@@ -236,7 +242,7 @@ inline const SkinnedAsset& SmallAsset(const std::string& mesh) {
   const std::string influences = mesh.substr(0, dash);
   const std::string rest = dash == std::string::npos ? "" : mesh.substr(dash);  // "-random"
   const std::string key = std::to_string(700 + Seed() % 97) + "-" + influences + "-bones12" + rest + "-seed" +
-                          std::to_string(Seed()) + "-normals";
+                          std::to_string(Seed()) + "-tangents";
   return cache[mesh] = GenerateDataset(ParseDatasetKey(key));
 }
 
@@ -298,19 +304,30 @@ void ExpectInstancesMatchGold(const InstancedRun& run, const RunResult& result, 
   const std::size_t k = run.palettes.size();
   EXPECT_EQ(result.poisoned_vertices, 0u);
   ASSERT_EQ(result.positions.size(), k * run.packed.vertex_count * run.packed.output_stride_bytes);
-  if (variant.normals) {
+  if (SkinsNormals(variant)) {
     ASSERT_EQ(result.normals.size(), result.positions.size());
+  }
+  if (SkinsTangents(variant)) {
+    ASSERT_EQ(result.tangents.size(), result.positions.size());
   }
   for (std::size_t i = 0; i < k; ++i) {
     SCOPED_TRACE("instance " + std::to_string(i) + " of " + std::to_string(k));
-    const GoldResult gold = SkinGold(quantised, run.palettes[i], variant.normals);
+    const GoldResult gold = SkinGold(quantised, run.palettes[i], SkinsNormals(variant), SkinsTangents(variant));
     const GoldComparison p = CompareToGold(gold.positions, UnpackInstance(run.packed, result.positions, static_cast<int>(i)));
     EXPECT_EQ(p.non_finite, 0u) << "first at vertex " << p.worst_vertex;
     EXPECT_LT(p.max_relative, kTolerance) << "positions, worst vertex " << p.worst_vertex;
-    if (variant.normals) {
+    if (SkinsNormals(variant)) {
       const GoldComparison n = CompareToGold(gold.normals, UnpackInstance(run.packed, result.normals, static_cast<int>(i)));
       EXPECT_EQ(n.non_finite, 0u) << "first at vertex " << n.worst_vertex;
       EXPECT_LT(n.max_relative, kTolerance) << "normals, worst vertex " << n.worst_vertex;
+    }
+    if (SkinsTangents(variant)) {
+      const std::size_t bytes = run.packed.vertex_count * run.packed.output_stride_bytes;
+      const GoldComparison t = CompareTangentsToGold(
+          gold.tangents, UnpackTangents(run.packed, std::span(result.tangents).subspan(i * bytes, bytes)));
+      EXPECT_EQ(t.non_finite, 0u) << "first at vertex " << t.worst_vertex;
+      EXPECT_EQ(t.wrong_handedness, 0u) << "first at vertex " << t.worst_vertex;
+      EXPECT_LT(t.max_relative, kTolerance) << "tangents, worst vertex " << t.worst_vertex;
     }
     if (::testing::Test::HasFailure()) return;  // one failing instance says enough
   }
@@ -323,7 +340,7 @@ template <typename Runner>
 void ExpectInstanceCaseMatchesGold(Runner& runner, const InstanceCase& c, const DeviceLimits& limits) {
   const Variant variant = ParseVariantKey(c.key);
   const SkinnedAsset& asset = SmallAsset(c.mesh);
-  const ProblemShape shape{asset.mesh.joint_count, 1, true, c.instances};
+  const ProblemShape shape{asset.mesh.joint_count, 1, true, c.instances, asset.mesh.has_tangents()};
   const std::vector<Violation> violations = CheckVariant(variant, limits, shape);
   if (!violations.empty()) GTEST_SKIP() << "this device cannot run it: " << violations.front().message;
   const InstancedRun run = InstancedInputs(variant, c.mesh, c.instances);

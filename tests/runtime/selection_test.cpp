@@ -113,7 +113,7 @@ TEST(Selection, SameVendorAndDeviceTypeIsTheThirdLevel) {
 TEST(Selection, BuiltInDefaultWhenNoEntryMatches) {
   const Selection s = Find(Db(Decoys()));
   EXPECT_EQ(s.level, MatchLevel::kGenericDefault);
-  EXPECT_EQ(s.variant, GenericDefault(Lang::kOpenCl, 2, false, DeviceLimits{}).Key());
+  EXPECT_EQ(s.variant, GenericDefault(Lang::kOpenCl, 2, Normals::kNone, DeviceLimits{}).Key());
   EXPECT_EQ(s.entry, "built-in default");
   EXPECT_STREQ(MatchLevelName(s.level), "generic-default");
   EXPECT_EQ(Find(WinnersDb::Empty()).level, MatchLevel::kGenericDefault);
@@ -180,7 +180,7 @@ TEST(Selection, GlDevicesTakeTheFasterOfComputeAndVertexShader) {
   const WinnersEntry vertex = Entry(gl.id, "Example", "gpu", "glsl-vertex.b2", "100k", 1.0);
   EXPECT_EQ(Find(Db({compute, vertex}), 2, 100000, gl).variant, vertex.variant.Key());
   EXPECT_EQ(Find(WinnersDb::Empty(), 2, 100000, gl).variant,
-            GenericDefault(Lang::kGlslCompute, 2, false, DeviceLimits{}).Key());
+            GenericDefault(Lang::kGlslCompute, 2, Normals::kNone, DeviceLimits{}).Key());
 }
 
 TEST(Selection, RejectedEntriesFallThroughAndAreNamedInTheReason) {
@@ -196,8 +196,8 @@ TEST(Selection, RejectedEntriesFallThroughAndAreNamedInTheReason) {
             std::string::npos)
       << chosen.selection.reason;
   // Normals follow the request, whatever the entry was tuned with.
-  request.normals = true;
-  EXPECT_TRUE(Select({kOtherDriver}, request).variant.normals);
+  request.normals = Normals::kNormals;
+  EXPECT_EQ(Select({kOtherDriver}, request).variant.normals, Normals::kNormals);
   // Nothing at all can run: kUnavailable.
   request.check = [](const Variant&) { return "never"; };
   EXPECT_THROW(Select({kExact}, request), Error);
@@ -349,10 +349,10 @@ TEST(Selection, BuiltInDefaultSatisfiesEveryConstraintOnEveryDevice) {
   for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex}) {
     for (int b = 1; b <= 8; ++b) {
       for (const DeviceLimits& limits : {tiny, DeviceLimits{}}) {
-        for (bool normals : {false, true}) {
+        for (Normals normals : {Normals::kNone, Normals::kNormals, Normals::kTangents}) {
           const Variant v = GenericDefault(lang, b, normals, limits);
           EXPECT_EQ(v.mixed, MixedCounts::kPadded);
-          const ProblemShape shape{65536, b, normals};
+          const ProblemShape shape{65536, b, normals != Normals::kNone, 1, normals == Normals::kTangents};
           for (const Violation& violation : CheckVariant(v, limits, shape))
             ADD_FAILURE() << v.Key() << ": " << violation.message;
         }

@@ -50,7 +50,7 @@ TEST(CudaProgramCache, PtxIsCompiledOnceThenLoadedFromDisk) {
   if (!Available().nvrtc) GTEST_SKIP() << "NVRTC cannot be loaded: " << Available().nvrtc_missing;
   TempDir dir;
   const std::string device_id = "cuda:CUDA/Test GPU/1.0 (CUDA 12.4)";
-  std::vector<KernelSource> kernels = {Emit(GenericDefault(Lang::kCuda, 4, true, DeviceLimits{}), 0, 77)};
+  std::vector<KernelSource> kernels = {Emit(GenericDefault(Lang::kCuda, 4, Normals::kNormals, DeviceLimits{}), 0, 77)};
   EmitOptions instanced;
   instanced.instanced = true;
   instanced.max_instances = 8;
@@ -76,7 +76,7 @@ TEST(CudaProgramCache, PtxIsCompiledOnceThenLoadedFromDisk) {
 
 TEST(CudaProgramCache, ABuildErrorCarriesTheNvrtcLog) {
   if (!Available().nvrtc) GTEST_SKIP() << "NVRTC cannot be loaded: " << Available().nvrtc_missing;
-  KernelSource broken = Emit(GenericDefault(Lang::kCuda, 2, false, DeviceLimits{}), 0, 77);
+  KernelSource broken = Emit(GenericDefault(Lang::kCuda, 2, Normals::kNone, DeviceLimits{}), 0, 77);
   broken.text += "\nthis is not CUDA;\n";
   broken.source_hash = SourceHash(broken.text);
   TempDir dir;

@@ -115,7 +115,7 @@ TEST(VulkanCheck, ADeviceLostIsStageLost) {
 }
 
 TEST_F(Validated, CoveringSetMatchesTheGold) {
-  const CoveringSet set = BuildCoveringSet(Lang::kVulkan, vk::LimitsOf(runner_->info()), {77, 1, true});
+  const CoveringSet set = BuildCoveringSet(Lang::kVulkan, vk::LimitsOf(runner_->info()), {77, 1, true, 1, true});
   for (const std::string& pair : set.uncoverable)
     EXPECT_NE(pair.find("storage=local"), std::string::npos) << "only local storage may be uncoverable: " << pair;
   ExpectCoveringSetMatchesGold(*runner_, set, LaunchTimes::kNonNegative);
@@ -175,7 +175,7 @@ TEST_F(Validated, TheFrameLoopThroughStagingIsEachFramesGold) {
       staged.WritePalette(live, 0, bytes);
       staged.LaunchSet(live, 0);
       if (f % 4 != 3 && f != 3 * kPaletteSlots) continue;
-      const std::span<const std::uint8_t> positions = staged.ReadOutput(live, 0, false);
+      const std::span<const std::uint8_t> positions = staged.ReadOutput(live, 0, Output::kPositions);
       for (int k = 0; k < kInstances; ++k) {
         const GoldResult gold = SkinGold(quantised, frame_palette(f, k), false);
         const GoldComparison c = CompareToGold(gold.positions, UnpackInstance(packed, positions, k));

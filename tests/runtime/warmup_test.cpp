@@ -273,10 +273,10 @@ TEST(SharedInputs, ASecondPrepareOfTheSameInputsAllocatesNone) {
     EXPECT_EQ(allocated(clock, BufferUse::kPalette), share ? 3 : 6);
     // Both alive: set k of each binds the same buffers, and no two sets of one Prepared do.
     for (int set = 0; set < 3; ++set) {
-      EXPECT_EQ(runner.OutputBuffer(second, set, false) != nullptr, true);
+      EXPECT_EQ(runner.OutputBuffer(second, set, Output::kPositions) != nullptr, true);
       for (int other = 0; other < 3; ++other)
         if (other != set) {
-          EXPECT_NE(runner.OutputBuffer(second, set, false), runner.OutputBuffer(second, other, false));
+          EXPECT_NE(runner.OutputBuffer(second, set, Output::kPositions), runner.OutputBuffer(second, other, Output::kPositions));
         }
     }
     const Prepared third = runner.Prepare(copy.mesh, kernel, other_palettes);
@@ -284,7 +284,7 @@ TEST(SharedInputs, ASecondPrepareOfTheSameInputsAllocatesNone) {
     EXPECT_EQ(allocated(clock, BufferUse::kOutput), share ? 3 : 9);
     EXPECT_EQ(allocated(clock, BufferUse::kPalette), share ? 6 : 9);
     for (int set = 0; set < 3; ++set)
-      EXPECT_EQ(runner.OutputBuffer(third, set, false) == runner.OutputBuffer(second, set, false), share);
+      EXPECT_EQ(runner.OutputBuffer(third, set, Output::kPositions) == runner.OutputBuffer(second, set, Output::kPositions), share);
     // A verification allocates its own (the fake reads back zeros, so its
     // guard check fails after the allocations this counts).
     EXPECT_THROW((void)runner.Run(copy.mesh, kernel), Error);
@@ -306,8 +306,8 @@ TEST(SharedInputs, TheBudgetDropsTheOldestBuffers) {
   const std::size_t after_first = clock.allocations.size();
   const Prepared second = runner.Prepare(copy.mesh, kernel, palettes);
   EXPECT_EQ(clock.allocations.size(), 2 * after_first);  // the one kept buffer is never the one looked up
-  EXPECT_NE(runner.OutputBuffer(first, 0, false), nullptr);
-  EXPECT_NE(runner.OutputBuffer(first, 0, false), runner.OutputBuffer(second, 0, false));
+  EXPECT_NE(runner.OutputBuffer(first, 0, Output::kPositions), nullptr);
+  EXPECT_NE(runner.OutputBuffer(first, 0, Output::kPositions), runner.OutputBuffer(second, 0, Output::kPositions));
 }
 
 }  // namespace

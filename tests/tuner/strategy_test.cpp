@@ -24,7 +24,7 @@ std::vector<Variant> ProductSpace() {
   TuningSpace space = TuningSpace::Full();
   space.langs = {Lang::kOpenCl};
   space.influences = {4};
-  space.normals = {false};
+  space.normals = {Normals::kNone};
   std::vector<Variant> out;
   space.ForEach([&](const Variant& v) { out.push_back(v); });
   return out;
@@ -272,7 +272,7 @@ TEST(Strategy, CoordinateWithFivePercentOfAWideSpaceLandsWithinFivePercentOfTheO
   TuningSpace space = TuningSpace::Full();
   space.langs = {Lang::kGlslCompute};
   space.influences = {4};
-  space.normals = {false};
+  space.normals = {Normals::kNone};
   space.mixed = {MixedCounts::kPadded};
   space.positions = {PositionFormat::kFloat4, PositionFormat::kFloat3};
   space.indices = {IndexFormat::kU16, IndexFormat::kU8};

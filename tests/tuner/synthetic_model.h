@@ -28,7 +28,7 @@ inline std::vector<Variant> SyntheticCandidates(std::size_t max_wg = 256) {
   TuningSpace space = TuningSpace::Full();
   space.langs = {Lang::kOpenCl};
   space.influences = {4};
-  space.normals = {false};
+  space.normals = {Normals::kNone};
   DeviceLimits limits;
   limits.max_wg_size = max_wg;
   std::vector<Variant> out;

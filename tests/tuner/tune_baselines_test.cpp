@@ -29,7 +29,7 @@ TEST(TuneBaselines, AreMeasuredWithTheDatasetsBOutsideTheSpaceAndInvalidOnesAreR
   config.space.vertices_per_item = {1};
   config.space.assignments = {Assignment::kContiguous};
   config.space.wg_sizes = {64};
-  config.space.normals = {false};
+  config.space.normals = {Normals::kNone};
   config.datasets = {"3000-b2-bones300"};
   config.timing = {1, 3, 2, 1e-5};
   config.variant_timeout_s = 30;

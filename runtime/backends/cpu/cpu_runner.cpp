@@ -68,6 +68,7 @@ class CpuBound final : public DeviceObject {
   const CpuBuffer* palette = nullptr;
   float* out_positions = nullptr;  // at output vertex 0 (the launch adds first)
   float* out_normals = nullptr;
+  float* out_tangents = nullptr;
   CpuPalette converted;            // this launch's palette in the kernels' form, per frame
   std::vector<std::span<const std::uint8_t>> buffers;  // every buffer bound to it (what kCold evicts)
 };
@@ -244,7 +245,9 @@ std::unique_ptr<DeviceObject> CpuApi::Bind(const PlannedLaunch& launch, std::spa
       case ArgumentRole::kPalette: bound->palette = buffer; break;
       case ArgumentRole::kOutput: {
         auto* out = reinterpret_cast<float*>(buffer->data());
-        (a.argument->name == "out_normals" ? bound->out_normals : bound->out_positions) = out;
+        const OutputSpec* output = OutputOfArgument(a.argument->name);
+        const Output which = output ? output->output : Output::kPositions;  // the copy's and flush's out_positions
+        (which == Output::kNormals ? bound->out_normals : which == Output::kTangents ? bound->out_tangents : bound->out_positions) = out;
         break;
       }
     }
@@ -305,6 +308,7 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
     const CpuStreams s = CpuStreamsOf(spec.variant, spec.source.influences, spec.count, b.inputs,
                                       b.out_positions + out_first * floats,
                                       b.out_normals ? b.out_normals + out_first * floats : nullptr,
+                                      b.out_tangents ? b.out_tangents + out_first * floats : nullptr,
                                       choice.stream_stores);
     RunCpuKernel(plan.kernel, s, b.converted, spec.count, pool, choice.schedule.chunk);
     if (plan.fault_wrong && spec.index == 0) s.out_positions[0] += 1.0f;  // the tuner's wrong-result test

@@ -23,8 +23,9 @@ CpuKernelKey CpuKeyOf(const Variant& variant, int influences) {
 
 CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t count,
                         std::span<const std::uint8_t* const> inputs, float* out_positions, float* out_normals,
-                        bool stream_stores) {
-  const std::size_t expected = variant.layout == Layout::kAos ? 1 : (variant.normals ? 4 : 3);
+                        float* out_tangents, bool stream_stores) {
+  const std::size_t expected =
+      variant.layout == Layout::kAos ? 1 : 3 + (SkinsNormals(variant) ? 1 : 0) + (SkinsTangents(variant) ? 1 : 0);
   if (inputs.size() != expected) {
     throw Error("cpu streams of " + variant.Key() + ": " + std::to_string(inputs.size()) + " input buffers, expected " +
                 std::to_string(expected));
@@ -34,7 +35,8 @@ CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t coun
   CpuStreams s;
   s.output_floats = variant.position == PositionFormat::kFloat4 ? 4 : 3;
   s.out_positions = out_positions;
-  s.out_normals = variant.normals ? out_normals : nullptr;
+  s.out_normals = SkinsNormals(variant) ? out_normals : nullptr;
+  s.out_tangents = SkinsTangents(variant) ? out_tangents : nullptr;
   s.stream_stores = stream_stores;
   switch (variant.layout) {
     case Layout::kAos: {
@@ -47,9 +49,13 @@ CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t coun
       s.weights = inputs[0] + r.weights;
       s.weight_stride = r.size;
       s.weight_slot = wb;
-      if (variant.normals) {
+      if (SkinsNormals(variant)) {
         s.normals = inputs[0] + r.normal;
         s.normal_stride = r.size;
+      }
+      if (SkinsTangents(variant)) {
+        s.tangents = inputs[0] + r.tangent;
+        s.tangent_stride = r.size;
       }
       return s;
     }
@@ -65,9 +71,13 @@ CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t coun
       s.weights = inputs[2];
       s.weight_stride = split ? wb : b * wb;
       s.weight_slot = split ? slot_stride * wb : wb;
-      if (variant.normals) {
+      if (SkinsNormals(variant)) {
         s.normals = inputs[3];
         s.normal_stride = pb;
+      }
+      if (SkinsTangents(variant)) {
+        s.tangents = inputs[4];
+        s.tangent_stride = kTangentBytes;
       }
       return s;
     }

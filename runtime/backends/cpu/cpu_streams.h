@@ -21,7 +21,7 @@ CpuKernelKey CpuKeyOf(const Variant& variant, int influences);
 // positions, indices, weights[, normals]); the outputs point at the launch's
 // first output vertex. Throws Error for the wrong number of inputs.
 CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t count,
-                        std::span<const std::uint8_t* const> inputs, float* out_positions, float* out_normals,
+                        std::span<const std::uint8_t* const> inputs, float* out_positions, float* out_normals, float* out_tangents,
                         bool stream_stores);
 
 }  // namespace skintune::internal

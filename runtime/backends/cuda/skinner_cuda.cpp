@@ -23,8 +23,7 @@ namespace {
 
 class CudaSkinner final : public RunnerSkinner {
  public:
-  CudaSkinner(CudaRunner& runner, Prepared prepared, bool normals)
-      : RunnerSkinner(runner, std::move(prepared), normals), cuda_(runner) {}
+  CudaSkinner(CudaRunner& runner, Prepared prepared) : RunnerSkinner(runner, std::move(prepared)), cuda_(runner) {}
 
   ~CudaSkinner() override {
     const cuda::DriverApi* api = cuda::Driver();
@@ -102,8 +101,7 @@ std::unique_ptr<SkinnerBackend> MakeCudaSkinner(DeviceState& device, const Packe
                                                 const std::vector<KernelSource>& kernels, const SkinnerSetup& setup) {
   auto* runner = dynamic_cast<CudaRunner*>(device.runner.get());
   if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no CUDA stream");
-  return std::make_unique<CudaSkinner>(*runner, PrepareSkinnerSet(device, mesh, kernels, setup),
-                                       mesh.variant.normals);
+  return std::make_unique<CudaSkinner>(*runner, PrepareSkinnerSet(device, mesh, kernels, setup));
 }
 
 }  // namespace skintune::internal

@@ -239,7 +239,7 @@ class GlApi final : public DeviceApi {
   // transform feedback object), and back to none.
   void PrepareVertexState();
   void BeginVertexDraws();
-  void EndVertexDraws(bool normals);
+  void EndVertexDraws(const Variant& variant);
   std::vector<std::vector<double>> RunVerified(const FrameRun& run);
   std::vector<std::vector<double>> RunTimed(const FrameRun& run);
   std::vector<std::vector<double>> RunCold(const FrameRun& run);

@@ -195,7 +195,7 @@ std::vector<std::vector<double>> GlApi::RunVerified(const FrameRun& run) {
     CheckGl("launch", Described(*bound.plan));
   }
   if (vertex) {
-    EndVertexDraws(first->spec.variant.normals);
+    EndVertexDraws(first->spec.variant);
   } else {
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
   }
@@ -255,7 +255,7 @@ std::vector<std::vector<double>> GlApi::RunTimed(const FrameRun& run) {
     }
     if (b == 0) CheckGl("launch", "the first burst of timing " + run.key);
   }
-  if (vertex) EndVertexDraws(first->spec.variant.normals);
+  if (vertex) EndVertexDraws(first->spec.variant);
   glUseProgram(0);
   glFinish();
   CheckGl("launch", "timing " + run.key);
@@ -346,7 +346,7 @@ std::vector<std::vector<double>> GlApi::RunCold(const FrameRun& run) {
     if (f == 0) CheckGl("launch", "the first frame of timing " + run.key + " (kernel time)");
     if (!host_clock) glFlush();  // the device starts on this frame while the next is queued
   }
-  if (vertex) EndVertexDraws(first->spec.variant.normals);
+  if (vertex) EndVertexDraws(first->spec.variant);
   glUseProgram(0);
   glFinish();
   CheckGl("launch", "timing " + run.key + " (kernel time)");
@@ -385,7 +385,7 @@ void GlApi::RunLive(const FrameRun& run) {
         DrawLaunch(static_cast<const GlBound&>(*launch));
       }
     }
-    if (vertex) EndVertexDraws(first->spec.variant.normals);
+    if (vertex) EndVertexDraws(first->spec.variant);
   }
   glMemoryBarrier(GL_ALL_BARRIER_BITS);  // the outputs are read next: as vertices, buffers, or by Read*
   CheckGl("launch", "skinning with " + run.key);

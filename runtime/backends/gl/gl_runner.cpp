@@ -229,8 +229,8 @@ const BuiltProgram& GlApi::ProgramFor(const KernelSource& source) {
   const std::string what = "kernel " + key + " (" + Headline(source.text) + ") on " + info().renderer;
   std::vector<const char*> varyings;
   if (vertex) {
-    varyings.push_back("out_position");
-    if (FindArgument(source, "out_normals")) varyings.push_back("out_normal");
+    for (const OutputSpec& output : kOutputs)
+      if (FindArgument(source, output.argument)) varyings.push_back(output.varying);
   }
   ClearGlErrors();
   BuiltProgram b;
@@ -400,7 +400,7 @@ std::unique_ptr<DeviceObject> GlApi::Bind(const PlannedLaunch& launch, std::span
       }
     } else if (a.role == ArgumentRole::kOutput && plan.vertex) {
       b.target = Target::kFeedback;
-      b.index = name == "out_positions" ? 0 : 1;
+      b.index = static_cast<GLuint>(OutputOfArgument(name)->output);  // the varying's capture buffer
       b.offset = static_cast<GLintptr>(capture.offset);
       b.size = static_cast<GLsizeiptr>(capture.bytes);
       if (capture.staged) {
@@ -631,9 +631,9 @@ void GlApi::BeginVertexDraws() {
   glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, transform_feedback_.get());
 }
 
-void GlApi::EndVertexDraws(bool normals) {
-  glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
-  if (normals) glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 1, 0);
+void GlApi::EndVertexDraws(const Variant& variant) {
+  for (const OutputSpec& output : kOutputs)
+    if (Writes(variant, output.output)) glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, static_cast<GLuint>(output.output), 0);
   glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, 0);
   glDisable(GL_RASTERIZER_DISCARD);
   glBindFramebuffer(GL_FRAMEBUFFER, 0);

@@ -20,8 +20,7 @@ void CheckCurrent(GlRunner& runner, const char* call) {
 
 class GlSkinner final : public RunnerSkinner {
  public:
-  GlSkinner(GlRunner& runner, Prepared prepared, bool normals)
-      : RunnerSkinner(runner, std::move(prepared), normals), gl_runner_(runner) {}
+  GlSkinner(GlRunner& runner, Prepared prepared) : RunnerSkinner(runner, std::move(prepared)), gl_runner_(runner) {}
   void CheckUsable() const override { CheckCurrent(gl_runner_, "Skinner"); }
 
  private:
@@ -36,7 +35,7 @@ std::unique_ptr<SkinnerBackend> MakeGlSkinner(DeviceState& device, const PackedM
   if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no GL context");
   CheckCurrent(*runner, "Skinner::Create");
   Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, setup);
-  return std::make_unique<GlSkinner>(*runner, std::move(prepared), mesh.variant.normals);
+  return std::make_unique<GlSkinner>(*runner, std::move(prepared));
 }
 
 }  // namespace skintune::internal

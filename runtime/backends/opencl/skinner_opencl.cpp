@@ -14,8 +14,8 @@ namespace {
 class OpenClSkinner final : public RunnerSkinner {
  public:
   // `gl_sharing`: the runner's context shares buffers with a GL context (SkinIntoGlBuffer).
-  OpenClSkinner(OpenClRunner& runner, Prepared prepared, bool normals, bool gl_sharing)
-      : RunnerSkinner(runner, std::move(prepared), normals) {
+  OpenClSkinner(OpenClRunner& runner, Prepared prepared, bool gl_sharing)
+      : RunnerSkinner(runner, std::move(prepared)) {
     if (gl_sharing) gl_writer_ = std::make_unique<GlBufferWriter>(runner.context(), runner.queue());
   }
 
@@ -37,7 +37,7 @@ std::unique_ptr<SkinnerBackend> MakeOpenClSkinner(DeviceState& device, const Pac
   auto* runner = dynamic_cast<OpenClRunner*>(device.runner.get());
   if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no OpenCL queue");
   return std::make_unique<OpenClSkinner>(*runner, PrepareSkinnerSet(device, mesh, kernels, setup),
-                                         mesh.variant.normals, device.gl_sharing);
+                                         device.gl_sharing);
 }
 
 }  // namespace skintune::internal

@@ -46,8 +46,7 @@ int Preference(const DeviceIdentity& d) { return d.type == "gpu" ? 2 : 6; }
 
 class VulkanSkinner final : public RunnerSkinner {
  public:
-  VulkanSkinner(VulkanRunner& runner, Prepared prepared, bool normals)
-      : RunnerSkinner(runner, std::move(prepared), normals), vulkan_(runner) {}
+  VulkanSkinner(VulkanRunner& runner, Prepared prepared) : RunnerSkinner(runner, std::move(prepared)), vulkan_(runner) {}
 
   void SkinIntoVulkan(void* command_buffer, void* buffer) override {
     RunOnDevice([&] {
@@ -71,7 +70,7 @@ std::unique_ptr<SkinnerBackend> MakeVulkanSkinner(DeviceState& device, const Pac
   auto* runner = dynamic_cast<VulkanRunner*>(device.runner.get());
   if (!runner) FailWith(ErrorCode::kInvalidState, "Skinner::Create: the Device has no Vulkan queue");
   Prepared prepared = PrepareSkinnerSet(device, mesh, kernels, setup);
-  return std::make_unique<VulkanSkinner>(*runner, std::move(prepared), mesh.variant.normals);
+  return std::make_unique<VulkanSkinner>(*runner, std::move(prepared));
 }
 
 }  // namespace

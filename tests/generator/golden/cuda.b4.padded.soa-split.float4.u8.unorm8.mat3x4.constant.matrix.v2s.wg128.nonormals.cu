@@ -19,6 +19,8 @@
 //   v' = sum_i w_i * M[d_i] * (v, 1)                    (positions)
 //   n' = normalize(N(A) * n), A = upper3x3(sum_i w_i * M[d_i])   (normals;
 //        N(A) = sign(det A) * cofactor(A), the inverse transpose's direction)
+//   t' = (normalize(A * t.xyz), sign(det A) * t.w)                 (tangents:
+//        they follow the surface; a mirroring blend flips the handedness)
 //
 // The CUDA twin of templates/skin.cl: the same #define parameters (from
 // skin_params.h, shared by every template; the generator, generator/emit.cpp,
@@ -32,8 +34,8 @@
 //
 // Kernel `extern "C" skin(unsigned n, unsigned first, <inputs>, palette, <outputs>)`:
 //   aos:            records
-//   soa, soa-split: positions, indices, weights[, normals]
-//   outputs:        out_positions[, out_normals], written at first + v.
+//   soa, soa-split: positions, indices, weights[, normals[, tangents]]
+//   outputs:        out_positions[, out_normals[, out_tangents]], written at first + v.
 // Launch blocks of exactly WG_SIZE threads (the work-group size); item g =
 // blockIdx.x * WG_SIZE + threadIdx.x handles vertices g*N .. g*N+N-1
 // (contiguous) or g, g+G, .., g+(N-1)G with G the number of items (strided).
@@ -113,7 +115,7 @@
 #ifndef WG_SIZE               // work-group size (CUDA: threads per block); 0 for glsl-vertex
 #define WG_SIZE 128
 #endif
-#ifndef NORMALS               // 1: also skin normals
+#ifndef NORMALS               // 1: also skin normals; 2: normals and tangents
 #define NORMALS 0
 #endif
 #ifndef INSTANCED             // 1: K instances per launch, K palettes (docs/VARIANTS.md "Instancing")
@@ -147,6 +149,15 @@
 #define RECORD_ALIGN 4
 #endif
 
+// Tangents are 4 floats in every position format (xyz, then w: the
+// handedness, +1 or -1), inputs and outputs alike.
+#if NORMALS == 2
+#define TANGENTS 1
+#else
+#define TANGENTS 0
+#endif
+#define TANGENT_BYTES 16
+
 // (The GLSL preprocessor has no ?: operator: derived values use #if chains.)
 
 // soa-split: slot i of vertex v at element i*S + v, S = n rounded up to this
@@ -177,8 +188,13 @@
 #ifndef AOS_NORMAL_OFFSET
 #define AOS_NORMAL_OFFSET ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN)
 #endif
+#ifndef AOS_TANGENT_OFFSET
+#define AOS_TANGENT_OFFSET ROUND_UP(AOS_NORMAL_OFFSET + POSITION_BYTES, RECORD_ALIGN)
+#endif
 #ifndef AOS_RECORD_WORDS
-#if NORMALS
+#if TANGENTS
+#define AOS_RECORD_WORDS (ROUND_UP(AOS_TANGENT_OFFSET + TANGENT_BYTES, RECORD_ALIGN) / 4)
+#elif NORMALS
 #define AOS_RECORD_WORDS (ROUND_UP(AOS_NORMAL_OFFSET + POSITION_BYTES, RECORD_ALIGN) / 4)
 #else
 #define AOS_RECORD_WORDS (ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN) / 4)
@@ -192,12 +208,15 @@
 #if VERTICES_PER_ITEM != 1 && VERTICES_PER_ITEM != 2 && VERTICES_PER_ITEM != 4 && VERTICES_PER_ITEM != 8
 #error "VERTICES_PER_ITEM must be 1, 2, 4 or 8"
 #endif
+#if NORMALS < 0 || NORMALS > 2
+#error "NORMALS must be 0 (none), 1 (normals) or 2 (normals and tangents)"
+#endif
 #if STORAGE < 0 || STORAGE > 3
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
 #endif
 
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
-#line 51 "skin.cu"
+#line 53 "skin.cu"
 
 // NVRTC has no <cstdint>.
 typedef unsigned int u32;
@@ -242,7 +261,7 @@ DEVICE float3 scale3(const float s, const float3 a) { return make_float3(s * a.x
 #if BLEND_POINT
 DEVICE float3 add3(const float3 a, const float3 b) { return make_float3(a.x + b.x, a.y + b.y, a.z + b.z); }
 #endif
-// The blended matrix (BLEND_POINT: for the normal only).
+// The blended matrix (BLEND_POINT: for normals and tangents only).
 DEVICE float4 scale4(const float s, const float4 a) { return make_float4(s * a.x, s * a.y, s * a.z, s * a.w); }
 // acc + s * a
 DEVICE float4 madd4(const float s, const float4 a, const float4 acc) {
@@ -279,6 +298,19 @@ DEVICE float3 load_xyz(const u8* p, const u32 align) {
   return make_float3(__uint_as_float(load_unaligned_word(p)), __uint_as_float(load_unaligned_word(p + 4)),
                      __uint_as_float(load_unaligned_word(p + 8)));
 }
+
+#if TANGENTS && LAYOUT == 0
+// The 4 floats at p (a tangent: xyz and the handedness w).
+DEVICE float4 load_xyzw(const u8* p, const u32 align) {
+  if (align >= 16) return *reinterpret_cast<const float4*>(p);
+  if (align >= 4) {
+    const float* f = reinterpret_cast<const float*>(p);
+    return make_float4(f[0], f[1], f[2], f[3]);
+  }
+  return make_float4(__uint_as_float(load_unaligned_word(p)), __uint_as_float(load_unaligned_word(p + 4)),
+                     __uint_as_float(load_unaligned_word(p + 8)), __uint_as_float(load_unaligned_word(p + 12)));
+}
+#endif
 
 #if LAYOUT != 2
 // The INFLUENCES little-endian unsigned values of `bytes` bytes each that
@@ -388,6 +420,7 @@ DEVICE float3 transform_point(const float4 r0, const float4 r1, const float4 r2,
                      r2.x * p.x + r2.y * p.y + r2.z * p.z + r2.w);
 }
 
+#if NORMALS
 // a x b and a . b of the rows' xyz.
 DEVICE float3 cross3(const float4 a, const float4 b) {
   return make_float3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
@@ -403,7 +436,6 @@ DEVICE float3 transform_normal(const float4 a0, const float4 a1, const float4 a2
   return dot3(make_float3(a0.x, a0.y, a0.z), c0) < 0.0f ? make_float3(-n.x, -n.y, -n.z) : n;
 }
 
-#if NORMALS
 // d / |d|, and d itself when it is zero (as OpenCL's normalize and the gold).
 DEVICE float3 normalize3(const float3 d) {
   const float length2 = d.x * d.x + d.y * d.y + d.z * d.z;
@@ -411,24 +443,34 @@ DEVICE float3 normalize3(const float3 d) {
 }
 #endif
 
-// Skins one vertex given its joints and weights; writes position (and normal).
+#if TANGENTS
+// The tangent's product: A * t.xyz, and t.w flipped where A mirrors (det A < 0).
+DEVICE float4 transform_tangent(const float4 a0, const float4 a1, const float4 a2, const float4 t) {
+  const float3 d = make_float3(t.x, t.y, t.z);
+  const float det = dot3(make_float3(a0.x, a0.y, a0.z), cross3(a1, a2));
+  return make_float4(dot3(make_float3(a0.x, a0.y, a0.z), d), dot3(make_float3(a1.x, a1.y, a1.z), d),
+                     dot3(make_float3(a2.x, a2.y, a2.z), d), det < 0.0f ? -t.w : t.w);
+}
+#endif
+
+// Skins one vertex's position given its joints and weights, and gives the
+// blended matrix's rows (*a0..*a2) that normals and tangents are turned by
+// (dead code without NORMALS).
 DEVICE void blend(PALETTE_REF_PARAM, const u32 joint[INFLUENCES], const float weight[INFLUENCES],
-                  const float3 position, const float3 normal, float3* out_position, float3* out_normal) {
+                  const float3 position, float3* out_position, float4* a0, float4* a1, float4* a2) {
 #if BLEND_POINT
   u32 k = joint[0] * PALETTE_ROWS;
   float4 r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
   float3 p = scale3(weight[0], transform_point(r0, r1, r2, position));
-  // The blended matrix for the normal (dead code without NORMALS).
-  float4 a0 = scale4(weight[0], r0), a1 = scale4(weight[0], r1), a2 = scale4(weight[0], r2);
+  float4 m0 = scale4(weight[0], r0), m1 = scale4(weight[0], r1), m2 = scale4(weight[0], r2);
 #pragma unroll
   for (u32 i = 1; i < INFLUENCES; ++i) {
     k = joint[i] * PALETTE_ROWS;
     r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
     p = add3(p, scale3(weight[i], transform_point(r0, r1, r2, position)));
-    a0 = madd4(weight[i], r0, a0), a1 = madd4(weight[i], r1, a1), a2 = madd4(weight[i], r2, a2);
+    m0 = madd4(weight[i], r0, m0), m1 = madd4(weight[i], r1, m1), m2 = madd4(weight[i], r2, m2);
   }
   *out_position = p;
-  *out_normal = transform_normal(a0, a1, a2, normal);
 #else
   const u32 k0 = joint[0] * PALETTE_ROWS;
   float4 m0 = scale4(weight[0], ROW(pal, k0)), m1 = scale4(weight[0], ROW(pal, k0 + 1)),
@@ -441,8 +483,8 @@ DEVICE void blend(PALETTE_REF_PARAM, const u32 joint[INFLUENCES], const float we
     m2 = madd4(weight[i], ROW(pal, k + 2), m2);
   }
   *out_position = transform_point(m0, m1, m2, position);
-  *out_normal = transform_normal(m0, m1, m2, normal);  // dead code without NORMALS
 #endif
+  *a0 = m0, *a1 = m1, *a2 = m2;
 }
 
 // Outputs: float4 with w = 1 (positions) / 0 (normals), or packed float3.
@@ -472,9 +514,16 @@ skin(const u32 n, const u32 first,
 #if NORMALS
      const POSITION_T* __restrict__ normals,
 #endif
+#if TANGENTS
+     const float4* __restrict__ tangents,
+#endif
 #endif
      PALETTE_PARAM,
-#if NORMALS
+#if TANGENTS
+     POSITION_T* __restrict__ out_positions,
+     POSITION_T* __restrict__ out_normals,
+     float4* __restrict__ out_tangents) {
+#elif NORMALS
      POSITION_T* __restrict__ out_positions,
      POSITION_T* __restrict__ out_normals) {
 #else
@@ -519,6 +568,7 @@ skin(const u32 n, const u32 first,
     if (v >= n) break;
 
     float3 position, normal = make_float3(0.0f, 0.0f, 0.0f);
+    float4 tangent = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
     u32 joint[INFLUENCES], raw_weight[INFLUENCES];
 #if LAYOUT == 0
     const u8* record = reinterpret_cast<const u8*>(records) + (u64)v * AOS_RECORD_BYTES;
@@ -529,10 +579,16 @@ skin(const u32 n, const u32 first,
 #if NORMALS
     normal = load_xyz(record + AOS_NORMAL_OFFSET, ALIGNMENT(AOS_RECORD_BYTES | AOS_NORMAL_OFFSET));
 #endif
+#if TANGENTS
+    tangent = load_xyzw(record + AOS_TANGENT_OFFSET, ALIGNMENT(AOS_RECORD_BYTES | AOS_TANGENT_OFFSET));
+#endif
 #else
     position = load_xyz(reinterpret_cast<const u8*>(positions) + (u64)v * POSITION_BYTES, ALIGNMENT(POSITION_BYTES));
 #if NORMALS
     normal = load_xyz(reinterpret_cast<const u8*>(normals) + (u64)v * POSITION_BYTES, ALIGNMENT(POSITION_BYTES));
+#endif
+#if TANGENTS
+    tangent = tangents[v];
 #endif
 #if LAYOUT == 1
     load_run(reinterpret_cast<const u8*>(indices) + (u64)v * (INFLUENCES * INDEX_BYTES), INDEX_BYTES,
@@ -557,11 +613,17 @@ skin(const u32 n, const u32 first,
     for (u32 i = 0; i < INFLUENCES; ++i) joint[i] += joint_base;  // this instance's palette
 #endif
 
-    float3 skinned_position, skinned_normal;
-    blend(PALETTE_REF, joint, weight, position, normal, &skinned_position, &skinned_normal);
+    float3 skinned_position;
+    float4 a0, a1, a2;
+    blend(PALETTE_REF, joint, weight, position, &skinned_position, &a0, &a1, &a2);
     STORE_XYZ(out_positions, out_first + v, skinned_position, 1.0f);
 #if NORMALS
-    STORE_XYZ(out_normals, out_first + v, normalize3(skinned_normal), 0.0f);
+    STORE_XYZ(out_normals, out_first + v, normalize3(transform_normal(a0, a1, a2, normal)), 0.0f);
+#endif
+#if TANGENTS
+    const float4 t = transform_tangent(a0, a1, a2, tangent);
+    const float3 t3 = normalize3(make_float3(t.x, t.y, t.z));
+    out_tangents[out_first + v] = make_float4(t3.x, t3.y, t3.z, t.w);
 #endif
   }
 }

@@ -33,12 +33,12 @@
 // array of 32-bit words (narrower formats packed little-endian, unpacked here
 // with shifts), bound in argument order:
 //   aos:            records                                  binding 0
-//   soa, soa-split: positions, indices, weights[, normals]   bindings 0..
+//   soa, soa-split: positions, indices, weights[, normals[, tangents]]   bindings 0..
 //   palette:        the next binding: a std140 uniform block (STORAGE 0
 //                   constant), a std430 buffer (2 global; 1 local: copied
 //                   into shared memory by each work-group) or a samplerBuffer
 //                   on texture unit = that binding (3 image, RGBA32F texels);
-//   outputs:        out_positions[, out_normals]: the next bindings, written
+//   outputs:        out_positions[, out_normals[, out_tangents]]: the next bindings, written
 //                   at first + v;
 //   uniforms:       uint n (vertices of this launch), uint first.
 // Compiled to SPIR-V for Vulkan (language `vulkan`), the same text: bindings
@@ -109,7 +109,7 @@
 #ifndef WG_SIZE               // work-group size (CUDA: threads per block); 0 for glsl-vertex
 #define WG_SIZE 128
 #endif
-#ifndef NORMALS               // 1: also skin normals
+#ifndef NORMALS               // 1: also skin normals; 2: normals and tangents
 #define NORMALS 0
 #endif
 #ifndef INSTANCED             // 1: K instances per launch, K palettes (docs/VARIANTS.md "Instancing")
@@ -143,6 +143,15 @@
 #define RECORD_ALIGN 4
 #endif
 
+// Tangents are 4 floats in every position format (xyz, then w: the
+// handedness, +1 or -1), inputs and outputs alike.
+#if NORMALS == 2
+#define TANGENTS 1
+#else
+#define TANGENTS 0
+#endif
+#define TANGENT_BYTES 16
+
 // (The GLSL preprocessor has no ?: operator: derived values use #if chains.)
 
 // soa-split: slot i of vertex v at element i*S + v, S = n rounded up to this
@@ -173,8 +182,13 @@
 #ifndef AOS_NORMAL_OFFSET
 #define AOS_NORMAL_OFFSET ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN)
 #endif
+#ifndef AOS_TANGENT_OFFSET
+#define AOS_TANGENT_OFFSET ROUND_UP(AOS_NORMAL_OFFSET + POSITION_BYTES, RECORD_ALIGN)
+#endif
 #ifndef AOS_RECORD_WORDS
-#if NORMALS
+#if TANGENTS
+#define AOS_RECORD_WORDS (ROUND_UP(AOS_TANGENT_OFFSET + TANGENT_BYTES, RECORD_ALIGN) / 4)
+#elif NORMALS
 #define AOS_RECORD_WORDS (ROUND_UP(AOS_NORMAL_OFFSET + POSITION_BYTES, RECORD_ALIGN) / 4)
 #else
 #define AOS_RECORD_WORDS (ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN) / 4)
@@ -187,6 +201,9 @@
 #endif
 #if VERTICES_PER_ITEM != 1 && VERTICES_PER_ITEM != 2 && VERTICES_PER_ITEM != 4 && VERTICES_PER_ITEM != 8
 #error "VERTICES_PER_ITEM must be 1, 2, 4 or 8"
+#endif
+#if NORMALS < 0 || NORMALS > 2
+#error "NORMALS must be 0 (none), 1 (normals) or 2 (normals and tangents)"
 #endif
 #if STORAGE < 0 || STORAGE > 3
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
@@ -214,6 +231,17 @@
 #define BINDING_PALETTE 1
 #define BINDING_OUT_POSITIONS 2
 #define BINDING_OUT_NORMALS 3
+#define BINDING_OUT_TANGENTS 4
+#elif TANGENTS
+#define BINDING_POSITIONS 0
+#define BINDING_INDICES 1
+#define BINDING_WEIGHTS 2
+#define BINDING_NORMALS 3
+#define BINDING_TANGENTS 4
+#define BINDING_PALETTE 5
+#define BINDING_OUT_POSITIONS 6
+#define BINDING_OUT_NORMALS 7
+#define BINDING_OUT_TANGENTS 8
 #elif NORMALS
 #define BINDING_POSITIONS 0
 #define BINDING_INDICES 1
@@ -289,6 +317,9 @@ layout(std430, binding = BINDING_NORMALS) readonly restrict buffer Normals { vec
 layout(std430, binding = BINDING_NORMALS) readonly restrict buffer Normals { float normals[]; };
 #endif
 #endif
+#if TANGENTS
+layout(std430, binding = BINDING_TANGENTS) readonly restrict buffer Tangents { vec4 tangents[]; };
+#endif
 #endif
 
 // The `bytes`-byte little-endian value at byte `byte_in_word` of `word`
@@ -325,6 +356,17 @@ vec3 load_position(uint v) { return record_xyz(v, uint(AOS_POSITION_OFFSET)); }
 #if NORMALS
 vec3 load_normal(uint v) { return record_xyz(v, uint(AOS_NORMAL_OFFSET)); }
 #endif
+#if TANGENTS
+// The 4 floats (xyz and the handedness w) at the tangent's offset of vertex v's record.
+vec4 load_tangent(uint v) {
+#if RECORD_VEC4S
+  if (uint(AOS_TANGENT_OFFSET) % 16u == 0u)
+    return uintBitsToFloat(records[v * uint(AOS_RECORD_WORDS / 4) + uint(AOS_TANGENT_OFFSET) / 16u]);
+#endif
+  uint w = uint(AOS_TANGENT_OFFSET) / 4u;
+  return uintBitsToFloat(uvec4(RECORD_WORD(v, w), RECORD_WORD(v, w + 1u), RECORD_WORD(v, w + 2u), RECORD_WORD(v, w + 3u)));
+}
+#endif
 // The B values of `bytes` bytes each at byte `offset` of vertex v's record.
 void load_record_run(uint v, uint offset, uint bytes, out uint values[INFLUENCES]) {
   uint words[RUN_CAPACITY];
@@ -338,6 +380,9 @@ void load_raw_weights(uint v, uint slot_stride, out uint raw_weight[INFLUENCES])
   load_record_run(v, uint(AOS_WEIGHTS_OFFSET), uint(WEIGHT_BYTES), raw_weight);
 }
 #else
+#if TANGENTS
+vec4 load_tangent(uint v) { return tangents[v]; }
+#endif
 #if POSITION_FLOAT4
 vec3 load_position(uint v) { return positions[v].xyz; }
 #if NORMALS
@@ -448,15 +493,24 @@ vec3 transform_normal(vec4 a0, vec4 a1, vec4 a2, vec3 d) {
   return dot(a0.xyz, c0) < 0.0 ? -n : n;
 }
 
-// Skins one vertex given its joints and weights.
-void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, vec3 normal,
-           out vec3 out_p, out vec3 out_n) {
+// The tangent's product: A * t.xyz, and t.w flipped where A mirrors (det A < 0).
+vec4 transform_tangent(vec4 a0, vec4 a1, vec4 a2, vec4 t) {
+  float det = dot(a0.xyz, cross(a1.xyz, a2.xyz));
+  return vec4(dot(a0.xyz, t.xyz), dot(a1.xyz, t.xyz), dot(a2.xyz, t.xyz), det < 0.0 ? -t.w : t.w);
+}
+
+// Skins one vertex's position given its joints and weights, and gives the
+// blended matrix's rows (a0..a2) that normals and tangents are turned by
+// (dead code without NORMALS).
+void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, out vec3 out_p,
+           out vec4 a0, out vec4 a1, out vec4 a2) {
 #if BLEND_POINT
   uint k = joint[0] * uint(PALETTE_ROWS);
   vec4 r0 = ROW(k), r1 = ROW(k + 1u), r2 = ROW(k + 2u);
   vec3 p = weight[0] * transform_point(r0, r1, r2, position);
-  // The blended matrix for the normal (dead code without NORMALS).
-  vec4 a0 = weight[0] * r0, a1 = weight[0] * r1, a2 = weight[0] * r2;
+  a0 = weight[0] * r0;
+  a1 = weight[0] * r1;
+  a2 = weight[0] * r2;
   for (uint i = 1u; i < uint(INFLUENCES); ++i) {
     k = joint[i] * uint(PALETTE_ROWS);
     r0 = ROW(k);
@@ -468,28 +522,26 @@ void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, vec3
     a2 += weight[i] * r2;
   }
   out_p = p;
-  out_n = transform_normal(a0, a1, a2, normal);
 #else
   uint k0 = joint[0] * uint(PALETTE_ROWS);
-  vec4 m0 = weight[0] * ROW(k0), m1 = weight[0] * ROW(k0 + 1u), m2 = weight[0] * ROW(k0 + 2u);
+  a0 = weight[0] * ROW(k0);
+  a1 = weight[0] * ROW(k0 + 1u);
+  a2 = weight[0] * ROW(k0 + 2u);
   for (uint i = 1u; i < uint(INFLUENCES); ++i) {
     uint k = joint[i] * uint(PALETTE_ROWS);
-    m0 += weight[i] * ROW(k);
-    m1 += weight[i] * ROW(k + 1u);
-    m2 += weight[i] * ROW(k + 2u);
+    a0 += weight[i] * ROW(k);
+    a1 += weight[i] * ROW(k + 1u);
+    a2 += weight[i] * ROW(k + 2u);
   }
-  out_p = transform_point(m0, m1, m2, position);
-  out_n = transform_normal(m0, m1, m2, normal);  // dead code without NORMALS
+  out_p = transform_point(a0, a1, a2, position);
 #endif
 }
 
-// Loads vertex v of the launch and skins it (the normal is not normalised yet).
-void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 skinned_normal) {
+// Loads vertex v of the launch and skins it: the position, the normal and the
+// tangent (xyz not normalised yet; zero without NORMALS / TANGENTS).
+void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 skinned_normal,
+                 out vec4 skinned_tangent) {
   vec3 position = load_position(v);
-  vec3 normal = vec3(0.0);
-#if NORMALS
-  normal = load_normal(v);
-#endif
   uint joint[INFLUENCES];
   uint raw_weight[INFLUENCES];
   load_indices(v, slot_stride, joint);
@@ -499,7 +551,16 @@ void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 s
 #endif
   float weight[INFLUENCES];
   for (uint i = 0u; i < uint(INFLUENCES); ++i) weight[i] = weight_of(raw_weight[i]);
-  blend(joint, weight, position, normal, skinned_position, skinned_normal);
+  vec4 a0, a1, a2;
+  blend(joint, weight, position, skinned_position, a0, a1, a2);
+  skinned_normal = vec3(0.0);
+  skinned_tangent = vec4(0.0);
+#if NORMALS
+  skinned_normal = transform_normal(a0, a1, a2, load_normal(v));
+#endif
+#if TANGENTS
+  skinned_tangent = transform_tangent(a0, a1, a2, load_tangent(v));
+#endif
 }
 
 // The slot stride S of soa-split for a launch of n vertices (0 otherwise).
@@ -547,6 +608,10 @@ void store_normal(uint at, vec3 value) {
 #endif
 #endif
 
+#if TANGENTS
+layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTangents { vec4 out_tangents[]; };
+#endif
+
 // ---------------------------------------------------------------- kernel
 
 #if INSTANCED && !defined(VULKAN)
@@ -587,10 +652,14 @@ void main() {
     if (v >= n) break;
 
     vec3 skinned_position, skinned_normal;
-    skin_vertex(v, slot_stride, skinned_position, skinned_normal);
+    vec4 skinned_tangent;
+    skin_vertex(v, slot_stride, skinned_position, skinned_normal, skinned_tangent);
     STORE_POSITION(out_first + v, skinned_position);
 #if NORMALS
     STORE_NORMAL(out_first + v, normalize(skinned_normal));
+#endif
+#if TANGENTS
+    out_tangents[out_first + v] = vec4(normalize(skinned_tangent.xyz), skinned_tangent.w);
 #endif
   }
 }

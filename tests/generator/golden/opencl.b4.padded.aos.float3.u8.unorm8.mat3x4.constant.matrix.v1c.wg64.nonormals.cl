@@ -22,6 +22,8 @@
 //   v' = sum_i w_i * M[d_i] * (v, 1)                    (positions)
 //   n' = normalize(N(A) * n), A = upper3x3(sum_i w_i * M[d_i])   (normals;
 //        N(A) = sign(det A) * cofactor(A), the inverse transpose's direction)
+//   t' = (normalize(A * t.xyz), sign(det A) * t.w)                 (tangents:
+//        they follow the surface; a mirroring blend flips the handedness)
 //
 // The parameters, their defaults and the aos layout are in skin_params.h,
 // shared by every template; the generator (generator/emit.cpp) prepends one
@@ -35,8 +37,8 @@
 //
 // Kernel `skin(uint n, uint first, <inputs>, palette, <outputs>)`:
 //   aos:            records
-//   soa, soa-split: positions, indices, weights[, normals]
-//   outputs:        out_positions[, out_normals], written at first + v.
+//   soa, soa-split: positions, indices, weights[, normals[, tangents]]
+//   outputs:        out_positions[, out_normals[, out_tangents]], written at first + v.
 // Inputs belong to the launch (vertex v of the launch is element v); item g
 // handles vertices g*N .. g*N+N-1 (contiguous) or g, g+G, .., g+(N-1)G with G
 // the number of items (strided). Items past n do nothing but still take part
@@ -100,7 +102,7 @@
 #ifndef WG_SIZE               // work-group size (CUDA: threads per block); 0 for glsl-vertex
 #define WG_SIZE 128
 #endif
-#ifndef NORMALS               // 1: also skin normals
+#ifndef NORMALS               // 1: also skin normals; 2: normals and tangents
 #define NORMALS 0
 #endif
 #ifndef INSTANCED             // 1: K instances per launch, K palettes (docs/VARIANTS.md "Instancing")
@@ -134,6 +136,15 @@
 #define RECORD_ALIGN 4
 #endif
 
+// Tangents are 4 floats in every position format (xyz, then w: the
+// handedness, +1 or -1), inputs and outputs alike.
+#if NORMALS == 2
+#define TANGENTS 1
+#else
+#define TANGENTS 0
+#endif
+#define TANGENT_BYTES 16
+
 // (The GLSL preprocessor has no ?: operator: derived values use #if chains.)
 
 // soa-split: slot i of vertex v at element i*S + v, S = n rounded up to this
@@ -164,8 +175,13 @@
 #ifndef AOS_NORMAL_OFFSET
 #define AOS_NORMAL_OFFSET ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN)
 #endif
+#ifndef AOS_TANGENT_OFFSET
+#define AOS_TANGENT_OFFSET ROUND_UP(AOS_NORMAL_OFFSET + POSITION_BYTES, RECORD_ALIGN)
+#endif
 #ifndef AOS_RECORD_WORDS
-#if NORMALS
+#if TANGENTS
+#define AOS_RECORD_WORDS (ROUND_UP(AOS_TANGENT_OFFSET + TANGENT_BYTES, RECORD_ALIGN) / 4)
+#elif NORMALS
 #define AOS_RECORD_WORDS (ROUND_UP(AOS_NORMAL_OFFSET + POSITION_BYTES, RECORD_ALIGN) / 4)
 #else
 #define AOS_RECORD_WORDS (ROUND_UP(AOS_WEIGHTS_OFFSET + INFLUENCES * WEIGHT_BYTES, RECORD_ALIGN) / 4)
@@ -179,12 +195,15 @@
 #if VERTICES_PER_ITEM != 1 && VERTICES_PER_ITEM != 2 && VERTICES_PER_ITEM != 4 && VERTICES_PER_ITEM != 8
 #error "VERTICES_PER_ITEM must be 1, 2, 4 or 8"
 #endif
+#if NORMALS < 0 || NORMALS > 2
+#error "NORMALS must be 0 (none), 1 (normals) or 2 (normals and tangents)"
+#endif
 #if STORAGE < 0 || STORAGE > 3
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
 #endif
 
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
-#line 35 "skin.cl"
+#line 37 "skin.cl"
 
 // ---------------------------------------------------------------- types
 //
@@ -231,6 +250,15 @@ static inline float3 load_xyz(const __global uchar* p, const uint align) {
   if (align >= 4) return vload3(0, (const __global float*)p);
   return (float3)(as_float(vload4(0, p)), as_float(vload4(1, p)), as_float(vload4(2, p)));
 }
+
+#if TANGENTS
+// The 4 floats at p (a tangent: xyz and the handedness w).
+static inline float4 load_xyzw(const __global uchar* p, const uint align) {
+  if (align >= 16) return *(const __global float4*)p;
+  if (align >= 4) return vload4(0, (const __global float*)p);
+  return (float4)(as_float(vload4(0, p)), as_float(vload4(1, p)), as_float(vload4(2, p)), as_float(vload4(3, p)));
+}
+#endif
 
 #if LAYOUT != 2
 // The INFLUENCES little-endian unsigned values of `bytes` bytes each that
@@ -341,24 +369,30 @@ static inline float3 transform_normal(const float4 a0, const float4 a1, const fl
   return dot(a0.xyz, c0) < 0.0f ? -n : n;
 }
 
-// Skins one vertex given its joints and weights; writes position (and normal).
+// The tangent's product: A * t.xyz, and t.w flipped where A mirrors (det A < 0).
+static inline float4 transform_tangent(const float4 a0, const float4 a1, const float4 a2, const float4 t) {
+  const float det = dot(a0.xyz, cross(a1.xyz, a2.xyz));
+  return (float4)(dot(a0.xyz, t.xyz), dot(a1.xyz, t.xyz), dot(a2.xyz, t.xyz), det < 0.0f ? -t.w : t.w);
+}
+
+// Skins one vertex's position given its joints and weights, and gives the
+// blended matrix's rows (*a0..*a2) that normals and tangents are turned by
+// (dead code without NORMALS).
 static inline void blend(PALETTE_REF_PARAM, const uint joint[INFLUENCES], const float weight[INFLUENCES],
-                         const float3 position, const float3 normal, float3* out_position, float3* out_normal) {
+                         const float3 position, float3* out_position, float4* a0, float4* a1, float4* a2) {
 #if BLEND_POINT
   uint k = joint[0] * PALETTE_ROWS;
   float4 r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
   float3 p = weight[0] * transform_point(r0, r1, r2, position);
-  // The blended matrix for the normal (dead code without NORMALS).
-  float4 a0 = weight[0] * r0, a1 = weight[0] * r1, a2 = weight[0] * r2;
+  float4 m0 = weight[0] * r0, m1 = weight[0] * r1, m2 = weight[0] * r2;
 #pragma unroll
   for (uint i = 1; i < INFLUENCES; ++i) {
     k = joint[i] * PALETTE_ROWS;
     r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
     p += weight[i] * transform_point(r0, r1, r2, position);
-    a0 += weight[i] * r0, a1 += weight[i] * r1, a2 += weight[i] * r2;
+    m0 += weight[i] * r0, m1 += weight[i] * r1, m2 += weight[i] * r2;
   }
   *out_position = p;
-  *out_normal = transform_normal(a0, a1, a2, normal);
 #else
   const uint k0 = joint[0] * PALETTE_ROWS;
   float4 m0 = weight[0] * ROW(pal, k0), m1 = weight[0] * ROW(pal, k0 + 1), m2 = weight[0] * ROW(pal, k0 + 2);
@@ -370,8 +404,8 @@ static inline void blend(PALETTE_REF_PARAM, const uint joint[INFLUENCES], const 
     m2 += weight[i] * ROW(pal, k + 2);
   }
   *out_position = transform_point(m0, m1, m2, position);
-  *out_normal = transform_normal(m0, m1, m2, normal);  // dead code without NORMALS
 #endif
+  *a0 = m0, *a1 = m1, *a2 = m2;
 }
 
 // Outputs: float4 with w = 1 (positions) / 0 (normals), or packed float3.
@@ -397,9 +431,16 @@ void skin(const uint n, const uint first,
 #if NORMALS
           const __global POSITION_T* restrict normals,
 #endif
+#if TANGENTS
+          const __global float4* restrict tangents,
+#endif
 #endif
           PALETTE_PARAM,
-#if NORMALS
+#if TANGENTS
+          __global POSITION_T* restrict out_positions,
+          __global POSITION_T* restrict out_normals,
+          __global float4* restrict out_tangents) {
+#elif NORMALS
           __global POSITION_T* restrict out_positions,
           __global POSITION_T* restrict out_normals) {
 #else
@@ -445,6 +486,7 @@ void skin(const uint n, const uint first,
     if (v >= n) break;
 
     float3 position, normal = (float3)(0.0f);
+    float4 tangent = (float4)(0.0f);
     uint joint[INFLUENCES], raw_weight[INFLUENCES];
 #if LAYOUT == 0
     const __global uchar* record = (const __global uchar*)records + (size_t)v * AOS_RECORD_BYTES;
@@ -455,10 +497,16 @@ void skin(const uint n, const uint first,
 #if NORMALS
     normal = load_xyz(record + AOS_NORMAL_OFFSET, ALIGNMENT(AOS_RECORD_BYTES | AOS_NORMAL_OFFSET));
 #endif
+#if TANGENTS
+    tangent = load_xyzw(record + AOS_TANGENT_OFFSET, ALIGNMENT(AOS_RECORD_BYTES | AOS_TANGENT_OFFSET));
+#endif
 #else
     position = load_xyz((const __global uchar*)positions + (size_t)v * POSITION_BYTES, ALIGNMENT(POSITION_BYTES));
 #if NORMALS
     normal = load_xyz((const __global uchar*)normals + (size_t)v * POSITION_BYTES, ALIGNMENT(POSITION_BYTES));
+#endif
+#if TANGENTS
+    tangent = tangents[v];
 #endif
 #if LAYOUT == 1
     load_run((const __global uchar*)indices + (size_t)v * (INFLUENCES * INDEX_BYTES), INDEX_BYTES,
@@ -483,11 +531,16 @@ void skin(const uint n, const uint first,
     for (uint i = 0; i < INFLUENCES; ++i) joint[i] += joint_base;  // this instance's palette
 #endif
 
-    float3 skinned_position, skinned_normal;
-    blend(PAL, joint, weight, position, normal, &skinned_position, &skinned_normal);
+    float3 skinned_position;
+    float4 a0, a1, a2;
+    blend(PAL, joint, weight, position, &skinned_position, &a0, &a1, &a2);
     STORE_XYZ(out_positions, out_first + v, skinned_position, 1.0f);
 #if NORMALS
-    STORE_XYZ(out_normals, out_first + v, normalize(skinned_normal), 0.0f);
+    STORE_XYZ(out_normals, out_first + v, normalize(transform_normal(a0, a1, a2, normal)), 0.0f);
+#endif
+#if TANGENTS
+    const float4 skinned_tangent = transform_tangent(a0, a1, a2, tangent);
+    out_tangents[out_first + v] = (float4)(normalize(skinned_tangent.xyz), skinned_tangent.w);
 #endif
   }
 }

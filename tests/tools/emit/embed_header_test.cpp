@@ -180,7 +180,7 @@ TEST(EmbedHeader, KernelParametersAreTheVariantsAxes) {
     EXPECT_EQ(Name(k.palette), std::string(skintune::internal::Name(v.palette)));
     EXPECT_EQ(Name(k.storage), std::string(skintune::internal::Name(v.storage)));
     EXPECT_EQ(k.point_blend, v.blend == Blend::kPoint);
-    EXPECT_EQ(k.normals, v.normals);
+    EXPECT_EQ(k.normals, SkinsNormals(v));
     EXPECT_EQ(k.vertices_per_item, v.vertices_per_item);
     EXPECT_EQ(k.strided, v.assignment == Assignment::kStrided);
     EXPECT_EQ(k.wg_size, v.wg_size);
