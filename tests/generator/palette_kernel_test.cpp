@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -23,6 +24,7 @@
 #include "cpu_kernels/palette_kernel.h"
 #include "generator/clip_packer.h"
 #include "generator/emit.h"
+#include "generator/packer.h"
 #include "tests/common/test_asset.h"
 #include "tests/generator/deep_rig.h"
 #include "tests/generator/palette_gold.h"
@@ -224,6 +226,31 @@ TEST(PaletteKernel, OpenClWritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond)
     const std::size_t nans = static_cast<std::size_t>(std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance),
                                                                      [](float v) { return std::isnan(v); }));
     EXPECT_EQ(nans, i == 0 ? 0 : per_instance) << "instance " << i;
+  }
+}
+
+// What a skin kernel reads: the packer's mat3x4 palette rows (PackPalette of
+// the host's float32 palette, SkinnedAsset::PaletteAt), K instances one after
+// another, element for element, from the palette kernel as it is.
+TEST(PaletteKernel, OutputIsThePackersMat3x4PaletteOfEachInstanceInTurn) {
+  const SkinnedAsset& asset = TestAsset("CesiumMan.gltf");
+  const PackedAnimation packed = PackAnimation(asset);
+  const std::vector<AnimInstance> instances = {AnimInstance{0, kAnimRestPose, 0.25f, 0.0f, 0.0f},
+                                               AnimInstance{kAnimRestPose, kAnimRestPose, 0.0f, 0.0f, 0.0f},
+                                               AnimInstance{0, kAnimRestPose, 1.5f, 0.0f, 0.0f}};
+  std::vector<std::uint8_t> expected;
+  for (const AnimInstance& in : instances) {
+    const std::vector<std::uint8_t> rows = PackPalette(asset.PaletteAt(in.clip == kAnimRestPose ? -1 : 0, in.time),
+                                                       ParseVariantKey("opencl.mat3x4"));
+    expected.insert(expected.end(), rows.begin(), rows.end());
+  }
+  const std::vector<float> rows = OnCpu(packed, instances);
+  ASSERT_EQ(rows.size() * sizeof(float), expected.size());
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    float want = 0.0f;
+    std::memcpy(&want, expected.data() + 4 * k, 4);
+    EXPECT_NEAR(rows[k], want, 1e-5) << "float " << k << ": instance " << k / (packed.joints.size() * 12) << ", joint "
+                                     << k / 12 % packed.joints.size() << ", row " << k / 4 % 3 << ", column " << k % 4;
   }
 }
 
