@@ -45,7 +45,8 @@ struct Affine {
 Affine Multiply(const Affine& a, const Affine& b) {
   Affine c;
   for (int r = 0; r < 3; ++r)
-    c.row[r] = a.row[r].x * b.row[0] + a.row[r].y * b.row[1] + a.row[r].z * b.row[2] + vec4(0.0f, 0.0f, 0.0f, a.row[r].w);
+    c.row[r] =
+        a.row[r].x * b.row[0] + a.row[r].y * b.row[1] + a.row[r].z * b.row[2] + vec4(0.0f, 0.0f, 0.0f, a.row[r].w);
   return c;
 }
 
@@ -82,8 +83,10 @@ vec4 SampleChannel(const AnimationView& a, const AnimChannelHeader& h, bool rota
   std::uint32_t lo = 0, hi = n - 1;  // times[lo] <= t < times[hi]
   while (hi - lo > 1) {
     const std::uint32_t mid = (lo + hi) / 2;
-    if (times[mid] <= t) lo = mid;
-    else hi = mid;
+    if (times[mid] <= t)
+      lo = mid;
+    else
+      hi = mid;
   }
   const float interval = times[hi] - times[lo];
   const float u = (t - times[lo]) / interval;
@@ -170,14 +173,16 @@ void ValidateChannel(const AnimationView& a, std::size_t index) {
                             std::to_string(index / kAnimPaths % nodes) + ", " + PathName(index % kAnimPaths) + ")";
   if (h.key_count == 0) return;
   if (h.interpolation > static_cast<std::uint32_t>(AnimInterpolation::kCubicSpline))
-    throw Error(where + ": interpolation " + std::to_string(h.interpolation) + " is none of 0 (STEP), 1 (LINEAR), 2 (CUBICSPLINE)");
+    throw Error(where + ": interpolation " + std::to_string(h.interpolation) +
+                " is none of 0 (STEP), 1 (LINEAR), 2 (CUBICSPLINE)");
   const std::uint64_t per_key = h.interpolation == static_cast<std::uint32_t>(AnimInterpolation::kCubicSpline) ? 3 : 1;
   if (std::uint64_t{h.time_offset} + h.key_count > a.times.size())
-    throw Error(where + ": keys " + std::to_string(h.time_offset) + ".." + std::to_string(std::uint64_t{h.time_offset} + h.key_count - 1) +
-                " beyond the " + std::to_string(a.times.size()) + " times");
+    throw Error(where + ": keys " + std::to_string(h.time_offset) + ".." +
+                std::to_string(std::uint64_t{h.time_offset} + h.key_count - 1) + " beyond the " +
+                std::to_string(a.times.size()) + " times");
   if (std::uint64_t{h.value_offset} + per_key * h.key_count > a.values.size() / 4)
-    throw Error(where + ": " + std::to_string(per_key * h.key_count) + " values from " + std::to_string(h.value_offset) +
-                " beyond the " + std::to_string(a.values.size() / 4) + " values");
+    throw Error(where + ": " + std::to_string(per_key * h.key_count) + " values from " +
+                std::to_string(h.value_offset) + " beyond the " + std::to_string(a.values.size() / 4) + " values");
   const float* times = a.times.data() + h.time_offset;
   for (std::uint32_t k = 0; k < h.key_count; ++k) {
     if (!std::isfinite(times[k])) throw Error(where + ": time of key " + std::to_string(k) + " is not finite");
@@ -192,9 +197,10 @@ void ValidateHierarchy(const AnimationView& a) {
     std::int64_t steps = 0;
     for (std::int64_t p = a.nodes[i].parent; p != -1; p = a.nodes[p].parent) {
       if (p < -1 || p >= n)
-        throw Error("packed animation: nodes[" + std::to_string(i) + "]: ancestor index " + std::to_string(p) + " out of range (" +
-                    std::to_string(n) + " nodes)");
-      if (++steps > n) throw Error("packed animation: nodes[" + std::to_string(i) + "]: the node hierarchy has a cycle");
+        throw Error("packed animation: nodes[" + std::to_string(i) + "]: ancestor index " + std::to_string(p) +
+                    " out of range (" + std::to_string(n) + " nodes)");
+      if (++steps > n)
+        throw Error("packed animation: nodes[" + std::to_string(i) + "]: the node hierarchy has a cycle");
     }
   }
   if (a.joints.empty()) throw Error("packed animation: no joints");
@@ -215,11 +221,13 @@ std::string Number(float v) {
 
 void ValidateAnimation(const AnimationView& a) {
   if (a.clip_count > kAnimMaxClips)
-    throw Error("packed animation: " + std::to_string(a.clip_count) + " clips (at most " + std::to_string(kAnimMaxClips) + ")");
+    throw Error("packed animation: " + std::to_string(a.clip_count) + " clips (at most " +
+                std::to_string(kAnimMaxClips) + ")");
   const std::uint64_t headers = std::uint64_t{a.clip_count} * a.nodes.size() * kAnimPaths;
   if (a.channels.size() != headers)
-    throw Error("packed animation: " + std::to_string(a.channels.size()) + " channel headers for " + std::to_string(a.clip_count) +
-                " clips x " + std::to_string(a.nodes.size()) + " nodes x 3 paths (expected " + std::to_string(headers) + ")");
+    throw Error("packed animation: " + std::to_string(a.channels.size()) + " channel headers for " +
+                std::to_string(a.clip_count) + " clips x " + std::to_string(a.nodes.size()) +
+                " nodes x 3 paths (expected " + std::to_string(headers) + ")");
   if (a.values.size() % 4 != 0)
     throw Error("packed animation: " + std::to_string(a.values.size()) + " value floats, not whole float4s");
   ValidateHierarchy(a);
@@ -230,10 +238,12 @@ void ValidateAnimInstances(const AnimationView& a, std::span<const AnimInstance>
   auto check_clip = [&](std::size_t i, const char* field, std::uint16_t clip) {
     if (clip != kAnimRestPose && clip >= a.clip_count)
       throw Error("instances[" + std::to_string(i) + "]: " + field + " " + std::to_string(clip) + " out of range (" +
-                  std::to_string(a.clip_count) + " clips packed; " + std::to_string(kAnimRestPose) + " is the rest pose)");
+                  std::to_string(a.clip_count) + " clips packed; " + std::to_string(kAnimRestPose) +
+                  " is the rest pose)");
   };
   auto check_finite = [&](std::size_t i, const char* field, float v) {
-    if (!std::isfinite(v)) throw Error("instances[" + std::to_string(i) + "]: " + field + " " + Number(v) + " is not finite");
+    if (!std::isfinite(v))
+      throw Error("instances[" + std::to_string(i) + "]: " + field + " " + Number(v) + " is not finite");
   };
   for (std::size_t i = 0; i < instances.size(); ++i) {
     const AnimInstance& in = instances[i];

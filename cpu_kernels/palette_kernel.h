@@ -36,8 +36,8 @@ inline constexpr std::size_t kAnimPaletteRows = 3;
 //
 // `nodes`: one per node, in the skeleton's node order.
 struct AnimNodeRecord {
-  std::int32_t parent = -1;     // -1 for a root
-  std::uint32_t fixed = 0;      // 1: a glTF `matrix` node (never animated), rows = that matrix
+  std::int32_t parent = -1;  // -1 for a root
+  std::uint32_t fixed = 0;   // 1: a glTF `matrix` node (never animated), rows = that matrix
   std::uint32_t reserved[2] = {0, 0};
   // fixed 0: the rest TRS: translation (x, y, z, 0), rotation (x, y, z, w)
   // normalised, scale (x, y, z, 0). fixed 1: the matrix's three rows.
@@ -59,11 +59,11 @@ struct AnimJointRecord {
 // `instances`: one per instance, 16 bytes: two clips, each at its own time,
 // blended in local space.
 struct AnimInstance {
-  std::uint16_t clip = 0;   // packed clip index, or kAnimRestPose
+  std::uint16_t clip = 0;               // packed clip index, or kAnimRestPose
   std::uint16_t clip2 = kAnimRestPose;  // second clip, or kAnimRestPose; read only when weight != 0
-  float time = 0.0f;        // seconds of `clip` (its own key times; clamped to its first and last key)
-  float time2 = 0.0f;       // seconds of `clip2`
-  float weight = 0.0f;      // clip2's blend weight in [0, 1]: local = lerp(clip's, clip2's, weight)
+  float time = 0.0f;                    // seconds of `clip` (its own key times; clamped to its first and last key)
+  float time2 = 0.0f;                   // seconds of `clip2`
+  float weight = 0.0f;                  // clip2's blend weight in [0, 1]: local = lerp(clip's, clip2's, weight)
 };
 static_assert(sizeof(AnimNodeRecord) == 64 && sizeof(AnimChannelHeader) == 16 && sizeof(AnimJointRecord) == 64 &&
               sizeof(AnimInstance) == 16);

@@ -91,9 +91,10 @@ std::vector<AnimJointRecord> PackJoints(const SkinnedAsset& asset) {
 void PackChannel(const Channel& c, const std::string& where, PackedAnimation& out, AnimChannelHeader& header) {
   if (out.times.size() + c.times.size() > kAnimMaxKeys || out.values.size() / 4 + c.values.size() > kAnimMaxKeys)
     throw Error(where + ": the clips hold more than " + std::to_string(kAnimMaxKeys) + " keys or values in all");
-  header.interpolation = static_cast<std::uint32_t>(c.interpolation == Interpolation::kStep     ? AnimInterpolation::kStep
-                                                    : c.interpolation == Interpolation::kLinear ? AnimInterpolation::kLinear
-                                                                                                : AnimInterpolation::kCubicSpline);
+  header.interpolation =
+      static_cast<std::uint32_t>(c.interpolation == Interpolation::kStep     ? AnimInterpolation::kStep
+                                 : c.interpolation == Interpolation::kLinear ? AnimInterpolation::kLinear
+                                                                             : AnimInterpolation::kCubicSpline);
   header.key_count = static_cast<std::uint32_t>(c.times.size());
   header.time_offset = static_cast<std::uint32_t>(out.times.size());
   header.value_offset = static_cast<std::uint32_t>(out.values.size() / 4);
@@ -124,26 +125,30 @@ void PackClip(const SkinnedAsset& asset, int clip, std::size_t packed, PackedAni
     if (!seen.emplace(c.node, c.path).second)
       throw Error(where + ": a second channel on the same node and path (glTF allows one per clip)");
     const std::size_t path = c.path == ChannelPath::kTranslation ? 0 : c.path == ChannelPath::kRotation ? 1 : 2;
-    PackChannel(c, where, out, out.channels[(packed * out.nodes.size() + static_cast<std::size_t>(c.node)) * kAnimPaths + path]);
+    PackChannel(c, where, out,
+                out.channels[(packed * out.nodes.size() + static_cast<std::size_t>(c.node)) * kAnimPaths + path]);
   }
 }
 
 void CheckCounts(const SkinnedAsset& asset, std::span<const int> clips) {
   const std::size_t nodes = asset.skeleton.nodes.size(), joints = asset.skeleton.joints.size();
   if (nodes > kAnimMaxNodes)
-    throw Error(asset.source + ": " + std::to_string(nodes) + " nodes (at most " + std::to_string(kAnimMaxNodes) + " packed)");
+    throw Error(asset.source + ": " + std::to_string(nodes) + " nodes (at most " + std::to_string(kAnimMaxNodes) +
+                " packed)");
   if (joints > kAnimMaxJoints)
-    throw Error(asset.source + ": " + std::to_string(joints) + " joints (at most " + std::to_string(kAnimMaxJoints) + " packed)");
+    throw Error(asset.source + ": " + std::to_string(joints) + " joints (at most " + std::to_string(kAnimMaxJoints) +
+                " packed)");
   if (clips.size() > kAnimMaxClips)
-    throw Error(asset.source + ": " + std::to_string(clips.size()) + " clips to pack (at most " + std::to_string(kAnimMaxClips) +
-                ": 16-bit clip indices)");
+    throw Error(asset.source + ": " + std::to_string(clips.size()) + " clips to pack (at most " +
+                std::to_string(kAnimMaxClips) + ": 16-bit clip indices)");
   if (clips.size() * nodes * kAnimPaths > kAnimMaxHeaders)
-    throw Error(asset.source + ": " + std::to_string(clips.size()) + " clips x " + std::to_string(nodes) + " nodes x 3 paths = " +
-                std::to_string(clips.size() * nodes * kAnimPaths) + " channel headers (at most " + std::to_string(kAnimMaxHeaders) + ")");
+    throw Error(asset.source + ": " + std::to_string(clips.size()) + " clips x " + std::to_string(nodes) +
+                " nodes x 3 paths = " + std::to_string(clips.size() * nodes * kAnimPaths) +
+                " channel headers (at most " + std::to_string(kAnimMaxHeaders) + ")");
   for (std::size_t c = 0; c < clips.size(); ++c) {
     if (clips[c] < 0 || static_cast<std::size_t>(clips[c]) >= asset.animations.size())
-      throw Error(asset.source + ": clips[" + std::to_string(c) + "]: animation " + std::to_string(clips[c]) + " out of range (" +
-                  std::to_string(asset.animations.size()) + " animations)");
+      throw Error(asset.source + ": clips[" + std::to_string(c) + "]: animation " + std::to_string(clips[c]) +
+                  " out of range (" + std::to_string(asset.animations.size()) + " animations)");
   }
 }
 

@@ -64,8 +64,10 @@ float4 anim_sample_channel(__global const float* restrict times_all, __global co
   uint lo = 0u, hi = n - 1u;  // times[lo] <= t < times[hi]
   while (hi - lo > 1u) {
     const uint mid = (lo + hi) / 2u;
-    if (times[mid] <= t) lo = mid;
-    else hi = mid;
+    if (times[mid] <= t)
+      lo = mid;
+    else
+      hi = mid;
   }
   const float interval = times[hi] - times[lo];
   const float u = (t - times[lo]) / interval;
@@ -144,7 +146,8 @@ __kernel void skintune_palette(const uint node_count, const uint joint_count, co
   if (j >= joint_count || i >= instance_count) return;
   const uint4 in = instances[i];
   __global float4* out = palette + ((size_t)i * joint_count + j) * 3u;
-  if (!anim_clip_valid(in.x & 0xffffu, clip_count) || (as_float(in.w) != 0.0f && !anim_clip_valid(in.x >> 16, clip_count))) {
+  if (!anim_clip_valid(in.x & 0xffffu, clip_count) ||
+      (as_float(in.w) != 0.0f && !anim_clip_valid(in.x >> 16, clip_count))) {
     out[0] = out[1] = out[2] = (float4)(NAN);
     return;
   }

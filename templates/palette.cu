@@ -23,7 +23,9 @@ __device__ __forceinline__ float4 operator-(const float4 a) { return make_float4
 __device__ __forceinline__ float4 operator*(const float s, const float4 a) {
   return make_float4(s * a.x, s * a.y, s * a.z, s * a.w);
 }
-__device__ __forceinline__ float dot4(const float4 a, const float4 b) { return a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w; }
+__device__ __forceinline__ float dot4(const float4 a, const float4 b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w;
+}
 
 struct Affine {
   float4 row0, row1, row2;  // an affine transform's rows (x, y, z | translation)
@@ -74,8 +76,10 @@ __device__ float4 anim_sample_channel(const float* __restrict__ times_all, const
   unsigned lo = 0u, hi = n - 1u;  // times[lo] <= t < times[hi]
   while (hi - lo > 1u) {
     const unsigned mid = (lo + hi) / 2u;
-    if (times[mid] <= t) lo = mid;
-    else hi = mid;
+    if (times[mid] <= t)
+      lo = mid;
+    else
+      hi = mid;
   }
   const float interval = times[hi] - times[lo];
   const float u = (t - times[lo]) / interval;

@@ -40,13 +40,16 @@ void ExpectChannelsPacked(const SkinnedAsset& asset, const PackedAnimation& pack
     for (const Channel& channel : asset.animations[static_cast<std::size_t>(packed.clips[c])].channels) {
       if (channel.path == ChannelPath::kWeights) continue;
       ++expected;
-      const AnimChannelHeader& h = packed.channels[(c * nodes + static_cast<std::size_t>(channel.node)) * 3 + PathIndex(channel.path)];
+      const AnimChannelHeader& h =
+          packed.channels[(c * nodes + static_cast<std::size_t>(channel.node)) * 3 + PathIndex(channel.path)];
       ASSERT_EQ(h.key_count, channel.times.size());
       EXPECT_EQ(h.interpolation, InterpolationCode(channel.interpolation));
-      for (std::size_t k = 0; k < channel.times.size(); ++k) EXPECT_EQ(packed.times[h.time_offset + k], channel.times[k]);
+      for (std::size_t k = 0; k < channel.times.size(); ++k)
+        EXPECT_EQ(packed.times[h.time_offset + k], channel.times[k]);
       for (std::size_t v = 0; v < channel.values.size(); ++v)
         for (int e = 0; e < 4; ++e)
-          EXPECT_EQ(packed.values[4 * (h.value_offset + v) + static_cast<std::size_t>(e)], static_cast<float>(channel.values[v][e]));
+          EXPECT_EQ(packed.values[4 * (h.value_offset + v) + static_cast<std::size_t>(e)],
+                    static_cast<float>(channel.values[v][e]));
     }
   }
   EXPECT_EQ(with_keys, expected);
@@ -73,7 +76,8 @@ TEST(ClipPacker, BuffersHoldTheAssetsNodesJointsAndKeysWhereTheLayoutSays) {
     for (std::size_t j = 0; j < s.joints.size(); ++j) {
       EXPECT_EQ(packed.joints[j].node, s.joints[j]);
       for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 4; ++c) EXPECT_EQ(packed.joints[j].inverse_bind[r][c], static_cast<float>(s.inverse_bind[j][c][r]));
+        for (int c = 0; c < 4; ++c)
+          EXPECT_EQ(packed.joints[j].inverse_bind[r][c], static_cast<float>(s.inverse_bind[j][c][r]));
     }
     ExpectChannelsPacked(asset, packed);
     EXPECT_EQ(BufferBytes(packed.nodes).size(), 64 * s.nodes.size());
@@ -127,16 +131,20 @@ TEST(ClipPacker, RefusesEachBadInputNamingItsElement) {
   const SkinnedAsset plain = Changed([](SkinnedAsset&) {});
   const Channel first = plain.animations[0].channels[0];
   const std::string channel0 = "rigged: animations[0]: channels[0] (" +
-                               std::string(first.path == ChannelPath::kRotation ? "rotation" : first.path == ChannelPath::kScale ? "scale" : "translation") +
+                               std::string(first.path == ChannelPath::kRotation ? "rotation"
+                                           : first.path == ChannelPath::kScale  ? "scale"
+                                                                                : "translation") +
                                " of node " + std::to_string(first.node) + ")";
   EXPECT_EQ(ErrorOf(plain, {0, 5}), "rigged: clips[1]: animation 5 out of range (1 animations)");
   EXPECT_EQ(ErrorOf(plain, {-1}), "rigged: clips[0]: animation -1 out of range (1 animations)");
-  EXPECT_EQ(ErrorOf(plain, std::vector<int>(70000, 0)), "rigged: 70000 clips to pack (at most 65535: 16-bit clip indices)");
+  EXPECT_EQ(ErrorOf(plain, std::vector<int>(70000, 0)),
+            "rigged: 70000 clips to pack (at most 65535: 16-bit clip indices)");
   EXPECT_EQ(ErrorOf(Changed([](SkinnedAsset& a) { a.skeleton.nodes.resize(70000); })),
             "rigged: 70000 nodes (at most 65536 packed)");
   EXPECT_EQ(ErrorOf(Changed([&](SkinnedAsset& a) { a.animations[0].channels.push_back(first); })),
             "rigged: animations[0]: channels[" + std::to_string(plain.animations[0].channels.size()) + "]" +
-                channel0.substr(channel0.find(" (")) + ": a second channel on the same node and path (glTF allows one per clip)");
+                channel0.substr(channel0.find(" (")) +
+                ": a second channel on the same node and path (glTF allows one per clip)");
   EXPECT_EQ(ErrorOf(Changed([&](SkinnedAsset& a) {
               Node& node = a.skeleton.nodes[static_cast<std::size_t>(first.node)];
               node.has_matrix = true;
@@ -148,8 +156,9 @@ TEST(ClipPacker, RefusesEachBadInputNamingItsElement) {
   EXPECT_EQ(ErrorOf(Changed([](SkinnedAsset& a) { a.animations[0].channels[0].values[1].y = 1e300; })),
             channel0 + ": value 1 is 1e+300, beyond float32");
   // The clip's own validation (AnimationClip::Validate) names the clip.
-  EXPECT_NE(ErrorOf(Changed([](SkinnedAsset& a) { a.animations[0].channels[0].times[1] = a.animations[0].channels[0].times[0]; }))
-                .find("rigged: animations[0]: channels[0]"),
+  EXPECT_NE(ErrorOf(Changed([](SkinnedAsset& a) {
+              a.animations[0].channels[0].times[1] = a.animations[0].channels[0].times[0];
+            })).find("rigged: animations[0]: channels[0]"),
             std::string::npos);
 }
 
@@ -169,13 +178,18 @@ TEST(ClipPacker, ValidateAnimationNamesTheBadElementOfAnOutsidePacking) {
   std::size_t animated = 0;
   while (good.channels[animated].key_count == 0) ++animated;
   const std::string header = "packed animation: channels[" + std::to_string(animated) + "] (clip 0, node " +
-                             std::to_string(animated / 3) + ", " + (animated % 3 == 0 ? "translation" : animated % 3 == 1 ? "rotation" : "scale") + ")";
+                             std::to_string(animated / 3) + ", " +
+                             (animated % 3 == 0   ? "translation"
+                              : animated % 3 == 1 ? "rotation"
+                                                  : "scale") +
+                             ")";
   PackedAnimation bad = good;
   bad.channels[animated].interpolation = 7;
   EXPECT_EQ(ValidationErrorOf(bad), header + ": interpolation 7 is none of 0 (STEP), 1 (LINEAR), 2 (CUBICSPLINE)");
   bad = good;
   bad.channels[animated].time_offset = static_cast<std::uint32_t>(good.times.size());
-  EXPECT_NE(ValidationErrorOf(bad).find(header + ": keys " + std::to_string(good.times.size())), std::string::npos) << ValidationErrorOf(bad);
+  EXPECT_NE(ValidationErrorOf(bad).find(header + ": keys " + std::to_string(good.times.size())), std::string::npos)
+      << ValidationErrorOf(bad);
   bad = good;
   bad.times[good.channels[animated].time_offset + 1] = bad.times[good.channels[animated].time_offset];
   EXPECT_EQ(ValidationErrorOf(bad), header + ": times not strictly increasing at key 1");
@@ -190,7 +204,8 @@ TEST(ClipPacker, ValidateAnimationNamesTheBadElementOfAnOutsidePacking) {
   EXPECT_NE(ValidationErrorOf(bad).find("the node hierarchy has a cycle"), std::string::npos) << ValidationErrorOf(bad);
   bad = good;
   bad.joints[1].node = 99;
-  EXPECT_EQ(ValidationErrorOf(bad), "packed animation: joints[1]: node 99 out of range (" + std::to_string(good.nodes.size()) + " nodes)");
+  EXPECT_EQ(ValidationErrorOf(bad),
+            "packed animation: joints[1]: node 99 out of range (" + std::to_string(good.nodes.size()) + " nodes)");
 }
 
 }  // namespace

@@ -37,7 +37,8 @@ class DeepRigBuilder {
     for (int chain = 0; chain < kDeepRigChains; ++chain) {
       int parent = 0;
       for (int level = 0; level < kDeepRigChainLength; ++level) {
-        Node node{"c" + std::to_string(chain) + "." + std::to_string(level), parent, RestTransform(), false, glm::dmat4(1.0)};
+        Node node{"c" + std::to_string(chain) + "." + std::to_string(level), parent, RestTransform(), false,
+                  glm::dmat4(1.0)};
         parent = static_cast<int>(s.nodes.size());
         if (parent == kDeepRigFixedNode) {
           node.has_matrix = true;
@@ -62,7 +63,8 @@ class DeepRigBuilder {
   int Keys() { return std::uniform_int_distribution<int>(2, 8)(random_); }
 
   glm::dquat RandomRotation(double max_degrees) {
-    const glm::dvec3 axis = glm::normalize(glm::dvec3(Uniform(-1, 1), Uniform(-1, 1), Uniform(-1, 1)) + glm::dvec3(0, 0, 1e-3));
+    const glm::dvec3 axis =
+        glm::normalize(glm::dvec3(Uniform(-1, 1), Uniform(-1, 1), Uniform(-1, 1)) + glm::dvec3(0, 0, 1e-3));
     return glm::angleAxis(glm::radians(Uniform(-max_degrees, max_degrees)), axis);
   }
 
@@ -76,7 +78,8 @@ class DeepRigBuilder {
 
   glm::dvec4 Value(ChannelPath path, const Node& node) {
     if (path == ChannelPath::kTranslation)
-      return glm::dvec4(node.rest.translation + glm::dvec3(Uniform(-0.02, 0.02), Uniform(-0.02, 0.02), Uniform(-0.02, 0.02)), 0.0);
+      return glm::dvec4(
+          node.rest.translation + glm::dvec3(Uniform(-0.02, 0.02), Uniform(-0.02, 0.02), Uniform(-0.02, 0.02)), 0.0);
     if (path == ChannelPath::kScale) return glm::dvec4(Uniform(0.9, 1.1), Uniform(0.9, 1.1), Uniform(0.9, 1.1), 0.0);
     const glm::dquat q = node.rest.rotation * RandomRotation(40.0);
     const double sign = Uniform(0, 1) < 0.3 ? -1.0 : 1.0;
@@ -118,7 +121,9 @@ class DeepRigBuilder {
         const int node = NodeOf(chain, level);
         if (node == kDeepRigFixedNode) continue;
         if (chain == 4) {
-          if (level % 2 == 0) clip.channels.push_back(MakeChannel(s, node, ChannelPath::kRotation, Interpolation::kLinear, Uniform(0, 0.5)));
+          if (level % 2 == 0)
+            clip.channels.push_back(
+                MakeChannel(s, node, ChannelPath::kRotation, Interpolation::kLinear, Uniform(0, 0.5)));
           continue;
         }
         for (int p = 0; p < 3; ++p) {

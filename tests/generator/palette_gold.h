@@ -71,8 +71,8 @@ inline double ColumnNorm(const glm::dmat4& m, int c) { return glm::length(glm::d
 
 // Compares K palettes (kernel rows) with their golds; returns the worst
 // error relative to its bound, with where it is.
-inline Worst Compare(const SkinnedAsset& asset, const PackedAnimation& packed, const std::vector<AnimInstance>& instances,
-              const std::vector<float>& rows) {
+inline Worst Compare(const SkinnedAsset& asset, const PackedAnimation& packed,
+                     const std::vector<AnimInstance>& instances, const std::vector<float>& rows) {
   const std::size_t joints = packed.joints.size();
   EXPECT_EQ(rows.size(), instances.size() * joints * 12);
   Worst worst;
@@ -95,7 +95,8 @@ inline Worst Compare(const SkinnedAsset& asset, const PackedAnimation& packed, c
       if (error / bound > worst.ratio || !std::isfinite(error)) {
         char where[200];
         std::snprintf(where, sizeof where, "instance %zu (clip %d, t=%.9g; clip2 %d, t2=%.9g, w=%g), joint %zu", i,
-                      instances[i].clip, instances[i].time, instances[i].clip2, instances[i].time2, instances[i].weight, j);
+                      instances[i].clip, instances[i].time, instances[i].clip2, instances[i].time2, instances[i].weight,
+                      j);
         worst = Worst{error / bound, error, bound, where, worst.ratio_palette_only};
       }
     }
@@ -104,10 +105,12 @@ inline Worst Compare(const SkinnedAsset& asset, const PackedAnimation& packed, c
 }
 
 inline void ExpectWithinBound(const std::string& what, const Worst& worst) {
-  std::printf("[ palette  ] %s: max error / bound %.3g (error %.3g, bound %.3g at %s); without the translations "
-              "of G and IB in the bound: %.3g\n",
-              what.c_str(), worst.ratio, worst.error, worst.bound, worst.where.c_str(), worst.ratio_palette_only);
-  EXPECT_LE(worst.ratio, 1.0) << what << ": error " << worst.error << " > bound " << worst.bound << " at " << worst.where;
+  std::printf(
+      "[ palette  ] %s: max error / bound %.3g (error %.3g, bound %.3g at %s); without the translations "
+      "of G and IB in the bound: %.3g\n",
+      what.c_str(), worst.ratio, worst.error, worst.bound, worst.where.c_str(), worst.ratio_palette_only);
+  EXPECT_LE(worst.ratio, 1.0) << what << ": error " << worst.error << " > bound " << worst.bound << " at "
+                              << worst.where;
 }
 
 // ------------------------------------------------------------- the instances
@@ -151,7 +154,8 @@ inline std::vector<AnimInstance> Blends(const SkinnedAsset& asset, const PackedA
         other == kAnimRestPose ? times : TimesOf(asset.animations[static_cast<std::size_t>(packed.clips[other])]);
     for (std::size_t k = 0; k < times.size(); ++k) {
       const float w = 0.1f + 0.9f * static_cast<float>(k) / static_cast<float>(times.size() - 1);
-      instances.push_back(AnimInstance{static_cast<std::uint16_t>(c), other, times[k], times2[(k * 3 + 1) % times2.size()], w});
+      instances.push_back(
+          AnimInstance{static_cast<std::uint16_t>(c), other, times[k], times2[(k * 3 + 1) % times2.size()], w});
     }
   }
   return instances;

@@ -32,13 +32,13 @@
 namespace skintune::internal {
 namespace {
 
-using testing::DeepRig;
-using testing::TestAsset;
 using testing::Blends;
 using testing::Compare;
+using testing::DeepRig;
 using testing::EveryClipAlone;
 using testing::ExpectWithinBound;
 using testing::Name;
+using testing::TestAsset;
 
 std::vector<float> OnCpu(const PackedAnimation& packed, const std::vector<AnimInstance>& instances) {
   std::vector<float> rows(instances.size() * packed.joints.size() * 12);
@@ -87,10 +87,11 @@ class OpenClPaletteKernel {
 
   // Instance i's palette rows, as RunPaletteKernel writes them; launched with
   // work-groups of `wg` joints (the global size rounded up to it).
-  std::vector<float> Run(const PackedAnimation& packed, const std::vector<AnimInstance>& instances, std::size_t wg = 64) {
+  std::vector<float> Run(const PackedAnimation& packed, const std::vector<AnimInstance>& instances,
+                         std::size_t wg = 64) {
     const AnimationView view = packed.View();
-    std::vector<cl_mem> buffers = {Upload(BufferBytes(packed.nodes)), Upload(BufferBytes(packed.channels)),
-                                   Upload(BufferBytes(packed.times)), Upload(BufferBytes(packed.values)),
+    std::vector<cl_mem> buffers = {Upload(BufferBytes(packed.nodes)),  Upload(BufferBytes(packed.channels)),
+                                   Upload(BufferBytes(packed.times)),  Upload(BufferBytes(packed.values)),
                                    Upload(BufferBytes(packed.joints)), Upload(BufferBytes(instances))};
     const std::size_t joints = packed.joints.size();
     std::vector<float> rows(instances.size() * joints * 12);
@@ -104,7 +105,8 @@ class OpenClPaletteKernel {
     for (const cl_mem& b : buffers) Check(clSetKernelArg(kernel_, arg++, sizeof b, &b), "clSetKernelArg");
     Check(clSetKernelArg(kernel_, arg++, sizeof out, &out), "clSetKernelArg");
     const std::size_t global[2] = {(joints + wg - 1) / wg * wg, instances.size()}, local[2] = {wg, 1};
-    Check(clEnqueueNDRangeKernel(queue_, kernel_, 2, nullptr, global, local, 0, nullptr, nullptr), "clEnqueueNDRangeKernel");
+    Check(clEnqueueNDRangeKernel(queue_, kernel_, 2, nullptr, global, local, 0, nullptr, nullptr),
+          "clEnqueueNDRangeKernel");
     Check(clEnqueueReadBuffer(queue_, out, CL_TRUE, 0, rows.size() * sizeof(float), rows.data(), 0, nullptr, nullptr),
           "clEnqueueReadBuffer");
     clReleaseMemObject(out);
@@ -152,8 +154,8 @@ class OpenClPaletteKernel {
   cl_kernel kernel_ = nullptr;
 };
 
-#define SKIP_WITHOUT_OPENCL(kernel)            \
-  std::string why;                             \
+#define SKIP_WITHOUT_OPENCL(kernel)                            \
+  std::string why;                                             \
   OpenClPaletteKernel* kernel = OpenClPaletteKernel::Get(why); \
   if (kernel == nullptr) GTEST_SKIP() << why
 
@@ -190,7 +192,8 @@ TEST(PaletteKernel, OpenClMatchesTheGoldForEveryClipOfTheGltfModels) {
     const SkinnedAsset& asset = TestAsset(model);
     const PackedAnimation packed = PackAnimation(asset);
     const std::vector<AnimInstance> instances = EveryClipAlone(asset, packed);
-    ExpectWithinBound(std::string(model) + " opencl", Compare(asset, packed, instances, kernel->Run(packed, instances)));
+    ExpectWithinBound(std::string(model) + " opencl",
+                      Compare(asset, packed, instances, kernel->Run(packed, instances)));
   }
 }
 
@@ -208,7 +211,8 @@ TEST(PaletteKernel, OpenClBlendsTwoClipsInLocalSpaceLikeTheGold) {
   for (const SkinnedAsset* asset : {&TestAsset("Fox.gltf"), &TestAsset("CesiumMan.gltf"), &DeepRig()}) {
     const PackedAnimation packed = PackAnimation(*asset);
     const std::vector<AnimInstance> instances = Blends(*asset, packed);
-    ExpectWithinBound(Name(*asset) + " opencl blends", Compare(*asset, packed, instances, kernel->Run(packed, instances)));
+    ExpectWithinBound(Name(*asset) + " opencl blends",
+                      Compare(*asset, packed, instances, kernel->Run(packed, instances)));
   }
 }
 
@@ -223,8 +227,8 @@ TEST(PaletteKernel, OpenClWritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond)
   const std::size_t per_instance = packed.joints.size() * 12;
   for (std::size_t i = 0; i < instances.size(); ++i) {
     const auto first = rows.begin() + static_cast<std::ptrdiff_t>(i * per_instance);
-    const std::size_t nans = static_cast<std::size_t>(std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance),
-                                                                     [](float v) { return std::isnan(v); }));
+    const std::size_t nans = static_cast<std::size_t>(
+        std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance), [](float v) { return std::isnan(v); }));
     EXPECT_EQ(nans, i == 0 ? 0 : per_instance) << "instance " << i;
   }
 }
@@ -240,8 +244,8 @@ TEST(PaletteKernel, OutputIsThePackersMat3x4PaletteOfEachInstanceInTurn) {
                                                AnimInstance{0, kAnimRestPose, 1.5f, 0.0f, 0.0f}};
   std::vector<std::uint8_t> expected;
   for (const AnimInstance& in : instances) {
-    const std::vector<std::uint8_t> rows = PackPalette(asset.PaletteAt(in.clip == kAnimRestPose ? -1 : 0, in.time),
-                                                       ParseVariantKey("opencl.mat3x4"));
+    const std::vector<std::uint8_t> rows =
+        PackPalette(asset.PaletteAt(in.clip == kAnimRestPose ? -1 : 0, in.time), ParseVariantKey("opencl.mat3x4"));
     expected.insert(expected.end(), rows.begin(), rows.end());
   }
   const std::vector<float> rows = OnCpu(packed, instances);

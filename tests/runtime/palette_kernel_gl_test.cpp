@@ -58,8 +58,8 @@ class GlPaletteKernel {
     const AnimationView view = packed.View();
     const std::size_t joints = packed.joints.size();
     std::vector<float> rows(instances.size() * joints * 12);
-    const std::span<const std::uint8_t> inputs[] = {BufferBytes(packed.nodes), BufferBytes(packed.channels),
-                                                    BufferBytes(packed.times), BufferBytes(packed.values),
+    const std::span<const std::uint8_t> inputs[] = {BufferBytes(packed.nodes),  BufferBytes(packed.channels),
+                                                    BufferBytes(packed.times),  BufferBytes(packed.values),
                                                     BufferBytes(packed.joints), BufferBytes(instances)};
     GLuint buffers[7];
     glGenBuffers(7, buffers);
@@ -71,14 +71,16 @@ class GlPaletteKernel {
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, b, buffers[b]);
     }
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[6]);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(rows.size() * sizeof(float)), nullptr, GL_DYNAMIC_READ);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(rows.size() * sizeof(float)), nullptr,
+                 GL_DYNAMIC_READ);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, buffers[6]);
     glUseProgram(program_);
     glUniform1ui(Uniform("node_count"), static_cast<GLuint>(view.nodes.size()));
     glUniform1ui(Uniform("joint_count"), static_cast<GLuint>(joints));
     glUniform1ui(Uniform("clip_count"), view.clip_count);
     glUniform1ui(Uniform("instance_count"), static_cast<GLuint>(instances.size()));
-    glDispatchCompute((static_cast<GLuint>(joints) + kGroupSize - 1) / kGroupSize, static_cast<GLuint>(instances.size()), 1);
+    glDispatchCompute((static_cast<GLuint>(joints) + kGroupSize - 1) / kGroupSize,
+                      static_cast<GLuint>(instances.size()), 1);
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[6]);
     glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(rows.size() * sizeof(float)), rows.data());
@@ -110,7 +112,8 @@ class GlPaletteKernel {
     GLint length = 0;
     program ? glGetProgramiv(object, GL_INFO_LOG_LENGTH, &length) : glGetShaderiv(object, GL_INFO_LOG_LENGTH, &length);
     std::string log(static_cast<std::size_t>(std::max(length, 1)), '\0');
-    program ? glGetProgramInfoLog(object, length, nullptr, log.data()) : glGetShaderInfoLog(object, length, nullptr, log.data());
+    program ? glGetProgramInfoLog(object, length, nullptr, log.data())
+            : glGetShaderInfoLog(object, length, nullptr, log.data());
     return log;
   }
 
@@ -124,9 +127,9 @@ class GlPaletteKernel {
   GLuint program_ = 0;
 };
 
-#define SKIP_WITHOUT_GL(kernel)                           \
-  std::string why;                                        \
-  GlPaletteKernel* kernel = GlPaletteKernel::Get(why);    \
+#define SKIP_WITHOUT_GL(kernel)                        \
+  std::string why;                                     \
+  GlPaletteKernel* kernel = GlPaletteKernel::Get(why); \
   if (kernel == nullptr) GTEST_SKIP() << why
 
 TEST(PaletteKernelGl, MatchesTheGoldForEveryClipOfTheGltfModels) {
@@ -165,7 +168,8 @@ TEST(PaletteKernelGl, WritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
   const std::size_t per_instance = packed.joints.size() * 12;
   for (std::size_t i = 0; i < instances.size(); ++i) {
     const auto first = rows.begin() + static_cast<std::ptrdiff_t>(i * per_instance);
-    const auto nans = std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance), [](float v) { return std::isnan(v); });
+    const auto nans =
+        std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance), [](float v) { return std::isnan(v); });
     EXPECT_EQ(static_cast<std::size_t>(nans), i == 0 ? 0 : per_instance) << "instance " << i;
   }
 }
