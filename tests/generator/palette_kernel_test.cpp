@@ -25,6 +25,7 @@
 #include "generator/clip_packer.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
+#include "reference/skinning.h"
 #include "tests/common/test_asset.h"
 #include "tests/generator/deep_rig.h"
 #include "tests/generator/palette_gold.h"
@@ -89,29 +90,53 @@ class OpenClPaletteKernel {
   // work-groups of `wg` joints (the global size rounded up to it).
   std::vector<float> Run(const PackedAnimation& packed, const std::vector<AnimInstance>& instances,
                          std::size_t wg = 64) {
-    const AnimationView view = packed.View();
-    std::vector<cl_mem> buffers = {Upload(BufferBytes(packed.nodes)),  Upload(BufferBytes(packed.channels)),
-                                   Upload(BufferBytes(packed.times)),  Upload(BufferBytes(packed.values)),
-                                   Upload(BufferBytes(packed.joints)), Upload(BufferBytes(instances))};
-    const std::size_t joints = packed.joints.size();
-    std::vector<float> rows(instances.size() * joints * 12);
-    cl_int err = CL_SUCCESS;
-    cl_mem out = clCreateBuffer(context_, CL_MEM_WRITE_ONLY, rows.size() * sizeof(float), nullptr, &err);
-    Check(err, "clCreateBuffer");
-    const cl_uint scalars[] = {static_cast<cl_uint>(view.nodes.size()), static_cast<cl_uint>(joints), view.clip_count,
-                               static_cast<cl_uint>(instances.size())};
-    cl_uint arg = 0;
-    for (const cl_uint& s : scalars) Check(clSetKernelArg(kernel_, arg++, sizeof s, &s), "clSetKernelArg");
-    for (const cl_mem& b : buffers) Check(clSetKernelArg(kernel_, arg++, sizeof b, &b), "clSetKernelArg");
-    Check(clSetKernelArg(kernel_, arg++, sizeof out, &out), "clSetKernelArg");
-    const std::size_t global[2] = {(joints + wg - 1) / wg * wg, instances.size()}, local[2] = {wg, 1};
-    Check(clEnqueueNDRangeKernel(queue_, kernel_, 2, nullptr, global, local, 0, nullptr, nullptr),
-          "clEnqueueNDRangeKernel");
+    std::vector<float> rows(instances.size() * packed.joints.size() * 12);
+    const cl_mem out = LaunchPalettes(packed, instances, wg);
     Check(clEnqueueReadBuffer(queue_, out, CL_TRUE, 0, rows.size() * sizeof(float), rows.data(), 0, nullptr, nullptr),
           "clEnqueueReadBuffer");
     clReleaseMemObject(out);
-    for (cl_mem b : buffers) clReleaseMemObject(b);
     return rows;
+  }
+
+  // The instances' palettes made on the device and read there, as they are,
+  // by `skin` (an instanced kernel of `mesh`'s padded variant: one launch):
+  // the skinned positions of every instance, instance after instance.
+  std::vector<std::uint8_t> Skin(const PackedAnimation& packed, const std::vector<AnimInstance>& instances,
+                                 const PackedMesh& mesh, const KernelSource& skin) {
+    const cl_mem palettes = LaunchPalettes(packed, instances, 64);
+    const Launch& launch = mesh.launches.at(0);
+    std::vector<cl_mem> buffers = {palettes};
+    std::vector<std::uint8_t> positions(instances.size() * mesh.vertex_count * mesh.output_stride_bytes);
+    cl_int err = CL_SUCCESS;
+    const cl_mem out = clCreateBuffer(context_, CL_MEM_WRITE_ONLY, positions.size(), nullptr, &err);
+    Check(err, "clCreateBuffer");
+    buffers.push_back(out);
+    const cl_kernel kernel = SkinKernel(skin.text);
+    const cl_uint scalars[] = {launch.count, launch.first, static_cast<cl_uint>(mesh.vertex_count)};
+    cl_uint arg = 0;
+    for (const KernelArgument& a : skin.arguments) {
+      const cl_uint* scalar = a.name == "n"              ? &scalars[0]
+                              : a.name == "first"        ? &scalars[1]
+                              : a.name == "vertex_count" ? &scalars[2]
+                                                         : nullptr;
+      cl_mem buffer = a.name == "palette" ? palettes : a.name == "out_positions" ? out : nullptr;
+      for (const PackedBuffer& input : launch.inputs)
+        if (input.name == a.name) buffers.push_back(buffer = Upload(input.bytes));
+      if (scalar)
+        Check(clSetKernelArg(kernel, arg++, sizeof *scalar, scalar), "clSetKernelArg");
+      else if (buffer)
+        Check(clSetKernelArg(kernel, arg++, sizeof buffer, &buffer), "clSetKernelArg");
+      else
+        throw std::runtime_error("no value for the skin kernel's argument " + a.name);
+    }
+    const std::size_t wg = static_cast<std::size_t>(skin.launch.wg_size);
+    const std::size_t global[2] = {skin.launch.GlobalItems(launch.count), instances.size()}, local[2] = {wg, 1};
+    Check(clEnqueueNDRangeKernel(queue_, kernel, 2, nullptr, global, local, 0, nullptr, nullptr), "skin launch");
+    Check(clEnqueueReadBuffer(queue_, out, CL_TRUE, 0, positions.size(), positions.data(), 0, nullptr, nullptr),
+          "clEnqueueReadBuffer");
+    clReleaseKernel(kernel);
+    for (cl_mem b : buffers) clReleaseMemObject(b);
+    return positions;
   }
 
  private:
@@ -135,6 +160,45 @@ class OpenClPaletteKernel {
     }
     kernel_ = clCreateKernel(program_, "skintune_palette", &err);
     Check(err, "clCreateKernel");
+  }
+
+  // Enqueues the palette kernel over `instances`; returns its output buffer
+  // (the caller releases it).
+  cl_mem LaunchPalettes(const PackedAnimation& packed, const std::vector<AnimInstance>& instances, std::size_t wg) {
+    const AnimationView view = packed.View();
+    std::vector<cl_mem> buffers = {Upload(BufferBytes(packed.nodes)),  Upload(BufferBytes(packed.channels)),
+                                   Upload(BufferBytes(packed.times)),  Upload(BufferBytes(packed.values)),
+                                   Upload(BufferBytes(packed.joints)), Upload(BufferBytes(instances))};
+    const std::size_t joints = packed.joints.size();
+    cl_int err = CL_SUCCESS;
+    cl_mem out = clCreateBuffer(context_, CL_MEM_READ_WRITE, instances.size() * joints * 48, nullptr, &err);
+    Check(err, "clCreateBuffer");
+    const cl_uint scalars[] = {static_cast<cl_uint>(view.nodes.size()), static_cast<cl_uint>(joints), view.clip_count,
+                               static_cast<cl_uint>(instances.size())};
+    cl_uint arg = 0;
+    for (const cl_uint& s : scalars) Check(clSetKernelArg(kernel_, arg++, sizeof s, &s), "clSetKernelArg");
+    for (const cl_mem& b : buffers) Check(clSetKernelArg(kernel_, arg++, sizeof b, &b), "clSetKernelArg");
+    Check(clSetKernelArg(kernel_, arg++, sizeof out, &out), "clSetKernelArg");
+    const std::size_t global[2] = {(joints + wg - 1) / wg * wg, instances.size()}, local[2] = {wg, 1};
+    Check(clEnqueueNDRangeKernel(queue_, kernel_, 2, nullptr, global, local, 0, nullptr, nullptr),
+          "clEnqueueNDRangeKernel");
+    Check(clFinish(queue_), "clFinish");
+    for (cl_mem b : buffers) clReleaseMemObject(b);
+    return out;
+  }
+
+  // The kernel "skin" of an emitted skin kernel's text.
+  cl_kernel SkinKernel(const std::string& text) {
+    const char* source = text.c_str();
+    const std::size_t length = text.size();
+    cl_int err = CL_SUCCESS;
+    const cl_program program = clCreateProgramWithSource(context_, 1, &source, &length, &err);
+    Check(err, "clCreateProgramWithSource");
+    Check(clBuildProgram(program, 1, &device_, "-cl-std=CL1.2", nullptr, nullptr), "building the skin kernel");
+    const cl_kernel kernel = clCreateKernel(program, "skin", &err);
+    Check(err, "clCreateKernel skin");
+    clReleaseProgram(program);  // the kernel keeps it
+    return kernel;
   }
 
   // A read-only buffer of `bytes` (at least 16: OpenCL has no empty buffers).
@@ -255,6 +319,33 @@ TEST(PaletteKernel, OutputIsThePackersMat3x4PaletteOfEachInstanceInTurn) {
     std::memcpy(&want, expected.data() + 4 * k, 4);
     EXPECT_NEAR(rows[k], want, 1e-5) << "float " << k << ": instance " << k / (packed.joints.size() * 12) << ", joint "
                                      << k / 12 % packed.joints.size() << ", row " << k / 4 % 3 << ", column " << k % 4;
+  }
+}
+
+// The point of the layout: an instanced skin kernel reads the palette
+// kernel's output buffer on the device as it is, and skins every instance
+// like the float64 gold skins the mesh with that instance's host palette.
+TEST(PaletteKernel, OpenClSkinKernelReadsThePalettesOnTheDeviceAsTheyAre) {
+  SKIP_WITHOUT_OPENCL(kernel);
+  const SkinnedAsset& asset = TestAsset("CesiumMan.gltf");
+  const PackedAnimation packed = PackAnimation(asset);
+  const Variant variant = ParseVariantKey("opencl.aos.mat3x4.global");
+  const PackedMesh mesh = Pack(asset.mesh, variant);
+  const KernelSource skin = Emit(variant, 0, static_cast<int>(packed.joints.size()), EmitOptions{.instanced = true});
+  const std::vector<AnimInstance> instances = {AnimInstance{0, kAnimRestPose, 0.3f, 0.0f, 0.0f},
+                                               AnimInstance{kAnimRestPose, kAnimRestPose, 0.0f, 0.0f, 0.0f},
+                                               AnimInstance{0, kAnimRestPose, 1.7f, 0.0f, 0.0f}};
+  const std::vector<std::uint8_t> positions = kernel->Skin(packed, instances, mesh, skin);
+  const std::size_t bytes = mesh.vertex_count * mesh.output_stride_bytes;
+  for (std::size_t i = 0; i < instances.size(); ++i) {
+    const std::vector<glm::vec3> out = Unpack(mesh, std::span<const std::uint8_t>(positions).subspan(i * bytes, bytes));
+    const int clip = instances[i].clip == kAnimRestPose ? -1 : 0;
+    const GoldComparison c =
+        CompareToGold(SkinGold(asset.mesh, asset.PaletteAt(clip, instances[i].time)).positions, out);
+    std::printf("[ palette  ] CesiumMan.gltf instance %zu skinned from device palettes: max relative error %.3g\n", i,
+                c.max_relative);
+    EXPECT_EQ(c.non_finite, 0u) << "instance " << i;
+    EXPECT_LT(c.max_relative, 1e-5) << "instance " << i << " vertex " << c.worst_vertex;
   }
 }
 
