@@ -6,7 +6,8 @@
 //
 // Bindings, in palette.cl's argument order: shader storage buffers 0 nodes,
 // 1 channels, 2 times, 3 values, 4 joints, 5 instances, 6 palette (output);
-// uniforms node_count, joint_count, clip_count, instance_count.
+// uniforms node_count, joint_count, clip_count, instance_count (Vulkan: a
+// push-constant block of the four, in that order).
 // glDispatchCompute(ceil(joint_count / 64), instance_count, 1): invocation
 // (j, i), j = gl_GlobalInvocationID.x, i = gl_WorkGroupID.y, writes instance
 // i's joint j as three vec4 rows at (i * joint_count + j) * 3 + r. An
@@ -23,10 +24,22 @@ layout(std430, binding = 4) readonly buffer Joints { vec4 joints[]; };
 layout(std430, binding = 5) readonly buffer Instances { uvec4 instances[]; };
 layout(std430, binding = 6) writeonly buffer Palette { vec4 palette[]; };
 
+#ifdef VULKAN
+// Vulkan (GL_KHR_vulkan_glsl predefines VULKAN): no loose uniforms there, so
+// the scalars are one push-constant block, bytes 0, 4, 8, 12; the buffers are
+// descriptor set 0 at the bindings above.
+layout(push_constant) uniform PaletteScalars {
+  uint node_count;
+  uint joint_count;
+  uint clip_count;
+  uint instance_count;
+};
+#else
 uniform uint node_count;
 uniform uint joint_count;
 uniform uint clip_count;
 uniform uint instance_count;
+#endif
 
 const uint kRestPose = 0xffffu;
 

@@ -18,6 +18,7 @@
 #include "generator/clip_packer.h"
 #include "generator/emit.h"
 #include "runtime/backends/gl/gl_context.h"
+#include "runtime/backends/vulkan/vulkan_spirv.h"
 #include "tests/common/test_asset.h"
 #include "tests/generator/deep_rig.h"
 #include "tests/generator/palette_gold.h"
@@ -172,6 +173,15 @@ TEST(PaletteKernelGl, WritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
         std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance), [](float v) { return std::isnan(v); });
     EXPECT_EQ(static_cast<std::size_t>(nans), i == 0 ? 0 : per_instance) << "instance " << i;
   }
+}
+
+// The same shader is Vulkan's (its scalars a push-constant block): it
+// compiles to SPIR-V with glslang, as the skin kernels do for Vulkan. Not run
+// on a Vulkan device yet.
+TEST(PaletteKernelVulkan, CompilesToSpirvWithGlslang) {
+  const std::vector<std::uint32_t> spirv = vk::CompileSpirv(ExpandedTemplate("palette.comp"), "palette.comp");
+  ASSERT_GT(spirv.size(), 5u);
+  EXPECT_EQ(spirv[0], 0x07230203u);  // the SPIR-V magic number
 }
 
 }  // namespace
