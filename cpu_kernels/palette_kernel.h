@@ -1,0 +1,99 @@
+// skintune: the palette kernel, animation that lives on the device.
+//
+// A model's animation is packed once (generator/clip_packer.h) into the flat
+// buffers below; each frame the kernel turns every instance's (clip, time,
+// second clip, blend weight) into its bone palette: it samples the clips'
+// channels (glTF 2.0 STEP, LINEAR, CUBICSPLINE, as model/animation.cpp does),
+// blends the two clips in local space, composes each joint's global transform
+// through the node hierarchy and applies the inverse bind matrix. The output
+// is the `mat3x4` palette the skin kernels read (docs/VARIANTS.md), K
+// instances' palettes one after another, so a skin kernel can read it as it is.
+//
+// This file holds the layout (docs/ANIMATION.md is its byte-level
+// description) and the CPU device's kernel, in float32 as a GPU computes it;
+// templates/palette.cl is the same algorithm for OpenCL.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+
+namespace skintune::internal {
+
+enum class AnimInterpolation : std::uint32_t { kStep = 0, kLinear = 1, kCubicSpline = 2 };
+enum class AnimPath : std::uint32_t { kTranslation = 0, kRotation = 1, kScale = 2 };
+inline constexpr std::uint32_t kAnimPaths = 3;
+// As a clip index: no clip, the skeleton's rest pose. Clip indices are 16-bit
+// (AnimInstance), so at most kAnimMaxClips clips are packed.
+inline constexpr std::uint16_t kAnimRestPose = 0xffff;
+inline constexpr std::uint32_t kAnimMaxClips = 0xffff;
+// Float4 rows per joint of the output palette (`mat3x4`).
+inline constexpr std::size_t kAnimPaletteRows = 3;
+
+// Buffer elements, each the bytes one element of a device buffer holds (all
+// 32-bit little-endian words; a std::vector of them is the buffer).
+//
+// `nodes`: one per node, in the skeleton's node order.
+struct AnimNodeRecord {
+  std::int32_t parent = -1;  // -1 for a root
+  std::uint32_t fixed = 0;   // 1: a glTF `matrix` node (never animated), rows = that matrix
+  std::uint32_t reserved[2] = {0, 0};
+  // fixed 0: the rest TRS: translation (x, y, z, 0), rotation (x, y, z, w)
+  // normalised, scale (x, y, z, 0). fixed 1: the matrix's three rows.
+  float rows[3][4] = {};
+};
+// `channels`: one per (clip, node, path), at (clip * node_count + node) * 3 + path.
+struct AnimChannelHeader {
+  std::uint32_t interpolation = 0;  // AnimInterpolation
+  std::uint32_t key_count = 0;      // 0: the clip does not animate it (the rest value holds)
+  std::uint32_t time_offset = 0;    // index of its first key in `times`
+  std::uint32_t value_offset = 0;   // index of its first value in `values` (float4s)
+};
+// `joints`: one per joint of the skin.
+struct AnimJointRecord {
+  std::int32_t node = 0;  // the joint's node
+  std::uint32_t reserved[3] = {0, 0, 0};
+  float inverse_bind[3][4] = {};  // rows of the affine inverse bind matrix
+};
+// `instances`: one per instance, 16 bytes: two clips, each at its own time,
+// blended in local space.
+struct AnimInstance {
+  std::uint16_t clip = 0;               // packed clip index, or kAnimRestPose
+  std::uint16_t clip2 = kAnimRestPose;  // second clip, or kAnimRestPose; read only when weight != 0
+  float time = 0.0f;                    // seconds of `clip` (its own key times; clamped to its first and last key)
+  float time2 = 0.0f;                   // seconds of `clip2`
+  float weight = 0.0f;                  // clip2's blend weight in [0, 1]: local = lerp(clip's, clip2's, weight)
+};
+static_assert(sizeof(AnimNodeRecord) == 64 && sizeof(AnimChannelHeader) == 16 && sizeof(AnimJointRecord) == 64 &&
+              sizeof(AnimInstance) == 16);
+
+// The packed animation as the kernel reads it: views of the buffers.
+struct AnimationView {
+  std::uint32_t clip_count = 0;
+  std::span<const AnimNodeRecord> nodes;
+  std::span<const AnimChannelHeader> channels;  // clip_count * nodes * 3
+  std::span<const float> times;
+  std::span<const float> values;  // 4 floats per value
+  std::span<const AnimJointRecord> joints;
+};
+
+// Throws Error naming the element for buffers an outside program could have
+// packed wrong: a channel table not of clip_count * nodes * 3 headers, an
+// interpolation outside 0..2, keys beyond `times` or values beyond `values`
+// (CUBICSPLINE: 3 values per key), keys not strictly increasing or not
+// finite, a parent or joint node out of range, a cycle, no joints.
+void ValidateAnimation(const AnimationView& animation);
+// Throws Error("instances[I]: ...") for a clip or clip2 (when weight != 0)
+// neither below clip_count nor kAnimRestPose, a time, time2 or weight that
+// is not finite, a weight outside [0, 1].
+void ValidateAnimInstances(const AnimationView& animation, std::span<const AnimInstance> instances);
+
+// Writes instances.size() * joints * 3 float4 rows to `palette`: instance i's
+// joint j row r at float4 (i * joints + j) * 3 + r. Validates the instances
+// (ValidateAnimInstances, cheap); the animation must have passed
+// ValidateAnimation once (PackAnimation's has), which this does not repeat
+// per frame.
+void RunPaletteKernel(const AnimationView& animation, std::span<const AnimInstance> instances, float* palette);
+
+}  // namespace skintune::internal

@@ -1,0 +1,68 @@
+// skintune: the clip packer turns a model's skeleton, skin and animation
+// clips into the flat buffers the palette kernel reads
+// (cpu_kernels/palette_kernel.h; every byte in docs/ANIMATION.md), once per
+// model, so that each frame uploads only 16 bytes per instance instead of
+// its palette. packer.h does the same for meshes.
+//
+// What is packed: per node its parent and rest TRS (or its fixed matrix);
+// per (clip, node, path) a channel header; the key times and float4 values
+// of every translation, rotation and scale channel of the chosen clips; per
+// joint its node and inverse bind matrix (3x4). What is not: `weights`
+// channels (morph target weights move vertices before skinning, not bones;
+// PackedAnimation::not_packed names each one left out).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cpu_kernels/palette_kernel.h"
+#include "model/asset.h"
+
+namespace skintune::internal {
+
+// Limits beyond which a packing is refused as absurd (Error naming the
+// element): node and joint counts as a batch's palette indices allow, clips
+// as AnimInstance's 16-bit clip index allows, and 32-bit offsets.
+inline constexpr std::size_t kAnimMaxNodes = 65536;
+inline constexpr std::size_t kAnimMaxJoints = 65536;
+inline constexpr std::size_t kAnimMaxHeaders = std::size_t{1} << 26;  // clips x nodes x 3 (1 GiB of headers)
+inline constexpr std::size_t kAnimMaxKeys = 0x7fffffff;               // times, and float4 values, in all
+
+struct PackedAnimation {
+  std::string source;                       // the asset's, for messages
+  std::vector<int> clips;                   // packed clip c is asset.animations[clips[c]]
+  std::vector<AnimNodeRecord> nodes;        // buffer `nodes`
+  std::vector<AnimChannelHeader> channels;  // buffer `channels`: clips x nodes x 3
+  std::vector<float> times;                 // buffer `times`
+  std::vector<float> values;                // buffer `values`: 4 floats per value
+  std::vector<AnimJointRecord> joints;      // buffer `joints`
+  // Each channel left out and why ("animations[0] 'Wave': channels[3]
+  // (weights of node 2): morph target weights are not part of the palette").
+  std::vector<std::string> not_packed;
+
+  AnimationView View() const;
+  std::size_t Bytes() const;  // of the five buffers together
+};
+
+// Packs `clips` (indices into asset.animations; packed clip c is clips[c]).
+// Throws Error("<source>: ...") naming the element for: a clip index out of
+// range, more than kAnimMaxClips clips, an invalid skeleton or clip
+// (Skeleton::Validate, AnimationClip::Validate), counts beyond the limits
+// above, two channels of a clip on the same node and path (glTF forbids it),
+// a channel on a node with a fixed matrix (glTF forbids it; the gold ignores
+// it), an inverse bind or fixed matrix whose last row is not 0 0 0 1 (the
+// palette is 3x4), or a value beyond float32's range.
+PackedAnimation PackAnimation(const SkinnedAsset& asset, std::span<const int> clips);
+// Every clip of the asset, in order.
+PackedAnimation PackAnimation(const SkinnedAsset& asset);
+
+// The bytes of one buffer of a PackedAnimation (or of instances), as uploaded.
+template <typename T>
+std::span<const std::uint8_t> BufferBytes(const std::vector<T>& buffer) {
+  return {reinterpret_cast<const std::uint8_t*>(buffer.data()), buffer.size() * sizeof(T)};
+}
+
+}  // namespace skintune::internal

@@ -1,0 +1,166 @@
+// skintune: the palette kernel (OpenCL C 1.2): every instance's bone palette
+// from an animation packed once (generator/clip_packer.h; the buffers'
+// bytes: docs/ANIMATION.md). cpu_kernels/palette_kernel.cpp is the same
+// algorithm in C++ (the cpu device's kernel), function for function; its
+// opening comment says why one item per (instance, joint) that walks up
+// its ancestors, and how sampling follows model/animation.cpp.
+//
+// Launch: a 2-D NDRange, dimension 0 the joint (global size joint_count
+// rounded up to the work-group size; any work-group size), dimension 1 the
+// instance (global size instance_count). Item (j, i) writes instance i's
+// joint j as three float4 rows at (i * joint_count + j) * 3 + r: the
+// `mat3x4` palette the skin kernels read, K palettes one after another.
+// An instance whose clip index is neither a packed clip nor 0xffff (the
+// rest pose) gets NaN rows instead of a read out of bounds.
+
+#define ANIM_REST_POSE 0xffffu
+
+typedef struct {
+  float4 row0, row1, row2;  // an affine transform's rows (x, y, z | translation)
+} Affine;
+
+typedef struct {
+  float4 t, r, s;  // translation, rotation (x, y, z, w), scale
+} Trs;
+
+Affine anim_multiply(const Affine a, const Affine b) {
+  const float4 unit_w = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+  Affine c;
+  c.row0 = a.row0.x * b.row0 + a.row0.y * b.row1 + a.row0.z * b.row2 + a.row0.w * unit_w;
+  c.row1 = a.row1.x * b.row0 + a.row1.y * b.row1 + a.row1.z * b.row2 + a.row1.w * unit_w;
+  c.row2 = a.row2.x * b.row0 + a.row2.y * b.row1 + a.row2.z * b.row2 + a.row2.w * unit_w;
+  return c;
+}
+
+float4 anim_normalize_quat(const float4 q) {
+  const float length = sqrt(dot(q, q));
+  return length > 0.0f ? q / length : q;
+}
+
+// Shortest-path spherical interpolation of two (x, y, z, w) quaternions.
+float4 anim_slerp(const float4 a, float4 b, const float u) {
+  float cos_theta = dot(a, b);
+  if (cos_theta < 0.0f) {  // q and -q are the same rotation: take the short way
+    b = -b;
+    cos_theta = -cos_theta;
+  }
+  if (cos_theta > 1.0f - 1e-6f) return anim_normalize_quat(a + u * (b - a));
+  const float theta = acos(fmin(cos_theta, 1.0f));
+  const float sin_theta = sin(theta);
+  return anim_normalize_quat((sin((1.0f - u) * theta) / sin_theta) * a + (sin(u * theta) / sin_theta) * b);
+}
+
+// The value of a channel with keys (h: interpolation, key count, time offset,
+// value offset) at time t; rotations not yet normalised.
+float4 anim_sample_channel(__global const float* restrict times_all, __global const float4* restrict values_all,
+                           const uint4 h, const int rotation, const float t) {
+  __global const float* times = times_all + h.z;
+  __global const float4* values = values_all + h.w;
+  const uint n = h.y;
+  const int cubic = h.x == 2u;
+  const uint per_key = cubic ? 3u : 1u, middle = cubic ? 1u : 0u;  // CUBICSPLINE: in, value, out
+  if (n == 1u || !(t > times[0])) return values[middle];
+  if (t >= times[n - 1u]) return values[(n - 1u) * per_key + middle];
+  uint lo = 0u, hi = n - 1u;  // times[lo] <= t < times[hi]
+  while (hi - lo > 1u) {
+    const uint mid = (lo + hi) / 2u;
+    if (times[mid] <= t)
+      lo = mid;
+    else
+      hi = mid;
+  }
+  const float interval = times[hi] - times[lo];
+  const float u = (t - times[lo]) / interval;
+  if (h.x == 0u) return values[lo];
+  if (!cubic) return rotation ? anim_slerp(values[lo], values[hi], u) : values[lo] + u * (values[hi] - values[lo]);
+  const float4 p0 = values[3u * lo + 1u], m0 = interval * values[3u * lo + 2u];
+  const float4 p1 = values[3u * hi + 1u], m1 = interval * values[3u * hi];
+  const float u2 = u * u, u3 = u2 * u;
+  return (2.0f * u3 - 3.0f * u2 + 1.0f) * p0 + (u3 - 2.0f * u2 + u) * m0 + (-2.0f * u3 + 3.0f * u2) * p1 +
+         (u3 - u2) * m1;
+}
+
+// Node `node`'s local TRS in `clip` at time t: its rest values, overwritten
+// by the clip's channels.
+Trs anim_sample_local(const uint node_count, __global const float4* restrict nodes,
+                      __global const uint4* restrict channels, __global const float* restrict times,
+                      __global const float4* restrict values, const uint node, const uint clip, const float t) {
+  Trs x;
+  x.t = nodes[4u * node + 1u];
+  x.r = nodes[4u * node + 2u];
+  x.s = nodes[4u * node + 3u];
+  if (clip == ANIM_REST_POSE) return x;
+  __global const uint4* h = channels + (clip * node_count + node) * 3u;
+  const uint4 ht = h[0], hr = h[1], hs = h[2];
+  if (ht.y > 0u) x.t = anim_sample_channel(times, values, ht, 0, t);
+  if (hr.y > 0u) x.r = anim_normalize_quat(anim_sample_channel(times, values, hr, 1, t));
+  if (hs.y > 0u) x.s = anim_sample_channel(times, values, hs, 0, t);
+  return x;
+}
+
+// T * R * S as rows, from a normalised (x, y, z, w) rotation.
+Affine anim_to_affine(const Trs x) {
+  const float4 q = x.r;
+  const float xx = q.x * q.x, yy = q.y * q.y, zz = q.z * q.z;
+  const float xy = q.x * q.y, xz = q.x * q.z, yz = q.y * q.z, wx = q.w * q.x, wy = q.w * q.y, wz = q.w * q.z;
+  Affine m;
+  m.row0 = (float4)((1.0f - 2.0f * (yy + zz)) * x.s.x, 2.0f * (xy - wz) * x.s.y, 2.0f * (xz + wy) * x.s.z, x.t.x);
+  m.row1 = (float4)(2.0f * (xy + wz) * x.s.x, (1.0f - 2.0f * (xx + zz)) * x.s.y, 2.0f * (yz - wx) * x.s.z, x.t.y);
+  m.row2 = (float4)(2.0f * (xz - wy) * x.s.x, 2.0f * (yz + wx) * x.s.y, (1.0f - 2.0f * (xx + yy)) * x.s.z, x.t.z);
+  return m;
+}
+
+// Node `node`'s local transform for an instance (in: clips, time, time2,
+// weight): a fixed matrix, or its TRS in clip, blended towards clip2's by
+// weight (T, S lerped; R nlerped along the shortest path).
+Affine anim_local(const uint node_count, __global const float4* restrict nodes, __global const uint4* restrict channels,
+                  __global const float* restrict times, __global const float4* restrict values, const uint node,
+                  const uint4 in) {
+  if (as_uint(nodes[4u * node].y) != 0u) {
+    Affine m;
+    m.row0 = nodes[4u * node + 1u];
+    m.row1 = nodes[4u * node + 2u];
+    m.row2 = nodes[4u * node + 3u];
+    return m;
+  }
+  Trs x = anim_sample_local(node_count, nodes, channels, times, values, node, in.x & 0xffffu, as_float(in.y));
+  const float w = as_float(in.w);
+  if (w != 0.0f) {
+    const Trs y = anim_sample_local(node_count, nodes, channels, times, values, node, in.x >> 16, as_float(in.z));
+    x.t += w * (y.t - x.t);
+    x.s += w * (y.s - x.s);
+    const float4 r2 = dot(x.r, y.r) < 0.0f ? -y.r : y.r;
+    x.r = anim_normalize_quat(x.r + w * (r2 - x.r));
+  }
+  return anim_to_affine(x);
+}
+
+int anim_clip_valid(const uint clip, const uint clip_count) { return clip == ANIM_REST_POSE || clip < clip_count; }
+
+__kernel void skintune_palette(const uint node_count, const uint joint_count, const uint clip_count,
+                               const uint instance_count, __global const float4* restrict nodes,
+                               __global const uint4* restrict channels, __global const float* restrict times,
+                               __global const float4* restrict values, __global const float4* restrict joints,
+                               __global const uint4* restrict instances, __global float4* restrict palette) {
+  const uint j = (uint)get_global_id(0), i = (uint)get_global_id(1);
+  if (j >= joint_count || i >= instance_count) return;
+  const uint4 in = instances[i];
+  __global float4* out = palette + ((size_t)i * joint_count + j) * 3u;
+  if (!anim_clip_valid(in.x & 0xffffu, clip_count) ||
+      (as_float(in.w) != 0.0f && !anim_clip_valid(in.x >> 16, clip_count))) {
+    out[0] = out[1] = out[2] = (float4)(NAN);
+    return;
+  }
+  uint node = as_uint(joints[4u * j].x);
+  Affine m = anim_local(node_count, nodes, channels, times, values, node, in);
+  for (int p = as_int(nodes[4u * node].x); p >= 0; p = as_int(nodes[4u * (uint)p].x))
+    m = anim_multiply(anim_local(node_count, nodes, channels, times, values, (uint)p, in), m);
+  Affine inverse_bind;
+  inverse_bind.row0 = joints[4u * j + 1u];
+  inverse_bind.row1 = joints[4u * j + 2u];
+  inverse_bind.row2 = joints[4u * j + 3u];
+  m = anim_multiply(m, inverse_bind);
+  out[0] = m.row0;
+  out[1] = m.row1;
+  out[2] = m.row2;
+}

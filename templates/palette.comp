@@ -1,0 +1,173 @@
+#version 430 core
+// skintune: the palette kernel as a GL 4.3 compute shader, the twin of
+// templates/palette.cl (same buffers, bytes and algorithm; the layout:
+// docs/ANIMATION.md; why one invocation per (instance, joint):
+// cpu_kernels/palette_kernel.cpp).
+//
+// Bindings, in palette.cl's argument order: shader storage buffers 0 nodes,
+// 1 channels, 2 times, 3 values, 4 joints, 5 instances, 6 palette (output);
+// uniforms node_count, joint_count, clip_count, instance_count (Vulkan: a
+// push-constant block of the four, in that order).
+// glDispatchCompute(ceil(joint_count / 64), instance_count, 1): invocation
+// (j, i), j = gl_GlobalInvocationID.x, i = gl_WorkGroupID.y, writes instance
+// i's joint j as three vec4 rows at (i * joint_count + j) * 3 + r. An
+// instance whose clip index is neither a packed clip nor 0xffff (the rest
+// pose) gets NaN rows.
+
+layout(local_size_x = 64) in;
+
+layout(std430, binding = 0) readonly buffer Nodes { vec4 nodes[]; };
+layout(std430, binding = 1) readonly buffer Channels { uvec4 channels[]; };
+layout(std430, binding = 2) readonly buffer Times { float times[]; };
+layout(std430, binding = 3) readonly buffer Values { vec4 values[]; };
+layout(std430, binding = 4) readonly buffer Joints { vec4 joints[]; };
+layout(std430, binding = 5) readonly buffer Instances { uvec4 instances[]; };
+layout(std430, binding = 6) writeonly buffer Palette { vec4 palette[]; };
+
+#ifdef VULKAN
+// Vulkan (GL_KHR_vulkan_glsl predefines VULKAN): no loose uniforms there, so
+// the scalars are one push-constant block, bytes 0, 4, 8, 12; the buffers are
+// descriptor set 0 at the bindings above.
+layout(push_constant) uniform PaletteScalars {
+  uint node_count;
+  uint joint_count;
+  uint clip_count;
+  uint instance_count;
+};
+#else
+uniform uint node_count;
+uniform uint joint_count;
+uniform uint clip_count;
+uniform uint instance_count;
+#endif
+
+const uint kRestPose = 0xffffu;
+
+struct Affine {
+  vec4 row0, row1, row2;  // an affine transform's rows (x, y, z | translation)
+};
+
+struct Trs {
+  vec4 t, r, s;  // translation, rotation (x, y, z, w), scale
+};
+
+Affine anim_multiply(Affine a, Affine b) {
+  const vec4 unit_w = vec4(0.0, 0.0, 0.0, 1.0);
+  Affine c;
+  c.row0 = a.row0.x * b.row0 + a.row0.y * b.row1 + a.row0.z * b.row2 + a.row0.w * unit_w;
+  c.row1 = a.row1.x * b.row0 + a.row1.y * b.row1 + a.row1.z * b.row2 + a.row1.w * unit_w;
+  c.row2 = a.row2.x * b.row0 + a.row2.y * b.row1 + a.row2.z * b.row2 + a.row2.w * unit_w;
+  return c;
+}
+
+vec4 anim_normalize_quat(vec4 q) {
+  float length = sqrt(dot(q, q));
+  return length > 0.0 ? q / length : q;
+}
+
+// Shortest-path spherical interpolation of two (x, y, z, w) quaternions.
+vec4 anim_slerp(vec4 a, vec4 b, float u) {
+  float cos_theta = dot(a, b);
+  if (cos_theta < 0.0) {  // q and -q are the same rotation: take the short way
+    b = -b;
+    cos_theta = -cos_theta;
+  }
+  if (cos_theta > 1.0 - 1e-6) return anim_normalize_quat(a + u * (b - a));
+  float theta = acos(min(cos_theta, 1.0));
+  float sin_theta = sin(theta);
+  return anim_normalize_quat((sin((1.0 - u) * theta) / sin_theta) * a + (sin(u * theta) / sin_theta) * b);
+}
+
+// The value of a channel with keys (h: interpolation, key count, time offset,
+// value offset) at time t; rotations not yet normalised.
+vec4 anim_sample_channel(uvec4 h, bool rotation, float t) {
+  uint n = h.y, t0 = h.z, v0 = h.w;
+  bool cubic = h.x == 2u;
+  uint per_key = cubic ? 3u : 1u, middle = cubic ? 1u : 0u;  // CUBICSPLINE: in, value, out
+  if (n == 1u || !(t > times[t0])) return values[v0 + middle];
+  if (t >= times[t0 + n - 1u]) return values[v0 + (n - 1u) * per_key + middle];
+  uint lo = 0u, hi = n - 1u;  // times[lo] <= t < times[hi]
+  while (hi - lo > 1u) {
+    uint mid = (lo + hi) / 2u;
+    if (times[t0 + mid] <= t) lo = mid;
+    else hi = mid;
+  }
+  float interval = times[t0 + hi] - times[t0 + lo];
+  float u = (t - times[t0 + lo]) / interval;
+  if (h.x == 0u) return values[v0 + lo];
+  if (!cubic) {
+    vec4 a = values[v0 + lo], b = values[v0 + hi];
+    return rotation ? anim_slerp(a, b, u) : a + u * (b - a);
+  }
+  vec4 p0 = values[v0 + 3u * lo + 1u], m0 = interval * values[v0 + 3u * lo + 2u];
+  vec4 p1 = values[v0 + 3u * hi + 1u], m1 = interval * values[v0 + 3u * hi];
+  float u2 = u * u, u3 = u2 * u;
+  return (2.0 * u3 - 3.0 * u2 + 1.0) * p0 + (u3 - 2.0 * u2 + u) * m0 + (-2.0 * u3 + 3.0 * u2) * p1 + (u3 - u2) * m1;
+}
+
+// Node `node`'s local TRS in `clip` at time t: its rest values, overwritten
+// by the clip's channels.
+Trs anim_sample_local(uint node, uint clip, float t) {
+  Trs x = Trs(nodes[4u * node + 1u], nodes[4u * node + 2u], nodes[4u * node + 3u]);
+  if (clip == kRestPose) return x;
+  uint h = (clip * node_count + node) * 3u;
+  uvec4 ht = channels[h], hr = channels[h + 1u], hs = channels[h + 2u];
+  if (ht.y > 0u) x.t = anim_sample_channel(ht, false, t);
+  if (hr.y > 0u) x.r = anim_normalize_quat(anim_sample_channel(hr, true, t));
+  if (hs.y > 0u) x.s = anim_sample_channel(hs, false, t);
+  return x;
+}
+
+// T * R * S as rows, from a normalised (x, y, z, w) rotation.
+Affine anim_to_affine(Trs x) {
+  vec4 q = x.r;
+  float xx = q.x * q.x, yy = q.y * q.y, zz = q.z * q.z;
+  float xy = q.x * q.y, xz = q.x * q.z, yz = q.y * q.z, wx = q.w * q.x, wy = q.w * q.y, wz = q.w * q.z;
+  Affine m;
+  m.row0 = vec4((1.0 - 2.0 * (yy + zz)) * x.s.x, 2.0 * (xy - wz) * x.s.y, 2.0 * (xz + wy) * x.s.z, x.t.x);
+  m.row1 = vec4(2.0 * (xy + wz) * x.s.x, (1.0 - 2.0 * (xx + zz)) * x.s.y, 2.0 * (yz - wx) * x.s.z, x.t.y);
+  m.row2 = vec4(2.0 * (xz - wy) * x.s.x, 2.0 * (yz + wx) * x.s.y, (1.0 - 2.0 * (xx + yy)) * x.s.z, x.t.z);
+  return m;
+}
+
+// Node `node`'s local transform for an instance (in: clips, time, time2,
+// weight): a fixed matrix, or its TRS in clip, blended towards clip2's by
+// weight (T, S lerped; R nlerped along the shortest path).
+Affine anim_local(uint node, uvec4 in_) {
+  if (floatBitsToUint(nodes[4u * node].y) != 0u)
+    return Affine(nodes[4u * node + 1u], nodes[4u * node + 2u], nodes[4u * node + 3u]);
+  Trs x = anim_sample_local(node, in_.x & 0xffffu, uintBitsToFloat(in_.y));
+  float w = uintBitsToFloat(in_.w);
+  if (w != 0.0) {
+    Trs y = anim_sample_local(node, in_.x >> 16, uintBitsToFloat(in_.z));
+    x.t += w * (y.t - x.t);
+    x.s += w * (y.s - x.s);
+    vec4 r2 = dot(x.r, y.r) < 0.0 ? -y.r : y.r;
+    x.r = anim_normalize_quat(x.r + w * (r2 - x.r));
+  }
+  return anim_to_affine(x);
+}
+
+bool anim_clip_valid(uint clip) { return clip == kRestPose || clip < clip_count; }
+
+void main() {
+  uint j = gl_GlobalInvocationID.x, i = gl_WorkGroupID.y;
+  if (j >= joint_count || i >= instance_count) return;
+  uvec4 in_ = instances[i];
+  uint out_ = (i * joint_count + j) * 3u;
+  if (!anim_clip_valid(in_.x & 0xffffu) || (uintBitsToFloat(in_.w) != 0.0 && !anim_clip_valid(in_.x >> 16))) {
+    vec4 nan = vec4(uintBitsToFloat(0x7fc00000u));
+    palette[out_] = nan;
+    palette[out_ + 1u] = nan;
+    palette[out_ + 2u] = nan;
+    return;
+  }
+  uint node = floatBitsToUint(joints[4u * j].x);
+  Affine m = anim_local(node, in_);
+  for (int p = floatBitsToInt(nodes[4u * node].x); p >= 0; p = floatBitsToInt(nodes[4u * uint(p)].x))
+    m = anim_multiply(anim_local(uint(p), in_), m);
+  m = anim_multiply(m, Affine(joints[4u * j + 1u], joints[4u * j + 2u], joints[4u * j + 3u]));
+  palette[out_] = m.row0;
+  palette[out_ + 1u] = m.row1;
+  palette[out_ + 2u] = m.row2;
+}

@@ -1,0 +1,188 @@
+// skintune: the palette kernel in CUDA C++ for NVRTC, the twin of
+// templates/palette.cl (same buffers, argument order and algorithm; the
+// buffers' bytes: docs/ANIMATION.md; why one item per (instance, joint):
+// cpu_kernels/palette_kernel.cpp). No system headers: NVRTC provides float4,
+// uint4 and the float intrinsics; the float4 arithmetic OpenCL has built in
+// is the few operators below.
+//
+// Launch: grid (ceil(joint_count / B), instance_count), blocks of (B, 1)
+// threads for any B; thread (j, i) with j = blockIdx.x * B + threadIdx.x,
+// i = blockIdx.y writes instance i's joint j as three float4 rows at
+// (i * joint_count + j) * 3 + r. An instance whose clip index is neither a
+// packed clip nor 0xffff (the rest pose) gets NaN rows.
+
+#define ANIM_REST_POSE 0xffffu
+
+__device__ __forceinline__ float4 operator+(const float4 a, const float4 b) {
+  return make_float4(a.x + b.x, a.y + b.y, a.z + b.z, a.w + b.w);
+}
+__device__ __forceinline__ float4 operator-(const float4 a, const float4 b) {
+  return make_float4(a.x - b.x, a.y - b.y, a.z - b.z, a.w - b.w);
+}
+__device__ __forceinline__ float4 operator-(const float4 a) { return make_float4(-a.x, -a.y, -a.z, -a.w); }
+__device__ __forceinline__ float4 operator*(const float s, const float4 a) {
+  return make_float4(s * a.x, s * a.y, s * a.z, s * a.w);
+}
+__device__ __forceinline__ float dot4(const float4 a, const float4 b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w;
+}
+
+struct Affine {
+  float4 row0, row1, row2;  // an affine transform's rows (x, y, z | translation)
+};
+
+struct Trs {
+  float4 t, r, s;  // translation, rotation (x, y, z, w), scale
+};
+
+__device__ Affine anim_multiply(const Affine& a, const Affine& b) {
+  const float4 unit_w = make_float4(0.0f, 0.0f, 0.0f, 1.0f);
+  Affine c;
+  c.row0 = a.row0.x * b.row0 + a.row0.y * b.row1 + a.row0.z * b.row2 + a.row0.w * unit_w;
+  c.row1 = a.row1.x * b.row0 + a.row1.y * b.row1 + a.row1.z * b.row2 + a.row1.w * unit_w;
+  c.row2 = a.row2.x * b.row0 + a.row2.y * b.row1 + a.row2.z * b.row2 + a.row2.w * unit_w;
+  return c;
+}
+
+__device__ float4 anim_normalize_quat(const float4 q) {
+  const float length = sqrtf(dot4(q, q));
+  return length > 0.0f ? (1.0f / length) * q : q;
+}
+
+// Shortest-path spherical interpolation of two (x, y, z, w) quaternions.
+__device__ float4 anim_slerp(const float4 a, float4 b, const float u) {
+  float cos_theta = dot4(a, b);
+  if (cos_theta < 0.0f) {  // q and -q are the same rotation: take the short way
+    b = -b;
+    cos_theta = -cos_theta;
+  }
+  if (cos_theta > 1.0f - 1e-6f) return anim_normalize_quat(a + u * (b - a));
+  const float theta = acosf(fminf(cos_theta, 1.0f));
+  const float sin_theta = sinf(theta);
+  return anim_normalize_quat((sinf((1.0f - u) * theta) / sin_theta) * a + (sinf(u * theta) / sin_theta) * b);
+}
+
+// The value of a channel with keys (h: interpolation, key count, time offset,
+// value offset) at time t; rotations not yet normalised.
+__device__ float4 anim_sample_channel(const float* __restrict__ times_all, const float4* __restrict__ values_all,
+                                      const uint4 h, const bool rotation, const float t) {
+  const float* times = times_all + h.z;
+  const float4* values = values_all + h.w;
+  const unsigned n = h.y;
+  const bool cubic = h.x == 2u;
+  const unsigned per_key = cubic ? 3u : 1u, middle = cubic ? 1u : 0u;  // CUBICSPLINE: in, value, out
+  if (n == 1u || !(t > times[0])) return values[middle];
+  if (t >= times[n - 1u]) return values[(n - 1u) * per_key + middle];
+  unsigned lo = 0u, hi = n - 1u;  // times[lo] <= t < times[hi]
+  while (hi - lo > 1u) {
+    const unsigned mid = (lo + hi) / 2u;
+    if (times[mid] <= t)
+      lo = mid;
+    else
+      hi = mid;
+  }
+  const float interval = times[hi] - times[lo];
+  const float u = (t - times[lo]) / interval;
+  if (h.x == 0u) return values[lo];
+  if (!cubic) return rotation ? anim_slerp(values[lo], values[hi], u) : values[lo] + u * (values[hi] - values[lo]);
+  const float4 p0 = values[3u * lo + 1u], m0 = interval * values[3u * lo + 2u];
+  const float4 p1 = values[3u * hi + 1u], m1 = interval * values[3u * hi];
+  const float u2 = u * u, u3 = u2 * u;
+  return (2.0f * u3 - 3.0f * u2 + 1.0f) * p0 + (u3 - 2.0f * u2 + u) * m0 + (-2.0f * u3 + 3.0f * u2) * p1 +
+         (u3 - u2) * m1;
+}
+
+// The packed animation, as the kernel's arguments give it.
+struct Animation {
+  unsigned node_count;
+  const float4* __restrict__ nodes;
+  const uint4* __restrict__ channels;
+  const float* __restrict__ times;
+  const float4* __restrict__ values;
+};
+
+// Node `node`'s local TRS in `clip` at time t: its rest values, overwritten
+// by the clip's channels.
+__device__ Trs anim_sample_local(const Animation& a, const unsigned node, const unsigned clip, const float t) {
+  Trs x;
+  x.t = a.nodes[4u * node + 1u];
+  x.r = a.nodes[4u * node + 2u];
+  x.s = a.nodes[4u * node + 3u];
+  if (clip == ANIM_REST_POSE) return x;
+  const uint4* h = a.channels + (clip * a.node_count + node) * 3u;
+  const uint4 ht = h[0], hr = h[1], hs = h[2];
+  if (ht.y > 0u) x.t = anim_sample_channel(a.times, a.values, ht, false, t);
+  if (hr.y > 0u) x.r = anim_normalize_quat(anim_sample_channel(a.times, a.values, hr, true, t));
+  if (hs.y > 0u) x.s = anim_sample_channel(a.times, a.values, hs, false, t);
+  return x;
+}
+
+// T * R * S as rows, from a normalised (x, y, z, w) rotation.
+__device__ Affine anim_to_affine(const Trs& x) {
+  const float4 q = x.r;
+  const float xx = q.x * q.x, yy = q.y * q.y, zz = q.z * q.z;
+  const float xy = q.x * q.y, xz = q.x * q.z, yz = q.y * q.z, wx = q.w * q.x, wy = q.w * q.y, wz = q.w * q.z;
+  Affine m;
+  m.row0 = make_float4((1.0f - 2.0f * (yy + zz)) * x.s.x, 2.0f * (xy - wz) * x.s.y, 2.0f * (xz + wy) * x.s.z, x.t.x);
+  m.row1 = make_float4(2.0f * (xy + wz) * x.s.x, (1.0f - 2.0f * (xx + zz)) * x.s.y, 2.0f * (yz - wx) * x.s.z, x.t.y);
+  m.row2 = make_float4(2.0f * (xz - wy) * x.s.x, 2.0f * (yz + wx) * x.s.y, (1.0f - 2.0f * (xx + yy)) * x.s.z, x.t.z);
+  return m;
+}
+
+// Node `node`'s local transform for an instance (in: clips, time, time2,
+// weight): a fixed matrix, or its TRS in clip, blended towards clip2's by
+// weight (T, S lerped; R nlerped along the shortest path).
+__device__ Affine anim_local(const Animation& a, const unsigned node, const uint4 in) {
+  if (__float_as_uint(a.nodes[4u * node].y) != 0u) {
+    Affine m;
+    m.row0 = a.nodes[4u * node + 1u];
+    m.row1 = a.nodes[4u * node + 2u];
+    m.row2 = a.nodes[4u * node + 3u];
+    return m;
+  }
+  Trs x = anim_sample_local(a, node, in.x & 0xffffu, __uint_as_float(in.y));
+  const float w = __uint_as_float(in.w);
+  if (w != 0.0f) {
+    const Trs y = anim_sample_local(a, node, in.x >> 16, __uint_as_float(in.z));
+    x.t = x.t + w * (y.t - x.t);
+    x.s = x.s + w * (y.s - x.s);
+    const float4 r2 = dot4(x.r, y.r) < 0.0f ? -y.r : y.r;
+    x.r = anim_normalize_quat(x.r + w * (r2 - x.r));
+  }
+  return anim_to_affine(x);
+}
+
+__device__ bool anim_clip_valid(const unsigned clip, const unsigned clip_count) {
+  return clip == ANIM_REST_POSE || clip < clip_count;
+}
+
+extern "C" __global__ void skintune_palette(const unsigned node_count, const unsigned joint_count,
+                                            const unsigned clip_count, const unsigned instance_count,
+                                            const float4* __restrict__ nodes, const uint4* __restrict__ channels,
+                                            const float* __restrict__ times, const float4* __restrict__ values,
+                                            const float4* __restrict__ joints, const uint4* __restrict__ instances,
+                                            float4* __restrict__ palette) {
+  const unsigned j = blockIdx.x * blockDim.x + threadIdx.x, i = blockIdx.y;
+  if (j >= joint_count || i >= instance_count) return;
+  const uint4 in = instances[i];
+  float4* out = palette + ((unsigned long long)i * joint_count + j) * 3u;
+  if (!anim_clip_valid(in.x & 0xffffu, clip_count) ||
+      (__uint_as_float(in.w) != 0.0f && !anim_clip_valid(in.x >> 16, clip_count))) {
+    const float nan = __int_as_float(0x7fffffff);
+    out[0] = out[1] = out[2] = make_float4(nan, nan, nan, nan);
+    return;
+  }
+  const Animation a = {node_count, nodes, channels, times, values};
+  const unsigned node = __float_as_uint(joints[4u * j].x);
+  Affine m = anim_local(a, node, in);
+  for (int p = __float_as_int(nodes[4u * node].x); p >= 0; p = __float_as_int(nodes[4u * (unsigned)p].x))
+    m = anim_multiply(anim_local(a, (unsigned)p, in), m);
+  Affine inverse_bind;
+  inverse_bind.row0 = joints[4u * j + 1u];
+  inverse_bind.row1 = joints[4u * j + 2u];
+  inverse_bind.row2 = joints[4u * j + 3u];
+  m = anim_multiply(m, inverse_bind);
+  out[0] = m.row0;
+  out[1] = m.row1;
+  out[2] = m.row2;
+}

@@ -1,0 +1,377 @@
+// The palette kernel (cpu_kernels/palette_kernel.h on the CPU, templates/palette.cl
+// on the first OpenCL device) against the float64 gold: the model's own sampling
+// (SkinnedAsset::PoseAt) and composition (Skeleton::PaletteD).
+//
+// The bound and the instances (times before, on, between and after keys;
+// blends): tests/generator/palette_gold.h.
+#include <gtest/gtest.h>
+#define CL_TARGET_OPENCL_VERSION 120  // clCreateCommandQueue, as runtime/backends/opencl does
+#include <CL/cl.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include "base/error.h"
+#include "cpu_kernels/palette_kernel.h"
+#include "generator/clip_packer.h"
+#include "generator/emit.h"
+#include "generator/packer.h"
+#include "reference/skinning.h"
+#include "tests/common/test_asset.h"
+#include "tests/generator/deep_rig.h"
+#include "tests/generator/palette_gold.h"
+
+namespace skintune::internal {
+namespace {
+
+using testing::Blends;
+using testing::Compare;
+using testing::DeepRig;
+using testing::EveryClipAlone;
+using testing::ExpectWithinBound;
+using testing::Name;
+using testing::TestAsset;
+
+std::vector<float> OnCpu(const PackedAnimation& packed, const std::vector<AnimInstance>& instances) {
+  std::vector<float> rows(instances.size() * packed.joints.size() * 12);
+  RunPaletteKernel(packed.View(), instances, rows.data());
+  return rows;
+}
+
+// ------------------------------------------------------------- OpenCL
+
+void Check(cl_int err, const char* what) {
+  if (err != CL_SUCCESS) throw std::runtime_error(std::string(what) + " failed: " + std::to_string(err));
+}
+
+// templates/palette.cl built once on the first OpenCL device (PoCL here).
+class OpenClPaletteKernel {
+ public:
+  // Null, with the reason in `why`, without an OpenCL device.
+  static OpenClPaletteKernel* Get(std::string& why) {
+    static std::string reason;
+    static const std::unique_ptr<OpenClPaletteKernel> kernel = [] {
+      cl_uint count = 0;
+      if (clGetPlatformIDs(0, nullptr, &count) != CL_SUCCESS || count == 0) {
+        reason = "no OpenCL platform on this machine";
+        return std::unique_ptr<OpenClPaletteKernel>();
+      }
+      std::vector<cl_platform_id> platforms(count);
+      clGetPlatformIDs(count, platforms.data(), nullptr);
+      for (cl_platform_id platform : platforms) {
+        cl_device_id device = nullptr;
+        if (clGetDeviceIDs(platform, CL_DEVICE_TYPE_ALL, 1, &device, nullptr) == CL_SUCCESS)
+          return std::unique_ptr<OpenClPaletteKernel>(new OpenClPaletteKernel(device));
+      }
+      reason = "no OpenCL device on this machine";
+      return std::unique_ptr<OpenClPaletteKernel>();
+    }();
+    why = reason;
+    return kernel.get();
+  }
+
+  ~OpenClPaletteKernel() {
+    clReleaseKernel(kernel_);
+    clReleaseProgram(program_);
+    clReleaseCommandQueue(queue_);
+    clReleaseContext(context_);
+  }
+
+  // Instance i's palette rows, as RunPaletteKernel writes them; launched with
+  // work-groups of `wg` joints (the global size rounded up to it).
+  std::vector<float> Run(const PackedAnimation& packed, const std::vector<AnimInstance>& instances,
+                         std::size_t wg = 64) {
+    std::vector<float> rows(instances.size() * packed.joints.size() * 12);
+    const cl_mem out = LaunchPalettes(packed, instances, wg);
+    Check(clEnqueueReadBuffer(queue_, out, CL_TRUE, 0, rows.size() * sizeof(float), rows.data(), 0, nullptr, nullptr),
+          "clEnqueueReadBuffer");
+    clReleaseMemObject(out);
+    return rows;
+  }
+
+  // The instances' palettes made on the device and read there, as they are,
+  // by `skin` (an instanced kernel of `mesh`'s padded variant: one launch):
+  // the skinned positions of every instance, instance after instance.
+  std::vector<std::uint8_t> Skin(const PackedAnimation& packed, const std::vector<AnimInstance>& instances,
+                                 const PackedMesh& mesh, const KernelSource& skin) {
+    const cl_mem palettes = LaunchPalettes(packed, instances, 64);
+    const Launch& launch = mesh.launches.at(0);
+    std::vector<cl_mem> buffers = {palettes};
+    std::vector<std::uint8_t> positions(instances.size() * mesh.vertex_count * mesh.output_stride_bytes);
+    cl_int err = CL_SUCCESS;
+    const cl_mem out = clCreateBuffer(context_, CL_MEM_WRITE_ONLY, positions.size(), nullptr, &err);
+    Check(err, "clCreateBuffer");
+    buffers.push_back(out);
+    const cl_kernel kernel = SkinKernel(skin.text);
+    const cl_uint scalars[] = {launch.count, launch.first, static_cast<cl_uint>(mesh.vertex_count)};
+    cl_uint arg = 0;
+    for (const KernelArgument& a : skin.arguments) {
+      const cl_uint* scalar = a.name == "n"              ? &scalars[0]
+                              : a.name == "first"        ? &scalars[1]
+                              : a.name == "vertex_count" ? &scalars[2]
+                                                         : nullptr;
+      cl_mem buffer = a.name == "palette" ? palettes : a.name == "out_positions" ? out : nullptr;
+      for (const PackedBuffer& input : launch.inputs)
+        if (input.name == a.name) buffers.push_back(buffer = Upload(input.bytes));
+      if (scalar)
+        Check(clSetKernelArg(kernel, arg++, sizeof *scalar, scalar), "clSetKernelArg");
+      else if (buffer)
+        Check(clSetKernelArg(kernel, arg++, sizeof buffer, &buffer), "clSetKernelArg");
+      else
+        throw std::runtime_error("no value for the skin kernel's argument " + a.name);
+    }
+    const std::size_t wg = static_cast<std::size_t>(skin.launch.wg_size);
+    const std::size_t global[2] = {skin.launch.GlobalItems(launch.count), instances.size()}, local[2] = {wg, 1};
+    Check(clEnqueueNDRangeKernel(queue_, kernel, 2, nullptr, global, local, 0, nullptr, nullptr), "skin launch");
+    Check(clEnqueueReadBuffer(queue_, out, CL_TRUE, 0, positions.size(), positions.data(), 0, nullptr, nullptr),
+          "clEnqueueReadBuffer");
+    clReleaseKernel(kernel);
+    for (cl_mem b : buffers) clReleaseMemObject(b);
+    return positions;
+  }
+
+ private:
+  explicit OpenClPaletteKernel(cl_device_id device) : device_(device) {
+    cl_int err = CL_SUCCESS;
+    context_ = clCreateContext(nullptr, 1, &device_, nullptr, nullptr, &err);
+    Check(err, "clCreateContext");
+    queue_ = clCreateCommandQueue(context_, device_, 0, &err);
+    Check(err, "clCreateCommandQueue");
+    const std::string text = ExpandedTemplate("palette.cl");
+    const char* source = text.c_str();
+    const std::size_t length = text.size();
+    program_ = clCreateProgramWithSource(context_, 1, &source, &length, &err);
+    Check(err, "clCreateProgramWithSource");
+    if (clBuildProgram(program_, 1, &device_, "-cl-std=CL1.2", nullptr, nullptr) != CL_SUCCESS) {
+      std::size_t size = 0;
+      clGetProgramBuildInfo(program_, device_, CL_PROGRAM_BUILD_LOG, 0, nullptr, &size);
+      std::string log(size, '\0');
+      clGetProgramBuildInfo(program_, device_, CL_PROGRAM_BUILD_LOG, size, log.data(), nullptr);
+      throw std::runtime_error("palette.cl does not build: " + log);
+    }
+    kernel_ = clCreateKernel(program_, "skintune_palette", &err);
+    Check(err, "clCreateKernel");
+  }
+
+  // Enqueues the palette kernel over `instances`; returns its output buffer
+  // (the caller releases it).
+  cl_mem LaunchPalettes(const PackedAnimation& packed, const std::vector<AnimInstance>& instances, std::size_t wg) {
+    const AnimationView view = packed.View();
+    std::vector<cl_mem> buffers = {Upload(BufferBytes(packed.nodes)),  Upload(BufferBytes(packed.channels)),
+                                   Upload(BufferBytes(packed.times)),  Upload(BufferBytes(packed.values)),
+                                   Upload(BufferBytes(packed.joints)), Upload(BufferBytes(instances))};
+    const std::size_t joints = packed.joints.size();
+    cl_int err = CL_SUCCESS;
+    cl_mem out = clCreateBuffer(context_, CL_MEM_READ_WRITE, instances.size() * joints * 48, nullptr, &err);
+    Check(err, "clCreateBuffer");
+    const cl_uint scalars[] = {static_cast<cl_uint>(view.nodes.size()), static_cast<cl_uint>(joints), view.clip_count,
+                               static_cast<cl_uint>(instances.size())};
+    cl_uint arg = 0;
+    for (const cl_uint& s : scalars) Check(clSetKernelArg(kernel_, arg++, sizeof s, &s), "clSetKernelArg");
+    for (const cl_mem& b : buffers) Check(clSetKernelArg(kernel_, arg++, sizeof b, &b), "clSetKernelArg");
+    Check(clSetKernelArg(kernel_, arg++, sizeof out, &out), "clSetKernelArg");
+    const std::size_t global[2] = {(joints + wg - 1) / wg * wg, instances.size()}, local[2] = {wg, 1};
+    Check(clEnqueueNDRangeKernel(queue_, kernel_, 2, nullptr, global, local, 0, nullptr, nullptr),
+          "clEnqueueNDRangeKernel");
+    Check(clFinish(queue_), "clFinish");
+    for (cl_mem b : buffers) clReleaseMemObject(b);
+    return out;
+  }
+
+  // The kernel "skin" of an emitted skin kernel's text.
+  cl_kernel SkinKernel(const std::string& text) {
+    const char* source = text.c_str();
+    const std::size_t length = text.size();
+    cl_int err = CL_SUCCESS;
+    const cl_program program = clCreateProgramWithSource(context_, 1, &source, &length, &err);
+    Check(err, "clCreateProgramWithSource");
+    Check(clBuildProgram(program, 1, &device_, "-cl-std=CL1.2", nullptr, nullptr), "building the skin kernel");
+    const cl_kernel kernel = clCreateKernel(program, "skin", &err);
+    Check(err, "clCreateKernel skin");
+    clReleaseProgram(program);  // the kernel keeps it
+    return kernel;
+  }
+
+  // A read-only buffer of `bytes` (at least 16: OpenCL has no empty buffers).
+  cl_mem Upload(std::span<const std::uint8_t> bytes) {
+    std::vector<std::uint8_t> padded(bytes.begin(), bytes.end());
+    padded.resize(std::max<std::size_t>(padded.size(), 16), 0);
+    cl_int err = CL_SUCCESS;
+    cl_mem b = clCreateBuffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, padded.size(), padded.data(), &err);
+    Check(err, "clCreateBuffer");
+    return b;
+  }
+
+  cl_device_id device_ = nullptr;
+  cl_context context_ = nullptr;
+  cl_command_queue queue_ = nullptr;
+  cl_program program_ = nullptr;
+  cl_kernel kernel_ = nullptr;
+};
+
+#define SKIP_WITHOUT_OPENCL(kernel)                            \
+  std::string why;                                             \
+  OpenClPaletteKernel* kernel = OpenClPaletteKernel::Get(why); \
+  if (kernel == nullptr) GTEST_SKIP() << why
+
+const char* const kModels[] = {"CesiumMan.gltf", "Fox.gltf", "RiggedSimple.gltf"};
+
+// ------------------------------------------------------------- the tests
+
+TEST(PaletteKernel, CpuMatchesTheGoldForEveryClipOfTheGltfModels) {
+  for (const char* model : kModels) {
+    const SkinnedAsset& asset = TestAsset(model);
+    const PackedAnimation packed = PackAnimation(asset);
+    const std::vector<AnimInstance> instances = EveryClipAlone(asset, packed);
+    ExpectWithinBound(std::string(model) + " cpu", Compare(asset, packed, instances, OnCpu(packed, instances)));
+  }
+}
+
+TEST(PaletteKernel, CpuMatchesTheGoldOnADeepRigWithEveryInterpolation) {
+  const PackedAnimation packed = PackAnimation(DeepRig());
+  const std::vector<AnimInstance> instances = EveryClipAlone(DeepRig(), packed);
+  ExpectWithinBound("deep rig cpu", Compare(DeepRig(), packed, instances, OnCpu(packed, instances)));
+}
+
+TEST(PaletteKernel, CpuBlendsTwoClipsInLocalSpaceLikeTheGold) {
+  for (const SkinnedAsset* asset : {&TestAsset("Fox.gltf"), &TestAsset("CesiumMan.gltf"), &DeepRig()}) {
+    const PackedAnimation packed = PackAnimation(*asset);
+    const std::vector<AnimInstance> instances = Blends(*asset, packed);
+    ExpectWithinBound(Name(*asset) + " cpu blends", Compare(*asset, packed, instances, OnCpu(packed, instances)));
+  }
+}
+
+TEST(PaletteKernel, OpenClMatchesTheGoldForEveryClipOfTheGltfModels) {
+  SKIP_WITHOUT_OPENCL(kernel);
+  for (const char* model : kModels) {
+    const SkinnedAsset& asset = TestAsset(model);
+    const PackedAnimation packed = PackAnimation(asset);
+    const std::vector<AnimInstance> instances = EveryClipAlone(asset, packed);
+    ExpectWithinBound(std::string(model) + " opencl",
+                      Compare(asset, packed, instances, kernel->Run(packed, instances)));
+  }
+}
+
+TEST(PaletteKernel, OpenClMatchesTheGoldOnADeepRigWithEveryInterpolation) {
+  SKIP_WITHOUT_OPENCL(kernel);
+  const PackedAnimation packed = PackAnimation(DeepRig());
+  const std::vector<AnimInstance> instances = EveryClipAlone(DeepRig(), packed);
+  ExpectWithinBound("deep rig opencl", Compare(DeepRig(), packed, instances, kernel->Run(packed, instances)));
+  // Work-groups of 32 over 321 joints: the last group's items beyond the joints write nothing.
+  ExpectWithinBound("deep rig opencl wg32", Compare(DeepRig(), packed, instances, kernel->Run(packed, instances, 32)));
+}
+
+TEST(PaletteKernel, OpenClBlendsTwoClipsInLocalSpaceLikeTheGold) {
+  SKIP_WITHOUT_OPENCL(kernel);
+  for (const SkinnedAsset* asset : {&TestAsset("Fox.gltf"), &TestAsset("CesiumMan.gltf"), &DeepRig()}) {
+    const PackedAnimation packed = PackAnimation(*asset);
+    const std::vector<AnimInstance> instances = Blends(*asset, packed);
+    ExpectWithinBound(Name(*asset) + " opencl blends",
+                      Compare(*asset, packed, instances, kernel->Run(packed, instances)));
+  }
+}
+
+TEST(PaletteKernel, OpenClWritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
+  SKIP_WITHOUT_OPENCL(kernel);
+  const SkinnedAsset& asset = TestAsset("Fox.gltf");
+  const PackedAnimation packed = PackAnimation(asset);
+  const std::vector<AnimInstance> instances = {AnimInstance{1, kAnimRestPose, 0.5f, 0.0f, 0.0f},
+                                               AnimInstance{3, kAnimRestPose, 0.5f, 0.0f, 0.0f},
+                                               AnimInstance{0, 7, 0.5f, 0.5f, 0.5f}};
+  const std::vector<float> rows = kernel->Run(packed, instances);
+  const std::size_t per_instance = packed.joints.size() * 12;
+  for (std::size_t i = 0; i < instances.size(); ++i) {
+    const auto first = rows.begin() + static_cast<std::ptrdiff_t>(i * per_instance);
+    const std::size_t nans = static_cast<std::size_t>(
+        std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance), [](float v) { return std::isnan(v); }));
+    EXPECT_EQ(nans, i == 0 ? 0 : per_instance) << "instance " << i;
+  }
+}
+
+// What a skin kernel reads: the packer's mat3x4 palette rows (PackPalette of
+// the host's float32 palette, SkinnedAsset::PaletteAt), K instances one after
+// another, element for element, from the palette kernel as it is.
+TEST(PaletteKernel, OutputIsThePackersMat3x4PaletteOfEachInstanceInTurn) {
+  const SkinnedAsset& asset = TestAsset("CesiumMan.gltf");
+  const PackedAnimation packed = PackAnimation(asset);
+  const std::vector<AnimInstance> instances = {AnimInstance{0, kAnimRestPose, 0.25f, 0.0f, 0.0f},
+                                               AnimInstance{kAnimRestPose, kAnimRestPose, 0.0f, 0.0f, 0.0f},
+                                               AnimInstance{0, kAnimRestPose, 1.5f, 0.0f, 0.0f}};
+  std::vector<std::uint8_t> expected;
+  for (const AnimInstance& in : instances) {
+    const std::vector<std::uint8_t> rows =
+        PackPalette(asset.PaletteAt(in.clip == kAnimRestPose ? -1 : 0, in.time), ParseVariantKey("opencl.mat3x4"));
+    expected.insert(expected.end(), rows.begin(), rows.end());
+  }
+  const std::vector<float> rows = OnCpu(packed, instances);
+  ASSERT_EQ(rows.size() * sizeof(float), expected.size());
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    float want = 0.0f;
+    std::memcpy(&want, expected.data() + 4 * k, 4);
+    EXPECT_NEAR(rows[k], want, 1e-5) << "float " << k << ": instance " << k / (packed.joints.size() * 12) << ", joint "
+                                     << k / 12 % packed.joints.size() << ", row " << k / 4 % 3 << ", column " << k % 4;
+  }
+}
+
+// The point of the layout: an instanced skin kernel reads the palette
+// kernel's output buffer on the device as it is, and skins every instance
+// like the float64 gold skins the mesh with that instance's host palette.
+TEST(PaletteKernel, OpenClSkinKernelReadsThePalettesOnTheDeviceAsTheyAre) {
+  SKIP_WITHOUT_OPENCL(kernel);
+  const SkinnedAsset& asset = TestAsset("CesiumMan.gltf");
+  const PackedAnimation packed = PackAnimation(asset);
+  const Variant variant = ParseVariantKey("opencl.aos.mat3x4.global");
+  const PackedMesh mesh = Pack(asset.mesh, variant);
+  const KernelSource skin = Emit(variant, 0, static_cast<int>(packed.joints.size()), EmitOptions{.instanced = true});
+  const std::vector<AnimInstance> instances = {AnimInstance{0, kAnimRestPose, 0.3f, 0.0f, 0.0f},
+                                               AnimInstance{kAnimRestPose, kAnimRestPose, 0.0f, 0.0f, 0.0f},
+                                               AnimInstance{0, kAnimRestPose, 1.7f, 0.0f, 0.0f}};
+  const std::vector<std::uint8_t> positions = kernel->Skin(packed, instances, mesh, skin);
+  const std::size_t bytes = mesh.vertex_count * mesh.output_stride_bytes;
+  for (std::size_t i = 0; i < instances.size(); ++i) {
+    const std::vector<glm::vec3> out = Unpack(mesh, std::span<const std::uint8_t>(positions).subspan(i * bytes, bytes));
+    const int clip = instances[i].clip == kAnimRestPose ? -1 : 0;
+    const GoldComparison c =
+        CompareToGold(SkinGold(asset.mesh, asset.PaletteAt(clip, instances[i].time)).positions, out);
+    std::printf("[ palette  ] CesiumMan.gltf instance %zu skinned from device palettes: max relative error %.3g\n", i,
+                c.max_relative);
+    EXPECT_EQ(c.non_finite, 0u) << "instance " << i;
+    EXPECT_LT(c.max_relative, 1e-5) << "instance " << i << " vertex " << c.worst_vertex;
+  }
+}
+
+TEST(PaletteKernel, CpuRefusesBadInstancesNamingTheInstanceAndField) {
+  const PackedAnimation packed = PackAnimation(TestAsset("Fox.gltf"));  // 3 clips
+  auto error_of = [&](const AnimInstance& bad) {
+    const std::vector<AnimInstance> instances = {AnimInstance{}, bad};
+    std::vector<float> rows(instances.size() * packed.joints.size() * 12);
+    try {
+      RunPaletteKernel(packed.View(), instances, rows.data());
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(error_of(AnimInstance{3, kAnimRestPose, 0.0f, 0.0f, 0.0f}),
+            "instances[1]: clip 3 out of range (3 clips packed; 65535 is the rest pose)");
+  EXPECT_EQ(error_of(AnimInstance{0, 9, 0.0f, 0.0f, 0.5f}),
+            "instances[1]: clip2 9 out of range (3 clips packed; 65535 is the rest pose)");
+  EXPECT_EQ(error_of(AnimInstance{0, kAnimRestPose, NAN, 0.0f, 0.0f}), "instances[1]: time nan is not finite");
+  EXPECT_EQ(error_of(AnimInstance{0, 1, 0.0f, INFINITY, 0.5f}), "instances[1]: time2 inf is not finite");
+  EXPECT_EQ(error_of(AnimInstance{0, 1, 0.0f, 0.0f, 1.5f}), "instances[1]: weight 1.5 outside [0, 1]");
+  EXPECT_EQ(error_of(AnimInstance{0, 1, 0.0f, 0.0f, NAN}), "instances[1]: weight nan is not finite");
+  // clip2 and time2 are not read at weight 0: whatever they hold is no error.
+  EXPECT_EQ(error_of(AnimInstance{0, 9, 0.0f, NAN, 0.0f}), "no error");
+}
+
+}  // namespace
+}  // namespace skintune::internal

@@ -1,0 +1,188 @@
+// templates/palette.comp, the palette kernel as a GL 4.3 compute shader
+// (docs/ANIMATION.md), run through EGL on the machine's GL driver (Mesa
+// llvmpipe here) against the float64 gold, as tests/generator/
+// palette_kernel_test.cpp runs the CPU and OpenCL kernels (the same bound,
+// the same instances: tests/generator/palette_gold.h). Every test skips, with
+// the reason, when no EGL / GL 4.3 core context can be made.
+#include <gtest/gtest.h>
+
+#include <epoxy/gl.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "generator/clip_packer.h"
+#include "generator/emit.h"
+#include "runtime/backends/gl/gl_context.h"
+#include "runtime/backends/vulkan/vulkan_spirv.h"
+#include "tests/common/test_asset.h"
+#include "tests/generator/deep_rig.h"
+#include "tests/generator/palette_gold.h"
+
+namespace skintune::internal {
+namespace {
+
+using testing::Blends;
+using testing::Compare;
+using testing::DeepRig;
+using testing::EveryClipAlone;
+using testing::ExpectWithinBound;
+using testing::Name;
+using testing::TestAsset;
+
+constexpr GLuint kGroupSize = 64;  // palette.comp's local_size_x
+
+// palette.comp compiled and linked once, in one GL context for the program.
+class GlPaletteKernel {
+ public:
+  // Null, with the reason in `why`, without a GL 4.3 context.
+  static GlPaletteKernel* Get(std::string& why) {
+    static std::string reason;
+    static const std::unique_ptr<GlPaletteKernel> kernel = [] {
+      auto context = std::make_unique<GlContext>();
+      if (!context->ok()) {
+        reason = "no GL 4.3 context: " + context->reason();
+        return std::unique_ptr<GlPaletteKernel>();
+      }
+      return std::unique_ptr<GlPaletteKernel>(new GlPaletteKernel(std::move(context)));
+    }();
+    why = reason;
+    return kernel.get();
+  }
+
+  // The palette rows of `instances`, as RunPaletteKernel writes them.
+  std::vector<float> Run(const PackedAnimation& packed, const std::vector<AnimInstance>& instances) {
+    const AnimationView view = packed.View();
+    const std::size_t joints = packed.joints.size();
+    std::vector<float> rows(instances.size() * joints * 12);
+    const std::span<const std::uint8_t> inputs[] = {BufferBytes(packed.nodes),  BufferBytes(packed.channels),
+                                                    BufferBytes(packed.times),  BufferBytes(packed.values),
+                                                    BufferBytes(packed.joints), BufferBytes(instances)};
+    GLuint buffers[7];
+    glGenBuffers(7, buffers);
+    for (GLuint b = 0; b < 6; ++b) {
+      std::vector<std::uint8_t> padded(inputs[b].begin(), inputs[b].end());
+      padded.resize(std::max<std::size_t>(padded.size(), 16), 0);  // no empty buffers
+      glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[b]);
+      glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(padded.size()), padded.data(), GL_STATIC_DRAW);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, b, buffers[b]);
+    }
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[6]);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(rows.size() * sizeof(float)), nullptr,
+                 GL_DYNAMIC_READ);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, buffers[6]);
+    glUseProgram(program_);
+    glUniform1ui(Uniform("node_count"), static_cast<GLuint>(view.nodes.size()));
+    glUniform1ui(Uniform("joint_count"), static_cast<GLuint>(joints));
+    glUniform1ui(Uniform("clip_count"), view.clip_count);
+    glUniform1ui(Uniform("instance_count"), static_cast<GLuint>(instances.size()));
+    glDispatchCompute((static_cast<GLuint>(joints) + kGroupSize - 1) / kGroupSize,
+                      static_cast<GLuint>(instances.size()), 1);
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[6]);
+    glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(rows.size() * sizeof(float)), rows.data());
+    glDeleteBuffers(7, buffers);
+    if (const GLenum error = glGetError(); error != GL_NO_ERROR)
+      throw std::runtime_error("GL error " + std::to_string(error) + " running palette.comp");
+    return rows;
+  }
+
+ private:
+  explicit GlPaletteKernel(std::unique_ptr<GlContext> context) : context_(std::move(context)) {
+    const std::string text = ExpandedTemplate("palette.comp");
+    const char* source = text.c_str();
+    const GLuint shader = glCreateShader(GL_COMPUTE_SHADER);
+    glShaderSource(shader, 1, &source, nullptr);
+    glCompileShader(shader);
+    GLint ok = GL_FALSE;
+    glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+    if (ok != GL_TRUE) throw std::runtime_error("palette.comp does not compile: " + Log(shader, false));
+    program_ = glCreateProgram();
+    glAttachShader(program_, shader);
+    glLinkProgram(program_);
+    glDeleteShader(shader);
+    glGetProgramiv(program_, GL_LINK_STATUS, &ok);
+    if (ok != GL_TRUE) throw std::runtime_error("palette.comp does not link: " + Log(program_, true));
+  }
+
+  static std::string Log(GLuint object, bool program) {
+    GLint length = 0;
+    program ? glGetProgramiv(object, GL_INFO_LOG_LENGTH, &length) : glGetShaderiv(object, GL_INFO_LOG_LENGTH, &length);
+    std::string log(static_cast<std::size_t>(std::max(length, 1)), '\0');
+    program ? glGetProgramInfoLog(object, length, nullptr, log.data())
+            : glGetShaderInfoLog(object, length, nullptr, log.data());
+    return log;
+  }
+
+  GLint Uniform(const char* name) const {
+    const GLint location = glGetUniformLocation(program_, name);
+    if (location < 0) throw std::runtime_error(std::string("palette.comp has no uniform ") + name);
+    return location;
+  }
+
+  std::unique_ptr<GlContext> context_;
+  GLuint program_ = 0;
+};
+
+#define SKIP_WITHOUT_GL(kernel)                        \
+  std::string why;                                     \
+  GlPaletteKernel* kernel = GlPaletteKernel::Get(why); \
+  if (kernel == nullptr) GTEST_SKIP() << why
+
+TEST(PaletteKernelGl, MatchesTheGoldForEveryClipOfTheGltfModels) {
+  SKIP_WITHOUT_GL(kernel);
+  for (const char* model : {"CesiumMan.gltf", "Fox.gltf", "RiggedSimple.gltf"}) {
+    const SkinnedAsset& asset = TestAsset(model);
+    const PackedAnimation packed = PackAnimation(asset);
+    const std::vector<AnimInstance> instances = EveryClipAlone(asset, packed);
+    ExpectWithinBound(std::string(model) + " gl", Compare(asset, packed, instances, kernel->Run(packed, instances)));
+  }
+}
+
+TEST(PaletteKernelGl, MatchesTheGoldOnADeepRigWithEveryInterpolation) {
+  SKIP_WITHOUT_GL(kernel);
+  const PackedAnimation packed = PackAnimation(DeepRig());
+  const std::vector<AnimInstance> instances = EveryClipAlone(DeepRig(), packed);
+  ExpectWithinBound("deep rig gl", Compare(DeepRig(), packed, instances, kernel->Run(packed, instances)));
+}
+
+TEST(PaletteKernelGl, BlendsTwoClipsInLocalSpaceLikeTheGold) {
+  SKIP_WITHOUT_GL(kernel);
+  for (const SkinnedAsset* asset : {&TestAsset("Fox.gltf"), &TestAsset("CesiumMan.gltf"), &DeepRig()}) {
+    const PackedAnimation packed = PackAnimation(*asset);
+    const std::vector<AnimInstance> instances = Blends(*asset, packed);
+    ExpectWithinBound(Name(*asset) + " gl blends", Compare(*asset, packed, instances, kernel->Run(packed, instances)));
+  }
+}
+
+TEST(PaletteKernelGl, WritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
+  SKIP_WITHOUT_GL(kernel);
+  const PackedAnimation packed = PackAnimation(TestAsset("Fox.gltf"));  // 3 clips
+  const std::vector<AnimInstance> instances = {AnimInstance{1, kAnimRestPose, 0.5f, 0.0f, 0.0f},
+                                               AnimInstance{3, kAnimRestPose, 0.5f, 0.0f, 0.0f},
+                                               AnimInstance{0, 7, 0.5f, 0.5f, 0.5f}};
+  const std::vector<float> rows = kernel->Run(packed, instances);
+  const std::size_t per_instance = packed.joints.size() * 12;
+  for (std::size_t i = 0; i < instances.size(); ++i) {
+    const auto first = rows.begin() + static_cast<std::ptrdiff_t>(i * per_instance);
+    const auto nans =
+        std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance), [](float v) { return std::isnan(v); });
+    EXPECT_EQ(static_cast<std::size_t>(nans), i == 0 ? 0 : per_instance) << "instance " << i;
+  }
+}
+
+// The same shader is Vulkan's (its scalars a push-constant block): it
+// compiles to SPIR-V with glslang, as the skin kernels do for Vulkan. Not run
+// on a Vulkan device yet.
+TEST(PaletteKernelVulkan, CompilesToSpirvWithGlslang) {
+  const std::vector<std::uint32_t> spirv = vk::CompileSpirv(ExpandedTemplate("palette.comp"), "palette.comp");
+  ASSERT_GT(spirv.size(), 5u);
+  EXPECT_EQ(spirv[0], 0x07230203u);  // the SPIR-V magic number
+}
+
+}  // namespace
+}  // namespace skintune::internal
