@@ -358,13 +358,15 @@ SkinnedMesh ReadMesh(const Ctx& ctx, size_t node_index, const GltfImportOptions&
   mesh.joint_count = static_cast<int>(ctx.model.skins[Z(node.skin)].joints.size());
   std::vector<size_t> used;
   size_t sets = 0;
-  bool normals = options.normals;
+  bool normals = options.normals, every_tangent = true;
   for (size_t p = 0; p < src.primitives.size(); ++p) {
     if (!IsTriangles(src.primitives[p].mode)) continue;
     used.push_back(p);
     sets = std::max(sets, InfluenceSets(ctx, src.primitives[p], mesh_ref + "." + Idx("primitives", p)));
     normals = normals && src.primitives[p].attributes.count("NORMAL") > 0;
+    every_tangent = every_tangent && src.primitives[p].attributes.count("TANGENT") > 0;
   }
+  const bool tangents = options.tangents || (options.tangents_when_present && every_tangent && normals);
   if (used.empty()) ctx.Fail(mesh_ref + " '" + src.name + "': no triangle primitives");
   if (used.size() < src.primitives.size()) {
     warnings.push_back(ctx.path + ": " + mesh_ref + ": skipped " +
@@ -372,7 +374,7 @@ SkinnedMesh ReadMesh(const Ctx& ctx, size_t node_index, const GltfImportOptions&
   }
   mesh.influences = static_cast<int>(4 * sets);
   for (size_t p : used)
-    AppendPrimitive(ctx, src.primitives[p], mesh_ref + "." + Idx("primitives", p), normals, options.tangents, mesh);
+    AppendPrimitive(ctx, src.primitives[p], mesh_ref + "." + Idx("primitives", p), normals, tangents, mesh);
   FinishWeights(ctx, mesh_ref + " '" + mesh.name + "'", options.strict, mesh, warnings);
   ThrowIfInvalid(mesh, ctx.path);
   return mesh;

@@ -40,6 +40,9 @@ struct GltfImportOptions {
   // primitive must have it, each handedness +1 or -1 (an error names the
   // first primitive without it, or the vertex).
   bool tangents = false;
+  // Import TANGENT where every triangle primitive has it and normals are
+  // imported; a mesh without it is imported without tangents, not refused.
+  bool tangents_when_present = false;
 };
 
 struct GltfImportResult {

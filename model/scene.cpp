@@ -14,6 +14,13 @@ namespace skintune::internal {
 
 namespace {
 
+// A glTF data set's TANGENT where every primitive has it, so that tangent variants can be tuned on it.
+GltfImportOptions WithTangentsWhenPresent() {
+  GltfImportOptions options;
+  options.tangents_when_present = true;
+  return options;
+}
+
 constexpr int kMaxInstances = 65536;
 constexpr int kMaxJoints = 65536;  // SkinnedMesh stores joint indices in 16 bits
 constexpr int kMixMinBones = 20;
@@ -193,7 +200,8 @@ SkinnedScene LoadScene(const SceneSpec& spec) {
   for (std::size_t m = 0; m < spec.meshes.size(); ++m) {
     const std::string& key = spec.meshes[m];
     try {
-      scene.assets.push_back(IsGltfFile(key) ? ImportGltf(key).asset : GenerateDataset(ParseDatasetKey(key)));
+      scene.assets.push_back(IsGltfFile(key) ? ImportGltf(key, WithTangentsWhenPresent()).asset
+                                           : GenerateDataset(ParseDatasetKey(key)));
       scene.assets.back().RequireNoMorphInUse("the tuner");
     } catch (const Error& e) {
       if (spec.meshes.size() == 1) throw;  // a scene of one mesh: the mesh's own message

@@ -70,7 +70,9 @@ Result<Model> Model::Load(const std::string& path) {
     return Status(ErrorCode::kIoError, e.what());
   }
   return GuardedResult<Model>(ErrorCode::kInvalidArgument, [&] {
-    GltfImportResult imported = ImportGltf(path);
+    GltfImportOptions options;
+    options.tangents_when_present = true;
+    GltfImportResult imported = ImportGltf(path, options);
     imported.asset.RequireNoMorphInUse("skintune's runtime");
     Model model;
     model.impl_ = std::make_unique<Impl>(std::move(imported.asset), std::move(imported.warnings));
@@ -104,6 +106,7 @@ std::size_t Model::vertex_count() const { return impl_ ? impl_->asset.mesh.verte
 int Model::influences() const { return impl_ ? impl_->influences : 0; }
 int Model::joint_count() const { return impl_ ? impl_->asset.mesh.joint_count : 0; }
 bool Model::has_normals() const { return impl_ && !impl_->normals.empty(); }
+bool Model::has_tangents() const { return impl_ && impl_->asset.mesh.has_tangents(); }
 
 MeshView Model::mesh() const {
   MeshView view;
@@ -114,6 +117,7 @@ MeshView Model::mesh() const {
   view.joint_count = mesh.joint_count;
   view.positions = impl_->positions.data();
   view.normals = impl_->normals.empty() ? nullptr : impl_->normals.data();
+  view.tangents = mesh.has_tangents() ? &mesh.tangents.front().x : nullptr;  // glm::vec4: 4 packed floats
   view.joints = impl_->joints.data();
   view.weights = mesh.weights.data();
   return view;

@@ -29,9 +29,10 @@ namespace {
 constexpr std::size_t kMaxVertices = std::size_t{1} << 31;  // launches address vertices with 32-bit counts
 constexpr int kMaxJoints = 65536;                          // SkinnedMesh stores joint indices in 16 bits
 
-// The MeshView as a validated SkinnedMesh (normals only when wanted); errors
-// start with `where` ("Skinner::Create: MeshView", "Skinner::CreateBatch: meshes[2]").
-SkinnedMesh ToSkinnedMesh(const MeshView& view, bool normals, const std::string& where) {
+// The MeshView as a validated SkinnedMesh (normals and tangents only when
+// wanted: tangents come with normals); errors start with `where`
+// ("Skinner::Create: MeshView", "Skinner::CreateBatch: meshes[2]").
+SkinnedMesh ToSkinnedMesh(const MeshView& view, bool normals, bool tangents, const std::string& where) {
   auto BadMesh = [&](const std::string& message) { FailWith(ErrorCode::kInvalidArgument, where + ": " + message); };
   if (view.vertex_count == 0) BadMesh("vertex_count is 0");
   if (view.vertex_count > kMaxVertices)
@@ -44,6 +45,9 @@ SkinnedMesh ToSkinnedMesh(const MeshView& view, bool normals, const std::string&
   if (!view.joints) BadMesh("joints is null");
   if (!view.weights) BadMesh("weights is null");
   if (normals && !view.normals) BadMesh("SkinnerOptions::normals is set but MeshView::normals is null");
+  if (tangents && !view.tangents) BadMesh("SkinnerOptions::tangents is set but MeshView::tangents is null");
+  if (tangents && !view.normals)
+    BadMesh("SkinnerOptions::tangents is set but MeshView::normals is null (tangents are skinned with normals)");
 
   SkinnedMesh mesh;
   mesh.name = "MeshView";
@@ -53,9 +57,13 @@ SkinnedMesh ToSkinnedMesh(const MeshView& view, bool normals, const std::string&
   const auto b = static_cast<std::size_t>(view.influences);
   mesh.positions.resize(n);
   std::memcpy(mesh.positions.data(), view.positions, n * sizeof(glm::vec3));
-  if (normals) {
+  if (normals || tangents) {
     mesh.normals.resize(n);
     std::memcpy(mesh.normals.data(), view.normals, n * sizeof(glm::vec3));
+  }
+  if (tangents) {
+    mesh.tangents.resize(n);
+    std::memcpy(mesh.tangents.data(), view.tangents, n * sizeof(glm::vec4));
   }
   mesh.joints.resize(n * b);
   for (std::size_t i = 0; i < n * b; ++i) {
@@ -175,7 +183,7 @@ MeshBatch SceneOf(const std::string& call, const MeshView* views, std::size_t co
   std::vector<SkinnedMesh> meshes;
   for (std::size_t m = 0; m < count; ++m)
     meshes.push_back(
-        ToSkinnedMesh(views[m], options.normals, call + (batch ? ": meshes[" + std::to_string(m) + "]" : ": MeshView")));
+        ToSkinnedMesh(views[m], options.normals, options.tangents, call + (batch ? ": meshes[" + std::to_string(m) + "]" : ": MeshView")));
   MeshBatch scene;
   if (batch) {
     std::vector<const SkinnedMesh*> pointers;
@@ -203,7 +211,8 @@ MeshBatch SceneOf(const std::string& call, const MeshView* views, std::size_t co
 Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& entries, DeviceState& state,
                      const SkinnedMesh& mesh, SceneShape scene_shape, std::size_t count,
                      const SkinnerOptions& options) {
-  const ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals, options.instances};
+  const ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
+                           options.instances, options.tangents};
   if (!options.variant.empty()) return Forced(call, options.variant, state, shape);
   SelectionRequest request;
   request.device = state.info;
@@ -213,7 +222,7 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   request.shape = static_cast<SceneKind>(scene_shape);
   request.instances = options.instances;
   request.meshes = static_cast<int>(count);
-  request.normals = NormalsFor(options.normals, false);
+  request.normals = NormalsFor(options.normals, options.tangents);
   request.max_error = options.max_error;
   request.max_error_name = "SkinnerOptions::max_error";
   // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.
@@ -437,24 +446,31 @@ namespace {
 constexpr std::size_t kReadChunkVertices = 1 << 16;
 constexpr std::size_t kReadGrainVertices = 1 << 14;
 
-Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out, std::size_t float_count) {
-  const char* call = normals ? "ReadNormals" : "ReadPositions";
+// Positions and normals are 3 floats per vertex, tangents 4 (xyz, handedness w).
+Status Read(const std::unique_ptr<Skinner::Impl>& impl, Output output, float* out, std::size_t float_count) {
+  const char* call = output == Output::kPositions ? "ReadPositions" : output == Output::kNormals ? "ReadNormals"
+                                                                                                 : "ReadTangents";
+  const bool normals = output != Output::kPositions;  // normalised outputs: no bound holds, always scanned first
+  const std::size_t floats = output == Output::kTangents ? 4 : 3;
   return Guarded(ErrorCode::kDeviceError, [&] {
     Skinner::Impl& im = Usable(impl, call);
-    if (normals && !SkinsNormals(im.variant))
+    if (output == Output::kNormals && !SkinsNormals(im.variant))
       FailWith(ErrorCode::kInvalidState,
                "Skinner::ReadNormals: this Skinner skins no normals (SkinnerOptions::normals was not set)");
+    if (output == Output::kTangents && !SkinsTangents(im.variant))
+      FailWith(ErrorCode::kInvalidState,
+               "Skinner::ReadTangents: this Skinner skins no tangents (SkinnerOptions::tangents was not set)");
     const std::size_t vertices = static_cast<std::size_t>(im.instances) * im.vertex_count;
-    CheckCount(call, float_count, vertices * 3, [&] {
-      return std::to_string(im.instances) + " instances x " + std::to_string(im.vertex_count) + " vertices x 3";
+    CheckCount(call, float_count, vertices * floats, [&] {
+      return std::to_string(im.instances) + " instances x " + std::to_string(im.vertex_count) + " vertices x " +
+             std::to_string(floats);
     });
     if (!out) FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::") + call + ": out is null");
     if (!im.skinned) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": nothing skinned yet (call Skin first)");
     // Straight from the page-locked read-back staging into the caller's array,
     // in mesh order; each grain's work while later chunks are still in flight.
     const std::size_t stride = im.output_stride;
-    const DeviceApi::PinnedRead read =
-        im.backend->Read(normals ? Output::kNormals : Output::kPositions, kReadChunkVertices * stride);
+    const DeviceApi::PinnedRead read = im.backend->Read(output, kReadChunkVertices * stride);
     const std::span<const std::uint8_t> packed = read.bytes;
     if (packed.size() != vertices * im.output_stride)
       FailWith(ErrorCode::kDeviceError, std::string("Skinner::") + call + ": the device read back " +
@@ -472,15 +488,16 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
     std::mutex failed_mutex;
     std::string failed;  // the first chunk whose copy failed
     const bool same_order = im.identity_order;
-    const bool streaming = StreamingWrite(vertices * 3 * sizeof(float));
+    const bool streaming = StreamingWrite(vertices * floats * sizeof(float));
     const auto copy = [&](std::size_t begin, std::size_t end) {
-      if (same_order) {
+      if (same_order && floats == 3) {
         CopyFloat3(packed.data(), stride, out, begin, end, streaming);
         return;
       }
       for (std::size_t v = begin; v < end; ++v) {
         const std::size_t k = v / im.vertex_count, p = v % im.vertex_count;
-        std::memcpy(out + (k * im.vertex_count + im.order[p]) * 3, packed.data() + v * stride, 3 * sizeof(float));
+        const std::size_t at = same_order ? v : k * im.vertex_count + im.order[p];
+        std::memcpy(out + at * floats, packed.data() + v * stride, floats * sizeof(float));
       }
     };
     const auto grain = [&](std::size_t begin, std::size_t end) {
@@ -545,8 +562,15 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, bool normals, float* out
 
 namespace skintune {
 
-Status Skinner::ReadPositions(float* out, std::size_t float_count) { return Read(impl_, false, out, float_count); }
-Status Skinner::ReadNormals(float* out, std::size_t float_count) { return Read(impl_, true, out, float_count); }
+Status Skinner::ReadPositions(float* out, std::size_t float_count) {
+  return Read(impl_, Output::kPositions, out, float_count);
+}
+Status Skinner::ReadNormals(float* out, std::size_t float_count) {
+  return Read(impl_, Output::kNormals, out, float_count);
+}
+Status Skinner::ReadTangents(float* out, std::size_t float_count) {
+  return Read(impl_, Output::kTangents, out, float_count);
+}
 
 Status Skinner::SkinIntoGlBuffer(unsigned int gl_buffer) {
   return Guarded(ErrorCode::kDeviceError, [&] {

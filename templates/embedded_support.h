@@ -52,11 +52,13 @@
 //     kAos      `records`: one record per vertex: the position at byte 0, the
 //               B indices right after it, the B weights aligned to their
 //               element size, then the normal (when k.normals) aligned to 16
-//               bytes (kFloat4) or 4 (kFloat3); the record is padded to a
-//               multiple of 16 (kFloat4) or 4 (kFloat3) bytes.
+//               bytes (kFloat4) or 4 (kFloat3), then the tangent (when
+//               k.tangents: 4 floats) aligned likewise; the record is padded
+//               to a multiple of 16 (kFloat4) or 4 (kFloat3) bytes.
 //     kSoa      `positions`, `indices` (vertex v's slot i at element v*B+i),
-//               `weights` (likewise), `normals` (like positions, when k.normals).
-//     kSoaSplit `positions`, `normals` as kSoa; `indices` and `weights`
+//               `weights` (likewise), `normals` (like positions, when k.normals),
+//               `tangents` (4 floats per vertex, when k.tangents).
+//     kSoaSplit `positions`, `normals`, `tangents` as kSoa; `indices` and `weights`
 //               slot-major: element i*S+v with S = SlotStride(k, n), so every
 //               slot's array starts on a 256-byte boundary.
 //   B is k.influences; vertices with fewer influences have index 0 weight 0
@@ -175,6 +177,8 @@ struct Kernel {
   PaletteStorage storage;
   bool point_blend;            // blends transformed points (else blends matrices): no effect on the interface
   bool normals;                // also skins normals: a `normals` input and an `out_normals` output
+  bool tangents;               // also skins tangents (with normals): a `tangents` input and an
+                               // `out_tangents` output, 4 floats each (x y z, handedness w)
   int vertices_per_item;       // 1, 2, 4, 8
   bool strided;                // item g skins g, g+G, ... (else g*N .. g*N+N-1)
   int wg_size;                 // work-group size (0 for glsl-vertex)
@@ -449,16 +453,19 @@ inline std::size_t SlotStride(const Kernel& k, std::size_t n) {
 inline std::size_t OutputStrideBytes(const Kernel& k) { return detail::VectorBytes(k.position); }
 
 // The kernel's input buffers. Only the layout's buffers are non-empty: kAos
-// `records`; kSoa and kSoaSplit `positions`, `indices`, `weights`, and
-// `normals` when k.normals. Every size is a multiple of 4 bytes (32-bit words).
+// `records`; kSoa and kSoaSplit `positions`, `indices`, `weights`, `normals`
+// when k.normals and `tangents` when k.tangents. Every size is a multiple of
+// 4 bytes (32-bit words).
 struct PackedInputs {
-  std::vector<std::uint8_t> records, positions, indices, weights, normals;
+  std::vector<std::uint8_t> records, positions, indices, weights, normals, tangents;
 };
 
 // Packs a mesh of n vertices into the kernel's input buffers, byte for byte
 // as skintune's packer does for the kernel's (padded) variant:
 //   positions  3 floats per vertex (x y z); normals likewise, required when
-//              k.normals (may be null otherwise, then ignored);
+//              k.normals (may be null otherwise, then ignored); tangents 4
+//              floats per vertex (x y z, handedness w), required when
+//              k.tangents (the overload without them: kernels without tangents);
 //   joints     `influences` joint indices per vertex (slot i of vertex v at
 //              v*influences+i), each < k.joints and addressable by k.index;
 //   weights    `influences` weights per vertex, same order; kF32 stores them
@@ -469,11 +476,13 @@ struct PackedInputs {
 // influences may be below k.influences: the unused slots get index 0 and
 // weight 0. Returns false and sets *error (when error is not null) for
 // out == null, n == 0 or n >= 2^32, influences outside 1..k.influences, null
-// positions / joints / weights, normals missing when k.normals, a negative or
+// positions / joints / weights, normals missing when k.normals, tangents
+// missing when k.tangents, a negative or
 // non-finite weight, a vertex whose weights are all zero, or a joint
 // index the index format cannot hold or >= k.joints.
 inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float* positions, const float* normals,
-                     const std::uint32_t* joints, const float* weights, PackedInputs* out, std::string* error) {
+                     const float* tangents, const std::uint32_t* joints, const float* weights, PackedInputs* out,
+                     std::string* error) {
   const auto fail = [error, &k](const std::string& message) {
     if (error != nullptr) *error = "PackMesh " + std::string(k.variant) + ": " + message;
     return false;
@@ -489,6 +498,7 @@ inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float
   if (joints == nullptr) return fail("joints is null");
   if (weights == nullptr) return fail("weights is null");
   if (k.normals && normals == nullptr) return fail("the kernel skins normals but normals is null");
+  if (k.tangents && tangents == nullptr) return fail("the kernel skins tangents but tangents is null");
   const std::size_t slots = static_cast<std::size_t>(influences);
   const std::uint64_t capacity = detail::IndexCapacity(k.index);
   const std::size_t bad = detail::FirstJointFrom(joints, n * slots, detail::JointLimit(k));
@@ -525,10 +535,14 @@ inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float
     const std::size_t index_at = pb;
     const std::size_t weight_at = detail::RoundUp(index_at + b * ib, wb);
     std::size_t end = weight_at + b * wb;
-    std::size_t normal_at = 0;
+    std::size_t normal_at = 0, tangent_at = 0;
     if (k.normals) {
       normal_at = detail::RoundUp(end, align);
       end = normal_at + pb;
+    }
+    if (k.tangents) {
+      tangent_at = detail::RoundUp(end, align);
+      end = tangent_at + 16;
     }
     const std::size_t size = detail::RoundUp(end, align);
     out->records.assign(n * size, 0);
@@ -541,6 +555,7 @@ inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float
         detail::PutUint(record + weight_at + i * wb, weight_words[i], wb);
       }
       if (k.normals) detail::PutVector(record + normal_at, normals + 3 * v, k.position, 0.0f);
+      if (k.tangents) detail::PutVector(record + tangent_at, tangents + 4 * v, PositionFormat::kFloat4, tangents[4 * v + 3]);
     }
     return true;
   }
@@ -552,9 +567,12 @@ inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float
   out->indices.assign(detail::RoundUp(elements * ib, 4), 0);
   out->weights.assign(detail::RoundUp(elements * wb, 4), 0);
   if (k.normals) out->normals.assign(n * pb, 0);
+  if (k.tangents) out->tangents.assign(n * 16, 0);
   for (std::size_t v = 0; v < n; ++v) {
     detail::PutVector(out->positions.data() + v * pb, positions + 3 * v, k.position, 1.0f);
     if (k.normals) detail::PutVector(out->normals.data() + v * pb, normals + 3 * v, k.position, 0.0f);
+    if (k.tangents)
+      detail::PutVector(out->tangents.data() + v * 16, tangents + 4 * v, PositionFormat::kFloat4, tangents[4 * v + 3]);
     gather(v);
     for (std::size_t i = 0; i < b; ++i) {
       const std::size_t e = split ? i * stride + v : v * b + i;
@@ -563,6 +581,12 @@ inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float
     }
   }
   return true;
+}
+
+// PackMesh for kernels that skin no tangents (k.tangents false).
+inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float* positions, const float* normals,
+                     const std::uint32_t* joints, const float* weights, PackedInputs* out, std::string* error) {
+  return PackMesh(k, n, influences, positions, normals, nullptr, joints, weights, out, error);
 }
 
 // One mesh of a batch (PackBatch): its arrays as PackMesh takes a mesh's.

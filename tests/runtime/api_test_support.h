@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -29,6 +30,7 @@ struct View {
     mesh.joint_count = m.joint_count;
     mesh.positions = &m.positions.front().x;
     mesh.normals = m.has_normals() ? &m.normals.front().x : nullptr;
+    mesh.tangents = m.has_tangents() ? &m.tangents.front().x : nullptr;
     mesh.joints = joints.data();
     mesh.weights = m.weights.data();
   }
@@ -89,7 +91,7 @@ inline void ExpectSkinsLikeTheGold(Skinner& skinner, const SkinnedMesh& mesh, st
   ASSERT_TRUE(skinner.SetPalette(matrices.data(), matrices.size()).ok());
   const Status skinned = skinner.Skin();
   ASSERT_TRUE(skinned.ok()) << skinned.message();
-  const GoldResult gold = SkinGold(QuantisedMesh(mesh, variant), palette, SkinsNormals(variant));
+  const GoldResult gold = SkinGold(QuantisedMesh(mesh, variant), palette, SkinsNormals(variant), SkinsTangents(variant));
   std::vector<float> positions(mesh.vertex_count() * 3);
   const Status read = skinner.ReadPositions(positions.data(), positions.size());
   ASSERT_TRUE(read.ok()) << read.message();
@@ -102,6 +104,17 @@ inline void ExpectSkinsLikeTheGold(Skinner& skinner, const SkinnedMesh& mesh, st
     const GoldComparison n = CompareToGold(gold.normals, Vec3s(normals));
     EXPECT_EQ(n.non_finite, 0u) << variant.Key();
     EXPECT_LT(n.max_relative, 1e-5) << variant.Key() << ": normals, worst vertex " << n.worst_vertex;
+  }
+  if (SkinsTangents(variant)) {
+    std::vector<float> tangents(mesh.vertex_count() * 4);
+    const Status read_tangents = skinner.ReadTangents(tangents.data(), tangents.size());
+    ASSERT_TRUE(read_tangents.ok()) << read_tangents.message();
+    std::vector<glm::vec4> t(mesh.vertex_count());
+    std::memcpy(t.data(), tangents.data(), tangents.size() * sizeof(float));
+    const GoldComparison c = CompareTangentsToGold(gold.tangents, t);
+    EXPECT_EQ(c.non_finite, 0u) << variant.Key();
+    EXPECT_EQ(c.wrong_handedness, 0u) << variant.Key() << ": first at vertex " << c.worst_vertex;
+    EXPECT_LT(c.max_relative, 1e-5) << variant.Key() << ": tangents, worst vertex " << c.worst_vertex;
   }
 }
 

@@ -1,17 +1,28 @@
 // templates/palette.cu, the CUDA palette kernel (docs/ANIMATION.md), compiled
 // with NVRTC: it must compile cleanly and take the same eleven arguments as
 // templates/palette.cl, which
-// tests/generator/palette_kernel_test.cpp runs against the gold. Running it
-// needs a CUDA device; without NVRTC the test skips naming what was tried.
+// tests/generator/palette_kernel_test.cpp runs against the gold. Where a CUDA
+// device is, it runs through the driver API against the same float64 gold,
+// the same bound and the same instances (tests/generator/palette_gold.h);
+// without NVRTC or a device the tests skip naming what was tried.
 // (No check for a stack frame, unlike the skin kernels' test: sinf's
 // reduction of huge arguments keeps one in the PTX, on a path the slerp's
 // angles, 0..pi/2, never take.)
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <span>
 #include <string>
+#include <vector>
 
+#include "generator/clip_packer.h"
 #include "generator/emit.h"
 #include "runtime/backends/cuda/cuda_api.h"
+#include "tests/common/test_asset.h"
+#include "tests/generator/deep_rig.h"
+#include "tests/generator/palette_gold.h"
 
 namespace skintune::internal {
 namespace {
@@ -28,6 +39,143 @@ TEST(PaletteKernelCuda, CompilesCleanlyWithNvrtcWithTheOpenClKernelsArguments) {
   EXPECT_EQ(r.ptx.find("skintune_palette_param_11"), std::string::npos);
   // The instance is the grid's y, the joint its x.
   EXPECT_NE(r.ptx.find("%ctaid.y"), std::string::npos);
+}
+
+using testing::Blends;
+using testing::Compare;
+using testing::DeepRig;
+using testing::EveryClipAlone;
+using testing::ExpectWithinBound;
+using testing::Name;
+using testing::TestAsset;
+
+constexpr unsigned kBlock = 64;  // threads per block along the joints
+
+// palette.cu compiled for device 0 and loaded into its primary context, once.
+class CudaPaletteKernel {
+ public:
+  // Null, with the reason in `why`, without NVRTC, a driver or a device.
+  static CudaPaletteKernel* Get(std::string& why) {
+    static std::string reason;
+    static const std::unique_ptr<CudaPaletteKernel> kernel = []() -> std::unique_ptr<CudaPaletteKernel> {
+      const CudaAvailability available = Probe();
+      if (!available.nvrtc) {
+        reason = "NVRTC cannot be loaded: " + available.nvrtc_missing;
+        return nullptr;
+      }
+      const cuda::DriverApi* api = cuda::Driver(&reason);
+      if (api == nullptr) return nullptr;
+      int count = 0;
+      if (api->cuDeviceGetCount(&count) != cuda::kSuccess || count == 0) {
+        reason = "no CUDA device";
+        return nullptr;
+      }
+      return std::unique_ptr<CudaPaletteKernel>(new CudaPaletteKernel(*api));
+    }();
+    why = reason;
+    return kernel.get();
+  }
+
+  // The palette rows of `instances`, as RunPaletteKernel writes them.
+  std::vector<float> Run(const PackedAnimation& packed, const std::vector<AnimInstance>& instances) {
+    Check(api_.cuCtxSetCurrent(context_), "cuCtxSetCurrent");
+    const AnimationView view = packed.View();
+    const std::size_t joints = packed.joints.size();
+    std::vector<float> rows(instances.size() * joints * 12);
+    const std::span<const std::uint8_t> inputs[] = {BufferBytes(packed.nodes),  BufferBytes(packed.channels),
+                                                    BufferBytes(packed.times),  BufferBytes(packed.values),
+                                                    BufferBytes(packed.joints), BufferBytes(instances)};
+    cuda::DevicePtr buffers[7] = {};
+    for (int b = 0; b < 6; ++b) {
+      const std::size_t bytes = std::max<std::size_t>(inputs[b].size(), 16);  // no empty allocation
+      Check(api_.cuMemAlloc(&buffers[b], bytes), "cuMemAlloc");
+      if (!inputs[b].empty()) Check(api_.cuMemcpyHtoD(buffers[b], inputs[b].data(), inputs[b].size()), "cuMemcpyHtoD");
+    }
+    Check(api_.cuMemAlloc(&buffers[6], rows.size() * sizeof(float)), "cuMemAlloc");
+    unsigned node_count = static_cast<unsigned>(view.nodes.size()), joint_count = static_cast<unsigned>(joints);
+    unsigned clip_count = view.clip_count, instance_count = static_cast<unsigned>(instances.size());
+    void* parameters[] = {&node_count, &joint_count, &clip_count, &instance_count, &buffers[0], &buffers[1],
+                          &buffers[2],  &buffers[3],  &buffers[4], &buffers[5],     &buffers[6]};
+    Check(api_.cuLaunchKernel(function_, (joint_count + kBlock - 1) / kBlock, instance_count, 1, kBlock, 1, 1, 0,
+                              nullptr, parameters, nullptr),
+          "cuLaunchKernel");
+    Check(api_.cuCtxSynchronize(), "cuCtxSynchronize");
+    Check(api_.cuMemcpyDtoH(rows.data(), buffers[6], rows.size() * sizeof(float)), "cuMemcpyDtoH");
+    for (cuda::DevicePtr b : buffers) api_.cuMemFree(b);
+    return rows;
+  }
+
+ private:
+  explicit CudaPaletteKernel(const cuda::DriverApi& api) : api_(api) {
+    cuda::Device device = 0;
+    Check(api_.cuDeviceGet(&device, 0), "cuDeviceGet");
+    int major = 0, minor = 0;
+    Check(api_.cuDeviceGetAttribute(&major, cuda::kAttributeComputeCapabilityMajor, device), "compute capability");
+    Check(api_.cuDeviceGetAttribute(&minor, cuda::kAttributeComputeCapabilityMinor, device), "compute capability");
+    const CompileResult r = CompileWithNvrtc(ExpandedTemplate("palette.cu"), NvrtcArchFor(major, minor), "palette.cu");
+    if (!r.ok) throw std::runtime_error(r.error);
+    Check(api_.cuDevicePrimaryCtxRetain(&context_, device), "cuDevicePrimaryCtxRetain");
+    Check(api_.cuCtxSetCurrent(context_), "cuCtxSetCurrent");
+    Check(api_.cuModuleLoadDataEx(&module_, r.ptx.c_str(), 0, nullptr, nullptr), "cuModuleLoadDataEx");
+    Check(api_.cuModuleGetFunction(&function_, module_, "skintune_palette"), "cuModuleGetFunction");
+  }
+
+  static void Check(cuda::Result result, const char* what) {
+    if (result != cuda::kSuccess) throw std::runtime_error(std::string(what) + ": " + cuda::ErrorText(result));
+  }
+
+  const cuda::DriverApi& api_;
+  cuda::Context context_ = nullptr;
+  cuda::Module module_ = nullptr;
+  cuda::Function function_ = nullptr;
+};
+
+#define SKIP_WITHOUT_CUDA(kernel)                          \
+  std::string why;                                         \
+  CudaPaletteKernel* kernel = CudaPaletteKernel::Get(why); \
+  if (kernel == nullptr) GTEST_SKIP() << why
+
+TEST(PaletteKernelCuda, MatchesTheGoldForEveryClipOfTheGltfModels) {
+  SKIP_WITHOUT_CUDA(kernel);
+  for (const char* model : {"CesiumMan.gltf", "Fox.gltf", "RiggedSimple.gltf"}) {
+    const SkinnedAsset& asset = TestAsset(model);
+    const PackedAnimation packed = PackAnimation(asset);
+    const std::vector<AnimInstance> instances = EveryClipAlone(asset, packed);
+    ExpectWithinBound(std::string(model) + " cuda", Compare(asset, packed, instances, kernel->Run(packed, instances)));
+  }
+}
+
+TEST(PaletteKernelCuda, MatchesTheGoldOnADeepRigWithEveryInterpolation) {
+  SKIP_WITHOUT_CUDA(kernel);
+  const PackedAnimation packed = PackAnimation(DeepRig());
+  const std::vector<AnimInstance> instances = EveryClipAlone(DeepRig(), packed);
+  ExpectWithinBound("deep rig cuda", Compare(DeepRig(), packed, instances, kernel->Run(packed, instances)));
+}
+
+TEST(PaletteKernelCuda, BlendsTwoClipsInLocalSpaceLikeTheGold) {
+  SKIP_WITHOUT_CUDA(kernel);
+  for (const SkinnedAsset* asset : {&TestAsset("Fox.gltf"), &TestAsset("CesiumMan.gltf"), &DeepRig()}) {
+    const PackedAnimation packed = PackAnimation(*asset);
+    const std::vector<AnimInstance> instances = Blends(*asset, packed);
+    ExpectWithinBound(Name(*asset) + " cuda blends",
+                      Compare(*asset, packed, instances, kernel->Run(packed, instances)));
+  }
+}
+
+TEST(PaletteKernelCuda, WritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
+  SKIP_WITHOUT_CUDA(kernel);
+  const PackedAnimation packed = PackAnimation(TestAsset("Fox.gltf"));  // 3 clips
+  const std::vector<AnimInstance> instances = {AnimInstance{1, kAnimRestPose, 0.5f, 0.0f, 0.0f},
+                                               AnimInstance{3, kAnimRestPose, 0.5f, 0.0f, 0.0f},
+                                               AnimInstance{0, 7, 0.5f, 0.5f, 0.5f}};
+  const std::vector<float> rows = kernel->Run(packed, instances);
+  const std::size_t per_instance = packed.joints.size() * 12;
+  for (std::size_t i = 0; i < instances.size(); ++i) {
+    const auto first = rows.begin() + static_cast<std::ptrdiff_t>(i * per_instance);
+    const auto nans =
+        std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance), [](float v) { return std::isnan(v); });
+    EXPECT_EQ(static_cast<std::size_t>(nans), i == 0 ? 0 : per_instance) << "instance " << i;
+  }
 }
 
 }  // namespace

@@ -311,8 +311,8 @@ TEST(SkintuneCli, VariantsWithAnUnknownDeviceIsAnError) {
 // ------------------------------------------------------------------ emit --db
 
 const std::string kEmbedDb = kData + "/embed-winners-db.json";
-// tests/data/embed-winners-db.json: 13 winners, 12 distinct variants (CUDA b3 wins 100k and 1600k).
-constexpr std::size_t kEmbedWinners = 13, kEmbedVariants = 12;
+// tests/data/embed-winners-db.json: 15 winners, 14 distinct variants (CUDA b3 wins 100k and 1600k).
+constexpr std::size_t kEmbedWinners = 15, kEmbedVariants = 14;
 const std::string kCudaB3 = "cuda.b3.padded.aos.float3.i32.unorm16.mat3x4.image.matrix.v2c.wg96.nonormals";
 const std::string kBucketedWinner = "opencl.b4.bucketed.soa.float4.i32.f32.mat3x4.image.matrix.v4s.wg256.nonormals";
 const std::string kBucketedTwin = "opencl.b4.padded.soa.float4.i32.f32.mat3x4.image.matrix.v4s.wg256.nonormals";
@@ -440,10 +440,10 @@ TEST(SkintuneCli, EmitDbMatchesTheDeviceCaseInsensitivelyInIdNameVendorOrPlatfor
     }
     return exts;
   };
-  EXPECT_EQ(kernels("GEFORCE rtx"), (std::vector<std::string>{".cu", ".cu", ".cu"}));          // name
+  EXPECT_EQ(kernels("GEFORCE rtx"), (std::vector<std::string>{".cu", ".cu", ".cu", ".cu"}));    // name
   EXPECT_EQ(kernels("advanced micro"), std::vector<std::string>(5, ".cl"));                   // vendor only
   EXPECT_EQ(kernels("accelerated PARALLEL"), std::vector<std::string>(5, ".cl"));             // platform
-  EXPECT_EQ(kernels("mesa 23.2"), (std::vector<std::string>{".comp", ".comp", ".vert", ".vert"}));  // id (driver)
+  EXPECT_EQ(kernels("mesa 23.2"), (std::vector<std::string>{".comp", ".comp", ".vert", ".vert", ".comp"}));  // id
 }
 
 TEST(SkintuneCli, EmitDbLangKeepsOnlyThoseLanguagesInTheHeaderAndNamespaceAsked) {
@@ -451,14 +451,14 @@ TEST(SkintuneCli, EmitDbLangKeepsOnlyThoseLanguagesInTheHeaderAndNamespaceAsked)
   const auto r = RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--lang", "glsl-compute", "--lang",
                               "glsl-vertex", "--header", "gl_kernels.h", "--namespace", "game::gpu", "--out", dir});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(Lines(r.out).size(), 2 * 4 + 1u) << r.out;
+  EXPECT_EQ(Lines(r.out).size(), 2 * 5 + 1u) << r.out;
   for (const std::string& name : FilesIn(dir)) {
     const std::string ext = fs::path(name).extension().string();
     EXPECT_TRUE(ext == ".comp" || ext == ".vert" || ext == ".json" || name == "gl_kernels.h") << name;
   }
   EXPECT_FALSE(fs::exists(dir / "skintune_kernels.h"));
   EXPECT_NE(ReadAll(dir / "gl_kernels.h").find("\nnamespace game::gpu {\n"), std::string::npos);
-  EXPECT_EQ(HeaderKernelCount(dir / "gl_kernels.h"), "4");
+  EXPECT_EQ(HeaderKernelCount(dir / "gl_kernels.h"), "5");
 }
 
 TEST(SkintuneCli, EmitDbWithNoMatchingDeviceListsTheDatabasesDevicesAndWritesNothing) {
@@ -606,7 +606,7 @@ TEST(SkintuneCli, EmitDbKeepsTheWinnersWithinTheErrorBudget) {
   });
   const auto unknown = RunSkintune({"emit", "--db", old, "--device", "", "--out", root / "old"});
   ASSERT_EQ(unknown.exit_code, 0) << unknown.err;
-  EXPECT_EQ(Lines(unknown.err).size(), 9u) << unknown.err;  // 5 unorm8 + 4 unorm16
+  EXPECT_EQ(Lines(unknown.err).size(), 11u) << unknown.err;  // 7 unorm8 + 4 unorm16
   EXPECT_NE(unknown.err.find("its quantisation error is not recorded"), std::string::npos) << unknown.err;
   // A bad budget is one line naming the flag, and nothing is written.
   const fs::path none = root / "none";

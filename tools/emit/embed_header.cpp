@@ -129,7 +129,7 @@ std::string KernelRow(const EmbeddedKernel& k, std::size_t index, std::size_t so
          Quoted(Name(v.lang)) + ", " + std::to_string(s.influences) + ", " + Quoted(e.vertex_bucket) + ", " +
          std::to_string(e.vertices) + "u,\n     " + SceneFields(k) + ",\n     " + Quoted(v.Key()) + ",\n     " +
          EnumFields(v) + ",\n     " +
-         Bool(v.blend == Blend::kPoint) + ", " + Bool(SkinsNormals(v)) + ", " + std::to_string(s.launch.vertices_per_item) +
+         Bool(v.blend == Blend::kPoint) + ", " + Bool(SkinsNormals(v)) + ", " + Bool(SkinsTangents(v)) + ", " + std::to_string(s.launch.vertices_per_item) +
          ", " + Bool(s.launch.strided) + ", " +
          std::to_string(s.launch.wg_size) + ", " + std::to_string(s.joints) + ",\n     " + Quoted(s.entry_point) +
          ", generated::kSource" + n + ", " + Quoted(s.source_hash) + ", " +
@@ -202,9 +202,6 @@ std::string EmbedHeader(const std::vector<EmbeddedKernel>& kernels, const EmbedH
   for (const EmbeddedKernel& k : kernels) {
     if (k.variant.mixed != MixedCounts::kPadded)
       throw Error("embed header: " + k.variant.Key() + " is not padded (the header's kernels skin in mesh order)");
-    if (SkinsTangents(k.variant))
-      throw Error("embed header: " + k.variant.Key() +
-                  " skins tangents, which the header's PackMesh does not pack: emit it with --variant, which writes the kernel and its sidecar");
     if (k.source.joints <= 0)
       throw Error("embed header: " + k.variant.Key() + " is not specialised for a joint count");
     if (k.source.lang != k.variant.lang || k.source.influences != k.variant.influences ||

@@ -364,6 +364,9 @@ struct MeshView {
   int joint_count = 0;               // palette entries; every joint index < joint_count
   const float* positions = nullptr;  // 3 per vertex (x, y, z)
   const float* normals = nullptr;    // 3 per vertex, or null (then no normals are skinned)
+  // 4 per vertex (x, y, z, then the handedness w: +1 or -1, as glTF's
+  // TANGENT), or null (then no tangents are skinned).
+  const float* tangents = nullptr;
   const std::uint32_t* joints = nullptr;  // B per vertex
   const float* weights = nullptr;         // B per vertex, each >= 0, summing to 1 within 1e-3
 };
@@ -384,13 +387,19 @@ struct SkinnerOptions {
   // vertex_count must stay below 2^32.
   int instances = 1;
   bool normals = false;     // also skin normals (MeshView::normals required)
+  // Also skin tangents, and normals with them (MeshView::tangents and
+  // MeshView::normals required): each tangent is turned by the blended
+  // matrix, renormalised, and its w flipped where that matrix mirrors. The
+  // variant is a `tangents` one (docs/VARIANTS.md), in the float4 position
+  // format; database entries in float3 are skipped with their reason.
+  bool tangents = false;
   // Force a variant key (docs/VARIANTS.md; omitted axes take their defaults)
   // instead of the database's choice; Selection::level is then kForced. It
   // must be of one of the device's languages, padded (a bucketed variant
   // reorders the vertices on the device) and pass every constraint on this
   // device and mesh (e.g. B at least the mesh's largest per-vertex count);
   // otherwise kInvalidArgument naming the constraint ("influences_too_few:
-  // ..."). Its `normals` axis follows `normals` above.
+  // ..."). Its `normals` axis follows `normals` and `tangents` above.
   std::string variant;
   // The error budget: the largest error quantising the weights may add to the
   // skinned positions, relative to the mesh's bounding-box diagonal
@@ -577,6 +586,11 @@ class Skinner {
   // are normalised: no bound holds); kInvalidState when the Skinner skins no
   // normals.
   Status ReadNormals(float* out, std::size_t float_count);
+  // Skinned tangents likewise: 4 floats per vertex (x, y, z normalised, then
+  // the handedness w), `float_count` = instances() * vertex_count() * 4;
+  // always scanned before it is copied; kInvalidState when the Skinner skins
+  // no tangents (SkinnerOptions::tangents).
+  Status ReadTangents(float* out, std::size_t float_count);
 
   // Output left on the device (no read-back): the native buffer holding the
   // positions of the last Skin(): a cl_mem (OpenCL), a CUdeviceptr
@@ -671,8 +685,9 @@ class Model {
   int influences() const;    // largest number of non-zero weights of any vertex
   int joint_count() const;
   bool has_normals() const;
+  bool has_tangents() const;  // the file's TANGENT, on every triangle primitive (with normals)
   // The mesh as a MeshView over this Model's arrays, for Skinner::Create
-  // (normals null when the model has none); valid while the Model lives
+  // (normals, tangents null when the model has none); valid while the Model lives
   // unchanged.
   MeshView mesh() const;
   const std::vector<std::string>& warnings() const;  // import warnings, whole lines

@@ -124,7 +124,7 @@ TEST(EmbedHeader, FixtureCoversEveryAxisValueAndOneBucketedWinner) {
     seen["palette"].insert(Name(k.palette));
     seen["storage"].insert(Name(k.storage));
     seen["blend"].insert(k.point_blend ? "point" : "matrix");
-    seen["normals"].insert(k.normals ? "normals" : "nonormals");
+    seen["normals"].insert(k.tangents ? "tangents" : k.normals ? "normals" : "nonormals");
     seen["assignment"].insert(k.strided ? "strided" : "contiguous");
   }
   EXPECT_EQ(seen["lang"].size(), 4u);
@@ -135,7 +135,7 @@ TEST(EmbedHeader, FixtureCoversEveryAxisValueAndOneBucketedWinner) {
   EXPECT_EQ(seen["palette"].size(), 2u);
   EXPECT_EQ(seen["storage"].size(), 4u);
   EXPECT_EQ(seen["blend"].size(), 2u);
-  EXPECT_EQ(seen["normals"].size(), 2u);
+  EXPECT_EQ(seen["normals"].size(), 3u);
   EXPECT_EQ(seen["assignment"].size(), 2u);
   int bucketed = 0;
   for (const WinnersEntry& e : Fixture()) bucketed += e.variant.mixed == MixedCounts::kBucketed;
@@ -181,6 +181,7 @@ TEST(EmbedHeader, KernelParametersAreTheVariantsAxes) {
     EXPECT_EQ(Name(k.storage), std::string(skintune::internal::Name(v.storage)));
     EXPECT_EQ(k.point_blend, v.blend == Blend::kPoint);
     EXPECT_EQ(k.normals, SkinsNormals(v));
+    EXPECT_EQ(k.tangents, SkinsTangents(v));
     EXPECT_EQ(k.vertices_per_item, v.vertices_per_item);
     EXPECT_EQ(k.strided, v.assignment == Assignment::kStrided);
     EXPECT_EQ(k.wg_size, v.wg_size);
@@ -286,6 +287,7 @@ SkinnedMesh RandomMesh(std::size_t n, int slots, bool normals, unsigned seed) {
   for (std::size_t v = 0; v < n; ++v) {
     mesh.positions.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
     if (normals) mesh.normals.push_back(glm::normalize(glm::vec3(coordinate(rng), coordinate(rng), 1.0f)));
+    if (normals) mesh.tangents.emplace_back(glm::normalize(glm::vec3(1.0f, coordinate(rng), coordinate(rng))), v % 3 ? 1.0f : -1.0f);
     const int count = 1 + static_cast<int>(v % b);
     std::vector<int> order(b);
     for (std::size_t i = 0; i < b; ++i) order[i] = static_cast<int>(i);
@@ -321,8 +323,9 @@ void ExpectPackedLikeSkintune(const fk::Kernel& k, const SkinnedMesh& mesh) {
   fk::PackedInputs packed;
   std::string error;
   ASSERT_TRUE(fk::PackMesh(k, mesh.vertex_count(), mesh.influences, a.positions.data(),
-                           a.normals.empty() ? nullptr : a.normals.data(), a.joints.data(), a.weights.data(), &packed,
-                           &error))
+                           a.normals.empty() ? nullptr : a.normals.data(),
+                           a.tangents.empty() ? nullptr : a.tangents.data(), a.joints.data(), a.weights.data(),
+                           &packed, &error))
       << error;
   const PackedMesh want = Pack(mesh, v);
   ASSERT_EQ(want.launches.size(), 1u);
@@ -469,6 +472,22 @@ TEST(EmbedHeader, PackMeshRefusesMissingNormalsOnlyWhenTheKernelSkinsThem) {
   std::string error;
   EXPECT_TRUE(fk::PackMesh(without, 1, 1, p.data(), nullptr, j.data(), w.data(), &out, &error)) << error;
   EXPECT_TRUE(out.normals.empty());
+}
+
+TEST(EmbedHeader, PackMeshRefusesMissingTangentsWhenTheKernelSkinsThem) {
+  const std::vector<float> p(3, 0.0f), n = {0.0f, 0.0f, 1.0f}, t = {1.0f, 0.0f, 0.0f, -1.0f};
+  const std::vector<float> w = {1.0f, 0.0f, 0.0f, 0.0f};
+  const std::vector<std::uint32_t> j(4, 0);
+  const fk::Kernel& with = KernelWith("glsl-compute.b4.padded.aos.float4.u16.unorm8.mat4.global.matrix.v2s.wg64.tangents");
+  fk::PackedInputs out;
+  std::string error;
+  EXPECT_FALSE(fk::PackMesh(with, 1, 1, p.data(), n.data(), j.data(), w.data(), &out, &error));
+  EXPECT_NE(error.find("tangents is null"), std::string::npos) << error;
+  EXPECT_TRUE(fk::PackMesh(with, 1, 1, p.data(), n.data(), t.data(), j.data(), w.data(), &out, &error)) << error;
+  ASSERT_FALSE(out.records.empty());
+  float w_out = 0.0f;  // the handedness, the record's last float of the tangent
+  std::memcpy(&w_out, out.records.data() + out.records.size() - 4, 4);
+  EXPECT_EQ(w_out, -1.0f);
 }
 
 TEST(EmbedHeader, PackMeshRefusesNullPointersAndAnEmptyMesh) {

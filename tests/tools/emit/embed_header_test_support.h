@@ -31,7 +31,7 @@ inline std::vector<WinnersEntry> TestDataWinnersDb(const std::string& name) {
 // A mesh's arrays as PackMesh and BatchMesh take them: 3 floats per position
 // and normal, `influences` joints and weights per vertex.
 struct MeshArrays {
-  std::vector<float> positions, normals, weights;
+  std::vector<float> positions, normals, tangents, weights;
   std::vector<std::uint32_t> joints;
 };
 
@@ -39,6 +39,7 @@ inline MeshArrays ArraysOf(const SkinnedMesh& mesh) {
   MeshArrays a;
   for (const glm::vec3& p : mesh.positions) a.positions.insert(a.positions.end(), {p.x, p.y, p.z});
   for (const glm::vec3& p : mesh.normals) a.normals.insert(a.normals.end(), {p.x, p.y, p.z});
+  for (const glm::vec4& t : mesh.tangents) a.tangents.insert(a.tangents.end(), {t.x, t.y, t.z, t.w});
   a.weights = mesh.weights;
   a.joints.assign(mesh.joints.begin(), mesh.joints.end());
   return a;
@@ -51,6 +52,7 @@ const std::vector<std::uint8_t>& Field(const PackedInputs& p, const std::string&
   if (name == "positions") return p.positions;
   if (name == "indices") return p.indices;
   if (name == "weights") return p.weights;
+  if (name == "tangents") return p.tangents;
   return p.normals;
 }
 
@@ -64,7 +66,7 @@ void ExpectInputsOf(const PackedInputs& packed, const Launch& want) {
     EXPECT_EQ(Field(packed, buffer.name), buffer.bytes) << buffer.name;
     EXPECT_EQ(Field(packed, buffer.name).size() % 4, 0u) << buffer.name;
   }
-  for (const char* name : {"records", "positions", "indices", "weights", "normals"}) {
+  for (const char* name : {"records", "positions", "indices", "weights", "normals", "tangents"}) {
     if (!names.count(name)) {
       EXPECT_TRUE(Field(packed, name).empty()) << name << " is not an input of the layout";
     }
