@@ -1,0 +1,256 @@
+// The palette kernel's own time (docs/ANIMATION.md): a crowd's palettes made
+// on a CUDA device from one upload of the animation, against what the host
+// pays to make the same palettes (the float64 path the Skinner's callers use
+// today, SkinnedAsset::PaletteAt, and the float32 CPU palette kernel).
+//
+//   cuda/<model>/<K>/one      one launch for K instances, each playing its own
+//                             clip at its own time, timed by CUDA events
+//                             around it (the events add about a microsecond)
+//   cuda/<model>/<K>/burst    64 launches back to back between two events,
+//                             per launch: the launch as a frame pays it when
+//                             the skin kernel follows on the same stream
+//   cuda/<model>/<K>/blend    burst, every instance cross-fading two clips
+//   host/<model>/<K>/palette-at   K x SkinnedAsset::PaletteAt (float64, then float32)
+//   host/<model>/<K>/cpu-kernel   RunPaletteKernel on one thread (float32)
+//
+// <model>: each --gltf file's name and each --synthetic data-set key (its
+// rig: 77 bones by default, -bones<N> for more). Without a CUDA device the
+// cuda/ cases are skipped with the reason.
+#include <benchmark/benchmark.h>
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "cpu_kernels/palette_kernel.h"
+#include "generator/clip_packer.h"
+#include "generator/emit.h"
+#include "model/gltf_import.h"
+#include "model/synthetic.h"
+#include "runtime/backends/cuda/cuda_api.h"
+
+namespace skintune::internal {
+namespace {
+
+struct Options {
+  std::vector<std::string> gltf, synthetic;
+  std::vector<int> instances = {64, 1024};
+} options;
+
+constexpr int kBurst = 64;
+constexpr unsigned kBlock = 64;
+
+// Instance i plays clip i mod C at its own time; with `blend` it cross-fades
+// to clip (i + 1) mod C at weight 0.5.
+std::vector<AnimInstance> Crowd(const SkinnedAsset& asset, const PackedAnimation& packed, int count, bool blend) {
+  std::vector<AnimInstance> crowd(static_cast<std::size_t>(count));
+  const int clips = static_cast<int>(packed.clips.size());
+  for (int i = 0; i < count; ++i) {
+    const auto& clip = asset.animations[static_cast<std::size_t>(packed.clips[static_cast<std::size_t>(i % clips)])];
+    const double phase = std::fmod(0.618034 * i, 1.0);
+    AnimInstance& in = crowd[static_cast<std::size_t>(i)];
+    in.clip = static_cast<std::uint16_t>(i % clips);
+    in.time = static_cast<float>(clip.start + phase * clip.duration());
+    if (blend && clips > 1) {
+      in.clip2 = static_cast<std::uint16_t>((i + 1) % clips);
+      const auto& other = asset.animations[static_cast<std::size_t>(packed.clips[in.clip2])];
+      in.time2 = static_cast<float>(other.start + phase * other.duration());
+      in.weight = 0.5f;
+    }
+  }
+  return crowd;
+}
+
+// palette.cu on device 0: the animation uploaded once, a crowd's instances
+// and palettes per case.
+class CudaPalettes {
+ public:
+  static CudaPalettes* Get(std::string& why) {
+    static std::string reason;
+    static const std::unique_ptr<CudaPalettes> made = []() -> std::unique_ptr<CudaPalettes> {
+      if (!Probe().nvrtc) {
+        reason = "NVRTC cannot be loaded";
+        return nullptr;
+      }
+      const cuda::DriverApi* api = cuda::Driver(&reason);
+      int count = 0;
+      if (api == nullptr || api->cuDeviceGetCount(&count) != cuda::kSuccess || count == 0) {
+        if (reason.empty()) reason = "no CUDA device";
+        return nullptr;
+      }
+      return std::unique_ptr<CudaPalettes>(new CudaPalettes(*api));
+    }();
+    why = reason;
+    return made.get();
+  }
+
+  // Uploads `packed` and `instances`; allocates the K palettes.
+  void Load(const PackedAnimation& packed, const std::vector<AnimInstance>& instances) {
+    Free();
+    const std::span<const std::uint8_t> inputs[] = {BufferBytes(packed.nodes),  BufferBytes(packed.channels),
+                                                    BufferBytes(packed.times),  BufferBytes(packed.values),
+                                                    BufferBytes(packed.joints), BufferBytes(instances)};
+    for (int b = 0; b < 6; ++b) {
+      Check(api_.cuMemAlloc(&buffers_[b], std::max<std::size_t>(inputs[b].size(), 16)), "cuMemAlloc");
+      if (!inputs[b].empty()) Check(api_.cuMemcpyHtoD(buffers_[b], inputs[b].data(), inputs[b].size()), "cuMemcpyHtoD");
+    }
+    Check(api_.cuMemAlloc(&buffers_[6], instances.size() * packed.joints.size() * kAnimPaletteRows * 16), "cuMemAlloc");
+    const AnimationView view = packed.View();
+    scalars_ = {static_cast<unsigned>(view.nodes.size()), static_cast<unsigned>(packed.joints.size()), view.clip_count,
+                static_cast<unsigned>(instances.size())};
+  }
+
+  // Seconds of device time per launch, `launches` of them between two events.
+  double Time(int launches) {
+    void* parameters[] = {&scalars_[0], &scalars_[1], &scalars_[2], &scalars_[3], &buffers_[0], &buffers_[1],
+                          &buffers_[2], &buffers_[3], &buffers_[4], &buffers_[5], &buffers_[6]};
+    Check(api_.cuEventRecord(start_, nullptr), "cuEventRecord");
+    for (int l = 0; l < launches; ++l)
+      Check(api_.cuLaunchKernel(function_, (scalars_[1] + kBlock - 1) / kBlock, scalars_[3], 1, kBlock, 1, 1, 0,
+                                nullptr, parameters, nullptr),
+            "cuLaunchKernel");
+    Check(api_.cuEventRecord(end_, nullptr), "cuEventRecord");
+    Check(api_.cuEventSynchronize(end_), "cuEventSynchronize");
+    float ms = 0.0f;
+    Check(api_.cuEventElapsedTime(&ms, start_, end_), "cuEventElapsedTime");
+    return ms * 1e-3 / launches;
+  }
+
+ private:
+  explicit CudaPalettes(const cuda::DriverApi& api) : api_(api) {
+    cuda::Device device = 0;
+    Check(api_.cuDeviceGet(&device, 0), "cuDeviceGet");
+    int major = 0, minor = 0;
+    Check(api_.cuDeviceGetAttribute(&major, cuda::kAttributeComputeCapabilityMajor, device), "compute capability");
+    Check(api_.cuDeviceGetAttribute(&minor, cuda::kAttributeComputeCapabilityMinor, device), "compute capability");
+    const CompileResult r = CompileWithNvrtc(ExpandedTemplate("palette.cu"), NvrtcArchFor(major, minor), "palette.cu");
+    if (!r.ok) throw std::runtime_error(r.error);
+    Check(api_.cuDevicePrimaryCtxRetain(&context_, device), "cuDevicePrimaryCtxRetain");
+    Check(api_.cuCtxSetCurrent(context_), "cuCtxSetCurrent");
+    Check(api_.cuModuleLoadDataEx(&module_, r.ptx.c_str(), 0, nullptr, nullptr), "cuModuleLoadDataEx");
+    Check(api_.cuModuleGetFunction(&function_, module_, "skintune_palette"), "cuModuleGetFunction");
+    Check(api_.cuEventCreate(&start_, 0), "cuEventCreate");
+    Check(api_.cuEventCreate(&end_, 0), "cuEventCreate");
+  }
+  void Free() {
+    for (cuda::DevicePtr& b : buffers_) {
+      if (b) api_.cuMemFree(b);
+      b = 0;
+    }
+  }
+  static void Check(cuda::Result result, const char* what) {
+    if (result != cuda::kSuccess) throw std::runtime_error(std::string(what) + ": " + cuda::ErrorText(result));
+  }
+
+  const cuda::DriverApi& api_;
+  cuda::Context context_ = nullptr;
+  cuda::Module module_ = nullptr;
+  cuda::Function function_ = nullptr;
+  cuda::Event start_ = nullptr, end_ = nullptr;
+  cuda::DevicePtr buffers_[7] = {};
+  std::array<unsigned, 4> scalars_{};
+};
+
+struct Model {
+  std::string name;
+  std::shared_ptr<SkinnedAsset> asset;
+};
+
+std::vector<Model> Models() {
+  std::vector<Model> models;
+  for (const std::string& file : options.gltf)
+    models.push_back({std::filesystem::path(file).filename().string(),
+                      std::make_shared<SkinnedAsset>(ImportGltf(file).asset)});
+  for (const std::string& key : options.synthetic)
+    models.push_back({key, std::make_shared<SkinnedAsset>(GenerateDataset(ParseDatasetKey(key)))});
+  return models;
+}
+
+void RegisterCuda(const Model& m, int k, const char* form) {
+  const std::string name = "cuda/" + m.name + "/" + std::to_string(k) + "/" + form;
+  const std::string kind = form;
+  benchmark::RegisterBenchmark(name.c_str(), [m, k, kind](benchmark::State& state) {
+    std::string why;
+    CudaPalettes* cuda = CudaPalettes::Get(why);
+    if (cuda == nullptr) {
+      state.SkipWithError(why.c_str());
+      return;
+    }
+    const PackedAnimation packed = PackAnimation(*m.asset);
+    const std::vector<AnimInstance> crowd = Crowd(*m.asset, packed, k, kind == "blend");
+    cuda->Load(packed, crowd);
+    const int launches = kind == "one" ? 1 : kBurst;
+    cuda->Time(launches);  // warm: the module's first launch
+    for (auto _ : state) state.SetIterationTime(cuda->Time(launches));
+    state.counters["joints"] = static_cast<double>(packed.joints.size());
+  })->UseManualTime()->Unit(benchmark::kMicrosecond);
+}
+
+void RegisterHost(const Model& m, int k) {
+  const std::string base = "host/" + m.name + "/" + std::to_string(k);
+  benchmark::RegisterBenchmark((base + "/palette-at").c_str(), [m, k](benchmark::State& state) {
+    const PackedAnimation packed = PackAnimation(*m.asset);
+    const std::vector<AnimInstance> crowd = Crowd(*m.asset, packed, k, false);
+    for (auto _ : state)
+      for (const AnimInstance& in : crowd)
+        benchmark::DoNotOptimize(m.asset->PaletteAt(packed.clips[in.clip], in.time));
+  })->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark((base + "/cpu-kernel").c_str(), [m, k](benchmark::State& state) {
+    const PackedAnimation packed = PackAnimation(*m.asset);
+    const std::vector<AnimInstance> crowd = Crowd(*m.asset, packed, k, false);
+    std::vector<float> rows(crowd.size() * packed.joints.size() * kAnimPaletteRows * 4);
+    for (auto _ : state) {
+      RunPaletteKernel(packed.View(), crowd, rows.data());
+      benchmark::DoNotOptimize(rows.data());
+    }
+  })->Unit(benchmark::kMicrosecond);
+}
+
+void ParseOptions(int& argc, char** argv) {
+  CLI::App app{"skintune_bench_palette: the palette kernel's own time on a CUDA device, against the host's"};
+  app.allow_extras();
+  app.add_option("--gltf", options.gltf, "a skinned glTF with animations (repeatable)")->check(CLI::ExistingFile);
+  app.add_option("--synthetic", options.synthetic, "a synthetic data-set key, for its rig (repeatable)");
+  app.add_option("--instances", options.instances, "crowd sizes (repeatable)")->check(CLI::Range(1, 1 << 16));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    std::exit(app.exit(e));
+  }
+  static std::vector<std::string> rest;
+  rest = app.remaining();
+  argc = 1;
+  for (std::string& r : rest) argv[argc++] = r.data();
+}
+
+}  // namespace
+}  // namespace skintune::internal
+
+int main(int argc, char** argv) {
+  using namespace skintune::internal;
+  ParseOptions(argc, argv);
+  try {
+    for (const Model& m : Models()) {
+      for (int k : options.instances) {
+        for (const char* form : {"one", "burst", "blend"}) RegisterCuda(m, k, form);
+        RegisterHost(m, k);
+      }
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "skintune_bench_palette: %s\n", e.what());
+    return 2;
+  }
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  return 0;
+}
