@@ -115,8 +115,7 @@ class CudaPalettes {
                           &buffers_[2], &buffers_[3], &buffers_[4], &buffers_[5], &buffers_[6]};
     Check(api_.cuEventRecord(start_, nullptr), "cuEventRecord");
     for (int l = 0; l < launches; ++l)
-      Check(api_.cuLaunchKernel(function_, (scalars_[1] + kBlock - 1) / kBlock, scalars_[3], 1, kBlock, 1, 1, 0,
-                                nullptr, parameters, nullptr),
+      Check(api_.cuLaunchKernel(function_, 1, scalars_[3], 1, kBlock, 1, 1, 0, nullptr, parameters, nullptr),
             "cuLaunchKernel");
     Check(api_.cuEventRecord(end_, nullptr), "cuEventRecord");
     Check(api_.cuEventSynchronize(end_), "cuEventSynchronize");

@@ -1,26 +1,18 @@
 // skintune: the palette kernel on the CPU (palette_kernel.h), float32.
 //
-// Form: one work item per (instance, joint). The item takes its joint's
-// node's local transform, then walks up the ancestor chain, multiplying each
-// ancestor's on the left (global = parent's global * local, so
-// M <- local(parent) * M), and finally applies the inverse bind matrix.
-// Items share nothing and write only their own three rows: no barriers, no
-// local memory, any node count and any depth, and the same code on every
-// API (templates/palette.cl is this file's kernel, function for function).
-// On the devices an item samples each ancestor as it walks, so ancestors are
-// sampled once per descendant joint instead of once per instance (a
-// level-by-level form, one work-group per instance with a barrier per level
-// and the globals in local memory, samples each node once but is bounded by
-// local memory and serialises deep chains). Here the CPU samples every
-// node once per instance first and the items walk those locals: the same
-// products in the same order, so the same float results, without the
-// repeated sampling. One thread, 2-core development machine, 2026-11-29, a
-// timing loop over 256 instances of clip 0: CesiumMan (19 joints) 7.7 us per
-// instance sampling inside the walk, 2.6 us with the locals sampled first
-// (the host's float64 PaletteAt: 3.1 us); the tests' 321-joint rig 64 levels
-// deep 599 us, 98 us (PaletteAt: 30-41 us). Instances are independent: a
-// caller may split them over threads (a subspan of instances, and the
-// palette from its first instance's rows).
+// Form: every node of an instance sampled once, then one walk per joint: the
+// joint's node's local transform, multiplied on the left by each ancestor's
+// (global = parent's global * local, so M <- local(parent) * M), then the
+// inverse bind matrix. The device kernels (templates/palette.cl, .cu, .comp)
+// do the same with a work-group per instance, the locals in local memory
+// (docs/ANIMATION.md says why, with the H200's figures): the same products
+// in the same order, so the same float results. One thread, 2-core
+// development machine, 2026-11-29, a timing loop over 256 instances of clip
+// 0: CesiumMan (19 joints) 2.6 us per instance (7.7 us re-sampling each
+// ancestor in the walk; the host's float64 PaletteAt: 3.1 us); the tests'
+// 321-joint rig 64 levels deep 98 us (599 us; PaletteAt: 30-41 us).
+// Instances are independent: a caller may split them over threads (a
+// subspan of instances, and the palette from its first instance's rows).
 //
 // Numerics follow model/animation.cpp (the float64 gold): keys found by
 // binary search, t clamped to the first/last key, STEP holds key k, LINEAR
@@ -231,6 +223,9 @@ std::string Number(float v) {
 }  // namespace
 
 void ValidateAnimation(const AnimationView& a) {
+  if (a.nodes.size() > kAnimMaxNodes)
+    throw Error("packed animation: " + std::to_string(a.nodes.size()) + " nodes (the device palette kernels hold at most " +
+                std::to_string(kAnimMaxNodes) + " in local memory)");
   if (a.clip_count > kAnimMaxClips)
     throw Error("packed animation: " + std::to_string(a.clip_count) + " clips (at most " +
                 std::to_string(kAnimMaxClips) + ")");

@@ -28,6 +28,10 @@ inline constexpr std::uint32_t kAnimPaths = 3;
 // (AnimInstance), so at most kAnimMaxClips clips are packed.
 inline constexpr std::uint16_t kAnimRestPose = 0xffff;
 inline constexpr std::uint32_t kAnimMaxClips = 0xffff;
+// The device kernels sample every node of an instance into local memory
+// (templates/palette.cl, ANIM_MAX_NODES: 512 x 48 bytes, 24 KiB, within every
+// API's guaranteed minimum), so a packed animation has at most this many nodes.
+inline constexpr std::size_t kAnimMaxNodes = 512;
 // Float4 rows per joint of the output palette (`mat3x4`).
 inline constexpr std::size_t kAnimPaletteRows = 3;
 

@@ -134,7 +134,7 @@ void CheckCounts(const SkinnedAsset& asset, std::span<const int> clips) {
   const std::size_t nodes = asset.skeleton.nodes.size(), joints = asset.skeleton.joints.size();
   if (nodes > kAnimMaxNodes)
     throw Error(asset.source + ": " + std::to_string(nodes) + " nodes (at most " + std::to_string(kAnimMaxNodes) +
-                " packed)");
+                " packed: the device palette kernels hold an instance's nodes in local memory)");
   if (joints > kAnimMaxJoints)
     throw Error(asset.source + ": " + std::to_string(joints) + " joints (at most " + std::to_string(kAnimMaxJoints) +
                 " packed)");

@@ -23,10 +23,10 @@
 
 namespace skintune::internal {
 
-// Limits beyond which a packing is refused as absurd (Error naming the
-// element): node and joint counts as a batch's palette indices allow, clips
-// as AnimInstance's 16-bit clip index allows, and 32-bit offsets.
-inline constexpr std::size_t kAnimMaxNodes = 65536;
+// Limits beyond which a packing is refused (Error naming the element): nodes
+// as the device kernels' local memory holds them (kAnimMaxNodes,
+// cpu_kernels/palette_kernel.h), joints as a batch's palette indices allow,
+// clips as AnimInstance's 16-bit clip index allows, and 32-bit offsets.
 inline constexpr std::size_t kAnimMaxJoints = 65536;
 inline constexpr std::size_t kAnimMaxHeaders = std::size_t{1} << 26;  // clips x nodes x 3 (1 GiB of headers)
 inline constexpr std::size_t kAnimMaxKeys = 0x7fffffff;               // times, and float4 values, in all

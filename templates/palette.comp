@@ -1,18 +1,17 @@
 #version 430 core
 // skintune: the palette kernel as a GL 4.3 compute shader, the twin of
 // templates/palette.cl (same buffers, bytes and algorithm; the layout:
-// docs/ANIMATION.md; why one invocation per (instance, joint):
-// cpu_kernels/palette_kernel.cpp).
+// docs/ANIMATION.md; why each node is sampled once per instance:
+// templates/palette.cl).
 //
 // Bindings, in palette.cl's argument order: shader storage buffers 0 nodes,
 // 1 channels, 2 times, 3 values, 4 joints, 5 instances, 6 palette (output);
 // uniforms node_count, joint_count, clip_count, instance_count (Vulkan: a
 // push-constant block of the four, in that order).
-// glDispatchCompute(ceil(joint_count / 64), instance_count, 1): invocation
-// (j, i), j = gl_GlobalInvocationID.x, i = gl_WorkGroupID.y, writes instance
-// i's joint j as three vec4 rows at (i * joint_count + j) * 3 + r. An
-// instance whose clip index is neither a packed clip nor 0xffff (the rest
-// pose) gets NaN rows.
+// glDispatchCompute(1, instance_count, 1): work-group i (gl_WorkGroupID.y)
+// writes instance i's joints, joint j as three vec4 rows at
+// (i * joint_count + j) * 3 + r. An instance whose clip index is neither a
+// packed clip nor 0xffff (the rest pose) gets NaN rows.
 
 layout(local_size_x = 64) in;
 
@@ -150,24 +149,39 @@ Affine anim_local(uint node, uvec4 in_) {
 
 bool anim_clip_valid(uint clip) { return clip == kRestPose || clip < clip_count; }
 
+#define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
+shared vec4 local_rows[3 * ANIM_MAX_NODES];  // node n's local transform: rows 3n .. 3n + 2
+
+// One work-group of 64 per instance (glDispatchCompute(1, K, 1)): its
+// invocations sample every node once into shared memory, then compose their
+// joints there (templates/palette.cl says why).
 void main() {
-  uint j = gl_GlobalInvocationID.x, i = gl_WorkGroupID.y;
-  if (j >= joint_count || i >= instance_count) return;
+  uint item = gl_LocalInvocationID.x, i = gl_WorkGroupID.y;
+  // Whole groups leave here (uniform), before the barrier.
+  if (gl_WorkGroupID.x != 0u || i >= instance_count || node_count > uint(ANIM_MAX_NODES)) return;
   uvec4 in_ = instances[i];
-  uint out_ = (i * joint_count + j) * 3u;
+  uint out_ = i * joint_count * 3u;
   if (!anim_clip_valid(in_.x & 0xffffu) || (uintBitsToFloat(in_.w) != 0.0 && !anim_clip_valid(in_.x >> 16))) {
     vec4 nan = vec4(uintBitsToFloat(0x7fc00000u));
-    palette[out_] = nan;
-    palette[out_ + 1u] = nan;
-    palette[out_ + 2u] = nan;
+    for (uint r = item; r < joint_count * 3u; r += 64u) palette[out_ + r] = nan;
     return;
   }
-  uint node = floatBitsToUint(joints[4u * j].x);
-  Affine m = anim_local(node, in_);
-  for (int p = floatBitsToInt(nodes[4u * node].x); p >= 0; p = floatBitsToInt(nodes[4u * uint(p)].x))
-    m = anim_multiply(anim_local(uint(p), in_), m);
-  m = anim_multiply(m, Affine(joints[4u * j + 1u], joints[4u * j + 2u], joints[4u * j + 3u]));
-  palette[out_] = m.row0;
-  palette[out_ + 1u] = m.row1;
-  palette[out_ + 2u] = m.row2;
+  for (uint n = item; n < node_count; n += 64u) {
+    Affine l = anim_local(n, in_);
+    local_rows[3u * n] = l.row0;
+    local_rows[3u * n + 1u] = l.row1;
+    local_rows[3u * n + 2u] = l.row2;
+  }
+  memoryBarrierShared();
+  barrier();
+  for (uint j = item; j < joint_count; j += 64u) {
+    uint node = floatBitsToUint(joints[4u * j].x);
+    Affine m = Affine(local_rows[3u * node], local_rows[3u * node + 1u], local_rows[3u * node + 2u]);
+    for (int p = floatBitsToInt(nodes[4u * node].x); p >= 0; p = floatBitsToInt(nodes[4u * uint(p)].x))
+      m = anim_multiply(Affine(local_rows[3u * uint(p)], local_rows[3u * uint(p) + 1u], local_rows[3u * uint(p) + 2u]), m);
+    m = anim_multiply(m, Affine(joints[4u * j + 1u], joints[4u * j + 2u], joints[4u * j + 3u]));
+    palette[out_ + 3u * j] = m.row0;
+    palette[out_ + 3u * j + 1u] = m.row1;
+    palette[out_ + 3u * j + 2u] = m.row2;
+  }
 }

@@ -1,15 +1,17 @@
 // skintune: the palette kernel in CUDA C++ for NVRTC, the twin of
 // templates/palette.cl (same buffers, argument order and algorithm; the
-// buffers' bytes: docs/ANIMATION.md; why one item per (instance, joint):
-// cpu_kernels/palette_kernel.cpp). No system headers: NVRTC provides float4,
+// buffers' bytes: docs/ANIMATION.md; why each node is sampled once per
+// instance: templates/palette.cl). No system headers: NVRTC provides float4,
 // uint4 and the float intrinsics; the float4 arithmetic OpenCL has built in
 // is the few operators below.
 //
-// Launch: grid (ceil(joint_count / B), instance_count), blocks of (B, 1)
-// threads for any B; thread (j, i) with j = blockIdx.x * B + threadIdx.x,
-// i = blockIdx.y writes instance i's joint j as three float4 rows at
-// (i * joint_count + j) * 3 + r. An instance whose clip index is neither a
-// packed clip nor 0xffff (the rest pose) gets NaN rows.
+// Launch: grid (1, instance_count) of blocks of (ANIM_GROUP, 1) = (64, 1)
+// threads, one block per instance: its threads sample every node once into
+// shared memory (at most ANIM_MAX_NODES), then compose their joints j =
+// thread, thread + 64, ... there, and write instance i's joint j as three
+// float4 rows at (i * joint_count + j) * 3 + r (templates/palette.cl says
+// why). An instance whose clip index is neither a packed clip nor 0xffff
+// (the rest pose) gets NaN rows.
 
 #define ANIM_REST_POSE 0xffffu
 
@@ -156,33 +158,51 @@ __device__ bool anim_clip_valid(const unsigned clip, const unsigned clip_count) 
   return clip == ANIM_REST_POSE || clip < clip_count;
 }
 
-extern "C" __global__ void skintune_palette(const unsigned node_count, const unsigned joint_count,
-                                            const unsigned clip_count, const unsigned instance_count,
-                                            const float4* __restrict__ nodes, const uint4* __restrict__ channels,
-                                            const float* __restrict__ times, const float4* __restrict__ values,
-                                            const float4* __restrict__ joints, const uint4* __restrict__ instances,
-                                            float4* __restrict__ palette) {
-  const unsigned j = blockIdx.x * blockDim.x + threadIdx.x, i = blockIdx.y;
-  if (j >= joint_count || i >= instance_count) return;
+#define ANIM_GROUP 64  // fixed: the launch and the local memory the kernel is written for
+#define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
+
+extern "C" __global__ void __launch_bounds__(ANIM_GROUP)
+skintune_palette(const unsigned node_count, const unsigned joint_count, const unsigned clip_count,
+                 const unsigned instance_count, const float4* __restrict__ nodes, const uint4* __restrict__ channels,
+                 const float* __restrict__ times, const float4* __restrict__ values,
+                 const float4* __restrict__ joints, const uint4* __restrict__ instances,
+                 float4* __restrict__ palette) {
+  __shared__ float4 local_rows[3 * ANIM_MAX_NODES];  // node n's local transform: rows 3n .. 3n + 2
+  const unsigned item = threadIdx.x, i = blockIdx.y;
+  // Whole blocks leave here (uniform), before the barrier.
+  if (blockIdx.x != 0 || i >= instance_count || node_count > ANIM_MAX_NODES) return;
   const uint4 in = instances[i];
-  float4* out = palette + ((unsigned long long)i * joint_count + j) * 3u;
+  float4* out = palette + (unsigned long long)i * joint_count * 3u;
   if (!anim_clip_valid(in.x & 0xffffu, clip_count) ||
       (__uint_as_float(in.w) != 0.0f && !anim_clip_valid(in.x >> 16, clip_count))) {
     const float nan = __int_as_float(0x7fffffff);
-    out[0] = out[1] = out[2] = make_float4(nan, nan, nan, nan);
+    for (unsigned r = item; r < joint_count * 3u; r += ANIM_GROUP) out[r] = make_float4(nan, nan, nan, nan);
     return;
   }
   const Animation a = {node_count, nodes, channels, times, values};
-  const unsigned node = __float_as_uint(joints[4u * j].x);
-  Affine m = anim_local(a, node, in);
-  for (int p = __float_as_int(nodes[4u * node].x); p >= 0; p = __float_as_int(nodes[4u * (unsigned)p].x))
-    m = anim_multiply(anim_local(a, (unsigned)p, in), m);
-  Affine inverse_bind;
-  inverse_bind.row0 = joints[4u * j + 1u];
-  inverse_bind.row1 = joints[4u * j + 2u];
-  inverse_bind.row2 = joints[4u * j + 3u];
-  m = anim_multiply(m, inverse_bind);
-  out[0] = m.row0;
-  out[1] = m.row1;
-  out[2] = m.row2;
+  for (unsigned n = item; n < node_count; n += ANIM_GROUP) {
+    const Affine l = anim_local(a, n, in);
+    local_rows[3u * n] = l.row0;
+    local_rows[3u * n + 1u] = l.row1;
+    local_rows[3u * n + 2u] = l.row2;
+  }
+  __syncthreads();
+  for (unsigned j = item; j < joint_count; j += ANIM_GROUP) {
+    const unsigned node = __float_as_uint(joints[4u * j].x);
+    Affine m;
+    m.row0 = local_rows[3u * node], m.row1 = local_rows[3u * node + 1u], m.row2 = local_rows[3u * node + 2u];
+    for (int p = __float_as_int(nodes[4u * node].x); p >= 0; p = __float_as_int(nodes[4u * (unsigned)p].x)) {
+      Affine parent;
+      parent.row0 = local_rows[3u * p], parent.row1 = local_rows[3u * p + 1u], parent.row2 = local_rows[3u * p + 2u];
+      m = anim_multiply(parent, m);
+    }
+    Affine inverse_bind;
+    inverse_bind.row0 = joints[4u * j + 1u];
+    inverse_bind.row1 = joints[4u * j + 2u];
+    inverse_bind.row2 = joints[4u * j + 3u];
+    m = anim_multiply(m, inverse_bind);
+    out[3u * j] = m.row0;
+    out[3u * j + 1u] = m.row1;
+    out[3u * j + 2u] = m.row2;
+  }
 }

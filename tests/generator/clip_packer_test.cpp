@@ -140,7 +140,9 @@ TEST(ClipPacker, RefusesEachBadInputNamingItsElement) {
   EXPECT_EQ(ErrorOf(plain, std::vector<int>(70000, 0)),
             "rigged: 70000 clips to pack (at most 65535: 16-bit clip indices)");
   EXPECT_EQ(ErrorOf(Changed([](SkinnedAsset& a) { a.skeleton.nodes.resize(70000); })),
-            "rigged: 70000 nodes (at most 65536 packed)");
+            "rigged: 70000 nodes (at most 512 packed: the device palette kernels hold an instance's nodes in local memory)");
+  EXPECT_EQ(ErrorOf(Changed([](SkinnedAsset& a) { a.skeleton.nodes.resize(513); })),
+            "rigged: 513 nodes (at most 512 packed: the device palette kernels hold an instance's nodes in local memory)");
   EXPECT_EQ(ErrorOf(Changed([&](SkinnedAsset& a) { a.animations[0].channels.push_back(first); })),
             "rigged: animations[0]: channels[" + std::to_string(plain.animations[0].channels.size()) + "]" +
                 channel0.substr(channel0.find(" (")) +

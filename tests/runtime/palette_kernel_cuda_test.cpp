@@ -49,7 +49,7 @@ using testing::ExpectWithinBound;
 using testing::Name;
 using testing::TestAsset;
 
-constexpr unsigned kBlock = 64;  // threads per block along the joints
+constexpr unsigned kBlock = 64;  // threads per block: palette.cu's ANIM_GROUP, one block per instance
 
 // palette.cu compiled for device 0 and loaded into its primary context, once.
 class CudaPaletteKernel {
@@ -96,8 +96,7 @@ class CudaPaletteKernel {
     unsigned clip_count = view.clip_count, instance_count = static_cast<unsigned>(instances.size());
     void* parameters[] = {&node_count, &joint_count, &clip_count, &instance_count, &buffers[0], &buffers[1],
                           &buffers[2],  &buffers[3],  &buffers[4], &buffers[5],     &buffers[6]};
-    Check(api_.cuLaunchKernel(function_, (joint_count + kBlock - 1) / kBlock, instance_count, 1, kBlock, 1, 1, 0,
-                              nullptr, parameters, nullptr),
+    Check(api_.cuLaunchKernel(function_, 1, instance_count, 1, kBlock, 1, 1, 0, nullptr, parameters, nullptr),
           "cuLaunchKernel");
     Check(api_.cuCtxSynchronize(), "cuCtxSynchronize");
     Check(api_.cuMemcpyDtoH(rows.data(), buffers[6], rows.size() * sizeof(float)), "cuMemcpyDtoH");

@@ -80,8 +80,7 @@ class GlPaletteKernel {
     glUniform1ui(Uniform("joint_count"), static_cast<GLuint>(joints));
     glUniform1ui(Uniform("clip_count"), view.clip_count);
     glUniform1ui(Uniform("instance_count"), static_cast<GLuint>(instances.size()));
-    glDispatchCompute((static_cast<GLuint>(joints) + kGroupSize - 1) / kGroupSize,
-                      static_cast<GLuint>(instances.size()), 1);
+    glDispatchCompute(1, static_cast<GLuint>(instances.size()), 1);  // a work-group per instance
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[6]);
     glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(rows.size() * sizeof(float)), rows.data());
