@@ -34,6 +34,13 @@ TEST(TuningSpace, FromJsonRestrictsNamedAxesAndKeepsTheRestFull) {
   EXPECT_EQ(nlohmann::json(s)["wg_size"], nlohmann::json::parse("[64, 256]"));
 }
 
+TEST(TuningSpace, FromJsonReadsTheNormalsAxisByNameAndAsOldConfigsWroteIt) {
+  const TuningSpace named = SpaceFromJson(nlohmann::json::parse(R"({"normals": ["none", "tangents"]})"), "c.json");
+  EXPECT_EQ(named.normals, (std::vector<Normals>{Normals::kNone, Normals::kTangents}));
+  const TuningSpace old = SpaceFromJson(nlohmann::json::parse(R"({"normals": [false, true]})"), "c.json");
+  EXPECT_EQ(old.normals, (std::vector<Normals>{Normals::kNone, Normals::kNormals}));
+}
+
 TEST(TuningSpace, FromJsonNamesTheBadAxisOrValue) {
   auto error = [](const char* text) {
     try {

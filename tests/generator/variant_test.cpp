@@ -67,6 +67,25 @@ TEST(VariantJson, RejectsUnknownValuesAndMismatchedKeys) {
   EXPECT_NE(ErrorOf([] { nlohmann::json{{"key", "cuda.b1"}, {"lang", "opencl"}}.get<Variant>(); }).find("does not match"), std::string::npos);
 }
 
+// The normals axis was a flag before tangents: files written then say
+// false / true, which read as none / normals; its names read as themselves,
+// and the key keeps its old tokens.
+TEST(VariantJson, TheNormalsAxisReadsOldFlagsAndItsNames) {
+  const auto read = [](const nlohmann::json& value) { return nlohmann::json{{"normals", value}}.get<Variant>().normals; };
+  EXPECT_EQ(read(false), Normals::kNone);
+  EXPECT_EQ(read(true), Normals::kNormals);
+  EXPECT_EQ(read("tangents"), Normals::kTangents);
+  EXPECT_EQ(read("none"), Normals::kNone);
+  EXPECT_NE(ErrorOf([] { nlohmann::json{{"normals", "yes"}}.get<Variant>(); }).find("'normals' has unknown value 'yes'"),
+            std::string::npos);
+  Variant v;
+  v.normals = Normals::kTangents;
+  EXPECT_EQ(nlohmann::json(v)["normals"], "tangents");
+  EXPECT_TRUE(v.Key().ends_with(".tangents")) << v.Key();
+  EXPECT_EQ(ParseVariantKey("opencl.b4.nonormals").normals, Normals::kNone);
+  EXPECT_EQ(ParseVariantKey("opencl.b4.normals").normals, Normals::kNormals);
+}
+
 TEST(VariantHash, IsStableAndDistinguishesVariants) {
   EXPECT_EQ(Variant{}.Hash(), ParseVariantKey(Variant{}.Key()).Hash());
   std::unordered_set<std::size_t> hashes;
