@@ -28,12 +28,18 @@
 #include "reference/skinning.h"
 #include "tests/common/test_asset.h"
 #include "tests/generator/deep_rig.h"
+#include "tests/generator/palette_checks.h"
 #include "tests/generator/palette_gold.h"
 
 namespace skintune::internal {
 namespace {
 
 using testing::Blends;
+using testing::ExpectBlendsMatchTheGold;
+using testing::ExpectEveryClipOfTheGltfModelsMatchesTheGold;
+using testing::ExpectNanRowsForAClipOutOfRange;
+using testing::ExpectTheDeepRigMatchesTheGold;
+using testing::On;
 using testing::Compare;
 using testing::DeepRig;
 using testing::EveryClipAlone;
@@ -231,74 +237,39 @@ const char* const kModels[] = {"CesiumMan.gltf", "Fox.gltf", "RiggedSimple.gltf"
 // ------------------------------------------------------------- the tests
 
 TEST(PaletteKernel, CpuMatchesTheGoldForEveryClipOfTheGltfModels) {
-  for (const char* model : kModels) {
-    const SkinnedAsset& asset = TestAsset(model);
-    const PackedAnimation packed = PackAnimation(asset);
-    const std::vector<AnimInstance> instances = EveryClipAlone(asset, packed);
-    ExpectWithinBound(std::string(model) + " cpu", Compare(asset, packed, instances, OnCpu(packed, instances)));
-  }
+  ExpectEveryClipOfTheGltfModelsMatchesTheGold(OnCpu, "cpu");
 }
 
 TEST(PaletteKernel, CpuMatchesTheGoldOnADeepRigWithEveryInterpolation) {
-  const PackedAnimation packed = PackAnimation(DeepRig());
-  const std::vector<AnimInstance> instances = EveryClipAlone(DeepRig(), packed);
-  ExpectWithinBound("deep rig cpu", Compare(DeepRig(), packed, instances, OnCpu(packed, instances)));
+  ExpectTheDeepRigMatchesTheGold(OnCpu, "cpu");
 }
 
 TEST(PaletteKernel, CpuBlendsTwoClipsInLocalSpaceLikeTheGold) {
-  for (const SkinnedAsset* asset : {&TestAsset("Fox.gltf"), &TestAsset("CesiumMan.gltf"), &DeepRig()}) {
-    const PackedAnimation packed = PackAnimation(*asset);
-    const std::vector<AnimInstance> instances = Blends(*asset, packed);
-    ExpectWithinBound(Name(*asset) + " cpu blends", Compare(*asset, packed, instances, OnCpu(packed, instances)));
-  }
+  ExpectBlendsMatchTheGold(OnCpu, "cpu");
 }
 
 TEST(PaletteKernel, OpenClMatchesTheGoldForEveryClipOfTheGltfModels) {
   SKIP_WITHOUT_OPENCL(kernel);
-  for (const char* model : kModels) {
-    const SkinnedAsset& asset = TestAsset(model);
-    const PackedAnimation packed = PackAnimation(asset);
-    const std::vector<AnimInstance> instances = EveryClipAlone(asset, packed);
-    ExpectWithinBound(std::string(model) + " opencl",
-                      Compare(asset, packed, instances, kernel->Run(packed, instances)));
-  }
+  ExpectEveryClipOfTheGltfModelsMatchesTheGold(On(kernel), "opencl");
 }
 
 TEST(PaletteKernel, OpenClMatchesTheGoldOnADeepRigWithEveryInterpolation) {
   SKIP_WITHOUT_OPENCL(kernel);
-  const PackedAnimation packed = PackAnimation(DeepRig());
-  const std::vector<AnimInstance> instances = EveryClipAlone(DeepRig(), packed);
-  ExpectWithinBound("deep rig opencl", Compare(DeepRig(), packed, instances, kernel->Run(packed, instances)));
-  // Work-groups of 32 over 321 joints: the last group's items beyond the joints write nothing.
-  ExpectWithinBound("deep rig opencl, 3 groups along x",
-                    Compare(DeepRig(), packed, instances, kernel->Run(packed, instances, 3)));
+  ExpectTheDeepRigMatchesTheGold(On(kernel), "opencl");
+  // Groups beyond the first along dimension 0 (the launch has one) do nothing.
+  ExpectTheDeepRigMatchesTheGold(
+      [&](const PackedAnimation& p, const std::vector<AnimInstance>& in) { return kernel->Run(p, in, 3); },
+      "opencl, 3 groups along x");
 }
 
 TEST(PaletteKernel, OpenClBlendsTwoClipsInLocalSpaceLikeTheGold) {
   SKIP_WITHOUT_OPENCL(kernel);
-  for (const SkinnedAsset* asset : {&TestAsset("Fox.gltf"), &TestAsset("CesiumMan.gltf"), &DeepRig()}) {
-    const PackedAnimation packed = PackAnimation(*asset);
-    const std::vector<AnimInstance> instances = Blends(*asset, packed);
-    ExpectWithinBound(Name(*asset) + " opencl blends",
-                      Compare(*asset, packed, instances, kernel->Run(packed, instances)));
-  }
+  ExpectBlendsMatchTheGold(On(kernel), "opencl");
 }
 
 TEST(PaletteKernel, OpenClWritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
   SKIP_WITHOUT_OPENCL(kernel);
-  const SkinnedAsset& asset = TestAsset("Fox.gltf");
-  const PackedAnimation packed = PackAnimation(asset);
-  const std::vector<AnimInstance> instances = {AnimInstance{1, kAnimRestPose, 0.5f, 0.0f, 0.0f},
-                                               AnimInstance{3, kAnimRestPose, 0.5f, 0.0f, 0.0f},
-                                               AnimInstance{0, 7, 0.5f, 0.5f, 0.5f}};
-  const std::vector<float> rows = kernel->Run(packed, instances);
-  const std::size_t per_instance = packed.joints.size() * 12;
-  for (std::size_t i = 0; i < instances.size(); ++i) {
-    const auto first = rows.begin() + static_cast<std::ptrdiff_t>(i * per_instance);
-    const std::size_t nans = static_cast<std::size_t>(
-        std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance), [](float v) { return std::isnan(v); }));
-    EXPECT_EQ(nans, i == 0 ? 0 : per_instance) << "instance " << i;
-  }
+  ExpectNanRowsForAClipOutOfRange(On(kernel));
 }
 
 // What a skin kernel reads: the packer's mat3x4 palette rows (PackPalette of

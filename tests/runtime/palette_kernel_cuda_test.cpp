@@ -22,6 +22,7 @@
 #include "runtime/backends/cuda/cuda_api.h"
 #include "tests/common/test_asset.h"
 #include "tests/generator/deep_rig.h"
+#include "tests/generator/palette_checks.h"
 #include "tests/generator/palette_gold.h"
 
 namespace skintune::internal {
@@ -42,6 +43,11 @@ TEST(PaletteKernelCuda, CompilesCleanlyWithNvrtcWithTheOpenClKernelsArguments) {
 }
 
 using testing::Blends;
+using testing::ExpectBlendsMatchTheGold;
+using testing::ExpectEveryClipOfTheGltfModelsMatchesTheGold;
+using testing::ExpectNanRowsForAClipOutOfRange;
+using testing::ExpectTheDeepRigMatchesTheGold;
+using testing::On;
 using testing::Compare;
 using testing::DeepRig;
 using testing::EveryClipAlone;
@@ -136,45 +142,22 @@ class CudaPaletteKernel {
 
 TEST(PaletteKernelCuda, MatchesTheGoldForEveryClipOfTheGltfModels) {
   SKIP_WITHOUT_CUDA(kernel);
-  for (const char* model : {"CesiumMan.gltf", "Fox.gltf", "RiggedSimple.gltf"}) {
-    const SkinnedAsset& asset = TestAsset(model);
-    const PackedAnimation packed = PackAnimation(asset);
-    const std::vector<AnimInstance> instances = EveryClipAlone(asset, packed);
-    ExpectWithinBound(std::string(model) + " cuda", Compare(asset, packed, instances, kernel->Run(packed, instances)));
-  }
+  ExpectEveryClipOfTheGltfModelsMatchesTheGold(On(kernel), "cuda");
 }
 
 TEST(PaletteKernelCuda, MatchesTheGoldOnADeepRigWithEveryInterpolation) {
   SKIP_WITHOUT_CUDA(kernel);
-  const PackedAnimation packed = PackAnimation(DeepRig());
-  const std::vector<AnimInstance> instances = EveryClipAlone(DeepRig(), packed);
-  ExpectWithinBound("deep rig cuda", Compare(DeepRig(), packed, instances, kernel->Run(packed, instances)));
+  ExpectTheDeepRigMatchesTheGold(On(kernel), "cuda");
 }
 
 TEST(PaletteKernelCuda, BlendsTwoClipsInLocalSpaceLikeTheGold) {
   SKIP_WITHOUT_CUDA(kernel);
-  for (const SkinnedAsset* asset : {&TestAsset("Fox.gltf"), &TestAsset("CesiumMan.gltf"), &DeepRig()}) {
-    const PackedAnimation packed = PackAnimation(*asset);
-    const std::vector<AnimInstance> instances = Blends(*asset, packed);
-    ExpectWithinBound(Name(*asset) + " cuda blends",
-                      Compare(*asset, packed, instances, kernel->Run(packed, instances)));
-  }
+  ExpectBlendsMatchTheGold(On(kernel), "cuda");
 }
 
 TEST(PaletteKernelCuda, WritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
   SKIP_WITHOUT_CUDA(kernel);
-  const PackedAnimation packed = PackAnimation(TestAsset("Fox.gltf"));  // 3 clips
-  const std::vector<AnimInstance> instances = {AnimInstance{1, kAnimRestPose, 0.5f, 0.0f, 0.0f},
-                                               AnimInstance{3, kAnimRestPose, 0.5f, 0.0f, 0.0f},
-                                               AnimInstance{0, 7, 0.5f, 0.5f, 0.5f}};
-  const std::vector<float> rows = kernel->Run(packed, instances);
-  const std::size_t per_instance = packed.joints.size() * 12;
-  for (std::size_t i = 0; i < instances.size(); ++i) {
-    const auto first = rows.begin() + static_cast<std::ptrdiff_t>(i * per_instance);
-    const auto nans =
-        std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance), [](float v) { return std::isnan(v); });
-    EXPECT_EQ(static_cast<std::size_t>(nans), i == 0 ? 0 : per_instance) << "instance " << i;
-  }
+  ExpectNanRowsForAClipOutOfRange(On(kernel));
 }
 
 }  // namespace

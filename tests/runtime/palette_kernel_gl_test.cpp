@@ -21,12 +21,18 @@
 #include "runtime/backends/vulkan/vulkan_spirv.h"
 #include "tests/common/test_asset.h"
 #include "tests/generator/deep_rig.h"
+#include "tests/generator/palette_checks.h"
 #include "tests/generator/palette_gold.h"
 
 namespace skintune::internal {
 namespace {
 
 using testing::Blends;
+using testing::ExpectBlendsMatchTheGold;
+using testing::ExpectEveryClipOfTheGltfModelsMatchesTheGold;
+using testing::ExpectNanRowsForAClipOutOfRange;
+using testing::ExpectTheDeepRigMatchesTheGold;
+using testing::On;
 using testing::Compare;
 using testing::DeepRig;
 using testing::EveryClipAlone;
@@ -134,44 +140,22 @@ class GlPaletteKernel {
 
 TEST(PaletteKernelGl, MatchesTheGoldForEveryClipOfTheGltfModels) {
   SKIP_WITHOUT_GL(kernel);
-  for (const char* model : {"CesiumMan.gltf", "Fox.gltf", "RiggedSimple.gltf"}) {
-    const SkinnedAsset& asset = TestAsset(model);
-    const PackedAnimation packed = PackAnimation(asset);
-    const std::vector<AnimInstance> instances = EveryClipAlone(asset, packed);
-    ExpectWithinBound(std::string(model) + " gl", Compare(asset, packed, instances, kernel->Run(packed, instances)));
-  }
+  ExpectEveryClipOfTheGltfModelsMatchesTheGold(On(kernel), "gl");
 }
 
 TEST(PaletteKernelGl, MatchesTheGoldOnADeepRigWithEveryInterpolation) {
   SKIP_WITHOUT_GL(kernel);
-  const PackedAnimation packed = PackAnimation(DeepRig());
-  const std::vector<AnimInstance> instances = EveryClipAlone(DeepRig(), packed);
-  ExpectWithinBound("deep rig gl", Compare(DeepRig(), packed, instances, kernel->Run(packed, instances)));
+  ExpectTheDeepRigMatchesTheGold(On(kernel), "gl");
 }
 
 TEST(PaletteKernelGl, BlendsTwoClipsInLocalSpaceLikeTheGold) {
   SKIP_WITHOUT_GL(kernel);
-  for (const SkinnedAsset* asset : {&TestAsset("Fox.gltf"), &TestAsset("CesiumMan.gltf"), &DeepRig()}) {
-    const PackedAnimation packed = PackAnimation(*asset);
-    const std::vector<AnimInstance> instances = Blends(*asset, packed);
-    ExpectWithinBound(Name(*asset) + " gl blends", Compare(*asset, packed, instances, kernel->Run(packed, instances)));
-  }
+  ExpectBlendsMatchTheGold(On(kernel), "gl");
 }
 
 TEST(PaletteKernelGl, WritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
   SKIP_WITHOUT_GL(kernel);
-  const PackedAnimation packed = PackAnimation(TestAsset("Fox.gltf"));  // 3 clips
-  const std::vector<AnimInstance> instances = {AnimInstance{1, kAnimRestPose, 0.5f, 0.0f, 0.0f},
-                                               AnimInstance{3, kAnimRestPose, 0.5f, 0.0f, 0.0f},
-                                               AnimInstance{0, 7, 0.5f, 0.5f, 0.5f}};
-  const std::vector<float> rows = kernel->Run(packed, instances);
-  const std::size_t per_instance = packed.joints.size() * 12;
-  for (std::size_t i = 0; i < instances.size(); ++i) {
-    const auto first = rows.begin() + static_cast<std::ptrdiff_t>(i * per_instance);
-    const auto nans =
-        std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance), [](float v) { return std::isnan(v); });
-    EXPECT_EQ(static_cast<std::size_t>(nans), i == 0 ? 0 : per_instance) << "instance " << i;
-  }
+  ExpectNanRowsForAClipOutOfRange(On(kernel));
 }
 
 // The same shader is Vulkan's (its scalars a push-constant block): it

@@ -1,0 +1,78 @@
+// The checks every palette kernel passes (the CPU's, OpenCL's, GL's, CUDA's),
+// written once: each API's test calls them with its way of running the kernel,
+// `run(packed, instances)` giving the palette rows as RunPaletteKernel writes
+// them. `api` names the runner in the printed ratios and failures.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "cpu_kernels/palette_kernel.h"
+#include "generator/clip_packer.h"
+#include "tests/common/test_asset.h"
+#include "tests/generator/deep_rig.h"
+#include "tests/generator/palette_gold.h"
+
+namespace skintune::internal::testing {
+
+using RunPalettes = std::function<std::vector<float>(const PackedAnimation&, const std::vector<AnimInstance>&)>;
+
+// A test's kernel object (its Run(packed, instances)) as a RunPalettes.
+template <typename Kernel>
+RunPalettes On(Kernel* kernel) {
+  return [kernel](const PackedAnimation& packed, const std::vector<AnimInstance>& instances) {
+    return kernel->Run(packed, instances);
+  };
+}
+
+// Every clip of the shared models alone, at every kind of time (TimesOf).
+inline void ExpectEveryClipOfTheGltfModelsMatchesTheGold(const RunPalettes& run, const std::string& api) {
+  for (const char* model : {"CesiumMan.gltf", "Fox.gltf", "RiggedSimple.gltf"}) {
+    const SkinnedAsset& asset = TestAsset(model);
+    const PackedAnimation packed = PackAnimation(asset);
+    const std::vector<AnimInstance> instances = EveryClipAlone(asset, packed);
+    ExpectWithinBound(std::string(model) + " " + api, Compare(asset, packed, instances, run(packed, instances)));
+  }
+}
+
+// The deep synthetic rig (DeepRig): every interpolation, chains 64 deep.
+inline void ExpectTheDeepRigMatchesTheGold(const RunPalettes& run, const std::string& api) {
+  const PackedAnimation packed = PackAnimation(DeepRig());
+  const std::vector<AnimInstance> instances = EveryClipAlone(DeepRig(), packed);
+  ExpectWithinBound("deep rig " + api, Compare(DeepRig(), packed, instances, run(packed, instances)));
+}
+
+// Two clips blended in local space (Blends).
+inline void ExpectBlendsMatchTheGold(const RunPalettes& run, const std::string& api) {
+  for (const SkinnedAsset* asset : {&TestAsset("Fox.gltf"), &TestAsset("CesiumMan.gltf"), &DeepRig()}) {
+    const PackedAnimation packed = PackAnimation(*asset);
+    const std::vector<AnimInstance> instances = Blends(*asset, packed);
+    ExpectWithinBound(Name(*asset) + " " + api + " blends", Compare(*asset, packed, instances, run(packed, instances)));
+  }
+}
+
+// A device kernel given a clip beyond the packed ones (first or second)
+// writes NaN rows for that instance instead of reading beyond its buffers;
+// the other instances are untouched.
+inline void ExpectNanRowsForAClipOutOfRange(const RunPalettes& run) {
+  const PackedAnimation packed = PackAnimation(TestAsset("Fox.gltf"));  // 3 clips
+  const std::vector<AnimInstance> instances = {AnimInstance{1, kAnimRestPose, 0.5f, 0.0f, 0.0f},
+                                               AnimInstance{3, kAnimRestPose, 0.5f, 0.0f, 0.0f},
+                                               AnimInstance{0, 7, 0.5f, 0.5f, 0.5f}};
+  const std::vector<float> rows = run(packed, instances);
+  const std::size_t per_instance = packed.joints.size() * 12;
+  for (std::size_t i = 0; i < instances.size(); ++i) {
+    const auto first = rows.begin() + static_cast<std::ptrdiff_t>(i * per_instance);
+    const auto nans =
+        std::count_if(first, first + static_cast<std::ptrdiff_t>(per_instance), [](float v) { return std::isnan(v); });
+    EXPECT_EQ(static_cast<std::size_t>(nans), i == 0 ? 0 : per_instance) << "instance " << i;
+  }
+}
+
+}  // namespace skintune::internal::testing
