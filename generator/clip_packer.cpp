@@ -12,16 +12,6 @@
 namespace skintune::internal {
 namespace {
 
-const char* ClipPathName(ChannelPath path) {
-  switch (path) {
-    case ChannelPath::kTranslation: return "translation";
-    case ChannelPath::kRotation: return "rotation";
-    case ChannelPath::kScale: return "scale";
-    case ChannelPath::kWeights: return "weights";
-  }
-  return "?";
-}
-
 std::string ClipName(const SkinnedAsset& asset, int clip) {
   const std::string& name = asset.animations[static_cast<std::size_t>(clip)].name;
   return "animations[" + std::to_string(clip) + "]" + (name.empty() ? "" : " '" + name + "'");
@@ -114,7 +104,7 @@ void PackClip(const SkinnedAsset& asset, int clip, std::size_t packed, PackedAni
   std::set<std::pair<int, ChannelPath>> seen;
   for (std::size_t i = 0; i < a.channels.size(); ++i) {
     const Channel& c = a.channels[i];
-    const std::string where = name + ": channels[" + std::to_string(i) + "] (" + ClipPathName(c.path) + " of node " +
+    const std::string where = name + ": channels[" + std::to_string(i) + "] (" + ChannelPathName(c.path) + " of node " +
                               std::to_string(c.node) + ")";
     if (c.path == ChannelPath::kWeights) {
       out.not_packed.push_back(where + ": morph target weights are not part of the palette");

@@ -20,9 +20,8 @@
 #include "base/error.h"
 
 namespace skintune::internal {
-namespace {
 
-const char* PathName(ChannelPath path) {
+const char* ChannelPathName(ChannelPath path) {
   switch (path) {
     case ChannelPath::kTranslation: return "translation";
     case ChannelPath::kRotation: return "rotation";
@@ -31,6 +30,9 @@ const char* PathName(ChannelPath path) {
   }
   return "?";
 }
+
+namespace {
+
 
 std::size_t ValuesPerKey(const Channel& c) { return c.interpolation == Interpolation::kCubicSpline ? 3 : 1; }
 
@@ -107,7 +109,7 @@ glm::dvec4 Evaluate(const Channel& c, double t) {
 
 void ValidateChannel(const Channel& c, std::size_t index, int node_count, const std::string& context) {
   const std::string where = context + ": channels[" + std::to_string(index) + "] (node " +
-                            std::to_string(c.node) + " " + PathName(c.path) + ")";
+                            std::to_string(c.node) + " " + ChannelPathName(c.path) + ")";
   if (c.node < 0 || c.node >= node_count) {
     throw Error(where + ": node " + std::to_string(c.node) + " out of range (" + std::to_string(node_count) +
                 " nodes)");

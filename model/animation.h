@@ -20,6 +20,9 @@ namespace skintune::internal {
 enum class ChannelPath { kTranslation, kRotation, kScale, kWeights };
 enum class Interpolation { kStep, kLinear, kCubicSpline };
 
+// "translation", "rotation", "scale", "weights": glTF's names, in messages.
+const char* ChannelPathName(ChannelPath path);
+
 struct Channel {
   int node = -1;
   ChannelPath path = ChannelPath::kRotation;
