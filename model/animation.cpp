@@ -33,7 +33,6 @@ const char* ChannelPathName(ChannelPath path) {
 
 namespace {
 
-
 std::size_t ValuesPerKey(const Channel& c) { return c.interpolation == Interpolation::kCubicSpline ? 3 : 1; }
 
 std::string Seconds(float t) {
