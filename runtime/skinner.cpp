@@ -450,7 +450,7 @@ constexpr std::size_t kReadGrainVertices = 1 << 14;
 Status Read(const std::unique_ptr<Skinner::Impl>& impl, Output output, float* out, std::size_t float_count) {
   const char* call = output == Output::kPositions ? "ReadPositions" : output == Output::kNormals ? "ReadNormals"
                                                                                                  : "ReadTangents";
-  const bool normals = output != Output::kPositions;  // normalised outputs: no bound holds, always scanned first
+  const bool normalised = output != Output::kPositions;  // normals, tangents: no bound holds, always scanned first
   const std::size_t floats = output == Output::kTangents ? 4 : 3;
   return Guarded(ErrorCode::kDeviceError, [&] {
     Skinner::Impl& im = Usable(impl, call);
@@ -483,7 +483,7 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, Output output, float* ou
     // grain is scanned and copied in one pass: a non-finite output can only
     // come from a broken kernel, and is an error with other grains possibly
     // written already (never a non-finite value).
-    const bool one_pass = !normals && CannotOverflow(im.output_bound, im.skinned_magnitude);
+    const bool one_pass = !normalised && CannotOverflow(im.output_bound, im.skinned_magnitude);
     std::atomic<bool> all_finite{true};
     std::mutex failed_mutex;
     std::string failed;  // the first chunk whose copy failed

@@ -1,6 +1,7 @@
 #include "runtime/backends/cpu/cpu_runner.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
@@ -66,12 +67,16 @@ class CpuBound final : public DeviceObject {
   const CpuPlanned* plan = nullptr;
   std::vector<const std::uint8_t*> inputs;  // the kernel's input buffers in argument order
   const CpuBuffer* palette = nullptr;
-  float* out_positions = nullptr;  // at output vertex 0 (the launch adds first)
-  float* out_normals = nullptr;
-  float* out_tangents = nullptr;
+  // Each output by Output (null where the variant writes none), at output
+  // vertex 0 (the launch adds first); the copy and the flush write out_positions.
+  std::array<float*, kOutputCount> outputs{};
+  float* Out(Output o) const { return outputs[static_cast<std::size_t>(o)]; }
   CpuPalette converted;            // this launch's palette in the kernels' form, per frame
   std::vector<std::span<const std::uint8_t>> buffers;  // every buffer bound to it (what kCold evicts)
 };
+
+// `output` advanced by `floats`, or null for an output the variant does not write.
+float* At(float* output, std::size_t floats) { return output ? output + floats : nullptr; }
 
 }  // namespace
 
@@ -246,13 +251,13 @@ std::unique_ptr<DeviceObject> CpuApi::Bind(const PlannedLaunch& launch, std::spa
       case ArgumentRole::kOutput: {
         auto* out = reinterpret_cast<float*>(buffer->data());
         const OutputSpec* output = OutputOfArgument(a.argument->name);
-        const Output which = output ? output->output : Output::kPositions;  // the copy's and flush's out_positions
-        (which == Output::kNormals ? bound->out_normals : which == Output::kTangents ? bound->out_tangents : bound->out_positions) = out;
+        if (!output) Fail("launch", launch.spec.where + ": output '" + a.argument->name + "' is no kernel output");
+        bound->outputs[static_cast<std::size_t>(output->output)] = out;
         break;
       }
     }
   }
-  if (!bound->out_positions) Fail("launch", launch.spec.where + ": no output bound");
+  if (!bound->Out(Output::kPositions)) Fail("launch", launch.spec.where + ": no output bound");
   return bound;
 }
 
@@ -267,7 +272,7 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
     // does, only an item of all ones (which no flush input holds) written:
     // so what the flush wrote shows that it ran (tests), and nothing else.
     const auto* in = reinterpret_cast<const std::uint64_t*>(b.inputs.at(0));
-    auto* out = reinterpret_cast<std::uint64_t*>(reinterpret_cast<std::uint8_t*>(b.out_positions) +
+    auto* out = reinterpret_cast<std::uint64_t*>(reinterpret_cast<std::uint8_t*>(b.Out(Output::kPositions)) +
                                                  std::size_t{spec.first} * 16);
     const std::size_t words = std::size_t{spec.count} * 2;
     ThreadPool& pool = pools_.Get(max_threads_);
@@ -290,7 +295,7 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
   }
   if (plan.copy) {  // n 16-byte items, one chunk per thread
     const std::uint8_t* in = b.inputs.at(0);
-    auto* out = reinterpret_cast<std::uint8_t*>(b.out_positions) + std::size_t{spec.first} * 16;
+    auto* out = reinterpret_cast<std::uint8_t*>(b.Out(Output::kPositions)) + std::size_t{spec.first} * 16;
     const std::size_t bytes = std::size_t{spec.count} * 16;
     ThreadPool& pool = pools_.Get(max_threads_);
     const std::size_t grain = (bytes / pool.size() + 4095) / 4096 * 4096;
@@ -306,9 +311,9 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
     LoadCpuPalette(std::span(b.palette->data() + static_cast<std::size_t>(i) * joint_bytes, joint_bytes),
                    plan.palette_rows, b.converted);
     const CpuStreams s = CpuStreamsOf(spec.variant, spec.source.influences, spec.count, b.inputs,
-                                      b.out_positions + out_first * floats,
-                                      b.out_normals ? b.out_normals + out_first * floats : nullptr,
-                                      b.out_tangents ? b.out_tangents + out_first * floats : nullptr,
+                                      At(b.Out(Output::kPositions), out_first * floats),
+                                      At(b.Out(Output::kNormals), out_first * floats),
+                                      At(b.Out(Output::kTangents), out_first * floats),
                                       choice.stream_stores);
     RunCpuKernel(plan.kernel, s, b.converted, spec.count, pool, choice.schedule.chunk);
     if (plan.fault_wrong && spec.index == 0) s.out_positions[0] += 1.0f;  // the tuner's wrong-result test

@@ -18,10 +18,10 @@ CpuKernelKey CpuKeyOf(const Variant& variant, int influences);
 
 // The streams of one launch of `count` vertices and `influences` slots:
 // `inputs` are its buffers in argument order (aos: records; soa, soa-split:
-// positions, indices, weights[, normals]); the outputs point at the launch's
-// first output vertex. Throws Error for the wrong number of inputs.
+// positions, indices, weights[, normals[, tangents]]); the outputs (null: not
+// written) point at the launch's first output vertex. Throws Error for the wrong number of inputs.
 CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t count,
-                        std::span<const std::uint8_t* const> inputs, float* out_positions, float* out_normals, float* out_tangents,
-                        bool stream_stores);
+                        std::span<const std::uint8_t* const> inputs, float* out_positions, float* out_normals,
+                        float* out_tangents, bool stream_stores);
 
 }  // namespace skintune::internal
