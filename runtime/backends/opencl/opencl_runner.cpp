@@ -157,27 +157,25 @@ class ClBound final : public DeviceObject {
   std::vector<std::pair<cl_mem, std::size_t>> buffers;
 };
 
-// The native kernel that evicts a frame's buffers (OpenClApi::evicts_):
-// its argument block is a header, each buffer's bytes, then one slot per
-// buffer where clEnqueueNativeKernel puts the buffer's host address in
-// place of its cl_mem.
-struct EvictHeader {
-  std::atomic<std::size_t>* evicted;  // the api's count of bytes evicted
-  std::size_t buffers;
+// The native kernel that evicts one buffer (OpenClApi::evicts_): its
+// argument block is the api's count of bytes evicted, the buffer's bytes,
+// then the slot where clEnqueueNativeKernel puts the buffer's host address
+// in place of its cl_mem. One buffer per native kernel: PoCL 3.1 fills the
+// slots of a mem_list of several buffers in an order of its own (writable
+// buffers first, measured 2026-11-29: a read-write output's address went to
+// the slot of a read-only input's), so a frame's buffers would be evicted
+// with each other's sizes, past the end of the smaller ones.
+struct EvictArgs {
+  std::atomic<std::size_t>* evicted;
+  std::size_t bytes;
+  const std::uint8_t* address;
 };
 void CL_CALLBACK EvictNatively(void* args) {
-  const auto* header = static_cast<const EvictHeader*>(args);
-  const auto* bytes = reinterpret_cast<const std::size_t*>(header + 1);
-  const auto* addresses = reinterpret_cast<const std::uint8_t* const*>(bytes + header->buffers);
-  std::vector<std::span<const std::uint8_t>> spans;
-  std::size_t total = 0;
-  for (std::size_t b = 0; b < header->buffers; ++b) {
-    if (!addresses[b]) continue;  // not allocated on the device yet (PoCL allocates at first use): in no cache
-    spans.emplace_back(addresses[b], bytes[b]);
-    total += bytes[b];
-  }
-  EvictFromCaches(spans);
-  header->evicted->fetch_add(total);
+  const auto* a = static_cast<const EvictArgs*>(args);
+  if (!a->address) return;  // not allocated on the device yet (PoCL allocates at first use): in no cache
+  const std::span<const std::uint8_t> span(a->address, a->bytes);
+  EvictFromCaches({&span, 1});
+  a->evicted->fetch_add(a->bytes);
 }
 
 }  // namespace
@@ -266,7 +264,8 @@ class OpenClApi final : public DeviceApi {
   std::vector<std::vector<double>> TimeOnLanes(const FrameRun& run);
   // Kernel time (FrameUse::kCold) on one profiling lane.
   std::vector<std::vector<double>> TimeCold(const FrameRun& run);
-  // Queues on `on` the native kernel that evicts `frame`'s buffers (evicts_).
+  // Queues on `on` the native kernels that evict `frame`'s buffers (evicts_), one per
+  // buffer; the last one's event into `event`.
   void EnqueueEviction(std::span<const std::unique_ptr<DeviceObject>> frame, cl_event* event, cl_command_queue on);
   static double SpanMs(const LaneEdges& e, const std::string& key);
 
@@ -710,29 +709,19 @@ std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
 
 void OpenClApi::EnqueueEviction(std::span<const std::unique_ptr<DeviceObject>> frame, cl_event* event,
                                 cl_command_queue on) {
-  std::vector<cl_mem> buffers;
-  std::vector<std::size_t> sizes;
+  std::vector<std::pair<cl_mem, std::size_t>> buffers;
   for (const std::unique_ptr<DeviceObject>& launch : frame)
-    for (const auto& [b, bytes] : static_cast<const ClBound&>(*launch).buffers)
-      if (std::find(buffers.begin(), buffers.end(), b) == buffers.end()) {
-        buffers.push_back(b);
-        sizes.push_back(bytes);
-      }
-  // Header, bytes, address slots: std::size_t words throughout.
-  static_assert(sizeof(EvictHeader) % sizeof(std::size_t) == 0 && sizeof(cl_mem) == sizeof(std::size_t));
-  const std::size_t header_words = sizeof(EvictHeader) / sizeof(std::size_t);
-  std::vector<std::size_t> args(header_words + 2 * buffers.size());
-  const EvictHeader header{&evicted_bytes_, buffers.size()};
-  std::memcpy(args.data(), &header, sizeof header);
-  std::vector<const void*> slots;
+    for (const auto& buffer : static_cast<const ClBound&>(*launch).buffers)
+      if (std::find(buffers.begin(), buffers.end(), buffer) == buffers.end()) buffers.push_back(buffer);
   for (std::size_t b = 0; b < buffers.size(); ++b) {
-    args[header_words + b] = sizes[b];
-    std::memcpy(&args[header_words + buffers.size() + b], &buffers[b], sizeof(cl_mem));
-    slots.push_back(&args[header_words + buffers.size() + b]);
+    EvictArgs args{&evicted_bytes_, buffers[b].second, nullptr};
+    const void* slot = &args.address;
+    static_assert(sizeof(cl_mem) == sizeof(args.address));
+    std::memcpy(&args.address, &buffers[b].first, sizeof(cl_mem));
+    Check(clEnqueueNativeKernel(on, EvictNatively, &args, sizeof args, 1, &buffers[b].first, &slot, 0, nullptr,
+                                b + 1 == buffers.size() ? event : nullptr),
+          "launch", "clEnqueueNativeKernel (the cache eviction before a cold frame)");
   }
-  Check(clEnqueueNativeKernel(on, EvictNatively, args.data(), args.size() * sizeof(std::size_t),
-                              static_cast<cl_uint>(buffers.size()), buffers.data(), slots.data(), 0, nullptr, event),
-        "launch", "clEnqueueNativeKernel (the cache eviction before a cold frame)");
 }
 
 // kTime (docs/TUNING.md "Timing"): frames alternate between two in-order
