@@ -34,6 +34,7 @@
 #include "cpu_kernels/palette_kernel.h"
 #include "generator/clip_packer.h"
 #include "generator/emit.h"
+#include "generator/palette_kernel.h"
 #include "model/gltf_import.h"
 #include "model/synthetic.h"
 #include "runtime/backends/cuda/cuda_api.h"
@@ -104,18 +105,22 @@ class CudaPalettes {
       if (!inputs[b].empty()) Check(api_.cuMemcpyHtoD(buffers_[b], inputs[b].data(), inputs[b].size()), "cuMemcpyHtoD");
     }
     Check(api_.cuMemAlloc(&buffers_[6], instances.size() * packed.joints.size() * kAnimPaletteRows * 16), "cuMemAlloc");
-    const AnimationView view = packed.View();
-    scalars_ = {static_cast<unsigned>(view.nodes.size()), static_cast<unsigned>(packed.joints.size()), view.clip_count,
-                static_cast<unsigned>(instances.size())};
+    instance_count_ = static_cast<unsigned>(instances.size());
+    // The animation's own kernel (its counts are defines: EmitPalette).
+    const CompileResult r = CompileWithNvrtc(EmitPalette(Lang::kCuda, packed.View(), 3).kernel.text, arch_, "palette.cu");
+    if (!r.ok) throw std::runtime_error(r.error);
+    if (module_) api_.cuModuleUnload(module_);
+    module_ = nullptr;
+    Check(api_.cuModuleLoadDataEx(&module_, r.ptx.c_str(), 0, nullptr, nullptr), "cuModuleLoadDataEx");
+    Check(api_.cuModuleGetFunction(&function_, module_, "skintune_palette"), "cuModuleGetFunction");
   }
 
   // Seconds of device time per launch, `launches` of them between two events.
   double Time(int launches) {
-    void* parameters[] = {&scalars_[0], &scalars_[1], &scalars_[2], &scalars_[3], &buffers_[0], &buffers_[1],
-                          &buffers_[2], &buffers_[3], &buffers_[4], &buffers_[5], &buffers_[6]};
+    void* parameters[] = {&buffers_[0], &buffers_[1], &buffers_[2], &buffers_[3], &buffers_[4], &buffers_[5], &buffers_[6]};
     Check(api_.cuEventRecord(start_, nullptr), "cuEventRecord");
     for (int l = 0; l < launches; ++l)
-      Check(api_.cuLaunchKernel(function_, 1, scalars_[3], 1, kBlock, 1, 1, 0, nullptr, parameters, nullptr),
+      Check(api_.cuLaunchKernel(function_, 1, instance_count_, 1, kBlock, 1, 1, 0, nullptr, parameters, nullptr),
             "cuLaunchKernel");
     Check(api_.cuEventRecord(end_, nullptr), "cuEventRecord");
     Check(api_.cuEventSynchronize(end_), "cuEventSynchronize");
@@ -131,12 +136,9 @@ class CudaPalettes {
     int major = 0, minor = 0;
     Check(api_.cuDeviceGetAttribute(&major, cuda::kAttributeComputeCapabilityMajor, device), "compute capability");
     Check(api_.cuDeviceGetAttribute(&minor, cuda::kAttributeComputeCapabilityMinor, device), "compute capability");
-    const CompileResult r = CompileWithNvrtc(ExpandedTemplate("palette.cu"), NvrtcArchFor(major, minor), "palette.cu");
-    if (!r.ok) throw std::runtime_error(r.error);
+    arch_ = NvrtcArchFor(major, minor);
     Check(api_.cuDevicePrimaryCtxRetain(&context_, device), "cuDevicePrimaryCtxRetain");
     Check(api_.cuCtxSetCurrent(context_), "cuCtxSetCurrent");
-    Check(api_.cuModuleLoadDataEx(&module_, r.ptx.c_str(), 0, nullptr, nullptr), "cuModuleLoadDataEx");
-    Check(api_.cuModuleGetFunction(&function_, module_, "skintune_palette"), "cuModuleGetFunction");
     Check(api_.cuEventCreate(&start_, 0), "cuEventCreate");
     Check(api_.cuEventCreate(&end_, 0), "cuEventCreate");
   }
@@ -156,7 +158,8 @@ class CudaPalettes {
   cuda::Function function_ = nullptr;
   cuda::Event start_ = nullptr, end_ = nullptr;
   cuda::DevicePtr buffers_[7] = {};
-  std::array<unsigned, 4> scalars_{};
+  std::string arch_;
+  unsigned instance_count_ = 0;
 };
 
 struct Model {

@@ -265,14 +265,22 @@ void ValidateAnimInstances(const AnimationView& a, std::span<const AnimInstance>
   }
 }
 
-void RunPaletteKernel(const AnimationView& a, std::span<const AnimInstance> instances, float* palette) {
+void RunPaletteKernel(const AnimationView& a, std::span<const AnimInstance> instances, float* palette, int rows) {
+  if (rows != 3 && rows != 4) throw Error("palette kernel: " + std::to_string(rows) + " rows per joint (3 or 4)");
   ValidateAnimInstances(a, instances);
-  const std::size_t joints = a.joints.size();
+  const std::size_t joints = a.joints.size(), stride = 4 * static_cast<std::size_t>(rows);
   std::vector<Affine> locals(a.nodes.size());
   for (std::size_t i = 0; i < instances.size(); ++i) {
     for (std::uint32_t n = 0; n < locals.size(); ++n) locals[n] = LocalOf(a, n, instances[i]);
     const auto local = [&](std::uint32_t n) -> const Affine& { return locals[n]; };
-    for (std::size_t j = 0; j < joints; ++j) JointPalette(a, j, local, palette + 4 * kAnimPaletteRows * (i * joints + j));
+    for (std::size_t j = 0; j < joints; ++j) {
+      float* out = palette + stride * (i * joints + j);
+      JointPalette(a, j, local, out);
+      if (rows == 4) {  // a mat4's last row
+        out[12] = out[13] = out[14] = 0.0f;
+        out[15] = 1.0f;
+      }
+    }
   }
 }
 

@@ -93,11 +93,13 @@ void ValidateAnimation(const AnimationView& animation);
 // is not finite, a weight outside [0, 1].
 void ValidateAnimInstances(const AnimationView& animation, std::span<const AnimInstance> instances);
 
-// Writes instances.size() * joints * 3 float4 rows to `palette`: instance i's
-// joint j row r at float4 (i * joints + j) * 3 + r. Validates the instances
+// Writes instances.size() * joints * `rows` float4 rows to `palette`:
+// instance i's joint j row r at float4 (i * joints + j) * rows + r; rows 3
+// (mat3x4) or 4 (mat4: a fourth row 0 0 0 1), else Error. Validates the instances
 // (ValidateAnimInstances, cheap); the animation must have passed
 // ValidateAnimation once (PackAnimation's has), which this does not repeat
 // per frame.
-void RunPaletteKernel(const AnimationView& animation, std::span<const AnimInstance> instances, float* palette);
+void RunPaletteKernel(const AnimationView& animation, std::span<const AnimInstance> instances, float* palette,
+                      int rows = static_cast<int>(kAnimPaletteRows));
 
 }  // namespace skintune::internal

@@ -38,6 +38,7 @@ struct Language {
   const char* instance_rule;        // where an instanced launch puts instance i, in words (sidecar, launch rule)
   const char* copy_template;        // the same-size copy's template (generator/copy_kernel.h)
   Lang copy_lang;                   // the language that copy is emitted in: its API's (glsl-vertex: glsl-compute)
+  const char* palette_template;     // the palette kernel's template (generator/palette_kernel.h), emitted in copy_lang
   const char* api;                  // the API reports compare it as ("glsl": both GL stages): PaperApi's name
   const char* api_title;            // that API in tables and charts: "GLSL"
 };
@@ -53,6 +54,7 @@ inline constexpr Language kLanguages[] = {
      .instance_rule = "K instances: global size (items, K), instance i = get_global_id(1)",
      .copy_template = "copy.cl",
      .copy_lang = Lang::kOpenCl,
+     .palette_template = "palette.cl",
      .api = "opencl",
      .api_title = "OpenCL"},
     {.lang = Lang::kCuda,
@@ -65,6 +67,7 @@ inline constexpr Language kLanguages[] = {
      .instance_rule = "K instances: grid (items / wg_size, K), instance i = blockIdx.y",
      .copy_template = "copy.cu",
      .copy_lang = Lang::kCuda,
+     .palette_template = "palette.cu",
      .api = "cuda",
      .api_title = "CUDA"},
     {.lang = Lang::kGlslCompute,
@@ -77,6 +80,7 @@ inline constexpr Language kLanguages[] = {
      .instance_rule = "K instances: glDispatchCompute(items / wg_size, K, 1), instance i = gl_WorkGroupID.y",
      .copy_template = "copy.comp",
      .copy_lang = Lang::kGlslCompute,
+     .palette_template = "palette.comp",
      .api = "glsl",
      .api_title = "GLSL"},
     // Transform feedback of a vertex shader; GL's copy is a compute shader.
@@ -91,6 +95,7 @@ inline constexpr Language kLanguages[] = {
                       "capture holds the K instances' n vertices one instance after another",
      .copy_template = "copy.comp",
      .copy_lang = Lang::kGlslCompute,
+     .palette_template = "palette.comp",
      .api = "glsl",
      .api_title = "GLSL"},
     // The GL compute stage's text compiled to SPIR-V: VULKAN (predefined by
@@ -105,6 +110,7 @@ inline constexpr Language kLanguages[] = {
      .instance_rule = "K instances: vkCmdDispatch(items / wg_size, K, 1), instance i = gl_WorkGroupID.y",
      .copy_template = "copy.comp",
      .copy_lang = Lang::kVulkan,
+     .palette_template = "palette.comp",
      .api = "vulkan",
      .api_title = "Vulkan"},
     // Parameters only: the kernels and the all-thread memcpy copy are compiled
@@ -120,6 +126,7 @@ inline constexpr Language kLanguages[] = {
      .instance_rule = "K instances: the host loops over the instances; instance i = the loop's index",
      .copy_template = "copy.cpu",
      .copy_lang = Lang::kCpu,
+     .palette_template = "palette.cpu",
      .api = "cpu",
      .api_title = "CPU"},
 };
@@ -135,6 +142,7 @@ constexpr bool RowsFollowTheEnum() {
     const Language& l = kLanguages[i];
     if (static_cast<std::size_t>(l.lang) != i) return false;
     for (const char* text : {l.name, l.kernel_template, l.extension, l.instance, l.instance_rule, l.copy_template,
+                             l.palette_template,
                              l.api, l.api_title})
       if (!Set(text)) return false;
   }

@@ -5,19 +5,37 @@
 // opening comment says how sampling follows model/animation.cpp.
 //
 // Launch: a 2-D NDRange of work-groups of ANIM_GROUP (64) items, one group
-// per instance: global size (ANIM_GROUP, instance_count), local size
-// (ANIM_GROUP, 1). The group's items sample every node's local transform of
+// per instance: global size (ANIM_GROUP, K), local size (ANIM_GROUP, 1), for
+// K instances. The group's items sample every node's local transform of
 // their instance once, into local memory (at most ANIM_MAX_NODES nodes:
 // ValidateAnimation refuses more), then each composes its joints (j = item,
 // item + ANIM_GROUP, ...) by walking up their ancestors there, and writes
-// instance i's joint j as three float4 rows at (i * joint_count + j) * 3 + r:
-// the `mat3x4` palette the skin kernels read, K palettes one after another.
+// instance i's joint j as ANIM_PALETTE_ROWS float4 rows at
+// (i * ANIM_JOINT_COUNT + j) * ANIM_PALETTE_ROWS + r: the palette the skin
+// kernels read (`mat3x4`, or `mat4`), K palettes one after another.
 // (Sampling is binary searches in global memory: once per node, not once per
 // joint and ancestor. Measured on an H200, 2026-11-29, 64 instances of a
 // 77-joint rig took 49 us a launch with one item per joint re-sampling its
 // ancestors: docs/ANIMATION.md.)
 // An instance whose clip index is neither a packed clip nor 0xffff (the
 // rest pose) gets NaN rows instead of a read out of bounds.
+
+// The animation's counts and the palette's rows per joint, defined by the
+// generator (generator/palette_emit.h EmitPalette) for the packed animation
+// the kernel runs: the kernel is specialised per model, as the skin kernel
+// is per mesh. The defaults let the template compile alone.
+#ifndef ANIM_NODE_COUNT
+#define ANIM_NODE_COUNT 1
+#endif
+#ifndef ANIM_JOINT_COUNT
+#define ANIM_JOINT_COUNT 1
+#endif
+#ifndef ANIM_CLIP_COUNT
+#define ANIM_CLIP_COUNT 1
+#endif
+#ifndef ANIM_PALETTE_ROWS
+#define ANIM_PALETTE_ROWS 3  // 3: mat3x4 rows; 4: mat4, a fourth row (0, 0, 0, 1)
+#endif
 
 #define ANIM_REST_POSE 0xffffu
 
@@ -147,30 +165,32 @@ int anim_clip_valid(const uint clip, const uint clip_count) { return clip == ANI
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 
 __kernel __attribute__((reqd_work_group_size(ANIM_GROUP, 1, 1)))
-void skintune_palette(const uint node_count, const uint joint_count, const uint clip_count,
-                      const uint instance_count, __global const float4* restrict nodes,
+void skintune_palette(__global const float4* restrict nodes,
                       __global const uint4* restrict channels, __global const float* restrict times,
                       __global const float4* restrict values, __global const float4* restrict joints,
                       __global const uint4* restrict instances, __global float4* restrict palette) {
   __local float4 local_rows[3 * ANIM_MAX_NODES];  // node n's local transform: rows 3n .. 3n + 2
+  const uint node_count = ANIM_NODE_COUNT, joint_count = ANIM_JOINT_COUNT, clip_count = ANIM_CLIP_COUNT;
+  const uint rows = ANIM_PALETTE_ROWS;
   const uint item = (uint)get_local_id(0), i = (uint)get_group_id(1);
-  // Whole groups leave here (uniform), before the barrier.
-  if (get_group_id(0) != 0 || i >= instance_count || node_count > ANIM_MAX_NODES) return;
-  const uint4 in = instances[i];
-  __global float4* out = palette + (size_t)i * joint_count * 3u;
-  if (!anim_clip_valid(in.x & 0xffffu, clip_count) ||
-      (as_float(in.w) != 0.0f && !anim_clip_valid(in.x >> 16, clip_count))) {
-    for (uint r = item; r < joint_count * 3u; r += ANIM_GROUP) out[r] = (float4)(NAN);
-    return;
-  }
-  for (uint n = item; n < node_count; n += ANIM_GROUP) {
+  // No return before the barrier (every item of a group reaches it, as PoCL's
+  // work-group loops need): a group beyond the first along dimension 0, or an
+  // instance with a clip out of range, only skips the work (uniformly).
+  const int in_group = get_group_id(0) == 0 && node_count <= ANIM_MAX_NODES;
+  const uint4 in = in_group ? instances[i] : (uint4)(0u);
+  __global float4* out = palette + (size_t)i * joint_count * rows;
+  const int valid = in_group && anim_clip_valid(in.x & 0xffffu, clip_count) &&
+                    (as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
+  if (in_group && !valid)
+    for (uint r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = (float4)(NAN);
+  for (uint n = item; valid && n < node_count; n += ANIM_GROUP) {
     const Affine l = anim_local(node_count, nodes, channels, times, values, n, in);
     local_rows[3u * n] = l.row0;
     local_rows[3u * n + 1u] = l.row1;
     local_rows[3u * n + 2u] = l.row2;
   }
   barrier(CLK_LOCAL_MEM_FENCE);
-  for (uint j = item; j < joint_count; j += ANIM_GROUP) {
+  for (uint j = item; valid && j < joint_count; j += ANIM_GROUP) {
     const uint node = as_uint(joints[4u * j].x);
     Affine m;
     m.row0 = local_rows[3u * node], m.row1 = local_rows[3u * node + 1u], m.row2 = local_rows[3u * node + 2u];
@@ -185,8 +205,9 @@ void skintune_palette(const uint node_count, const uint joint_count, const uint 
     inverse_bind.row1 = joints[4u * j + 2u];
     inverse_bind.row2 = joints[4u * j + 3u];
     m = anim_multiply(m, inverse_bind);
-    out[3u * j] = m.row0;
-    out[3u * j + 1u] = m.row1;
-    out[3u * j + 2u] = m.row2;
+    out[rows * j] = m.row0;
+    out[rows * j + 1u] = m.row1;
+    out[rows * j + 2u] = m.row2;
+    if (rows == 4u) out[rows * j + 3u] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
   }
 }

@@ -5,12 +5,12 @@
 // templates/palette.cl).
 //
 // Bindings, in palette.cl's argument order: shader storage buffers 0 nodes,
-// 1 channels, 2 times, 3 values, 4 joints, 5 instances, 6 palette (output);
-// uniforms node_count, joint_count, clip_count, instance_count (Vulkan: a
-// push-constant block of the four, in that order).
-// glDispatchCompute(1, instance_count, 1): work-group i (gl_WorkGroupID.y)
-// writes instance i's joints, joint j as three vec4 rows at
-// (i * joint_count + j) * 3 + r. An instance whose clip index is neither a
+// 1 channels, 2 times, 3 values, 4 joints, 5 instances, 6 palette (output)
+// (Vulkan: descriptor set 0 at those bindings). No uniforms: the counts are
+// the generator's defines (below). glDispatchCompute(1, K, 1) for K
+// instances: work-group i (gl_WorkGroupID.y) writes instance i's joints,
+// joint j as ANIM_PALETTE_ROWS vec4 rows at
+// (i * ANIM_JOINT_COUNT + j) * ANIM_PALETTE_ROWS + r. An instance whose clip index is neither a
 // packed clip nor 0xffff (the rest pose) gets NaN rows.
 
 layout(local_size_x = 64) in;
@@ -23,22 +23,26 @@ layout(std430, binding = 4) readonly buffer Joints { vec4 joints[]; };
 layout(std430, binding = 5) readonly buffer Instances { uvec4 instances[]; };
 layout(std430, binding = 6) writeonly buffer Palette { vec4 palette[]; };
 
-#ifdef VULKAN
-// Vulkan (GL_KHR_vulkan_glsl predefines VULKAN): no loose uniforms there, so
-// the scalars are one push-constant block, bytes 0, 4, 8, 12; the buffers are
-// descriptor set 0 at the bindings above.
-layout(push_constant) uniform PaletteScalars {
-  uint node_count;
-  uint joint_count;
-  uint clip_count;
-  uint instance_count;
-};
-#else
-uniform uint node_count;
-uniform uint joint_count;
-uniform uint clip_count;
-uniform uint instance_count;
+// The animation's counts and the palette's rows per joint, defined by the
+// generator (generator/palette_emit.h EmitPalette) for the packed animation
+// the kernel runs: the kernel is specialised per model, as the skin kernel
+// is per mesh. The defaults let the template compile alone.
+#ifndef ANIM_NODE_COUNT
+#define ANIM_NODE_COUNT 1
 #endif
+#ifndef ANIM_JOINT_COUNT
+#define ANIM_JOINT_COUNT 1
+#endif
+#ifndef ANIM_CLIP_COUNT
+#define ANIM_CLIP_COUNT 1
+#endif
+#ifndef ANIM_PALETTE_ROWS
+#define ANIM_PALETTE_ROWS 3  // 3: mat3x4 rows; 4: mat4, a fourth row (0, 0, 0, 1)
+#endif
+const uint node_count = uint(ANIM_NODE_COUNT);
+const uint joint_count = uint(ANIM_JOINT_COUNT);
+const uint clip_count = uint(ANIM_CLIP_COUNT);
+const uint rows = uint(ANIM_PALETTE_ROWS);
 
 const uint kRestPose = 0xffffu;
 
@@ -157,16 +161,19 @@ shared vec4 local_rows[3 * ANIM_MAX_NODES];  // node n's local transform: rows 3
 // joints there (templates/palette.cl says why).
 void main() {
   uint item = gl_LocalInvocationID.x, i = gl_WorkGroupID.y;
-  // Whole groups leave here (uniform), before the barrier.
-  if (gl_WorkGroupID.x != 0u || i >= instance_count || node_count > uint(ANIM_MAX_NODES)) return;
-  uvec4 in_ = instances[i];
-  uint out_ = i * joint_count * 3u;
-  if (!anim_clip_valid(in_.x & 0xffffu) || (uintBitsToFloat(in_.w) != 0.0 && !anim_clip_valid(in_.x >> 16))) {
+  // No return before the barrier (GLSL allows none in main before one): a
+  // group beyond the first along x, or an instance with a clip out of range,
+  // only skips the work (uniformly).
+  bool in_group = gl_WorkGroupID.x == 0u && node_count <= uint(ANIM_MAX_NODES);
+  uvec4 in_ = in_group ? instances[i] : uvec4(0u);
+  uint out_ = i * joint_count * rows;
+  bool valid = in_group && anim_clip_valid(in_.x & 0xffffu) &&
+               (uintBitsToFloat(in_.w) == 0.0 || anim_clip_valid(in_.x >> 16));
+  if (in_group && !valid) {
     vec4 nan = vec4(uintBitsToFloat(0x7fc00000u));
-    for (uint r = item; r < joint_count * 3u; r += 64u) palette[out_ + r] = nan;
-    return;
+    for (uint r = item; r < joint_count * rows; r += 64u) palette[out_ + r] = nan;
   }
-  for (uint n = item; n < node_count; n += 64u) {
+  for (uint n = item; valid && n < node_count; n += 64u) {
     Affine l = anim_local(n, in_);
     local_rows[3u * n] = l.row0;
     local_rows[3u * n + 1u] = l.row1;
@@ -174,14 +181,15 @@ void main() {
   }
   memoryBarrierShared();
   barrier();
-  for (uint j = item; j < joint_count; j += 64u) {
+  for (uint j = item; valid && j < joint_count; j += 64u) {
     uint node = floatBitsToUint(joints[4u * j].x);
     Affine m = Affine(local_rows[3u * node], local_rows[3u * node + 1u], local_rows[3u * node + 2u]);
     for (int p = floatBitsToInt(nodes[4u * node].x); p >= 0; p = floatBitsToInt(nodes[4u * uint(p)].x))
       m = anim_multiply(Affine(local_rows[3u * uint(p)], local_rows[3u * uint(p) + 1u], local_rows[3u * uint(p) + 2u]), m);
     m = anim_multiply(m, Affine(joints[4u * j + 1u], joints[4u * j + 2u], joints[4u * j + 3u]));
-    palette[out_ + 3u * j] = m.row0;
-    palette[out_ + 3u * j + 1u] = m.row1;
-    palette[out_ + 3u * j + 2u] = m.row2;
+    palette[out_ + rows * j] = m.row0;
+    palette[out_ + rows * j + 1u] = m.row1;
+    palette[out_ + rows * j + 2u] = m.row2;
+    if (rows == 4u) palette[out_ + rows * j + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
   }
 }

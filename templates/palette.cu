@@ -5,13 +5,31 @@
 // uint4 and the float intrinsics; the float4 arithmetic OpenCL has built in
 // is the few operators below.
 //
-// Launch: grid (1, instance_count) of blocks of (ANIM_GROUP, 1) = (64, 1)
+// Launch: grid (1, K) for K instances, of blocks of (ANIM_GROUP, 1) = (64, 1)
 // threads, one block per instance: its threads sample every node once into
 // shared memory (at most ANIM_MAX_NODES), then compose their joints j =
 // thread, thread + 64, ... there, and write instance i's joint j as three
-// float4 rows at (i * joint_count + j) * 3 + r (templates/palette.cl says
+// ANIM_PALETTE_ROWS float4 rows at (i * ANIM_JOINT_COUNT + j) * ANIM_PALETTE_ROWS + r
+// (templates/palette.cl says
 // why). An instance whose clip index is neither a packed clip nor 0xffff
 // (the rest pose) gets NaN rows.
+
+// The animation's counts and the palette's rows per joint, defined by the
+// generator (generator/palette_emit.h EmitPalette) for the packed animation
+// the kernel runs: the kernel is specialised per model, as the skin kernel
+// is per mesh. The defaults let the template compile alone.
+#ifndef ANIM_NODE_COUNT
+#define ANIM_NODE_COUNT 1
+#endif
+#ifndef ANIM_JOINT_COUNT
+#define ANIM_JOINT_COUNT 1
+#endif
+#ifndef ANIM_CLIP_COUNT
+#define ANIM_CLIP_COUNT 1
+#endif
+#ifndef ANIM_PALETTE_ROWS
+#define ANIM_PALETTE_ROWS 3  // 3: mat3x4 rows; 4: mat4, a fourth row (0, 0, 0, 1)
+#endif
 
 #define ANIM_REST_POSE 0xffffu
 
@@ -162,32 +180,35 @@ __device__ bool anim_clip_valid(const unsigned clip, const unsigned clip_count) 
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 
 extern "C" __global__ void __launch_bounds__(ANIM_GROUP)
-skintune_palette(const unsigned node_count, const unsigned joint_count, const unsigned clip_count,
-                 const unsigned instance_count, const float4* __restrict__ nodes, const uint4* __restrict__ channels,
+skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ channels,
                  const float* __restrict__ times, const float4* __restrict__ values,
                  const float4* __restrict__ joints, const uint4* __restrict__ instances,
                  float4* __restrict__ palette) {
   __shared__ float4 local_rows[3 * ANIM_MAX_NODES];  // node n's local transform: rows 3n .. 3n + 2
+  const unsigned node_count = ANIM_NODE_COUNT, joint_count = ANIM_JOINT_COUNT, clip_count = ANIM_CLIP_COUNT;
+  const unsigned rows = ANIM_PALETTE_ROWS;
   const unsigned item = threadIdx.x, i = blockIdx.y;
-  // Whole blocks leave here (uniform), before the barrier.
-  if (blockIdx.x != 0 || i >= instance_count || node_count > ANIM_MAX_NODES) return;
-  const uint4 in = instances[i];
-  float4* out = palette + (unsigned long long)i * joint_count * 3u;
-  if (!anim_clip_valid(in.x & 0xffffu, clip_count) ||
-      (__uint_as_float(in.w) != 0.0f && !anim_clip_valid(in.x >> 16, clip_count))) {
+  // No return before the barrier, as in palette.cl: a block beyond the first
+  // along x, or an instance with a clip out of range, only skips the work
+  // (uniformly).
+  const bool in_group = blockIdx.x == 0 && node_count <= ANIM_MAX_NODES;
+  const uint4 in = in_group ? instances[i] : make_uint4(0u, 0u, 0u, 0u);
+  float4* out = palette + (unsigned long long)i * joint_count * rows;
+  const bool valid = in_group && anim_clip_valid(in.x & 0xffffu, clip_count) &&
+                     (__uint_as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
+  if (in_group && !valid) {
     const float nan = __int_as_float(0x7fffffff);
-    for (unsigned r = item; r < joint_count * 3u; r += ANIM_GROUP) out[r] = make_float4(nan, nan, nan, nan);
-    return;
+    for (unsigned r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = make_float4(nan, nan, nan, nan);
   }
   const Animation a = {node_count, nodes, channels, times, values};
-  for (unsigned n = item; n < node_count; n += ANIM_GROUP) {
+  for (unsigned n = item; valid && n < node_count; n += ANIM_GROUP) {
     const Affine l = anim_local(a, n, in);
     local_rows[3u * n] = l.row0;
     local_rows[3u * n + 1u] = l.row1;
     local_rows[3u * n + 2u] = l.row2;
   }
   __syncthreads();
-  for (unsigned j = item; j < joint_count; j += ANIM_GROUP) {
+  for (unsigned j = item; valid && j < joint_count; j += ANIM_GROUP) {
     const unsigned node = __float_as_uint(joints[4u * j].x);
     Affine m;
     m.row0 = local_rows[3u * node], m.row1 = local_rows[3u * node + 1u], m.row2 = local_rows[3u * node + 2u];
@@ -201,8 +222,9 @@ skintune_palette(const unsigned node_count, const unsigned joint_count, const un
     inverse_bind.row1 = joints[4u * j + 2u];
     inverse_bind.row2 = joints[4u * j + 3u];
     m = anim_multiply(m, inverse_bind);
-    out[3u * j] = m.row0;
-    out[3u * j + 1u] = m.row1;
-    out[3u * j + 2u] = m.row2;
+    out[rows * j] = m.row0;
+    out[rows * j + 1u] = m.row1;
+    out[rows * j + 2u] = m.row2;
+    if (rows == 4u) out[rows * j + 3u] = make_float4(0.0f, 0.0f, 0.0f, 1.0f);
   }
 }

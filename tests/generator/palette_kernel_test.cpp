@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -25,6 +26,7 @@
 #include "generator/clip_packer.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
+#include "generator/palette_kernel.h"
 #include "reference/skinning.h"
 #include "tests/common/test_asset.h"
 #include "tests/generator/deep_rig.h"
@@ -59,7 +61,8 @@ void Check(cl_int err, const char* what) {
   if (err != CL_SUCCESS) throw std::runtime_error(std::string(what) + " failed: " + std::to_string(err));
 }
 
-// templates/palette.cl built once on the first OpenCL device (PoCL here).
+// templates/palette.cl on the first OpenCL device (PoCL here): the template
+// built alone once, then each packed animation's kernel (EmitPalette).
 class OpenClPaletteKernel {
  public:
   // Null, with the reason in `why`, without an OpenCL device.
@@ -86,8 +89,10 @@ class OpenClPaletteKernel {
   }
 
   ~OpenClPaletteKernel() {
-    clReleaseKernel(kernel_);
-    clReleaseProgram(program_);
+    for (auto& [hash, built] : built_) {
+      clReleaseKernel(built.second);
+      clReleaseProgram(built.first);
+    }
     clReleaseCommandQueue(queue_);
     clReleaseContext(context_);
   }
@@ -153,20 +158,29 @@ class OpenClPaletteKernel {
     Check(err, "clCreateContext");
     queue_ = clCreateCommandQueue(context_, device_, 0, &err);
     Check(err, "clCreateCommandQueue");
-    const std::string text = ExpandedTemplate("palette.cl");
+    Build(ExpandedTemplate("palette.cl"));  // the template alone, at its defaults
+  }
+
+  // The kernel "skintune_palette" of `text`, built once.
+  cl_kernel Build(const std::string& text) {
+    const std::string hash = SourceHash(text);
+    if (const auto found = built_.find(hash); found != built_.end()) return found->second.second;
     const char* source = text.c_str();
     const std::size_t length = text.size();
-    program_ = clCreateProgramWithSource(context_, 1, &source, &length, &err);
+    cl_int err = CL_SUCCESS;
+    const cl_program program = clCreateProgramWithSource(context_, 1, &source, &length, &err);
     Check(err, "clCreateProgramWithSource");
-    if (clBuildProgram(program_, 1, &device_, "-cl-std=CL1.2", nullptr, nullptr) != CL_SUCCESS) {
+    if (clBuildProgram(program, 1, &device_, "-cl-std=CL1.2", nullptr, nullptr) != CL_SUCCESS) {
       std::size_t size = 0;
-      clGetProgramBuildInfo(program_, device_, CL_PROGRAM_BUILD_LOG, 0, nullptr, &size);
+      clGetProgramBuildInfo(program, device_, CL_PROGRAM_BUILD_LOG, 0, nullptr, &size);
       std::string log(size, '\0');
-      clGetProgramBuildInfo(program_, device_, CL_PROGRAM_BUILD_LOG, size, log.data(), nullptr);
+      clGetProgramBuildInfo(program, device_, CL_PROGRAM_BUILD_LOG, size, log.data(), nullptr);
       throw std::runtime_error("palette.cl does not build: " + log);
     }
-    kernel_ = clCreateKernel(program_, "skintune_palette", &err);
+    const cl_kernel kernel = clCreateKernel(program, "skintune_palette", &err);
     Check(err, "clCreateKernel");
+    built_[hash] = {program, kernel};
+    return kernel;
   }
 
   // Enqueues the palette kernel over `instances`; returns its output buffer
@@ -181,15 +195,13 @@ class OpenClPaletteKernel {
     cl_int err = CL_SUCCESS;
     cl_mem out = clCreateBuffer(context_, CL_MEM_READ_WRITE, instances.size() * joints * 48, nullptr, &err);
     Check(err, "clCreateBuffer");
-    const cl_uint scalars[] = {static_cast<cl_uint>(view.nodes.size()), static_cast<cl_uint>(joints), view.clip_count,
-                               static_cast<cl_uint>(instances.size())};
+    const cl_kernel kernel = Build(EmitPalette(Lang::kOpenCl, view, 3).kernel.text);
     cl_uint arg = 0;
-    for (const cl_uint& s : scalars) Check(clSetKernelArg(kernel_, arg++, sizeof s, &s), "clSetKernelArg");
-    for (const cl_mem& b : buffers) Check(clSetKernelArg(kernel_, arg++, sizeof b, &b), "clSetKernelArg");
-    Check(clSetKernelArg(kernel_, arg++, sizeof out, &out), "clSetKernelArg");
+    for (const cl_mem& b : buffers) Check(clSetKernelArg(kernel, arg++, sizeof b, &b), "clSetKernelArg");
+    Check(clSetKernelArg(kernel, arg++, sizeof out, &out), "clSetKernelArg");
     constexpr std::size_t kGroup = 64;  // palette.cl's ANIM_GROUP
     const std::size_t global[2] = {groups_x * kGroup, instances.size()}, local[2] = {kGroup, 1};
-    Check(clEnqueueNDRangeKernel(queue_, kernel_, 2, nullptr, global, local, 0, nullptr, nullptr),
+    Check(clEnqueueNDRangeKernel(queue_, kernel, 2, nullptr, global, local, 0, nullptr, nullptr),
           "clEnqueueNDRangeKernel");
     Check(clFinish(queue_), "clFinish");
     for (cl_mem b : buffers) clReleaseMemObject(b);
@@ -223,8 +235,7 @@ class OpenClPaletteKernel {
   cl_device_id device_ = nullptr;
   cl_context context_ = nullptr;
   cl_command_queue queue_ = nullptr;
-  cl_program program_ = nullptr;
-  cl_kernel kernel_ = nullptr;
+  std::map<std::string, std::pair<cl_program, cl_kernel>> built_;  // by source hash
 };
 
 #define SKIP_WITHOUT_OPENCL(kernel)                            \

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <memory>
 #include <span>
 #include <string>
@@ -19,6 +20,7 @@
 
 #include "generator/clip_packer.h"
 #include "generator/emit.h"
+#include "generator/palette_kernel.h"
 #include "runtime/backends/cuda/cuda_api.h"
 #include "tests/common/test_asset.h"
 #include "tests/generator/deep_rig.h"
@@ -35,9 +37,9 @@ TEST(PaletteKernelCuda, CompilesCleanlyWithNvrtcWithTheOpenClKernelsArguments) {
   ASSERT_TRUE(r.ok) << r.error;
   EXPECT_EQ(r.log.find("warning"), std::string::npos) << r.log;
   EXPECT_NE(r.ptx.find(".entry skintune_palette("), std::string::npos) << "no extern \"C\" entry skintune_palette";
-  // node_count .. palette: parameters 0..10, as in palette.cl.
-  EXPECT_NE(r.ptx.find("skintune_palette_param_10"), std::string::npos);
-  EXPECT_EQ(r.ptx.find("skintune_palette_param_11"), std::string::npos);
+  // nodes .. palette: parameters 0..6, as in palette.cl (the counts are defines).
+  EXPECT_NE(r.ptx.find("skintune_palette_param_6"), std::string::npos);
+  EXPECT_EQ(r.ptx.find("skintune_palette_param_7"), std::string::npos);
   // The instance is the grid's y, the joint its x.
   EXPECT_NE(r.ptx.find("%ctaid.y"), std::string::npos);
 }
@@ -57,7 +59,8 @@ using testing::TestAsset;
 
 constexpr unsigned kBlock = 64;  // threads per block: palette.cu's ANIM_GROUP, one block per instance
 
-// palette.cu compiled for device 0 and loaded into its primary context, once.
+// palette.cu for device 0, in its primary context: each packed animation's
+// kernel (EmitPalette) compiled and loaded once.
 class CudaPaletteKernel {
  public:
   // Null, with the reason in `why`, without NVRTC, a driver or a device.
@@ -98,11 +101,10 @@ class CudaPaletteKernel {
       if (!inputs[b].empty()) Check(api_.cuMemcpyHtoD(buffers[b], inputs[b].data(), inputs[b].size()), "cuMemcpyHtoD");
     }
     Check(api_.cuMemAlloc(&buffers[6], rows.size() * sizeof(float)), "cuMemAlloc");
-    unsigned node_count = static_cast<unsigned>(view.nodes.size()), joint_count = static_cast<unsigned>(joints);
-    unsigned clip_count = view.clip_count, instance_count = static_cast<unsigned>(instances.size());
-    void* parameters[] = {&node_count, &joint_count, &clip_count, &instance_count, &buffers[0], &buffers[1],
-                          &buffers[2],  &buffers[3],  &buffers[4], &buffers[5],     &buffers[6]};
-    Check(api_.cuLaunchKernel(function_, 1, instance_count, 1, kBlock, 1, 1, 0, nullptr, parameters, nullptr),
+    void* parameters[] = {&buffers[0], &buffers[1], &buffers[2], &buffers[3], &buffers[4], &buffers[5], &buffers[6]};
+    const auto instance_count = static_cast<unsigned>(instances.size());
+    Check(api_.cuLaunchKernel(FunctionFor(EmitPalette(Lang::kCuda, view, 3).kernel.text), 1, instance_count, 1, kBlock,
+                              1, 1, 0, nullptr, parameters, nullptr),
           "cuLaunchKernel");
     Check(api_.cuCtxSynchronize(), "cuCtxSynchronize");
     Check(api_.cuMemcpyDtoH(rows.data(), buffers[6], rows.size() * sizeof(float)), "cuMemcpyDtoH");
@@ -117,12 +119,22 @@ class CudaPaletteKernel {
     int major = 0, minor = 0;
     Check(api_.cuDeviceGetAttribute(&major, cuda::kAttributeComputeCapabilityMajor, device), "compute capability");
     Check(api_.cuDeviceGetAttribute(&minor, cuda::kAttributeComputeCapabilityMinor, device), "compute capability");
-    const CompileResult r = CompileWithNvrtc(ExpandedTemplate("palette.cu"), NvrtcArchFor(major, minor), "palette.cu");
-    if (!r.ok) throw std::runtime_error(r.error);
+    arch_ = NvrtcArchFor(major, minor);
     Check(api_.cuDevicePrimaryCtxRetain(&context_, device), "cuDevicePrimaryCtxRetain");
     Check(api_.cuCtxSetCurrent(context_), "cuCtxSetCurrent");
-    Check(api_.cuModuleLoadDataEx(&module_, r.ptx.c_str(), 0, nullptr, nullptr), "cuModuleLoadDataEx");
-    Check(api_.cuModuleGetFunction(&function_, module_, "skintune_palette"), "cuModuleGetFunction");
+  }
+
+  // The kernel of `text`, compiled and loaded once.
+  cuda::Function FunctionFor(const std::string& text) {
+    const std::string hash = SourceHash(text);
+    if (const auto found = functions_.find(hash); found != functions_.end()) return found->second;
+    const CompileResult r = CompileWithNvrtc(text, arch_, "palette.cu");
+    if (!r.ok) throw std::runtime_error(r.error);
+    cuda::Module module = nullptr;
+    Check(api_.cuModuleLoadDataEx(&module, r.ptx.c_str(), 0, nullptr, nullptr), "cuModuleLoadDataEx");
+    cuda::Function function = nullptr;
+    Check(api_.cuModuleGetFunction(&function, module, "skintune_palette"), "cuModuleGetFunction");
+    return functions_[hash] = function;  // the module lives as long as the context
   }
 
   static void Check(cuda::Result result, const char* what) {
@@ -131,8 +143,8 @@ class CudaPaletteKernel {
 
   const cuda::DriverApi& api_;
   cuda::Context context_ = nullptr;
-  cuda::Module module_ = nullptr;
-  cuda::Function function_ = nullptr;
+  std::string arch_;
+  std::map<std::string, cuda::Function> functions_;  // by source hash
 };
 
 #define SKIP_WITHOUT_CUDA(kernel)                          \

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -17,6 +18,7 @@
 
 #include "generator/clip_packer.h"
 #include "generator/emit.h"
+#include "generator/palette_kernel.h"
 #include "runtime/backends/gl/gl_context.h"
 #include "runtime/backends/vulkan/vulkan_spirv.h"
 #include "tests/common/test_asset.h"
@@ -42,7 +44,8 @@ using testing::TestAsset;
 
 constexpr GLuint kGroupSize = 64;  // palette.comp's local_size_x
 
-// palette.comp compiled and linked once, in one GL context for the program.
+// palette.comp in one GL context for the program: the template alone once,
+// then each packed animation's kernel (EmitPalette).
 class GlPaletteKernel {
  public:
   // Null, with the reason in `why`, without a GL 4.3 context.
@@ -81,11 +84,7 @@ class GlPaletteKernel {
     glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(rows.size() * sizeof(float)), nullptr,
                  GL_DYNAMIC_READ);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, buffers[6]);
-    glUseProgram(program_);
-    glUniform1ui(Uniform("node_count"), static_cast<GLuint>(view.nodes.size()));
-    glUniform1ui(Uniform("joint_count"), static_cast<GLuint>(joints));
-    glUniform1ui(Uniform("clip_count"), view.clip_count);
-    glUniform1ui(Uniform("instance_count"), static_cast<GLuint>(instances.size()));
+    glUseProgram(ProgramFor(EmitPalette(Lang::kGlslCompute, view, 3).kernel.text));
     glDispatchCompute(1, static_cast<GLuint>(instances.size()), 1);  // a work-group per instance
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[6]);
@@ -98,7 +97,13 @@ class GlPaletteKernel {
 
  private:
   explicit GlPaletteKernel(std::unique_ptr<GlContext> context) : context_(std::move(context)) {
-    const std::string text = ExpandedTemplate("palette.comp");
+    ProgramFor(ExpandedTemplate("palette.comp"));  // the template alone, at its defaults
+  }
+
+  // `text` compiled and linked once.
+  GLuint ProgramFor(const std::string& text) {
+    const std::string hash = SourceHash(text);
+    if (const auto found = programs_.find(hash); found != programs_.end()) return found->second;
     const char* source = text.c_str();
     const GLuint shader = glCreateShader(GL_COMPUTE_SHADER);
     glShaderSource(shader, 1, &source, nullptr);
@@ -106,12 +111,13 @@ class GlPaletteKernel {
     GLint ok = GL_FALSE;
     glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
     if (ok != GL_TRUE) throw std::runtime_error("palette.comp does not compile: " + Log(shader, false));
-    program_ = glCreateProgram();
-    glAttachShader(program_, shader);
-    glLinkProgram(program_);
+    const GLuint program = glCreateProgram();
+    glAttachShader(program, shader);
+    glLinkProgram(program);
     glDeleteShader(shader);
-    glGetProgramiv(program_, GL_LINK_STATUS, &ok);
-    if (ok != GL_TRUE) throw std::runtime_error("palette.comp does not link: " + Log(program_, true));
+    glGetProgramiv(program, GL_LINK_STATUS, &ok);
+    if (ok != GL_TRUE) throw std::runtime_error("palette.comp does not link: " + Log(program, true));
+    return programs_[hash] = program;
   }
 
   static std::string Log(GLuint object, bool program) {
@@ -123,14 +129,8 @@ class GlPaletteKernel {
     return log;
   }
 
-  GLint Uniform(const char* name) const {
-    const GLint location = glGetUniformLocation(program_, name);
-    if (location < 0) throw std::runtime_error(std::string("palette.comp has no uniform ") + name);
-    return location;
-  }
-
   std::unique_ptr<GlContext> context_;
-  GLuint program_ = 0;
+  std::map<std::string, GLuint> programs_;  // by source hash
 };
 
 #define SKIP_WITHOUT_GL(kernel)                        \
@@ -158,9 +158,8 @@ TEST(PaletteKernelGl, WritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
   ExpectNanRowsForAClipOutOfRange(On(kernel));
 }
 
-// The same shader is Vulkan's (its scalars a push-constant block): it
-// compiles to SPIR-V with glslang, as the skin kernels do for Vulkan. Not run
-// on a Vulkan device yet.
+// The same shader is Vulkan's: it compiles to SPIR-V with glslang, as the
+// skin kernels do for Vulkan (the Skinner runs it: skinner_animation_test).
 TEST(PaletteKernelVulkan, CompilesToSpirvWithGlslang) {
   const std::vector<std::uint32_t> spirv = vk::CompileSpirv(ExpandedTemplate("palette.comp"), "palette.comp");
   ASSERT_GT(spirv.size(), 5u);

@@ -1,0 +1,38 @@
+// skintune: the palette kernel of a packed animation, as the runner driver
+// runs it (docs/ANIMATION.md): an ordinary KernelSource whose arguments are
+// the animation's buffers, the per-frame `instances` and the palette it
+// writes, launched as one instanced launch of one work-group per instance.
+//
+// The kernel is specialised per model, as the skin kernel is per mesh: the
+// node, joint and clip counts and the palette's rows per joint are defines
+// (ANIM_NODE_COUNT, ANIM_JOINT_COUNT, ANIM_CLIP_COUNT, ANIM_PALETTE_ROWS), so
+// it takes no scalars and every API binds it as it binds any kernel's buffers.
+#pragma once
+
+#include <cstddef>
+
+#include "cpu_kernels/palette_kernel.h"
+#include "generator/emit.h"
+
+namespace skintune::internal {
+
+// The palette kernel's work-group (templates/palette.cl ANIM_GROUP): one per instance.
+inline constexpr int kAnimGroup = 64;
+
+// The buffers the kernel reads, in argument order, then its output.
+inline constexpr const char* kAnimInputs[] = {"nodes", "channels", "times", "values", "joints", "instances"};
+inline constexpr const char* kAnimOutput = "out_palette";
+
+struct PaletteKernel {
+  KernelSource kernel;  // the language's palette_template in its copy_lang (glsl-vertex: glsl-compute)
+  Variant variant;      // what an API reads of a launch's variant: its language, global storage
+};
+
+// The palette kernel of `animation` in `lang`'s API writing `palette_rows`
+// float4 rows per joint (3: mat3x4, 4: mat4 with a last row 0 0 0 1; a skin
+// variant's PaletteRows). Launch it with LaunchSpec count kAnimGroup and
+// instances K (instanced): one work-group per instance. Throws Error for rows
+// other than 3 or 4, no joints or nodes, more nodes than kAnimMaxNodes.
+PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette_rows);
+
+}  // namespace skintune::internal
