@@ -9,6 +9,7 @@
 #include "reference/skinning.h"
 #include "model/synthetic.h"
 #include "runtime/api_errors.h"
+#include "runtime/model_access.h"
 #include "skintune/skintune.h"
 
 namespace skintune {
@@ -37,6 +38,8 @@ struct Model::Impl {
 }  // namespace skintune
 
 namespace skintune::internal {
+
+const SkinnedAsset* ModelAccess::Asset(const Model& model) { return model.impl_ ? &model.impl_->asset : nullptr; }
 
 namespace {
 

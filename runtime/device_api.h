@@ -152,6 +152,11 @@ struct FrameRun {
   std::string key;                 // the variant key, for messages
   void* out_positions = nullptr;   // kLive: write positions into this native buffer instead (OpenCL-GL sharing)
   std::span<const std::unique_ptr<DeviceObject>> flush;  // kCold: the flush's bound launches, run before each frame
+  // kLive: launches run once before the frames, whose writes the frames read
+  // (a Skinner's palette kernel writing the palette its skin launches read):
+  // ordered by each API (one in-order queue or stream in OpenCL and CUDA, a
+  // barrier in GL and Vulkan, in turn on the cpu device).
+  std::span<const std::unique_ptr<DeviceObject>> prologue;
 
   // kTime: the bursts timed (frames after `untimed`, whole bursts only).
   std::size_t TimedBursts() const {

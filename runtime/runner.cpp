@@ -27,6 +27,12 @@ struct Prepared::Impl {
   struct Slot {
     DeviceBuffer* palette = nullptr;
     std::vector<std::unique_ptr<DeviceObject>> launches;
+    // Animated (Runner::Animate): the instances the palette kernel reads, and
+    // that kernel bound to write `palette`, run before `launches`.
+    DeviceBuffer* instances = nullptr;
+    std::vector<std::unique_ptr<DeviceObject>> prologue;
+    // What PaletteStaging and UploadPalette fill: the instances where animated.
+    DeviceBuffer& Uploaded() const { return instances ? *instances : *palette; }
     std::unique_ptr<DeviceObject> done;
     std::string fence_name;  // "palette slot N of <key>", built on the slot's first wait
     bool launched = false;   // a launch read the slot (and so waited for its upload) since that upload
@@ -47,9 +53,12 @@ struct Prepared::Impl {
   SubmitThread* submit = nullptr;  // the runner's, where it has one
   std::string key;           // the variant's
   std::vector<std::unique_ptr<PlannedLaunch>> launches;
+  std::unique_ptr<PlannedLaunch> palette_kernel;  // Animate's
   std::vector<Set> sets;
   std::size_t bytes_per_set = 0;
   std::size_t palettes_bytes = 0;  // the K palettes of a set
+  std::size_t upload_bytes = 0;    // what a frame uploads: the K palettes, or K AnimInstances once animated
+  int instances = 1;               // K
   std::size_t out_bytes = 0;       // K x vertex_count x stride (a verification set's guard follows)
 
   Impl() = default;
@@ -63,9 +72,11 @@ struct Prepared::Impl {
       for (Slot& slot : set.slots) {
         if (!ready) {
           for (auto& o : slot.launches) o->Forget();
+          for (auto& o : slot.prologue) o->Forget();
           if (slot.done) slot.done->Forget();
         }
         while (!slot.launches.empty()) slot.launches.pop_back();
+        while (!slot.prologue.empty()) slot.prologue.pop_back();
         slot.done.reset();
       }
       if (!ready)
@@ -165,6 +176,8 @@ Prepared Runner::PrepareSets(const PackedMesh& mesh, std::span<const KernelSourc
     p.launches.push_back(api_->Plan(spec));  // build errors before any upload
   }
   p.palettes_bytes = static_cast<std::size_t>(shape.instances) * shape.palette_bytes;
+  p.upload_bytes = p.palettes_bytes;
+  p.instances = shape.instances;
   p.out_bytes = shape.out_bytes;
   input_hashes_.clear();  // ShareTimedInputs: each input hashed once per Prepare, not per set
   for (std::size_t k = 0; k < palettes.size(); ++k) {
@@ -682,12 +695,12 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
     }
   }
   const bool upload_fenced = slot.done && (slot.launched || api_->OrdersUploadsAfterLaunches());
-  const std::span<std::uint8_t> staging = api_->Staging(*slot.palette, p.key, upload_fenced);
-  if (staging.size() < p.palettes_bytes)
-    Fail("launch", "the palette staging of " + p.key + " has " + std::to_string(staging.size()) + " bytes, the palettes " +
-                       std::to_string(p.palettes_bytes));
+  const std::span<std::uint8_t> staging = api_->Staging(slot.Uploaded(), p.key, upload_fenced);
+  if (staging.size() < p.upload_bytes)
+    Fail("launch", "the palette staging of " + p.key + " has " + std::to_string(staging.size()) + " bytes, the frame " +
+                       std::to_string(p.upload_bytes));
   s.staged = next;
-  return staging.first(p.palettes_bytes);
+  return staging.first(p.upload_bytes);
 }
 
 void Runner::UploadPalette(Prepared& prepared, int set) {
@@ -698,8 +711,8 @@ void Runner::UploadPalette(Prepared& prepared, int set) {
   Prepared::Impl::Slot& slot = s.slots[*s.staged];
   if (submit_) {
     DeviceApi* api = api_.get();
-    DeviceBuffer* palette = slot.palette;
-    const std::size_t bytes = p.palettes_bytes;
+    DeviceBuffer* palette = &slot.Uploaded();
+    const std::size_t bytes = p.upload_bytes;
     const std::string& key = p.key;  // the Prepared drains the thread before it goes
     const bool mark = api_->OrdersUploadsAfterLaunches();
     slot.submitted = submit_->Push([api, palette, bytes, &key, &slot, mark] {
@@ -708,7 +721,7 @@ void Runner::UploadPalette(Prepared& prepared, int set) {
       if (mark) api->Mark(slot.done, key);
     });
   } else {
-    api_->Upload(*slot.palette, p.palettes_bytes, p.key);
+    api_->Upload(slot.Uploaded(), p.upload_bytes, p.key);
     if (api_->OrdersUploadsAfterLaunches()) api_->Mark(slot.done, p.key);
   }
   slot.launched = false;
@@ -718,7 +731,7 @@ void Runner::UploadPalette(Prepared& prepared, int set) {
 
 // The size is checked first: a rejected palette takes no slot.
 void Runner::WritePalette(Prepared& prepared, int set, std::span<const std::uint8_t> palettes) {
-  const std::size_t expected = prepared.impl_ ? prepared.impl_->palettes_bytes : 0;
+  const std::size_t expected = prepared.impl_ ? prepared.impl_->upload_bytes : 0;
   if (palettes.size() != expected)
     Fail("launch", "palettes have " + std::to_string(palettes.size()) + " bytes, expected " + std::to_string(expected));
   const std::span<std::uint8_t> staging = PaletteStaging(prepared, set);
@@ -734,6 +747,7 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   FrameRun run;
   run.use = FrameUse::kLive;
   run.frames = {slot.launches};
+  run.prologue = slot.prologue;
   run.key = p.key;
   run.out_positions = out_positions;
   if (submit_ && !out_positions) {
@@ -751,6 +765,69 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
     if (!api_->OrdersUploadsAfterLaunches()) api_->Mark(slot.done, p.key);
   }
   slot.launched = true;
+}
+
+void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation, const PaletteKernel& kernel) {
+  api_->MakeCurrent();
+  Settle();
+  Prepared::Impl& p = *prepared.impl_;
+  Prepared::Impl::Set& s = SetOf(&p, set, *api_);
+  if (p.palette_kernel) Fail("launch", p.key + " is animated already");
+  const std::size_t joints = animation.joints.size();
+  if (p.palettes_bytes != static_cast<std::size_t>(p.instances) * joints * kernel.kernel.arguments.back().element_bytes)
+    Fail("launch", "the palette kernel writes " + std::to_string(joints) + " joints of " +
+                       std::to_string(kernel.kernel.arguments.back().element_bytes) + " bytes for each of " +
+                       std::to_string(p.instances) + " instances, the palettes of " + p.key + " have " +
+                       std::to_string(p.palettes_bytes) + " bytes");
+  LaunchSpec spec;
+  spec.variant = kernel.variant;
+  spec.source = kernel.kernel;
+  spec.count = static_cast<std::uint32_t>(kernel.kernel.launch.wg_size);  // one work-group per instance
+  spec.instances = p.instances;
+  spec.instanced = true;
+  spec.palette_joints = joints;
+  spec.where = "the palette kernel of " + p.key;
+  p.palette_kernel = api_->Plan(spec);
+  // The animation's buffers, uploaded once (at least 16 bytes: OpenCL has no empty buffers).
+  const auto upload = [&](const char* name, std::span<const std::uint8_t> bytes) {
+    std::vector<std::uint8_t> padded(bytes.begin(), bytes.end());
+    padded.resize(std::max<std::size_t>(padded.size(), 16), 0);
+    std::unique_ptr<DeviceBuffer> buffer = api_->Allocate(BufferUse::kInput, padded.size(), padded.data(), name);
+    DeviceBuffer* raw = buffer.get();
+    s.objects.push_back(std::move(buffer));
+    return raw;
+  };
+  const auto bytes_of = [](auto span) {
+    return std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(span.data()), span.size_bytes());
+  };
+  DeviceBuffer* const shared[] = {upload(kAnimInputs[0], bytes_of(animation.nodes)),
+                                  upload(kAnimInputs[1], bytes_of(animation.channels)),
+                                  upload(kAnimInputs[2], bytes_of(animation.times)),
+                                  upload(kAnimInputs[3], bytes_of(animation.values)),
+                                  upload(kAnimInputs[4], bytes_of(animation.joints))};
+  // Each slot: its instances (the rest pose until the first upload) and the kernel bound to write its palette.
+  std::vector<AnimInstance> rest_pose(static_cast<std::size_t>(p.instances));
+  for (AnimInstance& in : rest_pose) in.clip = kAnimRestPose;
+  std::size_t allocated = 0;
+  for (std::size_t k = 0; k < s.slots.size(); ++k) {
+    Prepared::Impl::Slot& slot = s.slots[k];
+    slot.instances = upload(kAnimInputs[5], bytes_of(std::span<const AnimInstance>(rest_pose)));
+    std::vector<ArgumentBinding> arguments;
+    const std::vector<KernelArgument>& declared = p.palette_kernel->spec.source.arguments;
+    for (std::size_t a = 0; a < declared.size(); ++a) {
+      if (a < std::size(shared)) {
+        arguments.push_back({&declared[a], ArgumentRole::kInput, shared[a], nullptr});
+      } else if (a == std::size(shared)) {
+        arguments.push_back({&declared[a], ArgumentRole::kInput, slot.instances, nullptr});
+      } else {
+        arguments.push_back({&declared[a], ArgumentRole::kOutput, slot.palette, nullptr});
+      }
+    }
+    slot.prologue.push_back(api_->Bind(*p.palette_kernel, arguments, SetOptions{}, allocated));
+  }
+  api_->FinishUploads(p.key);
+  p.upload_bytes = static_cast<std::size_t>(p.instances) * sizeof(AnimInstance);
+  p.bytes_per_set += allocated;
 }
 
 std::span<const std::uint8_t> Runner::ReadOutput(const Prepared& prepared, int set, Output output) {

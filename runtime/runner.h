@@ -53,6 +53,7 @@
 
 #include "generator/emit.h"
 #include "generator/packer.h"
+#include "generator/palette_kernel.h"
 #include "runtime/device_api.h"
 #include "runtime/program_cache.h"
 #include "runtime/submit_thread.h"
@@ -246,6 +247,18 @@ class Runner {
   // ReadOutput in chunks of `chunk_bytes` (DeviceApi::ReadPinnedChunks): the
   // staging at once, and `ready(end)` blocking until its first `end` bytes are in.
   DeviceApi::PinnedRead ReadOutputChunks(const Prepared& prepared, int set, Output output, std::size_t chunk_bytes);
+  // Animation on the device (docs/ANIMATION.md): from now on set `set`'s
+  // palettes are written by the palette kernel (generator/palette_kernel.h
+  // EmitPalette of `animation`, in this runner's language, with the variant's
+  // palette rows), run before the skin launches of every LaunchSet on the
+  // same queue. The animation's buffers are uploaded once; each palette slot
+  // gets an instances buffer of K AnimInstance records (the rest pose until
+  // the first upload) and the kernel bound to write that slot's palette; from
+  // then on PaletteStaging, UploadPalette and WritePalette stage and upload
+  // those K x 16 bytes instead of the palettes, through the same ring. Throws
+  // Error("<API> build|launch ...") when the kernel does not build or the
+  // animation's joints and rows do not fill the set's palettes exactly.
+  void Animate(Prepared& prepared, int set, const AnimationView& animation, const PaletteKernel& kernel);
   // The native output buffer (cl_mem; CUdeviceptr or GL buffer name as an integer); null: none.
   void* OutputBuffer(const Prepared& prepared, int set, Output output) const;
   // The palette slot LaunchSet uses next: that of the last WritePalette (tests).

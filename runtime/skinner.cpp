@@ -8,16 +8,20 @@
 #include <cstdio>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <mutex>
 #include <thread>
 
 #include <glm/glm.hpp>
 
+#include "generator/clip_packer.h"
 #include "generator/constraints.h"
+#include "generator/palette_kernel.h"
 #include "model/mesh.h"
 #include "model/scene.h"
 #include "runtime/api_errors.h"
 #include "runtime/host_work.h"
+#include "runtime/model_access.h"
 #include "runtime/runner.h"
 #include "runtime/selection.h"
 #include "runtime/winners_db.h"
@@ -340,6 +344,38 @@ Result<Skinner> Skinner::Create(Device& device, const WinnersDb& db, const MeshV
   });
 }
 
+Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, const Model& model,
+                                        const SkinnerOptions& options) {
+  return GuardedResult<Skinner>(ErrorCode::kInvalidArgument, [&] {
+    const std::string call = "Skinner::CreateAnimated";
+    const SkinnedAsset* asset = ModelAccess::Asset(model);
+    if (!asset) FailWith(ErrorCode::kInvalidState, call + ": the Model is empty (moved from, or default-made)");
+    PackedAnimation animation;
+    try {
+      animation = PackAnimation(*asset);
+    } catch (const Error& e) {
+      FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
+    }
+    const MeshView view = model.mesh();
+    Skinner skinner;
+    skinner.impl_ = CreateScene(call, device, db.impl_ ? &db.impl_->entries : nullptr, &view, 1, false, options);
+    Impl& im = *skinner.impl_;
+    PaletteKernel kernel;
+    try {
+      kernel = EmitPalette(im.variant.lang, animation.View(), static_cast<int>(PaletteMatrixBytes(im.variant) / 16));
+    } catch (const Error& e) {
+      FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
+    }
+    im.backend->Animate(animation.View(), kernel);
+    im.animated = true;
+    im.animation_count = static_cast<int>(animation.clips.size());
+    im.palette_set = true;  // the rest pose, until the first SetAnimation
+    // The device's palettes are not seen by the host: every read-back is scanned before it is copied.
+    im.palette_magnitude = std::numeric_limits<float>::infinity();
+    return skinner;
+  });
+}
+
 Result<Skinner> Skinner::CreateBatch(Device& device, const WinnersDb& db, const MeshView* meshes,
                                      std::size_t mesh_count, const SkinnerOptions& options) {
   return GuardedResult<Skinner>(ErrorCode::kInvalidArgument, [&] {
@@ -373,6 +409,9 @@ void* Skinner::device_positions() const { return impl_ ? impl_->backend->DeviceP
 Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
   return Guarded(ErrorCode::kDeviceError, [&] {
     Impl& im = Usable(impl_, "SetPalette");
+    if (im.animated)
+      FailWith(ErrorCode::kInvalidState,
+               "Skinner::SetPalette: this Skinner computes its palettes on the device (CreateAnimated): call SetAnimation");
     const std::size_t joints = static_cast<std::size_t>(im.instances) * static_cast<std::size_t>(im.joint_count);
     CheckCount("SetPalette", float_count, joints * 16, [&] {
       return std::to_string(im.instances) + " instances x " + std::to_string(im.joint_count) + " joints x 16";
@@ -416,13 +455,53 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
   });
 }
 
+Status Skinner::SetAnimation(const AnimationState* states, std::size_t count) {
+  return Guarded(ErrorCode::kDeviceError, [&] {
+    Impl& im = Usable(impl_, "SetAnimation");
+    if (!im.animated)
+      FailWith(ErrorCode::kInvalidState,
+               "Skinner::SetAnimation: this Skinner takes palettes (SetPalette); Skinner::CreateAnimated makes one "
+               "that animates on the device");
+    CheckCount("SetAnimation", count, static_cast<std::size_t>(im.instances),
+               [&] { return std::to_string(im.instances) + " instances"; });
+    if (!states) FailWith(ErrorCode::kInvalidArgument, "Skinner::SetAnimation: states is null");
+    // Every state checked before the staging is taken: a rejected frame takes no slot.
+    const auto bad = [&](std::size_t i, const std::string& what) {
+      FailWith(ErrorCode::kInvalidArgument, "Skinner::SetAnimation: states[" + std::to_string(i) + "]." + what);
+    };
+    const auto clip = [&](std::size_t i, const char* field, int animation) {
+      if (animation < -1 || animation >= im.animation_count)
+        bad(i, std::string(field) + " is " + std::to_string(animation) + ", expected -1 (the rest pose) to " +
+                   std::to_string(im.animation_count - 1));
+      return animation < 0 ? kAnimRestPose : static_cast<std::uint16_t>(animation);
+    };
+    std::vector<AnimInstance> instances(count);
+    for (std::size_t i = 0; i < count; ++i) {
+      const AnimationState& a = states[i];
+      if (!std::isfinite(a.time)) bad(i, "time is not finite");
+      if (!std::isfinite(a.time2)) bad(i, "time2 is not finite");
+      if (!(a.weight >= 0.0f && a.weight <= 1.0f)) bad(i, "weight is " + std::to_string(a.weight) + ", outside [0, 1]");
+      instances[i] = {clip(i, "animation", a.animation), a.weight != 0.0f ? clip(i, "animation2", a.animation2) : kAnimRestPose,
+                      a.time, a.time2, a.weight};
+    }
+    const std::span<std::uint8_t> staging = im.backend->PaletteStaging();
+    if (staging.size() != count * sizeof(AnimInstance))
+      FailWith(ErrorCode::kDeviceError, "Skinner::SetAnimation: the staging has " + std::to_string(staging.size()) +
+                                            " bytes, expected " + std::to_string(count * sizeof(AnimInstance)));
+    std::memcpy(staging.data(), instances.data(), staging.size());
+    im.backend->UploadPalette();
+  });
+}
+
+bool Skinner::animated() const { return impl_ && impl_->animated; }
+
 Status Skinner::Skin() {
   return Guarded(ErrorCode::kDeviceError, [&] {
     Impl& im = Usable(impl_, "Skin");
     if (!im.palette_set) FailWith(ErrorCode::kInvalidState, "Skinner::Skin: no palette yet (call SetPalette first)");
     im.backend->Skin();
     im.skinned = true;
-    im.skinned_magnitude = im.palette_magnitude;  // the output is this palette's alone
+    im.skinned_magnitude = im.palette_magnitude;  // the output is this palette's alone (animated: unknown, infinite)
   });
 }
 

@@ -19,6 +19,7 @@
 
 #include "generator/emit.h"
 #include "generator/packer.h"
+#include "generator/palette_kernel.h"
 #include "runtime/api_errors.h"
 #include "runtime/device.h"
 #include "skintune/skintune.h"
@@ -37,6 +38,9 @@ class SkinnerBackend {
   // uploaded changes nothing.
   virtual std::span<std::uint8_t> PaletteStaging() = 0;
   virtual void UploadPalette() = 0;
+  // From now on the palettes are the palette kernel's (Runner::Animate):
+  // PaletteStaging and UploadPalette then take K AnimInstance records.
+  virtual void Animate(const AnimationView& animation, const PaletteKernel& kernel) = 0;
   virtual void Skin() = 0;
   // Waits until every Skin() so far has completed on the device.
   virtual void Finish() = 0;
@@ -91,6 +95,9 @@ class RunnerSkinner : public SkinnerBackend {
   }
   void UploadPalette() override {
     RunOnDevice([&] { runner_.UploadPalette(prepared_, 0); });
+  }
+  void Animate(const AnimationView& animation, const PaletteKernel& kernel) override {
+    RunOnDevice([&] { runner_.Animate(prepared_, 0, animation, kernel); }, "Skinner::CreateAnimated: ");
   }
   void Skin() override {
     RunOnDevice([&] { runner_.LaunchSet(prepared_, 0); });
@@ -158,6 +165,8 @@ struct Skinner::Impl {
   std::vector<int> joint_offsets;           // per mesh, then joint_count
   bool palette_set = false;
   bool skinned = false;
+  bool animated = false;     // CreateAnimated: SetAnimation, not SetPalette
+  int animation_count = 0;   // the model's (the packed clips, in order)
   // The read-back's overflow bound (ReadPositions; OutputBound and
   // CannotOverflow, runtime/host_work.h): every position output's |component|
   // is at most output_bound x the largest |element| of the palette it was

@@ -9,11 +9,14 @@
 #include <map>
 #include <sstream>
 #include <thread>
+#include <type_traits>
 #include <utility>
 
 #include "base/cache_eviction.h"
 #include "base/error.h"
 #include "base/thread_pool.h"
+#include "cpu_kernels/palette_kernel.h"
+#include "generator/palette_kernel.h"
 #include "runtime/backends/cpu/cpu_streams.h"
 
 namespace skintune::internal {
@@ -50,6 +53,7 @@ class CpuBuffer final : public DeviceBuffer {
 struct Parsed {
   std::map<std::string, long long> defines;
   bool copy = false;
+  bool palette = false;  // the palette kernel (generator/palette_kernel.h): RunPaletteKernel
 };
 
 class CpuPlanned final : public PlannedLaunch {
@@ -60,6 +64,8 @@ class CpuPlanned final : public PlannedLaunch {
   CpuKernelFn kernel = nullptr;
   int palette_rows = 4;
   bool fault_wrong = false, fault_hang = false;
+  bool palette = false;  // the palette kernel: clip_count and palette_rows its parameters
+  std::uint32_t clip_count = 0;
 };
 
 class CpuBound final : public DeviceObject {
@@ -73,6 +79,7 @@ class CpuBound final : public DeviceObject {
   float* Out(Output o) const { return outputs[static_cast<std::size_t>(o)]; }
   CpuPalette converted;            // this launch's palette in the kernels' form, per frame
   std::vector<std::span<const std::uint8_t>> buffers;  // every buffer bound to it (what kCold evicts)
+  float* palette_out = nullptr;  // the palette kernel's output
 };
 
 // `output` advanced by `floats`, or null for an output the variant does not write.
@@ -162,6 +169,7 @@ const Parsed& CpuApi::ParsedOf(const KernelSource& source) {
   if (const auto found = built_.find(key); found != built_.end()) return found->second;
   Parsed parsed;
   parsed.copy = source.entry_point == "skintune_copy";
+  parsed.palette = source.entry_point == "skintune_palette";
   std::istringstream lines(source.text);
   std::string line;
   for (int number = 1; std::getline(lines, line); ++number) {
@@ -188,7 +196,10 @@ const Parsed& CpuApi::ParsedOf(const KernelSource& source) {
                         "' is not a parameter (#define NAME INTEGER), a #line or a comment");
     parsed.defines[name] = number_value;
   }
-  if (!parsed.copy) {
+  if (parsed.palette) {
+    for (const char* required : {"ANIM_NODE_COUNT", "ANIM_JOINT_COUNT", "ANIM_CLIP_COUNT", "ANIM_PALETTE_ROWS"})
+      if (!parsed.defines.contains(required)) Fail("build", "kernel " + key + ": no #define " + required);
+  } else if (!parsed.copy) {
     for (const char* required : {"INFLUENCES", "INDEX_FORMAT", "WEIGHT_FORMAT", "PALETTE_ROWS", "BLEND_POINT"})
       if (!parsed.defines.contains(required)) Fail("build", "kernel " + key + ": no #define " + required);
     const auto& d = parsed.defines;
@@ -222,6 +233,12 @@ std::unique_ptr<PlannedLaunch> CpuApi::Plan(const LaunchSpec& spec) {
   plan->fault_hang = flag("SKINTUNE_FAULT_HANG");
   plan->flush = parsed.copy && flag("SKINTUNE_FLUSH");
   if (parsed.copy) return plan;
+  if (parsed.palette) {
+    plan->palette = true;
+    plan->clip_count = static_cast<std::uint32_t>(parsed.defines.at("ANIM_CLIP_COUNT"));
+    plan->palette_rows = static_cast<int>(parsed.defines.at("ANIM_PALETTE_ROWS"));
+    return plan;
+  }
   if (spec.variant.storage != PaletteStorage::kGlobal)
     Fail("launch", spec.where + ": storage " + Name(spec.variant.storage) +
                        ": the cpu kernels read the palette from host memory (storage global only)");
@@ -250,6 +267,10 @@ std::unique_ptr<DeviceObject> CpuApi::Bind(const PlannedLaunch& launch, std::spa
       case ArgumentRole::kPalette: bound->palette = buffer; break;
       case ArgumentRole::kOutput: {
         auto* out = reinterpret_cast<float*>(buffer->data());
+        if (bound->plan->palette) {
+          bound->palette_out = out;
+          break;
+        }
         const OutputSpec* output = OutputOfArgument(a.argument->name);
         if (!output) Fail("launch", launch.spec.where + ": output '" + a.argument->name + "' is no kernel output");
         bound->outputs[static_cast<std::size_t>(output->output)] = out;
@@ -257,13 +278,31 @@ std::unique_ptr<DeviceObject> CpuApi::Bind(const PlannedLaunch& launch, std::spa
       }
     }
   }
-  if (!bound->Out(Output::kPositions)) Fail("launch", launch.spec.where + ": no output bound");
+  if (bound->plan->palette ? !bound->palette_out || bound->inputs.size() != std::size(kAnimInputs)
+                           : !bound->Out(Output::kPositions))
+    Fail("launch", launch.spec.where + ": not every argument bound");
   return bound;
 }
 
 void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
   const CpuPlanned& plan = *b.plan;
   const LaunchSpec& spec = plan.spec;
+  if (plan.palette) {  // the buffers in kAnimInputs order, each as bound (b.buffers: their sizes)
+    const auto span_of = [&](std::size_t i, auto* type) {
+      using T = std::remove_const_t<std::remove_pointer_t<decltype(type)>>;
+      return std::span<const T>(reinterpret_cast<const T*>(b.buffers[i].data()), b.buffers[i].size() / sizeof(T));
+    };
+    AnimationView view;
+    view.clip_count = plan.clip_count;
+    view.nodes = span_of(0, static_cast<const AnimNodeRecord*>(nullptr));
+    view.channels = span_of(1, static_cast<const AnimChannelHeader*>(nullptr));
+    view.times = span_of(2, static_cast<const float*>(nullptr));
+    view.values = span_of(3, static_cast<const float*>(nullptr));
+    view.joints = span_of(4, static_cast<const AnimJointRecord*>(nullptr));
+    const auto instances = span_of(5, static_cast<const AnimInstance*>(nullptr)).first(static_cast<std::size_t>(spec.instances));
+    RunPaletteKernel(view, instances, b.palette_out, plan.palette_rows);
+    return;
+  }
   if (plan.fault_hang) {
     for (;;) std::this_thread::sleep_for(std::chrono::milliseconds(10));  // the tuner's hang test: never returns
   }
@@ -407,6 +446,7 @@ std::vector<std::vector<double>> CpuApi::RunFrames(const FrameRun& run) {
   }
   const CpuChoice choice = ChoiceFor(run);
   if (run.use == FrameUse::kLive) {
+    RunFrame(run.prologue, choice);
     for (const auto& frame : run.frames) RunFrame(frame, choice);
     return {};
   }

@@ -666,6 +666,7 @@ std::vector<std::vector<double>> CudaApi::RunFrames(const FrameRun& run) {
   if (run.use != FrameUse::kLive) return RunTimed(run);
   const auto out = static_cast<cuda::DevicePtr>(reinterpret_cast<std::uintptr_t>(run.out_positions));
   JoinUploads(stream);
+  for (const std::unique_ptr<DeviceObject>& launch : run.prologue) Launch(static_cast<const CudaBound&>(*launch), stream);
   for (const auto& frame : run.frames)
     for (const std::unique_ptr<DeviceObject>& launch : frame) {
       const auto& bound = static_cast<const CudaBound&>(*launch);

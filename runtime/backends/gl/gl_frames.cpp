@@ -378,6 +378,13 @@ void GlApi::RunLive(const FrameRun& run) {
   ClearGlErrors();
   {
     KeptGlState kept(vertex);
+    if (!run.prologue.empty()) {  // compute dispatches whose storage writes the frames read, however they read them
+      for (const std::unique_ptr<DeviceObject>& launch : run.prologue) {
+        BindLaunch(static_cast<const GlBound&>(*launch), false);
+        DrawLaunch(static_cast<const GlBound&>(*launch));
+      }
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_UNIFORM_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
+    }
     if (vertex) BeginVertexDraws();
     for (const auto& frame : run.frames) {
       for (const std::unique_ptr<DeviceObject>& launch : frame) {

@@ -626,8 +626,10 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
   last_launch_.reset();
   if (run.use == FrameUse::kLive) {
     // The first launch waits for the palette uploads (its wait list, not a
-    // barrier); the last one's event is kept for Mark.
+    // barrier); the last one's event is kept for Mark. The prologue first:
+    // the queue is in order.
     std::vector<const ClBound*> launches;
+    for (const std::unique_ptr<DeviceObject>& launch : run.prologue) launches.push_back(static_cast<const ClBound*>(launch.get()));
     for (const auto& frame : run.frames)
       for (const std::unique_ptr<DeviceObject>& launch : frame) launches.push_back(static_cast<const ClBound*>(launch.get()));
     for (std::size_t l = 0; l < launches.size(); ++l) {

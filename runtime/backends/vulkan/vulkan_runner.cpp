@@ -156,6 +156,7 @@ class VulkanBound final : public DeviceObject {
   const Context& c_;
   const VulkanPlanned* plan = nullptr;
   const VulkanBuffer* palette = nullptr;  // the slot's (its staged upload goes first: RecordPendingUploads)
+  std::vector<const VulkanBuffer*> inputs;  // likewise (a palette kernel's per-frame instances)
   VkDescriptorPool pool = VK_NULL_HANDLE;
   VkDescriptorSet set = VK_NULL_HANDLE;
   std::vector<VkWriteDescriptorSet> writes;  // how `set` was written (pointing into the two vectors below)
@@ -582,6 +583,7 @@ std::unique_ptr<DeviceObject> VulkanApi::Bind(const PlannedLaunch& launch, std::
     if (a.role == ArgumentRole::kScalar) continue;
     const auto* buffer = static_cast<const VulkanBuffer*>(a.buffer);
     if (a.role == ArgumentRole::kPalette) bound->palette = buffer;
+    if (a.role == ArgumentRole::kInput) bound->inputs.push_back(buffer);
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     w.dstSet = bound->set;
     w.dstBinding = binding;
@@ -831,6 +833,14 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
     const VkCommandBuffer cb = for_caller ? record_into_ : Begin();
     RecordPendingUploads(cb, run);
     BarrierBeforeFrames(cb);
+    if (!run.prologue.empty()) {  // its storage writes, read by the frames as storage or uniform buffers or texels
+      for (const std::unique_ptr<DeviceObject>& launch : run.prologue) {
+        const auto& bound = static_cast<const VulkanBound&>(*launch);
+        RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1);
+      }
+      Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+              VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);
+    }
     RecordFrames(cb, run, 0, frames, used, VK_NULL_HANDLE, nullptr);
     BarrierAfterFrames(cb, for_caller);
     if (for_caller) {
@@ -1000,10 +1010,18 @@ void VulkanApi::Upload(DeviceBuffer& buffer, std::size_t size, const std::string
 // for its own next frame), then a barrier to the dispatches that read them.
 void VulkanApi::RecordPendingUploads(VkCommandBuffer cb, const FrameRun& run) {
   auto& pending = c_->pending_uploads;
-  const auto read_by_run = [&](const VulkanBuffer* palette) {
+  const auto read_by = [](std::span<const std::unique_ptr<DeviceObject>> launches, const VulkanBuffer* buffer) {
+    for (const std::unique_ptr<DeviceObject>& launch : launches) {
+      const auto& bound = static_cast<const VulkanBound&>(*launch);
+      if (bound.palette == buffer || std::find(bound.inputs.begin(), bound.inputs.end(), buffer) != bound.inputs.end())
+        return true;
+    }
+    return false;
+  };
+  const auto read_by_run = [&](const VulkanBuffer* buffer) {
+    if (read_by(run.prologue, buffer)) return true;
     for (const auto& frame : run.frames)
-      for (const std::unique_ptr<DeviceObject>& launch : frame)
-        if (static_cast<const VulkanBound&>(*launch).palette == palette) return true;
+      if (read_by(frame, buffer)) return true;
     return false;
   };
   bool recorded = false;

@@ -49,6 +49,7 @@ namespace skintune {
 // header names it only to befriend one accessor.
 namespace internal {
 struct DeviceAccess;
+struct ModelAccess;
 }  // namespace internal
 
 // ---------------------------------------------------------------- errors
@@ -438,6 +439,23 @@ struct SkinnerOptions {
   int palette_threads = 0;
 };
 
+class Model;
+
+// One instance's animation on the device (Skinner::CreateAnimated,
+// Skinner::SetAnimation; docs/ANIMATION.md): animation `animation` of the
+// Model at `time` seconds (its own clip time: clamped to its first and last
+// key, as Model::Palette does; loop it yourself), blended in local space with
+// `animation2` at `time2` by `weight` (0: the first alone; 1: the second
+// alone; rotations by shortest-path nlerp, translations and scales by lerp).
+// -1 is the rest pose. 16 bytes a frame on the device.
+struct AnimationState {
+  int animation = -1;
+  float time = 0.0f;
+  int animation2 = -1;
+  float time2 = 0.0f;
+  float weight = 0.0f;
+};
+
 class Skinner {
  public:
   // Picks the variant for (device, B, mesh.vertex_count) from `db`
@@ -488,6 +506,21 @@ class Skinner {
   static Result<Skinner> CreateBatch(Device& device, const WinnersDb& db, const MeshView* meshes,
                                      std::size_t mesh_count, const SkinnerOptions& options = {});
 
+  // Animation on the device (docs/ANIMATION.md): a Skinner of `model`'s mesh
+  // (model.mesh(), as Create; SkinnerOptions as there: instances, normals,
+  // tangents, a forced variant) whose palettes the device computes each
+  // frame from the model's animations, instead of the host's SetPalette.
+  // Every animation of the model (its skeleton, keyframes, inverse binds)
+  // is packed and uploaded once here; per frame SetAnimation uploads
+  // 16 bytes an instance, and Skin runs the palette kernel, then the skin
+  // kernel, on the device's queue. Until the first SetAnimation every
+  // instance is in the rest pose. SetPalette is then kInvalidState.
+  // Errors: those of Create; kInvalidArgument for a model without a
+  // skeleton to animate (an empty Model: kInvalidState), more than 512 nodes
+  // (the palette kernel holds an instance's nodes in local memory), or an
+  // animation the packer refuses (naming the file and element).
+  static Result<Skinner> CreateAnimated(Device& device, const WinnersDb& db, const Model& model,
+                                        const SkinnerOptions& options = {});
   Skinner();
   // Waits until the frames it queued have completed on the device, so a
   // program may return from main right after Skin() (a driver still
@@ -552,6 +585,20 @@ class Skinner {
   // ago: GL runs the
   // new upload after the frames that read the buffer by itself.
   Status SetPalette(const float* matrices, std::size_t float_count);
+  // A CreateAnimated Skinner's frame: every instance's animation state
+  // (`count` must equal instances()), copied into the page-locked staging of
+  // the next palette buffer's instances and uploaded asynchronously, as
+  // SetPalette does with palettes (it blocks only as SetPalette does: the
+  // same ring of SkinnerOptions::palette_buffers). The next Skin() computes
+  // the palettes from them on the device. kInvalidArgument naming the state
+  // and field for an animation outside -1..animation_count()-1 of the model
+  // (animation2 only checked where weight != 0), a time, time2 or weight that
+  // is not finite, a weight outside [0, 1], a null `states`, a wrong count;
+  // a rejected frame changes nothing. kInvalidState on a Skinner made by
+  // Create or CreateBatch.
+  Status SetAnimation(const AnimationState* states, std::size_t count);
+  // Whether the palettes are computed on the device (CreateAnimated).
+  bool animated() const;
 
   // Queues the skinning of every instance with the last palette set and
   // returns without waiting for the device (skintune waits on nothing here).
@@ -717,6 +764,7 @@ class Model {
 
  private:
   std::unique_ptr<Impl> impl_;
+  friend struct internal::ModelAccess;  // the library's own, not part of the API
 };
 
 }  // namespace skintune

@@ -1,0 +1,237 @@
+// Animation on the device through the public API, on every backend found
+// here (OpenCL on PoCL, GL on llvmpipe, Vulkan on lavapipe, the cpu device;
+// CUDA and the NVIDIA APIs on a GPU machine): Skinner::CreateAnimated packs a
+// glTF model's animations once, SetAnimation uploads each instance's clips,
+// times and blend weight, and Skin runs the palette kernel before the skin
+// kernel. Each instance's output is checked against the float64 gold skinned
+// with the float64 reference palette of its (blended) pose, in palette
+// storages and formats of every kind; the misuses are errors.
+#include <gtest/gtest.h>
+
+#include <cctype>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "generator/clip_packer.h"
+#include "skintune/skintune.h"
+#include "tests/common/test_asset.h"
+#include "tests/generator/palette_gold.h"
+#include "tests/runtime/api_test_support.h"
+
+namespace skintune::internal {
+namespace {
+
+using testing::CacheIn;
+using testing::GoldPose;
+using testing::TempDir;
+using testing::TestAsset;
+
+// Positions within this of the gold, relative to the bounding-box diagonal:
+// the skin kernels' 1e-5 plus the float32 palette kernel's own error (its
+// bound: 1e-5 of each joint's scale, docs/ANIMATION.md).
+constexpr double kTolerance = 2e-5;
+
+struct AnimatedCase {
+  Backend backend;
+  std::string variant;  // forced
+  std::string model;    // a glTF of tests/data
+};
+void PrintTo(const AnimatedCase& c, std::ostream* out) { *out << c.variant << " " << c.model; }
+
+class SkinnerAnimated : public ::testing::TestWithParam<AnimatedCase> {
+ protected:
+  void SetUp() override {
+    const Backend backend = GetParam().backend;
+    Result<Device> device = Device::Open("", &backend, CacheIn(dir_));
+    if (!device.ok()) GTEST_SKIP() << "no " << BackendName(backend) << " device: " << device.status().message();
+    device_ = std::move(*device);
+    Result<Model> model = Model::Load(std::string(SKINTUNE_TEST_DATA_DIR) + "/" + GetParam().model);
+    ASSERT_TRUE(model.ok()) << model.status().message();
+    model_ = std::move(*model);
+  }
+  const SkinnedAsset& Asset() const { return TestAsset(GetParam().model); }
+
+  // Instance k: clip k % clips at its own phase; every third a blend of two
+  // clips; the last the rest pose.
+  std::vector<AnimationState> Crowd(int instances, double phase) const {
+    std::vector<AnimationState> states(static_cast<std::size_t>(instances));
+    const int clips = model_.animation_count();
+    for (int k = 0; k < instances; ++k) {
+      AnimationState& s = states[static_cast<std::size_t>(k)];
+      if (k + 1 == instances) break;  // the rest pose
+      const int a = k % clips, b = (k + 1) % clips;
+      const double u = std::fmod(phase + 0.37 * k, 1.0);
+      s.animation = a;
+      s.time = static_cast<float>(model_.animation_start(a) + u * model_.animation_duration(a));
+      if (k % 3 == 2) {
+        s.animation2 = b;
+        s.time2 = static_cast<float>(model_.animation_start(b) + (1.0 - u) * model_.animation_duration(b));
+        s.weight = 0.35f;
+      }
+    }
+    return states;
+  }
+
+  // Skins `states` and expects instance k to be the gold of its pose.
+  void ExpectLikeTheGold(Skinner& skinner, const std::vector<AnimationState>& states) {
+    const Status set = skinner.SetAnimation(states.data(), states.size());
+    ASSERT_TRUE(set.ok()) << set.message();
+    const Status skinned = skinner.Skin();
+    ASSERT_TRUE(skinned.ok()) << skinned.message();
+    const Variant variant = ParseVariantKey(skinner.selection().variant);
+    const SkinnedMesh& mesh = Asset().mesh;
+    const std::size_t n = mesh.vertex_count();
+    std::vector<float> positions(states.size() * n * 3);
+    const Status read = skinner.ReadPositions(positions.data(), positions.size());
+    ASSERT_TRUE(read.ok()) << read.message();
+    const PackedAnimation packed = PackAnimation(Asset());
+    const SkinnedMesh quantised = QuantisedMesh(mesh, variant);
+    for (std::size_t k = 0; k < states.size(); ++k) {
+      const AnimationState& s = states[k];
+      const AnimInstance in{s.animation < 0 ? kAnimRestPose : static_cast<std::uint16_t>(s.animation),
+                            s.animation2 < 0 || s.weight == 0.0f ? kAnimRestPose : static_cast<std::uint16_t>(s.animation2),
+                            s.time, s.time2, s.weight};
+      const std::vector<glm::mat4> palette = Asset().skeleton.Palette(GoldPose(Asset(), packed, in));
+      const GoldResult gold = SkinGold(quantised, palette, false);
+      const std::vector<float> part(positions.begin() + static_cast<std::ptrdiff_t>(k * n * 3),
+                                    positions.begin() + static_cast<std::ptrdiff_t>((k + 1) * n * 3));
+      const GoldComparison p = CompareToGold(gold.positions, testing::Vec3s(part));
+      EXPECT_EQ(p.non_finite, 0u) << variant.Key() << " instance " << k;
+      EXPECT_LT(p.max_relative, kTolerance)
+          << variant.Key() << " instance " << k << " (animation " << s.animation << " t=" << s.time << ", animation2 "
+          << s.animation2 << " t2=" << s.time2 << " w=" << s.weight << "): worst vertex " << p.worst_vertex;
+      RecordProperty("max_relative_" + std::to_string(k), std::to_string(p.max_relative));
+    }
+  }
+
+  TempDir dir_;
+  Device device_;
+  Model model_;
+};
+
+TEST_P(SkinnerAnimated, EveryInstanceIsTheGoldOfItsOwnClipsTimesAndBlend) {
+  SkinnerOptions options;
+  options.instances = 7;
+  options.variant = GetParam().variant;
+  Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
+  ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+  EXPECT_TRUE(skinner->animated());
+  for (double phase : {0.1, 0.6}) {
+    SCOPED_TRACE("phase " + std::to_string(phase));
+    ExpectLikeTheGold(*skinner, Crowd(options.instances, phase));
+  }
+}
+
+TEST_P(SkinnerAnimated, FramesInFlightEachKeepTheirOwnStates) {
+  // More frames than palette buffers queued before one read: the ring's slots
+  // each carry their own instances, and the last frame's are read.
+  SkinnerOptions options;
+  options.instances = 3;
+  options.palette_buffers = 2;
+  options.variant = GetParam().variant;
+  Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
+  ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+  for (int frame = 0; frame < 5; ++frame) {
+    const std::vector<AnimationState> states = Crowd(options.instances, 0.2 * frame);
+    ASSERT_TRUE(skinner->SetAnimation(states.data(), states.size()).ok());
+    ASSERT_TRUE(skinner->Skin().ok());
+  }
+  ExpectLikeTheGold(*skinner, Crowd(options.instances, 0.9));
+}
+
+TEST_P(SkinnerAnimated, TheRestPoseUntilTheFirstSetAnimation) {
+  SkinnerOptions options;
+  options.instances = 2;
+  options.variant = GetParam().variant;
+  Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
+  ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+  ASSERT_TRUE(skinner->Skin().ok());
+  const std::size_t n = model_.vertex_count();
+  std::vector<float> positions(2 * n * 3);
+  ASSERT_TRUE(skinner->ReadPositions(positions.data(), positions.size()).ok());
+  std::vector<float> rest;
+  ASSERT_TRUE(model_.Palette(-1, 0.0, &rest).ok());
+  std::vector<float> gold;
+  ASSERT_TRUE(model_.SkinReference(rest.data(), rest.size(), &gold).ok());
+  double diagonal = 0.0, worst = 0.0;
+  for (std::size_t i = 0; i < gold.size(); ++i) diagonal = std::max(diagonal, std::abs(static_cast<double>(gold[i])));
+  for (std::size_t i = 0; i < positions.size(); ++i)
+    worst = std::max(worst, std::abs(static_cast<double>(positions[i]) - gold[i % gold.size()]));
+  EXPECT_LT(worst, kTolerance * 4.0 * diagonal) << "the rest pose, largest |coordinate| " << diagonal;
+}
+
+TEST_P(SkinnerAnimated, BadStatesAreRejectedNamingTheFieldAndChangeNothing) {
+  SkinnerOptions options;
+  options.instances = 2;
+  options.variant = GetParam().variant;
+  Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
+  ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+  const std::vector<AnimationState> good = Crowd(2, 0.3);
+  const auto expect_bad = [&](std::vector<AnimationState> states, std::size_t count, const std::string& says) {
+    const Status s = skinner->SetAnimation(states.data(), count);
+    EXPECT_EQ(s.code(), ErrorCode::kInvalidArgument) << says;
+    EXPECT_NE(s.message().find(says), std::string::npos) << s.message();
+  };
+  std::vector<AnimationState> bad = good;
+  bad[1].animation = model_.animation_count();
+  expect_bad(bad, 2, "states[1].animation is " + std::to_string(model_.animation_count()));
+  bad = good;
+  bad[0].weight = 0.5f;
+  bad[0].animation2 = -2;
+  expect_bad(bad, 2, "states[0].animation2 is -2");
+  bad = good;
+  bad[0].time = std::numeric_limits<float>::quiet_NaN();
+  expect_bad(bad, 2, "states[0].time is not finite");
+  bad = good;
+  bad[1].weight = 1.5f;
+  expect_bad(bad, 2, "states[1].weight");
+  expect_bad(good, 1, "SetAnimation");
+  EXPECT_EQ(skinner->SetAnimation(nullptr, 2).code(), ErrorCode::kInvalidArgument);
+  // The rejected frames took no slot and changed nothing: the good one is skinned.
+  ExpectLikeTheGold(*skinner, good);
+
+  const std::vector<float> palette(static_cast<std::size_t>(2 * model_.joint_count() * 16), 0.0f);
+  const Status set_palette = skinner->SetPalette(palette.data(), palette.size());
+  EXPECT_EQ(set_palette.code(), ErrorCode::kInvalidState);
+  EXPECT_NE(set_palette.message().find("SetAnimation"), std::string::npos) << set_palette.message();
+
+  Result<Skinner> plain = Skinner::Create(device_, WinnersDb::Empty(), model_.mesh(), options);
+  ASSERT_TRUE(plain.ok()) << plain.status().message();
+  EXPECT_FALSE(plain->animated());
+  EXPECT_EQ(plain->SetAnimation(good.data(), good.size()).code(), ErrorCode::kInvalidState);
+}
+
+TEST(SkinnerAnimatedModel, AnEmptyModelIsRefused) {
+  Result<Device> device = Device::Open("", nullptr);
+  if (!device.ok()) GTEST_SKIP() << "no device: " << device.status().message();
+  const Result<Skinner> skinner = Skinner::CreateAnimated(*device, WinnersDb::Empty(), Model());
+  ASSERT_FALSE(skinner.ok());
+  EXPECT_EQ(skinner.status().code(), ErrorCode::kInvalidState);
+  EXPECT_NE(skinner.status().message().find("Model is empty"), std::string::npos) << skinner.status().message();
+}
+
+std::vector<AnimatedCase> Cases() {
+  // Every palette storage and both palette formats (the kernel writes mat4's fourth row too).
+  return {{Backend::kOpenCl, "opencl.b4.soa", "Fox.gltf"},
+          {Backend::kOpenCl, "opencl.b4.aos.mat4.image", "CesiumMan.gltf"},
+          {Backend::kCuda, "cuda.b4.soa-split.constant", "Fox.gltf"},
+          {Backend::kCuda, "cuda.b4.soa.image.mat4", "CesiumMan.gltf"},
+          {Backend::kGl, "glsl-compute.b4.aos.constant", "Fox.gltf"},
+          {Backend::kGl, "glsl-vertex.b4.soa", "CesiumMan.gltf"},
+          {Backend::kVulkan, "vulkan.b4.soa-split.local", "Fox.gltf"},
+          {Backend::kVulkan, "vulkan.b4.soa.image.mat4", "CesiumMan.gltf"},
+          {Backend::kCpu, "cpu.b4.soa", "Fox.gltf"},
+          {Backend::kCpu, "cpu.b4.aos.mat4", "CesiumMan.gltf"}};
+}
+std::string CaseName(const ::testing::TestParamInfo<AnimatedCase>& info) {
+  std::string name = info.param.variant + "_" + info.param.model.substr(0, info.param.model.find('.'));
+  for (char& c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  return name;
+}
+INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerAnimated, ::testing::ValuesIn(Cases()), CaseName);
+
+}  // namespace
+}  // namespace skintune::internal
