@@ -11,6 +11,16 @@
 //   instanced/set-only            SetPalette (K palettes) alone: the uploads' own cost
 //   skinners/skin-only            K Skinners of N vertices, K launches per frame
 //   read-back                     ReadPositions of the one mesh's K x N float3 positions
+//   animated/skin-only            the crowd animated on the device (Skinner::CreateAnimated):
+//                                 Skin only, each frame the palette kernel, then the skin kernel
+//   animated/set-skin-pipelined   SetAnimation (16 bytes an instance) + Skin, no Finish between
+//   animated/set-skin-finish      SetAnimation + Skin + Finish every frame
+//
+// The animated rows play the instance model's own clip (the synthetic
+// 25k-b4's 77-joint rig, or --animation-model's glTF, whose own mesh is then
+// the instance), every instance at its own time; --blend makes every
+// instance a blend of two times of it (weight 0.5). The summary compares
+// them with the instanced rows, whose palettes the host uploads.
 //
 // K = 64 and N = 25k-b4 (77 joints) by default: a crowd of 64 characters. Each
 // benchmark iteration runs --frames frames (default 50) and ends with Finish,
@@ -80,6 +90,8 @@ struct Options {
   bool submit_thread = false;
   int palette_buffers = kDefaultPaletteBuffers;
   int palette_threads = 0;
+  std::string animation_model;  // a glTF for the animated rows (default: the instance mesh's synthetic rig)
+  bool blend = false;
 };
 Options options;
 
@@ -114,6 +126,12 @@ struct Scene {
     Model instance;
     Skinner skinner;
     std::vector<std::vector<float>> palettes;
+  };
+  // The crowd animated on the device, and per pose the K instances' states.
+  struct Animated {
+    Model model;
+    Skinner skinner;
+    std::vector<std::vector<AnimationState>> states;
   };
   // One mesh of K x N vertices, and per pose its palette.
   struct OneMesh {
@@ -161,6 +179,41 @@ struct Scene {
     crowd_ = std::move(c);
     return *crowd_;
   }
+  Animated& animated() {
+    if (animated_) return *animated_;
+    auto a = std::make_unique<Animated>();
+    a->model = options.animation_model.empty() ? Must(Model::Synthetic(std::to_string(n) + "-b4"), "instance mesh")
+                                               : Must(Model::Load(options.animation_model), options.animation_model);
+    if (a->model.animation_count() == 0) Die(a->model.source() + " has no animation to play");
+    SkinnerOptions animated_options;
+    animated_options.variant = options.variant;
+    animated_options.instances = options.instances;
+    animated_options.palette_buffers = options.palette_buffers;
+    a->skinner = Must(Skinner::CreateAnimated(device, db, a->model, animated_options), "animated Skinner");
+    const int clips = a->model.animation_count();
+    for (int f = 0; f < options.poses; ++f) {
+      std::vector<AnimationState>& frame = a->states.emplace_back(k);
+      for (std::size_t i = 0; i < k; ++i) {
+        const int clip = static_cast<int>(i) % clips;
+        const double start = a->model.animation_start(clip), duration = std::max(a->model.animation_duration(clip), 1e-3);
+        const double u = std::fmod(double(i) / double(k) + f / 30.0, 1.0);
+        frame[i] = {clip, static_cast<float>(start + u * duration)};
+        if (options.blend) {
+          frame[i].animation2 = (clip + 1) % clips;
+          frame[i].time2 = static_cast<float>(a->model.animation_start(frame[i].animation2) +
+                                              std::fmod(u + 0.5, 1.0) * a->model.animation_duration(frame[i].animation2));
+          frame[i].weight = 0.5f;
+        }
+      }
+    }
+    Must(a->skinner.SetAnimation(a->states[0].data(), a->states[0].size()), "SetAnimation");
+    Must(a->skinner.Skin(), "Skin");
+    Must(a->skinner.Finish(), "Finish");
+    std::fprintf(stderr, "animated: %zu x %zu vertices, %d joints, %s%s\n", k, a->model.vertex_count(),
+                 a->model.joint_count(), a->skinner.selection().variant.c_str(), options.blend ? ", two-clip blends" : "");
+    animated_ = std::move(a);
+    return *animated_;
+  }
   OneMesh& one_mesh() {
     if (one_mesh_) return *one_mesh_;
     auto o = std::make_unique<OneMesh>();
@@ -203,6 +256,7 @@ struct Scene {
     Must(skinner.Finish(), "Finish");
   }
   std::unique_ptr<Crowd> crowd_;
+  std::unique_ptr<Animated> animated_;
   std::unique_ptr<OneMesh> one_mesh_;
   std::vector<Skinner> skinners_;
 };
@@ -344,6 +398,43 @@ void InstancedSetOnly(benchmark::State& state) {
   state.counters["palette_bytes/s"] = benchmark::Counter(bytes / (per_frame_us["instanced/set-only"].back() * 1e-6));
 }
 
+void AnimatedSkinOnly(benchmark::State& state) {
+  Skinner& animated = TheScene().animated().skinner;
+  Frames(state, "animated/skin-only", animated, [&](int) { Must(animated.Skin(), "Skin"); }, "instanced/skin-only");
+}
+
+void AnimatedPipelined(benchmark::State& state) {
+  Scene::Animated& a = TheScene().animated();
+  double set_s = 0.0, skin_s = 0.0;
+  std::size_t frames = 0;
+  Frames(
+      state, "animated/set-skin-pipelined", a.skinner,
+      [&](int f) {
+        const auto start = Clock::now();
+        Must(a.skinner.SetAnimation(a.states[f].data(), a.states[f].size()), "SetAnimation");
+        const auto set = Clock::now();
+        Must(a.skinner.Skin(), "Skin");
+        set_s += std::chrono::duration<double>(set - start).count();
+        skin_s += std::chrono::duration<double>(Clock::now() - set).count();
+        ++frames;
+      },
+      "instanced/skin-only");
+  state.counters["set_animation_us"] = UsPerFrame(set_s, frames);
+  state.counters["skin_us"] = UsPerFrame(skin_s, frames);
+}
+
+void AnimatedSetSkinFinish(benchmark::State& state) {
+  Scene::Animated& a = TheScene().animated();
+  Frames(
+      state, "animated/set-skin-finish", a.skinner,
+      [&](int f) {
+        Must(a.skinner.SetAnimation(a.states[f].data(), a.states[f].size()), "SetAnimation");
+        Must(a.skinner.Skin(), "Skin");
+        Must(a.skinner.Finish(), "Finish");
+      },
+      "instanced/skin-only");
+}
+
 void SkinnersSkinOnly(benchmark::State& state) {
   std::vector<Skinner>& skinners = TheScene().skinners();
   // The Skinners share the Device's queue: finishing the last waits for all of them.
@@ -378,7 +469,10 @@ void RegisterAll() {
                      {"frame/instanced/skin-finish", InstancedSkinFinish},
                      {"frame/instanced/set-only", InstancedSetOnly},
                      {"frame/skinners/skin-only", SkinnersSkinOnly},
-                     {"frame/read-back", ReadBack}};
+                     {"frame/read-back", ReadBack},
+                     {"frame/animated/skin-only", AnimatedSkinOnly},
+                     {"frame/animated/set-skin-pipelined", AnimatedPipelined},
+                     {"frame/animated/set-skin-finish", AnimatedSetSkinFinish}};
   for (const auto& b : kBenchmarks)
     benchmark::RegisterBenchmark(b.name, b.run)->UseManualTime()->Unit(benchmark::kMicrosecond);
 }
@@ -398,6 +492,8 @@ void ParseOptions(int& argc, char** argv) {
   app.add_flag("--submit-thread", options.submit_thread, "DeviceOptions::submit_thread");
   app.add_option("--palette-buffers", options.palette_buffers, "SkinnerOptions::palette_buffers");
   app.add_option("--palette-threads", options.palette_threads, "SkinnerOptions::palette_threads");
+  app.add_option("--animation-model", options.animation_model, "a glTF whose mesh and clips the animated rows play");
+  app.add_flag("--blend", options.blend, "animated rows: every instance a blend of two clips (weight 0.5)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -425,6 +521,10 @@ void Summary() {
   minus("instanced/set-skin-finish", "instanced/skin-finish");
   minus("one-mesh/set-skin-finish", "one-mesh/skin-only");
   ratio("skinners/skin-only", "instanced/skin-only");
+  // Animation on the device against the frames with no palette work at all.
+  ratio("animated/set-skin-pipelined", "instanced/skin-only");
+  minus("animated/set-skin-finish", "instanced/skin-finish");
+  minus("animated/skin-only", "instanced/skin-only");
 }
 
 }  // namespace
