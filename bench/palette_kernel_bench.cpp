@@ -48,7 +48,7 @@ struct Options {
 } options;
 
 constexpr int kBurst = 64;
-constexpr unsigned kBlock = 64;
+constexpr unsigned kBlock = kAnimGroup;
 
 // Instance i plays clip i mod C at its own time; with `blend` it cross-fades
 // to clip (i + 1) mod C at weight 0.5.

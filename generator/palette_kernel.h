@@ -17,7 +17,7 @@
 namespace skintune::internal {
 
 // The palette kernel's work-group (templates/palette.cl ANIM_GROUP): one per instance.
-inline constexpr int kAnimGroup = 64;
+inline constexpr int kAnimGroup = 128;
 
 // The buffers the kernel reads, in argument order, then its output.
 inline constexpr const char* kAnimInputs[] = {"nodes", "channels", "times", "values", "joints", "instances"};

@@ -4,24 +4,28 @@
 // algorithm in C++ (the cpu device's kernel), function for function; its
 // opening comment says how sampling follows model/animation.cpp.
 //
-// Launch: a 2-D NDRange of work-groups of ANIM_GROUP (64) items, one group
+// Launch: a 2-D NDRange of work-groups of ANIM_GROUP (128) items, one group
 // per instance: global size (ANIM_GROUP, K), local size (ANIM_GROUP, 1), for
-// K instances. The group's items sample every node's local transform of
-// their instance once, into local memory (at most ANIM_MAX_NODES nodes:
-// ValidateAnimation refuses more), then each composes its joints (j = item,
-// item + ANIM_GROUP, ...) by walking up their ancestors there, and writes
-// instance i's joint j as ANIM_PALETTE_ROWS float4 rows at
+// K instances. In three steps, each all in parallel, with a barrier between:
+// the group's items sample every (node, path) of their instance once, into
+// local memory (at most ANIM_MAX_NODES nodes: ValidateAnimation refuses
+// more), with the node's parent; each node's local transform is made from its
+// translation, rotation and scale there; then each item composes its joints
+// (j = item, item + ANIM_GROUP, ...) by walking up their ancestors in local
+// memory, and writes instance i's joint j as ANIM_PALETTE_ROWS float4 rows at
 // (i * ANIM_JOINT_COUNT + j) * ANIM_PALETTE_ROWS + r: the palette the skin
 // kernels read (`mat3x4`, or `mat4`), K palettes one after another.
-// (Sampling is binary searches in global memory: once per node, not once per
-// joint and ancestor. Measured on an H200, 2026-11-29, 64 instances of a
-// 77-joint rig took 49 us a launch with one item per joint re-sampling its
-// ancestors: docs/ANIMATION.md.)
+// Why (docs/ANIMATION.md, measured on an H200, 2026-11-29): sampling is
+// binary searches in global memory, a chain of dependent loads, so each
+// (node, path) is sampled once and all at the same time; and the walk up a
+// chain 60 deep is as many dependent loads of the parent index, from local
+// memory here (from global memory, 64 instances of a 77-joint rig took
+// 15.6 us a launch; re-sampling every ancestor per joint, 49 us).
 // An instance whose clip index is neither a packed clip nor 0xffff (the
 // rest pose) gets NaN rows instead of a read out of bounds.
 
 // The animation's counts and the palette's rows per joint, defined by the
-// generator (generator/palette_emit.h EmitPalette) for the packed animation
+// generator (generator/palette_kernel.h EmitPalette) for the packed animation
 // the kernel runs: the kernel is specialised per model, as the skin kernel
 // is per mesh. The defaults let the template compile alone.
 #ifndef ANIM_NODE_COUNT
@@ -104,22 +108,34 @@ float4 anim_sample_channel(__global const float* restrict times_all, __global co
          (u3 - u2) * m1;
 }
 
-// Node `node`'s local TRS in `clip` at time t: its rest values, overwritten
-// by the clip's channels.
-Trs anim_sample_local(const uint node_count, __global const float4* restrict nodes,
-                      __global const uint4* restrict channels, __global const float* restrict times,
-                      __global const float4* restrict values, const uint node, const uint clip, const float t) {
-  Trs x;
-  x.t = nodes[4u * node + 1u];
-  x.r = nodes[4u * node + 2u];
-  x.s = nodes[4u * node + 3u];
-  if (clip == ANIM_REST_POSE) return x;
-  __global const uint4* h = channels + (clip * node_count + node) * 3u;
-  const uint4 ht = h[0], hr = h[1], hs = h[2];
-  if (ht.y > 0u) x.t = anim_sample_channel(times, values, ht, 0, t);
-  if (hr.y > 0u) x.r = anim_normalize_quat(anim_sample_channel(times, values, hr, 1, t));
-  if (hs.y > 0u) x.s = anim_sample_channel(times, values, hs, 0, t);
-  return x;
+// Path `path` (0 translation, 1 rotation, 2 scale) of node `node` in
+// `clip` at time t: its rest value, or the clip's channel's (a rotation
+// normalised).
+float4 anim_path_value(const uint node_count, __global const float4* restrict nodes,
+                       __global const uint4* restrict channels, __global const float* restrict times,
+                       __global const float4* restrict values, const uint node, const uint path, const uint clip,
+                       const float t) {
+  const float4 rest = nodes[4u * node + 1u + path];
+  if (clip == ANIM_REST_POSE) return rest;
+  const uint4 h = channels[(clip * node_count + node) * 3u + path];
+  if (h.y == 0u) return rest;
+  const float4 v = anim_sample_channel(times, values, h, path == 1u, t);
+  return path == 1u ? anim_normalize_quat(v) : v;
+}
+
+// The path's value for an instance (in: clips, time, time2, weight): in
+// clip, blended towards clip2's by weight (T, S lerped; R nlerped along the
+// shortest path).
+float4 anim_path(const uint node_count, __global const float4* restrict nodes, __global const uint4* restrict channels,
+                 __global const float* restrict times, __global const float4* restrict values, const uint node,
+                 const uint path, const uint4 in) {
+  float4 x = anim_path_value(node_count, nodes, channels, times, values, node, path, in.x & 0xffffu, as_float(in.y));
+  const float w = as_float(in.w);
+  if (w == 0.0f) return x;
+  const float4 y = anim_path_value(node_count, nodes, channels, times, values, node, path, in.x >> 16, as_float(in.z));
+  if (path != 1u) return x + w * (y - x);
+  const float4 r2 = dot(x, y) < 0.0f ? -y : y;
+  return anim_normalize_quat(x + w * (r2 - x));
 }
 
 // T * R * S as rows, from a normalised (x, y, z, w) rotation.
@@ -134,34 +150,9 @@ Affine anim_to_affine(const Trs x) {
   return m;
 }
 
-// Node `node`'s local transform for an instance (in: clips, time, time2,
-// weight): a fixed matrix, or its TRS in clip, blended towards clip2's by
-// weight (T, S lerped; R nlerped along the shortest path).
-Affine anim_local(const uint node_count, __global const float4* restrict nodes, __global const uint4* restrict channels,
-                  __global const float* restrict times, __global const float4* restrict values, const uint node,
-                  const uint4 in) {
-  if (as_uint(nodes[4u * node].y) != 0u) {
-    Affine m;
-    m.row0 = nodes[4u * node + 1u];
-    m.row1 = nodes[4u * node + 2u];
-    m.row2 = nodes[4u * node + 3u];
-    return m;
-  }
-  Trs x = anim_sample_local(node_count, nodes, channels, times, values, node, in.x & 0xffffu, as_float(in.y));
-  const float w = as_float(in.w);
-  if (w != 0.0f) {
-    const Trs y = anim_sample_local(node_count, nodes, channels, times, values, node, in.x >> 16, as_float(in.z));
-    x.t += w * (y.t - x.t);
-    x.s += w * (y.s - x.s);
-    const float4 r2 = dot(x.r, y.r) < 0.0f ? -y.r : y.r;
-    x.r = anim_normalize_quat(x.r + w * (r2 - x.r));
-  }
-  return anim_to_affine(x);
-}
-
 int anim_clip_valid(const uint clip, const uint clip_count) { return clip == ANIM_REST_POSE || clip < clip_count; }
 
-#define ANIM_GROUP 64  // fixed: the launch and the local memory the kernel is written for
+#define ANIM_GROUP 128  // fixed: the launch and the local memory the kernel is written for
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 
 __kernel __attribute__((reqd_work_group_size(ANIM_GROUP, 1, 1)))
@@ -169,7 +160,10 @@ void skintune_palette(__global const float4* restrict nodes,
                       __global const uint4* restrict channels, __global const float* restrict times,
                       __global const float4* restrict values, __global const float4* restrict joints,
                       __global const uint4* restrict instances, __global float4* restrict palette) {
-  __local float4 local_rows[3 * ANIM_MAX_NODES];  // node n's local transform: rows 3n .. 3n + 2
+  // Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
+  // then its local transform's rows there; and its parent.
+  __local float4 local_rows[3 * ANIM_MAX_NODES];
+  __local int local_parent[ANIM_MAX_NODES];
   const uint node_count = ANIM_NODE_COUNT, joint_count = ANIM_JOINT_COUNT, clip_count = ANIM_CLIP_COUNT;
   const uint rows = ANIM_PALETTE_ROWS;
   const uint item = (uint)get_local_id(0), i = (uint)get_group_id(1);
@@ -183,18 +177,34 @@ void skintune_palette(__global const float4* restrict nodes,
                     (as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
   if (in_group && !valid)
     for (uint r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = (float4)(NAN);
+  // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
+  for (uint task = item; valid && task < 3u * node_count; task += ANIM_GROUP) {
+    const uint node = task / 3u, path = task - 3u * node;
+    local_rows[task] = anim_path(node_count, nodes, channels, times, values, node, path, in);
+    if (path == 0u) local_parent[node] = as_int(nodes[4u * node].x);
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  // 2: each node's local transform, T * R * S (a fixed-matrix node: its matrix), in place.
   for (uint n = item; valid && n < node_count; n += ANIM_GROUP) {
-    const Affine l = anim_local(node_count, nodes, channels, times, values, n, in);
+    Affine l;
+    if (as_uint(nodes[4u * n].y) != 0u) {
+      l.row0 = nodes[4u * n + 1u], l.row1 = nodes[4u * n + 2u], l.row2 = nodes[4u * n + 3u];
+    } else {
+      Trs x;
+      x.t = local_rows[3u * n], x.r = local_rows[3u * n + 1u], x.s = local_rows[3u * n + 2u];
+      l = anim_to_affine(x);
+    }
     local_rows[3u * n] = l.row0;
     local_rows[3u * n + 1u] = l.row1;
     local_rows[3u * n + 2u] = l.row2;
   }
   barrier(CLK_LOCAL_MEM_FENCE);
+  // 3: each joint's global transform, up its ancestors in local memory, then the inverse bind.
   for (uint j = item; valid && j < joint_count; j += ANIM_GROUP) {
     const uint node = as_uint(joints[4u * j].x);
     Affine m;
     m.row0 = local_rows[3u * node], m.row1 = local_rows[3u * node + 1u], m.row2 = local_rows[3u * node + 2u];
-    for (int p = as_int(nodes[4u * node].x); p >= 0; p = as_int(nodes[4u * (uint)p].x)) {
+    for (int p = local_parent[node]; p >= 0; p = local_parent[p]) {
       Affine parent;
       parent.row0 = local_rows[3u * (uint)p], parent.row1 = local_rows[3u * (uint)p + 1u];
       parent.row2 = local_rows[3u * (uint)p + 2u];

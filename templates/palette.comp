@@ -13,7 +13,7 @@
 // (i * ANIM_JOINT_COUNT + j) * ANIM_PALETTE_ROWS + r. An instance whose clip index is neither a
 // packed clip nor 0xffff (the rest pose) gets NaN rows.
 
-layout(local_size_x = 64) in;
+layout(local_size_x = 128) in;
 
 layout(std430, binding = 0) readonly buffer Nodes { vec4 nodes[]; };
 layout(std430, binding = 1) readonly buffer Channels { uvec4 channels[]; };
@@ -24,7 +24,7 @@ layout(std430, binding = 5) readonly buffer Instances { uvec4 instances[]; };
 layout(std430, binding = 6) writeonly buffer Palette { vec4 palette[]; };
 
 // The animation's counts and the palette's rows per joint, defined by the
-// generator (generator/palette_emit.h EmitPalette) for the packed animation
+// generator (generator/palette_kernel.h EmitPalette) for the packed animation
 // the kernel runs: the kernel is specialised per model, as the skin kernel
 // is per mesh. The defaults let the template compile alone.
 #ifndef ANIM_NODE_COUNT
@@ -108,17 +108,29 @@ vec4 anim_sample_channel(uvec4 h, bool rotation, float t) {
   return (2.0 * u3 - 3.0 * u2 + 1.0) * p0 + (u3 - 2.0 * u2 + u) * m0 + (-2.0 * u3 + 3.0 * u2) * p1 + (u3 - u2) * m1;
 }
 
-// Node `node`'s local TRS in `clip` at time t: its rest values, overwritten
-// by the clip's channels.
-Trs anim_sample_local(uint node, uint clip, float t) {
-  Trs x = Trs(nodes[4u * node + 1u], nodes[4u * node + 2u], nodes[4u * node + 3u]);
-  if (clip == kRestPose) return x;
-  uint h = (clip * node_count + node) * 3u;
-  uvec4 ht = channels[h], hr = channels[h + 1u], hs = channels[h + 2u];
-  if (ht.y > 0u) x.t = anim_sample_channel(ht, false, t);
-  if (hr.y > 0u) x.r = anim_normalize_quat(anim_sample_channel(hr, true, t));
-  if (hs.y > 0u) x.s = anim_sample_channel(hs, false, t);
-  return x;
+// Path `path` (0 translation, 1 rotation, 2 scale) of node `node` in
+// `clip` at time t: its rest value, or the clip's channel's (a rotation
+// normalised).
+vec4 anim_path_value(uint node, uint path, uint clip, float t) {
+  vec4 rest = nodes[4u * node + 1u + path];
+  if (clip == kRestPose) return rest;
+  uvec4 h = channels[(clip * node_count + node) * 3u + path];
+  if (h.y == 0u) return rest;
+  vec4 v = anim_sample_channel(h, path == 1u, t);
+  return path == 1u ? anim_normalize_quat(v) : v;
+}
+
+// The path's value for an instance (in_: clips, time, time2, weight): in
+// clip, blended towards clip2's by weight (T, S lerped; R nlerped along the
+// shortest path).
+vec4 anim_path(uint node, uint path, uvec4 in_) {
+  vec4 x = anim_path_value(node, path, in_.x & 0xffffu, uintBitsToFloat(in_.y));
+  float w = uintBitsToFloat(in_.w);
+  if (w == 0.0) return x;
+  vec4 y = anim_path_value(node, path, in_.x >> 16, uintBitsToFloat(in_.z));
+  if (path != 1u) return x + w * (y - x);
+  vec4 r2 = dot(x, y) < 0.0 ? -y : y;
+  return anim_normalize_quat(x + w * (r2 - x));
 }
 
 // T * R * S as rows, from a normalised (x, y, z, w) rotation.
@@ -133,32 +145,18 @@ Affine anim_to_affine(Trs x) {
   return m;
 }
 
-// Node `node`'s local transform for an instance (in: clips, time, time2,
-// weight): a fixed matrix, or its TRS in clip, blended towards clip2's by
-// weight (T, S lerped; R nlerped along the shortest path).
-Affine anim_local(uint node, uvec4 in_) {
-  if (floatBitsToUint(nodes[4u * node].y) != 0u)
-    return Affine(nodes[4u * node + 1u], nodes[4u * node + 2u], nodes[4u * node + 3u]);
-  Trs x = anim_sample_local(node, in_.x & 0xffffu, uintBitsToFloat(in_.y));
-  float w = uintBitsToFloat(in_.w);
-  if (w != 0.0) {
-    Trs y = anim_sample_local(node, in_.x >> 16, uintBitsToFloat(in_.z));
-    x.t += w * (y.t - x.t);
-    x.s += w * (y.s - x.s);
-    vec4 r2 = dot(x.r, y.r) < 0.0 ? -y.r : y.r;
-    x.r = anim_normalize_quat(x.r + w * (r2 - x.r));
-  }
-  return anim_to_affine(x);
-}
-
 bool anim_clip_valid(uint clip) { return clip == kRestPose || clip < clip_count; }
 
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
-shared vec4 local_rows[3 * ANIM_MAX_NODES];  // node n's local transform: rows 3n .. 3n + 2
+// Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
+// then its local transform's rows there; and its parent (palette.cl).
+shared vec4 local_rows[3 * ANIM_MAX_NODES];
+shared int local_parent[ANIM_MAX_NODES];
 
-// One work-group of 64 per instance (glDispatchCompute(1, K, 1)): its
-// invocations sample every node once into shared memory, then compose their
-// joints there (templates/palette.cl says why).
+// One work-group of 128 per instance (glDispatchCompute(1, K, 1)), in
+// palette.cl's three steps: every (node, path) sampled once into shared
+// memory, each node's local transform made there, then each invocation's
+// joints composed up their ancestors there (templates/palette.cl says why).
 void main() {
   uint item = gl_LocalInvocationID.x, i = gl_WorkGroupID.y;
   // No return before the barrier (GLSL allows none in main before one): a
@@ -171,20 +169,32 @@ void main() {
                (uintBitsToFloat(in_.w) == 0.0 || anim_clip_valid(in_.x >> 16));
   if (in_group && !valid) {
     vec4 nan = vec4(uintBitsToFloat(0x7fc00000u));
-    for (uint r = item; r < joint_count * rows; r += 64u) palette[out_ + r] = nan;
+    for (uint r = item; r < joint_count * rows; r += 128u) palette[out_ + r] = nan;
   }
-  for (uint n = item; valid && n < node_count; n += 64u) {
-    Affine l = anim_local(n, in_);
+  // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
+  for (uint task = item; valid && task < 3u * node_count; task += 128u) {
+    uint node = task / 3u, path = task - 3u * node;
+    local_rows[task] = anim_path(node, path, in_);
+    if (path == 0u) local_parent[node] = floatBitsToInt(nodes[4u * node].x);
+  }
+  memoryBarrierShared();
+  barrier();
+  // 2: each node's local transform, T * R * S (a fixed-matrix node: its matrix), in place.
+  for (uint n = item; valid && n < node_count; n += 128u) {
+    Affine l = floatBitsToUint(nodes[4u * n].y) != 0u
+                   ? Affine(nodes[4u * n + 1u], nodes[4u * n + 2u], nodes[4u * n + 3u])
+                   : anim_to_affine(Trs(local_rows[3u * n], local_rows[3u * n + 1u], local_rows[3u * n + 2u]));
     local_rows[3u * n] = l.row0;
     local_rows[3u * n + 1u] = l.row1;
     local_rows[3u * n + 2u] = l.row2;
   }
   memoryBarrierShared();
   barrier();
-  for (uint j = item; valid && j < joint_count; j += 64u) {
+  // 3: each joint's global transform, up its ancestors in shared memory, then the inverse bind.
+  for (uint j = item; valid && j < joint_count; j += 128u) {
     uint node = floatBitsToUint(joints[4u * j].x);
     Affine m = Affine(local_rows[3u * node], local_rows[3u * node + 1u], local_rows[3u * node + 2u]);
-    for (int p = floatBitsToInt(nodes[4u * node].x); p >= 0; p = floatBitsToInt(nodes[4u * uint(p)].x))
+    for (int p = local_parent[node]; p >= 0; p = local_parent[p])
       m = anim_multiply(Affine(local_rows[3u * uint(p)], local_rows[3u * uint(p) + 1u], local_rows[3u * uint(p) + 2u]), m);
     m = anim_multiply(m, Affine(joints[4u * j + 1u], joints[4u * j + 2u], joints[4u * j + 3u]));
     palette[out_ + rows * j] = m.row0;

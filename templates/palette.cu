@@ -5,17 +5,18 @@
 // uint4 and the float intrinsics; the float4 arithmetic OpenCL has built in
 // is the few operators below.
 //
-// Launch: grid (1, K) for K instances, of blocks of (ANIM_GROUP, 1) = (64, 1)
-// threads, one block per instance: its threads sample every node once into
-// shared memory (at most ANIM_MAX_NODES), then compose their joints j =
-// thread, thread + 64, ... there, and write instance i's joint j as three
-// ANIM_PALETTE_ROWS float4 rows at (i * ANIM_JOINT_COUNT + j) * ANIM_PALETTE_ROWS + r
-// (templates/palette.cl says
-// why). An instance whose clip index is neither a packed clip nor 0xffff
-// (the rest pose) gets NaN rows.
+// Launch: grid (1, K) for K instances, of blocks of (ANIM_GROUP, 1) =
+// (128, 1) threads, one block per instance, in palette.cl's three steps:
+// every (node, path) sampled once into shared memory (at most
+// ANIM_MAX_NODES nodes) with the node's parent, each node's local transform
+// made there, then each thread composes its joints j = thread, thread + 128,
+// ... up their ancestors there and writes instance i's joint j as
+// ANIM_PALETTE_ROWS float4 rows at (i * ANIM_JOINT_COUNT + j) *
+// ANIM_PALETTE_ROWS + r (templates/palette.cl says why). An instance whose
+// clip index is neither a packed clip nor 0xffff (the rest pose) gets NaN rows.
 
 // The animation's counts and the palette's rows per joint, defined by the
-// generator (generator/palette_emit.h EmitPalette) for the packed animation
+// generator (generator/palette_kernel.h EmitPalette) for the packed animation
 // the kernel runs: the kernel is specialised per model, as the skin kernel
 // is per mesh. The defaults let the template compile alone.
 #ifndef ANIM_NODE_COUNT
@@ -121,20 +122,30 @@ struct Animation {
   const float4* __restrict__ values;
 };
 
-// Node `node`'s local TRS in `clip` at time t: its rest values, overwritten
-// by the clip's channels.
-__device__ Trs anim_sample_local(const Animation& a, const unsigned node, const unsigned clip, const float t) {
-  Trs x;
-  x.t = a.nodes[4u * node + 1u];
-  x.r = a.nodes[4u * node + 2u];
-  x.s = a.nodes[4u * node + 3u];
-  if (clip == ANIM_REST_POSE) return x;
-  const uint4* h = a.channels + (clip * a.node_count + node) * 3u;
-  const uint4 ht = h[0], hr = h[1], hs = h[2];
-  if (ht.y > 0u) x.t = anim_sample_channel(a.times, a.values, ht, false, t);
-  if (hr.y > 0u) x.r = anim_normalize_quat(anim_sample_channel(a.times, a.values, hr, true, t));
-  if (hs.y > 0u) x.s = anim_sample_channel(a.times, a.values, hs, false, t);
-  return x;
+// Path `path` (0 translation, 1 rotation, 2 scale) of node `node` in
+// `clip` at time t: its rest value, or the clip's channel's (a rotation
+// normalised).
+__device__ float4 anim_path_value(const Animation& a, const unsigned node, const unsigned path, const unsigned clip,
+                                  const float t) {
+  const float4 rest = a.nodes[4u * node + 1u + path];
+  if (clip == ANIM_REST_POSE) return rest;
+  const uint4 h = a.channels[(clip * a.node_count + node) * 3u + path];
+  if (h.y == 0u) return rest;
+  const float4 v = anim_sample_channel(a.times, a.values, h, path == 1u, t);
+  return path == 1u ? anim_normalize_quat(v) : v;
+}
+
+// The path's value for an instance (in: clips, time, time2, weight): in
+// clip, blended towards clip2's by weight (T, S lerped; R nlerped along the
+// shortest path).
+__device__ float4 anim_path(const Animation& a, const unsigned node, const unsigned path, const uint4 in) {
+  const float4 x = anim_path_value(a, node, path, in.x & 0xffffu, __uint_as_float(in.y));
+  const float w = __uint_as_float(in.w);
+  if (w == 0.0f) return x;
+  const float4 y = anim_path_value(a, node, path, in.x >> 16, __uint_as_float(in.z));
+  if (path != 1u) return x + w * (y - x);
+  const float4 r2 = dot4(x, y) < 0.0f ? -y : y;
+  return anim_normalize_quat(x + w * (r2 - x));
 }
 
 // T * R * S as rows, from a normalised (x, y, z, w) rotation.
@@ -149,34 +160,11 @@ __device__ Affine anim_to_affine(const Trs& x) {
   return m;
 }
 
-// Node `node`'s local transform for an instance (in: clips, time, time2,
-// weight): a fixed matrix, or its TRS in clip, blended towards clip2's by
-// weight (T, S lerped; R nlerped along the shortest path).
-__device__ Affine anim_local(const Animation& a, const unsigned node, const uint4 in) {
-  if (__float_as_uint(a.nodes[4u * node].y) != 0u) {
-    Affine m;
-    m.row0 = a.nodes[4u * node + 1u];
-    m.row1 = a.nodes[4u * node + 2u];
-    m.row2 = a.nodes[4u * node + 3u];
-    return m;
-  }
-  Trs x = anim_sample_local(a, node, in.x & 0xffffu, __uint_as_float(in.y));
-  const float w = __uint_as_float(in.w);
-  if (w != 0.0f) {
-    const Trs y = anim_sample_local(a, node, in.x >> 16, __uint_as_float(in.z));
-    x.t = x.t + w * (y.t - x.t);
-    x.s = x.s + w * (y.s - x.s);
-    const float4 r2 = dot4(x.r, y.r) < 0.0f ? -y.r : y.r;
-    x.r = anim_normalize_quat(x.r + w * (r2 - x.r));
-  }
-  return anim_to_affine(x);
-}
-
 __device__ bool anim_clip_valid(const unsigned clip, const unsigned clip_count) {
   return clip == ANIM_REST_POSE || clip < clip_count;
 }
 
-#define ANIM_GROUP 64  // fixed: the launch and the local memory the kernel is written for
+#define ANIM_GROUP 128  // fixed: the launch and the local memory the kernel is written for
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 
 extern "C" __global__ void __launch_bounds__(ANIM_GROUP)
@@ -184,7 +172,10 @@ skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ cha
                  const float* __restrict__ times, const float4* __restrict__ values,
                  const float4* __restrict__ joints, const uint4* __restrict__ instances,
                  float4* __restrict__ palette) {
-  __shared__ float4 local_rows[3 * ANIM_MAX_NODES];  // node n's local transform: rows 3n .. 3n + 2
+  // Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
+  // then its local transform's rows there; and its parent (palette.cl).
+  __shared__ float4 local_rows[3 * ANIM_MAX_NODES];
+  __shared__ int local_parent[ANIM_MAX_NODES];
   const unsigned node_count = ANIM_NODE_COUNT, joint_count = ANIM_JOINT_COUNT, clip_count = ANIM_CLIP_COUNT;
   const unsigned rows = ANIM_PALETTE_ROWS;
   const unsigned item = threadIdx.x, i = blockIdx.y;
@@ -201,18 +192,34 @@ skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ cha
     for (unsigned r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = make_float4(nan, nan, nan, nan);
   }
   const Animation a = {node_count, nodes, channels, times, values};
+  // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
+  for (unsigned task = item; valid && task < 3u * node_count; task += ANIM_GROUP) {
+    const unsigned node = task / 3u, path = task - 3u * node;
+    local_rows[task] = anim_path(a, node, path, in);
+    if (path == 0u) local_parent[node] = __float_as_int(nodes[4u * node].x);
+  }
+  __syncthreads();
+  // 2: each node's local transform, T * R * S (a fixed-matrix node: its matrix), in place.
   for (unsigned n = item; valid && n < node_count; n += ANIM_GROUP) {
-    const Affine l = anim_local(a, n, in);
+    Affine l;
+    if (__float_as_uint(nodes[4u * n].y) != 0u) {
+      l.row0 = nodes[4u * n + 1u], l.row1 = nodes[4u * n + 2u], l.row2 = nodes[4u * n + 3u];
+    } else {
+      Trs x;
+      x.t = local_rows[3u * n], x.r = local_rows[3u * n + 1u], x.s = local_rows[3u * n + 2u];
+      l = anim_to_affine(x);
+    }
     local_rows[3u * n] = l.row0;
     local_rows[3u * n + 1u] = l.row1;
     local_rows[3u * n + 2u] = l.row2;
   }
   __syncthreads();
+  // 3: each joint's global transform, up its ancestors in shared memory, then the inverse bind.
   for (unsigned j = item; valid && j < joint_count; j += ANIM_GROUP) {
     const unsigned node = __float_as_uint(joints[4u * j].x);
     Affine m;
     m.row0 = local_rows[3u * node], m.row1 = local_rows[3u * node + 1u], m.row2 = local_rows[3u * node + 2u];
-    for (int p = __float_as_int(nodes[4u * node].x); p >= 0; p = __float_as_int(nodes[4u * (unsigned)p].x)) {
+    for (int p = local_parent[node]; p >= 0; p = local_parent[p]) {
       Affine parent;
       parent.row0 = local_rows[3u * p], parent.row1 = local_rows[3u * p + 1u], parent.row2 = local_rows[3u * p + 2u];
       m = anim_multiply(parent, m);

@@ -25,6 +25,7 @@
 #include "cpu_kernels/palette_kernel.h"
 #include "generator/clip_packer.h"
 #include "generator/emit.h"
+#include "generator/languages.h"
 #include "generator/packer.h"
 #include "generator/palette_kernel.h"
 #include "reference/skinning.h"
@@ -199,7 +200,7 @@ class OpenClPaletteKernel {
     cl_uint arg = 0;
     for (const cl_mem& b : buffers) Check(clSetKernelArg(kernel, arg++, sizeof b, &b), "clSetKernelArg");
     Check(clSetKernelArg(kernel, arg++, sizeof out, &out), "clSetKernelArg");
-    constexpr std::size_t kGroup = 64;  // palette.cl's ANIM_GROUP
+    constexpr std::size_t kGroup = kAnimGroup;  // palette.cl's ANIM_GROUP
     const std::size_t global[2] = {groups_x * kGroup, instances.size()}, local[2] = {kGroup, 1};
     Check(clEnqueueNDRangeKernel(queue_, kernel, 2, nullptr, global, local, 0, nullptr, nullptr),
           "clEnqueueNDRangeKernel");
@@ -333,6 +334,20 @@ TEST(PaletteKernel, OpenClSkinKernelReadsThePalettesOnTheDeviceAsTheyAre) {
     EXPECT_EQ(c.non_finite, 0u) << "instance " << i;
     EXPECT_LT(c.max_relative, 1e-5) << "instance " << i << " vertex " << c.worst_vertex;
   }
+}
+
+// The work-group every template is written for is the one the runtime launches (kAnimGroup).
+TEST(PaletteKernel, EveryTemplatesWorkGroupIsTheLaunchedOne) {
+  const PackedAnimation packed = PackAnimation(TestAsset("Fox.gltf"));
+  const std::string group = std::to_string(kAnimGroup);
+  for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kVulkan}) {
+    const PaletteKernel kernel = EmitPalette(lang, packed.View(), 3);
+    EXPECT_EQ(kernel.kernel.launch.wg_size, kAnimGroup);
+    const std::string declared = IsGlslText(kernel.kernel.lang) ? "layout(local_size_x = " + group + ") in;"
+                                                                : "#define ANIM_GROUP " + group + " ";
+    EXPECT_NE(kernel.kernel.text.find(declared), std::string::npos) << Name(lang) << ": no '" << declared << "'";
+  }
+  EXPECT_THROW(EmitPalette(Lang::kOpenCl, packed.View(), 5), Error);
 }
 
 TEST(PaletteKernel, CpuRefusesBadInstancesNamingTheInstanceAndField) {

@@ -57,7 +57,7 @@ using testing::ExpectWithinBound;
 using testing::Name;
 using testing::TestAsset;
 
-constexpr unsigned kBlock = 64;  // threads per block: palette.cu's ANIM_GROUP, one block per instance
+constexpr unsigned kBlock = kAnimGroup;  // threads per block: palette.cu's ANIM_GROUP, one block per instance
 
 // palette.cu for device 0, in its primary context: each packed animation's
 // kernel (EmitPalette) compiled and loaded once.

@@ -42,7 +42,7 @@ using testing::ExpectWithinBound;
 using testing::Name;
 using testing::TestAsset;
 
-constexpr GLuint kGroupSize = 64;  // palette.comp's local_size_x
+constexpr GLuint kGroupSize = kAnimGroup;  // palette.comp's local_size_x
 
 // palette.comp in one GL context for the program: the template alone once,
 // then each packed animation's kernel (EmitPalette).
