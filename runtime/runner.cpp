@@ -31,6 +31,9 @@ struct Prepared::Impl {
     // that kernel bound to write `palette`, run before `launches`.
     DeviceBuffer* instances = nullptr;
     std::vector<std::unique_ptr<DeviceObject>> prologue;
+    // The instances changed since the prologue last ran: the next LaunchSet
+    // runs it (a Skin again with the same states reuses the palette computed).
+    bool prologue_pending = false;
     // What PaletteStaging and UploadPalette fill: the instances where animated.
     DeviceBuffer& Uploaded() const { return instances ? *instances : *palette; }
     std::unique_ptr<DeviceObject> done;
@@ -725,6 +728,7 @@ void Runner::UploadPalette(Prepared& prepared, int set) {
     if (api_->OrdersUploadsAfterLaunches()) api_->Mark(slot.done, p.key);
   }
   slot.launched = false;
+  slot.prologue_pending = !slot.prologue.empty();
   s.current = *s.staged;
   s.staged.reset();
 }
@@ -747,7 +751,8 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   FrameRun run;
   run.use = FrameUse::kLive;
   run.frames = {slot.launches};
-  run.prologue = slot.prologue;
+  if (slot.prologue_pending) run.prologue = slot.prologue;
+  slot.prologue_pending = false;
   run.key = p.key;
   run.out_positions = out_positions;
   if (submit_ && !out_positions) {
@@ -824,6 +829,7 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
       }
     }
     slot.prologue.push_back(api_->Bind(*p.palette_kernel, arguments, SetOptions{}, allocated));
+    slot.prologue_pending = true;
   }
   api_->FinishUploads(p.key);
   p.upload_bytes = static_cast<std::size_t>(p.instances) * sizeof(AnimInstance);

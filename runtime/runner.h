@@ -253,7 +253,9 @@ class Runner {
   // palette rows), run before the skin launches of every LaunchSet on the
   // same queue. The animation's buffers are uploaded once; each palette slot
   // gets an instances buffer of K AnimInstance records (the rest pose until
-  // the first upload) and the kernel bound to write that slot's palette; from
+  // the first upload) and the kernel bound to write that slot's palette, run
+  // by the first LaunchSet after each upload into the slot (a LaunchSet with
+  // no upload since reuses the palette it computed); from
   // then on PaletteStaging, UploadPalette and WritePalette stage and upload
   // those K x 16 bytes instead of the palettes, through the same ring. Throws
   // Error("<API> build|launch ...") when the kernel does not build or the

@@ -89,7 +89,20 @@ vec4 anim_sample_channel(uvec4 h, bool rotation, float t) {
   uint per_key = cubic ? 3u : 1u, middle = cubic ? 1u : 0u;  // CUBICSPLINE: in, value, out
   if (n == 1u || !(t > times[t0])) return values[v0 + middle];
   if (t >= times[t0 + n - 1u]) return values[v0 + (n - 1u) * per_key + middle];
-  uint lo = 0u, hi = n - 1u;  // times[lo] <= t < times[hi]
+  // The key interval: first guessed as if the keys were evenly spaced (exact
+  // for the evenly sampled clips exporters write: one round of loads instead
+  // of a binary search's chain of dependent ones), then, where the guess
+  // misses, a binary search on the side of it that holds t. Either way the
+  // interval found is the one with times[lo] <= t < times[lo + 1].
+  float first = times[t0], last = times[t0 + n - 1u];
+  uint lo = min(uint((t - first) / (last - first) * float(n - 1u)), n - 2u), hi = lo + 1u;
+  if (times[t0 + lo] > t) {
+    hi = lo;
+    lo = 0u;
+  } else if (times[t0 + hi] <= t) {
+    lo = hi;
+    hi = n - 1u;
+  }  // times[lo] <= t < times[hi]
   while (hi - lo > 1u) {
     uint mid = (lo + hi) / 2u;
     if (times[t0 + mid] <= t) lo = mid;

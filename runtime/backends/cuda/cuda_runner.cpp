@@ -174,6 +174,11 @@ class CudaApi final : public DeviceApi {
     api->cuCtxSetCurrent(context);
     for (cuda::Stream& lane : lanes_)
       if (lane) api->cuStreamDestroy(lane);
+    if (prologue_done_) api->cuEventDestroy(prologue_done_);
+    if (prologues_) {
+      api->cuStreamSynchronize(prologues_);
+      api->cuStreamDestroy(prologues_);
+    }
     if (uploads_) {
       api->cuStreamSynchronize(uploads_);
       api->cuStreamDestroy(uploads_);
@@ -250,6 +255,11 @@ class CudaApi final : public DeviceApi {
   std::mutex built_mutex_;                     // built_ (ConcurrentBuilds)
   cuda::Stream lanes_[2] = {nullptr, nullptr};  // Time's two streams (made on first use)
   cuda::Stream uploads_ = nullptr;              // the palette uploads' stream (made on first use)
+  // The prologues' stream (a Skinner's palette kernel) and the event the
+  // frame's stream waits for after them, made on first use: frame n + 1's
+  // palette kernel runs beside frame n's skin kernel (another palette slot).
+  cuda::Stream prologues_ = nullptr;
+  cuda::Event prologue_done_ = nullptr;
   cuda::Event last_upload_ = nullptr;           // the latest upload's event, until a stream waits for it
 };
 
@@ -665,8 +675,23 @@ std::vector<std::vector<double>> CudaApi::RunFrames(const FrameRun& run) {
   if (run.use == FrameUse::kCold) return TimeCold(run);
   if (run.use != FrameUse::kLive) return RunTimed(run);
   const auto out = static_cast<cuda::DevicePtr>(reinterpret_cast<std::uintptr_t>(run.out_positions));
+  if (!run.prologue.empty()) {
+    // On a stream of its own after the uploads (the instances), the frame's
+    // stream waiting for it: the slot it writes is one no queued frame
+    // reads (the palette ring's fence), so it may run beside the frame
+    // before, whose skin kernel reads another slot.
+    if (!prologues_) {
+      Check(api->cuStreamCreate(&prologues_, cuda::kStreamNonBlocking), "launch", "cuStreamCreate for the palette kernels");
+      Check(api->cuEventCreate(&prologue_done_, cuda::kEventDisableTiming), "launch", "cuEventCreate for the palette kernels");
+    }
+    JoinUploads(prologues_);
+    for (const std::unique_ptr<DeviceObject>& launch : run.prologue)
+      Launch(static_cast<const CudaBound&>(*launch), prologues_);
+    Check(api->cuEventRecord(prologue_done_, prologues_), "launch", "cuEventRecord after the palette kernel");
+    Check(api->cuStreamWaitEvent(stream, prologue_done_, 0), "launch", "cuStreamWaitEvent for the palette kernel");
+    last_upload_ = nullptr;  // the frame's stream waited for it through the palette kernel
+  }
   JoinUploads(stream);
-  for (const std::unique_ptr<DeviceObject>& launch : run.prologue) Launch(static_cast<const CudaBound&>(*launch), stream);
   for (const auto& frame : run.frames)
     for (const std::unique_ptr<DeviceObject>& launch : frame) {
       const auto& bound = static_cast<const CudaBound&>(*launch);
