@@ -1,16 +1,21 @@
 // skintune example: play a model's animation on the best device with the tuned
-// kernel and print frames per second. Uses only <skintune/skintune.h> (and CLI11
-// for its options).
+// kernel and print frames per second and the bytes each frame uploads. Uses only
+// <skintune/skintune.h> (and CLI11 for its options).
 //
 //   skin_animation MODEL.gltf|.glb|DATASET [MODEL...] [--db winners-db.json] [--device PATTERN]
-//                  [--seconds S] [--readback] [--instances K] [--palette-buffers N]
+//                  [--seconds S] [--readback] [--instances K] [--palette-buffers N] [--host-palettes]
 //
+// One model is animated on the device (Skinner::CreateAnimated, docs/ANIMATION.md):
+// each frame uploads every character's clip and time, 16 bytes a character, and the
+// device computes the palettes; with --host-palettes (and with several models) the
+// host computes every palette (Model::Palette) and SetPalette uploads them.
 // DATASET is a synthetic key such as 1600k-b4 (docs/DATA.md). PATTERN picks the
 // device as Device::Open does ("cuda:", "gl:", "opencl:NVIDIA", "pocl"). Without --db the
 // built-in default kernel runs; with --readback every frame is copied to host
 // memory, otherwise it stays on the device (a renderer would draw from it). With
 // --instances K one Skinner skins a crowd of K characters in one launch, each at its
-// own phase of the animation; frames are SetPalette + Skin without waiting between them.
+// own phase of its clip (character k plays clip k modulo the model's clips); frames are
+// SetAnimation (or SetPalette) + Skin without waiting between them.
 // With several models, one Skinner skins them all in one launch (Skinner::CreateBatch:
 // a scene of different characters, each playing its own animation), K times with
 // --instances K. --palette-buffers N gives the Skinner a ring of N palette
@@ -62,6 +67,8 @@ int main(int argc, char** argv) {
   app.add_flag("--readback", readback, "read every frame back to host memory");
   app.add_option("--instances", options.instances, "characters per model, one launch")->check(CLI::Range(1, 1 << 20));
   app.add_option("--palette-buffers", options.palette_buffers, "SkinnerOptions::palette_buffers");
+  bool host_palettes = false;
+  app.add_flag("--host-palettes", host_palettes, "compute the palettes on the host and upload them (SetPalette)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -86,8 +93,11 @@ int main(int argc, char** argv) {
   if (!device) return Fail(device.status());
   Result<WinnersDb> db = db_path.empty() ? Result<WinnersDb>(WinnersDb::Empty()) : WinnersDb::Load(db_path);
   if (!db) return Fail(db.status());
-  Result<Skinner> skinner = models.size() == 1 ? Skinner::Create(*device, *db, meshes[0], options)
-                                               : Skinner::CreateBatch(*device, *db, meshes.data(), meshes.size(), options);
+  // One model with animations: animated on the device; else the host's palettes.
+  const bool on_device = models.size() == 1 && !host_palettes && models[0].animation_count() > 0;
+  Result<Skinner> skinner = on_device            ? Skinner::CreateAnimated(*device, *db, models[0], options)
+                            : models.size() == 1 ? Skinner::Create(*device, *db, meshes[0], options)
+                                                 : Skinner::CreateBatch(*device, *db, meshes.data(), meshes.size(), options);
   if (!skinner) return Fail(skinner.status());
   for (std::size_t m = 0; m < models.size(); ++m)
     std::printf("%s: %d x %zu vertices, %d influences, %d joints\n", models[m].source().c_str(), options.instances,
@@ -97,31 +107,58 @@ int main(int argc, char** argv) {
               SceneShapeName(skinner->shape()), MatchLevelName(skinner->selection().level),
               skinner->selection().reason.c_str());
 
-  // One frame: character k's palettes at time t + k/K of each model's animation (a batch: every
-  // model's at its place in the palette), skinned, read back or left queued on the device (the
-  // next SetPalette waits only when three frames are queued).
+  // One frame: character k at time t + k/K of its clip (a batch: every model's clip 0, at its
+  // place in the palette), skinned, read back or left queued on the device (the next
+  // SetAnimation or SetPalette waits only when three frames are queued). The host's palettes
+  // are computed for every frame without --host-palettes only for the first, to check it.
   const int k_count = options.instances;
   const std::size_t n = skinner->vertex_count(), joint_floats = std::size_t(skinner->joint_count()) * 16;
   std::vector<float> palette(k_count * joint_floats), one, positions(k_count * n * 3), reference;
-  auto animation_of = [&](const Model& model) { return model.animation_count() > 0 ? 0 : -1; };
-  auto frame = [&](double t, bool read) {
+  std::vector<AnimationState> states(static_cast<std::size_t>(k_count));
+  auto animation_of = [&](const Model& model, int k) {
+    return model.animation_count() > 0 ? (on_device ? k % model.animation_count() : 0) : -1;
+  };
+  auto time_of = [&](const Model& model, int animation, double t, int k) {
+    const double duration = std::max(model.animation_duration(animation), 1e-9);
+    return model.animation_start(animation) + std::fmod(t + duration * k / k_count, duration);
+  };
+  auto host_palettes_at = [&](double t) {
     Status status;
     for (int k = 0; k < k_count && status; ++k) {
       for (std::size_t m = 0; m < models.size() && status; ++m) {
         const Model& model = models[m];
-        const int animation = animation_of(model);
-        const double duration = std::max(model.animation_duration(animation), 1e-9);
-        const double at = model.animation_start(animation) + std::fmod(t + duration * k / k_count, duration);
-        if ((status = model.Palette(animation, at, &one)))
+        const int animation = animation_of(model, k);
+        if ((status = model.Palette(animation, time_of(model, animation, t, k), &one)))
           std::copy(one.begin(), one.end(), palette.begin() + k * joint_floats + skinner->joint_offset(m) * 16);
       }
     }
-    if (status) status = skinner->SetPalette(palette.data(), palette.size());
+    return status;
+  };
+  auto frame = [&](double t, bool read) {
+    Status status;
+    if (on_device) {
+      for (int k = 0; k < k_count; ++k) {
+        const int animation = animation_of(models[0], k);
+        states[k] = {animation, static_cast<float>(time_of(models[0], animation, t, k))};
+      }
+      status = skinner->SetAnimation(states.data(), states.size());
+    } else if ((status = host_palettes_at(t))) {
+      status = skinner->SetPalette(palette.data(), palette.size());
+    }
     if (status) status = skinner->Skin();
     if (status && read) status = skinner->ReadPositions(positions.data(), positions.size());
     return status;
   };
+  // What a frame uploads: 16 bytes a character, or every palette (48 bytes a joint in mat3x4, else 64).
+  const bool rows3 = skinner->selection().variant.find(".mat3x4.") != std::string::npos;
+  const std::size_t upload_bytes = on_device ? std::size_t(k_count) * 16
+                                             : std::size_t(k_count) * skinner->joint_count() * (rows3 ? 48 : 64);
+  std::printf("palettes: %s, %zu bytes uploaded per frame\n",
+              on_device ? "computed on the device from each character's clip and time (SetAnimation)"
+                        : "computed on the host (Model::Palette, SetPalette)",
+              upload_bytes);
   Status status = frame(0.0, true);  // the first frame, every character checked against the reference
+  if (status && on_device) status = host_palettes_at(0.0);
   double error = 0.0, extent = 0.0;
   for (int k = 0; k < k_count && status; ++k) {
     for (std::size_t m = 0; m < models.size() && status; ++m) {
@@ -141,7 +178,8 @@ int main(int argc, char** argv) {
   if (!(error <= 1e-3 * extent)) return Fail(Status(ErrorCode::kDeviceError, "the kernel's output is wrong"));
 
   double duration = 1e-9;
-  for (const Model& model : models) duration = std::max(duration, model.animation_duration(animation_of(model)));
+  for (const Model& model : models)
+    for (int k = 0; k < k_count; ++k) duration = std::max(duration, model.animation_duration(animation_of(model, k)));
   int frames = 0;
   double elapsed = 0.0;
   const auto start = std::chrono::steady_clock::now();
@@ -151,8 +189,8 @@ int main(int argc, char** argv) {
   }
   if (!(status = skinner->Finish())) return Fail(status);  // the frames still queued count too
   elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("%d frames in %.2f s: %.1f frames/s, %.1f Mvertices/s (%s)\n", frames, elapsed, frames / elapsed,
-              frames * double(k_count * n) / elapsed * 1e-6,
-              readback ? "read back every frame" : "left on the device");
+  std::printf("%d frames in %.2f s: %.1f frames/s, %.1f Mvertices/s (%s), %zu bytes uploaded per frame\n", frames,
+              elapsed, frames / elapsed, frames * double(k_count * n) / elapsed * 1e-6,
+              readback ? "read back every frame" : "left on the device", upload_bytes);
   return 0;
 }
