@@ -24,22 +24,11 @@
 // An instance whose clip index is neither a packed clip nor 0xffff (the
 // rest pose) gets NaN rows instead of a read out of bounds.
 
-// The animation's counts and the palette's rows per joint, defined by the
-// generator (generator/palette_kernel.h EmitPalette) for the packed animation
-// the kernel runs: the kernel is specialised per model, as the skin kernel
-// is per mesh. The defaults let the template compile alone.
-#ifndef ANIM_NODE_COUNT
-#define ANIM_NODE_COUNT 1
-#endif
-#ifndef ANIM_JOINT_COUNT
-#define ANIM_JOINT_COUNT 1
-#endif
-#ifndef ANIM_CLIP_COUNT
-#define ANIM_CLIP_COUNT 1
-#endif
-#ifndef ANIM_PALETTE_ROWS
-#define ANIM_PALETTE_ROWS 3  // 3: mat3x4 rows; 4: mat4, a fourth row (0, 0, 0, 1)
-#endif
+// The animation's counts and the palette's rows per joint (ANIM_NODE_COUNT,
+// ANIM_JOINT_COUNT, ANIM_CLIP_COUNT, ANIM_PALETTE_ROWS): the generator defines
+// them for the packed animation the kernel runs (generator/palette_kernel.h),
+// skin_params.h gives their defaults.
+#include "skin_params.h"
 
 #define ANIM_REST_POSE 0xffffu
 

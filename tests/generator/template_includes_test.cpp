@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "generator/emit.h"
+#include "generator/palette_kernel.h"
 #include "generator/template_includes.h"
 #include "base/error.h"
 
@@ -221,6 +222,13 @@ TEST(Templates, ParameterDefaultsAreWrittenOnceInTheParameterPrelude) {
         EXPECT_TRUE(with_default.contains(define)) << define << " (emitted for " << key << ") has no default in skin_params.h";
     }
   }
+  // The palette kernel's too (its defines are counts: any animation has them all).
+  const std::vector<AnimNodeRecord> nodes(3);
+  const std::vector<AnimJointRecord> joints(2);
+  const AnimationView animation{.clip_count = 1, .nodes = nodes, .joints = joints};
+  for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kVulkan})
+    for (const auto& [define, value] : EmitPalette(lang, animation, 3).kernel.defines)
+      EXPECT_TRUE(with_default.contains(define)) << define << " (the palette kernel's) has no default in skin_params.h";
 }
 
 // Lines that say something: not blank, not comments, not bare #if/#else/#endif

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -75,6 +76,14 @@ inline std::vector<float> Floats(std::span<const glm::mat4> palette) {
     for (int c = 0; c < 4; ++c)
       for (int r = 0; r < 4; ++r) out.push_back(m[c][r]);
   return out;
+}
+
+// A test parameter's name from a variant key and what follows it: every
+// character that is not a letter or a digit becomes '_' (gtest's rule).
+inline std::string ParameterName(std::string name) {
+  for (char& c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  return name;
 }
 
 inline std::vector<glm::vec3> Vec3s(const std::vector<float>& floats) {

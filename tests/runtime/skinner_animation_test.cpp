@@ -8,7 +8,6 @@
 // storages and formats of every kind; the misuses are errors.
 #include <gtest/gtest.h>
 
-#include <cctype>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -226,10 +225,7 @@ std::vector<AnimatedCase> Cases() {
           {Backend::kCpu, "cpu.b4.aos.mat4", "CesiumMan.gltf"}};
 }
 std::string CaseName(const ::testing::TestParamInfo<AnimatedCase>& info) {
-  std::string name = info.param.variant + "_" + info.param.model.substr(0, info.param.model.find('.'));
-  for (char& c : name)
-    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-  return name;
+  return testing::ParameterName(info.param.variant + "_" + info.param.model.substr(0, info.param.model.find('.')));
 }
 INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerAnimated, ::testing::ValuesIn(Cases()), CaseName);
 

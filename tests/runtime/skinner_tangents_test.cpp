@@ -97,12 +97,7 @@ std::vector<TangentCase> Cases() {
           {Backend::kGl, "glsl-vertex.b4.soa"},       {Backend::kVulkan, "vulkan.b4.soa-split.local"},
           {Backend::kCpu, "cpu.b4.soa"},              {Backend::kCpu, "cpu.b4.aos.point"}};
 }
-std::string CaseName(const ::testing::TestParamInfo<TangentCase>& info) {
-  std::string name = info.param.variant;
-  for (char& c : name)
-    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-  return name;
-}
+std::string CaseName(const ::testing::TestParamInfo<TangentCase>& info) { return testing::ParameterName(info.param.variant); }
 INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerTangents, ::testing::ValuesIn(Cases()), CaseName);
 
 }  // namespace

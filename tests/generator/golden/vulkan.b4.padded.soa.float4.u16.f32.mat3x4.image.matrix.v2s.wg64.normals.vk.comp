@@ -191,6 +191,21 @@
 #endif
 #define AOS_RECORD_BYTES (AOS_RECORD_WORDS * 4)
 
+// The palette kernel's (templates/palette.*, generator/palette_kernel.h): it
+// is specialised per model, as the skin kernel is per mesh.
+#ifndef ANIM_NODE_COUNT       // nodes of the skeleton, 1..512
+#define ANIM_NODE_COUNT 1
+#endif
+#ifndef ANIM_JOINT_COUNT      // joints of the skin (palette entries per instance)
+#define ANIM_JOINT_COUNT 1
+#endif
+#ifndef ANIM_CLIP_COUNT       // clips packed
+#define ANIM_CLIP_COUNT 1
+#endif
+#ifndef ANIM_PALETTE_ROWS     // float4 rows written per joint: 3 mat3x4, 4 mat4 (a last row 0 0 0 1)
+#define ANIM_PALETTE_ROWS 3
+#endif
+
 #if INFLUENCES < 1 || INFLUENCES > 8
 #error "INFLUENCES must be 1..8"
 #endif
