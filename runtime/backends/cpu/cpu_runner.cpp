@@ -300,7 +300,14 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
     view.values = span_of(3, static_cast<const float*>(nullptr));
     view.joints = span_of(4, static_cast<const AnimJointRecord*>(nullptr));
     const auto instances = span_of(5, static_cast<const AnimInstance*>(nullptr)).first(static_cast<std::size_t>(spec.instances));
-    RunPaletteKernel(view, instances, b.palette_out, plan.palette_rows);
+    // Instances spread over the device's threads, in chunks of 4 (each a few
+    // microseconds of sampling and walks); checked first, so no chunk throws.
+    ValidateAnimInstances(view, instances);
+    const std::size_t floats = view.joints.size() * static_cast<std::size_t>(plan.palette_rows) * 4;
+    ThreadPool& pool = pools_.Get(max_threads_);
+    pool.ParallelFor(instances.size(), 4, [&](std::size_t begin, std::size_t end) {
+      RunPaletteKernel(view, instances.subspan(begin, end - begin), b.palette_out + begin * floats, plan.palette_rows);
+    });
     return;
   }
   if (plan.fault_hang) {
