@@ -18,7 +18,9 @@
 #include <tuple>
 #include <vector>
 
+#include "generator/clip_packer.h"
 #include "generator/packer.h"
+#include "generator/palette_kernel.h"
 #include "base/error.h"
 #include "model/synthetic.h"
 #include "runtime/run_shape.h"
@@ -41,6 +43,9 @@ class FakeBuffer final : public DeviceBuffer {
 class FakeLaunch final : public DeviceObject {
  public:
   const FakeBuffer* palette = nullptr;
+  // A palette kernel (Runner::Animate): the instances it reads, the palette it writes.
+  const FakeBuffer* instances = nullptr;
+  FakeBuffer* out = nullptr;
 };
 
 class FakeMarker final : public DeviceObject {
@@ -55,6 +60,7 @@ class DeferredApi final : public DeviceApi {
   std::size_t executed = 0;                  // how many of them ran
   std::vector<std::vector<std::uint8_t>> read;  // the palette each launch read, in the order they ran
   std::size_t launches_queued = 0;
+  std::size_t prologues_queued = 0;  // palette kernels (FrameRun::prologue)
   int waits = 0, blocking_waits = 0;
   int fenced_stagings = 0, upload_waits = 0;  // Staging told the ring fence covers the last upload; or not, and waited
   // A submit thread (Runner::UseSubmitThread): the calls are serialised by
@@ -90,8 +96,11 @@ class DeferredApi final : public DeviceApi {
   std::unique_ptr<DeviceObject> Bind(const PlannedLaunch&, std::span<const ArgumentBinding> arguments, const SetOptions&,
                                      std::size_t&) override {
     auto launch = std::make_unique<FakeLaunch>();
-    for (const ArgumentBinding& a : arguments)
+    for (const ArgumentBinding& a : arguments) {
       if (a.role == ArgumentRole::kPalette) launch->palette = static_cast<const FakeBuffer*>(a.buffer);
+      if (a.argument->name == "instances") launch->instances = static_cast<const FakeBuffer*>(a.buffer);
+      if (a.argument->name == kAnimOutput) launch->out = static_cast<FakeBuffer*>(a.buffer);
+    }
     return launch;
   }
   void FinishUploads(const std::string&) override { RunUntil(queue.size()); }
@@ -99,6 +108,13 @@ class DeferredApi final : public DeviceApi {
     const std::lock_guard<std::mutex> lock(mutex);
     submit_threads.push_back(std::this_thread::get_id());
     EXPECT_EQ(run.use, FrameUse::kLive);
+    // The palette kernel, simulated: it copies instance 0's first byte (its
+    // clip's low byte) into the palette's first byte, when it runs.
+    for (const std::unique_ptr<DeviceObject>& object : run.prologue) {
+      const auto& kernel = static_cast<const FakeLaunch&>(*object);
+      queue.push_back([&kernel] { kernel.out->device[0] = kernel.instances->device[0]; });
+      ++prologues_queued;
+    }
     for (const auto& frame : run.frames) {
       const FakeBuffer* palette = static_cast<const FakeLaunch&>(*frame.front()).palette;
       queue.push_back([this, palette] { read.push_back(palette->device); });
@@ -454,6 +470,49 @@ TEST(PaletteRing, AWrongSizeIsRejectedBeforeTakingASlot) {
   ring.runner->Finish();
   ASSERT_EQ(ring.api->LaunchesRun(), 1u);
   EXPECT_EQ(ring.FrameRead(0), 7);
+}
+
+// Animated (Runner::Animate): each frame's palette is its own slot's,
+// computed by the palette kernel queued before its launch after the upload of
+// its states, and only then: a launch with no upload since reuses it, the
+// first launch before any upload computes the rest pose.
+TEST(PaletteRing, AnimatedFramesComputeTheirSlotsPaletteOncePerUploadBeforeTheirLaunch) {
+  Ring ring;
+  const SkinnedAsset asset = GenerateDataset(ParseDatasetKey("200-b2"));
+  const PackedAnimation animation = PackAnimation(asset);
+  ring.runner->Animate(ring.prepared, 0, animation.View(), EmitPalette(Lang::kOpenCl, animation.View(), 3));
+  ring.runner->LaunchSet(ring.prepared, 0);  // before any states: the rest pose (clip 0xffff)
+  constexpr int kFrames = 3 * kPaletteSlots + 1;
+  for (int f = 0; f < kFrames; ++f) {
+    std::vector<AnimInstance> states(1);
+    states[0].clip = static_cast<std::uint16_t>(f);
+    ring.runner->WritePalette(ring.prepared, 0, BufferBytes(states));
+    ring.runner->LaunchSet(ring.prepared, 0);
+    if (f % 2 == 0) ring.runner->LaunchSet(ring.prepared, 0);  // the same states again
+  }
+  ring.runner->Finish();
+  EXPECT_EQ(ring.api->prologues_queued, static_cast<std::size_t>(kFrames + 1)) << "one per upload, and the first";
+  ASSERT_EQ(ring.api->LaunchesRun(), static_cast<std::size_t>(1 + kFrames + (kFrames + 1) / 2));
+  EXPECT_EQ(ring.FrameRead(0), 0xff) << "the rest pose's clip";
+  std::size_t launch = 1;
+  for (int f = 0; f < kFrames; ++f) {
+    EXPECT_EQ(ring.FrameRead(launch++), f) << "frame " << f;
+    if (f % 2 == 0) EXPECT_EQ(ring.FrameRead(launch++), f) << "frame " << f << ", again";
+  }
+  // A second Animate, or palettes that do not fit the animation, are refused.
+  EXPECT_THROW(ring.runner->Animate(ring.prepared, 0, animation.View(), EmitPalette(Lang::kOpenCl, animation.View(), 3)),
+               Error);
+}
+
+TEST(PaletteRing, AnAnimationWhosePaletteDoesNotFillTheSetsIsRefused) {
+  Ring ring;
+  const PackedAnimation animation = PackAnimation(GenerateDataset(ParseDatasetKey("200-b2")));
+  try {
+    ring.runner->Animate(ring.prepared, 0, animation.View(), EmitPalette(Lang::kOpenCl, animation.View(), 4));
+    FAIL() << "a mat4 palette kernel over mat3x4 palettes was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("the palettes of"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
