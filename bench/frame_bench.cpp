@@ -16,6 +16,9 @@
 //                                 not run again (the skin kernel's own frame, on the same Skinner)
 //   animated/set-skin-pipelined   SetAnimation (16 bytes an instance) + Skin, no Finish between
 //   animated/set-skin-finish      SetAnimation + Skin + Finish every frame
+//   animated/advance-skin-pipelined  AdvanceAnimation (the clocks move on the device,
+//                                 nothing uploaded) + Skin, no Finish between
+//   animated/advance-skin-finish  AdvanceAnimation + Skin + Finish every frame
 //
 // The animated rows play the instance model's own clip (the synthetic
 // 25k-b4's 77-joint rig, or --animation-model's glTF, whose own mesh is then
@@ -449,6 +452,32 @@ void AnimatedSetSkinFinish(benchmark::State& state) {
       "instanced/skin-only");
 }
 
+// A frame's delta: a 60 Hz step (the clocks loop on the device).
+constexpr float kFrameSeconds = 1.0f / 60.0f;
+
+void AnimatedAdvancePipelined(benchmark::State& state) {
+  Scene::Animated& a = TheScene().animated();
+  Frames(
+      state, "animated/advance-skin-pipelined", a.skinner,
+      [&](int) {
+        Must(a.skinner.AdvanceAnimation(kFrameSeconds), "AdvanceAnimation");
+        Must(a.skinner.Skin(), "Skin");
+      },
+      "instanced/skin-only");
+}
+
+void AnimatedAdvanceSkinFinish(benchmark::State& state) {
+  Scene::Animated& a = TheScene().animated();
+  Frames(
+      state, "animated/advance-skin-finish", a.skinner,
+      [&](int) {
+        Must(a.skinner.AdvanceAnimation(kFrameSeconds), "AdvanceAnimation");
+        Must(a.skinner.Skin(), "Skin");
+        Must(a.skinner.Finish(), "Finish");
+      },
+      "instanced/skin-only");
+}
+
 void SkinnersSkinOnly(benchmark::State& state) {
   std::vector<Skinner>& skinners = TheScene().skinners();
   // The Skinners share the Device's queue: finishing the last waits for all of them.
@@ -486,7 +515,9 @@ void RegisterAll() {
                      {"frame/read-back", ReadBack},
                      {"frame/animated/skin-only", AnimatedSkinOnly},
                      {"frame/animated/set-skin-pipelined", AnimatedPipelined},
-                     {"frame/animated/set-skin-finish", AnimatedSetSkinFinish}};
+                     {"frame/animated/set-skin-finish", AnimatedSetSkinFinish},
+                     {"frame/animated/advance-skin-pipelined", AnimatedAdvancePipelined},
+                     {"frame/animated/advance-skin-finish", AnimatedAdvanceSkinFinish}};
   for (const auto& b : kBenchmarks)
     benchmark::RegisterBenchmark(b.name, b.run)->UseManualTime()->Unit(benchmark::kMicrosecond);
 }
@@ -538,6 +569,8 @@ void Summary() {
   // Animation on the device against the frames with no palette work at all.
   ratio("animated/set-skin-pipelined", "instanced/skin-only");
   minus("animated/set-skin-finish", "instanced/skin-finish");
+  ratio("animated/advance-skin-pipelined", "instanced/skin-only");
+  minus("animated/advance-skin-finish", "instanced/skin-finish");
   minus("animated/skin-only", "instanced/skin-only");
 }
 

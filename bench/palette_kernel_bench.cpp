@@ -97,10 +97,13 @@ class CudaPalettes {
   // Uploads `packed` and `instances`; allocates the K palettes.
   void Load(const PackedAnimation& packed, const std::vector<AnimInstance>& instances) {
     Free();
+    // 0-5 the inputs, 6 the palette (below), 7 the clips' ranges, 8 the states (fresh frames: the instances).
     const std::span<const std::uint8_t> inputs[] = {BufferBytes(packed.nodes),  BufferBytes(packed.channels),
                                                     BufferBytes(packed.times),  BufferBytes(packed.values),
-                                                    BufferBytes(packed.joints), BufferBytes(instances)};
-    for (int b = 0; b < 6; ++b) {
+                                                    BufferBytes(packed.joints), BufferBytes(instances),
+                                                    {}, BufferBytes(packed.clip_ranges), BufferBytes(instances)};
+    for (int b = 0; b < 9; ++b) {
+      if (b == 6) continue;
       Check(api_.cuMemAlloc(&buffers_[b], std::max<std::size_t>(inputs[b].size(), 16)), "cuMemAlloc");
       if (!inputs[b].empty()) Check(api_.cuMemcpyHtoD(buffers_[b], inputs[b].data(), inputs[b].size()), "cuMemcpyHtoD");
     }
@@ -117,7 +120,10 @@ class CudaPalettes {
 
   // Seconds of device time per launch, `launches` of them between two events.
   double Time(int launches) {
-    void* parameters[] = {&buffers_[0], &buffers_[1], &buffers_[2], &buffers_[3], &buffers_[4], &buffers_[5], &buffers_[6]};
+    float delta = 0.0f;
+    unsigned fresh = 1;
+    void* parameters[] = {&buffers_[0], &buffers_[1], &buffers_[2], &buffers_[3], &buffers_[4], &buffers_[5],
+                          &buffers_[6], &buffers_[7], &buffers_[8], &delta,       &fresh};
     Check(api_.cuEventRecord(start_, nullptr), "cuEventRecord");
     for (int l = 0; l < launches; ++l)
       Check(api_.cuLaunchKernel(function_, 1, instance_count_, 1, kBlock, 1, 1, 0, nullptr, parameters, nullptr),
@@ -157,7 +163,7 @@ class CudaPalettes {
   cuda::Module module_ = nullptr;
   cuda::Function function_ = nullptr;
   cuda::Event start_ = nullptr, end_ = nullptr;
-  cuda::DevicePtr buffers_[7] = {};
+  cuda::DevicePtr buffers_[9] = {};
   std::string arch_;
   unsigned instance_count_ = 0;
 };

@@ -229,6 +229,15 @@ void ValidateAnimation(const AnimationView& a) {
   if (a.clip_count > kAnimMaxClips)
     throw Error("packed animation: " + std::to_string(a.clip_count) + " clips (at most " +
                 std::to_string(kAnimMaxClips) + ")");
+  if (a.clip_ranges.size() != std::size_t{a.clip_count} * 4)
+    throw Error("packed animation: " + std::to_string(a.clip_ranges.size()) + " clip-range floats for " +
+                std::to_string(a.clip_count) + " clips (4 each: start, end, 0, 0)");
+  for (std::uint32_t c = 0; c < a.clip_count; ++c) {
+    const float start = a.clip_ranges[4u * c], end = a.clip_ranges[4u * c + 1u];
+    if (!std::isfinite(start) || !std::isfinite(end) || end < start)
+      throw Error("packed animation: clips[" + std::to_string(c) + "]: range " + std::to_string(start) + " .. " +
+                  std::to_string(end) + " is not finite and increasing");
+  }
   const std::uint64_t headers = std::uint64_t{a.clip_count} * a.nodes.size() * kAnimPaths;
   if (a.channels.size() != headers)
     throw Error("packed animation: " + std::to_string(a.channels.size()) + " channel headers for " +
@@ -262,6 +271,25 @@ void ValidateAnimInstances(const AnimationView& a, std::span<const AnimInstance>
       check_clip(i, "clip2", in.clip2);
       check_finite(i, "time2", in.time2);
     }
+  }
+}
+
+float AnimLoopTime(float t, float start, float end) {
+  const float length = end - start;
+  if (!(length > 0.0f)) return start;
+  float u = t - start;
+  u = std::fmin(std::fmax(u - length * std::floor(u / length), 0.0f), length);
+  return start + u;
+}
+
+void AdvanceAnimInstances(const AnimationView& a, std::span<AnimInstance> states, float delta) {
+  const auto advance = [&](std::uint16_t clip, float& t) {
+    if (clip == kAnimRestPose || clip >= a.clip_count) return;
+    t = AnimLoopTime(t + delta, a.clip_ranges[4u * clip], a.clip_ranges[4u * clip + 1u]);
+  };
+  for (AnimInstance& s : states) {
+    advance(s.clip, s.time);
+    advance(s.clip2, s.time2);
   }
 }
 

@@ -80,6 +80,9 @@ struct AnimationView {
   std::span<const float> times;
   std::span<const float> values;  // 4 floats per value
   std::span<const AnimJointRecord> joints;
+  // `clips`: clip_count x 4 floats, clip c's time range (start, end, 0, 0):
+  // where AdvanceAnimInstances loops its clock.
+  std::span<const float> clip_ranges;
 };
 
 // Throws Error naming the element for buffers an outside program could have
@@ -92,6 +95,16 @@ void ValidateAnimation(const AnimationView& animation);
 // neither below clip_count nor kAnimRestPose, a time, time2 or weight that
 // is not finite, a weight outside [0, 1].
 void ValidateAnimInstances(const AnimationView& animation, std::span<const AnimInstance> instances);
+
+// Time t moved into clip c's range [start, end], looping: start + (t - start)
+// modulo (end - start), the device kernels' formula (templates/palette.cl
+// anim_loop_time); a clip of no duration gives its start.
+float AnimLoopTime(float t, float start, float end);
+// Every state's clock advanced by `delta` seconds (time on clip, time2 on
+// clip2), each looping in its clip's range; the rest pose and a clip beyond
+// clip_count keep theirs. What the device kernels do to the states they keep
+// on the device (docs/ANIMATION.md "`states`").
+void AdvanceAnimInstances(const AnimationView& animation, std::span<AnimInstance> states, float delta);
 
 // Writes instances.size() * joints * `rows` float4 rows to `palette`:
 // instance i's joint j row r at float4 (i * joints + j) * rows + r; rows 3

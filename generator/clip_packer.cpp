@@ -145,12 +145,12 @@ void CheckCounts(const SkinnedAsset& asset, std::span<const int> clips) {
 }  // namespace
 
 AnimationView PackedAnimation::View() const {
-  return AnimationView{static_cast<std::uint32_t>(clips.size()), nodes, channels, times, values, joints};
+  return AnimationView{static_cast<std::uint32_t>(clips.size()), nodes, channels, times, values, joints, clip_ranges};
 }
 
 std::size_t PackedAnimation::Bytes() const {
   return BufferBytes(nodes).size() + BufferBytes(channels).size() + BufferBytes(times).size() +
-         BufferBytes(values).size() + BufferBytes(joints).size();
+         BufferBytes(values).size() + BufferBytes(joints).size() + BufferBytes(clip_ranges).size();
 }
 
 PackedAnimation PackAnimation(const SkinnedAsset& asset, std::span<const int> clips) {
@@ -163,6 +163,11 @@ PackedAnimation PackAnimation(const SkinnedAsset& asset, std::span<const int> cl
   out.joints = PackJoints(asset);
   out.channels.assign(clips.size() * out.nodes.size() * kAnimPaths, AnimChannelHeader{});
   for (std::size_t c = 0; c < clips.size(); ++c) PackClip(asset, clips[c], c, out);
+  for (const int c : clips) {
+    const AnimationClip& clip = asset.animations[static_cast<std::size_t>(c)];
+    out.clip_ranges.insert(out.clip_ranges.end(), {static_cast<float>(clip.start),
+                                                   static_cast<float>(clip.start + clip.duration()), 0.0f, 0.0f});
+  }
   ValidateAnimation(out.View());  // what the kernels rely on, checked as for any outside packing
   return out;
 }

@@ -39,12 +39,13 @@ struct PackedAnimation {
   std::vector<float> times;                 // buffer `times`
   std::vector<float> values;                // buffer `values`: 4 floats per value
   std::vector<AnimJointRecord> joints;      // buffer `joints`
+  std::vector<float> clip_ranges;           // buffer `clips`: per clip start, end, 0, 0 (AdvanceAnimInstances)
   // Each channel left out and why ("animations[0] 'Wave': channels[3]
   // (weights of node 2): morph target weights are not part of the palette").
   std::vector<std::string> not_packed;
 
   AnimationView View() const;
-  std::size_t Bytes() const;  // of the five buffers together
+  std::size_t Bytes() const;  // of the six buffers together
 };
 
 // Packs `clips` (indices into asset.animations; packed clip c is clips[c]).

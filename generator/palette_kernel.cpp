@@ -44,7 +44,11 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                  buffer(kAnimInputs[3], "float4", 16, ArgumentDirection::kIn),
                  buffer(kAnimInputs[4], "record", sizeof(AnimJointRecord), ArgumentDirection::kIn),
                  buffer(kAnimInputs[5], "record", sizeof(AnimInstance), ArgumentDirection::kIn),
-                 buffer(kAnimOutput, "float4 rows", 16 * static_cast<std::size_t>(palette_rows), ArgumentDirection::kOut)};
+                 buffer(kAnimOutput, "float4 rows", 16 * static_cast<std::size_t>(palette_rows), ArgumentDirection::kOut),
+                 buffer(kAnimClips, "float4", 16, ArgumentDirection::kIn),
+                 buffer(kAnimStates, "record", sizeof(AnimInstance), ArgumentDirection::kOut),
+                 {kAnimDelta, "f32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar},
+                 {kAnimFresh, "u32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar}};
   k.arguments[6].indexing = "(i*J+j)*R+r";
   k.launch.vertices_per_item = 1;
   k.launch.wg_size = kAnimGroup;

@@ -19,9 +19,17 @@ namespace skintune::internal {
 // The palette kernel's work-group (templates/palette.cl ANIM_GROUP): one per instance.
 inline constexpr int kAnimGroup = 128;
 
-// The buffers the kernel reads, in argument order, then its output.
+// The kernel's arguments, in order: the buffers it reads, the palette it
+// writes, the clips' time ranges, the instances' states it keeps on the device
+// (read and written), and the frame's two scalars: `delta` (f32, seconds) and
+// `fresh` (u32: 1 takes the states from `instances`, the frame's upload; 0
+// advances the kept ones by delta). docs/ANIMATION.md has every byte.
 inline constexpr const char* kAnimInputs[] = {"nodes", "channels", "times", "values", "joints", "instances"};
 inline constexpr const char* kAnimOutput = "out_palette";
+inline constexpr const char* kAnimClips = "clips";
+inline constexpr const char* kAnimStates = "states";
+inline constexpr const char* kAnimDelta = "delta";
+inline constexpr const char* kAnimFresh = "fresh";
 
 struct PaletteKernel {
   KernelSource kernel;  // the language's palette_template in its copy_lang (glsl-vertex: glsl-compute)

@@ -27,6 +27,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "generator/emit.h"
@@ -157,6 +158,11 @@ struct FrameRun {
   // ordered by each API (one in-order queue or stream in OpenCL and CUDA, a
   // barrier in GL and Vulkan, in turn on the cpu device).
   std::span<const std::unique_ptr<DeviceObject>> prologue;
+  // kLive: the prologue's scalar arguments by name, each as its 32 bits (a
+  // float's bits for an f32): what each API passes with the launch itself
+  // (an OpenCL kernel argument, a CUDA parameter, a GL uniform, a Vulkan push
+  // constant), so that nothing is copied to the device for them.
+  std::vector<std::pair<std::string, std::uint32_t>> prologue_scalars;
 
   // kTime: the bursts timed (frames after `untimed`, whole bursts only).
   std::size_t TimedBursts() const {
@@ -336,6 +342,10 @@ class DeviceApi {
   ProgramCache* cache_ = nullptr;
   std::string cache_device_id_;
 };
+
+// The value of a prologue's scalar argument `name` in `run`; throws
+// Error("<api> launch: ...") when the run gives none.
+std::uint32_t PrologueScalar(const FrameRun& run, const std::string& name, const std::string& api);
 
 // For an API's Plan: throws Error("<api> launch: ...") when the launch's
 // kernel is not of its variant's language, or (constant and local storage,

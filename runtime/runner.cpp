@@ -4,12 +4,14 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <chrono>
 #include <cstring>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
+#include <map>
 #include <string_view>
 #include <utility>
 
@@ -34,6 +36,11 @@ struct Prepared::Impl {
     // The instances changed since the prologue last ran: the next LaunchSet
     // runs it (a Skin again with the same states reuses the palette computed).
     bool prologue_pending = false;
+    // The prologue's scalars: fresh, the states of the slot's last upload;
+    // else the states kept on the device advanced by delta seconds
+    // (AdvanceAnimation).
+    bool fresh = true;
+    float delta = 0.0f;
     // What PaletteStaging and UploadPalette fill: the instances where animated.
     DeviceBuffer& Uploaded() const { return instances ? *instances : *palette; }
     std::unique_ptr<DeviceObject> done;
@@ -664,8 +671,7 @@ Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {
 // upload instead (upload_fenced false). Where the API orders uploads after
 // the launches before them (OrdersUploadsAfterLaunches: GL), the fence follows
 // the slot's upload instead of each launch, and covers it.
-std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
-  api_->MakeCurrent();
+std::size_t Runner::TakeNextSlot(Prepared& prepared, int set) {
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
   const std::size_t next = (s.current + 1) % s.slots.size();
@@ -697,6 +703,15 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
           });
     }
   }
+  return next;
+}
+
+std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
+  api_->MakeCurrent();
+  Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
+  const Prepared::Impl& p = *prepared.impl_;
+  const std::size_t next = TakeNextSlot(prepared, set);
+  Prepared::Impl::Slot& slot = s.slots[next];
   const bool upload_fenced = slot.done && (slot.launched || api_->OrdersUploadsAfterLaunches());
   const std::span<std::uint8_t> staging = api_->Staging(slot.Uploaded(), p.key, upload_fenced);
   if (staging.size() < p.upload_bytes)
@@ -729,6 +744,8 @@ void Runner::UploadPalette(Prepared& prepared, int set) {
   }
   slot.launched = false;
   slot.prologue_pending = !slot.prologue.empty();
+  slot.fresh = true;
+  slot.delta = 0.0f;
   s.current = *s.staged;
   s.staged.reset();
 }
@@ -751,7 +768,10 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   FrameRun run;
   run.use = FrameUse::kLive;
   run.frames = {slot.launches};
-  if (slot.prologue_pending) run.prologue = slot.prologue;
+  if (slot.prologue_pending) {
+    run.prologue = slot.prologue;
+    run.prologue_scalars = {{kAnimDelta, std::bit_cast<std::uint32_t>(slot.delta)}, {kAnimFresh, slot.fresh ? 1u : 0u}};
+  }
   slot.prologue_pending = false;
   run.key = p.key;
   run.out_positions = out_positions;
@@ -778,12 +798,14 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
   Prepared::Impl& p = *prepared.impl_;
   Prepared::Impl::Set& s = SetOf(&p, set, *api_);
   if (p.palette_kernel) Fail("launch", p.key + " is animated already");
+  const std::vector<KernelArgument>& declared = kernel.kernel.arguments;
+  const auto output = std::find_if(declared.begin(), declared.end(), [](const KernelArgument& a) { return a.name == kAnimOutput; });
+  if (output == declared.end()) Fail("launch", "the palette kernel of " + p.key + " declares no '" + kAnimOutput + "'");
   const std::size_t joints = animation.joints.size();
-  if (p.palettes_bytes != static_cast<std::size_t>(p.instances) * joints * kernel.kernel.arguments.back().element_bytes)
+  if (p.palettes_bytes != static_cast<std::size_t>(p.instances) * joints * output->element_bytes)
     Fail("launch", "the palette kernel writes " + std::to_string(joints) + " joints of " +
-                       std::to_string(kernel.kernel.arguments.back().element_bytes) + " bytes for each of " +
-                       std::to_string(p.instances) + " instances, the palettes of " + p.key + " have " +
-                       std::to_string(p.palettes_bytes) + " bytes");
+                       std::to_string(output->element_bytes) + " bytes for each of " + std::to_string(p.instances) +
+                       " instances, the palettes of " + p.key + " have " + std::to_string(p.palettes_bytes) + " bytes");
   LaunchSpec spec;
   spec.variant = kernel.variant;
   spec.source = kernel.kernel;
@@ -794,10 +816,10 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
   spec.where = "the palette kernel of " + p.key;
   p.palette_kernel = api_->Plan(spec);
   // The animation's buffers, uploaded once (at least 16 bytes: OpenCL has no empty buffers).
-  const auto upload = [&](const char* name, std::span<const std::uint8_t> bytes) {
+  const auto upload = [&](const std::string& name, std::span<const std::uint8_t> bytes, BufferUse use) {
     std::vector<std::uint8_t> padded(bytes.begin(), bytes.end());
     padded.resize(std::max<std::size_t>(padded.size(), 16), 0);
-    std::unique_ptr<DeviceBuffer> buffer = api_->Allocate(BufferUse::kInput, padded.size(), padded.data(), name);
+    std::unique_ptr<DeviceBuffer> buffer = api_->Allocate(use, padded.size(), padded.data(), name);
     DeviceBuffer* raw = buffer.get();
     s.objects.push_back(std::move(buffer));
     return raw;
@@ -805,35 +827,60 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
   const auto bytes_of = [](auto span) {
     return std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(span.data()), span.size_bytes());
   };
-  DeviceBuffer* const shared[] = {upload(kAnimInputs[0], bytes_of(animation.nodes)),
-                                  upload(kAnimInputs[1], bytes_of(animation.channels)),
-                                  upload(kAnimInputs[2], bytes_of(animation.times)),
-                                  upload(kAnimInputs[3], bytes_of(animation.values)),
-                                  upload(kAnimInputs[4], bytes_of(animation.joints))};
-  // Each slot: its instances (the rest pose until the first upload) and the kernel bound to write its palette.
   std::vector<AnimInstance> rest_pose(static_cast<std::size_t>(p.instances));
   for (AnimInstance& in : rest_pose) in.clip = kAnimRestPose;
+  // Shared by the slots: the animation, and the states the kernel keeps
+  // (read and written by it: an output's buffer; the rest pose to start).
+  std::map<std::string, DeviceBuffer*> shared = {
+      {kAnimInputs[0], upload(kAnimInputs[0], bytes_of(animation.nodes), BufferUse::kInput)},
+      {kAnimInputs[1], upload(kAnimInputs[1], bytes_of(animation.channels), BufferUse::kInput)},
+      {kAnimInputs[2], upload(kAnimInputs[2], bytes_of(animation.times), BufferUse::kInput)},
+      {kAnimInputs[3], upload(kAnimInputs[3], bytes_of(animation.values), BufferUse::kInput)},
+      {kAnimInputs[4], upload(kAnimInputs[4], bytes_of(animation.joints), BufferUse::kInput)},
+      {kAnimClips, upload(kAnimClips, bytes_of(animation.clip_ranges), BufferUse::kInput)},
+      {kAnimStates, upload(kAnimStates, bytes_of(std::span<const AnimInstance>(rest_pose)), BufferUse::kOutput)}};
+  // Each slot: its instances (the rest pose until the first upload) and the
+  // kernel bound to write its palette; arguments by name.
   std::size_t allocated = 0;
   for (std::size_t k = 0; k < s.slots.size(); ++k) {
     Prepared::Impl::Slot& slot = s.slots[k];
-    slot.instances = upload(kAnimInputs[5], bytes_of(std::span<const AnimInstance>(rest_pose)));
+    slot.instances = upload(kAnimInputs[5], bytes_of(std::span<const AnimInstance>(rest_pose)), BufferUse::kInput);
     std::vector<ArgumentBinding> arguments;
-    const std::vector<KernelArgument>& declared = p.palette_kernel->spec.source.arguments;
-    for (std::size_t a = 0; a < declared.size(); ++a) {
-      if (a < std::size(shared)) {
-        arguments.push_back({&declared[a], ArgumentRole::kInput, shared[a], nullptr});
-      } else if (a == std::size(shared)) {
-        arguments.push_back({&declared[a], ArgumentRole::kInput, slot.instances, nullptr});
+    for (const KernelArgument& a : p.palette_kernel->spec.source.arguments) {
+      if (a.kind == ArgumentKind::kScalar) {
+        arguments.push_back({&a, ArgumentRole::kScalar, nullptr, nullptr});
+      } else if (a.name == kAnimOutput) {
+        arguments.push_back({&a, ArgumentRole::kOutput, slot.palette, nullptr});
+      } else if (a.name == kAnimInputs[5]) {
+        arguments.push_back({&a, ArgumentRole::kInput, slot.instances, nullptr});
+      } else if (const auto found = shared.find(a.name); found != shared.end()) {
+        arguments.push_back({&a, ArgumentRole::kInput, found->second, nullptr});
       } else {
-        arguments.push_back({&declared[a], ArgumentRole::kOutput, slot.palette, nullptr});
+        Fail("launch", "the palette kernel of " + p.key + " takes an argument '" + a.name + "' the runner does not bind");
       }
     }
     slot.prologue.push_back(api_->Bind(*p.palette_kernel, arguments, SetOptions{}, allocated));
     slot.prologue_pending = true;
+    slot.fresh = true;
   }
   api_->FinishUploads(p.key);
   p.upload_bytes = static_cast<std::size_t>(p.instances) * sizeof(AnimInstance);
   p.bytes_per_set += allocated;
+}
+
+void Runner::AdvanceAnimation(Prepared& prepared, int set, float delta) {
+  api_->MakeCurrent();
+  Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
+  const Prepared::Impl& p = *prepared.impl_;
+  if (!p.palette_kernel) Fail("launch", "AdvanceAnimation of " + p.key + ", which is not animated (Animate)");
+  const std::size_t next = TakeNextSlot(prepared, set);
+  Prepared::Impl::Slot& slot = s.slots[next];
+  slot.launched = false;
+  slot.prologue_pending = true;
+  slot.fresh = false;
+  slot.delta = delta;
+  s.current = next;
+  s.staged.reset();  // a staging given and never uploaded takes no slot
 }
 
 std::span<const std::uint8_t> Runner::ReadOutput(const Prepared& prepared, int set, Output output) {
@@ -886,6 +933,12 @@ void CheckLaunchKernel(const LaunchSpec& spec, const std::string& api) {
       source.joints != static_cast<int>(spec.palette_joints))
     throw Error(api + " launch: " + spec.where + ": kernel sized for " + std::to_string(source.joints) +
                 " joints, the palette has " + std::to_string(spec.palette_joints));
+}
+
+std::uint32_t PrologueScalar(const FrameRun& run, const std::string& name, const std::string& api) {
+  for (const auto& [scalar, value] : run.prologue_scalars)
+    if (scalar == name) return value;
+  throw Error(api + " launch: " + run.key + ": no value for the palette kernel's scalar '" + name + "'");
 }
 
 std::string HashOf(const KernelSource& source) {

@@ -261,6 +261,14 @@ class Runner {
   // Error("<API> build|launch ...") when the kernel does not build or the
   // animation's joints and rows do not fill the set's palettes exactly.
   void Animate(Prepared& prepared, int set, const AnimationView& animation, const PaletteKernel& kernel);
+  // An animated set's frame without an upload: takes the next palette slot
+  // as PaletteStaging does (waiting only as it does) and makes its next
+  // LaunchSet's palette kernel advance the states it keeps on the device (the
+  // last frame's) by `delta` seconds, each clip's clock looping in its range
+  // (AdvanceAnimInstances), instead of taking the slot's uploaded ones. The
+  // delta travels with the launch (FrameRun::prologue_scalars): nothing is
+  // copied to the device. Throws Error for a set that is not animated.
+  void AdvanceAnimation(Prepared& prepared, int set, float delta);
   // The native output buffer (cl_mem; CUdeviceptr or GL buffer name as an integer); null: none.
   void* OutputBuffer(const Prepared& prepared, int set, Output output) const;
   // The palette slot LaunchSet uses next: that of the last WritePalette (tests).
@@ -283,6 +291,9 @@ class Runner {
   // Waits until the submit thread (if any) has made every call handed to it;
   // throws the first error among them.
   void Settle();
+  // The palette slot after set `set`'s current one, once no queued frame
+  // still reads it (its fence; PaletteStaging and AdvanceAnimation).
+  std::size_t TakeNextSlot(Prepared& prepared, int set);
   Prepared PrepareSets(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                        std::span<const std::vector<std::uint8_t>> palettes, const RunShape& shape,
                        const SetOptions& options, int palette_slots);

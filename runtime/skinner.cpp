@@ -493,6 +493,20 @@ Status Skinner::SetAnimation(const AnimationState* states, std::size_t count) {
   });
 }
 
+Status Skinner::AdvanceAnimation(float seconds) {
+  return Guarded(ErrorCode::kDeviceError, [&] {
+    Impl& im = Usable(impl_, "AdvanceAnimation");
+    if (!im.animated)
+      FailWith(ErrorCode::kInvalidState,
+               "Skinner::AdvanceAnimation: this Skinner takes palettes (SetPalette); Skinner::CreateAnimated makes one "
+               "that animates on the device");
+    if (!std::isfinite(seconds))
+      FailWith(ErrorCode::kInvalidArgument, "Skinner::AdvanceAnimation: seconds is " + std::to_string(seconds) +
+                                                ", not finite");
+    im.backend->AdvanceAnimation(seconds);
+  });
+}
+
 bool Skinner::animated() const { return impl_ && impl_->animated; }
 
 Status Skinner::Skin() {

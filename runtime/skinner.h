@@ -41,6 +41,9 @@ class SkinnerBackend {
   // From now on the palettes are the palette kernel's (Runner::Animate):
   // PaletteStaging and UploadPalette then take K AnimInstance records.
   virtual void Animate(const AnimationView& animation, const PaletteKernel& kernel) = 0;
+  // The next frame advances the states kept on the device by `delta` seconds
+  // instead of uploading any (Runner::AdvanceAnimation).
+  virtual void AdvanceAnimation(float delta) = 0;
   virtual void Skin() = 0;
   // Waits until every Skin() so far has completed on the device.
   virtual void Finish() = 0;
@@ -98,6 +101,9 @@ class RunnerSkinner : public SkinnerBackend {
   }
   void Animate(const AnimationView& animation, const PaletteKernel& kernel) override {
     RunOnDevice([&] { runner_.Animate(prepared_, 0, animation, kernel); }, "Skinner::CreateAnimated: ");
+  }
+  void AdvanceAnimation(float delta) override {
+    RunOnDevice([&] { runner_.AdvanceAnimation(prepared_, 0, delta); });
   }
   void Skin() override {
     RunOnDevice([&] { runner_.LaunchSet(prepared_, 0); });

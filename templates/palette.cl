@@ -154,6 +154,25 @@ Affine anim_to_affine(const Trs x) {
 
 int anim_clip_valid(const uint clip, const uint clip_count) { return clip == ANIM_REST_POSE || clip < clip_count; }
 
+// Time t moved into [start, end] of its clip (range: start, end), looping:
+// the clip plays again from its start (a clip of no duration: its start).
+float anim_loop_time(const float t, const float4 range) {
+  const float length = range.y - range.x;
+  if (!(length > 0.0f)) return range.x;
+  float u = t - range.x;
+  u = fmin(fmax(u - length * floor(u / length), 0.0f), length);
+  return range.x + u;
+}
+
+// An instance's state advanced by `delta` seconds on its clips' clocks (the
+// rest pose and a clip out of range keep theirs).
+uint4 anim_advance(__global const float4* restrict clips, uint4 in, const float delta, const uint clip_count) {
+  const uint c1 = in.x & 0xffffu, c2 = in.x >> 16;
+  if (c1 != ANIM_REST_POSE && c1 < clip_count) in.y = as_uint(anim_loop_time(as_float(in.y) + delta, clips[c1]));
+  if (c2 != ANIM_REST_POSE && c2 < clip_count) in.z = as_uint(anim_loop_time(as_float(in.z) + delta, clips[c2]));
+  return in;
+}
+
 #define ANIM_GROUP 128  // fixed: the launch and the local memory the kernel is written for
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 
@@ -161,7 +180,9 @@ __kernel __attribute__((reqd_work_group_size(ANIM_GROUP, 1, 1)))
 void skintune_palette(__global const float4* restrict nodes,
                       __global const uint4* restrict channels, __global const float* restrict times,
                       __global const float4* restrict values, __global const float4* restrict joints,
-                      __global const uint4* restrict instances, __global float4* restrict palette) {
+                      __global const uint4* restrict instances, __global float4* restrict palette,
+                      __global const float4* restrict clips, __global uint4* restrict states, const float delta,
+                      const uint fresh) {
   // Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
   // then its local transform's rows there; and its parent.
   __local float4 local_rows[3 * ANIM_MAX_NODES];
@@ -173,7 +194,10 @@ void skintune_palette(__global const float4* restrict nodes,
   // work-group loops need): a group beyond the first along dimension 0, or an
   // instance with a clip out of range, only skips the work (uniformly).
   const int in_group = get_group_id(0) == 0 && node_count <= ANIM_MAX_NODES;
-  const uint4 in = in_group ? instances[i] : (uint4)(0u);
+  // The instance's state: the frame's upload (fresh), or the last frame's
+  // kept on the device, advanced by delta; kept again at the end.
+  uint4 in = in_group ? (fresh != 0u ? instances[i] : states[i]) : (uint4)(0u);
+  if (in_group && fresh == 0u) in = anim_advance(clips, in, delta, clip_count);
   __global float4* out = palette + (size_t)i * joint_count * rows;
   const int valid = in_group && anim_clip_valid(in.x & 0xffffu, clip_count) &&
                     (as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
@@ -222,4 +246,5 @@ void skintune_palette(__global const float4* restrict nodes,
     out[rows * j + 2u] = m.row2;
     if (rows == 4u) out[rows * j + 3u] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
   }
+  if (in_group && item == 0u) states[i] = in;  // every item read it before the first barrier
 }

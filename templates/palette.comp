@@ -22,6 +22,20 @@ layout(std430, binding = 3) readonly buffer Values { vec4 values[]; };
 layout(std430, binding = 4) readonly buffer Joints { vec4 joints[]; };
 layout(std430, binding = 5) readonly buffer Instances { uvec4 instances[]; };
 layout(std430, binding = 6) writeonly buffer Palette { vec4 palette[]; };
+layout(std430, binding = 7) readonly buffer Clips { vec4 clips[]; };
+layout(std430, binding = 8) buffer States { uvec4 states[]; };
+
+#ifdef VULKAN
+// Vulkan (GL_KHR_vulkan_glsl predefines VULKAN): the frame's scalars are a
+// push-constant block, bytes 0 and 4.
+layout(push_constant) uniform Frame {
+  float delta;
+  uint fresh;
+};
+#else
+uniform float delta;
+uniform uint fresh;
+#endif
 
 // The animation's counts and the palette's rows per joint (ANIM_NODE_COUNT,
 // ANIM_JOINT_COUNT, ANIM_CLIP_COUNT, ANIM_PALETTE_ROWS): the generator defines
@@ -149,6 +163,23 @@ Affine anim_to_affine(Trs x) {
 
 bool anim_clip_valid(uint clip) { return clip == kRestPose || clip < clip_count; }
 
+// Time t moved into [start, end] of its clip, looping (palette.cl).
+float anim_loop_time(float t, vec4 range) {
+  float length = range.y - range.x;
+  if (!(length > 0.0)) return range.x;
+  float u = t - range.x;
+  u = min(max(u - length * floor(u / length), 0.0), length);
+  return range.x + u;
+}
+
+// An instance's state advanced by `step` seconds on its clips' clocks (palette.cl).
+uvec4 anim_advance(uvec4 s, float step) {
+  uint c1 = s.x & 0xffffu, c2 = s.x >> 16;
+  if (c1 != kRestPose && c1 < clip_count) s.y = floatBitsToUint(anim_loop_time(uintBitsToFloat(s.y) + step, clips[c1]));
+  if (c2 != kRestPose && c2 < clip_count) s.z = floatBitsToUint(anim_loop_time(uintBitsToFloat(s.z) + step, clips[c2]));
+  return s;
+}
+
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 // Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
 // then its local transform's rows there; and its parent (palette.cl).
@@ -165,7 +196,10 @@ void main() {
   // group beyond the first along x, or an instance with a clip out of range,
   // only skips the work (uniformly).
   bool in_group = gl_WorkGroupID.x == 0u && node_count <= uint(ANIM_MAX_NODES);
-  uvec4 in_ = in_group ? instances[i] : uvec4(0u);
+  // The instance's state: the frame's upload (fresh), or the last frame's
+  // kept on the device, advanced by delta; kept again at the end.
+  uvec4 in_ = in_group ? (fresh != 0u ? instances[i] : states[i]) : uvec4(0u);
+  if (in_group && fresh == 0u) in_ = anim_advance(in_, delta);
   uint out_ = i * joint_count * rows;
   bool valid = in_group && anim_clip_valid(in_.x & 0xffffu) &&
                (uintBitsToFloat(in_.w) == 0.0 || anim_clip_valid(in_.x >> 16));
@@ -204,4 +238,5 @@ void main() {
     palette[out_ + rows * j + 2u] = m.row2;
     if (rows == 4u) palette[out_ + rows * j + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
   }
+  if (in_group && item == 0u) states[i] = in_;  // every invocation read it before the first barrier
 }

@@ -166,6 +166,23 @@ __device__ bool anim_clip_valid(const unsigned clip, const unsigned clip_count) 
   return clip == ANIM_REST_POSE || clip < clip_count;
 }
 
+// Time t moved into [start, end] of its clip, looping (palette.cl).
+__device__ float anim_loop_time(const float t, const float4 range) {
+  const float length = range.y - range.x;
+  if (!(length > 0.0f)) return range.x;
+  float u = t - range.x;
+  u = fminf(fmaxf(u - length * floorf(u / length), 0.0f), length);
+  return range.x + u;
+}
+
+// An instance's state advanced by `delta` seconds on its clips' clocks (palette.cl).
+__device__ uint4 anim_advance(const float4* __restrict__ clips, uint4 in, const float delta, const unsigned clip_count) {
+  const unsigned c1 = in.x & 0xffffu, c2 = in.x >> 16;
+  if (c1 != ANIM_REST_POSE && c1 < clip_count) in.y = __float_as_uint(anim_loop_time(__uint_as_float(in.y) + delta, clips[c1]));
+  if (c2 != ANIM_REST_POSE && c2 < clip_count) in.z = __float_as_uint(anim_loop_time(__uint_as_float(in.z) + delta, clips[c2]));
+  return in;
+}
+
 #define ANIM_GROUP 128  // fixed: the launch and the local memory the kernel is written for
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 
@@ -173,7 +190,8 @@ extern "C" __global__ void __launch_bounds__(ANIM_GROUP)
 skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ channels,
                  const float* __restrict__ times, const float4* __restrict__ values,
                  const float4* __restrict__ joints, const uint4* __restrict__ instances,
-                 float4* __restrict__ palette) {
+                 float4* __restrict__ palette, const float4* __restrict__ clips, uint4* __restrict__ states,
+                 const float delta, const unsigned fresh) {
   // Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
   // then its local transform's rows there; and its parent (palette.cl).
   __shared__ float4 local_rows[3 * ANIM_MAX_NODES];
@@ -185,7 +203,10 @@ skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ cha
   // along x, or an instance with a clip out of range, only skips the work
   // (uniformly).
   const bool in_group = blockIdx.x == 0 && node_count <= ANIM_MAX_NODES;
-  const uint4 in = in_group ? instances[i] : make_uint4(0u, 0u, 0u, 0u);
+  // The instance's state: the frame's upload (fresh), or the last frame's
+  // kept on the device, advanced by delta; kept again at the end.
+  uint4 in = in_group ? (fresh != 0u ? instances[i] : states[i]) : make_uint4(0u, 0u, 0u, 0u);
+  if (in_group && fresh == 0u) in = anim_advance(clips, in, delta, clip_count);
   float4* out = palette + (unsigned long long)i * joint_count * rows;
   const bool valid = in_group && anim_clip_valid(in.x & 0xffffu, clip_count) &&
                      (__uint_as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
@@ -236,4 +257,5 @@ skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ cha
     out[rows * j + 2u] = m.row2;
     if (rows == 4u) out[rows * j + 3u] = make_float4(0.0f, 0.0f, 0.0f, 1.0f);
   }
+  if (in_group && item == 0u) states[i] = in;  // every thread read it before the first barrier
 }

@@ -82,7 +82,7 @@ TEST(ClipPacker, BuffersHoldTheAssetsNodesJointsAndKeysWhereTheLayoutSays) {
     ExpectChannelsPacked(asset, packed);
     EXPECT_EQ(BufferBytes(packed.nodes).size(), 64 * s.nodes.size());
     EXPECT_EQ(packed.Bytes(), 64 * s.nodes.size() + 16 * packed.channels.size() + 4 * packed.times.size() +
-                                  4 * packed.values.size() + 64 * s.joints.size());
+                                  4 * packed.values.size() + 64 * s.joints.size() + 16 * packed.clips.size());
     EXPECT_TRUE(packed.not_packed.empty());
   }
 }
@@ -94,6 +94,31 @@ TEST(ClipPacker, PacksTheChosenClipsInTheirOrder) {
   EXPECT_EQ(packed.clips, clips);
   EXPECT_EQ(packed.View().clip_count, 2u);
   ExpectChannelsPacked(fox, packed);
+  // `clips`: each packed clip's time range (start, end, 0, 0), in packed order.
+  ASSERT_EQ(packed.clip_ranges.size(), 8u);
+  for (std::size_t c = 0; c < clips.size(); ++c) {
+    const AnimationClip& clip = fox.animations[static_cast<std::size_t>(clips[c])];
+    EXPECT_EQ(packed.clip_ranges[4 * c], static_cast<float>(clip.start)) << "clip " << c;
+    EXPECT_EQ(packed.clip_ranges[4 * c + 1], static_cast<float>(clip.start + clip.duration())) << "clip " << c;
+    EXPECT_EQ(packed.clip_ranges[4 * c + 2], 0.0f);
+  }
+}
+
+// A clip's clock loops in its range: AdvanceAnimInstances, as the device kernels do.
+TEST(ClipPacker, AdvancedClocksLoopInTheirClipsRangeAndTheRestPoseStays) {
+  const PackedAnimation packed = PackAnimation(TestAsset("Fox.gltf"));
+  const float start = packed.clip_ranges[4], end = packed.clip_ranges[5], length = end - start;
+  std::vector<AnimInstance> states = {{1, kAnimRestPose, start + 0.25f * length, 7.0f, 0.0f},
+                                      {kAnimRestPose, 1, 3.0f, start, 0.5f}};
+  AdvanceAnimInstances(packed.View(), states, 1.5f * length);
+  EXPECT_NEAR(states[0].time, start + 0.75f * length, 1e-5f * length);
+  EXPECT_EQ(states[0].time2, 7.0f) << "the rest pose's clock stays";
+  EXPECT_EQ(states[1].time, 3.0f);
+  EXPECT_NEAR(states[1].time2, start + 0.5f * length, 1e-5f * length);
+  AdvanceAnimInstances(packed.View(), states, -1.0f * length);
+  EXPECT_NEAR(states[0].time, start + 0.75f * length, 1e-5f * length) << "backwards, a whole clip: the same time";
+  EXPECT_EQ(AnimLoopTime(5.0f, 2.0f, 2.0f), 2.0f) << "a clip of no duration stays at its start";
+  EXPECT_EQ(AnimLoopTime(2.0f + 3.0f, 2.0f, 4.0f), 3.0f);
 }
 
 TEST(ClipPacker, MorphWeightsChannelsAreLeftOutAndNamed) {

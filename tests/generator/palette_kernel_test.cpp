@@ -197,15 +197,27 @@ class OpenClPaletteKernel {
     cl_mem out = clCreateBuffer(context_, CL_MEM_READ_WRITE, instances.size() * joints * 48, nullptr, &err);
     Check(err, "clCreateBuffer");
     const cl_kernel kernel = Build(EmitPalette(Lang::kOpenCl, view, 3).kernel.text);
+    // Then the clips' ranges, the states the kernel keeps (written back), and
+    // the frame's scalars: fresh, so the states are the instances as given.
+    buffers.push_back(Upload(BufferBytes(packed.clip_ranges)));
+    cl_mem states = clCreateBuffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(instances.size(), 1) * 16, nullptr, &err);
+    Check(err, "clCreateBuffer (states)");
     cl_uint arg = 0;
-    for (const cl_mem& b : buffers) Check(clSetKernelArg(kernel, arg++, sizeof b, &b), "clSetKernelArg");
+    for (std::size_t b = 0; b < 6; ++b) Check(clSetKernelArg(kernel, arg++, sizeof buffers[b], &buffers[b]), "clSetKernelArg");
     Check(clSetKernelArg(kernel, arg++, sizeof out, &out), "clSetKernelArg");
+    Check(clSetKernelArg(kernel, arg++, sizeof buffers[6], &buffers[6]), "clSetKernelArg");
+    Check(clSetKernelArg(kernel, arg++, sizeof states, &states), "clSetKernelArg");
+    const float delta = 0.0f;
+    const cl_uint fresh = 1;
+    Check(clSetKernelArg(kernel, arg++, sizeof delta, &delta), "clSetKernelArg");
+    Check(clSetKernelArg(kernel, arg++, sizeof fresh, &fresh), "clSetKernelArg");
     constexpr std::size_t kGroup = kAnimGroup;  // palette.cl's ANIM_GROUP
     const std::size_t global[2] = {groups_x * kGroup, instances.size()}, local[2] = {kGroup, 1};
     Check(clEnqueueNDRangeKernel(queue_, kernel, 2, nullptr, global, local, 0, nullptr, nullptr),
           "clEnqueueNDRangeKernel");
     Check(clFinish(queue_), "clFinish");
     for (cl_mem b : buffers) clReleaseMemObject(b);
+    clReleaseMemObject(states);
     return out;
   }
 

@@ -37,9 +37,9 @@ TEST(PaletteKernelCuda, CompilesCleanlyWithNvrtcWithTheOpenClKernelsArguments) {
   ASSERT_TRUE(r.ok) << r.error;
   EXPECT_EQ(r.log.find("warning"), std::string::npos) << r.log;
   EXPECT_NE(r.ptx.find(".entry skintune_palette("), std::string::npos) << "no extern \"C\" entry skintune_palette";
-  // nodes .. palette: parameters 0..6, as in palette.cl (the counts are defines).
-  EXPECT_NE(r.ptx.find("skintune_palette_param_6"), std::string::npos);
-  EXPECT_EQ(r.ptx.find("skintune_palette_param_7"), std::string::npos);
+  // nodes .. palette, clips, states, delta, fresh: parameters 0..10, as in palette.cl (the counts are defines).
+  EXPECT_NE(r.ptx.find("skintune_palette_param_10"), std::string::npos);
+  EXPECT_EQ(r.ptx.find("skintune_palette_param_11"), std::string::npos);
   // The instance is the grid's y, the joint its x.
   EXPECT_NE(r.ptx.find("%ctaid.y"), std::string::npos);
 }
@@ -91,17 +91,24 @@ class CudaPaletteKernel {
     const AnimationView view = packed.View();
     const std::size_t joints = packed.joints.size();
     std::vector<float> rows(instances.size() * joints * 12);
+    // Parameters 0-5 the inputs, 6 the palette, 7 the clips' ranges, 8 the
+    // states the kernel keeps (as fresh frames take them: the instances), then delta and fresh.
     const std::span<const std::uint8_t> inputs[] = {BufferBytes(packed.nodes),  BufferBytes(packed.channels),
                                                     BufferBytes(packed.times),  BufferBytes(packed.values),
-                                                    BufferBytes(packed.joints), BufferBytes(instances)};
-    cuda::DevicePtr buffers[7] = {};
-    for (int b = 0; b < 6; ++b) {
+                                                    BufferBytes(packed.joints), BufferBytes(instances),
+                                                    {}, BufferBytes(packed.clip_ranges), BufferBytes(instances)};
+    cuda::DevicePtr buffers[9] = {};
+    for (int b = 0; b < 9; ++b) {
+      if (b == 6) continue;
       const std::size_t bytes = std::max<std::size_t>(inputs[b].size(), 16);  // no empty allocation
       Check(api_.cuMemAlloc(&buffers[b], bytes), "cuMemAlloc");
       if (!inputs[b].empty()) Check(api_.cuMemcpyHtoD(buffers[b], inputs[b].data(), inputs[b].size()), "cuMemcpyHtoD");
     }
     Check(api_.cuMemAlloc(&buffers[6], rows.size() * sizeof(float)), "cuMemAlloc");
-    void* parameters[] = {&buffers[0], &buffers[1], &buffers[2], &buffers[3], &buffers[4], &buffers[5], &buffers[6]};
+    float delta = 0.0f;
+    unsigned fresh = 1;
+    void* parameters[] = {&buffers[0], &buffers[1], &buffers[2], &buffers[3], &buffers[4], &buffers[5],
+                          &buffers[6], &buffers[7], &buffers[8], &delta,      &fresh};
     const auto instance_count = static_cast<unsigned>(instances.size());
     Check(api_.cuLaunchKernel(FunctionFor(EmitPalette(Lang::kCuda, view, 3).kernel.text), 1, instance_count, 1, kBlock,
                               1, 1, 0, nullptr, parameters, nullptr),

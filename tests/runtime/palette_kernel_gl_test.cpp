@@ -68,12 +68,16 @@ class GlPaletteKernel {
     const AnimationView view = packed.View();
     const std::size_t joints = packed.joints.size();
     std::vector<float> rows(instances.size() * joints * 12);
+    // Bindings 0-5 the inputs, 6 the palette, 7 the clips' ranges, 8 the
+    // states the kernel keeps (as fresh frames take them: the instances).
     const std::span<const std::uint8_t> inputs[] = {BufferBytes(packed.nodes),  BufferBytes(packed.channels),
                                                     BufferBytes(packed.times),  BufferBytes(packed.values),
-                                                    BufferBytes(packed.joints), BufferBytes(instances)};
-    GLuint buffers[7];
-    glGenBuffers(7, buffers);
-    for (GLuint b = 0; b < 6; ++b) {
+                                                    BufferBytes(packed.joints), BufferBytes(instances),
+                                                    {}, BufferBytes(packed.clip_ranges), BufferBytes(instances)};
+    GLuint buffers[9];
+    glGenBuffers(9, buffers);
+    for (GLuint b = 0; b < 9; ++b) {
+      if (b == 6) continue;
       std::vector<std::uint8_t> padded(inputs[b].begin(), inputs[b].end());
       padded.resize(std::max<std::size_t>(padded.size(), 16), 0);  // no empty buffers
       glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[b]);
@@ -84,12 +88,15 @@ class GlPaletteKernel {
     glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(rows.size() * sizeof(float)), nullptr,
                  GL_DYNAMIC_READ);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, buffers[6]);
-    glUseProgram(ProgramFor(EmitPalette(Lang::kGlslCompute, view, 3).kernel.text));
+    const GLuint program = ProgramFor(EmitPalette(Lang::kGlslCompute, view, 3).kernel.text);
+    glUseProgram(program);
+    glUniform1f(glGetUniformLocation(program, "delta"), 0.0f);
+    glUniform1ui(glGetUniformLocation(program, "fresh"), 1u);
     glDispatchCompute(1, static_cast<GLuint>(instances.size()), 1);  // a work-group per instance
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[6]);
     glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(rows.size() * sizeof(float)), rows.data());
-    glDeleteBuffers(7, buffers);
+    glDeleteBuffers(9, buffers);
     if (const GLenum error = glGetError(); error != GL_NO_ERROR)
       throw std::runtime_error("GL error " + std::to_string(error) + " running palette.comp");
     return rows;

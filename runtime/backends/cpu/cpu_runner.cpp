@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <bit>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -154,6 +155,7 @@ class CpuApi final : public DeviceApi {
   const CpuChoice& ChoiceFor(const FrameRun& run);
 
   unsigned max_threads_;
+  const FrameRun* live_run_ = nullptr;  // while a frame's prologue runs: its run (the palette kernel's scalars)
   std::size_t evicted_bytes_ = 0;  // by kCold, in all
   std::uint64_t flush_sink_ = 0;  // what the flush read, kept so that no compiler drops the reads
   std::string name_;
@@ -278,7 +280,9 @@ std::unique_ptr<DeviceObject> CpuApi::Bind(const PlannedLaunch& launch, std::spa
       }
     }
   }
-  if (bound->plan->palette ? !bound->palette_out || bound->inputs.size() != std::size(kAnimInputs)
+  // The palette kernel: every buffer argument bound, in order (RunLaunch reads them by position).
+  const std::size_t palette_buffers = std::size(kAnimInputs) + 3;  // + out_palette, clips, states
+  if (bound->plan->palette ? !bound->palette_out || bound->buffers.size() != palette_buffers
                            : !bound->Out(Output::kPositions))
     Fail("launch", launch.spec.where + ": not every argument bound");
   return bound;
@@ -287,7 +291,7 @@ std::unique_ptr<DeviceObject> CpuApi::Bind(const PlannedLaunch& launch, std::spa
 void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
   const CpuPlanned& plan = *b.plan;
   const LaunchSpec& spec = plan.spec;
-  if (plan.palette) {  // the buffers in kAnimInputs order, each as bound (b.buffers: their sizes)
+  if (plan.palette) {  // the buffers in argument order, each as bound (b.buffers: their sizes)
     const auto span_of = [&](std::size_t i, auto* type) {
       using T = std::remove_const_t<std::remove_pointer_t<decltype(type)>>;
       return std::span<const T>(reinterpret_cast<const T*>(b.buffers[i].data()), b.buffers[i].size() / sizeof(T));
@@ -299,14 +303,26 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
     view.times = span_of(2, static_cast<const float*>(nullptr));
     view.values = span_of(3, static_cast<const float*>(nullptr));
     view.joints = span_of(4, static_cast<const AnimJointRecord*>(nullptr));
-    const auto instances = span_of(5, static_cast<const AnimInstance*>(nullptr)).first(static_cast<std::size_t>(spec.instances));
+    view.clip_ranges = span_of(7, static_cast<const float*>(nullptr)).first(4 * std::size_t{plan.clip_count});
+    const auto count = static_cast<std::size_t>(spec.instances);
+    const auto instances = span_of(5, static_cast<const AnimInstance*>(nullptr)).first(count);
+    // The states kept on the device (read and written: the buffer is the runner's, host memory).
+    const std::span<AnimInstance> states(const_cast<AnimInstance*>(span_of(8, static_cast<const AnimInstance*>(nullptr)).data()),
+                                         count);
+    if (!live_run_) Fail("launch", spec.where + ": the palette kernel runs only as a frame's prologue");
+    if (PrologueScalar(*live_run_, kAnimFresh, "CPU") != 0) {
+      std::copy(instances.begin(), instances.end(), states.begin());
+    } else {
+      AdvanceAnimInstances(view, states, std::bit_cast<float>(PrologueScalar(*live_run_, kAnimDelta, "CPU")));
+    }
     // Instances spread over the device's threads, in chunks of 4 (each a few
     // microseconds of sampling and walks); checked first, so no chunk throws.
-    ValidateAnimInstances(view, instances);
+    ValidateAnimInstances(view, states);
     const std::size_t floats = view.joints.size() * static_cast<std::size_t>(plan.palette_rows) * 4;
     ThreadPool& pool = pools_.Get(max_threads_);
-    pool.ParallelFor(instances.size(), 4, [&](std::size_t begin, std::size_t end) {
-      RunPaletteKernel(view, instances.subspan(begin, end - begin), b.palette_out + begin * floats, plan.palette_rows);
+    pool.ParallelFor(count, 4, [&](std::size_t begin, std::size_t end) {
+      RunPaletteKernel(view, std::span<const AnimInstance>(states).subspan(begin, end - begin),
+                       b.palette_out + begin * floats, plan.palette_rows);
     });
     return;
   }
@@ -453,7 +469,9 @@ std::vector<std::vector<double>> CpuApi::RunFrames(const FrameRun& run) {
   }
   const CpuChoice choice = ChoiceFor(run);
   if (run.use == FrameUse::kLive) {
+    live_run_ = &run;  // the prologue's scalars
     RunFrame(run.prologue, choice);
+    live_run_ = nullptr;
     for (const auto& frame : run.frames) RunFrame(frame, choice);
     return {};
   }

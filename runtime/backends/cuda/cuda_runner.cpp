@@ -4,6 +4,7 @@
 #include "runtime/backends/cuda/cuda_runner.h"
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -156,6 +157,10 @@ class CudaBound final : public DeviceObject {
   cuda::TexObject texture = 0;
   std::vector<void*> parameters;
   int output_parameter = -1;              // the index in `parameters` of "out_positions"
+  // A prologue's scalars (the palette kernel's delta and fresh), set from the
+  // frame's run before each launch; cuLaunchKernel copies them.
+  std::vector<std::string> scalar_names;
+  mutable std::array<std::uint32_t, 4> scalars{};
 };
 
 }  // namespace
@@ -493,6 +498,10 @@ std::unique_ptr<DeviceObject> CudaApi::Bind(const PlannedLaunch& launch, std::sp
       a.parameters.push_back(&a.first);
     } else if (name == "vertex_count") {
       a.parameters.push_back(&a.vertex_count);
+    } else if (b.argument->kind == ArgumentKind::kScalar) {
+      if (a.scalar_names.size() == a.scalars.size()) Fail("launch", spec.where + ": more scalars than a prologue takes");
+      a.parameters.push_back(&a.scalars[a.scalar_names.size()]);
+      a.scalar_names.push_back(name);
     } else if (name == "palette" && b.argument->kind == ArgumentKind::kImage) {
       if (!a.texture) Fail("launch", spec.where + ": an image palette argument but the variant's storage is not image");
       a.parameters.push_back(&a.texture);
@@ -685,8 +694,12 @@ std::vector<std::vector<double>> CudaApi::RunFrames(const FrameRun& run) {
       Check(api->cuEventCreate(&prologue_done_, cuda::kEventDisableTiming), "launch", "cuEventCreate for the palette kernels");
     }
     JoinUploads(prologues_);
-    for (const std::unique_ptr<DeviceObject>& launch : run.prologue)
-      Launch(static_cast<const CudaBound&>(*launch), prologues_);
+    for (const std::unique_ptr<DeviceObject>& launch : run.prologue) {
+      const auto& bound = static_cast<const CudaBound&>(*launch);
+      for (std::size_t k = 0; k < bound.scalar_names.size(); ++k)
+        bound.scalars[k] = PrologueScalar(run, bound.scalar_names[k], "CUDA");
+      Launch(bound, prologues_);
+    }
     Check(api->cuEventRecord(prologue_done_, prologues_), "launch", "cuEventRecord after the palette kernel");
     Check(api->cuStreamWaitEvent(stream, prologue_done_, 0), "launch", "cuStreamWaitEvent for the palette kernel");
     last_upload_ = nullptr;  // the frame's stream waited for it through the palette kernel

@@ -134,6 +134,14 @@ class GlPlanned final : public PlannedLaunch {
   bool vertex = false;
   GLuint program = 0;  // owned by the API
   GLint n_location = -1, first_location = -1, vertex_count_location = -1;
+  // A prologue's scalars (the palette kernel's delta and fresh): uniforms set
+  // from the frame's run at each launch; location -1 where the compiler dropped one.
+  struct Scalar {
+    std::string name;
+    GLint location = -1;
+    bool f32 = false;
+  };
+  std::vector<Scalar> scalars;
   std::size_t groups = 0;  // glsl-compute
   CapturePlan capture;     // glsl-vertex
 };

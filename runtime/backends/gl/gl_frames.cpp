@@ -8,6 +8,7 @@
 // the Skinner's frame puts back the GL state it changed on the caller's
 // context.
 #include <algorithm>
+#include <bit>
 #include <cctype>
 #include <chrono>
 
@@ -380,8 +381,18 @@ void GlApi::RunLive(const FrameRun& run) {
     KeptGlState kept(vertex);
     if (!run.prologue.empty()) {  // compute dispatches whose storage writes the frames read, however they read them
       for (const std::unique_ptr<DeviceObject>& launch : run.prologue) {
-        BindLaunch(static_cast<const GlBound&>(*launch), false);
-        DrawLaunch(static_cast<const GlBound&>(*launch));
+        const auto& bound = static_cast<const GlBound&>(*launch);
+        BindLaunch(bound, false);
+        for (const GlPlanned::Scalar& scalar : bound.plan->scalars) {
+          const std::uint32_t bits = PrologueScalar(run, scalar.name, "GL");
+          if (scalar.location < 0) continue;
+          if (scalar.f32) {
+            glUniform1f(scalar.location, std::bit_cast<float>(bits));
+          } else {
+            glUniform1ui(scalar.location, bits);
+          }
+        }
+        DrawLaunch(bound);
       }
       glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_UNIFORM_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
     }

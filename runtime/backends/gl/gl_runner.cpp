@@ -344,6 +344,9 @@ std::unique_ptr<PlannedLaunch> GlApi::Plan(const LaunchSpec& spec) {
   plan->n_location = program.n_location;
   plan->first_location = program.first_location;
   plan->vertex_count_location = program.vertex_count_location;
+  for (const KernelArgument& a : source.arguments)
+    if (a.kind == ArgumentKind::kScalar && a.name != "n" && a.name != "first" && a.name != "vertex_count")
+      plan->scalars.push_back({a.name, glGetUniformLocation(plan->program, a.name.c_str()), a.format == "f32"});
   if (plan->vertex) {
     plan->capture = PlanCapture(spec);
   } else {

@@ -252,6 +252,7 @@ class OpenClApi final : public DeviceApi {
   Memory NewMemory(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what);
   void Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event, cl_command_queue on = nullptr,
                cl_uint wait_count = 0, const cl_event* wait_list = nullptr);
+  const FrameRun* live_run_ = nullptr;  // while Enqueue queues a prologue launch: its run's scalars
   cl_command_queue Lane(int i);
   // Palette uploads run on an in-order queue of their own, so frame n+1's
   // upload overlaps frame n's kernel; the next command queued on `on` after
@@ -582,6 +583,9 @@ void OpenClApi::Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* ev
       value = {sizeof(cl_uint), spec.first};
     } else if (arg.name == "vertex_count") {
       value = {sizeof(cl_uint), vertex_count};
+    } else if (arg.kind == ArgumentKind::kScalar) {  // a prologue's (its bits: a float's too)
+      if (!live_run_) Fail("launch", spec.where + ": no value for the scalar '" + arg.name + "'");
+      value = {sizeof(cl_uint), PrologueScalar(*live_run_, arg.name, "OpenCL")};
     } else {
       const cl_mem memory = arg.name == "out_positions" && out_positions ? out_positions : bound.arguments[a];
       value = {sizeof(cl_mem), reinterpret_cast<std::uintptr_t>(memory)};
@@ -635,8 +639,10 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
     for (std::size_t l = 0; l < launches.size(); ++l) {
       const cl_event upload = last_upload_.get();
       cl_event event = nullptr;
+      live_run_ = l < run.prologue.size() ? &run : nullptr;  // the prologue's scalars
       Enqueue(*launches[l], static_cast<cl_mem>(run.out_positions), l + 1 == launches.size() ? &event : nullptr, nullptr,
               upload ? 1 : 0, upload ? &upload : nullptr);
+      live_run_ = nullptr;
       last_upload_.reset();
       if (event) last_launch_ = Event(event);
     }

@@ -4,6 +4,7 @@
 #include "runtime/backends/vulkan/vulkan_runner.h"
 
 #include <algorithm>
+#include <array>
 #include <cstdlib>
 #include <cstring>
 #include <map>
@@ -319,8 +320,9 @@ class VulkanApi final : public DeviceApi {
   std::vector<std::vector<double>> RunCold(const FrameRun& run);
   void BarrierAfterFrames(VkCommandBuffer cb, bool for_caller) const;
   // Records one launch (optionally between timestamps `query`, `query + 1`).
+  // A prologue's launch (`prologue`: its run) pushes the run's scalars instead.
   void RecordLaunch(VkCommandBuffer cb, const VulkanBound& bound, VkDescriptorSet set, VkQueryPool pool,
-                    int query) const;
+                    int query, const FrameRun* prologue = nullptr) const;
   VkDescriptorSet Redirected(VulkanBound& bound, VkBuffer out_positions);
   double TicksToMs(std::uint64_t start, std::uint64_t end) const;
   QueryPool NewQueryPool(std::uint32_t count);  // none for 0
@@ -729,12 +731,20 @@ void VulkanApi::Barrier(VkCommandBuffer cb, VkPipelineStageFlags from, VkAccessF
 }
 
 void VulkanApi::RecordLaunch(VkCommandBuffer cb, const VulkanBound& bound, VkDescriptorSet set, VkQueryPool pool,
-                             int query) const {
+                             int query, const FrameRun* prologue) const {
   const VulkanPlanned& plan = *bound.plan;
   const Pipeline& p = *plan.pipeline;
   c_->fn.vkCmdBindPipeline(cb, VK_PIPELINE_BIND_POINT_COMPUTE, p.pipeline);
   c_->fn.vkCmdBindDescriptorSets(cb, VK_PIPELINE_BIND_POINT_COMPUTE, p.layout, 0, 1, &set, 0, nullptr);
-  c_->fn.vkCmdPushConstants(cb, p.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof plan.push, plan.push);
+  std::array<std::uint32_t, kPushConstantBytes / 4> push{};
+  static_assert(sizeof push == sizeof plan.push);
+  std::memcpy(push.data(), plan.push, sizeof push);
+  if (prologue) {  // a prologue's scalars (the palette kernel's delta and fresh), word k the k-th scalar argument
+    std::size_t k = 0;
+    for (const KernelArgument& a : plan.spec.source.arguments)
+      if (a.kind == ArgumentKind::kScalar && k < push.size()) push[k++] = PrologueScalar(*prologue, a.name, "Vulkan");
+  }
+  c_->fn.vkCmdPushConstants(cb, p.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof push, push.data());
   if (query >= 0)
     c_->fn.vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, pool, static_cast<std::uint32_t>(query));
   c_->fn.vkCmdDispatch(cb, plan.groups_x, plan.groups_y, 1);
@@ -836,7 +846,7 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
     if (!run.prologue.empty()) {  // its storage writes, read by the frames as storage or uniform buffers or texels
       for (const std::unique_ptr<DeviceObject>& launch : run.prologue) {
         const auto& bound = static_cast<const VulkanBound&>(*launch);
-        RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1);
+        RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1, &run);
       }
       Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
               VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);

@@ -597,6 +597,19 @@ class Skinner {
   // a rejected frame changes nothing. kInvalidState on a Skinner made by
   // Create or CreateBatch.
   Status SetAnimation(const AnimationState* states, std::size_t count);
+  // A CreateAnimated Skinner's frame with nothing uploaded: every instance's
+  // time (and time2) advances by `seconds` from its last state (the last
+  // SetAnimation's, advanced by every AdvanceAnimation since), on the
+  // device: each clock loops within its clip's time range
+  // (Model::animation_start .. + animation_duration), and the rest pose stays.
+  // The delta is passed with the palette kernel's launch, so no copy to the
+  // device precedes the frame (docs/ANIMATION.md: that copy is most of what a
+  // frame costs above its kernels). It takes the next palette buffer as
+  // SetAnimation does and blocks only as it does; the next Skin() computes
+  // the palettes. Negative seconds play backwards. kInvalidArgument for
+  // seconds that are not finite; kInvalidState on a Skinner made by Create or
+  // CreateBatch.
+  Status AdvanceAnimation(float seconds);
   // Whether the palettes are computed on the device (CreateAnimated).
   bool animated() const;
 
