@@ -815,10 +815,13 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
   spec.palette_joints = joints;
   spec.where = "the palette kernel of " + p.key;
   p.palette_kernel = api_->Plan(spec);
-  // The animation's buffers, uploaded once (at least 16 bytes: OpenCL has no empty buffers).
+  // The animation's buffers, uploaded once (at least 16 bytes: OpenCL has no
+  // empty buffers); `allocated` counts them and what Bind adds.
+  std::size_t allocated = 0;
   const auto upload = [&](const std::string& name, std::span<const std::uint8_t> bytes, BufferUse use) {
     std::vector<std::uint8_t> padded(bytes.begin(), bytes.end());
     padded.resize(std::max<std::size_t>(padded.size(), 16), 0);
+    allocated += padded.size();
     std::unique_ptr<DeviceBuffer> buffer = api_->Allocate(use, padded.size(), padded.data(), name);
     DeviceBuffer* raw = buffer.get();
     s.objects.push_back(std::move(buffer));
@@ -841,7 +844,6 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
       {kAnimStates, upload(kAnimStates, bytes_of(std::span<const AnimInstance>(rest_pose)), BufferUse::kOutput)}};
   // Each slot: its instances (the rest pose until the first upload) and the
   // kernel bound to write its palette; arguments by name.
-  std::size_t allocated = 0;
   for (std::size_t k = 0; k < s.slots.size(); ++k) {
     Prepared::Impl::Slot& slot = s.slots[k];
     slot.instances = upload(kAnimInputs[5], bytes_of(std::span<const AnimInstance>(rest_pose)), BufferUse::kInput);

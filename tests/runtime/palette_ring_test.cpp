@@ -480,7 +480,10 @@ TEST(PaletteRing, AnimatedFramesComputeTheirSlotsPaletteOncePerUploadBeforeTheir
   Ring ring;
   const SkinnedAsset asset = GenerateDataset(ParseDatasetKey("200-b2"));
   const PackedAnimation animation = PackAnimation(asset);
+  const std::size_t bytes = ring.prepared.bytes_per_set();
   ring.runner->Animate(ring.prepared, 0, animation.View(), EmitPalette(Lang::kOpenCl, animation.View(), 3));
+  // The set's device bytes count the animation, its kept states and each slot's instances.
+  EXPECT_GE(ring.prepared.bytes_per_set(), bytes + animation.Bytes() + (kPaletteSlots + 1) * sizeof(AnimInstance));
   ring.runner->LaunchSet(ring.prepared, 0);  // before any states: the rest pose (clip 0xffff)
   constexpr int kFrames = 3 * kPaletteSlots + 1;
   for (int f = 0; f < kFrames; ++f) {
