@@ -557,7 +557,7 @@ TEST(TuneCli, CpuDeviceQuickTuneVerifiesTimesAndWritesAWinner) {
       EXPECT_LT(m.max_relative_error, 1e-5);
     } else {
       EXPECT_EQ(m.status, MeasureStatus::kInvalid) << m.variant.Key() << ": " << m.detail;
-      EXPECT_EQ(m.variant.storage, PaletteStorage::kLocal) << m.variant.Key();
+      EXPECT_EQ(m.variant.storage, PaletteStorage::kLocal) << m.variant.Key() << ": " << m.detail;
       ++invalid;
     }
   }
