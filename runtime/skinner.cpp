@@ -465,7 +465,8 @@ Status Skinner::SetAnimation(const AnimationState* states, std::size_t count) {
     CheckCount("SetAnimation", count, static_cast<std::size_t>(im.instances),
                [&] { return std::to_string(im.instances) + " instances"; });
     if (!states) FailWith(ErrorCode::kInvalidArgument, "Skinner::SetAnimation: states is null");
-    // Every state checked before the staging is taken: a rejected frame takes no slot.
+    // Every state checked before the staging is taken (a rejected frame takes
+    // no slot), then written straight into it, as SetPalette packs palettes.
     const auto bad = [&](std::size_t i, const std::string& what) {
       FailWith(ErrorCode::kInvalidArgument, "Skinner::SetAnimation: states[" + std::to_string(i) + "]." + what);
     };
@@ -475,20 +476,24 @@ Status Skinner::SetAnimation(const AnimationState* states, std::size_t count) {
                    std::to_string(im.animation_count - 1));
       return animation < 0 ? kAnimRestPose : static_cast<std::uint16_t>(animation);
     };
-    std::vector<AnimInstance> instances(count);
-    for (std::size_t i = 0; i < count; ++i) {
+    const auto instance = [&](std::size_t i) {
       const AnimationState& a = states[i];
       if (!std::isfinite(a.time)) bad(i, "time is not finite");
       if (!std::isfinite(a.time2)) bad(i, "time2 is not finite");
       if (!(a.weight >= 0.0f && a.weight <= 1.0f)) bad(i, "weight is " + std::to_string(a.weight) + ", outside [0, 1]");
-      instances[i] = {clip(i, "animation", a.animation), a.weight != 0.0f ? clip(i, "animation2", a.animation2) : kAnimRestPose,
-                      a.time, a.time2, a.weight};
-    }
+      return AnimInstance{clip(i, "animation", a.animation),
+                          a.weight != 0.0f ? clip(i, "animation2", a.animation2) : kAnimRestPose, a.time, a.time2,
+                          a.weight};
+    };
+    for (std::size_t i = 0; i < count; ++i) (void)instance(i);
     const std::span<std::uint8_t> staging = im.backend->PaletteStaging();
     if (staging.size() != count * sizeof(AnimInstance))
       FailWith(ErrorCode::kDeviceError, "Skinner::SetAnimation: the staging has " + std::to_string(staging.size()) +
                                             " bytes, expected " + std::to_string(count * sizeof(AnimInstance)));
-    std::memcpy(staging.data(), instances.data(), staging.size());
+    for (std::size_t i = 0; i < count; ++i) {
+      const AnimInstance in = instance(i);
+      std::memcpy(staging.data() + i * sizeof in, &in, sizeof in);
+    }
     im.backend->UploadPalette();
   });
 }
