@@ -1,7 +1,11 @@
 // skintune (internal): the layout of the CPU kernel table (cpu_kernels.h),
 // shared by the slices of cpu_kernels.inc and cpu_kernels.cpp, which
 // assembles one table per instruction set from its 8 slices.
-// Slot = (((B - 1) x 3 + index) x 3 + weight) x 2 + (rows == 3)) x 2 + point_blend.
+// Slot = (((B - 1) x 3 + index) x 3 + weight) x 5 + form, where the form is
+// the palette and blend: 0 mat4 matrix, 1 mat4 point, 2 mat3x4 matrix,
+// 3 mat3x4 point, 4 dualquat dq. Dual quaternions exist with 2 rows only, so
+// they are one form, not a third blend of every palette (which would compile
+// 4 kernels per (B, index, weight) that no key reaches).
 #pragma once
 
 #include <array>
@@ -13,25 +17,27 @@ namespace skintune::internal::cpu_detail {
 
 inline constexpr std::size_t kIndexFormats = 3;
 inline constexpr std::size_t kWeightFormats = 3;
-inline constexpr std::size_t kRowChoices = 2;
-inline constexpr std::size_t kBlendChoices = 2;
-inline constexpr std::size_t kCpuKernelCount =
-    kCpuMaxInfluences * kIndexFormats * kWeightFormats * kRowChoices * kBlendChoices;
+inline constexpr std::size_t kPaletteForms = 5;  // (rows, blend): see the slot above
+inline constexpr std::size_t kDualQuaternionForm = 4;
+inline constexpr std::size_t kCpuKernelCount = kCpuMaxInfluences * kIndexFormats * kWeightFormats * kPaletteForms;
 using CpuKernelTable = std::array<CpuKernelFn, kCpuKernelCount>;
 
+// The slot of a key the table holds (FindCpuKernel checks it first).
 constexpr std::size_t SlotOf(const CpuKernelKey& k) {
   std::size_t slot = static_cast<std::size_t>(k.influences - 1);
   slot = slot * kIndexFormats + static_cast<std::size_t>(k.index);
   slot = slot * kWeightFormats + static_cast<std::size_t>(k.weight);
-  slot = slot * kRowChoices + (k.palette_rows == 3 ? 1 : 0);
-  return slot * kBlendChoices + (k.point_blend ? 1 : 0);
+  const std::size_t form =
+      k.dual_quaternion ? kDualQuaternionForm : (k.palette_rows == 3 ? 2 : 0) + (k.point_blend ? 1 : 0);
+  return slot * kPaletteForms + form;
 }
 constexpr CpuKernelKey KeyOfSlot(std::size_t slot) {
   CpuKernelKey key;
-  key.point_blend = slot % kBlendChoices == 1;
-  slot /= kBlendChoices;
-  key.palette_rows = slot % kRowChoices == 1 ? 3 : 4;
-  slot /= kRowChoices;
+  const std::size_t form = slot % kPaletteForms;
+  key.dual_quaternion = form == kDualQuaternionForm;
+  key.palette_rows = key.dual_quaternion ? 2 : form >= 2 ? 3 : 4;
+  key.point_blend = !key.dual_quaternion && form % 2 == 1;
+  slot /= kPaletteForms;
   key.weight = static_cast<CpuWeight>(slot % kWeightFormats);
   slot /= kWeightFormats;
   key.index = static_cast<CpuIndex>(slot % kIndexFormats);
@@ -46,7 +52,7 @@ enum class CpuIsa { kAvx512, kAvx2, kBaseline };
 // One slice of a table: the slots of one influence count B, in table order
 // (slot SlotOf(key) of the table is slot SlotOf(key) - (B - 1) x
 // kSlotsPerInfluenceCount of B's slice).
-inline constexpr std::size_t kSlotsPerInfluenceCount = kIndexFormats * kWeightFormats * kRowChoices * kBlendChoices;
+inline constexpr std::size_t kSlotsPerInfluenceCount = kIndexFormats * kWeightFormats * kPaletteForms;
 static_assert(kCpuKernelCount == kCpuMaxInfluences * kSlotsPerInfluenceCount);
 using CpuKernelSlice = std::array<CpuKernelFn, kSlotsPerInfluenceCount>;
 

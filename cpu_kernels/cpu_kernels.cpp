@@ -111,13 +111,15 @@ const cpu_detail::CpuKernelTable& Table() {
 }  // namespace
 
 std::string CpuKernelName(const CpuKernelKey& key) {
+  const char* const palette = key.palette_rows == 2 ? "dualquat" : key.palette_rows == 3 ? "mat3x4" : "mat4";
+  const char* const blend = key.dual_quaternion ? ".dq" : key.point_blend ? ".point" : ".matrix";
   return "b" + std::to_string(key.influences) + "." + kIndexNames[static_cast<int>(key.index)] + "." +
-         kWeightNames[static_cast<int>(key.weight)] + "." + (key.palette_rows == 3 ? "mat3x4" : "mat4") +
-         (key.point_blend ? ".point" : ".matrix");
+         kWeightNames[static_cast<int>(key.weight)] + "." + palette + blend;
 }
 
 void LoadCpuPalette(std::span<const std::uint8_t> packed_rows, int rows, CpuPalette& out) {
-  if (rows != 3 && rows != 4) throw Error("cpu palette: " + std::to_string(rows) + " rows per joint (expected 3 or 4)");
+  if (rows < 2 || rows > 4)
+    throw Error("cpu palette: " + std::to_string(rows) + " rows per joint (expected 4, 3 or 2)");
   const std::size_t joint_bytes = static_cast<std::size_t>(rows) * 4 * sizeof(float);
   if (packed_rows.size() % joint_bytes != 0) {
     throw Error("cpu palette: " + std::to_string(packed_rows.size()) + " bytes is not a whole number of " +
@@ -128,6 +130,11 @@ void LoadCpuPalette(std::span<const std::uint8_t> packed_rows, int rows, CpuPale
   const std::uint8_t* at = packed_rows.data();
   for (CpuJoint& j : out.joints) {
     std::memset(j.f, 0, sizeof j.f);
+    if (rows == 2) {  // a dual quaternion: its two rows as they are, the real part first
+      std::memcpy(j.f, at, joint_bytes);
+      at += joint_bytes;
+      continue;
+    }
     for (int r = 0; r < rows; ++r) {
       for (int c = 0; c < 4; ++c, at += sizeof(float)) std::memcpy(&j.f[rows * c + r], at, sizeof(float));
     }
@@ -137,8 +144,16 @@ void LoadCpuPalette(std::span<const std::uint8_t> packed_rows, int rows, CpuPale
 CpuKernelFn FindCpuKernel(const CpuKernelKey& key) {
   if (key.influences < 1 || key.influences > kCpuMaxInfluences)
     throw Error("cpu kernel: " + std::to_string(key.influences) + " influences (expected 1..8)");
-  if (key.palette_rows != 3 && key.palette_rows != 4)
-    throw Error("cpu kernel: " + std::to_string(key.palette_rows) + " palette rows (expected 3 or 4)");
+  if (key.palette_rows < 2 || key.palette_rows > 4)
+    throw Error("cpu kernel: " + std::to_string(key.palette_rows) + " palette rows (expected 4, 3 or 2)");
+  if (key.dual_quaternion && key.point_blend)
+    throw Error("cpu kernel: dual-quaternion and point blending together (the key asks for both)");
+  if (key.dual_quaternion && key.palette_rows != 2)
+    throw Error("cpu kernel: dual-quaternion blending reads 2 palette rows a joint (a unit dual quaternion), not " +
+                std::to_string(key.palette_rows));
+  if (!key.dual_quaternion && key.palette_rows == 2)
+    throw Error("cpu kernel: 2 palette rows (a unit dual quaternion) are read by dual-quaternion blending only, not " +
+                std::string(key.point_blend ? "point" : "matrix") + " blending");
   return Table()[cpu_detail::SlotOf(key)];
 }
 

@@ -12,7 +12,11 @@
 //   are decoded as the GPU kernels decode them (unorm: raw / 65535, raw / 255).
 // - Palette rows 4 (mat4: blend 16 floats in one 16-float vector) or 3
 //   (mat3x4: blend 12 floats, an 8- and a 4-float vector), from the packer's
-//   float4 rows (PackPalette) reordered per frame into CpuPalette.
+//   float4 rows (PackPalette) reordered per frame into CpuPalette; or 2 (a
+//   unit dual quaternion a joint, dual-quaternion skinning only: blend 8
+//   floats, each joint's on the side of the first influence's, normalise,
+//   and take the blend's rigid map as the blended matrix, as the GPU
+//   templates' BLEND 2 does).
 // - Streaming (non-temporal) stores: outputs written 4 vertices at a time
 //   with 16-byte MOVNTPS, which skip the read-for-ownership of the output
 //   lines (a plain store reads each output line before writing it: 1.25x the
@@ -50,20 +54,26 @@ enum class CpuIndex { kU32, kU16, kU8 };                // element bytes 4, 2, 1
 enum class CpuWeight { kF32, kUnorm16, kUnorm8 };       // element bytes 4, 2, 1
 inline constexpr int kCpuMaxInfluences = 8;
 
-// Which specialisation: B, formats, palette rows.
+// Which specialisation: B, formats, palette rows, blend. The table holds
+// linear blending (matrix or point) with palette rows 4 and 3, and
+// dual-quaternion blending with palette rows 2 only.
 struct CpuKernelKey {
   int influences = 4;  // 1..8
   CpuIndex index = CpuIndex::kU16;
   CpuWeight weight = CpuWeight::kF32;
-  int palette_rows = 4;  // 4: mat4, 3: mat3x4
+  int palette_rows = 4;  // 4: mat4, 3: mat3x4, 2: a unit dual quaternion (dual_quaternion only)
   bool point_blend = false;  // false: blend the matrices, then transform; true: transform per bone, blend points
+  // Dual-quaternion skinning (palette_rows 2, point_blend false): a result of
+  // its own, not another order of the linear blend's work.
+  bool dual_quaternion = false;
 };
-// "b4.u16.f32.mat4.matrix"
+// "b4.u16.f32.mat4.matrix", "b4.u16.f32.mat3x4.point", "b4.u16.f32.dualquat.dq"
 std::string CpuKernelName(const CpuKernelKey& key);
 
 // The palette in the kernels' form: per joint one 64-byte-aligned block of 16
 // floats, column-major (mat4: 4 columns of 4; mat3x4: 4 columns of 3, packed
-// in the first 12 floats).
+// in the first 12 floats); a dual quaternion as its two rows, the real part
+// (x, y, z, w) then the dual part, in the first 8 floats.
 struct alignas(64) CpuJoint {
   float f[16];
 };
@@ -71,7 +81,7 @@ struct CpuPalette {
   int rows = 4;
   std::vector<CpuJoint> joints;
 };
-// From PackPalette's bytes: float4 rows, `rows` (3 or 4) per joint, joint
+// From PackPalette's bytes: float4 rows, `rows` (4, 3 or 2) per joint, joint
 // after joint. Throws Error when the size is not a multiple of a joint's rows.
 void LoadCpuPalette(std::span<const std::uint8_t> packed_rows, int rows, CpuPalette& out);
 
@@ -106,7 +116,8 @@ struct CpuStreams {
 using CpuKernelFn = void (*)(const CpuStreams& s, const CpuPalette& palette, std::size_t begin, std::size_t end);
 
 // The kernel for `key` on this CPU; throws Error("cpu kernel: ...") for a key
-// outside the table (B outside 1..8, rows not 3 or 4).
+// outside the table (B outside 1..8, rows not 4, 3 or 2, rows 2 without
+// dual_quaternion or dual_quaternion with other rows or with point_blend).
 CpuKernelFn FindCpuKernel(const CpuKernelKey& key);
 // The instruction set of the tables FindCpuKernel returns: "avx512", "avx2" or
 // "baseline", the fastest this CPU runs of those the build holds
@@ -115,7 +126,8 @@ CpuKernelFn FindCpuKernel(const CpuKernelKey& key);
 const char* CpuKernelIsa();
 // The tables this build holds, the fastest first (SKINTUNE_CPU_ISAS).
 std::vector<std::string> CpuKernelIsasBuilt();
-// Every key of the table, in table order (B, index, weight, rows, blend): for tests.
+// Every key of the table, in table order (B, index, weight, then rows and
+// blend: mat4 matrix, mat4 point, mat3x4 matrix, mat3x4 point, dualquat dq): for tests.
 std::vector<CpuKernelKey> AllCpuKernelKeys();
 
 // Threads and chunk size of one frame.

@@ -31,6 +31,17 @@ void CheckShape(const Variant& v, const ProblemShape& shape, std::vector<Violati
   if (SkinsTangents(v) && !shape.has_tangents) {
     out.push_back({Constraint::kTangentsMissing, "tangents requested but the mesh has none"});
   }
+  if ((v.blend == Blend::kDualQuaternion) != (v.palette == PaletteFormat::kDualQuaternion)) {
+    out.push_back({Constraint::kBlendPalette, v.blend == Blend::kDualQuaternion
+                                                  ? "blend dq reads the dualquat palette (2 rows a joint), not " +
+                                                        std::string(Name(v.palette))
+                                                  : "the dualquat palette is read by blend dq only"});
+  }
+  if (v.blend == Blend::kDualQuaternion && !shape.rigid_joints) {
+    out.push_back({Constraint::kJointsNotRigid,
+                   "blend dq: the mesh's palettes scale, shear or mirror; dual quaternions hold rotations and "
+                   "translations only (use matrix blending, or a rigid animation)"});
+  }
   if (SkinsTangents(v) && v.position != PositionFormat::kFloat4) {
     out.push_back({Constraint::kTangentsFormat,
                    "tangents need the float4 position format (tangents are float4, and every output has one stride)"});
@@ -149,6 +160,8 @@ const char* Name(Constraint c) {
     case Constraint::kTangentsMissing: return "tangents_missing";
     case Constraint::kTangentsFormat: return "tangents_format";
     case Constraint::kInstanceCount: return "instance_count";
+    case Constraint::kBlendPalette: return "blend_palette";
+    case Constraint::kJointsNotRigid: return "joints_not_rigid";
   }
   return "unknown";
 }

@@ -33,6 +33,8 @@ struct ProblemShape {
   int instances = 1;          // K instances skinned per launch, each with its own palette (docs/VARIANTS.md
                               // "Instancing"): constant and image storage hold all K palettes
   bool has_tangents = false;  // the mesh has tangents (then also normals)
+  bool rigid_joints = false;  // every palette it is skinned with rotates and translates only
+                              // (PackPalette's dualquat format holds it): dual quaternions may skin it
 };
 
 enum class Constraint {
@@ -53,6 +55,8 @@ enum class Constraint {
   kTangentsMissing,       // tangents requested, mesh has none
   kTangentsFormat,        // tangents with float3 positions (tangents are float4: outputs share one stride)
   kInstanceCount,         // instances below 1, or more than one launch's grid can hold (CUDA, glsl-compute)
+  kBlendPalette,          // blend dq without the dualquat palette, or the dualquat palette without blend dq
+  kJointsNotRigid,        // blend dq on a mesh whose palettes scale, shear or mirror
 };
 
 const char* Name(Constraint);

@@ -87,6 +87,15 @@ Variant Complete(Variant v, std::size_t i, const DeviceLimits& device, const Pro
   return v;
 }
 
+// Whether a row's paired values belong together whatever the device: blend dq
+// with the dualquat palette and only with it, and dq only on a rigid mesh.
+// Pairs no such row holds are not wanted (nor reported uncoverable).
+bool Coherent(const Row& r, const ProblemShape& shape) {
+  const Variant v = FromRow(Lang::kOpenCl, r);
+  const bool dq = v.blend == Blend::kDualQuaternion;
+  return dq == (v.palette == PaletteFormat::kDualQuaternion) && (!dq || shape.rigid_joints);
+}
+
 }  // namespace
 
 CoveringSet BuildCoveringSet(Lang lang, const DeviceLimits& device, const ProblemShape& shape,
@@ -99,7 +108,8 @@ CoveringSet BuildCoveringSet(Lang lang, const DeviceLimits& device, const Proble
   }
   std::set<Pair> wanted;
   for (const Row& r : AllRows())
-    for (const Pair& p : PairsOf(r)) wanted.insert(p);
+    if (Coherent(r, shape))
+      for (const Pair& p : PairsOf(r)) wanted.insert(p);
   std::set<Pair> coverable;
   for (const Row& r : candidates)
     for (const Pair& p : PairsOf(r)) coverable.insert(p);

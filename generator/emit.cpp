@@ -449,6 +449,11 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
       arg["elements_rule"] = "joints x R float4 rows (R = " + std::to_string(rows) + ")" +
                              std::string(source.instanced ? ", times the K instances" : "");
       if (source.joints > 0) arg["elements"] = source.joints * rows;  // float4 rows of one palette
+      arg["rows"] = variant.palette == PaletteFormat::kDualQuaternion
+                        ? "a unit dual quaternion a joint: row 0 the real part (x, y, z, w), the rotation's unit "
+                          "quaternion; row 1 the dual part 0.5 * (t, 0) * real for the translation t; only rigid "
+                          "joints (docs/VARIANTS.md \"Dual quaternions\")"
+                        : "the matrix's rows (row-major); mat4's fourth row is not read";
       if (source.lang == Lang::kOpenCl && variant.storage == PaletteStorage::kImage) {
         arg["image"] = {{"type", "image1d_buffer_t"},
                         {"channel_order", "CL_RGBA"},

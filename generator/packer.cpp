@@ -270,13 +270,31 @@ PackedMesh Pack(const SkinnedMesh& mesh, const Variant& variant) {
   return packed;
 }
 
-std::size_t PaletteMatrixBytes(const Variant& variant) { return variant.palette == PaletteFormat::kMat4 ? 64 : 48; }
+std::size_t PaletteMatrixBytes(const Variant& variant) { return BytesOf(variant.palette); }
 
 std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const Variant& variant) {
   std::vector<std::uint8_t> bytes(palette.size() * PaletteMatrixBytes(variant));
   static_assert(sizeof(glm::mat4) == 16 * sizeof(float), "glm::mat4 is 16 contiguous floats, column after column");
-  if (!palette.empty()) PackPaletteInto(&palette.front()[0][0], palette.size(), variant, bytes.data());
+  if (palette.empty()) return bytes;
+  const std::size_t bad = PackPaletteInto(&palette.front()[0][0], palette.size(), variant, bytes.data());
+  if (bad < palette.size() && variant.palette == PaletteFormat::kDualQuaternion) throw Error(NotRigid(palette[bad], bad));
   return bytes;
+}
+
+std::string NotRigid(const glm::mat4& matrix, std::size_t entry) {
+  float unused[8];
+  double deviation = 0.0;
+  skintune_kernels::DualQuaternionOf(&matrix[0][0], unused, &deviation);
+  std::ostringstream s;
+  s << "palette entry " << entry << " is not a rigid transform: ";
+  if (std::isinf(deviation)) {
+    s << "it is not finite, or it mirrors (det <= 0)";
+  } else {
+    s << "max |(A^T A - I)_ij| of its 3x3 A is " << deviation << ", above " << skintune_kernels::kRigidTolerance
+      << " (it scales or shears)";
+  }
+  s << "; dual-quaternion skinning takes rotations and translations only: use matrix blending for this rig";
+  return s.str();
 }
 
 // Rows of the transposed matrix (the kernels read a row as a float4); the
@@ -286,6 +304,22 @@ std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const 
 // staging, where byte stores cost about a nanosecond each (byte stores made
 // a 64 x 77-joint SetPalette cost 300 us on the H100 machine's host, 2026-11).
 namespace {
+
+// The dual-quaternion palette (skintune_kernels::DualQuaternionOf, 32 bytes a
+// matrix); the first matrix that is not finite or not rigid stops it.
+// `largest`: the largest |element| of the matrices packed (a rotation's are
+// at most 1), the runtime's bound on the outputs as for the matrix rows.
+std::size_t PackDualQuaternions(const float* column_major, std::size_t matrices, std::uint8_t* out, float& largest) {
+  for (std::size_t j = 0; j < matrices; ++j, out += 32) {
+    float dq[8];
+    if (!skintune_kernels::DualQuaternionOf(column_major + 16 * j, dq)) return j;
+    std::memcpy(out, dq, sizeof dq);
+    largest = std::max({largest, 1.0f, std::fabs(column_major[16 * j + 12]), std::fabs(column_major[16 * j + 13]),
+                        std::fabs(column_major[16 * j + 14])});
+  }
+  return matrices;
+}
+
 template <std::size_t kRows>
 std::size_t PackRows(const float* column_major, std::size_t matrices, std::uint8_t* out, float& largest) {
   static_assert(std::endian::native == std::endian::little, "packed buffers are little-endian, as the devices read them");
@@ -436,6 +470,7 @@ std::size_t PackPaletteInto(const float* column_major, std::size_t matrices, con
   float unused = 0.0f;
   float& largest = largest_magnitude ? *largest_magnitude : unused;
   largest = 0.0f;
+  if (variant.palette == PaletteFormat::kDualQuaternion) return PackDualQuaternions(column_major, matrices, out, largest);
 #if defined(SKINTUNE_PACK_AVX512)
   static const bool avx512 = PackIsaAvailable(PackIsa::kAvx512);
   if (isa == PackIsa::kAvx512 && !avx512) throw Error("PackPaletteInto: this CPU has no AVX-512F");

@@ -86,13 +86,19 @@ std::uint32_t SoaSplitSlotStride(std::uint32_t count, const Variant& variant);
 // mesh's largest count, joints beyond the index format, normals missing).
 PackedMesh Pack(const SkinnedMesh& mesh, const Variant& variant);
 
-// Palette rows in the variant's palette format (call per frame).
+// Palette rows in the variant's palette format (call per frame). Throws
+// Error (NotRigid) for a dual-quaternion palette with a joint that scales,
+// shears or mirrors.
 std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const Variant& variant);
+// Why palette entry `entry` cannot be a dual quaternion ("palette entry 3 is
+// not a rigid transform: max |(A^T A - I)_ij| ... ").
+std::string NotRigid(const glm::mat4& matrix, std::size_t entry);
 // PackPalette's bytes of `matrices` column-major 4x4 float matrices (16
 // floats each, as glm::mat4 stores them) written into `out`, which holds
 // matrices x PaletteRowBytes(variant) bytes, in one pass (the runtime packs
 // straight into its page-locked staging). Returns the index of the first
-// matrix with a NaN or infinite element, or `matrices` when every element
+// matrix with a NaN or infinite element (for the dualquat format also one
+// that is not rigid: NotRigid says why), or `matrices` when every element
 // is finite. `largest_magnitude`, where given, receives the largest |element|
 // of them all (meaningful when every element is finite; 0 for no matrices):
 // the runtime's bound on the outputs (runtime/skinner.cpp, the read-back).
@@ -104,7 +110,7 @@ enum class PackIsa { kAuto, kBaseline, kAvx512 };
 bool PackIsaAvailable(PackIsa isa);
 std::size_t PackPaletteInto(const float* column_major, std::size_t matrices, const Variant& variant, std::uint8_t* out,
                             PackIsa isa = PackIsa::kAuto, float* largest_magnitude = nullptr);
-// Bytes of one packed matrix: 64 (mat4) or 48 (mat3x4).
+// Bytes of one packed matrix: 64 (mat4), 48 (mat3x4) or 32 (dualquat).
 std::size_t PaletteMatrixBytes(const Variant& variant);
 
 // Output bytes in packed order (vertex_count x output_stride_bytes) -> one

@@ -1,5 +1,6 @@
 #include "generator/space.h"
 
+#include <algorithm>
 #include <array>
 #include <optional>
 #include <utility>
@@ -147,12 +148,28 @@ std::uint64_t TuningSpace::Size() const {
 TuningSpace SpaceFromJson(const nlohmann::json& in, const std::string& context) {
   if (!in.is_object()) throw Error(context + ": space must be an object of axis -> list of values");
   TuningSpace s = TuningSpace::Full();
+  bool blend_given = false, palette_given = false;
   for (const auto& [name, list] : in.items()) {
     const std::string where = context + ": space." + name;
     if (!list.is_array()) throw Error(where + ": expected a list of values");
     const std::optional<std::size_t> axis = AxisNamed(name);
     if (!axis) throw Error(where + ": unknown axis (expected " + AxisNames() + ")");
     SetList(s, *axis, ReadList(kAxes[*axis], list, where));
+    blend_given = blend_given || *axis == AxisIndex<&Variant::blend>();
+    palette_given = palette_given || *axis == AxisIndex<&Variant::palette>();
+  }
+  // Dual quaternions skin differently from the linear blends (they keep
+  // volume at twisting joints): a user's choice, tuned in a space of its own,
+  // never raced against matrix and point blending. Left out, the blend axis
+  // is the linear two, and the palette axis the formats the blends read.
+  const auto dq = [](Blend b) { return b == Blend::kDualQuaternion; };
+  if (!blend_given) std::erase_if(s.blends, dq);
+  if (std::any_of(s.blends.begin(), s.blends.end(), dq) && !std::all_of(s.blends.begin(), s.blends.end(), dq))
+    throw Error(context + ": space.blend: \"dq\" (dual quaternions) skins differently from \"matrix\" and \"point\" "
+                "(linear blending), so the two are not raced: tune [\"dq\"] in a space of its own");
+  if (!palette_given) {
+    const bool dq_blend = !s.blends.empty() && dq(s.blends.front());
+    std::erase_if(s.palettes, [&](PaletteFormat p) { return (p == PaletteFormat::kDualQuaternion) != dq_blend; });
   }
   s.Validate(context);
   return s;

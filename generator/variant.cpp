@@ -66,7 +66,7 @@ std::optional<std::size_t> MatchToken(std::string_view token, Variant& v) {
 std::size_t BytesOf(PositionFormat f) { return f == PositionFormat::kFloat4 ? 16 : 12; }
 std::size_t BytesOf(IndexFormat f) { return f == IndexFormat::kI32 ? 4 : f == IndexFormat::kU16 ? 2 : 1; }
 std::size_t BytesOf(WeightFormat f) { return f == WeightFormat::kF32 ? 4 : f == WeightFormat::kUnorm16 ? 2 : 1; }
-std::size_t BytesOf(PaletteFormat f) { return f == PaletteFormat::kMat4 ? 64 : 48; }
+std::size_t BytesOf(PaletteFormat f) { return f == PaletteFormat::kMat4 ? 64 : f == PaletteFormat::kMat3x4 ? 48 : 32; }
 
 std::string Variant::Key() const {
   std::string key;

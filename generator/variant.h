@@ -35,9 +35,15 @@ enum class Layout { kAos, kSoa, kSoaSplit };
 enum class PositionFormat { kFloat4, kFloat3 };
 enum class IndexFormat { kI32, kU16, kU8 };
 enum class WeightFormat { kF32, kUnorm16, kUnorm8 };
-enum class PaletteFormat { kMat4, kMat3x4 };
+// kDualQuaternion: a unit dual quaternion a joint (real then dual part, 2
+// float4 rows), read only by Blend::kDualQuaternion.
+enum class PaletteFormat { kMat4, kMat3x4, kDualQuaternion };
 enum class PaletteStorage { kConstant, kLocal, kGlobal, kImage };
-enum class Blend { kMatrix, kPoint };
+// kMatrix and kPoint are linear blend skinning (the same result, two orders
+// of work); kDualQuaternion is dual-quaternion skinning (Kavan et al. 2007),
+// a different result: a user's choice, never raced against the linear two
+// (docs/VARIANTS.md "Dual quaternions").
+enum class Blend { kMatrix, kPoint, kDualQuaternion };
 enum class Assignment { kContiguous, kStrided };
 // What a variant skins beside positions: nothing, normals, or normals and
 // tangents (xyz skinned, w the handedness: docs/VARIANTS.md "Normals and tangents").

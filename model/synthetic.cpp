@@ -43,7 +43,7 @@ constexpr double kWeightEps = 1e-3;        // metres, in 1 / (d + eps)^2
 constexpr std::size_t kCandidates = 128;
 constexpr int kMaxBones = 65535;
 constexpr const char* kKeyHint =
-    "expected <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-normals|-tangents], e.g. 100k-b2";
+    "expected <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-rigid][-normals|-tangents], e.g. 100k-b2";
 
 // ---------------------------------------------------------------- PRNG
 
@@ -434,7 +434,7 @@ AnimationClip BuildAnimation(const DatasetSpec& spec, const Skeleton& skeleton) 
   // upper 3x3 leaves its surface and the normal matrix does not. A stream of
   // its own, so the rotations are those of the rig without it.
   Rng scales(spec.seed, 5);
-  for (std::size_t i = 0; i < skeleton.nodes.size(); ++i) {
+  for (std::size_t i = 0; !spec.rigid && i < skeleton.nodes.size(); ++i) {
     dvec3 amplitude, hz, phase;
     for (int a = 0; a < 3; ++a) {
       amplitude[a] = scales.Range(0.25, 1.0) * kScaleAmplitude;
@@ -534,6 +534,8 @@ void ParseOption(const std::string& key, std::string_view token, DatasetSpec& sp
     spec.seed = ParseField(key, token, "seed", std::numeric_limits<std::uint64_t>::max(), "seed");
   } else if (token == "random") {
     spec.random_bones = true;
+  } else if (token == "rigid") {
+    spec.rigid = true;
   } else if (token == "normals") {
     spec.normals = true;
   } else if (token == "tangents") {
@@ -567,6 +569,7 @@ std::string DatasetSpec::Key() const {
   if (bones != 77) key += "-bones" + std::to_string(bones);
   if (random_bones) key += "-random";
   if (seed != 1) key += "-seed" + std::to_string(seed);
+  if (rigid) key += "-rigid";
   if (tangents) key += "-tangents";
   else if (normals) key += "-normals";
   return key;

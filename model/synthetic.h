@@ -14,10 +14,12 @@
 //
 // The animation is one clip of `frames` keys at 30 fps: every joint rotates
 // smoothly (sinusoids of seeded amplitude and phase, up to ~35 degrees), so
-// palettes differ every frame and are rigid (rotation + translation).
+// palettes differ every frame. Every joint also scales non-uniformly, so
+// the palettes are general affine maps; -rigid leaves the scaling out
+// (rotations and translations only: what dual-quaternion skinning takes).
 //
 // A dataset is named by a compact key, parsed by ParseDatasetKey:
-//   <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-normals|-tangents]
+//   <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-rigid][-normals|-tangents]
 // where <vertices> is a count with an optional k/m suffix (1000 / 1000000),
 // e.g. "100k-b2", "1600k-b4-random", "5000-b8-bones12-seed3-normals".
 // -tangents gives normals and tangents: each vertex's tangent runs along its
@@ -40,6 +42,7 @@ struct DatasetSpec {
   std::uint64_t seed = 1;
   bool normals = false;
   bool tangents = false;      // also tangents (then normals too)
+  bool rigid = false;         // the animation rotates and translates only (no scale channels)
   int frames = 60;            // keys of the generated animation clip (30 fps)
 
   // Throws Error naming the bad field (vertices 0 or above kMaxVertexCount,

@@ -63,12 +63,14 @@ GoldResult SkinGoldDualQuaternion(const SkinnedMesh& mesh, std::span<const glm::
   return GoldOfMaps(mesh, palette.size(), with_normals, with_tangents, "SkinGoldDualQuaternion", [&](std::size_t v) {
     glm::ddualquat blended(glm::dquat(0.0, 0.0, 0.0, 0.0), glm::dquat(0.0, 0.0, 0.0, 0.0));
     glm::dmat3 rest(0.0);
-    const glm::dquat* pivot = nullptr;  // the first influence's rotation: antipodality against it
+    // Antipodality against the first slot's rotation, whatever its weight
+    // (the kernels' rule, docs/VARIANTS.md "Dual quaternions"; exporters put
+    // the largest weight first).
+    const glm::dquat* pivot = &joints[mesh.joints[v * b]].rigid.real;
     for (int i = 0; i < b; ++i) {
       const double w = mesh.weights[v * b + i];
       if (w == 0.0) continue;
       const JointParts& joint = joints[mesh.joints[v * b + i]];
-      if (!pivot) pivot = &joint.rigid.real;
       const double sign = glm::dot(*pivot, joint.rigid.real) < 0.0 ? -1.0 : 1.0;
       blended.real = blended.real + (sign * w) * joint.rigid.real;
       blended.dual = blended.dual + (sign * w) * joint.rigid.dual;

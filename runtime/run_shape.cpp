@@ -33,7 +33,7 @@ RunShape CheckRunShape(const PackedMesh& mesh, std::span<const KernelSource> ker
     fail(std::to_string(instances) + " instances of " + std::to_string(mesh.vertex_count) +
          " vertices exceed 32-bit output indices");
   shape.instances = instances;
-  const std::size_t rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
+  const std::size_t rows = BytesOf(variant.palette) / 16;
   shape.palette_bytes = mesh.palette_joints * rows * 16;
   if (palettes_bytes != k * shape.palette_bytes)
     fail("palette has " + std::to_string(palettes_bytes) + " bytes, expected " +

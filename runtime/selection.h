@@ -53,6 +53,9 @@ struct SelectionRequest {
   int instances = 1;             // K (an instances scene), the nearest first among the shape's entries; 0: unknown
   int meshes = 1;                // a batch's mesh count, likewise
   Normals normals = Normals::kNone;  // what the variant must skin beside positions
+  // Dual-quaternion skinning (blend dq) or linear (matrix, point): entries of
+  // the other kind never serve, as they compute something else.
+  bool dual_quaternions = false;
   double max_error = kDefaultBudget;     // the error budget, relative to the bounding-box diagonal
   std::string max_error_name = "max_error";  // how the caller names it in reasons ("SkinnerOptions::max_error")
   std::vector<WeightFormat> exact_formats;  // formats that hold the caller's weights exactly (HoldsWeightsExactly)
@@ -76,7 +79,9 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
 // blend, one vertex per item, work-group 64 (32 on a device whose limit is
 // below 64; wg0 for glsl-vertex). Every constraint of generator/constraints.h
 // holds for it on every device except the vertex shader's storage blocks.
-Variant GenericDefault(Lang lang, int influences, Normals normals, const DeviceLimits& limits);
+// `dual_quaternions`: its twin with the dualquat palette and blend dq.
+Variant GenericDefault(Lang lang, int influences, Normals normals, const DeviceLimits& limits,
+                       bool dual_quaternions = false);
 
 // A backend's languages, preferred first (its entry in runtime/backend_table.h).
 std::vector<Lang> LanguagesOf(Backend backend);

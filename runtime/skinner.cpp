@@ -95,7 +95,8 @@ std::string Joined(const std::vector<Violation>& violations) {
   return out;
 }
 
-Chosen Forced(const std::string& call, const std::string& key, const DeviceState& device, const ProblemShape& shape) {
+Chosen Forced(const std::string& call, const std::string& key, const DeviceState& device, const ProblemShape& shape,
+              bool dual_quaternions) {
   Variant v;
   try {
     v = ParseVariantKey(key);
@@ -107,6 +108,11 @@ Chosen Forced(const std::string& call, const std::string& key, const DeviceState
   if (std::find(device.langs.begin(), device.langs.end(), v.lang) == device.langs.end())
     FailWith(ErrorCode::kInvalidArgument,
              where + "language " + Name(v.lang) + " does not run on " + BackendName(device.info.backend) + " devices");
+  if ((v.blend == Blend::kDualQuaternion) != dual_quaternions)
+    FailWith(ErrorCode::kInvalidArgument,
+             where + (dual_quaternions ? "SkinnerOptions::dual_quaternions asks for blend dq, and this variant blends "
+                                         "linearly"
+                                       : "blend dq skins with dual quaternions: set SkinnerOptions::dual_quaternions"));
   if (v.mixed == MixedCounts::kBucketed)
     FailWith(ErrorCode::kInvalidArgument,
              where + "bucketed variants reorder the vertices, and a Skinner keeps the mesh's order on the device; "
@@ -215,9 +221,10 @@ MeshBatch SceneOf(const std::string& call, const MeshView* views, std::size_t co
 Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& entries, DeviceState& state,
                      const SkinnedMesh& mesh, SceneShape scene_shape, std::size_t count,
                      const SkinnerOptions& options) {
+  // Rigid joints assumed: SetPalette refuses each matrix that is not (dual quaternions only).
   const ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
-                           options.instances, options.tangents};
-  if (!options.variant.empty()) return Forced(call, options.variant, state, shape);
+                           options.instances, options.tangents, true};
+  if (!options.variant.empty()) return Forced(call, options.variant, state, shape, options.dual_quaternions);
   SelectionRequest request;
   request.device = state.info;
   request.langs = state.langs;
@@ -227,6 +234,7 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   request.instances = options.instances;
   request.meshes = static_cast<int>(count);
   request.normals = NormalsFor(options.normals, options.tangents);
+  request.dual_quaternions = options.dual_quaternions;
   request.max_error = options.max_error;
   request.max_error_name = "SkinnerOptions::max_error";
   // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.
@@ -350,6 +358,9 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     const std::string call = "Skinner::CreateAnimated";
     const SkinnedAsset* asset = ModelAccess::Asset(model);
     if (!asset) FailWith(ErrorCode::kInvalidState, call + ": the Model is empty (moved from, or default-made)");
+    if (options.dual_quaternions)
+      FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::dual_quaternions: the palette kernel writes "
+                                                   "matrices; animation on the device skins with linear blending only");
     PackedAnimation animation;
     try {
       animation = PackAnimation(*asset);
@@ -432,15 +443,21 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
     const std::size_t bad =
         PackPaletteOnPool(matrices, joints, im.variant, staging.data(), &magnitude, im.palette_threads);
     const Clock::time_point t2 = times ? Clock::now() : Clock::time_point{};
+    const auto matrix_name = [&](std::size_t j) {
+      return "Skinner::SetPalette: matrix " + std::to_string(j) + " (instance " +
+             std::to_string(j / static_cast<std::size_t>(im.joint_count)) + ", joint " +
+             std::to_string(j % static_cast<std::size_t>(im.joint_count)) + ")";
+    };
     for (std::size_t i = bad * 16; i < joints * 16 && i < (bad + 1) * 16; ++i) {
       if (std::isfinite(matrices[i])) continue;
-      const std::size_t j = i / 16;
-      FailWith(ErrorCode::kInvalidArgument,
-               "Skinner::SetPalette: matrix " + std::to_string(j) + " (instance " +
-                   std::to_string(j / static_cast<std::size_t>(im.joint_count)) + ", joint " +
-                   std::to_string(j % static_cast<std::size_t>(im.joint_count)) + ") element [" +
-                   std::to_string(i % 16 / 4) + "][" + std::to_string(i % 4) + "] is " + std::to_string(matrices[i]) +
-                   ": a palette entry must be finite");
+      FailWith(ErrorCode::kInvalidArgument, matrix_name(i / 16) + " element [" + std::to_string(i % 16 / 4) + "][" +
+                                                std::to_string(i % 4) + "] is " + std::to_string(matrices[i]) +
+                                                ": a palette entry must be finite");
+    }
+    if (bad < joints) {  // finite, so not rigid: a dual-quaternion palette
+      glm::mat4 m;
+      std::memcpy(&m[0][0], matrices + bad * 16, sizeof m);
+      FailWith(ErrorCode::kInvalidArgument, matrix_name(bad) + ": " + NotRigid(m, bad));
     }
     im.backend->UploadPalette();
     if (times) {

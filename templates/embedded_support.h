@@ -131,7 +131,9 @@ enum class Layout { kAos, kSoa, kSoaSplit };
 enum class PositionFormat { kFloat4, kFloat3 };   // also the format of normals and outputs
 enum class IndexFormat { kI32, kU16, kU8 };        // joint index: 4, 2, 1 bytes
 enum class WeightFormat { kF32, kUnorm16, kUnorm8 };
-enum class PaletteFormat { kMat4, kMat3x4 };       // R = 4 or 3 float4 rows per joint
+enum class PaletteFormat { kMat4, kMat3x4, kDualquat };  // R = 4, 3 or 2 float4 rows per joint
+                                                                // (kDualquat: the kernel blends
+                                                                // unit dual quaternions, not matrices)
 enum class PaletteStorage { kGlobal, kConstant, kLocal, kImage };
 
 // One kernel argument, as the sidecar JSON describes it.
@@ -697,6 +699,67 @@ inline bool PackBatch(const Kernel& k, const BatchMesh* meshes, std::size_t mesh
   return true;
 }
 
+// Dual-quaternion kernels (PaletteFormat::kDualquat) take rigid joints
+// only: a palette matrix's upper 3x3 A must be a rotation, max |(A^T A - I)_ij|
+// at most kRigidTolerance and det A > 0 (skintune's docs/VARIANTS.md "Dual
+// quaternions"). A scaled, sheared or mirrored joint is refused, never
+// rounded to its rotation.
+inline constexpr double kRigidTolerance = 2e-5;
+
+// A palette matrix (16 floats, column-major: element (row r, column c) at
+// c*4+r) as the unit dual quaternion the kernels read, 8 floats into `out`:
+// the real part q = (x, y, z, w), the rotation of A (Shepperd's method in
+// double, normalised), then the dual part 0.5 * (t, 0) * q for the
+// translation t = column 3: (0.5 * (q.w t + t x q.xyz), -0.5 * t . q.xyz).
+// Row 3 is not read, as the matrix kernels do not read it. Returns false
+// (and writes nothing) when the matrix is not finite or not rigid;
+// `deviation`, where given, receives max |(A^T A - I)_ij| (infinity when not
+// finite, and also when det A <= 0).
+inline bool DualQuaternionOf(const float* m, float out[8], double* deviation = nullptr) {
+  double a[3][3];  // a[r][c]
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) a[r][c] = static_cast<double>(m[c * 4 + r]);
+  const double t[3] = {static_cast<double>(m[12]), static_cast<double>(m[13]), static_cast<double>(m[14])};
+  bool finite = std::isfinite(t[0]) && std::isfinite(t[1]) && std::isfinite(t[2]);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) finite = finite && std::isfinite(a[r][c]);
+  double worst = finite ? 0.0 : HUGE_VAL;
+  for (int i = 0; finite && i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      const double g = a[0][i] * a[0][j] + a[1][i] * a[1][j] + a[2][i] * a[2][j];
+      worst = std::fmax(worst, std::fabs(g - (i == j ? 1.0 : 0.0)));
+    }
+  const double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
+                     a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+                     a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+  if (finite && !(det > 0.0)) worst = HUGE_VAL;
+  if (deviation != nullptr) *deviation = worst;
+  if (!(worst <= kRigidTolerance)) return false;
+  double q[4];  // x, y, z, w
+  const double trace = a[0][0] + a[1][1] + a[2][2];
+  if (trace > 0.0) {
+    const double s = std::sqrt(trace + 1.0) * 2.0;
+    q[3] = 0.25 * s, q[0] = (a[2][1] - a[1][2]) / s, q[1] = (a[0][2] - a[2][0]) / s, q[2] = (a[1][0] - a[0][1]) / s;
+  } else if (a[0][0] > a[1][1] && a[0][0] > a[2][2]) {
+    const double s = std::sqrt(1.0 + a[0][0] - a[1][1] - a[2][2]) * 2.0;
+    q[3] = (a[2][1] - a[1][2]) / s, q[0] = 0.25 * s, q[1] = (a[0][1] + a[1][0]) / s, q[2] = (a[0][2] + a[2][0]) / s;
+  } else if (a[1][1] > a[2][2]) {
+    const double s = std::sqrt(1.0 + a[1][1] - a[0][0] - a[2][2]) * 2.0;
+    q[3] = (a[0][2] - a[2][0]) / s, q[0] = (a[0][1] + a[1][0]) / s, q[1] = 0.25 * s, q[2] = (a[1][2] + a[2][1]) / s;
+  } else {
+    const double s = std::sqrt(1.0 + a[2][2] - a[0][0] - a[1][1]) * 2.0;
+    q[3] = (a[1][0] - a[0][1]) / s, q[0] = (a[0][2] + a[2][0]) / s, q[1] = (a[1][2] + a[2][1]) / s, q[2] = 0.25 * s;
+  }
+  const double length = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  for (double& x : q) x /= length;
+  const double d[4] = {0.5 * (q[3] * t[0] + t[1] * q[2] - t[2] * q[1]),
+                       0.5 * (q[3] * t[1] + t[2] * q[0] - t[0] * q[2]),
+                       0.5 * (q[3] * t[2] + t[0] * q[1] - t[1] * q[0]),
+                       -0.5 * (t[0] * q[0] + t[1] * q[1] + t[2] * q[2])};
+  for (int i = 0; i < 4; ++i) out[i] = static_cast<float>(q[i]), out[4 + i] = static_cast<float>(d[i]);
+  return true;
+}
+
 namespace detail {
 
 // One palette's rows at `at`: `joint_count` column-major matrices as `rows`
@@ -731,6 +794,20 @@ inline std::vector<float> PackPalette(const Kernel& k, const float* matrices, in
   if (joint_count < 0 || joint_count > k.joints || (matrices == nullptr && joint_count > 0) || instances < 1 ||
       (instances > 1 && !k.instanced) || (k.max_instances > 0 && instances > k.max_instances))
     return {};
+  if (k.palette == PaletteFormat::kDualquat) {
+    // 2 rows a joint (DualQuaternionOf); empty when a matrix is not rigid.
+    std::vector<float> out(static_cast<std::size_t>(instances) * static_cast<std::size_t>(k.joints) * 8, 0.0f);
+    for (std::size_t i = 0; i < static_cast<std::size_t>(instances); ++i)
+      for (std::size_t j = 0; j < static_cast<std::size_t>(k.joints); ++j) {
+        float* at = out.data() + (i * static_cast<std::size_t>(k.joints) + j) * 8;
+        if (j >= static_cast<std::size_t>(joint_count)) {
+          at[3] = 1.0f;  // the identity: real part (0, 0, 0, 1), dual part 0
+        } else if (!DualQuaternionOf(matrices + (i * static_cast<std::size_t>(joint_count) + j) * 16, at)) {
+          return {};
+        }
+      }
+    return out;
+  }
   const std::size_t rows = k.palette == PaletteFormat::kMat4 ? 4 : 3;
   const std::size_t per_instance = static_cast<std::size_t>(joint_count) * 16;
   std::vector<float> out(static_cast<std::size_t>(instances) * static_cast<std::size_t>(k.joints) * rows * 4, 0.0f);

@@ -88,13 +88,13 @@ typedef unsigned long long u64;
 // OpenCL built-ins the OpenCL template uses. Each is defined only where it is
 // used (NVRTC warns about unreferenced static functions).
 
-#if BLEND_POINT || NORMALS
+#if BLEND == 1 || NORMALS
 DEVICE float3 scale3(const float s, const float3 a) { return make_float3(s * a.x, s * a.y, s * a.z); }
 #endif
-#if BLEND_POINT
+#if BLEND == 1
 DEVICE float3 add3(const float3 a, const float3 b) { return make_float3(a.x + b.x, a.y + b.y, a.z + b.z); }
 #endif
-// The blended matrix (BLEND_POINT: for normals and tangents only).
+// The blended matrix (BLEND 1: for normals and tangents only; BLEND 2: the dual quaternion).
 DEVICE float4 scale4(const float s, const float4 a) { return make_float4(s * a.x, s * a.y, s * a.z, s * a.w); }
 // acc + s * a
 DEVICE float4 madd4(const float s, const float4 a, const float4 acc) {
@@ -253,11 +253,14 @@ DEVICE float3 transform_point(const float4 r0, const float4 r1, const float4 r2,
                      r2.x * p.x + r2.y * p.y + r2.z * p.z + r2.w);
 }
 
-#if NORMALS
-// a x b and a . b of the rows' xyz.
+#if NORMALS || BLEND == 2
+// a x b of the rows' xyz.
 DEVICE float3 cross3(const float4 a, const float4 b) {
   return make_float3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
+#endif
+#if NORMALS
+// a . b.
 DEVICE float dot3(const float3 a, const float3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 
 // The normal matrix's product (reference/skinning.h NormalMatrix): sign(det A)
@@ -286,12 +289,43 @@ DEVICE float4 transform_tangent(const float4 a0, const float4 a1, const float4 a
 }
 #endif
 
+#if BLEND == 2
+DEVICE float dot4(const float4 a, const float4 b) { return a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w; }
+// The rigid map of a unit dual quaternion (skin.cl's dual_quaternion_rows).
+DEVICE void dual_quaternion_rows(const float4 r, const float4 d, float4* m0, float4* m1, float4* m2) {
+  const float3 c = cross3(r, d);
+  const float tx = 2.0f * (r.w * d.x - d.w * r.x + c.x), ty = 2.0f * (r.w * d.y - d.w * r.y + c.y),
+              tz = 2.0f * (r.w * d.z - d.w * r.z + c.z);
+  const float x = r.x, y = r.y, z = r.z, w = r.w;
+  *m0 = make_float4(1.0f - 2.0f * (y * y + z * z), 2.0f * (x * y - w * z), 2.0f * (x * z + w * y), tx);
+  *m1 = make_float4(2.0f * (x * y + w * z), 1.0f - 2.0f * (x * x + z * z), 2.0f * (y * z - w * x), ty);
+  *m2 = make_float4(2.0f * (x * z - w * y), 2.0f * (y * z + w * x), 1.0f - 2.0f * (x * x + y * y), tz);
+}
+#endif
+
 // Skins one vertex's position given its joints and weights, and gives the
 // blended matrix's rows (*a0..*a2) that normals and tangents are turned by
-// (dead code without NORMALS).
+// (dead code without NORMALS). BLEND 2: the blended dual quaternion's rigid
+// map, each influence on the side of the first's (skin.cl's blend).
 DEVICE void blend(PALETTE_REF_PARAM, const u32 joint[INFLUENCES], const float weight[INFLUENCES],
                   const float3 position, float3* out_position, float4* a0, float4* a1, float4* a2) {
-#if BLEND_POINT
+#if BLEND == 2
+  const u32 k0 = joint[0] * PALETTE_ROWS;
+  const float4 q0 = ROW(pal, k0);
+  float4 r = scale4(weight[0], q0), d = scale4(weight[0], ROW(pal, k0 + 1));
+#pragma unroll
+  for (u32 i = 1; i < INFLUENCES; ++i) {
+    const u32 k = joint[i] * PALETTE_ROWS;
+    const float4 q = ROW(pal, k);
+    const float w = dot4(q0, q) < 0.0f ? -weight[i] : weight[i];
+    r = madd4(w, q, r);
+    d = madd4(w, ROW(pal, k + 1), d);
+  }
+  const float inverse_length = rsqrtf(dot4(r, r));
+  float4 m0, m1, m2;
+  dual_quaternion_rows(scale4(inverse_length, r), scale4(inverse_length, d), &m0, &m1, &m2);
+  *out_position = transform_point(m0, m1, m2, position);
+#elif BLEND == 1
   u32 k = joint[0] * PALETTE_ROWS;
   float4 r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
   float3 p = scale3(weight[0], transform_point(r0, r1, r2, position));

@@ -286,12 +286,38 @@ vec4 transform_tangent(vec4 a0, vec4 a1, vec4 a2, vec4 t) {
   return vec4(dot(a0.xyz, t.xyz), dot(a1.xyz, t.xyz), dot(a2.xyz, t.xyz), det < 0.0 ? -t.w : t.w);
 }
 
+#if BLEND == 2
+// The rigid map of a unit dual quaternion (skin.cl's dual_quaternion_rows).
+void dual_quaternion_rows(vec4 r, vec4 d, out vec4 m0, out vec4 m1, out vec4 m2) {
+  vec3 t = 2.0 * (r.w * d.xyz - d.w * r.xyz + cross(r.xyz, d.xyz));
+  float x = r.x, y = r.y, z = r.z, w = r.w;
+  m0 = vec4(1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y), t.x);
+  m1 = vec4(2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x), t.y);
+  m2 = vec4(2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y), t.z);
+}
+#endif
+
 // Skins one vertex's position given its joints and weights, and gives the
 // blended matrix's rows (a0..a2) that normals and tangents are turned by
-// (dead code without NORMALS).
+// (dead code without NORMALS). BLEND 2: the blended dual quaternion's rigid
+// map, each influence on the side of the first's (skin.cl's blend).
 void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, out vec3 out_p,
            out vec4 a0, out vec4 a1, out vec4 a2) {
-#if BLEND_POINT
+#if BLEND == 2
+  uint k0 = joint[0] * uint(PALETTE_ROWS);
+  vec4 q0 = ROW(k0);
+  vec4 r = weight[0] * q0, d = weight[0] * ROW(k0 + 1u);
+  for (uint i = 1u; i < uint(INFLUENCES); ++i) {
+    uint k = joint[i] * uint(PALETTE_ROWS);
+    vec4 q = ROW(k);
+    float w = dot(q0, q) < 0.0 ? -weight[i] : weight[i];
+    r += w * q;
+    d += w * ROW(k + 1u);
+  }
+  float inverse_length = inversesqrt(dot(r, r));
+  dual_quaternion_rows(inverse_length * r, inverse_length * d, a0, a1, a2);
+  out_p = transform_point(a0, a1, a2, position);
+#elif BLEND == 1
   uint k = joint[0] * uint(PALETTE_ROWS);
   vec4 r0 = ROW(k), r1 = ROW(k + 1u), r2 = ROW(k + 2u);
   vec3 p = weight[0] * transform_point(r0, r1, r2, position);

@@ -26,7 +26,7 @@
 #ifndef WEIGHT_FORMAT         // 0 f32, 1 unorm16, 2 unorm8
 #define WEIGHT_FORMAT 0
 #endif
-#ifndef PALETTE_ROWS          // float4 rows per joint: 4 mat4, 3 mat3x4
+#ifndef PALETTE_ROWS          // float4 rows per joint: 4 mat4, 3 mat3x4, 2 a dual quaternion (BLEND 2)
 #define PALETTE_ROWS 3
 #endif
 #ifndef STORAGE               // palette in 0 constant memory, 1 a local copy, 2 global memory, 3 an image
@@ -35,8 +35,8 @@
 #ifndef JOINTS                // palette entries (sizes the local copy and CUDA's / GLSL's constant palette)
 #define JOINTS 77
 #endif
-#ifndef BLEND_POINT           // 0: blend matrices then transform; 1: transform per bone, blend points
-#define BLEND_POINT 0
+#ifndef BLEND                 // 0: blend matrices then transform; 1: transform per bone, blend points;
+#define BLEND 0               // 2: blend unit dual quaternions (PALETTE_ROWS 2: real, dual part)
 #endif
 #ifndef VERTICES_PER_ITEM     // N: 1, 2, 4, 8
 #define VERTICES_PER_ITEM 1

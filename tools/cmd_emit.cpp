@@ -79,7 +79,8 @@ void CreateOutputFolder(const std::string& out) {
 
 int RunEmit(const EmitArgs& o) {
   const Variant variant = ParseVariantKey(o.variant);
-  const ProblemShape shape{o.joints, 1, true, std::max(o.instances, 1), true};
+  // Any palette the kernel may be given: rigid ones too (PackPalette refuses a dq palette that is not).
+  const ProblemShape shape{o.joints, 1, true, std::max(o.instances, 1), true, true};
   const std::vector<Violation> broken = CheckVariant(variant, Unlimited(), shape);
   if (!broken.empty()) {
     throw Error("variant '" + variant.Key() + "' is invalid: " + broken.front().message + " (constraint " +
@@ -228,7 +229,7 @@ std::optional<EmbeddedKernel> EmbedWinner(const WinnersEntry& e, int joints) {
   if (palette > kMaxPaletteJoints) {
     broken = "more than " + std::to_string(kMaxPaletteJoints) + " palette entries";
   } else if (const std::vector<Violation> v =
-                 CheckVariant(variant, Unlimited(), ProblemShape{static_cast<int>(palette), 1, true, instances, true});
+                 CheckVariant(variant, Unlimited(), ProblemShape{static_cast<int>(palette), 1, true, instances, true, true});
              !v.empty()) {
     broken = v.front().message + " (constraint " + Name(v.front().constraint) + ")";
   }

@@ -1,5 +1,6 @@
 // skintune variants: the kernel variant space, its size, and what a device
 // and mesh allow of it (each invalid point counted under the constraint it breaks).
+#include <algorithm>
 #include <fstream>
 #include <iostream>
 
@@ -10,7 +11,9 @@
 #include "base/error.h"
 #include "model/scene.h"
 #include "runtime/backends/opencl/opencl_devices.h"
+#include "templates/embedded_support.h"  // DualQuaternionOf
 #include "tools/commands.h"
+#include "tuner/datasets.h"  // PalettesRigid
 #include "tuner/tune.h"
 
 namespace skintune::internal::tools {
@@ -47,8 +50,8 @@ int RunVariants(const VariantsOptions& o) {
     limits = LimitsOf(matches.front());
     device_name = matches.front().platform_name + " / " + matches.front().name;
   }
-  ProblemShape shape{77, 1, true};
-  std::string mesh_name = "the paper's rig (77 joints, any influence count, normals available)";
+  ProblemShape shape{77, 1, true, 1, false, true};
+  std::string mesh_name = "the paper's rig (77 joints, any influence count, normals available, rigid palettes)";
   const auto widest_of = [](const SkinnedMesh& mesh) {
     int widest = 1;
     for (std::size_t v = 0; v < mesh.vertex_count(); ++v) widest = std::max(widest, mesh.InfluencesOf(v));
@@ -58,11 +61,19 @@ int RunVariants(const VariantsOptions& o) {
     // A scene key as `tune` and `run` take it (5k-b4-x16, a+b batches):
     // the instances count toward the constant and image storage limits.
     const SkinnedScene scene = LoadScene(ParseSceneKey(o.source.dataset));
-    shape = {scene.mesh().joint_count, widest_of(scene.mesh()), scene.mesh().has_normals(), scene.spec.instances};
+    shape = {scene.mesh().joint_count, widest_of(scene.mesh()), scene.mesh().has_normals(), scene.spec.instances,
+             scene.mesh().has_normals() && scene.mesh().has_tangents(), tuner_internal::PalettesRigid(scene)};
     mesh_name = "scene '" + scene.spec.key + "'";
   } else if (!o.source.mesh_file.empty()) {
     const SkinnedAsset asset = LoadAsset(o.source);
-    shape = {asset.mesh.joint_count, widest_of(asset.mesh), asset.mesh.has_normals()};
+    const std::vector<glm::mat4> palette =
+        asset.animations.empty() ? asset.PaletteAt(-1, 0.0) : asset.PaletteAt(0, asset.animations.front().start);
+    const bool rigid = std::all_of(palette.begin(), palette.end(), [](const glm::mat4& m) {
+      float dq[8];
+      return skintune_kernels::DualQuaternionOf(&m[0][0], dq);
+    });
+    shape = {asset.mesh.joint_count, widest_of(asset.mesh), asset.mesh.has_normals(), 1,
+             asset.mesh.has_normals() && asset.mesh.has_tangents(), rigid};
     mesh_name = asset.source;
   }
   std::vector<std::string> keys;

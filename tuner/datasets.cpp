@@ -10,6 +10,7 @@
 #endif
 
 #include "base/error.h"
+#include "templates/embedded_support.h"  // DualQuaternionOf
 
 namespace skintune::internal::tuner_internal {
 
@@ -48,6 +49,15 @@ std::vector<std::vector<glm::mat4>> ScenePalettes(const SkinnedScene& scene, int
   return frames;
 }
 
+bool AllRigid(std::span<const glm::mat4> palette) {
+  return std::all_of(palette.begin(), palette.end(), [](const glm::mat4& m) {
+    float dq[8];
+    return skintune_kernels::DualQuaternionOf(&m[0][0], dq);
+  });
+}
+
+bool PalettesRigid(const SkinnedScene& scene) { return AllRigid(ScenePalettes(scene, 1).front()); }
+
 DatasetCache::Entry& DatasetCache::Get(const std::string& key) {
   if (auto found = entries_.find(key); found != entries_.end()) return *found->second;
   auto entry = std::make_unique<Entry>();
@@ -59,6 +69,7 @@ DatasetCache::Entry& DatasetCache::Get(const std::string& key) {
   // Import warnings (renormalised weights) are the importer's to report.
   entry->scene = LoadScene(ParseSceneKey(key));
   entry->verification_palette = ScenePalettes(entry->scene, 1).front();
+  entry->rigid_joints = AllRigid(entry->verification_palette);
   const SkinnedScene& scene = entry->scene;
   const std::vector<glm::vec3>& positions = scene.mesh().positions;
   const std::size_t n = scene.mesh().vertex_count();
@@ -84,15 +95,17 @@ namespace {
 
 // The gold of the whole scene on `mesh` (the scene's, quantised or not): one
 // run over the mesh and its palette; K instances: one per instance's palette.
-GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, Normals normals) {
+// Dual-quaternion variants against the dual-quaternion gold.
+GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, const Variant& variant) {
   const int k = entry.instances();
-  const bool with_normals = normals != Normals::kNone, with_tangents = normals == Normals::kTangents;
-  if (k == 1) return SkinGold(mesh, entry.verification_palette, with_normals, with_tangents);
+  const bool with_normals = SkinsNormals(variant), with_tangents = SkinsTangents(variant);
+  const auto gold = variant.blend == Blend::kDualQuaternion ? &SkinGoldDualQuaternion : &SkinGold;
+  if (k == 1) return gold(mesh, entry.verification_palette, with_normals, with_tangents);
   GoldResult all;
   const std::size_t joints = static_cast<std::size_t>(mesh.joint_count);
   for (int i = 0; i < k; ++i) {
-    GoldResult one = SkinGold(mesh, std::span(entry.verification_palette).subspan(i * joints, joints), with_normals,
-                              with_tangents);
+    GoldResult one = gold(mesh, std::span(entry.verification_palette).subspan(i * joints, joints), with_normals,
+                          with_tangents);
     all.positions.insert(all.positions.end(), one.positions.begin(), one.positions.end());
     all.normals.insert(all.normals.end(), one.normals.begin(), one.normals.end());
     all.tangents.insert(all.tangents.end(), one.tangents.begin(), one.tangents.end());
@@ -102,26 +115,35 @@ GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, 
 
 }  // namespace
 
+namespace {
+
+DatasetCache::GoldKey KeyOf(const Variant& variant, int weight) {
+  return {weight, variant.normals, variant.blend == Blend::kDualQuaternion};
+}
+
+}  // namespace
+
 const GoldResult& DatasetCache::Gold(Entry& entry, const Variant& variant) {
-  const std::pair<int, Normals> key{static_cast<int>(variant.weight), variant.normals};
+  const GoldKey key = KeyOf(variant, static_cast<int>(variant.weight));
   if (auto found = entry.gold.find(key); found != entry.gold.end()) return found->second;
-  GoldResult gold = SceneGold(entry, QuantisedMesh(entry.mesh(), variant), variant.normals);
+  GoldResult gold = SceneGold(entry, QuantisedMesh(entry.mesh(), variant), variant);
   return entry.gold.emplace(key, std::move(gold)).first->second;
 }
 
-const GoldResult& DatasetCache::SourceGold(Entry& entry, Normals normals) {
-  if (auto found = entry.source_gold.find(normals); found != entry.source_gold.end()) return found->second;
-  GoldResult gold = SceneGold(entry, entry.mesh(), normals);
-  return entry.source_gold.emplace(normals, std::move(gold)).first->second;
+const GoldResult& DatasetCache::SourceGold(Entry& entry, const Variant& variant) {
+  const GoldKey key = KeyOf(variant, -1);
+  if (auto found = entry.source_gold.find(key); found != entry.source_gold.end()) return found->second;
+  GoldResult gold = SceneGold(entry, entry.mesh(), variant);
+  return entry.source_gold.emplace(key, std::move(gold)).first->second;
 }
 
 double Relative(double abs, double diagonal) { return diagonal > 0.0 ? abs / diagonal : (abs > 0.0 ? 1.0 : 0.0); }
 
 double DatasetCache::QuantisationError(Entry& entry, const Variant& variant) {
-  const std::pair<int, Normals> key{static_cast<int>(variant.weight), variant.normals};
+  const GoldKey key = KeyOf(variant, static_cast<int>(variant.weight));
   if (auto found = entry.quantisation.find(key); found != entry.quantisation.end()) return found->second;
   const std::span<const glm::dvec3> gold = Gold(entry, variant).positions;
-  const std::span<const glm::dvec3> source = SourceGold(entry, variant.normals).positions;
+  const std::span<const glm::dvec3> source = SourceGold(entry, variant).positions;
   double error = 0.0;
   for (const Part& part : entry.parts)
     error = std::max(error, Relative(MaxDistance(gold.subspan(part.first, part.count),

@@ -7,7 +7,9 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <span>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -38,15 +40,20 @@ class DatasetCache {
     std::size_t count = 0;    // its vertices
     double diagonal = 0.0;    // BoundingBoxDiagonal of its rest positions
   };
+  // What a gold depends on: the weight format (-1: the source's weights), the
+  // normals, and whether it skins with dual quaternions (SkinGoldDualQuaternion)
+  // or linear blending (SkinGold).
+  using GoldKey = std::tuple<int, Normals, bool>;
   struct Entry {
     SkinnedScene scene;
     // The verification frame's palette as the kernel reads it: instance
     // after instance (K x joints), a batch's meshes one after another.
     std::vector<glm::mat4> verification_palette;
+    bool rigid_joints = false;  // AllRigid(verification_palette): dual quaternions may skin it
     std::vector<Part> parts;
-    std::map<std::pair<int, Normals>, GoldResult> gold;  // (weight format, normals)
-    std::map<Normals, GoldResult> source_gold;           // normals
-    std::map<std::pair<int, Normals>, double> quantisation;  // (weight format, normals): gold vs source gold, / diagonal
+    std::map<GoldKey, GoldResult> gold;                   // (weight format, normals, dual quaternions)
+    std::map<GoldKey, GoldResult> source_gold;            // (-1, normals, dual quaternions)
+    std::map<GoldKey, double> quantisation;               // as gold: gold vs source gold, / diagonal
     std::map<int, std::vector<std::vector<glm::mat4>>> frames;  // ScenePalettes by count
     // The last few packings (PackingKey, its packed mesh), newest last.
     std::vector<std::pair<std::string, PackedMesh>> packings;
@@ -58,7 +65,7 @@ class DatasetCache {
   // The gold of `variant`'s quantised mesh at the verification frame.
   const GoldResult& Gold(Entry& entry, const Variant& variant);
   // The gold of the unquantised source mesh (the weights as the dataset has them).
-  const GoldResult& SourceGold(Entry& entry, Normals normals);
+  const GoldResult& SourceGold(Entry& entry, const Variant& variant);
   // The largest over the parts of MaxDistance(Gold, SourceGold) of the
   // positions / the part's diagonal: what `variant`'s weight format alone
   // moves them, relative (0 when it holds the weights exactly).
@@ -86,6 +93,11 @@ double Relative(double abs, double diagonal);
 // (frame k at start + duration * (k + 0.5) / count); the rest pose, repeated,
 // when the asset has no animation.
 std::vector<std::vector<glm::mat4>> FramePalettes(const SkinnedAsset& asset, int count);
+// Whether every palette entry of the scene's verification frame (ScenePalettes
+// count 1) is rigid, so dual quaternions may skin it (ProblemShape::rigid_joints;
+// a later frame that is not fails its variant's measurement, naming the joint).
+bool PalettesRigid(const SkinnedScene& scene);
+bool AllRigid(std::span<const glm::mat4> palette);
 // `count` frames of a scene, each as the kernel reads it: one mesh's
 // FramePalettes; K instances: K different frames (set s, instance k: frame
 // s x K + k of count x K); a batch: each mesh's frame s, one after another.

@@ -131,7 +131,7 @@ std::string WhyNotHere(const MeasureJob& job, const DatasetCache::Entry& data) {
            job.device->name;
   const SkinnedMesh& mesh = data.mesh();
   const ProblemShape shape{mesh.joint_count, mesh.influences, mesh.has_normals(), data.instances(),
-                           mesh.has_normals() && mesh.has_tangents()};
+                           mesh.has_normals() && mesh.has_tangents(), data.rigid_joints};
   std::string detail;
   for (const Violation& v : CheckVariant(variant, job.limits, shape))
     detail += (detail.empty() ? "" : "; ") + std::string(Name(v.constraint)) + ": " + v.message;
@@ -208,7 +208,7 @@ bool Verify(Measuring& run) {
 // worst part relative to its own diagonal.
 void RecordSourceError(Measuring& run) {
   const Variant& variant = run.job.variant;
-  const GoldResult& source = run.job.datasets->SourceGold(run.data, variant.normals);
+  const GoldResult& source = run.job.datasets->SourceGold(run.data, variant);
   SourceError& error = run.m.source_error;
   error.known = true;
   for (const DatasetCache::Part& part : run.data.parts) {

@@ -13,6 +13,7 @@
 #include "base/memory_limit.h"
 #include "model/scene.h"
 #include "model/synthetic.h"
+#include "tuner/datasets.h"  // PalettesRigid
 #include "tuner/schedule.h"  // IsSoftwareRasterizer
 #include "tuner/tuned_device.h"
 
@@ -101,7 +102,7 @@ PlannedDataset PlanDataset(const std::string& key) {
   d.info.instances = spec.instances;
   d.info.meshes = static_cast<int>(spec.meshes.size());
   d.shape = ProblemShape{mesh.joint_count, widest, mesh.has_normals(), spec.instances,
-                         mesh.has_normals() && mesh.has_tangents()};
+                         mesh.has_normals() && mesh.has_tangents(), tuner_internal::PalettesRigid(scene)};
   return d;
 }
 

@@ -52,15 +52,16 @@ nlohmann::json WinnerJson(const Winner& w) {
 }
 
 // The merge key of a winner / database entry: every measured vertex count,
-// scene shape (with its instance or mesh count) and precision class (weight
-// format) keeps its own.
-// device id, lang, influences, vertices, shape, instances, meshes, weight
-using EntryKey = std::tuple<std::string, int, int, std::size_t, int, int, int, int>;
+// scene shape (with its instance or mesh count), precision class (weight
+// format) and skinning method (linear, or dual quaternions: a different
+// result, never one entry's rival) keeps its own.
+// device id, lang, influences, vertices, shape, instances, meshes, weight, dual quaternions
+using EntryKey = std::tuple<std::string, int, int, std::size_t, int, int, int, int, bool>;
 
 template <typename W>  // Winner or WinnersEntry
 EntryKey KeyOf(const W& w) {
   return {w.device_id, static_cast<int>(w.lang), w.influences, w.vertices, static_cast<int>(w.shape),
-          w.instances, w.meshes, static_cast<int>(w.variant.weight)};
+          w.instances, w.meshes, static_cast<int>(w.variant.weight), w.variant.blend == Blend::kDualQuaternion};
 }
 
 nlohmann::json DatasetJson(const DatasetInfo& d) {

@@ -3,31 +3,40 @@
 // the range's alignment; every loop path (the first and last vertex of a
 // range, ranges split off 4- and 64-vertex boundaries, positions ending at an
 // unreadable page, each stream layout, normals on and off, 3 and 4 output
-// floats) against the float64 gold; the table's keys and names; the schedule
-// candidates and the choice among them; bad keys and palettes. Every kernel
-// against the float64 gold through the cpu device: tests/runtime/cpu_runner_test.cpp.
+// floats) against the float64 gold; every dual-quaternion kernel (B, index
+// and weight formats) against the float64 dual-quaternion gold on rigid
+// random palettes, some joints' quaternions negated; the table's keys and
+// names; the schedule candidates and the choice among them; bad keys and
+// palettes. Every linear-blend kernel against the float64 gold through the
+// cpu device: tests/runtime/cpu_runner_test.cpp.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <memory>
+#include <random>
 #include <set>
 #include <span>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include <sys/mman.h>
 #include <unistd.h>
+
+#include <glm/gtc/quaternion.hpp>
 
 #include "cpu_kernels/cpu_kernels.h"
 #include "base/error.h"
 #include "reference/skinning.h"
 #include "model/synthetic.h"
 #include "base/thread_pool.h"
+#include "templates/embedded_support.h"
 
 namespace skintune::internal {
 namespace {
@@ -279,18 +288,322 @@ TEST(CpuKernels, EveryLoopPathMatchesTheGoldAtRangeEdgesInEveryLayout) {
             }
 }
 
+// A rigid palette of `joints` random rotations and translations of up to 0.3
+// a coordinate, as the float matrices the gold skins with: the rotations
+// uniform over all rotations, or (`near`) within about 0.3 rad of one.
+std::vector<glm::mat4> RigidPalette(std::mt19937& rng, int joints, bool near) {
+  std::normal_distribution<double> normal;
+  std::uniform_real_distribution<float> shift(-0.3f, 0.3f);
+  const auto random_quaternion = [&] { return glm::dquat(normal(rng), normal(rng), normal(rng), normal(rng)); };
+  const glm::dquat base = glm::normalize(random_quaternion());
+  std::vector<glm::mat4> palette;
+  for (int j = 0; j < joints; ++j) {
+    const glm::dquat q = glm::normalize(near ? base + 0.08 * random_quaternion() : random_quaternion());
+    glm::mat4 m(glm::mat3(glm::mat3_cast(q)));
+    m[3] = glm::vec4(shift(rng), shift(rng), shift(rng), 1.0f);
+    palette.push_back(m);
+  }
+  return palette;
+}
+
+// `palette` as the kernels read it, 2 float4 rows a joint (the packer's
+// conversion, DualQuaternionOf), each odd joint's given as (-q, -d) when
+// `negate_odd`: the same rigid map from the other side of the sphere of
+// quaternions, which a blend that ignored the side would cancel.
+std::vector<std::uint8_t> DualQuaternionRows(std::span<const glm::mat4> palette, bool negate_odd) {
+  std::vector<std::uint8_t> rows(palette.size() * 32);
+  for (std::size_t j = 0; j < palette.size(); ++j) {
+    float dq[8];
+    if (!skintune_kernels::DualQuaternionOf(&palette[j][0][0], dq)) throw std::runtime_error("joint is not rigid");
+    if (negate_odd && j % 2 == 1)
+      for (float& x : dq) x = -x;
+    std::memcpy(rows.data() + 32 * j, dq, sizeof dq);
+  }
+  return rows;
+}
+
+// `n` random vertices with `b` influences on `joints` joints: positions 2 to
+// 3 from the origin (each skinned one stays far from it, so that the
+// relative error is the error of the map, not of a cancellation), unit
+// normals and tangents of both handednesses, every weight non-zero and the
+// largest first (the first influence is the side every other quaternion is
+// taken to, in the kernels as in the gold).
+SkinnedMesh RandomMesh(std::mt19937& rng, int b, int joints, std::size_t n) {
+  std::normal_distribution<float> normal;
+  std::uniform_real_distribution<float> radius(2.0f, 3.0f), weight(0.05f, 1.0f);
+  std::uniform_int_distribution<int> joint(0, joints - 1);
+  const auto direction = [&] { return glm::normalize(glm::vec3(normal(rng), normal(rng), normal(rng))); };
+  SkinnedMesh mesh;
+  mesh.name = "random rigid";
+  mesh.influences = b;
+  mesh.joint_count = joints;
+  for (std::size_t v = 0; v < n; ++v) {
+    mesh.positions.push_back(radius(rng) * direction());
+    mesh.normals.push_back(direction());
+    mesh.tangents.emplace_back(direction(), v % 2 ? -1.0f : 1.0f);
+    std::vector<float> w(static_cast<std::size_t>(b));
+    float sum = 0.0f;
+    for (float& x : w) sum += x = weight(rng);
+    std::sort(w.begin(), w.end(), std::greater<>());
+    for (const float x : w) {
+      mesh.joints.push_back(static_cast<std::uint16_t>(joint(rng)));
+      mesh.weights.push_back(x / sum);
+    }
+  }
+  return mesh;
+}
+
+// `mesh` with its weights as `format` stores them: unorm weights quantised
+// to raw / scale by the largest remainder (each vertex's raw values sum to
+// the scale exactly), as the kernels decode them.
+SkinnedMesh StoredWeights(SkinnedMesh mesh, CpuWeight format) {
+  if (format == CpuWeight::kF32) return mesh;
+  const int scale = format == CpuWeight::kUnorm8 ? 255 : 65535;
+  const auto b = static_cast<std::size_t>(mesh.influences);
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    float* w = &mesh.weights[v * b];
+    std::vector<int> raw(b);
+    std::vector<std::size_t> order(b);
+    int left = scale;
+    for (std::size_t i = 0; i < b; ++i) {
+      raw[i] = static_cast<int>(std::floor(static_cast<double>(w[i]) * scale));
+      left -= raw[i];
+      order[i] = i;
+    }
+    std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
+      return static_cast<double>(w[x]) * scale - raw[x] > static_cast<double>(w[y]) * scale - raw[y];
+    });
+    for (std::size_t k = 0; left > 0; ++k, --left) ++raw[order[k % b]];
+    for (std::size_t i = 0; i < b; ++i) w[i] = static_cast<float>(raw[i]) * (1.0f / static_cast<float>(scale));
+  }
+  return mesh;
+}
+
+enum class StreamLayout { kSoaSplit, kSoa, kAos };
+
+// `mesh`'s vertices in `layout` with `index` and `weight` formats (unorm
+// weights stored as raw = round(weight x scale): StoredWeights's values
+// exactly), normals and tangents included, and the streams that read them.
+struct MeshStreams {
+  std::vector<std::uint8_t> positions, normals, tangents, indices, weights;  // aos: records in positions
+  CpuStreams s;
+};
+MeshStreams StreamsOf(const SkinnedMesh& mesh, StreamLayout layout, CpuIndex index, CpuWeight weight) {
+  const std::size_t n = mesh.vertex_count(), b = static_cast<std::size_t>(mesh.influences);
+  const std::size_t ib = index == CpuIndex::kU32 ? 4 : index == CpuIndex::kU16 ? 2 : 1;
+  const std::size_t wb = weight == CpuWeight::kF32 ? 4 : weight == CpuWeight::kUnorm16 ? 2 : 1;
+  const bool aos = layout == StreamLayout::kAos;
+  // aos: position, normal, tangent, indices, weights and a byte of padding a record.
+  const std::size_t record = 40 + b * (ib + wb) + 1;
+  MeshStreams m;
+  m.positions.resize(aos ? record * n : 12 * n);
+  m.normals.resize(12 * n);
+  m.tangents.resize(16 * n);
+  m.indices.resize(ib * b * n);
+  m.weights.resize(wb * b * n);
+  const auto put_index = [&](std::vector<std::uint8_t>& to, std::size_t at, std::uint16_t j) {
+    if (ib == 4) Put(to, at, std::uint32_t{j});
+    else if (ib == 2) Put(to, at, j);
+    else Put(to, at, static_cast<std::uint8_t>(j));
+  };
+  const auto put_weight = [&](std::vector<std::uint8_t>& to, std::size_t at, float w) {
+    if (wb == 4) Put(to, at, w);
+    else if (wb == 2) Put(to, at, static_cast<std::uint16_t>(std::lround(w * 65535.0f)));
+    else Put(to, at, static_cast<std::uint8_t>(std::lround(w * 255.0f)));
+  };
+  for (std::size_t v = 0; v < n; ++v) {
+    const std::size_t at = aos ? v * record : 0;
+    for (int c = 0; c < 3; ++c) {
+      Put(m.positions, aos ? at + 4 * c : 12 * v + 4 * c, mesh.positions[v][c]);
+      Put(aos ? m.positions : m.normals, aos ? at + 12 + 4 * c : 12 * v + 4 * c, mesh.normals[v][c]);
+    }
+    for (int c = 0; c < 4; ++c)
+      Put(aos ? m.positions : m.tangents, aos ? at + 24 + 4 * c : 16 * v + 4 * c, mesh.tangents[v][c]);
+    for (std::size_t i = 0; i < b; ++i) {
+      const std::uint16_t j = mesh.joints[v * b + i];
+      const float w = mesh.weights[v * b + i];
+      if (aos) {
+        put_index(m.positions, at + 40 + ib * i, j);
+        put_weight(m.positions, at + 40 + ib * b + wb * i, w);
+      } else {
+        const std::size_t slot_at = layout == StreamLayout::kSoaSplit ? i * n + v : v * b + i;
+        put_index(m.indices, ib * slot_at, j);
+        put_weight(m.weights, wb * slot_at, w);
+      }
+    }
+  }
+  CpuStreams& s = m.s;
+  if (aos) {
+    s.positions = m.positions.data();
+    s.normals = m.positions.data() + 12;
+    s.tangents = m.positions.data() + 24;
+    s.indices = m.positions.data() + 40;
+    s.weights = m.positions.data() + 40 + ib * b;
+    s.position_stride = s.normal_stride = s.tangent_stride = s.index_stride = s.weight_stride = record;
+    s.index_slot = ib;
+    s.weight_slot = wb;
+  } else {
+    const bool split = layout == StreamLayout::kSoaSplit;
+    s.positions = m.positions.data();
+    s.normals = m.normals.data();
+    s.tangents = m.tangents.data();
+    s.position_stride = s.normal_stride = 12;
+    s.tangent_stride = 16;
+    s.indices = m.indices.data();
+    s.weights = m.weights.data();
+    s.index_stride = split ? ib : b * ib;
+    s.index_slot = split ? n * ib : ib;
+    s.weight_stride = split ? wb : b * wb;
+    s.weight_slot = split ? n * wb : wb;
+  }
+  return m;
+}
+
+// `kernel` over `s`'s n vertices in calls split at the first and last vertex
+// of a 64-vertex block and off the 4-vertex stores, streaming and plain
+// stores in turn, `floats` output floats, with normals and tangents or not;
+// its outputs against `gold`.
+void ExpectKernelMatchesGold(CpuKernelFn kernel, CpuStreams s, const CpuPalette& palette, std::size_t n, int floats,
+                             bool normals, const GoldResult& gold) {
+  const std::vector<std::size_t> cuts = {0, 1, 2, 5, 63, 64, 65, 67, 128, n - 1, n};
+  Output out(floats * n), out_n(floats * n), out_t(4 * n);
+  s.out_positions = out.data;
+  s.out_normals = normals ? out_n.data : nullptr;
+  s.out_tangents = normals ? out_t.data : nullptr;
+  s.output_floats = floats;
+  for (std::size_t c = 0; c + 1 < cuts.size(); ++c) {
+    s.stream_stores = c % 2 == 1;
+    kernel(s, palette, cuts[c], cuts[c + 1]);
+  }
+  std::vector<glm::vec3> got(n), got_n(n);
+  std::vector<glm::vec4> got_t(n);
+  for (std::size_t v = 0; v < n; ++v) {
+    got[v] = {out.data[floats * v], out.data[floats * v + 1], out.data[floats * v + 2]};
+    got_n[v] = {out_n.data[floats * v], out_n.data[floats * v + 1], out_n.data[floats * v + 2]};
+    got_t[v] = {out_t.data[4 * v], out_t.data[4 * v + 1], out_t.data[4 * v + 2], out_t.data[4 * v + 3]};
+    if (floats == 4) {
+      ASSERT_EQ(out.data[4 * v + 3], 1.0f) << "vertex " << v;
+    }
+    if (floats == 4 && normals) {
+      ASSERT_EQ(out_n.data[4 * v + 3], 0.0f) << "vertex " << v;
+    }
+  }
+  const GoldComparison p = CompareToGold(gold.positions, got);
+  EXPECT_EQ(p.non_finite, 0u);
+  EXPECT_LT(p.max_relative, 1e-5) << "positions, worst vertex " << p.worst_vertex;
+  if (normals) {
+    const GoldComparison q = CompareToGold(gold.normals, got_n);
+    EXPECT_EQ(q.non_finite, 0u);
+    EXPECT_LT(q.max_relative, 1e-5) << "normals, worst vertex " << q.worst_vertex;
+    const GoldComparison t = CompareTangentsToGold(gold.tangents, got_t);
+    EXPECT_EQ(t.non_finite, 0u);
+    EXPECT_EQ(t.wrong_handedness, 0u) << "first at vertex " << t.worst_vertex;
+    EXPECT_LT(t.max_relative, 1e-5) << "tangents, worst vertex " << t.worst_vertex;
+  } else {
+    for (std::size_t k = 0; k < floats * n; ++k) ASSERT_TRUE(out_n.Poisoned(k)) << "normal word " << k;
+    for (std::size_t k = 0; k < 4 * n; ++k) ASSERT_TRUE(out_t.Poisoned(k)) << "tangent word " << k;
+  }
+}
+
+TEST(CpuKernels, EveryDualQuaternionKernelMatchesTheDualQuaternionGoldOnRigidPalettes) {
+  // The kernels' form of a 2-row palette: each joint's real part, then its dual part, as packed.
+  {
+    std::vector<std::uint8_t> packed(64);
+    for (std::size_t k = 0; k < 16; ++k) Put(packed, 4 * k, static_cast<float>(k + 1));
+    CpuPalette p;
+    LoadCpuPalette(packed, 2, p);
+    ASSERT_EQ(p.joints.size(), 2u);
+    for (std::size_t j = 0; j < 2; ++j)
+      for (std::size_t k = 0; k < 16; ++k)
+        ASSERT_EQ(p.joints[j].f[k], k < 8 ? static_cast<float>(8 * j + k + 1) : 0.0f)
+            << "joint " << j << " float " << k;
+  }
+
+  std::mt19937 rng(20261201);
+  constexpr int kJoints = 12;
+  constexpr std::size_t kVertices = 150;
+  struct PaletteCase {
+    const char* name;
+    bool near, negate_odd;
+  };
+  const PaletteCase palette_cases[] = {
+      {"random rotations", false, false},
+      {"random rotations, odd joints negated", false, true},
+      {"rotations near one another, odd joints negated", true, true},
+  };
+  std::size_t kernel_count = 0;
+  for (int b = 1; b <= kCpuMaxInfluences; ++b) {
+    const SkinnedMesh mesh = RandomMesh(rng, b, kJoints, kVertices);
+    for (const PaletteCase& pc : palette_cases) {
+      const std::vector<glm::mat4> palette = RigidPalette(rng, kJoints, pc.near);
+      CpuPalette cpu_palette;
+      LoadCpuPalette(DualQuaternionRows(palette, pc.negate_odd), 2, cpu_palette);
+      for (const CpuWeight weight : {CpuWeight::kF32, CpuWeight::kUnorm16, CpuWeight::kUnorm8}) {
+        const SkinnedMesh stored = StoredWeights(mesh, weight);
+        const GoldResult gold = SkinGoldDualQuaternion(stored, palette, true, true);
+        for (const CpuIndex index : {CpuIndex::kU32, CpuIndex::kU16, CpuIndex::kU8}) {
+          const CpuKernelKey key{b, index, weight, 2, false, true};
+          ++kernel_count;
+          // The layout and output floats turn with the kernel; normals and tangents off and on.
+          const auto layout = static_cast<StreamLayout>(kernel_count % 3);
+          const int floats = kernel_count / 3 % 2 ? 4 : 3;
+          const MeshStreams streams = StreamsOf(stored, layout, index, weight);
+          for (const bool normals : {false, true}) {
+            SCOPED_TRACE(CpuKernelName(key) + ", " + pc.name + ", layout " + std::to_string(static_cast<int>(layout)) +
+                         ", " + std::to_string(floats) + " output floats" + (normals ? ", normals and tangents" : ""));
+            ExpectKernelMatchesGold(FindCpuKernel(key), streams.s, cpu_palette, kVertices, floats, normals, gold);
+            if (HasFailure()) return;  // one failing kernel says enough
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(kernel_count, 8u * 3 * 3 * std::size(palette_cases));
+}
+
 TEST(CpuKernels, OneKernelPerKeyWithDistinctNames) {
   const std::vector<CpuKernelKey> keys = AllCpuKernelKeys();
-  EXPECT_EQ(keys.size(), 8u * 3 * 3 * 2 * 2);
+  // Linear blending (matrix, point) with mat4 and mat3x4 palettes, dual
+  // quaternions with their own 2-row palette only: 5 forms per (B, index, weight).
+  EXPECT_EQ(keys.size(), 8u * 3 * 3 * 5);
   std::set<std::string> names;
   std::set<CpuKernelFn> kernels;
+  std::set<std::tuple<int, int, int, int, bool, bool>> linear, dual_quaternion;
   for (const CpuKernelKey& k : keys) {
     names.insert(CpuKernelName(k));
     kernels.insert(FindCpuKernel(k));
+    const auto key = std::make_tuple(k.influences, static_cast<int>(k.index), static_cast<int>(k.weight),
+                                     k.palette_rows, k.point_blend, k.dual_quaternion);
+    if (k.dual_quaternion) {
+      EXPECT_EQ(k.palette_rows, 2) << CpuKernelName(k);
+      EXPECT_FALSE(k.point_blend) << CpuKernelName(k);
+      dual_quaternion.insert(key);
+    } else {
+      EXPECT_TRUE(k.palette_rows == 3 || k.palette_rows == 4) << CpuKernelName(k);
+      linear.insert(key);
+    }
   }
   EXPECT_EQ(names.size(), keys.size());
   EXPECT_EQ(kernels.size(), keys.size());
+  EXPECT_EQ(linear.size(), 8u * 3 * 3 * 2 * 2);  // every linear key as before dual quaternions
+  EXPECT_EQ(dual_quaternion.size(), 8u * 3 * 3);
+  // Every linear key, built by hand, still resolves to its own kernel, and the key lists it.
+  for (int b = 1; b <= 8; ++b)
+    for (const CpuIndex index : {CpuIndex::kU32, CpuIndex::kU16, CpuIndex::kU8})
+      for (const CpuWeight weight : {CpuWeight::kF32, CpuWeight::kUnorm16, CpuWeight::kUnorm8})
+        for (const int rows : {4, 3})
+          for (const bool point : {false, true}) {
+            const CpuKernelKey k{b, index, weight, rows, point};
+            EXPECT_TRUE(linear.contains(std::make_tuple(b, static_cast<int>(index), static_cast<int>(weight), rows,
+                                                        point, false)))
+                << CpuKernelName(k);
+            EXPECT_TRUE(kernels.contains(FindCpuKernel(k))) << CpuKernelName(k);
+          }
   EXPECT_EQ(CpuKernelName({4, CpuIndex::kU8, CpuWeight::kUnorm16, 3, true}), "b4.u8.unorm16.mat3x4.point");
+  EXPECT_EQ(CpuKernelName({4, CpuIndex::kU16, CpuWeight::kF32, 4, false}), "b4.u16.f32.mat4.matrix");
+  EXPECT_EQ(CpuKernelName({4, CpuIndex::kU8, CpuWeight::kUnorm16, 2, false, true}), "b4.u8.unorm16.dualquat.dq");
+  EXPECT_NE(FindCpuKernel({4, CpuIndex::kU8, CpuWeight::kUnorm16, 2, false, true}),
+            FindCpuKernel({4, CpuIndex::kU8, CpuWeight::kUnorm16, 3, false}));
   // The table chosen is one this build holds (SKINTUNE_CPU_ISAS), the first of them
   // (fastest first) that this CPU runs: baseline runs on every CPU.
   const std::string isa = CpuKernelIsa();
@@ -313,10 +626,22 @@ TEST(CpuKernels, BadKeysAndPalettesAreErrorsNamingTheProblem) {
   };
   expect_error([] { FindCpuKernel({0, CpuIndex::kU16, CpuWeight::kF32, 4, false}); }, "0 influences (expected 1..8)");
   expect_error([] { FindCpuKernel({9, CpuIndex::kU16, CpuWeight::kF32, 4, false}); }, "9 influences");
-  expect_error([] { FindCpuKernel({4, CpuIndex::kU16, CpuWeight::kF32, 2, false}); }, "2 palette rows");
+  expect_error([] { FindCpuKernel({4, CpuIndex::kU16, CpuWeight::kF32, 5, false}); },
+               "5 palette rows (expected 4, 3 or 2)");
+  expect_error([] { FindCpuKernel({4, CpuIndex::kU16, CpuWeight::kF32, 1, false, true}); }, "1 palette rows");
+  // A dual-quaternion palette only with dual-quaternion blending, and that blending with no other palette.
+  expect_error([] { FindCpuKernel({4, CpuIndex::kU16, CpuWeight::kF32, 2, false}); },
+               "2 palette rows (a unit dual quaternion) are read by dual-quaternion blending only, not matrix");
+  expect_error([] { FindCpuKernel({4, CpuIndex::kU16, CpuWeight::kF32, 2, true}); }, "only, not point blending");
+  expect_error([] { FindCpuKernel({4, CpuIndex::kU16, CpuWeight::kF32, 4, false, true}); },
+               "dual-quaternion blending reads 2 palette rows a joint (a unit dual quaternion), not 4");
+  expect_error([] { FindCpuKernel({4, CpuIndex::kU16, CpuWeight::kF32, 2, true, true}); },
+               "dual-quaternion and point blending together");
   CpuPalette p;
   expect_error([&] { LoadCpuPalette(std::vector<std::uint8_t>(40), 3, p); }, "40 bytes is not a whole number");
-  expect_error([&] { LoadCpuPalette(std::vector<std::uint8_t>(64), 5, p); }, "5 rows per joint");
+  expect_error([&] { LoadCpuPalette(std::vector<std::uint8_t>(40), 2, p); }, "40 bytes is not a whole number of 2-row");
+  expect_error([&] { LoadCpuPalette(std::vector<std::uint8_t>(64), 5, p); }, "5 rows per joint (expected 4, 3 or 2)");
+  expect_error([&] { LoadCpuPalette(std::vector<std::uint8_t>(64), 1, p); }, "1 rows per joint");
   ThreadPool pool(1);
   expect_error([&] { RunCpuKernel(FindCpuKernel({}), CpuStreams{}, p, 10, pool, 0); }, "chunk of 0 vertices");
   expect_error([] { FastestCandidate(0, [](std::size_t) { return 1.0; }); }, "no candidates");

@@ -88,7 +88,8 @@ TEST(Axes, FullSpaceListsEveryValueOfTheTable) {
 TEST(Axes, KeyFormatIsTheGrammarErrorsHaveAlwaysQuoted) {
   EXPECT_EQ(KeyFormat(),
             "<lang>.b<B>.<padded|bucketed>.<aos|soa|soa-split>.<float4|float3>.<i32|u16|u8>.<f32|unorm16|unorm8>"
-            ".<mat4|mat3x4>.<constant|local|global|image>.<matrix|point>.v<1|2|4|8><c|s>.wg<N>.<nonormals|normals|tangents>");
+            ".<mat4|mat3x4|dualquat>.<constant|local|global|image>.<matrix|point|dq>.v<1|2|4|8><c|s>.wg<N>"
+            ".<nonormals|normals|tangents>");
 }
 
 TEST(Axes, CodesDifferExactlyOnTheAxisThatDiffers) {

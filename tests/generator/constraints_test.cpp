@@ -137,6 +137,18 @@ TEST(Constraints, RejectsTangentsWhenTheMeshHasNoneAndWithFloat3Positions) {
   EXPECT_TRUE(CheckVariant(v, kDevice, {77, 4, true, 1, true}).empty());
 }
 
+TEST(Constraints, DualQuaternionsReadTheirOwnPaletteAndNeedRigidJoints) {
+  Variant v;
+  v.blend = Blend::kDualQuaternion;
+  ExpectOnly(v, Constraint::kBlendPalette, "blend dq reads the dualquat palette", kDevice,
+             {77, 4, false, 1, false, true});
+  v.palette = PaletteFormat::kDualQuaternion;
+  EXPECT_TRUE(CheckVariant(v, kDevice, {77, 4, false, 1, false, true}).empty());
+  ExpectOnly(v, Constraint::kJointsNotRigid, "scale, shear or mirror", kDevice, {77, 4, false, 1, false, false});
+  v.blend = Blend::kMatrix;
+  ExpectOnly(v, Constraint::kBlendPalette, "read by blend dq only", kDevice, {77, 4, false, 1, false, true});
+}
+
 // Instanced launches (docs/VARIANTS.md "Instancing"): K palettes live in
 // constant or image storage together; a local copy holds one.
 TEST(Constraints, RejectsInstancedConstantStorageWhenKPalettesExceedTheLimit) {

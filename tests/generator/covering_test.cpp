@@ -16,7 +16,7 @@ DeviceLimits Roomy() {
   return d;
 }
 
-const ProblemShape kShape{77, 1, true, 1, true};
+const ProblemShape kShape{77, 1, true, 1, true, true};
 
 TEST(CoveringSet, EveryValueOfEveryAxisAppearsForEachLanguage) {
   for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex}) {
@@ -31,7 +31,8 @@ TEST(CoveringSet, EveryValueOfEveryAxisAppearsForEachLanguage) {
     }
     std::vector<std::string> expected = {"b1", "b2", "b3", "b4", "b5", "b6", "b7", "b8", "padded", "bucketed", "aos",
                                          "soa", "soa-split", "float4", "float3", "i32", "u16", "u8", "f32", "unorm16",
-                                         "unorm8", "mat4", "mat3x4", "constant", "global", "image", "matrix", "point",
+                                         "unorm8", "mat4", "mat3x4", "dualquat", "constant", "global", "image", "matrix",
+                                         "point", "dq",
                                          "normals", "nonormals", "tangents"};
     if (lang == Lang::kGlslVertex) {
       expected.insert(expected.end(), {"v1", "contiguous", "wg0"});
@@ -54,9 +55,10 @@ TEST(CoveringSet, EveryPairOfThePairedAxesAppears) {
       for (std::size_t a = 0; a < values.size(); ++a)
         for (std::size_t b = a + 1; b < values.size(); ++b) pairs.insert(values[a] + "&" + values[b]);
     }
-    // 15 axis pairs: 9+9+6+12+6 + 9+6+12+6 + 6+12+6 + 8+4 + 8 value pairs.
-    EXPECT_EQ(pairs.size(), 119u) << Name(lang);
-    EXPECT_LE(set.variants.size(), 24u) << "a covering set should stay small";
+    // 15 axis pairs: 9+9+9+12+9 + 9+9+12+9 + 9+12+9 + 12+5 + 12 value pairs (palette x blend: the
+    // linear blends with mat4 and mat3x4, dq with dualquat alone).
+    EXPECT_EQ(pairs.size(), 146u) << Name(lang);
+    EXPECT_LE(set.variants.size(), 28u) << "a covering set should stay small";
   }
 }
 
@@ -64,6 +66,16 @@ TEST(CoveringSet, ReportsPairsNoValidVariantCanHold) {
   const CoveringSet set = BuildCoveringSet(Lang::kGlslVertex, Roomy(), kShape);
   ASSERT_FALSE(set.uncoverable.empty());
   for (const std::string& pair : set.uncoverable) EXPECT_NE(pair.find("storage=local"), std::string::npos) << pair;
+}
+
+TEST(CoveringSet, DualQuaternionsOnlyWithTheirPaletteAndOnlyOnRigidMeshes) {
+  for (const Variant& v : BuildCoveringSet(Lang::kOpenCl, Roomy(), kShape).variants)
+    EXPECT_EQ(v.blend == Blend::kDualQuaternion, v.palette == PaletteFormat::kDualQuaternion) << v.Key();
+  ProblemShape scaled = kShape;
+  scaled.rigid_joints = false;
+  const CoveringSet set = BuildCoveringSet(Lang::kOpenCl, Roomy(), scaled);
+  EXPECT_TRUE(set.uncoverable.empty()) << "dq cannot skin a scaling mesh by construction, not for want of a device";
+  for (const Variant& v : set.variants) EXPECT_NE(v.blend, Blend::kDualQuaternion) << v.Key();
 }
 
 TEST(CoveringSet, SkipsWorkGroupSizesAboveTheDeviceLimit) {

@@ -15,6 +15,10 @@
 
 #include <gtest/gtest.h>
 
+#define GLM_ENABLE_EXPERIMENTAL
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+
 #include "generator/packer.h"
 #include "base/error.h"
 #include "model/gltf_import.h"
@@ -474,6 +478,55 @@ TEST(Packer, PalettesAreFloat4RowsFourForMat4AndThreeForMat3x4) {
     const PackedMesh packed = Pack(RandomMesh(4, 2, 3, false, 1), v);
     EXPECT_EQ(packed.palette_joints, 3u);
     EXPECT_EQ(packed.palette, PackPalette(std::vector<glm::mat4>(3, glm::mat4(1.0f)), v));
+  }
+}
+
+// The dualquat palette: per joint the unit quaternion of its rotation and
+// the dual part 0.5 (t, 0) q, which give back the matrix; identity padding;
+// a joint that scales, shears or mirrors refused by index, never rounded.
+TEST(Packer, DualQuaternionPalettesHoldRigidJointsAndRefuseTheRest) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<glm::mat4> palette;
+  for (int j = 0; j < 5; ++j) {
+    const glm::vec3 axis = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + glm::vec3(0.0f, 0.0f, 1e-3f));
+    glm::mat4 m = glm::rotate(glm::mat4(1.0f), 3.0f * u(rng) + (j == 4 ? 3.1f : 0.0f), axis);  // j 4: near pi
+    m[3] = glm::vec4(10.0f * u(rng), 10.0f * u(rng), 10.0f * u(rng), 1.0f);
+    palette.push_back(m);
+  }
+  Variant v;
+  v.palette = PaletteFormat::kDualQuaternion;
+  v.blend = Blend::kDualQuaternion;
+  EXPECT_EQ(PaletteMatrixBytes(v), 32u);
+  const std::vector<std::uint8_t> bytes = PackPalette(palette, v);
+  ASSERT_EQ(bytes.size(), palette.size() * 32);
+  for (std::size_t j = 0; j < palette.size(); ++j) {
+    float f[8];
+    for (int i = 0; i < 8; ++i) f[i] = ReadFloat(bytes, (j * 8 + static_cast<std::size_t>(i)) * 4);
+    const glm::dquat q(f[3], f[0], f[1], f[2]), d(f[7], f[4], f[5], f[6]);
+    EXPECT_NEAR(glm::length(q), 1.0, 1e-6) << j;
+    const glm::dmat3 r = glm::mat3_cast(q);
+    const glm::dquat t = 2.0 * (d * glm::conjugate(q));
+    for (int c = 0; c < 3; ++c)
+      for (int row = 0; row < 3; ++row) EXPECT_NEAR(r[c][row], palette[j][c][row], 1e-6) << j;
+    EXPECT_NEAR(t.x, palette[j][3][0], 1e-5) << j;
+    EXPECT_NEAR(t.y, palette[j][3][1], 1e-5) << j;
+    EXPECT_NEAR(t.z, palette[j][3][2], 1e-5) << j;
+  }
+  const PackedMesh packed = Pack(RandomMesh(4, 2, 3, false, 1), v);
+  EXPECT_EQ(packed.palette, PackPalette(std::vector<glm::mat4>(3, glm::mat4(1.0f)), v));
+  for (const glm::mat4& bad : {glm::scale(palette[2], glm::vec3(1.0f, 1.0f, 1.001f)),
+                               glm::scale(palette[2], glm::vec3(-1.0f, 1.0f, 1.0f))}) {
+    std::vector<glm::mat4> scaled = palette;
+    scaled[2] = bad;
+    std::vector<std::uint8_t> out(scaled.size() * 32);
+    EXPECT_EQ(PackPaletteInto(&scaled.front()[0][0], scaled.size(), v, out.data()), 2u);
+    try {
+      PackPalette(scaled, v);
+      ADD_FAILURE() << "a scaled or mirrored joint packed as a dual quaternion";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("palette entry 2 is not a rigid transform"), std::string::npos) << e.what();
+    }
   }
 }
 

@@ -23,7 +23,7 @@ TEST(TuningSpace, GlslVertexCollapsesWorkGroupAxes) {
     ASSERT_EQ(v.wg_size, 0);
     ASSERT_EQ(v.vertices_per_item, 1);
   });
-  EXPECT_EQ(s.Size(), 8u * 2 * 3 * 2 * 3 * 3 * 2 * 4 * 2 * 3);  // normals: none, normals, tangents
+  EXPECT_EQ(s.Size(), 8u * 2 * 3 * 2 * 3 * 3 * 3 * 4 * 3 * 3);  // palettes and blends: 3 each; normals: 3
 }
 
 TEST(TuningSpace, FromJsonRestrictsNamedAxesAndKeepsTheRestFull) {
@@ -39,6 +39,23 @@ TEST(TuningSpace, FromJsonReadsTheNormalsAxisByNameAndAsOldConfigsWroteIt) {
   EXPECT_EQ(named.normals, (std::vector<Normals>{Normals::kNone, Normals::kTangents}));
   const TuningSpace old = SpaceFromJson(nlohmann::json::parse(R"({"normals": [false, true]})"), "c.json");
   EXPECT_EQ(old.normals, (std::vector<Normals>{Normals::kNone, Normals::kNormals}));
+}
+
+// Dual quaternions compute something else than linear blending: chosen, never
+// raced against it, and never the default.
+TEST(TuningSpace, FromJsonTakesDualQuaternionsOnlyWhenAskedAndAlone) {
+  const TuningSpace linear = SpaceFromJson(nlohmann::json::parse(R"({"lang": ["cuda"]})"), "c.json");
+  EXPECT_EQ(linear.blends, (std::vector<Blend>{Blend::kMatrix, Blend::kPoint}));
+  EXPECT_EQ(linear.palettes, (std::vector<PaletteFormat>{PaletteFormat::kMat4, PaletteFormat::kMat3x4}));
+  const TuningSpace dq = SpaceFromJson(nlohmann::json::parse(R"({"blend": ["dq"]})"), "c.json");
+  EXPECT_EQ(dq.blends, std::vector<Blend>{Blend::kDualQuaternion});
+  EXPECT_EQ(dq.palettes, std::vector<PaletteFormat>{PaletteFormat::kDualQuaternion});
+  try {
+    SpaceFromJson(nlohmann::json::parse(R"({"blend": ["matrix", "dq"]})"), "c.json");
+    FAIL() << "dq raced against matrix";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("c.json: space.blend: \"dq\""), std::string::npos) << e.what();
+  }
 }
 
 TEST(TuningSpace, FromJsonNamesTheBadAxisOrValue) {

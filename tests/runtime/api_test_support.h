@@ -100,7 +100,9 @@ inline void ExpectSkinsLikeTheGold(Skinner& skinner, const SkinnedMesh& mesh, st
   ASSERT_TRUE(skinner.SetPalette(matrices.data(), matrices.size()).ok());
   const Status skinned = skinner.Skin();
   ASSERT_TRUE(skinned.ok()) << skinned.message();
-  const GoldResult gold = SkinGold(QuantisedMesh(mesh, variant), palette, SkinsNormals(variant), SkinsTangents(variant));
+  const auto skin_gold = variant.blend == Blend::kDualQuaternion ? &SkinGoldDualQuaternion : &SkinGold;
+  const GoldResult gold =
+      skin_gold(QuantisedMesh(mesh, variant), palette, SkinsNormals(variant), SkinsTangents(variant));
   std::vector<float> positions(mesh.vertex_count() * 3);
   const Status read = skinner.ReadPositions(positions.data(), positions.size());
   ASSERT_TRUE(read.ok()) << read.message();

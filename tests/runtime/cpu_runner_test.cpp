@@ -1,8 +1,9 @@
 // The language cpu (the fast path's kernels, cpu_kernels/cpu_kernels.h) through
 // the runner driver on the host: every kernel of the table (B 1..8 x index
-// u32/u16/u8 x weight f32/unorm16/unorm8 x mat4/mat3x4 x matrix/point) on
-// fresh random meshes against the float64 gold of the weights as the
-// variant stores them, with poisoned outputs and guards, across the three
+// u32/u16/u8 x weight f32/unorm16/unorm8 x mat4/mat3x4 x matrix/point, and
+// dualquat dq) on fresh random meshes against the float64 gold of the
+// weights as the variant stores them (the dual-quaternion gold for dq, on
+// rigid palettes), with poisoned outputs and guards, across the three
 // layouts, both position formats and normals; bucketed meshes, instances,
 // timing with the per-variant schedule choice, the same-size copy, and the
 // errors of bad kernel texts and storages. The seed is printed;
@@ -10,6 +11,9 @@
 #include <gtest/gtest.h>
 
 #include <iostream>
+#include <random>
+
+#include <glm/gtc/quaternion.hpp>
 
 #include "generator/copy_kernel.h"
 #include "generator/emit.h"
@@ -50,8 +54,10 @@ Variant VariantOf(const CpuKernelKey& key, std::size_t i) {
     case CpuWeight::kUnorm16: v.weight = WeightFormat::kUnorm16; break;
     case CpuWeight::kUnorm8: v.weight = WeightFormat::kUnorm8; break;
   }
-  v.palette = key.palette_rows == 3 ? PaletteFormat::kMat3x4 : PaletteFormat::kMat4;
-  v.blend = key.point_blend ? Blend::kPoint : Blend::kMatrix;
+  v.palette = key.palette_rows == 2   ? PaletteFormat::kDualQuaternion
+              : key.palette_rows == 3 ? PaletteFormat::kMat3x4
+                                      : PaletteFormat::kMat4;
+  v.blend = key.dual_quaternion ? Blend::kDualQuaternion : key.point_blend ? Blend::kPoint : Blend::kMatrix;
   const Layout layouts[] = {Layout::kAos, Layout::kSoa, Layout::kSoaSplit};
   v.layout = layouts[i % 3];
   v.position = (i / 3) % 2 ? PositionFormat::kFloat3 : PositionFormat::kFloat4;
@@ -59,14 +65,81 @@ Variant VariantOf(const CpuKernelKey& key, std::size_t i) {
   return v;
 }
 
+// The table's linear-blend keys (matrix and point), in table order.
+std::vector<CpuKernelKey> LinearKeys() {
+  std::vector<CpuKernelKey> keys = AllCpuKernelKeys();
+  std::erase_if(keys, [](const CpuKernelKey& k) { return k.dual_quaternion; });
+  return keys;
+}
+
 TEST(CpuRunner, EveryKernelOfTheTableMatchesTheGold) {
-  const std::vector<CpuKernelKey> keys = AllCpuKernelKeys();
+  const std::vector<CpuKernelKey> keys = LinearKeys();
   ASSERT_EQ(keys.size(), 8u * 3 * 3 * 2 * 2);
   for (std::size_t i = 0; i < keys.size(); ++i) {
     const Variant variant = VariantOf(keys[i], i);
     const std::string mesh = "b" + std::to_string(variant.influences) + (i % 2 ? "-random" : "");
     SCOPED_TRACE(CpuKernelName(keys[i]) + ": " + variant.Key() + " on " + mesh + ", seed " + std::to_string(Seed()));
     ExpectRunMatchesGold(Runner(), variant, mesh, LaunchTimes::kNonNegative);
+    if (HasFailure()) return;  // one failing kernel says enough
+  }
+}
+
+// `joints` random rigid joints (dual-quaternion palettes take rotations and
+// translations only): rotations uniform over all rotations, translations up
+// to `reach` a coordinate.
+std::vector<glm::mat4> RigidPalette(std::size_t joints, double reach, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal;
+  std::uniform_real_distribution<double> shift(-reach, reach);
+  std::vector<glm::mat4> palette;
+  for (std::size_t j = 0; j < joints; ++j) {
+    const glm::dquat q = glm::normalize(glm::dquat(normal(rng), normal(rng), normal(rng), normal(rng)));
+    glm::mat4 m(glm::mat3(glm::mat3_cast(q)));
+    m[3] = glm::vec4(glm::dvec3(shift(rng), shift(rng), shift(rng)), 1.0);
+    palette.push_back(m);
+  }
+  return palette;
+}
+
+// Every dual-quaternion kernel through the device (BLEND 2, PALETTE_ROWS 2,
+// the packer's 2-row palette) against the dual-quaternion gold of the
+// weights as stored; its layouts and position formats turned as the linear
+// kernels' are (float4 with tangents), and positions only, normals, and
+// normals and tangents in turn.
+TEST(CpuRunner, EveryDualQuaternionKernelMatchesTheDualQuaternionGold) {
+  std::vector<CpuKernelKey> keys = AllCpuKernelKeys();
+  std::erase_if(keys, [](const CpuKernelKey& k) { return !k.dual_quaternion; });
+  ASSERT_EQ(keys.size(), 8u * 3 * 3);
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    Variant variant = VariantOf(keys[i], i);
+    const Normals normals[] = {Normals::kNone, Normals::kNormals, Normals::kTangents};
+    variant.normals = normals[i / 2 % 3];
+    if (SkinsTangents(variant)) variant.position = PositionFormat::kFloat4;  // the tangents' 16-byte stride
+    const std::string mesh = "b" + std::to_string(variant.influences) + (i % 2 ? "-random" : "");
+    SCOPED_TRACE(CpuKernelName(keys[i]) + ": " + variant.Key() + " on " + mesh + ", seed " + std::to_string(Seed()));
+    const SkinnedAsset& asset = Asset(mesh);
+    const PackedMesh packed = Pack(asset.mesh, variant);
+    const std::vector<glm::mat4> palette =
+        RigidPalette(static_cast<std::size_t>(asset.mesh.joint_count),
+                     0.1 * BoundingBoxDiagonal(asset.mesh.positions), Seed() * 1000 + i);
+    const RunResult result = Runner().Run(packed, PackPalette(palette, variant));
+    const GoldResult gold = SkinGoldDualQuaternion(QuantisedMesh(asset.mesh, variant), palette,
+                                                   SkinsNormals(variant), SkinsTangents(variant));
+    EXPECT_EQ(result.poisoned_vertices, 0u);
+    const GoldComparison p = CompareToGold(gold.positions, Unpack(packed, result.positions));
+    EXPECT_EQ(p.non_finite, 0u) << "first at vertex " << p.worst_vertex;
+    EXPECT_LT(p.max_relative, kTolerance) << "positions, worst vertex " << p.worst_vertex;
+    if (SkinsNormals(variant)) {
+      const GoldComparison n = CompareToGold(gold.normals, Unpack(packed, result.normals));
+      EXPECT_EQ(n.non_finite, 0u) << "first at vertex " << n.worst_vertex;
+      EXPECT_LT(n.max_relative, kTolerance) << "normals, worst vertex " << n.worst_vertex;
+    }
+    if (SkinsTangents(variant)) {
+      const GoldComparison t = CompareTangentsToGold(gold.tangents, UnpackTangents(packed, result.tangents));
+      EXPECT_EQ(t.non_finite, 0u) << "first at vertex " << t.worst_vertex;
+      EXPECT_EQ(t.wrong_handedness, 0u) << "first at vertex " << t.worst_vertex;
+      EXPECT_LT(t.max_relative, kTolerance) << "tangents, worst vertex " << t.worst_vertex;
+    }
     if (HasFailure()) return;  // one failing kernel says enough
   }
 }
@@ -173,6 +246,24 @@ TEST(CpuRunner, KernelTextsThatAreNotParameterBlocksFailToBuildNamingTheLine) {
   KernelSource missing = good;
   missing.text.replace(missing.text.find("#define WEIGHT_FORMAT"), 2, "//");
   expect_build_error(missing, "no #define WEIGHT_FORMAT");
+  KernelSource no_blend = good;
+  no_blend.text.replace(no_blend.text.find("#define BLEND"), 2, "//");
+  expect_build_error(no_blend, "no #define BLEND");
+  KernelSource blend_3 = good;
+  blend_3.text += "#define BLEND 3\n";
+  expect_build_error(blend_3, "BLEND 3 (expected 0 matrix, 1 point or 2 dual quaternion)");
+  // A dual-quaternion palette with a linear blend, and the dual-quaternion blend with a matrix palette.
+  KernelSource rows_2 = good;
+  rows_2.text += "#define PALETTE_ROWS 2\n";
+  expect_build_error(rows_2,
+                     "PALETTE_ROWS 2 with BLEND 0: a dual-quaternion palette (PALETTE_ROWS 2) is read by BLEND 2 only");
+  KernelSource blend_2 = good;
+  blend_2.text += "#define BLEND 2\n";
+  expect_build_error(blend_2, "PALETTE_ROWS 3 with BLEND 2");
+  KernelSource dual_quaternion = good;
+  dual_quaternion.text += "#define BLEND 2\n#define PALETTE_ROWS 2\n";
+  dual_quaternion.source_hash = SourceHash(dual_quaternion.text);
+  Runner().Build(dual_quaternion);
   KernelSource other = good;
   other.lang = Lang::kOpenCl;
   expect_build_error(other, "kernel language is opencl");

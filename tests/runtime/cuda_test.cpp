@@ -287,7 +287,7 @@ DeviceLimits CudaLimits() {
   return d;
 }
 
-const ProblemShape kCoveringShape{kJoints, 1, true, 1, true};
+const ProblemShape kCoveringShape{kJoints, 1, true, 1, true, true};
 
 // The project's covering set (generator/covering.h), which the tools use.
 TEST(CudaCoveringSet, EveryVariantCompilesCleanly) {
@@ -480,7 +480,7 @@ TEST(CudaVariantCases, CompileCleanlyHere) {
 // variant on a fresh mesh with its own influence count.
 TEST(CudaCoveringSet, EveryVariantMatchesTheGold) {
   RUNNER_OR_SKIP(runner);
-  const CoveringSet set = BuildCoveringSet(Lang::kCuda, runner->limits(), {kJoints, 1, true, 1, true});
+  const CoveringSet set = BuildCoveringSet(Lang::kCuda, runner->limits(), {kJoints, 1, true, 1, true, true});
   ASSERT_TRUE(set.uncoverable.empty());
   ExpectCoveringSetMatchesGold(*runner, set, LaunchTimes::kPositive);
   std::cout << "[ covering ] " << set.variants.size() << " CUDA variants verified on " << runner->device_name()

@@ -91,7 +91,8 @@ template <typename RunResult>
 void ExpectMatchesGold(const PackedMesh& packed, const RunResult& result, const SkinnedMesh& mesh,
                        std::span<const glm::mat4> palette, LaunchTimes times) {
   const SkinnedMesh quantised = QuantisedMesh(mesh, packed.variant);
-  const GoldResult gold = SkinGold(quantised, palette, SkinsNormals(packed.variant), SkinsTangents(packed.variant));
+  const auto skin_gold = packed.variant.blend == Blend::kDualQuaternion ? &SkinGoldDualQuaternion : &SkinGold;
+  const GoldResult gold = skin_gold(quantised, palette, SkinsNormals(packed.variant), SkinsTangents(packed.variant));
   EXPECT_EQ(result.poisoned_vertices, 0u);
   const GoldComparison p = CompareToGold(gold.positions, Unpack(packed, result.positions));
   EXPECT_EQ(p.non_finite, 0u) << "first at vertex " << p.worst_vertex;
@@ -115,10 +116,13 @@ void ExpectMatchesGold(const PackedMesh& packed, const RunResult& result, const 
   }
 }
 
-// Packs Asset(mesh) for `variant`, runs it with Palette(asset) and expects the gold.
+// Packs Asset(mesh) for `variant`, runs it with Palette(asset) and expects the
+// gold. A dual-quaternion variant skins the mesh's rigid twin (its animation
+// without scale channels), whose palettes are rotations and translations.
 template <typename Runner>
 PackedMesh ExpectRunMatchesGold(Runner& runner, const Variant& variant, const std::string& mesh, LaunchTimes times) {
-  const SkinnedAsset& asset = Asset(mesh);
+  const bool rigid = variant.blend == Blend::kDualQuaternion && mesh != "cesium";
+  const SkinnedAsset& asset = Asset(rigid ? mesh + "-rigid" : mesh);
   const PackedMesh packed = Pack(asset.mesh, variant);
   const std::vector<glm::mat4> palette = Palette(asset);
   ExpectMatchesGold(packed, runner.Run(packed, PackPalette(palette, variant)), asset.mesh, palette, times);

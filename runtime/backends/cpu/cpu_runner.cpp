@@ -83,6 +83,19 @@ class CpuBound final : public DeviceObject {
   float* palette_out = nullptr;  // the palette kernel's output
 };
 
+// The kernel a skinning kernel text's parameters select (ParsedOf checked
+// that each is defined and in range).
+CpuKernelKey KeyOf(const std::map<std::string, long long>& d) {
+  CpuKernelKey k;
+  k.influences = static_cast<int>(d.at("INFLUENCES"));
+  k.index = static_cast<CpuIndex>(d.at("INDEX_FORMAT"));     // the axes' define values: i32 0, u16 1, u8 2
+  k.weight = static_cast<CpuWeight>(d.at("WEIGHT_FORMAT"));  // f32 0, unorm16 1, unorm8 2
+  k.palette_rows = static_cast<int>(d.at("PALETTE_ROWS"));   // 4 mat4, 3 mat3x4, 2 dualquat
+  k.point_blend = d.at("BLEND") == 1;                        // 0 matrix, 1 point, 2 dual quaternion
+  k.dual_quaternion = d.at("BLEND") == 2;
+  return k;
+}
+
 // `output` advanced by `floats`, or null for an output the variant does not write.
 float* At(float* output, std::size_t floats) { return output ? output + floats : nullptr; }
 
@@ -202,19 +215,20 @@ const Parsed& CpuApi::ParsedOf(const KernelSource& source) {
     for (const char* required : {"ANIM_NODE_COUNT", "ANIM_JOINT_COUNT", "ANIM_CLIP_COUNT", "ANIM_PALETTE_ROWS"})
       if (!parsed.defines.contains(required)) Fail("build", "kernel " + key + ": no #define " + required);
   } else if (!parsed.copy) {
-    for (const char* required : {"INFLUENCES", "INDEX_FORMAT", "WEIGHT_FORMAT", "PALETTE_ROWS", "BLEND_POINT"})
+    for (const char* required : {"INFLUENCES", "INDEX_FORMAT", "WEIGHT_FORMAT", "PALETTE_ROWS", "BLEND"})
       if (!parsed.defines.contains(required)) Fail("build", "kernel " + key + ": no #define " + required);
     const auto& d = parsed.defines;
     if (d.at("INDEX_FORMAT") < 0 || d.at("INDEX_FORMAT") > 2 || d.at("WEIGHT_FORMAT") < 0 || d.at("WEIGHT_FORMAT") > 2)
       Fail("build", "kernel " + key + ": INDEX_FORMAT and WEIGHT_FORMAT must be 0, 1 or 2");
-    CpuKernelKey k;
-    k.influences = static_cast<int>(d.at("INFLUENCES"));
-    k.index = static_cast<CpuIndex>(d.at("INDEX_FORMAT"));  // the axes' define values: i32 0, u16 1, u8 2
-    k.weight = static_cast<CpuWeight>(d.at("WEIGHT_FORMAT"));  // f32 0, unorm16 1, unorm8 2
-    k.palette_rows = static_cast<int>(d.at("PALETTE_ROWS"));
-    k.point_blend = d.at("BLEND_POINT") != 0;
+    if (d.at("BLEND") < 0 || d.at("BLEND") > 2)
+      Fail("build", "kernel " + key + ": BLEND " + std::to_string(d.at("BLEND")) +
+                        " (expected 0 matrix, 1 point or 2 dual quaternion)");
+    if ((d.at("PALETTE_ROWS") == 2) != (d.at("BLEND") == 2))
+      Fail("build", "kernel " + key + ": PALETTE_ROWS " + std::to_string(d.at("PALETTE_ROWS")) + " with BLEND " +
+                        std::to_string(d.at("BLEND")) + ": a dual-quaternion palette (PALETTE_ROWS 2) is read by " +
+                        "BLEND 2 only, and BLEND 2 reads no other");
     try {
-      FindCpuKernel(k);
+      FindCpuKernel(KeyOf(d));
     } catch (const Error& e) {
       Fail("build", "kernel " + key + ": " + e.what());
     }
@@ -244,13 +258,7 @@ std::unique_ptr<PlannedLaunch> CpuApi::Plan(const LaunchSpec& spec) {
   if (spec.variant.storage != PaletteStorage::kGlobal)
     Fail("launch", spec.where + ": storage " + Name(spec.variant.storage) +
                        ": the cpu kernels read the palette from host memory (storage global only)");
-  const auto& d = parsed.defines;
-  CpuKernelKey k;
-  k.influences = static_cast<int>(d.at("INFLUENCES"));
-  k.index = static_cast<CpuIndex>(d.at("INDEX_FORMAT"));
-  k.weight = static_cast<CpuWeight>(d.at("WEIGHT_FORMAT"));
-  k.palette_rows = static_cast<int>(d.at("PALETTE_ROWS"));
-  k.point_blend = d.at("BLEND_POINT") != 0;
+  const CpuKernelKey k = KeyOf(parsed.defines);
   plan->kernel = FindCpuKernel(k);
   plan->palette_rows = k.palette_rows;
   return plan;

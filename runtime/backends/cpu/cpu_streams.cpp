@@ -17,7 +17,9 @@ CpuKernelKey CpuKeyOf(const Variant& variant, int influences) {
     case WeightFormat::kUnorm16: key.weight = CpuWeight::kUnorm16; break;
     case WeightFormat::kUnorm8: key.weight = CpuWeight::kUnorm8; break;
   }
-  key.palette_rows = variant.palette == PaletteFormat::kMat4 ? 4 : 3;
+  key.palette_rows = static_cast<int>(BytesOf(variant.palette) / 16);
+  key.point_blend = variant.blend == Blend::kPoint;
+  key.dual_quaternion = variant.blend == Blend::kDualQuaternion;
   return key;
 }
 

@@ -2,7 +2,7 @@
 // the packer lays out for a variant (generator/packer.h), so that a cpu
 // variant reads exactly what the GPU variants read: layouts aos / soa /
 // soa-split, positions float4 / float3, indices i32 / u16 / u8, weights f32 /
-// unorm16 / unorm8, palettes mat4 / mat3x4.
+// unorm16 / unorm8, palettes mat4 / mat3x4 / dualquat.
 #pragma once
 
 #include <cstdint>
@@ -13,7 +13,7 @@
 
 namespace skintune::internal {
 
-// The kernel of `variant` for a launch of `influences` (its palette rows and formats).
+// The kernel of `variant` for a launch of `influences` (its formats, palette rows and blend).
 CpuKernelKey CpuKeyOf(const Variant& variant, int influences);
 
 // The streams of one launch of `count` vertices and `influences` slots:

@@ -394,13 +394,26 @@ struct SkinnerOptions {
   // variant is a `tangents` one (docs/VARIANTS.md), in the float4 position
   // format; database entries in float3 are skipped with their reason.
   bool tangents = false;
+  // Skin with dual quaternions instead of linear blending (docs/VARIANTS.md
+  // "Dual quaternions"): each vertex's joints' rotations and translations
+  // blended as unit dual quaternions, which keeps the volume that linear
+  // blending loses at twisting joints. A different result, so the user's
+  // choice: only database entries tuned with blend "dq" serve it (else the
+  // built-in default's dq twin), and linear entries never do. The palette is
+  // uploaded as 2 float4 rows a joint instead of 3 or 4. Every SetPalette
+  // matrix must then be rigid (a rotation and a translation, within
+  // skintune_kernels::kRigidTolerance): one that scales, shears or mirrors
+  // is kInvalidArgument naming it. Not with CreateAnimated (its palettes are
+  // matrices): kInvalidArgument.
+  bool dual_quaternions = false;
   // Force a variant key (docs/VARIANTS.md; omitted axes take their defaults)
   // instead of the database's choice; Selection::level is then kForced. It
   // must be of one of the device's languages, padded (a bucketed variant
   // reorders the vertices on the device) and pass every constraint on this
   // device and mesh (e.g. B at least the mesh's largest per-vertex count);
   // otherwise kInvalidArgument naming the constraint ("influences_too_few:
-  // ..."). Its `normals` axis follows `normals` and `tangents` above.
+  // ..."). Its `normals` axis follows `normals` and `tangents` above; its
+  // blend must be "dq" exactly when `dual_quaternions` is set.
   std::string variant;
   // The error budget: the largest error quantising the weights may add to the
   // skinned positions, relative to the mesh's bounding-box diagonal

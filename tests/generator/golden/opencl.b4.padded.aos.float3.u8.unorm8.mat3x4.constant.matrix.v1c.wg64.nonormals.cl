@@ -7,7 +7,7 @@
 #define PALETTE_ROWS 3
 #define STORAGE 0
 #define JOINTS 77
-#define BLEND_POINT 0
+#define BLEND 0
 #define VERTICES_PER_ITEM 1
 #define STRIDED 0
 #define WG_SIZE 64
@@ -81,7 +81,7 @@
 #ifndef WEIGHT_FORMAT         // 0 f32, 1 unorm16, 2 unorm8
 #define WEIGHT_FORMAT 0
 #endif
-#ifndef PALETTE_ROWS          // float4 rows per joint: 4 mat4, 3 mat3x4
+#ifndef PALETTE_ROWS          // float4 rows per joint: 4 mat4, 3 mat3x4, 2 a dual quaternion (BLEND 2)
 #define PALETTE_ROWS 3
 #endif
 #ifndef STORAGE               // palette in 0 constant memory, 1 a local copy, 2 global memory, 3 an image
@@ -90,8 +90,8 @@
 #ifndef JOINTS                // palette entries (sizes the local copy and CUDA's / GLSL's constant palette)
 #define JOINTS 77
 #endif
-#ifndef BLEND_POINT           // 0: blend matrices then transform; 1: transform per bone, blend points
-#define BLEND_POINT 0
+#ifndef BLEND                 // 0: blend matrices then transform; 1: transform per bone, blend points;
+#define BLEND 0               // 2: blend unit dual quaternions (PALETTE_ROWS 2: real, dual part)
 #endif
 #ifndef VERTICES_PER_ITEM     // N: 1, 2, 4, 8
 #define VERTICES_PER_ITEM 1
@@ -390,12 +390,44 @@ static inline float4 transform_tangent(const float4 a0, const float4 a1, const f
   return (float4)(dot(a0.xyz, t.xyz), dot(a1.xyz, t.xyz), dot(a2.xyz, t.xyz), det < 0.0f ? -t.w : t.w);
 }
 
+#if BLEND == 2
+// The rigid map of a unit dual quaternion (real part r = (x, y, z, w), dual
+// part d) as three rows: r's rotation matrix and the translation
+// 2 (r.w d.xyz - d.w r.xyz + r.xyz x d.xyz), the vector part of 2 d conj(r).
+static inline void dual_quaternion_rows(const float4 r, const float4 d, float4* m0, float4* m1, float4* m2) {
+  const float3 t = 2.0f * (r.w * d.xyz - d.w * r.xyz + cross(r.xyz, d.xyz));
+  const float x = r.x, y = r.y, z = r.z, w = r.w;
+  *m0 = (float4)(1.0f - 2.0f * (y * y + z * z), 2.0f * (x * y - w * z), 2.0f * (x * z + w * y), t.x);
+  *m1 = (float4)(2.0f * (x * y + w * z), 1.0f - 2.0f * (x * x + z * z), 2.0f * (y * z - w * x), t.y);
+  *m2 = (float4)(2.0f * (x * z - w * y), 2.0f * (y * z + w * x), 1.0f - 2.0f * (x * x + y * y), t.z);
+}
+#endif
+
 // Skins one vertex's position given its joints and weights, and gives the
 // blended matrix's rows (*a0..*a2) that normals and tangents are turned by
-// (dead code without NORMALS).
+// (dead code without NORMALS). BLEND 2: the rows of the blended, normalised
+// dual quaternion's rigid map (docs/VARIANTS.md "Dual quaternions"), each
+// influence's quaternion taken on the side of the first influence's
+// (antipodality: q and -q are one rotation, and blending across them cancels).
 static inline void blend(PALETTE_REF_PARAM, const uint joint[INFLUENCES], const float weight[INFLUENCES],
                          const float3 position, float3* out_position, float4* a0, float4* a1, float4* a2) {
-#if BLEND_POINT
+#if BLEND == 2
+  const uint k0 = joint[0] * PALETTE_ROWS;
+  const float4 q0 = ROW(pal, k0);
+  float4 r = weight[0] * q0, d = weight[0] * ROW(pal, k0 + 1);
+#pragma unroll
+  for (uint i = 1; i < INFLUENCES; ++i) {
+    const uint k = joint[i] * PALETTE_ROWS;
+    const float4 q = ROW(pal, k);
+    const float w = dot(q0, q) < 0.0f ? -weight[i] : weight[i];
+    r += w * q;
+    d += w * ROW(pal, k + 1);
+  }
+  const float inverse_length = rsqrt(dot(r, r));
+  float4 m0, m1, m2;
+  dual_quaternion_rows(inverse_length * r, inverse_length * d, &m0, &m1, &m2);
+  *out_position = transform_point(m0, m1, m2, position);
+#elif BLEND == 1
   uint k = joint[0] * PALETTE_ROWS;
   float4 r0 = ROW(pal, k), r1 = ROW(pal, k + 1), r2 = ROW(pal, k + 2);
   float3 p = weight[0] * transform_point(r0, r1, r2, position);
