@@ -496,6 +496,9 @@ const KernelResults* PaperSummary::Kernels(std::size_t device, const std::string
 PaperSummary Summarise(const std::vector<PaperResult>& results) {
   PaperSummary s;
   for (std::size_t i = 0; i < results.size(); ++i) ResultSummariser(results[i], i, results.size() > 1, s).Run();
+  std::vector<double> twists;
+  for (int degrees = 0; degrees <= 180; degrees += 15) twists.push_back(degrees);
+  if (!results.empty()) s.candy_wrapper = CandyWrapper(twists);
   return s;
 }
 

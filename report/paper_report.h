@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "generator/variant.h"
+#include "reference/candy_wrapper.h"
 #include "tuner/tuned_device.h"
 #include "tuner/measurement.h"
 #include "report/paper_result.h"
@@ -221,6 +222,10 @@ struct PaperSummary {
   std::vector<Table1Grid> opencl_vs_vulkan;
   std::vector<GbpsChart> gbps;             // one per device
   std::vector<AxisChart> axes;             // per device x language with a status-ok measurement
+  // Linear blending against dual quaternions on a twisting joint, every 15
+  // degrees from 0 to 180 (reference/candy_wrapper.h): the algorithms' own
+  // results, the same in every report with results (none without).
+  std::vector<CandyWrapperPoint> candy_wrapper;
 
   // The kernel results of a device on a data set, or null.
   const KernelResults* Kernels(std::size_t device, const std::string& dataset) const;
@@ -236,7 +241,7 @@ PaperResult PaperResultFromReport(const TuningReport& report);
 
 // One self-contained HTML5 page: sections fig1, table1-opencl-vs-cuda,
 // table1-opencl-vs-glsl, gbps (charts gbps-0, gbps-1, ...), axes (charts
-// axes-0, ...) and devices; every chart an <svg class="chart" role="img">
+// axes-0, ...), candy-wrapper (chart candy-wrapper-chart) and devices; every chart an <svg class="chart" role="img">
 // with a <title>. Every text from the input is escaped.
 std::string RenderHtml(const PaperSummary& summary);
 // The Fig. 1 and Table 1 tables, per device its tuned winners (ms, GB/s,

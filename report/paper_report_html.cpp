@@ -248,6 +248,7 @@ class Renderer {
     Table1Section(PaperApi::kVulkan, s_.opencl_vs_vulkan, "table1-opencl-vs-vulkan");
     GbpsSection();
     AxesSection();
+    CandyWrapperSection();
     DevicesSection();
     out_ += "<footer>Written by <code>skintune report</code>. Self-contained: no script, no external resource.</footer>\n";
     out_ += "</main>\n</body>\n</html>\n";
@@ -705,6 +706,66 @@ class Renderer {
   }
 
   // ---- Devices --------------------------------------------------------------------
+
+  // Why blend dq exists: a joint twisting about its own axis, the middle
+  // ring's radius and the blend region's volume under each method.
+  void CandyWrapperSection() {
+    out_ += "<section id=\"candy-wrapper\">\n<h2>Dual quaternions: the candy wrapper</h2>\n";
+    out_ += "<p>A tube bound to two joints, the second twisting about the tube&#39;s own axis, the weights "
+            "crossing from one joint to the other over the middle half (docs/VARIANTS.md &quot;Dual "
+            "quaternions&quot;). Linear blending (<code>matrix</code>, <code>point</code>) averages the two "
+            "joints&#39; matrices, so the ring between them shrinks to |cos(twist / 2)| of its radius and "
+            "collapses at 180 degrees; dual quaternions (<code>dq</code>) blend the rigid motions and keep its "
+            "volume. The float64 golds of both methods, not a measurement.</p>\n";
+    if (s_.candy_wrapper.empty()) {
+      out_ += "</section>\n";
+      return;
+    }
+    const double width = 760, height = 320, x0 = 70, x1 = 560, y0 = 20, y1 = 260;
+    out_ += SvgOpen("candy-wrapper-chart", width, height,
+                    "The middle ring&#39;s radius against the joint&#39;s twist, linear blending and dual quaternions");
+    const double top = s_.candy_wrapper.back().twist_degrees;
+    auto x = [&](double degrees) { return x0 + degrees / top * (x1 - x0); };
+    auto y = [&](double ratio) { return y1 - ratio / 1.1 * (y1 - y0); };
+    for (double v = 0.0; v <= 1.0001; v += 0.25) {
+      out_ += Line(x0, y(v), x1, y(v), "stroke=\"#eaeef2\"");
+      out_ += Text(x0 - 8, y(v) + 4, C(v), "class=\"small\" text-anchor=\"end\"");
+    }
+    for (const CandyWrapperPoint& p : s_.candy_wrapper) {
+      if (static_cast<int>(p.twist_degrees) % 45 != 0) continue;
+      out_ += Text(x(p.twist_degrees), y1 + 18, C(p.twist_degrees), "class=\"small\" text-anchor=\"middle\"");
+    }
+    out_ += Rect(x0, y0, x1 - x0, y1 - y0, "fill=\"none\" stroke=\"#8c959f\"");
+    out_ += Text((x0 + x1) / 2, y1 + 42, "twist (degrees)", "class=\"label\" text-anchor=\"middle\"");
+    out_ += Text(20, (y0 + y1) / 2, "radius / rest",
+                 "class=\"label\" text-anchor=\"middle\" transform=\"rotate(-90 20 " + C((y0 + y1) / 2) + ")\"");
+    const struct {
+      const char* label;
+      const char* colour;
+      double CandyWrapperPoint::*radius;
+    } methods[] = {{"linear blending", "#cf222e", &CandyWrapperPoint::linear_radius},
+                   {"dual quaternions", "#0969da", &CandyWrapperPoint::dual_quaternion_radius}};
+    double ly = y0 + 10;
+    for (const auto& m : methods) {
+      std::string points;
+      for (const CandyWrapperPoint& p : s_.candy_wrapper) points += C(x(p.twist_degrees)) + "," + C(y(p.*m.radius)) + " ";
+      out_ += "<polyline points=\"" + points + "\" fill=\"none\" stroke=\"" + m.colour + "\" stroke-width=\"2.2\"/>";
+      out_ += Line(x1 + 20, ly - 4, x1 + 50, ly - 4, "stroke=\"" + std::string(m.colour) + "\" stroke-width=\"2.2\"");
+      out_ += Text(x1 + 58, ly, m.label, "class=\"label\"");
+      ly += 20;
+    }
+    out_ += "</svg>\n<table>\n<tr><th>twist (degrees)</th><th>radius, linear</th><th>radius, dual quaternions</th>"
+            "<th>volume, linear</th><th>volume, dual quaternions</th></tr>\n";
+    for (const CandyWrapperPoint& p : s_.candy_wrapper) {
+      if (static_cast<int>(p.twist_degrees) % 45 != 0) continue;
+      char row[256];
+      std::snprintf(row, sizeof row, "<tr><td>%.0f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td></tr>\n",
+                    p.twist_degrees, p.linear_radius, p.dual_quaternion_radius, p.linear_volume,
+                    p.dual_quaternion_volume);
+      out_ += row;
+    }
+    out_ += "</table>\n</section>\n";
+  }
 
   void DevicesSection() {
     out_ += "<section id=\"devices\">\n<h2>Devices, host and kernels</h2>\n";

@@ -9,6 +9,7 @@
 
 #include "base/error.h"
 #include "model/gltf_import.h"
+#include "reference/candy_wrapper.h"
 #include "reference/skinning.h"
 #include "model/synthetic.h"
 #include "tests/model/test_meshes.h"
@@ -394,6 +395,22 @@ TEST(SkinGold, InChunksIsEveryVertexsOwnGold) {
       ASSERT_EQ(all.normals[first + v], alone.normals[v]) << first + v;
     }
   }
+}
+
+// The candy wrapper: linear blending shrinks the middle ring of a tube whose
+// joint twists to |cos(angle / 2)| of its radius, dual quaternions keep it.
+TEST(CandyWrapper, LinearBlendingCollapsesATwistedJointAndDualQuaternionsKeepItsVolume) {
+  const std::vector<CandyWrapperPoint> points = CandyWrapper({0.0, 90.0, 180.0});
+  ASSERT_EQ(points.size(), 3u);
+  for (const CandyWrapperPoint& p : points) {
+    SCOPED_TRACE(p.twist_degrees);
+    EXPECT_NEAR(p.linear_radius, std::fabs(std::cos(p.twist_degrees * M_PI / 360.0)), 1e-5);
+    EXPECT_NEAR(p.dual_quaternion_radius, 1.0, 1e-5);
+    EXPECT_NEAR(p.dual_quaternion_volume, 1.0, 1e-5);
+  }
+  EXPECT_NEAR(points[0].linear_volume, 1.0, 1e-6);
+  EXPECT_LT(points[1].linear_volume, 0.9);
+  EXPECT_LT(points[2].linear_volume, points[1].linear_volume);
 }
 
 }  // namespace

@@ -524,7 +524,7 @@ TEST(PaperReportHtml, HasEverySectionAndOneChartPerFigure1DeviceAndDeviceLanguag
   const PaperSummary s = Summarise({SamplePaperResult()});
   const std::string html = RenderHtml(s);
   for (const char* id : {"fig1", "table1-opencl-vs-cuda", "table1-opencl-vs-glsl", "gbps", "axes", "devices",
-                         "fig1-0"}) {
+                         "fig1-0", "candy-wrapper", "candy-wrapper-chart"}) {
     EXPECT_TRUE(HasId(html, id)) << id;
   }
   ASSERT_EQ(s.gbps.size(), 5u);
@@ -559,7 +559,16 @@ TEST(PaperReportHtml, EveryChartIsAnSvgWithClassRoleTitleViewBoxAndSize) {
     EXPECT_TRUE(std::regex_search(attributes, std::regex(" height=\"[1-9][0-9.]*\""))) << attributes;
     EXPECT_EQ((*it)[2].str().substr(0, 6), "<title") << attributes;
   }
-  EXPECT_EQ(charts, 1u + 5u + 7u);
+  EXPECT_EQ(charts, 1u + 5u + 7u + 1u);
+}
+
+// Linear blending's volume loss on a twisting joint against dual quaternions'.
+TEST(PaperReportHtml, TheCandyWrapperShowsLinearBlendingCollapsingWhereDualQuaternionsDoNot) {
+  const std::string candy = Section(RenderHtml(Summarise({SamplePaperResult()})), "candy-wrapper");
+  EXPECT_NE(candy.find("<tr><td>90</td><td>0.707</td><td>1.000</td>"), std::string::npos) << candy;
+  EXPECT_NE(candy.find("<tr><td>180</td><td>0.000</td><td>1.000</td>"), std::string::npos) << candy;
+  EXPECT_NE(candy.find("linear blending"), std::string::npos);
+  EXPECT_NE(candy.find("dual quaternions"), std::string::npos);
 }
 
 TEST(PaperReportHtml, NoResultsStillGivesEverySectionSayingSo) {
