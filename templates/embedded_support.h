@@ -349,11 +349,13 @@ struct Request {
   int joint_count;
   int count;
   int instances;
+  bool dual_quaternions;  // dual-quaternion kernels only (PaletteFormat::kDualquat), else linear ones only
 };
 
 inline bool Serves(const Kernel& k, const Request& r) {
   const bool shape = std::strcmp(k.shape, r.shape) == 0 || (r.single_serves && std::strcmp(k.shape, "single") == 0);
   return shape && std::strcmp(k.lang, r.lang) == 0 && k.influences >= r.influences && k.joints >= r.joint_count &&
+         (k.palette == PaletteFormat::kDualquat) == r.dual_quaternions &&
          static_cast<std::uint64_t>(r.joint_count) <= IndexCapacity(k.index) &&
          (k.max_instances == 0 || k.max_instances >= r.instances);
 }
@@ -399,9 +401,17 @@ inline const Kernel* Find(const Request& r) {
 // Kernels of every device of the header take part (check k->device_id, or
 // generate one header per device). nullptr if none fits, or for a null `lang`,
 // influences < 1 or joint_count < 1. Check k->normals yourself when you skin
-// normals.
+// normals. Linear blend skinning kernels only: FindDualQuaternionKernel gives
+// the dual-quaternion ones, which compute something else.
 inline const Kernel* FindKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count) {
-  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1});
+  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, false});
+}
+
+// FindKernel's rule among the single-mesh dual-quaternion kernels
+// (PaletteFormat::kDualquat: PackPalette takes rigid matrices only).
+inline const Kernel* FindDualQuaternionKernel(const char* lang, int influences, std::size_t vertex_count,
+                                              int joint_count) {
+  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, true});
 }
 
 // The instanced kernel for a crowd of `instances` instances of one mesh of
@@ -414,7 +424,7 @@ inline const Kernel* FindKernel(const char* lang, int influences, std::size_t ve
 inline const Kernel* FindCrowdKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count,
                                      int instances) {
   const std::size_t total = vertex_count * static_cast<std::size_t>(instances > 0 ? instances : 0);
-  return detail::Find({lang, "instances", false, influences, total, joint_count, instances, instances});
+  return detail::Find({lang, "instances", false, influences, total, joint_count, instances, instances, false});
 }
 
 // The kernel for a batch of `meshes` meshes packed as one (PackBatch) of
@@ -427,7 +437,7 @@ inline const Kernel* FindCrowdKernel(const char* lang, int influences, std::size
 // FindKernel).
 inline const Kernel* FindBatchKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count,
                                      int meshes) {
-  return detail::Find({lang, "batch", true, influences, vertex_count, joint_count, meshes, 1});
+  return detail::Find({lang, "batch", true, influences, vertex_count, joint_count, meshes, 1, false});
 }
 
 // Work items for a launch of n vertices: ceil(n / vertices_per_item) rounded
@@ -756,7 +766,8 @@ inline bool DualQuaternionOf(const float* m, float out[8], double* deviation = n
                        0.5 * (q[3] * t[1] + t[2] * q[0] - t[0] * q[2]),
                        0.5 * (q[3] * t[2] + t[0] * q[1] - t[1] * q[0]),
                        -0.5 * (t[0] * q[0] + t[1] * q[1] + t[2] * q[2])};
-  for (int i = 0; i < 4; ++i) out[i] = static_cast<float>(q[i]), out[4 + i] = static_cast<float>(d[i]);
+  // + 0.0: no negative zeros (a joint without translation packs as the identity padding does).
+  for (int i = 0; i < 4; ++i) out[i] = static_cast<float>(q[i] + 0.0), out[4 + i] = static_cast<float>(d[i] + 0.0);
   return true;
 }
 

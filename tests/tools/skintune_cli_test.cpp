@@ -312,7 +312,7 @@ TEST(SkintuneCli, VariantsWithAnUnknownDeviceIsAnError) {
 
 const std::string kEmbedDb = kData + "/embed-winners-db.json";
 // tests/data/embed-winners-db.json: 15 winners, 14 distinct variants (CUDA b3 wins 100k and 1600k).
-constexpr std::size_t kEmbedWinners = 15, kEmbedVariants = 14;
+constexpr std::size_t kEmbedWinners = 16, kEmbedVariants = 15;
 const std::string kCudaB3 = "cuda.b3.padded.aos.float3.i32.unorm16.mat3x4.image.matrix.v2c.wg96.nonormals";
 const std::string kBucketedWinner = "opencl.b4.bucketed.soa.float4.i32.f32.mat3x4.image.matrix.v4s.wg256.nonormals";
 const std::string kBucketedTwin = "opencl.b4.padded.soa.float4.i32.f32.mat3x4.image.matrix.v4s.wg256.nonormals";
@@ -440,7 +440,7 @@ TEST(SkintuneCli, EmitDbMatchesTheDeviceCaseInsensitivelyInIdNameVendorOrPlatfor
     }
     return exts;
   };
-  EXPECT_EQ(kernels("GEFORCE rtx"), (std::vector<std::string>{".cu", ".cu", ".cu", ".cu"}));    // name
+  EXPECT_EQ(kernels("GEFORCE rtx"), std::vector<std::string>(5, ".cu"));                      // name
   EXPECT_EQ(kernels("advanced micro"), std::vector<std::string>(5, ".cl"));                   // vendor only
   EXPECT_EQ(kernels("accelerated PARALLEL"), std::vector<std::string>(5, ".cl"));             // platform
   EXPECT_EQ(kernels("mesa 23.2"), (std::vector<std::string>{".comp", ".comp", ".vert", ".vert", ".comp"}));  // id

@@ -19,6 +19,7 @@
 #include <set>
 #include <sstream>
 
+#include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
 
 #include "embed_header_second_tu.h"
@@ -59,7 +60,9 @@ const char* Name(fk::IndexFormat v) {
 const char* Name(fk::WeightFormat v) {
   return v == fk::WeightFormat::kF32 ? "f32" : v == fk::WeightFormat::kUnorm16 ? "unorm16" : "unorm8";
 }
-const char* Name(fk::PaletteFormat v) { return v == fk::PaletteFormat::kMat4 ? "mat4" : "mat3x4"; }
+const char* Name(fk::PaletteFormat v) {
+  return v == fk::PaletteFormat::kMat4 ? "mat4" : v == fk::PaletteFormat::kMat3x4 ? "mat3x4" : "dualquat";
+}
 const char* Name(fk::PaletteStorage v) {
   switch (v) {
     case fk::PaletteStorage::kGlobal: return "global";
@@ -123,7 +126,7 @@ TEST(EmbedHeader, FixtureCoversEveryAxisValueAndOneBucketedWinner) {
     seen["weight"].insert(Name(k.weight));
     seen["palette"].insert(Name(k.palette));
     seen["storage"].insert(Name(k.storage));
-    seen["blend"].insert(k.point_blend ? "point" : "matrix");
+    seen["blend"].insert(k.palette == fk::PaletteFormat::kDualquat ? "dq" : k.point_blend ? "point" : "matrix");
     seen["normals"].insert(k.tangents ? "tangents" : k.normals ? "normals" : "nonormals");
     seen["assignment"].insert(k.strided ? "strided" : "contiguous");
   }
@@ -132,9 +135,9 @@ TEST(EmbedHeader, FixtureCoversEveryAxisValueAndOneBucketedWinner) {
   EXPECT_EQ(seen["position"].size(), 2u);
   EXPECT_EQ(seen["index"].size(), 3u);
   EXPECT_EQ(seen["weight"].size(), 3u);
-  EXPECT_EQ(seen["palette"].size(), 2u);
+  EXPECT_EQ(seen["palette"].size(), 3u);
   EXPECT_EQ(seen["storage"].size(), 4u);
-  EXPECT_EQ(seen["blend"].size(), 2u);
+  EXPECT_EQ(seen["blend"].size(), 3u);
   EXPECT_EQ(seen["normals"].size(), 3u);
   EXPECT_EQ(seen["assignment"].size(), 2u);
   int bucketed = 0;
@@ -180,6 +183,7 @@ TEST(EmbedHeader, KernelParametersAreTheVariantsAxes) {
     EXPECT_EQ(Name(k.palette), std::string(skintune::internal::Name(v.palette)));
     EXPECT_EQ(Name(k.storage), std::string(skintune::internal::Name(v.storage)));
     EXPECT_EQ(k.point_blend, v.blend == Blend::kPoint);
+    EXPECT_EQ(k.palette == fk::PaletteFormat::kDualquat, v.blend == Blend::kDualQuaternion);
     EXPECT_EQ(k.normals, SkinsNormals(v));
     EXPECT_EQ(k.tangents, SkinsTangents(v));
     EXPECT_EQ(k.vertices_per_item, v.vertices_per_item);
@@ -351,18 +355,30 @@ TEST(EmbedHeader, PackMeshPadsAMeshWithFewerSlotsThanTheKernelLikeThePacker) {
   }
 }
 
+// A dual-quaternion kernel's palette: rigid matrices as the packer's dual
+// quaternions, identities after them, and a matrix that scales refused.
 TEST(EmbedHeader, PackPaletteIsThePackersPaletteFilledUpWithIdentities) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> value(-3.0f, 3.0f);
-  std::vector<glm::mat4> matrices(kJoints);
-  for (glm::mat4& m : matrices) {
+  std::vector<glm::mat4> general(kJoints), rigid(kJoints);
+  for (std::size_t j = 0; j < general.size(); ++j) {
     for (int c = 0; c < 4; ++c)
-      for (int r = 0; r < 4; ++r) m[c][r] = value(rng);
+      for (int r = 0; r < 4; ++r) general[j][c][r] = value(rng);
+    const glm::vec3 axis = glm::normalize(glm::vec3(value(rng), value(rng), value(rng)) + glm::vec3(0, 0, 0.01f));
+    rigid[j] = glm::rotate(glm::mat4(1.0f), value(rng), axis);
+    rigid[j][3] = glm::vec4(value(rng), value(rng), value(rng), 1.0f);
   }
   for (int i = 0; i < fk::kKernelCount; ++i) {
     const fk::Kernel& k = fk::kKernels[i];
     const Variant v = VariantOf(k);
     SCOPED_TRACE(Context(k));
+    const bool dq = k.palette == fk::PaletteFormat::kDualquat;
+    std::vector<glm::mat4>& matrices = dq ? rigid : general;
+    if (dq) {
+      std::vector<glm::mat4> scaled = rigid;
+      scaled[7] = glm::scale(scaled[7], glm::vec3(1.0f, 1.5f, 1.0f));
+      EXPECT_TRUE(fk::PackPalette(k, &scaled[0][0][0], kJoints).empty()) << "a scaled joint as a dual quaternion";
+    }
     for (const int joints : {kJoints, 50, 1, 0}) {
       std::vector<glm::mat4> full(matrices.begin(), matrices.begin() + joints);
       full.resize(kJoints, glm::mat4(1.0f));
@@ -668,6 +684,18 @@ TEST(EmbedHeader, FindKernelNeedsAKernelSpecialisedForAtLeastTheJointCount) {
   EXPECT_EQ(IndexOf(fk::FindKernel("glsl-vertex", 2, 1000, kJoints)), EntryIndex("glsl-vertex", 2, "25k"));
   EXPECT_EQ(IndexOf(fk::FindKernel("glsl-vertex", 2, 1000, 1)), EntryIndex("glsl-vertex", 2, "25k"));
   EXPECT_EQ(fk::FindKernel("glsl-vertex", 2, 1000, kJoints + 1), nullptr);
+}
+
+// A dual-quaternion winner serves FindDualQuaternionKernel only, never the linear FindKernel.
+TEST(EmbedHeader, DualQuaternionKernelsAreFoundOnlyWhenAskedFor) {
+  const fk::Kernel* dq = fk::FindDualQuaternionKernel("cuda", 2, 100000, 40);
+  ASSERT_NE(dq, nullptr);
+  EXPECT_EQ(dq->palette, fk::PaletteFormat::kDualquat);
+  for (int b = 1; b <= 8; ++b) {
+    const fk::Kernel* linear = fk::FindKernel("cuda", b, 100000, 40);
+    if (linear) EXPECT_NE(linear->palette, fk::PaletteFormat::kDualquat) << b;
+  }
+  EXPECT_EQ(fk::FindDualQuaternionKernel("opencl", 2, 100000, 40), nullptr);
 }
 
 TEST(EmbedHeader, FindKernelReturnsNullForAnUnknownLanguageOrBadArguments) {
