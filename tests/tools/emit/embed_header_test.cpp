@@ -10,6 +10,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -19,7 +20,9 @@
 #include <set>
 #include <sstream>
 
+#define GLM_ENABLE_EXPERIMENTAL
 #include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
 #include <nlohmann/json.hpp>
 
 #include "embed_header_second_tu.h"
@@ -659,6 +662,74 @@ int EntryIndex(const std::string& lang, int influences, const std::string& bucke
       return static_cast<int>(i);
   }
   return -2;
+}
+
+// docs/VARIANTS.md "Dual quaternions", steps 1 to 4, written from the text
+// alone: the bytes of one joint's dual quaternion. `branch` receives which
+// case of step 1 ran (0: T > 0, 1 to 3: the largest diagonal element).
+std::array<float, 8> DocumentedDualQuaternion(const glm::mat4& m, int* branch) {
+  const auto a = [&](int r, int c) { return static_cast<double>(m[c][r]); };
+  const double tx = m[3][0], ty = m[3][1], tz = m[3][2];
+  double x, y, z, w;
+  const double t = (a(0, 0) + a(1, 1)) + a(2, 2);
+  if (t > 0) {
+    const double s = std::sqrt(t + 1) * 2;
+    w = 0.25 * s, x = (a(2, 1) - a(1, 2)) / s, y = (a(0, 2) - a(2, 0)) / s, z = (a(1, 0) - a(0, 1)) / s;
+    *branch = 0;
+  } else if (a(0, 0) > a(1, 1) && a(0, 0) > a(2, 2)) {
+    const double s = std::sqrt(((1 + a(0, 0)) - a(1, 1)) - a(2, 2)) * 2;
+    w = (a(2, 1) - a(1, 2)) / s, x = 0.25 * s, y = (a(0, 1) + a(1, 0)) / s, z = (a(0, 2) + a(2, 0)) / s;
+    *branch = 1;
+  } else if (a(1, 1) > a(2, 2)) {
+    const double s = std::sqrt(((1 + a(1, 1)) - a(0, 0)) - a(2, 2)) * 2;
+    w = (a(0, 2) - a(2, 0)) / s, x = (a(0, 1) + a(1, 0)) / s, y = 0.25 * s, z = (a(1, 2) + a(2, 1)) / s;
+    *branch = 2;
+  } else {
+    const double s = std::sqrt(((1 + a(2, 2)) - a(0, 0)) - a(1, 1)) * 2;
+    w = (a(1, 0) - a(0, 1)) / s, x = (a(0, 2) + a(2, 0)) / s, y = (a(1, 2) + a(2, 1)) / s, z = 0.25 * s;
+    *branch = 3;
+  }
+  const double l = std::sqrt(((x * x + y * y) + z * z) + w * w);
+  x /= l, y /= l, z /= l, w /= l;
+  const double d[4] = {0.5 * ((w * tx + ty * z) - tz * y), 0.5 * ((w * ty + tz * x) - tx * z),
+                       0.5 * ((w * tz + tx * y) - ty * x), -0.5 * ((tx * x + ty * y) + tz * z)};
+  return {static_cast<float>(x + 0.0),    static_cast<float>(y + 0.0),    static_cast<float>(z + 0.0),
+          static_cast<float>(w + 0.0),    static_cast<float>(d[0] + 0.0), static_cast<float>(d[1] + 0.0),
+          static_cast<float>(d[2] + 0.0), static_cast<float>(d[3] + 0.0)};
+}
+
+// The outside contract for the dualquat palette: a program written from the
+// docs packs the same bytes as skintune's packer and the header, in every case.
+TEST(EmbedHeader, AReimplementationOfTheDocumentedDualQuaternionRuleIsBitIdenticalToPackPalette) {
+  std::mt19937 rng(2027);
+  std::normal_distribution<double> normal;
+  std::uniform_real_distribution<double> shift(-100.0, 100.0);
+  std::vector<glm::mat4> palette;
+  for (int j = 0; j < 20000; ++j) {
+    glm::dquat q = glm::normalize(glm::dquat(normal(rng), normal(rng), normal(rng), normal(rng)));
+    if (j % 4 == 1) q = glm::normalize(glm::dquat(1e-3 * normal(rng), normal(rng), 0.2 * normal(rng), 0.1));  // near pi
+    glm::mat4 m(glm::mat3(glm::mat3_cast(q)));
+    m[3] = glm::vec4(static_cast<float>(shift(rng)), static_cast<float>(shift(rng)), static_cast<float>(shift(rng)),
+                     1.0f);
+    if (j % 97 == 0) m = glm::mat4(1.0f);
+    float unused[8];
+    if (fk::DualQuaternionOf(&m[0][0], unused)) palette.push_back(m);
+  }
+  ASSERT_GT(palette.size(), 19000u);
+  Variant v;
+  v.palette = PaletteFormat::kDualQuaternion;
+  v.blend = Blend::kDualQuaternion;
+  const std::vector<std::uint8_t> packed = PackPalette(palette, v);
+  std::array<std::size_t, 4> branches{};
+  std::size_t differ = 0;
+  for (std::size_t j = 0; j < palette.size(); ++j) {
+    int branch = 0;
+    const std::array<float, 8> want = DocumentedDualQuaternion(palette[j], &branch);
+    ++branches[static_cast<std::size_t>(branch)];
+    differ += std::memcmp(want.data(), packed.data() + 32 * j, 32) != 0 ? 1 : 0;
+  }
+  EXPECT_EQ(differ, 0u) << "of " << palette.size();
+  for (std::size_t b = 0; b < 4; ++b) EXPECT_GT(branches[b], 100u) << "step 1's case " << b << " barely tried";
 }
 
 TEST(EmbedHeader, FindKernelTakesTheSmallestInfluenceCountThatHoldsTheMesh) {
