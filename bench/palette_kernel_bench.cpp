@@ -48,7 +48,6 @@ struct Options {
 } options;
 
 constexpr int kBurst = 64;
-constexpr unsigned kBlock = kAnimGroup;
 
 // Instance i plays clip i mod C at its own time; with `blend` it cross-fades
 // to clip (i + 1) mod C at weight 0.5.
@@ -110,7 +109,9 @@ class CudaPalettes {
     Check(api_.cuMemAlloc(&buffers_[6], instances.size() * packed.joints.size() * kAnimPaletteRows * 16), "cuMemAlloc");
     instance_count_ = static_cast<unsigned>(instances.size());
     // The animation's own kernel (its counts are defines: EmitPalette).
-    const CompileResult r = CompileWithNvrtc(EmitPalette(Lang::kCuda, packed.View(), 3).kernel.text, arch_, "palette.cu");
+    const PaletteKernel kernel = EmitPalette(Lang::kCuda, packed.View(), 3);
+    block_ = static_cast<unsigned>(kernel.kernel.launch.wg_size);  // palette.cu's ANIM_GROUP
+    const CompileResult r = CompileWithNvrtc(kernel.kernel.text, arch_, "palette.cu");
     if (!r.ok) throw std::runtime_error(r.error);
     if (module_) api_.cuModuleUnload(module_);
     module_ = nullptr;
@@ -126,7 +127,7 @@ class CudaPalettes {
                           &buffers_[6], &buffers_[7], &buffers_[8], &delta,       &fresh};
     Check(api_.cuEventRecord(start_, nullptr), "cuEventRecord");
     for (int l = 0; l < launches; ++l)
-      Check(api_.cuLaunchKernel(function_, 1, instance_count_, 1, kBlock, 1, 1, 0, nullptr, parameters, nullptr),
+      Check(api_.cuLaunchKernel(function_, 1, instance_count_, 1, block_, 1, 1, 0, nullptr, parameters, nullptr),
             "cuLaunchKernel");
     Check(api_.cuEventRecord(end_, nullptr), "cuEventRecord");
     Check(api_.cuEventSynchronize(end_), "cuEventSynchronize");
@@ -166,6 +167,7 @@ class CudaPalettes {
   cuda::DevicePtr buffers_[9] = {};
   std::string arch_;
   unsigned instance_count_ = 0;
+  unsigned block_ = 0;  // threads per block: the kernel's ANIM_GROUP
 };
 
 struct Model {

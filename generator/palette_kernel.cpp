@@ -22,7 +22,8 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
   variant.lang = language.copy_lang;
   variant.influences = 1;
   variant.storage = PaletteStorage::kGlobal;
-  variant.wg_size = kAnimGroup;
+  const int group = AnimGroupFor(animation.nodes.size());
+  variant.wg_size = group;
   variant.normals = Normals::kNone;
 
   KernelSource& k = out.kernel;
@@ -34,7 +35,8 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
   k.defines = {{"ANIM_NODE_COUNT", static_cast<long long>(animation.nodes.size())},
                {"ANIM_JOINT_COUNT", static_cast<long long>(animation.joints.size())},
                {"ANIM_CLIP_COUNT", static_cast<long long>(animation.clip_count)},
-               {"ANIM_PALETTE_ROWS", palette_rows}};
+               {"ANIM_PALETTE_ROWS", palette_rows},
+               {"ANIM_GROUP", group}};
   const auto buffer = [](const char* name, const char* format, std::size_t element, ArgumentDirection direction) {
     return KernelArgument{name, format, element, element, "", direction, ArgumentKind::kBuffer};
   };
@@ -51,9 +53,9 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                  {kAnimFresh, "u32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar}};
   k.arguments[6].indexing = "(i*J+j)*R+r";
   k.launch.vertices_per_item = 1;
-  k.launch.wg_size = kAnimGroup;
+  k.launch.wg_size = group;
   k.launch.instanced = true;
-  k.launch.rule = "one work-group of " + std::to_string(kAnimGroup) + " per instance: " + language.instance_rule;
+  k.launch.rule = "one work-group of " + std::to_string(group) + " per instance: " + language.instance_rule;
 
   k.text = SpecialisedText(language.palette_template,
                            "the palette kernel of " + std::to_string(animation.clip_count) + " clips", k.defines);

@@ -4,7 +4,7 @@
 // algorithm in C++ (the cpu device's kernel), function for function; its
 // opening comment says how sampling follows model/animation.cpp.
 //
-// Launch: a 2-D NDRange of work-groups of ANIM_GROUP (128) items, one group
+// Launch: a 2-D NDRange of work-groups of ANIM_GROUP items, one group
 // per instance: global size (ANIM_GROUP, K), local size (ANIM_GROUP, 1), for
 // K instances. In three steps, each all in parallel, with a barrier between:
 // the group's items sample every (node, path) of their instance once, into
@@ -173,7 +173,6 @@ uint4 anim_advance(__global const float4* restrict clips, uint4 in, const float 
   return in;
 }
 
-#define ANIM_GROUP 128  // fixed: the launch and the local memory the kernel is written for
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 
 __kernel __attribute__((reqd_work_group_size(ANIM_GROUP, 1, 1)))

@@ -13,8 +13,6 @@
 // (i * ANIM_JOINT_COUNT + j) * ANIM_PALETTE_ROWS + r. An instance whose clip index is neither a
 // packed clip nor 0xffff (the rest pose) gets NaN rows.
 
-layout(local_size_x = 128) in;
-
 layout(std430, binding = 0) readonly buffer Nodes { vec4 nodes[]; };
 layout(std430, binding = 1) readonly buffer Channels { uvec4 channels[]; };
 layout(std430, binding = 2) readonly buffer Times { float times[]; };
@@ -42,6 +40,8 @@ uniform uint fresh;
 // them for the packed animation the kernel runs (generator/palette_kernel.h),
 // skin_params.h gives their defaults.
 #include "skin_params.h"
+
+layout(local_size_x = ANIM_GROUP) in;
 const uint node_count = uint(ANIM_NODE_COUNT);
 const uint joint_count = uint(ANIM_JOINT_COUNT);
 const uint clip_count = uint(ANIM_CLIP_COUNT);
@@ -186,7 +186,7 @@ uvec4 anim_advance(uvec4 s, float step) {
 shared vec4 local_rows[3 * ANIM_MAX_NODES];
 shared int local_parent[ANIM_MAX_NODES];
 
-// One work-group of 128 per instance (glDispatchCompute(1, K, 1)), in
+// One work-group of ANIM_GROUP per instance (glDispatchCompute(1, K, 1)), in
 // palette.cl's three steps: every (node, path) sampled once into shared
 // memory, each node's local transform made there, then each invocation's
 // joints composed up their ancestors there (templates/palette.cl says why).
@@ -205,10 +205,10 @@ void main() {
                (uintBitsToFloat(in_.w) == 0.0 || anim_clip_valid(in_.x >> 16));
   if (in_group && !valid) {
     vec4 nan = vec4(uintBitsToFloat(0x7fc00000u));
-    for (uint r = item; r < joint_count * rows; r += 128u) palette[out_ + r] = nan;
+    for (uint r = item; r < joint_count * rows; r += uint(ANIM_GROUP)) palette[out_ + r] = nan;
   }
   // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
-  for (uint task = item; valid && task < 3u * node_count; task += 128u) {
+  for (uint task = item; valid && task < 3u * node_count; task += uint(ANIM_GROUP)) {
     uint node = task / 3u, path = task - 3u * node;
     local_rows[task] = anim_path(node, path, in_);
     if (path == 0u) local_parent[node] = floatBitsToInt(nodes[4u * node].x);
@@ -216,7 +216,7 @@ void main() {
   memoryBarrierShared();
   barrier();
   // 2: each node's local transform, T * R * S (a fixed-matrix node: its matrix), in place.
-  for (uint n = item; valid && n < node_count; n += 128u) {
+  for (uint n = item; valid && n < node_count; n += uint(ANIM_GROUP)) {
     Affine l = floatBitsToUint(nodes[4u * n].y) != 0u
                    ? Affine(nodes[4u * n + 1u], nodes[4u * n + 2u], nodes[4u * n + 3u])
                    : anim_to_affine(Trs(local_rows[3u * n], local_rows[3u * n + 1u], local_rows[3u * n + 2u]));
@@ -227,7 +227,7 @@ void main() {
   memoryBarrierShared();
   barrier();
   // 3: each joint's global transform, up its ancestors in shared memory, then the inverse bind.
-  for (uint j = item; valid && j < joint_count; j += 128u) {
+  for (uint j = item; valid && j < joint_count; j += uint(ANIM_GROUP)) {
     uint node = floatBitsToUint(joints[4u * j].x);
     Affine m = Affine(local_rows[3u * node], local_rows[3u * node + 1u], local_rows[3u * node + 2u]);
     for (int p = local_parent[node]; p >= 0; p = local_parent[p])

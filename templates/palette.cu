@@ -6,10 +6,10 @@
 // is the few operators below.
 //
 // Launch: grid (1, K) for K instances, of blocks of (ANIM_GROUP, 1) =
-// (128, 1) threads, one block per instance, in palette.cl's three steps:
+// (ANIM_GROUP, 1) threads, one block per instance, in palette.cl's three steps:
 // every (node, path) sampled once into shared memory (at most
 // ANIM_MAX_NODES nodes) with the node's parent, each node's local transform
-// made there, then each thread composes its joints j = thread, thread + 128,
+// made there, then each thread composes its joints j = thread, thread + ANIM_GROUP,
 // ... up their ancestors there and writes instance i's joint j as
 // ANIM_PALETTE_ROWS float4 rows at (i * ANIM_JOINT_COUNT + j) *
 // ANIM_PALETTE_ROWS + r (templates/palette.cl says why). An instance whose
@@ -183,7 +183,6 @@ __device__ uint4 anim_advance(const float4* __restrict__ clips, uint4 in, const 
   return in;
 }
 
-#define ANIM_GROUP 128  // fixed: the launch and the local memory the kernel is written for
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 
 extern "C" __global__ void __launch_bounds__(ANIM_GROUP)

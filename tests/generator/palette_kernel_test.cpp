@@ -196,7 +196,8 @@ class OpenClPaletteKernel {
     cl_int err = CL_SUCCESS;
     cl_mem out = clCreateBuffer(context_, CL_MEM_READ_WRITE, instances.size() * joints * 48, nullptr, &err);
     Check(err, "clCreateBuffer");
-    const cl_kernel kernel = Build(EmitPalette(Lang::kOpenCl, view, 3).kernel.text);
+    const PaletteKernel emitted = EmitPalette(Lang::kOpenCl, view, 3);
+    const cl_kernel kernel = Build(emitted.kernel.text);
     // Then the clips' ranges, the states the kernel keeps (written back), and
     // the frame's scalars: fresh, so the states are the instances as given.
     buffers.push_back(Upload(BufferBytes(packed.clip_ranges)));
@@ -211,8 +212,8 @@ class OpenClPaletteKernel {
     const cl_uint fresh = 1;
     Check(clSetKernelArg(kernel, arg++, sizeof delta, &delta), "clSetKernelArg");
     Check(clSetKernelArg(kernel, arg++, sizeof fresh, &fresh), "clSetKernelArg");
-    constexpr std::size_t kGroup = kAnimGroup;  // palette.cl's ANIM_GROUP
-    const std::size_t global[2] = {groups_x * kGroup, instances.size()}, local[2] = {kGroup, 1};
+    const auto group = static_cast<std::size_t>(emitted.kernel.launch.wg_size);  // palette.cl's ANIM_GROUP
+    const std::size_t global[2] = {groups_x * group, instances.size()}, local[2] = {group, 1};
     Check(clEnqueueNDRangeKernel(queue_, kernel, 2, nullptr, global, local, 0, nullptr, nullptr),
           "clEnqueueNDRangeKernel");
     Check(clFinish(queue_), "clFinish");
@@ -348,16 +349,25 @@ TEST(PaletteKernel, OpenClSkinKernelReadsThePalettesOnTheDeviceAsTheyAre) {
   }
 }
 
-// The work-group every template is written for is the one the runtime launches (kAnimGroup).
+// The work-group every template is written for is the one the runtime
+// launches: ANIM_GROUP, 3 x the nodes rounded up to 32 within 64..256.
 TEST(PaletteKernel, EveryTemplatesWorkGroupIsTheLaunchedOne) {
+  EXPECT_EQ(AnimGroupFor(1), 64);
+  EXPECT_EQ(AnimGroupFor(22), 96);
+  EXPECT_EQ(AnimGroupFor(78), 256);
+  EXPECT_EQ(AnimGroupFor(512), 256);
   const PackedAnimation packed = PackAnimation(TestAsset("Fox.gltf"));
-  const std::string group = std::to_string(kAnimGroup);
+  const int expected = AnimGroupFor(packed.nodes.size());
   for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kVulkan}) {
     const PaletteKernel kernel = EmitPalette(lang, packed.View(), 3);
-    EXPECT_EQ(kernel.kernel.launch.wg_size, kAnimGroup);
-    const std::string declared = IsGlslText(kernel.kernel.lang) ? "layout(local_size_x = " + group + ") in;"
-                                                                : "#define ANIM_GROUP " + group + " ";
+    EXPECT_EQ(kernel.kernel.launch.wg_size, expected);
+    EXPECT_EQ(kernel.variant.wg_size, expected);
+    const std::string declared = "#define ANIM_GROUP " + std::to_string(expected) + "\n";
     EXPECT_NE(kernel.kernel.text.find(declared), std::string::npos) << Name(lang) << ": no '" << declared << "'";
+    const std::string used = IsGlslText(kernel.kernel.lang) ? "layout(local_size_x = ANIM_GROUP) in;"
+                             : lang == Lang::kCuda          ? "__launch_bounds__(ANIM_GROUP)"
+                                                            : "reqd_work_group_size(ANIM_GROUP, 1, 1)";
+    EXPECT_NE(kernel.kernel.text.find(used), std::string::npos) << Name(lang) << ": no '" << used << "'";
   }
   EXPECT_THROW(EmitPalette(Lang::kOpenCl, packed.View(), 5), Error);
 }

@@ -57,7 +57,6 @@ using testing::ExpectWithinBound;
 using testing::Name;
 using testing::TestAsset;
 
-constexpr unsigned kBlock = kAnimGroup;  // threads per block: palette.cu's ANIM_GROUP, one block per instance
 
 // palette.cu for device 0, in its primary context: each packed animation's
 // kernel (EmitPalette) compiled and loaded once.
@@ -110,8 +109,10 @@ class CudaPaletteKernel {
     void* parameters[] = {&buffers[0], &buffers[1], &buffers[2], &buffers[3], &buffers[4], &buffers[5],
                           &buffers[6], &buffers[7], &buffers[8], &delta,      &fresh};
     const auto instance_count = static_cast<unsigned>(instances.size());
-    Check(api_.cuLaunchKernel(FunctionFor(EmitPalette(Lang::kCuda, view, 3).kernel.text), 1, instance_count, 1, kBlock,
-                              1, 1, 0, nullptr, parameters, nullptr),
+    const PaletteKernel kernel = EmitPalette(Lang::kCuda, view, 3);
+    const auto block = static_cast<unsigned>(kernel.kernel.launch.wg_size);  // palette.cu's ANIM_GROUP, a block per instance
+    Check(api_.cuLaunchKernel(FunctionFor(kernel.kernel.text), 1, instance_count, 1, block, 1, 1, 0, nullptr, parameters,
+                              nullptr),
           "cuLaunchKernel");
     Check(api_.cuCtxSynchronize(), "cuCtxSynchronize");
     Check(api_.cuMemcpyDtoH(rows.data(), buffers[6], rows.size() * sizeof(float)), "cuMemcpyDtoH");

@@ -42,8 +42,6 @@ using testing::ExpectWithinBound;
 using testing::Name;
 using testing::TestAsset;
 
-constexpr GLuint kGroupSize = kAnimGroup;  // palette.comp's local_size_x
-
 // palette.comp in one GL context for the program: the template alone once,
 // then each packed animation's kernel (EmitPalette).
 class GlPaletteKernel {
