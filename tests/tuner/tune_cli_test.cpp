@@ -331,7 +331,7 @@ TEST(TuneCli, MissingConfigFileIsOneLine) {
   EXPECT_EQ(unknown.result.exit_code, 1);
   EXPECT_EQ(unknown.result.err,
             "skintune: error: --config 'fastest': not a file path (no '/' or .json) and no built-in config "
-            "'fastest' (built in: default, paper)\n");
+            "'fastest' (built in: default, dual-quaternions, paper)\n");
 }
 
 TEST(TuneCli, MalformedJsonConfigIsOneLine) {
