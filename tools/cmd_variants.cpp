@@ -11,9 +11,8 @@
 #include "base/error.h"
 #include "model/scene.h"
 #include "runtime/backends/opencl/opencl_devices.h"
-#include "templates/embedded_support.h"  // DualQuaternionOf
 #include "tools/commands.h"
-#include "tuner/datasets.h"  // PalettesRigid
+#include "tuner/datasets.h"  // AllRigid, PalettesRigid
 #include "tuner/tune.h"
 
 namespace skintune::internal::tools {
@@ -68,12 +67,8 @@ int RunVariants(const VariantsOptions& o) {
     const SkinnedAsset asset = LoadAsset(o.source);
     const std::vector<glm::mat4> palette =
         asset.animations.empty() ? asset.PaletteAt(-1, 0.0) : asset.PaletteAt(0, asset.animations.front().start);
-    const bool rigid = std::all_of(palette.begin(), palette.end(), [](const glm::mat4& m) {
-      float dq[8];
-      return skintune_kernels::DualQuaternionOf(&m[0][0], dq);
-    });
     shape = {asset.mesh.joint_count, widest_of(asset.mesh), asset.mesh.has_normals(), 1,
-             asset.mesh.has_normals() && asset.mesh.has_tangents(), rigid};
+             asset.mesh.has_normals() && asset.mesh.has_tangents(), tuner_internal::AllRigid(palette)};
     mesh_name = asset.source;
   }
   std::vector<std::string> keys;

@@ -97,6 +97,7 @@ std::vector<std::vector<glm::mat4>> FramePalettes(const SkinnedAsset& asset, int
 // count 1) is rigid, so dual quaternions may skin it (ProblemShape::rigid_joints;
 // a later frame that is not fails its variant's measurement, naming the joint).
 bool PalettesRigid(const SkinnedScene& scene);
+// Whether every matrix has a dual quaternion (skintune_kernels::DualQuaternionOf).
 bool AllRigid(std::span<const glm::mat4> palette);
 // `count` frames of a scene, each as the kernel reads it: one mesh's
 // FramePalettes; K instances: K different frames (set s, instance k: frame
