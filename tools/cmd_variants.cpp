@@ -13,6 +13,7 @@
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "tools/commands.h"
 #include "tuner/datasets.h"  // AllRigid, PalettesRigid
+#include "tools/tune_job.h"  // LoadConfigJson
 #include "tuner/tune.h"
 
 namespace skintune::internal::tools {
@@ -31,7 +32,7 @@ struct VariantsOptions {
 TuningSpace LoadSpace(const VariantsOptions& o) {
   nlohmann::json space = nlohmann::json::object();
   if (!o.config.empty()) {
-    const nlohmann::json config = ReadJsonFile(o.config);
+    const nlohmann::json config = LoadConfigJson(o.config);  // a file, or a built-in name as `tune` takes it
     ConfigFromJson(config, o.config);  // a tuning config as `tune` takes it (42, null, [] are not)
     space = config["space"];
   }
@@ -102,7 +103,7 @@ Command RegisterVariants(CLI::App& app) {
                   "OpenCL device whose limits apply: a case-insensitive substring of its id "
                   "'<backend>:<platform>/<name>/<driver>', vendor, type or platform short name (pocl), as every "
                   "--device");
-  sub->add_option("--config", o->config, "JSON config whose \"space\" restricts the axes (default: every value)")
+  sub->add_option("--config", o->config, "tuning config whose \"space\" restricts the axes: a JSON file, or a built-in name as tune takes it (default: every value)")
       ->check(NonEmptyPath());
   sub->add_option("--lang", o->langs, "restrict to these languages: " + Choices(AxisOf<&Variant::lang>()));
   AddMeshSourceOptions(*sub, o->source);

@@ -43,7 +43,7 @@ std::string ContentsOf(const std::string& name, const TuningReport& report) {
 
 }  // namespace
 
-TuneConfig LoadTuneConfig(const std::string& config) {
+nlohmann::json LoadConfigJson(const std::string& config) {
   const std::string name = config.empty() ? "default" : config;
   if (name.find('/') == std::string::npos && !name.ends_with(".json")) {
     std::string text;
@@ -52,9 +52,13 @@ TuneConfig LoadTuneConfig(const std::string& config) {
     } catch (const Error& e) {
       throw Error("--config '" + name + "': not a file path (no '/' or .json) and " + e.what());
     }
-    return ConfigFromJson(ParseJson(text, name), name);
+    return ParseJson(text, name);
   }
-  return ConfigFromJson(ReadJsonFile(name), name);
+  return ReadJsonFile(name);
+}
+
+TuneConfig LoadTuneConfig(const std::string& config) {
+  return ConfigFromJson(LoadConfigJson(config), config.empty() ? "default" : config);
 }
 
 void WriteFilesTogether(const std::vector<std::pair<fs::path, std::string>>& files) {

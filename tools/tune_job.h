@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include "tuner/report.h"
 #include "tuner/tune.h"
@@ -43,7 +44,9 @@ struct TuneJobResult {
   std::vector<std::filesystem::path> written;  // in writing order
 };
 
-// --config NAME (a built-in config: no '/' and no .json) or FILE.
+// --config NAME (a built-in config: no '/' and no .json) or FILE, as JSON.
+nlohmann::json LoadConfigJson(const std::string& config);
+// The same as a checked TuneConfig.
 TuneConfig LoadTuneConfig(const std::string& config);
 
 // Checks the output directory and every file before any device work, tunes,

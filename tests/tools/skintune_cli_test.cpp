@@ -302,6 +302,22 @@ TEST(SkintuneCli, VariantsTakesASceneKeyAndItsInstancesCount) {
   EXPECT_GT(crowd, big_crowd) << "64 palettes of 77 joints do not fit constant storage";
 }
 
+// `variants --config` takes the built-in names `tune` takes; a dual-quaternion
+// space counts its variants valid on a rigid animation and invalid
+// (joints_not_rigid) on one whose joints scale.
+TEST(SkintuneCli, VariantsTakesABuiltInConfigAndJudgesDualQuaternionsByTheDataSetsJoints) {
+  auto count = [](const std::string& dataset) {
+    const auto r = RunSkintune({"variants", "--config", "dual-quaternions", "--lang", "opencl", "--dataset", dataset,
+                                "--json"});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return nlohmann::json::parse(r.out.empty() ? "{}" : r.out);
+  };
+  const nlohmann::json rigid = count("5k-b4-rigid"), scaled = count("5k-b4");
+  EXPECT_GT(rigid.value("valid", std::uint64_t{0}), 0u);
+  EXPECT_EQ(scaled.value("valid", std::uint64_t{1}), 0u);
+  EXPECT_GT(scaled.at("invalid_by").value("joints_not_rigid", std::uint64_t{0}), 0u);
+}
+
 TEST(SkintuneCli, VariantsWithAnUnknownDeviceIsAnError) {
   const auto r = RunSkintune({"variants", "--device", "no-such-device-xyz"});
   EXPECT_EQ(r.exit_code, 1);
