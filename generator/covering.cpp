@@ -87,13 +87,14 @@ Variant Complete(Variant v, std::size_t i, const DeviceLimits& device, const Pro
   return v;
 }
 
-// Whether a row's paired values belong together whatever the device: blend dq
-// with the dualquat palette and only with it, and dq only on a rigid mesh.
-// Pairs no such row holds are not wanted (nor reported uncoverable).
-bool Coherent(const Row& r, const ProblemShape& shape) {
-  const Variant v = FromRow(Lang::kOpenCl, r);
-  const bool dq = v.blend == Blend::kDualQuaternion;
-  return dq == (v.palette == PaletteFormat::kDualQuaternion) && (!dq || shape.rigid_joints);
+// Whether a row's paired values belong together whatever the device: it
+// breaks none of the constraints that hold by construction (blend dq with
+// the dualquat palette and only with it, dq only on a rigid mesh). Pairs no
+// such row holds are not wanted (nor reported uncoverable).
+bool Coherent(const Row& r, const DeviceLimits& device, const ProblemShape& shape) {
+  for (const Violation& v : CheckVariant(FromRow(Lang::kOpenCl, r), device, shape))
+    if (v.constraint == Constraint::kBlendPalette || v.constraint == Constraint::kJointsNotRigid) return false;
+  return true;
 }
 
 }  // namespace
@@ -108,7 +109,7 @@ CoveringSet BuildCoveringSet(Lang lang, const DeviceLimits& device, const Proble
   }
   std::set<Pair> wanted;
   for (const Row& r : AllRows())
-    if (Coherent(r, shape))
+    if (Coherent(r, device, shape))
       for (const Pair& p : PairsOf(r)) wanted.insert(p);
   std::set<Pair> coverable;
   for (const Row& r : candidates)
