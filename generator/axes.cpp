@@ -118,16 +118,17 @@ std::string KeyFormat() {
   std::string format;
   for (std::size_t i = 0; i < kAxisCount; ++i) {
     const Axis& a = kAxes[i];
-    if (i > 0 && !a.joins_previous) format += ".";
+    if (i > 0 && !a.joins_previous) format += a.key_omits_default ? "[." : ".";
     if (a.key_hint != nullptr) {
       format += a.key_hint;
       continue;
     }
     std::string choices;
     for (const AxisValueSpec& v : a.values) {
+      if (a.key_omits_default && v.code == a.values[0].code) continue;  // its absence
       choices += (choices.empty() ? "" : "|") + (v.token ? std::string(v.token) : std::to_string(v.code));
     }
-    format += a.key_prefix + ("<" + choices + ">");
+    format += a.key_prefix + ("<" + choices + ">") + (a.key_omits_default ? "]" : "");
   }
   return format;
 }

@@ -58,6 +58,10 @@ template <typename E>
 constexpr AxisValueSpec V(E value, const char* name, const char* token) {
   return {static_cast<int>(value), name, token, static_cast<int>(value)};
 }
+template <typename E>
+constexpr AxisValueSpec V(E value, const char* name, const char* token, int define) {
+  return {static_cast<int>(value), name, token, define};
+}
 
 // The values of the full space, in order (enum axes: every enumerator, in the enum's order).
 class AxisValueList {
@@ -139,6 +143,11 @@ struct Axis {
   int covering_step = 0;                // kRotated: values change every `step` rows
   Chart chart = Chart::kUnset;
   const char* embedded_enum = nullptr;  // the enum type of the embedded header's Kernel field, if any
+  // Keys leave the axis out while it has its first value, and files may
+  // leave it out (the schemas do not require it): an axis added after keys
+  // and files were recorded, so that every earlier variant's key and file
+  // stay as they were.
+  bool key_omits_default = false;
   // An enum axis that was a flag in earlier files (reports, winners
   // databases, configs): JSON's false / true read as the values of code 0 / 1.
   bool reads_flags = false;
@@ -274,6 +283,16 @@ inline constexpr Axis kAxes[] = {
      .covering_step = 3,
      .chart = Chart::kNo,  // set by the data set
      .reads_flags = true},  // a flag before tangents: older files say false / true
+    {.name = "morph",
+     .field = FieldOf<&Variant::morph>(),
+     .values = {V(Morph::kNone, "none", "nomorph", 0), V(Morph::kDense, "dense", "morph-dense", 1),
+                V(Morph::kSparse, "sparse", "morph-sparse", 2), V(Morph::kDenseHalf, "dense-half", "morph-dense-half", 5),
+                V(Morph::kSparseHalf, "sparse-half", "morph-sparse-half", 6)},
+     .define = "MORPH",  // bits 0-1 the layout (1 dense, 2 sparse), bit 2 half offsets; 0 none
+     .covering = Covering::kRotated,
+     .covering_step = 1,
+     .chart = Chart::kNo,  // none or not is set by the data set; the report's rows name the layout
+     .key_omits_default = true},
 };
 inline constexpr std::size_t kAxisCount = std::size(kAxes);
 

@@ -42,6 +42,15 @@ void CheckShape(const Variant& v, const ProblemShape& shape, std::vector<Violati
                    "blend dq: the mesh's palettes scale, shear or mirror; dual quaternions hold rotations and "
                    "translations only (use matrix blending, or a rigid animation)"});
   }
+  if (SkinsMorph(v) && shape.morph_targets == 0) {
+    out.push_back({Constraint::kMorphMissing,
+                   std::string("morph ") + Name(v.morph) + " requested but the mesh has no morph targets"});
+  }
+  if (!SkinsMorph(v) && shape.morph_moves) {
+    out.push_back({Constraint::kMorphIgnored,
+                   "morph none: the mesh's " + std::to_string(shape.morph_targets) +
+                       " morph targets move its vertices, and a variant without them would skin the wrong shape"});
+  }
   if (SkinsTangents(v) && v.position != PositionFormat::kFloat4) {
     out.push_back({Constraint::kTangentsFormat,
                    "tangents need the float4 position format (tangents are float4, and every output has one stride)"});
@@ -162,8 +171,16 @@ const char* Name(Constraint c) {
     case Constraint::kInstanceCount: return "instance_count";
     case Constraint::kBlendPalette: return "blend_palette";
     case Constraint::kJointsNotRigid: return "joints_not_rigid";
+    case Constraint::kMorphMissing: return "morph_missing";
+    case Constraint::kMorphIgnored: return "morph_ignored";
   }
   return "unknown";
+}
+
+ProblemShape WithMorphOf(ProblemShape shape, const MorphTargets& morph) {
+  shape.morph_targets = static_cast<int>(morph.count());
+  shape.morph_moves = morph.count() > 0;  // their weights may change any frame
+  return shape;
 }
 
 std::uint64_t PaletteBytes(const Variant& v, int joints) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "generator/variant.h"
+#include "model/mesh.h"
 
 namespace skintune::internal {
 
@@ -35,7 +36,15 @@ struct ProblemShape {
   bool has_tangents = false;  // the mesh has tangents (then also normals)
   bool rigid_joints = false;  // every palette it is skinned with rotates and translates only
                               // (PackPalette's dualquat format holds it): dual quaternions may skin it
+  int morph_targets = 0;      // the mesh's morph targets (0: none)
+  // Every variant must apply them: WithMorphOf sets it for any mesh with
+  // morph targets, as their weights may change any frame (a shape with
+  // targets that no variant needs to apply exists for covering sets).
+  bool morph_moves = false;
 };
+
+// `shape` with the morph fields of a mesh's morph targets (any target: morph_moves).
+ProblemShape WithMorphOf(ProblemShape shape, const MorphTargets& morph);
 
 enum class Constraint {
   kInfluencesRange,       // B outside 1..8
@@ -57,6 +66,8 @@ enum class Constraint {
   kInstanceCount,         // instances below 1, or more than one launch's grid can hold (CUDA, glsl-compute)
   kBlendPalette,          // blend dq without the dualquat palette, or the dualquat palette without blend dq
   kJointsNotRigid,        // blend dq on a mesh whose palettes scale, shear or mirror
+  kMorphMissing,          // a morph value on a mesh without morph targets (not a variant of this data set)
+  kMorphIgnored,          // morph none on a mesh whose morph targets move vertices (it would skin the wrong shape)
 };
 
 const char* Name(Constraint);
@@ -68,6 +79,11 @@ struct Violation {
 
 // Every constraint the variant breaks; empty when it can run.
 std::vector<Violation> CheckVariant(const Variant& v, const DeviceLimits& device, const ProblemShape& shape);
+
+// Whether the constraint only says the variant does not fit the data set's
+// kind (its morph value): spaces are cut to the data set's values before
+// they are enumerated (ForDataSet, generator/space.h), as a data set sets B.
+constexpr bool NotOfThisDataSet(Constraint c) { return c == Constraint::kMorphMissing || c == Constraint::kMorphIgnored; }
 
 // Bytes one palette occupies in the variant's storage (an instanced launch
 // reads `instances` of them; a work-group's local copy holds one).

@@ -79,6 +79,12 @@ Variant Complete(Variant v, std::size_t i, const DeviceLimits& device, const Pro
   if (!shape.has_normals) v.normals = Normals::kNone;
   if (!shape.has_tangents && v.normals == Normals::kTangents) v.normals = Normals::kNormals;
   if (v.normals == Normals::kTangents) v.position = PositionFormat::kFloat4;  // tangents are float4
+  // Morph targets: a mesh without them has no morph variants, one that they move none without them.
+  if (shape.morph_targets == 0) v.morph = Morph::kNone;
+  if (shape.morph_moves && v.morph == Morph::kNone) {
+    constexpr Morph kSkinning[] = {Morph::kDense, Morph::kSparse, Morph::kDenseHalf, Morph::kSparseHalf};
+    v.morph = kSkinning[i % std::size(kSkinning)];
+  }
   if (v.vertices_per_item == 1) v.assignment = Assignment::kContiguous;
   if (HasWorkGroups(v.lang)) {
     for (std::size_t k = 0; k < wgs.size() && !CheckVariant(v, device, shape).empty(); ++k)

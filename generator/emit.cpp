@@ -1,6 +1,7 @@
 #include "generator/emit.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <optional>
 
@@ -39,6 +40,7 @@ std::vector<std::pair<std::string, long long>> ParameterDefines(const Variant& v
     // JOINTS has always followed the palette's STORAGE (the golden kernels keep that order).
     if (i == AxisIndex<&Variant::storage>() && joints > 0) d.emplace_back("JOINTS", joints);
   }
+  if (SkinsMorph(v)) d.emplace_back("MORPH_TARGETS", options.morph_targets);
   if (v.layout == Layout::kSoaSplit) d.emplace_back("SLOT_STRIDE_MULTIPLE", SoaSplitSlotStride(1, v));
   if (v.layout == Layout::kAos) {
     const RecordLayout r = AosRecordLayout(v, b);
@@ -71,6 +73,40 @@ KernelArgument Tangents(const std::string& name, ArgumentDirection direction) {
           direction, ArgumentKind::kBuffer};
 }
 
+// The morph targets' inputs (docs/VARIANTS.md "Morph targets"): dense, per
+// target t the offset of vertex v at t*n+v; sparse, vertex v's entries
+// morph_offsets[v] .. morph_offsets[v+1]-1 each a target (morph_targets) and
+// its offsets; and the weights, T per instance.
+void MorphArguments(const Variant& v, bool instanced, std::vector<KernelArgument>& args) {
+  if (!SkinsMorph(v)) return;
+  const std::size_t offset_bytes = MorphHalf(v) ? kMorphHalfOffsetBytes : kMorphF32OffsetBytes;
+  const char* format = MorphHalf(v) ? "half4" : "float3";
+  const char* at = MorphSparse(v) ? "e" : "t*n+v";
+  if (MorphSparse(v)) {
+    args.push_back({"morph_offsets", "u32", 4, 4, "v (n+1 of them: vertex v's entries e in [morph_offsets[v], "
+                    "morph_offsets[v+1]))", ArgumentDirection::kIn, ArgumentKind::kBuffer});
+    args.push_back({"morph_targets", "u32", 4, 4, "e", ArgumentDirection::kIn, ArgumentKind::kBuffer});
+  }
+  args.push_back({"morph_positions", format, offset_bytes, offset_bytes, at, ArgumentDirection::kIn,
+                  ArgumentKind::kBuffer});
+  if (SkinsNormals(v))
+    args.push_back({"morph_normals", format, offset_bytes, offset_bytes, at, ArgumentDirection::kIn,
+                    ArgumentKind::kBuffer});
+  if (SkinsTangents(v))
+    args.push_back({"morph_tangents", format, offset_bytes, offset_bytes, at, ArgumentDirection::kIn,
+                    ArgumentKind::kBuffer});
+  args.push_back({kMorphWeightsArgument, "f32", 4, 4, instanced ? "i*T+t" : "t", ArgumentDirection::kIn,
+                  ArgumentKind::kBuffer});
+}
+
+// GLSL and Vulkan: whether the argument takes a binding (buffers, images and
+// the palette, in argument order; not scalars, nor glsl-vertex's outputs,
+// which transform feedback captures).
+bool TakesBinding(Lang lang, const KernelArgument& a) {
+  if (a.kind == ArgumentKind::kScalar) return false;
+  return !(lang == Lang::kGlslVertex && a.direction == ArgumentDirection::kOut);
+}
+
 std::vector<KernelArgument> KernelArguments(const Variant& v, int b, bool instanced) {
   const auto bb = static_cast<std::size_t>(b);
   std::vector<KernelArgument> args = {Scalar("n"), Scalar("first")};
@@ -90,6 +126,7 @@ std::vector<KernelArgument> KernelArguments(const Variant& v, int b, bool instan
     if (SkinsNormals(v)) args.push_back(Vector("normals", v, ArgumentDirection::kIn));
     if (SkinsTangents(v)) args.push_back(Tangents("tangents", ArgumentDirection::kIn));
   }
+  MorphArguments(v, instanced, args);
   const auto rows = static_cast<std::size_t>(PaletteRows(v.palette));
   args.push_back({"palette", "float4 rows", 16, rows * 16, instanced ? "(i*J+j)*R+r" : "j*R+r",
                   ArgumentDirection::kIn,
@@ -231,6 +268,9 @@ KernelSource Emit(const Variant& variant, int influences_override, int joints, c
   if (options.instanced && joints == 0)
     throw Error("emit " + variant.Key() + ": an instanced kernel needs the joint count (instance i's palette starts "
                 "at joint i*J)");
+  if (SkinsMorph(variant) && options.morph_targets < 1)
+    throw Error("emit " + variant.Key() + ": morph " + Name(variant.morph) +
+                " needs the mesh's morph target count (it sizes each instance's weights)");
   if (options.instanced && InstancesBoundAtCompileTime(variant) && options.max_instances < 1)
     throw Error("emit " + variant.Key() + ": instanced constant storage in " + Name(variant.lang) +
                 " needs max_instances >= 1 (it sizes the " +
@@ -244,9 +284,20 @@ KernelSource Emit(const Variant& variant, int influences_override, int joints, c
   source.instanced = options.instanced;
   source.max_instances = options.instanced && InstancesBoundAtCompileTime(variant) ? options.max_instances : 0;
   source.instances = options.instanced ? std::max(options.max_instances, 0) : 0;
+  source.morph_targets = SkinsMorph(variant) ? options.morph_targets : 0;
   source.defines = ParameterDefines(variant, b, joints, options);  // the same parameters in every language
   source.arguments = KernelArguments(variant, b, options.instanced);
   source.launch = Geometry(variant, options.instanced);
+  // GLSL: each buffer's binding, its place in the argument list (skin_body.glsl).
+  if (IsGlslText(variant.lang)) {
+    int binding = 0;
+    for (const KernelArgument& a : source.arguments) {
+      if (!TakesBinding(variant.lang, a)) continue;
+      std::string name = "BINDING_";
+      for (const char c : a.name) name += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+      source.defines.emplace_back(name, binding++);
+    }
+  }
 
   std::string heading = variant.Key();
   if (b != variant.influences) heading += " (bucket of " + std::to_string(b) + " influences)";
@@ -258,6 +309,34 @@ KernelSource Emit(const Variant& variant, int influences_override, int joints, c
 }
 
 namespace {
+
+// The sidecar's "morph" object: the morph targets' count, layout and
+// offsets, in the words of docs/VARIANTS.md "Morph targets".
+nlohmann::json MorphJson(const KernelSource& source, const Variant& variant) {
+  const bool half = MorphHalf(variant);
+  nlohmann::json j = {
+      {"targets", source.morph_targets},
+      {"layout", MorphSparse(variant) ? "sparse" : "dense"},
+      {"offset_format", half ? "half4" : "float3"},
+      {"offset_bytes", static_cast<int>(half ? kMorphHalfOffsetBytes : kMorphF32OffsetBytes)},
+      {"offset_rule", half ? "IEEE 754 binary16 x, y, z rounded to nearest (ties to even) from the float32 offset, "
+                             "then a zero: 8 bytes"
+                           : "little-endian float32 x, y, z: 12 bytes"},
+      {"rule", "before skinning, each of the vertex's position, normal and tangent xyz gains w_t * offset_t for "
+               "every target t of non-zero weight, in ascending target order, in float32; normals and tangents are "
+               "renormalised after skinning and the tangent's w is kept"},
+      {"weights", std::string("morph_weights: float32, ") + std::to_string(source.morph_targets) +
+                      " per instance (instance i's target t at i*T+t); the runtime uploads them with each frame's "
+                      "palette"},
+  };
+  j["entries"] = MorphSparse(variant)
+                     ? "launch vertex v's entries e in [morph_offsets[v], morph_offsets[v+1]) (n+1 offsets), each "
+                       "a target morph_targets[e] and its offsets at element e: one entry for every target with a "
+                       "non-zero offset in any stream the kernel reads, in ascending target order; every buffer "
+                       "holds at least one element"
+                     : "target t's offset of launch vertex v at element t*n+v (n: the launch's vertex count)";
+  return j;
+}
 
 // The sidecar's "instancing" object: where an instanced kernel finds its
 // instance, its palette and where its outputs go.
@@ -321,7 +400,8 @@ constexpr const char* kStrideBytesRule =
     "per argument: per-vertex inputs and outputs (positions, normals, records, out_*): bytes from vertex v's element "
     "to vertex v+1's (the element size; records: the record size); indices and weights: bytes from vertex v's first "
     "slot to vertex v+1's (soa: B elements; soa-split: one element, within a slot array); palette: bytes from joint j "
-    "to joint j+1 (R float4 rows); scalars: 0";
+    "to joint j+1 (R float4 rows); morph offsets, morph_targets and morph_offsets: bytes from one element to the "
+    "next; morph_weights: bytes from target t's weight to t+1's; scalars: 0";
 
 // The quantisation rule in the words of docs/VARIANTS.md (the kernel
 // contract's item 1) and of the generated header's QuantiseVertex
@@ -435,7 +515,7 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
     } else if (IsGlslText(source.lang)) {
       if (a.kind == ArgumentKind::kScalar) {
         arg["uniform"] = a.name;
-      } else if (source.lang == Lang::kGlslVertex && a.direction == ArgumentDirection::kOut) {
+      } else if (!TakesBinding(source.lang, a)) {
         const OutputSpec* output = OutputOfArgument(a.name);
         arg["transform_feedback_buffer"] = static_cast<int>(output->output);
         arg["varying"] = output->varying;
@@ -490,6 +570,7 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
                  {"rule", source.launch.rule},
                  {"wg_sizes", kWorkGroupSizesRule}};
   if (source.instanced) j["instancing"] = InstancingJson(source);
+  if (SkinsMorph(variant)) j["morph"] = MorphJson(source, variant);
   if (variant.layout == Layout::kAos) {
     const RecordLayout r = AosRecordLayout(variant, source.influences);
     j["aos_record"] = {{"position", r.position}, {"indices", r.indices}, {"weights", r.weights},

@@ -56,6 +56,10 @@ constexpr bool Writes(const Variant& v, Output o) {
 // The output whose kernel argument is `argument`, or null.
 const OutputSpec* OutputOfArgument(std::string_view argument);
 
+// The argument holding a frame's morph weights (the runner binds it per
+// palette slot, as the palette).
+inline constexpr const char* kMorphWeightsArgument = "morph_weights";
+
 enum class ArgumentKind { kScalar, kBuffer, kImage };
 enum class ArgumentDirection { kIn, kOut };
 const char* Name(ArgumentKind);
@@ -65,9 +69,10 @@ struct KernelArgument {
   std::string name;          // "n", "first", "vertex_count" (instanced), "records", "positions", "indices",
                              // "weights", "normals", "palette", "out_positions", "out_normals"
   std::string format;        // "u32", "float4", "float3", "i32", "u16", "u8", "f32", "unorm16",
-                             // "unorm8", "record", "float4 rows"
+                             // "unorm8", "record", "float4 rows", "half4" (morph offsets)
   std::size_t element_bytes = 0;  // one element of `format` (a whole record for "record")
-  std::size_t stride_bytes = 0;   // between consecutive vertices (palette: between joints; 0 for scalars)
+  std::size_t stride_bytes = 0;   // between consecutive vertices (palette: between joints; morph offsets and
+                                  // targets: between entries; morph weights: between targets; 0 for scalars)
   std::string indexing;      // where vertex v's data is: "v", "v*B+i", "i*S+v", "first+v", "j*R+r";
                              // instanced: "i*vertex_count+first+v" (outputs), "(i*J+j)*R+r" (palette)
   ArgumentDirection direction = ArgumentDirection::kIn;
@@ -98,6 +103,9 @@ struct EmitOptions {
   // palettes (required there: >= 1; a launch may skin fewer). Ignored
   // elsewhere: OpenCL's __constant pointer and the other storages take any K.
   int max_instances = 0;
+  // The mesh's morph targets: required (>= 1) for a variant that skins them
+  // (MORPH_TARGETS: the weights' count per instance), ignored otherwise.
+  int morph_targets = 0;
 };
 
 struct KernelSource {
@@ -110,6 +118,7 @@ struct KernelSource {
   bool instanced = false;                             // EmitOptions::instanced
   int max_instances = 0;                              // instances the kernel can skin per launch (0: any)
   int instances = 0;  // instanced: EmitOptions::max_instances as asked (the K of `emit --instances K`), 0 if none
+  int morph_targets = 0;  // MORPH_TARGETS where the variant skins morph targets, else 0
   std::vector<KernelArgument> arguments;              // in kernel argument order
   LaunchGeometry launch;
   std::string generator_version = kGeneratorVersion;

@@ -109,6 +109,26 @@ void CheckFit(const SkinnedMesh& mesh, const Variant& variant) {
     Fail(variant, "tangents requested but the mesh '" + mesh.name + "' has none");
   if (SkinsTangents(variant) && variant.position != PositionFormat::kFloat4)
     Fail(variant, "tangents need the float4 position format (every output has the tangents' 16-byte stride)");
+  if (SkinsMorph(variant) && !mesh.has_morph())
+    Fail(variant, std::string("morph ") + Name(variant.morph) + " requested but the mesh '" + mesh.name +
+                      "' has no morph targets");
+  if (!SkinsMorph(variant) && mesh.morph.MovesVertices())
+    Fail(variant, "the mesh '" + mesh.name + "' has morph targets that move its vertices, which a variant without "
+                  "morph targets would ignore (use a morph value)");
+  if (SkinsMorph(variant) &&
+      3 * mesh.morph.count() * mesh.vertex_count() >= (std::uint64_t{1} << 32))
+    Fail(variant, mesh.morph.where + ": " + std::to_string(mesh.morph.count()) + " targets x " +
+                      std::to_string(mesh.vertex_count()) +
+                      " vertices of offsets exceed the kernels' 32-bit element indices (3 floats each)");
+  if (MorphHalf(variant))
+    for (const auto* stream : {&mesh.morph.positions, &mesh.morph.normals, &mesh.morph.tangents})
+      for (std::size_t t = 0; t < stream->size(); ++t)
+        for (std::size_t v = 0; v < (*stream)[t].size(); ++v)
+          for (int c = 0; c < 3; ++c)
+            if (std::isinf(HalfValue(HalfBits((*stream)[t][v][c]))))
+              Fail(variant, mesh.morph.where + ": target " + std::to_string(t) + " vertex " + std::to_string(v) +
+                                ": offset component " + std::to_string((*stream)[t][v][c]) +
+                                " rounds to infinity as a half (binary16 holds magnitudes below 65520; use float32 offsets)");
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
     const int count = mesh.InfluencesOf(v);
     if (count == 0) Fail(variant, "vertex " + std::to_string(v) + " has no non-zero weight");
@@ -207,6 +227,73 @@ Launch PackLaunch(const SkinnedMesh& mesh, const Variant& variant, const std::ve
   return launch;
 }
 
+// One morph offset in the variant's format: float32 x, y, z, or binary16 x, y, z, 0.
+void PutOffset(std::uint8_t* at, const glm::vec3& d, bool half) {
+  for (int c = 0; c < 3; ++c) {
+    if (half) {
+      PutUint(at + 2 * c, HalfBits(d[c]), 2);
+    } else {
+      PutFloat(at + 4 * c, d[c]);
+    }
+  }
+  if (half) PutUint(at + 6, 0, 2);
+}
+
+// The morph streams of one launch (docs/VARIANTS.md "Morph targets"), after
+// the vertex streams, in argument order. Dense: target t's offset of packed
+// vertex p at t*count+p. Sparse: per packed vertex the targets with a
+// non-zero offset in any stream, in target order. Every buffer holds at
+// least one element (a launch no target moves still binds them).
+void PackMorph(const SkinnedMesh& mesh, const Variant& variant, const std::vector<std::uint32_t>& order, Launch& launch) {
+  if (!SkinsMorph(variant)) return;
+  const MorphTargets& m = mesh.morph;
+  const bool half = MorphHalf(variant);
+  const std::size_t ob = half ? kMorphHalfOffsetBytes : kMorphF32OffsetBytes;
+  struct Stream {
+    const char* name;
+    const std::vector<std::vector<glm::vec3>>* offsets;  // empty: zeros
+  };
+  std::vector<Stream> streams = {{"morph_positions", &m.positions}};
+  if (SkinsNormals(variant)) streams.push_back({"morph_normals", &m.normals});
+  if (SkinsTangents(variant)) streams.push_back({"morph_tangents", &m.tangents});
+  const auto offset = [&](const Stream& s, std::size_t t, std::uint32_t v) {
+    return t < s.offsets->size() ? (*s.offsets)[t][v] : glm::vec3(0.0f);
+  };
+  const std::size_t n = launch.count, targets = m.count();
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> entries;  // (packed vertex, target), sparse
+  std::vector<std::uint32_t> starts;
+  if (MorphSparse(variant)) {
+    starts.reserve(n + 1);
+    for (std::size_t p = 0; p < n; ++p) {
+      starts.push_back(static_cast<std::uint32_t>(entries.size()));
+      const std::uint32_t v = order[launch.first + p];
+      for (std::size_t t = 0; t < targets; ++t)
+        if (std::any_of(streams.begin(), streams.end(), [&](const Stream& s) { return offset(s, t, v) != glm::vec3(0.0f); }))
+          entries.emplace_back(static_cast<std::uint32_t>(p), static_cast<std::uint32_t>(t));
+    }
+    starts.push_back(static_cast<std::uint32_t>(entries.size()));
+    PackedBuffer offsets{"morph_offsets", std::vector<std::uint8_t>(starts.size() * 4)};
+    for (std::size_t i = 0; i < starts.size(); ++i) PutUint(offsets.bytes.data() + 4 * i, starts[i], 4);
+    PackedBuffer target_of{"morph_targets", std::vector<std::uint8_t>(std::max<std::size_t>(entries.size(), 1) * 4, 0)};
+    for (std::size_t e = 0; e < entries.size(); ++e) PutUint(target_of.bytes.data() + 4 * e, entries[e].second, 4);
+    launch.inputs.push_back(std::move(offsets));
+    launch.inputs.push_back(std::move(target_of));
+  }
+  for (const Stream& s : streams) {
+    const std::size_t elements = MorphSparse(variant) ? entries.size() : targets * n;
+    PackedBuffer out{s.name, std::vector<std::uint8_t>(RoundUp(std::max<std::size_t>(elements, 1) * ob, 4), 0)};
+    if (MorphSparse(variant)) {
+      for (std::size_t e = 0; e < entries.size(); ++e)
+        PutOffset(out.bytes.data() + e * ob, offset(s, entries[e].second, order[launch.first + entries[e].first]), half);
+    } else {
+      for (std::size_t t = 0; t < targets; ++t)
+        for (std::size_t p = 0; p < n; ++p)
+          PutOffset(out.bytes.data() + (t * n + p) * ob, offset(s, t, order[launch.first + p]), half);
+    }
+    launch.inputs.push_back(std::move(out));
+  }
+}
+
 }  // namespace
 
 RecordLayout AosRecordLayout(const Variant& variant, int influences) {
@@ -264,6 +351,11 @@ PackedMesh Pack(const SkinnedMesh& mesh, const Variant& variant) {
       first = end;
     }
   }
+  for (Launch& launch : packed.launches) PackMorph(mesh, variant, packed.order, launch);
+  if (SkinsMorph(variant)) {
+    packed.morph_targets = static_cast<int>(mesh.morph.count());
+    packed.morph_weights = PackMorphWeights(mesh.morph.weights);
+  }
   // The rest pose (identity for every joint): a palette of the right size to
   // bind until the first PackPalette of a frame replaces it.
   packed.palette = PackPalette(std::vector<glm::mat4>(packed.palette_joints, glm::mat4(1.0f)), variant);
@@ -271,6 +363,15 @@ PackedMesh Pack(const SkinnedMesh& mesh, const Variant& variant) {
 }
 
 std::size_t PaletteMatrixBytes(const Variant& variant) { return BytesOf(variant.palette); }
+
+std::vector<std::uint8_t> PackMorphWeights(std::span<const double> weights) {
+  std::vector<std::uint8_t> bytes(weights.size() * 4);
+  for (std::size_t t = 0; t < weights.size(); ++t) PutFloat(bytes.data() + 4 * t, static_cast<float>(weights[t]));
+  return bytes;
+}
+
+std::uint16_t HalfBits(float value) { return std::bit_cast<std::uint16_t>(static_cast<_Float16>(value)); }
+float HalfValue(std::uint16_t bits) { return static_cast<float>(std::bit_cast<_Float16>(bits)); }
 
 std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const Variant& variant) {
   std::vector<std::uint8_t> bytes(palette.size() * PaletteMatrixBytes(variant));
@@ -523,6 +624,14 @@ std::vector<glm::vec4> UnpackTangents(const PackedMesh& packed, std::span<const 
 SkinnedMesh QuantisedMesh(const SkinnedMesh& mesh, const Variant& variant) {
   ThrowIfInvalid(mesh, "quantise " + variant.Key());
   SkinnedMesh out = mesh;
+  if (SkinsMorph(variant)) {
+    for (double& w : out.morph.weights) w = static_cast<float>(w);
+    if (MorphHalf(variant))
+      for (auto* stream : {&out.morph.positions, &out.morph.normals, &out.morph.tangents})
+        for (std::vector<glm::vec3>& target : *stream)
+          for (glm::vec3& d : target)
+            for (int c = 0; c < 3; ++c) d[c] = HalfValue(HalfBits(d[c]));
+  }
   if (variant.weight == WeightFormat::kF32) return out;
   const std::vector<std::uint32_t> words = WeightWords(mesh, variant.weight);
   const auto max = static_cast<float>(UnormMax(variant.weight));

@@ -32,6 +32,11 @@ namespace skintune::internal {
 // float4 position format, so every output of a variant has one stride.
 inline constexpr std::size_t kTangentBytes = 16;
 
+// Bytes of one morph-target offset: float32 x, y, z; or IEEE binary16 x, y,
+// z and a zero (8 bytes: one aligned load).
+inline constexpr std::size_t kMorphF32OffsetBytes = 12;
+inline constexpr std::size_t kMorphHalfOffsetBytes = 8;
+
 struct PackedBuffer {
   std::string name;                // "positions", "indices", "weights", "normals", "tangents", "records"
   std::vector<std::uint8_t> bytes;
@@ -55,6 +60,11 @@ struct PackedMesh {
   std::vector<std::uint8_t> palette;    // float4 rows, R = 4 (mat4) or 3 (mat3x4) per joint
   std::size_t palette_joints = 0;
   std::size_t output_stride_bytes = 0;  // bytes per output vertex (16 for float4, 12 for float3)
+  // Morph targets (variants that skin them): their count T, and the weights
+  // the mesh is skinned with as the kernel reads them (T float32), bound
+  // until a frame's weights replace them (as `palette` is).
+  int morph_targets = 0;
+  std::vector<std::uint8_t> morph_weights;
 };
 
 // Byte offsets of the fields of one `aos` record: the position at 0, the
@@ -85,6 +95,13 @@ std::uint32_t SoaSplitSlotStride(std::uint32_t count, const Variant& variant);
 // Throws Error when the variant cannot hold the mesh (influences below the
 // mesh's largest count, joints beyond the index format, normals missing).
 PackedMesh Pack(const SkinnedMesh& mesh, const Variant& variant);
+
+// Morph weights as the kernel reads them: float32, T per instance.
+std::vector<std::uint8_t> PackMorphWeights(std::span<const double> weights);
+// The IEEE binary16 bits nearest `value` (ties to even; overflow to
+// infinity): a half morph offset's components.
+std::uint16_t HalfBits(float value);
+float HalfValue(std::uint16_t bits);
 
 // Palette rows in the variant's palette format (call per frame). Throws
 // Error (NotRigid) for a dual-quaternion palette with a joint that scales,
@@ -120,7 +137,9 @@ std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uin
 std::vector<glm::vec4> UnpackTangents(const PackedMesh& packed, std::span<const std::uint8_t> output);
 
 // The mesh the kernel really skins: weights after quantisation, as floats, in
-// the mesh's vertex order (so the gold can be computed on exactly these values).
+// the mesh's vertex order (so the gold can be computed on exactly these
+// values); morph offsets as half where the variant stores them so, and morph
+// weights as the float32 the kernel reads.
 SkinnedMesh QuantisedMesh(const SkinnedMesh& mesh, const Variant& variant);
 
 // Whether `format` holds the mesh's weights exactly: QuantisedMesh changes

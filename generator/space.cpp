@@ -185,12 +185,19 @@ void to_json(nlohmann::json& out, const TuningSpace& s) {
   }
 }
 
+TuningSpace ForDataSet(TuningSpace space, const ProblemShape& shape) {
+  std::erase_if(space.morphs, [&](Morph m) {
+    return m == Morph::kNone ? shape.morph_moves : shape.morph_targets == 0;
+  });
+  return space;
+}
+
 SpaceCount Enumerate(const TuningSpace& space, const DeviceLimits& device, const ProblemShape& shape,
                      const std::function<void(const Variant&)>& valid) {
   SpaceCount count;
-  space.ForEach([&](const Variant& v) {
-    ++count.total;
+  ForDataSet(space, shape).ForEach([&](const Variant& v) {
     const std::vector<Violation> broken = CheckVariant(v, device, shape);
+    ++count.total;
     if (broken.empty()) {
       ++count.valid;
       if (valid) valid(v);

@@ -39,6 +39,7 @@ struct TuningSpace {
   std::vector<Assignment> assignments;
   std::vector<int> wg_sizes;
   std::vector<Normals> normals;
+  std::vector<Morph> morphs;
 
   // Every value of every axis: wg sizes 32, 64, 128, 256, 512, 1024.
   static TuningSpace Full();
@@ -57,9 +58,9 @@ template <typename T>
   requires std::same_as<std::remove_const_t<T>, TuningSpace>
 constexpr auto SpaceLists(T& s) {
   auto& [langs, influences, mixed, layouts, positions, indices, weights, palettes, storages, blends,
-         vertices_per_item, assignments, wg_sizes, normals] = s;
+         vertices_per_item, assignments, wg_sizes, normals, morphs] = s;
   return std::tie(langs, influences, mixed, layouts, positions, indices, weights, palettes, storages, blends,
-                  vertices_per_item, assignments, wg_sizes, normals);
+                  vertices_per_item, assignments, wg_sizes, normals, morphs);
 }
 
 // Reads a space from JSON; unknown axes and values throw Error("<context>: space.<axis>[i]: ...").
@@ -72,7 +73,15 @@ struct SpaceCount {
   std::map<Constraint, std::uint64_t> invalid_by;  // first broken constraint of each invalid point
 };
 
-// Enumerates `space` against a device and problem; `valid` (optional) receives each runnable variant.
+// `space` with the values of the axes the data set decides kept to those of
+// this data set: a mesh without morph targets has no morph variants, one
+// whose targets move it none without them (what NotOfThisDataSet's
+// constraints would refuse). May leave an axis empty (the space lists none
+// of the data set's values).
+TuningSpace ForDataSet(TuningSpace space, const ProblemShape& shape);
+
+// Enumerates ForDataSet(space, shape) against a device and problem; `valid`
+// (optional) receives each runnable variant.
 SpaceCount Enumerate(const TuningSpace& space, const DeviceLimits& device, const ProblemShape& shape,
                      const std::function<void(const Variant&)>& valid = {});
 

@@ -71,8 +71,10 @@ std::size_t BytesOf(PaletteFormat f) { return f == PaletteFormat::kMat4 ? 64 : f
 std::string Variant::Key() const {
   std::string key;
   for (std::size_t i = 0; i < kAxisCount; ++i) {
+    const int code = kAxes[i].Get(*this);
+    if (kAxes[i].key_omits_default && code == kAxes[i].values[0].code) continue;
     if (i > 0 && !kAxes[i].joins_previous) key += ".";
-    key += KeyToken(kAxes[i], kAxes[i].Get(*this));
+    key += KeyToken(kAxes[i], code);
   }
   return key;
 }

@@ -7,7 +7,7 @@
 //
 // Compact key: the axis values joined by '.', in this canonical order:
 //   <lang>.b<B>.<mixed>.<layout>.<position>.<index>.<weight>.<palette>.<storage>
-//   .<blend>.v<vertices_per_item><c|s>.wg<wg_size>.<nonormals|normals|tangents>
+//   .<blend>.v<vertices_per_item><c|s>.wg<wg_size>.<nonormals|normals|tangents>[.morph-<dense|sparse>[-half]]
 // e.g. "opencl.b4.padded.soa-split.float4.u16.unorm16.mat3x4.local.matrix.v2c.wg256.nonormals".
 // Every token is unique across axes, so ParseVariantKey accepts the tokens in
 // any order; omitted axes take their default (Variant{}), so "cuda.b2" is a key.
@@ -48,6 +48,11 @@ enum class Assignment { kContiguous, kStrided };
 // What a variant skins beside positions: nothing, normals, or normals and
 // tangents (xyz skinned, w the handedness: docs/VARIANTS.md "Normals and tangents").
 enum class Normals { kNone, kNormals, kTangents };
+// Whether a variant applies the mesh's morph targets before skinning, and how
+// it stores their offsets (docs/VARIANTS.md "Morph targets"): dense (every
+// target an offset per vertex) or sparse (per vertex the targets that move
+// it), float32 or half (IEEE binary16) offsets.
+enum class Morph { kNone, kDense, kSparse, kDenseHalf, kSparseHalf };
 
 struct Variant {
   Lang lang = Lang::kOpenCl;
@@ -64,6 +69,7 @@ struct Variant {
   Assignment assignment = Assignment::kContiguous;
   int wg_size = 128;                                  // 32..1024, a multiple of 32
   Normals normals = Normals::kNone;
+  Morph morph = Morph::kNone;  // keys leave it out when none
 
   std::string Key() const;
   std::size_t Hash() const;  // stable across runs and machines (FNV-1a of Key())
@@ -77,6 +83,11 @@ constexpr bool SkinsTangents(const Variant& v) { return v.normals == Normals::kT
 constexpr Normals NormalsFor(bool normals, bool tangents) {
   return tangents ? Normals::kTangents : normals ? Normals::kNormals : Normals::kNone;
 }
+
+// Whether the variant applies morph targets; their layout; half offsets.
+constexpr bool SkinsMorph(const Variant& v) { return v.morph != Morph::kNone; }
+constexpr bool MorphSparse(const Variant& v) { return v.morph == Morph::kSparse || v.morph == Morph::kSparseHalf; }
+constexpr bool MorphHalf(const Variant& v) { return v.morph == Morph::kDenseHalf || v.morph == Morph::kSparseHalf; }
 
 // Throws Error("variant 'KEY': unknown token 'X' (...)") etc.
 Variant ParseVariantKey(std::string_view key);
@@ -93,9 +104,9 @@ template <typename T>
   requires std::same_as<std::remove_const_t<T>, Variant>
 constexpr auto VariantFields(T& v) {
   auto& [lang, influences, mixed, layout, position, index, weight, palette, storage, blend, vertices_per_item,
-         assignment, wg_size, normals] = v;
+         assignment, wg_size, normals, morph] = v;
   return std::tie(lang, influences, mixed, layout, position, index, weight, palette, storage, blend,
-                  vertices_per_item, assignment, wg_size, normals);
+                  vertices_per_item, assignment, wg_size, normals, morph);
 }
 using VariantFieldRefs = decltype(VariantFields(std::declval<Variant&>()));
 

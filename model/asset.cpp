@@ -45,34 +45,24 @@ std::vector<glm::mat4> SkinnedAsset::PaletteAt(int animation, double t) const {
 }
 
 std::vector<double> SkinnedAsset::MorphWeightsAt(int animation, double t) const {
-  std::vector<double> weights = morph.weights;
-  weights.resize(morph.count(), 0.0);
+  std::vector<double> weights = mesh.morph.weights;
+  weights.resize(mesh.morph.count(), 0.0);
   if (animation >= 0) animations.at(animation).SampleMorphWeights(t, weights);
   return weights;
 }
 
-SkinnedMesh SkinnedAsset::MeshAt(int animation, double t) const {
+SkinnedMesh SkinnedAsset::MeshWithMorphWeightsAt(int animation, double t) const {
   SkinnedMesh out = mesh;
-  if (morph.count() == 0) return out;
-  const std::vector<double> weights = MorphWeightsAt(animation, t);
-  const std::size_t n = out.positions.size();
-  for (std::size_t k = 0; k < morph.count(); ++k) {
-    if (weights[k] == 0.0) continue;
-    for (std::size_t v = 0; v < n; ++v)
-      out.positions[v] = glm::vec3(glm::dvec3(out.positions[v]) + weights[k] * glm::dvec3(morph.positions[k][v]));
-    if (out.has_normals() && k < morph.normals.size() && !morph.normals[k].empty())
-      for (std::size_t v = 0; v < n; ++v)
-        out.normals[v] = glm::vec3(glm::dvec3(out.normals[v]) + weights[k] * glm::dvec3(morph.normals[k][v]));
-    if (out.has_tangents() && k < morph.tangents.size() && !morph.tangents[k].empty())
-      for (std::size_t v = 0; v < n; ++v) {
-        const glm::dvec3 t = glm::dvec3(out.tangents[v]) + weights[k] * glm::dvec3(morph.tangents[k][v]);
-        out.tangents[v] = glm::vec4(glm::vec3(t), out.tangents[v].w);
-      }
-  }
+  if (mesh.has_morph()) out.morph.weights = MorphWeightsAt(animation, t);
   return out;
 }
 
+SkinnedMesh SkinnedAsset::MeshAt(int animation, double t) const {
+  return MorphApplied(MeshWithMorphWeightsAt(animation, t));
+}
+
 std::string SkinnedAsset::MorphInUse() const {
+  const MorphTargets& morph = mesh.morph;
   if (morph.count() == 0) return "";
   for (std::size_t k = 0; k < morph.weights.size(); ++k)
     if (morph.weights[k] != 0.0) {
@@ -86,14 +76,6 @@ std::string SkinnedAsset::MorphInUse() const {
         return "animation " + std::to_string(a) + (animations[a].name.empty() ? "" : " '" + animations[a].name + "'") +
                " animates their weights";
   return "";
-}
-
-void SkinnedAsset::RequireNoMorphInUse(const std::string& who) const {
-  const std::string why = MorphInUse();
-  if (why.empty()) return;
-  throw Error(source + ": " + morph.where + ": " + std::to_string(morph.count()) + " morph target" +
-              (morph.count() == 1 ? " moves" : "s move") + " its vertices (" + why + "), which " + who +
-              " does not apply yet (`skintune skin` applies them on the CPU)");
 }
 
 }  // namespace skintune::internal

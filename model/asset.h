@@ -10,24 +10,11 @@
 
 namespace skintune::internal {
 
-// The skinned mesh's morph targets (glTF `targets`): per target, a position
-// (and normal) offset per vertex of the mesh, zero where a primitive has
-// none; applied before skinning, weighted: p = p0 + sum_k w_k dp_k.
-struct MorphTargets {
-  std::vector<std::vector<glm::vec3>> positions;  // [target][vertex]
-  std::vector<std::vector<glm::vec3>> normals;    // [target][vertex]; empty without normals
-  std::vector<std::vector<glm::vec3>> tangents;   // [target][vertex] (xyz offsets); empty without tangents
-  std::vector<double> weights;                    // default weights (the node's, else the mesh's, else 0)
-  std::string where;                              // e.g. "meshes[0].primitives[0].targets"
-  std::size_t count() const { return positions.size(); }
-};
-
 struct SkinnedAsset {
   std::string source;  // file name or dataset key: used in error messages
   SkinnedMesh mesh;
   Skeleton skeleton;
   std::vector<AnimationClip> animations;
-  MorphTargets morph;
 
   // Resolves an animation by exact name, or by index when `name_or_index` is a
   // decimal number. Throws Error naming the source and listing what exists.
@@ -41,17 +28,18 @@ struct SkinnedAsset {
 
   // The morph target weights at time t of clip `animation` (-1: the defaults).
   std::vector<double> MorphWeightsAt(int animation, double t) const;
-  // The mesh with the morph targets applied at those weights (a copy; the mesh
-  // itself where there are no targets).
+  // The mesh with its targets' weights at that time (what a kernel that
+  // skins morph targets packs and the gold morphs): a copy.
+  SkinnedMesh MeshWithMorphWeightsAt(int animation, double t) const;
+  // The mesh with the morph targets applied at those weights and none left
+  // (MorphApplied: a copy).
   SkinnedMesh MeshAt(int animation, double t) const;
-  // Why the morph targets move vertices ("meshes[0].weights[1] is 0.25",
-  // "animations[0] animates their weights"), or "" where they cannot: what
-  // skins only `mesh` (the GPU kernels, the tuner, the runtime) must refuse
-  // an asset for which this is not empty (RequireNoMorphInUse).
+  // Why the morph targets move vertices ("default weight 1 is 0.25",
+  // "animation 0 'Wave' animates their weights"), or "" where they cannot
+  // (no targets, every default weight 0 and no weights channel): what skins
+  // without morph targets (the palette kernel's animation) must refuse an
+  // asset for which this is not empty.
   std::string MorphInUse() const;
-  // Throws Error("<source>: <where>: N morph targets move its vertices (...),
-  // which <who> does not apply ...") when MorphInUse() is not empty.
-  void RequireNoMorphInUse(const std::string& who) const;
 };
 
 }  // namespace skintune::internal

@@ -644,8 +644,8 @@ GltfImportResult ImportGltf(const std::string& path, const GltfImportOptions& op
   asset.source = path;
   asset.skeleton = ReadSkeleton(ctx, model.nodes[node].skin);
   asset.mesh = ReadMesh(ctx, node, options, result.warnings);
-  asset.morph = ReadMorphTargets(ctx, node, asset.mesh, result.warnings);
-  asset.animations = ReadAnimations(ctx, node, asset.morph.count());
+  asset.mesh.morph = ReadMorphTargets(ctx, node, asset.mesh, result.warnings);
+  asset.animations = ReadAnimations(ctx, node, asset.mesh.morph.count());
   return result;
 }
 

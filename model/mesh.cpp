@@ -42,6 +42,54 @@ std::string VertexSlot(std::size_t v, int slot) {
 
 bool Finite(const glm::vec3& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 
+// The morph targets' sizes against the mesh, and their finiteness (each
+// problem once per stream, naming the first target and vertex).
+void CheckMorph(const SkinnedMesh& mesh, IssueCollector& out) {
+  const MorphTargets& m = mesh.morph;
+  if (m.count() == 0 && m.weights.empty() && m.normals.empty() && m.tangents.empty()) return;
+  const std::string where = m.where.empty() ? std::string("morph targets") : m.where;
+  const std::size_t n = mesh.vertex_count();
+  if (m.count() > static_cast<std::size_t>(kMaxMorphTargets))
+    out.Add(MeshProblem::kLengthMismatch, 0, -1,
+            where + ": " + std::to_string(m.count()) + " targets, more than the " + std::to_string(kMaxMorphTargets) +
+                " a mesh may have");
+  if (m.weights.size() != m.count())
+    out.Add(MeshProblem::kLengthMismatch, 0, -1,
+            where + ": " + std::to_string(m.weights.size()) + " weights for " + std::to_string(m.count()) + " targets");
+  for (std::size_t k = 0; k < m.weights.size(); ++k)
+    if (!std::isfinite(m.weights[k])) {
+      out.Add(MeshProblem::kNonFinitePosition, 0, -1, where + ": weight " + std::to_string(k) + " is not finite");
+      break;
+    }
+  const auto check = [&](const std::vector<std::vector<glm::vec3>>& offsets, const char* what, bool mesh_has) {
+    if (offsets.empty()) return;
+    if (!mesh_has || offsets.size() != m.count()) {
+      out.Add(MeshProblem::kLengthMismatch, 0, -1,
+              where + ": " + std::to_string(offsets.size()) + " targets of " + what + " offsets for " +
+                  std::to_string(m.count()) + " targets" + (mesh_has ? "" : std::string(" of a mesh without ") + what));
+      return;
+    }
+    for (std::size_t k = 0; k < offsets.size(); ++k) {
+      if (offsets[k].size() != n) {
+        out.Add(MeshProblem::kLengthMismatch, 0, -1,
+                where + ": target " + std::to_string(k) + " has " + std::to_string(offsets[k].size()) + " " + what +
+                    " offsets for " + std::to_string(n) + " vertices");
+        return;
+      }
+      for (std::size_t v = 0; v < n; ++v)
+        if (!Finite(offsets[k][v])) {
+          out.Add(MeshProblem::kNonFinitePosition, v, -1,
+                  where + ": target " + std::to_string(k) + " vertex " + std::to_string(v) + ": " + what +
+                      " offset is not finite");
+          return;
+        }
+    }
+  };
+  check(m.positions, "position", true);
+  check(m.normals, "normal", mesh.has_normals());
+  check(m.tangents, "tangent", mesh.has_tangents());
+}
+
 // Mesh-level shape problems; returns false when per-vertex checks cannot run.
 bool CheckShape(const SkinnedMesh& mesh, IssueCollector& out) {
   bool per_vertex_ok = true;
@@ -62,6 +110,7 @@ bool CheckShape(const SkinnedMesh& mesh, IssueCollector& out) {
     out.Add(MeshProblem::kLengthMismatch, 0, -1,
             std::to_string(mesh.tangents.size()) + " tangents for " + std::to_string(n) + " vertices");
   }
+  CheckMorph(mesh, out);
   if (per_vertex_ok) {
     const std::size_t slots = n * static_cast<std::size_t>(mesh.influences);
     for (auto [name, size] : {std::pair{"joint indices", mesh.joints.size()},
@@ -220,6 +269,49 @@ std::vector<std::size_t> InfluenceHistogram(const SkinnedMesh& mesh) {
   std::vector<std::size_t> histogram(mesh.influences + 1, 0);
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) ++histogram[mesh.InfluencesOf(v)];
   return histogram;
+}
+
+bool MorphTargets::MovesVertices() const {
+  for (std::size_t k = 0; k < count() && k < weights.size(); ++k) {
+    if (weights[k] == 0.0) continue;
+    for (const auto* stream : {&positions, &normals, &tangents})
+      if (k < stream->size())
+        for (const glm::vec3& d : (*stream)[k])
+          if (d != glm::vec3(0.0f)) return true;
+  }
+  return false;
+}
+
+namespace {
+// Sum of w_k * offsets[k][v] in float64, in target order.
+glm::dvec3 Offset(const MorphTargets& m, const std::vector<std::vector<glm::vec3>>& offsets, std::size_t v) {
+  glm::dvec3 sum(0.0);
+  for (std::size_t k = 0; k < offsets.size() && k < m.weights.size(); ++k)
+    if (m.weights[k] != 0.0) sum += m.weights[k] * glm::dvec3(offsets[k][v]);
+  return sum;
+}
+}  // namespace
+
+glm::dvec3 MorphedPosition(const SkinnedMesh& mesh, std::size_t v) {
+  return glm::dvec3(mesh.positions[v]) + Offset(mesh.morph, mesh.morph.positions, v);
+}
+glm::dvec3 MorphedNormal(const SkinnedMesh& mesh, std::size_t v) {
+  return glm::dvec3(mesh.normals[v]) + Offset(mesh.morph, mesh.morph.normals, v);
+}
+glm::dvec3 MorphedTangent(const SkinnedMesh& mesh, std::size_t v) {
+  return glm::dvec3(glm::vec3(mesh.tangents[v])) + Offset(mesh.morph, mesh.morph.tangents, v);
+}
+
+SkinnedMesh MorphApplied(const SkinnedMesh& mesh) {
+  SkinnedMesh out = mesh;
+  out.morph = MorphTargets{};
+  if (!mesh.has_morph()) return out;
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    out.positions[v] = glm::vec3(MorphedPosition(mesh, v));
+    if (mesh.has_normals()) out.normals[v] = glm::vec3(MorphedNormal(mesh, v));
+    if (mesh.has_tangents()) out.tangents[v] = glm::vec4(glm::vec3(MorphedTangent(mesh, v)), mesh.tangents[v].w);
+  }
+  return out;
 }
 
 }  // namespace skintune::internal

@@ -31,6 +31,27 @@ inline constexpr double kWeightSumTolerance = 1e-3;
 // The most vertices a mesh may have: kernels index vertices with uint32 (K
 // instances x vertices too) and a .stv file counts them in a uint32: 2^32 - 1.
 inline constexpr std::uint64_t kMaxVertexCount = 0xffffffffull;
+// The most morph targets a mesh may have (a face rig has tens to a hundred or so).
+inline constexpr int kMaxMorphTargets = 256;
+
+// The mesh's morph targets (glTF `targets`): per target, a position (and
+// normal, tangent xyz) offset per vertex, zero where a primitive has none;
+// applied before skinning at `weights`: p = p0 + sum_k w_k dp_k (normals and
+// tangents likewise, renormalised after skinning). Kernels whose variant
+// skins morph targets read them; everything else must refuse a mesh whose
+// targets move vertices (MovesVertices).
+struct MorphTargets {
+  std::vector<std::vector<glm::vec3>> positions;  // [target][vertex]
+  std::vector<std::vector<glm::vec3>> normals;    // [target][vertex]; empty without normals
+  std::vector<std::vector<glm::vec3>> tangents;   // [target][vertex] (xyz offsets); empty without tangents
+  // The weights the mesh is skinned with (glTF: the node's, else the mesh's,
+  // else 0; an animation frame's once sampled). One per target.
+  std::vector<double> weights;
+  std::string where;  // e.g. "meshes[0].primitives[0].targets"
+  std::size_t count() const { return positions.size(); }
+  // Whether some target with a non-zero weight has a non-zero offset.
+  bool MovesVertices() const;
+};
 
 struct SkinnedMesh {
   std::string name;
@@ -43,10 +64,12 @@ struct SkinnedMesh {
   std::vector<glm::vec4> tangents;
   std::vector<std::uint16_t> joints;   // vertex_count() * influences
   std::vector<float> weights;          // vertex_count() * influences
+  MorphTargets morph;                  // none, or applied before skinning (see MorphTargets)
 
   std::size_t vertex_count() const { return positions.size(); }
   bool has_normals() const { return !normals.empty(); }
   bool has_tangents() const { return !tangents.empty(); }
+  bool has_morph() const { return morph.count() > 0; }
   // Number of slots of vertex v with a non-zero weight.
   int InfluencesOf(std::size_t v) const;
 };
@@ -55,8 +78,8 @@ enum class MeshProblem {
   kBadInfluenceCount,   // influences outside 1..kMaxInfluences
   kNoJoints,            // joint_count == 0
   kNoVertices,          // empty mesh
-  kLengthMismatch,      // normals/tangents/joints/weights arrays do not match the vertex count
-  kNonFinitePosition,   // NaN or infinite position, normal or tangent, or a handedness not +-1
+  kLengthMismatch,      // normals/tangents/joints/weights/morph arrays do not match the vertex count
+  kNonFinitePosition,   // NaN or infinite position, normal, tangent, morph offset or weight, or a handedness not +-1
   kJointOutOfRange,     // joint index >= joint_count (any slot: kernels read every slot)
   kBadWeight,           // negative or NaN/infinite weight
   kZeroWeights,         // every weight of a vertex is zero (cannot be renormalised)
@@ -109,6 +132,16 @@ RenormalizeReport Renormalize(SkinnedMesh& mesh, double tolerance = kWeightSumTo
 // When a vertex has more than `max_influences` non-zero weights, the smallest
 // are dropped and the rest renormalised; the count of such vertices is returned.
 std::size_t CompactInfluences(SkinnedMesh& mesh, int max_influences = kMaxInfluences);
+
+// `mesh` with its morph targets applied at their weights, in float64 then
+// rounded once to float32, and no targets left (the mesh itself where it has
+// none).
+SkinnedMesh MorphApplied(const SkinnedMesh& mesh);
+// The float64 morphed position / normal / tangent xyz of vertex v (the
+// gold's source: the offsets at the targets' weights, summed in target order).
+glm::dvec3 MorphedPosition(const SkinnedMesh& mesh, std::size_t v);
+glm::dvec3 MorphedNormal(const SkinnedMesh& mesh, std::size_t v);
+glm::dvec3 MorphedTangent(const SkinnedMesh& mesh, std::size_t v);
 
 // Histogram: result[k] = number of vertices with k non-zero weights (k = 0..influences).
 std::vector<std::size_t> InfluenceHistogram(const SkinnedMesh& mesh);

@@ -42,8 +42,10 @@ constexpr double kWeightEps = 1e-3;        // metres, in 1 / (d + eps)^2
 // (all bones for rigs of up to 129 bones, so exhaustive for the paper's 77).
 constexpr std::size_t kCandidates = 128;
 constexpr int kMaxBones = 65535;
+constexpr int kMaxSyntheticMorphTargets = 64;
 constexpr const char* kKeyHint =
-    "expected <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-rigid][-normals|-tangents], e.g. 100k-b2";
+    "expected <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-rigid][-morph<T>][-normals|-tangents], e.g. "
+    "100k-b2";
 
 // ---------------------------------------------------------------- PRNG
 
@@ -464,6 +466,40 @@ AnimationClip BuildAnimation(const DatasetSpec& spec, const Skeleton& skeleton) 
 
 // ---------------------------------------------------------------- keys
 
+// The morph targets of -morph<T> (synthetic.h): target 0 over every vertex,
+// target k >= 1 over vertices [k-1, k) x n / (2T) (at least one), each in its
+// own seeded direction with a seeded per-vertex wobble, up to 2% of the
+// mesh's extent; normal and tangent offsets a tenth of a unit.
+MorphTargets BuildMorphTargets(const DatasetSpec& spec, const SkinnedMesh& mesh) {
+  MorphTargets m;
+  if (spec.morph_targets == 0) return m;
+  m.where = "synthetic morph targets";
+  Rng rng(spec.seed, 6);
+  const std::size_t n = mesh.vertex_count(), targets = static_cast<std::size_t>(spec.morph_targets);
+  glm::dvec3 lo(mesh.positions[0]), hi(lo);
+  for (const glm::vec3& p : mesh.positions) {
+    lo = glm::min(lo, glm::dvec3(p));
+    hi = glm::max(hi, glm::dvec3(p));
+  }
+  const double amplitude = 0.02 * glm::length(hi - lo) / 1.3;  // |direction + wobble| <= 1.3
+  const std::size_t region = std::max<std::size_t>(n / (2 * targets), 1);
+  for (std::size_t k = 0; k < targets; ++k) {
+    const std::size_t first = k == 0 ? 0 : std::min((k - 1) * region, n - 1);
+    const std::size_t last = k == 0 ? n : std::min(first + region, n);
+    const dvec3 direction = rng.UnitVector();
+    m.positions.emplace_back(n, glm::vec3(0.0f));
+    if (mesh.has_normals()) m.normals.emplace_back(n, glm::vec3(0.0f));
+    if (mesh.has_tangents()) m.tangents.emplace_back(n, glm::vec3(0.0f));
+    for (std::size_t v = first; v < last; ++v) {
+      m.positions[k][v] = glm::vec3(amplitude * (direction + 0.3 * rng.UnitVector()));
+      if (mesh.has_normals()) m.normals[k][v] = glm::vec3(0.1 * rng.UnitVector());
+      if (mesh.has_tangents()) m.tangents[k][v] = glm::vec3(0.1 * rng.UnitVector());
+    }
+    m.weights.push_back(targets > 1 && k + 1 == targets ? 0.0 : rng.Range(0.2, 1.0));
+  }
+  return m;
+}
+
 std::string Problem(const DatasetSpec& s) {
   if (s.vertices == 0) return "vertices must be at least 1 (got 0)";
   if (s.influences < 1 || s.influences > kMaxInfluences) {
@@ -477,6 +513,8 @@ std::string Problem(const DatasetSpec& s) {
            " (each vertex needs distinct bones)";
   }
   if (s.frames < 1) return "frames must be at least 1 (got " + std::to_string(s.frames) + ")";
+  if (s.morph_targets < 0 || s.morph_targets > kMaxSyntheticMorphTargets)
+    return "morph targets " + std::to_string(s.morph_targets) + " outside 0.." + std::to_string(kMaxSyntheticMorphTargets);
   if (s.vertices > kMaxVertexCount) {
     return std::to_string(s.vertices) + " vertices exceed the 2^32 - 1 = " + std::to_string(kMaxVertexCount) +
            " a mesh may have (vertex indices and counts are 32-bit): at most 4294m";
@@ -536,6 +574,9 @@ void ParseOption(const std::string& key, std::string_view token, DatasetSpec& sp
     spec.random_bones = true;
   } else if (token == "rigid") {
     spec.rigid = true;
+  } else if (token.starts_with("morph")) {
+    name = "morph";
+    spec.morph_targets = static_cast<int>(ParseField(key, token, "morph", kMaxSyntheticMorphTargets, "morph target count"));
   } else if (token == "normals") {
     spec.normals = true;
   } else if (token == "tangents") {
@@ -561,7 +602,9 @@ void DatasetSpec::Validate() const {
 }
 
 std::uint64_t DatasetBytesPerVertex(const DatasetSpec& spec) {
-  return MeshBytesPerVertex(spec.influences, spec.normals) + (spec.tangents ? 16 : 0);
+  const std::uint64_t streams = 1 + (spec.normals ? 1 : 0) + (spec.tangents ? 1 : 0);
+  return MeshBytesPerVertex(spec.influences, spec.normals) + (spec.tangents ? 16 : 0) +
+         static_cast<std::uint64_t>(spec.morph_targets) * streams * sizeof(glm::vec3);
 }
 
 std::string DatasetSpec::Key() const {
@@ -570,6 +613,7 @@ std::string DatasetSpec::Key() const {
   if (random_bones) key += "-random";
   if (seed != 1) key += "-seed" + std::to_string(seed);
   if (rigid) key += "-rigid";
+  if (morph_targets > 0) key += "-morph" + std::to_string(morph_targets);
   if (tangents) key += "-tangents";
   else if (normals) key += "-normals";
   return key;
@@ -608,6 +652,7 @@ SkinnedAsset GenerateDataset(const DatasetSpec& spec) {
   asset.skeleton = MakeSkeleton(bones, frames);
   asset.mesh = BuildMesh(spec, bones, frames);
   asset.animations.push_back(BuildAnimation(spec, asset.skeleton));
+  asset.mesh.morph = BuildMorphTargets(spec, asset.mesh);
   return asset;
 }
 

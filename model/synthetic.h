@@ -19,11 +19,16 @@
 // (rotations and translations only: what dual-quaternion skinning takes).
 //
 // A dataset is named by a compact key, parsed by ParseDatasetKey:
-//   <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-rigid][-normals|-tangents]
+//   <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-rigid][-morph<T>][-normals|-tangents]
 // where <vertices> is a count with an optional k/m suffix (1000 / 1000000),
 // e.g. "100k-b2", "1600k-b4-random", "5000-b8-bones12-seed3-normals".
 // -tangents gives normals and tangents: each vertex's tangent runs along its
 // bone, with handedness +1 and -1 in turn around each ring.
+// -morph<T> adds T morph targets (1..64), applied at seeded default weights
+// (the last of two or more at 0): target 0 moves every vertex, target k >= 1
+// one contiguous region of n / (2T) vertices (a patch of the surface: the
+// vertices run tube by tube), by up to 2% of the mesh's extent, with
+// normal and tangent offsets where the mesh has them.
 // "default" means "100k-b2" (the data set of the paper's Fig. 1).
 #pragma once
 
@@ -43,6 +48,7 @@ struct DatasetSpec {
   bool normals = false;
   bool tangents = false;      // also tangents (then normals too)
   bool rigid = false;         // the animation rotates and translates only (no scale channels)
+  int morph_targets = 0;      // -morph<T>: morph targets (0: none)
   int frames = 60;            // keys of the generated animation clip (30 fps)
 
   // Throws Error naming the bad field (vertices 0 or above kMaxVertexCount,

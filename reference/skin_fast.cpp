@@ -34,6 +34,7 @@ struct FastSkinner::Impl {
 
 FastSkinner::FastSkinner(const SkinnedMesh& mesh, unsigned threads) : impl_(std::make_unique<Impl>(threads)) {
   ThrowIfInvalid(mesh, "FastSkinner");
+  RequireNoMorph(mesh, "FastSkinner");
   Impl& s = *impl_;
   s.n = mesh.vertex_count();
   s.b = mesh.influences;

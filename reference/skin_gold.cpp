@@ -33,6 +33,12 @@ void CheckSkinningArguments(const SkinnedMesh& mesh, std::size_t palette_size, s
   }
 }
 
+void RequireNoMorph(const SkinnedMesh& mesh, const char* who) {
+  if (!mesh.morph.MovesVertices()) return;
+  throw Error(std::string(who) + ": " + (mesh.morph.where.empty() ? "the morph targets" : mesh.morph.where) +
+              ": the morph targets move vertices, which " + who + " does not apply: apply them first (MorphApplied)");
+}
+
 GoldResult GoldOfMaps(const SkinnedMesh& mesh, std::size_t palette_size, bool with_normals, bool with_tangents,
                       const char* who, const std::function<glm::dmat4(std::size_t)>& map_of) {
   ThrowIfInvalid(mesh, who);
@@ -48,14 +54,14 @@ GoldResult GoldOfMaps(const SkinnedMesh& mesh, std::size_t palette_size, bool wi
     for (std::size_t v = first; v < last; ++v) {
       const glm::dmat4 map = map_of(v);
       const glm::dmat3 a(map);
-      result.positions[v] = glm::dvec3(map * glm::dvec4(glm::dvec3(mesh.positions[v]), 1.0));
+      result.positions[v] = glm::dvec3(map * glm::dvec4(MorphedPosition(mesh, v), 1.0));
       if (with_normals) {
-        const glm::dvec3 n3 = NormalMatrix(a) * glm::dvec3(mesh.normals[v]);
+        const glm::dvec3 n3 = NormalMatrix(a) * MorphedNormal(mesh, v);
         const double len = glm::length(n3);
         result.normals[v] = len > 0.0 ? n3 / len : n3;
       }
       if (with_tangents) {
-        const glm::dvec3 t3 = a * glm::dvec3(mesh.tangents[v]);
+        const glm::dvec3 t3 = a * MorphedTangent(mesh, v);
         const double len = glm::length(t3);
         const double handedness = glm::determinant(a) < 0.0 ? -mesh.tangents[v].w : mesh.tangents[v].w;
         result.tangents[v] = glm::dvec4(len > 0.0 ? t3 / len : t3, handedness);

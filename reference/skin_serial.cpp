@@ -12,6 +12,7 @@ void CheckSkinningArguments(const SkinnedMesh& mesh, std::size_t palette_size, s
 void SkinSerial(const SkinnedMesh& mesh, std::span<const glm::mat4> palette, std::span<glm::vec3> out_positions,
                 std::span<glm::vec3> out_normals, std::span<glm::vec4> out_tangents) {
   CheckSkinningArguments(mesh, palette.size(), out_positions.size(), out_normals.size(), "SkinSerial");
+  RequireNoMorph(mesh, "SkinSerial");
   const bool with_normals = mesh.has_normals() && !out_normals.empty();
   const bool with_tangents = mesh.has_tangents() && !out_tangents.empty();
   if (with_tangents && (mesh.tangents.size() != mesh.vertex_count() || out_tangents.size() != mesh.vertex_count()))

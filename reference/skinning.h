@@ -24,6 +24,10 @@
 //               baseline tables chosen at run time, streaming stores), all
 //               cores through a persistent thread pool.
 //
+// Morph targets: the golds skin the mesh with its morph targets applied at
+// their weights in float64 (MorphedPosition, model/mesh.h), as the kernels of
+// variants that skin morph targets do before skinning.
+//
 // Preconditions: palette.size() == mesh.joint_count and output spans of
 // vertex_count() elements (violations throw Error). SkinGold and FastSkinner's
 // constructor also Validate() the mesh and throw on any problem; SkinSerial,
@@ -77,6 +81,12 @@ GoldResult GoldOfMaps(const SkinnedMesh& mesh, std::size_t palette_size, bool wi
 // naming a joint whose matrix is not an invertible affine map.
 GoldResult SkinGoldDualQuaternion(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,
                                   bool with_normals = false, bool with_tangents = false);
+
+// Throws Error("<who>: <where>: the morph targets move vertices ...") for a
+// mesh whose morph targets move it (MorphTargets::MovesVertices): SkinSerial
+// and FastSkinner skin the mesh as it is; apply the targets first
+// (MorphApplied). The golds apply them.
+void RequireNoMorph(const SkinnedMesh& mesh, const char* who);
 
 // Tangents are skinned when the mesh has them and out_tangents is given.
 void SkinSerial(const SkinnedMesh& mesh, std::span<const glm::mat4> palette,

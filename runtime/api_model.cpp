@@ -23,6 +23,8 @@ struct Model::Impl {
   std::vector<float> positions;       // 3 per vertex
   std::vector<float> normals;         // 3 per vertex, or empty
   std::vector<std::uint32_t> joints;  // asset.mesh.influences per vertex
+  // The morph targets as MeshView reads them: target after target, 3 floats a vertex.
+  std::vector<float> morph_positions, morph_normals, morph_tangents, morph_weights;
 
   explicit Impl(SkinnedAsset a, std::vector<std::string> w) : asset(std::move(a)), warnings(std::move(w)) {
     const SkinnedMesh& mesh = asset.mesh;
@@ -31,6 +33,14 @@ struct Model::Impl {
     for (const glm::vec3& p : mesh.positions) positions.insert(positions.end(), {p.x, p.y, p.z});
     for (const glm::vec3& n : mesh.normals) normals.insert(normals.end(), {n.x, n.y, n.z});
     joints.assign(mesh.joints.begin(), mesh.joints.end());
+    const auto flatten = [](const std::vector<std::vector<glm::vec3>>& targets, std::vector<float>& out) {
+      for (const std::vector<glm::vec3>& target : targets)
+        for (const glm::vec3& d : target) out.insert(out.end(), {d.x, d.y, d.z});
+    };
+    flatten(mesh.morph.positions, morph_positions);
+    flatten(mesh.morph.normals, morph_normals);
+    flatten(mesh.morph.tangents, morph_tangents);
+    for (const double w : mesh.morph.weights) morph_weights.push_back(static_cast<float>(w));
   }
   bool HasAnimation(int a) const { return a >= 0 && a < static_cast<int>(asset.animations.size()); }
 };
@@ -76,7 +86,6 @@ Result<Model> Model::Load(const std::string& path) {
     GltfImportOptions options;
     options.tangents_when_present = true;
     GltfImportResult imported = ImportGltf(path, options);
-    imported.asset.RequireNoMorphInUse("skintune's runtime");
     Model model;
     model.impl_ = std::make_unique<Impl>(std::move(imported.asset), std::move(imported.warnings));
     return model;
@@ -123,7 +132,29 @@ MeshView Model::mesh() const {
   view.tangents = mesh.has_tangents() ? &mesh.tangents.front().x : nullptr;  // glm::vec4: 4 packed floats
   view.joints = impl_->joints.data();
   view.weights = mesh.weights.data();
+  view.morph_target_count = static_cast<int>(mesh.morph.count());
+  if (mesh.has_morph()) {
+    view.morph_positions = impl_->morph_positions.data();
+    view.morph_normals = impl_->morph_normals.empty() ? nullptr : impl_->morph_normals.data();
+    view.morph_tangents = impl_->morph_tangents.empty() ? nullptr : impl_->morph_tangents.data();
+    view.morph_weights = impl_->morph_weights.data();
+  }
   return view;
+}
+
+int Model::morph_target_count() const { return impl_ ? static_cast<int>(impl_->asset.mesh.morph.count()) : 0; }
+
+Status Model::MorphWeights(int animation, double t, std::vector<float>* weights) const {
+  return Guarded(ErrorCode::kInvalidArgument, [&] {
+    const Impl& im = Checked(impl_, "MorphWeights");
+    if (!weights) FailWith(ErrorCode::kInvalidArgument, "Model::MorphWeights: weights is null");
+    if (animation != -1 && !im.HasAnimation(animation))
+      FailWith(ErrorCode::kInvalidArgument, "Model::MorphWeights: animation " + std::to_string(animation) +
+                                                " outside -1.." + std::to_string(im.asset.animations.size() - 1));
+    if (!std::isfinite(t)) FailWith(ErrorCode::kInvalidArgument, "Model::MorphWeights: t is not finite");
+    weights->clear();
+    for (const double w : im.asset.MorphWeightsAt(animation, t)) weights->push_back(static_cast<float>(w));
+  });
 }
 
 const std::vector<std::string>& Model::warnings() const {
@@ -162,12 +193,29 @@ Status Model::Palette(int animation, double t, std::vector<float>* matrices) con
 }
 
 Status Model::SkinReference(const float* matrices, std::size_t float_count, std::vector<float>* positions) const {
+  return SkinReference(matrices, float_count, nullptr, 0, positions);
+}
+
+Status Model::SkinReference(const float* matrices, std::size_t float_count, const float* morph_weights,
+                            std::size_t weight_count, std::vector<float>* positions) const {
   return Guarded(ErrorCode::kInvalidArgument, [&] {
     const Impl& im = Checked(impl_, "SkinReference");
     if (!positions) FailWith(ErrorCode::kInvalidArgument, "Model::SkinReference: positions is null");
     const std::vector<glm::mat4> palette =
         Matrices(matrices, float_count, im.asset.mesh.joint_count, "Model::SkinReference");
-    const GoldResult gold = SkinGold(im.asset.mesh, palette);
+    SkinnedMesh weighted;
+    if (morph_weights) {
+      if (weight_count != im.asset.mesh.morph.count())
+        FailWith(ErrorCode::kInvalidArgument, "Model::SkinReference: " + std::to_string(weight_count) +
+                                                  " morph weights given, the model has " +
+                                                  std::to_string(im.asset.mesh.morph.count()) + " morph targets");
+      weighted = im.asset.mesh;
+      weighted.morph.weights.assign(morph_weights, morph_weights + weight_count);
+      for (std::size_t k = 0; k < weight_count; ++k)
+        if (!std::isfinite(morph_weights[k]))
+          FailWith(ErrorCode::kInvalidArgument, "Model::SkinReference: morph weight " + std::to_string(k) + " is not finite");
+    }
+    const GoldResult gold = SkinGold(morph_weights ? weighted : im.asset.mesh, palette);
     for (std::size_t v = 0; v < gold.positions.size(); ++v) {
       const glm::vec3 p(gold.positions[v]);
       if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)))

@@ -48,6 +48,7 @@ std::vector<KernelSource> EmitLaunchKernels(const PackedMesh& mesh, int instance
   EmitOptions options;
   options.instanced = instances > 0;
   options.max_instances = std::max(instances, 0);
+  options.morph_targets = mesh.morph_targets;
   std::vector<KernelSource> kernels;
   for (const Launch& launch : mesh.launches)
     kernels.push_back(Emit(mesh.variant, launch.influences, static_cast<int>(mesh.palette_joints), options));

@@ -28,6 +28,8 @@ struct Prepared::Impl {
   // have completed (the palette ring: runner.h).
   struct Slot {
     DeviceBuffer* palette = nullptr;
+    // Morph variants: the K instances' morph weights, uploaded with the palette.
+    DeviceBuffer* morph_weights = nullptr;
     std::vector<std::unique_ptr<DeviceObject>> launches;
     // Animated (Runner::Animate): the instances the palette kernel reads, and
     // that kernel bound to write `palette`, run before `launches`.
@@ -251,6 +253,11 @@ std::vector<ArgumentBinding> Runner::InputBindings(Prepared::Impl& p, std::size_
       arguments.push_back(b);
       continue;
     }
+    if (arg.name == kMorphWeightsArgument) {
+      b.role = ArgumentRole::kInput;  // a frame's, bound per slot (AddSet)
+      arguments.push_back(b);
+      continue;
+    }
     if (const OutputSpec* output = OutputOfArgument(arg.name)) {
       b = {&arg, ArgumentRole::kOutput, set.outputs[static_cast<std::size_t>(output->output)], nullptr};
     } else {
@@ -304,13 +311,24 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
     slot.palette = SetBuffer(p, index, BufferUse::kPalette, palette, "palette" + suffix,
                              palette_slots > 1 ? "" : ShareKey(options, index, BufferUse::kPalette, "palette", palette));
     bytes += palette.size();
+    if (SkinsMorph(mesh.variant)) {
+      std::vector<std::uint8_t> weights;
+      for (int i = 0; i < shape.instances; ++i)
+        weights.insert(weights.end(), mesh.morph_weights.begin(), mesh.morph_weights.end());
+      slot.morph_weights = SetBuffer(p, index, BufferUse::kPalette, weights, std::string(kMorphWeightsArgument) + suffix,
+                                     palette_slots > 1 ? "" : ShareKey(options, index, BufferUse::kPalette,
+                                                                       kMorphWeightsArgument, weights));
+      bytes += weights.size();
+    }
     std::unique_ptr<DeviceObject> view = api_->PaletteView(mesh.variant, *slot.palette, suffix);
     DeviceObject* palette_view = view.get();
     if (view) set.objects.push_back(std::move(view));
     for (std::size_t l = 0; l < p.launches.size(); ++l) {
       std::vector<ArgumentBinding> arguments = launch_arguments[l];
-      for (ArgumentBinding& b : arguments)
+      for (ArgumentBinding& b : arguments) {
         if (b.role == ArgumentRole::kPalette) b = {b.argument, ArgumentRole::kPalette, slot.palette, palette_view};
+        if (b.argument->name == kMorphWeightsArgument) b.buffer = slot.morph_weights;
+      }
       slot.launches.push_back(api_->Bind(*p.launches[l], arguments, options, bytes));
     }
   }
@@ -721,6 +739,17 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   return staging.first(p.upload_bytes);
 }
 
+std::span<std::uint8_t> Runner::MorphWeightsStaging(Prepared& prepared, int set) {
+  api_->MakeCurrent();
+  Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
+  const Prepared::Impl& p = *prepared.impl_;
+  if (!s.staged) Fail("launch", "MorphWeightsStaging of " + p.key + " without PaletteStaging");
+  Prepared::Impl::Slot& slot = s.slots[*s.staged];
+  if (!slot.morph_weights) Fail("launch", p.key + " skins no morph targets: it has no morph weights");
+  const bool upload_fenced = slot.done && (slot.launched || api_->OrdersUploadsAfterLaunches());
+  return api_->Staging(*slot.morph_weights, p.key, upload_fenced).first(slot.morph_weights->bytes());
+}
+
 void Runner::UploadPalette(Prepared& prepared, int set) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
@@ -730,16 +759,19 @@ void Runner::UploadPalette(Prepared& prepared, int set) {
   if (submit_) {
     DeviceApi* api = api_.get();
     DeviceBuffer* palette = &slot.Uploaded();
+    DeviceBuffer* morph_weights = slot.morph_weights;
     const std::size_t bytes = p.upload_bytes;
     const std::string& key = p.key;  // the Prepared drains the thread before it goes
     const bool mark = api_->OrdersUploadsAfterLaunches();
-    slot.submitted = submit_->Push([api, palette, bytes, &key, &slot, mark] {
+    slot.submitted = submit_->Push([api, palette, morph_weights, bytes, &key, &slot, mark] {
       api->MakeCurrent();
       api->Upload(*palette, bytes, key);
+      if (morph_weights) api->Upload(*morph_weights, morph_weights->bytes(), key);
       if (mark) api->Mark(slot.done, key);
     });
   } else {
     api_->Upload(slot.Uploaded(), p.upload_bytes, p.key);
+    if (slot.morph_weights) api_->Upload(*slot.morph_weights, slot.morph_weights->bytes(), p.key);
     if (api_->OrdersUploadsAfterLaunches()) api_->Mark(slot.done, p.key);
   }
   slot.launched = false;

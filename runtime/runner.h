@@ -242,6 +242,10 @@ class Runner {
   // LaunchSet uses. A staging given and never uploaded takes no slot.
   std::span<std::uint8_t> PaletteStaging(Prepared& prepared, int set);
   void UploadPalette(Prepared& prepared, int set);
+  // Morph variants: the staged slot's morph weights (K x T float32), between
+  // PaletteStaging and UploadPalette, which uploads them with the palettes.
+  // Its bytes are the slot's from its last upload: write them all each frame.
+  std::span<std::uint8_t> MorphWeightsStaging(Prepared& prepared, int set);
   void LaunchSet(Prepared& prepared, int set, void* out_positions = nullptr);
   std::span<const std::uint8_t> ReadOutput(const Prepared& prepared, int set, Output output);
   // ReadOutput in chunks of `chunk_bytes` (DeviceApi::ReadPinnedChunks): the

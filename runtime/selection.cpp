@@ -137,7 +137,7 @@ std::vector<Lang> LanguagesOf(Backend backend) {
   return entry ? entry->languages : std::vector<Lang>{};
 }
 
-Variant GenericDefault(Lang lang, int influences, Normals normals, const DeviceLimits& limits,
+Variant GenericDefault(Lang lang, int influences, Normals normals, const DeviceLimits& limits, bool morph,
                        bool dual_quaternions) {
   Variant v;
   v.lang = lang;
@@ -155,6 +155,7 @@ Variant GenericDefault(Lang lang, int influences, Normals normals, const DeviceL
   v.wg_size = !HasWorkGroups(lang) ? 0 : limits.max_wg_size >= 64 ? 64 : 32;
   v.normals = normals;
   if (dual_quaternions) v.palette = PaletteFormat::kDualQuaternion, v.blend = Blend::kDualQuaternion;
+  if (morph) v.morph = Morph::kDense;  // float32 offsets: exact
   return v;
 }
 
@@ -167,7 +168,8 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
     std::vector<const WinnersEntry*> candidates;
     for (const WinnersEntry& e : entries) {
       if (!AtLevel(e, device, level) || !Contains(request.langs, e.lang) || e.influences < request.influences ||
-          !ShapeServes(e, request) || (e.variant.blend == Blend::kDualQuaternion) != request.dual_quaternions)
+          !ShapeServes(e, request) || (e.variant.blend == Blend::kDualQuaternion) != request.dual_quaternions ||
+          SkinsMorph(e.variant) != request.morph)
         continue;
       if (!EntryWithinBudget(e, request.max_error, request.exact_formats)) {
         skipped.push_back({&e, level, Describe(e) + " " + Name(e.variant.weight) + ": " + OverBudget(e, request)});
@@ -209,7 +211,7 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
   std::string tried;
   for (Lang lang : request.langs) {
     const Variant v =
-        GenericDefault(lang, request.influences, request.normals, request.limits, request.dual_quaternions);
+        GenericDefault(lang, request.influences, request.normals, request.limits, request.morph, request.dual_quaternions);
     const std::string why = check(v);
     if (!why.empty()) {
       tried += (tried.empty() ? "" : "; ") + v.Key() + ": " + why;

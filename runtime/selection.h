@@ -56,6 +56,8 @@ struct SelectionRequest {
   // Dual-quaternion skinning (blend dq) or linear (matrix, point): entries of
   // the other kind never serve, as they compute something else.
   bool dual_quaternions = false;
+  // The mesh has morph targets: only morph variants serve it (and only it).
+  bool morph = false;
   double max_error = kDefaultBudget;     // the error budget, relative to the bounding-box diagonal
   std::string max_error_name = "max_error";  // how the caller names it in reasons ("SkinnerOptions::max_error")
   std::vector<WeightFormat> exact_formats;  // formats that hold the caller's weights exactly (HoldsWeightsExactly)
@@ -80,7 +82,7 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
 // below 64; wg0 for glsl-vertex). Every constraint of generator/constraints.h
 // holds for it on every device except the vertex shader's storage blocks.
 // `dual_quaternions`: its twin with the dualquat palette and blend dq.
-Variant GenericDefault(Lang lang, int influences, Normals normals, const DeviceLimits& limits,
+Variant GenericDefault(Lang lang, int influences, Normals normals, const DeviceLimits& limits, bool morph = false,
                        bool dual_quaternions = false);
 
 // A backend's languages, preferred first (its entry in runtime/backend_table.h).

@@ -78,6 +78,27 @@ SkinnedMesh ToSkinnedMesh(const MeshView& view, bool normals, bool tangents, con
     mesh.joints[i] = static_cast<std::uint16_t>(joint);
   }
   mesh.weights.assign(view.weights, view.weights + n * b);
+  if (view.morph_target_count < 0 || view.morph_target_count > kMaxMorphTargets)
+    BadMesh("morph_target_count " + std::to_string(view.morph_target_count) + " outside 0.." +
+            std::to_string(kMaxMorphTargets));
+  if (view.morph_target_count > 0) {
+    if (!view.morph_positions) BadMesh("morph_target_count is " + std::to_string(view.morph_target_count) +
+                                       " but morph_positions is null");
+    MorphTargets& m = mesh.morph;
+    m.where = "MeshView morph targets";
+    const auto targets = static_cast<std::size_t>(view.morph_target_count);
+    const auto copy = [&](const float* from, std::vector<std::vector<glm::vec3>>& into) {
+      for (std::size_t t = 0; t < targets; ++t) {
+        into.emplace_back(n);
+        std::memcpy(into.back().data(), from + t * n * 3, n * sizeof(glm::vec3));
+      }
+    };
+    copy(view.morph_positions, m.positions);
+    if ((normals || tangents) && view.morph_normals) copy(view.morph_normals, m.normals);
+    if (tangents && view.morph_tangents) copy(view.morph_tangents, m.tangents);
+    m.weights.assign(targets, 0.0);
+    if (view.morph_weights) m.weights.assign(view.morph_weights, view.morph_weights + targets);
+  }
   const ValidationReport report = Validate(mesh, ValidateOptions{kWeightSumTolerance, 1});
   if (!report.ok()) BadMesh(report.Summary());
   return mesh;
@@ -222,8 +243,12 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
                      const SkinnedMesh& mesh, SceneShape scene_shape, std::size_t count,
                      const SkinnerOptions& options) {
   // Rigid joints assumed: SetPalette refuses each matrix that is not (dual quaternions only).
-  const ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
-                           options.instances, options.tangents, true};
+  // Morph targets: a mesh that has them takes a morph variant whatever its
+  // first weights, as SetMorphWeights may move it any frame.
+  ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
+                     options.instances, options.tangents, true};
+  shape.morph_targets = static_cast<int>(mesh.morph.count());
+  shape.morph_moves = mesh.has_morph();
   if (!options.variant.empty()) return Forced(call, options.variant, state, shape, options.dual_quaternions);
   SelectionRequest request;
   request.device = state.info;
@@ -235,6 +260,7 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   request.meshes = static_cast<int>(count);
   request.normals = NormalsFor(options.normals, options.tangents);
   request.dual_quaternions = options.dual_quaternions;
+  request.morph = mesh.has_morph();
   request.max_error = options.max_error;
   request.max_error_name = "SkinnerOptions::max_error";
   // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.
@@ -293,6 +319,7 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
     EmitOptions emit;
     emit.instanced = options.instances > 1;
     emit.max_instances = emit.instanced ? options.instances : 0;
+    emit.morph_targets = packed.morph_targets;
     for (const Launch& launch : packed.launches)
       kernels.push_back(Emit(chosen.variant, launch.influences, mesh.joint_count, emit));
   } catch (const Error& e) {
@@ -314,7 +341,12 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
   im.order = packed.order;
   im.identity_order = true;
   for (std::size_t p = 0; p < im.order.size() && im.identity_order; ++p) im.identity_order = im.order[p] == p;
-  im.output_bound = OutputBound(mesh);
+  // Morph targets move positions by weights SetMorphWeights may change any
+  // frame: no bound holds, so read-backs scan first.
+  im.output_bound = mesh.has_morph() ? std::numeric_limits<double>::infinity() : OutputBound(mesh);
+  im.morph_targets = static_cast<int>(mesh.morph.count());
+  for (int k = 0; k < options.instances; ++k)
+    for (const double w : mesh.morph.weights) im.morph_weights.push_back(static_cast<float>(w));
   im.backend = state.backend->make_skinner(state, packed, kernels, {options.instances, options.palette_buffers});
   im.palette_threads = static_cast<unsigned>(options.palette_threads);
   if (internal::TimingLogPath()) im.set_palette_times = std::make_unique<internal::SetPaletteTimes>();
@@ -367,7 +399,16 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     } catch (const Error& e) {
       FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
     }
-    const MeshView view = model.mesh();
+    // The palette kernel animates joints, not morph weights: a model whose
+    // morph targets move it is refused; one whose targets stay at 0 (no
+    // default weight, no animated weights) is skinned without them.
+    if (const std::string why = asset->MorphInUse(); !why.empty())
+      FailWith(ErrorCode::kInvalidArgument,
+               call + ": " + asset->source + ": " + asset->mesh.morph.where + ": its morph targets move its vertices (" +
+                   why + "), and the palette kernel does not animate morph weights: use Skinner::Create with "
+                   "SetMorphWeights");
+    MeshView view = model.mesh();
+    view.morph_target_count = 0;
     Skinner skinner;
     skinner.impl_ = CreateScene(call, device, db.impl_ ? &db.impl_->entries : nullptr, &view, 1, false, options);
     Impl& im = *skinner.impl_;
@@ -390,6 +431,12 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
 Result<Skinner> Skinner::CreateBatch(Device& device, const WinnersDb& db, const MeshView* meshes,
                                      std::size_t mesh_count, const SkinnerOptions& options) {
   return GuardedResult<Skinner>(ErrorCode::kInvalidArgument, [&] {
+    for (std::size_t m = 0; meshes && m < mesh_count; ++m)
+      if (meshes[m].morph_target_count != 0)
+        FailWith(ErrorCode::kInvalidArgument,
+                 "Skinner::CreateBatch: meshes[" + std::to_string(m) + "]: " +
+                     std::to_string(meshes[m].morph_target_count) +
+                     " morph targets: a batch skins meshes without morph targets (Skinner::Create skins one with them)");
     Skinner skinner;
     skinner.impl_ = CreateScene("Skinner::CreateBatch", device, db.impl_ ? &db.impl_->entries : nullptr, meshes,
                                 mesh_count, true, options);
@@ -459,6 +506,14 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
       std::memcpy(&m[0][0], matrices + bad * 16, sizeof m);
       FailWith(ErrorCode::kInvalidArgument, matrix_name(bad) + ": " + NotRigid(m, bad));
     }
+    if (im.morph_targets > 0) {
+      const std::span<std::uint8_t> weights = im.backend->MorphWeightsStaging();
+      if (weights.size() != im.morph_weights.size() * sizeof(float))
+        FailWith(ErrorCode::kDeviceError, "Skinner::SetPalette: the morph weights' staging has " +
+                                              std::to_string(weights.size()) + " bytes, expected " +
+                                              std::to_string(im.morph_weights.size() * sizeof(float)));
+      std::memcpy(weights.data(), im.morph_weights.data(), weights.size());
+    }
     im.backend->UploadPalette();
     if (times) {
       const Clock::time_point t3 = Clock::now();
@@ -471,6 +526,30 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
     im.palette_magnitude = magnitude;
   });
 }
+
+Status Skinner::SetMorphWeights(const float* weights, std::size_t count) {
+  return Guarded(ErrorCode::kDeviceError, [&] {
+    Impl& im = Usable(impl_, "SetMorphWeights");
+    if (im.morph_targets == 0)
+      FailWith(ErrorCode::kInvalidState,
+               "Skinner::SetMorphWeights: the mesh has no morph targets (MeshView::morph_target_count is 0)");
+    const std::size_t expected = static_cast<std::size_t>(im.instances) * static_cast<std::size_t>(im.morph_targets);
+    CheckCount("SetMorphWeights", count, expected, [&] {
+      return std::to_string(im.instances) + " instances x " + std::to_string(im.morph_targets) + " morph targets";
+    });
+    if (!weights) FailWith(ErrorCode::kInvalidArgument, "Skinner::SetMorphWeights: weights is null");
+    for (std::size_t i = 0; i < count; ++i)
+      if (!std::isfinite(weights[i]))
+        FailWith(ErrorCode::kInvalidArgument,
+                 "Skinner::SetMorphWeights: weight " + std::to_string(i) + " (instance " +
+                     std::to_string(i / static_cast<std::size_t>(im.morph_targets)) + ", target " +
+                     std::to_string(i % static_cast<std::size_t>(im.morph_targets)) + ") is " +
+                     std::to_string(weights[i]) + ": a weight must be finite");
+    im.morph_weights.assign(weights, weights + count);
+  });
+}
+
+int Skinner::morph_target_count() const { return impl_ ? impl_->morph_targets : 0; }
 
 Status Skinner::SetAnimation(const AnimationState* states, std::size_t count) {
   return Guarded(ErrorCode::kDeviceError, [&] {

@@ -37,6 +37,9 @@ class SkinnerBackend {
   // wait for the palette ring's slot), then its upload. A staging never
   // uploaded changes nothing.
   virtual std::span<std::uint8_t> PaletteStaging() = 0;
+  // Morph variants: the staged slot's morph weights (K x T float32), between
+  // PaletteStaging and UploadPalette, which uploads them with the palettes.
+  virtual std::span<std::uint8_t> MorphWeightsStaging() = 0;
   virtual void UploadPalette() = 0;
   // From now on the palettes are the palette kernel's (Runner::Animate):
   // PaletteStaging and UploadPalette then take K AnimInstance records.
@@ -94,6 +97,11 @@ class RunnerSkinner : public SkinnerBackend {
   std::span<std::uint8_t> PaletteStaging() override {
     std::span<std::uint8_t> staging;
     RunOnDevice([&] { staging = runner_.PaletteStaging(prepared_, 0); });
+    return staging;
+  }
+  std::span<std::uint8_t> MorphWeightsStaging() override {
+    std::span<std::uint8_t> staging;
+    RunOnDevice([&] { staging = runner_.MorphWeightsStaging(prepared_, 0); });
     return staging;
   }
   void UploadPalette() override {
@@ -173,6 +181,8 @@ struct Skinner::Impl {
   bool skinned = false;
   bool animated = false;     // CreateAnimated: SetAnimation, not SetPalette
   int animation_count = 0;   // the model's (the packed clips, in order)
+  int morph_targets = 0;     // per instance (0: none)
+  std::vector<float> morph_weights;  // instances x morph_targets: uploaded with every SetPalette
   // The read-back's overflow bound (ReadPositions; OutputBound and
   // CannotOverflow, runtime/host_work.h): every position output's |component|
   // is at most output_bound x the largest |element| of the palette it was

@@ -37,7 +37,7 @@ namespace skintune::internal {
 
 inline constexpr const char* kWinnersDbKind = "skintune-winners-db";
 // 1.3.0: x_copy, source_error; 1.4.0: the scene shape (shape, instances, meshes).
-inline constexpr const char* kWinnersDbSchemaVersion = "1.6.0";
+inline constexpr const char* kWinnersDbSchemaVersion = "1.7.0";
 
 // The scene shapes a winner was tuned on (docs/RUNTIME.md "Scene shapes"):
 // the public SceneShape (skintune/skintune.h) inside skintune, whose headers
@@ -118,7 +118,8 @@ struct WinnersEntry {
 // Whether the entry fits a budget: its kernel adds only rounding to what its
 // weights cost (KernelAddsOnlyRounding), and f32 (no quantisation), a weight
 // format in `exact` (it holds the caller's weights exactly), or a recorded
-// quantisation error within `max_error`.
+// quantisation error within `max_error`. Half morph offsets always take the
+// recorded error (they quantise the mesh's own offsets).
 bool EntryWithinBudget(const WinnersEntry& entry, double max_error, const std::vector<WeightFormat>& exact);
 
 // "<device id> <lang> b<B> <vertices>[ <shape>]": how messages name an entry

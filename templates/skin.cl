@@ -19,6 +19,8 @@
 // Kernel `skin(uint n, uint first, <inputs>, palette, <outputs>)`:
 //   aos:            records
 //   soa, soa-split: positions, indices, weights[, normals[, tangents]]
+//   MORPH:          then morph_offsets, morph_targets (sparse), morph_positions[,
+//                   morph_normals[, morph_tangents]], morph_weights
 //   outputs:        out_positions[, out_normals[, out_tangents]], written at first + v.
 // Inputs belong to the launch (vertex v of the launch is element v); item g
 // handles vertices g*N .. g*N+N-1 (contiguous) or g, g+G, .., g+(N-1)G with G
@@ -140,6 +142,18 @@ static inline void load_run(const __global uchar* p, const uint bytes, const uin
     }
   }
 }
+#endif
+
+#if MORPH
+// Morph offset e of a stream (docs/VARIANTS.md "Morph targets"): float32
+// x, y, z (12 bytes), or binary16 x, y, z and a zero (8 bytes).
+#if MORPH_HALF
+#define MORPH_T half
+static inline float3 morph_offset(const __global half* p, const size_t e) { return vload_half4(e, p).xyz; }
+#else
+#define MORPH_T float
+static inline float3 morph_offset(const __global float* p, const size_t e) { return vload3(e, p); }
+#endif
 #endif
 
 #if LAYOUT == 2
@@ -297,6 +311,20 @@ void skin(const uint n, const uint first,
           const __global float4* restrict tangents,
 #endif
 #endif
+#if MORPH
+#if MORPH_LAYOUT == 2
+          const __global uint* restrict morph_offsets,
+          const __global uint* restrict morph_targets,
+#endif
+          const __global MORPH_T* restrict morph_positions,
+#if NORMALS
+          const __global MORPH_T* restrict morph_normals,
+#endif
+#if TANGENTS
+          const __global MORPH_T* restrict morph_tangents,
+#endif
+          const __global float* restrict morph_weights,
+#endif
           PALETTE_PARAM,
 #if TANGENTS
           __global POSITION_T* restrict out_positions,
@@ -316,6 +344,9 @@ void skin(const uint n, const uint first,
   const uint out_first = instance * vertex_count + first;
 #else
   const uint out_first = first;
+#endif
+#if MORPH && INSTANCED
+  morph_weights += instance * MORPH_TARGETS;  // this instance's weights
 #endif
 #if STORAGE == 1
   // Every item of the group copies, including those past n: no return before the barrier.
@@ -383,6 +414,28 @@ void skin(const uint n, const uint first,
       raw_weight[i] = load_element((const __global uchar*)weights + e * WEIGHT_BYTES, WEIGHT_BYTES);
     }
 #endif
+#endif
+
+#if MORPH
+    // The morph targets first, at their weights, in target order.
+#if MORPH_LAYOUT == 1
+    for (uint t = 0; t < MORPH_TARGETS; ++t) {
+      const float w = morph_weights[t];
+      const size_t e = (size_t)t * n + v;
+#else
+    const uint morph_end = morph_offsets[v + 1];
+    for (uint e = morph_offsets[v]; e < morph_end; ++e) {
+      const float w = morph_weights[morph_targets[e]];
+#endif
+      if (w == 0.0f) continue;
+      position += w * morph_offset(morph_positions, e);
+#if NORMALS
+      normal += w * morph_offset(morph_normals, e);
+#endif
+#if TANGENTS
+      tangent.xyz += w * morph_offset(morph_tangents, e);
+#endif
+    }
 #endif
 
     float weight[INFLUENCES];

@@ -19,6 +19,8 @@
 // Kernel `extern "C" skin(unsigned n, unsigned first, <inputs>, palette, <outputs>)`:
 //   aos:            records
 //   soa, soa-split: positions, indices, weights[, normals[, tangents]]
+//   MORPH:          then morph_offsets, morph_targets (sparse), morph_positions[,
+//                   morph_normals[, morph_tangents]], morph_weights
 //   outputs:        out_positions[, out_normals[, out_tangents]], written at first + v.
 // Launch blocks of exactly WG_SIZE threads (the work-group size); item g =
 // blockIdx.x * WG_SIZE + threadIdx.x handles vertices g*N .. g*N+N-1
@@ -88,10 +90,10 @@ typedef unsigned long long u64;
 // OpenCL built-ins the OpenCL template uses. Each is defined only where it is
 // used (NVRTC warns about unreferenced static functions).
 
-#if BLEND == 1 || NORMALS
+#if BLEND == 1 || NORMALS || MORPH
 DEVICE float3 scale3(const float s, const float3 a) { return make_float3(s * a.x, s * a.y, s * a.z); }
 #endif
-#if BLEND == 1
+#if BLEND == 1 || MORPH
 DEVICE float3 add3(const float3 a, const float3 b) { return make_float3(a.x + b.x, a.y + b.y, a.z + b.z); }
 #endif
 // The blended matrix (BLEND 1: for normals and tangents only; BLEND 2: the dual quaternion).
@@ -248,6 +250,29 @@ __constant__ float4 skintune_palette[PALETTE_FLOAT4S];
 #endif
 
 // (x, y, z, 1) by the three rows.
+#if MORPH
+// Morph offset e of a stream (docs/VARIANTS.md "Morph targets"): float32
+// x, y, z (12 bytes), or binary16 x, y, z and a zero (8 bytes, one load;
+// converted by PTX's cvt, so no header is needed).
+#if MORPH_HALF
+typedef uint2 MORPH_T;
+DEVICE float half_value(const u32 bits) {
+  float f;
+  asm("cvt.f32.f16 %0, %1;" : "=f"(f) : "h"((u16)bits));
+  return f;
+}
+DEVICE float3 morph_offset(const MORPH_T* p, const u64 e) {
+  const uint2 h = __ldg(p + e);
+  return make_float3(half_value(h.x & 0xffffu), half_value(h.x >> 16), half_value(h.y & 0xffffu));
+}
+#else
+typedef float MORPH_T;
+DEVICE float3 morph_offset(const MORPH_T* p, const u64 e) {
+  return make_float3(__ldg(p + 3 * e), __ldg(p + 3 * e + 1), __ldg(p + 3 * e + 2));
+}
+#endif
+#endif
+
 DEVICE float3 transform_point(const float4 r0, const float4 r1, const float4 r2, const float3 p) {
   return make_float3(r0.x * p.x + r0.y * p.y + r0.z * p.z + r0.w, r1.x * p.x + r1.y * p.y + r1.z * p.z + r1.w,
                      r2.x * p.x + r2.y * p.y + r2.z * p.z + r2.w);
@@ -385,6 +410,20 @@ skin(const u32 n, const u32 first,
      const float4* __restrict__ tangents,
 #endif
 #endif
+#if MORPH
+#if MORPH_LAYOUT == 2
+     const u32* __restrict__ morph_offsets,
+     const u32* __restrict__ morph_targets,
+#endif
+     const MORPH_T* __restrict__ morph_positions,
+#if NORMALS
+     const MORPH_T* __restrict__ morph_normals,
+#endif
+#if TANGENTS
+     const MORPH_T* __restrict__ morph_tangents,
+#endif
+     const float* __restrict__ morph_weights,
+#endif
      PALETTE_PARAM,
 #if TANGENTS
      POSITION_T* __restrict__ out_positions,
@@ -404,6 +443,9 @@ skin(const u32 n, const u32 first,
   const u32 out_first = instance * vertex_count + first;
 #else
   const u32 out_first = first;
+#endif
+#if MORPH && INSTANCED
+  morph_weights += instance * MORPH_TARGETS;  // this instance's weights
 #endif
 #if STORAGE == 1
   // Every thread of the block copies, including those past n: no return before the barrier.
@@ -470,6 +512,29 @@ skin(const u32 n, const u32 first,
       raw_weight[i] = load_element(reinterpret_cast<const u8*>(weights) + e * WEIGHT_BYTES, WEIGHT_BYTES);
     }
 #endif
+#endif
+
+#if MORPH
+    // The morph targets first, at their weights, in target order.
+#if MORPH_LAYOUT == 1
+    for (u32 t = 0; t < MORPH_TARGETS; ++t) {
+      const float w = __ldg(morph_weights + t);
+      const u64 e = (u64)t * n + v;
+#else
+    const u32 morph_end = __ldg(morph_offsets + v + 1);
+    for (u32 e = __ldg(morph_offsets + v); e < morph_end; ++e) {
+      const float w = __ldg(morph_weights + __ldg(morph_targets + e));
+#endif
+      if (w == 0.0f) continue;
+      position = add3(position, scale3(w, morph_offset(morph_positions, e)));
+#if NORMALS
+      normal = add3(normal, scale3(w, morph_offset(morph_normals, e)));
+#endif
+#if TANGENTS
+      const float3 dt = scale3(w, morph_offset(morph_tangents, e));
+      tangent = make_float4(tangent.x + dt.x, tangent.y + dt.y, tangent.z + dt.z, tangent.w);
+#endif
+    }
 #endif
 
     float weight[INFLUENCES];

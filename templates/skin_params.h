@@ -50,6 +50,14 @@
 #ifndef NORMALS               // 1: also skin normals; 2: normals and tangents
 #define NORMALS 0
 #endif
+#ifndef MORPH                 // morph targets before skinning: 0 none; bits 0-1 the layout (1 dense,
+#define MORPH 0               // 2 sparse), bit 2 half offsets (docs/VARIANTS.md "Morph targets")
+#endif
+#ifndef MORPH_TARGETS         // MORPH: the mesh's morph targets (the weights' count per instance)
+#define MORPH_TARGETS 1
+#endif
+#define MORPH_LAYOUT (MORPH & 3)
+#define MORPH_HALF ((MORPH & 4) != 0)
 #ifndef INSTANCED             // 1: K instances per launch, K palettes (docs/VARIANTS.md "Instancing")
 #define INSTANCED 0
 #endif

@@ -44,6 +44,7 @@ struct EmitArgs {
   std::string out;
   int joints = 77;
   int instances = 0;  // 0: the plain kernel; K >= 1: instanced, for up to K instances per launch
+  int morph_targets = 0;  // the mesh's morph targets: required by a variant that applies them
   // --db mode
   std::string db;
   std::string device;
@@ -80,8 +81,12 @@ void CreateOutputFolder(const std::string& out) {
 int RunEmit(const EmitArgs& o) {
   const Variant variant = ParseVariantKey(o.variant);
   // Any palette the kernel may be given: rigid ones too (PackPalette refuses a dq palette that is not).
-  const ProblemShape shape{o.joints, 1, true, std::max(o.instances, 1), true, true};
+  ProblemShape shape{o.joints, 1, true, std::max(o.instances, 1), true, true};
+  shape.morph_targets = o.morph_targets;
   const std::vector<Violation> broken = CheckVariant(variant, Unlimited(), shape);
+  if (SkinsMorph(variant) && o.morph_targets == 0)
+    throw Error("variant '" + variant.Key() + "' applies morph targets: give the mesh's count with --morph-targets "
+                "(it sizes each instance's weights)");
   if (!broken.empty()) {
     throw Error("variant '" + variant.Key() + "' is invalid: " + broken.front().message + " (constraint " +
                 Name(broken.front().constraint) + ")");
@@ -89,6 +94,7 @@ int RunEmit(const EmitArgs& o) {
   EmitOptions options;
   options.instanced = o.instances > 0;
   options.max_instances = o.instances;
+  options.morph_targets = o.morph_targets;
   const KernelSource source = Emit(variant, 0, o.joints, options);
   namespace fs = std::filesystem;
   CreateOutputFolder(o.out);
@@ -352,6 +358,10 @@ Command RegisterEmit(CLI::App& app) {
                       "files are named <key>.instanced.*")
           ->check(CLI::Range(1, 1 << 20));
   instances->excludes(db);
+  sub->add_option("--morph-targets", o->morph_targets,
+                  "the mesh's morph targets, for a variant that applies them (docs/VARIANTS.md \"Morph targets\")")
+      ->check(CLI::Range(1, kMaxMorphTargets))
+      ->excludes(db);
   auto* device = sub->add_option("--device", o->device,
                                  "with --db: entries of the devices this matches, as every --device: a "
                                  "case-insensitive substring of the id '<backend>:<platform>/<name>/<driver>', "

@@ -126,8 +126,8 @@ int RunSkin(const SkinOptions& o) {
   const double t = o.time_given || clip < 0 ? o.time : asset.animations[clip].start;
   const std::vector<glm::mat4> palette = asset.PaletteAt(clip, t);
   // Morph targets first, at the clip's weights (the defaults at the rest pose), then the skin.
-  const SkinnedMesh morphed = asset.morph.count() > 0 ? asset.MeshAt(clip, t) : SkinnedMesh{};
-  const SkinnedMesh& mesh = asset.morph.count() > 0 ? morphed : asset.mesh;
+  const SkinnedMesh morphed = asset.mesh.morph.count() > 0 ? asset.MeshAt(clip, t) : SkinnedMesh{};
+  const SkinnedMesh& mesh = asset.mesh.morph.count() > 0 ? morphed : asset.mesh;
   const std::size_t n = mesh.vertex_count();
   std::vector<glm::vec3> positions(n), normals(o.source.normals && mesh.has_normals() ? n : 0);
   std::vector<glm::vec4> tangents(o.source.tangents && mesh.has_tangents() ? n : 0);
@@ -155,8 +155,8 @@ int RunSkin(const SkinOptions& o) {
                                                           std::to_string(clip))
             << " with " << o.implementation << (o.blend == "dq" ? " (dual quaternions)" : "") << " in " << ms << " ms"
             << (o.out.empty() ? "" : " -> " + o.out) << "\n";
-  if (asset.morph.count() > 0) {
-    std::cout << "morph targets applied first: " << asset.morph.count() << ", weights";
+  if (asset.mesh.morph.count() > 0) {
+    std::cout << "morph targets applied first: " << asset.mesh.morph.count() << ", weights";
     for (const double w : asset.MorphWeightsAt(clip, t)) std::cout << " " << w;
     std::cout << "\n";
   }

@@ -61,15 +61,18 @@ int RunVariants(const VariantsOptions& o) {
     // A scene key as `tune` and `run` take it (5k-b4-x16, a+b batches):
     // the instances count toward the constant and image storage limits.
     const SkinnedScene scene = LoadScene(ParseSceneKey(o.source.dataset));
-    shape = {scene.mesh().joint_count, widest_of(scene.mesh()), scene.mesh().has_normals(), scene.spec.instances,
-             scene.mesh().has_normals() && scene.mesh().has_tangents(), tuner_internal::PalettesRigid(scene)};
+    shape = WithMorphOf({scene.mesh().joint_count, widest_of(scene.mesh()), scene.mesh().has_normals(),
+                         scene.spec.instances, scene.mesh().has_normals() && scene.mesh().has_tangents(),
+                         tuner_internal::PalettesRigid(scene)},
+                        scene.mesh().morph);
     mesh_name = "scene '" + scene.spec.key + "'";
   } else if (!o.source.mesh_file.empty()) {
     const SkinnedAsset asset = LoadAsset(o.source);
     const std::vector<glm::mat4> palette =
         asset.animations.empty() ? asset.PaletteAt(-1, 0.0) : asset.PaletteAt(0, asset.animations.front().start);
-    shape = {asset.mesh.joint_count, widest_of(asset.mesh), asset.mesh.has_normals(), 1,
-             asset.mesh.has_normals() && asset.mesh.has_tangents(), tuner_internal::AllRigid(palette)};
+    shape = WithMorphOf({asset.mesh.joint_count, widest_of(asset.mesh), asset.mesh.has_normals(), 1,
+                         asset.mesh.has_normals() && asset.mesh.has_tangents(), tuner_internal::AllRigid(palette)},
+                        asset.mesh.morph);
     mesh_name = asset.source;
   }
   std::vector<std::string> keys;

@@ -10,7 +10,8 @@ namespace skintune::internal::tools {
 void AddMeshSourceOptions(CLI::App& sub, MeshSource& source) {
   auto* dataset = sub.add_option("--dataset", source.dataset,
                                  "synthetic dataset key: <vertices>-b<influences>[-bones<N>][-random][-seed<S>]"
-                                 "[-normals], e.g. 100k-b2, 1600k-b4-random; 'default' = 100k-b2");
+                                 "[-rigid][-morph<T>][-normals|-tangents], e.g. 100k-b2, 1600k-b4-random; "
+                                 "'default' = 100k-b2");
   auto* mesh = sub.add_option("--mesh", source.mesh_file, "glTF 2.0 file (.gltf or .glb) with a skinned mesh")
                    ->check(NonEmptyPath());
   dataset->excludes(mesh);

@@ -118,7 +118,7 @@ GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, 
 namespace {
 
 DatasetCache::GoldKey KeyOf(const Variant& variant, int weight) {
-  return {weight, variant.normals, variant.blend == Blend::kDualQuaternion};
+  return {weight, variant.normals, variant.blend == Blend::kDualQuaternion, weight >= 0 && MorphHalf(variant)};
 }
 
 }  // namespace
@@ -191,6 +191,7 @@ const PackedMesh& PackScene(DatasetCache& datasets, DatasetCache::Entry& entry, 
   EmitOptions emit;  // K instances: the instanced kernels (docs/VARIANTS.md "Instancing")
   emit.instanced = entry.instances() > 1;
   emit.max_instances = emit.instanced ? entry.instances() : 0;
+  emit.morph_targets = packed.morph_targets;
   kernels.clear();
   for (const Launch& launch : packed.launches)
     kernels.push_back(Emit(variant, launch.influences, static_cast<int>(packed.palette_joints), emit));

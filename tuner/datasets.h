@@ -41,9 +41,10 @@ class DatasetCache {
     double diagonal = 0.0;    // BoundingBoxDiagonal of its rest positions
   };
   // What a gold depends on: the weight format (-1: the source's weights), the
-  // normals, and whether it skins with dual quaternions (SkinGoldDualQuaternion)
-  // or linear blending (SkinGold).
-  using GoldKey = std::tuple<int, Normals, bool>;
+  // normals, whether it skins with dual quaternions (SkinGoldDualQuaternion)
+  // or linear blending (SkinGold), and whether the morph offsets are halves
+  // (QuantisedMesh rounds them; never for the source).
+  using GoldKey = std::tuple<int, Normals, bool, bool>;
   struct Entry {
     SkinnedScene scene;
     // The verification frame's palette as the kernel reads it: instance
@@ -51,8 +52,8 @@ class DatasetCache {
     std::vector<glm::mat4> verification_palette;
     bool rigid_joints = false;  // AllRigid(verification_palette): dual quaternions may skin it
     std::vector<Part> parts;
-    std::map<GoldKey, GoldResult> gold;                   // (weight format, normals, dual quaternions)
-    std::map<GoldKey, GoldResult> source_gold;            // (-1, normals, dual quaternions)
+    std::map<GoldKey, GoldResult> gold;                   // (weight format, normals, dual quaternions, half offsets)
+    std::map<GoldKey, GoldResult> source_gold;            // (-1, normals, dual quaternions, false)
     std::map<GoldKey, double> quantisation;               // as gold: gold vs source gold, / diagonal
     std::map<int, std::vector<std::vector<glm::mat4>>> frames;  // ScenePalettes by count
     // The last few packings (PackingKey, its packed mesh), newest last.

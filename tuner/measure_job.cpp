@@ -130,8 +130,9 @@ std::string WhyNotHere(const MeasureJob& job, const DatasetCache::Entry& data) {
     return std::string("language ") + Name(variant.lang) + " does not run on " + job.device->backend + " device " +
            job.device->name;
   const SkinnedMesh& mesh = data.mesh();
-  const ProblemShape shape{mesh.joint_count, mesh.influences, mesh.has_normals(), data.instances(),
-                           mesh.has_normals() && mesh.has_tangents(), data.rigid_joints};
+  const ProblemShape shape = WithMorphOf({mesh.joint_count, mesh.influences, mesh.has_normals(), data.instances(),
+                                          mesh.has_normals() && mesh.has_tangents(), data.rigid_joints},
+                                         mesh.morph);
   std::string detail;
   for (const Violation& v : CheckVariant(variant, job.limits, shape))
     detail += (detail.empty() ? "" : "; ") + std::string(Name(v.constraint)) + ": " + v.message;

@@ -188,7 +188,9 @@ void ApplyBudget(Measurement& m, double max_error) {
   std::ostringstream detail;
   detail.precision(2);
   if (KernelAddsOnlyRounding(m.source_error)) {
-    detail << std::scientific << Name(m.variant.weight) << " weights cost " << m.source_error.quantisation_rel
+    const std::string what = std::string(Name(m.variant.weight)) + " weights" +
+                             (MorphHalf(m.variant) ? " and half morph offsets" : "");
+    detail << std::scientific << what << " cost " << m.source_error.quantisation_rel
            << " of the bounding-box diagonal, over the budget max_error " << max_error;
   } else {
     detail << std::scientific << "the kernel's output is off the source by " << m.source_error.position_rel

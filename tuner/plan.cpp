@@ -101,8 +101,9 @@ PlannedDataset PlanDataset(const std::string& key) {
   d.info.shape = spec.batch ? SceneKind::kBatch : spec.instances > 1 ? SceneKind::kInstances : SceneKind::kSingle;
   d.info.instances = spec.instances;
   d.info.meshes = static_cast<int>(spec.meshes.size());
-  d.shape = ProblemShape{mesh.joint_count, widest, mesh.has_normals(), spec.instances,
-                         mesh.has_normals() && mesh.has_tangents(), tuner_internal::PalettesRigid(scene)};
+  d.shape = WithMorphOf(ProblemShape{mesh.joint_count, widest, mesh.has_normals(), spec.instances,
+                                     mesh.has_normals() && mesh.has_tangents(), tuner_internal::PalettesRigid(scene)},
+                        mesh.morph);
   return d;
 }
 
@@ -218,6 +219,8 @@ Task PlanTask(const TuneConfig& config, Task task, const PlannedDevice& device, 
   for (Variant b : config.baselines) {
     if (b.lang != task.lang) continue;
     b.influences = dataset.info.influences;
+    // A data set whose morph targets move it: the baseline applies them with float32 offsets.
+    if (dataset.shape.morph_moves && b.morph == Morph::kNone) b.morph = Morph::kDense;
     const std::vector<Violation> violations = CheckVariant(b, device.limits, dataset.shape);
     if (!violations.empty()) {
       RecordInvalid(task, invalid_keys, b, violations, device, dataset, created);
@@ -225,7 +228,7 @@ Task PlanTask(const TuneConfig& config, Task task, const PlannedDevice& device, 
       task.baselines.push_back(b);
     }
   }
-  TuningSpace space = config.space;
+  TuningSpace space = ForDataSet(config.space, dataset.shape);
   space.langs = {task.lang};
   space.influences = {dataset.info.influences};
   space.ForEach([&](const Variant& v) {

@@ -53,15 +53,26 @@ nlohmann::json WinnerJson(const Winner& w) {
 
 // The merge key of a winner / database entry: every measured vertex count,
 // scene shape (with its instance or mesh count), precision class (weight
-// format) and skinning method (linear, or dual quaternions: a different
-// result, never one entry's rival) keeps its own.
-// device id, lang, influences, vertices, shape, instances, meshes, weight, dual quaternions
-using EntryKey = std::tuple<std::string, int, int, std::size_t, int, int, int, int, bool>;
+// format, and the morph offsets' format: float32 or half), skinning method
+// (linear, or dual quaternions: a different result, never one entry's rival)
+// and whether it applies morph targets (a mesh with them takes only such
+// entries) keeps its own.
+// device id, lang, influences, vertices, shape, instances, meshes, weight, dual quaternions, morph
+// (0 none, 1 float32 offsets, 2 half offsets)
+using EntryKey = std::tuple<std::string, int, int, std::size_t, int, int, int, int, bool, int>;
 
 template <typename W>  // Winner or WinnersEntry
 EntryKey KeyOf(const W& w) {
-  return {w.device_id, static_cast<int>(w.lang), w.influences, w.vertices, static_cast<int>(w.shape),
-          w.instances, w.meshes, static_cast<int>(w.variant.weight), w.variant.blend == Blend::kDualQuaternion};
+  return {w.device_id,
+          static_cast<int>(w.lang),
+          w.influences,
+          w.vertices,
+          static_cast<int>(w.shape),
+          w.instances,
+          w.meshes,
+          static_cast<int>(w.variant.weight),
+          w.variant.blend == Blend::kDualQuaternion,
+          !SkinsMorph(w.variant) ? 0 : MorphHalf(w.variant) ? 2 : 1};
 }
 
 nlohmann::json DatasetJson(const DatasetInfo& d) {

@@ -16,7 +16,14 @@ DeviceLimits Roomy() {
   return d;
 }
 
-const ProblemShape kShape{77, 1, true, 1, true, true};
+// 77 joints, normals and tangents, rigid joints, and morph targets that the
+// mesh may apply or not (weights of 0): every morph value is of this data set.
+ProblemShape Shape() {
+  ProblemShape shape{77, 1, true, 1, true, true};
+  shape.morph_targets = 4;
+  return shape;
+}
+const ProblemShape kShape = Shape();
 
 TEST(CoveringSet, EveryValueOfEveryAxisAppearsForEachLanguage) {
   for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kGlslVertex}) {
@@ -27,13 +34,15 @@ TEST(CoveringSet, EveryValueOfEveryAxisAppearsForEachLanguage) {
       seen.insert({"b" + std::to_string(v.influences), Name(v.mixed), Name(v.layout), Name(v.position),
                    Name(v.index), Name(v.weight), Name(v.palette), Name(v.storage), Name(v.blend),
                    "v" + std::to_string(v.vertices_per_item), Name(v.assignment), "wg" + std::to_string(v.wg_size),
-                   KeyToken(AxisOf<&Variant::normals>(), static_cast<int>(v.normals))});
+                   KeyToken(AxisOf<&Variant::normals>(), static_cast<int>(v.normals)),
+                   KeyToken(AxisOf<&Variant::morph>(), static_cast<int>(v.morph))});
     }
     std::vector<std::string> expected = {"b1", "b2", "b3", "b4", "b5", "b6", "b7", "b8", "padded", "bucketed", "aos",
                                          "soa", "soa-split", "float4", "float3", "i32", "u16", "u8", "f32", "unorm16",
                                          "unorm8", "mat4", "mat3x4", "dualquat", "constant", "global", "image", "matrix",
                                          "point", "dq",
-                                         "normals", "nonormals", "tangents"};
+                                         "normals", "nonormals", "tangents", "nomorph", "morph-dense",
+                                         "morph-sparse", "morph-dense-half", "morph-sparse-half"};
     if (lang == Lang::kGlslVertex) {
       expected.insert(expected.end(), {"v1", "contiguous", "wg0"});
     } else {
@@ -76,6 +85,23 @@ TEST(CoveringSet, DualQuaternionsOnlyWithTheirPaletteAndOnlyOnRigidMeshes) {
   const CoveringSet set = BuildCoveringSet(Lang::kOpenCl, Roomy(), scaled);
   EXPECT_TRUE(set.uncoverable.empty()) << "dq cannot skin a scaling mesh by construction, not for want of a device";
   for (const Variant& v : set.variants) EXPECT_NE(v.blend, Blend::kDualQuaternion) << v.Key();
+}
+
+// A mesh without morph targets has no morph variants; one whose targets move
+// its vertices none without them.
+TEST(CoveringSet, MorphValuesFollowTheDataSet) {
+  ProblemShape none = kShape;
+  none.morph_targets = 0;
+  for (const Variant& v : BuildCoveringSet(Lang::kOpenCl, Roomy(), none).variants)
+    EXPECT_EQ(v.morph, Morph::kNone) << v.Key();
+  ProblemShape moving = kShape;
+  moving.morph_moves = true;
+  std::set<Morph> seen;
+  for (const Variant& v : BuildCoveringSet(Lang::kOpenCl, Roomy(), moving).variants) {
+    EXPECT_NE(v.morph, Morph::kNone) << v.Key();
+    seen.insert(v.morph);
+  }
+  EXPECT_EQ(seen.size(), 4u) << "every layout and offset format of the morph targets";
 }
 
 TEST(CoveringSet, SkipsWorkGroupSizesAboveTheDeviceLimit) {

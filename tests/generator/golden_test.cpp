@@ -15,6 +15,7 @@ namespace {
 
 namespace fs = std::filesystem;
 const fs::path kGolden = fs::path(SKINTUNE_SOURCE_DIR) / "tests/generator/golden";
+constexpr int kGoldenMorphTargets = 4;  // scripts/update-golden's --morph-targets
 
 std::string Slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -36,7 +37,7 @@ TEST(GoldenEmit, EmittedSourceAndSidecarMatchThePinnedFiles) {
   for (const std::string& key : GoldenKeys()) {
     const Variant v = ParseVariantKey(key);
     ASSERT_EQ(v.Key(), key) << "VARIANTS.txt must list canonical keys";
-    const KernelSource source = Emit(v, 0, 77);
+    const KernelSource source = Emit(v, 0, 77, EmitOptions{.morph_targets = SkinsMorph(v) ? kGoldenMorphTargets : 0});
     EXPECT_EQ(source.text, Slurp(kGolden / (key + LanguageOf(v.lang).extension)))
         << key << ": emitted source changed; if intended, run scripts/update-golden and review the diff";
     nlohmann::json sidecar = SidecarJson(source, v);

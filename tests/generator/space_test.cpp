@@ -23,7 +23,8 @@ TEST(TuningSpace, GlslVertexCollapsesWorkGroupAxes) {
     ASSERT_EQ(v.wg_size, 0);
     ASSERT_EQ(v.vertices_per_item, 1);
   });
-  EXPECT_EQ(s.Size(), 8u * 2 * 3 * 2 * 3 * 3 * 3 * 4 * 3 * 3);  // palettes and blends: 3 each; normals: 3
+  // palettes and blends: 3 each; normals: 3; morph: 5
+  EXPECT_EQ(s.Size(), 8u * 2 * 3 * 2 * 3 * 3 * 3 * 4 * 3 * 3 * 5);
 }
 
 TEST(TuningSpace, FromJsonRestrictsNamedAxesAndKeepsTheRestFull) {
@@ -76,6 +77,23 @@ TEST(TuningSpace, FromJsonNamesTheBadAxisOrValue) {
   EXPECT_EQ(error(R"([1, 2])"), "c.json: space must be an object of axis -> list of values");
 }
 
+// The morph axis follows the data set: none alone without morph targets,
+// the four morph values (no none) with them; the space's own list is kept
+// where it names fewer.
+TEST(TuningSpace, ForDataSetKeepsTheMorphValuesOfTheDataSet) {
+  TuningSpace s = TuningSpace::Full();
+  EXPECT_EQ(ForDataSet(s, {77, 4, true}).morphs, std::vector<Morph>{Morph::kNone});
+  ProblemShape morph{77, 4, true};
+  morph.morph_targets = 3;
+  morph.morph_moves = true;
+  EXPECT_EQ(ForDataSet(s, morph).morphs,
+            (std::vector<Morph>{Morph::kDense, Morph::kSparse, Morph::kDenseHalf, Morph::kSparseHalf}));
+  s.morphs = {Morph::kNone, Morph::kSparseHalf};
+  EXPECT_EQ(ForDataSet(s, morph).morphs, std::vector<Morph>{Morph::kSparseHalf});
+  s.morphs = {Morph::kDense};
+  EXPECT_TRUE(ForDataSet(s, {77, 4, true}).morphs.empty());
+}
+
 TEST(Enumerate, CountsValidAndInvalidByConstraint) {
   TuningSpace s = TuningSpace::Full();
   s.langs = {Lang::kOpenCl};
@@ -87,7 +105,8 @@ TEST(Enumerate, CountsValidAndInvalidByConstraint) {
     ++seen;
     EXPECT_TRUE(CheckVariant(v, device, {77, 4, true}).empty());
   });
-  EXPECT_EQ(c.total, s.Size());
+  EXPECT_EQ(c.total, ForDataSet(s, {77, 4, true}).Size());  // no morph targets: morph none alone
+  EXPECT_EQ(c.total * 5, s.Size());
   EXPECT_EQ(c.valid, seen);
   std::uint64_t invalid = 0;
   for (const auto& [constraint, n] : c.invalid_by) invalid += n;

@@ -122,7 +122,7 @@ TEST_P(SyntheticMalformedKey, ThrowsErrorNamingKeyProblemAndFormat) {
   const std::string message = ErrorOf(GetParam().key);
   EXPECT_EQ(message.rfind("dataset '" + std::string(GetParam().key) + "': ", 0), 0u) << message;
   EXPECT_NE(message.find(GetParam().problem), std::string::npos) << message;
-  EXPECT_NE(message.find("(expected <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-rigid][-normals|-tangents], e.g. 100k-b2)"),
+  EXPECT_NE(message.find("(expected <vertices>-b<influences>[-bones<N>][-random][-seed<S>][-rigid][-morph<T>][-normals|-tangents], e.g. 100k-b2)"),
             std::string::npos)
       << message;
 }

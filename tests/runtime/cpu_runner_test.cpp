@@ -110,6 +110,33 @@ TEST(CpuRunner, EveryDualQuaternionKernelMatchesTheDualQuaternionGold) {
   }
 }
 
+// The morph targets' pass before the table's kernels: every morph value in
+// every layout, with positions only, normals, and normals and tangents, on
+// meshes with morph targets (testing::kMorphMesh: dense and sparse targets,
+// one at weight 0), against the gold of the mesh morphed in float64.
+TEST(CpuRunner, MorphTargetsOfEveryValueAndLayoutMatchTheGold) {
+  const Morph morphs[] = {Morph::kDense, Morph::kSparse, Morph::kDenseHalf, Morph::kSparseHalf};
+  const Layout layouts[] = {Layout::kAos, Layout::kSoa, Layout::kSoaSplit};
+  const Normals normals[] = {Normals::kNone, Normals::kNormals, Normals::kTangents};
+  int i = 0;
+  for (const Morph morph : morphs)
+    for (const Layout layout : layouts)
+      for (const Normals n : normals) {
+        Variant variant = ParseVariantKey("cpu.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg0");
+        variant.influences = 1 + i % 8;
+        variant.morph = morph;
+        variant.layout = layout;
+        variant.normals = n;
+        variant.weight = i % 3 == 0 ? WeightFormat::kUnorm16 : WeightFormat::kF32;
+        variant.position = SkinsTangents(variant) || i % 2 ? PositionFormat::kFloat4 : PositionFormat::kFloat3;
+        const std::string mesh = "b" + std::to_string(variant.influences) + (i % 2 ? "-random" : "");
+        SCOPED_TRACE(variant.Key() + " on " + mesh + ", seed " + std::to_string(Seed()));
+        ExpectRunMatchesGold(Runner(), variant, mesh, LaunchTimes::kNonNegative);
+        if (HasFailure()) return;
+        ++i;
+      }
+}
+
 TEST(CpuRunner, BucketedCesiumManRunsOneKernelPerInfluenceCount) {
   const Case c{"cpu.b4.bucketed.soa-split.float3.u8.unorm16.mat4.global.matrix.v1c.wg0.normals", "cesium"};
   ExpectCaseMatchesGold(Runner(), c, ParseVariantKey(c.key), LaunchTimes::kNonNegative);

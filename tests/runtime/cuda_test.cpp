@@ -49,6 +49,7 @@ using testing::WithFault;
 
 constexpr const char* kCompileArch = "compute_90";  // any architecture NVRTC 12/13 supports
 constexpr int kJoints = 77;                          // the synthetic rig's; sizes local/constant palettes
+constexpr int kMorphTargets = 4;                     // morph variants' (testing::CoveringShape's)
 
 const CudaAvailability& Available() {
   static const CudaAvailability a = Probe();
@@ -81,6 +82,7 @@ const std::vector<Axis>& Axes() {
       {"work", {"v1c", "v2c", "v2s", "v4c", "v4s", "v8c", "v8s"}},
       {"wg", {"wg32", "wg64", "wg128", "wg256", "wg512", "wg1024"}},
       {"normals", {"nonormals", "normals", "tangents"}},
+      {"morph", {"nomorph", "morph-dense", "morph-sparse", "morph-dense-half", "morph-sparse-half"}},
   };
   return axes;
 }
@@ -255,7 +257,7 @@ class CudaCompile : public ::testing::TestWithParam<std::string> {};
 TEST_P(CudaCompile, NvrtcCompilesCleanly) {
   SKIP_WITHOUT_NVRTC();
   const Variant variant = ParseVariantKey(GetParam());
-  const KernelSource source = Emit(variant, 0, kJoints);
+  const KernelSource source = Emit(variant, 0, kJoints, EmitOptions{.morph_targets = kMorphTargets});
   EXPECT_EQ(CompileProblem(source.text), "") << source.text.substr(0, source.text.find("#line"));
 }
 
@@ -270,7 +272,7 @@ std::string KeyName(const ::testing::TestParamInfo<std::string>& info) {
 TEST_P(CudaCompile, InstancedNvrtcCompilesCleanly) {
   SKIP_WITHOUT_NVRTC();
   const Variant variant = ParseVariantKey(GetParam());
-  const KernelSource source = Emit(variant, 0, kJoints, EmitOptions{true, 4});
+  const KernelSource source = Emit(variant, 0, kJoints, EmitOptions{true, 4, kMorphTargets});
   EXPECT_EQ(CompileProblem(source.text), "") << source.text.substr(0, source.text.find("#line"));
 }
 
@@ -287,14 +289,15 @@ DeviceLimits CudaLimits() {
   return d;
 }
 
-const ProblemShape kCoveringShape{kJoints, 1, true, 1, true, true};
+const ProblemShape kCoveringShape = testing::CoveringShape();
 
 // The project's covering set (generator/covering.h), which the tools use.
 TEST(CudaCoveringSet, EveryVariantCompilesCleanly) {
   SKIP_WITHOUT_NVRTC();
   const CoveringSet set = BuildCoveringSet(Lang::kCuda, CudaLimits(), kCoveringShape);
   ASSERT_TRUE(set.uncoverable.empty());
-  for (const Variant& v : set.variants) EXPECT_EQ(CompileProblem(Emit(v, 0, kJoints).text), "") << v.Key();
+  for (const Variant& v : set.variants)
+    EXPECT_EQ(CompileProblem(Emit(v, 0, kJoints, EmitOptions{.morph_targets = kMorphTargets}).text), "") << v.Key();
   std::cout << "[ covering ] " << set.variants.size() << " variants of generator/covering.h compiled\n";
 }
 
@@ -480,7 +483,7 @@ TEST(CudaVariantCases, CompileCleanlyHere) {
 // variant on a fresh mesh with its own influence count.
 TEST(CudaCoveringSet, EveryVariantMatchesTheGold) {
   RUNNER_OR_SKIP(runner);
-  const CoveringSet set = BuildCoveringSet(Lang::kCuda, runner->limits(), {kJoints, 1, true, 1, true, true});
+  const CoveringSet set = BuildCoveringSet(Lang::kCuda, runner->limits(), testing::CoveringShape());
   ASSERT_TRUE(set.uncoverable.empty());
   ExpectCoveringSetMatchesGold(*runner, set, LaunchTimes::kPositive);
   std::cout << "[ covering ] " << set.variants.size() << " CUDA variants verified on " << runner->device_name()

@@ -197,7 +197,7 @@ KernelSource Bare(const char* file, Lang lang) {
 // fresh mesh with its own influence count.
 void RunCoveringSet(Lang lang) {
   REQUIRE_GL(runner);
-  const CoveringSet set = BuildCoveringSet(lang, LimitsOf(runner->info()), {77, 1, true, 1, true, true});
+  const CoveringSet set = BuildCoveringSet(lang, LimitsOf(runner->info()), testing::CoveringShape());
   for (const std::string& pair : set.uncoverable) {
     EXPECT_NE(pair.find("storage=local"), std::string::npos) << "only local storage may be uncoverable: " << pair;
   }

@@ -135,7 +135,7 @@ TEST(OpenClCoveringSet, EveryVariantMatchesTheGold) {
   OpenClRunner* runner = Runner(why);
   if (!runner) GTEST_SKIP() << why;
   const DeviceLimits limits = LimitsOf(*TestDevice(why));
-  const CoveringSet set = BuildCoveringSet(Lang::kOpenCl, limits, {77, 1, true, 1, true, true});
+  const CoveringSet set = BuildCoveringSet(Lang::kOpenCl, limits, testing::CoveringShape());
   ASSERT_TRUE(set.uncoverable.empty());
   ExpectCoveringSetMatchesGold(*runner, set, LaunchTimes::kAny);
   std::cout << "[ covering ] " << set.variants.size() << " OpenCL variants verified on " << runner->device_name()

@@ -116,13 +116,25 @@ void ExpectMatchesGold(const PackedMesh& packed, const RunResult& result, const 
   }
 }
 
+// The morph targets of the meshes morph variants skin (a synthetic -morph<T>).
+inline constexpr const char* kMorphMesh = "morph4";
+// The problem shape of covering sets: 77 joints, normals and tangents, rigid
+// joints (dual quaternions), morph targets that a mesh may or may not apply.
+inline ProblemShape CoveringShape() {
+  ProblemShape shape{77, 1, true, 1, true, true};
+  shape.morph_targets = 4;
+  return shape;
+}
+
 // Packs Asset(mesh) for `variant`, runs it with Palette(asset) and expects the
 // gold. A dual-quaternion variant skins the mesh's rigid twin (its animation
-// without scale channels), whose palettes are rotations and translations.
+// without scale channels), whose palettes are rotations and translations; a
+// morph variant the mesh's twin with morph targets (kMorphMesh).
 template <typename Runner>
 PackedMesh ExpectRunMatchesGold(Runner& runner, const Variant& variant, const std::string& mesh, LaunchTimes times) {
   const bool rigid = variant.blend == Blend::kDualQuaternion && mesh != "cesium";
-  const SkinnedAsset& asset = Asset(rigid ? mesh + "-rigid" : mesh);
+  const bool morph = SkinsMorph(variant) && mesh != "cesium";
+  const SkinnedAsset& asset = Asset(mesh + (rigid ? "-rigid" : "") + (morph ? "-" + std::string(kMorphMesh) : ""));
   const PackedMesh packed = Pack(asset.mesh, variant);
   const std::vector<glm::mat4> palette = Palette(asset);
   ExpectMatchesGold(packed, runner.Run(packed, PackPalette(palette, variant)), asset.mesh, palette, times);

@@ -86,7 +86,7 @@ TEST(WinnersDb, SceneShapesRoundTripAndOlderEntriesAreSingleMeshes) {
   nlohmann::json db = {{"schema_version", "1.3.0"}, {"kind", "skintune-winners-db"}, {"entries", {old}}};
   const Result<WinnersDb> loaded = WinnersDb::Parse(db.dump(), "old.json");
   EXPECT_TRUE(loaded.ok()) << loaded.status().message();
-  EXPECT_EQ(WinnersDbJson({e})["schema_version"], "1.6.0");
+  EXPECT_EQ(WinnersDbJson({e})["schema_version"], kWinnersDbSchemaVersion);
 
   nlohmann::json bad = j;
   bad["instances"] = 1;

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "base/error.h"
+#include "generator/axes.h"
 #include "tests/tuner/sample_report.h"
 
 namespace skintune::internal {
@@ -470,7 +471,7 @@ TEST(Report, T4ExportMapsStatusesAndAxes) {
     ++invalidity[res["invalidity"].get<std::string>()];
     EXPECT_EQ(res["configuration"]["layout"], Name(m.variant.layout));
     EXPECT_EQ(res["configuration"]["wg_size"], m.variant.wg_size);
-    EXPECT_EQ(res["configuration"].size(), 14u);  // the variant axes
+    EXPECT_EQ(res["configuration"].size(), kAxisCount);  // the variant axes
     EXPECT_EQ(res["correctness"], m.status == MeasureStatus::kOk ? 1 : 0);
     if (m.status == MeasureStatus::kOk) {
       EXPECT_EQ(res["times"]["runtimes"], nlohmann::json::array({m.timing.median_ms}));

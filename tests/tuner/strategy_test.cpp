@@ -25,6 +25,7 @@ std::vector<Variant> ProductSpace() {
   space.langs = {Lang::kOpenCl};
   space.influences = {4};
   space.normals = {Normals::kNone};
+  space.morphs = {Morph::kNone};
   std::vector<Variant> out;
   space.ForEach([&](const Variant& v) { out.push_back(v); });
   return out;
@@ -273,6 +274,7 @@ TEST(Strategy, CoordinateWithFivePercentOfAWideSpaceLandsWithinFivePercentOfTheO
   space.langs = {Lang::kGlslCompute};
   space.influences = {4};
   space.normals = {Normals::kNone};
+  space.morphs = {Morph::kNone};
   space.mixed = {MixedCounts::kPadded};
   space.positions = {PositionFormat::kFloat4, PositionFormat::kFloat3};
   space.indices = {IndexFormat::kU16, IndexFormat::kU8};

@@ -29,6 +29,7 @@ inline std::vector<Variant> SyntheticCandidates(std::size_t max_wg = 256) {
   space.langs = {Lang::kOpenCl};
   space.influences = {4};
   space.normals = {Normals::kNone};
+  space.morphs = {Morph::kNone};
   DeviceLimits limits;
   limits.max_wg_size = max_wg;
   std::vector<Variant> out;

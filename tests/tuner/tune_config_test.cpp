@@ -45,9 +45,15 @@ TEST(TuneConfig, DefaultConfigIsValidAndSmall) {
   EXPECT_EQ(c.strategy.name, "coordinate");
   EXPECT_GT(c.strategy.budget, 0u);
   EXPECT_LE(c.strategy.budget, 16u);
-  TuningSpace per_dataset = c.space;
+  TuningSpace per_dataset = ForDataSet(c.space, ProblemShape{});  // a data set without morph targets
   per_dataset.influences = {4};
   EXPECT_LE(per_dataset.Size(), 250u);  // 216: five languages
+  ProblemShape morph;
+  morph.morph_targets = 2;
+  morph.morph_moves = true;
+  per_dataset = ForDataSet(c.space, morph);
+  per_dataset.influences = {4};
+  EXPECT_LE(per_dataset.Size(), 4 * 250u) << "one with morph targets: the four ways to store their offsets";
   EXPECT_TRUE(nlohmann::json::parse(EmbeddedConfig("default")).at("description").is_string());
 }
 

@@ -67,6 +67,7 @@ class CpuPlanned final : public PlannedLaunch {
   bool fault_wrong = false, fault_hang = false;
   bool palette = false;  // the palette kernel: clip_count and palette_rows its parameters
   std::uint32_t clip_count = 0;
+  int morph_targets = 0;  // MORPH_TARGETS of a morph variant, else 0
 };
 
 class CpuBound final : public DeviceObject {
@@ -81,6 +82,7 @@ class CpuBound final : public DeviceObject {
   CpuPalette converted;            // this launch's palette in the kernels' form, per frame
   std::vector<std::span<const std::uint8_t>> buffers;  // every buffer bound to it (what kCold evicts)
   float* palette_out = nullptr;  // the palette kernel's output
+  CpuMorphScratch morph;          // a morph variant's morphed vertex streams, per instance
 };
 
 // The kernel a skinning kernel text's parameters select (ParsedOf checked
@@ -227,6 +229,8 @@ const Parsed& CpuApi::ParsedOf(const KernelSource& source) {
       Fail("build", "kernel " + key + ": PALETTE_ROWS " + std::to_string(d.at("PALETTE_ROWS")) + " with BLEND " +
                         std::to_string(d.at("BLEND")) + ": a dual-quaternion palette (PALETTE_ROWS 2) is read by " +
                         "BLEND 2 only, and BLEND 2 reads no other");
+    if (d.contains("MORPH") && d.at("MORPH") != 0 && (!d.contains("MORPH_TARGETS") || d.at("MORPH_TARGETS") < 1))
+      Fail("build", "kernel " + key + ": MORPH " + std::to_string(d.at("MORPH")) + " without MORPH_TARGETS >= 1");
     try {
       FindCpuKernel(KeyOf(d));
     } catch (const Error& e) {
@@ -261,6 +265,9 @@ std::unique_ptr<PlannedLaunch> CpuApi::Plan(const LaunchSpec& spec) {
   const CpuKernelKey k = KeyOf(parsed.defines);
   plan->kernel = FindCpuKernel(k);
   plan->palette_rows = k.palette_rows;
+  if (SkinsMorph(spec.variant)) plan->morph_targets = static_cast<int>(parsed.defines.at("MORPH_TARGETS"));
+  if (SkinsMorph(spec.variant) != (parsed.defines.contains("MORPH") && parsed.defines.at("MORPH") != 0))
+    Fail("launch", spec.where + ": the kernel's MORPH does not match the variant's morph " + Name(spec.variant.morph));
   return plan;
 }
 
@@ -380,11 +387,27 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
     const std::size_t out_first = static_cast<std::size_t>(i) * spec.vertex_count + spec.first;
     LoadCpuPalette(std::span(b.palette->data() + static_cast<std::size_t>(i) * joint_bytes, joint_bytes),
                    plan.palette_rows, b.converted);
-    const CpuStreams s = CpuStreamsOf(spec.variant, spec.source.influences, spec.count, b.inputs,
-                                      At(b.Out(Output::kPositions), out_first * floats),
-                                      At(b.Out(Output::kNormals), out_first * floats),
-                                      At(b.Out(Output::kTangents), out_first * floats),
-                                      choice.stream_stores);
+    const std::size_t vertex_inputs = std::min(CpuVertexInputCount(spec.variant), b.inputs.size());
+    CpuStreams s = CpuStreamsOf(spec.variant, spec.source.influences, spec.count,
+                                std::span(b.inputs).first(vertex_inputs),
+                                At(b.Out(Output::kPositions), out_first * floats),
+                                At(b.Out(Output::kNormals), out_first * floats),
+                                At(b.Out(Output::kTangents), out_first * floats), choice.stream_stores);
+    if (plan.morph_targets > 0) {
+      // The morph targets first, into scratch streams the kernel then reads
+      // (morph_weights, the last input, holds every instance's).
+      const std::span<const std::uint8_t* const> morph =
+          std::span(b.inputs).subspan(vertex_inputs, b.inputs.size() - vertex_inputs - 1);
+      const float* weights = reinterpret_cast<const float*>(b.inputs.back()) +
+                             static_cast<std::size_t>(i) * static_cast<std::size_t>(plan.morph_targets);
+      const CpuStreams morphed = MorphedStreams(spec.variant, s, b.morph, spec.count);
+      pool.ParallelFor(spec.count, std::max<std::size_t>(choice.schedule.chunk, 64),
+                       [&](std::size_t begin, std::size_t end) {
+                         MorphCpuStreams(spec.variant, spec.count, plan.morph_targets, morph, weights, s, b.morph,
+                                         begin, end);
+                       });
+      s = morphed;
+    }
     RunCpuKernel(plan.kernel, s, b.converted, spec.count, pool, choice.schedule.chunk);
     if (plan.fault_wrong && spec.index == 0) s.out_positions[0] += 1.0f;  // the tuner's wrong-result test
   }

@@ -1,5 +1,7 @@
 #include "runtime/backends/cpu/cpu_streams.h"
 
+#include <cstring>
+
 #include "base/error.h"
 
 namespace skintune::internal {
@@ -23,11 +25,14 @@ CpuKernelKey CpuKeyOf(const Variant& variant, int influences) {
   return key;
 }
 
+std::size_t CpuVertexInputCount(const Variant& variant) {
+  return variant.layout == Layout::kAos ? 1 : 3 + (SkinsNormals(variant) ? 1 : 0) + (SkinsTangents(variant) ? 1 : 0);
+}
+
 CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t count,
                         std::span<const std::uint8_t* const> inputs, float* out_positions, float* out_normals,
                         float* out_tangents, bool stream_stores) {
-  const std::size_t expected =
-      variant.layout == Layout::kAos ? 1 : 3 + (SkinsNormals(variant) ? 1 : 0) + (SkinsTangents(variant) ? 1 : 0);
+  const std::size_t expected = CpuVertexInputCount(variant);
   if (inputs.size() != expected) {
     throw Error("cpu streams of " + variant.Key() + ": " + std::to_string(inputs.size()) + " input buffers, expected " +
                 std::to_string(expected));
@@ -85,6 +90,89 @@ CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t coun
     }
   }
   throw Error("cpu streams of " + variant.Key() + ": unknown layout");
+}
+
+namespace {
+
+float F32At(const std::uint8_t* p) {
+  float f;
+  std::memcpy(&f, p, sizeof f);
+  return f;
+}
+
+// Offset e of a morph stream in the variant's format.
+glm::vec3 OffsetAt(const std::uint8_t* stream, std::size_t e, bool half) {
+  if (half) {
+    std::uint16_t h[3];
+    std::memcpy(h, stream + e * kMorphHalfOffsetBytes, sizeof h);
+    return {HalfValue(h[0]), HalfValue(h[1]), HalfValue(h[2])};
+  }
+  const std::uint8_t* p = stream + e * kMorphF32OffsetBytes;
+  return {F32At(p), F32At(p + 4), F32At(p + 8)};
+}
+
+}  // namespace
+
+void MorphCpuStreams(const Variant& variant, std::size_t count, int targets,
+                     std::span<const std::uint8_t* const> morph_inputs, const float* weights, const CpuStreams& s,
+                     CpuMorphScratch& scratch, std::size_t begin, std::size_t end) {
+  const bool sparse = MorphSparse(variant), half = MorphHalf(variant);
+  const bool normals = s.normals != nullptr, tangents = s.tangents != nullptr;
+  // The morph inputs in argument order: [offsets, targets,] positions[, normals[, tangents]].
+  std::size_t next = 0;
+  const std::uint32_t* offsets = sparse ? reinterpret_cast<const std::uint32_t*>(morph_inputs[next++]) : nullptr;
+  const std::uint32_t* target_of = sparse ? reinterpret_cast<const std::uint32_t*>(morph_inputs[next++]) : nullptr;
+  const std::uint8_t* d_positions = morph_inputs[next++];
+  const std::uint8_t* d_normals = normals ? morph_inputs[next++] : nullptr;
+  const std::uint8_t* d_tangents = tangents ? morph_inputs[next++] : nullptr;
+  for (std::size_t v = begin; v < end; ++v) {
+    const std::uint8_t* p = s.positions + v * s.position_stride;
+    glm::vec3 position(F32At(p), F32At(p + 4), F32At(p + 8)), normal(0.0f), tangent(0.0f);
+    if (normals) {
+      const std::uint8_t* n = s.normals + v * s.normal_stride;
+      normal = {F32At(n), F32At(n + 4), F32At(n + 8)};
+    }
+    if (tangents) {
+      const std::uint8_t* t = s.tangents + v * s.tangent_stride;
+      tangent = {F32At(t), F32At(t + 4), F32At(t + 8)};
+    }
+    // As the kernels: target order, weight 0 skipped, float32 sums.
+    const auto apply = [&](std::size_t e, float w) {
+      if (w == 0.0f) return;
+      position += w * OffsetAt(d_positions, e, half);
+      if (normals) normal += w * OffsetAt(d_normals, e, half);
+      if (tangents) tangent += w * OffsetAt(d_tangents, e, half);
+    };
+    if (sparse) {
+      for (std::uint32_t e = offsets[v]; e < offsets[v + 1]; ++e) apply(e, weights[target_of[e]]);
+    } else {
+      for (int t = 0; t < targets; ++t) apply(static_cast<std::size_t>(t) * count + v, weights[t]);
+    }
+    std::memcpy(&scratch.positions[3 * v], &position, sizeof position);
+    if (normals) std::memcpy(&scratch.normals[3 * v], &normal, sizeof normal);
+    if (tangents) {
+      std::memcpy(&scratch.tangents[4 * v], &tangent, sizeof tangent);
+      scratch.tangents[4 * v + 3] = F32At(s.tangents + v * s.tangent_stride + 12);
+    }
+  }
+}
+
+CpuStreams MorphedStreams(const Variant& variant, CpuStreams s, CpuMorphScratch& scratch, std::size_t count) {
+  (void)variant;
+  scratch.positions.resize(3 * count);
+  s.positions = reinterpret_cast<const std::uint8_t*>(scratch.positions.data());
+  s.position_stride = 3 * sizeof(float);
+  if (s.normals) {
+    scratch.normals.resize(3 * count);
+    s.normals = reinterpret_cast<const std::uint8_t*>(scratch.normals.data());
+    s.normal_stride = 3 * sizeof(float);
+  }
+  if (s.tangents) {
+    scratch.tangents.resize(4 * count);
+    s.tangents = reinterpret_cast<const std::uint8_t*>(scratch.tangents.data());
+    s.tangent_stride = 4 * sizeof(float);
+  }
+  return s;
 }
 
 }  // namespace skintune::internal

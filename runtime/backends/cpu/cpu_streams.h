@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "generator/packer.h"
 #include "cpu_kernels/cpu_kernels.h"
@@ -23,5 +24,26 @@ CpuKernelKey CpuKeyOf(const Variant& variant, int influences);
 CpuStreams CpuStreamsOf(const Variant& variant, int influences, std::size_t count,
                         std::span<const std::uint8_t* const> inputs, float* out_positions, float* out_normals,
                         float* out_tangents, bool stream_stores);
+
+// The number of a launch's inputs CpuStreamsOf reads (the vertex streams);
+// a morph variant's morph-target buffers follow them.
+std::size_t CpuVertexInputCount(const Variant& variant);
+
+// A morph variant's streams with the morph targets applied (docs/VARIANTS.md
+// "Morph targets"): vertices [begin, end) of `s`'s positions (normals,
+// tangents) plus the offsets at `weights` (MORPH_TARGETS of them, this
+// instance's), written as float32 x, y, z (tangents x, y, z, w) into
+// `scratch`, which the returned streams read instead. `morph_inputs`: the
+// launch's morph-target buffers in argument order (after the vertex
+// streams, without morph_weights). The cpu device's kernels are the table's
+// (cpu_kernels/), so the morph pass runs before them on the same threads.
+struct CpuMorphScratch {
+  std::vector<float> positions, normals, tangents;  // 3, 3, 4 floats a vertex of the launch
+};
+void MorphCpuStreams(const Variant& variant, std::size_t count, int targets,
+                     std::span<const std::uint8_t* const> morph_inputs, const float* weights, const CpuStreams& s,
+                     CpuMorphScratch& scratch, std::size_t begin, std::size_t end);
+// `s` reading `scratch` (sized for `count` vertices) for what MorphCpuStreams wrote.
+CpuStreams MorphedStreams(const Variant& variant, CpuStreams s, CpuMorphScratch& scratch, std::size_t count);
 
 }  // namespace skintune::internal

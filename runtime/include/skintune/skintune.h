@@ -370,6 +370,18 @@ struct MeshView {
   const float* tangents = nullptr;
   const std::uint32_t* joints = nullptr;  // B per vertex
   const float* weights = nullptr;         // B per vertex, each >= 0, summing to 1 within 1e-3
+  // Morph targets (glTF `targets`; docs/VARIANTS.md "Morph targets"), applied
+  // before skinning in the same launch: p = p0 + sum_t w_t * dp_t, normals
+  // and tangents likewise. 0: none (the pointers below are then ignored).
+  int morph_target_count = 0;
+  // morph_target_count x vertex_count x 3 floats: target t's offset of vertex
+  // v at [(t * vertex_count + v) * 3]. Required with morph targets.
+  const float* morph_positions = nullptr;
+  const float* morph_normals = nullptr;   // likewise, or null: no normal offsets (read only with normals)
+  const float* morph_tangents = nullptr;  // likewise (x, y, z; w is kept), or null (read only with tangents)
+  // morph_target_count weights until the first Skinner::SetMorphWeights, or
+  // null: every weight 0 (the mesh as it is).
+  const float* morph_weights = nullptr;
 };
 
 // SkinnerOptions::palette_buffers: its default and its range.
@@ -598,6 +610,18 @@ class Skinner {
   // ago: GL runs the
   // new upload after the frames that read the buffer by itself.
   Status SetPalette(const float* matrices, std::size_t float_count);
+  // The morph targets' weights (MeshView::morph_target_count per instance,
+  // instance k's at [k * morph_target_count()]; `count` must equal
+  // instances() * morph_target_count()), kept until the next call and
+  // uploaded with every SetPalette from the next one on, in the same palette
+  // buffer's slot: weights and palette of one frame always go together. It
+  // blocks never and uploads nothing by itself. kInvalidArgument for a null
+  // `weights`, a wrong count or a weight that is not finite (naming it); a
+  // rejected call changes nothing. kInvalidState on a Skinner whose mesh has
+  // no morph targets, or one made by CreateAnimated.
+  Status SetMorphWeights(const float* weights, std::size_t count);
+  // The mesh's morph targets per instance (0: none).
+  int morph_target_count() const;
   // A CreateAnimated Skinner's frame: every instance's animation state
   // (`count` must equal instances()), copied into the page-locked staging of
   // the next palette buffer's instances and uploaded asynchronously, as
@@ -736,10 +760,8 @@ class Model {
   // that do not sum to 1 are renormalised with one line in warnings().
   // kIoError when the file cannot be read; kInvalidArgument naming the file
   // and the element for anything malformed (accessor out of its buffer, joint
-  // outside the skin, negative weights, not glTF at all...), and for morph
-  // targets that move vertices (a non-zero default weight or an animated
-  // weight), which the kernels do not apply yet: skinning without them would
-  // be wrong without a word.
+  // outside the skin, negative weights, not glTF at all...). Morph targets
+  // come with the mesh (mesh(), MorphWeights).
   static Result<Model> Load(const std::string& path);
   // A synthetic dataset by key: "100k-b4", "1600k-b2-random",
   // "5000-b8-bones12-seed3-normals" (docs/DATA.md); kInvalidArgument naming
@@ -760,9 +782,17 @@ class Model {
   bool has_normals() const;
   bool has_tangents() const;  // the file's TANGENT, on every triangle primitive (with normals)
   // The mesh as a MeshView over this Model's arrays, for Skinner::Create
-  // (normals, tangents null when the model has none); valid while the Model lives
-  // unchanged.
+  // (normals, tangents null when the model has none; its morph targets at
+  // their default weights); valid while the Model lives unchanged.
   MeshView mesh() const;
+  int morph_target_count() const;  // the skinned mesh's morph targets (glTF `targets`)
+  // The morph targets' weights of animation `animation` at time `t` (its
+  // `weights` channel; the defaults where it has none), or the defaults
+  // (glTF: the node's, else the mesh's, else 0) for animation -1:
+  // morph_target_count() floats, ready for Skinner::SetMorphWeights.
+  // kInvalidArgument for an animation outside -1..animation_count()-1 or a t
+  // that is not finite.
+  Status MorphWeights(int animation, double t, std::vector<float>* weights) const;
   const std::vector<std::string>& warnings() const;  // import warnings, whole lines
 
   int animation_count() const;
@@ -785,6 +815,10 @@ class Model {
   // `matrices` (joint_count() * 16 floats), rounded to float: 3 floats per
   // vertex. What the tests check every kernel against; slow, for checks.
   Status SkinReference(const float* matrices, std::size_t float_count, std::vector<float>* positions) const;
+  // The same with the morph targets at `morph_weights` (morph_target_count()
+  // of them; the first overload: the default weights), applied first.
+  Status SkinReference(const float* matrices, std::size_t float_count, const float* morph_weights,
+                       std::size_t weight_count, std::vector<float>* positions) const;
 
   struct Impl;
 

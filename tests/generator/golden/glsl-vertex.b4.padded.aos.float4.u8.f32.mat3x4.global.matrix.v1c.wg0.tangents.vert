@@ -13,12 +13,15 @@
 #define STRIDED 0
 #define WG_SIZE 0
 #define NORMALS 2
+#define MORPH 0
 #define AOS_POSITION_OFFSET 0
 #define AOS_INDICES_OFFSET 16
 #define AOS_WEIGHTS_OFFSET 20
 #define AOS_NORMAL_OFFSET 48
 #define AOS_TANGENT_OFFSET 64
 #define AOS_RECORD_WORDS 20
+#define BINDING_RECORDS 0
+#define BINDING_PALETTE 1
 #line 2
 // skintune: linear blend skinning, every glsl-vertex variant in one GL 4.3
 // vertex shader (the paper's GLSL form): the same algorithm on the same bytes
@@ -124,6 +127,14 @@
 #ifndef NORMALS               // 1: also skin normals; 2: normals and tangents
 #define NORMALS 0
 #endif
+#ifndef MORPH                 // morph targets before skinning: 0 none; bits 0-1 the layout (1 dense,
+#define MORPH 0               // 2 sparse), bit 2 half offsets (docs/VARIANTS.md "Morph targets")
+#endif
+#ifndef MORPH_TARGETS         // MORPH: the mesh's morph targets (the weights' count per instance)
+#define MORPH_TARGETS 1
+#endif
+#define MORPH_LAYOUT (MORPH & 3)
+#define MORPH_HALF ((MORPH & 4) != 0)
 #ifndef INSTANCED             // 1: K instances per launch, K palettes (docs/VARIANTS.md "Instancing")
 #define INSTANCED 0
 #endif
@@ -255,7 +266,10 @@
 // ---------------------------------------------------------------- bindings
 //
 // Buffers and the palette take consecutive bindings in argument order
-// (scalars excluded): the sidecar's "binding" of each argument.
+// (scalars excluded): the sidecar's "binding" of each argument. The generator
+// defines every one (BINDING_<ARGUMENT>, from the argument list); these are
+// the defaults a template compiled alone takes.
+#ifndef BINDING_PALETTE
 #if LAYOUT == 0
 #define BINDING_RECORDS 0
 #define BINDING_PALETTE 1
@@ -286,6 +300,10 @@
 #define BINDING_WEIGHTS 2
 #define BINDING_PALETTE 3
 #define BINDING_OUT_POSITIONS 4
+#endif
+#if MORPH
+#error "MORPH: the generator defines the bindings of the morph targets' buffers (BINDING_MORPH_*)"
+#endif
 #endif
 
 #ifdef VULKAN
@@ -350,6 +368,59 @@ layout(std430, binding = BINDING_NORMALS) readonly restrict buffer Normals { flo
 #if TANGENTS
 layout(std430, binding = BINDING_TANGENTS) readonly restrict buffer Tangents { vec4 tangents[]; };
 #endif
+#endif
+
+#if MORPH
+// The morph targets (docs/VARIANTS.md "Morph targets"): offsets as three
+// floats, or binary16 x, y, z and a zero (one uvec2); the weights, T per instance.
+#if MORPH_LAYOUT == 2
+layout(std430, binding = BINDING_MORPH_OFFSETS) readonly restrict buffer MorphOffsets { uint morph_offsets[]; };
+layout(std430, binding = BINDING_MORPH_TARGETS) readonly restrict buffer MorphTargets { uint morph_targets[]; };
+#endif
+#if MORPH_HALF
+#define MORPH_T uvec2
+vec3 half_offset(uvec2 h) { return vec3(unpackHalf2x16(h.x), unpackHalf2x16(h.y).x); }
+#define MORPH_OFFSET(stream, e) half_offset(stream[e])
+#else
+#define MORPH_T float
+#define MORPH_OFFSET(stream, e) vec3(stream[3u * (e)], stream[3u * (e) + 1u], stream[3u * (e) + 2u])
+#endif
+layout(std430, binding = BINDING_MORPH_POSITIONS) readonly restrict buffer MorphPositions { MORPH_T morph_positions[]; };
+#if NORMALS
+layout(std430, binding = BINDING_MORPH_NORMALS) readonly restrict buffer MorphNormals { MORPH_T morph_normals[]; };
+#endif
+#if TANGENTS
+layout(std430, binding = BINDING_MORPH_TANGENTS) readonly restrict buffer MorphTangents { MORPH_T morph_tangents[]; };
+#endif
+layout(std430, binding = BINDING_MORPH_WEIGHTS) readonly restrict buffer MorphWeights { float morph_weights[]; };
+
+// Vertex v's morph targets at their weights, in target order, added to its
+// position, normal and tangent xyz.
+void morph(uint v, inout vec3 position, inout vec3 normal, inout vec4 tangent) {
+#if INSTANCED
+  uint weights_first = INSTANCE * uint(MORPH_TARGETS);  // this instance's weights
+#else
+  uint weights_first = 0u;
+#endif
+#if MORPH_LAYOUT == 1
+  for (uint t = 0u; t < uint(MORPH_TARGETS); ++t) {
+    float w = morph_weights[weights_first + t];
+    uint e = t * n + v;
+#else
+  uint morph_end = morph_offsets[v + 1u];
+  for (uint e = morph_offsets[v]; e < morph_end; ++e) {
+    float w = morph_weights[weights_first + morph_targets[e]];
+#endif
+    if (w == 0.0) continue;
+    position += w * MORPH_OFFSET(morph_positions, e);
+#if NORMALS
+    normal += w * MORPH_OFFSET(morph_normals, e);
+#endif
+#if TANGENTS
+    tangent.xyz += w * MORPH_OFFSET(morph_tangents, e);
+#endif
+  }
+}
 #endif
 
 // The `bytes`-byte little-endian value at byte `byte_in_word` of `word`
@@ -598,6 +669,17 @@ void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, out 
 void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 skinned_normal,
                  out vec4 skinned_tangent) {
   vec3 position = load_position(v);
+  vec3 normal = vec3(0.0);
+  vec4 tangent = vec4(0.0);
+#if NORMALS
+  normal = load_normal(v);
+#endif
+#if TANGENTS
+  tangent = load_tangent(v);
+#endif
+#if MORPH
+  morph(v, position, normal, tangent);
+#endif
   uint joint[INFLUENCES];
   uint raw_weight[INFLUENCES];
   load_indices(v, slot_stride, joint);
@@ -612,10 +694,10 @@ void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 s
   skinned_normal = vec3(0.0);
   skinned_tangent = vec4(0.0);
 #if NORMALS
-  skinned_normal = transform_normal(a0, a1, a2, load_normal(v));
+  skinned_normal = transform_normal(a0, a1, a2, normal);
 #endif
 #if TANGENTS
-  skinned_tangent = transform_tangent(a0, a1, a2, load_tangent(v));
+  skinned_tangent = transform_tangent(a0, a1, a2, tangent);
 #endif
 }
 
