@@ -625,7 +625,6 @@ SkinnedMesh QuantisedMesh(const SkinnedMesh& mesh, const Variant& variant) {
   ThrowIfInvalid(mesh, "quantise " + variant.Key());
   SkinnedMesh out = mesh;
   if (SkinsMorph(variant)) {
-    for (double& w : out.morph.weights) w = static_cast<float>(w);
     if (MorphHalf(variant))
       for (auto* stream : {&out.morph.positions, &out.morph.normals, &out.morph.tangents})
         for (std::vector<glm::vec3>& target : *stream)

@@ -138,8 +138,8 @@ std::vector<glm::vec4> UnpackTangents(const PackedMesh& packed, std::span<const 
 
 // The mesh the kernel really skins: weights after quantisation, as floats, in
 // the mesh's vertex order (so the gold can be computed on exactly these
-// values); morph offsets as half where the variant stores them so, and morph
-// weights as the float32 the kernel reads.
+// values); morph offsets as half where the variant stores them so (the
+// weights are a frame's input, as the palette is: not the variant's choice).
 SkinnedMesh QuantisedMesh(const SkinnedMesh& mesh, const Variant& variant);
 
 // Whether `format` holds the mesh's weights exactly: QuantisedMesh changes

@@ -331,7 +331,7 @@ TEST(TuneCli, MissingConfigFileIsOneLine) {
   EXPECT_EQ(unknown.result.exit_code, 1);
   EXPECT_EQ(unknown.result.err,
             "skintune: error: --config 'fastest': not a file path (no '/' or .json) and no built-in config "
-            "'fastest' (built in: default, dual-quaternions, paper)\n");
+            "'fastest' (built in: default, dual-quaternions, morph-targets, paper)\n");
 }
 
 TEST(TuneCli, MalformedJsonConfigIsOneLine) {
@@ -573,6 +573,50 @@ TEST(TuneCli, CpuDeviceQuickTuneVerifiesTimesAndWritesAWinner) {
   ASSERT_EQ(html.exit_code, 0) << html.err;
   EXPECT_NE(ReadAll(dir / "report.html").find("cpu.b2"), std::string::npos);
   EXPECT_NE(ReadAll(dir / "report.md").find("cpu.b2"), std::string::npos);
+}
+
+// A data set with morph targets (and one without, in the same run): its
+// space is the four ways to store the offsets, each verified against the
+// gold of the mesh morphed in float64; half offsets are a precision class
+// of their own, with their error against the unquantised source recorded;
+// the winners database keeps morph entries apart from the others.
+TEST(TuneCli, MorphTargetsAreTunedInTheirOwnSpaceWithHalfOffsetsAPrecisionClassOfTheirOwn) {
+  const fs::path dir = Scratch();
+  nlohmann::json config = TinyConfig({"global"}, {"soa", "aos"}, {64});
+  config["space"]["lang"] = {"cpu"};
+  config["space"]["normals"] = {"normals"};
+  config["datasets"] = {"3k-b2-morph4-normals", "3k-b2-normals"};
+  const fs::path out = dir / "out";
+  const auto r = RunSkintune({"tune", "--config", WriteConfig(dir, config), "--out", out.string(), "--device", "cpu"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(out / "report.json"));
+  std::map<std::string, std::set<Morph>> morphs;  // per data set, of ok measurements
+  for (const Measurement& m : ReportMeasurements(report)) {
+    if (m.status != MeasureStatus::kOk) continue;
+    morphs[m.dataset].insert(m.variant.morph);
+    EXPECT_LT(m.max_relative_error, 1e-5) << m.variant.Key();
+    if (MorphHalf(m.variant)) {
+      EXPECT_GT(m.source_error.quantisation_rel, 0.0) << m.variant.Key() << ": half offsets cost something";
+    } else if (m.variant.weight == WeightFormat::kF32) {
+      EXPECT_EQ(m.source_error.quantisation_rel, 0.0) << m.variant.Key();
+    }
+  }
+  EXPECT_EQ(morphs["3k-b2-normals"], std::set<Morph>{Morph::kNone});
+  EXPECT_EQ(morphs["3k-b2-morph4-normals"],
+            (std::set<Morph>{Morph::kDense, Morph::kSparse, Morph::kDenseHalf, Morph::kSparseHalf}));
+  const nlohmann::json db = nlohmann::json::parse(ReadAll(out / "winners-db.json"));
+  std::set<std::string> classes;
+  for (const nlohmann::json& e : db.at("entries")) {
+    const Variant v = e.at("variant").get<Variant>();
+    classes.insert(std::string(Name(v.weight)) + "/" + Name(v.morph) + "@" + std::to_string(e.at("vertices").get<int>()));
+  }
+  EXPECT_TRUE(std::any_of(classes.begin(), classes.end(), [](const std::string& c) { return c.find("/none@") != std::string::npos; }));
+  EXPECT_TRUE(std::any_of(classes.begin(), classes.end(), [](const std::string& c) {
+    return c.find("-half@") != std::string::npos;  // a class of its own
+  })) << nlohmann::json(classes).dump();
+  const auto variants = RunSkintune({"variants", "--dataset", "3k-b2-morph4-normals", "--lang", "cpu", "--list"});
+  ASSERT_EQ(variants.exit_code, 0) << variants.err;
+  EXPECT_EQ(variants.out.find(".normals\n"), std::string::npos) << "a variant that ignores the morph targets";
 }
 
 // Whether `skipped` (the report's "not tuned" lines) leaves out a software
