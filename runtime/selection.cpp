@@ -54,12 +54,15 @@ double CountDistance(const WinnersEntry& e, const SelectionRequest& r) {
 
 // Smaller is better: another shape than the request's (the single-mesh
 // fallback), B above the mesh's, the distance (a factor) from the measured
-// vertex count to the scene's, the instance or mesh count's, the larger
-// count on a tie, then the newest `created` and the smallest time (compared
+// vertex count to the scene's, the instance or mesh count's, the morph
+// target count's (a mesh with them), the larger vertex count on a tie, then the newest `created` and the smallest time (compared
 // separately).
-std::tuple<bool, int, double, double, long long> Rank(const WinnersEntry& e, const SelectionRequest& r) {
+std::tuple<bool, int, double, double, double, long long> Rank(const WinnersEntry& e, const SelectionRequest& r) {
+  const double morph = r.morph ? VertexCountDistance(static_cast<std::size_t>(std::max(e.morph_targets, 1)),
+                                                     static_cast<std::size_t>(std::max(r.morph_targets, 1)))
+                               : 1.0;
   return {e.shape != r.shape, e.influences - r.influences, VertexCountDistance(e.vertices, r.vertex_count),
-          CountDistance(e, r), -static_cast<long long>(e.vertices)};
+          CountDistance(e, r), morph, -static_cast<long long>(e.vertices)};
 }
 
 bool Better(const WinnersEntry& a, const WinnersEntry& b, const SelectionRequest& request) {

@@ -19,8 +19,9 @@
 // every shape, at the scene's total vertex count). Among the usable entries
 // of a level: the request's shape first, then the smallest B, then the
 // nearest measured vertex count (nearest as a factor: 25k is as near 50k as
-// 100k is), then within the shape the nearest instance or mesh count (the
-// larger vertex count on a tie), then the newest `created` (the newest driver tuned), then
+// 100k is), then within the shape the nearest instance or mesh count, then
+// for a mesh with morph targets the nearest target count (the larger vertex
+// count on a tie), then the newest `created` (the newest driver tuned), then
 // the smallest median time (which chooses between glsl-compute and
 // glsl-vertex on a GL device). The entry's variant is taken with its
 // `normals` set to what the caller needs.
@@ -56,8 +57,10 @@ struct SelectionRequest {
   // Dual-quaternion skinning (blend dq) or linear (matrix, point): entries of
   // the other kind never serve, as they compute something else.
   bool dual_quaternions = false;
-  // The mesh has morph targets: only morph variants serve it (and only it).
+  // The mesh has morph targets: only morph variants serve it (and only it),
+  // the entries of the nearest target count first.
   bool morph = false;
+  int morph_targets = 0;
   double max_error = kDefaultBudget;     // the error budget, relative to the bounding-box diagonal
   std::string max_error_name = "max_error";  // how the caller names it in reasons ("SkinnerOptions::max_error")
   std::vector<WeightFormat> exact_formats;  // formats that hold the caller's weights exactly (HoldsWeightsExactly)

@@ -261,6 +261,7 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   request.normals = NormalsFor(options.normals, options.tangents);
   request.dual_quaternions = options.dual_quaternions;
   request.morph = mesh.has_morph();
+  request.morph_targets = static_cast<int>(mesh.morph.count());
   request.max_error = options.max_error;
   request.max_error_name = "SkinnerOptions::max_error";
   // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "base/error.h"
+#include "model/mesh.h"
 #include "runtime/backend_table.h"
 #include "runtime/json_fields.h"
 #include "runtime/recorded_time.h"
@@ -130,9 +131,13 @@ std::string SceneSuffix(SceneKind kind, int instances, int meshes) {
   return "";
 }
 
+std::string MorphSuffix(int morph_targets) {
+  return morph_targets > 0 ? " morph " + std::to_string(morph_targets) : "";
+}
+
 std::string Describe(const WinnersEntry& e) {
   return e.device_id + " " + Name(e.lang) + " b" + std::to_string(e.influences) + " " + VertexCountName(e.vertices) +
-         SceneSuffix(e.shape, e.instances, e.meshes);
+         SceneSuffix(e.shape, e.instances, e.meshes) + MorphSuffix(e.morph_targets);
 }
 
 bool EntryWithinBudget(const WinnersEntry& e, double max_error, const std::vector<WeightFormat>& exact) {
@@ -156,6 +161,7 @@ nlohmann::json WinnersEntryToJson(const WinnersEntry& e) {
                       {"shape", SceneKindName(e.shape)},
                       {"instances", e.instances},
                       {"meshes", e.meshes},
+                      {"morph_targets", e.morph_targets},
                       {"dataset", e.dataset},
                       {"variant", e.variant},
                       {"median_ms", e.median_ms},
@@ -223,11 +229,22 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
       throw Error("'shape' " + std::string(SceneKindName(e.shape)) + " does not match 'instances' " +
                   std::to_string(e.instances) + " and 'meshes' " + std::to_string(e.meshes));
   }
+  if (j.contains("morph_targets")) {  // 1.7.0
+    e.morph_targets = static_cast<int>(Integer(j, "morph_targets"));
+    if (e.morph_targets < 0 || e.morph_targets > kMaxMorphTargets)
+      throw Error("'morph_targets' is " + std::to_string(e.morph_targets) + ", expected 0.." +
+                  std::to_string(kMaxMorphTargets));
+  }
   e.dataset = String(j, "dataset");
   e.variant = Field(j, "variant").get<Variant>();
   if (e.variant.lang != e.lang || e.variant.influences != e.influences) {
     throw Error("'variant' " + e.variant.Key() + " does not match 'lang' and 'influences'");
   }
+  if (SkinsMorph(e.variant) && e.morph_targets == 0)
+    throw Error("'variant' " + e.variant.Key() + " applies morph targets, and 'morph_targets' does not say how many");
+  if (!SkinsMorph(e.variant) && e.morph_targets > 0)
+    throw Error("'variant' " + e.variant.Key() + " does not apply the " + std::to_string(e.morph_targets) +
+                " morph targets of the mesh it was tuned on");
   e.median_ms = Number(j, "median_ms");
   e.gbps = Number(j, "gbps");
   e.copy_fraction = Number(j, "copy_fraction");

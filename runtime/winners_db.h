@@ -51,6 +51,8 @@ const char* SceneKindName(SceneKind kind);
 SceneKind SceneKindFromName(const std::string& name);
 // "" for a single mesh, " instances x64", " batch of 31 meshes": how entries and tables name a scene.
 std::string SceneSuffix(SceneKind kind, int instances, int meshes);
+// " morph 8" for a mesh with 8 morph targets; "" for none.
+std::string MorphSuffix(int morph_targets);
 
 // The parts of a device id "<backend>:<platform>/<name>/<driver_version>".
 struct DeviceIdParts {
@@ -100,6 +102,10 @@ struct WinnersEntry {
   SceneKind shape = SceneKind::kSingle;
   int instances = 1;
   int meshes = 1;
+  // The morph targets of the mesh it was tuned on (1.7.0; 0: none, and
+  // entries before it): an entry whose variant applies morph targets serves
+  // meshes with them, the nearest count first.
+  int morph_targets = 0;
   std::string vertex_bucket;   // VertexBucket(vertices), kept for readers of 1.0/1.1
   std::string dataset;         // what the winning time was measured on
   Variant variant;

@@ -40,7 +40,8 @@ nlohmann::json WinnerJson(const Winner& w) {
                       {"gbps", w.gbps},             {"copy_fraction", w.copy_fraction},
                       {"precision_class", Name(w.variant.weight)}, {"within_budget", w.within_budget},
                       {"max_relative_error", w.max_relative_error}, {"x_copy", w.x_copy},
-                      {"shape", SceneKindName(w.shape)}, {"instances", w.instances}, {"meshes", w.meshes}};
+                      {"shape", SceneKindName(w.shape)}, {"instances", w.instances}, {"meshes", w.meshes},
+                      {"morph_targets", w.morph_targets}};
   if (w.source_error.known) j["source_error"] = SourceErrorJson(w.source_error);
   j["low_ms"] = w.low_ms;
   j["high_ms"] = w.high_ms;
@@ -57,12 +58,14 @@ nlohmann::json WinnerJson(const Winner& w) {
 // (linear, or dual quaternions: a different result, never one entry's rival)
 // and whether it applies morph targets (a mesh with them takes only such
 // entries) keeps its own.
-// device id, lang, influences, vertices, shape, instances, meshes, weight, dual quaternions, morph
-// (0 none, 1 float32 offsets, 2 half offsets)
-using EntryKey = std::tuple<std::string, int, int, std::size_t, int, int, int, int, bool, int>;
+// A row: device id, lang, influences, vertices, shape, instances, meshes,
+// dual quaternions, morph targets; then the precision class: weight format,
+// half morph offsets.
+using RowKey = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int>;
+using EntryKey = std::tuple<RowKey, int, bool>;
 
 template <typename W>  // Winner or WinnersEntry
-EntryKey KeyOf(const W& w) {
+RowKey RowOf(const W& w) {
   return {w.device_id,
           static_cast<int>(w.lang),
           w.influences,
@@ -70,15 +73,19 @@ EntryKey KeyOf(const W& w) {
           static_cast<int>(w.shape),
           w.instances,
           w.meshes,
-          static_cast<int>(w.variant.weight),
           w.variant.blend == Blend::kDualQuaternion,
-          !SkinsMorph(w.variant) ? 0 : MorphHalf(w.variant) ? 2 : 1};
+          SkinsMorph(w.variant) ? std::max(w.morph_targets, 1) : 0};
+}
+
+template <typename W>  // Winner or WinnersEntry
+EntryKey KeyOf(const W& w) {
+  return {RowOf(w), static_cast<int>(w.variant.weight), MorphHalf(w.variant)};
 }
 
 nlohmann::json DatasetJson(const DatasetInfo& d) {
   return {{"key", d.key},       {"vertices", d.vertices},         {"influences", d.influences},
           {"joints", d.joints}, {"shape", SceneKindName(d.shape)}, {"instances", d.instances},
-          {"meshes", d.meshes}};
+          {"meshes", d.meshes}, {"morph_targets", d.morph_targets}};
 }
 
 // The report's winners as database entries, with the device's identity (the
@@ -105,6 +112,7 @@ std::vector<WinnersEntry> EntriesOf(const TuningReport& report) {
     e.shape = w.shape;
     e.instances = w.instances;
     e.meshes = w.meshes;
+    e.morph_targets = w.morph_targets;
     e.dataset = w.dataset;
     e.variant = w.variant;
     e.median_ms = w.median_ms;
@@ -197,6 +205,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     w.shape = dataset->second->shape;
     w.instances = dataset->second->instances;
     w.meshes = dataset->second->meshes;
+    w.morph_targets = dataset->second->morph_targets;
     w.variant = m.variant;
     const EntryKey key = KeyOf(w);
     groups[key].push_back(&m);
@@ -250,14 +259,6 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
 }
 
 namespace {
-
-// A row of the winners table: every key field but the precision class.
-using RowKey = std::tuple<std::string, int, int, std::size_t, int, int, int>;
-
-RowKey RowOf(const Winner& w) {
-  return {w.device_id, static_cast<int>(w.lang), w.influences, w.vertices, static_cast<int>(w.shape), w.instances,
-          w.meshes};
-}
 
 // A winner as JudgeIntervals takes it: its interval, and what the tie-break reads.
 Interval IntervalOf(const Winner& w) {
@@ -423,6 +424,10 @@ DatasetInfo DatasetInfoFromJson(const nlohmann::json& d) {
     info.instances = static_cast<int>(Integer(d, "instances"));
     info.meshes = static_cast<int>(Integer(d, "meshes"));
     if (info.instances < 1 || info.meshes < 1) throw Error("'instances' and 'meshes' must be at least 1");
+  }
+  if (d.contains("morph_targets")) {  // 1.11.0
+    info.morph_targets = static_cast<int>(Integer(d, "morph_targets"));
+    if (info.morph_targets < 0) throw Error("'morph_targets' must not be negative");
   }
   return info;
 }

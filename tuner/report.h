@@ -32,6 +32,7 @@ struct DatasetInfo {
   SceneKind shape = SceneKind::kSingle;
   int instances = 1;
   int meshes = 1;
+  int morph_targets = 0;  // the mesh's morph targets (0: none; 1.11.0)
 };
 
 struct TuningReport {
@@ -77,6 +78,7 @@ struct Winner {
   SceneKind shape = SceneKind::kSingle;  // the dataset's scene: every shape keeps its winner
   int instances = 1;
   int meshes = 1;
+  int morph_targets = 0;      // the dataset's morph targets: every count keeps its winner
   std::string dataset;
   Variant variant;
   double tie_margin = 0.0;    // the margin it was judged at (TuningReport::TieMarginOf; 0: unknown)
@@ -94,7 +96,7 @@ struct Winner {
   double bytes_per_frame = 0.0;  // what its frame moves (the tie-break's first key)
   double copy_fraction = 0.0;  // gbps / the device's copy bandwidth (0 when unknown)
   double x_copy = 0.0;         // median_ms / the same-size copy's (Measurement::x_copy; 0 when unknown)
-  // The precision class is variant.weight: one winner per class.
+  // The precision class is variant.weight, and half morph offsets: one winner per class.
   bool within_budget = true;      // status ok (not too_imprecise) under the report's max_error
   SourceError source_error;       // against the unquantised source
   double max_relative_error = 0.0;  // against the gold of its quantised weights

@@ -79,6 +79,40 @@ const WinnersEntry kExact = Entry("opencl:Synthetic/Model GPU/2.0", "Example", "
 const WinnersEntry kOtherDriver = Entry("opencl:Synthetic/Model GPU/1.0", "Example", "gpu", "opencl.b2.soa.wg128");
 const WinnersEntry kSameVendorType = Entry("opencl:Synthetic/Model GPU Pro/1.0", "Example", "gpu", "opencl.b2.aos.wg512");
 
+// A mesh with morph targets takes only entries that apply them, the nearest
+// target count first (half offsets only within the budget); a mesh without
+// takes none of them; with no morph entry, the built-in default's dense twin.
+TEST(Selection, MorphEntriesServeOnlyMeshesWithMorphTargetsTheNearestCountFirst) {
+  const std::string id = ThisDevice().id;
+  const WinnersEntry plain = Entry(id, "Example", "gpu", "opencl.b2.soa.wg64", "100k", 1.0);
+  WinnersEntry few = Entry(id, "Example", "gpu", "opencl.b2.soa.wg128.morph-sparse", "100k", 2.0);
+  few.morph_targets = 8;
+  WinnersEntry many = Entry(id, "Example", "gpu", "opencl.b2.aos.wg256.morph-dense-half", "100k", 3.0);
+  many.morph_targets = 32;
+  many.source_error.known = true;
+  many.source_error.quantisation_rel = 2e-6;
+  many.source_error.position_rel = 2e-6;
+  SelectionRequest r;
+  r.device = ThisDevice();
+  r.langs = {Lang::kOpenCl};
+  r.influences = 2;
+  r.vertex_count = 100000;
+  const std::vector<WinnersEntry> entries = {many, few, plain};
+  EXPECT_EQ(Select(entries, r).variant, plain.variant);
+  r.morph = true;
+  r.morph_targets = 10;
+  EXPECT_EQ(Select(entries, r).variant, few.variant);
+  r.morph_targets = 24;
+  EXPECT_EQ(Select(entries, r).variant, many.variant);
+  r.max_error = 1e-6;  // the half offsets' 2e-6 is over it
+  const Chosen strict = Select(entries, r);
+  EXPECT_EQ(strict.variant, few.variant);
+  EXPECT_NE(strict.selection.reason.find("skipped"), std::string::npos) << strict.selection.reason;
+  const Chosen fallback = Select({plain}, r);
+  EXPECT_EQ(fallback.selection.level, MatchLevel::kGenericDefault);
+  EXPECT_EQ(fallback.variant.morph, Morph::kDense) << fallback.variant.Key();
+}
+
 TEST(Selection, ExactDeviceAndDriverIsTheFirstLevel) {
   std::vector<WinnersEntry> entries = Decoys();
   entries.insert(entries.end(), {kSameVendorType, kOtherDriver, kExact});

@@ -61,6 +61,39 @@ TEST(WinnersDb, EntryRoundTripsThroughJson) {
 
 // Database 1.4.0: the scene shape round-trips; entries of older databases
 // (no "shape") are single meshes; a shape that does not fit its counts is refused.
+// A morph entry records its mesh's target count; older entries (no field)
+// have none; a count that does not fit the variant is an error naming it.
+TEST(WinnersDb, MorphTargetCountsRoundTripAndMustFitTheVariant) {
+  WinnersEntry e = SampleEntry();
+  e.variant.morph = Morph::kSparseHalf;
+  e.morph_targets = 8;
+  const nlohmann::json j = WinnersEntryToJson(e);
+  EXPECT_EQ(j["morph_targets"], 8);
+  const WinnersEntry back = WinnersEntryFromJson(nlohmann::json::parse(j.dump()));
+  EXPECT_EQ(back.morph_targets, 8);
+  EXPECT_EQ(back.variant.morph, Morph::kSparseHalf);
+  EXPECT_NE(Describe(back).find(" morph 8"), std::string::npos) << Describe(back);
+  const auto error = [](const nlohmann::json& entry) {
+    try {
+      (void)WinnersEntryFromJson(entry);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  nlohmann::json untold = j;
+  untold.erase("morph_targets");
+  EXPECT_NE(error(untold).find("applies morph targets, and 'morph_targets' does not say how many"), std::string::npos);
+  nlohmann::json plain = WinnersEntryToJson(SampleEntry());
+  EXPECT_EQ(plain["morph_targets"], 0);
+  plain.erase("morph_targets");
+  EXPECT_EQ(WinnersEntryFromJson(plain).morph_targets, 0);  // an entry before the field
+  plain["morph_targets"] = 4;
+  EXPECT_NE(error(plain).find("does not apply the 4 morph targets of the mesh it was tuned on"), std::string::npos);
+  plain["morph_targets"] = -1;
+  EXPECT_NE(error(plain).find("'morph_targets' is -1, expected 0..256"), std::string::npos) << error(plain);
+}
+
 TEST(WinnersDb, SceneShapesRoundTripAndOlderEntriesAreSingleMeshes) {
   WinnersEntry e = SampleEntry();
   e.shape = SceneKind::kInstances;

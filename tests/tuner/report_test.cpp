@@ -325,6 +325,45 @@ Measurement ClassMeasurement(const std::string& dataset, std::size_t vertices, c
   return m;
 }
 
+// Meshes of one vertex count with 8, 32 and no morph targets are three rows
+// (a faster mesh without morph targets is no rival of a mesh with them), and
+// half offsets a class of their own within a row; the database keeps each.
+TEST(Report, MorphTargetCountsAreRowsAndHalfOffsetsAClassOfTheirOwn) {
+  TuningReport r;
+  r.created = "2026-11-30T00:00:00Z";
+  r.devices = {testing::SampleGpu()};
+  const auto measured = [&](const std::string& dataset, const char* key, double ms) {
+    Measurement m = ClassMeasurement(dataset, 100000, "f32", ms, true);
+    m.variant = ParseVariantKey(key);
+    return m;
+  };
+  DatasetInfo plain{"100k-b4", 100000, 4, 77}, few{"100k-b4-morph8", 100000, 4, 77}, many{"100k-b4-morph32", 100000, 4, 77};
+  few.morph_targets = 8;
+  many.morph_targets = 32;
+  r.datasets = {plain, few, many};
+  r.measurements = {measured("100k-b4", "opencl.b4.soa.wg64", 1.0),
+                    measured("100k-b4-morph8", "opencl.b4.soa.wg64.morph-sparse", 1.4),
+                    measured("100k-b4-morph8", "opencl.b4.soa.wg64.morph-sparse-half", 1.2),
+                    measured("100k-b4-morph32", "opencl.b4.soa.wg64.morph-dense", 3.0),
+                    measured("100k-b4-morph32", "opencl.b4.soa.wg64.morph-sparse", 1.5)};
+  const std::vector<Winner> winners = ComputeWinners(r);
+  std::map<std::pair<int, std::string>, int> per_row_class;  // (morph targets, morph value) -> winners
+  for (const Winner& w : winners) ++per_row_class[{w.morph_targets, Name(w.variant.morph)}];
+  EXPECT_EQ(winners.size(), 4u);  // plain; 8: float32 and half classes; 32: one (sparse beats dense)
+  EXPECT_EQ((per_row_class[{0, "none"}]), 1);
+  EXPECT_EQ((per_row_class[{8, "sparse"}]), 1);
+  EXPECT_EQ((per_row_class[{8, "sparse-half"}]), 1);
+  EXPECT_EQ((per_row_class[{32, "sparse"}]), 1);
+  const std::vector<Winner> chosen = BudgetWinners(winners, 0.05);
+  ASSERT_EQ(chosen.size(), 3u) << "one per row: the plain mesh's 1.0 ms decides none of the morph rows";
+  for (const Winner& w : chosen)
+    if (w.morph_targets == 8) EXPECT_EQ(w.variant.morph, Morph::kSparseHalf);
+  const std::vector<WinnersEntry> db = WinnersDbFromJson(WinnersDatabase(r), "db.json");
+  EXPECT_EQ(db.size(), 4u);
+  const nlohmann::json merged = MergeWinnersDatabases({WinnersDatabase(r), WinnersDatabase(r)}, {"a.json", "b.json"});
+  EXPECT_EQ(merged["entries"].size(), 4u);
+}
+
 // The classes over the budget named under a device's winners (skintune run):
 // only those faster than the chosen class of their own row, beyond the tie
 // margin; not one that ties with it, is slower, or is of another row.
