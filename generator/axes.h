@@ -292,6 +292,7 @@ inline constexpr Axis kAxes[] = {
      .covering = Covering::kRotated,
      .covering_step = 1,
      .chart = Chart::kNo,  // none or not is set by the data set; the report's rows name the layout
+     .embedded_enum = "Morph",
      .key_omits_default = true},
 };
 inline constexpr std::size_t kAxisCount = std::size(kAxes);

@@ -135,6 +135,9 @@ enum class PaletteFormat { kMat4, kMat3x4, kDualquat };  // R = 4, 3 or 2 float4
                                                                 // (kDualquat: the kernel blends
                                                                 // unit dual quaternions, not matrices)
 enum class PaletteStorage { kGlobal, kConstant, kLocal, kImage };
+// Morph targets applied before skinning (skintune's docs/VARIANTS.md "Morph
+// targets"): none, or their offsets dense or sparse, float32 or half.
+enum class Morph { kNone, kDense, kSparse, kDenseHalf, kSparseHalf };
 
 // One kernel argument, as the sidecar JSON describes it.
 struct Argument {
@@ -177,6 +180,7 @@ struct Kernel {
   WeightFormat weight;
   PaletteFormat palette;
   PaletteStorage storage;
+  Morph morph;                 // kNone, or the kernel applies morph targets (FindMorphKernel, PackMorphTargets)
   bool point_blend;            // blends transformed points (else blends matrices): no effect on the interface
   bool normals;                // also skins normals: a `normals` input and an `out_normals` output
   bool tangents;               // also skins tangents (with normals): a `tangents` input and an
@@ -186,6 +190,7 @@ struct Kernel {
   int wg_size;                 // work-group size (0 for glsl-vertex)
   int joints;                  // palette entries the kernel is specialised for (a crowd's: per instance;
                                // a batch's: its meshes' together)
+  int morph_targets;           // morph targets the kernel is specialised for (0 when morph is kNone)
   const char* entry_point;     // "skin" (OpenCL, CUDA) / "main" (GLSL)
   const char* source;          // the whole kernel text, NUL-terminated
   const char* source_hash;     // FNV-1a 64 of `source`, 16 hex digits (skintune's program cache key)
@@ -350,12 +355,14 @@ struct Request {
   int count;
   int instances;
   bool dual_quaternions;  // dual-quaternion kernels only (PaletteFormat::kDualquat), else linear ones only
+  int morph_targets;      // > 0: kernels specialised for that many morph targets only; 0: kernels without
 };
 
 inline bool Serves(const Kernel& k, const Request& r) {
   const bool shape = std::strcmp(k.shape, r.shape) == 0 || (r.single_serves && std::strcmp(k.shape, "single") == 0);
   return shape && std::strcmp(k.lang, r.lang) == 0 && k.influences >= r.influences && k.joints >= r.joint_count &&
          (k.palette == PaletteFormat::kDualquat) == r.dual_quaternions &&
+         (k.morph == Morph::kNone ? r.morph_targets == 0 : k.morph_targets == r.morph_targets) &&
          static_cast<std::uint64_t>(r.joint_count) <= IndexCapacity(k.index) &&
          (k.max_instances == 0 || k.max_instances >= r.instances);
 }
@@ -404,14 +411,30 @@ inline const Kernel* Find(const Request& r) {
 // normals. Linear blend skinning kernels only: FindDualQuaternionKernel gives
 // the dual-quaternion ones, which compute something else.
 inline const Kernel* FindKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count) {
-  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, false});
+  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, false, 0});
 }
 
 // FindKernel's rule among the single-mesh dual-quaternion kernels
 // (PaletteFormat::kDualquat: PackPalette takes rigid matrices only).
 inline const Kernel* FindDualQuaternionKernel(const char* lang, int influences, std::size_t vertex_count,
                                               int joint_count) {
-  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, true});
+  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, true, 0});
+}
+
+// The kernel for a mesh with `morph_targets` morph targets (one instance, or a
+// crowd of `instances`): FindKernel's rule (FindCrowdKernel's for instances >
+// 1) among the kernels that apply morph targets and were specialised for
+// exactly that many (MORPH_TARGETS is compiled in: `skintune emit --db
+// --morph-targets T` specialises the morph winners for your T). The other
+// finders never return these. nullptr if none fits, or for morph_targets < 1.
+inline const Kernel* FindMorphKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count,
+                                     int morph_targets, int instances = 1) {
+  if (morph_targets < 1 || instances < 1) return nullptr;
+  if (instances == 1)
+    return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, false, morph_targets});
+  const std::size_t total = vertex_count * static_cast<std::size_t>(instances);
+  return detail::Find(
+      {lang, "instances", false, influences, total, joint_count, instances, instances, false, morph_targets});
 }
 
 // The instanced kernel for a crowd of `instances` instances of one mesh of
@@ -424,7 +447,7 @@ inline const Kernel* FindDualQuaternionKernel(const char* lang, int influences, 
 inline const Kernel* FindCrowdKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count,
                                      int instances) {
   const std::size_t total = vertex_count * static_cast<std::size_t>(instances > 0 ? instances : 0);
-  return detail::Find({lang, "instances", false, influences, total, joint_count, instances, instances, false});
+  return detail::Find({lang, "instances", false, influences, total, joint_count, instances, instances, false, 0});
 }
 
 // The kernel for a batch of `meshes` meshes packed as one (PackBatch) of
@@ -437,7 +460,7 @@ inline const Kernel* FindCrowdKernel(const char* lang, int influences, std::size
 // FindKernel).
 inline const Kernel* FindBatchKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count,
                                      int meshes) {
-  return detail::Find({lang, "batch", true, influences, vertex_count, joint_count, meshes, 1, false});
+  return detail::Find({lang, "batch", true, influences, vertex_count, joint_count, meshes, 1, false, 0});
 }
 
 // Work items for a launch of n vertices: ceil(n / vertices_per_item) rounded
@@ -470,6 +493,10 @@ inline std::size_t OutputStrideBytes(const Kernel& k) { return detail::VectorByt
 // 4 bytes (32-bit words).
 struct PackedInputs {
   std::vector<std::uint8_t> records, positions, indices, weights, normals, tangents;
+  // PackMorphTargets: a morph kernel's morph-target buffers (morph_offsets
+  // and morph_targets for the sparse layouts only; morph_normals with
+  // k.normals, morph_tangents with k.tangents).
+  std::vector<std::uint8_t> morph_offsets, morph_targets, morph_positions, morph_normals, morph_tangents;
 };
 
 // Packs a mesh of n vertices into the kernel's input buffers, byte for byte
@@ -599,6 +626,132 @@ inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float
 inline bool PackMesh(const Kernel& k, std::size_t n, int influences, const float* positions, const float* normals,
                      const std::uint32_t* joints, const float* weights, PackedInputs* out, std::string* error) {
   return PackMesh(k, n, influences, positions, normals, nullptr, joints, weights, out, error);
+}
+
+namespace detail {
+
+// The IEEE 754 binary16 bits nearest `value`, ties to even, as a conversion
+// of float to half does in hardware (F16C, CUDA, GLSL's packHalf2x16):
+// beyond the largest half, infinity; below the smallest subnormal, zero.
+inline std::uint16_t HalfBits(float value) {
+  const std::uint32_t f = FloatBits(value);
+  const std::uint32_t sign = (f >> 16) & 0x8000u;
+  const std::uint32_t exponent = (f >> 23) & 0xffu;
+  const std::uint32_t mantissa = f & 0x7fffffu;
+  if (exponent == 0xffu) return static_cast<std::uint16_t>(sign | 0x7c00u | (mantissa != 0 ? 0x200u : 0u));
+  const int e = static_cast<int>(exponent) - 127 + 15;  // the half's biased exponent
+  if (e >= 31) return static_cast<std::uint16_t>(sign | 0x7c00u);
+  // Normal: 10 of the 23 mantissa bits; subnormal: the 24-bit significand
+  // shifted to units of 2^-24. Then round the bits shifted out, ties to even.
+  const std::uint32_t significand = e > 0 ? mantissa : (exponent != 0 ? mantissa | 0x800000u : 0u);
+  const int shift = e > 0 ? 13 : 14 - e;
+  if (shift > 24) return static_cast<std::uint16_t>(sign);
+  std::uint32_t half = significand >> shift;
+  const std::uint32_t rest = significand & ((1u << shift) - 1u), midpoint = 1u << (shift - 1);
+  if (rest > midpoint || (rest == midpoint && (half & 1u) != 0)) ++half;  // a carry may reach the exponent: right
+  if (e > 0) half += static_cast<std::uint32_t>(e) << 10;
+  return static_cast<std::uint16_t>(sign | half);
+}
+
+}  // namespace detail
+
+// Packs a mesh's morph targets into a morph kernel's buffers (k.morph not
+// kNone), byte for byte as skintune's packer does (skintune's docs/VARIANTS.md
+// "Morph targets"). The offsets are target after target, 3 floats a vertex:
+// target t's offset of vertex v at [(t * n + v) * 3]; `normals` (read when
+// k.normals) and `tangents` (xyz; read when k.tangents) may be null: zero
+// offsets. Dense kernels get every offset; sparse ones, per vertex, an entry
+// for each target with a non-zero offset in a stream the kernel reads.
+// Half kernels store each component as IEEE binary16 (detail::HalfBits)
+// then a zero. The weights are no input of this call: upload `targets`
+// float32 weights per instance (instance i's target t at i * targets + t)
+// as `morph_weights` each frame. Returns false and sets *error for out ==
+// null, a kernel without morph targets, `targets` other than
+// k.morph_targets, n == 0, null positions, an offset that is not finite, or
+// (half) one that rounds to infinity, naming the target and vertex.
+inline bool PackMorphTargets(const Kernel& k, std::size_t n, int targets, const float* positions, const float* normals,
+                             const float* tangents, PackedInputs* out, std::string* error) {
+  const auto fail = [error, &k](const std::string& message) {
+    if (error != nullptr) *error = "PackMorphTargets " + std::string(k.variant) + ": " + message;
+    return false;
+  };
+  if (out == nullptr) return fail("no output (out is null)");
+  out->morph_offsets.clear();
+  out->morph_targets.clear();
+  out->morph_positions.clear();
+  out->morph_normals.clear();
+  out->morph_tangents.clear();
+  if (k.morph == Morph::kNone) return fail("the kernel applies no morph targets");
+  if (targets != k.morph_targets)
+    return fail(std::to_string(targets) + " morph targets, the kernel is specialised for " +
+                std::to_string(k.morph_targets) + " (skintune emit --db --morph-targets)");
+  if (n == 0) return fail("no vertices");
+  if (positions == nullptr) return fail("positions is null");
+  const bool sparse = k.morph == Morph::kSparse || k.morph == Morph::kSparseHalf;
+  const bool half = k.morph == Morph::kDenseHalf || k.morph == Morph::kSparseHalf;
+  const std::size_t bytes = half ? 8 : 12;
+  struct Stream {
+    const float* offsets;  // null: zeros
+    std::vector<std::uint8_t>* out;
+    const char* what;
+  };
+  std::vector<Stream> streams = {{positions, &out->morph_positions, "position"}};
+  if (k.normals) streams.push_back({normals, &out->morph_normals, "normal"});
+  if (k.tangents) streams.push_back({tangents, &out->morph_tangents, "tangent"});
+  const std::size_t t_count = static_cast<std::size_t>(targets);
+  for (const Stream& s : streams) {
+    if (s.offsets == nullptr) continue;
+    for (std::size_t i = 0; i < t_count * n * 3; ++i) {
+      const float c = s.offsets[i];
+      const std::string where = "target " + std::to_string(i / 3 / n) + " vertex " + std::to_string(i / 3 % n) +
+                                ": " + s.what + " offset component " + std::to_string(c);
+      if (!std::isfinite(c)) return fail(where + " is not finite");
+      if (half && (detail::HalfBits(c) & 0x7c00u) == 0x7c00u)
+        return fail(where + " rounds to infinity as a half (binary16 holds magnitudes below 65520)");
+    }
+  }
+  const auto moves = [&](std::size_t t, std::size_t v) {
+    for (const Stream& s : streams)
+      if (s.offsets != nullptr)
+        for (int c = 0; c < 3; ++c)
+          if (s.offsets[(t * n + v) * 3 + static_cast<std::size_t>(c)] != 0.0f) return true;
+    return false;
+  };
+  const auto put = [&](const Stream& s, std::size_t element, std::size_t t, std::size_t v) {
+    std::uint8_t* at = s.out->data() + element * bytes;
+    for (std::size_t c = 0; c < 3; ++c) {
+      const float value = s.offsets != nullptr ? s.offsets[(t * n + v) * 3 + c] : 0.0f;
+      if (half) {
+        detail::PutUint(at + 2 * c, detail::HalfBits(value), 2);
+      } else {
+        detail::PutFloat(at + 4 * c, value);
+      }
+    }
+  };
+  if (!sparse) {
+    for (const Stream& s : streams) {
+      s.out->assign(detail::RoundUp(t_count * n * bytes, 4), 0);
+      for (std::size_t t = 0; t < t_count; ++t)
+        for (std::size_t v = 0; v < n; ++v) put(s, t * n + v, t, v);
+    }
+    return true;
+  }
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> entries;  // (vertex, target)
+  out->morph_offsets.assign((n + 1) * 4, 0);
+  for (std::size_t v = 0; v < n; ++v) {
+    detail::PutUint(out->morph_offsets.data() + 4 * v, static_cast<std::uint32_t>(entries.size()), 4);
+    for (std::size_t t = 0; t < t_count; ++t)
+      if (moves(t, v)) entries.emplace_back(static_cast<std::uint32_t>(v), static_cast<std::uint32_t>(t));
+  }
+  detail::PutUint(out->morph_offsets.data() + 4 * n, static_cast<std::uint32_t>(entries.size()), 4);
+  const std::size_t elements = entries.empty() ? 1 : entries.size();  // every buffer holds one element at least
+  out->morph_targets.assign(elements * 4, 0);
+  for (std::size_t e = 0; e < entries.size(); ++e) detail::PutUint(out->morph_targets.data() + 4 * e, entries[e].second, 4);
+  for (const Stream& s : streams) {
+    s.out->assign(detail::RoundUp(elements * bytes, 4), 0);
+    for (std::size_t e = 0; e < entries.size(); ++e) put(s, e, entries[e].second, entries[e].first);
+  }
+  return true;
 }
 
 // One mesh of a batch (PackBatch): its arrays as PackMesh takes a mesh's.

@@ -226,18 +226,20 @@ std::string EmittedFor(const WinnersEntry& e, int joints) {
 // winner's padded twin keeps mesh order in one launch) specialised for
 // `joints` palette entries; a crowd's winner instanced for its K instances
 // (max_instances K), a batch's for its meshes' palettes together (meshes x
-// `joints`). Warns and returns nothing when the variant cannot take them.
-std::optional<EmbeddedKernel> EmbedWinner(const WinnersEntry& e, int joints) {
+// `joints`); a morph winner for `morph_targets` targets (0: the count it was
+// tuned on). Warns and returns nothing when the variant cannot take them.
+std::optional<EmbeddedKernel> EmbedWinner(const WinnersEntry& e, int joints, int morph_targets) {
   Variant variant = e.variant;
   variant.mixed = MixedCounts::kPadded;
   const long long palette = e.shape == SceneKind::kBatch ? static_cast<long long>(joints) * e.meshes : joints;
   const int instances = e.shape == SceneKind::kInstances ? e.instances : 1;
+  const int targets = SkinsMorph(variant) ? (morph_targets > 0 ? morph_targets : e.morph_targets) : 0;
+  ProblemShape shape{static_cast<int>(palette), 1, true, instances, true, true};
+  shape.morph_targets = targets;
   std::string broken;
   if (palette > kMaxPaletteJoints) {
     broken = "more than " + std::to_string(kMaxPaletteJoints) + " palette entries";
-  } else if (const std::vector<Violation> v =
-                 CheckVariant(variant, Unlimited(), ProblemShape{static_cast<int>(palette), 1, true, instances, true, true});
-             !v.empty()) {
+  } else if (const std::vector<Violation> v = CheckVariant(variant, Unlimited(), shape); !v.empty()) {
     broken = v.front().message + " (constraint " + Name(v.front().constraint) + ")";
   }
   if (!broken.empty()) {
@@ -248,6 +250,7 @@ std::optional<EmbeddedKernel> EmbedWinner(const WinnersEntry& e, int joints) {
   EmitOptions options;
   options.instanced = e.shape == SceneKind::kInstances;
   options.max_instances = options.instanced ? instances : 0;
+  options.morph_targets = targets;
   return EmbeddedKernel{e, variant, Emit(variant, 0, static_cast<int>(palette), options)};
 }
 
@@ -309,7 +312,7 @@ int RunEmitDb(const EmitArgs& o) {
   // Everything is generated before anything is written.
   std::vector<EmbeddedKernel> kernels;
   for (const WinnersEntry* e : matched) {
-    if (std::optional<EmbeddedKernel> k = EmbedWinner(*e, o.joints)) kernels.push_back(std::move(*k));
+    if (std::optional<EmbeddedKernel> k = EmbedWinner(*e, o.joints, o.morph_targets)) kernels.push_back(std::move(*k));
   }
   if (kernels.empty()) {
     throw Error(o.db + ": none of the " + std::to_string(matched.size()) + " winner(s) matching " + asked +
@@ -360,9 +363,10 @@ Command RegisterEmit(CLI::App& app) {
           ->check(CLI::Range(1, 1 << 20));
   instances->excludes(db);
   sub->add_option("--morph-targets", o->morph_targets,
-                  "the mesh's morph targets, for a variant that applies them (docs/VARIANTS.md \"Morph targets\")")
-      ->check(CLI::Range(1, kMaxMorphTargets))
-      ->excludes(db);
+                  "the mesh's morph targets, for a variant that applies them (docs/VARIANTS.md \"Morph targets\"); "
+                  "with --db, what the morph winners' kernels are specialised for (default: the count each was "
+                  "tuned on)")
+      ->check(CLI::Range(1, kMaxMorphTargets));
   auto* device = sub->add_option("--device", o->device,
                                  "with --db: entries of the devices this matches, as every --device: a "
                                  "case-insensitive substring of the id '<backend>:<platform>/<name>/<driver>', "

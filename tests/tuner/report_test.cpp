@@ -357,7 +357,9 @@ TEST(Report, MorphTargetCountsAreRowsAndHalfOffsetsAClassOfTheirOwn) {
   const std::vector<Winner> chosen = BudgetWinners(winners, 0.05);
   ASSERT_EQ(chosen.size(), 3u) << "one per row: the plain mesh's 1.0 ms decides none of the morph rows";
   for (const Winner& w : chosen)
-    if (w.morph_targets == 8) EXPECT_EQ(w.variant.morph, Morph::kSparseHalf);
+    if (w.morph_targets == 8) {
+      EXPECT_EQ(w.variant.morph, Morph::kSparseHalf);
+    }
   const std::vector<WinnersEntry> db = WinnersDbFromJson(WinnersDatabase(r), "db.json");
   EXPECT_EQ(db.size(), 4u);
   const nlohmann::json merged = MergeWinnersDatabases({WinnersDatabase(r), WinnersDatabase(r)}, {"a.json", "b.json"});

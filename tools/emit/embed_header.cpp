@@ -120,7 +120,8 @@ std::string KernelRow(const EmbeddedKernel& k, std::size_t index, std::size_t so
   const KernelSource& s = k.source;
   const std::string n = std::to_string(source_index);
   std::string row = "    // [" + std::to_string(index) + "] " + Name(e.lang) + " b" + std::to_string(e.influences) +
-                    " " + VertexCountName(e.vertices) + SceneSuffix(e.shape, e.instances, e.meshes) + " on " +
+                    " " + VertexCountName(e.vertices) + SceneSuffix(e.shape, e.instances, e.meshes) +
+                    MorphSuffix(e.morph_targets) + " on " +
                     Quoted(e.device_id);
   if (e.variant.mixed != v.mixed)
     row += " (tuned " + std::string(Name(e.variant.mixed)) + ", emitted " + Name(v.mixed) + ")";
@@ -131,7 +132,8 @@ std::string KernelRow(const EmbeddedKernel& k, std::size_t index, std::size_t so
          EnumFields(v) + ",\n     " +
          Bool(v.blend == Blend::kPoint) + ", " + Bool(SkinsNormals(v)) + ", " + Bool(SkinsTangents(v)) + ", " + std::to_string(s.launch.vertices_per_item) +
          ", " + Bool(s.launch.strided) + ", " +
-         std::to_string(s.launch.wg_size) + ", " + std::to_string(s.joints) + ",\n     " + Quoted(s.entry_point) +
+         std::to_string(s.launch.wg_size) + ", " + std::to_string(s.joints) + ", " + std::to_string(s.morph_targets) +
+         ",\n     " + Quoted(s.entry_point) +
          ", generated::kSource" + n + ", " + Quoted(s.source_hash) + ", " +
          (v.lang == Lang::kVulkan ? "generated::kSpirv" + n + ", sizeof generated::kSpirv" + n + " / 4"
                                   : std::string("nullptr, 0")) +

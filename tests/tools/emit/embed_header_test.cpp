@@ -11,6 +11,9 @@
 #include <unistd.h>
 
 #include <array>
+#include <bit>
+#include <cmath>
+#include <limits>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -42,6 +45,7 @@ namespace fk = fixture_kernels;
 namespace fs = std::filesystem;
 
 constexpr int kJoints = 77;  // the fixture header's palette size (skintune emit's default)
+constexpr int kFixtureMorphTargets = 4;  // the morph winners' (tests/data/embed-winners-db.json)
 
 const std::vector<WinnersEntry>& Fixture() {
   static const std::vector<WinnersEntry> entries = testing::TestDataWinnersDb("embed-winners-db.json");
@@ -65,6 +69,16 @@ const char* Name(fk::WeightFormat v) {
 }
 const char* Name(fk::PaletteFormat v) {
   return v == fk::PaletteFormat::kMat4 ? "mat4" : v == fk::PaletteFormat::kMat3x4 ? "mat3x4" : "dualquat";
+}
+const char* Name(fk::Morph v) {
+  switch (v) {
+    case fk::Morph::kNone: return "none";
+    case fk::Morph::kDense: return "dense";
+    case fk::Morph::kSparse: return "sparse";
+    case fk::Morph::kDenseHalf: return "dense-half";
+    case fk::Morph::kSparseHalf: return "sparse-half";
+  }
+  return "?";
 }
 const char* Name(fk::PaletteStorage v) {
   switch (v) {
@@ -132,6 +146,7 @@ TEST(EmbedHeader, FixtureCoversEveryAxisValueAndOneBucketedWinner) {
     seen["blend"].insert(k.palette == fk::PaletteFormat::kDualquat ? "dq" : k.point_blend ? "point" : "matrix");
     seen["normals"].insert(k.tangents ? "tangents" : k.normals ? "normals" : "nonormals");
     seen["assignment"].insert(k.strided ? "strided" : "contiguous");
+    seen["morph"].insert(Name(k.morph));
   }
   EXPECT_EQ(seen["lang"].size(), 4u);
   EXPECT_EQ(seen["layout"].size(), 3u);
@@ -143,6 +158,7 @@ TEST(EmbedHeader, FixtureCoversEveryAxisValueAndOneBucketedWinner) {
   EXPECT_EQ(seen["blend"].size(), 3u);
   EXPECT_EQ(seen["normals"].size(), 3u);
   EXPECT_EQ(seen["assignment"].size(), 2u);
+  EXPECT_EQ(seen["morph"].size(), 5u);
   int bucketed = 0;
   for (const WinnersEntry& e : Fixture()) bucketed += e.variant.mixed == MixedCounts::kBucketed;
   EXPECT_EQ(bucketed, 1);
@@ -193,6 +209,8 @@ TEST(EmbedHeader, KernelParametersAreTheVariantsAxes) {
     EXPECT_EQ(k.strided, v.assignment == Assignment::kStrided);
     EXPECT_EQ(k.wg_size, v.wg_size);
     EXPECT_EQ(k.joints, kJoints);
+    EXPECT_EQ(Name(k.morph), std::string(skintune::internal::Name(v.morph)));
+    EXPECT_EQ(k.morph_targets, SkinsMorph(v) ? kFixtureMorphTargets : 0);
   }
 }
 
@@ -212,7 +230,7 @@ TEST(EmbedHeader, BucketedWinnerIsEmbeddedAsItsPaddedTwin) {
 TEST(EmbedHeader, SourceIsTheEmittedKernelTextWithItsHashEntryPointAndLaunchRule) {
   for (int i = 0; i < fk::kKernelCount; ++i) {
     const fk::Kernel& k = fk::kKernels[i];
-    const KernelSource s = Emit(VariantOf(k), 0, kJoints);
+    const KernelSource s = Emit(VariantOf(k), 0, kJoints, EmitOptions{.morph_targets = k.morph_targets});
     SCOPED_TRACE(Context(k));
     EXPECT_EQ(std::string(k.source), s.text);
     EXPECT_EQ(std::strlen(k.source), s.text.size());
@@ -240,7 +258,7 @@ TEST(EmbedHeader, WinnersOfTheSameVariantShareOneSourceLiteral) {
 TEST(EmbedHeader, ArgumentsAreTheEmittedInterfaceInKernelOrder) {
   for (int i = 0; i < fk::kKernelCount; ++i) {
     const fk::Kernel& k = fk::kKernels[i];
-    const KernelSource s = Emit(VariantOf(k), 0, kJoints);
+    const KernelSource s = Emit(VariantOf(k), 0, kJoints, EmitOptions{.morph_targets = k.morph_targets});
     SCOPED_TRACE(Context(k));
     ASSERT_EQ(static_cast<std::size_t>(k.argument_count), s.arguments.size());
     for (std::size_t a = 0; a < s.arguments.size(); ++a) {
@@ -265,7 +283,7 @@ TEST(EmbedHeader, GlobalWorkItemsSlotStrideAndOutputStrideFollowSkintunesRules) 
   for (int i = 0; i < fk::kKernelCount; ++i) {
     const fk::Kernel& k = fk::kKernels[i];
     const Variant v = VariantOf(k);
-    const KernelSource s = Emit(v, 0, kJoints);
+    const KernelSource s = Emit(v, 0, kJoints, EmitOptions{.morph_targets = k.morph_targets});
     SCOPED_TRACE(Context(k));
     for (const std::size_t n : counts) {
       EXPECT_EQ(fk::GlobalWorkItems(k, n), s.launch.GlobalItems(n)) << n;
@@ -324,7 +342,45 @@ SkinnedMesh RandomMesh(std::size_t n, int slots, bool normals, unsigned seed) {
   return mesh;
 }
 
-void ExpectPackedLikeSkintune(const fk::Kernel& k, const SkinnedMesh& mesh) {
+// Random morph targets for `mesh`: every other target sparse (a tenth of
+// the vertices), offsets of every magnitude a half holds, some exactly half
+// way between two halves (ties to even), normal and tangent offsets where
+// the mesh has them, one target of normal offsets alone.
+MorphTargets RandomMorph(const SkinnedMesh& mesh, int targets, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> offset(-0.3f, 0.3f);
+  std::uniform_int_distribution<int> exponent(-26, 15);
+  MorphTargets m;
+  const std::size_t n = mesh.vertex_count();
+  for (int t = 0; t < targets; ++t) {
+    m.positions.emplace_back(n, glm::vec3(0.0f));
+    if (mesh.has_normals()) m.normals.emplace_back(n, glm::vec3(0.0f));
+    if (mesh.has_tangents()) m.tangents.emplace_back(n, glm::vec3(0.0f));
+    for (std::size_t v = 0; v < n; ++v) {
+      if (t % 2 == 1 && v % 10 != static_cast<std::size_t>(t)) continue;
+      if (t != 2) {
+        glm::vec3 d(offset(rng), std::ldexp(offset(rng), exponent(rng)), offset(rng));
+        if (v % 13 == 0) d.z = 1.0f + 1.0f / 2048.0f;  // halfway between two halves: ties to even
+        m.positions[static_cast<std::size_t>(t)][v] = d;
+      }
+      if (mesh.has_normals()) m.normals[static_cast<std::size_t>(t)][v] = glm::vec3(offset(rng), 0.0f, offset(rng));
+      if (mesh.has_tangents()) m.tangents[static_cast<std::size_t>(t)][v] = glm::vec3(0.0f, offset(rng), 0.0f);
+    }
+    m.weights.push_back(0.5);
+  }
+  m.where = "random morph targets";
+  return m;
+}
+
+// Target after target, 3 floats a vertex, as PackMorphTargets takes them.
+std::vector<float> Flat(const std::vector<std::vector<glm::vec3>>& targets) {
+  std::vector<float> out;
+  for (const std::vector<glm::vec3>& target : targets)
+    for (const glm::vec3& d : target) out.insert(out.end(), {d.x, d.y, d.z});
+  return out;
+}
+
+void ExpectPackedLikeSkintune(const fk::Kernel& k, SkinnedMesh mesh) {
   const Variant v = VariantOf(k);
   const testing::MeshArrays a = testing::ArraysOf(mesh);
   fk::PackedInputs packed;
@@ -334,6 +390,15 @@ void ExpectPackedLikeSkintune(const fk::Kernel& k, const SkinnedMesh& mesh) {
                            a.tangents.empty() ? nullptr : a.tangents.data(), a.joints.data(), a.weights.data(),
                            &packed, &error))
       << error;
+  if (k.morph != fk::Morph::kNone) {
+    mesh.morph = RandomMorph(mesh, k.morph_targets, static_cast<unsigned>(mesh.vertex_count()));
+    const std::vector<float> positions = Flat(mesh.morph.positions), normals = Flat(mesh.morph.normals),
+                             tangents = Flat(mesh.morph.tangents);
+    ASSERT_TRUE(fk::PackMorphTargets(k, mesh.vertex_count(), k.morph_targets, positions.data(),
+                                     normals.empty() ? nullptr : normals.data(),
+                                     tangents.empty() ? nullptr : tangents.data(), &packed, &error))
+        << error;
+  }
   const PackedMesh want = Pack(mesh, v);
   ASSERT_EQ(want.launches.size(), 1u);
   testing::ExpectInputsOf(packed, want.launches[0]);
@@ -402,7 +467,8 @@ TEST(EmbedHeader, UnpackPositionsReadsTheOutputLikeTheUnpacker) {
   for (int i = 0; i < fk::kKernelCount; ++i) {
     const fk::Kernel& k = fk::kKernels[i];
     SCOPED_TRACE(Context(k));
-    const SkinnedMesh mesh = RandomMesh(97, k.influences, k.normals, 5);
+    SkinnedMesh mesh = RandomMesh(97, k.influences, k.normals, 5);
+    if (k.morph != fk::Morph::kNone) mesh.morph = RandomMorph(mesh, k.morph_targets, 5);
     const PackedMesh packed = Pack(mesh, VariantOf(k));
     std::vector<float> output(mesh.vertex_count() * fk::OutputStrideBytes(k) / sizeof(float));
     for (float& f : output) f = value(rng);
@@ -764,9 +830,90 @@ TEST(EmbedHeader, DualQuaternionKernelsAreFoundOnlyWhenAskedFor) {
   EXPECT_EQ(dq->palette, fk::PaletteFormat::kDualquat);
   for (int b = 1; b <= 8; ++b) {
     const fk::Kernel* linear = fk::FindKernel("cuda", b, 100000, 40);
-    if (linear) EXPECT_NE(linear->palette, fk::PaletteFormat::kDualquat) << b;
+    if (linear) {
+      EXPECT_NE(linear->palette, fk::PaletteFormat::kDualquat) << b;
+    }
   }
   EXPECT_EQ(fk::FindDualQuaternionKernel("opencl", 2, 100000, 40), nullptr);
+}
+
+// Morph kernels only where asked for, and only for the target count they
+// were specialised for; the other finders never return one.
+TEST(EmbedHeader, MorphKernelsAreFoundOnlyForTheirTargetCount) {
+  for (int i = 0; i < fk::kKernelCount; ++i) {
+    const fk::Kernel& k = fk::kKernels[i];
+    if (k.morph == fk::Morph::kNone) continue;
+    SCOPED_TRACE(Context(k));
+    const fk::Kernel* found = fk::FindMorphKernel(k.lang, k.influences, k.vertices, kJoints, kFixtureMorphTargets);
+    ASSERT_NE(found, nullptr);
+    EXPECT_NE(found->morph, fk::Morph::kNone);
+    EXPECT_EQ(found->morph_targets, kFixtureMorphTargets);
+    EXPECT_EQ(fk::FindMorphKernel(k.lang, k.influences, k.vertices, kJoints, kFixtureMorphTargets + 1), nullptr);
+    EXPECT_EQ(fk::FindMorphKernel(k.lang, k.influences, k.vertices, kJoints, 0), nullptr);
+  }
+  for (const char* lang : {"opencl", "cuda", "glsl-compute", "glsl-vertex"})
+    for (int b = 1; b <= 8; ++b) {
+      const fk::Kernel* plain = fk::FindKernel(lang, b, 100000, kJoints);
+      if (plain != nullptr) {
+        EXPECT_EQ(plain->morph, fk::Morph::kNone) << plain->variant;
+      }
+    }
+}
+
+// The header's float-to-half rule (detail::HalfBits, plain C++17) gives the
+// bits of the compiler's own conversion (skintune's packer, _Float16) for
+// every float class: normals, subnormals of the half, ties, overflow.
+TEST(EmbedHeader, HalfBitsIsTheIeeeConversionToBinary16) {
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<std::uint32_t> bits;
+  std::size_t checked = 0;
+  const auto check = [&](float f) {
+    if (!std::isfinite(f)) return;
+    ASSERT_EQ(fk::detail::HalfBits(f), HalfBits(f)) << f;
+    ++checked;
+  };
+  for (int i = 0; i < 200000; ++i) check(std::bit_cast<float>(bits(rng)));
+  for (int e = -30; e <= 17; ++e)
+    for (int m = 0; m < 2048; ++m) {
+      const float f = std::ldexp(1.0f + static_cast<float>(m) / 2048.0f, e);  // every tie of this binade
+      check(f);
+      check(-f);
+      check(std::nextafter(f, 0.0f));
+      check(std::nextafter(f, 1e30f));
+    }
+  check(65504.0f);
+  check(65519.99f);
+  check(65520.0f);
+  check(0.0f);
+  check(-0.0f);
+  EXPECT_GT(checked, 300000u);
+}
+
+// PackMorphTargets names what it refuses.
+TEST(EmbedHeader, PackMorphTargetsRefusesWhatDoesNotFitNamingIt) {
+  const fk::Kernel* morph = nullptr;
+  const fk::Kernel* plain = nullptr;
+  for (int i = 0; i < fk::kKernelCount; ++i) {
+    const fk::Kernel& k = fk::kKernels[i];
+    if (k.morph == fk::Morph::kDenseHalf || k.morph == fk::Morph::kSparseHalf) morph = &k;
+    if (k.morph == fk::Morph::kNone) plain = &k;
+  }
+  ASSERT_NE(morph, nullptr);
+  ASSERT_NE(plain, nullptr);
+  fk::PackedInputs out;
+  std::string error;
+  std::vector<float> offsets(static_cast<std::size_t>(kFixtureMorphTargets) * 10 * 3, 0.0f);
+  EXPECT_FALSE(fk::PackMorphTargets(*plain, 10, kFixtureMorphTargets, offsets.data(), nullptr, nullptr, &out, &error));
+  EXPECT_NE(error.find("the kernel applies no morph targets"), std::string::npos) << error;
+  EXPECT_FALSE(fk::PackMorphTargets(*morph, 10, 3, offsets.data(), nullptr, nullptr, &out, &error));
+  EXPECT_NE(error.find("3 morph targets, the kernel is specialised for 4"), std::string::npos) << error;
+  offsets[(2 * 10 + 7) * 3 + 1] = 70000.0f;
+  EXPECT_FALSE(fk::PackMorphTargets(*morph, 10, kFixtureMorphTargets, offsets.data(), nullptr, nullptr, &out, &error));
+  EXPECT_NE(error.find("target 2 vertex 7: position offset component 70000"), std::string::npos) << error;
+  EXPECT_NE(error.find("rounds to infinity as a half"), std::string::npos) << error;
+  offsets[(2 * 10 + 7) * 3 + 1] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_FALSE(fk::PackMorphTargets(*morph, 10, kFixtureMorphTargets, offsets.data(), nullptr, nullptr, &out, &error));
+  EXPECT_NE(error.find("is not finite"), std::string::npos) << error;
 }
 
 TEST(EmbedHeader, FindKernelReturnsNullForAnUnknownLanguageOrBadArguments) {

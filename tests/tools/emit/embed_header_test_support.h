@@ -53,6 +53,11 @@ const std::vector<std::uint8_t>& Field(const PackedInputs& p, const std::string&
   if (name == "indices") return p.indices;
   if (name == "weights") return p.weights;
   if (name == "tangents") return p.tangents;
+  if (name == "morph_offsets") return p.morph_offsets;
+  if (name == "morph_targets") return p.morph_targets;
+  if (name == "morph_positions") return p.morph_positions;
+  if (name == "morph_normals") return p.morph_normals;
+  if (name == "morph_tangents") return p.morph_tangents;
   return p.normals;
 }
 
@@ -66,7 +71,8 @@ void ExpectInputsOf(const PackedInputs& packed, const Launch& want) {
     EXPECT_EQ(Field(packed, buffer.name), buffer.bytes) << buffer.name;
     EXPECT_EQ(Field(packed, buffer.name).size() % 4, 0u) << buffer.name;
   }
-  for (const char* name : {"records", "positions", "indices", "weights", "normals", "tangents"}) {
+  for (const char* name : {"records", "positions", "indices", "weights", "normals", "tangents", "morph_offsets",
+                           "morph_targets", "morph_positions", "morph_normals", "morph_tangents"}) {
     if (!names.count(name)) {
       EXPECT_TRUE(Field(packed, name).empty()) << name << " is not an input of the layout";
     }
