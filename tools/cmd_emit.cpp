@@ -170,7 +170,8 @@ Row RowOf(const WinnersEntry& e) {
 void WarnOverBudget(const WinnersEntry& e, double max_error) {
   std::cerr << "skintune: warning: skipping " << Describe(e) << " " << e.variant.Key() << ": ";
   if (e.source_error.known)
-    std::cerr << "its weights cost " << e.source_error.quantisation_rel << " of the bounding-box diagonal, over "
+    std::cerr << (MorphHalf(e.variant) ? "its weights and half morph offsets cost " : "its weights cost ")
+              << e.source_error.quantisation_rel << " of the bounding-box diagonal, over "
               << "--max-error " << max_error << "\n";
   else
     std::cerr << "its quantisation error is not recorded (a database before 1.3.0: tune again)\n";

@@ -328,7 +328,7 @@ TEST(SkintuneCli, VariantsWithAnUnknownDeviceIsAnError) {
 
 const std::string kEmbedDb = kData + "/embed-winners-db.json";
 // tests/data/embed-winners-db.json: 15 winners, 14 distinct variants (CUDA b3 wins 100k and 1600k).
-constexpr std::size_t kEmbedWinners = 16, kEmbedVariants = 15;
+constexpr std::size_t kEmbedWinners = 20, kEmbedVariants = 19;
 const std::string kCudaB3 = "cuda.b3.padded.aos.float3.i32.unorm16.mat3x4.image.matrix.v2c.wg96.nonormals";
 const std::string kBucketedWinner = "opencl.b4.bucketed.soa.float4.i32.f32.mat3x4.image.matrix.v4s.wg256.nonormals";
 const std::string kBucketedTwin = "opencl.b4.padded.soa.float4.i32.f32.mat3x4.image.matrix.v4s.wg256.nonormals";
@@ -456,10 +456,11 @@ TEST(SkintuneCli, EmitDbMatchesTheDeviceCaseInsensitivelyInIdNameVendorOrPlatfor
     }
     return exts;
   };
-  EXPECT_EQ(kernels("GEFORCE rtx"), std::vector<std::string>(5, ".cu"));                      // name
-  EXPECT_EQ(kernels("advanced micro"), std::vector<std::string>(5, ".cl"));                   // vendor only
-  EXPECT_EQ(kernels("accelerated PARALLEL"), std::vector<std::string>(5, ".cl"));             // platform
-  EXPECT_EQ(kernels("mesa 23.2"), (std::vector<std::string>{".comp", ".comp", ".vert", ".vert", ".comp"}));  // id
+  EXPECT_EQ(kernels("GEFORCE rtx"), std::vector<std::string>(6, ".cu"));                      // name
+  EXPECT_EQ(kernels("advanced micro"), std::vector<std::string>(6, ".cl"));                   // vendor only
+  EXPECT_EQ(kernels("accelerated PARALLEL"), std::vector<std::string>(6, ".cl"));             // platform
+  EXPECT_EQ(kernels("mesa 23.2"),
+            (std::vector<std::string>{".comp", ".comp", ".vert", ".vert", ".comp", ".comp", ".vert"}));  // id
 }
 
 TEST(SkintuneCli, EmitDbLangKeepsOnlyThoseLanguagesInTheHeaderAndNamespaceAsked) {
@@ -467,14 +468,14 @@ TEST(SkintuneCli, EmitDbLangKeepsOnlyThoseLanguagesInTheHeaderAndNamespaceAsked)
   const auto r = RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--lang", "glsl-compute", "--lang",
                               "glsl-vertex", "--header", "gl_kernels.h", "--namespace", "game::gpu", "--out", dir});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(Lines(r.out).size(), 2 * 5 + 1u) << r.out;
+  EXPECT_EQ(Lines(r.out).size(), 2 * 7 + 1u) << r.out;
   for (const std::string& name : FilesIn(dir)) {
     const std::string ext = fs::path(name).extension().string();
     EXPECT_TRUE(ext == ".comp" || ext == ".vert" || ext == ".json" || name == "gl_kernels.h") << name;
   }
   EXPECT_FALSE(fs::exists(dir / "skintune_kernels.h"));
   EXPECT_NE(ReadAll(dir / "gl_kernels.h").find("\nnamespace game::gpu {\n"), std::string::npos);
-  EXPECT_EQ(HeaderKernelCount(dir / "gl_kernels.h"), "5");
+  EXPECT_EQ(HeaderKernelCount(dir / "gl_kernels.h"), "7");
 }
 
 TEST(SkintuneCli, EmitDbWithNoMatchingDeviceListsTheDatabasesDevicesAndWritesNothing) {
@@ -554,14 +555,14 @@ TEST(SkintuneCli, EmitDbSkipsWinnersThatCannotTakeTheJointCountWithOneWarningEac
   const auto r = RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--joints", "300", "--out", dir});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::vector<std::string> warnings = Lines(r.err);
-  ASSERT_EQ(warnings.size(), 3u) << r.err;  // the three u8 winners
+  ASSERT_EQ(warnings.size(), 4u) << r.err;  // the four u8 winners
   for (const std::string& w : warnings) {
     EXPECT_EQ(w.rfind("skintune: warning: skipping ", 0), 0u) << w;
     EXPECT_NE(w.find(".u8."), std::string::npos) << w;
     EXPECT_NE(w.find("cannot be emitted for 300 joints"), std::string::npos) << w;
     EXPECT_NE(w.find("(constraint index_range)"), std::string::npos) << w;
   }
-  EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners - 3));
+  EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners - 4));
   for (const std::string& name : FilesIn(dir)) EXPECT_EQ(name.find(".u8."), std::string::npos) << name;
 }
 
@@ -577,30 +578,34 @@ TEST(SkintuneCli, EmitDbWhenEveryMatchIsSkippedIsAnErrorAndWritesNothing) {
   const auto r = RunSkintune({"emit", "--db", u8_only, "--device", "", "--joints", "257", "--out", dir});
   EXPECT_EQ(r.exit_code, 1);
   const std::vector<std::string> lines = Lines(r.err);
-  ASSERT_EQ(lines.size(), 4u) << r.err;
+  ASSERT_EQ(lines.size(), 5u) << r.err;
   EXPECT_EQ(lines.back(), "skintune: error: " + u8_only.string() +
-                              ": none of the 3 winner(s) matching --device '' can be emitted for 257 joints (see the "
+                              ": none of the 4 winner(s) matching --device '' can be emitted for 257 joints (see the "
                               "warnings above)");
   EXPECT_FALSE(fs::exists(dir));
 }
 
-// --max-error: the fixture's unorm16 winners cost 3.1e-6 of the diagonal (its
-// unorm8 ones 0, f32 0): a budget of 1e-6 skips the 4 unorm16 ones, each with a
-// warning naming its error; the sidecars record every winner's source_error.
+// --max-error: the fixture's unorm16 winners cost 3.1e-6 of the diagonal and
+// its half morph offsets 5e-6 (its unorm8 ones 0, f32 0): a budget of 1e-6
+// skips the 4 unorm16 ones and the 2 half ones, each with a warning naming
+// its error; the sidecars record every winner's source_error.
 TEST(SkintuneCli, EmitDbKeepsTheWinnersWithinTheErrorBudget) {
   const fs::path root = Scratch();
   const fs::path dir = root / "kernels";
   const auto r = RunSkintune({"emit", "--db", kEmbedDb, "--device", "", "--max-error", "1e-6", "--out", dir});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(Lines(r.err).size(), 4u) << r.err;
+  EXPECT_EQ(Lines(r.err).size(), 6u) << r.err;
   for (const std::string& line : Lines(r.err)) {
     EXPECT_EQ(line.rfind("skintune: warning: skipping ", 0), 0u) << line;
-    EXPECT_NE(line.find(".unorm16."), std::string::npos) << line;
-    EXPECT_NE(line.find("its weights cost 3.1e-06 of the bounding-box diagonal, over --max-error 1e-06"),
+    const bool half = line.find("-half") != std::string::npos;
+    EXPECT_NE(line.find(half ? ".f32." : ".unorm16."), std::string::npos) << line;
+    EXPECT_NE(line.find(half ? "its weights and half morph offsets cost 5e-06 of the bounding-box diagonal, over "
+                               "--max-error 1e-06"
+                             : "its weights cost 3.1e-06 of the bounding-box diagonal, over --max-error 1e-06"),
               std::string::npos)
         << line;
   }
-  EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners - 4));
+  EXPECT_EQ(HeaderKernelCount(dir / "skintune_kernels.h"), std::to_string(kEmbedWinners - 6));
   EXPECT_FALSE(fs::exists(dir / (kCudaB3 + ".json")));  // a unorm16 winner
   // The header and every sidecar record the budget they were emitted under.
   const std::string header = ReadAll(dir / "skintune_kernels.h");
@@ -622,7 +627,7 @@ TEST(SkintuneCli, EmitDbKeepsTheWinnersWithinTheErrorBudget) {
   });
   const auto unknown = RunSkintune({"emit", "--db", old, "--device", "", "--out", root / "old"});
   ASSERT_EQ(unknown.exit_code, 0) << unknown.err;
-  EXPECT_EQ(Lines(unknown.err).size(), 11u) << unknown.err;  // 7 unorm8 + 4 unorm16
+  EXPECT_EQ(Lines(unknown.err).size(), 13u) << unknown.err;  // 7 unorm8 + 4 unorm16 + 2 half morph offsets
   EXPECT_NE(unknown.err.find("its quantisation error is not recorded"), std::string::npos) << unknown.err;
   // A bad budget is one line naming the flag, and nothing is written.
   const fs::path none = root / "none";
