@@ -54,7 +54,11 @@ void WritePalette(const std::string& path, const std::vector<glm::mat4>& palette
 
 // Exit 0 when `o.check`'s positions agree with the gold of `mesh` (its
 // weights quantised as `o.check_variant` does, when given) within tolerance.
-int Check(const SkinOptions& o, const SkinnedMesh& mesh, const std::vector<glm::mat4>& palette) {
+// `weighted`: the mesh with its morph targets at the frame's weights, not
+// applied: a variant that applies them (with half offsets: rounded as it
+// stores them) is checked against the gold of their float64 morph.
+int Check(const SkinOptions& o, const SkinnedMesh& mesh, const SkinnedMesh& weighted,
+          const std::vector<glm::mat4>& palette) {
   const SkinnedVertices theirs = ReadSkinnedVertices(o.check);
   if (theirs.positions.size() != mesh.vertex_count())
     throw Error(o.check + ": " + std::to_string(theirs.positions.size()) + " vertices, the mesh has " +
@@ -63,8 +67,10 @@ int Check(const SkinOptions& o, const SkinnedMesh& mesh, const std::vector<glm::
   SkinnedMesh reference = mesh;
   if (!o.check_variant.empty()) {
     const Variant variant = ParseVariantKey(o.check_variant);
-    reference = QuantisedMesh(mesh, variant);
-    what += " with " + std::string(Name(variant.weight)) + " weights";
+    const bool morph = SkinsMorph(variant) && weighted.has_morph();
+    reference = QuantisedMesh(morph ? weighted : mesh, variant);
+    what += " with " + std::string(Name(variant.weight)) + " weights" +
+            (morph ? std::string(" and ") + Name(variant.morph) + " morph targets" : "");
   }
   const GoldResult gold = BlendGold(o, reference, palette);
   const GoldComparison c = CompareToGold(gold.positions, theirs.positions);
@@ -82,7 +88,8 @@ int Check(const SkinOptions& o, const SkinnedMesh& mesh, const std::vector<glm::
     std::cout << o.check << " against the unquantised source: largest error " << source.max_absolute
               << " (mesh units), " << (diagonal > 0.0 ? source.max_absolute / diagonal : 0.0)
               << " of the bounding-box diagonal " << diagonal << "; the "
-              << Name(ParseVariantKey(o.check_variant).weight) << " weights alone cost "
+              << Name(ParseVariantKey(o.check_variant).weight) << " weights"
+              << (MorphHalf(ParseVariantKey(o.check_variant)) ? " and half morph offsets" : "") << " alone cost "
               << (diagonal > 0.0 ? quantisation / diagonal : 0.0) << " of it\n";
   }
   if (!ok)
@@ -160,7 +167,7 @@ int RunSkin(const SkinOptions& o) {
     for (const double w : asset.MorphWeightsAt(clip, t)) std::cout << " " << w;
     std::cout << "\n";
   }
-  return o.check.empty() ? 0 : Check(o, mesh, palette);
+  return o.check.empty() ? 0 : Check(o, mesh, asset.MeshWithMorphWeightsAt(clip, t), palette);
 }
 
 }  // namespace

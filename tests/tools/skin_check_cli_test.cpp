@@ -130,6 +130,37 @@ TEST(SkinCheckCli, WrongVertexCountAndMissingOutputsAreErrors) {
 // base mesh by the offsets the script wrote (weights interpolated here from
 // its keys), then skins it by the gold (normals by the inverse transpose:
 // reference/skinning.h); the palette is the importer's.
+// --check with a variant that applies the morph targets as halves: the gold
+// of the offsets rounded as that variant stores them, morphed in float64.
+// A file skinned that way agrees with it and not with the float32 offsets'
+// gold, at a tolerance between the two.
+TEST(SkinMorphCli, CheckOfAHalfMorphVariantTakesTheGoldOfItsRoundedOffsets) {
+  const std::string file = std::string(SKINTUNE_TEST_DATA_DIR) + "/RiggedSimple-morph.gltf";
+  const SkinnedAsset asset = ImportGltf(file).asset;
+  const double t = 0.45;
+  const Variant half = ParseVariantKey("opencl.b4.soa.morph-sparse-half");
+  const SkinnedMesh weighted = asset.MeshWithMorphWeightsAt(0, t);
+  const std::vector<glm::mat4> palette = asset.PaletteAt(0, t);
+  const GoldResult rounded = SkinGold(QuantisedMesh(weighted, half), palette);
+  const GoldResult exact = SkinGold(weighted, palette);
+  const std::vector<glm::vec3> theirs(rounded.positions.begin(), rounded.positions.end());
+  const double apart = CompareToGold(exact.positions, theirs).max_relative;
+  ASSERT_GT(apart, 4e-6) << "the half offsets must move the output for the check to tell them apart";
+  const fs::path dir = Scratch();
+  const std::string out = (dir / "half.stv").string();
+  WriteSkinnedVertices(out, theirs, {}, {});
+  const std::string tolerance = std::to_string(apart / 4);
+  const auto with = RunSkintune({"skin", "--mesh", file, "--animation", "0", "--time", std::to_string(t), "--check",
+                                 out, "--variant", half.Key(), "--tolerance", tolerance});
+  EXPECT_EQ(with.exit_code, 0) << with.out << with.err;
+  EXPECT_NE(with.out.find("agrees with the gold with f32 weights and sparse-half morph targets"), std::string::npos)
+      << with.out;
+  EXPECT_NE(with.out.find("the f32 weights and half morph offsets alone cost"), std::string::npos) << with.out;
+  const auto without = RunSkintune(
+      {"skin", "--mesh", file, "--animation", "0", "--time", std::to_string(t), "--check", out, "--tolerance", tolerance});
+  EXPECT_EQ(without.exit_code, 1) << without.out << without.err;
+}
+
 TEST(SkinMorphCli, MorphsThenSkinsAtEveryTimeAgainstAnIndependentReference) {
   const std::string file = std::string(SKINTUNE_TEST_DATA_DIR) + "/RiggedSimple-morph.gltf";
   GltfImportOptions with_normals;
