@@ -61,7 +61,8 @@ struct PackedMesh {
   std::size_t palette_joints = 0;
   std::size_t output_stride_bytes = 0;  // bytes per output vertex (16 for float4, 12 for float3)
   // Morph targets (variants that skin them): their count T, and the weights
-  // the mesh is skinned with as the kernel reads them (T float32), bound
+  // the mesh is skinned with as the kernel reads them (T float32, every
+  // instance's; or K x T, each instance's, where a caller sets them so), bound
   // until a frame's weights replace them (as `palette` is).
   int morph_targets = 0;
   std::vector<std::uint8_t> morph_weights;

@@ -312,9 +312,19 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
                              palette_slots > 1 ? "" : ShareKey(options, index, BufferUse::kPalette, "palette", palette));
     bytes += palette.size();
     if (SkinsMorph(mesh.variant)) {
+      // Each instance's weights where the packed mesh holds K runs, else its one run for every instance.
+      const std::size_t one = static_cast<std::size_t>(mesh.morph_targets) * sizeof(float);
       std::vector<std::uint8_t> weights;
-      for (int i = 0; i < shape.instances; ++i)
-        weights.insert(weights.end(), mesh.morph_weights.begin(), mesh.morph_weights.end());
+      if (mesh.morph_weights.size() == one * static_cast<std::size_t>(shape.instances)) {
+        weights = mesh.morph_weights;
+      } else {
+        if (mesh.morph_weights.size() != one)
+          Fail("launch", "the packed mesh's morph weights have " + std::to_string(mesh.morph_weights.size()) +
+                             " bytes, expected " + std::to_string(one) + " (T) or " +
+                             std::to_string(one * static_cast<std::size_t>(shape.instances)) + " (K x T)");
+        for (int i = 0; i < shape.instances; ++i)
+          weights.insert(weights.end(), mesh.morph_weights.begin(), mesh.morph_weights.end());
+      }
       slot.morph_weights = SetBuffer(p, index, BufferUse::kPalette, weights, std::string(kMorphWeightsArgument) + suffix,
                                      palette_slots > 1 ? "" : ShareKey(options, index, BufferUse::kPalette,
                                                                        kMorphWeightsArgument, weights));

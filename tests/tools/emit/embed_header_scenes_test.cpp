@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "generator/emit.h"
 #include "generator/packer.h"
 #include "model/scene.h"
 #include "reference/skinning.h"
@@ -45,6 +46,7 @@ const sk::Kernel& kCrowd16 = sk::kKernels[2];     // opencl b4, 16 instances, lo
 const sk::Kernel& kBatch4 = sk::kKernels[3];      // opencl b4, a batch of 4 meshes, constant palette
 const sk::Kernel& kCudaSingle = sk::kKernels[4];  // cuda b4 25k
 const sk::Kernel& kCudaCrowd8 = sk::kKernels[5];  // cuda b4, 8 instances, __constant__ palette of 8
+const sk::Kernel& kMorphCrowd4 = sk::kKernels[6];  // opencl b4, 4 instances, 6 morph targets as halves, normals
 
 Variant VariantOf(const sk::Kernel& k) { return ParseVariantKey(k.variant); }
 
@@ -86,7 +88,8 @@ TEST(EmbedHeaderScenes, EachKernelCarriesTheSceneItWonOnAndItsPaletteSize) {
   }
   // Only a compile-time palette array bounds the instances of a launch.
   EXPECT_EQ(kCudaCrowd8.max_instances, 8);
-  for (const sk::Kernel* k : {&kSingle, &kCrowd4, &kCrowd16, &kBatch4, &kCudaSingle}) EXPECT_EQ(k->max_instances, 0);
+  for (const sk::Kernel* k : {&kSingle, &kCrowd4, &kCrowd16, &kBatch4, &kCudaSingle, &kMorphCrowd4})
+    EXPECT_EQ(k->max_instances, 0);
   EXPECT_EQ(sk::kMaxError, kDefaultBudget);
 }
 
@@ -260,7 +263,8 @@ PackedMesh PackedOf(const sk::Kernel& k, const sk::PackedInputs& inputs, std::si
   launch.slot_stride = static_cast<std::uint32_t>(sk::SlotStride(k, n));
   for (int i = 0; i < k.argument_count; ++i) {
     const sk::Argument& a = k.arguments[i];
-    if (!a.output && !a.scalar && std::string(a.name) != "palette")
+    // The palette and the morph weights are a frame's: Run binds them itself.
+    if (!a.output && !a.scalar && std::string(a.name) != "palette" && std::string(a.name) != kMorphWeightsArgument)
       launch.inputs.push_back({a.name, testing::Field(inputs, a.name)});
   }
   p.launches.push_back(std::move(launch));
@@ -323,6 +327,78 @@ void ExpectCrowdMatchesTheGold(int instances, const sk::Kernel& expected) {
 TEST(EmbedHeaderScenes, CrowdKernelsRunOnOpenClLikeTheGoldOfEachInstance) {
   ExpectCrowdMatchesTheGold(4, kCrowd4);
   ExpectCrowdMatchesTheGold(24, kCrowd16);  // a local palette: any K
+}
+
+// CesiumMan with six morph targets (target 0 over every vertex, each other
+// one over every sixth) as a crowd of 4, each instance its own pose and its
+// own weights, through the header alone: FindMorphKernel, PackMesh,
+// PackMorphTargets, PackPalette of K instances and K x T weights, one
+// instanced launch; each instance against the float64 gold of the mesh
+// morphed at its weights (the offsets rounded to binary16, as the kernel
+// stores them), positions and normals.
+TEST(EmbedHeaderScenes, AMorphCrowdKernelRunsOnOpenClLikeTheGoldOfEachInstance) {
+  std::string why;
+  OpenClRunner* runner = testing::FirstOpenClRunner(why);
+  if (runner == nullptr) GTEST_SKIP() << why;
+  constexpr int kTargets = 6, kInstances = 4;
+  SkinnedMesh mesh = Cesium();
+  const std::size_t n = mesh.vertex_count();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> offset(-0.05f, 0.05f), weight(-0.5f, 1.2f);
+  MorphTargets& m = mesh.morph;
+  std::vector<float> positions, normals;
+  for (int t = 0; t < kTargets; ++t) {
+    m.positions.emplace_back(n, glm::vec3(0.0f));
+    m.normals.emplace_back(n, glm::vec3(0.0f));
+    for (std::size_t v = 0; v < n; ++v) {
+      if (t != 0 && v % kTargets != static_cast<std::size_t>(t)) continue;
+      m.positions.back()[v] = {offset(rng), offset(rng), offset(rng)};
+      m.normals.back()[v] = {offset(rng), offset(rng), offset(rng)};
+    }
+    for (std::size_t v = 0; v < n; ++v) {
+      positions.insert(positions.end(), {m.positions.back()[v].x, m.positions.back()[v].y, m.positions.back()[v].z});
+      normals.insert(normals.end(), {m.normals.back()[v].x, m.normals.back()[v].y, m.normals.back()[v].z});
+    }
+  }
+  m.weights.assign(kTargets, 0.0);
+  const sk::Kernel* k = sk::FindMorphKernel("opencl", mesh.influences, n, mesh.joint_count, kTargets, kInstances);
+  ASSERT_EQ(k, &kMorphCrowd4);
+  EXPECT_EQ(sk::FindCrowdKernel("opencl", mesh.influences, n, mesh.joint_count, kInstances), &kCrowd4);
+  const testing::MeshArrays a = testing::ArraysOf(mesh);
+  sk::PackedInputs inputs;
+  std::string error;
+  ASSERT_TRUE(sk::PackMesh(*k, n, mesh.influences, a.positions.data(), a.normals.data(), a.joints.data(),
+                           a.weights.data(), &inputs, &error))
+      << error;
+  ASSERT_TRUE(sk::PackMorphTargets(*k, n, kTargets, positions.data(), normals.data(), nullptr, &inputs, &error))
+      << error;
+  std::vector<float> weights;
+  std::vector<std::vector<glm::mat4>> poses;
+  std::vector<glm::mat4> all;
+  for (int i = 0; i < kInstances; ++i) {
+    for (int t = 0; t < kTargets; ++t) weights.push_back(weight(rng));
+    poses.push_back(PoseOf("CesiumMan.gltf", 0.15 + 0.7 * i / kInstances));
+    all.insert(all.end(), poses.back().begin(), poses.back().end());
+  }
+  const std::vector<float> palettes = sk::PackPalette(*k, &all[0][0][0], mesh.joint_count, kInstances);
+  PackedMesh packed = PackedOf(*k, inputs, n);
+  packed.morph_targets = kTargets;
+  packed.morph_weights = Bytes(weights);  // K x T: each instance's
+  const std::vector<KernelSource> kernels = {SourceOf(*k)};
+  const RunResult result = runner->Run(packed, kernels, Bytes(palettes), kInstances);
+  EXPECT_EQ(result.poisoned_vertices, 0u);
+  for (int i = 0; i < kInstances; ++i) {
+    SkinnedMesh weighted = mesh;
+    weighted.morph.weights.assign(weights.begin() + i * kTargets, weights.begin() + (i + 1) * kTargets);
+    const GoldResult gold = SkinGold(QuantisedMesh(weighted, VariantOf(*k)), poses[static_cast<std::size_t>(i)], true);
+    const std::size_t first = static_cast<std::size_t>(i) * n;
+    ExpectGold(gold.positions, Unpacked(*k, result.positions, first, n), "instance " + std::to_string(i));
+    ExpectGold(gold.normals, Unpacked(*k, result.normals, first, n), "normals of " + std::to_string(i));
+    // Not vacuous: its weights move it away from the mesh without morph targets.
+    SkinnedMesh plain = mesh;
+    plain.morph = MorphTargets{};
+    EXPECT_GT(MaxDistance(SkinGold(plain, poses[static_cast<std::size_t>(i)]).positions, gold.positions), 1e-3);
+  }
 }
 
 // The four meshes as one batch through the header alone: PackBatch,
