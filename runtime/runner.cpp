@@ -45,6 +45,10 @@ struct Prepared::Impl {
     float delta = 0.0f;
     // What PaletteStaging and UploadPalette fill: the instances where animated.
     DeviceBuffer& Uploaded() const { return instances ? *instances : *palette; }
+    // Whether a new upload into the slot's buffers must wait for its fence:
+    // a launch read them since their last upload, or the API runs uploads
+    // after the launches queued before them.
+    bool UploadFenced(const DeviceApi& api) const { return done && (launched || api.OrdersUploadsAfterLaunches()); }
     std::unique_ptr<DeviceObject> done;
     std::string fence_name;  // "palette slot N of <key>", built on the slot's first wait
     bool launched = false;   // a launch read the slot (and so waited for its upload) since that upload
@@ -740,8 +744,7 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   const Prepared::Impl& p = *prepared.impl_;
   const std::size_t next = TakeNextSlot(prepared, set);
   Prepared::Impl::Slot& slot = s.slots[next];
-  const bool upload_fenced = slot.done && (slot.launched || api_->OrdersUploadsAfterLaunches());
-  const std::span<std::uint8_t> staging = api_->Staging(slot.Uploaded(), p.key, upload_fenced);
+  const std::span<std::uint8_t> staging = api_->Staging(slot.Uploaded(), p.key, slot.UploadFenced(*api_));
   if (staging.size() < p.upload_bytes)
     Fail("launch", "the palette staging of " + p.key + " has " + std::to_string(staging.size()) + " bytes, the frame " +
                        std::to_string(p.upload_bytes));
@@ -756,8 +759,7 @@ std::span<std::uint8_t> Runner::MorphWeightsStaging(Prepared& prepared, int set)
   if (!s.staged) Fail("launch", "MorphWeightsStaging of " + p.key + " without PaletteStaging");
   Prepared::Impl::Slot& slot = s.slots[*s.staged];
   if (!slot.morph_weights) Fail("launch", p.key + " skins no morph targets: it has no morph weights");
-  const bool upload_fenced = slot.done && (slot.launched || api_->OrdersUploadsAfterLaunches());
-  return api_->Staging(*slot.morph_weights, p.key, upload_fenced).first(slot.morph_weights->bytes());
+  return api_->Staging(*slot.morph_weights, p.key, slot.UploadFenced(*api_)).first(slot.morph_weights->bytes());
 }
 
 void Runner::UploadPalette(Prepared& prepared, int set) {

@@ -245,10 +245,9 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   // Rigid joints assumed: SetPalette refuses each matrix that is not (dual quaternions only).
   // Morph targets: a mesh that has them takes a morph variant whatever its
   // first weights, as SetMorphWeights may move it any frame.
-  ProblemShape shape{mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
-                     options.instances, options.tangents, true};
-  shape.morph_targets = static_cast<int>(mesh.morph.count());
-  shape.morph_moves = mesh.has_morph();
+  const ProblemShape shape = WithMorphOf({mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
+                                          options.instances, options.tangents, true},
+                                         mesh.morph);
   if (!options.variant.empty()) return Forced(call, options.variant, state, shape, options.dual_quaternions);
   SelectionRequest request;
   request.device = state.info;

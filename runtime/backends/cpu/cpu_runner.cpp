@@ -400,7 +400,7 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
           std::span(b.inputs).subspan(vertex_inputs, b.inputs.size() - vertex_inputs - 1);
       const float* weights = reinterpret_cast<const float*>(b.inputs.back()) +
                              static_cast<std::size_t>(i) * static_cast<std::size_t>(plan.morph_targets);
-      const CpuStreams morphed = MorphedStreams(spec.variant, s, b.morph, spec.count);
+      const CpuStreams morphed = MorphedStreams(s, b.morph, spec.count);
       pool.ParallelFor(spec.count, std::max<std::size_t>(choice.schedule.chunk, 64),
                        [&](std::size_t begin, std::size_t end) {
                          MorphCpuStreams(spec.variant, spec.count, plan.morph_targets, morph, weights, s, b.morph,

@@ -157,8 +157,7 @@ void MorphCpuStreams(const Variant& variant, std::size_t count, int targets,
   }
 }
 
-CpuStreams MorphedStreams(const Variant& variant, CpuStreams s, CpuMorphScratch& scratch, std::size_t count) {
-  (void)variant;
+CpuStreams MorphedStreams(CpuStreams s, CpuMorphScratch& scratch, std::size_t count) {
   scratch.positions.resize(3 * count);
   s.positions = reinterpret_cast<const std::uint8_t*>(scratch.positions.data());
   s.position_stride = 3 * sizeof(float);

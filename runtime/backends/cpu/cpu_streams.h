@@ -44,6 +44,6 @@ void MorphCpuStreams(const Variant& variant, std::size_t count, int targets,
                      std::span<const std::uint8_t* const> morph_inputs, const float* weights, const CpuStreams& s,
                      CpuMorphScratch& scratch, std::size_t begin, std::size_t end);
 // `s` reading `scratch` (sized for `count` vertices) for what MorphCpuStreams wrote.
-CpuStreams MorphedStreams(const Variant& variant, CpuStreams s, CpuMorphScratch& scratch, std::size_t count);
+CpuStreams MorphedStreams(CpuStreams s, CpuMorphScratch& scratch, std::size_t count);
 
 }  // namespace skintune::internal
