@@ -294,6 +294,16 @@ inline constexpr Axis kAxes[] = {
      .chart = Chart::kNo,  // none or not is set by the data set; the report's rows name the layout
      .embedded_enum = "Morph",
      .key_omits_default = true},
+    {.name = "normal_format",
+     .field = FieldOf<&Variant::normal_format>(),
+     .values = {V(NormalFormat::kF32, "f32", "normals-f32"), V(NormalFormat::kOct16, "oct16", "normals-oct16"),
+                V(NormalFormat::kSnorm8, "snorm8", "normals-snorm8")},
+     .define = "NORMAL_FORMAT",  // 0 float32, 1 octahedral 2 x unorm16, 2 4 x snorm8
+     .covering = Covering::kRotated,
+     .covering_step = 2,
+     .chart = Chart::kNo,  // the consumer's format, not a tuning choice: rows of their own
+     .embedded_enum = "NormalFormat",
+     .key_omits_default = true},
 };
 inline constexpr std::size_t kAxisCount = std::size(kAxes);
 

@@ -51,6 +51,10 @@ void CheckShape(const Variant& v, const ProblemShape& shape, std::vector<Violati
                    "morph none: the mesh's " + std::to_string(shape.morph_targets) +
                        " morph targets move its vertices, and a variant without them would skin the wrong shape"});
   }
+  if (PacksNormals(v) && !SkinsNormals(v)) {
+    out.push_back({Constraint::kNormalFormatUnused,
+                   std::string("normal_format ") + Name(v.normal_format) + " packs normals, but the variant skins none"});
+  }
   if (SkinsTangents(v) && v.position != PositionFormat::kFloat4) {
     out.push_back({Constraint::kTangentsFormat,
                    "tangents need the float4 position format (tangents are float4, and every output has one stride)"});
@@ -173,6 +177,7 @@ const char* Name(Constraint c) {
     case Constraint::kJointsNotRigid: return "joints_not_rigid";
     case Constraint::kMorphMissing: return "morph_missing";
     case Constraint::kMorphIgnored: return "morph_ignored";
+    case Constraint::kNormalFormatUnused: return "normal_format_unused";
   }
   return "unknown";
 }

@@ -68,6 +68,7 @@ enum class Constraint {
   kJointsNotRigid,        // blend dq on a mesh whose palettes scale, shear or mirror
   kMorphMissing,          // a morph value on a mesh without morph targets (not a variant of this data set)
   kMorphIgnored,          // morph none on a mesh whose morph targets move vertices (it would skin the wrong shape)
+  kNormalFormatUnused,    // a packed normal format on a variant that skins no normals
 };
 
 const char* Name(Constraint);

@@ -79,6 +79,7 @@ Variant Complete(Variant v, std::size_t i, const DeviceLimits& device, const Pro
   if (!shape.has_normals) v.normals = Normals::kNone;
   if (!shape.has_tangents && v.normals == Normals::kTangents) v.normals = Normals::kNormals;
   if (v.normals == Normals::kTangents) v.position = PositionFormat::kFloat4;  // tangents are float4
+  if (v.normals == Normals::kNone) v.normal_format = NormalFormat::kF32;     // nothing to pack
   // Morph targets: a mesh without them has no morph variants, one that they move none without them.
   if (shape.morph_targets == 0) v.morph = Morph::kNone;
   if (shape.morph_moves && v.morph == Morph::kNone) {

@@ -132,8 +132,15 @@ std::vector<KernelArgument> KernelArguments(const Variant& v, int b, bool instan
                   ArgumentDirection::kIn,
                   v.storage == PaletteStorage::kImage ? ArgumentKind::kImage : ArgumentKind::kBuffer});
   args.push_back(Vector("out_positions", v, ArgumentDirection::kOut));
-  if (SkinsNormals(v)) args.push_back(Vector("out_normals", v, ArgumentDirection::kOut));
-  if (SkinsTangents(v)) args.push_back(Tangents("out_tangents", ArgumentDirection::kOut));
+  if (PacksNormals(v)) {  // one word a vector (docs/VARIANTS.md "Packed normals and tangents")
+    for (const Output o : {Output::kNormals, Output::kTangents})
+      if (Writes(v, o))
+        args.push_back({SpecOf(o).argument, Name(v.normal_format), 4, 4, "first+v", ArgumentDirection::kOut,
+                        ArgumentKind::kBuffer});
+  } else {
+    if (SkinsNormals(v)) args.push_back(Vector("out_normals", v, ArgumentDirection::kOut));
+    if (SkinsTangents(v)) args.push_back(Tangents("out_tangents", ArgumentDirection::kOut));
+  }
   if (instanced) {
     for (KernelArgument& a : args) {
       if (a.direction == ArgumentDirection::kOut)
@@ -431,6 +438,39 @@ nlohmann::json WeightsJson(WeightFormat format) {
                     "quantisation error), e.g. a glTF's normalized WEIGHTS of this width"}};
 }
 
+// How a packed normal_format's words are written and read (docs/VARIANTS.md
+// "Packed normals and tangents", the emitted header's PackNormal /
+// PackTangent / UnpackNormal / UnpackTangent).
+nlohmann::json NormalFormatJson(NormalFormat format) {
+  const std::string round = "each operation in float32; unorm16(c) = floor(clamp(c, 0, 1) * 65535 + 0.5), "
+                            "snorm8(c) = floor(clamp(c, -1, 1) * 127 + 0.5) as a two's-complement byte";
+  if (format == NormalFormat::kOct16)
+    return {{"name", "oct16"},
+            {"bytes", 4},
+            {"normal", "n normalised; s = |n.x| + |n.y| + |n.z|; (u, v) = (n.x / s, n.y / s); where n.z < 0: "
+                       "(u, v) = ((1 - |v|) * sign(u), (1 - |u|) * sign(v)) with sign(0) = 1, both from the "
+                       "unfolded u and v; then u = u * 0.5 + 0.5, v = v * 0.5 + 0.5; the word is "
+                       "unorm16(u) | unorm16(v) << 16"},
+            {"tangent", "t.xyz normalised and folded as a normal to (u, v) in [0, 1]; y = max(v, 1/32767) * 0.5 + "
+                        "0.5, then y = 1 - y where the handedness w < 0; x16 = unorm16(u), y16 = unorm16(y), and "
+                        "x16 = 65535 where x16 = 0 and y16 = 65535; the word is x16 | y16 << 16"},
+            {"decode", "u = x16 / 65535, v = y16 / 65535; a tangent first: y = v * 2 - 1, w = +1 where y >= 0 "
+                       "else -1, v = |y| (as Godot 4 decodes); then x = u * 2 - 1, y = v * 2 - 1, z = 1 - |x| - "
+                       "|y|; k = max(-z, 0); x -= sign(x) * k, y -= sign(y) * k (sign(0) = 1); normalise (x, y, z)"},
+            {"rounding", round},
+            {"max_error", NormalFormatBound(format)},
+            {"tangent_max_error", TangentFormatBound(format)}};
+  return {{"name", "snorm8"},
+          {"bytes", 4},
+          {"normal", "n normalised; the word is snorm8(n.x) | snorm8(n.y) << 8 | snorm8(n.z) << 16 (byte 3 is 0)"},
+          {"tangent", "t.xyz normalised; the word is snorm8(t.x) | snorm8(t.y) << 8 | snorm8(t.z) << 16 | "
+                      "snorm8(w) << 24, w the handedness (+1 or -1: byte 3 is 127 or 129)"},
+          {"decode", "each byte b as max(b / 127, -1), then xyz normalised; a tangent's w is +1 where byte 3 >= 0"},
+          {"rounding", round},
+          {"max_error", NormalFormatBound(format)},
+          {"tangent_max_error", TangentFormatBound(format)}};
+}
+
 // The `skintune emit` command that writes `variant`'s kernel exactly as
 // `source` was emitted (joint count, instancing), into the current folder,
 // and the files it writes there.
@@ -571,6 +611,7 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
                  {"wg_sizes", kWorkGroupSizesRule}};
   if (source.instanced) j["instancing"] = InstancingJson(source);
   if (SkinsMorph(variant)) j["morph"] = MorphJson(source, variant);
+  if (PacksNormals(variant)) j["normal_format"] = NormalFormatJson(variant.normal_format);
   if (variant.layout == Layout::kAos) {
     const RecordLayout r = AosRecordLayout(variant, source.influences);
     j["aos_record"] = {{"position", r.position}, {"indices", r.indices}, {"weights", r.weights},
@@ -601,6 +642,11 @@ nlohmann::json SidecarJson(const KernelSource& source, const Variant& variant) {
   j["weights"] = WeightsJson(variant.weight);
   if (variant.mixed == MixedCounts::kBucketed) j["bucketed"] = BucketedJson(variant, source);
   return j;
+}
+
+std::size_t OutputStrideBytes(const Variant& v, Output o) {
+  if (o != Output::kPositions && PacksNormals(v)) return 4;
+  return o == Output::kTangents ? kTangentBytes : BytesOf(v.position);
 }
 
 const OutputSpec* OutputOfArgument(std::string_view argument) {

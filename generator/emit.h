@@ -53,6 +53,10 @@ constexpr const OutputSpec& SpecOf(Output o) { return kOutputs[static_cast<std::
 constexpr bool Writes(const Variant& v, Output o) {
   return o == Output::kPositions || (o == Output::kNormals ? SkinsNormals(v) : SkinsTangents(v));
 }
+// Bytes per vertex of output `o`: positions in the position format (16 or
+// 12); normals likewise, or one 32-bit word where the variant packs them
+// (normal_format); tangents 16 (x y z w floats), or one word packed.
+std::size_t OutputStrideBytes(const Variant& v, Output o);
 // The output whose kernel argument is `argument`, or null.
 const OutputSpec* OutputOfArgument(std::string_view argument);
 

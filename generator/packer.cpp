@@ -588,35 +588,72 @@ namespace {
 // Calls put(mesh vertex, bytes of its output) for each packed output vertex,
 // after checking the output's size.
 template <typename Put>
-void ForEachOutput(const PackedMesh& packed, std::span<const std::uint8_t> output, Put put) {
-  const std::size_t stride = packed.output_stride_bytes;
+void ForEachOutput(const PackedMesh& packed, Output which, std::span<const std::uint8_t> output, Put put) {
+  const std::size_t stride = OutputStrideBytes(packed.variant, which);
   const std::size_t expected = packed.vertex_count * stride;
   if (output.size() != expected || packed.order.size() != packed.vertex_count) {
     std::ostringstream s;
-    s << "unpack " << packed.variant.Key() << ": output has " << output.size() << " bytes, expected "
-      << packed.vertex_count << " vertices x " << stride << " bytes = " << expected;
+    s << "unpack " << packed.variant.Key() << ": " << SpecOf(which).what << " output has " << output.size()
+      << " bytes, expected " << packed.vertex_count << " vertices x " << stride << " bytes = " << expected;
     throw Error(s.str());
   }
   for (std::size_t p = 0; p < packed.vertex_count; ++p) put(packed.order[p], output.data() + p * stride);
 }
 
+std::uint32_t GetWord(const std::uint8_t* at) {
+  std::uint32_t word;
+  std::memcpy(&word, at, 4);
+  return word;
+}
+
+skintune_kernels::NormalFormat EmbeddedFormat(NormalFormat format) {
+  return static_cast<skintune_kernels::NormalFormat>(static_cast<int>(format));
+}
+static_assert(static_cast<int>(skintune_kernels::NormalFormat::kSnorm8) == static_cast<int>(NormalFormat::kSnorm8));
+
 }  // namespace
+
+std::uint32_t PackedNormalWord(NormalFormat format, const glm::vec3& normal) {
+  return skintune_kernels::PackNormal(EmbeddedFormat(format), &normal.x);
+}
+std::uint32_t PackedTangentWord(NormalFormat format, const glm::vec4& tangent) {
+  return skintune_kernels::PackTangent(EmbeddedFormat(format), &tangent.x);
+}
+glm::vec3 UnpackedNormal(NormalFormat format, std::uint32_t word) {
+  glm::vec3 n;
+  skintune_kernels::UnpackNormal(EmbeddedFormat(format), word, &n.x);
+  return n;
+}
+glm::vec4 UnpackedTangent(NormalFormat format, std::uint32_t word) {
+  glm::vec4 t;
+  skintune_kernels::UnpackTangent(EmbeddedFormat(format), word, &t.x);
+  return t;
+}
 
 std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uint8_t> output) {
   std::vector<glm::vec3> out(packed.vertex_count);
-  ForEachOutput(packed, output, [&](std::uint32_t v, const std::uint8_t* at) {
+  ForEachOutput(packed, Output::kPositions, output, [&](std::uint32_t v, const std::uint8_t* at) {
     out[v] = glm::vec3(GetFloat(at), GetFloat(at + 4), GetFloat(at + 8));
   });
   return out;
 }
 
+std::vector<glm::vec3> UnpackNormals(const PackedMesh& packed, std::span<const std::uint8_t> output) {
+  std::vector<glm::vec3> out(packed.vertex_count);
+  const NormalFormat format = packed.variant.normal_format;
+  ForEachOutput(packed, Output::kNormals, output, [&](std::uint32_t v, const std::uint8_t* at) {
+    out[v] = format == NormalFormat::kF32 ? glm::vec3(GetFloat(at), GetFloat(at + 4), GetFloat(at + 8))
+                                          : UnpackedNormal(format, GetWord(at));
+  });
+  return out;
+}
+
 std::vector<glm::vec4> UnpackTangents(const PackedMesh& packed, std::span<const std::uint8_t> output) {
-  if (packed.output_stride_bytes != kTangentBytes)
-    throw Error("unpack " + packed.variant.Key() + ": tangents need a 16-byte output stride, not " +
-                std::to_string(packed.output_stride_bytes));
   std::vector<glm::vec4> out(packed.vertex_count);
-  ForEachOutput(packed, output, [&](std::uint32_t v, const std::uint8_t* at) {
-    out[v] = glm::vec4(GetFloat(at), GetFloat(at + 4), GetFloat(at + 8), GetFloat(at + 12));
+  const NormalFormat format = packed.variant.normal_format;
+  ForEachOutput(packed, Output::kTangents, output, [&](std::uint32_t v, const std::uint8_t* at) {
+    out[v] = format == NormalFormat::kF32 ? glm::vec4(GetFloat(at), GetFloat(at + 4), GetFloat(at + 8), GetFloat(at + 12))
+                                          : UnpackedTangent(format, GetWord(at));
   });
   return out;
 }

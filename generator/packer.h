@@ -22,6 +22,7 @@
 
 #include <glm/glm.hpp>
 
+#include "generator/emit.h"  // Output, OutputStrideBytes
 #include "generator/variant.h"
 #include "model/mesh.h"
 
@@ -59,7 +60,7 @@ struct PackedMesh {
   std::vector<std::uint32_t> order;     // packed position p holds mesh vertex order[p]
   std::vector<std::uint8_t> palette;    // float4 rows, R = 4 (mat4) or 3 (mat3x4) per joint
   std::size_t palette_joints = 0;
-  std::size_t output_stride_bytes = 0;  // bytes per output vertex (16 for float4, 12 for float3)
+  std::size_t output_stride_bytes = 0;  // bytes per position output vertex (16 for float4, 12 for float3)
   // Morph targets (variants that skin them): their count T, and the weights
   // the mesh is skinned with as the kernel reads them (T float32, every
   // instance's; or K x T, each instance's, where a caller sets them so), bound
@@ -134,8 +135,18 @@ std::size_t PaletteMatrixBytes(const Variant& variant);
 // Output bytes in packed order (vertex_count x output_stride_bytes) -> one
 // glm::vec3 per mesh vertex, in the mesh's order.
 std::vector<glm::vec3> Unpack(const PackedMesh& packed, std::span<const std::uint8_t> output);
+// The normal output likewise (vertex_count x OutputStrideBytes(variant,
+// kNormals)), decoded where the variant packs normals (normal_format).
+std::vector<glm::vec3> UnpackNormals(const PackedMesh& packed, std::span<const std::uint8_t> output);
 // The tangent output likewise: xyz and the handedness w per mesh vertex.
 std::vector<glm::vec4> UnpackTangents(const PackedMesh& packed, std::span<const std::uint8_t> output);
+// The packed words of normals and tangents (docs/VARIANTS.md "Packed normals
+// and tangents"; the emitted header's PackNormal / PackTangent rule, which the
+// kernels run): 0 for NormalFormat::kF32.
+std::uint32_t PackedNormalWord(NormalFormat format, const glm::vec3& normal);
+std::uint32_t PackedTangentWord(NormalFormat format, const glm::vec4& tangent);
+glm::vec3 UnpackedNormal(NormalFormat format, std::uint32_t word);
+glm::vec4 UnpackedTangent(NormalFormat format, std::uint32_t word);
 
 // The mesh the kernel really skins: weights after quantisation, as floats, in
 // the mesh's vertex order (so the gold can be computed on exactly these

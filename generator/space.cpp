@@ -148,7 +148,7 @@ std::uint64_t TuningSpace::Size() const {
 TuningSpace SpaceFromJson(const nlohmann::json& in, const std::string& context) {
   if (!in.is_object()) throw Error(context + ": space must be an object of axis -> list of values");
   TuningSpace s = TuningSpace::Full();
-  bool blend_given = false, palette_given = false;
+  bool blend_given = false, palette_given = false, normal_format_given = false;
   for (const auto& [name, list] : in.items()) {
     const std::string where = context + ": space." + name;
     if (!list.is_array()) throw Error(where + ": expected a list of values");
@@ -157,7 +157,12 @@ TuningSpace SpaceFromJson(const nlohmann::json& in, const std::string& context) 
     SetList(s, *axis, ReadList(kAxes[*axis], list, where));
     blend_given = blend_given || *axis == AxisIndex<&Variant::blend>();
     palette_given = palette_given || *axis == AxisIndex<&Variant::palette>();
+    normal_format_given = normal_format_given || *axis == AxisIndex<&Variant::normal_format>();
   }
+  // The format of the skinned normals is what the user's consumer reads, not
+  // a choice the tuner makes: left out, it is float32. Listed formats are
+  // tuned as rows of their own (tuner/report.cpp), never raced.
+  if (!normal_format_given) s.normal_formats = {NormalFormat::kF32};
   // Dual quaternions skin differently from the linear blends (they keep
   // volume at twisting joints): a user's choice, tuned in a space of its own,
   // never raced against matrix and point blending. Left out, the blend axis
@@ -189,6 +194,7 @@ TuningSpace ForDataSet(TuningSpace space, const ProblemShape& shape) {
   std::erase_if(space.morphs, [&](Morph m) {
     return m == Morph::kNone ? shape.morph_moves : shape.morph_targets == 0;
   });
+  if (!shape.has_normals) std::erase_if(space.normal_formats, [](NormalFormat f) { return f != NormalFormat::kF32; });
   return space;
 }
 

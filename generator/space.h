@@ -40,6 +40,7 @@ struct TuningSpace {
   std::vector<int> wg_sizes;
   std::vector<Normals> normals;
   std::vector<Morph> morphs;
+  std::vector<NormalFormat> normal_formats;
 
   // Every value of every axis: wg sizes 32, 64, 128, 256, 512, 1024.
   static TuningSpace Full();
@@ -58,9 +59,9 @@ template <typename T>
   requires std::same_as<std::remove_const_t<T>, TuningSpace>
 constexpr auto SpaceLists(T& s) {
   auto& [langs, influences, mixed, layouts, positions, indices, weights, palettes, storages, blends,
-         vertices_per_item, assignments, wg_sizes, normals, morphs] = s;
+         vertices_per_item, assignments, wg_sizes, normals, morphs, normal_formats] = s;
   return std::tie(langs, influences, mixed, layouts, positions, indices, weights, palettes, storages, blends,
-                  vertices_per_item, assignments, wg_sizes, normals, morphs);
+                  vertices_per_item, assignments, wg_sizes, normals, morphs, normal_formats);
 }
 
 // Reads a space from JSON; unknown axes and values throw Error("<context>: space.<axis>[i]: ...").

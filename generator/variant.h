@@ -53,6 +53,12 @@ enum class Normals { kNone, kNormals, kTangents };
 // target an offset per vertex) or sparse (per vertex the targets that move
 // it), float32 or half (IEEE binary16) offsets.
 enum class Morph { kNone, kDense, kSparse, kDenseHalf, kSparseHalf };
+// The format the kernel writes skinned normals and tangents in (docs/VARIANTS.md
+// "Packed normals and tangents"): float32 (the position format's vector for
+// normals, float4 for tangents), octahedral 2 x unorm16 (Godot 4's layout; a
+// tangent folds its handedness into y), or 4 x snorm8 (xyz, then 0 for a normal
+// and the handedness for a tangent). A user's choice: what the consumer reads.
+enum class NormalFormat { kF32, kOct16, kSnorm8 };
 
 struct Variant {
   Lang lang = Lang::kOpenCl;
@@ -70,6 +76,7 @@ struct Variant {
   int wg_size = 128;                                  // 32..1024, a multiple of 32
   Normals normals = Normals::kNone;
   Morph morph = Morph::kNone;  // keys leave it out when none
+  NormalFormat normal_format = NormalFormat::kF32;  // keys leave it out when f32
 
   std::string Key() const;
   std::size_t Hash() const;  // stable across runs and machines (FNV-1a of Key())
@@ -89,6 +96,21 @@ constexpr bool SkinsMorph(const Variant& v) { return v.morph != Morph::kNone; }
 constexpr bool MorphSparse(const Variant& v) { return v.morph == Morph::kSparse || v.morph == Morph::kSparseHalf; }
 constexpr bool MorphHalf(const Variant& v) { return v.morph == Morph::kDenseHalf || v.morph == Morph::kSparseHalf; }
 
+// Whether the variant writes normals and tangents packed (not float32).
+constexpr bool PacksNormals(const Variant& v) { return v.normal_format != NormalFormat::kF32; }
+// The largest distance between a unit vector and the decoding of its packing
+// in `format`, over every direction (tests/generator/normal_format_test.cpp
+// searches for it): normals; tangents, whose oct16 y keeps one bit less.
+// Verification allows it on top of the tolerance.
+// (Largest found over 20 million random directions: oct16 6.5e-5, its
+// tangents 1.7e-4, snorm8 6.8e-3; the bounds leave a quarter above that.)
+constexpr double NormalFormatBound(NormalFormat format) {
+  return format == NormalFormat::kOct16 ? 8e-5 : format == NormalFormat::kSnorm8 ? 8.5e-3 : 0.0;
+}
+constexpr double TangentFormatBound(NormalFormat format) {
+  return format == NormalFormat::kOct16 ? 2.2e-4 : NormalFormatBound(format);
+}
+
 // Throws Error("variant 'KEY': unknown token 'X' (...)") etc.
 Variant ParseVariantKey(std::string_view key);
 
@@ -104,9 +126,9 @@ template <typename T>
   requires std::same_as<std::remove_const_t<T>, Variant>
 constexpr auto VariantFields(T& v) {
   auto& [lang, influences, mixed, layout, position, index, weight, palette, storage, blend, vertices_per_item,
-         assignment, wg_size, normals, morph] = v;
+         assignment, wg_size, normals, morph, normal_format] = v;
   return std::tie(lang, influences, mixed, layout, position, index, weight, palette, storage, blend,
-                  vertices_per_item, assignment, wg_size, normals, morph);
+                  vertices_per_item, assignment, wg_size, normals, morph, normal_format);
 }
 using VariantFieldRefs = decltype(VariantFields(std::declval<Variant&>()));
 

@@ -41,6 +41,9 @@ RunShape CheckRunShape(const PackedMesh& mesh, std::span<const KernelSource> ker
          " joints x " + std::to_string(rows) + " rows x 16");
   shape.out_vertices = k * mesh.vertex_count;
   shape.out_bytes = shape.out_vertices * mesh.output_stride_bytes;
+  for (const OutputSpec& o : kOutputs)
+    if (Writes(variant, o.output))
+      shape.output_bytes[static_cast<std::size_t>(o.output)] = shape.out_vertices * OutputStrideBytes(variant, o.output);
   return shape;
 }
 

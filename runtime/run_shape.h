@@ -8,6 +8,7 @@
 // instance after instance.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <span>
 #include <string>
@@ -23,7 +24,8 @@ struct RunShape {
   bool instanced = false;         // the kernels are instanced
   std::size_t palette_bytes = 0;  // one instance's palette
   std::size_t out_vertices = 0;   // K x vertex_count
-  std::size_t out_bytes = 0;      // out_vertices x output_stride_bytes (the guard follows)
+  std::size_t out_bytes = 0;      // positions: out_vertices x output_stride_bytes (the guard follows)
+  std::array<std::size_t, kOutputCount> output_bytes{};  // by Output: out_vertices x its stride; 0 where none is written
 };
 
 // Checks `kernels` (one per launch), `instances` and the bytes of the K

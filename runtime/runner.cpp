@@ -75,7 +75,8 @@ struct Prepared::Impl {
   std::size_t palettes_bytes = 0;  // the K palettes of a set
   std::size_t upload_bytes = 0;    // what a frame uploads: the K palettes, or K AnimInstances once animated
   int instances = 1;               // K
-  std::size_t out_bytes = 0;       // K x vertex_count x stride (a verification set's guard follows)
+  // By Output: K x vertex_count x its stride (a verification set's guard follows); 0 where none.
+  std::array<std::size_t, kOutputCount> out_bytes{};
 
   Impl() = default;
   Impl(const Impl&) = delete;
@@ -112,7 +113,9 @@ Prepared::Prepared(Prepared&&) noexcept = default;
 Prepared& Prepared::operator=(Prepared&&) noexcept = default;
 int Prepared::input_sets() const { return impl_ ? static_cast<int>(impl_->sets.size()) : 0; }
 std::size_t Prepared::bytes_per_set() const { return impl_ ? impl_->bytes_per_set : 0; }
-std::size_t Prepared::output_bytes() const { return impl_ ? impl_->out_bytes : 0; }
+std::size_t Prepared::output_bytes(Output output) const {
+  return impl_ ? impl_->out_bytes[static_cast<std::size_t>(output)] : 0;
+}
 
 namespace {
 
@@ -194,7 +197,7 @@ Prepared Runner::PrepareSets(const PackedMesh& mesh, std::span<const KernelSourc
   p.palettes_bytes = static_cast<std::size_t>(shape.instances) * shape.palette_bytes;
   p.upload_bytes = p.palettes_bytes;
   p.instances = shape.instances;
-  p.out_bytes = shape.out_bytes;
+  p.out_bytes = shape.output_bytes;
   input_hashes_.clear();  // ShareTimedInputs: each input hashed once per Prepare, not per set
   for (std::size_t k = 0; k < palettes.size(); ++k) {
     SetOptions set_options = options;
@@ -287,10 +290,11 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
   Prepared::Impl::Set& set = p.sets.emplace_back();
   std::size_t bytes = 0;
   // Outputs (K instances, one after another): poisoned; Run's followed by their guard.
-  const std::vector<std::uint8_t> poison = PoisonedOutput(p.out_bytes);
-  const std::span<const std::uint8_t> out(poison.data(), options.verification ? poison.size() : p.out_bytes);
   for (const OutputSpec& output : kOutputs) {
     if (!Writes(mesh.variant, output.output)) continue;
+    const std::size_t out_bytes = p.out_bytes[static_cast<std::size_t>(output.output)];
+    const std::vector<std::uint8_t> poison = PoisonedOutput(out_bytes);
+    const std::span<const std::uint8_t> out(poison.data(), options.verification ? poison.size() : out_bytes);
     const std::string name = output.argument;
     set.outputs[static_cast<std::size_t>(output.output)] =
         SetBuffer(p, index, BufferUse::kOutput, out, name + options.suffix, ShareKey(options, index, BufferUse::kOutput, name, out));
@@ -382,19 +386,22 @@ RunResult Runner::Run(const PackedMesh& mesh, std::span<const KernelSource> kern
 // Reads the outputs of Run's set back, checks the guards, counts vertices never written.
 void Runner::ReadChecked(const Prepared::Impl& p, const PackedMesh& mesh, const RunShape& shape, RunResult& result) {
   const Prepared::Impl::Set& set = p.sets.front();
-  const auto read_back = [&](const DeviceBuffer& buffer, const char* what, std::vector<std::uint8_t>& out) {
-    std::vector<std::uint8_t> bytes(p.out_bytes + kGuardBytes);
+  const auto read_back = [&](const DeviceBuffer& buffer, Output output, std::vector<std::uint8_t>& out) {
+    const char* what = SpecOf(output).argument;
+    const std::size_t out_bytes = p.out_bytes[static_cast<std::size_t>(output)];
+    std::vector<std::uint8_t> bytes(out_bytes + kGuardBytes);
     api_->Read(buffer, bytes, std::string("'") + what + "'", false);
-    const OutputCheck check = CheckGuardAndCountPoisoned(bytes, p.out_bytes, mesh.output_stride_bytes, shape.out_vertices);
+    const OutputCheck check = CheckGuardAndCountPoisoned(bytes, out_bytes, OutputStrideBytes(mesh.variant, output),
+                                                         shape.out_vertices);
     if (!check.guard_ok)
       Fail("guard", p.key + ": " + what + ": the " + api_->OutputWriter(mesh.variant) + " " +
-                        GuardFailure(check, p.out_bytes));
+                        GuardFailure(check, out_bytes));
     result.poisoned_vertices += check.poisoned_vertices;
     out = std::move(bytes);
   };
   for (const OutputSpec& output : kOutputs) {
     if (const DeviceBuffer* buffer = set.outputs[static_cast<std::size_t>(output.output)])
-      read_back(*buffer, output.argument, result.Bytes(output.output));
+      read_back(*buffer, output.output, result.Bytes(output.output));
   }
 }
 
@@ -941,8 +948,9 @@ DeviceApi::PinnedRead Runner::ReadOutputChunks(const Prepared& prepared, int set
   const DeviceBuffer* buffer = s.outputs[static_cast<std::size_t>(output)];
   if (!buffer) Fail("launch", std::string("no ") + SpecOf(output).what + " output in " + p.key);
   const std::string what = std::string("'") + SpecOf(output).argument + "' of " + p.key;
-  if (chunk_bytes == 0 || chunk_bytes >= p.out_bytes) return {api_->ReadPinned(*buffer, p.out_bytes, what), [](std::size_t) {}};
-  return api_->ReadPinnedChunks(*buffer, p.out_bytes, chunk_bytes, what);
+  const std::size_t out_bytes = p.out_bytes[static_cast<std::size_t>(output)];
+  if (chunk_bytes == 0 || chunk_bytes >= out_bytes) return {api_->ReadPinned(*buffer, out_bytes, what), [](std::size_t) {}};
+  return api_->ReadPinnedChunks(*buffer, out_bytes, chunk_bytes, what);
 }
 
 void* Runner::OutputBuffer(const Prepared& prepared, int set, Output output) const {

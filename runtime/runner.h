@@ -84,7 +84,7 @@ class Prepared {
   Prepared& operator=(Prepared&&) noexcept;
   int input_sets() const;
   std::size_t bytes_per_set() const;  // device bytes of one set: inputs + palette + outputs (+ staging)
-  std::size_t output_bytes() const;   // one output (positions, normals or tangents): K x vertex_count x output stride
+  std::size_t output_bytes(Output output = Output::kPositions) const;  // K x vertex_count x the output's stride
 
   struct Impl;
 

@@ -52,17 +52,23 @@ double CountDistance(const WinnersEntry& e, const SelectionRequest& r) {
   return 1.0;
 }
 
-// Smaller is better: another shape than the request's (the single-mesh
+// The normal format a variant for `r` writes: the asked one with normals, else float32.
+NormalFormat FormatFor(const SelectionRequest& r) {
+  return r.normals == Normals::kNone ? NormalFormat::kF32 : r.normal_format;
+}
+
+// Smaller is better: an entry tuned in another normal format, another shape than the request's (the single-mesh
 // fallback), B above the mesh's, the distance (a factor) from the measured
 // vertex count to the scene's, the instance or mesh count's, the morph
 // target count's (a mesh with them), the larger vertex count on a tie, then the newest `created` and the smallest time (compared
 // separately).
-std::tuple<bool, int, double, double, double, long long> Rank(const WinnersEntry& e, const SelectionRequest& r) {
+std::tuple<bool, bool, int, double, double, double, long long> Rank(const WinnersEntry& e, const SelectionRequest& r) {
   const double morph = r.morph ? VertexCountDistance(static_cast<std::size_t>(std::max(e.morph_targets, 1)),
                                                      static_cast<std::size_t>(std::max(r.morph_targets, 1)))
                                : 1.0;
-  return {e.shape != r.shape, e.influences - r.influences, VertexCountDistance(e.vertices, r.vertex_count),
-          CountDistance(e, r), morph, -static_cast<long long>(e.vertices)};
+  return {e.variant.normal_format != FormatFor(r), e.shape != r.shape, e.influences - r.influences,
+          VertexCountDistance(e.vertices, r.vertex_count), CountDistance(e, r), morph,
+          -static_cast<long long>(e.vertices)};
 }
 
 bool Better(const WinnersEntry& a, const WinnersEntry& b, const SelectionRequest& request) {
@@ -186,6 +192,7 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
     for (const WinnersEntry* e : candidates) {
       Variant v = e->variant;
       v.normals = request.normals;
+      v.normal_format = FormatFor(request);
       const std::string why = check(v);
       if (!why.empty()) {
         skipped.push_back({e, level, Describe(*e) + ": " + why});
@@ -202,6 +209,9 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
                   " vertices (the mesh: b" +
                   std::to_string(request.influences) + ", " + std::to_string(request.vertex_count) + " vertices)";
       }
+      if (e->variant.normal_format != v.normal_format)
+        reason += std::string("; tuned with ") + Name(e->variant.normal_format) + " normals, run with " +
+                  Name(v.normal_format) + " (no entry of that format)";
       if (e->shape != request.shape)
         reason += "; no " + std::string(SceneKindName(request.shape)) +
                   " entry: the single-mesh entry of the scene's total size (" +
@@ -213,8 +223,9 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
 
   std::string tried;
   for (Lang lang : request.langs) {
-    const Variant v =
+    Variant v =
         GenericDefault(lang, request.influences, request.normals, request.limits, request.morph, request.dual_quaternions);
+    v.normal_format = FormatFor(request);
     const std::string why = check(v);
     if (!why.empty()) {
       tried += (tried.empty() ? "" : "; ") + v.Key() + ": " + why;

@@ -61,6 +61,9 @@ struct SelectionRequest {
   // the entries of the nearest target count first.
   bool morph = false;
   int morph_targets = 0;
+  // The format of the skinned normals (with normals): entries tuned in it
+  // first; another entry serves with its variant's format changed.
+  NormalFormat normal_format = NormalFormat::kF32;
   double max_error = kDefaultBudget;     // the error budget, relative to the bounding-box diagonal
   std::string max_error_name = "max_error";  // how the caller names it in reasons ("SkinnerOptions::max_error")
   std::vector<WeightFormat> exact_formats;  // formats that hold the caller's weights exactly (HoldsWeightsExactly)

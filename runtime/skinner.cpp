@@ -116,8 +116,14 @@ std::string Joined(const std::vector<Violation>& violations) {
   return out;
 }
 
+// SkinnerOptions::normal_format as the variant axis spells it.
+NormalFormat NormalFormatOf(skintune::NormalFormat format) {
+  static_assert(static_cast<int>(skintune::NormalFormat::kSnorm8) == static_cast<int>(NormalFormat::kSnorm8));
+  return static_cast<NormalFormat>(static_cast<int>(format));
+}
+
 Chosen Forced(const std::string& call, const std::string& key, const DeviceState& device, const ProblemShape& shape,
-              bool dual_quaternions) {
+              bool dual_quaternions, NormalFormat normal_format) {
   Variant v;
   try {
     v = ParseVariantKey(key);
@@ -126,6 +132,11 @@ Chosen Forced(const std::string& call, const std::string& key, const DeviceState
   }
   v.normals = NormalsFor(shape.has_normals, shape.has_tangents);
   const std::string where = call + ": SkinnerOptions::variant " + v.Key() + ": ";
+  if (PacksNormals(v) && v.normal_format != normal_format)
+    FailWith(ErrorCode::kInvalidArgument, where + "it writes " + Name(v.normal_format) +
+                                              " normals, and SkinnerOptions::normal_format asks for " +
+                                              Name(normal_format));
+  if (SkinsNormals(v)) v.normal_format = normal_format;
   if (std::find(device.langs.begin(), device.langs.end(), v.lang) == device.langs.end())
     FailWith(ErrorCode::kInvalidArgument,
              where + "language " + Name(v.lang) + " does not run on " + BackendName(device.info.backend) + " devices");
@@ -248,7 +259,8 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   const ProblemShape shape = WithMorphOf({mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
                                           options.instances, options.tangents, true},
                                          mesh.morph);
-  if (!options.variant.empty()) return Forced(call, options.variant, state, shape, options.dual_quaternions);
+  if (!options.variant.empty())
+    return Forced(call, options.variant, state, shape, options.dual_quaternions, NormalFormatOf(options.normal_format));
   SelectionRequest request;
   request.device = state.info;
   request.langs = state.langs;
@@ -259,6 +271,7 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   request.meshes = static_cast<int>(count);
   request.normals = NormalsFor(options.normals, options.tangents);
   request.dual_quaternions = options.dual_quaternions;
+  request.normal_format = NormalFormatOf(options.normal_format);
   request.morph = mesh.has_morph();
   request.morph_targets = static_cast<int>(mesh.morph.count());
   request.max_error = options.max_error;
@@ -294,6 +307,13 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
              call + ": SkinnerOptions::instances is " + std::to_string(options.instances) + ", at least 1");
   if (const std::string bad = BadMaxError(options.max_error); !bad.empty())
     FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::max_error " + bad);
+  if (const int format = static_cast<int>(options.normal_format); format < 0 || format > 2)
+    FailWith(ErrorCode::kInvalidArgument,
+             call + ": SkinnerOptions::normal_format is " + std::to_string(format) + ", not a NormalFormat");
+  if (options.normal_format != skintune::NormalFormat::kF32 && !options.normals && !options.tangents)
+    FailWith(ErrorCode::kInvalidArgument,
+             call + ": SkinnerOptions::normal_format " + Name(NormalFormatOf(options.normal_format)) +
+                 " packs normals, and the Skinner skins none (set SkinnerOptions::normals)");
   if (options.palette_buffers < kMinPaletteBuffers || options.palette_buffers > kMaxPaletteBuffers)
     FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::palette_buffers is " +
                                               std::to_string(options.palette_buffers) + ", expected " +
@@ -640,6 +660,48 @@ namespace {
 constexpr std::size_t kReadChunkVertices = 1 << 16;
 constexpr std::size_t kReadGrainVertices = 1 << 14;
 
+// The words of packed normals or tangents: put(where vertex v of instance k
+// goes in the mesh's order, its word) for every one, on the host pool, once
+// the whole output is in (Usable and the counts checked by the caller).
+template <typename Put>
+void ReadWords(Skinner::Impl& im, Output output, const char* call, Put put) {
+  const std::size_t vertices = static_cast<std::size_t>(im.instances) * im.vertex_count;
+  const DeviceApi::PinnedRead read = im.backend->Read(output, 0);
+  const std::span<const std::uint8_t> packed = read.bytes;
+  if (packed.size() != vertices * 4)
+    FailWith(ErrorCode::kDeviceError, std::string("Skinner::") + call + ": the device read back " +
+                                          std::to_string(packed.size()) + " bytes, expected " +
+                                          std::to_string(vertices * 4));
+  read.ready(packed.size());
+  ForChunks(vertices, kReadGrainVertices, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t v = begin; v < end; ++v) {
+      const std::size_t k = v / im.vertex_count, p = v % im.vertex_count;
+      std::uint32_t word;
+      std::memcpy(&word, packed.data() + 4 * v, 4);
+      put(im.identity_order ? v : k * im.vertex_count + im.order[p], word);
+    }
+  });
+}
+
+// The packed words themselves (ReadPackedNormals, ReadPackedTangents).
+Status ReadPacked(const std::unique_ptr<Skinner::Impl>& impl, Output output, std::uint32_t* out, std::size_t count) {
+  const char* call = output == Output::kNormals ? "ReadPackedNormals" : "ReadPackedTangents";
+  return Guarded(ErrorCode::kDeviceError, [&] {
+    Skinner::Impl& im = Usable(impl, call);
+    if (!Writes(im.variant, output) || !PacksNormals(im.variant))
+      FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": this Skinner writes no packed " +
+                                             SpecOf(output).what + " (SkinnerOptions::normal_format is f32, or " +
+                                             SpecOf(output).what + " are not skinned)");
+    const std::size_t vertices = static_cast<std::size_t>(im.instances) * im.vertex_count;
+    CheckCount(call, count, vertices, [&] {
+      return std::to_string(im.instances) + " instances x " + std::to_string(im.vertex_count) + " vertices";
+    });
+    if (!out) FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::") + call + ": out is null");
+    if (!im.skinned) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": nothing skinned yet (call Skin first)");
+    ReadWords(im, output, call, [&](std::size_t at, std::uint32_t word) { out[at] = word; });
+  });
+}
+
 // Positions and normals are 3 floats per vertex, tangents 4 (xyz, handedness w).
 Status Read(const std::unique_ptr<Skinner::Impl>& impl, Output output, float* out, std::size_t float_count) {
   const char* call = output == Output::kPositions ? "ReadPositions" : output == Output::kNormals ? "ReadNormals"
@@ -661,6 +723,19 @@ Status Read(const std::unique_ptr<Skinner::Impl>& impl, Output output, float* ou
     });
     if (!out) FailWith(ErrorCode::kInvalidArgument, std::string("Skinner::") + call + ": out is null");
     if (!im.skinned) FailWith(ErrorCode::kInvalidState, std::string("Skinner::") + call + ": nothing skinned yet (call Skin first)");
+    if (normalised && PacksNormals(im.variant)) {  // one word a vertex, decoded (always finite)
+      const NormalFormat format = im.variant.normal_format;
+      ReadWords(im, output, call, [&](std::size_t at, std::uint32_t word) {
+        if (output == Output::kNormals) {
+          const glm::vec3 n = UnpackedNormal(format, word);
+          std::memcpy(out + 3 * at, &n, sizeof n);
+        } else {
+          const glm::vec4 t = UnpackedTangent(format, word);
+          std::memcpy(out + 4 * at, &t, sizeof t);
+        }
+      });
+      return;
+    }
     // Straight from the page-locked read-back staging into the caller's array,
     // in mesh order; each grain's work while later chunks are still in flight.
     const std::size_t stride = im.output_stride;
@@ -764,6 +839,12 @@ Status Skinner::ReadNormals(float* out, std::size_t float_count) {
 }
 Status Skinner::ReadTangents(float* out, std::size_t float_count) {
   return Read(impl_, Output::kTangents, out, float_count);
+}
+Status Skinner::ReadPackedNormals(std::uint32_t* out, std::size_t word_count) {
+  return ReadPacked(impl_, Output::kNormals, out, word_count);
+}
+Status Skinner::ReadPackedTangents(std::uint32_t* out, std::size_t word_count) {
+  return ReadPacked(impl_, Output::kTangents, out, word_count);
 }
 
 Status Skinner::SkinIntoGlBuffer(unsigned int gl_buffer) {

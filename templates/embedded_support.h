@@ -86,7 +86,9 @@
 // - Outputs: vertex v is written at element first + v, so pass first = 0 when
 //   one launch skins the whole mesh (it always does here: every kernel of this
 //   header is `padded`, in mesh order). Output buffers hold n elements of
-//   OutputStrideBytes(k) bytes.
+//   OutputStrideBytes(k) bytes (out_normals: NormalStrideBytes(k);
+//   out_tangents: TangentStrideBytes(k); a packed k.normal_format writes one
+//   32-bit word a vector, which UnpackNormal / UnpackTangent decode).
 // - Crowds (k.instanced, shape "instances"; skintune's docs/VARIANTS.md
 //   "Instancing"): the arguments are skin(n, first, vertex_count, ...) with
 //   vertex_count = n (GLSL: uniform vertex_count; glsl-vertex has none); the
@@ -138,6 +140,118 @@ enum class PaletteStorage { kGlobal, kConstant, kLocal, kImage };
 // Morph targets applied before skinning (skintune's docs/VARIANTS.md "Morph
 // targets"): none, or their offsets dense or sparse, float32 or half.
 enum class Morph { kNone, kDense, kSparse, kDenseHalf, kSparseHalf };
+// The format of the skinned normals and tangents (skintune's docs/VARIANTS.md
+// "Packed normals and tangents"): kF32 (normals in the position format,
+// tangents 4 floats), or one 32-bit word per normal and per tangent:
+// kOct16 octahedral 2 x unorm16 (Godot 4's layout), kSnorm8 4 x snorm8.
+enum class NormalFormat { kF32, kOct16, kSnorm8 };
+
+// The packed words, by the rule the kernels run (float32 arithmetic, in this
+// order; docs/VARIANTS.md gives it step by step). `xyz` is a unit vector (the
+// kernels normalise first); a tangent's w is its handedness, +1 or -1 (any
+// w >= 0 counts as +1). kF32 has no word: 0.
+namespace detail {
+inline float SignNotZero(float v) { return v >= 0.0f ? 1.0f : -1.0f; }
+// floor(v * scale + 0.5) of v clamped to [lo, 1]: the nearest step (ties up).
+inline int Quantise(float v, float lo, float scale) {
+  const float c = v < lo ? lo : (v > 1.0f ? 1.0f : v);
+  return static_cast<int>(std::floor(c * scale + 0.5f));
+}
+// The octahedral coordinates of a unit vector, each in [0, 1].
+inline void OctahedralOf(const float* xyz, float* uv) {
+  const float s = std::fabs(xyz[0]) + std::fabs(xyz[1]) + std::fabs(xyz[2]);
+  float u = xyz[0] / s, v = xyz[1] / s;
+  if (xyz[2] < 0.0f) {
+    const float fu = (1.0f - std::fabs(v)) * SignNotZero(u);
+    v = (1.0f - std::fabs(u)) * SignNotZero(v);
+    u = fu;
+  }
+  uv[0] = u * 0.5f + 0.5f;
+  uv[1] = v * 0.5f + 0.5f;
+}
+// The unit vector of octahedral coordinates in [0, 1] (as Godot decodes).
+inline void FromOctahedral(float u, float v, float* xyz) {
+  float x = u * 2.0f - 1.0f, y = v * 2.0f - 1.0f;
+  const float z = 1.0f - std::fabs(x) - std::fabs(y);
+  const float t = z < 0.0f ? -z : 0.0f;
+  x += x >= 0.0f ? -t : t;
+  y += y >= 0.0f ? -t : t;
+  const float length = std::sqrt(x * x + y * y + z * z);
+  xyz[0] = x / length, xyz[1] = y / length, xyz[2] = z / length;
+}
+inline std::uint32_t Snorm8Word(const float* v4) {
+  std::uint32_t word = 0;
+  for (int c = 0; c < 4; ++c)
+    word |= (static_cast<std::uint32_t>(Quantise(v4[c], -1.0f, 127.0f)) & 0xffu) << (8 * c);
+  return word;
+}
+inline float Snorm8Value(std::uint32_t word, int c) {
+  const float v = static_cast<float>(static_cast<std::int8_t>(static_cast<std::uint8_t>(word >> (8 * c)))) / 127.0f;
+  return v < -1.0f ? -1.0f : v;
+}
+inline void NormaliseXyz(float* xyz) {
+  const float length = std::sqrt(xyz[0] * xyz[0] + xyz[1] * xyz[1] + xyz[2] * xyz[2]);
+  for (int c = 0; c < 3; ++c) xyz[c] = length > 0.0f ? xyz[c] / length : 0.0f;
+}
+}  // namespace detail
+
+// A normal's word: kOct16 x = the first octahedral coordinate in the low 16
+// bits, y in the high; kSnorm8 x, y, z, 0 from the low byte up.
+inline std::uint32_t PackNormal(NormalFormat format, const float* xyz) {
+  if (format == NormalFormat::kSnorm8) {
+    const float v4[4] = {xyz[0], xyz[1], xyz[2], 0.0f};
+    return detail::Snorm8Word(v4);
+  }
+  if (format != NormalFormat::kOct16) return 0;
+  float uv[2];
+  detail::OctahedralOf(xyz, uv);
+  return static_cast<std::uint32_t>(detail::Quantise(uv[0], 0.0f, 65535.0f)) |
+         static_cast<std::uint32_t>(detail::Quantise(uv[1], 0.0f, 65535.0f)) << 16;
+}
+// A tangent's word: kOct16 as a normal's, but its y coordinate v becomes
+// max(v, 1/32767) / 2 + 1/2, then 1 minus that for w < 0 (so a stored y of
+// at least 1/2 means +1, and y keeps 15 bits); the word (0, 65535), which
+// decodes as (65535, 65535) does, is written as that, as Godot's importer
+// writes it. kSnorm8: x, y, z, w from the low byte up.
+inline std::uint32_t PackTangent(NormalFormat format, const float* xyzw) {
+  if (format == NormalFormat::kSnorm8) return detail::Snorm8Word(xyzw);
+  if (format != NormalFormat::kOct16) return 0;
+  float uv[2];
+  detail::OctahedralOf(xyzw, uv);
+  float y = uv[1] < 1.0f / 32767.0f ? 1.0f / 32767.0f : uv[1];
+  y = y * 0.5f + 0.5f;
+  if (xyzw[3] < 0.0f) y = 1.0f - y;
+  std::uint32_t x16 = static_cast<std::uint32_t>(detail::Quantise(uv[0], 0.0f, 65535.0f));
+  const std::uint32_t y16 = static_cast<std::uint32_t>(detail::Quantise(y, 0.0f, 65535.0f));
+  if (x16 == 0 && y16 == 65535) x16 = 65535;
+  return x16 | y16 << 16;
+}
+// The unit normal of a word (kSnorm8: each byte / 127, at least -1, then
+// normalised). kF32: (0, 0, 0).
+inline void UnpackNormal(NormalFormat format, std::uint32_t word, float* xyz) {
+  xyz[0] = xyz[1] = xyz[2] = 0.0f;
+  if (format == NormalFormat::kOct16) {
+    detail::FromOctahedral(static_cast<float>(word & 0xffffu) / 65535.0f, static_cast<float>(word >> 16) / 65535.0f,
+                           xyz);
+  } else if (format == NormalFormat::kSnorm8) {
+    for (int c = 0; c < 3; ++c) xyz[c] = detail::Snorm8Value(word, c);
+    detail::NormaliseXyz(xyz);
+  }
+}
+// The unit tangent and handedness (+1 / -1) of a word.
+inline void UnpackTangent(NormalFormat format, std::uint32_t word, float* xyzw) {
+  xyzw[0] = xyzw[1] = xyzw[2] = xyzw[3] = 0.0f;
+  if (format == NormalFormat::kOct16) {
+    float y = static_cast<float>(word >> 16) / 65535.0f * 2.0f - 1.0f;
+    xyzw[3] = y >= 0.0f ? 1.0f : -1.0f;
+    y = std::fabs(y);
+    detail::FromOctahedral(static_cast<float>(word & 0xffffu) / 65535.0f, y, xyzw);
+  } else if (format == NormalFormat::kSnorm8) {
+    for (int c = 0; c < 3; ++c) xyzw[c] = detail::Snorm8Value(word, c);
+    detail::NormaliseXyz(xyzw);
+    xyzw[3] = detail::Snorm8Value(word, 3) >= 0.0f ? 1.0f : -1.0f;
+  }
+}
 
 // One kernel argument, as the sidecar JSON describes it.
 struct Argument {
@@ -181,6 +295,7 @@ struct Kernel {
   PaletteFormat palette;
   PaletteStorage storage;
   Morph morph;                 // kNone, or the kernel applies morph targets (FindMorphKernel, PackMorphTargets)
+  NormalFormat normal_format;  // how out_normals / out_tangents hold a vector (NormalStrideBytes, UnpackNormal)
   bool point_blend;            // blends transformed points (else blends matrices): no effect on the interface
   bool normals;                // also skins normals: a `normals` input and an `out_normals` output
   bool tangents;               // also skins tangents (with normals): a `tangents` input and an
@@ -356,6 +471,7 @@ struct Request {
   int instances;
   bool dual_quaternions;  // dual-quaternion kernels only (PaletteFormat::kDualquat), else linear ones only
   int morph_targets;      // > 0: kernels specialised for that many morph targets only; 0: kernels without
+  NormalFormat normal_format;  // kernels writing normals and tangents in this format only (kF32 unless asked)
 };
 
 inline bool Serves(const Kernel& k, const Request& r) {
@@ -363,6 +479,7 @@ inline bool Serves(const Kernel& k, const Request& r) {
   return shape && std::strcmp(k.lang, r.lang) == 0 && k.influences >= r.influences && k.joints >= r.joint_count &&
          (k.palette == PaletteFormat::kDualquat) == r.dual_quaternions &&
          (k.morph == Morph::kNone ? r.morph_targets == 0 : k.morph_targets == r.morph_targets) &&
+         k.normal_format == r.normal_format &&
          static_cast<std::uint64_t>(r.joint_count) <= IndexCapacity(k.index) &&
          (k.max_instances == 0 || k.max_instances >= r.instances);
 }
@@ -411,14 +528,23 @@ inline const Kernel* Find(const Request& r) {
 // normals. Linear blend skinning kernels only: FindDualQuaternionKernel gives
 // the dual-quaternion ones, which compute something else.
 inline const Kernel* FindKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count) {
-  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, false, 0});
+  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, false, 0, NormalFormat::kF32});
+}
+
+// FindKernel's rule among the single-mesh kernels that write normals (and
+// tangents) packed in `format` (kOct16, kSnorm8: one 32-bit word a vector,
+// UnpackNormal / UnpackTangent decode it). The other finders return kF32
+// kernels only.
+inline const Kernel* FindPackedNormalsKernel(const char* lang, int influences, std::size_t vertex_count,
+                                             int joint_count, NormalFormat format) {
+  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, false, 0, format});
 }
 
 // FindKernel's rule among the single-mesh dual-quaternion kernels
 // (PaletteFormat::kDualquat: PackPalette takes rigid matrices only).
 inline const Kernel* FindDualQuaternionKernel(const char* lang, int influences, std::size_t vertex_count,
                                               int joint_count) {
-  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, true, 0});
+  return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, true, 0, NormalFormat::kF32});
 }
 
 // The kernel for a mesh with `morph_targets` morph targets (one instance, or a
@@ -431,10 +557,12 @@ inline const Kernel* FindMorphKernel(const char* lang, int influences, std::size
                                      int morph_targets, int instances = 1) {
   if (morph_targets < 1 || instances < 1) return nullptr;
   if (instances == 1)
-    return detail::Find({lang, "single", false, influences, vertex_count, joint_count, 1, 1, false, morph_targets});
+    return detail::Find(
+        {lang, "single", false, influences, vertex_count, joint_count, 1, 1, false, morph_targets, NormalFormat::kF32});
   const std::size_t total = vertex_count * static_cast<std::size_t>(instances);
   return detail::Find(
-      {lang, "instances", false, influences, total, joint_count, instances, instances, false, morph_targets});
+      {lang, "instances", false, influences, total, joint_count, instances, instances, false, morph_targets,
+       NormalFormat::kF32});
 }
 
 // The instanced kernel for a crowd of `instances` instances of one mesh of
@@ -447,7 +575,7 @@ inline const Kernel* FindMorphKernel(const char* lang, int influences, std::size
 inline const Kernel* FindCrowdKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count,
                                      int instances) {
   const std::size_t total = vertex_count * static_cast<std::size_t>(instances > 0 ? instances : 0);
-  return detail::Find({lang, "instances", false, influences, total, joint_count, instances, instances, false, 0});
+  return detail::Find({lang, "instances", false, influences, total, joint_count, instances, instances, false, 0, NormalFormat::kF32});
 }
 
 // The kernel for a batch of `meshes` meshes packed as one (PackBatch) of
@@ -460,7 +588,7 @@ inline const Kernel* FindCrowdKernel(const char* lang, int influences, std::size
 // FindKernel).
 inline const Kernel* FindBatchKernel(const char* lang, int influences, std::size_t vertex_count, int joint_count,
                                      int meshes) {
-  return detail::Find({lang, "batch", true, influences, vertex_count, joint_count, meshes, 1, false, 0});
+  return detail::Find({lang, "batch", true, influences, vertex_count, joint_count, meshes, 1, false, 0, NormalFormat::kF32});
 }
 
 // Work items for a launch of n vertices: ceil(n / vertices_per_item) rounded
@@ -486,6 +614,13 @@ inline std::size_t SlotStride(const Kernel& k, std::size_t n) {
 
 // Bytes per output vertex (and per position / normal input): 16 for kFloat4, 12 for kFloat3.
 inline std::size_t OutputStrideBytes(const Kernel& k) { return detail::VectorBytes(k.position); }
+// Bytes per vertex of out_normals and out_tangents: 4 for a packed
+// normal_format (one word: UnpackNormal, UnpackTangent), else
+// OutputStrideBytes(k) and 16.
+inline std::size_t NormalStrideBytes(const Kernel& k) {
+  return k.normal_format == NormalFormat::kF32 ? OutputStrideBytes(k) : 4;
+}
+inline std::size_t TangentStrideBytes(const Kernel& k) { return k.normal_format == NormalFormat::kF32 ? 16 : 4; }
 
 // The kernel's input buffers. Only the layout's buffers are non-empty: kAos
 // `records`; kSoa and kSoaSplit `positions`, `indices`, `weights`, `normals`
@@ -982,12 +1117,37 @@ inline std::vector<float> PackPalette(const Kernel& k, const float* matrices, in
 }
 
 // The output buffer (n vertices of OutputStrideBytes(k) bytes, as read back
-// from out_positions or out_normals) -> 3 floats per vertex into xyz (3*n
-// floats), in the mesh's order.
+// from out_positions, or out_normals of a kF32 kernel) -> 3 floats per vertex
+// into xyz (3*n floats), in the mesh's order.
 inline void UnpackPositions(const Kernel& k, const void* output, std::size_t n, float* xyz) {
   const std::size_t stride = OutputStrideBytes(k);
   const auto* bytes = static_cast<const unsigned char*>(output);
   for (std::size_t v = 0; v < n; ++v) std::memcpy(xyz + 3 * v, bytes + v * stride, 3 * sizeof(float));
+}
+// out_normals (n vertices of NormalStrideBytes(k) bytes) -> 3 floats per
+// vertex, decoded where k.normal_format packs them.
+inline void UnpackNormals(const Kernel& k, const void* output, std::size_t n, float* xyz) {
+  if (k.normal_format == NormalFormat::kF32) return UnpackPositions(k, output, n, xyz);
+  const auto* bytes = static_cast<const unsigned char*>(output);
+  for (std::size_t v = 0; v < n; ++v) {
+    std::uint32_t word;
+    std::memcpy(&word, bytes + 4 * v, 4);
+    UnpackNormal(k.normal_format, word, xyz + 3 * v);
+  }
+}
+// out_tangents (n vertices of TangentStrideBytes(k) bytes) -> 4 floats per
+// vertex (x y z, handedness w), decoded where k.normal_format packs them.
+inline void UnpackTangents(const Kernel& k, const void* output, std::size_t n, float* xyzw) {
+  const auto* bytes = static_cast<const unsigned char*>(output);
+  for (std::size_t v = 0; v < n; ++v) {
+    if (k.normal_format == NormalFormat::kF32) {
+      std::memcpy(xyzw + 4 * v, bytes + 16 * v, 4 * sizeof(float));
+      continue;
+    }
+    std::uint32_t word;
+    std::memcpy(&word, bytes + 4 * v, 4);
+    UnpackTangent(k.normal_format, word, xyzw + 4 * v);
+  }
 }
 
 }  // namespace skintune_kernels

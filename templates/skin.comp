@@ -49,16 +49,22 @@
 #endif
 layout(local_size_x = WG_SIZE) in;
 
+#if NORMALS && NORMAL_FORMAT != 0
+// Packed normals (and tangents): one word a vertex.
+layout(std430, binding = BINDING_OUT_NORMALS) writeonly restrict buffer OutNormals { uint out_normals[]; };
+#define STORE_NORMAL(at, value) out_normals[at] = pack_normal(value)
+#endif
+
 #if POSITION_FLOAT4
 layout(std430, binding = BINDING_OUT_POSITIONS) writeonly restrict buffer OutPositions { vec4 out_positions[]; };
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
 layout(std430, binding = BINDING_OUT_NORMALS) writeonly restrict buffer OutNormals { vec4 out_normals[]; };
+#define STORE_NORMAL(at, value) out_normals[at] = vec4((value), 0.0)
 #endif
 #define STORE_POSITION(at, value) out_positions[at] = vec4((value), 1.0)
-#define STORE_NORMAL(at, value) out_normals[at] = vec4((value), 0.0)
 #else
 layout(std430, binding = BINDING_OUT_POSITIONS) writeonly restrict buffer OutPositions { float out_positions[]; };
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
 layout(std430, binding = BINDING_OUT_NORMALS) writeonly restrict buffer OutNormals { float out_normals[]; };
 #endif
 void store_position(uint at, vec3 value) {
@@ -67,7 +73,7 @@ void store_position(uint at, vec3 value) {
   out_positions[3u * at + 2u] = value.z;
 }
 #define STORE_POSITION(at, value) store_position((at), (value))
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
 void store_normal(uint at, vec3 value) {
   out_normals[3u * at] = value.x;
   out_normals[3u * at + 1u] = value.y;
@@ -77,8 +83,12 @@ void store_normal(uint at, vec3 value) {
 #endif
 #endif
 
-#if TANGENTS
+#if TANGENTS && NORMAL_FORMAT == 0
 layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTangents { vec4 out_tangents[]; };
+#define STORE_TANGENT(at, value) out_tangents[at] = (value)
+#elif TANGENTS
+layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTangents { uint out_tangents[]; };
+#define STORE_TANGENT(at, value) out_tangents[at] = pack_tangent(value)
 #endif
 
 // ---------------------------------------------------------------- kernel
@@ -128,7 +138,7 @@ void main() {
     STORE_NORMAL(out_first + v, normalize(skinned_normal));
 #endif
 #if TANGENTS
-    out_tangents[out_first + v] = vec4(normalize(skinned_tangent.xyz), skinned_tangent.w);
+    STORE_TANGENT(out_first + v, vec4(normalize(skinned_tangent.xyz), skinned_tangent.w));
 #endif
   }
 }

@@ -61,17 +61,26 @@
 
 #if POSITION_FLOAT4
 out vec4 out_position;
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
 out vec4 out_normal;
 #endif
 #else
 out vec3 out_position;
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
 out vec3 out_normal;
 #endif
 #endif
-#if TANGENTS
+#if TANGENTS && NORMAL_FORMAT == 0
 out vec4 out_tangent;
+#endif
+#if NORMAL_FORMAT != 0
+// Packed normals and tangents: one word each (integer outputs are flat).
+#if NORMALS
+flat out uint out_normal;
+#endif
+#if TANGENTS
+flat out uint out_tangent;
+#endif
 #endif
 
 // ---------------------------------------------------------------- kernel
@@ -81,17 +90,24 @@ void main() {
   vec3 skinned_position, skinned_normal;
   vec4 skinned_tangent;
   skin_vertex(v, slot_stride_of(n), skinned_position, skinned_normal, skinned_tangent);
+#if NORMAL_FORMAT != 0
 #if TANGENTS
+  out_tangent = pack_tangent(vec4(normalize(skinned_tangent.xyz), skinned_tangent.w));
+#endif
+#if NORMALS
+  out_normal = pack_normal(normalize(skinned_normal));
+#endif
+#elif TANGENTS
   out_tangent = vec4(normalize(skinned_tangent.xyz), skinned_tangent.w);
 #endif
 #if POSITION_FLOAT4
   out_position = vec4(skinned_position, 1.0);
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
   out_normal = vec4(normalize(skinned_normal), 0.0);
 #endif
 #else
   out_position = skinned_position;
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
   out_normal = normalize(skinned_normal);
 #endif
 #endif

@@ -455,3 +455,40 @@ uint slot_stride_of(uint count) {
   return 0u;
 #endif
 }
+
+// Normals and tangents packed into one word each (NORMAL_FORMAT 1, 2;
+// docs/VARIANTS.md "Packed normals and tangents": the rule skintune's packer
+// and the emitted header's PackNormal run too).
+#if NORMAL_FORMAT == 1
+float sign_not_zero(float v) { return v >= 0.0 ? 1.0 : -1.0; }
+uint unorm16(float v) { return uint(floor(clamp(v, 0.0, 1.0) * 65535.0 + 0.5)); }
+// The octahedral coordinates of a unit vector, each in [0, 1].
+vec2 octahedral(vec3 n) {
+  float s = abs(n.x) + abs(n.y) + abs(n.z);
+  float u = n.x / s, v = n.y / s;
+  if (n.z < 0.0) {
+    float fu = (1.0 - abs(v)) * sign_not_zero(u);
+    v = (1.0 - abs(u)) * sign_not_zero(v);
+    u = fu;
+  }
+  return vec2(u * 0.5 + 0.5, v * 0.5 + 0.5);
+}
+uint pack_normal(vec3 n) {
+  vec2 o = octahedral(n);
+  return unorm16(o.x) | (unorm16(o.y) << 16);
+}
+// y keeps the handedness: at least 1/2 for +1, below for -1.
+uint pack_tangent(vec4 t) {
+  vec2 o = octahedral(t.xyz);
+  float y = max(o.y, 1.0 / 32767.0) * 0.5 + 0.5;
+  if (t.w < 0.0) y = 1.0 - y;
+  uint x16 = unorm16(o.x);
+  uint y16 = unorm16(y);
+  if (x16 == 0u && y16 == 65535u) x16 = 65535u;
+  return x16 | (y16 << 16);
+}
+#elif NORMAL_FORMAT == 2
+uint snorm8(float v) { return uint(int(floor(clamp(v, -1.0, 1.0) * 127.0 + 0.5))) & 0xffu; }
+uint pack_tangent(vec4 t) { return snorm8(t.x) | (snorm8(t.y) << 8) | (snorm8(t.z) << 16) | (snorm8(t.w) << 24); }
+uint pack_normal(vec3 n) { return pack_tangent(vec4(n, 0.0)); }
+#endif

@@ -56,6 +56,9 @@
 #ifndef MORPH_TARGETS         // MORPH: the mesh's morph targets (the weights' count per instance)
 #define MORPH_TARGETS 1
 #endif
+#ifndef NORMAL_FORMAT         // skinned normals and tangents written as 0 float32, 1 octahedral 2 x unorm16,
+#define NORMAL_FORMAT 0       // 2 4 x snorm8 (docs/VARIANTS.md "Packed normals and tangents")
+#endif
 #define MORPH_LAYOUT (MORPH & 3)
 #define MORPH_HALF ((MORPH & 4) != 0)
 #ifndef INSTANCED             // 1: K instances per launch, K palettes (docs/VARIANTS.md "Instancing")

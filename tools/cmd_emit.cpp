@@ -158,13 +158,15 @@ nlohmann::json WinnerJson(const WinnersEntry& e) {
 
 // A winner's row: device, language, B, vertex count, scene (shape,
 // instances, meshes), skinning method (linear or dual quaternions, which
-// compute different results) and morph targets. The database keeps a winner
-// per precision class of a row; the header embeds one kernel per row.
-using Row = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int>;
+// compute different results), morph targets and the normals' format. The
+// database keeps a winner per precision class of a row; the header embeds one
+// kernel per row.
+using Row = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int, int>;
 
 Row RowOf(const WinnersEntry& e) {
   return {e.device_id, static_cast<int>(e.lang), e.influences, e.vertices, static_cast<int>(e.shape), e.instances,
-          e.meshes, e.variant.blend == Blend::kDualQuaternion, e.morph_targets};
+          e.meshes, e.variant.blend == Blend::kDualQuaternion, e.morph_targets,
+          static_cast<int>(e.variant.normal_format)};
 }
 
 void WarnOverBudget(const WinnersEntry& e, double max_error) {

@@ -203,7 +203,7 @@ std::uint64_t FrameBytes(const PackedMesh& packed, int instances) {
   for (const Launch& launch : packed.launches)
     for (const PackedBuffer& b : launch.inputs) bytes += b.bytes.size();
   for (const OutputSpec& output : kOutputs)
-    if (Writes(packed.variant, output.output)) bytes += packed.vertex_count * packed.output_stride_bytes;
+    if (Writes(packed.variant, output.output)) bytes += packed.vertex_count * OutputStrideBytes(packed.variant, output.output);
   bytes += packed.palette.size();
   return bytes * static_cast<std::uint64_t>(instances);
 }

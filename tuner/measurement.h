@@ -115,7 +115,8 @@ struct Measurement {
   double bytes_per_frame = 0.0;   // bytes the variant's format must move per frame (inputs + outputs)
   double gbps = 0.0;              // bytes_per_frame / median time (status ok only)
   double x_copy = 0.0;            // median time / the same-size copy's (timing.copy_ms); 0: no copy time
-  double max_relative_error = 0.0;  // against the gold of the quantised mesh (ok, too_imprecise, verify_failed)
+  double max_relative_error = 0.0;  // against the gold of the quantised mesh (ok, too_imprecise, verify_failed);
+                                    // packed normals and tangents (normal_format) count in source_error only
   SourceError source_error;         // against the unquantised source (ok and too_imprecise)
   std::string generator_version;
   std::string timestamp;          // UTC, ISO 8601

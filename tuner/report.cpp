@@ -57,11 +57,12 @@ nlohmann::json WinnerJson(const Winner& w) {
 // format, and the morph offsets' format: float32 or half), skinning method
 // (linear, or dual quaternions: a different result, never one entry's rival)
 // and whether it applies morph targets (a mesh with them takes only such
-// entries) keeps its own.
+// entries) keeps its own, as does the format of the skinned normals (what the
+// user's consumer reads, not a choice of the tuner's).
 // A row: device id, lang, influences, vertices, shape, instances, meshes,
-// dual quaternions, morph targets; then the precision class: weight format,
-// half morph offsets.
-using RowKey = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int>;
+// dual quaternions, morph targets, normal format; then the precision class:
+// weight format, half morph offsets.
+using RowKey = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int, int>;
 using EntryKey = std::tuple<RowKey, int, bool>;
 
 template <typename W>  // Winner or WinnersEntry
@@ -74,7 +75,8 @@ RowKey RowOf(const W& w) {
           w.instances,
           w.meshes,
           w.variant.blend == Blend::kDualQuaternion,
-          SkinsMorph(w.variant) ? std::max(w.morph_targets, 1) : 0};
+          SkinsMorph(w.variant) ? std::max(w.morph_targets, 1) : 0,
+          static_cast<int>(w.variant.normal_format)};
 }
 
 template <typename W>  // Winner or WinnersEntry

@@ -21,6 +21,15 @@ TEST(Constraints, TheDefaultVariantIsValidOnGenericLimits) {
   EXPECT_TRUE(CheckVariant(Variant{}, kDevice, kShape).empty());
 }
 
+TEST(Constraints, APackedNormalFormatNeedsNormals) {
+  Variant v;
+  v.normal_format = NormalFormat::kOct16;
+  ExpectOnly(v, Constraint::kNormalFormatUnused, "normal_format oct16 packs normals, but the variant skins none");
+  v.normals = Normals::kNormals;
+  EXPECT_TRUE(CheckVariant(v, kDevice, kShape).empty());
+  EXPECT_STREQ(Name(Constraint::kNormalFormatUnused), "normal_format_unused");
+}
+
 TEST(Constraints, RejectsInfluencesOutsideOneToEight) {
   Variant v;
   v.influences = 9;

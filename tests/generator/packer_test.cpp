@@ -650,7 +650,7 @@ TEST(Packer, UnpackRejectsOutputOfTheWrongSize) {
   v.position = PositionFormat::kFloat3;
   const PackedMesh packed = Pack(RandomMesh(10, 2, 5, false, 4), v);
   const std::string message = ErrorOf([&] { Unpack(packed, std::vector<std::uint8_t>(10 * 16)); });
-  EXPECT_NE(message.find("unpack " + v.Key() + ": output has 160 bytes, expected 10 vertices x 12 bytes = 120"),
+  EXPECT_NE(message.find("unpack " + v.Key() + ": positions output has 160 bytes, expected 10 vertices x 12 bytes = 120"),
             std::string::npos) << message;
   EXPECT_EQ(Unpack(packed, std::vector<std::uint8_t>(120)).size(), 10u);
 }

@@ -23,8 +23,8 @@ TEST(TuningSpace, GlslVertexCollapsesWorkGroupAxes) {
     ASSERT_EQ(v.wg_size, 0);
     ASSERT_EQ(v.vertices_per_item, 1);
   });
-  // palettes and blends: 3 each; normals: 3; morph: 5
-  EXPECT_EQ(s.Size(), 8u * 2 * 3 * 2 * 3 * 3 * 3 * 4 * 3 * 3 * 5);
+  // palettes and blends: 3 each; normals: 3; morph: 5; normal formats: 3
+  EXPECT_EQ(s.Size(), 8u * 2 * 3 * 2 * 3 * 3 * 3 * 4 * 3 * 3 * 5 * 3);
 }
 
 TEST(TuningSpace, FromJsonRestrictsNamedAxesAndKeepsTheRestFull) {
@@ -92,6 +92,18 @@ TEST(TuningSpace, ForDataSetKeepsTheMorphValuesOfTheDataSet) {
   EXPECT_EQ(ForDataSet(s, morph).morphs, std::vector<Morph>{Morph::kSparseHalf});
   s.morphs = {Morph::kDense};
   EXPECT_TRUE(ForDataSet(s, {77, 4, true}).morphs.empty());
+}
+
+// The normals' format is the user's: a config that leaves it out tunes
+// float32 only; listed formats stay, except on a data set without normals.
+TEST(TuningSpace, NormalFormatIsFloat32UnlessListedAndOnlyWhereTheDataSetHasNormals) {
+  EXPECT_EQ(SpaceFromJson(nlohmann::json::object(), "test").normal_formats,
+            std::vector<NormalFormat>{NormalFormat::kF32});
+  const TuningSpace listed = SpaceFromJson({{"normal_format", {"f32", "oct16", "snorm8"}}}, "test");
+  EXPECT_EQ(listed.normal_formats.size(), 3u);
+  EXPECT_EQ(ForDataSet(listed, {77, 4, true}).normal_formats.size(), 3u);
+  EXPECT_EQ(ForDataSet(listed, {77, 4, false}).normal_formats, std::vector<NormalFormat>{NormalFormat::kF32});
+  EXPECT_THROW(SpaceFromJson({{"normal_format", {"half"}}}, "test"), Error);
 }
 
 TEST(Enumerate, CountsValidAndInvalidByConstraint) {

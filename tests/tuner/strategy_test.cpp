@@ -26,6 +26,7 @@ std::vector<Variant> ProductSpace() {
   space.influences = {4};
   space.normals = {Normals::kNone};
   space.morphs = {Morph::kNone};
+  space.normal_formats = {NormalFormat::kF32};
   std::vector<Variant> out;
   space.ForEach([&](const Variant& v) { out.push_back(v); });
   return out;
@@ -275,6 +276,7 @@ TEST(Strategy, CoordinateWithFivePercentOfAWideSpaceLandsWithinFivePercentOfTheO
   space.influences = {4};
   space.normals = {Normals::kNone};
   space.morphs = {Morph::kNone};
+  space.normal_formats = {NormalFormat::kF32};
   space.mixed = {MixedCounts::kPadded};
   space.positions = {PositionFormat::kFloat4, PositionFormat::kFloat3};
   space.indices = {IndexFormat::kU16, IndexFormat::kU8};

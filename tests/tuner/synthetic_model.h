@@ -30,6 +30,7 @@ inline std::vector<Variant> SyntheticCandidates(std::size_t max_wg = 256) {
   space.influences = {4};
   space.normals = {Normals::kNone};
   space.morphs = {Morph::kNone};
+  space.normal_formats = {NormalFormat::kF32};
   DeviceLimits limits;
   limits.max_wg_size = max_wg;
   std::vector<Variant> out;

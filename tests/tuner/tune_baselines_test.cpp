@@ -31,6 +31,7 @@ TEST(TuneBaselines, AreMeasuredWithTheDatasetsBOutsideTheSpaceAndInvalidOnesAreR
   config.space.wg_sizes = {64};
   config.space.normals = {Normals::kNone};
   config.space.morphs = {Morph::kNone};
+  config.space.normal_formats = {NormalFormat::kF32};
   config.datasets = {"3000-b2-bones300"};
   config.timing = {1, 3, 2, 1e-5};
   config.variant_timeout_s = 30;

@@ -83,6 +83,7 @@ class CpuBound final : public DeviceObject {
   std::vector<std::span<const std::uint8_t>> buffers;  // every buffer bound to it (what kCold evicts)
   float* palette_out = nullptr;  // the palette kernel's output
   CpuMorphScratch morph;          // a morph variant's morphed vertex streams, per instance
+  CpuPackScratch packing;         // a packed normal_format's float32 normals and tangents, per instance
 };
 
 // The kernel a skinning kernel text's parameters select (ParsedOf checked
@@ -268,6 +269,10 @@ std::unique_ptr<PlannedLaunch> CpuApi::Plan(const LaunchSpec& spec) {
   if (SkinsMorph(spec.variant)) plan->morph_targets = static_cast<int>(parsed.defines.at("MORPH_TARGETS"));
   if (SkinsMorph(spec.variant) != (parsed.defines.contains("MORPH") && parsed.defines.at("MORPH") != 0))
     Fail("launch", spec.where + ": the kernel's MORPH does not match the variant's morph " + Name(spec.variant.morph));
+  const long long normal_format = parsed.defines.contains("NORMAL_FORMAT") ? parsed.defines.at("NORMAL_FORMAT") : 0;
+  if (normal_format != static_cast<long long>(spec.variant.normal_format))
+    Fail("launch", spec.where + ": the kernel's NORMAL_FORMAT does not match the variant's normal_format " +
+                       Name(spec.variant.normal_format));
   return plan;
 }
 
@@ -388,11 +393,16 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
     LoadCpuPalette(std::span(b.palette->data() + static_cast<std::size_t>(i) * joint_bytes, joint_bytes),
                    plan.palette_rows, b.converted);
     const std::size_t vertex_inputs = std::min(CpuVertexInputCount(spec.variant), b.inputs.size());
+    const bool packs = PacksNormals(spec.variant);  // then normals and tangents are one word a vertex
     CpuStreams s = CpuStreamsOf(spec.variant, spec.source.influences, spec.count,
                                 std::span(b.inputs).first(vertex_inputs),
                                 At(b.Out(Output::kPositions), out_first * floats),
-                                At(b.Out(Output::kNormals), out_first * floats),
-                                At(b.Out(Output::kTangents), out_first * floats), choice.stream_stores);
+                                At(b.Out(Output::kNormals), packs ? out_first : out_first * floats),
+                                At(b.Out(Output::kTangents), packs ? out_first : out_first * floats),
+                                choice.stream_stores);
+    auto* const packed_normals = reinterpret_cast<std::uint32_t*>(s.out_normals);
+    auto* const packed_tangents = reinterpret_cast<std::uint32_t*>(s.out_tangents);
+    if (packs) s = PackingStreams(s, b.packing, spec.count);
     if (plan.morph_targets > 0) {
       // The morph targets first, into scratch streams the kernel then reads
       // (morph_weights, the last input, holds every instance's).
@@ -409,6 +419,10 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
       s = morphed;
     }
     RunCpuKernel(plan.kernel, s, b.converted, spec.count, pool, choice.schedule.chunk);
+    if (packs)
+      pool.ParallelFor(spec.count, std::max<std::size_t>(choice.schedule.chunk, 64), [&](std::size_t begin, std::size_t end) {
+        PackCpuOutputs(spec.variant.normal_format, s, packed_normals, packed_tangents, begin, end);
+      });
     if (plan.fault_wrong && spec.index == 0) s.out_positions[0] += 1.0f;  // the tuner's wrong-result test
   }
 }

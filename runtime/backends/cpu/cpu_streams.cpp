@@ -174,4 +174,32 @@ CpuStreams MorphedStreams(CpuStreams s, CpuMorphScratch& scratch, std::size_t co
   return s;
 }
 
+CpuStreams PackingStreams(CpuStreams s, CpuPackScratch& scratch, std::size_t count) {
+  if (s.out_normals) {
+    scratch.normals.resize(static_cast<std::size_t>(s.output_floats) * count);
+    s.out_normals = scratch.normals.data();
+  }
+  if (s.out_tangents) {
+    scratch.tangents.resize(4 * count);
+    s.out_tangents = scratch.tangents.data();
+  }
+  s.stream_stores = false;  // the scratch is read right after
+  return s;
+}
+
+void PackCpuOutputs(NormalFormat format, const CpuStreams& s, std::uint32_t* out_normals,
+                    std::uint32_t* out_tangents, std::size_t begin, std::size_t end) {
+  const auto floats = static_cast<std::size_t>(s.output_floats);
+  for (std::size_t v = begin; v < end; ++v) {
+    if (out_normals && s.out_normals) {
+      const float* n = s.out_normals + v * floats;
+      out_normals[v] = PackedNormalWord(format, glm::vec3(n[0], n[1], n[2]));
+    }
+    if (out_tangents && s.out_tangents) {
+      const float* t = s.out_tangents + 4 * v;
+      out_tangents[v] = PackedTangentWord(format, glm::vec4(t[0], t[1], t[2], t[3]));
+    }
+  }
+}
+
 }  // namespace skintune::internal

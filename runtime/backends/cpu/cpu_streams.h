@@ -46,4 +46,17 @@ void MorphCpuStreams(const Variant& variant, std::size_t count, int targets,
 // `s` reading `scratch` (sized for `count` vertices) for what MorphCpuStreams wrote.
 CpuStreams MorphedStreams(CpuStreams s, CpuMorphScratch& scratch, std::size_t count);
 
+// A packed normal_format (docs/VARIANTS.md "Packed normals and tangents"):
+// the table's kernels write float32 normals and tangents into `scratch`
+// (PackingStreams: `s` with its normal and tangent outputs there, sized for
+// `count` vertices), then PackCpuOutputs packs vertices [begin, end) of them
+// into one word each, by the rule every kernel runs (generator/packer.h
+// PackedNormalWord), at `out_normals` / `out_tangents` (null: not written).
+struct CpuPackScratch {
+  std::vector<float> normals, tangents;  // output_floats and 4 floats a vertex of the launch
+};
+CpuStreams PackingStreams(CpuStreams s, CpuPackScratch& scratch, std::size_t count);
+void PackCpuOutputs(NormalFormat format, const CpuStreams& s, std::uint32_t* out_normals,
+                    std::uint32_t* out_tangents, std::size_t begin, std::size_t end);
+
 }  // namespace skintune::internal

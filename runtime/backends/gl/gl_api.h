@@ -7,6 +7,7 @@
 
 #include <epoxy/gl.h>
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <map>
@@ -143,7 +144,7 @@ class GlPlanned final : public PlannedLaunch {
   };
   std::vector<Scalar> scalars;
   std::size_t groups = 0;  // glsl-compute
-  CapturePlan capture;     // glsl-vertex
+  std::array<CapturePlan, kOutputCount> captures;  // glsl-vertex, by Output (each output's own stride)
 };
 
 // One launch of one set: what to bind where, and the staged captures.
@@ -160,6 +161,7 @@ class GlBound final : public DeviceObject {
   };
   struct Staged {
     GLuint staging = 0, out = 0;
+    const CapturePlan* capture = nullptr;  // the output's
   };
   void Forget() override {
     for (GlObject& o : staging) o.forget();

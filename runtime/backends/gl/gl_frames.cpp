@@ -96,7 +96,7 @@ void DrawLaunch(const GlBound& bound) {
       glDrawArrays(GL_POINTS, 0, static_cast<GLsizei>(plan.spec.count));
     }
     glEndTransformFeedback();
-    for (const GlBound::Staged& st : bound.staged) CopyStagedCapture(st.staging, st.out, plan.capture);
+    for (const GlBound::Staged& st : bound.staged) CopyStagedCapture(st.staging, st.out, *st.capture);
   } else {
     glDispatchCompute(static_cast<GLuint>(plan.groups), static_cast<GLuint>(instances), 1);
   }
@@ -110,7 +110,7 @@ std::string Described(const GlPlanned& plan) {
            ") of groups of " + std::to_string(s.source.launch.wg_size);
   return s.where + ": glDrawArrays" + (s.instanced ? "Instanced" : "") + "(GL_POINTS, 0, " + std::to_string(s.count) +
          (s.instanced ? ", " + std::to_string(s.instances) : "") + ") captured at vertex " + std::to_string(s.first) +
-         (plan.capture.staged ? " through a staging buffer" : "");
+         (plan.captures.front().staged ? " through a staging buffer" : "");
 }
 
 const GlPlanned* FirstPlan(const FrameRun& run) {

@@ -49,6 +49,7 @@ std::string Headline(const std::string& text) {
 std::string GlTypeName(GLenum type) {
   if (type == GL_FLOAT_VEC4) return "vec4";
   if (type == GL_FLOAT_VEC3) return "vec3";
+  if (type == GL_UNSIGNED_INT) return "uint";
   char text[16];
   std::snprintf(text, sizeof text, "0x%04x", type);
   return text;
@@ -62,10 +63,10 @@ const KernelArgument* FindArgument(const KernelSource& source, const std::string
   return nullptr;
 }
 
-CapturePlan PlanCapture(const LaunchSpec& spec) {
+CapturePlan PlanCapture(const LaunchSpec& spec, Output output) {
   CapturePlan c;
   const auto k = static_cast<std::size_t>(spec.instances);
-  const std::size_t n = spec.count, stride = spec.output_stride, vertex_count = spec.vertex_count;
+  const std::size_t n = spec.count, stride = OutputStrideBytes(spec.variant, output), vertex_count = spec.vertex_count;
   c.bytes = k * n * stride;
   c.staged = k > 1 && n != vertex_count;
   if (!c.staged) {
@@ -201,21 +202,28 @@ GlObject GlApi::ProgramFromSource(const KernelSource& source, const std::vector<
   return owner;
 }
 
-// The captured outputs must be exactly the output format (vec4 float4, vec3 float3).
+// The captured outputs must be exactly the output's format (vec4 float4,
+// vec3 float3, uint a packed word).
 void GlApi::CheckCapturedTypes(const KernelSource& source, GLuint program, const std::vector<const char*>& varyings,
                                const std::string& what) {
-  const KernelArgument* out = FindArgument(source, "out_positions");
-  const GLenum expected = out && out->format == "float3" ? GL_FLOAT_VEC3 : GL_FLOAT_VEC4;
-  for (GLuint i = 0; i < varyings.size(); ++i) {
+  GLuint i = 0;
+  for (const OutputSpec& output : kOutputs) {
+    const KernelArgument* out = FindArgument(source, output.argument);
+    if (!out) continue;
+    const GLenum expected = out->format == "float3"   ? GL_FLOAT_VEC3
+                            : out->format == "float4" ? GL_FLOAT_VEC4
+                                                      : GL_UNSIGNED_INT;
+    const char* expected_name = expected == GL_FLOAT_VEC3 ? "vec3" : expected == GL_FLOAT_VEC4 ? "vec4" : "uint";
     GLsizei size = 0;
     GLenum type = 0;
     char name[64] = {};
     glGetTransformFeedbackVarying(program, i, sizeof name, nullptr, &size, &type, name);
     if (type != expected || size != 1)
       Fail("build", what + ": transform feedback varying " + std::to_string(i) + " '" + name + "' is not a " +
-                        (expected == GL_FLOAT_VEC3 ? "vec3" : "vec4") + " (type " + GlTypeName(type) + ", size " +
-                        std::to_string(size) + ")");
+                        expected_name + " (type " + GlTypeName(type) + ", size " + std::to_string(size) + ")");
+    ++i;
   }
+  if (i != varyings.size()) Fail("build", what + ": " + std::to_string(varyings.size()) + " varyings for " + std::to_string(i) + " outputs");
 }
 
 const BuiltProgram& GlApi::ProgramFor(const KernelSource& source) {
@@ -348,7 +356,8 @@ std::unique_ptr<PlannedLaunch> GlApi::Plan(const LaunchSpec& spec) {
     if (a.kind == ArgumentKind::kScalar && a.name != "n" && a.name != "first" && a.name != "vertex_count")
       plan->scalars.push_back({a.name, glGetUniformLocation(plan->program, a.name.c_str()), a.format == "f32"});
   if (plan->vertex) {
-    plan->capture = PlanCapture(spec);
+    for (const OutputSpec& output : kOutputs)
+      plan->captures[static_cast<std::size_t>(output.output)] = PlanCapture(spec, output.output);
   } else {
     const std::size_t groups = source.launch.GlobalItems(spec.count) / static_cast<std::size_t>(source.launch.wg_size);
     if (groups > info().max_compute_work_group_count_x)
@@ -387,7 +396,6 @@ std::unique_ptr<DeviceObject> GlApi::Bind(const PlannedLaunch& launch, std::span
   using Target = GlBound::Target;
   const auto& plan = static_cast<const GlPlanned&>(launch);
   const LaunchSpec& spec = plan.spec;
-  const CapturePlan& capture = plan.capture;
   auto bound = std::make_unique<GlBound>();
   bound->plan = &plan;
   GLuint binding = 0;
@@ -404,6 +412,7 @@ std::unique_ptr<DeviceObject> GlApi::Bind(const PlannedLaunch& launch, std::span
     } else if (a.role == ArgumentRole::kOutput && plan.vertex) {
       b.target = Target::kFeedback;
       b.index = static_cast<GLuint>(OutputOfArgument(name)->output);  // the varying's capture buffer
+      const CapturePlan& capture = plan.captures[b.index];
       b.offset = static_cast<GLintptr>(capture.offset);
       b.size = static_cast<GLsizeiptr>(capture.bytes);
       if (capture.staged) {
@@ -413,7 +422,7 @@ std::unique_ptr<DeviceObject> GlApi::Bind(const PlannedLaunch& launch, std::span
         bound->staging.push_back(NewBuffer(capture.bytes, options.verification ? poison.data() : nullptr,
                                            "staged " + name + options.suffix));
         if (!options.verification) allocated += capture.bytes;
-        bound->staged.push_back({bound->staging.back().get(), b.object});
+        bound->staged.push_back({bound->staging.back().get(), b.object, &capture});
         b.object = bound->staging.back().get();
       } else if (capture.offset + capture.bytes > a.buffer->bytes()) {
         Fail("launch", spec.where + ": capture range [" + std::to_string(spec.first) + ", " +

@@ -283,6 +283,11 @@ inline constexpr double kDefaultMaxError = 1e-4;
 // the scene's shape and fall back to a single-mesh entry of the same total
 // vertex count.
 enum class SceneShape { kSingle, kInstances, kBatch };
+
+// The format the kernel writes skinned normals and tangents in
+// (docs/VARIANTS.md "Packed normals and tangents"): float32, or one 32-bit
+// word a vector, octahedral 2 x unorm16 (Godot 4's layout) or 4 x snorm8.
+enum class NormalFormat { kF32, kOct16, kSnorm8 };
 const char* SceneShapeName(SceneShape shape);  // "single", "instances", "batch"
 
 // How the database entry for a device was found (the fallback chain).
@@ -418,14 +423,24 @@ struct SkinnerOptions {
   // is kInvalidArgument naming it. Not with CreateAnimated (its palettes are
   // matrices): kInvalidArgument.
   bool dual_quaternions = false;
+  // The format of the skinned normals and tangents on the device, what the
+  // consumer of device buffers reads: kF32, or one word a vector (kOct16:
+  // within 8e-5 of the float32 direction, tangents 2.2e-4; kSnorm8: 8.5e-3).
+  // A packed format is the user's choice, never a silent trade: entries tuned
+  // in it serve first, else the chosen entry's variant with this format (the
+  // reason says so). ReadNormals / ReadTangents decode it to floats;
+  // ReadPackedNormals / ReadPackedTangents give the words. Needs normals
+  // (kInvalidArgument otherwise).
+  NormalFormat normal_format = NormalFormat::kF32;
   // Force a variant key (docs/VARIANTS.md; omitted axes take their defaults)
   // instead of the database's choice; Selection::level is then kForced. It
   // must be of one of the device's languages, padded (a bucketed variant
   // reorders the vertices on the device) and pass every constraint on this
   // device and mesh (e.g. B at least the mesh's largest per-vertex count);
   // otherwise kInvalidArgument naming the constraint ("influences_too_few:
-  // ..."). Its `normals` axis follows `normals` and `tangents` above; its
-  // blend must be "dq" exactly when `dual_quaternions` is set.
+  // ..."). Its `normals` axis follows `normals` and `tangents` above, its
+  // `normal_format` `normal_format` above; its blend must be "dq" exactly
+  // when `dual_quaternions` is set.
   std::string variant;
   // The error budget: the largest error quantising the weights may add to the
   // skinned positions, relative to the mesh's bounding-box diagonal
@@ -688,6 +703,13 @@ class Skinner {
   // always scanned before it is copied; kInvalidState when the Skinner skins
   // no tangents (SkinnerOptions::tangents).
   Status ReadTangents(float* out, std::size_t float_count);
+  // The packed words of a Skinner whose SkinnerOptions::normal_format packs
+  // them, as the kernel wrote them (one per vertex, instance after instance,
+  // in the mesh's order): `word_count` = instances() * vertex_count().
+  // Blocks as ReadNormals does. kInvalidState when the Skinner skins no
+  // normals (tangents) or writes them as floats.
+  Status ReadPackedNormals(std::uint32_t* out, std::size_t word_count);
+  Status ReadPackedTangents(std::uint32_t* out, std::size_t word_count);
 
   // Output left on the device (no read-back): the native buffer holding the
   // positions of the last Skin(): a cl_mem (OpenCL), a CUdeviceptr

@@ -13,6 +13,7 @@
 #define WG_SIZE 128
 #define NORMALS 1
 #define MORPH 0
+#define NORMAL_FORMAT 0
 #line 1 "skin.cu"
 // skintune: linear blend skinning, every CUDA variant in one kernel file.
 //
@@ -125,6 +126,9 @@
 #endif
 #ifndef MORPH_TARGETS         // MORPH: the mesh's morph targets (the weights' count per instance)
 #define MORPH_TARGETS 1
+#endif
+#ifndef NORMAL_FORMAT         // skinned normals and tangents written as 0 float32, 1 octahedral 2 x unorm16,
+#define NORMAL_FORMAT 0       // 2 4 x snorm8 (docs/VARIANTS.md "Packed normals and tangents")
 #endif
 #define MORPH_LAYOUT (MORPH & 3)
 #define MORPH_HALF ((MORPH & 4) != 0)
@@ -583,6 +587,56 @@ DEVICE void store_xyz3(float* out, const u32 at, const float3 value) {
 }
 #endif
 
+// Normals and tangents: float32 (as positions; tangents float4), or one
+// packed word each (docs/VARIANTS.md "Packed normals and tangents": the rule
+// skintune's packer and the emitted header's PackNormal run too).
+#if NORMAL_FORMAT == 0
+#define NORMAL_OUT_T POSITION_T
+#define TANGENT_OUT_T float4
+#define STORE_NORMAL(out, at, n) STORE_XYZ(out, at, n, 0.0f)
+#define STORE_TANGENT(out, at, t) ((out)[at] = (t))
+#else
+#define NORMAL_OUT_T u32
+#define TANGENT_OUT_T u32
+#define STORE_NORMAL(out, at, n) ((out)[at] = pack_normal(n))
+#define STORE_TANGENT(out, at, t) ((out)[at] = pack_tangent(t))
+#endif
+#if NORMAL_FORMAT == 1
+DEVICE float sign_not_zero(const float v) { return v >= 0.0f ? 1.0f : -1.0f; }
+DEVICE u32 unorm16(const float v) { return (u32)floorf(fminf(fmaxf(v, 0.0f), 1.0f) * 65535.0f + 0.5f); }
+// The octahedral coordinates of a unit vector, each in [0, 1].
+DEVICE float2 octahedral(const float3 n) {
+  const float s = fabsf(n.x) + fabsf(n.y) + fabsf(n.z);
+  float u = n.x / s, v = n.y / s;
+  if (n.z < 0.0f) {
+    const float fu = (1.0f - fabsf(v)) * sign_not_zero(u);
+    v = (1.0f - fabsf(u)) * sign_not_zero(v);
+    u = fu;
+  }
+  return make_float2(u * 0.5f + 0.5f, v * 0.5f + 0.5f);
+}
+DEVICE u32 pack_normal(const float3 n) {
+  const float2 o = octahedral(n);
+  return unorm16(o.x) | unorm16(o.y) << 16;
+}
+#if TANGENTS
+// y keeps the handedness: at least 1/2 for +1, below for -1.
+DEVICE u32 pack_tangent(const float4 t) {
+  const float2 o = octahedral(make_float3(t.x, t.y, t.z));
+  float y = fmaxf(o.y, 1.0f / 32767.0f) * 0.5f + 0.5f;
+  if (t.w < 0.0f) y = 1.0f - y;
+  u32 x16 = unorm16(o.x);
+  const u32 y16 = unorm16(y);
+  if (x16 == 0u && y16 == 65535u) x16 = 65535u;
+  return x16 | y16 << 16;
+}
+#endif
+#elif NORMAL_FORMAT == 2
+DEVICE u32 snorm8(const float v) { return (u32)((int)floorf(fminf(fmaxf(v, -1.0f), 1.0f) * 127.0f + 0.5f) & 0xff); }
+DEVICE u32 pack_tangent(const float4 t) { return snorm8(t.x) | snorm8(t.y) << 8 | snorm8(t.z) << 16 | snorm8(t.w) << 24; }
+DEVICE u32 pack_normal(const float3 n) { return pack_tangent(make_float4(n.x, n.y, n.z, 0.0f)); }
+#endif
+
 // ---------------------------------------------------------------- kernel
 
 extern "C" __global__ void __launch_bounds__(WG_SIZE)
@@ -620,11 +674,11 @@ skin(const u32 n, const u32 first,
      PALETTE_PARAM,
 #if TANGENTS
      POSITION_T* __restrict__ out_positions,
-     POSITION_T* __restrict__ out_normals,
-     float4* __restrict__ out_tangents) {
+     NORMAL_OUT_T* __restrict__ out_normals,
+     TANGENT_OUT_T* __restrict__ out_tangents) {
 #elif NORMALS
      POSITION_T* __restrict__ out_positions,
-     POSITION_T* __restrict__ out_normals) {
+     NORMAL_OUT_T* __restrict__ out_normals) {
 #else
      POSITION_T* __restrict__ out_positions) {
 #endif
@@ -743,12 +797,12 @@ skin(const u32 n, const u32 first,
     blend(PALETTE_REF, joint, weight, position, &skinned_position, &a0, &a1, &a2);
     STORE_XYZ(out_positions, out_first + v, skinned_position, 1.0f);
 #if NORMALS
-    STORE_XYZ(out_normals, out_first + v, normalize3(transform_normal(a0, a1, a2, normal)), 0.0f);
+    STORE_NORMAL(out_normals, out_first + v, normalize3(transform_normal(a0, a1, a2, normal)));
 #endif
 #if TANGENTS
     const float4 t = transform_tangent(a0, a1, a2, tangent);
     const float3 t3 = normalize3(make_float3(t.x, t.y, t.z));
-    out_tangents[out_first + v] = make_float4(t3.x, t3.y, t3.z, t.w);
+    STORE_TANGENT(out_tangents, out_first + v, make_float4(t3.x, t3.y, t3.z, t.w));
 #endif
   }
 }

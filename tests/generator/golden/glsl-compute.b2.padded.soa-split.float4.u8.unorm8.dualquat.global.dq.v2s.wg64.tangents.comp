@@ -14,6 +14,7 @@
 #define WG_SIZE 64
 #define NORMALS 2
 #define MORPH 0
+#define NORMAL_FORMAT 0
 #define SLOT_STRIDE_MULTIPLE 256
 #define BINDING_POSITIONS 0
 #define BINDING_INDICES 1
@@ -123,6 +124,9 @@
 #endif
 #ifndef MORPH_TARGETS         // MORPH: the mesh's morph targets (the weights' count per instance)
 #define MORPH_TARGETS 1
+#endif
+#ifndef NORMAL_FORMAT         // skinned normals and tangents written as 0 float32, 1 octahedral 2 x unorm16,
+#define NORMAL_FORMAT 0       // 2 4 x snorm8 (docs/VARIANTS.md "Packed normals and tangents")
 #endif
 #define MORPH_LAYOUT (MORPH & 3)
 #define MORPH_HALF ((MORPH & 4) != 0)
@@ -700,6 +704,43 @@ uint slot_stride_of(uint count) {
   return 0u;
 #endif
 }
+
+// Normals and tangents packed into one word each (NORMAL_FORMAT 1, 2;
+// docs/VARIANTS.md "Packed normals and tangents": the rule skintune's packer
+// and the emitted header's PackNormal run too).
+#if NORMAL_FORMAT == 1
+float sign_not_zero(float v) { return v >= 0.0 ? 1.0 : -1.0; }
+uint unorm16(float v) { return uint(floor(clamp(v, 0.0, 1.0) * 65535.0 + 0.5)); }
+// The octahedral coordinates of a unit vector, each in [0, 1].
+vec2 octahedral(vec3 n) {
+  float s = abs(n.x) + abs(n.y) + abs(n.z);
+  float u = n.x / s, v = n.y / s;
+  if (n.z < 0.0) {
+    float fu = (1.0 - abs(v)) * sign_not_zero(u);
+    v = (1.0 - abs(u)) * sign_not_zero(v);
+    u = fu;
+  }
+  return vec2(u * 0.5 + 0.5, v * 0.5 + 0.5);
+}
+uint pack_normal(vec3 n) {
+  vec2 o = octahedral(n);
+  return unorm16(o.x) | (unorm16(o.y) << 16);
+}
+// y keeps the handedness: at least 1/2 for +1, below for -1.
+uint pack_tangent(vec4 t) {
+  vec2 o = octahedral(t.xyz);
+  float y = max(o.y, 1.0 / 32767.0) * 0.5 + 0.5;
+  if (t.w < 0.0) y = 1.0 - y;
+  uint x16 = unorm16(o.x);
+  uint y16 = unorm16(y);
+  if (x16 == 0u && y16 == 65535u) x16 = 65535u;
+  return x16 | (y16 << 16);
+}
+#elif NORMAL_FORMAT == 2
+uint snorm8(float v) { return uint(int(floor(clamp(v, -1.0, 1.0) * 127.0 + 0.5))) & 0xffu; }
+uint pack_tangent(vec4 t) { return snorm8(t.x) | (snorm8(t.y) << 8) | (snorm8(t.z) << 16) | (snorm8(t.w) << 24); }
+uint pack_normal(vec3 n) { return pack_tangent(vec4(n, 0.0)); }
+#endif
 #line 44 0  // skin.comp
 
 // ---------------------------------------------------------------- outputs
@@ -709,16 +750,22 @@ uint slot_stride_of(uint count) {
 #endif
 layout(local_size_x = WG_SIZE) in;
 
+#if NORMALS && NORMAL_FORMAT != 0
+// Packed normals (and tangents): one word a vertex.
+layout(std430, binding = BINDING_OUT_NORMALS) writeonly restrict buffer OutNormals { uint out_normals[]; };
+#define STORE_NORMAL(at, value) out_normals[at] = pack_normal(value)
+#endif
+
 #if POSITION_FLOAT4
 layout(std430, binding = BINDING_OUT_POSITIONS) writeonly restrict buffer OutPositions { vec4 out_positions[]; };
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
 layout(std430, binding = BINDING_OUT_NORMALS) writeonly restrict buffer OutNormals { vec4 out_normals[]; };
+#define STORE_NORMAL(at, value) out_normals[at] = vec4((value), 0.0)
 #endif
 #define STORE_POSITION(at, value) out_positions[at] = vec4((value), 1.0)
-#define STORE_NORMAL(at, value) out_normals[at] = vec4((value), 0.0)
 #else
 layout(std430, binding = BINDING_OUT_POSITIONS) writeonly restrict buffer OutPositions { float out_positions[]; };
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
 layout(std430, binding = BINDING_OUT_NORMALS) writeonly restrict buffer OutNormals { float out_normals[]; };
 #endif
 void store_position(uint at, vec3 value) {
@@ -727,7 +774,7 @@ void store_position(uint at, vec3 value) {
   out_positions[3u * at + 2u] = value.z;
 }
 #define STORE_POSITION(at, value) store_position((at), (value))
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
 void store_normal(uint at, vec3 value) {
   out_normals[3u * at] = value.x;
   out_normals[3u * at + 1u] = value.y;
@@ -737,8 +784,12 @@ void store_normal(uint at, vec3 value) {
 #endif
 #endif
 
-#if TANGENTS
+#if TANGENTS && NORMAL_FORMAT == 0
 layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTangents { vec4 out_tangents[]; };
+#define STORE_TANGENT(at, value) out_tangents[at] = (value)
+#elif TANGENTS
+layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTangents { uint out_tangents[]; };
+#define STORE_TANGENT(at, value) out_tangents[at] = pack_tangent(value)
 #endif
 
 // ---------------------------------------------------------------- kernel
@@ -788,7 +839,7 @@ void main() {
     STORE_NORMAL(out_first + v, normalize(skinned_normal));
 #endif
 #if TANGENTS
-    out_tangents[out_first + v] = vec4(normalize(skinned_tangent.xyz), skinned_tangent.w);
+    STORE_TANGENT(out_first + v, vec4(normalize(skinned_tangent.xyz), skinned_tangent.w));
 #endif
   }
 }

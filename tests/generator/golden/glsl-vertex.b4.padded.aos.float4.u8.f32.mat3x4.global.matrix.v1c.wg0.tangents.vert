@@ -14,6 +14,7 @@
 #define WG_SIZE 0
 #define NORMALS 2
 #define MORPH 0
+#define NORMAL_FORMAT 0
 #define AOS_POSITION_OFFSET 0
 #define AOS_INDICES_OFFSET 16
 #define AOS_WEIGHTS_OFFSET 20
@@ -132,6 +133,9 @@
 #endif
 #ifndef MORPH_TARGETS         // MORPH: the mesh's morph targets (the weights' count per instance)
 #define MORPH_TARGETS 1
+#endif
+#ifndef NORMAL_FORMAT         // skinned normals and tangents written as 0 float32, 1 octahedral 2 x unorm16,
+#define NORMAL_FORMAT 0       // 2 4 x snorm8 (docs/VARIANTS.md "Packed normals and tangents")
 #endif
 #define MORPH_LAYOUT (MORPH & 3)
 #define MORPH_HALF ((MORPH & 4) != 0)
@@ -709,6 +713,43 @@ uint slot_stride_of(uint count) {
   return 0u;
 #endif
 }
+
+// Normals and tangents packed into one word each (NORMAL_FORMAT 1, 2;
+// docs/VARIANTS.md "Packed normals and tangents": the rule skintune's packer
+// and the emitted header's PackNormal run too).
+#if NORMAL_FORMAT == 1
+float sign_not_zero(float v) { return v >= 0.0 ? 1.0 : -1.0; }
+uint unorm16(float v) { return uint(floor(clamp(v, 0.0, 1.0) * 65535.0 + 0.5)); }
+// The octahedral coordinates of a unit vector, each in [0, 1].
+vec2 octahedral(vec3 n) {
+  float s = abs(n.x) + abs(n.y) + abs(n.z);
+  float u = n.x / s, v = n.y / s;
+  if (n.z < 0.0) {
+    float fu = (1.0 - abs(v)) * sign_not_zero(u);
+    v = (1.0 - abs(u)) * sign_not_zero(v);
+    u = fu;
+  }
+  return vec2(u * 0.5 + 0.5, v * 0.5 + 0.5);
+}
+uint pack_normal(vec3 n) {
+  vec2 o = octahedral(n);
+  return unorm16(o.x) | (unorm16(o.y) << 16);
+}
+// y keeps the handedness: at least 1/2 for +1, below for -1.
+uint pack_tangent(vec4 t) {
+  vec2 o = octahedral(t.xyz);
+  float y = max(o.y, 1.0 / 32767.0) * 0.5 + 0.5;
+  if (t.w < 0.0) y = 1.0 - y;
+  uint x16 = unorm16(o.x);
+  uint y16 = unorm16(y);
+  if (x16 == 0u && y16 == 65535u) x16 = 65535u;
+  return x16 | (y16 << 16);
+}
+#elif NORMAL_FORMAT == 2
+uint snorm8(float v) { return uint(int(floor(clamp(v, -1.0, 1.0) * 127.0 + 0.5))) & 0xffu; }
+uint pack_tangent(vec4 t) { return snorm8(t.x) | (snorm8(t.y) << 8) | (snorm8(t.z) << 16) | (snorm8(t.w) << 24); }
+uint pack_normal(vec3 n) { return pack_tangent(vec4(n, 0.0)); }
+#endif
 #line 55 0  // skin.vert
 
 // ---------------------------------------------------------------- outputs
@@ -719,17 +760,26 @@ uint slot_stride_of(uint count) {
 
 #if POSITION_FLOAT4
 out vec4 out_position;
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
 out vec4 out_normal;
 #endif
 #else
 out vec3 out_position;
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
 out vec3 out_normal;
 #endif
 #endif
-#if TANGENTS
+#if TANGENTS && NORMAL_FORMAT == 0
 out vec4 out_tangent;
+#endif
+#if NORMAL_FORMAT != 0
+// Packed normals and tangents: one word each (integer outputs are flat).
+#if NORMALS
+flat out uint out_normal;
+#endif
+#if TANGENTS
+flat out uint out_tangent;
+#endif
 #endif
 
 // ---------------------------------------------------------------- kernel
@@ -739,17 +789,24 @@ void main() {
   vec3 skinned_position, skinned_normal;
   vec4 skinned_tangent;
   skin_vertex(v, slot_stride_of(n), skinned_position, skinned_normal, skinned_tangent);
+#if NORMAL_FORMAT != 0
 #if TANGENTS
+  out_tangent = pack_tangent(vec4(normalize(skinned_tangent.xyz), skinned_tangent.w));
+#endif
+#if NORMALS
+  out_normal = pack_normal(normalize(skinned_normal));
+#endif
+#elif TANGENTS
   out_tangent = vec4(normalize(skinned_tangent.xyz), skinned_tangent.w);
 #endif
 #if POSITION_FLOAT4
   out_position = vec4(skinned_position, 1.0);
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
   out_normal = vec4(normalize(skinned_normal), 0.0);
 #endif
 #else
   out_position = skinned_position;
-#if NORMALS
+#if NORMALS && NORMAL_FORMAT == 0
   out_normal = normalize(skinned_normal);
 #endif
 #endif

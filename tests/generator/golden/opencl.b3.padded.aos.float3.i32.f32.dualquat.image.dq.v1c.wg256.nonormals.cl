@@ -13,6 +13,7 @@
 #define WG_SIZE 256
 #define NORMALS 0
 #define MORPH 0
+#define NORMAL_FORMAT 0
 #define AOS_POSITION_OFFSET 0
 #define AOS_INDICES_OFFSET 12
 #define AOS_WEIGHTS_OFFSET 24
@@ -113,6 +114,9 @@
 #endif
 #ifndef MORPH_TARGETS         // MORPH: the mesh's morph targets (the weights' count per instance)
 #define MORPH_TARGETS 1
+#endif
+#ifndef NORMAL_FORMAT         // skinned normals and tangents written as 0 float32, 1 octahedral 2 x unorm16,
+#define NORMAL_FORMAT 0       // 2 4 x snorm8 (docs/VARIANTS.md "Packed normals and tangents")
 #endif
 #define MORPH_LAYOUT (MORPH & 3)
 #define MORPH_HALF ((MORPH & 4) != 0)
@@ -488,6 +492,54 @@ static inline void blend(PALETTE_REF_PARAM, const uint joint[INFLUENCES], const 
 #define STORE_XYZ(out, at, value, w) vstore3((value), (at), (out))
 #endif
 
+// Normals and tangents: float32 (as positions; tangents float4), or one
+// packed word each (docs/VARIANTS.md "Packed normals and tangents": the rule
+// skintune's packer and the emitted header's PackNormal run too).
+#if NORMAL_FORMAT == 0
+#define NORMAL_OUT_T POSITION_T
+#define TANGENT_OUT_T float4
+#define STORE_NORMAL(out, at, n) STORE_XYZ(out, at, n, 0.0f)
+#define STORE_TANGENT(out, at, t) ((out)[at] = (t))
+#else
+#define NORMAL_OUT_T uint
+#define TANGENT_OUT_T uint
+#define STORE_NORMAL(out, at, n) ((out)[at] = pack_normal(n))
+#define STORE_TANGENT(out, at, t) ((out)[at] = pack_tangent(t))
+#endif
+#if NORMAL_FORMAT == 1
+float sign_not_zero(float v) { return v >= 0.0f ? 1.0f : -1.0f; }
+uint unorm16(float v) { return (uint)floor(clamp(v, 0.0f, 1.0f) * 65535.0f + 0.5f); }
+// The octahedral coordinates of a unit vector, each in [0, 1].
+float2 octahedral(float3 n) {
+  const float s = fabs(n.x) + fabs(n.y) + fabs(n.z);
+  float u = n.x / s, v = n.y / s;
+  if (n.z < 0.0f) {
+    const float fu = (1.0f - fabs(v)) * sign_not_zero(u);
+    v = (1.0f - fabs(u)) * sign_not_zero(v);
+    u = fu;
+  }
+  return (float2)(u * 0.5f + 0.5f, v * 0.5f + 0.5f);
+}
+uint pack_normal(float3 n) {
+  const float2 o = octahedral(n);
+  return unorm16(o.x) | unorm16(o.y) << 16;
+}
+// y keeps the handedness: at least 1/2 for +1, below for -1.
+uint pack_tangent(float4 t) {
+  const float2 o = octahedral(t.xyz);
+  float y = fmax(o.y, 1.0f / 32767.0f) * 0.5f + 0.5f;
+  if (t.w < 0.0f) y = 1.0f - y;
+  uint x16 = unorm16(o.x);
+  const uint y16 = unorm16(y);
+  if (x16 == 0u && y16 == 65535u) x16 = 65535u;
+  return x16 | y16 << 16;
+}
+#elif NORMAL_FORMAT == 2
+uint snorm8(float v) { return (uint)((int)floor(clamp(v, -1.0f, 1.0f) * 127.0f + 0.5f) & 0xff); }
+uint pack_tangent(float4 t) { return snorm8(t.x) | snorm8(t.y) << 8 | snorm8(t.z) << 16 | snorm8(t.w) << 24; }
+uint pack_normal(float3 n) { return pack_tangent((float4)(n, 0.0f)); }
+#endif
+
 // ---------------------------------------------------------------- kernel
 
 __kernel __attribute__((reqd_work_group_size(WG_SIZE, 1, 1)))
@@ -525,11 +577,11 @@ void skin(const uint n, const uint first,
           PALETTE_PARAM,
 #if TANGENTS
           __global POSITION_T* restrict out_positions,
-          __global POSITION_T* restrict out_normals,
-          __global float4* restrict out_tangents) {
+          __global NORMAL_OUT_T* restrict out_normals,
+          __global TANGENT_OUT_T* restrict out_tangents) {
 #elif NORMALS
           __global POSITION_T* restrict out_positions,
-          __global POSITION_T* restrict out_normals) {
+          __global NORMAL_OUT_T* restrict out_normals) {
 #else
           __global POSITION_T* restrict out_positions) {
 #endif
@@ -648,11 +700,11 @@ void skin(const uint n, const uint first,
     blend(PAL, joint, weight, position, &skinned_position, &a0, &a1, &a2);
     STORE_XYZ(out_positions, out_first + v, skinned_position, 1.0f);
 #if NORMALS
-    STORE_XYZ(out_normals, out_first + v, normalize(transform_normal(a0, a1, a2, normal)), 0.0f);
+    STORE_NORMAL(out_normals, out_first + v, normalize(transform_normal(a0, a1, a2, normal)));
 #endif
 #if TANGENTS
     const float4 skinned_tangent = transform_tangent(a0, a1, a2, tangent);
-    out_tangents[out_first + v] = (float4)(normalize(skinned_tangent.xyz), skinned_tangent.w);
+    STORE_TANGENT(out_tangents, out_first + v, (float4)(normalize(skinned_tangent.xyz), skinned_tangent.w));
 #endif
   }
 }
