@@ -331,7 +331,7 @@ TEST(TuneCli, MissingConfigFileIsOneLine) {
   EXPECT_EQ(unknown.result.exit_code, 1);
   EXPECT_EQ(unknown.result.err,
             "skintune: error: --config 'fastest': not a file path (no '/' or .json) and no built-in config "
-            "'fastest' (built in: default, dual-quaternions, morph-targets, paper)\n");
+            "'fastest' (built in: default, dual-quaternions, morph-targets, packed-normals, paper)\n");
 }
 
 TEST(TuneCli, MalformedJsonConfigIsOneLine) {
@@ -617,6 +617,38 @@ TEST(TuneCli, MorphTargetsAreTunedInTheirOwnSpaceWithHalfOffsetsAPrecisionClassO
   const auto variants = RunSkintune({"variants", "--dataset", "3k-b2-morph4-normals", "--lang", "cpu", "--list"});
   ASSERT_EQ(variants.exit_code, 0) << variants.err;
   EXPECT_EQ(variants.out.find(".normals\n"), std::string::npos) << "a variant that ignores the morph targets";
+}
+
+// Packed normal formats are rows of their own: each keeps its winner, whose
+// recorded normal error is within the format's bound and above float32's.
+TEST(TuneCli, PackedNormalFormatsAreRowsOfTheirOwnWithTheirErrorRecorded) {
+  const fs::path dir = Scratch();
+  nlohmann::json config = TinyConfig({"global"}, {"soa", "aos"}, {64});
+  config["space"]["lang"] = {"cpu"};
+  config["space"]["normals"] = {"tangents"};
+  config["space"]["normal_format"] = {"f32", "oct16", "snorm8"};
+  config["datasets"] = {"3k-b2-tangents"};
+  const fs::path out = dir / "out";
+  const auto r = RunSkintune({"tune", "--config", WriteConfig(dir, config), "--out", out.string(), "--device", "cpu"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(out / "report.json"));
+  std::map<std::string, std::set<NormalFormat>> formats;  // per data set, of ok measurements
+  for (const Measurement& m : ReportMeasurements(report)) {
+    if (m.status != MeasureStatus::kOk) continue;
+    formats[m.dataset].insert(m.variant.normal_format);
+    EXPECT_LT(m.max_relative_error, 1e-5) << m.variant.Key();
+    EXPECT_LE(m.source_error.normal_abs, TangentFormatBound(m.variant.normal_format) + 1e-5) << m.variant.Key();
+    if (PacksNormals(m.variant)) EXPECT_GT(m.source_error.normal_abs, 1e-5) << m.variant.Key() << ": packing costs";
+  }
+  EXPECT_EQ(formats["3k-b2-tangents"],
+            (std::set<NormalFormat>{NormalFormat::kF32, NormalFormat::kOct16, NormalFormat::kSnorm8}));
+  const nlohmann::json db = nlohmann::json::parse(ReadAll(out / "winners-db.json"));
+  std::set<NormalFormat> rows;  // the tangent data set's f32-weight winners
+  for (const nlohmann::json& e : db.at("entries")) {
+    const Variant v = e.at("variant").get<Variant>();
+    if (v.weight == WeightFormat::kF32) rows.insert(v.normal_format);
+  }
+  EXPECT_EQ(rows.size(), 3u) << "each format keeps its own winner";
 }
 
 // Whether `skipped` (the report's "not tuned" lines) leaves out a software
