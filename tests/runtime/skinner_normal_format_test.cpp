@@ -107,6 +107,44 @@ TEST_P(SkinnerNormalFormat, DecodedOutputsAreTheGoldWithinTheFormatsBoundAndTheW
       EXPECT_EQ(UnpackedTangent(format, tangent_words[first + v]), t4[v]);
     }
   }
+
+  // The kernel runs the documented rule: the same variant writing float32,
+  // packed by PackedNormalWord (the emitted header's PackNormal), gives the
+  // kernel's words, but where the two compilations round a step apart (fused
+  // multiply-adds): then one unit in one component, at few vertices.
+  SkinnerOptions f32_options;
+  f32_options.tangents = true;
+  f32_options.instances = kInstances;
+  f32_options.variant = GetParam().variant;
+  Result<Skinner> f32 = Skinner::Create(device_, WinnersDb::Empty(), view_.mesh, f32_options);
+  ASSERT_TRUE(f32.ok()) << f32.status().message();
+  ASSERT_TRUE(f32->SetPalette(matrices.data(), matrices.size()).ok());
+  ASSERT_TRUE(f32->Skin().ok());
+  std::vector<float> f32_normals(normals.size()), f32_tangents(tangents.size());
+  ASSERT_TRUE(f32->ReadNormals(f32_normals.data(), f32_normals.size()).ok());
+  ASSERT_TRUE(f32->ReadTangents(f32_tangents.data(), f32_tangents.size()).ok());
+  const int fields = format == NormalFormat::kOct16 ? 2 : 4, bits = 32 / fields;
+  const auto units_apart = [&](std::uint32_t a, std::uint32_t b) {
+    int most = 0;
+    for (int f = 0; f < fields; ++f) {
+      const std::uint32_t mask = (1u << bits) - 1u;
+      int x = static_cast<int>((a >> (f * bits)) & mask), y = static_cast<int>((b >> (f * bits)) & mask);
+      if (bits == 8) x = static_cast<std::int8_t>(x), y = static_cast<std::int8_t>(y);
+      most = std::max(most, std::abs(x - y));
+    }
+    return most;
+  };
+  std::size_t differing = 0;
+  for (std::size_t v = 0; v < normal_words.size(); ++v) {
+    const std::uint32_t n = PackedNormalWord(format, {f32_normals[3 * v], f32_normals[3 * v + 1], f32_normals[3 * v + 2]});
+    const std::uint32_t t = PackedTangentWord(
+        format, {f32_tangents[4 * v], f32_tangents[4 * v + 1], f32_tangents[4 * v + 2], f32_tangents[4 * v + 3]});
+    const int apart = std::max(units_apart(n, normal_words[v]), units_apart(t, tangent_words[v]));
+    ASSERT_LE(apart, 1) << variant.Key() << ": vertex " << v << " words " << std::hex << normal_words[v] << " "
+                        << tangent_words[v] << ", the rule's " << n << " " << t;
+    differing += apart > 0;
+  }
+  EXPECT_LE(differing, normal_words.size() / 100) << variant.Key() << ": words other than the rule's";
 }
 
 std::vector<FormatCase> Cases() {

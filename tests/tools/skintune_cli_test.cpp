@@ -327,8 +327,8 @@ TEST(SkintuneCli, VariantsWithAnUnknownDeviceIsAnError) {
 // ------------------------------------------------------------------ emit --db
 
 const std::string kEmbedDb = kData + "/embed-winners-db.json";
-// tests/data/embed-winners-db.json: 15 winners, 14 distinct variants (CUDA b3 wins 100k and 1600k).
-constexpr std::size_t kEmbedWinners = 20, kEmbedVariants = 19;
+// tests/data/embed-winners-db.json: 22 winners, 21 distinct variants (CUDA b3 wins 100k and 1600k).
+constexpr std::size_t kEmbedWinners = 22, kEmbedVariants = 21;
 const std::string kCudaB3 = "cuda.b3.padded.aos.float3.i32.unorm16.mat3x4.image.matrix.v2c.wg96.nonormals";
 const std::string kBucketedWinner = "opencl.b4.bucketed.soa.float4.i32.f32.mat3x4.image.matrix.v4s.wg256.nonormals";
 const std::string kBucketedTwin = "opencl.b4.padded.soa.float4.i32.f32.mat3x4.image.matrix.v4s.wg256.nonormals";
@@ -457,8 +457,8 @@ TEST(SkintuneCli, EmitDbMatchesTheDeviceCaseInsensitivelyInIdNameVendorOrPlatfor
     return exts;
   };
   EXPECT_EQ(kernels("GEFORCE rtx"), std::vector<std::string>(6, ".cu"));                      // name
-  EXPECT_EQ(kernels("advanced micro"), std::vector<std::string>(6, ".cl"));                   // vendor only
-  EXPECT_EQ(kernels("accelerated PARALLEL"), std::vector<std::string>(6, ".cl"));             // platform
+  EXPECT_EQ(kernels("advanced micro"), std::vector<std::string>(8, ".cl"));                   // vendor only
+  EXPECT_EQ(kernels("accelerated PARALLEL"), std::vector<std::string>(8, ".cl"));             // platform
   EXPECT_EQ(kernels("mesa 23.2"),
             (std::vector<std::string>{".comp", ".comp", ".vert", ".vert", ".comp", ".comp", ".vert"}));  // id
 }

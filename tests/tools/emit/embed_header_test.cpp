@@ -860,6 +860,48 @@ TEST(EmbedHeader, MorphKernelsAreFoundOnlyForTheirTargetCount) {
     }
 }
 
+// Packed-normal kernels only where asked for, by their format; the other
+// finders never return one. Their outputs are one word a vertex, which
+// UnpackNormals / UnpackTangents decode by the rule the packer runs.
+TEST(EmbedHeader, PackedNormalKernelsAreFoundOnlyForTheirFormatAndDecodeByTheRule) {
+  int packed = 0;
+  for (int i = 0; i < fk::kKernelCount; ++i) {
+    const fk::Kernel& k = fk::kKernels[i];
+    SCOPED_TRACE(Context(k));
+    EXPECT_EQ(static_cast<int>(k.normal_format), static_cast<int>(ParseVariantKey(k.variant).normal_format));
+    if (k.normal_format == fk::NormalFormat::kF32) continue;
+    ++packed;
+    const fk::Kernel* found = fk::FindPackedNormalsKernel(k.lang, k.influences, k.vertices, kJoints, k.normal_format);
+    ASSERT_NE(found, nullptr);
+    EXPECT_EQ(found->normal_format, k.normal_format);
+    EXPECT_EQ(fk::NormalStrideBytes(k), 4u);
+    EXPECT_EQ(fk::TangentStrideBytes(k), 4u);
+    const fk::Kernel* plain = fk::FindKernel(k.lang, k.influences, k.vertices, kJoints);
+    if (plain != nullptr) {
+      EXPECT_EQ(plain->normal_format, fk::NormalFormat::kF32) << plain->variant;
+    }
+  }
+  EXPECT_EQ(packed, 2) << "the fixture's oct16 and snorm8 winners";
+  const fk::Kernel* oct = fk::FindPackedNormalsKernel("opencl", 4, 100000, kJoints, fk::NormalFormat::kOct16);
+  ASSERT_NE(oct, nullptr);
+  const NormalFormat format = NormalFormat::kOct16;
+  const std::vector<glm::vec3> normals = {{0, 0, 1}, glm::normalize(glm::vec3(0.3f, -0.8f, -0.2f)), {-1, 0, 0}};
+  std::vector<std::uint32_t> words;
+  for (const glm::vec3& n : normals) words.push_back(PackedNormalWord(format, n));
+  std::vector<float> xyz(3 * normals.size());
+  fk::UnpackNormals(*oct, words.data(), normals.size(), xyz.data());
+  for (std::size_t v = 0; v < normals.size(); ++v) {
+    EXPECT_EQ(glm::vec3(xyz[3 * v], xyz[3 * v + 1], xyz[3 * v + 2]), UnpackedNormal(format, words[v]));
+    EXPECT_LT(glm::length(glm::vec3(xyz[3 * v], xyz[3 * v + 1], xyz[3 * v + 2]) - normals[v]), NormalFormatBound(format));
+  }
+  const std::uint32_t tangent = PackedTangentWord(format, {0.6f, 0.8f, 0.0f, -1.0f});
+  float t[4];
+  fk::UnpackTangents(*oct, &tangent, 1, t);
+  EXPECT_EQ(t[3], -1.0f);
+  EXPECT_EQ(fk::FindPackedNormalsKernel("opencl", 4, 100000, kJoints, fk::NormalFormat::kF32),
+            fk::FindKernel("opencl", 4, 100000, kJoints));
+}
+
 // The header's float-to-half rule (detail::HalfBits, plain C++17) gives the
 // bits of the compiler's own conversion (skintune's packer, _Float16) for
 // every float class: normals, subnormals of the half, ties, overflow.
