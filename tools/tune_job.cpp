@@ -146,7 +146,8 @@ TuneJobResult RunTuneJob(const TuneJobOptions& o) {
 
 void AddTuneJobOptions(CLI::App& sub, TuneJobOptions& o) {
   sub.add_option("--config", o.config,
-                 "tuning config: a JSON file (configs/*.json), or a built-in name: default, paper, dual-quaternions (default: default)")
+                 "tuning config: a JSON file (configs/*.json), or a built-in name: " + EmbeddedConfigNames() +
+                     " (default: default)")
       ->check(NonEmptyPath());
   sub.add_option("--device", o.device,
                  "only the devices this matches: a case-insensitive substring of the id "

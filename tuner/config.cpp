@@ -175,15 +175,20 @@ TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context
   return c;
 }
 
-std::string EmbeddedConfig(const std::string& name) {
+std::string EmbeddedConfigNames() {
   std::string names;
+  for (std::size_t i = 0; i < kEmbeddedConfigCount; ++i)
+    names += (names.empty() ? "" : ", ") + std::string(kEmbeddedConfigs[i].name);
+  return names;
+}
+
+std::string EmbeddedConfig(const std::string& name) {
   for (std::size_t i = 0; i < kEmbeddedConfigCount; ++i) {
     if (name == kEmbeddedConfigs[i].name) {
       return std::string(reinterpret_cast<const char*>(kEmbeddedConfigs[i].data), kEmbeddedConfigs[i].size);
     }
-    names += (names.empty() ? "" : ", ") + std::string(kEmbeddedConfigs[i].name);
   }
-  throw Error("no built-in config '" + name + "' (built in: " + names + ")");
+  throw Error("no built-in config '" + name + "' (built in: " + EmbeddedConfigNames() + ")");
 }
 
 void ValidateConfig(const TuneConfig& config) {

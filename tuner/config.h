@@ -45,8 +45,10 @@ struct TuneConfig {
 
 // Parses a config (configs/*.json). Throws Error("<context>: <element>: ...").
 TuneConfig ConfigFromJson(const nlohmann::json& json, const std::string& context);
-// The embedded configs/default.json and configs/paper.json ("default", "paper").
+// The embedded configs (configs/default.json as "default", ...; tuner/CMakeLists.txt lists them).
 std::string EmbeddedConfig(const std::string& name);
+// Their names, ", "-separated, in the list's order.
+std::string EmbeddedConfigNames();
 
 // How a run is asked to go (the command line's part): which devices and
 // languages, the cache, the worker, progress, devices side by side or not.
