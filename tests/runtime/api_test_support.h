@@ -39,6 +39,26 @@ struct View {
   MeshView mesh;
 };
 
+// The MeshView of a mesh with its morph targets, over arrays it owns.
+struct MorphView {
+  explicit MorphView(const SkinnedMesh& m) : view(m) {
+    const MorphTargets& morph = m.morph;
+    for (const auto* stream : {&morph.positions, &morph.normals, &morph.tangents}) {
+      std::vector<float>& out = stream == &morph.positions ? positions : stream == &morph.normals ? normals : tangents;
+      for (const std::vector<glm::vec3>& target : *stream)
+        for (const glm::vec3& d : target) out.insert(out.end(), {d.x, d.y, d.z});
+    }
+    for (const double w : morph.weights) weights.push_back(static_cast<float>(w));
+    view.mesh.morph_target_count = static_cast<int>(morph.count());
+    view.mesh.morph_positions = positions.data();
+    view.mesh.morph_normals = normals.empty() ? nullptr : normals.data();
+    view.mesh.morph_tangents = tangents.empty() ? nullptr : tangents.data();
+    view.mesh.morph_weights = weights.data();
+  }
+  View view;
+  std::vector<float> positions, normals, tangents, weights;
+};
+
 // A new empty directory under the system's temporary directory, removed at the end.
 class TempDir {
  public:

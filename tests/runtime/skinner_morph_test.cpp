@@ -22,6 +22,7 @@ namespace {
 
 using testing::CacheIn;
 using testing::Floats;
+using testing::MorphView;
 using testing::TempDir;
 using testing::Vec3s;
 
@@ -33,26 +34,6 @@ const SkinnedAsset& Morphing() {
   static const SkinnedAsset asset = GenerateDataset(ParseDatasetKey("3001-b4-morph5-tangents-seed7"));
   return asset;
 }
-
-// The MeshView of a mesh with its morph targets, over arrays it owns.
-struct MorphView {
-  explicit MorphView(const SkinnedMesh& m) : view(m) {
-    const MorphTargets& morph = m.morph;
-    for (const auto* stream : {&morph.positions, &morph.normals, &morph.tangents}) {
-      std::vector<float>& out = stream == &morph.positions ? positions : stream == &morph.normals ? normals : tangents;
-      for (const std::vector<glm::vec3>& target : *stream)
-        for (const glm::vec3& d : target) out.insert(out.end(), {d.x, d.y, d.z});
-    }
-    for (const double w : morph.weights) weights.push_back(static_cast<float>(w));
-    view.mesh.morph_target_count = static_cast<int>(morph.count());
-    view.mesh.morph_positions = positions.data();
-    view.mesh.morph_normals = normals.empty() ? nullptr : normals.data();
-    view.mesh.morph_tangents = tangents.empty() ? nullptr : tangents.data();
-    view.mesh.morph_weights = weights.data();
-  }
-  testing::View view;
-  std::vector<float> positions, normals, tangents, weights;
-};
 
 // Instance k's weights in frame `frame`: every target moves, each instance
 // and frame its own mix, one weight negative and one above 1 (glTF allows both).
