@@ -370,7 +370,10 @@ std::vector<std::uint8_t> PackMorphWeights(std::span<const double> weights) {
   return bytes;
 }
 
-std::uint16_t HalfBits(float value) { return std::bit_cast<std::uint16_t>(static_cast<_Float16>(value)); }
+// The emitted header's rule (plain C++17), so that the header and the packer
+// cannot drift apart; EmbedHeader.HalfBitsIsTheIeeeConversionToBinary16
+// checks it against the compiler's own conversion.
+std::uint16_t HalfBits(float value) { return skintune_kernels::detail::HalfBits(value); }
 float HalfValue(std::uint16_t bits) { return static_cast<float>(std::bit_cast<_Float16>(bits)); }
 
 std::vector<std::uint8_t> PackPalette(std::span<const glm::mat4> palette, const Variant& variant) {

@@ -902,16 +902,18 @@ TEST(EmbedHeader, PackedNormalKernelsAreFoundOnlyForTheirFormatAndDecodeByTheRul
             fk::FindKernel("opencl", 4, 100000, kJoints));
 }
 
-// The header's float-to-half rule (detail::HalfBits, plain C++17) gives the
-// bits of the compiler's own conversion (skintune's packer, _Float16) for
-// every float class: normals, subnormals of the half, ties, overflow.
+// The header's float-to-half rule (detail::HalfBits, plain C++17, which
+// skintune's packer calls too) gives the bits of the compiler's own
+// conversion (_Float16) for every float class: normals, subnormals of the
+// half, ties, overflow.
 TEST(EmbedHeader, HalfBitsIsTheIeeeConversionToBinary16) {
   std::mt19937 rng(11);
   std::uniform_int_distribution<std::uint32_t> bits;
   std::size_t checked = 0;
   const auto check = [&](float f) {
     if (!std::isfinite(f)) return;
-    ASSERT_EQ(fk::detail::HalfBits(f), HalfBits(f)) << f;
+    ASSERT_EQ(fk::detail::HalfBits(f), std::bit_cast<std::uint16_t>(static_cast<_Float16>(f))) << f;
+    ASSERT_EQ(HalfBits(f), fk::detail::HalfBits(f)) << f;
     ++checked;
   };
   for (int i = 0; i < 200000; ++i) check(std::bit_cast<float>(bits(rng)));
