@@ -482,7 +482,15 @@ int Skinner::joint_count(std::size_t m) const {
   return m < mesh_count() ? impl_->joint_offsets[m + 1] - impl_->joint_offsets[m] : 0;
 }
 std::size_t Skinner::output_stride_bytes() const { return impl_ ? impl_->output_stride : 0; }
-void* Skinner::device_positions() const { return impl_ ? impl_->backend->DevicePositions() : nullptr; }
+void* Skinner::device_positions() const { return impl_ ? impl_->backend->DeviceOutput(Output::kPositions) : nullptr; }
+void* Skinner::device_normals() const { return impl_ ? impl_->backend->DeviceOutput(Output::kNormals) : nullptr; }
+void* Skinner::device_tangents() const { return impl_ ? impl_->backend->DeviceOutput(Output::kTangents) : nullptr; }
+std::size_t Skinner::normal_stride_bytes() const {
+  return impl_ && SkinsNormals(impl_->variant) ? OutputStrideBytes(impl_->variant, Output::kNormals) : 0;
+}
+std::size_t Skinner::tangent_stride_bytes() const {
+  return impl_ && SkinsTangents(impl_->variant) ? OutputStrideBytes(impl_->variant, Output::kTangents) : 0;
+}
 
 Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
   return Guarded(ErrorCode::kDeviceError, [&] {

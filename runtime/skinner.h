@@ -57,7 +57,8 @@ class SkinnerBackend {
   // `ready(end)` waits until the first `end` bytes are in (runner.h
   // ReadOutputChunks).
   virtual DeviceApi::PinnedRead Read(Output output, std::size_t chunk_bytes) = 0;
-  virtual void* DevicePositions() const = 0;
+  // The native buffer of `output` (null where the Skinner writes none).
+  virtual void* DeviceOutput(Output output) const = 0;
   // Default: kUnavailable.
   virtual void SkinIntoGlBuffer(unsigned int gl_buffer);
   // Default: kUnavailable (Vulkan's Skinner records into the command buffer).
@@ -125,7 +126,7 @@ class RunnerSkinner : public SkinnerBackend {
     return out;
   }
   // A cl_mem, or a CUdeviceptr / GL buffer name as a pointer-sized integer.
-  void* DevicePositions() const override { return runner_.OutputBuffer(prepared_, 0, Output::kPositions); }
+  void* DeviceOutput(Output output) const override { return runner_.OutputBuffer(prepared_, 0, output); }
 
  protected:
   Runner& runner_;

@@ -19,11 +19,6 @@
 #include "skintune/skintune.h"
 #include "tests/runtime/api_test_support.h"
 
-namespace skintune {
-// gtest's name for a Backend parameter.
-inline void PrintTo(Backend backend, std::ostream* out) { *out << BackendName(backend); }
-}  // namespace skintune
-
 namespace skintune::internal {
 namespace {
 
@@ -54,10 +49,15 @@ const std::vector<EngineMesh>& Meshes() {
   return meshes;
 }
 
-class SkinnerEngineMeshes : public ::testing::TestWithParam<Backend> {
+struct BackendCase {
+  Backend backend;
+};
+void PrintTo(const BackendCase& c, std::ostream* out) { *out << BackendName(c.backend); }
+
+class SkinnerEngineMeshes : public ::testing::TestWithParam<BackendCase> {
  protected:
   void SetUp() override {
-    const Backend backend = GetParam();
+    const Backend backend = GetParam().backend;
     Result<Device> device = Device::Open("", &backend, CacheIn(dir_));
     if (!device.ok()) GTEST_SKIP() << "no " << BackendName(backend) << " device: " << device.status().message();
     device_ = std::move(*device);
@@ -125,10 +125,11 @@ TEST_P(SkinnerEngineMeshes, PositionsNormalsAndTangentsAreTheGoldInEveryNormalFo
 }
 
 INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerEngineMeshes,
-                         ::testing::Values(Backend::kOpenCl, Backend::kCuda, Backend::kGl, Backend::kVulkan,
-                                           Backend::kCpu),
-                         [](const ::testing::TestParamInfo<Backend>& info) {
-                           return testing::ParameterName(BackendName(info.param));
+                         ::testing::Values(BackendCase{Backend::kOpenCl}, BackendCase{Backend::kCuda},
+                                           BackendCase{Backend::kGl}, BackendCase{Backend::kVulkan},
+                                           BackendCase{Backend::kCpu}),
+                         [](const ::testing::TestParamInfo<BackendCase>& info) {
+                           return testing::ParameterName(BackendName(info.param.backend));
                          });
 
 }  // namespace

@@ -233,6 +233,56 @@ TEST(OpenClSkinner, AOnePassReadBackIsTheGoldAndABrokenKernelsNanNeverReachesThe
   for (int c = 0; c < 3; ++c) EXPECT_EQ(out[kBad * 3 + c], 7.0f) << c;
 }
 
+// Packed normals and tangents left on the device: device_normals() and
+// device_tangents() are cl_mem buffers of one word a vertex
+// (normal_stride_bytes() 4) holding what ReadPackedNormals / ReadPackedTangents
+// give; a Skinner of float32 normals has no tangent buffer and its normals'
+// stride is the position format's.
+TEST(OpenClSkinner, PackedNormalsLeftOnTheDeviceAreTheWordsReadBack) {
+  TempDir dir;
+  OPEN_OR_SKIP(device, CacheIn(dir));
+  const SkinnedAsset& asset = Synthetic("3001-b4-seed9-tangents");
+  const View view(asset.mesh);
+  SkinnerOptions options;
+  options.tangents = true;
+  options.normal_format = skintune::NormalFormat::kOct16;
+  options.variant = "opencl.b4.soa";
+  Skinner skinner = MustCreate(*device, WinnersDb::Empty(), view.mesh, options);
+  EXPECT_EQ(skinner.normal_stride_bytes(), 4u);
+  EXPECT_EQ(skinner.tangent_stride_bytes(), 4u);
+  const std::vector<float> matrices = Floats(Animated(asset, 0.3));
+  ASSERT_TRUE(skinner.SetPalette(matrices.data(), matrices.size()).ok());
+  ASSERT_TRUE(skinner.Skin().ok());
+  ASSERT_TRUE(skinner.Finish().ok());
+  const std::size_t n = asset.mesh.vertex_count();
+  for (const bool tangents : {false, true}) {
+    const auto buffer = static_cast<cl_mem>(tangents ? skinner.device_tangents() : skinner.device_normals());
+    ASSERT_NE(buffer, nullptr);
+    std::size_t bytes = 0;
+    ASSERT_EQ(clGetMemObjectInfo(buffer, CL_MEM_SIZE, sizeof bytes, &bytes, nullptr), CL_SUCCESS);
+    ASSERT_GE(bytes, n * 4);
+    cl_context context = nullptr;
+    ASSERT_EQ(clGetMemObjectInfo(buffer, CL_MEM_CONTEXT, sizeof context, &context, nullptr), CL_SUCCESS);
+    cl_device_id cl_device = nullptr;
+    ASSERT_EQ(clGetContextInfo(context, CL_CONTEXT_DEVICES, sizeof cl_device, &cl_device, nullptr), CL_SUCCESS);
+    cl_int err = CL_SUCCESS;
+    cl_command_queue queue = clCreateCommandQueue(context, cl_device, 0, &err);
+    ASSERT_EQ(err, CL_SUCCESS);
+    std::vector<std::uint32_t> on_device(n), read(n);
+    ASSERT_EQ(clEnqueueReadBuffer(queue, buffer, CL_TRUE, 0, n * 4, on_device.data(), 0, nullptr, nullptr), CL_SUCCESS);
+    clReleaseCommandQueue(queue);
+    ASSERT_TRUE((tangents ? skinner.ReadPackedTangents(read.data(), n) : skinner.ReadPackedNormals(read.data(), n)).ok());
+    EXPECT_EQ(on_device, read) << (tangents ? "tangents" : "normals");  // the order is the mesh's (padded)
+  }
+  SkinnerOptions f32;
+  f32.normals = true;
+  f32.variant = "opencl.b4.soa.float3";
+  Skinner plain = MustCreate(*device, WinnersDb::Empty(), view.mesh, f32);
+  EXPECT_EQ(plain.normal_stride_bytes(), 12u);
+  EXPECT_EQ(plain.tangent_stride_bytes(), 0u);
+  EXPECT_EQ(plain.device_tangents(), nullptr);
+}
+
 // A crowd's palette (64 CesiumMen, 1216 matrices) matches its gold, and the
 // error names the first non-finite matrix however many there are; a rejected
 // palette takes no slot.

@@ -721,6 +721,17 @@ class Skinner {
   // glMemoryBarrier is issued after each Skin()).
   void* device_positions() const;
   std::size_t output_stride_bytes() const;
+  // The normals (tangents) of the last Skin() left on the device likewise,
+  // `normal_stride_bytes()` (`tangent_stride_bytes()`) per vertex: the
+  // position format's for float32 normals (16 for tangents), 4 where
+  // SkinnerOptions::normal_format packs them (one word a vector, the format
+  // of docs/VARIANTS.md "Packed normals and tangents", for a vertex buffer
+  // of that format). Null (and 0) when the Skinner skins none. Owned by the
+  // Skinner; synchronise as for device_positions().
+  void* device_normals() const;
+  void* device_tangents() const;
+  std::size_t normal_stride_bytes() const;
+  std::size_t tangent_stride_bytes() const;
 
   // OpenCL-OpenGL interop (cl_khr_gl_sharing, as in the paper): skin the
   // positions straight into GL buffer object `gl_buffer` of the shared GL
