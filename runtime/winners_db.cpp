@@ -135,9 +135,14 @@ std::string MorphSuffix(int morph_targets) {
   return morph_targets > 0 ? " morph " + std::to_string(morph_targets) : "";
 }
 
+std::string NormalFormatSuffix(NormalFormat format) {
+  return format != NormalFormat::kF32 ? std::string(" normals ") + Name(format) : "";
+}
+
 std::string Describe(const WinnersEntry& e) {
   return e.device_id + " " + Name(e.lang) + " b" + std::to_string(e.influences) + " " + VertexCountName(e.vertices) +
-         SceneSuffix(e.shape, e.instances, e.meshes) + MorphSuffix(e.morph_targets);
+         SceneSuffix(e.shape, e.instances, e.meshes) + MorphSuffix(e.morph_targets) +
+         NormalFormatSuffix(e.variant.normal_format);
 }
 
 bool EntryWithinBudget(const WinnersEntry& e, double max_error, const std::vector<WeightFormat>& exact) {

@@ -53,6 +53,8 @@ SceneKind SceneKindFromName(const std::string& name);
 std::string SceneSuffix(SceneKind kind, int instances, int meshes);
 // " morph 8" for a mesh with 8 morph targets; "" for none.
 std::string MorphSuffix(int morph_targets);
+// " normals oct16" for a row of packed normals (their format is the row's), "" for f32.
+std::string NormalFormatSuffix(NormalFormat format);
 
 // The parts of a device id "<backend>:<platform>/<name>/<driver_version>".
 struct DeviceIdParts {

@@ -113,6 +113,33 @@ TEST(Selection, MorphEntriesServeOnlyMeshesWithMorphTargetsTheNearestCountFirst)
   EXPECT_EQ(fallback.variant.morph, Morph::kDense) << fallback.variant.Key();
 }
 
+// A Skinner's normal format takes the entry tuned in it first; without one,
+// another entry serves with its variant's format changed, and the reason
+// says so; without normals the format is float32.
+TEST(Selection, EntriesOfTheAskedNormalFormatServeFirstOthersAreRunInIt) {
+  const std::string id = ThisDevice().id;
+  const WinnersEntry f32 = Entry(id, "Example", "gpu", "opencl.b2.soa.wg64.normals", "100k", 1.0);
+  const WinnersEntry oct = Entry(id, "Example", "gpu", "opencl.b2.aos.wg128.normals.normals-oct16", "100k", 2.0);
+  SelectionRequest r;
+  r.device = ThisDevice();
+  r.langs = {Lang::kOpenCl};
+  r.influences = 2;
+  r.vertex_count = 100000;
+  r.normals = Normals::kNormals;
+  EXPECT_EQ(Select({oct, f32}, r).variant, f32.variant);
+  r.normal_format = NormalFormat::kOct16;
+  EXPECT_EQ(Select({f32, oct}, r).variant, oct.variant);
+  r.normal_format = NormalFormat::kSnorm8;
+  const Chosen adapted = Select({f32, oct}, r);
+  EXPECT_EQ(adapted.variant.normal_format, NormalFormat::kSnorm8) << adapted.variant.Key();
+  EXPECT_NE(adapted.selection.reason.find("run with snorm8 (no entry of that format)"), std::string::npos)
+      << adapted.selection.reason;
+  EXPECT_EQ(Select({}, r).variant.normal_format, NormalFormat::kSnorm8);  // the built-in default too
+  r.normals = Normals::kNone;
+  EXPECT_EQ(Select({oct}, r).variant.normal_format, NormalFormat::kF32);
+  EXPECT_EQ(Describe(oct), id + " opencl b2 100k normals oct16");
+}
+
 TEST(Selection, ExactDeviceAndDriverIsTheFirstLevel) {
   std::vector<WinnersEntry> entries = Decoys();
   entries.insert(entries.end(), {kSameVendorType, kOtherDriver, kExact});
