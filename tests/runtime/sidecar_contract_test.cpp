@@ -275,6 +275,23 @@ Built BuildFromSidecar(const std::string& key) {
   return b;
 }
 
+// A packed normal's word decoded by docs/VARIANTS.md "Packed normals and
+// tangents", written here from the document (not the header's UnpackNormal).
+glm::dvec3 DecodeAsDocumented(const std::string& format, std::uint32_t word) {
+  glm::dvec3 n;
+  if (format == "oct16") {
+    double x = (word & 0xffffu) / 65535.0 * 2.0 - 1.0, y = (word >> 16) / 65535.0 * 2.0 - 1.0;
+    const double z = 1.0 - std::abs(x) - std::abs(y), k = std::max(-z, 0.0);
+    x -= (x >= 0.0 ? 1.0 : -1.0) * k;
+    y -= (y >= 0.0 ? 1.0 : -1.0) * k;
+    n = {x, y, z};
+  } else {
+    for (int c = 0; c < 3; ++c)
+      n[c] = std::max(static_cast<std::int8_t>(static_cast<std::uint8_t>(word >> (8 * c))) / 127.0, -1.0);
+  }
+  return glm::normalize(n);
+}
+
 void ExpectMatchesGold(const std::string& key) {
   SCOPED_TRACE(key);
   std::string why;
@@ -298,9 +315,26 @@ void ExpectMatchesGold(const std::string& key) {
   const GoldComparison positions = CompareToGold(gold.positions, read(result.positions));
   EXPECT_EQ(positions.non_finite, 0u);
   EXPECT_LT(positions.max_relative, 1e-5) << "vertex " << positions.worst_vertex;
-  if (SkinsNormals(variant)) {
+  if (SkinsNormals(variant) && !PacksNormals(variant)) {
     const GoldComparison normals = CompareToGold(gold.normals, read(result.normals));
     EXPECT_LT(normals.max_relative, 1e-5) << "vertex " << normals.worst_vertex;
+  }
+  if (PacksNormals(variant)) {  // one word a vertex, its stride and bound as the sidecar states them
+    const json sidecar = SidecarJson(b.kernels.front(), variant);
+    const json& format = sidecar.at("normal_format");
+    std::size_t stride = 0;
+    for (const json& a : sidecar.at("arguments"))
+      if (a.at("name") == "out_normals") stride = a.at("stride_bytes").get<std::size_t>();
+    ASSERT_EQ(stride, 4u);
+    double worst = 0.0;
+    for (std::size_t p = 0; p < b.packed.vertex_count; ++p) {
+      std::uint32_t word;
+      std::memcpy(&word, result.normals.data() + p * stride, 4);
+      const glm::dvec3 n = DecodeAsDocumented(format.at("name"), word);
+      worst = std::max(worst, glm::length(n - gold.normals[b.packed.order[p]]));
+    }
+    EXPECT_LT(worst, 1e-5 + format.at("max_error").get<double>());
+    EXPECT_GT(worst, 1e-5) << "the words really are packed";
   }
   // The weights really were quantised: the gold of the source weights is further off.
   if (variant.weight != WeightFormat::kF32) {
@@ -315,6 +349,11 @@ TEST(SidecarContract, PaddedSoaSplitImageUnorm8FromTheSidecarAloneMatchesTheGold
 
 TEST(SidecarContract, BucketedAosWithNormalsUnorm16FromTheSidecarAloneMatchesTheGold) {
   ExpectMatchesGold("opencl.b4.bucketed.aos.float4.u8.unorm16.mat4.global.point.v1c.wg32.normals");
+}
+
+TEST(SidecarContract, PackedNormalsFromTheSidecarAloneDecodeToTheGoldWithinTheirStatedBound) {
+  ExpectMatchesGold("opencl.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.normals.normals-oct16");
+  ExpectMatchesGold("opencl.b4.bucketed.aos.float3.u8.f32.mat4.global.point.v2c.wg32.normals.normals-snorm8");
 }
 
 TEST(SidecarContract, PaddedSoaF32ConstantFromTheSidecarAloneMatchesTheGold) {
