@@ -23,9 +23,11 @@
 // runtime reads with them: the format lives in one place.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <nlohmann/json_fwd.hpp>
@@ -133,6 +135,26 @@ bool EntryWithinBudget(const WinnersEntry& entry, double max_error, const std::v
 // "<device id> <lang> b<B> <vertices>[ <shape>]": how messages name an entry
 // (the variant key names its weight format).
 std::string Describe(const WinnersEntry& entry);
+
+// A winner's row: what keeps winners apart as no rivals of each other
+// (device id, lang, influences, vertices, scene shape, instances, meshes, dual
+// quaternions, morph targets, normal format). A row holds one winner per
+// precision class (the tuner's merge, `emit --db`'s kernels). W is a
+// WinnersEntry or the tuner's Winner (the same fields).
+using WinnerRow = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int, int>;
+template <typename W>
+WinnerRow RowOf(const W& w) {
+  return {w.device_id,
+          static_cast<int>(w.lang),
+          w.influences,
+          w.vertices,
+          static_cast<int>(w.shape),
+          w.instances,
+          w.meshes,
+          w.variant.blend == Blend::kDualQuaternion,
+          SkinsMorph(w.variant) ? std::max(w.morph_targets, 1) : 0,
+          static_cast<int>(w.variant.normal_format)};
+}
 
 // Writes every field; vendor and device_type only when known.
 nlohmann::json WinnersEntryToJson(const WinnersEntry& entry);

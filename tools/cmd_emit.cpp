@@ -156,18 +156,9 @@ nlohmann::json WinnerJson(const WinnersEntry& e) {
   return j;
 }
 
-// A winner's row: device, language, B, vertex count, scene (shape,
-// instances, meshes), skinning method (linear or dual quaternions, which
-// compute different results), morph targets and the normals' format. The
-// database keeps a winner per precision class of a row; the header embeds one
-// kernel per row.
-using Row = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int, int>;
-
-Row RowOf(const WinnersEntry& e) {
-  return {e.device_id, static_cast<int>(e.lang), e.influences, e.vertices, static_cast<int>(e.shape), e.instances,
-          e.meshes, e.variant.blend == Blend::kDualQuaternion, e.morph_targets,
-          static_cast<int>(e.variant.normal_format)};
-}
+// The database keeps a winner per precision class of a row (RowOf,
+// runtime/winners_db.h); the header embeds one kernel per row.
+using Row = WinnerRow;
 
 void WarnOverBudget(const WinnersEntry& e, double max_error) {
   std::cerr << "skintune: warning: skipping " << Describe(e) << " " << e.variant.Key() << ": ";

@@ -59,25 +59,10 @@ nlohmann::json WinnerJson(const Winner& w) {
 // and whether it applies morph targets (a mesh with them takes only such
 // entries) keeps its own, as does the format of the skinned normals (what the
 // user's consumer reads, not a choice of the tuner's).
-// A row: device id, lang, influences, vertices, shape, instances, meshes,
-// dual quaternions, morph targets, normal format; then the precision class:
-// weight format, half morph offsets.
-using RowKey = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int, int>;
+// A row (WinnerRow, runtime/winners_db.h); then the precision class: weight
+// format, half morph offsets.
+using RowKey = WinnerRow;
 using EntryKey = std::tuple<RowKey, int, bool>;
-
-template <typename W>  // Winner or WinnersEntry
-RowKey RowOf(const W& w) {
-  return {w.device_id,
-          static_cast<int>(w.lang),
-          w.influences,
-          w.vertices,
-          static_cast<int>(w.shape),
-          w.instances,
-          w.meshes,
-          w.variant.blend == Blend::kDualQuaternion,
-          SkinsMorph(w.variant) ? std::max(w.morph_targets, 1) : 0,
-          static_cast<int>(w.variant.normal_format)};
-}
 
 template <typename W>  // Winner or WinnersEntry
 EntryKey KeyOf(const W& w) {
