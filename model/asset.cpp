@@ -1,7 +1,6 @@
 #include "model/asset.h"
 
 #include <charconv>
-#include <cstdio>
 
 #include "base/error.h"
 
@@ -59,23 +58,6 @@ SkinnedMesh SkinnedAsset::MeshWithMorphWeightsAt(int animation, double t) const 
 
 SkinnedMesh SkinnedAsset::MeshAt(int animation, double t) const {
   return MorphApplied(MeshWithMorphWeightsAt(animation, t));
-}
-
-std::string SkinnedAsset::MorphInUse() const {
-  const MorphTargets& morph = mesh.morph;
-  if (morph.count() == 0) return "";
-  for (std::size_t k = 0; k < morph.weights.size(); ++k)
-    if (morph.weights[k] != 0.0) {
-      char weight[32];
-      std::snprintf(weight, sizeof weight, "%.6g", morph.weights[k]);
-      return "default weight " + std::to_string(k) + " is " + weight;
-    }
-  for (std::size_t a = 0; a < animations.size(); ++a)
-    for (const Channel& c : animations[a].channels)
-      if (c.path == ChannelPath::kWeights)
-        return "animation " + std::to_string(a) + (animations[a].name.empty() ? "" : " '" + animations[a].name + "'") +
-               " animates their weights";
-  return "";
 }
 
 }  // namespace skintune::internal

@@ -34,12 +34,6 @@ struct SkinnedAsset {
   // The mesh with the morph targets applied at those weights and none left
   // (MorphApplied: a copy).
   SkinnedMesh MeshAt(int animation, double t) const;
-  // Why the morph targets move vertices ("default weight 1 is 0.25",
-  // "animation 0 'Wave' animates their weights"), or "" where they cannot
-  // (no targets, every default weight 0 and no weights channel): what skins
-  // without morph targets (the palette kernel's animation) must refuse an
-  // asset for which this is not empty.
-  std::string MorphInUse() const;
 };
 
 }  // namespace skintune::internal

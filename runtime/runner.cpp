@@ -921,13 +921,36 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
   p.bytes_per_set += allocated;
 }
 
-void Runner::AdvanceAnimation(Prepared& prepared, int set, float delta) {
+void Runner::AdvanceAnimation(Prepared& prepared, int set, float delta, std::span<const std::uint8_t> morph_weights) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
   if (!p.palette_kernel) Fail("launch", "AdvanceAnimation of " + p.key + ", which is not animated (Animate)");
   const std::size_t next = TakeNextSlot(prepared, set);
   Prepared::Impl::Slot& slot = s.slots[next];
+  if ((slot.morph_weights != nullptr) != !morph_weights.empty() ||
+      (slot.morph_weights && morph_weights.size() != slot.morph_weights->bytes()))
+    Fail("launch", "AdvanceAnimation of " + p.key + ": " + std::to_string(morph_weights.size()) +
+                       " bytes of morph weights, the slot holds " +
+                       std::to_string(slot.morph_weights ? slot.morph_weights->bytes() : 0));
+  if (slot.morph_weights) {  // the frame's weights into this slot's buffer (its palette is computed on the device)
+    const std::span<std::uint8_t> staging = api_->Staging(*slot.morph_weights, p.key, slot.UploadFenced(*api_));
+    std::copy(morph_weights.begin(), morph_weights.end(), staging.begin());
+    if (submit_) {
+      DeviceApi* api = api_.get();
+      DeviceBuffer* buffer = slot.morph_weights;
+      const std::string& key = p.key;
+      const bool mark = api_->OrdersUploadsAfterLaunches();
+      slot.submitted = submit_->Push([api, buffer, &key, &slot, mark] {
+        api->MakeCurrent();
+        api->Upload(*buffer, buffer->bytes(), key);
+        if (mark) api->Mark(slot.done, key);
+      });
+    } else {
+      api_->Upload(*slot.morph_weights, slot.morph_weights->bytes(), p.key);
+      if (api_->OrdersUploadsAfterLaunches()) api_->Mark(slot.done, p.key);
+    }
+  }
   slot.launched = false;
   slot.prologue_pending = true;
   slot.fresh = false;

@@ -272,7 +272,9 @@ class Runner {
   // (AdvanceAnimInstances), instead of taking the slot's uploaded ones. The
   // delta travels with the launch (FrameRun::prologue_scalars): nothing is
   // copied to the device. Throws Error for a set that is not animated.
-  void AdvanceAnimation(Prepared& prepared, int set, float delta);
+  // A morph variant's `morph_weights` (the K instances', as MorphWeightsStaging
+  // takes them) go up into the slot's weights buffer, the frame's one copy.
+  void AdvanceAnimation(Prepared& prepared, int set, float delta, std::span<const std::uint8_t> morph_weights = {});
   // The native output buffer (cl_mem; CUdeviceptr or GL buffer name as an integer); null: none.
   void* OutputBuffer(const Prepared& prepared, int set, Output output) const;
   // The palette slot LaunchSet uses next: that of the last WritePalette (tests).

@@ -373,6 +373,17 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
   return impl;
 }
 
+// A morph Skinner's weights into the staged slot, before its UploadPalette.
+void StageMorphWeights(Skinner::Impl& im, const char* call) {
+  if (im.morph_targets == 0) return;
+  const std::span<std::uint8_t> weights = im.backend->MorphWeightsStaging();
+  if (weights.size() != im.morph_weights.size() * sizeof(float))
+    FailWith(ErrorCode::kDeviceError, std::string("Skinner::") + call + ": the morph weights' staging has " +
+                                          std::to_string(weights.size()) + " bytes, expected " +
+                                          std::to_string(im.morph_weights.size() * sizeof(float)));
+  std::memcpy(weights.data(), im.morph_weights.data(), weights.size());
+}
+
 }  // namespace
 
 }  // namespace skintune::internal
@@ -419,16 +430,10 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     } catch (const Error& e) {
       FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
     }
-    // The palette kernel animates joints, not morph weights: a model whose
-    // morph targets move it is refused; one whose targets stay at 0 (no
-    // default weight, no animated weights) is skinned without them.
-    if (const std::string why = asset->MorphInUse(); !why.empty())
-      FailWith(ErrorCode::kInvalidArgument,
-               call + ": " + asset->source + ": " + asset->mesh.morph.where + ": its morph targets move its vertices (" +
-                   why + "), and the palette kernel does not animate morph weights: use Skinner::Create with "
-                   "SetMorphWeights");
-    MeshView view = model.mesh();
-    view.morph_target_count = 0;
+    // The palette kernel animates joints; a model's morph targets stay, their
+    // weights set from the host (SetMorphWeights; the model's defaults until
+    // then) and uploaded with every frame, K x T floats.
+    const MeshView view = model.mesh();
     Skinner skinner;
     skinner.impl_ = CreateScene(call, device, db.impl_ ? &db.impl_->entries : nullptr, &view, 1, false, options);
     Impl& im = *skinner.impl_;
@@ -534,14 +539,7 @@ Status Skinner::SetPalette(const float* matrices, std::size_t float_count) {
       std::memcpy(&m[0][0], matrices + bad * 16, sizeof m);
       FailWith(ErrorCode::kInvalidArgument, matrix_name(bad) + ": " + NotRigid(m, bad));
     }
-    if (im.morph_targets > 0) {
-      const std::span<std::uint8_t> weights = im.backend->MorphWeightsStaging();
-      if (weights.size() != im.morph_weights.size() * sizeof(float))
-        FailWith(ErrorCode::kDeviceError, "Skinner::SetPalette: the morph weights' staging has " +
-                                              std::to_string(weights.size()) + " bytes, expected " +
-                                              std::to_string(im.morph_weights.size() * sizeof(float)));
-      std::memcpy(weights.data(), im.morph_weights.data(), weights.size());
-    }
+    StageMorphWeights(im, "SetPalette");
     im.backend->UploadPalette();
     if (times) {
       const Clock::time_point t3 = Clock::now();
@@ -618,6 +616,7 @@ Status Skinner::SetAnimation(const AnimationState* states, std::size_t count) {
       const AnimInstance in = instance(i);
       std::memcpy(staging.data() + i * sizeof in, &in, sizeof in);
     }
+    StageMorphWeights(im, "SetAnimation");
     im.backend->UploadPalette();
   });
 }
@@ -632,7 +631,9 @@ Status Skinner::AdvanceAnimation(float seconds) {
     if (!std::isfinite(seconds))
       FailWith(ErrorCode::kInvalidArgument, "Skinner::AdvanceAnimation: seconds is " + std::to_string(seconds) +
                                                 ", not finite");
-    im.backend->AdvanceAnimation(seconds);
+    im.backend->AdvanceAnimation(
+        seconds, std::span(reinterpret_cast<const std::uint8_t*>(im.morph_weights.data()),
+                           im.morph_weights.size() * sizeof(float)));
   });
 }
 

@@ -46,7 +46,8 @@ class SkinnerBackend {
   virtual void Animate(const AnimationView& animation, const PaletteKernel& kernel) = 0;
   // The next frame advances the states kept on the device by `delta` seconds
   // instead of uploading any (Runner::AdvanceAnimation).
-  virtual void AdvanceAnimation(float delta) = 0;
+  // `morph_weights`: a morph Skinner's K instances' weights (float32), uploaded into the slot.
+  virtual void AdvanceAnimation(float delta, std::span<const std::uint8_t> morph_weights) = 0;
   virtual void Skin() = 0;
   // Waits until every Skin() so far has completed on the device.
   virtual void Finish() = 0;
@@ -111,8 +112,8 @@ class RunnerSkinner : public SkinnerBackend {
   void Animate(const AnimationView& animation, const PaletteKernel& kernel) override {
     RunOnDevice([&] { runner_.Animate(prepared_, 0, animation, kernel); }, "Skinner::CreateAnimated: ");
   }
-  void AdvanceAnimation(float delta) override {
-    RunOnDevice([&] { runner_.AdvanceAnimation(prepared_, 0, delta); });
+  void AdvanceAnimation(float delta, std::span<const std::uint8_t> morph_weights) override {
+    RunOnDevice([&] { runner_.AdvanceAnimation(prepared_, 0, delta, morph_weights); });
   }
   void Skin() override {
     RunOnDevice([&] { runner_.LaunchSet(prepared_, 0); });

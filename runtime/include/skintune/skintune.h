@@ -628,12 +628,13 @@ class Skinner {
   // The morph targets' weights (MeshView::morph_target_count per instance,
   // instance k's at [k * morph_target_count()]; `count` must equal
   // instances() * morph_target_count()), kept until the next call and
-  // uploaded with every SetPalette from the next one on, in the same palette
+  // uploaded with every SetPalette from the next one on (a CreateAnimated
+  // Skinner's: every SetAnimation and AdvanceAnimation), in the same palette
   // buffer's slot: weights and palette of one frame always go together. It
   // blocks never and uploads nothing by itself. kInvalidArgument for a null
   // `weights`, a wrong count or a weight that is not finite (naming it); a
   // rejected call changes nothing. kInvalidState on a Skinner whose mesh has
-  // no morph targets, or one made by CreateAnimated.
+  // no morph targets.
   Status SetMorphWeights(const float* weights, std::size_t count);
   // The mesh's morph targets per instance (0: none).
   int morph_target_count() const;
@@ -656,9 +657,10 @@ class Skinner {
   // (Model::animation_start .. + animation_duration), and the rest pose stays.
   // The delta is passed with the palette kernel's launch, so no copy to the
   // device precedes the frame (docs/ANIMATION.md: that copy is most of what a
-  // frame costs above its kernels). It takes the next palette buffer as
-  // SetAnimation does and blocks only as it does; the next Skin() computes
-  // the palettes. Negative seconds play backwards. kInvalidArgument for
+  // frame costs above its kernels; a model with morph targets uploads its
+  // instances' weights, SetMorphWeights's, into the buffer). It takes the
+  // next palette buffer as SetAnimation does and blocks only as it does; the
+  // next Skin() computes the palettes. Negative seconds play backwards. kInvalidArgument for
   // seconds that are not finite; kInvalidState on a Skinner made by Create or
   // CreateBatch.
   Status AdvanceAnimation(float seconds);
