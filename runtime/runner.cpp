@@ -769,30 +769,38 @@ std::span<std::uint8_t> Runner::MorphWeightsStaging(Prepared& prepared, int set)
   return api_->Staging(*slot.morph_weights, p.key, slot.UploadFenced(*api_)).first(slot.morph_weights->bytes());
 }
 
+namespace {
+
+// Queues the uploads of a slot's staged buffers: `palette` (its first
+// `palette_bytes`; null: none) and the morph weights where the slot has them,
+// then its fence where the API runs uploads after the launches queued before
+// them; on the submit thread where there is one (the Prepared drains it
+// before `key` and the slot go).
+void QueueSlotUploads(DeviceApi& api, SubmitThread* submit, Prepared::Impl::Slot& slot, DeviceBuffer* palette,
+                      std::size_t palette_bytes, const std::string& key) {
+  DeviceBuffer* morph_weights = slot.morph_weights;
+  const bool mark = api.OrdersUploadsAfterLaunches();
+  const auto uploads = [&api, palette, palette_bytes, morph_weights, &key, &slot, mark] {
+    if (palette) api.Upload(*palette, palette_bytes, key);
+    if (morph_weights) api.Upload(*morph_weights, morph_weights->bytes(), key);
+    if (mark) api.Mark(slot.done, key);
+  };
+  if (!submit) return uploads();
+  slot.submitted = submit->Push([&api, uploads] {
+    api.MakeCurrent();
+    uploads();
+  });
+}
+
+}  // namespace
+
 void Runner::UploadPalette(Prepared& prepared, int set) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
   if (!s.staged) Fail("launch", "UploadPalette of " + p.key + " without PaletteStaging");
   Prepared::Impl::Slot& slot = s.slots[*s.staged];
-  if (submit_) {
-    DeviceApi* api = api_.get();
-    DeviceBuffer* palette = &slot.Uploaded();
-    DeviceBuffer* morph_weights = slot.morph_weights;
-    const std::size_t bytes = p.upload_bytes;
-    const std::string& key = p.key;  // the Prepared drains the thread before it goes
-    const bool mark = api_->OrdersUploadsAfterLaunches();
-    slot.submitted = submit_->Push([api, palette, morph_weights, bytes, &key, &slot, mark] {
-      api->MakeCurrent();
-      api->Upload(*palette, bytes, key);
-      if (morph_weights) api->Upload(*morph_weights, morph_weights->bytes(), key);
-      if (mark) api->Mark(slot.done, key);
-    });
-  } else {
-    api_->Upload(slot.Uploaded(), p.upload_bytes, p.key);
-    if (slot.morph_weights) api_->Upload(*slot.morph_weights, slot.morph_weights->bytes(), p.key);
-    if (api_->OrdersUploadsAfterLaunches()) api_->Mark(slot.done, p.key);
-  }
+  QueueSlotUploads(*api_, submit_.get(), slot, &slot.Uploaded(), p.upload_bytes, p.key);
   slot.launched = false;
   slot.prologue_pending = !slot.prologue.empty();
   slot.fresh = true;
@@ -936,20 +944,7 @@ void Runner::AdvanceAnimation(Prepared& prepared, int set, float delta, std::spa
   if (slot.morph_weights) {  // the frame's weights into this slot's buffer (its palette is computed on the device)
     const std::span<std::uint8_t> staging = api_->Staging(*slot.morph_weights, p.key, slot.UploadFenced(*api_));
     std::copy(morph_weights.begin(), morph_weights.end(), staging.begin());
-    if (submit_) {
-      DeviceApi* api = api_.get();
-      DeviceBuffer* buffer = slot.morph_weights;
-      const std::string& key = p.key;
-      const bool mark = api_->OrdersUploadsAfterLaunches();
-      slot.submitted = submit_->Push([api, buffer, &key, &slot, mark] {
-        api->MakeCurrent();
-        api->Upload(*buffer, buffer->bytes(), key);
-        if (mark) api->Mark(slot.done, key);
-      });
-    } else {
-      api_->Upload(*slot.morph_weights, slot.morph_weights->bytes(), p.key);
-      if (api_->OrdersUploadsAfterLaunches()) api_->Mark(slot.done, p.key);
-    }
+    QueueSlotUploads(*api_, submit_.get(), slot, nullptr, 0, p.key);
   }
   slot.launched = false;
   slot.prologue_pending = true;
