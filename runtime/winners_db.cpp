@@ -140,9 +140,7 @@ std::string NormalFormatSuffix(NormalFormat format) {
 }
 
 std::string Describe(const WinnersEntry& e) {
-  return e.device_id + " " + Name(e.lang) + " b" + std::to_string(e.influences) + " " + VertexCountName(e.vertices) +
-         SceneSuffix(e.shape, e.instances, e.meshes) + MorphSuffix(e.morph_targets) +
-         NormalFormatSuffix(e.variant.normal_format);
+  return e.device_id + " " + Name(e.lang) + " b" + std::to_string(e.influences) + " " + RowName(e);
 }
 
 bool EntryWithinBudget(const WinnersEntry& e, double max_error, const std::vector<WeightFormat>& exact) {

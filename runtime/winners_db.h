@@ -79,6 +79,13 @@ std::size_t NominalVertices(const std::string& bucket);
 // How messages and tables name a vertex count: "1600k" for 1600000, "6400k",
 // "5003" for a count that is not a whole number of thousands.
 std::string VertexCountName(std::size_t vertices);
+// How entries and tables name a row after its B: "100k", "100k instances x64
+// morph 8 normals oct16". W is a WinnersEntry or the tuner's Winner.
+template <typename W>
+std::string RowName(const W& w) {
+  return VertexCountName(w.vertices) + SceneSuffix(w.shape, w.instances, w.meshes) + MorphSuffix(w.morph_targets) +
+         NormalFormatSuffix(w.variant.normal_format);
+}
 // How far a winner measured on `measured` vertices is from a mesh of `mesh`
 // vertices: max/min of the two (1 = the same count; a factor, so 25k is as far
 // from 50k as 1600k from 3200k). Both must be > 0.

@@ -224,8 +224,7 @@ void PrintWinners(const TuningReport& report) {
     const auto name = names.find(w.device_id);
     const SourceError& e = w.source_error;
     rows.push_back({name != names.end() ? name->second : w.device_id, Name(w.lang), std::to_string(w.influences),
-                    VertexCountName(w.vertices) + SceneSuffix(w.shape, w.instances, w.meshes) + MorphSuffix(w.morph_targets) +
-                        NormalFormatSuffix(w.variant.normal_format), w.variant.Key(), ms,
+                    RowName(w), w.variant.Key(), ms,
                     gbps, fraction,
                     e.known ? Sci(e.position_rel) : "-", e.known ? Sci(e.quantisation_rel) : "-",
                     Sci(w.max_relative_error), is_chosen ? "* winner" : w.within_budget ? "within" : "over"});

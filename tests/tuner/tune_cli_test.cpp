@@ -638,7 +638,9 @@ TEST(TuneCli, PackedNormalFormatsAreRowsOfTheirOwnWithTheirErrorRecorded) {
     formats[m.dataset].insert(m.variant.normal_format);
     EXPECT_LT(m.max_relative_error, 1e-5) << m.variant.Key();
     EXPECT_LE(m.source_error.normal_abs, TangentFormatBound(m.variant.normal_format) + 1e-5) << m.variant.Key();
-    if (PacksNormals(m.variant)) EXPECT_GT(m.source_error.normal_abs, 1e-5) << m.variant.Key() << ": packing costs";
+    if (PacksNormals(m.variant)) {
+      EXPECT_GT(m.source_error.normal_abs, 1e-5) << m.variant.Key() << ": packing costs";
+    }
   }
   EXPECT_EQ(formats["3k-b2-tangents"],
             (std::set<NormalFormat>{NormalFormat::kF32, NormalFormat::kOct16, NormalFormat::kSnorm8}));

@@ -120,9 +120,7 @@ std::string KernelRow(const EmbeddedKernel& k, std::size_t index, std::size_t so
   const KernelSource& s = k.source;
   const std::string n = std::to_string(source_index);
   std::string row = "    // [" + std::to_string(index) + "] " + Name(e.lang) + " b" + std::to_string(e.influences) +
-                    " " + VertexCountName(e.vertices) + SceneSuffix(e.shape, e.instances, e.meshes) +
-                    MorphSuffix(e.morph_targets) + NormalFormatSuffix(e.variant.normal_format) + " on " +
-                    Quoted(e.device_id);
+                    " " + RowName(e) + " on " + Quoted(e.device_id);
   if (e.variant.mixed != v.mixed)
     row += " (tuned " + std::string(Name(e.variant.mixed)) + ", emitted " + Name(v.mixed) + ")";
   row += "\n    {" + Quoted(e.device_id) + ",\n     " + Quoted(e.platform) + ", " + Quoted(e.vendor) + ", " +
