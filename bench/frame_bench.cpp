@@ -96,6 +96,7 @@ struct Options {
   int palette_threads = 0;
   std::string animation_model;  // a glTF for the animated rows (default: the instance mesh's synthetic rig)
   bool blend = false;
+  double bake_rate = 0.0;  // SkinnerOptions::bake_rate of the animated rows (0: sampled clips)
 };
 Options options;
 
@@ -193,6 +194,7 @@ struct Scene {
     animated_options.variant = options.variant;
     animated_options.instances = options.instances;
     animated_options.palette_buffers = options.palette_buffers;
+    animated_options.bake_rate = options.bake_rate;
     a->skinner = Must(Skinner::CreateAnimated(device, db, a->model, animated_options), "animated Skinner");
     const int clips = a->model.animation_count();
     for (int f = 0; f < options.poses; ++f) {
@@ -213,8 +215,15 @@ struct Scene {
     Must(a->skinner.SetAnimation(a->states[0].data(), a->states[0].size()), "SetAnimation");
     Must(a->skinner.Skin(), "Skin");
     Must(a->skinner.Finish(), "Finish");
-    std::fprintf(stderr, "animated: %zu x %zu vertices, %d joints, %s%s\n", k, a->model.vertex_count(),
-                 a->model.joint_count(), a->skinner.selection().variant.c_str(), options.blend ? ", two-clip blends" : "");
+    double worst = 0.0;
+    for (const BakedClip& clip : a->skinner.baked_clips()) worst = std::max(worst, clip.max_error);
+    std::fprintf(stderr, "animated: %zu x %zu vertices, %d joints, %s%s; clips %s, %zu bytes on the device", k,
+                 a->model.vertex_count(), a->model.joint_count(), a->skinner.selection().variant.c_str(),
+                 options.blend ? ", two-clip blends" : "", options.bake_rate > 0.0 ? "baked" : "sampled",
+                 a->skinner.animation_bytes());
+    if (options.bake_rate > 0.0)
+      std::fprintf(stderr, " (%g frames a second, largest error %.3g of the extent)", options.bake_rate, worst);
+    std::fprintf(stderr, "\n");
     animated_ = std::move(a);
     return *animated_;
   }
@@ -539,6 +548,9 @@ void ParseOptions(int& argc, char** argv) {
   app.add_option("--palette-threads", options.palette_threads, "SkinnerOptions::palette_threads");
   app.add_option("--animation-model", options.animation_model, "a glTF whose mesh and clips the animated rows play");
   app.add_flag("--blend", options.blend, "animated rows: every instance a blend of two clips (weight 0.5)");
+  app.add_option("--bake-rate", options.bake_rate,
+                 "animated rows: the clips baked at this many frames a second (SkinnerOptions::bake_rate)")
+      ->check(CLI::Range(0.0, kMaxBakeRate));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -10,6 +10,11 @@
 //                             per launch: the launch as a frame pays it when
 //                             the skin kernel follows on the same stream
 //   cuda/<model>/<K>/blend    burst, every instance cross-fading two clips
+//   cuda/<model>/<K>/burst-baked<R>, blend-baked<R>
+//                             the same with the clips baked at R frames a
+//                             second (--bake-rate R, repeatable;
+//                             docs/ANIMATION.md "Baked clips"); the counter
+//                             max_error is the largest stated error of its clips
 //   host/<model>/<K>/palette-at   K x SkinnedAsset::PaletteAt (float64, then float32)
 //   host/<model>/<K>/cpu-kernel   RunPaletteKernel on one thread (float32)
 //
@@ -45,6 +50,7 @@ namespace {
 struct Options {
   std::vector<std::string> gltf, synthetic;
   std::vector<int> instances = {64, 1024};
+  std::vector<double> bake_rates;  // frames a second: each adds the baked forms
 } options;
 
 constexpr int kBurst = 64;
@@ -93,23 +99,32 @@ class CudaPalettes {
     return made.get();
   }
 
-  // Uploads `packed` and `instances`; allocates the K palettes.
+  // Uploads `packed` and `instances`; allocates the K palettes. The
+  // kernel's buffers by their names (generator/palette_kernel.h): sampled
+  // clips' five, or baked clips' frames; the states are the instances (a
+  // fresh frame takes them).
   void Load(const PackedAnimation& packed, const std::vector<AnimInstance>& instances) {
     Free();
-    // 0-5 the inputs, 6 the palette (below), 7 the clips' ranges, 8 the states (fresh frames: the instances).
-    const std::span<const std::uint8_t> inputs[] = {BufferBytes(packed.nodes),  BufferBytes(packed.channels),
-                                                    BufferBytes(packed.times),  BufferBytes(packed.values),
-                                                    BufferBytes(packed.joints), BufferBytes(instances),
-                                                    {}, BufferBytes(packed.clip_ranges), BufferBytes(instances)};
-    for (int b = 0; b < 9; ++b) {
-      if (b == 6) continue;
-      Check(api_.cuMemAlloc(&buffers_[b], std::max<std::size_t>(inputs[b].size(), 16)), "cuMemAlloc");
-      if (!inputs[b].empty()) Check(api_.cuMemcpyHtoD(buffers_[b], inputs[b].data(), inputs[b].size()), "cuMemcpyHtoD");
+    const PaletteKernel kernel = EmitPalette(Lang::kCuda, packed.View(), 3);
+    for (const KernelArgument& a : kernel.kernel.arguments) {
+      if (a.kind != ArgumentKind::kBuffer) continue;
+      std::span<const std::uint8_t> bytes;
+      if (a.name == kAnimInputs[0]) bytes = BufferBytes(packed.nodes);
+      if (a.name == kAnimInputs[1]) bytes = BufferBytes(packed.channels);
+      if (a.name == kAnimInputs[2]) bytes = BufferBytes(packed.times);
+      if (a.name == kAnimInputs[3]) bytes = BufferBytes(packed.values);
+      if (a.name == kAnimInputs[4]) bytes = BufferBytes(packed.joints);
+      if (a.name == kAnimInputs[5] || a.name == kAnimStates) bytes = BufferBytes(instances);
+      if (a.name == kAnimClips) bytes = BufferBytes(packed.clip_ranges);
+      if (a.name == kAnimFrames) bytes = BufferBytes(packed.frames);
+      const std::size_t size =
+          a.name == kAnimOutput ? instances.size() * packed.joints.size() * kAnimPaletteRows * 16 : bytes.size();
+      cuda::DevicePtr& buffer = buffers_.emplace_back();
+      Check(api_.cuMemAlloc(&buffer, std::max<std::size_t>(size, 16)), "cuMemAlloc");
+      if (!bytes.empty()) Check(api_.cuMemcpyHtoD(buffer, bytes.data(), bytes.size()), "cuMemcpyHtoD");
     }
-    Check(api_.cuMemAlloc(&buffers_[6], instances.size() * packed.joints.size() * kAnimPaletteRows * 16), "cuMemAlloc");
     instance_count_ = static_cast<unsigned>(instances.size());
     // The animation's own kernel (its counts are defines: EmitPalette).
-    const PaletteKernel kernel = EmitPalette(Lang::kCuda, packed.View(), 3);
     block_ = static_cast<unsigned>(kernel.kernel.launch.wg_size);  // palette.cu's ANIM_GROUP
     const CompileResult r = CompileWithNvrtc(kernel.kernel.text, arch_, "palette.cu");
     if (!r.ok) throw std::runtime_error(r.error);
@@ -123,11 +138,13 @@ class CudaPalettes {
   double Time(int launches) {
     float delta = 0.0f;
     unsigned fresh = 1;
-    void* parameters[] = {&buffers_[0], &buffers_[1], &buffers_[2], &buffers_[3], &buffers_[4], &buffers_[5],
-                          &buffers_[6], &buffers_[7], &buffers_[8], &delta,       &fresh};
+    std::vector<void*> parameters;
+    for (cuda::DevicePtr& buffer : buffers_) parameters.push_back(&buffer);
+    parameters.push_back(&delta);
+    parameters.push_back(&fresh);
     Check(api_.cuEventRecord(start_, nullptr), "cuEventRecord");
     for (int l = 0; l < launches; ++l)
-      Check(api_.cuLaunchKernel(function_, 1, instance_count_, 1, block_, 1, 1, 0, nullptr, parameters, nullptr),
+      Check(api_.cuLaunchKernel(function_, 1, instance_count_, 1, block_, 1, 1, 0, nullptr, parameters.data(), nullptr),
             "cuLaunchKernel");
     Check(api_.cuEventRecord(end_, nullptr), "cuEventRecord");
     Check(api_.cuEventSynchronize(end_), "cuEventSynchronize");
@@ -150,10 +167,9 @@ class CudaPalettes {
     Check(api_.cuEventCreate(&end_, 0), "cuEventCreate");
   }
   void Free() {
-    for (cuda::DevicePtr& b : buffers_) {
+    for (cuda::DevicePtr& b : buffers_)
       if (b) api_.cuMemFree(b);
-      b = 0;
-    }
+    buffers_.clear();
   }
   static void Check(cuda::Result result, const char* what) {
     if (result != cuda::kSuccess) throw std::runtime_error(std::string(what) + ": " + cuda::ErrorText(result));
@@ -164,7 +180,7 @@ class CudaPalettes {
   cuda::Module module_ = nullptr;
   cuda::Function function_ = nullptr;
   cuda::Event start_ = nullptr, end_ = nullptr;
-  cuda::DevicePtr buffers_[9] = {};
+  std::vector<cuda::DevicePtr> buffers_;  // in the kernel's argument order
   std::string arch_;
   unsigned instance_count_ = 0;
   unsigned block_ = 0;  // threads per block: the kernel's ANIM_GROUP
@@ -185,23 +201,30 @@ std::vector<Model> Models() {
   return models;
 }
 
-void RegisterCuda(const Model& m, int k, const char* form) {
-  const std::string name = "cuda/" + m.name + "/" + std::to_string(k) + "/" + form;
+// `rate` > 0: the clips baked at that many frames a second.
+void RegisterCuda(const Model& m, int k, const char* form, double rate = 0.0) {
+  char baked[32] = "";
+  if (rate > 0.0) std::snprintf(baked, sizeof baked, "-baked%g", rate);
+  const std::string name = "cuda/" + m.name + "/" + std::to_string(k) + "/" + form + baked;
   const std::string kind = form;
-  benchmark::RegisterBenchmark(name.c_str(), [m, k, kind](benchmark::State& state) {
+  benchmark::RegisterBenchmark(name.c_str(), [m, k, kind, rate](benchmark::State& state) {
     std::string why;
     CudaPalettes* cuda = CudaPalettes::Get(why);
     if (cuda == nullptr) {
       state.SkipWithError(why.c_str());
       return;
     }
-    const PackedAnimation packed = PackAnimation(*m.asset);
+    const PackedAnimation packed = rate > 0.0 ? BakeAnimation(*m.asset, rate) : PackAnimation(*m.asset);
     const std::vector<AnimInstance> crowd = Crowd(*m.asset, packed, k, kind == "blend");
     cuda->Load(packed, crowd);
     const int launches = kind == "one" ? 1 : kBurst;
     cuda->Time(launches);  // warm: the module's first launch
     for (auto _ : state) state.SetIterationTime(cuda->Time(launches));
     state.counters["joints"] = static_cast<double>(packed.joints.size());
+    state.counters["animation_bytes"] = static_cast<double>(packed.Bytes());
+    double worst = 0.0;
+    for (const BakedClipInfo& clip : packed.baked) worst = std::max(worst, clip.max_error);
+    if (rate > 0.0) state.counters["max_error"] = worst;
   })->UseManualTime()->Unit(benchmark::kMicrosecond);
 }
 
@@ -231,6 +254,8 @@ void ParseOptions(int& argc, char** argv) {
   app.add_option("--gltf", options.gltf, "a skinned glTF with animations (repeatable)")->check(CLI::ExistingFile);
   app.add_option("--synthetic", options.synthetic, "a synthetic data-set key, for its rig (repeatable)");
   app.add_option("--instances", options.instances, "crowd sizes (repeatable)")->check(CLI::Range(1, 1 << 16));
+  app.add_option("--bake-rate", options.bake_rates, "also time the clips baked at this many frames a second (repeatable)")
+      ->check(CLI::Range(1e-3, kAnimMaxBakeRate));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -252,6 +277,8 @@ int main(int argc, char** argv) {
     for (const Model& m : Models()) {
       for (int k : options.instances) {
         for (const char* form : {"one", "burst", "blend"}) RegisterCuda(m, k, form);
+        for (const double rate : options.bake_rates)
+          for (const char* form : {"burst", "blend"}) RegisterCuda(m, k, form, rate);
         RegisterHost(m, k);
       }
     }

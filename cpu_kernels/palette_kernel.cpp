@@ -23,6 +23,8 @@
 // space: T and S lerped, R nlerped along the shortest path.
 #include "cpu_kernels/palette_kernel.h"
 
+#include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -161,6 +163,46 @@ void JointPalette(const AnimationView& a, std::size_t j, const Local& local, flo
     for (int c = 0; c < 4; ++c) out[4 * r + c] = m.row[r][c];
 }
 
+// A baked record: the rotation, then translation and uniform scale.
+struct Baked {
+  vec4 q, ts;
+};
+
+Baked BakedRecord(const AnimationView& a, std::uint32_t frame, std::size_t j) {
+  const float* p = a.frames.data() + kBakedFloats * (std::size_t{frame} * a.joints.size() + j);
+  return {Load(p), Load(p + 4)};
+}
+
+// x towards y by u: the rotation nlerped along the shortest path, the
+// translation and scale lerped (templates/palette_baked.cl baked_mix).
+Baked BakedMix(const Baked& x, const Baked& y, float u) {
+  const vec4 q2 = glm::dot(x.q, y.q) < 0.0f ? -y.q : y.q;
+  return {NormalizeQuat(x.q + u * (q2 - x.q)), x.ts + u * (y.ts - x.ts)};
+}
+
+std::uint32_t Bits(float v) { return std::bit_cast<std::uint32_t>(v); }
+
+// Joint j of clip `clip` at time t (clamped to the clip's range): between
+// the two frames around t (templates/palette_baked.cl baked_sample).
+Baked BakedSample(const AnimationView& a, std::uint16_t clip, float t, std::size_t j) {
+  if (clip == kAnimRestPose) return BakedRecord(a, 0, j);
+  const float* range = a.clip_ranges.data() + 4 * std::size_t{clip};
+  const std::uint32_t frames = Bits(range[2]), first = Bits(range[3]);
+  if (frames < 2) return BakedRecord(a, first, j);
+  const float length = range[1] - range[0];
+  const float u = length > 0.0f ? std::fmin(std::fmax((t - range[0]) / length, 0.0f), 1.0f) *
+                                      static_cast<float>(frames - 1)
+                                : 0.0f;
+  const std::uint32_t k = std::min(static_cast<std::uint32_t>(u), frames - 2);
+  return BakedMix(BakedRecord(a, first + k, j), BakedRecord(a, first + k + 1, j), u - static_cast<float>(k));
+}
+
+// Rows of s R(q) | t.
+Affine BakedAffine(const Baked& b) {
+  const Affine m = ToAffine(Trs{vec4(b.ts.x, b.ts.y, b.ts.z, 0.0f), b.q, vec4(b.ts.w, b.ts.w, b.ts.w, 0.0f)});
+  return m;
+}
+
 const char* PathName(std::size_t path) {
   static const char* const kNames[] = {"translation", "rotation", "scale"};
   return kNames[path];
@@ -249,6 +291,42 @@ void ValidateAnimation(const AnimationView& a) {
   for (std::size_t i = 0; i < a.channels.size(); ++i) ValidateChannel(a, i);
 }
 
+void ValidateBakedAnimation(const AnimationView& a) {
+  if (!a.baked()) return ValidateAnimation(a);
+  const std::size_t joints = a.joints.size();
+  if (joints == 0) throw Error("baked animation: no joints");
+  if (a.clip_count > kAnimMaxClips)
+    throw Error("baked animation: " + std::to_string(a.clip_count) + " clips (at most " +
+                std::to_string(kAnimMaxClips) + ")");
+  if (a.frames.size() % (kBakedFloats * joints) != 0)
+    throw Error("baked animation: " + std::to_string(a.frames.size()) + " frame floats, not whole frames of " +
+                std::to_string(joints) + " joints x " + std::to_string(kBakedFloats) + " floats");
+  const std::size_t total = a.frames.size() / (kBakedFloats * joints);
+  if (a.clip_ranges.size() != std::size_t{a.clip_count} * 4)
+    throw Error("baked animation: " + std::to_string(a.clip_ranges.size()) + " clip-range floats for " +
+                std::to_string(a.clip_count) + " clips (4 each: start, end, frames, first frame)");
+  for (std::uint32_t c = 0; c < a.clip_count; ++c) {
+    const float start = a.clip_ranges[4u * c], end = a.clip_ranges[4u * c + 1u];
+    const std::uint64_t frames = Bits(a.clip_ranges[4u * c + 2u]), first = Bits(a.clip_ranges[4u * c + 3u]);
+    const std::string what = "baked animation: clips[" + std::to_string(c) + "]";
+    if (!std::isfinite(start) || !std::isfinite(end) || end < start)
+      throw Error(what + ": range " + Number(start) + " .. " + Number(end) + " is not finite and increasing");
+    if (frames < (end > start ? 2u : 1u) || first == 0 || first + frames > total)
+      throw Error(what + ": frames " + std::to_string(first) + " .. " + std::to_string(first + frames) + " of " +
+                  std::to_string(total) + " (frame 0 is the rest pose; at least 2 frames where the clip lasts)");
+  }
+  for (std::size_t r = 0; r < total * joints; ++r) {
+    const float* p = a.frames.data() + kBakedFloats * r;
+    const std::string what = "baked animation: frames[" + std::to_string(r / joints) + "] joint " +
+                             std::to_string(r % joints);
+    for (std::size_t k = 0; k < kBakedFloats; ++k)
+      if (!std::isfinite(p[k])) throw Error(what + ": " + Number(p[k]) + " is not finite");
+    const float length = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
+    if (std::fabs(length - 1.0f) > 1e-3f)
+      throw Error(what + ": rotation of length " + Number(length) + ", not a unit quaternion");
+  }
+}
+
 void ValidateAnimInstances(const AnimationView& a, std::span<const AnimInstance> instances) {
   auto check_clip = [&](std::size_t i, const char* field, std::uint16_t clip) {
     if (clip != kAnimRestPose && clip >= a.clip_count)
@@ -297,6 +375,25 @@ void RunPaletteKernel(const AnimationView& a, std::span<const AnimInstance> inst
   if (rows != 3 && rows != 4) throw Error("palette kernel: " + std::to_string(rows) + " rows per joint (3 or 4)");
   ValidateAnimInstances(a, instances);
   const std::size_t joints = a.joints.size(), stride = 4 * static_cast<std::size_t>(rows);
+  const auto put = [&](float* out, const Affine& m) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) out[4 * r + c] = m.row[r][c];
+    if (rows == 4) {  // a mat4's last row
+      out[12] = out[13] = out[14] = 0.0f;
+      out[15] = 1.0f;
+    }
+  };
+  if (a.baked()) {
+    for (std::size_t i = 0; i < instances.size(); ++i) {
+      const AnimInstance& in = instances[i];
+      for (std::size_t j = 0; j < joints; ++j) {
+        Baked x = BakedSample(a, in.clip, in.time, j);
+        if (in.weight != 0.0f) x = BakedMix(x, BakedSample(a, in.clip2, in.time2, j), in.weight);
+        put(palette + stride * (i * joints + j), BakedAffine(x));
+      }
+    }
+    return;
+  }
   std::vector<Affine> locals(a.nodes.size());
   for (std::size_t i = 0; i < instances.size(); ++i) {
     for (std::uint32_t n = 0; n < locals.size(); ++n) locals[n] = LocalOf(a, n, instances[i]);

@@ -72,6 +72,17 @@ struct AnimInstance {
 static_assert(sizeof(AnimNodeRecord) == 64 && sizeof(AnimChannelHeader) == 16 && sizeof(AnimJointRecord) == 64 &&
               sizeof(AnimInstance) == 16);
 
+// Baked clips (docs/ANIMATION.md "Baked clips"): each clip's palettes
+// pre-sampled at evenly spaced frames, so that the kernel reads two records
+// a joint instead of sampling channels and walking the hierarchy. Buffer
+// `frames`: one record per (frame, joint), at float4 2 * (f * joints + j):
+// the joint's skinning transform M (global x inverse bind) as a unit
+// rotation q = (x, y, z, w), then (t.x, t.y, t.z, s): M v = s R(q) v + t.
+// Frame 0 is the rest pose; clip c's F frames follow at its first frame,
+// frame k at start + k (end - start) / (F - 1). Its entry of `clips` is then
+// (start, end, F, first frame), the last two as uint32 bits.
+inline constexpr std::size_t kBakedFloats = 8;  // a record: two float4s
+
 // The packed animation as the kernel reads it: views of the buffers.
 struct AnimationView {
   std::uint32_t clip_count = 0;
@@ -81,8 +92,15 @@ struct AnimationView {
   std::span<const float> values;  // 4 floats per value
   std::span<const AnimJointRecord> joints;
   // `clips`: clip_count x 4 floats, clip c's time range (start, end, 0, 0):
-  // where AdvanceAnimInstances loops its clock.
+  // where AdvanceAnimInstances loops its clock. Baked: (start, end, frame
+  // count, first frame), the last two uint32 bits.
   std::span<const float> clip_ranges;
+  // Baked clips' `frames` (kBakedFloats a record); empty: the clips are
+  // sampled from nodes, channels, times and values. Baked, those four are
+  // not read (nor uploaded): joints gives the joint count.
+  std::span<const float> frames;
+
+  bool baked() const { return !frames.empty(); }
 };
 
 // Throws Error naming the element for buffers an outside program could have
@@ -91,6 +109,11 @@ struct AnimationView {
 // (CUBICSPLINE: 3 values per key), keys not strictly increasing or not
 // finite, a parent or joint node out of range, a cycle, no joints.
 void ValidateAnimation(const AnimationView& animation);
+// Baked (frames not empty): throws Error naming the element for a `frames`
+// buffer not of whole records for the joints, a clip's frames beyond it or
+// fewer than 1 (2 for a clip of some duration), a record not finite or with
+// a rotation not of unit length within 1e-3. Sampled: as ValidateAnimation.
+void ValidateBakedAnimation(const AnimationView& animation);
 // Throws Error("instances[I]: ...") for a clip or clip2 (when weight != 0)
 // neither below clip_count nor kAnimRestPose, a time, time2 or weight that
 // is not finite, a weight outside [0, 1].
@@ -106,7 +129,8 @@ float AnimLoopTime(float t, float start, float end);
 // on the device (docs/ANIMATION.md "`states`").
 void AdvanceAnimInstances(const AnimationView& animation, std::span<AnimInstance> states, float delta);
 
-// Writes instances.size() * joints * `rows` float4 rows to `palette`:
+// Writes instances.size() * joints * `rows` float4 rows to `palette`
+// (a baked animation: from its frames, templates/palette_baked.cl's algorithm):
 // instance i's joint j row r at float4 (i * joints + j) * rows + r; rows 3
 // (mat3x4) or 4 (mat4: a fourth row 0 0 0 1), else Error. Validates the instances
 // (ValidateAnimInstances, cheap); the animation must have passed

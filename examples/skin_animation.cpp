@@ -4,6 +4,7 @@
 //
 //   skin_animation MODEL.gltf|.glb|DATASET [MODEL...] [--db winners-db.json] [--device PATTERN]
 //                  [--seconds S] [--readback] [--instances K] [--palette-buffers N] [--host-palettes]
+//                  [--bake RATE]
 //
 // One model is animated on the device (Skinner::CreateAnimated, docs/ANIMATION.md):
 // each frame uploads every character's clip and time, 16 bytes a character, and the
@@ -20,7 +21,9 @@
 // a scene of different characters, each playing its own animation), K times with
 // --instances K. --palette-buffers N gives the Skinner a ring of N palette
 // buffers (SkinnerOptions::palette_buffers: how many frames may be queued before
-// SetPalette waits; 3 by default).
+// SetPalette waits; 3 by default). --bake RATE bakes the model's clips at RATE frames a
+// second when the Skinner is made (SkinnerOptions::bake_rate, docs/ANIMATION.md "Baked
+// clips") and prints each clip's frames, bytes and largest error.
 #include <CLI/CLI.hpp>
 #include <skintune/skintune.h>
 
@@ -69,6 +72,8 @@ int main(int argc, char** argv) {
   app.add_option("--palette-buffers", options.palette_buffers, "SkinnerOptions::palette_buffers");
   bool host_palettes = false;
   app.add_flag("--host-palettes", host_palettes, "compute the palettes on the host and upload them (SetPalette)");
+  app.add_option("--bake", options.bake_rate, "bake the clips at this many frames a second (SkinnerOptions::bake_rate)")
+      ->check(CLI::Range(1e-3, kMaxBakeRate));
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -98,7 +103,16 @@ int main(int argc, char** argv) {
   Result<Skinner> skinner = on_device            ? Skinner::CreateAnimated(*device, *db, models[0], options)
                             : models.size() == 1 ? Skinner::Create(*device, *db, meshes[0], options)
                                                  : Skinner::CreateBatch(*device, *db, meshes.data(), meshes.size(), options);
+  if (options.bake_rate > 0.0 && !on_device)
+    return Fail(Status(ErrorCode::kInvalidArgument, "--bake bakes one model's clips animated on the device (not "
+                                                    "with --host-palettes, several models or a model without clips)"));
   if (!skinner) return Fail(skinner.status());
+  double baked_error = 0.0;  // the largest of the baked clips' stated errors, of the mesh's diagonal
+  for (const BakedClip& clip : skinner->baked_clips()) {
+    std::printf("baked clip '%s': %d frames, %zu bytes, largest error %.3g of the mesh's diagonal\n",
+                clip.name.c_str(), clip.frames, clip.bytes, clip.max_error);
+    baked_error = std::max(baked_error, clip.max_error);
+  }
   for (std::size_t m = 0; m < models.size(); ++m)
     std::printf("%s: %d x %zu vertices, %d influences, %d joints\n", models[m].source().c_str(), options.instances,
                 models[m].vertex_count(), models[m].influences(), models[m].joint_count());
@@ -180,7 +194,9 @@ int main(int argc, char** argv) {
   if (!status) return Fail(status);
   std::printf("first frame: largest difference from the reference %.3g (%.2g of the models' extent)\n", error,
               error / extent);
-  if (!(error <= 1e-3 * extent)) return Fail(Status(ErrorCode::kDeviceError, "the kernel's output is wrong"));
+  // Baked clips may be off by their stated error (of the diagonal, at most 2 sqrt(3) x the extent).
+  if (!(error <= (1e-3 + 1.25 * 2 * std::sqrt(3.0) * baked_error) * extent))
+    return Fail(Status(ErrorCode::kDeviceError, "the kernel's output is wrong"));
 
   // Every frame at the wall clock's time since the start; each clip loops (on the host:
   // time_of; on the device: AdvanceAnimation's clocks loop in their clips).

@@ -1,13 +1,21 @@
 #include "generator/clip_packer.h"
 
+#include <algorithm>
+#include <bit>
 #include <cfloat>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <set>
 #include <string>
 #include <utility>
 
+#define GLM_ENABLE_EXPERIMENTAL
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtx/matrix_decompose.hpp>
+
 #include "base/error.h"
+#include "reference/skinning.h"
 
 namespace skintune::internal {
 namespace {
@@ -145,10 +153,12 @@ void CheckCounts(const SkinnedAsset& asset, std::span<const int> clips) {
 }  // namespace
 
 AnimationView PackedAnimation::View() const {
-  return AnimationView{static_cast<std::uint32_t>(clips.size()), nodes, channels, times, values, joints, clip_ranges};
+  return AnimationView{static_cast<std::uint32_t>(clips.size()), nodes, channels, times, values, joints, clip_ranges,
+                       frames};
 }
 
 std::size_t PackedAnimation::Bytes() const {
+  if (!frames.empty()) return BufferBytes(frames).size() + BufferBytes(clip_ranges).size();
   return BufferBytes(nodes).size() + BufferBytes(channels).size() + BufferBytes(times).size() +
          BufferBytes(values).size() + BufferBytes(joints).size() + BufferBytes(clip_ranges).size();
 }
@@ -170,6 +180,128 @@ PackedAnimation PackAnimation(const SkinnedAsset& asset, std::span<const int> cl
   }
   ValidateAnimation(out.View());  // what the kernels rely on, checked as for any outside packing
   return out;
+}
+
+namespace {
+
+// A joint's skinning transform as a baked record: q, then t and s.
+struct BakedJoint {
+  glm::dquat q;
+  glm::dvec3 t;
+  double s = 1.0;
+};
+
+BakedJoint BakeJoint(const glm::dmat4& m, const std::string& what) {
+  glm::dvec3 scale, translation, skew;
+  glm::dquat rotation;
+  glm::dvec4 perspective;
+  if (!glm::decompose(m, scale, rotation, translation, skew, perspective))
+    throw Error(what + ": a singular transform (no rotation to bake)");
+  const double product = scale.x * scale.y * scale.z;  // decompose gives all three negative where m mirrors
+  return {glm::normalize(rotation), glm::dvec3(m[3]), std::copysign(std::cbrt(std::fabs(product)), product)};
+}
+
+// x towards y by u as the kernels mix records (BakedMix), in float64.
+BakedJoint MixBaked(const BakedJoint& x, const BakedJoint& y, double u) {
+  const glm::dquat q2 = glm::dot(x.q, y.q) < 0.0 ? -y.q : y.q;
+  return {glm::normalize(x.q + u * (q2 - x.q)), x.t + u * (y.t - x.t), x.s + u * (y.s - x.s)};
+}
+
+// The largest distance between a vertex of `mesh` skinned by the `baked`
+// palette and by the `exact` one: |sum_i w_i (B - E)[d_i] v|.
+double BakeError(const SkinnedMesh& mesh, std::span<const BakedJoint> baked, std::span<const glm::dmat4> exact) {
+  std::vector<glm::dmat4> difference(baked.size());
+  for (std::size_t j = 0; j < baked.size(); ++j) {
+    glm::dmat4 m(glm::mat3_cast(baked[j].q) * baked[j].s);
+    m[3] = glm::dvec4(baked[j].t, 1.0);
+    difference[j] = m - exact[j];
+  }
+  double worst = 0.0;
+  const auto b = static_cast<std::size_t>(mesh.influences);
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    const glm::dvec4 p(glm::dvec3(mesh.positions[v]), 1.0);
+    glm::dvec3 moved(0.0);
+    for (std::size_t i = 0; i < b; ++i)
+      if (const double w = mesh.weights[v * b + i]; w != 0.0)
+        moved += w * glm::dvec3(difference[static_cast<std::size_t>(mesh.joints[v * b + i])] * p);
+    worst = std::max(worst, glm::length(moved));
+  }
+  return worst;
+}
+
+}  // namespace
+
+PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> clips, double rate) {
+  if (!(rate > 0.0) || rate > kAnimMaxBakeRate)
+    throw Error(asset.source + ": bake rate " + Number(rate) + " frames a second, outside (0, " +
+                Number(kAnimMaxBakeRate) + "]");
+  PackedAnimation out = PackAnimation(asset, clips);  // every check of the clips and the skeleton
+  out.channels.clear();
+  out.times.clear();
+  out.values.clear();
+  out.clip_ranges.clear();
+  out.bake_rate = rate;
+  const std::size_t joints = out.joints.size();
+  const double diagonal = BoundingBoxDiagonal(asset.mesh.positions);
+  std::vector<BakedJoint> record(joints);
+  const auto bake = [&](int clip, double t, const std::string& what) {
+    const std::vector<glm::dmat4> palette = asset.skeleton.PaletteD(asset.PoseAt(clip, t));
+    for (std::size_t j = 0; j < joints; ++j) {
+      const std::string joint = what + " joint " + std::to_string(j);
+      record[j] = BakeJoint(palette[j], joint);
+      // As stored: float32, as the kernels read it.
+      const glm::dvec4 q(glm::dvec4(glm::vec4(record[j].q.x, record[j].q.y, record[j].q.z, record[j].q.w)));
+      record[j].q = glm::dquat(q.w, q.x, q.y, q.z);
+      record[j].t = glm::dvec3(glm::vec3(record[j].t));
+      record[j].s = static_cast<float>(record[j].s);
+      if (out.frames.size() + kBakedFloats > kMaxBakedFloats)
+        throw Error(asset.source + ": baked at " + Number(rate) + " frames a second, more than " +
+                    std::to_string(kMaxBakedFloats) + " floats of frames");
+      out.frames.insert(out.frames.end(),
+                        {ToFloat(q.x, joint), ToFloat(q.y, joint), ToFloat(q.z, joint), ToFloat(q.w, joint),
+                         ToFloat(record[j].t.x, joint), ToFloat(record[j].t.y, joint), ToFloat(record[j].t.z, joint),
+                         ToFloat(record[j].s, joint)});
+    }
+    return record;
+  };
+  bake(-1, 0.0, asset.source + ": rest pose");
+  for (std::size_t c = 0; c < clips.size(); ++c) {
+    const AnimationClip& clip = asset.animations[static_cast<std::size_t>(clips[c])];
+    const std::string name = ClipName(asset, clips[c]);
+    const double duration = clip.duration();
+    const auto frames =
+        static_cast<std::uint32_t>(duration > 0.0 ? std::max(2.0, std::ceil(duration * rate - 1e-9) + 1.0) : 1.0);
+    const auto first = static_cast<std::uint32_t>(out.frames.size() / (kBakedFloats * joints));
+    const double step = frames > 1 ? duration / (frames - 1) : 0.0;
+    std::vector<BakedJoint> previous;
+    double worst = 0.0;
+    for (std::uint32_t k = 0; k < frames; ++k) {
+      const double t = clip.start + k * step;
+      const std::vector<BakedJoint> current = bake(clips[c], t, asset.source + ": " + name + " at t=" + Number(t) + " s");
+      for (const double u : {0.0, 0.25, 0.5, 0.75, 1.0}) {  // between the last frame and this one
+        if (k == 0 || (u == 0.0 && k > 1)) continue;  // frame k - 1 checked by its own interval
+        std::vector<BakedJoint> mixed(joints);
+        for (std::size_t j = 0; j < joints; ++j) mixed[j] = MixBaked(previous[j], current[j], u);
+        const std::vector<glm::dmat4> exact = asset.skeleton.PaletteD(asset.PoseAt(clips[c], t - (1.0 - u) * step));
+        worst = std::max(worst, BakeError(asset.mesh, mixed, exact));
+      }
+      if (frames == 1) worst = BakeError(asset.mesh, current, asset.skeleton.PaletteD(asset.PoseAt(clips[c], t)));
+      previous = current;
+    }
+    out.clip_ranges.insert(out.clip_ranges.end(), {static_cast<float>(clip.start),
+                                                   static_cast<float>(clip.start + duration),
+                                                   std::bit_cast<float>(frames), std::bit_cast<float>(first)});
+    out.baked.push_back({name, frames, std::size_t{frames} * joints * kBakedFloats * sizeof(float),
+                         diagonal > 0.0 ? worst / diagonal : std::numeric_limits<double>::quiet_NaN()});
+  }
+  ValidateBakedAnimation(out.View());
+  return out;
+}
+
+PackedAnimation BakeAnimation(const SkinnedAsset& asset, double rate) {
+  std::vector<int> all(asset.animations.size());
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  return BakeAnimation(asset, all, rate);
 }
 
 PackedAnimation PackAnimation(const SkinnedAsset& asset) {

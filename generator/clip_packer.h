@@ -31,6 +31,22 @@ inline constexpr std::size_t kAnimMaxJoints = 65536;
 inline constexpr std::size_t kAnimMaxHeaders = std::size_t{1} << 26;  // clips x nodes x 3 (1 GiB of headers)
 inline constexpr std::size_t kAnimMaxKeys = 0x7fffffff;               // times, and float4 values, in all
 
+// Baking (BakeAnimation): the rate's range, and the frames' size limit.
+inline constexpr double kAnimMaxBakeRate = 1000.0;                     // frames a second
+inline constexpr std::size_t kMaxBakedFloats = std::size_t{1} << 30;  // 4 GiB of frames
+
+// What baking a clip cost and lost: its frames, their bytes on the device,
+// and the largest distance between a vertex of the mesh skinned by the baked
+// palette (interpolated as the kernels do) and by the float64 sampled one,
+// at the frames and at 1/4, 1/2 and 3/4 between them, relative to the mesh's
+// bounding-box diagonal (NaN for a mesh of no extent: nothing to measure on).
+struct BakedClipInfo {
+  std::string name;  // "animations[0] 'Walk'"
+  std::uint32_t frames = 0;
+  std::size_t bytes = 0;
+  double max_error = 0.0;
+};
+
 struct PackedAnimation {
   std::string source;                       // the asset's, for messages
   std::vector<int> clips;                   // packed clip c is asset.animations[clips[c]]
@@ -40,12 +56,16 @@ struct PackedAnimation {
   std::vector<float> values;                // buffer `values`: 4 floats per value
   std::vector<AnimJointRecord> joints;      // buffer `joints`
   std::vector<float> clip_ranges;           // buffer `clips`: per clip start, end, 0, 0 (AdvanceAnimInstances)
+                                            // (baked: start, end, frames, first frame)
+  std::vector<float> frames;                // buffer `frames` of baked clips (empty: sampled)
+  std::vector<BakedClipInfo> baked;         // per packed clip, when baked
+  double bake_rate = 0.0;                   // frames a second asked for (0: sampled)
   // Each channel left out and why ("animations[0] 'Wave': channels[3]
   // (weights of node 2): morph target weights are not part of the palette").
   std::vector<std::string> not_packed;
 
   AnimationView View() const;
-  std::size_t Bytes() const;  // of the six buffers together
+  std::size_t Bytes() const;  // of the buffers the kernel reads (baked: frames and clips)
 };
 
 // Packs `clips` (indices into asset.animations; packed clip c is clips[c]).
@@ -59,6 +79,20 @@ struct PackedAnimation {
 PackedAnimation PackAnimation(const SkinnedAsset& asset, std::span<const int> clips);
 // Every clip of the asset, in order.
 PackedAnimation PackAnimation(const SkinnedAsset& asset);
+
+// Every clip of `clips` baked (docs/ANIMATION.md "Baked clips"): its
+// palettes sampled in float64 (SkinnedAsset::PoseAt, Skeleton::PaletteD) at
+// F = ceil(duration x rate) + 1 evenly spaced frames (1 for a clip of no
+// duration), each joint's transform split into a unit rotation, a
+// translation and a uniform scale (the cube root of the 3x3's determinant;
+// a transform that shears or scales unevenly is kept as that similarity,
+// and BakedClipInfo::max_error says what it loses), with the rest pose as
+// frame 0. nodes and joints are packed as PackAnimation packs them, channels,
+// times and values not. Throws Error("<source>: ...") for a rate not in
+// (0, kAnimMaxBakeRate], more than kMaxBakedFloats floats of frames, a singular
+// joint transform, and what PackAnimation throws for.
+PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> clips, double rate);
+PackedAnimation BakeAnimation(const SkinnedAsset& asset, double rate);  // every clip, in order
 
 // The bytes of one buffer of a PackedAnimation (or of instances), as uploaded.
 template <typename T>

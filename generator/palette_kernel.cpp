@@ -22,7 +22,8 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
   variant.lang = language.copy_lang;
   variant.influences = 1;
   variant.storage = PaletteStorage::kGlobal;
-  const int group = AnimGroupFor(animation.nodes.size());
+  const bool baked = animation.baked();
+  const int group = baked ? AnimBakedGroupFor(animation.joints.size()) : AnimGroupFor(animation.nodes.size());
   variant.wg_size = group;
   variant.normals = Normals::kNone;
 
@@ -36,7 +37,8 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                {"ANIM_JOINT_COUNT", static_cast<long long>(animation.joints.size())},
                {"ANIM_CLIP_COUNT", static_cast<long long>(animation.clip_count)},
                {"ANIM_PALETTE_ROWS", palette_rows},
-               {"ANIM_GROUP", group}};
+               {"ANIM_GROUP", group},
+               {"ANIM_BAKED", baked ? 1 : 0}};
   const auto buffer = [](const char* name, const char* format, std::size_t element, ArgumentDirection direction) {
     return KernelArgument{name, format, element, element, "", direction, ArgumentKind::kBuffer};
   };
@@ -51,14 +53,21 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                  buffer(kAnimStates, "record", sizeof(AnimInstance), ArgumentDirection::kOut),
                  {kAnimDelta, "f32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar},
                  {kAnimFresh, "u32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar}};
-  k.arguments[6].indexing = "(i*J+j)*R+r";
+  if (baked) {  // frames in place of the five buffers of sampled clips
+    k.arguments.erase(k.arguments.begin(), k.arguments.begin() + 5);
+    k.arguments.insert(k.arguments.begin(), buffer(kAnimFrames, "float4 pairs", 32, ArgumentDirection::kIn));
+  }
+  for (KernelArgument& a : k.arguments)
+    if (a.name == kAnimOutput) a.indexing = "(i*J+j)*R+r";
   k.launch.vertices_per_item = 1;
   k.launch.wg_size = group;
   k.launch.instanced = true;
   k.launch.rule = "one work-group of " + std::to_string(group) + " per instance: " + language.instance_rule;
 
   k.text = SpecialisedText(language.palette_template,
-                           "the palette kernel of " + std::to_string(animation.clip_count) + " clips", k.defines);
+                           "the palette kernel of " + std::to_string(animation.clip_count) +
+                               (baked ? " baked clips" : " clips"),
+                           k.defines);
   k.source_hash = SourceHash(k.text);
   return out;
 }

@@ -28,12 +28,22 @@ constexpr int AnimGroupFor(std::size_t nodes) {
   return static_cast<int>(tasks < 64 ? 64 : tasks > kAnimMaxGroup ? kAnimMaxGroup : tasks);
 }
 
+// A baked animation's kernel (AnimationView::baked) has no hierarchy to walk:
+// an item per joint, the group the joints rounded up to 32, from 32 to 256.
+constexpr int AnimBakedGroupFor(std::size_t joints) {
+  const std::size_t items = (joints + 31) / 32 * 32;
+  return static_cast<int>(items < 32 ? 32 : items > kAnimMaxGroup ? kAnimMaxGroup : items);
+}
+
 // The kernel's arguments, in order: the buffers it reads, the palette it
 // writes, the clips' time ranges, the instances' states it keeps on the device
 // (read and written), and the frame's two scalars: `delta` (f32, seconds) and
 // `fresh` (u32: 1 takes the states from `instances`, the frame's upload; 0
 // advances the kept ones by delta). docs/ANIMATION.md has every byte.
 inline constexpr const char* kAnimInputs[] = {"nodes", "channels", "times", "values", "joints", "instances"};
+// A baked animation's kernel takes `frames` (AnimationView::frames),
+// instances, out_palette, clips, states, delta and fresh, in that order.
+inline constexpr const char* kAnimFrames = "frames";
 inline constexpr const char* kAnimOutput = "out_palette";
 inline constexpr const char* kAnimClips = "clips";
 inline constexpr const char* kAnimStates = "states";
@@ -48,7 +58,8 @@ struct PaletteKernel {
 // The palette kernel of `animation` in `lang`'s API writing `palette_rows`
 // float4 rows per joint (3: mat3x4, 4: mat4 with a last row 0 0 0 1; a skin
 // variant's PaletteRows). Launch it with LaunchSpec count kernel.launch.wg_size (AnimGroupFor) and
-// instances K (instanced): one work-group per instance. Throws Error for rows
+// instances K (instanced): one work-group per instance. A baked `animation`
+// gets the baked kernel (define ANIM_BAKED 1). Throws Error for rows
 // other than 3 or 4, no joints or nodes, more nodes than kAnimMaxNodes.
 PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette_rows);
 

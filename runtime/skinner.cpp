@@ -197,6 +197,7 @@ std::vector<std::vector<std::uint8_t>> RestPalettes(const PackedMesh& mesh, int 
 
 static_assert(kDefaultPaletteBuffers == kPaletteSlots, "the Skinner's default palette ring is the runner's");
 static_assert(kMaxPaletteThreads == static_cast<int>(kMaxPaletteLanes), "palette_threads' range is the palette crew's");
+static_assert(kMaxBakeRate == kAnimMaxBakeRate, "bake_rate's range is the clip packer's");
 
 Prepared PrepareSkinnerSet(DeviceState& device, const PackedMesh& mesh, const std::vector<KernelSource>& kernels,
                            const SkinnerSetup& setup) {
@@ -319,6 +320,9 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
                                               std::to_string(options.palette_buffers) + ", expected " +
                                               std::to_string(kMinPaletteBuffers) + " to " +
                                               std::to_string(kMaxPaletteBuffers));
+  if (options.bake_rate != 0.0 && call != "Skinner::CreateAnimated")
+    FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_rate bakes a model's clips (Skinner::"
+                                                 "CreateAnimated); this Skinner takes its palettes from SetPalette");
   if (options.palette_threads < 0 || options.palette_threads > kMaxPaletteThreads)
     FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::palette_threads is " +
                                               std::to_string(options.palette_threads) + ", expected 0 (skintune's choice) to " +
@@ -424,9 +428,13 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     if (options.dual_quaternions)
       FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::dual_quaternions: the palette kernel writes "
                                                    "matrices; animation on the device skins with linear blending only");
+    if (options.bake_rate != 0.0 && !(options.bake_rate > 0.0 && options.bake_rate <= kMaxBakeRate))
+      FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_rate is " +
+                                                std::to_string(options.bake_rate) + ", expected 0 (sampled) or (0, " +
+                                                std::to_string(kMaxBakeRate) + "] frames a second");
     PackedAnimation animation;
     try {
-      animation = PackAnimation(*asset);
+      animation = options.bake_rate > 0.0 ? BakeAnimation(*asset, options.bake_rate) : PackAnimation(*asset);
     } catch (const Error& e) {
       FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
     }
@@ -446,6 +454,11 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     im.backend->Animate(animation.View(), kernel);
     im.animated = true;
     im.animation_count = static_cast<int>(animation.clips.size());
+    im.animation_bytes = animation.Bytes();
+    for (std::size_t c = 0; c < animation.baked.size(); ++c)
+      im.baked_clips.push_back({asset->animations[static_cast<std::size_t>(animation.clips[c])].name,
+                                static_cast<int>(animation.baked[c].frames), animation.baked[c].bytes,
+                                animation.baked[c].max_error});
     im.palette_set = true;  // the rest pose, until the first SetAnimation
     // The device's palettes are not seen by the host: every read-back is scanned before it is copied.
     im.palette_magnitude = std::numeric_limits<float>::infinity();
@@ -638,6 +651,8 @@ Status Skinner::AdvanceAnimation(float seconds) {
 }
 
 bool Skinner::animated() const { return impl_ && impl_->animated; }
+std::vector<BakedClip> Skinner::baked_clips() const { return impl_ ? impl_->baked_clips : std::vector<BakedClip>{}; }
+std::size_t Skinner::animation_bytes() const { return impl_ ? impl_->animation_bytes : 0; }
 
 Status Skinner::Skin() {
   return Guarded(ErrorCode::kDeviceError, [&] {

@@ -183,6 +183,8 @@ struct Skinner::Impl {
   bool skinned = false;
   bool animated = false;     // CreateAnimated: SetAnimation, not SetPalette
   int animation_count = 0;   // the model's (the packed clips, in order)
+  std::size_t animation_bytes = 0;     // on the device (PackedAnimation::Bytes)
+  std::vector<BakedClip> baked_clips;  // SkinnerOptions::bake_rate's
   int morph_targets = 0;     // per instance (0: none)
   std::vector<float> morph_weights;  // instances x morph_targets: uploaded with every SetPalette
   // The read-back's overflow bound (ReadPositions; OutputBound and

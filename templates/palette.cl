@@ -175,6 +175,86 @@ uint4 anim_advance(__global const float4* restrict clips, uint4 in, const float 
 
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 
+#if ANIM_BAKED
+// Baked clips (docs/ANIMATION.md "Baked clips"; cpu_kernels/palette_kernel.cpp
+// BakedSample is the same in C++): each joint's skinning transform stored at
+// evenly spaced frames as a unit rotation q (float4) and (translation,
+// uniform scale) (float4), frame 0 the rest pose. An item per (instance,
+// joint): the two frames around the clip's time, q nlerped along the shortest
+// path and (t, s) lerped, likewise towards clip2 by the blend weight, then
+// written as the rows of s R(q) | t. No hierarchy, no search: two loads a
+// joint and frame. Launch as the sampled kernel: a group of ANIM_GROUP items
+// per instance, joints j = item, item + ANIM_GROUP, ...
+
+typedef struct {
+  float4 q, ts;  // rotation (x, y, z, w); translation and uniform scale
+} Baked;
+
+Baked baked_record(__global const float4* restrict frames, const uint frame, const uint j) {
+  Baked b;
+  b.q = frames[2u * (frame * ANIM_JOINT_COUNT + j)];
+  b.ts = frames[2u * (frame * ANIM_JOINT_COUNT + j) + 1u];
+  return b;
+}
+
+Baked baked_mix(const Baked x, const Baked y, const float u) {
+  const float4 q2 = dot(x.q, y.q) < 0.0f ? -y.q : y.q;
+  Baked b;
+  b.q = anim_normalize_quat(x.q + u * (q2 - x.q));
+  b.ts = x.ts + u * (y.ts - x.ts);
+  return b;
+}
+
+// Joint j of `clip` at time t, clamped to the clip's range (start, end,
+// frame count, first frame).
+Baked baked_sample(__global const float4* restrict frames, __global const float4* restrict clips, const uint clip,
+                   const float t, const uint j) {
+  if (clip == ANIM_REST_POSE) return baked_record(frames, 0u, j);
+  const float4 range = clips[clip];
+  const uint count = as_uint(range.z), first = as_uint(range.w);
+  if (count < 2u) return baked_record(frames, first, j);
+  const float length = range.y - range.x;
+  const float u = length > 0.0f ? fmin(fmax((t - range.x) / length, 0.0f), 1.0f) * (float)(count - 1u) : 0.0f;
+  const uint k = min((uint)u, count - 2u);
+  return baked_mix(baked_record(frames, first + k, j), baked_record(frames, first + k + 1u, j), u - (float)k);
+}
+
+__kernel __attribute__((reqd_work_group_size(ANIM_GROUP, 1, 1)))
+void skintune_palette(__global const float4* restrict frames, __global const uint4* restrict instances,
+                      __global float4* restrict palette, __global const float4* restrict clips,
+                      __global uint4* restrict states, const float delta, const uint fresh) {
+  const uint joint_count = ANIM_JOINT_COUNT, clip_count = ANIM_CLIP_COUNT, rows = ANIM_PALETTE_ROWS;
+  const uint item = (uint)get_local_id(0), i = (uint)get_group_id(1);
+  const int in_group = get_group_id(0) == 0;
+  uint4 in = in_group ? (fresh != 0u ? instances[i] : states[i]) : (uint4)(0u);
+  if (in_group && fresh == 0u) in = anim_advance(clips, in, delta, clip_count);
+  __global float4* out = palette + (size_t)i * joint_count * rows;
+  const float w = as_float(in.w);
+  const int valid = in_group && anim_clip_valid(in.x & 0xffffu, clip_count) &&
+                    (w == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
+  for (uint j = item; in_group && j < joint_count; j += ANIM_GROUP) {
+    if (!valid) {
+      for (uint r = 0u; r < rows; ++r) out[rows * j + r] = (float4)(NAN);
+      continue;
+    }
+    Baked x = baked_sample(frames, clips, in.x & 0xffffu, as_float(in.y), j);
+    if (w != 0.0f) x = baked_mix(x, baked_sample(frames, clips, in.x >> 16, as_float(in.z), j), w);
+    Trs trs;
+    trs.t = (float4)(x.ts.xyz, 0.0f);
+    trs.r = x.q;
+    trs.s = (float4)(x.ts.w, x.ts.w, x.ts.w, 0.0f);
+    const Affine m = anim_to_affine(trs);
+    out[rows * j] = m.row0;
+    out[rows * j + 1u] = m.row1;
+    out[rows * j + 2u] = m.row2;
+    if (rows == 4u) out[rows * j + 3u] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+  }
+  barrier(CLK_GLOBAL_MEM_FENCE);  // every item has read the state before it is kept
+  if (in_group && item == 0u) states[i] = in;
+}
+
+#else  // the clips sampled from their channels
+
 __kernel __attribute__((reqd_work_group_size(ANIM_GROUP, 1, 1)))
 void skintune_palette(__global const float4* restrict nodes,
                       __global const uint4* restrict channels, __global const float* restrict times,
@@ -247,3 +327,5 @@ void skintune_palette(__global const float4* restrict nodes,
   }
   if (in_group && item == 0u) states[i] = in;  // every item read it before the first barrier
 }
+
+#endif  // ANIM_BAKED

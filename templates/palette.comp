@@ -13,6 +13,21 @@
 // (i * ANIM_JOINT_COUNT + j) * ANIM_PALETTE_ROWS + r. An instance whose clip index is neither a
 // packed clip nor 0xffff (the rest pose) gets NaN rows.
 
+// The animation's counts and the palette's rows per joint (ANIM_NODE_COUNT,
+// ANIM_JOINT_COUNT, ANIM_CLIP_COUNT, ANIM_PALETTE_ROWS): the generator defines
+// them for the packed animation the kernel runs (generator/palette_kernel.h),
+// skin_params.h gives their defaults.
+#include "skin_params.h"
+
+#if ANIM_BAKED
+// Baked clips (docs/ANIMATION.md "Baked clips"): bindings 0 frames, 1 instances,
+// 2 palette (output), 3 clips, 4 states.
+layout(std430, binding = 0) readonly buffer Frames { vec4 frames[]; };
+layout(std430, binding = 1) readonly buffer Instances { uvec4 instances[]; };
+layout(std430, binding = 2) writeonly buffer Palette { vec4 palette[]; };
+layout(std430, binding = 3) readonly buffer Clips { vec4 clips[]; };
+layout(std430, binding = 4) buffer States { uvec4 states[]; };
+#else
 layout(std430, binding = 0) readonly buffer Nodes { vec4 nodes[]; };
 layout(std430, binding = 1) readonly buffer Channels { uvec4 channels[]; };
 layout(std430, binding = 2) readonly buffer Times { float times[]; };
@@ -22,6 +37,7 @@ layout(std430, binding = 5) readonly buffer Instances { uvec4 instances[]; };
 layout(std430, binding = 6) writeonly buffer Palette { vec4 palette[]; };
 layout(std430, binding = 7) readonly buffer Clips { vec4 clips[]; };
 layout(std430, binding = 8) buffer States { uvec4 states[]; };
+#endif
 
 #ifdef VULKAN
 // Vulkan (GL_KHR_vulkan_glsl predefines VULKAN): the frame's scalars are a
@@ -35,11 +51,6 @@ uniform float delta;
 uniform uint fresh;
 #endif
 
-// The animation's counts and the palette's rows per joint (ANIM_NODE_COUNT,
-// ANIM_JOINT_COUNT, ANIM_CLIP_COUNT, ANIM_PALETTE_ROWS): the generator defines
-// them for the packed animation the kernel runs (generator/palette_kernel.h),
-// skin_params.h gives their defaults.
-#include "skin_params.h"
 
 layout(local_size_x = ANIM_GROUP) in;
 const uint node_count = uint(ANIM_NODE_COUNT);
@@ -71,6 +82,7 @@ vec4 anim_normalize_quat(vec4 q) {
   return length > 0.0 ? q / length : q;
 }
 
+#if !ANIM_BAKED
 // Shortest-path spherical interpolation of two (x, y, z, w) quaternions.
 vec4 anim_slerp(vec4 a, vec4 b, float u) {
   float cos_theta = dot(a, b);
@@ -148,6 +160,7 @@ vec4 anim_path(uint node, uint path, uvec4 in_) {
   vec4 r2 = dot(x, y) < 0.0 ? -y : y;
   return anim_normalize_quat(x + w * (r2 - x));
 }
+#endif  // !ANIM_BAKED
 
 // T * R * S as rows, from a normalised (x, y, z, w) rotation.
 Affine anim_to_affine(Trs x) {
@@ -179,6 +192,60 @@ uvec4 anim_advance(uvec4 s, float step) {
   if (c2 != kRestPose && c2 < clip_count) s.z = floatBitsToUint(anim_loop_time(uintBitsToFloat(s.z) + step, clips[c2]));
   return s;
 }
+
+#if ANIM_BAKED
+// Baked clips: palette.cl's baked kernel (docs/ANIMATION.md "Baked clips").
+struct Baked {
+  vec4 q, ts;  // rotation (x, y, z, w); translation and uniform scale
+};
+
+Baked baked_record(uint frame, uint j) {
+  uint at = 2u * (frame * joint_count + j);
+  return Baked(frames[at], frames[at + 1u]);
+}
+
+Baked baked_mix(Baked x, Baked y, float u) {
+  vec4 q2 = dot(x.q, y.q) < 0.0 ? -y.q : y.q;
+  return Baked(anim_normalize_quat(x.q + u * (q2 - x.q)), x.ts + u * (y.ts - x.ts));
+}
+
+Baked baked_sample(uint clip, float t, uint j) {
+  if (clip == kRestPose) return baked_record(0u, j);
+  vec4 range = clips[clip];
+  uint count = floatBitsToUint(range.z), first = floatBitsToUint(range.w);
+  if (count < 2u) return baked_record(first, j);
+  float length = range.y - range.x;
+  float u = length > 0.0 ? min(max((t - range.x) / length, 0.0), 1.0) * float(count - 1u) : 0.0;
+  uint k = min(uint(u), count - 2u);
+  return baked_mix(baked_record(first + k, j), baked_record(first + k + 1u, j), u - float(k));
+}
+
+void main() {
+  uint item = gl_LocalInvocationID.x, i = gl_WorkGroupID.y;
+  bool in_group = gl_WorkGroupID.x == 0u;
+  uvec4 in_ = in_group ? (fresh != 0u ? instances[i] : states[i]) : uvec4(0u);
+  if (in_group && fresh == 0u) in_ = anim_advance(in_, delta);
+  uint base = i * joint_count * rows;
+  float w = uintBitsToFloat(in_.w);
+  bool valid = in_group && anim_clip_valid(in_.x & 0xffffu) && (w == 0.0 || anim_clip_valid(in_.x >> 16));
+  for (uint j = item; in_group && j < joint_count; j += uint(ANIM_GROUP)) {
+    if (!valid) {
+      for (uint r = 0u; r < rows; ++r) palette[base + rows * j + r] = vec4(uintBitsToFloat(0x7fc00000u));
+      continue;
+    }
+    Baked x = baked_sample(in_.x & 0xffffu, uintBitsToFloat(in_.y), j);
+    if (w != 0.0) x = baked_mix(x, baked_sample(in_.x >> 16, uintBitsToFloat(in_.z), j), w);
+    Affine m = anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, vec4(x.ts.www, 0.0)));
+    palette[base + rows * j] = m.row0;
+    palette[base + rows * j + 1u] = m.row1;
+    palette[base + rows * j + 2u] = m.row2;
+    if (rows == 4u) palette[base + rows * j + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
+  }
+  barrier();  // every invocation has read the state before it is kept
+  if (in_group && item == 0u) states[i] = in_;
+}
+
+#else  // the clips sampled from their channels
 
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 // Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
@@ -240,3 +307,5 @@ void main() {
   }
   if (in_group && item == 0u) states[i] = in_;  // every invocation read it before the first barrier
 }
+
+#endif  // ANIM_BAKED

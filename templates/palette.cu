@@ -185,6 +185,73 @@ __device__ uint4 anim_advance(const float4* __restrict__ clips, uint4 in, const 
 
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 
+#if ANIM_BAKED
+// Baked clips: palette.cl's baked kernel (docs/ANIMATION.md "Baked clips").
+struct Baked {
+  float4 q, ts;  // rotation (x, y, z, w); translation and uniform scale
+};
+
+__device__ Baked baked_record(const float4* __restrict__ frames, const unsigned frame, const unsigned j) {
+  const unsigned long long at = 2ull * (static_cast<unsigned long long>(frame) * ANIM_JOINT_COUNT + j);
+  return Baked{frames[at], frames[at + 1u]};
+}
+
+__device__ Baked baked_mix(const Baked& x, const Baked& y, const float u) {
+  const float4 q2 = dot4(x.q, y.q) < 0.0f ? -y.q : y.q;
+  return Baked{anim_normalize_quat(x.q + u * (q2 - x.q)), x.ts + u * (y.ts - x.ts)};
+}
+
+__device__ Baked baked_sample(const float4* __restrict__ frames, const float4* __restrict__ clips,
+                              const unsigned clip, const float t, const unsigned j) {
+  if (clip == ANIM_REST_POSE) return baked_record(frames, 0u, j);
+  const float4 range = clips[clip];
+  const unsigned count = __float_as_uint(range.z), first = __float_as_uint(range.w);
+  if (count < 2u) return baked_record(frames, first, j);
+  const float length = range.y - range.x;
+  const float u = length > 0.0f ? fminf(fmaxf((t - range.x) / length, 0.0f), 1.0f) * static_cast<float>(count - 1u)
+                                : 0.0f;
+  const unsigned k = min(static_cast<unsigned>(u), count - 2u);
+  return baked_mix(baked_record(frames, first + k, j), baked_record(frames, first + k + 1u, j),
+                   u - static_cast<float>(k));
+}
+
+extern "C" __global__ void __launch_bounds__(ANIM_GROUP)
+skintune_palette(const float4* __restrict__ frames, const uint4* __restrict__ instances,
+                 float4* __restrict__ palette, const float4* __restrict__ clips, uint4* __restrict__ states,
+                 const float delta, const unsigned fresh) {
+  const unsigned joint_count = ANIM_JOINT_COUNT, clip_count = ANIM_CLIP_COUNT, rows = ANIM_PALETTE_ROWS;
+  const unsigned item = threadIdx.x, i = blockIdx.y;
+  const bool in_group = blockIdx.x == 0;
+  uint4 in = in_group ? (fresh != 0u ? instances[i] : states[i]) : make_uint4(0u, 0u, 0u, 0u);
+  if (in_group && fresh == 0u) in = anim_advance(clips, in, delta, clip_count);
+  float4* out = palette + (unsigned long long)i * joint_count * rows;
+  const float w = __uint_as_float(in.w);
+  const bool valid = in_group && anim_clip_valid(in.x & 0xffffu, clip_count) &&
+                     (w == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
+  for (unsigned j = item; in_group && j < joint_count; j += ANIM_GROUP) {
+    if (!valid) {
+      const float nan = __int_as_float(0x7fffffff);
+      for (unsigned r = 0u; r < rows; ++r) out[rows * j + r] = make_float4(nan, nan, nan, nan);
+      continue;
+    }
+    Baked x = baked_sample(frames, clips, in.x & 0xffffu, __uint_as_float(in.y), j);
+    if (w != 0.0f) x = baked_mix(x, baked_sample(frames, clips, in.x >> 16, __uint_as_float(in.z), j), w);
+    Trs trs;
+    trs.t = make_float4(x.ts.x, x.ts.y, x.ts.z, 0.0f);
+    trs.r = x.q;
+    trs.s = make_float4(x.ts.w, x.ts.w, x.ts.w, 0.0f);
+    const Affine m = anim_to_affine(trs);
+    out[rows * j] = m.row0;
+    out[rows * j + 1u] = m.row1;
+    out[rows * j + 2u] = m.row2;
+    if (rows == 4u) out[rows * j + 3u] = make_float4(0.0f, 0.0f, 0.0f, 1.0f);
+  }
+  __syncthreads();  // every thread has read the state before it is kept
+  if (in_group && item == 0u) states[i] = in;
+}
+
+#else  // the clips sampled from their channels
+
 extern "C" __global__ void __launch_bounds__(ANIM_GROUP)
 skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ channels,
                  const float* __restrict__ times, const float4* __restrict__ values,
@@ -258,3 +325,5 @@ skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ cha
   }
   if (in_group && item == 0u) states[i] = in;  // every thread read it before the first barrier
 }
+
+#endif  // ANIM_BAKED

@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstddef>
 #include <functional>
+#include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -15,11 +17,31 @@
 
 #include "cpu_kernels/palette_kernel.h"
 #include "generator/clip_packer.h"
+#include "generator/palette_kernel.h"
 #include "tests/common/test_asset.h"
 #include "tests/generator/deep_rig.h"
 #include "tests/generator/palette_gold.h"
 
 namespace skintune::internal::testing {
+
+// What a test uploads for the palette kernel's buffer argument `name`
+// (generator/palette_kernel.h): the packed buffer of that name, and the
+// instances for both `instances` and `states` (a fresh frame takes them);
+// empty for the palette it writes.
+inline std::span<const std::uint8_t> PaletteInputBytes(const PackedAnimation& packed,
+                                                       const std::vector<AnimInstance>& instances,
+                                                       const std::string& name) {
+  if (name == kAnimInputs[0]) return BufferBytes(packed.nodes);
+  if (name == kAnimInputs[1]) return BufferBytes(packed.channels);
+  if (name == kAnimInputs[2]) return BufferBytes(packed.times);
+  if (name == kAnimInputs[3]) return BufferBytes(packed.values);
+  if (name == kAnimInputs[4]) return BufferBytes(packed.joints);
+  if (name == kAnimInputs[5] || name == kAnimStates) return BufferBytes(instances);
+  if (name == kAnimClips) return BufferBytes(packed.clip_ranges);
+  if (name == kAnimFrames) return BufferBytes(packed.frames);
+  if (name == kAnimOutput) return {};
+  throw std::runtime_error("the palette kernel takes an argument '" + name + "' the tests do not know");
+}
 
 using RunPalettes = std::function<std::vector<float>(const PackedAnimation&, const std::vector<AnimInstance>&)>;
 
@@ -57,11 +79,27 @@ inline void ExpectBlendsMatchTheGold(const RunPalettes& run, const std::string& 
   }
 }
 
+// Baked clips (BakeAnimation at 30 frames a second): every clip alone at
+// every kind of time, and two-clip blends, against the float64 evaluation of
+// the baked frames.
+inline void ExpectBakedClipsMatchTheirFrames(const RunPalettes& run, const std::string& api) {
+  for (const SkinnedAsset* asset :
+       {&TestAsset("CesiumMan.gltf"), &TestAsset("Fox.gltf"), &TestAsset("RiggedSimple.gltf"), &DeepRig()}) {
+    const PackedAnimation sampled = PackAnimation(*asset);
+    const PackedAnimation baked = BakeAnimation(*asset, 30.0);
+    std::vector<AnimInstance> instances = EveryClipAlone(*asset, sampled);
+    const std::vector<AnimInstance> blends = Blends(*asset, sampled);
+    instances.insert(instances.end(), blends.begin(), blends.end());
+    ExpectWithinBound(Name(*asset) + " " + api + " baked", CompareBaked(baked, instances, run(baked, instances)));
+  }
+}
+
 // A device kernel given a clip beyond the packed ones (first or second)
 // writes NaN rows for that instance instead of reading beyond its buffers;
 // the other instances are untouched.
-inline void ExpectNanRowsForAClipOutOfRange(const RunPalettes& run) {
-  const PackedAnimation packed = PackAnimation(TestAsset("Fox.gltf"));  // 3 clips
+inline void ExpectNanRowsForAClipOutOfRange(const RunPalettes& run, bool baked = false) {
+  const PackedAnimation packed =
+      baked ? BakeAnimation(TestAsset("Fox.gltf"), 30.0) : PackAnimation(TestAsset("Fox.gltf"));  // 3 clips
   const std::vector<AnimInstance> instances = {AnimInstance{1, kAnimRestPose, 0.5f, 0.0f, 0.0f},
                                                AnimInstance{3, kAnimRestPose, 0.5f, 0.0f, 0.0f},
                                                AnimInstance{0, 7, 0.5f, 0.5f, 0.5f}};

@@ -17,6 +17,8 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -69,6 +71,27 @@ struct Worst {
 
 inline double ColumnNorm(const glm::dmat4& m, int c) { return glm::length(glm::dvec3(m[c])); }
 
+// The largest |row entry - gold| of one joint's three kernel rows (infinite
+// where an entry is not finite).
+inline double EntryError(const float* rows, const glm::dmat4& gold) {
+  double error = 0.0;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) {
+      const double v = rows[4 * r + c];
+      error = std::isfinite(v) ? std::max(error, std::fabs(v - gold[c][r])) : INFINITY;
+    }
+  return error;
+}
+
+// Keeps (error, bound) at instance i joint j in `worst` where it is the worst yet.
+inline void NoteWorst(Worst& worst, double error, double bound, const AnimInstance& in, std::size_t i, std::size_t j) {
+  if (!(error / bound > worst.ratio) && std::isfinite(error)) return;
+  char where[200];
+  std::snprintf(where, sizeof where, "instance %zu (clip %d, t=%.9g; clip2 %d, t2=%.9g, w=%g), joint %zu", i, in.clip,
+                in.time, in.clip2, in.time2, in.weight, j);
+  worst = Worst{error / bound, error, bound, where, worst.ratio_palette_only};
+}
+
 // Compares K palettes (kernel rows) with their golds; returns the worst
 // error relative to its bound, with where it is.
 inline Worst Compare(const SkinnedAsset& asset, const PackedAnimation& packed,
@@ -85,20 +108,9 @@ inline Worst Compare(const SkinnedAsset& asset, const PackedAnimation& packed,
       for (int c = 0; c < 4; ++c) palette_scale = std::max(palette_scale, ColumnNorm(gold[j], c));
       const double scale = std::max({palette_scale, ColumnNorm(global[static_cast<std::size_t>(skeleton.joints[j])], 3),
                                      ColumnNorm(skeleton.inverse_bind[j], 3)});
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 4; ++c) {
-          const double v = rows[(i * joints + j) * 12 + 4 * r + c];
-          error = std::isfinite(v) ? std::max(error, std::fabs(v - gold[j][c][r])) : INFINITY;
-        }
-      const double bound = 1e-5 * scale;
+      error = EntryError(rows.data() + (i * joints + j) * 12, gold[j]);
       worst.ratio_palette_only = std::max(worst.ratio_palette_only, error / (1e-5 * palette_scale));
-      if (error / bound > worst.ratio || !std::isfinite(error)) {
-        char where[200];
-        std::snprintf(where, sizeof where, "instance %zu (clip %d, t=%.9g; clip2 %d, t2=%.9g, w=%g), joint %zu", i,
-                      instances[i].clip, instances[i].time, instances[i].clip2, instances[i].time2, instances[i].weight,
-                      j);
-        worst = Worst{error / bound, error, bound, where, worst.ratio_palette_only};
-      }
+      NoteWorst(worst, error, 1e-5 * scale, instances[i], i, j);
     }
   }
   return worst;
@@ -111,6 +123,70 @@ inline void ExpectWithinBound(const std::string& what, const Worst& worst) {
       what.c_str(), worst.ratio, worst.error, worst.bound, worst.where.c_str(), worst.ratio_palette_only);
   EXPECT_LE(worst.ratio, 1.0) << what << ": error " << worst.error << " > bound " << worst.bound << " at "
                               << worst.where;
+}
+
+// ------------------------------------------------------------- baked clips
+
+// One baked record in float64: q, t, s (cpu_kernels/palette_kernel.h kBakedFloats).
+struct BakedGoldRecord {
+  glm::dquat q;
+  glm::dvec3 t;
+  double s = 1.0;
+};
+
+inline BakedGoldRecord BakedRecordOf(const PackedAnimation& baked, std::uint32_t frame, std::size_t j) {
+  const float* p = baked.frames.data() + kBakedFloats * (std::size_t{frame} * baked.joints.size() + j);
+  return {glm::dquat(p[3], p[0], p[1], p[2]), glm::dvec3(p[4], p[5], p[6]), p[7]};
+}
+
+inline BakedGoldRecord BakedGoldMix(const BakedGoldRecord& x, const BakedGoldRecord& y, double u) {
+  const glm::dquat q2 = glm::dot(x.q, y.q) < 0.0 ? -y.q : y.q;
+  return {glm::normalize(x.q + u * (q2 - x.q)), x.t + u * (y.t - x.t), x.s + u * (y.s - x.s)};
+}
+
+// docs/ANIMATION.md "Baked clips", in float64: the frames around t, mixed.
+inline BakedGoldRecord BakedGoldSample(const PackedAnimation& baked, std::uint16_t clip, double t, std::size_t j) {
+  if (clip == kAnimRestPose) return BakedRecordOf(baked, 0, j);
+  const float* range = baked.clip_ranges.data() + 4 * std::size_t{clip};
+  const auto frames = std::bit_cast<std::uint32_t>(range[2]), first = std::bit_cast<std::uint32_t>(range[3]);
+  if (frames < 2) return BakedRecordOf(baked, first, j);
+  const double length = double{range[1]} - range[0];
+  const double u = length > 0.0 ? std::clamp((t - range[0]) / length, 0.0, 1.0) * (frames - 1) : 0.0;
+  const auto k = std::min(static_cast<std::uint32_t>(u), frames - 2);
+  return BakedGoldMix(BakedRecordOf(baked, first + k, j), BakedRecordOf(baked, first + k + 1, j), u - k);
+}
+
+// An instance's palette from baked clips, in float64.
+inline std::vector<glm::dmat4> BakedGoldPalette(const PackedAnimation& baked, const AnimInstance& in) {
+  std::vector<glm::dmat4> palette(baked.joints.size());
+  for (std::size_t j = 0; j < palette.size(); ++j) {
+    BakedGoldRecord x = BakedGoldSample(baked, in.clip, in.time, j);
+    if (in.weight != 0.0f) x = BakedGoldMix(x, BakedGoldSample(baked, in.clip2, in.time2, j), in.weight);
+    palette[j] = glm::dmat4(glm::mat3_cast(x.q) * x.s);
+    palette[j][3] = glm::dvec4(x.t, 1.0);
+  }
+  return palette;
+}
+
+// K palettes (kernel rows) against the float64 evaluation of their baked
+// frames: the kernel's float32 rounding only, within 1e-5 of each entry's
+// scale (max(1, its columns' norms)).
+inline Worst CompareBaked(const PackedAnimation& baked, const std::vector<AnimInstance>& instances,
+                          const std::vector<float>& rows) {
+  const std::size_t joints = baked.joints.size();
+  EXPECT_EQ(rows.size(), instances.size() * joints * 12);
+  Worst worst;
+  for (std::size_t i = 0; i < instances.size() && rows.size() == instances.size() * joints * 12; ++i) {
+    const std::vector<glm::dmat4> gold = BakedGoldPalette(baked, instances[i]);
+    for (std::size_t j = 0; j < joints; ++j) {
+      double scale = 1.0;
+      for (int c = 0; c < 4; ++c) scale = std::max(scale, ColumnNorm(gold[j], c));
+      const double error = EntryError(rows.data() + (i * joints + j) * 12, gold[j]);
+      worst.ratio_palette_only = std::max(worst.ratio_palette_only, error / (1e-5 * scale));
+      NoteWorst(worst, error, 1e-5 * scale, instances[i], i, j);
+    }
+  }
+  return worst;
 }
 
 // ------------------------------------------------------------- the instances

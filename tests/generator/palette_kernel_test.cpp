@@ -9,11 +9,13 @@
 #include <CL/cl.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <map>
 #include <memory>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -37,12 +39,15 @@
 namespace skintune::internal {
 namespace {
 
+using testing::BakedGoldPalette;
 using testing::Blends;
+using testing::ExpectBakedClipsMatchTheirFrames;
 using testing::ExpectBlendsMatchTheGold;
 using testing::ExpectEveryClipOfTheGltfModelsMatchesTheGold;
 using testing::ExpectNanRowsForAClipOutOfRange;
 using testing::ExpectTheDeepRigMatchesTheGold;
 using testing::On;
+using testing::PaletteInputBytes;
 using testing::Compare;
 using testing::DeepRig;
 using testing::EveryClipAlone;
@@ -188,26 +193,22 @@ class OpenClPaletteKernel {
   // (the caller releases it).
   cl_mem LaunchPalettes(const PackedAnimation& packed, const std::vector<AnimInstance>& instances,
                         std::size_t groups_x = 1) {
-    const AnimationView view = packed.View();
-    std::vector<cl_mem> buffers = {Upload(BufferBytes(packed.nodes)),  Upload(BufferBytes(packed.channels)),
-                                   Upload(BufferBytes(packed.times)),  Upload(BufferBytes(packed.values)),
-                                   Upload(BufferBytes(packed.joints)), Upload(BufferBytes(instances))};
     const std::size_t joints = packed.joints.size();
     cl_int err = CL_SUCCESS;
     cl_mem out = clCreateBuffer(context_, CL_MEM_READ_WRITE, instances.size() * joints * 48, nullptr, &err);
     Check(err, "clCreateBuffer");
-    const PaletteKernel emitted = EmitPalette(Lang::kOpenCl, view, 3);
+    const PaletteKernel emitted = EmitPalette(Lang::kOpenCl, packed.View(), 3);
     const cl_kernel kernel = Build(emitted.kernel.text);
-    // Then the clips' ranges, the states the kernel keeps (written back), and
-    // the frame's scalars: fresh, so the states are the instances as given.
-    buffers.push_back(Upload(BufferBytes(packed.clip_ranges)));
-    cl_mem states = clCreateBuffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(instances.size(), 1) * 16, nullptr, &err);
-    Check(err, "clCreateBuffer (states)");
+    // Every buffer by its name (the states written back), then the frame's
+    // scalars: fresh, so the states are the instances as given.
+    std::vector<cl_mem> buffers;
     cl_uint arg = 0;
-    for (std::size_t b = 0; b < 6; ++b) Check(clSetKernelArg(kernel, arg++, sizeof buffers[b], &buffers[b]), "clSetKernelArg");
-    Check(clSetKernelArg(kernel, arg++, sizeof out, &out), "clSetKernelArg");
-    Check(clSetKernelArg(kernel, arg++, sizeof buffers[6], &buffers[6]), "clSetKernelArg");
-    Check(clSetKernelArg(kernel, arg++, sizeof states, &states), "clSetKernelArg");
+    for (const KernelArgument& a : emitted.kernel.arguments) {
+      if (a.kind != ArgumentKind::kBuffer) continue;
+      cl_mem buffer = out;
+      if (a.name != kAnimOutput) buffers.push_back(buffer = Upload(PaletteInputBytes(packed, instances, a.name)));
+      Check(clSetKernelArg(kernel, arg++, sizeof buffer, &buffer), "clSetKernelArg");
+    }
     const float delta = 0.0f;
     const cl_uint fresh = 1;
     Check(clSetKernelArg(kernel, arg++, sizeof delta, &delta), "clSetKernelArg");
@@ -218,7 +219,6 @@ class OpenClPaletteKernel {
           "clEnqueueNDRangeKernel");
     Check(clFinish(queue_), "clFinish");
     for (cl_mem b : buffers) clReleaseMemObject(b);
-    clReleaseMemObject(states);
     return out;
   }
 
@@ -295,6 +295,119 @@ TEST(PaletteKernel, OpenClBlendsTwoClipsInLocalSpaceLikeTheGold) {
 TEST(PaletteKernel, OpenClWritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
   SKIP_WITHOUT_OPENCL(kernel);
   ExpectNanRowsForAClipOutOfRange(On(kernel));
+  ExpectNanRowsForAClipOutOfRange(On(kernel), true);
+}
+
+// ------------------------------------------------------------- baked clips
+
+TEST(PaletteKernelBaked, CpuMatchesItsFramesAloneAndBlended) { ExpectBakedClipsMatchTheirFrames(OnCpu, "cpu"); }
+
+TEST(PaletteKernelBaked, OpenClMatchesItsFramesAloneAndBlended) {
+  SKIP_WITHOUT_OPENCL(kernel);
+  ExpectBakedClipsMatchTheirFrames(On(kernel), "opencl");
+}
+
+// The stated error (BakedClipInfo::max_error, measured at the frames and 1/4,
+// 1/2, 3/4 between them) holds at other times too, within 25%, and falls with
+// the rate (4x the rate, at least 2x less: linearly where a LINEAR clip's
+// keys make kinks between two frames, quadratically elsewhere). Memory: the
+// frames x joints x 32 bytes stated.
+TEST(PaletteKernelBaked, StatesEachClipsMemoryAndErrorWhichHoldsBetweenItsChecksAndFallsWithTheRate) {
+  for (const SkinnedAsset* asset : {&TestAsset("CesiumMan.gltf"), &TestAsset("Fox.gltf")}) {
+    const PackedAnimation coarse = BakeAnimation(*asset, 30.0), fine = BakeAnimation(*asset, 120.0);
+    ASSERT_EQ(coarse.baked.size(), asset->animations.size());
+    const SkinnedMesh& mesh = asset->mesh;
+    const double diagonal = BoundingBoxDiagonal(mesh.positions);
+    const auto b = static_cast<std::size_t>(mesh.influences);
+    std::mt19937 random(7);
+    for (std::size_t c = 0; c < coarse.baked.size(); ++c) {
+      const AnimationClip& clip = asset->animations[c];
+      const BakedClipInfo& info = coarse.baked[c];
+      EXPECT_EQ(info.frames, static_cast<std::uint32_t>(std::ceil(clip.duration() * 30.0 - 1e-9) + 1)) << info.name;
+      EXPECT_EQ(info.bytes, std::size_t{info.frames} * coarse.joints.size() * 32) << info.name;
+      double worst = 0.0;  // at random times: the vertices skinned by both palettes
+      for (int k = 0; k < 100; ++k) {
+        const double t = clip.start + std::uniform_real_distribution<double>(0.0, 1.0)(random) * clip.duration();
+        const AnimInstance in{static_cast<std::uint16_t>(c), kAnimRestPose, static_cast<float>(t), 0.0f, 0.0f};
+        const std::vector<glm::dmat4> baked = BakedGoldPalette(coarse, in);
+        const std::vector<glm::dmat4> exact = asset->skeleton.PaletteD(asset->PoseAt(static_cast<int>(c), in.time));
+        for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+          glm::dvec4 moved(0.0);
+          for (std::size_t i = 0; i < b; ++i) {
+            const auto j = static_cast<std::size_t>(mesh.joints[v * b + i]);
+            moved += double{mesh.weights[v * b + i]} * ((baked[j] - exact[j]) * glm::dvec4(glm::dvec3(mesh.positions[v]), 1.0));
+          }
+          worst = std::max(worst, glm::length(glm::dvec3(moved)) / diagonal);
+        }
+      }
+      std::printf("[ baked    ] %s %s: %u frames, %zu bytes at 30/s; stated error %.3g (120/s: %.3g), at random "
+                  "times %.3g\n",
+                  Name(*asset).c_str(), info.name.c_str(), info.frames, info.bytes, info.max_error,
+                  fine.baked[c].max_error, worst);
+      EXPECT_LE(worst, 1.25 * info.max_error + 1e-7) << info.name;
+      if (info.max_error > 1e-5) {
+        EXPECT_LT(fine.baked[c].max_error, info.max_error / 2) << info.name;
+      }
+    }
+  }
+}
+
+TEST(PaletteKernelBaked, RefusesBadRatesAndBadFramesNamingTheElement) {
+  const SkinnedAsset& fox = TestAsset("Fox.gltf");
+  for (const double rate : {0.0, -30.0, double{NAN}, double{INFINITY}, 1001.0})
+    EXPECT_THROW(BakeAnimation(fox, rate), Error) << rate;
+  try {
+    BakeAnimation(fox, 0.0);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("Fox.gltf: bake rate 0 frames a second, outside (0, 1000]"), std::string::npos)
+        << e.what();
+  }
+  const PackedAnimation good = BakeAnimation(fox, 30.0);
+  EXPECT_NO_THROW(ValidateBakedAnimation(good.View()));
+  auto error_of = [&](auto&& spoil) {
+    PackedAnimation bad = good;
+    spoil(bad);
+    try {
+      ValidateBakedAnimation(bad.View());
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(error_of([](PackedAnimation& p) { p.frames[8 * 30 + 3] = 2.0f; })
+                .find("baked animation: frames[1] joint 6: rotation of length 2.0"),
+            std::string::npos);
+  EXPECT_EQ(error_of([](PackedAnimation& p) { p.frames[8 * 30 + 5] = NAN; }),
+            "baked animation: frames[1] joint 6: nan is not finite");
+  EXPECT_NE(error_of([](PackedAnimation& p) { p.frames.resize(p.frames.size() - 8); })
+                .find("baked animation: " + std::to_string(good.frames.size() - 8) + " frame floats, not whole frames"),
+            std::string::npos);
+  EXPECT_NE(error_of([](PackedAnimation& p) { p.clip_ranges[4 * 2 + 2] = std::bit_cast<float>(1000000u); })
+                .find("baked animation: clips[2]: frames "),
+            std::string::npos);
+}
+
+// A baked animation's kernel: ANIM_BAKED 1, an item per joint, and its
+// buffers frames, instances, out_palette, clips, states in that order.
+TEST(PaletteKernelBaked, EmitsTheBakedKernelWithItsOwnArgumentsAndGroup) {
+  EXPECT_EQ(AnimBakedGroupFor(1), 32);
+  EXPECT_EQ(AnimBakedGroupFor(24), 32);
+  EXPECT_EQ(AnimBakedGroupFor(77), 96);
+  EXPECT_EQ(AnimBakedGroupFor(1000), 256);
+  const PackedAnimation baked = BakeAnimation(TestAsset("Fox.gltf"), 30.0);
+  for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kVulkan, Lang::kCpu}) {
+    const PaletteKernel kernel = EmitPalette(lang, baked.View(), 3);
+    EXPECT_EQ(kernel.kernel.launch.wg_size, AnimBakedGroupFor(baked.joints.size())) << Name(lang);
+    EXPECT_NE(kernel.kernel.text.find("#define ANIM_BAKED 1\n"), std::string::npos) << Name(lang);
+    std::vector<std::string> buffers;
+    for (const KernelArgument& a : kernel.kernel.arguments)
+      if (a.kind == ArgumentKind::kBuffer) buffers.push_back(a.name);
+    EXPECT_EQ(buffers, (std::vector<std::string>{kAnimFrames, kAnimInputs[5], kAnimOutput, kAnimClips, kAnimStates}))
+        << Name(lang);
+  }
+  const PaletteKernel sampled = EmitPalette(Lang::kOpenCl, PackAnimation(TestAsset("Fox.gltf")).View(), 3);
+  EXPECT_NE(sampled.kernel.text.find("#define ANIM_BAKED 0\n"), std::string::npos);
 }
 
 // What a skin kernel reads: the packer's mat3x4 palette rows (PackPalette of

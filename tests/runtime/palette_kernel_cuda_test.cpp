@@ -42,14 +42,24 @@ TEST(PaletteKernelCuda, CompilesCleanlyWithNvrtcWithTheOpenClKernelsArguments) {
   EXPECT_EQ(r.ptx.find("skintune_palette_param_11"), std::string::npos);
   // The instance is the grid's y, the joint its x.
   EXPECT_NE(r.ptx.find("%ctaid.y"), std::string::npos);
+  // Baked clips: frames, instances, palette, clips, states, delta, fresh.
+  const PackedAnimation baked = BakeAnimation(testing::TestAsset("Fox.gltf"), 30.0);
+  const CompileResult b =
+      CompileWithNvrtc(EmitPalette(Lang::kCuda, baked.View(), 3).kernel.text, "compute_90", "palette.cu (baked)");
+  ASSERT_TRUE(b.ok) << b.error;
+  EXPECT_EQ(b.log.find("warning"), std::string::npos) << b.log;
+  EXPECT_NE(b.ptx.find("skintune_palette_param_6"), std::string::npos);
+  EXPECT_EQ(b.ptx.find("skintune_palette_param_7"), std::string::npos);
 }
 
 using testing::Blends;
+using testing::ExpectBakedClipsMatchTheirFrames;
 using testing::ExpectBlendsMatchTheGold;
 using testing::ExpectEveryClipOfTheGltfModelsMatchesTheGold;
 using testing::ExpectNanRowsForAClipOutOfRange;
 using testing::ExpectTheDeepRigMatchesTheGold;
 using testing::On;
+using testing::PaletteInputBytes;
 using testing::Compare;
 using testing::DeepRig;
 using testing::EveryClipAlone;
@@ -87,35 +97,35 @@ class CudaPaletteKernel {
   // The palette rows of `instances`, as RunPaletteKernel writes them.
   std::vector<float> Run(const PackedAnimation& packed, const std::vector<AnimInstance>& instances) {
     Check(api_.cuCtxSetCurrent(context_), "cuCtxSetCurrent");
-    const AnimationView view = packed.View();
     const std::size_t joints = packed.joints.size();
     std::vector<float> rows(instances.size() * joints * 12);
-    // Parameters 0-5 the inputs, 6 the palette, 7 the clips' ranges, 8 the
-    // states the kernel keeps (as fresh frames take them: the instances), then delta and fresh.
-    const std::span<const std::uint8_t> inputs[] = {BufferBytes(packed.nodes),  BufferBytes(packed.channels),
-                                                    BufferBytes(packed.times),  BufferBytes(packed.values),
-                                                    BufferBytes(packed.joints), BufferBytes(instances),
-                                                    {}, BufferBytes(packed.clip_ranges), BufferBytes(instances)};
-    cuda::DevicePtr buffers[9] = {};
-    for (int b = 0; b < 9; ++b) {
-      if (b == 6) continue;
-      const std::size_t bytes = std::max<std::size_t>(inputs[b].size(), 16);  // no empty allocation
-      Check(api_.cuMemAlloc(&buffers[b], bytes), "cuMemAlloc");
-      if (!inputs[b].empty()) Check(api_.cuMemcpyHtoD(buffers[b], inputs[b].data(), inputs[b].size()), "cuMemcpyHtoD");
+    const PaletteKernel kernel = EmitPalette(Lang::kCuda, packed.View(), 3);
+    // Every buffer by its name (the palette allocated, read back below), then
+    // delta and fresh: a fresh frame, so the states are the instances.
+    std::vector<cuda::DevicePtr> buffers;
+    cuda::DevicePtr palette = 0;
+    for (const KernelArgument& a : kernel.kernel.arguments) {
+      if (a.kind != ArgumentKind::kBuffer) continue;
+      const std::span<const std::uint8_t> bytes = PaletteInputBytes(packed, instances, a.name);
+      cuda::DevicePtr& buffer = buffers.emplace_back();
+      const std::size_t size = a.name == kAnimOutput ? rows.size() * sizeof(float) : bytes.size();
+      Check(api_.cuMemAlloc(&buffer, std::max<std::size_t>(size, 16)), "cuMemAlloc");  // no empty allocation
+      if (!bytes.empty()) Check(api_.cuMemcpyHtoD(buffer, bytes.data(), bytes.size()), "cuMemcpyHtoD");
+      if (a.name == kAnimOutput) palette = buffer;
     }
-    Check(api_.cuMemAlloc(&buffers[6], rows.size() * sizeof(float)), "cuMemAlloc");
     float delta = 0.0f;
     unsigned fresh = 1;
-    void* parameters[] = {&buffers[0], &buffers[1], &buffers[2], &buffers[3], &buffers[4], &buffers[5],
-                          &buffers[6], &buffers[7], &buffers[8], &delta,      &fresh};
+    std::vector<void*> parameters;
+    for (cuda::DevicePtr& buffer : buffers) parameters.push_back(&buffer);
+    parameters.push_back(&delta);
+    parameters.push_back(&fresh);
     const auto instance_count = static_cast<unsigned>(instances.size());
-    const PaletteKernel kernel = EmitPalette(Lang::kCuda, view, 3);
     const auto block = static_cast<unsigned>(kernel.kernel.launch.wg_size);  // palette.cu's ANIM_GROUP, a block per instance
-    Check(api_.cuLaunchKernel(FunctionFor(kernel.kernel.text), 1, instance_count, 1, block, 1, 1, 0, nullptr, parameters,
-                              nullptr),
+    Check(api_.cuLaunchKernel(FunctionFor(kernel.kernel.text), 1, instance_count, 1, block, 1, 1, 0, nullptr,
+                              parameters.data(), nullptr),
           "cuLaunchKernel");
     Check(api_.cuCtxSynchronize(), "cuCtxSynchronize");
-    Check(api_.cuMemcpyDtoH(rows.data(), buffers[6], rows.size() * sizeof(float)), "cuMemcpyDtoH");
+    Check(api_.cuMemcpyDtoH(rows.data(), palette, rows.size() * sizeof(float)), "cuMemcpyDtoH");
     for (cuda::DevicePtr b : buffers) api_.cuMemFree(b);
     return rows;
   }
@@ -178,6 +188,12 @@ TEST(PaletteKernelCuda, BlendsTwoClipsInLocalSpaceLikeTheGold) {
 TEST(PaletteKernelCuda, WritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
   SKIP_WITHOUT_CUDA(kernel);
   ExpectNanRowsForAClipOutOfRange(On(kernel));
+}
+
+TEST(PaletteKernelCuda, BakedClipsMatchTheirFramesAloneAndBlended) {
+  SKIP_WITHOUT_CUDA(kernel);
+  ExpectBakedClipsMatchTheirFrames(On(kernel), "cuda");
+  ExpectNanRowsForAClipOutOfRange(On(kernel), true);
 }
 
 }  // namespace

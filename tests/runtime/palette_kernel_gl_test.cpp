@@ -30,11 +30,13 @@ namespace skintune::internal {
 namespace {
 
 using testing::Blends;
+using testing::ExpectBakedClipsMatchTheirFrames;
 using testing::ExpectBlendsMatchTheGold;
 using testing::ExpectEveryClipOfTheGltfModelsMatchesTheGold;
 using testing::ExpectNanRowsForAClipOutOfRange;
 using testing::ExpectTheDeepRigMatchesTheGold;
 using testing::On;
+using testing::PaletteInputBytes;
 using testing::Compare;
 using testing::DeepRig;
 using testing::EveryClipAlone;
@@ -63,38 +65,34 @@ class GlPaletteKernel {
 
   // The palette rows of `instances`, as RunPaletteKernel writes them.
   std::vector<float> Run(const PackedAnimation& packed, const std::vector<AnimInstance>& instances) {
-    const AnimationView view = packed.View();
     const std::size_t joints = packed.joints.size();
     std::vector<float> rows(instances.size() * joints * 12);
-    // Bindings 0-5 the inputs, 6 the palette, 7 the clips' ranges, 8 the
-    // states the kernel keeps (as fresh frames take them: the instances).
-    const std::span<const std::uint8_t> inputs[] = {BufferBytes(packed.nodes),  BufferBytes(packed.channels),
-                                                    BufferBytes(packed.times),  BufferBytes(packed.values),
-                                                    BufferBytes(packed.joints), BufferBytes(instances),
-                                                    {}, BufferBytes(packed.clip_ranges), BufferBytes(instances)};
-    GLuint buffers[9];
-    glGenBuffers(9, buffers);
-    for (GLuint b = 0; b < 9; ++b) {
-      if (b == 6) continue;
-      std::vector<std::uint8_t> padded(inputs[b].begin(), inputs[b].end());
-      padded.resize(std::max<std::size_t>(padded.size(), 16), 0);  // no empty buffers
-      glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[b]);
-      glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(padded.size()), padded.data(), GL_STATIC_DRAW);
-      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, b, buffers[b]);
+    const PaletteKernel kernel = EmitPalette(Lang::kGlslCompute, packed.View(), 3);
+    // Every buffer by its name at consecutive bindings (the palette read back
+    // below); a fresh frame, so the states are the instances.
+    std::vector<GLuint> buffers;
+    GLuint palette = 0;
+    for (const KernelArgument& a : kernel.kernel.arguments) {
+      if (a.kind != ArgumentKind::kBuffer) continue;
+      const std::span<const std::uint8_t> bytes = PaletteInputBytes(packed, instances, a.name);
+      std::vector<std::uint8_t> padded(bytes.begin(), bytes.end());
+      padded.resize(std::max<std::size_t>(a.name == kAnimOutput ? rows.size() * sizeof(float) : padded.size(), 16), 0);
+      GLuint& buffer = buffers.emplace_back();
+      glGenBuffers(1, &buffer);
+      glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffer);
+      glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(padded.size()), padded.data(), GL_DYNAMIC_READ);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, static_cast<GLuint>(buffers.size() - 1), buffer);
+      if (a.name == kAnimOutput) palette = buffer;
     }
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[6]);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(rows.size() * sizeof(float)), nullptr,
-                 GL_DYNAMIC_READ);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, buffers[6]);
-    const GLuint program = ProgramFor(EmitPalette(Lang::kGlslCompute, view, 3).kernel.text);
+    const GLuint program = ProgramFor(kernel.kernel.text);
     glUseProgram(program);
     glUniform1f(glGetUniformLocation(program, "delta"), 0.0f);
     glUniform1ui(glGetUniformLocation(program, "fresh"), 1u);
     glDispatchCompute(1, static_cast<GLuint>(instances.size()), 1);  // a work-group per instance
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffers[6]);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, palette);
     glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(rows.size() * sizeof(float)), rows.data());
-    glDeleteBuffers(9, buffers);
+    glDeleteBuffers(static_cast<GLsizei>(buffers.size()), buffers.data());
     if (const GLenum error = glGetError(); error != GL_NO_ERROR)
       throw std::runtime_error("GL error " + std::to_string(error) + " running palette.comp");
     return rows;
@@ -163,12 +161,22 @@ TEST(PaletteKernelGl, WritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
   ExpectNanRowsForAClipOutOfRange(On(kernel));
 }
 
+TEST(PaletteKernelGl, BakedClipsMatchTheirFramesAloneAndBlended) {
+  SKIP_WITHOUT_GL(kernel);
+  ExpectBakedClipsMatchTheirFrames(On(kernel), "gl");
+  ExpectNanRowsForAClipOutOfRange(On(kernel), true);
+}
+
 // The same shader is Vulkan's: it compiles to SPIR-V with glslang, as the
 // skin kernels do for Vulkan (the Skinner runs it: skinner_animation_test).
 TEST(PaletteKernelVulkan, CompilesToSpirvWithGlslang) {
   const std::vector<std::uint32_t> spirv = vk::CompileSpirv(ExpandedTemplate("palette.comp"), "palette.comp");
   ASSERT_GT(spirv.size(), 5u);
   EXPECT_EQ(spirv[0], 0x07230203u);  // the SPIR-V magic number
+  const PackedAnimation baked = BakeAnimation(TestAsset("Fox.gltf"), 30.0);
+  const std::vector<std::uint32_t> baked_spirv =
+      vk::CompileSpirv(EmitPalette(Lang::kVulkan, baked.View(), 3).kernel.text, "palette.comp (baked)");
+  ASSERT_GT(baked_spirv.size(), 5u);
 }
 
 }  // namespace

@@ -38,8 +38,11 @@ struct AnimatedCase {
   Backend backend;
   std::string variant;  // forced
   std::string model;    // a glTF of tests/data
+  double bake_rate = 0.0;  // SkinnerOptions::bake_rate: 0 sampled clips
 };
-void PrintTo(const AnimatedCase& c, std::ostream* out) { *out << c.variant << " " << c.model; }
+void PrintTo(const AnimatedCase& c, std::ostream* out) {
+  *out << c.variant << " " << c.model << (c.bake_rate > 0.0 ? " baked" : "");
+}
 
 class SkinnerAnimated : public ::testing::TestWithParam<AnimatedCase> {
  protected:
@@ -53,6 +56,12 @@ class SkinnerAnimated : public ::testing::TestWithParam<AnimatedCase> {
     model_ = std::move(*model);
   }
   const SkinnedAsset& Asset() const { return TestAsset(GetParam().model); }
+  static SkinnerOptions Options() {
+    SkinnerOptions options;
+    options.variant = GetParam().variant;
+    options.bake_rate = GetParam().bake_rate;
+    return options;
+  }
 
   // Instance k: clip k % clips at its own phase; every third a blend of two
   // clips; the last the rest pose.
@@ -102,10 +111,19 @@ class SkinnerAnimated : public ::testing::TestWithParam<AnimatedCase> {
     const Status read = skinner.ReadPositions(positions.data(), positions.size());
     ASSERT_TRUE(read.ok()) << read.message();
     const PackedAnimation packed = PackAnimation(Asset());
+    const double rate = GetParam().bake_rate;
+    const PackedAnimation baked = rate > 0.0 ? BakeAnimation(Asset(), rate) : PackedAnimation{};
     const SkinnedMesh quantised = QuantisedMesh(mesh, variant);
     for (std::size_t k = 0; k < expected.size(); ++k) {
       const AnimInstance& in = expected[k];
-      const std::vector<glm::mat4> palette = Asset().skeleton.Palette(GoldPose(Asset(), packed, in));
+      // Baked clips: the float64 evaluation of their frames (how far that is
+      // from the sampled gold is BakedClipInfo's, tested with the kernels).
+      std::vector<glm::mat4> palette;
+      if (rate > 0.0) {
+        for (const glm::dmat4& m : testing::BakedGoldPalette(baked, in)) palette.emplace_back(m);
+      } else {
+        palette = Asset().skeleton.Palette(GoldPose(Asset(), packed, in));
+      }
       const GoldResult gold = SkinGold(quantised, palette, false);
       const std::vector<float> part(positions.begin() + static_cast<std::ptrdiff_t>(k * n * 3),
                                     positions.begin() + static_cast<std::ptrdiff_t>((k + 1) * n * 3));
@@ -123,12 +141,26 @@ class SkinnerAnimated : public ::testing::TestWithParam<AnimatedCase> {
 };
 
 TEST_P(SkinnerAnimated, EveryInstanceIsTheGoldOfItsOwnClipsTimesAndBlend) {
-  SkinnerOptions options;
+  SkinnerOptions options = Options();
   options.instances = 7;
-  options.variant = GetParam().variant;
   Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
   ASSERT_TRUE(skinner.ok()) << skinner.status().message();
   EXPECT_TRUE(skinner->animated());
+  const std::vector<BakedClip> clips = skinner->baked_clips();
+  if (GetParam().bake_rate > 0.0) {
+    ASSERT_EQ(clips.size(), static_cast<std::size_t>(model_.animation_count()));
+    std::size_t bytes = 0;
+    for (std::size_t c = 0; c < clips.size(); ++c) {
+      EXPECT_EQ(clips[c].name, model_.animation_name(static_cast<int>(c)));
+      EXPECT_GE(clips[c].frames, 2);
+      EXPECT_GT(clips[c].max_error, 0.0);
+      bytes += clips[c].bytes;
+    }
+    EXPECT_GT(skinner->animation_bytes(), bytes);  // and the rest pose's frame, and the clips' ranges
+  } else {
+    EXPECT_TRUE(clips.empty());
+    EXPECT_GT(skinner->animation_bytes(), 0u);
+  }
   for (double phase : {0.1, 0.6}) {
     SCOPED_TRACE("phase " + std::to_string(phase));
     ExpectLikeTheGold(*skinner, Crowd(options.instances, phase));
@@ -142,6 +174,7 @@ TEST_P(SkinnerAnimated, FramesInFlightEachKeepTheirOwnStates) {
   options.instances = 3;
   options.palette_buffers = 2;
   options.variant = GetParam().variant;
+  options.bake_rate = GetParam().bake_rate;
   Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
   ASSERT_TRUE(skinner.ok()) << skinner.status().message();
   for (int frame = 0; frame < 5; ++frame) {
@@ -160,6 +193,7 @@ TEST_P(SkinnerAnimated, AdvanceAnimationMovesEveryClockOnTheDeviceAndLoopsEachCl
   options.instances = 5;
   options.palette_buffers = 2;
   options.variant = GetParam().variant;
+  options.bake_rate = GetParam().bake_rate;
   Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
   ASSERT_TRUE(skinner.ok()) << skinner.status().message();
   const std::vector<AnimationState> start = Crowd(options.instances, 0.8);
@@ -190,6 +224,14 @@ TEST_P(SkinnerAnimated, AdvanceAnimationMovesEveryClockOnTheDeviceAndLoopsEachCl
   ExpectLikeTheGold(*skinner, start);
 
   EXPECT_EQ(skinner->AdvanceAnimation(std::numeric_limits<float>::infinity()).code(), ErrorCode::kInvalidArgument);
+  if (options.bake_rate > 0.0) {  // a Skinner of SetPalette bakes nothing: the option is refused, not ignored
+    const Result<Skinner> refused = Skinner::Create(device_, WinnersDb::Empty(), model_.mesh(), options);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_EQ(refused.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(refused.status().message().find("SkinnerOptions::bake_rate"), std::string::npos)
+        << refused.status().message();
+    options.bake_rate = 0.0;
+  }
   Result<Skinner> plain = Skinner::Create(device_, WinnersDb::Empty(), model_.mesh(), options);
   ASSERT_TRUE(plain.ok()) << plain.status().message();
   EXPECT_EQ(plain->AdvanceAnimation(0.1f).code(), ErrorCode::kInvalidState);
@@ -199,6 +241,7 @@ TEST_P(SkinnerAnimated, TheRestPoseUntilTheFirstSetAnimation) {
   SkinnerOptions options;
   options.instances = 2;
   options.variant = GetParam().variant;
+  options.bake_rate = GetParam().bake_rate;
   Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
   ASSERT_TRUE(skinner.ok()) << skinner.status().message();
   ASSERT_TRUE(skinner->Skin().ok());
@@ -220,6 +263,7 @@ TEST_P(SkinnerAnimated, BadStatesAreRejectedNamingTheFieldAndChangeNothing) {
   SkinnerOptions options;
   options.instances = 2;
   options.variant = GetParam().variant;
+  options.bake_rate = GetParam().bake_rate;
   Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
   ASSERT_TRUE(skinner.ok()) << skinner.status().message();
   const std::vector<AnimationState> good = Crowd(2, 0.3);
@@ -251,10 +295,34 @@ TEST_P(SkinnerAnimated, BadStatesAreRejectedNamingTheFieldAndChangeNothing) {
   EXPECT_EQ(set_palette.code(), ErrorCode::kInvalidState);
   EXPECT_NE(set_palette.message().find("SetAnimation"), std::string::npos) << set_palette.message();
 
+  if (options.bake_rate > 0.0) {  // a Skinner of SetPalette bakes nothing: the option is refused, not ignored
+    const Result<Skinner> refused = Skinner::Create(device_, WinnersDb::Empty(), model_.mesh(), options);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_EQ(refused.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(refused.status().message().find("SkinnerOptions::bake_rate"), std::string::npos)
+        << refused.status().message();
+    options.bake_rate = 0.0;
+  }
   Result<Skinner> plain = Skinner::Create(device_, WinnersDb::Empty(), model_.mesh(), options);
   ASSERT_TRUE(plain.ok()) << plain.status().message();
   EXPECT_FALSE(plain->animated());
   EXPECT_EQ(plain->SetAnimation(good.data(), good.size()).code(), ErrorCode::kInvalidState);
+}
+
+TEST(SkinnerAnimatedModel, ABakeRateOutsideItsRangeIsRefusedNamingIt) {
+  Result<Device> device = Device::Open("", nullptr);
+  if (!device.ok()) GTEST_SKIP() << "no device: " << device.status().message();
+  Result<Model> model = Model::Load(std::string(SKINTUNE_TEST_DATA_DIR) + "/Fox.gltf");
+  ASSERT_TRUE(model.ok()) << model.status().message();
+  for (const double rate : {-1.0, 1001.0, std::numeric_limits<double>::quiet_NaN()}) {
+    SkinnerOptions options;
+    options.bake_rate = rate;
+    const Result<Skinner> skinner = Skinner::CreateAnimated(*device, WinnersDb::Empty(), *model, options);
+    ASSERT_FALSE(skinner.ok()) << rate;
+    EXPECT_EQ(skinner.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(skinner.status().message().find("SkinnerOptions::bake_rate is"), std::string::npos)
+        << skinner.status().message();
+  }
 }
 
 TEST(SkinnerAnimatedModel, AnEmptyModelIsRefused) {
@@ -277,10 +345,18 @@ std::vector<AnimatedCase> Cases() {
           {Backend::kVulkan, "vulkan.b4.soa-split.local", "Fox.gltf"},
           {Backend::kVulkan, "vulkan.b4.soa.image.mat4", "CesiumMan.gltf"},
           {Backend::kCpu, "cpu.b4.soa", "Fox.gltf"},
-          {Backend::kCpu, "cpu.b4.aos.mat4", "CesiumMan.gltf"}};
+          {Backend::kCpu, "cpu.b4.aos.mat4", "CesiumMan.gltf"},
+          // Baked clips (docs/ANIMATION.md "Baked clips") in every API, both palette formats.
+          {Backend::kOpenCl, "opencl.b4.soa", "CesiumMan.gltf", 30.0},
+          {Backend::kCuda, "cuda.b4.soa.image.mat4", "Fox.gltf", 30.0},
+          {Backend::kGl, "glsl-compute.b4.aos.constant", "CesiumMan.gltf", 30.0},
+          {Backend::kGl, "glsl-vertex.b4.soa", "Fox.gltf", 30.0},
+          {Backend::kVulkan, "vulkan.b4.soa.image.mat4", "Fox.gltf", 30.0},
+          {Backend::kCpu, "cpu.b4.soa", "CesiumMan.gltf", 60.0}};
 }
 std::string CaseName(const ::testing::TestParamInfo<AnimatedCase>& info) {
-  return testing::ParameterName(info.param.variant + "_" + info.param.model.substr(0, info.param.model.find('.')));
+  return testing::ParameterName(info.param.variant + "_" + info.param.model.substr(0, info.param.model.find('.')) +
+                                (info.param.bake_rate > 0.0 ? "_baked" : ""));
 }
 INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerAnimated, ::testing::ValuesIn(Cases()), CaseName);
 

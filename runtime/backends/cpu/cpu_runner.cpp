@@ -67,6 +67,10 @@ class CpuPlanned final : public PlannedLaunch {
   bool fault_wrong = false, fault_hang = false;
   bool palette = false;  // the palette kernel: clip_count and palette_rows its parameters
   std::uint32_t clip_count = 0;
+  // A baked animation's kernel (ANIM_BAKED): it reads no joints buffer, so
+  // this holds ANIM_JOINT_COUNT records for the view's joint count.
+  bool baked = false;
+  std::vector<AnimJointRecord> baked_joints;
   int morph_targets = 0;  // MORPH_TARGETS of a morph variant, else 0
 };
 
@@ -258,6 +262,8 @@ std::unique_ptr<PlannedLaunch> CpuApi::Plan(const LaunchSpec& spec) {
     plan->palette = true;
     plan->clip_count = static_cast<std::uint32_t>(parsed.defines.at("ANIM_CLIP_COUNT"));
     plan->palette_rows = static_cast<int>(parsed.defines.at("ANIM_PALETTE_ROWS"));
+    plan->baked = flag("ANIM_BAKED");
+    if (plan->baked) plan->baked_joints.resize(static_cast<std::size_t>(parsed.defines.at("ANIM_JOINT_COUNT")));
     return plan;
   }
   if (spec.variant.storage != PaletteStorage::kGlobal)
@@ -300,8 +306,9 @@ std::unique_ptr<DeviceObject> CpuApi::Bind(const PlannedLaunch& launch, std::spa
       }
     }
   }
-  // The palette kernel: every buffer argument bound, in order (RunLaunch reads them by position).
-  const std::size_t palette_buffers = std::size(kAnimInputs) + 3;  // + out_palette, clips, states
+  // The palette kernel: every buffer argument bound (RunLaunch reads them by name).
+  std::size_t palette_buffers = 0;
+  for (const KernelArgument& a : launch.spec.source.arguments) palette_buffers += a.kind == ArgumentKind::kBuffer;
   if (bound->plan->palette ? !bound->palette_out || bound->buffers.size() != palette_buffers
                            : !bound->Out(Output::kPositions))
     Fail("launch", launch.spec.where + ": not every argument bound");
@@ -311,23 +318,35 @@ std::unique_ptr<DeviceObject> CpuApi::Bind(const PlannedLaunch& launch, std::spa
 void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
   const CpuPlanned& plan = *b.plan;
   const LaunchSpec& spec = plan.spec;
-  if (plan.palette) {  // the buffers in argument order, each as bound (b.buffers: their sizes)
-    const auto span_of = [&](std::size_t i, auto* type) {
+  if (plan.palette) {  // the buffers by argument name, each as bound (b.buffers: in argument order)
+    const auto span_of = [&](const char* name, auto* type) {
       using T = std::remove_const_t<std::remove_pointer_t<decltype(type)>>;
-      return std::span<const T>(reinterpret_cast<const T*>(b.buffers[i].data()), b.buffers[i].size() / sizeof(T));
+      std::size_t i = 0;
+      for (const KernelArgument& a : spec.source.arguments) {
+        if (a.kind != ArgumentKind::kBuffer) continue;
+        if (a.name == name)
+          return std::span<const T>(reinterpret_cast<const T*>(b.buffers[i].data()), b.buffers[i].size() / sizeof(T));
+        ++i;
+      }
+      Fail("launch", spec.where + ": no buffer '" + name + "'");
     };
     AnimationView view;
     view.clip_count = plan.clip_count;
-    view.nodes = span_of(0, static_cast<const AnimNodeRecord*>(nullptr));
-    view.channels = span_of(1, static_cast<const AnimChannelHeader*>(nullptr));
-    view.times = span_of(2, static_cast<const float*>(nullptr));
-    view.values = span_of(3, static_cast<const float*>(nullptr));
-    view.joints = span_of(4, static_cast<const AnimJointRecord*>(nullptr));
-    view.clip_ranges = span_of(7, static_cast<const float*>(nullptr)).first(4 * std::size_t{plan.clip_count});
+    if (plan.baked) {
+      view.frames = span_of(kAnimFrames, static_cast<const float*>(nullptr));
+      view.joints = plan.baked_joints;
+    } else {
+      view.nodes = span_of(kAnimInputs[0], static_cast<const AnimNodeRecord*>(nullptr));
+      view.channels = span_of(kAnimInputs[1], static_cast<const AnimChannelHeader*>(nullptr));
+      view.times = span_of(kAnimInputs[2], static_cast<const float*>(nullptr));
+      view.values = span_of(kAnimInputs[3], static_cast<const float*>(nullptr));
+      view.joints = span_of(kAnimInputs[4], static_cast<const AnimJointRecord*>(nullptr));
+    }
+    view.clip_ranges = span_of(kAnimClips, static_cast<const float*>(nullptr)).first(4 * std::size_t{plan.clip_count});
     const auto count = static_cast<std::size_t>(spec.instances);
-    const auto instances = span_of(5, static_cast<const AnimInstance*>(nullptr)).first(count);
+    const auto instances = span_of(kAnimInputs[5], static_cast<const AnimInstance*>(nullptr)).first(count);
     // The states kept on the device (read and written: the buffer is the runner's, host memory).
-    const std::span<AnimInstance> states(const_cast<AnimInstance*>(span_of(8, static_cast<const AnimInstance*>(nullptr)).data()),
+    const std::span<AnimInstance> states(const_cast<AnimInstance*>(span_of(kAnimStates, static_cast<const AnimInstance*>(nullptr)).data()),
                                          count);
     if (!live_run_) Fail("launch", spec.where + ": the palette kernel runs only as a frame's prologue");
     if (PrologueScalar(*live_run_, kAnimFresh, "CPU") != 0) {

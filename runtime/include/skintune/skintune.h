@@ -477,6 +477,32 @@ struct SkinnerOptions {
   // threads, 7.3-10.9 with 4, 10.1 with 2 and 14.2-14.4 with 1
   // (docs/RUNTIME.md "The frame loop").
   int palette_threads = 0;
+  // CreateAnimated only (kInvalidArgument for any other Skinner): 0 samples
+  // the model's keyframes on the device every frame. A rate in (0,
+  // kMaxBakeRate] frames a second bakes every clip once, when the Skinner is
+  // made (docs/ANIMATION.md "Baked clips"): each joint's palette entry at
+  // evenly spaced frames, as a rotation, a translation and a uniform scale
+  // (32 bytes a joint and frame), so that the device reads two frames a joint
+  // instead of keys and the hierarchy. Between frames, rotations are nlerped
+  // along the shortest path, translations and scales lerped; a blend of two
+  // clips mixes their palette entries the same way (in the model's space, not
+  // each joint's local space as sampled clips do). What each clip costs and
+  // loses: baked_clips(). A different result, so the user's choice.
+  double bake_rate = 0.0;
+};
+
+// Baking's limit (SkinnerOptions::bake_rate), frames a second.
+inline constexpr double kMaxBakeRate = 1000.0;
+
+// A clip as SkinnerOptions::bake_rate baked it (Skinner::baked_clips).
+struct BakedClip {
+  std::string name;        // the model's animation name ("" where it has none)
+  int frames = 0;          // at least the clip's duration x the rate, plus one
+  std::size_t bytes = 0;   // its frames on the device
+  // The largest distance between a vertex of the mesh skinned by the baked
+  // palettes and by the sampled float64 ones, relative to the mesh's
+  // bounding-box diagonal, at the frames and 1/4, 1/2 and 3/4 between them.
+  double max_error = 0.0;
 };
 
 class Model;
@@ -666,6 +692,12 @@ class Skinner {
   Status AdvanceAnimation(float seconds);
   // Whether the palettes are computed on the device (CreateAnimated).
   bool animated() const;
+  // A CreateAnimated Skinner with SkinnerOptions::bake_rate: every clip, in
+  // the model's order, with what baking it cost and lost; else empty.
+  std::vector<BakedClip> baked_clips() const;
+  // The bytes of the animation on the device (the packed keys and hierarchy,
+  // or the baked frames); 0 for a Skinner that is not animated.
+  std::size_t animation_bytes() const;
 
   // Queues the skinning of every instance with the last palette set and
   // returns without waiting for the device (skintune waits on nothing here).
