@@ -163,27 +163,30 @@ void JointPalette(const AnimationView& a, std::size_t j, const Local& local, flo
     for (int c = 0; c < 4; ++c) out[4 * r + c] = m.row[r][c];
 }
 
-// A baked record: the rotation, then translation and uniform scale.
+// A baked record: the rotation; translation and (similar) scale; the
+// symmetric stretch's diagonal and S01; S02, S12 (affine records).
 struct Baked {
-  vec4 q, ts;
+  vec4 q, ts, s0, s1;
 };
 
 Baked BakedRecord(const AnimationView& a, std::uint32_t frame, std::size_t j) {
-  const float* p = a.frames.data() + kBakedFloats * (std::size_t{frame} * a.joints.size() + j);
-  return {Load(p), Load(p + 4)};
+  const float* p = a.frames.data() + 4 * a.baked_rows * (std::size_t{frame} * a.joints.size() + j);
+  if (a.baked_rows == kBakedRowsSimilar) return {Load(p), Load(p + 4), vec4(0.0f), vec4(0.0f)};
+  return {Load(p), Load(p + 4), Load(p + 8), Load(p + 12)};
 }
 
-// x towards y by u: the rotation nlerped along the shortest path, the
-// translation and scale lerped (templates/palette_baked.cl baked_mix).
+// x towards y by u: the rotation nlerped along the shortest path, the rest
+// lerped (templates/palette.cl baked_mix).
 Baked BakedMix(const Baked& x, const Baked& y, float u) {
   const vec4 q2 = glm::dot(x.q, y.q) < 0.0f ? -y.q : y.q;
-  return {NormalizeQuat(x.q + u * (q2 - x.q)), x.ts + u * (y.ts - x.ts)};
+  return {NormalizeQuat(x.q + u * (q2 - x.q)), x.ts + u * (y.ts - x.ts), x.s0 + u * (y.s0 - x.s0),
+          x.s1 + u * (y.s1 - x.s1)};
 }
 
 std::uint32_t Bits(float v) { return std::bit_cast<std::uint32_t>(v); }
 
 // Joint j of clip `clip` at time t (clamped to the clip's range): between
-// the two frames around t (templates/palette_baked.cl baked_sample).
+// the two frames around t (templates/palette.cl baked_sample).
 Baked BakedSample(const AnimationView& a, std::uint16_t clip, float t, std::size_t j) {
   if (clip == kAnimRestPose) return BakedRecord(a, 0, j);
   const float* range = a.clip_ranges.data() + 4 * std::size_t{clip};
@@ -197,9 +200,16 @@ Baked BakedSample(const AnimationView& a, std::uint16_t clip, float t, std::size
   return BakedMix(BakedRecord(a, first + k, j), BakedRecord(a, first + k + 1, j), u - static_cast<float>(k));
 }
 
-// Rows of s R(q) | t.
-Affine BakedAffine(const Baked& b) {
-  const Affine m = ToAffine(Trs{vec4(b.ts.x, b.ts.y, b.ts.z, 0.0f), b.q, vec4(b.ts.w, b.ts.w, b.ts.w, 0.0f)});
+// Rows of R(q) S | t (similar records: S = s I).
+Affine BakedAffine(const Baked& b, std::uint32_t rows) {
+  if (rows == kBakedRowsSimilar)
+    return ToAffine(Trs{vec4(b.ts.x, b.ts.y, b.ts.z, 0.0f), b.q, vec4(b.ts.w, b.ts.w, b.ts.w, 0.0f)});
+  const Affine r = ToAffine(Trs{vec4(0.0f), b.q, vec4(1.0f, 1.0f, 1.0f, 0.0f)});
+  const vec4 s_rows[3] = {vec4(b.s0.x, b.s0.w, b.s1.x, 0.0f), vec4(b.s0.w, b.s0.y, b.s1.y, 0.0f),
+                          vec4(b.s1.x, b.s1.y, b.s0.z, 0.0f)};
+  Affine m;
+  for (int i = 0; i < 3; ++i)
+    m.row[i] = r.row[i].x * s_rows[0] + r.row[i].y * s_rows[1] + r.row[i].z * s_rows[2] + vec4(0.0f, 0.0f, 0.0f, b.ts[i]);
   return m;
 }
 
@@ -298,10 +308,13 @@ void ValidateBakedAnimation(const AnimationView& a) {
   if (a.clip_count > kAnimMaxClips)
     throw Error("baked animation: " + std::to_string(a.clip_count) + " clips (at most " +
                 std::to_string(kAnimMaxClips) + ")");
-  if (a.frames.size() % (kBakedFloats * joints) != 0)
+  if (a.baked_rows != kBakedRowsSimilar && a.baked_rows != kBakedRowsAffine)
+    throw Error("baked animation: " + std::to_string(a.baked_rows) + " float4s a record (2 or 4)");
+  const std::size_t floats = 4 * std::size_t{a.baked_rows};
+  if (a.frames.size() % (floats * joints) != 0)
     throw Error("baked animation: " + std::to_string(a.frames.size()) + " frame floats, not whole frames of " +
-                std::to_string(joints) + " joints x " + std::to_string(kBakedFloats) + " floats");
-  const std::size_t total = a.frames.size() / (kBakedFloats * joints);
+                std::to_string(joints) + " joints x " + std::to_string(floats) + " floats");
+  const std::size_t total = a.frames.size() / (floats * joints);
   if (a.clip_ranges.size() != std::size_t{a.clip_count} * 4)
     throw Error("baked animation: " + std::to_string(a.clip_ranges.size()) + " clip-range floats for " +
                 std::to_string(a.clip_count) + " clips (4 each: start, end, frames, first frame)");
@@ -316,10 +329,10 @@ void ValidateBakedAnimation(const AnimationView& a) {
                   std::to_string(total) + " (frame 0 is the rest pose; at least 2 frames where the clip lasts)");
   }
   for (std::size_t r = 0; r < total * joints; ++r) {
-    const float* p = a.frames.data() + kBakedFloats * r;
+    const float* p = a.frames.data() + floats * r;
     const std::string what = "baked animation: frames[" + std::to_string(r / joints) + "] joint " +
                              std::to_string(r % joints);
-    for (std::size_t k = 0; k < kBakedFloats; ++k)
+    for (std::size_t k = 0; k < floats; ++k)
       if (!std::isfinite(p[k])) throw Error(what + ": " + Number(p[k]) + " is not finite");
     const float length = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
     if (std::fabs(length - 1.0f) > 1e-3f)
@@ -389,7 +402,7 @@ void RunPaletteKernel(const AnimationView& a, std::span<const AnimInstance> inst
       for (std::size_t j = 0; j < joints; ++j) {
         Baked x = BakedSample(a, in.clip, in.time, j);
         if (in.weight != 0.0f) x = BakedMix(x, BakedSample(a, in.clip2, in.time2, j), in.weight);
-        put(palette + stride * (i * joints + j), BakedAffine(x));
+        put(palette + stride * (i * joints + j), BakedAffine(x, a.baked_rows));
       }
     }
     return;

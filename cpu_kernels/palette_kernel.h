@@ -75,13 +75,18 @@ static_assert(sizeof(AnimNodeRecord) == 64 && sizeof(AnimChannelHeader) == 16 &&
 // Baked clips (docs/ANIMATION.md "Baked clips"): each clip's palettes
 // pre-sampled at evenly spaced frames, so that the kernel reads two records
 // a joint instead of sampling channels and walking the hierarchy. Buffer
-// `frames`: one record per (frame, joint), at float4 2 * (f * joints + j):
-// the joint's skinning transform M (global x inverse bind) as a unit
-// rotation q = (x, y, z, w), then (t.x, t.y, t.z, s): M v = s R(q) v + t.
+// `frames`: one record per (frame, joint), at float4 R * (f * joints + j),
+// of the joint's skinning transform M (global x inverse bind) split as
+// Shoemake and Duff's polar decomposition M = T(t) R(q) S, q a unit
+// rotation and S symmetric:
+//   R = 2 (a similarity: S = s I): (q.x, q.y, q.z, q.w), (t.x, t.y, t.z, s);
+//   R = 4 (any affine M): q, (t.x, t.y, t.z, 0), (S00, S11, S22, S01),
+//       (S02, S12, 0, 0).
 // Frame 0 is the rest pose; clip c's F frames follow at its first frame,
 // frame k at start + k (end - start) / (F - 1). Its entry of `clips` is then
 // (start, end, F, first frame), the last two as uint32 bits.
-inline constexpr std::size_t kBakedFloats = 8;  // a record: two float4s
+inline constexpr std::uint32_t kBakedRowsSimilar = 2;
+inline constexpr std::uint32_t kBakedRowsAffine = 4;
 
 // The packed animation as the kernel reads it: views of the buffers.
 struct AnimationView {
@@ -95,10 +100,12 @@ struct AnimationView {
   // where AdvanceAnimInstances loops its clock. Baked: (start, end, frame
   // count, first frame), the last two uint32 bits.
   std::span<const float> clip_ranges;
-  // Baked clips' `frames` (kBakedFloats a record); empty: the clips are
-  // sampled from nodes, channels, times and values. Baked, those four are
-  // not read (nor uploaded): joints gives the joint count.
+  // Baked clips' `frames` (baked_rows float4s a record: kBakedRowsSimilar
+  // or kBakedRowsAffine); empty: the clips are sampled from nodes, channels,
+  // times and values. Baked, those four are not read (nor uploaded): joints
+  // gives the joint count.
   std::span<const float> frames;
+  std::uint32_t baked_rows = 0;
 
   bool baked() const { return !frames.empty(); }
 };

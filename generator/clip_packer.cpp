@@ -12,7 +12,6 @@
 
 #define GLM_ENABLE_EXPERIMENTAL
 #include <glm/gtc/quaternion.hpp>
-#include <glm/gtx/matrix_decompose.hpp>
 
 #include "base/error.h"
 #include "reference/skinning.h"
@@ -154,7 +153,7 @@ void CheckCounts(const SkinnedAsset& asset, std::span<const int> clips) {
 
 AnimationView PackedAnimation::View() const {
   return AnimationView{static_cast<std::uint32_t>(clips.size()), nodes, channels, times, values, joints, clip_ranges,
-                       frames};
+                       frames, baked_rows};
 }
 
 std::size_t PackedAnimation::Bytes() const {
@@ -184,27 +183,75 @@ PackedAnimation PackAnimation(const SkinnedAsset& asset, std::span<const int> cl
 
 namespace {
 
-// A joint's skinning transform as a baked record: q, then t and s.
+// A joint's skinning transform M = T(t) R(q) S as baked (S symmetric).
 struct BakedJoint {
   glm::dquat q;
   glm::dvec3 t;
-  double s = 1.0;
+  glm::dmat3 s;
 };
 
+// The rotation of `m`'s polar decomposition (det m > 0): Higham's iteration
+// R <- (R + R^-T) / 2, which converges quadratically (glm has none).
+glm::dmat3 PolarRotation(const glm::dmat3& m) {
+  glm::dmat3 r = m;
+  for (int k = 0; k < 64; ++k) {
+    const glm::dmat3 next = 0.5 * (r + glm::transpose(glm::inverse(r)));
+    double change = 0.0;
+    for (int c = 0; c < 3; ++c) change = std::max(change, glm::length(next[c] - r[c]));
+    r = next;
+    if (change < 1e-15) break;
+  }
+  return r;
+}
+
+// Shoemake and Duff's split of an affine M: rotation, symmetric stretch
+// (negative where M mirrors), translation.
 BakedJoint BakeJoint(const glm::dmat4& m, const std::string& what) {
-  glm::dvec3 scale, translation, skew;
-  glm::dquat rotation;
-  glm::dvec4 perspective;
-  if (!glm::decompose(m, scale, rotation, translation, skew, perspective))
-    throw Error(what + ": a singular transform (no rotation to bake)");
-  const double product = scale.x * scale.y * scale.z;  // decompose gives all three negative where m mirrors
-  return {glm::normalize(rotation), glm::dvec3(m[3]), std::copysign(std::cbrt(std::fabs(product)), product)};
+  const glm::dmat3 l(m);
+  const double det = glm::determinant(l);
+  if (!std::isfinite(det) || std::fabs(det) < 1e-300) throw Error(what + ": a singular transform (no rotation to bake)");
+  const glm::dmat3 r = PolarRotation(det < 0.0 ? -l : l);
+  glm::dmat3 stretch = glm::transpose(r) * l;
+  stretch = 0.5 * (stretch + glm::transpose(stretch));
+  return {glm::normalize(glm::quat_cast(r)), glm::dvec3(m[3]), stretch};
+}
+
+// Whether S is s I within 1e-5 of s (a similarity: the record's 2-row form).
+// Exporters leave float noise in scales (CesiumMan's nodes scale unevenly by
+// up to 7.5e-7, compounding down its chains); each clip's stated error
+// includes what the similarity leaves out.
+bool Similar(const glm::dmat3& s) {
+  const double mean = (s[0][0] + s[1][1] + s[2][2]) / 3.0;
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r)
+      if (std::fabs(s[c][r] - (r == c ? mean : 0.0)) > 1e-5 * std::fabs(mean)) return false;
+  return true;
 }
 
 // x towards y by u as the kernels mix records (BakedMix), in float64.
 BakedJoint MixBaked(const BakedJoint& x, const BakedJoint& y, double u) {
   const glm::dquat q2 = glm::dot(x.q, y.q) < 0.0 ? -y.q : y.q;
   return {glm::normalize(x.q + u * (q2 - x.q)), x.t + u * (y.t - x.t), x.s + u * (y.s - x.s)};
+}
+
+// Appends `b` to `frames` as a record of `rows` float4s (cpu_kernels/palette_kernel.h)
+// and gives it back as stored: float32, in that form.
+BakedJoint PutBaked(const BakedJoint& b, std::uint32_t rows, std::vector<float>& frames, const std::string& what) {
+  const glm::dmat3& s = b.s;
+  const double mean = (s[0][0] + s[1][1] + s[2][2]) / 3.0;
+  const std::size_t at = frames.size();
+  frames.insert(frames.end(), {ToFloat(b.q.x, what), ToFloat(b.q.y, what), ToFloat(b.q.z, what), ToFloat(b.q.w, what),
+                               ToFloat(b.t.x, what), ToFloat(b.t.y, what), ToFloat(b.t.z, what),
+                               rows == kBakedRowsSimilar ? ToFloat(mean, what) : 0.0f});
+  if (rows == kBakedRowsAffine)
+    frames.insert(frames.end(), {ToFloat(s[0][0], what), ToFloat(s[1][1], what), ToFloat(s[2][2], what),
+                                 ToFloat(s[1][0], what), ToFloat(s[2][0], what), ToFloat(s[2][1], what), 0.0f, 0.0f});
+  const float* p = frames.data() + at;
+  BakedJoint stored{glm::dquat(p[3], p[0], p[1], p[2]), glm::dvec3(p[4], p[5], p[6]), glm::dmat3(double{p[7]})};
+  if (rows == kBakedRowsAffine) {
+    stored.s = glm::dmat3(p[8], p[11], p[12], p[11], p[9], p[13], p[12], p[13], p[10]);
+  }
+  return stored;
 }
 
 // The largest distance between a vertex of `mesh` skinned by the `baked`
@@ -242,56 +289,67 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> cl
   out.clip_ranges.clear();
   out.bake_rate = rate;
   const std::size_t joints = out.joints.size();
-  const double diagonal = BoundingBoxDiagonal(asset.mesh.positions);
-  std::vector<BakedJoint> record(joints);
+  // 1: every frame's records in float64 (the rest pose first), and the form
+  // they need: 2 rows where every transform is a similarity, else 4.
+  struct Frame {
+    int clip = -1;  // asset clip (-1: the rest pose)
+    double t = 0.0;
+    std::vector<BakedJoint> records;
+  };
+  std::vector<Frame> frames;
+  std::vector<std::uint32_t> counts(clips.size());
   const auto bake = [&](int clip, double t, const std::string& what) {
     const std::vector<glm::dmat4> palette = asset.skeleton.PaletteD(asset.PoseAt(clip, t));
-    for (std::size_t j = 0; j < joints; ++j) {
-      const std::string joint = what + " joint " + std::to_string(j);
-      record[j] = BakeJoint(palette[j], joint);
-      // As stored: float32, as the kernels read it.
-      const glm::dvec4 q(glm::dvec4(glm::vec4(record[j].q.x, record[j].q.y, record[j].q.z, record[j].q.w)));
-      record[j].q = glm::dquat(q.w, q.x, q.y, q.z);
-      record[j].t = glm::dvec3(glm::vec3(record[j].t));
-      record[j].s = static_cast<float>(record[j].s);
-      if (out.frames.size() + kBakedFloats > kMaxBakedFloats)
-        throw Error(asset.source + ": baked at " + Number(rate) + " frames a second, more than " +
-                    std::to_string(kMaxBakedFloats) + " floats of frames");
-      out.frames.insert(out.frames.end(),
-                        {ToFloat(q.x, joint), ToFloat(q.y, joint), ToFloat(q.z, joint), ToFloat(q.w, joint),
-                         ToFloat(record[j].t.x, joint), ToFloat(record[j].t.y, joint), ToFloat(record[j].t.z, joint),
-                         ToFloat(record[j].s, joint)});
-    }
-    return record;
+    Frame& f = frames.emplace_back(Frame{clip, t, {}});
+    for (std::size_t j = 0; j < joints; ++j) f.records.push_back(BakeJoint(palette[j], what + " joint " + std::to_string(j)));
   };
   bake(-1, 0.0, asset.source + ": rest pose");
   for (std::size_t c = 0; c < clips.size(); ++c) {
     const AnimationClip& clip = asset.animations[static_cast<std::size_t>(clips[c])];
-    const std::string name = ClipName(asset, clips[c]);
     const double duration = clip.duration();
-    const auto frames =
+    counts[c] =
         static_cast<std::uint32_t>(duration > 0.0 ? std::max(2.0, std::ceil(duration * rate - 1e-9) + 1.0) : 1.0);
-    const auto first = static_cast<std::uint32_t>(out.frames.size() / (kBakedFloats * joints));
-    const double step = frames > 1 ? duration / (frames - 1) : 0.0;
-    std::vector<BakedJoint> previous;
+    if ((frames.size() + counts[c]) * joints * 4 * kBakedRowsAffine > kMaxBakedFloats)
+      throw Error(asset.source + ": baked at " + Number(rate) + " frames a second, more than " +
+                  std::to_string(kMaxBakedFloats) + " floats of frames");
+    const double step = counts[c] > 1 ? duration / (counts[c] - 1) : 0.0;
+    for (std::uint32_t k = 0; k < counts[c]; ++k)
+      bake(clips[c], clip.start + k * step,
+           asset.source + ": " + ClipName(asset, clips[c]) + " at t=" + Number(clip.start + k * step) + " s");
+  }
+  out.baked_rows = kBakedRowsSimilar;
+  for (const Frame& f : frames)
+    for (const BakedJoint& b : f.records)
+      if (!Similar(b.s)) out.baked_rows = kBakedRowsAffine;
+  // 2: stored as float32 in that form; each clip's error measured with the
+  // records as stored, at its frames and 1/4, 1/2, 3/4 between them.
+  const double diagonal = BoundingBoxDiagonal(asset.mesh.positions);
+  std::vector<BakedJoint> stored(joints), previous(joints), mixed(joints);
+  for (std::size_t j = 0; j < joints; ++j)
+    PutBaked(frames[0].records[j], out.baked_rows, out.frames, asset.source + ": rest pose joint " + std::to_string(j));
+  std::size_t next = 1;
+  for (std::size_t c = 0; c < clips.size(); ++c) {
+    const std::uint32_t count = counts[c], first = static_cast<std::uint32_t>(next);
+    const AnimationClip& clip = asset.animations[static_cast<std::size_t>(clips[c])];
+    const double step = count > 1 ? clip.duration() / (count - 1) : 0.0;
     double worst = 0.0;
-    for (std::uint32_t k = 0; k < frames; ++k) {
-      const double t = clip.start + k * step;
-      const std::vector<BakedJoint> current = bake(clips[c], t, asset.source + ": " + name + " at t=" + Number(t) + " s");
+    for (std::uint32_t k = 0; k < count; ++k, ++next) {
+      const Frame& f = frames[next];
+      for (std::size_t j = 0; j < joints; ++j)
+        stored[j] = PutBaked(f.records[j], out.baked_rows, out.frames, asset.source + ": frame joint " + std::to_string(j));
       for (const double u : {0.0, 0.25, 0.5, 0.75, 1.0}) {  // between the last frame and this one
-        if (k == 0 || (u == 0.0 && k > 1)) continue;  // frame k - 1 checked by its own interval
-        std::vector<BakedJoint> mixed(joints);
-        for (std::size_t j = 0; j < joints; ++j) mixed[j] = MixBaked(previous[j], current[j], u);
-        const std::vector<glm::dmat4> exact = asset.skeleton.PaletteD(asset.PoseAt(clips[c], t - (1.0 - u) * step));
+        if ((k == 0 && count > 1) || (u != 1.0 && (k == 0 || (u == 0.0 && k > 1)))) continue;
+        for (std::size_t j = 0; j < joints; ++j) mixed[j] = k == 0 ? stored[j] : MixBaked(previous[j], stored[j], u);
+        const std::vector<glm::dmat4> exact = asset.skeleton.PaletteD(asset.PoseAt(clips[c], f.t - (1.0 - u) * step));
         worst = std::max(worst, BakeError(asset.mesh, mixed, exact));
       }
-      if (frames == 1) worst = BakeError(asset.mesh, current, asset.skeleton.PaletteD(asset.PoseAt(clips[c], t)));
-      previous = current;
+      previous = stored;
     }
     out.clip_ranges.insert(out.clip_ranges.end(), {static_cast<float>(clip.start),
-                                                   static_cast<float>(clip.start + duration),
-                                                   std::bit_cast<float>(frames), std::bit_cast<float>(first)});
-    out.baked.push_back({name, frames, std::size_t{frames} * joints * kBakedFloats * sizeof(float),
+                                                   static_cast<float>(clip.start + clip.duration()),
+                                                   std::bit_cast<float>(count), std::bit_cast<float>(first)});
+    out.baked.push_back({ClipName(asset, clips[c]), count,
+                         std::size_t{count} * joints * out.baked_rows * 16,
                          diagonal > 0.0 ? worst / diagonal : std::numeric_limits<double>::quiet_NaN()});
   }
   ValidateBakedAnimation(out.View());

@@ -58,6 +58,7 @@ struct PackedAnimation {
   std::vector<float> clip_ranges;           // buffer `clips`: per clip start, end, 0, 0 (AdvanceAnimInstances)
                                             // (baked: start, end, frames, first frame)
   std::vector<float> frames;                // buffer `frames` of baked clips (empty: sampled)
+  std::uint32_t baked_rows = 0;             // float4s a baked record: kBakedRowsSimilar or kBakedRowsAffine
   std::vector<BakedClipInfo> baked;         // per packed clip, when baked
   double bake_rate = 0.0;                   // frames a second asked for (0: sampled)
   // Each channel left out and why ("animations[0] 'Wave': channels[3]
@@ -83,14 +84,14 @@ PackedAnimation PackAnimation(const SkinnedAsset& asset);
 // Every clip of `clips` baked (docs/ANIMATION.md "Baked clips"): its
 // palettes sampled in float64 (SkinnedAsset::PoseAt, Skeleton::PaletteD) at
 // F = ceil(duration x rate) + 1 evenly spaced frames (1 for a clip of no
-// duration), each joint's transform split into a unit rotation, a
-// translation and a uniform scale (the cube root of the 3x3's determinant;
-// a transform that shears or scales unevenly is kept as that similarity,
-// and BakedClipInfo::max_error says what it loses), with the rest pose as
-// frame 0. nodes and joints are packed as PackAnimation packs them, channels,
-// times and values not. Throws Error("<source>: ...") for a rate not in
-// (0, kAnimMaxBakeRate], more than kMaxBakedFloats floats of frames, a singular
-// joint transform, and what PackAnimation throws for.
+// duration), each joint's transform split by its polar decomposition into a
+// unit rotation, a symmetric stretch and a translation, with the rest pose
+// as frame 0: records of 2 float4s where every transform of every frame is a
+// similarity (the stretch s I to float32's precision), else of 4. nodes and
+// joints are packed as PackAnimation packs them, channels, times and values
+// not. Throws Error("<source>: ...") for a rate not in (0, kAnimMaxBakeRate],
+// more than kMaxBakedFloats floats of frames, a singular joint transform,
+// and what PackAnimation throws for.
 PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> clips, double rate);
 PackedAnimation BakeAnimation(const SkinnedAsset& asset, double rate);  // every clip, in order
 

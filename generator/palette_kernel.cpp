@@ -38,7 +38,7 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                {"ANIM_CLIP_COUNT", static_cast<long long>(animation.clip_count)},
                {"ANIM_PALETTE_ROWS", palette_rows},
                {"ANIM_GROUP", group},
-               {"ANIM_BAKED", baked ? 1 : 0}};
+               {"ANIM_BAKED", !baked ? 0 : animation.baked_rows == kBakedRowsAffine ? 2 : 1}};
   const auto buffer = [](const char* name, const char* format, std::size_t element, ArgumentDirection direction) {
     return KernelArgument{name, format, element, element, "", direction, ArgumentKind::kBuffer};
   };
@@ -55,7 +55,7 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                  {kAnimFresh, "u32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar}};
   if (baked) {  // frames in place of the five buffers of sampled clips
     k.arguments.erase(k.arguments.begin(), k.arguments.begin() + 5);
-    k.arguments.insert(k.arguments.begin(), buffer(kAnimFrames, "float4 pairs", 32, ArgumentDirection::kIn));
+    k.arguments.insert(k.arguments.begin(), buffer(kAnimFrames, "float4 records", 16 * std::size_t{animation.baked_rows}, ArgumentDirection::kIn));
   }
   for (KernelArgument& a : k.arguments)
     if (a.name == kAnimOutput) a.indexing = "(i*J+j)*R+r";

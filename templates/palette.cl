@@ -178,22 +178,38 @@ uint4 anim_advance(__global const float4* restrict clips, uint4 in, const float 
 #if ANIM_BAKED
 // Baked clips (docs/ANIMATION.md "Baked clips"; cpu_kernels/palette_kernel.cpp
 // BakedSample is the same in C++): each joint's skinning transform stored at
-// evenly spaced frames as a unit rotation q (float4) and (translation,
-// uniform scale) (float4), frame 0 the rest pose. An item per (instance,
-// joint): the two frames around the clip's time, q nlerped along the shortest
-// path and (t, s) lerped, likewise towards clip2 by the blend weight, then
-// written as the rows of s R(q) | t. No hierarchy, no search: two loads a
+// evenly spaced frames as its polar decomposition, a unit rotation q, a
+// translation t and a symmetric stretch S (s I for a similarity), frame 0 the
+// rest pose. An item per (instance, joint): the two frames around the clip's
+// time, q nlerped along the shortest path and t, S lerped, likewise towards
+// clip2 by the blend weight, then written as the rows of R(q) S | t. No hierarchy, no search: two loads a
 // joint and frame. Launch as the sampled kernel: a group of ANIM_GROUP items
 // per instance, joints j = item, item + ANIM_GROUP, ...
 
+// Records of ANIM_BAKED_ROWS float4s: 2 where every transform is a
+// similarity (ANIM_BAKED 1: q, then t and s), else 4 (ANIM_BAKED 2: q, t,
+// then the symmetric stretch S as (S00, S11, S22, S01), (S02, S12)).
+#if ANIM_BAKED == 2
+#define ANIM_BAKED_ROWS 4u
+#else
+#define ANIM_BAKED_ROWS 2u
+#endif
+
 typedef struct {
-  float4 q, ts;  // rotation (x, y, z, w); translation and uniform scale
+  float4 q, ts, s0, s1;  // rotation (x, y, z, w); translation (and s); the stretch
 } Baked;
 
 Baked baked_record(__global const float4* restrict frames, const uint frame, const uint j) {
+  const size_t at = ANIM_BAKED_ROWS * ((size_t)frame * ANIM_JOINT_COUNT + j);
   Baked b;
-  b.q = frames[2u * (frame * ANIM_JOINT_COUNT + j)];
-  b.ts = frames[2u * (frame * ANIM_JOINT_COUNT + j) + 1u];
+  b.q = frames[at];
+  b.ts = frames[at + 1u];
+#if ANIM_BAKED == 2
+  b.s0 = frames[at + 2u];
+  b.s1 = frames[at + 3u];
+#else
+  b.s0 = b.s1 = (float4)(0.0f);
+#endif
   return b;
 }
 
@@ -202,6 +218,8 @@ Baked baked_mix(const Baked x, const Baked y, const float u) {
   Baked b;
   b.q = anim_normalize_quat(x.q + u * (q2 - x.q));
   b.ts = x.ts + u * (y.ts - x.ts);
+  b.s0 = x.s0 + u * (y.s0 - x.s0);
+  b.s1 = x.s1 + u * (y.s1 - x.s1);
   return b;
 }
 
@@ -217,6 +235,27 @@ Baked baked_sample(__global const float4* restrict frames, __global const float4
   const float u = length > 0.0f ? fmin(fmax((t - range.x) / length, 0.0f), 1.0f) * (float)(count - 1u) : 0.0f;
   const uint k = min((uint)u, count - 2u);
   return baked_mix(baked_record(frames, first + k, j), baked_record(frames, first + k + 1u, j), u - (float)k);
+}
+
+// The rows of R(q) S | t (a similarity: S = s I).
+Affine baked_affine(const Baked x) {
+  Trs trs;
+  trs.t = (float4)(x.ts.xyz, 0.0f);
+  trs.r = x.q;
+#if ANIM_BAKED == 2
+  trs.s = (float4)(1.0f, 1.0f, 1.0f, 0.0f);
+  const Affine r = anim_to_affine(trs);
+  const float4 s_row0 = (float4)(x.s0.x, x.s0.w, x.s1.x, 0.0f), s_row1 = (float4)(x.s0.w, x.s0.y, x.s1.y, 0.0f);
+  const float4 s_row2 = (float4)(x.s1.x, x.s1.y, x.s0.z, 0.0f);
+  Affine m;
+  m.row0 = r.row0.x * s_row0 + r.row0.y * s_row1 + r.row0.z * s_row2 + (float4)(0.0f, 0.0f, 0.0f, x.ts.x);
+  m.row1 = r.row1.x * s_row0 + r.row1.y * s_row1 + r.row1.z * s_row2 + (float4)(0.0f, 0.0f, 0.0f, x.ts.y);
+  m.row2 = r.row2.x * s_row0 + r.row2.y * s_row1 + r.row2.z * s_row2 + (float4)(0.0f, 0.0f, 0.0f, x.ts.z);
+  return m;
+#else
+  trs.s = (float4)(x.ts.w, x.ts.w, x.ts.w, 0.0f);
+  return anim_to_affine(trs);
+#endif
 }
 
 __kernel __attribute__((reqd_work_group_size(ANIM_GROUP, 1, 1)))
@@ -239,11 +278,7 @@ void skintune_palette(__global const float4* restrict frames, __global const uin
     }
     Baked x = baked_sample(frames, clips, in.x & 0xffffu, as_float(in.y), j);
     if (w != 0.0f) x = baked_mix(x, baked_sample(frames, clips, in.x >> 16, as_float(in.z), j), w);
-    Trs trs;
-    trs.t = (float4)(x.ts.xyz, 0.0f);
-    trs.r = x.q;
-    trs.s = (float4)(x.ts.w, x.ts.w, x.ts.w, 0.0f);
-    const Affine m = anim_to_affine(trs);
+    const Affine m = baked_affine(x);
     out[rows * j] = m.row0;
     out[rows * j + 1u] = m.row1;
     out[rows * j + 2u] = m.row2;

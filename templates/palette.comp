@@ -195,18 +195,30 @@ uvec4 anim_advance(uvec4 s, float step) {
 
 #if ANIM_BAKED
 // Baked clips: palette.cl's baked kernel (docs/ANIMATION.md "Baked clips").
+// Records of ANIM_BAKED_ROWS vec4s (palette.cl says which).
+#if ANIM_BAKED == 2
+const uint kBakedRows = 4u;
+#else
+const uint kBakedRows = 2u;
+#endif
+
 struct Baked {
-  vec4 q, ts;  // rotation (x, y, z, w); translation and uniform scale
+  vec4 q, ts, s0, s1;  // rotation (x, y, z, w); translation (and s); the stretch
 };
 
 Baked baked_record(uint frame, uint j) {
-  uint at = 2u * (frame * joint_count + j);
-  return Baked(frames[at], frames[at + 1u]);
+  uint at = kBakedRows * (frame * joint_count + j);
+#if ANIM_BAKED == 2
+  return Baked(frames[at], frames[at + 1u], frames[at + 2u], frames[at + 3u]);
+#else
+  return Baked(frames[at], frames[at + 1u], vec4(0.0), vec4(0.0));
+#endif
 }
 
 Baked baked_mix(Baked x, Baked y, float u) {
   vec4 q2 = dot(x.q, y.q) < 0.0 ? -y.q : y.q;
-  return Baked(anim_normalize_quat(x.q + u * (q2 - x.q)), x.ts + u * (y.ts - x.ts));
+  return Baked(anim_normalize_quat(x.q + u * (q2 - x.q)), x.ts + u * (y.ts - x.ts), x.s0 + u * (y.s0 - x.s0),
+               x.s1 + u * (y.s1 - x.s1));
 }
 
 Baked baked_sample(uint clip, float t, uint j) {
@@ -218,6 +230,22 @@ Baked baked_sample(uint clip, float t, uint j) {
   float u = length > 0.0 ? min(max((t - range.x) / length, 0.0), 1.0) * float(count - 1u) : 0.0;
   uint k = min(uint(u), count - 2u);
   return baked_mix(baked_record(first + k, j), baked_record(first + k + 1u, j), u - float(k));
+}
+
+// The rows of R(q) S | t (a similarity: S = s I).
+Affine baked_affine(Baked x) {
+#if ANIM_BAKED == 2
+  Affine r = anim_to_affine(Trs(vec4(0.0), x.q, vec4(1.0, 1.0, 1.0, 0.0)));
+  vec4 s_row0 = vec4(x.s0.x, x.s0.w, x.s1.x, 0.0), s_row1 = vec4(x.s0.w, x.s0.y, x.s1.y, 0.0);
+  vec4 s_row2 = vec4(x.s1.x, x.s1.y, x.s0.z, 0.0);
+  Affine m;
+  m.row0 = r.row0.x * s_row0 + r.row0.y * s_row1 + r.row0.z * s_row2 + vec4(0.0, 0.0, 0.0, x.ts.x);
+  m.row1 = r.row1.x * s_row0 + r.row1.y * s_row1 + r.row1.z * s_row2 + vec4(0.0, 0.0, 0.0, x.ts.y);
+  m.row2 = r.row2.x * s_row0 + r.row2.y * s_row1 + r.row2.z * s_row2 + vec4(0.0, 0.0, 0.0, x.ts.z);
+  return m;
+#else
+  return anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, vec4(x.ts.www, 0.0)));
+#endif
 }
 
 void main() {
@@ -235,7 +263,7 @@ void main() {
     }
     Baked x = baked_sample(in_.x & 0xffffu, uintBitsToFloat(in_.y), j);
     if (w != 0.0) x = baked_mix(x, baked_sample(in_.x >> 16, uintBitsToFloat(in_.z), j), w);
-    Affine m = anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, vec4(x.ts.www, 0.0)));
+    Affine m = baked_affine(x);
     palette[base + rows * j] = m.row0;
     palette[base + rows * j + 1u] = m.row1;
     palette[base + rows * j + 2u] = m.row2;

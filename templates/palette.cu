@@ -187,18 +187,31 @@ __device__ uint4 anim_advance(const float4* __restrict__ clips, uint4 in, const 
 
 #if ANIM_BAKED
 // Baked clips: palette.cl's baked kernel (docs/ANIMATION.md "Baked clips").
+// Records of ANIM_BAKED_ROWS float4s (palette.cl says which).
+#if ANIM_BAKED == 2
+#define ANIM_BAKED_ROWS 4u
+#else
+#define ANIM_BAKED_ROWS 2u
+#endif
+
 struct Baked {
-  float4 q, ts;  // rotation (x, y, z, w); translation and uniform scale
+  float4 q, ts, s0, s1;  // rotation (x, y, z, w); translation (and s); the stretch
 };
 
 __device__ Baked baked_record(const float4* __restrict__ frames, const unsigned frame, const unsigned j) {
-  const unsigned long long at = 2ull * (static_cast<unsigned long long>(frame) * ANIM_JOINT_COUNT + j);
-  return Baked{frames[at], frames[at + 1u]};
+  const unsigned long long at = ANIM_BAKED_ROWS * (static_cast<unsigned long long>(frame) * ANIM_JOINT_COUNT + j);
+#if ANIM_BAKED == 2
+  return Baked{frames[at], frames[at + 1u], frames[at + 2u], frames[at + 3u]};
+#else
+  const float4 zero = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
+  return Baked{frames[at], frames[at + 1u], zero, zero};
+#endif
 }
 
 __device__ Baked baked_mix(const Baked& x, const Baked& y, const float u) {
   const float4 q2 = dot4(x.q, y.q) < 0.0f ? -y.q : y.q;
-  return Baked{anim_normalize_quat(x.q + u * (q2 - x.q)), x.ts + u * (y.ts - x.ts)};
+  return Baked{anim_normalize_quat(x.q + u * (q2 - x.q)), x.ts + u * (y.ts - x.ts), x.s0 + u * (y.s0 - x.s0),
+               x.s1 + u * (y.s1 - x.s1)};
 }
 
 __device__ Baked baked_sample(const float4* __restrict__ frames, const float4* __restrict__ clips,
@@ -213,6 +226,27 @@ __device__ Baked baked_sample(const float4* __restrict__ frames, const float4* _
   const unsigned k = min(static_cast<unsigned>(u), count - 2u);
   return baked_mix(baked_record(frames, first + k, j), baked_record(frames, first + k + 1u, j),
                    u - static_cast<float>(k));
+}
+
+// The rows of R(q) S | t (a similarity: S = s I).
+__device__ Affine baked_affine(const Baked& x) {
+  Trs trs;
+  trs.t = make_float4(x.ts.x, x.ts.y, x.ts.z, 0.0f);
+  trs.r = x.q;
+#if ANIM_BAKED == 2
+  trs.s = make_float4(1.0f, 1.0f, 1.0f, 0.0f);
+  const Affine r = anim_to_affine(trs);
+  const float4 s_row0 = make_float4(x.s0.x, x.s0.w, x.s1.x, 0.0f), s_row1 = make_float4(x.s0.w, x.s0.y, x.s1.y, 0.0f);
+  const float4 s_row2 = make_float4(x.s1.x, x.s1.y, x.s0.z, 0.0f);
+  Affine m;
+  m.row0 = r.row0.x * s_row0 + r.row0.y * s_row1 + r.row0.z * s_row2 + make_float4(0.0f, 0.0f, 0.0f, x.ts.x);
+  m.row1 = r.row1.x * s_row0 + r.row1.y * s_row1 + r.row1.z * s_row2 + make_float4(0.0f, 0.0f, 0.0f, x.ts.y);
+  m.row2 = r.row2.x * s_row0 + r.row2.y * s_row1 + r.row2.z * s_row2 + make_float4(0.0f, 0.0f, 0.0f, x.ts.z);
+  return m;
+#else
+  trs.s = make_float4(x.ts.w, x.ts.w, x.ts.w, 0.0f);
+  return anim_to_affine(trs);
+#endif
 }
 
 extern "C" __global__ void __launch_bounds__(ANIM_GROUP)
@@ -236,11 +270,7 @@ skintune_palette(const float4* __restrict__ frames, const uint4* __restrict__ in
     }
     Baked x = baked_sample(frames, clips, in.x & 0xffffu, __uint_as_float(in.y), j);
     if (w != 0.0f) x = baked_mix(x, baked_sample(frames, clips, in.x >> 16, __uint_as_float(in.z), j), w);
-    Trs trs;
-    trs.t = make_float4(x.ts.x, x.ts.y, x.ts.z, 0.0f);
-    trs.r = x.q;
-    trs.s = make_float4(x.ts.w, x.ts.w, x.ts.w, 0.0f);
-    const Affine m = anim_to_affine(trs);
+    const Affine m = baked_affine(x);
     out[rows * j] = m.row0;
     out[rows * j + 1u] = m.row1;
     out[rows * j + 2u] = m.row2;

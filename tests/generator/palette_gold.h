@@ -127,16 +127,18 @@ inline void ExpectWithinBound(const std::string& what, const Worst& worst) {
 
 // ------------------------------------------------------------- baked clips
 
-// One baked record in float64: q, t, s (cpu_kernels/palette_kernel.h kBakedFloats).
+// One baked record in float64: q, t, the stretch S (cpu_kernels/palette_kernel.h).
 struct BakedGoldRecord {
   glm::dquat q;
   glm::dvec3 t;
-  double s = 1.0;
+  glm::dmat3 s;
 };
 
 inline BakedGoldRecord BakedRecordOf(const PackedAnimation& baked, std::uint32_t frame, std::size_t j) {
-  const float* p = baked.frames.data() + kBakedFloats * (std::size_t{frame} * baked.joints.size() + j);
-  return {glm::dquat(p[3], p[0], p[1], p[2]), glm::dvec3(p[4], p[5], p[6]), p[7]};
+  const float* p = baked.frames.data() + 4 * baked.baked_rows * (std::size_t{frame} * baked.joints.size() + j);
+  BakedGoldRecord r{glm::dquat(p[3], p[0], p[1], p[2]), glm::dvec3(p[4], p[5], p[6]), glm::dmat3(double{p[7]})};
+  if (baked.baked_rows == kBakedRowsAffine) r.s = glm::dmat3(p[8], p[11], p[12], p[11], p[9], p[13], p[12], p[13], p[10]);
+  return r;
 }
 
 inline BakedGoldRecord BakedGoldMix(const BakedGoldRecord& x, const BakedGoldRecord& y, double u) {
@@ -162,7 +164,7 @@ inline std::vector<glm::dmat4> BakedGoldPalette(const PackedAnimation& baked, co
   for (std::size_t j = 0; j < palette.size(); ++j) {
     BakedGoldRecord x = BakedGoldSample(baked, in.clip, in.time, j);
     if (in.weight != 0.0f) x = BakedGoldMix(x, BakedGoldSample(baked, in.clip2, in.time2, j), in.weight);
-    palette[j] = glm::dmat4(glm::mat3_cast(x.q) * x.s);
+    palette[j] = glm::dmat4(glm::mat3_cast(x.q) * x.s);  // R(q) S
     palette[j][3] = glm::dvec4(x.t, 1.0);
   }
   return palette;

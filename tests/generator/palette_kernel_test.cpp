@@ -30,6 +30,7 @@
 #include "generator/languages.h"
 #include "generator/packer.h"
 #include "generator/palette_kernel.h"
+#include "model/synthetic.h"
 #include "reference/skinning.h"
 #include "tests/common/test_asset.h"
 #include "tests/generator/deep_rig.h"
@@ -324,6 +325,7 @@ TEST(PaletteKernelBaked, StatesEachClipsMemoryAndErrorWhichHoldsBetweenItsChecks
       const AnimationClip& clip = asset->animations[c];
       const BakedClipInfo& info = coarse.baked[c];
       EXPECT_EQ(info.frames, static_cast<std::uint32_t>(std::ceil(clip.duration() * 30.0 - 1e-9) + 1)) << info.name;
+      EXPECT_EQ(coarse.baked_rows, kBakedRowsSimilar) << info.name;  // no joint of these scales unevenly
       EXPECT_EQ(info.bytes, std::size_t{info.frames} * coarse.joints.size() * 32) << info.name;
       double worst = 0.0;  // at random times: the vertices skinned by both palettes
       for (int k = 0; k < 100; ++k) {
@@ -350,6 +352,33 @@ TEST(PaletteKernelBaked, StatesEachClipsMemoryAndErrorWhichHoldsBetweenItsChecks
       }
     }
   }
+}
+
+// A rig whose joints scale unevenly (the synthetic data sets': each axis by
+// up to 20%, sheared through the hierarchy) is baked as 4-row records with
+// the polar decomposition's stretch, not as a similarity that would lose it:
+// its error falls with the rate like the real models'.
+TEST(PaletteKernelBaked, JointsThatScaleUnevenlyKeepTheirStretch) {
+  const SkinnedAsset asset = GenerateDataset(ParseDatasetKey("2000-b4"));
+  const PackedAnimation coarse = BakeAnimation(asset, 30.0), fine = BakeAnimation(asset, 120.0);
+  EXPECT_EQ(coarse.baked_rows, kBakedRowsAffine);
+  ASSERT_EQ(coarse.baked.size(), 1u);
+  std::printf("[ baked    ] 2000-b4: %u frames at 30/s, stated error %.3g (120/s: %.3g)\n", coarse.baked[0].frames,
+              coarse.baked[0].max_error, fine.baked[0].max_error);
+  EXPECT_LT(coarse.baked[0].max_error, 2e-2);
+  EXPECT_LT(fine.baked[0].max_error, coarse.baked[0].max_error / 4);
+  EXPECT_EQ(coarse.baked[0].bytes, std::size_t{coarse.baked[0].frames} * coarse.joints.size() * 64);
+  // At a frame the stored stretch reproduces the palette to float32 precision.
+  const AnimInstance at_frame{0, kAnimRestPose, coarse.clip_ranges[0], 0.0f, 0.0f};
+  const std::vector<glm::dmat4> baked = BakedGoldPalette(coarse, at_frame);
+  const std::vector<glm::dmat4> exact = asset.skeleton.PaletteD(asset.PoseAt(0, at_frame.time));
+  for (std::size_t j = 0; j < baked.size(); ++j)
+    for (int c = 0; c < 4; ++c)
+      EXPECT_LT(glm::length(baked[j][c] - exact[j][c]), 1e-5 * std::max(1.0, glm::length(exact[j][c]))) << j;
+  // Every API's kernel check (ExpectBakedClipsMatchTheirFrames) runs both
+  // forms: the glTF models' 2-row records and the deep rig's 4-row ones.
+  EXPECT_EQ(BakeAnimation(DeepRig(), 30.0).baked_rows, kBakedRowsAffine);
+  EXPECT_EQ(BakeAnimation(TestAsset("Fox.gltf"), 30.0).baked_rows, kBakedRowsSimilar);
 }
 
 TEST(PaletteKernelBaked, RefusesBadRatesAndBadFramesNamingTheElement) {

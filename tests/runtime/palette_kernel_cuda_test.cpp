@@ -43,13 +43,16 @@ TEST(PaletteKernelCuda, CompilesCleanlyWithNvrtcWithTheOpenClKernelsArguments) {
   // The instance is the grid's y, the joint its x.
   EXPECT_NE(r.ptx.find("%ctaid.y"), std::string::npos);
   // Baked clips: frames, instances, palette, clips, states, delta, fresh.
-  const PackedAnimation baked = BakeAnimation(testing::TestAsset("Fox.gltf"), 30.0);
-  const CompileResult b =
-      CompileWithNvrtc(EmitPalette(Lang::kCuda, baked.View(), 3).kernel.text, "compute_90", "palette.cu (baked)");
-  ASSERT_TRUE(b.ok) << b.error;
-  EXPECT_EQ(b.log.find("warning"), std::string::npos) << b.log;
-  EXPECT_NE(b.ptx.find("skintune_palette_param_6"), std::string::npos);
-  EXPECT_EQ(b.ptx.find("skintune_palette_param_7"), std::string::npos);
+  // Both record forms (Fox's similarities, the deep rig's stretches).
+  for (const SkinnedAsset* asset : {&testing::TestAsset("Fox.gltf"), &testing::DeepRig()}) {
+    const PackedAnimation baked = BakeAnimation(*asset, 30.0);
+    const CompileResult b =
+        CompileWithNvrtc(EmitPalette(Lang::kCuda, baked.View(), 3).kernel.text, "compute_90", "palette.cu (baked)");
+    ASSERT_TRUE(b.ok) << b.error;
+    EXPECT_EQ(b.log.find("warning"), std::string::npos) << b.log;
+    EXPECT_NE(b.ptx.find("skintune_palette_param_6"), std::string::npos);
+    EXPECT_EQ(b.ptx.find("skintune_palette_param_7"), std::string::npos);
+  }
 }
 
 using testing::Blends;

@@ -70,6 +70,7 @@ class CpuPlanned final : public PlannedLaunch {
   // A baked animation's kernel (ANIM_BAKED): it reads no joints buffer, so
   // this holds ANIM_JOINT_COUNT records for the view's joint count.
   bool baked = false;
+  std::uint32_t baked_rows = 0;  // ANIM_BAKED 1: kBakedRowsSimilar, 2: kBakedRowsAffine
   std::vector<AnimJointRecord> baked_joints;
   int morph_targets = 0;  // MORPH_TARGETS of a morph variant, else 0
 };
@@ -263,6 +264,8 @@ std::unique_ptr<PlannedLaunch> CpuApi::Plan(const LaunchSpec& spec) {
     plan->clip_count = static_cast<std::uint32_t>(parsed.defines.at("ANIM_CLIP_COUNT"));
     plan->palette_rows = static_cast<int>(parsed.defines.at("ANIM_PALETTE_ROWS"));
     plan->baked = flag("ANIM_BAKED");
+    plan->baked_rows = parsed.defines.contains("ANIM_BAKED") && parsed.defines.at("ANIM_BAKED") == 2 ? kBakedRowsAffine
+                                                                                                    : kBakedRowsSimilar;
     if (plan->baked) plan->baked_joints.resize(static_cast<std::size_t>(parsed.defines.at("ANIM_JOINT_COUNT")));
     return plan;
   }
@@ -334,6 +337,7 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
     view.clip_count = plan.clip_count;
     if (plan.baked) {
       view.frames = span_of(kAnimFrames, static_cast<const float*>(nullptr));
+      view.baked_rows = plan.baked_rows;
       view.joints = plan.baked_joints;
     } else {
       view.nodes = span_of(kAnimInputs[0], static_cast<const AnimNodeRecord*>(nullptr));

@@ -481,10 +481,11 @@ struct SkinnerOptions {
   // the model's keyframes on the device every frame. A rate in (0,
   // kMaxBakeRate] frames a second bakes every clip once, when the Skinner is
   // made (docs/ANIMATION.md "Baked clips"): each joint's palette entry at
-  // evenly spaced frames, as a rotation, a translation and a uniform scale
-  // (32 bytes a joint and frame), so that the device reads two frames a joint
-  // instead of keys and the hierarchy. Between frames, rotations are nlerped
-  // along the shortest path, translations and scales lerped; a blend of two
+  // evenly spaced frames, as a rotation, a translation and a stretch (32
+  // bytes a joint and frame; 64 where a joint scales unevenly), so that the
+  // device reads two frames a joint instead of keys and the hierarchy.
+  // Between frames, rotations are nlerped
+  // along the shortest path, translations and stretches lerped; a blend of two
   // clips mixes their palette entries the same way (in the model's space, not
   // each joint's local space as sampled clips do). What each clip costs and
   // loses: baked_clips(). A different result, so the user's choice.
