@@ -16,6 +16,7 @@
 
 #include "generator/axes.h"
 #include "runtime/backend_table.h"
+#include "runtime/winners_db.h"
 
 namespace skintune::internal {
 
@@ -160,6 +161,7 @@ class ResultSummariser {
     for (std::size_t d = first_device_; d < s_.devices.size(); ++d) {
       Gbps(d);
       AxisCharts(d);
+      Rows(d);
     }
   }
 
@@ -390,7 +392,7 @@ class ResultSummariser {
       std::map<Lang, const Measurement*> best;
       std::map<Lang, const Winner*> winner_of;
       for (const Winner& w : chosen)
-        if (w.device_id == device.id && w.dataset == dataset.key) winner_of[w.lang] = &w;
+        if (w.device_id == device.id && w.dataset == dataset.key && Plain(w)) winner_of[w.lang] = &w;
       for (const Measurement* m : Of(device.id, dataset.key)) {
         if (m->status != MeasureStatus::kOk) continue;
         const auto w = winner_of.find(m->variant.lang);
@@ -418,6 +420,41 @@ class ResultSummariser {
       chart.series.push_back(std::move(s));
     }
     s_.gbps.push_back(std::move(chart));
+  }
+
+  static bool Plain(const Winner& w) {
+    return w.morph_targets == 0 && w.variant.normal_format == NormalFormat::kF32 &&
+           w.variant.blend != Blend::kDualQuaternion;
+  }
+
+  void Rows(std::size_t d) {
+    const SummaryDevice& device = s_.devices[d];
+    const std::vector<Winner> chosen = BudgetWinners(ComputeWinners(r_.tuning), r_.tuning.tie_margin);
+    for (const Winner& w : chosen) {
+      if (w.device_id != device.id || !w.within_budget) continue;
+      RowWinner r;
+      r.device = d;
+      r.lang = w.lang;
+      r.dataset = w.dataset;
+      r.row = RowName(w) + (w.variant.blend == Blend::kDualQuaternion ? " dq" : "");
+      r.variant = w.variant.Key();
+      r.median_ms = w.median_ms;
+      r.low_ms = w.low_ms;
+      r.high_ms = w.high_ms;
+      r.gbps = w.gbps;
+      r.x_copy = w.x_copy;
+      r.position_rel = w.source_error.position_rel;
+      r.normal_abs = w.source_error.normal_abs;
+      r.plain = Plain(w);
+      for (const Winner& p : chosen) {  // the plain row of the same mesh size and scene
+        if (r.plain || !Plain(p) || !p.within_budget || p.device_id != w.device_id || p.lang != w.lang ||
+            p.influences != w.influences || p.vertices != w.vertices || p.shape != w.shape ||
+            p.instances != w.instances || p.meshes != w.meshes || !(p.median_ms > 0.0))
+          continue;
+        r.vs_plain = w.median_ms / p.median_ms;
+      }
+      s_.rows.push_back(std::move(r));
+    }
   }
 
   void AxisCharts(std::size_t d) {

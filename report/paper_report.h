@@ -212,6 +212,24 @@ struct AxisChart {
   std::vector<AxisEffect> axes;
 };
 
+// One row of the tuner's winners on a device (tuner/report.h BudgetWinners:
+// every data set, language and row, the formats and morph targets a row of
+// their own), with what it costs against its plain row's winner: the same
+// device, language, B, vertex count and scene with f32 normals, no morph
+// targets and linear blending.
+struct RowWinner {
+  std::size_t device = 0;
+  Lang lang = Lang::kOpenCl;
+  std::string dataset;
+  std::string row;      // runtime/winners_db.h RowName, " dq" added for dual quaternions
+  std::string variant;  // its key
+  double median_ms = 0.0, low_ms = 0.0, high_ms = 0.0;
+  double gbps = 0.0, x_copy = 0.0;
+  double position_rel = 0.0, normal_abs = 0.0;  // against the unquantised source (SourceError)
+  bool plain = true;      // f32 normals, no morph targets, linear blending
+  double vs_plain = 0.0;  // median_ms / the plain row's winner's; 0: plain, or no plain row measured
+};
+
 struct PaperSummary {
   std::vector<SummaryResult> results;
   std::vector<SummaryDevice> devices;
@@ -222,6 +240,7 @@ struct PaperSummary {
   std::vector<Table1Grid> opencl_vs_vulkan;
   std::vector<GbpsChart> gbps;             // one per device
   std::vector<AxisChart> axes;             // per device x language with a status-ok measurement
+  std::vector<RowWinner> rows;             // per device, every row's winner within the budget
   // Linear blending against dual quaternions on a twisting joint, every 15
   // degrees from 0 to 180 (reference/candy_wrapper.h): the algorithms' own
   // results, the same in every report with results (none without).

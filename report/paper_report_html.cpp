@@ -248,6 +248,7 @@ class Renderer {
     Table1Section(PaperApi::kVulkan, s_.opencl_vs_vulkan, "table1-opencl-vs-vulkan");
     GbpsSection();
     AxesSection();
+    RowsSection();
     CandyWrapperSection();
     DevicesSection();
     out_ += "<footer>Written by <code>skintune report</code>. Self-contained: no script, no external resource.</footer>\n";
@@ -275,7 +276,7 @@ class Renderer {
     if (s_.results.empty()) out_ += "<p class=\"warn\">No results were given.</p>\n";
     out_ += "<nav><a href=\"#fig1\">Fig. 1</a><a href=\"#table1-opencl-vs-cuda\">Table 1: OpenCL vs CUDA</a>"
             "<a href=\"#table1-opencl-vs-glsl\">Table 1: OpenCL vs GLSL</a><a href=\"#gbps\">GB/s</a>"
-            "<a href=\"#axes\">Variant axes</a><a href=\"#devices\">Devices</a></nav>\n";
+            "<a href=\"#axes\">Variant axes</a><a href=\"#rows\">Rows</a><a href=\"#devices\">Devices</a></nav>\n";
   }
 
   // ---- Fig. 1 ------------------------------------------------------------
@@ -703,6 +704,44 @@ class Renderer {
       }
     }
     out_ += "</svg>\n</figure>\n";
+  }
+
+  // ---- Rows ---------------------------------------------------------------------
+
+  // Every row's winner, the formats, morph targets and blends each a row of
+  // their own, with what it costs against its plain row.
+  void RowsSection() {
+    out_ += "<section id=\"rows\">\n<h2>Every row: formats, morph targets and blends</h2>\n";
+    out_ += "<p>The user chooses a row: the format the normals and tangents are written in, the mesh&#39;s morph "
+            "targets, linear or dual-quaternion blending. Each is tuned as a row of its own, and its winner within "
+            "the error budget is set here against its plain row&#39;s (f32 normals, no morph targets, linear "
+            "blending; the same device, language, B, vertex count and scene): what that choice costs, or "
+            "saves.</p>\n";
+    bool any = false;
+    for (const RowWinner& r : s_.rows) any = any || !r.plain;
+    if (!any) {
+      out_ += "<p class=\"note\">Every row is plain in these results.</p>\n</section>\n";
+      return;
+    }
+    out_ += "<table><thead><tr><th>device</th><th>language</th><th>data set</th><th>row</th><th title=\"the "
+            "kernel's own device time: median and 95% interval\">kernel time</th><th>GB/s</th><th title=\"time / "
+            "the time of a copy of the same bytes\">\xC3\x97 same-size copy</th><th title=\"positions against the "
+            "unquantised source's float64 gold, of the bounding-box diagonal; normals as unit vectors\">error: "
+            "positions, normals</th><th title=\"kernel time / the plain row's winner's\">\xC3\x97 plain row</th>"
+            "<th>tuned winner</th></tr></thead><tbody>\n";
+    for (const RowWinner& r : s_.rows) {
+      const std::string interval =
+          r.high_ms > r.low_ms ? " [" + FormatSignificant(r.low_ms, 3) + ", " + FormatSignificant(r.high_ms, 3) + "]" : "";
+      out_ += "<tr><td>" + Esc(s_.devices[r.device].label) + "</td><td>" + Esc(Name(r.lang)) + "</td><td>" +
+              Esc(r.dataset) + "</td><td>" + Esc(r.row) + "</td><td class=\"num\">" + FormatMs(r.median_ms) +
+              Esc(interval) + "</td><td class=\"num\">" + FormatGbps(r.gbps) + "</td><td class=\"num\">" +
+              (r.x_copy > 0.0 ? FormatSignificant(r.x_copy, 3) : std::string("not measured")) +
+              "</td><td class=\"num\">" + Scientific(r.position_rel) + ", " + Scientific(r.normal_abs) +
+              "</td><td class=\"num\">" +
+              (r.plain ? std::string("plain") : r.vs_plain > 0.0 ? FormatSpeedup(r.vs_plain) : "no plain row") +
+              "</td><td><code>" + Esc(r.variant) + "</code></td></tr>\n";
+    }
+    out_ += "</tbody></table>\n</section>\n";
   }
 
   // ---- Devices --------------------------------------------------------------------

@@ -275,6 +275,39 @@ TEST(PaperSummary, GbpsSeriesArePerLanguageAndBWithTheFractionOfTheDevicesCopy) 
   EXPECT_LT(gl.series[0].points[0].vertices, gl.series[0].points[2].vertices);
 }
 
+// A row the user chooses (here normals written oct16) has its own winner,
+// set against its plain row's on the same device, language and mesh; the
+// GB/s chart keeps the plain row's winner.
+TEST(PaperSummary, EveryRowsWinnerStandsAgainstItsPlainRow) {
+  PaperResult r = Tiny();
+  const DeviceIdentity gpu = testing::SampleOpenClGpu();
+  Variant plain = ParseVariantKey(kTunedOpenCl), oct16 = plain;
+  plain.normals = oct16.normals = Normals::kNormals;
+  oct16.normal_format = NormalFormat::kOct16;
+  r.tuning.measurements.push_back(PaperMeasurement(gpu, r.tuning.datasets[0], plain, 0.3));
+  r.tuning.measurements.push_back(PaperMeasurement(gpu, r.tuning.datasets[0], oct16, 0.24));
+  const PaperSummary s = Summarise({r});
+  const RowWinner* packed = nullptr;
+  const RowWinner* opencl_plain = nullptr;
+  for (const RowWinner& row : s.rows) {
+    if (row.lang != Lang::kOpenCl) continue;
+    (row.plain ? opencl_plain : packed) = &row;
+  }
+  ASSERT_NE(packed, nullptr);
+  ASSERT_NE(opencl_plain, nullptr);
+  EXPECT_EQ(packed->row, "100k normals oct16");
+  EXPECT_EQ(packed->variant, oct16.Key());
+  EXPECT_DOUBLE_EQ(packed->vs_plain, 0.24 / 0.25);  // against the plain row's winner, the 0.25 ms nonormals kernel
+  EXPECT_EQ(opencl_plain->row, "100k");
+  EXPECT_DOUBLE_EQ(opencl_plain->vs_plain, 0.0);
+  EXPECT_EQ(s.gbps[DeviceIndex(s, gpu)].series[0].points[0].variant.normal_format, NormalFormat::kF32);
+  const std::string rows = Section(RenderHtml(s), "rows");
+  EXPECT_NE(rows.find("100k normals oct16"), std::string::npos) << rows;
+  EXPECT_NE(rows.find("0.960\xC3\x97"), std::string::npos) << rows;
+  // Without such a row the section says every row is plain.
+  EXPECT_NE(Section(RenderHtml(Summarise({Tiny()})), "rows").find("Every row is plain"), std::string::npos);
+}
+
 TEST(PaperSummary, AxisEffectsAreTheBestTimePerValueRelativeToTheBestOfAll) {
   const PaperSummary s = Summarise({Tiny()});
   ASSERT_EQ(s.axes.size(), 2u);
@@ -523,7 +556,7 @@ TEST(PaperReportHtml, HasNoScriptAndNoExternalReference) {
 TEST(PaperReportHtml, HasEverySectionAndOneChartPerFigure1DeviceAndDeviceLanguage) {
   const PaperSummary s = Summarise({SamplePaperResult()});
   const std::string html = RenderHtml(s);
-  for (const char* id : {"fig1", "table1-opencl-vs-cuda", "table1-opencl-vs-glsl", "gbps", "axes", "devices",
+  for (const char* id : {"fig1", "table1-opencl-vs-cuda", "table1-opencl-vs-glsl", "gbps", "axes", "rows", "devices",
                          "fig1-0", "candy-wrapper", "candy-wrapper-chart"}) {
     EXPECT_TRUE(HasId(html, id)) << id;
   }
