@@ -180,6 +180,24 @@ std::string RenderMarkdown(const PaperSummary& s) {
     }
     out += "\n";
   }
+  // Every row the user chooses beside its plain row (PaperSummary::rows), as the HTML's "Every row".
+  std::string rows;
+  for (const RowWinner& r : s.rows) {
+    if (r.plain) continue;
+    rows += "| " + Cell(s.devices[r.device].label) + " | " + Name(r.lang) + " | " + Cell(r.dataset) + " | " +
+            Cell(r.row) + " | " + FormatMs(r.median_ms) + " | " +
+            (r.x_copy > 0.0 ? FormatSignificant(r.x_copy, 3) : std::string(kDash)) + " | " +
+            FormatError(r.position_rel) + ", " + FormatError(r.normal_abs) + " | " +
+            (r.vs_plain > 0.0 ? FormatSignificant(r.vs_plain, 3) : std::string("no plain row")) + " | `" +
+            Cell(r.variant) + "` |\n";
+  }
+  if (!rows.empty())
+    out += "## Every row\n\nEach row the user chooses (normals written packed, morph targets, dual quaternions) "
+           "beside its plain row's winner on the same device, language and mesh: x plain = its time over that "
+           "winner's; error = positions against the unquantised source (of the diagonal), normals (unit "
+           "vectors).\n\n| device | language | data set | row | time | x copy | error | x plain | tuned winner |\n"
+           "| --- | --- | --- | --- | ---: | ---: | ---: | ---: | --- |\n" +
+           rows + "\n";
   out += "## Devices\n\n| backend | platform | name | vendor | driver | API version | type | compute units | memory | "
          "last-level cache | copy |\n| --- | --- | --- | --- | --- | --- | --- | ---: | ---: | ---: | ---: |\n";
   for (const SummaryDevice& d : s.devices) {

@@ -306,6 +306,12 @@ TEST(PaperSummary, EveryRowsWinnerStandsAgainstItsPlainRow) {
   EXPECT_NE(rows.find("0.960\xC3\x97"), std::string::npos) << rows;
   // Without such a row the section says every row is plain.
   EXPECT_NE(Section(RenderHtml(Summarise({Tiny()})), "rows").find("Every row is plain"), std::string::npos);
+  // The Markdown summary lists the same row with its ratio; without one it has no such section.
+  const std::string markdown = RenderMarkdown(s);
+  EXPECT_NE(markdown.find("## Every row"), std::string::npos);
+  EXPECT_NE(markdown.find("| 100k normals oct16 | 0.240 ms |"), std::string::npos) << markdown;
+  EXPECT_NE(markdown.find("| 0.960 |"), std::string::npos) << markdown;
+  EXPECT_EQ(RenderMarkdown(Summarise({Tiny()})).find("## Every row"), std::string::npos);
 }
 
 TEST(PaperSummary, AxisEffectsAreTheBestTimePerValueRelativeToTheBestOfAll) {
