@@ -289,21 +289,16 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> cl
   out.clip_ranges.clear();
   out.bake_rate = rate;
   const std::size_t joints = out.joints.size();
-  // 1: every frame's records in float64 (the rest pose first), and the form
-  // they need: 2 rows where every transform is a similarity, else 4.
+  // The frames: the rest pose, then each clip's evenly spaced times. Their
+  // records are made twice (below) rather than kept in float64 between the
+  // two passes: a baking near kMaxBakedFloats would otherwise hold 8 times
+  // its own size in host memory.
   struct Frame {
     int clip = -1;  // asset clip (-1: the rest pose)
     double t = 0.0;
-    std::vector<BakedJoint> records;
   };
-  std::vector<Frame> frames;
+  std::vector<Frame> frames = {Frame{}};
   std::vector<std::uint32_t> counts(clips.size());
-  const auto bake = [&](int clip, double t, const std::string& what) {
-    const std::vector<glm::dmat4> palette = asset.skeleton.PaletteD(asset.PoseAt(clip, t));
-    Frame& f = frames.emplace_back(Frame{clip, t, {}});
-    for (std::size_t j = 0; j < joints; ++j) f.records.push_back(BakeJoint(palette[j], what + " joint " + std::to_string(j)));
-  };
-  bake(-1, 0.0, asset.source + ": rest pose");
   for (std::size_t c = 0; c < clips.size(); ++c) {
     const AnimationClip& clip = asset.animations[static_cast<std::size_t>(clips[c])];
     const double duration = clip.duration();
@@ -313,20 +308,32 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> cl
       throw Error(asset.source + ": baked at " + Number(rate) + " frames a second, more than " +
                   std::to_string(kMaxBakedFloats) + " floats of frames");
     const double step = counts[c] > 1 ? duration / (counts[c] - 1) : 0.0;
-    for (std::uint32_t k = 0; k < counts[c]; ++k)
-      bake(clips[c], clip.start + k * step,
-           asset.source + ": " + ClipName(asset, clips[c]) + " at t=" + Number(clip.start + k * step) + " s");
+    for (std::uint32_t k = 0; k < counts[c]; ++k) frames.push_back({clips[c], clip.start + k * step});
   }
+  std::vector<BakedJoint> records(joints);
+  const auto records_of = [&](const Frame& f) -> const std::vector<BakedJoint>& {
+    const std::vector<glm::dmat4> palette = asset.skeleton.PaletteD(asset.PoseAt(f.clip, f.t));
+    const std::string what = asset.source + ": " +
+                             (f.clip < 0 ? std::string("rest pose") : ClipName(asset, f.clip) + " at t=" + Number(f.t) + " s");
+    for (std::size_t j = 0; j < joints; ++j) records[j] = BakeJoint(palette[j], what + " joint " + std::to_string(j));
+    return records;
+  };
+  // 1: the form the records need: 2 rows where every transform is a
+  // similarity, else 4.
   out.baked_rows = kBakedRowsSimilar;
-  for (const Frame& f : frames)
-    for (const BakedJoint& b : f.records)
+  for (std::size_t f = 0; f < frames.size() && out.baked_rows == kBakedRowsSimilar; ++f)
+    for (const BakedJoint& b : records_of(frames[f]))
       if (!Similar(b.s)) out.baked_rows = kBakedRowsAffine;
   // 2: stored as float32 in that form; each clip's error measured with the
   // records as stored, at its frames and 1/4, 1/2, 3/4 between them.
   const double diagonal = BoundingBoxDiagonal(asset.mesh.positions);
   std::vector<BakedJoint> stored(joints), previous(joints), mixed(joints);
-  for (std::size_t j = 0; j < joints; ++j)
-    PutBaked(frames[0].records[j], out.baked_rows, out.frames, asset.source + ": rest pose joint " + std::to_string(j));
+  const auto put = [&](const Frame& f) {
+    const std::vector<BakedJoint>& made = records_of(f);
+    for (std::size_t j = 0; j < joints; ++j)
+      stored[j] = PutBaked(made[j], out.baked_rows, out.frames, asset.source + ": frames joint " + std::to_string(j));
+  };
+  put(frames[0]);
   std::size_t next = 1;
   for (std::size_t c = 0; c < clips.size(); ++c) {
     const std::uint32_t count = counts[c], first = static_cast<std::uint32_t>(next);
@@ -335,8 +342,7 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> cl
     double worst = 0.0;
     for (std::uint32_t k = 0; k < count; ++k, ++next) {
       const Frame& f = frames[next];
-      for (std::size_t j = 0; j < joints; ++j)
-        stored[j] = PutBaked(f.records[j], out.baked_rows, out.frames, asset.source + ": frame joint " + std::to_string(j));
+      put(f);
       for (const double u : {0.0, 0.25, 0.5, 0.75, 1.0}) {  // between the last frame and this one
         if ((k == 0 && count > 1) || (u != 1.0 && (k == 0 || (u == 0.0 && k > 1)))) continue;
         for (std::size_t j = 0; j < joints; ++j) mixed[j] = k == 0 ? stored[j] : MixBaked(previous[j], stored[j], u);

@@ -33,7 +33,7 @@ inline constexpr std::size_t kAnimMaxKeys = 0x7fffffff;               // times, 
 
 // Baking (BakeAnimation): the rate's range, and the frames' size limit.
 inline constexpr double kAnimMaxBakeRate = 1000.0;                     // frames a second
-inline constexpr std::size_t kMaxBakedFloats = std::size_t{1} << 30;  // 4 GiB of frames
+inline constexpr std::size_t kMaxBakedFloats = std::size_t{1} << 28;  // 1 GiB of frames
 
 // What baking a clip cost and lost: its frames, their bytes on the device,
 // and the largest distance between a vertex of the mesh skinned by the baked

@@ -417,6 +417,47 @@ TEST(PaletteKernelBaked, RefusesBadRatesAndBadFramesNamingTheElement) {
             std::string::npos);
 }
 
+// A clip of one key (no duration) bakes as one frame, its pose at every time;
+// a clip so long that its frames would pass kMaxBakedFloats is refused before
+// anything is baked, naming the file.
+TEST(PaletteKernelBaked, AClipWithoutDurationIsOneFrameAndAnAbsurdOneIsRefused) {
+  SkinnedAsset still = TestAsset("RiggedSimple.gltf");
+  for (Channel& channel : still.animations[0].channels) {
+    channel.times.resize(1);
+    channel.values.resize(channel.interpolation == Interpolation::kCubicSpline ? 3 : 1);
+  }
+  still.animations[0].UpdateRange();
+  const PackedAnimation baked = BakeAnimation(still, 60.0);
+  ASSERT_EQ(baked.baked.size(), 1u);
+  EXPECT_EQ(baked.baked[0].frames, 1u);
+  EXPECT_LT(baked.baked[0].max_error, 1e-6);
+  for (const float t : {-1.0f, 0.0f, 5.0f}) {
+    const std::vector<glm::dmat4> at = BakedGoldPalette(baked, AnimInstance{0, kAnimRestPose, t, 0.0f, 0.0f});
+    const std::vector<glm::dmat4> exact = still.skeleton.PaletteD(still.PoseAt(0, t));
+    for (std::size_t j = 0; j < at.size(); ++j)
+      for (int c = 0; c < 4; ++c) EXPECT_LT(glm::length(at[j][c] - exact[j][c]), 1e-5) << "t " << t << " joint " << j;
+  }
+  const std::vector<AnimInstance> instances = {{0, kAnimRestPose, -1.0f, 0.0f, 0.0f}, {0, kAnimRestPose, 5.0f, 0.0f, 0.0f}};
+  ExpectWithinBound("a clip without duration, cpu baked", testing::CompareBaked(baked, instances, OnCpu(baked, instances)));
+
+  SkinnedAsset endless = TestAsset("RiggedSimple.gltf");
+  Channel& channel = endless.animations[0].channels[0];
+  channel.times.push_back(1e6f);
+  channel.values.push_back(channel.values.back());
+  if (channel.interpolation == Interpolation::kCubicSpline)
+    channel.values.insert(channel.values.end(), {channel.values.back(), channel.values.back()});
+  endless.animations[0].UpdateRange();
+  try {
+    BakeAnimation(endless, 1000.0);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("RiggedSimple.gltf: baked at 1000 frames a second, more than 268435456 "
+                                         "floats of frames"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 // A baked animation's kernel: ANIM_BAKED 1, an item per joint, and its
 // buffers frames, instances, out_palette, clips, states in that order.
 TEST(PaletteKernelBaked, EmitsTheBakedKernelWithItsOwnArgumentsAndGroup) {
