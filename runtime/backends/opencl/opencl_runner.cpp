@@ -279,6 +279,7 @@ class OpenClApi final : public DeviceApi {
   // on the one in-order queue.
   Queue prologues_;
   Event last_live_;  // the last live frame's last launch (whether the device is still busy with it)
+  Event last_prologue_;  // the last palette kernel's launch, on either queue (the next one waits for it)
   Event last_upload_;                          // the latest upload's event, until `queue` waits for it
   // The Skinner's last launch (RunFrames, kLive), until Mark takes its event
   // as the palette ring's fence: on the in-order queue it completes after
@@ -636,15 +637,17 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
   last_launch_.reset();
   if (run.use == FrameUse::kLive) {
     // The prologue (the palette kernel), while the device still runs an
-    // earlier frame, on its own queue after the palette uploads (its wait
-    // list), flushed so that the frame's queue may wait for its event: it runs
-    // beside that frame's skin kernel. When everything queued has completed
-    // (a frame waited for) it goes first on the frame's in-order queue
-    // instead, where it costs no wait between two queues (NVIDIA's OpenCL on
-    // an H200: 64 x 25k-b4 pipelined at 0.93 of Skin-only against 0.74-0.89
-    // on one queue, the waited-for frame 4 us slower with two). The frame's
-    // first launch waits for the prologue's event or the uploads (its wait
-    // list, not a barrier). The last launch's event is kept for Mark.
+    // earlier frame, on its own queue after the palette uploads and the last
+    // prologue (its wait list: one that went on the frame's queue writes the
+    // states this one reads), flushed so that the frame's queue may wait for
+    // its event: it runs beside that frame's skin kernel. When everything
+    // queued has completed (a frame waited for) it goes first on the frame's
+    // in-order queue instead, where it costs no wait between two queues
+    // (NVIDIA's OpenCL on an H200: 64 x 25k-b4 pipelined at 0.93 of
+    // Skin-only against 0.74-0.89 on one queue, the waited-for frame 4 us
+    // slower with two). The frame's first launch waits for the prologue's
+    // event or the uploads (its wait list, not a barrier). The last launch's
+    // event is kept for Mark.
     Event ready = std::move(last_upload_);
     cl_int status = CL_COMPLETE;
     if (last_live_.get())
@@ -658,12 +661,16 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
         Check(err, "launch", "clCreateCommandQueue for the palette kernels on " + name_);
       }
       for (std::size_t l = 0; l < run.prologue.size(); ++l) {
-        const cl_event wait = ready.get();
+        std::vector<cl_event> wait;
+        for (const cl_event e : {ready.get(), last_prologue_.get()})
+          if (e) wait.push_back(e);
         cl_event event = nullptr;
         live_run_ = &run;  // the prologue's scalars
-        Enqueue(static_cast<const ClBound&>(*run.prologue[l]), nullptr, &event, prologues_.get(), wait ? 1 : 0,
-                wait ? &wait : nullptr);
+        Enqueue(static_cast<const ClBound&>(*run.prologue[l]), nullptr, &event, prologues_.get(),
+                static_cast<cl_uint>(wait.size()), wait.empty() ? nullptr : wait.data());
         live_run_ = nullptr;
+        clRetainEvent(event);
+        last_prologue_ = Event(event);
         ready = Event(event);
       }
       Check(clFlush(prologues_.get()), "launch", "clFlush of the palette kernels' queue");
@@ -676,12 +683,17 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
     const std::size_t in_line = beside ? 0 : run.prologue.size();  // the prologue's launches first in `launches`
     for (std::size_t l = 0; l < launches.size(); ++l) {
       const cl_event wait = ready.get();
+      const bool last = l + 1 == launches.size();
       cl_event event = nullptr;
       live_run_ = l < in_line ? &run : nullptr;  // the prologue's scalars
-      Enqueue(*launches[l], static_cast<cl_mem>(run.out_positions), l + 1 == launches.size() ? &event : nullptr, nullptr,
+      Enqueue(*launches[l], static_cast<cl_mem>(run.out_positions), last || l < in_line ? &event : nullptr, nullptr,
               wait ? 1 : 0, wait ? &wait : nullptr);
       live_run_ = nullptr;
       ready.reset();
+      if (l < in_line && !last) {
+        last_prologue_ = Event(event);
+        continue;
+      }
       if (event) {
         clRetainEvent(event);
         last_live_ = Event(event);
