@@ -108,15 +108,9 @@ class CudaPalettes {
     const PaletteKernel kernel = EmitPalette(Lang::kCuda, packed.View(), 3);
     for (const KernelArgument& a : kernel.kernel.arguments) {
       if (a.kind != ArgumentKind::kBuffer) continue;
-      std::span<const std::uint8_t> bytes;
-      if (a.name == kAnimInputs[0]) bytes = BufferBytes(packed.nodes);
-      if (a.name == kAnimInputs[1]) bytes = BufferBytes(packed.channels);
-      if (a.name == kAnimInputs[2]) bytes = BufferBytes(packed.times);
-      if (a.name == kAnimInputs[3]) bytes = BufferBytes(packed.values);
-      if (a.name == kAnimInputs[4]) bytes = BufferBytes(packed.joints);
-      if (a.name == kAnimInputs[5] || a.name == kAnimStates) bytes = BufferBytes(instances);
-      if (a.name == kAnimClips) bytes = BufferBytes(packed.clip_ranges);
-      if (a.name == kAnimFrames) bytes = BufferBytes(packed.frames);
+      const std::span<const std::uint8_t> bytes = a.name == kAnimInputs[5] || a.name == kAnimStates
+                                                      ? BufferBytes(instances)
+                                                      : AnimationBufferBytes(packed.View(), a.name);
       const std::size_t size =
           a.name == kAnimOutput ? instances.size() * packed.joints.size() * kAnimPaletteRows * 16 : bytes.size();
       cuda::DevicePtr& buffer = buffers_.emplace_back();

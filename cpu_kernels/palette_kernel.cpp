@@ -148,19 +148,17 @@ Affine LocalOf(const AnimationView& a, std::uint32_t node, const AnimInstance& i
   return ToAffine(x);
 }
 
-// The work item (instance, joint j): three float4 rows at `out`. local(n)
-// is node n's local transform for the instance.
+// The work item (instance, joint j): its palette entry. local(n) is node
+// n's local transform for the instance.
 template <typename Local>
-void JointPalette(const AnimationView& a, std::size_t j, const Local& local, float* out) {
+Affine JointPalette(const AnimationView& a, std::size_t j, const Local& local) {
   const AnimJointRecord& joint = a.joints[j];
   const std::uint32_t node = static_cast<std::uint32_t>(joint.node);
   Affine m = local(node);
   for (std::int32_t p = a.nodes[node].parent; p >= 0; p = a.nodes[static_cast<std::uint32_t>(p)].parent)
     m = Multiply(local(static_cast<std::uint32_t>(p)), m);
   const Affine inverse_bind{{Load(joint.inverse_bind[0]), Load(joint.inverse_bind[1]), Load(joint.inverse_bind[2])}};
-  m = Multiply(m, inverse_bind);
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 4; ++c) out[4 * r + c] = m.row[r][c];
+  return Multiply(m, inverse_bind);
 }
 
 // A baked record: the rotation; translation and (similar) scale; the
@@ -411,14 +409,7 @@ void RunPaletteKernel(const AnimationView& a, std::span<const AnimInstance> inst
   for (std::size_t i = 0; i < instances.size(); ++i) {
     for (std::uint32_t n = 0; n < locals.size(); ++n) locals[n] = LocalOf(a, n, instances[i]);
     const auto local = [&](std::uint32_t n) -> const Affine& { return locals[n]; };
-    for (std::size_t j = 0; j < joints; ++j) {
-      float* out = palette + stride * (i * joints + j);
-      JointPalette(a, j, local, out);
-      if (rows == 4) {  // a mat4's last row
-        out[12] = out[13] = out[14] = 0.0f;
-        out[15] = 1.0f;
-      }
-    }
+    for (std::size_t j = 0; j < joints; ++j) put(palette + stride * (i * joints + j), JointPalette(a, j, local));
   }
 }
 

@@ -7,6 +7,19 @@
 
 namespace skintune::internal {
 
+std::span<const std::uint8_t> AnimationBufferBytes(const AnimationView& animation, std::string_view name) {
+  const auto bytes = [](auto span) { return std::as_bytes(span); };
+  const std::span<const std::byte> found = name == kAnimInputs[0]  ? bytes(animation.nodes)
+                                           : name == kAnimInputs[1] ? bytes(animation.channels)
+                                           : name == kAnimInputs[2] ? bytes(animation.times)
+                                           : name == kAnimInputs[3] ? bytes(animation.values)
+                                           : name == kAnimInputs[4] ? bytes(animation.joints)
+                                           : name == kAnimClips     ? bytes(animation.clip_ranges)
+                                           : name == kAnimFrames    ? bytes(animation.frames)
+                                                                    : std::span<const std::byte>();
+  return {reinterpret_cast<const std::uint8_t*>(found.data()), found.size()};
+}
+
 PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette_rows) {
   if (palette_rows != 3 && palette_rows != 4)
     throw Error("palette kernel: " + std::to_string(palette_rows) + " rows per joint (3 or 4)");

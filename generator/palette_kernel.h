@@ -10,6 +10,9 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string_view>
 
 #include "cpu_kernels/palette_kernel.h"
 #include "generator/emit.h"
@@ -49,6 +52,12 @@ inline constexpr const char* kAnimClips = "clips";
 inline constexpr const char* kAnimStates = "states";
 inline constexpr const char* kAnimDelta = "delta";
 inline constexpr const char* kAnimFresh = "fresh";
+
+// The bytes of `animation`'s buffer that the palette kernel's argument
+// `name` binds: nodes, channels, times, values, joints, clips or frames;
+// empty for the per-frame `instances`, the kept `states` and the palette it
+// writes, which are the caller's (Runner::Animate), and for other names.
+std::span<const std::uint8_t> AnimationBufferBytes(const AnimationView& animation, std::string_view name);
 
 struct PaletteKernel {
   KernelSource kernel;  // the language's palette_template in its copy_lang (glsl-vertex: glsl-compute)

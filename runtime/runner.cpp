@@ -894,17 +894,10 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
   // Shared by the slots: the animation, and the states the kernel keeps
   // (read and written by it: an output's buffer; the rest pose to start).
   std::map<std::string, DeviceBuffer*> shared = {
-      {kAnimClips, upload(kAnimClips, bytes_of(animation.clip_ranges), BufferUse::kInput)},
       {kAnimStates, upload(kAnimStates, bytes_of(std::span<const AnimInstance>(rest_pose)), BufferUse::kOutput)}};
-  if (animation.baked()) {  // the frames alone: the kernel reads no hierarchy
-    shared[kAnimFrames] = upload(kAnimFrames, bytes_of(animation.frames), BufferUse::kInput);
-  } else {
-    shared[kAnimInputs[0]] = upload(kAnimInputs[0], bytes_of(animation.nodes), BufferUse::kInput);
-    shared[kAnimInputs[1]] = upload(kAnimInputs[1], bytes_of(animation.channels), BufferUse::kInput);
-    shared[kAnimInputs[2]] = upload(kAnimInputs[2], bytes_of(animation.times), BufferUse::kInput);
-    shared[kAnimInputs[3]] = upload(kAnimInputs[3], bytes_of(animation.values), BufferUse::kInput);
-    shared[kAnimInputs[4]] = upload(kAnimInputs[4], bytes_of(animation.joints), BufferUse::kInput);
-  }
+  for (const KernelArgument& a : p.palette_kernel->spec.source.arguments)  // the animation's own buffers
+    if (a.kind == ArgumentKind::kBuffer && a.name != kAnimOutput && a.name != kAnimInputs[5] && a.name != kAnimStates)
+      shared[a.name] = upload(a.name, AnimationBufferBytes(animation, a.name), BufferUse::kInput);
   // Each slot: its instances (the rest pose until the first upload) and the
   // kernel bound to write its palette; arguments by name.
   for (std::size_t k = 0; k < s.slots.size(); ++k) {

@@ -31,16 +31,12 @@ namespace skintune::internal::testing {
 inline std::span<const std::uint8_t> PaletteInputBytes(const PackedAnimation& packed,
                                                        const std::vector<AnimInstance>& instances,
                                                        const std::string& name) {
-  if (name == kAnimInputs[0]) return BufferBytes(packed.nodes);
-  if (name == kAnimInputs[1]) return BufferBytes(packed.channels);
-  if (name == kAnimInputs[2]) return BufferBytes(packed.times);
-  if (name == kAnimInputs[3]) return BufferBytes(packed.values);
-  if (name == kAnimInputs[4]) return BufferBytes(packed.joints);
   if (name == kAnimInputs[5] || name == kAnimStates) return BufferBytes(instances);
-  if (name == kAnimClips) return BufferBytes(packed.clip_ranges);
-  if (name == kAnimFrames) return BufferBytes(packed.frames);
   if (name == kAnimOutput) return {};
-  throw std::runtime_error("the palette kernel takes an argument '" + name + "' the tests do not know");
+  const std::span<const std::uint8_t> bytes = AnimationBufferBytes(packed.View(), name);
+  if (bytes.empty() && name != kAnimInputs[2] && name != kAnimInputs[3])  // a model without keys has none
+    throw std::runtime_error("the palette kernel takes an argument '" + name + "' the tests do not know");
+  return bytes;
 }
 
 using RunPalettes = std::function<std::vector<float>(const PackedAnimation&, const std::vector<AnimInstance>&)>;
