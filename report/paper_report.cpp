@@ -385,13 +385,10 @@ class ResultSummariser {
     chart.device = d;
     chart.copy_bandwidth_gbps = device.copy_bandwidth_gbps;
     std::map<std::pair<Lang, int>, GbpsSeries> series;
-    // The tuner's own choice of each language and data set (the winner among
-    // the ties at the run's budget: tuner/report.h BudgetWinners).
-    const std::vector<Winner> chosen = BudgetWinners(ComputeWinners(r_.tuning), r_.tuning.tie_margin);
     for (const DatasetInfo& dataset : r_.tuning.datasets) {
       std::map<Lang, const Measurement*> best;
       std::map<Lang, const Winner*> winner_of;
-      for (const Winner& w : chosen)
+      for (const Winner& w : chosen_)
         if (w.device_id == device.id && w.dataset == dataset.key && Plain(w)) winner_of[w.lang] = &w;
       for (const Measurement* m : Of(device.id, dataset.key)) {
         if (m->status != MeasureStatus::kOk) continue;
@@ -429,8 +426,7 @@ class ResultSummariser {
 
   void Rows(std::size_t d) {
     const SummaryDevice& device = s_.devices[d];
-    const std::vector<Winner> chosen = BudgetWinners(ComputeWinners(r_.tuning), r_.tuning.tie_margin);
-    for (const Winner& w : chosen) {
+    for (const Winner& w : chosen_) {
       if (w.device_id != device.id || !w.within_budget) continue;
       RowWinner r;
       r.device = d;
@@ -446,7 +442,7 @@ class ResultSummariser {
       r.position_rel = w.source_error.position_rel;
       r.normal_abs = w.source_error.normal_abs;
       r.plain = Plain(w);
-      for (const Winner& p : chosen) {  // the plain row of the same mesh size and scene
+      for (const Winner& p : chosen_) {  // the plain row of the same mesh size and scene
         if (r.plain || !Plain(p) || !p.within_budget || p.device_id != w.device_id || p.lang != w.lang ||
             p.influences != w.influences || p.vertices != w.vertices || p.shape != w.shape ||
             p.instances != w.instances || p.meshes != w.meshes || !(p.median_ms > 0.0))
@@ -517,6 +513,9 @@ class ResultSummariser {
   const PaperResult& r_;
   std::size_t index_;
   PaperSummary& s_;
+  // The tuner's own choice of each row (the winner among the ties at the
+  // run's budget: tuner/report.h BudgetWinners), made once per result.
+  const std::vector<Winner> chosen_ = BudgetWinners(ComputeWinners(r_.tuning), r_.tuning.tie_margin);
   std::size_t first_device_ = 0;
   std::map<std::pair<std::string, std::string>, std::vector<const Measurement*>> by_device_dataset_;
 };

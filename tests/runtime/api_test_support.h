@@ -90,6 +90,22 @@ inline DeviceOptions CacheIn(const TempDir& dir) {
   return options;
 }
 
+// The fixture of tests run once per backend: Case has a `backend`; SetUp
+// opens that backend's device with a program cache of its own, or skips the
+// test naming why (a machine without that API).
+template <typename Case>
+class BackendFixture : public ::testing::TestWithParam<Case> {
+ protected:
+  void SetUp() override {
+    const Backend backend = this->GetParam().backend;
+    Result<Device> device = Device::Open("", &backend, CacheIn(dir_));
+    if (!device.ok()) GTEST_SKIP() << "no " << BackendName(backend) << " device: " << device.status().message();
+    device_ = std::move(*device);
+  }
+  TempDir dir_;
+  Device device_;
+};
+
 inline std::vector<float> Floats(std::span<const glm::mat4> palette) {
   std::vector<float> out;
   for (const glm::mat4& m : palette)

@@ -44,13 +44,11 @@ void PrintTo(const AnimatedCase& c, std::ostream* out) {
   *out << c.variant << " " << c.model << (c.bake_rate > 0.0 ? " baked" : "");
 }
 
-class SkinnerAnimated : public ::testing::TestWithParam<AnimatedCase> {
+class SkinnerAnimated : public testing::BackendFixture<AnimatedCase> {
  protected:
   void SetUp() override {
-    const Backend backend = GetParam().backend;
-    Result<Device> device = Device::Open("", &backend, CacheIn(dir_));
-    if (!device.ok()) GTEST_SKIP() << "no " << BackendName(backend) << " device: " << device.status().message();
-    device_ = std::move(*device);
+    BackendFixture::SetUp();
+    if (IsSkipped()) return;
     Result<Model> model = Model::Load(std::string(SKINTUNE_TEST_DATA_DIR) + "/" + GetParam().model);
     ASSERT_TRUE(model.ok()) << model.status().message();
     model_ = std::move(*model);
@@ -153,8 +151,6 @@ class SkinnerAnimated : public ::testing::TestWithParam<AnimatedCase> {
     }
   }
 
-  TempDir dir_;
-  Device device_;
   Model model_;
 };
 

@@ -41,14 +41,8 @@ struct DqCase {
 };
 void PrintTo(const DqCase& c, std::ostream* out) { *out << c.variant; }
 
-class SkinnerDualQuaternions : public ::testing::TestWithParam<DqCase> {
+class SkinnerDualQuaternions : public testing::BackendFixture<DqCase> {
  protected:
-  void SetUp() override {
-    const Backend backend = GetParam().backend;
-    Result<Device> device = Device::Open("", &backend, CacheIn(dir_));
-    if (!device.ok()) GTEST_SKIP() << "no " << BackendName(backend) << " device: " << device.status().message();
-    device_ = std::move(*device);
-  }
   SkinnerOptions Options() const {
     SkinnerOptions options;
     options.tangents = true;
@@ -56,8 +50,6 @@ class SkinnerDualQuaternions : public ::testing::TestWithParam<DqCase> {
     options.variant = GetParam().variant;
     return options;
   }
-  TempDir dir_;
-  Device device_;
   View view_{Rigid().mesh};
 };
 

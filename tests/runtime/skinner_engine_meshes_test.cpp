@@ -54,17 +54,7 @@ struct BackendCase {
 };
 void PrintTo(const BackendCase& c, std::ostream* out) { *out << BackendName(c.backend); }
 
-class SkinnerEngineMeshes : public ::testing::TestWithParam<BackendCase> {
- protected:
-  void SetUp() override {
-    const Backend backend = GetParam().backend;
-    Result<Device> device = Device::Open("", &backend, CacheIn(dir_));
-    if (!device.ok()) GTEST_SKIP() << "no " << BackendName(backend) << " device: " << device.status().message();
-    device_ = std::move(*device);
-  }
-  TempDir dir_;
-  Device device_;
-};
+class SkinnerEngineMeshes : public testing::BackendFixture<BackendCase> {};
 
 TEST_P(SkinnerEngineMeshes, PositionsNormalsAndTangentsAreTheGoldInEveryNormalFormat) {
   int with_normals = 0, with_tangents = 0, with_morph = 0;

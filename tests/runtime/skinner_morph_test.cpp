@@ -101,14 +101,8 @@ struct MorphCase {
 };
 void PrintTo(const MorphCase& c, std::ostream* out) { *out << c.variant; }
 
-class SkinnerMorph : public ::testing::TestWithParam<MorphCase> {
+class SkinnerMorph : public testing::BackendFixture<MorphCase> {
  protected:
-  void SetUp() override {
-    const Backend backend = GetParam().backend;
-    Result<Device> device = Device::Open("", &backend, CacheIn(dir_));
-    if (!device.ok()) GTEST_SKIP() << "no " << BackendName(backend) << " device: " << device.status().message();
-    device_ = std::move(*device);
-  }
   Result<Skinner> Create(const MeshView& mesh) {
     SkinnerOptions options;
     options.tangents = true;
@@ -116,8 +110,6 @@ class SkinnerMorph : public ::testing::TestWithParam<MorphCase> {
     options.variant = GetParam().variant;
     return Skinner::Create(device_, WinnersDb::Empty(), mesh, options);
   }
-  TempDir dir_;
-  Device device_;
   MorphView view_{Morphing().mesh};
 };
 

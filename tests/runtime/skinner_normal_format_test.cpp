@@ -40,14 +40,8 @@ struct FormatCase {
 };
 void PrintTo(const FormatCase& c, std::ostream* out) { *out << c.variant; }
 
-class SkinnerNormalFormat : public ::testing::TestWithParam<FormatCase> {
+class SkinnerNormalFormat : public testing::BackendFixture<FormatCase> {
  protected:
-  void SetUp() override {
-    const Backend backend = GetParam().backend;
-    Result<Device> device = Device::Open("", &backend, CacheIn(dir_));
-    if (!device.ok()) GTEST_SKIP() << "no " << BackendName(backend) << " device: " << device.status().message();
-    device_ = std::move(*device);
-  }
   Result<Skinner> Create() {
     SkinnerOptions options;
     options.tangents = true;
@@ -56,8 +50,6 @@ class SkinnerNormalFormat : public ::testing::TestWithParam<FormatCase> {
     options.normal_format = GetParam().format;
     return Skinner::Create(device_, WinnersDb::Empty(), view_.mesh, options);
   }
-  TempDir dir_;
-  Device device_;
   testing::View view_{Asset().mesh};
 };
 

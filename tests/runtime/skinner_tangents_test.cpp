@@ -33,16 +33,8 @@ struct TangentCase {
 };
 void PrintTo(const TangentCase& c, std::ostream* out) { *out << c.variant; }
 
-class SkinnerTangents : public ::testing::TestWithParam<TangentCase> {
+class SkinnerTangents : public testing::BackendFixture<TangentCase> {
  protected:
-  void SetUp() override {
-    const Backend backend = GetParam().backend;
-    Result<Device> device = Device::Open("", &backend, CacheIn(dir_));
-    if (!device.ok()) GTEST_SKIP() << "no " << BackendName(backend) << " device: " << device.status().message();
-    device_ = std::move(*device);
-  }
-  TempDir dir_;
-  Device device_;
   View view_{Tangents().mesh};
 };
 
