@@ -304,6 +304,16 @@ inline constexpr Axis kAxes[] = {
      .chart = Chart::kNo,  // the consumer's format, not a tuning choice: rows of their own
      .embedded_enum = "NormalFormat",
      .key_omits_default = true},
+    {.name = "animation",
+     .field = FieldOf<&Variant::animation>(),
+     .values = {V(Animation::kHost, "host", "anim-host"), V(Animation::kSampled, "sampled", "anim-sampled"),
+                V(Animation::kBaked30, "baked30", "anim-baked30"), V(Animation::kBaked60, "baked60", "anim-baked60"),
+                V(Animation::kBaked120, "baked120", "anim-baked120"), V(Animation::kBaked240, "baked240", "anim-baked240")},
+     .define = kNoDefine,  // the skin kernel is the same: the runner runs the palette kernel before it
+     .covering = Covering::kRotated,
+     .covering_step = 1,
+     .chart = Chart::kNo,  // host or not is set by the scene; the report's rows name the form
+     .key_omits_default = true},
 };
 inline constexpr std::size_t kAxisCount = std::size(kAxes);
 

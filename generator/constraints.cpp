@@ -51,6 +51,23 @@ void CheckShape(const Variant& v, const ProblemShape& shape, std::vector<Violati
                    "morph none: the mesh's " + std::to_string(shape.morph_targets) +
                        " morph targets move its vertices, and a variant without them would skin the wrong shape"});
   }
+  if (AnimatesOnDevice(v) && !shape.animated) {
+    out.push_back({Constraint::kAnimationMissing, std::string("animation ") + Name(v.animation) +
+                                                      ": the scene's palettes come from the host (an animated scene's key ends in -anim)"});
+  }
+  if (!AnimatesOnDevice(v) && shape.animated) {
+    out.push_back({Constraint::kAnimationIgnored,
+                   "animation host: the scene's palettes are made on the device from its model's clips"});
+  }
+  if (AnimatesOnDevice(v) && v.palette == PaletteFormat::kDualQuaternion) {
+    out.push_back({Constraint::kAnimationPalette,
+                   std::string("animation ") + Name(v.animation) + ": the palette kernel writes mat3x4 or mat4 palettes, not dualquat"});
+  }
+  if (AnimatesOnDevice(v) && shape.morph_targets > 0) {
+    out.push_back({Constraint::kAnimationMorph,
+                   "an animated scene with morph targets: the tuner animates scenes without them (a Skinner animates "
+                   "crowds with morph targets: docs/ANIMATION.md)"});
+  }
   if (PacksNormals(v) && !SkinsNormals(v)) {
     out.push_back({Constraint::kNormalFormatUnused,
                    std::string("normal_format ") + Name(v.normal_format) + " packs normals, but the variant skins none"});
@@ -178,6 +195,10 @@ const char* Name(Constraint c) {
     case Constraint::kMorphMissing: return "morph_missing";
     case Constraint::kMorphIgnored: return "morph_ignored";
     case Constraint::kNormalFormatUnused: return "normal_format_unused";
+    case Constraint::kAnimationMissing: return "animation_missing";
+    case Constraint::kAnimationIgnored: return "animation_ignored";
+    case Constraint::kAnimationPalette: return "animation_palette";
+    case Constraint::kAnimationMorph: return "animation_morph";
   }
   return "unknown";
 }

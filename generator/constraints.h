@@ -41,6 +41,9 @@ struct ProblemShape {
   // morph targets, as their weights may change any frame (a shape with
   // targets that no variant needs to apply exists for covering sets).
   bool morph_moves = false;
+  // The scene's palettes are made on the device from its model's clips (a
+  // scene key's "-anim", docs/ANIMATION.md): every variant animates on the device.
+  bool animated = false;
 };
 
 // `shape` with the morph fields of a mesh's morph targets (any target: morph_moves).
@@ -69,6 +72,10 @@ enum class Constraint {
   kMorphMissing,          // a morph value on a mesh without morph targets (not a variant of this data set)
   kMorphIgnored,          // morph none on a mesh whose morph targets move vertices (it would skin the wrong shape)
   kNormalFormatUnused,    // a packed normal format on a variant that skins no normals
+  kAnimationMissing,      // palettes made on the device for a scene the host animates (not a variant of this data set)
+  kAnimationIgnored,      // the host's palettes for a scene animated on the device (not a variant of this data set)
+  kAnimationPalette,      // the palette kernel writes matrices (mat3x4, mat4): not the dualquat palette
+  kAnimationMorph,        // an animated scene with morph targets (the Skinner animates them; the tuner does not)
 };
 
 const char* Name(Constraint);
@@ -84,7 +91,10 @@ std::vector<Violation> CheckVariant(const Variant& v, const DeviceLimits& device
 // Whether the constraint only says the variant does not fit the data set's
 // kind (its morph value): spaces are cut to the data set's values before
 // they are enumerated (ForDataSet, generator/space.h), as a data set sets B.
-constexpr bool NotOfThisDataSet(Constraint c) { return c == Constraint::kMorphMissing || c == Constraint::kMorphIgnored; }
+constexpr bool NotOfThisDataSet(Constraint c) {
+  return c == Constraint::kMorphMissing || c == Constraint::kMorphIgnored || c == Constraint::kAnimationMissing ||
+         c == Constraint::kAnimationIgnored;
+}
 
 // Bytes one palette occupies in the variant's storage (an instanced launch
 // reads `instances` of them; a work-group's local copy holds one).

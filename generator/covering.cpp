@@ -86,6 +86,10 @@ Variant Complete(Variant v, std::size_t i, const DeviceLimits& device, const Pro
     constexpr Morph kSkinning[] = {Morph::kDense, Morph::kSparse, Morph::kDenseHalf, Morph::kSparseHalf};
     v.morph = kSkinning[i % std::size(kSkinning)];
   }
+  // Animation: a scene the host animates has host only, one animated on the device every other value.
+  if (!shape.animated) v.animation = Animation::kHost;
+  if (shape.animated && v.animation == Animation::kHost) v.animation = Animation::kSampled;
+  if (v.animation != Animation::kHost && v.palette == PaletteFormat::kDualQuaternion) v.animation = Animation::kHost;
   if (v.vertices_per_item == 1) v.assignment = Assignment::kContiguous;
   if (HasWorkGroups(v.lang)) {
     for (std::size_t k = 0; k < wgs.size() && !CheckVariant(v, device, shape).empty(); ++k)

@@ -195,6 +195,7 @@ TuningSpace ForDataSet(TuningSpace space, const ProblemShape& shape) {
     return m == Morph::kNone ? shape.morph_moves : shape.morph_targets == 0;
   });
   if (!shape.has_normals) std::erase_if(space.normal_formats, [](NormalFormat f) { return f != NormalFormat::kF32; });
+  std::erase_if(space.animations, [&](Animation a) { return (a != Animation::kHost) != shape.animated; });
   return space;
 }
 

@@ -41,6 +41,7 @@ struct TuningSpace {
   std::vector<Normals> normals;
   std::vector<Morph> morphs;
   std::vector<NormalFormat> normal_formats;
+  std::vector<Animation> animations;
 
   // Every value of every axis: wg sizes 32, 64, 128, 256, 512, 1024.
   static TuningSpace Full();
@@ -59,9 +60,9 @@ template <typename T>
   requires std::same_as<std::remove_const_t<T>, TuningSpace>
 constexpr auto SpaceLists(T& s) {
   auto& [langs, influences, mixed, layouts, positions, indices, weights, palettes, storages, blends,
-         vertices_per_item, assignments, wg_sizes, normals, morphs, normal_formats] = s;
+         vertices_per_item, assignments, wg_sizes, normals, morphs, normal_formats, animations] = s;
   return std::tie(langs, influences, mixed, layouts, positions, indices, weights, palettes, storages, blends,
-                  vertices_per_item, assignments, wg_sizes, normals, morphs, normal_formats);
+                  vertices_per_item, assignments, wg_sizes, normals, morphs, normal_formats, animations);
 }
 
 // Reads a space from JSON; unknown axes and values throw Error("<context>: space.<axis>[i]: ...").

@@ -59,6 +59,13 @@ enum class Morph { kNone, kDense, kSparse, kDenseHalf, kSparseHalf };
 // tangent folds its handedness into y), or 4 x snorm8 (xyz, then 0 for a normal
 // and the handedness for a tangent). A user's choice: what the consumer reads.
 enum class NormalFormat { kF32, kOct16, kSnorm8 };
+// Where an animated scene's palettes come from (docs/ANIMATION.md): uploaded
+// by the host each frame, or made on the device by the palette kernel, which
+// samples the model's clips (sampled) or interpolates them baked at 30, 60,
+// 120 or 240 frames a second (BakeRateOf). The skin kernel is the same; the
+// frame runs the palette kernel first. A scene's choice (the tuner's "-anim"
+// scenes animate on the device): never raced against host.
+enum class Animation { kHost, kSampled, kBaked30, kBaked60, kBaked120, kBaked240 };
 
 struct Variant {
   Lang lang = Lang::kOpenCl;
@@ -77,6 +84,7 @@ struct Variant {
   Normals normals = Normals::kNone;
   Morph morph = Morph::kNone;  // keys leave it out when none
   NormalFormat normal_format = NormalFormat::kF32;  // keys leave it out when f32
+  Animation animation = Animation::kHost;           // keys leave it out when host
 
   std::string Key() const;
   std::size_t Hash() const;  // stable across runs and machines (FNV-1a of Key())
@@ -95,6 +103,14 @@ constexpr Normals NormalsFor(bool normals, bool tangents) {
 constexpr bool SkinsMorph(const Variant& v) { return v.morph != Morph::kNone; }
 constexpr bool MorphSparse(const Variant& v) { return v.morph == Morph::kSparse || v.morph == Morph::kSparseHalf; }
 constexpr bool MorphHalf(const Variant& v) { return v.morph == Morph::kDenseHalf || v.morph == Morph::kSparseHalf; }
+
+// Whether the variant's palettes are made on the device (the palette kernel).
+constexpr bool AnimatesOnDevice(const Variant& v) { return v.animation != Animation::kHost; }
+// The frames a second its clips are baked at; 0: sampled (or the host's palettes).
+constexpr double BakeRateOf(Animation a) {
+  return a == Animation::kBaked30 ? 30.0 : a == Animation::kBaked60 ? 60.0 : a == Animation::kBaked120 ? 120.0
+       : a == Animation::kBaked240 ? 240.0 : 0.0;
+}
 
 // Whether the variant writes normals and tangents packed (not float32).
 constexpr bool PacksNormals(const Variant& v) { return v.normal_format != NormalFormat::kF32; }
@@ -126,9 +142,9 @@ template <typename T>
   requires std::same_as<std::remove_const_t<T>, Variant>
 constexpr auto VariantFields(T& v) {
   auto& [lang, influences, mixed, layout, position, index, weight, palette, storage, blend, vertices_per_item,
-         assignment, wg_size, normals, morph, normal_format] = v;
+         assignment, wg_size, normals, morph, normal_format, animation] = v;
   return std::tie(lang, influences, mixed, layout, position, index, weight, palette, storage, blend,
-                  vertices_per_item, assignment, wg_size, normals, morph, normal_format);
+                  vertices_per_item, assignment, wg_size, normals, morph, normal_format, animation);
 }
 using VariantFieldRefs = decltype(VariantFields(std::declval<Variant&>()));
 

@@ -5,6 +5,7 @@
 #include <cctype>
 #include <cstdint>
 #include <filesystem>
+#include <string_view>
 
 #include "base/error.h"
 #include "model/gltf_import.h"
@@ -102,10 +103,15 @@ SceneSpec ParseSceneKey(const std::string& key) {
   SceneSpec spec;
   spec.key = key;
   if (key.empty()) BadScene(key, "empty key");
+  constexpr std::string_view kAnimated = "-anim";
+  spec.animated = key.size() > kAnimated.size() && key.ends_with(kAnimated);
+  const std::string meshes = spec.animated ? key.substr(0, key.size() - kAnimated.size()) : key;
+  if (spec.animated && (meshes.find('+') != std::string::npos || meshes.rfind("mix", 0) == 0))
+    BadScene(key, "'-anim' animates a scene of one mesh or its instances, not a batch");
   std::vector<std::string> parts;
   for (std::size_t start = 0;;) {
-    const std::size_t plus = key.find('+', start);
-    parts.push_back(key.substr(start, plus == std::string::npos ? std::string::npos : plus - start));
+    const std::size_t plus = meshes.find('+', start);
+    parts.push_back(meshes.substr(start, plus == std::string::npos ? std::string::npos : plus - start));
     if (plus == std::string::npos) break;
     start = plus + 1;
   }
@@ -227,8 +233,11 @@ SkinnedScene LoadScene(const SceneSpec& spec) {
       throw Error("scene '" + spec.key + "': meshes[" + std::to_string(m) + "] '" + key + "': " + e.what());
     }
   }
+  if (spec.animated && scene.assets.front().animations.empty())
+    throw Error("scene '" + spec.key + "': '-anim' plays the model's clips, and '" + spec.meshes.front() + "' has none");
   if (!spec.batch) {
-    scene.batch.mesh = std::move(scene.assets.front().mesh);
+    // An animated scene's asset keeps its mesh: baking measures its error on it (BakeAnimation).
+    scene.batch.mesh = spec.animated ? scene.assets.front().mesh : std::move(scene.assets.front().mesh);
     scene.batch.vertex_offsets = {0, scene.batch.mesh.vertex_count()};
     scene.batch.joint_offsets = {0, scene.batch.mesh.joint_count};
     return scene;

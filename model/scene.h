@@ -18,6 +18,10 @@
 // Scene keys (the tuner's datasets, docs/DATA.md):
 //   <dataset>              one mesh: a synthetic key (model/synthetic.h) or a glTF path
 //   <dataset>-x<K>         K >= 2 instances of it, e.g. "25k-b4-x64"
+//   <scene>-anim           a scene of one mesh or its instances animated on the device: each
+//                          instance plays one of the model's clips at its own time, and the
+//                          palette kernel makes the palettes (docs/ANIMATION.md), e.g.
+//                          "25k-b4-x64-anim"; the model must have animation clips
 //   <m1>+<m2>+...          a batch of the meshes m1, m2, ... (synthetic keys, glTF paths, mixes)
 //   mix<N>-b<B>[-seed<S>]  a batch of seeded synthetic meshes of 5k..100k vertices, N vertices in
 //                          all, each with its own influence count 1..B (every one of them
@@ -45,6 +49,7 @@ struct SceneSpec {
   std::vector<std::string> meshes;
   int instances = 1;   // > 1: instances of meshes[0] (never with a batch)
   bool batch = false;  // meshes[] packed as one mesh (ConcatenateMeshes)
+  bool animated = false;  // "-anim": the palettes made on the device from the model's clips
 };
 
 // Throws Error("scene 'KEY': ...") for a malformed key (an empty '+' member,

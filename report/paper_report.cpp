@@ -421,7 +421,7 @@ class ResultSummariser {
 
   static bool Plain(const Winner& w) {
     return w.morph_targets == 0 && w.variant.normal_format == NormalFormat::kF32 &&
-           w.variant.blend != Blend::kDualQuaternion;
+           w.variant.blend != Blend::kDualQuaternion && !AnimatesOnDevice(w.variant);
   }
 
   void Rows(std::size_t d) {

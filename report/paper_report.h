@@ -216,7 +216,8 @@ struct AxisChart {
 // every data set, language and row, the formats and morph targets a row of
 // their own), with what it costs against its plain row's winner: the same
 // device, language, B, vertex count and scene with f32 normals, no morph
-// targets and linear blending.
+// targets, linear blending and the host's palettes (an animated scene's row
+// against its crowd's with uploaded palettes: what the palette kernel costs).
 struct RowWinner {
   std::size_t device = 0;
   Lang lang = Lang::kOpenCl;
@@ -226,7 +227,7 @@ struct RowWinner {
   double median_ms = 0.0, low_ms = 0.0, high_ms = 0.0;
   double gbps = 0.0, x_copy = 0.0;
   double position_rel = 0.0, normal_abs = 0.0;  // against the unquantised source (SourceError)
-  bool plain = true;      // f32 normals, no morph targets, linear blending
+  bool plain = true;      // f32 normals, no morph targets, linear blending, the host's palettes
   double vs_plain = 0.0;  // median_ms / the plain row's winner's; 0: plain, or no plain row measured
 };
 

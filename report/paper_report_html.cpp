@@ -711,12 +711,13 @@ class Renderer {
   // Every row's winner, the formats, morph targets and blends each a row of
   // their own, with what it costs against its plain row.
   void RowsSection() {
-    out_ += "<section id=\"rows\">\n<h2>Every row: formats, morph targets and blends</h2>\n";
+    out_ += "<section id=\"rows\">\n<h2>Every row: formats, morph targets, blends and animation</h2>\n";
     out_ += "<p>The user chooses a row: the format the normals and tangents are written in, the mesh&#39;s morph "
-            "targets, linear or dual-quaternion blending. Each is tuned as a row of its own, and its winner within "
+            "targets, linear or dual-quaternion blending, palettes made on the device (an animated scene, whose "
+            "kernel time holds the palette kernel). Each is tuned as a row of its own, and its winner within "
             "the error budget is set here against its plain row&#39;s (f32 normals, no morph targets, linear "
-            "blending; the same device, language, B, vertex count and scene): what that choice costs, or "
-            "saves.</p>\n";
+            "blending, the host&#39;s palettes; the same device, language, B, vertex count and scene): what that "
+            "choice costs, or saves.</p>\n";
     bool any = false;
     for (const RowWinner& r : s_.rows) any = any || !r.plain;
     if (!any) {

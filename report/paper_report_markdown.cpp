@@ -192,7 +192,8 @@ std::string RenderMarkdown(const PaperSummary& s) {
             Cell(r.variant) + "` |\n";
   }
   if (!rows.empty())
-    out += "## Every row\n\nEach row the user chooses (normals written packed, morph targets, dual quaternions) "
+    out += "## Every row\n\nEach row the user chooses (normals written packed, morph targets, dual quaternions, "
+           "palettes made on the device) "
            "beside its plain row's winner on the same device, language and mesh: x plain = its time over that "
            "winner's; error = positions against the unquantised source (of the diagonal), normals (unit "
            "vectors).\n\n| device | language | data set | row | time | x copy | error | x plain | tuned winner |\n"

@@ -70,6 +70,10 @@ struct LaunchSpec {
   std::size_t palettes_bytes = 0;        // the K palettes of one input set
   std::size_t palette_joints = 0;        // joints of one palette
   std::size_t output_stride = 0;         // bytes per output vertex
+  // The launch writes what the frame's later launches read (the palette
+  // kernel of an animated set, Runner::Animate): GL and Vulkan put a barrier
+  // after it in every use; OpenCL and CUDA order it on their one queue or stream.
+  bool feeds_frame = false;
   std::string where;                     // "launch <index> of <variant key>", for messages
 };
 
@@ -158,17 +162,32 @@ struct FrameRun {
   // ordered by each API (one in-order queue or stream in OpenCL and CUDA, a
   // barrier in GL and Vulkan, in turn on the cpu device).
   std::span<const std::unique_ptr<DeviceObject>> prologue;
-  // kLive: the prologue's scalar arguments by name, each as its 32 bits (a
+  // Every use: the scalar arguments of the launches that take any (the
+  // palette kernel's delta and fresh, in a kLive prologue or first in an
+  // animated set's frame: Runner::Animate), by name, each as its 32 bits (a
   // float's bits for an f32): what each API passes with the launch itself
   // (an OpenCL kernel argument, a CUDA parameter, a GL uniform, a Vulkan push
   // constant), so that nothing is copied to the device for them.
-  std::vector<std::pair<std::string, std::uint32_t>> prologue_scalars;
+  std::vector<std::pair<std::string, std::uint32_t>> scalars;
 
   // kTime: the bursts timed (frames after `untimed`, whole bursts only).
   std::size_t TimedBursts() const {
     const std::size_t timed = frames.size() - std::min<std::size_t>(frames.size(), static_cast<std::size_t>(std::max(untimed, 0)));
     return timed / static_cast<std::size_t>(std::max(burst, 1));
   }
+};
+
+// Points `slot` at `run` for as long as it lives, then back at nothing: an
+// API's RunFrames keeps the run whose scalars its launches pass (ScalarOf).
+class CurrentRun {
+ public:
+  CurrentRun(const FrameRun*& slot, const FrameRun& run) : slot_(slot) { slot_ = &run; }
+  ~CurrentRun() { slot_ = nullptr; }
+  CurrentRun(const CurrentRun&) = delete;
+  CurrentRun& operator=(const CurrentRun&) = delete;
+
+ private:
+  const FrameRun*& slot_;
 };
 
 // What the driver does around an API's timed frames.
@@ -343,9 +362,9 @@ class DeviceApi {
   std::string cache_device_id_;
 };
 
-// The value of a prologue's scalar argument `name` in `run`; throws
+// The value of a launch's scalar argument `name` in `run`; throws
 // Error("<api> launch: ...") when the run gives none.
-std::uint32_t PrologueScalar(const FrameRun& run, const std::string& name, const std::string& api);
+std::uint32_t ScalarOf(const FrameRun& run, const std::string& name, const std::string& api);
 
 // For an API's Plan: throws Error("<api> launch: ...") when the launch's
 // kernel is not of its variant's language, or (constant and local storage,

@@ -30,11 +30,14 @@ struct Prepared::Impl {
     DeviceBuffer* palette = nullptr;
     // Morph variants: the K instances' morph weights, uploaded with the palette.
     DeviceBuffer* morph_weights = nullptr;
+    // The bound launches in order; animated (Runner::Animate), the first
+    // `palette_launches` are the palette kernel bound to write `palette`: a
+    // live frame runs them as its prologue when the instances changed, a
+    // verified, timed or cold frame every time, as the frame's first launch.
     std::vector<std::unique_ptr<DeviceObject>> launches;
-    // Animated (Runner::Animate): the instances the palette kernel reads, and
-    // that kernel bound to write `palette`, run before `launches`.
+    std::size_t palette_launches = 0;
+    // Animated: the instances the palette kernel reads.
     DeviceBuffer* instances = nullptr;
-    std::vector<std::unique_ptr<DeviceObject>> prologue;
     // The instances changed since the prologue last ran: the next LaunchSet
     // runs it (a Skin again with the same states reuses the palette computed).
     bool prologue_pending = false;
@@ -89,11 +92,9 @@ struct Prepared::Impl {
       for (Slot& slot : set.slots) {
         if (!ready) {
           for (auto& o : slot.launches) o->Forget();
-          for (auto& o : slot.prologue) o->Forget();
           if (slot.done) slot.done->Forget();
         }
         while (!slot.launches.empty()) slot.launches.pop_back();
-        while (!slot.prologue.empty()) slot.prologue.pop_back();
         slot.done.reset();
       }
       if (!ready)
@@ -103,8 +104,20 @@ struct Prepared::Impl {
     }
   }
 
-  // The frame of set `s`: its first slot's bound launches.
+  // The frame of set `s` as Run, Time and TimeCold run it: its first slot's
+  // bound launches, an animated set's palette kernel first.
   std::span<const std::unique_ptr<DeviceObject>> Frame(std::size_t s) const { return sets[s].slots.front().launches; }
+  // A run of these frames for `use`: an animated set's palette kernel takes
+  // the states uploaded last (fresh) and advances them by nothing, so every
+  // frame makes the same palettes (the tuner's animated data sets: one
+  // crowd's states per input set).
+  FrameRun Run(FrameUse use) const {
+    FrameRun run;
+    run.use = use;
+    run.key = key;
+    if (palette_kernel) run.scalars = {{kAnimDelta, 0u}, {kAnimFresh, 1u}};
+    return run;
+  }
 };
 
 Prepared::Prepared() : impl_(std::make_unique<Impl>()) {}
@@ -366,16 +379,25 @@ RunResult Runner::RunInstanced(const PackedMesh& mesh, int instances, std::span<
 
 RunResult Runner::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                       std::span<const std::uint8_t> palettes, int instances) {
+  return Run(mesh, kernels, palettes, instances, Animated{});
+}
+
+RunResult Runner::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                      std::span<const std::uint8_t> palettes, int instances, const Animated& animated) {
   api_->MakeCurrent();
   const std::vector<std::vector<std::uint8_t>> palette = {PalettesOrMeshPalette(mesh, palettes, instances)};
   const RunShape shape = CheckRunShape(mesh, kernels, palette.front().size(), instances, api_->name());
   api_->CheckRun(mesh, kernels, shape);
-  const Prepared prepared = PrepareSets(mesh, kernels, palette, shape, SetOptions{true, ""}, 1);
+  Prepared prepared = PrepareSets(mesh, kernels, palette, shape, SetOptions{true, ""}, 1);
+  if (animated.animation && animated.kernel) {
+    Animate(prepared, 0, *animated.animation, *animated.kernel);
+    WritePalette(prepared, 0, animated.states);
+    Settle();
+    api_->FinishUploads(prepared.impl_->key);
+  }
   const Prepared::Impl& p = *prepared.impl_;
-  FrameRun run;
-  run.use = FrameUse::kVerify;
+  FrameRun run = p.Run(FrameUse::kVerify);
   run.frames = {p.Frame(0)};
-  run.key = p.key;
   std::vector<std::vector<double>> times = api_->RunFrames(run);
   RunResult result;
   if (!times.empty()) result.launch_ms = std::move(times.front());
@@ -509,9 +531,7 @@ void Runner::WarmUntilStable(const Prepared::Impl& p) {
   double after = -1.0;
   bool capped = false;  // stopped by kWarmupMaxMs
   for (std::size_t frame = 0;; ++bursts) {
-    FrameRun burst;
-    burst.use = FrameUse::kTime;
-    burst.key = p.key;
+    FrameRun burst = p.Run(FrameUse::kTime);
     for (int i = 0; i < frames_per_burst; ++i, ++frame) burst.frames.push_back(p.Frame(frame % p.sets.size()));
     burst.untimed = static_cast<int>(burst.frames.size());
     const auto burst_start = Clock::now();
@@ -596,9 +616,7 @@ std::vector<double> Runner::Time(const Prepared& prepared, int warmup, int burst
 }
 
 std::vector<double> Runner::TimeFrames(const Prepared::Impl& p, int warmup, int bursts, int burst_frames) {
-  FrameRun run;
-  run.use = FrameUse::kTime;
-  run.key = p.key;
+  FrameRun run = p.Run(FrameUse::kTime);
   run.untimed = warmup;
   run.burst = burst_frames;
   for (int frame = 0; frame < warmup + bursts * burst_frames; ++frame)
@@ -631,9 +649,7 @@ std::vector<double> Runner::TimeCold(const Prepared& prepared, const Prepared& f
   samples = std::max(samples, 0);
   // One device submission of frames [first, first + count), the first `skip` untimed.
   auto run_frames = [&](int first, int count, int skip) {
-    FrameRun run;
-    run.use = FrameUse::kCold;
-    run.key = p->key;
+    FrameRun run = p->Run(FrameUse::kCold);
     run.untimed = skip;
     run.flush = f->Frame(0);
     for (int frame = first; frame < first + count; ++frame)
@@ -654,10 +670,12 @@ std::vector<double> Runner::TimeCold(const Prepared& prepared, const Prepared& f
   if (frames.size() != static_cast<std::size_t>(samples))
     Fail("launch", "timing " + p->key + ": the device gave " + std::to_string(frames.size()) + " frames of " +
                        std::to_string(samples));
-  for (const std::vector<double>& launches : frames) {
-    if (launches.size() != p->launches.size())
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const std::vector<double>& launches = frames[i];
+    const std::size_t expected = p->Frame((static_cast<std::size_t>(untimed) + i) % p->sets.size()).size();
+    if (launches.size() != expected)
       Fail("launch", "timing " + p->key + ": the device gave " + std::to_string(launches.size()) + " launch times for a frame of " +
-                         std::to_string(p->launches.size()));
+                         std::to_string(expected));
     double sum = 0.0;
     for (const double launch : launches) sum += launch;
     ms.push_back(sum);
@@ -669,11 +687,17 @@ std::vector<double> Runner::TimeCold(const Prepared& prepared, const Prepared& f
 
 double Runner::FrameMs(Prepared& prepared, int untimed, int frames) {
   using Clock = std::chrono::steady_clock;
-  for (int i = 0; i < std::max(untimed, 0); ++i) LaunchSet(prepared, 0);
+  const bool animated = prepared.impl_ && !prepared.impl_->sets.empty() &&
+                        prepared.impl_->sets.front().slots.front().palette_launches > 0;
+  const auto frame = [&] {
+    if (animated) AdvanceAnimation(prepared, 0, kFrameDelta);
+    LaunchSet(prepared, 0);
+  };
+  for (int i = 0; i < std::max(untimed, 0); ++i) frame();
   Finish();
   frames = std::max(frames, 1);
   const Clock::time_point start = Clock::now();
-  for (int i = 0; i < frames; ++i) LaunchSet(prepared, 0);
+  for (int i = 0; i < frames; ++i) frame();
   Finish();
   busy_until_ = Clock::now();
   return std::chrono::duration<double, std::milli>(*busy_until_ - start).count() / frames;
@@ -749,6 +773,8 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
+  if (p.palette_kernel && s.slots.front().palette_launches == 0)
+    Fail("launch", "input set " + std::to_string(set) + " of " + p.key + " is not animated and its others are: animate every set");
   const std::size_t next = TakeNextSlot(prepared, set);
   Prepared::Impl::Slot& slot = s.slots[next];
   const std::span<std::uint8_t> staging = api_->Staging(slot.Uploaded(), p.key, slot.UploadFenced(*api_));
@@ -802,7 +828,7 @@ void Runner::UploadPalette(Prepared& prepared, int set) {
   Prepared::Impl::Slot& slot = s.slots[*s.staged];
   QueueSlotUploads(*api_, submit_.get(), slot, &slot.Uploaded(), p.upload_bytes, p.key);
   slot.launched = false;
-  slot.prologue_pending = !slot.prologue.empty();
+  slot.prologue_pending = slot.palette_launches > 0;
   slot.fresh = true;
   slot.delta = 0.0f;
   s.current = *s.staged;
@@ -826,10 +852,11 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   Prepared::Impl::Slot& slot = s.slots[s.current];
   FrameRun run;
   run.use = FrameUse::kLive;
-  run.frames = {slot.launches};
+  const std::span<const std::unique_ptr<DeviceObject>> launches = slot.launches;
+  run.frames = {launches.subspan(slot.palette_launches)};
   if (slot.prologue_pending) {
-    run.prologue = slot.prologue;
-    run.prologue_scalars = {{kAnimDelta, std::bit_cast<std::uint32_t>(slot.delta)}, {kAnimFresh, slot.fresh ? 1u : 0u}};
+    run.prologue = launches.first(slot.palette_launches);
+    run.scalars = {{kAnimDelta, std::bit_cast<std::uint32_t>(slot.delta)}, {kAnimFresh, slot.fresh ? 1u : 0u}};
   }
   slot.prologue_pending = false;
   run.key = p.key;
@@ -856,7 +883,7 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
   Settle();
   Prepared::Impl& p = *prepared.impl_;
   Prepared::Impl::Set& s = SetOf(&p, set, *api_);
-  if (p.palette_kernel) Fail("launch", p.key + " is animated already");
+  if (s.slots.front().palette_launches > 0) Fail("launch", "input set " + std::to_string(set) + " of " + p.key + " is animated already");
   const std::vector<KernelArgument>& declared = kernel.kernel.arguments;
   const auto output = std::find_if(declared.begin(), declared.end(), [](const KernelArgument& a) { return a.name == kAnimOutput; });
   if (output == declared.end()) Fail("launch", "the palette kernel of " + p.key + " declares no '" + kAnimOutput + "'");
@@ -873,7 +900,13 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
   spec.instanced = true;
   spec.palette_joints = joints;
   spec.where = "the palette kernel of " + p.key;
-  p.palette_kernel = api_->Plan(spec);
+  spec.feeds_frame = true;
+  const bool first = !p.palette_kernel;  // the first set animated: the kernel is planned, its bytes counted
+  if (first) {
+    p.palette_kernel = api_->Plan(spec);
+  } else if (HashOf(p.palette_kernel->spec.source) != HashOf(spec.source)) {
+    Fail("launch", "input set " + std::to_string(set) + " of " + p.key + ": another palette kernel than its other sets'");
+  }
   // The animation's buffers, uploaded once (at least 16 bytes: OpenCL has no
   // empty buffers); `allocated` counts them and what Bind adds.
   std::size_t allocated = 0;
@@ -917,20 +950,22 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
         Fail("launch", "the palette kernel of " + p.key + " takes an argument '" + a.name + "' the runner does not bind");
       }
     }
-    slot.prologue.push_back(api_->Bind(*p.palette_kernel, arguments, SetOptions{}, allocated));
+    slot.launches.insert(slot.launches.begin(), api_->Bind(*p.palette_kernel, arguments, SetOptions{}, allocated));
+    slot.palette_launches = 1;
     slot.prologue_pending = true;
     slot.fresh = true;
   }
   api_->FinishUploads(p.key);
   p.upload_bytes = static_cast<std::size_t>(p.instances) * sizeof(AnimInstance);
-  p.bytes_per_set += allocated;
+  if (first) p.bytes_per_set += allocated;
 }
 
 void Runner::AdvanceAnimation(Prepared& prepared, int set, float delta, std::span<const std::uint8_t> morph_weights) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
-  if (!p.palette_kernel) Fail("launch", "AdvanceAnimation of " + p.key + ", which is not animated (Animate)");
+  if (s.slots.front().palette_launches == 0)
+    Fail("launch", "AdvanceAnimation of input set " + std::to_string(set) + " of " + p.key + ", which is not animated (Animate)");
   const std::size_t next = TakeNextSlot(prepared, set);
   Prepared::Impl::Slot& slot = s.slots[next];
   if ((slot.morph_weights != nullptr) != !morph_weights.empty() ||
@@ -1004,8 +1039,8 @@ void CheckLaunchKernel(const LaunchSpec& spec, const std::string& api) {
                 " joints, the palette has " + std::to_string(spec.palette_joints));
 }
 
-std::uint32_t PrologueScalar(const FrameRun& run, const std::string& name, const std::string& api) {
-  for (const auto& [scalar, value] : run.prologue_scalars)
+std::uint32_t ScalarOf(const FrameRun& run, const std::string& name, const std::string& api) {
+  for (const auto& [scalar, value] : run.scalars)
     if (scalar == name) return value;
   throw Error(api + " launch: " + run.key + ": no value for the palette kernel's scalar '" + name + "'");
 }

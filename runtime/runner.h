@@ -117,6 +117,9 @@ inline constexpr int kMaxBurstFrames = 1024;
 // is writing.
 inline constexpr int kPaletteSlots = 3;
 
+// The seconds an animated set's clocks advance per frame in FrameMs: a 60 Hz frame.
+inline constexpr float kFrameDelta = 1.0f / 60.0f;
+
 class Runner {
  public:
   explicit Runner(std::unique_ptr<DeviceApi> api);
@@ -166,6 +169,18 @@ class Runner {
   // ones need instances == 1 (runtime/run_shape.h lists the errors).
   RunResult Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                 std::span<const std::uint8_t> palette = {}, int instances = 1);
+  // The same with the palettes made on the device (the tuner's animated data
+  // sets): Animate(`animation`, `kernel`) on the run's set, `states` (K
+  // AnimInstance records) uploaded as a frame's instances, then the frame
+  // with the palette kernel first (its time first in launch_ms). `palette`
+  // only sizes the palettes the kernel writes.
+  struct Animated {
+    const AnimationView* animation = nullptr;
+    const PaletteKernel* kernel = nullptr;
+    std::span<const std::uint8_t> states;
+  };
+  RunResult Run(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t> palette,
+                int instances, const Animated& animated);
 
   // Timing. Uploads one input set per palette (PackPalette bytes; one frame
   // each) and builds `kernels` (one per launch, in launch order). Instanced
@@ -218,7 +233,8 @@ class Runner {
 
   // The frame time (docs/TUNING.md "Frame time"): `untimed` frames, then
   // `frames` frames of set 0 issued back to back as a Skinner issues them
-  // (LaunchSet on its queue: no palette upload, no wait between frames),
+  // (LaunchSet on its queue: no palette upload, no wait between frames; an
+  // animated set's frame is AdvanceAnimation by kFrameDelta, then LaunchSet),
   // then a wait for the last; the host's wall time from the first timed
   // frame's issue to that wait's end, per frame, ms. Host issue included.
   double FrameMs(Prepared& prepared, int untimed, int frames);
@@ -261,16 +277,23 @@ class Runner {
   // by the first LaunchSet after each upload into the slot (a LaunchSet with
   // no upload since reuses the palette it computed); from
   // then on PaletteStaging, UploadPalette and WritePalette stage and upload
-  // those K x 16 bytes instead of the palettes, through the same ring. Throws
-  // Error("<API> build|launch ...") when the kernel does not build or the
-  // animation's joints and rows do not fill the set's palettes exactly.
+  // those K x 16 bytes instead of the palettes, through the same ring.
+  // Time and TimeCold (the tuner's animated data sets) run the palette
+  // kernel in every frame as the frame's first launch (its own time first in
+  // TimeCold's `launch_ms`), on the states uploaded last, advanced by
+  // nothing. Each input set may be animated once, all with the same kernel
+  // and each with buffers of its own; a Prepared with any set animated takes
+  // instances, not palettes, in every set (animate them all before the first
+  // upload). Throws Error("<API> build|launch ...") when the kernel does not
+  // build, the set is animated already, or the animation's joints and rows
+  // do not fill the set's palettes exactly.
   void Animate(Prepared& prepared, int set, const AnimationView& animation, const PaletteKernel& kernel);
   // An animated set's frame without an upload: takes the next palette slot
   // as PaletteStaging does (waiting only as it does) and makes its next
   // LaunchSet's palette kernel advance the states it keeps on the device (the
   // last frame's) by `delta` seconds, each clip's clock looping in its range
   // (AdvanceAnimInstances), instead of taking the slot's uploaded ones. The
-  // delta travels with the launch (FrameRun::prologue_scalars): nothing is
+  // delta travels with the launch (FrameRun::scalars): nothing is
   // copied to the device. Throws Error for a set that is not animated.
   // A morph variant's `morph_weights` (the K instances', as MorphWeightsStaging
   // takes them) go up into the slot's weights buffer, the frame's one copy.

@@ -57,16 +57,18 @@ NormalFormat FormatFor(const SelectionRequest& r) {
   return r.normals == Normals::kNone ? NormalFormat::kF32 : r.normal_format;
 }
 
-// Smaller is better: an entry tuned in another normal format, another shape than the request's (the single-mesh
+// Smaller is better: an entry tuned in another normal format, animated elsewhere than the request
+// (on the device or by the host), another shape than the request's (the single-mesh
 // fallback), B above the mesh's, the distance (a factor) from the measured
 // vertex count to the scene's, the instance or mesh count's, the morph
 // target count's (a mesh with them), the larger vertex count on a tie, then the newest `created` and the smallest time (compared
 // separately).
-std::tuple<bool, bool, int, double, double, double, long long> Rank(const WinnersEntry& e, const SelectionRequest& r) {
+std::tuple<bool, bool, bool, int, double, double, double, long long> Rank(const WinnersEntry& e, const SelectionRequest& r) {
   const double morph = r.morph ? VertexCountDistance(static_cast<std::size_t>(std::max(e.morph_targets, 1)),
                                                      static_cast<std::size_t>(std::max(r.morph_targets, 1)))
                                : 1.0;
-  return {e.variant.normal_format != FormatFor(r), e.shape != r.shape, e.influences - r.influences,
+  return {e.variant.normal_format != FormatFor(r), AnimatesOnDevice(e.variant) != r.animated, e.shape != r.shape,
+          e.influences - r.influences,
           VertexCountDistance(e.vertices, r.vertex_count), CountDistance(e, r), morph,
           -static_cast<long long>(e.vertices)};
 }
@@ -178,7 +180,7 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
     for (const WinnersEntry& e : entries) {
       if (!AtLevel(e, device, level) || !Contains(request.langs, e.lang) || e.influences < request.influences ||
           !ShapeServes(e, request) || (e.variant.blend == Blend::kDualQuaternion) != request.dual_quaternions ||
-          SkinsMorph(e.variant) != request.morph)
+          SkinsMorph(e.variant) != request.morph || (AnimatesOnDevice(e.variant) && !request.animated))
         continue;
       if (!EntryWithinBudget(e, request.max_error, request.exact_formats)) {
         skipped.push_back({&e, level, Describe(e) + " " + Name(e.variant.weight) + ": " + OverBudget(e, request)});
@@ -212,6 +214,8 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
       if (e->variant.normal_format != v.normal_format)
         reason += std::string("; tuned with ") + Name(e->variant.normal_format) + " normals, run with " +
                   Name(v.normal_format) + " (no entry of that format)";
+      if (request.animated && !AnimatesOnDevice(e->variant))
+        reason += "; tuned with the host's palettes (no entry of a scene animated on the device)";
       if (e->shape != request.shape)
         reason += "; no " + std::string(SceneKindName(request.shape)) +
                   " entry: the single-mesh entry of the scene's total size (" +

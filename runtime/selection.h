@@ -64,6 +64,11 @@ struct SelectionRequest {
   // The format of the skinned normals (with normals): entries tuned in it
   // first; another entry serves with its variant's format changed.
   NormalFormat normal_format = NormalFormat::kF32;
+  // The Skinner makes its palettes on the device (Skinner::CreateAnimated):
+  // entries tuned on animated scenes (animation sampled or baked) serve it
+  // first, then the others (the skin kernel is the same); only it takes them,
+  // as their times hold the palette kernel.
+  bool animated = false;
   double max_error = kDefaultBudget;     // the error budget, relative to the bounding-box diagonal
   std::string max_error_name = "max_error";  // how the caller names it in reasons ("SkinnerOptions::max_error")
   std::vector<WeightFormat> exact_formats;  // formats that hold the caller's weights exactly (HoldsWeightsExactly)

@@ -122,6 +122,13 @@ NormalFormat NormalFormatOf(skintune::NormalFormat format) {
   return static_cast<NormalFormat>(static_cast<int>(format));
 }
 
+// The variant as its skin kernel's constraints see it: where the palettes
+// come from (animation) is the Skinner's, checked apart.
+Variant SkinKernelOf(Variant v) {
+  v.animation = Animation::kHost;
+  return v;
+}
+
 Chosen Forced(const std::string& call, const std::string& key, const DeviceState& device, const ProblemShape& shape,
               bool dual_quaternions, NormalFormat normal_format) {
   Variant v;
@@ -149,7 +156,13 @@ Chosen Forced(const std::string& call, const std::string& key, const DeviceState
     FailWith(ErrorCode::kInvalidArgument,
              where + "bucketed variants reorder the vertices, and a Skinner keeps the mesh's order on the device; "
                      "use the padded twin");
-  const std::vector<Violation> violations = CheckVariant(v, device.limits, shape);
+  if (AnimatesOnDevice(v) && !shape.animated)
+    FailWith(ErrorCode::kInvalidArgument, where + "animation " + Name(v.animation) +
+                                              " makes the palettes on the device: a Skinner::CreateAnimated's form, "
+                                              "and this Skinner takes them from SetPalette");
+  ProblemShape skin_shape = shape;
+  skin_shape.animated = false;
+  const std::vector<Violation> violations = CheckVariant(SkinKernelOf(v), device.limits, skin_shape);
   if (!violations.empty()) FailWith(ErrorCode::kInvalidArgument, where + Joined(violations));
   Chosen chosen;
   chosen.variant = v;
@@ -257,9 +270,12 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   // Rigid joints assumed: SetPalette refuses each matrix that is not (dual quaternions only).
   // Morph targets: a mesh that has them takes a morph variant whatever its
   // first weights, as SetMorphWeights may move it any frame.
-  const ProblemShape shape = WithMorphOf({mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
-                                          options.instances, options.tangents, true},
-                                         mesh.morph);
+  ProblemShape shape = WithMorphOf({mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
+                                    options.instances, options.tangents, true},
+                                   mesh.morph);
+  // CreateAnimated: the palettes are made on the device; the skin kernel's
+  // constraints are checked without it (SkinKernelOf).
+  shape.animated = call == "Skinner::CreateAnimated";
   if (!options.variant.empty())
     return Forced(call, options.variant, state, shape, options.dual_quaternions, NormalFormatOf(options.normal_format));
   SelectionRequest request;
@@ -275,13 +291,16 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   request.normal_format = NormalFormatOf(options.normal_format);
   request.morph = mesh.has_morph();
   request.morph_targets = static_cast<int>(mesh.morph.count());
+  request.animated = shape.animated;
   request.max_error = options.max_error;
   request.max_error_name = "SkinnerOptions::max_error";
   // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.
   for (WeightFormat format : {WeightFormat::kUnorm16, WeightFormat::kUnorm8})
     if (HoldsWeightsExactly(mesh, format)) request.exact_formats.push_back(format);
   request.limits = state.limits;
-  request.check = [&](const Variant& v) { return Joined(CheckVariant(v, state.limits, shape)); };
+  ProblemShape skin_shape = shape;
+  skin_shape.animated = false;
+  request.check = [&, skin_shape](const Variant& v) { return Joined(CheckVariant(SkinKernelOf(v), state.limits, skin_shape)); };
   Chosen chosen = Select(entries, request);
   if (chosen.variant.mixed == MixedCounts::kBucketed) {
     // Bucketed kernels write vertices grouped by influence count; the padded twin keeps the mesh's order.
@@ -428,23 +447,37 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     if (options.dual_quaternions)
       FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::dual_quaternions: the palette kernel writes "
                                                    "matrices; animation on the device skins with linear blending only");
-    if (options.bake_rate != 0.0 && !(options.bake_rate > 0.0 && options.bake_rate <= kMaxBakeRate))
+    const bool tuned = options.bake_rate == kBakeRateTuned;
+    if (!tuned && options.bake_rate != 0.0 && !(options.bake_rate > 0.0 && options.bake_rate <= kMaxBakeRate))
       FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_rate is " +
-                                                std::to_string(options.bake_rate) + ", expected 0 (sampled) or (0, " +
-                                                std::to_string(kMaxBakeRate) + "] frames a second");
+                                                std::to_string(options.bake_rate) + ", expected 0 (sampled), (0, " +
+                                                std::to_string(kMaxBakeRate) + "] frames a second or kBakeRateTuned");
+    const auto pack = [&](double rate) {
+      try {
+        return rate > 0.0 ? BakeAnimation(*asset, rate) : PackAnimation(*asset);
+      } catch (const Error& e) {
+        FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
+      }
+    };
+    // The clips are packed (and checked) before anything goes to the device,
+    // but for a form the winners database decides, which comes with the variant.
     PackedAnimation animation;
-    try {
-      animation = options.bake_rate > 0.0 ? BakeAnimation(*asset, options.bake_rate) : PackAnimation(*asset);
-    } catch (const Error& e) {
-      FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
-    }
+    if (!tuned) animation = pack(options.bake_rate);
     // The palette kernel animates joints; a model's morph targets stay, their
     // weights set from the host (SetMorphWeights; the model's defaults until
     // then) and uploaded with every frame, K x T floats.
     const MeshView view = model.mesh();
     Skinner skinner;
-    skinner.impl_ = CreateScene(call, device, db.impl_ ? &db.impl_->entries : nullptr, &view, 1, false, options);
+    SkinnerOptions scene_options = options;
+    scene_options.bake_rate = 0.0;  // CreateScene refuses a rate; the palette kernel's form is this call's
+    skinner.impl_ = CreateScene(call, device, db.impl_ ? &db.impl_->entries : nullptr, &view, 1, false, scene_options);
     Impl& im = *skinner.impl_;
+    if (tuned) {  // the form the variant's entry was tuned in: sampled, or baked at its rate (host: sampled)
+      animation = pack(BakeRateOf(im.variant.animation));
+      im.selection.reason += std::string("; palettes ") +
+                             (AnimatesOnDevice(im.variant) ? std::string("made as tuned: ") + Name(im.variant.animation)
+                                                           : "sampled (kBakeRateTuned, and the entry was not tuned animated)");
+    }
     PaletteKernel kernel;
     try {
       kernel = EmitPalette(im.variant.lang, animation.View(), static_cast<int>(PaletteMatrixBytes(im.variant) / 16));

@@ -145,7 +145,8 @@ std::string Describe(const WinnersEntry& e) {
 
 bool EntryWithinBudget(const WinnersEntry& e, double max_error, const std::vector<WeightFormat>& exact) {
   if (!KernelAddsOnlyRounding(e.source_error)) return false;  // an exact format's kernel may still be off
-  if (MorphHalf(e.variant)) return WithinBudget(e.source_error, max_error);  // half offsets cost what they cost
+  // Half offsets and baked clips cost what they cost, whatever the weights.
+  if (MorphHalf(e.variant) || BakeRateOf(e.variant.animation) > 0.0) return WithinBudget(e.source_error, max_error);
   if (e.variant.weight == WeightFormat::kF32) return true;
   if (std::find(exact.begin(), exact.end(), e.variant.weight) != exact.end()) return true;
   return WithinBudget(e.source_error, max_error);

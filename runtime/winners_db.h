@@ -39,7 +39,7 @@ namespace skintune::internal {
 
 inline constexpr const char* kWinnersDbKind = "skintune-winners-db";
 // 1.3.0: x_copy, source_error; 1.4.0: the scene shape (shape, instances, meshes).
-inline constexpr const char* kWinnersDbSchemaVersion = "1.8.0";
+inline constexpr const char* kWinnersDbSchemaVersion = "1.9.0";
 
 // The scene shapes a winner was tuned on (docs/RUNTIME.md "Scene shapes"):
 // the public SceneShape (skintune/skintune.h) inside skintune, whose headers
@@ -84,7 +84,7 @@ std::string VertexCountName(std::size_t vertices);
 template <typename W>
 std::string RowName(const W& w) {
   return VertexCountName(w.vertices) + SceneSuffix(w.shape, w.instances, w.meshes) + MorphSuffix(w.morph_targets) +
-         NormalFormatSuffix(w.variant.normal_format);
+         NormalFormatSuffix(w.variant.normal_format) + (AnimatesOnDevice(w.variant) ? " animated" : "");
 }
 // How far a winner measured on `measured` vertices is from a mesh of `mesh`
 // vertices: max/min of the two (1 = the same count; a factor, so 25k is as far
@@ -135,8 +135,9 @@ struct WinnersEntry {
 // Whether the entry fits a budget: its kernel adds only rounding to what its
 // weights cost (KernelAddsOnlyRounding), and f32 (no quantisation), a weight
 // format in `exact` (it holds the caller's weights exactly), or a recorded
-// quantisation error within `max_error`. Half morph offsets always take the
-// recorded error (they quantise the mesh's own offsets).
+// quantisation error within `max_error`. Half morph offsets and baked clips
+// always take the recorded error (they quantise the mesh's own offsets, the
+// model's clips).
 bool EntryWithinBudget(const WinnersEntry& entry, double max_error, const std::vector<WeightFormat>& exact);
 
 // "<device id> <lang> b<B> <vertices>[ <shape>]": how messages name an entry
@@ -145,10 +146,11 @@ std::string Describe(const WinnersEntry& entry);
 
 // A winner's row: what keeps winners apart as no rivals of each other
 // (device id, lang, influences, vertices, scene shape, instances, meshes, dual
-// quaternions, morph targets, normal format). A row holds one winner per
+// quaternions, morph targets, normal format, palettes made on the device:
+// an animated scene's forms race each other, not the host's). A row holds one winner per
 // precision class (the tuner's merge, `emit --db`'s kernels). W is a
 // WinnersEntry or the tuner's Winner (the same fields).
-using WinnerRow = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int, int>;
+using WinnerRow = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int, int, bool>;
 template <typename W>
 WinnerRow RowOf(const W& w) {
   return {w.device_id,
@@ -160,7 +162,8 @@ WinnerRow RowOf(const W& w) {
           w.meshes,
           w.variant.blend == Blend::kDualQuaternion,
           SkinsMorph(w.variant) ? std::max(w.morph_targets, 1) : 0,
-          static_cast<int>(w.variant.normal_format)};
+          static_cast<int>(w.variant.normal_format),
+          AnimatesOnDevice(w.variant)};
 }
 
 // Writes every field; vendor and device_type only when known.

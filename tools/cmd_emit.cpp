@@ -83,6 +83,7 @@ int RunEmit(const EmitArgs& o) {
   // Any palette the kernel may be given: rigid ones too (PackPalette refuses a dq palette that is not).
   ProblemShape shape{o.joints, 1, true, std::max(o.instances, 1), true, true};
   shape.morph_targets = o.morph_targets;
+  shape.animated = AnimatesOnDevice(variant);  // the skin kernel is the same wherever its palettes are made
   const std::vector<Violation> broken = CheckVariant(variant, Unlimited(), shape);
   if (SkinsMorph(variant) && o.morph_targets == 0)
     throw Error("variant '" + variant.Key() + "' applies morph targets: give the mesh's count with --morph-targets "
@@ -230,6 +231,7 @@ std::optional<EmbeddedKernel> EmbedWinner(const WinnersEntry& e, int joints, int
   const int targets = SkinsMorph(variant) ? (morph_targets > 0 ? morph_targets : e.morph_targets) : 0;
   ProblemShape shape{static_cast<int>(palette), 1, true, instances, true, true};
   shape.morph_targets = targets;
+  shape.animated = AnimatesOnDevice(variant);  // its skin kernel; the header's user supplies the palettes
   std::string broken;
   if (palette > kMaxPaletteJoints) {
     broken = "more than " + std::to_string(kMaxPaletteJoints) + " palette entries";

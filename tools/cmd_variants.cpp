@@ -65,6 +65,7 @@ int RunVariants(const VariantsOptions& o) {
                          scene.spec.instances, scene.mesh().has_normals() && scene.mesh().has_tangents(),
                          tuner_internal::PalettesRigid(scene)},
                         scene.mesh().morph);
+    shape.animated = scene.spec.animated;
     mesh_name = "scene '" + scene.spec.key + "'";
   } else if (!o.source.mesh_file.empty()) {
     const SkinnedAsset asset = LoadAsset(o.source);

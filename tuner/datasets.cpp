@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <span>
 #if defined(__GLIBC__)
@@ -56,7 +57,36 @@ bool AllRigid(std::span<const glm::mat4> palette) {
   });
 }
 
-bool PalettesRigid(const SkinnedScene& scene) { return AllRigid(ScenePalettes(scene, 1).front()); }
+bool PalettesRigid(const SkinnedScene& scene) {
+  if (scene.spec.animated) return AllRigid(CrowdPalettes(scene, CrowdStates(scene, kVerificationSet)));
+  return AllRigid(ScenePalettes(scene, 1).front());
+}
+
+std::vector<AnimInstance> CrowdStates(const SkinnedScene& scene, int set) {
+  const SkinnedAsset& asset = scene.assets.front();
+  const int k = scene.spec.instances;
+  const auto clips = static_cast<int>(asset.animations.size());
+  std::vector<AnimInstance> states(static_cast<std::size_t>(k));
+  for (int i = 0; i < k && clips > 0; ++i) {
+    const long long n = static_cast<long long>(set) * k + i;
+    const int c = static_cast<int>(n % clips);
+    const AnimationClip& clip = asset.animations[static_cast<std::size_t>(c)];
+    const double phase = std::fmod(0.6180339887 * static_cast<double>(n) + 0.25, 1.0);
+    AnimInstance& s = states[static_cast<std::size_t>(i)];
+    s.clip = static_cast<std::uint16_t>(c);  // PackAnimation(asset) packs every clip in order
+    s.time = static_cast<float>(clip.start + phase * clip.duration());
+  }
+  return states;
+}
+
+std::vector<glm::mat4> CrowdPalettes(const SkinnedScene& scene, std::span<const AnimInstance> states) {
+  std::vector<glm::mat4> palettes;
+  for (const AnimInstance& s : states) {
+    const std::vector<glm::mat4> one = scene.assets.front().PaletteAt(s.clip, s.time);
+    palettes.insert(palettes.end(), one.begin(), one.end());
+  }
+  return palettes;
+}
 
 DatasetCache::Entry& DatasetCache::Get(const std::string& key) {
   if (auto found = entries_.find(key); found != entries_.end()) return *found->second;
@@ -68,7 +98,12 @@ DatasetCache::Entry& DatasetCache::Get(const std::string& key) {
 #endif
   // Import warnings (renormalised weights) are the importer's to report.
   entry->scene = LoadScene(ParseSceneKey(key));
-  entry->verification_palette = ScenePalettes(entry->scene, 1).front();
+  if (entry->scene.spec.animated) {
+    entry->verification_states = CrowdStates(entry->scene, kVerificationSet);
+    entry->verification_palette = CrowdPalettes(entry->scene, entry->verification_states);
+  } else {
+    entry->verification_palette = ScenePalettes(entry->scene, 1).front();
+  }
   entry->rigid_joints = AllRigid(entry->verification_palette);
   const SkinnedScene& scene = entry->scene;
   const std::vector<glm::vec3>& positions = scene.mesh().positions;
@@ -96,16 +131,16 @@ namespace {
 // The gold of the whole scene on `mesh` (the scene's, quantised or not): one
 // run over the mesh and its palette; K instances: one per instance's palette.
 // Dual-quaternion variants against the dual-quaternion gold.
-GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, const Variant& variant) {
+GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, const Variant& variant,
+                     std::span<const glm::mat4> palette) {
   const int k = entry.instances();
   const bool with_normals = SkinsNormals(variant), with_tangents = SkinsTangents(variant);
   const auto gold = variant.blend == Blend::kDualQuaternion ? &SkinGoldDualQuaternion : &SkinGold;
-  if (k == 1) return gold(mesh, entry.verification_palette, with_normals, with_tangents);
+  if (k == 1) return gold(mesh, palette, with_normals, with_tangents);
   GoldResult all;
   const std::size_t joints = static_cast<std::size_t>(mesh.joint_count);
   for (int i = 0; i < k; ++i) {
-    GoldResult one = gold(mesh, std::span(entry.verification_palette).subspan(i * joints, joints), with_normals,
-                          with_tangents);
+    GoldResult one = gold(mesh, palette.subspan(i * joints, joints), with_normals, with_tangents);
     all.positions.insert(all.positions.end(), one.positions.begin(), one.positions.end());
     all.normals.insert(all.normals.end(), one.normals.begin(), one.normals.end());
     all.tangents.insert(all.tangents.end(), one.tangents.begin(), one.tangents.end());
@@ -118,7 +153,9 @@ GoldResult SceneGold(const DatasetCache::Entry& entry, const SkinnedMesh& mesh, 
 namespace {
 
 DatasetCache::GoldKey KeyOf(const Variant& variant, int weight) {
-  return {weight, variant.normals, variant.blend == Blend::kDualQuaternion, weight >= 0 && MorphHalf(variant)};
+  const bool baked = weight >= 0 && BakeRateOf(variant.animation) > 0.0;  // the source is sampled
+  return {weight, variant.normals, variant.blend == Blend::kDualQuaternion, weight >= 0 && MorphHalf(variant),
+          baked ? static_cast<int>(variant.animation) : 0};
 }
 
 }  // namespace
@@ -126,14 +163,14 @@ DatasetCache::GoldKey KeyOf(const Variant& variant, int weight) {
 const GoldResult& DatasetCache::Gold(Entry& entry, const Variant& variant) {
   const GoldKey key = KeyOf(variant, static_cast<int>(variant.weight));
   if (auto found = entry.gold.find(key); found != entry.gold.end()) return found->second;
-  GoldResult gold = SceneGold(entry, QuantisedMesh(entry.mesh(), variant), variant);
+  GoldResult gold = SceneGold(entry, QuantisedMesh(entry.mesh(), variant), variant, VerificationPalette(entry, variant));
   return entry.gold.emplace(key, std::move(gold)).first->second;
 }
 
 const GoldResult& DatasetCache::SourceGold(Entry& entry, const Variant& variant) {
   const GoldKey key = KeyOf(variant, -1);
   if (auto found = entry.source_gold.find(key); found != entry.source_gold.end()) return found->second;
-  GoldResult gold = SceneGold(entry, entry.mesh(), variant);
+  GoldResult gold = SceneGold(entry, entry.mesh(), variant, entry.verification_palette);
   return entry.source_gold.emplace(key, std::move(gold)).first->second;
 }
 
@@ -150,6 +187,28 @@ double DatasetCache::QuantisationError(Entry& entry, const Variant& variant) {
                                                  source.subspan(part.first, part.count)),
                                      part.diagonal));
   return entry.quantisation.emplace(key, error).first->second;
+}
+
+const PackedAnimation& DatasetCache::Clips(Entry& entry, Animation form) {
+  if (!entry.scene.spec.animated) throw Error("scene '" + entry.scene.spec.key + "' is not animated on the device");
+  if (auto found = entry.animations.find(form); found != entry.animations.end()) return found->second;
+  const SkinnedAsset& asset = entry.scene.assets.front();
+  const double rate = BakeRateOf(form);
+  return entry.animations.emplace(form, rate > 0.0 ? BakeAnimation(asset, rate) : PackAnimation(asset)).first->second;
+}
+
+std::span<const glm::mat4> DatasetCache::VerificationPalette(Entry& entry, const Variant& variant) {
+  if (!entry.scene.spec.animated || BakeRateOf(variant.animation) == 0.0) return entry.verification_palette;
+  if (auto found = entry.baked_palettes.find(variant.animation); found != entry.baked_palettes.end()) return found->second;
+  const PackedAnimation& baked = Clips(entry, variant.animation);
+  constexpr int kRows = 4;
+  std::vector<float> rows(entry.verification_states.size() * baked.joints.size() * kRows * 4);
+  RunPaletteKernel(baked.View(), entry.verification_states, rows.data(), kRows);
+  std::vector<glm::mat4> palette(rows.size() / 16);
+  for (std::size_t j = 0; j < palette.size(); ++j)
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) palette[j][c][r] = rows[j * 16 + static_cast<std::size_t>(r) * 4 + static_cast<std::size_t>(c)];
+  return entry.baked_palettes.emplace(variant.animation, std::move(palette)).first->second;
 }
 
 const std::vector<std::vector<glm::mat4>>& DatasetCache::Frames(Entry& entry, int count) {

@@ -15,6 +15,8 @@
 
 #include <glm/glm.hpp>
 
+#include "cpu_kernels/palette_kernel.h"
+#include "generator/clip_packer.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
 #include "generator/variant.h"
@@ -44,7 +46,9 @@ class DatasetCache {
   // normals, whether it skins with dual quaternions (SkinGoldDualQuaternion)
   // or linear blending (SkinGold), and whether the morph offsets are halves
   // (QuantisedMesh rounds them; never for the source).
-  using GoldKey = std::tuple<int, Normals, bool, bool>;
+  // An animated scene's gold also depends on the palettes its form makes:
+  // the baked forms' own (their code), the sampled and host forms the float64 ones (0).
+  using GoldKey = std::tuple<int, Normals, bool, bool, int>;
   struct Entry {
     SkinnedScene scene;
     // The verification frame's palette as the kernel reads it: instance
@@ -56,6 +60,13 @@ class DatasetCache {
     std::map<GoldKey, GoldResult> source_gold;            // (-1, normals, dual quaternions, false)
     std::map<GoldKey, double> quantisation;               // as gold: gold vs source gold, / diagonal
     std::map<int, std::vector<std::vector<glm::mat4>>> frames;  // ScenePalettes by count
+    // An animated scene ("-anim", docs/ANIMATION.md): the verification frame's
+    // K instances (CrowdStates; verification_palette is their float64
+    // palettes), the model's clips packed per form, and the verification
+    // palettes each baked form makes (the palette kernel's algorithm).
+    std::vector<AnimInstance> verification_states;
+    std::map<Animation, PackedAnimation> animations;
+    std::map<Animation, std::vector<glm::mat4>> baked_palettes;
     // The last few packings (PackingKey, its packed mesh), newest last.
     std::vector<std::pair<std::string, PackedMesh>> packings;
     const SkinnedMesh& mesh() const { return scene.mesh(); }
@@ -71,6 +82,13 @@ class DatasetCache {
   // positions / the part's diagonal: what `variant`'s weight format alone
   // moves them, relative (0 when it holds the weights exactly).
   double QuantisationError(Entry& entry, const Variant& variant);
+  // The model's clips packed for `form` (sampled: PackAnimation; baked:
+  // BakeAnimation at BakeRateOf(form)), made once per form. Throws Error for a
+  // scene that is not animated, or the packer's errors.
+  const PackedAnimation& Clips(Entry& entry, Animation form);
+  // The verification frame's palettes as `variant`'s form makes them: the
+  // float64 sampled ones, or a baked form's (RunPaletteKernel on its frames).
+  std::span<const glm::mat4> VerificationPalette(Entry& entry, const Variant& variant);
   // ScenePalettes(entry.scene, count), made once per count.
   const std::vector<std::vector<glm::mat4>>& Frames(Entry& entry, int count);
   // Pack(entry.mesh(), variant), reused from a variant of the same packing
@@ -100,6 +118,14 @@ std::vector<std::vector<glm::mat4>> FramePalettes(const SkinnedAsset& asset, int
 bool PalettesRigid(const SkinnedScene& scene);
 // Whether every matrix has a dual quaternion (skintune_kernels::DualQuaternionOf).
 bool AllRigid(std::span<const glm::mat4> palette);
+// An animated scene's K instances of input set `set` (the verification's:
+// kVerificationSet): instance k plays clip (set x K + k) mod C of the model's
+// C clips at its own phase of it (golden-ratio steps), so every set is a
+// different frame of the crowd.
+inline constexpr int kVerificationSet = 1 << 20;
+std::vector<AnimInstance> CrowdStates(const SkinnedScene& scene, int set);
+// The float64 palettes of `states` (SkinnedAsset::PaletteAt per instance), instance after instance.
+std::vector<glm::mat4> CrowdPalettes(const SkinnedScene& scene, std::span<const AnimInstance> states);
 // `count` frames of a scene, each as the kernel reads it: one mesh's
 // FramePalettes; K instances: K different frames (set s, instance k: frame
 // s x K + k of count x K); a batch: each mesh's frame s, one after another.

@@ -54,16 +54,43 @@ Executor::Output RunnerExecutor::Run(const PackedMesh& mesh, std::span<const Ker
   return {std::move(result.positions), std::move(result.normals), std::move(result.tangents), result.poisoned_vertices};
 }
 
+Executor::Output Executor::RunAnimated(const PackedMesh& mesh, std::span<const KernelSource>, std::span<const std::uint8_t>,
+                                       int, const AnimatedInputs&) {
+  throw Error(std::string(Name(mesh.variant.lang)) + " launch: this executor makes no palettes on the device");
+}
+
+std::unique_ptr<Executor::Timed> Executor::PrepareAnimated(const PackedMesh& mesh, std::span<const KernelSource>,
+                                                           std::span<const std::vector<std::uint8_t>>, int,
+                                                           const AnimatedInputs&) {
+  throw Error(std::string(Name(mesh.variant.lang)) + " launch: this executor makes no palettes on the device");
+}
+
+Executor::Output RunnerExecutor::RunAnimated(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                             std::span<const std::uint8_t> palette, int instances,
+                                             const AnimatedInputs& animated) {
+  if (animated.states.size() != 1) throw Error("RunAnimated: " + std::to_string(animated.states.size()) + " sets of states, not one");
+  const AnimationView view = animated.clips->View();
+  RunResult result = runner_.Run(mesh, kernels, palette, instances, Runner::Animated{&view, &animated.kernel, animated.states.front()});
+  return {std::move(result.positions), std::move(result.normals), std::move(result.tangents), result.poisoned_vertices};
+}
+
 namespace {
 
 class RunnerTimed final : public Executor::Timed {
  public:
-  RunnerTimed(Runner& runner, RunnerExecutor& executor, Prepared prepared, Lang lang, std::string what)
-      : runner_(runner), executor_(executor), prepared_(std::move(prepared)), lang_(lang), what_(std::move(what)) {}
+  RunnerTimed(Runner& runner, RunnerExecutor& executor, Prepared prepared, Lang lang, std::string what, bool animated = false)
+      : runner_(runner), executor_(executor), prepared_(std::move(prepared)), lang_(lang), what_(std::move(what)),
+        animated_(animated) {}
   std::vector<double> Cold(int untimed, int samples) override {
     const Prepared& flush = executor_.Flush(lang_);
     const std::function<void()> before = executor_.BeforeEachSample();
-    const auto take = [&] { return runner_.TimeCold(prepared_, flush, untimed, samples, nullptr, before); };
+    const auto take = [&] {
+      std::vector<std::vector<double>> launches;
+      std::vector<double> ms = runner_.TimeCold(prepared_, flush, untimed, samples, animated_ ? &launches : nullptr, before);
+      for (const std::vector<double>& frame : launches)
+        if (!frame.empty()) palette_ms_.push_back(frame.front());  // the palette kernel: the frame's first launch
+      return ms;
+    };
     if (samples == 0 || !executor_.clock().active()) return take();
     const auto warm = [&] { (void)runner_.TimeCold(prepared_, flush, kClockWarmFrames, 0, nullptr, before); };
     ClockGuard::Batch batch = executor_.clock().Take(take, warm, what_);
@@ -71,6 +98,7 @@ class RunnerTimed final : public Executor::Timed {
     return std::move(batch.samples);
   }
   unsigned ClockMhz() const override { return clock_mhz_; }
+  std::vector<double> PaletteKernelMs() const override { return palette_ms_; }
   double FrameMs(int untimed, int frames) override { return runner_.FrameMs(prepared_, untimed, frames); }
   std::size_t bytes_per_set() const override { return prepared_.bytes_per_set(); }
 
@@ -81,6 +109,8 @@ class RunnerTimed final : public Executor::Timed {
   Lang lang_;
   std::string what_;  // the variant or copy, for the timing log
   unsigned clock_mhz_ = 0;
+  bool animated_ = false;
+  std::vector<double> palette_ms_;
 };
 
 }  // namespace
@@ -155,6 +185,26 @@ std::unique_ptr<Executor::Timed> RunnerExecutor::Prepare(const PackedMesh& mesh,
   const Lang lang = kernels.empty() ? mesh.variant.lang : kernels.front().lang;
   return std::make_unique<RunnerTimed>(runner_, *this, runner_.Prepare(mesh, kernels, palettes, instances), lang,
                                        mesh.variant.Key());
+}
+
+std::unique_ptr<Executor::Timed> RunnerExecutor::PrepareAnimated(const PackedMesh& mesh,
+                                                                 std::span<const KernelSource> kernels,
+                                                                 std::span<const std::vector<std::uint8_t>> palettes,
+                                                                 int instances, const AnimatedInputs& animated) {
+  if (animated.states.size() != palettes.size())
+    throw Error("PrepareAnimated: " + std::to_string(animated.states.size()) + " sets of states for " +
+                std::to_string(palettes.size()) + " input sets");
+  const Lang lang = kernels.empty() ? mesh.variant.lang : kernels.front().lang;
+  // A Skinner's ring, so that FrameMs advances the clocks as a crowd's frames do (AdvanceAnimation).
+  Prepared prepared = runner_.Prepare(mesh, kernels, palettes, instances, kPaletteSlots);
+  const AnimationView view = animated.clips->View();
+  for (std::size_t s = 0; s < palettes.size(); ++s) {
+    runner_.Animate(prepared, static_cast<int>(s), view, animated.kernel);
+    for (int slot = 0; slot < kPaletteSlots; ++slot)  // every slot's instances: the set's states
+      runner_.WritePalette(prepared, static_cast<int>(s), animated.states[s]);
+  }
+  runner_.Finish();
+  return std::make_unique<RunnerTimed>(runner_, *this, std::move(prepared), lang, mesh.variant.Key(), true);
 }
 
 std::unique_ptr<Executor::Timed> RunnerExecutor::Copy(Lang lang, std::size_t bytes, int input_sets) {

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "generator/clip_packer.h"
 #include "generator/copy_kernel.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
@@ -36,6 +37,16 @@ struct KernelTime {
   bool tight = false;  // the interval met the rule (not stopped by a cap)
   unsigned clock_mhz = 0;  // the lowest SM clock read around the batches kept (0: not read)
 };
+// An animated scene's palettes, made on the device (Runner::Animate,
+// docs/ANIMATION.md): the model's clips packed as the variant's animation
+// axis says, their palette kernel in the variant's language, and K
+// AnimInstance records per input set (RunAnimated: one, the verification's).
+struct AnimatedInputs {
+  const PackedAnimation* clips = nullptr;
+  PaletteKernel kernel;
+  std::vector<std::vector<std::uint8_t>> states;
+};
+
 // What a job (tuner/measure_job.h) needs from a device's runner.
 class Executor {
  public:
@@ -57,6 +68,9 @@ class Executor {
     // The lowest SM clock read around its batches of samples so far
     // (tuner/clock_guard.h); 0 where the device's clock is not read.
     virtual unsigned ClockMhz() const { return 0; }
+    // An animated scene's (PrepareAnimated): each timed sample's first
+    // launch, the palette kernel's own time, ms; empty elsewhere.
+    virtual std::vector<double> PaletteKernelMs() const { return {}; }
   };
   virtual ~Executor() = default;
   // One verification run: poisoned outputs and guards (the runners' Run).
@@ -66,6 +80,15 @@ class Executor {
   // Prepares one input set per palette (K palettes each for K instances).
   virtual std::unique_ptr<Timed> Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                                          std::span<const std::vector<std::uint8_t>> palettes, int instances) = 0;
+  // Run and Prepare of an animated scene: the palettes (sized by `palette`,
+  // `palettes`) made each frame by `animated`'s palette kernel, from each
+  // set's states, as the frame's first launch (Runner::Animate). An executor
+  // that cannot animate throws Error("... launch: ...").
+  virtual Output RunAnimated(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                             std::span<const std::uint8_t> palette, int instances, const AnimatedInputs& animated);
+  virtual std::unique_ptr<Timed> PrepareAnimated(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                                 std::span<const std::vector<std::uint8_t>> palettes, int instances,
+                                                 const AnimatedInputs& animated);
   // The same-size copy (generator/copy_kernel.h) moving `bytes` per frame in
   // `lang`'s API with `input_sets` sets of its own, prepared (Copy); its
   // kernel time, measured once per (language, bytes, sets) and remembered
@@ -135,6 +158,11 @@ class RunnerExecutor final : public Executor {
              int instances) override;
   std::unique_ptr<Timed> Prepare(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                                  std::span<const std::vector<std::uint8_t>> palettes, int instances) override;
+  Output RunAnimated(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t> palette,
+                     int instances, const AnimatedInputs& animated) override;
+  std::unique_ptr<Timed> PrepareAnimated(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                         std::span<const std::vector<std::uint8_t>> palettes, int instances,
+                                         const AnimatedInputs& animated) override;
   std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) override;
   std::string KernelClock() const override { return runner_.api().kernel_clock(); }
   std::string ScheduleOf(const std::string& key) const override { return runner_.api().schedule_of(key); }

@@ -164,6 +164,17 @@ class FaultyExecutor final : public Executor {
     const std::vector<KernelSource> edited = Strike(mesh.variant, kernels);
     return inner_->Prepare(mesh, edited, palettes, instances);
   }
+  Output RunAnimated(const PackedMesh& mesh, std::span<const KernelSource> kernels, std::span<const std::uint8_t> palette,
+                     int instances, const AnimatedInputs& animated) override {
+    const std::vector<KernelSource> edited = Strike(mesh.variant, kernels);
+    return inner_->RunAnimated(mesh, edited, palette, instances, animated);
+  }
+  std::unique_ptr<Timed> PrepareAnimated(const PackedMesh& mesh, std::span<const KernelSource> kernels,
+                                         std::span<const std::vector<std::uint8_t>> palettes, int instances,
+                                         const AnimatedInputs& animated) override {
+    const std::vector<KernelSource> edited = Strike(mesh.variant, kernels);
+    return inner_->PrepareAnimated(mesh, edited, palettes, instances, animated);
+  }
   std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) override {
     ThrowWhenLost();
     return inner_->Copy(lang, bytes, input_sets);

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <span>
 #include <sstream>
 #include <utility>
@@ -112,7 +113,30 @@ struct Measuring {
   std::vector<KernelSource> kernels;
   std::vector<glm::vec3> positions, normals;  // the verified output, in the mesh's order
   std::vector<glm::vec4> tangents;
+  std::optional<AnimatedInputs> animated;  // an animated scene's clips, palette kernel and verification states
 };
+
+// An animated scene's inputs for `variant`: its form's clips (DatasetCache::Clips),
+// their palette kernel in its language writing its palette rows, and `states`.
+AnimatedInputs AnimatedFor(DatasetCache& datasets, DatasetCache::Entry& data, const Variant& variant,
+                           std::vector<std::vector<std::uint8_t>> states) {
+  AnimatedInputs in;
+  in.clips = &datasets.Clips(data, variant.animation);
+  in.kernel = EmitPalette(variant.lang, in.clips->View(), static_cast<int>(PaletteMatrixBytes(variant) / 16));
+  in.states = std::move(states);
+  return in;
+}
+
+// Each input set's K instances (CrowdStates), as the palette kernel reads them.
+std::vector<std::vector<std::uint8_t>> StatesOfSets(const DatasetCache::Entry& data, int sets) {
+  std::vector<std::vector<std::uint8_t>> states;
+  for (int s = 0; s < sets; ++s) {
+    const std::vector<AnimInstance> crowd = CrowdStates(data.scene, s);
+    const std::span<const std::uint8_t> bytes = BufferBytes(crowd);
+    states.emplace_back(bytes.begin(), bytes.end());
+  }
+  return states;
+}
 
 // Ends the measurement with `status`; false, so that a stage returns it.
 bool Fail(Measurement& m, MeasureStatus status, std::string detail) {
@@ -128,9 +152,10 @@ std::string WhyNotHere(const MeasureJob& job, const DatasetCache::Entry& data) {
     return std::string("language ") + Name(variant.lang) + " does not run on " + job.device->backend + " device " +
            job.device->name;
   const SkinnedMesh& mesh = data.mesh();
-  const ProblemShape shape = WithMorphOf({mesh.joint_count, mesh.influences, mesh.has_normals(), data.instances(),
-                                          mesh.has_normals() && mesh.has_tangents(), data.rigid_joints},
-                                         mesh.morph);
+  ProblemShape shape = WithMorphOf({mesh.joint_count, mesh.influences, mesh.has_normals(), data.instances(),
+                                    mesh.has_normals() && mesh.has_tangents(), data.rigid_joints},
+                                   mesh.morph);
+  shape.animated = data.scene.spec.animated;
   std::string detail;
   for (const Violation& v : CheckVariant(variant, job.limits, shape))
     detail += (detail.empty() ? "" : "; ") + std::string(Name(v.constraint)) + ": " + v.message;
@@ -141,6 +166,12 @@ std::string WhyNotHere(const MeasureJob& job, const DatasetCache::Entry& data) {
 bool Pack(Measuring& run) {
   try {
     run.packed = &PackScene(*run.job.datasets, run.data, run.job.variant, run.kernels);
+    if (AnimatesOnDevice(run.job.variant)) {
+      const std::span<const std::uint8_t> states = BufferBytes(run.data.verification_states);
+      run.animated = AnimatedFor(*run.job.datasets, run.data, run.job.variant, {{states.begin(), states.end()}});
+      for (const BakedClipInfo& clip : run.animated->clips->baked)  // what baking costs and loses, verified or not
+        run.m.baked_clips.push_back({clip.name, static_cast<double>(clip.frames), static_cast<double>(clip.bytes), clip.max_error});
+    }
   } catch (const Error& e) {
     return Fail(run.m, MeasureStatus::kInvalid, e.what());
   }
@@ -190,8 +221,9 @@ bool Verify(Measuring& run) {
   const int instances = run.data.instances();
   Executor::Output output;
   try {
-    output = run.job.executor->Run(*run.packed, run.kernels, PackPalette(run.data.verification_palette, variant),
-                                   instances);
+    const std::vector<std::uint8_t> palette = PackPalette(run.data.verification_palette, variant);
+    output = run.animated ? run.job.executor->RunAnimated(*run.packed, run.kernels, palette, instances, *run.animated)
+                          : run.job.executor->Run(*run.packed, run.kernels, palette, instances);
   } catch (const Error& e) {
     return Fail(run.m, StatusOfRunnerError(e.what()), e.what());
   }
@@ -240,9 +272,16 @@ bool TimeKernel(Measuring& run, const std::vector<std::vector<std::uint8_t>>& pa
   const MeasureJob& job = run.job;
   const int sets = static_cast<int>(palettes.size());
   try {
-    const std::unique_ptr<Executor::Timed> prepared =
-        job.executor->Prepare(*run.packed, run.kernels, palettes, run.data.instances());
+    std::unique_ptr<Executor::Timed> prepared;
+    if (run.animated) {
+      run.animated->states = StatesOfSets(run.data, sets);
+      prepared = job.executor->PrepareAnimated(*run.packed, run.kernels, palettes, run.data.instances(), *run.animated);
+    } else {
+      prepared = job.executor->Prepare(*run.packed, run.kernels, palettes, run.data.instances());
+    }
     RecordKernelTime(run.m, SampleKernelTime(*prepared, job.options), *job.executor, sets, prepared->bytes_per_set());
+    if (const std::vector<double> palette_ms = prepared->PaletteKernelMs(); !palette_ms.empty())
+      run.m.timing.palette_kernel_ms = Median(palette_ms);
     run.m.timing.warmup = std::max(job.options.warmup, 1);  // SampleKernelTime runs at least one
     run.phases.Mark("kernel time");
     run.m.timing.frame_ms = SampleFrameTime(*prepared, job.options, &run.m.timing.burst_frames);
@@ -346,7 +385,10 @@ std::vector<std::unique_ptr<Executor::Timed>> PrepareRacers(const RaceJob& job, 
     const PackedMesh& packed = PackScene(*job.datasets, data, v, kernels);  // valid until the next packing
     const int sets = InputSetsFor(job.device->last_level_cache_bytes, FrameBytes(packed, data.instances()),
                                   job.options.max_input_sets);
-    timed.push_back(job.executor->Prepare(packed, kernels, TimedPalettes(*job.datasets, data, v, sets), data.instances()));
+    const std::vector<std::vector<std::uint8_t>> palettes = TimedPalettes(*job.datasets, data, v, sets);
+    timed.push_back(AnimatesOnDevice(v) ? job.executor->PrepareAnimated(packed, kernels, palettes, data.instances(),
+                                                                        AnimatedFor(*job.datasets, data, v, StatesOfSets(data, sets)))
+                                        : job.executor->Prepare(packed, kernels, palettes, data.instances()));
     entries.push_back({v.Key(), {}, static_cast<double>(FrameBytes(packed, data.instances())), 0.0});
   }
   return timed;

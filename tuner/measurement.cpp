@@ -189,7 +189,8 @@ void ApplyBudget(Measurement& m, double max_error) {
   detail.precision(2);
   if (KernelAddsOnlyRounding(m.source_error)) {
     const std::string what = std::string(Name(m.variant.weight)) + " weights" +
-                             (MorphHalf(m.variant) ? " and half morph offsets" : "");
+                             (MorphHalf(m.variant) ? " and half morph offsets" : "") +
+                             (BakeRateOf(m.variant.animation) > 0.0 ? std::string(" and clips ") + Name(m.variant.animation) : "");
     detail << std::scientific << what << " cost " << m.source_error.quantisation_rel
            << " of the bounding-box diagonal, over the budget max_error " << max_error;
   } else {
@@ -239,11 +240,17 @@ void to_json(nlohmann::json& out, const Measurement& m) {
                    {"copy_ms", Number(m.timing.copy_ms)},
                    {"frame_ms", Number(m.timing.frame_ms)},
                    {"version", m.timing.version}};
+  if (m.timing.palette_kernel_ms > 0.0) out["timing"]["palette_kernel_ms"] = Number(m.timing.palette_kernel_ms);
   out["bytes_per_frame"] = Number(m.bytes_per_frame);
   out["gbps"] = Number(m.gbps);
   out["x_copy"] = Number(m.x_copy);
   out["max_relative_error"] = Number(m.max_relative_error);
   if (m.source_error.known) out["source_error"] = SourceErrorJson(m.source_error);
+  if (!m.baked_clips.empty()) {
+    nlohmann::json& clips = out["baked_clips"] = nlohmann::json::array();
+    for (const BakedClipRecord& c : m.baked_clips)
+      clips.push_back({{"name", c.name}, {"frames", Number(c.frames)}, {"bytes", Number(c.bytes)}, {"max_error", Number(c.max_error)}});
+  }
   out["generator_version"] = m.generator_version;
   out["timestamp"] = m.timestamp;
 }
@@ -284,6 +291,7 @@ void from_json(const nlohmann::json& in, Measurement& m) {
     if (timing->contains("low_ms")) m.timing.low_ms = ReadNumber(*timing, "low_ms", t);
     if (timing->contains("high_ms")) m.timing.high_ms = ReadNumber(*timing, "high_ms", t);
     if (timing->contains("frame_ms")) m.timing.frame_ms = ReadNumber(*timing, "frame_ms", t);
+    if (timing->contains("palette_kernel_ms")) m.timing.palette_kernel_ms = ReadNumber(*timing, "palette_kernel_ms", t);
     if (timing->contains("flush_bytes")) m.timing.flush_bytes = ReadNumber(*timing, "flush_bytes", t);
     // Timing version 7's clock; absent in older records.
     if (timing->contains("sm_clock_mhz")) m.timing.sm_clock_mhz = ReadNumber(*timing, "sm_clock_mhz", t);
@@ -310,6 +318,16 @@ void from_json(const nlohmann::json& in, Measurement& m) {
   }
   if (m.status == MeasureStatus::kTooImprecise && !m.source_error.known)
     throw Error(where + ": status too_imprecise without 'source_error'");
+  if (const nlohmann::json* clips = Field(in, "baked_clips", false, where)) {
+    if (!clips->is_array()) throw Error(where + ": 'baked_clips' must be a list");
+    for (std::size_t i = 0; i < clips->size(); ++i) {
+      const std::string c = where + ": 'baked_clips'[" + std::to_string(i) + "]";
+      const nlohmann::json& clip = (*clips)[i];
+      if (!clip.is_object()) throw Error(c + ": expected an object");
+      m.baked_clips.push_back({ReadString(clip, "name", true, c), ReadNumber(clip, "frames", c), ReadNumber(clip, "bytes", c),
+                               ReadNumber(clip, "max_error", c)});
+    }
+  }
   m.generator_version = ReadString(in, "generator_version", true, where);
   m.timestamp = ReadString(in, "timestamp", false, where);
   if (const std::string problem = ImpossibleFigures(m); !problem.empty())

@@ -102,6 +102,20 @@ struct Timing {
   // The frame time (docs/TUNING.md "Frame time"): host ms per frame of
   // `burst_frames` frames issued back to back as a Skinner issues them (0: not measured).
   double frame_ms = 0.0;
+  // An animated scene's (animation sampled or baked): the palette kernel's own
+  // time, the median of each sample's first launch, ms; part of median_ms (0: none).
+  double palette_kernel_ms = 0.0;
+};
+
+// A baked variant's clip (generator/clip_packer.h BakedClipInfo): its frames,
+// their bytes on the device, and the largest distance between a vertex
+// skinned by its baked palettes and by the float64 sampled ones, relative to
+// the mesh's bounding-box diagonal.
+struct BakedClipRecord {
+  std::string name;
+  double frames = 0.0;
+  double bytes = 0.0;
+  double max_error = 0.0;
 };
 
 struct Measurement {
@@ -118,6 +132,7 @@ struct Measurement {
   double max_relative_error = 0.0;  // against the gold of the quantised mesh (ok, too_imprecise, verify_failed);
                                     // packed normals and tangents (normal_format) count in source_error only
   SourceError source_error;         // against the unquantised source (ok and too_imprecise)
+  std::vector<BakedClipRecord> baked_clips;  // a baked variant's clips, verified or not (empty: none)
   std::string generator_version;
   std::string timestamp;          // UTC, ISO 8601
 

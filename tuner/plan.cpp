@@ -105,6 +105,7 @@ PlannedDataset PlanDataset(const std::string& key) {
   d.shape = WithMorphOf(ProblemShape{mesh.joint_count, widest, mesh.has_normals(), spec.instances,
                                      mesh.has_normals() && mesh.has_tangents(), tuner_internal::PalettesRigid(scene)},
                         mesh.morph);
+  d.shape.animated = spec.animated;
   return d;
 }
 
@@ -222,6 +223,8 @@ Task PlanTask(const TuneConfig& config, Task task, const PlannedDevice& device, 
     b.influences = dataset.info.influences;
     // A data set whose morph targets move it: the baseline applies them with float32 offsets.
     if (dataset.shape.morph_moves && b.morph == Morph::kNone) b.morph = Morph::kDense;
+    // A scene animated on the device: the baseline's palettes are sampled there.
+    if (dataset.shape.animated && b.animation == Animation::kHost) b.animation = Animation::kSampled;
     const std::vector<Violation> violations = CheckVariant(b, device.limits, dataset.shape);
     if (!violations.empty()) {
       RecordInvalid(task, invalid_keys, b, violations, device, dataset, created);

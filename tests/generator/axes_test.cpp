@@ -90,7 +90,8 @@ TEST(Axes, KeyFormatIsTheGrammarErrorsHaveAlwaysQuoted) {
             "<lang>.b<B>.<padded|bucketed>.<aos|soa|soa-split>.<float4|float3>.<i32|u16|u8>.<f32|unorm16|unorm8>"
             ".<mat4|mat3x4|dualquat>.<constant|local|global|image>.<matrix|point|dq>.v<1|2|4|8><c|s>.wg<N>"
             ".<nonormals|normals|tangents>[.<morph-dense|morph-sparse|morph-dense-half|morph-sparse-half>]"
-            "[.<normals-oct16|normals-snorm8>]");
+            "[.<normals-oct16|normals-snorm8>]"
+            "[.<anim-sampled|anim-baked30|anim-baked60|anim-baked120|anim-baked240>]");
 }
 
 TEST(Axes, CodesDifferExactlyOnTheAxisThatDiffers) {

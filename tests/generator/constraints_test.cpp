@@ -30,6 +30,37 @@ TEST(Constraints, APackedNormalFormatNeedsNormals) {
   EXPECT_STREQ(Name(Constraint::kNormalFormatUnused), "normal_format_unused");
 }
 
+// Where the palettes come from is the scene's: the device's forms only on a
+// scene animated on the device (-anim), host only elsewhere; neither is
+// counted as invalid (NotOfThisDataSet). The palette kernel writes matrices,
+// and the tuner animates no scene with morph targets.
+TEST(Constraints, TheAnimationAxisFollowsTheScene) {
+  Variant v;
+  v.animation = Animation::kBaked60;
+  ExpectOnly(v, Constraint::kAnimationMissing, "animation baked60: the scene's palettes come from the host");
+  ProblemShape animated = kShape;
+  animated.animated = true;
+  EXPECT_TRUE(CheckVariant(v, kDevice, animated).empty());
+  ExpectOnly(Variant{}, Constraint::kAnimationIgnored, "animation host: the scene's palettes are made on the device",
+             kDevice, animated);
+  EXPECT_TRUE(NotOfThisDataSet(Constraint::kAnimationMissing));
+  EXPECT_TRUE(NotOfThisDataSet(Constraint::kAnimationIgnored));
+  Variant dq = v;
+  dq.palette = PaletteFormat::kDualQuaternion;
+  dq.blend = Blend::kDualQuaternion;
+  animated.rigid_joints = true;
+  ExpectOnly(dq, Constraint::kAnimationPalette, "the palette kernel writes mat3x4 or mat4 palettes", kDevice, animated);
+  ProblemShape morph = animated;
+  morph.morph_targets = 4;
+  morph.morph_moves = true;
+  v.morph = Morph::kDense;
+  ExpectOnly(v, Constraint::kAnimationMorph, "an animated scene with morph targets", kDevice, morph);
+  EXPECT_STREQ(Name(Constraint::kAnimationMissing), "animation_missing");
+  EXPECT_STREQ(Name(Constraint::kAnimationIgnored), "animation_ignored");
+  EXPECT_STREQ(Name(Constraint::kAnimationPalette), "animation_palette");
+  EXPECT_STREQ(Name(Constraint::kAnimationMorph), "animation_morph");
+}
+
 TEST(Constraints, RejectsInfluencesOutsideOneToEight) {
   Variant v;
   v.influences = 9;

@@ -84,6 +84,29 @@ TEST(SceneKey, MalformedKeysNameThePart) {
   }());
 }
 
+// "-anim": a scene of one mesh or its instances animated on the device.
+TEST(SceneKey, AnimatedScenesAreOneMeshOrItsInstancesPlayingTheModelsClips) {
+  const SceneSpec crowd = ParseSceneKey("25k-b4-x64-anim");
+  EXPECT_TRUE(crowd.animated);
+  EXPECT_EQ(crowd.instances, 64);
+  EXPECT_EQ(crowd.meshes, std::vector<std::string>{"25k-b4"});
+  EXPECT_FALSE(ParseSceneKey("25k-b4-x64").animated);
+  const SceneSpec fox = ParseSceneKey("data/Fox.gltf-x6-anim");
+  EXPECT_TRUE(fox.animated);
+  EXPECT_EQ(fox.instances, 6);
+  EXPECT_EQ(fox.meshes, std::vector<std::string>{"data/Fox.gltf"});
+  EXPECT_TRUE(ParseSceneKey("5k-b2-anim").animated);
+  EXPECT_EQ(ParseSceneKey("5k-b2-anim").instances, 1);
+  EXPECT_NE(ErrorOf("5k-b2+5k-b1-anim").find("'-anim' animates a scene of one mesh or its instances, not a batch"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("mix20k-b2-anim").find("not a batch"), std::string::npos);
+  // Loaded, the asset keeps its mesh (baking measures its error on it) and its clips.
+  const SkinnedScene scene = LoadScene(ParseSceneKey(std::string(SKINTUNE_TEST_DATA_DIR) + "/Fox.gltf-x3-anim"));
+  EXPECT_EQ(scene.mesh().vertex_count(), 1728u);
+  EXPECT_EQ(scene.assets.front().mesh.vertex_count(), 1728u);
+  EXPECT_EQ(scene.assets.front().animations.size(), 3u);
+}
+
 TEST(MeshBatch, ConcatenatesWithOffsetJointsAndPadsToTheLargestB) {
   const SkinnedAsset a = GenerateDataset(ParseDatasetKey("300-b1-bones5-normals"));
   const SkinnedAsset b = GenerateDataset(ParseDatasetKey("200-b3-bones12-seed2-normals"));

@@ -113,6 +113,42 @@ TEST(Selection, MorphEntriesServeOnlyMeshesWithMorphTargetsTheNearestCountFirst)
   EXPECT_EQ(fallback.variant.morph, Morph::kDense) << fallback.variant.Key();
 }
 
+// Entries tuned on scenes animated on the device (their variant's
+// animation: the palette kernel's form) serve only a Skinner that animates on
+// the device, before the entries tuned with the host's palettes, whose skin
+// kernel serves it too; a baked form over the error budget is skipped.
+TEST(Selection, AnimatedEntriesServeOnlyAnimatedSkinnersAndThemFirst) {
+  const std::string id = ThisDevice().id;
+  const WinnersEntry host = Entry(id, "Example", "gpu", "opencl.b2.soa.wg64", "100k", 1.0);
+  WinnersEntry baked = Entry(id, "Example", "gpu", "opencl.b2.aos.wg128.anim-baked30", "100k", 0.5);
+  baked.source_error.known = true;
+  baked.source_error.position_rel = 3e-3;  // what baking at 30 a second lost
+  baked.source_error.quantisation_rel = 3e-3;  // the gold of its own palettes against the sampled ones
+  WinnersEntry sampled = Entry(id, "Example", "gpu", "opencl.b2.soa-split.wg256.anim-sampled", "100k", 0.7);
+  sampled.source_error.known = true;
+  sampled.source_error.position_rel = 2e-7;
+  SelectionRequest r;
+  r.device = ThisDevice();
+  r.langs = {Lang::kOpenCl};
+  r.influences = 2;
+  r.vertex_count = 100000;
+  r.max_error = 1e-2;
+  const std::vector<WinnersEntry> entries = {baked, sampled, host};
+  EXPECT_EQ(Select(entries, r).variant, host.variant) << "a Skinner of SetPalette takes no animated entry";
+  EXPECT_EQ(Select({baked, sampled}, r).selection.level, MatchLevel::kGenericDefault);
+  r.animated = true;
+  const Chosen first = Select(entries, r);
+  EXPECT_EQ(first.variant.animation, Animation::kBaked30) << first.variant.Key() << ": the newest, then the fastest";
+  r.max_error = 1e-3;  // baking at 30 a second lost more
+  const Chosen strict = Select(entries, r);
+  EXPECT_EQ(strict.variant, sampled.variant);
+  EXPECT_NE(strict.selection.reason.find("skipped"), std::string::npos) << strict.selection.reason;
+  const Chosen fallback = Select({host}, r);
+  EXPECT_EQ(fallback.variant, host.variant);
+  EXPECT_NE(fallback.selection.reason.find("tuned with the host's palettes"), std::string::npos)
+      << fallback.selection.reason;
+}
+
 // A Skinner's normal format takes the entry tuned in it first; without one,
 // another entry serves with its variant's format changed, and the reason
 // says so; without normals the format is float32.

@@ -14,8 +14,12 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "cpu_kernels/palette_kernel.h"
 #include "generator/clip_packer.h"
+#include "generator/variant.h"
+#include "runtime/selection.h"
 #include "skintune/skintune.h"
 #include "tests/common/test_asset.h"
 #include "tests/generator/palette_gold.h"
@@ -342,7 +346,7 @@ TEST(SkinnerAnimatedModel, ABakeRateOutsideItsRangeIsRefusedNamingIt) {
   if (!device.ok()) GTEST_SKIP() << "no device: " << device.status().message();
   Result<Model> model = Model::Load(std::string(SKINTUNE_TEST_DATA_DIR) + "/Fox.gltf");
   ASSERT_TRUE(model.ok()) << model.status().message();
-  for (const double rate : {-1.0, 1001.0, std::numeric_limits<double>::quiet_NaN()}) {
+  for (const double rate : {-0.5, -2.0, 1001.0, std::numeric_limits<double>::quiet_NaN()}) {
     SkinnerOptions options;
     options.bake_rate = rate;
     const Result<Skinner> skinner = Skinner::CreateAnimated(*device, WinnersDb::Empty(), *model, options);
@@ -351,6 +355,62 @@ TEST(SkinnerAnimatedModel, ABakeRateOutsideItsRangeIsRefusedNamingIt) {
     EXPECT_NE(skinner.status().message().find("SkinnerOptions::bake_rate is"), std::string::npos)
         << skinner.status().message();
   }
+}
+
+// kBakeRateTuned: the palette kernel's form is the chosen entry's, tuned on a
+// scene animated on the device (docs/TUNING.md "Animated scenes"): baked at
+// its rate, or sampled; sampled from an entry tuned with the host's palettes.
+TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsked) {
+  Result<Device> device = Device::Open("", nullptr);
+  if (!device.ok()) GTEST_SKIP() << "no device: " << device.status().message();
+  Result<Model> model = Model::Load(std::string(SKINTUNE_TEST_DATA_DIR) + "/Fox.gltf");
+  ASSERT_TRUE(model.ok()) << model.status().message();
+  const DeviceInfo& info = device->info();
+  const std::string lang = std::string(Name(LanguagesOf(info.backend).front()));
+  const auto database = [&](const std::string& form) {
+    const std::string key = lang + ".b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c." +
+                            (lang == "cpu" || lang == "glsl-vertex" ? "wg0" : "wg64") + form;
+    nlohmann::json entry = {{"device_id", info.id}, {"backend", BackendName(info.backend)}, {"platform", info.platform},
+                            {"vendor", info.vendor}, {"device_name", info.name}, {"driver_version", info.driver_version},
+                            {"device_type", info.type}, {"lang", lang}, {"influences", 4}, {"vertices", 10368},
+                            {"vertex_bucket", "25k"}, {"shape", "instances"}, {"instances", 6}, {"meshes", 1},
+                            {"dataset", "Fox.gltf-x6-anim"}, {"median_ms", 0.05}, {"gbps", 10.0}, {"copy_fraction", 0.5},
+                            {"created", "2026-11-30T08:00:00Z"}, {"source", "animated-crowds (coordinate)"},
+                            {"source_error", {{"diagonal", 1.0}, {"position_abs", 5e-5}, {"position_rel", 5e-5},  // baking's loss
+                                              {"normal_abs", 0.0}, {"quantisation_rel", 5e-5}}},
+                            {"max_relative_error", 3e-7}, {"variant", ParseVariantKey(key)}};
+    const nlohmann::json db = {{"schema_version", "1.9.0"}, {"kind", "skintune-winners-db"}, {"entries", {entry}}};
+    Result<WinnersDb> parsed = WinnersDb::Parse(db.dump(), "test database");
+    EXPECT_TRUE(parsed.ok()) << parsed.status().message();
+    return parsed.ok() ? std::move(*parsed) : WinnersDb::Empty();
+  };
+  SkinnerOptions options;
+  options.instances = 6;
+  options.bake_rate = kBakeRateTuned;
+  {
+    const Result<Skinner> skinner = Skinner::CreateAnimated(*device, database(".anim-baked60"), *model, options);
+    ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+    EXPECT_EQ(skinner->selection().level, MatchLevel::kExactDevice) << skinner->selection().reason;
+    ASSERT_EQ(skinner->baked_clips().size(), static_cast<std::size_t>(model->animation_count()));
+    for (int c = 0; c < model->animation_count(); ++c)  // F = ceil(duration x 60) + 1
+      EXPECT_NEAR(skinner->baked_clips()[static_cast<std::size_t>(c)].frames,
+                  std::ceil(model->animation_duration(c) * 60.0) + 1, 1.0) << c;
+    EXPECT_NE(skinner->selection().reason.find("made as tuned: baked60"), std::string::npos) << skinner->selection().reason;
+  }
+  for (const char* form : {".anim-sampled", ""}) {
+    SCOPED_TRACE(form);
+    const Result<Skinner> skinner = Skinner::CreateAnimated(*device, database(form), *model, options);
+    ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+    EXPECT_TRUE(skinner->baked_clips().empty()) << "sampled";
+  }
+  // A Skinner of SetPalette takes no animated entry, and refuses the option.
+  SkinnerOptions plain;
+  plain.instances = 6;
+  const Result<Skinner> host = Skinner::Create(*device, database(".anim-baked60"), model->mesh(), plain);
+  ASSERT_TRUE(host.ok()) << host.status().message();
+  EXPECT_EQ(host->selection().level, MatchLevel::kGenericDefault) << host->selection().reason;
+  plain.bake_rate = kBakeRateTuned;
+  EXPECT_EQ(Skinner::Create(*device, database(""), model->mesh(), plain).status().code(), ErrorCode::kInvalidArgument);
 }
 
 TEST(SkinnerAnimatedModel, AnEmptyModelIsRefused) {

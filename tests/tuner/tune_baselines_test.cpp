@@ -32,6 +32,7 @@ TEST(TuneBaselines, AreMeasuredWithTheDatasetsBOutsideTheSpaceAndInvalidOnesAreR
   config.space.normals = {Normals::kNone};
   config.space.morphs = {Morph::kNone};
   config.space.normal_formats = {NormalFormat::kF32};
+  config.space.animations = {Animation::kHost};
   config.datasets = {"3000-b2-bones300"};
   config.timing = {1, 3, 2, 1e-5};
   config.variant_timeout_s = 30;

@@ -331,7 +331,7 @@ TEST(TuneCli, MissingConfigFileIsOneLine) {
   EXPECT_EQ(unknown.result.exit_code, 1);
   EXPECT_EQ(unknown.result.err,
             "skintune: error: --config 'fastest': not a file path (no '/' or .json) and no built-in config "
-            "'fastest' (built in: default, dual-quaternions, morph-targets, packed-normals, paper)\n");
+            "'fastest' (built in: animated-crowds, default, dual-quaternions, morph-targets, packed-normals, paper)\n");
 }
 
 TEST(TuneCli, MalformedJsonConfigIsOneLine) {

@@ -27,13 +27,13 @@ std::string ErrorOf(const char* text) {
 }
 
 TEST(TuneConfig, EmbeddedConfigsAreTheFilesOfConfigs) {
-  for (const char* name : {"default", "dual-quaternions", "morph-targets", "packed-normals", "paper"}) {
+  for (const char* name : {"animated-crowds", "default", "dual-quaternions", "morph-targets", "packed-normals", "paper"}) {
     std::ifstream in(std::string(SKINTUNE_SOURCE_DIR) + "/configs/" + name + ".json", std::ios::binary);
     ASSERT_TRUE(in) << name;
     const std::string file((std::istreambuf_iterator<char>(in)), {});
     EXPECT_EQ(EmbeddedConfig(name), file) << name;
   }
-  EXPECT_EQ(ErrorOf([] { EmbeddedConfig("fast"); }), "no built-in config 'fast' (built in: default, dual-quaternions, morph-targets, packed-normals, paper)");
+  EXPECT_EQ(ErrorOf([] { EmbeddedConfig("fast"); }), "no built-in config 'fast' (built in: animated-crowds, default, dual-quaternions, morph-targets, packed-normals, paper)");
 }
 
 TEST(TuneConfig, DefaultConfigIsValidAndSmall) {

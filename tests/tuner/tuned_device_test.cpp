@@ -569,6 +569,62 @@ TEST(Scenes, InstancesAndBatchesAreVerifiedTimedAndTheirWinnersSelectedByShape) 
   if (measured == 0) GTEST_SKIP() << "no device here: " << SkippedLines("");
 }
 
+// Animated scenes ("-anim", docs/ANIMATION.md) on every device found: Fox's
+// three clips played by a crowd, the palettes made on the device by the
+// palette kernel as the frame's first launch. Sampled and baked forms are
+// verified against the float64 gold of the palettes each makes, their error
+// against the sampled float64 palettes recorded (baking's loss falls with the
+// rate), the palette kernel's own time stated within the kernel time, and a
+// baked variant's clips recorded with their frames, bytes and error. The host
+// form is no variant of an animated scene, nor a device form of another.
+TEST(Scenes, AnimatedCrowdsMakeTheirPalettesOnTheDeviceVerifiedTimedAndTheirBakingStated) {
+  const std::string fox = std::string(SKINTUNE_TEST_DATA_DIR) + "/Fox.gltf";
+  const std::string crowd = fox + "-x6-anim";
+  int measured = 0;
+  for (const auto& found : Found().devices) {
+    TunedDevice& tuned = *found;
+    const Lang lang = tuned.languages().front();
+    const std::string base = std::string(Name(lang)) + ".b4.padded.soa.float4.u16.f32.mat3x4.global.matrix." +
+                             (HasWorkGroups(lang) ? "v1c.wg64" : "v1c.wg0");
+    SCOPED_TRACE(tuned.identity().Id());
+    std::map<std::string, Measurement> by_form;
+    for (const char* form : {"anim-sampled", "anim-baked30", "anim-baked240"}) {
+      const Measurement m = tuned.Measure(ParseVariantKey(base + "." + form), {crowd}, SmallTiming());
+      SCOPED_TRACE(form);
+      ExpectOk(m, tuned, crowd);
+      EXPECT_GT(m.timing.palette_kernel_ms, 0.0) << "the palette kernel's own time";
+      EXPECT_LT(m.timing.palette_kernel_ms, m.timing.max_ms) << "part of each sample";
+      ASSERT_TRUE(m.source_error.known);
+      by_form[form] = m;
+      ++measured;
+    }
+    EXPECT_TRUE(by_form["anim-sampled"].baked_clips.empty());
+    EXPECT_LT(by_form["anim-sampled"].source_error.position_rel, 1e-5) << "float32 sampling of the float64 palettes";
+    for (const char* form : {"anim-baked30", "anim-baked240"}) {
+      const std::vector<BakedClipRecord>& clips = by_form[form].baked_clips;
+      ASSERT_EQ(clips.size(), 3u) << form;
+      for (const BakedClipRecord& c : clips) {
+        EXPECT_GT(c.frames, 1.0) << c.name;
+        EXPECT_GT(c.bytes, 0.0) << c.name;
+        EXPECT_GT(c.max_error, 0.0) << c.name;
+      }
+    }
+    EXPECT_GT(by_form["anim-baked240"].baked_clips.front().bytes, 4 * by_form["anim-baked30"].baked_clips.front().bytes);
+    EXPECT_GT(by_form["anim-baked240"].baked_clips.front().frames, 7 * by_form["anim-baked30"].baked_clips.front().frames);
+    EXPECT_GT(by_form["anim-baked30"].source_error.position_rel, by_form["anim-sampled"].source_error.position_rel);
+    EXPECT_LT(by_form["anim-baked240"].source_error.position_rel, by_form["anim-baked30"].source_error.position_rel)
+        << "baking's loss falls with the rate";
+    // The host's palettes on an animated scene, and a device form on a scene the host animates: not their variants.
+    const Measurement host = tuned.Measure(ParseVariantKey(base), {crowd}, SmallTiming());
+    EXPECT_EQ(host.status, MeasureStatus::kInvalid);
+    EXPECT_NE(host.detail.find("animation_ignored"), std::string::npos) << host.detail;
+    const Measurement missing = tuned.Measure(ParseVariantKey(base + ".anim-sampled"), {"2000-b4-x4"}, SmallTiming());
+    EXPECT_EQ(missing.status, MeasureStatus::kInvalid);
+    EXPECT_NE(missing.detail.find("animation_missing"), std::string::npos) << missing.detail;
+  }
+  if (measured == 0) GTEST_SKIP() << "no device here: " << SkippedLines("");
+}
+
 // Compiling ahead (the tuner's pool of compile threads, each with a device
 // context of its own): every distinct kernel is built once and counted, a
 // second call finds them all built, and the measurements that follow load

@@ -176,7 +176,7 @@ class CpuApi final : public DeviceApi {
   const CpuChoice& ChoiceFor(const FrameRun& run);
 
   unsigned max_threads_;
-  const FrameRun* live_run_ = nullptr;  // while a frame's prologue runs: its run (the palette kernel's scalars)
+  const FrameRun* frame_run_ = nullptr;  // while RunFrames runs: its run (the palette kernel's scalars)
   std::size_t evicted_bytes_ = 0;  // by kCold, in all
   std::uint64_t flush_sink_ = 0;  // what the flush read, kept so that no compiler drops the reads
   std::string name_;
@@ -352,11 +352,11 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
     // The states kept on the device (read and written: the buffer is the runner's, host memory).
     const std::span<AnimInstance> states(const_cast<AnimInstance*>(span_of(kAnimStates, static_cast<const AnimInstance*>(nullptr)).data()),
                                          count);
-    if (!live_run_) Fail("launch", spec.where + ": the palette kernel runs only as a frame's prologue");
-    if (PrologueScalar(*live_run_, kAnimFresh, "CPU") != 0) {
+    if (!frame_run_) Fail("launch", spec.where + ": no value for the palette kernel's scalars");
+    if (ScalarOf(*frame_run_, kAnimFresh, "CPU") != 0) {
       std::copy(instances.begin(), instances.end(), states.begin());
     } else {
-      AdvanceAnimInstances(view, states, std::bit_cast<float>(PrologueScalar(*live_run_, kAnimDelta, "CPU")));
+      AdvanceAnimInstances(view, states, std::bit_cast<float>(ScalarOf(*frame_run_, kAnimDelta, "CPU")));
     }
     // Instances spread over the device's threads, in chunks of 4 (each a few
     // microseconds of sampling and walks); checked first, so no chunk throws.
@@ -523,6 +523,7 @@ const CpuChoice& CpuApi::ChoiceFor(const FrameRun& run) {
 
 std::vector<std::vector<double>> CpuApi::RunFrames(const FrameRun& run) {
   if (run.frames.empty()) return {};
+  const CurrentRun current(frame_run_, run);
   if (run.use == FrameUse::kVerify) {
     const auto found = choices_.find(ChoiceKey(run));
     const CpuChoice choice =
@@ -537,9 +538,7 @@ std::vector<std::vector<double>> CpuApi::RunFrames(const FrameRun& run) {
   }
   const CpuChoice choice = ChoiceFor(run);
   if (run.use == FrameUse::kLive) {
-    live_run_ = &run;  // the prologue's scalars
     RunFrame(run.prologue, choice);
-    live_run_ = nullptr;
     for (const auto& frame : run.frames) RunFrame(frame, choice);
     return {};
   }

@@ -157,8 +157,8 @@ class CudaBound final : public DeviceObject {
   cuda::TexObject texture = 0;
   std::vector<void*> parameters;
   int output_parameter = -1;              // the index in `parameters` of "out_positions"
-  // A prologue's scalars (the palette kernel's delta and fresh), set from the
-  // frame's run before each launch; cuLaunchKernel copies them.
+  // The launch's scalars (the palette kernel's delta and fresh), set from the
+  // frame's run before each launch (FrameRun::scalars); cuLaunchKernel copies them.
   std::vector<std::string> scalar_names;
   mutable std::array<std::uint32_t, 4> scalars{};
 };
@@ -242,6 +242,8 @@ class CudaApi final : public DeviceApi {
   Event NewEvent(const std::string& what) const;
   // `parameters`: the launch's own (null) or a copy with one argument redirected (kLive).
   void Launch(const CudaBound& bound, cuda::Stream lane, void** parameters = nullptr);
+  // While RunFrames runs: its run, whose scalars Launch passes.
+  const FrameRun* frame_run_ = nullptr;
   double ElapsedMs(const Event& start, const Event& end) const;
   std::vector<std::vector<double>> RunTimed(const FrameRun& run);
   // Kernel time (FrameUse::kCold) on one stream: CUPTI's kernel records, or
@@ -527,6 +529,10 @@ Event CudaApi::NewEvent(const std::string& what) const {
 void CudaApi::Launch(const CudaBound& bound, cuda::Stream lane, void** parameters) {
   const CudaPlanned& plan = *bound.plan;
   const std::string& where = plan.spec.where;
+  for (std::size_t k = 0; k < bound.scalar_names.size(); ++k) {
+    if (!frame_run_) Fail("launch", where + ": no value for the scalar '" + bound.scalar_names[k] + "'");
+    bound.scalars[k] = ScalarOf(*frame_run_, bound.scalar_names[k], "CUDA");
+  }
   if (plan.constant_symbol)
     Check(api->cuMemcpyDtoDAsync(plan.constant_symbol, bound.palette->pointer(), bound.palette->bytes(), lane),
           "launch", [&] { return where + ": cuMemcpyDtoDAsync to '" + kConstantPaletteSymbol + "'"; });
@@ -681,6 +687,7 @@ std::vector<std::vector<double>> CudaApi::TimeCold(const FrameRun& run) {
 }
 
 std::vector<std::vector<double>> CudaApi::RunFrames(const FrameRun& run) {
+  const CurrentRun current(frame_run_, run);
   if (run.use == FrameUse::kCold) return TimeCold(run);
   if (run.use != FrameUse::kLive) return RunTimed(run);
   const auto out = static_cast<cuda::DevicePtr>(reinterpret_cast<std::uintptr_t>(run.out_positions));
@@ -695,10 +702,7 @@ std::vector<std::vector<double>> CudaApi::RunFrames(const FrameRun& run) {
     }
     JoinUploads(prologues_);
     for (const std::unique_ptr<DeviceObject>& launch : run.prologue) {
-      const auto& bound = static_cast<const CudaBound&>(*launch);
-      for (std::size_t k = 0; k < bound.scalar_names.size(); ++k)
-        bound.scalars[k] = PrologueScalar(run, bound.scalar_names[k], "CUDA");
-      Launch(bound, prologues_);
+      Launch(static_cast<const CudaBound&>(*launch), prologues_);
     }
     Check(api->cuEventRecord(prologue_done_, prologues_), "launch", "cuEventRecord after the palette kernel");
     Check(api->cuStreamWaitEvent(stream, prologue_done_, 0), "launch", "cuStreamWaitEvent for the palette kernel");

@@ -113,10 +113,34 @@ std::string Described(const GlPlanned& plan) {
          (plan.captures.front().staged ? " through a staging buffer" : "");
 }
 
+// The frames' first skin launch (an animated set's palette kernel, a compute
+// dispatch before it, says nothing of whether the frames draw).
 const GlPlanned* FirstPlan(const FrameRun& run) {
   for (const auto& frame : run.frames)
-    if (!frame.empty()) return static_cast<const GlBound&>(*frame.front()).plan;
+    for (const std::unique_ptr<DeviceObject>& launch : frame)
+      if (!static_cast<const GlBound&>(*launch).plan->spec.feeds_frame) return static_cast<const GlBound&>(*launch).plan;
   return nullptr;
+}
+
+// A bound launch's scalar uniforms from `run` (the palette kernel's delta
+// and fresh: FrameRun::scalars); nothing for a launch without any.
+void SetScalars(const GlBound& bound, const FrameRun& run) {
+  for (const GlPlanned::Scalar& scalar : bound.plan->scalars) {
+    const std::uint32_t bits = ScalarOf(run, scalar.name, "GL");
+    if (scalar.location < 0) continue;
+    if (scalar.f32) {
+      glUniform1f(scalar.location, std::bit_cast<float>(bits));
+    } else {
+      glUniform1ui(scalar.location, bits);
+    }
+  }
+}
+
+// After a launch whose writes the frame's later launches read (the palette
+// kernel: LaunchSpec::feeds_frame), however they read them.
+void BarrierIfItFeeds(const GlBound& bound) {
+  if (bound.plan->spec.feeds_frame)
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_UNIFORM_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
 }
 
 // The state a Skinner's frame changes on a context the caller also draws with, put back afterwards.
@@ -184,15 +208,16 @@ std::vector<std::vector<double>> GlApi::RunVerified(const FrameRun& run) {
   for (const std::unique_ptr<DeviceObject>& launch : run.frames.front()) {
     const auto& bound = static_cast<const GlBound&>(*launch);
     BindLaunch(bound, true);
+    SetScalars(bound, run);
     timers.push_back(NewQuery());
     glBeginQuery(GL_TIME_ELAPSED, timers.back().get());
-    if (vertex) {
-      written.push_back(NewQuery());
-      glBeginQuery(GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN, written.back().get());
-    }
+    const bool draws = bound.plan->vertex;
+    written.push_back(draws ? NewQuery() : GlObject());
+    if (draws) glBeginQuery(GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN, written.back().get());
     DrawLaunch(bound);
-    if (vertex) glEndQuery(GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN);
+    if (draws) glEndQuery(GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN);
     glEndQuery(GL_TIME_ELAPSED);
+    BarrierIfItFeeds(bound);
     CheckGl("launch", Described(*bound.plan));
   }
   if (vertex) {
@@ -207,7 +232,7 @@ std::vector<std::vector<double>> GlApi::RunVerified(const FrameRun& run) {
   std::vector<double> ms;
   for (std::size_t t = 0; t < timers.size(); ++t) {
     ms.push_back(QueryMs(timers[t]));
-    if (!vertex) continue;
+    if (!static_cast<const GlBound&>(*run.frames.front()[t]).plan->vertex) continue;
     GLuint64 points = 0;
     glGetQueryObjectui64v(written[t].get(), GL_QUERY_RESULT, &points);
     const LaunchSpec& spec = static_cast<const GlBound&>(*run.frames.front()[t]).plan->spec;
@@ -234,8 +259,11 @@ std::vector<std::vector<double>> GlApi::RunTimed(const FrameRun& run) {
   const std::size_t bursts = run.TimedBursts();
   const auto frame = [&](std::size_t f) {
     for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
-      BindLaunch(static_cast<const GlBound&>(*launch), false);
-      DrawLaunch(static_cast<const GlBound&>(*launch));
+      const auto& bound = static_cast<const GlBound&>(*launch);
+      BindLaunch(bound, false);
+      SetScalars(bound, run);
+      DrawLaunch(bound);
+      BarrierIfItFeeds(bound);
     }
   };
   for (std::size_t f = 0; f < untimed; ++f) frame(f);
@@ -333,6 +361,7 @@ std::vector<std::vector<double>> GlApi::RunCold(const FrameRun& run) {
     for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
       const auto& bound = static_cast<const GlBound&>(*launch);
       BindLaunch(bound, false);
+      SetScalars(bound, run);
       if (f >= untimed && host_clock) {
         ms[f - untimed].push_back(HostMs([&] {
           DrawLaunch(bound);
@@ -383,15 +412,7 @@ void GlApi::RunLive(const FrameRun& run) {
       for (const std::unique_ptr<DeviceObject>& launch : run.prologue) {
         const auto& bound = static_cast<const GlBound&>(*launch);
         BindLaunch(bound, false);
-        for (const GlPlanned::Scalar& scalar : bound.plan->scalars) {
-          const std::uint32_t bits = PrologueScalar(run, scalar.name, "GL");
-          if (scalar.location < 0) continue;
-          if (scalar.f32) {
-            glUniform1f(scalar.location, std::bit_cast<float>(bits));
-          } else {
-            glUniform1ui(scalar.location, bits);
-          }
-        }
+        SetScalars(bound, run);
         DrawLaunch(bound);
       }
       glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_UNIFORM_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);

@@ -252,7 +252,7 @@ class OpenClApi final : public DeviceApi {
   Memory NewMemory(cl_mem_flags flags, std::size_t bytes, const void* data, const std::string& what);
   void Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* event, cl_command_queue on = nullptr,
                cl_uint wait_count = 0, const cl_event* wait_list = nullptr);
-  const FrameRun* live_run_ = nullptr;  // while Enqueue queues a prologue launch: its run's scalars
+  const FrameRun* frame_run_ = nullptr;  // while RunFrames runs: its run, whose scalars Enqueue passes
   cl_command_queue Lane(int i);
   // Palette uploads run on an in-order queue of their own, so frame n+1's
   // upload overlaps frame n's kernel; the next command queued on `on` after
@@ -590,9 +590,9 @@ void OpenClApi::Enqueue(const ClBound& bound, cl_mem out_positions, cl_event* ev
       value = {sizeof(cl_uint), spec.first};
     } else if (arg.name == "vertex_count") {
       value = {sizeof(cl_uint), vertex_count};
-    } else if (arg.kind == ArgumentKind::kScalar) {  // a prologue's (its bits: a float's too)
-      if (!live_run_) Fail("launch", spec.where + ": no value for the scalar '" + arg.name + "'");
-      value = {sizeof(cl_uint), PrologueScalar(*live_run_, arg.name, "OpenCL")};
+    } else if (arg.kind == ArgumentKind::kScalar) {  // the palette kernel's (its bits: a float's too)
+      if (!frame_run_) Fail("launch", spec.where + ": no value for the scalar '" + arg.name + "'");
+      value = {sizeof(cl_uint), ScalarOf(*frame_run_, arg.name, "OpenCL")};
     } else {
       const cl_mem memory = arg.name == "out_positions" && out_positions ? out_positions : bound.arguments[a];
       value = {sizeof(cl_mem), reinterpret_cast<std::uintptr_t>(memory)};
@@ -634,6 +634,7 @@ double EventMs(cl_event event) {
 }  // namespace
 
 std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
+  const CurrentRun current(frame_run_, run);
   last_launch_.reset();
   if (run.use == FrameUse::kLive) {
     // The prologue (the palette kernel), while the device still runs an
@@ -665,10 +666,8 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
         for (const cl_event e : {ready.get(), last_prologue_.get()})
           if (e) wait.push_back(e);
         cl_event event = nullptr;
-        live_run_ = &run;  // the prologue's scalars
         Enqueue(static_cast<const ClBound&>(*run.prologue[l]), nullptr, &event, prologues_.get(),
                 static_cast<cl_uint>(wait.size()), wait.empty() ? nullptr : wait.data());
-        live_run_ = nullptr;
         clRetainEvent(event);
         last_prologue_ = Event(event);
         ready = Event(event);
@@ -685,10 +684,8 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
       const cl_event wait = ready.get();
       const bool last = l + 1 == launches.size();
       cl_event event = nullptr;
-      live_run_ = l < in_line ? &run : nullptr;  // the prologue's scalars
       Enqueue(*launches[l], static_cast<cl_mem>(run.out_positions), last || l < in_line ? &event : nullptr, nullptr,
               wait ? 1 : 0, wait ? &wait : nullptr);
-      live_run_ = nullptr;
       ready.reset();
       if (l < in_line && !last) {
         last_prologue_ = Event(event);

@@ -322,7 +322,7 @@ class VulkanApi final : public DeviceApi {
   // Records one launch (optionally between timestamps `query`, `query + 1`).
   // A prologue's launch (`prologue`: its run) pushes the run's scalars instead.
   void RecordLaunch(VkCommandBuffer cb, const VulkanBound& bound, VkDescriptorSet set, VkQueryPool pool,
-                    int query, const FrameRun* prologue = nullptr) const;
+                    int query, const FrameRun* run = nullptr) const;
   VkDescriptorSet Redirected(VulkanBound& bound, VkBuffer out_positions);
   double TicksToMs(std::uint64_t start, std::uint64_t end) const;
   QueryPool NewQueryPool(std::uint32_t count);  // none for 0
@@ -731,7 +731,7 @@ void VulkanApi::Barrier(VkCommandBuffer cb, VkPipelineStageFlags from, VkAccessF
 }
 
 void VulkanApi::RecordLaunch(VkCommandBuffer cb, const VulkanBound& bound, VkDescriptorSet set, VkQueryPool pool,
-                             int query, const FrameRun* prologue) const {
+                             int query, const FrameRun* run) const {
   const VulkanPlanned& plan = *bound.plan;
   const Pipeline& p = *plan.pipeline;
   c_->fn.vkCmdBindPipeline(cb, VK_PIPELINE_BIND_POINT_COMPUTE, p.pipeline);
@@ -739,10 +739,11 @@ void VulkanApi::RecordLaunch(VkCommandBuffer cb, const VulkanBound& bound, VkDes
   std::array<std::uint32_t, kPushConstantBytes / 4> push{};
   static_assert(sizeof push == sizeof plan.push);
   std::memcpy(push.data(), plan.push, sizeof push);
-  if (prologue) {  // a prologue's scalars (the palette kernel's delta and fresh), word k the k-th scalar argument
-    std::size_t k = 0;
-    for (const KernelArgument& a : plan.spec.source.arguments)
-      if (a.kind == ArgumentKind::kScalar && k < push.size()) push[k++] = PrologueScalar(*prologue, a.name, "Vulkan");
+  std::size_t k = 0;  // the palette kernel's scalars (delta and fresh), word k the k-th scalar argument
+  for (const KernelArgument& a : plan.spec.source.arguments) {
+    if (!plan.spec.feeds_frame || a.kind != ArgumentKind::kScalar || k >= push.size()) continue;
+    if (!run) Fail("launch", plan.spec.where + ": no value for the scalar '" + a.name + "'");
+    push[k++] = ScalarOf(*run, a.name, "Vulkan");
   }
   c_->fn.vkCmdPushConstants(cb, p.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof push, push.data());
   if (query >= 0)
@@ -805,8 +806,11 @@ void VulkanApi::RecordFrames(VkCommandBuffer cb, const FrameRun& run, std::size_
       auto& bound = static_cast<VulkanBound&>(*object);
       const VkDescriptorSet set =
           run.out_positions ? Redirected(bound, reinterpret_cast<VkBuffer>(run.out_positions)) : bound.set;
-      RecordLaunch(cb, bound, set, pool, query ? *query : -1);
+      RecordLaunch(cb, bound, set, pool, query ? *query : -1, &run);
       if (query) *query += 2;
+      if (bound.plan->spec.feeds_frame)  // the palette kernel: its storage writes, read by the frame's launches however they read them
+        Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);
     }
   }
 }
@@ -970,8 +974,11 @@ std::vector<std::vector<double>> VulkanApi::RunCold(const FrameRun& run) {
       for (const std::unique_ptr<DeviceObject>& object : run.frames[f]) {
         const auto& bound = static_cast<const VulkanBound&>(*object);
         serialise(cb);
-        RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1);
+        RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1, &run);
         if (timed) stamp(cb);
+        if (bound.plan->spec.feeds_frame)  // the palette it wrote, read as uniforms or texels too
+          Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                  VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);
       }
       serialise(cb);  // the next frame's flush starts once this frame's last launch is done
     }

@@ -489,11 +489,18 @@ struct SkinnerOptions {
   // clips mixes their palette entries the same way (in the model's space, not
   // each joint's local space as sampled clips do). What each clip costs and
   // loses: baked_clips(). A different result, so the user's choice.
+  // kBakeRateTuned: the form the chosen winners-database entry was tuned
+  // in, on a scene animated on the device (`skintune tune` of a "-anim"
+  // scene, docs/TUNING.md "Animated scenes"): sampled, or baked at its rate,
+  // within SkinnerOptions::max_error as its recorded error says; sampled where
+  // the entry was tuned with the host's palettes. selection() says which.
   double bake_rate = 0.0;
 };
 
 // Baking's limit (SkinnerOptions::bake_rate), frames a second.
 inline constexpr double kMaxBakeRate = 1000.0;
+// SkinnerOptions::bake_rate: the winners database decides (sampled or a rate).
+inline constexpr double kBakeRateTuned = -1.0;
 
 // A clip as SkinnerOptions::bake_rate baked it (Skinner::baked_clips).
 struct BakedClip {
