@@ -870,6 +870,7 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
     const QueryPool pool = NewQueryPool(2 * launches);
     const VkCommandBuffer cb = Begin();
     if (pool.get()) c_->fn.vkCmdResetQueryPool(cb, pool.get(), 0, 2 * launches);
+    RecordPendingUploads(cb, run);  // an animated set's instances, staged since its last frame
     BarrierBeforeFrames(cb);
     int query = 0;
     RecordFrames(cb, run, 0, frames, used, pool.get(), &query);
@@ -888,6 +889,7 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
   const auto submit_untimed = [&](std::size_t begin, std::size_t end) {
     if (begin >= end) return;
     const VkCommandBuffer cb = Begin();
+    RecordPendingUploads(cb, run);
     BarrierBeforeFrames(cb);
     used.clear();
     RecordFrames(cb, run, begin, end, used, VK_NULL_HANDLE, nullptr);
@@ -900,6 +902,7 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
     const VkCommandBuffer cb = Begin();
     const auto first = static_cast<std::uint32_t>(2 * b);
     c_->fn.vkCmdResetQueryPool(cb, pool.get(), first, 2);
+    RecordPendingUploads(cb, run);  // before the burst's first stamp
     BarrierBeforeFrames(cb);
     c_->fn.vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, pool.get(), first);
     used.clear();
@@ -963,6 +966,7 @@ std::vector<std::vector<double>> VulkanApi::RunCold(const FrameRun& run) {
   for (std::size_t begin = 0; begin < frames; begin += kColdFramesPerSubmission) {
     const VkCommandBuffer cb = Begin();
     if (begin == 0 && pool.get()) c_->fn.vkCmdResetQueryPool(cb, pool.get(), 0, stamps);
+    RecordPendingUploads(cb, run);  // an animated set's instances, staged since its last frame
     BarrierBeforeFrames(cb);  // after the uploads and everything submitted before
     for (std::size_t f = begin; f < std::min(frames, begin + kColdFramesPerSubmission); ++f) {
       const bool timed = f >= untimed;
