@@ -2,6 +2,8 @@
 
 #include <charconv>
 
+#include <glm/gtc/quaternion.hpp>
+
 #include "base/error.h"
 
 namespace skintune::internal {
@@ -27,6 +29,22 @@ int SkinnedAsset::FindAnimation(const std::string& name_or_index) const {
 Pose SkinnedAsset::PoseAt(int animation, double t) const {
   Pose pose = skeleton.RestPose();
   if (animation >= 0) animations.at(animation).Sample(t, pose);
+  return pose;
+}
+
+Pose SkinnedAsset::BlendedPoseAt(int animation, double t, int animation2, double t2, double weight) const {
+  Pose pose = PoseAt(animation, t);
+  if (weight == 0.0) return pose;
+  const Pose other = PoseAt(animation2, t2);
+  for (std::size_t n = 0; n < pose.size(); ++n) {
+    Transform& a = pose[n];
+    const glm::dquat ra = glm::normalize(a.rotation);
+    glm::dquat rb = glm::normalize(other[n].rotation);
+    if (glm::dot(ra, rb) < 0.0) rb = -rb;
+    a.translation = glm::mix(a.translation, other[n].translation, weight);
+    a.scale = glm::mix(a.scale, other[n].scale, weight);
+    a.rotation = glm::normalize(glm::lerp(ra, rb, weight));
+  }
   return pose;
 }
 

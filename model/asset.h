@@ -21,6 +21,11 @@ struct SkinnedAsset {
   int FindAnimation(const std::string& name_or_index) const;
   // Pose at time t of clip `animation` (-1: the rest pose).
   Pose PoseAt(int animation, double t) const;
+  // PoseAt(animation, t) blended toward PoseAt(animation2, t2) by `weight`
+  // in each node's local space, in float64: translations and scales lerped,
+  // rotations nlerped along the shortest path. The palette kernel's blend
+  // (docs/ANIMATION.md "Blends"); weight 0 is PoseAt(animation, t).
+  Pose BlendedPoseAt(int animation, double t, int animation2, double t2, double weight) const;
   // Throws Error("<source>: rest pose: joint J ...") / ("<source>: animation A
   // 'name' at t=T s: joint J ...") for a palette entry that is not finite in
   // float32 (Skeleton::Palette).

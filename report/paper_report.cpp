@@ -10,6 +10,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <sstream>
 #include <tuple>
 
 #include <nlohmann/json.hpp>
@@ -419,6 +420,28 @@ class ResultSummariser {
     s_.gbps.push_back(std::move(chart));
   }
 
+  // RowWinner::animation of `w`, from its measurement.
+  std::string AnimationOf(const Winner& w) const {
+    if (!AnimatesOnDevice(w.variant)) return "";
+    const std::string key = w.variant.Key();
+    for (const Measurement* m : Of(w.device_id, w.dataset)) {
+      if (m->variant.Key() != key) continue;
+      std::string text = std::string(Name(w.variant.animation)) + ": palette kernel " + FormatMs(m->timing.palette_kernel_ms);
+      if (m->baked_clips.empty()) return text;
+      double bytes = 0.0, error = 0.0;
+      for (const BakedClipRecord& c : m->baked_clips) {
+        bytes += c.bytes;
+        error = std::max(error, c.max_error);
+      }
+      std::ostringstream tail;
+      tail.precision(2);
+      tail << "; " << m->baked_clips.size() << (m->baked_clips.size() == 1 ? " clip, " : " clips, ") << std::fixed
+           << bytes / 1e6 << " MB, largest error " << std::scientific << error;
+      return text + tail.str();
+    }
+    return Name(w.variant.animation);
+  }
+
   static bool Plain(const Winner& w) {
     return w.morph_targets == 0 && w.variant.normal_format == NormalFormat::kF32 &&
            w.variant.blend != Blend::kDualQuaternion && !AnimatesOnDevice(w.variant);
@@ -442,6 +465,7 @@ class ResultSummariser {
       r.position_rel = w.source_error.position_rel;
       r.normal_abs = w.source_error.normal_abs;
       r.plain = Plain(w);
+      r.animation = AnimationOf(w);
       for (const Winner& p : chosen_) {  // the plain row of the same mesh size and scene
         if (r.plain || !Plain(p) || !p.within_budget || p.device_id != w.device_id || p.lang != w.lang ||
             p.influences != w.influences || p.vertices != w.vertices || p.shape != w.shape ||

@@ -734,7 +734,8 @@ class Renderer {
       const std::string interval =
           r.high_ms > r.low_ms ? " [" + FormatSignificant(r.low_ms, 3) + ", " + FormatSignificant(r.high_ms, 3) + "]" : "";
       out_ += "<tr><td>" + Esc(s_.devices[r.device].label) + "</td><td>" + Esc(Name(r.lang)) + "</td><td>" +
-              Esc(r.dataset) + "</td><td>" + Esc(r.row) + "</td><td class=\"num\">" + FormatMs(r.median_ms) +
+              Esc(r.dataset) + "</td><td>" + Esc(r.row) + (r.animation.empty() ? "" : "<br><small>" + Esc(r.animation) + "</small>") +
+              "</td><td class=\"num\">" + FormatMs(r.median_ms) +
               Esc(interval) + "</td><td class=\"num\">" + FormatGbps(r.gbps) + "</td><td class=\"num\">" +
               (r.x_copy > 0.0 ? FormatSignificant(r.x_copy, 3) : std::string("not measured")) +
               "</td><td class=\"num\">" + Scientific(r.position_rel) + ", " + Scientific(r.normal_abs) +

@@ -185,7 +185,7 @@ std::string RenderMarkdown(const PaperSummary& s) {
   for (const RowWinner& r : s.rows) {
     if (r.plain) continue;
     rows += "| " + Cell(s.devices[r.device].label) + " | " + Name(r.lang) + " | " + Cell(r.dataset) + " | " +
-            Cell(r.row) + " | " + FormatMs(r.median_ms) + " | " +
+            Cell(r.row + (r.animation.empty() ? "" : " (" + r.animation + ")")) + " | " + FormatMs(r.median_ms) + " | " +
             (r.x_copy > 0.0 ? FormatSignificant(r.x_copy, 3) : std::string(kDash)) + " | " +
             FormatError(r.position_rel) + ", " + FormatError(r.normal_abs) + " | " +
             (r.vs_plain > 0.0 ? FormatSignificant(r.vs_plain, 3) : std::string("no plain row")) + " | `" +

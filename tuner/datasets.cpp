@@ -75,14 +75,23 @@ std::vector<AnimInstance> CrowdStates(const SkinnedScene& scene, int set) {
     AnimInstance& s = states[static_cast<std::size_t>(i)];
     s.clip = static_cast<std::uint16_t>(c);  // PackAnimation(asset) packs every clip in order
     s.time = static_cast<float>(clip.start + phase * clip.duration());
+    if (n % 3 == 2) {  // a cross-fade to the next clip (the same one, elsewhere in it, for a model of one clip)
+      const int c2 = (c + 1) % clips;
+      const AnimationClip& other = asset.animations[static_cast<std::size_t>(c2)];
+      s.clip2 = static_cast<std::uint16_t>(c2);
+      s.time2 = static_cast<float>(other.start + std::fmod(phase + 0.5, 1.0) * other.duration());
+      s.weight = 0.35f;
+    }
   }
   return states;
 }
 
 std::vector<glm::mat4> CrowdPalettes(const SkinnedScene& scene, std::span<const AnimInstance> states) {
   std::vector<glm::mat4> palettes;
+  const SkinnedAsset& asset = scene.assets.front();
   for (const AnimInstance& s : states) {
-    const std::vector<glm::mat4> one = scene.assets.front().PaletteAt(s.clip, s.time);
+    const std::vector<glm::mat4> one =
+        asset.skeleton.Palette(asset.BlendedPoseAt(s.clip, s.time, s.weight != 0.0f ? s.clip2 : -1, s.time2, s.weight));
     palettes.insert(palettes.end(), one.begin(), one.end());
   }
   return palettes;

@@ -43,23 +43,8 @@ inline std::string Name(const SkinnedAsset& asset) { return asset.source.substr(
 // kAnimRestPose) blended in local space (T, S lerped; R nlerped along the
 // shortest path).
 inline Pose GoldPose(const SkinnedAsset& asset, const PackedAnimation& packed, const AnimInstance& in) {
-  auto pose_of = [&](std::uint16_t clip, float t) {
-    return asset.PoseAt(clip == kAnimRestPose ? -1 : packed.clips[clip], static_cast<double>(t));
-  };
-  Pose pose = pose_of(in.clip, in.time);
-  if (in.weight == 0.0f) return pose;
-  const Pose other = pose_of(in.clip2, in.time2);
-  const double w = in.weight;
-  for (std::size_t n = 0; n < pose.size(); ++n) {
-    Transform& a = pose[n];
-    const glm::dquat ra = glm::normalize(a.rotation);
-    glm::dquat rb = glm::normalize(other[n].rotation);
-    if (glm::dot(ra, rb) < 0.0) rb = -rb;
-    a.translation = glm::mix(a.translation, other[n].translation, w);
-    a.scale = glm::mix(a.scale, other[n].scale, w);
-    a.rotation = glm::normalize(glm::lerp(ra, rb, w));
-  }
-  return pose;
+  const auto clip_of = [&](std::uint16_t clip) { return clip == kAnimRestPose ? -1 : packed.clips[clip]; };
+  return asset.BlendedPoseAt(clip_of(in.clip), in.time, clip_of(in.clip2), in.time2, in.weight);
 }
 
 struct Worst {

@@ -275,6 +275,30 @@ TEST(PaperSummary, GbpsSeriesArePerLanguageAndBWithTheFractionOfTheDevicesCopy) 
   EXPECT_LT(gl.series[0].points[0].vertices, gl.series[0].points[2].vertices);
 }
 
+// A row of palettes made on the device is no plain row: it names its
+// form, the palette kernel's own time and a baked form's clips (their bytes
+// and largest error), in the HTML and the Markdown.
+TEST(PaperSummary, AnAnimatedRowSaysItsPaletteKernelAndItsBakedClips) {
+  PaperResult r = Tiny();
+  const DeviceIdentity gpu = testing::SampleOpenClGpu();
+  Variant baked = ParseVariantKey(kTunedOpenCl);
+  baked.animation = Animation::kBaked240;
+  Measurement m = PaperMeasurement(gpu, r.tuning.datasets[0], baked, 0.3);
+  m.timing.palette_kernel_ms = 0.004;
+  m.baked_clips = {{"animations[0] 'Walk'", 169, 1.5e6, 1.2e-4}, {"animations[1] 'Run'", 289, 0.84e6, 2.2e-4}};
+  r.tuning.measurements.push_back(m);
+  const PaperSummary s = Summarise({r});
+  const RowWinner* animated = nullptr;
+  for (const RowWinner& row : s.rows)
+    if (row.variant == baked.Key()) animated = &row;
+  ASSERT_NE(animated, nullptr);
+  EXPECT_FALSE(animated->plain);
+  EXPECT_EQ(animated->row, "100k animated");
+  EXPECT_EQ(animated->animation, "baked240: palette kernel 0.00400 ms; 2 clips, 2.34 MB, largest error 2.20e-04");
+  EXPECT_NE(Section(RenderHtml(s), "rows").find("2 clips, 2.34 MB, largest error 2.20e-04"), std::string::npos);
+  EXPECT_NE(RenderMarkdown(s).find("100k animated (baked240: palette kernel"), std::string::npos);
+}
+
 // A row the user chooses (here normals written oct16) has its own winner,
 // set against its plain row's on the same device, language and mesh; the
 // GB/s chart keeps the plain row's winner.

@@ -491,7 +491,7 @@ struct SkinnerOptions {
   // loses: baked_clips(). A different result, so the user's choice.
   // kBakeRateTuned: the form the chosen winners-database entry was tuned
   // in, on a scene animated on the device (`skintune tune` of a "-anim"
-  // scene, docs/TUNING.md "Animated scenes"): sampled, or baked at its rate,
+  // scene, docs/ANIMATION.md "Baked clips"): sampled, or baked at its rate,
   // within SkinnerOptions::max_error as its recorded error says; sampled where
   // the entry was tuned with the host's palettes. selection() says which.
   double bake_rate = 0.0;
