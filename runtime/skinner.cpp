@@ -122,11 +122,13 @@ NormalFormat NormalFormatOf(skintune::NormalFormat format) {
   return static_cast<NormalFormat>(static_cast<int>(format));
 }
 
-// The variant as its skin kernel's constraints see it: where the palettes
-// come from (animation) is the Skinner's, checked apart.
-Variant SkinKernelOf(Variant v) {
+// The constraints `v`'s skin kernel breaks on `shape`: where the palettes
+// come from (the variant's animation, the shape's animated) is the
+// Skinner's, checked apart.
+std::vector<Violation> SkinKernelViolations(Variant v, const DeviceLimits& limits, ProblemShape shape) {
   v.animation = Animation::kHost;
-  return v;
+  shape.animated = false;
+  return CheckVariant(v, limits, shape);
 }
 
 Chosen Forced(const std::string& call, const std::string& key, const DeviceState& device, const ProblemShape& shape,
@@ -160,9 +162,7 @@ Chosen Forced(const std::string& call, const std::string& key, const DeviceState
     FailWith(ErrorCode::kInvalidArgument, where + "animation " + Name(v.animation) +
                                               " makes the palettes on the device: a Skinner::CreateAnimated's form, "
                                               "and this Skinner takes them from SetPalette");
-  ProblemShape skin_shape = shape;
-  skin_shape.animated = false;
-  const std::vector<Violation> violations = CheckVariant(SkinKernelOf(v), device.limits, skin_shape);
+  const std::vector<Violation> violations = SkinKernelViolations(v, device.limits, shape);
   if (!violations.empty()) FailWith(ErrorCode::kInvalidArgument, where + Joined(violations));
   Chosen chosen;
   chosen.variant = v;
@@ -274,7 +274,7 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
                                     options.instances, options.tangents, true},
                                    mesh.morph);
   // CreateAnimated: the palettes are made on the device; the skin kernel's
-  // constraints are checked without it (SkinKernelOf).
+  // constraints are checked without it (SkinKernelViolations).
   shape.animated = call == "Skinner::CreateAnimated";
   if (!options.variant.empty())
     return Forced(call, options.variant, state, shape, options.dual_quaternions, NormalFormatOf(options.normal_format));
@@ -298,9 +298,7 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   for (WeightFormat format : {WeightFormat::kUnorm16, WeightFormat::kUnorm8})
     if (HoldsWeightsExactly(mesh, format)) request.exact_formats.push_back(format);
   request.limits = state.limits;
-  ProblemShape skin_shape = shape;
-  skin_shape.animated = false;
-  request.check = [&, skin_shape](const Variant& v) { return Joined(CheckVariant(SkinKernelOf(v), state.limits, skin_shape)); };
+  request.check = [&](const Variant& v) { return Joined(SkinKernelViolations(v, state.limits, shape)); };
   Chosen chosen = Select(entries, request);
   if (chosen.variant.mixed == MixedCounts::kBucketed) {
     // Bucketed kernels write vertices grouped by influence count; the padded twin keeps the mesh's order.

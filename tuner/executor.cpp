@@ -84,18 +84,24 @@ class RunnerTimed final : public Executor::Timed {
   std::vector<double> Cold(int untimed, int samples) override {
     const Prepared& flush = executor_.Flush(lang_);
     const std::function<void()> before = executor_.BeforeEachSample();
+    std::vector<double> palette;  // the palette kernel's times of the batch taken last (the one kept)
     const auto take = [&] {
       std::vector<std::vector<double>> launches;
       std::vector<double> ms = runner_.TimeCold(prepared_, flush, untimed, samples, animated_ ? &launches : nullptr, before);
+      palette.clear();
       for (const std::vector<double>& frame : launches)
-        if (!frame.empty()) palette_ms_.push_back(frame.front());  // the palette kernel: the frame's first launch
+        if (!frame.empty()) palette.push_back(frame.front());  // the palette kernel: the frame's first launch
       return ms;
     };
-    if (samples == 0 || !executor_.clock().active()) return take();
+    const auto keep = [&](std::vector<double> ms) {
+      palette_ms_.insert(palette_ms_.end(), palette.begin(), palette.end());
+      return ms;
+    };
+    if (samples == 0 || !executor_.clock().active()) return keep(take());
     const auto warm = [&] { (void)runner_.TimeCold(prepared_, flush, kClockWarmFrames, 0, nullptr, before); };
     ClockGuard::Batch batch = executor_.clock().Take(take, warm, what_);
     if (batch.mhz > 0) clock_mhz_ = clock_mhz_ == 0 ? batch.mhz : std::min(clock_mhz_, batch.mhz);
-    return std::move(batch.samples);
+    return keep(std::move(batch.samples));
   }
   unsigned ClockMhz() const override { return clock_mhz_; }
   std::vector<double> PaletteKernelMs() const override { return palette_ms_; }
