@@ -103,11 +103,15 @@ SceneSpec ParseSceneKey(const std::string& key) {
   SceneSpec spec;
   spec.key = key;
   if (key.empty()) BadScene(key, "empty key");
-  constexpr std::string_view kAnimated = "-anim";
-  spec.animated = key.size() > kAnimated.size() && key.ends_with(kAnimated);
-  const std::string meshes = spec.animated ? key.substr(0, key.size() - kAnimated.size()) : key;
+  for (const std::string_view suffix : {std::string_view("-anim"), std::string_view("-animblend")}) {
+    if (key.size() <= suffix.size() || !key.ends_with(suffix)) continue;
+    spec.animated = true;
+    spec.blended = suffix == "-animblend";
+  }
+  const std::size_t suffix = spec.animated ? (spec.blended ? 10 : 5) : 0;
+  const std::string meshes = key.substr(0, key.size() - suffix);
   if (spec.animated && (meshes.find('+') != std::string::npos || meshes.rfind("mix", 0) == 0))
-    BadScene(key, "'-anim' animates a scene of one mesh or its instances, not a batch");
+    BadScene(key, "'" + key.substr(key.size() - suffix) + "' animates a scene of one mesh or its instances, not a batch");
   std::vector<std::string> parts;
   for (std::size_t start = 0;;) {
     const std::size_t plus = meshes.find('+', start);
@@ -234,7 +238,7 @@ SkinnedScene LoadScene(const SceneSpec& spec) {
     }
   }
   if (spec.animated && scene.assets.front().animations.empty())
-    throw Error("scene '" + spec.key + "': '-anim' plays the model's clips, and '" + spec.meshes.front() + "' has none");
+    throw Error("scene '" + spec.key + "': an animated scene plays the model's clips, and '" + spec.meshes.front() + "' has none");
   if (!spec.batch) {
     // An animated scene's asset keeps its mesh: baking measures its error on it (BakeAnimation).
     scene.batch.mesh = spec.animated ? scene.assets.front().mesh : std::move(scene.assets.front().mesh);

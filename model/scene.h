@@ -22,6 +22,7 @@
 //                          instance plays one of the model's clips at its own time, and the
 //                          palette kernel makes the palettes (docs/ANIMATION.md), e.g.
 //                          "25k-b4-x64-anim"; the model must have animation clips
+//   <scene>-animblend      the same, every third instance cross-fading two clips at weight 0.35
 //   <m1>+<m2>+...          a batch of the meshes m1, m2, ... (synthetic keys, glTF paths, mixes)
 //   mix<N>-b<B>[-seed<S>]  a batch of seeded synthetic meshes of 5k..100k vertices, N vertices in
 //                          all, each with its own influence count 1..B (every one of them
@@ -49,7 +50,8 @@ struct SceneSpec {
   std::vector<std::string> meshes;
   int instances = 1;   // > 1: instances of meshes[0] (never with a batch)
   bool batch = false;  // meshes[] packed as one mesh (ConcatenateMeshes)
-  bool animated = false;  // "-anim": the palettes made on the device from the model's clips
+  bool animated = false;  // "-anim", "-animblend": the palettes made on the device from the model's clips
+  bool blended = false;   // "-animblend": every third instance cross-fades two clips
 };
 
 // Throws Error("scene 'KEY': ...") for a malformed key (an empty '+' member,

@@ -75,7 +75,7 @@ std::vector<AnimInstance> CrowdStates(const SkinnedScene& scene, int set) {
     AnimInstance& s = states[static_cast<std::size_t>(i)];
     s.clip = static_cast<std::uint16_t>(c);  // PackAnimation(asset) packs every clip in order
     s.time = static_cast<float>(clip.start + phase * clip.duration());
-    if (n % 3 == 2) {  // a cross-fade to the next clip (the same one, elsewhere in it, for a model of one clip)
+    if (scene.spec.blended && n % 3 == 2) {  // a cross-fade to the next clip (the same one, elsewhere in it, for a model of one clip)
       const int c2 = (c + 1) % clips;
       const AnimationClip& other = asset.animations[static_cast<std::size_t>(c2)];
       s.clip2 = static_cast<std::uint16_t>(c2);

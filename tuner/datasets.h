@@ -121,8 +121,9 @@ bool AllRigid(std::span<const glm::mat4> palette);
 // An animated scene's K instances of input set `set` (the verification's:
 // kVerificationSet): instance k plays clip (set x K + k) mod C of the model's
 // C clips at its own phase of it (golden-ratio steps), so every set is a
-// different frame of the crowd; every third cross-fades to the next clip at
-// weight 0.35 (two-clip blends, as crowds in transition play them).
+// different frame of the crowd; in a "-animblend" scene every third
+// cross-fades to the next clip at weight 0.35 (two-clip blends, as crowds in
+// transition play them).
 inline constexpr int kVerificationSet = 1 << 20;
 std::vector<AnimInstance> CrowdStates(const SkinnedScene& scene, int set);
 // The float64 palettes of `states` (SkinnedAsset::BlendedPoseAt per instance), instance after instance.

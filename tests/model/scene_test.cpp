@@ -96,6 +96,12 @@ TEST(SceneKey, AnimatedScenesAreOneMeshOrItsInstancesPlayingTheModelsClips) {
   EXPECT_EQ(fox.instances, 6);
   EXPECT_EQ(fox.meshes, std::vector<std::string>{"data/Fox.gltf"});
   EXPECT_TRUE(ParseSceneKey("5k-b2-anim").animated);
+  EXPECT_FALSE(ParseSceneKey("5k-b2-anim").blended);
+  const SceneSpec blended = ParseSceneKey("5k-b2-x8-animblend");
+  EXPECT_TRUE(blended.animated && blended.blended);
+  EXPECT_EQ(blended.instances, 8);
+  EXPECT_EQ(blended.meshes, std::vector<std::string>{"5k-b2"});
+  EXPECT_NE(ErrorOf("5k-b2+5k-b1-animblend").find("'-animblend' animates a scene of one mesh"), std::string::npos);
   EXPECT_EQ(ParseSceneKey("5k-b2-anim").instances, 1);
   EXPECT_NE(ErrorOf("5k-b2+5k-b1-anim").find("'-anim' animates a scene of one mesh or its instances, not a batch"),
             std::string::npos);
