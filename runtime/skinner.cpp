@@ -466,15 +466,16 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     // then) and uploaded with every frame, K x T floats.
     const MeshView view = model.mesh();
     Skinner skinner;
-    SkinnerOptions scene_options = options;
-    scene_options.bake_rate = 0.0;  // CreateScene refuses a rate; the palette kernel's form is this call's
-    skinner.impl_ = CreateScene(call, device, db.impl_ ? &db.impl_->entries : nullptr, &view, 1, false, scene_options);
+    skinner.impl_ = CreateScene(call, device, db.impl_ ? &db.impl_->entries : nullptr, &view, 1, false, options);
     Impl& im = *skinner.impl_;
     if (tuned) {  // the form the variant's entry was tuned in: sampled, or baked at its rate (host: sampled)
       animation = pack(BakeRateOf(im.variant.animation));
       im.selection.reason += std::string("; palettes ") +
                              (AnimatesOnDevice(im.variant) ? std::string("made as tuned: ") + Name(im.variant.animation)
                                                            : "sampled (kBakeRateTuned, and the entry was not tuned animated)");
+    } else if (AnimatesOnDevice(im.variant) && BakeRateOf(im.variant.animation) != options.bake_rate) {
+      im.selection.reason += std::string("; palettes made as SkinnerOptions::bake_rate asks, not as tuned (") +
+                             Name(im.variant.animation) + "): kBakeRateTuned takes the tuned form";
     }
     PaletteKernel kernel;
     try {

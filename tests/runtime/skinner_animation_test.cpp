@@ -397,6 +397,14 @@ TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsk
                   std::ceil(model->animation_duration(c) * 60.0) + 1, 1.0) << c;
     EXPECT_NE(skinner->selection().reason.find("made as tuned: baked60"), std::string::npos) << skinner->selection().reason;
   }
+  {  // a rate of the caller's own: the entry's form is not taken, and the reason says so
+    SkinnerOptions sampled = options;
+    sampled.bake_rate = 0.0;
+    const Result<Skinner> skinner = Skinner::CreateAnimated(*device, database(".anim-baked60"), *model, sampled);
+    ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+    EXPECT_TRUE(skinner->baked_clips().empty());
+    EXPECT_NE(skinner->selection().reason.find("not as tuned (baked60)"), std::string::npos) << skinner->selection().reason;
+  }
   for (const char* form : {".anim-sampled", ""}) {
     SCOPED_TRACE(form);
     const Result<Skinner> skinner = Skinner::CreateAnimated(*device, database(form), *model, options);
