@@ -10,6 +10,8 @@
 #include <malloc.h>  // malloc_trim
 #endif
 
+#include <glm/gtc/type_ptr.hpp>
+
 #include "base/error.h"
 #include "templates/embedded_support.h"  // DualQuaternionOf
 
@@ -214,9 +216,7 @@ std::span<const glm::mat4> DatasetCache::VerificationPalette(Entry& entry, const
   std::vector<float> rows(entry.verification_states.size() * baked.joints.size() * kRows * 4);
   RunPaletteKernel(baked.View(), entry.verification_states, rows.data(), kRows);
   std::vector<glm::mat4> palette(rows.size() / 16);
-  for (std::size_t j = 0; j < palette.size(); ++j)
-    for (int r = 0; r < 4; ++r)
-      for (int c = 0; c < 4; ++c) palette[j][c][r] = rows[j * 16 + static_cast<std::size_t>(r) * 4 + static_cast<std::size_t>(c)];
+  for (std::size_t j = 0; j < palette.size(); ++j) palette[j] = glm::transpose(glm::make_mat4(&rows[j * 16]));  // rows, not columns
   return entry.baked_palettes.emplace(variant.animation, std::move(palette)).first->second;
 }
 

@@ -48,10 +48,19 @@ double SampleFrameTime(Executor::Timed& timed, const TimingOptions& options, int
   return Median(ms);
 }
 
+namespace {
+
+// A verification run's outputs as the executor hands them to a job.
+Executor::Output OutputOf(RunResult&& result) {
+  return {std::move(result.positions), std::move(result.normals), std::move(result.tangents), result.poisoned_vertices};
+}
+
+}  // namespace
+
 Executor::Output RunnerExecutor::Run(const PackedMesh& mesh, std::span<const KernelSource> kernels,
                                      std::span<const std::uint8_t> palette, int instances) {
   RunResult result = runner_.Run(mesh, kernels, palette, instances);
-  return {std::move(result.positions), std::move(result.normals), std::move(result.tangents), result.poisoned_vertices};
+  return OutputOf(std::move(result));
 }
 
 Executor::Output Executor::RunAnimated(const PackedMesh& mesh, std::span<const KernelSource>, std::span<const std::uint8_t>,
@@ -71,7 +80,7 @@ Executor::Output RunnerExecutor::RunAnimated(const PackedMesh& mesh, std::span<c
   if (animated.states.size() != 1) throw Error("RunAnimated: " + std::to_string(animated.states.size()) + " sets of states, not one");
   const AnimationView view = animated.clips->View();
   RunResult result = runner_.Run(mesh, kernels, palette, instances, Runner::Animated{&view, &animated.kernel, animated.states.front()});
-  return {std::move(result.positions), std::move(result.normals), std::move(result.tangents), result.poisoned_vertices};
+  return OutputOf(std::move(result));
 }
 
 namespace {

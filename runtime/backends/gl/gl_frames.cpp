@@ -408,14 +408,12 @@ void GlApi::RunLive(const FrameRun& run) {
   ClearGlErrors();
   {
     KeptGlState kept(vertex);
-    if (!run.prologue.empty()) {  // compute dispatches whose storage writes the frames read, however they read them
-      for (const std::unique_ptr<DeviceObject>& launch : run.prologue) {
-        const auto& bound = static_cast<const GlBound&>(*launch);
-        BindLaunch(bound, false);
-        SetScalars(bound, run);
-        DrawLaunch(bound);
-      }
-      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_UNIFORM_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
+    for (const std::unique_ptr<DeviceObject>& launch : run.prologue) {  // the palette kernel, before the frames
+      const auto& bound = static_cast<const GlBound&>(*launch);
+      BindLaunch(bound, false);
+      SetScalars(bound, run);
+      DrawLaunch(bound);
+      BarrierIfItFeeds(bound);
     }
     if (vertex) BeginVertexDraws();
     for (const auto& frame : run.frames) {
