@@ -97,6 +97,7 @@ struct Options {
   std::string animation_model;  // a glTF for the animated rows (default: the instance mesh's synthetic rig)
   bool blend = false;
   double bake_rate = 0.0;  // SkinnerOptions::bake_rate of the animated rows (0: sampled clips)
+  bool bake_local = false;  // SkinnerOptions::bake_space kLocal
 };
 Options options;
 
@@ -195,6 +196,7 @@ struct Scene {
     animated_options.instances = options.instances;
     animated_options.palette_buffers = options.palette_buffers;
     animated_options.bake_rate = options.bake_rate;
+    if (options.bake_local) animated_options.bake_space = BakeSpace::kLocal;
     a->skinner = Must(Skinner::CreateAnimated(device, db, a->model, animated_options), "animated Skinner");
     const int clips = a->model.animation_count();
     for (int f = 0; f < options.poses; ++f) {
@@ -219,7 +221,8 @@ struct Scene {
     for (const BakedClip& clip : a->skinner.baked_clips()) worst = std::max(worst, clip.max_error);
     std::fprintf(stderr, "animated: %zu x %zu vertices, %d joints, %s%s; clips %s, %zu bytes on the device", k,
                  a->model.vertex_count(), a->model.joint_count(), a->skinner.selection().variant.c_str(),
-                 options.blend ? ", two-clip blends" : "", options.bake_rate > 0.0 ? "baked" : "sampled",
+                 options.blend ? ", two-clip blends" : "",
+                 options.bake_rate > 0.0 ? (options.bake_local ? "baked in local space" : "baked") : "sampled",
                  a->skinner.animation_bytes());
     if (options.bake_rate > 0.0)
       std::fprintf(stderr, " (%g frames a second, largest error %.3g of the extent)", options.bake_rate, worst);
@@ -551,6 +554,8 @@ void ParseOptions(int& argc, char** argv) {
   app.add_option("--bake-rate", options.bake_rate,
                  "animated rows: the clips baked at this many frames a second (SkinnerOptions::bake_rate)")
       ->check(CLI::Range(0.0, kMaxBakeRate));
+  app.add_flag("--bake-local", options.bake_local,
+               "animated rows: bake each node's local transform (SkinnerOptions::bake_space kLocal; with --bake-rate)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -196,19 +196,19 @@ std::vector<Model> Models() {
 }
 
 // `rate` > 0: the clips baked at that many frames a second.
-void RegisterCuda(const Model& m, int k, const char* form, double rate = 0.0) {
+void RegisterCuda(const Model& m, int k, const char* form, double rate = 0.0, BakeSpace space = BakeSpace::kPalette) {
   char baked[32] = "";
-  if (rate > 0.0) std::snprintf(baked, sizeof baked, "-baked%g", rate);
+  if (rate > 0.0) std::snprintf(baked, sizeof baked, space == BakeSpace::kLocal ? "-local%g" : "-baked%g", rate);
   const std::string name = "cuda/" + m.name + "/" + std::to_string(k) + "/" + form + baked;
   const std::string kind = form;
-  benchmark::RegisterBenchmark(name.c_str(), [m, k, kind, rate](benchmark::State& state) {
+  benchmark::RegisterBenchmark(name.c_str(), [m, k, kind, rate, space](benchmark::State& state) {
     std::string why;
     CudaPalettes* cuda = CudaPalettes::Get(why);
     if (cuda == nullptr) {
       state.SkipWithError(why.c_str());
       return;
     }
-    const PackedAnimation packed = rate > 0.0 ? BakeAnimation(*m.asset, rate) : PackAnimation(*m.asset);
+    const PackedAnimation packed = rate > 0.0 ? BakeAnimation(*m.asset, rate, space) : PackAnimation(*m.asset);
     const std::vector<AnimInstance> crowd = Crowd(*m.asset, packed, k, kind == "blend");
     cuda->Load(packed, crowd);
     const int launches = kind == "one" ? 1 : kBurst;
@@ -248,7 +248,9 @@ void ParseOptions(int& argc, char** argv) {
   app.add_option("--gltf", options.gltf, "a skinned glTF with animations (repeatable)")->check(CLI::ExistingFile);
   app.add_option("--synthetic", options.synthetic, "a synthetic data-set key, for its rig (repeatable)");
   app.add_option("--instances", options.instances, "crowd sizes (repeatable)")->check(CLI::Range(1, 1 << 16));
-  app.add_option("--bake-rate", options.bake_rates, "also time the clips baked at this many frames a second (repeatable)")
+  app.add_option("--bake-rate", options.bake_rates,
+                 "also time the clips baked at this many frames a second, as palette records (-baked) and local "
+                 "ones (-local) (repeatable)")
       ->check(CLI::Range(1e-3, kAnimMaxBakeRate));
   try {
     app.parse(argc, argv);
@@ -272,7 +274,8 @@ int main(int argc, char** argv) {
       for (int k : options.instances) {
         for (const char* form : {"one", "burst", "blend"}) RegisterCuda(m, k, form);
         for (const double rate : options.bake_rates)
-          for (const char* form : {"burst", "blend"}) RegisterCuda(m, k, form, rate);
+          for (const BakeSpace space : {BakeSpace::kPalette, BakeSpace::kLocal})
+            for (const char* form : {"burst", "blend"}) RegisterCuda(m, k, form, rate, space);
         RegisterHost(m, k);
       }
     }

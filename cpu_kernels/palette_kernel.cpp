@@ -106,9 +106,12 @@ struct Trs {
   vec4 t, r, s;
 };
 
+Trs BakedLocal(const AnimationView& a, std::uint32_t node, std::uint16_t clip, float t);
+
 // Node `node`'s local TRS in `clip` at time t: its rest values, overwritten
 // by the clip's channels.
 Trs SampleLocal(const AnimationView& a, std::uint32_t node, std::uint16_t clip, float t) {
+  if (a.baked_local) return BakedLocal(a, node, clip, t);
   const AnimNodeRecord& n = a.nodes[node];
   Trs x{Load(n.rows[0]), Load(n.rows[1]), Load(n.rows[2])};
   if (clip == kAnimRestPose) return x;
@@ -167,9 +170,11 @@ struct Baked {
   vec4 q, ts, s0, s1;
 };
 
+// Item j's record (a joint's; a node's baked in local space) at `frame`.
 Baked BakedRecord(const AnimationView& a, std::uint32_t frame, std::size_t j) {
-  const float* p = a.frames.data() + 4 * a.baked_rows * (std::size_t{frame} * a.joints.size() + j);
+  const float* p = a.frames.data() + 4 * a.baked_rows * (std::size_t{frame} * a.baked_items() + j);
   if (a.baked_rows == kBakedRowsSimilar) return {Load(p), Load(p + 4), vec4(0.0f), vec4(0.0f)};
+  if (a.baked_rows == kBakedRowsLocalScaled) return {Load(p), Load(p + 4), Load(p + 8), vec4(0.0f)};
   return {Load(p), Load(p + 4), Load(p + 8), Load(p + 12)};
 }
 
@@ -196,6 +201,15 @@ Baked BakedSample(const AnimationView& a, std::uint16_t clip, float t, std::size
                                 : 0.0f;
   const std::uint32_t k = std::min(static_cast<std::uint32_t>(u), frames - 2);
   return BakedMix(BakedRecord(a, first + k, j), BakedRecord(a, first + k + 1, j), u - static_cast<float>(k));
+}
+
+// Node `node`'s local TRS baked in local space, in `clip` at time t (the
+// rest pose: frame 0). A blend mixes two of them as LocalOf mixes sampled
+// ones, which is what BakedMix does to records (templates/palette.cl).
+Trs BakedLocal(const AnimationView& a, std::uint32_t node, std::uint16_t clip, float t) {
+  const Baked b = BakedSample(a, clip, t, node);
+  const vec4 s = a.baked_rows == kBakedRowsSimilar ? vec4(b.ts.w, b.ts.w, b.ts.w, 0.0f) : b.s0;
+  return Trs{vec4(b.ts.x, b.ts.y, b.ts.z, 0.0f), b.q, s};
 }
 
 // Rows of R(q) S | t (similar records: S = s I).
@@ -301,17 +315,26 @@ void ValidateAnimation(const AnimationView& a) {
 
 void ValidateBakedAnimation(const AnimationView& a) {
   if (!a.baked()) return ValidateAnimation(a);
-  const std::size_t joints = a.joints.size();
-  if (joints == 0) throw Error("baked animation: no joints");
+  const std::size_t joints = a.baked_items();
+  if (a.joints.empty()) throw Error("baked animation: no joints");
+  if (a.baked_local) {  // the kernel walks the hierarchy, as a sampled one does
+    if (a.nodes.size() > kAnimMaxNodes)
+      throw Error("baked animation: " + std::to_string(a.nodes.size()) + " nodes (the device palette kernels hold at most " +
+                  std::to_string(kAnimMaxNodes) + " in local memory)");
+    ValidateHierarchy(a);
+  }
   if (a.clip_count > kAnimMaxClips)
     throw Error("baked animation: " + std::to_string(a.clip_count) + " clips (at most " +
                 std::to_string(kAnimMaxClips) + ")");
-  if (a.baked_rows != kBakedRowsSimilar && a.baked_rows != kBakedRowsAffine)
-    throw Error("baked animation: " + std::to_string(a.baked_rows) + " float4s a record (2 or 4)");
+  const std::uint32_t other_rows = a.baked_local ? kBakedRowsLocalScaled : kBakedRowsAffine;
+  if (a.baked_rows != kBakedRowsSimilar && a.baked_rows != other_rows)
+    throw Error("baked animation: " + std::to_string(a.baked_rows) + " float4s a record (2 or " +
+                std::to_string(other_rows) + (a.baked_local ? " in local space)" : ")"));
   const std::size_t floats = 4 * std::size_t{a.baked_rows};
   if (a.frames.size() % (floats * joints) != 0)
     throw Error("baked animation: " + std::to_string(a.frames.size()) + " frame floats, not whole frames of " +
-                std::to_string(joints) + " joints x " + std::to_string(floats) + " floats");
+                std::to_string(joints) + (a.baked_local ? " nodes x " : " joints x ") + std::to_string(floats) +
+                " floats");
   const std::size_t total = a.frames.size() / (floats * joints);
   if (a.clip_ranges.size() != std::size_t{a.clip_count} * 4)
     throw Error("baked animation: " + std::to_string(a.clip_ranges.size()) + " clip-range floats for " +
@@ -328,8 +351,8 @@ void ValidateBakedAnimation(const AnimationView& a) {
   }
   for (std::size_t r = 0; r < total * joints; ++r) {
     const float* p = a.frames.data() + floats * r;
-    const std::string what = "baked animation: frames[" + std::to_string(r / joints) + "] joint " +
-                             std::to_string(r % joints);
+    const std::string what = "baked animation: frames[" + std::to_string(r / joints) +
+                             (a.baked_local ? "] node " : "] joint ") + std::to_string(r % joints);
     for (std::size_t k = 0; k < floats; ++k)
       if (!std::isfinite(p[k])) throw Error(what + ": " + Number(p[k]) + " is not finite");
     const float length = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
@@ -394,7 +417,7 @@ void RunPaletteKernel(const AnimationView& a, std::span<const AnimInstance> inst
       out[15] = 1.0f;
     }
   };
-  if (a.baked()) {
+  if (a.baked() && !a.baked_local) {
     for (std::size_t i = 0; i < instances.size(); ++i) {
       const AnimInstance& in = instances[i];
       for (std::size_t j = 0; j < joints; ++j) {

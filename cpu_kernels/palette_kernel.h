@@ -87,6 +87,17 @@ static_assert(sizeof(AnimNodeRecord) == 64 && sizeof(AnimChannelHeader) == 16 &&
 // (start, end, F, first frame), the last two as uint32 bits.
 inline constexpr std::uint32_t kBakedRowsSimilar = 2;
 inline constexpr std::uint32_t kBakedRowsAffine = 4;
+// Clips baked in local space (docs/ANIMATION.md "Baked in local space"): one
+// record per (frame, node), at float4 R * (f * nodes + n), of the node's
+// local transform T(t) R(q) S(s) at the frame, so that a blend of two clips
+// mixes each node's local transform (as sampled clips do) and the kernel
+// composes the hierarchy as the sampled one does, without searching keys:
+//   R = 2 (every node's scale uniform, s within 1e-5 of each axis's):
+//       q, (t.x, t.y, t.z, s);
+//   R = 3: q, (t.x, t.y, t.z, 0), (s.x, s.y, s.z, 0).
+// A fixed-matrix node's records are the identity (its matrix is in
+// `nodes`); frames and `clips` as for palette records.
+inline constexpr std::uint32_t kBakedRowsLocalScaled = 3;
 
 // The packed animation as the kernel reads it: views of the buffers.
 struct AnimationView {
@@ -106,8 +117,14 @@ struct AnimationView {
   // gives the joint count.
   std::span<const float> frames;
   std::uint32_t baked_rows = 0;
+  // Baked in local space: records per (frame, node) (kBakedRowsSimilar or
+  // kBakedRowsLocalScaled), read with nodes and joints; channels, times and
+  // values are not.
+  bool baked_local = false;
 
   bool baked() const { return !frames.empty(); }
+  // What a baked frame holds a record of: joints, or nodes (local space).
+  std::size_t baked_items() const { return baked_local ? nodes.size() : joints.size(); }
 };
 
 // Throws Error naming the element for buffers an outside program could have
@@ -117,7 +134,8 @@ struct AnimationView {
 // finite, a parent or joint node out of range, a cycle, no joints.
 void ValidateAnimation(const AnimationView& animation);
 // Baked (frames not empty): throws Error naming the element for a `frames`
-// buffer not of whole records for the joints, a clip's frames beyond it or
+// buffer not of whole records for the joints (local space: the nodes, whose
+// hierarchy is checked as ValidateAnimation checks it), a clip's frames beyond it or
 // fewer than 1 (2 for a clip of some duration), a record not finite or with
 // a rotation not of unit length within 1e-3. Sampled: as ValidateAnimation.
 void ValidateBakedAnimation(const AnimationView& animation);
@@ -137,7 +155,7 @@ float AnimLoopTime(float t, float start, float end);
 void AdvanceAnimInstances(const AnimationView& animation, std::span<AnimInstance> states, float delta);
 
 // Writes instances.size() * joints * `rows` float4 rows to `palette`
-// (a baked animation: from its frames, templates/palette_baked.cl's algorithm):
+// (a baked animation: from its frames, templates/palette.cl's baked algorithm):
 // instance i's joint j row r at float4 (i * joints + j) * rows + r; rows 3
 // (mat3x4) or 4 (mat4: a fourth row 0 0 0 1), else Error. Validates the instances
 // (ValidateAnimInstances, cheap); the animation must have passed

@@ -4,7 +4,7 @@
 //
 //   skin_animation MODEL.gltf|.glb|DATASET [MODEL...] [--db winners-db.json] [--device PATTERN]
 //                  [--seconds S] [--readback] [--instances K] [--palette-buffers N] [--host-palettes]
-//                  [--bake RATE]
+//                  [--bake RATE [--bake-local]]
 //
 // One model is animated on the device (Skinner::CreateAnimated, docs/ANIMATION.md):
 // each frame uploads every character's clip and time, 16 bytes a character, and the
@@ -23,7 +23,8 @@
 // buffers (SkinnerOptions::palette_buffers: how many frames may be queued before
 // SetPalette waits; 3 by default). --bake RATE bakes the model's clips at RATE frames a
 // second when the Skinner is made (SkinnerOptions::bake_rate, docs/ANIMATION.md "Baked
-// clips") and prints each clip's frames, bytes and largest error.
+// clips") and prints each clip's frames, bytes and largest error; --bake-local bakes
+// each node's local transform instead (SkinnerOptions::bake_space, "Baked in local space").
 #include <CLI/CLI.hpp>
 #include <skintune/skintune.h>
 
@@ -72,8 +73,13 @@ int main(int argc, char** argv) {
   app.add_option("--palette-buffers", options.palette_buffers, "SkinnerOptions::palette_buffers");
   bool host_palettes = false;
   app.add_flag("--host-palettes", host_palettes, "compute the palettes on the host and upload them (SetPalette)");
-  app.add_option("--bake", options.bake_rate, "bake the clips at this many frames a second (SkinnerOptions::bake_rate)")
-      ->check(CLI::Range(1e-3, kMaxBakeRate));
+  CLI::Option* bake =
+      app.add_option("--bake", options.bake_rate, "bake the clips at this many frames a second (SkinnerOptions::bake_rate)")
+          ->check(CLI::Range(1e-3, kMaxBakeRate));
+  bool bake_local = false;
+  app.add_flag("--bake-local", bake_local,
+               "bake each node's local transform, not each joint's palette entry (SkinnerOptions::bake_space)")
+      ->needs(bake);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -82,6 +88,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "skin_animation: %s (--help lists the options)\n", e.what());
     return 2;
   }
+  if (bake_local) options.bake_space = BakeSpace::kLocal;
   std::vector<Model> models;
   std::vector<MeshView> meshes;
   for (const std::string& path : paths) {

@@ -153,10 +153,12 @@ void CheckCounts(const SkinnedAsset& asset, std::span<const int> clips) {
 
 AnimationView PackedAnimation::View() const {
   return AnimationView{static_cast<std::uint32_t>(clips.size()), nodes, channels, times, values, joints, clip_ranges,
-                       frames, baked_rows};
+                       frames, baked_rows, baked_local};
 }
 
 std::size_t PackedAnimation::Bytes() const {
+  if (baked_local) return BufferBytes(frames).size() + BufferBytes(clip_ranges).size() + BufferBytes(nodes).size() +
+                          BufferBytes(joints).size();
   if (!frames.empty()) return BufferBytes(frames).size() + BufferBytes(clip_ranges).size();
   return BufferBytes(nodes).size() + BufferBytes(channels).size() + BufferBytes(times).size() +
          BufferBytes(values).size() + BufferBytes(joints).size() + BufferBytes(clip_ranges).size();
@@ -246,23 +248,51 @@ BakedJoint PutBaked(const BakedJoint& b, std::uint32_t rows, std::vector<float>&
   if (rows == kBakedRowsAffine)
     frames.insert(frames.end(), {ToFloat(s[0][0], what), ToFloat(s[1][1], what), ToFloat(s[2][2], what),
                                  ToFloat(s[1][0], what), ToFloat(s[2][0], what), ToFloat(s[2][1], what), 0.0f, 0.0f});
+  if (rows == kBakedRowsLocalScaled)  // a local record's scale: S's diagonal
+    frames.insert(frames.end(), {ToFloat(s[0][0], what), ToFloat(s[1][1], what), ToFloat(s[2][2], what), 0.0f});
   const float* p = frames.data() + at;
   BakedJoint stored{glm::dquat(p[3], p[0], p[1], p[2]), glm::dvec3(p[4], p[5], p[6]), glm::dmat3(double{p[7]})};
   if (rows == kBakedRowsAffine) {
     stored.s = glm::dmat3(p[8], p[11], p[12], p[11], p[9], p[13], p[12], p[13], p[10]);
+  } else if (rows == kBakedRowsLocalScaled) {
+    stored.s = glm::dmat3(glm::dvec3(p[8], 0.0, 0.0), glm::dvec3(0.0, p[9], 0.0), glm::dvec3(0.0, 0.0, p[10]));
   }
   return stored;
 }
 
+// T(t) R(q) S of a record: a joint's palette entry, or a node's local transform.
+glm::dmat4 MatrixOf(const BakedJoint& b) {
+  glm::dmat4 m(glm::mat3_cast(b.q) * b.s);
+  m[3] = glm::dvec4(b.t, 1.0);
+  return m;
+}
+
+// A node's local transform as a record (a fixed-matrix node: the identity,
+// its matrix is read from `nodes`).
+BakedJoint LocalRecord(const Node& node, const Transform& local) {
+  if (node.has_matrix) return {glm::dquat(1.0, 0.0, 0.0, 0.0), glm::dvec3(0.0), glm::dmat3(1.0)};
+  const glm::dvec3& s = local.scale;
+  return {glm::normalize(local.rotation), local.translation,
+          glm::dmat3(glm::dvec3(s.x, 0.0, 0.0), glm::dvec3(0.0, s.y, 0.0), glm::dvec3(0.0, 0.0, s.z))};
+}
+
+// The palette of local records: each node's transform from its record, the
+// hierarchy composed in float64 (Skeleton::PaletteD).
+std::vector<glm::dmat4> PaletteOfLocals(const Skeleton& skeleton, std::span<const BakedJoint> locals) {
+  Pose pose = skeleton.RestPose();
+  for (std::size_t n = 0; n < pose.size(); ++n) {
+    pose[n].translation = locals[n].t;
+    pose[n].rotation = locals[n].q;
+    pose[n].scale = glm::dvec3(locals[n].s[0][0], locals[n].s[1][1], locals[n].s[2][2]);
+  }
+  return skeleton.PaletteD(pose);
+}
+
 // The largest distance between a vertex of `mesh` skinned by the `baked`
 // palette and by the `exact` one: |sum_i w_i (B - E)[d_i] v|.
-double BakeError(const SkinnedMesh& mesh, std::span<const BakedJoint> baked, std::span<const glm::dmat4> exact) {
+double BakeError(const SkinnedMesh& mesh, std::span<const glm::dmat4> baked, std::span<const glm::dmat4> exact) {
   std::vector<glm::dmat4> difference(baked.size());
-  for (std::size_t j = 0; j < baked.size(); ++j) {
-    glm::dmat4 m(glm::mat3_cast(baked[j].q) * baked[j].s);
-    m[3] = glm::dvec4(baked[j].t, 1.0);
-    difference[j] = m - exact[j];
-  }
+  for (std::size_t j = 0; j < baked.size(); ++j) difference[j] = baked[j] - exact[j];
   double worst = 0.0;
   const auto b = static_cast<std::size_t>(mesh.influences);
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
@@ -278,7 +308,7 @@ double BakeError(const SkinnedMesh& mesh, std::span<const BakedJoint> baked, std
 
 }  // namespace
 
-PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> clips, double rate) {
+PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> clips, double rate, BakeSpace space) {
   if (!(rate > 0.0) || rate > kAnimMaxBakeRate)
     throw Error(asset.source + ": bake rate " + Number(rate) + " frames a second, outside (0, " +
                 Number(kAnimMaxBakeRate) + "]");
@@ -288,7 +318,8 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> cl
   out.values.clear();
   out.clip_ranges.clear();
   out.bake_rate = rate;
-  const std::size_t joints = out.joints.size();
+  out.baked_local = space == BakeSpace::kLocal;
+  const std::size_t joints = out.View().baked_items();  // records a frame: joints, or nodes
   // The frames: the rest pose, then each clip's evenly spaced times. Their
   // records are made twice (below) rather than kept in float64 between the
   // two passes: a baking near kMaxBakedFloats would otherwise hold 8 times
@@ -312,18 +343,30 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> cl
   }
   std::vector<BakedJoint> records(joints);
   const auto records_of = [&](const Frame& f) -> const std::vector<BakedJoint>& {
-    const std::vector<glm::dmat4> palette = asset.skeleton.PaletteD(asset.PoseAt(f.clip, f.t));
+    const Pose pose = asset.PoseAt(f.clip, f.t);
+    if (out.baked_local) {
+      for (std::size_t n = 0; n < joints; ++n) records[n] = LocalRecord(asset.skeleton.nodes[n], pose[n]);
+      return records;
+    }
+    const std::vector<glm::dmat4> palette = asset.skeleton.PaletteD(pose);
     const std::string what = asset.source + ": " +
                              (f.clip < 0 ? std::string("rest pose") : ClipName(asset, f.clip) + " at t=" + Number(f.t) + " s");
     for (std::size_t j = 0; j < joints; ++j) records[j] = BakeJoint(palette[j], what + " joint " + std::to_string(j));
     return records;
   };
+  // The palette skinned by a frame's (or a mix's) records.
+  const auto palette_of = [&](std::span<const BakedJoint> mixed) {
+    if (out.baked_local) return PaletteOfLocals(asset.skeleton, mixed);
+    std::vector<glm::dmat4> palette(mixed.size());
+    for (std::size_t j = 0; j < mixed.size(); ++j) palette[j] = MatrixOf(mixed[j]);
+    return palette;
+  };
   // 1: the form the records need: 2 rows where every transform is a
-  // similarity, else 4.
+  // similarity (in local space: every scale uniform), else 4 (3).
   out.baked_rows = kBakedRowsSimilar;
   for (std::size_t f = 0; f < frames.size() && out.baked_rows == kBakedRowsSimilar; ++f)
     for (const BakedJoint& b : records_of(frames[f]))
-      if (!Similar(b.s)) out.baked_rows = kBakedRowsAffine;
+      if (!Similar(b.s)) out.baked_rows = out.baked_local ? kBakedRowsLocalScaled : kBakedRowsAffine;
   // 2: stored as float32 in that form; each clip's error measured with the
   // records as stored, at its frames and 1/4, 1/2, 3/4 between them.
   const double diagonal = BoundingBoxDiagonal(asset.mesh.positions);
@@ -331,7 +374,8 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> cl
   const auto put = [&](const Frame& f) {
     const std::vector<BakedJoint>& made = records_of(f);
     for (std::size_t j = 0; j < joints; ++j)
-      stored[j] = PutBaked(made[j], out.baked_rows, out.frames, asset.source + ": frames joint " + std::to_string(j));
+      stored[j] = PutBaked(made[j], out.baked_rows, out.frames,
+                           asset.source + (out.baked_local ? ": frames node " : ": frames joint ") + std::to_string(j));
   };
   put(frames[0]);
   std::size_t next = 1;
@@ -347,7 +391,7 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> cl
         if ((k == 0 && count > 1) || (u != 1.0 && (k == 0 || (u == 0.0 && k > 1)))) continue;
         for (std::size_t j = 0; j < joints; ++j) mixed[j] = k == 0 ? stored[j] : MixBaked(previous[j], stored[j], u);
         const std::vector<glm::dmat4> exact = asset.skeleton.PaletteD(asset.PoseAt(clips[c], f.t - (1.0 - u) * step));
-        worst = std::max(worst, BakeError(asset.mesh, mixed, exact));
+        worst = std::max(worst, BakeError(asset.mesh, palette_of(mixed), exact));
       }
       previous = stored;
     }
@@ -362,10 +406,17 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> cl
   return out;
 }
 
-PackedAnimation BakeAnimation(const SkinnedAsset& asset, double rate) {
+PackedAnimation BakeAnimation(const SkinnedAsset& asset, double rate, BakeSpace space) {
   std::vector<int> all(asset.animations.size());
   for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
-  return BakeAnimation(asset, all, rate);
+  return BakeAnimation(asset, all, rate, space);
+}
+
+PackedAnimation PackForm(const SkinnedAsset& asset, Animation form) {
+  if (!AnimatesOnDevice(form)) throw Error(asset.source + ": animation 'host' packs no clips (the host uploads palettes)");
+  const double rate = BakeRateOf(form);
+  return rate > 0.0 ? BakeAnimation(asset, rate, BakesLocally(form) ? BakeSpace::kLocal : BakeSpace::kPalette)
+                    : PackAnimation(asset);
 }
 
 PackedAnimation PackAnimation(const SkinnedAsset& asset) {

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "cpu_kernels/palette_kernel.h"
+#include "generator/variant.h"
 #include "model/asset.h"
 
 namespace skintune::internal {
@@ -58,7 +59,9 @@ struct PackedAnimation {
   std::vector<float> clip_ranges;           // buffer `clips`: per clip start, end, 0, 0 (AdvanceAnimInstances)
                                             // (baked: start, end, frames, first frame)
   std::vector<float> frames;                // buffer `frames` of baked clips (empty: sampled)
-  std::uint32_t baked_rows = 0;             // float4s a baked record: kBakedRowsSimilar or kBakedRowsAffine
+  std::uint32_t baked_rows = 0;             // float4s a baked record: kBakedRowsSimilar, kBakedRowsAffine
+                                            // (kBakedRowsLocalScaled in local space)
+  bool baked_local = false;                 // records of nodes' local transforms (BakeSpace::kLocal)
   std::vector<BakedClipInfo> baked;         // per packed clip, when baked
   double bake_rate = 0.0;                   // frames a second asked for (0: sampled)
   // Each channel left out and why ("animations[0] 'Wave': channels[3]
@@ -81,6 +84,13 @@ PackedAnimation PackAnimation(const SkinnedAsset& asset, std::span<const int> cl
 // Every clip of the asset, in order.
 PackedAnimation PackAnimation(const SkinnedAsset& asset);
 
+// What a baked record holds (docs/ANIMATION.md "Baked clips"): each joint's
+// palette entry (the kernel reads one record a joint and frame, and mixes a
+// blend of two clips in the model's space), or each node's local transform
+// (the kernel composes the hierarchy, as for sampled clips, and mixes a blend
+// in each node's local space, as sampled clips do).
+enum class BakeSpace { kPalette, kLocal };
+
 // Every clip of `clips` baked (docs/ANIMATION.md "Baked clips"): its
 // palettes sampled in float64 (SkinnedAsset::PoseAt, Skeleton::PaletteD) at
 // F = ceil(duration x rate) + 1 evenly spaced frames (1 for a clip of no
@@ -89,11 +99,20 @@ PackedAnimation PackAnimation(const SkinnedAsset& asset);
 // as frame 0: records of 2 float4s where every transform of every frame is a
 // similarity (the stretch s I to float32's precision), else of 4. nodes and
 // joints are packed as PackAnimation packs them, channels, times and values
-// not. Throws Error("<source>: ...") for a rate not in (0, kAnimMaxBakeRate],
-// more than kMaxBakedFloats floats of frames, a singular joint transform,
-// and what PackAnimation throws for.
-PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> clips, double rate);
-PackedAnimation BakeAnimation(const SkinnedAsset& asset, double rate);  // every clip, in order
+// not. In BakeSpace::kLocal, each node's local TRS at those frames instead
+// (records of 2 float4s where every scale is uniform, else 3), nodes and
+// joints packed for the kernel's walk. Throws Error("<source>: ...") for a
+// rate not in (0, kAnimMaxBakeRate], more than kMaxBakedFloats floats of
+// frames, a singular joint transform, and what PackAnimation throws for.
+PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> clips, double rate,
+                              BakeSpace space = BakeSpace::kPalette);
+PackedAnimation BakeAnimation(const SkinnedAsset& asset, double rate,
+                              BakeSpace space = BakeSpace::kPalette);  // every clip, in order
+
+// Every clip packed in a variant's form of animation on the device: sampled
+// (PackAnimation), or baked at its rate in its space (BakeRateOf,
+// BakeSpaceOf). Throws Error for Animation::kHost (nothing to pack).
+PackedAnimation PackForm(const SkinnedAsset& asset, Animation form);
 
 // The bytes of one buffer of a PackedAnimation (or of instances), as uploaded.
 template <typename T>

@@ -20,6 +20,12 @@ std::span<const std::uint8_t> AnimationBufferBytes(const AnimationView& animatio
   return {reinterpret_cast<const std::uint8_t*>(found.data()), found.size()};
 }
 
+int BakedDefine(const AnimationView& animation) {
+  if (!animation.baked()) return 0;
+  if (animation.baked_local) return animation.baked_rows == kBakedRowsLocalScaled ? 4 : 3;
+  return animation.baked_rows == kBakedRowsAffine ? 2 : 1;
+}
+
 PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette_rows) {
   if (palette_rows != 3 && palette_rows != 4)
     throw Error("palette kernel: " + std::to_string(palette_rows) + " rows per joint (3 or 4)");
@@ -35,8 +41,10 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
   variant.lang = language.copy_lang;
   variant.influences = 1;
   variant.storage = PaletteStorage::kGlobal;
-  const bool baked = animation.baked();
-  const int group = baked ? AnimBakedGroupFor(animation.joints.size()) : AnimGroupFor(animation.nodes.size());
+  const bool baked = animation.baked(), local = baked && animation.baked_local;
+  const int group = local   ? AnimBakedGroupFor(animation.nodes.size())
+                    : baked ? AnimBakedGroupFor(animation.joints.size())
+                            : AnimGroupFor(animation.nodes.size());
   variant.wg_size = group;
   variant.normals = Normals::kNone;
 
@@ -51,7 +59,7 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                {"ANIM_CLIP_COUNT", static_cast<long long>(animation.clip_count)},
                {"ANIM_PALETTE_ROWS", palette_rows},
                {"ANIM_GROUP", group},
-               {"ANIM_BAKED", !baked ? 0 : animation.baked_rows == kBakedRowsAffine ? 2 : 1}};
+               {"ANIM_BAKED", BakedDefine(animation)}};
   const auto buffer = [](const char* name, const char* format, std::size_t element, ArgumentDirection direction) {
     return KernelArgument{name, format, element, element, "", direction, ArgumentKind::kBuffer};
   };
@@ -66,9 +74,14 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                  buffer(kAnimStates, "record", sizeof(AnimInstance), ArgumentDirection::kOut),
                  {kAnimDelta, "f32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar},
                  {kAnimFresh, "u32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar}};
-  if (baked) {  // frames in place of the five buffers of sampled clips
+  const KernelArgument frames =
+      buffer(kAnimFrames, "float4 records", 16 * std::size_t{animation.baked_rows}, ArgumentDirection::kIn);
+  if (local) {  // frames in place of channels, times and values: nodes, frames, joints, ...
+    k.arguments.erase(k.arguments.begin() + 1, k.arguments.begin() + 4);
+    k.arguments.insert(k.arguments.begin() + 1, frames);
+  } else if (baked) {  // frames in place of the five buffers of sampled clips
     k.arguments.erase(k.arguments.begin(), k.arguments.begin() + 5);
-    k.arguments.insert(k.arguments.begin(), buffer(kAnimFrames, "float4 records", 16 * std::size_t{animation.baked_rows}, ArgumentDirection::kIn));
+    k.arguments.insert(k.arguments.begin(), frames);
   }
   for (KernelArgument& a : k.arguments)
     if (a.name == kAnimOutput) a.indexing = "(i*J+j)*R+r";
@@ -79,7 +92,7 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
 
   k.text = SpecialisedText(language.palette_template,
                            "the palette kernel of " + std::to_string(animation.clip_count) +
-                               (baked ? " baked clips" : " clips"),
+                               (local ? " clips baked in local space" : baked ? " baked clips" : " clips"),
                            k.defines);
   k.source_hash = SourceHash(k.text);
   return out;

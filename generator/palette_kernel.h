@@ -45,7 +45,9 @@ constexpr int AnimBakedGroupFor(std::size_t joints) {
 // advances the kept ones by delta). docs/ANIMATION.md has every byte.
 inline constexpr const char* kAnimInputs[] = {"nodes", "channels", "times", "values", "joints", "instances"};
 // A baked animation's kernel takes `frames` (AnimationView::frames),
-// instances, out_palette, clips, states, delta and fresh, in that order.
+// instances, out_palette, clips, states, delta and fresh, in that order; one
+// baked in local space nodes, frames, joints, then the same (it walks the
+// hierarchy: its group, one item per node, is AnimBakedGroupFor(nodes)).
 inline constexpr const char* kAnimFrames = "frames";
 inline constexpr const char* kAnimOutput = "out_palette";
 inline constexpr const char* kAnimClips = "clips";
@@ -68,8 +70,12 @@ struct PaletteKernel {
 // float4 rows per joint (3: mat3x4, 4: mat4 with a last row 0 0 0 1; a skin
 // variant's PaletteRows). Launch it with LaunchSpec count kernel.launch.wg_size (AnimGroupFor) and
 // instances K (instanced): one work-group per instance. A baked `animation`
-// gets the baked kernel (define ANIM_BAKED 1). Throws Error for rows
+// gets the baked kernel (define ANIM_BAKED: BakedDefine). Throws Error for rows
 // other than 3 or 4, no joints or nodes, more nodes than kAnimMaxNodes.
 PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette_rows);
+
+// The kernel's ANIM_BAKED (templates/skin_params.h): 0 sampled; palette
+// records of 2 (1) or 4 (2) float4s; local records of 2 (3) or 3 (4).
+int BakedDefine(const AnimationView& animation);
 
 }  // namespace skintune::internal

@@ -62,10 +62,16 @@ enum class NormalFormat { kF32, kOct16, kSnorm8 };
 // Where an animated scene's palettes come from (docs/ANIMATION.md): uploaded
 // by the host each frame, or made on the device by the palette kernel, which
 // samples the model's clips (sampled) or interpolates them baked at 30, 60,
-// 120 or 240 frames a second (BakeRateOf). The skin kernel is the same; the
-// frame runs the palette kernel first. A scene's choice (the tuner's "-anim"
-// scenes animate on the device): never raced against host.
-enum class Animation { kHost, kSampled, kBaked30, kBaked60, kBaked120, kBaked240 };
+// 120 or 240 frames a second (BakeRateOf): each joint's palette entry
+// (baked*: one read a joint; a blend of two clips mixed in the model's
+// space), or each node's local transform (local*: the hierarchy composed
+// each frame; a blend mixed in local space, as sampled clips are;
+// BakesLocally). The skin kernel is the same; the frame runs the palette
+// kernel first. A scene's choice (the tuner's "-anim" scenes animate on the
+// device): never raced against host.
+enum class Animation {
+  kHost, kSampled, kBaked30, kBaked60, kBaked120, kBaked240, kLocal30, kLocal60, kLocal120, kLocal240
+};
 
 struct Variant {
   Lang lang = Lang::kOpenCl;
@@ -105,11 +111,21 @@ constexpr bool MorphSparse(const Variant& v) { return v.morph == Morph::kSparse 
 constexpr bool MorphHalf(const Variant& v) { return v.morph == Morph::kDenseHalf || v.morph == Morph::kSparseHalf; }
 
 // Whether the variant's palettes are made on the device (the palette kernel).
-constexpr bool AnimatesOnDevice(const Variant& v) { return v.animation != Animation::kHost; }
+constexpr bool AnimatesOnDevice(Animation a) { return a != Animation::kHost; }
+constexpr bool AnimatesOnDevice(const Variant& v) { return AnimatesOnDevice(v.animation); }
 // The frames a second its clips are baked at; 0: sampled (or the host's palettes).
 constexpr double BakeRateOf(Animation a) {
-  return a == Animation::kBaked30 ? 30.0 : a == Animation::kBaked60 ? 60.0 : a == Animation::kBaked120 ? 120.0
-       : a == Animation::kBaked240 ? 240.0 : 0.0;
+  switch (a) {
+    case Animation::kBaked30: case Animation::kLocal30: return 30.0;
+    case Animation::kBaked60: case Animation::kLocal60: return 60.0;
+    case Animation::kBaked120: case Animation::kLocal120: return 120.0;
+    case Animation::kBaked240: case Animation::kLocal240: return 240.0;
+    default: return 0.0;
+  }
+}
+// Whether its clips are baked as each node's local transform.
+constexpr bool BakesLocally(Animation a) {
+  return a == Animation::kLocal30 || a == Animation::kLocal60 || a == Animation::kLocal120 || a == Animation::kLocal240;
 }
 
 // Whether the variant writes normals and tangents packed (not float32).

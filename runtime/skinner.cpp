@@ -340,6 +340,9 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
   if (options.bake_rate != 0.0 && call != "Skinner::CreateAnimated")
     FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_rate bakes a model's clips (Skinner::"
                                                  "CreateAnimated); this Skinner takes its palettes from SetPalette");
+  if (options.bake_space != skintune::BakeSpace::kPalette && call != "Skinner::CreateAnimated")
+    FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_space is what Skinner::CreateAnimated "
+                                                 "bakes; this Skinner takes its palettes from SetPalette");
   if (options.palette_threads < 0 || options.palette_threads > kMaxPaletteThreads)
     FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::palette_threads is " +
                                               std::to_string(options.palette_threads) + ", expected 0 (skintune's choice) to " +
@@ -446,21 +449,35 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
       FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::dual_quaternions: the palette kernel writes "
                                                    "matrices; animation on the device skins with linear blending only");
     const bool tuned = options.bake_rate == kBakeRateTuned;
+    const bool local = options.bake_space == skintune::BakeSpace::kLocal;
+    if (options.bake_space != skintune::BakeSpace::kPalette && !local)
+      FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_space is " +
+                                                std::to_string(static_cast<int>(options.bake_space)) + ", not a BakeSpace");
+    if (local && !(options.bake_rate > 0.0))
+      FailWith(ErrorCode::kInvalidArgument,
+               call + ": SkinnerOptions::bake_space kLocal bakes clips at SkinnerOptions::bake_rate, which is " +
+                   (tuned ? std::string("kBakeRateTuned (the tuned entry's form decides the space)")
+                          : std::to_string(options.bake_rate) + " (sampled: nothing is baked)"));
     if (!tuned && options.bake_rate != 0.0 && !(options.bake_rate > 0.0 && options.bake_rate <= kMaxBakeRate))
       FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_rate is " +
                                                 std::to_string(options.bake_rate) + ", expected 0 (sampled), (0, " +
                                                 std::to_string(kMaxBakeRate) + "] frames a second or kBakeRateTuned");
-    const auto pack = [&](double rate) {
+    const auto pack = [&](const auto& make) {
       try {
-        return rate > 0.0 ? BakeAnimation(*asset, rate) : PackAnimation(*asset);
+        return make();
       } catch (const Error& e) {
         FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
       }
     };
+    const auto asked = [&] {
+      return options.bake_rate > 0.0
+                 ? BakeAnimation(*asset, options.bake_rate, local ? internal::BakeSpace::kLocal : internal::BakeSpace::kPalette)
+                 : PackAnimation(*asset);
+    };
     // The clips are packed (and checked) before anything goes to the device,
     // but for a form the winners database decides, which comes with the variant.
     PackedAnimation animation;
-    if (!tuned) animation = pack(options.bake_rate);
+    if (!tuned) animation = pack(asked);
     // The palette kernel animates joints; a model's morph targets stay, their
     // weights set from the host (SetMorphWeights; the model's defaults until
     // then) and uploaded with every frame, K x T floats.
@@ -469,11 +486,15 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     skinner.impl_ = CreateScene(call, device, db.impl_ ? &db.impl_->entries : nullptr, &view, 1, false, options);
     Impl& im = *skinner.impl_;
     if (tuned) {  // the form the variant's entry was tuned in: sampled, or baked at its rate (host: sampled)
-      animation = pack(BakeRateOf(im.variant.animation));
+      animation = pack([&] {
+        return AnimatesOnDevice(im.variant) ? PackForm(*asset, im.variant.animation) : PackAnimation(*asset);
+      });
       im.selection.reason += std::string("; palettes ") +
                              (AnimatesOnDevice(im.variant) ? std::string("made as tuned: ") + Name(im.variant.animation)
                                                            : "sampled (kBakeRateTuned, and the entry was not tuned animated)");
-    } else if (AnimatesOnDevice(im.variant) && BakeRateOf(im.variant.animation) != options.bake_rate) {
+    } else if (AnimatesOnDevice(im.variant) &&
+               (BakeRateOf(im.variant.animation) != options.bake_rate ||
+                (options.bake_rate > 0.0 && BakesLocally(im.variant.animation) != local))) {
       im.selection.reason += std::string("; palettes made as SkinnerOptions::bake_rate asks, not as tuned (") +
                              Name(im.variant.animation) + "): kBakeRateTuned takes the tuned form";
     }

@@ -189,10 +189,21 @@ uint4 anim_advance(__global const float4* restrict clips, uint4 in, const float 
 // Records of ANIM_BAKED_ROWS float4s: 2 where every transform is a
 // similarity (ANIM_BAKED 1: q, then t and s), else 4 (ANIM_BAKED 2: q, t,
 // then the symmetric stretch S as (S00, S11, S22, S01), (S02, S12)).
+// Baked in local space (ANIM_BAKED 3, 4; docs/ANIMATION.md "Baked in local
+// space"), a record is a node's local T R S at the frame: q, then t and a
+// uniform s (3), or q, t, then s per axis (4); the kernel mixes them as
+// above, then composes the hierarchy as the sampled kernel does (below).
 #if ANIM_BAKED == 2
 #define ANIM_BAKED_ROWS 4u
+#elif ANIM_BAKED == 4
+#define ANIM_BAKED_ROWS 3u
 #else
 #define ANIM_BAKED_ROWS 2u
+#endif
+#if ANIM_BAKED >= 3
+#define ANIM_BAKED_ITEMS ANIM_NODE_COUNT  // a record a node
+#else
+#define ANIM_BAKED_ITEMS ANIM_JOINT_COUNT  // a record a joint
 #endif
 
 typedef struct {
@@ -200,13 +211,16 @@ typedef struct {
 } Baked;
 
 Baked baked_record(__global const float4* restrict frames, const uint frame, const uint j) {
-  const size_t at = ANIM_BAKED_ROWS * ((size_t)frame * ANIM_JOINT_COUNT + j);
+  const size_t at = ANIM_BAKED_ROWS * ((size_t)frame * ANIM_BAKED_ITEMS + j);
   Baked b;
   b.q = frames[at];
   b.ts = frames[at + 1u];
 #if ANIM_BAKED == 2
   b.s0 = frames[at + 2u];
   b.s1 = frames[at + 3u];
+#elif ANIM_BAKED == 4
+  b.s0 = frames[at + 2u];
+  b.s1 = (float4)(0.0f);
 #else
   b.s0 = b.s1 = (float4)(0.0f);
 #endif
@@ -223,8 +237,8 @@ Baked baked_mix(const Baked x, const Baked y, const float u) {
   return b;
 }
 
-// Joint j of `clip` at time t, clamped to the clip's range (start, end,
-// frame count, first frame).
+// Item j (a joint; a node in local space) of `clip` at time t, clamped to
+// the clip's range (start, end, frame count, first frame).
 Baked baked_sample(__global const float4* restrict frames, __global const float4* restrict clips, const uint clip,
                    const float t, const uint j) {
   if (clip == ANIM_REST_POSE) return baked_record(frames, 0u, j);
@@ -236,6 +250,9 @@ Baked baked_sample(__global const float4* restrict frames, __global const float4
   const uint k = min((uint)u, count - 2u);
   return baked_mix(baked_record(frames, first + k, j), baked_record(frames, first + k + 1u, j), u - (float)k);
 }
+#endif  // ANIM_BAKED
+
+#if ANIM_BAKED == 1 || ANIM_BAKED == 2
 
 // The rows of R(q) S | t (a similarity: S = s I).
 Affine baked_affine(const Baked x) {
@@ -288,12 +305,17 @@ void skintune_palette(__global const float4* restrict frames, __global const uin
   if (in_group && item == 0u) states[i] = in;
 }
 
-#else  // the clips sampled from their channels
+#else  // the clips sampled from their channels, or baked in local space: the hierarchy walked
 
 __kernel __attribute__((reqd_work_group_size(ANIM_GROUP, 1, 1)))
 void skintune_palette(__global const float4* restrict nodes,
+#if ANIM_BAKED
+                      __global const float4* restrict frames,
+#else
                       __global const uint4* restrict channels, __global const float* restrict times,
-                      __global const float4* restrict values, __global const float4* restrict joints,
+                      __global const float4* restrict values,
+#endif
+                      __global const float4* restrict joints,
                       __global const uint4* restrict instances, __global float4* restrict palette,
                       __global const float4* restrict clips, __global uint4* restrict states, const float delta,
                       const uint fresh) {
@@ -317,6 +339,33 @@ void skintune_palette(__global const float4* restrict nodes,
                     (as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
   if (in_group && !valid)
     for (uint r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = (float4)(NAN);
+#if ANIM_BAKED
+  // 1, 2: each node's local transform from its records around each clip's
+  // time, mixed in local space (a fixed-matrix node: its matrix), all in parallel.
+  const float w = as_float(in.w);
+  for (uint n = item; valid && n < node_count; n += ANIM_GROUP) {
+    Affine l;
+    if (as_uint(nodes[4u * n].y) != 0u) {
+      l.row0 = nodes[4u * n + 1u], l.row1 = nodes[4u * n + 2u], l.row2 = nodes[4u * n + 3u];
+    } else {
+      Baked x = baked_sample(frames, clips, in.x & 0xffffu, as_float(in.y), n);
+      if (w != 0.0f) x = baked_mix(x, baked_sample(frames, clips, in.x >> 16, as_float(in.z), n), w);
+      Trs trs;
+      trs.t = (float4)(x.ts.xyz, 0.0f);
+      trs.r = x.q;
+#if ANIM_BAKED == 4
+      trs.s = x.s0;
+#else
+      trs.s = (float4)(x.ts.w, x.ts.w, x.ts.w, 0.0f);
+#endif
+      l = anim_to_affine(trs);
+    }
+    local_rows[3u * n] = l.row0;
+    local_rows[3u * n + 1u] = l.row1;
+    local_rows[3u * n + 2u] = l.row2;
+    local_parent[n] = as_int(nodes[4u * n].x);
+  }
+#else
   // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
   for (uint task = item; valid && task < 3u * node_count; task += ANIM_GROUP) {
     const uint node = task / 3u, path = task - 3u * node;
@@ -338,6 +387,7 @@ void skintune_palette(__global const float4* restrict nodes,
     local_rows[3u * n + 1u] = l.row1;
     local_rows[3u * n + 2u] = l.row2;
   }
+#endif  // ANIM_BAKED
   barrier(CLK_LOCAL_MEM_FENCE);
   // 3: each joint's global transform, up its ancestors in local memory, then the inverse bind.
   for (uint j = item; valid && j < joint_count; j += ANIM_GROUP) {
@@ -363,4 +413,4 @@ void skintune_palette(__global const float4* restrict nodes,
   if (in_group && item == 0u) states[i] = in;  // every item read it before the first barrier
 }
 
-#endif  // ANIM_BAKED
+#endif  // ANIM_BAKED == 1 || ANIM_BAKED == 2

@@ -19,7 +19,17 @@
 // skin_params.h gives their defaults.
 #include "skin_params.h"
 
-#if ANIM_BAKED
+#if ANIM_BAKED >= 3
+// Clips baked in local space (docs/ANIMATION.md "Baked clips"): bindings 0
+// nodes, 1 frames, 2 joints, 3 instances, 4 palette (output), 5 clips, 6 states.
+layout(std430, binding = 0) readonly buffer Nodes { vec4 nodes[]; };
+layout(std430, binding = 1) readonly buffer Frames { vec4 frames[]; };
+layout(std430, binding = 2) readonly buffer Joints { vec4 joints[]; };
+layout(std430, binding = 3) readonly buffer Instances { uvec4 instances[]; };
+layout(std430, binding = 4) writeonly buffer Palette { vec4 palette[]; };
+layout(std430, binding = 5) readonly buffer Clips { vec4 clips[]; };
+layout(std430, binding = 6) buffer States { uvec4 states[]; };
+#elif ANIM_BAKED
 // Baked clips (docs/ANIMATION.md "Baked clips"): bindings 0 frames, 1 instances,
 // 2 palette (output), 3 clips, 4 states.
 layout(std430, binding = 0) readonly buffer Frames { vec4 frames[]; };
@@ -195,11 +205,19 @@ uvec4 anim_advance(uvec4 s, float step) {
 
 #if ANIM_BAKED
 // Baked clips: palette.cl's baked kernel (docs/ANIMATION.md "Baked clips").
-// Records of ANIM_BAKED_ROWS vec4s (palette.cl says which).
+// Records of ANIM_BAKED_ROWS vec4s, of joints or (local space, ANIM_BAKED
+// 3 and 4) nodes (palette.cl says which).
 #if ANIM_BAKED == 2
 const uint kBakedRows = 4u;
+#elif ANIM_BAKED == 4
+const uint kBakedRows = 3u;
 #else
 const uint kBakedRows = 2u;
+#endif
+#if ANIM_BAKED >= 3
+const uint kBakedItems = node_count;
+#else
+const uint kBakedItems = joint_count;
 #endif
 
 struct Baked {
@@ -207,9 +225,11 @@ struct Baked {
 };
 
 Baked baked_record(uint frame, uint j) {
-  uint at = kBakedRows * (frame * joint_count + j);
+  uint at = kBakedRows * (frame * kBakedItems + j);
 #if ANIM_BAKED == 2
   return Baked(frames[at], frames[at + 1u], frames[at + 2u], frames[at + 3u]);
+#elif ANIM_BAKED == 4
+  return Baked(frames[at], frames[at + 1u], frames[at + 2u], vec4(0.0));
 #else
   return Baked(frames[at], frames[at + 1u], vec4(0.0), vec4(0.0));
 #endif
@@ -231,6 +251,9 @@ Baked baked_sample(uint clip, float t, uint j) {
   uint k = min(uint(u), count - 2u);
   return baked_mix(baked_record(first + k, j), baked_record(first + k + 1u, j), u - float(k));
 }
+#endif  // ANIM_BAKED
+
+#if ANIM_BAKED == 1 || ANIM_BAKED == 2
 
 // The rows of R(q) S | t (a similarity: S = s I).
 Affine baked_affine(Baked x) {
@@ -273,7 +296,7 @@ void main() {
   if (in_group && item == 0u) states[i] = in_;
 }
 
-#else  // the clips sampled from their channels
+#else  // the clips sampled from their channels, or baked in local space: the hierarchy walked
 
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 // Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
@@ -302,6 +325,28 @@ void main() {
     vec4 nan = vec4(uintBitsToFloat(0x7fc00000u));
     for (uint r = item; r < joint_count * rows; r += uint(ANIM_GROUP)) palette[out_ + r] = nan;
   }
+#if ANIM_BAKED
+  // 1, 2: each node's local transform from its records, mixed in local space (palette.cl).
+  float w = uintBitsToFloat(in_.w);
+  for (uint n = item; valid && n < node_count; n += uint(ANIM_GROUP)) {
+    Affine l;
+    if (floatBitsToUint(nodes[4u * n].y) != 0u) {
+      l = Affine(nodes[4u * n + 1u], nodes[4u * n + 2u], nodes[4u * n + 3u]);
+    } else {
+      Baked x = baked_sample(in_.x & 0xffffu, uintBitsToFloat(in_.y), n);
+      if (w != 0.0) x = baked_mix(x, baked_sample(in_.x >> 16, uintBitsToFloat(in_.z), n), w);
+#if ANIM_BAKED == 4
+      l = anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, x.s0));
+#else
+      l = anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, vec4(x.ts.www, 0.0)));
+#endif
+    }
+    local_rows[3u * n] = l.row0;
+    local_rows[3u * n + 1u] = l.row1;
+    local_rows[3u * n + 2u] = l.row2;
+    local_parent[n] = floatBitsToInt(nodes[4u * n].x);
+  }
+#else
   // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
   for (uint task = item; valid && task < 3u * node_count; task += uint(ANIM_GROUP)) {
     uint node = task / 3u, path = task - 3u * node;
@@ -319,6 +364,7 @@ void main() {
     local_rows[3u * n + 1u] = l.row1;
     local_rows[3u * n + 2u] = l.row2;
   }
+#endif  // ANIM_BAKED
   memoryBarrierShared();
   barrier();
   // 3: each joint's global transform, up its ancestors in shared memory, then the inverse bind.
@@ -336,4 +382,4 @@ void main() {
   if (in_group && item == 0u) states[i] = in_;  // every invocation read it before the first barrier
 }
 
-#endif  // ANIM_BAKED
+#endif  // ANIM_BAKED == 1 || ANIM_BAKED == 2

@@ -187,11 +187,19 @@ __device__ uint4 anim_advance(const float4* __restrict__ clips, uint4 in, const 
 
 #if ANIM_BAKED
 // Baked clips: palette.cl's baked kernel (docs/ANIMATION.md "Baked clips").
-// Records of ANIM_BAKED_ROWS float4s (palette.cl says which).
+// Records of ANIM_BAKED_ROWS float4s, of joints or (local space,
+// ANIM_BAKED 3 and 4) nodes (palette.cl says which).
 #if ANIM_BAKED == 2
 #define ANIM_BAKED_ROWS 4u
+#elif ANIM_BAKED == 4
+#define ANIM_BAKED_ROWS 3u
 #else
 #define ANIM_BAKED_ROWS 2u
+#endif
+#if ANIM_BAKED >= 3
+#define ANIM_BAKED_ITEMS ANIM_NODE_COUNT
+#else
+#define ANIM_BAKED_ITEMS ANIM_JOINT_COUNT
 #endif
 
 struct Baked {
@@ -199,9 +207,11 @@ struct Baked {
 };
 
 __device__ Baked baked_record(const float4* __restrict__ frames, const unsigned frame, const unsigned j) {
-  const unsigned long long at = ANIM_BAKED_ROWS * (static_cast<unsigned long long>(frame) * ANIM_JOINT_COUNT + j);
+  const unsigned long long at = ANIM_BAKED_ROWS * (static_cast<unsigned long long>(frame) * ANIM_BAKED_ITEMS + j);
 #if ANIM_BAKED == 2
   return Baked{frames[at], frames[at + 1u], frames[at + 2u], frames[at + 3u]};
+#elif ANIM_BAKED == 4
+  return Baked{frames[at], frames[at + 1u], frames[at + 2u], make_float4(0.0f, 0.0f, 0.0f, 0.0f)};
 #else
   const float4 zero = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
   return Baked{frames[at], frames[at + 1u], zero, zero};
@@ -227,6 +237,9 @@ __device__ Baked baked_sample(const float4* __restrict__ frames, const float4* _
   return baked_mix(baked_record(frames, first + k, j), baked_record(frames, first + k + 1u, j),
                    u - static_cast<float>(k));
 }
+#endif  // ANIM_BAKED
+
+#if ANIM_BAKED == 1 || ANIM_BAKED == 2
 
 // The rows of R(q) S | t (a similarity: S = s I).
 __device__ Affine baked_affine(const Baked& x) {
@@ -280,11 +293,16 @@ skintune_palette(const float4* __restrict__ frames, const uint4* __restrict__ in
   if (in_group && item == 0u) states[i] = in;
 }
 
-#else  // the clips sampled from their channels
+#else  // the clips sampled from their channels, or baked in local space: the hierarchy walked
 
 extern "C" __global__ void __launch_bounds__(ANIM_GROUP)
-skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ channels,
-                 const float* __restrict__ times, const float4* __restrict__ values,
+skintune_palette(const float4* __restrict__ nodes,
+#if ANIM_BAKED
+                 const float4* __restrict__ frames,
+#else
+                 const uint4* __restrict__ channels, const float* __restrict__ times,
+                 const float4* __restrict__ values,
+#endif
                  const float4* __restrict__ joints, const uint4* __restrict__ instances,
                  float4* __restrict__ palette, const float4* __restrict__ clips, uint4* __restrict__ states,
                  const float delta, const unsigned fresh) {
@@ -310,6 +328,32 @@ skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ cha
     const float nan = __int_as_float(0x7fffffff);
     for (unsigned r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = make_float4(nan, nan, nan, nan);
   }
+#if ANIM_BAKED
+  // 1, 2: each node's local transform from its records, mixed in local space (palette.cl).
+  const float w = __uint_as_float(in.w);
+  for (unsigned n = item; valid && n < node_count; n += ANIM_GROUP) {
+    Affine l;
+    if (__float_as_uint(nodes[4u * n].y) != 0u) {
+      l.row0 = nodes[4u * n + 1u], l.row1 = nodes[4u * n + 2u], l.row2 = nodes[4u * n + 3u];
+    } else {
+      Baked x = baked_sample(frames, clips, in.x & 0xffffu, __uint_as_float(in.y), n);
+      if (w != 0.0f) x = baked_mix(x, baked_sample(frames, clips, in.x >> 16, __uint_as_float(in.z), n), w);
+      Trs trs;
+      trs.t = make_float4(x.ts.x, x.ts.y, x.ts.z, 0.0f);
+      trs.r = x.q;
+#if ANIM_BAKED == 4
+      trs.s = x.s0;
+#else
+      trs.s = make_float4(x.ts.w, x.ts.w, x.ts.w, 0.0f);
+#endif
+      l = anim_to_affine(trs);
+    }
+    local_rows[3u * n] = l.row0;
+    local_rows[3u * n + 1u] = l.row1;
+    local_rows[3u * n + 2u] = l.row2;
+    local_parent[n] = __float_as_int(nodes[4u * n].x);
+  }
+#else
   const Animation a = {node_count, nodes, channels, times, values};
   // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
   for (unsigned task = item; valid && task < 3u * node_count; task += ANIM_GROUP) {
@@ -332,6 +376,7 @@ skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ cha
     local_rows[3u * n + 1u] = l.row1;
     local_rows[3u * n + 2u] = l.row2;
   }
+#endif  // ANIM_BAKED
   __syncthreads();
   // 3: each joint's global transform, up its ancestors in shared memory, then the inverse bind.
   for (unsigned j = item; valid && j < joint_count; j += ANIM_GROUP) {
@@ -356,4 +401,4 @@ skintune_palette(const float4* __restrict__ nodes, const uint4* __restrict__ cha
   if (in_group && item == 0u) states[i] = in;  // every thread read it before the first barrier
 }
 
-#endif  // ANIM_BAKED
+#endif  // ANIM_BAKED == 1 || ANIM_BAKED == 2

@@ -203,9 +203,7 @@ double DatasetCache::QuantisationError(Entry& entry, const Variant& variant) {
 const PackedAnimation& DatasetCache::Clips(Entry& entry, Animation form) {
   if (!entry.scene.spec.animated) throw Error("scene '" + entry.scene.spec.key + "' is not animated on the device");
   if (auto found = entry.animations.find(form); found != entry.animations.end()) return found->second;
-  const SkinnedAsset& asset = entry.scene.assets.front();
-  const double rate = BakeRateOf(form);
-  return entry.animations.emplace(form, rate > 0.0 ? BakeAnimation(asset, rate) : PackAnimation(asset)).first->second;
+  return entry.animations.emplace(form, PackForm(entry.scene.assets.front(), form)).first->second;
 }
 
 std::span<const glm::mat4> DatasetCache::VerificationPalette(Entry& entry, const Variant& variant) {

@@ -82,8 +82,8 @@ class DatasetCache {
   // positions / the part's diagonal: what `variant`'s weight format alone
   // moves them, relative (0 when it holds the weights exactly).
   double QuantisationError(Entry& entry, const Variant& variant);
-  // The model's clips packed for `form` (sampled: PackAnimation; baked:
-  // BakeAnimation at BakeRateOf(form)), made once per form. Throws Error for a
+  // The model's clips packed for `form` (PackForm: sampled, or baked at
+  // BakeRateOf(form) in its space), made once per form. Throws Error for a
   // scene that is not animated, or the packer's errors.
   const PackedAnimation& Clips(Entry& entry, Animation form);
   // The verification frame's palettes as `variant`'s form makes them: the

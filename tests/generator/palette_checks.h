@@ -75,27 +75,29 @@ inline void ExpectBlendsMatchTheGold(const RunPalettes& run, const std::string& 
   }
 }
 
-// Baked clips (BakeAnimation at 30 frames a second): every clip alone at
-// every kind of time, and two-clip blends, against the float64 evaluation of
-// the baked frames.
+// Baked clips (BakeAnimation at 30 frames a second, in both spaces): every
+// clip alone at every kind of time, and two-clip blends, against the float64
+// evaluation of the baked frames.
 inline void ExpectBakedClipsMatchTheirFrames(const RunPalettes& run, const std::string& api) {
   for (const SkinnedAsset* asset :
        {&TestAsset("CesiumMan.gltf"), &TestAsset("Fox.gltf"), &TestAsset("RiggedSimple.gltf"), &DeepRig()}) {
     const PackedAnimation sampled = PackAnimation(*asset);
     const PackedAnimation baked = BakeAnimation(*asset, 30.0);
+    const PackedAnimation local = BakeAnimation(*asset, 30.0, BakeSpace::kLocal);
     std::vector<AnimInstance> instances = EveryClipAlone(*asset, sampled);
     const std::vector<AnimInstance> blends = Blends(*asset, sampled);
     instances.insert(instances.end(), blends.begin(), blends.end());
     ExpectWithinBound(Name(*asset) + " " + api + " baked", CompareBaked(baked, instances, run(baked, instances)));
+    ExpectWithinBound(Name(*asset) + " " + api + " baked in local space",
+                      CompareLocalBaked(*asset, local, instances, run(local, instances)));
   }
 }
 
 // A device kernel given a clip beyond the packed ones (first or second)
 // writes NaN rows for that instance instead of reading beyond its buffers;
 // the other instances are untouched.
-inline void ExpectNanRowsForAClipOutOfRange(const RunPalettes& run, bool baked = false) {
-  const PackedAnimation packed =
-      baked ? BakeAnimation(TestAsset("Fox.gltf"), 30.0) : PackAnimation(TestAsset("Fox.gltf"));  // 3 clips
+inline void ExpectNanRowsForAClipOutOfRange(const RunPalettes& run, Animation form = Animation::kSampled) {
+  const PackedAnimation packed = PackForm(TestAsset("Fox.gltf"), form);  // 3 clips
   const std::vector<AnimInstance> instances = {AnimInstance{1, kAnimRestPose, 0.5f, 0.0f, 0.0f},
                                                AnimInstance{3, kAnimRestPose, 0.5f, 0.0f, 0.0f},
                                                AnimInstance{0, 7, 0.5f, 0.5f, 0.5f}};

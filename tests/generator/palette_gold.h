@@ -77,16 +77,18 @@ inline void NoteWorst(Worst& worst, double error, double bound, const AnimInstan
   worst = Worst{error / bound, error, bound, where, worst.ratio_palette_only};
 }
 
-// Compares K palettes (kernel rows) with their golds; returns the worst
-// error relative to its bound, with where it is.
-inline Worst Compare(const SkinnedAsset& asset, const PackedAnimation& packed,
-                     const std::vector<AnimInstance>& instances, const std::vector<float>& rows) {
-  const std::size_t joints = packed.joints.size();
+// Compares K palettes (kernel rows) with the golds of their poses
+// (pose_of(instance)); returns the worst error relative to its bound, with
+// where it is.
+template <typename PoseOf>
+Worst ComparePoses(const SkinnedAsset& asset, const std::vector<AnimInstance>& instances,
+                   const std::vector<float>& rows, const PoseOf& pose_of) {
+  const std::size_t joints = asset.skeleton.joints.size();
   EXPECT_EQ(rows.size(), instances.size() * joints * 12);
   Worst worst;
   const Skeleton& skeleton = asset.skeleton;
   for (std::size_t i = 0; i < instances.size() && rows.size() == instances.size() * joints * 12; ++i) {
-    const Pose pose = GoldPose(asset, packed, instances[i]);
+    const Pose pose = pose_of(instances[i]);
     const std::vector<glm::dmat4> gold = skeleton.PaletteD(pose), global = skeleton.GlobalTransforms(pose);
     for (std::size_t j = 0; j < joints; ++j) {
       double palette_scale = 1.0, error = 0.0;
@@ -99,6 +101,12 @@ inline Worst Compare(const SkinnedAsset& asset, const PackedAnimation& packed,
     }
   }
   return worst;
+}
+
+// K palettes of sampled clips against the float64 sampling (GoldPose).
+inline Worst Compare(const SkinnedAsset& asset, const PackedAnimation& packed,
+                     const std::vector<AnimInstance>& instances, const std::vector<float>& rows) {
+  return ComparePoses(asset, instances, rows, [&](const AnimInstance& in) { return GoldPose(asset, packed, in); });
 }
 
 inline void ExpectWithinBound(const std::string& what, const Worst& worst) {
@@ -119,10 +127,14 @@ struct BakedGoldRecord {
   glm::dmat3 s;
 };
 
+// Item j's record (a joint's; a node's baked in local space, whose S is the
+// diagonal of its scale) at `frame`.
 inline BakedGoldRecord BakedRecordOf(const PackedAnimation& baked, std::uint32_t frame, std::size_t j) {
-  const float* p = baked.frames.data() + 4 * baked.baked_rows * (std::size_t{frame} * baked.joints.size() + j);
+  const float* p = baked.frames.data() + 4 * baked.baked_rows * (std::size_t{frame} * baked.View().baked_items() + j);
   BakedGoldRecord r{glm::dquat(p[3], p[0], p[1], p[2]), glm::dvec3(p[4], p[5], p[6]), glm::dmat3(double{p[7]})};
   if (baked.baked_rows == kBakedRowsAffine) r.s = glm::dmat3(p[8], p[11], p[12], p[11], p[9], p[13], p[12], p[13], p[10]);
+  if (baked.baked_rows == kBakedRowsLocalScaled)
+    r.s = glm::dmat3(glm::dvec3(p[8], 0.0, 0.0), glm::dvec3(0.0, p[9], 0.0), glm::dvec3(0.0, 0.0, p[10]));
   return r;
 }
 
@@ -137,8 +149,16 @@ inline BakedGoldRecord BakedGoldSample(const PackedAnimation& baked, std::uint16
   const float* range = baked.clip_ranges.data() + 4 * std::size_t{clip};
   const auto frames = std::bit_cast<std::uint32_t>(range[2]), first = std::bit_cast<std::uint32_t>(range[3]);
   if (frames < 2) return BakedRecordOf(baked, first, j);
-  const double length = double{range[1]} - range[0];
-  const double u = length > 0.0 ? std::clamp((t - range[0]) / length, 0.0, 1.0) * (frames - 1) : 0.0;
+  // The frame position u from the float32 time and range, as the kernels
+  // compute it (docs/ANIMATION.md "Baked clips"): it is the input's
+  // precision, not the kernel's arithmetic. Where a STEP jump is baked
+  // between two frames the records change by the whole jump within a frame,
+  // so u's float32 rounding alone moved the deep rig's chains 64 nodes deep
+  // by up to 4.3e-5 (0.9 to 1.5 times the bound) against a float64 u.
+  const float length = range[1] - range[0];
+  const double u = length > 0.0f ? double{std::fmin(std::fmax((static_cast<float>(t) - range[0]) / length, 0.0f), 1.0f) *
+                                          static_cast<float>(frames - 1)}
+                                 : 0.0;
   const auto k = std::min(static_cast<std::uint32_t>(u), frames - 2);
   return BakedGoldMix(BakedRecordOf(baked, first + k, j), BakedRecordOf(baked, first + k + 1, j), u - k);
 }
@@ -153,6 +173,28 @@ inline std::vector<glm::dmat4> BakedGoldPalette(const PackedAnimation& baked, co
     palette[j][3] = glm::dvec4(x.t, 1.0);
   }
   return palette;
+}
+
+// An instance's float64 pose from clips baked in local space
+// (docs/ANIMATION.md "Baked in local space"): each node's records around
+// each clip's time mixed, the two clips mixed by the weight, as a local TRS
+// (a fixed-matrix node keeps its matrix: Skeleton::PaletteD reads it).
+inline Pose LocalBakedGoldPose(const SkinnedAsset& asset, const PackedAnimation& baked, const AnimInstance& in) {
+  Pose pose = asset.skeleton.RestPose();
+  for (std::size_t n = 0; n < pose.size(); ++n) {
+    BakedGoldRecord x = BakedGoldSample(baked, in.clip, in.time, n);
+    if (in.weight != 0.0f) x = BakedGoldMix(x, BakedGoldSample(baked, in.clip2, in.time2, n), in.weight);
+    pose[n] = Transform{x.t, x.q, glm::dvec3(x.s[0][0], x.s[1][1], x.s[2][2])};
+  }
+  return pose;
+}
+
+// K palettes of clips baked in local space against the float64 evaluation
+// of their frames (LocalBakedGoldPose), with the sampled kernel's bound.
+inline Worst CompareLocalBaked(const SkinnedAsset& asset, const PackedAnimation& baked,
+                               const std::vector<AnimInstance>& instances, const std::vector<float>& rows) {
+  return ComparePoses(asset, instances, rows,
+                      [&](const AnimInstance& in) { return LocalBakedGoldPose(asset, baked, in); });
 }
 
 // K palettes (kernel rows) against the float64 evaluation of their baked

@@ -296,7 +296,8 @@ TEST(PaletteKernel, OpenClBlendsTwoClipsInLocalSpaceLikeTheGold) {
 TEST(PaletteKernel, OpenClWritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
   SKIP_WITHOUT_OPENCL(kernel);
   ExpectNanRowsForAClipOutOfRange(On(kernel));
-  ExpectNanRowsForAClipOutOfRange(On(kernel), true);
+  ExpectNanRowsForAClipOutOfRange(On(kernel), Animation::kBaked30);
+  ExpectNanRowsForAClipOutOfRange(On(kernel), Animation::kLocal30);
 }
 
 // ------------------------------------------------------------- baked clips
@@ -308,44 +309,62 @@ TEST(PaletteKernelBaked, OpenClMatchesItsFramesAloneAndBlended) {
   ExpectBakedClipsMatchTheirFrames(On(kernel), "opencl");
 }
 
+// The largest distance between a vertex of `mesh` skinned by `baked` and by
+// `exact`, over the mesh's bounding-box diagonal.
+double SkinDistance(const SkinnedMesh& mesh, const std::vector<glm::dmat4>& baked, const std::vector<glm::dmat4>& exact) {
+  const double diagonal = BoundingBoxDiagonal(mesh.positions);
+  const auto b = static_cast<std::size_t>(mesh.influences);
+  double worst = 0.0;
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    glm::dvec4 moved(0.0);
+    for (std::size_t i = 0; i < b; ++i) {
+      const auto j = static_cast<std::size_t>(mesh.joints[v * b + i]);
+      moved += double{mesh.weights[v * b + i]} * ((baked[j] - exact[j]) * glm::dvec4(glm::dvec3(mesh.positions[v]), 1.0));
+    }
+    worst = std::max(worst, glm::length(glm::dvec3(moved)) / diagonal);
+  }
+  return worst;
+}
+
+// An instance's float64 palette from baked clips in either space.
+std::vector<glm::dmat4> BakedPaletteOf(const SkinnedAsset& asset, const PackedAnimation& baked, const AnimInstance& in) {
+  return baked.baked_local ? asset.skeleton.PaletteD(testing::LocalBakedGoldPose(asset, baked, in))
+                           : BakedGoldPalette(baked, in);
+}
+
 // The stated error (BakedClipInfo::max_error, measured at the frames and 1/4,
 // 1/2, 3/4 between them) holds at other times too, within 25%, and falls with
 // the rate (4x the rate, at least 2x less: linearly where a LINEAR clip's
-// keys make kinks between two frames, quadratically elsewhere). Memory: the
-// frames x joints x 32 bytes stated.
+// keys make kinks between two frames, quadratically elsewhere), in both
+// spaces. Memory: the frames x joints (local: nodes) x 32 bytes stated.
 TEST(PaletteKernelBaked, StatesEachClipsMemoryAndErrorWhichHoldsBetweenItsChecksAndFallsWithTheRate) {
-  for (const SkinnedAsset* asset : {&TestAsset("CesiumMan.gltf"), &TestAsset("Fox.gltf")}) {
-    const PackedAnimation coarse = BakeAnimation(*asset, 30.0), fine = BakeAnimation(*asset, 120.0);
+  for (const auto& [space, asset] : {std::pair{BakeSpace::kPalette, &TestAsset("CesiumMan.gltf")},
+                                     std::pair{BakeSpace::kPalette, &TestAsset("Fox.gltf")},
+                                     std::pair{BakeSpace::kLocal, &TestAsset("CesiumMan.gltf")},
+                                     std::pair{BakeSpace::kLocal, &TestAsset("Fox.gltf")}}) {
+    const PackedAnimation coarse = BakeAnimation(*asset, 30.0, space), fine = BakeAnimation(*asset, 120.0, space);
+    const bool local = space == BakeSpace::kLocal;
+    const std::size_t items = local ? coarse.nodes.size() : coarse.joints.size();
     ASSERT_EQ(coarse.baked.size(), asset->animations.size());
     const SkinnedMesh& mesh = asset->mesh;
-    const double diagonal = BoundingBoxDiagonal(mesh.positions);
-    const auto b = static_cast<std::size_t>(mesh.influences);
     std::mt19937 random(7);
     for (std::size_t c = 0; c < coarse.baked.size(); ++c) {
       const AnimationClip& clip = asset->animations[c];
       const BakedClipInfo& info = coarse.baked[c];
       EXPECT_EQ(info.frames, static_cast<std::uint32_t>(std::ceil(clip.duration() * 30.0 - 1e-9) + 1)) << info.name;
       EXPECT_EQ(coarse.baked_rows, kBakedRowsSimilar) << info.name;  // no joint of these scales unevenly
-      EXPECT_EQ(info.bytes, std::size_t{info.frames} * coarse.joints.size() * 32) << info.name;
+      EXPECT_EQ(info.bytes, std::size_t{info.frames} * items * 32) << info.name;
       double worst = 0.0;  // at random times: the vertices skinned by both palettes
       for (int k = 0; k < 100; ++k) {
         const double t = clip.start + std::uniform_real_distribution<double>(0.0, 1.0)(random) * clip.duration();
         const AnimInstance in{static_cast<std::uint16_t>(c), kAnimRestPose, static_cast<float>(t), 0.0f, 0.0f};
-        const std::vector<glm::dmat4> baked = BakedGoldPalette(coarse, in);
         const std::vector<glm::dmat4> exact = asset->skeleton.PaletteD(asset->PoseAt(static_cast<int>(c), in.time));
-        for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-          glm::dvec4 moved(0.0);
-          for (std::size_t i = 0; i < b; ++i) {
-            const auto j = static_cast<std::size_t>(mesh.joints[v * b + i]);
-            moved += double{mesh.weights[v * b + i]} * ((baked[j] - exact[j]) * glm::dvec4(glm::dvec3(mesh.positions[v]), 1.0));
-          }
-          worst = std::max(worst, glm::length(glm::dvec3(moved)) / diagonal);
-        }
+        worst = std::max(worst, SkinDistance(mesh, BakedPaletteOf(*asset, coarse, in), exact));
       }
-      std::printf("[ baked    ] %s %s: %u frames, %zu bytes at 30/s; stated error %.3g (120/s: %.3g), at random "
+      std::printf("[ baked    ] %s %s%s: %u frames, %zu bytes at 30/s; stated error %.3g (120/s: %.3g), at random "
                   "times %.3g\n",
-                  Name(*asset).c_str(), info.name.c_str(), info.frames, info.bytes, info.max_error,
-                  fine.baked[c].max_error, worst);
+                  Name(*asset).c_str(), info.name.c_str(), local ? " (local)" : "", info.frames, info.bytes,
+                  info.max_error, fine.baked[c].max_error, worst);
       EXPECT_LE(worst, 1.25 * info.max_error + 1e-7) << info.name;
       if (info.max_error > 1e-5) {
         EXPECT_LT(fine.baked[c].max_error, info.max_error / 2) << info.name;
@@ -381,6 +400,77 @@ TEST(PaletteKernelBaked, JointsThatScaleUnevenlyKeepTheirStretch) {
   EXPECT_EQ(BakeAnimation(TestAsset("Fox.gltf"), 30.0).baked_rows, kBakedRowsSimilar);
 }
 
+// What local records are for: a blend of two clips. Each node's local
+// transform is mixed, as sampled clips are mixed, so a crowd in transition
+// loses what baking each clip loses, where palette records, mixed in the
+// model's space, bend a blended limb off its chain. Every blend of the Fox's
+// and CesiumMan's clips and the synthetic rig's (Blends), against the
+// float64 sampled blend (BlendedPoseAt).
+TEST(PaletteKernelBaked, LocalRecordsBlendTwoClipsAsSampledClipsDo) {
+  for (const SkinnedAsset* asset :
+       {&TestAsset("Fox.gltf"), &TestAsset("CesiumMan.gltf"), &TestAsset("2000-b4")}) {
+    const PackedAnimation sampled = PackAnimation(*asset);
+    const PackedAnimation palette = BakeAnimation(*asset, 120.0), local = BakeAnimation(*asset, 120.0, BakeSpace::kLocal);
+    double baking = 0.0;  // the largest a clip alone loses, stated
+    for (const BakedClipInfo& clip : local.baked) baking = std::max(baking, clip.max_error);
+    double palette_blend = 0.0, local_blend = 0.0;
+    for (const AnimInstance& in : testing::Blends(*asset, sampled)) {
+      if (in.weight == 0.0f) continue;
+      const std::vector<glm::dmat4> exact = asset->skeleton.PaletteD(testing::GoldPose(*asset, sampled, in));
+      palette_blend = std::max(palette_blend, SkinDistance(asset->mesh, BakedPaletteOf(*asset, palette, in), exact));
+      local_blend = std::max(local_blend, SkinDistance(asset->mesh, BakedPaletteOf(*asset, local, in), exact));
+    }
+    std::printf("[ baked    ] %s blends at 120/s: palette records %.3g, local records %.3g (a clip alone: %.3g)\n",
+                Name(*asset).c_str(), palette_blend, local_blend, baking);
+    EXPECT_LE(local_blend, 2.0 * baking + 1e-6) << Name(*asset);
+    EXPECT_GT(palette_blend, 10.0 * local_blend) << Name(*asset);
+  }
+}
+
+// Local records of nodes that scale unevenly keep each axis's scale (3 rows:
+// 48 bytes a node and frame), and reproduce the pose at a frame to float32
+// precision; the kernel's buffers are nodes, frames, joints, then the
+// baked kernel's (ANIM_BAKED 3 and 4), its group one item per node.
+TEST(PaletteKernelBaked, LocalRecordsKeepEachAxissScaleAndEmitTheirOwnKernel) {
+  const SkinnedAsset& asset = TestAsset("2000-b4");
+  const PackedAnimation local = BakeAnimation(asset, 30.0, BakeSpace::kLocal);
+  EXPECT_TRUE(local.baked_local);
+  EXPECT_EQ(local.baked_rows, kBakedRowsLocalScaled);
+  ASSERT_EQ(local.baked.size(), 1u);
+  EXPECT_EQ(local.baked[0].bytes, std::size_t{local.baked[0].frames} * local.nodes.size() * 48);
+  EXPECT_EQ(local.Bytes(), local.frames.size() * 4 + local.clip_ranges.size() * 4 +
+                               local.nodes.size() * sizeof(AnimNodeRecord) + local.joints.size() * sizeof(AnimJointRecord));
+  const AnimInstance at_frame{0, kAnimRestPose, local.clip_ranges[0], 0.0f, 0.0f};
+  const std::vector<glm::dmat4> baked = BakedPaletteOf(asset, local, at_frame);
+  const std::vector<glm::dmat4> exact = asset.skeleton.PaletteD(asset.PoseAt(0, at_frame.time));
+  for (std::size_t j = 0; j < baked.size(); ++j)
+    for (int c = 0; c < 4; ++c)
+      EXPECT_LT(glm::length(baked[j][c] - exact[j][c]), 1e-5 * std::max(1.0, glm::length(exact[j][c]))) << j;
+  EXPECT_EQ(BakeAnimation(TestAsset("Fox.gltf"), 30.0, BakeSpace::kLocal).baked_rows, kBakedRowsSimilar);
+  EXPECT_EQ(BakeAnimation(DeepRig(), 30.0, BakeSpace::kLocal).baked_rows, kBakedRowsLocalScaled);
+
+  const PackedAnimation fox = BakeAnimation(TestAsset("Fox.gltf"), 30.0, BakeSpace::kLocal);
+  for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kVulkan, Lang::kCpu}) {
+    for (const PackedAnimation* packed : {&fox, &local}) {
+      const PaletteKernel kernel = EmitPalette(lang, packed->View(), 3);
+      EXPECT_EQ(kernel.kernel.launch.wg_size, AnimBakedGroupFor(packed->nodes.size())) << Name(lang);
+      const std::string define = packed == &fox ? "#define ANIM_BAKED 3\n" : "#define ANIM_BAKED 4\n";
+      EXPECT_NE(kernel.kernel.text.find(define), std::string::npos) << Name(lang);
+      std::vector<std::string> buffers;
+      for (const KernelArgument& a : kernel.kernel.arguments)
+        if (a.kind == ArgumentKind::kBuffer) buffers.push_back(a.name);
+      EXPECT_EQ(buffers, (std::vector<std::string>{kAnimInputs[0], kAnimFrames, kAnimInputs[4], kAnimInputs[5],
+                                                   kAnimOutput, kAnimClips, kAnimStates}))
+          << Name(lang);
+    }
+  }
+  EXPECT_EQ(PackForm(TestAsset("Fox.gltf"), Animation::kLocal60).bake_rate, 60.0);
+  EXPECT_TRUE(PackForm(TestAsset("Fox.gltf"), Animation::kLocal60).baked_local);
+  EXPECT_FALSE(PackForm(TestAsset("Fox.gltf"), Animation::kBaked60).baked_local);
+  EXPECT_TRUE(PackForm(TestAsset("Fox.gltf"), Animation::kSampled).frames.empty());
+  EXPECT_THROW(PackForm(TestAsset("Fox.gltf"), Animation::kHost), Error);
+}
+
 TEST(PaletteKernelBaked, RefusesBadRatesAndBadFramesNamingTheElement) {
   const SkinnedAsset& fox = TestAsset("Fox.gltf");
   for (const double rate : {0.0, -30.0, double{NAN}, double{INFINITY}, 1001.0})
@@ -394,8 +484,9 @@ TEST(PaletteKernelBaked, RefusesBadRatesAndBadFramesNamingTheElement) {
   }
   const PackedAnimation good = BakeAnimation(fox, 30.0);
   EXPECT_NO_THROW(ValidateBakedAnimation(good.View()));
-  auto error_of = [&](auto&& spoil) {
-    PackedAnimation bad = good;
+  // What ValidateBakedAnimation says of `from` spoiled.
+  const auto error_after = [](const PackedAnimation& from, auto&& spoil) {
+    PackedAnimation bad = from;
     spoil(bad);
     try {
       ValidateBakedAnimation(bad.View());
@@ -404,6 +495,7 @@ TEST(PaletteKernelBaked, RefusesBadRatesAndBadFramesNamingTheElement) {
     }
     return std::string("no error");
   };
+  const auto error_of = [&](auto&& spoil) { return error_after(good, spoil); };
   EXPECT_NE(error_of([](PackedAnimation& p) { p.frames[8 * 30 + 3] = 2.0f; })
                 .find("baked animation: frames[1] joint 6: rotation of length 2.0"),
             std::string::npos);
@@ -415,6 +507,17 @@ TEST(PaletteKernelBaked, RefusesBadRatesAndBadFramesNamingTheElement) {
   EXPECT_NE(error_of([](PackedAnimation& p) { p.clip_ranges[4 * 2 + 2] = std::bit_cast<float>(1000000u); })
                 .find("baked animation: clips[2]: frames "),
             std::string::npos);
+  // Local records: named by node, of 2 or 3 rows, over a hierarchy without cycles.
+  const PackedAnimation local = BakeAnimation(fox, 30.0, BakeSpace::kLocal);
+  EXPECT_NO_THROW(ValidateBakedAnimation(local.View()));
+  const auto local_error_of = [&](auto&& spoil) { return error_after(local, spoil); };
+  const std::size_t frame1 = 8 * local.nodes.size();
+  EXPECT_EQ(local_error_of([&](PackedAnimation& p) { p.frames[frame1 + 8 * 5 + 6] = INFINITY; }),
+            "baked animation: frames[1] node 5: inf is not finite");
+  EXPECT_EQ(local_error_of([](PackedAnimation& p) { p.baked_rows = kBakedRowsAffine; }),
+            "baked animation: 4 float4s a record (2 or 3 in local space)");
+  EXPECT_EQ(local_error_of([](PackedAnimation& p) { p.nodes[2].parent = 2; }),
+            "packed animation: nodes[2]: the node hierarchy has a cycle");
 }
 
 // A clip of one key (no duration) bakes as one frame, its pose at every time;

@@ -196,7 +196,8 @@ TEST(PaletteKernelCuda, WritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
 TEST(PaletteKernelCuda, BakedClipsMatchTheirFramesAloneAndBlended) {
   SKIP_WITHOUT_CUDA(kernel);
   ExpectBakedClipsMatchTheirFrames(On(kernel), "cuda");
-  ExpectNanRowsForAClipOutOfRange(On(kernel), true);
+  ExpectNanRowsForAClipOutOfRange(On(kernel), Animation::kBaked30);
+  ExpectNanRowsForAClipOutOfRange(On(kernel), Animation::kLocal30);
 }
 
 }  // namespace

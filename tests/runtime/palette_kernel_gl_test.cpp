@@ -164,7 +164,8 @@ TEST(PaletteKernelGl, WritesNanRowsForAClipOutOfRangeInsteadOfReadingBeyond) {
 TEST(PaletteKernelGl, BakedClipsMatchTheirFramesAloneAndBlended) {
   SKIP_WITHOUT_GL(kernel);
   ExpectBakedClipsMatchTheirFrames(On(kernel), "gl");
-  ExpectNanRowsForAClipOutOfRange(On(kernel), true);
+  ExpectNanRowsForAClipOutOfRange(On(kernel), Animation::kBaked30);
+  ExpectNanRowsForAClipOutOfRange(On(kernel), Animation::kLocal30);
 }
 
 // The same shader is Vulkan's: it compiles to SPIR-V with glslang, as the

@@ -43,9 +43,11 @@ struct AnimatedCase {
   std::string variant;  // forced
   std::string model;    // a glTF of tests/data
   double bake_rate = 0.0;  // SkinnerOptions::bake_rate: 0 sampled clips
+  skintune::BakeSpace bake_space = skintune::BakeSpace::kPalette;  // SkinnerOptions::bake_space
 };
+bool BakedLocally(const AnimatedCase& c) { return c.bake_rate > 0.0 && c.bake_space == skintune::BakeSpace::kLocal; }
 void PrintTo(const AnimatedCase& c, std::ostream* out) {
-  *out << c.variant << " " << c.model << (c.bake_rate > 0.0 ? " baked" : "");
+  *out << c.variant << " " << c.model << (BakedLocally(c) ? " baked locally" : c.bake_rate > 0.0 ? " baked" : "");
 }
 
 class SkinnerAnimated : public testing::BackendFixture<AnimatedCase> {
@@ -62,6 +64,7 @@ class SkinnerAnimated : public testing::BackendFixture<AnimatedCase> {
     SkinnerOptions options;
     options.variant = GetParam().variant;
     options.bake_rate = GetParam().bake_rate;
+    options.bake_space = GetParam().bake_space;
     return options;
   }
 
@@ -132,14 +135,19 @@ class SkinnerAnimated : public testing::BackendFixture<AnimatedCase> {
     ASSERT_TRUE(read.ok()) << read.message();
     const PackedAnimation packed = PackAnimation(Asset());
     const double rate = GetParam().bake_rate;
-    const PackedAnimation baked = rate > 0.0 ? BakeAnimation(Asset(), rate) : PackedAnimation{};
+    const bool local = BakedLocally(GetParam());
+    const PackedAnimation baked =
+        rate > 0.0 ? BakeAnimation(Asset(), rate, local ? internal::BakeSpace::kLocal : internal::BakeSpace::kPalette)
+                   : PackedAnimation{};
     const SkinnedMesh quantised = QuantisedMesh(mesh, variant);
     for (std::size_t k = 0; k < expected.size(); ++k) {
       const AnimInstance& in = expected[k];
       // Baked clips: the float64 evaluation of their frames (how far that is
       // from the sampled gold is BakedClipInfo's, tested with the kernels).
       std::vector<glm::mat4> palette;
-      if (rate > 0.0) {
+      if (local) {
+        palette = Asset().skeleton.Palette(testing::LocalBakedGoldPose(Asset(), baked, in));
+      } else if (rate > 0.0) {
         for (const glm::dmat4& m : testing::BakedGoldPalette(baked, in)) palette.emplace_back(m);
       } else {
         palette = Asset().skeleton.Palette(GoldPose(Asset(), packed, in));
@@ -193,6 +201,7 @@ TEST_P(SkinnerAnimated, FramesInFlightEachKeepTheirOwnStates) {
   options.palette_buffers = 2;
   options.variant = GetParam().variant;
   options.bake_rate = GetParam().bake_rate;
+  options.bake_space = GetParam().bake_space;
   Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
   ASSERT_TRUE(skinner.ok()) << skinner.status().message();
   for (int frame = 0; frame < 5; ++frame) {
@@ -237,6 +246,7 @@ TEST_P(SkinnerAnimated, AdvanceAnimationMovesEveryClockOnTheDeviceAndLoopsEachCl
 
   EXPECT_EQ(skinner->AdvanceAnimation(std::numeric_limits<float>::infinity()).code(), ErrorCode::kInvalidArgument);
   options.bake_rate = 0.0;  // a Skinner of SetPalette bakes nothing (BadStates... checks the refusal)
+  options.bake_space = skintune::BakeSpace::kPalette;
   Result<Skinner> plain = Skinner::Create(device_, WinnersDb::Empty(), model_.mesh(), options);
   ASSERT_TRUE(plain.ok()) << plain.status().message();
   EXPECT_EQ(plain->AdvanceAnimation(0.1f).code(), ErrorCode::kInvalidState);
@@ -274,6 +284,7 @@ TEST_P(SkinnerAnimated, TheRestPoseUntilTheFirstSetAnimation) {
   options.instances = 2;
   options.variant = GetParam().variant;
   options.bake_rate = GetParam().bake_rate;
+  options.bake_space = GetParam().bake_space;
   Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
   ASSERT_TRUE(skinner.ok()) << skinner.status().message();
   ASSERT_TRUE(skinner->Skin().ok());
@@ -296,6 +307,7 @@ TEST_P(SkinnerAnimated, BadStatesAreRejectedNamingTheFieldAndChangeNothing) {
   options.instances = 2;
   options.variant = GetParam().variant;
   options.bake_rate = GetParam().bake_rate;
+  options.bake_space = GetParam().bake_space;
   Result<Skinner> skinner = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
   ASSERT_TRUE(skinner.ok()) << skinner.status().message();
   const std::vector<AnimationState> good = Crowd(2, 0.3);
@@ -335,6 +347,13 @@ TEST_P(SkinnerAnimated, BadStatesAreRejectedNamingTheFieldAndChangeNothing) {
         << refused.status().message();
     options.bake_rate = 0.0;
   }
+  if (options.bake_space != skintune::BakeSpace::kPalette) {  // nor a space
+    const Result<Skinner> refused = Skinner::Create(device_, WinnersDb::Empty(), model_.mesh(), options);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_NE(refused.status().message().find("SkinnerOptions::bake_space"), std::string::npos)
+        << refused.status().message();
+    options.bake_space = skintune::BakeSpace::kPalette;
+  }
   Result<Skinner> plain = Skinner::Create(device_, WinnersDb::Empty(), model_.mesh(), options);
   ASSERT_TRUE(plain.ok()) << plain.status().message();
   EXPECT_FALSE(plain->animated());
@@ -355,6 +374,24 @@ TEST(SkinnerAnimatedModel, ABakeRateOutsideItsRangeIsRefusedNamingIt) {
     EXPECT_NE(skinner.status().message().find("SkinnerOptions::bake_rate is"), std::string::npos)
         << skinner.status().message();
   }
+  // A space is what a rate bakes: with nothing baked, or the tuned entry deciding, it is refused, not ignored.
+  for (const double rate : {0.0, kBakeRateTuned}) {
+    SkinnerOptions options;
+    options.bake_rate = rate;
+    options.bake_space = skintune::BakeSpace::kLocal;
+    const Result<Skinner> skinner = Skinner::CreateAnimated(*device, WinnersDb::Empty(), *model, options);
+    ASSERT_FALSE(skinner.ok()) << rate;
+    EXPECT_EQ(skinner.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(skinner.status().message().find("SkinnerOptions::bake_space kLocal bakes clips at SkinnerOptions::bake_rate"),
+              std::string::npos)
+        << skinner.status().message();
+  }
+  SkinnerOptions bad_space;
+  bad_space.bake_rate = 30.0;
+  bad_space.bake_space = static_cast<skintune::BakeSpace>(7);
+  EXPECT_NE(Skinner::CreateAnimated(*device, WinnersDb::Empty(), *model, bad_space)
+                .status().message().find("SkinnerOptions::bake_space is 7, not a BakeSpace"),
+            std::string::npos);
 }
 
 // kBakeRateTuned: the palette kernel's form is the chosen entry's, tuned on a
@@ -379,7 +416,7 @@ TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsk
                             {"source_error", {{"diagonal", 1.0}, {"position_abs", 5e-5}, {"position_rel", 5e-5},  // baking's loss
                                               {"normal_abs", 0.0}, {"quantisation_rel", 5e-5}}},
                             {"max_relative_error", 3e-7}, {"variant", ParseVariantKey(key)}};
-    const nlohmann::json db = {{"schema_version", "1.9.0"}, {"kind", "skintune-winners-db"}, {"entries", {entry}}};
+    const nlohmann::json db = {{"schema_version", "1.10.0"}, {"kind", "skintune-winners-db"}, {"entries", {entry}}};
     Result<WinnersDb> parsed = WinnersDb::Parse(db.dump(), "test database");
     EXPECT_TRUE(parsed.ok()) << parsed.status().message();
     return parsed.ok() ? std::move(*parsed) : WinnersDb::Empty();
@@ -396,6 +433,20 @@ TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsk
       EXPECT_NEAR(skinner->baked_clips()[static_cast<std::size_t>(c)].frames,
                   std::ceil(model->animation_duration(c) * 60.0) + 1, 1.0) << c;
     EXPECT_NE(skinner->selection().reason.find("made as tuned: baked60"), std::string::npos) << skinner->selection().reason;
+  }
+  {  // baked in local space: its records are nodes', and the reason names the form
+    const Result<Skinner> skinner = Skinner::CreateAnimated(*device, database(".anim-local60"), *model, options);
+    ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+    ASSERT_EQ(skinner->baked_clips().size(), static_cast<std::size_t>(model->animation_count()));
+    const PackedAnimation local = BakeAnimation(TestAsset("Fox.gltf"), 60.0, internal::BakeSpace::kLocal);
+    EXPECT_EQ(skinner->baked_clips()[0].bytes, local.baked[0].bytes);
+    EXPECT_EQ(skinner->animation_bytes(), local.Bytes());
+    EXPECT_NE(skinner->selection().reason.find("made as tuned: local60"), std::string::npos) << skinner->selection().reason;
+    SkinnerOptions palette_space = options;  // the same rate in the other space is the caller's own choice
+    palette_space.bake_rate = 60.0;
+    const Result<Skinner> own = Skinner::CreateAnimated(*device, database(".anim-local60"), *model, palette_space);
+    ASSERT_TRUE(own.ok()) << own.status().message();
+    EXPECT_NE(own->selection().reason.find("not as tuned (local60)"), std::string::npos) << own->selection().reason;
   }
   {  // a rate of the caller's own: the entry's form is not taken, and the reason says so
     SkinnerOptions sampled = options;
@@ -448,11 +499,18 @@ std::vector<AnimatedCase> Cases() {
           {Backend::kGl, "glsl-compute.b4.aos.constant", "CesiumMan.gltf", 30.0},
           {Backend::kGl, "glsl-vertex.b4.soa", "Fox.gltf", 30.0},
           {Backend::kVulkan, "vulkan.b4.soa.image.mat4", "Fox.gltf", 30.0},
-          {Backend::kCpu, "cpu.b4.soa", "CesiumMan.gltf", 60.0}};
+          {Backend::kCpu, "cpu.b4.soa", "CesiumMan.gltf", 60.0},
+          // Baked in local space (docs/ANIMATION.md "Baked in local space"), likewise.
+          {Backend::kOpenCl, "opencl.b4.soa", "Fox.gltf", 30.0, skintune::BakeSpace::kLocal},
+          {Backend::kCuda, "cuda.b4.soa.image.mat4", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kLocal},
+          {Backend::kGl, "glsl-compute.b4.aos.constant", "Fox.gltf", 30.0, skintune::BakeSpace::kLocal},
+          {Backend::kGl, "glsl-vertex.b4.soa", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kLocal},
+          {Backend::kVulkan, "vulkan.b4.soa-split.local", "Fox.gltf", 30.0, skintune::BakeSpace::kLocal},
+          {Backend::kCpu, "cpu.b4.aos.mat4", "Fox.gltf", 60.0, skintune::BakeSpace::kLocal}};
 }
 std::string CaseName(const ::testing::TestParamInfo<AnimatedCase>& info) {
   return testing::ParameterName(info.param.variant + "_" + info.param.model.substr(0, info.param.model.find('.')) +
-                                (info.param.bake_rate > 0.0 ? "_baked" : ""));
+                                (BakedLocally(info.param) ? "_baked_locally" : info.param.bake_rate > 0.0 ? "_baked" : ""));
 }
 INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerAnimated, ::testing::ValuesIn(Cases()), CaseName);
 

@@ -615,14 +615,23 @@ TEST(Scenes, AnimatedCrowdsMakeTheirPalettesOnTheDeviceVerifiedTimedAndTheirBaki
     EXPECT_LT(by_form["anim-baked240"].source_error.position_rel, by_form["anim-baked30"].source_error.position_rel)
         << "baking's loss falls with the rate";
     // Cross-fades (-animblend): sampled clips blend each joint's local transform
-    // as the float64 source does; baked ones blend in the model's space, which
-    // loses more than baking alone.
+    // as the float64 source does, and so do clips baked in local space, which
+    // lose what baking each clip loses; palette records blend in the model's
+    // space, which loses more than baking alone.
     const Measurement blended_sampled = tuned.Measure(ParseVariantKey(base + ".anim-sampled"), {fox + "-x6-animblend"}, SmallTiming());
     ExpectOk(blended_sampled, tuned, fox + "-x6-animblend");
     EXPECT_LT(blended_sampled.source_error.position_rel, 1e-5);
     const Measurement blended_baked = tuned.Measure(ParseVariantKey(base + ".anim-baked240"), {fox + "-x6-animblend"}, SmallTiming());
     ExpectOk(blended_baked, tuned, fox + "-x6-animblend");
     EXPECT_GT(blended_baked.source_error.position_rel, 10 * by_form["anim-baked240"].source_error.position_rel);
+    const Measurement blended_local = tuned.Measure(ParseVariantKey(base + ".anim-local240"), {fox + "-x6-animblend"}, SmallTiming());
+    ExpectOk(blended_local, tuned, fox + "-x6-animblend");
+    EXPECT_GT(blended_local.timing.palette_kernel_ms, 0.0);
+    double stated = 0.0;  // the largest a clip alone loses
+    for (const BakedClipRecord& c : blended_local.baked_clips) stated = std::max(stated, c.max_error);
+    EXPECT_EQ(blended_local.baked_clips.size(), 3u);
+    EXPECT_LE(blended_local.source_error.position_rel, 2 * stated + 1e-6);
+    EXPECT_LT(10 * blended_local.source_error.position_rel, blended_baked.source_error.position_rel);
     // The host's palettes on an animated scene, and a device form on a scene the host animates: not their variants.
     const Measurement host = tuned.Measure(ParseVariantKey(base), {crowd}, SmallTiming());
     EXPECT_EQ(host.status, MeasureStatus::kInvalid);

@@ -67,10 +67,11 @@ class CpuPlanned final : public PlannedLaunch {
   bool fault_wrong = false, fault_hang = false;
   bool palette = false;  // the palette kernel: clip_count and palette_rows its parameters
   std::uint32_t clip_count = 0;
-  // A baked animation's kernel (ANIM_BAKED): it reads no joints buffer, so
-  // this holds ANIM_JOINT_COUNT records for the view's joint count.
-  bool baked = false;
-  std::uint32_t baked_rows = 0;  // ANIM_BAKED 1: kBakedRowsSimilar, 2: kBakedRowsAffine
+  // A baked animation's kernel (ANIM_BAKED): baked palette records read no
+  // joints buffer, so this holds ANIM_JOINT_COUNT records for the view's
+  // joint count; local records (ANIM_BAKED 3, 4) read nodes and joints.
+  bool baked = false, baked_local = false;
+  std::uint32_t baked_rows = 0;  // ANIM_BAKED 1, 3: kBakedRowsSimilar; 2: kBakedRowsAffine; 4: kBakedRowsLocalScaled
   std::vector<AnimJointRecord> baked_joints;
   int morph_targets = 0;  // MORPH_TARGETS of a morph variant, else 0
 };
@@ -264,9 +265,11 @@ std::unique_ptr<PlannedLaunch> CpuApi::Plan(const LaunchSpec& spec) {
     plan->clip_count = static_cast<std::uint32_t>(parsed.defines.at("ANIM_CLIP_COUNT"));
     plan->palette_rows = static_cast<int>(parsed.defines.at("ANIM_PALETTE_ROWS"));
     plan->baked = flag("ANIM_BAKED");
-    plan->baked_rows = parsed.defines.contains("ANIM_BAKED") && parsed.defines.at("ANIM_BAKED") == 2 ? kBakedRowsAffine
-                                                                                                    : kBakedRowsSimilar;
-    if (plan->baked) plan->baked_joints.resize(static_cast<std::size_t>(parsed.defines.at("ANIM_JOINT_COUNT")));
+    const long long form = plan->baked ? parsed.defines.at("ANIM_BAKED") : 0;
+    plan->baked_local = form >= 3;
+    plan->baked_rows = form == 2 ? kBakedRowsAffine : form == 4 ? kBakedRowsLocalScaled : kBakedRowsSimilar;
+    if (plan->baked && !plan->baked_local)
+      plan->baked_joints.resize(static_cast<std::size_t>(parsed.defines.at("ANIM_JOINT_COUNT")));
     return plan;
   }
   if (spec.variant.storage != PaletteStorage::kGlobal)
@@ -335,7 +338,13 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
     };
     AnimationView view;
     view.clip_count = plan.clip_count;
-    if (plan.baked) {
+    if (plan.baked_local) {
+      view.nodes = span_of(kAnimInputs[0], static_cast<const AnimNodeRecord*>(nullptr));
+      view.frames = span_of(kAnimFrames, static_cast<const float*>(nullptr));
+      view.baked_rows = plan.baked_rows;
+      view.baked_local = true;
+      view.joints = span_of(kAnimInputs[4], static_cast<const AnimJointRecord*>(nullptr));
+    } else if (plan.baked) {
       view.frames = span_of(kAnimFrames, static_cast<const float*>(nullptr));
       view.baked_rows = plan.baked_rows;
       view.joints = plan.baked_joints;

@@ -288,6 +288,10 @@ enum class SceneShape { kSingle, kInstances, kBatch };
 // (docs/VARIANTS.md "Packed normals and tangents"): float32, or one 32-bit
 // word a vector, octahedral 2 x unorm16 (Godot 4's layout) or 4 x snorm8.
 enum class NormalFormat { kF32, kOct16, kSnorm8 };
+
+// What baking a model's clips stores (SkinnerOptions::bake_space): each
+// joint's palette entry, or each node's local transform.
+enum class BakeSpace { kPalette, kLocal };
 const char* SceneShapeName(SceneShape shape);  // "single", "instances", "batch"
 
 // How the database entry for a device was found (the fallback chain).
@@ -487,14 +491,25 @@ struct SkinnerOptions {
   // Between frames, rotations are nlerped
   // along the shortest path, translations and stretches lerped; a blend of two
   // clips mixes their palette entries the same way (in the model's space, not
-  // each joint's local space as sampled clips do). What each clip costs and
-  // loses: baked_clips(). A different result, so the user's choice.
+  // each joint's local space as sampled clips do; bake_space kLocal does).
+  // What each clip costs and loses: baked_clips(). A different result, so
+  // the user's choice.
   // kBakeRateTuned: the form the chosen winners-database entry was tuned
   // in, on a scene animated on the device (`skintune tune` of a "-anim"
-  // scene, docs/ANIMATION.md "Baked clips"): sampled, or baked at its rate,
-  // within SkinnerOptions::max_error as its recorded error says; sampled where
-  // the entry was tuned with the host's palettes. selection() says which.
+  // scene, docs/ANIMATION.md "Baked clips"): sampled, or baked at its rate
+  // in its space, within SkinnerOptions::max_error as its recorded error
+  // says; sampled where the entry was tuned with the host's palettes.
+  // selection() says which.
   double bake_rate = 0.0;
+  // What a bake_rate above 0 bakes (kInvalidArgument with bake_rate 0 or
+  // kBakeRateTuned, which takes the entry's). kPalette: each joint's palette
+  // entry, as above. kLocal: each node's local transform, as a rotation, a
+  // translation and a scale (32 bytes a node and frame; 48 where a node
+  // scales unevenly), which the device composes through the hierarchy each
+  // frame: a blend of two clips then mixes each node's local transform, as
+  // sampled clips do, for a little more device time than kPalette's
+  // (docs/ANIMATION.md "Baked in local space").
+  BakeSpace bake_space = BakeSpace::kPalette;
 };
 
 // Baking's limit (SkinnerOptions::bake_rate), frames a second.

@@ -214,9 +214,9 @@
 #ifndef ANIM_PALETTE_ROWS     // float4 rows written per joint: 3 mat3x4, 4 mat4 (a last row 0 0 0 1)
 #define ANIM_PALETTE_ROWS 3
 #endif
-#ifndef ANIM_BAKED            // 1, 2: the palette kernel reads baked clips of 2 or 4 float4s a record (frames,
-#define ANIM_BAKED 0          // instances, palette, clips, states; docs/ANIMATION.md "Baked clips"); 0: it samples
-#endif
+#ifndef ANIM_BAKED            // 1, 2: the palette kernel reads baked palette records of 2 or 4 float4s (frames,
+#define ANIM_BAKED 0          // instances, palette, clips, states; docs/ANIMATION.md "Baked clips"); 3, 4: local
+#endif                        // records of 2 or 3 float4s (nodes, frames, joints, ...); 0: it samples
 #ifndef ANIM_GROUP            // the palette kernel's work-group: 3 x ANIM_NODE_COUNT rounded up to a multiple
 #define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h)
 #endif
