@@ -339,6 +339,13 @@ void skintune_palette(__global const float4* restrict nodes,
                     (as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
   if (in_group && !valid)
     for (uint r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = (float4)(NAN);
+  // The item's first joint (its node, its inverse bind), loaded before the
+  // nodes are: its latency overlaps theirs, where after the barrier it would
+  // add a round trip to memory to every instance.
+  float4 joint0 = (float4)(0.0f), joint1 = joint0, joint2 = joint0, joint3 = joint0;
+  if (valid && item < joint_count)
+    joint0 = joints[4u * item], joint1 = joints[4u * item + 1u], joint2 = joints[4u * item + 2u],
+    joint3 = joints[4u * item + 3u];
 #if ANIM_BAKED
   // 1, 2: each node's local transform from its records around each clip's
   // time, mixed in local space (a fixed-matrix node: its matrix), all in parallel.
@@ -391,7 +398,9 @@ void skintune_palette(__global const float4* restrict nodes,
   barrier(CLK_LOCAL_MEM_FENCE);
   // 3: each joint's global transform, up its ancestors in local memory, then the inverse bind.
   for (uint j = item; valid && j < joint_count; j += ANIM_GROUP) {
-    const uint node = as_uint(joints[4u * j].x);
+    if (j != item)
+      joint0 = joints[4u * j], joint1 = joints[4u * j + 1u], joint2 = joints[4u * j + 2u], joint3 = joints[4u * j + 3u];
+    const uint node = as_uint(joint0.x);
     Affine m;
     m.row0 = local_rows[3u * node], m.row1 = local_rows[3u * node + 1u], m.row2 = local_rows[3u * node + 2u];
     for (int p = local_parent[node]; p >= 0; p = local_parent[p]) {
@@ -401,9 +410,9 @@ void skintune_palette(__global const float4* restrict nodes,
       m = anim_multiply(parent, m);
     }
     Affine inverse_bind;
-    inverse_bind.row0 = joints[4u * j + 1u];
-    inverse_bind.row1 = joints[4u * j + 2u];
-    inverse_bind.row2 = joints[4u * j + 3u];
+    inverse_bind.row0 = joint1;
+    inverse_bind.row1 = joint2;
+    inverse_bind.row2 = joint3;
     m = anim_multiply(m, inverse_bind);
     out[rows * j] = m.row0;
     out[rows * j + 1u] = m.row1;

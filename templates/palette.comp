@@ -325,6 +325,14 @@ void main() {
     vec4 nan = vec4(uintBitsToFloat(0x7fc00000u));
     for (uint r = item; r < joint_count * rows; r += uint(ANIM_GROUP)) palette[out_ + r] = nan;
   }
+  // The invocation's first joint, loaded before the nodes are (palette.cl says why).
+  vec4 joint0 = vec4(0.0), joint1 = joint0, joint2 = joint0, joint3 = joint0;
+  if (valid && item < joint_count) {
+    joint0 = joints[4u * item];
+    joint1 = joints[4u * item + 1u];
+    joint2 = joints[4u * item + 2u];
+    joint3 = joints[4u * item + 3u];
+  }
 #if ANIM_BAKED
   // 1, 2: each node's local transform from its records, mixed in local space (palette.cl).
   float w = uintBitsToFloat(in_.w);
@@ -369,11 +377,17 @@ void main() {
   barrier();
   // 3: each joint's global transform, up its ancestors in shared memory, then the inverse bind.
   for (uint j = item; valid && j < joint_count; j += uint(ANIM_GROUP)) {
-    uint node = floatBitsToUint(joints[4u * j].x);
+    if (j != item) {
+      joint0 = joints[4u * j];
+      joint1 = joints[4u * j + 1u];
+      joint2 = joints[4u * j + 2u];
+      joint3 = joints[4u * j + 3u];
+    }
+    uint node = floatBitsToUint(joint0.x);
     Affine m = Affine(local_rows[3u * node], local_rows[3u * node + 1u], local_rows[3u * node + 2u]);
     for (int p = local_parent[node]; p >= 0; p = local_parent[p])
       m = anim_multiply(Affine(local_rows[3u * uint(p)], local_rows[3u * uint(p) + 1u], local_rows[3u * uint(p) + 2u]), m);
-    m = anim_multiply(m, Affine(joints[4u * j + 1u], joints[4u * j + 2u], joints[4u * j + 3u]));
+    m = anim_multiply(m, Affine(joint1, joint2, joint3));
     palette[out_ + rows * j] = m.row0;
     palette[out_ + rows * j + 1u] = m.row1;
     palette[out_ + rows * j + 2u] = m.row2;

@@ -328,6 +328,11 @@ skintune_palette(const float4* __restrict__ nodes,
     const float nan = __int_as_float(0x7fffffff);
     for (unsigned r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = make_float4(nan, nan, nan, nan);
   }
+  // The thread's first joint, loaded before the nodes are (palette.cl says why).
+  float4 joint0 = make_float4(0.0f, 0.0f, 0.0f, 0.0f), joint1 = joint0, joint2 = joint0, joint3 = joint0;
+  if (valid && item < joint_count)
+    joint0 = joints[4u * item], joint1 = joints[4u * item + 1u], joint2 = joints[4u * item + 2u],
+    joint3 = joints[4u * item + 3u];
 #if ANIM_BAKED
   // 1, 2: each node's local transform from its records, mixed in local space (palette.cl).
   const float w = __uint_as_float(in.w);
@@ -380,7 +385,9 @@ skintune_palette(const float4* __restrict__ nodes,
   __syncthreads();
   // 3: each joint's global transform, up its ancestors in shared memory, then the inverse bind.
   for (unsigned j = item; valid && j < joint_count; j += ANIM_GROUP) {
-    const unsigned node = __float_as_uint(joints[4u * j].x);
+    if (j != item)
+      joint0 = joints[4u * j], joint1 = joints[4u * j + 1u], joint2 = joints[4u * j + 2u], joint3 = joints[4u * j + 3u];
+    const unsigned node = __float_as_uint(joint0.x);
     Affine m;
     m.row0 = local_rows[3u * node], m.row1 = local_rows[3u * node + 1u], m.row2 = local_rows[3u * node + 2u];
     for (int p = local_parent[node]; p >= 0; p = local_parent[p]) {
@@ -389,9 +396,9 @@ skintune_palette(const float4* __restrict__ nodes,
       m = anim_multiply(parent, m);
     }
     Affine inverse_bind;
-    inverse_bind.row0 = joints[4u * j + 1u];
-    inverse_bind.row1 = joints[4u * j + 2u];
-    inverse_bind.row2 = joints[4u * j + 3u];
+    inverse_bind.row0 = joint1;
+    inverse_bind.row1 = joint2;
+    inverse_bind.row2 = joint3;
     m = anim_multiply(m, inverse_bind);
     out[rows * j] = m.row0;
     out[rows * j + 1u] = m.row1;

@@ -80,22 +80,38 @@ inline void NoteWorst(Worst& worst, double error, double bound, const AnimInstan
 // Compares K palettes (kernel rows) with the golds of their poses
 // (pose_of(instance)); returns the worst error relative to its bound, with
 // where it is.
+// The frame positions a baked kernel may compute (BakedGoldSample's nudge):
+// float32's quotient, and the neighbours within this many ulps of it, as
+// GLSL's and Vulkan's division is exact to 2.5 ulp (their specifications'
+// precision; NVIDIA's GL on an H200 took a neighbour, 2026-11-30).
+inline constexpr int kQuotientUlps = 3;
+inline std::vector<int> QuotientNudges() {
+  std::vector<int> nudges;
+  for (int n = -kQuotientUlps; n <= kQuotientUlps; ++n) nudges.push_back(n);
+  return nudges;
+}
+
 template <typename PoseOf>
 Worst ComparePoses(const SkinnedAsset& asset, const std::vector<AnimInstance>& instances,
-                   const std::vector<float>& rows, const PoseOf& pose_of) {
+                   const std::vector<float>& rows, const PoseOf& pose_of, const std::vector<int>& nudges = {0}) {
   const std::size_t joints = asset.skeleton.joints.size();
   EXPECT_EQ(rows.size(), instances.size() * joints * 12);
   Worst worst;
   const Skeleton& skeleton = asset.skeleton;
   for (std::size_t i = 0; i < instances.size() && rows.size() == instances.size() * joints * 12; ++i) {
-    const Pose pose = pose_of(instances[i]);
+    const Pose pose = pose_of(instances[i], 0);
     const std::vector<glm::dmat4> gold = skeleton.PaletteD(pose), global = skeleton.GlobalTransforms(pose);
+    std::vector<std::vector<glm::dmat4>> nudged;  // the golds of the other frame positions the kernel may take
+    for (const int n : nudges)
+      if (n != 0) nudged.push_back(skeleton.PaletteD(pose_of(instances[i], n)));
     for (std::size_t j = 0; j < joints; ++j) {
       double palette_scale = 1.0, error = 0.0;
       for (int c = 0; c < 4; ++c) palette_scale = std::max(palette_scale, ColumnNorm(gold[j], c));
       const double scale = std::max({palette_scale, ColumnNorm(global[static_cast<std::size_t>(skeleton.joints[j])], 3),
                                      ColumnNorm(skeleton.inverse_bind[j], 3)});
       error = EntryError(rows.data() + (i * joints + j) * 12, gold[j]);
+      for (const std::vector<glm::dmat4>& other : nudged)
+        error = std::min(error, EntryError(rows.data() + (i * joints + j) * 12, other[j]));
       worst.ratio_palette_only = std::max(worst.ratio_palette_only, error / (1e-5 * palette_scale));
       NoteWorst(worst, error, 1e-5 * scale, instances[i], i, j);
     }
@@ -106,7 +122,7 @@ Worst ComparePoses(const SkinnedAsset& asset, const std::vector<AnimInstance>& i
 // K palettes of sampled clips against the float64 sampling (GoldPose).
 inline Worst Compare(const SkinnedAsset& asset, const PackedAnimation& packed,
                      const std::vector<AnimInstance>& instances, const std::vector<float>& rows) {
-  return ComparePoses(asset, instances, rows, [&](const AnimInstance& in) { return GoldPose(asset, packed, in); });
+  return ComparePoses(asset, instances, rows, [&](const AnimInstance& in, int) { return GoldPose(asset, packed, in); });
 }
 
 inline void ExpectWithinBound(const std::string& what, const Worst& worst) {
@@ -144,7 +160,10 @@ inline BakedGoldRecord BakedGoldMix(const BakedGoldRecord& x, const BakedGoldRec
 }
 
 // docs/ANIMATION.md "Baked clips", in float64: the frames around t, mixed.
-inline BakedGoldRecord BakedGoldSample(const PackedAnimation& baked, std::uint16_t clip, double t, std::size_t j) {
+// nudge: the quotient (t - start) / length taken that many ulps up (down,
+// negative) from float32's (kQuotientUlps).
+inline BakedGoldRecord BakedGoldSample(const PackedAnimation& baked, std::uint16_t clip, double t, std::size_t j,
+                                       int nudge = 0) {
   if (clip == kAnimRestPose) return BakedRecordOf(baked, 0, j);
   const float* range = baked.clip_ranges.data() + 4 * std::size_t{clip};
   const auto frames = std::bit_cast<std::uint32_t>(range[2]), first = std::bit_cast<std::uint32_t>(range[3]);
@@ -154,21 +173,23 @@ inline BakedGoldRecord BakedGoldSample(const PackedAnimation& baked, std::uint16
   // precision, not the kernel's arithmetic. Where a STEP jump is baked
   // between two frames the records change by the whole jump within a frame,
   // so u's float32 rounding alone moved the deep rig's chains 64 nodes deep
-  // by up to 4.3e-5 (0.9 to 1.5 times the bound) against a float64 u.
+  // by up to 4.3e-5 (0.9 to 1.5 times the bound) against a float64 u; and
+  // GLSL's quotient may be a neighbour of float32's (kQuotientUlps).
   const float length = range[1] - range[0];
-  const double u = length > 0.0f ? double{std::fmin(std::fmax((static_cast<float>(t) - range[0]) / length, 0.0f), 1.0f) *
-                                          static_cast<float>(frames - 1)}
+  float quotient = length > 0.0f ? (static_cast<float>(t) - range[0]) / length : 0.0f;
+  for (int n = 0; n < std::abs(nudge); ++n) quotient = std::nextafter(quotient, nudge > 0 ? 2.0f : -1.0f);
+  const double u = length > 0.0f ? double{std::fmin(std::fmax(quotient, 0.0f), 1.0f) * static_cast<float>(frames - 1)}
                                  : 0.0;
   const auto k = std::min(static_cast<std::uint32_t>(u), frames - 2);
   return BakedGoldMix(BakedRecordOf(baked, first + k, j), BakedRecordOf(baked, first + k + 1, j), u - k);
 }
 
 // An instance's palette from baked clips, in float64.
-inline std::vector<glm::dmat4> BakedGoldPalette(const PackedAnimation& baked, const AnimInstance& in) {
+inline std::vector<glm::dmat4> BakedGoldPalette(const PackedAnimation& baked, const AnimInstance& in, int nudge = 0) {
   std::vector<glm::dmat4> palette(baked.joints.size());
   for (std::size_t j = 0; j < palette.size(); ++j) {
-    BakedGoldRecord x = BakedGoldSample(baked, in.clip, in.time, j);
-    if (in.weight != 0.0f) x = BakedGoldMix(x, BakedGoldSample(baked, in.clip2, in.time2, j), in.weight);
+    BakedGoldRecord x = BakedGoldSample(baked, in.clip, in.time, j, nudge);
+    if (in.weight != 0.0f) x = BakedGoldMix(x, BakedGoldSample(baked, in.clip2, in.time2, j, nudge), in.weight);
     palette[j] = glm::dmat4(glm::mat3_cast(x.q) * x.s);  // R(q) S
     palette[j][3] = glm::dvec4(x.t, 1.0);
   }
@@ -179,11 +200,12 @@ inline std::vector<glm::dmat4> BakedGoldPalette(const PackedAnimation& baked, co
 // (docs/ANIMATION.md "Baked in local space"): each node's records around
 // each clip's time mixed, the two clips mixed by the weight, as a local TRS
 // (a fixed-matrix node keeps its matrix: Skeleton::PaletteD reads it).
-inline Pose LocalBakedGoldPose(const SkinnedAsset& asset, const PackedAnimation& baked, const AnimInstance& in) {
+inline Pose LocalBakedGoldPose(const SkinnedAsset& asset, const PackedAnimation& baked, const AnimInstance& in,
+                               int nudge = 0) {
   Pose pose = asset.skeleton.RestPose();
   for (std::size_t n = 0; n < pose.size(); ++n) {
-    BakedGoldRecord x = BakedGoldSample(baked, in.clip, in.time, n);
-    if (in.weight != 0.0f) x = BakedGoldMix(x, BakedGoldSample(baked, in.clip2, in.time2, n), in.weight);
+    BakedGoldRecord x = BakedGoldSample(baked, in.clip, in.time, n, nudge);
+    if (in.weight != 0.0f) x = BakedGoldMix(x, BakedGoldSample(baked, in.clip2, in.time2, n, nudge), in.weight);
     pose[n] = Transform{x.t, x.q, glm::dvec3(x.s[0][0], x.s[1][1], x.s[2][2])};
   }
   return pose;
@@ -193,8 +215,9 @@ inline Pose LocalBakedGoldPose(const SkinnedAsset& asset, const PackedAnimation&
 // of their frames (LocalBakedGoldPose), with the sampled kernel's bound.
 inline Worst CompareLocalBaked(const SkinnedAsset& asset, const PackedAnimation& baked,
                                const std::vector<AnimInstance>& instances, const std::vector<float>& rows) {
-  return ComparePoses(asset, instances, rows,
-                      [&](const AnimInstance& in) { return LocalBakedGoldPose(asset, baked, in); });
+  return ComparePoses(
+      asset, instances, rows, [&](const AnimInstance& in, int nudge) { return LocalBakedGoldPose(asset, baked, in, nudge); },
+      QuotientNudges());
 }
 
 // K palettes (kernel rows) against the float64 evaluation of their baked
@@ -207,10 +230,15 @@ inline Worst CompareBaked(const PackedAnimation& baked, const std::vector<AnimIn
   Worst worst;
   for (std::size_t i = 0; i < instances.size() && rows.size() == instances.size() * joints * 12; ++i) {
     const std::vector<glm::dmat4> gold = BakedGoldPalette(baked, instances[i]);
+    std::vector<std::vector<glm::dmat4>> nudged;  // the golds of the other frame positions the kernel may take
+    for (const int n : QuotientNudges())
+      if (n != 0) nudged.push_back(BakedGoldPalette(baked, instances[i], n));
     for (std::size_t j = 0; j < joints; ++j) {
       double scale = 1.0;
       for (int c = 0; c < 4; ++c) scale = std::max(scale, ColumnNorm(gold[j], c));
-      const double error = EntryError(rows.data() + (i * joints + j) * 12, gold[j]);
+      double error = EntryError(rows.data() + (i * joints + j) * 12, gold[j]);
+      for (const std::vector<glm::dmat4>& other : nudged)
+        error = std::min(error, EntryError(rows.data() + (i * joints + j) * 12, other[j]));
       worst.ratio_palette_only = std::max(worst.ratio_palette_only, error / (1e-5 * scale));
       NoteWorst(worst, error, 1e-5 * scale, instances[i], i, j);
     }
