@@ -174,6 +174,14 @@ uint4 anim_advance(__global const float4* restrict clips, uint4 in, const float 
 }
 
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
+// The local memory an instance's nodes take: the model's nodes (a define),
+// at most ANIM_MAX_NODES, so that a small rig's groups leave the rest of it,
+// and the L1 cache it shares, to others.
+#if ANIM_NODE_COUNT < ANIM_MAX_NODES
+#define ANIM_LOCAL_NODES ANIM_NODE_COUNT
+#else
+#define ANIM_LOCAL_NODES ANIM_MAX_NODES
+#endif
 
 #if ANIM_BAKED
 // Baked clips (docs/ANIMATION.md "Baked clips"; cpu_kernels/palette_kernel.cpp
@@ -321,8 +329,8 @@ void skintune_palette(__global const float4* restrict nodes,
                       const uint fresh) {
   // Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
   // then its local transform's rows there; and its parent.
-  __local float4 local_rows[3 * ANIM_MAX_NODES];
-  __local int local_parent[ANIM_MAX_NODES];
+  __local float4 local_rows[3 * ANIM_LOCAL_NODES];
+  __local int local_parent[ANIM_LOCAL_NODES];
   const uint node_count = ANIM_NODE_COUNT, joint_count = ANIM_JOINT_COUNT, clip_count = ANIM_CLIP_COUNT;
   const uint rows = ANIM_PALETTE_ROWS;
   const uint item = (uint)get_local_id(0), i = (uint)get_group_id(1);

@@ -299,10 +299,18 @@ void main() {
 #else  // the clips sampled from their channels, or baked in local space: the hierarchy walked
 
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
+// The local memory an instance's nodes take: the model's nodes (a define),
+// at most ANIM_MAX_NODES, so that a small rig's groups leave the rest of it,
+// and the L1 cache it shares, to others.
+#if ANIM_NODE_COUNT < ANIM_MAX_NODES
+#define ANIM_LOCAL_NODES ANIM_NODE_COUNT
+#else
+#define ANIM_LOCAL_NODES ANIM_MAX_NODES
+#endif
 // Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
 // then its local transform's rows there; and its parent (palette.cl).
-shared vec4 local_rows[3 * ANIM_MAX_NODES];
-shared int local_parent[ANIM_MAX_NODES];
+shared vec4 local_rows[3 * ANIM_LOCAL_NODES];
+shared int local_parent[ANIM_LOCAL_NODES];
 
 // One work-group of ANIM_GROUP per instance (glDispatchCompute(1, K, 1)), in
 // palette.cl's three steps: every (node, path) sampled once into shared

@@ -184,6 +184,14 @@ __device__ uint4 anim_advance(const float4* __restrict__ clips, uint4 in, const 
 }
 
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
+// The local memory an instance's nodes take: the model's nodes (a define),
+// at most ANIM_MAX_NODES, so that a small rig's groups leave the rest of it,
+// and the L1 cache it shares, to others.
+#if ANIM_NODE_COUNT < ANIM_MAX_NODES
+#define ANIM_LOCAL_NODES ANIM_NODE_COUNT
+#else
+#define ANIM_LOCAL_NODES ANIM_MAX_NODES
+#endif
 
 #if ANIM_BAKED
 // Baked clips: palette.cl's baked kernel (docs/ANIMATION.md "Baked clips").
@@ -308,8 +316,8 @@ skintune_palette(const float4* __restrict__ nodes,
                  const float delta, const unsigned fresh) {
   // Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
   // then its local transform's rows there; and its parent (palette.cl).
-  __shared__ float4 local_rows[3 * ANIM_MAX_NODES];
-  __shared__ int local_parent[ANIM_MAX_NODES];
+  __shared__ float4 local_rows[3 * ANIM_LOCAL_NODES];
+  __shared__ int local_parent[ANIM_LOCAL_NODES];
   const unsigned node_count = ANIM_NODE_COUNT, joint_count = ANIM_JOINT_COUNT, clip_count = ANIM_CLIP_COUNT;
   const unsigned rows = ANIM_PALETTE_ROWS;
   const unsigned item = threadIdx.x, i = blockIdx.y;
