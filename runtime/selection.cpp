@@ -58,16 +58,19 @@ NormalFormat FormatFor(const SelectionRequest& r) {
 }
 
 // Smaller is better: an entry tuned in another normal format, animated elsewhere than the request
-// (on the device or by the host), another shape than the request's (the single-mesh
+// (on the device or by the host), a crowd that cross-fades where the request's does not (or the
+// reverse), another shape than the request's (the single-mesh
 // fallback), B above the mesh's, the distance (a factor) from the measured
 // vertex count to the scene's, the instance or mesh count's, the morph
 // target count's (a mesh with them), the larger vertex count on a tie, then the newest `created` and the smallest time (compared
 // separately).
-std::tuple<bool, bool, bool, int, double, double, double, long long> Rank(const WinnersEntry& e, const SelectionRequest& r) {
+std::tuple<bool, bool, bool, bool, int, double, double, double, long long> Rank(const WinnersEntry& e,
+                                                                               const SelectionRequest& r) {
   const double morph = r.morph ? VertexCountDistance(static_cast<std::size_t>(std::max(e.morph_targets, 1)),
                                                      static_cast<std::size_t>(std::max(r.morph_targets, 1)))
                                : 1.0;
-  return {e.variant.normal_format != FormatFor(r), AnimatesOnDevice(e.variant) != r.animated, e.shape != r.shape,
+  return {e.variant.normal_format != FormatFor(r), AnimatesOnDevice(e.variant) != r.animated,
+          AnimatesOnDevice(e.variant) && e.cross_fades != r.cross_fades, e.shape != r.shape,
           e.influences - r.influences,
           VertexCountDistance(e.vertices, r.vertex_count), CountDistance(e, r), morph,
           -static_cast<long long>(e.vertices)};
@@ -182,6 +185,13 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
           !ShapeServes(e, request) || (e.variant.blend == Blend::kDualQuaternion) != request.dual_quaternions ||
           SkinsMorph(e.variant) != request.morph || (AnimatesOnDevice(e.variant) && !request.animated))
         continue;
+      if (request.animated && request.cross_fades && request.tuned_form && !e.cross_fades &&
+          BakeRateOf(e.variant.animation) > 0.0 && !BakesLocally(e.variant.animation)) {
+        skipped.push_back({&e, level, Describe(e) + " " + Name(e.variant.animation) +
+                                          ": palette records baked for a crowd that does not cross-fade clips (their "
+                                          "recorded error holds no blend's; SkinnerOptions::cross_fades)"});
+        continue;
+      }
       if (!EntryWithinBudget(e, request.max_error, request.exact_formats)) {
         skipped.push_back({&e, level, Describe(e) + " " + Name(e.variant.weight) + ": " + OverBudget(e, request)});
         continue;
@@ -216,6 +226,9 @@ Chosen Select(const std::vector<WinnersEntry>& entries, const SelectionRequest& 
                   Name(v.normal_format) + " (no entry of that format)";
       if (request.animated && !AnimatesOnDevice(e->variant))
         reason += "; tuned with the host's palettes (no entry of a scene animated on the device)";
+      if (request.animated && AnimatesOnDevice(e->variant) && e->cross_fades != request.cross_fades)
+        reason += e->cross_fades ? "; tuned on a crowd that cross-fades clips (this one does not)"
+                                 : "; tuned on a crowd that does not cross-fade clips (no entry of one that does)";
       if (e->shape != request.shape)
         reason += "; no " + std::string(SceneKindName(request.shape)) +
                   " entry: the single-mesh entry of the scene's total size (" +

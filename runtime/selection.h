@@ -69,6 +69,14 @@ struct SelectionRequest {
   // first, then the others (the skin kernel is the same); only it takes them,
   // as their times hold the palette kernel.
   bool animated = false;
+  // An animated Skinner's crowd cross-fades clips (SkinnerOptions::cross_fades):
+  // entries of crowds that did (did not) first. With `tuned_form` (the
+  // palette kernel's form is the entry's: kBakeRateTuned), an entry of a crowd
+  // that did not cross-fade never serves one that does where its form bakes
+  // palette records: its recorded error holds no blend's, which palette
+  // records mix in the model's space (docs/ANIMATION.md "Baked clips").
+  bool cross_fades = false;
+  bool tuned_form = false;
   double max_error = kDefaultBudget;     // the error budget, relative to the bounding-box diagonal
   std::string max_error_name = "max_error";  // how the caller names it in reasons ("SkinnerOptions::max_error")
   std::vector<WeightFormat> exact_formats;  // formats that hold the caller's weights exactly (HoldsWeightsExactly)

@@ -292,6 +292,8 @@ Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& e
   request.morph = mesh.has_morph();
   request.morph_targets = static_cast<int>(mesh.morph.count());
   request.animated = shape.animated;
+  request.cross_fades = options.cross_fades;
+  request.tuned_form = options.bake_rate == kBakeRateTuned;
   request.max_error = options.max_error;
   request.max_error_name = "SkinnerOptions::max_error";
   // Weights already on a format's grid cost nothing in it, whatever the tuning dataset's did.
@@ -340,6 +342,9 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
   if (options.bake_rate != 0.0 && call != "Skinner::CreateAnimated")
     FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_rate bakes a model's clips (Skinner::"
                                                  "CreateAnimated); this Skinner takes its palettes from SetPalette");
+  if (!options.cross_fades && call != "Skinner::CreateAnimated")
+    FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::cross_fades says whether Skinner::CreateAnimated's "
+                                                 "crowd cross-fades clips; this Skinner takes its palettes from SetPalette");
   if (options.bake_space != skintune::BakeSpace::kPalette && call != "Skinner::CreateAnimated")
     FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_space is what Skinner::CreateAnimated "
                                                  "bakes; this Skinner takes its palettes from SetPalette");
@@ -506,6 +511,7 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     }
     im.backend->Animate(animation.View(), kernel);
     im.animated = true;
+    im.cross_fades = options.cross_fades;
     im.animation_count = static_cast<int>(animation.clips.size());
     im.animation_bytes = animation.Bytes();
     for (std::size_t c = 0; c < animation.baked.size(); ++c)
@@ -669,6 +675,10 @@ Status Skinner::SetAnimation(const AnimationState* states, std::size_t count) {
       if (!std::isfinite(a.time)) bad(i, "time is not finite");
       if (!std::isfinite(a.time2)) bad(i, "time2 is not finite");
       if (!(a.weight >= 0.0f && a.weight <= 1.0f)) bad(i, "weight is " + std::to_string(a.weight) + ", outside [0, 1]");
+      if (a.weight != 0.0f && !im.cross_fades)
+        bad(i, "weight is " + std::to_string(a.weight) +
+                   ": this Skinner's crowd does not cross-fade clips (SkinnerOptions::cross_fades is false, so its "
+                   "kernels' recorded errors hold no blend's)");
       return AnimInstance{clip(i, "animation", a.animation),
                           a.weight != 0.0f ? clip(i, "animation2", a.animation2) : kAnimRestPose, a.time, a.time2,
                           a.weight};

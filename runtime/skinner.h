@@ -182,6 +182,7 @@ struct Skinner::Impl {
   bool palette_set = false;
   bool skinned = false;
   bool animated = false;     // CreateAnimated: SetAnimation, not SetPalette
+  bool cross_fades = true;   // SkinnerOptions::cross_fades: SetAnimation takes weights above 0
   int animation_count = 0;   // the model's (the packed clips, in order)
   std::size_t animation_bytes = 0;     // on the device (PackedAnimation::Bytes)
   std::vector<BakedClip> baked_clips;  // SkinnerOptions::bake_rate's

@@ -166,6 +166,7 @@ nlohmann::json WinnersEntryToJson(const WinnersEntry& e) {
                       {"instances", e.instances},
                       {"meshes", e.meshes},
                       {"morph_targets", e.morph_targets},
+                      {"cross_fades", e.cross_fades},
                       {"dataset", e.dataset},
                       {"variant", e.variant},
                       {"median_ms", e.median_ms},
@@ -241,6 +242,13 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
   }
   e.dataset = String(j, "dataset");
   e.variant = Field(j, "variant").get<Variant>();
+  if (j.contains("cross_fades")) {  // 1.10.0
+    if (!j.at("cross_fades").is_boolean()) throw Error("'cross_fades' must be true or false");
+    e.cross_fades = j.at("cross_fades").get<bool>();
+    if (e.cross_fades && !AnimatesOnDevice(e.variant))
+      throw Error("'cross_fades' is true, and 'variant' " + e.variant.Key() +
+                  " was tuned with the host's palettes (only a crowd animated on the device cross-fades clips)");
+  }
   if (e.variant.lang != e.lang || e.variant.influences != e.influences) {
     throw Error("'variant' " + e.variant.Key() + " does not match 'lang' and 'influences'");
   }

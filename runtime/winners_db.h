@@ -84,7 +84,8 @@ std::string VertexCountName(std::size_t vertices);
 template <typename W>
 std::string RowName(const W& w) {
   return VertexCountName(w.vertices) + SceneSuffix(w.shape, w.instances, w.meshes) + MorphSuffix(w.morph_targets) +
-         NormalFormatSuffix(w.variant.normal_format) + (AnimatesOnDevice(w.variant) ? " animated" : "");
+         NormalFormatSuffix(w.variant.normal_format) +
+         (!AnimatesOnDevice(w.variant) ? "" : w.cross_fades ? " animated, cross-fading" : " animated");
 }
 // How far a winner measured on `measured` vertices is from a mesh of `mesh`
 // vertices: max/min of the two (1 = the same count; a factor, so 25k is as far
@@ -117,6 +118,10 @@ struct WinnersEntry {
   // entries before it): an entry whose variant applies morph targets serves
   // meshes with them, the nearest count first.
   int morph_targets = 0;
+  // Its crowd cross-faded two clips (a "-animblend" scene; 1.10.0, animated
+  // entries only): a Skinner whose crowd cross-fades takes such entries
+  // first, and never another's baked palette records (SelectionRequest::cross_fades).
+  bool cross_fades = false;
   std::string vertex_bucket;   // VertexBucket(vertices), kept for readers of 1.0/1.1
   std::string dataset;         // what the winning time was measured on
   Variant variant;
@@ -147,10 +152,12 @@ std::string Describe(const WinnersEntry& entry);
 // A winner's row: what keeps winners apart as no rivals of each other
 // (device id, lang, influences, vertices, scene shape, instances, meshes, dual
 // quaternions, morph targets, normal format, palettes made on the device:
-// an animated scene's forms race each other, not the host's). A row holds one winner per
+// an animated scene's forms race each other, not the host's; a crowd that
+// cross-fades clips, whose baked palette records lose what an unblended
+// crowd's do not). A row holds one winner per
 // precision class (the tuner's merge, `emit --db`'s kernels). W is a
 // WinnersEntry or the tuner's Winner (the same fields).
-using WinnerRow = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int, int, bool>;
+using WinnerRow = std::tuple<std::string, int, int, std::size_t, int, int, int, bool, int, int, bool, bool>;
 template <typename W>
 WinnerRow RowOf(const W& w) {
   return {w.device_id,
@@ -163,7 +170,8 @@ WinnerRow RowOf(const W& w) {
           w.variant.blend == Blend::kDualQuaternion,
           SkinsMorph(w.variant) ? std::max(w.morph_targets, 1) : 0,
           static_cast<int>(w.variant.normal_format),
-          AnimatesOnDevice(w.variant)};
+          AnimatesOnDevice(w.variant),
+          w.cross_fades};
 }
 
 // Writes every field; vendor and device_type only when known.

@@ -102,6 +102,7 @@ PlannedDataset PlanDataset(const std::string& key) {
   d.info.instances = spec.instances;
   d.info.meshes = static_cast<int>(spec.meshes.size());
   d.info.morph_targets = static_cast<int>(scene.mesh().morph.count());
+  d.info.cross_fades = spec.blended;
   d.shape = WithMorphOf(ProblemShape{mesh.joint_count, widest, mesh.has_normals(), spec.instances,
                                      mesh.has_normals() && mesh.has_tangents(), tuner_internal::PalettesRigid(scene)},
                         mesh.morph);

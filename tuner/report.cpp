@@ -41,7 +41,7 @@ nlohmann::json WinnerJson(const Winner& w) {
                       {"precision_class", Name(w.variant.weight)}, {"within_budget", w.within_budget},
                       {"max_relative_error", w.max_relative_error}, {"x_copy", w.x_copy},
                       {"shape", SceneKindName(w.shape)}, {"instances", w.instances}, {"meshes", w.meshes},
-                      {"morph_targets", w.morph_targets}};
+                      {"morph_targets", w.morph_targets}, {"cross_fades", w.cross_fades}};
   if (w.source_error.known) j["source_error"] = SourceErrorJson(w.source_error);
   j["low_ms"] = w.low_ms;
   j["high_ms"] = w.high_ms;
@@ -72,7 +72,7 @@ EntryKey KeyOf(const W& w) {
 nlohmann::json DatasetJson(const DatasetInfo& d) {
   return {{"key", d.key},       {"vertices", d.vertices},         {"influences", d.influences},
           {"joints", d.joints}, {"shape", SceneKindName(d.shape)}, {"instances", d.instances},
-          {"meshes", d.meshes}, {"morph_targets", d.morph_targets}};
+          {"meshes", d.meshes}, {"morph_targets", d.morph_targets}, {"cross_fades", d.cross_fades}};
 }
 
 // The report's winners as database entries, with the device's identity (the
@@ -100,6 +100,7 @@ std::vector<WinnersEntry> EntriesOf(const TuningReport& report) {
     e.instances = w.instances;
     e.meshes = w.meshes;
     e.morph_targets = w.morph_targets;
+    e.cross_fades = w.cross_fades;
     e.dataset = w.dataset;
     e.variant = w.variant;
     e.median_ms = w.median_ms;
@@ -193,6 +194,7 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     w.instances = dataset->second->instances;
     w.meshes = dataset->second->meshes;
     w.morph_targets = dataset->second->morph_targets;
+    w.cross_fades = dataset->second->cross_fades;
     w.variant = m.variant;
     const EntryKey key = KeyOf(w);
     groups[key].push_back(&m);
@@ -415,6 +417,10 @@ DatasetInfo DatasetInfoFromJson(const nlohmann::json& d) {
   if (d.contains("morph_targets")) {  // 1.11.0
     info.morph_targets = static_cast<int>(Integer(d, "morph_targets"));
     if (info.morph_targets < 0) throw Error("'morph_targets' must not be negative");
+  }
+  if (d.contains("cross_fades")) {  // 1.14.0
+    if (!d.at("cross_fades").is_boolean()) throw Error("'cross_fades' must be true or false");
+    info.cross_fades = d.at("cross_fades").get<bool>();
   }
   return info;
 }

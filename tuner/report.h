@@ -33,6 +33,7 @@ struct DatasetInfo {
   int instances = 1;
   int meshes = 1;
   int morph_targets = 0;  // the mesh's morph targets (0: none; 1.11.0)
+  bool cross_fades = false;  // "-animblend": its instances cross-fade two clips (1.14.0)
 };
 
 struct TuningReport {
@@ -79,6 +80,7 @@ struct Winner {
   int instances = 1;
   int meshes = 1;
   int morph_targets = 0;      // the dataset's morph targets: every count keeps its winner
+  bool cross_fades = false;   // the dataset's crowd cross-fades clips: kept apart from one that does not
   std::string dataset;
   Variant variant;
   double tie_margin = 0.0;    // the margin it was judged at (TuningReport::TieMarginOf; 0: unknown)

@@ -149,6 +149,50 @@ TEST(Selection, AnimatedEntriesServeOnlyAnimatedSkinnersAndThemFirst) {
       << fallback.selection.reason;
 }
 
+// A crowd that cross-fades clips (SelectionRequest::cross_fades) takes
+// entries of crowds that did first; taking the tuned form, it never takes
+// palette records baked on a crowd that did not (their recorded error holds
+// no blend's), while local records and sampled clips of that crowd serve it.
+// A crowd that does not cross-fade takes that crowd's entries first.
+TEST(Selection, ACrossFadingCrowdTakesItsOwnEntriesFirstAndNoUnblendedPaletteRecords) {
+  const std::string id = ThisDevice().id;
+  WinnersEntry steady = Entry(id, "Example", "gpu", "opencl.b2.aos.wg128.anim-baked120", "100k", 0.5);
+  steady.source_error.known = true;
+  steady.source_error.position_rel = steady.source_error.quantisation_rel = 3e-4;
+  WinnersEntry steady_local = Entry(id, "Example", "gpu", "opencl.b2.soa.wg64.anim-local120", "100k", 0.6);
+  steady_local.source_error = steady.source_error;
+  WinnersEntry fading = Entry(id, "Example", "gpu", "opencl.b2.soa-split.wg256.anim-local240", "100k", 0.7);
+  fading.source_error = steady.source_error;
+  fading.cross_fades = true;
+  SelectionRequest r;
+  r.device = ThisDevice();
+  r.langs = {Lang::kOpenCl};
+  r.influences = 2;
+  r.vertex_count = 100000;
+  r.max_error = 1e-3;
+  r.animated = true;
+  r.cross_fades = true;
+  r.tuned_form = true;
+  EXPECT_EQ(Select({steady, steady_local, fading}, r).variant, fading.variant);
+  const Chosen local = Select({steady, steady_local}, r);
+  EXPECT_EQ(local.variant, steady_local.variant);
+  EXPECT_NE(local.selection.reason.find("palette records baked for a crowd that does not cross-fade clips"),
+            std::string::npos)
+      << local.selection.reason;
+  EXPECT_NE(local.selection.reason.find("tuned on a crowd that does not cross-fade clips"), std::string::npos)
+      << local.selection.reason;
+  EXPECT_EQ(Select({steady}, r).selection.level, MatchLevel::kGenericDefault);
+  r.tuned_form = false;  // the caller's own form: only the skin kernel is the entry's
+  EXPECT_EQ(Select({steady}, r).variant, steady.variant);
+  r.cross_fades = false;
+  r.tuned_form = true;
+  EXPECT_EQ(Select({fading, steady}, r).variant, steady.variant);
+  const Chosen other = Select({fading}, r);
+  EXPECT_EQ(other.variant, fading.variant);
+  EXPECT_NE(other.selection.reason.find("tuned on a crowd that cross-fades clips (this one does not)"), std::string::npos)
+      << other.selection.reason;
+}
+
 // A Skinner's normal format takes the entry tuned in it first; without one,
 // another entry serves with its variant's format changed, and the reason
 // says so; without normals the format is float32.

@@ -354,6 +354,14 @@ TEST_P(SkinnerAnimated, BadStatesAreRejectedNamingTheFieldAndChangeNothing) {
         << refused.status().message();
     options.bake_space = skintune::BakeSpace::kPalette;
   }
+  {  // nor whether a crowd cross-fades
+    SkinnerOptions fades = options;
+    fades.cross_fades = false;
+    const Result<Skinner> refused = Skinner::Create(device_, WinnersDb::Empty(), model_.mesh(), fades);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_NE(refused.status().message().find("SkinnerOptions::cross_fades"), std::string::npos)
+        << refused.status().message();
+  }
   Result<Skinner> plain = Skinner::Create(device_, WinnersDb::Empty(), model_.mesh(), options);
   ASSERT_TRUE(plain.ok()) << plain.status().message();
   EXPECT_FALSE(plain->animated());
@@ -397,6 +405,9 @@ TEST(SkinnerAnimatedModel, ABakeRateOutsideItsRangeIsRefusedNamingIt) {
 // kBakeRateTuned: the palette kernel's form is the chosen entry's, tuned on a
 // scene animated on the device (docs/TUNING.md "Animated scenes"): baked at
 // its rate, or sampled; sampled from an entry tuned with the host's palettes.
+// Palette records tuned on a crowd that does not cross-fade serve only a
+// Skinner whose crowd does not (SkinnerOptions::cross_fades false), which
+// then refuses a blend.
 TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsked) {
   Result<Device> device = Device::Open("", nullptr);
   if (!device.ok()) GTEST_SKIP() << "no device: " << device.status().message();
@@ -404,7 +415,7 @@ TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsk
   ASSERT_TRUE(model.ok()) << model.status().message();
   const DeviceInfo& info = device->info();
   const std::string lang = std::string(Name(LanguagesOf(info.backend).front()));
-  const auto database = [&](const std::string& form) {
+  const auto database = [&](const std::string& form, bool cross_fades = false) {
     const std::string key = lang + ".b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c." +
                             (lang == "cpu" || lang == "glsl-vertex" ? "wg0" : "wg64") + form;
     nlohmann::json entry = {{"device_id", info.id}, {"backend", BackendName(info.backend)}, {"platform", info.platform},
@@ -415,7 +426,8 @@ TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsk
                             {"created", "2026-11-30T08:00:00Z"}, {"source", "animated-crowds (coordinate)"},
                             {"source_error", {{"diagonal", 1.0}, {"position_abs", 5e-5}, {"position_rel", 5e-5},  // baking's loss
                                               {"normal_abs", 0.0}, {"quantisation_rel", 5e-5}}},
-                            {"max_relative_error", 3e-7}, {"variant", ParseVariantKey(key)}};
+                            {"max_relative_error", 3e-7}, {"variant", ParseVariantKey(key)},
+                            {"cross_fades", cross_fades}};
     const nlohmann::json db = {{"schema_version", "1.10.0"}, {"kind", "skintune-winners-db"}, {"entries", {entry}}};
     Result<WinnersDb> parsed = WinnersDb::Parse(db.dump(), "test database");
     EXPECT_TRUE(parsed.ok()) << parsed.status().message();
@@ -424,8 +436,22 @@ TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsk
   SkinnerOptions options;
   options.instances = 6;
   options.bake_rate = kBakeRateTuned;
-  {
+  {  // a crowd that cross-fades (the default) is not given palette records tuned without blends
     const Result<Skinner> skinner = Skinner::CreateAnimated(*device, database(".anim-baked60"), *model, options);
+    ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+    EXPECT_EQ(skinner->selection().level, MatchLevel::kGenericDefault) << skinner->selection().reason;
+    EXPECT_TRUE(skinner->baked_clips().empty());
+    EXPECT_NE(skinner->selection().reason.find("palette records baked for a crowd that does not cross-fade clips"),
+              std::string::npos)
+        << skinner->selection().reason;
+    // Tuned on a crowd that cross-fades, its recorded error holds the blends: taken.
+    const Result<Skinner> blended = Skinner::CreateAnimated(*device, database(".anim-baked60", true), *model, options);
+    ASSERT_TRUE(blended.ok()) << blended.status().message();
+    EXPECT_EQ(blended->selection().level, MatchLevel::kExactDevice) << blended->selection().reason;
+  }
+  options.cross_fades = false;
+  {
+    Result<Skinner> skinner = Skinner::CreateAnimated(*device, database(".anim-baked60"), *model, options);
     ASSERT_TRUE(skinner.ok()) << skinner.status().message();
     EXPECT_EQ(skinner->selection().level, MatchLevel::kExactDevice) << skinner->selection().reason;
     ASSERT_EQ(skinner->baked_clips().size(), static_cast<std::size_t>(model->animation_count()));
@@ -433,7 +459,16 @@ TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsk
       EXPECT_NEAR(skinner->baked_clips()[static_cast<std::size_t>(c)].frames,
                   std::ceil(model->animation_duration(c) * 60.0) + 1, 1.0) << c;
     EXPECT_NE(skinner->selection().reason.find("made as tuned: baked60"), std::string::npos) << skinner->selection().reason;
+    // The crowd was declared without blends: a blend is refused, not mixed in the model's space unrecorded.
+    std::vector<AnimationState> states(6);
+    EXPECT_TRUE(skinner->SetAnimation(states.data(), states.size()).ok());
+    states[2] = {0, 0.5f, 1, 0.25f, 0.5f};
+    const Status refused = skinner->SetAnimation(states.data(), states.size());
+    EXPECT_EQ(refused.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(refused.message().find("states[2].weight is 0.5"), std::string::npos) << refused.message();
+    EXPECT_NE(refused.message().find("SkinnerOptions::cross_fades is false"), std::string::npos) << refused.message();
   }
+  options.cross_fades = true;  // local records and sampled clips blend as the source does: every crowd takes them
   {  // baked in local space: its records are nodes', and the reason names the form
     const Result<Skinner> skinner = Skinner::CreateAnimated(*device, database(".anim-local60"), *model, options);
     ASSERT_TRUE(skinner.ok()) << skinner.status().message();

@@ -49,6 +49,16 @@ std::string ParseError(const nlohmann::json& json, const std::string& name = "db
   return db.status().message();
 }
 
+// What WinnersEntryFromJson says of `entry` ("no error" where it reads it).
+std::string EntryError(const nlohmann::json& entry) {
+  try {
+    (void)WinnersEntryFromJson(entry);
+  } catch (const Error& e) {
+    return std::string(e.what());
+  }
+  return std::string("no error");
+}
+
 TEST(WinnersDb, EntryRoundTripsThroughJson) {
   const WinnersEntry e = SampleEntry();
   const nlohmann::json j = WinnersEntryToJson(e);
@@ -73,25 +83,46 @@ TEST(WinnersDb, MorphTargetCountsRoundTripAndMustFitTheVariant) {
   EXPECT_EQ(back.morph_targets, 8);
   EXPECT_EQ(back.variant.morph, Morph::kSparseHalf);
   EXPECT_NE(Describe(back).find(" morph 8"), std::string::npos) << Describe(back);
-  const auto error = [](const nlohmann::json& entry) {
-    try {
-      (void)WinnersEntryFromJson(entry);
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
   nlohmann::json untold = j;
   untold.erase("morph_targets");
-  EXPECT_NE(error(untold).find("applies morph targets, and 'morph_targets' does not say how many"), std::string::npos);
+  EXPECT_NE(EntryError(untold).find("applies morph targets, and 'morph_targets' does not say how many"), std::string::npos);
   nlohmann::json plain = WinnersEntryToJson(SampleEntry());
   EXPECT_EQ(plain["morph_targets"], 0);
   plain.erase("morph_targets");
   EXPECT_EQ(WinnersEntryFromJson(plain).morph_targets, 0);  // an entry before the field
   plain["morph_targets"] = 4;
-  EXPECT_NE(error(plain).find("does not apply the 4 morph targets of the mesh it was tuned on"), std::string::npos);
+  EXPECT_NE(EntryError(plain).find("does not apply the 4 morph targets of the mesh it was tuned on"), std::string::npos);
   plain["morph_targets"] = -1;
-  EXPECT_NE(error(plain).find("'morph_targets' is -1, expected 0..256"), std::string::npos) << error(plain);
+  EXPECT_NE(EntryError(plain).find("'morph_targets' is -1, expected 0..256"), std::string::npos) << EntryError(plain);
+}
+
+// Database 1.10.0: an animated entry records whether its crowd cross-faded
+// clips; its row and name keep it apart from one that did not; older
+// entries (no field) did not; only an animated entry may, and only a boolean.
+TEST(WinnersDb, CrossFadingCrowdsRoundTripAndKeepTheirOwnRow) {
+  WinnersEntry e = SampleEntry();
+  e.variant.animation = Animation::kLocal120;
+  e.shape = SceneKind::kInstances;
+  e.instances = 64;
+  e.cross_fades = true;
+  const nlohmann::json j = WinnersEntryToJson(e);
+  EXPECT_EQ(j["cross_fades"], true);
+  const WinnersEntry back = WinnersEntryFromJson(nlohmann::json::parse(j.dump()));
+  EXPECT_TRUE(back.cross_fades);
+  EXPECT_EQ(RowName(back), "100k instances x64 animated, cross-fading");
+  WinnersEntry steady = back;
+  steady.cross_fades = false;
+  EXPECT_EQ(RowName(steady), "100k instances x64 animated");
+  EXPECT_NE(RowOf(back), RowOf(steady));
+  nlohmann::json older = j;
+  older.erase("cross_fades");
+  EXPECT_FALSE(WinnersEntryFromJson(older).cross_fades);
+  nlohmann::json wrong = j;
+  wrong["cross_fades"] = 1;
+  EXPECT_EQ(EntryError(wrong), "'cross_fades' must be true or false");
+  nlohmann::json host = WinnersEntryToJson(SampleEntry());
+  host["cross_fades"] = true;
+  EXPECT_NE(EntryError(host).find("'cross_fades' is true, and 'variant' opencl."), std::string::npos) << EntryError(host);
 }
 
 TEST(WinnersDb, SceneShapesRoundTripAndOlderEntriesAreSingleMeshes) {

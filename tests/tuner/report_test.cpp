@@ -325,6 +325,13 @@ Measurement ClassMeasurement(const std::string& dataset, std::size_t vertices, c
   return m;
 }
 
+// An f32 measurement within budget of `key` on a 100k-vertex `dataset`.
+Measurement Measured(const std::string& dataset, const char* key, double ms) {
+  Measurement m = ClassMeasurement(dataset, 100000, "f32", ms, true);
+  m.variant = ParseVariantKey(key);
+  return m;
+}
+
 // Meshes of one vertex count with 8, 32 and no morph targets are three rows
 // (a faster mesh without morph targets is no rival of a mesh with them), and
 // half offsets a class of their own within a row; the database keeps each.
@@ -332,20 +339,15 @@ TEST(Report, MorphTargetCountsAreRowsAndHalfOffsetsAClassOfTheirOwn) {
   TuningReport r;
   r.created = "2026-11-30T00:00:00Z";
   r.devices = {testing::SampleGpu()};
-  const auto measured = [&](const std::string& dataset, const char* key, double ms) {
-    Measurement m = ClassMeasurement(dataset, 100000, "f32", ms, true);
-    m.variant = ParseVariantKey(key);
-    return m;
-  };
   DatasetInfo plain{"100k-b4", 100000, 4, 77}, few{"100k-b4-morph8", 100000, 4, 77}, many{"100k-b4-morph32", 100000, 4, 77};
   few.morph_targets = 8;
   many.morph_targets = 32;
   r.datasets = {plain, few, many};
-  r.measurements = {measured("100k-b4", "opencl.b4.soa.wg64", 1.0),
-                    measured("100k-b4-morph8", "opencl.b4.soa.wg64.morph-sparse", 1.4),
-                    measured("100k-b4-morph8", "opencl.b4.soa.wg64.morph-sparse-half", 1.2),
-                    measured("100k-b4-morph32", "opencl.b4.soa.wg64.morph-dense", 3.0),
-                    measured("100k-b4-morph32", "opencl.b4.soa.wg64.morph-sparse", 1.5)};
+  r.measurements = {Measured("100k-b4", "opencl.b4.soa.wg64", 1.0),
+                    Measured("100k-b4-morph8", "opencl.b4.soa.wg64.morph-sparse", 1.4),
+                    Measured("100k-b4-morph8", "opencl.b4.soa.wg64.morph-sparse-half", 1.2),
+                    Measured("100k-b4-morph32", "opencl.b4.soa.wg64.morph-dense", 3.0),
+                    Measured("100k-b4-morph32", "opencl.b4.soa.wg64.morph-sparse", 1.5)};
   const std::vector<Winner> winners = ComputeWinners(r);
   std::map<std::pair<int, std::string>, int> per_row_class;  // (morph targets, morph value) -> winners
   for (const Winner& w : winners) ++per_row_class[{w.morph_targets, Name(w.variant.morph)}];
@@ -364,6 +366,31 @@ TEST(Report, MorphTargetCountsAreRowsAndHalfOffsetsAClassOfTheirOwn) {
   EXPECT_EQ(db.size(), 4u);
   const nlohmann::json merged = MergeWinnersDatabases({WinnersDatabase(r), WinnersDatabase(r)}, {"a.json", "b.json"});
   EXPECT_EQ(merged["entries"].size(), 4u);
+}
+
+// Two crowds of one size animated on the device, one cross-fading clips
+// ("-animblend") and one not, are two rows: the steady crowd's baked palette
+// records, faster, decide nothing for the crowd in transition, and the
+// database keeps each with its cross_fades; the reports' datasets say which.
+TEST(Report, ACrossFadingCrowdIsARowApartFromASteadyOneOfTheSameSize) {
+  TuningReport r;
+  r.created = "2026-11-30T00:00:00Z";
+  r.devices = {testing::SampleGpu()};
+  DatasetInfo steady{"1k-b4-x100-anim", 100000, 4, 77, SceneKind::kInstances, 100},
+      fading{"1k-b4-x100-animblend", 100000, 4, 77, SceneKind::kInstances, 100};
+  fading.cross_fades = true;
+  r.datasets = {steady, fading};
+  r.measurements = {Measured("1k-b4-x100-anim", "opencl.b4.soa.wg64.anim-baked120", 1.0),
+                    Measured("1k-b4-x100-animblend", "opencl.b4.soa.wg64.anim-local120", 1.2)};
+  const std::vector<Winner> winners = ComputeWinners(r);
+  ASSERT_EQ(winners.size(), 2u);
+  for (const Winner& w : winners) EXPECT_EQ(w.cross_fades, w.dataset == "1k-b4-x100-animblend") << w.dataset;
+  const std::vector<WinnersEntry> db = WinnersDbFromJson(WinnersDatabase(r), "db.json");
+  ASSERT_EQ(db.size(), 2u);
+  EXPECT_NE(RowName(db[0]), RowName(db[1]));
+  const nlohmann::json json = ReportToJson(r);
+  EXPECT_EQ(json["datasets"][1]["cross_fades"], true);
+  EXPECT_TRUE(ReportFromJson(json, "report.json").datasets[1].cross_fades);
 }
 
 // The classes over the budget named under a device's winners (skintune run):

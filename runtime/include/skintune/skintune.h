@@ -510,6 +510,17 @@ struct SkinnerOptions {
   // sampled clips do, for a little more device time than kPalette's
   // (docs/ANIMATION.md "Baked in local space").
   BakeSpace bake_space = BakeSpace::kPalette;
+  // CreateAnimated only (false is kInvalidArgument for any other Skinner):
+  // whether the crowd's instances may cross-fade two clips
+  // (AnimationState::weight above 0). true, the default: entries tuned on
+  // crowds that cross-fade come first, and with kBakeRateTuned an entry tuned
+  // on a crowd that did not never lends its baked palette records, whose
+  // recorded error holds no blend's (palette records mix a blend in the
+  // model's space: docs/ANIMATION.md "Baked clips"). false: entries of crowds
+  // that do not cross-fade come first, their baked palette records included,
+  // and SetAnimation refuses a weight above 0 (kInvalidArgument), so the
+  // error the tuner recorded is the error the crowd gets.
+  bool cross_fades = true;
 };
 
 // Baking's limit (SkinnerOptions::bake_rate), frames a second.
