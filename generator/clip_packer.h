@@ -111,7 +111,7 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, double rate,
 
 // Every clip packed in a variant's form of animation on the device: sampled
 // (PackAnimation), or baked at its rate in its space (BakeRateOf,
-// BakeSpaceOf). Throws Error for Animation::kHost (nothing to pack).
+// BakesLocally). Throws Error for Animation::kHost (nothing to pack).
 PackedAnimation PackForm(const SkinnedAsset& asset, Animation form);
 
 // The bytes of one buffer of a PackedAnimation (or of instances), as uploaded.

@@ -26,6 +26,12 @@ int BakedDefine(const AnimationView& animation) {
   return animation.baked_rows == kBakedRowsAffine ? 2 : 1;
 }
 
+BakedForm BakedFormOf(long long define) {
+  if (define < 0 || define > 4) throw Error("palette kernel: ANIM_BAKED " + std::to_string(define) + " (0 to 4)");
+  const std::uint32_t rows[] = {0, kBakedRowsSimilar, kBakedRowsAffine, kBakedRowsSimilar, kBakedRowsLocalScaled};
+  return {define != 0, define >= 3, rows[define]};
+}
+
 PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette_rows) {
   if (palette_rows != 3 && palette_rows != 4)
     throw Error("palette kernel: " + std::to_string(palette_rows) + " rows per joint (3 or 4)");

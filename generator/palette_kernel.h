@@ -77,5 +77,12 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
 // The kernel's ANIM_BAKED (templates/skin_params.h): 0 sampled; palette
 // records of 2 (1) or 4 (2) float4s; local records of 2 (3) or 3 (4).
 int BakedDefine(const AnimationView& animation);
+// What an ANIM_BAKED value says of the records (a runner that reads a
+// built kernel's defines: the cpu device): BakedDefine's inverse.
+struct BakedForm {
+  bool baked = false, local = false;
+  std::uint32_t rows = 0;  // AnimationView::baked_rows
+};
+BakedForm BakedFormOf(long long define);
 
 }  // namespace skintune::internal

@@ -450,6 +450,7 @@ TEST(PaletteKernelBaked, LocalRecordsKeepEachAxissScaleAndEmitTheirOwnKernel) {
   EXPECT_EQ(BakeAnimation(DeepRig(), 30.0, BakeSpace::kLocal).baked_rows, kBakedRowsLocalScaled);
 
   const PackedAnimation fox = BakeAnimation(TestAsset("Fox.gltf"), 30.0, BakeSpace::kLocal);
+  const PackedAnimation coarse_palette_of_fox = BakeAnimation(TestAsset("Fox.gltf"), 30.0);
   for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kVulkan, Lang::kCpu}) {
     for (const PackedAnimation* packed : {&fox, &local}) {
       const PaletteKernel kernel = EmitPalette(lang, packed->View(), 3);
@@ -464,6 +465,14 @@ TEST(PaletteKernelBaked, LocalRecordsKeepEachAxissScaleAndEmitTheirOwnKernel) {
           << Name(lang);
     }
   }
+  for (const PackedAnimation* packed : {&fox, &local, &coarse_palette_of_fox}) {  // the define read back
+    const BakedForm form = BakedFormOf(BakedDefine(packed->View()));
+    EXPECT_TRUE(form.baked);
+    EXPECT_EQ(form.local, packed->baked_local);
+    EXPECT_EQ(form.rows, packed->baked_rows);
+  }
+  EXPECT_FALSE(BakedFormOf(0).baked);
+  EXPECT_THROW(BakedFormOf(5), Error);
   EXPECT_EQ(PackForm(TestAsset("Fox.gltf"), Animation::kLocal60).bake_rate, 60.0);
   EXPECT_TRUE(PackForm(TestAsset("Fox.gltf"), Animation::kLocal60).baked_local);
   EXPECT_FALSE(PackForm(TestAsset("Fox.gltf"), Animation::kBaked60).baked_local);

@@ -265,9 +265,9 @@ std::unique_ptr<PlannedLaunch> CpuApi::Plan(const LaunchSpec& spec) {
     plan->clip_count = static_cast<std::uint32_t>(parsed.defines.at("ANIM_CLIP_COUNT"));
     plan->palette_rows = static_cast<int>(parsed.defines.at("ANIM_PALETTE_ROWS"));
     plan->baked = flag("ANIM_BAKED");
-    const long long form = plan->baked ? parsed.defines.at("ANIM_BAKED") : 0;
-    plan->baked_local = form >= 3;
-    plan->baked_rows = form == 2 ? kBakedRowsAffine : form == 4 ? kBakedRowsLocalScaled : kBakedRowsSimilar;
+    const BakedForm form = BakedFormOf(plan->baked ? parsed.defines.at("ANIM_BAKED") : 0);
+    plan->baked_local = form.local;
+    plan->baked_rows = form.rows;
     if (plan->baked && !plan->baked_local)
       plan->baked_joints.resize(static_cast<std::size_t>(parsed.defines.at("ANIM_JOINT_COUNT")));
     return plan;
