@@ -56,6 +56,12 @@ inline std::int64_t Integer(const nlohmann::json& object, const char* name) {
   return v.get<std::int64_t>();
 }
 
+inline bool Boolean(const nlohmann::json& object, const char* name) {
+  const nlohmann::json& v = Field(object, name);
+  if (!v.is_boolean()) throw Error(std::string("'") + name + "' must be true or false");
+  return v.get<bool>();
+}
+
 inline const nlohmann::json& Array(const nlohmann::json& object, const char* name) {
   const nlohmann::json& v = Field(object, name);
   if (!v.is_array()) throw Error(std::string("'") + name + "' must be an array");

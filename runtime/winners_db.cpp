@@ -243,8 +243,7 @@ WinnersEntry WinnersEntryFromJson(const nlohmann::json& j) {
   e.dataset = String(j, "dataset");
   e.variant = Field(j, "variant").get<Variant>();
   if (j.contains("cross_fades")) {  // 1.10.0
-    if (!j.at("cross_fades").is_boolean()) throw Error("'cross_fades' must be true or false");
-    e.cross_fades = j.at("cross_fades").get<bool>();
+    e.cross_fades = Boolean(j, "cross_fades");
     if (e.cross_fades && !AnimatesOnDevice(e.variant))
       throw Error("'cross_fades' is true, and 'variant' " + e.variant.Key() +
                   " was tuned with the host's palettes (only a crowd animated on the device cross-fades clips)");

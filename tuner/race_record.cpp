@@ -41,7 +41,7 @@ RaceRecord RaceFromJson(const nlohmann::json& j) {
   r.device_id = String(j, "device_id");
   r.lang = LangFromName(String(j, "lang"));
   r.dataset = String(j, "dataset");
-  r.decided = Field(j, "decided").is_boolean() ? Field(j, "decided").get<bool>() : throw Error("'decided' must be true or false");
+  r.decided = Boolean(j, "decided");
   r.detail = String(j, "detail");
   const nlohmann::json& entries = Array(j, "entries");
   for (std::size_t i = 0; i < entries.size(); ++i) {

@@ -418,10 +418,7 @@ DatasetInfo DatasetInfoFromJson(const nlohmann::json& d) {
     info.morph_targets = static_cast<int>(Integer(d, "morph_targets"));
     if (info.morph_targets < 0) throw Error("'morph_targets' must not be negative");
   }
-  if (d.contains("cross_fades")) {  // 1.14.0
-    if (!d.at("cross_fades").is_boolean()) throw Error("'cross_fades' must be true or false");
-    info.cross_fades = d.at("cross_fades").get<bool>();
-  }
+  if (d.contains("cross_fades")) info.cross_fades = Boolean(d, "cross_fades");  // 1.14.0
   return info;
 }
 

@@ -56,6 +56,16 @@ WinnersEntry Entry(const std::string& device_id, const std::string& vendor, cons
 
 // Entries that must never be chosen for ThisDevice(): another vendor, another
 // type, another backend with the same device name.
+// A request of this device's OpenCL for a B = 2 mesh of 100k vertices.
+SelectionRequest OpenClRequest() {
+  SelectionRequest r;
+  r.device = ThisDevice();
+  r.langs = {Lang::kOpenCl};
+  r.influences = 2;
+  r.vertex_count = 100000;
+  return r;
+}
+
 std::vector<WinnersEntry> Decoys() {
   return {Entry("opencl:Synthetic/Rival GPU/1.0", "Rival", "gpu", "opencl.b2.aos.wg32"),
           Entry("opencl:Synthetic/Example CPU/1.0", "Example", "cpu", "opencl.b2.aos.wg64"),
@@ -92,11 +102,7 @@ TEST(Selection, MorphEntriesServeOnlyMeshesWithMorphTargetsTheNearestCountFirst)
   many.source_error.known = true;
   many.source_error.quantisation_rel = 2e-6;
   many.source_error.position_rel = 2e-6;
-  SelectionRequest r;
-  r.device = ThisDevice();
-  r.langs = {Lang::kOpenCl};
-  r.influences = 2;
-  r.vertex_count = 100000;
+  SelectionRequest r = OpenClRequest();
   const std::vector<WinnersEntry> entries = {many, few, plain};
   EXPECT_EQ(Select(entries, r).variant, plain.variant);
   r.morph = true;
@@ -127,11 +133,7 @@ TEST(Selection, AnimatedEntriesServeOnlyAnimatedSkinnersAndThemFirst) {
   WinnersEntry sampled = Entry(id, "Example", "gpu", "opencl.b2.soa-split.wg256.anim-sampled", "100k", 0.7);
   sampled.source_error.known = true;
   sampled.source_error.position_rel = 2e-7;
-  SelectionRequest r;
-  r.device = ThisDevice();
-  r.langs = {Lang::kOpenCl};
-  r.influences = 2;
-  r.vertex_count = 100000;
+  SelectionRequest r = OpenClRequest();
   r.max_error = 1e-2;
   const std::vector<WinnersEntry> entries = {baked, sampled, host};
   EXPECT_EQ(Select(entries, r).variant, host.variant) << "a Skinner of SetPalette takes no animated entry";
@@ -164,11 +166,7 @@ TEST(Selection, ACrossFadingCrowdTakesItsOwnEntriesFirstAndNoUnblendedPaletteRec
   WinnersEntry fading = Entry(id, "Example", "gpu", "opencl.b2.soa-split.wg256.anim-local240", "100k", 0.7);
   fading.source_error = steady.source_error;
   fading.cross_fades = true;
-  SelectionRequest r;
-  r.device = ThisDevice();
-  r.langs = {Lang::kOpenCl};
-  r.influences = 2;
-  r.vertex_count = 100000;
+  SelectionRequest r = OpenClRequest();
   r.max_error = 1e-3;
   r.animated = true;
   r.cross_fades = true;
@@ -200,11 +198,7 @@ TEST(Selection, EntriesOfTheAskedNormalFormatServeFirstOthersAreRunInIt) {
   const std::string id = ThisDevice().id;
   const WinnersEntry f32 = Entry(id, "Example", "gpu", "opencl.b2.soa.wg64.normals", "100k", 1.0);
   const WinnersEntry oct = Entry(id, "Example", "gpu", "opencl.b2.aos.wg128.normals.normals-oct16", "100k", 2.0);
-  SelectionRequest r;
-  r.device = ThisDevice();
-  r.langs = {Lang::kOpenCl};
-  r.influences = 2;
-  r.vertex_count = 100000;
+  SelectionRequest r = OpenClRequest();
   r.normals = Normals::kNormals;
   EXPECT_EQ(Select({oct, f32}, r).variant, f32.variant);
   r.normal_format = NormalFormat::kOct16;
