@@ -23,7 +23,9 @@
 // The animated rows play the instance model's own clip (the synthetic
 // 25k-b4's 77-joint rig, or --animation-model's glTF, whose own mesh is then
 // the instance), every instance at its own time; --blend makes every
-// instance a blend of two times of it (weight 0.5). The summary compares
+// instance (--blend-every N: every N-th) a blend of two clips (weight 0.5);
+// --bake-rate R bakes the clips, --bake-local and --bake-hybrid say as what
+// (SkinnerOptions::bake_space). The summary compares
 // them with the instanced rows, whose palettes the host uploads.
 //
 // K = 64 and N = 25k-b4 (77 joints) by default: a crowd of 64 characters. Each
@@ -96,8 +98,10 @@ struct Options {
   int palette_threads = 0;
   std::string animation_model;  // a glTF for the animated rows (default: the instance mesh's synthetic rig)
   bool blend = false;
+  int blend_every = 1;  // with blend: every N-th instance cross-fades (--blend-every)
   double bake_rate = 0.0;  // SkinnerOptions::bake_rate of the animated rows (0: sampled clips)
   bool bake_local = false;  // SkinnerOptions::bake_space kLocal
+  bool bake_hybrid = false;  // SkinnerOptions::bake_space kHybrid
 };
 Options options;
 
@@ -197,6 +201,7 @@ struct Scene {
     animated_options.palette_buffers = options.palette_buffers;
     animated_options.bake_rate = options.bake_rate;
     if (options.bake_local) animated_options.bake_space = BakeSpace::kLocal;
+    if (options.bake_hybrid) animated_options.bake_space = BakeSpace::kHybrid;
     a->skinner = Must(Skinner::CreateAnimated(device, db, a->model, animated_options), "animated Skinner");
     const int clips = a->model.animation_count();
     for (int f = 0; f < options.poses; ++f) {
@@ -206,7 +211,7 @@ struct Scene {
         const double start = a->model.animation_start(clip), duration = std::max(a->model.animation_duration(clip), 1e-3);
         const double u = std::fmod(double(i) / double(k) + f / 30.0, 1.0);
         frame[i] = {clip, static_cast<float>(start + u * duration)};
-        if (options.blend) {
+        if (options.blend && i % static_cast<std::size_t>(options.blend_every) == 0) {
           frame[i].animation2 = (clip + 1) % clips;
           frame[i].time2 = static_cast<float>(a->model.animation_start(frame[i].animation2) +
                                               std::fmod(u + 0.5, 1.0) * a->model.animation_duration(frame[i].animation2));
@@ -221,8 +226,11 @@ struct Scene {
     for (const BakedClip& clip : a->skinner.baked_clips()) worst = std::max(worst, clip.max_error);
     std::fprintf(stderr, "animated: %zu x %zu vertices, %d joints, %s%s; clips %s, %zu bytes on the device", k,
                  a->model.vertex_count(), a->model.joint_count(), a->skinner.selection().variant.c_str(),
-                 options.blend ? ", two-clip blends" : "",
-                 options.bake_rate > 0.0 ? (options.bake_local ? "baked in local space" : "baked") : "sampled",
+                 !options.blend ? "" : options.blend_every == 1 ? ", two-clip blends" : ", two-clip blends in part",
+                 options.bake_rate > 0.0 ? (options.bake_hybrid  ? "baked as hybrid records"
+                                            : options.bake_local ? "baked in local space"
+                                                                 : "baked")
+                                         : "sampled",
                  a->skinner.animation_bytes());
     if (options.bake_rate > 0.0)
       std::fprintf(stderr, " (%g frames a second, largest error %.3g of the extent)", options.bake_rate, worst);
@@ -551,11 +559,18 @@ void ParseOptions(int& argc, char** argv) {
   app.add_option("--palette-threads", options.palette_threads, "SkinnerOptions::palette_threads");
   app.add_option("--animation-model", options.animation_model, "a glTF whose mesh and clips the animated rows play");
   app.add_flag("--blend", options.blend, "animated rows: every instance a blend of two clips (weight 0.5)");
+  app.add_option("--blend-every", options.blend_every,
+                 "with --blend: only every N-th instance cross-fades (3: as the tuner's -animblend scenes)")
+      ->check(CLI::Range(1, 1 << 16))
+      ->needs("--blend");
   app.add_option("--bake-rate", options.bake_rate,
                  "animated rows: the clips baked at this many frames a second (SkinnerOptions::bake_rate)")
       ->check(CLI::Range(0.0, kMaxBakeRate));
   app.add_flag("--bake-local", options.bake_local,
                "animated rows: bake each node's local transform (SkinnerOptions::bake_space kLocal; with --bake-rate)");
+  app.add_flag("--bake-hybrid", options.bake_hybrid,
+               "animated rows: bake both records (SkinnerOptions::bake_space kHybrid; with --bake-rate)")
+      ->excludes("--bake-local");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

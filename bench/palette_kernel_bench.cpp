@@ -10,10 +10,12 @@
 //                             per launch: the launch as a frame pays it when
 //                             the skin kernel follows on the same stream
 //   cuda/<model>/<K>/blend    burst, every instance cross-fading two clips
-//   cuda/<model>/<K>/burst-baked<R>, blend-baked<R>
-//                             the same with the clips baked at R frames a
-//                             second (--bake-rate R, repeatable;
-//                             docs/ANIMATION.md "Baked clips"); the counter
+//   cuda/<model>/<K>/fade3    burst, every third instance cross-fading
+//   cuda/<model>/<K>/<form>-baked<R>, -local<R>, -hybrid<R>
+//                             burst, blend and fade3 with the clips baked at
+//                             R frames a second (--bake-rate R, repeatable;
+//                             docs/ANIMATION.md "Baked clips") as palette
+//                             records, local ones and both; the counter
 //                             max_error is the largest stated error of its clips
 //   host/<model>/<K>/palette-at   K x SkinnedAsset::PaletteAt (float64, then float32)
 //   host/<model>/<K>/cpu-kernel   RunPaletteKernel on one thread (float32)
@@ -55,9 +57,10 @@ struct Options {
 
 constexpr int kBurst = 64;
 
-// Instance i plays clip i mod C at its own time; with `blend` it cross-fades
-// to clip (i + 1) mod C at weight 0.5.
-std::vector<AnimInstance> Crowd(const SkinnedAsset& asset, const PackedAnimation& packed, int count, bool blend) {
+// Instance i plays clip i mod C at its own time; every `blend_every`-th
+// (0: none) cross-fades to clip (i + 1) mod C at weight 0.5 ("blend": all
+// of them; "fade3": every third, as the tuner's -animblend scenes).
+std::vector<AnimInstance> Crowd(const SkinnedAsset& asset, const PackedAnimation& packed, int count, int blend_every) {
   std::vector<AnimInstance> crowd(static_cast<std::size_t>(count));
   const int clips = static_cast<int>(packed.clips.size());
   for (int i = 0; i < count; ++i) {
@@ -66,7 +69,7 @@ std::vector<AnimInstance> Crowd(const SkinnedAsset& asset, const PackedAnimation
     AnimInstance& in = crowd[static_cast<std::size_t>(i)];
     in.clip = static_cast<std::uint16_t>(i % clips);
     in.time = static_cast<float>(clip.start + phase * clip.duration());
-    if (blend && clips > 1) {
+    if (blend_every > 0 && i % blend_every == 0 && clips > 1) {
       in.clip2 = static_cast<std::uint16_t>((i + 1) % clips);
       const auto& other = asset.animations[static_cast<std::size_t>(packed.clips[in.clip2])];
       in.time2 = static_cast<float>(other.start + phase * other.duration());
@@ -198,7 +201,12 @@ std::vector<Model> Models() {
 // `rate` > 0: the clips baked at that many frames a second.
 void RegisterCuda(const Model& m, int k, const char* form, double rate = 0.0, BakeSpace space = BakeSpace::kPalette) {
   char baked[32] = "";
-  if (rate > 0.0) std::snprintf(baked, sizeof baked, space == BakeSpace::kLocal ? "-local%g" : "-baked%g", rate);
+  if (rate > 0.0)
+    std::snprintf(baked, sizeof baked,
+                  space == BakeSpace::kHybrid  ? "-hybrid%g"
+                  : space == BakeSpace::kLocal ? "-local%g"
+                                               : "-baked%g",
+                  rate);
   const std::string name = "cuda/" + m.name + "/" + std::to_string(k) + "/" + form + baked;
   const std::string kind = form;
   benchmark::RegisterBenchmark(name.c_str(), [m, k, kind, rate, space](benchmark::State& state) {
@@ -209,7 +217,7 @@ void RegisterCuda(const Model& m, int k, const char* form, double rate = 0.0, Ba
       return;
     }
     const PackedAnimation packed = rate > 0.0 ? BakeAnimation(*m.asset, rate, space) : PackAnimation(*m.asset);
-    const std::vector<AnimInstance> crowd = Crowd(*m.asset, packed, k, kind == "blend");
+    const std::vector<AnimInstance> crowd = Crowd(*m.asset, packed, k, kind == "blend" ? 1 : kind == "fade3" ? 3 : 0);
     cuda->Load(packed, crowd);
     const int launches = kind == "one" ? 1 : kBurst;
     cuda->Time(launches);  // warm: the module's first launch
@@ -226,14 +234,14 @@ void RegisterHost(const Model& m, int k) {
   const std::string base = "host/" + m.name + "/" + std::to_string(k);
   benchmark::RegisterBenchmark((base + "/palette-at").c_str(), [m, k](benchmark::State& state) {
     const PackedAnimation packed = PackAnimation(*m.asset);
-    const std::vector<AnimInstance> crowd = Crowd(*m.asset, packed, k, false);
+    const std::vector<AnimInstance> crowd = Crowd(*m.asset, packed, k, 0);
     for (auto _ : state)
       for (const AnimInstance& in : crowd)
         benchmark::DoNotOptimize(m.asset->PaletteAt(packed.clips[in.clip], in.time));
   })->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark((base + "/cpu-kernel").c_str(), [m, k](benchmark::State& state) {
     const PackedAnimation packed = PackAnimation(*m.asset);
-    const std::vector<AnimInstance> crowd = Crowd(*m.asset, packed, k, false);
+    const std::vector<AnimInstance> crowd = Crowd(*m.asset, packed, k, 0);
     std::vector<float> rows(crowd.size() * packed.joints.size() * kAnimPaletteRows * 4);
     for (auto _ : state) {
       RunPaletteKernel(packed.View(), crowd, rows.data());
@@ -249,8 +257,8 @@ void ParseOptions(int& argc, char** argv) {
   app.add_option("--synthetic", options.synthetic, "a synthetic data-set key, for its rig (repeatable)");
   app.add_option("--instances", options.instances, "crowd sizes (repeatable)")->check(CLI::Range(1, 1 << 16));
   app.add_option("--bake-rate", options.bake_rates,
-                 "also time the clips baked at this many frames a second, as palette records (-baked) and local "
-                 "ones (-local) (repeatable)")
+                 "also time the clips baked at this many frames a second, as palette records (-baked), local "
+                 "ones (-local) and both (-hybrid) (repeatable)")
       ->check(CLI::Range(1e-3, kAnimMaxBakeRate));
   try {
     app.parse(argc, argv);
@@ -272,10 +280,10 @@ int main(int argc, char** argv) {
   try {
     for (const Model& m : Models()) {
       for (int k : options.instances) {
-        for (const char* form : {"one", "burst", "blend"}) RegisterCuda(m, k, form);
+        for (const char* form : {"one", "burst", "blend", "fade3"}) RegisterCuda(m, k, form);
         for (const double rate : options.bake_rates)
-          for (const BakeSpace space : {BakeSpace::kPalette, BakeSpace::kLocal})
-            for (const char* form : {"burst", "blend"}) RegisterCuda(m, k, form, rate, space);
+          for (const BakeSpace space : {BakeSpace::kPalette, BakeSpace::kLocal, BakeSpace::kHybrid})
+            for (const char* form : {"burst", "blend", "fade3"}) RegisterCuda(m, k, form, rate, space);
         RegisterHost(m, k);
       }
     }

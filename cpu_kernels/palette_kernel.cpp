@@ -284,6 +284,22 @@ std::string Number(float v) {
   return text;
 }
 
+// Every record of a's frames finite, its rotation of unit length; `buffer`
+// names the buffer in the message ("frames[F] joint J: ...").
+void ValidateRecords(const AnimationView& a, const char* buffer) {
+  const std::size_t joints = a.baked_items(), floats = 4 * std::size_t{a.baked_rows};
+  for (std::size_t r = 0; r < a.frames.size() / floats; ++r) {
+    const float* p = a.frames.data() + floats * r;
+    const std::string what = std::string("baked animation: ") + buffer + "[" + std::to_string(r / joints) +
+                             (a.baked_local ? "] node " : "] joint ") + std::to_string(r % joints);
+    for (std::size_t k = 0; k < floats; ++k)
+      if (!std::isfinite(p[k])) throw Error(what + ": " + Number(p[k]) + " is not finite");
+    const float length = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
+    if (std::fabs(length - 1.0f) > 1e-3f)
+      throw Error(what + ": rotation of length " + Number(length) + ", not a unit quaternion");
+  }
+}
+
 }  // namespace
 
 void ValidateAnimation(const AnimationView& a) {
@@ -317,6 +333,9 @@ void ValidateBakedAnimation(const AnimationView& a) {
   if (!a.baked()) return ValidateAnimation(a);
   const std::size_t joints = a.baked_items();
   if (a.joints.empty()) throw Error("baked animation: no joints");
+  if ((!a.steady.empty() || a.steady_rows != 0) && !a.baked_local)
+    throw Error("baked animation: steady records beside records not in local space (hybrid records are local "
+                "records with the same frames' palette records)");
   if (a.baked_local) {  // the kernel walks the hierarchy, as a sampled one does
     if (a.nodes.size() > kAnimMaxNodes)
       throw Error("baked animation: " + std::to_string(a.nodes.size()) + " nodes (the device palette kernels hold at most " +
@@ -349,16 +368,28 @@ void ValidateBakedAnimation(const AnimationView& a) {
       throw Error(what + ": frames " + std::to_string(first) + " .. " + std::to_string(first + frames) + " of " +
                   std::to_string(total) + " (frame 0 is the rest pose; at least 2 frames where the clip lasts)");
   }
-  for (std::size_t r = 0; r < total * joints; ++r) {
-    const float* p = a.frames.data() + floats * r;
-    const std::string what = "baked animation: frames[" + std::to_string(r / joints) +
-                             (a.baked_local ? "] node " : "] joint ") + std::to_string(r % joints);
-    for (std::size_t k = 0; k < floats; ++k)
-      if (!std::isfinite(p[k])) throw Error(what + ": " + Number(p[k]) + " is not finite");
-    const float length = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
-    if (std::fabs(length - 1.0f) > 1e-3f)
-      throw Error(what + ": rotation of length " + Number(length) + ", not a unit quaternion");
-  }
+  ValidateRecords(a, "frames");
+  if (a.steady.empty() && a.steady_rows == 0) return;
+  // Hybrid: palette records of the same frames beside the local ones.
+  const AnimationView steady = SteadyView(a);
+  if (steady.baked_rows != kBakedRowsSimilar && steady.baked_rows != kBakedRowsAffine)
+    throw Error("baked animation: steady records of " + std::to_string(steady.baked_rows) + " float4s (2 or 4)");
+  const std::size_t steady_floats = 4 * std::size_t{steady.baked_rows} * a.joints.size();
+  if (steady.frames.size() != total * steady_floats)
+    throw Error("baked animation: " + std::to_string(steady.frames.size()) + " steady floats, not the " +
+                std::to_string(total) + " frames of `frames` x " + std::to_string(a.joints.size()) + " joints x " +
+                std::to_string(4 * steady.baked_rows) + " floats");
+  ValidateRecords(steady, "steady");
+}
+
+AnimationView SteadyView(const AnimationView& a) {
+  AnimationView steady = a;
+  steady.frames = a.steady;
+  steady.baked_rows = a.steady_rows;
+  steady.baked_local = false;
+  steady.steady = {};
+  steady.steady_rows = 0;
+  return steady;
 }
 
 void ValidateAnimInstances(const AnimationView& a, std::span<const AnimInstance> instances) {
@@ -417,19 +448,27 @@ void RunPaletteKernel(const AnimationView& a, std::span<const AnimInstance> inst
       out[15] = 1.0f;
     }
   };
-  if (a.baked() && !a.baked_local) {
-    for (std::size_t i = 0; i < instances.size(); ++i) {
-      const AnimInstance& in = instances[i];
-      for (std::size_t j = 0; j < joints; ++j) {
-        Baked x = BakedSample(a, in.clip, in.time, j);
-        if (in.weight != 0.0f) x = BakedMix(x, BakedSample(a, in.clip2, in.time2, j), in.weight);
-        put(palette + stride * (i * joints + j), BakedAffine(x, a.baked_rows));
-      }
+  // Palette records: two a joint and clip. Hybrid: an instance that plays
+  // one clip reads the steady ones so, one that cross-fades walks its nodes.
+  const auto from_records = [&](const AnimationView& records, std::size_t i) {
+    const AnimInstance& in = instances[i];
+    for (std::size_t j = 0; j < joints; ++j) {
+      Baked x = BakedSample(records, in.clip, in.time, j);
+      if (in.weight != 0.0f) x = BakedMix(x, BakedSample(records, in.clip2, in.time2, j), in.weight);
+      put(palette + stride * (i * joints + j), BakedAffine(x, records.baked_rows));
     }
+  };
+  if (a.baked() && !a.baked_local) {
+    for (std::size_t i = 0; i < instances.size(); ++i) from_records(a, i);
     return;
   }
+  const AnimationView steady = SteadyView(a);
   std::vector<Affine> locals(a.nodes.size());
   for (std::size_t i = 0; i < instances.size(); ++i) {
+    if (!a.steady.empty() && instances[i].weight == 0.0f) {
+      from_records(steady, i);
+      continue;
+    }
     for (std::uint32_t n = 0; n < locals.size(); ++n) locals[n] = LocalOf(a, n, instances[i]);
     const auto local = [&](std::uint32_t n) -> const Affine& { return locals[n]; };
     for (std::size_t j = 0; j < joints; ++j) put(palette + stride * (i * joints + j), JointPalette(a, j, local));

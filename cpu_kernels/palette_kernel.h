@@ -121,6 +121,15 @@ struct AnimationView {
   // kBakedRowsLocalScaled), read with nodes and joints; channels, times and
   // values are not.
   bool baked_local = false;
+  // Local records with palette records beside them (BakeSpace::kHybrid,
+  // docs/ANIMATION.md "Hybrid records"): the same frames' palette records
+  // (steady_rows float4s a record, kBakedRowsSimilar or kBakedRowsAffine;
+  // one per (frame, joint), laid out as `frames` is for palette records),
+  // which an instance that plays one clip (weight 0) reads instead of
+  // walking the hierarchy; a cross-fading one mixes the local records.
+  // Empty: none.
+  std::span<const float> steady;
+  std::uint32_t steady_rows = 0;
 
   bool baked() const { return !frames.empty(); }
   // What a baked frame holds a record of: joints, or nodes (local space).
@@ -137,8 +146,13 @@ void ValidateAnimation(const AnimationView& animation);
 // buffer not of whole records for the joints (local space: the nodes, whose
 // hierarchy is checked as ValidateAnimation checks it), a clip's frames beyond it or
 // fewer than 1 (2 for a clip of some duration), a record not finite or with
-// a rotation not of unit length within 1e-3. Sampled: as ValidateAnimation.
+// a rotation not of unit length within 1e-3; `steady` records beside records
+// not in local space, or not of as many frames, or as `frames` is checked.
+// Sampled: as ValidateAnimation.
 void ValidateBakedAnimation(const AnimationView& animation);
+// A hybrid animation's steady records seen as palette records: frames =
+// steady, baked_rows = steady_rows, not local, no steady records of its own.
+AnimationView SteadyView(const AnimationView& animation);
 // Throws Error("instances[I]: ...") for a clip or clip2 (when weight != 0)
 // neither below clip_count nor kAnimRestPose, a time, time2 or weight that
 // is not finite, a weight outside [0, 1].
@@ -155,7 +169,8 @@ float AnimLoopTime(float t, float start, float end);
 void AdvanceAnimInstances(const AnimationView& animation, std::span<AnimInstance> states, float delta);
 
 // Writes instances.size() * joints * `rows` float4 rows to `palette`
-// (a baked animation: from its frames, templates/palette.cl's baked algorithm):
+// (a baked animation: from its frames, templates/palette.cl's baked algorithm;
+// hybrid: an instance of weight 0 from the steady records, as palette records):
 // instance i's joint j row r at float4 (i * joints + j) * rows + r; rows 3
 // (mat3x4) or 4 (mat4: a fourth row 0 0 0 1), else Error. Validates the instances
 // (ValidateAnimInstances, cheap); the animation must have passed

@@ -4,7 +4,7 @@
 //
 //   skin_animation MODEL.gltf|.glb|DATASET [MODEL...] [--db winners-db.json] [--device PATTERN]
 //                  [--seconds S] [--readback] [--instances K] [--palette-buffers N] [--host-palettes]
-//                  [--bake RATE [--bake-local]]
+//                  [--bake RATE [--bake-local | --bake-hybrid]]
 //
 // One model is animated on the device (Skinner::CreateAnimated, docs/ANIMATION.md):
 // each frame uploads every character's clip and time, 16 bytes a character, and the
@@ -24,7 +24,8 @@
 // SetPalette waits; 3 by default). --bake RATE bakes the model's clips at RATE frames a
 // second when the Skinner is made (SkinnerOptions::bake_rate, docs/ANIMATION.md "Baked
 // clips") and prints each clip's frames, bytes and largest error; --bake-local bakes
-// each node's local transform instead (SkinnerOptions::bake_space, "Baked in local space").
+// each node's local transform instead (SkinnerOptions::bake_space, "Baked in local space"),
+// --bake-hybrid both ("Hybrid records").
 #include <CLI/CLI.hpp>
 #include <skintune/skintune.h>
 
@@ -80,6 +81,12 @@ int main(int argc, char** argv) {
   app.add_flag("--bake-local", bake_local,
                "bake each node's local transform, not each joint's palette entry (SkinnerOptions::bake_space)")
       ->needs(bake);
+  bool bake_hybrid = false;
+  app.add_flag("--bake-hybrid", bake_hybrid,
+               "bake both: palette records for instances that play one clip, local ones for those that "
+               "cross-fade (SkinnerOptions::bake_space kHybrid)")
+      ->needs(bake)
+      ->excludes("--bake-local");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -89,6 +96,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (bake_local) options.bake_space = BakeSpace::kLocal;
+  if (bake_hybrid) options.bake_space = BakeSpace::kHybrid;
   std::vector<Model> models;
   std::vector<MeshView> meshes;
   for (const std::string& path : paths) {

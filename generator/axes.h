@@ -66,7 +66,7 @@ constexpr AxisValueSpec V(E value, const char* name, const char* token, int defi
 // The values of the full space, in order (enum axes: every enumerator, in the enum's order).
 class AxisValueList {
  public:
-  static constexpr std::size_t kCapacity = 10;
+  static constexpr std::size_t kCapacity = 14;
   constexpr AxisValueList() = default;
   constexpr AxisValueList(std::initializer_list<AxisValueSpec> values) {
     for (const AxisValueSpec& v : values) Add(v);
@@ -310,7 +310,10 @@ inline constexpr Axis kAxes[] = {
                 V(Animation::kBaked30, "baked30", "anim-baked30"), V(Animation::kBaked60, "baked60", "anim-baked60"),
                 V(Animation::kBaked120, "baked120", "anim-baked120"), V(Animation::kBaked240, "baked240", "anim-baked240"),
                 V(Animation::kLocal30, "local30", "anim-local30"), V(Animation::kLocal60, "local60", "anim-local60"),
-                V(Animation::kLocal120, "local120", "anim-local120"), V(Animation::kLocal240, "local240", "anim-local240")},
+                V(Animation::kLocal120, "local120", "anim-local120"), V(Animation::kLocal240, "local240", "anim-local240"),
+                V(Animation::kHybrid30, "hybrid30", "anim-hybrid30"), V(Animation::kHybrid60, "hybrid60", "anim-hybrid60"),
+                V(Animation::kHybrid120, "hybrid120", "anim-hybrid120"),
+                V(Animation::kHybrid240, "hybrid240", "anim-hybrid240")},
      .define = kNoDefine,  // the skin kernel is the same: the runner runs the palette kernel before it
      .covering = Covering::kRotated,
      .covering_step = 1,

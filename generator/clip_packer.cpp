@@ -153,12 +153,12 @@ void CheckCounts(const SkinnedAsset& asset, std::span<const int> clips) {
 
 AnimationView PackedAnimation::View() const {
   return AnimationView{static_cast<std::uint32_t>(clips.size()), nodes, channels, times, values, joints, clip_ranges,
-                       frames, baked_rows, baked_local};
+                       frames, baked_rows, baked_local, steady, steady_rows};
 }
 
 std::size_t PackedAnimation::Bytes() const {
-  if (baked_local) return BufferBytes(frames).size() + BufferBytes(clip_ranges).size() + BufferBytes(nodes).size() +
-                          BufferBytes(joints).size();
+  if (baked_local) return BufferBytes(frames).size() + BufferBytes(steady).size() + BufferBytes(clip_ranges).size() +
+                          BufferBytes(nodes).size() + BufferBytes(joints).size();
   if (!frames.empty()) return BufferBytes(frames).size() + BufferBytes(clip_ranges).size();
   return BufferBytes(nodes).size() + BufferBytes(channels).size() + BufferBytes(times).size() +
          BufferBytes(values).size() + BufferBytes(joints).size() + BufferBytes(clip_ranges).size();
@@ -312,13 +312,25 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> cl
   if (!(rate > 0.0) || rate > kAnimMaxBakeRate)
     throw Error(asset.source + ": bake rate " + Number(rate) + " frames a second, outside (0, " +
                 Number(kAnimMaxBakeRate) + "]");
+  if (space == BakeSpace::kHybrid) {  // both, of the same frames (one rate, one clip list)
+    PackedAnimation out = BakeAnimation(asset, clips, rate, BakeSpace::kLocal);
+    PackedAnimation palette = BakeAnimation(asset, clips, rate, BakeSpace::kPalette);
+    out.steady = std::move(palette.frames);
+    out.steady_rows = palette.baked_rows;
+    for (std::size_t c = 0; c < out.baked.size(); ++c) {
+      out.baked[c].bytes += palette.baked[c].bytes;
+      out.baked[c].max_error = std::max(out.baked[c].max_error, palette.baked[c].max_error);
+    }
+    ValidateBakedAnimation(out.View());
+    return out;
+  }
   PackedAnimation out = PackAnimation(asset, clips);  // every check of the clips and the skeleton
   out.channels.clear();
   out.times.clear();
   out.values.clear();
   out.clip_ranges.clear();
   out.bake_rate = rate;
-  out.baked_local = space == BakeSpace::kLocal;
+  out.baked_local = space == BakeSpace::kLocal;  // kHybrid returned above
   const std::size_t joints = out.View().baked_items();  // records a frame: joints, or nodes
   // The frames: the rest pose, then each clip's evenly spaced times. Their
   // records are made twice (below) rather than kept in float64 between the
@@ -415,8 +427,10 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, double rate, BakeSpace 
 PackedAnimation PackForm(const SkinnedAsset& asset, Animation form) {
   if (!AnimatesOnDevice(form)) throw Error(asset.source + ": animation 'host' packs no clips (the host uploads palettes)");
   const double rate = BakeRateOf(form);
-  return rate > 0.0 ? BakeAnimation(asset, rate, BakesLocally(form) ? BakeSpace::kLocal : BakeSpace::kPalette)
-                    : PackAnimation(asset);
+  const BakeSpace space = BakesHybrid(form)    ? BakeSpace::kHybrid
+                          : BakesLocally(form) ? BakeSpace::kLocal
+                                               : BakeSpace::kPalette;
+  return rate > 0.0 ? BakeAnimation(asset, rate, space) : PackAnimation(asset);
 }
 
 PackedAnimation PackAnimation(const SkinnedAsset& asset) {

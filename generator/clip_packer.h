@@ -61,7 +61,9 @@ struct PackedAnimation {
   std::vector<float> frames;                // buffer `frames` of baked clips (empty: sampled)
   std::uint32_t baked_rows = 0;             // float4s a baked record: kBakedRowsSimilar, kBakedRowsAffine
                                             // (kBakedRowsLocalScaled in local space)
-  bool baked_local = false;                 // records of nodes' local transforms (BakeSpace::kLocal)
+  bool baked_local = false;                 // records of nodes' local transforms (BakeSpace::kLocal, kHybrid)
+  std::vector<float> steady;                // buffer `steady` (BakeSpace::kHybrid): the frames' palette records
+  std::uint32_t steady_rows = 0;            // float4s a steady record (kBakedRowsSimilar, kBakedRowsAffine)
   std::vector<BakedClipInfo> baked;         // per packed clip, when baked
   double bake_rate = 0.0;                   // frames a second asked for (0: sampled)
   // Each channel left out and why ("animations[0] 'Wave': channels[3]
@@ -88,8 +90,10 @@ PackedAnimation PackAnimation(const SkinnedAsset& asset);
 // palette entry (the kernel reads one record a joint and frame, and mixes a
 // blend of two clips in the model's space), or each node's local transform
 // (the kernel composes the hierarchy, as for sampled clips, and mixes a blend
-// in each node's local space, as sampled clips do).
-enum class BakeSpace { kPalette, kLocal };
+// in each node's local space, as sampled clips do), or both (hybrid: an
+// instance that plays one clip reads palette records, one that cross-fades
+// mixes local ones; docs/ANIMATION.md "Hybrid records").
+enum class BakeSpace { kPalette, kLocal, kHybrid };
 
 // Every clip of `clips` baked (docs/ANIMATION.md "Baked clips"): its
 // palettes sampled in float64 (SkinnedAsset::PoseAt, Skeleton::PaletteD) at
@@ -101,7 +105,9 @@ enum class BakeSpace { kPalette, kLocal };
 // joints are packed as PackAnimation packs them, channels, times and values
 // not. In BakeSpace::kLocal, each node's local TRS at those frames instead
 // (records of 2 float4s where every scale is uniform, else 3), nodes and
-// joints packed for the kernel's walk. Throws Error("<source>: ...") for a
+// joints packed for the kernel's walk. In BakeSpace::kHybrid, the local
+// records with the palette records of the same frames as `steady`; each
+// clip's bytes are both's, its error the larger of both's. Throws Error("<source>: ...") for a
 // rate not in (0, kAnimMaxBakeRate], more than kMaxBakedFloats floats of
 // frames, a singular joint transform, and what PackAnimation throws for.
 PackedAnimation BakeAnimation(const SkinnedAsset& asset, std::span<const int> clips, double rate,
@@ -111,7 +117,7 @@ PackedAnimation BakeAnimation(const SkinnedAsset& asset, double rate,
 
 // Every clip packed in a variant's form of animation on the device: sampled
 // (PackAnimation), or baked at its rate in its space (BakeRateOf,
-// BakesLocally). Throws Error for Animation::kHost (nothing to pack).
+// BakesLocally, BakesHybrid). Throws Error for Animation::kHost (nothing to pack).
 PackedAnimation PackForm(const SkinnedAsset& asset, Animation form);
 
 // The bytes of one buffer of a PackedAnimation (or of instances), as uploaded.

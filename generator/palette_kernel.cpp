@@ -16,6 +16,7 @@ std::span<const std::uint8_t> AnimationBufferBytes(const AnimationView& animatio
                                            : name == kAnimInputs[4] ? bytes(animation.joints)
                                            : name == kAnimClips     ? bytes(animation.clip_ranges)
                                            : name == kAnimFrames    ? bytes(animation.frames)
+                                           : name == kAnimSteady    ? bytes(animation.steady)
                                                                     : std::span<const std::byte>();
   return {reinterpret_cast<const std::uint8_t*>(found.data()), found.size()};
 }
@@ -65,7 +66,8 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                {"ANIM_CLIP_COUNT", static_cast<long long>(animation.clip_count)},
                {"ANIM_PALETTE_ROWS", palette_rows},
                {"ANIM_GROUP", group},
-               {"ANIM_BAKED", BakedDefine(animation)}};
+               {"ANIM_BAKED", BakedDefine(animation)},
+               {"ANIM_STEADY", local ? static_cast<long long>(animation.steady_rows) : 0}};
   const auto buffer = [](const char* name, const char* format, std::size_t element, ArgumentDirection direction) {
     return KernelArgument{name, format, element, element, "", direction, ArgumentKind::kBuffer};
   };
@@ -82,9 +84,12 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                  {kAnimFresh, "u32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar}};
   const KernelArgument frames =
       buffer(kAnimFrames, "float4 records", 16 * std::size_t{animation.baked_rows}, ArgumentDirection::kIn);
-  if (local) {  // frames in place of channels, times and values: nodes, frames, joints, ...
+  if (local) {  // frames in place of channels, times and values: nodes, frames, [steady,] joints, ...
     k.arguments.erase(k.arguments.begin() + 1, k.arguments.begin() + 4);
     k.arguments.insert(k.arguments.begin() + 1, frames);
+    if (!animation.steady.empty())
+      k.arguments.insert(k.arguments.begin() + 2, buffer(kAnimSteady, "float4 records",
+                                                         16 * std::size_t{animation.steady_rows}, ArgumentDirection::kIn));
   } else if (baked) {  // frames in place of the five buffers of sampled clips
     k.arguments.erase(k.arguments.begin(), k.arguments.begin() + 5);
     k.arguments.insert(k.arguments.begin(), frames);
@@ -98,7 +103,10 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
 
   k.text = SpecialisedText(language.palette_template,
                            "the palette kernel of " + std::to_string(animation.clip_count) +
-                               (local ? " clips baked in local space" : baked ? " baked clips" : " clips"),
+                               (!animation.steady.empty() ? " clips baked in local space, with palette records"
+                                : local                     ? " clips baked in local space"
+                                : baked                     ? " baked clips"
+                                                            : " clips"),
                            k.defines);
   k.source_hash = SourceHash(k.text);
   return out;

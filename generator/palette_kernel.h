@@ -48,7 +48,10 @@ inline constexpr const char* kAnimInputs[] = {"nodes", "channels", "times", "val
 // instances, out_palette, clips, states, delta and fresh, in that order; one
 // baked in local space nodes, frames, joints, then the same (it walks the
 // hierarchy: its group, one item per node, is AnimBakedGroupFor(nodes)).
+// Hybrid records (AnimationView::steady) add `steady` after frames, and the
+// define ANIM_STEADY, the float4s a steady record (0: none).
 inline constexpr const char* kAnimFrames = "frames";
+inline constexpr const char* kAnimSteady = "steady";
 inline constexpr const char* kAnimOutput = "out_palette";
 inline constexpr const char* kAnimClips = "clips";
 inline constexpr const char* kAnimStates = "states";
@@ -56,7 +59,7 @@ inline constexpr const char* kAnimDelta = "delta";
 inline constexpr const char* kAnimFresh = "fresh";
 
 // The bytes of `animation`'s buffer that the palette kernel's argument
-// `name` binds: nodes, channels, times, values, joints, clips or frames;
+// `name` binds: nodes, channels, times, values, joints, clips, frames or steady;
 // empty for the per-frame `instances`, the kept `states` and the palette it
 // writes, which are the caller's (Runner::Animate), and for other names.
 std::span<const std::uint8_t> AnimationBufferBytes(const AnimationView& animation, std::string_view name);

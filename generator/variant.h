@@ -66,11 +66,14 @@ enum class NormalFormat { kF32, kOct16, kSnorm8 };
 // (baked*: one read a joint; a blend of two clips mixed in the model's
 // space), or each node's local transform (local*: the hierarchy composed
 // each frame; a blend mixed in local space, as sampled clips are;
-// BakesLocally). The skin kernel is the same; the frame runs the palette
+// BakesLocally), or both (hybrid*: an instance that plays one clip reads
+// palette records, one that cross-fades mixes local ones; BakesHybrid).
+// The skin kernel is the same; the frame runs the palette
 // kernel first. A scene's choice (the tuner's "-anim" scenes animate on the
 // device): never raced against host.
 enum class Animation {
-  kHost, kSampled, kBaked30, kBaked60, kBaked120, kBaked240, kLocal30, kLocal60, kLocal120, kLocal240
+  kHost, kSampled, kBaked30, kBaked60, kBaked120, kBaked240, kLocal30, kLocal60, kLocal120, kLocal240,
+  kHybrid30, kHybrid60, kHybrid120, kHybrid240
 };
 
 struct Variant {
@@ -116,16 +119,23 @@ constexpr bool AnimatesOnDevice(const Variant& v) { return AnimatesOnDevice(v.an
 // The frames a second its clips are baked at; 0: sampled (or the host's palettes).
 constexpr double BakeRateOf(Animation a) {
   switch (a) {
-    case Animation::kBaked30: case Animation::kLocal30: return 30.0;
-    case Animation::kBaked60: case Animation::kLocal60: return 60.0;
-    case Animation::kBaked120: case Animation::kLocal120: return 120.0;
-    case Animation::kBaked240: case Animation::kLocal240: return 240.0;
+    case Animation::kBaked30: case Animation::kLocal30: case Animation::kHybrid30: return 30.0;
+    case Animation::kBaked60: case Animation::kLocal60: case Animation::kHybrid60: return 60.0;
+    case Animation::kBaked120: case Animation::kLocal120: case Animation::kHybrid120: return 120.0;
+    case Animation::kBaked240: case Animation::kLocal240: case Animation::kHybrid240: return 240.0;
     default: return 0.0;
   }
 }
-// Whether its clips are baked as each node's local transform.
+// Whether its clips are baked with palette records beside local ones (hybrid*).
+constexpr bool BakesHybrid(Animation a) {
+  return a == Animation::kHybrid30 || a == Animation::kHybrid60 || a == Animation::kHybrid120 ||
+         a == Animation::kHybrid240;
+}
+// Whether its clips are baked as each node's local transform (local*, and
+// hybrid*, whose cross-fades mix local records).
 constexpr bool BakesLocally(Animation a) {
-  return a == Animation::kLocal30 || a == Animation::kLocal60 || a == Animation::kLocal120 || a == Animation::kLocal240;
+  return a == Animation::kLocal30 || a == Animation::kLocal60 || a == Animation::kLocal120 ||
+         a == Animation::kLocal240 || BakesHybrid(a);
 }
 
 // Whether the variant writes normals and tangents packed (not float32).

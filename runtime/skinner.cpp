@@ -454,13 +454,15 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
       FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::dual_quaternions: the palette kernel writes "
                                                    "matrices; animation on the device skins with linear blending only");
     const bool tuned = options.bake_rate == kBakeRateTuned;
-    const bool local = options.bake_space == skintune::BakeSpace::kLocal;
+    const bool hybrid = options.bake_space == skintune::BakeSpace::kHybrid;
+    const bool local = options.bake_space == skintune::BakeSpace::kLocal || hybrid;  // hybrid: local records too
     if (options.bake_space != skintune::BakeSpace::kPalette && !local)
       FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_space is " +
                                                 std::to_string(static_cast<int>(options.bake_space)) + ", not a BakeSpace");
     if (local && !(options.bake_rate > 0.0))
       FailWith(ErrorCode::kInvalidArgument,
-               call + ": SkinnerOptions::bake_space kLocal bakes clips at SkinnerOptions::bake_rate, which is " +
+               call + ": SkinnerOptions::bake_space " + (hybrid ? "kHybrid" : "kLocal") +
+                   " bakes clips at SkinnerOptions::bake_rate, which is " +
                    (tuned ? std::string("kBakeRateTuned (the tuned entry's form decides the space)")
                           : std::to_string(options.bake_rate) + " (sampled: nothing is baked)"));
     if (!tuned && options.bake_rate != 0.0 && !(options.bake_rate > 0.0 && options.bake_rate <= kMaxBakeRate))
@@ -476,7 +478,10 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     };
     const auto asked = [&] {
       return options.bake_rate > 0.0
-                 ? BakeAnimation(*asset, options.bake_rate, local ? internal::BakeSpace::kLocal : internal::BakeSpace::kPalette)
+                 ? BakeAnimation(*asset, options.bake_rate,
+                                 hybrid  ? internal::BakeSpace::kHybrid
+                                 : local ? internal::BakeSpace::kLocal
+                                         : internal::BakeSpace::kPalette)
                  : PackAnimation(*asset);
     };
     // The clips are packed (and checked) before anything goes to the device,
@@ -499,7 +504,8 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
                                                            : "sampled (kBakeRateTuned, and the entry was not tuned animated)");
     } else if (AnimatesOnDevice(im.variant) &&
                (BakeRateOf(im.variant.animation) != options.bake_rate ||
-                (options.bake_rate > 0.0 && BakesLocally(im.variant.animation) != local))) {
+                (options.bake_rate > 0.0 && (BakesLocally(im.variant.animation) != local ||
+                                             BakesHybrid(im.variant.animation) != hybrid)))) {
       im.selection.reason += std::string("; palettes made as SkinnerOptions::bake_rate asks, not as tuned (") +
                              Name(im.variant.animation) + "): kBakeRateTuned takes the tuned form";
     }

@@ -201,6 +201,9 @@ uint4 anim_advance(__global const float4* restrict clips, uint4 in, const float 
 // space"), a record is a node's local T R S at the frame: q, then t and a
 // uniform s (3), or q, t, then s per axis (4); the kernel mixes them as
 // above, then composes the hierarchy as the sampled kernel does (below).
+// Hybrid records (ANIM_STEADY 2 or 4, docs/ANIMATION.md "Hybrid records"):
+// the same frames' palette records too, in `steady`; an instance that plays
+// one clip reads those as the palette-record kernel does and walks nothing.
 #if ANIM_BAKED == 2
 #define ANIM_BAKED_ROWS 4u
 #elif ANIM_BAKED == 4
@@ -218,20 +221,16 @@ typedef struct {
   float4 q, ts, s0, s1;  // rotation (x, y, z, w); translation (and s); the stretch
 } Baked;
 
-Baked baked_record(__global const float4* restrict frames, const uint frame, const uint j) {
-  const size_t at = ANIM_BAKED_ROWS * ((size_t)frame * ANIM_BAKED_ITEMS + j);
+// Item j's record of `rows` float4s at `frame`, of `items` a frame (every
+// argument but frame and j a constant where it is called).
+Baked baked_record(__global const float4* restrict frames, const uint rows, const uint items, const uint frame,
+                   const uint j) {
+  const size_t at = rows * ((size_t)frame * items + j);
   Baked b;
   b.q = frames[at];
   b.ts = frames[at + 1u];
-#if ANIM_BAKED == 2
-  b.s0 = frames[at + 2u];
-  b.s1 = frames[at + 3u];
-#elif ANIM_BAKED == 4
-  b.s0 = frames[at + 2u];
-  b.s1 = (float4)(0.0f);
-#else
-  b.s0 = b.s1 = (float4)(0.0f);
-#endif
+  b.s0 = rows >= 3u ? frames[at + 2u] : (float4)(0.0f);
+  b.s1 = rows == 4u ? frames[at + 3u] : (float4)(0.0f);
   return b;
 }
 
@@ -246,28 +245,31 @@ Baked baked_mix(const Baked x, const Baked y, const float u) {
 }
 
 // Item j (a joint; a node in local space) of `clip` at time t, clamped to
-// the clip's range (start, end, frame count, first frame).
-Baked baked_sample(__global const float4* restrict frames, __global const float4* restrict clips, const uint clip,
-                   const float t, const uint j) {
-  if (clip == ANIM_REST_POSE) return baked_record(frames, 0u, j);
+// the clip's range (start, end, frame count, first frame), from records of
+// `rows` float4s, `items` a frame.
+Baked baked_sample(__global const float4* restrict frames, const uint rows, const uint items,
+                   __global const float4* restrict clips, const uint clip, const float t, const uint j) {
+  if (clip == ANIM_REST_POSE) return baked_record(frames, rows, items, 0u, j);
   const float4 range = clips[clip];
   const uint count = as_uint(range.z), first = as_uint(range.w);
-  if (count < 2u) return baked_record(frames, first, j);
+  if (count < 2u) return baked_record(frames, rows, items, first, j);
   const float length = range.y - range.x;
   const float u = length > 0.0f ? fmin(fmax((t - range.x) / length, 0.0f), 1.0f) * (float)(count - 1u) : 0.0f;
   const uint k = min((uint)u, count - 2u);
-  return baked_mix(baked_record(frames, first + k, j), baked_record(frames, first + k + 1u, j), u - (float)k);
+  return baked_mix(baked_record(frames, rows, items, first + k, j),
+                   baked_record(frames, rows, items, first + k + 1u, j), u - (float)k);
 }
-#endif  // ANIM_BAKED
 
-#if ANIM_BAKED == 1 || ANIM_BAKED == 2
-
-// The rows of R(q) S | t (a similarity: S = s I).
-Affine baked_affine(const Baked x) {
+// The rows of R(q) S | t of a palette record of `rows` float4s (2: a
+// similarity, S = s I).
+Affine baked_affine(const Baked x, const uint rows) {
   Trs trs;
   trs.t = (float4)(x.ts.xyz, 0.0f);
   trs.r = x.q;
-#if ANIM_BAKED == 2
+  if (rows != 4u) {
+    trs.s = (float4)(x.ts.w, x.ts.w, x.ts.w, 0.0f);
+    return anim_to_affine(trs);
+  }
   trs.s = (float4)(1.0f, 1.0f, 1.0f, 0.0f);
   const Affine r = anim_to_affine(trs);
   const float4 s_row0 = (float4)(x.s0.x, x.s0.w, x.s1.x, 0.0f), s_row1 = (float4)(x.s0.w, x.s0.y, x.s1.y, 0.0f);
@@ -277,11 +279,25 @@ Affine baked_affine(const Baked x) {
   m.row1 = r.row1.x * s_row0 + r.row1.y * s_row1 + r.row1.z * s_row2 + (float4)(0.0f, 0.0f, 0.0f, x.ts.y);
   m.row2 = r.row2.x * s_row0 + r.row2.y * s_row1 + r.row2.z * s_row2 + (float4)(0.0f, 0.0f, 0.0f, x.ts.z);
   return m;
-#else
-  trs.s = (float4)(x.ts.w, x.ts.w, x.ts.w, 0.0f);
-  return anim_to_affine(trs);
-#endif
 }
+
+// An instance's joint j from palette records of `rows` float4s: in clip,
+// mixed towards clip2's by the weight, written as `rows_out` float4 rows.
+void baked_palette_entry(__global const float4* restrict frames, const uint rows,
+                         __global const float4* restrict clips, const uint4 in, const uint j,
+                         __global float4* restrict out, const uint rows_out) {
+  const float w = as_float(in.w);
+  Baked x = baked_sample(frames, rows, ANIM_JOINT_COUNT, clips, in.x & 0xffffu, as_float(in.y), j);
+  if (w != 0.0f) x = baked_mix(x, baked_sample(frames, rows, ANIM_JOINT_COUNT, clips, in.x >> 16, as_float(in.z), j), w);
+  const Affine m = baked_affine(x, rows);
+  out[rows_out * j] = m.row0;
+  out[rows_out * j + 1u] = m.row1;
+  out[rows_out * j + 2u] = m.row2;
+  if (rows_out == 4u) out[rows_out * j + 3u] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+}
+#endif  // ANIM_BAKED
+
+#if ANIM_BAKED == 1 || ANIM_BAKED == 2
 
 __kernel __attribute__((reqd_work_group_size(ANIM_GROUP, 1, 1)))
 void skintune_palette(__global const float4* restrict frames, __global const uint4* restrict instances,
@@ -301,13 +317,7 @@ void skintune_palette(__global const float4* restrict frames, __global const uin
       for (uint r = 0u; r < rows; ++r) out[rows * j + r] = (float4)(NAN);
       continue;
     }
-    Baked x = baked_sample(frames, clips, in.x & 0xffffu, as_float(in.y), j);
-    if (w != 0.0f) x = baked_mix(x, baked_sample(frames, clips, in.x >> 16, as_float(in.z), j), w);
-    const Affine m = baked_affine(x);
-    out[rows * j] = m.row0;
-    out[rows * j + 1u] = m.row1;
-    out[rows * j + 2u] = m.row2;
-    if (rows == 4u) out[rows * j + 3u] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+    baked_palette_entry(frames, ANIM_BAKED_ROWS, clips, in, j, out, rows);
   }
   barrier(CLK_GLOBAL_MEM_FENCE);  // every item has read the state before it is kept
   if (in_group && item == 0u) states[i] = in;
@@ -319,6 +329,9 @@ __kernel __attribute__((reqd_work_group_size(ANIM_GROUP, 1, 1)))
 void skintune_palette(__global const float4* restrict nodes,
 #if ANIM_BAKED
                       __global const float4* restrict frames,
+#if ANIM_STEADY
+                      __global const float4* restrict steady,
+#endif
 #else
                       __global const uint4* restrict channels, __global const float* restrict times,
                       __global const float4* restrict values,
@@ -347,24 +360,35 @@ void skintune_palette(__global const float4* restrict nodes,
                     (as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
   if (in_group && !valid)
     for (uint r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = (float4)(NAN);
+#if ANIM_STEADY
+  // Hybrid records: an instance that plays one clip reads its joints'
+  // palette records, two a joint and no walk; one that cross-fades walks
+  // (uniform in the group: every item read the same state).
+  const int walk = valid && as_float(in.w) != 0.0f;
+  for (uint j = item; valid && !walk && j < joint_count; j += ANIM_GROUP)
+    baked_palette_entry(steady, ANIM_STEADY, clips, in, j, out, rows);
+#else
+  const int walk = valid;
+#endif
   // The item's first joint (its node, its inverse bind), loaded before the
   // nodes are: its latency overlaps theirs, where after the barrier it would
   // add a round trip to memory to every instance.
   float4 joint0 = (float4)(0.0f), joint1 = joint0, joint2 = joint0, joint3 = joint0;
-  if (valid && item < joint_count)
+  if (walk && item < joint_count)
     joint0 = joints[4u * item], joint1 = joints[4u * item + 1u], joint2 = joints[4u * item + 2u],
     joint3 = joints[4u * item + 3u];
 #if ANIM_BAKED
   // 1, 2: each node's local transform from its records around each clip's
   // time, mixed in local space (a fixed-matrix node: its matrix), all in parallel.
   const float w = as_float(in.w);
-  for (uint n = item; valid && n < node_count; n += ANIM_GROUP) {
+  for (uint n = item; walk && n < node_count; n += ANIM_GROUP) {
     Affine l;
     if (as_uint(nodes[4u * n].y) != 0u) {
       l.row0 = nodes[4u * n + 1u], l.row1 = nodes[4u * n + 2u], l.row2 = nodes[4u * n + 3u];
     } else {
-      Baked x = baked_sample(frames, clips, in.x & 0xffffu, as_float(in.y), n);
-      if (w != 0.0f) x = baked_mix(x, baked_sample(frames, clips, in.x >> 16, as_float(in.z), n), w);
+      Baked x = baked_sample(frames, ANIM_BAKED_ROWS, ANIM_BAKED_ITEMS, clips, in.x & 0xffffu, as_float(in.y), n);
+      if (w != 0.0f)
+        x = baked_mix(x, baked_sample(frames, ANIM_BAKED_ROWS, ANIM_BAKED_ITEMS, clips, in.x >> 16, as_float(in.z), n), w);
       Trs trs;
       trs.t = (float4)(x.ts.xyz, 0.0f);
       trs.r = x.q;
@@ -382,14 +406,14 @@ void skintune_palette(__global const float4* restrict nodes,
   }
 #else
   // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
-  for (uint task = item; valid && task < 3u * node_count; task += ANIM_GROUP) {
+  for (uint task = item; walk && task < 3u * node_count; task += ANIM_GROUP) {
     const uint node = task / 3u, path = task - 3u * node;
     local_rows[task] = anim_path(node_count, nodes, channels, times, values, node, path, in);
     if (path == 0u) local_parent[node] = as_int(nodes[4u * node].x);
   }
   barrier(CLK_LOCAL_MEM_FENCE);
   // 2: each node's local transform, T * R * S (a fixed-matrix node: its matrix), in place.
-  for (uint n = item; valid && n < node_count; n += ANIM_GROUP) {
+  for (uint n = item; walk && n < node_count; n += ANIM_GROUP) {
     Affine l;
     if (as_uint(nodes[4u * n].y) != 0u) {
       l.row0 = nodes[4u * n + 1u], l.row1 = nodes[4u * n + 2u], l.row2 = nodes[4u * n + 3u];
@@ -405,7 +429,7 @@ void skintune_palette(__global const float4* restrict nodes,
 #endif  // ANIM_BAKED
   barrier(CLK_LOCAL_MEM_FENCE);
   // 3: each joint's global transform, up its ancestors in local memory, then the inverse bind.
-  for (uint j = item; valid && j < joint_count; j += ANIM_GROUP) {
+  for (uint j = item; walk && j < joint_count; j += ANIM_GROUP) {
     if (j != item)
       joint0 = joints[4u * j], joint1 = joints[4u * j + 1u], joint2 = joints[4u * j + 2u], joint3 = joints[4u * j + 3u];
     const uint node = as_uint(joint0.x);

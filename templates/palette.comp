@@ -19,7 +19,18 @@
 // skin_params.h gives their defaults.
 #include "skin_params.h"
 
-#if ANIM_BAKED >= 3
+#if ANIM_BAKED >= 3 && ANIM_STEADY
+// Hybrid records (docs/ANIMATION.md "Hybrid records"): bindings 0 nodes,
+// 1 frames, 2 steady, 3 joints, 4 instances, 5 palette (output), 6 clips, 7 states.
+layout(std430, binding = 0) readonly buffer Nodes { vec4 nodes[]; };
+layout(std430, binding = 1) readonly buffer Frames { vec4 frames[]; };
+layout(std430, binding = 2) readonly buffer Steady { vec4 steady[]; };
+layout(std430, binding = 3) readonly buffer Joints { vec4 joints[]; };
+layout(std430, binding = 4) readonly buffer Instances { uvec4 instances[]; };
+layout(std430, binding = 5) writeonly buffer Palette { vec4 palette[]; };
+layout(std430, binding = 6) readonly buffer Clips { vec4 clips[]; };
+layout(std430, binding = 7) buffer States { uvec4 states[]; };
+#elif ANIM_BAKED >= 3
 // Clips baked in local space (docs/ANIMATION.md "Baked clips"): bindings 0
 // nodes, 1 frames, 2 joints, 3 instances, 4 palette (output), 5 clips, 6 states.
 layout(std430, binding = 0) readonly buffer Nodes { vec4 nodes[]; };
@@ -224,15 +235,21 @@ struct Baked {
   vec4 q, ts, s0, s1;  // rotation (x, y, z, w); translation (and s); the stretch
 };
 
-Baked baked_record(uint frame, uint j) {
-  uint at = kBakedRows * (frame * kBakedItems + j);
-#if ANIM_BAKED == 2
-  return Baked(frames[at], frames[at + 1u], frames[at + 2u], frames[at + 3u]);
-#elif ANIM_BAKED == 4
-  return Baked(frames[at], frames[at + 1u], frames[at + 2u], vec4(0.0));
-#else
-  return Baked(frames[at], frames[at + 1u], vec4(0.0), vec4(0.0));
+// Float4 k of `frames`, or (hybrid records) of `steady` (GLSL has no
+// pointers to pass the buffer).
+vec4 record_row(bool from_steady, uint k) {
+#if ANIM_STEADY
+  if (from_steady) return steady[k];
 #endif
+  return frames[k];
+}
+
+// Item j's record of `rows` vec4s at `frame`, of `items` a frame (palette.cl).
+Baked baked_record(bool from_steady, uint rows_, uint items, uint frame, uint j) {
+  uint at = rows_ * (frame * items + j);
+  return Baked(record_row(from_steady, at), record_row(from_steady, at + 1u),
+               rows_ >= 3u ? record_row(from_steady, at + 2u) : vec4(0.0),
+               rows_ == 4u ? record_row(from_steady, at + 3u) : vec4(0.0));
 }
 
 Baked baked_mix(Baked x, Baked y, float u) {
@@ -241,23 +258,22 @@ Baked baked_mix(Baked x, Baked y, float u) {
                x.s1 + u * (y.s1 - x.s1));
 }
 
-Baked baked_sample(uint clip, float t, uint j) {
-  if (clip == kRestPose) return baked_record(0u, j);
+Baked baked_sample(bool from_steady, uint rows_, uint items, uint clip, float t, uint j) {
+  if (clip == kRestPose) return baked_record(from_steady, rows_, items, 0u, j);
   vec4 range = clips[clip];
   uint count = floatBitsToUint(range.z), first = floatBitsToUint(range.w);
-  if (count < 2u) return baked_record(first, j);
+  if (count < 2u) return baked_record(from_steady, rows_, items, first, j);
   float length = range.y - range.x;
   float u = length > 0.0 ? min(max((t - range.x) / length, 0.0), 1.0) * float(count - 1u) : 0.0;
   uint k = min(uint(u), count - 2u);
-  return baked_mix(baked_record(first + k, j), baked_record(first + k + 1u, j), u - float(k));
+  return baked_mix(baked_record(from_steady, rows_, items, first + k, j),
+                   baked_record(from_steady, rows_, items, first + k + 1u, j), u - float(k));
 }
-#endif  // ANIM_BAKED
 
-#if ANIM_BAKED == 1 || ANIM_BAKED == 2
-
-// The rows of R(q) S | t (a similarity: S = s I).
-Affine baked_affine(Baked x) {
-#if ANIM_BAKED == 2
+// The rows of R(q) S | t of a palette record of `rows_` vec4s (2: a
+// similarity, S = s I).
+Affine baked_affine(Baked x, uint rows_) {
+  if (rows_ != 4u) return anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, vec4(x.ts.www, 0.0)));
   Affine r = anim_to_affine(Trs(vec4(0.0), x.q, vec4(1.0, 1.0, 1.0, 0.0)));
   vec4 s_row0 = vec4(x.s0.x, x.s0.w, x.s1.x, 0.0), s_row1 = vec4(x.s0.w, x.s0.y, x.s1.y, 0.0);
   vec4 s_row2 = vec4(x.s1.x, x.s1.y, x.s0.z, 0.0);
@@ -266,10 +282,23 @@ Affine baked_affine(Baked x) {
   m.row1 = r.row1.x * s_row0 + r.row1.y * s_row1 + r.row1.z * s_row2 + vec4(0.0, 0.0, 0.0, x.ts.y);
   m.row2 = r.row2.x * s_row0 + r.row2.y * s_row1 + r.row2.z * s_row2 + vec4(0.0, 0.0, 0.0, x.ts.z);
   return m;
-#else
-  return anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, vec4(x.ts.www, 0.0)));
-#endif
 }
+
+// An instance's joint j from palette records of `rows_` vec4s, written at
+// palette[base + rows * j ..] (palette.cl).
+void baked_palette_entry(bool from_steady, uint rows_, uvec4 in_, uint j, uint base) {
+  float w = uintBitsToFloat(in_.w);
+  Baked x = baked_sample(from_steady, rows_, joint_count, in_.x & 0xffffu, uintBitsToFloat(in_.y), j);
+  if (w != 0.0) x = baked_mix(x, baked_sample(from_steady, rows_, joint_count, in_.x >> 16, uintBitsToFloat(in_.z), j), w);
+  Affine m = baked_affine(x, rows_);
+  palette[base + rows * j] = m.row0;
+  palette[base + rows * j + 1u] = m.row1;
+  palette[base + rows * j + 2u] = m.row2;
+  if (rows == 4u) palette[base + rows * j + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
+}
+#endif  // ANIM_BAKED
+
+#if ANIM_BAKED == 1 || ANIM_BAKED == 2
 
 void main() {
   uint item = gl_LocalInvocationID.x, i = gl_WorkGroupID.y;
@@ -284,13 +313,7 @@ void main() {
       for (uint r = 0u; r < rows; ++r) palette[base + rows * j + r] = vec4(uintBitsToFloat(0x7fc00000u));
       continue;
     }
-    Baked x = baked_sample(in_.x & 0xffffu, uintBitsToFloat(in_.y), j);
-    if (w != 0.0) x = baked_mix(x, baked_sample(in_.x >> 16, uintBitsToFloat(in_.z), j), w);
-    Affine m = baked_affine(x);
-    palette[base + rows * j] = m.row0;
-    palette[base + rows * j + 1u] = m.row1;
-    palette[base + rows * j + 2u] = m.row2;
-    if (rows == 4u) palette[base + rows * j + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
+    baked_palette_entry(false, kBakedRows, in_, j, base);
   }
   barrier();  // every invocation has read the state before it is kept
   if (in_group && item == 0u) states[i] = in_;
@@ -333,9 +356,18 @@ void main() {
     vec4 nan = vec4(uintBitsToFloat(0x7fc00000u));
     for (uint r = item; r < joint_count * rows; r += uint(ANIM_GROUP)) palette[out_ + r] = nan;
   }
+#if ANIM_STEADY
+  // Hybrid records: an instance that plays one clip reads palette records,
+  // one that cross-fades walks (palette.cl).
+  bool walk = valid && uintBitsToFloat(in_.w) != 0.0;
+  for (uint j = item; valid && !walk && j < joint_count; j += uint(ANIM_GROUP))
+    baked_palette_entry(true, uint(ANIM_STEADY), in_, j, out_);
+#else
+  bool walk = valid;
+#endif
   // The invocation's first joint, loaded before the nodes are (palette.cl says why).
   vec4 joint0 = vec4(0.0), joint1 = joint0, joint2 = joint0, joint3 = joint0;
-  if (valid && item < joint_count) {
+  if (walk && item < joint_count) {
     joint0 = joints[4u * item];
     joint1 = joints[4u * item + 1u];
     joint2 = joints[4u * item + 2u];
@@ -344,13 +376,13 @@ void main() {
 #if ANIM_BAKED
   // 1, 2: each node's local transform from its records, mixed in local space (palette.cl).
   float w = uintBitsToFloat(in_.w);
-  for (uint n = item; valid && n < node_count; n += uint(ANIM_GROUP)) {
+  for (uint n = item; walk && n < node_count; n += uint(ANIM_GROUP)) {
     Affine l;
     if (floatBitsToUint(nodes[4u * n].y) != 0u) {
       l = Affine(nodes[4u * n + 1u], nodes[4u * n + 2u], nodes[4u * n + 3u]);
     } else {
-      Baked x = baked_sample(in_.x & 0xffffu, uintBitsToFloat(in_.y), n);
-      if (w != 0.0) x = baked_mix(x, baked_sample(in_.x >> 16, uintBitsToFloat(in_.z), n), w);
+      Baked x = baked_sample(false, kBakedRows, kBakedItems, in_.x & 0xffffu, uintBitsToFloat(in_.y), n);
+      if (w != 0.0) x = baked_mix(x, baked_sample(false, kBakedRows, kBakedItems, in_.x >> 16, uintBitsToFloat(in_.z), n), w);
 #if ANIM_BAKED == 4
       l = anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, x.s0));
 #else
@@ -364,7 +396,7 @@ void main() {
   }
 #else
   // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
-  for (uint task = item; valid && task < 3u * node_count; task += uint(ANIM_GROUP)) {
+  for (uint task = item; walk && task < 3u * node_count; task += uint(ANIM_GROUP)) {
     uint node = task / 3u, path = task - 3u * node;
     local_rows[task] = anim_path(node, path, in_);
     if (path == 0u) local_parent[node] = floatBitsToInt(nodes[4u * node].x);
@@ -372,7 +404,7 @@ void main() {
   memoryBarrierShared();
   barrier();
   // 2: each node's local transform, T * R * S (a fixed-matrix node: its matrix), in place.
-  for (uint n = item; valid && n < node_count; n += uint(ANIM_GROUP)) {
+  for (uint n = item; walk && n < node_count; n += uint(ANIM_GROUP)) {
     Affine l = floatBitsToUint(nodes[4u * n].y) != 0u
                    ? Affine(nodes[4u * n + 1u], nodes[4u * n + 2u], nodes[4u * n + 3u])
                    : anim_to_affine(Trs(local_rows[3u * n], local_rows[3u * n + 1u], local_rows[3u * n + 2u]));
@@ -384,7 +416,7 @@ void main() {
   memoryBarrierShared();
   barrier();
   // 3: each joint's global transform, up its ancestors in shared memory, then the inverse bind.
-  for (uint j = item; valid && j < joint_count; j += uint(ANIM_GROUP)) {
+  for (uint j = item; walk && j < joint_count; j += uint(ANIM_GROUP)) {
     if (j != item) {
       joint0 = joints[4u * j];
       joint1 = joints[4u * j + 1u];

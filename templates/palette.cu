@@ -214,16 +214,12 @@ struct Baked {
   float4 q, ts, s0, s1;  // rotation (x, y, z, w); translation (and s); the stretch
 };
 
-__device__ Baked baked_record(const float4* __restrict__ frames, const unsigned frame, const unsigned j) {
-  const unsigned long long at = ANIM_BAKED_ROWS * (static_cast<unsigned long long>(frame) * ANIM_BAKED_ITEMS + j);
-#if ANIM_BAKED == 2
-  return Baked{frames[at], frames[at + 1u], frames[at + 2u], frames[at + 3u]};
-#elif ANIM_BAKED == 4
-  return Baked{frames[at], frames[at + 1u], frames[at + 2u], make_float4(0.0f, 0.0f, 0.0f, 0.0f)};
-#else
+// Item j's record of `rows` float4s at `frame`, of `items` a frame (palette.cl).
+__device__ Baked baked_record(const float4* __restrict__ frames, const unsigned rows, const unsigned items,
+                              const unsigned frame, const unsigned j) {
+  const unsigned long long at = rows * (static_cast<unsigned long long>(frame) * items + j);
   const float4 zero = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
-  return Baked{frames[at], frames[at + 1u], zero, zero};
-#endif
+  return Baked{frames[at], frames[at + 1u], rows >= 3u ? frames[at + 2u] : zero, rows == 4u ? frames[at + 3u] : zero};
 }
 
 __device__ Baked baked_mix(const Baked& x, const Baked& y, const float u) {
@@ -232,29 +228,30 @@ __device__ Baked baked_mix(const Baked& x, const Baked& y, const float u) {
                x.s1 + u * (y.s1 - x.s1)};
 }
 
-__device__ Baked baked_sample(const float4* __restrict__ frames, const float4* __restrict__ clips,
-                              const unsigned clip, const float t, const unsigned j) {
-  if (clip == ANIM_REST_POSE) return baked_record(frames, 0u, j);
+__device__ Baked baked_sample(const float4* __restrict__ frames, const unsigned rows, const unsigned items,
+                              const float4* __restrict__ clips, const unsigned clip, const float t, const unsigned j) {
+  if (clip == ANIM_REST_POSE) return baked_record(frames, rows, items, 0u, j);
   const float4 range = clips[clip];
   const unsigned count = __float_as_uint(range.z), first = __float_as_uint(range.w);
-  if (count < 2u) return baked_record(frames, first, j);
+  if (count < 2u) return baked_record(frames, rows, items, first, j);
   const float length = range.y - range.x;
   const float u = length > 0.0f ? fminf(fmaxf((t - range.x) / length, 0.0f), 1.0f) * static_cast<float>(count - 1u)
                                 : 0.0f;
   const unsigned k = min(static_cast<unsigned>(u), count - 2u);
-  return baked_mix(baked_record(frames, first + k, j), baked_record(frames, first + k + 1u, j),
+  return baked_mix(baked_record(frames, rows, items, first + k, j), baked_record(frames, rows, items, first + k + 1u, j),
                    u - static_cast<float>(k));
 }
-#endif  // ANIM_BAKED
 
-#if ANIM_BAKED == 1 || ANIM_BAKED == 2
-
-// The rows of R(q) S | t (a similarity: S = s I).
-__device__ Affine baked_affine(const Baked& x) {
+// The rows of R(q) S | t of a palette record of `rows` float4s (2: a
+// similarity, S = s I).
+__device__ Affine baked_affine(const Baked& x, const unsigned rows) {
   Trs trs;
   trs.t = make_float4(x.ts.x, x.ts.y, x.ts.z, 0.0f);
   trs.r = x.q;
-#if ANIM_BAKED == 2
+  if (rows != 4u) {
+    trs.s = make_float4(x.ts.w, x.ts.w, x.ts.w, 0.0f);
+    return anim_to_affine(trs);
+  }
   trs.s = make_float4(1.0f, 1.0f, 1.0f, 0.0f);
   const Affine r = anim_to_affine(trs);
   const float4 s_row0 = make_float4(x.s0.x, x.s0.w, x.s1.x, 0.0f), s_row1 = make_float4(x.s0.w, x.s0.y, x.s1.y, 0.0f);
@@ -264,11 +261,26 @@ __device__ Affine baked_affine(const Baked& x) {
   m.row1 = r.row1.x * s_row0 + r.row1.y * s_row1 + r.row1.z * s_row2 + make_float4(0.0f, 0.0f, 0.0f, x.ts.y);
   m.row2 = r.row2.x * s_row0 + r.row2.y * s_row1 + r.row2.z * s_row2 + make_float4(0.0f, 0.0f, 0.0f, x.ts.z);
   return m;
-#else
-  trs.s = make_float4(x.ts.w, x.ts.w, x.ts.w, 0.0f);
-  return anim_to_affine(trs);
-#endif
 }
+
+// An instance's joint j from palette records of `rows` float4s, written as
+// `rows_out` float4 rows (palette.cl).
+__device__ void baked_palette_entry(const float4* __restrict__ frames, const unsigned rows,
+                                    const float4* __restrict__ clips, const uint4 in, const unsigned j,
+                                    float4* __restrict__ out, const unsigned rows_out) {
+  const float w = __uint_as_float(in.w);
+  Baked x = baked_sample(frames, rows, ANIM_JOINT_COUNT, clips, in.x & 0xffffu, __uint_as_float(in.y), j);
+  if (w != 0.0f)
+    x = baked_mix(x, baked_sample(frames, rows, ANIM_JOINT_COUNT, clips, in.x >> 16, __uint_as_float(in.z), j), w);
+  const Affine m = baked_affine(x, rows);
+  out[rows_out * j] = m.row0;
+  out[rows_out * j + 1u] = m.row1;
+  out[rows_out * j + 2u] = m.row2;
+  if (rows_out == 4u) out[rows_out * j + 3u] = make_float4(0.0f, 0.0f, 0.0f, 1.0f);
+}
+#endif  // ANIM_BAKED
+
+#if ANIM_BAKED == 1 || ANIM_BAKED == 2
 
 extern "C" __global__ void __launch_bounds__(ANIM_GROUP)
 skintune_palette(const float4* __restrict__ frames, const uint4* __restrict__ instances,
@@ -289,13 +301,7 @@ skintune_palette(const float4* __restrict__ frames, const uint4* __restrict__ in
       for (unsigned r = 0u; r < rows; ++r) out[rows * j + r] = make_float4(nan, nan, nan, nan);
       continue;
     }
-    Baked x = baked_sample(frames, clips, in.x & 0xffffu, __uint_as_float(in.y), j);
-    if (w != 0.0f) x = baked_mix(x, baked_sample(frames, clips, in.x >> 16, __uint_as_float(in.z), j), w);
-    const Affine m = baked_affine(x);
-    out[rows * j] = m.row0;
-    out[rows * j + 1u] = m.row1;
-    out[rows * j + 2u] = m.row2;
-    if (rows == 4u) out[rows * j + 3u] = make_float4(0.0f, 0.0f, 0.0f, 1.0f);
+    baked_palette_entry(frames, ANIM_BAKED_ROWS, clips, in, j, out, rows);
   }
   __syncthreads();  // every thread has read the state before it is kept
   if (in_group && item == 0u) states[i] = in;
@@ -307,6 +313,9 @@ extern "C" __global__ void __launch_bounds__(ANIM_GROUP)
 skintune_palette(const float4* __restrict__ nodes,
 #if ANIM_BAKED
                  const float4* __restrict__ frames,
+#if ANIM_STEADY
+                 const float4* __restrict__ steady,
+#endif
 #else
                  const uint4* __restrict__ channels, const float* __restrict__ times,
                  const float4* __restrict__ values,
@@ -336,21 +345,32 @@ skintune_palette(const float4* __restrict__ nodes,
     const float nan = __int_as_float(0x7fffffff);
     for (unsigned r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = make_float4(nan, nan, nan, nan);
   }
+#if ANIM_STEADY
+  // Hybrid records: an instance that plays one clip reads palette records,
+  // one that cross-fades walks (palette.cl).
+  const bool walk = valid && __uint_as_float(in.w) != 0.0f;
+  for (unsigned j = item; valid && !walk && j < joint_count; j += ANIM_GROUP)
+    baked_palette_entry(steady, ANIM_STEADY, clips, in, j, out, rows);
+#else
+  const bool walk = valid;
+#endif
   // The thread's first joint, loaded before the nodes are (palette.cl says why).
   float4 joint0 = make_float4(0.0f, 0.0f, 0.0f, 0.0f), joint1 = joint0, joint2 = joint0, joint3 = joint0;
-  if (valid && item < joint_count)
+  if (walk && item < joint_count)
     joint0 = joints[4u * item], joint1 = joints[4u * item + 1u], joint2 = joints[4u * item + 2u],
     joint3 = joints[4u * item + 3u];
 #if ANIM_BAKED
   // 1, 2: each node's local transform from its records, mixed in local space (palette.cl).
   const float w = __uint_as_float(in.w);
-  for (unsigned n = item; valid && n < node_count; n += ANIM_GROUP) {
+  for (unsigned n = item; walk && n < node_count; n += ANIM_GROUP) {
     Affine l;
     if (__float_as_uint(nodes[4u * n].y) != 0u) {
       l.row0 = nodes[4u * n + 1u], l.row1 = nodes[4u * n + 2u], l.row2 = nodes[4u * n + 3u];
     } else {
-      Baked x = baked_sample(frames, clips, in.x & 0xffffu, __uint_as_float(in.y), n);
-      if (w != 0.0f) x = baked_mix(x, baked_sample(frames, clips, in.x >> 16, __uint_as_float(in.z), n), w);
+      Baked x = baked_sample(frames, ANIM_BAKED_ROWS, ANIM_BAKED_ITEMS, clips, in.x & 0xffffu, __uint_as_float(in.y), n);
+      if (w != 0.0f)
+        x = baked_mix(x, baked_sample(frames, ANIM_BAKED_ROWS, ANIM_BAKED_ITEMS, clips, in.x >> 16,
+                                      __uint_as_float(in.z), n), w);
       Trs trs;
       trs.t = make_float4(x.ts.x, x.ts.y, x.ts.z, 0.0f);
       trs.r = x.q;
@@ -369,14 +389,14 @@ skintune_palette(const float4* __restrict__ nodes,
 #else
   const Animation a = {node_count, nodes, channels, times, values};
   // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
-  for (unsigned task = item; valid && task < 3u * node_count; task += ANIM_GROUP) {
+  for (unsigned task = item; walk && task < 3u * node_count; task += ANIM_GROUP) {
     const unsigned node = task / 3u, path = task - 3u * node;
     local_rows[task] = anim_path(a, node, path, in);
     if (path == 0u) local_parent[node] = __float_as_int(nodes[4u * node].x);
   }
   __syncthreads();
   // 2: each node's local transform, T * R * S (a fixed-matrix node: its matrix), in place.
-  for (unsigned n = item; valid && n < node_count; n += ANIM_GROUP) {
+  for (unsigned n = item; walk && n < node_count; n += ANIM_GROUP) {
     Affine l;
     if (__float_as_uint(nodes[4u * n].y) != 0u) {
       l.row0 = nodes[4u * n + 1u], l.row1 = nodes[4u * n + 2u], l.row2 = nodes[4u * n + 3u];
@@ -392,7 +412,7 @@ skintune_palette(const float4* __restrict__ nodes,
 #endif  // ANIM_BAKED
   __syncthreads();
   // 3: each joint's global transform, up its ancestors in shared memory, then the inverse bind.
-  for (unsigned j = item; valid && j < joint_count; j += ANIM_GROUP) {
+  for (unsigned j = item; walk && j < joint_count; j += ANIM_GROUP) {
     if (j != item)
       joint0 = joints[4u * j], joint1 = joints[4u * j + 1u], joint2 = joints[4u * j + 2u], joint3 = joints[4u * j + 3u];
     const unsigned node = __float_as_uint(joint0.x);

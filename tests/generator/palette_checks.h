@@ -75,7 +75,7 @@ inline void ExpectBlendsMatchTheGold(const RunPalettes& run, const std::string& 
   }
 }
 
-// Baked clips (BakeAnimation at 30 frames a second, in both spaces): every
+// Baked clips (BakeAnimation at 30 frames a second, in every space): every
 // clip alone at every kind of time, and two-clip blends, against the float64
 // evaluation of the baked frames.
 inline void ExpectBakedClipsMatchTheirFrames(const RunPalettes& run, const std::string& api) {
@@ -84,12 +84,15 @@ inline void ExpectBakedClipsMatchTheirFrames(const RunPalettes& run, const std::
     const PackedAnimation sampled = PackAnimation(*asset);
     const PackedAnimation baked = BakeAnimation(*asset, 30.0);
     const PackedAnimation local = BakeAnimation(*asset, 30.0, BakeSpace::kLocal);
+    const PackedAnimation hybrid = BakeAnimation(*asset, 30.0, BakeSpace::kHybrid);
     std::vector<AnimInstance> instances = EveryClipAlone(*asset, sampled);
     const std::vector<AnimInstance> blends = Blends(*asset, sampled);
     instances.insert(instances.end(), blends.begin(), blends.end());
     ExpectWithinBound(Name(*asset) + " " + api + " baked", CompareBaked(baked, instances, run(baked, instances)));
     ExpectWithinBound(Name(*asset) + " " + api + " baked in local space",
                       CompareLocalBaked(*asset, local, instances, run(local, instances)));
+    ExpectWithinBound(Name(*asset) + " " + api + " hybrid records",
+                      CompareHybrid(*asset, hybrid, instances, run(hybrid, instances)));
   }
 }
 

@@ -211,6 +211,28 @@ inline Pose LocalBakedGoldPose(const SkinnedAsset& asset, const PackedAnimation&
   return pose;
 }
 
+// A hybrid animation's palette records (PackedAnimation::steady) as a
+// packing of palette records, which the golds above read.
+inline PackedAnimation SteadyPart(const PackedAnimation& hybrid) {
+  PackedAnimation steady = hybrid;
+  steady.frames = hybrid.steady;
+  steady.baked_rows = hybrid.steady_rows;
+  steady.baked_local = false;
+  steady.steady.clear();
+  steady.steady_rows = 0;
+  return steady;
+}
+
+// An instance's float64 palette from baked clips of any form: palette
+// records; local ones (their pose's palette); hybrid: palette records for
+// an instance that plays one clip, local ones for one that cross-fades
+// (docs/ANIMATION.md "Hybrid records").
+inline std::vector<glm::dmat4> BakedGoldPaletteOf(const SkinnedAsset& asset, const PackedAnimation& baked,
+                                                  const AnimInstance& in) {
+  if (!baked.steady.empty() && in.weight == 0.0f) return BakedGoldPalette(SteadyPart(baked), in);
+  return baked.baked_local ? asset.skeleton.PaletteD(LocalBakedGoldPose(asset, baked, in)) : BakedGoldPalette(baked, in);
+}
+
 // K palettes of clips baked in local space against the float64 evaluation
 // of their frames (LocalBakedGoldPose), with the sampled kernel's bound.
 inline Worst CompareLocalBaked(const SkinnedAsset& asset, const PackedAnimation& baked,
@@ -244,6 +266,29 @@ inline Worst CompareBaked(const PackedAnimation& baked, const std::vector<AnimIn
     }
   }
   return worst;
+}
+
+// K palettes of hybrid records (docs/ANIMATION.md "Hybrid records"): the
+// instances that play one clip against their palette records
+// (CompareBaked), those that cross-fade against their local ones
+// (CompareLocalBaked); the worse of the two.
+inline Worst CompareHybrid(const SkinnedAsset& asset, const PackedAnimation& hybrid,
+                           const std::vector<AnimInstance>& instances, const std::vector<float>& rows) {
+  EXPECT_FALSE(hybrid.steady.empty());
+  const std::size_t per_instance = hybrid.joints.size() * 12;
+  EXPECT_EQ(rows.size(), instances.size() * per_instance);
+  std::vector<AnimInstance> steady, fading;
+  std::vector<float> steady_rows, fading_rows;
+  for (std::size_t i = 0; i < instances.size() && rows.size() == instances.size() * per_instance; ++i) {
+    const bool one_clip = instances[i].weight == 0.0f;
+    (one_clip ? steady : fading).push_back(instances[i]);
+    std::vector<float>& to = one_clip ? steady_rows : fading_rows;
+    to.insert(to.end(), rows.begin() + static_cast<std::ptrdiff_t>(i * per_instance),
+              rows.begin() + static_cast<std::ptrdiff_t>((i + 1) * per_instance));
+  }
+  const Worst a = CompareBaked(SteadyPart(hybrid), steady, steady_rows);
+  const Worst b = CompareLocalBaked(asset, hybrid, fading, fading_rows);
+  return a.ratio >= b.ratio ? a : b;
 }
 
 // ------------------------------------------------------------- the instances

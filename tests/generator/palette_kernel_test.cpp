@@ -41,6 +41,7 @@ namespace skintune::internal {
 namespace {
 
 using testing::BakedGoldPalette;
+using testing::BakedGoldPaletteOf;
 using testing::Blends;
 using testing::ExpectBakedClipsMatchTheirFrames;
 using testing::ExpectBlendsMatchTheGold;
@@ -326,12 +327,6 @@ double SkinDistance(const SkinnedMesh& mesh, const std::vector<glm::dmat4>& bake
   return worst;
 }
 
-// An instance's float64 palette from baked clips in either space.
-std::vector<glm::dmat4> BakedPaletteOf(const SkinnedAsset& asset, const PackedAnimation& baked, const AnimInstance& in) {
-  return baked.baked_local ? asset.skeleton.PaletteD(testing::LocalBakedGoldPose(asset, baked, in))
-                           : BakedGoldPalette(baked, in);
-}
-
 // The stated error (BakedClipInfo::max_error, measured at the frames and 1/4,
 // 1/2, 3/4 between them) holds at other times too, within 25%, and falls with
 // the rate (4x the rate, at least 2x less: linearly where a LINEAR clip's
@@ -359,7 +354,7 @@ TEST(PaletteKernelBaked, StatesEachClipsMemoryAndErrorWhichHoldsBetweenItsChecks
         const double t = clip.start + std::uniform_real_distribution<double>(0.0, 1.0)(random) * clip.duration();
         const AnimInstance in{static_cast<std::uint16_t>(c), kAnimRestPose, static_cast<float>(t), 0.0f, 0.0f};
         const std::vector<glm::dmat4> exact = asset->skeleton.PaletteD(asset->PoseAt(static_cast<int>(c), in.time));
-        worst = std::max(worst, SkinDistance(mesh, BakedPaletteOf(*asset, coarse, in), exact));
+        worst = std::max(worst, SkinDistance(mesh, BakedGoldPaletteOf(*asset, coarse, in), exact));
       }
       std::printf("[ baked    ] %s %s%s: %u frames, %zu bytes at 30/s; stated error %.3g (120/s: %.3g), at random "
                   "times %.3g\n",
@@ -417,8 +412,8 @@ TEST(PaletteKernelBaked, LocalRecordsBlendTwoClipsAsSampledClipsDo) {
     for (const AnimInstance& in : testing::Blends(*asset, sampled)) {
       if (in.weight == 0.0f) continue;
       const std::vector<glm::dmat4> exact = asset->skeleton.PaletteD(testing::GoldPose(*asset, sampled, in));
-      palette_blend = std::max(palette_blend, SkinDistance(asset->mesh, BakedPaletteOf(*asset, palette, in), exact));
-      local_blend = std::max(local_blend, SkinDistance(asset->mesh, BakedPaletteOf(*asset, local, in), exact));
+      palette_blend = std::max(palette_blend, SkinDistance(asset->mesh, BakedGoldPaletteOf(*asset, palette, in), exact));
+      local_blend = std::max(local_blend, SkinDistance(asset->mesh, BakedGoldPaletteOf(*asset, local, in), exact));
     }
     std::printf("[ baked    ] %s blends at 120/s: palette records %.3g, local records %.3g (a clip alone: %.3g)\n",
                 Name(*asset).c_str(), palette_blend, local_blend, baking);
@@ -441,7 +436,7 @@ TEST(PaletteKernelBaked, LocalRecordsKeepEachAxissScaleAndEmitTheirOwnKernel) {
   EXPECT_EQ(local.Bytes(), local.frames.size() * 4 + local.clip_ranges.size() * 4 +
                                local.nodes.size() * sizeof(AnimNodeRecord) + local.joints.size() * sizeof(AnimJointRecord));
   const AnimInstance at_frame{0, kAnimRestPose, local.clip_ranges[0], 0.0f, 0.0f};
-  const std::vector<glm::dmat4> baked = BakedPaletteOf(asset, local, at_frame);
+  const std::vector<glm::dmat4> baked = BakedGoldPaletteOf(asset, local, at_frame);
   const std::vector<glm::dmat4> exact = asset.skeleton.PaletteD(asset.PoseAt(0, at_frame.time));
   for (std::size_t j = 0; j < baked.size(); ++j)
     for (int c = 0; c < 4; ++c)
@@ -480,6 +475,83 @@ TEST(PaletteKernelBaked, LocalRecordsKeepEachAxissScaleAndEmitTheirOwnKernel) {
   EXPECT_THROW(PackForm(TestAsset("Fox.gltf"), Animation::kHost), Error);
 }
 
+// What ValidateBakedAnimation says of `from` spoiled by spoil(packing).
+template <typename Spoil>
+std::string ValidationErrorAfter(const PackedAnimation& from, Spoil&& spoil) {
+  PackedAnimation bad = from;
+  spoil(bad);
+  try {
+    ValidateBakedAnimation(bad.View());
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+// Hybrid records (docs/ANIMATION.md "Hybrid records"): the local records
+// and the palette records of the same frames, each clip's bytes both's and
+// its stated error the larger; the kernel takes `steady` after frames and
+// says its records' rows (ANIM_STEADY); ValidateBakedAnimation checks the
+// steady records as it checks frames, naming them.
+TEST(PaletteKernelBaked, HybridRecordsHoldBothRecordsOfTheSameFramesAndStateBoth) {
+  for (const SkinnedAsset* asset : {&TestAsset("Fox.gltf"), &TestAsset("2000-b4")}) {
+    const PackedAnimation palette = BakeAnimation(*asset, 30.0), local = BakeAnimation(*asset, 30.0, BakeSpace::kLocal);
+    const PackedAnimation hybrid = BakeAnimation(*asset, 30.0, BakeSpace::kHybrid);
+    EXPECT_TRUE(hybrid.baked_local);
+    EXPECT_EQ(hybrid.frames, local.frames);
+    EXPECT_EQ(hybrid.baked_rows, local.baked_rows);
+    EXPECT_EQ(hybrid.steady, palette.frames);
+    EXPECT_EQ(hybrid.steady_rows, palette.baked_rows);
+    EXPECT_EQ(hybrid.clip_ranges, local.clip_ranges);
+    EXPECT_EQ(hybrid.Bytes(), local.Bytes() + palette.frames.size() * 4);
+    ASSERT_EQ(hybrid.baked.size(), local.baked.size());
+    for (std::size_t c = 0; c < hybrid.baked.size(); ++c) {
+      EXPECT_EQ(hybrid.baked[c].frames, local.baked[c].frames);
+      EXPECT_EQ(hybrid.baked[c].bytes, local.baked[c].bytes + palette.baked[c].bytes);
+      EXPECT_EQ(hybrid.baked[c].max_error, std::max(local.baked[c].max_error, palette.baked[c].max_error));
+    }
+    // The gold: an instance of one clip is its palette records', one that cross-fades its local records'.
+    const AnimInstance one{0, kAnimRestPose, 0.37f, 0.0f, 0.0f}, fading{0, 0, 0.37f, 0.11f, 0.4f};
+    EXPECT_EQ(BakedGoldPaletteOf(*asset, hybrid, one), BakedGoldPaletteOf(*asset, palette, one));
+    EXPECT_EQ(BakedGoldPaletteOf(*asset, hybrid, fading), BakedGoldPaletteOf(*asset, local, fading));
+    for (Lang lang : {Lang::kOpenCl, Lang::kCuda, Lang::kGlslCompute, Lang::kVulkan, Lang::kCpu}) {
+      const PaletteKernel kernel = EmitPalette(lang, hybrid.View(), 3);
+      EXPECT_EQ(kernel.kernel.launch.wg_size, AnimBakedGroupFor(hybrid.nodes.size())) << Name(lang);
+      EXPECT_NE(kernel.kernel.text.find("#define ANIM_STEADY " + std::to_string(palette.baked_rows) + "\n"),
+                std::string::npos)
+          << Name(lang);
+      std::vector<std::string> buffers;
+      for (const KernelArgument& a : kernel.kernel.arguments)
+        if (a.kind == ArgumentKind::kBuffer) buffers.push_back(a.name);
+      EXPECT_EQ(buffers, (std::vector<std::string>{kAnimInputs[0], kAnimFrames, kAnimSteady, kAnimInputs[4],
+                                                   kAnimInputs[5], kAnimOutput, kAnimClips, kAnimStates}))
+          << Name(lang);
+      EXPECT_NE(EmitPalette(lang, local.View(), 3).kernel.text.find("#define ANIM_STEADY 0\n"), std::string::npos);
+    }
+  }
+  EXPECT_TRUE(BakesHybrid(Animation::kHybrid120));
+  EXPECT_TRUE(BakesLocally(Animation::kHybrid120));  // its cross-fades mix local records
+  EXPECT_FALSE(BakesHybrid(Animation::kLocal120));
+  EXPECT_EQ(BakeRateOf(Animation::kHybrid30), 30.0);
+  const PackedAnimation formed = PackForm(TestAsset("Fox.gltf"), Animation::kHybrid60);
+  EXPECT_EQ(formed.bake_rate, 60.0);
+  EXPECT_FALSE(formed.steady.empty());
+
+  const PackedAnimation hybrid = BakeAnimation(TestAsset("Fox.gltf"), 30.0, BakeSpace::kHybrid);
+  EXPECT_NO_THROW(ValidateBakedAnimation(hybrid.View()));
+  const auto error_of = [&](auto&& spoil) { return ValidationErrorAfter(hybrid, spoil); };
+  const std::size_t frame1 = 8 * hybrid.joints.size();
+  EXPECT_EQ(error_of([&](PackedAnimation& p) { p.steady[frame1 + 8 * 4 + 5] = NAN; }),
+            "baked animation: steady[1] joint 4: nan is not finite");
+  EXPECT_EQ(error_of([](PackedAnimation& p) { p.steady_rows = kBakedRowsLocalScaled; }),
+            "baked animation: steady records of 3 float4s (2 or 4)");
+  EXPECT_NE(error_of([](PackedAnimation& p) { p.steady.resize(p.steady.size() - 8 * p.joints.size()); })
+                .find("steady floats, not the"),
+            std::string::npos);
+  EXPECT_NE(error_of([](PackedAnimation& p) { p.baked_local = false; }).find("steady records beside records not in local"),
+            std::string::npos);
+}
+
 TEST(PaletteKernelBaked, RefusesBadRatesAndBadFramesNamingTheElement) {
   const SkinnedAsset& fox = TestAsset("Fox.gltf");
   for (const double rate : {0.0, -30.0, double{NAN}, double{INFINITY}, 1001.0})
@@ -493,18 +565,7 @@ TEST(PaletteKernelBaked, RefusesBadRatesAndBadFramesNamingTheElement) {
   }
   const PackedAnimation good = BakeAnimation(fox, 30.0);
   EXPECT_NO_THROW(ValidateBakedAnimation(good.View()));
-  // What ValidateBakedAnimation says of `from` spoiled.
-  const auto error_after = [](const PackedAnimation& from, auto&& spoil) {
-    PackedAnimation bad = from;
-    spoil(bad);
-    try {
-      ValidateBakedAnimation(bad.View());
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
-  const auto error_of = [&](auto&& spoil) { return error_after(good, spoil); };
+  const auto error_of = [&](auto&& spoil) { return ValidationErrorAfter(good, spoil); };
   EXPECT_NE(error_of([](PackedAnimation& p) { p.frames[8 * 30 + 3] = 2.0f; })
                 .find("baked animation: frames[1] joint 6: rotation of length 2.0"),
             std::string::npos);
@@ -519,7 +580,7 @@ TEST(PaletteKernelBaked, RefusesBadRatesAndBadFramesNamingTheElement) {
   // Local records: named by node, of 2 or 3 rows, over a hierarchy without cycles.
   const PackedAnimation local = BakeAnimation(fox, 30.0, BakeSpace::kLocal);
   EXPECT_NO_THROW(ValidateBakedAnimation(local.View()));
-  const auto local_error_of = [&](auto&& spoil) { return error_after(local, spoil); };
+  const auto local_error_of = [&](auto&& spoil) { return ValidationErrorAfter(local, spoil); };
   const std::size_t frame1 = 8 * local.nodes.size();
   EXPECT_EQ(local_error_of([&](PackedAnimation& p) { p.frames[frame1 + 8 * 5 + 6] = INFINITY; }),
             "baked animation: frames[1] node 5: inf is not finite");

@@ -180,6 +180,10 @@ TEST(Selection, ACrossFadingCrowdTakesItsOwnEntriesFirstAndNoUnblendedPaletteRec
   EXPECT_NE(local.selection.reason.find("tuned on a crowd that does not cross-fade clips"), std::string::npos)
       << local.selection.reason;
   EXPECT_EQ(Select({steady}, r).selection.level, MatchLevel::kGenericDefault);
+  // Hybrid records tuned on a steady crowd mix a cross-fade's local records: they serve it, as local ones do.
+  WinnersEntry steady_hybrid = Entry(id, "Example", "gpu", "opencl.b2.soa.wg64.anim-hybrid120", "100k", 0.55);
+  steady_hybrid.source_error = steady.source_error;
+  EXPECT_EQ(Select({steady, steady_hybrid}, r).variant, steady_hybrid.variant);
   r.tuned_form = false;  // the caller's own form: only the skin kernel is the entry's
   EXPECT_EQ(Select({steady}, r).variant, steady.variant);
   r.cross_fades = false;

@@ -46,8 +46,10 @@ struct AnimatedCase {
   skintune::BakeSpace bake_space = skintune::BakeSpace::kPalette;  // SkinnerOptions::bake_space
 };
 bool BakedLocally(const AnimatedCase& c) { return c.bake_rate > 0.0 && c.bake_space == skintune::BakeSpace::kLocal; }
+bool BakedHybrid(const AnimatedCase& c) { return c.bake_rate > 0.0 && c.bake_space == skintune::BakeSpace::kHybrid; }
 void PrintTo(const AnimatedCase& c, std::ostream* out) {
-  *out << c.variant << " " << c.model << (BakedLocally(c) ? " baked locally" : c.bake_rate > 0.0 ? " baked" : "");
+  *out << c.variant << " " << c.model
+       << (BakedHybrid(c) ? " baked hybrid" : BakedLocally(c) ? " baked locally" : c.bake_rate > 0.0 ? " baked" : "");
 }
 
 class SkinnerAnimated : public testing::BackendFixture<AnimatedCase> {
@@ -135,20 +137,18 @@ class SkinnerAnimated : public testing::BackendFixture<AnimatedCase> {
     ASSERT_TRUE(read.ok()) << read.message();
     const PackedAnimation packed = PackAnimation(Asset());
     const double rate = GetParam().bake_rate;
-    const bool local = BakedLocally(GetParam());
-    const PackedAnimation baked =
-        rate > 0.0 ? BakeAnimation(Asset(), rate, local ? internal::BakeSpace::kLocal : internal::BakeSpace::kPalette)
-                   : PackedAnimation{};
+    const internal::BakeSpace space = BakedHybrid(GetParam())    ? internal::BakeSpace::kHybrid
+                                      : BakedLocally(GetParam()) ? internal::BakeSpace::kLocal
+                                                                 : internal::BakeSpace::kPalette;
+    const PackedAnimation baked = rate > 0.0 ? BakeAnimation(Asset(), rate, space) : PackedAnimation{};
     const SkinnedMesh quantised = QuantisedMesh(mesh, variant);
     for (std::size_t k = 0; k < expected.size(); ++k) {
       const AnimInstance& in = expected[k];
       // Baked clips: the float64 evaluation of their frames (how far that is
       // from the sampled gold is BakedClipInfo's, tested with the kernels).
       std::vector<glm::mat4> palette;
-      if (local) {
-        palette = Asset().skeleton.Palette(testing::LocalBakedGoldPose(Asset(), baked, in));
-      } else if (rate > 0.0) {
-        for (const glm::dmat4& m : testing::BakedGoldPalette(baked, in)) palette.emplace_back(m);
+      if (rate > 0.0) {
+        for (const glm::dmat4& m : testing::BakedGoldPaletteOf(Asset(), baked, in)) palette.emplace_back(m);
       } else {
         palette = Asset().skeleton.Palette(GoldPose(Asset(), packed, in));
       }
@@ -384,15 +384,19 @@ TEST(SkinnerAnimatedModel, ABakeRateOutsideItsRangeIsRefusedNamingIt) {
   }
   // A space is what a rate bakes: with nothing baked, or the tuned entry deciding, it is refused, not ignored.
   for (const double rate : {0.0, kBakeRateTuned}) {
-    SkinnerOptions options;
-    options.bake_rate = rate;
-    options.bake_space = skintune::BakeSpace::kLocal;
-    const Result<Skinner> skinner = Skinner::CreateAnimated(*device, WinnersDb::Empty(), *model, options);
-    ASSERT_FALSE(skinner.ok()) << rate;
-    EXPECT_EQ(skinner.status().code(), ErrorCode::kInvalidArgument);
-    EXPECT_NE(skinner.status().message().find("SkinnerOptions::bake_space kLocal bakes clips at SkinnerOptions::bake_rate"),
-              std::string::npos)
-        << skinner.status().message();
+    for (const auto& [space, name] : {std::pair{skintune::BakeSpace::kLocal, "kLocal"},
+                                      std::pair{skintune::BakeSpace::kHybrid, "kHybrid"}}) {
+      SkinnerOptions options;
+      options.bake_rate = rate;
+      options.bake_space = space;
+      const Result<Skinner> skinner = Skinner::CreateAnimated(*device, WinnersDb::Empty(), *model, options);
+      ASSERT_FALSE(skinner.ok()) << rate;
+      EXPECT_EQ(skinner.status().code(), ErrorCode::kInvalidArgument);
+      EXPECT_NE(skinner.status().message().find(std::string("SkinnerOptions::bake_space ") + name +
+                                                " bakes clips at SkinnerOptions::bake_rate"),
+                std::string::npos)
+          << skinner.status().message();
+    }
   }
   SkinnerOptions bad_space;
   bad_space.bake_rate = 30.0;
@@ -483,6 +487,22 @@ TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsk
     ASSERT_TRUE(own.ok()) << own.status().message();
     EXPECT_NE(own->selection().reason.find("not as tuned (local60)"), std::string::npos) << own->selection().reason;
   }
+  {  // hybrid records: both, their bytes together; the same rate as local records only is not the tuned form
+    const Result<Skinner> skinner = Skinner::CreateAnimated(*device, database(".anim-hybrid60"), *model, options);
+    ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+    const PackedAnimation hybrid = BakeAnimation(TestAsset("Fox.gltf"), 60.0, internal::BakeSpace::kHybrid);
+    ASSERT_EQ(skinner->baked_clips().size(), hybrid.baked.size());
+    EXPECT_EQ(skinner->baked_clips()[0].bytes, hybrid.baked[0].bytes);
+    EXPECT_EQ(skinner->animation_bytes(), hybrid.Bytes());
+    EXPECT_NE(skinner->selection().reason.find("made as tuned: hybrid60"), std::string::npos)
+        << skinner->selection().reason;
+    SkinnerOptions local_space = options;
+    local_space.bake_rate = 60.0;
+    local_space.bake_space = skintune::BakeSpace::kLocal;
+    const Result<Skinner> own = Skinner::CreateAnimated(*device, database(".anim-hybrid60"), *model, local_space);
+    ASSERT_TRUE(own.ok()) << own.status().message();
+    EXPECT_NE(own->selection().reason.find("not as tuned (hybrid60)"), std::string::npos) << own->selection().reason;
+  }
   {  // a rate of the caller's own: the entry's form is not taken, and the reason says so
     SkinnerOptions sampled = options;
     sampled.bake_rate = 0.0;
@@ -541,11 +561,21 @@ std::vector<AnimatedCase> Cases() {
           {Backend::kGl, "glsl-compute.b4.aos.constant", "Fox.gltf", 30.0, skintune::BakeSpace::kLocal},
           {Backend::kGl, "glsl-vertex.b4.soa", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kLocal},
           {Backend::kVulkan, "vulkan.b4.soa-split.local", "Fox.gltf", 30.0, skintune::BakeSpace::kLocal},
-          {Backend::kCpu, "cpu.b4.aos.mat4", "Fox.gltf", 60.0, skintune::BakeSpace::kLocal}};
+          {Backend::kCpu, "cpu.b4.aos.mat4", "Fox.gltf", 60.0, skintune::BakeSpace::kLocal},
+          // Hybrid records (docs/ANIMATION.md "Hybrid records"), likewise.
+          {Backend::kOpenCl, "opencl.b4.soa", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kHybrid},
+          {Backend::kCuda, "cuda.b4.soa.image.mat4", "Fox.gltf", 30.0, skintune::BakeSpace::kHybrid},
+          {Backend::kGl, "glsl-compute.b4.aos.constant", "Fox.gltf", 30.0, skintune::BakeSpace::kHybrid},
+          {Backend::kGl, "glsl-vertex.b4.soa", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kHybrid},
+          {Backend::kVulkan, "vulkan.b4.soa.image.mat4", "Fox.gltf", 30.0, skintune::BakeSpace::kHybrid},
+          {Backend::kCpu, "cpu.b4.soa", "Fox.gltf", 60.0, skintune::BakeSpace::kHybrid}};
 }
 std::string CaseName(const ::testing::TestParamInfo<AnimatedCase>& info) {
   return testing::ParameterName(info.param.variant + "_" + info.param.model.substr(0, info.param.model.find('.')) +
-                                (BakedLocally(info.param) ? "_baked_locally" : info.param.bake_rate > 0.0 ? "_baked" : ""));
+                                (BakedHybrid(info.param)    ? "_baked_hybrid"
+                                 : BakedLocally(info.param) ? "_baked_locally"
+                                 : info.param.bake_rate > 0.0 ? "_baked"
+                                                              : ""));
 }
 INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerAnimated, ::testing::ValuesIn(Cases()), CaseName);
 

@@ -632,6 +632,19 @@ TEST(Scenes, AnimatedCrowdsMakeTheirPalettesOnTheDeviceVerifiedTimedAndTheirBaki
     EXPECT_EQ(blended_local.baked_clips.size(), 3u);
     EXPECT_LE(blended_local.source_error.position_rel, 2 * stated + 1e-6);
     EXPECT_LT(10 * blended_local.source_error.position_rel, blended_baked.source_error.position_rel);
+    // Hybrid records: the instances of one clip read palette records, the
+    // cross-fading third local ones; the crowd loses what the clips state
+    // (the larger of both records'), far less than palette records alone,
+    // for both records' bytes.
+    const Measurement blended_hybrid =
+        tuned.Measure(ParseVariantKey(base + ".anim-hybrid240"), {fox + "-x6-animblend"}, SmallTiming());
+    ExpectOk(blended_hybrid, tuned, fox + "-x6-animblend");
+    double hybrid_stated = 0.0;
+    for (const BakedClipRecord& c : blended_hybrid.baked_clips) hybrid_stated = std::max(hybrid_stated, c.max_error);
+    ASSERT_EQ(blended_hybrid.baked_clips.size(), 3u);
+    EXPECT_LE(blended_hybrid.source_error.position_rel, 2 * hybrid_stated + 1e-6);
+    EXPECT_LT(10 * blended_hybrid.source_error.position_rel, blended_baked.source_error.position_rel);
+    EXPECT_GT(blended_hybrid.baked_clips.front().bytes, blended_local.baked_clips.front().bytes);
     // The host's palettes on an animated scene, and a device form on a scene the host animates: not their variants.
     const Measurement host = tuned.Measure(ParseVariantKey(base), {crowd}, SmallTiming());
     EXPECT_EQ(host.status, MeasureStatus::kInvalid);

@@ -72,6 +72,7 @@ class CpuPlanned final : public PlannedLaunch {
   // joint count; local records (ANIM_BAKED 3, 4) read nodes and joints.
   bool baked = false, baked_local = false;
   std::uint32_t baked_rows = 0;  // ANIM_BAKED 1, 3: kBakedRowsSimilar; 2: kBakedRowsAffine; 4: kBakedRowsLocalScaled
+  std::uint32_t steady_rows = 0;  // ANIM_STEADY: hybrid records' palette records (buffer steady), 0: none
   std::vector<AnimJointRecord> baked_joints;
   int morph_targets = 0;  // MORPH_TARGETS of a morph variant, else 0
 };
@@ -268,6 +269,8 @@ std::unique_ptr<PlannedLaunch> CpuApi::Plan(const LaunchSpec& spec) {
     const BakedForm form = BakedFormOf(plan->baked ? parsed.defines.at("ANIM_BAKED") : 0);
     plan->baked_local = form.local;
     plan->baked_rows = form.rows;
+    if (const auto steady = parsed.defines.find("ANIM_STEADY"); steady != parsed.defines.end())
+      plan->steady_rows = static_cast<std::uint32_t>(steady->second);
     if (plan->baked && !plan->baked_local)
       plan->baked_joints.resize(static_cast<std::size_t>(parsed.defines.at("ANIM_JOINT_COUNT")));
     return plan;
@@ -344,6 +347,10 @@ void CpuApi::RunLaunch(CpuBound& b, const CpuChoice& choice) {
       view.baked_rows = plan.baked_rows;
       view.baked_local = true;
       view.joints = span_of(kAnimInputs[4], static_cast<const AnimJointRecord*>(nullptr));
+      if (plan.steady_rows != 0) {
+        view.steady = span_of(kAnimSteady, static_cast<const float*>(nullptr));
+        view.steady_rows = plan.steady_rows;
+      }
     } else if (plan.baked) {
       view.frames = span_of(kAnimFrames, static_cast<const float*>(nullptr));
       view.baked_rows = plan.baked_rows;

@@ -290,8 +290,8 @@ enum class SceneShape { kSingle, kInstances, kBatch };
 enum class NormalFormat { kF32, kOct16, kSnorm8 };
 
 // What baking a model's clips stores (SkinnerOptions::bake_space): each
-// joint's palette entry, or each node's local transform.
-enum class BakeSpace { kPalette, kLocal };
+// joint's palette entry, or each node's local transform, or both (hybrid).
+enum class BakeSpace { kPalette, kLocal, kHybrid };
 const char* SceneShapeName(SceneShape shape);  // "single", "instances", "batch"
 
 // How the database entry for a device was found (the fallback chain).
@@ -508,7 +508,11 @@ struct SkinnerOptions {
   // scales unevenly), which the device composes through the hierarchy each
   // frame: a blend of two clips then mixes each node's local transform, as
   // sampled clips do, for a little more device time than kPalette's
-  // (docs/ANIMATION.md "Baked in local space").
+  // (docs/ANIMATION.md "Baked in local space"). kHybrid: both records, of
+  // the same frames (their bytes together); an instance that plays one clip
+  // reads palette records (kPalette's time and error), one that cross-fades
+  // mixes local ones (kLocal's), so that a crowd of which a few cross-fade
+  // pays for the walk only there (docs/ANIMATION.md "Hybrid records").
   BakeSpace bake_space = BakeSpace::kPalette;
   // CreateAnimated only (false is kInvalidArgument for any other Skinner):
   // whether the crowd's instances may cross-fade two clips

@@ -240,6 +240,9 @@
 #ifndef ANIM_BAKED            // 1, 2: the palette kernel reads baked palette records of 2 or 4 float4s (frames,
 #define ANIM_BAKED 0          // instances, palette, clips, states; docs/ANIMATION.md "Baked clips"); 3, 4: local
 #endif                        // records of 2 or 3 float4s (nodes, frames, joints, ...); 0: it samples
+#ifndef ANIM_STEADY           // with ANIM_BAKED 3, 4: the float4s (2 or 4) of the same frames' palette records
+#define ANIM_STEADY 0         // beside the local ones (buffer steady, after frames; docs/ANIMATION.md "Hybrid
+#endif                        // records"), which an instance that plays one clip reads; 0: none
 #ifndef ANIM_GROUP            // the palette kernel's work-group: 3 x ANIM_NODE_COUNT rounded up to a multiple
 #define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h)
 #endif
