@@ -58,8 +58,9 @@ struct Options {
 constexpr int kBurst = 64;
 
 // Instance i plays clip i mod C at its own time; every `blend_every`-th
-// (0: none) cross-fades to clip (i + 1) mod C at weight 0.5 ("blend": all
-// of them; "fade3": every third, as the tuner's -animblend scenes).
+// (0: none) cross-fades to clip (i + 1) mod C half its length further on
+// (a model of one clip: the same clip) at weight 0.5 ("blend": all of them;
+// "fade3": every third, as the tuner's -animblend scenes).
 std::vector<AnimInstance> Crowd(const SkinnedAsset& asset, const PackedAnimation& packed, int count, int blend_every) {
   std::vector<AnimInstance> crowd(static_cast<std::size_t>(count));
   const int clips = static_cast<int>(packed.clips.size());
@@ -69,10 +70,10 @@ std::vector<AnimInstance> Crowd(const SkinnedAsset& asset, const PackedAnimation
     AnimInstance& in = crowd[static_cast<std::size_t>(i)];
     in.clip = static_cast<std::uint16_t>(i % clips);
     in.time = static_cast<float>(clip.start + phase * clip.duration());
-    if (blend_every > 0 && i % blend_every == 0 && clips > 1) {
+    if (blend_every > 0 && i % blend_every == 0) {  // the next clip (a model of one clip: elsewhere in it)
       in.clip2 = static_cast<std::uint16_t>((i + 1) % clips);
       const auto& other = asset.animations[static_cast<std::size_t>(packed.clips[in.clip2])];
-      in.time2 = static_cast<float>(other.start + phase * other.duration());
+      in.time2 = static_cast<float>(other.start + std::fmod(phase + 0.5, 1.0) * other.duration());
       in.weight = 0.5f;
     }
   }

@@ -1,5 +1,6 @@
 #include "generator/palette_kernel.h"
 
+#include <algorithm>
 #include <string>
 
 #include "base/error.h"
@@ -19,6 +20,20 @@ std::span<const std::uint8_t> AnimationBufferBytes(const AnimationView& animatio
                                            : name == kAnimSteady    ? bytes(animation.steady)
                                                                     : std::span<const std::byte>();
   return {reinterpret_cast<const std::uint8_t*>(found.data()), found.size()};
+}
+
+int AnimJumpRounds(std::span<const AnimNodeRecord> nodes) {
+  std::size_t deepest = 0;
+  for (std::size_t n = 0; n < nodes.size(); ++n) {
+    std::size_t depth = 0;  // ancestors, at most every other node (a cycle, refused elsewhere, stops here)
+    for (std::int32_t p = nodes[n].parent; p >= 0 && static_cast<std::size_t>(p) < nodes.size() && depth < nodes.size();
+         p = nodes[static_cast<std::size_t>(p)].parent)
+      ++depth;
+    deepest = std::max(deepest, depth);
+  }
+  int rounds = 0;
+  while ((std::size_t{1} << rounds) <= deepest) ++rounds;
+  return rounds;
 }
 
 int BakedDefine(const AnimationView& animation) {
@@ -67,6 +82,7 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                {"ANIM_PALETTE_ROWS", palette_rows},
                {"ANIM_GROUP", group},
                {"ANIM_BAKED", BakedDefine(animation)},
+               {"ANIM_JUMPS", AnimJumpRounds(animation.nodes)},
                {"ANIM_STEADY", local ? static_cast<long long>(animation.steady_rows) : 0}};
   const auto buffer = [](const char* name, const char* format, std::size_t element, ArgumentDirection direction) {
     return KernelArgument{name, format, element, element, "", direction, ArgumentKind::kBuffer};

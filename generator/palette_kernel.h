@@ -77,6 +77,11 @@ struct PaletteKernel {
 // other than 3 or 4, no joints or nodes, more nodes than kAnimMaxNodes.
 PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette_rows);
 
+// The hierarchy kernels' rounds of pointer jumping (ANIM_JUMPS,
+// templates/palette.cl): ceil(log2(depth + 1)) for the deepest node's
+// ancestors, so that the 2^rounds-th ancestor of every node is past its root.
+int AnimJumpRounds(std::span<const AnimNodeRecord> nodes);
+
 // The kernel's ANIM_BAKED (templates/skin_params.h): 0 sampled; palette
 // records of 2 (1) or 4 (2) float4s; local records of 2 (3) or 3 (4).
 int BakedDefine(const AnimationView& animation);

@@ -6,21 +6,23 @@
 //
 // Launch: a 2-D NDRange of work-groups of ANIM_GROUP items, one group
 // per instance: global size (ANIM_GROUP, K), local size (ANIM_GROUP, 1), for
-// K instances. In three steps, each all in parallel, with a barrier between:
+// K instances. In four steps, each all in parallel, with barriers between:
 // the group's items sample every (node, path) of their instance once, into
 // local memory (at most ANIM_MAX_NODES nodes: ValidateAnimation refuses
 // more), with the node's parent; each node's local transform is made from its
-// translation, rotation and scale there; then each item composes its joints
-// (j = item, item + ANIM_GROUP, ...) by walking up their ancestors in local
-// memory, and writes instance i's joint j as ANIM_PALETTE_ROWS float4 rows at
+// translation, rotation and scale there; the nodes' global transforms are
+// composed there by pointer jumping, ANIM_JUMPS rounds of one product a node
+// (the cpu device walks each joint's ancestors instead: the same product,
+// associated otherwise); then each item writes its joints (j = item,
+// item + ANIM_GROUP, ...), instance i's joint j as ANIM_PALETTE_ROWS float4 rows at
 // (i * ANIM_JOINT_COUNT + j) * ANIM_PALETTE_ROWS + r: the palette the skin
 // kernels read (`mat3x4`, or `mat4`), K palettes one after another.
 // Why (docs/ANIMATION.md, measured on an H200, 2026-11-29): sampling is
 // binary searches in global memory, a chain of dependent loads, so each
-// (node, path) is sampled once and all at the same time; and the walk up a
-// chain 60 deep is as many dependent loads of the parent index, from local
-// memory here (from global memory, 64 instances of a 77-joint rig took
-// 15.6 us a launch; re-sampling every ancestor per joint, 49 us).
+// (node, path) is sampled once and all at the same time; and the hierarchy
+// is composed in local memory (walking it in global memory, 64 instances of
+// a 77-joint rig took 15.6 us a launch; re-sampling every ancestor per
+// joint, 49 us).
 // An instance whose clip index is neither a packed clip nor 0xffff (the
 // rest pose) gets NaN rows instead of a read out of bounds.
 
@@ -182,6 +184,8 @@ uint4 anim_advance(__global const float4* restrict clips, uint4 in, const float 
 #else
 #define ANIM_LOCAL_NODES ANIM_MAX_NODES
 #endif
+// The nodes each item composes (its nodes item, item + ANIM_GROUP, ...).
+#define ANIM_NODES_PER_ITEM ((ANIM_LOCAL_NODES + ANIM_GROUP - 1) / ANIM_GROUP)
 
 #if ANIM_BAKED
 // Baked clips (docs/ANIMATION.md "Baked clips"; cpu_kernels/palette_kernel.cpp
@@ -428,19 +432,49 @@ void skintune_palette(__global const float4* restrict nodes,
   }
 #endif  // ANIM_BAKED
   barrier(CLK_LOCAL_MEM_FENCE);
-  // 3: each joint's global transform, up its ancestors in local memory, then the inverse bind.
+  // 3: each node's global transform by pointer jumping (Wyllie's list
+  // ranking on the tree): after round r a node's rows are the product of its
+  // local transforms up to its 2^r-th ancestor, and local_parent is that
+  // ancestor, so ANIM_JUMPS = ceil(log2(depth + 1)) rounds reach every root.
+  // Each round reads, then writes after a barrier, every node the last
+  // round's rows. Why (docs/ANIMATION.md "The walk up the hierarchy"): each
+  // joint walking up its own chain took the deepest chain's steps in every
+  // warp, depth x 3 warps of dependent products for the 77-joint rig, where
+  // this takes 4 rounds of one product.
+  for (uint round = 0u; round < ANIM_JUMPS; ++round) {
+    Affine up[ANIM_NODES_PER_ITEM];
+    int next[ANIM_NODES_PER_ITEM];
+    for (uint k = 0u; k < ANIM_NODES_PER_ITEM; ++k) {
+      const uint n = item + k * ANIM_GROUP;
+      next[k] = -2;  // no jump
+      const int p = walk && n < node_count ? local_parent[n] : -1;
+      if (p >= 0) {
+        up[k].row0 = local_rows[3u * (uint)p], up[k].row1 = local_rows[3u * (uint)p + 1u];
+        up[k].row2 = local_rows[3u * (uint)p + 2u];
+        next[k] = local_parent[p];
+      }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint k = 0u; k < ANIM_NODES_PER_ITEM; ++k) {
+      const uint n = item + k * ANIM_GROUP;
+      if (next[k] == -2) continue;
+      Affine m;
+      m.row0 = local_rows[3u * n], m.row1 = local_rows[3u * n + 1u], m.row2 = local_rows[3u * n + 2u];
+      m = anim_multiply(up[k], m);
+      local_rows[3u * n] = m.row0;
+      local_rows[3u * n + 1u] = m.row1;
+      local_rows[3u * n + 2u] = m.row2;
+      local_parent[n] = next[k];
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+  // 4: each joint's palette entry, its node's global transform by its inverse bind.
   for (uint j = item; walk && j < joint_count; j += ANIM_GROUP) {
     if (j != item)
       joint0 = joints[4u * j], joint1 = joints[4u * j + 1u], joint2 = joints[4u * j + 2u], joint3 = joints[4u * j + 3u];
     const uint node = as_uint(joint0.x);
     Affine m;
     m.row0 = local_rows[3u * node], m.row1 = local_rows[3u * node + 1u], m.row2 = local_rows[3u * node + 2u];
-    for (int p = local_parent[node]; p >= 0; p = local_parent[p]) {
-      Affine parent;
-      parent.row0 = local_rows[3u * (uint)p], parent.row1 = local_rows[3u * (uint)p + 1u];
-      parent.row2 = local_rows[3u * (uint)p + 2u];
-      m = anim_multiply(parent, m);
-    }
     Affine inverse_bind;
     inverse_bind.row0 = joint1;
     inverse_bind.row1 = joint2;

@@ -330,6 +330,7 @@ void main() {
 #else
 #define ANIM_LOCAL_NODES ANIM_MAX_NODES
 #endif
+#define ANIM_NODES_PER_ITEM ((ANIM_LOCAL_NODES + ANIM_GROUP - 1) / ANIM_GROUP)  // item, item + ANIM_GROUP, ...
 // Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
 // then its local transform's rows there; and its parent (palette.cl).
 shared vec4 local_rows[3 * ANIM_LOCAL_NODES];
@@ -415,7 +416,34 @@ void main() {
 #endif  // ANIM_BAKED
   memoryBarrierShared();
   barrier();
-  // 3: each joint's global transform, up its ancestors in shared memory, then the inverse bind.
+  // 3: each node's global transform by pointer jumping, ANIM_JUMPS rounds (palette.cl).
+  for (uint round_ = 0u; round_ < uint(ANIM_JUMPS); ++round_) {
+    Affine up[ANIM_NODES_PER_ITEM];
+    int next[ANIM_NODES_PER_ITEM];
+    for (uint k = 0u; k < uint(ANIM_NODES_PER_ITEM); ++k) {
+      uint n = item + k * uint(ANIM_GROUP);
+      next[k] = -2;  // no jump
+      int p = walk && n < node_count ? local_parent[n] : -1;
+      if (p >= 0) {
+        up[k] = Affine(local_rows[3u * uint(p)], local_rows[3u * uint(p) + 1u], local_rows[3u * uint(p) + 2u]);
+        next[k] = local_parent[p];
+      }
+    }
+    memoryBarrierShared();
+    barrier();
+    for (uint k = 0u; k < uint(ANIM_NODES_PER_ITEM); ++k) {
+      uint n = item + k * uint(ANIM_GROUP);
+      if (next[k] == -2) continue;
+      Affine m = anim_multiply(up[k], Affine(local_rows[3u * n], local_rows[3u * n + 1u], local_rows[3u * n + 2u]));
+      local_rows[3u * n] = m.row0;
+      local_rows[3u * n + 1u] = m.row1;
+      local_rows[3u * n + 2u] = m.row2;
+      local_parent[n] = next[k];
+    }
+    memoryBarrierShared();
+    barrier();
+  }
+  // 4: each joint's palette entry, its node's global transform by its inverse bind.
   for (uint j = item; walk && j < joint_count; j += uint(ANIM_GROUP)) {
     if (j != item) {
       joint0 = joints[4u * j];
@@ -424,10 +452,8 @@ void main() {
       joint3 = joints[4u * j + 3u];
     }
     uint node = floatBitsToUint(joint0.x);
-    Affine m = Affine(local_rows[3u * node], local_rows[3u * node + 1u], local_rows[3u * node + 2u]);
-    for (int p = local_parent[node]; p >= 0; p = local_parent[p])
-      m = anim_multiply(Affine(local_rows[3u * uint(p)], local_rows[3u * uint(p) + 1u], local_rows[3u * uint(p) + 2u]), m);
-    m = anim_multiply(m, Affine(joint1, joint2, joint3));
+    Affine m = anim_multiply(Affine(local_rows[3u * node], local_rows[3u * node + 1u], local_rows[3u * node + 2u]),
+                             Affine(joint1, joint2, joint3));
     palette[out_ + rows * j] = m.row0;
     palette[out_ + rows * j + 1u] = m.row1;
     palette[out_ + rows * j + 2u] = m.row2;

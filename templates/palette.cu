@@ -192,6 +192,7 @@ __device__ uint4 anim_advance(const float4* __restrict__ clips, uint4 in, const 
 #else
 #define ANIM_LOCAL_NODES ANIM_MAX_NODES
 #endif
+#define ANIM_NODES_PER_ITEM ((ANIM_LOCAL_NODES + ANIM_GROUP - 1) / ANIM_GROUP)  // item, item + ANIM_GROUP, ...
 
 #if ANIM_BAKED
 // Baked clips: palette.cl's baked kernel (docs/ANIMATION.md "Baked clips").
@@ -411,18 +412,38 @@ skintune_palette(const float4* __restrict__ nodes,
   }
 #endif  // ANIM_BAKED
   __syncthreads();
-  // 3: each joint's global transform, up its ancestors in shared memory, then the inverse bind.
+  // 3: each node's global transform by pointer jumping, ANIM_JUMPS rounds (palette.cl).
+  for (unsigned round = 0u; round < ANIM_JUMPS; ++round) {
+    Affine up[ANIM_NODES_PER_ITEM];
+    int next[ANIM_NODES_PER_ITEM];
+    for (unsigned k = 0u; k < ANIM_NODES_PER_ITEM; ++k) {
+      const unsigned n = item + k * ANIM_GROUP;
+      next[k] = -2;  // no jump
+      const int p = walk && n < node_count ? local_parent[n] : -1;
+      if (p >= 0) {
+        up[k].row0 = local_rows[3u * p], up[k].row1 = local_rows[3u * p + 1u], up[k].row2 = local_rows[3u * p + 2u];
+        next[k] = local_parent[p];
+      }
+    }
+    __syncthreads();
+    for (unsigned k = 0u; k < ANIM_NODES_PER_ITEM; ++k) {
+      const unsigned n = item + k * ANIM_GROUP;
+      if (next[k] == -2) continue;
+      Affine m;
+      m.row0 = local_rows[3u * n], m.row1 = local_rows[3u * n + 1u], m.row2 = local_rows[3u * n + 2u];
+      m = anim_multiply(up[k], m);
+      local_rows[3u * n] = m.row0, local_rows[3u * n + 1u] = m.row1, local_rows[3u * n + 2u] = m.row2;
+      local_parent[n] = next[k];
+    }
+    __syncthreads();
+  }
+  // 4: each joint's palette entry, its node's global transform by its inverse bind.
   for (unsigned j = item; walk && j < joint_count; j += ANIM_GROUP) {
     if (j != item)
       joint0 = joints[4u * j], joint1 = joints[4u * j + 1u], joint2 = joints[4u * j + 2u], joint3 = joints[4u * j + 3u];
     const unsigned node = __float_as_uint(joint0.x);
     Affine m;
     m.row0 = local_rows[3u * node], m.row1 = local_rows[3u * node + 1u], m.row2 = local_rows[3u * node + 2u];
-    for (int p = local_parent[node]; p >= 0; p = local_parent[p]) {
-      Affine parent;
-      parent.row0 = local_rows[3u * p], parent.row1 = local_rows[3u * p + 1u], parent.row2 = local_rows[3u * p + 2u];
-      m = anim_multiply(parent, m);
-    }
     Affine inverse_bind;
     inverse_bind.row0 = joint1;
     inverse_bind.row1 = joint2;

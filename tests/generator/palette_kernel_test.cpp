@@ -653,6 +653,31 @@ TEST(PaletteKernelBaked, EmitsTheBakedKernelWithItsOwnArgumentsAndGroup) {
   EXPECT_NE(sampled.kernel.text.find("#define ANIM_BAKED 0\n"), std::string::npos);
 }
 
+// The hierarchy kernels compose each node's global transform by pointer
+// jumping: ceil(log2(depth + 1)) rounds for the deepest node's ancestors
+// (after round r a node has joined its 2^r-th ancestor), a define of the
+// emitted kernel.
+TEST(PaletteKernel, PointerJumpingTakesTheRoundsTheDeepestChainNeeds) {
+  const auto chain = [](int depth) {  // depth + 1 nodes, each the child of the one before
+    std::vector<AnimNodeRecord> nodes(static_cast<std::size_t>(depth) + 1);
+    for (std::size_t n = 1; n < nodes.size(); ++n) nodes[n].parent = static_cast<std::int32_t>(n) - 1;
+    return nodes;
+  };
+  for (const auto& [depth, rounds] : {std::pair{0, 0}, {1, 1}, {2, 2}, {3, 2}, {4, 3}, {7, 3}, {8, 4}, {64, 7}, {511, 9}})
+    EXPECT_EQ(AnimJumpRounds(chain(depth)), rounds) << depth;
+  std::vector<AnimNodeRecord> cycle = chain(3);
+  cycle[0].parent = 3;  // refused by the validation; the count still ends
+  EXPECT_LE(AnimJumpRounds(cycle), 3);
+  for (const char* model : {"CesiumMan.gltf", "Fox.gltf", "RiggedSimple.gltf", "2000-b4"})
+    std::printf("[ palette  ] %s: %d rounds of pointer jumping\n", model,
+                AnimJumpRounds(PackAnimation(TestAsset(model)).nodes));
+  const PackedAnimation deep = PackAnimation(DeepRig());
+  const int rounds = AnimJumpRounds(deep.nodes);
+  EXPECT_GE(rounds, 6);  // chains 64 deep
+  EXPECT_NE(EmitPalette(Lang::kOpenCl, deep.View(), 3).kernel.text.find("#define ANIM_JUMPS " + std::to_string(rounds) + "\n"),
+            std::string::npos);
+}
+
 // What a skin kernel reads: the packer's mat3x4 palette rows (PackPalette of
 // the host's float32 palette, SkinnedAsset::PaletteAt), K instances one after
 // another, element for element, from the palette kernel as it is.

@@ -238,6 +238,9 @@
 #ifndef ANIM_STEADY           // with ANIM_BAKED 3, 4: the float4s (2 or 4) of the same frames' palette records
 #define ANIM_STEADY 0         // beside the local ones (buffer steady, after frames; docs/ANIMATION.md "Hybrid
 #endif                        // records"), which an instance that plays one clip reads; 0: none
+#ifndef ANIM_JUMPS            // the hierarchy kernels' rounds of pointer jumping: ceil(log2(depth + 1)) for the
+#define ANIM_JUMPS 9          // deepest node's ancestors (generator/palette_kernel.h); 9 reaches any of 512 nodes
+#endif
 #ifndef ANIM_GROUP            // the palette kernel's work-group: 3 x ANIM_NODE_COUNT rounded up to a multiple
 #define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h)
 #endif
