@@ -274,6 +274,13 @@ std::uint64_t FrameBytes(const PackedMesh& packed, int instances) {
   return bytes * static_cast<std::uint64_t>(instances);
 }
 
+std::uint64_t FloorBytes(const PackedMesh& packed, int instances) {
+  std::uint64_t inputs = 0;
+  for (const Launch& launch : packed.launches)
+    for (const PackedBuffer& b : launch.inputs) inputs += b.bytes.size();
+  return FrameBytes(packed, instances) - inputs * static_cast<std::uint64_t>(std::max(instances - 1, 0));
+}
+
 std::vector<std::vector<std::uint8_t>> TimedPalettes(DatasetCache& datasets, DatasetCache::Entry& data,
                                                      const Variant& variant, int sets) {
   std::vector<std::vector<std::uint8_t>> palettes;

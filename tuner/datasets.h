@@ -149,6 +149,10 @@ const PackedMesh& PackScene(DatasetCache& datasets, DatasetCache::Entry& entry, 
 // may find its one mesh in cache; the same-size copy is that of the scene's
 // total bytes).
 std::uint64_t FrameBytes(const PackedMesh& packed, int instances);
+// The least of those bytes the frame can move: the launches' inputs (the
+// one mesh every instance reads) once, each instance's outputs and palette.
+// FrameBytes for one instance.
+std::uint64_t FloorBytes(const PackedMesh& packed, int instances);
 // `sets` frames' palettes of the scene, packed as `variant` reads them.
 std::vector<std::vector<std::uint8_t>> TimedPalettes(DatasetCache& datasets, DatasetCache::Entry& data,
                                                      const Variant& variant, int sets);

@@ -348,6 +348,7 @@ bool MeasureJob::Run() const {
   // total bytes, even when an instanced kernel finds its inputs in cache).
   const std::uint64_t bytes_per_frame = FrameBytes(*run.packed, data.instances());
   m.bytes_per_frame = static_cast<double>(bytes_per_frame);
+  m.least_bytes_per_frame = static_cast<double>(FloorBytes(*run.packed, data.instances()));
   const int sets = InputSetsFor(device->last_level_cache_bytes, bytes_per_frame, options.max_input_sets);
   const std::vector<std::vector<std::uint8_t>> palettes = TimedPalettes(*datasets, data, variant, sets);
   run.phases.Mark("check against the gold and the source");

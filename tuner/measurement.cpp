@@ -242,6 +242,7 @@ void to_json(nlohmann::json& out, const Measurement& m) {
                    {"version", m.timing.version}};
   if (m.timing.palette_kernel_ms > 0.0) out["timing"]["palette_kernel_ms"] = Number(m.timing.palette_kernel_ms);
   out["bytes_per_frame"] = Number(m.bytes_per_frame);
+  if (m.least_bytes_per_frame > 0.0) out["least_bytes_per_frame"] = Number(m.least_bytes_per_frame);
   out["gbps"] = Number(m.gbps);
   out["x_copy"] = Number(m.x_copy);
   out["max_relative_error"] = Number(m.max_relative_error);
@@ -305,6 +306,7 @@ void from_json(const nlohmann::json& in, Measurement& m) {
     m.timing.version = timing->contains("version") ? ReadInt(*timing, "version", t) : 1;
   }
   m.bytes_per_frame = ReadNumber(in, "bytes_per_frame", where);
+  if (in.contains("least_bytes_per_frame")) m.least_bytes_per_frame = ReadNumber(in, "least_bytes_per_frame", where);
   m.gbps = ReadNumber(in, "gbps", where);
   m.x_copy = ReadNumber(in, "x_copy", where);
   m.max_relative_error = ReadNumber(in, "max_relative_error", where);

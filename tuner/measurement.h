@@ -127,6 +127,11 @@ struct Measurement {
                                   // lines of the build log; launch/verify failures: the error; timeout: the limit
   Timing timing;                  // status ok only
   double bytes_per_frame = 0.0;   // bytes the variant's format must move per frame (inputs + outputs)
+  // The least of them the frame can move: an instanced launch's one mesh is
+  // read once (FloorBytes), so K instances may run faster than K copies'
+  // bytes allow. What the ceiling against the copy judges (RejectOverCeiling);
+  // 0 in records written before it: bytes_per_frame.
+  double least_bytes_per_frame = 0.0;
   double gbps = 0.0;              // bytes_per_frame / median time (status ok only)
   double x_copy = 0.0;            // median time / the same-size copy's (timing.copy_ms); 0: no copy time
   double max_relative_error = 0.0;  // against the gold of the quantised mesh (ok, too_imprecise, verify_failed);

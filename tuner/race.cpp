@@ -238,20 +238,32 @@ Interval LegsInterval(const std::vector<std::vector<double>>& legs) {
 }
 
 namespace {
+// The bytes the ceiling judges: the least the frame can move (an instanced
+// launch's one mesh read once), else, in records without it, all of them.
+double CeilingBytes(const Measurement& m) {
+  return m.least_bytes_per_frame > 0.0 ? m.least_bytes_per_frame : m.bytes_per_frame;
+}
+
+// GB/s of those bytes in the median time: the recorded figure (of all the
+// bytes) scaled down to them.
+double CeilingGbps(const Measurement& m) {
+  return m.bytes_per_frame > 0.0 ? m.gbps * (CeilingBytes(m) / m.bytes_per_frame) : m.gbps;
+}
+
 // Whether `m`'s figure is over the ceiling (RejectOverCeiling).
 bool OverCeiling(const Measurement& m, double copy_gbps, double copy_traffic) {
-  return IsTimed(m.status) && copy_gbps > 0.0 && m.gbps > kCeiling * copy_traffic * copy_gbps;
+  return IsTimed(m.status) && copy_gbps > 0.0 && CeilingGbps(m) > kCeiling * copy_traffic * copy_gbps;
 }
 }  // namespace
 
 bool RejectOverCeiling(Measurement& m, double copy_gbps, double copy_traffic) {
   if (!OverCeiling(m, copy_gbps, copy_traffic)) return false;
-  const double most = kCeiling * copy_traffic;
+  const double most = kCeiling * copy_traffic, gbps = CeilingGbps(m);
   char detail[400];
   std::snprintf(detail, sizeof detail,
                 "impossible kernel time: %.4g ms for %.0f bytes is %.0f GB/s, %.2fx the device's copy bandwidth "
                 "(%.0f GB/s; at most %.2fx is possible%s)",
-                m.timing.median_ms, m.bytes_per_frame, m.gbps, m.gbps / copy_gbps, copy_gbps, most,
+                m.timing.median_ms, CeilingBytes(m), gbps, gbps / copy_gbps, copy_gbps, most,
                 copy_traffic > 1.0 ? ", its copy's stores reading their lines first" : "");
   m.status = MeasureStatus::kInvalid;
   m.detail = detail;

@@ -108,7 +108,12 @@ std::string RaceCacheKey(const std::string& device_id, const std::string& datase
 // Whether `m`'s kernel time implies more than kCeiling x the device's
 // large-copy bandwidth `copy_gbps` (0: unknown, never) x `copy_traffic`:
 // such a figure is impossible, and `m` becomes invalid with the reason
-// (docs/TUNING.md "The physical ceiling"). Returns true when it did.
+// (docs/TUNING.md "The physical ceiling"). Returns true when it did. The
+// bytes judged are the least the frame can move
+// (Measurement::least_bytes_per_frame): an instanced launch reads its one
+// mesh once and may find it in cache for every other instance, so a crowd
+// of 1024 x 5k-b4 ran at 4.8 TB/s of its K copies' bytes on an H200 whose
+// copy moves 4.3 (2026-11-30), and was rejected before.
 // `copy_traffic`: the bytes the device's copy really moves per byte it
 // counts. On the host's CPU (kHostCopyTraffic) a store first reads its line
 // (write-allocate), so a copy counted as read + write moves 1.5 times that,

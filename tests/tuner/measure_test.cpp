@@ -227,6 +227,11 @@ TEST(Measure, InstancesAndBatchesAreVerifiedPartByPartAndTimedAsAWhole) {
     EXPECT_EQ(executor.time_instances, 5);
     EXPECT_EQ(m.bytes_per_frame, 5 * single.bytes_per_frame);  // the copy of five meshes' bytes
     EXPECT_EQ(static_cast<double>(executor.copy_bytes), m.bytes_per_frame);
+    // The least the crowd's frame moves: its one mesh's inputs once, each
+    // instance's outputs (soa float4 positions) and palette (77 joints x 48 bytes).
+    const double outputs_and_palette = 1000.0 * 16 + 77 * 48;
+    EXPECT_EQ(single.least_bytes_per_frame, single.bytes_per_frame);
+    EXPECT_EQ(m.least_bytes_per_frame, single.bytes_per_frame + 4 * outputs_and_palette);
     executor.wrong_vertex = 3 * 1000 + 17;
     const Measurement wrong =
         MeasurementOf({&executor, &datasets, &gpu, Limits(), {Lang::kOpenCl}, variant, {"1000-b2-x5"}, options});

@@ -380,5 +380,30 @@ TEST(Ceiling, OnTheHostsCpuTheCopysWriteAllocateTrafficCounts) {
       << impossible.detail;
 }
 
+// An instanced crowd reads its one mesh once: the ceiling judges the bytes
+// the frame must move at least (each instance's outputs and palette, the
+// mesh once), not K copies' (the H200's 1024 x 5k-b4 crowd with f32 weights:
+// 0.0601 ms for 290.5 MB of K copies, 4.8 TB/s against a 4.3 TB/s copy,
+// 2026-11-30). A record without the least bytes is judged on all of them.
+TEST(Ceiling, AnInstancedCrowdIsJudgedOnTheBytesItMustMoveNotOnKCopiesOfItsMesh) {
+  Measurement crowd;
+  crowd.status = MeasureStatus::kOk;
+  crowd.bytes_per_frame = 290504704;
+  crowd.least_bytes_per_frame = 86e6;
+  crowd.timing.median_ms = 0.06011;
+  crowd.gbps = crowd.bytes_per_frame / crowd.timing.median_ms / 1e6;
+  Measurement old_record = crowd;
+  old_record.least_bytes_per_frame = 0.0;
+  EXPECT_FALSE(RejectOverCeiling(crowd, 4286.0));
+  EXPECT_EQ(crowd.status, MeasureStatus::kOk);
+  EXPECT_TRUE(RejectOverCeiling(old_record, 4286.0));
+  EXPECT_NE(old_record.detail.find("for 290504704 bytes is 4833 GB/s"), std::string::npos) << old_record.detail;
+  Measurement too_fast = crowd;  // even its least bytes faster than the copy: impossible
+  too_fast.timing.median_ms = 0.015;
+  too_fast.gbps = too_fast.bytes_per_frame / too_fast.timing.median_ms / 1e6;
+  EXPECT_TRUE(RejectOverCeiling(too_fast, 4286.0));
+  EXPECT_NE(too_fast.detail.find("for 86000000 bytes is 5733 GB/s"), std::string::npos) << too_fast.detail;
+}
+
 }  // namespace
 }  // namespace skintune::internal
