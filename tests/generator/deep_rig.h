@@ -11,6 +11,7 @@
 // negated at random (q and -q: the shortest path matters).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <string>
@@ -155,6 +156,27 @@ class DeepRigBuilder {
 
 inline const SkinnedAsset& DeepRig() {
   static const SkinnedAsset asset = DeepRigBuilder().Build();
+  return asset;
+}
+
+// The deep rig with its nodes in reverse order, so that every child comes
+// before its parent (glTF allows any order): the same skeleton, skin and
+// clips, node n renumbered N - 1 - n in the hierarchy, the joints and the
+// channels. A kernel that composed the hierarchy in node order would fail it.
+inline const SkinnedAsset& ReversedDeepRig() {
+  static const SkinnedAsset asset = [] {
+    SkinnedAsset reversed = DeepRig();
+    reversed.source = "deep-rig-reversed";
+    std::vector<Node>& nodes = reversed.skeleton.nodes;
+    const int n = static_cast<int>(nodes.size());
+    const auto renumber = [n](int node) { return node < 0 ? node : n - 1 - node; };
+    std::reverse(nodes.begin(), nodes.end());
+    for (Node& node : nodes) node.parent = renumber(node.parent);
+    for (int& joint : reversed.skeleton.joints) joint = renumber(joint);
+    for (AnimationClip& clip : reversed.animations)
+      for (Channel& channel : clip.channels) channel.node = renumber(channel.node);
+    return reversed;
+  }();
   return asset;
 }
 

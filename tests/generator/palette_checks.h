@@ -59,11 +59,14 @@ inline void ExpectEveryClipOfTheGltfModelsMatchesTheGold(const RunPalettes& run,
   }
 }
 
-// The deep synthetic rig (DeepRig): every interpolation, chains 64 deep.
+// The deep synthetic rig (DeepRig): every interpolation, chains 64 deep;
+// and the same rig with every child before its parent (ReversedDeepRig).
 inline void ExpectTheDeepRigMatchesTheGold(const RunPalettes& run, const std::string& api) {
-  const PackedAnimation packed = PackAnimation(DeepRig());
-  const std::vector<AnimInstance> instances = EveryClipAlone(DeepRig(), packed);
-  ExpectWithinBound("deep rig " + api, Compare(DeepRig(), packed, instances, run(packed, instances)));
+  for (const SkinnedAsset* rig : {&DeepRig(), &ReversedDeepRig()}) {
+    const PackedAnimation packed = PackAnimation(*rig);
+    const std::vector<AnimInstance> instances = EveryClipAlone(*rig, packed);
+    ExpectWithinBound(Name(*rig) + " " + api, Compare(*rig, packed, instances, run(packed, instances)));
+  }
 }
 
 // Two clips blended in local space (Blends).
@@ -80,7 +83,8 @@ inline void ExpectBlendsMatchTheGold(const RunPalettes& run, const std::string& 
 // evaluation of the baked frames.
 inline void ExpectBakedClipsMatchTheirFrames(const RunPalettes& run, const std::string& api) {
   for (const SkinnedAsset* asset :
-       {&TestAsset("CesiumMan.gltf"), &TestAsset("Fox.gltf"), &TestAsset("RiggedSimple.gltf"), &DeepRig()}) {
+       {&TestAsset("CesiumMan.gltf"), &TestAsset("Fox.gltf"), &TestAsset("RiggedSimple.gltf"), &DeepRig(),
+        &ReversedDeepRig()}) {
     const PackedAnimation sampled = PackAnimation(*asset);
     const PackedAnimation baked = BakeAnimation(*asset, 30.0);
     const PackedAnimation local = BakeAnimation(*asset, 30.0, BakeSpace::kLocal);

@@ -673,6 +673,10 @@ TEST(PaletteKernel, PointerJumpingTakesTheRoundsTheDeepestChainNeeds) {
                 AnimJumpRounds(PackAnimation(TestAsset(model)).nodes));
   const PackedAnimation deep = PackAnimation(DeepRig());
   const int rounds = AnimJumpRounds(deep.nodes);
+  // The order of the nodes is not the hierarchy's: every child of the reversed rig comes before its parent.
+  const PackedAnimation reversed = PackAnimation(testing::ReversedDeepRig());
+  for (std::size_t n = 0; n + 1 < reversed.nodes.size(); ++n) EXPECT_GT(reversed.nodes[n].parent, static_cast<int>(n)) << n;
+  EXPECT_EQ(AnimJumpRounds(reversed.nodes), rounds);
   EXPECT_GE(rounds, 6);  // chains 64 deep
   EXPECT_NE(EmitPalette(Lang::kOpenCl, deep.View(), 3).kernel.text.find("#define ANIM_JUMPS " + std::to_string(rounds) + "\n"),
             std::string::npos);
