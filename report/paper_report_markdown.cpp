@@ -141,7 +141,8 @@ std::string RenderMarkdown(const PaperSummary& s) {
   }
   out += "\n## Fig. 1\n\n" + Figure1Markdown(s) + "## Table 1\n\n" + Table1Markdown(s);
   out += "## Tuned winners per device\n\n"
-         "The fastest verified variant per data set; GB/s = bytes the format moves / median time; \"x copy\" = "
+         "The fastest verified variant per data set; GB/s = bytes the format moves / median time (a crowd's: K "
+         "copies of its mesh, which its launch reads once, so it may pass the device's bandwidth); \"x copy\" = "
          "the time over a copy of the same bytes timed the same way (docs/TUNING.md \"Timing\"; * partly from cache: the "
          "rotation covered less than twice the chip's last-level cache); \"of copy\" = GB/s over the device's large "
          "copy; \"vs quantised\" = the largest relative error against the float64 gold of the variant's quantised "
