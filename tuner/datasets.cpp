@@ -264,10 +264,18 @@ const PackedMesh& PackScene(DatasetCache& datasets, DatasetCache::Entry& entry, 
   return packed;
 }
 
-std::uint64_t FrameBytes(const PackedMesh& packed, int instances) {
+namespace {
+// The bytes of the launches' inputs: the mesh every instance reads.
+std::uint64_t InputBytes(const PackedMesh& packed) {
   std::uint64_t bytes = 0;
   for (const Launch& launch : packed.launches)
     for (const PackedBuffer& b : launch.inputs) bytes += b.bytes.size();
+  return bytes;
+}
+}  // namespace
+
+std::uint64_t FrameBytes(const PackedMesh& packed, int instances) {
+  std::uint64_t bytes = InputBytes(packed);
   for (const OutputSpec& output : kOutputs)
     if (Writes(packed.variant, output.output)) bytes += packed.vertex_count * OutputStrideBytes(packed.variant, output.output);
   bytes += packed.palette.size();
@@ -275,10 +283,7 @@ std::uint64_t FrameBytes(const PackedMesh& packed, int instances) {
 }
 
 std::uint64_t FloorBytes(const PackedMesh& packed, int instances) {
-  std::uint64_t inputs = 0;
-  for (const Launch& launch : packed.launches)
-    for (const PackedBuffer& b : launch.inputs) inputs += b.bytes.size();
-  return FrameBytes(packed, instances) - inputs * static_cast<std::uint64_t>(std::max(instances - 1, 0));
+  return FrameBytes(packed, instances) - InputBytes(packed) * static_cast<std::uint64_t>(std::max(instances - 1, 0));
 }
 
 std::vector<std::vector<std::uint8_t>> TimedPalettes(DatasetCache& datasets, DatasetCache::Entry& data,
