@@ -25,7 +25,8 @@
 // the instance), every instance at its own time; --blend makes every
 // instance (--blend-every N: every N-th) a blend of two clips (weight 0.5);
 // --bake-rate R bakes the clips, --bake-local and --bake-hybrid say as what
-// (SkinnerOptions::bake_space). The summary compares
+// (SkinnerOptions::bake_space), --fuse-palette makes palette records' palettes
+// in the skin launch (SkinnerOptions::fuse_palette). The summary compares
 // them with the instanced rows, whose palettes the host uploads.
 //
 // K = 64 and N = 25k-b4 (77 joints) by default: a crowd of 64 characters. Each
@@ -102,6 +103,7 @@ struct Options {
   double bake_rate = 0.0;  // SkinnerOptions::bake_rate of the animated rows (0: sampled clips)
   bool bake_local = false;  // SkinnerOptions::bake_space kLocal
   bool bake_hybrid = false;  // SkinnerOptions::bake_space kHybrid
+  bool fuse_palette = false;  // SkinnerOptions::fuse_palette
 };
 Options options;
 
@@ -202,6 +204,7 @@ struct Scene {
     animated_options.bake_rate = options.bake_rate;
     if (options.bake_local) animated_options.bake_space = BakeSpace::kLocal;
     if (options.bake_hybrid) animated_options.bake_space = BakeSpace::kHybrid;
+    animated_options.fuse_palette = options.fuse_palette;
     a->skinner = Must(Skinner::CreateAnimated(device, db, a->model, animated_options), "animated Skinner");
     const int clips = a->model.animation_count();
     for (int f = 0; f < options.poses; ++f) {
@@ -229,6 +232,7 @@ struct Scene {
                  !options.blend ? "" : options.blend_every == 1 ? ", two-clip blends" : ", two-clip blends in part",
                  options.bake_rate > 0.0 ? (options.bake_hybrid  ? "baked as hybrid records"
                                             : options.bake_local ? "baked in local space"
+                                            : options.fuse_palette ? "baked, made in the skin launch"
                                                                  : "baked")
                                          : "sampled",
                  a->skinner.animation_bytes());
@@ -571,6 +575,11 @@ void ParseOptions(int& argc, char** argv) {
   app.add_flag("--bake-hybrid", options.bake_hybrid,
                "animated rows: bake both records (SkinnerOptions::bake_space kHybrid; with --bake-rate)")
       ->excludes("--bake-local");
+  app.add_flag("--fuse-palette", options.fuse_palette,
+               "animated rows: palette records made in the skin launch, no palette kernel (SkinnerOptions::fuse_palette; "
+               "with --bake-rate)")
+      ->excludes("--bake-local")
+      ->excludes("--bake-hybrid");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -4,7 +4,7 @@
 //
 //   skin_animation MODEL.gltf|.glb|DATASET [MODEL...] [--db winners-db.json] [--device PATTERN]
 //                  [--seconds S] [--readback] [--instances K] [--palette-buffers N] [--host-palettes]
-//                  [--bake RATE [--bake-local | --bake-hybrid]]
+//                  [--bake RATE [--bake-local | --bake-hybrid | --fuse-palette]]
 //
 // One model is animated on the device (Skinner::CreateAnimated, docs/ANIMATION.md):
 // each frame uploads every character's clip and time, 16 bytes a character, and the
@@ -25,7 +25,8 @@
 // second when the Skinner is made (SkinnerOptions::bake_rate, docs/ANIMATION.md "Baked
 // clips") and prints each clip's frames, bytes and largest error; --bake-local bakes
 // each node's local transform instead (SkinnerOptions::bake_space, "Baked in local space"),
-// --bake-hybrid both ("Hybrid records").
+// --bake-hybrid both ("Hybrid records"); --fuse-palette makes palette records' palettes in
+// the skin launch, one launch a frame (SkinnerOptions::fuse_palette, "The palette in the skin launch").
 #include <CLI/CLI.hpp>
 #include <skintune/skintune.h>
 
@@ -87,6 +88,12 @@ int main(int argc, char** argv) {
                "cross-fade (SkinnerOptions::bake_space kHybrid)")
       ->needs(bake)
       ->excludes("--bake-local");
+  app.add_flag("--fuse-palette", options.fuse_palette,
+               "make each palette from the palette records in the skin launch: no palette kernel, one launch a frame "
+               "(SkinnerOptions::fuse_palette)")
+      ->needs(bake)
+      ->excludes("--bake-local")
+      ->excludes("--bake-hybrid");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

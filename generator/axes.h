@@ -66,7 +66,7 @@ constexpr AxisValueSpec V(E value, const char* name, const char* token, int defi
 // The values of the full space, in order (enum axes: every enumerator, in the enum's order).
 class AxisValueList {
  public:
-  static constexpr std::size_t kCapacity = 14;
+  static constexpr std::size_t kCapacity = 18;
   constexpr AxisValueList() = default;
   constexpr AxisValueList(std::initializer_list<AxisValueSpec> values) {
     for (const AxisValueSpec& v : values) Add(v);
@@ -313,7 +313,9 @@ inline constexpr Axis kAxes[] = {
                 V(Animation::kLocal120, "local120", "anim-local120"), V(Animation::kLocal240, "local240", "anim-local240"),
                 V(Animation::kHybrid30, "hybrid30", "anim-hybrid30"), V(Animation::kHybrid60, "hybrid60", "anim-hybrid60"),
                 V(Animation::kHybrid120, "hybrid120", "anim-hybrid120"),
-                V(Animation::kHybrid240, "hybrid240", "anim-hybrid240")},
+                V(Animation::kHybrid240, "hybrid240", "anim-hybrid240"), V(Animation::kFused30, "fused30", "anim-fused30"),
+                V(Animation::kFused60, "fused60", "anim-fused60"), V(Animation::kFused120, "fused120", "anim-fused120"),
+                V(Animation::kFused240, "fused240", "anim-fused240")},
      .define = kNoDefine,  // the skin kernel is the same: the runner runs the palette kernel before it
      .covering = Covering::kRotated,
      .covering_step = 1,

@@ -68,6 +68,11 @@ void CheckShape(const Variant& v, const ProblemShape& shape, std::vector<Violati
                    "an animated scene with morph targets: the tuner animates scenes without them (a Skinner animates "
                    "crowds with morph targets: docs/ANIMATION.md)"});
   }
+  if (FusesPalette(v.animation) && v.storage != PaletteStorage::kLocal) {
+    out.push_back({Constraint::kAnimationFused, std::string("animation ") + Name(v.animation) +
+                                                    ": each work-group makes its palette into its local copy (storage local, not " +
+                                                    Name(v.storage) + ")"});
+  }
   if (PacksNormals(v) && !SkinsNormals(v)) {
     out.push_back({Constraint::kNormalFormatUnused,
                    std::string("normal_format ") + Name(v.normal_format) + " packs normals, but the variant skins none"});
@@ -199,6 +204,7 @@ const char* Name(Constraint c) {
     case Constraint::kAnimationIgnored: return "animation_ignored";
     case Constraint::kAnimationPalette: return "animation_palette";
     case Constraint::kAnimationMorph: return "animation_morph";
+    case Constraint::kAnimationFused: return "animation_fused";
   }
   return "unknown";
 }

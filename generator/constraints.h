@@ -76,6 +76,7 @@ enum class Constraint {
   kAnimationIgnored,      // the host's palettes for a scene animated on the device (not a variant of this data set)
   kAnimationPalette,      // the palette kernel writes matrices (mat3x4, mat4): not the dualquat palette
   kAnimationMorph,        // an animated scene with morph targets (the Skinner animates them; the tuner does not)
+  kAnimationFused,        // fused animation (each work-group makes its palette) without storage local
 };
 
 const char* Name(Constraint);

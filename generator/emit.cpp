@@ -99,13 +99,25 @@ void MorphArguments(const Variant& v, bool instanced, std::vector<KernelArgument
                   ArgumentKind::kBuffer});
 }
 
-// GLSL and Vulkan: whether the argument takes a binding (buffers, images and
-// the palette, in argument order; not scalars, nor glsl-vertex's outputs,
-// which transform feedback captures).
+}  // namespace
+
+std::vector<std::pair<std::string, long long>> BindingDefines(Lang lang, std::span<const KernelArgument> arguments) {
+  std::vector<std::pair<std::string, long long>> defines;
+  for (const KernelArgument& a : arguments) {
+    if (!TakesBinding(lang, a)) continue;
+    std::string name = "BINDING_";
+    for (const char c : a.name) name += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    defines.emplace_back(name, static_cast<long long>(defines.size()));
+  }
+  return defines;
+}
+
 bool TakesBinding(Lang lang, const KernelArgument& a) {
   if (a.kind == ArgumentKind::kScalar) return false;
   return !(lang == Lang::kGlslVertex && a.direction == ArgumentDirection::kOut);
 }
+
+namespace {
 
 std::vector<KernelArgument> KernelArguments(const Variant& v, int b, bool instanced) {
   const auto bb = static_cast<std::size_t>(b);
@@ -297,13 +309,8 @@ KernelSource Emit(const Variant& variant, int influences_override, int joints, c
   source.launch = Geometry(variant, options.instanced);
   // GLSL: each buffer's binding, its place in the argument list (skin_body.glsl).
   if (IsGlslText(variant.lang)) {
-    int binding = 0;
-    for (const KernelArgument& a : source.arguments) {
-      if (!TakesBinding(variant.lang, a)) continue;
-      std::string name = "BINDING_";
-      for (const char c : a.name) name += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-      source.defines.emplace_back(name, binding++);
-    }
+    const auto bindings = BindingDefines(variant.lang, source.arguments);
+    source.defines.insert(source.defines.end(), bindings.begin(), bindings.end());
   }
 
   std::string heading = variant.Key();
@@ -394,7 +401,8 @@ std::size_t PushConstantOffset(const std::string& scalar) {
   if (scalar == "n") return 0;
   if (scalar == "first") return 4;
   if (scalar == "vertex_count") return 8;
-  throw Error("no push constant '" + scalar + "' (n, first, vertex_count)");
+  if (scalar == "elapsed") return 12;
+  throw Error("no push constant '" + scalar + "' (n, first, vertex_count, elapsed)");
 }
 
 namespace {

@@ -15,6 +15,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <iterator>
+#include <span>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -139,14 +140,22 @@ struct KernelSource {
 KernelSource Emit(const Variant& variant, int influences_override = 0, int joints = 0,
                   const EmitOptions& options = {});
 
+// GLSL and Vulkan: whether the argument takes a binding (buffers, images and
+// the palette, in argument order; not scalars, nor glsl-vertex's outputs,
+// which transform feedback captures).
+bool TakesBinding(Lang lang, const KernelArgument& a);
+// GLSL: BINDING_<NAME> of every argument that takes a binding, its place
+// among them (skin_body.glsl reads them).
+std::vector<std::pair<std::string, long long>> BindingDefines(Lang lang, std::span<const KernelArgument> arguments);
+
 // Whether an instanced kernel of `variant` takes K palettes only up to its
 // compile-time max_instances (CUDA and GLSL constant storage).
 bool InstancesBoundAtCompileTime(const Variant& variant);
 
 // Vulkan: a scalar argument's byte offset in the kernel's push-constant block
-// (n 0, first 4, vertex_count 8; kPushConstantBytes in all). Throws Error for
-// another name.
-inline constexpr std::size_t kPushConstantBytes = 12;
+// (n 0, first 4, vertex_count 8, a fused kernel's elapsed 12;
+// kPushConstantBytes in all). Throws Error for another name.
+inline constexpr std::size_t kPushConstantBytes = 16;
 std::size_t PushConstantOffset(const std::string& scalar);
 
 // Everything a program needs to bind and launch the kernel.

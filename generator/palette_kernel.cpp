@@ -1,6 +1,7 @@
 #include "generator/palette_kernel.h"
 
 #include <algorithm>
+#include <optional>
 #include <string>
 
 #include "base/error.h"
@@ -125,6 +126,59 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                                                             : " clips"),
                            k.defines);
   k.source_hash = SourceHash(k.text);
+  return out;
+}
+
+KernelSource EmitFused(const KernelSource& skin, const AnimationView& animation) {
+  const auto define = [&](const char* name) -> std::optional<long long> {
+    for (const auto& [key, value] : skin.defines)
+      if (key == name) return value;
+    return std::nullopt;
+  };
+  const std::string what = "fused skin kernel";
+  if (!animation.baked() || animation.baked_local)
+    throw Error(what + ": the animation is not palette records (BakeSpace kPalette): " +
+                (animation.baked() ? "local records" : "sampled clips") + " need the palette kernel's hierarchy");
+  if (define("STORAGE") != 1)
+    throw Error(what + ": the skin kernel's storage is not local (STORAGE 1): each work-group makes its palette "
+                       "into its local copy");
+  if (define("BLEND") == 2) throw Error(what + ": palette records are matrices, the skin kernel blends dual quaternions");
+  if (skin.joints != static_cast<int>(animation.joints.size()))
+    throw Error(what + ": the skin kernel's palette has " + std::to_string(skin.joints) + " joints, the animation " +
+                std::to_string(animation.joints.size()));
+  if (define("ANIM_FUSED").value_or(0) != 0) throw Error(what + ": the kernel is fused already");
+  KernelSource out = skin;
+  const auto palette = std::find_if(out.arguments.begin(), out.arguments.end(),
+                                    [](const KernelArgument& a) { return a.name == "palette"; });
+  if (palette == out.arguments.end()) throw Error(what + ": the skin kernel takes no palette");
+  const auto buffer = [](const char* name, const char* format, std::size_t element, const char* indexing) {
+    return KernelArgument{name, format, element, element, indexing, ArgumentDirection::kIn, ArgumentKind::kBuffer};
+  };
+  const std::vector<KernelArgument> records = {
+      buffer(kAnimFrames, "float4 records", 16 * std::size_t{animation.baked_rows}, ""),
+      buffer(kAnimInputs[5], "record", sizeof(AnimInstance), skin.instanced ? "i" : "0"),
+      buffer(kAnimClips, "float4", 16, "")};
+  const auto at = out.arguments.erase(palette);
+  out.arguments.insert(at, records.begin(), records.end());
+  out.arguments.push_back({kAnimElapsed, "f32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar});
+
+  // The skin's defines but GLSL's bindings, then the animation's; the bindings again from the new arguments.
+  out.defines.clear();
+  for (const auto& d : skin.defines)
+    if (!d.first.starts_with("BINDING_")) out.defines.push_back(d);
+  out.defines.insert(out.defines.end(), {{"ANIM_FUSED", 1},
+                                         {"ANIM_BAKED", BakedDefine(animation)},
+                                         {"ANIM_JOINT_COUNT", static_cast<long long>(animation.joints.size())},
+                                         {"ANIM_CLIP_COUNT", static_cast<long long>(animation.clip_count)}});
+  if (IsGlslText(out.lang)) {
+    const auto bindings = BindingDefines(out.lang, out.arguments);
+    out.defines.insert(out.defines.end(), bindings.begin(), bindings.end());
+  }
+  out.text = SpecialisedText(LanguageOf(out.lang).kernel_template,
+                             "a skin kernel that makes its palette from the palette records of " +
+                                 std::to_string(animation.clip_count) + " clips",
+                             out.defines);
+  out.source_hash = SourceHash(out.text);
   return out;
 }
 

@@ -67,6 +67,9 @@ std::span<const std::uint8_t> AnimationBufferBytes(const AnimationView& animatio
 struct PaletteKernel {
   KernelSource kernel;  // the language's palette_template in its copy_lang (glsl-vertex: glsl-compute)
   Variant variant;      // what an API reads of a launch's variant: its language, global storage
+  // No palette kernel runs: each skin launch makes its palette (EmitFused of
+  // the set's skin kernels, Runner::Animate; a fused* variant, FusesPalette).
+  bool fused = false;
 };
 
 // The palette kernel of `animation` in `lang`'s API writing `palette_rows`
@@ -76,6 +79,24 @@ struct PaletteKernel {
 // gets the baked kernel (define ANIM_BAKED: BakedDefine). Throws Error for rows
 // other than 3 or 4, no joints or nodes, more nodes than kAnimMaxNodes.
 PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette_rows);
+
+// The scalar a fused skin kernel takes last (EmitFused): f32 seconds since
+// the instances' upload, added to their clocks as AdvanceAnimInstances does.
+inline constexpr const char* kAnimElapsed = "elapsed";
+
+// A skin kernel of storage local that makes its instance's palette itself
+// (docs/ANIMATION.md "The palette in the skin launch"): `skin` (Emit's, of
+// the animation's joints) specialised again with ANIM_FUSED 1 and the
+// animation's ANIM_BAKED, ANIM_JOINT_COUNT and ANIM_CLIP_COUNT, its
+// `palette` argument replaced by `frames`, `instances` and `clips` (in that
+// order; their bytes: AnimationBufferBytes, instances K AnimInstance
+// records) and the scalar kAnimElapsed appended. Each work-group fills its
+// local copy from the palette records as the palette-record kernel writes
+// the palette; nothing but the outputs is written, so any number of launches
+// and frames may read the same instances. Throws Error for an animation that
+// is not palette records, a skin kernel not of local storage or that blends
+// dual quaternions, or joint counts that differ.
+KernelSource EmitFused(const KernelSource& skin, const AnimationView& animation);
 
 // The hierarchy kernels' rounds of pointer jumping (ANIM_JUMPS,
 // templates/palette.cl): ceil(log2(depth + 1)) for the deepest node's

@@ -67,13 +67,15 @@ enum class NormalFormat { kF32, kOct16, kSnorm8 };
 // space), or each node's local transform (local*: the hierarchy composed
 // each frame; a blend mixed in local space, as sampled clips are;
 // BakesLocally), or both (hybrid*: an instance that plays one clip reads
-// palette records, one that cross-fades mixes local ones; BakesHybrid).
-// The skin kernel is the same; the frame runs the palette
+// palette records, one that cross-fades mixes local ones; BakesHybrid), or
+// palette records made into each skin work-group's local copy (fused*: no
+// palette kernel, one launch a frame; FusesPalette; storage local).
+// Otherwise the skin kernel is the same, and the frame runs the palette
 // kernel first. A scene's choice (the tuner's "-anim" scenes animate on the
 // device): never raced against host.
 enum class Animation {
   kHost, kSampled, kBaked30, kBaked60, kBaked120, kBaked240, kLocal30, kLocal60, kLocal120, kLocal240,
-  kHybrid30, kHybrid60, kHybrid120, kHybrid240
+  kHybrid30, kHybrid60, kHybrid120, kHybrid240, kFused30, kFused60, kFused120, kFused240
 };
 
 struct Variant {
@@ -119,10 +121,14 @@ constexpr bool AnimatesOnDevice(const Variant& v) { return AnimatesOnDevice(v.an
 // The frames a second its clips are baked at; 0: sampled (or the host's palettes).
 constexpr double BakeRateOf(Animation a) {
   switch (a) {
-    case Animation::kBaked30: case Animation::kLocal30: case Animation::kHybrid30: return 30.0;
-    case Animation::kBaked60: case Animation::kLocal60: case Animation::kHybrid60: return 60.0;
-    case Animation::kBaked120: case Animation::kLocal120: case Animation::kHybrid120: return 120.0;
-    case Animation::kBaked240: case Animation::kLocal240: case Animation::kHybrid240: return 240.0;
+    case Animation::kBaked30: case Animation::kLocal30: case Animation::kHybrid30:
+    case Animation::kFused30: return 30.0;
+    case Animation::kBaked60: case Animation::kLocal60: case Animation::kHybrid60:
+    case Animation::kFused60: return 60.0;
+    case Animation::kBaked120: case Animation::kLocal120: case Animation::kHybrid120:
+    case Animation::kFused120: return 120.0;
+    case Animation::kBaked240: case Animation::kLocal240: case Animation::kHybrid240:
+    case Animation::kFused240: return 240.0;
     default: return 0.0;
   }
 }
@@ -130,6 +136,11 @@ constexpr double BakeRateOf(Animation a) {
 constexpr bool BakesHybrid(Animation a) {
   return a == Animation::kHybrid30 || a == Animation::kHybrid60 || a == Animation::kHybrid120 ||
          a == Animation::kHybrid240;
+}
+// Whether each skin work-group makes its palette from palette records
+// (fused*: the skin kernel's ANIM_FUSED, generator/palette_kernel.h EmitFused).
+constexpr bool FusesPalette(Animation a) {
+  return a == Animation::kFused30 || a == Animation::kFused60 || a == Animation::kFused120 || a == Animation::kFused240;
 }
 // Whether its clips are baked as each node's local transform (local*, and
 // hybrid*, whose cross-fades mix local records).

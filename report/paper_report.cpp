@@ -426,7 +426,9 @@ class ResultSummariser {
     const std::string key = w.variant.Key();
     for (const Measurement* m : Of(w.device_id, w.dataset)) {
       if (m->variant.Key() != key) continue;
-      std::string text = std::string(Name(w.variant.animation)) + ": palette kernel " + FormatMs(m->timing.palette_kernel_ms);
+      std::string text = std::string(Name(w.variant.animation)) +
+                         (FusesPalette(w.variant.animation) ? ": palettes made in the skin launch"
+                                                            : ": palette kernel " + FormatMs(m->timing.palette_kernel_ms));
       if (m->baked_clips.empty()) return text;
       double bytes = 0.0, error = 0.0;
       for (const BakedClipRecord& c : m->baked_clips) {

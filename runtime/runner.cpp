@@ -67,12 +67,36 @@ struct Prepared::Impl {
     std::array<DeviceBuffer*, kOutputCount> outputs{};  // by Output; null where the variant writes none
     std::size_t current = 0;  // the slot of the last upload: LaunchSet's
     std::optional<std::size_t> staged;  // the slot PaletteStaging gave, until its UploadPalette
+    // Each launch's arguments as AddSet bound them (the palette and morph
+    // weights left to the slots), and the set's options: Animate binds the
+    // fused kernels with the same buffers.
+    std::vector<std::vector<ArgumentBinding>> bindings;
+    SetOptions options;
+    bool animated = false;  // Animate ran on the set
+    // Fused (PaletteKernel::fused): the skin launches make the palettes, from
+    // the instances of the last upload advanced by `elapsed` seconds (the
+    // frames' deltas since, summed here and passed with each launch).
+    bool fused = false;
+    double elapsed = 0.0;
+    // Fused: the states of the last upload and the clips' ranges, so that the
+    // runner can upload them advanced (AdvanceAnimation's rebase).
+    std::vector<AnimInstance> uploaded_states;
+    std::vector<float> clip_ranges;
+    std::span<std::uint8_t> staging;  // PaletteStaging's, until its UploadPalette
+    // Fused: AdvanceAnimation takes no palette slot, so these fences keep the
+    // ring's bound on frames queued: LaunchSet marks entry `paced` and moves
+    // on; AdvanceAnimation first waits for the entry the next frame marks,
+    // the frame as many frames back as there are slots.
+    std::vector<Slot> pace;
+    std::size_t paced = 0;
   };
   DeviceApi* api = nullptr;  // the runner's; null in a Prepared that holds nothing
   SubmitThread* submit = nullptr;  // the runner's, where it has one
   std::string key;           // the variant's
   std::vector<std::unique_ptr<PlannedLaunch>> launches;
   std::unique_ptr<PlannedLaunch> palette_kernel;  // Animate's
+  std::vector<std::unique_ptr<PlannedLaunch>> fused_launches;  // Animate's fused skin kernels, one per launch
+  bool Animated() const { return palette_kernel || !fused_launches.empty(); }
   std::vector<Set> sets;
   std::size_t bytes_per_set = 0;
   std::size_t palettes_bytes = 0;  // the K palettes of a set
@@ -116,6 +140,7 @@ struct Prepared::Impl {
     run.use = use;
     run.key = key;
     if (palette_kernel) run.scalars = {{kAnimDelta, 0u}, {kAnimFresh, 1u}};
+    if (!fused_launches.empty()) run.scalars = {{kAnimElapsed, 0u}};
     return run;
   }
 };
@@ -364,6 +389,8 @@ void Runner::AddSet(Prepared::Impl& p, const PackedMesh& mesh, std::span<const K
     }
   }
   set.current = set.slots.size() - 1;  // the first WritePalette takes slot 0
+  set.bindings = std::move(launch_arguments);
+  set.options = options;
   p.bytes_per_set = bytes;
 }
 
@@ -687,8 +714,7 @@ std::vector<double> Runner::TimeCold(const Prepared& prepared, const Prepared& f
 
 double Runner::FrameMs(Prepared& prepared, int untimed, int frames) {
   using Clock = std::chrono::steady_clock;
-  const bool animated = prepared.impl_ && !prepared.impl_->sets.empty() &&
-                        prepared.impl_->sets.front().slots.front().palette_launches > 0;
+  const bool animated = prepared.impl_ && !prepared.impl_->sets.empty() && prepared.impl_->sets.front().animated;
   const auto frame = [&] {
     if (animated) AdvanceAnimation(prepared, 0, kFrameDelta);
     LaunchSet(prepared, 0);
@@ -734,28 +760,30 @@ Prepared Runner::PrepareCopy(Lang lang, std::size_t bytes, int input_sets) {
 // upload instead (upload_fenced false). Where the API orders uploads after
 // the launches before them (OrdersUploadsAfterLaunches: GL), the fence follows
 // the slot's upload instead of each launch, and covers it.
-std::size_t Runner::TakeNextSlot(Prepared& prepared, int set) {
-  Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
-  const Prepared::Impl& p = *prepared.impl_;
-  const std::size_t next = (s.current + 1) % s.slots.size();
-  Prepared::Impl::Slot& slot = s.slots[next];
+namespace {
+
+// Waits until `slot`'s fence (when it has one) is signalled: the calls of its
+// last upload and launch made (`submit`'s, where the runner has one), then the
+// device's work up to them. `name_of()` names the fence in errors (made on its first wait).
+template <typename Name>
+void AwaitSlot(DeviceApi& device, SubmitThread* submit, Prepared::Impl::Slot& slot, const Name& name_of) {
   // With a submit thread: only the calls of this slot's last upload and launch
   // must have been made (its fence exists), not those of the frames since.
-  if (submit_) submit_->WaitFor(slot.submitted);
+  if (submit) submit->WaitFor(slot.submitted);
   if (slot.done) {
-    if (slot.fence_name.empty()) slot.fence_name = "palette slot " + std::to_string(next) + " of " + p.key;
+    if (slot.fence_name.empty()) slot.fence_name = name_of();
     // With a submit thread: one query here, and when the fence is not yet
     // signalled the thread polls it (SubmitThread::Await), so the caller does
     // not wait in the driver beside the thread's calls. The query first: when
     // the thread, not the device, sets the pace, the fence is long signalled
     // and handing the check over would wait for the thread's current call.
-    if (!submit_) {
-      api_->Wait(*slot.done, slot.fence_name);
-    } else if (!api_->Signalled(*slot.done, slot.fence_name)) {
-      DeviceApi* api = api_.get();
+    if (!submit) {
+      device.Wait(*slot.done, slot.fence_name);
+    } else if (!device.Signalled(*slot.done, slot.fence_name)) {
+      DeviceApi* api = &device;
       DeviceObject& fence = *slot.done;
       const std::string& name = slot.fence_name;
-      submit_->Await(
+      submit->Await(
           [api, &fence, &name] {
             api->MakeCurrent();
             return api->Signalled(fence, name);
@@ -766,14 +794,24 @@ std::size_t Runner::TakeNextSlot(Prepared& prepared, int set) {
           });
     }
   }
+}
+
+}  // namespace
+
+std::size_t Runner::TakeNextSlot(Prepared& prepared, int set) {
+  Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
+  const Prepared::Impl& p = *prepared.impl_;
+  const std::size_t next = (s.current + 1) % s.slots.size();
+  AwaitSlot(*api_, submit_.get(), s.slots[next], [&] { return "palette slot " + std::to_string(next) + " of " + p.key; });
   return next;
 }
+
 
 std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
-  if (p.palette_kernel && s.slots.front().palette_launches == 0)
+  if (p.Animated() && !s.animated)
     Fail("launch", "input set " + std::to_string(set) + " of " + p.key + " is not animated and its others are: animate every set");
   const std::size_t next = TakeNextSlot(prepared, set);
   Prepared::Impl::Slot& slot = s.slots[next];
@@ -782,7 +820,8 @@ std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
     Fail("launch", "the palette staging of " + p.key + " has " + std::to_string(staging.size()) + " bytes, the frame " +
                        std::to_string(p.upload_bytes));
   s.staged = next;
-  return staging.first(p.upload_bytes);
+  s.staging = staging.first(p.upload_bytes);
+  return s.staging;
 }
 
 std::span<std::uint8_t> Runner::MorphWeightsStaging(Prepared& prepared, int set) {
@@ -831,6 +870,11 @@ void Runner::UploadPalette(Prepared& prepared, int set) {
   slot.prologue_pending = slot.palette_launches > 0;
   slot.fresh = true;
   slot.delta = 0.0f;
+  s.elapsed = 0.0;
+  if (s.fused) {  // kept for AdvanceAnimation's rebase
+    s.uploaded_states.resize(static_cast<std::size_t>(p.instances));
+    std::memcpy(s.uploaded_states.data(), s.staging.data(), std::min(s.staging.size(), s.uploaded_states.size() * sizeof(AnimInstance)));
+  }
   s.current = *s.staged;
   s.staged.reset();
 }
@@ -858,22 +902,28 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
     run.prologue = launches.first(slot.palette_launches);
     run.scalars = {{kAnimDelta, std::bit_cast<std::uint32_t>(slot.delta)}, {kAnimFresh, slot.fresh ? 1u : 0u}};
   }
+  if (s.fused) run.scalars = {{kAnimElapsed, std::bit_cast<std::uint32_t>(static_cast<float>(s.elapsed))}};
   slot.prologue_pending = false;
   run.key = p.key;
   run.out_positions = out_positions;
+  Prepared::Impl::Slot* pace = s.fused ? &s.pace[s.paced] : nullptr;
+  if (s.fused) s.paced = (s.paced + 1) % s.pace.size();
   if (submit_ && !out_positions) {
     DeviceApi* api = api_.get();
     const std::string& key = p.key;
     const bool mark = !api_->OrdersUploadsAfterLaunches();
-    slot.submitted = submit_->Push([api, run = std::move(run), &slot, &key, mark] {
+    slot.submitted = submit_->Push([api, run = std::move(run), &slot, &key, mark, pace] {
       api->MakeCurrent();
       api->RunFrames(run);
       if (mark) api->Mark(slot.done, key);
+      if (pace) api->Mark(pace->done, key);
     });
+    if (pace) pace->submitted = slot.submitted;
   } else {
     Settle();  // the positions go into the caller's buffer now (interop)
     api_->RunFrames(run);
     if (!api_->OrdersUploadsAfterLaunches()) api_->Mark(slot.done, p.key);
+    if (pace) api_->Mark(pace->done, p.key);
   }
   slot.launched = true;
 }
@@ -883,7 +933,11 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
   Settle();
   Prepared::Impl& p = *prepared.impl_;
   Prepared::Impl::Set& s = SetOf(&p, set, *api_);
-  if (s.slots.front().palette_launches > 0) Fail("launch", "input set " + std::to_string(set) + " of " + p.key + " is animated already");
+  if (s.animated) Fail("launch", "input set " + std::to_string(set) + " of " + p.key + " is animated already");
+  if (kernel.fused) {
+    AnimateFused(prepared, set, animation);
+    return;
+  }
   const std::vector<KernelArgument>& declared = kernel.kernel.arguments;
   const auto output = std::find_if(declared.begin(), declared.end(), [](const KernelArgument& a) { return a.name == kAnimOutput; });
   if (output == declared.end()) Fail("launch", "the palette kernel of " + p.key + " declares no '" + kAnimOutput + "'");
@@ -958,14 +1012,113 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
   api_->FinishUploads(p.key);
   p.upload_bytes = static_cast<std::size_t>(p.instances) * sizeof(AnimInstance);
   if (first) p.bytes_per_set += allocated;
+  s.animated = true;
+}
+
+void Runner::AnimateFused(Prepared& prepared, int set, const AnimationView& animation) {
+  Prepared::Impl& p = *prepared.impl_;
+  Prepared::Impl::Set& s = SetOf(&p, set, *api_);
+  if (p.palette_kernel) Fail("launch", "input set " + std::to_string(set) + " of " + p.key + ": fused, and its other sets are not");
+  const bool first = p.fused_launches.empty();  // the first set animated: the kernels are planned, their bytes counted
+  for (std::size_t l = 0; l < p.launches.size(); ++l) {
+    LaunchSpec spec = p.launches[l]->spec;
+    try {
+      spec.source = EmitFused(spec.source, animation);
+    } catch (const Error& e) {
+      Fail("build", p.key + ": " + e.what());
+    }
+    spec.where += " (its palette made in the launch)";
+    if (first) {
+      p.fused_launches.push_back(api_->Plan(spec));
+    } else if (HashOf(p.fused_launches[l]->spec.source) != HashOf(spec.source)) {
+      Fail("launch", "input set " + std::to_string(set) + " of " + p.key + ": another animation than its other sets'");
+    }
+  }
+  std::size_t allocated = 0;
+  const auto upload = [&](const std::string& name, std::span<const std::uint8_t> bytes) {
+    std::vector<std::uint8_t> padded(bytes.begin(), bytes.end());
+    padded.resize(std::max<std::size_t>(padded.size(), 16), 0);  // OpenCL has no empty buffers
+    allocated += padded.size();
+    std::unique_ptr<DeviceBuffer> buffer = api_->Allocate(BufferUse::kInput, padded.size(), padded.data(), name);
+    DeviceBuffer* raw = buffer.get();
+    s.objects.push_back(std::move(buffer));
+    return raw;
+  };
+  DeviceBuffer* frames = upload(kAnimFrames, AnimationBufferBytes(animation, kAnimFrames));
+  DeviceBuffer* clips = upload(kAnimClips, AnimationBufferBytes(animation, kAnimClips));
+  std::vector<AnimInstance> rest_pose(static_cast<std::size_t>(p.instances));
+  for (AnimInstance& in : rest_pose) in.clip = kAnimRestPose;
+  const std::span<const std::uint8_t> rest(reinterpret_cast<const std::uint8_t*>(rest_pose.data()),
+                                           rest_pose.size() * sizeof(AnimInstance));
+  Settle();  // the launches bound before are replaced: nothing queued may still use them
+  api_->Finish();
+  for (Prepared::Impl::Slot& slot : s.slots) {
+    slot.instances = upload(kAnimInputs[5], rest);
+    for (std::size_t l = 0; l < p.fused_launches.size(); ++l) {
+      // The fused kernel's arguments by name: the animation's, the slot's
+      // instances, and every other as AddSet bound the skin kernel's.
+      std::vector<ArgumentBinding> arguments;
+      for (const KernelArgument& a : p.fused_launches[l]->spec.source.arguments) {
+        if (a.kind == ArgumentKind::kScalar) {
+          arguments.push_back({&a, ArgumentRole::kScalar, nullptr, nullptr});
+        } else if (a.name == kAnimFrames || a.name == kAnimClips || a.name == kAnimInputs[5]) {
+          arguments.push_back({&a, ArgumentRole::kInput,
+                               a.name == kAnimFrames ? frames : a.name == kAnimClips ? clips : slot.instances, nullptr});
+        } else if (a.name == kMorphWeightsArgument) {
+          arguments.push_back({&a, ArgumentRole::kInput, slot.morph_weights, nullptr});
+        } else {
+          const auto bound = std::find_if(s.bindings[l].begin(), s.bindings[l].end(),
+                                          [&](const ArgumentBinding& b) { return b.argument->name == a.name; });
+          if (bound == s.bindings[l].end() || !bound->buffer)
+            Fail("launch", "the fused kernel of " + p.key + " takes an argument '" + a.name + "' the runner does not bind");
+          arguments.push_back({&a, bound->role, bound->buffer, bound->view});
+        }
+      }
+      slot.launches[l] = api_->Bind(*p.fused_launches[l], arguments, s.options, allocated);
+    }
+    slot.palette_launches = 0;
+    slot.prologue_pending = false;
+    slot.fresh = true;
+  }
+  api_->FinishUploads(p.key);
+  p.upload_bytes = static_cast<std::size_t>(p.instances) * sizeof(AnimInstance);
+  if (first) p.bytes_per_set += allocated;
+  s.animated = true;
+  s.fused = true;
+  s.elapsed = 0.0;
+  s.uploaded_states = rest_pose;
+  s.pace = std::vector<Prepared::Impl::Slot>(s.slots.size());
+  s.clip_ranges.assign(animation.clip_ranges.begin(), animation.clip_ranges.end());
 }
 
 void Runner::AdvanceAnimation(Prepared& prepared, int set, float delta, std::span<const std::uint8_t> morph_weights) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
-  if (s.slots.front().palette_launches == 0)
+  if (!s.animated)
     Fail("launch", "AdvanceAnimation of input set " + std::to_string(set) + " of " + p.key + ", which is not animated (Animate)");
+  if (s.fused) {  // nothing goes up: the clocks' step travels with the next launches (LaunchSet)
+    if (!morph_weights.empty())
+      Fail("launch", "AdvanceAnimation of " + p.key + ": morph weights for a set whose launches make their palettes "
+                                                      "(fused): a fused Skinner skins no morph targets");
+    AwaitSlot(*api_, submit_.get(), s.pace[s.paced],
+              [&] { return "frame " + std::to_string(s.paced) + " of the fused frames of " + p.key; });
+    s.elapsed += delta;
+    if (std::abs(s.elapsed) > kFusedRebaseSeconds) {
+      // A float32 time that far from the upload's loses precision the clips
+      // would show: upload the states advanced instead, as the device
+      // advances them (one frame's K records every kFusedRebaseSeconds).
+      AnimationView clips;
+      clips.clip_ranges = s.clip_ranges;
+      clips.clip_count = static_cast<std::uint32_t>(s.clip_ranges.size() / 4);
+      std::vector<AnimInstance> states = s.uploaded_states;
+      AdvanceAnimInstances(clips, states, static_cast<float>(s.elapsed));
+      const std::span<std::uint8_t> staging = PaletteStaging(prepared, set);
+      std::memcpy(staging.data(), states.data(), std::min(staging.size(), states.size() * sizeof(AnimInstance)));
+      UploadPalette(prepared, set);
+    }
+    return;
+  }
   const std::size_t next = TakeNextSlot(prepared, set);
   Prepared::Impl::Slot& slot = s.slots[next];
   if ((slot.morph_weights != nullptr) != !morph_weights.empty() ||

@@ -297,7 +297,13 @@ class Runner {
   // copied to the device. Throws Error for a set that is not animated.
   // A morph variant's `morph_weights` (the K instances', as MorphWeightsStaging
   // takes them) go up into the slot's weights buffer, the frame's one copy.
+  // A fused set (PaletteKernel::fused) takes no slot and waits for nothing:
+  // its launches add the deltas summed since the last upload to the
+  // uploaded clocks. Past kFusedRebaseSeconds from it, the states advanced
+  // on the host (AdvanceAnimInstances, as the kernels advance them) go up as
+  // an upload would, so that a float32 clock never drifts further.
   void AdvanceAnimation(Prepared& prepared, int set, float delta, std::span<const std::uint8_t> morph_weights = {});
+  static constexpr double kFusedRebaseSeconds = 16.0;
   // The native output buffer (cl_mem; CUdeviceptr or GL buffer name as an integer); null: none.
   void* OutputBuffer(const Prepared& prepared, int set, Output output) const;
   // The palette slot LaunchSet uses next: that of the last WritePalette (tests).
@@ -354,6 +360,9 @@ class Runner {
   // Time without the warm-up: `warmup` frames, then the bursts.
   std::vector<double> TimeFrames(const Prepared::Impl& p, int warmup, int bursts, int burst_frames);
   [[noreturn]] void Fail(const std::string& stage, const std::string& message) const;
+  // Animate of a fused PaletteKernel: set `set` bound to the skin launches
+  // fused with `animation` (EmitFused), no palette kernel.
+  void AnimateFused(Prepared& prepared, int set, const AnimationView& animation);
 
   std::unique_ptr<DeviceApi> api_;
   std::unique_ptr<SubmitThread> submit_;  // after api_: stopped before it goes

@@ -348,6 +348,9 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
   if (options.bake_space != skintune::BakeSpace::kPalette && call != "Skinner::CreateAnimated")
     FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_space is what Skinner::CreateAnimated "
                                                  "bakes; this Skinner takes its palettes from SetPalette");
+  if (options.fuse_palette && call != "Skinner::CreateAnimated")
+    FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::fuse_palette makes Skinner::CreateAnimated's "
+                                                 "palettes in the skin launch; this Skinner takes them from SetPalette");
   if (options.palette_threads < 0 || options.palette_threads > kMaxPaletteThreads)
     FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::palette_threads is " +
                                               std::to_string(options.palette_threads) + ", expected 0 (skintune's choice) to " +
@@ -358,7 +361,26 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
   const SceneShape scene_shape = batch                   ? SceneShape::kBatch
                                  : options.instances > 1 ? SceneShape::kInstances
                                                          : SceneShape::kSingle;
-  const Chosen chosen = ChooseVariant(call, *entries, state, mesh, scene_shape, count, options);
+  Chosen chosen = ChooseVariant(call, *entries, state, mesh, scene_shape, count, options);
+  if (options.fuse_palette && options.bake_rate != kBakeRateTuned) {
+    // Each work-group makes its palette into its local copy (EmitFused).
+    const std::string where = call + ": SkinnerOptions::fuse_palette with " + chosen.variant.Key() + ": ";
+    if (chosen.variant.lang == Lang::kCpu)
+      FailWith(ErrorCode::kInvalidArgument, where + "the cpu device runs its palette kernel as a call before the skin "
+                                                    "kernels', and has no work-groups' local copies to fuse it into");
+    if (chosen.variant.blend == Blend::kDualQuaternion)
+      FailWith(ErrorCode::kInvalidArgument, where + "palette records are matrices; it blends dual quaternions");
+    if (chosen.variant.storage != PaletteStorage::kLocal) {
+      chosen.variant.storage = PaletteStorage::kLocal;
+      chosen.selection.variant = chosen.variant.Key();
+      chosen.selection.reason += "; storage local: each work-group makes its palette (SkinnerOptions::fuse_palette)";
+    }
+    ProblemShape shape = WithMorphOf({mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
+                                      options.instances, options.tangents, true},
+                                     mesh.morph);
+    if (const std::vector<Violation> v = SkinKernelViolations(chosen.variant, state.limits, shape); !v.empty())
+      FailWith(ErrorCode::kInvalidArgument, where + Joined(v));
+  }
 
   PackedMesh packed;
   std::vector<KernelSource> kernels;
@@ -459,6 +481,14 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     if (options.bake_space != skintune::BakeSpace::kPalette && !local)
       FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_space is " +
                                                 std::to_string(static_cast<int>(options.bake_space)) + ", not a BakeSpace");
+    if (options.fuse_palette && (tuned || !(options.bake_rate > 0.0) || local))
+      FailWith(ErrorCode::kInvalidArgument,
+               call + ": SkinnerOptions::fuse_palette makes the palettes from palette records (bake_rate above 0, "
+                      "bake_space kPalette), and " +
+                   (tuned ? std::string("bake_rate is kBakeRateTuned (the tuned entry's form decides)")
+                    : local ? std::string("bake_space is ") + (hybrid ? "kHybrid" : "kLocal")
+                            : "bake_rate is " + std::to_string(options.bake_rate) + " (sampled)"));
+
     if (local && !(options.bake_rate > 0.0))
       FailWith(ErrorCode::kInvalidArgument,
                call + ": SkinnerOptions::bake_space " + (hybrid ? "kHybrid" : "kLocal") +
@@ -509,9 +539,20 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
       im.selection.reason += std::string("; palettes made as SkinnerOptions::bake_rate asks, not as tuned (") +
                              Name(im.variant.animation) + "): kBakeRateTuned takes the tuned form";
     }
+    const bool fused = tuned ? FusesPalette(im.variant.animation) : options.fuse_palette;
+    if (fused && model.mesh().morph_target_count != 0)
+      FailWith(ErrorCode::kInvalidArgument, call + ": " + (tuned ? "the tuned entry's " + im.variant.Key() : std::string("SkinnerOptions::fuse_palette")) +
+                                                ": the palettes made in the skin launch, and the model has " +
+                                                std::to_string(model.mesh().morph_target_count) +
+                                                " morph targets, whose weights go up with every frame; a fused Skinner "
+                                                "uploads nothing after AdvanceAnimation");
     PaletteKernel kernel;
     try {
-      kernel = EmitPalette(im.variant.lang, animation.View(), static_cast<int>(PaletteMatrixBytes(im.variant) / 16));
+      if (fused) {
+        kernel.fused = true;  // the skin launches make the palettes (Runner::Animate)
+      } else {
+        kernel = EmitPalette(im.variant.lang, animation.View(), static_cast<int>(PaletteMatrixBytes(im.variant) / 16));
+      }
     } catch (const Error& e) {
       FailWith(ErrorCode::kInvalidArgument, call + ": " + e.what());
     }

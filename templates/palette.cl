@@ -30,17 +30,10 @@
 // ANIM_JOINT_COUNT, ANIM_CLIP_COUNT, ANIM_PALETTE_ROWS): the generator defines
 // them for the packed animation the kernel runs (generator/palette_kernel.h),
 // skin_params.h gives their defaults.
+#define ANIM_PALETTE_KERNEL 1  // the prelude's palette-kernel part (anim_records.clh)
 #include "skin_params.h"
+#include "anim_records.clh"
 
-#define ANIM_REST_POSE 0xffffu
-
-typedef struct {
-  float4 row0, row1, row2;  // an affine transform's rows (x, y, z | translation)
-} Affine;
-
-typedef struct {
-  float4 t, r, s;  // translation, rotation (x, y, z, w), scale
-} Trs;
 
 Affine anim_multiply(const Affine a, const Affine b) {
   const float4 unit_w = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
@@ -49,11 +42,6 @@ Affine anim_multiply(const Affine a, const Affine b) {
   c.row1 = a.row1.x * b.row0 + a.row1.y * b.row1 + a.row1.z * b.row2 + a.row1.w * unit_w;
   c.row2 = a.row2.x * b.row0 + a.row2.y * b.row1 + a.row2.z * b.row2 + a.row2.w * unit_w;
   return c;
-}
-
-float4 anim_normalize_quat(const float4 q) {
-  const float length = sqrt(dot(q, q));
-  return length > 0.0f ? q / length : q;
 }
 
 // Shortest-path spherical interpolation of two (x, y, z, w) quaternions.
@@ -142,39 +130,6 @@ float4 anim_path(const uint node_count, __global const float4* restrict nodes, _
   return anim_normalize_quat(x + w * (r2 - x));
 }
 
-// T * R * S as rows, from a normalised (x, y, z, w) rotation.
-Affine anim_to_affine(const Trs x) {
-  const float4 q = x.r;
-  const float xx = q.x * q.x, yy = q.y * q.y, zz = q.z * q.z;
-  const float xy = q.x * q.y, xz = q.x * q.z, yz = q.y * q.z, wx = q.w * q.x, wy = q.w * q.y, wz = q.w * q.z;
-  Affine m;
-  m.row0 = (float4)((1.0f - 2.0f * (yy + zz)) * x.s.x, 2.0f * (xy - wz) * x.s.y, 2.0f * (xz + wy) * x.s.z, x.t.x);
-  m.row1 = (float4)(2.0f * (xy + wz) * x.s.x, (1.0f - 2.0f * (xx + zz)) * x.s.y, 2.0f * (yz - wx) * x.s.z, x.t.y);
-  m.row2 = (float4)(2.0f * (xz - wy) * x.s.x, 2.0f * (yz + wx) * x.s.y, (1.0f - 2.0f * (xx + yy)) * x.s.z, x.t.z);
-  return m;
-}
-
-int anim_clip_valid(const uint clip, const uint clip_count) { return clip == ANIM_REST_POSE || clip < clip_count; }
-
-// Time t moved into [start, end] of its clip (range: start, end), looping:
-// the clip plays again from its start (a clip of no duration: its start).
-float anim_loop_time(const float t, const float4 range) {
-  const float length = range.y - range.x;
-  if (!(length > 0.0f)) return range.x;
-  float u = t - range.x;
-  u = fmin(fmax(u - length * floor(u / length), 0.0f), length);
-  return range.x + u;
-}
-
-// An instance's state advanced by `delta` seconds on its clips' clocks (the
-// rest pose and a clip out of range keep theirs).
-uint4 anim_advance(__global const float4* restrict clips, uint4 in, const float delta, const uint clip_count) {
-  const uint c1 = in.x & 0xffffu, c2 = in.x >> 16;
-  if (c1 != ANIM_REST_POSE && c1 < clip_count) in.y = as_uint(anim_loop_time(as_float(in.y) + delta, clips[c1]));
-  if (c2 != ANIM_REST_POSE && c2 < clip_count) in.z = as_uint(anim_loop_time(as_float(in.z) + delta, clips[c2]));
-  return in;
-}
-
 #define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
 // The local memory an instance's nodes take: the model's nodes (a define),
 // at most ANIM_MAX_NODES, so that a small rig's groups leave the rest of it,
@@ -187,113 +142,14 @@ uint4 anim_advance(__global const float4* restrict clips, uint4 in, const float 
 // The nodes each item composes (its nodes item, item + ANIM_GROUP, ...).
 #define ANIM_NODES_PER_ITEM ((ANIM_LOCAL_NODES + ANIM_GROUP - 1) / ANIM_GROUP)
 
+
 #if ANIM_BAKED
-// Baked clips (docs/ANIMATION.md "Baked clips"; cpu_kernels/palette_kernel.cpp
-// BakedSample is the same in C++): each joint's skinning transform stored at
-// evenly spaced frames as its polar decomposition, a unit rotation q, a
-// translation t and a symmetric stretch S (s I for a similarity), frame 0 the
-// rest pose. An item per (instance, joint): the two frames around the clip's
-// time, q nlerped along the shortest path and t, S lerped, likewise towards
-// clip2 by the blend weight, then written as the rows of R(q) S | t. No hierarchy, no search: two loads a
-// joint and frame. Launch as the sampled kernel: a group of ANIM_GROUP items
-// per instance, joints j = item, item + ANIM_GROUP, ...
-
-// Records of ANIM_BAKED_ROWS float4s: 2 where every transform is a
-// similarity (ANIM_BAKED 1: q, then t and s), else 4 (ANIM_BAKED 2: q, t,
-// then the symmetric stretch S as (S00, S11, S22, S01), (S02, S12)).
-// Baked in local space (ANIM_BAKED 3, 4; docs/ANIMATION.md "Baked in local
-// space"), a record is a node's local T R S at the frame: q, then t and a
-// uniform s (3), or q, t, then s per axis (4); the kernel mixes them as
-// above, then composes the hierarchy as the sampled kernel does (below).
-// Hybrid records (ANIM_STEADY 2 or 4, docs/ANIMATION.md "Hybrid records"):
-// the same frames' palette records too, in `steady`; an instance that plays
-// one clip reads those as the palette-record kernel does and walks nothing.
-#if ANIM_BAKED == 2
-#define ANIM_BAKED_ROWS 4u
-#elif ANIM_BAKED == 4
-#define ANIM_BAKED_ROWS 3u
-#else
-#define ANIM_BAKED_ROWS 2u
-#endif
-#if ANIM_BAKED >= 3
-#define ANIM_BAKED_ITEMS ANIM_NODE_COUNT  // a record a node
-#else
-#define ANIM_BAKED_ITEMS ANIM_JOINT_COUNT  // a record a joint
-#endif
-
-typedef struct {
-  float4 q, ts, s0, s1;  // rotation (x, y, z, w); translation (and s); the stretch
-} Baked;
-
-// Item j's record of `rows` float4s at `frame`, of `items` a frame (every
-// argument but frame and j a constant where it is called).
-Baked baked_record(__global const float4* restrict frames, const uint rows, const uint items, const uint frame,
-                   const uint j) {
-  const size_t at = rows * ((size_t)frame * items + j);
-  Baked b;
-  b.q = frames[at];
-  b.ts = frames[at + 1u];
-  b.s0 = rows >= 3u ? frames[at + 2u] : (float4)(0.0f);
-  b.s1 = rows == 4u ? frames[at + 3u] : (float4)(0.0f);
-  return b;
-}
-
-Baked baked_mix(const Baked x, const Baked y, const float u) {
-  const float4 q2 = dot(x.q, y.q) < 0.0f ? -y.q : y.q;
-  Baked b;
-  b.q = anim_normalize_quat(x.q + u * (q2 - x.q));
-  b.ts = x.ts + u * (y.ts - x.ts);
-  b.s0 = x.s0 + u * (y.s0 - x.s0);
-  b.s1 = x.s1 + u * (y.s1 - x.s1);
-  return b;
-}
-
-// Item j (a joint; a node in local space) of `clip` at time t, clamped to
-// the clip's range (start, end, frame count, first frame), from records of
-// `rows` float4s, `items` a frame.
-Baked baked_sample(__global const float4* restrict frames, const uint rows, const uint items,
-                   __global const float4* restrict clips, const uint clip, const float t, const uint j) {
-  if (clip == ANIM_REST_POSE) return baked_record(frames, rows, items, 0u, j);
-  const float4 range = clips[clip];
-  const uint count = as_uint(range.z), first = as_uint(range.w);
-  if (count < 2u) return baked_record(frames, rows, items, first, j);
-  const float length = range.y - range.x;
-  const float u = length > 0.0f ? fmin(fmax((t - range.x) / length, 0.0f), 1.0f) * (float)(count - 1u) : 0.0f;
-  const uint k = min((uint)u, count - 2u);
-  return baked_mix(baked_record(frames, rows, items, first + k, j),
-                   baked_record(frames, rows, items, first + k + 1u, j), u - (float)k);
-}
-
-// The rows of R(q) S | t of a palette record of `rows` float4s (2: a
-// similarity, S = s I).
-Affine baked_affine(const Baked x, const uint rows) {
-  Trs trs;
-  trs.t = (float4)(x.ts.xyz, 0.0f);
-  trs.r = x.q;
-  if (rows != 4u) {
-    trs.s = (float4)(x.ts.w, x.ts.w, x.ts.w, 0.0f);
-    return anim_to_affine(trs);
-  }
-  trs.s = (float4)(1.0f, 1.0f, 1.0f, 0.0f);
-  const Affine r = anim_to_affine(trs);
-  const float4 s_row0 = (float4)(x.s0.x, x.s0.w, x.s1.x, 0.0f), s_row1 = (float4)(x.s0.w, x.s0.y, x.s1.y, 0.0f);
-  const float4 s_row2 = (float4)(x.s1.x, x.s1.y, x.s0.z, 0.0f);
-  Affine m;
-  m.row0 = r.row0.x * s_row0 + r.row0.y * s_row1 + r.row0.z * s_row2 + (float4)(0.0f, 0.0f, 0.0f, x.ts.x);
-  m.row1 = r.row1.x * s_row0 + r.row1.y * s_row1 + r.row1.z * s_row2 + (float4)(0.0f, 0.0f, 0.0f, x.ts.y);
-  m.row2 = r.row2.x * s_row0 + r.row2.y * s_row1 + r.row2.z * s_row2 + (float4)(0.0f, 0.0f, 0.0f, x.ts.z);
-  return m;
-}
-
 // An instance's joint j from palette records of `rows` float4s: in clip,
 // mixed towards clip2's by the weight, written as `rows_out` float4 rows.
 void baked_palette_entry(__global const float4* restrict frames, const uint rows,
                          __global const float4* restrict clips, const uint4 in, const uint j,
                          __global float4* restrict out, const uint rows_out) {
-  const float w = as_float(in.w);
-  Baked x = baked_sample(frames, rows, ANIM_JOINT_COUNT, clips, in.x & 0xffffu, as_float(in.y), j);
-  if (w != 0.0f) x = baked_mix(x, baked_sample(frames, rows, ANIM_JOINT_COUNT, clips, in.x >> 16, as_float(in.z), j), w);
-  const Affine m = baked_affine(x, rows);
+  const Affine m = baked_affine(baked_instance(frames, rows, ANIM_JOINT_COUNT, clips, in, j), rows);
   out[rows_out * j] = m.row0;
   out[rows_out * j + 1u] = m.row1;
   out[rows_out * j + 2u] = m.row2;

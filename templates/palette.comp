@@ -17,6 +17,7 @@
 // ANIM_JOINT_COUNT, ANIM_CLIP_COUNT, ANIM_PALETTE_ROWS): the generator defines
 // them for the packed animation the kernel runs (generator/palette_kernel.h),
 // skin_params.h gives their defaults.
+#define ANIM_PALETTE_KERNEL 1  // the prelude's palette-kernel part (anim_records.glsl)
 #include "skin_params.h"
 
 #if ANIM_BAKED >= 3 && ANIM_STEADY
@@ -79,15 +80,7 @@ const uint joint_count = uint(ANIM_JOINT_COUNT);
 const uint clip_count = uint(ANIM_CLIP_COUNT);
 const uint rows = uint(ANIM_PALETTE_ROWS);
 
-const uint kRestPose = 0xffffu;
-
-struct Affine {
-  vec4 row0, row1, row2;  // an affine transform's rows (x, y, z | translation)
-};
-
-struct Trs {
-  vec4 t, r, s;  // translation, rotation (x, y, z, w), scale
-};
+#include "anim_records.glsl"
 
 Affine anim_multiply(Affine a, Affine b) {
   const vec4 unit_w = vec4(0.0, 0.0, 0.0, 1.0);
@@ -96,11 +89,6 @@ Affine anim_multiply(Affine a, Affine b) {
   c.row1 = a.row1.x * b.row0 + a.row1.y * b.row1 + a.row1.z * b.row2 + a.row1.w * unit_w;
   c.row2 = a.row2.x * b.row0 + a.row2.y * b.row1 + a.row2.z * b.row2 + a.row2.w * unit_w;
   return c;
-}
-
-vec4 anim_normalize_quat(vec4 q) {
-  float length = sqrt(dot(q, q));
-  return length > 0.0 ? q / length : q;
 }
 
 #if !ANIM_BAKED
@@ -183,114 +171,12 @@ vec4 anim_path(uint node, uint path, uvec4 in_) {
 }
 #endif  // !ANIM_BAKED
 
-// T * R * S as rows, from a normalised (x, y, z, w) rotation.
-Affine anim_to_affine(Trs x) {
-  vec4 q = x.r;
-  float xx = q.x * q.x, yy = q.y * q.y, zz = q.z * q.z;
-  float xy = q.x * q.y, xz = q.x * q.z, yz = q.y * q.z, wx = q.w * q.x, wy = q.w * q.y, wz = q.w * q.z;
-  Affine m;
-  m.row0 = vec4((1.0 - 2.0 * (yy + zz)) * x.s.x, 2.0 * (xy - wz) * x.s.y, 2.0 * (xz + wy) * x.s.z, x.t.x);
-  m.row1 = vec4(2.0 * (xy + wz) * x.s.x, (1.0 - 2.0 * (xx + zz)) * x.s.y, 2.0 * (yz - wx) * x.s.z, x.t.y);
-  m.row2 = vec4(2.0 * (xz - wy) * x.s.x, 2.0 * (yz + wx) * x.s.y, (1.0 - 2.0 * (xx + yy)) * x.s.z, x.t.z);
-  return m;
-}
-
-bool anim_clip_valid(uint clip) { return clip == kRestPose || clip < clip_count; }
-
-// Time t moved into [start, end] of its clip, looping (palette.cl).
-float anim_loop_time(float t, vec4 range) {
-  float length = range.y - range.x;
-  if (!(length > 0.0)) return range.x;
-  float u = t - range.x;
-  u = min(max(u - length * floor(u / length), 0.0), length);
-  return range.x + u;
-}
-
-// An instance's state advanced by `step` seconds on its clips' clocks (palette.cl).
-uvec4 anim_advance(uvec4 s, float step) {
-  uint c1 = s.x & 0xffffu, c2 = s.x >> 16;
-  if (c1 != kRestPose && c1 < clip_count) s.y = floatBitsToUint(anim_loop_time(uintBitsToFloat(s.y) + step, clips[c1]));
-  if (c2 != kRestPose && c2 < clip_count) s.z = floatBitsToUint(anim_loop_time(uintBitsToFloat(s.z) + step, clips[c2]));
-  return s;
-}
-
-#if ANIM_BAKED
-// Baked clips: palette.cl's baked kernel (docs/ANIMATION.md "Baked clips").
-// Records of ANIM_BAKED_ROWS vec4s, of joints or (local space, ANIM_BAKED
-// 3 and 4) nodes (palette.cl says which).
-#if ANIM_BAKED == 2
-const uint kBakedRows = 4u;
-#elif ANIM_BAKED == 4
-const uint kBakedRows = 3u;
-#else
-const uint kBakedRows = 2u;
-#endif
-#if ANIM_BAKED >= 3
-const uint kBakedItems = node_count;
-#else
-const uint kBakedItems = joint_count;
-#endif
-
-struct Baked {
-  vec4 q, ts, s0, s1;  // rotation (x, y, z, w); translation (and s); the stretch
-};
-
-// Float4 k of `frames`, or (hybrid records) of `steady` (GLSL has no
-// pointers to pass the buffer).
-vec4 record_row(bool from_steady, uint k) {
-#if ANIM_STEADY
-  if (from_steady) return steady[k];
-#endif
-  return frames[k];
-}
-
-// Item j's record of `rows` vec4s at `frame`, of `items` a frame (palette.cl).
-Baked baked_record(bool from_steady, uint rows_, uint items, uint frame, uint j) {
-  uint at = rows_ * (frame * items + j);
-  return Baked(record_row(from_steady, at), record_row(from_steady, at + 1u),
-               rows_ >= 3u ? record_row(from_steady, at + 2u) : vec4(0.0),
-               rows_ == 4u ? record_row(from_steady, at + 3u) : vec4(0.0));
-}
-
-Baked baked_mix(Baked x, Baked y, float u) {
-  vec4 q2 = dot(x.q, y.q) < 0.0 ? -y.q : y.q;
-  return Baked(anim_normalize_quat(x.q + u * (q2 - x.q)), x.ts + u * (y.ts - x.ts), x.s0 + u * (y.s0 - x.s0),
-               x.s1 + u * (y.s1 - x.s1));
-}
-
-Baked baked_sample(bool from_steady, uint rows_, uint items, uint clip, float t, uint j) {
-  if (clip == kRestPose) return baked_record(from_steady, rows_, items, 0u, j);
-  vec4 range = clips[clip];
-  uint count = floatBitsToUint(range.z), first = floatBitsToUint(range.w);
-  if (count < 2u) return baked_record(from_steady, rows_, items, first, j);
-  float length = range.y - range.x;
-  float u = length > 0.0 ? min(max((t - range.x) / length, 0.0), 1.0) * float(count - 1u) : 0.0;
-  uint k = min(uint(u), count - 2u);
-  return baked_mix(baked_record(from_steady, rows_, items, first + k, j),
-                   baked_record(from_steady, rows_, items, first + k + 1u, j), u - float(k));
-}
-
-// The rows of R(q) S | t of a palette record of `rows_` vec4s (2: a
-// similarity, S = s I).
-Affine baked_affine(Baked x, uint rows_) {
-  if (rows_ != 4u) return anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, vec4(x.ts.www, 0.0)));
-  Affine r = anim_to_affine(Trs(vec4(0.0), x.q, vec4(1.0, 1.0, 1.0, 0.0)));
-  vec4 s_row0 = vec4(x.s0.x, x.s0.w, x.s1.x, 0.0), s_row1 = vec4(x.s0.w, x.s0.y, x.s1.y, 0.0);
-  vec4 s_row2 = vec4(x.s1.x, x.s1.y, x.s0.z, 0.0);
-  Affine m;
-  m.row0 = r.row0.x * s_row0 + r.row0.y * s_row1 + r.row0.z * s_row2 + vec4(0.0, 0.0, 0.0, x.ts.x);
-  m.row1 = r.row1.x * s_row0 + r.row1.y * s_row1 + r.row1.z * s_row2 + vec4(0.0, 0.0, 0.0, x.ts.y);
-  m.row2 = r.row2.x * s_row0 + r.row2.y * s_row1 + r.row2.z * s_row2 + vec4(0.0, 0.0, 0.0, x.ts.z);
-  return m;
-}
 
 // An instance's joint j from palette records of `rows_` vec4s, written at
 // palette[base + rows * j ..] (palette.cl).
+#if ANIM_BAKED
 void baked_palette_entry(bool from_steady, uint rows_, uvec4 in_, uint j, uint base) {
-  float w = uintBitsToFloat(in_.w);
-  Baked x = baked_sample(from_steady, rows_, joint_count, in_.x & 0xffffu, uintBitsToFloat(in_.y), j);
-  if (w != 0.0) x = baked_mix(x, baked_sample(from_steady, rows_, joint_count, in_.x >> 16, uintBitsToFloat(in_.z), j), w);
-  Affine m = baked_affine(x, rows_);
+  Affine m = baked_affine(baked_instance(from_steady, rows_, joint_count, in_, j), rows_);
   palette[base + rows * j] = m.row0;
   palette[base + rows * j + 1u] = m.row1;
   palette[base + rows * j + 2u] = m.row2;

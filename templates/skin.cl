@@ -36,6 +36,7 @@
 // (vertex_count: the whole mesh, every launch together).
 
 #include "skin_params.h"
+#include "anim_records.clh"
 
 // ---------------------------------------------------------------- types
 //
@@ -185,7 +186,12 @@ static inline float weight_of(const uint raw) {
 #define PALETTE_REF_PARAM __constant float4* pal
 #define ROW(pal, k) (pal)[k]
 #elif STORAGE == 1
+#if ANIM_FUSED  // the palette records the local copy is made from (anim_records.clh)
+#define PALETTE_PARAM \
+  __global const float4* restrict frames, __global const uint4* restrict instances, __global const float4* restrict clips
+#else
 #define PALETTE_PARAM const __global float4* restrict palette
+#endif
 #define PALETTE_REF_PARAM __local const float4* pal
 #define ROW(pal, k) (pal)[k]
 #elif STORAGE == 2
@@ -377,13 +383,17 @@ void skin(const uint n, const uint first,
 #if TANGENTS
           __global POSITION_T* restrict out_positions,
           __global NORMAL_OUT_T* restrict out_normals,
-          __global TANGENT_OUT_T* restrict out_tangents) {
+          __global TANGENT_OUT_T* restrict out_tangents
 #elif NORMALS
           __global POSITION_T* restrict out_positions,
-          __global NORMAL_OUT_T* restrict out_normals) {
+          __global NORMAL_OUT_T* restrict out_normals
 #else
-          __global POSITION_T* restrict out_positions) {
+          __global POSITION_T* restrict out_positions
 #endif
+#if ANIM_FUSED
+          , const float elapsed  // seconds since the instances' upload, added to their clocks
+#endif
+          ) {
 #if INSTANCED
   // Instance i: its palette starts at joint i*JOINTS (added to the joint
   // indices, or to where the local copy reads), its outputs at i*vertex_count.
@@ -399,10 +409,38 @@ void skin(const uint n, const uint first,
 #if STORAGE == 1
   // Every item of the group copies, including those past n: no return before the barrier.
   __local float4 palette_local[PALETTE_FLOAT4S];
+#if ANIM_FUSED
+  {
+    // The copy made from the instance's palette records instead (docs/ANIMATION.md "The palette in
+    // the skin launch"): every group of the instance makes the same palette, its clocks advanced by
+    // `elapsed`, as the palette-record kernel makes it (palette.cl), so no launch before this one
+    // writes a palette and none waits for one. Nothing is written but the outputs.
+#if INSTANCED
+    (void)joint_base;  // the copy is the instance's own
+    const uint4 state = anim_advance(clips, instances[instance], elapsed, ANIM_CLIP_COUNT);
+#else
+    const uint4 state = anim_advance(clips, instances[0], elapsed, ANIM_CLIP_COUNT);
+#endif
+    const int valid = anim_clip_valid(state.x & 0xffffu, ANIM_CLIP_COUNT) &&
+                      (as_float(state.w) == 0.0f || anim_clip_valid(state.x >> 16, ANIM_CLIP_COUNT));
+    const float4 nan_row = (float4)(as_float(0x7fffffff));
+    for (uint j = get_local_id(0); j < JOINTS; j += WG_SIZE) {
+      Affine m = {nan_row, nan_row, nan_row};
+      if (valid) m = baked_affine(baked_instance(frames, ANIM_BAKED_ROWS, JOINTS, clips, state, j), ANIM_BAKED_ROWS);
+      palette_local[j * PALETTE_ROWS] = m.row0;
+      palette_local[j * PALETTE_ROWS + 1u] = m.row1;
+      palette_local[j * PALETTE_ROWS + 2u] = m.row2;
+#if PALETTE_ROWS == 4
+      palette_local[j * PALETTE_ROWS + 3u] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+#endif
+    }
+  }
+#else
 #if INSTANCED
   palette += joint_base * PALETTE_ROWS;
 #endif
   for (uint k = get_local_id(0); k < PALETTE_FLOAT4S; k += WG_SIZE) palette_local[k] = palette[k];
+#endif
   barrier(CLK_LOCAL_MEM_FENCE);
 #define PAL palette_local
 #else

@@ -41,6 +41,7 @@
 
 #include "skin_params.h"
 #include "skin_body.glsl"
+#include "anim_records.glsl"
 
 // ---------------------------------------------------------------- outputs
 
@@ -103,7 +104,30 @@ void main() {
 #else
   uint out_first = first;
 #endif
-#if STORAGE == 1
+#if STORAGE == 1 && ANIM_FUSED
+  {
+    // The copy made from the instance's palette records instead (skin.cl says why).
+#if INSTANCED
+    uvec4 state = anim_advance(instances[INSTANCE], elapsed);
+#else
+    uvec4 state = anim_advance(instances[0], elapsed);
+#endif
+    bool valid = anim_clip_valid(state.x & 0xffffu) && (uintBitsToFloat(state.w) == 0.0 || anim_clip_valid(state.x >> 16));
+    vec4 nan_row = vec4(uintBitsToFloat(0x7fc00000u));
+    for (uint j = gl_LocalInvocationID.x; j < uint(JOINTS); j += uint(WG_SIZE)) {
+      Affine m = Affine(nan_row, nan_row, nan_row);
+      if (valid) m = baked_affine(baked_instance(false, kBakedRows, uint(JOINTS), state, j), kBakedRows);
+      palette_local[j * uint(PALETTE_ROWS)] = m.row0;
+      palette_local[j * uint(PALETTE_ROWS) + 1u] = m.row1;
+      palette_local[j * uint(PALETTE_ROWS) + 2u] = m.row2;
+#if PALETTE_ROWS == 4
+      palette_local[j * uint(PALETTE_ROWS) + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
+#endif
+    }
+  }
+  memoryBarrierShared();
+  barrier();
+#elif STORAGE == 1
 #if INSTANCED
   uint palette_first = INSTANCE * uint(PALETTE_FLOAT4S);  // this instance's palette
 #else

@@ -52,6 +52,7 @@
 // alignments the loads below assume hold.
 
 #include "skin_params.h"
+#include "anim_records.cuh"
 
 // NVRTC has no <cstdint>.
 typedef unsigned int u32;
@@ -233,7 +234,12 @@ __constant__ float4 skintune_palette[PALETTE_FLOAT4S];
 #define PALETTE_REF 0
 #define ROW(pal, k) skintune_palette[k]
 #elif STORAGE == 1
+#if ANIM_FUSED  // the palette records the copy is made from (anim_records.cuh)
+#define PALETTE_PARAM \
+  const float4* __restrict__ frames, const uint4* __restrict__ instances, const float4* __restrict__ clips
+#else
 #define PALETTE_PARAM const float4* __restrict__ palette
+#endif
 #define PALETTE_REF_PARAM const float4* pal
 #define PALETTE_REF palette_shared
 #define ROW(pal, k) (pal)[k]
@@ -478,13 +484,17 @@ skin(const u32 n, const u32 first,
 #if TANGENTS
      POSITION_T* __restrict__ out_positions,
      NORMAL_OUT_T* __restrict__ out_normals,
-     TANGENT_OUT_T* __restrict__ out_tangents) {
+     TANGENT_OUT_T* __restrict__ out_tangents
 #elif NORMALS
      POSITION_T* __restrict__ out_positions,
-     NORMAL_OUT_T* __restrict__ out_normals) {
+     NORMAL_OUT_T* __restrict__ out_normals
 #else
-     POSITION_T* __restrict__ out_positions) {
+     POSITION_T* __restrict__ out_positions
 #endif
+#if ANIM_FUSED
+     , const float elapsed  // seconds since the instances' upload, added to their clocks
+#endif
+     ) {
 #if INSTANCED
   // Instance i: its palette starts at joint i*JOINTS (added to the joint
   // indices, or to where the shared copy reads), its outputs at i*vertex_count.
@@ -500,10 +510,38 @@ skin(const u32 n, const u32 first,
 #if STORAGE == 1
   // Every thread of the block copies, including those past n: no return before the barrier.
   __shared__ float4 palette_shared[PALETTE_FLOAT4S];
+#if ANIM_FUSED
+  {
+#if INSTANCED
+    (void)joint_base;  // the copy is the instance's own
+#endif
+    // The copy made from the instance's palette records instead (skin.cl says why).
+#if INSTANCED
+    const uint4 state = anim_advance(clips, __ldg(instances + instance), elapsed, ANIM_CLIP_COUNT);
+#else
+    const uint4 state = anim_advance(clips, __ldg(instances), elapsed, ANIM_CLIP_COUNT);
+#endif
+    const bool valid = anim_clip_valid(state.x & 0xffffu, ANIM_CLIP_COUNT) &&
+                       (__uint_as_float(state.w) == 0.0f || anim_clip_valid(state.x >> 16, ANIM_CLIP_COUNT));
+    const float nan = __int_as_float(0x7fffffff);
+    const float4 nan_row = make_float4(nan, nan, nan, nan);
+    for (u32 j = threadIdx.x; j < JOINTS; j += WG_SIZE) {
+      Affine m = {nan_row, nan_row, nan_row};
+      if (valid) m = baked_affine(baked_instance(frames, ANIM_BAKED_ROWS, JOINTS, clips, state, j), ANIM_BAKED_ROWS);
+      palette_shared[j * PALETTE_ROWS] = m.row0;
+      palette_shared[j * PALETTE_ROWS + 1u] = m.row1;
+      palette_shared[j * PALETTE_ROWS + 2u] = m.row2;
+#if PALETTE_ROWS == 4
+      palette_shared[j * PALETTE_ROWS + 3u] = make_float4(0.0f, 0.0f, 0.0f, 1.0f);
+#endif
+    }
+  }
+#else
 #if INSTANCED
   palette += joint_base * PALETTE_ROWS;
 #endif
   for (u32 k = threadIdx.x; k < PALETTE_FLOAT4S; k += WG_SIZE) palette_shared[k] = __ldg(palette + k);
+#endif
   __syncthreads();
 #elif STORAGE == 0
   (void)palette;

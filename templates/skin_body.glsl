@@ -14,8 +14,9 @@
 // Buffers and the palette take consecutive bindings in argument order
 // (scalars excluded): the sidecar's "binding" of each argument. The generator
 // defines every one (BINDING_<ARGUMENT>, from the argument list); these are
-// the defaults a template compiled alone takes.
-#ifndef BINDING_PALETTE
+// the defaults a template compiled alone takes (a fused kernel, ANIM_FUSED,
+// binds frames, instances and clips where the palette was).
+#if !defined(BINDING_PALETTE) && !defined(BINDING_FRAMES)
 #if LAYOUT == 0
 #define BINDING_RECORDS 0
 #define BINDING_PALETTE 1
@@ -61,10 +62,16 @@ layout(push_constant) uniform SkinScalars {
   uint n;
   uint first;
   uint vertex_count;
+#if ANIM_FUSED
+  float elapsed;  // byte 12
+#endif
 };
 #else
 uniform uint n;      // vertices of this launch
 uniform uint first;  // index of its first vertex in the outputs (compute: written at first + v)
+#if ANIM_FUSED
+uniform float elapsed;  // seconds since the instances' upload, added to their clocks
+#endif
 #endif
 
 #if INSTANCED
@@ -314,7 +321,14 @@ layout(std140, binding = BINDING_PALETTE) uniform Palette { vec4 palette_rows[PA
 #if !SKIN_COMPUTE_STAGE
 #error "STORAGE 1 (local): a vertex shader has no shared memory"
 #endif
+#if ANIM_FUSED
+// The palette records the local copy is made from (anim_records.glsl, skin.comp).
+layout(std430, binding = BINDING_FRAMES) readonly restrict buffer Frames { vec4 frames[]; };
+layout(std430, binding = BINDING_INSTANCES) readonly restrict buffer Instances { uvec4 instances[]; };
+layout(std430, binding = BINDING_CLIPS) readonly restrict buffer Clips { vec4 clips[]; };
+#else
 layout(std430, binding = BINDING_PALETTE) readonly restrict buffer Palette { vec4 palette_rows[]; };
+#endif
 shared vec4 palette_local[PALETTE_FLOAT4S];
 #define ROW(k) palette_local[k]
 #elif STORAGE == 2

@@ -168,6 +168,9 @@
 #ifndef ANIM_JUMPS            // the hierarchy kernels' rounds of pointer jumping: ceil(log2(depth + 1)) for the
 #define ANIM_JUMPS 9          // deepest node's ancestors (generator/palette_kernel.h); 9 reaches any of 512 nodes
 #endif
+#ifndef ANIM_FUSED            // 1: a skin kernel (STORAGE local) that makes its instance's palette from
+#define ANIM_FUSED 0          // palette records (ANIM_BAKED 1, 2) in its local copy, instead of reading the
+#endif                        // palette (buffers frames, instances, clips; docs/ANIMATION.md "The palette in the skin launch")
 #ifndef ANIM_GROUP            // the palette kernel's work-group: 3 x ANIM_NODE_COUNT rounded up to a multiple
 #define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h)
 #endif
@@ -183,6 +186,10 @@
 #endif
 #if STORAGE < 0 || STORAGE > 3
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
+#endif
+
+#if ANIM_FUSED && (STORAGE != 1 || BLEND == 2 || (ANIM_BAKED != 1 && ANIM_BAKED != 2))
+#error "ANIM_FUSED needs STORAGE 1 (local), matrix blending and palette records (ANIM_BAKED 1 or 2)"
 #endif
 
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)

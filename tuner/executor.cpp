@@ -219,7 +219,8 @@ std::unique_ptr<Executor::Timed> RunnerExecutor::PrepareAnimated(const PackedMes
       runner_.WritePalette(prepared, static_cast<int>(s), animated.states[s]);
   }
   runner_.Finish();
-  return std::make_unique<RunnerTimed>(runner_, *this, std::move(prepared), lang, mesh.variant.Key(), true);
+  // The palette kernel's own time is its frame's first launch's; a fused frame has none.
+  return std::make_unique<RunnerTimed>(runner_, *this, std::move(prepared), lang, mesh.variant.Key(), !animated.kernel.fused);
 }
 
 std::unique_ptr<Executor::Timed> RunnerExecutor::Copy(Lang lang, std::size_t bytes, int input_sets) {

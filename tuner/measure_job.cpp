@@ -122,7 +122,11 @@ AnimatedInputs AnimatedFor(DatasetCache& datasets, DatasetCache::Entry& data, co
                            std::vector<std::vector<std::uint8_t>> states) {
   AnimatedInputs in;
   in.clips = &datasets.Clips(data, variant.animation);
-  in.kernel = EmitPalette(variant.lang, in.clips->View(), static_cast<int>(PaletteMatrixBytes(variant) / 16));
+  if (FusesPalette(variant.animation)) {
+    in.kernel.fused = true;  // the skin launches make the palettes (Runner::Animate)
+  } else {
+    in.kernel = EmitPalette(variant.lang, in.clips->View(), static_cast<int>(PaletteMatrixBytes(variant) / 16));
+  }
   in.states = std::move(states);
   return in;
 }

@@ -92,7 +92,8 @@ TEST(Axes, KeyFormatIsTheGrammarErrorsHaveAlwaysQuoted) {
             ".<nonormals|normals|tangents>[.<morph-dense|morph-sparse|morph-dense-half|morph-sparse-half>]"
             "[.<normals-oct16|normals-snorm8>]"
             "[.<anim-sampled|anim-baked30|anim-baked60|anim-baked120|anim-baked240|anim-local30|anim-local60|anim-local120"
-            "|anim-local240|anim-hybrid30|anim-hybrid60|anim-hybrid120|anim-hybrid240>]");
+            "|anim-local240|anim-hybrid30|anim-hybrid60|anim-hybrid120|anim-hybrid240|anim-fused30|anim-fused60|anim-fused120"
+            "|anim-fused240>]");
 }
 
 TEST(Axes, CodesDifferExactlyOnTheAxisThatDiffers) {

@@ -50,6 +50,12 @@ TEST(Constraints, TheAnimationAxisFollowsTheScene) {
   dq.blend = Blend::kDualQuaternion;
   animated.rigid_joints = true;
   ExpectOnly(dq, Constraint::kAnimationPalette, "the palette kernel writes mat3x4 or mat4 palettes", kDevice, animated);
+  Variant fused = v;  // each work-group makes its palette in its local copy
+  fused.animation = Animation::kFused120;
+  ExpectOnly(fused, Constraint::kAnimationFused, "animation fused120: each work-group makes its palette into its local "
+             "copy (storage local, not global)", kDevice, animated);
+  fused.storage = PaletteStorage::kLocal;
+  EXPECT_TRUE(CheckVariant(fused, kDevice, animated).empty());
   ProblemShape morph = animated;
   morph.morph_targets = 4;
   morph.morph_moves = true;
@@ -59,6 +65,7 @@ TEST(Constraints, TheAnimationAxisFollowsTheScene) {
   EXPECT_STREQ(Name(Constraint::kAnimationIgnored), "animation_ignored");
   EXPECT_STREQ(Name(Constraint::kAnimationPalette), "animation_palette");
   EXPECT_STREQ(Name(Constraint::kAnimationMorph), "animation_morph");
+  EXPECT_STREQ(Name(Constraint::kAnimationFused), "animation_fused");
 }
 
 TEST(Constraints, RejectsInfluencesOutsideOneToEight) {

@@ -653,6 +653,63 @@ TEST(PaletteKernelBaked, EmitsTheBakedKernelWithItsOwnArgumentsAndGroup) {
   EXPECT_NE(sampled.kernel.text.find("#define ANIM_BAKED 0\n"), std::string::npos);
 }
 
+// A fused kernel (docs/ANIMATION.md "The palette in the skin launch") is the
+// skin kernel specialised again: its palette argument becomes the palette
+// records, the instances and the clips, the scalar elapsed comes last, the
+// animation's defines are added and GLSL's bindings follow the new arguments.
+// Anything but palette records into a local copy of matching joints is
+// refused, naming why.
+TEST(PaletteKernelBaked, AFusedSkinKernelTakesTheRecordsWhereThePaletteWas) {
+  const SkinnedAsset& fox = TestAsset("Fox.gltf");
+  const PackedAnimation records = BakeAnimation(fox, 30.0);
+  const int joints = static_cast<int>(records.joints.size());
+  EmitOptions instanced;
+  instanced.instanced = true;
+  instanced.max_instances = 4;
+  for (const char* key : {"opencl.b4.soa.local", "cuda.b4.aos.mat4.local", "glsl-compute.b4.soa-split.local",
+                          "vulkan.b4.soa.local.normals"}) {
+    const KernelSource skin = Emit(ParseVariantKey(key), 0, joints, instanced);
+    const KernelSource fused = EmitFused(skin, records.View());
+    std::vector<std::string> names, expected;
+    for (const KernelArgument& a : fused.arguments) names.push_back(a.name);
+    for (const KernelArgument& a : skin.arguments) {
+      if (a.name != "palette") {
+        expected.push_back(a.name);
+        continue;
+      }
+      expected.insert(expected.end(), {kAnimFrames, kAnimInputs[5], kAnimClips});
+    }
+    expected.push_back(kAnimElapsed);
+    EXPECT_EQ(names, expected) << key;
+    EXPECT_EQ(fused.arguments.back().kind, ArgumentKind::kScalar) << key;
+    for (const char* define : {"#define ANIM_FUSED 1\n", "#define ANIM_BAKED 1\n"})
+      EXPECT_NE(fused.text.find(define), std::string::npos) << key << ": " << define;
+    EXPECT_NE(fused.text.find("#define ANIM_CLIP_COUNT " + std::to_string(records.View().clip_count) + "\n"), std::string::npos);
+    EXPECT_NE(fused.source_hash, skin.source_hash) << key;
+    if (IsGlslText(fused.lang)) {
+      std::map<std::string, long long> defines(fused.defines.begin(), fused.defines.end());
+      EXPECT_FALSE(defines.contains("BINDING_PALETTE")) << key;
+      EXPECT_EQ(defines["BINDING_CLIPS"], defines["BINDING_FRAMES"] + 2) << key;
+    }
+    EXPECT_EQ(PushConstantOffset(kAnimElapsed), kPushConstantBytes - 4);
+  }
+  const KernelSource local = Emit(ParseVariantKey("opencl.b4.soa.local"), 0, joints, instanced);
+  const auto refused = [&](const KernelSource& skin, const PackedAnimation& animation, const std::string& expected) {
+    try {
+      (void)EmitFused(skin, animation.View());
+      ADD_FAILURE() << "accepted: " << expected;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  };
+  refused(local, PackAnimation(fox), "sampled clips need the palette kernel's hierarchy");
+  refused(local, BakeAnimation(fox, 30.0, BakeSpace::kLocal), "local records need the palette kernel's hierarchy");
+  refused(Emit(ParseVariantKey("opencl.b4.soa.global"), 0, joints, instanced), records, "storage is not local");
+  refused(Emit(ParseVariantKey("opencl.b4.soa.local"), 0, joints + 1, instanced), records,
+          "has " + std::to_string(joints + 1) + " joints, the animation " + std::to_string(joints));
+  refused(EmitFused(local, records.View()), records, "fused already");
+}
+
 // The hierarchy kernels compose each node's global transform by pointer
 // jumping: ceil(log2(depth + 1)) rounds for the deepest node's ancestors
 // (after round r a node has joined its 2^r-th ancestor), a define of the

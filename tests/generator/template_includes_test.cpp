@@ -77,7 +77,7 @@ TEST(ExpandIncludes, GlslSourceStringsNameEveryNumberedFile) {
   EXPECT_EQ(GlslSourceStrings(Expand(files, "a.comp")), " (source strings: 0 a.comp, 1 p.h, 2 q.glsl)");
   EXPECT_EQ(GlslSourceStrings("#version 430 core\nvoid main() {}\n"), "");
   EXPECT_EQ(GlslSourceStrings(ExpandedTemplate("skin.comp")),
-            " (source strings: 0 skin.comp, 1 skin_params.h, 2 skin_body.glsl)");
+            " (source strings: 0 skin.comp, 1 skin_params.h, 2 skin_body.glsl, 3 anim_records.glsl)");
 }
 
 TEST(ExpandIncludes, TextWithoutIncludesIsUnchanged) {
@@ -176,6 +176,9 @@ TEST(Templates, EveryKernelTemplateIncludesTheParametersAndGlslOnesTheSkinningBo
     const std::string text = TemplateText(name);
     EXPECT_EQ(IncludesOf(text, "skin_params.h"), 1) << name;
     EXPECT_EQ(IncludesOf(text, "skin_body.glsl"), IsGlsl(name) ? 1 : 0) << name;
+    // The compute templates make a fused kernel's palette with the palette kernel's own record readers.
+    const std::string records = name == "skin.cl" ? "anim_records.clh" : name == "skin.cu" ? "anim_records.cuh" : "anim_records.glsl";
+    EXPECT_EQ(IncludesOf(text, records), name == "skin.vert" ? 0 : 1) << name;
     if (IsGlsl(name)) {
       EXPECT_LT(text.find("#include \"skin_params.h\""), text.find("#include \"skin_body.glsl\"")) << name;
       EXPECT_LT(text.find("#define SKIN_COMPUTE_STAGE"), text.find("#include \"skin_body.glsl\"")) << name;
@@ -310,7 +313,9 @@ TEST(Templates, LineDirectivesPointAtTheLinesOfTheFilesTheyName) {
       ASSERT_LE(number, original.size()) << name << ": " << lines[i];
       EXPECT_EQ(lines[i + 1], original[number - 1]) << name << ": after " << lines[i];
     }
-    EXPECT_EQ(directives, IsGlsl(name) ? 3 : 2) << name;  // in and back; GLSL: in, in and back
+    // In, in (the animation records' prelude, on the next line) and back;
+    // GLSL compute: in, in, in and back; the vertex stage: in, in and back.
+    EXPECT_EQ(directives, name == "skin.comp" ? 4 : 3) << name;
   }
 }
 

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cstring>
 #include <functional>
 #include <memory>
@@ -59,6 +60,7 @@ class DeferredApi final : public DeviceApi {
   std::vector<std::function<void()>> queue;  // every operation ever queued, in order
   std::size_t executed = 0;                  // how many of them ran
   std::vector<std::vector<std::uint8_t>> read;  // the palette each launch read, in the order they ran
+  std::vector<float> elapsed;  // each launch's scalar `elapsed` (a fused kernel's; else 0)
   std::size_t launches_queued = 0;
   std::size_t prologues_queued = 0;  // palette kernels (FrameRun::prologue)
   int waits = 0, blocking_waits = 0;
@@ -116,8 +118,16 @@ class DeferredApi final : public DeviceApi {
       ++prologues_queued;
     }
     for (const auto& frame : run.frames) {
-      const FakeBuffer* palette = static_cast<const FakeLaunch&>(*frame.front()).palette;
-      queue.push_back([this, palette] { read.push_back(palette->device); });
+      const auto& launch = static_cast<const FakeLaunch&>(*frame.front());
+      // A fused launch (Runner::Animate of a fused kernel) reads its instances and the run's elapsed.
+      const FakeBuffer* read_buffer = launch.palette ? launch.palette : launch.instances;
+      float run_elapsed = 0.0f;
+      for (const auto& [name, bits] : run.scalars)
+        if (name == kAnimElapsed) run_elapsed = std::bit_cast<float>(bits);
+      queue.push_back([this, read_buffer, run_elapsed] {
+        read.push_back(read_buffer->device);
+        elapsed.push_back(run_elapsed);
+      });
       ++launches_queued;
     }
     return {};
@@ -192,8 +202,9 @@ class DeferredApi final : public DeviceApi {
 
 // A runner on the fake device with a Skinner's live set of a small mesh.
 struct Ring {
-  explicit Ring(bool submit_thread = false, bool ordered = false, int slots = kPaletteSlots) {
-    mesh = Pack(GenerateDataset(ParseDatasetKey("200-b2")).mesh, ParseVariantKey("opencl.b2"));
+  explicit Ring(bool submit_thread = false, bool ordered = false, int slots = kPaletteSlots,
+                const std::string& variant = "opencl.b2") {
+    mesh = Pack(GenerateDataset(ParseDatasetKey("200-b2")).mesh, ParseVariantKey(variant));
     auto owned = std::make_unique<DeferredApi>();
     api = owned.get();
     api->threaded = submit_thread;
@@ -505,6 +516,70 @@ TEST(PaletteRing, AnimatedFramesComputeTheirSlotsPaletteOncePerUploadBeforeTheir
   // A second Animate, or palettes that do not fit the animation, are refused.
   EXPECT_THROW(ring.runner->Animate(ring.prepared, 0, animation.View(), EmitPalette(Lang::kOpenCl, animation.View(), 3)),
                Error);
+}
+
+// Fused (the skin launch makes its palette, docs/ANIMATION.md "The palette in
+// the skin launch"): no palette kernel runs; each launch reads the instances
+// of the last upload and the deltas summed since it, passed with the launch.
+// AdvanceAnimation takes no slot and waits only as the ring would (for the
+// frame as many frames back as it has slots), until the sum passes
+// kFusedRebaseSeconds: then the states advanced on the host go up as an
+// upload does, and the sum starts again.
+TEST(PaletteRing, FusedFramesReadTheLastUploadAndTheDeltasSinceWithNoPaletteKernel) {
+  Ring ring(false, false, kPaletteSlots, "opencl.b2.local");
+  const SkinnedAsset asset = GenerateDataset(ParseDatasetKey("200-b2"));
+  const PackedAnimation animation = BakeAnimation(asset, 30.0, BakeSpace::kPalette);
+  PaletteKernel fused;
+  fused.fused = true;
+  ring.runner->Animate(ring.prepared, 0, animation.View(), fused);
+  ring.runner->LaunchSet(ring.prepared, 0);  // before any states: the rest pose
+  std::vector<AnimInstance> states(1);
+  states[0].clip = 0;
+  states[0].time = 0.25f;
+  ring.runner->WritePalette(ring.prepared, 0, BufferBytes(states));
+  const int slot = ring.runner->PaletteSlot(ring.prepared, 0);
+  ring.runner->LaunchSet(ring.prepared, 0);
+  for (int f = 0; f < 3 * kPaletteSlots; ++f) {
+    ring.runner->AdvanceAnimation(ring.prepared, 0, 0.5f);
+    // It waits only for the frame as many frames back as the ring has slots.
+    EXPECT_LT(ring.api->launches_queued - ring.api->LaunchesRun(), static_cast<std::size_t>(kPaletteSlots)) << "frame " << f;
+    if (f >= kPaletteSlots)
+      EXPECT_GE(ring.api->launches_queued - ring.api->LaunchesRun(), static_cast<std::size_t>(kPaletteSlots - 1))
+          << "frame " << f << ": it waited for more";
+    ring.runner->LaunchSet(ring.prepared, 0);
+  }
+  EXPECT_EQ(ring.runner->PaletteSlot(ring.prepared, 0), slot) << "AdvanceAnimation took a slot";
+  EXPECT_THROW(ring.runner->AdvanceAnimation(ring.prepared, 0, 0.1f, std::vector<std::uint8_t>(8)), Error)
+      << "morph weights, which a fused set cannot take";
+  // Past the rebase: the states advanced by the sum go up, into the next slot.
+  const double before = 0.5 * 3 * kPaletteSlots;
+  const auto step = static_cast<float>(Runner::kFusedRebaseSeconds - before + 1.0);
+  ring.runner->AdvanceAnimation(ring.prepared, 0, step);
+  ring.runner->LaunchSet(ring.prepared, 0);
+  EXPECT_NE(ring.runner->PaletteSlot(ring.prepared, 0), slot);
+  ring.runner->AdvanceAnimation(ring.prepared, 0, 0.5f);
+  ring.runner->LaunchSet(ring.prepared, 0);
+  ring.runner->Finish();
+  EXPECT_EQ(ring.api->prologues_queued, 0u);
+  const std::size_t frames = 2 + 3 * kPaletteSlots + 2;
+  ASSERT_EQ(ring.api->LaunchesRun(), frames);
+  const auto instance = [&](std::size_t launch) {
+    AnimInstance in;
+    std::memcpy(&in, ring.api->read.at(launch).data(), sizeof in);
+    return in;
+  };
+  EXPECT_EQ(instance(0).clip, kAnimRestPose);
+  EXPECT_EQ(instance(1).clip, 0);
+  for (std::size_t f = 1; f < 2 + 3 * kPaletteSlots; ++f) {
+    EXPECT_FLOAT_EQ(instance(f).time, 0.25f) << "launch " << f;
+    EXPECT_FLOAT_EQ(ring.api->elapsed.at(f), 0.5f * static_cast<float>(f - 1)) << "launch " << f;
+  }
+  std::vector<AnimInstance> rebased = states;
+  AdvanceAnimInstances(animation.View(), rebased, static_cast<float>(before + step));
+  EXPECT_FLOAT_EQ(instance(frames - 2).time, rebased[0].time);
+  EXPECT_FLOAT_EQ(ring.api->elapsed.at(frames - 2), 0.0f);
+  EXPECT_FLOAT_EQ(instance(frames - 1).time, rebased[0].time);
+  EXPECT_FLOAT_EQ(ring.api->elapsed.at(frames - 1), 0.5f);
 }
 
 TEST(PaletteRing, AnAnimationWhosePaletteDoesNotFillTheSetsIsRefused) {

@@ -44,12 +44,14 @@ struct AnimatedCase {
   std::string model;    // a glTF of tests/data
   double bake_rate = 0.0;  // SkinnerOptions::bake_rate: 0 sampled clips
   skintune::BakeSpace bake_space = skintune::BakeSpace::kPalette;  // SkinnerOptions::bake_space
+  bool fused = false;  // SkinnerOptions::fuse_palette: the palettes made in the skin launch
 };
 bool BakedLocally(const AnimatedCase& c) { return c.bake_rate > 0.0 && c.bake_space == skintune::BakeSpace::kLocal; }
 bool BakedHybrid(const AnimatedCase& c) { return c.bake_rate > 0.0 && c.bake_space == skintune::BakeSpace::kHybrid; }
 void PrintTo(const AnimatedCase& c, std::ostream* out) {
   *out << c.variant << " " << c.model
-       << (BakedHybrid(c) ? " baked hybrid" : BakedLocally(c) ? " baked locally" : c.bake_rate > 0.0 ? " baked" : "");
+       << (BakedHybrid(c) ? " baked hybrid" : BakedLocally(c) ? " baked locally" : c.bake_rate > 0.0 ? " baked" : "")
+       << (c.fused ? ", fused" : "");
 }
 
 class SkinnerAnimated : public testing::BackendFixture<AnimatedCase> {
@@ -67,6 +69,7 @@ class SkinnerAnimated : public testing::BackendFixture<AnimatedCase> {
     options.variant = GetParam().variant;
     options.bake_rate = GetParam().bake_rate;
     options.bake_space = GetParam().bake_space;
+    options.fuse_palette = GetParam().fused;
     return options;
   }
 
@@ -109,6 +112,21 @@ class SkinnerAnimated : public testing::BackendFixture<AnimatedCase> {
     std::vector<AnimInstance> instances;
     for (const AnimationState& s : states) instances.push_back(InstanceOf(s));
     return instances;
+  }
+  // `expected` after a frame's AdvanceAnimation(delta), `total` the deltas
+  // since `start` was set: a palette kernel advances each clock by each delta
+  // (in float32, as AdvanceAnimInstances does); a fused Skinner's launches add
+  // the deltas' sum to the clocks set (docs/ANIMATION.md "The palette in the
+  // skin launch").
+  static void Advance(const PackedAnimation& packed, std::vector<AnimInstance>& expected,
+                      const std::vector<AnimationState>& start, float delta, double& total) {
+    total += delta;
+    if (!GetParam().fused) {
+      AdvanceAnimInstances(packed.View(), expected, delta);
+      return;
+    }
+    expected = InstancesOf(start);
+    AdvanceAnimInstances(packed.View(), expected, static_cast<float>(total));
   }
   double LongestClip() const {
     double longest = 0.0;
@@ -225,12 +243,13 @@ TEST_P(SkinnerAnimated, AdvanceAnimationMovesEveryClockOnTheDeviceAndLoopsEachCl
   const PackedAnimation packed = PackAnimation(Asset());
   const double longest = LongestClip();
   // Steps of a third of the longest clip: every clip wraps within the five frames, and one step goes back.
+  double total = 0.0;
   for (const double step : {1.0 / 3, 1.0 / 3, -0.25, 1.0 / 3, 1.0 / 3}) {
     const auto delta = static_cast<float>(step * longest);
     const Status advanced = skinner->AdvanceAnimation(delta);
     ASSERT_TRUE(advanced.ok()) << advanced.message();
     ASSERT_TRUE(skinner->Skin().ok());
-    AdvanceAnimInstances(packed.View(), expected, delta);
+    Advance(packed, expected, start, delta, total);
   }
   SCOPED_TRACE("after five steps");
   ExpectSkinnedAs(*skinner, expected);
@@ -247,6 +266,7 @@ TEST_P(SkinnerAnimated, AdvanceAnimationMovesEveryClockOnTheDeviceAndLoopsEachCl
   EXPECT_EQ(skinner->AdvanceAnimation(std::numeric_limits<float>::infinity()).code(), ErrorCode::kInvalidArgument);
   options.bake_rate = 0.0;  // a Skinner of SetPalette bakes nothing (BadStates... checks the refusal)
   options.bake_space = skintune::BakeSpace::kPalette;
+  options.fuse_palette = false;
   Result<Skinner> plain = Skinner::Create(device_, WinnersDb::Empty(), model_.mesh(), options);
   ASSERT_TRUE(plain.ok()) << plain.status().message();
   EXPECT_EQ(plain->AdvanceAnimation(0.1f).code(), ErrorCode::kInvalidState);
@@ -267,12 +287,13 @@ TEST_P(SkinnerAnimated, FramesWaitedForAndQueuedInTurnEachAdvanceFromTheLast) {
   std::vector<AnimInstance> expected = InstancesOf(start);
   const PackedAnimation packed = PackAnimation(Asset());
   const auto delta = static_cast<float>(LongestClip() / 7.0);
+  double total = 0.0;
   for (int round = 0; round < 12; ++round) {  // each round: one frame on an idle device, two behind a busy one
     ASSERT_TRUE(skinner->Finish().ok());
     for (int frame = 0; frame < 3; ++frame) {
       ASSERT_TRUE(skinner->AdvanceAnimation(delta).ok());
       ASSERT_TRUE(skinner->Skin().ok());
-      AdvanceAnimInstances(packed.View(), expected, delta);
+      Advance(packed, expected, start, delta, total);
     }
     SCOPED_TRACE("round " + std::to_string(round));
     ExpectSkinnedAs(*skinner, expected);
@@ -404,6 +425,44 @@ TEST(SkinnerAnimatedModel, ABakeRateOutsideItsRangeIsRefusedNamingIt) {
   EXPECT_NE(Skinner::CreateAnimated(*device, WinnersDb::Empty(), *model, bad_space)
                 .status().message().find("SkinnerOptions::bake_space is 7, not a BakeSpace"),
             std::string::npos);
+}
+
+// fuse_palette makes the palettes from palette records in the skin launch:
+// with anything else to make them from, or where no launch has a local copy to
+// make them in, it is refused, naming why; nothing is made.
+TEST(SkinnerAnimatedModel, FusingThePaletteIsRefusedWhereItCannotBeDone) {
+  Result<Model> model = Model::Load(std::string(SKINTUNE_TEST_DATA_DIR) + "/Fox.gltf");
+  ASSERT_TRUE(model.ok()) << model.status().message();
+  const auto refused = [&](Device& device, SkinnerOptions options, const std::string& expected) {
+    options.fuse_palette = true;
+    const Result<Skinner> skinner = Skinner::CreateAnimated(device, WinnersDb::Empty(), *model, options);
+    ASSERT_FALSE(skinner.ok()) << expected;
+    EXPECT_EQ(skinner.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(skinner.status().message().find(expected), std::string::npos) << skinner.status().message();
+  };
+  const Backend cpu_backend = Backend::kCpu, opencl_backend = Backend::kOpenCl;
+  Result<Device> cpu = Device::Open("", &cpu_backend);
+  ASSERT_TRUE(cpu.ok()) << cpu.status().message();
+  SkinnerOptions options;
+  refused(*cpu, options, "bake_rate is 0.000000 (sampled)");
+  options.bake_rate = kBakeRateTuned;
+  refused(*cpu, options, "bake_rate is kBakeRateTuned (the tuned entry's form decides)");
+  options.bake_rate = 60.0;
+  options.bake_space = skintune::BakeSpace::kLocal;
+  refused(*cpu, options, "bake_space is kLocal");
+  options.bake_space = skintune::BakeSpace::kPalette;
+  refused(*cpu, options, "the cpu device runs its palette kernel as a call");
+  SkinnerOptions host;
+  host.fuse_palette = true;
+  Result<Skinner> plain = Skinner::Create(*cpu, WinnersDb::Empty(), model->mesh(), host);
+  ASSERT_FALSE(plain.ok());
+  EXPECT_NE(plain.status().message().find("Skinner::Create: SkinnerOptions::fuse_palette"), std::string::npos)
+      << plain.status().message();
+  Result<Device> opencl = Device::Open("", &opencl_backend);
+  if (!opencl.ok()) GTEST_SKIP() << "no OpenCL device: " << opencl.status().message();
+  options.variant = "opencl.b4.soa.dualquat.dq";
+  options.dual_quaternions = true;
+  refused(*opencl, options, "SkinnerOptions::dual_quaternions");
 }
 
 // kBakeRateTuned: the palette kernel's form is the chosen entry's, tuned on a
@@ -568,14 +627,24 @@ std::vector<AnimatedCase> Cases() {
           {Backend::kGl, "glsl-compute.b4.aos.constant", "Fox.gltf", 30.0, skintune::BakeSpace::kHybrid},
           {Backend::kGl, "glsl-vertex.b4.soa", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kHybrid},
           {Backend::kVulkan, "vulkan.b4.soa.image.mat4", "Fox.gltf", 30.0, skintune::BakeSpace::kHybrid},
-          {Backend::kCpu, "cpu.b4.soa", "Fox.gltf", 60.0, skintune::BakeSpace::kHybrid}};
+          {Backend::kCpu, "cpu.b4.soa", "Fox.gltf", 60.0, skintune::BakeSpace::kHybrid},
+          // Palette records made in the skin launch (docs/ANIMATION.md "The palette in the skin
+          // launch"): every compute language, both palette formats, storage made local or local.
+          {Backend::kOpenCl, "opencl.b4.soa", "Fox.gltf", 30.0, skintune::BakeSpace::kPalette, true},
+          {Backend::kOpenCl, "opencl.b4.aos.mat4", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kPalette, true},
+          {Backend::kCuda, "cuda.b4.soa.mat4", "Fox.gltf", 30.0, skintune::BakeSpace::kPalette, true},
+          {Backend::kCuda, "cuda.b4.soa-split.local", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kPalette, true},
+          {Backend::kGl, "glsl-compute.b4.aos", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kPalette, true},
+          {Backend::kVulkan, "vulkan.b4.soa-split.local", "Fox.gltf", 30.0, skintune::BakeSpace::kPalette, true},
+          {Backend::kVulkan, "vulkan.b4.soa.mat4", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kPalette, true}};
 }
 std::string CaseName(const ::testing::TestParamInfo<AnimatedCase>& info) {
   return testing::ParameterName(info.param.variant + "_" + info.param.model.substr(0, info.param.model.find('.')) +
                                 (BakedHybrid(info.param)    ? "_baked_hybrid"
                                  : BakedLocally(info.param) ? "_baked_locally"
                                  : info.param.bake_rate > 0.0 ? "_baked"
-                                                              : ""));
+                                                              : "") +
+                                (info.param.fused ? "_fused" : ""));
 }
 INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerAnimated, ::testing::ValuesIn(Cases()), CaseName);
 

@@ -645,6 +645,24 @@ TEST(Scenes, AnimatedCrowdsMakeTheirPalettesOnTheDeviceVerifiedTimedAndTheirBaki
     EXPECT_LE(blended_hybrid.source_error.position_rel, 2 * hybrid_stated + 1e-6);
     EXPECT_LT(10 * blended_hybrid.source_error.position_rel, blended_baked.source_error.position_rel);
     EXPECT_GT(blended_hybrid.baked_clips.front().bytes, blended_local.baked_clips.front().bytes);
+    // Palette records made in the skin launch (fused): the same records, so
+    // the same error and clips as baked240's, and no palette kernel's time;
+    // only a local copy can hold them.
+    const Measurement fused_global = tuned.Measure(ParseVariantKey(base + ".anim-fused240"), {crowd}, SmallTiming());
+    EXPECT_EQ(fused_global.status, MeasureStatus::kInvalid);
+    EXPECT_NE(fused_global.detail.find("animation_fused"), std::string::npos) << fused_global.detail;
+    if (HasWorkGroups(lang) && lang != Lang::kCpu) {
+      std::string local = base;
+      local.replace(local.find(".global."), 8, ".local.");
+      const Measurement fused = tuned.Measure(ParseVariantKey(local + ".anim-fused240"), {crowd}, SmallTiming());
+      ExpectOk(fused, tuned, crowd);
+      EXPECT_EQ(fused.timing.palette_kernel_ms, 0.0) << "no palette kernel runs";
+      ASSERT_TRUE(fused.source_error.known);
+      EXPECT_NEAR(fused.source_error.position_rel, by_form["anim-baked240"].source_error.position_rel, 1e-6);
+      ASSERT_EQ(fused.baked_clips.size(), 3u);
+      EXPECT_EQ(fused.baked_clips.front().bytes, by_form["anim-baked240"].baked_clips.front().bytes);
+      ++measured;
+    }
     // The host's palettes on an animated scene, and a device form on a scene the host animates: not their variants.
     const Measurement host = tuned.Measure(ParseVariantKey(base), {crowd}, SmallTiming());
     EXPECT_EQ(host.status, MeasureStatus::kInvalid);

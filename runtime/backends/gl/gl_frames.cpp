@@ -418,8 +418,10 @@ void GlApi::RunLive(const FrameRun& run) {
     if (vertex) BeginVertexDraws();
     for (const auto& frame : run.frames) {
       for (const std::unique_ptr<DeviceObject>& launch : frame) {
-        BindLaunch(static_cast<const GlBound&>(*launch), false);
-        DrawLaunch(static_cast<const GlBound&>(*launch));
+        const auto& bound = static_cast<const GlBound&>(*launch);
+        BindLaunch(bound, false);
+        SetScalars(bound, run);  // a fused kernel's elapsed
+        DrawLaunch(bound);
       }
     }
     if (vertex) EndVertexDraws(first->spec.variant);

@@ -143,7 +143,7 @@ class VulkanPlanned final : public PlannedLaunch {
   using PlannedLaunch::PlannedLaunch;
   const Pipeline* pipeline = nullptr;
   std::uint32_t groups_x = 1, groups_y = 1;
-  std::uint32_t push[3] = {0, 0, 0};  // n, first, vertex_count
+  std::uint32_t push[kPushConstantBytes / 4] = {};  // n, first, vertex_count; a fused kernel's elapsed from the run
 };
 
 // One launch of one set: its descriptor set (and one per buffer the Skinner
@@ -739,11 +739,16 @@ void VulkanApi::RecordLaunch(VkCommandBuffer cb, const VulkanBound& bound, VkDes
   std::array<std::uint32_t, kPushConstantBytes / 4> push{};
   static_assert(sizeof push == sizeof plan.push);
   std::memcpy(push.data(), plan.push, sizeof push);
-  std::size_t k = 0;  // the palette kernel's scalars (delta and fresh), word k the k-th scalar argument
+  // The palette kernel's scalars (delta and fresh): word k the k-th scalar
+  // argument. A skin kernel's: n, first and vertex_count planned, the rest
+  // (a fused kernel's elapsed) from the run, at their PushConstantOffset.
+  std::size_t k = 0;
   for (const KernelArgument& a : plan.spec.source.arguments) {
-    if (!plan.spec.feeds_frame || a.kind != ArgumentKind::kScalar || k >= push.size()) continue;
+    if (a.kind != ArgumentKind::kScalar || k >= push.size()) continue;
+    if (!plan.spec.feeds_frame && (a.name == "n" || a.name == "first" || a.name == "vertex_count")) continue;
     if (!run) Fail("launch", plan.spec.where + ": no value for the scalar '" + a.name + "'");
-    push[k++] = ScalarOf(*run, a.name, "Vulkan");
+    const std::size_t word = plan.spec.feeds_frame ? k++ : PushConstantOffset(a.name) / 4;
+    push[word] = ScalarOf(*run, a.name, "Vulkan");
   }
   c_->fn.vkCmdPushConstants(cb, p.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof push, push.data());
   if (query >= 0)

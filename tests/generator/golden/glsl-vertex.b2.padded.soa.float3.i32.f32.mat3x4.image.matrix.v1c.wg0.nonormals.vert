@@ -242,6 +242,9 @@
 #ifndef ANIM_JUMPS            // the hierarchy kernels' rounds of pointer jumping: ceil(log2(depth + 1)) for the
 #define ANIM_JUMPS 9          // deepest node's ancestors (generator/palette_kernel.h); 9 reaches any of 512 nodes
 #endif
+#ifndef ANIM_FUSED            // 1: a skin kernel (STORAGE local) that makes its instance's palette from
+#define ANIM_FUSED 0          // palette records (ANIM_BAKED 1, 2) in its local copy, instead of reading the
+#endif                        // palette (buffers frames, instances, clips; docs/ANIMATION.md "The palette in the skin launch")
 #ifndef ANIM_GROUP            // the palette kernel's work-group: 3 x ANIM_NODE_COUNT rounded up to a multiple
 #define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h)
 #endif
@@ -257,6 +260,10 @@
 #endif
 #if STORAGE < 0 || STORAGE > 3
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
+#endif
+
+#if ANIM_FUSED && (STORAGE != 1 || BLEND == 2 || (ANIM_BAKED != 1 && ANIM_BAKED != 2))
+#error "ANIM_FUSED needs STORAGE 1 (local), matrix blending and palette records (ANIM_BAKED 1 or 2)"
 #endif
 
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
@@ -277,8 +284,9 @@
 // Buffers and the palette take consecutive bindings in argument order
 // (scalars excluded): the sidecar's "binding" of each argument. The generator
 // defines every one (BINDING_<ARGUMENT>, from the argument list); these are
-// the defaults a template compiled alone takes.
-#ifndef BINDING_PALETTE
+// the defaults a template compiled alone takes (a fused kernel, ANIM_FUSED,
+// binds frames, instances and clips where the palette was).
+#if !defined(BINDING_PALETTE) && !defined(BINDING_FRAMES)
 #if LAYOUT == 0
 #define BINDING_RECORDS 0
 #define BINDING_PALETTE 1
@@ -324,10 +332,16 @@ layout(push_constant) uniform SkinScalars {
   uint n;
   uint first;
   uint vertex_count;
+#if ANIM_FUSED
+  float elapsed;  // byte 12
+#endif
 };
 #else
 uniform uint n;      // vertices of this launch
 uniform uint first;  // index of its first vertex in the outputs (compute: written at first + v)
+#if ANIM_FUSED
+uniform float elapsed;  // seconds since the instances' upload, added to their clocks
+#endif
 #endif
 
 #if INSTANCED
@@ -577,7 +591,14 @@ layout(std140, binding = BINDING_PALETTE) uniform Palette { vec4 palette_rows[PA
 #if !SKIN_COMPUTE_STAGE
 #error "STORAGE 1 (local): a vertex shader has no shared memory"
 #endif
+#if ANIM_FUSED
+// The palette records the local copy is made from (anim_records.glsl, skin.comp).
+layout(std430, binding = BINDING_FRAMES) readonly restrict buffer Frames { vec4 frames[]; };
+layout(std430, binding = BINDING_INSTANCES) readonly restrict buffer Instances { uvec4 instances[]; };
+layout(std430, binding = BINDING_CLIPS) readonly restrict buffer Clips { vec4 clips[]; };
+#else
 layout(std430, binding = BINDING_PALETTE) readonly restrict buffer Palette { vec4 palette_rows[]; };
+#endif
 shared vec4 palette_local[PALETTE_FLOAT4S];
 #define ROW(k) palette_local[k]
 #elif STORAGE == 2

@@ -223,6 +223,9 @@
 #ifndef ANIM_JUMPS            // the hierarchy kernels' rounds of pointer jumping: ceil(log2(depth + 1)) for the
 #define ANIM_JUMPS 9          // deepest node's ancestors (generator/palette_kernel.h); 9 reaches any of 512 nodes
 #endif
+#ifndef ANIM_FUSED            // 1: a skin kernel (STORAGE local) that makes its instance's palette from
+#define ANIM_FUSED 0          // palette records (ANIM_BAKED 1, 2) in its local copy, instead of reading the
+#endif                        // palette (buffers frames, instances, clips; docs/ANIMATION.md "The palette in the skin launch")
 #ifndef ANIM_GROUP            // the palette kernel's work-group: 3 x ANIM_NODE_COUNT rounded up to a multiple
 #define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h)
 #endif
@@ -240,8 +243,179 @@
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
 #endif
 
+#if ANIM_FUSED && (STORAGE != 1 || BLEND == 2 || (ANIM_BAKED != 1 && ANIM_BAKED != 2))
+#error "ANIM_FUSED needs STORAGE 1 (local), matrix blending and palette records (ANIM_BAKED 1 or 2)"
+#endif
+
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
-#line 39 "skin.cl"
+#line 1 "anim_records.clh"
+// skintune: what OpenCL's palette kernel (palette.cl) and a skin kernel that
+// makes its palette itself (ANIM_FUSED, skin.cl) share: affine rows from
+// translation, rotation and scale, the clips' clocks, and the baked records'
+// reads and mixes (docs/ANIMATION.md "Baked clips"; palette.cl says how). A
+// prelude (templates/README.md): its text is in every OpenCL skin kernel, and
+// compiled only in the palette kernel (ANIM_PALETTE_KERNEL) and a fused one.
+#if defined(ANIM_PALETTE_KERNEL) || ANIM_FUSED
+
+#define ANIM_REST_POSE 0xffffu
+
+typedef struct {
+  float4 row0, row1, row2;  // an affine transform's rows (x, y, z | translation)
+} Affine;
+
+typedef struct {
+  float4 t, r, s;  // translation, rotation (x, y, z, w), scale
+} Trs;
+
+float4 anim_normalize_quat(const float4 q) {
+  const float length = sqrt(dot(q, q));
+  return length > 0.0f ? q / length : q;
+}
+
+// T * R * S as rows, from a normalised (x, y, z, w) rotation.
+Affine anim_to_affine(const Trs x) {
+  const float4 q = x.r;
+  const float xx = q.x * q.x, yy = q.y * q.y, zz = q.z * q.z;
+  const float xy = q.x * q.y, xz = q.x * q.z, yz = q.y * q.z, wx = q.w * q.x, wy = q.w * q.y, wz = q.w * q.z;
+  Affine m;
+  m.row0 = (float4)((1.0f - 2.0f * (yy + zz)) * x.s.x, 2.0f * (xy - wz) * x.s.y, 2.0f * (xz + wy) * x.s.z, x.t.x);
+  m.row1 = (float4)(2.0f * (xy + wz) * x.s.x, (1.0f - 2.0f * (xx + zz)) * x.s.y, 2.0f * (yz - wx) * x.s.z, x.t.y);
+  m.row2 = (float4)(2.0f * (xz - wy) * x.s.x, 2.0f * (yz + wx) * x.s.y, (1.0f - 2.0f * (xx + yy)) * x.s.z, x.t.z);
+  return m;
+}
+
+int anim_clip_valid(const uint clip, const uint clip_count) { return clip == ANIM_REST_POSE || clip < clip_count; }
+
+// Time t moved into [start, end] of its clip (range: start, end), looping:
+// the clip plays again from its start (a clip of no duration: its start).
+float anim_loop_time(const float t, const float4 range) {
+  const float length = range.y - range.x;
+  if (!(length > 0.0f)) return range.x;
+  float u = t - range.x;
+  u = fmin(fmax(u - length * floor(u / length), 0.0f), length);
+  return range.x + u;
+}
+
+// An instance's state advanced by `delta` seconds on its clips' clocks (the
+// rest pose and a clip out of range keep theirs).
+uint4 anim_advance(__global const float4* restrict clips, uint4 in, const float delta, const uint clip_count) {
+  const uint c1 = in.x & 0xffffu, c2 = in.x >> 16;
+  if (c1 != ANIM_REST_POSE && c1 < clip_count) in.y = as_uint(anim_loop_time(as_float(in.y) + delta, clips[c1]));
+  if (c2 != ANIM_REST_POSE && c2 < clip_count) in.z = as_uint(anim_loop_time(as_float(in.z) + delta, clips[c2]));
+  return in;
+}
+
+#if ANIM_BAKED
+// Baked clips (docs/ANIMATION.md "Baked clips"; cpu_kernels/palette_kernel.cpp
+// BakedSample is the same in C++): each joint's skinning transform stored at
+// evenly spaced frames as its polar decomposition, a unit rotation q, a
+// translation t and a symmetric stretch S (s I for a similarity), frame 0 the
+// rest pose. An item per (instance, joint): the two frames around the clip's
+// time, q nlerped along the shortest path and t, S lerped, likewise towards
+// clip2 by the blend weight, then written as the rows of R(q) S | t. No hierarchy, no search: two loads a
+// joint and frame. Launch as the sampled kernel: a group of ANIM_GROUP items
+// per instance, joints j = item, item + ANIM_GROUP, ...
+
+// Records of ANIM_BAKED_ROWS float4s: 2 where every transform is a
+// similarity (ANIM_BAKED 1: q, then t and s), else 4 (ANIM_BAKED 2: q, t,
+// then the symmetric stretch S as (S00, S11, S22, S01), (S02, S12)).
+// Baked in local space (ANIM_BAKED 3, 4; docs/ANIMATION.md "Baked in local
+// space"), a record is a node's local T R S at the frame: q, then t and a
+// uniform s (3), or q, t, then s per axis (4); the kernel mixes them as
+// above, then composes the hierarchy as the sampled kernel does (below).
+// Hybrid records (ANIM_STEADY 2 or 4, docs/ANIMATION.md "Hybrid records"):
+// the same frames' palette records too, in `steady`; an instance that plays
+// one clip reads those as the palette-record kernel does and walks nothing.
+#if ANIM_BAKED == 2
+#define ANIM_BAKED_ROWS 4u
+#elif ANIM_BAKED == 4
+#define ANIM_BAKED_ROWS 3u
+#else
+#define ANIM_BAKED_ROWS 2u
+#endif
+#if ANIM_BAKED >= 3
+#define ANIM_BAKED_ITEMS ANIM_NODE_COUNT  // a record a node
+#else
+#define ANIM_BAKED_ITEMS ANIM_JOINT_COUNT  // a record a joint
+#endif
+
+typedef struct {
+  float4 q, ts, s0, s1;  // rotation (x, y, z, w); translation (and s); the stretch
+} Baked;
+
+// Item j's record of `rows` float4s at `frame`, of `items` a frame (every
+// argument but frame and j a constant where it is called).
+Baked baked_record(__global const float4* restrict frames, const uint rows, const uint items, const uint frame,
+                   const uint j) {
+  const size_t at = rows * ((size_t)frame * items + j);
+  Baked b;
+  b.q = frames[at];
+  b.ts = frames[at + 1u];
+  b.s0 = rows >= 3u ? frames[at + 2u] : (float4)(0.0f);
+  b.s1 = rows == 4u ? frames[at + 3u] : (float4)(0.0f);
+  return b;
+}
+
+Baked baked_mix(const Baked x, const Baked y, const float u) {
+  const float4 q2 = dot(x.q, y.q) < 0.0f ? -y.q : y.q;
+  Baked b;
+  b.q = anim_normalize_quat(x.q + u * (q2 - x.q));
+  b.ts = x.ts + u * (y.ts - x.ts);
+  b.s0 = x.s0 + u * (y.s0 - x.s0);
+  b.s1 = x.s1 + u * (y.s1 - x.s1);
+  return b;
+}
+
+// Item j (a joint; a node in local space) of `clip` at time t, clamped to
+// the clip's range (start, end, frame count, first frame), from records of
+// `rows` float4s, `items` a frame.
+Baked baked_sample(__global const float4* restrict frames, const uint rows, const uint items,
+                   __global const float4* restrict clips, const uint clip, const float t, const uint j) {
+  if (clip == ANIM_REST_POSE) return baked_record(frames, rows, items, 0u, j);
+  const float4 range = clips[clip];
+  const uint count = as_uint(range.z), first = as_uint(range.w);
+  if (count < 2u) return baked_record(frames, rows, items, first, j);
+  const float length = range.y - range.x;
+  const float u = length > 0.0f ? fmin(fmax((t - range.x) / length, 0.0f), 1.0f) * (float)(count - 1u) : 0.0f;
+  const uint k = min((uint)u, count - 2u);
+  return baked_mix(baked_record(frames, rows, items, first + k, j),
+                   baked_record(frames, rows, items, first + k + 1u, j), u - (float)k);
+}
+
+// The rows of R(q) S | t of a palette record of `rows` float4s (2: a
+// similarity, S = s I).
+Affine baked_affine(const Baked x, const uint rows) {
+  Trs trs;
+  trs.t = (float4)(x.ts.xyz, 0.0f);
+  trs.r = x.q;
+  if (rows != 4u) {
+    trs.s = (float4)(x.ts.w, x.ts.w, x.ts.w, 0.0f);
+    return anim_to_affine(trs);
+  }
+  trs.s = (float4)(1.0f, 1.0f, 1.0f, 0.0f);
+  const Affine r = anim_to_affine(trs);
+  const float4 s_row0 = (float4)(x.s0.x, x.s0.w, x.s1.x, 0.0f), s_row1 = (float4)(x.s0.w, x.s0.y, x.s1.y, 0.0f);
+  const float4 s_row2 = (float4)(x.s1.x, x.s1.y, x.s0.z, 0.0f);
+  Affine m;
+  m.row0 = r.row0.x * s_row0 + r.row0.y * s_row1 + r.row0.z * s_row2 + (float4)(0.0f, 0.0f, 0.0f, x.ts.x);
+  m.row1 = r.row1.x * s_row0 + r.row1.y * s_row1 + r.row1.z * s_row2 + (float4)(0.0f, 0.0f, 0.0f, x.ts.y);
+  m.row2 = r.row2.x * s_row0 + r.row2.y * s_row1 + r.row2.z * s_row2 + (float4)(0.0f, 0.0f, 0.0f, x.ts.z);
+  return m;
+}
+
+
+// Joint (or node) j of an instance (in: clips, time, time2, weight) from its
+// records: its clip's sample, mixed towards its second clip's by the weight.
+Baked baked_instance(__global const float4* restrict frames, const uint rows, const uint items,
+                     __global const float4* restrict clips, const uint4 in, const uint j) {
+  const float w = as_float(in.w);
+  const Baked x = baked_sample(frames, rows, items, clips, in.x & 0xffffu, as_float(in.y), j);
+  if (w == 0.0f) return x;
+  return baked_mix(x, baked_sample(frames, rows, items, clips, in.x >> 16, as_float(in.z), j), w);
+}
+#endif  // ANIM_BAKED
+#endif  // ANIM_PALETTE_KERNEL || ANIM_FUSED
+#line 40 "skin.cl"
 
 // ---------------------------------------------------------------- types
 //
@@ -391,7 +565,12 @@ static inline float weight_of(const uint raw) {
 #define PALETTE_REF_PARAM __constant float4* pal
 #define ROW(pal, k) (pal)[k]
 #elif STORAGE == 1
+#if ANIM_FUSED  // the palette records the local copy is made from (anim_records.clh)
+#define PALETTE_PARAM \
+  __global const float4* restrict frames, __global const uint4* restrict instances, __global const float4* restrict clips
+#else
 #define PALETTE_PARAM const __global float4* restrict palette
+#endif
 #define PALETTE_REF_PARAM __local const float4* pal
 #define ROW(pal, k) (pal)[k]
 #elif STORAGE == 2
@@ -583,13 +762,17 @@ void skin(const uint n, const uint first,
 #if TANGENTS
           __global POSITION_T* restrict out_positions,
           __global NORMAL_OUT_T* restrict out_normals,
-          __global TANGENT_OUT_T* restrict out_tangents) {
+          __global TANGENT_OUT_T* restrict out_tangents
 #elif NORMALS
           __global POSITION_T* restrict out_positions,
-          __global NORMAL_OUT_T* restrict out_normals) {
+          __global NORMAL_OUT_T* restrict out_normals
 #else
-          __global POSITION_T* restrict out_positions) {
+          __global POSITION_T* restrict out_positions
 #endif
+#if ANIM_FUSED
+          , const float elapsed  // seconds since the instances' upload, added to their clocks
+#endif
+          ) {
 #if INSTANCED
   // Instance i: its palette starts at joint i*JOINTS (added to the joint
   // indices, or to where the local copy reads), its outputs at i*vertex_count.
@@ -605,10 +788,38 @@ void skin(const uint n, const uint first,
 #if STORAGE == 1
   // Every item of the group copies, including those past n: no return before the barrier.
   __local float4 palette_local[PALETTE_FLOAT4S];
+#if ANIM_FUSED
+  {
+    // The copy made from the instance's palette records instead (docs/ANIMATION.md "The palette in
+    // the skin launch"): every group of the instance makes the same palette, its clocks advanced by
+    // `elapsed`, as the palette-record kernel makes it (palette.cl), so no launch before this one
+    // writes a palette and none waits for one. Nothing is written but the outputs.
+#if INSTANCED
+    (void)joint_base;  // the copy is the instance's own
+    const uint4 state = anim_advance(clips, instances[instance], elapsed, ANIM_CLIP_COUNT);
+#else
+    const uint4 state = anim_advance(clips, instances[0], elapsed, ANIM_CLIP_COUNT);
+#endif
+    const int valid = anim_clip_valid(state.x & 0xffffu, ANIM_CLIP_COUNT) &&
+                      (as_float(state.w) == 0.0f || anim_clip_valid(state.x >> 16, ANIM_CLIP_COUNT));
+    const float4 nan_row = (float4)(as_float(0x7fffffff));
+    for (uint j = get_local_id(0); j < JOINTS; j += WG_SIZE) {
+      Affine m = {nan_row, nan_row, nan_row};
+      if (valid) m = baked_affine(baked_instance(frames, ANIM_BAKED_ROWS, JOINTS, clips, state, j), ANIM_BAKED_ROWS);
+      palette_local[j * PALETTE_ROWS] = m.row0;
+      palette_local[j * PALETTE_ROWS + 1u] = m.row1;
+      palette_local[j * PALETTE_ROWS + 2u] = m.row2;
+#if PALETTE_ROWS == 4
+      palette_local[j * PALETTE_ROWS + 3u] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+#endif
+    }
+  }
+#else
 #if INSTANCED
   palette += joint_base * PALETTE_ROWS;
 #endif
   for (uint k = get_local_id(0); k < PALETTE_FLOAT4S; k += WG_SIZE) palette_local[k] = palette[k];
+#endif
   barrier(CLK_LOCAL_MEM_FENCE);
 #define PAL palette_local
 #else
