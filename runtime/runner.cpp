@@ -55,6 +55,7 @@ struct Prepared::Impl {
     std::unique_ptr<DeviceObject> done;
     std::string fence_name;  // "palette slot N of <key>", built on the slot's first wait
     bool launched = false;   // a launch read the slot (and so waited for its upload) since that upload
+    std::optional<std::size_t> paced_by;  // fused: the Set::pace fence its last frame marked
     std::uint64_t submitted = 0;  // the submit thread's number of the slot's last upload or launch
   };
   // One input set: every object it owns (released last first), the buffers
@@ -802,7 +803,13 @@ std::size_t Runner::TakeNextSlot(Prepared& prepared, int set) {
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
   const Prepared::Impl& p = *prepared.impl_;
   const std::size_t next = (s.current + 1) % s.slots.size();
-  AwaitSlot(*api_, submit_.get(), s.slots[next], [&] { return "palette slot " + std::to_string(next) + " of " + p.key; });
+  Prepared::Impl::Slot& slot = s.slots[next];
+  if (slot.paced_by) {  // fused: the fence of the last frame that read the slot, or of a later one
+    AwaitSlot(*api_, submit_.get(), s.pace[*slot.paced_by],
+              [&] { return "frame " + std::to_string(*slot.paced_by) + " of the fused frames of " + p.key; });
+  } else {
+    AwaitSlot(*api_, submit_.get(), slot, [&] { return "palette slot " + std::to_string(next) + " of " + p.key; });
+  }
   return next;
 }
 
@@ -906,24 +913,36 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   slot.prologue_pending = false;
   run.key = p.key;
   run.out_positions = out_positions;
-  Prepared::Impl::Slot* pace = s.fused ? &s.pace[s.paced] : nullptr;
-  if (s.fused) s.paced = (s.paced + 1) % s.pace.size();
+  // A fused frame marks its pace fence only, which also stands for the
+  // slot's: an upload into the slot waits for it (TakeNextSlot), or for a
+  // later frame's where the fence was marked again since.
+  const bool mark = !api_->OrdersUploadsAfterLaunches();
+  Prepared::Impl::Slot* pace = s.fused && mark ? &s.pace[s.paced] : nullptr;
+  if (pace) {
+    slot.paced_by = s.paced;
+    s.paced = (s.paced + 1) % s.pace.size();
+  }
   if (submit_ && !out_positions) {
     DeviceApi* api = api_.get();
     const std::string& key = p.key;
-    const bool mark = !api_->OrdersUploadsAfterLaunches();
     slot.submitted = submit_->Push([api, run = std::move(run), &slot, &key, mark, pace] {
       api->MakeCurrent();
       api->RunFrames(run);
-      if (mark) api->Mark(slot.done, key);
-      if (pace) api->Mark(pace->done, key);
+      if (pace) {
+        api->Mark(pace->done, key);
+      } else if (mark) {
+        api->Mark(slot.done, key);
+      }
     });
     if (pace) pace->submitted = slot.submitted;
   } else {
     Settle();  // the positions go into the caller's buffer now (interop)
     api_->RunFrames(run);
-    if (!api_->OrdersUploadsAfterLaunches()) api_->Mark(slot.done, p.key);
-    if (pace) api_->Mark(pace->done, p.key);
+    if (pace) {
+      api_->Mark(pace->done, p.key);
+    } else if (mark) {
+      api_->Mark(slot.done, p.key);
+    }
   }
   slot.launched = true;
 }
@@ -1087,7 +1106,8 @@ void Runner::AnimateFused(Prepared& prepared, int set, const AnimationView& anim
   s.fused = true;
   s.elapsed = 0.0;
   s.uploaded_states = rest_pose;
-  s.pace = std::vector<Prepared::Impl::Slot>(s.slots.size());
+  // Where the API orders uploads after the launches before them (GL) nothing is marked, as for every set there.
+  if (!api_->OrdersUploadsAfterLaunches()) s.pace = std::vector<Prepared::Impl::Slot>(s.slots.size());
   s.clip_ranges.assign(animation.clip_ranges.begin(), animation.clip_ranges.end());
 }
 
@@ -1101,8 +1121,9 @@ void Runner::AdvanceAnimation(Prepared& prepared, int set, float delta, std::spa
     if (!morph_weights.empty())
       Fail("launch", "AdvanceAnimation of " + p.key + ": morph weights for a set whose launches make their palettes "
                                                       "(fused): a fused Skinner skins no morph targets");
-    AwaitSlot(*api_, submit_.get(), s.pace[s.paced],
-              [&] { return "frame " + std::to_string(s.paced) + " of the fused frames of " + p.key; });
+    if (!s.pace.empty())
+      AwaitSlot(*api_, submit_.get(), s.pace[s.paced],
+                [&] { return "frame " + std::to_string(s.paced) + " of the fused frames of " + p.key; });
     s.elapsed += delta;
     if (std::abs(s.elapsed) > kFusedRebaseSeconds) {
       // A float32 time that far from the upload's loses precision the clips

@@ -460,6 +460,18 @@ TEST(SkinnerAnimatedModel, FusingThePaletteIsRefusedWhereItCannotBeDone) {
       << plain.status().message();
   Result<Device> opencl = Device::Open("", &opencl_backend);
   if (!opencl.ok()) GTEST_SKIP() << "no OpenCL device: " << opencl.status().message();
+  // Where nothing was tuned fused, the group makes its palette for many vertices (storage local, 8 an item, strided).
+  SkinnerOptions untuned;
+  untuned.bake_rate = 60.0;
+  untuned.fuse_palette = true;
+  const Result<Skinner> made = Skinner::CreateAnimated(*opencl, WinnersDb::Empty(), *model, untuned);
+  ASSERT_TRUE(made.ok()) << made.status().message();
+  const Variant fused = ParseVariantKey(made->selection().variant);
+  EXPECT_EQ(fused.storage, PaletteStorage::kLocal);
+  EXPECT_EQ(fused.wg_size * fused.vertices_per_item, 2048) << made->selection().variant;
+  EXPECT_EQ(fused.assignment, Assignment::kStrided) << made->selection().variant;
+  EXPECT_NE(made->selection().reason.find("each group makes its palette once"), std::string::npos)
+      << made->selection().reason;
   options.variant = "opencl.b4.soa.dualquat.dq";
   options.dual_quaternions = true;
   refused(*opencl, options, "SkinnerOptions::dual_quaternions");
