@@ -490,8 +490,8 @@ TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsk
   ASSERT_TRUE(model.ok()) << model.status().message();
   const DeviceInfo& info = device->info();
   const std::string lang = std::string(Name(LanguagesOf(info.backend).front()));
-  const auto database = [&](const std::string& form, bool cross_fades = false) {
-    const std::string key = lang + ".b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c." +
+  const auto database = [&](const std::string& form, bool cross_fades = false, const std::string& storage = "global") {
+    const std::string key = lang + ".b4.padded.soa.float4.u16.f32.mat3x4." + storage + ".matrix.v1c." +
                             (lang == "cpu" || lang == "glsl-vertex" ? "wg0" : "wg64") + form;
     nlohmann::json entry = {{"device_id", info.id}, {"backend", BackendName(info.backend)}, {"platform", info.platform},
                             {"vendor", info.vendor}, {"device_name", info.name}, {"driver_version", info.driver_version},
@@ -573,6 +573,24 @@ TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsk
     const Result<Skinner> own = Skinner::CreateAnimated(*device, database(".anim-hybrid60"), *model, local_space);
     ASSERT_TRUE(own.ok()) << own.status().message();
     EXPECT_NE(own->selection().reason.find("not as tuned (hybrid60)"), std::string::npos) << own->selection().reason;
+  }
+  if (lang != "cpu" && lang != "glsl-vertex") {  // palette records made in the skin launch, as tuned
+    Result<Skinner> skinner = Skinner::CreateAnimated(*device, database(".anim-fused60", true, "local"), *model, options);
+    ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+    EXPECT_NE(skinner->selection().reason.find("made as tuned: fused60"), std::string::npos) << skinner->selection().reason;
+    EXPECT_NE(skinner->selection().variant.find(".local."), std::string::npos) << skinner->selection().variant;
+    const PackedAnimation records = BakeAnimation(TestAsset("Fox.gltf"), 60.0);
+    EXPECT_EQ(skinner->animation_bytes(), records.Bytes());
+    std::vector<AnimationState> states(6);
+    states[1] = {1, 0.5f};
+    EXPECT_TRUE(skinner->SetAnimation(states.data(), states.size()).ok());
+    EXPECT_TRUE(skinner->AdvanceAnimation(0.25f).ok());
+    EXPECT_TRUE(skinner->Skin().ok());
+    EXPECT_TRUE(skinner->Finish().ok());
+    SkinnerOptions fused = options;  // the tuned entry decides: fuse_palette beside kBakeRateTuned is refused
+    fused.fuse_palette = true;
+    EXPECT_EQ(Skinner::CreateAnimated(*device, database(".anim-fused60", true, "local"), *model, fused).status().code(),
+              ErrorCode::kInvalidArgument);
   }
   {  // a rate of the caller's own: the entry's form is not taken, and the reason says so
     SkinnerOptions sampled = options;
