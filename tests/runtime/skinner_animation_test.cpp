@@ -209,6 +209,14 @@ TEST_P(SkinnerAnimated, EveryInstanceIsTheGoldOfItsOwnClipsTimesAndBlend) {
     SCOPED_TRACE("phase " + std::to_string(phase));
     ExpectLikeTheGold(*skinner, Crowd(options.instances, phase));
   }
+  // One character alone: the kernel that is not instanced reads its one state.
+  options.instances = 1;
+  Result<Skinner> alone = Skinner::CreateAnimated(device_, WinnersDb::Empty(), model_, options);
+  ASSERT_TRUE(alone.ok()) << alone.status().message();
+  std::vector<AnimationState> one = Crowd(2, 0.3);
+  one.resize(1);
+  SCOPED_TRACE("one instance");
+  ExpectLikeTheGold(*alone, one);
 }
 
 TEST_P(SkinnerAnimated, FramesInFlightEachKeepTheirOwnStates) {
