@@ -23,6 +23,16 @@ std::span<const std::uint8_t> AnimationBufferBytes(const AnimationView& animatio
   return {reinterpret_cast<const std::uint8_t*>(found.data()), found.size()};
 }
 
+namespace {
+
+// A buffer argument of elements of `element` bytes, one after another.
+KernelArgument BufferArgument(const char* name, const char* format, std::size_t element, ArgumentDirection direction,
+                              const char* indexing = "") {
+  return {name, format, element, element, indexing, direction, ArgumentKind::kBuffer};
+}
+
+}  // namespace
+
 int AnimJumpRounds(std::span<const AnimNodeRecord> nodes) {
   std::size_t deepest = 0;
   for (std::size_t n = 0; n < nodes.size(); ++n) {
@@ -86,7 +96,7 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                {"ANIM_JUMPS", AnimJumpRounds(animation.nodes)},
                {"ANIM_STEADY", local ? static_cast<long long>(animation.steady_rows) : 0}};
   const auto buffer = [](const char* name, const char* format, std::size_t element, ArgumentDirection direction) {
-    return KernelArgument{name, format, element, element, "", direction, ArgumentKind::kBuffer};
+    return BufferArgument(name, format, element, direction);
   };
   k.arguments = {buffer(kAnimInputs[0], "record", sizeof(AnimNodeRecord), ArgumentDirection::kIn),
                  buffer(kAnimInputs[1], "record", sizeof(AnimChannelHeader), ArgumentDirection::kIn),
@@ -151,13 +161,11 @@ KernelSource EmitFused(const KernelSource& skin, const AnimationView& animation)
   const auto palette = std::find_if(out.arguments.begin(), out.arguments.end(),
                                     [](const KernelArgument& a) { return a.name == "palette"; });
   if (palette == out.arguments.end()) throw Error(what + ": the skin kernel takes no palette");
-  const auto buffer = [](const char* name, const char* format, std::size_t element, const char* indexing) {
-    return KernelArgument{name, format, element, element, indexing, ArgumentDirection::kIn, ArgumentKind::kBuffer};
-  };
+  const auto in = ArgumentDirection::kIn;
   const std::vector<KernelArgument> records = {
-      buffer(kAnimFrames, "float4 records", 16 * std::size_t{animation.baked_rows}, ""),
-      buffer(kAnimInputs[5], "record", sizeof(AnimInstance), skin.instanced ? "i" : "0"),
-      buffer(kAnimClips, "float4", 16, "")};
+      BufferArgument(kAnimFrames, "float4 records", 16 * std::size_t{animation.baked_rows}, in),
+      BufferArgument(kAnimInputs[5], "record", sizeof(AnimInstance), in, skin.instanced ? "i" : "0"),
+      BufferArgument(kAnimClips, "float4", 16, in)};
   const auto at = out.arguments.erase(palette);
   out.arguments.insert(at, records.begin(), records.end());
   out.arguments.push_back({kAnimElapsed, "f32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar});

@@ -813,7 +813,6 @@ std::size_t Runner::TakeNextSlot(Prepared& prepared, int set) {
   return next;
 }
 
-
 std::span<std::uint8_t> Runner::PaletteStaging(Prepared& prepared, int set) {
   api_->MakeCurrent();
   Prepared::Impl::Set& s = SetOf(prepared.impl_.get(), set, *api_);
@@ -947,6 +946,30 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   slot.launched = true;
 }
 
+namespace {
+
+// An animation's buffer of set `s` (its objects keep it) holding `bytes`,
+// at least 16 (OpenCL has no empty buffers); `allocated` grows by its size.
+DeviceBuffer* KeptBuffer(DeviceApi& api, Prepared::Impl::Set& s, const std::string& name,
+                         std::span<const std::uint8_t> bytes, BufferUse use, std::size_t& allocated) {
+  std::vector<std::uint8_t> padded(bytes.begin(), bytes.end());
+  padded.resize(std::max<std::size_t>(padded.size(), 16), 0);
+  allocated += padded.size();
+  std::unique_ptr<DeviceBuffer> buffer = api.Allocate(use, padded.size(), padded.data(), name);
+  DeviceBuffer* raw = buffer.get();
+  s.objects.push_back(std::move(buffer));
+  return raw;
+}
+
+// K instances in the rest pose: what an animated set shows until its first upload.
+std::vector<AnimInstance> RestPose(int instances) {
+  std::vector<AnimInstance> rest(static_cast<std::size_t>(instances));
+  for (AnimInstance& in : rest) in.clip = kAnimRestPose;
+  return rest;
+}
+
+}  // namespace
+
 void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation, const PaletteKernel& kernel) {
   api_->MakeCurrent();
   Settle();
@@ -984,19 +1007,12 @@ void Runner::Animate(Prepared& prepared, int set, const AnimationView& animation
   // empty buffers); `allocated` counts them and what Bind adds.
   std::size_t allocated = 0;
   const auto upload = [&](const std::string& name, std::span<const std::uint8_t> bytes, BufferUse use) {
-    std::vector<std::uint8_t> padded(bytes.begin(), bytes.end());
-    padded.resize(std::max<std::size_t>(padded.size(), 16), 0);
-    allocated += padded.size();
-    std::unique_ptr<DeviceBuffer> buffer = api_->Allocate(use, padded.size(), padded.data(), name);
-    DeviceBuffer* raw = buffer.get();
-    s.objects.push_back(std::move(buffer));
-    return raw;
+    return KeptBuffer(*api_, s, name, bytes, use, allocated);
   };
   const auto bytes_of = [](auto span) {
     return std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(span.data()), span.size_bytes());
   };
-  std::vector<AnimInstance> rest_pose(static_cast<std::size_t>(p.instances));
-  for (AnimInstance& in : rest_pose) in.clip = kAnimRestPose;
+  const std::vector<AnimInstance> rest_pose = RestPose(p.instances);
   // Shared by the slots: the animation, and the states the kernel keeps
   // (read and written by it: an output's buffer; the rest pose to start).
   std::map<std::string, DeviceBuffer*> shared = {
@@ -1055,22 +1071,14 @@ void Runner::AnimateFused(Prepared& prepared, int set, const AnimationView& anim
   }
   std::size_t allocated = 0;
   const auto upload = [&](const std::string& name, std::span<const std::uint8_t> bytes) {
-    std::vector<std::uint8_t> padded(bytes.begin(), bytes.end());
-    padded.resize(std::max<std::size_t>(padded.size(), 16), 0);  // OpenCL has no empty buffers
-    allocated += padded.size();
-    std::unique_ptr<DeviceBuffer> buffer = api_->Allocate(BufferUse::kInput, padded.size(), padded.data(), name);
-    DeviceBuffer* raw = buffer.get();
-    s.objects.push_back(std::move(buffer));
-    return raw;
+    return KeptBuffer(*api_, s, name, bytes, BufferUse::kInput, allocated);
   };
   DeviceBuffer* frames = upload(kAnimFrames, AnimationBufferBytes(animation, kAnimFrames));
   DeviceBuffer* clips = upload(kAnimClips, AnimationBufferBytes(animation, kAnimClips));
-  std::vector<AnimInstance> rest_pose(static_cast<std::size_t>(p.instances));
-  for (AnimInstance& in : rest_pose) in.clip = kAnimRestPose;
+  const std::vector<AnimInstance> rest_pose = RestPose(p.instances);
   const std::span<const std::uint8_t> rest(reinterpret_cast<const std::uint8_t*>(rest_pose.data()),
                                            rest_pose.size() * sizeof(AnimInstance));
-  Settle();  // the launches bound before are replaced: nothing queued may still use them
-  api_->Finish();
+  api_->Finish();  // the launches bound before are replaced: nothing queued may still use them
   for (Prepared::Impl::Slot& slot : s.slots) {
     slot.instances = upload(kAnimInputs[5], rest);
     for (std::size_t l = 0; l < p.fused_launches.size(); ++l) {

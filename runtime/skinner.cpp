@@ -262,6 +262,16 @@ MeshBatch SceneOf(const std::string& call, const MeshView* views, std::size_t co
   return scene;
 }
 
+// The skin kernel's problem shape of a Skinner of `mesh`: rigid joints
+// assumed (SetPalette refuses each matrix that is not, dual quaternions
+// only); a mesh that has morph targets takes a morph variant whatever its
+// first weights, as SetMorphWeights may move it any frame.
+ProblemShape SkinShapeOf(const SkinnedMesh& mesh, const SkinnerOptions& options) {
+  return WithMorphOf({mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
+                      options.instances, options.tangents, true},
+                     mesh.morph);
+}
+
 // A fused Skinner's work-group and vertices a group where its variant was
 // not tuned fused (CreateScene).
 constexpr int kFusedGroup = 256;
@@ -272,12 +282,7 @@ constexpr int kFusedVerticesPerGroup = 2048;
 Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& entries, DeviceState& state,
                      const SkinnedMesh& mesh, SceneShape scene_shape, std::size_t count,
                      const SkinnerOptions& options) {
-  // Rigid joints assumed: SetPalette refuses each matrix that is not (dual quaternions only).
-  // Morph targets: a mesh that has them takes a morph variant whatever its
-  // first weights, as SetMorphWeights may move it any frame.
-  ProblemShape shape = WithMorphOf({mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
-                                    options.instances, options.tangents, true},
-                                   mesh.morph);
+  ProblemShape shape = SkinShapeOf(mesh, options);
   // CreateAnimated: the palettes are made on the device; the skin kernel's
   // constraints are checked without it (SkinKernelViolations).
   shape.animated = call == "Skinner::CreateAnimated";
@@ -395,10 +400,8 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
                                  ": each group makes its palette once";
     }
     chosen.selection.variant = chosen.variant.Key();
-    ProblemShape shape = WithMorphOf({mesh.joint_count, LargestInfluenceCount(mesh), options.normals || options.tangents,
-                                      options.instances, options.tangents, true},
-                                     mesh.morph);
-    if (const std::vector<Violation> v = SkinKernelViolations(chosen.variant, state.limits, shape); !v.empty())
+    if (const std::vector<Violation> v = SkinKernelViolations(chosen.variant, state.limits, SkinShapeOf(mesh, options));
+        !v.empty())
       FailWith(ErrorCode::kInvalidArgument, where + Joined(v));
   }
 

@@ -735,7 +735,11 @@ class Skinner {
   // frame costs above its kernels; a model with morph targets uploads its
   // instances' weights, SetMorphWeights's, into the buffer). It takes the
   // next palette buffer as SetAnimation does and blocks only as it does; the
-  // next Skin() computes the palettes. Negative seconds play backwards. kInvalidArgument for
+  // next Skin() computes the palettes. With SkinnerOptions::fuse_palette it
+  // takes no buffer: the launches add the seconds summed since the last
+  // SetAnimation (blocking only for the frame palette_buffers frames back),
+  // and past 16 s of them it uploads the advanced states once, as
+  // SetAnimation would. Negative seconds play backwards. kInvalidArgument for
   // seconds that are not finite; kInvalidState on a Skinner made by Create or
   // CreateBatch.
   Status AdvanceAnimation(float seconds);
