@@ -194,9 +194,13 @@ int main(int argc, char** argv) {
   const bool rows3 = skinner->selection().variant.find(".mat3x4.") != std::string::npos;
   const std::size_t upload_bytes = on_device ? 0 : std::size_t(k_count) * skinner->joint_count() * (rows3 ? 48 : 64);
   std::printf("palettes: %s, %zu bytes uploaded per frame\n",
-              on_device ? "computed on the device; the first frame uploads each character's clip and time "
-                          "(SetAnimation), later ones advance the clocks there (AdvanceAnimation)"
-                        : "computed on the host (Model::Palette, SetPalette)",
+              !on_device ? "computed on the host (Model::Palette, SetPalette)"
+              : options.fuse_palette
+                  ? "made in the skin launch; the first frame uploads each character's clip and time (SetAnimation), "
+                    "later ones pass the time since with the launch (AdvanceAnimation; the clocks go up again "
+                    "every 16 s of it)"
+                  : "computed on the device; the first frame uploads each character's clip and time "
+                    "(SetAnimation), later ones advance the clocks there (AdvanceAnimation)",
               upload_bytes);
   Status status = frame(0.0, true);  // the first frame, every character checked against the reference
   if (status && on_device) status = host_palettes_at(0.0);
