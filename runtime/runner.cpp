@@ -1142,9 +1142,7 @@ void Runner::AdvanceAnimation(Prepared& prepared, int set, float delta, std::spa
       clips.clip_count = static_cast<std::uint32_t>(s.clip_ranges.size() / 4);
       std::vector<AnimInstance> states = s.uploaded_states;
       AdvanceAnimInstances(clips, states, static_cast<float>(s.elapsed));
-      const std::span<std::uint8_t> staging = PaletteStaging(prepared, set);
-      std::memcpy(staging.data(), states.data(), std::min(staging.size(), states.size() * sizeof(AnimInstance)));
-      UploadPalette(prepared, set);
+      WritePalette(prepared, set, {reinterpret_cast<const std::uint8_t*>(states.data()), states.size() * sizeof(AnimInstance)});
     }
     return;
   }

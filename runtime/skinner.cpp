@@ -511,7 +511,6 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
                    (tuned ? std::string("bake_rate is kBakeRateTuned (the tuned entry's form decides)")
                     : local ? std::string("bake_space is ") + (hybrid ? "kHybrid" : "kLocal")
                             : "bake_rate is " + std::to_string(options.bake_rate) + " (sampled)"));
-
     if (local && !(options.bake_rate > 0.0))
       FailWith(ErrorCode::kInvalidArgument,
                call + ": SkinnerOptions::bake_space " + (hybrid ? "kHybrid" : "kLocal") +

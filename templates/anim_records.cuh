@@ -51,6 +51,12 @@ __device__ bool anim_clip_valid(const unsigned clip, const unsigned clip_count) 
   return clip == ANIM_REST_POSE || clip < clip_count;
 }
 
+// Whether an instance's state names clips there are: its clip, and its second where it blends.
+__device__ bool anim_state_valid(const uint4 in, const unsigned clip_count) {
+  return anim_clip_valid(in.x & 0xffffu, clip_count) &&
+         (__uint_as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
+}
+
 // Time t moved into [start, end] of its clip, looping (palette.cl).
 __device__ float anim_loop_time(const float t, const float4 range) {
   const float length = range.y - range.x;

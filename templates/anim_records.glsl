@@ -36,6 +36,11 @@ Affine anim_to_affine(Trs x) {
 
 bool anim_clip_valid(uint clip) { return clip == kRestPose || clip < uint(ANIM_CLIP_COUNT); }
 
+// Whether an instance's state names clips there are: its clip, and its second where it blends.
+bool anim_state_valid(uvec4 s) {
+  return anim_clip_valid(s.x & 0xffffu) && (uintBitsToFloat(s.w) == 0.0 || anim_clip_valid(s.x >> 16));
+}
+
 // Time t moved into [start, end] of its clip, looping (palette.cl).
 float anim_loop_time(float t, vec4 range) {
   float length = range.y - range.x;

@@ -169,9 +169,7 @@ void skintune_palette(__global const float4* restrict frames, __global const uin
   uint4 in = in_group ? (fresh != 0u ? instances[i] : states[i]) : (uint4)(0u);
   if (in_group && fresh == 0u) in = anim_advance(clips, in, delta, clip_count);
   __global float4* out = palette + (size_t)i * joint_count * rows;
-  const float w = as_float(in.w);
-  const int valid = in_group && anim_clip_valid(in.x & 0xffffu, clip_count) &&
-                    (w == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
+  const int valid = in_group && anim_state_valid(in, clip_count);
   for (uint j = item; in_group && j < joint_count; j += ANIM_GROUP) {
     if (!valid) {
       for (uint r = 0u; r < rows; ++r) out[rows * j + r] = (float4)(NAN);
@@ -216,8 +214,7 @@ void skintune_palette(__global const float4* restrict nodes,
   uint4 in = in_group ? (fresh != 0u ? instances[i] : states[i]) : (uint4)(0u);
   if (in_group && fresh == 0u) in = anim_advance(clips, in, delta, clip_count);
   __global float4* out = palette + (size_t)i * joint_count * rows;
-  const int valid = in_group && anim_clip_valid(in.x & 0xffffu, clip_count) &&
-                    (as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
+  const int valid = in_group && anim_state_valid(in, clip_count);
   if (in_group && !valid)
     for (uint r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = (float4)(NAN);
 #if ANIM_STEADY

@@ -192,8 +192,7 @@ void main() {
   uvec4 in_ = in_group ? (fresh != 0u ? instances[i] : states[i]) : uvec4(0u);
   if (in_group && fresh == 0u) in_ = anim_advance(in_, delta);
   uint base = i * joint_count * rows;
-  float w = uintBitsToFloat(in_.w);
-  bool valid = in_group && anim_clip_valid(in_.x & 0xffffu) && (w == 0.0 || anim_clip_valid(in_.x >> 16));
+  bool valid = in_group && anim_state_valid(in_);
   for (uint j = item; in_group && j < joint_count; j += uint(ANIM_GROUP)) {
     if (!valid) {
       for (uint r = 0u; r < rows; ++r) palette[base + rows * j + r] = vec4(uintBitsToFloat(0x7fc00000u));
@@ -237,8 +236,7 @@ void main() {
   uvec4 in_ = in_group ? (fresh != 0u ? instances[i] : states[i]) : uvec4(0u);
   if (in_group && fresh == 0u) in_ = anim_advance(in_, delta);
   uint out_ = i * joint_count * rows;
-  bool valid = in_group && anim_clip_valid(in_.x & 0xffffu) &&
-               (uintBitsToFloat(in_.w) == 0.0 || anim_clip_valid(in_.x >> 16));
+  bool valid = in_group && anim_state_valid(in_);
   if (in_group && !valid) {
     vec4 nan = vec4(uintBitsToFloat(0x7fc00000u));
     for (uint r = item; r < joint_count * rows; r += uint(ANIM_GROUP)) palette[out_ + r] = nan;

@@ -163,9 +163,7 @@ skintune_palette(const float4* __restrict__ frames, const uint4* __restrict__ in
   uint4 in = in_group ? (fresh != 0u ? instances[i] : states[i]) : make_uint4(0u, 0u, 0u, 0u);
   if (in_group && fresh == 0u) in = anim_advance(clips, in, delta, clip_count);
   float4* out = palette + (unsigned long long)i * joint_count * rows;
-  const float w = __uint_as_float(in.w);
-  const bool valid = in_group && anim_clip_valid(in.x & 0xffffu, clip_count) &&
-                     (w == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
+  const bool valid = in_group && anim_state_valid(in, clip_count);
   for (unsigned j = item; in_group && j < joint_count; j += ANIM_GROUP) {
     if (!valid) {
       const float nan = __int_as_float(0x7fffffff);
@@ -210,8 +208,7 @@ skintune_palette(const float4* __restrict__ nodes,
   uint4 in = in_group ? (fresh != 0u ? instances[i] : states[i]) : make_uint4(0u, 0u, 0u, 0u);
   if (in_group && fresh == 0u) in = anim_advance(clips, in, delta, clip_count);
   float4* out = palette + (unsigned long long)i * joint_count * rows;
-  const bool valid = in_group && anim_clip_valid(in.x & 0xffffu, clip_count) &&
-                     (__uint_as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
+  const bool valid = in_group && anim_state_valid(in, clip_count);
   if (in_group && !valid) {
     const float nan = __int_as_float(0x7fffffff);
     for (unsigned r = item; r < joint_count * rows; r += ANIM_GROUP) out[r] = make_float4(nan, nan, nan, nan);

@@ -421,8 +421,7 @@ void skin(const uint n, const uint first,
 #else
     const uint4 state = anim_advance(clips, instances[0], elapsed, ANIM_CLIP_COUNT);
 #endif
-    const int valid = anim_clip_valid(state.x & 0xffffu, ANIM_CLIP_COUNT) &&
-                      (as_float(state.w) == 0.0f || anim_clip_valid(state.x >> 16, ANIM_CLIP_COUNT));
+    const int valid = anim_state_valid(state, ANIM_CLIP_COUNT);
     const float4 nan_row = (float4)(as_float(0x7fffffff));
     for (uint j = get_local_id(0); j < JOINTS; j += WG_SIZE) {
       Affine m = {nan_row, nan_row, nan_row};

@@ -112,7 +112,7 @@ void main() {
 #else
     uvec4 state = anim_advance(instances[0], elapsed);
 #endif
-    bool valid = anim_clip_valid(state.x & 0xffffu) && (uintBitsToFloat(state.w) == 0.0 || anim_clip_valid(state.x >> 16));
+    bool valid = anim_state_valid(state);
     vec4 nan_row = vec4(uintBitsToFloat(0x7fc00000u));
     for (uint j = gl_LocalInvocationID.x; j < uint(JOINTS); j += uint(WG_SIZE)) {
       Affine m = Affine(nan_row, nan_row, nan_row);

@@ -521,8 +521,7 @@ skin(const u32 n, const u32 first,
 #else
     const uint4 state = anim_advance(clips, __ldg(instances), elapsed, ANIM_CLIP_COUNT);
 #endif
-    const bool valid = anim_clip_valid(state.x & 0xffffu, ANIM_CLIP_COUNT) &&
-                       (__uint_as_float(state.w) == 0.0f || anim_clip_valid(state.x >> 16, ANIM_CLIP_COUNT));
+    const bool valid = anim_state_valid(state, ANIM_CLIP_COUNT);
     const float nan = __int_as_float(0x7fffffff);
     const float4 nan_row = make_float4(nan, nan, nan, nan);
     for (u32 j = threadIdx.x; j < JOINTS; j += WG_SIZE) {

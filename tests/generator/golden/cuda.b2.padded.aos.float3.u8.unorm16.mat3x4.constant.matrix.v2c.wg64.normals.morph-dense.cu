@@ -324,6 +324,12 @@ __device__ bool anim_clip_valid(const unsigned clip, const unsigned clip_count) 
   return clip == ANIM_REST_POSE || clip < clip_count;
 }
 
+// Whether an instance's state names clips there are: its clip, and its second where it blends.
+__device__ bool anim_state_valid(const uint4 in, const unsigned clip_count) {
+  return anim_clip_valid(in.x & 0xffffu, clip_count) &&
+         (__uint_as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
+}
+
 // Time t moved into [start, end] of its clip, looping (palette.cl).
 __device__ float anim_loop_time(const float t, const float4 range) {
   const float length = range.y - range.x;
@@ -891,8 +897,7 @@ skin(const u32 n, const u32 first,
 #else
     const uint4 state = anim_advance(clips, __ldg(instances), elapsed, ANIM_CLIP_COUNT);
 #endif
-    const bool valid = anim_clip_valid(state.x & 0xffffu, ANIM_CLIP_COUNT) &&
-                       (__uint_as_float(state.w) == 0.0f || anim_clip_valid(state.x >> 16, ANIM_CLIP_COUNT));
+    const bool valid = anim_state_valid(state, ANIM_CLIP_COUNT);
     const float nan = __int_as_float(0x7fffffff);
     const float4 nan_row = make_float4(nan, nan, nan, nan);
     for (u32 j = threadIdx.x; j < JOINTS; j += WG_SIZE) {

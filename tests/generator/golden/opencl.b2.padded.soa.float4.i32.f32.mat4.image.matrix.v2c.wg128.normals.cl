@@ -286,6 +286,11 @@ Affine anim_to_affine(const Trs x) {
 
 int anim_clip_valid(const uint clip, const uint clip_count) { return clip == ANIM_REST_POSE || clip < clip_count; }
 
+// Whether an instance's state names clips there are: its clip, and its second where it blends.
+int anim_state_valid(const uint4 in, const uint clip_count) {
+  return anim_clip_valid(in.x & 0xffffu, clip_count) && (as_float(in.w) == 0.0f || anim_clip_valid(in.x >> 16, clip_count));
+}
+
 // Time t moved into [start, end] of its clip (range: start, end), looping:
 // the clip plays again from its start (a clip of no duration: its start).
 float anim_loop_time(const float t, const float4 range) {
@@ -800,8 +805,7 @@ void skin(const uint n, const uint first,
 #else
     const uint4 state = anim_advance(clips, instances[0], elapsed, ANIM_CLIP_COUNT);
 #endif
-    const int valid = anim_clip_valid(state.x & 0xffffu, ANIM_CLIP_COUNT) &&
-                      (as_float(state.w) == 0.0f || anim_clip_valid(state.x >> 16, ANIM_CLIP_COUNT));
+    const int valid = anim_state_valid(state, ANIM_CLIP_COUNT);
     const float4 nan_row = (float4)(as_float(0x7fffffff));
     for (uint j = get_local_id(0); j < JOINTS; j += WG_SIZE) {
       Affine m = {nan_row, nan_row, nan_row};

@@ -814,6 +814,11 @@ Affine anim_to_affine(Trs x) {
 
 bool anim_clip_valid(uint clip) { return clip == kRestPose || clip < uint(ANIM_CLIP_COUNT); }
 
+// Whether an instance's state names clips there are: its clip, and its second where it blends.
+bool anim_state_valid(uvec4 s) {
+  return anim_clip_valid(s.x & 0xffffu) && (uintBitsToFloat(s.w) == 0.0 || anim_clip_valid(s.x >> 16));
+}
+
 // Time t moved into [start, end] of its clip, looping (palette.cl).
 float anim_loop_time(float t, vec4 range) {
   float length = range.y - range.x;
@@ -982,7 +987,7 @@ void main() {
 #else
     uvec4 state = anim_advance(instances[0], elapsed);
 #endif
-    bool valid = anim_clip_valid(state.x & 0xffffu) && (uintBitsToFloat(state.w) == 0.0 || anim_clip_valid(state.x >> 16));
+    bool valid = anim_state_valid(state);
     vec4 nan_row = vec4(uintBitsToFloat(0x7fc00000u));
     for (uint j = gl_LocalInvocationID.x; j < uint(JOINTS); j += uint(WG_SIZE)) {
       Affine m = Affine(nan_row, nan_row, nan_row);
