@@ -92,6 +92,25 @@ layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTang
 #define STORE_TANGENT(at, value) out_tangents[at] = pack_tangent(value)
 #endif
 
+#if STORAGE == 1 && ANIM_FUSED
+// The local palette made from the instance's palette records instead of copied (skin.cl says why).
+void make_palette(uvec4 instance_state) {
+  uvec4 state = anim_advance(instance_state, elapsed);
+  bool valid = anim_state_valid(state);
+  vec4 nan_row = vec4(uintBitsToFloat(0x7fc00000u));
+  for (uint j = gl_LocalInvocationID.x; j < uint(JOINTS); j += uint(WG_SIZE)) {
+    Affine m = Affine(nan_row, nan_row, nan_row);
+    if (valid) m = baked_affine(baked_instance(false, kBakedRows, uint(JOINTS), state, j), kBakedRows);
+    palette_local[j * uint(PALETTE_ROWS)] = m.row0;
+    palette_local[j * uint(PALETTE_ROWS) + 1u] = m.row1;
+    palette_local[j * uint(PALETTE_ROWS) + 2u] = m.row2;
+#if PALETTE_ROWS == 4
+    palette_local[j * uint(PALETTE_ROWS) + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
+#endif
+  }
+}
+#endif
+
 // ---------------------------------------------------------------- kernel
 
 #if INSTANCED && !defined(VULKAN)
@@ -105,28 +124,12 @@ void main() {
   uint out_first = first;
 #endif
 #if STORAGE == 1 && ANIM_FUSED
-  {
-    // The copy made from the instance's palette records instead (skin.cl says why).
+  // Made in the first vertex's turn of the loop below, once that vertex's loads are issued.
 #if INSTANCED
-    uvec4 state = anim_advance(instances[INSTANCE], elapsed);
+  uvec4 instance_state = instances[INSTANCE];
 #else
-    uvec4 state = anim_advance(instances[0], elapsed);
+  uvec4 instance_state = instances[0];
 #endif
-    bool valid = anim_state_valid(state);
-    vec4 nan_row = vec4(uintBitsToFloat(0x7fc00000u));
-    for (uint j = gl_LocalInvocationID.x; j < uint(JOINTS); j += uint(WG_SIZE)) {
-      Affine m = Affine(nan_row, nan_row, nan_row);
-      if (valid) m = baked_affine(baked_instance(false, kBakedRows, uint(JOINTS), state, j), kBakedRows);
-      palette_local[j * uint(PALETTE_ROWS)] = m.row0;
-      palette_local[j * uint(PALETTE_ROWS) + 1u] = m.row1;
-      palette_local[j * uint(PALETTE_ROWS) + 2u] = m.row2;
-#if PALETTE_ROWS == 4
-      palette_local[j * uint(PALETTE_ROWS) + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
-#endif
-    }
-  }
-  memoryBarrierShared();
-  barrier();
 #elif STORAGE == 1
 #if INSTANCED
   uint palette_first = INSTANCE * uint(PALETTE_FLOAT4S);  // this instance's palette
@@ -152,11 +155,29 @@ void main() {
 #else
     uint v = item * uint(VERTICES_PER_ITEM) + k;
 #endif
+#if STORAGE == 1 && ANIM_FUSED
+    // The first vertex's loads go out before the palette records' so that the two latencies
+    // overlap; every invocation reaches the barrier, none leaves the loop before it. On an H200
+    // (2026-11-30, 64 x 25k-b4, v8s.wg256) GL compute's pipelined fused frame took 26.9-27.2 us
+    // this way against 27.9-28.9 with the palette made first. skin.cl and skin.cu keep the
+    // palette first: this order made their frames slower (OpenCL 20.0 -> 22.1 us, CUDA 18.4 -> 19.2).
+    bool live = v < n;
+    VertexIn loaded;
+    if (live) loaded = load_vertex(v, slot_stride);
+    if (k == 0u) {
+      make_palette(instance_state);
+      memoryBarrierShared();
+      barrier();
+    }
+    if (!live) break;
+#else
     if (v >= n) break;
+    VertexIn loaded = load_vertex(v, slot_stride);
+#endif
 
     vec3 skinned_position, skinned_normal;
     vec4 skinned_tangent;
-    skin_vertex(v, slot_stride, skinned_position, skinned_normal, skinned_tangent);
+    skin_loaded(loaded, skinned_position, skinned_normal, skinned_tangent);
     STORE_POSITION(out_first + v, skinned_position);
 #if NORMALS
     STORE_NORMAL(out_first + v, normalize(skinned_normal));

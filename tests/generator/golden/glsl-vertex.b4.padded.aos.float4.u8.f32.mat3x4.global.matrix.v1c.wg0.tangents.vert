@@ -274,7 +274,7 @@
 #line 1 2  // skin_body.glsl
 // skintune: the skinning both GLSL stages share, written once: bindings, the
 // uniforms n and first (Vulkan: push constants), input loads, palette access, blending and
-// skin_vertex() (loads one vertex and skins it). skin.comp and skin.vert
+// skin_vertex() (loads one vertex and skins it: load_vertex(), then skin_loaded()). skin.comp and skin.vert
 // include it after skin_params.h, with SKIN_COMPUTE_STAGE defined
 // (templates/README.md, "Preludes"), and add how vertices are assigned to
 // invocations and where the outputs go.
@@ -700,39 +700,55 @@ void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, out 
 
 // Loads vertex v of the launch and skins it: the position, the normal and the
 // tangent (xyz not normalised yet; zero without NORMALS / TANGENTS).
-void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 skinned_normal,
-                 out vec4 skinned_tangent) {
-  vec3 position = load_position(v);
-  vec3 normal = vec3(0.0);
-  vec4 tangent = vec4(0.0);
-#if NORMALS
-  normal = load_normal(v);
-#endif
-#if TANGENTS
-  tangent = load_tangent(v);
-#endif
-#if MORPH
-  morph(v, position, normal, tangent);
-#endif
+// One vertex's inputs, loaded (and morphed): what skin_loaded() skins.
+struct VertexIn {
+  vec3 position;
+  vec3 normal;
+  vec4 tangent;
   uint joint[INFLUENCES];
   uint raw_weight[INFLUENCES];
-  load_indices(v, slot_stride, joint);
-  load_raw_weights(v, slot_stride, raw_weight);
+};
+
+VertexIn load_vertex(uint v, uint slot_stride) {
+  VertexIn x;
+  x.position = load_position(v);
+  x.normal = vec3(0.0);
+  x.tangent = vec4(0.0);
+#if NORMALS
+  x.normal = load_normal(v);
+#endif
+#if TANGENTS
+  x.tangent = load_tangent(v);
+#endif
+#if MORPH
+  morph(v, x.position, x.normal, x.tangent);
+#endif
+  load_indices(v, slot_stride, x.joint);
+  load_raw_weights(v, slot_stride, x.raw_weight);
+  return x;
+}
+
+void skin_loaded(VertexIn x, out vec3 skinned_position, out vec3 skinned_normal, out vec4 skinned_tangent) {
 #if INSTANCED && STORAGE != 1
-  for (uint i = 0u; i < uint(INFLUENCES); ++i) joint[i] += INSTANCE * uint(JOINTS);  // this instance's palette
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) x.joint[i] += INSTANCE * uint(JOINTS);  // this instance's palette
 #endif
   float weight[INFLUENCES];
-  for (uint i = 0u; i < uint(INFLUENCES); ++i) weight[i] = weight_of(raw_weight[i]);
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) weight[i] = weight_of(x.raw_weight[i]);
   vec4 a0, a1, a2;
-  blend(joint, weight, position, skinned_position, a0, a1, a2);
+  blend(x.joint, weight, x.position, skinned_position, a0, a1, a2);
   skinned_normal = vec3(0.0);
   skinned_tangent = vec4(0.0);
 #if NORMALS
-  skinned_normal = transform_normal(a0, a1, a2, normal);
+  skinned_normal = transform_normal(a0, a1, a2, x.normal);
 #endif
 #if TANGENTS
-  skinned_tangent = transform_tangent(a0, a1, a2, tangent);
+  skinned_tangent = transform_tangent(a0, a1, a2, x.tangent);
 #endif
+}
+
+void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 skinned_normal,
+                 out vec4 skinned_tangent) {
+  skin_loaded(load_vertex(v, slot_stride), skinned_position, skinned_normal, skinned_tangent);
 }
 
 // The slot stride S of soa-split for a launch of n vertices (0 otherwise).

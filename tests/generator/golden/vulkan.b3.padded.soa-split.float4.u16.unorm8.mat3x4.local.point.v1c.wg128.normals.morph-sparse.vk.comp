@@ -269,7 +269,7 @@
 #line 1 2  // skin_body.glsl
 // skintune: the skinning both GLSL stages share, written once: bindings, the
 // uniforms n and first (Vulkan: push constants), input loads, palette access, blending and
-// skin_vertex() (loads one vertex and skins it). skin.comp and skin.vert
+// skin_vertex() (loads one vertex and skins it: load_vertex(), then skin_loaded()). skin.comp and skin.vert
 // include it after skin_params.h, with SKIN_COMPUTE_STAGE defined
 // (templates/README.md, "Preludes"), and add how vertices are assigned to
 // invocations and where the outputs go.
@@ -695,39 +695,55 @@ void blend(uint joint[INFLUENCES], float weight[INFLUENCES], vec3 position, out 
 
 // Loads vertex v of the launch and skins it: the position, the normal and the
 // tangent (xyz not normalised yet; zero without NORMALS / TANGENTS).
-void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 skinned_normal,
-                 out vec4 skinned_tangent) {
-  vec3 position = load_position(v);
-  vec3 normal = vec3(0.0);
-  vec4 tangent = vec4(0.0);
-#if NORMALS
-  normal = load_normal(v);
-#endif
-#if TANGENTS
-  tangent = load_tangent(v);
-#endif
-#if MORPH
-  morph(v, position, normal, tangent);
-#endif
+// One vertex's inputs, loaded (and morphed): what skin_loaded() skins.
+struct VertexIn {
+  vec3 position;
+  vec3 normal;
+  vec4 tangent;
   uint joint[INFLUENCES];
   uint raw_weight[INFLUENCES];
-  load_indices(v, slot_stride, joint);
-  load_raw_weights(v, slot_stride, raw_weight);
+};
+
+VertexIn load_vertex(uint v, uint slot_stride) {
+  VertexIn x;
+  x.position = load_position(v);
+  x.normal = vec3(0.0);
+  x.tangent = vec4(0.0);
+#if NORMALS
+  x.normal = load_normal(v);
+#endif
+#if TANGENTS
+  x.tangent = load_tangent(v);
+#endif
+#if MORPH
+  morph(v, x.position, x.normal, x.tangent);
+#endif
+  load_indices(v, slot_stride, x.joint);
+  load_raw_weights(v, slot_stride, x.raw_weight);
+  return x;
+}
+
+void skin_loaded(VertexIn x, out vec3 skinned_position, out vec3 skinned_normal, out vec4 skinned_tangent) {
 #if INSTANCED && STORAGE != 1
-  for (uint i = 0u; i < uint(INFLUENCES); ++i) joint[i] += INSTANCE * uint(JOINTS);  // this instance's palette
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) x.joint[i] += INSTANCE * uint(JOINTS);  // this instance's palette
 #endif
   float weight[INFLUENCES];
-  for (uint i = 0u; i < uint(INFLUENCES); ++i) weight[i] = weight_of(raw_weight[i]);
+  for (uint i = 0u; i < uint(INFLUENCES); ++i) weight[i] = weight_of(x.raw_weight[i]);
   vec4 a0, a1, a2;
-  blend(joint, weight, position, skinned_position, a0, a1, a2);
+  blend(x.joint, weight, x.position, skinned_position, a0, a1, a2);
   skinned_normal = vec3(0.0);
   skinned_tangent = vec4(0.0);
 #if NORMALS
-  skinned_normal = transform_normal(a0, a1, a2, normal);
+  skinned_normal = transform_normal(a0, a1, a2, x.normal);
 #endif
 #if TANGENTS
-  skinned_tangent = transform_tangent(a0, a1, a2, tangent);
+  skinned_tangent = transform_tangent(a0, a1, a2, x.tangent);
 #endif
+}
+
+void skin_vertex(uint v, uint slot_stride, out vec3 skinned_position, out vec3 skinned_normal,
+                 out vec4 skinned_tangent) {
+  skin_loaded(load_vertex(v, slot_stride), skinned_position, skinned_normal, skinned_tangent);
 }
 
 // The slot stride S of soa-split for a launch of n vertices (0 otherwise).
@@ -967,6 +983,25 @@ layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTang
 #define STORE_TANGENT(at, value) out_tangents[at] = pack_tangent(value)
 #endif
 
+#if STORAGE == 1 && ANIM_FUSED
+// The local palette made from the instance's palette records instead of copied (skin.cl says why).
+void make_palette(uvec4 instance_state) {
+  uvec4 state = anim_advance(instance_state, elapsed);
+  bool valid = anim_state_valid(state);
+  vec4 nan_row = vec4(uintBitsToFloat(0x7fc00000u));
+  for (uint j = gl_LocalInvocationID.x; j < uint(JOINTS); j += uint(WG_SIZE)) {
+    Affine m = Affine(nan_row, nan_row, nan_row);
+    if (valid) m = baked_affine(baked_instance(false, kBakedRows, uint(JOINTS), state, j), kBakedRows);
+    palette_local[j * uint(PALETTE_ROWS)] = m.row0;
+    palette_local[j * uint(PALETTE_ROWS) + 1u] = m.row1;
+    palette_local[j * uint(PALETTE_ROWS) + 2u] = m.row2;
+#if PALETTE_ROWS == 4
+    palette_local[j * uint(PALETTE_ROWS) + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
+#endif
+  }
+}
+#endif
+
 // ---------------------------------------------------------------- kernel
 
 #if INSTANCED && !defined(VULKAN)
@@ -980,28 +1015,12 @@ void main() {
   uint out_first = first;
 #endif
 #if STORAGE == 1 && ANIM_FUSED
-  {
-    // The copy made from the instance's palette records instead (skin.cl says why).
+  // Made in the first vertex's turn of the loop below, once that vertex's loads are issued.
 #if INSTANCED
-    uvec4 state = anim_advance(instances[INSTANCE], elapsed);
+  uvec4 instance_state = instances[INSTANCE];
 #else
-    uvec4 state = anim_advance(instances[0], elapsed);
+  uvec4 instance_state = instances[0];
 #endif
-    bool valid = anim_state_valid(state);
-    vec4 nan_row = vec4(uintBitsToFloat(0x7fc00000u));
-    for (uint j = gl_LocalInvocationID.x; j < uint(JOINTS); j += uint(WG_SIZE)) {
-      Affine m = Affine(nan_row, nan_row, nan_row);
-      if (valid) m = baked_affine(baked_instance(false, kBakedRows, uint(JOINTS), state, j), kBakedRows);
-      palette_local[j * uint(PALETTE_ROWS)] = m.row0;
-      palette_local[j * uint(PALETTE_ROWS) + 1u] = m.row1;
-      palette_local[j * uint(PALETTE_ROWS) + 2u] = m.row2;
-#if PALETTE_ROWS == 4
-      palette_local[j * uint(PALETTE_ROWS) + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
-#endif
-    }
-  }
-  memoryBarrierShared();
-  barrier();
 #elif STORAGE == 1
 #if INSTANCED
   uint palette_first = INSTANCE * uint(PALETTE_FLOAT4S);  // this instance's palette
@@ -1027,11 +1046,29 @@ void main() {
 #else
     uint v = item * uint(VERTICES_PER_ITEM) + k;
 #endif
+#if STORAGE == 1 && ANIM_FUSED
+    // The first vertex's loads go out before the palette records' so that the two latencies
+    // overlap; every invocation reaches the barrier, none leaves the loop before it. On an H200
+    // (2026-11-30, 64 x 25k-b4, v8s.wg256) GL compute's pipelined fused frame took 26.9-27.2 us
+    // this way against 27.9-28.9 with the palette made first. skin.cl and skin.cu keep the
+    // palette first: this order made their frames slower (OpenCL 20.0 -> 22.1 us, CUDA 18.4 -> 19.2).
+    bool live = v < n;
+    VertexIn loaded;
+    if (live) loaded = load_vertex(v, slot_stride);
+    if (k == 0u) {
+      make_palette(instance_state);
+      memoryBarrierShared();
+      barrier();
+    }
+    if (!live) break;
+#else
     if (v >= n) break;
+    VertexIn loaded = load_vertex(v, slot_stride);
+#endif
 
     vec3 skinned_position, skinned_normal;
     vec4 skinned_tangent;
-    skin_vertex(v, slot_stride, skinned_position, skinned_normal, skinned_tangent);
+    skin_loaded(loaded, skinned_position, skinned_normal, skinned_tangent);
     STORE_POSITION(out_first + v, skinned_position);
 #if NORMALS
     STORE_NORMAL(out_first + v, normalize(skinned_normal));
