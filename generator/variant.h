@@ -142,6 +142,22 @@ constexpr bool BakesHybrid(Animation a) {
 constexpr bool FusesPalette(Animation a) {
   return a == Animation::kFused30 || a == Animation::kFused60 || a == Animation::kFused120 || a == Animation::kFused240;
 }
+// The shape a fused form takes where nothing chose one (a Skinner's variant
+// neither forced nor tuned fused; the tuner's coordinate search starts there
+// too, tuner/strategy.h): storage local, 2048 vertices a work-group, 8 an
+// item, strided, in groups of 256. Every group pays for making its palette,
+// so a fused form wins only in large groups: 64 x 25k-b4 on an H200
+// (2026-11-30), CUDA frames of 66 us in groups of 64 one vertex an item,
+// 18.2 us in this shape (docs/ANIMATION.md "The palette in the skin launch").
+inline constexpr int kFusedGroup = 256;
+inline constexpr int kFusedVerticesPerGroup = 2048;
+constexpr Variant InFusedShape(Variant v) {
+  v.storage = PaletteStorage::kLocal;
+  v.wg_size = kFusedGroup;
+  v.vertices_per_item = kFusedVerticesPerGroup / kFusedGroup;
+  v.assignment = Assignment::kStrided;
+  return v;
+}
 // Whether its clips are baked as each node's local transform (local*, and
 // hybrid*, whose cross-fades mix local records).
 constexpr bool BakesLocally(Animation a) {

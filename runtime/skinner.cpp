@@ -272,11 +272,6 @@ ProblemShape SkinShapeOf(const SkinnedMesh& mesh, const SkinnerOptions& options)
                      mesh.morph);
 }
 
-// A fused Skinner's work-group and vertices a group where its variant was
-// not tuned fused (CreateScene).
-constexpr int kFusedGroup = 256;
-constexpr int kFusedVerticesPerGroup = 2048;
-
 // The variant for the scene: forced, or the winners database's choice for
 // its shape and total size (a bucketed winner runs padded). Throws ApiError.
 Chosen ChooseVariant(const std::string& call, const std::vector<WinnersEntry>& entries, DeviceState& state,
@@ -386,15 +381,11 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
     }
     // Each work-group pays for making the palette once, so a variant not
     // tuned fused (nor forced) skins many vertices a group, as fused winners
-    // do: 64 x 25k-b4 on an H200 (2026-11-30), CUDA frames of 66 us in
-    // groups of 64 one vertex an item, 18.2 us in groups of 256 eight
-    // vertices an item, strided (docs/ANIMATION.md "The palette in the skin launch").
+    // do (InFusedShape, generator/variant.h).
     if (chosen.selection.level != MatchLevel::kForced && !FusesPalette(chosen.variant.animation) &&
         chosen.variant.wg_size * chosen.variant.vertices_per_item < kFusedVerticesPerGroup &&
         state.limits.max_wg_size >= kFusedGroup) {
-      chosen.variant.wg_size = kFusedGroup;
-      chosen.variant.vertices_per_item = kFusedVerticesPerGroup / kFusedGroup;
-      chosen.variant.assignment = Assignment::kStrided;
+      chosen.variant = InFusedShape(chosen.variant);
       chosen.selection.reason += "; " + std::to_string(kFusedVerticesPerGroup / kFusedGroup) +
                                  " vertices an item, strided, in groups of " + std::to_string(kFusedGroup) +
                                  ": each group makes its palette once";

@@ -197,6 +197,30 @@ Coords DefaultCoords(const Session& s) {
 
 std::size_t DefaultStart(const Session& s) { return ClosestTo(s, DefaultCoords(s)); }
 
+// Where the space holds forms that make their palette in the skin launch
+// (FusesPalette), the candidate closest to the default in the shape a fused
+// form takes where nothing chose one (InFusedShape: storage local, 8 vertices
+// an item, strided, groups of 256), at the highest rate among them. A fused
+// form wins only in that shape, three axes from the default start, and is
+// slower than the forms with a palette kernel in any shape one move from it:
+// `skintune tune --config animated-crowds` on an H200 (2026-11-30) never
+// reached it, and named for CUDA's 64 x 25k crowd a palette kernel's form at
+// 23.2 us where fused240 in that shape took 18.2.
+std::optional<std::size_t> FusedStart(const Session& s) {
+  std::optional<Animation> fused;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const Animation a = s.variant(i).animation;
+    if (FusesPalette(a) && (!fused || BakeRateOf(a) > BakeRateOf(*fused))) fused = a;
+  }
+  if (!fused) return std::nullopt;
+  Variant d;
+  d.lang = s.variant(0).lang;
+  d.influences = s.variant(0).influences;
+  d.normals = s.variant(0).normals;
+  d.animation = *fused;
+  return ClosestTo(s, CoordsOf(CollapseWorkGroups(InFusedShape(d))));
+}
+
 // The default with each coupled axis at its narrowest value among the
 // candidates (the formats' codes grow as they narrow: float4 -> float3,
 // i32 -> u16 -> u8, f32 -> unorm16 -> unorm8).
@@ -316,7 +340,16 @@ class Descent {
 SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts, double margin) {
   const std::array<std::vector<int>, kAxisCount> axis_values = AxisValues(s);
   Descent descent(s, axis_values, margin);
-  descent.From(DefaultStart(s));
+  // The first descent starts from the default, or from the fused start
+  // where that is faster by more than the margin.
+  std::size_t start = DefaultStart(s);
+  if (const std::optional<std::size_t> fused = FusedStart(s); fused && *fused != start) {
+    s.Ahead({start, *fused});
+    const std::optional<double> a = s.Evaluate(start);
+    const std::optional<double> b = s.Evaluate(*fused);
+    if (b && (!a || *b < *a * (1.0 - margin))) start = *fused;
+  }
+  descent.From(start);
   if (!restarts) return s.Result();
   // The first restart starts from the fewest bytes: the candidate closest to
   // the default with the narrowest formats of the coupled axes.

@@ -18,8 +18,9 @@
 namespace skintune::internal {
 namespace {
 
-// Every point (constraints ignored) of the OpenCL space at B = 4 without normals: a full product,
-// so every axis value is a neighbour of every point.
+// Every point (constraints ignored) of the OpenCL space at B = 4 without normals, palettes from
+// the host: a full product, so every axis value is a neighbour of every point. (Forms animated on
+// the device have a start of their own: AnimatedSpace below.)
 std::vector<Variant> ProductSpace() {
   TuningSpace space = TuningSpace::Full();
   space.langs = {Lang::kOpenCl};
@@ -27,6 +28,7 @@ std::vector<Variant> ProductSpace() {
   space.normals = {Normals::kNone};
   space.morphs = {Morph::kNone};
   space.normal_formats = {NormalFormat::kF32};
+  space.animations = {Animation::kHost};
   std::vector<Variant> out;
   space.ForEach([&](const Variant& v) { out.push_back(v); });
   return out;
@@ -266,6 +268,88 @@ TEST(Strategy, CoordinateMovesCoupledFormatsTogetherInsteadOfStoppingOnF32Weight
   ASSERT_TRUE(r.best);
   EXPECT_EQ(*r.best, optimum) << r.best->Key() << " vs " << optimum.Key();
   EXPECT_LT(r.evaluations, candidates.size() / 500) << r.evaluations << " of " << candidates.size();
+}
+
+// The animated-crowds space in small: palette kernels' forms (baked240) and
+// forms that make their palette in the skin launch (fused120, fused240: storage
+// local only, as the animation_fused constraint says).
+std::vector<Variant> AnimatedSpace() {
+  TuningSpace space = TuningSpace::Full();
+  space.langs = {Lang::kCuda};
+  space.influences = {4};
+  space.mixed = {MixedCounts::kPadded};
+  space.layouts = {Layout::kSoa, Layout::kSoaSplit};
+  space.positions = {PositionFormat::kFloat4};
+  space.indices = {IndexFormat::kU16};
+  space.weights = {WeightFormat::kF32, WeightFormat::kUnorm16};
+  space.palettes = {PaletteFormat::kMat3x4};
+  space.storages = {PaletteStorage::kGlobal, PaletteStorage::kLocal};
+  space.blends = {Blend::kMatrix};
+  space.vertices_per_item = {1, 8};
+  space.assignments = {Assignment::kContiguous, Assignment::kStrided};
+  space.wg_sizes = {64, 256};
+  space.normals = {Normals::kNone};
+  space.morphs = {Morph::kNone};
+  space.normal_formats = {NormalFormat::kF32};
+  space.animations = {Animation::kBaked240, Animation::kFused120, Animation::kFused240};
+  std::vector<Variant> out;
+  space.ForEach([&](const Variant& v) {
+    if (FusesPalette(v.animation) && v.storage != PaletteStorage::kLocal) return;
+    out.push_back(v);
+  });
+  return out;
+}
+
+// As the H200 measured the 64 x 25k crowd (2026-11-30, CUDA, us): a palette
+// kernel's form about 23 in any shape, best in global storage, one vertex an
+// item; a fused form 18.2 in groups of 256, 8 vertices an item, strided, and
+// slower than 23 in every shape one move away from that (33 with one vertex
+// an item, 66 in groups of 64).
+std::optional<double> AnimatedCrowdCost(const Variant& v) {
+  const double formats = (v.layout == Layout::kSoa ? 0.0 : 0.3) + (v.weight == WeightFormat::kF32 ? 0.2 : 0.0);
+  if (!FusesPalette(v.animation))
+    return 23.0 + formats + (v.storage == PaletteStorage::kLocal ? 3.5 : 0.0) + (v.vertices_per_item == 8 ? 40.0 : 0.0) +
+           (v.wg_size == 64 ? 0.2 : 0.0);
+  const double rate = v.animation == Animation::kFused240 ? 0.0 : 0.1;
+  double t = 18.2 + formats + rate;
+  if (v.vertices_per_item == 1) t += 15.0;
+  if (v.assignment == Assignment::kContiguous) t += 6.0;
+  if (v.wg_size == 64) t += 40.0;
+  return t;
+}
+
+TEST(Strategy, CoordinateStartsAtTheFusedShapeWhereItIsFasterThanTheDefault) {
+  const std::vector<Variant> candidates = AnimatedSpace();
+  const Variant optimum = *TrueOptimum(candidates, AnimatedCrowdCost);
+  ASSERT_EQ(optimum, InFusedShape([] {
+              Variant v;
+              v.lang = Lang::kCuda;
+              v.influences = 4;
+              v.weight = WeightFormat::kUnorm16;
+              v.animation = Animation::kFused240;
+              return v;
+            }()));
+  // The animated-crowds config's budget: the fused shape is evaluated second
+  // and the descent goes on from it.
+  Counted counted;
+  counted.model = AnimatedCrowdCost;
+  const SearchResult r = Search(candidates, counted.evaluator(), {"coordinate", 12, 1, 0.05});
+  ASSERT_TRUE(r.best);
+  EXPECT_EQ(*r.best, optimum) << r.best->Key();
+  EXPECT_LE(r.evaluations, 12u);
+  // Where a fused form fails its checks (a cross-fading crowd, whose blends
+  // palette records cannot make within the budget), the descent starts from
+  // the default as before: the fused start costs one evaluation.
+  const Evaluator without_fused = [](const Variant& v) -> std::optional<double> {
+    if (FusesPalette(v.animation)) return std::nullopt;
+    return AnimatedCrowdCost(v);
+  };
+  const SearchResult plain = Search(candidates, without_fused, {"coordinate", 12, 1, 0.05});
+  ASSERT_TRUE(plain.best);
+  EXPECT_FALSE(FusesPalette(plain.best->animation));
+  EXPECT_EQ(plain.best->storage, PaletteStorage::kGlobal);
+  EXPECT_EQ(plain.best->vertices_per_item, 1);
+  EXPECT_LT(plain.best_ms, 23.0 * 1.05);  // moves within the margin are not taken
 }
 
 TEST(Strategy, CoordinateWithFivePercentOfAWideSpaceLandsWithinFivePercentOfTheOptimum) {
