@@ -393,6 +393,33 @@ TEST(Report, ACrossFadingCrowdIsARowApartFromASteadyOneOfTheSameSize) {
   EXPECT_TRUE(ReportFromJson(json, "report.json").datasets[1].cross_fades);
 }
 
+// In one row and weight format, a faster form the budget rules out (palette
+// records on a crowd in transition: a third of the diagonal off) does not hide
+// the form it admits: the row's winner is the admitted one, and the run's
+// choice takes it. With nothing admitted, the fastest stands, over the budget.
+TEST(Report, AFasterFormOverTheBudgetNeverHidesOneWithinItInTheSameRow) {
+  TuningReport r;
+  r.created = "2026-11-30T00:00:00Z";
+  r.devices = {testing::SampleGpu()};
+  DatasetInfo fading{"1k-b4-x100-animblend", 100000, 4, 77, SceneKind::kInstances, 100};
+  fading.cross_fades = true;
+  r.datasets = {fading};
+  Measurement fused = Measured("1k-b4-x100-animblend", "opencl.b4.soa.local.v8s.wg256.anim-fused240", 0.9);
+  fused.status = MeasureStatus::kTooImprecise;
+  r.measurements = {fused, Measured("1k-b4-x100-animblend", "opencl.b4.soa.wg64.anim-local240", 1.2)};
+  std::vector<Winner> winners = ComputeWinners(r);
+  ASSERT_EQ(winners.size(), 1u);
+  EXPECT_EQ(winners[0].variant.animation, Animation::kLocal240);
+  EXPECT_TRUE(winners[0].within_budget);
+  ASSERT_EQ(BudgetWinners(winners, r.tie_margin).size(), 1u);
+  r.measurements.pop_back();
+  winners = ComputeWinners(r);
+  ASSERT_EQ(winners.size(), 1u);
+  EXPECT_EQ(winners[0].variant.animation, Animation::kFused240);
+  EXPECT_FALSE(winners[0].within_budget);
+  EXPECT_TRUE(BudgetWinners(winners, r.tie_margin).empty());
+}
+
 // The classes over the budget named under a device's winners (skintune run):
 // only those faster than the chosen class of their own row, beyond the tie
 // margin; not one that ties with it, is slower, or is of another row.
