@@ -29,19 +29,80 @@ struct VariantsOptions {
   bool json = false;
 };
 
-TuningSpace LoadSpace(const VariantsOptions& o) {
+// The space to count, and the data sets of the config it came from (none
+// without --config).
+struct LoadedSpace {
+  TuningSpace space;
+  std::vector<std::string> datasets;
+};
+
+LoadedSpace LoadSpace(const VariantsOptions& o) {
   nlohmann::json space = nlohmann::json::object();
+  std::vector<std::string> datasets;
   if (!o.config.empty()) {
     const nlohmann::json config = LoadConfigJson(o.config);  // a file, or a built-in name as `tune` takes it
-    ConfigFromJson(config, o.config);  // a tuning config as `tune` takes it (42, null, [] are not)
+    datasets = ConfigFromJson(config, o.config).datasets;  // a tuning config as `tune` takes it (42, null, [] are not)
     space = config["space"];
   }
   if (!o.langs.empty()) space["lang"] = o.langs;
-  return SpaceFromJson(space, o.config.empty() ? "--lang" : o.config);
+  return {SpaceFromJson(space, o.config.empty() ? "--lang" : o.config), datasets};
+}
+
+// A mesh the space is counted on: the problem it poses and how it is named.
+struct CountedMesh {
+  ProblemShape shape;
+  std::string name;
+};
+
+int WidestOf(const SkinnedMesh& mesh) {
+  int widest = 1;
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) widest = std::max(widest, mesh.InfluencesOf(v));
+  return widest;
+}
+
+// A scene key as `tune` and `run` take it (5k-b4-x16, a+b batches, a glTF
+// file): the instances count toward the constant and image storage limits.
+CountedMesh SceneMesh(const std::string& key) {
+  const SkinnedScene scene = LoadScene(ParseSceneKey(key));
+  ProblemShape shape = WithMorphOf({scene.mesh().joint_count, WidestOf(scene.mesh()), scene.mesh().has_normals(),
+                                    scene.spec.instances, scene.mesh().has_normals() && scene.mesh().has_tangents(),
+                                    tuner_internal::PalettesRigid(scene)},
+                                   scene.mesh().morph);
+  shape.animated = scene.spec.animated;
+  return {shape, "scene '" + scene.spec.key + "'"};
+}
+
+CountedMesh AssetMesh(const MeshSource& source) {
+  const SkinnedAsset asset = LoadAsset(source);
+  const std::vector<glm::mat4> palette =
+      asset.animations.empty() ? asset.PaletteAt(-1, 0.0) : asset.PaletteAt(0, asset.animations.front().start);
+  return {WithMorphOf({asset.mesh.joint_count, WidestOf(asset.mesh), asset.mesh.has_normals(), 1,
+                       asset.mesh.has_normals() && asset.mesh.has_tangents(), tuner_internal::AllRigid(palette)},
+                      asset.mesh.morph),
+          asset.source};
+}
+
+// What the space is counted on: --dataset or --mesh; else the config's data
+// sets, each as `tune` would measure it (an animated crowd's forms, a mesh's
+// morph targets: values the paper's rig would cut from the space); else the
+// paper's rig.
+std::vector<CountedMesh> MeshesOf(const VariantsOptions& o, const std::vector<std::string>& config_datasets) {
+  if (!o.source.dataset.empty()) return {SceneMesh(o.source.dataset)};
+  if (!o.source.mesh_file.empty()) return {AssetMesh(o.source)};
+  std::vector<CountedMesh> out;
+  for (const std::string& key : config_datasets) {
+    out.push_back(SceneMesh(key));
+    out.back().name += " (a data set of " + o.config + ")";
+  }
+  if (out.empty())
+    out.push_back({ProblemShape{77, 1, true, 1, false, true},
+                   "the paper's rig (77 joints, any influence count, normals available, rigid palettes)"});
+  return out;
 }
 
 int RunVariants(const VariantsOptions& o) {
-  const TuningSpace space = LoadSpace(o);
+  const LoadedSpace loaded = LoadSpace(o);
+  const TuningSpace& space = loaded.space;
   DeviceLimits limits;
   std::string device_name = "generic limits (no --device)";
   if (!o.device.empty()) {
@@ -50,51 +111,32 @@ int RunVariants(const VariantsOptions& o) {
     limits = LimitsOf(matches.front());
     device_name = matches.front().platform_name + " / " + matches.front().name;
   }
-  ProblemShape shape{77, 1, true, 1, false, true};
-  std::string mesh_name = "the paper's rig (77 joints, any influence count, normals available, rigid palettes)";
-  const auto widest_of = [](const SkinnedMesh& mesh) {
-    int widest = 1;
-    for (std::size_t v = 0; v < mesh.vertex_count(); ++v) widest = std::max(widest, mesh.InfluencesOf(v));
-    return widest;
-  };
-  if (!o.source.dataset.empty()) {
-    // A scene key as `tune` and `run` take it (5k-b4-x16, a+b batches):
-    // the instances count toward the constant and image storage limits.
-    const SkinnedScene scene = LoadScene(ParseSceneKey(o.source.dataset));
-    shape = WithMorphOf({scene.mesh().joint_count, widest_of(scene.mesh()), scene.mesh().has_normals(),
-                         scene.spec.instances, scene.mesh().has_normals() && scene.mesh().has_tangents(),
-                         tuner_internal::PalettesRigid(scene)},
-                        scene.mesh().morph);
-    shape.animated = scene.spec.animated;
-    mesh_name = "scene '" + scene.spec.key + "'";
-  } else if (!o.source.mesh_file.empty()) {
-    const SkinnedAsset asset = LoadAsset(o.source);
-    const std::vector<glm::mat4> palette =
-        asset.animations.empty() ? asset.PaletteAt(-1, 0.0) : asset.PaletteAt(0, asset.animations.front().start);
-    shape = WithMorphOf({asset.mesh.joint_count, widest_of(asset.mesh), asset.mesh.has_normals(), 1,
-                         asset.mesh.has_normals() && asset.mesh.has_tangents(), tuner_internal::AllRigid(palette)},
-                        asset.mesh.morph);
-    mesh_name = asset.source;
+  const std::vector<CountedMesh> meshes = MeshesOf(o, loaded.datasets);
+  nlohmann::json all = nlohmann::json::array();
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
+    std::vector<std::string> keys;
+    const SpaceCount count = Enumerate(space, limits, meshes[i].shape, [&](const Variant& v) {
+      if (o.list) keys.push_back(v.Key());
+    });
+    if (o.json) {
+      nlohmann::json out = {{"space", space}, {"device", device_name}, {"mesh", meshes[i].name},
+                            {"total", count.total}, {"valid", count.valid}};
+      for (const auto& [constraint, n] : count.invalid_by) out["invalid_by"][Name(constraint)] = n;
+      if (o.list) out["variants"] = keys;
+      all.push_back(std::move(out));
+      continue;
+    }
+    if (i > 0) std::cout << "\n";
+    std::cout << "space: " << count.total << " variants\n"
+              << "device: " << device_name << "\nmesh: " << meshes[i].name << "\n"
+              << "valid: " << count.valid << "\n";
+    for (const auto& [constraint, n] : count.invalid_by) {
+      std::cout << "invalid (" << Name(constraint) << "): " << n << "\n";
+    }
+    for (const std::string& key : keys) std::cout << key << "\n";
   }
-  std::vector<std::string> keys;
-  const SpaceCount count = Enumerate(space, limits, shape, [&](const Variant& v) {
-    if (o.list) keys.push_back(v.Key());
-  });
-  if (o.json) {
-    nlohmann::json out = {{"space", space}, {"device", device_name}, {"mesh", mesh_name},
-                          {"total", count.total}, {"valid", count.valid}};
-    for (const auto& [constraint, n] : count.invalid_by) out["invalid_by"][Name(constraint)] = n;
-    if (o.list) out["variants"] = keys;
-    std::cout << out.dump(2) << "\n";
-    return 0;
-  }
-  std::cout << "space: " << count.total << " variants\n"
-            << "device: " << device_name << "\nmesh: " << mesh_name << "\n"
-            << "valid: " << count.valid << "\n";
-  for (const auto& [constraint, n] : count.invalid_by) {
-    std::cout << "invalid (" << Name(constraint) << "): " << n << "\n";
-  }
-  for (const std::string& key : keys) std::cout << key << "\n";
+  // One mesh: its object, as before; the config's data sets: one each.
+  if (o.json) std::cout << (all.size() == 1 ? all[0] : all).dump(2) << "\n";
   return 0;
 }
 
@@ -107,7 +149,7 @@ Command RegisterVariants(CLI::App& app) {
                   "OpenCL device whose limits apply: a case-insensitive substring of its id "
                   "'<backend>:<platform>/<name>/<driver>', vendor, type or platform short name (pocl), as every "
                   "--device");
-  sub->add_option("--config", o->config, "tuning config whose \"space\" restricts the axes: a JSON file, or a built-in name as tune takes it (default: every value)")
+  sub->add_option("--config", o->config, "tuning config whose \"space\" restricts the axes: a JSON file, or a built-in name as tune takes it (default: every value); without --dataset or --mesh, counted on each of its data sets")
       ->check(NonEmptyPath());
   sub->add_option("--lang", o->langs, "restrict to these languages: " + Choices(AxisOf<&Variant::lang>()));
   AddMeshSourceOptions(*sub, o->source);

@@ -302,6 +302,31 @@ TEST(SkintuneCli, VariantsTakesASceneKeyAndItsInstancesCount) {
   EXPECT_GT(crowd, big_crowd) << "64 palettes of 77 joints do not fit constant storage";
 }
 
+// `variants --config` without --dataset or --mesh counts the space on each of
+// the config's data sets, as `tune` would measure them: the animated-crowds
+// space is all forms animated on the device, which the paper's rig (a mesh
+// whose palettes come from the host) would cut to nothing.
+TEST(SkintuneCli, VariantsOfAConfigCountsItsSpaceOnEachOfItsDataSets) {
+  const auto r = RunSkintune({"variants", "--config", "animated-crowds", "--lang", "cuda", "--json", "--list"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json out = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(out.is_array());
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_NE(out[0].at("mesh").get<std::string>().find("25k-b4-x64-anim"), std::string::npos);
+  EXPECT_NE(out[1].at("mesh").get<std::string>().find("5k-b4-x1024-animblend"), std::string::npos);
+  for (const nlohmann::json& mesh : out) {
+    EXPECT_GT(mesh.at("valid").get<std::uint64_t>(), 0u) << mesh.at("mesh");
+    bool fused = false;
+    for (const nlohmann::json& key : mesh.at("variants")) fused = fused || key.get<std::string>().ends_with("anim-fused240");
+    EXPECT_TRUE(fused) << mesh.at("mesh");
+  }
+  // A data set given picks one mesh, and the output is its object, as before.
+  const auto one = RunSkintune({"variants", "--config", "animated-crowds", "--lang", "cuda", "--dataset",
+                                "25k-b4-x64-anim", "--json"});
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  EXPECT_TRUE(nlohmann::json::parse(one.out).is_object());
+}
+
 // `variants --config` takes the built-in names `tune` takes; a dual-quaternion
 // space counts its variants valid on a rigid animation and invalid
 // (joints_not_rigid) on one whose joints scale.
