@@ -48,10 +48,12 @@ LoadedSpace LoadSpace(const VariantsOptions& o) {
   return {SpaceFromJson(space, o.config.empty() ? "--lang" : o.config), datasets};
 }
 
-// A mesh the space is counted on: the problem it poses and how it is named.
+// A mesh the space is counted on: the problem it poses and how it is named;
+// for a config's data set, its B, the one influence count `tune` measures it at.
 struct CountedMesh {
   ProblemShape shape;
   std::string name;
+  int tuned_influences = 0;
 };
 
 int WidestOf(const SkinnedMesh& mesh) {
@@ -69,7 +71,7 @@ CountedMesh SceneMesh(const std::string& key) {
                                     tuner_internal::PalettesRigid(scene)},
                                    scene.mesh().morph);
   shape.animated = scene.spec.animated;
-  return {shape, "scene '" + scene.spec.key + "'"};
+  return {shape, "scene '" + scene.spec.key + "'", scene.mesh().influences};
 }
 
 CountedMesh AssetMesh(const MeshSource& source) {
@@ -79,7 +81,7 @@ CountedMesh AssetMesh(const MeshSource& source) {
   return {WithMorphOf({asset.mesh.joint_count, WidestOf(asset.mesh), asset.mesh.has_normals(), 1,
                        asset.mesh.has_normals() && asset.mesh.has_tangents(), tuner_internal::AllRigid(palette)},
                       asset.mesh.morph),
-          asset.source};
+          asset.source, 0};
 }
 
 // What the space is counted on: --dataset or --mesh; else the config's data
@@ -87,12 +89,17 @@ CountedMesh AssetMesh(const MeshSource& source) {
 // morph targets: values the paper's rig would cut from the space); else the
 // paper's rig.
 std::vector<CountedMesh> MeshesOf(const VariantsOptions& o, const std::vector<std::string>& config_datasets) {
-  if (!o.source.dataset.empty()) return {SceneMesh(o.source.dataset)};
+  if (!o.source.dataset.empty()) {
+    CountedMesh mesh = SceneMesh(o.source.dataset);
+    mesh.tuned_influences = 0;  // every B that can skin it
+    return {mesh};
+  }
   if (!o.source.mesh_file.empty()) return {AssetMesh(o.source)};
   std::vector<CountedMesh> out;
   for (const std::string& key : config_datasets) {
     out.push_back(SceneMesh(key));
-    out.back().name += " (a data set of " + o.config + ")";
+    out.back().name +=
+        " (a data set of " + o.config + ", at its B " + std::to_string(out.back().tuned_influences) + " as tune takes it)";
   }
   if (out.empty())
     out.push_back({ProblemShape{77, 1, true, 1, false, true},
@@ -115,11 +122,14 @@ int RunVariants(const VariantsOptions& o) {
   nlohmann::json all = nlohmann::json::array();
   for (std::size_t i = 0; i < meshes.size(); ++i) {
     std::vector<std::string> keys;
-    const SpaceCount count = Enumerate(space, limits, meshes[i].shape, [&](const Variant& v) {
+    TuningSpace counted = space;
+    if (meshes[i].tuned_influences > 0)  // tune measures a data set at its B only, if the space holds it
+      std::erase_if(counted.influences, [&](int b) { return b != meshes[i].tuned_influences; });
+    const SpaceCount count = Enumerate(counted, limits, meshes[i].shape, [&](const Variant& v) {
       if (o.list) keys.push_back(v.Key());
     });
     if (o.json) {
-      nlohmann::json out = {{"space", space}, {"device", device_name}, {"mesh", meshes[i].name},
+      nlohmann::json out = {{"space", counted}, {"device", device_name}, {"mesh", meshes[i].name},
                             {"total", count.total}, {"valid", count.valid}};
       for (const auto& [constraint, n] : count.invalid_by) out["invalid_by"][Name(constraint)] = n;
       if (o.list) out["variants"] = keys;
