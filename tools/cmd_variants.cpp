@@ -64,14 +64,15 @@ int WidestOf(const SkinnedMesh& mesh) {
 
 // A scene key as `tune` and `run` take it (5k-b4-x16, a+b batches, a glTF
 // file): the instances count toward the constant and image storage limits.
-CountedMesh SceneMesh(const std::string& key) {
+// `at_its_b`: counted at the scene's B only, as `tune` plans a data set.
+CountedMesh SceneMesh(const std::string& key, bool at_its_b) {
   const SkinnedScene scene = LoadScene(ParseSceneKey(key));
   ProblemShape shape = WithMorphOf({scene.mesh().joint_count, WidestOf(scene.mesh()), scene.mesh().has_normals(),
                                     scene.spec.instances, scene.mesh().has_normals() && scene.mesh().has_tangents(),
                                     tuner_internal::PalettesRigid(scene)},
                                    scene.mesh().morph);
   shape.animated = scene.spec.animated;
-  return {shape, "scene '" + scene.spec.key + "'", scene.mesh().influences};
+  return {shape, "scene '" + scene.spec.key + "'", at_its_b ? scene.mesh().influences : 0};
 }
 
 CountedMesh AssetMesh(const MeshSource& source) {
@@ -89,15 +90,11 @@ CountedMesh AssetMesh(const MeshSource& source) {
 // morph targets: values the paper's rig would cut from the space); else the
 // paper's rig.
 std::vector<CountedMesh> MeshesOf(const VariantsOptions& o, const std::vector<std::string>& config_datasets) {
-  if (!o.source.dataset.empty()) {
-    CountedMesh mesh = SceneMesh(o.source.dataset);
-    mesh.tuned_influences = 0;  // every B that can skin it
-    return {mesh};
-  }
+  if (!o.source.dataset.empty()) return {SceneMesh(o.source.dataset, false)};  // every B that can skin it
   if (!o.source.mesh_file.empty()) return {AssetMesh(o.source)};
   std::vector<CountedMesh> out;
   for (const std::string& key : config_datasets) {
-    out.push_back(SceneMesh(key));
+    out.push_back(SceneMesh(key, true));
     out.back().name +=
         " (a data set of " + o.config + ", at its B " + std::to_string(out.back().tuned_influences) + " as tune takes it)";
   }
