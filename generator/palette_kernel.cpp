@@ -95,28 +95,27 @@ PaletteKernel EmitPalette(Lang lang, const AnimationView& animation, int palette
                {"ANIM_BAKED", BakedDefine(animation)},
                {"ANIM_JUMPS", AnimJumpRounds(animation.nodes)},
                {"ANIM_STEADY", local ? static_cast<long long>(animation.steady_rows) : 0}};
-  const auto buffer = [](const char* name, const char* format, std::size_t element, ArgumentDirection direction) {
-    return BufferArgument(name, format, element, direction);
-  };
-  k.arguments = {buffer(kAnimInputs[0], "record", sizeof(AnimNodeRecord), ArgumentDirection::kIn),
-                 buffer(kAnimInputs[1], "record", sizeof(AnimChannelHeader), ArgumentDirection::kIn),
-                 buffer(kAnimInputs[2], "f32", 4, ArgumentDirection::kIn),
-                 buffer(kAnimInputs[3], "float4", 16, ArgumentDirection::kIn),
-                 buffer(kAnimInputs[4], "record", sizeof(AnimJointRecord), ArgumentDirection::kIn),
-                 buffer(kAnimInputs[5], "record", sizeof(AnimInstance), ArgumentDirection::kIn),
-                 buffer(kAnimOutput, "float4 rows", 16 * static_cast<std::size_t>(palette_rows), ArgumentDirection::kOut),
-                 buffer(kAnimClips, "float4", 16, ArgumentDirection::kIn),
-                 buffer(kAnimStates, "record", sizeof(AnimInstance), ArgumentDirection::kOut),
+  k.arguments = {BufferArgument(kAnimInputs[0], "record", sizeof(AnimNodeRecord), ArgumentDirection::kIn),
+                 BufferArgument(kAnimInputs[1], "record", sizeof(AnimChannelHeader), ArgumentDirection::kIn),
+                 BufferArgument(kAnimInputs[2], "f32", 4, ArgumentDirection::kIn),
+                 BufferArgument(kAnimInputs[3], "float4", 16, ArgumentDirection::kIn),
+                 BufferArgument(kAnimInputs[4], "record", sizeof(AnimJointRecord), ArgumentDirection::kIn),
+                 BufferArgument(kAnimInputs[5], "record", sizeof(AnimInstance), ArgumentDirection::kIn),
+                 BufferArgument(kAnimOutput, "float4 rows", 16 * static_cast<std::size_t>(palette_rows),
+                                ArgumentDirection::kOut),
+                 BufferArgument(kAnimClips, "float4", 16, ArgumentDirection::kIn),
+                 BufferArgument(kAnimStates, "record", sizeof(AnimInstance), ArgumentDirection::kOut),
                  {kAnimDelta, "f32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar},
                  {kAnimFresh, "u32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar}};
   const KernelArgument frames =
-      buffer(kAnimFrames, "float4 records", 16 * std::size_t{animation.baked_rows}, ArgumentDirection::kIn);
+      BufferArgument(kAnimFrames, "float4 records", 16 * std::size_t{animation.baked_rows}, ArgumentDirection::kIn);
   if (local) {  // frames in place of channels, times and values: nodes, frames, [steady,] joints, ...
     k.arguments.erase(k.arguments.begin() + 1, k.arguments.begin() + 4);
     k.arguments.insert(k.arguments.begin() + 1, frames);
     if (!animation.steady.empty())
-      k.arguments.insert(k.arguments.begin() + 2, buffer(kAnimSteady, "float4 records",
-                                                         16 * std::size_t{animation.steady_rows}, ArgumentDirection::kIn));
+      k.arguments.insert(k.arguments.begin() + 2,
+                         BufferArgument(kAnimSteady, "float4 records", 16 * std::size_t{animation.steady_rows},
+                                        ArgumentDirection::kIn));
   } else if (baked) {  // frames in place of the five buffers of sampled clips
     k.arguments.erase(k.arguments.begin(), k.arguments.begin() + 5);
     k.arguments.insert(k.arguments.begin(), frames);

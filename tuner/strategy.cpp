@@ -187,13 +187,16 @@ std::size_t ClosestTo(const Session& s, const Coords& target) {
   return best;
 }
 
-Coords DefaultCoords(const Session& s) {
+// The Variant{} defaults in the first candidate's language, influence count and normals.
+Variant DefaultVariant(const Session& s) {
   Variant d;
   d.lang = s.variant(0).lang;
   d.influences = s.variant(0).influences;
   d.normals = s.variant(0).normals;
-  return CoordsOf(CollapseWorkGroups(d));
+  return d;
 }
+
+Coords DefaultCoords(const Session& s) { return CoordsOf(CollapseWorkGroups(DefaultVariant(s))); }
 
 std::size_t DefaultStart(const Session& s) { return ClosestTo(s, DefaultCoords(s)); }
 
@@ -213,10 +216,7 @@ std::optional<std::size_t> FusedStart(const Session& s) {
     if (FusesPalette(a) && (!fused || BakeRateOf(a) > BakeRateOf(*fused))) fused = a;
   }
   if (!fused) return std::nullopt;
-  Variant d;
-  d.lang = s.variant(0).lang;
-  d.influences = s.variant(0).influences;
-  d.normals = s.variant(0).normals;
+  Variant d = DefaultVariant(s);
   d.animation = *fused;
   return ClosestTo(s, CoordsOf(CollapseWorkGroups(InFusedShape(d))));
 }
