@@ -25,8 +25,8 @@
 // the instance), every instance at its own time; --blend makes every
 // instance (--blend-every N: every N-th) a blend of two clips (weight 0.5);
 // --bake-rate R bakes the clips, --bake-local and --bake-hybrid say as what
-// (SkinnerOptions::bake_space), --fuse-palette makes palette records' palettes
-// in the skin launch (SkinnerOptions::fuse_palette). The summary compares
+// (SkinnerOptions::bake_space), --fuse-palette makes the palettes from those
+// records in the skin launch (SkinnerOptions::fuse_palette). The summary compares
 // them with the instanced rows, whose palettes the host uploads.
 //
 // K = 64 and N = 25k-b4 (77 joints) by default: a crowd of 64 characters. Each
@@ -230,10 +230,11 @@ struct Scene {
     std::fprintf(stderr, "animated: %zu x %zu vertices, %d joints, %s%s; clips %s, %zu bytes on the device", k,
                  a->model.vertex_count(), a->model.joint_count(), a->skinner.selection().variant.c_str(),
                  !options.blend ? "" : options.blend_every == 1 ? ", two-clip blends" : ", two-clip blends in part",
-                 options.bake_rate > 0.0 ? (options.bake_hybrid  ? "baked as hybrid records"
-                                            : options.bake_local ? "baked in local space"
-                                            : options.fuse_palette ? "baked, made in the skin launch"
-                                                                 : "baked")
+                 options.bake_rate > 0.0 ? (std::string(options.bake_hybrid  ? "baked as hybrid records"
+                                                       : options.bake_local ? "baked in local space"
+                                                                            : "baked") +
+                                            (options.fuse_palette ? ", made in the skin launch" : ""))
+                                               .c_str()
                                          : "sampled",
                  a->skinner.animation_bytes());
     if (options.bake_rate > 0.0)
@@ -576,10 +577,8 @@ void ParseOptions(int& argc, char** argv) {
                "animated rows: bake both records (SkinnerOptions::bake_space kHybrid; with --bake-rate)")
       ->excludes("--bake-local");
   app.add_flag("--fuse-palette", options.fuse_palette,
-               "animated rows: palette records made in the skin launch, no palette kernel (SkinnerOptions::fuse_palette; "
-               "with --bake-rate)")
-      ->excludes("--bake-local")
-      ->excludes("--bake-hybrid");
+               "animated rows: the palettes made from the baked records in the skin launch, no palette kernel "
+               "(SkinnerOptions::fuse_palette; with --bake-rate)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -25,8 +25,8 @@
 // second when the Skinner is made (SkinnerOptions::bake_rate, docs/ANIMATION.md "Baked
 // clips") and prints each clip's frames, bytes and largest error; --bake-local bakes
 // each node's local transform instead (SkinnerOptions::bake_space, "Baked in local space"),
-// --bake-hybrid both ("Hybrid records"); --fuse-palette makes palette records' palettes in
-// the skin launch, one launch a frame (SkinnerOptions::fuse_palette, "The palette in the skin launch").
+// --bake-hybrid both ("Hybrid records"); --fuse-palette makes the palettes from those records
+// in the skin launch, one launch a frame (SkinnerOptions::fuse_palette, "The palette in the skin launch").
 #include <CLI/CLI.hpp>
 #include <skintune/skintune.h>
 
@@ -89,11 +89,9 @@ int main(int argc, char** argv) {
       ->needs(bake)
       ->excludes("--bake-local");
   app.add_flag("--fuse-palette", options.fuse_palette,
-               "make each palette from the palette records in the skin launch: no palette kernel, one launch a frame "
-               "(SkinnerOptions::fuse_palette)")
-      ->needs(bake)
-      ->excludes("--bake-local")
-      ->excludes("--bake-hybrid");
+               "make each palette from the baked records (palette, local or hybrid) in the skin launch: no palette "
+               "kernel, one launch a frame (SkinnerOptions::fuse_palette)")
+      ->needs(bake);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

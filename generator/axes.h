@@ -66,7 +66,7 @@ constexpr AxisValueSpec V(E value, const char* name, const char* token, int defi
 // The values of the full space, in order (enum axes: every enumerator, in the enum's order).
 class AxisValueList {
  public:
-  static constexpr std::size_t kCapacity = 18;
+  static constexpr std::size_t kCapacity = 26;
   constexpr AxisValueList() = default;
   constexpr AxisValueList(std::initializer_list<AxisValueSpec> values) {
     for (const AxisValueSpec& v : values) Add(v);
@@ -315,7 +315,17 @@ inline constexpr Axis kAxes[] = {
                 V(Animation::kHybrid120, "hybrid120", "anim-hybrid120"),
                 V(Animation::kHybrid240, "hybrid240", "anim-hybrid240"), V(Animation::kFused30, "fused30", "anim-fused30"),
                 V(Animation::kFused60, "fused60", "anim-fused60"), V(Animation::kFused120, "fused120", "anim-fused120"),
-                V(Animation::kFused240, "fused240", "anim-fused240")},
+                V(Animation::kFused240, "fused240", "anim-fused240"),
+                V(Animation::kFusedLocal30, "fusedlocal30", "anim-fusedlocal30"),
+                V(Animation::kFusedLocal60, "fusedlocal60", "anim-fusedlocal60"),
+                V(Animation::kFusedLocal120, "fusedlocal120", "anim-fusedlocal120"),
+                V(Animation::kFusedLocal240, "fusedlocal240", "anim-fusedlocal240"),
+                V(Animation::kFusedHybrid30, "fusedhybrid30", "anim-fusedhybrid30"),
+                V(Animation::kFusedHybrid60, "fusedhybrid60", "anim-fusedhybrid60"),
+                V(Animation::kFusedHybrid120, "fusedhybrid120", "anim-fusedhybrid120"),
+                V(Animation::kFusedHybrid240, "fusedhybrid240", "anim-fusedhybrid240")},
+     // The forms by family and rate, where the 25 tokens one by one would pass a message's length.
+     .key_hint = "anim-<sampled|<baked|local|hybrid|fused|fusedlocal|fusedhybrid><30|60|120|240>>]",
      .define = kNoDefine,  // the skin kernel is the same: the runner runs the palette kernel before it
      .covering = Covering::kRotated,
      .covering_step = 1,

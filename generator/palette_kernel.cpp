@@ -145,26 +145,37 @@ KernelSource EmitFused(const KernelSource& skin, const AnimationView& animation)
     return std::nullopt;
   };
   const std::string what = "fused skin kernel";
-  if (!animation.baked() || animation.baked_local)
-    throw Error(what + ": the animation is not palette records (BakeSpace kPalette): " +
-                (animation.baked() ? "local records" : "sampled clips") + " need the palette kernel's hierarchy");
+  if (!animation.baked())
+    throw Error(what + ": the animation is sampled clips; the skin launch makes palettes from baked records only "
+                       "(BakeSpace kPalette, kLocal or kHybrid)");
+  const bool local = animation.baked_local;
+  if (local && animation.nodes.size() > kAnimMaxNodes)
+    throw Error(what + ": " + std::to_string(animation.nodes.size()) + " nodes, more than the " +
+                std::to_string(kAnimMaxNodes) + " a work-group holds in local memory");
   if (define("STORAGE") != 1)
     throw Error(what + ": the skin kernel's storage is not local (STORAGE 1): each work-group makes its palette "
                        "into its local copy");
-  if (define("BLEND") == 2) throw Error(what + ": palette records are matrices, the skin kernel blends dual quaternions");
+  if (define("BLEND") == 2) throw Error(what + ": the records make matrices, the skin kernel blends dual quaternions");
   if (skin.joints != static_cast<int>(animation.joints.size()))
     throw Error(what + ": the skin kernel's palette has " + std::to_string(skin.joints) + " joints, the animation " +
                 std::to_string(animation.joints.size()));
   if (define("ANIM_FUSED").value_or(0) != 0) throw Error(what + ": the kernel is fused already");
+  const std::optional<long long> group = define("WG_SIZE");
+  if (!group || *group < 1) throw Error(what + ": the skin kernel has no work-group size (WG_SIZE)");
   KernelSource out = skin;
   const auto palette = std::find_if(out.arguments.begin(), out.arguments.end(),
                                     [](const KernelArgument& a) { return a.name == "palette"; });
   if (palette == out.arguments.end()) throw Error(what + ": the skin kernel takes no palette");
   const auto in = ArgumentDirection::kIn;
-  const std::vector<KernelArgument> records = {
-      BufferArgument(kAnimFrames, "float4 records", 16 * std::size_t{animation.baked_rows}, in),
-      BufferArgument(kAnimInputs[5], "record", sizeof(AnimInstance), in, skin.instanced ? "i" : "0"),
-      BufferArgument(kAnimClips, "float4", 16, in)};
+  // templates/anim_records.clh ANIM_RECORDS_PARAMS: [nodes,] frames, [steady,] [joints,] then instances, clips.
+  std::vector<KernelArgument> records;
+  if (local) records.push_back(BufferArgument(kAnimInputs[0], "record", sizeof(AnimNodeRecord), in));
+  records.push_back(BufferArgument(kAnimFrames, "float4 records", 16 * std::size_t{animation.baked_rows}, in));
+  if (local && !animation.steady.empty())
+    records.push_back(BufferArgument(kAnimSteady, "float4 records", 16 * std::size_t{animation.steady_rows}, in));
+  if (local) records.push_back(BufferArgument(kAnimInputs[4], "record", sizeof(AnimJointRecord), in));
+  records.push_back(BufferArgument(kAnimInputs[5], "record", sizeof(AnimInstance), in, skin.instanced ? "i" : "0"));
+  records.push_back(BufferArgument(kAnimClips, "float4", 16, in));
   const auto at = out.arguments.erase(palette);
   out.arguments.insert(at, records.begin(), records.end());
   out.arguments.push_back({kAnimElapsed, "f32", 4, 0, "", ArgumentDirection::kIn, ArgumentKind::kScalar});
@@ -176,14 +187,22 @@ KernelSource EmitFused(const KernelSource& skin, const AnimationView& animation)
   out.defines.insert(out.defines.end(), {{"ANIM_FUSED", 1},
                                          {"ANIM_BAKED", BakedDefine(animation)},
                                          {"ANIM_JOINT_COUNT", static_cast<long long>(animation.joints.size())},
-                                         {"ANIM_CLIP_COUNT", static_cast<long long>(animation.clip_count)}});
+                                         {"ANIM_CLIP_COUNT", static_cast<long long>(animation.clip_count)},
+                                         {"ANIM_GROUP", *group}});
+  if (local)
+    out.defines.insert(out.defines.end(), {{"ANIM_NODE_COUNT", static_cast<long long>(animation.nodes.size())},
+                                           {"ANIM_JUMPS", AnimJumpRounds(animation.nodes)},
+                                           {"ANIM_STEADY", static_cast<long long>(animation.steady.empty() ? 0 : animation.steady_rows)}});
   if (IsGlslText(out.lang)) {
     const auto bindings = BindingDefines(out.lang, out.arguments);
     out.defines.insert(out.defines.end(), bindings.begin(), bindings.end());
   }
   out.text = SpecialisedText(LanguageOf(out.lang).kernel_template,
-                             "a skin kernel that makes its palette from the palette records of " +
-                                 std::to_string(animation.clip_count) + " clips",
+                             std::string("a skin kernel that makes its palette from the ") +
+                                 (!local                      ? "palette records"
+                                  : animation.steady.empty() ? "local records"
+                                                             : "hybrid records") +
+                                 " of " + std::to_string(animation.clip_count) + " clips",
                              out.defines);
   out.source_hash = SourceHash(out.text);
   return out;

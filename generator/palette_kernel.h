@@ -86,16 +86,19 @@ inline constexpr const char* kAnimElapsed = "elapsed";
 
 // A skin kernel of storage local that makes its instance's palette itself
 // (docs/ANIMATION.md "The palette in the skin launch"): `skin` (Emit's, of
-// the animation's joints) specialised again with ANIM_FUSED 1 and the
-// animation's ANIM_BAKED, ANIM_JOINT_COUNT and ANIM_CLIP_COUNT, its
-// `palette` argument replaced by `frames`, `instances` and `clips` (in that
-// order; their bytes: AnimationBufferBytes, instances K AnimInstance
-// records) and the scalar kAnimElapsed appended. Each work-group fills its
-// local copy from the palette records as the palette-record kernel writes
-// the palette; nothing but the outputs is written, so any number of launches
-// and frames may read the same instances. Throws Error for an animation that
-// is not palette records, a skin kernel not of local storage or that blends
-// dual quaternions, or joint counts that differ.
+// the animation's joints) specialised again with ANIM_FUSED 1, the
+// animation's ANIM_BAKED, ANIM_JOINT_COUNT and ANIM_CLIP_COUNT, and the skin
+// kernel's work-group as ANIM_GROUP; its `palette` argument replaced by the
+// records and `instances` and `clips` (their bytes: AnimationBufferBytes,
+// instances K AnimInstance records) and the scalar kAnimElapsed appended.
+// Palette records (BakeSpace kPalette): `frames`. Local records (kLocal):
+// `nodes`, `frames`, `joints`, and ANIM_NODE_COUNT, ANIM_JUMPS: each
+// work-group walks the hierarchy in its local memory as the palette kernel
+// does. Hybrid records (kHybrid): `steady` after `frames`, and ANIM_STEADY.
+// Nothing but the outputs is written, so any number of launches and frames
+// may read the same instances. Throws Error for sampled clips, a skin kernel
+// not of local storage, without a work-group or that blends dual
+// quaternions, joint counts that differ, or more nodes than kAnimMaxNodes.
 KernelSource EmitFused(const KernelSource& skin, const AnimationView& animation);
 
 // The hierarchy kernels' rounds of pointer jumping (ANIM_JUMPS,

@@ -68,14 +68,18 @@ enum class NormalFormat { kF32, kOct16, kSnorm8 };
 // each frame; a blend mixed in local space, as sampled clips are;
 // BakesLocally), or both (hybrid*: an instance that plays one clip reads
 // palette records, one that cross-fades mixes local ones; BakesHybrid), or
-// palette records made into each skin work-group's local copy (fused*: no
-// palette kernel, one launch a frame; FusesPalette; storage local).
+// records made into each skin work-group's local copy by the group itself
+// (no palette kernel, one launch a frame; FusesPalette; storage local):
+// palette records (fused*), local ones, the group walking the hierarchy
+// (fusedlocal*), or hybrid ones (fusedhybrid*).
 // Otherwise the skin kernel is the same, and the frame runs the palette
 // kernel first. A scene's choice (the tuner's "-anim" scenes animate on the
 // device): never raced against host.
 enum class Animation {
   kHost, kSampled, kBaked30, kBaked60, kBaked120, kBaked240, kLocal30, kLocal60, kLocal120, kLocal240,
-  kHybrid30, kHybrid60, kHybrid120, kHybrid240, kFused30, kFused60, kFused120, kFused240
+  kHybrid30, kHybrid60, kHybrid120, kHybrid240, kFused30, kFused60, kFused120, kFused240,
+  kFusedLocal30, kFusedLocal60, kFusedLocal120, kFusedLocal240,
+  kFusedHybrid30, kFusedHybrid60, kFusedHybrid120, kFusedHybrid240
 };
 
 struct Variant {
@@ -122,25 +126,27 @@ constexpr bool AnimatesOnDevice(const Variant& v) { return AnimatesOnDevice(v.an
 constexpr double BakeRateOf(Animation a) {
   switch (a) {
     case Animation::kBaked30: case Animation::kLocal30: case Animation::kHybrid30:
-    case Animation::kFused30: return 30.0;
+    case Animation::kFused30: case Animation::kFusedLocal30: case Animation::kFusedHybrid30: return 30.0;
     case Animation::kBaked60: case Animation::kLocal60: case Animation::kHybrid60:
-    case Animation::kFused60: return 60.0;
+    case Animation::kFused60: case Animation::kFusedLocal60: case Animation::kFusedHybrid60: return 60.0;
     case Animation::kBaked120: case Animation::kLocal120: case Animation::kHybrid120:
-    case Animation::kFused120: return 120.0;
+    case Animation::kFused120: case Animation::kFusedLocal120: case Animation::kFusedHybrid120: return 120.0;
     case Animation::kBaked240: case Animation::kLocal240: case Animation::kHybrid240:
-    case Animation::kFused240: return 240.0;
+    case Animation::kFused240: case Animation::kFusedLocal240: case Animation::kFusedHybrid240: return 240.0;
     default: return 0.0;
   }
 }
-// Whether its clips are baked with palette records beside local ones (hybrid*).
+// Whether its clips are baked with palette records beside local ones (hybrid*, fusedhybrid*).
 constexpr bool BakesHybrid(Animation a) {
   return a == Animation::kHybrid30 || a == Animation::kHybrid60 || a == Animation::kHybrid120 ||
-         a == Animation::kHybrid240;
+         a == Animation::kHybrid240 || a == Animation::kFusedHybrid30 || a == Animation::kFusedHybrid60 ||
+         a == Animation::kFusedHybrid120 || a == Animation::kFusedHybrid240;
 }
-// Whether each skin work-group makes its palette from palette records
-// (fused*: the skin kernel's ANIM_FUSED, generator/palette_kernel.h EmitFused).
+// Whether each skin work-group makes its palette from its records (fused*,
+// fusedlocal*, fusedhybrid*: the skin kernel's ANIM_FUSED,
+// generator/palette_kernel.h EmitFused).
 constexpr bool FusesPalette(Animation a) {
-  return a == Animation::kFused30 || a == Animation::kFused60 || a == Animation::kFused120 || a == Animation::kFused240;
+  return a >= Animation::kFused30 && a <= Animation::kFusedHybrid240;
 }
 // The shape a fused form takes where nothing chose one (a Skinner's variant
 // neither forced nor tuned fused; the tuner's coordinate search starts there
@@ -158,11 +164,12 @@ constexpr Variant InFusedShape(Variant v) {
   v.assignment = Assignment::kStrided;
   return v;
 }
-// Whether its clips are baked as each node's local transform (local*, and
-// hybrid*, whose cross-fades mix local records).
+// Whether its clips are baked as each node's local transform (local*,
+// fusedlocal*, and hybrid*, fusedhybrid*, whose cross-fades mix local records).
 constexpr bool BakesLocally(Animation a) {
   return a == Animation::kLocal30 || a == Animation::kLocal60 || a == Animation::kLocal120 ||
-         a == Animation::kLocal240 || BakesHybrid(a);
+         a == Animation::kLocal240 || a == Animation::kFusedLocal30 || a == Animation::kFusedLocal60 ||
+         a == Animation::kFusedLocal120 || a == Animation::kFusedLocal240 || BakesHybrid(a);
 }
 
 // Whether the variant writes normals and tangents packed (not float32).

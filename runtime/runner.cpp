@@ -1073,8 +1073,12 @@ void Runner::AnimateFused(Prepared& prepared, int set, const AnimationView& anim
   const auto upload = [&](const std::string& name, std::span<const std::uint8_t> bytes) {
     return KeptBuffer(*api_, s, name, bytes, BufferUse::kInput, allocated);
   };
-  DeviceBuffer* frames = upload(kAnimFrames, AnimationBufferBytes(animation, kAnimFrames));
-  DeviceBuffer* clips = upload(kAnimClips, AnimationBufferBytes(animation, kAnimClips));
+  // The animation's buffers the fused kernels read (records, clips; local records: nodes and joints), by name.
+  std::map<std::string, DeviceBuffer*> records;
+  if (p.fused_launches.empty()) Fail("launch", p.key + ": no skin launches to fuse the palette into");
+  for (const KernelArgument& a : p.fused_launches.front()->spec.source.arguments)
+    if (a.kind != ArgumentKind::kScalar && !AnimationBufferBytes(animation, a.name).empty())
+      records[a.name] = upload(a.name, AnimationBufferBytes(animation, a.name));
   const std::vector<AnimInstance> rest_pose = RestPose(p.instances);
   const std::span<const std::uint8_t> rest(reinterpret_cast<const std::uint8_t*>(rest_pose.data()),
                                            rest_pose.size() * sizeof(AnimInstance));
@@ -1088,9 +1092,9 @@ void Runner::AnimateFused(Prepared& prepared, int set, const AnimationView& anim
       for (const KernelArgument& a : p.fused_launches[l]->spec.source.arguments) {
         if (a.kind == ArgumentKind::kScalar) {
           arguments.push_back({&a, ArgumentRole::kScalar, nullptr, nullptr});
-        } else if (a.name == kAnimFrames || a.name == kAnimClips || a.name == kAnimInputs[5]) {
+        } else if (records.contains(a.name) || a.name == kAnimInputs[5]) {
           arguments.push_back({&a, ArgumentRole::kInput,
-                               a.name == kAnimFrames ? frames : a.name == kAnimClips ? clips : slot.instances, nullptr});
+                               a.name == kAnimInputs[5] ? slot.instances : records.at(a.name), nullptr});
         } else if (a.name == kMorphWeightsArgument) {
           arguments.push_back({&a, ArgumentRole::kInput, slot.morph_weights, nullptr});
         } else {

@@ -495,13 +495,12 @@ Result<Skinner> Skinner::CreateAnimated(Device& device, const WinnersDb& db, con
     if (options.bake_space != skintune::BakeSpace::kPalette && !local)
       FailWith(ErrorCode::kInvalidArgument, call + ": SkinnerOptions::bake_space is " +
                                                 std::to_string(static_cast<int>(options.bake_space)) + ", not a BakeSpace");
-    if (options.fuse_palette && (tuned || !(options.bake_rate > 0.0) || local))
+    if (options.fuse_palette && (tuned || !(options.bake_rate > 0.0)))
       FailWith(ErrorCode::kInvalidArgument,
-               call + ": SkinnerOptions::fuse_palette makes the palettes from palette records (bake_rate above 0, "
-                      "bake_space kPalette), and " +
+               call + ": SkinnerOptions::fuse_palette makes the palettes from baked records (bake_rate above 0), "
+                      "and " +
                    (tuned ? std::string("bake_rate is kBakeRateTuned (the tuned entry's form decides)")
-                    : local ? std::string("bake_space is ") + (hybrid ? "kHybrid" : "kLocal")
-                            : "bake_rate is " + std::to_string(options.bake_rate) + " (sampled)"));
+                          : "bake_rate is " + std::to_string(options.bake_rate) + " (sampled)"));
     if (local && !(options.bake_rate > 0.0))
       FailWith(ErrorCode::kInvalidArgument,
                call + ": SkinnerOptions::bake_space " + (hybrid ? "kHybrid" : "kLocal") +

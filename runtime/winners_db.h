@@ -39,7 +39,7 @@ namespace skintune::internal {
 
 inline constexpr const char* kWinnersDbKind = "skintune-winners-db";
 // 1.3.0: x_copy, source_error; 1.4.0: the scene shape (shape, instances, meshes).
-inline constexpr const char* kWinnersDbSchemaVersion = "1.12.0";
+inline constexpr const char* kWinnersDbSchemaVersion = "1.13.0";
 
 // The scene shapes a winner was tuned on (docs/RUNTIME.md "Scene shapes"):
 // the public SceneShape (skintune/skintune.h) inside skintune, whose headers

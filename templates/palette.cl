@@ -35,15 +35,6 @@
 #include "anim_records.clh"
 
 
-Affine anim_multiply(const Affine a, const Affine b) {
-  const float4 unit_w = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
-  Affine c;
-  c.row0 = a.row0.x * b.row0 + a.row0.y * b.row1 + a.row0.z * b.row2 + a.row0.w * unit_w;
-  c.row1 = a.row1.x * b.row0 + a.row1.y * b.row1 + a.row1.z * b.row2 + a.row1.w * unit_w;
-  c.row2 = a.row2.x * b.row0 + a.row2.y * b.row1 + a.row2.z * b.row2 + a.row2.w * unit_w;
-  return c;
-}
-
 // Shortest-path spherical interpolation of two (x, y, z, w) quaternions.
 float4 anim_slerp(const float4 a, float4 b, const float u) {
   float cos_theta = dot(a, b);
@@ -130,17 +121,6 @@ float4 anim_path(const uint node_count, __global const float4* restrict nodes, _
   return anim_normalize_quat(x + w * (r2 - x));
 }
 
-#define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
-// The local memory an instance's nodes take: the model's nodes (a define),
-// at most ANIM_MAX_NODES, so that a small rig's groups leave the rest of it,
-// and the L1 cache it shares, to others.
-#if ANIM_NODE_COUNT < ANIM_MAX_NODES
-#define ANIM_LOCAL_NODES ANIM_NODE_COUNT
-#else
-#define ANIM_LOCAL_NODES ANIM_MAX_NODES
-#endif
-// The nodes each item composes (its nodes item, item + ANIM_GROUP, ...).
-#define ANIM_NODES_PER_ITEM ((ANIM_LOCAL_NODES + ANIM_GROUP - 1) / ANIM_GROUP)
 
 
 #if ANIM_BAKED
@@ -235,32 +215,8 @@ void skintune_palette(__global const float4* restrict nodes,
     joint0 = joints[4u * item], joint1 = joints[4u * item + 1u], joint2 = joints[4u * item + 2u],
     joint3 = joints[4u * item + 3u];
 #if ANIM_BAKED
-  // 1, 2: each node's local transform from its records around each clip's
-  // time, mixed in local space (a fixed-matrix node: its matrix), all in parallel.
-  const float w = as_float(in.w);
-  for (uint n = item; walk && n < node_count; n += ANIM_GROUP) {
-    Affine l;
-    if (as_uint(nodes[4u * n].y) != 0u) {
-      l.row0 = nodes[4u * n + 1u], l.row1 = nodes[4u * n + 2u], l.row2 = nodes[4u * n + 3u];
-    } else {
-      Baked x = baked_sample(frames, ANIM_BAKED_ROWS, ANIM_BAKED_ITEMS, clips, in.x & 0xffffu, as_float(in.y), n);
-      if (w != 0.0f)
-        x = baked_mix(x, baked_sample(frames, ANIM_BAKED_ROWS, ANIM_BAKED_ITEMS, clips, in.x >> 16, as_float(in.z), n), w);
-      Trs trs;
-      trs.t = (float4)(x.ts.xyz, 0.0f);
-      trs.r = x.q;
-#if ANIM_BAKED == 4
-      trs.s = x.s0;
-#else
-      trs.s = (float4)(x.ts.w, x.ts.w, x.ts.w, 0.0f);
-#endif
-      l = anim_to_affine(trs);
-    }
-    local_rows[3u * n] = l.row0;
-    local_rows[3u * n + 1u] = l.row1;
-    local_rows[3u * n + 2u] = l.row2;
-    local_parent[n] = as_int(nodes[4u * n].x);
-  }
+  // 1, 2: each node's local transform from its records, mixed in local space (anim_records.clh).
+  if (walk) anim_local_from_records(nodes, frames, clips, in, item, local_rows, local_parent);
 #else
   // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
   for (uint task = item; walk && task < 3u * node_count; task += ANIM_GROUP) {
@@ -285,54 +241,13 @@ void skintune_palette(__global const float4* restrict nodes,
   }
 #endif  // ANIM_BAKED
   barrier(CLK_LOCAL_MEM_FENCE);
-  // 3: each node's global transform by pointer jumping (Wyllie's list
-  // ranking on the tree): after round r a node's rows are the product of its
-  // local transforms up to its 2^r-th ancestor, and local_parent is that
-  // ancestor, so ANIM_JUMPS = ceil(log2(depth + 1)) rounds reach every root.
-  // Each round reads, then writes after a barrier, every node the last
-  // round's rows. Why (docs/ANIMATION.md "The walk up the hierarchy"): each
-  // joint walking up its own chain took the deepest chain's steps in every
-  // warp, depth x 3 warps of dependent products for the 77-joint rig, where
-  // this takes 4 rounds of one product.
-  for (uint round = 0u; round < ANIM_JUMPS; ++round) {
-    Affine up[ANIM_NODES_PER_ITEM];
-    int next[ANIM_NODES_PER_ITEM];
-    for (uint k = 0u; k < ANIM_NODES_PER_ITEM; ++k) {
-      const uint n = item + k * ANIM_GROUP;
-      next[k] = -2;  // no jump
-      const int p = walk && n < node_count ? local_parent[n] : -1;
-      if (p >= 0) {
-        up[k].row0 = local_rows[3u * (uint)p], up[k].row1 = local_rows[3u * (uint)p + 1u];
-        up[k].row2 = local_rows[3u * (uint)p + 2u];
-        next[k] = local_parent[p];
-      }
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (uint k = 0u; k < ANIM_NODES_PER_ITEM; ++k) {
-      const uint n = item + k * ANIM_GROUP;
-      if (next[k] == -2) continue;
-      Affine m;
-      m.row0 = local_rows[3u * n], m.row1 = local_rows[3u * n + 1u], m.row2 = local_rows[3u * n + 2u];
-      m = anim_multiply(up[k], m);
-      local_rows[3u * n] = m.row0;
-      local_rows[3u * n + 1u] = m.row1;
-      local_rows[3u * n + 2u] = m.row2;
-      local_parent[n] = next[k];
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
-  }
+  // 3: each node's global transform by pointer jumping (anim_records.clh says how and why).
+  anim_jump(walk, item, local_rows, local_parent);
   // 4: each joint's palette entry, its node's global transform by its inverse bind.
   for (uint j = item; walk && j < joint_count; j += ANIM_GROUP) {
     if (j != item)
       joint0 = joints[4u * j], joint1 = joints[4u * j + 1u], joint2 = joints[4u * j + 2u], joint3 = joints[4u * j + 3u];
-    const uint node = as_uint(joint0.x);
-    Affine m;
-    m.row0 = local_rows[3u * node], m.row1 = local_rows[3u * node + 1u], m.row2 = local_rows[3u * node + 2u];
-    Affine inverse_bind;
-    inverse_bind.row0 = joint1;
-    inverse_bind.row1 = joint2;
-    inverse_bind.row2 = joint3;
-    m = anim_multiply(m, inverse_bind);
+    const Affine m = anim_joint_entry(local_rows, joint0, joint1, joint2, joint3);
     out[rows * j] = m.row0;
     out[rows * j + 1u] = m.row1;
     out[rows * j + 2u] = m.row2;

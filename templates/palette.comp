@@ -82,15 +82,6 @@ const uint rows = uint(ANIM_PALETTE_ROWS);
 
 #include "anim_records.glsl"
 
-Affine anim_multiply(Affine a, Affine b) {
-  const vec4 unit_w = vec4(0.0, 0.0, 0.0, 1.0);
-  Affine c;
-  c.row0 = a.row0.x * b.row0 + a.row0.y * b.row1 + a.row0.z * b.row2 + a.row0.w * unit_w;
-  c.row1 = a.row1.x * b.row0 + a.row1.y * b.row1 + a.row1.z * b.row2 + a.row1.w * unit_w;
-  c.row2 = a.row2.x * b.row0 + a.row2.y * b.row1 + a.row2.z * b.row2 + a.row2.w * unit_w;
-  return c;
-}
-
 #if !ANIM_BAKED
 // Shortest-path spherical interpolation of two (x, y, z, w) quaternions.
 vec4 anim_slerp(vec4 a, vec4 b, float u) {
@@ -206,20 +197,6 @@ void main() {
 
 #else  // the clips sampled from their channels, or baked in local space: the hierarchy walked
 
-#define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
-// The local memory an instance's nodes take: the model's nodes (a define),
-// at most ANIM_MAX_NODES, so that a small rig's groups leave the rest of it,
-// and the L1 cache it shares, to others.
-#if ANIM_NODE_COUNT < ANIM_MAX_NODES
-#define ANIM_LOCAL_NODES ANIM_NODE_COUNT
-#else
-#define ANIM_LOCAL_NODES ANIM_MAX_NODES
-#endif
-#define ANIM_NODES_PER_ITEM ((ANIM_LOCAL_NODES + ANIM_GROUP - 1) / ANIM_GROUP)  // item, item + ANIM_GROUP, ...
-// Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
-// then its local transform's rows there; and its parent (palette.cl).
-shared vec4 local_rows[3 * ANIM_LOCAL_NODES];
-shared int local_parent[ANIM_LOCAL_NODES];
 
 // One work-group of ANIM_GROUP per instance (glDispatchCompute(1, K, 1)), in
 // palette.cl's three steps: every (node, path) sampled once into shared
@@ -259,26 +236,8 @@ void main() {
     joint3 = joints[4u * item + 3u];
   }
 #if ANIM_BAKED
-  // 1, 2: each node's local transform from its records, mixed in local space (palette.cl).
-  float w = uintBitsToFloat(in_.w);
-  for (uint n = item; walk && n < node_count; n += uint(ANIM_GROUP)) {
-    Affine l;
-    if (floatBitsToUint(nodes[4u * n].y) != 0u) {
-      l = Affine(nodes[4u * n + 1u], nodes[4u * n + 2u], nodes[4u * n + 3u]);
-    } else {
-      Baked x = baked_sample(false, kBakedRows, kBakedItems, in_.x & 0xffffu, uintBitsToFloat(in_.y), n);
-      if (w != 0.0) x = baked_mix(x, baked_sample(false, kBakedRows, kBakedItems, in_.x >> 16, uintBitsToFloat(in_.z), n), w);
-#if ANIM_BAKED == 4
-      l = anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, x.s0));
-#else
-      l = anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, vec4(x.ts.www, 0.0)));
-#endif
-    }
-    local_rows[3u * n] = l.row0;
-    local_rows[3u * n + 1u] = l.row1;
-    local_rows[3u * n + 2u] = l.row2;
-    local_parent[n] = floatBitsToInt(nodes[4u * n].x);
-  }
+  // 1, 2: each node's local transform from its records, mixed in local space (anim_records.glsl).
+  if (walk) anim_local_from_records(in_, item);
 #else
   // 1: every (node, path) sampled once, all in parallel: row 3 node + path.
   for (uint task = item; walk && task < 3u * node_count; task += uint(ANIM_GROUP)) {
@@ -300,33 +259,8 @@ void main() {
 #endif  // ANIM_BAKED
   memoryBarrierShared();
   barrier();
-  // 3: each node's global transform by pointer jumping, ANIM_JUMPS rounds (palette.cl).
-  for (uint round_ = 0u; round_ < uint(ANIM_JUMPS); ++round_) {
-    Affine up[ANIM_NODES_PER_ITEM];
-    int next[ANIM_NODES_PER_ITEM];
-    for (uint k = 0u; k < uint(ANIM_NODES_PER_ITEM); ++k) {
-      uint n = item + k * uint(ANIM_GROUP);
-      next[k] = -2;  // no jump
-      int p = walk && n < node_count ? local_parent[n] : -1;
-      if (p >= 0) {
-        up[k] = Affine(local_rows[3u * uint(p)], local_rows[3u * uint(p) + 1u], local_rows[3u * uint(p) + 2u]);
-        next[k] = local_parent[p];
-      }
-    }
-    memoryBarrierShared();
-    barrier();
-    for (uint k = 0u; k < uint(ANIM_NODES_PER_ITEM); ++k) {
-      uint n = item + k * uint(ANIM_GROUP);
-      if (next[k] == -2) continue;
-      Affine m = anim_multiply(up[k], Affine(local_rows[3u * n], local_rows[3u * n + 1u], local_rows[3u * n + 2u]));
-      local_rows[3u * n] = m.row0;
-      local_rows[3u * n + 1u] = m.row1;
-      local_rows[3u * n + 2u] = m.row2;
-      local_parent[n] = next[k];
-    }
-    memoryBarrierShared();
-    barrier();
-  }
+  // 3: each node's global transform by pointer jumping (anim_records.glsl, palette.cl).
+  anim_jump(walk, item);
   // 4: each joint's palette entry, its node's global transform by its inverse bind.
   for (uint j = item; walk && j < joint_count; j += uint(ANIM_GROUP)) {
     if (j != item) {
@@ -335,9 +269,7 @@ void main() {
       joint2 = joints[4u * j + 2u];
       joint3 = joints[4u * j + 3u];
     }
-    uint node = floatBitsToUint(joint0.x);
-    Affine m = anim_multiply(Affine(local_rows[3u * node], local_rows[3u * node + 1u], local_rows[3u * node + 2u]),
-                             Affine(joint1, joint2, joint3));
+    Affine m = anim_joint_entry(joint0, joint1, joint2, joint3);
     palette[out_ + rows * j] = m.row0;
     palette[out_ + rows * j + 1u] = m.row1;
     palette[out_ + rows * j + 2u] = m.row2;

@@ -186,9 +186,9 @@ static inline float weight_of(const uint raw) {
 #define PALETTE_REF_PARAM __constant float4* pal
 #define ROW(pal, k) (pal)[k]
 #elif STORAGE == 1
-#if ANIM_FUSED  // the palette records the local copy is made from (anim_records.clh)
+#if ANIM_FUSED  // the records the local copy is made from (anim_records.clh)
 #define PALETTE_PARAM \
-  __global const float4* restrict frames, __global const uint4* restrict instances, __global const float4* restrict clips
+  ANIM_RECORDS_PARAMS, __global const uint4* restrict instances, __global const float4* restrict clips
 #else
 #define PALETTE_PARAM const __global float4* restrict palette
 #endif
@@ -409,6 +409,11 @@ void skin(const uint n, const uint first,
 #if STORAGE == 1
   // Every item of the group copies, including those past n: no return before the barrier.
   __local float4 palette_local[PALETTE_FLOAT4S];
+#if ANIM_FUSED && ANIM_BAKED >= 3
+  // Local records: the hierarchy walked in the group's local memory, as the palette kernel walks it.
+  __local float4 local_rows[3 * ANIM_LOCAL_NODES];
+  __local int local_parent[ANIM_LOCAL_NODES];
+#endif
 #if ANIM_FUSED
   {
     // The copy made from the instance's palette records instead (docs/ANIMATION.md "The palette in
@@ -421,18 +426,11 @@ void skin(const uint n, const uint first,
 #else
     const uint4 state = anim_advance(clips, instances[0], elapsed, ANIM_CLIP_COUNT);
 #endif
-    const int valid = anim_state_valid(state, ANIM_CLIP_COUNT);
-    const float4 nan_row = (float4)(as_float(0x7fffffff));
-    for (uint j = get_local_id(0); j < JOINTS; j += WG_SIZE) {
-      Affine m = {nan_row, nan_row, nan_row};
-      if (valid) m = baked_affine(baked_instance(frames, ANIM_BAKED_ROWS, JOINTS, clips, state, j), ANIM_BAKED_ROWS);
-      palette_local[j * PALETTE_ROWS] = m.row0;
-      palette_local[j * PALETTE_ROWS + 1u] = m.row1;
-      palette_local[j * PALETTE_ROWS + 2u] = m.row2;
-#if PALETTE_ROWS == 4
-      palette_local[j * PALETTE_ROWS + 3u] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+#if ANIM_BAKED >= 3
+    anim_fused_palette(ANIM_RECORDS_ARGS, clips, state, palette_local, local_rows, local_parent);
+#else
+    anim_fused_palette(ANIM_RECORDS_ARGS, clips, state, palette_local);
 #endif
-    }
   }
 #else
 #if INSTANCED

@@ -92,25 +92,6 @@ layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTang
 #define STORE_TANGENT(at, value) out_tangents[at] = pack_tangent(value)
 #endif
 
-#if STORAGE == 1 && ANIM_FUSED
-// The local palette made from the instance's palette records instead of copied (skin.cl says why).
-void make_palette(uvec4 instance_state) {
-  uvec4 state = anim_advance(instance_state, elapsed);
-  bool valid = anim_state_valid(state);
-  vec4 nan_row = vec4(uintBitsToFloat(0x7fc00000u));
-  for (uint j = gl_LocalInvocationID.x; j < uint(JOINTS); j += uint(WG_SIZE)) {
-    Affine m = Affine(nan_row, nan_row, nan_row);
-    if (valid) m = baked_affine(baked_instance(false, kBakedRows, uint(JOINTS), state, j), kBakedRows);
-    palette_local[j * uint(PALETTE_ROWS)] = m.row0;
-    palette_local[j * uint(PALETTE_ROWS) + 1u] = m.row1;
-    palette_local[j * uint(PALETTE_ROWS) + 2u] = m.row2;
-#if PALETTE_ROWS == 4
-    palette_local[j * uint(PALETTE_ROWS) + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
-#endif
-  }
-}
-#endif
-
 // ---------------------------------------------------------------- kernel
 
 #if INSTANCED && !defined(VULKAN)
@@ -165,7 +146,7 @@ void main() {
     VertexIn loaded;
     if (live) loaded = load_vertex(v, slot_stride);
     if (k == 0u) {
-      make_palette(instance_state);
+      anim_fused_palette(anim_advance(instance_state, elapsed));  // anim_records.glsl
       memoryBarrierShared();
       barrier();
     }

@@ -234,9 +234,8 @@ __constant__ float4 skintune_palette[PALETTE_FLOAT4S];
 #define PALETTE_REF 0
 #define ROW(pal, k) skintune_palette[k]
 #elif STORAGE == 1
-#if ANIM_FUSED  // the palette records the copy is made from (anim_records.cuh)
-#define PALETTE_PARAM \
-  const float4* __restrict__ frames, const uint4* __restrict__ instances, const float4* __restrict__ clips
+#if ANIM_FUSED  // the records the copy is made from (anim_records.cuh)
+#define PALETTE_PARAM ANIM_RECORDS_PARAMS, const uint4* __restrict__ instances, const float4* __restrict__ clips
 #else
 #define PALETTE_PARAM const float4* __restrict__ palette
 #endif
@@ -521,19 +520,7 @@ skin(const u32 n, const u32 first,
 #else
     const uint4 state = anim_advance(clips, __ldg(instances), elapsed, ANIM_CLIP_COUNT);
 #endif
-    const bool valid = anim_state_valid(state, ANIM_CLIP_COUNT);
-    const float nan = __int_as_float(0x7fffffff);
-    const float4 nan_row = make_float4(nan, nan, nan, nan);
-    for (u32 j = threadIdx.x; j < JOINTS; j += WG_SIZE) {
-      Affine m = {nan_row, nan_row, nan_row};
-      if (valid) m = baked_affine(baked_instance(frames, ANIM_BAKED_ROWS, JOINTS, clips, state, j), ANIM_BAKED_ROWS);
-      palette_shared[j * PALETTE_ROWS] = m.row0;
-      palette_shared[j * PALETTE_ROWS + 1u] = m.row1;
-      palette_shared[j * PALETTE_ROWS + 2u] = m.row2;
-#if PALETTE_ROWS == 4
-      palette_shared[j * PALETTE_ROWS + 3u] = make_float4(0.0f, 0.0f, 0.0f, 1.0f);
-#endif
-    }
+    anim_fused_palette(ANIM_RECORDS_ARGS, clips, state, palette_shared);
   }
 #else
 #if INSTANCED

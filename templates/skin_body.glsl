@@ -322,8 +322,19 @@ layout(std140, binding = BINDING_PALETTE) uniform Palette { vec4 palette_rows[PA
 #error "STORAGE 1 (local): a vertex shader has no shared memory"
 #endif
 #if ANIM_FUSED
-// The palette records the local copy is made from (anim_records.glsl, skin.comp).
+// The records the local copy is made from (anim_records.glsl, skin.comp): palette
+// records, or local ones with the nodes and joints they walk (ANIM_BAKED 3, 4) and
+// hybrid records' palette records beside them (ANIM_STEADY).
+#if ANIM_BAKED >= 3
+layout(std430, binding = BINDING_NODES) readonly restrict buffer Nodes { vec4 nodes[]; };
+#endif
 layout(std430, binding = BINDING_FRAMES) readonly restrict buffer Frames { vec4 frames[]; };
+#if ANIM_BAKED >= 3 && ANIM_STEADY
+layout(std430, binding = BINDING_STEADY) readonly restrict buffer Steady { vec4 steady[]; };
+#endif
+#if ANIM_BAKED >= 3
+layout(std430, binding = BINDING_JOINTS) readonly restrict buffer Joints { vec4 joints[]; };
+#endif
 layout(std430, binding = BINDING_INSTANCES) readonly restrict buffer Instances { uvec4 instances[]; };
 layout(std430, binding = BINDING_CLIPS) readonly restrict buffer Clips { vec4 clips[]; };
 #else

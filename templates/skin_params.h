@@ -169,11 +169,11 @@
 #define ANIM_JUMPS 9          // deepest node's ancestors (generator/palette_kernel.h); 9 reaches any of 512 nodes
 #endif
 #ifndef ANIM_FUSED            // 1: a skin kernel (STORAGE local) that makes its instance's palette from
-#define ANIM_FUSED 0          // palette records (ANIM_BAKED 1, 2) in its local copy, instead of reading the
-#endif                        // palette (buffers frames, instances, clips; docs/ANIMATION.md "The palette in the skin launch")
+#define ANIM_FUSED 0          // records (ANIM_BAKED 1..4) in its local copy, instead of reading the palette
+#endif                        // (buffers: EmitFused; docs/ANIMATION.md "The palette in the skin launch")
 #ifndef ANIM_GROUP            // the palette kernel's work-group: 3 x ANIM_NODE_COUNT rounded up to a multiple
-#define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h)
-#endif
+#define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h);
+#endif                        // a fused skin kernel's: WG_SIZE
 
 #if INFLUENCES < 1 || INFLUENCES > 8
 #error "INFLUENCES must be 1..8"
@@ -188,8 +188,11 @@
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
 #endif
 
-#if ANIM_FUSED && (STORAGE != 1 || BLEND == 2 || (ANIM_BAKED != 1 && ANIM_BAKED != 2))
-#error "ANIM_FUSED needs STORAGE 1 (local), matrix blending and palette records (ANIM_BAKED 1 or 2)"
+#if ANIM_FUSED && (STORAGE != 1 || BLEND == 2 || ANIM_BAKED < 1 || ANIM_BAKED > 4)
+#error "ANIM_FUSED needs STORAGE 1 (local), matrix blending and baked records (ANIM_BAKED 1..4)"
+#endif
+#if ANIM_FUSED && ANIM_GROUP != WG_SIZE
+#error "ANIM_FUSED: the records are read by the skin kernel's work-group (ANIM_GROUP WG_SIZE)"
 #endif
 
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)

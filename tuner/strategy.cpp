@@ -208,12 +208,19 @@ std::size_t DefaultStart(const Session& s) { return ClosestTo(s, DefaultCoords(s
 // slower than the forms with a palette kernel in any shape one move from it:
 // `skintune tune --config animated-crowds` on an H200 (2026-11-30) never
 // reached it, and named for CUDA's 64 x 25k crowd a palette kernel's form at
-// 23.2 us where fused240 in that shape took 18.2.
+// 23.2 us where fused240 in that shape took 18.2. At the highest rate, hybrid
+// records come first, then local ones, then palette records: the first serve
+// a crowd that cross-fades (over which palette records are over any budget,
+// so the start would measure nothing) and one that does not at the palette
+// records' cost.
 std::optional<std::size_t> FusedStart(const Session& s) {
+  const auto rank = [](Animation a) {
+    return std::pair{BakeRateOf(a), BakesHybrid(a) ? 2 : BakesLocally(a) ? 1 : 0};
+  };
   std::optional<Animation> fused;
   for (std::size_t i = 0; i < s.size(); ++i) {
     const Animation a = s.variant(i).animation;
-    if (FusesPalette(a) && (!fused || BakeRateOf(a) > BakeRateOf(*fused))) fused = a;
+    if (FusesPalette(a) && (!fused || rank(a) > rank(*fused))) fused = a;
   }
   if (!fused) return std::nullopt;
   Variant d = DefaultVariant(s);

@@ -91,9 +91,7 @@ TEST(Axes, KeyFormatIsTheGrammarErrorsHaveAlwaysQuoted) {
             ".<mat4|mat3x4|dualquat>.<constant|local|global|image>.<matrix|point|dq>.v<1|2|4|8><c|s>.wg<N>"
             ".<nonormals|normals|tangents>[.<morph-dense|morph-sparse|morph-dense-half|morph-sparse-half>]"
             "[.<normals-oct16|normals-snorm8>]"
-            "[.<anim-sampled|anim-baked30|anim-baked60|anim-baked120|anim-baked240|anim-local30|anim-local60|anim-local120"
-            "|anim-local240|anim-hybrid30|anim-hybrid60|anim-hybrid120|anim-hybrid240|anim-fused30|anim-fused60|anim-fused120"
-            "|anim-fused240>]");
+            "[.anim-<sampled|<baked|local|hybrid|fused|fusedlocal|fusedhybrid><30|60|120|240>>]");
 }
 
 TEST(Axes, CodesDifferExactlyOnTheAxisThatDiffers) {

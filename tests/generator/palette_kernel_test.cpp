@@ -657,7 +657,7 @@ TEST(PaletteKernelBaked, EmitsTheBakedKernelWithItsOwnArgumentsAndGroup) {
 // skin kernel specialised again: its palette argument becomes the palette
 // records, the instances and the clips, the scalar elapsed comes last, the
 // animation's defines are added and GLSL's bindings follow the new arguments.
-// Anything but palette records into a local copy of matching joints is
+// Anything but baked records into a local copy of matching joints is
 // refused, naming why.
 TEST(PaletteKernelBaked, AFusedSkinKernelTakesTheRecordsWhereThePaletteWas) {
   const SkinnedAsset& fox = TestAsset("Fox.gltf");
@@ -702,12 +702,48 @@ TEST(PaletteKernelBaked, AFusedSkinKernelTakesTheRecordsWhereThePaletteWas) {
       EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
     }
   };
-  refused(local, PackAnimation(fox), "sampled clips need the palette kernel's hierarchy");
-  refused(local, BakeAnimation(fox, 30.0, BakeSpace::kLocal), "local records need the palette kernel's hierarchy");
+  refused(local, PackAnimation(fox), "the animation is sampled clips");
   refused(Emit(ParseVariantKey("opencl.b4.soa.global"), 0, joints, instanced), records, "storage is not local");
   refused(Emit(ParseVariantKey("opencl.b4.soa.local"), 0, joints + 1, instanced), records,
           "has " + std::to_string(joints + 1) + " joints, the animation " + std::to_string(joints));
   refused(EmitFused(local, records.View()), records, "fused already");
+}
+
+// Local and hybrid records fused: the work-group walks the hierarchy, so the
+// kernel takes the nodes and the joints around the records (hybrid: the
+// palette records after the local ones, as the palette kernel does), and the
+// hierarchy's defines: its nodes, its rounds of pointer jumping, and the
+// skin kernel's group as the walk's.
+TEST(PaletteKernelBaked, AFusedSkinKernelOfLocalRecordsTakesTheHierarchyItWalks) {
+  const SkinnedAsset& fox = TestAsset("Fox.gltf");
+  EmitOptions instanced;
+  instanced.instanced = true;
+  instanced.max_instances = 4;
+  for (const BakeSpace space : {BakeSpace::kLocal, BakeSpace::kHybrid}) {
+    const PackedAnimation records = BakeAnimation(fox, 30.0, space);
+    const int joints = static_cast<int>(records.joints.size());
+    for (const char* key : {"opencl.b4.soa.local.wg64", "cuda.b4.aos.mat4.local.wg32", "glsl-compute.b4.soa-split.local.wg256",
+                            "vulkan.b4.soa.local.normals.wg128"}) {
+      const Variant variant = ParseVariantKey(key);
+      const KernelSource fused = EmitFused(Emit(variant, 0, joints, instanced), records.View());
+      std::vector<std::string> names;
+      for (const KernelArgument& a : fused.arguments) names.push_back(a.name);
+      std::vector<std::string> expected = {kAnimInputs[0], kAnimFrames, kAnimInputs[4], kAnimInputs[5], kAnimClips};
+      if (space == BakeSpace::kHybrid) expected.insert(expected.begin() + 2, kAnimSteady);
+      const auto first = std::find(names.begin(), names.end(), kAnimInputs[0]);
+      ASSERT_NE(first, names.end()) << key;
+      EXPECT_EQ(std::vector<std::string>(first, first + static_cast<std::ptrdiff_t>(expected.size())), expected) << key;
+      EXPECT_EQ(names.back(), kAnimElapsed) << key;
+      const std::map<std::string, long long> defines(fused.defines.begin(), fused.defines.end());
+      EXPECT_EQ(defines.at("ANIM_BAKED"), BakedDefine(records.View())) << key;
+      EXPECT_EQ(defines.at("ANIM_NODE_COUNT"), static_cast<long long>(records.nodes.size())) << key;
+      EXPECT_EQ(defines.at("ANIM_JUMPS"), AnimJumpRounds(records.nodes)) << key;
+      EXPECT_EQ(defines.at("ANIM_GROUP"), variant.wg_size) << key;
+      EXPECT_EQ(defines.at("ANIM_STEADY"), space == BakeSpace::kHybrid ? records.steady_rows : 0u) << key;
+      for (const std::string& name : expected)  // what the runner uploads by name; instances are the frame's
+        if (name != kAnimInputs[5]) EXPECT_FALSE(AnimationBufferBytes(records.View(), name).empty()) << key << ": " << name;
+    }
+  }
 }
 
 // The hierarchy kernels compose each node's global transform by pointer

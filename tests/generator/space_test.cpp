@@ -23,8 +23,8 @@ TEST(TuningSpace, GlslVertexCollapsesWorkGroupAxes) {
     ASSERT_EQ(v.wg_size, 0);
     ASSERT_EQ(v.vertices_per_item, 1);
   });
-  // palettes and blends: 3 each; normals: 3; morph: 5; normal formats: 3; animation: 18
-  EXPECT_EQ(s.Size(), 8u * 2 * 3 * 2 * 3 * 3 * 3 * 4 * 3 * 3 * 5 * 3 * 18);
+  // palettes and blends: 3 each; normals: 3; morph: 5; normal formats: 3; animation: 26
+  EXPECT_EQ(s.Size(), 8u * 2 * 3 * 2 * 3 * 3 * 3 * 4 * 3 * 3 * 5 * 3 * 26);
 }
 
 TEST(TuningSpace, FromJsonRestrictsNamedAxesAndKeepsTheRestFull) {
@@ -92,7 +92,7 @@ TEST(TuningSpace, ForDataSetKeepsTheMorphValuesOfTheDataSet) {
   EXPECT_EQ(ForDataSet(s, morph).morphs, std::vector<Morph>{Morph::kSparseHalf});
   s.morphs = {Morph::kDense};
   EXPECT_TRUE(ForDataSet(s, {77, 4, true}).morphs.empty());
-  // Animation: host on a scene the host animates, the device's seventeen forms on one animated on the device.
+  // Animation: host on a scene the host animates, the device's 25 forms on one animated on the device.
   EXPECT_EQ(ForDataSet(s, {77, 4, true}).animations, std::vector<Animation>{Animation::kHost});
   ProblemShape animated{77, 4, true};
   animated.animated = true;
@@ -103,7 +103,11 @@ TEST(TuningSpace, ForDataSetKeepsTheMorphValuesOfTheDataSet) {
                                                                        Animation::kLocal240, Animation::kHybrid30,
                                                                        Animation::kHybrid60, Animation::kHybrid120,
                                                                        Animation::kHybrid240, Animation::kFused30, Animation::kFused60,
-                                                                       Animation::kFused120, Animation::kFused240}));
+                                                                       Animation::kFused120, Animation::kFused240,
+                                                                       Animation::kFusedLocal30, Animation::kFusedLocal60,
+                                                                       Animation::kFusedLocal120, Animation::kFusedLocal240,
+                                                                       Animation::kFusedHybrid30, Animation::kFusedHybrid60,
+                                                                       Animation::kFusedHybrid120, Animation::kFusedHybrid240}));
   s.animations = {Animation::kHost};
   EXPECT_TRUE(ForDataSet(s, animated).animations.empty());
 }
@@ -132,7 +136,7 @@ TEST(Enumerate, CountsValidAndInvalidByConstraint) {
     EXPECT_TRUE(CheckVariant(v, device, {77, 4, true}).empty());
   });
   EXPECT_EQ(c.total, ForDataSet(s, {77, 4, true}).Size());  // no morph targets: morph none alone; animation host alone
-  EXPECT_EQ(c.total * 5 * 18, s.Size());
+  EXPECT_EQ(c.total * 5 * 26, s.Size());
   EXPECT_EQ(c.valid, seen);
   std::uint64_t invalid = 0;
   for (const auto& [constraint, n] : c.invalid_by) invalid += n;

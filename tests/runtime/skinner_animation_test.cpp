@@ -435,8 +435,8 @@ TEST(SkinnerAnimatedModel, ABakeRateOutsideItsRangeIsRefusedNamingIt) {
             std::string::npos);
 }
 
-// fuse_palette makes the palettes from palette records in the skin launch:
-// with anything else to make them from, or where no launch has a local copy to
+// fuse_palette makes the palettes from baked records in the skin launch:
+// with sampled clips or a form the tuned entry decides, or where no launch has a local copy to
 // make them in, it is refused, naming why; nothing is made.
 TEST(SkinnerAnimatedModel, FusingThePaletteIsRefusedWhereItCannotBeDone) {
   Result<Model> model = Model::Load(std::string(SKINTUNE_TEST_DATA_DIR) + "/Fox.gltf");
@@ -456,10 +456,11 @@ TEST(SkinnerAnimatedModel, FusingThePaletteIsRefusedWhereItCannotBeDone) {
   options.bake_rate = kBakeRateTuned;
   refused(*cpu, options, "bake_rate is kBakeRateTuned (the tuned entry's form decides)");
   options.bake_rate = 60.0;
-  options.bake_space = skintune::BakeSpace::kLocal;
-  refused(*cpu, options, "bake_space is kLocal");
-  options.bake_space = skintune::BakeSpace::kPalette;
-  refused(*cpu, options, "the cpu device runs its palette kernel as a call");
+  for (const skintune::BakeSpace space :
+       {skintune::BakeSpace::kPalette, skintune::BakeSpace::kLocal, skintune::BakeSpace::kHybrid}) {
+    options.bake_space = space;  // every bake space's records can be fused, but not on the cpu device
+    refused(*cpu, options, "the cpu device runs its palette kernel as a call");
+  }
   SkinnerOptions host;
   host.fuse_palette = true;
   Result<Skinner> plain = Skinner::Create(*cpu, WinnersDb::Empty(), model->mesh(), host);
@@ -674,7 +675,17 @@ std::vector<AnimatedCase> Cases() {
           {Backend::kCuda, "cuda.b4.soa-split.local", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kPalette, true},
           {Backend::kGl, "glsl-compute.b4.aos", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kPalette, true},
           {Backend::kVulkan, "vulkan.b4.soa-split.local", "Fox.gltf", 30.0, skintune::BakeSpace::kPalette, true},
-          {Backend::kVulkan, "vulkan.b4.soa.mat4", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kPalette, true}};
+          {Backend::kVulkan, "vulkan.b4.soa.mat4", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kPalette, true},
+          // Local and hybrid records made in the skin launch, each work-group walking the
+          // hierarchy (fusedlocal*, fusedhybrid*), in groups of 128 and of 32.
+          {Backend::kOpenCl, "opencl.b4.soa", "Fox.gltf", 30.0, skintune::BakeSpace::kLocal, true},
+          {Backend::kOpenCl, "opencl.b4.aos.mat4.wg32", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kHybrid, true},
+          {Backend::kCuda, "cuda.b4.soa.mat4", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kLocal, true},
+          {Backend::kCuda, "cuda.b4.soa-split.local.wg32", "Fox.gltf", 30.0, skintune::BakeSpace::kHybrid, true},
+          {Backend::kGl, "glsl-compute.b4.aos.wg32", "Fox.gltf", 30.0, skintune::BakeSpace::kLocal, true},
+          {Backend::kGl, "glsl-compute.b4.soa.mat4", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kHybrid, true},
+          {Backend::kVulkan, "vulkan.b4.soa-split.local.wg32", "CesiumMan.gltf", 30.0, skintune::BakeSpace::kLocal, true},
+          {Backend::kVulkan, "vulkan.b4.soa.mat4", "Fox.gltf", 30.0, skintune::BakeSpace::kHybrid, true}};
 }
 std::string CaseName(const ::testing::TestParamInfo<AnimatedCase>& info) {
   return testing::ParameterName(info.param.variant + "_" + info.param.model.substr(0, info.param.model.find('.')) +

@@ -272,8 +272,9 @@ TEST(Strategy, CoordinateMovesCoupledFormatsTogetherInsteadOfStoppingOnF32Weight
 
 // The animated-crowds space in small: palette kernels' forms (baked240) and
 // forms that make their palette in the skin launch (fused120, fused240: storage
-// local only, as the animation_fused constraint says).
-std::vector<Variant> AnimatedSpace() {
+// local only, as the animation_fused constraint says), or `animations`.
+std::vector<Variant> AnimatedSpace(std::vector<Animation> animations = {Animation::kBaked240, Animation::kFused120,
+                                                                        Animation::kFused240}) {
   TuningSpace space = TuningSpace::Full();
   space.langs = {Lang::kCuda};
   space.influences = {4};
@@ -291,7 +292,7 @@ std::vector<Variant> AnimatedSpace() {
   space.normals = {Normals::kNone};
   space.morphs = {Morph::kNone};
   space.normal_formats = {NormalFormat::kF32};
-  space.animations = {Animation::kBaked240, Animation::kFused120, Animation::kFused240};
+  space.animations = std::move(animations);
   std::vector<Variant> out;
   space.ForEach([&](const Variant& v) {
     if (FusesPalette(v.animation) && v.storage != PaletteStorage::kLocal) return;
@@ -350,6 +351,33 @@ TEST(Strategy, CoordinateStartsAtTheFusedShapeWhereItIsFasterThanTheDefault) {
   EXPECT_EQ(plain.best->storage, PaletteStorage::kGlobal);
   EXPECT_EQ(plain.best->vertices_per_item, 1);
   EXPECT_LT(plain.best_ms, 23.0 * 1.05);  // moves within the margin are not taken
+}
+
+// A cross-fading crowd: palette records (baked240, fused240) are over the
+// budget, so they measure nothing; hybrid records made in the skin launch are
+// the fastest form in the fused shape, local records with a palette kernel
+// about 20% slower in any shape. The fused start takes the hybrid records, so
+// the first descent starts where they win, within the config's budget.
+TEST(Strategy, CoordinateStartsACrossFadingCrowdAtTheFusedRecordsThatCanServeIt) {
+  const std::vector<Variant> candidates = AnimatedSpace(
+      {Animation::kBaked240, Animation::kLocal240, Animation::kFused240, Animation::kFusedLocal240, Animation::kFusedHybrid240});
+  const Evaluator cross_fading = [](const Variant& v) -> std::optional<double> {
+    if (!BakesLocally(v.animation)) return std::nullopt;  // palette records: over the budget
+    Variant shape = v;  // the cost of the same shape with palette records, fused or not
+    shape.animation = FusesPalette(v.animation) ? Animation::kFused240 : Animation::kBaked240;
+    const std::optional<double> t = AnimatedCrowdCost(shape);
+    if (!FusesPalette(v.animation)) return *t * 1.2;
+    return *t + (BakesHybrid(v.animation) ? 1.0 : 2.0);  // the walk: hybrid records walk a third of the crowd
+  };
+  const Variant optimum = *TrueOptimum(candidates, cross_fading);
+  ASSERT_EQ(optimum.animation, Animation::kFusedHybrid240) << optimum.Key();
+  ASSERT_EQ(optimum, InFusedShape(optimum)) << optimum.Key();
+  Counted counted;
+  counted.model = cross_fading;
+  const SearchResult r = Search(candidates, counted.evaluator(), {"coordinate", 12, 1, 0.05});
+  ASSERT_TRUE(r.best);
+  EXPECT_EQ(*r.best, optimum) << r.best->Key();
+  EXPECT_LE(r.evaluations, 12u);
 }
 
 TEST(Strategy, CoordinateWithFivePercentOfAWideSpaceLandsWithinFivePercentOfTheOptimum) {

@@ -514,16 +514,19 @@ struct SkinnerOptions {
   // mixes local ones (kLocal's), so that a crowd of which a few cross-fade
   // pays for the walk only there (docs/ANIMATION.md "Hybrid records").
   BakeSpace bake_space = BakeSpace::kPalette;
-  // CreateAnimated with a bake_rate above 0 and bake_space kPalette only
-  // (kInvalidArgument otherwise; kBakeRateTuned takes the entry's): no
-  // palette kernel runs. Each work-group of the skin launch makes its
-  // instance's palette from the palette records into its local copy of the
-  // palette (the variant's storage becomes local), so a frame is one launch
-  // and nothing waits for a palette (docs/ANIMATION.md "The palette in the
-  // skin launch"). The same palettes and error as kPalette's; what a frame
-  // uploads is the same (nothing after AdvanceAnimation, the K states after
-  // SetAnimation). Not for a model with morph targets, nor the cpu device,
-  // nor GL's vertex-shader variants (kInvalidArgument).
+  // CreateAnimated with a bake_rate above 0 only (kInvalidArgument
+  // otherwise; kBakeRateTuned takes the entry's): no palette kernel runs.
+  // Each work-group of the skin launch makes its instance's palette from the
+  // records of bake_space into its local copy of the palette (the variant's
+  // storage becomes local): kPalette's palette records; kLocal's local ones,
+  // each group walking the hierarchy in its local memory; kHybrid's, palette
+  // records for one clip and the walk for a cross-fade. So a frame is one
+  // launch and nothing waits for a palette (docs/ANIMATION.md "The palette in
+  // the skin launch"). The same palettes and error as the bake_space's
+  // palette kernel; what a frame uploads is the same (nothing after
+  // AdvanceAnimation, the K states after SetAnimation). Not for a model with
+  // morph targets, nor the cpu device, nor GL's vertex-shader variants
+  // (kInvalidArgument).
   bool fuse_palette = false;
   // CreateAnimated only (false is kInvalidArgument for any other Skinner):
   // whether the crowd's instances may cross-fade two clips

@@ -243,11 +243,11 @@
 #define ANIM_JUMPS 9          // deepest node's ancestors (generator/palette_kernel.h); 9 reaches any of 512 nodes
 #endif
 #ifndef ANIM_FUSED            // 1: a skin kernel (STORAGE local) that makes its instance's palette from
-#define ANIM_FUSED 0          // palette records (ANIM_BAKED 1, 2) in its local copy, instead of reading the
-#endif                        // palette (buffers frames, instances, clips; docs/ANIMATION.md "The palette in the skin launch")
+#define ANIM_FUSED 0          // records (ANIM_BAKED 1..4) in its local copy, instead of reading the palette
+#endif                        // (buffers: EmitFused; docs/ANIMATION.md "The palette in the skin launch")
 #ifndef ANIM_GROUP            // the palette kernel's work-group: 3 x ANIM_NODE_COUNT rounded up to a multiple
-#define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h)
-#endif
+#define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h);
+#endif                        // a fused skin kernel's: WG_SIZE
 
 #if INFLUENCES < 1 || INFLUENCES > 8
 #error "INFLUENCES must be 1..8"
@@ -262,8 +262,11 @@
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
 #endif
 
-#if ANIM_FUSED && (STORAGE != 1 || BLEND == 2 || (ANIM_BAKED != 1 && ANIM_BAKED != 2))
-#error "ANIM_FUSED needs STORAGE 1 (local), matrix blending and palette records (ANIM_BAKED 1 or 2)"
+#if ANIM_FUSED && (STORAGE != 1 || BLEND == 2 || ANIM_BAKED < 1 || ANIM_BAKED > 4)
+#error "ANIM_FUSED needs STORAGE 1 (local), matrix blending and baked records (ANIM_BAKED 1..4)"
+#endif
+#if ANIM_FUSED && ANIM_GROUP != WG_SIZE
+#error "ANIM_FUSED: the records are read by the skin kernel's work-group (ANIM_GROUP WG_SIZE)"
 #endif
 
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
@@ -592,8 +595,19 @@ layout(std140, binding = BINDING_PALETTE) uniform Palette { vec4 palette_rows[PA
 #error "STORAGE 1 (local): a vertex shader has no shared memory"
 #endif
 #if ANIM_FUSED
-// The palette records the local copy is made from (anim_records.glsl, skin.comp).
+// The records the local copy is made from (anim_records.glsl, skin.comp): palette
+// records, or local ones with the nodes and joints they walk (ANIM_BAKED 3, 4) and
+// hybrid records' palette records beside them (ANIM_STEADY).
+#if ANIM_BAKED >= 3
+layout(std430, binding = BINDING_NODES) readonly restrict buffer Nodes { vec4 nodes[]; };
+#endif
 layout(std430, binding = BINDING_FRAMES) readonly restrict buffer Frames { vec4 frames[]; };
+#if ANIM_BAKED >= 3 && ANIM_STEADY
+layout(std430, binding = BINDING_STEADY) readonly restrict buffer Steady { vec4 steady[]; };
+#endif
+#if ANIM_BAKED >= 3
+layout(std430, binding = BINDING_JOINTS) readonly restrict buffer Joints { vec4 joints[]; };
+#endif
 layout(std430, binding = BINDING_INSTANCES) readonly restrict buffer Instances { uvec4 instances[]; };
 layout(std430, binding = BINDING_CLIPS) readonly restrict buffer Clips { vec4 clips[]; };
 #else

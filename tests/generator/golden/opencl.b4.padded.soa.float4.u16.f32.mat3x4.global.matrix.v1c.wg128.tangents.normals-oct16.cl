@@ -224,11 +224,11 @@
 #define ANIM_JUMPS 9          // deepest node's ancestors (generator/palette_kernel.h); 9 reaches any of 512 nodes
 #endif
 #ifndef ANIM_FUSED            // 1: a skin kernel (STORAGE local) that makes its instance's palette from
-#define ANIM_FUSED 0          // palette records (ANIM_BAKED 1, 2) in its local copy, instead of reading the
-#endif                        // palette (buffers frames, instances, clips; docs/ANIMATION.md "The palette in the skin launch")
+#define ANIM_FUSED 0          // records (ANIM_BAKED 1..4) in its local copy, instead of reading the palette
+#endif                        // (buffers: EmitFused; docs/ANIMATION.md "The palette in the skin launch")
 #ifndef ANIM_GROUP            // the palette kernel's work-group: 3 x ANIM_NODE_COUNT rounded up to a multiple
-#define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h)
-#endif
+#define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h);
+#endif                        // a fused skin kernel's: WG_SIZE
 
 #if INFLUENCES < 1 || INFLUENCES > 8
 #error "INFLUENCES must be 1..8"
@@ -243,8 +243,11 @@
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
 #endif
 
-#if ANIM_FUSED && (STORAGE != 1 || BLEND == 2 || (ANIM_BAKED != 1 && ANIM_BAKED != 2))
-#error "ANIM_FUSED needs STORAGE 1 (local), matrix blending and palette records (ANIM_BAKED 1 or 2)"
+#if ANIM_FUSED && (STORAGE != 1 || BLEND == 2 || ANIM_BAKED < 1 || ANIM_BAKED > 4)
+#error "ANIM_FUSED needs STORAGE 1 (local), matrix blending and baked records (ANIM_BAKED 1..4)"
+#endif
+#if ANIM_FUSED && ANIM_GROUP != WG_SIZE
+#error "ANIM_FUSED: the records are read by the skin kernel's work-group (ANIM_GROUP WG_SIZE)"
 #endif
 
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
@@ -419,6 +422,198 @@ Baked baked_instance(__global const float4* restrict frames, const uint rows, co
   return baked_mix(x, baked_sample(frames, rows, items, clips, in.x >> 16, as_float(in.z), j), w);
 }
 #endif  // ANIM_BAKED
+
+// ---------------------------------------------------------------- the hierarchy
+// What the kernels that walk the hierarchy share: palette.cl's kernels of
+// sampled clips and of local records, and a skin kernel that makes its
+// palette from local records (ANIM_FUSED with ANIM_BAKED 3, 4). Each runs in
+// a work-group of ANIM_GROUP items over one instance, its nodes' rows in
+// local memory (local_rows: 3 float4s a node, local_parent: a node's parent).
+
+Affine anim_multiply(const Affine a, const Affine b) {
+  const float4 unit_w = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+  Affine c;
+  c.row0 = a.row0.x * b.row0 + a.row0.y * b.row1 + a.row0.z * b.row2 + a.row0.w * unit_w;
+  c.row1 = a.row1.x * b.row0 + a.row1.y * b.row1 + a.row1.z * b.row2 + a.row1.w * unit_w;
+  c.row2 = a.row2.x * b.row0 + a.row2.y * b.row1 + a.row2.z * b.row2 + a.row2.w * unit_w;
+  return c;
+}
+
+#define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
+// The local memory an instance's nodes take: the model's nodes (a define),
+// at most ANIM_MAX_NODES, so that a small rig's groups leave the rest of it,
+// and the L1 cache it shares, to others.
+#if ANIM_NODE_COUNT < ANIM_MAX_NODES
+#define ANIM_LOCAL_NODES ANIM_NODE_COUNT
+#else
+#define ANIM_LOCAL_NODES ANIM_MAX_NODES
+#endif
+// The nodes each item composes (its nodes item, item + ANIM_GROUP, ...).
+#define ANIM_NODES_PER_ITEM ((ANIM_LOCAL_NODES + ANIM_GROUP - 1) / ANIM_GROUP)
+
+// Each node's global transform by pointer jumping (Wyllie's list ranking on
+// the tree): after round r a node's rows are the product of its local
+// transforms up to its 2^r-th ancestor, and local_parent is that ancestor,
+// so ANIM_JUMPS = ceil(log2(depth + 1)) rounds reach every root. Each round
+// reads, then writes after a barrier, every node the last round's rows. Why
+// (docs/ANIMATION.md "The walk up the hierarchy"): each joint walking up its
+// own chain took the deepest chain's steps in every warp, depth x 3 warps of
+// dependent products for the 77-joint rig, where this takes 4 rounds of one
+// product. Every item of the group calls it (it waits at barriers); `walk`,
+// the same in every item, says whether there is anything to compose.
+void anim_jump(const int walk, const uint item, __local float4* local_rows, __local int* local_parent) {
+  for (uint round = 0u; round < ANIM_JUMPS; ++round) {
+    Affine up[ANIM_NODES_PER_ITEM];
+    int next[ANIM_NODES_PER_ITEM];
+    for (uint k = 0u; k < ANIM_NODES_PER_ITEM; ++k) {
+      const uint n = item + k * ANIM_GROUP;
+      next[k] = -2;  // no jump
+      const int p = walk && n < ANIM_NODE_COUNT ? local_parent[n] : -1;
+      if (p >= 0) {
+        up[k].row0 = local_rows[3u * (uint)p], up[k].row1 = local_rows[3u * (uint)p + 1u];
+        up[k].row2 = local_rows[3u * (uint)p + 2u];
+        next[k] = local_parent[p];
+      }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint k = 0u; k < ANIM_NODES_PER_ITEM; ++k) {
+      const uint n = item + k * ANIM_GROUP;
+      if (next[k] == -2) continue;
+      Affine m;
+      m.row0 = local_rows[3u * n], m.row1 = local_rows[3u * n + 1u], m.row2 = local_rows[3u * n + 2u];
+      m = anim_multiply(up[k], m);
+      local_rows[3u * n] = m.row0;
+      local_rows[3u * n + 1u] = m.row1;
+      local_rows[3u * n + 2u] = m.row2;
+      local_parent[n] = next[k];
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+}
+
+// A joint's palette entry once the walk is done: its node's global transform
+// (joint0.x: the node) by its inverse bind (joint1..3: its rows).
+Affine anim_joint_entry(__local const float4* local_rows, const float4 joint0, const float4 joint1,
+                        const float4 joint2, const float4 joint3) {
+  const uint node = as_uint(joint0.x);
+  Affine m, inverse_bind;
+  m.row0 = local_rows[3u * node], m.row1 = local_rows[3u * node + 1u], m.row2 = local_rows[3u * node + 2u];
+  inverse_bind.row0 = joint1, inverse_bind.row1 = joint2, inverse_bind.row2 = joint3;
+  return anim_multiply(m, inverse_bind);
+}
+
+#if ANIM_BAKED >= 3
+// Each node's local transform from its records around each clip's time,
+// mixed in local space (a fixed-matrix node: its matrix), with its parent,
+// all in parallel: the item's nodes item, item + ANIM_GROUP, ...
+void anim_local_from_records(__global const float4* restrict nodes, __global const float4* restrict frames,
+                             __global const float4* restrict clips, const uint4 in, const uint item,
+                             __local float4* local_rows, __local int* local_parent) {
+  const float w = as_float(in.w);
+  for (uint n = item; n < ANIM_NODE_COUNT; n += ANIM_GROUP) {
+    Affine l;
+    if (as_uint(nodes[4u * n].y) != 0u) {
+      l.row0 = nodes[4u * n + 1u], l.row1 = nodes[4u * n + 2u], l.row2 = nodes[4u * n + 3u];
+    } else {
+      Baked x = baked_sample(frames, ANIM_BAKED_ROWS, ANIM_BAKED_ITEMS, clips, in.x & 0xffffu, as_float(in.y), n);
+      if (w != 0.0f)
+        x = baked_mix(x, baked_sample(frames, ANIM_BAKED_ROWS, ANIM_BAKED_ITEMS, clips, in.x >> 16, as_float(in.z), n), w);
+      Trs trs;
+      trs.t = (float4)(x.ts.xyz, 0.0f);
+      trs.r = x.q;
+#if ANIM_BAKED == 4
+      trs.s = x.s0;
+#else
+      trs.s = (float4)(x.ts.w, x.ts.w, x.ts.w, 0.0f);
+#endif
+      l = anim_to_affine(trs);
+    }
+    local_rows[3u * n] = l.row0;
+    local_rows[3u * n + 1u] = l.row1;
+    local_rows[3u * n + 2u] = l.row2;
+    local_parent[n] = as_int(nodes[4u * n].x);
+  }
+}
+#endif  // ANIM_BAKED >= 3
+
+#if ANIM_FUSED
+// The records a fused skin kernel makes its palette from, as its parameters
+// and its arguments (in the order generator/palette_kernel.h EmitFused
+// declares them): palette records (ANIM_BAKED 1, 2); local records with the
+// nodes and joints they walk (3, 4), and hybrid records' palette records
+// beside them (ANIM_STEADY).
+#if ANIM_BAKED >= 3 && ANIM_STEADY
+#define ANIM_RECORDS_PARAMS                                                                                  \
+  __global const float4 *restrict nodes, __global const float4 *restrict frames,                             \
+      __global const float4 *restrict steady, __global const float4 *restrict joints
+#define ANIM_RECORDS_ARGS nodes, frames, steady, joints
+#elif ANIM_BAKED >= 3
+#define ANIM_RECORDS_PARAMS \
+  __global const float4 *restrict nodes, __global const float4 *restrict frames, __global const float4 *restrict joints
+#define ANIM_RECORDS_ARGS nodes, frames, joints
+#else
+#define ANIM_RECORDS_PARAMS __global const float4* restrict frames
+#define ANIM_RECORDS_ARGS frames
+#endif
+
+// Joint j's entry in a fused kernel's local palette (PALETTE_ROWS float4s a joint).
+void anim_store_entry(__local float4* palette_out, const uint j, const Affine m) {
+  palette_out[j * PALETTE_ROWS] = m.row0;
+  palette_out[j * PALETTE_ROWS + 1u] = m.row1;
+  palette_out[j * PALETTE_ROWS + 2u] = m.row2;
+#if PALETTE_ROWS == 4
+  palette_out[j * PALETTE_ROWS + 3u] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+#endif
+}
+
+// An instance's palette in `palette_out` (PALETTE_ROWS float4s a joint), made
+// by the group's items (item = get_local_id(0)) from its records at `state`
+// (its clocks already advanced): as the palette-record kernel writes it, or
+// (local records) as the walking one does, in the group's local rows, which
+// it leaves ready for a barrier. NaN rows for a state that names clips there
+// are not. Every item of the group calls it.
+void anim_fused_palette(ANIM_RECORDS_PARAMS, __global const float4* restrict clips, const uint4 state,
+                        __local float4* palette_out
+#if ANIM_BAKED >= 3
+                        ,
+                        __local float4* local_rows, __local int* local_parent
+#endif
+) {
+  const uint item = (uint)get_local_id(0);
+  const int valid = anim_state_valid(state, ANIM_CLIP_COUNT);
+#if ANIM_BAKED >= 3 && ANIM_STEADY
+  // Hybrid records: one clip reads palette records, a cross-fade walks (uniform in the group).
+  const int walk = valid && as_float(state.w) != 0.0f;
+#elif ANIM_BAKED >= 3
+  const int walk = valid;
+#else
+  const int walk = 0;
+#endif
+  for (uint j = item; !walk && j < JOINTS; j += ANIM_GROUP) {
+    const float4 nan_row = (float4)(as_float(0x7fffffff));
+    Affine m = {nan_row, nan_row, nan_row};
+#if ANIM_BAKED >= 3 && ANIM_STEADY
+    if (valid) m = baked_affine(baked_instance(steady, ANIM_STEADY, JOINTS, clips, state, j), ANIM_STEADY);
+#elif ANIM_BAKED < 3
+    if (valid) m = baked_affine(baked_instance(frames, ANIM_BAKED_ROWS, JOINTS, clips, state, j), ANIM_BAKED_ROWS);
+#endif
+    anim_store_entry(palette_out, j, m);
+  }
+#if ANIM_BAKED >= 3
+  // The walk's barriers only where it walks: `walk` is the same in every item
+  // (each read the same state), so the whole group enters or none does.
+  if (!walk) return;
+  anim_local_from_records(nodes, frames, clips, state, item, local_rows, local_parent);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  anim_jump(1, item, local_rows, local_parent);
+  for (uint j = item; j < JOINTS; j += ANIM_GROUP) {
+    const Affine m = anim_joint_entry(local_rows, joints[4u * j], joints[4u * j + 1u], joints[4u * j + 2u],
+                                      joints[4u * j + 3u]);
+    anim_store_entry(palette_out, j, m);
+  }
+#endif  // ANIM_BAKED >= 3
+}
+#endif  // ANIM_FUSED
 #endif  // ANIM_PALETTE_KERNEL || ANIM_FUSED
 #line 40 "skin.cl"
 
@@ -570,9 +765,9 @@ static inline float weight_of(const uint raw) {
 #define PALETTE_REF_PARAM __constant float4* pal
 #define ROW(pal, k) (pal)[k]
 #elif STORAGE == 1
-#if ANIM_FUSED  // the palette records the local copy is made from (anim_records.clh)
+#if ANIM_FUSED  // the records the local copy is made from (anim_records.clh)
 #define PALETTE_PARAM \
-  __global const float4* restrict frames, __global const uint4* restrict instances, __global const float4* restrict clips
+  ANIM_RECORDS_PARAMS, __global const uint4* restrict instances, __global const float4* restrict clips
 #else
 #define PALETTE_PARAM const __global float4* restrict palette
 #endif
@@ -793,6 +988,11 @@ void skin(const uint n, const uint first,
 #if STORAGE == 1
   // Every item of the group copies, including those past n: no return before the barrier.
   __local float4 palette_local[PALETTE_FLOAT4S];
+#if ANIM_FUSED && ANIM_BAKED >= 3
+  // Local records: the hierarchy walked in the group's local memory, as the palette kernel walks it.
+  __local float4 local_rows[3 * ANIM_LOCAL_NODES];
+  __local int local_parent[ANIM_LOCAL_NODES];
+#endif
 #if ANIM_FUSED
   {
     // The copy made from the instance's palette records instead (docs/ANIMATION.md "The palette in
@@ -805,18 +1005,11 @@ void skin(const uint n, const uint first,
 #else
     const uint4 state = anim_advance(clips, instances[0], elapsed, ANIM_CLIP_COUNT);
 #endif
-    const int valid = anim_state_valid(state, ANIM_CLIP_COUNT);
-    const float4 nan_row = (float4)(as_float(0x7fffffff));
-    for (uint j = get_local_id(0); j < JOINTS; j += WG_SIZE) {
-      Affine m = {nan_row, nan_row, nan_row};
-      if (valid) m = baked_affine(baked_instance(frames, ANIM_BAKED_ROWS, JOINTS, clips, state, j), ANIM_BAKED_ROWS);
-      palette_local[j * PALETTE_ROWS] = m.row0;
-      palette_local[j * PALETTE_ROWS + 1u] = m.row1;
-      palette_local[j * PALETTE_ROWS + 2u] = m.row2;
-#if PALETTE_ROWS == 4
-      palette_local[j * PALETTE_ROWS + 3u] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+#if ANIM_BAKED >= 3
+    anim_fused_palette(ANIM_RECORDS_ARGS, clips, state, palette_local, local_rows, local_parent);
+#else
+    anim_fused_palette(ANIM_RECORDS_ARGS, clips, state, palette_local);
 #endif
-    }
   }
 #else
 #if INSTANCED

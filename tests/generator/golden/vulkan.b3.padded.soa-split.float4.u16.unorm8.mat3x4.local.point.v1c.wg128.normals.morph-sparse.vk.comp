@@ -242,11 +242,11 @@
 #define ANIM_JUMPS 9          // deepest node's ancestors (generator/palette_kernel.h); 9 reaches any of 512 nodes
 #endif
 #ifndef ANIM_FUSED            // 1: a skin kernel (STORAGE local) that makes its instance's palette from
-#define ANIM_FUSED 0          // palette records (ANIM_BAKED 1, 2) in its local copy, instead of reading the
-#endif                        // palette (buffers frames, instances, clips; docs/ANIMATION.md "The palette in the skin launch")
+#define ANIM_FUSED 0          // records (ANIM_BAKED 1..4) in its local copy, instead of reading the palette
+#endif                        // (buffers: EmitFused; docs/ANIMATION.md "The palette in the skin launch")
 #ifndef ANIM_GROUP            // the palette kernel's work-group: 3 x ANIM_NODE_COUNT rounded up to a multiple
-#define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h)
-#endif
+#define ANIM_GROUP 256        // of 32, from 64 to 256 (every sample in one round: generator/palette_kernel.h);
+#endif                        // a fused skin kernel's: WG_SIZE
 
 #if INFLUENCES < 1 || INFLUENCES > 8
 #error "INFLUENCES must be 1..8"
@@ -261,8 +261,11 @@
 #error "STORAGE must be 0 (constant), 1 (local), 2 (global) or 3 (image)"
 #endif
 
-#if ANIM_FUSED && (STORAGE != 1 || BLEND == 2 || (ANIM_BAKED != 1 && ANIM_BAKED != 2))
-#error "ANIM_FUSED needs STORAGE 1 (local), matrix blending and palette records (ANIM_BAKED 1 or 2)"
+#if ANIM_FUSED && (STORAGE != 1 || BLEND == 2 || ANIM_BAKED < 1 || ANIM_BAKED > 4)
+#error "ANIM_FUSED needs STORAGE 1 (local), matrix blending and baked records (ANIM_BAKED 1..4)"
+#endif
+#if ANIM_FUSED && ANIM_GROUP != WG_SIZE
+#error "ANIM_FUSED: the records are read by the skin kernel's work-group (ANIM_GROUP WG_SIZE)"
 #endif
 
 #define PALETTE_FLOAT4S (JOINTS * PALETTE_ROWS)
@@ -591,8 +594,19 @@ layout(std140, binding = BINDING_PALETTE) uniform Palette { vec4 palette_rows[PA
 #error "STORAGE 1 (local): a vertex shader has no shared memory"
 #endif
 #if ANIM_FUSED
-// The palette records the local copy is made from (anim_records.glsl, skin.comp).
+// The records the local copy is made from (anim_records.glsl, skin.comp): palette
+// records, or local ones with the nodes and joints they walk (ANIM_BAKED 3, 4) and
+// hybrid records' palette records beside them (ANIM_STEADY).
+#if ANIM_BAKED >= 3
+layout(std430, binding = BINDING_NODES) readonly restrict buffer Nodes { vec4 nodes[]; };
+#endif
 layout(std430, binding = BINDING_FRAMES) readonly restrict buffer Frames { vec4 frames[]; };
+#if ANIM_BAKED >= 3 && ANIM_STEADY
+layout(std430, binding = BINDING_STEADY) readonly restrict buffer Steady { vec4 steady[]; };
+#endif
+#if ANIM_BAKED >= 3
+layout(std430, binding = BINDING_JOINTS) readonly restrict buffer Joints { vec4 joints[]; };
+#endif
 layout(std430, binding = BINDING_INSTANCES) readonly restrict buffer Instances { uvec4 instances[]; };
 layout(std430, binding = BINDING_CLIPS) readonly restrict buffer Clips { vec4 clips[]; };
 #else
@@ -931,6 +945,152 @@ Baked baked_instance(bool from_steady, uint rows_, uint items, uvec4 in_, uint j
   return baked_mix(x, baked_sample(from_steady, rows_, items, in_.x >> 16, uintBitsToFloat(in_.z), j), w);
 }
 #endif  // ANIM_BAKED
+
+// ---------------------------------------------------------------- the hierarchy
+// What the kernels that walk the hierarchy share (anim_records.clh says
+// which, and palette.cl how): a work-group of ANIM_GROUP invocations over one
+// instance, its nodes' rows in shared memory. They read the buffers `nodes`
+// and `joints` by name.
+#if (defined(ANIM_PALETTE_KERNEL) && ANIM_BAKED != 1 && ANIM_BAKED != 2) || (ANIM_FUSED && ANIM_BAKED >= 3)
+Affine anim_multiply(Affine a, Affine b) {
+  const vec4 unit_w = vec4(0.0, 0.0, 0.0, 1.0);
+  Affine c;
+  c.row0 = a.row0.x * b.row0 + a.row0.y * b.row1 + a.row0.z * b.row2 + a.row0.w * unit_w;
+  c.row1 = a.row1.x * b.row0 + a.row1.y * b.row1 + a.row1.z * b.row2 + a.row1.w * unit_w;
+  c.row2 = a.row2.x * b.row0 + a.row2.y * b.row1 + a.row2.z * b.row2 + a.row2.w * unit_w;
+  return c;
+}
+
+#define ANIM_MAX_NODES 512  // fixed: the launch and the local memory the kernel is written for
+// The local memory an instance's nodes take: the model's nodes (a define),
+// at most ANIM_MAX_NODES, so that a small rig's groups leave the rest of it,
+// and the L1 cache it shares, to others.
+#if ANIM_NODE_COUNT < ANIM_MAX_NODES
+#define ANIM_LOCAL_NODES ANIM_NODE_COUNT
+#else
+#define ANIM_LOCAL_NODES ANIM_MAX_NODES
+#endif
+#define ANIM_NODES_PER_ITEM ((ANIM_LOCAL_NODES + ANIM_GROUP - 1) / ANIM_GROUP)  // item, item + ANIM_GROUP, ...
+// Node n's sampled translation, rotation and scale at rows 3n .. 3n + 2,
+// then its local transform's rows there; and its parent (palette.cl).
+shared vec4 local_rows[3 * ANIM_LOCAL_NODES];
+shared int local_parent[ANIM_LOCAL_NODES];
+
+// Each node's global transform by pointer jumping, ANIM_JUMPS rounds
+// (anim_records.clh). Every invocation of the group calls it (it waits at
+// barriers); `walk`, the same in every invocation, says whether there is work.
+void anim_jump(bool walk, uint item) {
+  for (uint round_ = 0u; round_ < uint(ANIM_JUMPS); ++round_) {
+    Affine up[ANIM_NODES_PER_ITEM];
+    int next[ANIM_NODES_PER_ITEM];
+    for (uint k = 0u; k < uint(ANIM_NODES_PER_ITEM); ++k) {
+      uint n = item + k * uint(ANIM_GROUP);
+      next[k] = -2;  // no jump
+      int p = walk && n < uint(ANIM_NODE_COUNT) ? local_parent[n] : -1;
+      if (p >= 0) {
+        up[k] = Affine(local_rows[3u * uint(p)], local_rows[3u * uint(p) + 1u], local_rows[3u * uint(p) + 2u]);
+        next[k] = local_parent[p];
+      }
+    }
+    memoryBarrierShared();
+    barrier();
+    for (uint k = 0u; k < uint(ANIM_NODES_PER_ITEM); ++k) {
+      uint n = item + k * uint(ANIM_GROUP);
+      if (next[k] == -2) continue;
+      Affine m = anim_multiply(up[k], Affine(local_rows[3u * n], local_rows[3u * n + 1u], local_rows[3u * n + 2u]));
+      local_rows[3u * n] = m.row0;
+      local_rows[3u * n + 1u] = m.row1;
+      local_rows[3u * n + 2u] = m.row2;
+      local_parent[n] = next[k];
+    }
+    memoryBarrierShared();
+    barrier();
+  }
+}
+
+// A joint's palette entry once the walk is done: its node's global transform
+// (joint0.x: the node) by its inverse bind (joint1..3: its rows).
+Affine anim_joint_entry(vec4 joint0, vec4 joint1, vec4 joint2, vec4 joint3) {
+  uint node = floatBitsToUint(joint0.x);
+  return anim_multiply(Affine(local_rows[3u * node], local_rows[3u * node + 1u], local_rows[3u * node + 2u]),
+                       Affine(joint1, joint2, joint3));
+}
+
+#if ANIM_BAKED >= 3
+// Each node's local transform from its records, mixed in local space, with
+// its parent (anim_records.clh): the invocation's nodes item, item + ANIM_GROUP, ...
+void anim_local_from_records(uvec4 in_, uint item) {
+  float w = uintBitsToFloat(in_.w);
+  for (uint n = item; n < uint(ANIM_NODE_COUNT); n += uint(ANIM_GROUP)) {
+    Affine l;
+    if (floatBitsToUint(nodes[4u * n].y) != 0u) {
+      l = Affine(nodes[4u * n + 1u], nodes[4u * n + 2u], nodes[4u * n + 3u]);
+    } else {
+      Baked x = baked_sample(false, kBakedRows, kBakedItems, in_.x & 0xffffu, uintBitsToFloat(in_.y), n);
+      if (w != 0.0) x = baked_mix(x, baked_sample(false, kBakedRows, kBakedItems, in_.x >> 16, uintBitsToFloat(in_.z), n), w);
+#if ANIM_BAKED == 4
+      l = anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, x.s0));
+#else
+      l = anim_to_affine(Trs(vec4(x.ts.xyz, 0.0), x.q, vec4(x.ts.www, 0.0)));
+#endif
+    }
+    local_rows[3u * n] = l.row0;
+    local_rows[3u * n + 1u] = l.row1;
+    local_rows[3u * n + 2u] = l.row2;
+    local_parent[n] = floatBitsToInt(nodes[4u * n].x);
+  }
+}
+#endif  // ANIM_BAKED >= 3
+#endif  // the hierarchy
+
+#if ANIM_FUSED
+// Joint j's entry in the group's palette_local (PALETTE_ROWS vec4s a joint).
+void anim_store_entry(uint j, Affine m) {
+  palette_local[j * uint(PALETTE_ROWS)] = m.row0;
+  palette_local[j * uint(PALETTE_ROWS) + 1u] = m.row1;
+  palette_local[j * uint(PALETTE_ROWS) + 2u] = m.row2;
+#if PALETTE_ROWS == 4
+  palette_local[j * uint(PALETTE_ROWS) + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
+#endif
+}
+
+// An instance's palette in the group's palette_local (PALETTE_ROWS vec4s a
+// joint), made by the group's invocations from its records at `state` (its
+// clocks already advanced), ready for a barrier; NaN rows for a state that
+// names clips there are not (anim_records.clh). Every invocation calls it.
+void anim_fused_palette(uvec4 state) {
+  uint item = gl_LocalInvocationID.x;
+  bool valid = anim_state_valid(state);
+#if ANIM_BAKED >= 3 && ANIM_STEADY
+  bool walk = valid && uintBitsToFloat(state.w) != 0.0;  // one clip: palette records; a cross-fade walks
+#elif ANIM_BAKED >= 3
+  bool walk = valid;
+#else
+  bool walk = false;
+#endif
+  vec4 nan_row = vec4(uintBitsToFloat(0x7fc00000u));
+  for (uint j = item; !walk && j < uint(JOINTS); j += uint(ANIM_GROUP)) {
+    Affine m = Affine(nan_row, nan_row, nan_row);
+#if ANIM_BAKED >= 3 && ANIM_STEADY
+    if (valid) m = baked_affine(baked_instance(true, uint(ANIM_STEADY), uint(JOINTS), state, j), uint(ANIM_STEADY));
+#elif ANIM_BAKED < 3
+    if (valid) m = baked_affine(baked_instance(false, kBakedRows, uint(JOINTS), state, j), kBakedRows);
+#endif
+    anim_store_entry(j, m);
+  }
+#if ANIM_BAKED >= 3
+  if (!walk) return;  // the same in every invocation: the whole group walks or none does (anim_records.clh)
+  anim_local_from_records(state, item);
+  memoryBarrierShared();
+  barrier();
+  anim_jump(true, item);
+  for (uint j = item; j < uint(JOINTS); j += uint(ANIM_GROUP)) {
+    Affine m = anim_joint_entry(joints[4u * j], joints[4u * j + 1u], joints[4u * j + 2u], joints[4u * j + 3u]);
+    anim_store_entry(j, m);
+  }
+#endif  // ANIM_BAKED >= 3
+}
+#endif  // ANIM_FUSED
 #endif  // ANIM_PALETTE_KERNEL || ANIM_FUSED
 #line 45 0  // skin.comp
 
@@ -981,25 +1141,6 @@ layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTang
 #elif TANGENTS
 layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTangents { uint out_tangents[]; };
 #define STORE_TANGENT(at, value) out_tangents[at] = pack_tangent(value)
-#endif
-
-#if STORAGE == 1 && ANIM_FUSED
-// The local palette made from the instance's palette records instead of copied (skin.cl says why).
-void make_palette(uvec4 instance_state) {
-  uvec4 state = anim_advance(instance_state, elapsed);
-  bool valid = anim_state_valid(state);
-  vec4 nan_row = vec4(uintBitsToFloat(0x7fc00000u));
-  for (uint j = gl_LocalInvocationID.x; j < uint(JOINTS); j += uint(WG_SIZE)) {
-    Affine m = Affine(nan_row, nan_row, nan_row);
-    if (valid) m = baked_affine(baked_instance(false, kBakedRows, uint(JOINTS), state, j), kBakedRows);
-    palette_local[j * uint(PALETTE_ROWS)] = m.row0;
-    palette_local[j * uint(PALETTE_ROWS) + 1u] = m.row1;
-    palette_local[j * uint(PALETTE_ROWS) + 2u] = m.row2;
-#if PALETTE_ROWS == 4
-    palette_local[j * uint(PALETTE_ROWS) + 3u] = vec4(0.0, 0.0, 0.0, 1.0);
-#endif
-  }
-}
 #endif
 
 // ---------------------------------------------------------------- kernel
@@ -1056,7 +1197,7 @@ void main() {
     VertexIn loaded;
     if (live) loaded = load_vertex(v, slot_stride);
     if (k == 0u) {
-      make_palette(instance_state);
+      anim_fused_palette(anim_advance(instance_state, elapsed));  // anim_records.glsl
       memoryBarrierShared();
       barrier();
     }
