@@ -240,8 +240,11 @@ TEST(SkinMorphCli, MorphsThenSkinsAtEveryTimeAgainstAnIndependentReference) {
   EXPECT_EQ(scene.exit_code, 0) << scene.err;
   EXPECT_NE(scene.out.find(".morph-sparse-half\n"), std::string::npos) << scene.out;
   std::istringstream keys(scene.out);
-  for (std::string line; std::getline(keys, line);)
-    if (line.starts_with("opencl.")) EXPECT_NE(line.find(".morph-"), std::string::npos) << line;
+  for (std::string line; std::getline(keys, line);) {
+    if (line.starts_with("opencl.")) {
+      EXPECT_NE(line.find(".morph-"), std::string::npos) << line;
+    }
+  }
 }
 
 // --blend dq: CesiumMan skinned by the dual-quaternion gold, which differs
