@@ -514,7 +514,7 @@ skin(const u32 n, const u32 first,
 #if INSTANCED
     (void)joint_base;  // the copy is the instance's own
 #endif
-    // The copy made from the instance's palette records instead (skin.cl says why).
+    // The copy made from the instance's records instead (skin.cl says why).
 #if INSTANCED
     const uint4 state = anim_advance(clips, __ldg(instances + instance), elapsed, ANIM_CLIP_COUNT);
 #else

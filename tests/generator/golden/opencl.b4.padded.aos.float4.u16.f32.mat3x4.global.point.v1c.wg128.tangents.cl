@@ -1001,10 +1001,10 @@ void skin(const uint n, const uint first,
 #endif
 #if ANIM_FUSED
   {
-    // The copy made from the instance's palette records instead (docs/ANIMATION.md "The palette in
-    // the skin launch"): every group of the instance makes the same palette, its clocks advanced by
-    // `elapsed`, as the palette-record kernel makes it (palette.cl), so no launch before this one
-    // writes a palette and none waits for one. Nothing is written but the outputs.
+    // The copy made from the instance's records instead (docs/ANIMATION.md "The palette in the skin
+    // launch"): every group of the instance makes the same palette, its clocks advanced by `elapsed`,
+    // as the records' palette kernel makes it (palette.cl; anim_fused_palette), so no launch before
+    // this one writes a palette and none waits for one. Nothing is written but the outputs.
 #if INSTANCED
     (void)joint_base;  // the copy is the instance's own
     const uint4 state = anim_advance(clips, instances[instance], elapsed, ANIM_CLIP_COUNT);
