@@ -601,6 +601,22 @@ TEST(SkinnerAnimatedModel, TheWinnersDatabaseDecidesThePaletteKernelsFormWhenAsk
     EXPECT_EQ(Skinner::CreateAnimated(*device, database(".anim-fused60", true, "local"), *model, fused).status().code(),
               ErrorCode::kInvalidArgument);
   }
+  if (lang != "cpu" && lang != "glsl-vertex") {  // hybrid records made in the skin launch, as tuned: both records go up
+    Result<Skinner> skinner =
+        Skinner::CreateAnimated(*device, database(".anim-fusedhybrid60", true, "local"), *model, options);
+    ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+    EXPECT_NE(skinner->selection().reason.find("made as tuned: fusedhybrid60"), std::string::npos)
+        << skinner->selection().reason;
+    const PackedAnimation hybrid = BakeAnimation(TestAsset("Fox.gltf"), 60.0, internal::BakeSpace::kHybrid);
+    EXPECT_EQ(skinner->animation_bytes(), hybrid.Bytes());
+    std::vector<AnimationState> states(6);
+    states[1] = {1, 0.5f};
+    states[2] = {0, 0.25f, 1, 0.75f, 0.5f};  // a cross-fade: its groups walk the hierarchy
+    EXPECT_TRUE(skinner->SetAnimation(states.data(), states.size()).ok());
+    EXPECT_TRUE(skinner->AdvanceAnimation(0.25f).ok());
+    EXPECT_TRUE(skinner->Skin().ok());
+    EXPECT_TRUE(skinner->Finish().ok());
+  }
   {  // a rate of the caller's own: the entry's form is not taken, and the reason says so
     SkinnerOptions sampled = options;
     sampled.bake_rate = 0.0;
