@@ -122,7 +122,6 @@ float4 anim_path(const uint node_count, __global const float4* restrict nodes, _
 }
 
 
-
 #if ANIM_BAKED
 // An instance's joint j from palette records of `rows` float4s: in clip,
 // mixed towards clip2's by the weight, written as `rows_out` float4 rows.

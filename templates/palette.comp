@@ -197,7 +197,6 @@ void main() {
 
 #else  // the clips sampled from their channels, or baked in local space: the hierarchy walked
 
-
 // One work-group of ANIM_GROUP per instance (glDispatchCompute(1, K, 1)), in
 // palette.cl's three steps: every (node, path) sampled once into shared
 // memory, each node's local transform made there, then each invocation's

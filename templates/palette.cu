@@ -117,7 +117,6 @@ __device__ float4 anim_path(const Animation& a, const unsigned node, const unsig
 }
 
 
-
 // An instance's joint j from palette records of `rows` float4s, written as
 // `rows_out` float4 rows (palette.cl).
 #if ANIM_BAKED
