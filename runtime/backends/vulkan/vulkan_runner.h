@@ -31,9 +31,11 @@
 //   buffer), maxComputeWorkGroupCount x and y (groups, instances).
 // - Skinning: WritePalette writes a host-visible palette slot in place, or
 //   the slot's host-visible staging buffer, whose vkCmdCopyBuffer the next
-//   frame's command buffer records before its dispatches; LaunchSet submits
-//   the set's launches without waiting, or records them into the caller's
-//   command buffer (RecordInto), framed by barriers. The ring's fences are
+//   frame's command buffer records before its dispatches; LaunchSet queues
+//   the set's launches without waiting (on a device skintune opened, frames
+//   queued while earlier ones still run share a submission, up to 8), or
+//   records them into the caller's command buffer (RecordInto), framed by
+//   barriers. The ring's fences are
 //   submission numbers (their VkFences), or the queue idle after a caller's
 //   command buffer; read-backs go through a kept host-visible buffer.
 // - Adopted handles (Device::FromVulkan): the caller's instance, device and
@@ -41,6 +43,7 @@
 // Errors name the stage: "Vulkan setup", "build", "launch" or "guard".
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -80,6 +83,8 @@ class VulkanRunner final : public Runner {
   // recording state, outside a render pass) instead of submitting them;
   // VK_NULL_HANDLE: submit on the runner's queue again.
   void RecordInto(VkCommandBuffer command_buffer);
+  // vkQueueSubmit calls so far (live frames are batched: VulkanApi::OpenFrames).
+  std::uint64_t submissions() const;
 
  private:
   vk::VulkanApi& vk_api() const;
