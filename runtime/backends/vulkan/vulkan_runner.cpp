@@ -1161,7 +1161,14 @@ void VulkanApi::Mark(std::unique_ptr<DeviceObject>& marker, const std::string&) 
 void VulkanApi::Wait(DeviceObject& marker, const std::string& what) {
   const auto& m = static_cast<const VulkanMarker&>(marker);
   if (m.queue_idle) return Finish();
-  if (m.number > submitted_) SubmitOpenFrames();
+  // The open frames go to the queue before the host blocks: the awaited
+  // frame may be among them, and otherwise the device runs them while the
+  // host waits, so a frame loop that waits each frame for the one a ring
+  // back never leaves the device idle (nor waits for the frames after it).
+  bool blocks = m.number > submitted_;
+  for (const Submission& s : in_flight_)
+    if (!blocks && s.number <= m.number && c_->fn.vkGetFenceStatus(c_->device, s.fence) == VK_NOT_READY) blocks = true;
+  if (blocks) SubmitOpenFrames();
   for (const Submission& s : in_flight_)
     if (s.number <= m.number)
       Check(c_->fn.vkWaitForFences(c_->device, 1, &s.fence, VK_TRUE, UINT64_MAX), "launch", "waiting for " + what);
