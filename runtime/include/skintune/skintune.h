@@ -757,6 +757,11 @@ class Skinner {
 
   // Queues the skinning of every instance with the last palette set and
   // returns without waiting for the device (skintune waits on nothing here).
+  // On a Vulkan Device skintune opened, frames queued while earlier ones
+  // still run share one submission (up to 8), which goes to the queue before
+  // any call that reads, waits or submits (docs/RUNTIME.md "The frame loop");
+  // on one made by Device::FromVulkan each Skin() is submitted to the
+  // caller's queue before it returns.
   // Several Skin() calls after one SetPalette each skin with it.
   // kInvalidState before the first SetPalette.
   Status Skin();
