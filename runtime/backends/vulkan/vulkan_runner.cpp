@@ -312,7 +312,7 @@ class VulkanApi final : public DeviceApi {
   // into the open command buffer, which goes to the queue when nothing of
   // this API's is running on it (so a frame never waits on an idle GPU),
   // when it holds kFramesPerSubmission frames, or before any other
-  // submission, wait or read (Begin, WaitAll, Wait). NVIDIA's Vulkan driver
+  // submission, read or wait that blocks (Begin, WaitAll, Wait). NVIDIA's Vulkan driver
   // spends about 20 us of GPU time and 30 us of host time on each submission
   // of one frame (H200, 2026-12-01): a crowd's frame took 40-50 us for an
   // 18 us kernel. On adopted handles (Device::FromVulkan) every Skin()
@@ -718,10 +718,7 @@ void VulkanApi::Submit(VkCommandBuffer cb, bool wait, std::vector<std::unique_pt
 }
 
 VkCommandBuffer VulkanApi::OpenFrames() {
-  if (open_frames_ == VK_NULL_HANDLE) {
-    const VkCommandBuffer cb = Begin();
-    open_frames_ = cb;
-  }
+  if (open_frames_ == VK_NULL_HANDLE) open_frames_ = Begin();
   return open_frames_;
 }
 
