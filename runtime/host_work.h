@@ -30,6 +30,15 @@ void ForChunks(std::size_t count, std::size_t grain, const std::function<void(st
 // milliseconds lets it sleep.
 inline constexpr std::chrono::microseconds kFramePoll{500};
 
+// How long a Vulkan wait for the device (Finish, a palette buffer's fence, a
+// read-back's) polls the fence before it sleeps in vkWaitForFences: NVIDIA's
+// driver wakes a thread sleeping there about 27 us after the fence signals,
+// more than a crowd's kernel (docs/PERFORMANCE.md "The frame loop"). CUDA's,
+// NVIDIA's OpenCL's and GL's waits return as promptly on their own (polling
+// glClientWaitSync first changed no GL frame). A wait longer than this (a
+// large read-back, a device far behind) sleeps after it.
+inline constexpr std::chrono::microseconds kDeviceWaitPoll{1000};
+
 // PackPaletteInto (generator/packer.h) spread over the runtime's palette crew:
 // half the host's cores, 2 to 8 threads (the caller's and helpers that poll
 // for kFramePoll after each packing, so a frame loop's next SetPalette finds

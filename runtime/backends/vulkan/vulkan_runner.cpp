@@ -12,7 +12,9 @@
 
 #include "generator/axes.h"
 #include "base/error.h"
+#include "base/thread_pool.h"
 #include "runtime/backends/vulkan/vulkan_spirv.h"
+#include "runtime/host_work.h"
 #include "runtime/output_check.h"
 
 namespace skintune::internal {
@@ -324,6 +326,7 @@ class VulkanApi final : public DeviceApi {
   // Ends and submits `cb`; waits when `wait`, else keeps it (and `keep`) in flight.
   void Submit(VkCommandBuffer cb, bool wait, std::vector<std::unique_ptr<VulkanBuffer>> keep = {});
   void Retire(bool wait_all);
+  VkResult WaitForFence(VkFence fence) const;
   void WaitAll() {
     SubmitOpenFrames();
     Retire(true);
@@ -731,6 +734,17 @@ void VulkanApi::SubmitOpenFrames() {
   Submit(cb, false);
 }
 
+// Polls the fence for up to kDeviceWaitPoll, then sleeps on it: NVIDIA's
+// driver wakes a thread sleeping in vkWaitForFences long after the fence
+// signals (H200, 2026-12-01: a crowd's Skin + Finish took 65-67 us sleeping,
+// 39 polling, where its Skin alone took 25).
+VkResult VulkanApi::WaitForFence(VkFence fence) const {
+  VkResult r = VK_NOT_READY;
+  if (PollFor(kDeviceWaitPoll, [&] { return (r = c_->fn.vkGetFenceStatus(c_->device, fence)) != VK_NOT_READY; }))
+    return r;
+  return c_->fn.vkWaitForFences(c_->device, 1, &fence, VK_TRUE, UINT64_MAX);
+}
+
 // Frees what completed (or, with `wait_all`, waits for everything first),
 // oldest first, stopping at the first submission still running: a frame
 // loop keeps a few in flight, and polling every one of them per Begin would
@@ -742,8 +756,7 @@ void VulkanApi::Retire(bool wait_all) {
   std::size_t retired = 0;
   for (; retired < in_flight_.size(); ++retired) {
     Submission& s = in_flight_[retired];
-    const VkResult r = wait_all ? c_->fn.vkWaitForFences(c_->device, 1, &s.fence, VK_TRUE, UINT64_MAX)
-                                : c_->fn.vkGetFenceStatus(c_->device, s.fence);
+    const VkResult r = wait_all ? WaitForFence(s.fence) : c_->fn.vkGetFenceStatus(c_->device, s.fence);
     if (r == VK_NOT_READY || r == VK_TIMEOUT) break;
     if (r != VK_SUCCESS) failure = r;
     if (r == VK_SUCCESS && spare_fences_.size() < kSpares) {
@@ -1168,7 +1181,7 @@ void VulkanApi::Wait(DeviceObject& marker, const std::string& what) {
   if (blocks) SubmitOpenFrames();
   for (const Submission& s : in_flight_)
     if (s.number <= m.number)
-      Check(c_->fn.vkWaitForFences(c_->device, 1, &s.fence, VK_TRUE, UINT64_MAX), "launch", "waiting for " + what);
+      Check(WaitForFence(s.fence), "launch", "waiting for " + what);
   Retire(false);
 }
 
