@@ -35,8 +35,9 @@ inline constexpr std::chrono::microseconds kFramePoll{500};
 // driver wakes a thread sleeping there about 27 us after the fence signals,
 // more than a crowd's kernel (docs/PERFORMANCE.md "The frame loop"). CUDA's,
 // NVIDIA's OpenCL's and GL's waits return as promptly on their own (polling
-// glClientWaitSync first changed no GL frame). A wait longer than this (a
-// large read-back, a device far behind) sleeps after it.
+// glClientWaitSync or clGetEventInfo first changed no GL or OpenCL frame). A
+// wait longer than this (a large read-back, a device far behind) sleeps after
+// it, and a wait for a CPU device (lavapipe) sleeps at once.
 inline constexpr std::chrono::microseconds kDeviceWaitPoll{1000};
 
 // PackPaletteInto (generator/packer.h) spread over the runtime's palette crew:
