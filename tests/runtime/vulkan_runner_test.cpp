@@ -20,6 +20,7 @@
 #include "generator/packer.h"
 #include "base/error.h"
 #include "runner_test_support.h"
+#include "runtime/backends/vulkan/vulkan_devices.h"
 #include "runtime/backends/vulkan/vulkan_loader.h"
 #include "runtime/backends/vulkan/vulkan_runner.h"
 #include "runtime/program_cache.h"
@@ -100,6 +101,33 @@ class Validated : public ::testing::Test {
 // that fits, each variant on a fresh mesh with its own influence count.
 // A lost device is stage "lost" whatever the caller's stage (the tune worker
 // then exits); every other result keeps the caller's.
+// NVIDIA's families (graphics + compute, transfer, compute alone, video) and
+// lavapipe's one: skintune submits to the compute family without graphics
+// where it has timestamps, else to the first compute family with them.
+TEST(VulkanQueueFamily, AComputeFamilyWithoutGraphicsIsTakenWhereItHasTimestamps) {
+  const auto family = [](VkQueueFlags flags, std::uint32_t timestamp_bits, std::uint32_t queues = 1) {
+    VkQueueFamilyProperties p{};
+    p.queueFlags = flags;
+    p.timestampValidBits = timestamp_bits;
+    p.queueCount = queues;
+    return p;
+  };
+  constexpr VkQueueFlags kGraphics = VK_QUEUE_GRAPHICS_BIT | VK_QUEUE_COMPUTE_BIT | VK_QUEUE_TRANSFER_BIT;
+  constexpr VkQueueFlags kCompute = VK_QUEUE_COMPUTE_BIT | VK_QUEUE_TRANSFER_BIT;
+  const std::vector<VkQueueFamilyProperties> nvidia = {family(kGraphics, 64, 16), family(VK_QUEUE_TRANSFER_BIT, 64, 2),
+                                                       family(kCompute, 64, 8), family(0, 0, 1)};
+  EXPECT_EQ(vk::ComputeFamily(nvidia), 2u);
+  std::vector<VkQueueFamilyProperties> untimed = nvidia;
+  untimed[2].timestampValidBits = 0;
+  EXPECT_EQ(vk::ComputeFamily(untimed), 0u) << "a compute family without timestamps cannot time kernels";
+  std::vector<VkQueueFamilyProperties> empty = nvidia;
+  empty[2].queueCount = 0;
+  EXPECT_EQ(vk::ComputeFamily(empty), 0u);
+  EXPECT_EQ(vk::ComputeFamily(std::vector{family(kGraphics, 64)}), 0u);           // lavapipe
+  EXPECT_EQ(vk::ComputeFamily(std::vector{family(kGraphics, 0), family(kCompute, 0)}), 0u);  // none timed: the first
+  EXPECT_EQ(vk::ComputeFamily(std::vector{family(VK_QUEUE_TRANSFER_BIT, 64)}), UINT32_MAX);
+}
+
 TEST(VulkanCheck, ADeviceLostIsStageLost) {
   const auto message = [](VkResult r) {
     try {

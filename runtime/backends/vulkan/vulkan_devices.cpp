@@ -197,19 +197,28 @@ VulkanDeviceInfo QueryDevice(const VulkanInstance& instance, VkPhysicalDevice de
   fn.vkGetPhysicalDeviceQueueFamilyProperties(device, &count, nullptr);
   std::vector<VkQueueFamilyProperties> families(count);
   fn.vkGetPhysicalDeviceQueueFamilyProperties(device, &count, families.data());
-  for (std::uint32_t f = 0; f < count; ++f) {
-    if (families[f].queueFlags & VK_QUEUE_COMPUTE_BIT) {
-      info.compute_family = f;
-      info.timestamp_valid_bits = families[f].timestampValidBits;
-      break;
-    }
-  }
+  info.compute_family = ComputeFamily(families);
+  if (info.compute_family != UINT32_MAX) info.timestamp_valid_bits = families[info.compute_family].timestampValidBits;
   VkPhysicalDeviceMemoryProperties memory{};
   fn.vkGetPhysicalDeviceMemoryProperties(device, &memory);
   for (std::uint32_t h = 0; h < memory.memoryHeapCount; ++h)
     if (memory.memoryHeaps[h].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
       info.device_local_bytes = std::max<std::uint64_t>(info.device_local_bytes, memory.memoryHeaps[h].size);
   return info;
+}
+
+std::uint32_t ComputeFamily(std::span<const VkQueueFamilyProperties> families) {
+  const auto first = [&](auto&& fits) {
+    for (std::uint32_t f = 0; f < families.size(); ++f)
+      if ((families[f].queueFlags & VK_QUEUE_COMPUTE_BIT) && families[f].queueCount > 0 && fits(families[f])) return f;
+    return UINT32_MAX;
+  };
+  for (const std::uint32_t f :
+       {first([](const VkQueueFamilyProperties& p) { return !(p.queueFlags & VK_QUEUE_GRAPHICS_BIT) && p.timestampValidBits > 0; }),
+        first([](const VkQueueFamilyProperties& p) { return p.timestampValidBits > 0; }),
+        first([](const VkQueueFamilyProperties&) { return true; })})
+    if (f != UINT32_MAX) return f;
+  return UINT32_MAX;
 }
 
 DeviceIdentity IdentityOf(const VulkanDeviceInfo& info) {

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -62,7 +63,7 @@ struct VulkanDeviceInfo {
   std::string name, vendor, driver_version, api_version, type;  // type: "gpu", "cpu", "other"
   std::string uuid;        // VkPhysicalDeviceIDProperties::deviceUUID, 32 hex digits ("" if all zero)
   std::string pci_bus_id;  // "dddd:bb:dd.f" (VK_EXT_pci_bus_info), "" when the driver does not say
-  std::uint32_t compute_family = UINT32_MAX;  // the first queue family with compute (UINT32_MAX: none)
+  std::uint32_t compute_family = UINT32_MAX;  // ComputeFamily's choice (UINT32_MAX: none)
   std::uint32_t timestamp_valid_bits = 0;     // of that family
   bool pci_bus_info = false;                  // VK_EXT_pci_bus_info offered
   double timestamp_period_ns = 1.0;
@@ -71,6 +72,14 @@ struct VulkanDeviceInfo {
 };
 
 VulkanDeviceInfo QueryDevice(const VulkanInstance& instance, VkPhysicalDevice device);
+
+// The queue family skintune submits to on a device it opens: a compute family
+// without graphics that has timestamps (NVIDIA's asynchronous compute queues),
+// else the first family with compute and timestamps, else the first with
+// compute; UINT32_MAX when none has compute. On NVIDIA's H200 a crowd's
+// frames ran 4-10% faster there than on the graphics family (2026-12-01,
+// docs/PERFORMANCE.md "The frame loop").
+std::uint32_t ComputeFamily(std::span<const VkQueueFamilyProperties> families);
 DeviceIdentity IdentityOf(const VulkanDeviceInfo& info);
 DeviceLimits LimitsOf(const VulkanDeviceInfo& info);
 
