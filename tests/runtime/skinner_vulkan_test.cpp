@@ -13,6 +13,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -306,21 +307,31 @@ TEST(VulkanAdopted, SkinsOnTheCallersDeviceAndQueueAndIntoItsCommandBufferCreati
 // the caller's own submissions after it find the frame ahead of them: frames
 // are not held back to share a submission as on a device skintune opens
 // (where back-to-back frames do: vulkan_runner_test.cpp).
+// CesiumMan skinned on the caller's device with kVariant, one pose's palette.
+struct AdoptedCesium {
+  explicit AdoptedCesium(const CallerVulkan& caller)
+      : view(Cesium().mesh), matrices(testing::Floats(Cesium().PaletteAt(0, 0.5))),
+        device(Device::FromVulkan(caller.Handles())) {
+    if (!device.ok()) return;
+    SkinnerOptions options;
+    options.variant = kVariant;
+    skinner.emplace(Skinner::Create(*device, WinnersDb::Empty(), view.mesh, options));
+  }
+  View view;
+  std::vector<float> matrices;
+  Result<Device> device;
+  std::optional<Result<Skinner>> skinner;
+};
+
 TEST(VulkanAdopted, EverySkinIsOnTheCallersQueueWhenItReturns) {
   CallerVulkan caller;
   if (!caller.ok()) GTEST_SKIP() << caller.why;
   caller_messages.clear();
-  const SkinnedAsset& asset = Cesium();
-  const View view(asset.mesh);
-  const std::vector<glm::mat4> palette = asset.PaletteAt(0, 0.5);
-  const std::vector<float> matrices = testing::Floats(palette);
-  Result<Device> device = Device::FromVulkan(caller.Handles());
-  ASSERT_TRUE(device.ok()) << device.status().message();
-  SkinnerOptions options;
-  options.variant = kVariant;
-  Result<Skinner> skinner = Skinner::Create(*device, WinnersDb::Empty(), view.mesh, options);
+  AdoptedCesium adopted(caller);
+  ASSERT_TRUE(adopted.device.ok()) << adopted.device.status().message();
+  Result<Skinner>& skinner = *adopted.skinner;
   ASSERT_TRUE(skinner.ok()) << skinner.status().message();
-  ASSERT_TRUE(skinner->SetPalette(matrices.data(), matrices.size()).ok());
+  ASSERT_TRUE(skinner->SetPalette(adopted.matrices.data(), adopted.matrices.size()).ok());
   for (int f = 0; f < 12; ++f) {
     const int before = counts.queue_submit;
     ASSERT_TRUE(skinner->Skin().ok());
@@ -338,18 +349,14 @@ TEST(VulkanAdopted, FinishPollsAGpusFenceBeforeItSleepsOnIt) {
   CallerVulkan caller;
   if (!caller.ok()) GTEST_SKIP() << caller.why;
   caller_messages.clear();
-  const SkinnedAsset& asset = Cesium();
-  const View view(asset.mesh);
-  const std::vector<float> matrices = testing::Floats(asset.PaletteAt(0, 0.5));
-  Result<Device> device = Device::FromVulkan(caller.Handles());
-  ASSERT_TRUE(device.ok()) << device.status().message();
-  SkinnerOptions options;
-  options.variant = kVariant;
-  Result<Skinner> skinner = Skinner::Create(*device, WinnersDb::Empty(), view.mesh, options);
+  AdoptedCesium adopted(caller);
+  ASSERT_TRUE(adopted.device.ok()) << adopted.device.status().message();
+  const Result<Device>& device = adopted.device;
+  Result<Skinner>& skinner = *adopted.skinner;
   ASSERT_TRUE(skinner.ok()) << skinner.status().message();
   const bool cpu = device->info().type == "cpu";
   for (int f = 0; f < 4; ++f) {
-    ASSERT_TRUE(skinner->SetPalette(matrices.data(), matrices.size()).ok());
+    ASSERT_TRUE(skinner->SetPalette(adopted.matrices.data(), adopted.matrices.size()).ok());
     ASSERT_TRUE(skinner->Skin().ok());
     counts.fence_calls.clear();
     ASSERT_TRUE(skinner->Finish().ok());
