@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstring>
 #include <limits>
+#include <numeric>
 #include <string>
 
 #include <glm/glm.hpp>
@@ -67,18 +68,30 @@ CopyKernel EmitCopyOrFlush(Lang lang, std::size_t bytes, bool flush) {
   launch.count = static_cast<std::uint32_t>(copy.items);
   launch.influences = 1;
   launch.inputs.push_back({"copy_in", std::vector<std::uint8_t>(copy.items * 16)});
-  // A pattern no copy can elide or compress: an LCG over the words.
-  std::uint32_t x = 0x9e3779b9u;
-  for (std::size_t w = 0; w < copy.items * 4; ++w) {
-    x = x * 1664525u + 1013904223u;
-    std::memcpy(launch.inputs.back().bytes.data() + w * 4, &x, 4);
+  // A pattern no copy can elide or compress: each word a hash of its index
+  // (murmur3's finalizer), in blocks the compiler vectorises; a copy of
+  // twice a 300 MiB cache is made in well under a second.
+  std::uint8_t* in = launch.inputs.back().bytes.data();
+  constexpr std::size_t kBlock = 1024;
+  std::uint32_t block[kBlock];
+  for (std::size_t w0 = 0; w0 < copy.items * 4; w0 += kBlock) {
+    const std::size_t n = std::min(kBlock, copy.items * 4 - w0);
+    for (std::size_t i = 0; i < n; ++i) {
+      std::uint32_t x = static_cast<std::uint32_t>(w0 + i) * 0x9e3779b9u + 0x7f4a7c15u;
+      x ^= x >> 16;
+      x *= 0x85ebca6bu;
+      x ^= x >> 13;
+      x *= 0xc2b2ae35u;
+      block[i] = x ^ (x >> 16);
+    }
+    std::memcpy(in + w0 * 4, block, n * 4);
   }
   mesh.launches.push_back(std::move(launch));
   mesh.palette = PackPalette(std::vector<glm::mat4>{glm::mat4(1.0f)}, variant);
   mesh.palette_joints = 1;
   mesh.output_stride_bytes = 16;
   mesh.order.resize(copy.items);
-  for (std::size_t i = 0; i < copy.items; ++i) mesh.order[i] = static_cast<std::uint32_t>(i);
+  std::iota(mesh.order.begin(), mesh.order.end(), 0u);
   return copy;
 }
 
