@@ -768,8 +768,9 @@ class Skinner {
 
   // Waits until the last Skin() has completed on the device, e.g. before
   // timing a frame or using device_positions() from another queue or API
-  // (OpenCL clFinish, CUDA stream synchronise, GL glFinish). Nothing to wait
-  // for before the first Skin() (returns ok). Blocks.
+  // (OpenCL clFinish, CUDA stream synchronise, GL glFinish; Vulkan polls the
+  // fence for up to 1 ms on a GPU, then sleeps in vkWaitForFences). Nothing
+  // to wait for before the first Skin() (returns ok). Blocks.
   Status Finish();
 
   // Skinned positions (and normals) of the last Skin() in the mesh's vertex
