@@ -31,8 +31,8 @@ std::string FirstLines(const std::string& text, int lines) {
   return out;
 }
 
-// Written a block at a time (the copy-bandwidth probe poisons outputs of
-// hundreds of MB; word by word that took seconds on a CPU device's host).
+// Written a block at a time: the copy-bandwidth probe poisons outputs of
+// hundreds of MB.
 std::vector<std::uint8_t> PoisonedOutput(std::size_t out_bytes) {
   std::vector<std::uint8_t> bytes(out_bytes + kGuardBytes);
   const auto fill = [&](std::size_t from, std::size_t to, std::uint32_t word) {
