@@ -9,6 +9,7 @@
 #include <cstring>
 #include <map>
 #include <set>
+#include <utility>
 
 #include "generator/axes.h"
 #include "base/error.h"
@@ -240,6 +241,7 @@ class VulkanApi final : public DeviceApi {
   ~VulkanApi() override {
     WaitAll();
     for (VkFence f : spare_fences_) c_->fn.vkDestroyFence(c_->device, f, nullptr);
+    if (ready_fence_ != VK_NULL_HANDLE) c_->fn.vkDestroyFence(c_->device, ready_fence_, nullptr);
     for (VkCommandBuffer cb : spare_cbs_) c_->fn.vkFreeCommandBuffers(c_->device, pool_, 1, &cb);
     for (auto& [key, p] : pipelines_) DestroyPipeline(p);
     for (auto& [key, module] : modules_) c_->fn.vkDestroyShaderModule(c_->device, module, nullptr);
@@ -326,6 +328,7 @@ class VulkanApi final : public DeviceApi {
   // Ends and submits `cb`; waits when `wait`, else keeps it (and `keep`) in flight.
   void Submit(VkCommandBuffer cb, bool wait, std::vector<std::unique_ptr<VulkanBuffer>> keep = {});
   void Retire(bool wait_all);
+  void ResetAFenceAhead();
   VkResult WaitForFence(VkFence fence) const;
   void WaitAll() {
     SubmitOpenFrames();
@@ -360,7 +363,8 @@ class VulkanApi final : public DeviceApi {
   std::vector<VkCommandBuffer> spare_cbs_;  // retired, for reuse
   VkCommandBuffer open_frames_ = VK_NULL_HANDLE;  // recording live frames not yet submitted (OpenFrames)
   std::size_t open_frame_count_ = 0;
-  std::vector<VkFence> spare_fences_;
+  std::vector<VkFence> spare_fences_;  // signalled, to be reset before reuse
+  VkFence ready_fence_ = VK_NULL_HANDLE;  // reset ahead of the next Submit (ResetAFenceAhead)
   std::uint64_t submitted_ = 0;  // submissions so far
   VkCommandBuffer record_into_ = VK_NULL_HANDLE;
   bool recorded_for_caller_ = false;  // launches recorded into a caller's command buffer since the last wait
@@ -658,7 +662,8 @@ VkDescriptorSet VulkanApi::Redirected(VulkanBound& bound, VkBuffer out_positions
 
 // Command buffers and fences are recycled (a frame loop submits one of each
 // per Skin): a retired submission's go to `spare_cbs_` and `spare_fences_`,
-// and the next Begin and Submit take them back, reset.
+// and the next Begin and Submit take them back, reset (a fence is reset ahead,
+// after the submission before: ResetAFenceAhead).
 VkCommandBuffer VulkanApi::Begin() {
   SubmitOpenFrames();
   Retire(false);
@@ -689,7 +694,9 @@ void VulkanApi::Submit(VkCommandBuffer cb, bool wait, std::vector<std::unique_pt
     drop();
     Check(ended, "launch", "vkEndCommandBuffer");
   }
-  if (!spare_fences_.empty()) {
+  if (ready_fence_ != VK_NULL_HANDLE) {
+    s.fence = std::exchange(ready_fence_, VK_NULL_HANDLE);
+  } else if (!spare_fences_.empty()) {
     s.fence = spare_fences_.back();
     spare_fences_.pop_back();
     const VkResult reset = c_->fn.vkResetFences(c_->device, 1, &s.fence);
@@ -717,7 +724,30 @@ void VulkanApi::Submit(VkCommandBuffer cb, bool wait, std::vector<std::unique_pt
   }
   s.number = ++submitted_;
   in_flight_.push_back(std::move(s));
+  ResetAFenceAhead();
   if (wait) WaitAll();
+}
+
+// NVIDIA's vkResetFences took 5-13 us of host time (H200, 2026-12-01): the
+// next submission's fence is made ready here, while the device runs the
+// submission just made, rather than in the next Submit, where a frame that is
+// waited for would pay it before its work reaches the device. A spare fence
+// is reset, else a new one made (the first submissions). One that fails is
+// dropped: the next Submit makes its own, and a lost device is reported by
+// the next wait.
+void VulkanApi::ResetAFenceAhead() {
+  if (ready_fence_ != VK_NULL_HANDLE) return;
+  if (spare_fences_.empty()) {
+    VkFenceCreateInfo info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    if (c_->fn.vkCreateFence(c_->device, &info, nullptr, &ready_fence_) != VK_SUCCESS) ready_fence_ = VK_NULL_HANDLE;
+    return;
+  }
+  const VkFence fence = spare_fences_.back();
+  spare_fences_.pop_back();
+  if (c_->fn.vkResetFences(c_->device, 1, &fence) == VK_SUCCESS)
+    ready_fence_ = fence;
+  else
+    c_->fn.vkDestroyFence(c_->device, fence, nullptr);
 }
 
 VkCommandBuffer VulkanApi::OpenFrames() {
