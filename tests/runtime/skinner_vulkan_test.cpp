@@ -311,96 +311,86 @@ TEST(VulkanAdopted, SkinsOnTheCallersDeviceAndQueueAndIntoItsCommandBufferCreati
   for (const std::string& m : caller_messages) ADD_FAILURE() << "validation: " << m;
 }
 
+// CesiumMan's Skinner (kVariant) on the caller's device, one pose's palette;
+// skipped where there is no Vulkan device.
+class VulkanAdoptedFrames : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!caller_.ok()) GTEST_SKIP() << caller_.why;
+    caller_messages.clear();
+    device_.emplace(Device::FromVulkan(caller_.Handles()));
+    ASSERT_TRUE(device_->ok()) << device_->status().message();
+    SkinnerOptions options;
+    options.variant = kVariant;
+    skinner_.emplace(Skinner::Create(**device_, WinnersDb::Empty(), view_.mesh, options));
+    ASSERT_TRUE(skinner_->ok()) << skinner_->status().message();
+  }
+  void TearDown() override {
+    for (const std::string& m : caller_messages) ADD_FAILURE() << "validation: " << m;
+  }
+  Device& device() { return **device_; }
+  Skinner& skinner() { return **skinner_; }
+  bool SetPalette() { return skinner().SetPalette(matrices_.data(), matrices_.size()).ok(); }
+
+ private:
+  CallerVulkan caller_;
+  View view_{Cesium().mesh};
+  std::vector<float> matrices_ = testing::Floats(Cesium().PaletteAt(0, 0.5));
+  std::optional<Result<Device>> device_;
+  std::optional<Result<Skinner>> skinner_;
+};
+
 // On the caller's queue every Skin() is submitted before it returns, so that
 // the caller's own submissions after it find the frame ahead of them: frames
 // are not held back to share a submission as on a device skintune opens
 // (where back-to-back frames do: vulkan_runner_test.cpp).
-// CesiumMan skinned on the caller's device with kVariant, one pose's palette.
-struct AdoptedCesium {
-  explicit AdoptedCesium(const CallerVulkan& caller)
-      : view(Cesium().mesh), matrices(testing::Floats(Cesium().PaletteAt(0, 0.5))),
-        device(Device::FromVulkan(caller.Handles())) {
-    if (!device.ok()) return;
-    SkinnerOptions options;
-    options.variant = kVariant;
-    skinner.emplace(Skinner::Create(*device, WinnersDb::Empty(), view.mesh, options));
-  }
-  View view;
-  std::vector<float> matrices;
-  Result<Device> device;
-  std::optional<Result<Skinner>> skinner;
-};
-
-TEST(VulkanAdopted, EverySkinIsOnTheCallersQueueWhenItReturns) {
-  CallerVulkan caller;
-  if (!caller.ok()) GTEST_SKIP() << caller.why;
-  caller_messages.clear();
-  AdoptedCesium adopted(caller);
-  ASSERT_TRUE(adopted.device.ok()) << adopted.device.status().message();
-  Result<Skinner>& skinner = *adopted.skinner;
-  ASSERT_TRUE(skinner.ok()) << skinner.status().message();
-  ASSERT_TRUE(skinner->SetPalette(adopted.matrices.data(), adopted.matrices.size()).ok());
+TEST_F(VulkanAdoptedFrames, EverySkinIsOnTheCallersQueueWhenItReturns) {
+  ASSERT_TRUE(SetPalette());
   for (int f = 0; f < 12; ++f) {
     const int before = counts.queue_submit;
-    ASSERT_TRUE(skinner->Skin().ok());
+    ASSERT_TRUE(skinner().Skin().ok());
     EXPECT_GT(counts.queue_submit, before) << "frame " << f << " was not submitted when Skin() returned";
   }
-  EXPECT_TRUE(skinner->Finish().ok());
-  for (const std::string& m : caller_messages) ADD_FAILURE() << "validation: " << m;
+  EXPECT_TRUE(skinner().Finish().ok());
 }
 
 // A wait for a GPU polls the frame's fence before it sleeps on it: NVIDIA's
 // driver wakes a thread sleeping in vkWaitForFences tens of microseconds
 // after the fence signals, longer than a crowd's frame. A wait for a CPU
 // device (lavapipe) sleeps at once, leaving the host's cores to its work.
-TEST(VulkanAdopted, FinishPollsAGpusFenceBeforeItSleepsOnIt) {
-  CallerVulkan caller;
-  if (!caller.ok()) GTEST_SKIP() << caller.why;
-  caller_messages.clear();
-  AdoptedCesium adopted(caller);
-  ASSERT_TRUE(adopted.device.ok()) << adopted.device.status().message();
-  const Result<Device>& device = adopted.device;
-  Result<Skinner>& skinner = *adopted.skinner;
-  ASSERT_TRUE(skinner.ok()) << skinner.status().message();
-  const bool cpu = device->info().type == "cpu";
+TEST_F(VulkanAdoptedFrames, FinishPollsAGpusFenceBeforeItSleepsOnIt) {
+  const bool cpu = device().info().type == "cpu";
   for (int f = 0; f < 4; ++f) {
-    ASSERT_TRUE(skinner->SetPalette(adopted.matrices.data(), adopted.matrices.size()).ok());
-    ASSERT_TRUE(skinner->Skin().ok());
+    ASSERT_TRUE(SetPalette());
+    ASSERT_TRUE(skinner().Skin().ok());
     counts.fence_calls.clear();
-    ASSERT_TRUE(skinner->Finish().ok());
+    ASSERT_TRUE(skinner().Finish().ok());
     ASSERT_FALSE(counts.fence_calls.empty()) << "frame " << f << ": Finish called no fence function";
     if (cpu)
-      EXPECT_EQ(counts.fence_calls, "w") << "frame " << f << ", " << device->info().name << ": a CPU device's wait polled";
+      EXPECT_EQ(counts.fence_calls, "w") << "frame " << f << ", " << device().info().name << ": a CPU device's wait polled";
     else
-      EXPECT_EQ(counts.fence_calls.front(), 'p') << "frame " << f << ", " << device->info().name
+      EXPECT_EQ(counts.fence_calls.front(), 'p') << "frame " << f << ", " << device().info().name
                                                  << ": Finish slept on the fence first (" << counts.fence_calls.size()
                                                  << " calls: " << counts.fence_calls.substr(0, 40) << ")";
   }
-  for (const std::string& m : caller_messages) ADD_FAILURE() << "validation: " << m;
 }
 
 // A frame that is waited for (SetPalette + Skin + Finish) reaches the queue
 // before any fence is reset: the fence of the next submission is reset while
 // the device runs this one (NVIDIA's vkResetFences took 5-13 us of host time).
-TEST(VulkanAdopted, AWaitedForFrameIsSubmittedBeforeAFenceIsReset) {
-  CallerVulkan caller;
-  if (!caller.ok()) GTEST_SKIP() << caller.why;
-  caller_messages.clear();
-  AdoptedCesium adopted(caller);
-  ASSERT_TRUE(adopted.device.ok()) << adopted.device.status().message();
-  Result<Skinner>& skinner = *adopted.skinner;
-  ASSERT_TRUE(skinner.ok()) << skinner.status().message();
+TEST_F(VulkanAdoptedFrames, AWaitedForFrameIsSubmittedBeforeAFenceIsReset) {
   for (int f = 0; f < 6; ++f) {
-    ASSERT_TRUE(skinner->SetPalette(adopted.matrices.data(), adopted.matrices.size()).ok());
+    ASSERT_TRUE(SetPalette());
     counts.submit_calls.clear();
-    ASSERT_TRUE(skinner->Skin().ok());
-    ASSERT_TRUE(skinner->Finish().ok());
+    ASSERT_TRUE(skinner().Skin().ok());
+    ASSERT_TRUE(skinner().Finish().ok());
     ASSERT_FALSE(counts.submit_calls.empty()) << "frame " << f << " was not submitted";
     EXPECT_EQ(counts.submit_calls.front(), 's')
         << "frame " << f << " reset a fence before its submission (" << counts.submit_calls << ")";
-    if (f >= 1) EXPECT_EQ(counts.submit_calls, "sr") << "frame " << f << ": one submission, then one fence reset ahead";
+    if (f >= 1) {
+      EXPECT_EQ(counts.submit_calls, "sr") << "frame " << f << ": one submission, then one fence reset ahead";
+    }
   }
-  for (const std::string& m : caller_messages) ADD_FAILURE() << "validation: " << m;
 }
 
 TEST(VulkanAdopted, NullHandlesAreInvalidArguments) {

@@ -328,7 +328,7 @@ class VulkanApi final : public DeviceApi {
   // Ends and submits `cb`; waits when `wait`, else keeps it (and `keep`) in flight.
   void Submit(VkCommandBuffer cb, bool wait, std::vector<std::unique_ptr<VulkanBuffer>> keep = {});
   void Retire(bool wait_all);
-  void ResetAFenceAhead();
+  VkResult MakeAFenceReady(const char** call);
   VkResult WaitForFence(VkFence fence) const;
   void WaitAll() {
     SubmitOpenFrames();
@@ -364,7 +364,7 @@ class VulkanApi final : public DeviceApi {
   VkCommandBuffer open_frames_ = VK_NULL_HANDLE;  // recording live frames not yet submitted (OpenFrames)
   std::size_t open_frame_count_ = 0;
   std::vector<VkFence> spare_fences_;  // signalled, to be reset before reuse
-  VkFence ready_fence_ = VK_NULL_HANDLE;  // reset ahead of the next Submit (ResetAFenceAhead)
+  VkFence ready_fence_ = VK_NULL_HANDLE;  // made ready ahead of the next Submit (MakeAFenceReady)
   std::uint64_t submitted_ = 0;  // submissions so far
   VkCommandBuffer record_into_ = VK_NULL_HANDLE;
   bool recorded_for_caller_ = false;  // launches recorded into a caller's command buffer since the last wait
@@ -663,7 +663,7 @@ VkDescriptorSet VulkanApi::Redirected(VulkanBound& bound, VkBuffer out_positions
 // Command buffers and fences are recycled (a frame loop submits one of each
 // per Skin): a retired submission's go to `spare_cbs_` and `spare_fences_`,
 // and the next Begin and Submit take them back, reset (a fence is reset ahead,
-// after the submission before: ResetAFenceAhead).
+// after the submission before: MakeAFenceReady).
 VkCommandBuffer VulkanApi::Begin() {
   SubmitOpenFrames();
   Retire(false);
@@ -694,25 +694,15 @@ void VulkanApi::Submit(VkCommandBuffer cb, bool wait, std::vector<std::unique_pt
     drop();
     Check(ended, "launch", "vkEndCommandBuffer");
   }
-  if (ready_fence_ != VK_NULL_HANDLE) {
-    s.fence = std::exchange(ready_fence_, VK_NULL_HANDLE);
-  } else if (!spare_fences_.empty()) {
-    s.fence = spare_fences_.back();
-    spare_fences_.pop_back();
-    const VkResult reset = c_->fn.vkResetFences(c_->device, 1, &s.fence);
-    if (reset != VK_SUCCESS) {
-      c_->fn.vkDestroyFence(c_->device, s.fence, nullptr);
+  if (ready_fence_ == VK_NULL_HANDLE) {
+    const char* call = nullptr;
+    const VkResult ready = MakeAFenceReady(&call);
+    if (ready != VK_SUCCESS) {
       drop();
-      Check(reset, "launch", "vkResetFences");
-    }
-  } else {
-    VkFenceCreateInfo fence{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-    const VkResult created = c_->fn.vkCreateFence(c_->device, &fence, nullptr, &s.fence);
-    if (created != VK_SUCCESS) {
-      drop();
-      Check(created, "launch", "vkCreateFence");
+      Check(ready, "launch", call);
     }
   }
+  s.fence = std::exchange(ready_fence_, VK_NULL_HANDLE);
   VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
   submit.commandBufferCount = 1;
   submit.pCommandBuffers = &cb;
@@ -724,30 +714,37 @@ void VulkanApi::Submit(VkCommandBuffer cb, bool wait, std::vector<std::unique_pt
   }
   s.number = ++submitted_;
   in_flight_.push_back(std::move(s));
-  ResetAFenceAhead();
+  // NVIDIA's vkResetFences took 5-13 us of host time (H200, 2026-12-01): the
+  // next submission's fence is made ready here, while the device runs this
+  // one, rather than in the next Submit, where a frame that is waited for
+  // would pay it before its work reaches the device. A failure here is left
+  // to the next Submit, which tries again and reports it.
+  const char* call = nullptr;
+  (void)MakeAFenceReady(&call);
   if (wait) WaitAll();
 }
 
-// NVIDIA's vkResetFences took 5-13 us of host time (H200, 2026-12-01): the
-// next submission's fence is made ready here, while the device runs the
-// submission just made, rather than in the next Submit, where a frame that is
-// waited for would pay it before its work reaches the device. A spare fence
-// is reset, else a new one made (the first submissions). One that fails is
-// dropped: the next Submit makes its own, and a lost device is reported by
-// the next wait.
-void VulkanApi::ResetAFenceAhead() {
-  if (ready_fence_ != VK_NULL_HANDLE) return;
+// ready_fence_, unsignalled: a spare fence reset, else a new one. On failure
+// ready_fence_ stays null, a spare that failed to reset is destroyed, and
+// `call` names the call that failed.
+VkResult VulkanApi::MakeAFenceReady(const char** call) {
   if (spare_fences_.empty()) {
+    *call = "vkCreateFence";
     VkFenceCreateInfo info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-    if (c_->fn.vkCreateFence(c_->device, &info, nullptr, &ready_fence_) != VK_SUCCESS) ready_fence_ = VK_NULL_HANDLE;
-    return;
+    VkFence fence = VK_NULL_HANDLE;
+    const VkResult created = c_->fn.vkCreateFence(c_->device, &info, nullptr, &fence);
+    if (created == VK_SUCCESS) ready_fence_ = fence;
+    return created;
   }
+  *call = "vkResetFences";
   const VkFence fence = spare_fences_.back();
   spare_fences_.pop_back();
-  if (c_->fn.vkResetFences(c_->device, 1, &fence) == VK_SUCCESS)
+  const VkResult reset = c_->fn.vkResetFences(c_->device, 1, &fence);
+  if (reset == VK_SUCCESS)
     ready_fence_ = fence;
   else
     c_->fn.vkDestroyFence(c_->device, fence, nullptr);
+  return reset;
 }
 
 VkCommandBuffer VulkanApi::OpenFrames() {
