@@ -162,6 +162,10 @@ struct FrameRun {
   // ordered by each API (one in-order queue or stream in OpenCL and CUDA, a
   // barrier in GL and Vulkan, in turn on the cpu device).
   std::span<const std::unique_ptr<DeviceObject>> prologue;
+  // kLive: the prologue writes what the frames queued before it may still
+  // read (a set with one palette slot), so it waits for them; otherwise an
+  // API may start it beside them (Vulkan: RunFrames).
+  bool prologue_after_frames = false;
   // Every use: the scalar arguments of the launches that take any (the
   // palette kernel's delta and fresh, in a kLive prologue or first in an
   // animated set's frame: Runner::Animate), by name, each as its 32 bits (a

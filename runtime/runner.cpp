@@ -906,6 +906,7 @@ void Runner::LaunchSet(Prepared& prepared, int set, void* out_positions) {
   run.frames = {launches.subspan(slot.palette_launches)};
   if (slot.prologue_pending) {
     run.prologue = launches.first(slot.palette_launches);
+    run.prologue_after_frames = s.slots.size() < 2;
     run.scalars = {{kAnimDelta, std::bit_cast<std::uint32_t>(slot.delta)}, {kAnimFresh, slot.fresh ? 1u : 0u}};
   }
   if (s.fused) run.scalars = {{kAnimElapsed, std::bit_cast<std::uint32_t>(static_cast<float>(s.elapsed))}};

@@ -13,11 +13,13 @@
 #include <iostream>
 #include <regex>
 
+#include "generator/clip_packer.h"
 #include "generator/constraints.h"
 #include "generator/copy_kernel.h"
 #include "generator/covering.h"
 #include "generator/emit.h"
 #include "generator/packer.h"
+#include "generator/palette_kernel.h"
 #include "base/error.h"
 #include "runner_test_support.h"
 #include "runtime/backends/vulkan/vulkan_devices.h"
@@ -26,6 +28,7 @@
 #include "runtime/program_cache.h"
 #include "runtime/run_shape.h"
 #include "tests/common/scratch_dir.h"
+#include "tests/generator/palette_gold.h"
 
 namespace skintune::internal {
 namespace {
@@ -250,6 +253,63 @@ TEST_F(Validated, FramesQueuedFasterThanTheDeviceRunsThemShareSubmissions) {
     const GoldComparison c = CompareToGold(gold.positions, UnpackInstance(packed, positions, k));
     EXPECT_EQ(c.non_finite, 0u) << "instance " << k;
     EXPECT_LT(c.max_relative, kTolerance) << "instance " << k << ", worst vertex " << c.worst_vertex;
+  }
+}
+
+// Animated frames (a palette kernel before each frame's skin launch) queued
+// back to back share a command buffer, where a frame's palette kernel may go
+// beside the frame before it (no barrier between them) where the ring has
+// another slot for that frame to read. The validation layer's
+// synchronization checks, on for this runner, find no hazard within those
+// command buffers with a ring of one slot (each palette kernel waits, and
+// each frame for the one before) or of several, and the last frame read is
+// its own clips' pose.
+TEST(VulkanAnimatedFrames, FramesSharingACommandBufferHaveNoHazardWhateverTheRing) {
+  if (!ValidationOn()) GTEST_SKIP() << "no validation layer to check synchronization with";
+  setenv("VK_LAYER_ENABLES", "VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT", 1);
+  VulkanRunner runner(0, true);
+  unsetenv("VK_LAYER_ENABLES");
+  constexpr int kInstances = 64;  // 128k vertices: frames queued faster than a CPU device runs them
+  const char* key = "vulkan.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals";
+  const Variant variant = ParseVariantKey(key);
+  const SkinnedAsset asset = GenerateDataset(ParseDatasetKey("2k-b4"));
+  const PackedAnimation animation = PackAnimation(asset);
+  const PackedMesh packed = Pack(asset.mesh, variant);
+  const std::vector<KernelSource> kernels = EmitLaunchKernels(packed, kInstances);
+  std::vector<std::uint8_t> rest;
+  for (int k = 0; k < kInstances; ++k) rest.insert(rest.end(), packed.palette.begin(), packed.palette.end());
+  for (int slots : {1, 2, 3}) {
+    SCOPED_TRACE(std::to_string(slots) + " palette slots");
+    const std::size_t messages = runner.validation_messages().size();
+    Prepared live = runner.Prepare(packed, kernels, std::vector<std::vector<std::uint8_t>>{rest}, kInstances, slots);
+    runner.Animate(live, 0, animation.View(), EmitPalette(Lang::kVulkan, animation.View(), 3));
+    std::vector<AnimInstance> states(kInstances);
+    for (int k = 0; k < kInstances; ++k) {
+      states[static_cast<std::size_t>(k)].clip = 0;
+      states[static_cast<std::size_t>(k)].time = 0.005f * static_cast<float>(k);  // within the clip after the frames
+    }
+    runner.WritePalette(live, 0, {reinterpret_cast<const std::uint8_t*>(states.data()), states.size() * sizeof(AnimInstance)});
+    runner.LaunchSet(live, 0);
+    (void)runner.ReadOutput(live, 0, Output::kPositions);  // built, uploaded, run once, idle
+    const std::uint64_t before = runner.submissions();
+    constexpr int kFrames = 12;
+    for (int f = 0; f < kFrames; ++f) {
+      runner.AdvanceAnimation(live, 0, 1.0f / 60.0f);
+      runner.LaunchSet(live, 0);
+    }
+    if (slots > 1)  // with one, each frame waits for the one before
+      EXPECT_LT(runner.submissions() - before, static_cast<std::uint64_t>(kFrames)) << "no frames shared a command buffer";
+    const std::span<const std::uint8_t> positions = runner.ReadOutput(live, 0, Output::kPositions);
+    for (int k : {0, kInstances - 1}) {
+      AnimInstance advanced = states[static_cast<std::size_t>(k)];
+      advanced.time += static_cast<float>(kFrames) / 60.0f;
+      const GoldResult gold = SkinGold(QuantisedMesh(asset.mesh, variant), asset.skeleton.Palette(GoldPose(asset, animation, advanced)), false);
+      const GoldComparison c = CompareToGold(gold.positions, UnpackInstance(packed, positions, k));
+      EXPECT_EQ(c.non_finite, 0u) << "instance " << k;
+      EXPECT_LT(c.max_relative, 1e-4) << "instance " << k << ", worst vertex " << c.worst_vertex;
+    }
+    const std::vector<std::string> all = runner.validation_messages();
+    for (std::size_t m = messages; m < all.size(); ++m) ADD_FAILURE() << "validation: " << all[m];
   }
 }
 

@@ -310,8 +310,9 @@ class VulkanApi final : public DeviceApi {
   void CreatePipeline(Pipeline& p, const KernelSource& source, PaletteStorage storage);
   void DestroyPipeline(Pipeline& p);
   // A new command buffer, recording. The open frames (below) go to the
-  // queue first, so that submissions keep their order.
-  VkCommandBuffer Begin();
+  // queue first, so that submissions keep their order. `live`: for live
+  // frames (RunFrames kLive); any other work sets unordered_since_frames_.
+  VkCommandBuffer Begin(bool live = false);
   // Live frames on a device skintune opened are batched: each Skin() records
   // into the open command buffer, which goes to the queue when nothing of
   // this API's is running on it (so a frame never waits on an idle GPU),
@@ -368,6 +369,9 @@ class VulkanApi final : public DeviceApi {
   std::uint64_t submitted_ = 0;  // submissions so far
   VkCommandBuffer record_into_ = VK_NULL_HANDLE;
   bool recorded_for_caller_ = false;  // launches recorded into a caller's command buffer since the last wait
+  // Work other than live frames (uploads, reads, timed runs) recorded since
+  // the last live frame's BarrierBeforeFrames: the next prologue waits for it.
+  bool unordered_since_frames_ = true;
 };
 
 // ---------------------------------------------------------------- programs
@@ -664,7 +668,8 @@ VkDescriptorSet VulkanApi::Redirected(VulkanBound& bound, VkBuffer out_positions
 // per Skin): a retired submission's go to `spare_cbs_` and `spare_fences_`,
 // and the next Begin and Submit take them back, reset (a fence is reset ahead,
 // after the submission before: MakeAFenceReady).
-VkCommandBuffer VulkanApi::Begin() {
+VkCommandBuffer VulkanApi::Begin(bool live) {
+  if (!live) unordered_since_frames_ = true;
   SubmitOpenFrames();
   Retire(false);
   VkCommandBuffer cb = VK_NULL_HANDLE;
@@ -748,7 +753,7 @@ VkResult VulkanApi::MakeAFenceReady(const char** call) {
 }
 
 VkCommandBuffer VulkanApi::OpenFrames() {
-  if (open_frames_ == VK_NULL_HANDLE) open_frames_ = Begin();
+  if (open_frames_ == VK_NULL_HANDLE) open_frames_ = Begin(true);
   return open_frames_;
 }
 
@@ -929,16 +934,28 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
     const bool for_caller = record_into_ != VK_NULL_HANDLE;
     const bool batched = !for_caller && c_->owns_device;
     if (for_caller) SubmitOpenFrames();  // earlier frames reach the queue before the caller's command buffer
-    const VkCommandBuffer cb = for_caller ? record_into_ : batched ? OpenFrames() : Begin();
+    const VkCommandBuffer cb = for_caller ? record_into_ : batched ? OpenFrames() : Begin(true);
     RecordPendingUploads(cb, run);
-    BarrierBeforeFrames(cb);
+    // A prologue (the palette kernel) after nothing but live frames starts
+    // beside the frame before it: what it reads and writes (its palette slot,
+    // the instances' states) the frames before it left ordered by their own
+    // barrier after their prologue, as long as the ring has another slot for
+    // the frame before to read. After any other work it waits for everything.
+    const bool beside = !run.prologue.empty() && !run.prologue_after_frames && !unordered_since_frames_;
+    if (!beside) {
+      BarrierBeforeFrames(cb);
+      unordered_since_frames_ = false;
+    }
     if (!run.prologue.empty()) {  // its storage writes, read by the frames as storage or uniform buffers or texels
       for (const std::unique_ptr<DeviceObject>& launch : run.prologue) {
         const auto& bound = static_cast<const VulkanBound&>(*launch);
         RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1, &run);
       }
-      Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
-              VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);
+      // Also the frames' writes after the earlier frames' (BarrierBeforeFrames
+      // where the prologue went beside them) and the next prologue's after this one's.
+      Barrier(cb, VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+              VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+              VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
     }
     RecordFrames(cb, run, 0, frames, used, VK_NULL_HANDLE, nullptr);
     if (batched) {
