@@ -116,8 +116,9 @@ void InjectFault(KernelSource& source, const Variant& variant, const std::string
   // Every template skins a vertex with one call that ends with where the
   // skinned position goes and what normals and tangents are made from, in the
   // kernel's loop over its vertices (v in scope), after the shared helpers:
-  // the last such line is in the kernel body (GLSL: skin_vertex in main();
-  // OpenCL/CUDA: blend, then the blended matrix's rows).
+  // the last such line is in the kernel body or the function it calls per
+  // vertex (skin.comp: skin_loaded in skin_and_store(); skin.vert: skin_vertex
+  // in main(); OpenCL/CUDA: blend, then the blended matrix's rows).
   const std::string marker =
       glsl ? " skinned_position, skinned_normal, skinned_tangent);" : "&skinned_position, &a0, &a1, &a2);";
   if (kind == "compile") {
@@ -133,10 +134,13 @@ void InjectFault(KernelSource& source, const Variant& variant, const std::string
       // least two words): its atomics add 0.
       const std::string block =
           "layout(std430, binding = 0) volatile buffer SkintuneHang { uint skintune_hang[]; };\n";
-      const std::size_t main_at = source.text.rfind("void main()");
-      if (main_at == std::string::npos)
-        throw Error("injected fault 'hang': the GLSL kernel has no 'void main()' any more (update InjectFault)");
-      source.text.insert(main_at, block);
+      // Declared before the function that skins (main(), or a helper of it).
+      const std::size_t skins_at = source.text.rfind(marker);
+      const std::size_t function_at =
+          skins_at == std::string::npos ? std::string::npos : source.text.rfind("\nvoid ", skins_at);
+      if (function_at == std::string::npos)
+        throw Error("injected fault 'hang': the GLSL kernel skins in no function InjectFault finds (update InjectFault)");
+      source.text.insert(function_at + 1, block);
     }
     EditAt(source, marker, loop, "", kind);
   } else {

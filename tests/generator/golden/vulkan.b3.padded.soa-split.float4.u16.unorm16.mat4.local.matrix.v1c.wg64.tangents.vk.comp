@@ -1145,6 +1145,20 @@ layout(std430, binding = BINDING_OUT_TANGENTS) writeonly restrict buffer OutTang
 uniform uint vertex_count;  // vertices of one instance in the outputs (the whole mesh; Vulkan: a push constant)
 #endif
 
+// Skins vertex v, loaded, and stores what the kernel writes at out_first + v.
+void skin_and_store(VertexIn loaded, uint v, uint out_first) {
+  vec3 skinned_position, skinned_normal;
+  vec4 skinned_tangent;
+  skin_loaded(loaded, skinned_position, skinned_normal, skinned_tangent);
+  STORE_POSITION(out_first + v, skinned_position);
+#if NORMALS
+  STORE_NORMAL(out_first + v, normalize(skinned_normal));
+#endif
+#if TANGENTS
+  STORE_TANGENT(out_first + v, vec4(normalize(skinned_tangent.xyz), skinned_tangent.w));
+#endif
+}
+
 void main() {
 #if INSTANCED
   uint out_first = INSTANCE * vertex_count + first;
@@ -1152,7 +1166,7 @@ void main() {
   uint out_first = first;
 #endif
 #if STORAGE == 1 && ANIM_FUSED
-  // Made in the first vertex's turn of the loop below, once that vertex's loads are issued.
+  // Made below, once the first vertex's loads are issued.
 #if INSTANCED
   uvec4 instance_state = instances[INSTANCE];
 #else
@@ -1177,19 +1191,43 @@ void main() {
   uint items = gl_NumWorkGroups.x * uint(WG_SIZE);
 #endif
 
+#if STORAGE == 1 && ANIM_FUSED
+  // The first vertex's loads go out before the palette records' so that the
+  // two latencies overlap, then every invocation makes its share of the
+  // palette and reaches the barrier. On an H200 (2026-11-30, 64 x 25k-b4,
+  // v8s.wg256) GL compute's pipelined fused frame took 26.9-27.2 us so against
+  // 27.9-28.9 with the palette made first. The two compilers want it written
+  // differently (H200, 2026-12-01, the same crowd): Vulkan's fused Skin-only
+  // frame took 26.9-27.1 us with the barrier inside the loop's first turn
+  // and 24.8 with the first vertex skinned before the loop, GL compute's
+  // 26.4-26.5 the first way and 27.4-27.5 the second. skin.cl and skin.cu keep
+  // the palette first: this order made their frames slower (OpenCL 20.0 ->
+  // 22.1 us, CUDA 18.4 -> 19.2).
+#endif
+#if STORAGE == 1 && ANIM_FUSED && defined(VULKAN)
+#if STRIDED
+  uint v0 = item;
+#else
+  uint v0 = item * uint(VERTICES_PER_ITEM);
+#endif
+  VertexIn first_loaded;
+  if (v0 < n) first_loaded = load_vertex(v0, slot_stride);
+  anim_fused_palette(anim_advance(instance_state, elapsed));  // anim_records.glsl
+  memoryBarrierShared();
+  barrier();
+  if (v0 >= n) return;
+  skin_and_store(first_loaded, v0, out_first);
+  for (uint k = 1u; k < uint(VERTICES_PER_ITEM); ++k) {
+#else
   for (uint k = 0u; k < uint(VERTICES_PER_ITEM); ++k) {
+#endif
 #if STRIDED
     uint v = item + k * items;
 #else
     uint v = item * uint(VERTICES_PER_ITEM) + k;
 #endif
-#if STORAGE == 1 && ANIM_FUSED
-    // The first vertex's loads go out before the palette records' so that the two latencies
-    // overlap; every invocation reaches the barrier, none leaves the loop before it. On an H200
-    // (2026-11-30, 64 x 25k-b4, v8s.wg256) GL compute's pipelined fused frame took 26.9-27.2 us
-    // this way against 27.9-28.9 with the palette made first. skin.cl and skin.cu keep the
-    // palette first: this order made their frames slower (OpenCL 20.0 -> 22.1 us, CUDA 18.4 -> 19.2).
-    bool live = v < n;
+#if STORAGE == 1 && ANIM_FUSED && !defined(VULKAN)
+    bool live = v < n;  // every invocation reaches the barrier, none leaves the loop before it
     VertexIn loaded;
     if (live) loaded = load_vertex(v, slot_stride);
     if (k == 0u) {
@@ -1198,20 +1236,10 @@ void main() {
       barrier();
     }
     if (!live) break;
+    skin_and_store(loaded, v, out_first);
 #else
     if (v >= n) break;
-    VertexIn loaded = load_vertex(v, slot_stride);
-#endif
-
-    vec3 skinned_position, skinned_normal;
-    vec4 skinned_tangent;
-    skin_loaded(loaded, skinned_position, skinned_normal, skinned_tangent);
-    STORE_POSITION(out_first + v, skinned_position);
-#if NORMALS
-    STORE_NORMAL(out_first + v, normalize(skinned_normal));
-#endif
-#if TANGENTS
-    STORE_TANGENT(out_first + v, vec4(normalize(skinned_tangent.xyz), skinned_tangent.w));
+    skin_and_store(load_vertex(v, slot_stride), v, out_first);
 #endif
   }
 }
