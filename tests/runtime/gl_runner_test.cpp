@@ -370,6 +370,48 @@ const Case kInstancedVertexCases[] = {
     {"glsl-vertex.b4.bucketed.soa-split.float3.u16.f32.mat3x4.constant.matrix.v1c.wg0.normals", "cesium"},
 };
 
+// Live frames on the runner's own context end with no barrier; the next read
+// issues the one that makes their outputs readable (GlApi::RunLive), and the
+// frames' writes are ordered among themselves: eight frames queued with a
+// palette each, one barrier for the read after them, and the read is the
+// gold of the last frame's palettes.
+TEST(GlRunner, LiveFramesOnItsOwnContextLeaveTheirBarrierToTheNextRead) {
+  REQUIRE_GL(runner);
+  constexpr int kInstances = 2, kFrames = 8;
+  const char* key = "glsl-compute.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals";
+  const Variant variant = ParseVariantKey(key);
+  const SkinnedAsset& asset = testing::SmallAsset("cesium");
+  const PackedMesh packed = Pack(asset.mesh, variant);
+  const auto palettes = [&](int f) {
+    std::vector<std::uint8_t> bytes;
+    for (int k = 0; k < kInstances; ++k) {
+      const std::vector<std::uint8_t> p = PackPalette(testing::InstancePalette(asset, f * kInstances + k), variant);
+      bytes.insert(bytes.end(), p.begin(), p.end());
+    }
+    return bytes;
+  };
+  Prepared live = runner->Prepare(packed, EmitLaunchKernels(packed, kInstances),
+                                  std::vector<std::vector<std::uint8_t>>{palettes(0)}, kInstances, kPaletteSlots);
+  runner->WritePalette(live, 0, palettes(0));
+  runner->LaunchSet(live, 0);
+  (void)runner->ReadOutput(live, 0, Output::kPositions);
+  const std::uint64_t before = runner->read_barriers();
+  for (int f = 1; f <= kFrames; ++f) {
+    runner->WritePalette(live, 0, palettes(f));
+    runner->LaunchSet(live, 0);
+  }
+  EXPECT_EQ(runner->read_barriers(), before) << "a frame issued the barrier for reads";
+  const std::span<const std::uint8_t> positions = runner->ReadOutput(live, 0, Output::kPositions);
+  EXPECT_EQ(runner->read_barriers(), before + 1) << "the read after the frames issued no barrier";
+  const SkinnedMesh quantised = QuantisedMesh(asset.mesh, variant);
+  for (int k = 0; k < kInstances; ++k) {
+    const GoldResult gold = SkinGold(quantised, testing::InstancePalette(asset, kFrames * kInstances + k), false);
+    const GoldComparison c = CompareToGold(gold.positions, testing::UnpackInstance(packed, positions, k));
+    EXPECT_EQ(c.non_finite, 0u) << "instance " << k;
+    EXPECT_LT(c.max_relative, testing::kTolerance) << "instance " << k << ", worst vertex " << c.worst_vertex;
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Compute, GlslInstanced,
                          ::testing::ValuesIn(testing::WithInstanceCounts(kInstancedComputeCases)),
                          testing::InstanceCaseName);

@@ -232,6 +232,8 @@ class GlApi final : public DeviceApi {
   // ARB_buffer_storage, unless $SKINTUNE_GL_NO_BUFFER_STORAGE=1 asks for the
   // glBufferSubData / glGetBufferSubData path).
   bool persistent_staging() const;
+  // The barriers ReadyForReads issued so far (tests).
+  std::uint64_t read_barriers() const { return read_barriers_; }
 
  private:
   const BuiltProgram& ProgramFor(const KernelSource& source);
@@ -254,8 +256,15 @@ class GlApi final : public DeviceApi {
   std::vector<std::vector<double>> RunTimed(const FrameRun& run);
   std::vector<std::vector<double>> RunCold(const FrameRun& run);
   void RunLive(const FrameRun& run);
+  // The barrier that makes live frames' outputs readable by anything (reads,
+  // copies, draws), where RunLive left it to the next call that could read
+  // them: the reads, Finish and the timed runs call this first. (Uploads go
+  // only into buffers no kernel writes: palettes, instances, morph weights.)
+  void ReadyForReads();
 
   std::unique_ptr<GlContext> context_;  // declared first: destroyed after every GL object below
+  bool frames_unread_ = false;  // RunLive issued frames since the last ReadyForReads
+  std::uint64_t read_barriers_ = 0;
   std::map<std::string, BuiltProgram> built_;  // by source hash
   GlObject vertex_array_, framebuffer_, renderbuffer_, transform_feedback_;
   // RunCold's GL_TIMESTAMP queries (a timed frame's: one after the flush,

@@ -523,6 +523,7 @@ void GlApi::Upload(DeviceBuffer& buffer, std::size_t bytes, const std::string& k
 }
 
 void GlApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const std::string& what, bool wait) {
+  ReadyForReads();
   if (wait) ClearGlErrors();  // glGetBufferSubData waits for the writes itself
   glBindBuffer(GL_COPY_READ_BUFFER, static_cast<const GlBuffer&>(buffer).id());
   glGetBufferSubData(GL_COPY_READ_BUFFER, 0, static_cast<GLsizeiptr>(out.size()), out.data());
@@ -534,6 +535,7 @@ void GlApi::Read(const DeviceBuffer& buffer, std::span<std::uint8_t> out, const 
 // the wait; or glGetBufferSubData without buffer storage.
 std::span<const std::uint8_t> GlApi::ReadPinned(const DeviceBuffer& buffer, std::size_t bytes, const std::string& what) {
   const auto& out = static_cast<const GlBuffer&>(buffer);
+  ReadyForReads();
   ClearGlErrors();
   if (!out.readback)
     out.readback = persistent_staging() ? PersistentStaging(out.bytes(), GL_MAP_READ_BIT, "the read-back of " + what)
@@ -559,6 +561,7 @@ DeviceApi::PinnedRead GlApi::ReadPinnedChunks(const DeviceBuffer& buffer, std::s
     return DeviceApi::ReadPinnedChunks(buffer, bytes, chunk_bytes, what);
   const std::size_t chunk = ChunkCovering(bytes, chunk_bytes, kReadChunks);
   const auto& out = static_cast<const GlBuffer&>(buffer);
+  ReadyForReads();
   ClearGlErrors();
   if (!out.readback) out.readback = PersistentStaging(out.bytes(), GL_MAP_READ_BIT, "the read-back of " + what);
   out.DeleteReadFences();
@@ -590,6 +593,7 @@ DeviceApi::PinnedRead GlApi::ReadPinnedChunks(const DeviceBuffer& buffer, std::s
 // 2026-11-26, SetPalette + Skin + Finish every frame: 85.2 us with glFinish,
 // 67.7 with the fence). Without a fence object, glFinish.
 void GlApi::Finish() {
+  ReadyForReads();
   const GLsync sync = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
   if (!sync) {
     glFinish();
@@ -672,6 +676,7 @@ GlRunner::GlRunner(std::unique_ptr<GlContext> context) : Runner(Checked(std::mov
 const gl::GlApi& GlRunner::gl_api() const { return static_cast<const gl::GlApi&>(api()); }
 const GlContextInfo& GlRunner::info() const { return gl_api().info(); }
 bool GlRunner::host_timed() const { return gl_api().host_timed(); }
+std::uint64_t GlRunner::read_barriers() const { return gl_api().read_barriers(); }
 void GlRunner::MakeCurrent() { api().MakeCurrent(); }
 
 }  // namespace skintune::internal

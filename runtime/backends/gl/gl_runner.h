@@ -93,6 +93,9 @@ class GlRunner final : public Runner {
   // Whether Time times bursts with the host clock (software
   // renderers) instead of GL_TIME_ELAPSED queries.
   bool host_timed() const;
+  // The barriers issued to make live frames' outputs readable so far: on its
+  // own context one before each read after frames, not one a frame.
+  std::uint64_t read_barriers() const;
   // Makes the runner's context current; throws Error("GL setup: ...") when
   // it cannot be (an adopted context that is not current any more).
   void MakeCurrent();

@@ -813,8 +813,10 @@ class Skinner {
   // likewise), `output_stride_bytes()` per vertex (12: float3, 16: float4
   // with w = 1), in the mesh's vertex order, instance after instance. Owned by
   // the Skinner; valid while it lives. Synchronise before reading it on
-  // another queue / stream (OpenCL: the Device's queue is in-order; GL:
-  // glMemoryBarrier is issued after each Skin()).
+  // another queue / stream (OpenCL: the Device's queue is in-order; GL, on
+  // your context (Device::FromCurrentGl): glMemoryBarrier is issued after
+  // each Skin(); on a context skintune made, whose buffer names only its own
+  // calls use, before the next read instead).
   void* device_positions() const;
   std::size_t output_stride_bytes() const;
   // The normals (tangents) of the last Skin() left on the device likewise,
