@@ -1195,7 +1195,7 @@ void main() {
   // The first vertex's loads go out before the palette records' so that the
   // two latencies overlap, then every invocation makes its share of the
   // palette and reaches the barrier. On an H200 (2026-11-30, 64 x 25k-b4,
-  // v8s.wg256) GL compute's pipelined fused frame took 26.9-27.2 us so against
+  // v8s.wg256) GL compute's pipelined fused frame took 26.9-27.2 us this way against
   // 27.9-28.9 with the palette made first. The two compilers want it written
   // differently (H200, 2026-12-01, the same crowd): Vulkan's fused Skin-only
   // frame took 26.9-27.1 us with the barrier inside the loop's first turn
