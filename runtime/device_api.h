@@ -164,7 +164,7 @@ struct FrameRun {
   std::span<const std::unique_ptr<DeviceObject>> prologue;
   // kLive: the prologue writes what the frames queued before it may still
   // read (a set with one palette slot), so it waits for them; otherwise an
-  // API may start it beside them (Vulkan: RunFrames).
+  // API may start it beside them (GL and Vulkan: RunFrames).
   bool prologue_after_frames = false;
   // Every use: the scalar arguments of the launches that take any (the
   // palette kernel's delta and fresh, in a kLive prologue or first in an
