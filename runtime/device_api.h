@@ -360,6 +360,13 @@ class DeviceApi {
   // other than the one making the API's other calls, one call at a time, in
   // order, with MakeCurrent before each (CUDA, OpenCL: Runner::UseSubmitThread).
   virtual bool SubmitsFromAnyThread() const { return false; }
+  // How many live frames (RunFrames kLive) the API gathers into one
+  // submission to the device before it submits them by itself (Vulkan on a
+  // device skintune opened: VulkanApi::OpenFrames); 1 where each frame goes
+  // to the device on its own. A loop that waits for the frame N back shares
+  // submissions among at most N - 1 frames, so frames that hold no palette
+  // buffer are paced at least twice this far back (Runner::Animate).
+  virtual std::size_t FramesPerSubmission() const { return 1; }
 
  protected:
   ProgramCache* cache_ = nullptr;

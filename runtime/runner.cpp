@@ -1120,7 +1120,14 @@ void Runner::AnimateFused(Prepared& prepared, int set, const AnimationView& anim
   s.elapsed = 0.0;
   s.uploaded_states = rest_pose;
   // Where the API orders uploads after the launches before them (GL) nothing is marked, as for every set there.
-  if (!api_->OrdersUploadsAfterLaunches()) s.pace = std::vector<Prepared::Impl::Slot>(s.slots.size());
+  // A fused frame holds no buffer, so its bound is the caller's latency only:
+  // as many frames back as the ring has slots, or twice what the API gathers
+  // into one submission (Vulkan's 8) where that is more, so that a loop waiting
+  // for the frame that far back fills one submission while the device runs the
+  // one before (H200, 2026-12-01: Vulkan's pipelined fused frame 28.2-28.4 us
+  // paced 3 back, 26.4 at 6, 25.5 at 9, 25.0 at 16, Skin-only 24.1-24.4).
+  if (!api_->OrdersUploadsAfterLaunches())
+    s.pace = std::vector<Prepared::Impl::Slot>(std::max(s.slots.size(), 2 * api_->FramesPerSubmission()));
   s.clip_ranges.assign(animation.clip_ranges.begin(), animation.clip_ranges.end());
 }
 

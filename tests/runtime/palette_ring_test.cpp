@@ -78,8 +78,12 @@ class DeferredApi final : public DeviceApi {
   bool ordered = false;
   int marks = 0;
 
+  // Frames the device gathers into one submission (Vulkan's batching).
+  std::size_t frames_per_submission = 1;
+
   bool SubmitsFromAnyThread() const override { return threaded; }
   bool OrdersUploadsAfterLaunches() const override { return ordered; }
+  std::size_t FramesPerSubmission() const override { return frames_per_submission; }
 
   void RunUntil(std::size_t position) {
     for (; executed < position; ++executed) queue[executed]();
@@ -581,6 +585,40 @@ TEST(PaletteRing, FusedFramesReadTheLastUploadAndTheDeltasSinceWithNoPaletteKern
   EXPECT_FLOAT_EQ(instance(frames - 1).time, rebased[0].time);
   EXPECT_FLOAT_EQ(ring.api->elapsed.at(frames - 1), 0.5f);
 }
+
+// A fused frame holds no buffer: where the API gathers frames into shared
+// submissions, AdvanceAnimation waits for the frame twice that many back, or
+// as many as the ring has slots where that is more, so that one submission
+// fills while the device runs the one before.
+class FusedPace : public ::testing::TestWithParam<std::tuple<int, std::size_t>> {};
+
+TEST_P(FusedPace, AdvanceAnimationWaitsForTheFrameTwoSubmissionsOrTheRingBack) {
+  const auto [slots, per_submission] = GetParam();
+  const std::size_t depth = std::max(static_cast<std::size_t>(slots), 2 * per_submission);
+  Ring ring(false, false, slots, "opencl.b2.local");
+  ring.api->frames_per_submission = per_submission;
+  const PackedAnimation animation = BakeAnimation(GenerateDataset(ParseDatasetKey("200-b2")), 30.0, BakeSpace::kPalette);
+  PaletteKernel fused;
+  fused.fused = true;
+  ring.runner->Animate(ring.prepared, 0, animation.View(), fused);
+  for (std::size_t f = 0; f < 3 * depth; ++f) {
+    ring.runner->AdvanceAnimation(ring.prepared, 0, 0.01f);
+    const std::size_t queued = ring.api->launches_queued - ring.api->LaunchesRun();
+    EXPECT_LT(queued, depth) << "frame " << f << ": it did not wait for the frame " << depth << " back";
+    if (f >= depth) EXPECT_EQ(queued, depth - 1) << "frame " << f << ": it waited for a later frame";
+    ring.runner->LaunchSet(ring.prepared, 0);
+  }
+  ring.runner->Finish();
+  EXPECT_EQ(ring.api->LaunchesRun(), 3 * depth);
+}
+
+INSTANTIATE_TEST_SUITE_P(SlotsAndSubmissions, FusedPace,
+                         ::testing::Values(std::tuple{3, std::size_t{1}}, std::tuple{3, std::size_t{8}},
+                                           std::tuple{16, std::size_t{2}}, std::tuple{2, std::size_t{4}}),
+                         [](const ::testing::TestParamInfo<std::tuple<int, std::size_t>>& p) {
+                           return std::to_string(std::get<0>(p.param)) + "_slots_" +
+                                  std::to_string(std::get<1>(p.param)) + "_frames_a_submission";
+                         });
 
 TEST(PaletteRing, AnAnimationWhosePaletteDoesNotFillTheSetsIsRefused) {
   Ring ring;

@@ -288,6 +288,7 @@ class VulkanApi final : public DeviceApi {
   void Mark(std::unique_ptr<DeviceObject>& marker, const std::string& what) override;
   void Wait(DeviceObject& marker, const std::string& what) override;
   void Finish() override;
+  std::size_t FramesPerSubmission() const override { return c_->owns_device ? kFramesPerSubmission : 1; }
   // Every submission (and the caller's, after SkinIntoVulkan) completes
   // before its buffers and descriptor sets are destroyed: lavapipe frees
   // them under a queue thread still running the frame otherwise.

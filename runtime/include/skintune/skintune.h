@@ -740,9 +740,11 @@ class Skinner {
   // next palette buffer as SetAnimation does and blocks only as it does; the
   // next Skin() computes the palettes. With SkinnerOptions::fuse_palette it
   // takes no buffer: the launches add the seconds summed since the last
-  // SetAnimation (blocking only for the frame palette_buffers frames back),
-  // and past 16 s of them it uploads the advanced states once, as
-  // SetAnimation would. Negative seconds play backwards. kInvalidArgument for
+  // SetAnimation (blocking only for the frame palette_buffers frames back,
+  // or 16 back on a Vulkan device skintune opened, which gathers 8 frames
+  // into a submission: holding no buffer, a fused frame bounds only how far
+  // the host runs ahead), and past 16 s of them it uploads the advanced
+  // states once, as SetAnimation would. Negative seconds play backwards. kInvalidArgument for
   // seconds that are not finite; kInvalidState on a Skinner made by Create or
   // CreateBatch.
   Status AdvanceAnimation(float seconds);
