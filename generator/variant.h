@@ -151,10 +151,14 @@ constexpr bool FusesPalette(Animation a) {
 // The shape a fused form takes where nothing chose one (a Skinner's variant
 // neither forced nor tuned fused; the tuner's coordinate search starts there
 // too, tuner/strategy.h): storage local, 2048 vertices a work-group, 8 an
-// item, strided, in groups of 256. Every group pays for making its palette,
-// so a fused form wins only in large groups: 64 x 25k-b4 on an H200
-// (2026-11-30), CUDA frames of 66 us in groups of 64 one vertex an item,
-// 18.2 us in this shape (docs/ANIMATION.md "The palette in the skin launch").
+// item, strided, in groups of 256, a mat4 palette kept as 3x4 rows. Every
+// group pays for making its palette, so a fused form wins only in large
+// groups: 64 x 25k-b4 on an H200 (2026-11-30), CUDA frames of 66 us in groups
+// of 64 one vertex an item, 18.2 us in this shape; and 3x4 rows (the same
+// affine matrices) are a quarter fewer bytes for each group to make and read:
+// pipelined frames 17.0 / 18.7 / 25.0 / 22.9 us in CUDA / NVIDIA OpenCL / GL
+// compute / Vulkan against 18.1 / 19.7 / 26.9-27.8 / 24.9 with mat4 rows
+// (2026-12-01; docs/ANIMATION.md "The palette in the skin launch").
 inline constexpr int kFusedGroup = 256;
 inline constexpr int kFusedVerticesPerGroup = 2048;
 constexpr Variant InFusedShape(Variant v) {
@@ -162,6 +166,7 @@ constexpr Variant InFusedShape(Variant v) {
   v.wg_size = kFusedGroup;
   v.vertices_per_item = kFusedVerticesPerGroup / kFusedGroup;
   v.assignment = Assignment::kStrided;
+  if (v.palette == PaletteFormat::kMat4) v.palette = PaletteFormat::kMat3x4;
   return v;
 }
 // Whether its clips are baked as each node's local transform (local*,

@@ -388,7 +388,7 @@ std::unique_ptr<Skinner::Impl> CreateScene(const std::string& call, Device& devi
       chosen.variant = InFusedShape(chosen.variant);
       chosen.selection.reason += "; " + std::to_string(kFusedVerticesPerGroup / kFusedGroup) +
                                  " vertices an item, strided, in groups of " + std::to_string(kFusedGroup) +
-                                 ": each group makes its palette once";
+                                 ", palette rows 3x4: each group makes its palette once";
     }
     chosen.selection.variant = chosen.variant.Key();
     if (const std::vector<Violation> v = SkinKernelViolations(chosen.variant, state.limits, SkinShapeOf(mesh, options));

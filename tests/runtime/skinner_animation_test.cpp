@@ -469,7 +469,8 @@ TEST(SkinnerAnimatedModel, FusingThePaletteIsRefusedWhereItCannotBeDone) {
       << plain.status().message();
   Result<Device> opencl = Device::Open("", &opencl_backend);
   if (!opencl.ok()) GTEST_SKIP() << "no OpenCL device: " << opencl.status().message();
-  // Where nothing was tuned fused, the group makes its palette for many vertices (storage local, 8 an item, strided).
+  // Where nothing was tuned fused, the group makes its palette for many vertices (storage local, 8 an item,
+  // strided), as 3x4 rows where the built-in default's palette is a mat4.
   SkinnerOptions untuned;
   untuned.bake_rate = 60.0;
   untuned.fuse_palette = true;
@@ -479,6 +480,7 @@ TEST(SkinnerAnimatedModel, FusingThePaletteIsRefusedWhereItCannotBeDone) {
   EXPECT_EQ(fused.storage, PaletteStorage::kLocal);
   EXPECT_EQ(fused.wg_size * fused.vertices_per_item, 2048) << made->selection().variant;
   EXPECT_EQ(fused.assignment, Assignment::kStrided) << made->selection().variant;
+  EXPECT_EQ(fused.palette, PaletteFormat::kMat3x4) << made->selection().variant;
   EXPECT_NE(made->selection().reason.find("each group makes its palette once"), std::string::npos)
       << made->selection().reason;
   options.variant = "opencl.b4.soa.dualquat.dq";
