@@ -365,7 +365,7 @@ class DeviceApi {
   // device skintune opened: VulkanApi::OpenFrames); 1 where each frame goes
   // to the device on its own. A loop that waits for the frame N back shares
   // submissions among at most N - 1 frames, so frames that hold no palette
-  // buffer are paced at least twice this far back (Runner::Animate).
+  // buffer are paced at least twice this far back (Runner::AnimateFused).
   virtual std::size_t FramesPerSubmission() const { return 1; }
 
  protected:

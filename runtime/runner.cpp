@@ -84,10 +84,11 @@ struct Prepared::Impl {
     std::vector<AnimInstance> uploaded_states;
     std::vector<float> clip_ranges;
     std::span<std::uint8_t> staging;  // PaletteStaging's, until its UploadPalette
-    // Fused: AdvanceAnimation takes no palette slot, so these fences keep the
-    // ring's bound on frames queued: LaunchSet marks entry `paced` and moves
-    // on; AdvanceAnimation first waits for the entry the next frame marks,
-    // the frame as many frames back as there are slots.
+    // Fused: AdvanceAnimation takes no palette slot, so these fences bound the
+    // frames queued: LaunchSet marks entry `paced` and moves on;
+    // AdvanceAnimation first waits for the entry the next frame marks, the
+    // frame as many frames back as there are entries (AnimateFused: the
+    // slots, or twice the API's frames a submission where that is more).
     std::vector<Slot> pace;
     std::size_t paced = 0;
   };

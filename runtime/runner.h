@@ -297,8 +297,9 @@ class Runner {
   // copied to the device. Throws Error for a set that is not animated.
   // A morph variant's `morph_weights` (the K instances', as MorphWeightsStaging
   // takes them) go up into the slot's weights buffer, the frame's one copy.
-  // A fused set (PaletteKernel::fused) takes no slot and waits for nothing:
-  // its launches add the deltas summed since the last upload to the
+  // A fused set (PaletteKernel::fused) takes no slot and waits only for the
+  // frame its pace reaches back to (the slots, or twice the API's frames a
+  // submission where more: AnimateFused); its launches add the deltas summed since the last upload to the
   // uploaded clocks. Past kFusedRebaseSeconds from it, the states advanced
   // on the host (AdvanceAnimInstances, as the kernels advance them) go up as
   // an upload would, so that a float32 clock never drifts further.
