@@ -2,12 +2,15 @@
 // and the same kernels launched plainly for an independent profiler to time.
 //
 //   skintune_bench_kernel_time --device PATTERN --dataset KEY --variant KEY [--variant KEY...]
-//       [--launches N] [--json FILE]
+//       [--launches N] [--fresh-inputs] [--json FILE]
 //
 // Without --launches: each variant measured as `skintune tune` measures it
 // (tuner_internal::MeasureJob: verification against the float64 gold, the
 // kernel time from a flushed cache to the stop rule, the frame time, the
 // same-size copy), one line each, and with --json one JSON object per line.
+// As in a tuning run, the variants of one packing time the same input sets
+// (Runner::ShareTimedInputs); --fresh-inputs allocates each measurement's
+// own, so that a variant named twice is timed over two allocations.
 // With --launches N: each variant run once (Runner::Run, no timing), then
 // its frame launched N times back to back and waited for
 // (Runner::LaunchSet): what Nsight Compute profiles, e.g.
@@ -17,6 +20,7 @@
 //
 // docs/TUNING.md "Kernel time" says why those ncu options match skintune's
 // definition. Exit 1 when a variant fails verification or the device is not found.
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -40,7 +44,7 @@ namespace {
 using namespace skintune::internal;
 
 int Run(const std::string& pattern, const std::string& dataset, const std::vector<std::string>& keys, int launches,
-        const std::string& json_path) {
+        bool fresh_inputs, const std::string& json_path) {
   Discovered found = DiscoverDevices();
   FoundDevice* device = nullptr;
   for (FoundDevice& f : found.devices)
@@ -53,6 +57,10 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
   std::string unheld;
   const std::unique_ptr<ClockHold> clocks = ClockHold::ForDevices({device->identity}, &unheld);
   std::unique_ptr<Runner> runner = device->open();
+  // As the tuner's runners: an eighth of the device's memory, at most 1 GiB (tuner/runner_device.cpp).
+  constexpr std::size_t kShared = std::size_t{1} << 30;
+  const std::size_t memory = device->identity.global_memory_bytes;
+  if (!fresh_inputs) runner->ShareTimedInputs(memory > 0 ? std::min(kShared, memory / 8) : kShared / 4);
   tuner_internal::RunnerExecutor executor(*runner, device->identity);
   tuner_internal::DatasetCache datasets;
   std::ofstream json;
@@ -95,14 +103,16 @@ int main(int argc, char** argv) {
   std::string device, dataset = "100k-b4", json;
   std::vector<std::string> variants;
   int launches = 0;
+  bool fresh_inputs = false;
   app.add_option("--device", device, "device pattern (skintune devices)")->required();
   app.add_option("--dataset", dataset, "dataset or scene key");
   app.add_option("--variant", variants, "variant key (repeatable)")->required();
   app.add_option("--launches", launches, "launch each variant's frame N times instead (for ncu)")->check(CLI::Range(0, 100000));
+  app.add_flag("--fresh-inputs", fresh_inputs, "allocate each measurement's input sets (the tuner shares one packing's)");
   app.add_option("--json", json, "write each measurement as a JSON line");
   CLI11_PARSE(app, argc, argv);
   try {
-    return Run(device, dataset, variants, launches, json);
+    return Run(device, dataset, variants, launches, fresh_inputs, json);
   } catch (const skintune::internal::Error& e) {
     std::cerr << "skintune_bench_kernel_time: " << e.what() << "\n";
     return 1;
