@@ -256,6 +256,57 @@ TEST_F(Validated, FramesQueuedFasterThanTheDeviceRunsThemShareSubmissions) {
   }
 }
 
+// Frames that make their palettes in the skin launch (fused) hold no palette
+// slot, so AdvanceAnimation waits only for the frame twice Vulkan's frames a
+// submission back (16), not the ring's (3): 48 fused frames of 512k vertices
+// (about a second of them on a CPU device, 10 us each on a GPU) queued back to
+// back take a handful of submissions, where waiting 3 back submitted one or
+// two frames at a time (21 of 32 on lavapipe, 2026-12-01).
+TEST_F(Validated, FusedFramesQueuedFasterThanTheDeviceRunsThemShareSubmissions) {
+  constexpr int kInstances = 64, kFrames = 48;
+  const char* key = "vulkan.b4.padded.soa.float4.u16.f32.mat3x4.local.matrix.v8s.wg256.nonormals";
+  const Variant variant = ParseVariantKey(key);
+  const SkinnedAsset asset = GenerateDataset(ParseDatasetKey("8k-b4"));
+  const PackedAnimation records = BakeAnimation(asset, 30.0, BakeSpace::kPalette);
+  const PackedMesh packed = Pack(asset.mesh, variant);
+  const std::vector<KernelSource> kernels = EmitLaunchKernels(packed, kInstances);
+  std::vector<std::uint8_t> rest;
+  for (int k = 0; k < kInstances; ++k) rest.insert(rest.end(), packed.palette.begin(), packed.palette.end());
+  Prepared live = runner_->Prepare(packed, kernels, std::vector<std::vector<std::uint8_t>>{rest}, kInstances,
+                                   kPaletteSlots);
+  PaletteKernel fused;
+  fused.fused = true;
+  runner_->Animate(live, 0, records.View(), fused);
+  std::vector<AnimInstance> states(kInstances);
+  for (int k = 0; k < kInstances; ++k) {
+    states[static_cast<std::size_t>(k)].clip = 0;
+    states[static_cast<std::size_t>(k)].time = 0.01f * static_cast<float>(k);
+  }
+  runner_->WritePalette(live, 0, {reinterpret_cast<const std::uint8_t*>(states.data()), states.size() * sizeof(AnimInstance)});
+  runner_->LaunchSet(live, 0);
+  (void)runner_->ReadOutput(live, 0, Output::kPositions);  // built, uploaded, run once, idle
+  const std::uint64_t before = runner_->submissions();
+  for (int f = 0; f < kFrames; ++f) {
+    runner_->AdvanceAnimation(live, 0, 1.0f / 60.0f);
+    runner_->LaunchSet(live, 0);
+  }
+  const std::uint64_t submissions = runner_->submissions() - before;
+  EXPECT_GE(submissions, static_cast<std::uint64_t>(kFrames / 8)) << "at most 8 frames a submission";
+  EXPECT_LE(submissions, static_cast<std::uint64_t>(kFrames / 4)) << "fused frames waited for the frame 3 back";
+  // The last frame: each instance's clip advanced by the frames' seconds, from its baked records.
+  std::vector<AnimInstance> advanced = states;
+  AdvanceAnimInstances(records.View(), advanced, static_cast<float>(kFrames) / 60.0f);
+  const std::span<const std::uint8_t> positions = runner_->ReadOutput(live, 0, Output::kPositions);
+  for (int k : {0, kInstances - 1}) {
+    std::vector<glm::mat4> palette;
+    for (const glm::dmat4& m : BakedGoldPalette(records, advanced[static_cast<std::size_t>(k)])) palette.emplace_back(m);
+    const GoldResult gold = SkinGold(QuantisedMesh(asset.mesh, variant), palette, false);
+    const GoldComparison c = CompareToGold(gold.positions, UnpackInstance(packed, positions, k));
+    EXPECT_EQ(c.non_finite, 0u) << "instance " << k;
+    EXPECT_LT(c.max_relative, 1e-4) << "instance " << k << ", worst vertex " << c.worst_vertex;
+  }
+}
+
 // Animated frames (a palette kernel before each frame's skin launch) queued
 // back to back share a command buffer, where a frame's palette kernel may go
 // beside the frame before it (no barrier between them) where the ring has
