@@ -261,7 +261,7 @@ TEST_F(Validated, FramesQueuedFasterThanTheDeviceRunsThemShareSubmissions) {
 // submission back (16), not the ring's (3): 48 fused frames of 512k vertices
 // (about a second of them on a CPU device, 10 us each on a GPU) queued back to
 // back take a handful of submissions, where waiting 3 back submitted one or
-// two frames at a time (21 of 32 on lavapipe, 2026-12-01).
+// two frames at a time (31 of 48 on lavapipe, 2026-12-01).
 TEST_F(Validated, FusedFramesQueuedFasterThanTheDeviceRunsThemShareSubmissions) {
   constexpr int kInstances = 64, kFrames = 48;
   const char* key = "vulkan.b4.padded.soa.float4.u16.f32.mat3x4.local.matrix.v8s.wg256.nonormals";
@@ -292,7 +292,7 @@ TEST_F(Validated, FusedFramesQueuedFasterThanTheDeviceRunsThemShareSubmissions) 
   }
   const std::uint64_t submissions = runner_->submissions() - before;
   EXPECT_GE(submissions, static_cast<std::uint64_t>(kFrames / 8)) << "at most 8 frames a submission";
-  EXPECT_LE(submissions, static_cast<std::uint64_t>(kFrames / 4)) << "fused frames waited for the frame 3 back";
+  EXPECT_LE(submissions, static_cast<std::uint64_t>(kFrames / 2)) << "fused frames waited for the frame 3 back";
   // The last frame: each instance's clip advanced by the frames' seconds, from its baked records.
   std::vector<AnimInstance> advanced = states;
   AdvanceAnimInstances(records.View(), advanced, static_cast<float>(kFrames) / 60.0f);
