@@ -2,7 +2,7 @@
 // and the same kernels launched plainly for an independent profiler to time.
 //
 //   skintune_bench_kernel_time --device PATTERN --dataset KEY --variant KEY [--variant KEY...]
-//       [--launches N] [--fresh-inputs] [--json FILE]
+//       [--launches N] [--fresh-inputs] [--sequence STEPS] [--json FILE]
 //
 // Without --launches: each variant measured as `skintune tune` measures it
 // (tuner_internal::MeasureJob: verification against the float64 gold, the
@@ -11,6 +11,13 @@
 // As in a tuning run, the variants of one packing time the same input sets
 // (Runner::ShareTimedInputs); --fresh-inputs allocates each measurement's
 // own, so that a variant named twice is timed over two allocations.
+// With --sequence STEPS (a comma-separated list of cold, frame, copy,
+// prepare, verify): the first variant prepared once, then each step in turn,
+// to find what moves a kernel time from one measurement to the next: cold
+// prints the median of 100 kernel-time samples (after 3 untimed), frame the
+// frame time, copy prepares the same-size copy and times it, prepare
+// prepares the variant's input sets again, verify runs its verification
+// launch; each of the last three releases what it made, as a measurement does.
 // With --launches N: each variant run once (Runner::Run, no timing), then
 // its frame launched N times back to back and waited for
 // (Runner::LaunchSet): what Nsight Compute profiles, e.g.
@@ -23,6 +30,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <sstream>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -43,8 +51,50 @@ namespace {
 
 using namespace skintune::internal;
 
+// --sequence: the steps on the first variant (see the header).
+int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache& datasets, const DeviceIdentity& device,
+                const std::string& dataset, const std::string& key, const std::string& steps) {
+  const Variant variant = ParseVariantKey(key);
+  tuner_internal::DatasetCache::Entry& entry = datasets.Get(dataset);
+  std::vector<KernelSource> kernels;
+  const PackedMesh& packed = tuner_internal::PackScene(datasets, entry, variant, kernels);
+  const std::uint64_t bytes = tuner_internal::FrameBytes(packed, entry.instances());
+  const int sets = tuner_internal::InputSetsFor(device.last_level_cache_bytes, bytes, TimingOptions{}.max_input_sets);
+  const std::vector<std::vector<std::uint8_t>> palettes = tuner_internal::TimedPalettes(datasets, entry, variant, sets);
+  const auto prepare = [&] { return executor.Prepare(packed, kernels, palettes, entry.instances()); };
+  const auto cold_us = [](tuner_internal::Executor::Timed& timed) {
+    std::vector<double> ms = timed.Cold(3, 100);
+    std::sort(ms.begin(), ms.end());
+    return ms.empty() ? 0.0 : ms[ms.size() / 2] * 1e3;
+  };
+  const std::unique_ptr<tuner_internal::Executor::Timed> timed = prepare();
+  std::printf("%s on %s, %d input sets\n", key.c_str(), dataset.c_str(), sets);
+  std::stringstream list(steps);
+  for (std::string step; std::getline(list, step, ',');) {
+    if (step == "cold") {
+      std::printf("  cold     %.3f us\n", cold_us(*timed));
+    } else if (step == "frame") {
+      std::printf("  frame    %.3f us\n", timed->FrameMs(3, 200) * 1e3);
+    } else if (step == "copy") {
+      const std::unique_ptr<tuner_internal::Executor::Timed> copy = executor.Copy(variant.lang, bytes, sets);
+      std::printf("  copy     %.3f us\n", cold_us(*copy));
+    } else if (step == "prepare") {
+      (void)prepare();
+      std::printf("  prepare\n");
+    } else if (step == "verify") {
+      (void)executor.Run(packed, kernels, palettes.front(), entry.instances());
+      std::printf("  verify\n");
+    } else {
+      std::fprintf(stderr, "skintune_bench_kernel_time: --sequence: unknown step '%s' (cold, frame, copy, prepare, verify)\n",
+                   step.c_str());
+      return 2;
+    }
+  }
+  return 0;
+}
+
 int Run(const std::string& pattern, const std::string& dataset, const std::vector<std::string>& keys, int launches,
-        bool fresh_inputs, const std::string& json_path) {
+        bool fresh_inputs, const std::string& sequence, const std::string& json_path) {
   Discovered found = DiscoverDevices();
   FoundDevice* device = nullptr;
   for (FoundDevice& f : found.devices)
@@ -67,6 +117,7 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
   if (!json_path.empty()) json.open(json_path);
   int failed = 0;
   std::printf("device: %s (kernel clock: %s)\n", device->identity.Id().c_str(), runner->api().kernel_clock().c_str());
+  if (!sequence.empty()) return RunSequence(executor, datasets, device->identity, dataset, keys.front(), sequence);
   for (const std::string& key : keys) {
     const Variant variant = ParseVariantKey(key);
     if (launches > 0) {
@@ -104,15 +155,17 @@ int main(int argc, char** argv) {
   std::vector<std::string> variants;
   int launches = 0;
   bool fresh_inputs = false;
+  std::string sequence;
   app.add_option("--device", device, "device pattern (skintune devices)")->required();
   app.add_option("--dataset", dataset, "dataset or scene key");
   app.add_option("--variant", variants, "variant key (repeatable)")->required();
   app.add_option("--launches", launches, "launch each variant's frame N times instead (for ncu)")->check(CLI::Range(0, 100000));
   app.add_flag("--fresh-inputs", fresh_inputs, "allocate each measurement's input sets (the tuner shares one packing's)");
+  app.add_option("--sequence", sequence, "steps on the first variant: cold, frame, copy, prepare, verify (comma-separated)");
   app.add_option("--json", json, "write each measurement as a JSON line");
   CLI11_PARSE(app, argc, argv);
   try {
-    return Run(device, dataset, variants, launches, fresh_inputs, json);
+    return Run(device, dataset, variants, launches, fresh_inputs, sequence, json);
   } catch (const skintune::internal::Error& e) {
     std::cerr << "skintune_bench_kernel_time: " << e.what() << "\n";
     return 1;
