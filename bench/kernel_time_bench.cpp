@@ -46,6 +46,7 @@
 #include "tuner/datasets.h"
 #include "tuner/executor.h"
 #include "tuner/measure_job.h"
+#include "tuner/runner_device.h"
 
 namespace {
 
@@ -107,10 +108,7 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
   std::string unheld;
   const std::unique_ptr<ClockHold> clocks = ClockHold::ForDevices({device->identity}, &unheld);
   std::unique_ptr<Runner> runner = device->open();
-  // As the tuner's runners: an eighth of the device's memory, at most 1 GiB (tuner/runner_device.cpp).
-  constexpr std::size_t kShared = std::size_t{1} << 30;
-  const std::size_t memory = device->identity.global_memory_bytes;
-  if (!fresh_inputs) runner->ShareTimedInputs(memory > 0 ? std::min(kShared, memory / 8) : kShared / 4);
+  if (!fresh_inputs) runner->ShareTimedInputs(tuner_internal::SharedInputBytes(device->identity));  // as a tuning run's runner
   tuner_internal::RunnerExecutor executor(*runner, device->identity);
   tuner_internal::DatasetCache datasets;
   std::ofstream json;

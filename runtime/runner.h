@@ -299,8 +299,8 @@ class Runner {
   // takes them) go up into the slot's weights buffer, the frame's one copy.
   // A fused set (PaletteKernel::fused) takes no slot and waits only for the
   // frame its pace reaches back to (the slots, or twice the API's frames a
-  // submission where more: AnimateFused); its launches add the deltas summed since the last upload to the
-  // uploaded clocks. Past kFusedRebaseSeconds from it, the states advanced
+  // submission where more: AnimateFused); its launches add the deltas summed
+  // since the last upload to the uploaded clocks. Past kFusedRebaseSeconds from it, the states advanced
   // on the host (AdvanceAnimInstances, as the kernels advance them) go up as
   // an upload would, so that a float32 clock never drifts further.
   void AdvanceAnimation(Prepared& prepared, int set, float delta, std::span<const std::uint8_t> morph_weights = {});

@@ -58,13 +58,6 @@ constexpr std::string_view kCompileAheadApis[] = {"opencl", "cuda", "vulkan", "g
 // At most this many compile threads (each holds a context of the device).
 constexpr unsigned kMaxCompileThreads = 8;
 
-// Input sets kept across the measurements of one data set (Runner::ShareTimedInputs):
-// an eighth of the device's memory, at most 1 GiB (8 sets of a 6400k-vertex
-// mesh's inputs: 8 x ~100 MB); 256 MiB where the device does not say.
-std::size_t SharedInputBytes(const DeviceIdentity& d) {
-  constexpr std::size_t kMax = std::size_t{1} << 30;
-  return d.global_memory_bytes > 0 ? std::min<std::size_t>(kMax, d.global_memory_bytes / 8) : kMax / 4;
-}
 
 // CPU devices (PoCL) keep compiled kernels in a cache of their own (PoCL's
 // kernel cache), which a build from source finds; skintune's program cache
@@ -353,6 +346,11 @@ Discovery DiscoverTunedDevices(const ExecutorDecorator& decorate) {
     discovery.devices.push_back(MakeRunnerDevice(std::move(device), entry->languages, index++, decorate));
   }
   return discovery;
+}
+
+std::size_t SharedInputBytes(const DeviceIdentity& d) {
+  constexpr std::size_t kMax = std::size_t{1} << 30;
+  return d.global_memory_bytes > 0 ? std::min<std::size_t>(kMax, d.global_memory_bytes / 8) : kMax / 4;
 }
 
 }  // namespace skintune::internal::tuner_internal

@@ -744,9 +744,9 @@ class Skinner {
   // or 16 back on a Vulkan device skintune opened, which gathers 8 frames
   // into a submission: holding no buffer, a fused frame bounds only how far
   // the host runs ahead), and past 16 s of them it uploads the advanced
-  // states once, as SetAnimation would. Negative seconds play backwards. kInvalidArgument for
-  // seconds that are not finite; kInvalidState on a Skinner made by Create or
-  // CreateBatch.
+  // states once, as SetAnimation would. Negative seconds play backwards.
+  // kInvalidArgument for seconds that are not finite; kInvalidState on a
+  // Skinner made by Create or CreateBatch.
   Status AdvanceAnimation(float seconds);
   // Whether the palettes are computed on the device (CreateAnimated).
   bool animated() const;
