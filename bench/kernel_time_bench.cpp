@@ -4,10 +4,12 @@
 //   skintune_bench_kernel_time --device PATTERN --dataset KEY --variant KEY [--variant KEY...]
 //       [--launches N] [--fresh-inputs] [--sequence STEPS] [--json FILE]
 //
-// Without --launches: each variant measured as `skintune tune` measures it
-// (tuner_internal::MeasureJob: verification against the float64 gold, the
-// kernel time from a flushed cache to the stop rule, the frame time, the
-// same-size copy), one line each, and with --json one JSON object per line.
+// Without --launches: the device's copy bandwidth first, as a tuning run's
+// worker measures it before its first measurement; then each variant measured
+// as `skintune tune` measures it (tuner_internal::MeasureJob: verification
+// against the float64 gold, the kernel time from a flushed cache to the stop
+// rule, the frame time, the same-size copy), one line each, and with --json
+// one JSON object per line.
 // As in a tuning run, the variants of one packing time the same input sets
 // (Runner::ShareTimedInputs); --fresh-inputs allocates each measurement's
 // own, so that a variant named twice is timed over two allocations.
@@ -115,6 +117,16 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
   if (!json_path.empty()) json.open(json_path);
   int failed = 0;
   std::printf("device: %s (kernel clock: %s)\n", device->identity.Id().c_str(), runner->api().kernel_clock().c_str());
+  if (launches == 0) {
+    // As a tuning run's worker starts: the device's copy bandwidth first. It also
+    // warms the device as a run's measurements find it (PoCL's first kernel time
+    // at 100k-b1 read 1.9x its later ones without it on the 2-core machine, 2026-12-01).
+    const std::size_t bytes = tuner_internal::CopyBytesCapped(tuner_internal::ProbeCopyBytes(device->identity),
+                                                              device->max_allocation_bytes);
+    const std::unique_ptr<tuner_internal::Executor::Timed> copy =
+        executor.Copy(ParseVariantKey(keys.front()).lang, 2 * bytes, 1);
+    std::printf("copy bandwidth: %.0f GB/s\n", tuner_internal::ProbeCopyGBps(*copy, bytes));
+  }
   if (!sequence.empty()) return RunSequence(executor, datasets, device->identity, dataset, keys.front(), sequence);
   for (const std::string& key : keys) {
     const Variant variant = ParseVariantKey(key);

@@ -12,6 +12,7 @@
 #include "generator/emit.h"  // kGeneratorVersion
 #include "runtime/runner.h"  // TimingLog
 
+#include "tuner/executor.h"  // ProbeCopyBytes
 #include "tuner/race.h"
 #include "tuner/strategy.h"
 #include "tuner/tuned_device.h"
@@ -115,15 +116,6 @@ std::string CacheKeyOf(const std::string& device_id, const std::string& dataset,
   return probe.CacheKey();
 }
 
-// The bytes each of the probe copy's source and destination hold: together
-// four times the last-level cache, so the copy streams from memory (a larger
-// one cost a CPU device seconds of allocation and first touch).
-std::size_t CopyBytes(const DeviceIdentity& d) {
-  std::uint64_t bytes = std::max<std::uint64_t>(64ull << 20, 2 * d.last_level_cache_bytes);
-  if (d.global_memory_bytes > 0) bytes = std::min<std::uint64_t>(bytes, d.global_memory_bytes / 4);
-  return static_cast<std::size_t>(bytes);
-}
-
 // SKINTUNE_TIMING_LOG: how long one step of a device's tuning took, as
 // "<device> <step>: <ms> ms" when the span ends (nothing when the log is off).
 // With the measurements' phases it tells where a run's time goes.
@@ -193,7 +185,7 @@ class DeviceTuning {
     Advance(0, name_ + ": copy bandwidth");
     const LoggedSpan span(name_, "start and copy bandwidth");
     std::string why_not;
-    if (const std::optional<double> gbps = worker_.CopyBandwidthGBps(CopyBytes(device_), &why_not))
+    if (const std::optional<double> gbps = worker_.CopyBandwidthGBps(tuner_internal::ProbeCopyBytes(device_), &why_not))
       result_.copy_gbps = *gbps;
     else
       Advance(0, name_ + ": copy bandwidth not measured: " + why_not);
@@ -206,7 +198,7 @@ class DeviceTuning {
     const double copy_traffic = IsHostCpu(device_) ? kHostCopyTraffic : 1.0;
     RejectOverCeilingMeasuringAgain(m, *result_.copy_gbps, copy_traffic, copy_remeasures_left_, [this] {
       const LoggedSpan span(name_, "copy bandwidth measured again");
-      return worker_.CopyBandwidthGBps(CopyBytes(device_));
+      return worker_.CopyBandwidthGBps(tuner_internal::ProbeCopyBytes(device_));
     });
   }
 

@@ -257,4 +257,19 @@ std::size_t CopyBytesCapped(std::size_t bytes, std::uint64_t max_allocation_byte
   return static_cast<std::size_t>(std::max<std::uint64_t>(capped, kGranule));
 }
 
+std::size_t ProbeCopyBytes(const DeviceIdentity& d) {
+  std::uint64_t bytes = std::max<std::uint64_t>(64ull << 20, 2 * d.last_level_cache_bytes);
+  if (d.global_memory_bytes > 0) bytes = std::min<std::uint64_t>(bytes, d.global_memory_bytes / 4);
+  return static_cast<std::size_t>(bytes);
+}
+
+double ProbeCopyGBps(Executor::Timed& copy, std::size_t bytes) {
+  TimingOptions options;
+  options.warmup = 2;
+  options.stop.min_samples = 5;
+  options.stop.max_samples = 20;
+  options.stop.batch = 5;
+  return CopyGBps(bytes, {SampleKernelTime(copy, options).interval.median});
+}
+
 }  // namespace skintune::internal::tuner_internal

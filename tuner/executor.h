@@ -206,4 +206,15 @@ double CopyGBps(std::size_t bytes, const std::vector<double>& ms);
 // device's largest allocation (when known), rounded down to 4 KiB, at least 4 KiB.
 std::size_t CopyBytesCapped(std::size_t bytes, std::uint64_t max_allocation_bytes);
 
+// The device's copy bandwidth as a tuning run measures it before the
+// device's first measurement (TunedDevice::CopyBandwidthGBps). The bytes
+// each of the probe copy's source and destination hold: together four times
+// the last-level cache, so the copy streams from memory (a larger one cost a
+// CPU device seconds of allocation and first touch).
+std::size_t ProbeCopyBytes(const DeviceIdentity& d);
+// GB/s of `copy` (an Executor::Copy of 2 x `bytes` in one set, `bytes` from
+// CopyBytesCapped(ProbeCopyBytes(...))): its kernel time by the same method
+// as every variant's (the flush, then each copy alone), a short stop rule.
+double ProbeCopyGBps(Executor::Timed& copy, std::size_t bytes);
+
 }  // namespace skintune::internal::tuner_internal

@@ -177,12 +177,7 @@ class RunnerDevice final : public TunedDevice {
     const ChipLock chip;  // its buffers and its samples (tuner/host_lock.h)
     const std::unique_ptr<Executor::Timed> copy = MeasuringExecutor().Copy(languages_.front(), 2 * size, 1);
     const HostLock timed(TimedMode(IsHostCpu(device_.identity)));
-    TimingOptions options;
-    options.warmup = 2;
-    options.stop.min_samples = 5;
-    options.stop.max_samples = 20;
-    options.stop.batch = 5;
-    return CopyGBps(size, {SampleKernelTime(*copy, options).interval.median});
+    return ProbeCopyGBps(*copy, size);
   }
 
   std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) override {
