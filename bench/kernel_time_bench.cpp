@@ -14,12 +14,13 @@
 // (Runner::ShareTimedInputs); --fresh-inputs allocates each measurement's
 // own, so that a variant named twice is timed over two allocations.
 // With --sequence STEPS (a comma-separated list of cold, frame, copy,
-// prepare, verify): the first variant prepared once, then each step in turn,
-// to find what moves a kernel time from one measurement to the next: cold
-// prints the median of 100 kernel-time samples (after 3 untimed), frame the
-// frame time, copy prepares the same-size copy and times it, prepare
+// prepare, verify, probe): the first variant prepared once, then each step in
+// turn, to find what moves a kernel time from one measurement to the next:
+// cold prints the median of 100 kernel-time samples (after 3 untimed), frame
+// the frame time, copy prepares the same-size copy and times it, prepare
 // prepares the variant's input sets again, verify runs its verification
-// launch; each of the last three releases what it made, as a measurement does.
+// launch, each releasing what it made as a measurement does; probe times the
+// device's copy bandwidth as a worker does first (no other step does).
 // With --launches N: each variant run once (Runner::Run, no timing), then
 // its frame launched N times back to back and waited for
 // (Runner::LaunchSet): what Nsight Compute profiles, e.g.
@@ -32,6 +33,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <iostream>
 #include <string>
@@ -56,7 +58,8 @@ using namespace skintune::internal;
 
 // --sequence: the steps on the first variant (see the header).
 int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache& datasets, const DeviceIdentity& device,
-                const std::string& dataset, const std::string& key, const std::string& steps) {
+                const std::string& dataset, const std::string& key, const std::string& steps,
+                const std::function<void()>& probe) {
   const Variant variant = ParseVariantKey(key);
   tuner_internal::DatasetCache::Entry& entry = datasets.Get(dataset);
   std::vector<KernelSource> kernels;
@@ -84,11 +87,14 @@ int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache
     } else if (step == "prepare") {
       (void)prepare();
       std::printf("  prepare\n");
+    } else if (step == "probe") {
+      probe();
     } else if (step == "verify") {
       (void)executor.Run(packed, kernels, palettes.front(), entry.instances());
       std::printf("  verify\n");
     } else {
-      std::fprintf(stderr, "skintune_bench_kernel_time: --sequence: unknown step '%s' (cold, frame, copy, prepare, verify)\n",
+      std::fprintf(stderr,
+                   "skintune_bench_kernel_time: --sequence: unknown step '%s' (cold, frame, copy, prepare, verify, probe)\n",
                    step.c_str());
       return 2;
     }
@@ -117,17 +123,19 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
   if (!json_path.empty()) json.open(json_path);
   int failed = 0;
   std::printf("device: %s (kernel clock: %s)\n", device->identity.Id().c_str(), runner->api().kernel_clock().c_str());
-  if (launches == 0) {
-    // As a tuning run's worker starts: the device's copy bandwidth first. It also
-    // warms the device as a run's measurements find it (PoCL's first kernel time
-    // at 100k-b1 read 1.9x its later ones without it on the 2-core machine, 2026-12-01).
-    const std::size_t bytes = tuner_internal::CopyBytesCapped(tuner_internal::ProbeCopyBytes(device->identity),
-                                                              device->max_allocation_bytes);
+  // As a tuning run's worker starts: the device's copy bandwidth first. It also
+  // warms the device as a run's measurements find it (PoCL's first kernel time
+  // at 100k-b1 read 1.9x its later ones without it on the 2-core machine,
+  // 2026-12-01). --sequence leaves it to a `probe` step.
+  const auto probe = [&] {
+    const std::size_t bytes =
+        tuner_internal::CopyBytesCapped(tuner_internal::ProbeCopyBytes(device->identity), device->max_allocation_bytes);
     const std::unique_ptr<tuner_internal::Executor::Timed> copy =
         executor.Copy(ParseVariantKey(keys.front()).lang, 2 * bytes, 1);
     std::printf("copy bandwidth: %.0f GB/s\n", tuner_internal::ProbeCopyGBps(*copy, bytes));
-  }
-  if (!sequence.empty()) return RunSequence(executor, datasets, device->identity, dataset, keys.front(), sequence);
+  };
+  if (!sequence.empty()) return RunSequence(executor, datasets, device->identity, dataset, keys.front(), sequence, probe);
+  if (launches == 0) probe();
   for (const std::string& key : keys) {
     const Variant variant = ParseVariantKey(key);
     if (launches > 0) {
@@ -171,7 +179,7 @@ int main(int argc, char** argv) {
   app.add_option("--variant", variants, "variant key (repeatable)")->required();
   app.add_option("--launches", launches, "launch each variant's frame N times instead (for ncu)")->check(CLI::Range(0, 100000));
   app.add_flag("--fresh-inputs", fresh_inputs, "allocate each measurement's input sets (the tuner shares one packing's)");
-  app.add_option("--sequence", sequence, "steps on the first variant: cold, frame, copy, prepare, verify (comma-separated)");
+  app.add_option("--sequence", sequence, "steps on the first variant: cold, frame, copy, prepare, verify, probe (comma-separated)");
   app.add_option("--json", json, "write each measurement as a JSON line");
   CLI11_PARSE(app, argc, argv);
   try {
