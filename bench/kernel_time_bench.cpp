@@ -30,12 +30,11 @@
 //
 // docs/TUNING.md "Kernel time" says why those ncu options match skintune's
 // definition. Exit 1 when a variant fails verification or the device is not found.
-#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <functional>
-#include <sstream>
 #include <iostream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -68,11 +67,7 @@ int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache
   const int sets = tuner_internal::InputSetsFor(device.last_level_cache_bytes, bytes, TimingOptions{}.max_input_sets);
   const std::vector<std::vector<std::uint8_t>> palettes = tuner_internal::TimedPalettes(datasets, entry, variant, sets);
   const auto prepare = [&] { return executor.Prepare(packed, kernels, palettes, entry.instances()); };
-  const auto cold_us = [](tuner_internal::Executor::Timed& timed) {
-    std::vector<double> ms = timed.Cold(3, 100);
-    std::sort(ms.begin(), ms.end());
-    return ms.empty() ? 0.0 : ms[ms.size() / 2] * 1e3;
-  };
+  const auto cold_us = [](tuner_internal::Executor::Timed& timed) { return tuner_internal::Median(timed.Cold(3, 100)) * 1e3; };
   const std::unique_ptr<tuner_internal::Executor::Timed> timed = prepare();
   std::printf("%s on %s, %d input sets\n", key.c_str(), dataset.c_str(), sets);
   std::stringstream list(steps);
