@@ -16,11 +16,13 @@
 // With --sequence STEPS (a comma-separated list of cold, frame, copy,
 // prepare, verify, probe): the first variant prepared once, then each step in
 // turn, to find what moves a kernel time from one measurement to the next:
-// cold prints the median of 100 kernel-time samples (after 3 untimed), frame
+// cold prints the median of 100 kernel-time samples (after 3 untimed) in one
+// submission with their 10th and 90th percentiles (cold:N takes N), frame
 // the frame time, copy prepares the same-size copy and times it, prepare
 // prepares the variant's input sets again, verify runs its verification
 // launch, each releasing what it made as a measurement does; probe times the
-// device's copy bandwidth as a worker does first (no other step does).
+// device's copy bandwidth as a worker does first (no other step does). With
+// --json each cold step's samples are written as a JSON line.
 // With --launches N: each variant run once (Runner::Run, no timing), then
 // its frame launched N times back to back and waited for
 // (Runner::LaunchSet): what Nsight Compute profiles, e.g.
@@ -30,7 +32,9 @@
 //
 // docs/TUNING.md "Kernel time" says why those ncu options match skintune's
 // definition. Exit 1 when a variant fails verification or the device is not found.
+#include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <functional>
 #include <iostream>
@@ -58,7 +62,7 @@ using namespace skintune::internal;
 // --sequence: the steps on the first variant (see the header).
 int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache& datasets, const DeviceIdentity& device,
                 const std::string& dataset, const std::string& key, const std::string& steps,
-                const std::function<void()>& probe) {
+                const std::function<void()>& probe, std::ostream* json) {
   const Variant variant = ParseVariantKey(key);
   tuner_internal::DatasetCache::Entry& entry = datasets.Get(dataset);
   std::vector<KernelSource> kernels;
@@ -72,8 +76,18 @@ int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache
   std::printf("%s on %s, %d input sets\n", key.c_str(), dataset.c_str(), sets);
   std::stringstream list(steps);
   for (std::string step; std::getline(list, step, ',');) {
-    if (step == "cold") {
-      std::printf("  cold     %.3f us\n", cold_us(*timed));
+    if (step == "cold" || step.starts_with("cold:")) {
+      const int n = step == "cold" ? 100 : std::atoi(step.c_str() + 5);
+      if (n < 1 || n > 100000) {
+        std::fprintf(stderr, "skintune_bench_kernel_time: --sequence: '%s' asks for no samples (cold:N, N 1-100000)\n", step.c_str());
+        return 2;
+      }
+      std::vector<double> us = timed->Cold(3, n);
+      for (double& v : us) v *= 1e3;
+      if (json) *json << nlohmann::json{{"step", step}, {"samples_us", us}}.dump() << "\n";
+      std::sort(us.begin(), us.end());
+      const auto at = [&](double q) { return us[static_cast<std::size_t>(q * static_cast<double>(us.size() - 1))]; };
+      std::printf("  cold     %.3f us [p10 %.3f, p90 %.3f] of %d\n", tuner_internal::Median(us), at(0.1), at(0.9), n);
     } else if (step == "frame") {
       std::printf("  frame    %.3f us\n", timed->FrameMs(3, 200) * 1e3);
     } else if (step == "copy") {
@@ -89,7 +103,7 @@ int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache
       std::printf("  verify\n");
     } else {
       std::fprintf(stderr,
-                   "skintune_bench_kernel_time: --sequence: unknown step '%s' (cold, frame, copy, prepare, verify, probe)\n",
+                   "skintune_bench_kernel_time: --sequence: unknown step '%s' (cold, cold:N, frame, copy, prepare, verify, probe)\n",
                    step.c_str());
       return 2;
     }
@@ -129,7 +143,9 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
         executor.Copy(ParseVariantKey(keys.front()).lang, 2 * bytes, 1);
     std::printf("copy bandwidth: %.0f GB/s\n", tuner_internal::ProbeCopyGBps(*copy, bytes));
   };
-  if (!sequence.empty()) return RunSequence(executor, datasets, device->identity, dataset, keys.front(), sequence, probe);
+  if (!sequence.empty())
+    return RunSequence(executor, datasets, device->identity, dataset, keys.front(), sequence, probe,
+                       json.is_open() ? &json : nullptr);
   if (launches == 0) probe();
   for (const std::string& key : keys) {
     const Variant variant = ParseVariantKey(key);
@@ -174,7 +190,7 @@ int main(int argc, char** argv) {
   app.add_option("--variant", variants, "variant key (repeatable)")->required();
   app.add_option("--launches", launches, "launch each variant's frame N times instead (for ncu)")->check(CLI::Range(0, 100000));
   app.add_flag("--fresh-inputs", fresh_inputs, "allocate each measurement's input sets (the tuner shares one packing's)");
-  app.add_option("--sequence", sequence, "steps on the first variant: cold, frame, copy, prepare, verify, probe (comma-separated)");
+  app.add_option("--sequence", sequence, "steps on the first variant: cold, cold:N, frame, copy, prepare, verify, probe (comma-separated)");
   app.add_option("--json", json, "write each measurement as a JSON line");
   CLI11_PARSE(app, argc, argv);
   try {

@@ -132,11 +132,17 @@ enum class FrameUse {
 // last-level cache and writes nothing, generator/copy_kernel.h EmitFlush), so
 // the frame starts from a cache holding only clean lines of other data, the
 // state Nsight Compute's default cache control leaves; the frame's launches
-// wait for it and for each other (in order, one queue or stream). Each launch
-// is timed by the device's own clock from the end of the command before it
-// (the flush's last launch, or the frame's previous launch) to its own end:
-// its execution and the device's start of it, which every launch in a
-// dependent sequence pays, and no host time (everything is queued ahead).
+// wait for it and for each other (in order, one queue or stream). Each frame
+// (its flush and launches) is queued at once and waited for before the next
+// is queued, so it starts on an idle device, as Nsight Compute replays a
+// kernel: queued back to back, NVIDIA's devices started a kernel after the
+// flush 1 us later in every other frame (CUDA, OpenCL) or in twelve of every
+// sixteen frames a submission (Vulkan), and a median fell on either side as
+// that share moved (an H200, December 2026). Each launch is timed by the
+// device's own clock from the end of the command before it (the flush's last
+// launch, or the frame's previous launch) to its own end: its execution and
+// the device's start of it, which every launch in a dependent sequence pays,
+// and no host time (the launches are queued while the flush runs).
 // Measured on an H100 (November 2026): the kernels' own START-to-END spans
 // differ between APIs by a fixed ~1-3 us (NVIDIA's OpenCL START/END 6.2 us
 // where CUPTI's kernel record spans 2.5 us for the same 25k-vertex kernel,

@@ -71,7 +71,16 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 //    (tuner/clock_guard.h); the clock is recorded (timing.sm_clock_mhz).
 //    Version 6's GL and Vulkan batches on the H200 ran at 630-1500 MHz
 //    instead of 1980 in parts of a run. Other devices time as in 6.
-inline constexpr int kTimingVersion = 7;
+// 8: every cold frame (flush, then the frame's launches) is queued whole and
+//    waited for before the next, so it starts on an idle device, as Nsight
+//    Compute replays a kernel; CUDA's run on the Skinner's stream, with
+//    CUPTI's first launches untimed; the frame time is taken before the
+//    kernel time. Version 7's back-to-back frames started a kernel after the
+//    flush 1 us later in every other frame on an H200, and a median of a
+//    batch fell on either side as that share moved (4.2-5.0 us for one
+//    100k-vertex CUDA kernel); each CUDA batch's first sample counted the
+//    host's 0.15-2.5 ms.
+inline constexpr int kTimingVersion = 8;
 
 // The largest verification tolerance a config may set (timing.tolerance:
 // the largest relative error against the gold of the quantised mesh): float32

@@ -655,32 +655,59 @@ void CudaApi::QueueColdFrame(const FrameRun& run, std::size_t frame, cuda::Strea
   }
 }
 
-// kCold (device_api.h): every frame on one stream, in order, after the
-// flush. Each launch's time runs from the end of the command before it to
-// its own end, by CUPTI's records of the kernels (cupti.h says why); where
-// CUPTI cannot be loaded, by events between them, which count the events'
-// own processing too (kernel_clock() says which, and the report with it).
+// kCold (device_api.h): every frame on the Skinner's stream after the
+// flush, each waited for before the next is queued. Each launch's time runs
+// from the end of the command before it to its own end, by CUPTI's records
+// of the kernels (cupti.h says why); where CUPTI cannot be loaded, by events
+// between them, which count the events' own processing too (kernel_clock()
+// says which, and the report with it).
+//
+// Why the Skinner's stream: a kernel on another stream, once the Skinner's
+// frames had run on this one, started 0.25-0.3 us later after the flush for
+// the rest of the process (an H200, December 2026: 3.008 us from its CUPTI
+// start to end in every process, 1.09-1.22 us from the flush's end to its
+// start before the frames, 1.34-1.50 after); on this stream the frames move
+// nothing. Why one frame at a time: queued back to back, the gap before
+// every other frame's kernel was 1 us longer (1.1 and 2.1 us, alternating),
+// so a median of a batch fell on either side as the share of long gaps
+// passed a half (4.2-5.0 us for one 100k-vertex kernel). And CUPTI's first
+// launches after its activity is enabled take the host 0.15-2.5 ms, so the
+// first timed frame would count the host's time: the untimed frames (one at
+// least) run inside the records and are dropped.
 std::vector<std::vector<double>> CudaApi::TimeCold(const FrameRun& run) {
   if (last_upload_) {
     Check(api->cuStreamSynchronize(uploads_), "launch", "cuStreamSynchronize on the palette uploads");
     last_upload_ = nullptr;
   }
-  const cuda::Stream lane = Lane(0);
-  const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
-  for (std::size_t f = 0; f < untimed; ++f) QueueColdFrame(run, f, lane, nullptr);
-  Check(api->cuStreamSynchronize(lane), "launch", "cuStreamSynchronize before timing " + run.key);
-  const std::size_t timed = run.frames.size() - untimed;
+  const cuda::Stream lane = stream;
+  const std::size_t frames = run.frames.size();
+  const auto untimed = std::min(frames, static_cast<std::size_t>(std::max(run.untimed, 0)));
+  const std::size_t timed = frames - untimed;
   const std::size_t launches = timed ? run.frames[untimed].size() : 0;
+  const std::size_t lead = frames ? std::max<std::size_t>(untimed, 1) : 0;  // frame 0 again when none is untimed
+  const auto queue = [&](std::size_t f, std::vector<std::pair<Event, Event>>* events) {
+    QueueColdFrame(run, f, lane, events);
+    Check(api->cuStreamSynchronize(lane), "launch", "cuStreamSynchronize while timing " + run.key);
+  };
   if (cupti::Unavailable().empty()) {
     cupti::KernelActivity activity;
     activity.Start();
-    for (std::size_t f = untimed; f < run.frames.size(); ++f) QueueColdFrame(run, f, lane, nullptr);
-    Check(api->cuStreamSynchronize(lane), "launch", "cuStreamSynchronize after timing " + run.key);
-    return cupti::ColdFrameTimes(activity.Stop(), timed, run.flush.size(), launches);
+    std::size_t dropped = 0;
+    for (std::size_t f = 0; f < lead; ++f) {
+      queue(f, nullptr);
+      dropped += run.flush.size() + run.frames[f].size();
+    }
+    for (std::size_t f = untimed; f < frames; ++f) queue(f, nullptr);
+    std::vector<cupti::KernelSpan> spans = activity.Stop();
+    if (spans.size() < dropped)
+      Fail("launch", "timing " + run.key + ": CUPTI recorded " + std::to_string(spans.size()) + " kernels, fewer than the " +
+                         std::to_string(dropped) + " untimed");
+    spans.erase(spans.begin(), spans.begin() + static_cast<std::ptrdiff_t>(dropped));
+    return cupti::ColdFrameTimes(spans, timed, run.flush.size(), launches);
   }
+  for (std::size_t f = 0; f < untimed; ++f) queue(f, nullptr);
   std::vector<std::pair<Event, Event>> events;
-  for (std::size_t f = untimed; f < run.frames.size(); ++f) QueueColdFrame(run, f, lane, &events);
-  Check(api->cuStreamSynchronize(lane), "launch", "cuStreamSynchronize after timing " + run.key);
+  for (std::size_t f = untimed; f < frames; ++f) queue(f, &events);
   std::vector<std::vector<double>> ms(timed);
   for (std::size_t e = 0; e < events.size(); ++e) ms[e / std::max<std::size_t>(launches, 1)].push_back(ElapsedMs(events[e].first, events[e].second));
   return ms;

@@ -301,8 +301,9 @@ std::vector<std::vector<double>> GlApi::RunTimed(const FrameRun& run) {
 // glQueryCounter(GL_TIMESTAMP); then per launch: bound, drawn or dispatched
 // (glsl-vertex: the draw and the copies of a staged capture into place, as
 // Run's and Time's queries count a launch), a barrier, a counter. Untimed
-// frames run the same way without counters; nothing waits on the host until
-// the last frame is queued, then the counters are read. Software renderers
+// frames run the same way without counters; each frame is waited for
+// (glFinish) before the next is queued, as every API's cold frames are
+// (runtime/device_api.h), then the counters are read. Software renderers
 // (host_timed()): each launch between two glFinish calls on the host clock
 // instead (the first waits for the command before it).
 //
@@ -375,7 +376,7 @@ std::vector<std::vector<double>> GlApi::RunCold(const FrameRun& run) {
       if (stamped) glQueryCounter(cold_queries_[query++].get(), GL_TIMESTAMP);
     }
     if (f == 0) CheckGl("launch", "the first frame of timing " + run.key + " (kernel time)");
-    if (!host_clock) glFlush();  // the device starts on this frame while the next is queued
+    if (!host_clock) glFinish();  // the next frame starts on an idle device
   }
   if (vertex) EndVertexDraws(first->spec.variant);
   glUseProgram(0);

@@ -724,9 +724,11 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
 }
 
 // kCold (device_api.h): one in-order profiling queue, each frame after the
-// flush's launches; an event on the flush's last launch and on every launch
-// of a timed frame: a launch's time runs from the END of the command before
-// it to its own END.
+// flush's launches and waited for before the next is queued; an event on the
+// flush's last launch and on every launch of a timed frame: a launch's time
+// runs from the END of the command before it to its own END. (Queued back to
+// back, NVIDIA's frames alternated between two gaps after the flush, as
+// CUDA's did: runtime/backends/cuda/cuda_runner.cpp TimeCold.)
 std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
   const cl_command_queue lane = Lane(0);
   const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
@@ -748,9 +750,8 @@ std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
       Enqueue(static_cast<const ClBound&>(*launch), nullptr, f < untimed ? nullptr : &event, lane);
       if (event) events[f - untimed].emplace_back(event);
     }
-    Check(clFlush(lane), "launch", "clFlush while timing " + run.key);
+    Check(clFinish(lane), "launch", "clFinish while timing " + run.key);
   }
-  Check(clFinish(lane), "launch", "clFinish after timing " + run.key);
   std::vector<std::vector<double>> ms;
   for (const std::vector<Event>& frame : events) {
     std::vector<double>& launches = ms.emplace_back();

@@ -1030,8 +1030,10 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
 
 // The kernel time (FrameUse::kCold, device_api.h): a launch's time runs
 // from the end of the command before it (the flush, or the frame's launch
-// before) to its own end. Command buffers of at most kColdFramesPerSubmission
-// frames, submitted without waiting; per frame the flush's dispatches and a
+// before) to its own end. One command buffer a frame, submitted and waited
+// for before the next is recorded, as every API's cold frames are
+// (runtime/device_api.h: sixteen frames a submission, NVIDIA's last four of
+// every sixteen took 5.1 us where the others took 5.9); per frame the flush's dispatches and a
 // timestamp, then per launch a compute-to-compute barrier, the dispatch and a
 // timestamp; a barrier after the frame keeps the next flush off its last
 // launch, and a last one hands the outputs to the transfers and the host.
@@ -1055,9 +1057,6 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
 // what keeps it from starting beside the flush or the launch before. Ticks
 // become ms through timestampValidBits and timestampPeriod (TicksToMs).
 std::vector<std::vector<double>> VulkanApi::RunCold(const FrameRun& run) {
-  // A few frames per command buffer: the device starts on the first while
-  // later ones are recorded, and no command buffer grows with the samples.
-  constexpr std::size_t kColdFramesPerSubmission = 16;
   constexpr VkAccessFlags kShaderAccess = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
   const std::size_t frames = run.frames.size();
   const std::size_t untimed = std::min<std::size_t>(frames, static_cast<std::size_t>(std::max(run.untimed, 0)));
@@ -1071,31 +1070,29 @@ std::vector<std::vector<double>> VulkanApi::RunCold(const FrameRun& run) {
   const auto stamp = [&](VkCommandBuffer cb) {
     c_->fn.vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, pool.get(), query++);
   };
-  for (std::size_t begin = 0; begin < frames; begin += kColdFramesPerSubmission) {
+  for (std::size_t f = 0; f < frames; ++f) {
     const VkCommandBuffer cb = Begin();
-    if (begin == 0 && pool.get()) c_->fn.vkCmdResetQueryPool(cb, pool.get(), 0, stamps);
+    if (f == 0 && pool.get()) c_->fn.vkCmdResetQueryPool(cb, pool.get(), 0, stamps);
     RecordPendingUploads(cb, run);  // an animated set's instances, staged since its last frame
     BarrierBeforeFrames(cb);  // after the uploads and everything submitted before
-    for (std::size_t f = begin; f < std::min(frames, begin + kColdFramesPerSubmission); ++f) {
-      const bool timed = f >= untimed;
-      for (const std::unique_ptr<DeviceObject>& object : run.flush) {
-        const auto& bound = static_cast<const VulkanBound&>(*object);
-        RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1);
-      }
-      if (timed) stamp(cb);
-      for (const std::unique_ptr<DeviceObject>& object : run.frames[f]) {
-        const auto& bound = static_cast<const VulkanBound&>(*object);
-        serialise(cb);
-        RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1, &run);
-        if (timed) stamp(cb);
-        if (bound.plan->spec.feeds_frame)  // the palette it wrote, read as uniforms or texels too
-          Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
-                  VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);
-      }
-      serialise(cb);  // the next frame's flush starts once this frame's last launch is done
+    const bool timed = f >= untimed;
+    for (const std::unique_ptr<DeviceObject>& object : run.flush) {
+      const auto& bound = static_cast<const VulkanBound&>(*object);
+      RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1);
     }
+    if (timed) stamp(cb);
+    for (const std::unique_ptr<DeviceObject>& object : run.frames[f]) {
+      const auto& bound = static_cast<const VulkanBound&>(*object);
+      serialise(cb);
+      RecordLaunch(cb, bound, bound.set, VK_NULL_HANDLE, -1, &run);
+      if (timed) stamp(cb);
+      if (bound.plan->spec.feeds_frame)  // the palette it wrote, read as uniforms or texels too
+        Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);
+    }
+    serialise(cb);  // the next frame's flush starts once this frame's last launch is done
     BarrierAfterFrames(cb, false);
-    Submit(cb, false);
+    Submit(cb, true);
   }
   WaitAll();
   if (!pool.get()) return std::vector<std::vector<double>>(frames - untimed);
