@@ -4,6 +4,7 @@
 // verification run with the gold itself and times with numbers it is given.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <functional>
@@ -64,6 +65,7 @@ class FakeExecutor final : public Executor {
    public:
     FakeTimed(FakeExecutor& owner, double ms, double spread) : owner_(owner), ms_(ms), spread_(spread) {}
     std::vector<double> Cold(int untimed, int samples) override {
+      owner_.calls.push_back("cold");
       owner_.cold_untimed += untimed;
       std::vector<double> out;
       for (int i = 0; i < samples; ++i, ++n_) out.push_back(ms_ * (1.0 + (n_ % 2 ? spread_ : -spread_) * (n_ % 7) / 7.0));
@@ -71,6 +73,7 @@ class FakeExecutor final : public Executor {
       return out;
     }
     double FrameMs(int, int frames) override {
+      owner_.calls.push_back("frame");
       owner_.frame_frames = frames;
       return owner_.frame_ms;
     }
@@ -115,6 +118,7 @@ class FakeExecutor final : public Executor {
   std::size_t copy_bytes = 0;
   int copy_sets = 0;
   std::vector<std::string> run_texts;  // the kernels of every Run, in order
+  std::vector<std::string> calls;      // "cold" and "frame", each Timed's calls in order (the copy's too)
 
  private:
   DatasetCache& datasets_;
@@ -189,6 +193,24 @@ TEST(Measure, TimesTheSameSizeCopyBySameMethod) {
   EXPECT_DOUBLE_EQ(m.x_copy, 0.030 / 0.025);
   EXPECT_EQ(m.timing.version, kTimingVersion);
   EXPECT_EQ(ImpossibleFigures(m), "");
+}
+
+// The frame time is taken before any of the kernel time's samples, so that
+// every variant's kernel time, the first one's of a worker included, follows
+// a Skinner's frames (after them NVIDIA's OpenCL started later kernels 0.15
+// us later, an H200 in December 2026); the copy's samples come last.
+TEST(Measure, TheFrameTimeComesBeforeTheKernelTimesSamples) {
+  DatasetCache datasets;
+  FakeExecutor executor(datasets, "5000-b4");
+  const Measurement m = MeasureOn(executor, datasets, Gpu(50ull << 20), kVariant, TimingOptions{});
+  ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+  const auto first = [&](const std::string& call) {
+    return std::find(executor.calls.begin(), executor.calls.end(), call) - executor.calls.begin();
+  };
+  ASSERT_LT(first("frame"), static_cast<std::ptrdiff_t>(executor.calls.size())) << "no frame time";
+  EXPECT_LT(first("frame"), first("cold"));
+  EXPECT_GT(m.timing.frame_ms, 0.0);
+  EXPECT_GT(m.timing.repetitions, 0);
 }
 
 // A copy that cannot run leaves the kernel's own time standing, with no
