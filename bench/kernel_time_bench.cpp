@@ -23,7 +23,8 @@
 // launch, each releasing what it made as a measurement does; probe times the
 // device's copy bandwidth as a worker does first (no other step does);
 // anchored (anchored:N) takes the samples another way, to compare with cold:
-// before each, the tuner's flush run alone and waited for, then the frame
+// before each, a flush of FlushBytes (the tuner's on a GPU) run alone and
+// waited for, then the frame
 // after a 4 KiB flush that only marks where its time starts, so that the
 // launch the frame's time counts follows a tiny launch on an idle device
 // rather than the flush's end. With --json each cold or anchored step's
@@ -81,7 +82,7 @@ int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache
   const auto cold_us = [](tuner_internal::Executor::Timed& timed) { return tuner_internal::Median(timed.Cold(3, 100)) * 1e3; };
   const std::unique_ptr<tuner_internal::Executor::Timed> timed = prepare();
   std::printf("%s on %s, %d input sets\n", key.c_str(), dataset.c_str(), sets);
-  // anchored: the mesh, the tuner's flush and a 4 KiB one, prepared on first use.
+  // anchored: the mesh, a flush of FlushBytes and a 4 KiB one, prepared on first use.
   std::unique_ptr<Prepared> mesh, flush, anchor;
   const auto anchored = [&](int n) {
     if (!mesh) {

@@ -136,9 +136,11 @@ enum class FrameUse {
 // (its flush and launches) is queued at once and waited for before the next
 // is queued, so it starts on an idle device, as Nsight Compute replays a
 // kernel: queued back to back, NVIDIA's devices started a kernel after the
-// flush 1 us later in every other frame (CUDA, OpenCL) or in twelve of every
-// sixteen frames a submission (Vulkan), and a median fell on either side as
-// that share moved (an H200, December 2026). Each launch is timed by the
+// flush later in some frames than in others (CUDA 1 us later in every other
+// frame, OpenCL 0.3 us; Vulkan in twelve of every sixteen frames a
+// submission), and a median fell on either side as that share moved (an
+// H200, December 2026). CPU devices that evict (PoCL) keep their frames
+// back to back (runtime/backends/opencl/opencl_runner.cpp TimeCold). Each launch is timed by the
 // device's own clock from the end of the command before it (the flush's last
 // launch, or the frame's previous launch) to its own end: its execution and
 // the device's start of it, which every launch in a dependent sequence pays,
