@@ -52,6 +52,7 @@ def runs(reports):
     keys = sorted(set().union(*[set(r) for r in all_rows]))
     same = compatible = 0
     worst_spread = 1.0
+    within = {}  # language: [rows the same and within 3%, rows]
     for k in keys:
         ws = [r.get(k) for r in all_rows]
         if any(w is None for w in ws):
@@ -70,6 +71,10 @@ def runs(reports):
                                              ", ".join("%s %.2f us" % (n.split(".", 2)[2], t * 1e3) for n, t in zip(names, times))))
         if spread > 1.03:
             print("spread %.3f: %s %s %s" % (spread, k[0][:40], k[1], k[2]))
+        api = "%s on %s" % (k[1], k[0].split("/")[0])
+        within.setdefault(api, [0, 0])
+        within[api][0] += len(set(names)) == 1 and spread <= 1.03
+        within[api][1] += 1
     n = len(keys)
     print("rows: %d; the same winner in every run: %d (%.0f%%); differing but within each other's tie sets: %d; "
           "largest winner time ratio across runs: %.3f" % (n, same, 100.0 * same / max(n, 1), compatible, worst_spread))
@@ -80,6 +85,7 @@ def runs(reports):
             if m["status"] == "invalid" and "impossible kernel time" in m.get("detail", ""):
                 over += 1
     print("measurements rejected over the ceiling: %d" % over)
+    print("the same winner within 3%: " + ", ".join("%s %d of %d" % (a, w, n) for a, (w, n) in sorted(within.items())))
 
 
 STORAGE_LIMITS = {"global": 0, "constant": 1, "local": 2, "image": 3}  # tuner/statistics.h StorageLimits
