@@ -250,6 +250,9 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
     w.median_ms = outcome.intervals[outcome.winner].median;
     w.low_ms = outcome.intervals[outcome.winner].low;
     w.high_ms = outcome.intervals[outcome.winner].high;
+    w.fastest_ms = outcome.intervals[outcome.fastest].median;
+    w.fastest_low_ms = outcome.intervals[outcome.fastest].low;
+    w.fastest_high_ms = outcome.intervals[outcome.fastest].high;
     w.frame_ms = m.timing.frame_ms;
     for (const std::size_t i : outcome.tied) w.tie_set.push_back(entries[i].key);
     std::sort(w.tie_set.begin(), w.tie_set.end());
@@ -270,12 +273,16 @@ std::vector<Winner> ComputeWinners(const TuningReport& report) {
 
 namespace {
 
-// A winner as JudgeIntervals takes it: its interval, and what the tie-break reads.
+// A precision class as JudgeIntervals takes it (BudgetWinners): its fastest
+// candidate's interval (the winner's own where that is unknown), and what
+// the tie-break reads of its winner.
 Interval IntervalOf(const Winner& w) {
+  const bool fastest = w.fastest_ms > 0.0;
   Interval i;
-  i.median = w.median_ms;
-  i.low = w.low_ms > 0.0 ? w.low_ms : w.median_ms;
-  i.high = w.high_ms >= i.median ? w.high_ms : w.median_ms;
+  i.median = fastest ? w.fastest_ms : w.median_ms;
+  const double low = fastest ? w.fastest_low_ms : w.low_ms, high = fastest ? w.fastest_high_ms : w.high_ms;
+  i.low = low > 0.0 ? low : i.median;
+  i.high = high >= i.median ? high : i.median;
   i.samples = 1;
   return i;
 }

@@ -86,6 +86,11 @@ struct Winner {
   double tie_margin = 0.0;    // the margin it was judged at (TuningReport::TieMarginOf; 0: unknown)
   double median_ms = 0.0;     // its kernel time
   double low_ms = 0.0, high_ms = 0.0;  // its 95% interval (the race's, where it was raced)
+  // The fastest candidate of its key, as it was judged (the winner's own
+  // figures where the tie-break picked the fastest): what a precision class
+  // is judged by against the others (BudgetWinners). Not written to reports;
+  // 0: unknown, the winner's own figures stand in.
+  double fastest_ms = 0.0, fastest_low_ms = 0.0, fastest_high_ms = 0.0;
   double frame_ms = 0.0;      // its frame time (0: not measured)
   // The candidates that cannot be told from the fastest (the fastest among
   // them, the winner too), in key order; the rule that picked the winner
@@ -116,9 +121,15 @@ struct Winner {
 // with a larger budget.
 std::vector<Winner> ComputeWinners(const TuningReport& report);
 // Of `winners`, the one within budget per (device, language, influences,
-// measured vertex count, shape): the precision classes' winners judged
-// against the fastest at `tie_margin` and TieBreak among the tied (so a
-// class a hair faster by noise does not win by it): what the tuning chose at its budget.
+// measured vertex count, shape): the precision classes judged against the
+// fastest at `tie_margin`, each by its own fastest candidate, and TieBreak
+// among the tied classes' winners (so a class a hair faster by noise does
+// not win by it): what the tuning chose at its budget. A class's winner may
+// be picked among its tie set, up to the margin behind its class's fastest;
+// judged by that pick, a class would be let in at the margin twice over
+// (PoCL on the 2-core machine, 2026-12-01: a unorm8 class 1.17x behind the
+// f32 class's pick and 1.30x behind its fastest was chosen, at a 25%
+// margin, in one run of three).
 // A winner's own tie_margin is used where it has one, else `tie_margin`.
 std::vector<Winner> BudgetWinners(const std::vector<Winner>& winners, double tie_margin);
 // A precision class over the budget that is faster than the winner within it
