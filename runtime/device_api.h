@@ -140,11 +140,12 @@ enum class FrameUse {
 // frame, OpenCL 0.3 us; Vulkan in twelve of every sixteen frames a
 // submission), and a median fell on either side as that share moved (an
 // H200, December 2026). CPU devices that evict (PoCL) keep their frames
-// back to back (runtime/backends/opencl/opencl_runner.cpp TimeCold). Each launch is timed by the
-// device's own clock from the end of the command before it (the flush's last
-// launch, or the frame's previous launch) to its own end: its execution and
-// the device's start of it, which every launch in a dependent sequence pays,
-// and no host time (the launches are queued while the flush runs).
+// back to back (runtime/backends/opencl/opencl_runner.cpp TimeCold). Each
+// launch is timed by the device's own clock from the end of the command
+// before it (the flush's last launch, or the frame's previous launch) to its
+// own end: its execution and the device's start of it, which every launch in
+// a dependent sequence pays, and no host time (the launches are queued while
+// the flush runs).
 // Measured on an H100 (November 2026): the kernels' own START-to-END spans
 // differ between APIs by a fixed ~1-3 us (NVIDIA's OpenCL START/END 6.2 us
 // where CUPTI's kernel record spans 2.5 us for the same 25k-vertex kernel,

@@ -58,7 +58,6 @@ constexpr std::string_view kCompileAheadApis[] = {"opencl", "cuda", "vulkan", "g
 // At most this many compile threads (each holds a context of the device).
 constexpr unsigned kMaxCompileThreads = 8;
 
-
 // CPU devices (PoCL) keep compiled kernels in a cache of their own (PoCL's
 // kernel cache), which a build from source finds; skintune's program cache
 // is not used for them: reading a PoCL program back (CL_PROGRAM_BINARIES) for

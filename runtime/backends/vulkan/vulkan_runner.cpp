@@ -1033,13 +1033,14 @@ std::vector<std::vector<double>> VulkanApi::RunFrames(const FrameRun& run) {
 // before) to its own end. One command buffer a frame, submitted and waited
 // for before the next is recorded, as every API's cold frames are
 // (runtime/device_api.h: sixteen frames a submission, NVIDIA's last four of
-// every sixteen took 5.1 us where the others took 5.9); per frame the flush's dispatches and a
-// timestamp, then per launch a compute-to-compute barrier, the dispatch and a
-// timestamp; a barrier after the frame keeps the next flush off its last
-// launch, and a last one hands the outputs to the transfers and the host.
-// Untimed frames run the same way without timestamps. One query pool holds
-// every timed frame's 1 + launches stamps; it is reset in the first command
-// buffer and read, with a wait, after the last.
+// every sixteen took 5.1 us where the others took 5.9): the flush's
+// dispatches and a timestamp, then per launch a compute-to-compute barrier,
+// the dispatch and a timestamp, then a barrier that hands the outputs to the
+// transfers and the host (the next frame's command buffer starts with a
+// barrier after everything submitted before). Untimed frames run the same
+// way without timestamps. One query pool holds every timed frame's 1 +
+// launches stamps; it is reset in the first command buffer and read after
+// the last.
 //
 // The stamps (vkCmdWriteTimestamp): "the first synchronization scope
 // includes all commands that occur earlier in submission order. The
@@ -1090,11 +1091,9 @@ std::vector<std::vector<double>> VulkanApi::RunCold(const FrameRun& run) {
         Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
                 VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_UNIFORM_READ_BIT);
     }
-    serialise(cb);  // the next frame's flush starts once this frame's last launch is done
     BarrierAfterFrames(cb, false);
     Submit(cb, true);
   }
-  WaitAll();
   if (!pool.get()) return std::vector<std::vector<double>>(frames - untimed);
   const std::vector<std::uint64_t> ticks = QueryResults(pool.get(), stamps);
   std::vector<std::vector<double>> ms;
