@@ -13,22 +13,16 @@
 // As in a tuning run, the variants of one packing time the same input sets
 // (Runner::ShareTimedInputs); --fresh-inputs allocates each measurement's
 // own, so that a variant named twice is timed over two allocations.
-// With --sequence STEPS (a comma-separated list of cold, anchored, frame,
-// copy, prepare, verify, probe): the first variant prepared once, then each step in
+// With --sequence STEPS (a comma-separated list of cold, frame, copy,
+// prepare, verify, probe): the first variant prepared once, then each step in
 // turn, to find what moves a kernel time from one measurement to the next:
 // cold prints the median of 100 kernel-time samples (after 3 untimed) in one
 // submission with their 10th and 90th percentiles (cold:N takes N), frame
 // the frame time, copy prepares the same-size copy and times it, prepare
 // prepares the variant's input sets again, verify runs its verification
 // launch, each releasing what it made as a measurement does; probe times the
-// device's copy bandwidth as a worker does first (no other step does);
-// anchored (anchored:N) takes the samples another way, to compare with cold:
-// before each, a flush of FlushBytes (the tuner's on a GPU) run alone and
-// waited for, then the frame
-// after a 4 KiB flush that only marks where its time starts, so that the
-// launch the frame's time counts follows a tiny launch on an idle device
-// rather than the flush's end. With --json each cold or anchored step's
-// samples are written as a JSON line.
+// device's copy bandwidth as a worker does first (no other step does).
+// With --json each cold step's samples are written as a JSON line.
 // With --launches N: each variant run once (Runner::Run, no timing), then
 // its frame launched N times back to back and waited for
 // (Runner::LaunchSet): what Nsight Compute profiles, e.g.
@@ -52,7 +46,6 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include "generator/copy_kernel.h"
 #include "generator/variant.h"
 #include "base/error.h"
 #include "runtime/backend_table.h"
@@ -70,7 +63,7 @@ using namespace skintune::internal;
 // --sequence: the steps on the first variant (see the header).
 int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache& datasets, const DeviceIdentity& device,
                 const std::string& dataset, const std::string& key, const std::string& steps,
-                const std::function<void()>& probe, std::ostream* json, Runner& runner) {
+                const std::function<void()>& probe, std::ostream* json) {
   const Variant variant = ParseVariantKey(key);
   tuner_internal::DatasetCache::Entry& entry = datasets.Get(dataset);
   std::vector<KernelSource> kernels;
@@ -82,30 +75,17 @@ int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache
   const auto cold_us = [](tuner_internal::Executor::Timed& timed) { return tuner_internal::Median(timed.Cold(3, 100)) * 1e3; };
   const std::unique_ptr<tuner_internal::Executor::Timed> timed = prepare();
   std::printf("%s on %s, %d input sets\n", key.c_str(), dataset.c_str(), sets);
-  // anchored: the mesh, a flush of FlushBytes and a 4 KiB one, prepared on first use.
-  std::unique_ptr<Prepared> mesh, flush, anchor;
-  const auto anchored = [&](int n) {
-    if (!mesh) {
-      mesh = std::make_unique<Prepared>(runner.Prepare(packed, kernels, palettes, entry.instances()));
-      flush = std::make_unique<Prepared>(runner.PrepareFlush(variant.lang, FlushBytes(device.last_level_cache_bytes)));
-      anchor = std::make_unique<Prepared>(runner.PrepareFlush(variant.lang, tuner_internal::RunnerExecutor::kAnchorBytes));
-    }
-    return runner.TimeCold(*mesh, *anchor, 3, n, nullptr, [&] {
-      runner.LaunchSet(*flush, 0);
-      runner.Finish();
-    });
-  };
   std::stringstream list(steps);
   for (std::string step; std::getline(list, step, ',');) {
     const std::string kind = step.substr(0, step.find(':'));
-    if (kind == "cold" || kind == "anchored") {
+    if (kind == "cold") {
       const int n = step == kind ? 100 : std::atoi(step.c_str() + kind.size() + 1);
       if (n < 1 || n > 100000) {
         std::fprintf(stderr, "skintune_bench_kernel_time: --sequence: '%s' asks for no samples (%s:N, N 1-100000)\n",
                      step.c_str(), kind.c_str());
         return 2;
       }
-      std::vector<double> us = kind == "cold" ? timed->Cold(3, n) : anchored(n);
+      std::vector<double> us = timed->Cold(3, n);
       for (double& v : us) v *= 1e3;
       if (json) *json << nlohmann::json{{"step", step}, {"samples_us", us}}.dump() << "\n";
       std::sort(us.begin(), us.end());
@@ -126,7 +106,7 @@ int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache
       std::printf("  verify\n");
     } else {
       std::fprintf(stderr,
-                   "skintune_bench_kernel_time: --sequence: unknown step '%s' (cold, cold:N, anchored, anchored:N, frame, copy, prepare, verify, probe)\n",
+                   "skintune_bench_kernel_time: --sequence: unknown step '%s' (cold, cold:N, frame, copy, prepare, verify, probe)\n",
                    step.c_str());
       return 2;
     }
@@ -168,7 +148,7 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
   };
   if (!sequence.empty())
     return RunSequence(executor, datasets, device->identity, dataset, keys.front(), sequence, probe,
-                       json.is_open() ? &json : nullptr, *runner);
+                       json.is_open() ? &json : nullptr);
   if (launches == 0) probe();
   for (const std::string& key : keys) {
     const Variant variant = ParseVariantKey(key);
@@ -213,7 +193,7 @@ int main(int argc, char** argv) {
   app.add_option("--variant", variants, "variant key (repeatable)")->required();
   app.add_option("--launches", launches, "launch each variant's frame N times instead (for ncu)")->check(CLI::Range(0, 100000));
   app.add_flag("--fresh-inputs", fresh_inputs, "allocate each measurement's input sets (the tuner shares one packing's)");
-  app.add_option("--sequence", sequence, "steps on the first variant: cold, cold:N, anchored, anchored:N, frame, copy, prepare, verify, probe (comma-separated)");
+  app.add_option("--sequence", sequence, "steps on the first variant: cold, cold:N, frame, copy, prepare, verify, probe (comma-separated)");
   app.add_option("--json", json, "write each measurement as a JSON line");
   CLI11_PARSE(app, argc, argv);
   try {

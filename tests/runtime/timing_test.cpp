@@ -53,6 +53,21 @@ TEST(CopyKernel, EmitsOneLaunchOfSixteenByteItemsAndStridesBeyondTheGroupLimit) 
   EXPECT_NE(std::vector<std::uint8_t>(in.begin(), in.begin() + 4), std::vector<std::uint8_t>(in.begin() + 4, in.begin() + 8));
 }
 
+// Every packing's copy and every flush is compiled once per process: the
+// size is an argument, so copies of different sizes are one source (the
+// runners reuse a built program by its source hash).
+TEST(CopyKernel, CopiesOfDifferentSizesAreOneProgram) {
+  for (const Language& language : kLanguages) {
+    const Lang lang = language.lang;
+    SCOPED_TRACE(language.name);
+    const CopyKernel a = EmitCopy(lang, 3200), b = EmitCopy(lang, 5'200'000);
+    EXPECT_EQ(a.kernel.text, b.kernel.text);
+    EXPECT_EQ(a.kernel.source_hash, b.kernel.source_hash);
+    EXPECT_EQ(EmitFlush(lang, 8 << 20).kernel.source_hash, EmitFlush(lang, 100 << 20).kernel.source_hash);
+    EXPECT_NE(EmitFlush(lang, 3200).kernel.source_hash, a.kernel.source_hash);
+  }
+}
+
 TEST(CopyKernel, CopiesEveryByteOnEveryDevice) {
   const std::vector<Opened> devices = Devices();
   if (devices.empty()) GTEST_SKIP() << "no device found (no OpenCL, CUDA or GL here)";
