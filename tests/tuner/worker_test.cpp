@@ -77,6 +77,17 @@ std::string ReadAll(const fs::path& p) {
 
 // docs/INPUTS.md "Measurements: one rule for every time": a device (its timer, its driver) that reports an
 // impossible time fails that variant, never the run, and never ranks.
+// A parameterised test's scratch folder ("Name/param") is one folder in the
+// temporary directory: a folder in a folder left the outer one behind.
+class ScratchOfAParameterisedTest : public ::testing::TestWithParam<int> {};
+TEST_P(ScratchOfAParameterisedTest, IsOneFolderInTheTemporaryDirectory) {
+  const fs::path dir = Scratch();
+  EXPECT_EQ(dir.parent_path(), fs::temp_directory_path());
+  EXPECT_TRUE(fs::is_directory(dir));
+  EXPECT_NE(dir.filename().string().find("IsOneFolderInTheTemporaryDirectory_"), std::string::npos) << dir;
+}
+INSTANTIATE_TEST_SUITE_P(Params, ScratchOfAParameterisedTest, ::testing::Values(1));
+
 TEST(IsolatedDevice, AnImpossibleTimeFromTheWorkerIsLaunchFailedAndTheWorkerStays) {
   const fs::path dir = Scratch();
   std::string zero = kAnswer;
