@@ -75,8 +75,6 @@ std::string ReadAll(const fs::path& p) {
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
-// docs/INPUTS.md "Measurements: one rule for every time": a device (its timer, its driver) that reports an
-// impossible time fails that variant, never the run, and never ranks.
 // A parameterised test's scratch folder ("Name/param") is one folder in the
 // temporary directory: a folder in a folder left the outer one behind.
 class ScratchOfAParameterisedTest : public ::testing::TestWithParam<int> {};
@@ -88,6 +86,8 @@ TEST_P(ScratchOfAParameterisedTest, IsOneFolderInTheTemporaryDirectory) {
 }
 INSTANTIATE_TEST_SUITE_P(Params, ScratchOfAParameterisedTest, ::testing::Values(1));
 
+// docs/INPUTS.md "Measurements: one rule for every time": a device (its timer, its driver) that reports an
+// impossible time fails that variant, never the run, and never ranks.
 TEST(IsolatedDevice, AnImpossibleTimeFromTheWorkerIsLaunchFailedAndTheWorkerStays) {
   const fs::path dir = Scratch();
   std::string zero = kAnswer;
