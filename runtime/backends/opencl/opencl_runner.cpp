@@ -724,11 +724,11 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
 }
 
 // kCold (device_api.h): one in-order profiling queue, each frame after the
-// flush's launches and, on a GPU, waited for before the next is queued; an event on the
-// flush's last launch and on every launch of a timed frame: a launch's time
-// runs from the END of the command before it to its own END. (Queued back to
-// back, NVIDIA's frames alternated between two gaps after the flush, as
-// CUDA's did: runtime/backends/cuda/cuda_runner.cpp TimeCold.)
+// flush's launches and, on a GPU, waited for before the next is queued; an
+// event on the flush's last launch and on every launch of a timed frame: a
+// launch's time runs from the END of the command before it to its own END.
+// (Queued back to back, NVIDIA's frames alternated between two gaps after
+// the flush, as CUDA's did: runtime/backends/cuda/cuda_runner.cpp TimeCold.)
 std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
   const cl_command_queue lane = Lane(0);
   const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
