@@ -2,7 +2,7 @@
 // and the same kernels launched plainly for an independent profiler to time.
 //
 //   skintune_bench_kernel_time --device PATTERN --dataset KEY --variant KEY [--variant KEY...]
-//       [--launches N] [--fresh-inputs] [--sequence STEPS] [--json FILE]
+//       [--launches N] [--fresh-inputs] [--sequence STEPS] [--contexts K] [--json FILE]
 //
 // Without --launches: the device's copy bandwidth first, as a tuning run's
 // worker measures it before its first measurement; then each variant measured
@@ -23,6 +23,13 @@
 // launch, each releasing what it made as a measurement does; probe times the
 // device's copy bandwidth as a worker does first (no other step does).
 // With --json each cold step's samples are written as a JSON line.
+// With --contexts K: K runners of the device open together (on contexts of
+// their own where its API shares one), and in two rounds each one's launch
+// start (the tuner's probe of a context: tuner/runner_device.h) and the first
+// variant's median of 300 cold samples: how far a kernel time depends on the
+// context it is taken on. Otherwise the variants are measured on the runner
+// a tuning run's worker opens (OpenMeasuringRunner: the quickest of several
+// contexts where the API has contexts of a runner's own).
 // With --launches N: each variant run once (Runner::Run, no timing), then
 // its frame launched N times back to back and waited for
 // (Runner::LaunchSet): what Nsight Compute profiles, e.g.
@@ -114,8 +121,39 @@ int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache
   return 0;
 }
 
+// --contexts K: K runners open together (on contexts of their own where the
+// API shares one, as the tuner's choice opens them), then two rounds over
+// them: each one's launch-start probe (the tuner's, its trimmed mean) and the
+// variant's median of 300 cold samples.
+int RunContexts(const FoundDevice& device, tuner_internal::DatasetCache& datasets, const std::string& dataset,
+                const std::string& key, int contexts) {
+  const Variant variant = ParseVariantKey(key);
+  std::vector<std::unique_ptr<Runner>> runners;
+  for (int c = 0; c < contexts; ++c) runners.push_back(device.open_own ? device.open_own() : device.open());
+  tuner_internal::DatasetCache::Entry& entry = datasets.Get(dataset);
+  std::vector<KernelSource> kernels;
+  const PackedMesh& packed = tuner_internal::PackScene(datasets, entry, variant, kernels);
+  const std::uint64_t bytes = tuner_internal::FrameBytes(packed, entry.instances());
+  const int sets = tuner_internal::InputSetsFor(device.identity.last_level_cache_bytes, bytes, TimingOptions{}.max_input_sets);
+  const std::vector<std::vector<std::uint8_t>> palettes = tuner_internal::TimedPalettes(datasets, entry, variant, sets);
+  std::printf("%s on %s, %d contexts%s\n", key.c_str(), dataset.c_str(), contexts,
+              device.open_own ? " of their own" : "");
+  for (int round = 0; round < 2; ++round)
+    for (int c = 0; c < contexts; ++c) {
+      const double start_us =
+          TrimmedMean(tuner_internal::LaunchStartSamples(*runners[c], device.identity, variant.lang, nullptr), 0.1) * 1e3;
+      tuner_internal::RunnerExecutor executor(*runners[c], device.identity);
+      const std::unique_ptr<tuner_internal::Executor::Timed> timed =
+          executor.Prepare(packed, kernels, palettes, entry.instances());
+      std::printf("  round %d context %d: launch start %.3f us, kernel %.3f us\n", round, c, start_us,
+                  tuner_internal::Median(timed->Cold(3, 300)) * 1e3);
+      std::fflush(stdout);
+    }
+  return 0;
+}
+
 int Run(const std::string& pattern, const std::string& dataset, const std::vector<std::string>& keys, int launches,
-        bool fresh_inputs, const std::string& sequence, const std::string& json_path) {
+        bool fresh_inputs, const std::string& sequence, int contexts, const std::string& json_path) {
   Discovered found = DiscoverDevices();
   FoundDevice* device = nullptr;
   for (FoundDevice& f : found.devices)
@@ -127,10 +165,14 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
   // As a tuning run does: the GPU at a compute context's clocks (runtime/device_clock.h).
   std::string unheld;
   const std::unique_ptr<ClockHold> clocks = ClockHold::ForDevices({device->identity}, &unheld);
-  std::unique_ptr<Runner> runner = device->open();
+  tuner_internal::DatasetCache datasets;
+  if (contexts > 0)
+    return RunContexts(*device, datasets, dataset, keys.front(), contexts);
+  // As a tuning run's worker opens it: on the quickest of several contexts where the API makes them.
+  std::unique_ptr<Runner> runner =
+      tuner_internal::OpenMeasuringRunner(*device, ParseVariantKey(keys.front()).lang, nullptr);
   if (!fresh_inputs) runner->ShareTimedInputs(tuner_internal::SharedInputBytes(device->identity));  // as a tuning run's runner
   tuner_internal::RunnerExecutor executor(*runner, device->identity);
-  tuner_internal::DatasetCache datasets;
   std::ofstream json;
   if (!json_path.empty()) json.open(json_path);
   int failed = 0;
@@ -188,16 +230,19 @@ int main(int argc, char** argv) {
   int launches = 0;
   bool fresh_inputs = false;
   std::string sequence;
+  int contexts = 0;
   app.add_option("--device", device, "device pattern (skintune devices)")->required();
   app.add_option("--dataset", dataset, "dataset or scene key");
   app.add_option("--variant", variants, "variant key (repeatable)")->required();
   app.add_option("--launches", launches, "launch each variant's frame N times instead (for ncu)")->check(CLI::Range(0, 100000));
   app.add_flag("--fresh-inputs", fresh_inputs, "allocate each measurement's input sets (the tuner shares one packing's)");
   app.add_option("--sequence", sequence, "steps on the first variant: cold, cold:N, frame, copy, prepare, verify, probe (comma-separated)");
+  app.add_option("--contexts", contexts, "time the first variant on each of K contexts opened together, in two rounds")
+      ->check(CLI::Range(1, 64));
   app.add_option("--json", json, "write each measurement as a JSON line");
   CLI11_PARSE(app, argc, argv);
   try {
-    return Run(device, dataset, variants, launches, fresh_inputs, sequence, json);
+    return Run(device, dataset, variants, launches, fresh_inputs, sequence, contexts, json);
   } catch (const skintune::internal::Error& e) {
     std::cerr << "skintune_bench_kernel_time: " << e.what() << "\n";
     return 1;

@@ -4,12 +4,14 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <vector>
 
 #include "generator/variant.h"
 #include "runtime/backend_table.h"
 #include "runtime/device_identity.h"
+#include "runtime/program_cache.h"
 #include "tuner/executor.h"
 #include "tuner/tuned_device.h"
 
@@ -22,6 +24,36 @@ namespace skintune::internal::tuner_internal {
 // sets up only that one.
 std::unique_ptr<TunedDevice> MakeRunnerDevice(FoundDevice device, std::vector<Lang> languages, int index,
                                               ExecutorDecorator decorate = {});
+
+// The quickest of several runners on contexts of their own
+// (FoundDevice::open_own): `count` opened with `open` and kept open together,
+// each one's launch start sampled by `probe` (ms), `rounds` times each, the
+// runners taken in turn; the one of the lowest TrimmedMean (a tenth off each
+// end) kept, the first on a tie, the others closed. The device's start of a
+// launch after the command before it is the context's: on an H200 one CUDA
+// context's kernel read 4.06-4.10 us and another's 4.19-4.26, steady within
+// each (docs/TUNING.md "Kernel time"). A runner that fails to open or to be
+// probed is left out; the last Error is thrown when none is left.
+struct QuickestRunner {
+  std::unique_ptr<skintune::internal::Runner> runner;
+  std::vector<double> starts_ms;  // each runner's trimmed mean in opening order; NaN where it failed
+  std::size_t chosen = 0;         // runner's index in starts_ms
+};
+QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::unique_ptr<skintune::internal::Runner>()>& open,
+                            const std::function<std::vector<double>(skintune::internal::Runner&)>& probe);
+
+// The runner a tuning run measures `device` on (`lang` its probe's kernel
+// language, `cache` the program cache its builds use, or null): on a GPU
+// whose API makes contexts of a runner's own, the quickest of six by their
+// launch start (LaunchStartSamples); elsewhere, or where none opens, `open`'s.
+// SKINTUNE_TIMING_LOG records each context's launch start and the choice.
+std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevice& device, Lang lang,
+                                                                ProgramCache* cache);
+// The launch-start probe's samples on `runner` (ms): a 4 KiB copy's kernel
+// time, the flush and then the copy, as every kernel time is taken: the
+// device's start of a launch after the command before it, and little else.
+std::vector<double> LaunchStartSamples(skintune::internal::Runner& runner, const DeviceIdentity& device, Lang lang,
+                                       ProgramCache* cache);
 
 // Every device found (DiscoverTunedDevices), each measuring through
 // `decorate` when given.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <string>
 
 #include "base/error.h"
 
@@ -33,6 +34,16 @@ std::string NumberText(double v) {
 }
 
 }  // namespace
+
+double TrimmedMean(std::vector<double> samples, double trim) {
+  if (samples.empty()) throw Error("TrimmedMean: no samples");
+  if (!(trim >= 0.0 && trim < 0.5)) throw Error("TrimmedMean: trim " + std::to_string(trim) + " is outside [0, 0.5)");
+  std::sort(samples.begin(), samples.end());
+  const auto cut = static_cast<std::size_t>(trim * static_cast<double>(samples.size()));
+  double sum = 0.0;
+  for (std::size_t i = cut; i < samples.size() - cut; ++i) sum += samples[i];
+  return sum / static_cast<double>(samples.size() - 2 * cut);
+}
 
 Interval MedianInterval(std::vector<double> samples) {
   if (samples.empty()) throw Error("MedianInterval: no samples");

@@ -45,6 +45,13 @@ struct Interval {
 // that is not a positive finite number.
 Interval MedianInterval(std::vector<double> samples);
 
+// The mean of `samples` without the `trim` fraction (in [0, 0.5)) of them at
+// each end, rounded down (0.1 of 100: the lowest ten and the highest ten):
+// finer than their median where a timer's steps make many samples equal, as
+// CUPTI's 32 ns steps do at a few microseconds. Throws Error for no samples
+// or a trim outside [0, 0.5).
+double TrimmedMean(std::vector<double> samples, double trim);
+
 // When to stop sampling one kernel time.
 struct StopRule {
   double interval = 0.01;        // stop once the interval's half-width <= this x the median

@@ -553,6 +553,34 @@ TEST(CudaRunner, SetupFailsWithTheReasonWhereThereIsNoGpu) {
   }
 }
 
+// Runners on contexts of their own (the tuner's choice of the quickest): each
+// its own context, neither the primary one, each matching the gold, and the
+// shared runner still working after they are destroyed with their contexts.
+TEST(CudaRunner, RunnersOnContextsOfTheirOwnMatchTheGoldAndCloseThem) {
+  RUNNER_OR_SKIP(runner);
+  const Case c{"cuda.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg256.nonormals", "b4"};
+  {
+    CudaRunner first(0, CudaRunner::OwnContext{});
+    CudaRunner second(0, CudaRunner::OwnContext{});
+    EXPECT_NE(first.context(), second.context());
+    EXPECT_NE(first.context(), runner->context());
+    EXPECT_NE(second.context(), runner->context());
+    ExpectCaseMatchesGold(second, c, ParseVariantKey(c.key), LaunchTimes::kPositive);
+    ExpectCaseMatchesGold(first, c, ParseVariantKey(c.key), LaunchTimes::kPositive);
+  }
+  ExpectCaseMatchesGold(*runner, c, ParseVariantKey(c.key), LaunchTimes::kPositive);
+}
+
+TEST(CudaRunner, AContextOfItsOwnFailsWithTheReasonWhereThereIsNoGpu) {
+  if (Available().CanRun()) GTEST_SKIP() << "this machine has a CUDA device";
+  try {
+    CudaRunner runner(0, CudaRunner::OwnContext{});
+    ADD_FAILURE() << "a runner on a context of its own was made without a CUDA device";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("CUDA setup: "), std::string::npos) << e.what();
+  }
+}
+
 // ---------------------------------------------------------------- instances
 
 // K instances per launch against the gold of each instance's palette: the

@@ -51,6 +51,26 @@ TEST(MedianInterval, RejectsImpossibleSamples) {
   EXPECT_THROW(MedianInterval({1.0, std::numeric_limits<double>::quiet_NaN()}), Error);
 }
 
+// A trimmed mean sees a step that a median of timer ticks hides: two
+// contexts whose samples share a median of 64 ticks but not their mix.
+TEST(TrimmedMean, DropsEachEndAndSeesBelowATimersStep) {
+  std::vector<double> quick(45, 2.048), slow(20, 2.048);
+  quick.insert(quick.end(), 55, 2.080);
+  slow.insert(slow.end(), 80, 2.080);
+  EXPECT_DOUBLE_EQ(MedianInterval(quick).median, MedianInterval(slow).median);
+  EXPECT_LT(TrimmedMean(quick, 0.1), TrimmedMean(slow, 0.1));
+  // The tenth at each end goes: 100 and -100 are not seen.
+  std::vector<double> outliers(8, 5.0);
+  outliers.push_back(100.0);
+  outliers.push_back(-100.0);
+  EXPECT_DOUBLE_EQ(TrimmedMean(outliers, 0.1), 5.0);
+  EXPECT_DOUBLE_EQ(TrimmedMean(outliers, 0.0), 4.0);
+  EXPECT_DOUBLE_EQ(TrimmedMean({7.0}, 0.4), 7.0);
+  EXPECT_THROW(TrimmedMean({}, 0.1), Error);
+  EXPECT_THROW(TrimmedMean({1.0}, 0.5), Error);
+  EXPECT_THROW(TrimmedMean({1.0}, -0.1), Error);
+}
+
 // The stop rule: tight once the half-width is within `interval` of the
 // median; or a cap (samples, time); never before min_samples.
 TEST(StopRule, StopsWhenTightOrCapped) {

@@ -29,6 +29,7 @@
 #include "base/error.h"
 #include "model/synthetic.h"
 #include "runtime/device_clock.h"
+#include "runtime/backends/cpu/cpu_runner.h"
 #include "runtime/backends/cuda/cuda_api.h"
 #include "runtime/backends/opencl/opencl_devices.h"
 #include "runtime/backends/gl/gl_runner.h"
@@ -906,6 +907,75 @@ TEST(CudaTunedDevice, MeasuresVariantsAndInjectedFaults) {
   const double gbps = tuned->CopyBandwidthGBps(256u << 20);
   std::cout << "[ copy     ] " << tuned->identity().name << ": " << gbps << " GB/s\n";
   EXPECT_GT(gbps, 0.0);
+}
+
+// The measuring runner chosen among runners on contexts of their own
+// (tuner/runner_device.h OpenQuickest), with runners that stand for contexts
+// (the cpu device's: any Runner will do) and launch starts given per runner.
+struct Contexts {
+  std::vector<std::vector<double>> starts;  // the samples each probe of runner i returns
+  std::vector<bool> fails_to_open, fails_probe;
+  std::vector<const Runner*> opened;        // by opening order (null: failed)
+  std::vector<std::size_t> probed;          // runner indices in probing order
+  std::unique_ptr<Runner> Open() {
+    const std::size_t i = opened.size();
+    if (i < fails_to_open.size() && fails_to_open[i]) {
+      opened.push_back(nullptr);
+      throw Error("context " + std::to_string(i) + " did not open");
+    }
+    auto runner = std::make_unique<CpuRunner>(1);
+    opened.push_back(runner.get());
+    return runner;
+  }
+  std::vector<double> Probe(Runner& runner) {
+    const auto i = static_cast<std::size_t>(std::find(opened.begin(), opened.end(), &runner) - opened.begin());
+    probed.push_back(i);
+    if (i < fails_probe.size() && fails_probe[i]) throw Error("context " + std::to_string(i) + " did not time");
+    return starts.at(i);
+  }
+  tuner_internal::QuickestRunner Choose(int count, int rounds) {
+    return tuner_internal::OpenQuickest(count, rounds, [this] { return Open(); },
+                                        [this](Runner& r) { return Probe(r); });
+  }
+};
+
+TEST(QuickestContext, KeepsTheLowestLaunchStartTheFirstOnATieProbingInTurn) {
+  Contexts c;
+  c.starts = {{2.20, 2.21}, {2.05, 2.06}, {2.05, 2.06}, {2.30, 2.30}};
+  const tuner_internal::QuickestRunner q = c.Choose(4, 2);
+  EXPECT_EQ(q.chosen, 1u);
+  EXPECT_EQ(q.runner.get(), c.opened[1]);
+  ASSERT_EQ(q.starts_ms.size(), 4u);
+  EXPECT_DOUBLE_EQ(q.starts_ms[0], 2.205);
+  EXPECT_DOUBLE_EQ(q.starts_ms[3], 2.30);
+  // Every runner open together and probed in turn, round by round.
+  EXPECT_EQ(c.probed, (std::vector<std::size_t>{0, 1, 2, 3, 0, 1, 2, 3}));
+}
+
+TEST(QuickestContext, LeavesOutARunnerThatFailsToOpenOrToBeProbed) {
+  Contexts c;
+  c.starts = {{2.2}, {1.0}, {1.5}, {2.1}};
+  c.fails_to_open = {false, true};
+  c.fails_probe = {false, false, true};
+  const tuner_internal::QuickestRunner q = c.Choose(4, 2);
+  EXPECT_EQ(q.chosen, 3u);
+  EXPECT_TRUE(std::isnan(q.starts_ms[1]));
+  EXPECT_TRUE(std::isnan(q.starts_ms[2]));
+  // The one that failed its probe is not probed again.
+  EXPECT_EQ(c.probed, (std::vector<std::size_t>{0, 2, 3, 0, 3}));
+}
+
+TEST(QuickestContext, ThrowsTheLastErrorWhenNoneIsLeft) {
+  Contexts c;
+  c.fails_to_open = {true, false};
+  c.fails_probe = {false, true};
+  c.starts = {{1.0}, {1.0}};
+  try {
+    (void)c.Choose(2, 1);
+    ADD_FAILURE() << "a runner was chosen with none left";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("context 1 did not time"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

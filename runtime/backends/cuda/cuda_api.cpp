@@ -152,6 +152,9 @@ const LoadedDriver& DriverLibrary() {
     Resolve(handle, "cuDevicePrimaryCtxRelease_v2", a.cuDevicePrimaryCtxRelease, absent);
     Resolve(handle, "cuCtxSetCurrent", a.cuCtxSetCurrent, absent);
     Resolve(handle, "cuCtxSynchronize", a.cuCtxSynchronize, absent);
+    std::string no_own_contexts;  // optional: CudaRunner::OwnContext then fails to open
+    Resolve(handle, "cuCtxCreate_v2", a.cuCtxCreate, no_own_contexts);
+    Resolve(handle, "cuCtxDestroy_v2", a.cuCtxDestroy, no_own_contexts);
     Resolve(handle, "cuModuleLoadDataEx", a.cuModuleLoadDataEx, absent);
     Resolve(handle, "cuModuleUnload", a.cuModuleUnload, absent);
     Resolve(handle, "cuModuleGetFunction", a.cuModuleGetFunction, absent);

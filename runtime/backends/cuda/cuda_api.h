@@ -151,6 +151,10 @@ struct DriverApi {
   Result (*cuDevicePrimaryCtxRetain)(Context* context, Device device);
   Result (*cuDevicePrimaryCtxRelease)(Device device);                  // _v2
   Result (*cuCtxSetCurrent)(Context context);
+  // A context of a runner's own (CudaRunner::OwnContext); null where the
+  // driver lacks them, and such runners are then not offered.
+  Result (*cuCtxCreate)(Context* context, unsigned int flags, Device device);  // _v2
+  Result (*cuCtxDestroy)(Context context);                                     // _v2
   Result (*cuCtxSynchronize)();
   Result (*cuModuleLoadDataEx)(Module* module, const void* image, unsigned int option_count, int* options,
                                void** option_values);

@@ -29,6 +29,7 @@ void Discover(Discovered& out) {
       found.limits = info.limits;
       found.max_allocation_bytes = info.total_memory_bytes;  // CUDA has no maximum allocation query
       found.open = [d]() -> std::unique_ptr<Runner> { return std::make_unique<CudaRunner>(d); };
+      found.open_own = [d]() -> std::unique_ptr<Runner> { return std::make_unique<CudaRunner>(d, CudaRunner::OwnContext{}); };
       out.devices.push_back(std::move(found));
     } catch (const std::exception& e) {
       // A device the driver cannot describe is not offered.

@@ -169,8 +169,9 @@ class CudaApi final : public DeviceApi {
  public:
   const cuda::DriverApi* api = nullptr;
   cuda::Device device = 0;
-  cuda::Context context = nullptr;  // the device's primary context (retained), or the caller's
+  cuda::Context context = nullptr;  // the device's primary context (retained), its own, or the caller's
   bool primary = true;              // the context is the retained primary context
+  bool own = false;                 // the context was made for this runner (destroyed with it)
   cuda::Stream stream = nullptr;    // the caller's stream for skinning; null: the legacy default stream
   CudaDeviceInfo info;
 
@@ -190,6 +191,7 @@ class CudaApi final : public DeviceApi {
     }
     built_.clear();  // unloads the modules while their context is current
     if (primary) api->cuDevicePrimaryCtxRelease(device);
+    if (own) api->cuCtxDestroy(context);
   }
   const char* name() const override { return "CUDA"; }
   const std::string& device_name() const override { return info.name; }
@@ -761,14 +763,21 @@ namespace {
                     ") is older than every architecture " + nvrtc_library + " supports");
 }
 
-std::unique_ptr<CudaApi> OpenDevice(int device_index) {
+std::unique_ptr<CudaApi> OpenDevice(int device_index, bool own_context) {
   auto c = std::make_unique<CudaApi>();
   c->info = QueryCudaDevice(device_index);
   c->api = cuda::Driver();
   if (c->info.arch.empty()) TooOld(c->info, Probe().nvrtc_library);
   Check(c->api->cuDeviceGet(&c->device, device_index), "setup", "cuDeviceGet " + std::to_string(device_index));
   cuda::Context context = nullptr;
-  Check(c->api->cuDevicePrimaryCtxRetain(&context, c->device), "setup", "cuDevicePrimaryCtxRetain on " + c->info.name);
+  if (own_context) {
+    if (!c->api->cuCtxCreate || !c->api->cuCtxDestroy) Fail("setup", "the driver lacks cuCtxCreate_v2 or cuCtxDestroy_v2");
+    Check(c->api->cuCtxCreate(&context, 0, c->device), "setup", "cuCtxCreate on " + c->info.name);
+    c->primary = false;
+    c->own = true;
+  } else {
+    Check(c->api->cuDevicePrimaryCtxRetain(&context, c->device), "setup", "cuDevicePrimaryCtxRetain on " + c->info.name);
+  }
   c->context = context;
   Check(c->api->cuCtxSetCurrent(c->context), "setup", "cuCtxSetCurrent on " + c->info.name);
   return c;
@@ -796,7 +805,8 @@ std::unique_ptr<CudaApi> AdoptContext(void* cu_context, void* cu_stream) {
 
 }  // namespace
 
-CudaRunner::CudaRunner(int device_index) : Runner(OpenDevice(device_index)) {}
+CudaRunner::CudaRunner(int device_index) : Runner(OpenDevice(device_index, false)) {}
+CudaRunner::CudaRunner(int device_index, OwnContext) : Runner(OpenDevice(device_index, true)) {}
 CudaRunner::CudaRunner(void* cu_context, void* cu_stream) : Runner(AdoptContext(cu_context, cu_stream)) {}
 
 const CudaDeviceInfo& CudaRunner::info() const { return static_cast<const CudaApi&>(api()).info; }

@@ -64,6 +64,14 @@ class CudaRunner final : public Runner {
   // primary context. Throws Error("CUDA setup: ...") when there is no NVRTC,
   // no driver, or no such device.
   explicit CudaRunner(int device_index = 0);
+  // Device `device_index` through a context made for this runner alone
+  // (cuCtxCreate), destroyed with it: the device's start of a launch after
+  // the command before it differs by up to 0.16 us from one context to the
+  // next and not within one (docs/TUNING.md "Kernel time"), so the tuner
+  // opens several and times on the quickest. Throws Error("CUDA setup: ...")
+  // as above, or where the driver makes no such context.
+  struct OwnContext {};
+  CudaRunner(int device_index, OwnContext);
   // A context and stream the caller made (CUcontext, CUstream; a null stream
   // is the legacy default stream), neither retained: they must outlive the
   // runner. Its skinning launches and copies go to that stream. Throws
