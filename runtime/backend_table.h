@@ -40,10 +40,11 @@ struct FoundDevice {
   std::uint64_t max_allocation_bytes = 0;  // the largest buffer (0: unknown): caps the copy kernel
   // A runner on the device (its context, queue or stream); throws Error("<API> setup: ...").
   std::function<std::unique_ptr<Runner>()> open;
-  // A runner on a context made for it alone, where `open`'s share one
-  // (CUDA's primary context); empty where every `open` makes its own. The
-  // tuner opens several and times on the quickest (docs/TUNING.md "Kernel
-  // time": the device's start of a launch is the context's).
+  // A runner on a context made for it alone (CUDA: cuCtxCreate, where
+  // `open` shares the primary context; OpenCL on a GPU: `open`, which makes a
+  // cl_context per runner); empty where kernel times are not the context's.
+  // The tuner opens several and times on the quickest (docs/TUNING.md
+  // "Kernel time": the device's start of a launch is the context's).
   std::function<std::unique_ptr<Runner>()> open_own;
 };
 

@@ -31,6 +31,10 @@ void Discover(Discovered& out) {
     found.open = [platform = d.platform_index, device = d.device_index]() -> std::unique_ptr<Runner> {
       return std::make_unique<OpenClRunner>(platform, device);
     };
+    // Each runner has a cl_context of its own, and NVIDIA's differ as CUDA's
+    // do (docs/TUNING.md "Kernel time"): a GPU's kernels are timed on the
+    // quickest of several (a CPU device's never are: tuner/runner_device.h).
+    if (d.type.find("gpu") != std::string::npos) found.open_own = found.open;
     out.devices.push_back(std::move(found));
   }
 }
