@@ -80,13 +80,14 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 //    batch fell on either side as that share moved (4.2-5.0 us for one
 //    100k-vertex CUDA kernel); each CUDA batch's first sample counted the
 //    host's 0.15-2.5 ms.
-// 9: CUDA measures on the quickest of six contexts of its own, by their
-//    launch start (tuner/runner_device.h OpenMeasuringRunner), where 8 used
-//    the primary context: the device's start of a launch after the flush is
-//    the context's, and one 100k-vertex kernel read 4.06-4.10 us on some
+// 9: CUDA and OpenCL on a GPU measure on the quickest of six contexts of
+//    their own, by their launch start (tuner/runner_device.h
+//    OpenMeasuringRunner), where 8 used the one a runner opened (CUDA's
+//    primary context): the device's start of a launch after the flush is the
+//    context's, and one 100k-vertex CUDA kernel read 4.06-4.10 us on some
 //    contexts and 4.19-4.26 on others, steady within each (an H200,
-//    2026-12-01), so a run's CUDA rows moved together by that step. Other
-//    devices time as in 8.
+//    2026-12-01), so a run's CUDA rows moved together by that step; NVIDIA's
+//    OpenCL contexts differed as much. Other devices time as in 8.
 inline constexpr int kTimingVersion = 9;
 
 // The largest verification tolerance a config may set (timing.tolerance:
