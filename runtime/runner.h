@@ -159,7 +159,7 @@ class Runner {
   // device busy), for another runner of the same device to take over
   // (WarmAs): the clock is the chip's, not a context's, so a runner opened
   // beside a warm one needs no 200 ms warm-up of its own (the tuner probes
-  // six CUDA contexts in turn: tuner/runner_device.h OpenMeasuringRunner).
+  // six contexts of a GPU in turn: tuner/runner_device.h OpenMeasuringRunner).
   struct Warmth {
     std::optional<double> probe_ms;
     std::optional<std::chrono::steady_clock::time_point> busy_until;

@@ -61,10 +61,12 @@ constexpr std::string_view kCompileAheadApis[] = {"opencl", "cuda", "vulkan", "g
 constexpr unsigned kMaxCompileThreads = 8;
 
 // The contexts a GPU's measuring runner is chosen from (OpenQuickest), and
-// how each one's launch start is probed. On an H200 (2026-12-01) a context's
-// 4 KiB copy after the flush read 2.05-2.08 us or 2.18-2.21, and the 100k-b4
-// kernel 4.06-4.13 or 4.19-4.26 us on the same contexts; about half the
-// contexts were of the quicker kind, so six leave all slow one time in 64.
+// how each one's launch start is probed. On an H200 (2026-12-01) a CUDA
+// context's 4 KiB copy after the flush read 2.05-2.08 us or 2.18-2.21, and
+// the 100k-b4 kernel 4.06-4.13 or 4.19-4.26 us on the same contexts. About
+// half the contexts were of the quicker kind there, so six would leave all
+// slow one time in 64; on another H200 one worker's six all read 2.26-2.37:
+// the share differs from machine to machine.
 constexpr int kContextsToChoose = 6;
 constexpr std::size_t kLaunchStartProbeBytes = 4096;
 constexpr int kLaunchStartProbeRounds = 2;
@@ -186,8 +188,9 @@ class RunnerDevice final : public TunedDevice {
     // allocation and first touch on a CPU device) are made before a CPU
     // device takes the host's cores for the samples alone (tuner/host_lock.h),
     // so the GPU workers beside it wait only for the samples.
+    Executor& executor = MeasuringExecutor();  // before the chip's lock: a context's choice takes it
     const ChipLock chip;  // its buffers and its samples (tuner/host_lock.h)
-    const std::unique_ptr<Executor::Timed> copy = MeasuringExecutor().Copy(languages_.front(), 2 * size, 1);
+    const std::unique_ptr<Executor::Timed> copy = executor.Copy(languages_.front(), 2 * size, 1);
     const HostLock timed(TimedMode(IsHostCpu(device_.identity)));
     return ProbeCopyGBps(*copy, size);
   }
@@ -221,9 +224,13 @@ class RunnerDevice final : public TunedDevice {
       }
     };
     try {
+      // Opens runner_, the measuring runner: under the host lock (host
+      // work), but a context's choice first, which times on the chip, and
+      // the chip's lock is never taken after the host's (tuner/host_lock.h).
+      if (ChoosesContext()) MeasuringExecutor();
       {
         const HostLock held(host_work);
-        MeasuringExecutor();  // opens runner_, the measuring runner
+        MeasuringExecutor();
       }
       if (runner_->ConcurrentBuilds()) {
         BuildOnShortLivedThreads(kernels.size(), build);
@@ -237,8 +244,15 @@ class RunnerDevice final : public TunedDevice {
   }
 
  private:
+  // Whether opening the measuring runner chooses among contexts
+  // (OpenMeasuringRunner), timing each on the chip under its own ChipLock.
+  bool ChoosesContext() const { return device_.open_own && !IsHostCpu(device_.identity); }
+
   // The executor the jobs run on (opening runner_ on first use): the
-  // RunnerExecutor over it, wrapped in decorate_ when given.
+  // RunnerExecutor over it, wrapped in decorate_ when given. The first call
+  // holds no lock where ChoosesContext(): the choice takes the chip's lock,
+  // which must not nest in a caller's (one flock per process: the inner
+  // release would end the outer hold) nor follow the host's.
   Executor& MeasuringExecutor() {
     if (!runner_) {
       runner_ = OpenMeasuringRunner(device_, languages_.front(), &cache_);

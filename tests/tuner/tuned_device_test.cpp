@@ -978,5 +978,35 @@ TEST(QuickestContext, ThrowsTheLastErrorWhenNoneIsLeft) {
   }
 }
 
+// OpenMeasuringRunner's wiring on this machine's first OpenCL device (PoCL
+// in CI), seen as a GPU that offers contexts of their own: six opened and
+// probed, one kept; as the host's CPU: opened once, no choice; and where no
+// context of its own opens, the shared one.
+TEST(QuickestContext, AGpuChoosesAmongSixContextsAndTheHostsCpuOpensOne) {
+  static const Discovered found = DiscoverDevices();
+  const FoundDevice* opencl = nullptr;
+  for (const FoundDevice& f : found.devices)
+    if (!opencl && f.identity.backend == "opencl") opencl = &f;
+  if (!opencl) GTEST_SKIP() << SkippedLines("opencl");
+  int opened = 0, opened_own = 0;
+  FoundDevice device = *opencl;
+  device.open = [&, open = opencl->open] { ++opened; return open(); };
+  device.open_own = [&, open = opencl->open] { ++opened_own; return open(); };
+  device.identity.type = "gpu";
+  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr), nullptr);
+  EXPECT_EQ(opened_own, 6);
+  EXPECT_EQ(opened, 0);
+  device.identity.type = "cpu";
+  opened = opened_own = 0;
+  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr), nullptr);
+  EXPECT_EQ(opened_own, 0);
+  EXPECT_EQ(opened, 1);
+  device.identity.type = "gpu";
+  device.open_own = []() -> std::unique_ptr<Runner> { throw Error("no context of its own here"); };
+  opened = 0;
+  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr), nullptr);
+  EXPECT_EQ(opened, 1);
+}
+
 }  // namespace
 }  // namespace skintune::internal
