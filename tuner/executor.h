@@ -100,6 +100,9 @@ class Executor {
   // How the device last ran `key`'s frames where it chooses that itself
   // (DeviceApi::schedule_of: the cpu device's threads and chunk); "" elsewhere.
   virtual std::string ScheduleOf(const std::string& /*key*/) const { return ""; }
+  // How the runner's context was chosen where the tuner chose it among
+  // several (tuner/runner_device.h OpenMeasuringRunner); "" elsewhere.
+  virtual std::string ContextChoice() const { return ""; }
   // The bytes the flush before each sample reads (generator/copy_kernel.h
   // FlushBytes); 0 where the device evicts each frame's own buffers instead.
   virtual std::size_t FlushReadBytes() const = 0;
@@ -166,6 +169,8 @@ class RunnerExecutor final : public Executor {
   std::unique_ptr<Timed> Copy(Lang lang, std::size_t bytes, int input_sets) override;
   std::string KernelClock() const override { return runner_.api().kernel_clock(); }
   std::string ScheduleOf(const std::string& key) const override { return runner_.api().schedule_of(key); }
+  std::string ContextChoice() const override { return context_choice_; }
+  void SetContextChoice(std::string choice) { context_choice_ = std::move(choice); }
   std::size_t FlushReadBytes() const override { return flush_bytes_; }
   bool EvictsOwnBuffers() const override { return runner_.api().evicts_own_buffers(); }
   // The flush in `lang`'s API (prepared on first use): the anchor launch
@@ -178,6 +183,7 @@ class RunnerExecutor final : public Executor {
 
  private:
   Runner& runner_;
+  std::string context_choice_;  // ContextChoice
   std::size_t flush_bytes_;
   std::unique_ptr<HostFlush> host_flush_;
   std::map<Lang, Prepared> flushes_;

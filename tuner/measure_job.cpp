@@ -459,6 +459,7 @@ void RecordKernelTime(Measurement& m, const KernelTime& t, const Executor& execu
   m.timing.flush_bytes = static_cast<double>(executor.EvictsOwnBuffers() ? bytes_per_set : executor.FlushReadBytes());
   m.timing.sm_clock_mhz = t.clock_mhz;
   m.timing.schedule = executor.ScheduleOf(m.variant.Key());
+  m.timing.context = executor.ContextChoice();
   m.gbps = m.timing.median_ms > 0.0 ? m.bytes_per_frame / m.timing.median_ms / 1e6 : 0.0;
 }
 

@@ -233,6 +233,7 @@ void to_json(nlohmann::json& out, const Measurement& m) {
                    {"flush_bytes", Number(m.timing.flush_bytes)},
                    {"sm_clock_mhz", Number(m.timing.sm_clock_mhz)},
                    {"schedule", m.timing.schedule},
+                   {"context", m.timing.context},
                    {"warmup", m.timing.warmup},
                    {"burst_frames", m.timing.burst_frames},
                    {"input_sets", m.timing.input_sets},
@@ -297,6 +298,7 @@ void from_json(const nlohmann::json& in, Measurement& m) {
     // Timing version 7's clock; absent in older records.
     if (timing->contains("sm_clock_mhz")) m.timing.sm_clock_mhz = ReadNumber(*timing, "sm_clock_mhz", t);
     if (timing->contains("schedule")) m.timing.schedule = ReadString(*timing, "schedule", false, t);
+    if (timing->contains("context")) m.timing.context = ReadString(*timing, "context", false, t);
     if (timing->contains("clock")) m.timing.clock = ReadString(*timing, "clock", false, t);
     if (const nlohmann::json* tight = Field(*timing, "tight", false, t)) {
       if (!tight->is_boolean()) throw Error(t + ": 'tight' must be true or false");

@@ -116,6 +116,7 @@ struct Timing {
   double flush_bytes = 0;  // what the flush before each sample read, or the frame's own bytes where the device evicts them (0: none)
   double sm_clock_mhz = 0; // the lowest SM clock read around the samples kept (tuner/clock_guard.h; 0: not read)
   std::string schedule;    // how the device ran the samples where it chooses that itself (the cpu device's threads and chunk; "": elsewhere)
+  std::string context;     // how the runner's context was chosen among several (timing version 9; "": the one it opened)
   // The frame time (docs/TUNING.md "Frame time"): host ms per frame of
   // `burst_frames` frames issued back to back as a Skinner issues them (0: not measured).
   double frame_ms = 0.0;

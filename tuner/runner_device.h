@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "generator/variant.h"
@@ -47,8 +48,10 @@ QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::uniq
 // whose API makes contexts of a runner's own, the quickest of six by their
 // launch start (LaunchStartSamples); elsewhere, or where none opens, `open`'s.
 // SKINTUNE_TIMING_LOG records each context's launch start and the choice.
+// `choice`, when given, says how the context was chosen ("" where it was not):
+// each measurement records it (timing.context).
 std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevice& device, Lang lang,
-                                                                ProgramCache* cache);
+                                                                ProgramCache* cache, std::string* choice = nullptr);
 // The launch-start probe's samples on `runner` (ms): a 4 KiB copy's kernel
 // time, the flush and then the copy, as every kernel time is taken: the
 // device's start of a launch after the command before it, and little else.

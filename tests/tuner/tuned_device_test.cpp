@@ -993,14 +993,20 @@ TEST(QuickestContext, AGpuChoosesAmongSixContextsAndTheHostsCpuOpensOne) {
   device.open = [&, open = opencl->open] { ++opened; return open(); };
   device.open_own = [&, open = opencl->open] { ++opened_own; return open(); };
   device.identity.type = "gpu";
-  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr), nullptr);
+  std::string choice;
+  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr, &choice), nullptr);
   EXPECT_EQ(opened_own, 6);
   EXPECT_EQ(opened, 0);
+  // What every measurement then records (timing.context).
+  EXPECT_EQ(choice.rfind("the quickest of 6 contexts by launch start (a 4 KiB copy after the flush): ", 0), 0u)
+      << choice;
+  EXPECT_NE(choice.find("; the others "), std::string::npos) << choice;
   device.identity.type = "cpu";
   opened = opened_own = 0;
-  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr), nullptr);
+  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr, &choice), nullptr);
   EXPECT_EQ(opened_own, 0);
   EXPECT_EQ(opened, 1);
+  EXPECT_EQ(choice, "");
   device.identity.type = "gpu";
   device.open_own = []() -> std::unique_ptr<Runner> { throw Error("no context of its own here"); };
   opened = 0;
