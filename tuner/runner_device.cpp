@@ -229,7 +229,7 @@ class RunnerDevice final : public TunedDevice {
       // Opens runner_, the measuring runner: under the host lock (host
       // work), but a context's choice first, which times on the chip, and
       // the chip's lock is never taken after the host's (tuner/host_lock.h).
-      if (ChoosesContext()) MeasuringExecutor();
+      if (ChoosesContext(device_)) MeasuringExecutor();
       {
         const HostLock held(host_work);
         MeasuringExecutor();
@@ -246,13 +246,9 @@ class RunnerDevice final : public TunedDevice {
   }
 
  private:
-  // Whether opening the measuring runner chooses among contexts
-  // (OpenMeasuringRunner), timing each on the chip under its own ChipLock.
-  bool ChoosesContext() const { return device_.open_own && !IsHostCpu(device_.identity); }
-
   // The executor the jobs run on (opening runner_ on first use): the
   // RunnerExecutor over it, wrapped in decorate_ when given. The first call
-  // holds no lock where ChoosesContext(): the choice takes the chip's lock,
+  // holds no lock where ChoosesContext: the choice takes the chip's lock,
   // which must not nest in a caller's (one flock per process: the inner
   // release would end the outer hold) nor follow the host's.
   Executor& MeasuringExecutor() {
@@ -389,6 +385,8 @@ std::string ContextChoiceText(const QuickestRunner& quickest) {
 
 }  // namespace
 
+bool ChoosesContext(const FoundDevice& device) { return device.open_own && !IsHostCpu(device.identity); }
+
 std::vector<double> LaunchStartSamples(skintune::internal::Runner& runner, const DeviceIdentity& device, Lang lang,
                                        ProgramCache* cache) {
   if (cache && cache->enabled()) runner.UseProgramCache(cache, device.Id());
@@ -402,7 +400,7 @@ std::vector<double> LaunchStartSamples(skintune::internal::Runner& runner, const
 std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevice& device, Lang lang,
                                                                 ProgramCache* cache, std::string* choice) {
   if (choice) choice->clear();
-  if (!device.open_own || IsHostCpu(device.identity)) return device.open();
+  if (!ChoosesContext(device)) return device.open();
   // Each probed runner takes over the warmth of the one probed before (the
   // device's clock, warmed once).
   std::optional<skintune::internal::Runner::Warmth> warmth;

@@ -49,7 +49,9 @@ QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::uniq
 // launch start (LaunchStartSamples); elsewhere, or where none opens, `open`'s.
 // SKINTUNE_TIMING_LOG records each context's launch start and the choice.
 // `choice`, when given, says how the context was chosen ("" where it was not):
-// each measurement records it (timing.context).
+// each measurement records it (timing.context). ChoosesContext: whether it
+// chooses (the choice takes the chip's lock: open it before taking any).
+bool ChoosesContext(const FoundDevice& device);
 std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevice& device, Lang lang,
                                                                 ProgramCache* cache, std::string* choice = nullptr);
 // The launch-start probe's samples on `runner` (ms): a 4 KiB copy's kernel
