@@ -184,6 +184,7 @@ class FaultyExecutor final : public Executor {
     return inner_->Copy(lang, bytes, input_sets);
   }
   std::string KernelClock() const override { return inner_->KernelClock(); }
+  std::string ScheduleOf(const std::string& key) const override { return inner_->ScheduleOf(key); }
   std::string ContextChoice() const override { return inner_->ContextChoice(); }
   std::size_t FlushReadBytes() const override { return inner_->FlushReadBytes(); }
   bool EvictsOwnBuffers() const override { return inner_->EvictsOwnBuffers(); }
