@@ -138,10 +138,13 @@ int RunContexts(const FoundDevice& device, tuner_internal::DatasetCache& dataset
   const std::vector<std::vector<std::uint8_t>> palettes = tuner_internal::TimedPalettes(datasets, entry, variant, sets);
   std::printf("%s on %s, %d contexts%s\n", key.c_str(), dataset.c_str(), contexts,
               device.open_own ? " of their own" : "");
+  std::vector<std::unique_ptr<tuner_internal::LaunchStartProbe>> probes;
+  for (const std::unique_ptr<Runner>& runner : runners)
+    probes.push_back(
+        std::make_unique<tuner_internal::LaunchStartProbe>(*runner, device.identity, variant.lang, nullptr));
   for (int round = 0; round < 2; ++round)
     for (int c = 0; c < contexts; ++c) {
-      const double start_us =
-          TrimmedMean(tuner_internal::LaunchStartSamples(*runners[c], device.identity, variant.lang, nullptr), 0.1) * 1e3;
+      const double start_us = TrimmedMean(probes[c]->Samples(), 0.1) * 1e3;
       tuner_internal::RunnerExecutor executor(*runners[c], device.identity);
       const std::unique_ptr<tuner_internal::Executor::Timed> timed =
           executor.Prepare(packed, kernels, palettes, entry.instances());

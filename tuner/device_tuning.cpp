@@ -60,6 +60,20 @@ void TuningLedger::Advance(DeviceResult& device, std::size_t device_done, const 
   if (!what.empty() && progress_) progress_(done_, total_, what);
 }
 
+void HeadStarts::Leave(std::size_t d, std::unique_ptr<IsolatedDevice> worker, const std::function<bool()>& overtaken) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (!overtaken()) workers_[d] = std::move(worker);
+}
+
+std::unique_ptr<IsolatedDevice> HeadStarts::Take(std::size_t d) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  const auto found = workers_.find(d);
+  if (found == workers_.end()) return nullptr;
+  std::unique_ptr<IsolatedDevice> worker = std::move(found->second);
+  workers_.erase(found);
+  return worker;
+}
+
 CompileHelpers::CompileHelpers(const WorkerSetup& workers, const DeviceIdentity& device)
     : workers_(workers), device_(device) {}
 
@@ -77,7 +91,8 @@ void CompileHelpers::CompileAhead(const std::vector<Variant>& variants, const Tu
   std::vector<std::vector<Variant>> shares(count);
   for (std::size_t i = 0; i < variants.size(); ++i) shares[i % count].push_back(variants[i]);
   threads_->ParallelFor(count, 1, [&](std::size_t begin, std::size_t end) {
-    for (std::size_t h = begin; h < end; ++h) (void)helpers_[h]->CompileAhead(shares[h], dataset);
+    for (std::size_t h = begin; h < end; ++h)
+      (void)helpers_[h]->CompileAhead(shares[h], dataset, CompileFor::kTheCache);
   });
 }
 
@@ -149,14 +164,14 @@ class DeviceTuning {
         config_(config),
         ledger_(ledger),
         result_(result),
-        worker_(workers.executable, device_, workers.variant_timeout_s),
+        worker_(StartedAheadOr(workers, d)),
         helpers_(workers, device_),
         id_(device_.Id()),
         name_(device_.backend + " " + device_.name) {
     // This device's timing: its tie margin and stop rule (a CPU's are wider: TimingOptions::ForDevice).
     timing_ = config.timing.ForDevice(device_);
-    if (!workers.host_lock.empty()) worker_.UseHostLock(workers.host_lock);
-    if (!workers.chip_lock.empty()) worker_.UseChipLock(workers.chip_lock);
+    if (!workers.host_lock.empty()) worker_->UseHostLock(workers.host_lock);
+    if (!workers.chip_lock.empty()) worker_->UseChipLock(workers.chip_lock);
   }
 
   void Run() {
@@ -185,7 +200,8 @@ class DeviceTuning {
     Advance(0, name_ + ": copy bandwidth");
     const LoggedSpan span(name_, "start and copy bandwidth");
     std::string why_not;
-    if (const std::optional<double> gbps = worker_.CopyBandwidthGBps(tuner_internal::ProbeCopyBytes(device_), &why_not))
+    const std::size_t bytes = tuner_internal::ProbeCopyBytes(device_);
+    if (const std::optional<double> gbps = worker_->CopyBandwidthGBps(bytes, &why_not))
       result_.copy_gbps = *gbps;
     else
       Advance(0, name_ + ": copy bandwidth not measured: " + why_not);
@@ -198,7 +214,7 @@ class DeviceTuning {
     const double copy_traffic = IsHostCpu(device_) ? kHostCopyTraffic : 1.0;
     RejectOverCeilingMeasuringAgain(m, *result_.copy_gbps, copy_traffic, copy_remeasures_left_, [this] {
       const LoggedSpan span(name_, "copy bandwidth measured again");
-      return worker_.CopyBandwidthGBps(tuner_internal::ProbeCopyBytes(device_));
+      return worker_->CopyBandwidthGBps(tuner_internal::ProbeCopyBytes(device_));
     });
   }
 
@@ -237,7 +253,7 @@ class DeviceTuning {
     if (CompilesAheadInProcesses(device_))
       helpers_.CompileAhead(ahead, TuningDataset{key_});
     else
-      worker_.CompileAhead(ahead, TuningDataset{key_});
+      worker_->CompileAhead(ahead, TuningDataset{key_});
   }
 
   // One evaluation of the search: the cache's record, or a measurement in
@@ -245,7 +261,7 @@ class DeviceTuning {
   std::optional<double> Evaluate(const Variant& v) {
     const std::string cache_key = CacheKeyOf(id_, key_, v);
     const std::optional<Measurement> found = ledger_.Trusted(cache_key, config_.timing.tolerance);
-    Measurement m = found ? *found : worker_.Measure(v, TuningDataset{key_}, timing_);
+    Measurement m = found ? *found : worker_->Measure(v, TuningDataset{key_}, timing_);
     ApplyBudget(m, config_.max_error);  // this run's budget, whatever the record's was
     if (!found) {
       RejectOverTheCeiling(m);
@@ -273,9 +289,9 @@ class DeviceTuning {
     const Racer racer = [this](const std::vector<Variant>& variants, std::string* why) {
       std::vector<RaceSamples> legs;
       for (int leg = 0; leg < RaceLegsFor(device_); ++leg) {
-        if (leg > 0) worker_.Restart();  // the next leg in a fresh process
+        if (leg > 0) worker_->Restart();  // the next leg in a fresh process
         const LoggedSpan span(name_, "race of " + std::to_string(variants.size()) + " for " + key_);
-        std::optional<RaceSamples> samples = worker_.Race(variants, TuningDataset{key_}, timing_, why);
+        std::optional<RaceSamples> samples = worker_->Race(variants, TuningDataset{key_}, timing_, why);
         if (!samples) return std::optional<std::vector<RaceSamples>>();
         legs.push_back(std::move(*samples));
       }
@@ -286,13 +302,24 @@ class DeviceTuning {
     if (cached_race) Advance(task_done_, name_ + ": the race of " + key_ + " (cached)");
   }
 
+  // The worker its precompile left (HeadStarts), else a fresh one.
+  std::unique_ptr<IsolatedDevice> StartedAheadOr(const WorkerSetup& workers, std::size_t d) {
+    std::unique_ptr<IsolatedDevice> worker;
+    if (workers.head_starts && workers.chip_lock.empty()) worker = workers.head_starts->Take(d);
+    // (name_ is not made yet: it comes after worker_.)
+    if (worker)
+      TimingLog([&] { return device_.backend + " " + device_.name + " measures in the worker that compiled ahead"; });
+    return worker ? std::move(worker)
+                  : std::make_unique<IsolatedDevice>(workers.executable, device_, workers.variant_timeout_s);
+  }
+
   const TuningPlan& plan_;
   const std::size_t d_;
   const DeviceIdentity& device_;
   const TuneConfig& config_;
   TuningLedger& ledger_;
   DeviceResult& result_;
-  IsolatedDevice worker_;
+  std::unique_ptr<IsolatedDevice> worker_;
   CompileHelpers helpers_;  // CompileAheadInProcesses only
   TimingOptions timing_ = config_.timing;
   const std::string id_, name_;
@@ -317,8 +344,8 @@ void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& 
   const DeviceIdentity& device = plan.devices[d].identity;
   if (!CompilesAhead(device)) return;
   try {
-    IsolatedDevice worker(workers.executable, device, workers.variant_timeout_s);
-    if (!workers.host_lock.empty()) worker.UseHostLock(workers.host_lock);
+    auto worker = std::make_unique<IsolatedDevice>(workers.executable, device, workers.variant_timeout_s);
+    if (!workers.host_lock.empty()) worker->UseHostLock(workers.host_lock);
     for (const Task& task : plan.tasks) {
       if (task.device != d || overtaken()) continue;
       const std::string& key = plan.datasets[task.dataset].info.key;
@@ -329,8 +356,10 @@ void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& 
       if (ahead.size() < 2) continue;  // one kernel: built by its measurement
       const std::string who = device.backend + " " + device.name;
       const LoggedSpan span(who, "precompile of " + std::to_string(ahead.size()) + " kernels for " + key);
-      worker.CompileAhead(ahead, TuningDataset{key});
+      worker->CompileAhead(ahead, TuningDataset{key}, CompileFor::kTheCache);
     }
+    if (workers.head_starts && workers.chip_lock.empty() && worker->starts() > 0)
+      workers.head_starts->Leave(d, std::move(worker), overtaken);
   } catch (...) {
     // Only a head start lost: the device's own worker compiles and records any failure.
   }

@@ -9,6 +9,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -63,12 +64,33 @@ class TuningLedger {
   Progress progress_;
 };
 
+// The workers that compiled a later device's kernels ahead of its turn
+// (PrecompileDevice), each left for that turn (TuneDevice) when it is done
+// before the turn comes: the turn then measures in a process already
+// started, its program cache read and its compile threads' contexts open.
+// A device's own compiles ahead (Vulkan's opened a VkDevice per compile
+// thread at the turn's first batch) cost its turn 1.9-5.4 s on the H200
+// machine before (three cold default runs, 2026-12-01).
+class HeadStarts {
+ public:
+  // Keeps `worker` for device `d`, unless `overtaken()` (asked under the
+  // lock that Take holds too): a turn that came first has a worker of its own.
+  void Leave(std::size_t d, std::unique_ptr<IsolatedDevice> worker, const std::function<bool()>& overtaken);
+  // The worker left for device `d`, or null.
+  std::unique_ptr<IsolatedDevice> Take(std::size_t d);
+
+ private:
+  std::mutex mutex_;
+  std::map<std::size_t, std::unique_ptr<IsolatedDevice>> workers_;
+};
+
 // How a device's worker processes are started.
 struct WorkerSetup {
   std::string executable;         // the skintune binary
   double variant_timeout_s = 60;  // per variant
   std::string host_lock;          // shared by every worker (tuner/host_lock.h); "" = none
   std::string chip_lock;          // shared by the workers of one chip's APIs tuned at once; "" = none
+  HeadStarts* head_starts = nullptr;  // where a device's turn finds a worker started ahead; null = none
 };
 
 // Worker processes that compile a device's kernels ahead side by side, each a
@@ -111,6 +133,8 @@ void TuneDevice(const TuningPlan& plan, std::size_t d, const TuneConfig& config,
 // of, in a worker of its own, ahead of the device's turn: stops at the task
 // when `overtaken()` (the device's own turn came: it compiles its own). Only
 // a head start: any failure is left to the device's own worker to record.
+// Done first, it leaves its worker to the turn (workers.head_starts), where
+// the workers share no chip lock (one started ahead takes none).
 void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& workers, TuningLedger& ledger,
                       const std::function<bool()>& overtaken);
 

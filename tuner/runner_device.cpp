@@ -197,7 +197,8 @@ class RunnerDevice final : public TunedDevice {
     return ProbeCopyGBps(*copy, size);
   }
 
-  std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) override {
+  std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset,
+                           CompileFor compile_for) override {
     if (!CompilesAhead(device_.identity)) return 0;
     // Compiles are host work. Each kernel's build holds the host lock on its
     // own, not the whole batch: a CPU device asking to time waits for the
@@ -207,7 +208,7 @@ class RunnerDevice final : public TunedDevice {
     const HostLock::Mode host_work = HostWorkMode(IsHostCpu(device_.identity));
     if (CompilesAheadInProcesses(device_.identity)) {
       const HostLock held(host_work);
-      return RunOnce(variants, dataset);
+      return RunOnce(variants, dataset, compile_for);
     }
     std::vector<KernelSource> kernels;
     {
@@ -226,16 +227,9 @@ class RunnerDevice final : public TunedDevice {
       }
     };
     try {
-      // Opens runner_, the measuring runner: under the host lock (host
-      // work), but a context's choice first, which times on the chip, and
-      // the chip's lock is never taken after the host's (tuner/host_lock.h).
-      if (ChoosesContext(device_)) MeasuringExecutor();
-      {
-        const HostLock held(host_work);
-        MeasuringExecutor();
-      }
-      if (runner_->ConcurrentBuilds()) {
-        BuildOnShortLivedThreads(kernels.size(), build);
+      skintune::internal::Runner& into = BuildingRunner(compile_for, host_work);
+      if (into.ConcurrentBuilds()) {
+        BuildOnShortLivedThreads(into, kernels.size(), build);
         return built;
       }
     } catch (const Error&) {
@@ -284,20 +278,50 @@ class RunnerDevice final : public TunedDevice {
     return kernels;
   }
 
+  // The runner CompileAhead builds into (opened on first use). For this
+  // process: the measuring runner, so that Measure finds each kernel built
+  // in its own context; opened under the host lock (host work), but for a
+  // context's choice, which times on the chip and comes first (the chip's
+  // lock is never taken after the host's: tuner/host_lock.h). For the cache
+  // only: the measuring runner where one is open, else builder_, on the
+  // shared context: a process that times nothing chooses no context (the
+  // choice's probes would run on the chip beside another API's timing).
+  skintune::internal::Runner& BuildingRunner(CompileFor compile_for, HostLock::Mode host_work) {
+    if (runner_ || compile_for == CompileFor::kThisProcess) {
+      if (!runner_ && ChoosesContext(device_)) MeasuringExecutor();
+      const HostLock held(host_work);
+      MeasuringExecutor();
+      return *runner_;
+    }
+    if (!builder_) {
+      const HostLock held(host_work);
+      std::unique_ptr<skintune::internal::Runner> opened = device_.open();
+      if (cache_.enabled()) opened->UseProgramCache(&cache_, device_.identity.Id());
+      builder_executor_ = std::make_unique<RunnerExecutor>(*opened, device_.identity, nullptr);
+      builder_ = std::move(opened);
+    }
+    return *builder_;
+  }
+  Executor& BuildingExecutor(CompileFor compile_for) {
+    skintune::internal::Runner& runner = BuildingRunner(compile_for, HostLock::Mode::kNone);
+    return &runner == runner_.get() ? MeasuringExecutor() : *builder_executor_;
+  }
+
   // Each variant run once as its verification runs it (a build, then a
   // launch of its geometry), its output unread: the compile ahead of a device
   // that compiles again at a kernel's first launch. One at a time: such a
   // driver compiles one kernel at a time in a process (the tuner runs several
   // processes: CompileAheadInProcesses). Returns the variants run; one that
   // fails is left for Measure to record.
-  std::size_t RunOnce(const std::vector<Variant>& variants, const TuningDataset& dataset) {
+  std::size_t RunOnce(const std::vector<Variant>& variants, const TuningDataset& dataset, CompileFor compile_for) {
     DatasetCache::Entry& data = datasets_.Get(dataset.key);
     std::size_t ran = 0;
     for (const Variant& v : variants) {
       try {
         std::vector<KernelSource> kernels;
         const PackedMesh& packed = PackScene(datasets_, data, v, kernels);
-        (void)MeasuringExecutor().Run(packed, kernels, PackPalette(data.verification_palette, v), data.instances());
+        (void)BuildingExecutor(compile_for).Run(packed, kernels, PackPalette(data.verification_palette, v),
+                                                data.instances());
         ++ran;
       } catch (const Error&) {
         // Measure records it.
@@ -310,11 +334,12 @@ class RunnerDevice final : public TunedDevice {
     return std::clamp<unsigned>(std::thread::hardware_concurrency(), 1u, kMaxCompileThreads);
   }
 
-  // Into the measuring runner itself, from threads that end with the call.
-  void BuildOnShortLivedThreads(std::size_t count, const CompileThreads::Job& build) {
+  // Into `runner` itself, from threads that end with the call.
+  void BuildOnShortLivedThreads(skintune::internal::Runner& runner, std::size_t count,
+                                const CompileThreads::Job& build) {
     std::atomic<std::size_t> next{0};
     const auto work = [&] {
-      for (std::size_t i = next++; i < count; i = next++) build(*runner_, i);
+      for (std::size_t i = next++; i < count; i = next++) build(runner, i);
     };
     std::vector<std::thread> pool;
     for (unsigned t = 1; t < std::min<std::size_t>(CompileThreadCount(), count); ++t) pool.emplace_back(work);
@@ -343,6 +368,9 @@ class RunnerDevice final : public TunedDevice {
   ProgramCache cache_{IsHostCpu(device_.identity) ? "-" : ""};
   std::unique_ptr<skintune::internal::Runner> runner_;  // made on first use
   std::unique_ptr<Executor> executor_;  // over runner_: remembers the copies it timed
+  // CompileAhead's for the cache alone, where runner_ is not open (BuildingRunner).
+  std::unique_ptr<skintune::internal::Runner> builder_;
+  std::unique_ptr<Executor> builder_executor_;  // over builder_ (declared after it: ended first)
   DatasetCache datasets_;
   // The compile threads' program cache objects (one per thread: its counters
   // are its own), then the threads, joined (and their runners closed) first.
@@ -387,14 +415,18 @@ std::string ContextChoiceText(const QuickestRunner& quickest) {
 
 bool ChoosesContext(const FoundDevice& device) { return device.open_own && !IsHostCpu(device.identity); }
 
-std::vector<double> LaunchStartSamples(skintune::internal::Runner& runner, const DeviceIdentity& device, Lang lang,
-                                       ProgramCache* cache) {
+LaunchStartProbe::LaunchStartProbe(skintune::internal::Runner& runner, const DeviceIdentity& device, Lang lang,
+                                   ProgramCache* cache)
+    : device_(device), executor_(runner, device, nullptr) {
   if (cache && cache->enabled()) runner.UseProgramCache(cache, device.Id());
-  RunnerExecutor executor(runner, device);
-  const ChipLock chip;  // as every timing on the chip
-  const std::unique_ptr<Executor::Timed> copy = executor.Copy(lang, kLaunchStartProbeBytes, 1);
-  const HostLock timed(TimedMode(IsHostCpu(device)));
-  return copy->Cold(kLaunchStartProbeUntimed, kLaunchStartProbeSamples);
+  const ChipLock chip;  // as every timing on the chip, from its first upload
+  copy_ = executor_.Copy(lang, kLaunchStartProbeBytes, 1);
+}
+
+std::vector<double> LaunchStartProbe::Samples() {
+  const ChipLock chip;
+  const HostLock timed(TimedMode(IsHostCpu(device_)));
+  return copy_->Cold(kLaunchStartProbeUntimed, kLaunchStartProbeSamples);
 }
 
 std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevice& device, Lang lang,
@@ -404,15 +436,18 @@ std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevic
   // Each probed runner takes over the warmth of the one probed before (the
   // device's clock, warmed once).
   std::optional<skintune::internal::Runner::Warmth> warmth;
-  const auto probe = [&](skintune::internal::Runner& runner) {
-    if (warmth) runner.WarmAs(*warmth);
-    std::vector<double> samples = LaunchStartSamples(runner, device.identity, lang, cache);
-    warmth = runner.warmth();
-    return samples;
+  const auto probe_of = [&](skintune::internal::Runner& runner) -> LaunchStartRound {
+    auto probe = std::make_shared<LaunchStartProbe>(runner, device.identity, lang, cache);
+    return [&warmth, &runner, probe] {
+      if (warmth) runner.WarmAs(*warmth);
+      std::vector<double> samples = probe->Samples();
+      warmth = runner.warmth();
+      return samples;
+    };
   };
   QuickestRunner quickest;
   try {
-    quickest = OpenQuickest(kContextsToChoose, kLaunchStartProbeRounds, device.open_own, probe);
+    quickest = OpenQuickest(kContextsToChoose, kLaunchStartProbeRounds, device.open_own, probe_of);
   } catch (const Error& e) {
     TimingLog([&] { return device.identity.Id() + " no context of its own (" + e.what() + "): the shared one"; });
     return device.open();
@@ -428,30 +463,38 @@ std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevic
 }
 
 QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::unique_ptr<skintune::internal::Runner>()>& open,
-                            const std::function<std::vector<double>(skintune::internal::Runner&)>& probe) {
+                            const std::function<LaunchStartRound(skintune::internal::Runner&)>& probe_of) {
   std::vector<std::unique_ptr<skintune::internal::Runner>> runners;
+  std::vector<LaunchStartRound> probes;  // each runner's, ended before any runner
   std::vector<std::vector<double>> samples;
   std::optional<Error> last;
+  const auto drop = [&](std::size_t c, const Error& e) {
+    last = e;
+    probes[c] = nullptr;
+    runners[c].reset();
+  };
   for (int c = 0; c < count; ++c) {
-    try {
-      runners.push_back(open());
-    } catch (const Error& e) {
-      last = e;
-      runners.push_back(nullptr);
-    }
+    runners.emplace_back();
+    probes.emplace_back();
     samples.emplace_back();
+    try {
+      runners.back() = open();
+      probes.back() = probe_of(*runners.back());
+    } catch (const Error& e) {
+      drop(runners.size() - 1, e);
+    }
   }
   for (int r = 0; r < rounds; ++r)
     for (std::size_t c = 0; c < runners.size(); ++c) {
       if (!runners[c]) continue;
       try {
-        const std::vector<double> more = probe(*runners[c]);
+        const std::vector<double> more = probes[c]();
         samples[c].insert(samples[c].end(), more.begin(), more.end());
       } catch (const Error& e) {
-        last = e;
-        runners[c].reset();
+        drop(c, e);
       }
     }
+  probes.clear();
   QuickestRunner quickest;
   for (std::size_t c = 0; c < runners.size(); ++c) {
     const bool probed = runners[c] && !samples[c].empty();

@@ -40,13 +40,15 @@ struct QuickestRunner {
   std::vector<double> starts_ms;  // each runner's trimmed mean in opening order; NaN where it failed
   std::size_t chosen = 0;         // runner's index in starts_ms
 };
+// A runner's launch-start probe, prepared once and sampled each round (ms).
+using LaunchStartRound = std::function<std::vector<double>()>;
 QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::unique_ptr<skintune::internal::Runner>()>& open,
-                            const std::function<std::vector<double>(skintune::internal::Runner&)>& probe);
+                            const std::function<LaunchStartRound(skintune::internal::Runner&)>& probe_of);
 
 // The runner a tuning run measures `device` on (`lang` its probe's kernel
 // language, `cache` the program cache its builds use, or null): on a GPU
 // whose API makes contexts of a runner's own, the quickest of six by their
-// launch start (LaunchStartSamples); elsewhere, or where none opens, `open`'s.
+// launch start (LaunchStartProbe); elsewhere, or where none opens, `open`'s.
 // SKINTUNE_TIMING_LOG records each context's launch start and the choice.
 // `choice`, when given, says how the context was chosen ("" where it was not):
 // each measurement records it (timing.context). ChoosesContext: whether it
@@ -54,11 +56,22 @@ QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::uniq
 bool ChoosesContext(const FoundDevice& device);
 std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevice& device, Lang lang,
                                                                 ProgramCache* cache, std::string* choice = nullptr);
-// The launch-start probe's samples on `runner` (ms): a 4 KiB copy's kernel
-// time, the flush and then the copy, as every kernel time is taken: the
-// device's start of a launch after the command before it, and little else.
-std::vector<double> LaunchStartSamples(skintune::internal::Runner& runner, const DeviceIdentity& device, Lang lang,
-                                       ProgramCache* cache);
+// The launch-start probe on `runner`: a 4 KiB copy's kernel time, the flush
+// and then the copy, as every kernel time is taken: the device's start of a
+// launch after the command before it, and little else. Its buffers and the
+// flush's are made once (on the chip, under its lock), and each Samples() is
+// one round of them (ms). No clock is read around them: nothing records it.
+// Outlived by `runner`.
+class LaunchStartProbe {
+ public:
+  LaunchStartProbe(skintune::internal::Runner& runner, const DeviceIdentity& device, Lang lang, ProgramCache* cache);
+  std::vector<double> Samples();
+
+ private:
+  const DeviceIdentity& device_;
+  RunnerExecutor executor_;
+  std::unique_ptr<Executor::Timed> copy_;
+};
 
 // Every device found (DiscoverTunedDevices), each measuring through
 // `decorate` when given.

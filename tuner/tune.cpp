@@ -158,7 +158,9 @@ std::vector<DeviceResult> TuneDevices(const TuningPlan& plan, const TuneConfig& 
   Schedule schedule = ScheduleDevices(identities, options.parallel_devices);
   std::unique_ptr<tuner_internal::HostLockFile> host_lock;
   if (schedule.shares_host) host_lock = std::make_unique<tuner_internal::HostLockFile>();
-  const WorkerSetup workers{options.worker_executable, config.variant_timeout_s, host_lock ? host_lock->path() : "", ""};
+  HeadStarts head_starts;  // outlives every worker's thread (RunSchedule joins them)
+  const WorkerSetup workers{options.worker_executable, config.variant_timeout_s, host_lock ? host_lock->path() : "", "",
+                            &head_starts};
   // A lock file per group that shares a chip, named to each of its devices' workers.
   std::vector<std::unique_ptr<tuner_internal::HostLockFile>> chip_locks;
   std::vector<WorkerSetup> workers_of(with_work.size(), workers);

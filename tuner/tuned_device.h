@@ -29,6 +29,12 @@ struct TuningDataset {
   std::string key;  // model/synthetic.h key, or a glTF path
 };
 
+// Whom a compile ahead is for (TunedDevice::CompileAhead): this process,
+// which then measures the kernels, or only the program cache, for another
+// process (a compile helper, or a later device's head start) that never
+// measures here.
+enum class CompileFor { kThisProcess, kTheCache };
+
 class TunedDevice {
  public:
   virtual ~TunedDevice() = default;
@@ -53,8 +59,11 @@ class TunedDevice {
   // in parallel where the API allows it, into the program cache that Measure
   // then loads from. A kernel that fails to compile is left for Measure to
   // record. Returns how many kernels were compiled (or found compiled); a
-  // device that cannot compile ahead compiles nothing and returns 0.
-  virtual std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) = 0;
+  // device that cannot compile ahead compiles nothing and returns 0. For
+  // the cache only, nothing is built into the runner that measures: no
+  // context is chosen (a choice times on the chip) where nothing is timed.
+  virtual std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset,
+                                   CompileFor compile_for) = 0;
 };
 
 // Whether `device` compiles kernels ahead of their Measure

@@ -434,9 +434,12 @@ Measurement IsolatedDevice::MeasureOnce(const Variant& variant, const TuningData
   return m;
 }
 
-std::size_t IsolatedDevice::CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset) {
+std::size_t IsolatedDevice::CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset,
+                                         CompileFor compile_for) {
   if (variants.empty()) return 0;
-  const std::string request = nlohmann::json{{"compile_ahead", variants}, {"dataset", dataset.key}}.dump();
+  const char* whom = compile_for == CompileFor::kTheCache ? "the cache" : "this process";
+  const std::string request =
+      nlohmann::json{{"compile_ahead", variants}, {"dataset", dataset.key}, {"for", whom}}.dump();
   if (pid_ < 0) Start();
   if (!Send(request)) {
     DeathDetail();
@@ -599,7 +602,11 @@ TuningDataset DatasetOf(const nlohmann::json& request) { return {request.at("dat
 nlohmann::json Answer(TunedDevice& device, const nlohmann::json& request, bool* lost) {
   if (request.contains("compile_ahead")) {
     const std::vector<Variant> variants = request.at("compile_ahead").get<std::vector<Variant>>();
-    return {{"compiled", device.CompileAhead(variants, DatasetOf(request))}};
+    const std::string compile_for = request.value("for", std::string("this process"));
+    if (compile_for != "this process" && compile_for != "the cache")
+      throw Error("compile_ahead: \"for\" is '" + compile_for + "' (this process, the cache)");
+    const CompileFor whom = compile_for == "the cache" ? CompileFor::kTheCache : CompileFor::kThisProcess;
+    return {{"compiled", device.CompileAhead(variants, DatasetOf(request), whom)}};
   }
   if (request.contains("race")) {
     try {

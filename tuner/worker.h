@@ -13,7 +13,8 @@
 //   child -> parent:                 {"copy_bandwidth_gbps": <GB/s>} or {"copy_bandwidth_error": "..."}
 //   parent -> child, a race:         {"race": [variant, ...], "dataset": "<key or glTF path>", "timing": {...}}
 //   child -> parent:                 {"race": [[ms, ...], ...]} (each variant's samples) or {"race_error": "..."}
-//   parent -> child, compile ahead:  {"compile_ahead": [variant, ...], "dataset": "<key or glTF path>"}
+//   parent -> child, compile ahead:  {"compile_ahead": [variant, ...], "dataset": "<key or glTF path>",
+//                                     "for": "this process" | "the cache"}
 //   child -> parent:                 {"compiled": <kernels compiled or found compiled>}
 //
 // The child writes its protocol lines on its original stdout and sends
@@ -79,7 +80,8 @@ class IsolatedDevice {
   // variant. Returns the kernels compiled; anything that goes wrong (a hang,
   // a crash, a set-up problem) costs only the head start: it returns 0, and
   // each variant's Measure compiles, and records the failure, as without it.
-  std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset);
+  std::size_t CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset,
+                           CompileFor compile_for = CompileFor::kThisProcess);
 
   // The race of `variants` (TunedDevice::Race) in the child, waiting at most the
   // variant time limit per variant: each variant's samples, or nullopt with

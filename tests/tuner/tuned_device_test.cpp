@@ -696,8 +696,9 @@ TEST(CompileAhead, BuildsEveryKernelThenMeasureUsesThem) {
       for (const char* wg : {"wg64", "wg256"})
         variants.push_back(ParseVariantKey(std::string(Name(lang)) + ".b2.padded.soa.float4.u16.f32.mat3x4." + storage +
                                            ".matrix.v1c." + wg + ".nonormals"));
-    EXPECT_EQ(tuned.CompileAhead(variants, {kDataset}), variants.size());
-    EXPECT_EQ(tuned.CompileAhead(variants, {kDataset}), variants.size()) << "the second time: found built";
+    EXPECT_EQ(tuned.CompileAhead(variants, {kDataset}, CompileFor::kThisProcess), variants.size());
+    EXPECT_EQ(tuned.CompileAhead(variants, {kDataset}, CompileFor::kThisProcess), variants.size())
+        << "the second time: found built";
     for (const Variant& v : variants) ExpectOk(tuned.Measure(v, {kDataset}, SmallTiming()), tuned, kDataset);
     ++tried;
   }
@@ -917,6 +918,7 @@ struct Contexts {
   std::vector<bool> fails_to_open, fails_probe;
   std::vector<const Runner*> opened;        // by opening order (null: failed)
   std::vector<std::size_t> probed;          // runner indices in probing order
+  int probes_made = 0;                      // one per runner opened, for every round
   std::unique_ptr<Runner> Open() {
     const std::size_t i = opened.size();
     if (i < fails_to_open.size() && fails_to_open[i]) {
@@ -934,8 +936,10 @@ struct Contexts {
     return starts.at(i);
   }
   tuner_internal::QuickestRunner Choose(int count, int rounds) {
-    return tuner_internal::OpenQuickest(count, rounds, [this] { return Open(); },
-                                        [this](Runner& r) { return Probe(r); });
+    return tuner_internal::OpenQuickest(count, rounds, [this] { return Open(); }, [this](Runner& r) {
+      ++probes_made;
+      return [this, &r] { return Probe(r); };
+    });
   }
 };
 
@@ -950,6 +954,8 @@ TEST(QuickestContext, KeepsTheLowestLaunchStartTheFirstOnATieProbingInTurn) {
   EXPECT_DOUBLE_EQ(q.starts_ms[3], 2.30);
   // Every runner open together and probed in turn, round by round.
   EXPECT_EQ(c.probed, (std::vector<std::size_t>{0, 1, 2, 3, 0, 1, 2, 3}));
+  // Each runner's probe prepared once, sampled in every round.
+  EXPECT_EQ(c.probes_made, 4);
 }
 
 TEST(QuickestContext, LeavesOutARunnerThatFailsToOpenOrToBeProbed) {
@@ -963,6 +969,7 @@ TEST(QuickestContext, LeavesOutARunnerThatFailsToOpenOrToBeProbed) {
   EXPECT_TRUE(std::isnan(q.starts_ms[2]));
   // The one that failed its probe is not probed again.
   EXPECT_EQ(c.probed, (std::vector<std::size_t>{0, 2, 3, 0, 3}));
+  EXPECT_EQ(c.probes_made, 3);
 }
 
 TEST(QuickestContext, ThrowsTheLastErrorWhenNoneIsLeft) {
@@ -1012,6 +1019,43 @@ TEST(QuickestContext, AGpuChoosesAmongSixContextsAndTheHostsCpuOpensOne) {
   opened = 0;
   EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr), nullptr);
   EXPECT_EQ(opened, 1);
+}
+
+// A compile ahead for the program cache alone (a compile helper's, or a
+// later device's head start: processes that time nothing) chooses no
+// context: the choice's probes would run on the chip beside another API's
+// timing. One for the measuring process builds into the chosen context.
+// This machine's first OpenCL device, seen as a GPU that offers contexts of their own.
+TEST(QuickestContext, ACompileForTheCacheChoosesNoContext) {
+  ScopedEnv always("SKINTUNE_COMPILE_AHEAD", "always");
+  static const Discovered found = DiscoverDevices();
+  const FoundDevice* opencl = nullptr;
+  for (const FoundDevice& f : found.devices)
+    if (!opencl && f.identity.backend == "opencl") opencl = &f;
+  if (!opencl) GTEST_SKIP() << SkippedLines("opencl");
+  int opened = 0, opened_own = 0;
+  FoundDevice device = *opencl;
+  device.open = [&, open = opencl->open] { ++opened; return open(); };
+  device.open_own = [&, open = opencl->open] { ++opened_own; return open(); };
+  device.identity.type = "gpu";
+  std::vector<Variant> variants;
+  for (const char* storage : {"global", "constant"})
+    variants.push_back(ParseVariantKey(std::string("opencl.b2.padded.soa.float4.u16.f32.mat3x4.") + storage +
+                                       ".matrix.v1c.wg64.nonormals"));
+  {
+    const std::unique_ptr<TunedDevice> tuned = tuner_internal::MakeRunnerDevice(device, {Lang::kOpenCl}, 0, {});
+    EXPECT_EQ(tuned->CompileAhead(variants, {kDataset}, CompileFor::kTheCache), variants.size());
+    EXPECT_EQ(opened_own, 0) << "a context chosen by a process that times nothing";
+    EXPECT_EQ(opened, 1);
+  }
+  opened = 0;
+  const std::unique_ptr<TunedDevice> tuned = tuner_internal::MakeRunnerDevice(device, {Lang::kOpenCl}, 0, {});
+  EXPECT_EQ(tuned->CompileAhead(variants, {kDataset}, CompileFor::kThisProcess), variants.size());
+  EXPECT_EQ(opened_own, 6);
+  EXPECT_EQ(opened, 0);
+  // Its measurements then run in the chosen context, which the cache's compile did not open.
+  ExpectOk(tuned->Measure(variants.front(), {kDataset}, SmallTiming()), *tuned, kDataset);
+  EXPECT_EQ(opened_own, 6);
 }
 
 }  // namespace

@@ -348,11 +348,57 @@ TEST(CompileHelpers, EachHelperStaysOneProcessAndGetsItsShare) {
   std::size_t variants_sent = 0;
   for (std::string line; std::getline(requests, line);) {
     ++requested;
-    variants_sent += nlohmann::json::parse(line).at("compile_ahead").size();
+    const nlohmann::json request = nlohmann::json::parse(line);
+    variants_sent += request.at("compile_ahead").size();
+    // Helpers never measure: their compiles are for the program cache alone.
+    EXPECT_EQ(request.value("for", ""), "the cache") << line;
   }
   EXPECT_EQ(started, expected) << "helper processes started";
   EXPECT_EQ(requested, 3 * expected) << "one request per helper per call";
   EXPECT_EQ(variants_sent, 3 * variants.size()) << "every variant in one share per call";
+}
+
+// A later device's precompile (PrecompileDevice) leaves its worker for the
+// device's turn (HeadStarts) when it is done first: the turn's requests go
+// to the process that compiled ahead. Not when the turn came first (it has
+// a worker of its own), nor where the chip's APIs share a lock.
+TEST(HeadStarts, APrecompileDoneBeforeTheTurnLeavesItsWorkerToIt) {
+  const fs::path dir = Scratch();
+  const std::string exe = FakeWorker(dir,
+                                     "echo started >> \"$DIR/starts\"\n"
+                                     "while read line; do echo \"$line\" >> \"$DIR/requests\"; "
+                                     "echo '{\"compiled\": 2}'; done");
+  const std::vector<Variant> variants = {ParseVariantKey("opencl.b2.soa.global.wg64"),
+                                         ParseVariantKey("opencl.b2.soa.constant.wg64")};
+  TuningPlan plan;
+  plan.datasets.emplace_back().info.key = kDataset.key;
+  plan.devices.push_back({FakeDevice(), {}, {Lang::kOpenCl}});
+  Task& task = plan.tasks.emplace_back();
+  task.candidates = variants;
+  MeasurementCache cache((dir / "cache.jsonl").string());
+  TuningLedger ledger(cache, 0, {});
+  HeadStarts head_starts;
+  WorkerSetup workers{exe, 30, "", "", &head_starts};
+  PrecompileDevice(plan, 0, workers, ledger, [] { return false; });
+  std::unique_ptr<IsolatedDevice> left = head_starts.Take(0);
+  ASSERT_NE(left, nullptr);
+  EXPECT_EQ(head_starts.Take(0), nullptr) << "taken once";
+  EXPECT_EQ(left->CompileAhead(variants, kDataset), 2u);
+  EXPECT_EQ(left->starts(), 1) << "the turn's request went to a fresh process";
+  std::vector<std::string> compile_for;
+  std::ifstream requests(dir / "requests");
+  for (std::string line; std::getline(requests, line);)
+    compile_for.push_back(nlohmann::json::parse(line).value("for", ""));
+  EXPECT_EQ(compile_for, (std::vector<std::string>{"the cache", "this process"}));
+  // The turn came while it compiled: it keeps nothing.
+  int asked = 0;
+  PrecompileDevice(plan, 0, workers, ledger, [&] { return asked++ > 0; });
+  EXPECT_EQ(asked, 2);
+  EXPECT_EQ(head_starts.Take(0), nullptr);
+  // The chip's APIs tuned at once, under a lock the head start would not take.
+  workers.chip_lock = (dir / "chip").string();
+  PrecompileDevice(plan, 0, workers, ledger, [] { return false; });
+  EXPECT_EQ(head_starts.Take(0), nullptr);
 }
 
 }  // namespace
