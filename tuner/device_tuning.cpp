@@ -305,7 +305,7 @@ class DeviceTuning {
   // The worker its precompile left (HeadStarts), else a fresh one.
   std::unique_ptr<IsolatedDevice> StartedAheadOr(const WorkerSetup& workers, std::size_t d) {
     std::unique_ptr<IsolatedDevice> worker;
-    if (workers.head_starts && workers.chip_lock.empty()) worker = workers.head_starts->Take(d);
+    if (workers.head_starts) worker = workers.head_starts->Take(d);
     // (name_ is not made yet: it comes after worker_.)
     if (worker)
       TimingLog([&] { return device_.backend + " " + device_.name + " measures in the worker that compiled ahead"; });
@@ -346,6 +346,12 @@ void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& 
   try {
     auto worker = std::make_unique<IsolatedDevice>(workers.executable, device, workers.variant_timeout_s);
     if (!workers.host_lock.empty()) worker->UseHostLock(workers.host_lock);
+    if (!workers.chip_lock.empty()) worker->UseChipLock(workers.chip_lock);
+    // A worker that may be left to the turn measures there: it builds into
+    // its measuring runner, choosing its context first, where the chip's
+    // lock keeps the choice's probes out of the measuring API's jobs.
+    const CompileFor compile_for =
+        workers.head_starts && !workers.chip_lock.empty() ? CompileFor::kThisProcess : CompileFor::kTheCache;
     for (const Task& task : plan.tasks) {
       if (task.device != d || overtaken()) continue;
       const std::string& key = plan.datasets[task.dataset].info.key;
@@ -356,9 +362,9 @@ void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& 
       if (ahead.size() < 2) continue;  // one kernel: built by its measurement
       const std::string who = device.backend + " " + device.name;
       const LoggedSpan span(who, "precompile of " + std::to_string(ahead.size()) + " kernels for " + key);
-      worker->CompileAhead(ahead, TuningDataset{key}, CompileFor::kTheCache);
+      worker->CompileAhead(ahead, TuningDataset{key}, compile_for);
     }
-    if (workers.head_starts && workers.chip_lock.empty() && worker->starts() > 0)
+    if (workers.head_starts && worker->starts() > 0)
       workers.head_starts->Leave(d, std::move(worker), overtaken);
   } catch (...) {
     // Only a head start lost: the device's own worker compiles and records any failure.

@@ -133,8 +133,9 @@ void TuneDevice(const TuningPlan& plan, std::size_t d, const TuneConfig& config,
 // of, in a worker of its own, ahead of the device's turn: stops at the task
 // when `overtaken()` (the device's own turn came: it compiles its own). Only
 // a head start: any failure is left to the device's own worker to record.
-// Done first, it leaves its worker to the turn (workers.head_starts), where
-// the workers share no chip lock (one started ahead takes none).
+// Done first, it leaves its worker to the turn (workers.head_starts). Under
+// the chip's lock (workers.chip_lock) that worker compiles for itself, its
+// context chosen ahead of the turn; without one, for the program cache only.
 void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& workers, TuningLedger& ledger,
                       const std::function<bool()>& overtaken);
 

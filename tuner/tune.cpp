@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <fstream>
 #include <memory>
 #include <thread>
@@ -89,16 +90,20 @@ TuningReport ReportHeader(const TuneConfig& config) {
 // candidate not yet measured is compiled: the search's choices are not
 // known ahead. Not for CPU devices (their compiles would take the cores
 // they and their neighbours time on), nor on hosts of fewer than 8 threads.
+// A worker done before its device's turn is left to it (HeadStarts): the
+// thread stays until the group is done, since a worker dies with the thread
+// that started it (PR_SET_PDEATHSIG, tuner/worker.h).
 GroupAhead PrecompileLaterDevices(const TuningPlan& plan, const std::vector<std::size_t>& scheduled,
-                                  const WorkerSetup& workers, TuningLedger& ledger) {
-  return [&plan, &scheduled, &workers, &ledger](const std::vector<std::size_t>& group,
-                                                 const std::atomic<std::size_t>& reached) {
+                                  const std::vector<WorkerSetup>& workers_of, TuningLedger& ledger) {
+  return [&plan, &scheduled, &workers_of, &ledger](const std::vector<std::size_t>& group,
+                                                    const std::atomic<std::size_t>& reached) {
     const auto cpu = [&](std::size_t k) { return IsHostCpu(plan.devices[scheduled[k]].identity); };
     if (std::thread::hardware_concurrency() < 8 || std::any_of(group.begin(), group.end(), cpu)) return;
     for (std::size_t k = 1; k < group.size(); ++k) {
       const auto overtaken = [&reached, k] { return reached.load() >= k; };  // its turn came: it compiles its own
-      if (!overtaken()) PrecompileDevice(plan, scheduled[group[k]], workers, ledger, overtaken);
+      if (!overtaken()) PrecompileDevice(plan, scheduled[group[k]], workers_of[group[k]], ledger, overtaken);
     }
+    while (reached.load() < group.size()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   };
 }
 
@@ -161,21 +166,27 @@ std::vector<DeviceResult> TuneDevices(const TuningPlan& plan, const TuneConfig& 
   HeadStarts head_starts;  // outlives every worker's thread (RunSchedule joins them)
   const WorkerSetup workers{options.worker_executable, config.variant_timeout_s, host_lock ? host_lock->path() : "", "",
                             &head_starts};
-  // A lock file per group that shares a chip, named to each of its devices' workers.
+  // A lock file per group of a chip's APIs, named to each of its devices'
+  // workers: those tuned at once (shares_chip) each hold the chip for its
+  // work on it; those tuned one after another, so that a later API's worker
+  // started ahead chooses its context between the measuring API's jobs,
+  // never during one (PrecompileDevice).
   std::vector<std::unique_ptr<tuner_internal::HostLockFile>> chip_locks;
   std::vector<WorkerSetup> workers_of(with_work.size(), workers);
   for (std::size_t g = 0; g < schedule.groups.size(); ++g) {
-    if (!schedule.shares_chip[g]) continue;
+    const auto cpu = [&](std::size_t k) { return IsHostCpu(identities[k]); };
+    const std::vector<std::size_t>& group = schedule.groups[g];
+    if (group.size() < 2 || std::any_of(group.begin(), group.end(), cpu)) continue;
     chip_locks.push_back(std::make_unique<tuner_internal::HostLockFile>("chip"));
     if (chip_locks.back()->path().empty()) {  // no lock to share: the chip's APIs one after another
       schedule.shares_chip[g] = false;
       continue;
     }
-    for (const std::size_t k : schedule.groups[g]) workers_of[k].chip_lock = chip_locks.back()->path();
+    for (const std::size_t k : group) workers_of[k].chip_lock = chip_locks.back()->path();
   }
   RunSchedule(
       schedule, [&](std::size_t k) { TuneDevice(plan, with_work[k], config, workers_of[k], ledger, results[with_work[k]]); },
-      PrecompileLaterDevices(plan, with_work, workers, ledger));
+      PrecompileLaterDevices(plan, with_work, workers_of, ledger));
   return results;
 }
 

@@ -361,7 +361,9 @@ TEST(CompileHelpers, EachHelperStaysOneProcessAndGetsItsShare) {
 // A later device's precompile (PrecompileDevice) leaves its worker for the
 // device's turn (HeadStarts) when it is done first: the turn's requests go
 // to the process that compiled ahead. Not when the turn came first (it has
-// a worker of its own), nor where the chip's APIs share a lock.
+// a worker of its own). Under the chip's lock it compiles for itself (its
+// context chosen ahead, between the measuring API's jobs); without, for the
+// program cache only.
 TEST(HeadStarts, APrecompileDoneBeforeTheTurnLeavesItsWorkerToIt) {
   const fs::path dir = Scratch();
   const std::string exe = FakeWorker(dir,
@@ -395,10 +397,17 @@ TEST(HeadStarts, APrecompileDoneBeforeTheTurnLeavesItsWorkerToIt) {
   PrecompileDevice(plan, 0, workers, ledger, [&] { return asked++ > 0; });
   EXPECT_EQ(asked, 2);
   EXPECT_EQ(head_starts.Take(0), nullptr);
-  // The chip's APIs tuned at once, under a lock the head start would not take.
+  // Under the chip's lock, which it takes too.
+  fs::remove(dir / "requests");
   workers.chip_lock = (dir / "chip").string();
   PrecompileDevice(plan, 0, workers, ledger, [] { return false; });
-  EXPECT_EQ(head_starts.Take(0), nullptr);
+  left = head_starts.Take(0);
+  ASSERT_NE(left, nullptr);
+  std::ifstream locked(dir / "requests");
+  std::string line;
+  ASSERT_TRUE(std::getline(locked, line));
+  EXPECT_EQ(nlohmann::json::parse(line).value("for", ""), "this process");
+  EXPECT_NE(ReadAll(dir / "args").find("--chip-lock " + workers.chip_lock), std::string::npos) << ReadAll(dir / "args");
 }
 
 }  // namespace
