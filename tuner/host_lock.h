@@ -55,10 +55,12 @@ HostLock::Mode HostWorkMode(bool cpu_device);
 HostLock::Mode TimedMode(bool cpu_device);
 
 // The chip lock: one GPU seen through several APIs (OpenCL, CUDA, GL,
-// Vulkan), their devices tuned at the same time (tuner/schedule.h), each
-// API's worker holding the chip alone for whatever runs on it: a whole
-// measurement (uploads, the verification launch, the kernel's, frame's and
-// copy's samples), a race, the copy bandwidth. What runs on the host meanwhile
+// Vulkan), their devices tuned at the same time or one after another
+// (tuner/schedule.h), each API's worker holding the chip alone for whatever
+// runs on it: a whole measurement (uploads, the verification launch, the
+// kernel's, frame's and copy's samples), a race, the copy bandwidth, a
+// context's choice (one after another, a later API's worker started ahead
+// chooses between the measuring API's jobs). What runs on the host meanwhile
 // (compiles ahead, worker start-up, the parent's bookkeeping) overlaps the
 // other APIs' work on the chip. flock(2) on a file the parent makes per
 // chip (HostLockFile) and names to each of that chip's workers
