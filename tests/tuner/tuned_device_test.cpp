@@ -18,6 +18,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <regex>
 #include <string>
 
@@ -985,21 +986,31 @@ TEST(QuickestContext, ThrowsTheLastErrorWhenNoneIsLeft) {
   }
 }
 
+// This machine's first OpenCL device (PoCL in CI) seen as a GPU that offers
+// contexts of its own, its runners counted as they open (`open` the shared
+// context's, `open_own` one of its own); none where there is no OpenCL device.
+std::optional<FoundDevice> OpenClSeenAsAGpu(int& opened, int& opened_own) {
+  static const Discovered found = DiscoverDevices();
+  for (const FoundDevice& f : found.devices) {
+    if (f.identity.backend != "opencl") continue;
+    FoundDevice device = f;
+    device.open = [&opened, open = f.open] { ++opened; return open(); };
+    device.open_own = [&opened_own, open = f.open] { ++opened_own; return open(); };
+    device.identity.type = "gpu";
+    return device;
+  }
+  return std::nullopt;
+}
+
 // OpenMeasuringRunner's wiring on this machine's first OpenCL device (PoCL
 // in CI), seen as a GPU that offers contexts of their own: six opened and
 // probed, one kept; as the host's CPU: opened once, no choice; and where no
 // context of its own opens, the shared one.
 TEST(QuickestContext, AGpuChoosesAmongSixContextsAndTheHostsCpuOpensOne) {
-  static const Discovered found = DiscoverDevices();
-  const FoundDevice* opencl = nullptr;
-  for (const FoundDevice& f : found.devices)
-    if (!opencl && f.identity.backend == "opencl") opencl = &f;
-  if (!opencl) GTEST_SKIP() << SkippedLines("opencl");
   int opened = 0, opened_own = 0;
-  FoundDevice device = *opencl;
-  device.open = [&, open = opencl->open] { ++opened; return open(); };
-  device.open_own = [&, open = opencl->open] { ++opened_own; return open(); };
-  device.identity.type = "gpu";
+  std::optional<FoundDevice> counted = OpenClSeenAsAGpu(opened, opened_own);
+  if (!counted) GTEST_SKIP() << SkippedLines("opencl");
+  FoundDevice& device = *counted;
   std::string choice;
   EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr, &choice), nullptr);
   EXPECT_EQ(opened_own, 6);
@@ -1028,16 +1039,10 @@ TEST(QuickestContext, AGpuChoosesAmongSixContextsAndTheHostsCpuOpensOne) {
 // This machine's first OpenCL device, seen as a GPU that offers contexts of their own.
 TEST(QuickestContext, ACompileForTheCacheChoosesNoContext) {
   ScopedEnv always("SKINTUNE_COMPILE_AHEAD", "always");
-  static const Discovered found = DiscoverDevices();
-  const FoundDevice* opencl = nullptr;
-  for (const FoundDevice& f : found.devices)
-    if (!opencl && f.identity.backend == "opencl") opencl = &f;
-  if (!opencl) GTEST_SKIP() << SkippedLines("opencl");
   int opened = 0, opened_own = 0;
-  FoundDevice device = *opencl;
-  device.open = [&, open = opencl->open] { ++opened; return open(); };
-  device.open_own = [&, open = opencl->open] { ++opened_own; return open(); };
-  device.identity.type = "gpu";
+  std::optional<FoundDevice> counted = OpenClSeenAsAGpu(opened, opened_own);
+  if (!counted) GTEST_SKIP() << SkippedLines("opencl");
+  FoundDevice& device = *counted;
   std::vector<Variant> variants;
   for (const char* storage : {"global", "constant"})
     variants.push_back(ParseVariantKey(std::string("opencl.b2.padded.soa.float4.u16.f32.mat3x4.") + storage +
