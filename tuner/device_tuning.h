@@ -89,7 +89,7 @@ struct WorkerSetup {
   std::string executable;         // the skintune binary
   double variant_timeout_s = 60;  // per variant
   std::string host_lock;          // shared by every worker (tuner/host_lock.h); "" = none
-  std::string chip_lock;          // shared by the workers of one chip's APIs tuned at once; "" = none
+  std::string chip_lock;          // shared by the workers of one chip's APIs (host_lock.h ChipLock); "" = none
   HeadStarts* head_starts = nullptr;  // where a device's turn finds a worker started ahead; null = none
 };
 

@@ -31,8 +31,8 @@ struct TuningDataset {
 
 // Whom a compile ahead is for (TunedDevice::CompileAhead): this process,
 // which then measures the kernels, or only the program cache, for another
-// process (a compile helper, or a later device's head start) that never
-// measures here.
+// process to load: a compile helper's, or a later device's worker started
+// ahead without the chip's lock (tuner/device_tuning.h PrecompileDevice).
 enum class CompileFor { kThisProcess, kTheCache };
 
 class TunedDevice {
