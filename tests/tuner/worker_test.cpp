@@ -322,16 +322,22 @@ TEST(IsolatedDevice, WorkerGetsTheStartupEnvironmentEvenAfterALibraryEditedItInP
 namespace skintune::internal {
 namespace {
 
+// A fake worker that appends a line to $DIR/starts when it starts and each
+// request to $DIR/requests, and answers every request as a compile ahead of
+// `compiled` kernels.
+std::string CompilingWorker(const fs::path& dir, int compiled) {
+  return FakeWorker(dir, "echo started >> \"$DIR/starts\"\n"
+                         "while read line; do echo \"$line\" >> \"$DIR/requests\"; "
+                         "echo '{\"compiled\": " + std::to_string(compiled) + "}'; done");
+}
+
 // Compile helpers (tuner/device_tuning.h) stay the same processes from one
 // compile ahead to the next: each is driven from a thread that lives as long
 // as it does. One started from a thread that then ended would be killed with
 // it (PR_SET_PDEATHSIG), its next share lost and a fresh one started after.
 TEST(CompileHelpers, EachHelperStaysOneProcessAndGetsItsShare) {
   const fs::path dir = Scratch();
-  const std::string exe = FakeWorker(dir,
-                                     "echo started >> \"$DIR/starts\"\n"
-                                     "while read line; do echo \"$line\" >> \"$DIR/requests\"; "
-                                     "echo '{\"compiled\": 1}'; done");
+  const std::string exe = CompilingWorker(dir, 1);
   const WorkerSetup workers{exe, 30, ""};
   const DeviceIdentity device = FakeDevice();
   CompileHelpers helpers(workers, device);
@@ -366,10 +372,7 @@ TEST(CompileHelpers, EachHelperStaysOneProcessAndGetsItsShare) {
 // program cache only.
 TEST(HeadStarts, APrecompileDoneBeforeTheTurnLeavesItsWorkerToIt) {
   const fs::path dir = Scratch();
-  const std::string exe = FakeWorker(dir,
-                                     "echo started >> \"$DIR/starts\"\n"
-                                     "while read line; do echo \"$line\" >> \"$DIR/requests\"; "
-                                     "echo '{\"compiled\": 2}'; done");
+  const std::string exe = CompilingWorker(dir, 2);
   const std::vector<Variant> variants = {ParseVariantKey("opencl.b2.soa.global.wg64"),
                                          ParseVariantKey("opencl.b2.soa.constant.wg64")};
   TuningPlan plan;
