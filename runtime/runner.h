@@ -154,22 +154,6 @@ class Runner {
   // Prepared at a time.
   void ShareTimedInputs(std::size_t max_bytes);
 
-  // What this runner knows of the device's clock (its warm-up state: the
-  // fastest clock probe after a full warm-up, when its frames last kept the
-  // device busy), for another runner of the same device to take over
-  // (WarmAs): the clock is the chip's, not a context's, so a runner opened
-  // beside a warm one needs no 200 ms warm-up of its own (the tuner probes
-  // six contexts of a GPU in turn: tuner/runner_device.h OpenMeasuringRunner).
-  struct Warmth {
-    std::optional<double> probe_ms;
-    std::optional<std::chrono::steady_clock::time_point> busy_until;
-  };
-  Warmth warmth() const { return {warm_probe_ms_, busy_until_}; }
-  void WarmAs(const Warmth& warmth) {
-    warm_probe_ms_ = warmth.probe_ms;
-    busy_until_ = warmth.busy_until;
-  }
-
   // Emits the variant's kernel for every launch (Emit(variant, launch.influences,
   // palette_joints)) and runs them. `palette`: PackPalette bytes; empty = mesh.palette.
   RunResult Run(const PackedMesh& mesh, std::span<const std::uint8_t> palette = {});

@@ -433,17 +433,9 @@ std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevic
                                                                 ProgramCache* cache, std::string* choice) {
   if (choice) choice->clear();
   if (!ChoosesContext(device)) return device.open();
-  // Each probed runner takes over the warmth of the one probed before (the
-  // device's clock, warmed once).
-  std::optional<skintune::internal::Runner::Warmth> warmth;
   const auto probe_of = [&](skintune::internal::Runner& runner) -> LaunchStartRound {
     auto probe = std::make_shared<LaunchStartProbe>(runner, device.identity, lang, cache);
-    return [&warmth, &runner, probe] {
-      if (warmth) runner.WarmAs(*warmth);
-      std::vector<double> samples = probe->Samples();
-      warmth = runner.warmth();
-      return samples;
-    };
+    return [probe] { return probe->Samples(); };
   };
   QuickestRunner quickest;
   try {
