@@ -8,7 +8,8 @@
 // worker measures it before its first measurement; then each variant measured
 // as `skintune tune` measures it (tuner_internal::MeasureJob: verification
 // against the float64 gold, the kernel time from a flushed cache to the stop
-// rule, the frame time, the same-size copy), one line each, and with --json
+// rule, the frame time, the same-size copy, the context's launch start),
+// one line each, and with --json
 // one JSON object per line.
 // As in a tuning run, the variants of one packing time the same input sets
 // (Runner::ShareTimedInputs); --fresh-inputs allocates each measurement's
@@ -172,10 +173,12 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
   if (contexts > 0)
     return RunContexts(*device, datasets, dataset, keys.front(), contexts);
   // As a tuning run's worker opens it: on the quickest of several contexts where the API makes them.
+  tuner_internal::MeasuringContext context;
   std::unique_ptr<Runner> runner =
-      tuner_internal::OpenMeasuringRunner(*device, ParseVariantKey(keys.front()).lang, nullptr);
+      tuner_internal::OpenMeasuringRunner(*device, ParseVariantKey(keys.front()).lang, nullptr, &context);
   if (!fresh_inputs) runner->ShareTimedInputs(tuner_internal::SharedInputBytes(device->identity));  // as a tuning run's runner
   tuner_internal::RunnerExecutor executor(*runner, device->identity);
+  executor.SetContext(context.choice, context.launch_start_ms);
   std::ofstream json;
   if (!json_path.empty()) json.open(json_path);
   int failed = 0;
@@ -216,9 +219,11 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
       ++failed;
       continue;
     }
-    std::printf("%s: kernel %.3f us [%.3f, %.3f] (%d samples%s), frame %.3f us, %.0f GB/s, x_copy %.2f\n", key.c_str(),
-                m.timing.median_ms * 1e3, m.timing.low_ms * 1e3, m.timing.high_ms * 1e3, m.timing.repetitions,
-                m.timing.tight ? "" : ", capped", m.timing.frame_ms * 1e3, m.gbps, m.x_copy);
+    std::printf("%s: kernel %.3f us [%.3f, %.3f] (%d samples%s), launch start %.3f us, frame %.3f us, %.0f GB/s, "
+                "x_copy %.2f\n",
+                key.c_str(), m.timing.median_ms * 1e3, m.timing.low_ms * 1e3, m.timing.high_ms * 1e3,
+                m.timing.repetitions, m.timing.tight ? "" : ", capped", m.timing.launch_start_ms * 1e3,
+                m.timing.frame_ms * 1e3, m.gbps, m.x_copy);
     if (json.is_open()) json << nlohmann::json(m).dump() << "\n";
   }
   return failed ? 1 : 0;

@@ -28,6 +28,11 @@
 //     48 MiB that reads the whole palette, on one queue, waiting for its frame's upload on
 //     the upload queues; frame n + 1's upload may run beside kernel n. Span over 64 per
 //     frame, against frame/kernel-only (the kernels alone).
+//   after-kernel/<launch:event|launch:plain/marker:event|marker:event>: from the END of
+//     the stream kernel to the END of what follows it: the empty kernel with an event out,
+//     the empty kernel without one and then a marker with one, or the marker alone. What
+//     a dependent launch costs the device with and without its profiling event (the
+//     kernel time's launch start: docs/TUNING.md "Kernel time").
 //   frame/write-mapped/queues:1/<no-wait|barrier|out-of-order>: the same frame with the
 //     kernel not waiting for its upload at all (wrong, for timing only: do the two queues'
 //     work overlap when nothing orders them?), waiting through a barrier before the
@@ -352,6 +357,31 @@ void FrameModel(benchmark::State& state, How how, int queues, Order order) {
   }
 }
 
+// What follows a command on the device: from the END of a stream kernel (48
+// MiB read and written) to the END of what comes next, on a profiling queue.
+enum class After { kLaunchWithEvent, kLaunchThenMarker, kMarker };
+
+void AfterKernel(benchmark::State& state, After after) {
+  Device& d = TheDevice();
+  const std::size_t local = 256, global = (d.stream_items + local - 1) / local * local, one = 1;
+  for (auto _ : state) {
+    cl_event before = nullptr, last = nullptr;
+    Check(clEnqueueNDRangeKernel(d.timed, d.stream, 1, nullptr, &global, &local, 0, nullptr, &before),
+          "clEnqueueNDRangeKernel");
+    if (after != After::kMarker)
+      Check(clEnqueueNDRangeKernel(d.timed, d.two, 1, nullptr, &one, &one, 0, nullptr,
+                                   after == After::kLaunchWithEvent ? &last : nullptr),
+            "clEnqueueNDRangeKernel");
+    if (after != After::kLaunchWithEvent)
+      Check(clEnqueueMarkerWithWaitList(d.timed, 0, nullptr, &last), "clEnqueueMarkerWithWaitList");
+    Check(clFinish(d.timed), "clFinish");
+    const cl_ulong from = Profile(before, CL_PROFILING_COMMAND_END), to = Profile(last, CL_PROFILING_COMMAND_END);
+    state.SetIterationTime(to > from ? static_cast<double>(to - from) * 1e-9 : 0.0);
+    clReleaseEvent(before);
+    clReleaseEvent(last);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -394,6 +424,11 @@ int main(int argc, char** argv) {
       benchmark::RegisterBenchmark(("upload/" + tail).c_str(), Uploads, how, queues)->UseManualTime();
       benchmark::RegisterBenchmark(("frame/" + tail).c_str(), FrameModel, how, queues, Order::kWaitList)->UseManualTime();
     }
+  for (const auto& [after, after_name] : {std::pair{After::kLaunchWithEvent, "launch:event"},
+                                          {After::kLaunchThenMarker, "launch:plain/marker:event"},
+                                          {After::kMarker, "marker:event"}})
+    benchmark::RegisterBenchmark((std::string("after-kernel/") + after_name).c_str(), AfterKernel, after)
+        ->UseManualTime();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;

@@ -103,6 +103,8 @@ class Executor {
   // How the runner's context was chosen where the tuner chose it among
   // several (tuner/runner_device.h OpenMeasuringRunner); "" elsewhere.
   virtual std::string ContextChoice() const { return ""; }
+  // The context's launch start, ms (OpenMeasuringRunner); 0 where not probed.
+  virtual double LaunchStartMs() const { return 0.0; }
   // The bytes the flush before each sample reads (generator/copy_kernel.h
   // FlushBytes); 0 where the device evicts each frame's own buffers instead.
   virtual std::size_t FlushReadBytes() const = 0;
@@ -170,7 +172,11 @@ class RunnerExecutor final : public Executor {
   std::string KernelClock() const override { return runner_.api().kernel_clock(); }
   std::string ScheduleOf(const std::string& key) const override { return runner_.api().schedule_of(key); }
   std::string ContextChoice() const override { return context_choice_; }
-  void SetContextChoice(std::string choice) { context_choice_ = std::move(choice); }
+  double LaunchStartMs() const override { return launch_start_ms_; }
+  void SetContext(std::string choice, double launch_start_ms) {
+    context_choice_ = std::move(choice);
+    launch_start_ms_ = launch_start_ms;
+  }
   std::size_t FlushReadBytes() const override { return flush_bytes_; }
   bool EvictsOwnBuffers() const override { return runner_.api().evicts_own_buffers(); }
   // The flush in `lang`'s API (prepared on first use): the anchor launch
@@ -184,6 +190,7 @@ class RunnerExecutor final : public Executor {
  private:
   Runner& runner_;
   std::string context_choice_;  // ContextChoice
+  double launch_start_ms_ = 0.0;  // LaunchStartMs
   std::size_t flush_bytes_;
   std::unique_ptr<HostFlush> host_flush_;
   std::map<Lang, Prepared> flushes_;

@@ -186,6 +186,7 @@ class FaultyExecutor final : public Executor {
   std::string KernelClock() const override { return inner_->KernelClock(); }
   std::string ScheduleOf(const std::string& key) const override { return inner_->ScheduleOf(key); }
   std::string ContextChoice() const override { return inner_->ContextChoice(); }
+  double LaunchStartMs() const override { return inner_->LaunchStartMs(); }
   std::size_t FlushReadBytes() const override { return inner_->FlushReadBytes(); }
   bool EvictsOwnBuffers() const override { return inner_->EvictsOwnBuffers(); }
 

@@ -460,6 +460,7 @@ void RecordKernelTime(Measurement& m, const KernelTime& t, const Executor& execu
   m.timing.sm_clock_mhz = t.clock_mhz;
   m.timing.schedule = executor.ScheduleOf(m.variant.Key());
   m.timing.context = executor.ContextChoice();
+  m.timing.launch_start_ms = executor.LaunchStartMs();
   m.gbps = m.timing.median_ms > 0.0 ? m.bytes_per_frame / m.timing.median_ms / 1e6 : 0.0;
 }
 

@@ -234,6 +234,7 @@ void to_json(nlohmann::json& out, const Measurement& m) {
                    {"sm_clock_mhz", Number(m.timing.sm_clock_mhz)},
                    {"schedule", m.timing.schedule},
                    {"context", m.timing.context},
+                   {"launch_start_ms", Number(m.timing.launch_start_ms)},
                    {"warmup", m.timing.warmup},
                    {"burst_frames", m.timing.burst_frames},
                    {"input_sets", m.timing.input_sets},
@@ -299,6 +300,7 @@ void from_json(const nlohmann::json& in, Measurement& m) {
     if (timing->contains("sm_clock_mhz")) m.timing.sm_clock_mhz = ReadNumber(*timing, "sm_clock_mhz", t);
     if (timing->contains("schedule")) m.timing.schedule = ReadString(*timing, "schedule", false, t);
     if (timing->contains("context")) m.timing.context = ReadString(*timing, "context", false, t);
+    if (timing->contains("launch_start_ms")) m.timing.launch_start_ms = ReadNumber(*timing, "launch_start_ms", t);
     if (timing->contains("clock")) m.timing.clock = ReadString(*timing, "clock", false, t);
     if (const nlohmann::json* tight = Field(*timing, "tight", false, t)) {
       if (!tight->is_boolean()) throw Error(t + ": 'tight' must be true or false");

@@ -117,6 +117,11 @@ struct Timing {
   double sm_clock_mhz = 0; // the lowest SM clock read around the samples kept (tuner/clock_guard.h; 0: not read)
   std::string schedule;    // how the device ran the samples where it chooses that itself (the cpu device's threads and chunk; "": elsewhere)
   std::string context;     // how the runner's context was chosen among several (timing version 9; "": the one it opened)
+  // The context's launch start: a 4 KiB copy's kernel time, taken as
+  // median_ms is (tuner/runner_device.h LaunchStartProbe), ms; 0: not probed
+  // (the host's CPU, older records). median_ms less it is the kernel's time
+  // beyond the smallest launch, comparable across APIs (docs/TUNING.md).
+  double launch_start_ms = 0.0;
   // The frame time (docs/TUNING.md "Frame time"): host ms per frame of
   // `burst_frames` frames issued back to back as a Skinner issues them (0: not measured).
   double frame_ms = 0.0;

@@ -22,7 +22,7 @@ namespace skintune::internal {
 // (shape, instances, meshes), and winners are kept per shape; 1.4.0: timing
 // version 5 (kernel time with its interval, frame time), the races of each
 // search, tie_margin, and each winner's interval and tie set.
-inline constexpr const char* kReportSchemaVersion = "1.18.0";
+inline constexpr const char* kReportSchemaVersion = "1.19.0";
 
 struct DatasetInfo {
   std::string key;          // a scene key (model/scene.h): a dataset, a glTF path, instances, a batch

@@ -242,17 +242,17 @@ class RunnerDevice final : public TunedDevice {
  private:
   // The executor the jobs run on (opening runner_ on first use): the
   // RunnerExecutor over it, wrapped in decorate_ when given. The first call
-  // holds no lock where ChoosesContext: the choice takes the chip's lock,
+  // holds no lock where ProbesLaunchStart: the probe takes the chip's lock,
   // which must not nest in a caller's (one flock per process: the inner
   // release would end the outer hold) nor follow the host's.
   Executor& MeasuringExecutor() {
     if (!runner_) {
-      std::string choice;
-      runner_ = OpenMeasuringRunner(device_, languages_.front(), &cache_, &choice);
+      MeasuringContext context;
+      runner_ = OpenMeasuringRunner(device_, languages_.front(), &cache_, &context);
       if (cache_.enabled()) runner_->UseProgramCache(&cache_, device_.identity.Id());
       runner_->ShareTimedInputs(SharedInputBytes(device_.identity));
       auto executor = std::make_unique<RunnerExecutor>(*runner_, device_.identity);
-      executor->SetContextChoice(std::move(choice));
+      executor->SetContext(std::move(context.choice), context.launch_start_ms);
       executor_ = std::move(executor);
       if (decorate_) executor_ = decorate_(std::move(executor_), device_.identity);
     }
@@ -281,14 +281,14 @@ class RunnerDevice final : public TunedDevice {
   // The runner CompileAhead builds into (opened on first use). For this
   // process: the measuring runner, so that Measure finds each kernel built
   // in its own context; opened under the host lock (host work), but for a
-  // context's choice, which times on the chip and comes first (the chip's
+  // context's choice or launch-start probe, which times on the chip and comes first (the chip's
   // lock is never taken after the host's: tuner/host_lock.h). For the cache
   // only: the measuring runner where one is open, else builder_, on the
   // shared context: a process that times nothing chooses no context (the
   // choice's probes would run on the chip beside another API's timing).
   skintune::internal::Runner& BuildingRunner(CompileFor compile_for, HostLock::Mode host_work) {
     if (runner_ || compile_for == CompileFor::kThisProcess) {
-      if (!runner_ && ChoosesContext(device_)) MeasuringExecutor();
+      if (!runner_ && ProbesLaunchStart(device_)) MeasuringExecutor();
       const HostLock held(host_work);
       MeasuringExecutor();
       return *runner_;
@@ -413,7 +413,8 @@ std::string ContextChoiceText(const QuickestRunner& quickest) {
 
 }  // namespace
 
-bool ChoosesContext(const FoundDevice& device) { return device.open_own && !IsHostCpu(device.identity); }
+bool ProbesLaunchStart(const FoundDevice& device) { return !IsHostCpu(device.identity); }
+bool ChoosesContext(const FoundDevice& device) { return device.open_own && ProbesLaunchStart(device); }
 
 LaunchStartProbe::LaunchStartProbe(skintune::internal::Runner& runner, const DeviceIdentity& device, Lang lang,
                                    ProgramCache* cache)
@@ -430,19 +431,39 @@ std::vector<double> LaunchStartProbe::Samples() {
 }
 
 std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevice& device, Lang lang,
-                                                                ProgramCache* cache, std::string* choice) {
-  if (choice) choice->clear();
-  if (!ChoosesContext(device)) return device.open();
+                                                                ProgramCache* cache, MeasuringContext* context) {
+  if (context) *context = {};
   const auto probe_of = [&](skintune::internal::Runner& runner) -> LaunchStartRound {
     auto probe = std::make_shared<LaunchStartProbe>(runner, device.identity, lang, cache);
     return [probe] { return probe->Samples(); };
   };
+  // The one runner the device opens, and its launch start (left 0 where the
+  // probe fails: the measurements say why, if the device cannot time).
+  const auto opened = [&](const std::string& why) {
+    std::unique_ptr<skintune::internal::Runner> runner = device.open();
+    std::vector<double> samples;
+    try {
+      const LaunchStartRound round = probe_of(*runner);
+      for (int r = 0; r < kLaunchStartProbeRounds; ++r) {
+        const std::vector<double> more = round();
+        samples.insert(samples.end(), more.begin(), more.end());
+      }
+    } catch (const Error& e) {
+      TimingLog([&] { return device.identity.Id() + " launch start not probed: " + e.what(); });
+      return runner;
+    }
+    const double ms = samples.empty() ? 0.0 : TrimmedMean(samples, 0.1);
+    TimingLog([&] { return device.identity.Id() + " launch start (us): " + std::to_string(ms * 1e3) + why; });
+    if (context) context->launch_start_ms = ms;
+    return runner;
+  };
+  if (!ProbesLaunchStart(device)) return device.open();
+  if (!ChoosesContext(device)) return opened("");
   QuickestRunner quickest;
   try {
     quickest = OpenQuickest(kContextsToChoose, kLaunchStartProbeRounds, device.open_own, probe_of);
   } catch (const Error& e) {
-    TimingLog([&] { return device.identity.Id() + " no context of its own (" + e.what() + "): the shared one"; });
-    return device.open();
+    return opened(std::string("; no context of its own (") + e.what() + "): the shared one");
   }
   TimingLog([&] {
     std::string line = device.identity.Id() + " launch start of " + std::to_string(quickest.starts_ms.size()) +
@@ -450,7 +471,7 @@ std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevic
     for (const double ms : quickest.starts_ms) line += " " + std::to_string(ms * 1e3);
     return line + "; measuring on context " + std::to_string(quickest.chosen);
   });
-  if (choice) *choice = ContextChoiceText(quickest);
+  if (context) *context = {ContextChoiceText(quickest), quickest.starts_ms[quickest.chosen]};
   return std::move(quickest.runner);
 }
 

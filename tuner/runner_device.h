@@ -50,12 +50,22 @@ QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::uniq
 // whose API makes contexts of a runner's own, the quickest of six by their
 // launch start (LaunchStartProbe); elsewhere, or where none opens, `open`'s.
 // SKINTUNE_TIMING_LOG records each context's launch start and the choice.
-// `choice`, when given, says how the context was chosen ("" where it was not):
-// each measurement records it (timing.context). ChoosesContext: whether it
-// chooses (the choice takes the chip's lock: open it before taking any).
+// `context`, when given, says how the context was chosen ("" where it was
+// not) and its launch start (ms): the chosen one's, or on any other GPU the
+// opened runner's, probed in two rounds as the choice probes (0 on the
+// host's CPU, whose kernel time has no launch to start). Each measurement
+// records both (timing.context, timing.launch_start_ms). ChoosesContext:
+// whether it chooses; ProbesLaunchStart: whether it probes (the probes take
+// the chip's lock: open it before taking any).
+struct MeasuringContext {
+  std::string choice;
+  double launch_start_ms = 0.0;
+};
+bool ProbesLaunchStart(const FoundDevice& device);
 bool ChoosesContext(const FoundDevice& device);
 std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevice& device, Lang lang,
-                                                                ProgramCache* cache, std::string* choice = nullptr);
+                                                                ProgramCache* cache,
+                                                                MeasuringContext* context = nullptr);
 // The launch-start probe on `runner`: a 4 KiB copy's kernel time, the flush
 // and then the copy, as every kernel time is taken: the device's start of a
 // launch after the command before it, and little else. Its buffers and the

@@ -128,18 +128,29 @@ def choice(margin, reports):
 
 
 def twins(out):
+    """Each size's kernel time per language, then the same less each context's
+    launch start (timing.launch_start_ms: a 4 KiB copy's kernel time): the
+    kernel beyond the smallest launch. max/min over OpenCL, CUDA and Vulkan."""
     by = {}
     for path in glob.glob(os.path.join(out, "twins-*.jsonl")):
         for l in open(path):
             if l.strip():
                 m = json.loads(l)
-                by.setdefault(m["dataset"], {})[m["variant"]["lang"]] = m["timing"]["median_ms"] * 1e3
-    print("size       " + "  ".join("%12s" % l for l in ("opencl", "cuda", "vulkan", "glsl-compute")) + "   max/min")
-    for size in sorted(by, key=lambda s: float(s.split("k")[0])):
-        t = by[size]
-        vals = [t[l] for l in t]
-        print("%-10s " % size + "  ".join("%12s" % ("%.2f" % t[l] if l in t else "-") for l in ("opencl", "cuda", "vulkan", "glsl-compute"))
-              + "   %.3f" % (max(vals) / min(vals)))
+                by.setdefault(m["dataset"], {})[m["variant"]["lang"]] = m["timing"]
+    langs = ("opencl", "cuda", "vulkan", "glsl-compute")
+    figures = (("kernel time, us", lambda t: t["median_ms"] * 1e3),
+               ("launch start, us", lambda t: t.get("launch_start_ms", 0) * 1e3),
+               ("beyond the launch start, us", lambda t: (t["median_ms"] - t.get("launch_start_ms", 0)) * 1e3))
+    for title, figure in figures:
+        print(title)
+        print("size       " + "  ".join("%12s" % l for l in langs) + "   max/min (opencl, cuda, vulkan)")
+        for size in sorted(by, key=lambda s: float(s.split("k")[0])):
+            t = {l: figure(by[size][l]) for l in by[size]}
+            vals = [t[l] for l in ("opencl", "cuda", "vulkan") if l in t and t[l] > 0]
+            ratio = "%.3f" % (max(vals) / min(vals)) if vals else "-"
+            print("%-10s " % size + "  ".join("%12s" % ("%.2f" % t[l] if l in t else "-") for l in langs)
+                  + "   " + ratio)
+        print()
 
 
 if __name__ == "__main__":

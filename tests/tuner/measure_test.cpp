@@ -102,6 +102,8 @@ class FakeExecutor final : public Executor {
     return std::make_unique<FakeTimed>(*this, copy_ms, 0.0);
   }
   std::string KernelClock() const override { return "fake clock"; }
+  std::string ContextChoice() const override { return context_choice; }
+  double LaunchStartMs() const override { return launch_start_ms; }
   std::size_t FlushReadBytes() const override { return flush_bytes; }
 
   double kernel_ms = 0.030, copy_ms = 0.025, frame_ms = 0.040, spread = 0.0;
@@ -112,6 +114,8 @@ class FakeExecutor final : public Executor {
   int run_instances = 0, time_instances = 0;
   std::size_t bytes_per_set = 0, flush_bytes = 100u << 20;
   bool copy_fails = false;
+  std::string context_choice;    // ContextChoice
+  double launch_start_ms = 0.0;  // LaunchStartMs
   int time_sets = 0, frame_frames = 0;
   int cold_untimed = 0, samples_taken = 0;
   std::optional<Lang> copy_lang;
@@ -211,6 +215,19 @@ TEST(Measure, TheFrameTimeComesBeforeTheKernelTimesSamples) {
   EXPECT_LT(first("frame"), first("cold"));
   EXPECT_GT(m.timing.frame_ms, 0.0);
   EXPECT_GT(m.timing.repetitions, 0);
+}
+
+// Every measurement records its context: how it was chosen and its launch
+// start, which the kernel time less it compares across APIs.
+TEST(Measure, EachMeasurementRecordsItsContextsChoiceAndLaunchStart) {
+  DatasetCache datasets;
+  FakeExecutor executor(datasets, "5000-b4");
+  executor.context_choice = "the quickest of 6 contexts by launch start (a 4 KiB copy after the flush): 2.088 us";
+  executor.launch_start_ms = 2.088e-3;
+  const Measurement m = MeasureOn(executor, datasets, Gpu(50ull << 20), kVariant, TimingOptions{});
+  ASSERT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+  EXPECT_EQ(m.timing.context, executor.context_choice);
+  EXPECT_EQ(m.timing.launch_start_ms, 2.088e-3);
 }
 
 // A copy that cannot run leaves the kernel's own time standing, with no

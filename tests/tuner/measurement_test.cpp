@@ -62,6 +62,7 @@ Measurement Sample(const std::string& key, MeasureStatus status) {
     m.timing.sm_clock_mhz = 1980;
     m.timing.schedule = "2 threads x 16384-vertex chunks, streaming stores";
     m.timing.context = "the quickest of 6 contexts by launch start (a 4 KiB copy after the flush): 2.088 us";
+    m.timing.launch_start_ms = 2.088e-3;
     m.gbps = 12.5;
     m.x_copy = 1.5 / 1.2;
   }
@@ -96,6 +97,7 @@ void ExpectSame(const Measurement& a, const Measurement& b) {
   EXPECT_EQ(a.timing.sm_clock_mhz, b.timing.sm_clock_mhz);
   EXPECT_EQ(a.timing.schedule, b.timing.schedule);
   EXPECT_EQ(a.timing.context, b.timing.context);
+  EXPECT_EQ(a.timing.launch_start_ms, b.timing.launch_start_ms);
   EXPECT_EQ(a.timing.version, b.timing.version);
   EXPECT_EQ(a.x_copy, b.x_copy);
   EXPECT_EQ(a.bytes_per_frame, b.bytes_per_frame);

@@ -1004,32 +1004,51 @@ std::optional<FoundDevice> OpenClSeenAsAGpu(int& opened, int& opened_own) {
 
 // OpenMeasuringRunner's wiring on this machine's first OpenCL device (PoCL
 // in CI), seen as a GPU that offers contexts of their own: six opened and
-// probed, one kept; as the host's CPU: opened once, no choice; and where no
-// context of its own opens, the shared one.
+// probed, one kept, its launch start recorded; as a GPU whose API offers
+// none (GL, Vulkan) or where none opens: the one runner opened, its launch
+// start probed; as the host's CPU: opened once, no choice and no probe.
 TEST(QuickestContext, AGpuChoosesAmongSixContextsAndTheHostsCpuOpensOne) {
   int opened = 0, opened_own = 0;
   std::optional<FoundDevice> counted = OpenClSeenAsAGpu(opened, opened_own);
   if (!counted) GTEST_SKIP() << SkippedLines("opencl");
   FoundDevice& device = *counted;
-  std::string choice;
-  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr, &choice), nullptr);
+  tuner_internal::MeasuringContext context;
+  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr, &context), nullptr);
   EXPECT_EQ(opened_own, 6);
   EXPECT_EQ(opened, 0);
-  // What every measurement then records (timing.context).
+  // What every measurement then records (timing.context, timing.launch_start_ms).
+  const std::string& choice = context.choice;
   EXPECT_EQ(choice.rfind("the quickest of 6 contexts by launch start (a 4 KiB copy after the flush): ", 0), 0u)
       << choice;
   EXPECT_NE(choice.find("; the others "), std::string::npos) << choice;
+  char chosen[32];
+  std::snprintf(chosen, sizeof chosen, ": %.3f us", context.launch_start_ms * 1e3);
+  EXPECT_NE(choice.find(chosen), std::string::npos) << choice << " does not name " << chosen;
+  EXPECT_GT(context.launch_start_ms, 0.0);
+
   device.identity.type = "cpu";
   opened = opened_own = 0;
-  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr, &choice), nullptr);
+  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr, &context), nullptr);
   EXPECT_EQ(opened_own, 0);
   EXPECT_EQ(opened, 1);
-  EXPECT_EQ(choice, "");
+  EXPECT_EQ(context.choice, "");
+  EXPECT_EQ(context.launch_start_ms, 0.0) << "the host's CPU has no launch to start";
+
   device.identity.type = "gpu";
+  device.open_own = nullptr;
+  opened = opened_own = 0;
+  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr, &context), nullptr);
+  EXPECT_EQ(opened, 1);
+  EXPECT_EQ(context.choice, "");
+  EXPECT_GT(context.launch_start_ms, 0.0) << "a GPU whose API offers no contexts of its own is probed too";
+
   device.open_own = []() -> std::unique_ptr<Runner> { throw Error("no context of its own here"); };
   opened = 0;
-  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr), nullptr);
+  context = {};
+  EXPECT_NE(tuner_internal::OpenMeasuringRunner(device, Lang::kOpenCl, nullptr, &context), nullptr);
   EXPECT_EQ(opened, 1);
+  EXPECT_EQ(context.choice, "");
+  EXPECT_GT(context.launch_start_ms, 0.0);
 }
 
 // A compile ahead for the program cache alone (a compile helper's, or a
