@@ -258,6 +258,43 @@ void to_json(nlohmann::json& out, const Measurement& m) {
   out["timestamp"] = m.timestamp;
 }
 
+namespace {
+
+// A measurement's 'timing' object into `m.timing`, `where` naming the measurement in errors.
+void ReadTiming(const nlohmann::json* timing, const std::string& where, Measurement& m) {
+  const std::string t = where + ": 'timing'";
+  if (!timing->is_object()) throw Error(t + ": expected an object");
+  m.timing.median_ms = ReadNumber(*timing, "median_ms", t);
+  m.timing.min_ms = ReadNumber(*timing, "min_ms", t);
+  m.timing.max_ms = ReadNumber(*timing, "max_ms", t);
+  m.timing.warmup = ReadInt(*timing, "warmup", t);
+  m.timing.repetitions = ReadInt(*timing, "repetitions", t);
+  m.timing.input_sets = ReadInt(*timing, "input_sets", t);
+  m.timing.burst_frames = ReadInt(*timing, "burst_frames", t);
+  m.timing.footprint_bytes = ReadNumber(*timing, "footprint_bytes", t);
+  m.timing.copy_ms = ReadNumber(*timing, "copy_ms", t);
+  // Timing version 5's figures; absent in older records, which no run reuses (their cache key differs).
+  if (timing->contains("low_ms")) m.timing.low_ms = ReadNumber(*timing, "low_ms", t);
+  if (timing->contains("high_ms")) m.timing.high_ms = ReadNumber(*timing, "high_ms", t);
+  if (timing->contains("frame_ms")) m.timing.frame_ms = ReadNumber(*timing, "frame_ms", t);
+  if (timing->contains("palette_kernel_ms")) m.timing.palette_kernel_ms = ReadNumber(*timing, "palette_kernel_ms", t);
+  if (timing->contains("flush_bytes")) m.timing.flush_bytes = ReadNumber(*timing, "flush_bytes", t);
+  // Timing version 7's clock; absent in older records.
+  if (timing->contains("sm_clock_mhz")) m.timing.sm_clock_mhz = ReadNumber(*timing, "sm_clock_mhz", t);
+  if (timing->contains("schedule")) m.timing.schedule = ReadString(*timing, "schedule", false, t);
+  if (timing->contains("context")) m.timing.context = ReadString(*timing, "context", false, t);
+  if (timing->contains("launch_start_ms")) m.timing.launch_start_ms = ReadNumber(*timing, "launch_start_ms", t);
+  if (timing->contains("clock")) m.timing.clock = ReadString(*timing, "clock", false, t);
+  if (const nlohmann::json* tight = Field(*timing, "tight", false, t)) {
+    if (!tight->is_boolean()) throw Error(t + ": 'tight' must be true or false");
+    m.timing.tight = tight->get<bool>();
+  }
+  // Lines written before timing versions were recorded are version 1.
+  m.timing.version = timing->contains("version") ? ReadInt(*timing, "version", t) : 1;
+}
+
+}  // namespace
+
 void from_json(const nlohmann::json& in, Measurement& m) {
   const std::string where = "measurement";
   if (!in.is_object()) throw Error(where + ": expected an object");
@@ -278,37 +315,7 @@ void from_json(const nlohmann::json& in, Measurement& m) {
   m.detail = ReadString(in, "detail", false, where);
   const nlohmann::json* timing = Field(in, "timing", false, where);
   if (!timing && IsTimed(m.status)) throw Error(where + ": status " + status + " without 'timing'");
-  if (timing) {
-    const std::string t = where + ": 'timing'";
-    if (!timing->is_object()) throw Error(t + ": expected an object");
-    m.timing.median_ms = ReadNumber(*timing, "median_ms", t);
-    m.timing.min_ms = ReadNumber(*timing, "min_ms", t);
-    m.timing.max_ms = ReadNumber(*timing, "max_ms", t);
-    m.timing.warmup = ReadInt(*timing, "warmup", t);
-    m.timing.repetitions = ReadInt(*timing, "repetitions", t);
-    m.timing.input_sets = ReadInt(*timing, "input_sets", t);
-    m.timing.burst_frames = ReadInt(*timing, "burst_frames", t);
-    m.timing.footprint_bytes = ReadNumber(*timing, "footprint_bytes", t);
-    m.timing.copy_ms = ReadNumber(*timing, "copy_ms", t);
-    // Timing version 5's figures; absent in older records, which no run reuses (their cache key differs).
-    if (timing->contains("low_ms")) m.timing.low_ms = ReadNumber(*timing, "low_ms", t);
-    if (timing->contains("high_ms")) m.timing.high_ms = ReadNumber(*timing, "high_ms", t);
-    if (timing->contains("frame_ms")) m.timing.frame_ms = ReadNumber(*timing, "frame_ms", t);
-    if (timing->contains("palette_kernel_ms")) m.timing.palette_kernel_ms = ReadNumber(*timing, "palette_kernel_ms", t);
-    if (timing->contains("flush_bytes")) m.timing.flush_bytes = ReadNumber(*timing, "flush_bytes", t);
-    // Timing version 7's clock; absent in older records.
-    if (timing->contains("sm_clock_mhz")) m.timing.sm_clock_mhz = ReadNumber(*timing, "sm_clock_mhz", t);
-    if (timing->contains("schedule")) m.timing.schedule = ReadString(*timing, "schedule", false, t);
-    if (timing->contains("context")) m.timing.context = ReadString(*timing, "context", false, t);
-    if (timing->contains("launch_start_ms")) m.timing.launch_start_ms = ReadNumber(*timing, "launch_start_ms", t);
-    if (timing->contains("clock")) m.timing.clock = ReadString(*timing, "clock", false, t);
-    if (const nlohmann::json* tight = Field(*timing, "tight", false, t)) {
-      if (!tight->is_boolean()) throw Error(t + ": 'tight' must be true or false");
-      m.timing.tight = tight->get<bool>();
-    }
-    // Lines written before timing versions were recorded are version 1.
-    m.timing.version = timing->contains("version") ? ReadInt(*timing, "version", t) : 1;
-  }
+  if (timing) ReadTiming(timing, where, m);
   m.bytes_per_frame = ReadNumber(in, "bytes_per_frame", where);
   if (in.contains("least_bytes_per_frame")) m.least_bytes_per_frame = ReadNumber(in, "least_bytes_per_frame", where);
   m.gbps = ReadNumber(in, "gbps", where);
