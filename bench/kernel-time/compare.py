@@ -47,8 +47,15 @@ def chosen(report):
     return rows
 
 
+def launch_starts(report):
+    """Each (device, dataset, variant key)'s launch start (timing.launch_start_ms), ms."""
+    return {(m["device_id"], m["dataset"], m["variant"]["key"]): m["timing"].get("launch_start_ms", 0.0)
+            for m in json.load(open(report))["measurements"] if "timing" in m}
+
+
 def runs(reports):
     all_rows = [chosen(p) for p in reports]
+    starts = [launch_starts(p) for p in reports]
     keys = sorted(set().union(*[set(r) for r in all_rows]))
     same = compatible = 0
     worst_spread = 1.0
@@ -70,7 +77,10 @@ def runs(reports):
             print("differ%s: %s %s %s: %s" % (" (each in the others' tie sets)" if ok else "", k[0][:40], k[1], k[2],
                                              ", ".join("%s %.2f us" % (n.split(".", 2)[2], t * 1e3) for n, t in zip(names, times))))
         if spread > 1.03:
-            print("spread %.3f: %s %s %s" % (spread, k[0][:40], k[1], k[2]))
+            # The winners' contexts' launch starts: how much of the spread is the context's.
+            ls = [st.get((k[0], k[2], n), 0.0) for st, n in zip(starts, names)]
+            print("spread %.3f: %s %s %s: %s" % (spread, k[0][:40], k[1], k[2], ", ".join(
+                "%.2f us (launch start %.2f)" % (t * 1e3, l * 1e3) for t, l in zip(times, ls))))
         api = "%s on %s" % (k[1], k[0].split("/")[0])
         within.setdefault(api, [0, 0])
         within[api][0] += len(set(names)) == 1 and spread <= 1.03
