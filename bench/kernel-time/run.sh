@@ -7,7 +7,8 @@
 #                                         Nsight Compute's gpu__time_duration (--cache-control all --clock-control none)
 #   bench/kernel-time/run.sh runs N ARGS  N cold `skintune run ARGS` (every program cache emptied before each),
 #                                         then compare.py on their reports
-#   bench/kernel-time/run.sh twins        one variant in OpenCL, CUDA and Vulkan (and GLSL) at 100k..6400k-b4
+#   bench/kernel-time/run.sh twins        one variant in OpenCL, CUDA and Vulkan (and GLSL) at 100k..6400k-b4:
+#                                         its kernel time, its context's launch start and the kernel beyond it
 #
 # Writes under $OUT (default ./out); prints a short table last.
 set -euo pipefail
