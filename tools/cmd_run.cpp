@@ -89,18 +89,33 @@ std::string KernelInterval(const Winner& w) {
   return text;
 }
 
-// The GPU's SM clock around the device's kernel-time samples, where it was
-// read (timing.sm_clock_mhz: NVIDIA's GPUs, docs/TUNING.md "Kernel time");
-// nothing elsewhere.
-void PrintSmClocks(const TuningReport& report, const std::string& device_id) {
+// The lowest and highest positive value of `field` among the device's
+// measurements; {0, 0} where none is.
+std::pair<double, double> RangeOf(const TuningReport& report, const std::string& device_id,
+                                  double (*field)(const Measurement&)) {
   double low = 0.0, high = 0.0;
   for (const Measurement& m : report.measurements) {
-    if (m.device_id != device_id || m.timing.sm_clock_mhz <= 0.0) continue;
-    low = low > 0.0 ? std::min(low, m.timing.sm_clock_mhz) : m.timing.sm_clock_mhz;
-    high = std::max(high, m.timing.sm_clock_mhz);
+    const double v = m.device_id == device_id ? field(m) : 0.0;
+    if (v <= 0.0) continue;
+    low = low > 0.0 ? std::min(low, v) : v;
+    high = std::max(high, v);
   }
-  if (high <= 0.0) return;
-  std::cout << "SM clock around the samples: " << Fixed(low, 0) << (high > low ? "-" + Fixed(high, 0) : "") << " MHz\n";
+  return {low, high};
+}
+
+// The GPU's SM clock around the device's kernel-time samples, where it was
+// read (timing.sm_clock_mhz: NVIDIA's GPUs, docs/TUNING.md "Kernel time"),
+// and its contexts' launch start, where probed (timing.launch_start_ms: a
+// GPU's); nothing elsewhere.
+void PrintSmClocksAndLaunchStart(const TuningReport& report, const std::string& device_id) {
+  const auto [low, high] = RangeOf(report, device_id, [](const Measurement& m) { return m.timing.sm_clock_mhz; });
+  if (high > 0.0)
+    std::cout << "SM clock around the samples: " << Fixed(low, 0) << (high > low ? "-" + Fixed(high, 0) : "") << " MHz\n";
+  const auto [first, last] = RangeOf(report, device_id, [](const Measurement& m) { return m.timing.launch_start_ms; });
+  if (last > 0.0)
+    std::cout << "launch start: " << Fixed(first * 1e3, 2) << (last > first ? "-" + Fixed(last * 1e3, 2) : "")
+              << " us (a 4 KiB copy after the flush, timed as the kernels are: each API's device cost of a timed "
+                 "launch; the kernel time less it compares one kernel across APIs)\n";
 }
 
 // The line under a device's table naming its classes over the budget that
@@ -150,7 +165,7 @@ void PrintDeviceWinners(const TuningReport& report) {
                 << Fixed(report.TieSpreadOf(d.Id()) * 100.0, 1) << "% (the winner among "
                 << (report.ChoiceOf(d.Id()) == Choice::kTieSet ? "them" : "those within the margin")
                 << ": fewest bytes, then lower error, then the palette storage with the fewest limits)\n";
-      PrintSmClocks(report, d.Id());
+      PrintSmClocksAndLaunchStart(report, d.Id());
       if (!noisy.empty()) {
         std::cout << "every candidate within noise of the winner in: ";
         for (std::size_t i = 0; i < noisy.size(); ++i) std::cout << (i ? ", " : "") << noisy[i];

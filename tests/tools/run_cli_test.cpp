@@ -110,6 +110,11 @@ TEST(RunCli, TunesEveryDeviceWritesTheFilesAndPrintsEachDevicesWinners) {
     for (const nlohmann::json& m : report.at("measurements"))
       clocked = clocked || (m.at("device_id") == d.at("id") && m.at("timing").value("sm_clock_mhz", 0.0) > 0.0);
     EXPECT_EQ(block.find("SM clock around the samples") != std::string::npos, clocked) << header << "\n" << r.out;
+    // The launch start line where the device's contexts were probed (a GPU), and nowhere else.
+    bool probed = false;
+    for (const nlohmann::json& m : report.at("measurements"))
+      probed = probed || (m.at("device_id") == d.at("id") && m.at("timing").value("launch_start_ms", 0.0) > 0.0);
+    EXPECT_EQ(block.find("\nlaunch start: ") != std::string::npos, probed) << header << "\n" << r.out;
   }
 
   // The report's path, and an emit command that takes the kernels.
