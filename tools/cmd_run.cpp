@@ -110,7 +110,8 @@ std::pair<double, double> RangeOf(const TuningReport& report, const std::string&
 void PrintSmClocksAndLaunchStart(const TuningReport& report, const std::string& device_id) {
   const auto [low, high] = RangeOf(report, device_id, [](const Measurement& m) { return m.timing.sm_clock_mhz; });
   if (high > 0.0)
-    std::cout << "SM clock around the samples: " << Fixed(low, 0) << (high > low ? "-" + Fixed(high, 0) : "") << " MHz\n";
+    std::cout << "SM clock around the samples: " << Fixed(low, 0) << (high > low ? "-" + Fixed(high, 0) : "")
+              << " MHz\n";
   const auto [first, last] = RangeOf(report, device_id, [](const Measurement& m) { return m.timing.launch_start_ms; });
   if (last > 0.0)
     std::cout << "launch start: " << Fixed(first * 1e3, 2) << (last > first ? "-" + Fixed(last * 1e3, 2) : "")

@@ -281,11 +281,12 @@ class RunnerDevice final : public TunedDevice {
   // The runner CompileAhead builds into (opened on first use). For this
   // process: the measuring runner, so that Measure finds each kernel built
   // in its own context; opened under the host lock (host work), but for a
-  // context's choice or launch-start probe, which times on the chip and comes first (the chip's
-  // lock is never taken after the host's: tuner/host_lock.h). For the cache
-  // only: the measuring runner where one is open, else builder_, on the
-  // shared context: a process that times nothing chooses no context (the
-  // choice's probes would run on the chip beside another API's timing).
+  // context's choice or launch-start probe, which times on the chip and
+  // comes first (the chip's lock is never taken after the host's:
+  // tuner/host_lock.h). For the cache only: the measuring runner where one
+  // is open, else builder_, on the shared context: a process that times
+  // nothing chooses or probes no context (the probes would run on the chip
+  // beside another API's timing).
   skintune::internal::Runner& BuildingRunner(CompileFor compile_for, HostLock::Mode host_work) {
     if (runner_ || compile_for == CompileFor::kThisProcess) {
       if (!runner_ && ProbesLaunchStart(device_)) MeasuringExecutor();
