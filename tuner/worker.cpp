@@ -21,6 +21,7 @@
 #include <iostream>
 #include <sstream>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -34,6 +35,27 @@
 namespace skintune::internal {
 
 namespace {
+
+// CompileFor's names in the protocol's "for", declared once for both ends.
+constexpr std::pair<CompileFor, const char*> kCompileForNames[] = {{CompileFor::kThisProcess, "this process"},
+                                                                   {CompileFor::kTheCache, "the cache"}};
+
+const char* NameOf(CompileFor compile_for) {
+  for (const auto& [value, name] : kCompileForNames)
+    if (value == compile_for) return name;
+  return kCompileForNames[0].second;
+}
+
+// The CompileFor a request's "for" names; absent, this process.
+CompileFor CompileForOf(const nlohmann::json& request) {
+  const std::string named = request.value("for", std::string(NameOf(CompileFor::kThisProcess)));
+  std::string known;
+  for (const auto& [value, name] : kCompileForNames) {
+    if (named == name) return value;
+    known += std::string(known.empty() ? "" : ", ") + name;
+  }
+  throw Error("compile_ahead: \"for\" is '" + named + "' (" + known + ")");
+}
 
 constexpr std::size_t kStderrTailBytes = 8192;
 
@@ -437,9 +459,8 @@ Measurement IsolatedDevice::MeasureOnce(const Variant& variant, const TuningData
 std::size_t IsolatedDevice::CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset,
                                          CompileFor compile_for) {
   if (variants.empty()) return 0;
-  const char* whom = compile_for == CompileFor::kTheCache ? "the cache" : "this process";
   const std::string request =
-      nlohmann::json{{"compile_ahead", variants}, {"dataset", dataset.key}, {"for", whom}}.dump();
+      nlohmann::json{{"compile_ahead", variants}, {"dataset", dataset.key}, {"for", NameOf(compile_for)}}.dump();
   if (pid_ < 0) Start();
   if (!Send(request)) {
     DeathDetail();
@@ -602,11 +623,7 @@ TuningDataset DatasetOf(const nlohmann::json& request) { return {request.at("dat
 nlohmann::json Answer(TunedDevice& device, const nlohmann::json& request, bool* lost) {
   if (request.contains("compile_ahead")) {
     const std::vector<Variant> variants = request.at("compile_ahead").get<std::vector<Variant>>();
-    const std::string compile_for = request.value("for", std::string("this process"));
-    if (compile_for != "this process" && compile_for != "the cache")
-      throw Error("compile_ahead: \"for\" is '" + compile_for + "' (this process, the cache)");
-    const CompileFor whom = compile_for == "the cache" ? CompileFor::kTheCache : CompileFor::kThisProcess;
-    return {{"compiled", device.CompileAhead(variants, DatasetOf(request), whom)}};
+    return {{"compiled", device.CompileAhead(variants, DatasetOf(request), CompileForOf(request))}};
   }
   if (request.contains("race")) {
     try {
