@@ -2,8 +2,11 @@
 #include "tuner/device_tuning.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <future>
+#include <map>
 #include <memory>
 #include <set>
 #include <thread>
@@ -72,6 +75,20 @@ std::unique_ptr<IsolatedDevice> HeadStarts::Take(std::size_t d) {
   std::unique_ptr<IsolatedDevice> worker = std::move(found->second);
   workers_.erase(found);
   return worker;
+}
+
+void ChipStart::Open() {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    opened_ = true;
+  }
+  opened_cv_.notify_all();
+}
+
+void ChipStart::Wait(const std::function<bool()>& overtaken) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (!opened_cv_.wait_for(lock, std::chrono::milliseconds(10), [this] { return opened_; }))
+    if (overtaken()) return;
 }
 
 CompileHelpers::CompileHelpers(const WorkerSetup& workers, const DeviceIdentity& device)
@@ -166,6 +183,7 @@ class DeviceTuning {
         result_(result),
         worker_(StartedAheadOr(workers, d)),
         helpers_(workers, device_),
+        chip_start_(workers.chip_lock.empty() ? nullptr : workers.chip_start),
         id_(device_.Id()),
         name_(device_.backend + " " + device_.name) {
     // This device's timing: its tie margin and stop rule (a CPU's are wider: TimingOptions::ForDevice).
@@ -174,10 +192,16 @@ class DeviceTuning {
     if (!workers.chip_lock.empty()) worker_->UseChipLock(workers.chip_lock);
   }
 
+  ~DeviceTuning() { stop_ahead_ = true; }  // before every_task_ahead_ is waited for
+  DeviceTuning(const DeviceTuning&) = delete;
+  DeviceTuning& operator=(const DeviceTuning&) = delete;
+
   void Run() {
     const LoggedSpan span(name_, "device");
     try {
+      StartHelpersOnEveryTask();
       MeasureCopyBandwidth();
+      if (chip_start_) chip_start_->Open();
       for (const Task& task : plan_.tasks) {
         if (task.device != d_ || (task.candidates.empty() && task.baselines.empty())) continue;
         RunTask(task);
@@ -186,6 +210,7 @@ class DeviceTuning {
       }
     } catch (const WorkerError& e) {
       // This device cannot be used: the run goes on with the others.
+      if (chip_start_) chip_start_->Open();
       result_.given_up = e.what();
       ledger_.Advance(result_, result_.planned, name_ + ": given up: " + e.what());
     }
@@ -218,11 +243,57 @@ class DeviceTuning {
     });
   }
 
+  // A GPU whose kernels are compiled in helper processes (CompileAheadInProcesses:
+  // NVIDIA's OpenCL) has every task's kernels compiled there from its start,
+  // task after task, beside its own start and measurements: each task
+  // waits for its own (RunTask), and the search's compiles ahead are left
+  // out. A step's batch on the helpers took 100-360 ms, a move alone built in
+  // process 60-100 ms, and the helpers' start ~1 s, all on the turn's path
+  // (H200 machine, 2026-12-02). Not for a CPU device: its helpers' compiles
+  // would take the cores it times on.
+  void StartHelpersOnEveryTask() {
+    if (IsHostCpu(device_) || !CompilesAhead(device_) || !CompilesAheadInProcesses(device_)) return;
+    std::vector<std::pair<std::string, std::vector<Variant>>> work;  // data set, kernels
+    for (const Task& task : plan_.tasks) {
+      if (task.device != d_ || (task.candidates.empty() && task.baselines.empty())) continue;
+      const std::string& key = plan_.datasets[task.dataset].info.key;
+      std::vector<Variant> all = task.baselines;
+      all.insert(all.end(), task.candidates.begin(), task.candidates.end());
+      work.emplace_back(key, NotTrusted(all, key));
+      task_ahead_[&task] = task_promises_.emplace_back().get_future().share();
+    }
+    every_task_ahead_ = std::async(std::launch::async, [this, work = std::move(work)] {
+      for (std::size_t i = 0; i < work.size(); ++i) {
+        if (stop_ahead_) {  // the turn ended (its device given up): the rest is not needed
+          task_promises_[i].set_value();
+          continue;
+        }
+        try {
+          const LoggedSpan span(name_, "compile ahead of " + std::to_string(work[i].second.size()) + " kernels for " +
+                                           work[i].first + " in helpers, from the start");
+          if (!work[i].second.empty()) helpers_.CompileAhead(work[i].second, TuningDataset{work[i].first});
+        } catch (...) {
+          // Only a head start lost: the measurement builds its own kernel and records any failure.
+        }
+        task_promises_[i].set_value();
+      }
+    });
+  }
+
+  // Those of `variants` that the cache has no trusted record of on data set `key`.
+  std::vector<Variant> NotTrusted(const std::vector<Variant>& variants, const std::string& key) {
+    std::vector<Variant> left;
+    for (const Variant& v : variants)
+      if (!ledger_.Trusted(CacheKeyOf(id_, key, v), config_.timing.tolerance)) left.push_back(v);
+    return left;
+  }
+
   // One task: the baselines, the search, then the race that settles it.
   void RunTask(const Task& task) {
     task_ = &task;
     key_ = plan_.datasets[task.dataset].info.key;
     const LoggedSpan span(name_, "task " + key_);
+    if (const auto ahead = task_ahead_.find(&task); ahead != task_ahead_.end()) ahead->second.wait();
     task_done_ = 0;
     seen_.clear();
     const Evaluator evaluate = [this](const Variant& v) { return Evaluate(v); };
@@ -244,9 +315,8 @@ class DeviceTuning {
   // has not (the baselines, then what the strategy announces), built in
   // parallel by the worker before any of them is timed.
   void CompileAhead(const std::vector<Variant>& next) {
-    std::vector<Variant> ahead;
-    for (const Variant& v : next)
-      if (!ledger_.Trusted(CacheKeyOf(id_, key_, v), config_.timing.tolerance)) ahead.push_back(v);
+    if (every_task_ahead_.valid()) return;  // compiled from the start (StartHelpersOnEveryTask)
+    const std::vector<Variant> ahead = NotTrusted(next, key_);
     if (ahead.size() < 2 || !CompilesAhead(device_)) return;  // one kernel: built by its measurement
     Advance(task_done_, name_ + ": compiling " + std::to_string(ahead.size()) + " kernels for " + key_);
     const LoggedSpan span(name_, "compile ahead of " + std::to_string(ahead.size()) + " kernels for " + key_);
@@ -321,6 +391,7 @@ class DeviceTuning {
   DeviceResult& result_;
   std::unique_ptr<IsolatedDevice> worker_;
   CompileHelpers helpers_;  // CompileAheadInProcesses only
+  ChipStart* chip_start_;   // opened once this turn has started (null: no chip shared)
   TimingOptions timing_ = config_.timing;
   const std::string id_, name_;
   std::size_t task_start_ = 0;  // evaluations planned before the current task
@@ -330,6 +401,12 @@ class DeviceTuning {
   std::string key_;             // its dataset
   std::size_t task_done_ = 0;   // its evaluations done
   std::set<std::string> seen_;  // its cache keys recorded
+  // StartHelpersOnEveryTask's: each task's kernels compiled, and the job,
+  // declared last: it uses the members above, so it ends before they do.
+  std::vector<std::promise<void>> task_promises_;
+  std::map<const Task*, std::shared_future<void>> task_ahead_;
+  std::atomic<bool> stop_ahead_{false};  // set as the turn ends
+  std::future<void> every_task_ahead_;
 };
 
 }  // namespace
@@ -352,6 +429,8 @@ void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& 
     // lock keeps the choice's probes out of the measuring API's jobs.
     const CompileFor compile_for =
         workers.head_starts && !workers.chip_lock.empty() ? CompileFor::kThisProcess : CompileFor::kTheCache;
+    // Its context's choice probes on the chip: after the chip's first turn has started (ChipStart).
+    if (compile_for == CompileFor::kThisProcess && workers.chip_start) workers.chip_start->Wait(overtaken);
     for (const Task& task : plan.tasks) {
       if (task.device != d || overtaken()) continue;
       const std::string& key = plan.datasets[task.dataset].info.key;

@@ -7,6 +7,7 @@
 // they share is a TuningLedger.
 #pragma once
 
+#include <condition_variable>
 #include <cstddef>
 #include <functional>
 #include <map>
@@ -84,6 +85,24 @@ class HeadStarts {
   std::map<std::size_t, std::unique_ptr<IsolatedDevice>> workers_;
 };
 
+// Opened once the first turn on a chip has its context chosen and its copy
+// measured (or has ended). A later API's worker started ahead (PrecompileDevice)
+// waits for it before it chooses a context of its own: that choice's probes
+// take the chip's lock, and the first turn's start waited for them (its
+// start 4.4-5.5 s beside them, 3.2-3.9 s alone, with NVIDIA's OpenCL on the
+// H200 machine, 2026-12-02).
+class ChipStart {
+ public:
+  void Open();
+  // Returns once opened, or once `overtaken()` (asked every 10 ms).
+  void Wait(const std::function<bool()>& overtaken);
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable opened_cv_;
+  bool opened_ = false;
+};
+
 // How a device's worker processes are started.
 struct WorkerSetup {
   std::string executable;         // the skintune binary
@@ -91,6 +110,7 @@ struct WorkerSetup {
   std::string host_lock;          // shared by every worker (tuner/host_lock.h); "" = none
   std::string chip_lock;          // shared by the workers of one chip's APIs (host_lock.h ChipLock); "" = none
   HeadStarts* head_starts = nullptr;  // where a device's turn finds a worker started ahead; null = none
+  ChipStart* chip_start = nullptr;    // the chip's first turn's start (with chip_lock); null = none
 };
 
 // Worker processes that compile a device's kernels ahead side by side, each a

@@ -6,6 +6,7 @@
 // CompileAhead fills from several threads.
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
@@ -46,7 +47,12 @@ namespace {
 //   and once more per work-group size at the kernel's first launch (~250 ms
 //   a variant on the H200 machine's host, 2026-11-28), so its kernels are
 //   compiled ahead by running them once, in several processes of their own
-//   (CompileAheadInProcesses; tuner/device_tuning.cpp starts them);
+//   (CompileAheadInProcesses; tuner/device_tuning.cpp starts them). NVIDIA's
+//   OpenCL builds one program at a time in a process too, so its kernels are
+//   built (not run) in processes of their own, into the program cache, where
+//   the measuring process loads each in 3-4 ms instead of ~100 ms of
+//   compiling (H200 machine, 2026-12-02: a cold turn 14.0-15.7 s against
+//   16.1-17.4 in process);
 // Each of the others with a runner (and program cache object) of its own,
 // so that no API object is shared between threads:
 // - vulkan: each thread's runner has a VkDevice of its own, and its Build
@@ -58,6 +64,7 @@ namespace {
 // On the H100 a cold default run spent 100-130 ms per GL and Vulkan variant
 // between timings, most of it compiling one kernel at a time (H100 machine, 2026-11-24).
 constexpr std::string_view kCompileAheadApis[] = {"opencl", "cuda", "vulkan", "gl"};
+constexpr std::string_view kNvidiaOpenClPlatform = "NVIDIA CUDA";  // its OpenCL platform's name
 
 // At most this many compile threads (each holds a context of the device).
 constexpr unsigned kMaxCompileThreads = 8;
@@ -206,7 +213,7 @@ class RunnerDevice final : public TunedDevice {
     // which made PoCL's first data set take 36 s instead of 16 on the H200
     // machine, and the GPU's other APIs waited behind PoCL, 2026-11-29).
     const HostLock::Mode host_work = HostWorkMode(IsHostCpu(device_.identity));
-    if (CompilesAheadInProcesses(device_.identity)) {
+    if (CompilesAheadByRunning(device_.identity)) {
       const HostLock held(host_work);
       return RunOnce(variants, dataset, compile_for);
     }
@@ -470,7 +477,14 @@ std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevic
     std::string line = device.identity.Id() + " launch start of " + std::to_string(quickest.starts_ms.size()) +
                        " contexts (us):";
     for (const double ms : quickest.starts_ms) line += " " + std::to_string(ms * 1e3);
-    return line + "; measuring on context " + std::to_string(quickest.chosen);
+    const auto whole_ms = [](const std::vector<double>& all) {
+      std::string text;
+      for (const double ms : all) text += " " + std::to_string(std::lround(ms));
+      return text;
+    };
+    return line + "; measuring on context " + std::to_string(quickest.chosen) + "; opened in (ms)" +
+           whole_ms(quickest.open_ms) + ", probes prepared in (ms)" + whole_ms(quickest.prepare_ms) + ", probed in " +
+           std::to_string(std::lround(quickest.probing_ms)) + " ms";
   });
   if (context) *context = {ContextChoiceText(quickest), quickest.starts_ms[quickest.chosen]};
   return std::move(quickest.runner);
@@ -487,17 +501,25 @@ QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::uniq
     probes[c] = nullptr;
     runners[c].reset();
   };
+  using Clock = std::chrono::steady_clock;
+  const auto ms_since = [](Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); };
+  QuickestRunner quickest;
   for (int c = 0; c < count; ++c) {
     runners.emplace_back();
     probes.emplace_back();
     samples.emplace_back();
     try {
+      Clock::time_point t = Clock::now();
       runners.back() = open();
+      quickest.open_ms.push_back(ms_since(t));
+      t = Clock::now();
       probes.back() = probe_of(*runners.back());
+      quickest.prepare_ms.push_back(ms_since(t));
     } catch (const Error& e) {
       drop(runners.size() - 1, e);
     }
   }
+  const Clock::time_point opened = Clock::now();
   for (int r = 0; r < rounds; ++r)
     for (std::size_t c = 0; c < runners.size(); ++c) {
       if (!runners[c]) continue;
@@ -509,7 +531,7 @@ QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::uniq
       }
     }
   probes.clear();
-  QuickestRunner quickest;
+  quickest.probing_ms = ms_since(opened);
   for (std::size_t c = 0; c < runners.size(); ++c) {
     const bool probed = runners[c] && !samples[c].empty();
     quickest.starts_ms.push_back(probed ? TrimmedMean(samples[c], 0.1) : std::nan(""));
@@ -551,6 +573,15 @@ namespace skintune::internal {
 Discovery DiscoverTunedDevices() { return tuner_internal::DiscoverTunedDevices(tuner_internal::ExecutorDecorator{}); }
 
 bool CompilesAheadInProcesses(const DeviceIdentity& device) {
+  if (device.backend != "opencl" || !CompilesAhead(device)) return false;
+  // NVIDIA's OpenCL builds one program at a time in a process, whatever the
+  // threads (5 kernels in 420-560 ms), and loads a program another process
+  // built, from the program cache, in 3-4 ms (H200, 2026-12-02): the helpers
+  // need that cache on disk.
+  return IsHostCpu(device) || (device.platform == tuner_internal::kNvidiaOpenClPlatform && !ProgramCache::DefaultDir().empty());
+}
+
+bool CompilesAheadByRunning(const DeviceIdentity& device) {
   return device.backend == "opencl" && IsHostCpu(device) && CompilesAhead(device);
 }
 

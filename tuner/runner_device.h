@@ -39,6 +39,10 @@ struct QuickestRunner {
   std::unique_ptr<skintune::internal::Runner> runner;
   std::vector<double> starts_ms;  // each runner's trimmed mean in opening order; NaN where it failed
   std::size_t chosen = 0;         // runner's index in starts_ms
+  // Where the choice's time went (the timing log): each runner's opening and
+  // its probe's preparing (kernels built, buffers made), then the rounds.
+  std::vector<double> open_ms, prepare_ms;
+  double probing_ms = 0.0;
 };
 // A runner's launch-start probe, prepared once and sampled each round (ms).
 using LaunchStartRound = std::function<std::vector<double>()>;

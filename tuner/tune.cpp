@@ -172,6 +172,7 @@ std::vector<DeviceResult> TuneDevices(const TuningPlan& plan, const TuneConfig& 
   // started ahead chooses its context between the measuring API's jobs,
   // never during one (PrecompileDevice).
   std::vector<std::unique_ptr<tuner_internal::HostLockFile>> chip_locks;
+  std::vector<std::unique_ptr<ChipStart>> chip_starts;  // one per chip lock: its first turn's start
   std::vector<WorkerSetup> workers_of(with_work.size(), workers);
   for (std::size_t g = 0; g < schedule.groups.size(); ++g) {
     const auto cpu = [&](std::size_t k) { return IsHostCpu(identities[k]); };
@@ -182,7 +183,11 @@ std::vector<DeviceResult> TuneDevices(const TuningPlan& plan, const TuneConfig& 
       schedule.shares_chip[g] = false;
       continue;
     }
-    for (const std::size_t k : group) workers_of[k].chip_lock = chip_locks.back()->path();
+    chip_starts.push_back(std::make_unique<ChipStart>());
+    for (const std::size_t k : group) {
+      workers_of[k].chip_lock = chip_locks.back()->path();
+      workers_of[k].chip_start = chip_starts.back().get();
+    }
   }
   RunSchedule(
       schedule, [&](std::size_t k) { TuneDevice(plan, with_work[k], config, workers_of[k], ledger, results[with_work[k]]); },

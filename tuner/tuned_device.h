@@ -71,11 +71,15 @@ class TunedDevice {
 // type is in or out).
 bool CompilesAhead(const DeviceIdentity& device);
 
-// Whether `device`'s kernels are compiled ahead in processes of their own, by
-// running each once (runner_device.cpp: PoCL compiles one kernel at a time in
-// a process, and again for each work-group size at its first launch; both
-// land in its disk cache, where the measuring process finds them).
+// Whether `device`'s kernels are compiled ahead in processes of their own
+// (runner_device.cpp: a driver that compiles one kernel at a time in a
+// process, PoCL's and NVIDIA's OpenCL), where the measuring process finds
+// them on disk.
 bool CompilesAheadInProcesses(const DeviceIdentity& device);
+// Whether those processes compile each kernel by running it once (PoCL:
+// it compiles again for each work-group size at a kernel's first launch, into
+// its own disk cache), rather than by building it into the program cache.
+bool CompilesAheadByRunning(const DeviceIdentity& device);
 
 struct Discovery {
   std::vector<std::unique_ptr<TunedDevice>> devices;

@@ -676,6 +676,37 @@ TEST(Scenes, AnimatedCrowdsMakeTheirPalettesOnTheDeviceVerifiedTimedAndTheirBaki
   if (measured == 0) GTEST_SKIP() << "no device here: " << SkippedLines("");
 }
 
+// Which devices compile ahead in helper processes (CompileAheadInProcesses),
+// and how: PoCL by running each kernel once, NVIDIA's OpenCL by building into
+// the program cache, so only where that cache has a directory. Other GPUs
+// and APIs build on threads of the measuring worker.
+TEST(CompileAhead, PoclAndNvidiasOpenClCompileInHelperProcesses) {
+  const auto device = [](const char* backend, const char* platform, const char* type) {
+    DeviceIdentity d;
+    d.backend = backend;
+    d.platform = platform;
+    d.type = type;
+    return d;
+  };
+  const DeviceIdentity nvidia = device("opencl", "NVIDIA CUDA", "gpu");
+  const DeviceIdentity pocl = device("opencl", "Portable Computing Language", "cpu");
+  ScopedEnv always("SKINTUNE_COMPILE_AHEAD", "always");  // a CPU device compiles ahead on any host
+  ScopedEnv cache("SKINTUNE_CACHE_DIR", "/tmp/skintune-cache-test");
+  EXPECT_TRUE(CompilesAheadInProcesses(nvidia));
+  EXPECT_FALSE(CompilesAheadByRunning(nvidia));
+  EXPECT_TRUE(CompilesAheadInProcesses(pocl));
+  EXPECT_TRUE(CompilesAheadByRunning(pocl));
+  for (const DeviceIdentity& other : {device("opencl", "AMD Accelerated Parallel Processing", "gpu"),
+                                      device("cuda", "CUDA", "gpu"), device("vulkan", "Vulkan", "gpu")}) {
+    EXPECT_FALSE(CompilesAheadInProcesses(other)) << other.backend << " " << other.platform;
+    EXPECT_FALSE(CompilesAheadByRunning(other)) << other.backend << " " << other.platform;
+  }
+  // No program cache on disk: NVIDIA's helpers would build for nothing.
+  ScopedEnv no_cache("SKINTUNE_CACHE_DIR", ""), no_xdg("XDG_CACHE_HOME", ""), no_home("HOME", "");
+  EXPECT_FALSE(CompilesAheadInProcesses(nvidia));
+  EXPECT_TRUE(CompilesAheadInProcesses(pocl)) << "PoCL's kernel cache is its own";
+}
+
 // Compiling ahead (the tuner's pool of compile threads, each with a device
 // context of its own): every distinct kernel is built once and counted, a
 // second call finds them all built, and the measurements that follow load

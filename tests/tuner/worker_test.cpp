@@ -10,11 +10,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
@@ -411,6 +414,49 @@ TEST(HeadStarts, APrecompileDoneBeforeTheTurnLeavesItsWorkerToIt) {
   ASSERT_TRUE(std::getline(locked, line));
   EXPECT_EQ(nlohmann::json::parse(line).value("for", ""), "this process");
   EXPECT_NE(ReadAll(dir / "args").find("--chip-lock " + workers.chip_lock), std::string::npos) << ReadAll(dir / "args");
+}
+
+// A worker started ahead under the chip's lock chooses its context (its
+// first request, "this process") only once the chip's first turn has
+// started (ChipStart): the choice's probes would take the chip from that
+// start. A turn that comes meanwhile ends the wait with nothing asked.
+TEST(HeadStarts, AWorkerStartedAheadWaitsForTheChipsFirstTurnToStart) {
+  const fs::path dir = Scratch();
+  const std::string exe = CompilingWorker(dir, 2);
+  TuningPlan plan;
+  plan.datasets.emplace_back().info.key = kDataset.key;
+  plan.devices.push_back({FakeDevice(), {}, {Lang::kOpenCl}});
+  plan.tasks.emplace_back().candidates = {ParseVariantKey("opencl.b2.soa.global.wg64"),
+                                          ParseVariantKey("opencl.b2.soa.constant.wg64")};
+  MeasurementCache cache((dir / "cache.jsonl").string());
+  TuningLedger ledger(cache, 0, {});
+  HeadStarts head_starts;
+  ChipStart chip_start;
+  WorkerSetup workers{exe, 30, "", (dir / "chip").string(), &head_starts, &chip_start};
+  std::atomic<bool> done{false};
+  std::thread ahead([&] {
+    PrecompileDevice(plan, 0, workers, ledger, [] { return false; });
+    done = true;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_FALSE(done.load()) << "it waits for the first turn's start";
+  EXPECT_FALSE(fs::exists(dir / "requests")) << ReadAll(dir / "requests");
+  chip_start.Open();
+  ahead.join();
+  std::ifstream requests(dir / "requests");
+  std::string line;
+  ASSERT_TRUE(std::getline(requests, line));
+  EXPECT_EQ(nlohmann::json::parse(line).value("for", ""), "this process");
+  ASSERT_NE(head_starts.Take(0), nullptr);
+  // Overtaken while it waits: it returns having asked nothing.
+  fs::remove(dir / "requests");
+  ChipStart never;
+  workers.chip_start = &never;
+  int asked = 0;
+  PrecompileDevice(plan, 0, workers, ledger, [&] { return asked++ > 3; });
+  EXPECT_GT(asked, 3);
+  EXPECT_FALSE(fs::exists(dir / "requests"));
+  EXPECT_EQ(head_starts.Take(0), nullptr);
 }
 
 }  // namespace
