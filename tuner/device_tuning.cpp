@@ -63,32 +63,30 @@ void TuningLedger::Advance(DeviceResult& device, std::size_t device_done, const 
   if (!what.empty() && progress_) progress_(done_, total_, what);
 }
 
-void HeadStarts::Leave(std::size_t d, std::unique_ptr<IsolatedDevice> worker, const std::function<bool()>& overtaken) {
+bool HeadStarts::Begin(std::size_t d, const std::function<bool()>& overtaken) {
   const std::lock_guard<std::mutex> lock(mutex_);
-  if (!overtaken()) workers_[d] = std::move(worker);
+  if (overtaken()) return false;
+  under_way_.insert(d);
+  return true;
+}
+
+void HeadStarts::Leave(std::size_t d, std::unique_ptr<IsolatedDevice> worker) {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    under_way_.erase(d);
+    if (worker) workers_[d] = std::move(worker);
+  }
+  left_.notify_all();
 }
 
 std::unique_ptr<IsolatedDevice> HeadStarts::Take(std::size_t d) {
-  const std::lock_guard<std::mutex> lock(mutex_);
+  std::unique_lock<std::mutex> lock(mutex_);
+  left_.wait(lock, [&] { return under_way_.count(d) == 0; });
   const auto found = workers_.find(d);
   if (found == workers_.end()) return nullptr;
   std::unique_ptr<IsolatedDevice> worker = std::move(found->second);
   workers_.erase(found);
   return worker;
-}
-
-void ChipStart::Open() {
-  {
-    const std::lock_guard<std::mutex> lock(mutex_);
-    opened_ = true;
-  }
-  opened_cv_.notify_all();
-}
-
-void ChipStart::Wait(const std::function<bool()>& overtaken) {
-  std::unique_lock<std::mutex> lock(mutex_);
-  while (!opened_cv_.wait_for(lock, std::chrono::milliseconds(10), [this] { return opened_; }))
-    if (overtaken()) return;
 }
 
 CompileHelpers::CompileHelpers(const WorkerSetup& workers, const DeviceIdentity& device)
@@ -420,19 +418,23 @@ void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& 
                       const std::function<bool()>& overtaken) {
   const DeviceIdentity& device = plan.devices[d].identity;
   if (!CompilesAhead(device)) return;
+  if (workers.head_starts && !workers.head_starts->Begin(d, overtaken)) return;
+  std::unique_ptr<IsolatedDevice> worker;
   try {
-    auto worker = std::make_unique<IsolatedDevice>(workers.executable, device, workers.variant_timeout_s);
+    worker = std::make_unique<IsolatedDevice>(workers.executable, device, workers.variant_timeout_s);
     if (!workers.host_lock.empty()) worker->UseHostLock(workers.host_lock);
     if (!workers.chip_lock.empty()) worker->UseChipLock(workers.chip_lock);
     // A worker that may be left to the turn measures there: it builds into
     // its measuring runner, choosing its context first, where the chip's
-    // lock keeps the choice's probes out of the measuring API's jobs.
-    const CompileFor compile_for =
-        workers.head_starts && !workers.chip_lock.empty() ? CompileFor::kThisProcess : CompileFor::kTheCache;
-    // Its context's choice probes on the chip: after the chip's first turn has started (ChipStart).
-    if (compile_for == CompileFor::kThisProcess && workers.chip_start) workers.chip_start->Wait(overtaken);
+    // lock keeps the choice's probes out of the measuring API's jobs. Not
+    // before the chip's first turn has started (ChipStart): until then it
+    // builds for the program cache, which its measuring runner then loads from.
+    const bool may_measure = workers.head_starts && !workers.chip_lock.empty();
     for (const Task& task : plan.tasks) {
-      if (task.device != d || overtaken()) continue;
+      if (task.device != d || overtaken()) continue;  // the turn came: it takes the worker as it is
+      const CompileFor compile_for = may_measure && (!workers.chip_start || workers.chip_start->IsOpen())
+                                         ? CompileFor::kThisProcess
+                                         : CompileFor::kTheCache;
       const std::string& key = plan.datasets[task.dataset].info.key;
       std::vector<Variant> ahead;
       for (const std::vector<Variant>* list : {&task.baselines, &task.candidates})
@@ -443,11 +445,11 @@ void PrecompileDevice(const TuningPlan& plan, std::size_t d, const WorkerSetup& 
       const LoggedSpan span(who, "precompile of " + std::to_string(ahead.size()) + " kernels for " + key);
       worker->CompileAhead(ahead, TuningDataset{key}, compile_for);
     }
-    if (workers.head_starts && worker->starts() > 0)
-      workers.head_starts->Leave(d, std::move(worker), overtaken);
   } catch (...) {
     // Only a head start lost: the device's own worker compiles and records any failure.
+    worker.reset();
   }
+  if (workers.head_starts) workers.head_starts->Leave(d, worker && worker->starts() > 0 ? std::move(worker) : nullptr);
 }
 
 }  // namespace skintune::internal

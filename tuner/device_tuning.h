@@ -7,6 +7,7 @@
 // they share is a TuningLedger.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <cstddef>
 #include <functional>
@@ -14,6 +15,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -66,41 +68,45 @@ class TuningLedger {
 };
 
 // The workers that compiled a later device's kernels ahead of its turn
-// (PrecompileDevice), each left for that turn (TuneDevice) when it is done
-// before the turn comes: the turn then measures in a process already
-// started, its program cache read and its compile threads' contexts open.
-// A device's own compiles ahead (Vulkan's opened a VkDevice per compile
-// thread at the turn's first batch) cost its turn 1.9-5.4 s on the H200
-// machine before (three cold default runs, 2026-12-01).
+// (PrecompileDevice), each left for that turn (TuneDevice): the turn then
+// measures in a process already started, its program cache read and its
+// compile threads' contexts open. A device's own compiles ahead (Vulkan's
+// opened a VkDevice per compile thread at the turn's first batch) cost its
+// turn 1.9-5.4 s on the H200 machine before (three cold default runs,
+// 2026-12-01). A turn that comes while its device's precompile is under way
+// waits for the data set being compiled, then takes the worker: a fresh one
+// would open and choose its contexts again (2.5-3.5 s for CUDA, H200
+// machine, 2026-12-02), then compile what is left all the same.
 class HeadStarts {
  public:
-  // Keeps `worker` for device `d`, unless `overtaken()` (asked under the
-  // lock that Take holds too): a turn that came first has a worker of its own.
-  void Leave(std::size_t d, std::unique_ptr<IsolatedDevice> worker, const std::function<bool()>& overtaken);
-  // The worker left for device `d`, or null.
+  // A precompile for device `d` begins, unless `overtaken()` (asked under
+  // the lock that Take holds too): a turn that came first has a worker of its own.
+  bool Begin(std::size_t d, const std::function<bool()>& overtaken);
+  // The precompile Begun for `d` has ended, leaving `worker` (null: none).
+  void Leave(std::size_t d, std::unique_ptr<IsolatedDevice> worker);
+  // The worker left for device `d`, or null; waits while its precompile is under way.
   std::unique_ptr<IsolatedDevice> Take(std::size_t d);
 
  private:
   std::mutex mutex_;
+  std::condition_variable left_;
+  std::set<std::size_t> under_way_;
   std::map<std::size_t, std::unique_ptr<IsolatedDevice>> workers_;
 };
 
 // Opened once the first turn on a chip has its context chosen and its copy
-// measured (or has ended). A later API's worker started ahead (PrecompileDevice)
-// waits for it before it chooses a context of its own: that choice's probes
-// take the chip's lock, and the first turn's start waited for them (its
-// start 4.4-5.5 s beside them, 3.2-3.9 s alone, with NVIDIA's OpenCL on the
-// H200 machine, 2026-12-02).
+// measured (or has ended). Until then a later API's worker started ahead
+// (PrecompileDevice) compiles for the program cache only and chooses no
+// context: that choice's probes take the chip's lock, and the first turn's
+// start waited for them (NVIDIA's OpenCL's 4.4-5.5 s beside them, 3.0-3.8 s
+// alone, H200 machine, 2026-12-02).
 class ChipStart {
  public:
-  void Open();
-  // Returns once opened, or once `overtaken()` (asked every 10 ms).
-  void Wait(const std::function<bool()>& overtaken);
+  void Open() { opened_ = true; }
+  bool IsOpen() const { return opened_; }
 
  private:
-  std::mutex mutex_;
-  std::condition_variable opened_cv_;
-  bool opened_ = false;
+  std::atomic<bool> opened_{false};
 };
 
 // How a device's worker processes are started.

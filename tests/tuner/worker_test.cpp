@@ -10,7 +10,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -398,10 +397,15 @@ TEST(HeadStarts, APrecompileDoneBeforeTheTurnLeavesItsWorkerToIt) {
   for (std::string line; std::getline(requests, line);)
     compile_for.push_back(nlohmann::json::parse(line).value("for", ""));
   EXPECT_EQ(compile_for, (std::vector<std::string>{"the cache", "this process"}));
-  // The turn came while it compiled: it keeps nothing.
+  // The turn came before it compiled anything: it leaves nothing.
   int asked = 0;
   PrecompileDevice(plan, 0, workers, ledger, [&] { return asked++ > 0; });
   EXPECT_EQ(asked, 2);
+  EXPECT_EQ(head_starts.Take(0), nullptr);
+  // The turn came first: it does not begin.
+  fs::remove(dir / "requests");
+  PrecompileDevice(plan, 0, workers, ledger, [] { return true; });
+  EXPECT_FALSE(fs::exists(dir / "requests"));
   EXPECT_EQ(head_starts.Take(0), nullptr);
   // Under the chip's lock, which it takes too.
   fs::remove(dir / "requests");
@@ -416,47 +420,85 @@ TEST(HeadStarts, APrecompileDoneBeforeTheTurnLeavesItsWorkerToIt) {
   EXPECT_NE(ReadAll(dir / "args").find("--chip-lock " + workers.chip_lock), std::string::npos) << ReadAll(dir / "args");
 }
 
-// A worker started ahead under the chip's lock chooses its context (its
-// first request, "this process") only once the chip's first turn has
-// started (ChipStart): the choice's probes would take the chip from that
-// start. A turn that comes meanwhile ends the wait with nothing asked.
-TEST(HeadStarts, AWorkerStartedAheadWaitsForTheChipsFirstTurnToStart) {
+// A turn that comes while its device's precompile is under way waits for
+// it to end (the data set being compiled), then takes what it left; a
+// precompile the turn came before does not begin.
+TEST(HeadStarts, ATurnWaitsForThePrecompileUnderWay) {
+  HeadStarts head_starts;
+  ASSERT_TRUE(head_starts.Begin(1, [] { return false; }));
+  const auto start = std::chrono::steady_clock::now();
+  std::thread precompile([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    head_starts.Leave(1, nullptr);
+  });
+  EXPECT_EQ(head_starts.Take(1), nullptr);
+  EXPECT_GE(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 0.15);
+  precompile.join();
+  EXPECT_FALSE(head_starts.Begin(2, [] { return true; }));
+  EXPECT_EQ(head_starts.Take(2), nullptr) << "nothing under way: at once";
+}
+
+// A precompile overtaken after its first data set leaves its worker to the
+// turn, that data set compiled, and compiles no more.
+TEST(HeadStarts, APrecompileOvertakenLeavesItsWorkerAsItIs) {
   const fs::path dir = Scratch();
   const std::string exe = CompilingWorker(dir, 2);
   TuningPlan plan;
-  plan.datasets.emplace_back().info.key = kDataset.key;
   plan.devices.push_back({FakeDevice(), {}, {Lang::kOpenCl}});
-  plan.tasks.emplace_back().candidates = {ParseVariantKey("opencl.b2.soa.global.wg64"),
-                                          ParseVariantKey("opencl.b2.soa.constant.wg64")};
+  for (const char* key : {"100k-b1", "100k-b2"}) {
+    plan.datasets.emplace_back().info.key = key;
+    Task& task = plan.tasks.emplace_back();
+    task.dataset = plan.datasets.size() - 1;
+    task.candidates = {ParseVariantKey("opencl.b2.soa.global.wg64"), ParseVariantKey("opencl.b2.soa.constant.wg64")};
+  }
+  MeasurementCache cache((dir / "cache.jsonl").string());
+  TuningLedger ledger(cache, 0, {});
+  HeadStarts head_starts;
+  WorkerSetup workers{exe, 30, "", "", &head_starts};
+  int asked = 0;  // Begin, the first data set, then the turn has come
+  PrecompileDevice(plan, 0, workers, ledger, [&] { return asked++ > 1; });
+  std::unique_ptr<IsolatedDevice> left = head_starts.Take(0);
+  ASSERT_NE(left, nullptr);
+  std::size_t requests = 0;
+  std::ifstream lines(dir / "requests");
+  for (std::string line; std::getline(lines, line);) ++requests;
+  EXPECT_EQ(requests, 1u) << "the first data set only";
+}
+
+// A worker started ahead under the chip's lock compiles for the program
+// cache only until the chip's first turn has started (ChipStart), choosing
+// no context, whose probes would take the chip from that start; the data
+// sets after it, for itself. Either way it is left to the turn.
+TEST(HeadStarts, AWorkerStartedAheadChoosesNoContextBeforeTheChipsFirstTurnStarted) {
+  const fs::path dir = Scratch();
+  const std::string exe = CompilingWorker(dir, 2);
+  TuningPlan plan;
+  plan.devices.push_back({FakeDevice(), {}, {Lang::kOpenCl}});
+  for (const char* key : {"100k-b1", "100k-b2"}) {
+    plan.datasets.emplace_back().info.key = key;
+    Task& task = plan.tasks.emplace_back();
+    task.dataset = plan.datasets.size() - 1;
+    task.candidates = {ParseVariantKey("opencl.b2.soa.global.wg64"), ParseVariantKey("opencl.b2.soa.constant.wg64")};
+  }
   MeasurementCache cache((dir / "cache.jsonl").string());
   TuningLedger ledger(cache, 0, {});
   HeadStarts head_starts;
   ChipStart chip_start;
   WorkerSetup workers{exe, 30, "", (dir / "chip").string(), &head_starts, &chip_start};
-  std::atomic<bool> done{false};
-  std::thread ahead([&] {
-    PrecompileDevice(plan, 0, workers, ledger, [] { return false; });
-    done = true;
-  });
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  EXPECT_FALSE(done.load()) << "it waits for the first turn's start";
-  EXPECT_FALSE(fs::exists(dir / "requests")) << ReadAll(dir / "requests");
+  const auto compile_for = [&] {
+    std::vector<std::string> all;
+    std::ifstream requests(dir / "requests");
+    for (std::string line; std::getline(requests, line);) all.push_back(nlohmann::json::parse(line).value("for", ""));
+    fs::remove(dir / "requests");
+    return all;
+  };
+  PrecompileDevice(plan, 0, workers, ledger, [] { return false; });
+  EXPECT_EQ(compile_for(), (std::vector<std::string>{"the cache", "the cache"}));
+  EXPECT_NE(head_starts.Take(0), nullptr) << "left to the turn all the same";
   chip_start.Open();
-  ahead.join();
-  std::ifstream requests(dir / "requests");
-  std::string line;
-  ASSERT_TRUE(std::getline(requests, line));
-  EXPECT_EQ(nlohmann::json::parse(line).value("for", ""), "this process");
-  ASSERT_NE(head_starts.Take(0), nullptr);
-  // Overtaken while it waits: it returns having asked nothing.
-  fs::remove(dir / "requests");
-  ChipStart never;
-  workers.chip_start = &never;
-  int asked = 0;
-  PrecompileDevice(plan, 0, workers, ledger, [&] { return asked++ > 3; });
-  EXPECT_GT(asked, 3);
-  EXPECT_FALSE(fs::exists(dir / "requests"));
-  EXPECT_EQ(head_starts.Take(0), nullptr);
+  PrecompileDevice(plan, 0, workers, ledger, [] { return false; });
+  EXPECT_EQ(compile_for(), (std::vector<std::string>{"this process", "this process"}));
+  EXPECT_NE(head_starts.Take(0), nullptr);
 }
 
 }  // namespace
