@@ -2,10 +2,8 @@
 #include "tuner/device_tuning.h"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cstdio>
-#include <future>
 #include <map>
 #include <memory>
 #include <set>
@@ -87,6 +85,40 @@ std::unique_ptr<IsolatedDevice> HeadStarts::Take(std::size_t d) {
   std::unique_ptr<IsolatedDevice> worker = std::move(found->second);
   workers_.erase(found);
   return worker;
+}
+
+OneTaskAhead::OneTaskAhead(std::size_t tasks, std::function<void(std::size_t)> compile)
+    : thread_([this, tasks, compile = std::move(compile)] {
+        for (std::size_t i = 0; i < tasks; ++i) {
+          {
+            std::unique_lock<std::mutex> lock(mutex_);
+            changed_.wait(lock, [&] { return stop_ || begun_ >= i; });  // the task before has begun
+            if (stop_) return;
+          }
+          compile(i);
+          {
+            const std::lock_guard<std::mutex> lock(mutex_);
+            compiled_ = i + 1;
+          }
+          changed_.notify_all();
+        }
+      }) {}
+
+OneTaskAhead::~OneTaskAhead() {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  changed_.notify_all();
+  thread_.join();
+}
+
+void OneTaskAhead::Begin(std::size_t i) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  changed_.wait(lock, [&] { return compiled_ > i; });
+  begun_ = std::max(begun_, i + 1);
+  lock.unlock();
+  changed_.notify_all();
 }
 
 CompileHelpers::CompileHelpers(const WorkerSetup& workers, const DeviceIdentity& device)
@@ -190,14 +222,13 @@ class DeviceTuning {
     if (!workers.chip_lock.empty()) worker_->UseChipLock(workers.chip_lock);
   }
 
-  ~DeviceTuning() { stop_ahead_ = true; }  // before every_task_ahead_ is waited for
   DeviceTuning(const DeviceTuning&) = delete;
   DeviceTuning& operator=(const DeviceTuning&) = delete;
 
   void Run() {
     const LoggedSpan span(name_, "device");
     try {
-      StartHelpersOnEveryTask();
+      CompileEachTaskAhead();
       MeasureCopyBandwidth();
       if (chip_start_) chip_start_->Open();
       for (const Task& task : plan_.tasks) {
@@ -242,14 +273,18 @@ class DeviceTuning {
   }
 
   // A GPU whose kernels are compiled in helper processes (CompileAheadInProcesses:
-  // NVIDIA's OpenCL) has every task's kernels compiled there from its start,
-  // task after task, beside its own start and measurements: each task
-  // waits for its own (RunTask), and the search's compiles ahead are left
-  // out. A step's batch on the helpers took 100-360 ms, a move alone built in
-  // process 60-100 ms, and the helpers' start ~1 s, all on the turn's path
-  // (H200 machine, 2026-12-02). Not for a CPU device: its helpers' compiles
-  // would take the cores it times on.
-  void StartHelpersOnEveryTask() {
+  // NVIDIA's OpenCL) has each task's kernels compiled there one task ahead:
+  // the first task's beside the device's start, each next one's while the
+  // task before it is measured. Each task waits for its own (RunTask), and
+  // the search's compiles ahead are left out. A step's batch on the helpers
+  // took 100-360 ms, a move alone built in process 60-100 ms, and the
+  // helpers' start ~1 s, all on the turn's path; every task's kernels
+  // compiled at once from the start (288 kernels) took the host's cores
+  // from the turn's own start (5.5-6.7 s instead of 3.0-3.8) and from the
+  // next API's precompile (3.9-4.3 s a data set instead of 1.4-1.8; H200
+  // machine, 2026-12-02). Not for a CPU device: its helpers' compiles would
+  // take the cores it times on.
+  void CompileEachTaskAhead() {
     if (IsHostCpu(device_) || !CompilesAhead(device_) || !CompilesAheadInProcesses(device_)) return;
     std::vector<std::pair<std::string, std::vector<Variant>>> work;  // data set, kernels
     for (const Task& task : plan_.tasks) {
@@ -257,23 +292,16 @@ class DeviceTuning {
       const std::string& key = plan_.datasets[task.dataset].info.key;
       std::vector<Variant> all = task.baselines;
       all.insert(all.end(), task.candidates.begin(), task.candidates.end());
+      task_ahead_[&task] = work.size();
       work.emplace_back(key, NotTrusted(all, key));
-      task_ahead_[&task] = task_promises_.emplace_back().get_future().share();
     }
-    every_task_ahead_ = std::async(std::launch::async, [this, work = std::move(work)] {
-      for (std::size_t i = 0; i < work.size(); ++i) {
-        if (stop_ahead_) {  // the turn ended (its device given up): the rest is not needed
-          task_promises_[i].set_value();
-          continue;
-        }
-        try {
-          const LoggedSpan span(name_, "compile ahead of " + std::to_string(work[i].second.size()) + " kernels for " +
-                                           work[i].first + " in helpers, from the start");
-          if (!work[i].second.empty()) helpers_.CompileAhead(work[i].second, TuningDataset{work[i].first});
-        } catch (...) {
-          // Only a head start lost: the measurement builds its own kernel and records any failure.
-        }
-        task_promises_[i].set_value();
+    one_task_ahead_ = std::make_unique<OneTaskAhead>(work.size(), [this, work = std::move(work)](std::size_t i) {
+      try {
+        const LoggedSpan span(name_, "compile ahead of " + std::to_string(work[i].second.size()) + " kernels for " +
+                                         work[i].first + " in helpers, a task ahead");
+        if (!work[i].second.empty()) helpers_.CompileAhead(work[i].second, TuningDataset{work[i].first});
+      } catch (...) {
+        // Only a head start lost: the measurement builds its own kernel and records any failure.
       }
     });
   }
@@ -291,7 +319,7 @@ class DeviceTuning {
     task_ = &task;
     key_ = plan_.datasets[task.dataset].info.key;
     const LoggedSpan span(name_, "task " + key_);
-    if (const auto ahead = task_ahead_.find(&task); ahead != task_ahead_.end()) ahead->second.wait();
+    if (const auto ahead = task_ahead_.find(&task); ahead != task_ahead_.end()) one_task_ahead_->Begin(ahead->second);
     task_done_ = 0;
     seen_.clear();
     const Evaluator evaluate = [this](const Variant& v) { return Evaluate(v); };
@@ -313,7 +341,7 @@ class DeviceTuning {
   // has not (the baselines, then what the strategy announces), built in
   // parallel by the worker before any of them is timed.
   void CompileAhead(const std::vector<Variant>& next) {
-    if (every_task_ahead_.valid()) return;  // compiled from the start (StartHelpersOnEveryTask)
+    if (one_task_ahead_) return;  // compiled a task ahead (CompileEachTaskAhead)
     const std::vector<Variant> ahead = NotTrusted(next, key_);
     if (ahead.size() < 2 || !CompilesAhead(device_)) return;  // one kernel: built by its measurement
     Advance(task_done_, name_ + ": compiling " + std::to_string(ahead.size()) + " kernels for " + key_);
@@ -399,12 +427,10 @@ class DeviceTuning {
   std::string key_;             // its dataset
   std::size_t task_done_ = 0;   // its evaluations done
   std::set<std::string> seen_;  // its cache keys recorded
-  // StartHelpersOnEveryTask's: each task's kernels compiled, and the job,
-  // declared last: it uses the members above, so it ends before they do.
-  std::vector<std::promise<void>> task_promises_;
-  std::map<const Task*, std::shared_future<void>> task_ahead_;
-  std::atomic<bool> stop_ahead_{false};  // set as the turn ends
-  std::future<void> every_task_ahead_;
+  // CompileEachTaskAhead's: each task's place in its order, and the
+  // compiles, declared last: they use the members above, so they end first.
+  std::map<const Task*, std::size_t> task_ahead_;
+  std::unique_ptr<OneTaskAhead> one_task_ahead_;
 };
 
 }  // namespace

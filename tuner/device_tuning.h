@@ -17,6 +17,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "base/thread_pool.h"
@@ -107,6 +108,32 @@ class ChipStart {
 
  private:
   std::atomic<bool> opened_{false};
+};
+
+// Compiles a turn's tasks' kernels one task ahead (DeviceTuning, where
+// helper processes compile them): task 0's at once, task i's once task
+// i - 1 has begun, on a thread of its own. Each task begins (Begin) once its
+// own are compiled.
+class OneTaskAhead {
+ public:
+  // compile(i) for i in 0..tasks-1, in order; it must not throw.
+  OneTaskAhead(std::size_t tasks, std::function<void(std::size_t)> compile);
+  // Stops: waits for the compile under way; the tasks after it are not compiled.
+  ~OneTaskAhead();
+  OneTaskAhead(const OneTaskAhead&) = delete;
+  OneTaskAhead& operator=(const OneTaskAhead&) = delete;
+
+  // Task i begins (in order, 0 first): returns once its kernels are
+  // compiled, and lets task i + 1's compile start.
+  void Begin(std::size_t i);
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::size_t compiled_ = 0;  // tasks whose compile has ended
+  std::size_t begun_ = 0;     // tasks begun
+  bool stop_ = false;
+  std::thread thread_;  // last: started once the members above are made
 };
 
 // How a device's worker processes are started.

@@ -52,7 +52,7 @@ namespace {
 //   built (not run) in processes of their own, into the program cache, where
 //   the measuring process loads each in 3-4 ms instead of ~100 ms of
 //   compiling (H200 machine, 2026-12-02: a cold turn 14.0-15.7 s against
-//   16.1-17.4 in process);
+//   16.1-17.4 in process; tuner/device_tuning.cpp has them build one task ahead);
 // Each of the others with a runner (and program cache object) of its own,
 // so that no API object is shared between threads:
 // - vulkan: each thread's runner has a VkDevice of its own, and its Build
@@ -502,7 +502,9 @@ QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::uniq
     runners[c].reset();
   };
   using Clock = std::chrono::steady_clock;
-  const auto ms_since = [](Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); };
+  const auto ms_since = [](Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+  };
   QuickestRunner quickest;
   for (int c = 0; c < count; ++c) {
     runners.emplace_back();
@@ -578,7 +580,8 @@ bool CompilesAheadInProcesses(const DeviceIdentity& device) {
   // threads (5 kernels in 420-560 ms), and loads a program another process
   // built, from the program cache, in 3-4 ms (H200, 2026-12-02): the helpers
   // need that cache on disk.
-  return IsHostCpu(device) || (device.platform == tuner_internal::kNvidiaOpenClPlatform && !ProgramCache::DefaultDir().empty());
+  return IsHostCpu(device) ||
+         (device.platform == tuner_internal::kNvidiaOpenClPlatform && !ProgramCache::DefaultDir().empty());
 }
 
 bool CompilesAheadByRunning(const DeviceIdentity& device) {

@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <mutex>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -420,6 +421,47 @@ TEST(HeadStarts, APrecompileDoneBeforeTheTurnLeavesItsWorkerToIt) {
   EXPECT_NE(ReadAll(dir / "args").find("--chip-lock " + workers.chip_lock), std::string::npos) << ReadAll(dir / "args");
 }
 
+// A turn's kernels compiled one task ahead (OneTaskAhead): task 0's at once,
+// task i's only once task i - 1 has begun, and a task begins only once its
+// own are compiled; ended early, it compiles no further task.
+TEST(OneTaskAhead, CompilesExactlyOneTaskAheadOfTheTaskBegun) {
+  std::mutex mutex;
+  std::vector<std::size_t> started, ended;
+  const auto compile = [&](std::size_t i) {
+    {
+      const std::lock_guard<std::mutex> lock(mutex);
+      started.push_back(i);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    const std::lock_guard<std::mutex> lock(mutex);
+    ended.push_back(i);
+  };
+  const auto seen = [&](const std::vector<std::size_t>& list) {
+    const std::lock_guard<std::mutex> lock(mutex);
+    return list;
+  };
+  {
+    OneTaskAhead ahead(3, compile);
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    EXPECT_EQ(seen(started), std::vector<std::size_t>{0}) << "no task begun: only the first";
+    ahead.Begin(0);
+    EXPECT_EQ(seen(ended).front(), 0u);
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    EXPECT_EQ(seen(ended), (std::vector<std::size_t>{0, 1})) << "task 0 begun: task 1 compiled, not task 2";
+    ahead.Begin(1);
+    ahead.Begin(2);
+    EXPECT_EQ(seen(ended), (std::vector<std::size_t>{0, 1, 2})) << "each task begins once its own are compiled";
+  }
+  started.clear();
+  ended.clear();
+  {
+    OneTaskAhead ahead(3, compile);
+    ahead.Begin(0);
+  }  // ended while task 1 compiles, or before it starts
+  EXPECT_LE(seen(ended).size(), 2u);
+  EXPECT_EQ(std::count(ended.begin(), ended.end(), 2u), 0) << "no task after the one under way";
+}
+
 // A turn that comes while its device's precompile is under way waits for
 // it to end (the data set being compiled), then takes what it left; a
 // precompile the turn came before does not begin.
@@ -438,11 +480,8 @@ TEST(HeadStarts, ATurnWaitsForThePrecompileUnderWay) {
   EXPECT_EQ(head_starts.Take(2), nullptr) << "nothing under way: at once";
 }
 
-// A precompile overtaken after its first data set leaves its worker to the
-// turn, that data set compiled, and compiles no more.
-TEST(HeadStarts, APrecompileOvertakenLeavesItsWorkerAsItIs) {
-  const fs::path dir = Scratch();
-  const std::string exe = CompilingWorker(dir, 2);
+// FakeDevice() with a task of two kernels on each of two data sets.
+TuningPlan TwoDataSetPlan() {
   TuningPlan plan;
   plan.devices.push_back({FakeDevice(), {}, {Lang::kOpenCl}});
   for (const char* key : {"100k-b1", "100k-b2"}) {
@@ -451,6 +490,15 @@ TEST(HeadStarts, APrecompileOvertakenLeavesItsWorkerAsItIs) {
     task.dataset = plan.datasets.size() - 1;
     task.candidates = {ParseVariantKey("opencl.b2.soa.global.wg64"), ParseVariantKey("opencl.b2.soa.constant.wg64")};
   }
+  return plan;
+}
+
+// A precompile overtaken after its first data set leaves its worker to the
+// turn, that data set compiled, and compiles no more.
+TEST(HeadStarts, APrecompileOvertakenLeavesItsWorkerAsItIs) {
+  const fs::path dir = Scratch();
+  const std::string exe = CompilingWorker(dir, 2);
+  const TuningPlan plan = TwoDataSetPlan();
   MeasurementCache cache((dir / "cache.jsonl").string());
   TuningLedger ledger(cache, 0, {});
   HeadStarts head_starts;
@@ -472,14 +520,7 @@ TEST(HeadStarts, APrecompileOvertakenLeavesItsWorkerAsItIs) {
 TEST(HeadStarts, AWorkerStartedAheadChoosesNoContextBeforeTheChipsFirstTurnStarted) {
   const fs::path dir = Scratch();
   const std::string exe = CompilingWorker(dir, 2);
-  TuningPlan plan;
-  plan.devices.push_back({FakeDevice(), {}, {Lang::kOpenCl}});
-  for (const char* key : {"100k-b1", "100k-b2"}) {
-    plan.datasets.emplace_back().info.key = key;
-    Task& task = plan.tasks.emplace_back();
-    task.dataset = plan.datasets.size() - 1;
-    task.candidates = {ParseVariantKey("opencl.b2.soa.global.wg64"), ParseVariantKey("opencl.b2.soa.constant.wg64")};
-  }
+  const TuningPlan plan = TwoDataSetPlan();
   MeasurementCache cache((dir / "cache.jsonl").string());
   TuningLedger ledger(cache, 0, {});
   HeadStarts head_starts;
