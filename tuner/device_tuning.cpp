@@ -280,12 +280,12 @@ class DeviceTuning {
   // took 100-360 ms, a move alone built in process 60-100 ms, and the
   // helpers' start ~1 s, all on the turn's path; every task's kernels
   // compiled at once from the start (288 kernels) took the host's cores
-  // from the turn's own start (5.5-6.7 s instead of 3.0-3.8) and from the
+  // from the turn's own start (5.3-6.7 s instead of 3.0-3.8) and from the
   // next API's precompile (3.9-4.3 s a data set instead of 1.4-1.8; H200
   // machine, 2026-12-02). Not for a CPU device: its helpers' compiles would
   // take the cores it times on.
   void CompileEachTaskAhead() {
-    if (IsHostCpu(device_) || !CompilesAhead(device_) || !CompilesAheadInProcesses(device_)) return;
+    if (IsHostCpu(device_) || !CompilesAheadInProcesses(device_)) return;
     std::vector<std::pair<std::string, std::vector<Variant>>> work;  // data set, kernels
     for (const Task& task : plan_.tasks) {
       if (task.device != d_ || (task.candidates.empty() && task.baselines.empty())) continue;

@@ -575,13 +575,13 @@ namespace skintune::internal {
 Discovery DiscoverTunedDevices() { return tuner_internal::DiscoverTunedDevices(tuner_internal::ExecutorDecorator{}); }
 
 bool CompilesAheadInProcesses(const DeviceIdentity& device) {
-  if (device.backend != "opencl" || !CompilesAhead(device)) return false;
   // NVIDIA's OpenCL builds one program at a time in a process, whatever the
   // threads (5 kernels in 420-560 ms), and loads a program another process
   // built, from the program cache, in 3-4 ms (H200, 2026-12-02): the helpers
   // need that cache on disk.
-  return IsHostCpu(device) ||
-         (device.platform == tuner_internal::kNvidiaOpenClPlatform && !ProgramCache::DefaultDir().empty());
+  return CompilesAheadByRunning(device) ||
+         (device.backend == "opencl" && device.platform == tuner_internal::kNvidiaOpenClPlatform &&
+          CompilesAhead(device) && !ProgramCache::DefaultDir().empty());
 }
 
 bool CompilesAheadByRunning(const DeviceIdentity& device) {

@@ -446,8 +446,10 @@ TEST(OneTaskAhead, CompilesExactlyOneTaskAheadOfTheTaskBegun) {
     EXPECT_EQ(seen(started), std::vector<std::size_t>{0}) << "no task begun: only the first";
     ahead.Begin(0);
     EXPECT_EQ(seen(ended).front(), 0u);
-    std::this_thread::sleep_for(std::chrono::milliseconds(150));
-    EXPECT_EQ(seen(ended), (std::vector<std::size_t>{0, 1})) << "task 0 begun: task 1 compiled, not task 2";
+    for (int wait = 0; wait < 500 && seen(ended).size() < 2; ++wait)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));  // time enough for task 2's to start, were it let
+    EXPECT_EQ(seen(started), (std::vector<std::size_t>{0, 1})) << "task 0 begun: task 1 compiled, not task 2";
     ahead.Begin(1);
     ahead.Begin(2);
     EXPECT_EQ(seen(ended), (std::vector<std::size_t>{0, 1, 2})) << "each task begins once its own are compiled";
