@@ -482,35 +482,37 @@ TEST(HeadStarts, ATurnWaitsForThePrecompileUnderWay) {
   EXPECT_EQ(head_starts.Take(2), nullptr) << "nothing under way: at once";
 }
 
+// A precompile's setting: a fake compiling worker in a scratch folder, and
 // FakeDevice() with a task of two kernels on each of two data sets.
-TuningPlan TwoDataSetPlan() {
-  TuningPlan plan;
-  plan.devices.push_back({FakeDevice(), {}, {Lang::kOpenCl}});
-  for (const char* key : {"100k-b1", "100k-b2"}) {
-    plan.datasets.emplace_back().info.key = key;
-    Task& task = plan.tasks.emplace_back();
-    task.dataset = plan.datasets.size() - 1;
-    task.candidates = {ParseVariantKey("opencl.b2.soa.global.wg64"), ParseVariantKey("opencl.b2.soa.constant.wg64")};
+struct TwoDataSetPrecompile {
+  TwoDataSetPrecompile() {
+    plan.devices.push_back({FakeDevice(), {}, {Lang::kOpenCl}});
+    for (const char* key : {"100k-b1", "100k-b2"}) {
+      plan.datasets.emplace_back().info.key = key;
+      Task& task = plan.tasks.emplace_back();
+      task.dataset = plan.datasets.size() - 1;
+      task.candidates = {ParseVariantKey("opencl.b2.soa.global.wg64"), ParseVariantKey("opencl.b2.soa.constant.wg64")};
+    }
   }
-  return plan;
-}
+  const fs::path dir = Scratch();
+  const std::string exe = CompilingWorker(dir, 2);
+  TuningPlan plan;
+  MeasurementCache cache{(dir / "cache.jsonl").string()};
+  TuningLedger ledger{cache, 0, {}};
+  HeadStarts head_starts;
+};
 
 // A precompile overtaken after its first data set leaves its worker to the
 // turn, that data set compiled, and compiles no more.
 TEST(HeadStarts, APrecompileOvertakenLeavesItsWorkerAsItIs) {
-  const fs::path dir = Scratch();
-  const std::string exe = CompilingWorker(dir, 2);
-  const TuningPlan plan = TwoDataSetPlan();
-  MeasurementCache cache((dir / "cache.jsonl").string());
-  TuningLedger ledger(cache, 0, {});
-  HeadStarts head_starts;
-  WorkerSetup workers{exe, 30, "", "", &head_starts};
+  TwoDataSetPrecompile p;
+  WorkerSetup workers{p.exe, 30, "", "", &p.head_starts};
   int asked = 0;  // Begin, the first data set, then the turn has come
-  PrecompileDevice(plan, 0, workers, ledger, [&] { return asked++ > 1; });
-  std::unique_ptr<IsolatedDevice> left = head_starts.Take(0);
+  PrecompileDevice(p.plan, 0, workers, p.ledger, [&] { return asked++ > 1; });
+  std::unique_ptr<IsolatedDevice> left = p.head_starts.Take(0);
   ASSERT_NE(left, nullptr);
   std::size_t requests = 0;
-  std::ifstream lines(dir / "requests");
+  std::ifstream lines(p.dir / "requests");
   for (std::string line; std::getline(lines, line);) ++requests;
   EXPECT_EQ(requests, 1u) << "the first data set only";
 }
@@ -520,28 +522,23 @@ TEST(HeadStarts, APrecompileOvertakenLeavesItsWorkerAsItIs) {
 // no context, whose probes would take the chip from that start; the data
 // sets after it, for itself. Either way it is left to the turn.
 TEST(HeadStarts, AWorkerStartedAheadChoosesNoContextBeforeTheChipsFirstTurnStarted) {
-  const fs::path dir = Scratch();
-  const std::string exe = CompilingWorker(dir, 2);
-  const TuningPlan plan = TwoDataSetPlan();
-  MeasurementCache cache((dir / "cache.jsonl").string());
-  TuningLedger ledger(cache, 0, {});
-  HeadStarts head_starts;
+  TwoDataSetPrecompile p;
   ChipStart chip_start;
-  WorkerSetup workers{exe, 30, "", (dir / "chip").string(), &head_starts, &chip_start};
+  WorkerSetup workers{p.exe, 30, "", (p.dir / "chip").string(), &p.head_starts, &chip_start};
   const auto compile_for = [&] {
     std::vector<std::string> all;
-    std::ifstream requests(dir / "requests");
+    std::ifstream requests(p.dir / "requests");
     for (std::string line; std::getline(requests, line);) all.push_back(nlohmann::json::parse(line).value("for", ""));
-    fs::remove(dir / "requests");
+    fs::remove(p.dir / "requests");
     return all;
   };
-  PrecompileDevice(plan, 0, workers, ledger, [] { return false; });
+  PrecompileDevice(p.plan, 0, workers, p.ledger, [] { return false; });
   EXPECT_EQ(compile_for(), (std::vector<std::string>{"the cache", "the cache"}));
-  EXPECT_NE(head_starts.Take(0), nullptr) << "left to the turn all the same";
+  EXPECT_NE(p.head_starts.Take(0), nullptr) << "left to the turn all the same";
   chip_start.Open();
-  PrecompileDevice(plan, 0, workers, ledger, [] { return false; });
+  PrecompileDevice(p.plan, 0, workers, p.ledger, [] { return false; });
   EXPECT_EQ(compile_for(), (std::vector<std::string>{"this process", "this process"}));
-  EXPECT_NE(head_starts.Take(0), nullptr);
+  EXPECT_NE(p.head_starts.Take(0), nullptr);
 }
 
 }  // namespace
