@@ -213,7 +213,7 @@ class DeviceTuning {
         result_(result),
         worker_(StartedAheadOr(workers, d)),
         helpers_(workers, device_),
-        chip_start_(workers.chip_lock.empty() ? nullptr : workers.chip_start),
+        chip_start_(workers.chip_start),
         id_(device_.Id()),
         name_(device_.backend + " " + device_.name) {
     // This device's timing: its tie margin and stop rule (a CPU's are wider: TimingOptions::ForDevice).
@@ -232,7 +232,7 @@ class DeviceTuning {
       MeasureCopyBandwidth();
       if (chip_start_) chip_start_->Open();
       for (const Task& task : plan_.tasks) {
-        if (task.device != d_ || (task.candidates.empty() && task.baselines.empty())) continue;
+        if (!IsTurnTask(task)) continue;
         RunTask(task);
         task_start_ += task.planned;
         Advance(0, "");
@@ -288,7 +288,7 @@ class DeviceTuning {
     if (IsHostCpu(device_) || !CompilesAheadInProcesses(device_)) return;
     std::vector<std::pair<std::string, std::vector<Variant>>> work;  // data set, kernels
     for (const Task& task : plan_.tasks) {
-      if (task.device != d_ || (task.candidates.empty() && task.baselines.empty())) continue;
+      if (!IsTurnTask(task)) continue;
       const std::string& key = plan_.datasets[task.dataset].info.key;
       std::vector<Variant> all = task.baselines;
       all.insert(all.end(), task.candidates.begin(), task.candidates.end());
@@ -304,6 +304,11 @@ class DeviceTuning {
         // Only a head start lost: the measurement builds its own kernel and records any failure.
       }
     });
+  }
+
+  // Whether this turn runs `task`: this device's, with something to measure.
+  bool IsTurnTask(const Task& task) const {
+    return task.device == d_ && !(task.candidates.empty() && task.baselines.empty());
   }
 
   // Those of `variants` that the cache has no trusted record of on data set `key`.
@@ -417,7 +422,7 @@ class DeviceTuning {
   DeviceResult& result_;
   std::unique_ptr<IsolatedDevice> worker_;
   CompileHelpers helpers_;  // CompileAheadInProcesses only
-  ChipStart* chip_start_;   // opened once this turn has started (null: no chip shared)
+  ChipStart* chip_start_;   // opened once this turn has started (null: no chip lock shared)
   TimingOptions timing_ = config_.timing;
   const std::string id_, name_;
   std::size_t task_start_ = 0;  // evaluations planned before the current task
