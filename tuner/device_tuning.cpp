@@ -88,7 +88,8 @@ std::unique_ptr<IsolatedDevice> HeadStarts::Take(std::size_t d) {
 }
 
 OneTaskAhead::OneTaskAhead(std::size_t tasks, std::function<void(std::size_t)> compile)
-    : thread_([this, tasks, compile = std::move(compile)] {
+    : tasks_(tasks),
+      thread_([this, tasks, compile = std::move(compile)] {
         for (std::size_t i = 0; i < tasks; ++i) {
           {
             std::unique_lock<std::mutex> lock(mutex_);
@@ -114,6 +115,7 @@ OneTaskAhead::~OneTaskAhead() {
 }
 
 void OneTaskAhead::Begin(std::size_t i) {
+  if (i >= tasks_) return;  // nothing compiled for it: nothing to wait for
   std::unique_lock<std::mutex> lock(mutex_);
   changed_.wait(lock, [&] { return compiled_ > i; });
   begun_ = std::max(begun_, i + 1);
@@ -295,7 +297,10 @@ class DeviceTuning {
       task_ahead_[&task] = work.size();
       work.emplace_back(key, NotTrusted(all, key));
     }
-    one_task_ahead_ = std::make_unique<OneTaskAhead>(work.size(), [this, work = std::move(work)](std::size_t i) {
+    // The count first: the lambda's capture may be made (and `work` moved
+    // from) before another argument is evaluated.
+    const std::size_t tasks = work.size();
+    one_task_ahead_ = std::make_unique<OneTaskAhead>(tasks, [this, work = std::move(work)](std::size_t i) {
       try {
         const LoggedSpan span(name_, "compile ahead of " + std::to_string(work[i].second.size()) + " kernels for " +
                                          work[i].first + " in helpers, a task ahead");

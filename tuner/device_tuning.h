@@ -124,10 +124,12 @@ class OneTaskAhead {
   OneTaskAhead& operator=(const OneTaskAhead&) = delete;
 
   // Task i begins (in order, 0 first): returns once its kernels are
-  // compiled, and lets task i + 1's compile start.
+  // compiled, and lets task i + 1's compile start. A task past the last
+  // one compiled for begins at once.
   void Begin(std::size_t i);
 
  private:
+  const std::size_t tasks_;
   std::mutex mutex_;
   std::condition_variable changed_;
   std::size_t compiled_ = 0;  // tasks whose compile has ended

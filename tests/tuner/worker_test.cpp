@@ -464,6 +464,24 @@ TEST(OneTaskAhead, CompilesExactlyOneTaskAheadOfTheTaskBegun) {
   EXPECT_EQ(std::count(ended.begin(), ended.end(), 2u), 0) << "no task after the one under way";
 }
 
+// A task past those compiled for (none here) begins at once: it has no
+// compile to wait for. A turn whose tasks were counted as none once waited
+// for ever at its first task.
+TEST(OneTaskAhead, ATaskPastThoseCompiledForBeginsAtOnce) {
+  std::size_t compiled = 0;
+  {
+    OneTaskAhead none(0, [&](std::size_t) { ++compiled; });
+    none.Begin(0);
+    none.Begin(1);
+  }
+  {
+    OneTaskAhead one(1, [&](std::size_t) { ++compiled; });
+    one.Begin(0);
+    one.Begin(1);
+  }
+  EXPECT_EQ(compiled, 1u);
+}
+
 // A turn that comes while its device's precompile is under way waits for
 // it to end (the data set being compiled), then takes what it left; a
 // precompile the turn came before does not begin.
