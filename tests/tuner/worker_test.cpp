@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <thread>
 
@@ -480,6 +481,60 @@ TEST(OneTaskAhead, ATaskPastThoseCompiledForBeginsAtOnce) {
     one.Begin(1);
   }
   EXPECT_EQ(compiled, 1u);
+}
+
+// A turn of NVIDIA's OpenCL (its kernels compiled in helper processes, one
+// task ahead: CompileEachTaskAhead) runs every task to its end, each data
+// set's kernels compiled for the program cache, no step's batch compiled
+// for the measuring process. A turn that counted its tasks as none once
+// waited for ever at its first.
+TEST(OneTaskAhead, ATurnCompilingInHelpersRunsEveryTask) {
+  const fs::path dir = Scratch();
+  ::setenv("SKINTUNE_CACHE_DIR", (dir / "programs").c_str(), 1);  // helpers need a program cache
+  DeviceIdentity nvidia = FakeDevice();
+  nvidia.platform = "NVIDIA CUDA";
+  nvidia.name = "gpu";
+  ASSERT_TRUE(CompilesAheadInProcesses(nvidia));
+  const std::string exe = FakeWorker(dir,
+                                     std::string("while read line; do echo \"$line\" >> \"$DIR/requests\"; "
+                                                 "case \"$line\" in "
+                                                 "'{\"compile_ahead\":'*) echo '{\"compiled\": 1}';; "
+                                                 "'{\"copy_bandwidth\":'*) echo '{\"copy_bandwidth_gbps\": 1000}';; "
+                                                 "*'\"race\":['*) echo '{\"race_error\": \"no race here\"}';; "
+                                                 "*) echo '") + kAnswer + "';; esac; done",
+                                     nvidia.Id());
+  TuningPlan plan;
+  plan.devices.push_back({nvidia, {}, {Lang::kOpenCl}});
+  for (const std::string key : {"5000-b2", "6000-b2"}) {
+    plan.datasets.emplace_back().info.key = key;
+    Task& task = plan.tasks.emplace_back();
+    task.dataset = plan.datasets.size() - 1;
+    task.candidates = {ParseVariantKey("opencl.b2.soa.global.wg64"), ParseVariantKey("opencl.b2.soa.constant.wg64")};
+    task.planned = task.candidates.size();
+  }
+  MeasurementCache cache((dir / "cache.jsonl").string());
+  TuningLedger ledger(cache, 4, {});
+  DeviceResult result;
+  result.planned = 4;
+  const WorkerSetup workers{exe, 30, ""};
+  TuneDevice(plan, 0, TuneConfig{}, workers, ledger, result);
+  ::unsetenv("SKINTUNE_CACHE_DIR");
+  EXPECT_FALSE(result.given_up) << *result.given_up;
+  std::map<std::string, int> compiled, measured;  // data set: requests
+  std::ifstream requests(dir / "requests");
+  for (std::string line; std::getline(requests, line);) {
+    const nlohmann::json request = nlohmann::json::parse(line);
+    if (request.contains("compile_ahead")) {
+      EXPECT_EQ(request.value("for", ""), "the cache") << line;
+      ++compiled[request.value("dataset", "")];
+    } else if (request.contains("variant")) {
+      ++measured[request.value("dataset", "")];
+    }
+  }
+  for (const std::string key : {"5000-b2", "6000-b2"}) {
+    EXPECT_GE(compiled[key], 1) << key;
+    EXPECT_GE(measured[key], 2) << key;
+  }
 }
 
 // A turn that comes while its device's precompile is under way waits for
