@@ -332,6 +332,7 @@ class DeviceTuning {
     if (const auto ahead = task_ahead_.find(&task); ahead != task_ahead_.end()) one_task_ahead_->Begin(ahead->second);
     task_done_ = 0;
     seen_.clear();
+    announced_.clear();
     const Evaluator evaluate = [this](const Variant& v) { return Evaluate(v); };
     const LookAhead ahead = [this](const std::vector<Variant>& next) { CompileAhead(next); };
     ahead(task.baselines);
@@ -352,7 +353,9 @@ class DeviceTuning {
   // parallel by the worker before any of them is timed.
   void CompileAhead(const std::vector<Variant>& next) {
     if (one_task_ahead_) return;  // compiled a task ahead (CompileEachTaskAhead)
-    const std::vector<Variant> ahead = NotTrusted(next, key_);
+    std::vector<Variant> ahead;   // the kernels not measured, nor announced before in this task
+    for (Variant& v : NotTrusted(next, key_))
+      if (announced_.insert(v.Key()).second) ahead.push_back(std::move(v));
     if (ahead.size() < 2 || !CompilesAhead(device_)) return;  // one kernel: built by its measurement
     Advance(task_done_, name_ + ": compiling " + std::to_string(ahead.size()) + " kernels for " + key_);
     const LoggedSpan span(name_, "compile ahead of " + std::to_string(ahead.size()) + " kernels for " + key_);
@@ -437,6 +440,7 @@ class DeviceTuning {
   std::string key_;             // its dataset
   std::size_t task_done_ = 0;   // its evaluations done
   std::set<std::string> seen_;  // its cache keys recorded
+  std::set<std::string> announced_;  // its variants compiled ahead (CompileAhead), by key
   // CompileEachTaskAhead's: each task's place in its order, and the
   // compiles, declared last: they use the members above, so they end first.
   std::map<const Task*, std::size_t> task_ahead_;

@@ -265,14 +265,22 @@ class Descent {
   // indices or unorm8 weights alone are slower takes both at once there).
   void From(std::size_t start) {
     current_ = start;
+    std::vector<std::size_t> first = {start};
+    const std::vector<std::size_t> moves = SweepMoves(start);
+    first.insert(first.end(), moves.begin(), moves.end());
+    s_.Ahead(first);
     current_ms_ = s_.Evaluate(current_);
     while (!s_.exhausted() && Sweep()) {
     }
   }
 
  private:
-  // One sweep over the axes; whether it moved.
+  // One sweep over the axes; whether it moved. Its single-axis moves from
+  // the current point are announced together first (LookAhead): one batch
+  // compiled in parallel, where the axes one at a time (most of them one
+  // move each) built their kernels one after another on the search's path.
   bool Sweep() {
+    s_.Ahead(SweepMoves(current_));
     const std::size_t last_coupled = *std::max_element(kCoupledAxes.begin(), kCoupledAxes.end());
     bool moved = false;
     bool coupled_moved = false;
@@ -317,6 +325,17 @@ class Descent {
       if (x == s_.coords(i)[a]) continue;
       c[a] = x;
       if (const std::optional<std::size_t> j = s_.Find(c)) out.push_back(*j);
+    }
+    return out;
+  }
+
+  // Every single-axis move from candidate i, axis after axis: what a sweep
+  // from it evaluates while it does not move.
+  std::vector<std::size_t> SweepMoves(std::size_t i) const {
+    std::vector<std::size_t> out;
+    for (std::size_t a = 0; a < kAxisCount; ++a) {
+      const std::vector<std::size_t> line = Line(i, a);
+      out.insert(out.end(), line.begin(), line.end());
     }
     return out;
   }

@@ -417,8 +417,8 @@ TEST(Strategy, CoordinateWithFivePercentOfAWideSpaceLandsWithinFivePercentOfTheO
 
 // The look-ahead (what the tuner compiles in parallel) announces, for every
 // strategy and budget, only variants not evaluated yet, never more than the
-// budget has left, and every evaluated variant before its evaluation except a
-// descent's starting point; and the search is the same with it as without.
+// budget has left, and every evaluated variant before its evaluation; and
+// the search is the same with it as without.
 TEST(Strategy, LookAheadAnnouncesWhatIsEvaluatedNextWithinTheBudgetAndChangesNothing) {
   std::vector<Variant> candidates = testing::SyntheticCandidates();
   candidates.resize(600);
@@ -455,14 +455,43 @@ TEST(Strategy, LookAheadAnnouncesWhatIsEvaluatedNextWithinTheBudgetAndChangesNot
     EXPECT_EQ(looked.best->Key(), plain.best->Key());
     EXPECT_EQ(looked.evaluations, plain.evaluations);
     EXPECT_GT(announced, 0u);
-    // Exhaustive and random announce everything up front; a coordinate
-    // descent evaluates its starting points unannounced (one per restart).
-    if (std::string(c.name) == "coordinate") {
-      EXPECT_LT(unannounced, evaluated.size() / 2);
-    } else {
-      EXPECT_EQ(unannounced, 0u);
-    }
+    EXPECT_EQ(unannounced, 0u);
   }
+}
+
+// A coordinate descent announces its start together with every single-axis
+// move from it (the first sweep, while it does not move), so that one batch
+// is compiled where the axes one at a time built one kernel after another.
+TEST(Strategy, ADescentAnnouncesItsStartWithItsFirstSweepInOneBatch) {
+  std::vector<Variant> candidates = testing::SyntheticCandidates();
+  candidates.resize(600);
+  std::vector<std::vector<std::string>> batches;
+  std::vector<std::string> evaluated;
+  const Evaluator evaluate = [&](const Variant& v) {
+    evaluated.push_back(v.Key());
+    return testing::SyntheticEvaluate(v);
+  };
+  const LookAhead ahead = [&](const std::vector<Variant>& next) {
+    std::vector<std::string>& batch = batches.emplace_back();
+    for (const Variant& v : next) batch.push_back(v.Key());
+  };
+  (void)Search(candidates, evaluate, {"coordinate", 0, 3}, ahead);
+  ASSERT_FALSE(batches.empty());
+  ASSERT_FALSE(evaluated.empty());
+  const std::vector<std::string>& first = batches.front();
+  EXPECT_EQ(first.front(), evaluated.front()) << "the start leads the first batch";
+  // Every variant one axis from the start is in it.
+  const auto start = AxisCodes(ParseVariantKey(evaluated.front()));
+  std::size_t neighbours = 0;
+  for (const Variant& v : candidates) {
+    const auto codes = AxisCodes(v);
+    std::size_t differ = 0;
+    for (std::size_t a = 0; a < codes.size(); ++a) differ += codes[a] != start[a] ? 1 : 0;
+    if (differ != 1) continue;
+    ++neighbours;
+    EXPECT_NE(std::find(first.begin(), first.end(), v.Key()), first.end()) << v.Key();
+  }
+  EXPECT_GT(neighbours, 2u);
 }
 
 }  // namespace
