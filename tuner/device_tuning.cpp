@@ -126,7 +126,11 @@ void OneTaskAhead::Begin(std::size_t i) {
 CompileHelpers::CompileHelpers(const WorkerSetup& workers, const DeviceIdentity& device)
     : workers_(workers), device_(device) {}
 
-CompileHelpers::~CompileHelpers() = default;
+CompileHelpers::~CompileHelpers() { EndInputs(); }
+
+void CompileHelpers::EndInputs() {
+  for (const auto& helper : helpers_) helper->EndInput();
+}
 
 std::size_t CompileHelpers::Count() { return std::clamp<std::size_t>(std::thread::hardware_concurrency() / 2, 1, 8); }
 
@@ -224,6 +228,15 @@ class DeviceTuning {
     if (!workers.chip_lock.empty()) worker_->UseChipLock(workers.chip_lock);
   }
 
+  // The turn's processes are ended together, then reaped (the members'
+  // destructors): NVIDIA's OpenCL worker with six contexts and its eight
+  // helpers, stopped one after another, held the chip's next turn about 1 s
+  // (H200 machine, 2026-12-02). Its compiles ahead end first: they use them.
+  ~DeviceTuning() {
+    one_task_ahead_.reset();
+    helpers_.EndInputs();
+    worker_->EndInput();
+  }
   DeviceTuning(const DeviceTuning&) = delete;
   DeviceTuning& operator=(const DeviceTuning&) = delete;
 

@@ -170,6 +170,8 @@ class CompileHelpers {
   void CompileAhead(const std::vector<Variant>& variants, const TuningDataset& dataset);
 
   int starts() const;  // helper processes started so far
+  // Ends every helper's input: they exit side by side (IsolatedDevice::EndInput).
+  void EndInputs();
 
  private:
   const WorkerSetup& workers_;

@@ -269,6 +269,8 @@ void IsolatedDevice::Kill() {
   CloseFd(child_stderr_);
 }
 
+void IsolatedDevice::EndInput() { CloseFd(to_child_); }
+
 void IsolatedDevice::Stop() {
   if (pid_ < 0) return;
   CloseFd(to_child_);  // end of input: the worker returns

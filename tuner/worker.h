@@ -100,6 +100,11 @@ class IsolatedDevice {
   // its own memory placement and threads (a race's second leg on a CPU).
   void Restart() { Stop(); }
 
+  // Ends the child's input: it returns and exits on its own, and is reaped
+  // when this is destroyed (or restarted). Processes ended so exit side by
+  // side, where stopping each in turn waits for one exit after another.
+  void EndInput();
+
   // The host lock every worker started from now on shares (tuner/host_lock.h).
   void UseHostLock(std::string path) { host_lock_ = std::move(path); }
   // The chip lock every worker started from now on takes (tuner/host_lock.h ChipLock).

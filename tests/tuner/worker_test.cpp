@@ -483,6 +483,26 @@ TEST(OneTaskAhead, ATaskPastThoseCompiledForBeginsAtOnce) {
   EXPECT_EQ(compiled, 1u);
 }
 
+// Workers whose input was ended together exit side by side, each reaped
+// after (IsolatedDevice::EndInput): three that take 0.6 s to exit are gone
+// in about 0.6 s, where stopping each in turn takes 1.8. A turn ends its
+// processes so before the chip's next turn starts.
+TEST(IsolatedDevice, WorkersWhoseInputWasEndedTogetherExitSideBySide) {
+  const fs::path dir = Scratch();
+  const std::string exe = FakeWorker(dir, "while read line; do echo '{\"compiled\": 1}'; done; sleep 0.6");
+  std::vector<std::unique_ptr<IsolatedDevice>> workers;
+  for (int i = 0; i < 3; ++i) {
+    workers.push_back(std::make_unique<IsolatedDevice>(exe, FakeDevice(), 30));
+    ASSERT_EQ(workers.back()->CompileAhead({kVariant}, kDataset), 1u);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  for (const auto& w : workers) w->EndInput();
+  workers.clear();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_GE(seconds, 0.5) << "each was reaped once it had exited";
+  EXPECT_LT(seconds, 1.5) << "three exits of 0.6 s one after another";
+}
+
 // A turn of NVIDIA's OpenCL (its kernels compiled in helper processes, one
 // task ahead: CompileEachTaskAhead) runs every task to its end, each data
 // set's kernels compiled for the program cache, no step's batch compiled
