@@ -6,12 +6,16 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <mutex>
+#include <string>
 
 #include "base/error.h"
+#include "runtime/runner.h"  // TimingLog
 
 namespace skintune::internal::tuner_internal {
 
@@ -66,18 +70,34 @@ void UseChipLock(const std::string& path) { Use(chip_fd, path, "chip lock"); }
 
 HostLock::HostLock(Mode mode) {
   if (mode == Mode::kNone || lock_fd < 0) return;
+  const auto start = std::chrono::steady_clock::now();
   if (mode == Mode::kExclusive) {
     gate_held_ = Gate(lock_fd, F_WRLCK);
     held_ = Take(lock_fd, LOCK_EX);
-    return;
+  } else {
+    const bool gated = Gate(lock_fd, F_RDLCK);
+    {
+      const std::lock_guard<std::mutex> lock(shared_mutex);
+      shared_ = shared_holds > 0 || Take(lock_fd, LOCK_SH);
+      if (shared_) ++shared_holds;
+    }
+    if (gated) (void)Gate(lock_fd, F_UNLCK);
   }
-  const bool gated = Gate(lock_fd, F_RDLCK);
-  {
-    const std::lock_guard<std::mutex> lock(shared_mutex);
-    shared_ = shared_holds > 0 || Take(lock_fd, LOCK_SH);
-    if (shared_) ++shared_holds;
-  }
-  if (gated) (void)Gate(lock_fd, F_UNLCK);
+  LogWait(mode, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+}
+
+void HostLock::LogWait(Mode mode, double waited_ms) {
+  // A wait the timing log names (SKINTUNE_TIMING_LOG): what a CPU device's
+  // timed samples lost to the GPU workers' host work, or their host work to
+  // those samples; shorter waits are left out.
+  if (waited_ms < (mode == Mode::kExclusive ? 20.0 : 50.0)) return;
+  TimingLog([&] {
+    char ms[32];
+    std::snprintf(ms, sizeof ms, "%.1f ms", waited_ms);
+    return std::string(mode == Mode::kExclusive ? "host lock: a CPU device's timed work waited "
+                                                : "host lock: a GPU worker's host work waited ") +
+           ms + " (pid " + std::to_string(::getpid()) + ")";
+  });
 }
 
 void HostLock::Release() {
