@@ -265,22 +265,17 @@ class Descent {
   // indices or unorm8 weights alone are slower takes both at once there).
   void From(std::size_t start) {
     current_ = start;
-    std::vector<std::size_t> first = {start};
-    const std::vector<std::size_t> moves = SweepMoves(start);
-    first.insert(first.end(), moves.begin(), moves.end());
-    s_.Ahead(first);
+    announced_.reset();
+    AnnounceSweep(true);  // the start with its first sweep: one batch
     current_ms_ = s_.Evaluate(current_);
     while (!s_.exhausted() && Sweep()) {
     }
   }
 
  private:
-  // One sweep over the axes; whether it moved. Its single-axis moves from
-  // the current point are announced together first (LookAhead): one batch
-  // compiled in parallel, where the axes one at a time (most of them one
-  // move each) built their kernels one after another on the search's path.
+  // One sweep over the axes; whether it moved.
   bool Sweep() {
-    s_.Ahead(SweepMoves(current_));
+    AnnounceSweep(false);
     const std::size_t last_coupled = *std::max_element(kCoupledAxes.begin(), kCoupledAxes.end());
     bool moved = false;
     bool coupled_moved = false;
@@ -329,15 +324,22 @@ class Descent {
     return out;
   }
 
-  // Every single-axis move from candidate i, axis after axis: what a sweep
-  // from it evaluates while it does not move.
-  std::vector<std::size_t> SweepMoves(std::size_t i) const {
-    std::vector<std::size_t> out;
+  // Announces (LookAhead) every single-axis move from the current point,
+  // axis after axis, what a sweep from it evaluates while it does not move,
+  // and the point itself first when `with_it`; once a point. One batch
+  // compiled in parallel, where the axes one at a time (most of them one
+  // move from a point) built their kernels one after another on the
+  // search's path.
+  void AnnounceSweep(bool with_it) {
+    if (announced_ == current_) return;
+    announced_ = current_;
+    std::vector<std::size_t> next;
+    if (with_it) next.push_back(current_);
     for (std::size_t a = 0; a < kAxisCount; ++a) {
-      const std::vector<std::size_t> line = Line(i, a);
-      out.insert(out.end(), line.begin(), line.end());
+      const std::vector<std::size_t> line = Line(current_, a);
+      next.insert(next.end(), line.begin(), line.end());
     }
-    return out;
+    s_.Ahead(next);
   }
 
   // Moves from candidate i along two coupled axes at once (both changed).
@@ -361,6 +363,7 @@ class Descent {
   double margin_;
   std::size_t current_ = 0;
   std::optional<double> current_ms_;
+  std::optional<std::size_t> announced_;  // the point whose sweep was announced last
 };
 
 SearchResult Coordinate(Session& s, std::uint64_t seed, bool restarts, double margin) {
