@@ -4,6 +4,9 @@
   compare.py ncu OUT SIZE...      skintune's kernel time against Nsight Compute's gpu__time_duration, per variant and size
   compare.py runs REPORT...       the chosen winners of several `skintune run` reports: agreement, tie sets, spread
   compare.py twins OUT            one variant's kernel time in each language, per size
+  compare.py turns LOG...         each run's devices from its SKINTUNE_TIMING_LOG: when each turn ran, the chip's
+                                  turns against the host's CPU devices (which ended last, by how much), the gaps
+                                  between the chip's turns, and the host lock's waits
   compare.py choice MARGIN REPORT...
                                   the runs' agreement were each row's last race to choose its winner among
                                   the candidates within MARGIN of the fastest (GPU rows, judged as
@@ -11,7 +14,7 @@
                                   host_tie_margin): what a choice wider or narrower than the report's costs.
                                   MARGIN = tie_margin + process_spread is the GPU's default choice, its tie set
 """
-import csv, glob, json, os, statistics, sys
+import csv, glob, json, os, re, statistics, sys
 
 
 def ncu(out, sizes):
@@ -171,6 +174,44 @@ def twins(out):
         print()
 
 
+def is_host_cpu(device):
+    # The timing log's device names: "cpu <model>" (skintune's cpu device), "opencl cpu-..." or
+    # "opencl pthread-..." (PoCL's CPU device); every other is a GPU's API.
+    return device.startswith("cpu ") or device.startswith("opencl cpu-") or device.startswith("opencl pthread-")
+
+
+def turns(logs):
+    for path in logs:
+        spans, waits = [], {"CPU device's timed work": [], "GPU worker's host work": []}
+        origin = None
+        for line in open(path):
+            stamp, _, text = line.rstrip("\n").partition(" ")
+            t = float(stamp)
+            origin = t if origin is None else origin
+            m = re.match(r"(.+) device: ([\d.]+) ms$", text)
+            if m:
+                spans.append((t - float(m.group(2)) / 1000 - origin, t - origin, m.group(1)))
+            m = re.match(r"host lock: a (.+) waited ([\d.]+) ms", text)
+            if m and m.group(1) in waits:
+                waits[m.group(1)].append(float(m.group(2)))
+        print(path + " (seconds from the log's first line)")
+        for start, end, device in sorted(spans):
+            print("  %-60s %6.1f - %6.1f  %5.1f%s" % (device[:60], start, end, end - start,
+                                                     "  host" if is_host_cpu(device) else ""))
+        chip = sorted(s for s in spans if not is_host_cpu(s[2]))
+        host = [s for s in spans if is_host_cpu(s[2])]
+        if chip and host:
+            chip_end, host_end = max(s[1] for s in chip), max(s[1] for s in host)
+            print("  last: %s, %.1f s after the %s" % ("the host's CPU devices" if host_end > chip_end else "the chip's turns",
+                                                    abs(host_end - chip_end),
+                                                    "chip's turns" if host_end > chip_end else "host's CPU devices"))
+        if len(chip) > 1:
+            print("  between the chip's turns: " + ", ".join("%.2f" % (b[0] - a[1]) for a, b in zip(chip, chip[1:])) + " s")
+        for who, ms in waits.items():
+            if ms:
+                print("  host lock: a %s waited %d times, %.0f ms in all, the longest %.0f" % (who, len(ms), sum(ms), max(ms)))
+
+
 if __name__ == "__main__":
     mode = sys.argv[1]
     if mode == "ncu":
@@ -179,6 +220,8 @@ if __name__ == "__main__":
         runs(sys.argv[2:])
     elif mode == "twins":
         twins(sys.argv[2])
+    elif mode == "turns":
+        turns(sys.argv[2:])
     elif mode == "choice":
         choice(float(sys.argv[2]), sys.argv[3:])
     else:

@@ -6,7 +6,8 @@
 #   bench/kernel-time/run.sh ncu          five CUDA variants at 25k..6400k-b4: skintune's kernel time beside
 #                                         Nsight Compute's gpu__time_duration (--cache-control all --clock-control none)
 #   bench/kernel-time/run.sh runs N ARGS  N cold `skintune run ARGS` (every program cache emptied before each),
-#                                         then compare.py on their reports
+#                                         then compare.py on their reports (runs-summary.txt) and on
+#                                         their timing logs (turns.txt: when each device's turn ran)
 #   bench/kernel-time/run.sh twins        one variant in OpenCL, CUDA and Vulkan (and GLSL) at 100k..6400k-b4:
 #                                         its kernel time, its context's launch start and the kernel beyond it
 #
@@ -57,6 +58,7 @@ case "$mode" in
       rm -rf "$cache"
     done
     python3 "$here/bench/kernel-time/compare.py" runs "${reports[@]}" | tee "$out/runs-summary.txt"
+    python3 "$here/bench/kernel-time/compare.py" turns "$out"/run*.phases.log > "$out/turns.txt"
     ;;
   twins)
     for size in ${TWIN_SIZES:-100k-b4 400k-b4 1600k-b4 6400k-b4}; do
