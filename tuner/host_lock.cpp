@@ -63,6 +63,21 @@ bool Gate(int fd, short type) {
   }
   return true;
 }
+
+// A wait for the host lock, named in the timing log (SKINTUNE_TIMING_LOG):
+// what a CPU device's timed work lost to the GPU workers' host work, or
+// their host work to it; shorter waits are left out.
+void LogWait(HostLock::Mode mode, double waited_ms) {
+  if (waited_ms < (mode == HostLock::Mode::kExclusive ? 20.0 : 50.0)) return;
+  TimingLog([&] {
+    char ms[32];
+    std::snprintf(ms, sizeof ms, "%.1f ms", waited_ms);
+    return std::string(mode == HostLock::Mode::kExclusive ? "host lock: a CPU device's timed work waited "
+                                                          : "host lock: a GPU worker's host work waited ") +
+           ms + " (pid " + std::to_string(::getpid()) + ")";
+  });
+}
+
 }  // namespace
 
 void UseHostLock(const std::string& path) { Use(lock_fd, path, "host lock"); }
@@ -84,20 +99,6 @@ HostLock::HostLock(Mode mode) {
     if (gated) (void)Gate(lock_fd, F_UNLCK);
   }
   LogWait(mode, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
-}
-
-void HostLock::LogWait(Mode mode, double waited_ms) {
-  // A wait the timing log names (SKINTUNE_TIMING_LOG): what a CPU device's
-  // timed samples lost to the GPU workers' host work, or their host work to
-  // those samples; shorter waits are left out.
-  if (waited_ms < (mode == Mode::kExclusive ? 20.0 : 50.0)) return;
-  TimingLog([&] {
-    char ms[32];
-    std::snprintf(ms, sizeof ms, "%.1f ms", waited_ms);
-    return std::string(mode == Mode::kExclusive ? "host lock: a CPU device's timed work waited "
-                                                : "host lock: a GPU worker's host work waited ") +
-           ms + " (pid " + std::to_string(::getpid()) + ")";
-  });
 }
 
 void HostLock::Release() {

@@ -45,7 +45,6 @@ class HostLock {
   void Release();  // early, e.g. before a GPU's timed bursts
 
  private:
-  static void LogWait(Mode mode, double waited_ms);
   bool held_ = false;        // an exclusive hold
   bool gate_held_ = false;   // an exclusive holder's gate (host_lock.cpp Gate)
   bool shared_ = false;      // one of the process's shared holds (host_lock.cpp)
