@@ -1,10 +1,16 @@
 // skintune (internal): the host's cores, shared by the tuner's worker
 // processes while a CPU device is tuned beside a GPU (tuner/schedule.h tunes
 // them at the same time). A CPU device's timed bursts run on those cores, so
-// they hold the lock exclusively; a GPU worker's host-side work (packing,
-// gold checks, verification read-backs, compiles) holds it shared, and waits
-// while a CPU device is timing. A GPU's own bursts are timed by the device
-// and take no lock. On the H100 machine the CPU devices' winners were 15-50%
+// they hold the lock exclusively; a GPU worker's bulk host work (compiles, a
+// runner's opening) holds it shared, and waits while a CPU device is timing.
+// A GPU's own bursts are timed by the device and take no lock, and neither
+// does a GPU measurement's own host work (packing, gold checks, the
+// verification's read-back: MeasuringWorkMode): one thread, on a core its
+// process keeps busy anyway (the driver's waits on the device poll through
+// its timed bursts, unlocked), and its wait held the chip (its lock comes
+// first) while the CPU device timed: on the H200 machine (2026-12-02) the
+// measuring workers of a cold run's four GPU APIs waited 15-20 s of its
+// 66-68 s so, the chip idle. On the H100 machine the CPU devices' winners were 15-50%
 // slower tuned beside the GPU than alone; with the lock PoCL's are within 6%
 // (median), the cpu device's still 10-26% slower (its kernels spread over
 // every core, so a host thread the GPU's driver keeps busy, even while it
@@ -50,8 +56,11 @@ class HostLock {
   bool shared_ = false;      // one of the process's shared holds (host_lock.cpp)
 };
 
-// The lock's mode for host-side work, and for timed bursts, of a device.
+// The lock's mode for a device's bulk host work (compiles, a runner's
+// opening), for a measurement's or race's own host work between its work on
+// the device (packing, gold checks: none, see above), and for timed bursts.
 HostLock::Mode HostWorkMode(bool cpu_device);
+HostLock::Mode MeasuringWorkMode(bool cpu_device);
 HostLock::Mode TimedMode(bool cpu_device);
 
 // The chip lock: one GPU seen through several APIs (OpenCL, CUDA, GL,

@@ -344,11 +344,11 @@ bool MeasureJob::Run() const {
   }
   // The chip (tuner/host_lock.h): this API's work on it alone, from the
   // verification's uploads to the copy's last sample. The host's cores: a
-  // GPU's host-side work waits while a CPU device beside it is timing; a CPU
-  // device's bursts hold them alone.
+  // CPU device's bursts hold them alone; the packing and checks before them
+  // take no lock (MeasuringWorkMode).
   const ChipLock chip;
   const bool cpu_device = IsHostCpu(*device);
-  HostLock host_work(HostWorkMode(cpu_device));
+  HostLock host_work(MeasuringWorkMode(cpu_device));
   Measuring run{*this, m, data};
   if (!Pack(run) || !Verify(run)) return true;
   RecordSourceError(run);
@@ -388,7 +388,7 @@ namespace {
 // one's tie-break entry (its key and the bytes it moves a frame) into `entries`.
 std::vector<std::unique_ptr<Executor::Timed>> PrepareRacers(const RaceJob& job, std::vector<RaceEntry>& entries) {
   DatasetCache::Entry& data = job.datasets->Get(job.dataset.key);
-  const HostLock host_work(HostWorkMode(IsHostCpu(*job.device)));
+  const HostLock host_work(MeasuringWorkMode(IsHostCpu(*job.device)));
   std::vector<std::unique_ptr<Executor::Timed>> timed;
   for (const Variant& v : job.variants) {
     std::vector<KernelSource> kernels;
@@ -415,12 +415,15 @@ bool RaceJob::Run() const {
   if (!Validate()) return false;
   using Clock = std::chrono::steady_clock;
   const ChipLock chip;  // from the first upload to the last sample (tuner/host_lock.h)
+  const auto begun = Clock::now();
   std::vector<RaceEntry> entries;
   const std::vector<std::unique_ptr<Executor::Timed>> timed = PrepareRacers(*this, entries);
+  const auto prepared = Clock::now();
   const HostLock timed_lock(TimedMode(IsHostCpu(*device)));
   const StopRule& rule = options.stop;
   for (const std::unique_ptr<Executor::Timed>& t : timed) (void)t->Cold(std::max(options.warmup, 1), 0);  // as SampleKernelTime
   const auto start = Clock::now();
+  int rounds = 0;
   // Rounds of one batch each, candidate after candidate: a drift of the
   // device's clock or of its neighbours' load falls on every candidate alike.
   for (;;) {
@@ -433,10 +436,19 @@ bool RaceJob::Run() const {
     if (fewest == 0) throw Error("race: the device gave no kernel time");
     const RaceOutcome outcome = JudgeRace(entries, options.tie_margin);
     const double elapsed = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    ++rounds;
     if ((outcome.settled && fewest >= rule.min_samples) || fewest >= rule.max_samples ||
         elapsed >= rule.max_ms * static_cast<double>(entries.size()))
       break;
   }
+  TimingLog([&] {
+    const auto ms = [](Clock::time_point from, Clock::time_point to) {
+      return std::to_string(std::lround(std::chrono::duration<double, std::milli>(to - from).count()));
+    };
+    return "race of " + std::to_string(timed.size()) + " for " + dataset.key + " in this process: prepared in " +
+           ms(begun, prepared) + " ms, warmed in " + ms(prepared, start) + " ms, " + std::to_string(rounds) +
+           " rounds in " + ms(start, Clock::now()) + " ms";
+  });
   samples->clear();
   for (RaceEntry& e : entries) samples->push_back(std::move(e.samples));
   return true;

@@ -75,8 +75,14 @@ constexpr unsigned kMaxCompileThreads = 8;
 // the 100k-b4 kernel 4.06-4.13 or 4.19-4.26 us on the same contexts. About
 // half the contexts were of the quicker kind there, so six would leave all
 // slow one time in 64; on another H200 one worker's six all read 2.26-2.37:
-// the share differs from machine to machine.
-constexpr int kContextsToChoose = 6;
+// the share differs from machine to machine. On a third (2026-12-02) 4 of 18
+// CUDA contexts were quick (2.08-2.13 us, the rest 2.18-2.42) and one cold
+// run's six were all slow: its six CUDA winners read 3.3-4% slower than the
+// other two runs'. CUDA chooses from ten, which leave all slow about one
+// time in twelve there, for 0.4 s a context (opened and probed ahead, while
+// the API before it measures); NVIDIA's OpenCL, whose chosen contexts read
+// within 1.2% across those runs, from six.
+int ContextsToChoose(const DeviceIdentity& device) { return device.backend == "cuda" ? 10 : 6; }
 constexpr std::size_t kLaunchStartProbeBytes = 4096;
 constexpr int kLaunchStartProbeRounds = 2;
 constexpr int kLaunchStartProbeUntimed = 3;
@@ -469,7 +475,7 @@ std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevic
   if (!ChoosesContext(device)) return opened("");
   QuickestRunner quickest;
   try {
-    quickest = OpenQuickest(kContextsToChoose, kLaunchStartProbeRounds, device.open_own, probe_of);
+    quickest = OpenQuickest(ContextsToChoose(device.identity), kLaunchStartProbeRounds, device.open_own, probe_of);
   } catch (const Error& e) {
     return opened(std::string("; no context of its own (") + e.what() + "): the shared one");
   }

@@ -697,7 +697,14 @@ int RunTuneWorker(int device_index, const std::string& device_id, const std::str
     // The failure tests' hook: $SKINTUNE_INJECT_FAULT breaks one variant on every device (fault_injection.h).
     const tuner_internal::ExecutorDecorator faults = tuner_internal::FaultsFromEnvironment();
     try {
+      const auto start = std::chrono::steady_clock::now();
       discovery = tuner_internal::DiscoverTunedDevices(faults);
+      TimingLog([&] {
+        return "tune-worker " + device_id + ": every API's devices found in " +
+               std::to_string(std::lround(
+                   std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count())) +
+               " ms (pid " + std::to_string(::getpid()) + ")";
+      });
     } catch (const std::exception& e) {
       throw Error(std::string("device discovery failed: ") + e.what());
     }

@@ -73,6 +73,26 @@ TEST(HostLock, HostWorkWaitsWhileACpuDeviceTimesInAnotherProcess) {
   cpu_device.Join();
 }
 
+// A GPU measurement's own packing and checks run while a CPU device times:
+// the measuring worker holds the chip then, and its wait would idle it.
+TEST(HostLock, AGpuMeasurementsOwnHostWorkRunsWhileACpuDeviceTimes) {
+  const HostLockFile file;
+  ASSERT_FALSE(file.path().empty());
+  Holder cpu_device([&] {
+    UseHostLock(file.path());
+    new HostLock(TimedMode(/*cpu_device=*/true));  // held until the process ends
+  });
+  UseHostLock(file.path());
+  const Clock::time_point start = Clock::now();
+  { const HostLock measuring(MeasuringWorkMode(/*cpu_device=*/false)); }
+  EXPECT_LT(MsSince(start), 100.0) << "a GPU measurement's host work waited for the CPU device's timing";
+  {
+    const HostLock compiles(HostWorkMode(/*cpu_device=*/false));  // still held: bulk host work waits
+    EXPECT_GE(MsSince(start), 200.0);
+  }
+  cpu_device.Join();
+}
+
 // A CPU device that asks for the cores while a GPU's work holds them shared
 // gets them before any shared request made after its own: GPU workers whose
 // holds overlap one another cannot keep it waiting for the whole run.
