@@ -204,16 +204,25 @@ std::size_t FastestCandidate(std::size_t candidates, const std::function<double(
   samples = std::max(samples, 1);
   for (std::size_t i = 0; i < candidates; ++i) frame_ms(i);  // untimed: first touch, the pool's start
   // Rounds of one call per candidate: a drift of the host's load falls on
-  // every candidate alike rather than on those timed during it.
+  // every candidate alike rather than on those timed during it. After the
+  // first round only those within kFastestCandidateCut of its quickest go on.
   std::vector<std::vector<double>> t(candidates);
-  for (int k = 0; k < samples; ++k)
-    for (std::size_t i = 0; i < candidates; ++i) t[i].push_back(frame_ms(i));
-  std::size_t best = 0;
+  std::vector<bool> racing(candidates, true);
+  for (int k = 0; k < samples; ++k) {
+    for (std::size_t i = 0; i < candidates; ++i)
+      if (racing[i]) t[i].push_back(frame_ms(i));
+    if (k > 0) continue;
+    double quickest = t[0][0];
+    for (std::size_t i = 1; i < candidates; ++i) quickest = std::min(quickest, t[i][0]);
+    for (std::size_t i = 0; i < candidates; ++i) racing[i] = t[i][0] <= kFastestCandidateCut * quickest;
+  }
+  std::size_t best = candidates;
   double best_ms = 0.0;
   for (std::size_t i = 0; i < candidates; ++i) {
+    if (!racing[i]) continue;
     std::nth_element(t[i].begin(), t[i].begin() + t[i].size() / 2, t[i].end());
     const double median = t[i][t[i].size() / 2];
-    if (i == 0 || median < best_ms) {
+    if (best == candidates || median < best_ms) {
       best = i;
       best_ms = median;
     }

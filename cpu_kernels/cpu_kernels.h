@@ -145,7 +145,13 @@ std::vector<CpuSchedule> CpuScheduleCandidates(std::size_t vertices, unsigned ma
 // The index of the candidate (0..candidates-1) whose `frame_ms(i)` (the
 // median of `samples` calls after one untimed call) is the smallest, the
 // calls made in rounds of one per candidate: how schedules and streaming
-// stores are chosen on the caller's own frames. Throws Error for no candidates.
+// stores are chosen on the caller's own frames. A candidate whose first
+// sample took more than kFastestCandidateCut times the quickest first sample
+// is left out of the later rounds: on a 16-thread host the 40 candidates of a
+// 100k-vertex frame took a fresh process 150-250 ms a variant, most of it on
+// one and two threads, 8-16 times slower than the winners (an H200 machine's
+// host, 2026-12-02). Throws Error for no candidates.
+inline constexpr double kFastestCandidateCut = 3.0;
 std::size_t FastestCandidate(std::size_t candidates, const std::function<double(std::size_t)>& frame_ms,
                              int samples = 3);
 
