@@ -472,8 +472,9 @@ void CpuApi::RunFrame(std::span<const std::unique_ptr<DeviceObject>> frame, cons
 
 namespace {
 // Writes back and invalidates every cache line of `frame`'s buffers
-// (base/cache_eviction.h); the bytes evicted.
-std::size_t EvictFrame(std::span<const std::unique_ptr<DeviceObject>> frame) {
+// (base/cache_eviction.h) on the threads of `pool`, the one that runs the
+// frame next; the bytes evicted.
+std::size_t EvictFrame(std::span<const std::unique_ptr<DeviceObject>> frame, ThreadPool& pool) {
   std::vector<std::span<const std::uint8_t>> buffers;
   std::size_t bytes = 0;
   for (const std::unique_ptr<DeviceObject>& launch : frame)
@@ -481,7 +482,7 @@ std::size_t EvictFrame(std::span<const std::unique_ptr<DeviceObject>> frame) {
       buffers.push_back(buffer);
       bytes += buffer.size();
     }
-  EvictFromCaches(buffers);
+  EvictFromCaches(buffers, pool);
   return bytes;
 }
 
@@ -525,8 +526,9 @@ const CpuChoice& CpuApi::ChoiceFor(const FrameRun& run) {
     const bool cold = run.use == FrameUse::kCold;
     best = candidates[FastestCandidate(candidates.size(), [&](std::size_t c) {
       if (cold) {
-        (void)EvictFrame(run.frames.front());
-        pools_.Get(candidates[c].schedule.threads).Ready();
+        ThreadPool& pool = pools_.Get(candidates[c].schedule.threads);
+        (void)EvictFrame(run.frames.front(), pool);
+        pool.Ready();
       }
       const Clock::time_point start = Clock::now();
       RunFrame(run.frames.front(), candidates[c]);
@@ -565,7 +567,7 @@ std::vector<std::vector<double>> CpuApi::RunFrames(const FrameRun& run) {
     for (std::size_t f = 0; f < run.frames.size(); ++f) {
       // The frame's own lines out of every cache (evicts_own_buffers: run.flush
       // is not run), then every thread of its pool awake, then the clock.
-      evicted_bytes_ += EvictFrame(run.frames[f]);
+      evicted_bytes_ += EvictFrame(run.frames[f], pool);
       pool.Ready();
       if (f < untimed) {
         RunFrame(run.frames[f], choice);

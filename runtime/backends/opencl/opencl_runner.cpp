@@ -19,6 +19,7 @@
 
 #include "base/cache_eviction.h"
 #include "base/error.h"
+#include "base/thread_pool.h"
 #include "runtime/host_work.h"
 #include "runtime/output_check.h"
 
@@ -174,7 +175,13 @@ void CL_CALLBACK EvictNatively(void* args) {
   const auto* a = static_cast<const EvictArgs*>(args);
   if (!a->address) return;  // not allocated on the device yet (PoCL allocates at first use): in no cache
   const std::span<const std::uint8_t> span(a->address, a->bytes);
-  EvictFromCaches({&span, 1});
+  // On every logical CPU (base/cache_eviction.h), one eviction at a time:
+  // the queues of one process may run native kernels at once. The pool
+  // sleeps between evictions and is left to the process's end.
+  static std::mutex one_at_a_time;
+  static ThreadPool& threads = *new ThreadPool();
+  const std::lock_guard<std::mutex> lock(one_at_a_time);
+  EvictFromCaches({&span, 1}, threads);
   a->evicted->fetch_add(a->bytes);
 }
 
