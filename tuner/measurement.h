@@ -80,8 +80,8 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 //    batch fell on either side as that share moved (4.2-5.0 us for one
 //    100k-vertex CUDA kernel); each CUDA batch's first sample counted the
 //    host's 0.15-2.5 ms.
-// 9: CUDA and OpenCL on a GPU measure on the quickest of six contexts of
-//    their own, by their launch start (tuner/runner_device.h
+// 9: CUDA and OpenCL on a GPU measure on the quickest of several contexts of
+//    their own (ten and six), by their launch start (tuner/runner_device.h
 //    OpenMeasuringRunner), where 8 used the one a runner opened (CUDA's
 //    primary context): the device's start of a launch after the flush is the
 //    context's, and one 100k-vertex CUDA kernel read 4.06-4.10 us on some
