@@ -557,8 +557,8 @@ std::unique_ptr<TunedDevice> MakeRunnerDevice(FoundDevice device, std::vector<La
   return std::make_unique<RunnerDevice>(std::move(device), std::move(languages), index, std::move(decorate));
 }
 
-Discovery DiscoverTunedDevices(const ExecutorDecorator& decorate) {
-  Discovered found = DiscoverDevices();
+Discovery DiscoverTunedDevices(const ExecutorDecorator& decorate, const char* only) {
+  Discovered found = DiscoverDevices(only);
   Discovery discovery;
   discovery.skipped = std::move(found.skipped);
   int index = 0;

@@ -88,8 +88,9 @@ class LaunchStartProbe {
 };
 
 // Every device found (DiscoverTunedDevices), each measuring through
-// `decorate` when given.
-Discovery DiscoverTunedDevices(const ExecutorDecorator& decorate);
+// `decorate` when given; with `only`, that API's devices alone
+// (DiscoverDevices: their caches matched among themselves).
+Discovery DiscoverTunedDevices(const ExecutorDecorator& decorate, const char* only = nullptr);
 
 // The bytes of input sets a device's runner keeps across the measurements of
 // one data set (Runner::ShareTimedInputs): an eighth of the device's memory,

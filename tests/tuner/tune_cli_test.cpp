@@ -541,11 +541,18 @@ TEST(TuneCli, CpuDeviceQuickTuneVerifiesTimesAndWritesAWinner) {
   config["space"]["index"] = {"u8"};
   config["space"]["weight"] = {"f32", "unorm16"};
   const fs::path out = dir / "out";
+  const fs::path log = dir / "timing.log";
+  ::setenv("SKINTUNE_TIMING_LOG", log.c_str(), 1);
   const auto r = RunSkintune({"tune", "--config", WriteConfig(dir, config), "--out", out.string(), "--device", "cpu"});
+  ::unsetenv("SKINTUNE_TIMING_LOG");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json report = nlohmann::json::parse(ReadAll(out / "report.json"));
   ASSERT_EQ(report.at("devices").size(), 1u) << report.at("devices").dump(2);
   EXPECT_EQ(report.at("devices")[0].at("backend"), "cpu");
+  // Its workers look for the cpu device alone, not for every API's devices.
+  const std::string timing = ReadAll(log);
+  EXPECT_GE(Count(timing, "tune-worker cpu:"), 1) << timing;
+  EXPECT_EQ(Count(timing, "tune-worker cpu:"), Count(timing, ": cpu's devices found in ")) << timing;
   std::size_t ok = 0, invalid = 0;
   for (const Measurement& m : ReportMeasurements(report)) {
     EXPECT_EQ(m.variant.lang, Lang::kCpu);
