@@ -663,34 +663,40 @@ TEST(CpuSchedules, CandidatesCoverThreadCountsAndChunksUpToTheMesh) {
   EXPECT_EQ(Describe(CpuSchedule{2, 16384}), "2 threads x 16384-vertex chunks");
 }
 
+// FastestCandidate over candidates whose calls return `times[i]` in turn:
+// the one chosen, each one's count of calls, and the order of the calls.
+struct Choice {
+  std::size_t best = 0;
+  std::vector<std::size_t> calls, order;
+};
+Choice ChooseAmong(const std::vector<std::vector<double>>& times) {
+  Choice c;
+  c.calls.assign(times.size(), 0);
+  c.best = FastestCandidate(times.size(), [&](std::size_t i) {
+    c.order.push_back(i);
+    return times[i][c.calls[i]++];
+  });
+  return c;
+}
+
 TEST(CpuSchedules, TheFastestCandidateByMedianWins) {
   // Candidate 1 is fastest by median although its first (untimed) call and
   // one sample are slow; candidate 2 has the fastest single sample. Every
   // first sample is within kFastestCandidateCut of the quickest: all go on.
-  std::vector<std::vector<double>> times = {{5, 2.5, 5, 5}, {100, 2, 50, 2}, {9, 1, 9, 9}};
-  std::vector<std::size_t> calls(3, 0), order;
-  const std::size_t best = FastestCandidate(3, [&](std::size_t i) {
-    order.push_back(i);
-    return times[i][calls[i]++];
-  });
-  EXPECT_EQ(best, 1u);
-  EXPECT_EQ(calls, (std::vector<std::size_t>{4, 4, 4}));  // one untimed call and three samples each
+  const Choice c = ChooseAmong({{5, 2.5, 5, 5}, {100, 2, 50, 2}, {9, 1, 9, 9}});
+  EXPECT_EQ(c.best, 1u);
+  EXPECT_EQ(c.calls, (std::vector<std::size_t>{4, 4, 4}));  // one untimed call and three samples each
   // In rounds, candidate after candidate: a slow spell of the host's falls on all alike.
-  EXPECT_EQ(order, (std::vector<std::size_t>{0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2}));
+  EXPECT_EQ(c.order, (std::vector<std::size_t>{0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2}));
 }
 
 TEST(CpuSchedules, ACandidateFarBehindAfterOneRoundIsTimedNoFurther) {
   // Candidate 0's first sample is 4x the quickest (1), candidate 2's exactly
   // 3x: 0 drops out after the first round, 2 goes on, and 2 wins by median.
-  std::vector<std::vector<double>> times = {{9, 4, 0.1, 0.1}, {9, 1, 2, 2}, {9, 3, 1, 1}};
-  std::vector<std::size_t> calls(3, 0), order;
-  const std::size_t best = FastestCandidate(3, [&](std::size_t i) {
-    order.push_back(i);
-    return times[i][calls[i]++];
-  });
-  EXPECT_EQ(best, 2u);
-  EXPECT_EQ(calls, (std::vector<std::size_t>{2, 4, 4}));
-  EXPECT_EQ(order, (std::vector<std::size_t>{0, 1, 2, 0, 1, 2, 1, 2, 1, 2}));
+  const Choice c = ChooseAmong({{9, 4, 0.1, 0.1}, {9, 1, 2, 2}, {9, 3, 1, 1}});
+  EXPECT_EQ(c.best, 2u);
+  EXPECT_EQ(c.calls, (std::vector<std::size_t>{2, 4, 4}));
+  EXPECT_EQ(c.order, (std::vector<std::size_t>{0, 1, 2, 0, 1, 2, 1, 2, 1, 2}));
 }
 
 }  // namespace
