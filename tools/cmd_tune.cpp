@@ -82,8 +82,10 @@ Command RegisterTuneWorker(CLI::App& app) {
   sub->add_option("--host-lock", *host_lock, "the lock file of the host's cores, shared with the other workers");
   auto chip_lock = std::make_shared<std::string>();
   sub->add_option("--chip-lock", *chip_lock, "the lock file of the GPU, shared with its other APIs' workers");
-  return {sub, [index, device_id, host_lock, chip_lock] {
-            return RunTuneWorker(*index, *device_id, *host_lock, *chip_lock);
+  auto discover_only = std::make_shared<std::string>();
+  sub->add_option("--discover-only", *discover_only, "the only API whose devices it looks for");
+  return {sub, [index, device_id, host_lock, chip_lock, discover_only] {
+            return RunTuneWorker(*index, *device_id, *host_lock, *chip_lock, *discover_only);
           }};
 }
 

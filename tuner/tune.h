@@ -20,13 +20,14 @@ namespace skintune::internal {
 TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options);
 
 // The child process: `skintune tune-worker --device-index N [--device-id ID]
-// [--host-lock PATH] [--chip-lock CHIP]` (ID, when given, selects the device
-// and N is ignored; PATH: the host lock shared with the other workers, CHIP:
-// the lock of the GPU shared with its other APIs' workers, tuner/host_lock.h) reads
-// one JSON request per line on stdin ({"variant": ..., "dataset": ...,
-// "timing": ...}) and writes one Measurement JSON per line on stdout
-// (tuner/worker.h has the whole protocol).
+// [--host-lock PATH] [--chip-lock CHIP] [--discover-only API]` (ID, when
+// given, selects the device and N is ignored; PATH: the host lock shared with
+// the other workers, CHIP: the lock of the GPU shared with its other APIs'
+// workers, tuner/host_lock.h; API: the only API whose devices it looks for,
+// tuner/worker.h DiscoversAlone) reads one JSON request per line on stdin
+// ({"variant": ..., "dataset": ..., "timing": ...}) and writes one
+// Measurement JSON per line on stdout (tuner/worker.h has the whole protocol).
 int RunTuneWorker(int device_index, const std::string& device_id = "", const std::string& host_lock = "",
-                  const std::string& chip_lock = "");
+                  const std::string& chip_lock = "", const std::string& discover_only = "");
 
 }  // namespace skintune::internal

@@ -30,6 +30,7 @@
 #include "tuner/fault_injection.h"
 #include "tuner/measure_job.h"
 #include "tuner/runner_device.h"
+#include "tuner/schedule.h"  // IsHostCpu
 #include "tuner/tune.h"
 
 namespace skintune::internal {
@@ -103,6 +104,8 @@ const std::vector<std::string>& StartupEnvironment() { return kStartupEnvironmen
 
 // ------------------------------------------------------------------ parent side
 
+std::string DiscoversAlone(const DeviceIdentity& device) { return IsHostCpu(device) ? device.backend : ""; }
+
 IsolatedDevice::IsolatedDevice(std::string executable, DeviceIdentity identity, double variant_timeout_s)
     : executable_(std::move(executable)), identity_(std::move(identity)), variant_timeout_s_(variant_timeout_s) {}
 
@@ -142,6 +145,11 @@ void IsolatedDevice::Spawn() {
   if (!chip_lock_.empty()) {
     argv.push_back(const_cast<char*>("--chip-lock"));
     argv.push_back(const_cast<char*>(chip_lock_.c_str()));
+  }
+  const std::string alone = DiscoversAlone(identity_);
+  if (!alone.empty()) {
+    argv.push_back(const_cast<char*>("--discover-only"));
+    argv.push_back(const_cast<char*>(alone.c_str()));
   }
   argv.push_back(nullptr);
   std::vector<char*> envp;
@@ -598,16 +606,6 @@ void WriteLine(int fd, const nlohmann::json& answer) {
   }
 }
 
-// The API a worker for `device_id` discovers alone, nullptr for every API:
-// skintune's cpu device, whose cache figure is the host's whatever else is
-// found. Every API's discovery took a worker 150-230 ms on an idle H200
-// machine's host, a median of 690-870 ms beside the tuning, and the cpu
-// device starts a worker for each race's second leg (2026-12-02). A GPU's
-// API stays matched with the others (its cache figure may come from CUDA).
-const char* DiscoversAlone(const std::string& device_id) {
-  return device_id.rfind("cpu:", 0) == 0 ? "cpu" : nullptr;
-}
-
 // The device the worker serves: the one whose id is `device_id` when given
 // (the parent's numbering may differ from this process's), else number
 // `index`; nullptr with `why` when there is none.
@@ -687,7 +685,7 @@ void Serve(TunedDevice& device, int protocol) {
 }  // namespace
 
 int RunTuneWorker(int device_index, const std::string& device_id, const std::string& host_lock,
-                  const std::string& chip_lock) {
+                  const std::string& chip_lock, const std::string& discover_only) {
   KeepLargeBlocks();
   try {
     if (!host_lock.empty()) tuner_internal::UseHostLock(host_lock);
@@ -709,10 +707,10 @@ int RunTuneWorker(int device_index, const std::string& device_id, const std::str
     const tuner_internal::ExecutorDecorator faults = tuner_internal::FaultsFromEnvironment();
     try {
       const auto start = std::chrono::steady_clock::now();
-      const char* only = DiscoversAlone(device_id);
+      const char* only = discover_only.empty() ? nullptr : discover_only.c_str();
       discovery = tuner_internal::DiscoverTunedDevices(faults, only);
       TimingLog([&] {
-        return "tune-worker " + device_id + ": " + (only ? std::string(only) + "'s" : std::string("every API's")) +
+        return "tune-worker " + device_id + ": " + (only ? discover_only + "'s" : std::string("every API's")) +
                " devices found in " +
                std::to_string(std::lround(
                    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count())) +

@@ -54,6 +54,16 @@ class WorkerError : public Error {
 // change it; workers are started with it (see worker.cpp for why).
 const std::vector<std::string>& StartupEnvironment();
 
+// The API whose devices alone a worker for `device` discovers, "" for every
+// API's (`tune-worker --discover-only`): a device of the host's CPU (PoCL,
+// skintune's cpu device, a software rasterizer), whose cache figure is the
+// host's whatever else is found. Every API's discovery took a worker 150-230
+// ms on an idle H200 machine's host, a median of 690-870 ms beside a tuning
+// run, 18-23 s of CPU a run across its ~30 workers, and the cpu device starts
+// one for each race's second leg (2026-12-02). A GPU's API stays matched with
+// the others: its cache figure may come from CUDA's view of the same chip.
+std::string DiscoversAlone(const DeviceIdentity& device);
+
 class IsolatedDevice {
  public:
   // `executable`: the skintune binary. `identity`: the device as the parent

@@ -301,6 +301,28 @@ TEST(IsolatedDevice, WorkersAreToldTheHostAndChipLocks) {
   }
 }
 
+// A worker for a device of the host's CPU looks for its own API's devices
+// alone; one for a GPU looks for every API's (its cache figure may come from
+// another API's view of the chip).
+TEST(IsolatedDevice, AWorkerForTheHostsCpuIsToldToDiscoverItsApiAlone) {
+  const fs::path dir = Scratch();
+  for (const char* type : {"gpu", "cpu"}) {
+    DeviceIdentity device = FakeDevice();
+    device.type = type;
+    IsolatedDevice worker(FakeWorker(dir, "read line; echo '{\"copy_bandwidth_gbps\": 12.5}'"), device, 30);
+    EXPECT_EQ(worker.CopyBandwidthGBps(1 << 20), 12.5);
+    const std::string args = ReadAll(dir / "args");
+    EXPECT_EQ(args.find("--discover-only opencl") != std::string::npos, std::string(type) == "cpu") << args;
+  }
+  DeviceIdentity cpu;
+  cpu.backend = "cpu";
+  cpu.type = "CPU";
+  EXPECT_EQ(DiscoversAlone(cpu), "cpu");
+  cpu.backend = "gl";  // llvmpipe
+  EXPECT_EQ(DiscoversAlone(cpu), "gl");
+  EXPECT_EQ(DiscoversAlone(FakeDevice()), "");  // no type: every API
+}
+
 // Some OpenCL ICD loaders tokenise OCL_ICD_FILENAMES in place (strtok on
 // getenv's pointer) during the parent's own discovery; the worker must still
 // get the variable as the process started with it. ctest sets
