@@ -189,7 +189,7 @@ void IsolatedDevice::Spawn() {
 }
 
 void IsolatedDevice::AwaitGreeting() {
-  // Discovery in the child (every API) comes before its greeting.
+  // Discovery in the child (every API, or its device's alone: DiscoversAlone) comes before its greeting.
   const double start_timeout_s = std::max(variant_timeout_s_, 60.0);
   std::string line;
   switch (ReadLine(start_timeout_s, line)) {
