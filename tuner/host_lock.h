@@ -10,15 +10,19 @@
 // its timed bursts, unlocked), and its wait held the chip (its lock comes
 // first) while the CPU device timed: on the H200 machine (2026-12-02) the
 // measuring workers of a cold run's four GPU APIs waited 15-20 s of its
-// 66-68 s so, the chip idle. On the H100 machine the CPU devices' winners were 15-50%
-// slower tuned beside the GPU than alone; with the lock PoCL's are within 6%
-// (median), the cpu device's still 10-26% slower (its kernels spread over
-// every core, so a host thread the GPU's driver keeps busy, even while it
-// waits on the device, delays them). Locking the GPUs' bursts too cost a
-// default run 5-12 s on the H200 machine and named the same winner in all
-// three cold runs in 37 rows of 42 against 40 without (2026-11-29); locking
-// the GPUs' whole measurements made a run take more than 160 s instead of
-// 101 s on the H100 (docs/PERFORMANCE.md "The cost of a tuning run").
+// 66-68 s so, the chip idle; unlocked, the chip's turns of three cold runs
+// ended at 52.7-63.4 s on another and named the same winner in all 42 rows,
+// the host's CPU devices' winners as unsteady across runs as before (none of
+// the cpu device's six within 3% either way). On the H100 machine the CPU
+// devices' winners were 15-50% slower tuned beside the GPU than alone; with
+// the lock PoCL's are within 6% (median), the cpu device's still 10-26%
+// slower (its kernels spread over every core, so a host thread the GPU's
+// driver keeps busy, even while it waits on the device, delays them).
+// Locking the GPUs' bursts too cost a default run 5-12 s on the H200 machine
+// and named the same winner in all three cold runs in 37 rows of 42 against
+// 40 without (2026-11-29); locking the GPUs' whole measurements made a run
+// take more than 160 s instead of 101 s on the H100 (docs/PERFORMANCE.md
+// "The cost of a tuning run").
 // `--one-device-at-a-time` gives the cpu device's figures undisturbed.
 //
 // An exclusive request is not starved by shared holds that overlap one
