@@ -118,7 +118,6 @@ ChipLock::~ChipLock() {
 }
 
 HostLock::Mode HostWorkMode(bool cpu_device) { return cpu_device ? HostLock::Mode::kNone : HostLock::Mode::kShared; }
-HostLock::Mode MeasuringWorkMode(bool) { return HostLock::Mode::kNone; }
 HostLock::Mode TimedMode(bool cpu_device) { return cpu_device ? HostLock::Mode::kExclusive : HostLock::Mode::kNone; }
 
 HostLockFile::HostLockFile(const char* what) {

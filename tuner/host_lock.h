@@ -4,8 +4,8 @@
 // they hold the lock exclusively; a GPU worker's bulk host work (compiles, a
 // runner's opening) holds it shared, and waits while a CPU device is timing.
 // A GPU's own bursts are timed by the device and take no lock, and neither
-// does a GPU measurement's own host work (packing, gold checks, the
-// verification's read-back: MeasuringWorkMode): one thread, on a core its
+// does a GPU measurement's or race's own host work (packing, gold checks,
+// the verification's read-back; tuner/measure_job.cpp): one thread, on a core its
 // process keeps busy anyway (the driver's waits on the device poll through
 // its timed bursts, unlocked), and its wait held the chip (its lock comes
 // first) while the CPU device timed: on the H200 machine (2026-12-02) the
@@ -61,10 +61,8 @@ class HostLock {
 };
 
 // The lock's mode for a device's bulk host work (compiles, a runner's
-// opening), for a measurement's or race's own host work between its work on
-// the device (packing, gold checks: none, see above), and for timed bursts.
+// opening) and for its timed bursts; a measurement's own host work takes none.
 HostLock::Mode HostWorkMode(bool cpu_device);
-HostLock::Mode MeasuringWorkMode(bool cpu_device);
 HostLock::Mode TimedMode(bool cpu_device);
 
 // The chip lock: one GPU seen through several APIs (OpenCL, CUDA, GL,

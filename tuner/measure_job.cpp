@@ -345,10 +345,9 @@ bool MeasureJob::Run() const {
   // The chip (tuner/host_lock.h): this API's work on it alone, from the
   // verification's uploads to the copy's last sample. The host's cores: a
   // CPU device's bursts hold them alone; the packing and checks before them
-  // take no lock (MeasuringWorkMode).
+  // take no lock (host_lock.h says why).
   const ChipLock chip;
   const bool cpu_device = IsHostCpu(*device);
-  HostLock host_work(MeasuringWorkMode(cpu_device));
   Measuring run{*this, m, data};
   if (!Pack(run) || !Verify(run)) return true;
   RecordSourceError(run);
@@ -361,7 +360,6 @@ bool MeasureJob::Run() const {
   const int sets = InputSetsFor(device->last_level_cache_bytes, bytes_per_frame, options.max_input_sets);
   const std::vector<std::vector<std::uint8_t>> palettes = TimedPalettes(*datasets, data, variant, sets);
   run.phases.Mark("check against the gold and the source");
-  host_work.Release();
   const HostLock timed(TimedMode(cpu_device));  // through the copy's samples
   if (!TimeKernel(run, palettes)) return true;
   const std::string copy_problem = TimeCopy(run, bytes_per_frame, sets);
@@ -387,8 +385,7 @@ namespace {
 // Every variant of the race prepared for timing, with its input sets; each
 // one's tie-break entry (its key and the bytes it moves a frame) into `entries`.
 std::vector<std::unique_ptr<Executor::Timed>> PrepareRacers(const RaceJob& job, std::vector<RaceEntry>& entries) {
-  DatasetCache::Entry& data = job.datasets->Get(job.dataset.key);
-  const HostLock host_work(MeasuringWorkMode(IsHostCpu(*job.device)));
+  DatasetCache::Entry& data = job.datasets->Get(job.dataset.key);  // its packing: no host lock (host_lock.h)
   std::vector<std::unique_ptr<Executor::Timed>> timed;
   for (const Variant& v : job.variants) {
     std::vector<KernelSource> kernels;

@@ -14,6 +14,7 @@
 
 #include "base/error.h"
 #include "tuner/host_lock.h"
+#include "tests/tuner/lock_holder.h"
 
 namespace skintune::internal::tuner_internal {
 namespace {
@@ -22,35 +23,7 @@ using Clock = std::chrono::steady_clock;
 
 double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
-// Another process (a worker) that takes a lock with hold() and keeps it for
-// 300 ms; returned once it holds it. Join() checks that it ended well.
-class Holder {
- public:
-  explicit Holder(const std::function<void()>& hold) {
-    if (::pipe(ready_) != 0) ADD_FAILURE() << "no pipe";
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      hold();
-      const char byte = 1;
-      if (::write(ready_[1], &byte, 1) != 1) ::_exit(2);
-      std::this_thread::sleep_for(std::chrono::milliseconds(300));
-      ::_exit(0);  // the lock goes with the process
-    }
-    char byte = 0;
-    if (pid_ < 0 || ::read(ready_[0], &byte, 1) != 1) ADD_FAILURE() << "the holder did not start";
-  }
-  void Join() {
-    int status = 0;
-    ASSERT_EQ(::waitpid(pid_, &status, 0), pid_);
-    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
-    ::close(ready_[0]);
-    ::close(ready_[1]);
-  }
-
- private:
-  int ready_[2] = {-1, -1};
-  pid_t pid_ = -1;
-};
+using Holder = skintune::internal::testing::LockHolder;
 
 TEST(HostLock, HostWorkWaitsWhileACpuDeviceTimesInAnotherProcess) {
   const HostLockFile file;
@@ -70,26 +43,6 @@ TEST(HostLock, HostWorkWaitsWhileACpuDeviceTimesInAnotherProcess) {
   const Clock::time_point again = Clock::now();
   { const HostLock gpu_timed(TimedMode(false)), cpu_work(HostWorkMode(true)); }
   EXPECT_LT(MsSince(again), 50.0);
-  cpu_device.Join();
-}
-
-// A GPU measurement's own packing and checks run while a CPU device times:
-// the measuring worker holds the chip then, and its wait would idle it.
-TEST(HostLock, AGpuMeasurementsOwnHostWorkRunsWhileACpuDeviceTimes) {
-  const HostLockFile file;
-  ASSERT_FALSE(file.path().empty());
-  Holder cpu_device([&] {
-    UseHostLock(file.path());
-    new HostLock(TimedMode(/*cpu_device=*/true));  // held until the process ends
-  });
-  UseHostLock(file.path());
-  const Clock::time_point start = Clock::now();
-  { const HostLock measuring(MeasuringWorkMode(/*cpu_device=*/false)); }
-  EXPECT_LT(MsSince(start), 100.0) << "a GPU measurement's host work waited for the CPU device's timing";
-  {
-    const HostLock compiles(HostWorkMode(/*cpu_device=*/false));  // still held: bulk host work waits
-    EXPECT_GE(MsSince(start), 200.0);
-  }
   cpu_device.Join();
 }
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <functional>
@@ -21,8 +22,10 @@
 #include "tuner/datasets.h"
 #include "tuner/executor.h"
 #include "tuner/fault_injection.h"
+#include "tuner/host_lock.h"
 #include "tuner/measure_job.h"
 #include "tuner/measurement.h"
+#include "tests/tuner/lock_holder.h"
 
 namespace skintune::internal {
 namespace {
@@ -179,6 +182,27 @@ TEST(Measure, InputSetsCoverTwiceThePhysicalCacheWhateverTheApiReports) {
   // What the API alone says would have given far fewer sets.
   EXPECT_LT(tuner_internal::InputSetsFor(4325376, static_cast<std::uint64_t>(m.bytes_per_frame), 1000),
             m.timing.input_sets / 5);
+}
+
+// A GPU measurement's packing, gold checks and timing wait for no CPU
+// device's timed bursts (tuner/host_lock.h): its worker holds the chip's lock
+// meanwhile, and a wait there idles the chip.
+TEST(Measure, AGpuMeasurementRunsWhileACpuDeviceHoldsTheHostsCores) {
+  const tuner_internal::HostLockFile file;
+  ASSERT_FALSE(file.path().empty());
+  skintune::internal::testing::LockHolder cpu_device([&] {  // for 300 ms from here
+    tuner_internal::UseHostLock(file.path());
+    new tuner_internal::HostLock(tuner_internal::TimedMode(/*cpu_device=*/true));
+  });
+  tuner_internal::UseHostLock(file.path());
+  DatasetCache datasets;
+  FakeExecutor executor(datasets, "5000-b4");
+  const auto start = std::chrono::steady_clock::now();
+  const Measurement m = MeasureOn(executor, datasets, Gpu(50ull << 20), kVariant, TimingOptions{});
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(m.status, MeasureStatus::kOk) << m.detail;
+  EXPECT_LT(ms, 200.0) << "the GPU measurement waited for the CPU device's hold";
+  cpu_device.Join();
 }
 
 // Every measurement carries the same-size copy: the bytes its frame moves,
