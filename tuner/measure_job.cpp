@@ -442,7 +442,8 @@ bool RaceJob::Run() const {
     const auto ms = [](Clock::time_point from, Clock::time_point to) {
       return std::to_string(std::lround(std::chrono::duration<double, std::milli>(to - from).count()));
     };
-    return "race of " + std::to_string(timed.size()) + " for " + dataset.key + " in this process: prepared in " +
+    return device->backend + " " + device->name + " race of " + std::to_string(timed.size()) + " for " + dataset.key +
+           " in this process: prepared in " +
            ms(begun, prepared) + " ms, warmed in " + ms(prepared, start) + " ms, " + std::to_string(rounds) +
            " rounds in " + ms(start, Clock::now()) + " ms";
   });

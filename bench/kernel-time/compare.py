@@ -6,7 +6,8 @@
   compare.py twins OUT            one variant's kernel time in each language, per size
   compare.py turns LOG...         each run's devices from its SKINTUNE_TIMING_LOG: when each turn ran, the chip's
                                   turns against the host's CPU devices (which ended last, by how much), the gaps
-                                  between the chip's turns, and the host lock's waits
+                                  between the chip's turns, the host lock's waits, the workers' discovery, and
+                                  each device's race warm-ups
   compare.py choice MARGIN REPORT...
                                   the runs' agreement were each row's last race to choose its winner among
                                   the candidates within MARGIN of the fastest (GPU rows, judged as
@@ -183,6 +184,8 @@ def is_host_cpu(device):
 def turns(logs):
     for path in logs:
         spans, waits = [], {"CPU device's timed work": [], "GPU worker's host work": []}
+        found = {}  # "every API's" or one API's discovery in a worker: its times, ms
+        warmed = {}  # each device's races: their warm-ups in the process that raced, ms
         origin = None
         for line in open(path):
             stamp, _, text = line.rstrip("\n").partition(" ")
@@ -194,6 +197,12 @@ def turns(logs):
             m = re.match(r"host lock: a (.+) waited ([\d.]+) ms", text)
             if m and m.group(1) in waits:
                 waits[m.group(1)].append(float(m.group(2)))
+            m = re.match(r"tune-worker .*: (every API's|\S+'s) devices found in (\d+) ms", text)
+            if m:
+                found.setdefault(m.group(1), []).append(float(m.group(2)))
+            m = re.match(r"(.+) race of \d+ for \S+ in this process: prepared in \d+ ms, warmed in (\d+) ms", text)
+            if m:
+                warmed.setdefault(m.group(1), []).append(float(m.group(2)))
         print(path + " (seconds from the log's first line)")
         for start, end, device in sorted(spans):
             print("  %-60s %6.1f - %6.1f  %5.1f%s" % (device[:60], start, end, end - start,
@@ -210,6 +219,12 @@ def turns(logs):
         for who, ms in waits.items():
             if ms:
                 print("  host lock: a %s waited %d times, %.0f ms in all, the longest %.0f" % (who, len(ms), sum(ms), max(ms)))
+        for what, ms in sorted(found.items()):
+            print("  workers that found %s devices: %d, %.0f ms in all, median %.0f, the longest %.0f"
+                  % (what, len(ms), sum(ms), statistics.median(ms), max(ms)))
+        for device, ms in sorted(warmed.items()):
+            print("  %s: %d races, warmed in %.0f ms in all, the longest %.0f, %d over 300 ms"
+                  % (device[:60], len(ms), sum(ms), max(ms), sum(1 for x in ms if x > 300)))
 
 
 if __name__ == "__main__":
