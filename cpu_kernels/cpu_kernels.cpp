@@ -4,6 +4,7 @@
 #include "cpu_kernels/cpu_kernels.h"
 
 #include <algorithm>
+#include <set>
 #include <chrono>
 #include <cstring>
 #include <optional>
@@ -199,10 +200,13 @@ std::vector<CpuSchedule> CpuScheduleCandidates(std::size_t vertices, unsigned ma
 }
 
 std::size_t FastestCandidate(std::size_t candidates, const std::function<double(std::size_t)>& frame_ms,
-                             int samples) {
+                             int samples, const std::function<std::size_t(std::size_t)>& warm_group) {
   if (candidates == 0) throw Error("cpu schedule: no candidates");
   samples = std::max(samples, 1);
-  for (std::size_t i = 0; i < candidates; ++i) frame_ms(i);  // untimed: first touch, the pool's start
+  // Untimed: first touch, the pool's start; once per warm group where given.
+  std::set<std::size_t> warmed;
+  for (std::size_t i = 0; i < candidates; ++i)
+    if (!warm_group || warmed.insert(warm_group(i)).second) frame_ms(i);
   // Rounds of one call per candidate: a drift of the host's load falls on
   // every candidate alike rather than on those timed during it. After the
   // first round only those within kFastestCandidateCut of its quickest go on.

@@ -150,10 +150,12 @@ std::vector<CpuSchedule> CpuScheduleCandidates(std::size_t vertices, unsigned ma
 // is left out of the later rounds: on a 16-thread host the 40 candidates of a
 // 100k-vertex frame took a fresh process 150-250 ms a variant, most of it on
 // one and two threads, 8-16 times slower than the winners (an H200 machine's
-// host, 2026-12-02). Throws Error for no candidates.
+// host, 2026-12-02). With `warm_group`, the untimed call is made for the
+// first candidate of each group only (what it warms is the group's: a thread
+// count's pool, the frame's pages). Throws Error for no candidates.
 inline constexpr double kFastestCandidateCut = 3.0;
 std::size_t FastestCandidate(std::size_t candidates, const std::function<double(std::size_t)>& frame_ms,
-                             int samples = 3);
+                             int samples = 3, const std::function<std::size_t(std::size_t)>& warm_group = nullptr);
 
 // Runs `kernel` over `count` vertices on `pool` (whose size() is the thread
 // count) in chunks of `chunk` vertices. Throws Error for chunk 0.

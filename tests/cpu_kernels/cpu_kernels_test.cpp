@@ -669,13 +669,17 @@ struct Choice {
   std::size_t best = 0;
   std::vector<std::size_t> calls, order;
 };
-Choice ChooseAmong(const std::vector<std::vector<double>>& times) {
+Choice ChooseAmong(const std::vector<std::vector<double>>& times,
+                   const std::function<std::size_t(std::size_t)>& warm_group = nullptr) {
   Choice c;
   c.calls.assign(times.size(), 0);
-  c.best = FastestCandidate(times.size(), [&](std::size_t i) {
-    c.order.push_back(i);
-    return times[i][c.calls[i]++];
-  });
+  c.best = FastestCandidate(
+      times.size(),
+      [&](std::size_t i) {
+        c.order.push_back(i);
+        return times[i][c.calls[i]++];
+      },
+      3, warm_group);
   return c;
 }
 
@@ -697,6 +701,15 @@ TEST(CpuSchedules, ACandidateFarBehindAfterOneRoundIsTimedNoFurther) {
   EXPECT_EQ(c.best, 2u);
   EXPECT_EQ(c.calls, (std::vector<std::size_t>{2, 4, 4}));
   EXPECT_EQ(c.order, (std::vector<std::size_t>{0, 1, 2, 0, 1, 2, 1, 2, 1, 2}));
+}
+
+TEST(CpuSchedules, WarmGroupsTakeOneUntimedCallEach) {
+  // Candidates 0 and 1 share a group (say, a pool of 4 threads), 2 is alone:
+  // one untimed call for 0 and one for 2; 1's first call is timed.
+  const Choice c = ChooseAmong({{9, 3, 3, 3}, {2, 2, 2}, {9, 4, 4, 4}}, [](std::size_t i) { return i < 2 ? 4u : 8u; });
+  EXPECT_EQ(c.best, 1u);
+  EXPECT_EQ(c.calls, (std::vector<std::size_t>{4, 3, 4}));
+  EXPECT_EQ(c.order, (std::vector<std::size_t>{0, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2}));
 }
 
 }  // namespace
