@@ -4,10 +4,10 @@
 #include "cpu_kernels/cpu_kernels.h"
 
 #include <algorithm>
-#include <set>
 #include <chrono>
 #include <cstring>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 

@@ -89,8 +89,8 @@ std::unique_ptr<IsolatedDevice> HeadStarts::Take(std::size_t d) {
 
 OneTaskAhead::OneTaskAhead(std::size_t tasks, std::function<void(std::size_t)> compile)
     : tasks_(tasks),
-      thread_([this, tasks, compile = std::move(compile)] {
-        for (std::size_t i = 0; i < tasks; ++i) {
+      thread_([this, compile = std::move(compile)] {
+        for (std::size_t i = 0; i < tasks_; ++i) {
           {
             std::unique_lock<std::mutex> lock(mutex_);
             changed_.wait(lock, [&] { return stop_ || begun_ >= i; });  // the task before has begun

@@ -443,9 +443,8 @@ bool RaceJob::Run() const {
       return std::to_string(std::lround(std::chrono::duration<double, std::milli>(to - from).count()));
     };
     return device->backend + " " + device->name + " race of " + std::to_string(timed.size()) + " for " + dataset.key +
-           " in this process: prepared in " +
-           ms(begun, prepared) + " ms, warmed in " + ms(prepared, start) + " ms, " + std::to_string(rounds) +
-           " rounds in " + ms(start, Clock::now()) + " ms";
+           " in this process: prepared in " + ms(begun, prepared) + " ms, warmed in " + ms(prepared, start) + " ms, " +
+           std::to_string(rounds) + " rounds in " + ms(start, Clock::now()) + " ms";
   });
   samples->clear();
   for (RaceEntry& e : entries) samples->push_back(std::move(e.samples));

@@ -609,7 +609,6 @@ void WriteLine(int fd, const nlohmann::json& answer) {
 // The device the worker serves: the one whose id is `device_id` when given
 // (the parent's numbering may differ from this process's), else number
 // `index`; nullptr with `why` when there is none.
-
 TunedDevice* ServedDevice(const Discovery& discovery, int index, const std::string& device_id, std::string& why) {
   if (!device_id.empty()) {
     std::string found;
