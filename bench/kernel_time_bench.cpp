@@ -213,7 +213,7 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
       continue;
     }
     const Measurement m = tuner_internal::MeasurementOf(
-        {&executor, &datasets, &device->identity, device->limits, {variant.lang}, variant, {dataset}, TimingOptions{}});
+        {&executor, &datasets, &device->identity, device->limits, {variant.lang}, variant, {dataset}, TimingOptions{}.ForDevice(device->identity)});
     if (m.status != MeasureStatus::kOk && m.status != MeasureStatus::kTooImprecise) {
       std::printf("%s: %s %s\n", key.c_str(), Name(m.status), m.detail.c_str());
       ++failed;

@@ -143,9 +143,12 @@ std::string Describe(const CpuSchedule& schedule);
 // and at least one).
 std::vector<CpuSchedule> CpuScheduleCandidates(std::size_t vertices, unsigned max_threads = 0);
 // The index of the candidate (0..candidates-1) whose `frame_ms(i)` (the
-// median of `samples` calls after one untimed call) is the smallest, the
+// quickest of `samples` calls after one untimed call) is the smallest, the
 // calls made in rounds of one per candidate: how schedules and streaming
-// stores are chosen on the caller's own frames. A candidate whose first
+// stores are chosen on the caller's own frames. The quickest, as the tuner's
+// kernel-time sample on the host's CPU is the quickest of its frames
+// (TimingOptions::host_frames_per_sample): a median of three picked a
+// schedule by which of its frames a neighbour's thread happened to hit. A candidate whose first
 // sample took more than kFastestCandidateCut times the quickest first sample
 // is left out of the later rounds: on a 16-thread host the 40 candidates of a
 // 100k-vertex frame took a fresh process 150-250 ms a variant, most of it on

@@ -23,7 +23,8 @@ KernelTime SampleKernelTime(Executor::Timed& timed, const TimingOptions& options
   KernelTime t;
   for (;;) {
     const std::size_t want = std::min(rule.batch, rule.max_samples - std::min(rule.max_samples, t.samples.size()));
-    const std::vector<double> batch = timed.Cold(0, static_cast<int>(std::max<std::size_t>(want, 1)));
+    const std::vector<double> batch =
+        ColdSamples(timed, static_cast<int>(std::max<std::size_t>(want, 1)), options.frames_per_sample);
     if (batch.empty()) throw Error("timing: the device gave no kernel time");
     t.samples.insert(t.samples.end(), batch.begin(), batch.end());
     t.clock_mhz = timed.ClockMhz();
@@ -34,6 +35,21 @@ KernelTime SampleKernelTime(Executor::Timed& timed, const TimingOptions& options
     const double elapsed = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
     if (ShouldStop(rule, t.interval, elapsed, &t.tight)) return t;
   }
+}
+
+std::vector<double> ColdSamples(Executor::Timed& timed, int samples, int frames) {
+  frames = std::max(frames, 1);
+  std::vector<double> raw = timed.Cold(0, samples * frames);
+  if (frames == 1 || raw.empty()) return raw;
+  // Sample j is the quickest of frames j, j + n, j + 2n, ...: frames apart
+  // in time, so that one burst of a neighbour's load covers few samples whole.
+  const std::size_t n = std::max<std::size_t>(raw.size() / static_cast<std::size_t>(frames), 1);
+  std::vector<double> out(n, 0.0);
+  for (std::size_t j = 0; j < n; ++j) {
+    out[j] = raw[j];
+    for (std::size_t f = j + n; f < raw.size(); f += n) out[j] = std::min(out[j], raw[f]);
+  }
+  return out;
 }
 
 double SampleFrameTime(Executor::Timed& timed, const TimingOptions& options, int* frames) {

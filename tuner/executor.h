@@ -203,8 +203,16 @@ class RunnerExecutor final : public Executor {
 using ExecutorDecorator = std::function<std::unique_ptr<Executor>(std::unique_ptr<Executor> inner, const DeviceIdentity& device)>;
 
 // Cold samples of `timed` until the stop rule is met or a cap is reached
-// (`options.stop`), after `options.warmup` untimed cold frames.
+// (`options.stop`), after `options.warmup` untimed cold frames; each sample
+// the quickest of `options.frames_per_sample` cold frames (ColdSamples).
 KernelTime SampleKernelTime(Executor::Timed& timed, const TimingOptions& options);
+// `samples` kernel-time samples of `timed`, each the quickest of `frames`
+// (>= 1) cold frames, a sample's frames spread over the batch (sample j of
+// n: frames j, j + n, j + 2n, ...) rather than taken in a row. On the host's
+// CPU a neighbour's thread that preempts one of the frame's threads doubles
+// the frame (TimingOptions::host_frames_per_sample); the quickest of three
+// frames is that kernel's time unless all three were hit.
+std::vector<double> ColdSamples(Executor::Timed& timed, int samples, int frames);
 // The frame time: frames per repetition chosen to last about burst_ms, the
 // median over `repetitions` repetitions, ms per frame; `frames` says how many.
 double SampleFrameTime(Executor::Timed& timed, const TimingOptions& options, int* frames);

@@ -425,7 +425,7 @@ bool RaceJob::Run() const {
   // device's clock or of its neighbours' load falls on every candidate alike.
   for (;;) {
     for (std::size_t i = 0; i < timed.size(); ++i) {
-      const std::vector<double> batch = timed[i]->Cold(0, static_cast<int>(rule.batch));
+      const std::vector<double> batch = ColdSamples(*timed[i], static_cast<int>(rule.batch), options.frames_per_sample);
       entries[i].samples.insert(entries[i].samples.end(), batch.begin(), batch.end());
     }
     std::size_t fewest = entries.front().samples.size();

@@ -88,7 +88,15 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 //    contexts and 4.19-4.26 on others, steady within each (an H200,
 //    2026-12-01), so a run's CUDA rows moved together by that step; NVIDIA's
 //    OpenCL contexts differed as much. Other devices time as in 8.
-inline constexpr int kTimingVersion = 9;
+// 10: on the host's CPU (PoCL's, skintune's cpu device) each kernel-time
+//    sample is the quickest of three cold frames spread over its batch
+//    (TimingOptions::host_frames_per_sample), and the cpu device chooses a
+//    variant's schedule by its quickest frame, not its median: three cold
+//    runs of 9 on an H200 machine's 16-thread host (2026-12-02) put one
+//    variant's 100k-vertex frames at 62-70 us and at 130-160 us within one
+//    race, as neighbours' threads hit some of them, and its figure 1.2-2.1x
+//    apart between runs. A GPU's samples are those of 9.
+inline constexpr int kTimingVersion = 10;
 
 // The largest verification tolerance a config may set (timing.tolerance:
 // the largest relative error against the gold of the quantised mesh): float32

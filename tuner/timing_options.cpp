@@ -42,6 +42,8 @@ std::vector<TimingField> Fields(TimingOptions& t) {
           {"host_tie_margin", TimingField::kNumber, nullptr, nullptr, &t.host_tie_margin},
           {"process_spread", TimingField::kNumber, nullptr, nullptr, &t.process_spread},
           {"host_process_spread", TimingField::kNumber, nullptr, nullptr, &t.host_process_spread},
+          {"frames_per_sample", TimingField::kInt, &t.frames_per_sample, nullptr, nullptr},
+          {"host_frames_per_sample", TimingField::kInt, &t.host_frames_per_sample, nullptr, nullptr},
           {"choose_in_tie_set", TimingField::kBool, nullptr, nullptr, nullptr, &t.choose_in_tie_set},
           {"host_choose_in_tie_set", TimingField::kBool, nullptr, nullptr, nullptr, &t.host_choose_in_tie_set}};
 }
@@ -100,6 +102,11 @@ TimingOptions TimingOptionsFromJson(const nlohmann::json& in, const std::string&
     if (!(value >= 0.0) || value > 0.5)
       throw UsageError(where + ": '" + prefix + name + "' is " + Dumped(in.at(name)) +
                        ": a relative difference in [0, 0.5] (0.034: 3.4%)");
+  for (const auto& [name, value] :
+       {std::pair<const char*, int>{"frames_per_sample", t.frames_per_sample}, {"host_frames_per_sample", t.host_frames_per_sample}})
+    if (value < 1 || value > kMaxFramesPerSample)
+      throw UsageError(where + ": '" + prefix + name + "' is " + Dumped(in.at(name)) + ": cold frames per sample, 1 to " +
+                       std::to_string(kMaxFramesPerSample));
   return t;
 }
 
@@ -120,6 +127,7 @@ TimingOptions TimingOptions::ForDevice(const DeviceIdentity& device) const {
   out.tie_margin = MarginFor(device);
   out.process_spread = SpreadFor(device);
   out.choose_in_tie_set = ChoiceFor(device) == Choice::kTieSet;
+  out.frames_per_sample = IsHostCpu(device) ? host_frames_per_sample : frames_per_sample;
   out.stop.interval = std::min(stop.interval * out.tie_margin / tie_margin, 0.5);  // BadStopRule's bound
   return out;
 }

@@ -11,6 +11,11 @@
 
 namespace skintune::internal {
 
+// The most cold frames one kernel-time sample may take (a config's
+// frames_per_sample): beyond it a sample is a minimum over so many frames that
+// it measures the luckiest, not the kernel.
+inline constexpr int kMaxFramesPerSample = 16;
+
 struct TimingOptions {
   int warmup = 3;        // untimed frames before the kernel-time samples and before the frame time
   // The frame time (docs/TUNING.md "Frame time"): `repetitions` runs of
@@ -55,13 +60,25 @@ struct TimingOptions {
   // GPU rows, the winners at most 8.2% (median 0.4%) slower than their
   // race's fastest. On the host's CPU among the contenders: its tie set (the
   // margin plus 25%) would pick winners up to 1.41x slower.
+  // Cold frames per kernel-time sample, the sample their quickest
+  // (tuner/executor.h ColdSamples): one on a GPU, which the tuner's
+  // measuring worker has to itself; three on the host's CPU, whose cores it
+  // shares with every other device's workers (their compiles, packing and
+  // waits). Three cold runs on an H200 machine's 16-thread host (2026-12-02)
+  // gave the cpu device's 100k-vertex frames two modes within one race, such
+  // as 62-70 us and 130-160 us for one variant, where the quickest was near
+  // the first: a median of single frames fell in either mode as the share of
+  // hit frames moved, and the same variant's figure moved 1.2-2.1x between runs.
+  int frames_per_sample = 1;
+  int host_frames_per_sample = 3;
   bool choose_in_tie_set = true;
   bool host_choose_in_tie_set = false;
   Choice ChoiceFor(const DeviceIdentity& device) const;
   // The margin a race and the search use on a device (host_tie_margin on a CPU).
   double MarginFor(const DeviceIdentity& device) const;
   // This timing as `device` is measured with: its margin (MarginFor), its
-  // spread and choice in process_spread and choose_in_tie_set, and the
+  // spread, choice and frames per sample in process_spread,
+  // choose_in_tie_set and frames_per_sample, and the
   // stop rule's interval kept the same fraction of that margin (0.01 of 0.05
   // on a GPU, so 0.05 of 0.25 on a CPU by default). A CPU device's samples
   // spread wider than its GPU's (half-width 2-4% at the caps: 200 samples

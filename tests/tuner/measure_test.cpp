@@ -370,6 +370,69 @@ TEST(Measure, SamplesUntilTheIntervalIsTightOrTheCap) {
   EXPECT_FALSE(b.timing.tight);
 }
 
+// Cold frames of given times in turn, recording how many each call asked for.
+class ScriptedFrames final : public Executor::Timed {
+ public:
+  explicit ScriptedFrames(std::function<double(int)> frame_ms) : frame_ms_(std::move(frame_ms)) {}
+  std::vector<double> Cold(int untimed, int samples) override {
+    asked.push_back(samples);
+    n_ += untimed;
+    std::vector<double> out;
+    for (int i = 0; i < samples; ++i) out.push_back(frame_ms_(n_++));
+    return out;
+  }
+  double FrameMs(int, int) override { return 1.0; }
+  std::size_t bytes_per_set() const override { return 1; }
+  std::vector<int> asked;
+
+ private:
+  std::function<double(int)> frame_ms_;
+  int n_ = 0;
+};
+
+// A sample of several frames is the quickest of frames spread over the
+// batch (j, j + n, j + 2n of n samples), not of frames in a row.
+TEST(KernelTimeSamples, ASampleIsTheQuickestOfItsFramesSpreadOverTheBatch) {
+  const std::vector<double> frames = {2, 2, 2, 1, 1, 2, 2, 2, 2, 2, 1, 2};
+  ScriptedFrames timed([&](int i) { return frames[static_cast<std::size_t>(i)]; });
+  EXPECT_EQ(tuner_internal::ColdSamples(timed, 4, 3), (std::vector<double>{1, 2, 1, 1}));
+  EXPECT_EQ(timed.asked, (std::vector<int>{12}));
+  ScriptedFrames single([&](int i) { return frames[static_cast<std::size_t>(i)]; });
+  EXPECT_EQ(tuner_internal::ColdSamples(single, 4, 1), (std::vector<double>{2, 2, 2, 1}));
+}
+
+// Frames of which seven in ten are hit (twice as long, as a neighbour's thread
+// preempting one of the frame's doubles it on the host's CPU): the median of
+// single frames is the hit frames' time, the median of the quickest of three
+// the kernel's, and that one is tight at the first batch. The host's CPU
+// devices sample so by default; a GPU's frames one by one.
+TEST(KernelTimeSamples, OnTheHostsCpuTheQuickestOfThreeFramesIsTheKernelsTimeWhereMostFramesWereHit) {
+  std::vector<double> frames;
+  std::uint32_t state = 12345;
+  for (int i = 0; i < 2000; ++i) {
+    state = state * 1664525u + 1013904223u;
+    frames.push_back((state >> 16) % 10 < 7 ? 2.0 : 1.0);
+  }
+  TimingOptions options;
+  options.stop.min_samples = 10;
+  options.stop.batch = 10;
+  options.stop.max_samples = 60;
+  options.stop.max_ms = 1e6;
+  DeviceIdentity host;
+  host.type = "cpu";
+  const TimingOptions on_host = options.ForDevice(host);
+  EXPECT_EQ(on_host.frames_per_sample, 3);
+  EXPECT_EQ(options.ForDevice(Gpu(50ull << 20)).frames_per_sample, 1);
+  ScriptedFrames singles([&](int i) { return frames[static_cast<std::size_t>(i)]; });
+  EXPECT_DOUBLE_EQ(tuner_internal::SampleKernelTime(singles, options).interval.median, 2.0);
+  options.frames_per_sample = 3;
+  ScriptedFrames triples([&](int i) { return frames[static_cast<std::size_t>(i)]; });
+  const tuner_internal::KernelTime t = tuner_internal::SampleKernelTime(triples, options);
+  EXPECT_DOUBLE_EQ(t.interval.median, 1.0);
+  EXPECT_TRUE(t.tight);
+  EXPECT_EQ(t.samples.size(), 10u);
+}
+
 // Cold residency: a footprint inside the cache (one input set of a small
 // mesh) is never timed without the flush, which reads at least twice the
 // last-level cache before every sample.

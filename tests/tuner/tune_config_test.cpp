@@ -123,7 +123,7 @@ TEST(TuneConfig, ErrorsNameTheElement) {
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"repetitions": 0}})"),
             "c.json: timing.repetitions: must be an integer from 1 to 1000000 (got 0)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"reps": 3}})"),
-            "c.json: timing.reps: unknown field (expected one of warmup, repetitions, max_input_sets, tolerance, burst_ms, interval, min_samples, max_samples, sample_batch, sample_ms, race, tie_margin, host_tie_margin, process_spread, host_process_spread, choose_in_tie_set, host_choose_in_tie_set)");
+            "c.json: timing.reps: unknown field (expected one of warmup, repetitions, max_input_sets, tolerance, burst_ms, interval, min_samples, max_samples, sample_batch, sample_ms, race, tie_margin, host_tie_margin, process_spread, host_process_spread, frames_per_sample, host_frames_per_sample, choose_in_tie_set, host_choose_in_tie_set)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"tolerance": -1}})"),
             "c.json: timing.tolerance: must be a positive number (got -1)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"race": -1}})"),
@@ -179,6 +179,11 @@ TEST(TuneConfig, ImpossibleStopRulesNameTheField) {
   EXPECT_NE(usage(R"({"choose_in_tie_set": 1})").find("timing.choose_in_tie_set: expected true or false (got 1)"),
             std::string::npos)
       << usage(R"({"choose_in_tie_set": 1})");
+  EXPECT_NE(usage(R"({"host_frames_per_sample": 0})").find("'timing.host_frames_per_sample' is 0"), std::string::npos)
+      << usage(R"({"host_frames_per_sample": 0})");
+  EXPECT_NE(usage(R"({"frames_per_sample": 17})").find("'timing.frames_per_sample' is 17"), std::string::npos)
+      << usage(R"({"frames_per_sample": 17})");
+  EXPECT_EQ(usage(R"({"frames_per_sample": 2, "host_frames_per_sample": 16})"), "accepted");
   EXPECT_EQ(usage(R"({"interval": 0})").find('\n'), std::string::npos) << "one line";
 }
 
@@ -207,6 +212,8 @@ TEST(TuneConfig, ADeviceIsTimedWithItsMarginAndAnIntervalInProportion) {
   EXPECT_DOUBLE_EQ(on_cpu.tie_margin, 0.2);
   EXPECT_DOUBLE_EQ(on_cpu.stop.interval, 0.05);
   EXPECT_EQ(on_cpu.stop.max_samples, t.stop.max_samples) << "only the interval follows the margin";
+  EXPECT_EQ(on_gpu.frames_per_sample, 1);
+  EXPECT_EQ(on_cpu.frames_per_sample, 3) << "the host's CPU takes the quickest of three frames a sample";
   // Never beyond the stop rule's own bound.
   t.stop.interval = 0.3;
   EXPECT_DOUBLE_EQ(t.ForDevice(cpu).stop.interval, 0.5);
