@@ -30,7 +30,11 @@ cuda_variants=(
 case "$mode" in
   ncu)
     ncu=$(command -v ncu || ls /usr/local/cuda/bin/ncu 2>/dev/null || true)
-    args=()
+    # The last variant also first: the process's first kernels are its warm-up
+    # (compare.py shows that row and does not count it). Nsight Compute read the
+    # variant that came first in its process 5% quicker than where it came last
+    # (docs/PERFORMANCE.md "Nsight Compute").
+    args=(--variant "${cuda_variants[-1]}")
     for v in "${cuda_variants[@]}"; do args+=(--variant "$v"); done
     for size in $sizes; do
       "$bin/skintune_bench_kernel_time" --device cuda: --dataset "$size" "${args[@]}" --json "$out/skintune-$size.jsonl" \
