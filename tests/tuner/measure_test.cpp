@@ -654,6 +654,43 @@ TEST(RaceJob, StopsOnceNoUndecidedCandidateCanWin) {
   }
 }
 
+// A race on the host's CPU takes each sample as the quickest of its frames,
+// as the search's measurements do: three frames a sample by default.
+TEST(RaceJob, OnTheHostsCpuEachSampleIsTheQuickestOfThreeFrames) {
+  for (const int frames : {1, 3}) {
+    SCOPED_TRACE(std::to_string(frames) + " frames a sample");
+    DatasetCache datasets;
+    FakeExecutor executor(datasets, "5000-b4");
+    executor.spread = 0.3;  // samples 0.7-1.3x the kernel's time: the quickest of three is below the median of one
+    DeviceIdentity host;
+    host.type = "cpu";
+    host.backend = "opencl";
+    tuner_internal::RaceJob job;
+    job.executor = &executor;
+    job.datasets = &datasets;
+    job.device = &host;
+    job.variants = {ParseVariantKey(kVariant), ParseVariantKey(kOtherVariant)};
+    job.dataset = {"5000-b4"};
+    TimingOptions options;
+    options.stop.min_samples = 10;
+    options.stop.batch = 10;
+    options.stop.max_samples = 20;
+    options.stop.max_ms = 3.6e6;
+    options.host_frames_per_sample = frames;
+    job.options = options.ForDevice(host);
+    std::vector<std::vector<double>> samples;
+    job.samples = &samples;
+    ASSERT_TRUE(job.Run());
+    ASSERT_EQ(samples.size(), 2u);
+    const std::size_t taken = samples[0].size() + samples[1].size();
+    EXPECT_EQ(static_cast<std::size_t>(executor.samples_taken), taken * static_cast<std::size_t>(frames))
+        << "each sample's frames were asked of the device in its batch";
+    const double median = tuner_internal::Median(samples[0]);
+    if (frames == 3) EXPECT_LT(median, executor.kernel_ms * 0.95) << "the quickest of three frames a sample";
+    if (frames == 1) EXPECT_NEAR(median, executor.kernel_ms, executor.kernel_ms * 0.05);
+  }
+}
+
 TEST(FaultInjection, TheDeviceGetsTheFaultyVariantsKernelsEditedAndEveryOtherAsEmitted) {
   for (const char* kind : {"compile", "wrong", "hang"}) {
     SCOPED_TRACE(kind);
