@@ -5,9 +5,12 @@
 // runner's opening) holds it shared, and waits while a CPU device is timing.
 // A GPU's own bursts are timed by the device and take no lock, and neither
 // does a GPU measurement's or race's own host work (packing, gold checks,
-// the verification's read-back; tuner/measure_job.cpp): one thread, on a core its
-// process keeps busy anyway (the driver's waits on the device poll through
-// its timed bursts, unlocked), and its wait held the chip (its lock comes
+// the verification's read-back; tuner/measure_job.cpp): mostly one thread, on
+// a core its process keeps busy anyway (the driver's waits on the device poll
+// through its timed bursts, unlocked); the comparisons with the gold
+// (reference/skinning.h CompareToGold) spread over every core for a moment,
+// which a CPU device's samples ride out as the quickest of three frames
+// (TimingOptions::host_frames_per_sample). Its wait held the chip (its lock comes
 // first) while the CPU device timed: on the H200 machine (2026-12-02) the
 // measuring workers of a cold run's four GPU APIs waited 15-20 s of its
 // 66-68 s so, the chip idle; unlocked, the chip's turns of three cold runs
