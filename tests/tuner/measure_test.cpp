@@ -350,14 +350,21 @@ TEST(Measure, RecordsTheKernelTimeWithItsIntervalAndTheFrameTime) {
   EXPECT_EQ(ImpossibleFigures(m), "");
 }
 
-// The stop rule as the job applies it: a steady kernel stops at
-// min_samples; a noisy one samples up to the cap and says it was capped.
-TEST(Measure, SamplesUntilTheIntervalIsTightOrTheCap) {
+// Timing whose samples come in batches of ten, at least ten and at most
+// `cap`, with no cap on their time.
+TimingOptions TenAtATime(std::size_t cap) {
   TimingOptions options;
   options.stop.min_samples = 10;
   options.stop.batch = 10;
-  options.stop.max_samples = 60;
+  options.stop.max_samples = cap;
   options.stop.max_ms = 1e6;
+  return options;
+}
+
+// The stop rule as the job applies it: a steady kernel stops at
+// min_samples; a noisy one samples up to the cap and says it was capped.
+TEST(Measure, SamplesUntilTheIntervalIsTightOrTheCap) {
+  TimingOptions options = TenAtATime(60);
   DatasetCache datasets;
   FakeExecutor steady(datasets, "5000-b4");
   const Measurement a = MeasureOn(steady, datasets, Gpu(50ull << 20), kVariant, options);
@@ -413,11 +420,7 @@ TEST(KernelTimeSamples, OnTheHostsCpuTheQuickestOfThreeFramesIsTheKernelsTimeWhe
     state = state * 1664525u + 1013904223u;
     frames.push_back((state >> 16) % 10 < 7 ? 2.0 : 1.0);
   }
-  TimingOptions options;
-  options.stop.min_samples = 10;
-  options.stop.batch = 10;
-  options.stop.max_samples = 60;
-  options.stop.max_ms = 1e6;
+  TimingOptions options = TenAtATime(60);
   DeviceIdentity host;
   host.type = "cpu";
   const TimingOptions on_host = options.ForDevice(host);
@@ -671,11 +674,7 @@ TEST(RaceJob, OnTheHostsCpuEachSampleIsTheQuickestOfThreeFrames) {
     job.device = &host;
     job.variants = {ParseVariantKey(kVariant), ParseVariantKey(kOtherVariant)};
     job.dataset = {"5000-b4"};
-    TimingOptions options;
-    options.stop.min_samples = 10;
-    options.stop.batch = 10;
-    options.stop.max_samples = 20;
-    options.stop.max_ms = 3.6e6;
+    TimingOptions options = TenAtATime(20);
     options.host_frames_per_sample = frames;
     job.options = options.ForDevice(host);
     std::vector<std::vector<double>> samples;
