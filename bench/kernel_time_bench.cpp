@@ -212,8 +212,9 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
       std::printf("%s: %d launches\n", key.c_str(), launches);
       continue;
     }
+    const TimingOptions timing = TimingOptions{}.ForDevice(device->identity);  // as the tuner times this device
     const Measurement m = tuner_internal::MeasurementOf(
-        {&executor, &datasets, &device->identity, device->limits, {variant.lang}, variant, {dataset}, TimingOptions{}.ForDevice(device->identity)});
+        {&executor, &datasets, &device->identity, device->limits, {variant.lang}, variant, {dataset}, timing});
     if (m.status != MeasureStatus::kOk && m.status != MeasureStatus::kTooImprecise) {
       std::printf("%s: %s %s\n", key.c_str(), Name(m.status), m.detail.c_str());
       ++failed;

@@ -148,8 +148,8 @@ std::vector<CpuSchedule> CpuScheduleCandidates(std::size_t vertices, unsigned ma
 // stores are chosen on the caller's own frames. The quickest, as the tuner's
 // kernel-time sample on the host's CPU is the quickest of its frames
 // (TimingOptions::host_frames_per_sample): a median of three picked a
-// schedule by which of its frames a neighbour's thread happened to hit. A candidate whose first
-// sample took more than kFastestCandidateCut times the quickest first sample
+// schedule by which of its frames a neighbour's thread happened to hit. A
+// candidate whose first sample took more than kFastestCandidateCut times the quickest first sample
 // is left out of the later rounds: on a 16-thread host the 40 candidates of a
 // 100k-vertex frame took a fresh process 150-250 ms a variant, most of it on
 // one and two threads, 8-16 times slower than the winners (an H200 machine's

@@ -51,15 +51,6 @@ struct TimingOptions {
   double process_spread = 0.034;
   double host_process_spread = 0.25;
   double SpreadFor(const DeviceIdentity& device) const;
-  // Where the tie-break picks the winner (tuner/statistics.h Choice): on a
-  // GPU among the whole tie set. Three cold default runs on the H200 machine
-  // (2026-11-29) named the same winner in 37 rows of 42 choosing among the
-  // contenders: the misses were pairs of the palette storage axis 3-7% apart,
-  // whose order moved from process to process across the 5% margin. Picking
-  // among the tie set, three new cold runs named the same winner in 29 of 30
-  // GPU rows, the winners at most 8.2% (median 0.4%) slower than their
-  // race's fastest. On the host's CPU among the contenders: its tie set (the
-  // margin plus 25%) would pick winners up to 1.41x slower.
   // Cold frames per kernel-time sample, the sample their quickest
   // (tuner/executor.h ColdSamples): one on a GPU, which the tuner's
   // measuring worker has to itself; three on the host's CPU, whose cores it
@@ -69,8 +60,20 @@ struct TimingOptions {
   // as 62-70 us and 130-160 us for one variant, where the quickest was near
   // the first: a median of single frames fell in either mode as the share of
   // hit frames moved, and the same variant's figure moved 1.2-2.1x between runs.
+  // With three, two sets of three cold runs on two more such machines named
+  // the same cpu-device winner in 5 and 4 (+2 in each other's tie sets) of
+  // its 6 rows, against 3 (+2) the same day with one.
   int frames_per_sample = 1;
   int host_frames_per_sample = 3;
+  // Where the tie-break picks the winner (tuner/statistics.h Choice): on a
+  // GPU among the whole tie set. Three cold default runs on the H200 machine
+  // (2026-11-29) named the same winner in 37 rows of 42 choosing among the
+  // contenders: the misses were pairs of the palette storage axis 3-7% apart,
+  // whose order moved from process to process across the 5% margin. Picking
+  // among the tie set, three new cold runs named the same winner in 29 of 30
+  // GPU rows, the winners at most 8.2% (median 0.4%) slower than their
+  // race's fastest. On the host's CPU among the contenders: its tie set (the
+  // margin plus 25%) would pick winners up to 1.41x slower.
   bool choose_in_tie_set = true;
   bool host_choose_in_tie_set = false;
   Choice ChoiceFor(const DeviceIdentity& device) const;
