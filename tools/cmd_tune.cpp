@@ -72,21 +72,18 @@ Command RegisterTune(CLI::App& app) {
 }
 
 Command RegisterTuneWorker(CLI::App& app) {
-  auto index = std::make_shared<int>(-1);
+  auto args = std::make_shared<TuneWorkerArgs>();
   auto* sub = app.add_subcommand("tune-worker", "measure variants for `skintune tune` (internal)");
   sub->group("");  // hidden: started by `skintune tune` only
-  sub->add_option("--device-index", *index, "the device's position in discovery order")->required();
-  auto device_id = std::make_shared<std::string>();
-  sub->add_option("--device-id", *device_id, "the device's identity (takes precedence over the index)");
-  auto host_lock = std::make_shared<std::string>();
-  sub->add_option("--host-lock", *host_lock, "the lock file of the host's cores, shared with the other workers");
-  auto chip_lock = std::make_shared<std::string>();
-  sub->add_option("--chip-lock", *chip_lock, "the lock file of the GPU, shared with its other APIs' workers");
-  auto discover_only = std::make_shared<std::string>();
-  sub->add_option("--discover-only", *discover_only, "the only API whose devices it looks for");
-  return {sub, [index, device_id, host_lock, chip_lock, discover_only] {
-            return RunTuneWorker(*index, *device_id, *host_lock, *chip_lock, *discover_only);
-          }};
+  sub->add_option("--device-index", args->device_index, "the device's position in discovery order")->required();
+  sub->add_option("--device-id", args->device_id, "the device's identity (takes precedence over the index)");
+  sub->add_option("--host-lock", args->host_lock, "the lock file of the host's cores, shared with the other workers");
+  sub->add_option("--chip-lock", args->chip_lock, "the lock file of the GPU, shared with its other APIs' workers");
+  sub->add_option("--discover-only", args->discover_only, "the only API whose devices it looks for");
+  sub->add_option("--cache-bytes", args->cache_bytes, "the device's last-level cache as the parent found it")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--cache-source", args->cache_source, "where the parent's cache figure came from");
+  return {sub, [args] { return RunTuneWorker(*args); }};
 }
 
 }  // namespace skintune::internal::tools

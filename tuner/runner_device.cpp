@@ -557,12 +557,16 @@ std::unique_ptr<TunedDevice> MakeRunnerDevice(FoundDevice device, std::vector<La
   return std::make_unique<RunnerDevice>(std::move(device), std::move(languages), index, std::move(decorate));
 }
 
-Discovery DiscoverTunedDevices(const ExecutorDecorator& decorate, const char* only) {
+Discovery DiscoverTunedDevices(const ExecutorDecorator& decorate, const char* only, const GivenCache* given) {
   Discovered found = DiscoverDevices(only);
   Discovery discovery;
   discovery.skipped = std::move(found.skipped);
   int index = 0;
   for (FoundDevice& device : found.devices) {
+    if (given && device.identity.Id() == given->device_id) {
+      device.identity.last_level_cache_bytes = given->bytes;
+      device.identity.last_level_cache_source = given->source;
+    }
     const BackendEntry* entry = FindBackend(device.identity.backend);
     discovery.devices.push_back(MakeRunnerDevice(std::move(device), entry->languages, index++, decorate));
   }

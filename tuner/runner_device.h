@@ -87,10 +87,20 @@ class LaunchStartProbe {
   std::unique_ptr<Executor::Timed> copy_;
 };
 
+// A device's last-level cache as a tune worker's parent resolved it across
+// every API's view of the chip (tuner/worker.h WorkerArguments).
+struct GivenCache {
+  std::string device_id;  // DeviceIdentity::Id() of the device it is given to
+  std::uint64_t bytes = 0;
+  std::string source;
+};
+
 // Every device found (DiscoverTunedDevices), each measuring through
 // `decorate` when given; with `only`, that API's devices alone
-// (DiscoverDevices: their caches matched among themselves).
-Discovery DiscoverTunedDevices(const ExecutorDecorator& decorate, const char* only = nullptr);
+// (DiscoverDevices: their caches matched among themselves), and the device
+// `given` names takes its figure instead.
+Discovery DiscoverTunedDevices(const ExecutorDecorator& decorate, const char* only = nullptr,
+                               const GivenCache* given = nullptr);
 
 // The bytes of input sets a device's runner keeps across the measurements of
 // one data set (Runner::ShareTimedInputs): an eighth of the device's memory,

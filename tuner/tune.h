@@ -6,6 +6,7 @@
 // (tuner/device_tuning.h) through its worker (tuner/worker.h).
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include "tuner/config.h"
@@ -19,15 +20,22 @@ namespace skintune::internal {
 // measures.
 TuningReport RunTuning(const TuneConfig& config, const TuneOptions& options);
 
-// The child process: `skintune tune-worker --device-index N [--device-id ID]
-// [--host-lock PATH] [--chip-lock CHIP] [--discover-only API]` (ID, when
-// given, selects the device and N is ignored; PATH: the host lock shared with
-// the other workers, CHIP: the lock of the GPU shared with its other APIs'
-// workers, tuner/host_lock.h; API: the only API whose devices it looks for,
-// tuner/worker.h DiscoversAlone) reads one JSON request per line on stdin
-// ({"variant": ..., "dataset": ..., "timing": ...}) and writes one
-// Measurement JSON per line on stdout (tuner/worker.h has the whole protocol).
-int RunTuneWorker(int device_index, const std::string& device_id = "", const std::string& host_lock = "",
-                  const std::string& chip_lock = "", const std::string& discover_only = "");
+// What the child process is told (`skintune tune-worker --device-index N
+// [--device-id ID] [--host-lock PATH] [--chip-lock CHIP] [--discover-only API]
+// [--cache-bytes B --cache-source TEXT]`; tuner/worker.h WorkerArguments).
+struct TuneWorkerArgs {
+  int device_index = 0;        // a hint when device_id is given
+  std::string device_id;       // selects the device
+  std::string host_lock;       // the host lock shared with the other workers (tuner/host_lock.h)
+  std::string chip_lock;       // the lock of the GPU shared with its other APIs' workers
+  std::string discover_only;   // the only API whose devices it looks for ("": every API's)
+  std::uint64_t cache_bytes = 0;  // the device's last-level cache as the parent resolved it (0: its own API's)
+  std::string cache_source;       // where the parent's figure came from
+};
+
+// The child process reads one JSON request per line on stdin ({"variant":
+// ..., "dataset": ..., "timing": ...}) and writes one Measurement JSON per
+// line on stdout (tuner/worker.h has the whole protocol).
+int RunTuneWorker(const TuneWorkerArgs& args);
 
 }  // namespace skintune::internal

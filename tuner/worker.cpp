@@ -104,7 +104,17 @@ const std::vector<std::string>& StartupEnvironment() { return kStartupEnvironmen
 
 // ------------------------------------------------------------------ parent side
 
-std::string DiscoversAlone(const DeviceIdentity& device) { return IsHostCpu(device) ? device.backend : ""; }
+std::vector<std::string> WorkerArguments(const DeviceIdentity& device, const std::string& host_lock,
+                                         const std::string& chip_lock) {
+  std::vector<std::string> args = {"tune-worker", "--device-index", std::to_string(device.index), "--device-id",
+                                   device.Id(), "--discover-only", device.backend};
+  if (!host_lock.empty()) args.insert(args.end(), {"--host-lock", host_lock});
+  if (!chip_lock.empty()) args.insert(args.end(), {"--chip-lock", chip_lock});
+  if (device.last_level_cache_bytes)
+    args.insert(args.end(), {"--cache-bytes", std::to_string(device.last_level_cache_bytes), "--cache-source",
+                             device.last_level_cache_source});
+  return args;
+}
 
 IsolatedDevice::IsolatedDevice(std::string executable, DeviceIdentity identity, double variant_timeout_s)
     : executable_(std::move(executable)), identity_(std::move(identity)), variant_timeout_s_(variant_timeout_s) {}
@@ -133,24 +143,9 @@ void IsolatedDevice::Spawn() {
   // async-signal-safe calls until exec (the parent may have driver threads).
   // The worker finds its device by identity: the position is only a hint,
   // since a child may enumerate a platform differently from its parent.
-  const std::string index = std::to_string(identity_.index);
-  const std::string device_id = identity_.Id();
-  std::vector<char*> argv = {const_cast<char*>(executable_.c_str()), const_cast<char*>("tune-worker"),
-                             const_cast<char*>("--device-index"), const_cast<char*>(index.c_str()),
-                             const_cast<char*>("--device-id"), const_cast<char*>(device_id.c_str())};
-  if (!host_lock_.empty()) {
-    argv.push_back(const_cast<char*>("--host-lock"));
-    argv.push_back(const_cast<char*>(host_lock_.c_str()));
-  }
-  if (!chip_lock_.empty()) {
-    argv.push_back(const_cast<char*>("--chip-lock"));
-    argv.push_back(const_cast<char*>(chip_lock_.c_str()));
-  }
-  const std::string alone = DiscoversAlone(identity_);
-  if (!alone.empty()) {
-    argv.push_back(const_cast<char*>("--discover-only"));
-    argv.push_back(const_cast<char*>(alone.c_str()));
-  }
+  const std::vector<std::string> args = WorkerArguments(identity_, host_lock_, chip_lock_);
+  std::vector<char*> argv = {const_cast<char*>(executable_.c_str())};
+  for (const std::string& arg : args) argv.push_back(const_cast<char*>(arg.c_str()));
   argv.push_back(nullptr);
   std::vector<char*> envp;
   for (const std::string& entry : kStartupEnvironment) envp.push_back(const_cast<char*>(entry.c_str()));
@@ -189,7 +184,7 @@ void IsolatedDevice::Spawn() {
 }
 
 void IsolatedDevice::AwaitGreeting() {
-  // Discovery in the child (every API, or its device's alone: DiscoversAlone) comes before its greeting.
+  // Discovery in the child (its device's API alone: WorkerArguments) comes before its greeting.
   const double start_timeout_s = std::max(variant_timeout_s_, 60.0);
   std::string line;
   switch (ReadLine(start_timeout_s, line)) {
@@ -683,12 +678,11 @@ void Serve(TunedDevice& device, int protocol) {
 
 }  // namespace
 
-int RunTuneWorker(int device_index, const std::string& device_id, const std::string& host_lock,
-                  const std::string& chip_lock, const std::string& discover_only) {
+int RunTuneWorker(const TuneWorkerArgs& args) {
   KeepLargeBlocks();
   try {
-    if (!host_lock.empty()) tuner_internal::UseHostLock(host_lock);
-    if (!chip_lock.empty()) tuner_internal::UseChipLock(chip_lock);
+    if (!args.host_lock.empty()) tuner_internal::UseHostLock(args.host_lock);
+    if (!args.chip_lock.empty()) tuner_internal::UseChipLock(args.chip_lock);
   } catch (const Error& e) {
     std::cerr << "skintune: tune-worker: " << e.what() << "\n";
     return 1;
@@ -706,10 +700,12 @@ int RunTuneWorker(int device_index, const std::string& device_id, const std::str
     const tuner_internal::ExecutorDecorator faults = tuner_internal::FaultsFromEnvironment();
     try {
       const auto start = std::chrono::steady_clock::now();
-      const char* only = discover_only.empty() ? nullptr : discover_only.c_str();
-      discovery = tuner_internal::DiscoverTunedDevices(faults, only);
+      const char* only = args.discover_only.empty() ? nullptr : args.discover_only.c_str();
+      const tuner_internal::GivenCache given{args.device_id, args.cache_bytes, args.cache_source};
+      discovery = tuner_internal::DiscoverTunedDevices(faults, only, args.cache_bytes ? &given : nullptr);
       TimingLog([&] {
-        return "tune-worker " + device_id + ": " + (only ? discover_only + "'s" : std::string("every API's")) +
+        return "tune-worker " + args.device_id + ": " +
+               (only ? args.discover_only + "'s" : std::string("every API's")) +
                " devices found in " +
                std::to_string(std::lround(
                    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count())) +
@@ -723,7 +719,7 @@ int RunTuneWorker(int device_index, const std::string& device_id, const std::str
     return 1;
   }
   std::string why;
-  TunedDevice* device = ServedDevice(discovery, device_index, device_id, why);
+  TunedDevice* device = ServedDevice(discovery, args.device_index, args.device_id, why);
   if (!device) {
     WriteLine(protocol, {{"error", why}});
     return 1;

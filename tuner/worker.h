@@ -54,15 +54,19 @@ class WorkerError : public Error {
 // change it; workers are started with it (see worker.cpp for why).
 const std::vector<std::string>& StartupEnvironment();
 
-// The API whose devices alone a worker for `device` discovers, "" for every
-// API's (`tune-worker --discover-only`): a device of the host's CPU (PoCL,
-// skintune's cpu device, a software rasterizer), whose cache figure is the
-// host's whatever else is found. Every API's discovery took a worker 150-230
+// The arguments a worker for `device` is started with after `tune-worker`
+// (RunTuneWorker, tune.h): its id and index, the locks when given, its own
+// API as the only one to discover (`--discover-only`), and the cache figure
+// the parent resolved across every API's view of the chip (`--cache-bytes`,
+// `--cache-source`), which the worker gives its device in place of what its
+// one API says: NVIDIA's OpenCL says 4.3 MB of a 50 MB L2, GL nothing
+// (runtime/physical_device.h). Every API's discovery took a worker 150-230
 // ms on an idle H200 machine's host, a median of 690-870 ms beside a tuning
-// run, 18-23 s of CPU a run across its ~30 workers, and the cpu device starts
-// one for each race's second leg (2026-12-02). A GPU's API stays matched with
-// the others: its cache figure may come from CUDA's view of the same chip.
-std::string DiscoversAlone(const DeviceIdentity& device);
+// run (0.76-0.99 s in a GPU API's worker), 18-23 s of CPU a run across its
+// ~30 workers, and the cpu device starts one for each race's second leg
+// (2026-12-02).
+std::vector<std::string> WorkerArguments(const DeviceIdentity& device, const std::string& host_lock,
+                                         const std::string& chip_lock);
 
 class IsolatedDevice {
  public:

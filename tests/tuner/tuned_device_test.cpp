@@ -305,6 +305,27 @@ TEST(Discovery, IndicesFollowTheDiscoveryOrder) {
     EXPECT_EQ(Found().devices[i]->identity().index, static_cast<int>(i));
 }
 
+// A tune worker discovers its own API alone and takes the cache figure its
+// parent resolved across every API (tuner/worker.h WorkerArguments): the
+// named device takes it, no other does.
+TEST(Discovery, OneApiAloneWithTheCacheFigureItsParentFound) {
+  const Discovery own = DiscoverTunedDevices(tuner_internal::ExecutorDecorator{}, "cpu");
+  ASSERT_EQ(own.devices.size(), 1u) << "skintune's cpu device is always found";
+  const DeviceIdentity& found = own.devices[0]->identity();
+  EXPECT_EQ(found.backend, "cpu");
+  const tuner_internal::GivenCache given{found.Id(), 123456789, "the parent's view of the chip"};
+  const Discovery told = DiscoverTunedDevices(tuner_internal::ExecutorDecorator{}, "cpu", &given);
+  ASSERT_EQ(told.devices.size(), 1u);
+  EXPECT_EQ(told.devices[0]->identity().last_level_cache_bytes, 123456789u);
+  EXPECT_EQ(told.devices[0]->identity().last_level_cache_source, "the parent's view of the chip");
+  EXPECT_EQ(told.devices[0]->identity().reported_cache_bytes, found.reported_cache_bytes);
+  const tuner_internal::GivenCache elsewhere{"cpu:another/device/1", 123456789, "another device's"};
+  const Discovery other = DiscoverTunedDevices(tuner_internal::ExecutorDecorator{}, "cpu", &elsewhere);
+  ASSERT_EQ(other.devices.size(), 1u);
+  EXPECT_EQ(other.devices[0]->identity().last_level_cache_bytes, found.last_level_cache_bytes);
+  EXPECT_EQ(other.devices[0]->identity().last_level_cache_source, found.last_level_cache_source);
+}
+
 TEST(DeviceIdentity, JsonRoundTripsEveryField) {
   DeviceIdentity d;
   d.backend = "opencl";

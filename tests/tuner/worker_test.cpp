@@ -130,7 +130,7 @@ TEST(IsolatedDevice, SendsOneRequestPerLineAndReadsTheMeasurement) {
   }
   EXPECT_EQ(worker.starts(), 1);
   // The worker selects its device by identity; the index is only a hint.
-  EXPECT_EQ(ReadAll(dir / "args"), "tune-worker --device-index 3 --device-id " + FakeDevice().Id() + "\n");
+  EXPECT_EQ(ReadAll(dir / "args"), "tune-worker --device-index 3 --device-id " + FakeDevice().Id() + " --discover-only opencl\n");
   std::ifstream requests(dir / "requests");
   std::string line;
   ASSERT_TRUE(std::getline(requests, line));
@@ -301,26 +301,26 @@ TEST(IsolatedDevice, WorkersAreToldTheHostAndChipLocks) {
   }
 }
 
-// A worker for a device of the host's CPU looks for its own API's devices
-// alone; one for a GPU looks for every API's (its cache figure may come from
-// another API's view of the chip).
-TEST(IsolatedDevice, AWorkerForTheHostsCpuIsToldToDiscoverItsApiAlone) {
+// Every worker looks for its own API's devices alone and is given the cache
+// figure its parent resolved across every API's view of the chip (NVIDIA's
+// OpenCL alone would say 4.3 MB of a 50 MB L2).
+TEST(IsolatedDevice, AWorkerDiscoversItsApiAloneWithItsParentsCacheFigure) {
   const fs::path dir = Scratch();
   for (const char* type : {"gpu", "cpu"}) {
     DeviceIdentity device = FakeDevice();
     device.type = type;
+    device.last_level_cache_bytes = 52428800;
+    device.last_level_cache_source = "cuda L2 of the same chip";
     IsolatedDevice worker(FakeWorker(dir, "read line; echo '{\"copy_bandwidth_gbps\": 12.5}'"), device, 30);
     EXPECT_EQ(worker.CopyBandwidthGBps(1 << 20), 12.5);
     const std::string args = ReadAll(dir / "args");
-    EXPECT_EQ(args.find("--discover-only opencl") != std::string::npos, std::string(type) == "cpu") << args;
+    EXPECT_NE(args.find("--discover-only opencl"), std::string::npos) << args;
+    EXPECT_NE(args.find("--cache-bytes 52428800 --cache-source cuda L2 of the same chip"), std::string::npos) << args;
   }
-  DeviceIdentity cpu;
-  cpu.backend = "cpu";
-  cpu.type = "CPU";
-  EXPECT_EQ(DiscoversAlone(cpu), "cpu");
-  cpu.backend = "gl";  // llvmpipe
-  EXPECT_EQ(DiscoversAlone(cpu), "gl");
-  EXPECT_EQ(DiscoversAlone(FakeDevice()), "");  // no type: every API
+  DeviceIdentity unknown = FakeDevice();  // no figure: the worker's own discovery says
+  const std::vector<std::string> args = WorkerArguments(unknown, "", "");
+  EXPECT_EQ(args, (std::vector<std::string>{"tune-worker", "--device-index", "3", "--device-id", unknown.Id(),
+                                            "--discover-only", "opencl"}));
 }
 
 // Some OpenCL ICD loaders tokenise OCL_ICD_FILENAMES in place (strtok on
