@@ -59,7 +59,7 @@ const std::vector<std::string>& StartupEnvironment();
 // API as the only one to discover (`--discover-only`), and the cache figure
 // the parent resolved across every API's view of the chip (`--cache-bytes`,
 // `--cache-source`), which the worker gives its device in place of what its
-// one API says: NVIDIA's OpenCL says 4.3 MB of a 50 MB L2, GL nothing
+// one API says: NVIDIA's OpenCL says 4.3 MB of an H100's 50 MiB L2, GL nothing
 // (runtime/physical_device.h). Every API's discovery took a worker 150-230
 // ms on an idle H200 machine's host, a median of 690-870 ms beside a tuning
 // run (0.76-0.99 s in a GPU API's worker), 18-23 s of CPU a run across its
