@@ -165,11 +165,10 @@ TEST(VariantHash, IsStableAndDistinguishesVariants) {
     CutTo(full, [](std::size_t) { return false; }, [&](std::size_t) { return static_cast<std::size_t>(rng()); })
         .ForEach(distinct);
   const std::size_t first = AxisIndex<&Variant::layout>(), last = AxisIndex<&Variant::normal_format>();
-  const TuningSpace formats = CutTo(
-      full, [&](std::size_t axis) { return axis >= first && axis <= last && axis != AxisIndex<&Variant::wg_size>() &&
-                           axis != AxisIndex<&Variant::morph>();
-      },
-      [](std::size_t) { return 0; });
+  const auto format_axis = [&](std::size_t axis) {
+    return axis >= first && axis <= last && axis != AxisIndex<&Variant::wg_size>() && axis != AxisIndex<&Variant::morph>();
+  };
+  const TuningSpace formats = CutTo(full, format_axis, [](std::size_t) { return 0; });
   EXPECT_GT(formats.Size(), 10000u);
   formats.ForEach(distinct);
   EXPECT_GT(seen.size(), 50000u);
