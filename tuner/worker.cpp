@@ -30,7 +30,6 @@
 #include "tuner/fault_injection.h"
 #include "tuner/measure_job.h"
 #include "tuner/runner_device.h"
-#include "tuner/schedule.h"  // IsHostCpu
 #include "tuner/tune.h"
 
 namespace skintune::internal {
