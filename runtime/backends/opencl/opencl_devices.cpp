@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "base/error.h"
+#include "runtime/backends/opencl/opencl_info.h"
 #include "runtime/physical_device.h"
 
 namespace skintune::internal {
@@ -17,24 +18,6 @@ namespace skintune::internal {
 namespace {
 
 constexpr cl_int kPlatformNotFoundKhr = -1001;  // CL_PLATFORM_NOT_FOUND_KHR from cl_ext.h
-
-std::string PlatformString(cl_platform_id platform, cl_platform_info what) {
-  std::size_t size = 0;
-  if (clGetPlatformInfo(platform, what, 0, nullptr, &size) != CL_SUCCESS || size == 0) return {};
-  std::string value(size, '\0');
-  if (clGetPlatformInfo(platform, what, size, value.data(), nullptr) != CL_SUCCESS) return {};
-  value.resize(value.find('\0') == std::string::npos ? value.size() : value.find('\0'));
-  return value;
-}
-
-std::string DeviceString(cl_device_id device, cl_device_info what) {
-  std::size_t size = 0;
-  if (clGetDeviceInfo(device, what, 0, nullptr, &size) != CL_SUCCESS || size == 0) return {};
-  std::string value(size, '\0');
-  if (clGetDeviceInfo(device, what, size, value.data(), nullptr) != CL_SUCCESS) return {};
-  value.resize(value.find('\0') == std::string::npos ? value.size() : value.find('\0'));
-  return value;
-}
 
 template <typename T>
 T DeviceValue(cl_device_id device, cl_device_info what) {
@@ -114,6 +97,24 @@ OpenClDeviceInfo Describe(cl_device_id device) {
 }
 
 }  // namespace
+
+std::string PlatformString(cl_platform_id platform, cl_platform_info what) {
+  std::size_t size = 0;
+  if (clGetPlatformInfo(platform, what, 0, nullptr, &size) != CL_SUCCESS || size == 0) return {};
+  std::string value(size, '\0');
+  if (clGetPlatformInfo(platform, what, size, value.data(), nullptr) != CL_SUCCESS) return {};
+  value.resize(value.find('\0') == std::string::npos ? value.size() : value.find('\0'));
+  return value;
+}
+
+std::string DeviceString(cl_device_id device, cl_device_info what) {
+  std::size_t size = 0;
+  if (clGetDeviceInfo(device, what, 0, nullptr, &size) != CL_SUCCESS || size == 0) return {};
+  std::string value(size, '\0');
+  if (clGetDeviceInfo(device, what, size, value.data(), nullptr) != CL_SUCCESS) return {};
+  value.resize(value.find('\0') == std::string::npos ? value.size() : value.find('\0'));
+  return value;
+}
 
 OpenClInventory EnumerateOpenCl() {
   OpenClInventory inventory;

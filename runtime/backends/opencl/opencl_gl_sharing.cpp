@@ -7,24 +7,15 @@
 #include <epoxy/egl.h>
 #include <epoxy/gl.h>
 
-#include <cstring>
 #include <sstream>
 #include <vector>
 
 #include "runtime/api_errors.h"
+#include "runtime/backends/opencl/opencl_info.h"
 
 namespace skintune::internal {
 
 namespace {
-
-std::string PlatformString(cl_platform_id platform, cl_platform_info what) {
-  std::size_t size = 0;
-  if (clGetPlatformInfo(platform, what, 0, nullptr, &size) != CL_SUCCESS || size == 0) return {};
-  std::string value(size, '\0');
-  clGetPlatformInfo(platform, what, size, value.data(), nullptr);
-  value.resize(std::strlen(value.c_str()));
-  return value;
-}
 
 bool HasWord(const std::string& list, const std::string& word) {
   std::istringstream in(list);

@@ -20,6 +20,7 @@
 #include "base/cache_eviction.h"
 #include "base/error.h"
 #include "base/thread_pool.h"
+#include "runtime/backends/opencl/opencl_info.h"
 #include "runtime/host_work.h"
 #include "runtime/output_check.h"
 
@@ -80,15 +81,6 @@ template <typename Message>
   requires std::is_invocable_r_v<std::string, Message>
 void Check(cl_int err, const char* stage, Message&& what) {
   if (err != CL_SUCCESS) Check(err, stage, what());
-}
-
-std::string DeviceName(cl_device_id device) {
-  std::size_t size = 0;
-  clGetDeviceInfo(device, CL_DEVICE_NAME, 0, nullptr, &size);
-  std::string name(size, '\0');
-  clGetDeviceInfo(device, CL_DEVICE_NAME, size, name.data(), nullptr);
-  name.resize(std::strlen(name.c_str()));
-  return name;
 }
 
 struct BuiltKernel {
@@ -904,7 +896,7 @@ std::unique_ptr<OpenClApi> OpenDevice(int platform_index, int device_index) {
   std::vector<cl_device_id> devices(device_count);
   clGetDeviceIDs(api->platform, CL_DEVICE_TYPE_ALL, device_count, devices.data(), nullptr);
   api->device = devices[static_cast<std::size_t>(device_index)];
-  api->name_ = DeviceName(api->device);
+  api->name_ = DeviceString(api->device, CL_DEVICE_NAME);
   cl_int err = CL_SUCCESS;
   const cl_context_properties properties[] = {CL_CONTEXT_PLATFORM,
                                               reinterpret_cast<cl_context_properties>(api->platform), 0};
@@ -957,7 +949,7 @@ std::unique_ptr<OpenClApi> AdoptHandles(void* device_handle, void* context_handl
   Check(clRetainCommandQueue(queue), "setup", "clRetainCommandQueue");
   api->queue = Queue(queue);
   api->device = device;
-  api->name_ = DeviceName(device);
+  api->name_ = DeviceString(device, CL_DEVICE_NAME);
   return api;
 }
 
