@@ -15,6 +15,7 @@
 #include <iterator>
 #include <limits>
 #include <map>
+#include <set>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -532,6 +533,7 @@ MorphTargets ReadMorphTargets(const Ctx& ctx, size_t node_index, const SkinnedMe
   if (mesh.has_normals()) morph.normals.assign(targets, std::vector<glm::vec3>(n, glm::vec3(0.0f)));
   if (mesh.has_tangents()) morph.tangents.assign(targets, std::vector<glm::vec3>(n, glm::vec3(0.0f)));
   size_t first = 0;
+  std::set<std::string> unmorphed;  // offsets of attributes skintune does not carry (TEXCOORD_0, COLOR_0, ...)
   for (size_t p = 0; p < src.primitives.size(); ++p) {
     const tinygltf::Primitive& prim = src.primitives[p];
     if (!IsTriangles(prim.mode)) continue;
@@ -543,7 +545,8 @@ MorphTargets ReadMorphTargets(const Ctx& ctx, size_t node_index, const SkinnedMe
                                                     : name == "NORMAL" && mesh.has_normals()   ? &morph.normals
                                                     : name == "TANGENT" && mesh.has_tangents() ? &morph.tangents
                                                                                                : nullptr;
-        if (!into) continue;
+        if (name != "POSITION" && name != "NORMAL" && name != "TANGENT") unmorphed.insert(name);
+        if (!into) continue;  // NORMAL or TANGENT offsets of a mesh imported without them, as asked
         const AccessorData d =
             ReadAttribute(ctx, prim.targets[k], name, where, {"", kRotationTypes, {TINYGLTF_TYPE_VEC3}}, count);
         for (size_t v = 0; v < count; ++v) {
@@ -555,6 +558,12 @@ MorphTargets ReadMorphTargets(const Ctx& ctx, size_t node_index, const SkinnedMe
       }
     }
     first += count;
+  }
+  if (!unmorphed.empty()) {
+    std::string names;
+    for (const std::string& name : unmorphed) names += (names.empty() ? "" : ", ") + name;
+    warnings.push_back(ctx.path + ": " + morph.where + ": offsets of " + names +
+                       " not applied (skintune morphs POSITION, NORMAL and TANGENT only)");
   }
   const std::vector<double>& weights = !node.weights.empty() ? node.weights : src.weights;
   const std::string weights_ref = !node.weights.empty() ? Idx("nodes", node_index) + ".weights" : mesh_ref + ".weights";

@@ -616,6 +616,32 @@ TEST_F(GltfFiles, TangentsAreReadWhenAskedForWithTheirMorphOffsets) {
                   options);
 }
 
+// A morph target's offsets of an attribute skintune does not carry (here
+// TEXCOORD_0) are not applied, and the import says so once, naming them;
+// targets of positions and normals alone say nothing.
+TEST_F(GltfFiles, MorphOffsetsOfAttributesNotSkinnedAreNamedInAWarning) {
+  const auto morph_warnings = [](const GltfImportResult& result) {
+    std::vector<std::string> out;
+    for (const std::string& w : result.warnings)
+      if (w.find("not applied") != std::string::npos) out.push_back(w);
+    return out;
+  };
+  json gltf = MorphedRigged(rigged_, false);
+  EXPECT_TRUE(morph_warnings(ImportGltf(WriteJson("Plain.gltf", gltf))).empty());
+  constexpr std::size_t n = 160;
+  const std::vector<float> uv(2 * n, 0.25f), colour(3 * n, 0.5f);
+  gltf["meshes"][0]["primitives"][0]["targets"][0]["TEXCOORD_0"] = AppendFloatAccessor(gltf, uv, "VEC2", n);
+  gltf["meshes"][0]["primitives"][0]["targets"][1]["TEXCOORD_0"] = AppendFloatAccessor(gltf, uv, "VEC2", n);
+  gltf["meshes"][0]["primitives"][0]["targets"][1]["COLOR_0"] = AppendFloatAccessor(gltf, colour, "VEC3", n);
+  const GltfImportResult result = ImportGltf(WriteJson("Uv.gltf", gltf));
+  const std::vector<std::string> warnings = morph_warnings(result);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("Uv.gltf: meshes[0].primitives[0].targets: offsets of COLOR_0, TEXCOORD_0 not applied"),
+            std::string::npos)
+      << warnings[0];
+  EXPECT_EQ(result.asset.mesh.morph.count(), 2u);
+}
+
 // Malformed morph data is one error naming the element.
 TEST_F(GltfFiles, MalformedMorphTargetsAreRejected) {
   ExpectError(
