@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstring>
 
+#include <glm/gtc/type_ptr.hpp>
+
 #include "model/asset.h"
 #include "model/gltf_import.h"
 #include "base/input_file.h"
@@ -40,7 +42,7 @@ struct Model::Impl {
     flatten(mesh.morph.positions, morph_positions);
     flatten(mesh.morph.normals, morph_normals);
     flatten(mesh.morph.tangents, morph_tangents);
-    for (const double w : mesh.morph.weights) morph_weights.push_back(static_cast<float>(w));
+    for (const double weight : mesh.morph.weights) morph_weights.push_back(static_cast<float>(weight));
   }
   bool HasAnimation(int a) const { return a >= 0 && a < static_cast<int>(asset.animations.size()); }
 };
@@ -65,7 +67,7 @@ std::vector<glm::mat4> Matrices(const float* matrices, std::size_t float_count, 
                                               " floats given, the palette has " + std::to_string(joints) +
                                               " joints x 16 = " + std::to_string(joints * 16));
   std::vector<glm::mat4> palette(static_cast<std::size_t>(joints));
-  std::memcpy(palette.data(), matrices, float_count * sizeof(float));
+  for (std::size_t j = 0; j < palette.size(); ++j) palette[j] = glm::make_mat4(matrices + 16 * j);
   CheckPaletteFinite(palette, call);
   return palette;
 }

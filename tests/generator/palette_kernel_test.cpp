@@ -741,7 +741,9 @@ TEST(PaletteKernelBaked, AFusedSkinKernelOfLocalRecordsTakesTheHierarchyItWalks)
       EXPECT_EQ(defines.at("ANIM_GROUP"), variant.wg_size) << key;
       EXPECT_EQ(defines.at("ANIM_STEADY"), space == BakeSpace::kHybrid ? records.steady_rows : 0u) << key;
       for (const std::string& name : expected)  // what the runner uploads by name; instances are the frame's
-        if (name != kAnimInputs[5]) EXPECT_FALSE(AnimationBufferBytes(records.View(), name).empty()) << key << ": " << name;
+        if (name != kAnimInputs[5]) {
+          EXPECT_FALSE(AnimationBufferBytes(records.View(), name).empty()) << key << ": " << name;
+        }
     }
   }
 }

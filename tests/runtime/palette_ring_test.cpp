@@ -515,7 +515,9 @@ TEST(PaletteRing, AnimatedFramesComputeTheirSlotsPaletteOncePerUploadBeforeTheir
   std::size_t launch = 1;
   for (int f = 0; f < kFrames; ++f) {
     EXPECT_EQ(ring.FrameRead(launch++), f) << "frame " << f;
-    if (f % 2 == 0) EXPECT_EQ(ring.FrameRead(launch++), f) << "frame " << f << ", again";
+    if (f % 2 == 0) {
+      EXPECT_EQ(ring.FrameRead(launch++), f) << "frame " << f << ", again";
+    }
   }
   // A second Animate, or palettes that do not fit the animation, are refused.
   EXPECT_THROW(ring.runner->Animate(ring.prepared, 0, animation.View(), EmitPalette(Lang::kOpenCl, animation.View(), 3)),
@@ -547,9 +549,10 @@ TEST(PaletteRing, FusedFramesReadTheLastUploadAndTheDeltasSinceWithNoPaletteKern
     ring.runner->AdvanceAnimation(ring.prepared, 0, 0.5f);
     // It waits only for the frame as many frames back as the ring has slots.
     EXPECT_LT(ring.api->launches_queued - ring.api->LaunchesRun(), static_cast<std::size_t>(kPaletteSlots)) << "frame " << f;
-    if (f >= kPaletteSlots)
+    if (f >= kPaletteSlots) {
       EXPECT_GE(ring.api->launches_queued - ring.api->LaunchesRun(), static_cast<std::size_t>(kPaletteSlots - 1))
           << "frame " << f << ": it waited for more";
+    }
     ring.runner->LaunchSet(ring.prepared, 0);
   }
   EXPECT_EQ(ring.runner->PaletteSlot(ring.prepared, 0), slot) << "AdvanceAnimation took a slot";
@@ -605,7 +608,9 @@ TEST_P(FusedPace, AdvanceAnimationWaitsForTheFrameTwoSubmissionsOrTheRingBack) {
     ring.runner->AdvanceAnimation(ring.prepared, 0, 0.01f);
     const std::size_t queued = ring.api->launches_queued - ring.api->LaunchesRun();
     EXPECT_LT(queued, depth) << "frame " << f << ": it did not wait for the frame " << depth << " back";
-    if (f >= depth) EXPECT_EQ(queued, depth - 1) << "frame " << f << ": it waited for a later frame";
+    if (f >= depth) {
+      EXPECT_EQ(queued, depth - 1) << "frame " << f << ": it waited for a later frame";
+    }
     ring.runner->LaunchSet(ring.prepared, 0);
   }
   ring.runner->Finish();

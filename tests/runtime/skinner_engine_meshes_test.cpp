@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -39,7 +40,7 @@ const std::vector<EngineMesh>& Meshes() {
     GltfImportOptions options;
     options.tangents_when_present = true;
     for (const char* file : {"CesiumMan.gltf", "Fox.gltf", "RiggedSimple-morph.gltf"})
-      out.push_back({file, ImportGltf(std::string(SKINTUNE_TEST_DATA_DIR) + "/" + file, options).asset});
+      out.push_back({file, ImportGltf((std::filesystem::path(SKINTUNE_TEST_DATA_DIR) / file).string(), options).asset});
     for (int b = 1; b <= 8; ++b) {
       const std::string key = "1500-b" + std::to_string(b) + "-seed" + std::to_string(b) + "-tangents";
       out.push_back({key, GenerateDataset(ParseDatasetKey(key))});
@@ -118,8 +119,8 @@ INSTANTIATE_TEST_SUITE_P(EveryBackend, SkinnerEngineMeshes,
                          ::testing::Values(BackendCase{Backend::kOpenCl}, BackendCase{Backend::kCuda},
                                            BackendCase{Backend::kGl}, BackendCase{Backend::kVulkan},
                                            BackendCase{Backend::kCpu}),
-                         [](const ::testing::TestParamInfo<BackendCase>& info) {
-                           return testing::ParameterName(BackendName(info.param.backend));
+                         [](const ::testing::TestParamInfo<BackendCase>& param) {
+                           return testing::ParameterName(BackendName(param.param.backend));
                          });
 
 }  // namespace

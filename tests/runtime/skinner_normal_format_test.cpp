@@ -128,12 +128,12 @@ TEST_P(SkinnerNormalFormat, DecodedOutputsAreTheGoldWithinTheFormatsBoundAndTheW
   };
   std::size_t differing = 0;
   for (std::size_t v = 0; v < normal_words.size(); ++v) {
-    const std::uint32_t n = PackedNormalWord(format, {f32_normals[3 * v], f32_normals[3 * v + 1], f32_normals[3 * v + 2]});
+    const std::uint32_t normal = PackedNormalWord(format, {f32_normals[3 * v], f32_normals[3 * v + 1], f32_normals[3 * v + 2]});
     const std::uint32_t t = PackedTangentWord(
         format, {f32_tangents[4 * v], f32_tangents[4 * v + 1], f32_tangents[4 * v + 2], f32_tangents[4 * v + 3]});
-    const int apart = std::max(units_apart(n, normal_words[v]), units_apart(t, tangent_words[v]));
+    const int apart = std::max(units_apart(normal, normal_words[v]), units_apart(t, tangent_words[v]));
     ASSERT_LE(apart, 1) << variant.Key() << ": vertex " << v << " words " << std::hex << normal_words[v] << " "
-                        << tangent_words[v] << ", the rule's " << n << " " << t;
+                        << tangent_words[v] << ", the rule's " << normal << " " << t;
     differing += apart > 0;
   }
   EXPECT_LE(differing, normal_words.size() / 100) << variant.Key() << ": words other than the rule's";

@@ -368,8 +368,9 @@ TEST(VulkanAnimatedFrames, FramesSharingACommandBufferHaveNoHazardWhateverTheRin
       runner.AdvanceAnimation(live, 0, 1.0f / 60.0f);
       runner.LaunchSet(live, 0);
     }
-    if (slots > 1)  // with one, each frame waits for the one before
+    if (slots > 1) {  // with one, each frame waits for the one before
       EXPECT_LT(runner.submissions() - before, static_cast<std::uint64_t>(kFrames)) << "no frames shared a command buffer";
+    }
     const std::span<const std::uint8_t> positions = runner.ReadOutput(live, 0, Output::kPositions);
     for (int k : {0, kInstances - 1}) {
       AnimInstance advanced = states[static_cast<std::size_t>(k)];

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
 
 #include "tests/common/scratch_dir.h"
 #include "tuner/tune.h"
@@ -47,7 +48,7 @@ TEST(TuneBaselines, AreMeasuredWithTheDatasetsBOutsideTheSpaceAndInvalidOnesAreR
   TuneOptions options;
   options.device_pattern = "Portable Computing Language";
   options.cache_path = (dir / "cache.jsonl").string();
-  options.worker_executable = std::string(SKINTUNE_BINARY_DIR) + "/bin/skintune";
+  options.worker_executable = (std::filesystem::path(SKINTUNE_BINARY_DIR) / "bin" / "skintune").string();
   const TuningReport report = RunTuning(config, options);
 
   Variant outside_b2 = outside;
