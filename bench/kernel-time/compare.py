@@ -11,8 +11,9 @@
   compare.py choice MARGIN REPORT...
                                   the runs' agreement were each row's last race to choose its winner among
                                   the candidates within MARGIN of the fastest (GPU rows, judged as
-                                  tuner/statistics.cpp TiedAt does; host rows among their contenders, at
-                                  host_tie_margin): what a choice wider or narrower than the report's costs.
+                                  tuner/statistics.cpp TiedAt does; host rows as the report picked them:
+                                  within host_tie_margin, plus host_process_spread where
+                                  host_choose_in_tie_set): what a choice wider or narrower than the report's costs.
                                   MARGIN = tie_margin + process_spread is the GPU's default choice, its tie set
 """
 import csv, glob, json, os, re, statistics, sys
@@ -131,7 +132,10 @@ def choice(margin, reports):
         measured = {(m["device_id"], m["dataset"], m["variant"]["key"]): m for m in r["measurements"] if m["status"] == "ok"}
         for race in r["races"]:
             host = race["device_id"].startswith("cpu:") or "Portable" in race["device_id"]
-            allowed = r.get("host_tie_margin", 0.25) if host else margin
+            host_margin = r.get("host_tie_margin", 0.25)
+            if r.get("host_choose_in_tie_set", False):
+                host_margin += r.get("host_process_spread", 0.0)
+            allowed = host_margin if host else margin
             fastest = next(e for e in race["entries"] if e["verdict"] == "fastest")
 
             def rule(e):  # TieBreak: bytes, error, storage limits (StorageLimits), key

@@ -212,9 +212,9 @@ TEST(Report, ATieSetSpansTheSpreadBetweenProcessesNotTheChoice) {
 // A GPU's winner is picked among its whole tie set by default (1.8.0): of two
 // candidates 7% apart, within the margin plus the spread, the one moving
 // fewer bytes wins whichever ran faster; a report before 1.8.0 picked among
-// its contenders and keeps its winners; the host's CPU picks among its
-// contenders unless asked; a choice that is not true or false is an error
-// naming it.
+// its contenders and keeps its winners; the host's CPU picks among its tie
+// set too (since 2026-12-02) unless asked otherwise; a choice that is not
+// true or false is an error naming it.
 TEST(Report, AGpusWinnerIsPickedAmongItsTieSet) {
   const DeviceIdentity gpu = testing::SampleGpu();
   TuningReport r = TwoCandidates(gpu, 1.07);
