@@ -96,25 +96,24 @@ OpenClDeviceInfo Describe(cl_device_id device) {
   return d;
 }
 
+// `query`'s string answer (clGetPlatformInfo, clGetDeviceInfo) up to its NUL; "" where it fails.
+template <typename Handle>
+std::string InfoString(cl_int (*query)(Handle, cl_uint, std::size_t, void*, std::size_t*), Handle handle, cl_uint what) {
+  std::size_t size = 0;
+  if (query(handle, what, 0, nullptr, &size) != CL_SUCCESS || size == 0) return {};
+  std::string value(size, '\0');
+  if (query(handle, what, size, value.data(), nullptr) != CL_SUCCESS) return {};
+  value.resize(value.find('\0') == std::string::npos ? value.size() : value.find('\0'));
+  return value;
+}
+
 }  // namespace
 
 std::string PlatformString(cl_platform_id platform, cl_platform_info what) {
-  std::size_t size = 0;
-  if (clGetPlatformInfo(platform, what, 0, nullptr, &size) != CL_SUCCESS || size == 0) return {};
-  std::string value(size, '\0');
-  if (clGetPlatformInfo(platform, what, size, value.data(), nullptr) != CL_SUCCESS) return {};
-  value.resize(value.find('\0') == std::string::npos ? value.size() : value.find('\0'));
-  return value;
+  return InfoString(clGetPlatformInfo, platform, what);
 }
 
-std::string DeviceString(cl_device_id device, cl_device_info what) {
-  std::size_t size = 0;
-  if (clGetDeviceInfo(device, what, 0, nullptr, &size) != CL_SUCCESS || size == 0) return {};
-  std::string value(size, '\0');
-  if (clGetDeviceInfo(device, what, size, value.data(), nullptr) != CL_SUCCESS) return {};
-  value.resize(value.find('\0') == std::string::npos ? value.size() : value.find('\0'));
-  return value;
-}
+std::string DeviceString(cl_device_id device, cl_device_info what) { return InfoString(clGetDeviceInfo, device, what); }
 
 OpenClInventory EnumerateOpenCl() {
   OpenClInventory inventory;
