@@ -545,8 +545,10 @@ MorphTargets ReadMorphTargets(const Ctx& ctx, size_t node_index, const SkinnedMe
                                                     : name == "NORMAL" && mesh.has_normals()   ? &morph.normals
                                                     : name == "TANGENT" && mesh.has_tangents() ? &morph.tangents
                                                                                                : nullptr;
-        if (name != "POSITION" && name != "NORMAL" && name != "TANGENT") unmorphed.insert(name);
-        if (!into) continue;  // NORMAL or TANGENT offsets of a mesh imported without them, as asked
+        if (!into) {  // NORMAL or TANGENT offsets of a mesh imported without them are left out as asked
+          if (name != "NORMAL" && name != "TANGENT") unmorphed.insert(name);
+          continue;
+        }
         const AccessorData d =
             ReadAttribute(ctx, prim.targets[k], name, where, {"", kRotationTypes, {TINYGLTF_TYPE_VEC3}}, count);
         for (size_t v = 0; v < count; ++v) {

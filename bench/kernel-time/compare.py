@@ -130,11 +130,11 @@ def choice(margin, reports):
     for i, p in enumerate(reports):
         r = json.load(open(p))
         measured = {(m["device_id"], m["dataset"], m["variant"]["key"]): m for m in r["measurements"] if m["status"] == "ok"}
+        host_margin = r.get("host_tie_margin", 0.25)
+        if r.get("host_choose_in_tie_set", False):
+            host_margin += r.get("host_process_spread", 0.0)
         for race in r["races"]:
             host = race["device_id"].startswith("cpu:") or "Portable" in race["device_id"]
-            host_margin = r.get("host_tie_margin", 0.25)
-            if r.get("host_choose_in_tie_set", False):
-                host_margin += r.get("host_process_spread", 0.0)
             allowed = host_margin if host else margin
             fastest = next(e for e in race["entries"] if e["verdict"] == "fastest")
 
