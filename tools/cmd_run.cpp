@@ -107,6 +107,16 @@ std::pair<double, double> RangeOf(const TuningReport& report, const std::string&
 // read (timing.sm_clock_mhz: NVIDIA's GPUs, docs/TUNING.md "Kernel time"),
 // and its contexts' launch start, where probed (timing.launch_start_ms: a
 // GPU's); nothing elsewhere.
+// Where the run table's winner was picked among its ties (tuner/statistics.h Choice).
+const char* ChoiceText(Choice choice) {
+  switch (choice) {
+    case Choice::kContenders: return "those within the margin";
+    case Choice::kTieSet: return "them";
+    case Choice::kTieSetUnseparated: return "those the race did not separate from the fastest";
+  }
+  return "?";
+}
+
 void PrintSmClocksAndLaunchStart(const TuningReport& report, const std::string& device_id) {
   const auto [low, high] = RangeOf(report, device_id, [](const Measurement& m) { return m.timing.sm_clock_mhz; });
   if (high > 0.0)
@@ -164,7 +174,7 @@ void PrintDeviceWinners(const TuningReport& report) {
                    "issued back to back; ties: other candidates within the tie margin "
                 << Fixed(report.TieMarginOf(d.Id()) * 100.0, 1) << "% plus the spread between processes "
                 << Fixed(report.TieSpreadOf(d.Id()) * 100.0, 1) << "% (the winner among "
-                << (report.ChoiceOf(d.Id()) == Choice::kTieSet ? "them" : "those within the margin")
+                << ChoiceText(report.ChoiceOf(d.Id()))
                 << ": fewest bytes, then lower error, then the palette storage with the fewest limits)\n";
       PrintSmClocksAndLaunchStart(report, d.Id());
       if (!noisy.empty()) {

@@ -207,8 +207,7 @@ RaceRecord SettleSearch(const Racer& racer, const SearchToSettle& search, const 
     settled.insert(leader->Key());
     // The walk follows the winner the report will name (options are the device's: ForDevice).
     const std::optional<Variant> winner =
-        RaceWinner(race, measured, options.tie_margin, options.process_spread,
-                   options.choose_in_tie_set ? Choice::kTieSet : Choice::kContenders);
+        RaceWinner(race, measured, options.tie_margin, options.process_spread, options.OwnChoice());
     if (!winner || settled.count(winner->Key())) break;
     leader = winner;
   }

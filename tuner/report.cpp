@@ -167,9 +167,11 @@ Choice TuningReport::ChoiceOf(const std::string& device_id) const {
   TimingOptions choices;
   choices.choose_in_tie_set = choose_in_tie_set;
   choices.host_choose_in_tie_set = host_choose_in_tie_set;
+  choices.choose_unseparated = choose_unseparated;
+  choices.host_choose_unseparated = host_choose_unseparated;
   for (const DeviceIdentity& d : devices)
     if (d.Id() == device_id) return choices.ChoiceFor(d);
-  return choose_in_tie_set ? Choice::kTieSet : Choice::kContenders;
+  return choices.OwnChoice();
 }
 
 namespace {
@@ -376,6 +378,8 @@ nlohmann::json ReportToJson(const TuningReport& report) {
   out["host_process_spread"] = report.host_process_spread;
   out["choose_in_tie_set"] = report.choose_in_tie_set;
   out["host_choose_in_tie_set"] = report.host_choose_in_tie_set;
+  out["choose_unseparated"] = report.choose_unseparated;
+  out["host_choose_unseparated"] = report.host_choose_unseparated;
   out["races"] = nlohmann::json::array();
   for (const RaceRecord& r : report.races) out["races"].push_back(RaceJson(r));
   return out;
@@ -505,9 +509,12 @@ void ReadMargins(const nlohmann::json& json, const std::string& context, TuningR
       return value;
     });
   }
-  // Where the winner is picked, since 1.8.0; before it, among the contenders.
+  // Where the winner is picked, since 1.8.0 (before it, among the contenders)
+  // and 1.20.0 (before it, among the whole tie set).
   for (const auto& [name, value] : {std::pair<const char*, bool*>{"choose_in_tie_set", &r.choose_in_tie_set},
-                                    {"host_choose_in_tie_set", &r.host_choose_in_tie_set}}) {
+                                    {"host_choose_in_tie_set", &r.host_choose_in_tie_set},
+                                    {"choose_unseparated", &r.choose_unseparated},
+                                    {"host_choose_unseparated", &r.host_choose_unseparated}}) {
     *value = json.contains(name) && At(context, name, [&] {
       if (!json.at(name).is_boolean()) throw Error("must be true or false");
       return json.at(name).get<bool>();

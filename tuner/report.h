@@ -22,7 +22,7 @@ namespace skintune::internal {
 // (shape, instances, meshes), and winners are kept per shape; 1.4.0: timing
 // version 5 (kernel time with its interval, frame time), the races of each
 // search, tie_margin, and each winner's interval and tie set.
-inline constexpr const char* kReportSchemaVersion = "1.19.0";
+inline constexpr const char* kReportSchemaVersion = "1.20.0";
 
 struct DatasetInfo {
   std::string key;          // a scene key (model/scene.h): a dataset, a glTF path, instances, a batch
@@ -62,6 +62,10 @@ struct TuningReport {
   // older report's among its contenders, its winners as it had them).
   bool choose_in_tie_set = TimingOptions{}.choose_in_tie_set;
   bool host_choose_in_tie_set = TimingOptions{}.host_choose_in_tie_set;
+  // Within the tie set, only among the unseparated (TimingOptions::
+  // choose_unseparated; 1.20.0: an older report's among its whole tie set).
+  bool choose_unseparated = TimingOptions{}.choose_unseparated;
+  bool host_choose_unseparated = TimingOptions{}.host_choose_unseparated;
   Choice ChoiceOf(const std::string& device_id) const;
   std::vector<RaceRecord> races;
 };

@@ -169,7 +169,12 @@ RaceOutcome JudgeIntervals(const std::vector<Interval>& intervals, const std::ve
   // TiedAt takes exactly the leader, the equal and the undecided within it.
   out.contenders = TiedAt(out.intervals, out.fastest, margin);
   out.tied = spread > 0.0 ? TiedAt(out.intervals, out.fastest, margin + spread) : out.contenders;
-  out.winner = TieBreak(entries, choice == Choice::kTieSet ? out.tied : out.contenders);
+  std::vector<std::size_t> pool = choice == Choice::kContenders ? out.contenders : out.tied;
+  if (choice == Choice::kTieSetUnseparated)  // the fastest is never separated: the pool keeps it
+    pool.erase(std::remove_if(pool.begin(), pool.end(),
+                              [&](std::size_t e) { return out.verdicts[e] == RaceVerdict::kSeparated; }),
+               pool.end());
+  out.winner = TieBreak(entries, pool);
   out.settled = true;
   for (std::size_t u = 0; u < entries.size(); ++u) {
     if (out.verdicts[u] != RaceVerdict::kUndecided) continue;

@@ -146,8 +146,14 @@ struct RaceOutcome {
 // `choice` says where TieBreak picks the winner: among the contenders, or
 // among the whole tie set, so that the order of the candidates within the
 // spread, which moves from process to process, does not decide the winner
-// (TimingOptions::choose_in_tie_set: a GPU's default).
-enum class Choice { kContenders, kTieSet };
+// (TimingOptions::choose_in_tie_set: a GPU's default); or among the tie set
+// less the entries this judgement separated, whose whole interval lies
+// beyond the margin of the fastest's (TimingOptions::choose_unseparated: the
+// host's CPU's default). At the host's wide tie set (a quarter plus a
+// quarter) a candidate steadily 1.3x slower with a tight interval is in it,
+// and would be picked were it to move fewer bytes; one whose interval reaches
+// down to the fastest's is the host's noise, and stays a choice.
+enum class Choice { kContenders, kTieSet, kTieSetUnseparated };
 RaceOutcome JudgeRace(const std::vector<RaceEntry>& entries, double margin, double spread = 0.0,
                       Choice choice = Choice::kContenders);
 // The same judgement from intervals already computed (one per entry; the

@@ -45,7 +45,9 @@ std::vector<TimingField> Fields(TimingOptions& t) {
           {"frames_per_sample", TimingField::kInt, &t.frames_per_sample, nullptr, nullptr},
           {"host_frames_per_sample", TimingField::kInt, &t.host_frames_per_sample, nullptr, nullptr},
           {"choose_in_tie_set", TimingField::kBool, nullptr, nullptr, nullptr, &t.choose_in_tie_set},
-          {"host_choose_in_tie_set", TimingField::kBool, nullptr, nullptr, nullptr, &t.host_choose_in_tie_set}};
+          {"host_choose_in_tie_set", TimingField::kBool, nullptr, nullptr, nullptr, &t.host_choose_in_tie_set},
+          {"choose_unseparated", TimingField::kBool, nullptr, nullptr, nullptr, &t.choose_unseparated},
+          {"host_choose_unseparated", TimingField::kBool, nullptr, nullptr, nullptr, &t.host_choose_unseparated}};
 }
 
 std::string Dumped(const nlohmann::json& v) {
@@ -118,15 +120,19 @@ double TimingOptions::SpreadFor(const DeviceIdentity& device) const {
   return IsHostCpu(device) ? host_process_spread : process_spread;
 }
 
-Choice TimingOptions::ChoiceFor(const DeviceIdentity& device) const {
-  return (IsHostCpu(device) ? host_choose_in_tie_set : choose_in_tie_set) ? Choice::kTieSet : Choice::kContenders;
+Choice TimingOptions::OwnChoice() const {
+  if (!choose_in_tie_set) return Choice::kContenders;
+  return choose_unseparated ? Choice::kTieSetUnseparated : Choice::kTieSet;
 }
+
+Choice TimingOptions::ChoiceFor(const DeviceIdentity& device) const { return ForDevice(device).OwnChoice(); }
 
 TimingOptions TimingOptions::ForDevice(const DeviceIdentity& device) const {
   TimingOptions out = *this;
   out.tie_margin = MarginFor(device);
   out.process_spread = SpreadFor(device);
-  out.choose_in_tie_set = ChoiceFor(device) == Choice::kTieSet;
+  out.choose_in_tie_set = IsHostCpu(device) ? host_choose_in_tie_set : choose_in_tie_set;
+  out.choose_unseparated = IsHostCpu(device) ? host_choose_unseparated : choose_unseparated;
   out.frames_per_sample = IsHostCpu(device) ? host_frames_per_sample : frames_per_sample;
   out.stop.interval = std::min(stop.interval * out.tie_margin / tie_margin, 0.5);  // BadStopRule's bound
   return out;

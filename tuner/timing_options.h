@@ -82,12 +82,26 @@ struct TimingOptions {
   // process's noise on the host, not a slower kernel.
   bool choose_in_tie_set = true;
   bool host_choose_in_tie_set = true;
+  // Within the tie set, only among the candidates the race did not separate
+  // (Choice::kTieSetUnseparated): on the host's CPU. There it names the same
+  // winners as the whole tie set in the 228 host picks of 19 recorded cold runs
+  // on six H200 machines' hosts (2026-12-02, bench/kernel-time/compare.py
+  // choice), each pick's interval reaching within the margin of its race's
+  // fastest, and refuses a quiet host's steady slower candidate: the paper
+  // report's sample picked PoCL's aos float3 variant, 1.29-1.45x behind with
+  // tight intervals, for its fewer bytes. Not on a GPU, whose 5% margin is
+  // inside the spread between processes: there the same replay named the same
+  // winner in 202 of 210 GPU rows against the whole tie set's 206.
+  bool choose_unseparated = false;
+  bool host_choose_unseparated = true;
   Choice ChoiceFor(const DeviceIdentity& device) const;
+  // The choice of options already taken for one device (ForDevice).
+  Choice OwnChoice() const;
   // The margin a race and the search use on a device (host_tie_margin on a CPU).
   double MarginFor(const DeviceIdentity& device) const;
   // This timing as `device` is measured with: its margin (MarginFor), its
   // spread, choice and frames per sample in process_spread,
-  // choose_in_tie_set and frames_per_sample, and the
+  // choose_in_tie_set, choose_unseparated and frames_per_sample, and the
   // stop rule's interval kept the same fraction of that margin (0.01 of 0.05
   // on a GPU, so 0.05 of 0.25 on a CPU by default). A CPU device's samples
   // spread wider than its GPU's (half-width 2-4% at the caps: 200 samples

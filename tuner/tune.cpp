@@ -77,6 +77,8 @@ TuningReport ReportHeader(const TuneConfig& config) {
   report.host_process_spread = config.timing.host_process_spread;
   report.choose_in_tie_set = config.timing.choose_in_tie_set;
   report.host_choose_in_tie_set = config.timing.host_choose_in_tie_set;
+  report.choose_unseparated = config.timing.choose_unseparated;
+  report.host_choose_unseparated = config.timing.host_choose_unseparated;
   report.machine = MachineInfo();
   return report;
 }

@@ -13,7 +13,8 @@
                                   the candidates within MARGIN of the fastest (GPU rows, judged as
                                   tuner/statistics.cpp TiedAt does; host rows as the report picked them:
                                   within host_tie_margin, plus host_process_spread where
-                                  host_choose_in_tie_set): what a choice wider or narrower than the report's costs.
+                                  host_choose_in_tie_set, less the race's separated where
+                                  host_choose_unseparated): what a choice wider or narrower than the report's costs.
                                   MARGIN = tie_margin + process_spread is the GPU's default choice, its tie set
 """
 import csv, glob, json, os, re, statistics, sys
@@ -131,6 +132,7 @@ def choice(margin, reports):
         r = json.load(open(p))
         measured = {(m["device_id"], m["dataset"], m["variant"]["key"]): m for m in r["measurements"] if m["status"] == "ok"}
         host_margin = r.get("host_tie_margin", 0.25)
+        host_unseparated = r.get("host_choose_in_tie_set", False) and r.get("host_choose_unseparated", False)
         if r.get("host_choose_in_tie_set", False):
             host_margin += r.get("host_process_spread", 0.0)
         for race in r["races"]:
@@ -146,6 +148,8 @@ def choice(margin, reports):
             # TiedAt: the fastest, and each entry whose median, or whole interval, is within the margin.
             pool = [e for e in race["entries"] if e is fastest or e["median_ms"] <= fastest["median_ms"] * (1 + allowed)
                     or e["high_ms"] <= fastest["low_ms"] * (1 + allowed)]
+            if host and host_unseparated:  # Choice::kTieSetUnseparated: less those separated at the margin
+                pool = [e for e in pool if e is fastest or e["verdict"] != "slower"]
             winner = min(pool, key=rule)
             picks.setdefault((race["device_id"], race["lang"], race["dataset"]), [None] * len(reports))[i] = winner["variant"]
             if not host:

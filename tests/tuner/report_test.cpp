@@ -213,8 +213,9 @@ TEST(Report, ATieSetSpansTheSpreadBetweenProcessesNotTheChoice) {
 // candidates 7% apart, within the margin plus the spread, the one moving
 // fewer bytes wins whichever ran faster; a report before 1.8.0 picked among
 // its contenders and keeps its winners; the host's CPU picks among its tie
-// set too (since 2026-12-02) unless asked otherwise; a choice that is not
-// true or false is an error naming it.
+// set too (since 2026-12-02), less the candidates its race separated (1.20.0),
+// unless asked otherwise; a choice that is not true or false is an error
+// naming it.
 TEST(Report, AGpusWinnerIsPickedAmongItsTieSet) {
   const DeviceIdentity gpu = testing::SampleGpu();
   TuningReport r = TwoCandidates(gpu, 1.07);
@@ -240,9 +241,21 @@ TEST(Report, AGpusWinnerIsPickedAmongItsTieSet) {
   cpu.backend = "cpu";
   cpu.type = "cpu";
   r.devices = {cpu};
-  EXPECT_EQ(r.ChoiceOf(cpu.Id()), Choice::kTieSet) << "the default on the host's CPU too";
+  EXPECT_EQ(r.ChoiceOf(cpu.Id()), Choice::kTieSetUnseparated)
+      << "the default on the host's CPU: its tie set less the candidates its race separated";
+  EXPECT_EQ(json.at("choose_unseparated"), false);
+  EXPECT_EQ(json.at("host_choose_unseparated"), true);
+  nlohmann::json before_unseparated = ReportToJson(r);
+  before_unseparated.erase("choose_unseparated");
+  before_unseparated.erase("host_choose_unseparated");
+  EXPECT_EQ(ReportFromJson(before_unseparated, "old.json").ChoiceOf(cpu.Id()), Choice::kTieSet)
+      << "a report before 1.20.0 picked among the whole tie set";
+  r.host_choose_unseparated = false;
+  EXPECT_EQ(r.ChoiceOf(cpu.Id()), Choice::kTieSet);
   r.host_choose_in_tie_set = false;
   EXPECT_EQ(r.ChoiceOf(cpu.Id()), Choice::kContenders);
+  r.host_choose_unseparated = true;
+  EXPECT_EQ(r.ChoiceOf(cpu.Id()), Choice::kContenders) << "the unseparated choice is within the tie set's";
   json["choose_in_tie_set"] = "yes";
   EXPECT_NE(ErrorOf([&] { ReportFromJson(json, "bad.json"); }).find("choose_in_tie_set"), std::string::npos);
 }

@@ -278,6 +278,37 @@ TEST(Race, ChoosingInTheTieSetPicksItsFewestBytesWhicheverRanFaster) {
       << "with no spread the tie set is the contenders";
 }
 
+// Choice::kTieSetUnseparated (the host's CPU's default): within the tie set,
+// a candidate whose whole interval lies beyond the margin of the fastest's is
+// not picked, however few bytes it moves: steadily slower, not noise. One
+// whose interval reaches within the margin is, as in the whole tie set.
+TEST(Race, ChoosingAmongTheUnseparatedRefusesASteadilySlowerCandidate) {
+  const auto race = [](double spread_of_second) {
+    return std::vector<RaceEntry>{
+        {"fast", Samples(1.00, 0.01, 60, 41), 100, 0},
+        {"slower", Samples(1.30, spread_of_second, 60, 42), 60, 0},
+        {"beyond", Samples(1.70, 0.01, 60, 43), 40, 0},
+    };
+  };
+  const std::vector<RaceEntry> steady = race(0.01);
+  const RaceOutcome whole = JudgeRace(steady, 0.25, 0.25, Choice::kTieSet);
+  const RaceOutcome unseparated = JudgeRace(steady, 0.25, 0.25, Choice::kTieSetUnseparated);
+  ASSERT_EQ(whole.tied, (std::vector<std::size_t>{0, 1})) << "1.3x is inside a quarter plus a quarter";
+  ASSERT_EQ(whole.verdicts[1], RaceVerdict::kSeparated);
+  EXPECT_EQ(steady[whole.winner].key, "slower") << "the whole tie set picks the fewer bytes";
+  EXPECT_EQ(steady[unseparated.winner].key, "fast");
+  EXPECT_EQ(unseparated.tied, whole.tied) << "the tie set itself is unchanged";
+  EXPECT_EQ(unseparated.verdicts, whole.verdicts);
+  // The same median, its samples spread so wide that the interval reaches down to the fastest's.
+  const std::vector<RaceEntry> noisy = race(0.3);
+  const RaceOutcome noisy_out = JudgeRace(noisy, 0.25, 0.25, Choice::kTieSetUnseparated);
+  ASSERT_NE(noisy_out.verdicts[1], RaceVerdict::kSeparated);
+  EXPECT_EQ(noisy[noisy_out.winner].key, "slower") << "noise on the host, not a slower kernel";
+  // The fastest alone unseparated: it is the pick.
+  const std::vector<RaceEntry> lone = {{"only", Samples(1.0, 0.01, 30, 44), 100, 0}};
+  EXPECT_EQ(JudgeRace(lone, 0.25, 0.25, Choice::kTieSetUnseparated).winner, 0u);
+}
+
 TEST(Race, AllWithinNoiseSaysSo) {
   const RaceOutcome out = JudgeRace({{"a", Samples(1.0, 0.001, 30, 21), 1, 0}, {"b", Samples(1.001, 0.001, 30, 22), 1, 0}}, 0.02);
   EXPECT_TRUE(out.all_within_noise);

@@ -123,7 +123,7 @@ TEST(TuneConfig, ErrorsNameTheElement) {
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"repetitions": 0}})"),
             "c.json: timing.repetitions: must be an integer from 1 to 1000000 (got 0)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"reps": 3}})"),
-            "c.json: timing.reps: unknown field (expected one of warmup, repetitions, max_input_sets, tolerance, burst_ms, interval, min_samples, max_samples, sample_batch, sample_ms, race, tie_margin, host_tie_margin, process_spread, host_process_spread, frames_per_sample, host_frames_per_sample, choose_in_tie_set, host_choose_in_tie_set)");
+            "c.json: timing.reps: unknown field (expected one of warmup, repetitions, max_input_sets, tolerance, burst_ms, interval, min_samples, max_samples, sample_batch, sample_ms, race, tie_margin, host_tie_margin, process_spread, host_process_spread, frames_per_sample, host_frames_per_sample, choose_in_tie_set, host_choose_in_tie_set, choose_unseparated, host_choose_unseparated)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"tolerance": -1}})"),
             "c.json: timing.tolerance: must be a positive number (got -1)");
   EXPECT_EQ(ErrorOf(R"({"space": {}, "datasets": ["5000-b2"], "timing": {"race": -1}})"),
@@ -176,6 +176,10 @@ TEST(TuneConfig, ImpossibleStopRulesNameTheField) {
       << usage(R"({"process_spread": -0.01})");
   EXPECT_EQ(usage(R"({"process_spread": 0, "host_process_spread": 0.5})"), "accepted");
   EXPECT_EQ(usage(R"({"choose_in_tie_set": false, "host_choose_in_tie_set": true})"), "accepted");
+  EXPECT_EQ(usage(R"({"choose_unseparated": true, "host_choose_unseparated": false})"), "accepted");
+  EXPECT_NE(usage(R"({"host_choose_unseparated": "no"})").find("timing.host_choose_unseparated: expected true or false"),
+            std::string::npos)
+      << usage(R"({"host_choose_unseparated": "no"})");
   EXPECT_NE(usage(R"({"choose_in_tie_set": 1})").find("timing.choose_in_tie_set: expected true or false (got 1)"),
             std::string::npos)
       << usage(R"({"choose_in_tie_set": 1})");
