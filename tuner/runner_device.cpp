@@ -94,8 +94,12 @@ constexpr int kLaunchStartProbeSamples = 50;
 // it made a cold tune of 48 kernels on 100k-b2 38 s instead of 17 s on the
 // 2-core development machine (docs/PERFORMANCE.md). Compiling ahead fills
 // PoCL's cache, and pays only with enough cores to compile on: on 2 cores it
-// measured no gain (the compiles cost the same, two at a time), so a CPU
-// device compiles ahead only on a host with at least this many logical CPUs.
+// measured no gain (the compiles cost the same, two at a time), and on the
+// 2-core machine (2026-12-02, two cold default runs of each, alternated)
+// SKINTUNE_COMPILE_AHEAD=always took 89.9-92.0 s against 76.8-84.7 without:
+// PoCL's measuring worker built for 10 s instead of 43-46, but its turn took
+// 73-74 s instead of 61-68. So a CPU device compiles ahead only on a host
+// with at least this many logical CPUs.
 constexpr unsigned kMinCpusToCompileAheadForACpuDevice = 8;
 
 // Compile threads that outlive one CompileAhead call, each with a runner of
