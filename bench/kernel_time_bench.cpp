@@ -15,14 +15,18 @@
 // (Runner::ShareTimedInputs); --fresh-inputs allocates each measurement's
 // own, so that a variant named twice is timed over two allocations.
 // With --sequence STEPS (a comma-separated list of cold, frame, copy,
-// prepare, verify, probe): the first variant prepared once, then each step in
-// turn, to find what moves a kernel time from one measurement to the next:
-// cold prints the median of 100 kernel-time samples (after 3 untimed) in one
-// submission with their 10th and 90th percentiles (cold:N takes N), frame
-// the frame time, copy prepares the same-size copy and times it, prepare
-// prepares the variant's input sets again, verify runs its verification
-// launch, each releasing what it made as a measurement does; probe times the
-// device's copy bandwidth as a worker does first (no other step does).
+// prepare, reprepare, reflush, verify, probe): the first variant prepared
+// once, then each step in turn, to find what moves a kernel time from one
+// measurement to the next: cold prints the median of 100 kernel-time samples
+// (after 3 untimed) in one submission with their 10th and 90th percentiles
+// (cold:N takes N), frame the frame time, copy prepares the same-size copy
+// and times it, prepare prepares the variant's input sets again, verify runs
+// its verification launch, each releasing what it made as a measurement does;
+// reprepare prepares the variant again and times that one from then on
+// (bound to the same buffers where the runner shares them, to new ones with
+// --fresh-inputs), reflush gives the steps after a flush buffer of their own;
+// probe times the device's copy bandwidth as a worker does first (no other
+// step does).
 // With --json each cold step's samples are written as a JSON line.
 // With --contexts K: K runners of the device open together (on contexts of
 // their own where its API shares one), and in two rounds each one's launch
@@ -69,7 +73,7 @@ namespace {
 using namespace skintune::internal;
 
 // --sequence: the steps on the first variant (see the header).
-int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache& datasets, const DeviceIdentity& device,
+int RunSequence(tuner_internal::RunnerExecutor& executor, tuner_internal::DatasetCache& datasets, const DeviceIdentity& device,
                 const std::string& dataset, const std::string& key, const std::string& steps,
                 const std::function<void()>& probe, std::ostream* json) {
   const Variant variant = ParseVariantKey(key);
@@ -81,7 +85,7 @@ int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache
   const std::vector<std::vector<std::uint8_t>> palettes = tuner_internal::TimedPalettes(datasets, entry, variant, sets);
   const auto prepare = [&] { return executor.Prepare(packed, kernels, palettes, entry.instances()); };
   const auto cold_us = [](tuner_internal::Executor::Timed& timed) { return tuner_internal::Median(timed.Cold(3, 100)) * 1e3; };
-  const std::unique_ptr<tuner_internal::Executor::Timed> timed = prepare();
+  std::unique_ptr<tuner_internal::Executor::Timed> timed = prepare();
   std::printf("%s on %s, %d input sets\n", key.c_str(), dataset.c_str(), sets);
   std::stringstream list(steps);
   for (std::string step; std::getline(list, step, ',');) {
@@ -107,6 +111,13 @@ int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache
     } else if (step == "prepare") {
       (void)prepare();
       std::printf("  prepare\n");
+    } else if (step == "reprepare") {
+      timed.reset();  // released first, as a measurement releases its own
+      timed = prepare();
+      std::printf("  reprepare\n");
+    } else if (step == "reflush") {
+      executor.ReleaseFlushes();
+      std::printf("  reflush\n");
     } else if (step == "probe") {
       probe();
     } else if (step == "verify") {
@@ -114,7 +125,7 @@ int RunSequence(tuner_internal::Executor& executor, tuner_internal::DatasetCache
       std::printf("  verify\n");
     } else {
       std::fprintf(stderr,
-                   "skintune_bench_kernel_time: --sequence: unknown step '%s' (cold, cold:N, frame, copy, prepare, verify, probe)\n",
+                   "skintune_bench_kernel_time: --sequence: unknown step '%s' (cold, cold:N, frame, copy, prepare, reprepare, reflush, verify, probe)\n",
                    step.c_str());
       return 2;
     }
@@ -245,7 +256,7 @@ int main(int argc, char** argv) {
   app.add_option("--variant", variants, "variant key (repeatable)")->required();
   app.add_option("--launches", launches, "launch each variant's frame N times instead (for ncu)")->check(CLI::Range(0, 100000));
   app.add_flag("--fresh-inputs", fresh_inputs, "allocate each measurement's input sets (the tuner shares one packing's)");
-  app.add_option("--sequence", sequence, "steps on the first variant: cold, cold:N, frame, copy, prepare, verify, probe (comma-separated)");
+  app.add_option("--sequence", sequence, "steps on the first variant: cold, cold:N, frame, copy, prepare, reprepare, reflush, verify, probe (comma-separated)");
   app.add_option("--contexts", contexts, "time the first variant on each of K contexts opened together, in two rounds")
       ->check(CLI::Range(1, 64));
   app.add_option("--json", json, "write each measurement as a JSON line");

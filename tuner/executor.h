@@ -182,6 +182,9 @@ class RunnerExecutor final : public Executor {
   // The flush in `lang`'s API (prepared on first use): the anchor launch
   // where the host flushes.
   const Prepared& Flush(Lang lang);
+  // Releases the flushes prepared so far: the next sample prepares its own
+  // (skintune_bench_kernel_time's reflush step).
+  void ReleaseFlushes() { flushes_.clear(); }
   // The host's flush before each sample, or none: the device flushes itself.
   std::function<void()> BeforeEachSample();
   // The GPU's clock around each batch of samples (inactive where it is not read).

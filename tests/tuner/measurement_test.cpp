@@ -297,7 +297,7 @@ TEST(Measurement, BadMaxErrorSaysWhy) {
 
 TEST(Measurement, CacheKeyNamesDeviceGeneratorDatasetAndVariant) {
   const Measurement m = Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk);
-  EXPECT_EQ(m.CacheKey(), "opencl:Portable Computing Language/cpu/3.1|0.1.0|timing 10|5000-b2|" + m.variant.Key());
+  EXPECT_EQ(m.CacheKey(), "opencl:Portable Computing Language/cpu/3.1|0.1.0|timing 11|5000-b2|" + m.variant.Key());
   Measurement other = m;
   other.generator_version = "0.2.0";
   EXPECT_NE(other.CacheKey(), m.CacheKey());

@@ -251,6 +251,7 @@ class VulkanApi final : public DeviceApi {
   const Context& context() const { return *c_; }
   void RecordInto(VkCommandBuffer cb) { record_into_ = cb; }
   std::uint64_t submissions() const { return submitted_; }
+  const std::vector<VkCommandBuffer>& cold_command_buffers() const { return cold_order_; }
 
   const char* name() const override { return "Vulkan"; }
   const std::string& device_name() const override { return c_->info.name; }
@@ -314,6 +315,20 @@ class VulkanApi final : public DeviceApi {
   // queue first, so that submissions keep their order. `live`: for live
   // frames (RunFrames kLive); any other work sets unordered_since_frames_.
   VkCommandBuffer Begin(bool live = false);
+  // Command buffers and fences kept for reuse (Retire).
+  static constexpr std::size_t kSpares = 16;
+  // The kernel time's frames (RunCold) are recorded into kColdCommandBuffers
+  // command buffers taken in turn, not the one retired last: on NVIDIA's
+  // driver a launch's stamped time depends on the command buffer it is
+  // recorded into, steadily. One 100k-vertex kernel read 4.13-4.42 us by
+  // command buffer (H200, driver 580.159.04, 2026-12-02), so a measurement
+  // on one command buffer carried its level: medians 1.03-1.07x apart from
+  // one process to the next. Sixteen in turn put four processes' medians
+  // within 1.007x (skintune_bench_kernel_time --sequence).
+  static constexpr std::size_t kColdCommandBuffers = 16;
+  static_assert(kColdCommandBuffers <= kSpares, "the cold rotation's command buffers are kept as spares");
+  // Tops the spares up to kColdCommandBuffers.
+  void AllocateColdCommandBuffers();
   // Live frames on a device skintune opened are batched: each Skin() records
   // into the open command buffer, which goes to the queue when nothing of
   // this API's is running on it (so a frame never waits on an idle GPU),
@@ -362,7 +377,9 @@ class VulkanApi final : public DeviceApi {
   std::set<std::string> modules_from_disk_;        // those loaded from the disk cache
   std::map<std::string, Pipeline> pipelines_;      // by source hash and palette storage
   std::vector<Submission> in_flight_;  // oldest first
-  std::vector<VkCommandBuffer> spare_cbs_;  // retired, for reuse
+  std::vector<VkCommandBuffer> spare_cbs_;  // retired, for reuse, the last retired last
+  bool spares_in_turn_ = false;  // Begin takes the longest retired (RunCold), not the last
+  std::vector<VkCommandBuffer> cold_order_;  // the last RunCold's frames' command buffers, in order
   VkCommandBuffer open_frames_ = VK_NULL_HANDLE;  // recording live frames not yet submitted (OpenFrames)
   std::size_t open_frame_count_ = 0;
   std::vector<VkFence> spare_fences_;  // signalled, to be reset before reuse
@@ -675,8 +692,9 @@ VkCommandBuffer VulkanApi::Begin(bool live) {
   Retire(false);
   VkCommandBuffer cb = VK_NULL_HANDLE;
   if (!spare_cbs_.empty()) {
-    cb = spare_cbs_.back();
-    spare_cbs_.pop_back();
+    const auto taken = spares_in_turn_ ? spare_cbs_.begin() : spare_cbs_.end() - 1;
+    cb = *taken;
+    spare_cbs_.erase(taken);
   } else {
     VkCommandBufferAllocateInfo allocate{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
     allocate.commandPool = pool_;
@@ -786,7 +804,6 @@ VkResult VulkanApi::WaitForFence(VkFence fence) const {
 // cost in proportion to the queue's depth. Their command buffers and fences
 // are kept for reuse (at most kSpares; the rest are freed).
 void VulkanApi::Retire(bool wait_all) {
-  constexpr std::size_t kSpares = 16;
   VkResult failure = VK_SUCCESS;
   std::size_t retired = 0;
   for (; retired < in_flight_.size(); ++retired) {
@@ -1064,6 +1081,13 @@ std::vector<std::vector<double>> VulkanApi::RunCold(const FrameRun& run) {
   std::uint32_t stamps = 0;
   for (std::size_t f = untimed; f < frames; ++f) stamps += static_cast<std::uint32_t>(1 + run.frames[f].size());
   const QueryPool pool = NewQueryPool(stamps);
+  AllocateColdCommandBuffers();
+  spares_in_turn_ = true;
+  const struct InTurn {
+    bool& on;
+    ~InTurn() { on = false; }
+  } in_turn{spares_in_turn_};
+  cold_order_.clear();
   const auto serialise = [&](VkCommandBuffer cb) {
     Barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, kShaderAccess, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, kShaderAccess);
   };
@@ -1073,6 +1097,7 @@ std::vector<std::vector<double>> VulkanApi::RunCold(const FrameRun& run) {
   };
   for (std::size_t f = 0; f < frames; ++f) {
     const VkCommandBuffer cb = Begin();
+    cold_order_.push_back(cb);
     if (f == 0 && pool.get()) c_->fn.vkCmdResetQueryPool(cb, pool.get(), 0, stamps);
     RecordPendingUploads(cb, run);  // an animated set's instances, staged since its last frame
     BarrierBeforeFrames(cb);  // after the uploads and everything submitted before
@@ -1105,6 +1130,19 @@ std::vector<std::vector<double>> VulkanApi::RunCold(const FrameRun& run) {
     ++query;  // past the frame's last stamp
   }
   return ms;
+}
+
+void VulkanApi::AllocateColdCommandBuffers() {
+  SubmitOpenFrames();
+  Retire(false);
+  if (spare_cbs_.size() >= kColdCommandBuffers) return;
+  std::vector<VkCommandBuffer> more(kColdCommandBuffers - spare_cbs_.size());
+  VkCommandBufferAllocateInfo allocate{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+  allocate.commandPool = pool_;
+  allocate.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  allocate.commandBufferCount = static_cast<std::uint32_t>(more.size());
+  Check(c_->fn.vkAllocateCommandBuffers(c_->device, &allocate, more.data()), "launch", "vkAllocateCommandBuffers");
+  spare_cbs_.insert(spare_cbs_.end(), more.begin(), more.end());
 }
 
 // The palette (the driver's ring fence says no queued frame reads it, nor
@@ -1309,5 +1347,11 @@ std::vector<std::string> VulkanRunner::validation_messages() const {
 }
 void VulkanRunner::RecordInto(VkCommandBuffer command_buffer) { vk_api().RecordInto(command_buffer); }
 std::uint64_t VulkanRunner::submissions() const { return vk_api().submissions(); }
+
+std::vector<std::uintptr_t> VulkanRunner::cold_command_buffers() const {
+  std::vector<std::uintptr_t> handles;
+  for (VkCommandBuffer cb : vk_api().cold_command_buffers()) handles.push_back(reinterpret_cast<std::uintptr_t>(cb));
+  return handles;
+}
 
 }  // namespace skintune::internal

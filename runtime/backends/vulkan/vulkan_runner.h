@@ -85,6 +85,9 @@ class VulkanRunner final : public Runner {
   void RecordInto(VkCommandBuffer command_buffer);
   // vkQueueSubmit calls so far (live frames are batched: VulkanApi::OpenFrames).
   std::uint64_t submissions() const;
+  // The command buffers the last TimeCold's frames were recorded into, in
+  // order (VulkanApi::kColdCommandBuffers, taken in turn).
+  std::vector<std::uintptr_t> cold_command_buffers() const;
 
  private:
   vk::VulkanApi& vk_api() const;
