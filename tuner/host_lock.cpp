@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <mutex>
+#include <shared_mutex>
 #include <string>
 
 #include "base/error.h"
@@ -27,6 +28,13 @@ int lock_fd = -1;  // the worker's host lock file, or -1 (no lock)
 std::mutex shared_mutex;
 int shared_holds = 0;
 int chip_fd = -1;  // the worker's chip lock file, or -1 (no lock)
+// The chip's quiet (ChipQuiet): a race and the process's landings exclude
+// each other in the process; its landings share one hold of the quiet byte.
+std::shared_mutex quiet_in_process;
+std::mutex quiet_holds_mutex;
+int quiet_holds = 0;
+constexpr off_t kQuietByte = 1;
+constexpr off_t kQuietGateByte = 2;
 
 void Use(int& fd_of, const std::string& path, const char* what) {
   const int fd = ::open(path.c_str(), O_RDWR | O_CLOEXEC);
@@ -45,18 +53,19 @@ bool Take(int fd, int operation) {
   return true;
 }
 
-// The gate: an open-file-description lock on the lock file's first byte
-// (independent of the flock on the whole file, Linux fcntl(2)). flock grants
+// The gate: an open-file-description lock on one byte of the lock file, by
+// default the first (independent of the flock on the whole file, Linux
+// fcntl(2); ChipQuiet locks bytes 1 and 2 of the chip's file the same way). flock grants
 // a shared request while an exclusive one waits, so a CPU device could wait
 // for as long as the GPU workers' shared holds overlap; an exclusive request
 // holds the gate while it waits and while it holds the lock, and a shared
 // request passes the gate before it takes the lock, so it waits behind it.
-bool Gate(int fd, short type) {
+bool Gate(int fd, short type, off_t byte = 0) {
   if (fd < 0) return false;
   struct flock range {};
   range.l_type = type;
   range.l_whence = SEEK_SET;
-  range.l_start = 0;
+  range.l_start = byte;
   range.l_len = 1;
   while (::fcntl(fd, F_OFD_SETLKW, &range) != 0) {
     if (errno != EINTR) return false;
@@ -115,6 +124,49 @@ ChipLock::ChipLock() : held_(Take(chip_fd, LOCK_EX)) {}
 
 ChipLock::~ChipLock() {
   if (held_) ::flock(chip_fd, LOCK_UN);
+}
+
+ChipQuiet::ChipQuiet(Mode mode) : mode_(mode) {
+  const auto start = std::chrono::steady_clock::now();
+  const auto log_wait = [&](const char* who) {
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    if (ms < 20.0 || chip_fd < 0) return;
+    TimingLog([&] {
+      char text[32];
+      std::snprintf(text, sizeof text, "%.1f ms", ms);
+      return std::string("chip quiet: ") + who + " waited " + text + " (pid " + std::to_string(::getpid()) + ")";
+    });
+  };
+  if (mode_ == Mode::kRace) {
+    quiet_in_process.lock();
+    gate_held_ = Gate(chip_fd, F_WRLCK, kQuietGateByte);
+    held_ = Gate(chip_fd, F_WRLCK, kQuietByte);
+    log_wait("a race");
+    return;
+  }
+  quiet_in_process.lock_shared();
+  const bool gated = Gate(chip_fd, F_RDLCK, kQuietGateByte);  // behind a race that waits
+  {
+    const std::lock_guard<std::mutex> lock(quiet_holds_mutex);
+    shared_ = quiet_holds > 0 || Gate(chip_fd, F_RDLCK, kQuietByte);
+    if (shared_) ++quiet_holds;
+  }
+  if (gated) (void)Gate(chip_fd, F_UNLCK, kQuietGateByte);
+  log_wait("an opening, closing or build");
+}
+
+ChipQuiet::~ChipQuiet() {
+  if (mode_ == Mode::kRace) {
+    if (held_) (void)Gate(chip_fd, F_UNLCK, kQuietByte);
+    if (gate_held_) (void)Gate(chip_fd, F_UNLCK, kQuietGateByte);
+    quiet_in_process.unlock();
+    return;
+  }
+  if (shared_) {
+    const std::lock_guard<std::mutex> lock(quiet_holds_mutex);
+    if (--quiet_holds == 0) (void)Gate(chip_fd, F_UNLCK, kQuietByte);
+  }
+  quiet_in_process.unlock_shared();
 }
 
 HostLock::Mode HostWorkMode(bool cpu_device) { return cpu_device ? HostLock::Mode::kNone : HostLock::Mode::kShared; }

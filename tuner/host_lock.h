@@ -92,6 +92,45 @@ class ChipLock {
   bool held_ = false;
 };
 
+// The chip's quiet: a race's rounds (tuner/measure_job.cpp RaceJob), whose
+// samples decide a row's winner and its time, run while no process of the
+// chip's workers lands untimed work on the chip: a context's opening or
+// closing, or a program's build ahead of its measurement (device memory
+// allocated and freed, code loaded). Those run outside the chip's lock, beside
+// another API's timing, and move its kernel times: on an H200 (2026-12-03,
+// driver 580.159.04) one NVIDIA OpenCL kernel read 5.95 us alone and 6.21-6.27
+// beside another process allocating and freeing 256 MiB in a loop (+4.5%),
+// 5.95-6.05 beside one loading and unloading a module; NVIDIA OpenCL tuned alone
+// kept its six winners within 2.1% over three cold runs without compiling
+// ahead and within 3.8% with it, and within 3.9-5.8% (two of six within 3%)
+// beside the other APIs' workers. A race holds the quiet exclusively (kRace),
+// each such opening, closing or build shared (kLanding): builds wait only for
+// the races, a few tenths of a second each, not for the search's measurements.
+//
+// Byte-range locks (Linux open-file-description locks) on the chip's lock
+// file, independent of ChipLock's flock: byte 1 the quiet, byte 2 a gate that
+// a waiting race closes, so that overlapping builds do not starve it (as
+// HostLock's gate). A process's threads share one hold of byte 1 (its compile
+// threads build at once), and a race and a landing in one process exclude
+// each other in the process first. Order: ChipLock, then ChipQuiet, then
+// HostLock; a kLanding hold never takes the chip's lock (a race holding it
+// would wait for that hold). In a process without a chip lock, a no-op
+// across processes.
+class ChipQuiet {
+ public:
+  enum class Mode { kRace, kLanding };
+  explicit ChipQuiet(Mode mode);
+  ~ChipQuiet();
+  ChipQuiet(const ChipQuiet&) = delete;
+  ChipQuiet& operator=(const ChipQuiet&) = delete;
+
+ private:
+  Mode mode_;
+  bool held_ = false;       // kRace: byte 1 and the gate, exclusively
+  bool gate_held_ = false;
+  bool shared_ = false;     // kLanding: one of the process's holds of byte 1
+};
+
 // The parent: a new, empty lock file (the host's or a chip's) in the temporary directory, removed
 // when the object goes; path() is "" when none could be made (then the
 // workers run without a lock, as before).

@@ -416,6 +416,9 @@ bool RaceJob::Run() const {
   std::vector<RaceEntry> entries;
   const std::vector<std::unique_ptr<Executor::Timed>> timed = PrepareRacers(*this, entries);
   const auto prepared = Clock::now();
+  // Its rounds decide the row: no process of the chip's workers lands untimed
+  // work on the chip meanwhile (tuner/host_lock.h ChipQuiet).
+  const ChipQuiet quiet(ChipQuiet::Mode::kRace);
   const HostLock timed_lock(TimedMode(IsHostCpu(*device)));
   const StopRule& rule = options.stop;
   for (const std::unique_ptr<Executor::Timed>& t : timed) (void)t->Cold(std::max(options.warmup, 1), 0);  // as SampleKernelTime

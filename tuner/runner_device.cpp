@@ -145,7 +145,12 @@ class CompileThreads {
     for (;;) {
       std::unique_lock<std::mutex> lock(mutex_);
       wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
-      if (stop_) return;
+      if (stop_) {
+        lock.unlock();
+        const ChipQuiet landing(ChipQuiet::Mode::kLanding);  // its context's closing
+        runner.reset();
+        return;
+      }
       seen = generation_;
       lock.unlock();
       std::size_t i = next_++;
@@ -180,6 +185,15 @@ class RunnerDevice final : public TunedDevice {
   RunnerDevice(FoundDevice device, std::vector<Lang> languages, int index, ExecutorDecorator decorate)
       : device_(std::move(device)), languages_(std::move(languages)), decorate_(std::move(decorate)) {
     device_.identity.index = index;
+  }
+
+  ~RunnerDevice() override {
+    compile_threads_.reset();  // each thread closes its own context under a hold of its own
+    const ChipQuiet landing(ChipQuiet::Mode::kLanding);  // the contexts' closing
+    executor_.reset();
+    runner_.reset();
+    builder_executor_.reset();
+    builder_.reset();
   }
 
   const DeviceIdentity& identity() const override { return device_.identity; }
@@ -235,6 +249,7 @@ class RunnerDevice final : public TunedDevice {
     if (kernels.empty()) return 0;
     std::atomic<std::size_t> built{0};
     const auto build = [&](skintune::internal::Runner& runner, std::size_t i) {
+      const ChipQuiet landing(ChipQuiet::Mode::kLanding);  // the program lands on the chip
       const HostLock held(host_work);
       try {
         runner.Build(kernels[i]);
@@ -312,6 +327,7 @@ class RunnerDevice final : public TunedDevice {
       return *runner_;
     }
     if (!builder_) {
+      const ChipQuiet landing(ChipQuiet::Mode::kLanding);  // a context's opening
       const HostLock held(host_work);
       std::unique_ptr<skintune::internal::Runner> opened = device_.open();
       if (cache_.enabled()) opened->UseProgramCache(&cache_, device_.identity.Id());
@@ -369,7 +385,11 @@ class RunnerDevice final : public TunedDevice {
   CompileThreads& CompileThreadsOfTheirOwn() {
     if (!compile_threads_)
       compile_threads_ = std::make_unique<CompileThreads>(CompileThreadCount(), [this] {
-        std::unique_ptr<skintune::internal::Runner> runner = device_.open();
+        std::unique_ptr<skintune::internal::Runner> runner;
+        {
+          const ChipQuiet landing(ChipQuiet::Mode::kLanding);  // a context's opening
+          runner = device_.open();
+        }
         if (cache_.enabled()) {
           const std::lock_guard<std::mutex> lock(thread_caches_mutex_);
           runner->UseProgramCache(&thread_caches_.emplace_back(cache_.dir()), device_.identity.Id());
@@ -522,7 +542,10 @@ QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::uniq
     samples.emplace_back();
     try {
       Clock::time_point t = Clock::now();
-      runners.back() = open();
+      {
+        const ChipQuiet landing(ChipQuiet::Mode::kLanding);  // a context's opening, not its probe
+        runners.back() = open();
+      }
       quickest.open_ms.push_back(ms_since(t));
       t = Clock::now();
       probes.back() = probe_of(*runners.back());
@@ -553,6 +576,8 @@ QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::uniq
     }
   }
   if (!quickest.runner) throw last ? *last : Error("OpenQuickest: no runner to open");
+  const ChipQuiet landing(ChipQuiet::Mode::kLanding);  // the others' closing
+  runners.clear();
   return quickest;
 }
 

@@ -145,6 +145,94 @@ TEST(ChipLock, AnotherApisWorkOnTheChipWaitsWhileOneHoldsIt) {
   EXPECT_THROW(UseChipLock("/nonexistent-dir/skintune-chip-lock"), Error);
 }
 
+// The chip's quiet: a race waits while another process lands untimed work
+// on the chip (a context's opening or closing, a build ahead), and such work
+// waits while a race runs; the chip's lock, which a measurement holds, does
+// not stop that work.
+TEST(ChipQuiet, ARaceAndAnotherProcesssLandingsWaitForEachOther) {
+  const HostLockFile file("chip");
+  ASSERT_FALSE(file.path().empty());
+  Holder builder([&] {  // another API's worker building ahead, 300 ms
+    UseChipLock(file.path());
+    new ChipQuiet(ChipQuiet::Mode::kLanding);
+  });
+  UseChipLock(file.path());
+  Clock::time_point start = Clock::now();
+  { const ChipQuiet race(ChipQuiet::Mode::kRace); EXPECT_GE(MsSince(start), 200.0) << "a race ran beside a build"; }
+  builder.Join();
+  Holder racer([&] {
+    UseChipLock(file.path());
+    new ChipQuiet(ChipQuiet::Mode::kRace);
+  });
+  start = Clock::now();
+  { const ChipQuiet landing(ChipQuiet::Mode::kLanding); EXPECT_GE(MsSince(start), 200.0) << "a build ran beside a race"; }
+  racer.Join();
+  Holder measuring([&] {  // a measurement holds the chip: builds go on beside it
+    UseChipLock(file.path());
+    new ChipLock;
+  });
+  start = Clock::now();
+  { const ChipQuiet landing(ChipQuiet::Mode::kLanding); EXPECT_LT(MsSince(start), 100.0) << "a build waited for a measurement"; }
+  measuring.Join();
+}
+
+// A race that asks while builds hold the quiet gets it before any build
+// asked after it (builds that overlap one another cannot keep it waiting),
+// and one process's threads share one hold: the race waits for the last.
+TEST(ChipQuiet, ARaceWaitsOnlyForTheBuildsUnderWayWhenItAsked) {
+  const HostLockFile file("chip");
+  ASSERT_FALSE(file.path().empty());
+  UseChipLock(file.path());
+  const Clock::time_point start = Clock::now();
+  const auto build = [](int from_ms, int to_ms, const Clock::time_point t0) {
+    std::this_thread::sleep_until(t0 + std::chrono::milliseconds(from_ms));
+    const ChipQuiet landing(ChipQuiet::Mode::kLanding);
+    std::this_thread::sleep_until(t0 + std::chrono::milliseconds(to_ms));
+  };
+  // Forked before the builds start: a child forked while its parent's threads
+  // hold the quiet would inherit their in-process hold.
+  const pid_t racer = ::fork();  // asks at ~50 ms, races 300 ms once given
+  if (racer == 0) {
+    UseChipLock(file.path());
+    std::this_thread::sleep_until(start + std::chrono::milliseconds(50));
+    const ChipQuiet race(ChipQuiet::Mode::kRace);
+    const bool waited_for_the_long_build = MsSince(start) >= 350.0;
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    ::_exit(waited_for_the_long_build ? 0 : 1);
+  }
+  ASSERT_GT(racer, 0);
+  std::thread long_build(build, 0, 400, start);   // a compile thread's kernel until ~400 ms
+  std::thread short_build(build, 20, 100, start);  // another's, ending at ~100 ms
+  std::this_thread::sleep_until(start + std::chrono::milliseconds(150));  // the race is waiting
+
+  double got_after = 0;
+  {
+    const ChipQuiet later_build(ChipQuiet::Mode::kLanding);
+    got_after = MsSince(start);
+  }
+  long_build.join();
+  short_build.join();
+  int status = 0;
+  ASSERT_EQ(::waitpid(racer, &status, 0), racer);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "the race ran while a thread still built";
+  EXPECT_GE(got_after, 650.0) << "a build asking after the race went ahead of it";
+}
+
+// In one process too: a race waits for its own process's builds.
+TEST(ChipQuiet, ARaceWaitsForItsOwnProcesssBuilds) {
+  const HostLockFile file("chip");
+  ASSERT_FALSE(file.path().empty());
+  UseChipLock(file.path());
+  const Clock::time_point start = Clock::now();
+  std::thread build([&] {
+    const ChipQuiet landing(ChipQuiet::Mode::kLanding);
+    std::this_thread::sleep_until(start + std::chrono::milliseconds(300));
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  { const ChipQuiet race(ChipQuiet::Mode::kRace); EXPECT_GE(MsSince(start), 250.0) << "a race ran beside its own build"; }
+  build.join();
+}
+
 TEST(HostLock, AMissingLockFileIsOneErrorNamingIt) {
   try {
     UseHostLock("/nonexistent-dir/skintune-host-lock");
