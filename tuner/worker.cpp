@@ -701,7 +701,11 @@ int RunTuneWorker(const TuneWorkerArgs& args) {
       const auto start = std::chrono::steady_clock::now();
       const char* only = args.discover_only.empty() ? nullptr : args.discover_only.c_str();
       const tuner_internal::GivenCache given{args.device_id, args.cache_bytes, args.cache_source};
-      discovery = tuner_internal::DiscoverTunedDevices(faults, only, args.cache_bytes ? &given : nullptr);
+      {
+        // The APIs' contexts opened to discover: untimed work on the chip, which a race there waits for.
+        const tuner_internal::ChipQuiet landing(tuner_internal::ChipQuiet::Mode::kLanding);
+        discovery = tuner_internal::DiscoverTunedDevices(faults, only, args.cache_bytes ? &given : nullptr);
+      }
       TimingLog([&] {
         return "tune-worker " + args.device_id + ": " +
                (only ? args.discover_only + "'s" : std::string("every API's")) +
