@@ -570,6 +570,8 @@ TEST(TuneCli, CpuDeviceQuickTuneVerifiesTimesAndWritesAWinner) {
   }
   EXPECT_EQ(ok, 6u);  // 3 layouts x 2 weight formats
   EXPECT_EQ(invalid, 6u);
+  // The run's count of invalid points says what ruled them out.
+  EXPECT_NE(r.out.find("6 invalid (local_memory 6)"), std::string::npos) << r.out;
   ASSERT_FALSE(report.at("winners").empty());
   for (const nlohmann::json& w : report.at("winners")) EXPECT_EQ(w.at("lang"), "cpu") << w.dump();
   const nlohmann::json db = nlohmann::json::parse(ReadAll(out / "winners-db.json"));
