@@ -186,10 +186,7 @@ void PrintDeviceWinners(const TuningReport& report) {
     PrintFasterOverBudget(faster, d.Id(), report.max_error);
   }
   for (const std::string& s : report.skipped) std::cout << "not tuned: " << s << "\n";
-  std::map<std::string, std::size_t> statuses;
-  for (const Measurement& m : report.measurements) ++statuses[Name(m.status)];
-  std::string counts;
-  for (const auto& [status, n] : statuses) counts += (counts.empty() ? "" : ", ") + std::to_string(n) + " " + status;
+  const std::string counts = MeasurementCounts(report);
   std::cout << "\nmeasurements: " << (counts.empty() ? "none" : counts) << "\n";
 }
 

@@ -41,6 +41,19 @@ std::string ContentsOf(const std::string& name, const TuningReport& report) {
   throw Error("internal: no contents for output file '" + name + "'");
 }
 
+// The constraint an invalid measurement's detail names first, the variant
+// ruled out before it ran ("local_memory: storage local: ... exceeds local
+// memory 0 B"), or "when run" (a figure rejected once measured, such as a
+// kernel time beyond the device's bandwidth).
+std::string RuledOutBy(const std::string& detail) {
+  const std::size_t colon = detail.find(':');
+  const std::string head = detail.substr(0, colon);
+  const bool named = colon != std::string::npos && !head.empty() && std::all_of(head.begin(), head.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || c == '_';
+  });
+  return named ? head : "when run";
+}
+
 }  // namespace
 
 nlohmann::json LoadConfigJson(const std::string& config) {
@@ -174,6 +187,24 @@ void AddTuneJobOptions(CLI::App& sub, TuneJobOptions& o) {
   sub.add_flag("--quiet", o.quiet, "no progress on stderr");
 }
 
+std::string MeasurementCounts(const TuningReport& report) {
+  std::map<std::string, std::size_t> statuses;
+  std::map<std::string, std::size_t> ruled_out;  // invalid points by the constraint named first in their detail
+  for (const Measurement& m : report.measurements) {
+    ++statuses[Name(m.status)];
+    if (m.status == MeasureStatus::kInvalid) ++ruled_out[RuledOutBy(m.detail)];
+  }
+  std::string counts;
+  for (const auto& [status, n] : statuses) {
+    counts += (counts.empty() ? "" : ", ") + std::to_string(n) + " " + status;
+    if (status != Name(MeasureStatus::kInvalid)) continue;
+    std::string by;
+    for (const auto& [constraint, k] : ruled_out) by += (by.empty() ? "" : ", ") + constraint + " " + std::to_string(k);
+    counts += " (" + by + ")";
+  }
+  return counts;
+}
+
 std::string FormatTable(const std::vector<std::vector<std::string>>& rows, const std::vector<std::size_t>& right) {
   std::vector<std::size_t> widths;
   for (const auto& row : rows) {
@@ -192,19 +223,6 @@ std::string FormatTable(const std::vector<std::vector<std::string>>& rows, const
     text += line + "\n";
   }
   return text;
-}
-
-// The constraint an invalid measurement's detail names first, the variant
-// ruled out before it ran ("local_memory: storage local: ... exceeds local
-// memory 0 B"), or "when run" (a figure rejected once measured, such as a
-// kernel time beyond the device's bandwidth).
-std::string RuledOutBy(const std::string& detail) {
-  const std::size_t colon = detail.find(':');
-  const std::string head = detail.substr(0, colon);
-  const bool named = colon != std::string::npos && !head.empty() && std::all_of(head.begin(), head.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || c == '_';
-  });
-  return named ? head : "when run";
 }
 
 std::string Sci(double value) {
@@ -242,20 +260,7 @@ void PrintWinners(const TuningReport& report) {
                     e.known ? Sci(e.position_rel) : "-", e.known ? Sci(e.quantisation_rel) : "-",
                     Sci(w.max_relative_error), is_chosen ? "* winner" : w.within_budget ? "within" : "over"});
   }
-  std::map<std::string, std::size_t> statuses;
-  std::map<std::string, std::size_t> ruled_out;  // invalid points by the constraint named first in their detail
-  for (const Measurement& m : report.measurements) {
-    ++statuses[Name(m.status)];
-    if (m.status == MeasureStatus::kInvalid) ++ruled_out[RuledOutBy(m.detail)];
-  }
-  std::string counts;
-  for (const auto& [status, n] : statuses) {
-    counts += (counts.empty() ? "" : ", ") + std::to_string(n) + " " + status;
-    if (status != Name(MeasureStatus::kInvalid)) continue;
-    std::string by;
-    for (const auto& [constraint, k] : ruled_out) by += (by.empty() ? "" : ", ") + constraint + " " + std::to_string(k);
-    counts += " (" + by + ")";
-  }
+  const std::string counts = MeasurementCounts(report);
   if (winners.empty()) {
     std::cout << "no variant passed verification on any device\n";
   } else {

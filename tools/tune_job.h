@@ -67,6 +67,11 @@ void WriteFilesTogether(const std::vector<std::pair<std::filesystem::path, std::
 // or not; then the measurement counts per status and the budget.
 void PrintWinners(const TuningReport& report);
 
+// "3 invalid (local_memory 3), 12 ok": the report's measurements counted by
+// status, the invalid ones by what ruled them out (the constraint their
+// detail names first, or "when run" for a figure rejected once measured).
+std::string MeasurementCounts(const TuningReport& report);
+
 // "1.2e-04": an error in the tables.
 std::string Sci(double value);
 

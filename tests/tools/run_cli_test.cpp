@@ -144,6 +144,32 @@ TEST(RunCli, TunesEveryDeviceWritesTheFilesAndPrintsEachDevicesWinners) {
   EXPECT_EQ(again.err.find("compiling"), std::string::npos) << again.err;  // nothing left to compile ahead
 }
 
+// The run's count of invalid points says what ruled them out: the cpu
+// device has no local memory, so its local-storage points are invalid by
+// that constraint, not failures.
+TEST(RunCli, TheCountOfInvalidPointsNamesWhatRuledThemOut) {
+  const fs::path dir = Scratch();
+  testing::TinyTuneConfig config;
+  config.langs = {"cpu"};
+  config.storages = {"global", "local"};
+  config.wg_sizes = {0};
+  const fs::path path = dir / "cpu.json";
+  std::ofstream(path) << config.Json().dump(2);
+  const auto r = RunSkintune({"run", "--config", path.string(), "--out", (dir / "results").string(), "--cpu-check",
+                              "none", "--device", "cpu"});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(dir / "results" / "report.json"));
+  std::size_t invalid = 0;
+  for (const nlohmann::json& m : report.at("measurements")) {
+    if (m.at("status") != "invalid") continue;
+    ++invalid;
+    EXPECT_EQ(m.at("detail").get<std::string>().rfind("local_memory: ", 0), 0u) << m.dump();
+  }
+  ASSERT_GT(invalid, 0u) << r.out;
+  const std::string expected = std::to_string(invalid) + " invalid (local_memory " + std::to_string(invalid) + ")";
+  EXPECT_NE(r.out.find("measurements: " + expected), std::string::npos) << expected << "\n" << r.out;
+}
+
 TEST(RunCli, BadInputIsOneErrorLineAndLeavesThePreviousResults) {
   const fs::path dir = Scratch();
   const fs::path out = dir / "results";
