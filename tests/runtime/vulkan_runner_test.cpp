@@ -95,6 +95,20 @@ class Validated : public ::testing::Test {
     const std::vector<std::string> messages = runner_->validation_messages();
     for (std::size_t m = before_; m < messages.size(); ++m) ADD_FAILURE() << "validation: " << messages[m];
   }
+  // CesiumMan prepared for a B=4 variant and a 4 KiB flush: what the cold-frame tests time.
+  struct ColdFrames {
+    Prepared mesh;
+    Prepared flush;
+  };
+  ColdFrames PrepareColdFrames() {
+    const Variant variant =
+        ParseVariantKey("vulkan.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals");
+    const SkinnedAsset& asset = SmallAsset("cesium");
+    const PackedMesh packed = Pack(asset.mesh, variant);
+    const std::vector<KernelSource> kernels = EmitLaunchKernels(packed, 1);
+    const std::vector<std::vector<std::uint8_t>> palettes = {PackPalette(asset.PaletteAt(-1, 0.0), variant)};
+    return {runner_->Prepare(packed, kernels, palettes), runner_->PrepareFlush(Lang::kVulkan, 4096)};
+  }
   VulkanRunner* runner_ = nullptr;
   std::string why_;
   std::size_t before_ = 0;
@@ -224,17 +238,10 @@ TEST_F(Validated, TheFrameLoopThroughStagingIsEachFramesGold) {
 // last four of every sixteen took 5.1 us where the others took 5.9 (an H200,
 // December 2026). Two untimed frames and five samples: seven submissions.
 TEST_F(Validated, ColdFramesAreSubmittedOneAtATime) {
-  const char* key = "vulkan.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals";
-  const Variant variant = ParseVariantKey(key);
-  const SkinnedAsset& asset = SmallAsset("cesium");
-  const PackedMesh packed = Pack(asset.mesh, variant);
-  const std::vector<KernelSource> kernels = EmitLaunchKernels(packed, 1);
-  const std::vector<std::vector<std::uint8_t>> palettes = {PackPalette(asset.PaletteAt(-1, 0.0), variant)};
-  const Prepared mesh = runner_->Prepare(packed, kernels, palettes);
-  const Prepared flush = runner_->PrepareFlush(Lang::kVulkan, 4096);
-  (void)runner_->TimeCold(mesh, flush, 1, 1);  // uploads and builds done
+  const ColdFrames cold = PrepareColdFrames();
+  (void)runner_->TimeCold(cold.mesh, cold.flush, 1, 1);  // uploads and builds done
   const std::uint64_t before = runner_->submissions();
-  const std::vector<double> ms = runner_->TimeCold(mesh, flush, 2, 5);
+  const std::vector<double> ms = runner_->TimeCold(cold.mesh, cold.flush, 2, 5);
   EXPECT_EQ(ms.size(), 5u);
   EXPECT_EQ(runner_->submissions() - before, 7u);
 }
@@ -245,17 +252,10 @@ TEST_F(Validated, ColdFramesAreSubmittedOneAtATime) {
 // 100k-vertex kernel on an H200, December 2026), so a kernel time taken on
 // one carried that command buffer's level from one process to the next.
 TEST_F(Validated, ColdFramesTakeSixteenCommandBuffersInTurn) {
-  const char* key = "vulkan.b4.padded.soa.float4.u16.f32.mat3x4.global.matrix.v1c.wg64.nonormals";
-  const Variant variant = ParseVariantKey(key);
-  const SkinnedAsset& asset = SmallAsset("cesium");
-  const PackedMesh packed = Pack(asset.mesh, variant);
-  const std::vector<KernelSource> kernels = EmitLaunchKernels(packed, 1);
-  const std::vector<std::vector<std::uint8_t>> palettes = {PackPalette(asset.PaletteAt(-1, 0.0), variant)};
-  Prepared mesh = runner_->Prepare(packed, kernels, palettes);
-  const Prepared flush = runner_->PrepareFlush(Lang::kVulkan, 4096);
-  (void)runner_->TimeCold(mesh, flush, 1, 1);
-  (void)runner_->FrameMs(mesh, 2, 8);  // frames of the loop retire their command buffers in between
-  const std::vector<double> ms = runner_->TimeCold(mesh, flush, 2, 38);
+  ColdFrames cold = PrepareColdFrames();
+  (void)runner_->TimeCold(cold.mesh, cold.flush, 1, 1);
+  (void)runner_->FrameMs(cold.mesh, 2, 8);  // frames of the loop retire their command buffers in between
+  const std::vector<double> ms = runner_->TimeCold(cold.mesh, cold.flush, 2, 38);
   EXPECT_EQ(ms.size(), 38u);
   const std::vector<std::uintptr_t> order = runner_->cold_command_buffers();
   ASSERT_EQ(order.size(), 40u);
