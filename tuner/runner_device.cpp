@@ -83,6 +83,14 @@ constexpr unsigned kMaxCompileThreads = 8;
 // the API before it measures); NVIDIA's OpenCL, whose chosen contexts read
 // within 1.2% across those runs, from six.
 int ContextsToChoose(const DeviceIdentity& device) { return device.backend == "cuda" ? 10 : 6; }
+
+// A runner opened as untimed work on the chip (tuner/host_lock.h ChipQuiet):
+// its context's allocations wait for a race there, and a race for them.
+std::unique_ptr<skintune::internal::Runner> OpenQuietly(
+    const std::function<std::unique_ptr<skintune::internal::Runner>()>& open) {
+  const ChipQuiet landing(ChipQuiet::Mode::kLanding);
+  return open();
+}
 constexpr std::size_t kLaunchStartProbeBytes = 4096;
 constexpr int kLaunchStartProbeRounds = 2;
 constexpr int kLaunchStartProbeUntimed = 3;
@@ -327,7 +335,7 @@ class RunnerDevice final : public TunedDevice {
       return *runner_;
     }
     if (!builder_) {
-      const ChipQuiet landing(ChipQuiet::Mode::kLanding);  // a context's opening
+      const ChipQuiet landing(ChipQuiet::Mode::kLanding);  // a context's opening, before the host lock (host_lock.h)
       const HostLock held(host_work);
       std::unique_ptr<skintune::internal::Runner> opened = device_.open();
       if (cache_.enabled()) opened->UseProgramCache(&cache_, device_.identity.Id());
@@ -385,11 +393,7 @@ class RunnerDevice final : public TunedDevice {
   CompileThreads& CompileThreadsOfTheirOwn() {
     if (!compile_threads_)
       compile_threads_ = std::make_unique<CompileThreads>(CompileThreadCount(), [this] {
-        std::unique_ptr<skintune::internal::Runner> runner;
-        {
-          const ChipQuiet landing(ChipQuiet::Mode::kLanding);  // a context's opening
-          runner = device_.open();
-        }
+        std::unique_ptr<skintune::internal::Runner> runner = OpenQuietly(device_.open);
         if (cache_.enabled()) {
           const std::lock_guard<std::mutex> lock(thread_caches_mutex_);
           runner->UseProgramCache(&thread_caches_.emplace_back(cache_.dir()), device_.identity.Id());
@@ -478,7 +482,7 @@ std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevic
   // The one runner the device opens, and its launch start (left 0 where the
   // probe fails: the measurements say why, if the device cannot time).
   const auto opened = [&](const std::string& why) {
-    std::unique_ptr<skintune::internal::Runner> runner = device.open();
+    std::unique_ptr<skintune::internal::Runner> runner = OpenQuietly(device.open);
     std::vector<double> samples;
     try {
       const LaunchStartRound round = probe_of(*runner);
@@ -495,7 +499,7 @@ std::unique_ptr<skintune::internal::Runner> OpenMeasuringRunner(const FoundDevic
     if (context) context->launch_start_ms = ms;
     return runner;
   };
-  if (!ProbesLaunchStart(device)) return device.open();
+  if (!ProbesLaunchStart(device)) return OpenQuietly(device.open);
   if (!ChoosesContext(device)) return opened("");
   QuickestRunner quickest;
   try {
@@ -542,10 +546,7 @@ QuickestRunner OpenQuickest(int count, int rounds, const std::function<std::uniq
     samples.emplace_back();
     try {
       Clock::time_point t = Clock::now();
-      {
-        const ChipQuiet landing(ChipQuiet::Mode::kLanding);  // a context's opening, not its probe
-        runners.back() = open();
-      }
+      runners.back() = OpenQuietly(open);  // not its probe, which times on the chip
       quickest.open_ms.push_back(ms_since(t));
       t = Clock::now();
       probes.back() = probe_of(*runners.back());
