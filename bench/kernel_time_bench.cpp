@@ -36,8 +36,9 @@
 // a tuning run's worker opens (OpenMeasuringRunner: the quickest of several
 // contexts where the API has contexts of a runner's own).
 // With --launches N: each variant run once (Runner::Run, no timing), then
-// its frame launched N times back to back and waited for
-// (Runner::LaunchSet): what Nsight Compute profiles, e.g.
+// N cold frames as the kernel time takes them (one untimed first: the flush,
+// then the frame, each waited for): the launches the tuner times, for Nsight
+// Compute to time them too, e.g.
 //
 //   ncu --cache-control all --clock-control none -k regex:^skin$ --metrics gpu__time_duration.sum
 //       skintune_bench_kernel_time --device cuda: --dataset 100k-b4 --variant ... --launches 20
@@ -217,10 +218,9 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
       const PackedMesh& packed = tuner_internal::PackScene(datasets, entry, variant, kernels);
       const std::vector<std::vector<std::uint8_t>> palettes = tuner_internal::TimedPalettes(datasets, entry, variant, 1);
       (void)runner->Run(packed, kernels, palettes.front(), entry.instances());
-      Prepared prepared = runner->Prepare(packed, kernels, palettes, entry.instances());
-      for (int i = 0; i < launches; ++i) runner->LaunchSet(prepared, 0);
-      runner->Finish();
-      std::printf("%s: %d launches\n", key.c_str(), launches);
+      // The launches the kernel time times: each frame after the flush, waited for.
+      (void)executor.Prepare(packed, kernels, palettes, entry.instances())->Cold(1, launches);
+      std::printf("%s: %d cold frames\n", key.c_str(), launches);
       continue;
     }
     const TimingOptions timing = TimingOptions{}.ForDevice(device->identity);  // as the tuner times this device

@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Summaries of bench/kernel-time/run.sh's outputs.
 
-  compare.py ncu OUT SIZE...      skintune's kernel time against Nsight Compute's gpu__time_duration, per variant and size
+  compare.py ncu LAUNCHES OUT SIZE...
+                                  skintune's kernel time against Nsight Compute's gpu__time_duration of the last
+                                  LAUNCHES cold frames of each variant (the bench's --launches), per variant and size
   compare.py runs REPORT...       the chosen winners of several `skintune run` reports: agreement, tie sets, spread
   compare.py twins OUT            one variant's kernel time in each language, per size
   compare.py turns LOG...         each run's devices from its SKINTUNE_TIMING_LOG: when each turn ran, the chip's
@@ -20,7 +22,26 @@
 import csv, glob, json, os, re, statistics, sys
 
 
-def ncu(out, sizes):
+def by_variant(rows, variants, path):
+    """Nsight Compute's rows of one process split by variant: each variant's kernels
+    follow each other, its verification launch, its warm-up (as many as the clock
+    took) and its cold frames, and neighbours differ in block size (run.sh ncu's
+    list). The last `launches` of each are its cold frames."""
+    if not rows:
+        return []
+    segments = [[rows[0]]]
+    for r in rows[1:]:
+        if r["Block Size"] == segments[-1][-1]["Block Size"]:
+            segments[-1].append(r)
+        else:
+            segments.append([r])
+    if len(segments) != variants:
+        sys.exit("%s: %d runs of one block size for %d variants: neighbouring variants must differ in block size"
+                 % (path, len(segments), variants))
+    return segments
+
+
+def ncu(out, sizes, launches):
     print("size      variant                                                               skintune us   ncu us   ratio")
     worst = 0.0
     for size in sizes:
@@ -30,7 +51,7 @@ def ncu(out, sizes):
         if os.path.exists(path):
             lines = [l for l in open(path) if l.startswith('"')]
             rows = [r for r in csv.DictReader(lines) if r.get("Metric Name") == "gpu__time_duration.sum"]
-        per = len(rows) // max(len(ours), 1)
+        segments = by_variant(rows, len(ours), path)
         keys = [m["variant"]["key"] for m in ours]
         for i, m in enumerate(ours):
             key = m["variant"]["key"]
@@ -38,7 +59,7 @@ def ncu(out, sizes):
             # process's first kernels (run.sh ncu), shown and not counted.
             warm_up = key in keys[i + 1:]
             mine = m["timing"]["median_ms"] * 1e3
-            theirs = [float(r["Metric Value"].replace(",", "")) / 1e3 for r in rows[i * per:(i + 1) * per]]
+            theirs = [float(r["Metric Value"].replace(",", "")) / 1e3 for r in segments[i][-launches:]] if segments else []
             if not theirs:
                 print("%-9s %-70s %10.3f        -       -" % (size, key, mine))
                 continue
@@ -65,9 +86,16 @@ def launch_starts(report):
             for m in json.load(open(report))["measurements"] if "timing" in m}
 
 
+def sm_clocks(report):
+    """Each (device, dataset, variant key)'s lowest SM clock around its batches (timing.sm_clock_mhz; 0: not read)."""
+    return {(m["device_id"], m["dataset"], m["variant"]["key"]): m["timing"].get("sm_clock_mhz", 0)
+            for m in json.load(open(report))["measurements"] if "timing" in m}
+
+
 def runs(reports):
     all_rows = [chosen(p) for p in reports]
     starts = [launch_starts(p) for p in reports]
+    clocks = [sm_clocks(p) for p in reports]
     keys = sorted(set().union(*[set(r) for r in all_rows]))
     same = compatible = 0
     worst_spread = 1.0
@@ -91,8 +119,10 @@ def runs(reports):
         if spread > 1.03:
             # The winners' contexts' launch starts: how much of the spread is the context's.
             ls = [st.get((k[0], k[2], n), 0.0) for st, n in zip(starts, names)]
+            mhz = [st_clock.get((k[0], k[2], n), 0) for st_clock, n in zip(clocks, names)]
             print("spread %.3f: %s %s %s: %s" % (spread, k[0][:40], k[1], k[2], ", ".join(
-                "%.2f us (launch start %.2f)" % (t * 1e3, l * 1e3) for t, l in zip(times, ls))))
+                "%.2f us (launch start %.2f, SM clock %s MHz)" % (t * 1e3, l * 1e3, c or "-")
+                for t, l, c in zip(times, ls, mhz))))
         # As if every run's context had the same launch start (their mean; 0 where none was
         # probed: the host's CPU): how much of the spread is the contexts'.
         ls = [st.get((k[0], k[2], n), 0.0) for st, n in zip(starts, names)]
@@ -244,7 +274,7 @@ def turns(logs):
 if __name__ == "__main__":
     mode = sys.argv[1]
     if mode == "ncu":
-        ncu(sys.argv[2], sys.argv[3:])
+        ncu(sys.argv[3], sys.argv[4:], int(sys.argv[2]))
     elif mode == "runs":
         runs(sys.argv[2:])
     elif mode == "twins":

@@ -34,6 +34,7 @@ case "$mode" in
     # (compare.py shows that row and does not count it). Nsight Compute read the
     # variant that came first in its process 5% quicker than where it came last
     # (docs/PERFORMANCE.md "Nsight Compute").
+    launches=10
     args=(--variant "${cuda_variants[-1]}")
     for v in "${cuda_variants[@]}"; do args+=(--variant "$v"); done
     for size in $sizes; do
@@ -41,10 +42,10 @@ case "$mode" in
         > "$out/skintune-$size.txt" 2>&1 || cat "$out/skintune-$size.txt"
       [ -n "$ncu" ] || { echo "no ncu"; continue; }
       "$ncu" --cache-control all --clock-control none -k 'regex:^skin$' --metrics gpu__time_duration.sum --csv \
-        --print-units base "$bin/skintune_bench_kernel_time" --device cuda: --dataset "$size" "${args[@]}" --launches 10 \
+        --print-units base "$bin/skintune_bench_kernel_time" --device cuda: --dataset "$size" "${args[@]}" --launches "$launches" \
         > "$out/ncu-$size.csv" 2> "$out/ncu-$size.err" || tail -5 "$out/ncu-$size.err"
     done
-    python3 "$here/bench/kernel-time/compare.py" ncu "$out" $sizes | tee "$out/ncu-summary.txt"
+    python3 "$here/bench/kernel-time/compare.py" ncu "$launches" "$out" $sizes | tee "$out/ncu-summary.txt"
     ;;
   runs)
     n=${1:?runs N}
