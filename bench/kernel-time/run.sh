@@ -10,6 +10,8 @@
 #                                         their timing logs (turns.txt: when each device's turn ran)
 #   bench/kernel-time/run.sh twins        one variant in OpenCL, CUDA and Vulkan (and GLSL) at 100k..6400k-b4:
 #                                         its kernel time, its context's launch start and the kernel beyond it
+#   bench/kernel-time/run.sh suite PART   the GPU suite's half PART (1 or 2): every test this machine can run
+#                                         (suite-PART-summary.txt: the count, and every test failed or skipped)
 #
 # Writes under $OUT (default ./out); prints a short table last.
 set -euo pipefail
@@ -17,7 +19,7 @@ here=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 out=${OUT:-$here/out}
 bin="$here/build/bin"
 mkdir -p "$out"
-mode=${1:?usage: run.sh ncu|runs N ARGS|twins}
+mode=${1:?usage: run.sh ncu|runs N ARGS|twins|suite PART}
 shift
 sizes=${SIZES:-"25k-b4 100k-b4 400k-b4 1600k-b4 6400k-b4"}
 cuda_variants=(
@@ -75,6 +77,20 @@ case "$mode" in
       done
     done
     python3 "$here/bench/kernel-time/compare.py" twins "$out" | tee "$out/twins-summary.txt"
+    ;;
+  suite)
+    # The GPU suite: every test but those that need this repository's toolchain (builds,
+    # linters, the browser, the schema and paper tools) or wait out a timeout by design,
+    # in two halves (PART 1 or 2) so that each fits one device call.
+    part=${1:?suite PART (1 or 2)}
+    total=$(ctest --test-dir "$here/build" -N | sed -n 's/^Total Tests: //p')
+    half=$(( (total + 1) / 2 ))
+    if [ "$part" = 1 ]; then range="1,$half"; else range="$((half + 1)),$total"; fi
+    ctest --test-dir "$here/build" -j "$(nproc)" --timeout 200 -I "$range" \
+      -E 'InjectedHang|Schema|Consumer|^Build\.|Floors|Namespaces|FunctionLength|ReportBrowser|fuzz_build|Templates|PaperCli|Examples' \
+      > "$out/suite-$part.txt" 2>&1 || true
+    { echo "tests $range of $total"; grep -E "tests passed|tests failed|\(Failed\)|\(Timeout\)|\(Skipped\)" "$out/suite-$part.txt"; } \
+      | tee "$out/suite-$part-summary.txt"
     ;;
   *) echo "unknown mode $mode" >&2; exit 2 ;;
 esac
