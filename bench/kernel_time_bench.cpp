@@ -244,7 +244,7 @@ int Run(const std::string& pattern, const std::string& dataset, const std::vecto
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"skintune_bench_kernel_time: the tuner's kernel time of variants, or plain launches for a profiler"};
+  CLI::App app{"skintune_bench_kernel_time: the tuner's kernel time of variants, or their cold frames for a profiler"};
   std::string device, dataset = "100k-b4", json;
   std::vector<std::string> variants;
   int launches = 0;
@@ -254,7 +254,7 @@ int main(int argc, char** argv) {
   app.add_option("--device", device, "device pattern (skintune devices)")->required();
   app.add_option("--dataset", dataset, "dataset or scene key");
   app.add_option("--variant", variants, "variant key (repeatable)")->required();
-  app.add_option("--launches", launches, "launch each variant's frame N times instead (for ncu)")->check(CLI::Range(0, 100000));
+  app.add_option("--launches", launches, "run N cold frames of each variant instead, as the kernel time takes them (for ncu)")->check(CLI::Range(0, 100000));
   app.add_flag("--fresh-inputs", fresh_inputs, "allocate each measurement's input sets (the tuner shares one packing's)");
   app.add_option("--sequence", sequence, "steps on the first variant: cold, cold:N, frame, copy, prepare, reprepare, reflush, verify, probe (comma-separated)");
   app.add_option("--contexts", contexts, "time the first variant on each of K contexts opened together, in two rounds")

@@ -116,16 +116,16 @@ def runs(reports):
             compatible += ok
             print("differ%s: %s %s %s: %s" % (" (each in the others' tie sets)" if ok else "", k[0][:40], k[1], k[2],
                                              ", ".join("%s %.2f us" % (n.split(".", 2)[2], t * 1e3) for n, t in zip(names, times))))
+        # The winners' contexts' launch starts (0 where none was probed: the host's CPU).
+        ls = [st.get((k[0], k[2], n), 0.0) for st, n in zip(starts, names)]
         if spread > 1.03:
-            # The winners' contexts' launch starts: how much of the spread is the context's.
-            ls = [st.get((k[0], k[2], n), 0.0) for st, n in zip(starts, names)]
+            # How much of the spread is the context's, or the clock's.
             mhz = [st_clock.get((k[0], k[2], n), 0) for st_clock, n in zip(clocks, names)]
             print("spread %.3f: %s %s %s: %s" % (spread, k[0][:40], k[1], k[2], ", ".join(
                 "%.2f us (launch start %.2f, SM clock %s MHz)" % (t * 1e3, l * 1e3, c or "-")
                 for t, l, c in zip(times, ls, mhz))))
-        # As if every run's context had the same launch start (their mean; 0 where none was
-        # probed: the host's CPU): how much of the spread is the contexts'.
-        ls = [st.get((k[0], k[2], n), 0.0) for st, n in zip(starts, names)]
+        # As if every run's context had the same launch start (their mean): how much of the
+        # spread is the contexts'.
         same_start = [t - l + sum(ls) / len(ls) for t, l in zip(times, ls)]
         beyond_spread = max(same_start) / min(same_start)
         api = "%s on %s" % (k[1], k[0].split("/")[0])
