@@ -91,6 +91,7 @@ std::unique_ptr<skintune::internal::Runner> OpenQuietly(
   const ChipQuiet landing(ChipQuiet::Mode::kLanding);
   return open();
 }
+
 constexpr std::size_t kLaunchStartProbeBytes = 4096;
 constexpr int kLaunchStartProbeRounds = 2;
 constexpr int kLaunchStartProbeUntimed = 3;
