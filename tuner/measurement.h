@@ -103,7 +103,13 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 //    2026-12-02), so a measurement carried its command buffer's level and a
 //    run's Vulkan winners moved 3-7% from one process to the next. Other
 //    devices time as in 10.
-inline constexpr int kTimingVersion = 11;
+// 12: OpenCL times each launch of a cold frame to the START of a marker
+//    queued after it, the launch itself without an event, where 11 read the
+//    launch's own END: on NVIDIA's driver the launch's event cost the device
+//    1.3-1.5 us beside the kernel (a 100k-vertex kernel 6.59 us to its END,
+//    5.25 to the marker's START, CUDA's twin 4.10; an H200, 2026-12-03).
+//    Other APIs time as in 11.
+inline constexpr int kTimingVersion = 12;
 
 // The largest verification tolerance a config may set (timing.tolerance:
 // the largest relative error against the gold of the quantised mesh): float32

@@ -245,6 +245,16 @@ TEST(OpenClRunner, TheFramesQueueHasNoProfilingAndARunStillTimesEachLaunch) {
                        "cesium", LaunchTimes::kPositive);
 }
 
+// A cold frame's launch is timed to the START of a marker queued after it,
+// the launch itself without an event (runtime/backends/opencl/opencl_runner.cpp
+// TimeCold says why), and each measurement's timing.clock says so.
+TEST(OpenClRunner, TheKernelClockNamesTheMarkerThatEndsALaunchsTime) {
+  std::string why;
+  OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  EXPECT_EQ(runner->api().kernel_clock(), "OpenCL profiling stamps: the flush's END to a marker's START");
+}
+
 // ---------------------------------------------------------------- instances
 
 // K instances per launch (docs/VARIANTS.md "Instancing"), each with its own

@@ -227,7 +227,7 @@ class OpenClApi final : public DeviceApi {
   // Every OpenCL call but clSetKernelArg is thread-safe (OpenCL 1.2, appendix
   // A.2); the live frame's arguments are set only by the thread making it.
   bool SubmitsFromAnyThread() const override { return true; }
-  std::string kernel_clock() const override { return "OpenCL profiling END stamps"; }
+  std::string kernel_clock() const override { return "OpenCL profiling stamps: the flush's END to a marker's START"; }
   // A CPU device that runs native kernels (PoCL) evicts each cold frame's
   // buffers with one, queued where the flush kernel was: the flush read
   // twice a last-level cache the host shares with other cores (capped at
@@ -724,10 +724,18 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
 
 // kCold (device_api.h): one in-order profiling queue, each frame after the
 // flush's launches and, on a GPU, waited for before the next is queued; an
-// event on the flush's last launch and on every launch of a timed frame: a
-// launch's time runs from the END of the command before it to its own END.
+// event on the flush's last launch, and after every launch of a timed frame a
+// marker with one: a launch's time runs from the END of the flush (or the
+// START of the marker before it) to the START of the marker after it.
 // (Queued back to back, NVIDIA's frames alternated between two gaps after
 // the flush, as CUDA's did: runtime/backends/cuda/cuda_runner.cpp TimeCold.)
+//
+// Why a marker and not the launch's own event: on NVIDIA's driver an event
+// on a kernel costs the device its stamps' work beside the kernel. One
+// 100k-vertex B=4 kernel read 6.59 us to its own END, 5.25 to the START of a
+// marker after it queued without an event, and 5.92 to that marker's END;
+// CUDA's twin 4.10-4.13 (an H200, driver 580.159.04, 2026-12-03; 10.50,
+// 9.12-9.15 and 8.96-9.02 at 400k, 26.53, 25.06-25.15 and 24.54 at 1600k).
 std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
   const cl_command_queue lane = Lane(0);
   const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
@@ -745,9 +753,12 @@ std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
       if (event) events[f - untimed].emplace_back(event);
     }
     for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
+      Enqueue(static_cast<const ClBound&>(*launch), nullptr, nullptr, lane);
+      if (f < untimed) continue;
       cl_event event = nullptr;
-      Enqueue(static_cast<const ClBound&>(*launch), nullptr, f < untimed ? nullptr : &event, lane);
-      if (event) events[f - untimed].emplace_back(event);
+      Check(clEnqueueMarkerWithWaitList(lane, 0, nullptr, &event), "launch",
+            "clEnqueueMarkerWithWaitList after a launch of " + run.key);
+      events[f - untimed].emplace_back(event);
     }
     // A GPU's frame waits (the launch gaps above are a GPU's); a CPU
     // device's (evicts_) follows the one before, its worker threads kept
@@ -762,11 +773,13 @@ std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
     std::vector<double>& launches = ms.emplace_back();
     cl_ulong previous = 0;
     for (std::size_t k = 0; k < frame.size(); ++k) {
-      cl_ulong end = 0;
-      Check(clGetEventProfilingInfo(frame[k].get(), CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr), "launch",
-            "clGetEventProfilingInfo (end) of " + run.key);
-      if (k > 0) launches.push_back(end > previous ? static_cast<double>(end - previous) * 1e-6 : 0.0);
-      previous = end;
+      // The flush's (or eviction's) END, then each marker's START.
+      cl_ulong stamp = 0;
+      Check(clGetEventProfilingInfo(frame[k].get(), k == 0 ? CL_PROFILING_COMMAND_END : CL_PROFILING_COMMAND_START,
+                                    sizeof stamp, &stamp, nullptr),
+            "launch", "clGetEventProfilingInfo of " + run.key);
+      if (k > 0) launches.push_back(stamp > previous ? static_cast<double>(stamp - previous) * 1e-6 : 0.0);
+      previous = stamp;
     }
   }
   return ms;
