@@ -897,7 +897,7 @@ double VulkanApi::TicksToMs(std::uint64_t start, std::uint64_t end) const {
 // (FrameRun in runtime/device_api.h). With one input set (a footprint over
 // twice the last-level cache, 6400k-b4 on the H100) a barrier before every
 // frame drained the GPU each time: 0.21 ms against GL's 0.099 ms for the
-// same kernel (docs/PERFORMANCE.md, "Vulkan's timed frames").
+// same kernel (an H100, November 2026).
 void VulkanApi::RecordFrames(VkCommandBuffer cb, const FrameRun& run, std::size_t begin, std::size_t end,
                              std::set<const void*>& used, VkQueryPool pool, int* query) {
   constexpr VkAccessFlags kShaderAccess = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
