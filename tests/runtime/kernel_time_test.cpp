@@ -304,8 +304,8 @@ TEST_P(KernelTime, SixtyFourTimesTheVerticesTakesLonger) {
   // (an idle H200 at 345 MHz): there 25k read 12-15 us and 1600k 26-32, and
   // the medians of seven frames read about 2x apart: under 2 in both
   // processes on one H200, above it on another (driver 580.159.04,
-  // 2026-12-03). So the quickest
-  // frame of three rounds, the sizes in turn, against 1.5x.
+  // 2026-12-03). So the quickest frame of three rounds, the sizes in turn,
+  // against 1.5x.
   const Prepared small = PrepareMesh(Synthetic("25k-b4-seed5"), VariantOf("padded"));
   const Prepared large = PrepareMesh(Synthetic("1600k-b4-seed5"), VariantOf("padded"));
   const Prepared flush = runner_->PrepareFlush(GetParam().lang, kSmallFlushBytes);
