@@ -150,9 +150,10 @@ enum class FrameUse {
 // differ between APIs by a fixed ~1-3 us (NVIDIA's OpenCL START/END 6.2 us
 // where CUPTI's kernel record spans 2.5 us for the same 25k-vertex kernel,
 // and Nsight Compute's gpu__time_duration 3.8), while the end-to-end time
-// is what every API's timer can stamp alike. OpenCL: the profiling END of
-// the flush's event, then the START of a marker queued after each launch (an
-// event on the launch itself costs NVIDIA's device 1.3-1.5 us more); CUDA: CUPTI's kernel activity
+// is what every API's timer can stamp alike. OpenCL: a marker after the
+// flush and after each launch, from the END of the one before a launch to the
+// START of the one after it (an event on the launch itself costs NVIDIA's
+// device 1.3-1.5 us more); CUDA: CUPTI's kernel activity
 // records (events between the launches where CUPTI cannot be loaded); GL:
 // GL_TIMESTAMP query counters after the flush and after each launch;
 // Vulkan: timestamps after the flush and after each dispatch; the cpu

@@ -109,7 +109,12 @@ MeasureStatus MeasureStatusFromName(const std::string& name);  // throws Error f
 //    1.3-1.5 us beside the kernel (a 100k-vertex kernel 6.59 us to its END,
 //    5.25 to the marker's START, CUDA's twin 4.10; an H200, 2026-12-03).
 //    Other APIs time as in 11.
-inline constexpr int kTimingVersion = 12;
+// 13: OpenCL starts each launch's time at the END of a marker queued before
+//    it (after the flush, or after the launch before), where 12 started at
+//    the flush's END or the marker's START: a marker's own 0.6-0.96 us was in
+//    every launch after a frame's first (bucketed meshes, animated frames;
+//    an H200, 2026-12-03). Other APIs time as in 12.
+inline constexpr int kTimingVersion = 13;
 
 // The largest verification tolerance a config may set (timing.tolerance:
 // the largest relative error against the gold of the quantised mesh): float32

@@ -11,7 +11,10 @@
 #include <atomic>
 #include <cstdlib>
 #include <iostream>
+#include <memory>
 #include <thread>
+#include <type_traits>
+#include <vector>
 
 #include "runner_test_support.h"
 #include "runtime/backends/opencl/opencl_devices.h"
@@ -245,14 +248,75 @@ TEST(OpenClRunner, TheFramesQueueHasNoProfilingAndARunStillTimesEachLaunch) {
                        "cesium", LaunchTimes::kPositive);
 }
 
-// A cold frame's launch is timed to the START of a marker queued after it,
-// the launch itself without an event (runtime/backends/opencl/opencl_runner.cpp
-// TimeCold says why), and each measurement's timing.clock says so.
-TEST(OpenClRunner, TheKernelClockNamesTheMarkerThatEndsALaunchsTime) {
+// A cold frame's launch is timed from the END of the marker queued before it
+// to the START of the marker queued after it, the launch itself without an
+// event (runtime/backends/opencl/opencl_runner.cpp TimeCold says why), and
+// each measurement's timing.clock says so.
+TEST(OpenClRunner, TheKernelClockNamesTheMarkersThatBoundALaunchsTime) {
   std::string why;
   OpenClRunner* runner = Runner(why);
   if (!runner) GTEST_SKIP() << why;
-  EXPECT_EQ(runner->api().kernel_clock(), "OpenCL profiling stamps: the flush's END to a marker's START");
+  EXPECT_EQ(runner->api().kernel_clock(), "OpenCL profiling stamps: a marker's END to the next marker's START");
+}
+
+// What that clock rests on, on the device the tests run on: in one in-order
+// profiling queue a kernel starts after the END of the marker before it and
+// ends by the START of the marker after it, so the span between the two
+// markers holds the kernel and neither marker's own work.
+TEST(OpenClRunner, AKernelRunsBetweenTheMarkersQueuedAroundIt) {
+  std::string why;
+  const OpenClDeviceInfo* d = TestDevice(why);
+  if (!d) GTEST_SKIP() << why;
+  cl_uint platforms = 0;
+  ASSERT_EQ(clGetPlatformIDs(0, nullptr, &platforms), CL_SUCCESS);
+  std::vector<cl_platform_id> platform(platforms);
+  ASSERT_EQ(clGetPlatformIDs(platforms, platform.data(), nullptr), CL_SUCCESS);
+  cl_uint devices = 0;
+  ASSERT_EQ(clGetDeviceIDs(platform.at(d->platform_index), CL_DEVICE_TYPE_ALL, 0, nullptr, &devices), CL_SUCCESS);
+  std::vector<cl_device_id> device(devices);
+  ASSERT_EQ(clGetDeviceIDs(platform.at(d->platform_index), CL_DEVICE_TYPE_ALL, devices, device.data(), nullptr), CL_SUCCESS);
+  const cl_device_id id = device.at(d->device_index);
+  cl_int err = CL_SUCCESS;
+  const std::unique_ptr<std::remove_pointer_t<cl_context>, decltype(&clReleaseContext)> context(
+      clCreateContext(nullptr, 1, &id, nullptr, nullptr, &err), clReleaseContext);
+  ASSERT_EQ(err, CL_SUCCESS);
+  const std::unique_ptr<std::remove_pointer_t<cl_command_queue>, decltype(&clReleaseCommandQueue)> queue(
+      clCreateCommandQueue(context.get(), id, CL_QUEUE_PROFILING_ENABLE, &err), clReleaseCommandQueue);
+  ASSERT_EQ(err, CL_SUCCESS);
+  const char* source = "kernel void add(global uint* x) { x[get_global_id(0)] += 1u; }";
+  const std::unique_ptr<std::remove_pointer_t<cl_program>, decltype(&clReleaseProgram)> program(
+      clCreateProgramWithSource(context.get(), 1, &source, nullptr, &err), clReleaseProgram);
+  ASSERT_EQ(err, CL_SUCCESS);
+  ASSERT_EQ(clBuildProgram(program.get(), 1, &id, "", nullptr, nullptr), CL_SUCCESS);
+  const std::unique_ptr<std::remove_pointer_t<cl_kernel>, decltype(&clReleaseKernel)> kernel(
+      clCreateKernel(program.get(), "add", &err), clReleaseKernel);
+  ASSERT_EQ(err, CL_SUCCESS);
+  constexpr std::size_t kItems = 1u << 16;
+  const std::unique_ptr<std::remove_pointer_t<cl_mem>, decltype(&clReleaseMemObject)> buffer(
+      clCreateBuffer(context.get(), CL_MEM_READ_WRITE, kItems * sizeof(cl_uint), nullptr, &err), clReleaseMemObject);
+  ASSERT_EQ(err, CL_SUCCESS);
+  const cl_mem argument = buffer.get();
+  ASSERT_EQ(clSetKernelArg(kernel.get(), 0, sizeof argument, &argument), CL_SUCCESS);
+  const auto stamp = [](cl_event e, cl_profiling_info which) {
+    cl_ulong at = 0;
+    EXPECT_EQ(clGetEventProfilingInfo(e, which, sizeof at, &at, nullptr), CL_SUCCESS);
+    return at;
+  };
+  for (int frame = 0; frame < 20; ++frame) {
+    SCOPED_TRACE("frame " + std::to_string(frame) + " on " + d->name);
+    cl_event before = nullptr, launch = nullptr, after = nullptr;
+    ASSERT_EQ(clEnqueueNDRangeKernel(queue.get(), kernel.get(), 1, nullptr, &kItems, nullptr, 0, nullptr, nullptr),
+              CL_SUCCESS);
+    ASSERT_EQ(clEnqueueMarkerWithWaitList(queue.get(), 0, nullptr, &before), CL_SUCCESS);
+    ASSERT_EQ(clEnqueueNDRangeKernel(queue.get(), kernel.get(), 1, nullptr, &kItems, nullptr, 0, nullptr, &launch),
+              CL_SUCCESS);
+    ASSERT_EQ(clEnqueueMarkerWithWaitList(queue.get(), 0, nullptr, &after), CL_SUCCESS);
+    ASSERT_EQ(clFinish(queue.get()), CL_SUCCESS);
+    EXPECT_LE(stamp(before, CL_PROFILING_COMMAND_END), stamp(launch, CL_PROFILING_COMMAND_START));
+    EXPECT_LE(stamp(launch, CL_PROFILING_COMMAND_START), stamp(launch, CL_PROFILING_COMMAND_END));
+    EXPECT_LE(stamp(launch, CL_PROFILING_COMMAND_END), stamp(after, CL_PROFILING_COMMAND_START));
+    for (cl_event e : {before, launch, after}) clReleaseEvent(e);
+  }
 }
 
 // ---------------------------------------------------------------- instances

@@ -51,7 +51,7 @@ Measurement Sample(const std::string& key, MeasureStatus status) {
     m.timing.max_ms = 2.0;
     m.timing.repetitions = 10;
     m.timing.tight = true;
-    m.timing.clock = "OpenCL profiling stamps: the flush's END to a marker's START";
+    m.timing.clock = "OpenCL profiling stamps: a marker's END to the next marker's START";
     m.timing.flush_bytes = 1.0e8;
     m.timing.warmup = 3;
     m.timing.input_sets = 4;
@@ -297,7 +297,7 @@ TEST(Measurement, BadMaxErrorSaysWhy) {
 
 TEST(Measurement, CacheKeyNamesDeviceGeneratorDatasetAndVariant) {
   const Measurement m = Sample("opencl.b2.soa.global.wg64", MeasureStatus::kOk);
-  EXPECT_EQ(m.CacheKey(), "opencl:Portable Computing Language/cpu/3.1|0.1.0|timing 12|5000-b2|" + m.variant.Key());
+  EXPECT_EQ(m.CacheKey(), "opencl:Portable Computing Language/cpu/3.1|0.1.0|timing 13|5000-b2|" + m.variant.Key());
   Measurement other = m;
   other.generator_version = "0.2.0";
   EXPECT_NE(other.CacheKey(), m.CacheKey());

@@ -227,7 +227,7 @@ class OpenClApi final : public DeviceApi {
   // Every OpenCL call but clSetKernelArg is thread-safe (OpenCL 1.2, appendix
   // A.2); the live frame's arguments are set only by the thread making it.
   bool SubmitsFromAnyThread() const override { return true; }
-  std::string kernel_clock() const override { return "OpenCL profiling stamps: the flush's END to a marker's START"; }
+  std::string kernel_clock() const override { return "OpenCL profiling stamps: a marker's END to the next marker's START"; }
   // A CPU device that runs native kernels (PoCL) evicts each cold frame's
   // buffers with one, queued where the flush kernel was: the flush read
   // twice a last-level cache the host shares with other cores (capped at
@@ -723,42 +723,49 @@ std::vector<std::vector<double>> OpenClApi::RunFrames(const FrameRun& run) {
 }
 
 // kCold (device_api.h): one in-order profiling queue, each frame after the
-// flush's launches and, on a GPU, waited for before the next is queued; an
-// event on the flush's last launch, and after every launch of a timed frame a
-// marker with one: a launch's time runs from the END of the flush (or the
-// START of the marker before it) to the START of the marker after it.
-// (Queued back to back, NVIDIA's frames alternated between two gaps after
-// the flush, as CUDA's did: runtime/backends/cuda/cuda_runner.cpp TimeCold.)
+// flush's launches and, on a GPU, waited for before the next is queued. In a
+// timed frame a marker with an event follows the flush and every launch, the
+// launches themselves without events: a launch's time runs from the END of
+// the marker before it to the START of the marker after it, so no marker's
+// own work is in any launch's (on a CPU device the eviction's END starts the
+// first). (Queued back to back, NVIDIA's frames alternated between two gaps
+// after the flush, as CUDA's did: runtime/backends/cuda/cuda_runner.cpp
+// TimeCold.)
 //
-// Why a marker and not the launch's own event: on NVIDIA's driver an event
-// on a kernel costs the device its stamps' work beside the kernel. One
+// Why markers and not the launch's own event: on NVIDIA's driver an event on
+// a kernel costs the device its stamps' work beside the kernel. One
 // 100k-vertex B=4 kernel read 6.59 us to its own END, 5.25 to the START of a
 // marker after it queued without an event, and 5.92 to that marker's END;
 // CUDA's twin 4.10-4.13 (an H200, driver 580.159.04, 2026-12-03; 10.50,
 // 9.12-9.15 and 8.96-9.02 at 400k, 26.53, 25.06-25.15 and 24.54 at 1600k).
+// A marker's own START to END is 0.6-0.96 us there, and the kernel after it
+// started (its event's START) 1.25-1.28 us after that END in all 30 frames
+// of a dump (GPU-bf7355ef, 2026-12-03): starting the next launch's time at
+// the marker's END counts none of it, where its START counted it in every
+// launch after a frame's first.
 std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
   const cl_command_queue lane = Lane(0);
   const auto untimed = std::min(run.frames.size(), static_cast<std::size_t>(std::max(run.untimed, 0)));
-  std::vector<std::vector<Event>> events(run.frames.size() - untimed);  // the flush's last, then each launch's
+  std::vector<std::vector<Event>> events(run.frames.size() - untimed);  // the flush's marker, then each launch's
+  const auto mark = [&](std::vector<Event>& into, const char* after) {
+    cl_event event = nullptr;
+    Check(clEnqueueMarkerWithWaitList(lane, 0, nullptr, &event), "launch",
+          std::string("clEnqueueMarkerWithWaitList after ") + after + " of " + run.key);
+    into.emplace_back(event);
+  };
   for (std::size_t f = 0; f < run.frames.size(); ++f) {
+    const bool timed = f >= untimed;
     if (evicts_) {  // the frame's own buffers, evicted by a native kernel in the flush's place
       cl_event event = nullptr;
-      EnqueueEviction(run.frames[f], f >= untimed ? &event : nullptr, lane);
+      EnqueueEviction(run.frames[f], timed ? &event : nullptr, lane);
       if (event) events[f - untimed].emplace_back(event);
     }
-    for (std::size_t k = 0; k < run.flush.size() && !evicts_; ++k) {
-      cl_event event = nullptr;
-      const bool last = f >= untimed && k + 1 == run.flush.size();
-      Enqueue(static_cast<const ClBound&>(*run.flush[k]), nullptr, last ? &event : nullptr, lane);
-      if (event) events[f - untimed].emplace_back(event);
-    }
+    for (std::size_t k = 0; k < run.flush.size() && !evicts_; ++k)
+      Enqueue(static_cast<const ClBound&>(*run.flush[k]), nullptr, nullptr, lane);
+    if (timed && !evicts_) mark(events[f - untimed], "the flush");
     for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
       Enqueue(static_cast<const ClBound&>(*launch), nullptr, nullptr, lane);
-      if (f < untimed) continue;
-      cl_event event = nullptr;
-      Check(clEnqueueMarkerWithWaitList(lane, 0, nullptr, &event), "launch",
-            "clEnqueueMarkerWithWaitList after a launch of " + run.key);
-      events[f - untimed].emplace_back(event);
+      if (timed) mark(events[f - untimed], "a launch");
     }
     // A GPU's frame waits (the launch gaps above are a GPU's); a CPU
     // device's (evicts_) follows the one before, its worker threads kept
@@ -768,18 +775,18 @@ std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
     Check(evicts_ ? clFlush(lane) : clFinish(lane), "launch", "waiting for a frame while timing " + run.key);
   }
   Check(clFinish(lane), "launch", "clFinish after timing " + run.key);
+  const auto stamp = [&](const Event& e, cl_profiling_info which) {
+    cl_ulong at = 0;
+    Check(clGetEventProfilingInfo(e.get(), which, sizeof at, &at, nullptr), "launch",
+          "clGetEventProfilingInfo of " + run.key);
+    return at;
+  };
   std::vector<std::vector<double>> ms;
   for (const std::vector<Event>& frame : events) {
     std::vector<double>& launches = ms.emplace_back();
-    cl_ulong previous = 0;
-    for (std::size_t k = 0; k < frame.size(); ++k) {
-      // The flush's (or eviction's) END, then each marker's START.
-      cl_ulong stamp = 0;
-      Check(clGetEventProfilingInfo(frame[k].get(), k == 0 ? CL_PROFILING_COMMAND_END : CL_PROFILING_COMMAND_START,
-                                    sizeof stamp, &stamp, nullptr),
-            "launch", "clGetEventProfilingInfo of " + run.key);
-      if (k > 0) launches.push_back(stamp > previous ? static_cast<double>(stamp - previous) * 1e-6 : 0.0);
-      previous = stamp;
+    for (std::size_t k = 1; k < frame.size(); ++k) {
+      const cl_ulong from = stamp(frame[k - 1], CL_PROFILING_COMMAND_END), to = stamp(frame[k], CL_PROFILING_COMMAND_START);
+      launches.push_back(to > from ? static_cast<double>(to - from) * 1e-6 : 0.0);
     }
   }
   return ms;
