@@ -131,7 +131,9 @@ enum class FrameUse {
 // the `flush` launches run (a kernel that reads a buffer of at least twice the
 // last-level cache and writes nothing, generator/copy_kernel.h EmitFlush), so
 // the frame starts from a cache holding only clean lines of other data, the
-// state Nsight Compute's default cache control leaves; the frame's launches
+// state Nsight Compute's default cache control leaves (OpenCL on a GPU runs
+// them once per launch of the frame, so the device is still flushing while
+// the host queues the launches: opencl_runner.cpp TimeCold); the frame's launches
 // wait for it and for each other (in order, one queue or stream). Each frame
 // (its flush and launches) is queued at once and waited for before the next
 // is queued, so it starts on an idle device, as Nsight Compute replays a

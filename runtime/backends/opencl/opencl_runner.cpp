@@ -760,8 +760,17 @@ std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
       EnqueueEviction(run.frames[f], timed ? &event : nullptr, lane);
       if (event) events[f - untimed].emplace_back(event);
     }
-    for (std::size_t k = 0; k < run.flush.size() && !evicts_; ++k)
-      Enqueue(static_cast<const ClBound&>(*run.flush[k]), nullptr, nullptr, lane);
+    // The flush once per launch of the frame (it leaves the same clean cache
+    // each time), so the device is still flushing while the host queues the
+    // frame: each launch here costs NVIDIA's host 6-8 us to queue, and one
+    // flush of twice the L2 (about 30 us on an H200) covered one launch and
+    // its markers, not four (runtime/device_api.h, docs/PERFORMANCE.md "NVIDIA's
+    // OpenCL frames of several launches"). A bucketed frame of four launches
+    // read 24.0-41.5 us with one flush, 17.7-17.9 with four, Vulkan's twin
+    // 17.1 (H200s, 2026-12-03).
+    for (std::size_t again = 0; again < std::max<std::size_t>(run.frames[f].size(), 1) && !evicts_; ++again)
+      for (const std::unique_ptr<DeviceObject>& flush : run.flush)
+        Enqueue(static_cast<const ClBound&>(*flush), nullptr, nullptr, lane);
     if (timed && !evicts_) mark(events[f - untimed], "the flush");
     for (const std::unique_ptr<DeviceObject>& launch : run.frames[f]) {
       Enqueue(static_cast<const ClBound&>(*launch), nullptr, nullptr, lane);
