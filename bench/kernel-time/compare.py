@@ -196,7 +196,10 @@ def choice(margin, reports):
 def twins(out):
     """Each size's kernel time per language, then the same less each context's
     launch start (timing.launch_start_ms: a 4 KiB copy's kernel time): the
-    kernel beyond the smallest launch. max/min over OpenCL, CUDA and Vulkan."""
+    kernel beyond the smallest launch; then the frame time (timing.frame_ms,
+    Skin() back to back, which no device stamp touches: an API whose launch
+    starts later on the device is slower there too). max/min over OpenCL,
+    CUDA and Vulkan."""
     by = {}
     for path in glob.glob(os.path.join(out, "twins-*.jsonl")):
         for l in open(path):
@@ -206,7 +209,8 @@ def twins(out):
     langs = ("opencl", "cuda", "vulkan", "glsl-compute")
     figures = (("kernel time, us", lambda t: t["median_ms"] * 1e3),
                ("launch start, us", lambda t: t.get("launch_start_ms", 0) * 1e3),
-               ("beyond the launch start, us", lambda t: (t["median_ms"] - t.get("launch_start_ms", 0)) * 1e3))
+               ("beyond the launch start, us", lambda t: (t["median_ms"] - t.get("launch_start_ms", 0)) * 1e3),
+               ("frame time, us", lambda t: t.get("frame_ms", 0) * 1e3))
     for title, figure in figures:
         print(title)
         print("size       " + "  ".join("%12s" % l for l in langs) + "   max/min (opencl, cuda, vulkan)")

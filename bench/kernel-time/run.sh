@@ -9,7 +9,7 @@
 #                                         then compare.py on their reports (runs-summary.txt) and on
 #                                         their timing logs (turns.txt: when each device's turn ran)
 #   bench/kernel-time/run.sh twins        one variant in OpenCL, CUDA and Vulkan (and GLSL) at 100k..6400k-b4:
-#                                         its kernel time, its context's launch start and the kernel beyond it
+#                                         its kernel time, its context's launch start, the kernel beyond it and its frame time
 #   bench/kernel-time/run.sh suite PART   the GPU suite's half PART (1 or 2): every test this machine can run
 #                                         (suite-PART-summary.txt: the count, and every test failed or skipped)
 #
