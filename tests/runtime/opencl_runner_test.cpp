@@ -259,6 +259,10 @@ TEST(OpenClRunner, TheKernelClockNamesTheMarkersThatBoundALaunchsTime) {
   EXPECT_EQ(runner->api().kernel_clock(), "OpenCL profiling stamps: a marker's END to the next marker's START");
 }
 
+// An OpenCL object released with its clRelease* function.
+template <class T>
+using Owned = std::unique_ptr<std::remove_pointer_t<T>, cl_int (*)(T)>;
+
 // What that clock rests on, on the device the tests run on: in one in-order
 // profiling queue a kernel starts after the END of the marker before it and
 // ends by the START of the marker after it, so the span between the two
@@ -277,23 +281,20 @@ TEST(OpenClRunner, AKernelRunsBetweenTheMarkersQueuedAroundIt) {
   ASSERT_EQ(clGetDeviceIDs(platform.at(d->platform_index), CL_DEVICE_TYPE_ALL, devices, device.data(), nullptr), CL_SUCCESS);
   const cl_device_id id = device.at(d->device_index);
   cl_int err = CL_SUCCESS;
-  const std::unique_ptr<std::remove_pointer_t<cl_context>, decltype(&clReleaseContext)> context(
-      clCreateContext(nullptr, 1, &id, nullptr, nullptr, &err), clReleaseContext);
+  const Owned<cl_context> context(clCreateContext(nullptr, 1, &id, nullptr, nullptr, &err), clReleaseContext);
   ASSERT_EQ(err, CL_SUCCESS);
-  const std::unique_ptr<std::remove_pointer_t<cl_command_queue>, decltype(&clReleaseCommandQueue)> queue(
-      clCreateCommandQueue(context.get(), id, CL_QUEUE_PROFILING_ENABLE, &err), clReleaseCommandQueue);
+  const Owned<cl_command_queue> queue(clCreateCommandQueue(context.get(), id, CL_QUEUE_PROFILING_ENABLE, &err),
+                                      clReleaseCommandQueue);
   ASSERT_EQ(err, CL_SUCCESS);
   const char* source = "kernel void add(global uint* x) { x[get_global_id(0)] += 1u; }";
-  const std::unique_ptr<std::remove_pointer_t<cl_program>, decltype(&clReleaseProgram)> program(
-      clCreateProgramWithSource(context.get(), 1, &source, nullptr, &err), clReleaseProgram);
+  const Owned<cl_program> program(clCreateProgramWithSource(context.get(), 1, &source, nullptr, &err), clReleaseProgram);
   ASSERT_EQ(err, CL_SUCCESS);
   ASSERT_EQ(clBuildProgram(program.get(), 1, &id, "", nullptr, nullptr), CL_SUCCESS);
-  const std::unique_ptr<std::remove_pointer_t<cl_kernel>, decltype(&clReleaseKernel)> kernel(
-      clCreateKernel(program.get(), "add", &err), clReleaseKernel);
+  const Owned<cl_kernel> kernel(clCreateKernel(program.get(), "add", &err), clReleaseKernel);
   ASSERT_EQ(err, CL_SUCCESS);
   constexpr std::size_t kItems = 1u << 16;
-  const std::unique_ptr<std::remove_pointer_t<cl_mem>, decltype(&clReleaseMemObject)> buffer(
-      clCreateBuffer(context.get(), CL_MEM_READ_WRITE, kItems * sizeof(cl_uint), nullptr, &err), clReleaseMemObject);
+  const Owned<cl_mem> buffer(clCreateBuffer(context.get(), CL_MEM_READ_WRITE, kItems * sizeof(cl_uint), nullptr, &err),
+                            clReleaseMemObject);
   ASSERT_EQ(err, CL_SUCCESS);
   const cl_mem argument = buffer.get();
   ASSERT_EQ(clSetKernelArg(kernel.get(), 0, sizeof argument, &argument), CL_SUCCESS);

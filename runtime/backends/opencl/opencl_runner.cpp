@@ -768,7 +768,8 @@ std::vector<std::vector<double>> OpenClApi::TimeCold(const FrameRun& run) {
     // OpenCL frames of several launches"). A bucketed frame of four launches
     // read 24.0-41.5 us with one flush, 17.7-17.9 with four, Vulkan's twin
     // 17.1 (H200s, 2026-12-03).
-    for (std::size_t again = 0; again < std::max<std::size_t>(run.frames[f].size(), 1) && !evicts_; ++again)
+    const std::size_t flushes = evicts_ ? 0 : std::max<std::size_t>(run.frames[f].size(), 1);
+    for (std::size_t again = 0; again < flushes; ++again)
       for (const std::unique_ptr<DeviceObject>& flush : run.flush)
         Enqueue(static_cast<const ClBound&>(*flush), nullptr, nullptr, lane);
     if (timed && !evicts_) mark(events[f - untimed], "the flush");
