@@ -421,7 +421,8 @@ TEST_P(KernelTime, TheFlushRunsBeforeEveryFrameAndIsInNoLaunchsTime) {
 // the host's work for a frame, frames of four launches (CesiumMan bucketed)
 // take about four times as long as frames of one (padded); with one flush a
 // frame they would take about as long. The quickest of three rounds, the two
-// in turn.
+// in turn. On an H200 (driver 580.159.04, 2026-12-03) 5.57-5.60 ms against
+// 1.46-1.47, and 1.56 against 1.45 with the flush run once a frame.
 TEST_P(KernelTime, OpenClOnAGpuRunsTheFlushOncePerLaunchOfAFrame) {
   if (GetParam().backend != "opencl") GTEST_SKIP() << "only OpenCL runs its flush once per launch";
   if (runner_->api().evicts_own_buffers())
