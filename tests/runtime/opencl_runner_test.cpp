@@ -269,31 +269,22 @@ using Owned = std::unique_ptr<std::remove_pointer_t<T>, cl_int (*)(T)>;
 // markers holds the kernel and neither marker's own work.
 TEST(OpenClRunner, AKernelRunsBetweenTheMarkersQueuedAroundIt) {
   std::string why;
-  const OpenClDeviceInfo* d = TestDevice(why);
-  if (!d) GTEST_SKIP() << why;
-  cl_uint platforms = 0;
-  ASSERT_EQ(clGetPlatformIDs(0, nullptr, &platforms), CL_SUCCESS);
-  std::vector<cl_platform_id> platform(platforms);
-  ASSERT_EQ(clGetPlatformIDs(platforms, platform.data(), nullptr), CL_SUCCESS);
-  cl_uint devices = 0;
-  ASSERT_EQ(clGetDeviceIDs(platform.at(d->platform_index), CL_DEVICE_TYPE_ALL, 0, nullptr, &devices), CL_SUCCESS);
-  std::vector<cl_device_id> device(devices);
-  ASSERT_EQ(clGetDeviceIDs(platform.at(d->platform_index), CL_DEVICE_TYPE_ALL, devices, device.data(), nullptr), CL_SUCCESS);
-  const cl_device_id id = device.at(d->device_index);
+  const OpenClRunner* runner = Runner(why);
+  if (!runner) GTEST_SKIP() << why;
+  const cl_device_id id = static_cast<cl_device_id>(runner->device());
+  const cl_context context = static_cast<cl_context>(runner->context());
   cl_int err = CL_SUCCESS;
-  const Owned<cl_context> context(clCreateContext(nullptr, 1, &id, nullptr, nullptr, &err), clReleaseContext);
-  ASSERT_EQ(err, CL_SUCCESS);
-  const Owned<cl_command_queue> queue(clCreateCommandQueue(context.get(), id, CL_QUEUE_PROFILING_ENABLE, &err),
+  const Owned<cl_command_queue> queue(clCreateCommandQueue(context, id, CL_QUEUE_PROFILING_ENABLE, &err),
                                       clReleaseCommandQueue);
   ASSERT_EQ(err, CL_SUCCESS);
   const char* source = "kernel void add(global uint* x) { x[get_global_id(0)] += 1u; }";
-  const Owned<cl_program> program(clCreateProgramWithSource(context.get(), 1, &source, nullptr, &err), clReleaseProgram);
+  const Owned<cl_program> program(clCreateProgramWithSource(context, 1, &source, nullptr, &err), clReleaseProgram);
   ASSERT_EQ(err, CL_SUCCESS);
   ASSERT_EQ(clBuildProgram(program.get(), 1, &id, "", nullptr, nullptr), CL_SUCCESS);
   const Owned<cl_kernel> kernel(clCreateKernel(program.get(), "add", &err), clReleaseKernel);
   ASSERT_EQ(err, CL_SUCCESS);
   constexpr std::size_t kItems = 1u << 16;
-  const Owned<cl_mem> buffer(clCreateBuffer(context.get(), CL_MEM_READ_WRITE, kItems * sizeof(cl_uint), nullptr, &err),
+  const Owned<cl_mem> buffer(clCreateBuffer(context, CL_MEM_READ_WRITE, kItems * sizeof(cl_uint), nullptr, &err),
                             clReleaseMemObject);
   ASSERT_EQ(err, CL_SUCCESS);
   const cl_mem argument = buffer.get();
@@ -304,7 +295,7 @@ TEST(OpenClRunner, AKernelRunsBetweenTheMarkersQueuedAroundIt) {
     return at;
   };
   for (int frame = 0; frame < 20; ++frame) {
-    SCOPED_TRACE("frame " + std::to_string(frame) + " on " + d->name);
+    SCOPED_TRACE("frame " + std::to_string(frame) + " on " + runner->device_name());
     cl_event before = nullptr, launch = nullptr, after = nullptr;
     ASSERT_EQ(clEnqueueNDRangeKernel(queue.get(), kernel.get(), 1, nullptr, &kItems, nullptr, 0, nullptr, nullptr),
               CL_SUCCESS);
